@@ -1,0 +1,166 @@
+"""SpCoMapping's Gibbs sampler as a :class:`pyro.infer.mcmc.MCMCKernel`.
+
+::
+
+    kernel = SpCoGibbs(spcomapping_model)
+    mcmc = MCMC(kernel, num_samples=500, warmup_steps=200, num_chains=2)
+    mcmc.run(data, config)          # the model's arguments, as for NUTS
+    mcmc.get_samples()["pi"]        # [num_samples * num_chains, L]
+
+The work is done by the pure functions of :mod:`spcopyro.gibbs.sweep`; this class adapts them to
+Pyro's MCMC driver and works around its habits:
+
+* MCMC concatenates every saved param into one float tensor per sample, so integer sites would come
+  back as floats: the kernel's ``transforms`` map ``labels`` and ``num_concepts`` back to integers.
+* MCMC keeps every saved param of every sample in memory: by default only the small sites
+  (``pi``, ``log_joint``, ``num_concepts``) are saved; add ``labels`` (N values a sample),
+  ``theta`` or ``w`` through ``save_params`` when you want them and have the memory. For long runs
+  with thinned label maps use :func:`spcopyro.gibbs.api.run_gibbs`.
+* MCMC never calls ``end_warmup``, and with ``num_chains > 1`` runs each chain in a subprocess (the
+  kernel pickles; each chain's generator is seeded from the worker's torch RNG, which MCMC seeds).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import pyro.poutine as poutine
+import torch
+from pyro.infer.mcmc.mcmc_kernel import MCMCKernel
+
+from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.init import initial_state
+from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
+from spcopyro.gibbs.sweep import gibbs_sweep, log_joint, num_concepts_in_use
+from spcopyro.model import (
+    SITE_LABELS,
+    SITE_PI,
+    SITE_THETA,
+    SITE_W,
+    ModelData,
+    spcomapping_model,
+)
+
+DEFAULT_SAVE_PARAMS = ("log_joint", "num_concepts", "pi")
+ALL_PARAMS = ("labels", "log_joint", "num_concepts", "pi", "theta", "w")
+
+
+class _ToInteger:
+    """A stand-in transform: MCMC calls ``transforms[name].inv(z)`` on the collected samples."""
+
+    def __init__(self, dtype: torch.dtype) -> None:
+        self.dtype = dtype
+
+    def inv(self, value: torch.Tensor) -> torch.Tensor:
+        return value.round().to(self.dtype)
+
+
+class SpCoGibbs(MCMCKernel):
+    """Enumerated-Gibbs kernel for :func:`~spcopyro.model.spcomapping_model`.
+
+    Args:
+        model: the Pyro model (its site names and shapes are checked against the kernel's state
+            in :meth:`setup`, so model and kernel cannot drift apart).
+        init_labels: [N] starting labels (random if None).
+        save_params: which of ``labels``, ``log_joint``, ``num_concepts``, ``pi``, ``theta``, ``w``
+            MCMC keeps for every sample.
+    """
+
+    def __init__(
+        self,
+        model: Callable[[ModelData, SpCoConfig], None] = spcomapping_model,
+        init_labels: torch.Tensor | None = None,
+        save_params: Sequence[str] = DEFAULT_SAVE_PARAMS,
+    ) -> None:
+        unknown = set(save_params) - set(ALL_PARAMS)
+        if unknown:
+            raise ValueError(f"unknown save_params {sorted(unknown)}; choose from {ALL_PARAMS}")
+        self.model = model
+        self.init_labels = init_labels
+        self.save_params = sorted(save_params)
+        self.transforms = {
+            "labels": _ToInteger(torch.long),
+            "num_concepts": _ToInteger(torch.long),
+        }
+        self._state: GibbsState | None = None
+        self._generator: torch.Generator | None = None
+        self._plan: SweepPlan | None = None
+        self._steps = 0
+        self._warmup_steps = 0
+
+    def setup(self, warmup_steps: int, data: ModelData, config: SpCoConfig) -> None:
+        self._data, self._config = data, config
+        self._warmup_steps, self._steps = warmup_steps, 0
+        self._check_model_sites()
+        seed = int(torch.randint(2**62, ()))  # MCMC seeds torch's global RNG per chain
+        self._generator = torch.Generator().manual_seed(seed)
+        self._plan = make_sweep_plan(data)
+        self._state = initial_state(data, config, self._generator, self.init_labels)
+
+    def _check_model_sites(self) -> None:
+        trace = poutine.trace(self.model).get_trace(self._data, self._config)
+        L = self._config.num_concepts
+        expected = {
+            SITE_PI: (L,),
+            SITE_THETA: (L, self._data.num_feature_classes),
+            SITE_W: (L, self._data.vocabulary_size),
+            SITE_LABELS: (self._data.num_free,),
+        }
+        for name, shape in expected.items():
+            if name not in trace.nodes:
+                raise ValueError(f"model has no sample site {name!r}, which SpCoGibbs samples")
+            actual = tuple(trace.nodes[name]["value"].shape)
+            if actual != shape:
+                raise ValueError(
+                    f"model site {name!r} has shape {actual}, SpCoGibbs expects {shape}"
+                )
+
+    def _params(self, state: GibbsState) -> dict[str, torch.Tensor]:
+        values = {
+            "labels": lambda: state.labels,
+            "log_joint": lambda: log_joint(state, self._data, self._config),
+            "num_concepts": lambda: torch.tensor(
+                num_concepts_in_use(state.labels, self._config.num_concepts)
+            ),
+            "pi": lambda: state.log_pi.exp(),
+            "theta": lambda: state.log_theta.exp(),
+            "w": lambda: state.log_w.exp(),
+        }
+        return {name: values[name]() for name in self.save_params}
+
+    @property
+    def initial_params(self) -> dict[str, torch.Tensor]:
+        if self._state is None:
+            raise RuntimeError("call setup() (MCMC.run does) before asking for initial_params")
+        return self._params(self._state)
+
+    @initial_params.setter
+    def initial_params(self, params: dict[str, torch.Tensor]) -> None:
+        if "labels" in params:
+            self.init_labels = params["labels"].to(torch.long)
+
+    def sample(self, params: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+        assert self._state is not None and self._generator is not None, "setup() not called"
+        self._state = gibbs_sweep(
+            self._state, self._data, self._config, self._generator, self._plan
+        )
+        self._steps += 1
+        return self._params(self._state)
+
+    @property
+    def state(self) -> GibbsState:
+        """The current state of the chain (labels, log pi, log theta, log w)."""
+        assert self._state is not None, "setup() not called"
+        return self._state
+
+    def logging(self) -> dict[str, float] | None:
+        if self._state is None:
+            return None
+        stage = "warmup" if self._steps <= self._warmup_steps else "sampling"
+        return {
+            "stage": stage,  # type: ignore[dict-item]
+            "concepts": num_concepts_in_use(self._state.labels, self._config.num_concepts),
+        }
+
+    def diagnostics(self) -> dict[str, float]:
+        return {"sweeps": float(self._steps)}

@@ -1,0 +1,256 @@
+r"""One Gibbs sweep of SpCoMapping (the paper's Algorithm 1), vectorised over cells and concepts.
+
+A sweep draws every free cell's label from its full conditional (eq. 13), colour block by colour
+block, then pi, theta and w from their conjugate Dirichlet conditionals (eqs. 14-17).
+
+**Cell labels (eq. 13).** For a free cell i with neighbour labels n_l(i) = #{j ~ i : C_j = l},
+
+.. math::
+
+    p(C_i = l \mid \text{rest}) \propto \pi_l \, e^{\gamma n_l(i)}
+        \prod_{t \in i} \theta_{l, f_t} \, w_{l, S_t}.
+
+Cells of one colour of the neighbour graph (checkerboard for the 4-neighbourhood, 2x2 pattern for
+8) are conditionally independent, so each colour is drawn at once; the result is a valid Gibbs
+scan (a systematic scan in colour order instead of raster order; both leave the posterior
+invariant, and the tests check they agree in distribution).
+
+**Cells without observations** are almost all of them, and their conditional is a pi-weighted
+background tilted towards at most D neighbour labels. Writing e^{gamma n} = 1 + expm1(gamma n),
+
+.. math::
+
+    p(C_i = l) \propto \pi_l + \sum_{k \in \text{distinct nbr labels}}
+        \delta_{lk} \, \pi_k \, \mathrm{expm1}(\gamma n_k(i)),
+
+a two-part mixture of total mass 1 + sum_k pi_k expm1(gamma n_k): with the first part's share draw
+l from pi (one binary search in pi's CDF), otherwise one of the <= D neighbour labels. That costs
+O(D^2 + log L) per cell instead of O(L). Cells with observations (a few hundred) get the full
+O(L) enumeration. The reference for both is :func:`label_log_conditionals`.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from spcopyro.config import SpCoConfig
+from spcopyro.distributions import multinomial_counts_log_prob
+from spcopyro.gibbs.random import sample_categorical_logits, sample_log_dirichlet
+from spcopyro.gibbs.state import ColourBlock, GibbsState, SweepPlan, make_sweep_plan
+from spcopyro.model import DTYPE, ModelData, potts_agreements
+
+
+def observation_log_likelihood(
+    log_theta: torch.Tensor, log_w: torch.Tensor, data: ModelData, config: SpCoConfig
+) -> torch.Tensor:
+    """[M, L] log-likelihood of each observed cell's counts under each concept (up to constants).
+
+    sum_k f_k log theta_{l,k} + sum_v S_v log w_{l,v}: the concept-dependent part of eqs. (5), (7).
+    """
+    M, L = data.obs_cells.shape[0], log_theta.shape[0]
+    loglik = torch.zeros(M, L, dtype=DTYPE)
+    if config.use_images:
+        loglik += data.image_counts @ log_theta.T  # [M, K] @ [K, L]
+    if config.use_words:
+        loglik += data.word_counts @ log_w.T  # [M, V] @ [V, L]
+    return loglik
+
+
+def neighbour_agreements(neighbour_labels: torch.Tensor, num_concepts: int) -> torch.Tensor:
+    """[n, L] n_l(i): how many of each cell's neighbours carry label l (``-1`` = no neighbour)."""
+    valid = neighbour_labels >= 0  # [n, D]
+    agree = torch.zeros(neighbour_labels.shape[0], num_concepts, dtype=DTYPE)
+    return agree.scatter_add_(1, neighbour_labels.clamp_min(0), valid.to(DTYPE))
+
+
+def _gather_neighbour_labels(labels: torch.Tensor, neighbours: torch.Tensor) -> torch.Tensor:
+    """[n, D] labels of the neighbours, -1 where there is none."""
+    return torch.where(neighbours >= 0, labels[neighbours.clamp_min(0)], -1)
+
+
+def label_log_conditionals(
+    state: GibbsState, data: ModelData, config: SpCoConfig, cells: torch.Tensor
+) -> torch.Tensor:
+    """[n, L] normalised log p(C_i = l | everything else) for the given cells: eq. (13), enumerated.
+
+    The readable reference that the sweep's fast path is tested against.
+    """
+    neighbour_labels = _gather_neighbour_labels(state.labels, data.neighbours[cells])  # [n, D]
+    logits = state.log_pi + config.gamma * neighbour_agreements(
+        neighbour_labels, config.num_concepts
+    )  # [n, L]
+    obs_row = data.observation_rows()[cells]  # [n]
+    observed = obs_row >= 0
+    if observed.any():
+        loglik = observation_log_likelihood(state.log_theta, state.log_w, data, config)
+        logits[observed] += loglik[obs_row[observed]]
+    return torch.log_softmax(logits, dim=-1)
+
+
+def _sample_block_unobserved(
+    neighbour_labels: torch.Tensor,
+    pi_ext: torch.Tensor,
+    tilt: torch.Tensor,
+    pi_cdf: torch.Tensor,
+    generator: torch.Generator,
+) -> torch.Tensor:
+    """[n] draws from pi_l e^{gamma n_l} via the background + neighbour mixture (module doc).
+
+    Slot s of a cell carries weight pi_{a_s} expm1(gamma n_{a_s}) / n_{a_s}, so the slots sharing
+    a label add up to that label's neighbour part without any de-duplication.
+
+    Args:
+        neighbour_labels: [n, D] int64, a distinct negative sentinel where no neighbour.
+        pi_ext: [L + D] float64 pi followed by D zeros (indexed by label, sentinels wrap to zeros).
+        tilt: [D + 1] float64 expm1(gamma k) / k for k = 0..D (0 at k = 0).
+        pi_cdf: [L] float64 cumulative sum of pi.
+    """
+    D = neighbour_labels.shape[1]
+    agree = (neighbour_labels[:, :, None] == neighbour_labels[:, None, :]).sum(-1)  # [n, D]
+    weight = pi_ext[neighbour_labels] * tilt[agree]  # [n, D]
+    cumulative = weight.cumsum(-1)  # [n, D]
+    neighbour_mass = cumulative[:, -1]  # [n]
+    u = torch.rand(neighbour_mass.shape, dtype=DTYPE, generator=generator)
+    u = u * (1.0 + neighbour_mass)  # [n]
+    slot = (u[:, None] >= cumulative).sum(-1)  # [n], D means "background"
+    chosen = neighbour_labels.gather(1, slot.clamp_max(D - 1)[:, None])[:, 0]  # [n]
+    # Given the background part, (u - neighbour_mass) is uniform on [0, 1): reuse it.
+    background = torch.searchsorted(pi_cdf, u - neighbour_mass, right=True)
+    background = background.clamp_max(pi_cdf.shape[0] - 1)  # [n]
+    return torch.where(slot < D, chosen, background)
+
+
+def _sample_block(
+    labels_ext: torch.Tensor,
+    block: ColourBlock,
+    log_pi: torch.Tensor,
+    pi_ext: torch.Tensor,
+    tilt: torch.Tensor,
+    pi_cdf: torch.Tensor,
+    loglik: torch.Tensor,
+    config: SpCoConfig,
+    generator: torch.Generator,
+) -> None:
+    """Redraw the labels of one colour block in place (``labels_ext``: [N + D] with sentinels)."""
+    neighbour_labels = labels_ext[block.neighbours]  # [Nc, D]
+    new = _sample_block_unobserved(neighbour_labels, pi_ext, tilt, pi_cdf, generator)
+    if block.observed_positions.numel():
+        observed_nb = neighbour_labels[block.observed_positions]  # [Mc, D]
+        logits = (
+            log_pi
+            + config.gamma * neighbour_agreements(observed_nb, config.num_concepts)
+            + loglik[block.observed_rows]
+        )  # [Mc, L]
+        new[block.observed_positions] = sample_categorical_logits(logits, generator)
+    labels_ext[block.cells] = new
+
+
+def sample_labels(
+    state: GibbsState,
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    plan: SweepPlan | None = None,
+) -> torch.Tensor:
+    """[N] new labels: every free cell drawn from eq. (13), one colour block at a time."""
+    plan = make_sweep_plan(data) if plan is None else plan
+    D = data.neighbours.shape[1]
+    sentinels = -1 - torch.arange(D)  # [D] distinct, never equal to a label
+    labels_ext = torch.cat([state.labels, sentinels])  # [N + D]
+    pi = torch.exp(state.log_pi)  # [L]
+    pi_ext = torch.cat([pi, torch.zeros(D, dtype=DTYPE)])  # [L + D]; index -1-s hits a zero
+    k = torch.arange(D + 1, dtype=DTYPE)
+    tilt = torch.where(k > 0, torch.expm1(config.gamma * k) / k.clamp_min(1), 0.0)  # [D + 1]
+    pi_cdf = pi.cumsum(0)  # [L]
+    loglik = observation_log_likelihood(state.log_theta, state.log_w, data, config)  # [M, L]
+    for block in plan.blocks:
+        _sample_block(
+            labels_ext, block, state.log_pi, pi_ext, tilt, pi_cdf, loglik, config, generator
+        )
+    return labels_ext[: data.num_free]
+
+
+def concept_statistics(
+    labels: torch.Tensor, data: ModelData, config: SpCoConfig
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Sufficient statistics of the globals' conditionals.
+
+    Returns:
+        cells_per_concept [L], image_counts_per_concept [L, K], word_counts_per_concept [L, V]
+        (zero tensors for a modality that is switched off).
+    """
+    L = config.num_concepts
+    cells_per_concept = torch.bincount(labels, minlength=L).to(DTYPE)  # [L]
+    observed_labels = labels[data.obs_cells]  # [M]
+    images = torch.zeros(L, data.num_feature_classes, dtype=DTYPE)
+    words = torch.zeros(L, data.vocabulary_size, dtype=DTYPE)
+    if config.use_images:
+        images.index_add_(0, observed_labels, data.image_counts)
+    if config.use_words:
+        words.index_add_(0, observed_labels, data.word_counts)
+    return cells_per_concept, images, words
+
+
+def sample_globals(
+    labels: torch.Tensor, data: ModelData, config: SpCoConfig, generator: torch.Generator
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(log pi, log theta, log w) from their conjugate conditionals given the labels.
+
+    pi | C ~ Dir(alpha/L + m_l) (DP, eq. 14) or Dir(alpha + m_l) (eq. 15), m_l = #cells labelled l;
+    theta_l | . ~ Dir(chi + sum of image counts in cells labelled l) (eq. 16);
+    w_l | . ~ Dir(beta + sum of word counts in cells labelled l) (eq. 17).
+    """
+    cells_per_concept, images, words = concept_statistics(labels, data, config)
+    log_pi = sample_log_dirichlet(config.pi_concentration + cells_per_concept, generator)
+    log_theta = sample_log_dirichlet(config.chi + images, generator)
+    log_w = sample_log_dirichlet(config.beta + words, generator)
+    return log_pi, log_theta, log_w
+
+
+def gibbs_sweep(
+    state: GibbsState,
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    plan: SweepPlan | None = None,
+) -> GibbsState:
+    """One iteration of Algorithm 1: all cell labels, then pi, theta and w."""
+    labels = sample_labels(state, data, config, generator, plan)
+    return GibbsState(labels, *sample_globals(labels, data, config, generator))
+
+
+def _dirichlet_log_density(log_x: torch.Tensor, concentration: float) -> torch.Tensor:
+    """sum over rows of log Dir(x | concentration, ..., concentration), from log x."""
+    K = log_x.shape[-1]
+    a = torch.tensor(concentration, dtype=DTYPE)
+    normaliser = torch.lgamma(a * K) - K * torch.lgamma(a)
+    return (normaliser + (a - 1) * log_x.sum(-1)).sum()
+
+
+def log_joint(state: GibbsState, data: ModelData, config: SpCoConfig) -> torch.Tensor:
+    """The model's unnormalised log joint (see :func:`~spcopyro.model.spcomapping_model`).
+
+    Equal to the ``log_prob_sum`` of a Pyro trace of the model at this state (tested).
+    """
+    total = _dirichlet_log_density(state.log_pi, config.pi_concentration)
+    total = total + _dirichlet_log_density(state.log_theta, config.chi)
+    total = total + _dirichlet_log_density(state.log_w, config.beta)
+    total = total + state.log_pi[state.labels].sum()
+    total = total + config.gamma * potts_agreements(state.labels, data.pairs)
+    observed_labels = state.labels[data.obs_cells]
+    if config.use_images:
+        total = (
+            total
+            + multinomial_counts_log_prob(data.image_counts, state.log_theta[observed_labels]).sum()
+        )
+    if config.use_words:
+        total = (
+            total
+            + multinomial_counts_log_prob(data.word_counts, state.log_w[observed_labels]).sum()
+        )
+    return total
+
+
+def num_concepts_in_use(labels: torch.Tensor, num_concepts: int) -> int:
+    """How many distinct concepts label at least one cell."""
+    return int((torch.bincount(labels, minlength=num_concepts) > 0).sum())

@@ -1,0 +1,176 @@
+"""The SpCoMapping generative model as a Pyro program (paper eqs. 1-10).
+
+The model is :func:`spcomapping_model`; :class:`ModelData` holds the map structure and the
+per-cell observation counts it reads, built from an occupancy grid by :func:`make_model_data`.
+Every free cell is one element of the ``cells`` plate, indexed in the grid's ``free_index`` order
+(raster order of the map image); occupied and unknown cells are not in the model at all.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, NamedTuple
+
+import numpy as np
+import pyro
+import pyro.distributions as dist
+import torch
+
+from spcopyro.config import SpCoConfig
+from spcopyro.distributions import MultinomialCounts
+
+if TYPE_CHECKING:  # pragma: no cover
+    from spcopyro.data import CellCounts
+    from spcopyro.maps import OccupancyGrid
+
+DTYPE = torch.float64  # Dirichlet draws with concentrations from 1e-3 to 1e8 need float64
+
+# Site names, read by the Gibbs kernel (and checked against a trace of the model).
+SITE_PI, SITE_THETA, SITE_W, SITE_LABELS = "pi", "theta", "w", "labels"
+SITE_POTTS, SITE_IMAGES, SITE_WORDS = "potts", "images", "words"
+
+
+class ModelData(NamedTuple):
+    """What the model conditions on: N free cells, M of them observed, K classes, V words."""
+
+    num_free: int
+    """N, the number of free cells (the ``cells`` plate)."""
+    neighbours: torch.Tensor
+    """[N, D] int64: free index of each cell's D = 4 (or 8) neighbours, -1 where none is free."""
+    pairs: torch.Tensor
+    """[P, 2] int64: every unordered pair of neighbouring free cells once (a < b)."""
+    colours: tuple[torch.Tensor, ...]
+    """Graph colouring: int64 free indices of each colour class (2 for D=4, 4 for D=8)."""
+    obs_cells: torch.Tensor
+    """[M] int64: free index of each cell holding observations (ascending)."""
+    image_counts: torch.Tensor
+    """[M, K] float64: image-feature counts summed per observed cell."""
+    word_counts: torch.Tensor
+    """[M, V] float64: word counts (or tf-idf weights) summed per observed cell."""
+
+    @property
+    def num_feature_classes(self) -> int:
+        return self.image_counts.shape[-1]
+
+    @property
+    def vocabulary_size(self) -> int:
+        return self.word_counts.shape[-1]
+
+    def observation_rows(self) -> torch.Tensor:
+        """[N] int64: each free cell's row in ``obs_cells`` and the count tensors, -1 if none."""
+        rows = torch.full((self.num_free,), -1, dtype=torch.long)
+        rows[self.obs_cells] = torch.arange(self.obs_cells.shape[0])
+        return rows
+
+
+def make_model_data(grid: OccupancyGrid, counts: CellCounts, connectivity: int = 4) -> ModelData:
+    """The model's tensors from a grid and its :class:`~spcopyro.data.CellCounts`."""
+    if counts.num_free != grid.num_free:
+        raise ValueError(
+            f"CellCounts were made for a map with {counts.num_free} free cells, "
+            f"this map has {grid.num_free}"
+        )
+
+    def as_long(a: np.ndarray) -> torch.Tensor:
+        return torch.as_tensor(np.ascontiguousarray(a), dtype=torch.long)
+
+    return ModelData(
+        num_free=int(grid.num_free),
+        neighbours=as_long(grid.neighbour_table(connectivity)),
+        pairs=as_long(grid.neighbour_pairs(connectivity)),
+        colours=tuple(as_long(c) for c in grid.colour_classes(connectivity)),
+        obs_cells=as_long(counts.cells),
+        image_counts=torch.as_tensor(counts.image_counts, dtype=DTYPE),
+        word_counts=torch.as_tensor(counts.word_counts, dtype=DTYPE),
+    )
+
+
+def potts_agreements(labels: torch.Tensor, pairs: torch.Tensor) -> torch.Tensor:
+    """E(C) = sum over neighbour pairs (a, b) of delta(C_a, C_b), the Potts MRF's statistic.
+
+    ``labels`` is ``[..., N]``; the result is ``[...]`` (float64).
+    """
+    same = labels[..., pairs[:, 0]] == labels[..., pairs[:, 1]]  # [..., P]
+    return same.sum(-1).to(DTYPE)
+
+
+def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
+    r"""SpCoMapping (Katsumata et al., 2019), eqs. (1)-(10); its conditionals are eqs. (13)-(17).
+
+    .. math::
+
+        \pi &\sim \mathrm{Dir}(\alpha/L, \dots, \alpha/L)
+            \;\text{(weak-limit DP, eq. 2) or}\; \mathrm{Dir}(\alpha, \dots, \alpha) \\
+        \theta_l &\sim \mathrm{Dir}(\chi), \quad w_l \sim \mathrm{Dir}(\beta),
+            \qquad l = 1..L \quad\text{(eqs. 4, 6)} \\
+        p(C \mid \pi, \gamma) &\propto \prod_{ij} \mathrm{Mult}(C_{ij} \mid \pi)\,
+            \exp\Big(\gamma \sum_{(ij, i'j') \in \mathcal{N}} \delta(C_{ij}, C_{i'j'})\Big)
+            \quad\text{(eqs. 1, 3)} \\
+        f_t &\sim \mathrm{Mult}(\theta_{C_{\mathrm{convert}(x_t)}}), \quad
+        S_t \sim \mathrm{Mult}(w_{C_{\mathrm{convert}(x_t)}}) \quad\text{(eqs. 5, 7, 11)}
+
+    **The density.** As in the paper, the Potts normaliser :math:`Z(\pi, \gamma)` is left out: the
+    ``labels`` site scores :math:`\sum_{ij} \log \pi_{C_{ij}}` and the ``potts`` factor adds
+    :math:`\gamma E(C)`. So this model's log density is the *unnormalised* joint
+
+    .. math::
+
+        \log p^*(\pi, \theta, w, C, f, S) = \log \mathrm{Dir}(\pi)
+          + \sum_l \log \mathrm{Dir}(\theta_l)
+          + \sum_l \log \mathrm{Dir}(w_l) + \sum_{ij} \log \pi_{C_{ij}} + \gamma E(C)
+          + \sum_{\text{observed cells}} \log \mathrm{Mult}(f, S \mid \theta_C, w_C),
+
+    whose full conditionals are exactly Algorithm 1's: eq. (13) for each cell label and the
+    conjugate Dirichlet draws of eqs. (14)-(17). The joint of :math:`(\pi, C)` it defines,
+    :math:`\mathrm{Dir}(\pi) \prod \pi_{C_{ij}} e^{\gamma E(C)}`, is still proper (finite label
+    space), which is what the joint-distribution tests sample from.
+
+    Observations enter per observed cell: the features and words of all observations that fall
+    in one cell are summed (a multinomial's counts are sufficient), so the model reads
+    ``data.image_counts`` and ``data.word_counts`` ``[M, ...]``. Counts may be real-valued
+    (probabilities, tf-idf weights): see :class:`~spcopyro.distributions.MultinomialCounts`.
+
+    **Running it forward.** Under :func:`pyro.poutine.uncondition` it draws pi, theta, w and
+    emissions, but its ``labels`` draw ignores the Potts term (a factor cannot be sampled). A draw
+    of the whole prior, MRF included, is :func:`spcopyro.gibbs.prior.sample_prior_world`: pi from
+    its prior, labels by label-only Gibbs sweeps of the kernel (the exact conditional of the Potts
+    prior given pi), then this model conditioned on those labels draws theta, w and the emissions.
+
+    Complexity: one evaluation is O(N + P + M (K + V) + L (K + V)).
+
+    Args:
+        data: the map structure and per-cell counts (:func:`make_model_data`).
+        config: hyperparameters and variant switches.
+
+    **References:** A. Katsumata, W. Hashimoto, Y. Hagiwara, T. Taniguchi, "Semantic Mapping Based
+    on Spatial Concepts for Grounding Words Related to Places in Daily Environments", Frontiers in
+    Robotics and AI 6:31, 2019.
+    """
+    L = config.num_concepts
+    K, V = data.num_feature_classes, data.vocabulary_size
+
+    pi = pyro.sample(
+        SITE_PI, dist.Dirichlet(torch.full((L,), config.pi_concentration, dtype=DTYPE))
+    )
+    with pyro.plate("concepts", L, dim=-1):
+        theta = pyro.sample(SITE_THETA, dist.Dirichlet(torch.full((K,), config.chi, dtype=DTYPE)))
+        w = pyro.sample(SITE_W, dist.Dirichlet(torch.full((V,), config.beta, dtype=DTYPE)))
+    # theta: [L, K], w: [L, V]
+
+    with pyro.plate("cells", data.num_free, dim=-1):
+        labels = pyro.sample(SITE_LABELS, dist.Categorical(pi))  # [N]
+    pyro.factor(SITE_POTTS, config.gamma * potts_agreements(labels, data.pairs))
+
+    observed_labels = labels[data.obs_cells]  # [M]
+    with pyro.plate("observed_cells", data.obs_cells.shape[0], dim=-1):
+        if config.use_images:
+            pyro.sample(
+                SITE_IMAGES,
+                MultinomialCounts(theta[observed_labels], data.image_counts.sum(-1)),
+                obs=data.image_counts,
+            )
+        if config.use_words:
+            pyro.sample(
+                SITE_WORDS,
+                MultinomialCounts(w[observed_labels], data.word_counts.sum(-1)),
+                obs=data.word_counts,
+            )
