@@ -19,9 +19,10 @@ import torch
 from tqdm.auto import tqdm
 
 from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.backends import sweep_function
 from spcopyro.gibbs.init import initial_state
 from spcopyro.gibbs.state import GibbsState, make_sweep_plan
-from spcopyro.gibbs.sweep import gibbs_sweep, log_joint, num_concepts_in_use
+from spcopyro.gibbs.sweep import log_joint, num_concepts_in_use
 from spcopyro.model import ModelData
 
 LABEL_DTYPE = torch.int16  # compact storage of label maps (L <= 32767)
@@ -68,6 +69,7 @@ def run_gibbs(
     seed: int | None = None,
     init_labels: torch.Tensor | None = None,
     thin: int = 0,
+    backend: str = "auto",
     progress: bool | None = None,
     callback: Callable[[int, GibbsState], None] | None = None,
 ) -> GibbsRun:
@@ -77,6 +79,7 @@ def run_gibbs(
         generator / seed: randomness; give one (``seed`` makes a fresh generator). A seeded run
             reproduces bit for bit.
         thin: keep a label map every ``thin`` sweeps (0: keep none).
+        backend: ``"torch"``, ``"numba"`` or ``"auto"`` (see :func:`sweep_function`).
         progress: tqdm bar (default: on unless ``$CI`` is set).
         callback: called as ``callback(sweep, state)`` after every sweep.
     """
@@ -86,6 +89,7 @@ def run_gibbs(
         raise ValueError(f"thin must be >= 0, got {thin}")
     if generator is None:
         generator = torch.Generator().manual_seed(0 if seed is None else int(seed))
+    sweep_step = sweep_function(backend)
     plan = make_sweep_plan(data)
     state = initial_state(data, config, generator, init_labels)
 
@@ -99,7 +103,7 @@ def run_gibbs(
     start = time.perf_counter()
     bar = tqdm(range(num_sweeps), desc="Gibbs sweeps", disable=not progress_enabled(progress))
     for sweep in bar:
-        state = gibbs_sweep(state, data, config, generator, plan)
+        state = sweep_step(state, data, config, generator, plan)
         value = float(log_joint(state, data, config))
         trace_log_joint[sweep] = value
         trace_concepts[sweep] = num_concepts_in_use(state.labels, config.num_concepts)

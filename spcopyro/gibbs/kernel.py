@@ -29,9 +29,10 @@ import torch
 from pyro.infer.mcmc.mcmc_kernel import MCMCKernel
 
 from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.backends import sweep_function
 from spcopyro.gibbs.init import initial_state
 from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
-from spcopyro.gibbs.sweep import gibbs_sweep, log_joint, num_concepts_in_use
+from spcopyro.gibbs.sweep import log_joint, num_concepts_in_use
 from spcopyro.model import (
     SITE_LABELS,
     SITE_PI,
@@ -64,6 +65,7 @@ class SpCoGibbs(MCMCKernel):
         init_labels: [N] starting labels (random if None).
         save_params: which of ``labels``, ``log_joint``, ``num_concepts``, ``pi``, ``theta``, ``w``
             MCMC keeps for every sample.
+        backend: sweep implementation, see :func:`spcopyro.gibbs.backends.sweep_function`.
     """
 
     def __init__(
@@ -71,11 +73,13 @@ class SpCoGibbs(MCMCKernel):
         model: Callable[[ModelData, SpCoConfig], None] = spcomapping_model,
         init_labels: torch.Tensor | None = None,
         save_params: Sequence[str] = DEFAULT_SAVE_PARAMS,
+        backend: str = "auto",
     ) -> None:
         unknown = set(save_params) - set(ALL_PARAMS)
         if unknown:
             raise ValueError(f"unknown save_params {sorted(unknown)}; choose from {ALL_PARAMS}")
         self.model = model
+        self._sweep = sweep_function(backend)
         self.init_labels = init_labels
         self.save_params = sorted(save_params)
         self.transforms = {
@@ -141,7 +145,7 @@ class SpCoGibbs(MCMCKernel):
 
     def sample(self, params: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         assert self._state is not None and self._generator is not None, "setup() not called"
-        self._state = gibbs_sweep(
+        self._state = self._sweep(
             self._state, self._data, self._config, self._generator, self._plan
         )
         self._steps += 1
