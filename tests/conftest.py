@@ -2,32 +2,28 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 
-# Default location of the public dataset, relative to the project root (see README).
-DEFAULT_DATASET = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "spcomapping"
+from spcopyro.data import find_dataset_root
+
 HOUSES = ("room1dk5", "room1dk6", "room1ldk4", "room1ldk5", "room2ldk4")
-
-
-def find_dataset() -> Path | None:
-    """The dataset folder named by $SPCOPYRO_DATA, else ../shared/data/spcomapping, else None."""
-    env = os.environ.get("SPCOPYRO_DATA")
-    root = Path(env) if env else DEFAULT_DATASET
-    return root.resolve() if (root / "map").is_dir() else None
 
 
 @pytest.fixture
 def dataset_root() -> Path:
-    root = find_dataset()
+    """The public dataset ($SPCOPYRO_DATA or ../shared/data/spcomapping); skips when absent."""
+    try:
+        root = find_dataset_root()
+    except FileNotFoundError as error:
+        pytest.skip(f"public SpCoMapping dataset not usable: {error}")
     if root is None:
         pytest.skip(
             "public SpCoMapping dataset not found: set SPCOPYRO_DATA or place it at "
-            f"{DEFAULT_DATASET} (clone EmergentSystemLabStudent/Dataset_of_SpCoMapping)"
+            "../shared/data/spcomapping (clone EmergentSystemLabStudent/Dataset_of_SpCoMapping)"
         )
     return root
 

@@ -11,7 +11,10 @@ The work is done by the pure functions of :mod:`spcopyro.gibbs.sweep`; this clas
 Pyro's MCMC driver and works around its habits:
 
 * MCMC concatenates every saved param into one float tensor per sample, so integer sites would come
-  back as floats: the kernel's ``transforms`` map ``labels`` and ``num_concepts`` back to integers.
+  back as floats: the kernel's ``transforms`` map ``labels`` back to int64. Pyro 1.9's
+  ``mcmc.diagnostics()`` then crashes on that integer site (it fills NaN into an int tensor), so
+  use :func:`mcmc_diagnostics`, which gives ESS and split R-hat of the float sites (a label's
+  R-hat means nothing under label switching anyway; ``num_concepts`` stays float for this).
 * MCMC keeps every saved param of every sample in memory: by default only the small sites
   (``pi``, ``log_joint``, ``num_concepts``) are saved; add ``labels`` (N values a sample),
   ``theta`` or ``w`` through ``save_params`` when you want them and have the memory. For long runs
@@ -26,7 +29,9 @@ from collections.abc import Callable, Sequence
 
 import pyro.poutine as poutine
 import torch
+from pyro.infer import MCMC
 from pyro.infer.mcmc.mcmc_kernel import MCMCKernel
+from pyro.infer.mcmc.util import diagnostics as pyro_diagnostics
 
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.backends import sweep_function
@@ -82,10 +87,7 @@ class SpCoGibbs(MCMCKernel):
         self._sweep = sweep_function(backend)
         self.init_labels = init_labels
         self.save_params = sorted(save_params)
-        self.transforms = {
-            "labels": _ToInteger(torch.long),
-            "num_concepts": _ToInteger(torch.long),
-        }
+        self.transforms = {"labels": _ToInteger(torch.long)}
         self._state: GibbsState | None = None
         self._generator: torch.Generator | None = None
         self._plan: SweepPlan | None = None
@@ -124,7 +126,7 @@ class SpCoGibbs(MCMCKernel):
             "labels": lambda: state.labels,
             "log_joint": lambda: log_joint(state, self._data, self._config),
             "num_concepts": lambda: torch.tensor(
-                num_concepts_in_use(state.labels, self._config.num_concepts)
+                float(num_concepts_in_use(state.labels, self._config.num_concepts))
             ),
             "pi": lambda: state.log_pi.exp(),
             "theta": lambda: state.log_theta.exp(),
@@ -168,3 +170,9 @@ class SpCoGibbs(MCMCKernel):
 
     def diagnostics(self) -> dict[str, float]:
         return {"sweeps": float(self._steps)}
+
+
+def mcmc_diagnostics(mcmc: MCMC) -> dict[str, dict[str, torch.Tensor]]:
+    """Pyro's per-site diagnostics (``n_eff``, ``r_hat``) of the floating-point sites only."""
+    samples = mcmc.get_samples(group_by_chain=True)
+    return pyro_diagnostics({k: v for k, v in samples.items() if torch.is_floating_point(v)})

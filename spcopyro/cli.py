@@ -1,0 +1,227 @@
+"""The ``spcopyro`` command line: simulate, show, fit, where.
+
+DATA is a house folder in the public dataset's layout (its map at ``DATA/../map/NAME.yaml``), e.g.
+``../shared/data/spcomapping/room1dk5``, or one written by ``spcopyro simulate``. Where DATA is
+left out, the embedded default is used: the synthetic house of seed 0, generated in memory.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from spcopyro.config import DEFAULT_PRESET, PRESETS, preset
+from spcopyro.data import DEFAULT_SNAP_DISTANCE, House, cell_counts, load_house
+from spcopyro.gibbs.backends import BACKENDS
+
+logger = logging.getLogger("spcopyro")
+
+
+def _load(data: str | None, seed: int = 0) -> House:
+    if data is None:
+        from spcopyro.synthetic import make_house
+
+        return make_house(seed=seed)
+    return load_house(Path(data))
+
+
+def _simulate(args: argparse.Namespace) -> int:
+    from spcopyro.synthetic import HouseSpec, write_synthetic
+
+    spec = HouseSpec.scaled(*args.size, sentence_fraction=args.sentences) if args.size else None
+    if spec is None and args.sentences:
+        spec = HouseSpec(sentence_fraction=args.sentences)
+    room = write_synthetic(args.out, seed=args.seed, spec=spec, name=args.name,
+                           overwrite=args.overwrite)  # fmt: skip
+    print(f"wrote synthetic house (seed {args.seed}) to {room}")
+    print(f"  fit it with: spcopyro fit {room} --out {Path(args.out) / 'fit'}")
+    return 0
+
+
+def _summary(house: House) -> str:
+    counts = cell_counts(house.grid, house.observations)
+    p = counts.placement
+    obs = house.observations
+    lines = [
+        f"house            {house.name}",
+        f"map              {house.grid.height} x {house.grid.width} cells at "
+        f"{house.grid.resolution} m, {house.grid.num_free} free",
+        f"images           {obs.num_images} ({obs.num_feature_classes} feature classes) in "
+        f"{len(obs.trials)} trial(s)",
+        f"utterances       {obs.num_utterances}, vocabulary of {len(counts.vocabulary)} words",
+        f"observed cells   {len(counts.cells)}",
+        f"placement        images: {p.images_on_free} on free cells, {p.images_snapped} snapped, "
+        f"{p.images_unplaced} unplaced; words: {p.words_on_free} on free cells, "
+        f"{p.words_snapped} snapped, {p.words_unplaced} unplaced "
+        f"(snap distance {p.snap_distance} m)",
+    ]
+    if house.category_names:
+        lines.append(f"ground truth     {len(house.category_names)} categories: "
+                     + ", ".join(house.category_names))  # fmt: skip
+    return "\n".join(lines)
+
+
+def _show(args: argparse.Namespace) -> int:
+    from spcopyro.plotting import plot_house
+
+    house = _load(args.data)
+    print(_summary(house))
+    print(f"wrote {plot_house(house, args.out)}")
+    return 0
+
+
+def _fit(args: argparse.Namespace) -> int:
+    from spcopyro.fit import fit_house, gamma_warning
+    from spcopyro.plotting import plot_house, plot_semantic_map, plot_trace
+
+    house = _load(args.data)
+    overrides = dict(
+        prior=args.prior, num_concepts=args.concepts, gamma=args.gamma, alpha=args.alpha,
+        beta=args.beta, chi=args.chi, connectivity=args.connectivity,
+        word_weighting="tfidf" if args.tfidf else None,
+        feature_scaling=_feature_scaling(args.feature_scaling),
+    )  # fmt: skip
+    if args.preset == "paper-dirichlet" and args.concepts is None and house.category_names:
+        overrides["num_concepts"] = len(house.category_names)
+    config = preset(args.preset, **overrides)
+    warning = gamma_warning(config)
+    if warning:
+        print(f"warning: {warning}", file=sys.stderr)
+    print(_summary(house))
+    print(f"config           {config}")
+    result = fit_house(house, config, sweeps=args.sweeps, seed=args.seed, init=args.init,
+                       backend=args.backend, snap_distance=args.snap_distance)  # fmt: skip
+    out = result.save(args.out)
+    plot_semantic_map(result, out / "semantic_map.png")
+    plot_trace(result, out / "trace.png")
+    plot_house(house, out / "house.png")
+    seconds = result.seconds[-1]
+    print(f"fitted {args.sweeps} sweeps in {seconds:.1f} s "
+          f"({1e3 * seconds / args.sweeps:.2f} ms per sweep); "
+          f"{len(result.concepts_in_use())} concepts in use")  # fmt: skip
+    if house.truth is not None:
+        from spcopyro.metrics import adjusted_rand_index
+
+        ari = adjusted_rand_index(result.label_image(), house.truth)
+        np.save(out / "truth.npy", house.truth)
+        (out / "scores.json").write_text(json.dumps({"ari": ari}) + "\n")
+        print(f"adjusted Rand index against the ground truth: {ari:.3f}")
+    for concept in result.concepts()[:10]:
+        words = ", ".join(f"{w} ({p:.2f})" for w, p in concept["top_words"][:3])
+        print(f"  concept {concept['concept']:>3}: {concept['cells']:>6} cells  {words}")
+    print(f"wrote {out}/: labels.npy semantic_map.png concepts.json trace.csv trace.png ...")
+    return 0
+
+
+def _feature_scaling(value: str | None) -> str | float | None:
+    if value is None or value in ("probability", "floor100"):
+        return value
+    try:
+        return float(value)
+    except ValueError:
+        raise SystemExit(
+            f"--feature-scaling must be probability, floor100 or a number, got {value!r}"
+        ) from None
+
+
+def _where(args: argparse.Namespace) -> int:
+    from spcopyro.results import SpCoResult, UnknownWordError
+
+    result = SpCoResult.load(args.result)
+    try:
+        answer = result.where(args.word, prior=args.prior)
+    except UnknownWordError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 1
+    grid = result.grid
+    cells = np.argwhere(answer.region)  # [n, 2] (row, col)
+    xy = grid.cell_to_world(cells)
+    words = ", ".join(f"{w} ({p:.2f})" for w, p in result.top_words(answer.concept, 3))
+    print(f"'{answer.word}' is concept {answer.concept} (p = {answer.probability:.3f}; "
+          f"its words: {words})")  # fmt: skip
+    if len(cells):
+        (x0, y0), (x1, y1) = xy.min(0), xy.max(0)
+        cx, cy = xy.mean(0)
+        print(f"region: {len(cells)} cells ({len(cells) * grid.resolution**2:.2f} m^2), "
+              f"centre x={cx:.2f} y={cy:.2f}, spanning x {x0:.2f}..{x1:.2f}, "
+              f"y {y0:.2f}..{y1:.2f} m")  # fmt: skip
+    if args.out:
+        from spcopyro.maps import save_label_png
+
+        save_label_png(np.where(answer.region, 0, -1), args.out, grid)
+        print(f"wrote {args.out}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="spcopyro",
+        description="SpCoMapping: semantic maps from an occupancy grid, images and words.",
+    )
+    parser.add_argument("-v", "--verbose", action="store_true", help="log details (INFO)")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("simulate", help="write a synthetic house in the public dataset's layout")
+    p.add_argument("--out", required=True, help="root folder (gets map/ and NAME/)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--name", default="synthetic")
+    p.add_argument("--size", type=int, nargs=2, metavar=("H", "W"), help="map size in cells")
+    p.add_argument("--sentences", type=float, default=0.0,
+                   help="share of utterances given as sentences (tf-idf setting)")  # fmt: skip
+    p.add_argument("--overwrite", action="store_true")
+    p.set_defaults(func=_simulate)
+
+    p = sub.add_parser("show", help="draw a house and its observations; print a summary")
+    p.add_argument("data", nargs="?", help="house folder (default: the synthetic house)")
+    p.add_argument("--out", required=True, help="PNG file to write")
+    p.set_defaults(func=_show)
+
+    p = sub.add_parser("fit", help="fit SpCoMapping by Gibbs sampling and write the semantic map")
+    p.add_argument("data", nargs="?", help="house folder (default: the synthetic house)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--sweeps", type=int, default=5000, help="Gibbs iterations (paper: 5000)")
+    p.add_argument("--preset", choices=sorted(PRESETS), default=DEFAULT_PRESET)
+    p.add_argument("--prior", choices=("dp", "dirichlet"))
+    p.add_argument("--concepts", type=int, help="L, the number (upper bound) of concepts")
+    p.add_argument("--gamma", type=float, help="Potts coupling")
+    p.add_argument("--alpha", type=float)
+    p.add_argument("--beta", type=float, help="word prior concentration")
+    p.add_argument("--chi", type=float, help="image-feature prior concentration")
+    p.add_argument("--connectivity", type=int, choices=(4, 8))
+    p.add_argument("--tfidf", action="store_true", help="weight words by tf-idf (eq. 20)")
+    p.add_argument("--feature-scaling", help="probability, floor100 or a number s (s * f)")
+    p.add_argument("--init", choices=("random", "gaussian"), default="random")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--backend", choices=BACKENDS, default="auto")
+    p.add_argument("--snap-distance", type=float, default=DEFAULT_SNAP_DISTANCE,
+                   help="metres an observation may be moved onto free space")  # fmt: skip
+    p.set_defaults(func=_fit)
+
+    p = sub.add_parser("where", help='answer "where is WORD?" from a fitted result')
+    p.add_argument("result", help="output folder of `spcopyro fit`")
+    p.add_argument("word")
+    p.add_argument("--out", help="also draw the region into this PNG")
+    p.add_argument("--prior", choices=("pi", "area"), default="pi",
+                   help="p(C) in eq. (19): pi (the paper) or each concept's share of the map")  # fmt: skip
+    p.set_defaults(func=_where)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format="%(levelname)s: %(message)s")  # fmt: skip
+    try:
+        return args.func(args)
+    except (OSError, ValueError) as error:  # bad input: one clear line, no traceback
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

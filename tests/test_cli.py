@@ -1,0 +1,107 @@
+"""The `spcopyro` command line and the saved result, end to end on small inputs."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from spcopyro.cli import main
+from spcopyro.data import load_house
+from spcopyro.results import SpCoResult, UnknownWordError
+from spcopyro.synthetic import HouseSpec, write_synthetic
+
+
+@pytest.fixture
+def small_house(tmp_path):
+    return write_synthetic(
+        tmp_path / "data", seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3)
+    )
+
+
+def test_simulate_writes_the_dataset_layout(tmp_path, capsys):
+    assert main(["simulate", "--out", str(tmp_path / "d"), "--seed", "2"]) == 0
+    room = tmp_path / "d" / "synthetic"
+    for name in ("Ft.csv", "Xtx.csv", "St.csv", "StXtx.csv", "truth.npy", "categories.json"):
+        assert (room / name).is_file(), name
+    assert (tmp_path / "d" / "map" / "synthetic.yaml").is_file()
+    assert load_house(room).truth is not None
+    assert "wrote synthetic house" in capsys.readouterr().out
+
+
+def test_show_prints_a_summary_and_draws(small_house, tmp_path, capsys):
+    out = tmp_path / "house.png"
+    assert main(["show", str(small_house), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert out.stat().st_size > 1000
+    for needle in ("free", "images", "utterances", "vocabulary", "snapped", "unplaced"):
+        assert needle in text, needle
+
+
+def test_fit_then_where(small_house, tmp_path, capsys):
+    out = tmp_path / "fit"
+    argv = ["fit", str(small_house), "--out", str(out), "--sweeps", "20",
+            "--preset", "original-code", "--gamma", "3", "--concepts", "20"]  # fmt: skip
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "adjusted Rand index" in text
+    for name in ("labels.npy", "semantic_map.png", "concepts.json", "trace.csv", "trace.png"):
+        assert (out / name).is_file(), name
+    labels = np.load(out / "labels.npy")
+    house = load_house(small_house)
+    assert labels.shape == house.grid.shape
+    assert labels.dtype.kind == "i"
+    assert (labels[~house.grid.free] == -1).all() and (labels[house.grid.free] >= 0).all()
+    concepts = json.loads((out / "concepts.json").read_text())
+    assert sum(c["cells"] for c in concepts) == house.grid.num_free
+    assert all(len(c["top_words"]) > 0 for c in concepts)
+    trace = (out / "trace.csv").read_text().splitlines()
+    assert trace[0] == "sweep,log_joint,num_concepts,seconds" and len(trace) == 21
+
+    word = house.observations.vocabulary[0]
+    assert main(["where", str(out), word, "--out", str(tmp_path / "where.png")]) == 0
+    text = capsys.readouterr().out
+    assert f"'{word}' is concept" in text and "region:" in text
+    assert main(["where", str(out), "zzznotaword"]) == 1
+    assert "not in the vocabulary" in capsys.readouterr().err
+
+
+def test_fit_warns_below_the_critical_coupling(small_house, tmp_path, capsys):
+    argv = ["fit", str(small_house), "--out", str(tmp_path / "f"), "--sweeps", "2",
+            "--preset", "original-code"]  # fmt: skip
+    assert main(argv) == 0
+    assert "below the Potts critical coupling" in capsys.readouterr().err
+
+
+def test_bad_input_is_one_clear_line(tmp_path, capsys):
+    assert main(["show", str(tmp_path / "nowhere"), "--out", str(tmp_path / "x.png")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error:") and "nowhere" in err
+    assert main(["where", str(tmp_path), "kitchen"]) == 2
+    assert "no fitted result" in capsys.readouterr().err
+
+
+def test_result_round_trips_and_answers_where(small_house, tmp_path):
+    from spcopyro.config import preset
+    from spcopyro.fit import fit_house
+
+    house = load_house(small_house)
+    result = fit_house(house, preset("original-code", gamma=3.0, num_concepts=10), sweeps=10,
+                       progress=False)  # fmt: skip
+    loaded = SpCoResult.load(result.save(tmp_path / "r"))
+    np.testing.assert_array_equal(loaded.label_image(), result.label_image())
+    np.testing.assert_array_equal(loaded.w, result.w)
+    assert loaded.vocabulary == result.vocabulary and loaded.config == result.config
+    word = result.vocabulary[0]
+    answer = result.where(word)
+    posterior = result.concept_given_word(word)
+    assert answer.concept == int(np.argmax(posterior))
+    assert posterior.sum() == pytest.approx(1.0)
+    # eq. (19) by hand: proportional to w[l, word] * pi[l] over concepts in use
+    used = result.concepts_in_use()
+    by_hand = result.w[used, 0] * result.pi[used]
+    assert answer.concept == used[np.argmax(by_hand)]
+    assert (answer.region == (result.label_image() == answer.concept)).all()
+    with pytest.raises(UnknownWordError, match="did you mean"):
+        result.where(word + "x")

@@ -1,0 +1,194 @@
+"""The run loop, the Pyro MCMC kernel, forward draws, initialisation and the synthetic-house fit."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from gibbs_problems import config, random_problem
+from pyro.infer import MCMC
+
+from spcopyro.config import PRESETS, SpCoConfig, preset
+from spcopyro.fit import fit_house, gamma_warning
+from spcopyro.gibbs.api import LABEL_DTYPE, run_gibbs
+from spcopyro.gibbs.init import check_labels, kmeans_gaussians, labels_from_gaussians
+from spcopyro.gibbs.kernel import SpCoGibbs, mcmc_diagnostics
+from spcopyro.gibbs.prior import sample_prior_world
+from spcopyro.maps import FREE
+from spcopyro.metrics import adjusted_rand_index
+from spcopyro.synthetic import make_house
+
+
+def test_seeded_run_reproduces_bit_for_bit():
+    cfg = config()
+    _, data = random_problem(seed=1)
+    a = run_gibbs(data, cfg, 30, seed=7, thin=10, backend="torch", progress=False)
+    b = run_gibbs(data, cfg, 30, seed=7, thin=10, backend="torch", progress=False)
+    assert torch.equal(a.final_state.labels, b.final_state.labels)
+    assert torch.equal(a.final_state.log_w, b.final_state.log_w)
+    np.testing.assert_array_equal(a.log_joint, b.log_joint)
+    np.testing.assert_array_equal(a.label_samples, b.label_samples)
+    c = run_gibbs(data, cfg, 30, seed=8, backend="torch", progress=False)
+    assert not np.array_equal(a.log_joint, c.log_joint)
+
+
+def test_run_keeps_compact_thinned_labels_and_the_best_state():
+    cfg = config()
+    _, data = random_problem(seed=2)
+    run = run_gibbs(data, cfg, 25, seed=1, thin=5, backend="torch", progress=False)
+    assert run.label_samples.shape == (5, data.num_free)
+    assert run.label_samples.dtype == np.int16
+    np.testing.assert_array_equal(run.sample_sweeps, [4, 9, 14, 19, 24])
+    assert run.best_state.labels.dtype == torch.long
+    assert run.log_joint[run.best_sweep] == run.log_joint.max()
+    assert run.log_joint.shape == run.num_concepts.shape == (25,)
+    none = run_gibbs(data, cfg, 5, seed=1, backend="torch", progress=False)
+    assert none.label_samples is None
+    assert LABEL_DTYPE == torch.int16
+
+
+def test_masked_cells_are_not_in_the_state_and_never_labelled():
+    """Only free cells carry labels: the label image is -1 on every occupied/unknown cell."""
+    house = make_house(seed=3)
+    result = fit_house(house, preset("original-code", gamma=3.0), sweeps=5, progress=False)
+    image = result.label_image()
+    assert result.labels_best.shape == (house.grid.num_free,)
+    assert (image[house.grid.occupancy != FREE] == -1).all()
+    assert (image[house.grid.occupancy == FREE] >= 0).all()
+
+
+@pytest.mark.parametrize("num_chains,parallel", [(1, False), (2, False), (2, True)])
+@pytest.mark.filterwarnings("ignore:num_chains=2 is more than available_cpu")
+def test_kernel_runs_under_pyro_mcmc_with_integer_labels(num_chains, parallel, monkeypatch):
+    """One chain, two chains drawn one after the other, two chains in worker processes."""
+    import pyro.infer.mcmc.api
+
+    monkeypatch.setattr(pyro.infer.mcmc.api.mp, "cpu_count", lambda: 4 if parallel else 1)
+    cfg = config()
+    _, data = random_problem(seed=3)
+    kernel = SpCoGibbs(save_params=("labels", "pi", "log_joint", "num_concepts"), backend="torch")
+    mcmc = MCMC(kernel, num_samples=6, warmup_steps=3, num_chains=num_chains,
+                disable_progbar=True)  # fmt: skip
+    mcmc.run(data, cfg)
+    samples = mcmc.get_samples(group_by_chain=True)
+    assert samples["labels"].shape == (num_chains, 6, data.num_free)
+    assert samples["labels"].dtype == torch.long
+    assert ((samples["labels"] >= 0) & (samples["labels"] < cfg.num_concepts)).all()
+    torch.testing.assert_close(samples["pi"].sum(-1), torch.ones(num_chains, 6).double())
+    diagnostics = mcmc_diagnostics(mcmc)
+    assert "labels" not in diagnostics
+    assert set(diagnostics["num_concepts"]) >= {"n_eff", "r_hat"}
+    if num_chains == 2:  # chains are seeded differently
+        assert not torch.equal(samples["labels"][0], samples["labels"][1])
+
+
+def test_kernel_rejects_a_model_without_its_sites():
+    def wrong_model(data, config):
+        return None
+
+    kernel = SpCoGibbs(model=wrong_model, backend="torch")
+    _, data = random_problem(seed=4)
+    with pytest.raises(ValueError, match="no sample site 'pi'"):
+        kernel.setup(0, data, config())
+    with pytest.raises(ValueError, match="unknown save_params"):
+        SpCoGibbs(save_params=("labels", "beta"))
+
+
+def test_prior_world_has_regions_above_the_critical_coupling():
+    cfg = config(gamma=2.0, num_concepts=3)  # ln(1 + sqrt(3)) = 1.0
+    _, data = random_problem(seed=5, copies=4)
+    data = data._replace(
+        image_counts=data.image_counts.round(), word_counts=data.word_counts.round()
+    )
+    state, world = sample_prior_world(data, cfg, torch.Generator().manual_seed(0), sweeps=100)
+    same = (state.labels[data.pairs[:, 0]] == state.labels[data.pairs[:, 1]]).double().mean()
+    assert same > 0.8  # independent labels would agree about 1/3 of the time
+    # The data keep their totals and are integers.
+    torch.testing.assert_close(world.image_counts.sum(-1), data.image_counts.sum(-1))
+    assert torch.equal(world.word_counts, world.word_counts.round())
+
+
+def test_gaussian_initialisation_follows_eqs_21_22():
+    generator = torch.Generator().manual_seed(0)
+    points = torch.tensor([[0.0, 0.0], [0.1, 0.0], [5.0, 5.0], [5.1, 5.0]])
+    means, covs, log_w = kmeans_gaussians(points, 2, generator)
+    cells = torch.tensor([[0.2, 0.1], [4.9, 5.2]])
+    labels = labels_from_gaussians(cells, means, covs, log_w)
+    assert labels[0] != labels[1]
+    assert torch.allclose(means[labels[0]], torch.tensor([0.05, 0.0]).double())
+
+
+def test_initial_labels_are_checked():
+    cfg = SpCoConfig(num_concepts=3)
+    with pytest.raises(ValueError, match="shape"):
+        check_labels(torch.zeros(4, dtype=torch.long), 5, cfg)
+    with pytest.raises(ValueError, match=r"\[0, 3\)"):
+        check_labels(torch.tensor([0, 3]), 2, cfg)
+    with pytest.raises(ValueError, match="integers"):
+        check_labels(torch.tensor([0.0, 1.0]), 2, cfg)
+
+
+def test_presets_and_validation():
+    assert preset().gamma == 4.0 and preset().num_concepts == 120
+    assert preset("original-code").feature_scaling == "floor100"
+    assert preset("paper-dirichlet", num_concepts=6).prior == "dirichlet"
+    with pytest.raises(ValueError, match="needs num_concepts"):
+        preset("paper-dirichlet")
+    with pytest.raises(ValueError, match="unknown preset"):
+        preset("nope")
+    with pytest.raises(ValueError, match="gamma"):
+        SpCoConfig(gamma=-1.0)
+    with pytest.raises(ValueError, match="alpha"):
+        SpCoConfig(alpha=0.0)
+    assert set(PRESETS) == {"paper-dp", "paper-dirichlet", "original-code"}
+    # ln(1 + sqrt(120)) = 2.48: the released code's gamma 2.1 is below it.
+    assert preset("original-code").critical_gamma == pytest.approx(2.4811, abs=1e-4)
+    assert "below the Potts critical coupling" in gamma_warning(preset("original-code"))
+    assert gamma_warning(preset("paper-dp")) is None
+
+
+def _pairs_across_walls(occupancy: np.ndarray, truth: np.ndarray):
+    """Cell pairs two apart (horizontally or vertically) with a wall cell between them."""
+    pairs = []
+    for axis in (0, 1):
+        a = [slice(None)] * 2
+        mid = [slice(None)] * 2
+        b = [slice(None)] * 2
+        a[axis], mid[axis], b[axis] = slice(None, -2), slice(1, -1), slice(2, None)
+        wall = (occupancy[tuple(mid)] != FREE) & (truth[tuple(a)] >= 0) & (truth[tuple(b)] >= 0)
+        pairs.append((tuple(a), tuple(b), wall))
+    return pairs
+
+
+@pytest.mark.slow
+def test_synthetic_house_fit_recovers_the_rooms():
+    """ARI > 0.8 on the default synthetic house, and regions stop at walls.
+
+    Why 0.8: the house has 6 categories, one boundary of which (the open-plan living/kitchen)
+    has no wall, and doorway cells are ambiguous; a map that gets every walled room right and
+    the open-plan boundary roughly right scores about 0.85-0.98, while chance scores 0 and a
+    map that merges any two rooms falls below 0.75. The released code's preset with gamma 3.0
+    (above the critical 2.48 for L = 120) is used: the paper-dp preset's large beta and chi give
+    the words and images little say on a house this small (see issue notes).
+    """
+    house = make_house(seed=0)
+    result = fit_house(house, preset("original-code", gamma=3.0), sweeps=1000, seed=0,
+                       backend="auto", progress=False)  # fmt: skip
+    image = result.label_image()
+    ari = adjusted_rand_index(image, house.truth)
+    assert ari > 0.8, ari
+    # Across a wall between two different rooms, labels should (almost) never agree.
+    across, total = 0, 0
+    for a, b, wall in _pairs_across_walls(house.grid.occupancy, house.truth):
+        different_rooms = wall & (house.truth[a] != house.truth[b])
+        across += int((image[a] == image[b])[different_rooms].sum())
+        total += int(different_rooms.sum())
+    assert total > 50
+    assert across / total < 0.05, (across, total)
+    # "where is X?" points into the right room for the room names (area-weighted eq. 19: with
+    # alpha = 1e7 pi is flat and the paper's eq. 19 may pick a speck holding the word).
+    for category, name in enumerate(house.category_names):
+        if name in result.vocabulary:
+            region = result.where(name, prior="area").region
+            inside = (house.truth[region] == category).mean()
+            assert inside > 0.5, (name, inside)
