@@ -206,8 +206,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("result", help="output folder of `spcopyro fit`")
     p.add_argument("word")
     p.add_argument("--out", help="also draw the region into this PNG")
-    p.add_argument("--prior", choices=("pi", "area"), default="pi",
-                   help="p(C) in eq. (19): pi (the paper) or each concept's share of the map")  # fmt: skip
+    p.add_argument(
+        "--prior",
+        choices=("pi", "area"),
+        default="pi",
+        help="p(C) in eq. (19): pi (the paper) or a concept's share of the map",
+    )
     p.set_defaults(func=_where)
     return parser
 

@@ -1,4 +1,4 @@
-r"""What a fitted SpCoMapping gives a user: the semantic map, the words of each concept, "where is X?".
+r"""A fitted SpCoMapping for its user: the semantic map, each concept's words, "where is X?".
 
 :class:`SpCoResult` wraps a Gibbs run (:class:`~spcopyro.gibbs.api.GibbsRun`) with the map and the
 vocabulary. Its answers are computed from the *MAP-visited* state (the visited state of highest
