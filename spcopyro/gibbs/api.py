@@ -22,7 +22,7 @@ from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.backends import sweep_function
 from spcopyro.gibbs.init import initial_state
 from spcopyro.gibbs.state import GibbsState, make_sweep_plan
-from spcopyro.gibbs.sweep import log_joint, num_concepts_in_use
+from spcopyro.gibbs.sweep import log_joint_constant, log_joint_variable, num_concepts_in_use
 from spcopyro.model import ModelData
 
 LABEL_DTYPE = torch.int16  # compact storage of label maps (L <= 32767)
@@ -93,6 +93,7 @@ def run_gibbs(
     plan = make_sweep_plan(data)
     state = initial_state(data, config, generator, init_labels)
 
+    constant = float(log_joint_constant(data, config, state))
     trace_log_joint = np.empty(num_sweeps)
     trace_concepts = np.empty(num_sweeps, dtype=np.int64)
     trace_seconds = np.empty(num_sweeps)
@@ -104,7 +105,7 @@ def run_gibbs(
     bar = tqdm(range(num_sweeps), desc="Gibbs sweeps", disable=not progress_enabled(progress))
     for sweep in bar:
         state = sweep_step(state, data, config, generator, plan)
-        value = float(log_joint(state, data, config))
+        value = constant + float(log_joint_variable(state, data, config))
         trace_log_joint[sweep] = value
         trace_concepts[sweep] = num_concepts_in_use(state.labels, config.num_concepts)
         trace_seconds[sweep] = time.perf_counter() - start

@@ -219,12 +219,40 @@ def gibbs_sweep(
     return GibbsState(labels, *sample_globals(labels, data, config, generator))
 
 
-def _dirichlet_log_density(log_x: torch.Tensor, concentration: float) -> torch.Tensor:
-    """sum over rows of log Dir(x | concentration, ..., concentration), from log x."""
-    K = log_x.shape[-1]
+def _dirichlet_log_normaliser(shape: torch.Size, concentration: float) -> torch.Tensor:
+    """Sum over rows of log Gamma(K a) - K log Gamma(a): Dir's normaliser, rows of size K."""
+    K, rows = shape[-1], shape[:-1].numel()
     a = torch.tensor(concentration, dtype=DTYPE)
-    normaliser = torch.lgamma(a * K) - K * torch.lgamma(a)
-    return (normaliser + (a - 1) * log_x.sum(-1)).sum()
+    return rows * (torch.lgamma(a * K) - K * torch.lgamma(a))
+
+
+def log_joint_constant(data: ModelData, config: SpCoConfig, state: GibbsState) -> torch.Tensor:
+    """The terms of :func:`log_joint` that no sweep changes: Dirichlet normalisers and the
+    multinomial coefficients lgamma(n + 1) - sum lgamma(x + 1) of the observed counts."""
+    total = _dirichlet_log_normaliser(state.log_pi.shape, config.pi_concentration)
+    total = total + _dirichlet_log_normaliser(state.log_theta.shape, config.chi)
+    total = total + _dirichlet_log_normaliser(state.log_w.shape, config.beta)
+    for used, counts in ((config.use_images, data.image_counts),
+                         (config.use_words, data.word_counts)):  # fmt: skip
+        if used:
+            zeros = torch.zeros_like(counts)
+            total = total + multinomial_counts_log_prob(counts, zeros).sum()
+    return total
+
+
+def log_joint_variable(state: GibbsState, data: ModelData, config: SpCoConfig) -> torch.Tensor:
+    """The terms of :func:`log_joint` that depend on the state."""
+    total = (config.pi_concentration - 1) * state.log_pi.sum()
+    total = total + (config.chi - 1) * state.log_theta.sum()
+    total = total + (config.beta - 1) * state.log_w.sum()
+    total = total + state.log_pi[state.labels].sum()
+    total = total + config.gamma * potts_agreements(state.labels, data.pairs)
+    observed_labels = state.labels[data.obs_cells]
+    if config.use_images:
+        total = total + (data.image_counts * state.log_theta[observed_labels]).sum()
+    if config.use_words:
+        total = total + (data.word_counts * state.log_w[observed_labels]).sum()
+    return total
 
 
 def log_joint(state: GibbsState, data: ModelData, config: SpCoConfig) -> torch.Tensor:
@@ -232,23 +260,7 @@ def log_joint(state: GibbsState, data: ModelData, config: SpCoConfig) -> torch.T
 
     Equal to the ``log_prob_sum`` of a Pyro trace of the model at this state (tested).
     """
-    total = _dirichlet_log_density(state.log_pi, config.pi_concentration)
-    total = total + _dirichlet_log_density(state.log_theta, config.chi)
-    total = total + _dirichlet_log_density(state.log_w, config.beta)
-    total = total + state.log_pi[state.labels].sum()
-    total = total + config.gamma * potts_agreements(state.labels, data.pairs)
-    observed_labels = state.labels[data.obs_cells]
-    if config.use_images:
-        total = (
-            total
-            + multinomial_counts_log_prob(data.image_counts, state.log_theta[observed_labels]).sum()
-        )
-    if config.use_words:
-        total = (
-            total
-            + multinomial_counts_log_prob(data.word_counts, state.log_w[observed_labels]).sum()
-        )
-    return total
+    return log_joint_constant(data, config, state) + log_joint_variable(state, data, config)
 
 
 def num_concepts_in_use(labels: torch.Tensor, num_concepts: int) -> int:
