@@ -97,6 +97,9 @@ class SpCoConfig:
             # The sampler's fast path writes exp(gamma n) = 1 + expm1(gamma n) as a mixture of
             # positive parts; an anti-ferromagnetic MRF is outside SpCoMapping's model anyway.
             raise bad("gamma", "must be >= 0 (neighbouring cells attract, never repel)")
+        if self.connectivity in (4, 8) and self.gamma * self.connectivity > 700:
+            # exp(gamma * n) for n up to D neighbours must stay finite in float64.
+            raise bad("gamma", f"gamma * connectivity must be <= 700, got {self.gamma}")
         if self.connectivity not in (4, 8):
             raise bad("connectivity", "must be 4 or 8")
         fs = self.feature_scaling

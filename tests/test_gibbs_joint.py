@@ -124,8 +124,11 @@ def test_geweke_getting_it_right(variant):
     plan = make_sweep_plan(data)
     for _ in range(steps):
         state = gibbs_sweep(state, world, cfg, generator, plan)
-        world = sample_observations(state, world, cfg)
+        # Recorded between the kernel step and the data draw: a kernel that ignored the data
+        # would be caught here (recorded after the data draw, (params, data) would still be
+        # jointly right for a kernel that draws w from its prior).
         chain.append((*state, world.image_counts, world.word_counts))
+        world = sample_observations(state, world, cfg)
     chain = label_invariant_statistics(
         *(torch.stack(x) for x in zip(*chain, strict=True)), data.pairs, data.obs_cells, L
     )  # [steps, S]

@@ -1,0 +1,734 @@
+r"""A compiled (numba) Gibbs sweep: the conditionals of :mod:`spcopyro.gibbs.sweep`, faster.
+
+:func:`gibbs_sweep_numba` is a drop-in for :func:`~spcopyro.gibbs.sweep.gibbs_sweep` (same
+arguments, same :class:`~spcopyro.gibbs.state.GibbsState` out) that samples from the same
+distribution, though not with the same random numbers.
+
+**Cell labels (eq. 13).** The cells are visited colour block after colour block in the plan's
+order, each drawn from
+
+.. math::
+
+    p(C_i = l \mid \text{rest}) \propto \pi_l \, e^{\gamma n_l(i)}
+        \prod_{t \in i} \theta_{l, f_t} \, w_{l, S_t}
+        = B_l(i) \, e^{\gamma n_l(i)},
+
+B(i) being the cell's *background*: pi for a cell without observations, and for observed cell m
+the row :math:`B_{ml} = \exp(\log\pi_l + \mathrm{loglik}_{ml} - \max_{l'}(\cdot))` of one
+[M + 1, L] table computed per sweep (the loglik [M, L] of
+:func:`~spcopyro.gibbs.sweep.observation_log_likelihood` is one matrix product; row M holds pi).
+No cell of a colour block neighbours another cell of the same block, so updating the labels in
+place while looping over a block draws each cell of the block from its conditional given the
+other blocks: exactly the reference's block update. Every cell then uses the reference's
+background + neighbour mixture (module docstring of :mod:`~spcopyro.gibbs.sweep`), writing
+e^{gamma n} = 1 + expm1(gamma n),
+
+.. math::
+
+    p(C_i = l) \propto B_l + \sum_{s=1}^{D} \delta_{l a_s} \, B_{a_s}
+        \frac{\mathrm{expm1}(\gamma n_{a_s}(i))}{n_{a_s}(i)},
+
+a_s being the label in neighbour slot s (slots sharing a label add up to that label's part, and
+a missing neighbour carries a sentinel label L + s of background weight 0): with probability
+sum(B) / (sum(B) + neighbour mass) the label comes from B (a binary search in pi's CDF, or a
+scan of an observed cell's row), else from the slots. That is O(D^2 + log L) a cell without
+observations and O(D^2 + L) one with; the kernel is compiled per D, its slot loops unrolled and
+branch-free.
+
+**Globals (eqs. 14-17).** pi ~ Dir(pi_concentration + m), theta_l ~ Dir(chi + image counts of
+the cells labelled l), w_l ~ Dir(beta + word counts of those cells), drawn in log space from
+log-gamma variates (Marsaglia & Tsang, 2000, with log G(a) = log G(a + 1) + log(U) / a for
+a < 1) and normalised by log-sum-exp, so concentrations far below 1 (alpha / L) never underflow.
+A switched-off modality contributes zero statistics (its distributions are drawn from the prior),
+as in the reference.
+
+**Randomness.** numba cannot draw from a :class:`torch.Generator`, and numba's own
+``np.random`` costs ~9 ns a uniform (a thread-local state lookup per call). Each call therefore
+draws one seed from the given generator and expands it with SplitMix64 into the state of an
+inlined xoshiro256++ generator (Blackman & Vigna, 2018; ~1.5 ns a uniform, doubles from its top
+53 bits); normals come from Doornik's (2005) ziggurat (~4 ns). A seeded run is reproducible bit
+for bit, but its numbers differ from the torch backend's: only the distributions agree (what the
+tests check).
+
+**Limits.** exp(gamma D) must stay finite: ``gamma * D <= 700`` (the reference's fast path
+overflows there too). The first call compiles the kernels (seconds); ``cache=True`` stores them
+next to this file for later processes. Importing this module raises :class:`ImportError` when
+numba is missing (:func:`~spcopyro.gibbs.backends.sweep_function` relies on that).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+import torch
+from numba import njit
+
+from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
+from spcopyro.model import ModelData
+
+SEED_BOUND = 2**62
+"""Seeds drawn from the torch generator lie in [0, SEED_BOUND)."""
+MAX_GAMMA_TIMES_NEIGHBOURS = 700.0
+"""gamma * D above this would overflow exp(gamma D) in float64."""
+_PLAN_CACHE_SIZE = 8
+
+# ------------------------------------------------------------------------------ the sweep plan
+
+
+class FlatPlan(NamedTuple):
+    """A :class:`SweepPlan` as numpy arrays, its blocks laid end to end (the visiting order)."""
+
+    cells: np.ndarray
+    """[N] int64 free index of the cell at each position of the sweep (block after block)."""
+    neighbours: np.ndarray
+    """[N, D] int64 free indices of that cell's neighbours; a missing one in slot s is N + s."""
+    background_rows: np.ndarray
+    """[N] int64 the cell's row of the background table: its row in ``data.obs_cells``, or M."""
+    num_observed: int
+    """M, the number of observed cells of the data the plan was checked against."""
+
+
+# id(plan) -> (plan, its FlatPlan). The plan itself is held so that its id cannot be reused while
+# it is cached (SweepPlan is a NamedTuple: no weak references); at most _PLAN_CACHE_SIZE entries.
+_plan_cache: dict[int, tuple[SweepPlan, FlatPlan]] = {}
+
+
+def flatten_plan(plan: SweepPlan, data: ModelData) -> FlatPlan:
+    """The plan's blocks concatenated into numpy arrays, checked against ``data``.
+
+    The compiled sweep does no bounds checking, so every index is validated here: the cells must
+    be each free cell exactly once, neighbours must lie in [0, N + D), and the observed positions
+    and rows must agree with ``data.obs_cells``.
+
+    Raises:
+        ValueError: the plan does not belong to ``data``.
+    """
+    N, D = data.num_free, data.neighbours.shape[1]
+    M = data.obs_cells.shape[0]
+    empty = torch.zeros(0, dtype=torch.int64)
+    cells = torch.cat([b.cells for b in plan.blocks]).to(torch.int64) if plan.blocks else empty
+    in_range = cells.numel() == 0 or (int(cells.min()) >= 0 and int(cells.max()) < N)
+    if (
+        cells.shape != (N,)
+        or not in_range
+        or not bool((torch.bincount(cells, minlength=N) == 1).all())
+    ):
+        raise ValueError(
+            f"sweep plan does not match the data: its blocks hold {cells.numel()} cells, which "
+            f"must be each of the map's {N} free cells exactly once"
+        )
+    neighbours = torch.cat([b.neighbours for b in plan.blocks]).to(torch.int64)  # [N, D]
+    if neighbours.shape != (N, D):
+        raise ValueError(
+            f"sweep plan neighbours have shape {tuple(neighbours.shape)}, expected ({N}, {D})"
+        )
+    if N and (int(neighbours.min()) < 0 or int(neighbours.max()) >= N + D):
+        raise ValueError(
+            f"sweep plan neighbours must lie in [0, {N + D}) (N + slot where none), got values "
+            f"in [{int(neighbours.min())}, {int(neighbours.max())}]"
+        )
+    rows = torch.full((N,), M, dtype=torch.int64)  # [N]
+    offset = 0
+    for block in plan.blocks:
+        rows[offset + block.observed_positions] = block.observed_rows
+        offset += block.cells.shape[0]
+    expected = data.observation_rows()[cells]  # [N], -1 where unobserved
+    expected = torch.where(expected >= 0, expected, M)
+    if not torch.equal(rows, expected):
+        bad = int((rows != expected).nonzero()[0, 0])
+        raise ValueError(
+            f"sweep plan observed rows do not match data.obs_cells: free cell {int(cells[bad])} "
+            f"has row {int(rows[bad])} in the plan and {int(expected[bad])} in the data "
+            f"({M} = none)"
+        )
+    return FlatPlan(
+        cells=np.ascontiguousarray(cells.numpy()),
+        neighbours=np.ascontiguousarray(neighbours.numpy()),
+        background_rows=np.ascontiguousarray(rows.numpy()),
+        num_observed=M,
+    )
+
+
+def _flat_plan(plan: SweepPlan | None, data: ModelData) -> FlatPlan:
+    """The FlatPlan of ``plan`` (cached per plan object), or of a fresh plan if None."""
+    if plan is None:
+        return flatten_plan(make_sweep_plan(data), data)
+    entry = _plan_cache.get(id(plan))
+    if entry is None or entry[0] is not plan:
+        flat = flatten_plan(plan, data)
+        while len(_plan_cache) >= _PLAN_CACHE_SIZE:
+            del _plan_cache[next(iter(_plan_cache))]  # oldest first
+        _plan_cache[id(plan)] = (plan, flat)
+        return flat
+    flat = entry[1]
+    N, D, M = data.num_free, data.neighbours.shape[1], data.obs_cells.shape[0]
+    if flat.neighbours.shape != (N, D) or flat.num_observed != M:
+        raise ValueError(
+            f"sweep plan was made for {flat.neighbours.shape[0]} free cells, "
+            f"{flat.neighbours.shape[1]} neighbours and {flat.num_observed} observed cells; "
+            f"the data have {N}, {D} and {M}"
+        )
+    return flat
+
+
+# ----------------------------------------------------------------------------- random numbers
+
+_U11, _U17, _U23, _U41, _U45, _U19 = (np.uint64(k) for k in (11, 17, 23, 41, 45, 19))
+_U127 = np.uint64(127)
+_TWO_TO_MINUS_53 = 1.0 / 9007199254740992.0
+_MASK64 = (1 << 64) - 1
+
+
+def rng_state(seed: int) -> np.ndarray:
+    """[4] uint64 xoshiro256++ state from an integer seed, expanded by SplitMix64."""
+    words = []
+    x = seed & _MASK64
+    for _ in range(4):
+        x = (x + 0x9E3779B97F4A7C15) & _MASK64
+        z = ((x ^ (x >> 30)) * 0xBF58476D1CE4E5B9) & _MASK64
+        z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK64
+        words.append(z ^ (z >> 31))
+    return np.array(words, dtype=np.uint64)
+
+
+def _draw_seed(generator: torch.Generator) -> int:
+    """One seed in [0, SEED_BOUND) for the compiled sampler's RNG, from the torch generator."""
+    return int(torch.randint(SEED_BOUND, (), generator=generator))
+
+
+@njit(cache=True, inline="always")
+def _next_bits(state: np.ndarray) -> np.uint64:
+    """64 random bits from xoshiro256++ (Blackman & Vigna, 2018); advances ``state`` [4]."""
+    s0, s1, s2, s3 = state[0], state[1], state[2], state[3]
+    total = s0 + s3
+    result = ((total << _U23) | (total >> _U41)) + s0
+    t = s1 << _U17
+    s2 ^= s0
+    s3 ^= s1
+    s1 ^= s2
+    s0 ^= s3
+    s2 ^= t
+    s3 = (s3 << _U45) | (s3 >> _U19)
+    state[0], state[1], state[2], state[3] = s0, s1, s2, s3
+    return result
+
+
+@njit(cache=True, inline="always")
+def _uniform(state: np.ndarray) -> float:
+    """A uniform double in [0, 1) (the top 53 of 64 random bits)."""
+    return float(_next_bits(state) >> _U11) * _TWO_TO_MINUS_53
+
+
+def _ziggurat_tables(layers: int = 128) -> tuple[np.ndarray, np.ndarray, float]:
+    """Doornik's (2005) ZIGNOR tables: layer edges x [C + 1], ratios x[i+1] / x[i] [C], and R.
+
+    The C layers of equal area V under exp(-x^2 / 2) start at R = 3.442619855899 (C = 128).
+    """
+    tail_start, area = 3.442619855899, 9.91256303526217e-3
+    x = np.zeros(layers + 1)  # [C + 1]
+    f = math.exp(-0.5 * tail_start**2)
+    x[0], x[1] = area / f, tail_start
+    for i in range(2, layers):
+        x[i] = math.sqrt(-2.0 * math.log(area / x[i - 1] + f))
+        f = math.exp(-0.5 * x[i] ** 2)
+    return x, x[1:] / x[:-1], tail_start
+
+
+_ZIG_X, _ZIG_RATIO, _ZIG_TAIL = _ziggurat_tables()
+
+
+@njit(cache=True, inline="always")
+def _normal(state: np.ndarray) -> float:
+    """A standard normal by Doornik's ziggurat (ZIGNOR; layer and uniform from separate bits)."""
+    while True:
+        bits = _next_bits(state)
+        i = np.int64(bits & _U127)  # layer: the low 7 bits
+        u = 2.0 * (float(bits >> _U11) * _TWO_TO_MINUS_53) - 1.0  # (-1, 1): the top 53 bits
+        if abs(u) < _ZIG_RATIO[i]:
+            return u * _ZIG_X[i]  # inside the layer's rectangle (~99%)
+        if i == 0:  # the tail beyond R (Marsaglia, 1964)
+            while True:
+                x = math.log(1.0 - _uniform(state)) / _ZIG_TAIL
+                y = math.log(1.0 - _uniform(state))
+                if -2.0 * y >= x * x:
+                    return x - _ZIG_TAIL if u < 0.0 else _ZIG_TAIL - x
+        x = u * _ZIG_X[i]
+        f0 = math.exp(-0.5 * (_ZIG_X[i] * _ZIG_X[i] - x * x))
+        f1 = math.exp(-0.5 * (_ZIG_X[i + 1] * _ZIG_X[i + 1] - x * x))
+        if f1 + _uniform(state) * (f0 - f1) < 1.0:
+            return x
+
+
+@njit(cache=True)
+def _fill_normal(out: np.ndarray, state: np.ndarray) -> None:
+    """out [n] = standard normals."""
+    for i in range(out.shape[0]):
+        out[i] = _normal(state)
+
+
+@njit(cache=True)
+def _fill_log_gamma(base: float, statistics: np.ndarray, out: np.ndarray, state: np.ndarray) -> int:
+    """out[r, c] = log G, G ~ Gamma(base + statistics[r, c], 1), for [R, C] arrays.
+
+    Marsaglia-Tsang with its squeeze (shape a >= 1), taken in log space; for a < 1,
+    log G(a) = log G(a + 1) + log(U) / a, finite however small a is. Returns -1, or the flat
+    index r * C + c of the first shape that is not finite and positive (and stops there: the
+    rejection loop would never end).
+    """
+    R, C = statistics.shape
+    shape, d, scale = -1.0, 0.0, 0.0  # Marsaglia-Tsang's constants of the last shape seen
+    for r in range(R):
+        for c in range(C):
+            a = base + statistics[r, c]
+            if not 0.0 < a < np.inf:
+                return r * C + c
+            boost = 0.0
+            if a < 1.0:
+                boost = math.log(1.0 - _uniform(state)) / a  # 1 - U lies in (0, 1]
+                a += 1.0
+            if a != shape:  # most concepts hold no observations: their shapes repeat
+                shape, d = a, a - 1.0 / 3.0
+                scale = 1.0 / math.sqrt(9.0 * d)
+            while True:
+                x = _normal(state)
+                t = 1.0 + scale * x
+                if t <= 0.0:
+                    continue
+                v = t * t * t
+                u = 1.0 - _uniform(state)
+                x2 = x * x
+                if u < 1.0 - 0.0331 * x2 * x2 or math.log(u) < 0.5 * x2 + d * (
+                    1.0 - v + math.log(v)
+                ):
+                    out[r, c] = math.log(d * v) + boost
+                    break
+    return -1
+
+
+def _normalise_log_rows(log_g: np.ndarray) -> np.ndarray:
+    """log g - logsumexp(log g) over the last axis, in place (vectorised numpy exp)."""
+    log_g -= log_g.max(axis=-1, keepdims=True)
+    log_g -= np.log(np.exp(log_g).sum(axis=-1, keepdims=True))
+    return log_g
+
+
+# ------------------------------------------------------------------------------ label kernels
+
+
+@njit(cache=True, inline="always")
+def _upper_bound(cdf: np.ndarray, x: float) -> int:
+    """The first l with cdf[l] > x (cdf [L] non-decreasing, x < cdf[L - 1]), branch-free."""
+    base = 0
+    length = cdf.shape[0]
+    while length > 1:
+        half = length >> 1
+        base = base + half if cdf[base + half - 1] <= x else base
+        length -= half
+    return base
+
+
+@njit(cache=True)
+def _prepare_labels(labels: np.ndarray, out: np.ndarray, num_concepts: int) -> int:
+    """Copy labels [N] into out [N + D] with sentinels L + s at N + s; the first label outside
+    [0, L) gives its position (-1 if all are valid)."""
+    N = labels.shape[0]
+    bad = -1
+    for i in range(N):
+        value = labels[i]
+        if bad < 0 and (value < 0 or value >= num_concepts):
+            bad = i
+        out[i] = value
+    for s in range(out.shape[0] - N):
+        out[N + s] = num_concepts + s
+    return bad
+
+
+@njit(cache=True)
+def _background_sums(background: np.ndarray, num_concepts: int) -> tuple[np.ndarray, np.ndarray]:
+    """(totals [M + 1] row sums of background[:, :L], cdf [L] of its last row, pi's).
+
+    Summed in the order the background draws scan them, so a uniform below a total always
+    finds its label.
+    """
+    rows = background.shape[0]
+    totals = np.empty(rows)
+    cdf = np.empty(num_concepts)
+    for r in range(rows):
+        running = 0.0
+        for l in range(num_concepts):
+            running += background[r, l]
+            if r == rows - 1:
+                cdf[l] = running
+        totals[r] = running
+    return totals, cdf
+
+
+@njit(cache=True, inline="always")
+def _background_label(
+    background: np.ndarray, totals: np.ndarray, pi_cdf: np.ndarray, r: int, state: np.ndarray
+) -> int:
+    """A label l drawn with probability background[r, l] / totals[r].
+
+    Row M (no observations, pi): binary search in pi's CDF; an observed row: a linear scan.
+    """
+    x = _uniform(state) * totals[r]
+    while x >= totals[r]:  # U * total can round up to total (probability ~1e-16): redraw
+        x = _uniform(state) * totals[r]
+    if r == totals.shape[0] - 1:
+        return _upper_bound(pi_cdf, x)
+    running = 0.0
+    label = 0
+    while label < pi_cdf.shape[0] - 1:  # x < totals[r], the running sum's last value
+        running += background[r, label]
+        if running > x:
+            break
+        label += 1
+    return label
+
+
+@functools.cache
+def label_kernel(num_neighbours: int) -> Callable[..., None]:
+    """The compiled label sweep for D = ``num_neighbours`` (one compilation per D).
+
+    D is a compile-time constant of the kernel (a closure variable), so its loops over the
+    neighbour slots unroll and the D^2 label comparisons run branch-free. The kernel's arguments:
+    labels [N + D] int64 (sentinels L + s at N + s), redrawn in place; cells [N], neighbours
+    [N, D], rows [N] (M where unobserved) of the :class:`FlatPlan`; background [M + 1, L + D]
+    (zero columns L..L+D-1); tilt [D + 1] expm1(gamma k) / k; state the RNG.
+    """
+    D = num_neighbours
+
+    @njit(cache=True)
+    def sample_labels(
+        labels: np.ndarray,
+        cells: np.ndarray,
+        neighbours: np.ndarray,
+        rows: np.ndarray,
+        background: np.ndarray,
+        tilt: np.ndarray,
+        state: np.ndarray,
+    ) -> None:
+        L = background.shape[1] - D
+        totals, pi_cdf = _background_sums(background, L)
+        slot_labels = np.empty(D, np.int64)  # [D] a_s
+        cumulative = np.empty(D)  # [D] running slot masses
+        for p in range(cells.shape[0]):
+            r = rows[p]
+            for s in range(D):
+                slot_labels[s] = labels[neighbours[p, s]]
+            mass = 0.0  # slot s: B_{a_s} expm1(gamma n_{a_s}) / n_{a_s}
+            for s in range(D):
+                agree = 0
+                for t in range(D):
+                    agree += slot_labels[t] == slot_labels[s]
+                mass += background[r, slot_labels[s]] * tilt[agree]
+                cumulative[s] = mass
+            u = _uniform(state) * (totals[r] + mass)
+            label = slot_labels[D - 1]
+            for s in range(D - 2, -1, -1):
+                label = slot_labels[s] if u < cumulative[s] else label
+            if u >= mass:  # the background part: B_l / totals[r]
+                label = _background_label(background, totals, pi_cdf, r, state)
+            labels[cells[p]] = label
+
+    return sample_labels
+
+
+@njit(cache=True)
+def _concept_statistics(
+    labels: np.ndarray,
+    obs_cells: np.ndarray,
+    image_counts: np.ndarray,
+    word_counts: np.ndarray,
+    use_images: bool,
+    use_words: bool,
+    cells_per_concept: np.ndarray,
+    images: np.ndarray,
+    words: np.ndarray,
+) -> None:
+    """Fill the zeroed cells_per_concept [1, L], images [L, K], words [L, V] (eqs. 14-17)."""
+    for i in range(labels.shape[0]):
+        cells_per_concept[0, labels[i]] += 1.0
+    for m in range(obs_cells.shape[0]):
+        c = labels[obs_cells[m]]
+        if use_images:
+            for k in range(image_counts.shape[1]):
+                images[c, k] += image_counts[m, k]
+        if use_words:
+            for v in range(word_counts.shape[1]):
+                words[c, v] += word_counts[m, v]
+
+
+@njit(cache=True)
+def _sample_globals_kernel(
+    labels: np.ndarray,
+    obs_cells: np.ndarray,
+    image_counts: np.ndarray,
+    word_counts: np.ndarray,
+    use_images: bool,
+    use_words: bool,
+    pi_concentration: float,
+    chi: float,
+    beta: float,
+    log_pi: np.ndarray,
+    log_theta: np.ndarray,
+    log_w: np.ndarray,
+    state: np.ndarray,
+) -> tuple[int, int, float]:
+    """Fill log_pi [1, L], log_theta [L, K], log_w [L, V] with *unnormalised* log-gamma draws
+    of the conjugate conditionals' concentrations (labels [N] valid, in [0, L)).
+
+    Returns (-1, -1, 0), or (which of pi / theta / w, flat index, value) of the first
+    concentration that is not finite and positive (negative or NaN counts).
+    """
+    cells_per_concept = np.zeros(log_pi.shape)
+    images = np.zeros(log_theta.shape)
+    words = np.zeros(log_w.shape)
+    _concept_statistics(
+        labels, obs_cells, image_counts, word_counts, use_images, use_words,
+        cells_per_concept, images, words,
+    )  # fmt: skip
+    bad = _fill_log_gamma(pi_concentration, cells_per_concept, log_pi, state)
+    if bad >= 0:
+        return 0, bad, pi_concentration + cells_per_concept.ravel()[bad]
+    bad = _fill_log_gamma(chi, images, log_theta, state)
+    if bad >= 0:
+        return 1, bad, chi + images.ravel()[bad]
+    bad = _fill_log_gamma(beta, words, log_w, state)
+    if bad >= 0:
+        return 2, bad, beta + words.ravel()[bad]
+    return -1, -1, 0.0
+
+
+# ----------------------------------------------------------------------------- python side
+
+
+def _as_array(tensor: torch.Tensor, dtype: type) -> np.ndarray:
+    """A C-contiguous numpy view of a CPU tensor (a copy only if dtype or layout differ)."""
+    return np.ascontiguousarray(tensor.detach().cpu().numpy(), dtype=dtype)
+
+
+def _check_data(data: ModelData) -> None:
+    """What the compiled kernels index without bounds checks: obs_cells [M] in [0, N), one row
+    of counts per observed cell. Raises ValueError naming the mismatch."""
+    N, M = data.num_free, data.obs_cells.shape[0]
+    if data.obs_cells.dim() != 1 or (
+        M and (int(data.obs_cells.min()) < 0 or int(data.obs_cells.max()) >= N)
+    ):
+        raise ValueError(f"ModelData.obs_cells must be [M] free indices in [0, {N})")
+    for name in ("image_counts", "word_counts"):
+        shape = tuple(getattr(data, name).shape)
+        if len(shape) != 2 or shape[0] != M:
+            raise ValueError(f"ModelData.{name} has shape {shape}, expected ({M}, ...)")
+
+
+def _check_state(state: GibbsState, data: ModelData, config: SpCoConfig) -> None:
+    """Shapes of the state against data and config; raises ValueError naming the mismatch."""
+    _check_data(data)
+    L, K, V = config.num_concepts, data.num_feature_classes, data.vocabulary_size
+    expected = {"labels": (data.num_free,), "log_pi": (L,), "log_theta": (L, K), "log_w": (L, V)}
+    for name, shape in expected.items():
+        actual = tuple(getattr(state, name).shape)
+        if actual != shape:
+            raise ValueError(f"GibbsState.{name} has shape {actual}, expected {shape}")
+
+
+def _extended_labels(labels: torch.Tensor, num_neighbours: int, config: SpCoConfig) -> np.ndarray:
+    """[N + D] int64 copy of the labels followed by the sentinels L + s; checks 0 <= label < L."""
+    source = _as_array(labels, np.int64)  # [N]
+    out = np.empty(source.shape[0] + num_neighbours, dtype=np.int64)
+    bad = _prepare_labels(source, out, config.num_concepts)
+    if bad >= 0:
+        raise ValueError(
+            f"labels[{bad}] = {int(source[bad])} lies outside [0, {config.num_concepts}) "
+            "(config.num_concepts)"
+        )
+    return out
+
+
+def _neighbour_tilt(config: SpCoConfig, num_neighbours: int) -> np.ndarray:
+    """[D + 1] expm1(gamma k) / k for k = 0..D (0 at k = 0).
+
+    Raises:
+        ValueError: gamma * D is so large that exp(gamma D) overflows float64.
+    """
+    if config.gamma * num_neighbours > MAX_GAMMA_TIMES_NEIGHBOURS:
+        raise ValueError(
+            f"SpCoConfig.gamma={config.gamma!r} is too large for {num_neighbours} neighbours: "
+            f"exp(gamma * {num_neighbours}) overflows (need gamma * D <= "
+            f"{MAX_GAMMA_TIMES_NEIGHBOURS:g})"
+        )
+    k = np.arange(num_neighbours + 1, dtype=np.float64)  # [D + 1]
+    return np.expm1(config.gamma * k) / np.maximum(k, 1.0)
+
+
+def _background_table(state: GibbsState, data: ModelData, config: SpCoConfig) -> np.ndarray:
+    """[M + 1, L + D] the per-cell backgrounds B (module doc), the D last columns 0.
+
+    Row m < M: exp(log pi + loglik[m] - max), loglik [M, L] = f_m . log theta_l + S_m . log w_l
+    (eqs. 5, 7; the reference's ``observation_log_likelihood``); row M: exp(log pi - max).
+    The zero columns are the sentinel labels of missing neighbours.
+    """
+    L, D, M = config.num_concepts, data.neighbours.shape[1], data.obs_cells.shape[0]
+    # The products run in torch (MKL): numpy's OpenBLAS threads fight torch's OpenMP threads.
+    logits_t = torch.zeros(M + 1, L, dtype=torch.float64)  # [M + 1, L]
+    if config.use_images:
+        log_theta = state.log_theta.detach().to(torch.float64)
+        counts = data.image_counts.to(torch.float64)
+        torch.matmul(counts, log_theta.T, out=logits_t[:M])  # [M, K] @ [K, L]
+    if config.use_words:
+        log_w = state.log_w.detach().to(torch.float64)
+        logits_t[:M].addmm_(data.word_counts.to(torch.float64), log_w.T)  # [M, V] @ [V, L]
+    logits = logits_t.numpy()
+    logits[M] = 0.0
+    logits += _as_array(state.log_pi, np.float64)
+    top = logits.max(axis=1, keepdims=True)  # [M + 1, 1]; NaN or +inf anywhere shows here
+    if not np.isfinite(top).all():
+        row = int(np.flatnonzero(~np.isfinite(top[:, 0]))[0])
+        where = f"the observed cell in row {row} of data.obs_cells" if row < M else "pi"
+        raise ValueError(
+            f"log pi + observation log-likelihood is not finite for {where}: NaN or infinite "
+            "values in GibbsState.log_pi / log_theta / log_w or in the data's counts"
+        )
+    logits -= top
+    table = np.zeros((M + 1, L + D))  # [M + 1, L + D]
+    np.exp(logits, out=table[:, :L])
+    return table
+
+
+def _sample_labels_array(
+    state: GibbsState,
+    data: ModelData,
+    config: SpCoConfig,
+    plan: SweepPlan | None,
+    rng: np.ndarray,
+) -> np.ndarray:
+    """[N + D] int64 new labels (then the sentinels), drawn with the RNG state ``rng``."""
+    _check_state(state, data, config)
+    D = data.neighbours.shape[1]
+    flat = _flat_plan(plan, data)
+    tilt = _neighbour_tilt(config, D)
+    labels = _extended_labels(state.labels, D, config)
+    background = _background_table(state, data, config)
+    label_kernel(D)(
+        labels, flat.cells, flat.neighbours, flat.background_rows, background, tilt, rng
+    )
+    return labels
+
+
+def _sample_globals_arrays(
+    labels: np.ndarray, data: ModelData, config: SpCoConfig, rng: np.ndarray
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(log pi, log theta, log w) given valid int64 labels [N] (or longer), drawn with ``rng``."""
+    L, K, V = config.num_concepts, data.num_feature_classes, data.vocabulary_size
+    log_pi, log_theta, log_w = np.empty((1, L)), np.empty((L, K)), np.empty((L, V))
+    which, index, value = _sample_globals_kernel(
+        labels[: data.num_free], _as_array(data.obs_cells, np.int64),
+        _as_array(data.image_counts, np.float64), _as_array(data.word_counts, np.float64),
+        bool(config.use_images), bool(config.use_words),
+        float(config.pi_concentration), float(config.chi), float(config.beta),
+        log_pi, log_theta, log_w, rng,
+    )  # fmt: skip
+    if which >= 0:
+        name, source = (("pi", "?"), ("theta", "image_counts"), ("w", "word_counts"))[which]
+        row, column = divmod(index, (L, K, V)[which])
+        raise ValueError(
+            f"the Dirichlet concentration of {name}[{row}, {column}] is {value!r}, not finite and "
+            f"positive: negative or non-finite values in data.{source}?"
+        )
+    return (
+        torch.from_numpy(_normalise_log_rows(log_pi)[0]),
+        torch.from_numpy(_normalise_log_rows(log_theta)),
+        torch.from_numpy(_normalise_log_rows(log_w)),
+    )
+
+
+def sample_labels_numba(
+    state: GibbsState,
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    plan: SweepPlan | None = None,
+) -> torch.Tensor:
+    """[N] int64 new labels, every free cell drawn from eq. (13), one colour block at a time.
+
+    Same distribution as :func:`~spcopyro.gibbs.sweep.sample_labels`; draws one seed from
+    ``generator``.
+
+    Raises:
+        ValueError: as :func:`gibbs_sweep_numba`.
+    """
+    labels = _sample_labels_array(state, data, config, plan, rng_state(_draw_seed(generator)))
+    return torch.from_numpy(labels[: data.num_free])
+
+
+def sample_globals_numba(
+    labels: torch.Tensor, data: ModelData, config: SpCoConfig, generator: torch.Generator
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(log pi [L], log theta [L, K], log w [L, V]) from their conjugate conditionals (eqs. 14-17).
+
+    Same distribution as :func:`~spcopyro.gibbs.sweep.sample_globals`; draws one seed from
+    ``generator``.
+
+    Raises:
+        ValueError: ``labels`` is not [N] or holds a label outside [0, L), or ``data`` is
+            inconsistent (observed cells outside the map, count rows != observed cells).
+    """
+    _check_data(data)
+    if tuple(labels.shape) != (data.num_free,):
+        raise ValueError(f"labels have shape {tuple(labels.shape)}, expected ({data.num_free},)")
+    checked = _extended_labels(labels, 0, config)
+    return _sample_globals_arrays(checked, data, config, rng_state(_draw_seed(generator)))
+
+
+def gibbs_sweep_numba(
+    state: GibbsState,
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    plan: SweepPlan | None = None,
+) -> GibbsState:
+    """One iteration of Algorithm 1, compiled: every cell label, then pi, theta and w.
+
+    A drop-in for :func:`~spcopyro.gibbs.sweep.gibbs_sweep` with the same distribution. Draws one
+    seed from ``generator`` per call, so a seeded run is reproducible bit for bit.
+
+    Raises:
+        ValueError: the state's shapes do not match ``data`` / ``config``, a label lies outside
+            [0, L), ``plan`` was made for other data, or gamma * D > 700 (overflow).
+    """
+    rng = rng_state(_draw_seed(generator))
+    labels = _sample_labels_array(state, data, config, plan, rng)  # [N + D]
+    return GibbsState(
+        torch.from_numpy(labels[: data.num_free]),
+        *_sample_globals_arrays(labels, data, config, rng),
+    )
+
+
+def sample_log_gamma_numba(concentration: np.ndarray, seed: int) -> np.ndarray:
+    """[n] log G_i, G_i ~ Gamma(concentration_i, 1): the compiled sampler's own log-gamma draws.
+
+    Exposed to test them against scipy.
+
+    Raises:
+        ValueError: a concentration is not finite and positive.
+    """
+    a = np.ascontiguousarray(concentration, dtype=np.float64).reshape(1, -1)  # [1, n]
+    invalid = ~(np.isfinite(a) & (a > 0))
+    if invalid.any():
+        raise ValueError(f"gamma concentration must be finite and positive, got {a[invalid][0]}")
+    out = np.empty_like(a)
+    _fill_log_gamma(0.0, a, out, rng_state(seed))
+    return out[0]  # [n]
+
+
+def sample_standard_normal_numba(size: int, seed: int) -> np.ndarray:
+    """[size] standard normals from the compiled sampler's ziggurat (exposed for testing)."""
+    out = np.empty(size)
+    _fill_normal(out, rng_state(seed))
+    return out
