@@ -192,3 +192,17 @@ def test_synthetic_house_fit_recovers_the_rooms():
             region = result.where(name, prior="area").region
             inside = (house.truth[region] == category).mean()
             assert inside > 0.5, (name, inside)
+
+
+@pytest.mark.parametrize("backend", ["torch", "numba"])
+def test_trace_log_joint_equals_the_models_log_joint(backend):
+    """The run loop's cheap per-sweep log joint equals log_joint of the final state."""
+    if backend == "numba":
+        pytest.importorskip("numba")
+    from spcopyro.gibbs.sweep import log_joint
+
+    cfg = config()
+    _, data = random_problem(seed=6)
+    run = run_gibbs(data, cfg, 7, seed=2, backend=backend, progress=False)
+    expected = float(log_joint(run.final_state, data, cfg))
+    assert run.log_joint[-1] == pytest.approx(expected, rel=1e-12, abs=1e-9)

@@ -19,10 +19,10 @@ import torch
 from tqdm.auto import tqdm
 
 from spcopyro.config import SpCoConfig
-from spcopyro.gibbs.backends import sweep_function
+from spcopyro.gibbs.backends import get_backend
 from spcopyro.gibbs.init import initial_state
 from spcopyro.gibbs.state import GibbsState, make_sweep_plan
-from spcopyro.gibbs.sweep import log_joint_constant, log_joint_variable, num_concepts_in_use
+from spcopyro.gibbs.sweep import log_joint_constant, log_joint_variable
 from spcopyro.model import ModelData
 
 LABEL_DTYPE = torch.int16  # compact storage of label maps (L <= 32767)
@@ -89,7 +89,7 @@ def run_gibbs(
         raise ValueError(f"thin must be >= 0, got {thin}")
     if generator is None:
         generator = torch.Generator().manual_seed(0 if seed is None else int(seed))
-    sweep_step = sweep_function(backend)
+    sweeper = get_backend(backend)
     plan = make_sweep_plan(data)
     state = initial_state(data, config, generator, init_labels)
 
@@ -104,10 +104,12 @@ def run_gibbs(
     start = time.perf_counter()
     bar = tqdm(range(num_sweeps), desc="Gibbs sweeps", disable=not progress_enabled(progress))
     for sweep in bar:
-        state = sweep_step(state, data, config, generator, plan)
-        value = constant + float(log_joint_variable(state, data, config))
+        state = sweeper.sweep(state, data, config, generator, plan)
+        label_counts = torch.bincount(state.labels, minlength=config.num_concepts)  # [L]
+        agreements = sweeper.potts_agreements(state.labels, data.pairs)
+        value = constant + float(log_joint_variable(state, data, config, label_counts, agreements))
         trace_log_joint[sweep] = value
-        trace_concepts[sweep] = num_concepts_in_use(state.labels, config.num_concepts)
+        trace_concepts[sweep] = int((label_counts > 0).sum())
         trace_seconds[sweep] = time.perf_counter() - start
         if value > best_value:
             best_value, best_state, best_sweep = value, _compact(state), sweep

@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import NamedTuple
+
+import torch
 
 from spcopyro.gibbs.state import GibbsState
 from spcopyro.gibbs.sweep import gibbs_sweep
+from spcopyro.model import potts_agreements
 
 SweepFunction = Callable[..., GibbsState]
 BACKENDS = ("auto", "torch", "numba")
@@ -29,3 +33,21 @@ def sweep_function(backend: str = "auto") -> SweepFunction:
             ) from None
         return gibbs_sweep
     return gibbs_sweep_numba
+
+
+class Backend(NamedTuple):
+    """A sweep implementation and the matching Potts statistic E(C) (for the per-sweep trace)."""
+
+    name: str
+    sweep: SweepFunction
+    potts_agreements: Callable[[torch.Tensor, torch.Tensor], torch.Tensor]
+
+
+def get_backend(backend: str = "auto") -> Backend:
+    """The :class:`Backend` named ``backend`` (see :func:`sweep_function`)."""
+    sweep = sweep_function(backend)
+    if sweep is gibbs_sweep:
+        return Backend("torch", gibbs_sweep, potts_agreements)
+    from spcopyro.gibbs.numba_sweep import potts_agreements_numba
+
+    return Backend("numba", sweep, potts_agreements_numba)

@@ -732,3 +732,17 @@ def sample_standard_normal_numba(size: int, seed: int) -> np.ndarray:
     out = np.empty(size)
     _fill_normal(out, rng_state(seed))
     return out
+
+
+@njit(cache=True)
+def _potts_agreements_kernel(labels: np.ndarray, pairs: np.ndarray) -> int:
+    total = 0
+    for p in range(pairs.shape[0]):
+        total += labels[pairs[p, 0]] == labels[pairs[p, 1]]
+    return total
+
+
+def potts_agreements_numba(labels: torch.Tensor, pairs: torch.Tensor) -> torch.Tensor:
+    """E(C) of :func:`spcopyro.model.potts_agreements` (float64 scalar), compiled."""
+    total = _potts_agreements_kernel(_as_array(labels, np.int64), _as_array(pairs, np.int64))
+    return torch.tensor(float(total), dtype=torch.float64)

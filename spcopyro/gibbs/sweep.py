@@ -240,13 +240,27 @@ def log_joint_constant(data: ModelData, config: SpCoConfig, state: GibbsState) -
     return total
 
 
-def log_joint_variable(state: GibbsState, data: ModelData, config: SpCoConfig) -> torch.Tensor:
-    """The terms of :func:`log_joint` that depend on the state."""
+def log_joint_variable(
+    state: GibbsState,
+    data: ModelData,
+    config: SpCoConfig,
+    label_counts: torch.Tensor | None = None,
+    agreements: torch.Tensor | None = None,
+) -> torch.Tensor:
+    """The terms of :func:`log_joint` that depend on the state.
+
+    ``label_counts`` ([L] cells per concept) and ``agreements`` (E(C)) may be passed in when the
+    caller has them already (the run loop does, to keep the per-sweep trace cheap).
+    """
+    if label_counts is None:
+        label_counts = torch.bincount(state.labels, minlength=config.num_concepts)
+    if agreements is None:
+        agreements = potts_agreements(state.labels, data.pairs)
     total = (config.pi_concentration - 1) * state.log_pi.sum()
     total = total + (config.chi - 1) * state.log_theta.sum()
     total = total + (config.beta - 1) * state.log_w.sum()
-    total = total + state.log_pi[state.labels].sum()
-    total = total + config.gamma * potts_agreements(state.labels, data.pairs)
+    total = total + (label_counts.to(DTYPE) * state.log_pi).sum()  # sum_i log pi_{C_i}
+    total = total + config.gamma * agreements
     observed_labels = state.labels[data.obs_cells]
     if config.use_images:
         total = total + (data.image_counts * state.log_theta[observed_labels]).sum()
