@@ -17,13 +17,12 @@ import torch
 pytest.importorskip("numba")
 
 from gibbs_problems import config, model_data, random_problem, replicate_grid  # noqa: E402
-from pyro.ops.stats import effective_sample_size  # noqa: E402
 from scipy import stats  # noqa: E402
+from test_gibbs_conditionals import BLOCK_VARIANTS, min_block_p_value  # noqa: E402
 from test_gibbs_joint import (  # noqa: E402
     Z_LIMIT,
     draw_counts,
-    exact_label_marginal,
-    label_invariant_statistics,
+    geweke_z_scores,
 )
 
 from spcopyro.gibbs.backends import sweep_function  # noqa: E402
@@ -35,46 +34,15 @@ from spcopyro.gibbs.numba_sweep import (  # noqa: E402
     sample_log_gamma_numba,
     sample_standard_normal_numba,
 )
-from spcopyro.gibbs.random import sample_log_dirichlet  # noqa: E402
 from spcopyro.gibbs.state import GibbsState, make_sweep_plan  # noqa: E402
-from spcopyro.gibbs.sweep import gibbs_sweep, label_log_conditionals  # noqa: E402
+from spcopyro.gibbs.sweep import gibbs_sweep  # noqa: E402
 from spcopyro.model import DTYPE  # noqa: E402
 
 
-@pytest.mark.parametrize(
-    "variant",
-    [dict(gamma=1.5), dict(connectivity=8), dict(gamma=2.5, num_concepts=4), dict(gamma=0.0)],
-    ids=str,
-)
+@pytest.mark.parametrize("variant", BLOCK_VARIANTS, ids=str)
 def test_block_draws_follow_enumerated_conditionals(variant):
-    """The first colour block is drawn from the exact conditional given the current state.
-
-    As in the reference's test: 1000 wall-separated copies of one problem share one state, so a
-    sweep gives 1000 independent draws of each first-block cell (the background path and the
-    observed cells' path alike); a chi-square test per cell of copy 0 against
-    :func:`label_log_conditionals`, Bonferroni-corrected.
-    """
-    cfg = config(**variant)
-    copies, repeats = 1000, 20
-    _, data = random_problem(seed=5, connectivity=cfg.connectivity, copies=copies)
-    n = data.num_free // copies
-    generator = torch.Generator().manual_seed(3)
-    one = initial_state(data, cfg, generator)
-    state = one._replace(labels=one.labels[:n].repeat(copies))  # same state in every copy
-    plan = make_sweep_plan(data)
-    first = plan.blocks[0].cells
-    first = first[first < n]  # first-block cells of copy 0
-    assert (data.observation_rows()[first] >= 0).any()  # the observed path is exercised
-    counts = torch.zeros(first.numel(), cfg.num_concepts)
-    for _ in range(repeats):
-        labels = sample_labels_numba(state, data, cfg, generator, plan).view(copies, n)[:, first]
-        counts += torch.nn.functional.one_hot(labels, cfg.num_concepts).sum(0)
-    expected = label_log_conditionals(state, data, cfg, first).exp() * copies * repeats
-    p_values = [
-        stats.chisquare(counts[i].numpy(), expected[i].numpy()).pvalue for i in range(len(first))
-    ]
-    # Bonferroni over cells: a correct sampler fails this with probability < 1e-3.
-    assert min(p_values) > 1e-3 / len(p_values), min(p_values)
+    """The reference's chi-square test of the first colour block, with the numba label step."""
+    assert min_block_p_value(sample_labels_numba, config(**variant)) > 1e-3
 
 
 def test_one_sweep_by_hand():
@@ -271,55 +239,15 @@ def test_backend_choice_and_import_error_without_numba(monkeypatch):
     ids=str,
 )
 def test_geweke_getting_it_right(variant):
-    """Geweke's test of tests/test_gibbs_joint.py with the numba sweep as the kernel.
+    """Geweke's test of tests/test_gibbs_joint.py with the numba sweep as the kernel; both halves
+    draw their data with the independent ``draw_counts`` (not the model)."""
 
-    Marginal-conditional draws (labels from their exact marginal, then pi | C, theta and w from
-    their priors, data given all) against successive-conditional draws (a numba sweep, then new
-    data given the state), compared on label-invariant statistics. The data draws of both
-    halves use the independent ``draw_counts``.
-    """
-    cfg = config(**variant)
-    grid, n = replicate_grid(["...", "...", "..."], 1)  # 9 cells, 3^9 labelings
-    data = model_data(
-        grid, np.array([0, 4, 8]), [[3, 0], [2, 1], [0, 3]], [[2, 0, 0], [0, 1, 1], [0, 0, 2]],
-        cfg.connectivity,
-    )  # fmt: skip
-    L = cfg.num_concepts
-    generator = torch.Generator().manual_seed(12)
-    labelings, probs = exact_label_marginal(data.pairs, n, cfg)
-    image_totals, word_totals = data.image_counts.sum(-1), data.word_counts.sum(-1)
-
-    draws = 20000
-    labels = labelings[torch.multinomial(probs, draws, replacement=True, generator=generator)]
-    m = torch.nn.functional.one_hot(labels, L).sum(1).to(DTYPE)  # [draws, L]
-    log_pi = sample_log_dirichlet(cfg.pi_concentration + m, generator)
-    log_theta = sample_log_dirichlet(torch.full((draws, L, 2), cfg.chi, dtype=DTYPE), generator)
-    log_w = sample_log_dirichlet(torch.full((draws, L, 3), cfg.beta, dtype=DTYPE), generator)
-    rows, c = torch.arange(draws)[:, None], labels[:, data.obs_cells]  # c: [draws, M]
-    images = draw_counts(log_theta[rows, c], image_totals, generator)
-    words = draw_counts(log_w[rows, c], word_totals, generator)
-    forward = label_invariant_statistics(
-        labels, log_pi, log_theta, log_w, images, words, data.pairs, data.obs_cells, L
-    )  # [draws, S]
-
-    steps = 8000
-    state, world = initial_state(data, cfg, generator), data
-    plan = make_sweep_plan(data)
-    chain = []
-    for _ in range(steps):
-        state = gibbs_sweep_numba(state, world, cfg, generator, plan)
-        # Recorded before the data draw, so a kernel that ignores the data is caught.
-        chain.append((*state, world.image_counts, world.word_counts))
-        c = state.labels[data.obs_cells][None]  # [1, M]
-        world = world._replace(
-            image_counts=draw_counts(state.log_theta[c], image_totals, generator)[0],
-            word_counts=draw_counts(state.log_w[c], word_totals, generator)[0],
+    def redraw(state, world, cfg, generator):
+        c = state.labels[world.obs_cells][None]  # [1, M]
+        return world._replace(
+            image_counts=draw_counts(state.log_theta[c], world.image_counts.sum(-1), generator)[0],
+            word_counts=draw_counts(state.log_w[c], world.word_counts.sum(-1), generator)[0],
         )
-    chain = label_invariant_statistics(
-        *(torch.stack(x) for x in zip(*chain, strict=True)), data.pairs, data.obs_cells, L
-    )  # [steps, S]
 
-    ess = effective_sample_size(chain[None], chain_dim=0, sample_dim=1).clamp(min=10.0)
-    se = (forward.var(0) / draws + chain.var(0) / ess).sqrt()
-    z = (forward.mean(0) - chain.mean(0)) / se
-    assert z.abs().max() < Z_LIMIT, f"z-scores {z.numpy().round(2)}, ess {ess.numpy().round(0)}"
+    z = geweke_z_scores(config(**variant), gibbs_sweep_numba, redraw)
+    assert z.abs().max() < Z_LIMIT, f"z-scores {z.numpy().round(2)}"
