@@ -213,6 +213,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="p(C) in eq. (19): pi (the paper) or a concept's share of the map",
     )
     p.set_defaults(func=_where)
+
+    from spcopyro.features.cli import add_parser as add_features_parsers
+
+    add_features_parsers(sub)  # features, features-head
     return parser
 
 

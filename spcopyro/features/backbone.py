@@ -1,0 +1,222 @@
+"""The AlexNet backbone and where its weights come from.
+
+SpCoMapping's image modality is a place-class histogram from AlexNet (the paper: trained on
+Places205, run in Caffe). Here the network is torchvision's :class:`~torchvision.models.AlexNet`;
+its weights come from one of three sources (:func:`parse_weights`):
+
+* ``"imagenet"``: torchvision's weights API, ``AlexNet_Weights.IMAGENET1K_V1``. torchvision keeps
+  the file ``alexnet-owt-7be5be79.pth`` in its cache, ``$TORCH_HOME/hub/checkpoints/``
+  (``$TORCH_HOME`` defaults to ``~/.cache/torch``; :func:`torchvision_cache_file`). It is read from
+  there; it is downloaded (233 MB) only with ``download=True`` on a machine with internet. Without
+  the file and without ``download`` a :class:`WeightsNotFoundError` says how to get it.
+* a path: a local checkpoint holding an AlexNet state dict (for example a Places205 AlexNet
+  converted from Caffe, whose final layer has 205 outputs, or a state dict saved with
+  ``torch.save(model.state_dict(), path)``). The number of classes is read from the final layer.
+* ``"random"``: torchvision's random initialisation from a seed. For tests, timing and plumbing
+  only: features from random weights carry no information about places.
+
+Nothing is downloaded unless asked: the cache file is looked up *before* torchvision's weights API
+is called, because that API would otherwise try to download it.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import torch
+from torch import nn
+from torchvision.models import AlexNet, AlexNet_Weights, alexnet
+
+__all__ = [
+    "FEATURE_DIM",
+    "IMAGENET_WEIGHTS",
+    "CheckpointError",
+    "WeightsNotFoundError",
+    "WeightsSource",
+    "load_alexnet",
+    "load_state_dict_file",
+    "parse_weights",
+    "torchvision_cache_file",
+]
+
+IMAGENET_WEIGHTS = AlexNet_Weights.IMAGENET1K_V1
+FEATURE_DIM = 4096  # width of AlexNet's fc7, the input of the place head
+FINAL_LAYER = "classifier.6"  # fc8: Linear(4096, num_classes), the layer a place head replaces
+
+WeightsKind = Literal["imagenet", "random", "file"]
+
+
+class WeightsNotFoundError(FileNotFoundError):
+    """The requested backbone weights are not on this machine; the message says how to get them."""
+
+
+class CheckpointError(ValueError):
+    """A checkpoint file is unreadable or does not fit AlexNet; the message names the file."""
+
+
+@dataclass(frozen=True)
+class WeightsSource:
+    """Where backbone weights come from: ``kind`` is "imagenet", "random" or "file" (``path``)."""
+
+    kind: WeightsKind
+    path: Path | None = None
+    seed: int = 0  # only for kind "random"
+
+    @property
+    def pretrained(self) -> bool:
+        """False for random weights: their features mean nothing about places."""
+        return self.kind != "random"
+
+    def describe(self) -> str:
+        if self.kind == "imagenet":
+            return f"torchvision {IMAGENET_WEIGHTS!r} (ImageNet-1k, 1000 classes)"
+        if self.kind == "random":
+            return f"random initialisation (seed {self.seed}; NOT pretrained)"
+        return f"checkpoint {self.path}"
+
+
+def parse_weights(spec: str | os.PathLike[str] | WeightsSource, *, seed: int = 0) -> WeightsSource:
+    """``"imagenet"``, ``"random"`` or a checkpoint path -> :class:`WeightsSource`.
+
+    A path must exist (else :class:`WeightsNotFoundError` naming it).
+    """
+    if isinstance(spec, WeightsSource):
+        return spec
+    if isinstance(spec, str) and spec in ("imagenet", "random"):
+        return WeightsSource(kind=spec, seed=int(seed))  # type: ignore[arg-type]
+    path = Path(spec)
+    if not path.is_file():
+        raise WeightsNotFoundError(
+            f"{path}: backbone weights file not found (--weights takes 'imagenet', 'random' or "
+            "the path of an AlexNet state-dict checkpoint)"
+        )
+    return WeightsSource(kind="file", path=path)
+
+
+def torchvision_cache_file() -> Path:
+    """Where torchvision keeps ``AlexNet_Weights.IMAGENET1K_V1``:
+    ``torch.hub.get_dir()/checkpoints/alexnet-owt-7be5be79.pth`` (``$TORCH_HOME/hub/...``)."""
+    return Path(torch.hub.get_dir()) / "checkpoints" / Path(IMAGENET_WEIGHTS.url).name
+
+
+def _missing_imagenet_message(cache_file: Path) -> str:
+    return (
+        f"AlexNet ImageNet weights not found: torchvision caches them as {cache_file} "
+        f"(file {cache_file.name}; the folder is $TORCH_HOME/hub/checkpoints, $TORCH_HOME "
+        f"defaulting to ~/.cache/torch). Get them on a machine with internet with "
+        f"`python -c \"import torchvision; torchvision.models.alexnet(weights='IMAGENET1K_V1')\"` "
+        f"(or pass download=True / --download), or download {IMAGENET_WEIGHTS.url} and put it "
+        "there; or give a local state-dict checkpoint with --weights PATH; or --weights random "
+        "(features then mean nothing)."
+    )
+
+
+def load_state_dict_file(path: str | os.PathLike[str]) -> dict[str, torch.Tensor]:
+    """Read a checkpoint file into a state dict (on the CPU, ``weights_only``: no code runs).
+
+    Accepts a plain state dict, or a dict holding one under ``"state_dict"`` or ``"model"``;
+    a ``"module."`` prefix on every key (left by ``nn.DataParallel``) is removed.
+
+    Raises:
+        WeightsNotFoundError: no such file.
+        CheckpointError: not a torch file, or not a mapping of names to tensors.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise WeightsNotFoundError(f"{path}: checkpoint file not found")
+    try:
+        raw = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as error:  # torch raises many types for a bad file
+        raise CheckpointError(
+            f"{path}: not a readable torch checkpoint ({type(error).__name__}: {error})"
+        ) from None
+    if isinstance(raw, Mapping):
+        for key in ("state_dict", "model"):
+            if isinstance(raw.get(key), Mapping):
+                raw = raw[key]
+                break
+    if not isinstance(raw, Mapping) or not raw:
+        raise CheckpointError(
+            f"{path}: expected a state dict (a mapping of parameter names to tensors), "
+            f"got {type(raw).__name__}"
+        )
+    bad = [k for k, v in raw.items() if not isinstance(k, str) or not torch.is_tensor(v)]
+    if bad:
+        raise CheckpointError(f"{path}: entry {bad[0]!r} is not a named tensor")
+    state = dict(raw)
+    if all(k.startswith("module.") for k in state):
+        state = {k.removeprefix("module."): v for k, v in state.items()}
+    return state
+
+
+def _alexnet_from_state_dict(state: Mapping[str, torch.Tensor], path: Path) -> AlexNet:
+    """An AlexNet whose final layer has as many classes as the checkpoint's."""
+    final_weight = state.get(f"{FINAL_LAYER}.weight")
+    if final_weight is None or final_weight.ndim != 2:
+        raise CheckpointError(
+            f"{path}: not an AlexNet state dict: no 2-d {FINAL_LAYER}.weight (keys: "
+            f"{', '.join(list(state)[:8])}{', ...' if len(state) > 8 else ''})"
+        )
+    model = alexnet(weights=None, num_classes=int(final_weight.shape[0]))
+    expected = model.state_dict()
+    missing = [k for k in expected if k not in state]
+    unexpected = [k for k in state if k not in expected]
+    if missing or unexpected:
+        raise CheckpointError(
+            f"{path}: does not fit torchvision's AlexNet: missing keys {missing}, "
+            f"unexpected keys {unexpected}"
+        )
+    for key, tensor in expected.items():
+        if state[key].shape != tensor.shape:
+            raise CheckpointError(
+                f"{path}: {key} has shape {tuple(state[key].shape)}, AlexNet needs "
+                f"{tuple(tensor.shape)}"
+            )
+    model.load_state_dict(state)
+    return model
+
+
+def load_alexnet(
+    weights: str | os.PathLike[str] | WeightsSource = "imagenet",
+    *,
+    download: bool = False,
+    seed: int = 0,
+) -> AlexNet:
+    """torchvision's AlexNet with the requested weights (module docstring), in eval mode, on CPU.
+
+    Args:
+        weights: ``"imagenet"``, ``"random"``, a checkpoint path, or a :class:`WeightsSource`.
+        download: with ``"imagenet"``, let torchvision download the file when it is not cached
+            (needs internet). Off by default: a missing file raises instead.
+        seed: the seed of ``"random"`` weights (the global RNG is left untouched).
+
+    Raises:
+        WeightsNotFoundError: the ImageNet file is not cached (and no ``download``), or the
+            checkpoint path does not exist; the message says how to get the weights.
+        CheckpointError: a checkpoint that is unreadable or does not fit AlexNet.
+    """
+    source = parse_weights(weights, seed=seed)
+    if source.kind == "imagenet":
+        cache_file = torchvision_cache_file()
+        if not cache_file.is_file() and not download:
+            raise WeightsNotFoundError(_missing_imagenet_message(cache_file))
+        model = alexnet(weights=IMAGENET_WEIGHTS, progress=False)
+    elif source.kind == "random":
+        with torch.random.fork_rng(devices=[]):
+            torch.manual_seed(source.seed)
+            model = alexnet(weights=None)
+    else:
+        assert source.path is not None
+        model = _alexnet_from_state_dict(load_state_dict_file(source.path), source.path)
+    return model.eval()
+
+
+def final_layer(model: AlexNet) -> nn.Linear:
+    """fc8, ``model.classifier[6]``: ``Linear(4096, num_classes)``."""
+    layer = model.classifier[6]
+    assert isinstance(layer, nn.Linear) and layer.in_features == FEATURE_DIM
+    return layer

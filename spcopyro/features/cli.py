@@ -1,0 +1,168 @@
+"""The ``spcopyro features`` and ``spcopyro features-head`` commands.
+
+:func:`add_parser` registers both on the main parser's subparsers; torch and torchvision are
+imported only when one of them runs, so other commands start as fast as before.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+__all__ = ["add_parser"]
+
+WEIGHTS_HELP = (
+    "backbone weights: 'imagenet' (torchvision's AlexNet_Weights.IMAGENET1K_V1, read from "
+    "$TORCH_HOME/hub/checkpoints; see --download), 'random' (no pretrained weights: features "
+    "mean nothing), or the path of an AlexNet state-dict checkpoint (e.g. a converted Places205 "
+    "AlexNet). Default: imagenet"
+)
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--weights", default="imagenet", help=WEIGHTS_HELP)
+    p.add_argument("--batch", type=int, default=32, help="images per batch (default 32)")
+    p.add_argument("--device", default="cpu", help="cpu or cuda (default cpu)")
+    p.add_argument(
+        "--download",
+        action="store_true",
+        help="let torchvision download the ImageNet weights when not cached (needs internet)",
+    )
+
+
+def _random_warning(weights: str) -> None:
+    if weights == "random":
+        print(
+            "warning: --weights random: the backbone is not pretrained, its features are not "
+            "learnt place features (fine for testing the pipeline only)",
+            file=sys.stderr,
+        )
+
+
+def _features(args: argparse.Namespace) -> int:
+    from spcopyro.features.extract import extract_to_csv
+
+    _random_warning(args.weights)
+    result = extract_to_csv(
+        args.images,
+        args.out,
+        weights=args.weights,
+        head=args.head,
+        batch_size=args.batch,
+        device=args.device,
+        download=args.download,
+        overwrite=args.overwrite,
+    )
+    rows, classes = result.features.shape
+    print(f"backbone         {result.weights.describe()}")
+    print(f"head             {args.head or 'the backbone final layer'} ({classes} classes)")
+    print(f"wrote {result.out}: {rows} rows x {classes} columns, one per image of {args.images}")
+    return 0
+
+
+def _features_head(args: argparse.Namespace) -> int:
+    from spcopyro.features.head import PlaceClassifier, encode_labels, save_head, train_head
+
+    _random_warning(args.weights)
+    out = Path(args.out)
+    if out.exists() and not args.overwrite:
+        raise FileExistsError(f"{out} already exists; pass --overwrite to replace it")
+    source = Path(args.source)
+    if source.is_dir():
+        from spcopyro.data import load_house
+        from spcopyro.features.distill import distillation_report
+
+        report = distillation_report(
+            load_house(source),
+            weights=args.weights,
+            held_out_trial=args.held_out_trial,
+            train_trials=args.train_trials,
+            tune_layers=args.tune_layers,
+            epochs=args.epochs,
+            lr=args.lr,
+            batch_size=args.batch,
+            device=args.device,
+            download=args.download,
+            seed=args.seed,
+            max_images_per_trial=args.max_images_per_trial,
+        )
+        print(report.text())
+        save_head(report.model, out, mode="distill", note=f"distilled from {source}")
+    else:
+        from spcopyro.features.extract import frozen_inputs
+        from spcopyro.features.images import read_labelled_images
+
+        paths, names = read_labelled_images(source)
+        class_names, labels = encode_labels(names)
+        model = PlaceClassifier.load(args.weights, download=args.download, seed=args.seed)
+        model.replace_head(len(class_names), class_names)
+        inputs = frozen_inputs(
+            model, paths, tune_layers=args.tune_layers, batch_size=args.batch, device=args.device
+        )
+        result = train_head(
+            model,
+            inputs,
+            labels,
+            mode="labels",
+            tune_layers=args.tune_layers,
+            epochs=args.epochs,
+            lr=args.lr,
+            batch_size=args.batch,
+            seed=args.seed,
+        )
+        print(f"backbone         {model.weights.describe()}")
+        print(f"trained          {len(paths)} images, {len(class_names)} places "
+              f"({', '.join(class_names)}); cross-entropy {result.initial_loss:.4f} -> "
+              f"{result.final_loss:.4f}")  # fmt: skip
+        save_head(model, out, mode="labels", note=f"labels from {source}")
+    print(f"wrote {out} (use it with: spcopyro features IMAGES --out Ft.csv --head {out})")
+    return 0
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``features`` (extract Ft.csv) and ``features-head`` (train a place head)."""
+    p = subparsers.add_parser(
+        "features",
+        help="image features (Ft.csv) from a folder of images with torchvision's AlexNet",
+        description=(
+            "Write one place-class histogram per image (softmax of the head) as Ft.csv rows. "
+            "IMAGES is a folder of images (sorted by name) or a house folder with img_K/ folders "
+            "(rows in the order load_house pairs with them). Without --head the rows are the "
+            "backbone's own classes (1000 for ImageNet weights)."
+        ),
+    )
+    p.add_argument("images", help="folder of images, or a house folder with img_K/ folders")
+    p.add_argument("--out", required=True, help="Ft.csv file to write")
+    p.add_argument("--head", help="a place head file from `spcopyro features-head`")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
+    _common(p)
+    p.set_defaults(func=_features)
+
+    p = subparsers.add_parser(
+        "features-head",
+        help="train a place head on the frozen AlexNet (distill a house's Ft.csv, or labels)",
+        description=(
+            "SOURCE a house folder: distil its Ft.csv (the paper's Places205 histograms) from "
+            "its images, training on some trials and reporting KL divergence and top-1 agreement "
+            "on a held-out one. SOURCE a file of IMAGE,PLACE lines: train on place names."
+        ),
+    )
+    p.add_argument("source", help="house folder (distillation) or IMAGE,PLACE labels file")
+    p.add_argument("--out", required=True, help="head file to write")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
+    p.add_argument(
+        "--tune-layers",
+        type=int,
+        choices=(0, 1, 2),
+        default=0,
+        help="also fine-tune fc7 (1) or fc6 and fc7 (2); default: head only",
+    )
+    p.add_argument("--epochs", type=int, default=100)
+    p.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--held-out-trial", type=int, help="distillation: default the last trial")
+    p.add_argument("--train-trials", type=int, nargs="+", help="distillation: default the rest")
+    p.add_argument("--max-images-per-trial", type=int, help="distillation: a quick run")
+    _common(p)
+    p.set_defaults(func=_features_head)

@@ -1,0 +1,219 @@
+"""Camera images: finding them, decoding them with OpenCV, preprocessing with torchvision.
+
+Preprocessing is torchvision's recipe for its ImageNet AlexNet (the ``ImageClassification``
+preset of ``AlexNet_Weights.IMAGENET1K_V1``): resize the shorter side to 256 pixels (bilinear,
+antialiased), crop the central 224 x 224, scale to [0, 1] and normalise each channel,
+``x' = (x / 255 - mean_c) / std_c`` with the ImageNet mean (0.485, 0.456, 0.406) and standard
+deviation (0.229, 0.224, 0.225), channels in RGB order.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import torch
+from torchvision.transforms import InterpolationMode, v2
+
+from spcopyro.data import IMAGE_SUFFIXES
+
+__all__ = [
+    "CROP_SIZE",
+    "IMAGENET_MEAN",
+    "IMAGENET_STD",
+    "RESIZE_SIZE",
+    "ImageBatch",
+    "ImageReadError",
+    "UnreadableImagesError",
+    "iter_image_batches",
+    "list_images",
+    "make_transform",
+    "read_image",
+    "read_labelled_images",
+]
+
+RESIZE_SIZE = 256  # shorter side after resizing
+CROP_SIZE = 224  # side of the central crop the network sees
+IMAGENET_MEAN = (0.485, 0.456, 0.406)  # RGB
+IMAGENET_STD = (0.229, 0.224, 0.225)  # RGB
+
+
+class ImageReadError(ValueError):
+    """One image file could not be decoded; ``path`` and ``reason`` say which and why."""
+
+    def __init__(self, path: str | os.PathLike[str], reason: str) -> None:
+        self.path = Path(path)
+        self.reason = reason
+        super().__init__(f"{self.path}: {reason}")
+
+
+class UnreadableImagesError(ValueError):
+    """Some images could not be read; ``failures`` lists every ``(path, reason)``."""
+
+    def __init__(self, failures: Sequence[tuple[Path, str]], total: int) -> None:
+        self.failures = tuple((Path(p), r) for p, r in failures)
+        listed = "; ".join(f"{p}: {r}" for p, r in self.failures[:20])
+        more = f"; ... and {len(self.failures) - 20} more" if len(self.failures) > 20 else ""
+        super().__init__(
+            f"{len(self.failures)} of {total} image(s) could not be read (nothing was written; "
+            f"fix or remove them): {listed}{more}"
+        )
+
+
+def read_image(path: str | os.PathLike[str]) -> np.ndarray:
+    """Decode an image file into ``[H, W, 3]`` uint8 **RGB** (grey and alpha images converted).
+
+    The bytes are read with Python and decoded with ``cv2.imdecode``, which rejects a truncated
+    JPEG (``cv2.imread`` would silently return it with its missing part grey).
+
+    Raises:
+        FileNotFoundError: no such file (the message names it).
+        ImageReadError: the file is not a decodable image.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: image file not found")
+    data = np.fromfile(path, dtype=np.uint8)  # [bytes]
+    if data.size == 0:
+        raise ImageReadError(path, "empty file")
+    bgr = cv2.imdecode(data, cv2.IMREAD_COLOR)  # [H, W, 3] uint8 BGR or None
+    if bgr is None:
+        raise ImageReadError(path, "OpenCV cannot decode it (not an image, or truncated)")
+    return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+
+
+def make_transform(
+    resize: int = RESIZE_SIZE,
+    crop: int = CROP_SIZE,
+    mean: Sequence[float] = IMAGENET_MEAN,
+    std: Sequence[float] = IMAGENET_STD,
+) -> Callable[[np.ndarray], torch.Tensor]:
+    """``[H, W, 3]`` uint8 RGB array -> ``[3, crop, crop]`` float32 normalised tensor.
+
+    torchvision transforms (``v2``): ToImage, Resize(resize, bilinear, antialias),
+    CenterCrop(crop), ToDtype(float32, scale=True), Normalize(mean, std).
+    """
+    return v2.Compose(
+        [
+            v2.ToImage(),
+            v2.Resize(resize, interpolation=InterpolationMode.BILINEAR, antialias=True),
+            v2.CenterCrop(crop),
+            v2.ToDtype(torch.float32, scale=True),
+            v2.Normalize(mean=list(mean), std=list(std)),
+        ]
+    )
+
+
+def list_images(directory: str | os.PathLike[str]) -> list[Path]:
+    """The images of a folder, in the order their feature rows take (the dataset's Ft.csv order).
+
+    Either the images directly in ``directory``, sorted by name, or -- for a house folder of the
+    dataset layout -- those of its ``img_K/`` subfolders, K ascending (numerically), each sorted
+    by name, exactly as :func:`spcopyro.data.load_house` pairs them with Ft.csv rows. Images are
+    the files ending in one of :data:`spcopyro.data.IMAGE_SUFFIXES` (any case).
+
+    Raises:
+        FileNotFoundError: ``directory`` does not exist, or holds no images.
+        ValueError: it holds both images and ``img_K/`` folders (which order is meant?).
+    """
+    directory = Path(directory)
+    if not directory.is_dir():
+        raise FileNotFoundError(f"{directory}: image folder not found")
+    flat = sorted(
+        p for p in directory.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES
+    )
+    trial_folders = sorted(
+        (int(m.group(1)), p)
+        for p in directory.iterdir()
+        if p.is_dir() and (m := re.fullmatch(r"img_(\d+)", p.name))
+    )
+    if flat and trial_folders:
+        raise ValueError(
+            f"{directory}: holds both images ({flat[0].name}, ...) and img_K folders "
+            f"({trial_folders[0][1].name}, ...); give one of them"
+        )
+    paths = flat or [
+        p
+        for _, folder in trial_folders
+        for p in sorted(
+            q for q in folder.iterdir() if q.is_file() and q.suffix.lower() in IMAGE_SUFFIXES
+        )
+    ]
+    if not paths:
+        raise FileNotFoundError(
+            f"{directory}: no images (files ending in {', '.join(IMAGE_SUFFIXES)}, directly or "
+            "in img_K/ folders)"
+        )
+    return paths
+
+
+@dataclass(frozen=True)
+class ImageBatch:
+    """Images ``start .. start + len(paths) - 1`` of a list; ``pixels`` holds those that decoded.
+
+    ``pixels`` is ``[B, 3, crop, crop]`` float32 (B = len(paths)) when ``failures`` is empty;
+    otherwise ``None``, and ``failures`` lists ``(path, reason)`` of every image that did not.
+    """
+
+    start: int
+    paths: tuple[Path, ...]
+    pixels: torch.Tensor | None  # [B, 3, crop, crop] float32
+    failures: tuple[tuple[Path, str], ...]
+
+
+def iter_image_batches(
+    paths: Sequence[str | os.PathLike[str]],
+    batch_size: int,
+    transform: Callable[[np.ndarray], torch.Tensor] | None = None,
+) -> Iterator[ImageBatch]:
+    """Decode and preprocess ``paths`` in batches of ``batch_size`` (the last may be smaller).
+
+    Every image is tried; a batch with unreadable images carries their paths and reasons in
+    ``failures`` (and no pixels), so a caller can report all bad files at once.
+    """
+    if batch_size < 1:
+        raise ValueError(f"batch_size must be >= 1, got {batch_size}")
+    transform = transform or make_transform()
+    for start in range(0, len(paths), batch_size):
+        chunk = tuple(Path(p) for p in paths[start : start + batch_size])
+        tensors, failures = [], []
+        for path in chunk:
+            try:
+                tensors.append(transform(read_image(path)))  # [3, crop, crop]
+            except (OSError, ValueError) as error:
+                reason = getattr(error, "reason", None) or str(error).removeprefix(f"{path}: ")
+                failures.append((path, reason))
+        pixels = torch.stack(tensors) if not failures else None
+        yield ImageBatch(start=start, paths=chunk, pixels=pixels, failures=tuple(failures))
+
+
+def read_labelled_images(path: str | os.PathLike[str]) -> tuple[list[Path], list[str]]:
+    """A labels file: one ``IMAGE,PLACE`` line per image (IMAGE relative to the file's folder,
+    or absolute; blank lines and lines starting with ``#`` skipped) -> (paths, place names).
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: a line without exactly one comma, or with an empty field (the message
+            names the file, the 1-based line and the line), or no labelled images at all.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: labels file not found")
+    paths, names = [], []
+    for number, line in enumerate(path.read_text(encoding="utf-8-sig").splitlines(), start=1):
+        if not line.strip() or line.lstrip().startswith("#"):
+            continue
+        fields = [f.strip() for f in line.split(",")]
+        if len(fields) != 2 or not all(fields):
+            raise ValueError(f"{path}, line {number}: expected IMAGE,PLACE: {line!r}")
+        image = Path(fields[0])
+        paths.append(image if image.is_absolute() else path.parent / image)
+        names.append(fields[1])
+    if not paths:
+        raise ValueError(f"{path}: holds no labelled images")
+    return paths, names
