@@ -23,3 +23,14 @@ def test_gibbs_benchmark_quick(tmp_path):
     assert "Targets" in done.stdout
     results = json.loads(out.read_text())
     assert results["machine"]["cpu_count"] >= 1
+
+
+@pytest.mark.slow
+def test_features_benchmark_quick(tmp_path):
+    out = tmp_path / "features.json"
+    done = subprocess.run(
+        [sys.executable, str(BENCHMARKS / "features.py"), "--quick", "--out", str(out)],
+        capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert out.is_file() and json.loads(out.read_text())
