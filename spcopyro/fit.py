@@ -19,7 +19,7 @@ from spcopyro.results import SpCoResult
 
 logger = logging.getLogger("spcopyro")
 
-INITS = ("random", "gaussian")
+INITS = ("random", "gaussian", "spcoa")
 
 
 def gamma_warning(config: SpCoConfig) -> str | None:
@@ -48,6 +48,19 @@ def gaussian_initial_labels(
     return labels_from_gaussians(cell_xy, means, covariances, log_weights)
 
 
+def spcoa_initial_labels(house: House, config: SpCoConfig, seed: int) -> torch.Tensor:
+    """[N] labels from spatial-concept pre-learning (paper Section 5, eqs. 21-22): the Gaussians
+    of a SpCoA fit (:func:`spcopyro.baselines.spcoa.spcoa_gaussians`), at most L of them."""
+    from spcopyro.baselines.spcoa import spcoa_gaussians
+
+    grid = house.grid
+    cell_xy = torch.as_tensor(grid.cell_to_world(grid.free_cells), dtype=DTYPE)  # [N, 2]
+    means, covariances, log_weights = spcoa_gaussians(
+        house, num_concepts=config.num_concepts, seed=seed, word_weighting=config.word_weighting
+    )
+    return labels_from_gaussians(cell_xy, means, covariances, log_weights)
+
+
 def fit_house(
     house: House,
     config: SpCoConfig,
@@ -59,7 +72,11 @@ def fit_house(
     snap_distance: float = DEFAULT_SNAP_DISTANCE,
     progress: bool | None = None,
 ) -> SpCoResult:
-    """Fit SpCoMapping to a house with ``sweeps`` Gibbs iterations (Algorithm 1)."""
+    """Fit SpCoMapping to a house with ``sweeps`` Gibbs iterations (Algorithm 1).
+
+    ``init``: ``"random"`` labels, ``"gaussian"`` (k-means Gaussians over the observed cells,
+    eqs. 21-22) or ``"spcoa"`` (the paper's pre-learning: Gaussians of a SpCoA fit).
+    """
     if init not in INITS:
         raise ValueError(f"init must be one of {INITS}, got {init!r}")
     warning = gamma_warning(config)
@@ -74,9 +91,12 @@ def fit_house(
     )
     data = make_model_data(house.grid, counts, config.connectivity)
     generator = torch.Generator().manual_seed(int(seed))
-    init_labels = (
-        gaussian_initial_labels(house, counts, config, generator) if init == "gaussian" else None
-    )
+    if init == "gaussian":
+        init_labels = gaussian_initial_labels(house, counts, config, generator)
+    elif init == "spcoa":
+        init_labels = spcoa_initial_labels(house, config, seed)
+    else:
+        init_labels = None
     run = run_gibbs(
         data,
         config,

@@ -206,3 +206,14 @@ def test_trace_log_joint_equals_the_models_log_joint(backend):
     run = run_gibbs(data, cfg, 7, seed=2, backend=backend, progress=False)
     expected = float(log_joint(run.final_state, data, cfg))
     assert run.log_joint[-1] == pytest.approx(expected, rel=1e-12, abs=1e-9)
+
+
+@pytest.mark.parametrize("init", ["gaussian", "spcoa"])
+def test_fit_from_gaussian_initialisations(init):
+    """eqs. 21-22 starts: the initial map already follows the observations' clusters."""
+    house = make_house(seed=0)
+    cfg = preset("original-code", gamma=3.0, num_concepts=30)
+    result = fit_house(house, cfg, sweeps=3, seed=0, init=init, progress=False)
+    assert adjusted_rand_index(result.label_image("final"), house.truth) > 0.3
+    with pytest.raises(ValueError, match="init must be one of"):
+        fit_house(house, cfg, sweeps=1, init="kmeans", progress=False)
