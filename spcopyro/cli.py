@@ -195,8 +195,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--connectivity", type=int, choices=(4, 8))
     p.add_argument("--tfidf", action="store_true", help="weight words by tf-idf (eq. 20)")
     p.add_argument("--feature-scaling", help="probability, floor100 or a number s (s * f)")
-    p.add_argument("--init", choices=("random", "gaussian", "spcoa"), default="random",
-                   help="starting labels: random, k-means Gaussians, or SpCoA pre-learning")  # fmt: skip
+    p.add_argument(
+        "--init",
+        choices=("random", "gaussian", "spcoa"),
+        default="random",
+        help="starting labels: random, k-means Gaussians, or SpCoA pre-learning",
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--backend", choices=BACKENDS, default="auto")
     p.add_argument("--snap-distance", type=float, default=DEFAULT_SNAP_DISTANCE,
