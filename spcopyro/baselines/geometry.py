@@ -1,0 +1,183 @@
+r"""Baseline (F): room segmentation of the occupancy map alone, no words and no images.
+
+A user's first question about SpCoMapping is whether words and images add anything over cutting
+the map at its doors. This baseline answers it with the distance-transform segmentation surveyed
+by R. Bormann, F. Jordan, W. Li, J. Hampp, M. Haegele: "Room segmentation: survey,
+implementation, and analysis", ICRA 2016 (the ``ipa_room_segmentation`` package, its "distance"
+method), in a hierarchical form that needs one physical parameter, the widest doorway.
+
+Algorithm
+---------
+Let ``d(x)`` be the Euclidean distance from free cell x's centre to the nearest non-free cell's
+centre (``scipy.ndimage.distance_transform_edt``; outside the map counts as non-free). A doorway
+of width w (metres between the wall ends) has ``d <= w / 2`` in its middle, so the super-level
+set ``{d > r}`` is cut at every doorway narrower than about 2r. With ``res`` the resolution and
+``r_0 = door_width / 2``, the map is flooded from the top, level by level, for
+``r = r_0, r_0 - res, r_0 - 2 res, ..., 0``:
+
+1. **Grow.** The rooms found so far grow over ``{d > r}`` by a breadth-first wavefront
+   (4-neighbourhood, one cell per step, all rooms at once; ties go to the neighbour above,
+   below, left, right in that order) until they stop.
+2. **New rooms.** Every connected component (4-neighbourhood) of ``{d > r}`` that holds no room
+   yet and covers at least ``min_room_area`` becomes a room. At ``r_0`` these are the room
+   cores: each is one room even if it has several distance maxima (they are joined by a
+   passage wider than any door). Below ``r_0`` they are rooms and corridors too narrow to
+   reach ``r_0``, cut from their neighbours by doorways narrower than themselves.
+
+This is a marker-based watershed of ``-d``: rooms meet where d is lowest between them, in the
+doorways. At ``r = 0`` every free cell connected to a room is reached; free components that hold
+no room (cut-off pieces smaller than ``min_room_area``) become segments of their own, so every
+free cell is labelled.
+
+Parameters: ``door_width`` (metres, default 1.0: interior doors are 0.7-0.9 m wide; raise it
+for maps whose rooms open into each other through wider passages, e.g. about 2 m for the
+SIGVerse houses of the public dataset, whose rooms meet in openings of about 1.7 m) and
+``min_room_area`` (square metres, default 0.25: a component smaller than this at its level is
+a nook or noise, not a room). Segments are numbered ``0 .. n-1`` in order of first appearance
+in map-image raster order.
+
+Words. For the scores of :mod:`spcopyro.metrics` the segments are named afterwards with the
+words heard in them (:func:`geometry_semantic_map`): the segmentation itself never sees them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import ndimage
+
+from spcopyro.data import DEFAULT_SNAP_DISTANCE, Observations, cell_counts
+from spcopyro.maps import OccupancyGrid
+from spcopyro.metrics import TabularSemanticMap
+
+__all__ = ["DEFAULT_DOOR_WIDTH", "DEFAULT_MIN_ROOM_AREA", "geometry_semantic_map", "room_segments"]
+
+DEFAULT_DOOR_WIDTH = 1.0  # metres: doorways up to this wide separate rooms
+DEFAULT_MIN_ROOM_AREA = 0.25  # square metres: smallest new room at its level
+_EPS = 1e-9  # cells
+
+
+def _positive_number(name: str, value: float) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be positive and finite, got {value!r}")
+    return float(value)
+
+
+def _grow(labels: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Breadth-first growth of ``[H, W]`` labels (> 0) over ``mask`` until nothing changes."""
+    labels = labels.copy()  # [H, W]
+    h, w = labels.shape
+    padded = np.zeros((h + 2, w + 2), dtype=labels.dtype)
+    while True:
+        padded[1:-1, 1:-1] = labels
+        candidate = np.zeros_like(labels)  # [H, W]
+        # Neighbours above, below, left, right; an earlier direction wins ties.
+        for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+            shifted = padded[1 + dr : 1 + dr + h, 1 + dc : 1 + dc + w]  # [H, W]
+            candidate = np.where(candidate == 0, shifted, candidate)
+        grow = mask & (labels == 0) & (candidate > 0)  # [H, W] bool
+        if not grow.any():
+            return labels
+        labels[grow] = candidate[grow]
+
+
+def _flood(distance: np.ndarray, levels: np.ndarray, min_cells: float) -> np.ndarray:
+    """``[H, W]`` int64 room id (1..) per reached cell, 0 elsewhere (the module's algorithm).
+
+    ``distance`` ``[H, W]`` (0 off free space) and ``levels`` (descending, last 0) in cells,
+    ``min_cells`` the smallest new room in cells.
+    """
+    rooms = np.zeros(distance.shape, dtype=np.int64)  # [H, W]
+    next_id = 1
+    for r in levels:
+        above = distance > r + _EPS  # [H, W] bool
+        rooms = _grow(rooms, above)
+        components, count = ndimage.label(above)  # [H, W], 0 = background
+        if count == 0:
+            continue
+        sizes = np.bincount(components.ravel(), minlength=count + 1)  # [count + 1]
+        holds_room = np.bincount(components[rooms > 0], minlength=count + 1) > 0
+        new = (sizes >= min_cells) & ~holds_room  # [count + 1] bool
+        new[0] = False
+        ids = np.zeros(count + 1, dtype=np.int64)  # component -> new room id, 0 if none
+        ids[new] = next_id + np.arange(int(new.sum()))
+        next_id += int(new.sum())
+        rooms = np.where(ids[components] > 0, ids[components], rooms)
+    return rooms
+
+
+def room_segments(
+    grid: OccupancyGrid,
+    *,
+    door_width: float = DEFAULT_DOOR_WIDTH,
+    min_room_area: float = DEFAULT_MIN_ROOM_AREA,
+) -> np.ndarray:
+    """``[H, W]`` int64 room segment of every free cell, -1 elsewhere (module docstring).
+
+    Args:
+        grid: the occupancy grid; only FREE vs not-FREE matters.
+        door_width: metres; doorways up to about this wide separate rooms.
+        min_room_area: square metres; smallest new room at its level.
+    """
+    door_width = _positive_number("door_width", door_width)
+    min_room_area = _positive_number("min_room_area", min_room_area)
+    free = np.asarray(grid.free, dtype=bool)  # [H, W]
+    if not free.any():
+        return np.full(grid.shape, -1, dtype=np.int64)
+    res = grid.resolution
+    padded = np.pad(free, 1, constant_values=False)  # outside the map is not free
+    distance = ndimage.distance_transform_edt(padded)[1:-1, 1:-1]  # [H, W] cells
+    # Levels in cells: r_0 = door_width / 2, then down one cell at a time to 0. _EPS keeps a cell
+    # exactly at a level out of its super-level set despite rounding (0.3 / 0.1 = 2.99...96).
+    top = door_width / 2.0 / res
+    levels = top - np.arange(int(math.floor(top + _EPS)) + 1)  # [n_levels] descending
+    levels = np.append(levels[levels > _EPS], 0.0)
+    grown = _flood(distance, levels, min_room_area / res**2 - _EPS)  # [H, W]
+    leftover = free & (grown == 0)  # [H, W] bool
+    if leftover.any():
+        pieces, _ = ndimage.label(leftover)
+        grown = np.where(leftover, pieces + int(grown.max()), grown)
+    # Number the segments 0..n-1 by first appearance in raster order.
+    on_free = grown[free]  # [N] ids >= 1
+    _, first = np.unique(on_free, return_index=True)
+    order = np.argsort(first, kind="stable")
+    ids = np.unique(on_free)
+    renumber = np.zeros(int(ids.max()) + 1, dtype=np.int64)
+    renumber[ids[order]] = np.arange(ids.size)
+    labels = np.full(grid.shape, -1, dtype=np.int64)
+    labels[free] = renumber[on_free]
+    return labels
+
+
+def geometry_semantic_map(
+    grid: OccupancyGrid,
+    observations: Observations,
+    *,
+    door_width: float = DEFAULT_DOOR_WIDTH,
+    min_room_area: float = DEFAULT_MIN_ROOM_AREA,
+    snap_distance: float = DEFAULT_SNAP_DISTANCE,
+    smoothing: float = 1e-3,
+) -> TabularSemanticMap:
+    """Baseline (F): :func:`room_segments`, each segment then named by the words heard in it.
+
+    ``n_{s,v}`` counts word v in the utterances placed in segment s (as in fitting:
+    :func:`spcopyro.data.cell_counts`); ``p(v | cell) = (n_{s,v} + eps) / (n_s + V eps)`` and
+    ``region(v)`` is the segment where v was heard most often
+    (:class:`~spcopyro.metrics.TabularSemanticMap`). Images are not used.
+    """
+    labels = room_segments(grid, door_width=door_width, min_room_area=min_room_area)
+    vocabulary = None if observations.num_utterances else ()
+    counts = cell_counts(grid, observations, snap_distance=snap_distance, vocabulary=vocabulary)
+    segments = int(labels.max()) + 1
+    return TabularSemanticMap.from_cell_counts(
+        grid,
+        labels,
+        counts,
+        num_labels=segments,
+        smoothing=smoothing,
+        name="geometry",
+        notes=(f"{segments} room segments (door width {door_width:g} m)",),
+    )
