@@ -8,6 +8,7 @@ left out, the embedded default is used: the synthetic house of seed 0, generated
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import logging
 import sys
@@ -94,15 +95,33 @@ def _fit(args: argparse.Namespace) -> int:
         print(f"warning: {warning}", file=sys.stderr)
     print(_summary(house))
     print(f"config           {config}")
-    result = fit_house(house, config, sweeps=args.sweeps, seed=args.seed, init=args.init,
-                       backend=args.backend, snap_distance=args.snap_distance)  # fmt: skip
+    diagnostics = None
+    if args.sweeps == "auto":
+        from spcopyro.fit import fit_house_converged
+
+        result, diagnostics = fit_house_converged(
+            house, config, chains=args.chains, max_sweeps=args.max_sweeps, seed=args.seed,
+            init=args.init, backend=args.backend, snap_distance=args.snap_distance,
+        )  # fmt: skip
+    else:
+        result = fit_house(house, config, sweeps=args.sweeps, seed=args.seed, init=args.init,
+                           backend=args.backend, snap_distance=args.snap_distance)  # fmt: skip
     out = result.save(args.out)
+    sweeps_run = len(result.log_joint)
+    if diagnostics is not None:
+        (out / "convergence.json").write_text(json.dumps(diagnostics.to_json(), indent=1) + "\n")
+        last = diagnostics.checks[-1]
+        state = "converged" if diagnostics.converged else "NOT converged (hit --max-sweeps)"
+        print(f"--sweeps auto: {args.chains} chains {state} after {sweeps_run} sweeps each "
+              f"(split R-hat: log joint {last.rhat_log_joint:.3f}, concepts "
+              f"{last.rhat_num_concepts:.3f}); kept chain {diagnostics.best_chain} "
+              f"(seed {diagnostics.seeds[diagnostics.best_chain]}), highest log joint")  # fmt: skip
     plot_semantic_map(result, out / "semantic_map.png")
     plot_trace(result, out / "trace.png")
     plot_house(house, out / "house.png")
     seconds = result.seconds[-1]
-    print(f"fitted {args.sweeps} sweeps in {seconds:.1f} s "
-          f"({1e3 * seconds / args.sweeps:.2f} ms per sweep); "
+    print(f"fitted {sweeps_run} sweeps in {seconds:.1f} s "
+          f"({1e3 * seconds / sweeps_run:.2f} ms per sweep); "
           f"{len(result.concepts_in_use())} concepts in use")  # fmt: skip
     if house.truth is not None:
         from spcopyro.metrics import adjusted_rand_index
@@ -116,6 +135,18 @@ def _fit(args: argparse.Namespace) -> int:
         print(f"  concept {concept['concept']:>3}: {concept['cells']:>6} cells  {words}")
     print(f"wrote {out}/: labels.npy semantic_map.png concepts.json trace.csv trace.png ...")
     return 0
+
+
+def _sweeps(value: str) -> int | str:
+    if value == "auto":
+        return value
+    try:
+        sweeps = int(value)
+    except ValueError:
+        sweeps = 0
+    if sweeps < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer or 'auto', got {value!r}")
+    return sweeps
 
 
 def _feature_scaling(value: str | None) -> str | float | None:
@@ -158,6 +189,47 @@ def _where(args: argparse.Namespace) -> int:
     return 0
 
 
+def _experiment(args: argparse.Namespace) -> int:
+    from spcopyro.data import find_dataset_root, list_houses
+    from spcopyro.experiments.methods import METHODS, RunSettings
+    from spcopyro.experiments.table import ExperimentSettings, run_experiment
+
+    root = None if args.no_public else find_dataset_root(args.data)
+    if args.data is None and root is None and not args.no_public:
+        print("note: public dataset not found ($SPCOPYRO_DATA, ../shared/data/spcomapping); "
+              "skipping the public houses", file=sys.stderr)  # fmt: skip
+    command = "spcopyro " + " ".join(sys.argv[1:] if args.argv is None else args.argv)
+    changes: dict[str, object] = dict(dataset_root=root, command=command)
+    if args.houses:
+        changes["houses"] = tuple(args.houses)
+    if args.methods:
+        unknown = sorted(set(args.methods) - set(METHODS))
+        if unknown:
+            raise ValueError(f"unknown --methods {unknown}; choose from {list(METHODS)}")
+        changes["methods"] = tuple(m for m in METHODS if m in args.methods)
+    if args.quick and args.houses is None and root is not None:
+        changes["houses"] = tuple(list_houses(root)[:1])
+    if args.quick:
+        settings = ExperimentSettings.quick(**changes)
+    else:
+        settings = ExperimentSettings(**changes)  # type: ignore[arg-type]
+    run = settings.run
+    if args.sweeps is not None or args.spcoa_iterations is not None:
+        run = RunSettings(
+            sweeps=args.sweeps if args.sweeps is not None else run.sweeps,
+            spcoa_iterations=args.spcoa_iterations or run.spcoa_iterations,
+            trace_every=max(1, (args.sweeps or run.sweeps) // 100),
+        )
+    seeds = args.seeds if args.seeds is not None else settings.seeds
+    settings = dataclasses.replace(settings, run=run, seeds=seeds)
+    summary = run_experiment(args.out, settings, report=print)
+    out = Path(args.out)
+    print((out / "table.md").read_text())
+    print(f"wrote {out / 'table.md'}, {out / 'table.json'} and {len(summary['figures'])} "
+          f"figures under {out / 'figures'}")  # fmt: skip
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="spcopyro",
@@ -184,7 +256,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("fit", help="fit SpCoMapping by Gibbs sampling and write the semantic map")
     p.add_argument("data", nargs="?", help="house folder (default: the synthetic house)")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--sweeps", type=int, default=5000, help="Gibbs iterations (paper: 5000)")
+    p.add_argument("--sweeps", type=_sweeps, default=5000,
+                   help="Gibbs iterations (paper: 5000), or 'auto': run --chains chains until "
+                        "split R-hat of the log joint and of the number of concepts < 1.05 "
+                        "(at most --max-sweeps)")  # fmt: skip
+    p.add_argument("--chains", type=int, default=4, help="chains for --sweeps auto (default 4)")
+    p.add_argument("--max-sweeps", type=int, default=5000,
+                   help="cap per chain for --sweeps auto (default 5000)")  # fmt: skip
     p.add_argument("--preset", choices=sorted(PRESETS), default=DEFAULT_PRESET)
     p.add_argument("--prior", choices=("dp", "dirichlet"))
     p.add_argument("--concepts", type=int, help="L, the number (upper bound) of concepts")
@@ -219,6 +297,22 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=_where)
 
+    p = sub.add_parser("experiment", help="the paper's comparison (Table 4, Figs. 5-7)")
+    p.add_argument("--out", required=True, help="results folder (table.md, table.json, figures/)")
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="smoke run: small synthetic house, 2 seeds, 20 sweeps, one public house",
+    )
+    p.add_argument("--seeds", type=int, help="synthetic houses (default 5)")
+    p.add_argument("--sweeps", type=int, help="SpCoMapping Gibbs sweeps (default 5000)")
+    p.add_argument("--spcoa-iterations", type=int, help="SpCoA iterations (default 200)")
+    p.add_argument("--data", help="public dataset folder (default: found automatically)")
+    p.add_argument("--no-public", action="store_true", help="synthetic houses only")
+    p.add_argument("--houses", nargs="+", help="public houses to score (default: all)")
+    p.add_argument("--methods", nargs="+", help="rows to run (default: all)")
+    p.set_defaults(func=_experiment, argv=None)
+
     from spcopyro.features.cli import add_parser as add_features_parsers
 
     add_features_parsers(sub)  # features, features-head
@@ -227,6 +321,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    if argv is not None:
+        args.argv = list(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(levelname)s: %(message)s")  # fmt: skip
     try:

@@ -13,8 +13,16 @@ import torch
 from spcopyro.config import SpCoConfig
 from spcopyro.data import DEFAULT_SNAP_DISTANCE, CellCounts, House, cell_counts
 from spcopyro.gibbs.api import run_gibbs
+from spcopyro.gibbs.convergence import (
+    DEFAULT_BLOCK,
+    DEFAULT_CHAINS,
+    DEFAULT_MAX_SWEEPS,
+    DEFAULT_THRESHOLD,
+    ConvergenceDiagnostics,
+    run_until_converged,
+)
 from spcopyro.gibbs.init import kmeans_gaussians, labels_from_gaussians
-from spcopyro.model import DTYPE, make_model_data
+from spcopyro.model import DTYPE, ModelData, make_model_data
 from spcopyro.results import SpCoResult
 
 logger = logging.getLogger("spcopyro")
@@ -61,24 +69,9 @@ def spcoa_initial_labels(house: House, config: SpCoConfig, seed: int) -> torch.T
     return labels_from_gaussians(cell_xy, means, covariances, log_weights)
 
 
-def fit_house(
-    house: House,
-    config: SpCoConfig,
-    *,
-    sweeps: int = 5000,
-    seed: int = 0,
-    init: str = "random",
-    backend: str = "auto",
-    snap_distance: float = DEFAULT_SNAP_DISTANCE,
-    progress: bool | None = None,
-) -> SpCoResult:
-    """Fit SpCoMapping to a house with ``sweeps`` Gibbs iterations (Algorithm 1).
-
-    ``init``: ``"random"`` labels, ``"gaussian"`` (k-means Gaussians over the observed cells,
-    eqs. 21-22) or ``"spcoa"`` (the paper's pre-learning: Gaussians of a SpCoA fit).
-    """
-    if init not in INITS:
-        raise ValueError(f"init must be one of {INITS}, got {init!r}")
+def _prepare(
+    house: House, config: SpCoConfig, snap_distance: float
+) -> tuple[CellCounts, ModelData]:
     warning = gamma_warning(config)
     if warning:
         logger.warning(warning)
@@ -89,14 +82,57 @@ def fit_house(
         word_weighting=config.word_weighting,
         snap_distance=snap_distance,
     )
-    data = make_model_data(house.grid, counts, config.connectivity)
-    generator = torch.Generator().manual_seed(int(seed))
+    return counts, make_model_data(house.grid, counts, config.connectivity)
+
+
+def _initial_labels(
+    house: House,
+    counts: CellCounts,
+    config: SpCoConfig,
+    init: str,
+    seed: int,
+    generator: torch.Generator,
+) -> torch.Tensor | None:
+    if init not in INITS:
+        raise ValueError(f"init must be one of {INITS}, got {init!r}")
     if init == "gaussian":
-        init_labels = gaussian_initial_labels(house, counts, config, generator)
-    elif init == "spcoa":
-        init_labels = spcoa_initial_labels(house, config, seed)
-    else:
-        init_labels = None
+        return gaussian_initial_labels(house, counts, config, generator)
+    if init == "spcoa":
+        return spcoa_initial_labels(house, config, seed)
+    return None
+
+
+def fit_house(
+    house: House,
+    config: SpCoConfig,
+    *,
+    sweeps: int | str = 5000,
+    seed: int = 0,
+    init: str = "random",
+    backend: str = "auto",
+    snap_distance: float = DEFAULT_SNAP_DISTANCE,
+    progress: bool | None = None,
+) -> SpCoResult:
+    """Fit SpCoMapping to a house with ``sweeps`` Gibbs iterations (Algorithm 1).
+
+    ``init``: ``"random"`` labels, ``"gaussian"`` (k-means Gaussians over the observed cells,
+    eqs. 21-22) or ``"spcoa"`` (the paper's pre-learning: Gaussians of a SpCoA fit).
+    ``sweeps="auto"``: :func:`fit_house_converged` with its defaults (4 chains, stop at split
+    R-hat < 1.05); the diagnostics are logged at INFO level -- call :func:`fit_house_converged`
+    to get them.
+    """
+    if sweeps == "auto":
+        result, diagnostics = fit_house_converged(
+            house, config, seed=seed, init=init, backend=backend,
+            snap_distance=snap_distance, progress=progress,
+        )  # fmt: skip
+        logger.info("--sweeps auto: %s", diagnostics.to_json())
+        return result
+    if isinstance(sweeps, str):
+        raise ValueError(f"sweeps must be a positive integer or 'auto', got {sweeps!r}")
+    counts, data = _prepare(house, config, snap_distance)
+    generator = torch.Generator().manual_seed(int(seed))
+    init_labels = _initial_labels(house, counts, config, init, seed, generator)
     run = run_gibbs(
         data,
         config,
@@ -107,3 +143,38 @@ def fit_house(
         progress=progress,
     )
     return SpCoResult.from_run(run, house.grid, counts.vocabulary, config, name=house.name)
+
+
+def fit_house_converged(
+    house: House,
+    config: SpCoConfig,
+    *,
+    chains: int = DEFAULT_CHAINS,
+    block: int = DEFAULT_BLOCK,
+    max_sweeps: int = DEFAULT_MAX_SWEEPS,
+    threshold: float = DEFAULT_THRESHOLD,
+    seed: int = 0,
+    init: str = "random",
+    backend: str = "auto",
+    snap_distance: float = DEFAULT_SNAP_DISTANCE,
+    progress: bool | None = None,
+) -> tuple[SpCoResult, ConvergenceDiagnostics]:
+    """Fit with ``chains`` chains (seeds ``seed``, ``seed + 1``, ...) until split R-hat of the
+    log joint and of the number of concepts are below ``threshold``, or ``max_sweeps`` sweeps
+    (:func:`spcopyro.gibbs.convergence.run_until_converged`). Returns the chain of highest log
+    joint as the result, and the diagnostics. Chain k starts from ``init`` drawn with seed
+    ``seed + k``.
+    """
+    counts, data = _prepare(house, config, snap_distance)
+    starts = [
+        _initial_labels(
+            house, counts, config, init, seed + k, torch.Generator().manual_seed(int(seed + k))
+        )  # fmt: skip
+        for k in range(chains)
+    ]
+    run, diagnostics = run_until_converged(
+        data, config, chains=chains, block=block, max_sweeps=max_sweeps, threshold=threshold,
+        seed=seed, init_labels=starts, backend=backend, progress=progress,
+    )  # fmt: skip
+    result = SpCoResult.from_run(run, house.grid, counts.vocabulary, config, name=house.name)
+    return result, diagnostics

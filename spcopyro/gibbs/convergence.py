@@ -1,0 +1,241 @@
+r"""A stopping rule for the Gibbs sampler: run chains until they agree (``--sweeps auto``).
+
+The paper leaves "automatically determine the number of iterations" open. This module runs K
+chains from different seeds, in blocks of sweeps, and after every block computes the split
+Gelman-Rubin statistic (split R-hat, Pyro's :func:`pyro.ops.stats.split_gelman_rubin`) of two
+*label-invariant* per-sweep statistics -- the log joint and the number of concepts in use --
+over the second half of the sweeps run so far (the first half is discarded as warm-up). With
+chains k = 1..K each cut into two halves of n draws, B the variance between the 2K half-chain
+means (times n) and W the mean within-half variance,
+
+.. math::
+
+    \hat R = \sqrt{\frac{\frac{n - 1}{n} W + \frac{1}{n} B}{W}} .
+
+The chains stop when R-hat < ``threshold`` (1.05 by default) for *both* statistics, or at
+``max_sweeps``. Labels themselves are never compared (concept numbers switch between chains).
+The answer is the chain of highest log joint, with the diagnostics of every check.
+
+Chains run one after another, each block continuing from the chain's last labels (the globals
+pi, theta, w are drawn anew given them, itself a Gibbs step, so the continuation is exact).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+from pyro.ops.stats import split_gelman_rubin
+
+from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.api import GibbsRun, run_gibbs
+from spcopyro.model import ModelData
+
+DEFAULT_CHAINS = 4
+DEFAULT_BLOCK = 250
+DEFAULT_THRESHOLD = 1.05
+DEFAULT_MAX_SWEEPS = 5000
+MIN_DRAWS = 8
+"""Fewest draws per chain in the window (second half) before R-hat is trusted."""
+
+
+def split_rhat(traces: np.ndarray) -> float:
+    """Split R-hat of ``traces`` ``[K, S]`` (K >= 2 chains, S >= 4 draws each).
+
+    Degenerate cases that Pyro leaves as NaN or inf are decided explicitly: all values equal
+    (e.g. every chain keeps the same number of concepts throughout) gives 1.0 (the chains
+    agree); no variation within the half-chains but different values between them gives inf.
+    """
+    traces = np.asarray(traces, dtype=np.float64)  # [K, S]
+    if traces.ndim != 2 or traces.shape[0] < 2 or traces.shape[1] < 4:
+        raise ValueError(f"split_rhat needs [K >= 2, S >= 4] traces, got shape {traces.shape}")
+    if not np.all(np.isfinite(traces)):
+        raise ValueError("split_rhat: traces hold NaN or inf")
+    if np.ptp(traces) == 0:
+        return 1.0
+    half = traces.shape[1] // 2
+    halves = np.concatenate([traces[:, :half], traces[:, -half:]])  # [2K, half]
+    if np.all(np.ptp(halves, axis=1) == 0):
+        return math.inf
+    value = float(split_gelman_rubin(torch.as_tensor(traces), chain_dim=0, sample_dim=1))
+    return value if math.isfinite(value) else math.inf
+
+
+@dataclass(frozen=True)
+class ConvergenceCheck:
+    """R-hat of both statistics after ``sweeps`` sweeps per chain (window: the second half)."""
+
+    sweeps: int
+    rhat_log_joint: float
+    rhat_num_concepts: float
+
+    def passed(self, threshold: float) -> bool:
+        return self.rhat_log_joint < threshold and self.rhat_num_concepts < threshold
+
+
+def check_convergence(
+    log_joint: np.ndarray, num_concepts: np.ndarray, threshold: float = DEFAULT_THRESHOLD
+) -> tuple[bool, ConvergenceCheck]:
+    """Whether chains with these traces (``[K, S]`` each) have converged, and the check.
+
+    R-hat is computed over the second half of the S sweeps; fewer than :data:`MIN_DRAWS` draws
+    there never pass.
+    """
+    log_joint = np.asarray(log_joint, dtype=np.float64)  # [K, S]
+    num_concepts = np.asarray(num_concepts, dtype=np.float64)  # [K, S]
+    if log_joint.shape != num_concepts.shape:
+        raise ValueError(
+            f"log_joint {log_joint.shape} and num_concepts {num_concepts.shape} traces differ"
+        )
+    sweeps = log_joint.shape[1]
+    window = slice(sweeps - sweeps // 2, sweeps)
+    if sweeps // 2 < MIN_DRAWS:
+        return False, ConvergenceCheck(sweeps, math.inf, math.inf)
+    check = ConvergenceCheck(
+        sweeps, split_rhat(log_joint[:, window]), split_rhat(num_concepts[:, window])
+    )
+    return check.passed(threshold), check
+
+
+@dataclass(frozen=True, eq=False)
+class ConvergenceDiagnostics:
+    """What :func:`run_until_converged` measured."""
+
+    converged: bool
+    sweeps: int
+    """Sweeps run per chain."""
+    threshold: float
+    seeds: tuple[int, ...]
+    best_chain: int
+    """Index (into ``seeds``) of the chain whose visited state has the highest log joint."""
+    checks: tuple[ConvergenceCheck, ...]
+    log_joint: np.ndarray  # [K, S]
+    num_concepts: np.ndarray  # [K, S]
+    best_log_joint: np.ndarray = field(default_factory=lambda: np.empty(0))  # [K]
+
+    def to_json(self) -> dict[str, object]:
+        def number(x: float) -> float | str:
+            return x if math.isfinite(x) else str(x)
+
+        return {
+            "converged": self.converged,
+            "sweeps_per_chain": self.sweeps,
+            "threshold": self.threshold,
+            "seeds": list(self.seeds),
+            "best_chain": self.best_chain,
+            "best_log_joint": [float(v) for v in self.best_log_joint],
+            "checks": [
+                {
+                    "sweeps": c.sweeps,
+                    "rhat_log_joint": number(c.rhat_log_joint),
+                    "rhat_num_concepts": number(c.rhat_num_concepts),
+                }
+                for c in self.checks
+            ],
+        }
+
+
+@dataclass
+class _Chain:
+    generator: torch.Generator
+    labels: torch.Tensor | None
+    runs: list[GibbsRun] = field(default_factory=list)
+
+    def merged(self) -> GibbsRun:
+        """One :class:`GibbsRun` of all blocks: traces concatenated, the best visited state."""
+        offsets = np.cumsum([0] + [len(r.log_joint) for r in self.runs])
+        seconds, elapsed = [], 0.0
+        for run in self.runs:
+            seconds.append(run.seconds + elapsed)
+            elapsed += float(run.seconds[-1])
+        best_block = int(np.argmax([r.log_joint.max() for r in self.runs]))
+        best = self.runs[best_block]
+        return GibbsRun(
+            final_state=self.runs[-1].final_state,
+            best_state=best.best_state,
+            best_sweep=int(offsets[best_block] + best.best_sweep),
+            log_joint=np.concatenate([r.log_joint for r in self.runs]),
+            num_concepts=np.concatenate([r.num_concepts for r in self.runs]),
+            seconds=np.concatenate(seconds),
+            label_samples=None,
+            sample_sweeps=None,
+        )
+
+
+def run_until_converged(
+    data: ModelData,
+    config: SpCoConfig,
+    *,
+    chains: int = DEFAULT_CHAINS,
+    block: int = DEFAULT_BLOCK,
+    max_sweeps: int = DEFAULT_MAX_SWEEPS,
+    threshold: float = DEFAULT_THRESHOLD,
+    seed: int = 0,
+    init_labels: Sequence[torch.Tensor | None] | None = None,
+    backend: str = "auto",
+    progress: bool | None = None,
+) -> tuple[GibbsRun, ConvergenceDiagnostics]:
+    """Run ``chains`` chains (seeds ``seed``, ``seed + 1``, ...) in blocks of ``block`` sweeps until
+    the split R-hat of the log joint and of the number of concepts are both below ``threshold``
+    (see the module docstring), or ``max_sweeps`` sweeps per chain.
+
+    ``init_labels``: one ``[N]`` start (or None for random) per chain.
+    Returns the merged run of the chain of highest log joint, and the diagnostics.
+    """
+    if chains < 2:
+        raise ValueError(f"chains must be >= 2 to compare chains, got {chains}")
+    if block < 1:
+        raise ValueError(f"block must be >= 1, got {block}")
+    if max_sweeps < 1:
+        raise ValueError(f"max_sweeps must be >= 1, got {max_sweeps}")
+    if not (math.isfinite(threshold) and threshold > 1.0):
+        raise ValueError(f"threshold must be a finite number > 1, got {threshold}")
+    starts = list(init_labels) if init_labels is not None else [None] * chains
+    if len(starts) != chains:
+        raise ValueError(f"init_labels has {len(starts)} entries for {chains} chains")
+    seeds = tuple(int(seed) + k for k in range(chains))
+    states = [
+        _Chain(torch.Generator().manual_seed(s), start)
+        for s, start in zip(seeds, starts, strict=True)
+    ]
+
+    checks: list[ConvergenceCheck] = []
+    done, converged = 0, False
+    while done < max_sweeps and not converged:
+        sweeps = min(block, max_sweeps - done)
+        for chain in states:
+            run = run_gibbs(
+                data,
+                config,
+                sweeps,
+                generator=chain.generator,
+                init_labels=chain.labels,
+                backend=backend,
+                progress=progress,
+            )
+            chain.runs.append(run)
+            chain.labels = run.final_state.labels
+        done += sweeps
+        log_joint = np.stack([np.concatenate([r.log_joint for r in c.runs]) for c in states])
+        concepts = np.stack([np.concatenate([r.num_concepts for r in c.runs]) for c in states])
+        converged, check = check_convergence(log_joint, concepts, threshold)
+        checks.append(check)
+
+    merged = [chain.merged() for chain in states]
+    best_values = np.array([run.log_joint[run.best_sweep] for run in merged])  # [K]
+    best_chain = int(np.argmax(best_values))
+    diagnostics = ConvergenceDiagnostics(
+        converged=converged,
+        sweeps=done,
+        threshold=threshold,
+        seeds=seeds,
+        best_chain=best_chain,
+        checks=tuple(checks),
+        log_joint=np.stack([run.log_joint for run in merged]),
+        num_concepts=np.stack([run.num_concepts for run in merged]),
+        best_log_joint=best_values,
+    )
+    return merged[best_chain], diagnostics
