@@ -69,9 +69,11 @@ def spcoa_initial_labels(house: House, config: SpCoConfig, seed: int) -> torch.T
     return labels_from_gaussians(cell_xy, means, covariances, log_weights)
 
 
-def _prepare(
+def prepare_model_data(
     house: House, config: SpCoConfig, snap_distance: float
 ) -> tuple[CellCounts, ModelData]:
+    """Per-cell counts of the house under the config's scaling/weighting, and the model's tensors
+    (warns, through the logger, when gamma is below the critical coupling)."""
     warning = gamma_warning(config)
     if warning:
         logger.warning(warning)
@@ -130,7 +132,7 @@ def fit_house(
         return result
     if isinstance(sweeps, str):
         raise ValueError(f"sweeps must be a positive integer or 'auto', got {sweeps!r}")
-    counts, data = _prepare(house, config, snap_distance)
+    counts, data = prepare_model_data(house, config, snap_distance)
     generator = torch.Generator().manual_seed(int(seed))
     init_labels = _initial_labels(house, counts, config, init, seed, generator)
     run = run_gibbs(
@@ -165,7 +167,7 @@ def fit_house_converged(
     joint as the result, and the diagnostics. Chain k starts from ``init`` drawn with seed
     ``seed + k``.
     """
-    counts, data = _prepare(house, config, snap_distance)
+    counts, data = prepare_model_data(house, config, snap_distance)
     starts = [
         _initial_labels(
             house, counts, config, init, seed + k, torch.Generator().manual_seed(int(seed + k))

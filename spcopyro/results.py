@@ -56,6 +56,19 @@ class UnknownWordError(KeyError):
         return str(self.args[0])
 
 
+def word_index(vocabulary: tuple[str, ...], word: str) -> int:
+    """The column of ``word`` (lower-cased) in ``vocabulary``; :class:`UnknownWordError` with
+    the closest known words when it is not there."""
+    try:
+        return vocabulary.index(word.lower())
+    except ValueError:
+        close = difflib.get_close_matches(word.lower(), vocabulary, n=3)
+        hint = f"; did you mean {', '.join(close)}?" if close else ""
+        raise UnknownWordError(
+            f"word {word!r} is not in the vocabulary of {len(vocabulary)} words{hint}"
+        ) from None
+
+
 @dataclass(frozen=True)
 class SpCoResult:
     """A fitted semantic map (labels, pi, theta, w) with its map and vocabulary.
@@ -146,16 +159,6 @@ class SpCoResult:
 
     # -- "where is X?" (eq. 19) ----------------------------------------------------------------
 
-    def _word_index(self, word: str) -> int:
-        try:
-            return self.vocabulary.index(word.lower())
-        except ValueError:
-            close = difflib.get_close_matches(word.lower(), self.vocabulary, n=3)
-            hint = f"; did you mean {', '.join(close)}?" if close else ""
-            raise UnknownWordError(
-                f"word {word!r} is not in the vocabulary of {len(self.vocabulary)} words{hint}"
-            ) from None
-
     def concept_given_word(self, word: str, prior: str = "pi") -> np.ndarray:
         """[L] p(C = l | word) proportional to w_{l,word} p(C = l) over concepts in use (eq. 19).
 
@@ -163,7 +166,7 @@ class SpCoResult:
         """
         if prior not in ("pi", "area"):
             raise ValueError(f"prior must be 'pi' or 'area', got {prior!r}")
-        v = self._word_index(word)
+        v = word_index(self.vocabulary, word)
         sizes = np.bincount(self.labels_best, minlength=self.config.num_concepts)
         weight = self.pi if prior == "pi" else sizes / sizes.sum()
         score = np.where(sizes > 0, self.w[:, v] * weight, 0.0)

@@ -75,7 +75,6 @@ p(l | x) proportional to pi_l N(x | mu_l, Sigma_l).
 
 from __future__ import annotations
 
-import difflib
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -102,7 +101,7 @@ from spcopyro.gibbs.random import (
 )
 from spcopyro.maps import OccupancyGrid
 from spcopyro.model import DTYPE
-from spcopyro.results import UnknownWordError
+from spcopyro.results import word_index
 
 __all__ = [
     "DEFAULT_PAIR_DISTANCE",
@@ -622,20 +621,10 @@ class SpCoAResult:
 
     # -- words ---------------------------------------------------------------------------------
 
-    def _word_index(self, word: str) -> int:
-        try:
-            return self.vocabulary.index(word.lower())
-        except ValueError:
-            close = difflib.get_close_matches(word.lower(), self.vocabulary, n=3)
-            hint = f"; did you mean {', '.join(close)}?" if close else ""
-            raise UnknownWordError(
-                f"word {word!r} is not in the vocabulary of {len(self.vocabulary)} words{hint}"
-            ) from None
-
     def concept_given_word(self, word: str) -> np.ndarray:
         """[L] p(C = l | word) proportional to pi_l w_{l,word} (eq. 19 analogue), over the
         concepts that label at least one free cell (0 for the others)."""
-        v = self._word_index(word)
+        v = word_index(self.vocabulary, word)
         labelling = np.bincount(self._labels, minlength=self.pi.shape[0]) > 0  # [L] bool
         score = np.where(labelling, self.pi * self.w[:, v], 0.0)  # [L]
         return score / score.sum()

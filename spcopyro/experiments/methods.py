@@ -29,10 +29,10 @@ from spcopyro.baselines.geometry import DEFAULT_DOOR_WIDTH, geometry_semantic_ma
 from spcopyro.baselines.nearest import nearest_word_map
 from spcopyro.baselines.spcoa import fit_spcoa
 from spcopyro.config import SpCoConfig, preset
-from spcopyro.data import House, cell_counts
+from spcopyro.data import DEFAULT_SNAP_DISTANCE, House
+from spcopyro.fit import prepare_model_data
 from spcopyro.gibbs.api import run_gibbs
 from spcopyro.metrics import SemanticMapModel, SpCoSemanticMap, adjusted_rand_index
-from spcopyro.model import make_model_data
 from spcopyro.results import SpCoResult
 
 SPCO_METHODS = ("A-dp", "A-orig-g3", "B-dirichlet")
@@ -103,13 +103,7 @@ def fit_spco(
     """SpCoMapping from random labels (as :func:`spcopyro.fit.fit_house` with ``init="random"``),
     keeping a label map every ``thin`` sweeps; with a truth, their ARI per sweep (paper Fig. 5).
     """
-    counts = cell_counts(
-        house.grid,
-        house.observations,
-        feature_scaling=config.feature_scaling,
-        word_weighting=config.word_weighting,
-    )
-    data = make_model_data(house.grid, counts, config.connectivity)
+    counts, data = prepare_model_data(house, config, DEFAULT_SNAP_DISTANCE)
     generator = torch.Generator().manual_seed(int(seed))
     run = run_gibbs(
         data, config, sweeps, generator=generator, thin=thin, backend=backend, progress=False
