@@ -133,6 +133,15 @@ def _fit(args: argparse.Namespace) -> int:
     for concept in result.concepts()[:10]:
         words = ", ".join(f"{w} ({p:.2f})" for w, p in concept["top_words"][:3])
         print(f"  concept {concept['concept']:>3}: {concept['cells']:>6} cells  {words}")
+    vocabulary_size = len(result.vocabulary)
+    used = result.concepts_in_use()
+    if vocabulary_size and result.w[used].max() < 2.0 / vocabulary_size:
+        print(
+            f"note: every concept's word distribution is close to uniform: beta = "
+            f"{config.beta:g} outweighs the {house.observations.num_utterances} utterances; "
+            "for sharper words try --beta 0.1 (or --preset original-code --gamma 3)",
+            file=sys.stderr,
+        )
     print(f"wrote {out}/: labels.npy semantic_map.png concepts.json trace.csv trace.png ...")
     return 0
 

@@ -74,6 +74,16 @@ def test_fit_warns_below_the_critical_coupling(small_house, tmp_path, capsys):
     assert "below the Potts critical coupling" in capsys.readouterr().err
 
 
+def test_fit_says_when_the_word_prior_swamps_the_words(small_house, tmp_path, capsys):
+    argv = ["fit", str(small_house), "--out", str(tmp_path / "f"), "--sweeps", "3",
+            "--concepts", "10"]  # fmt: skip
+    assert main(argv) == 0  # paper-dp: beta = 500
+    assert "close to uniform" in capsys.readouterr().err
+    argv += ["--beta", "0.01", "--out", str(tmp_path / "g")]
+    assert main(argv) == 0
+    assert "close to uniform" not in capsys.readouterr().err
+
+
 def test_bad_input_is_one_clear_line(tmp_path, capsys):
     assert main(["show", str(tmp_path / "nowhere"), "--out", str(tmp_path / "x.png")]) == 2
     err = capsys.readouterr().err
