@@ -65,6 +65,12 @@ class SpCoConfig:
         feature_scaling: how image histograms become counts: ``"probability"`` (as they are),
             ``"floor100"`` (floor(100 f), the released code) or a float s (s * f).
         word_weighting: ``"count"`` or ``"tfidf"`` (paper eq. 20, for sentences).
+        unobserved_refresh: the probability that a sweep redraws theta_l and w_l of the concepts
+            that hold no observed cell (for them the conditional is the prior). 1.0 (default)
+            redraws every concept every sweep, as Algorithm 1 does; any value in (0, 1] leaves
+            the posterior invariant (a random choice of which conditionally independent blocks
+            to update, made independently of the state), and a small one makes the sweep's
+            cost nearly flat in L, since the [L, K] and [L, V] draws dominate for large L.
     """
 
     num_concepts: int = 120
@@ -78,6 +84,7 @@ class SpCoConfig:
     use_words: bool = True
     feature_scaling: FeatureScaling = "probability"
     word_weighting: WordWeighting = "count"
+    unobserved_refresh: float = 1.0
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -106,6 +113,9 @@ class SpCoConfig:
         is_scale = isinstance(fs, (int, float)) and not isinstance(fs, bool)
         if not (fs in ("probability", "floor100") or (is_scale and math.isfinite(fs) and fs > 0)):
             raise bad("feature_scaling", "must be 'probability', 'floor100' or a positive float")
+        refresh = self.unobserved_refresh
+        if not (isinstance(refresh, (int, float)) and 0.0 < refresh <= 1.0):
+            raise bad("unobserved_refresh", "must be a probability in (0, 1]")
         if self.word_weighting not in ("count", "tfidf"):
             raise bad("word_weighting", "must be 'count' or 'tfidf'")
 

@@ -84,7 +84,13 @@ def exact_label_marginal(grid_pairs, num_cells: int, cfg) -> tuple[torch.Tensor,
     return labelings, torch.softmax(log_p, 0)
 
 
-GEWEKE_VARIANTS = [dict(), dict(prior="dirichlet", alpha=1.5, gamma=0.5)]
+GEWEKE_VARIANTS = [
+    dict(),
+    dict(prior="dirichlet", alpha=1.5, gamma=0.5),
+    # 4 concepts, 3 observed cells: some concept always lacks observations, so the partial
+    # refresh of theta and w (SpCoConfig.unobserved_refresh) is exercised.
+    dict(num_concepts=4, unobserved_refresh=0.3),
+]
 
 
 def model_redraw(state: GibbsState, world, cfg, generator):

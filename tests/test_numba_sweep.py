@@ -20,6 +20,7 @@ from gibbs_problems import config, model_data, random_problem, replicate_grid  #
 from scipy import stats  # noqa: E402
 from test_gibbs_conditionals import BLOCK_VARIANTS, min_block_p_value  # noqa: E402
 from test_gibbs_joint import (  # noqa: E402
+    GEWEKE_VARIANTS,
     Z_LIMIT,
     draw_counts,
     geweke_z_scores,
@@ -235,7 +236,7 @@ def test_backend_choice_and_import_error_without_numba(monkeypatch):
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "variant",
-    [dict(), dict(prior="dirichlet", alpha=1.5, gamma=0.5), dict(connectivity=8, gamma=0.7)],
+    [*GEWEKE_VARIANTS, dict(connectivity=8, gamma=0.7)],
     ids=str,
 )
 def test_geweke_getting_it_right(variant):

@@ -611,13 +611,27 @@ def _sample_labels_array(
 
 
 def _sample_globals_arrays(
-    labels: np.ndarray, data: ModelData, config: SpCoConfig, rng: np.ndarray
+    labels: np.ndarray,
+    data: ModelData,
+    config: SpCoConfig,
+    rng: np.ndarray,
+    previous: tuple[torch.Tensor, torch.Tensor] | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """(log pi, log theta, log w) given valid int64 labels [N] (or longer), drawn with ``rng``."""
+    """(log pi, log theta, log w) given valid int64 labels [N] (or longer), drawn with ``rng``.
+
+    With ``previous`` (log theta, log w) and ``config.unobserved_refresh`` < 1, a sweep keeps,
+    with probability 1 - unobserved_refresh, the rows of concepts holding no observed cell (the
+    reference's :func:`~spcopyro.gibbs.sweep.concepts_to_refresh`).
+    """
     L, K, V = config.num_concepts, data.num_feature_classes, data.vocabulary_size
+    labels = labels[: data.num_free]
+    obs_cells = _as_array(data.obs_cells, np.int64)
+    if previous is not None and config.unobserved_refresh < 1.0:
+        if _uniform(rng) >= config.unobserved_refresh:
+            return _sample_globals_partial(labels, obs_cells, data, config, rng, previous)
     log_pi, log_theta, log_w = np.empty((1, L)), np.empty((L, K)), np.empty((L, V))
     which, index, value = _sample_globals_kernel(
-        labels[: data.num_free], _as_array(data.obs_cells, np.int64),
+        labels, obs_cells,
         _as_array(data.image_counts, np.float64), _as_array(data.word_counts, np.float64),
         bool(config.use_images), bool(config.use_words),
         float(config.pi_concentration), float(config.chi), float(config.beta),
@@ -635,6 +649,45 @@ def _sample_globals_arrays(
         torch.from_numpy(_normalise_log_rows(log_theta)),
         torch.from_numpy(_normalise_log_rows(log_w)),
     )
+
+
+def _sample_globals_partial(
+    labels: np.ndarray,
+    obs_cells: np.ndarray,
+    data: ModelData,
+    config: SpCoConfig,
+    rng: np.ndarray,
+    previous: tuple[torch.Tensor, torch.Tensor],
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """pi in full; theta and w only for the concepts holding an observed cell, the other rows
+    kept from ``previous``."""
+    L = config.num_concepts
+    cells_per_concept = np.zeros((1, L))
+    images = np.zeros((L, data.num_feature_classes))
+    words = np.zeros((L, data.vocabulary_size))
+    _concept_statistics(
+        labels, obs_cells, _as_array(data.image_counts, np.float64),
+        _as_array(data.word_counts, np.float64), bool(config.use_images),
+        bool(config.use_words), cells_per_concept, images, words,
+    )  # fmt: skip
+    rows = np.unique(labels[obs_cells])  # [G] concepts holding observed cells
+    log_pi = np.empty((1, L))
+    theta_rows = np.empty((rows.size, images.shape[1]))  # [G, K]
+    w_rows = np.empty((rows.size, words.shape[1]))  # [G, V]
+    for base, stats, draw in (
+        (config.pi_concentration, cells_per_concept, log_pi),
+        (config.chi, np.ascontiguousarray(images[rows]), theta_rows),
+        (config.beta, np.ascontiguousarray(words[rows]), w_rows),
+    ):
+        if _fill_log_gamma(float(base), stats, draw, rng) >= 0:
+            raise ValueError(
+                "a Dirichlet concentration is not finite and positive: negative or non-finite "
+                "values in data.image_counts or data.word_counts?"
+            )
+    log_theta, log_w = previous[0].clone(), previous[1].clone()
+    log_theta[torch.from_numpy(rows)] = torch.from_numpy(_normalise_log_rows(theta_rows))
+    log_w[torch.from_numpy(rows)] = torch.from_numpy(_normalise_log_rows(w_rows))
+    return torch.from_numpy(_normalise_log_rows(log_pi)[0]), log_theta, log_w
 
 
 def sample_labels_numba(
@@ -693,9 +746,10 @@ def gibbs_sweep_numba(
     """
     rng = rng_state(_draw_seed(generator))
     labels = _sample_labels_array(state, data, config, plan, rng)  # [N + D]
+    previous = (state.log_theta, state.log_w)
     return GibbsState(
         torch.from_numpy(labels[: data.num_free]),
-        *_sample_globals_arrays(labels, data, config, rng),
+        *_sample_globals_arrays(labels, data, config, rng, previous),
     )
 
 

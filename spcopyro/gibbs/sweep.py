@@ -191,19 +191,52 @@ def concept_statistics(
     return cells_per_concept, images, words
 
 
+def concepts_to_refresh(
+    labels: torch.Tensor,
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    previous: tuple[torch.Tensor, torch.Tensor] | None,
+) -> torch.Tensor | None:
+    """The concepts whose theta and w this sweep redraws: None for all of them, else (with
+    probability 1 - ``config.unobserved_refresh``) only those holding an observed cell.
+
+    The choice is made before looking at the state, and the set depends only on the labels,
+    which the global draws do not change; so each choice is a Gibbs update of conditionally
+    independent blocks, and the posterior stays invariant.
+    """
+    if previous is None or config.unobserved_refresh >= 1.0:
+        return None
+    if float(torch.rand((), dtype=DTYPE, generator=generator)) < config.unobserved_refresh:
+        return None
+    return torch.unique(labels[data.obs_cells])  # [G] concepts holding observed cells
+
+
 def sample_globals(
-    labels: torch.Tensor, data: ModelData, config: SpCoConfig, generator: torch.Generator
+    labels: torch.Tensor,
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    previous: tuple[torch.Tensor, torch.Tensor] | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """(log pi, log theta, log w) from their conjugate conditionals given the labels.
 
     pi | C ~ Dir(alpha/L + m_l) (DP, eq. 14) or Dir(alpha + m_l) (eq. 15), m_l = #cells labelled l;
     theta_l | . ~ Dir(chi + sum of image counts in cells labelled l) (eq. 16);
     w_l | . ~ Dir(beta + sum of word counts in cells labelled l) (eq. 17).
+    ``previous`` (log theta, log w) lets :func:`concepts_to_refresh` keep the rows of concepts
+    without observed cells (see ``SpCoConfig.unobserved_refresh``).
     """
     cells_per_concept, images, words = concept_statistics(labels, data, config)
     log_pi = sample_log_dirichlet(config.pi_concentration + cells_per_concept, generator)
-    log_theta = sample_log_dirichlet(config.chi + images, generator)
-    log_w = sample_log_dirichlet(config.beta + words, generator)
+    rows = concepts_to_refresh(labels, data, config, generator, previous)
+    if rows is None:
+        log_theta = sample_log_dirichlet(config.chi + images, generator)
+        log_w = sample_log_dirichlet(config.beta + words, generator)
+        return log_pi, log_theta, log_w
+    log_theta, log_w = previous[0].clone(), previous[1].clone()
+    log_theta[rows] = sample_log_dirichlet(config.chi + images[rows], generator)
+    log_w[rows] = sample_log_dirichlet(config.beta + words[rows], generator)
     return log_pi, log_theta, log_w
 
 
@@ -216,7 +249,8 @@ def gibbs_sweep(
 ) -> GibbsState:
     """One iteration of Algorithm 1: all cell labels, then pi, theta and w."""
     labels = sample_labels(state, data, config, generator, plan)
-    return GibbsState(labels, *sample_globals(labels, data, config, generator))
+    previous = (state.log_theta, state.log_w)
+    return GibbsState(labels, *sample_globals(labels, data, config, generator, previous))
 
 
 def _dirichlet_log_normaliser(shape: torch.Size, concentration: float) -> torch.Tensor:
