@@ -85,6 +85,7 @@ def _fit(args: argparse.Namespace) -> int:
         prior=args.prior, num_concepts=args.concepts, gamma=args.gamma, alpha=args.alpha,
         beta=args.beta, chi=args.chi, connectivity=args.connectivity,
         word_weighting="tfidf" if args.tfidf else None,
+        unobserved_refresh=args.unobserved_refresh,
         feature_scaling=_feature_scaling(args.feature_scaling),
     )  # fmt: skip
     if args.preset == "paper-dirichlet" and args.concepts is None and house.category_names:
@@ -281,6 +282,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--chi", type=float, help="image-feature prior concentration")
     p.add_argument("--connectivity", type=int, choices=(4, 8))
     p.add_argument("--tfidf", action="store_true", help="weight words by tf-idf (eq. 20)")
+    p.add_argument(
+        "--unobserved-refresh",
+        type=float,
+        help="share of sweeps that redraw theta/w of concepts without observations (default 1)",
+    )
     p.add_argument("--feature-scaling", help="probability, floor100 or a number s (s * f)")
     p.add_argument(
         "--init",
