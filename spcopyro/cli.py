@@ -237,6 +237,12 @@ def _experiment(args: argparse.Namespace) -> int:
     print((out / "table.md").read_text())
     print(f"wrote {out / 'table.md'}, {out / 'table.json'} and {len(summary['figures'])} "
           f"figures under {out / 'figures'}")  # fmt: skip
+    if args.studies:
+        from spcopyro.experiments.studies import write_studies
+
+        count = seeds if isinstance(seeds, int) else len(seeds)
+        print(write_studies(out, sweeps=min(run.sweeps, 1000), seeds=tuple(range(min(count, 3)))))
+        print(f"wrote {out / 'studies.md'} and {out / 'studies.json'}")
     return 0
 
 
@@ -326,6 +332,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-public", action="store_true", help="synthetic houses only")
     p.add_argument("--houses", nargs="+", help="public houses to score (default: all)")
     p.add_argument("--methods", nargs="+", help="rows to run (default: all)")
+    p.add_argument(
+        "--studies",
+        action="store_true",
+        help="also the modality ablation and the sentence (tf-idf) study (studies.md)",
+    )
     p.set_defaults(func=_experiment, argv=None)
 
     from spcopyro.features.cli import add_parser as add_features_parsers

@@ -157,3 +157,17 @@ def test_studies_run_and_report_every_setting():
     for weighting, tops in sentences.top_words.items():
         share = np.mean([t[0] in FILLER_WORDS for t in tops])
         assert sentences.filler_top_share[weighting] == pytest.approx(share)
+
+
+def test_write_studies_writes_both_tables(tmp_path):
+    import json
+
+    from spcopyro.experiments.studies import ABLATIONS, write_studies
+
+    markdown = write_studies(tmp_path, sweeps=3, seeds=(0,))
+    assert (tmp_path / "studies.md").read_text() == markdown
+    for name in ABLATIONS:
+        assert f"| {name} |" in markdown
+    assert "| count |" in markdown and "| tfidf |" in markdown
+    payload = json.loads((tmp_path / "studies.json").read_text())
+    assert set(payload["ablation"]) == set(ABLATIONS) and payload["sweeps"] == 3
