@@ -243,6 +243,13 @@ def _experiment(args: argparse.Namespace) -> int:
         count = seeds if isinstance(seeds, int) else len(seeds)
         print(write_studies(out, sweeps=min(run.sweeps, 1000), seeds=tuple(range(min(count, 3)))))
         print(f"wrote {out / 'studies.md'} and {out / 'studies.json'}")
+    if args.robustness:
+        from spcopyro.experiments.robustness import write_robustness
+
+        count = seeds if isinstance(seeds, int) else len(seeds)
+        print(write_robustness(out, sweeps=min(run.sweeps, 1000),
+                               seeds=tuple(range(min(count, 3))), chains=3))  # fmt: skip
+        print(f"wrote {out / 'robustness.md'} and {out / 'robustness.json'}")
     return 0
 
 
@@ -336,6 +343,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--studies",
         action="store_true",
         help="also the modality ablation and the sentence (tf-idf) study (studies.md)",
+    )
+    p.add_argument(
+        "--robustness",
+        action="store_true",
+        help="also the stability (seeds, chains, init) and sensitivity studies (robustness.md)",
     )
     p.set_defaults(func=_experiment, argv=None)
 

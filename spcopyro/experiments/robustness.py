@@ -1,0 +1,272 @@
+"""Stability and sensitivity of SpCoMapping on synthetic houses (issue 4, the paper's open problem).
+
+* :func:`stability_study`: the spread (mean, sd, min) over seeds of the ARI against the truth for
+  the DP variants (``paper-dp``; ``original-code`` values with gamma 3) and the Dirichlet one
+  (``paper-dirichlet``, L = the number of categories), from random labels and -- for the DP
+  variants -- from the SpCoA pre-learning (paper Section 5, eqs. 21-22); each with one chain and
+  with the best of K chains (the chain whose best log joint ``max_s log p(C, pi, theta, w, y, f)``
+  is highest), and the ARI between the K chains' maps (:func:`spcopyro.metrics.chain_ari`).
+  It reports which DP settings are at least as stable (sd of ARI over seeds no larger) as the
+  Dirichlet prior with one chain from random labels (the paper's row B).
+* :func:`sensitivity_study`: one-at-a-time sweeps of gamma (around the Potts critical coupling
+  ln(1 + sqrt(L)) = 2.48 for L = 120), beta, chi and alpha from
+  ``preset("original-code", gamma=3.0)``: mean ARI and concepts in use over seeds.
+
+The sd is the sample standard deviation (ddof 1); it is NaN with a single seed.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from spcopyro.config import SpCoConfig, preset
+from spcopyro.fit import fit_house
+from spcopyro.metrics import adjusted_rand_index, pairwise_chain_ari
+from spcopyro.results import SpCoResult
+from spcopyro.synthetic import HouseSpec, make_house
+
+STABILITY_SETTINGS: dict[str, tuple[str, str]] = {
+    "A-dp random": ("A-dp", "random"),
+    "A-orig-g3 random": ("A-orig-g3", "random"),
+    "B-dirichlet random": ("B-dirichlet", "random"),
+    "A-dp spcoa": ("A-dp", "spcoa"),
+    "A-orig-g3 spcoa": ("A-orig-g3", "spcoa"),
+}
+"""Setting name -> (method of :mod:`spcopyro.experiments.methods`, ``init`` of ``fit_house``)."""
+REFERENCE_SETTING = "B-dirichlet random"
+"""The setting the DP variants are compared with, with one chain (the paper's row B)."""
+CHAIN_SEED_STRIDE = 1000
+"""Chain k of house seed s runs with seed ``s + CHAIN_SEED_STRIDE * k`` (chain 0: seed s)."""
+
+SENSITIVITY_BASE = dict(preset="original-code", gamma=3.0)
+"""The configuration every one-at-a-time sweep of :func:`sensitivity_study` starts from."""
+SENSITIVITY_GRID: dict[str, tuple[float, ...]] = {
+    "gamma": (2.0, 2.48, 3.0, 4.0),
+    "beta": (0.1, 10.0, 500.0),
+    "chi": (1.0, 100.0, 1e4),
+    "alpha": (1e2, 1e5, 1e7),
+}
+
+
+def method_config(method: str, num_categories: int) -> SpCoConfig:
+    """The configuration of an SpCoMapping row (as :func:`~.methods.spco_config`)."""
+    from spcopyro.experiments.methods import spco_config
+
+    return spco_config(method, num_categories)
+
+
+def spread(values: Sequence[float]) -> dict[str, float]:
+    """``{"mean", "sd", "min"}`` of ``values`` (sample sd, ddof 1; NaN for fewer than 2)."""
+    array = np.asarray(values, dtype=np.float64)  # [n]
+    if array.size == 0:
+        raise ValueError("spread of no values")
+    sd = float(array.std(ddof=1)) if array.size > 1 else math.nan
+    return {"mean": float(array.mean()), "sd": sd, "min": float(array.min())}
+
+
+def best_chain(results: Sequence[SpCoResult]) -> int:
+    """Index of the chain whose best log joint (``result.log_joint.max()``) is highest
+    (the first one on ties)."""
+    if not results:
+        raise ValueError("best_chain needs at least one chain")
+    best = [float(np.max(r.log_joint)) for r in results]  # [K]
+    return int(np.argmax(best))
+
+
+def _check_runs(sweeps: int, seeds: tuple[int, ...], chains: int | None = None) -> None:
+    if not isinstance(sweeps, int) or sweeps < 1:
+        raise ValueError(f"sweeps must be a positive integer, got {sweeps!r}")
+    if len(seeds) == 0:
+        raise ValueError("seeds must name at least one synthetic house")
+    if chains is not None and (not isinstance(chains, int) or chains < 2):
+        raise ValueError(f"chains must be an integer >= 2 (best of K, chain ARI), got {chains!r}")
+
+
+def stability_study(
+    *,
+    sweeps: int,
+    seeds: tuple[int, ...] = (0, 1, 2),
+    chains: int = 3,
+    spec: HouseSpec | None = None,
+) -> dict:
+    """Spread of the ARI over synthetic houses for every setting of :data:`STABILITY_SETTINGS`.
+
+    For house seed s and setting, K = ``chains`` chains run with seeds s + 1000 k. Per setting:
+    ``single`` (chain 0's ARI per seed), ``best_of_chains`` (ARI of the chain of highest best log
+    joint, :func:`best_chain`), ``chain_ari`` (mean ARI between the K chains' maps, per seed),
+    ``chains`` (per seed, per chain: ARI and best log joint), and their ``summary`` spreads.
+    ``at_least_as_stable``: the DP settings and modes (single / best of K) whose sd of ARI is at
+    most that of :data:`REFERENCE_SETTING` with one chain.
+    """
+    _check_runs(sweeps, seeds, chains)
+    settings: dict[str, dict] = {
+        name: {"method": method, "init": init, "single": [], "best_of_chains": [],
+               "chain_ari": [], "chains": []}
+        for name, (method, init) in STABILITY_SETTINGS.items()
+    }  # fmt: skip
+    for seed in seeds:
+        house = make_house(seed=seed, spec=spec)
+        num_categories = len(house.category_names)
+        for row in settings.values():
+            config = method_config(row["method"], num_categories)
+            results = [
+                fit_house(
+                    house,
+                    config,
+                    sweeps=sweeps,
+                    seed=seed + CHAIN_SEED_STRIDE * k,
+                    init=row["init"],
+                    progress=False,
+                )  # fmt: skip
+                for k in range(chains)
+            ]
+            aris = [adjusted_rand_index(r.label_image(), house.truth) for r in results]  # [K]
+            pairs = pairwise_chain_ari([r.labels_best for r in results])  # [K, K]
+            row["single"].append(aris[0])
+            row["best_of_chains"].append(aris[best_chain(results)])
+            row["chain_ari"].append(float(pairs[np.triu_indices(chains, k=1)].mean()))
+            row["chains"].append(
+                [{"ari": a, "best_log_joint": float(np.max(r.log_joint))}
+                 for a, r in zip(aris, results, strict=True)]
+            )  # fmt: skip
+    for row in settings.values():
+        row["summary"] = {
+            mode: spread(row[mode]) for mode in ("single", "best_of_chains", "chain_ari")
+        }
+    reference_sd = settings[REFERENCE_SETTING]["summary"]["single"]["sd"]
+    stable = [
+        f"{name} / {mode}"
+        for name, row in settings.items()
+        if row["method"] != "B-dirichlet"
+        for mode in ("single", "best_of_chains")
+        if row["summary"][mode]["sd"] <= reference_sd
+    ]
+    return {
+        "sweeps": sweeps, "seeds": list(seeds), "chains": chains, "settings": settings,
+        "reference": f"{REFERENCE_SETTING} / single", "reference_sd": reference_sd,
+        "at_least_as_stable": stable,
+    }  # fmt: skip
+
+
+def sensitivity_study(
+    *,
+    sweeps: int,
+    seeds: tuple[int, ...] = (0, 1, 2),
+    grid: dict[str, tuple[float, ...]] | None = None,
+    spec: HouseSpec | None = None,
+) -> dict:
+    """One-at-a-time sweeps from :data:`SENSITIVITY_BASE` over :data:`SENSITIVITY_GRID` (or
+    ``grid``): per parameter and value, the ARI and the number of concepts in use per seed
+    (one chain of seed s from random labels on the house of seed s) and their means. A value
+    equal to the base's is fitted once and shared between the parameters."""
+    _check_runs(sweeps, seeds)
+    grid = SENSITIVITY_GRID if grid is None else grid
+    base = preset(str(SENSITIVITY_BASE["preset"]), gamma=SENSITIVITY_BASE["gamma"])
+    for name in grid:
+        if name not in ("gamma", "alpha", "beta", "chi"):
+            raise ValueError(f"sensitivity grid parameter must be gamma/alpha/beta/chi: {name!r}")
+    houses = [make_house(seed=seed, spec=spec) for seed in seeds]
+    cache: dict[SpCoConfig, tuple[list[float], list[int]]] = {}
+
+    def scores(config: SpCoConfig) -> tuple[list[float], list[int]]:
+        if config not in cache:
+            aris, concepts = [], []
+            for seed, house in zip(seeds, houses, strict=True):
+                result = fit_house(house, config, sweeps=sweeps, seed=seed, progress=False)
+                aris.append(adjusted_rand_index(result.label_image(), house.truth))
+                concepts.append(len(result.concepts_in_use()))
+            cache[config] = (aris, concepts)
+        return cache[config]
+
+    parameters: dict[str, list[dict]] = {}
+    for name, values in grid.items():
+        rows = []
+        for value in values:
+            aris, concepts = scores(base.replace(**{name: float(value)}))
+            rows.append({
+                "value": float(value), "ari": aris, "concepts": concepts,
+                "ari_mean": float(np.mean(aris)), "concepts_mean": float(np.mean(concepts)),
+            })  # fmt: skip
+        parameters[name] = rows
+    return {
+        "base": SENSITIVITY_BASE, "critical_gamma": base.critical_gamma, "sweeps": sweeps,
+        "seeds": list(seeds), "parameters": parameters,
+    }  # fmt: skip
+
+
+def _fmt(value: float) -> str:
+    return "nan" if math.isnan(value) else f"{value:.3f}"
+
+
+def robustness_markdown(stability: dict, sensitivity: dict) -> str:
+    """The markdown report of both studies."""
+    seeds, chains = stability["seeds"], stability["chains"]
+    lines = [
+        "# Stability and sensitivity",
+        "",
+        f"Synthetic houses of seeds {seeds}, {stability['sweeps']} sweeps per chain.",
+        "",
+        f"## Stability: ARI against the truth over seeds ({chains} chains per house)",
+        "",
+        "One chain: chain 0. Best of K: the chain of highest best log joint. Chain ARI: mean ARI "
+        "between the K chains' maps (1 = the chains agree).",
+        "",
+        "| setting | one chain: mean | sd | min | best of K: mean | sd | min "
+        "| chain ARI: mean | min |",
+        "|---|" + "---|" * 8,
+    ]
+    for name, row in stability["settings"].items():
+        one, best, pair = (row["summary"][m] for m in ("single", "best_of_chains", "chain_ari"))
+        cells = [one["mean"], one["sd"], one["min"], best["mean"], best["sd"], best["min"],
+                 pair["mean"], pair["min"]]  # fmt: skip
+        lines.append(f"| {name} | " + " | ".join(_fmt(v) for v in cells) + " |")
+    stable = stability["at_least_as_stable"]
+    lines += [
+        "",
+        f"DP settings at least as stable (sd of ARI over seeds <= {_fmt(stability['reference_sd'])}"
+        f", that of {stability['reference']}): " + (", ".join(stable) if stable else "none") + ".",
+        "",
+        f"## Sensitivity: one at a time from `{sensitivity['base']['preset']}` with gamma "
+        f"{sensitivity['base']['gamma']}",
+        "",
+        f"Potts critical coupling ln(1 + sqrt(L)) = {sensitivity['critical_gamma']:.2f}.",
+        "",
+        "| parameter | value | "
+        + " | ".join(f"ARI seed {s}" for s in sensitivity["seeds"])
+        + " | mean ARI | mean concepts in use |",
+        "|---|---|" + "---|" * (len(sensitivity["seeds"]) + 2),
+    ]
+    for name, rows in sensitivity["parameters"].items():
+        for row in rows:
+            aris = " | ".join(f"{v:.3f}" for v in row["ari"])
+            lines.append(
+                f"| {name} | {row['value']:g} | {aris} | {row['ari_mean']:.3f} "
+                f"| {row['concepts_mean']:.1f} |"
+            )
+    return "\n".join(lines) + "\n"
+
+
+def write_robustness(
+    out: str | Path,
+    *,
+    sweeps: int,
+    seeds: tuple[int, ...] = (0, 1, 2),
+    chains: int = 3,
+    spec: HouseSpec | None = None,
+) -> str:
+    """Run both studies; write ``robustness.md`` and ``robustness.json`` into ``out`` and return
+    the markdown."""
+    stability = stability_study(sweeps=sweeps, seeds=seeds, chains=chains, spec=spec)
+    sensitivity = sensitivity_study(sweeps=sweeps, seeds=seeds, spec=spec)
+    markdown = robustness_markdown(stability, sensitivity)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "robustness.md").write_text(markdown)
+    payload = {"stability": stability, "sensitivity": sensitivity}
+    (out / "robustness.json").write_text(json.dumps(payload, indent=1) + "\n")
+    return markdown

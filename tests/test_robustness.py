@@ -1,0 +1,142 @@
+"""Tests of the stability and sensitivity studies (tiny sweeps on a small synthetic house)."""
+
+from __future__ import annotations
+
+import json
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from spcopyro.experiments import robustness
+from spcopyro.experiments.robustness import (
+    REFERENCE_SETTING,
+    SENSITIVITY_GRID,
+    STABILITY_SETTINGS,
+    best_chain,
+    robustness_markdown,
+    sensitivity_study,
+    spread,
+    stability_study,
+    write_robustness,
+)
+from spcopyro.synthetic import HouseSpec
+
+SMALL = HouseSpec(height=30, width=40, num_rooms=2, num_open_plan=0, min_room_size=10)
+SEEDS = (0, 1)
+
+
+@pytest.fixture(scope="module")
+def stability() -> dict:
+    return stability_study(sweeps=4, seeds=SEEDS, chains=2, spec=SMALL)
+
+
+@pytest.fixture(scope="module")
+def sensitivity() -> dict:
+    return sensitivity_study(sweeps=3, seeds=(0,), spec=SMALL)
+
+
+def test_spread_by_hand() -> None:
+    assert spread([1.0, 2.0, 3.0]) == {"mean": 2.0, "sd": 1.0, "min": 1.0}
+    single = spread([0.25])
+    assert single["mean"] == 0.25 and single["min"] == 0.25 and math.isnan(single["sd"])
+    with pytest.raises(ValueError, match="no values"):
+        spread([])
+
+
+def test_best_chain_picks_the_highest_best_log_joint() -> None:
+    chains = [
+        SimpleNamespace(log_joint=np.array(v)) for v in ([1.0, 5.0, 2.0], [3.0, 4.0], [6.0, 0.0])
+    ]
+    assert best_chain(chains) == 2  # maxima 5, 4, 6: the last value of chain 2 is lower
+    ties = [SimpleNamespace(log_joint=np.array([7.0])), SimpleNamespace(log_joint=np.array([7.0]))]
+    assert best_chain(ties) == 0
+    with pytest.raises(ValueError, match="at least one chain"):
+        best_chain([])
+
+
+def test_stability_rows_and_ranges(stability: dict) -> None:
+    assert list(stability["settings"]) == list(STABILITY_SETTINGS)
+    assert stability["seeds"] == list(SEEDS) and stability["chains"] == 2
+    for row in stability["settings"].values():
+        for mode in ("single", "best_of_chains", "chain_ari"):
+            assert len(row[mode]) == len(SEEDS)
+            assert all(-1.0 <= v <= 1.0 for v in row[mode])
+            summary = row["summary"][mode]
+            assert summary["min"] == min(row[mode])
+            assert summary["mean"] == pytest.approx(sum(row[mode]) / 2)
+            assert summary["sd"] == pytest.approx(abs(row[mode][0] - row[mode][1]) / math.sqrt(2))
+        assert [len(c) for c in row["chains"]] == [2, 2]
+
+
+def test_stability_best_of_chains_is_the_highest_log_joint(stability: dict) -> None:
+    for row in stability["settings"].values():
+        for seed_index, chains in enumerate(row["chains"]):
+            joints = [c["best_log_joint"] for c in chains]
+            expected = chains[joints.index(max(joints))]["ari"]
+            assert row["best_of_chains"][seed_index] == expected
+            assert row["single"][seed_index] == chains[0]["ari"]
+
+
+def test_stability_verdict_matches_the_sds(stability: dict) -> None:
+    reference = stability["settings"][REFERENCE_SETTING]["summary"]["single"]["sd"]
+    assert stability["reference_sd"] == reference
+    expected = [
+        f"{name} / {mode}"
+        for name, (method, _) in STABILITY_SETTINGS.items()
+        if method != "B-dirichlet"
+        for mode in ("single", "best_of_chains")
+        if stability["settings"][name]["summary"][mode]["sd"] <= reference
+    ]
+    assert stability["at_least_as_stable"] == expected
+
+
+def test_sensitivity_every_value_present(sensitivity: dict) -> None:
+    parameters = sensitivity["parameters"]
+    assert list(parameters) == list(SENSITIVITY_GRID)
+    for name, values in SENSITIVITY_GRID.items():
+        assert [row["value"] for row in parameters[name]] == list(values)
+        for row in parameters[name]:
+            assert len(row["ari"]) == 1 and -1.0 <= row["ari"][0] <= 1.0
+            assert 1 <= row["concepts"][0] <= 120
+    assert sensitivity["critical_gamma"] == pytest.approx(math.log(1 + math.sqrt(120)))
+    # gamma 3, beta 0.1, chi 1 and alpha 1e7 are all the base configuration: one fit, shared.
+    base_rows = [
+        parameters["gamma"][2],
+        parameters["beta"][0],
+        parameters["chi"][0],
+        parameters["alpha"][2],
+    ]
+    assert all(r["ari"] == base_rows[0]["ari"] for r in base_rows)
+    assert all(r["concepts"] == base_rows[0]["concepts"] for r in base_rows)
+
+
+def test_markdown_has_every_row(stability: dict, sensitivity: dict) -> None:
+    markdown = robustness_markdown(stability, sensitivity)
+    for name in STABILITY_SETTINGS:
+        assert f"| {name} |" in markdown
+    assert markdown.count("| gamma |") == 4 and markdown.count("| alpha |") == 3
+    assert "| alpha | 1e+07 |" in markdown
+
+
+def test_write_robustness_files(tmp_path, monkeypatch, stability, sensitivity) -> None:
+    # The studies themselves are tested above; here only what write_robustness writes.
+    monkeypatch.setattr(robustness, "stability_study", lambda **_: stability)
+    monkeypatch.setattr(robustness, "sensitivity_study", lambda **_: sensitivity)
+    markdown = write_robustness(tmp_path, sweeps=4, seeds=SEEDS, chains=2, spec=SMALL)
+    assert (tmp_path / "robustness.md").read_text() == markdown
+    payload = json.loads((tmp_path / "robustness.json").read_text())
+    assert set(payload) == {"stability", "sensitivity"}
+    assert payload["stability"]["chains"] == 2
+
+
+def test_bad_arguments() -> None:
+    with pytest.raises(ValueError, match="chains"):
+        stability_study(sweeps=2, seeds=(0,), chains=1, spec=SMALL)
+    with pytest.raises(ValueError, match="seeds"):
+        stability_study(sweeps=2, seeds=(), chains=2, spec=SMALL)
+    with pytest.raises(ValueError, match="sweeps"):
+        sensitivity_study(sweeps=0, seeds=(0,), spec=SMALL)
+    with pytest.raises(ValueError, match="'kappa'"):
+        sensitivity_study(sweeps=2, seeds=(0,), grid={"kappa": (1.0,)}, spec=SMALL)
