@@ -248,7 +248,8 @@ def _experiment(args: argparse.Namespace) -> int:
 
         count = seeds if isinstance(seeds, int) else len(seeds)
         print(write_robustness(out, sweeps=min(run.sweeps, 1000),
-                               seeds=tuple(range(min(count, 3))), chains=3))  # fmt: skip
+                               seeds=tuple(range(min(count, 3))), chains=3,
+                               dataset_root=settings.dataset_root))  # fmt: skip
         print(f"wrote {out / 'robustness.md'} and {out / 'robustness.json'}")
     return 0
 

@@ -140,3 +140,19 @@ def test_bad_arguments() -> None:
         sensitivity_study(sweeps=0, seeds=(0,), spec=SMALL)
     with pytest.raises(ValueError, match="'kappa'"):
         sensitivity_study(sweeps=2, seeds=(0,), grid={"kappa": (1.0,)}, spec=SMALL)
+
+
+def test_heldout_sensitivity_on_a_public_house(dataset_root):
+    from spcopyro.experiments.robustness import heldout_sensitivity, heldout_sensitivity_markdown
+
+    grid = {"gamma": (3.0, 4.0), "beta": (0.1,)}
+    result = heldout_sensitivity(dataset_root, sweeps=3, houses=["room1dk5"], grid=grid)
+    assert [r["value"] for r in result["parameters"]["gamma"]] == [3.0, 4.0]
+    for rows in result["parameters"].values():
+        for row in rows:
+            assert 0.0 <= row["top1"] <= row["top3"] <= 1.0
+            assert row["distance_m"] >= 0.0
+    # gamma 3 and beta 0.1 are both the base: fitted once, the same scores.
+    assert result["parameters"]["gamma"][0]["top1"] == result["parameters"]["beta"][0]["top1"]
+    markdown = heldout_sensitivity_markdown(result)
+    assert "| gamma | 3 |" in markdown and "| beta | 0.1 |" in markdown
