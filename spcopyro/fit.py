@@ -41,6 +41,12 @@ def gamma_warning(config: SpCoConfig) -> str | None:
     )
 
 
+def free_cell_positions(house: House) -> torch.Tensor:
+    """[N, 2] world (x, y) of every free cell's centre, in free-index order."""
+    grid = house.grid
+    return torch.as_tensor(grid.cell_to_world(grid.free_cells), dtype=DTYPE)
+
+
 def gaussian_initial_labels(
     house: House, counts: CellCounts, config: SpCoConfig, generator: torch.Generator
 ) -> torch.Tensor:
@@ -49,8 +55,7 @@ def gaussian_initial_labels(
     A stand-in for spatial-concept pre-learning: k-means with k = L on the observed cells'
     centres, then each free cell takes its most probable Gaussian.
     """
-    grid = house.grid
-    cell_xy = torch.as_tensor(grid.cell_to_world(grid.free_cells), dtype=DTYPE)  # [N, 2]
+    cell_xy = free_cell_positions(house)  # [N, 2]
     points = cell_xy[torch.as_tensor(counts.cells)]  # [M, 2]
     means, covariances, log_weights = kmeans_gaussians(points, config.num_concepts, generator)
     return labels_from_gaussians(cell_xy, means, covariances, log_weights)
@@ -61,8 +66,7 @@ def spcoa_initial_labels(house: House, config: SpCoConfig, seed: int) -> torch.T
     of a SpCoA fit (:func:`spcopyro.baselines.spcoa.spcoa_gaussians`), at most L of them."""
     from spcopyro.baselines.spcoa import spcoa_gaussians
 
-    grid = house.grid
-    cell_xy = torch.as_tensor(grid.cell_to_world(grid.free_cells), dtype=DTYPE)  # [N, 2]
+    cell_xy = free_cell_positions(house)  # [N, 2]
     means, covariances, log_weights = spcoa_gaussians(
         house, num_concepts=config.num_concepts, seed=seed, word_weighting=config.word_weighting
     )

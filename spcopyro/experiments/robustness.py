@@ -291,9 +291,8 @@ def heldout_sensitivity(
     localise them (distance to the region eq. (19) names, pi prior), averaged over the folds and
     houses. A value equal to the base's is fitted once.
     """
-    import dataclasses
-
     from spcopyro.data import list_houses, load_house
+    from spcopyro.experiments.table import heldout_folds
     from spcopyro.metrics import SpCoSemanticMap, heldout_localisation, heldout_word_prediction
 
     _check_runs(sweeps, (0,))
@@ -307,12 +306,9 @@ def heldout_sensitivity(
         if config not in cache:
             top1, top3, distance = [], [], []
             for house in loaded:
-                trials = house.observations.trials
-                for fold, held in enumerate(trials):
-                    train = house.observations.select_trials([t for t in trials if t != held])
-                    test = house.observations.select_trials([held])
-                    fitted = fit_house(dataclasses.replace(house, observations=train), config,
-                                       sweeps=sweeps, seed=fold, progress=False)  # fmt: skip
+                for fold, _, train_house, test in heldout_folds(house):
+                    fitted = fit_house(train_house, config, sweeps=sweeps, seed=fold,
+                                       progress=False)  # fmt: skip
                     model = SpCoSemanticMap(fitted)
                     words = heldout_word_prediction(model, test)
                     top1.append(words.top1)

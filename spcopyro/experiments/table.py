@@ -25,13 +25,13 @@ import dataclasses
 import json
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from spcopyro.data import House, list_houses, load_house
+from spcopyro.data import House, Observations, list_houses, load_house
 from spcopyro.experiments.methods import (
     METHOD_LABELS,
     METHODS,
@@ -153,6 +153,18 @@ def run_synthetic(
     return records, first_house, first_fits
 
 
+def heldout_folds(house: House) -> Iterator[tuple[int, int, House, Observations]]:
+    """(fold, held-out trial, the house with the other trials, the held-out observations) for
+    every trial of the house."""
+    trials = house.observations.trials
+    if len(trials) < 2:
+        raise ValueError(f"{house.source}: held-out folds need >= 2 trials, got {trials}")
+    for fold, held in enumerate(trials):
+        train = house.observations.select_trials([t for t in trials if t != held])
+        test = house.observations.select_trials([held])
+        yield fold, held, dataclasses.replace(house, observations=train), test
+
+
 def run_public(
     settings: ExperimentSettings, report: Callable[[str], None] = _report_nothing
 ) -> tuple[dict[str, dict[str, list[dict[str, float]]]], dict[str, House], dict]:
@@ -167,13 +179,7 @@ def run_public(
     for name in names:
         house = load_house(Path(root) / name)
         houses[name], records[name], fits[name] = house, {m: [] for m in settings.methods}, {}
-        trials = house.observations.trials
-        if len(trials) < 2:
-            raise ValueError(f"{house.source}: held-out folds need >= 2 trials, got {trials}")
-        for fold, held in enumerate(trials):
-            train = house.observations.select_trials([t for t in trials if t != held])
-            test = house.observations.select_trials([held])
-            train_house = dataclasses.replace(house, observations=train)
+        for fold, held, train_house, test in heldout_folds(house):
             for method in settings.methods:
                 fitted = fit_method(
                     method,

@@ -37,7 +37,7 @@ from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.backends import sweep_function
 from spcopyro.gibbs.init import initial_state
 from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
-from spcopyro.gibbs.sweep import log_joint, num_concepts_in_use
+from spcopyro.gibbs.sweep import log_joint_constant, log_joint_variable, num_concepts_in_use
 from spcopyro.model import (
     SITE_LABELS,
     SITE_PI,
@@ -102,6 +102,7 @@ class SpCoGibbs(MCMCKernel):
         self._generator = torch.Generator().manual_seed(seed)
         self._plan = make_sweep_plan(data)
         self._state = initial_state(data, config, self._generator, self.init_labels)
+        self._log_joint_constant = log_joint_constant(data, config, self._state)
 
     def _check_model_sites(self) -> None:
         trace = poutine.trace(self.model).get_trace(self._data, self._config)
@@ -124,7 +125,9 @@ class SpCoGibbs(MCMCKernel):
     def _params(self, state: GibbsState) -> dict[str, torch.Tensor]:
         values = {
             "labels": lambda: state.labels,
-            "log_joint": lambda: log_joint(state, self._data, self._config),
+            "log_joint": lambda: (
+                self._log_joint_constant + log_joint_variable(state, self._data, self._config)
+            ),
             "num_concepts": lambda: torch.tensor(
                 float(num_concepts_in_use(state.labels, self._config.num_concepts))
             ),
