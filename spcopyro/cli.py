@@ -12,6 +12,7 @@ import dataclasses
 import json
 import logging
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -77,7 +78,7 @@ def _show(args: argparse.Namespace) -> int:
 
 
 def _fit(args: argparse.Namespace) -> int:
-    from spcopyro.fit import fit_house, gamma_warning
+    from spcopyro.fit import best_chain, fit_house_chains, gamma_warning
     from spcopyro.plotting import plot_house, plot_semantic_map, plot_trace
 
     house = _load(args.data)
@@ -100,20 +101,36 @@ def _fit(args: argparse.Namespace) -> int:
     if args.sweeps == "auto":
         from spcopyro.fit import fit_house_converged
 
+        chains = 4 if args.chains is None else args.chains
         result, diagnostics = fit_house_converged(
-            house, config, chains=args.chains, max_sweeps=args.max_sweeps, seed=args.seed,
+            house, config, chains=chains, max_sweeps=args.max_sweeps, seed=args.seed,
             init=args.init, backend=args.backend, snap_distance=args.snap_distance,
+            anneal_sweeps=args.anneal_sweeps,
         )  # fmt: skip
+        chain_results = None
     else:
-        result = fit_house(house, config, sweeps=args.sweeps, seed=args.seed, init=args.init,
-                           backend=args.backend, snap_distance=args.snap_distance)  # fmt: skip
+        chains = 1 if args.chains is None else args.chains
+        chain_results = fit_house_chains(
+            house, config, sweeps=args.sweeps, seeds=[args.seed + k for k in range(chains)],
+            init=args.init, backend=args.backend, snap_distance=args.snap_distance,
+            anneal_sweeps=args.anneal_sweeps,
+        )  # fmt: skip
+        kept = best_chain(chain_results)
+        result = chain_results[kept]
     out = result.save(args.out)
+    if chain_results is not None and chains > 1:
+        best_values = [r.best_log_joint for r in chain_results]
+        report = {"seeds": [args.seed + k for k in range(chains)], "best_chain": kept,
+                  "best_log_joint": best_values}  # fmt: skip
+        (out / "chains.json").write_text(json.dumps(report, indent=1) + "\n")
+        print(f"best of {chains} chains: kept chain {kept} (seed {args.seed + kept}), best log "
+              f"joints {', '.join(f'{v:.1f}' for v in best_values)}")  # fmt: skip
     sweeps_run = len(result.log_joint)
     if diagnostics is not None:
         (out / "convergence.json").write_text(json.dumps(diagnostics.to_json(), indent=1) + "\n")
         last = diagnostics.checks[-1]
         state = "converged" if diagnostics.converged else "NOT converged (hit --max-sweeps)"
-        print(f"--sweeps auto: {args.chains} chains {state} after {sweeps_run} sweeps each "
+        print(f"--sweeps auto: {chains} chains {state} after {sweeps_run} sweeps each "
               f"(split R-hat: log joint {last.rhat_log_joint:.3f}, concepts "
               f"{last.rhat_num_concepts:.3f}); kept chain {diagnostics.best_chain} "
               f"(seed {diagnostics.seeds[diagnostics.best_chain]}), highest log joint")  # fmt: skip
@@ -145,6 +162,23 @@ def _fit(args: argparse.Namespace) -> int:
         )
     print(f"wrote {out}/: labels.npy semantic_map.png concepts.json trace.csv trace.png ...")
     return 0
+
+
+def _integer_at_least(minimum: int) -> Callable[[str], int]:
+    def parse(value: str) -> int:
+        try:
+            number = int(value)
+        except ValueError:
+            number = minimum - 1
+        if number < minimum:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {minimum}, got {value!r}")
+        return number
+
+    return parse
+
+
+_positive_int = _integer_at_least(1)
+_non_negative_int = _integer_at_least(0)
 
 
 def _sweeps(value: str) -> int | str:
@@ -284,7 +318,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="Gibbs iterations (paper: 5000), or 'auto': run --chains chains until "
                         "split R-hat of the log joint and of the number of concepts < 1.05 "
                         "(at most --max-sweeps)")  # fmt: skip
-    p.add_argument("--chains", type=int, default=4, help="chains for --sweeps auto (default 4)")
+    p.add_argument("--chains", type=_positive_int,
+                   help="run this many chains (seeds --seed, --seed + 1, ...) and keep the one of "
+                        "highest log joint (default 1; 4 with --sweeps auto)")  # fmt: skip
+    p.add_argument("--anneal-sweeps", type=_non_negative_int, default=0,
+                   help="ramp gamma up from gamma/N to gamma over the first N sweeps (burn-in; "
+                        "default 0)")  # fmt: skip
     p.add_argument("--max-sweeps", type=int, default=5000,
                    help="cap per chain for --sweeps auto (default 5000)")  # fmt: skip
     p.add_argument("--preset", choices=sorted(PRESETS), default=DEFAULT_PRESET)

@@ -7,7 +7,9 @@ can replace any of them (see :func:`fit_house`'s body).
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 
+import numpy as np
 import torch
 
 from spcopyro.config import SpCoConfig
@@ -108,6 +110,54 @@ def _initial_labels(
     return None
 
 
+def best_chain(results: Sequence[SpCoResult]) -> int:
+    """Index of the chain whose MAP-visited state has the highest log joint
+    (``result.best_log_joint``; the first one on ties)."""
+    if not results:
+        raise ValueError("best_chain needs at least one chain")
+    return int(np.argmax([r.best_log_joint for r in results]))
+
+
+def fit_house_chains(
+    house: House,
+    config: SpCoConfig,
+    *,
+    sweeps: int = 5000,
+    seeds: Sequence[int] = (0,),
+    init: str = "random",
+    backend: str = "auto",
+    snap_distance: float = DEFAULT_SNAP_DISTANCE,
+    progress: bool | None = None,
+    anneal_sweeps: int = 0,
+) -> list[SpCoResult]:
+    """One :class:`SpCoResult` per seed: a chain of ``sweeps`` Gibbs iterations (Algorithm 1)
+    from ``init`` drawn with that seed. The house's counts are computed once for all chains.
+    See :func:`fit_house` for the arguments; :func:`best_chain` picks the one to keep."""
+    if isinstance(sweeps, bool) or not isinstance(sweeps, int | np.integer) or sweeps < 1:
+        raise ValueError(f"sweeps must be a positive integer or 'auto', got {sweeps!r}")
+    if len(seeds) == 0:
+        raise ValueError("seeds must name at least one chain")
+    counts, data = prepare_model_data(house, config, snap_distance)
+    results = []
+    for seed in seeds:
+        generator = torch.Generator().manual_seed(int(seed))
+        init_labels = _initial_labels(house, counts, config, init, int(seed), generator)
+        run = run_gibbs(
+            data,
+            config,
+            sweeps,
+            generator=generator,
+            init_labels=init_labels,
+            backend=backend,
+            progress=progress,
+            anneal_sweeps=anneal_sweeps,
+        )
+        results.append(
+            SpCoResult.from_run(run, house.grid, counts.vocabulary, config, name=house.name)
+        )
+    return results
+
+
 def fit_house(
     house: House,
     config: SpCoConfig,
@@ -118,37 +168,43 @@ def fit_house(
     backend: str = "auto",
     snap_distance: float = DEFAULT_SNAP_DISTANCE,
     progress: bool | None = None,
+    chains: int = 1,
+    anneal_sweeps: int = 0,
 ) -> SpCoResult:
     """Fit SpCoMapping to a house with ``sweeps`` Gibbs iterations (Algorithm 1).
 
     ``init``: ``"random"`` labels, ``"gaussian"`` (k-means Gaussians over the observed cells,
     eqs. 21-22) or ``"spcoa"`` (the paper's pre-learning: Gaussians of a SpCoA fit).
-    ``sweeps="auto"``: :func:`fit_house_converged` with its defaults (4 chains, stop at split
-    R-hat < 1.05); the diagnostics are logged at INFO level -- call :func:`fit_house_converged`
-    to get them.
+    ``chains``: run that many chains (seeds ``seed``, ``seed + 1``, ...) and keep the one whose
+    MAP-visited state has the highest log joint ("best of K chains", the remedy for the DP
+    variant's instability measured in :mod:`spcopyro.experiments.robustness`).
+    ``anneal_sweeps``: ramp gamma up over the first sweeps (:mod:`spcopyro.gibbs.anneal`).
+    ``sweeps="auto"``: :func:`fit_house_converged` (``chains`` chains, at least 2; 4 if
+    ``chains`` is 1) until split R-hat < 1.05; the diagnostics are logged at INFO level -- call
+    :func:`fit_house_converged` to get them.
     """
+    if not isinstance(chains, int) or chains < 1:
+        raise ValueError(f"chains must be a positive integer, got {chains!r}")
     if sweeps == "auto":
         result, diagnostics = fit_house_converged(
-            house, config, seed=seed, init=init, backend=backend,
-            snap_distance=snap_distance, progress=progress,
+            house, config, chains=chains if chains > 1 else DEFAULT_CHAINS, seed=seed,
+            init=init, backend=backend, snap_distance=snap_distance, progress=progress,
+            anneal_sweeps=anneal_sweeps,
         )  # fmt: skip
         logger.info("--sweeps auto: %s", diagnostics.to_json())
         return result
-    if isinstance(sweeps, str):
-        raise ValueError(f"sweeps must be a positive integer or 'auto', got {sweeps!r}")
-    counts, data = prepare_model_data(house, config, snap_distance)
-    generator = torch.Generator().manual_seed(int(seed))
-    init_labels = _initial_labels(house, counts, config, init, seed, generator)
-    run = run_gibbs(
-        data,
-        config,
-        sweeps,
-        generator=generator,
-        init_labels=init_labels,
-        backend=backend,
-        progress=progress,
-    )
-    return SpCoResult.from_run(run, house.grid, counts.vocabulary, config, name=house.name)
+    results = fit_house_chains(
+        house, config, sweeps=sweeps, seeds=[seed + k for k in range(chains)], init=init,
+        backend=backend, snap_distance=snap_distance, progress=progress,
+        anneal_sweeps=anneal_sweeps,
+    )  # fmt: skip
+    kept = best_chain(results)
+    if chains > 1:
+        logger.info(
+            "best of %d chains: kept chain %d (seed %d); best log joints %s", chains, kept,
+            seed + kept, [round(r.best_log_joint, 1) for r in results],
+        )  # fmt: skip
+    return results[kept]
 
 
 def fit_house_converged(
@@ -164,12 +220,13 @@ def fit_house_converged(
     backend: str = "auto",
     snap_distance: float = DEFAULT_SNAP_DISTANCE,
     progress: bool | None = None,
+    anneal_sweeps: int = 0,
 ) -> tuple[SpCoResult, ConvergenceDiagnostics]:
     """Fit with ``chains`` chains (seeds ``seed``, ``seed + 1``, ...) until split R-hat of the
     log joint and of the number of concepts are below ``threshold``, or ``max_sweeps`` sweeps
     (:func:`spcopyro.gibbs.convergence.run_until_converged`). Returns the chain of highest log
     joint as the result, and the diagnostics. Chain k starts from ``init`` drawn with seed
-    ``seed + k``.
+    ``seed + k``; ``anneal_sweeps`` of gamma annealing come first (burn-in).
     """
     counts, data = prepare_model_data(house, config, snap_distance)
     starts = [
@@ -181,6 +238,7 @@ def fit_house_converged(
     run, diagnostics = run_until_converged(
         data, config, chains=chains, block=block, max_sweeps=max_sweeps, threshold=threshold,
         seed=seed, init_labels=starts, backend=backend, progress=progress,
+        anneal_sweeps=anneal_sweeps,
     )  # fmt: skip
     result = SpCoResult.from_run(run, house.grid, counts.vocabulary, config, name=house.name)
     return result, diagnostics

@@ -117,6 +117,11 @@ class SpCoResult:
             name=name,
         )
 
+    @property
+    def best_log_joint(self) -> float:
+        """The log joint of the MAP-visited state (``log_joint[best_sweep]``)."""
+        return float(self.log_joint[self.best_sweep])
+
     # -- the semantic map ------------------------------------------------------------------------
 
     def labels(self, which: str = "best") -> np.ndarray:

@@ -6,7 +6,6 @@ import json
 import math
 from types import SimpleNamespace
 
-import numpy as np
 import pytest
 
 from spcopyro.experiments import robustness
@@ -46,11 +45,9 @@ def test_spread_by_hand() -> None:
 
 
 def test_best_chain_picks_the_highest_best_log_joint() -> None:
-    chains = [
-        SimpleNamespace(log_joint=np.array(v)) for v in ([1.0, 5.0, 2.0], [3.0, 4.0], [6.0, 0.0])
-    ]
-    assert best_chain(chains) == 2  # maxima 5, 4, 6: the last value of chain 2 is lower
-    ties = [SimpleNamespace(log_joint=np.array([7.0])), SimpleNamespace(log_joint=np.array([7.0]))]
+    chains = [SimpleNamespace(best_log_joint=v) for v in (5.0, 4.0, 6.0)]
+    assert best_chain(chains) == 2
+    ties = [SimpleNamespace(best_log_joint=7.0), SimpleNamespace(best_log_joint=7.0)]
     assert best_chain(ties) == 0
     with pytest.raises(ValueError, match="at least one chain"):
         best_chain([])
@@ -84,7 +81,7 @@ def test_stability_verdict_matches_the_sds(stability: dict) -> None:
     assert stability["reference_sd"] == reference
     expected = [
         f"{name} / {mode}"
-        for name, (method, _) in STABILITY_SETTINGS.items()
+        for name, (method, _, _) in STABILITY_SETTINGS.items()
         if method != "B-dirichlet"
         for mode in ("single", "best_of_chains")
         if stability["settings"][name]["summary"][mode]["sd"] <= reference

@@ -3,9 +3,11 @@
 * :func:`stability_study`: the spread (mean, sd, min) over seeds of the ARI against the truth for
   the DP variants (``paper-dp``; ``original-code`` values with gamma 3) and the Dirichlet one
   (``paper-dirichlet``, L = the number of categories), from random labels and -- for the DP
-  variants -- from the SpCoA pre-learning (paper Section 5, eqs. 21-22); each with one chain and
-  with the best of K chains (the chain whose best log joint ``max_s log p(C, pi, theta, w, y, f)``
-  is highest), and the ARI between the K chains' maps (:func:`spcopyro.metrics.chain_ari`).
+  variants -- from the SpCoA pre-learning (paper Section 5, eqs. 21-22) and from random labels with
+  gamma annealed over the first fifth of the sweeps (:mod:`spcopyro.gibbs.anneal`); each with one
+  chain and with the best of K chains (the chain whose MAP-visited state has the highest log
+  joint, :func:`spcopyro.fit.best_chain`), and the ARI between the K chains' maps
+  (:func:`spcopyro.metrics.chain_ari`).
   It reports which DP settings are at least as stable (sd of ARI over seeds no larger) as the
   Dirichlet prior with one chain from random labels (the paper's row B).
 * :func:`sensitivity_study`: one-at-a-time sweeps of gamma (around the Potts critical coupling
@@ -25,19 +27,23 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro.config import SpCoConfig, preset
-from spcopyro.fit import fit_house
+from spcopyro.fit import best_chain, fit_house
 from spcopyro.metrics import adjusted_rand_index, pairwise_chain_ari
-from spcopyro.results import SpCoResult
 from spcopyro.synthetic import HouseSpec, make_house
 
-STABILITY_SETTINGS: dict[str, tuple[str, str]] = {
-    "A-dp random": ("A-dp", "random"),
-    "A-orig-g3 random": ("A-orig-g3", "random"),
-    "B-dirichlet random": ("B-dirichlet", "random"),
-    "A-dp spcoa": ("A-dp", "spcoa"),
-    "A-orig-g3 spcoa": ("A-orig-g3", "spcoa"),
+STABILITY_SETTINGS: dict[str, tuple[str, str, bool]] = {
+    "A-dp random": ("A-dp", "random", False),
+    "A-orig-g3 random": ("A-orig-g3", "random", False),
+    "B-dirichlet random": ("B-dirichlet", "random", False),
+    "A-dp spcoa": ("A-dp", "spcoa", False),
+    "A-orig-g3 spcoa": ("A-orig-g3", "spcoa", False),
+    "A-dp random anneal": ("A-dp", "random", True),
+    "A-orig-g3 random anneal": ("A-orig-g3", "random", True),
 }
-"""Setting name -> (method of :mod:`spcopyro.experiments.methods`, ``init`` of ``fit_house``)."""
+"""Setting name -> (method of :mod:`spcopyro.experiments.methods`, ``init`` of ``fit_house``,
+whether gamma is annealed over the first :data:`ANNEAL_FRACTION` of the sweeps)."""
+ANNEAL_FRACTION = 0.2
+"""Share of a run's sweeps spent annealing gamma (:mod:`spcopyro.gibbs.anneal`), when annealed."""
 REFERENCE_SETTING = "B-dirichlet random"
 """The setting the DP variants are compared with, with one chain (the paper's row B)."""
 CHAIN_SEED_STRIDE = 1000
@@ -69,15 +75,6 @@ def spread(values: Sequence[float]) -> dict[str, float]:
     return {"mean": float(array.mean()), "sd": sd, "min": float(array.min())}
 
 
-def best_chain(results: Sequence[SpCoResult]) -> int:
-    """Index of the chain whose best log joint (``result.log_joint.max()``) is highest
-    (the first one on ties)."""
-    if not results:
-        raise ValueError("best_chain needs at least one chain")
-    best = [float(np.max(r.log_joint)) for r in results]  # [K]
-    return int(np.argmax(best))
-
-
 def _check_runs(sweeps: int, seeds: tuple[int, ...], chains: int | None = None) -> None:
     if not isinstance(sweeps, int) or sweeps < 1:
         raise ValueError(f"sweeps must be a positive integer, got {sweeps!r}")
@@ -105,9 +102,10 @@ def stability_study(
     """
     _check_runs(sweeps, seeds, chains)
     settings: dict[str, dict] = {
-        name: {"method": method, "init": init, "single": [], "best_of_chains": [],
-               "chain_ari": [], "chains": []}
-        for name, (method, init) in STABILITY_SETTINGS.items()
+        name: {"method": method, "init": init,
+               "anneal_sweeps": int(ANNEAL_FRACTION * sweeps) if anneal else 0,
+               "single": [], "best_of_chains": [], "chain_ari": [], "chains": []}
+        for name, (method, init, anneal) in STABILITY_SETTINGS.items()
     }  # fmt: skip
     for seed in seeds:
         house = make_house(seed=seed, spec=spec)
@@ -122,6 +120,7 @@ def stability_study(
                     seed=seed + CHAIN_SEED_STRIDE * k,
                     init=row["init"],
                     progress=False,
+                    anneal_sweeps=row["anneal_sweeps"],
                 )  # fmt: skip
                 for k in range(chains)
             ]
@@ -214,7 +213,8 @@ def robustness_markdown(stability: dict, sensitivity: dict) -> str:
         f"## Stability: ARI against the truth over seeds ({chains} chains per house)",
         "",
         "One chain: chain 0. Best of K: the chain of highest best log joint. Chain ARI: mean ARI "
-        "between the K chains' maps (1 = the chains agree).",
+        "between the K chains' maps (1 = the chains agree). anneal: gamma ramped up over the "
+        f"first {int(ANNEAL_FRACTION * stability['sweeps'])} sweeps (burn-in).",
         "",
         "| setting | one chain: mean | sd | min | best of K: mean | sd | min "
         "| chain ARI: mean | min |",

@@ -19,6 +19,7 @@ import torch
 from tqdm.auto import tqdm
 
 from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.anneal import annealed_config, check_anneal_sweeps
 from spcopyro.gibbs.backends import get_backend
 from spcopyro.gibbs.init import initial_state
 from spcopyro.gibbs.state import GibbsState, make_sweep_plan
@@ -41,7 +42,7 @@ class GibbsRun:
 
     final_state: GibbsState
     best_state: GibbsState
-    """The visited state of highest log joint."""
+    """The visited state of highest log joint (after the annealing sweeps, if any)."""
     best_sweep: int
     """0-based sweep at which ``best_state`` was visited."""
     log_joint: np.ndarray
@@ -72,6 +73,7 @@ def run_gibbs(
     backend: str = "auto",
     progress: bool | None = None,
     callback: Callable[[int, GibbsState], None] | None = None,
+    anneal_sweeps: int = 0,
 ) -> GibbsRun:
     """Run ``num_sweeps`` Gibbs sweeps from ``init_labels`` (random if None).
 
@@ -82,11 +84,20 @@ def run_gibbs(
         backend: ``"torch"``, ``"numba"`` or ``"auto"`` (see :func:`sweep_function`).
         progress: tqdm bar (default: on unless ``$CI`` is set).
         callback: called as ``callback(sweep, state)`` after every sweep.
+        anneal_sweeps: ramp the labels' coupling gamma up over the first ``anneal_sweeps``
+            sweeps (:mod:`spcopyro.gibbs.anneal`); those sweeps are burn-in, so the best
+            state is taken from sweep ``anneal_sweeps - 1`` on. The trace's log joint is always
+            the target model's.
     """
     if num_sweeps < 1:
         raise ValueError(f"num_sweeps must be >= 1, got {num_sweeps}")
     if thin < 0:
         raise ValueError(f"thin must be >= 0, got {thin}")
+    anneal_sweeps = check_anneal_sweeps(anneal_sweeps)
+    if anneal_sweeps > num_sweeps:
+        raise ValueError(
+            f"anneal_sweeps ({anneal_sweeps}) must not exceed num_sweeps ({num_sweeps})"
+        )
     if generator is None:
         generator = torch.Generator().manual_seed(0 if seed is None else int(seed))
     sweeper = get_backend(backend)
@@ -104,14 +115,15 @@ def run_gibbs(
     start = time.perf_counter()
     bar = tqdm(range(num_sweeps), desc="Gibbs sweeps", disable=not progress_enabled(progress))
     for sweep in bar:
-        state = sweeper.sweep(state, data, config, generator, plan)
+        sweep_config = annealed_config(config, sweep, anneal_sweeps)
+        state = sweeper.sweep(state, data, sweep_config, generator, plan)
         label_counts = torch.bincount(state.labels, minlength=config.num_concepts)  # [L]
         agreements = sweeper.potts_agreements(state.labels, data.pairs)
         value = constant + float(log_joint_variable(state, data, config, label_counts, agreements))
         trace_log_joint[sweep] = value
         trace_concepts[sweep] = int((label_counts > 0).sum())
         trace_seconds[sweep] = time.perf_counter() - start
-        if value > best_value:
+        if value > best_value and sweep + 1 >= anneal_sweeps:
             best_value, best_state, best_sweep = value, _compact(state), sweep
         if thin and (sweep + 1) % thin == 0:
             samples.append(state.labels.to(LABEL_DTYPE).numpy().copy())

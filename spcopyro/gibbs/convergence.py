@@ -16,6 +16,10 @@ The chains stop when R-hat < ``threshold`` (1.05 by default) for *both* statisti
 ``max_sweeps``. Labels themselves are never compared (concept numbers switch between chains).
 The answer is the chain of highest log joint, with the diagnostics of every check.
 
+With ``anneal_sweeps`` A > 0 every chain's first block starts with A sweeps of gamma annealing
+(:mod:`spcopyro.gibbs.anneal`); they are burn-in, left out of the R-hat windows and of
+``max_sweeps`` (the merged trace keeps them, first).
+
 Chains run one after another, each block continuing from the chain's last labels (the globals
 pi, theta, w are drawn anew given them, itself a Gibbs step, so the continuation is exact).
 """
@@ -31,6 +35,7 @@ import torch
 from pyro.ops.stats import split_gelman_rubin
 
 from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.anneal import check_anneal_sweeps
 from spcopyro.gibbs.api import GibbsRun, run_gibbs
 from spcopyro.model import ModelData
 
@@ -151,7 +156,7 @@ class _Chain:
         for run in self.runs:
             seconds.append(run.seconds + elapsed)
             elapsed += float(run.seconds[-1])
-        best_block = int(np.argmax([r.log_joint.max() for r in self.runs]))
+        best_block = int(np.argmax([r.log_joint[r.best_sweep] for r in self.runs]))
         best = self.runs[best_block]
         return GibbsRun(
             final_state=self.runs[-1].final_state,
@@ -177,12 +182,14 @@ def run_until_converged(
     init_labels: Sequence[torch.Tensor | None] | None = None,
     backend: str = "auto",
     progress: bool | None = None,
+    anneal_sweeps: int = 0,
 ) -> tuple[GibbsRun, ConvergenceDiagnostics]:
     """Run ``chains`` chains (seeds ``seed``, ``seed + 1``, ...) in blocks of ``block`` sweeps until
     the split R-hat of the log joint and of the number of concepts are both below ``threshold``
     (see the module docstring), or ``max_sweeps`` sweeps per chain.
 
-    ``init_labels``: one ``[N]`` start (or None for random) per chain.
+    ``init_labels``: one ``[N]`` start (or None for random) per chain. ``anneal_sweeps``: gamma
+    annealing before the first block (see the module docstring).
     Returns the merged run of the chain of highest log joint, and the diagnostics.
     """
     if chains < 2:
@@ -193,6 +200,7 @@ def run_until_converged(
         raise ValueError(f"max_sweeps must be >= 1, got {max_sweeps}")
     if not (math.isfinite(threshold) and threshold > 1.0):
         raise ValueError(f"threshold must be a finite number > 1, got {threshold}")
+    anneal_sweeps = check_anneal_sweeps(anneal_sweeps)
     starts = list(init_labels) if init_labels is not None else [None] * chains
     if len(starts) != chains:
         raise ValueError(f"init_labels has {len(starts)} entries for {chains} chains")
@@ -206,22 +214,26 @@ def run_until_converged(
     done, converged = 0, False
     while done < max_sweeps and not converged:
         sweeps = min(block, max_sweeps - done)
+        anneal = anneal_sweeps if done == 0 else 0
         for chain in states:
             run = run_gibbs(
                 data,
                 config,
-                sweeps,
+                anneal + sweeps,
                 generator=chain.generator,
                 init_labels=chain.labels,
                 backend=backend,
                 progress=progress,
+                anneal_sweeps=anneal,
             )
             chain.runs.append(run)
             chain.labels = run.final_state.labels
         done += sweeps
         log_joint = np.stack([np.concatenate([r.log_joint for r in c.runs]) for c in states])
         concepts = np.stack([np.concatenate([r.num_concepts for r in c.runs]) for c in states])
-        converged, check = check_convergence(log_joint, concepts, threshold)
+        converged, check = check_convergence(
+            log_joint[:, anneal_sweeps:], concepts[:, anneal_sweeps:], threshold
+        )
         checks.append(check)
 
     merged = [chain.merged() for chain in states]

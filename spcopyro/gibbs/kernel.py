@@ -34,6 +34,7 @@ from pyro.infer.mcmc.mcmc_kernel import MCMCKernel
 from pyro.infer.mcmc.util import diagnostics as pyro_diagnostics
 
 from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.anneal import annealed_config
 from spcopyro.gibbs.backends import sweep_function
 from spcopyro.gibbs.init import initial_state
 from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
@@ -71,6 +72,8 @@ class SpCoGibbs(MCMCKernel):
         save_params: which of ``labels``, ``log_joint``, ``num_concepts``, ``pi``, ``theta``, ``w``
             MCMC keeps for every sample.
         backend: sweep implementation, see :func:`spcopyro.gibbs.backends.sweep_function`.
+        anneal: ramp the labels' coupling gamma up over MCMC's ``warmup_steps``
+            (:mod:`spcopyro.gibbs.anneal`); the saved samples are all from the target model.
     """
 
     def __init__(
@@ -79,6 +82,7 @@ class SpCoGibbs(MCMCKernel):
         init_labels: torch.Tensor | None = None,
         save_params: Sequence[str] = DEFAULT_SAVE_PARAMS,
         backend: str = "auto",
+        anneal: bool = False,
     ) -> None:
         unknown = set(save_params) - set(ALL_PARAMS)
         if unknown:
@@ -86,6 +90,7 @@ class SpCoGibbs(MCMCKernel):
         self.model = model
         self._sweep = sweep_function(backend)
         self.init_labels = init_labels
+        self.anneal = bool(anneal)
         self.save_params = sorted(save_params)
         self.transforms = {"labels": _ToInteger(torch.long)}
         self._state: GibbsState | None = None
@@ -150,9 +155,10 @@ class SpCoGibbs(MCMCKernel):
 
     def sample(self, params: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         assert self._state is not None and self._generator is not None, "setup() not called"
-        self._state = self._sweep(
-            self._state, self._data, self._config, self._generator, self._plan
-        )
+        config = self._config
+        if self.anneal:
+            config = annealed_config(config, self._steps, self._warmup_steps)
+        self._state = self._sweep(self._state, self._data, config, self._generator, self._plan)
         self._steps += 1
         return self._params(self._state)
 
