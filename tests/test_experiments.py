@@ -111,6 +111,7 @@ def test_public_table_layout():
     assert public_row.endswith(
         "| 0.25 / 0.50 / 0.5 / 0.50 m | 0.50 / 0.50 / 0.5 / 0.50 m | 0.375 |"
     )
+    assert "## The paper's own numbers" in md and "0.0001 on room2ldk4" in md
 
 
 def test_quick_experiment_cli_on_the_public_dataset(dataset_root, tmp_path, capsys):
