@@ -86,7 +86,7 @@ def _fit(args: argparse.Namespace) -> int:
         prior=args.prior, num_concepts=args.concepts, gamma=args.gamma, alpha=args.alpha,
         beta=args.beta, chi=args.chi, connectivity=args.connectivity,
         word_weighting="tfidf" if args.tfidf else None,
-        unobserved_refresh=args.unobserved_refresh,
+        unobserved_refresh=args.unobserved_refresh, cluster_moves=args.cluster_moves,
         feature_scaling=_feature_scaling(args.feature_scaling),
     )  # fmt: skip
     if args.preset == "paper-dirichlet" and args.concepts is None and house.category_names:
@@ -339,6 +339,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--unobserved-refresh",
         type=float,
         help="share of sweeps that redraw theta/w of concepts without observations (default 1)",
+    )
+    p.add_argument(
+        "--cluster-moves",
+        type=float,
+        help="share of sweeps that start with a Swendsen-Wang move: whole regions change concept "
+        "at once (default 0)",
     )
     p.add_argument("--feature-scaling", help="probability, floor100 or a number s (s * f)")
     p.add_argument(

@@ -71,6 +71,10 @@ class SpCoConfig:
             the posterior invariant (a random choice of which conditionally independent blocks
             to update, made independently of the state), and a small one makes the sweep's
             cost nearly flat in L, since the [L, K] and [L, V] draws dominate for large L.
+        cluster_moves: the probability that a sweep starts with a Swendsen-Wang cluster move of
+            the labels (:mod:`spcopyro.gibbs.cluster`: whole regions change concept at once).
+            0 (default): Algorithm 1's single-site sweeps only. Any value in [0, 1] leaves the
+            posterior invariant (the choice is made independently of the state).
     """
 
     num_concepts: int = 120
@@ -85,6 +89,7 @@ class SpCoConfig:
     feature_scaling: FeatureScaling = "probability"
     word_weighting: WordWeighting = "count"
     unobserved_refresh: float = 1.0
+    cluster_moves: float = 0.0
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -116,6 +121,9 @@ class SpCoConfig:
         refresh = self.unobserved_refresh
         if not (isinstance(refresh, (int, float)) and 0.0 < refresh <= 1.0):
             raise bad("unobserved_refresh", "must be a probability in (0, 1]")
+        moves = self.cluster_moves
+        if not (isinstance(moves, (int, float)) and 0.0 <= moves <= 1.0):
+            raise bad("cluster_moves", "must be a probability in [0, 1]")
         if self.word_weighting not in ("count", "tfidf"):
             raise bad("word_weighting", "must be 'count' or 'tfidf'")
 

@@ -4,8 +4,9 @@
   enumeration, then pi, theta, w and the data) against successive-conditional draws (alternating
   kernel sweeps and data draws from the model). Label-invariant statistics must agree within
   Monte Carlo error (with the successive chain's effective sample size).
-* The colour-block sweep against Algorithm 1's sequential raster-order sweep: both must reach the
-  exact posterior of the labels (given the globals), enumerated.
+* The colour-block sweep against Algorithm 1's sequential raster-order sweep, and the
+  Swendsen-Wang cluster move on its own: all must reach the exact posterior of the labels (given
+  the globals), enumerated.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from gibbs_problems import all_labelings, config, model_data, replicate_grid, st
 from pyro.ops.stats import effective_sample_size
 from scipy import stats
 
+from spcopyro.gibbs.cluster import swendsen_wang_labels
 from spcopyro.gibbs.init import initial_state
 from spcopyro.gibbs.prior import sample_observations
 from spcopyro.gibbs.random import sample_log_dirichlet
@@ -90,6 +92,8 @@ GEWEKE_VARIANTS = [
     # 4 concepts, 3 observed cells: some concept always lacks observations, so the partial
     # refresh of theta and w (SpCoConfig.unobserved_refresh) is exercised.
     dict(num_concepts=4, unobserved_refresh=0.3),
+    # Half the sweeps start with a Swendsen-Wang cluster move (spcopyro.gibbs.cluster).
+    dict(gamma=1.5, cluster_moves=0.5),
 ]
 
 
@@ -167,7 +171,7 @@ def _sequential_raster_sweep(state, data, cfg, generator, cells_per_copy: int, c
 
 
 @pytest.mark.parametrize("connectivity", [4, 8])
-def test_block_sweep_and_raster_sweep_reach_the_exact_posterior(connectivity):
+def test_block_raster_and_cluster_moves_reach_the_exact_posterior(connectivity):
     cfg = config(gamma=0.8, connectivity=connectivity)
     rows = ["...", ".#.", "..."]  # a ring of 8 cells round a wall: 3^8 labelings
     copies = 6000
@@ -182,7 +186,12 @@ def test_block_sweep_and_raster_sweep_reach_the_exact_posterior(connectivity):
         connectivity,
     )
     generator = torch.Generator().manual_seed(21)
-    fixed = initial_state(data, cfg, generator)  # globals stay fixed in this test
+    # Globals fixed by hand, distinct per concept, so that pi and both emissions matter.
+    fixed = initial_state(data, cfg, generator)._replace(
+        log_pi=torch.tensor([0.5, 0.3, 0.2], dtype=DTYPE).log(),
+        log_theta=torch.tensor([[0.8, 0.2], [0.3, 0.7], [0.5, 0.5]], dtype=DTYPE).log(),
+        log_w=torch.tensor([[0.6, 0.3, 0.1], [0.1, 0.2, 0.7], [0.3, 0.4, 0.3]], dtype=DTYPE).log(),
+    )
 
     # Exact posterior of one copy's labels given the globals, by enumeration.
     one_grid, _ = replicate_grid(rows, 1)
@@ -194,12 +203,14 @@ def test_block_sweep_and_raster_sweep_reach_the_exact_posterior(connectivity):
     plan = make_sweep_plan(data)
     start = torch.randint(cfg.num_concepts, (data.num_free,), generator=generator)
     block, raster = fixed._replace(labels=start), fixed._replace(labels=start.clone())
+    cluster = fixed._replace(labels=start.clone())
     for _ in range(25):
         block = block._replace(labels=sample_labels(block, data, cfg, generator, plan))
         raster = raster._replace(
             labels=_sequential_raster_sweep(raster, data, cfg, generator, n, copies)
         )
-    for name, chain in (("block", block), ("raster", raster)):
+        cluster = cluster._replace(labels=swendsen_wang_labels(cluster, data, cfg, generator))
+    for name, chain in (("block", block), ("raster", raster), ("cluster", cluster)):
         states = state_index(chain.labels.view(copies, n), cfg.num_concepts)
         observed = torch.bincount(states, minlength=len(labelings)).double()
         expected = exact * copies

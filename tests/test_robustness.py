@@ -10,6 +10,7 @@ import pytest
 
 from spcopyro.experiments import robustness
 from spcopyro.experiments.robustness import (
+    ANNEAL_FRACTION,
     REFERENCE_SETTING,
     SENSITIVITY_GRID,
     STABILITY_SETTINGS,
@@ -28,7 +29,7 @@ SEEDS = (0, 1)
 
 @pytest.fixture(scope="module")
 def stability() -> dict:
-    return stability_study(sweeps=4, seeds=SEEDS, chains=2, spec=SMALL)
+    return stability_study(sweeps=10, seeds=SEEDS, chains=2, spec=SMALL)
 
 
 @pytest.fixture(scope="module")
@@ -65,6 +66,14 @@ def test_stability_rows_and_ranges(stability: dict) -> None:
             assert summary["mean"] == pytest.approx(sum(row[mode]) / 2)
             assert summary["sd"] == pytest.approx(abs(row[mode][0] - row[mode][1]) / math.sqrt(2))
         assert [len(c) for c in row["chains"]] == [2, 2]
+    for name, setting in STABILITY_SETTINGS.items():
+        row = stability["settings"][name]
+        assert row["anneal_sweeps"] == (
+            int(ANNEAL_FRACTION * stability["sweeps"]) if setting.anneal else 0
+        )
+        assert row["cluster_moves"] == setting.cluster_moves
+    assert any(s.anneal for s in STABILITY_SETTINGS.values())
+    assert any(s.cluster_moves > 0 for s in STABILITY_SETTINGS.values())
 
 
 def test_stability_best_of_chains_is_the_highest_log_joint(stability: dict) -> None:
@@ -81,8 +90,8 @@ def test_stability_verdict_matches_the_sds(stability: dict) -> None:
     assert stability["reference_sd"] == reference
     expected = [
         f"{name} / {mode}"
-        for name, (method, _, _) in STABILITY_SETTINGS.items()
-        if method != "B-dirichlet"
+        for name, setting in STABILITY_SETTINGS.items()
+        if setting.method != "B-dirichlet"
         for mode in ("single", "best_of_chains")
         if stability["settings"][name]["summary"][mode]["sd"] <= reference
     ]

@@ -4,8 +4,9 @@
   the DP variants (``paper-dp``; ``original-code`` values with gamma 3) and the Dirichlet one
   (``paper-dirichlet``, L = the number of categories), from random labels and -- for the DP
   variants -- from the SpCoA pre-learning (paper Section 5, eqs. 21-22) and from random labels with
-  gamma annealed over the first fifth of the sweeps (:mod:`spcopyro.gibbs.anneal`); each with one
-  chain and with the best of K chains (the chain whose MAP-visited state has the highest log
+  gamma annealed over the first fifth of the sweeps (:mod:`spcopyro.gibbs.anneal`) or with
+  Swendsen-Wang cluster moves in a tenth of the sweeps (:mod:`spcopyro.gibbs.cluster`); each with
+  one chain and with the best of K chains (the chain whose MAP-visited state has the highest log
   joint, :func:`spcopyro.fit.best_chain`), and the ARI between the K chains' maps
   (:func:`spcopyro.metrics.chain_ari`).
   It reports which DP settings are at least as stable (sd of ARI over seeds no larger) as the
@@ -23,6 +24,7 @@ import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -31,19 +33,39 @@ from spcopyro.fit import best_chain, fit_house
 from spcopyro.metrics import adjusted_rand_index, pairwise_chain_ari
 from spcopyro.synthetic import HouseSpec, make_house
 
-STABILITY_SETTINGS: dict[str, tuple[str, str, bool]] = {
-    "A-dp random": ("A-dp", "random", False),
-    "A-orig-g3 random": ("A-orig-g3", "random", False),
-    "B-dirichlet random": ("B-dirichlet", "random", False),
-    "A-dp spcoa": ("A-dp", "spcoa", False),
-    "A-orig-g3 spcoa": ("A-orig-g3", "spcoa", False),
-    "A-dp random anneal": ("A-dp", "random", True),
-    "A-orig-g3 random anneal": ("A-orig-g3", "random", True),
-}
-"""Setting name -> (method of :mod:`spcopyro.experiments.methods`, ``init`` of ``fit_house``,
-whether gamma is annealed over the first :data:`ANNEAL_FRACTION` of the sweeps)."""
 ANNEAL_FRACTION = 0.2
 """Share of a run's sweeps spent annealing gamma (:mod:`spcopyro.gibbs.anneal`), when annealed."""
+CLUSTER_MOVES = 0.1
+"""Share of sweeps that start with a Swendsen-Wang move (:mod:`spcopyro.gibbs.cluster`), when
+the setting uses them."""
+
+
+class StabilitySetting(NamedTuple):
+    """One row of the stability study."""
+
+    method: str
+    """SpCoMapping row of :mod:`spcopyro.experiments.methods` (its configuration)."""
+    init: str = "random"
+    """``init`` of :func:`~spcopyro.fit.fit_house`."""
+    anneal: bool = False
+    """Anneal gamma over the first :data:`ANNEAL_FRACTION` of the sweeps."""
+    cluster_moves: float = 0.0
+    """``SpCoConfig.cluster_moves``: the share of sweeps that start with a Swendsen-Wang move."""
+
+
+STABILITY_SETTINGS: dict[str, StabilitySetting] = {
+    "A-dp random": StabilitySetting("A-dp"),
+    "A-orig-g3 random": StabilitySetting("A-orig-g3"),
+    "B-dirichlet random": StabilitySetting("B-dirichlet"),
+    "A-dp spcoa": StabilitySetting("A-dp", "spcoa"),
+    "A-orig-g3 spcoa": StabilitySetting("A-orig-g3", "spcoa"),
+    "A-dp random anneal": StabilitySetting("A-dp", anneal=True),
+    "A-orig-g3 random anneal": StabilitySetting("A-orig-g3", anneal=True),
+    "A-dp random cluster": StabilitySetting("A-dp", cluster_moves=CLUSTER_MOVES),
+    "A-orig-g3 random cluster": StabilitySetting("A-orig-g3", cluster_moves=CLUSTER_MOVES),
+}
+"""Setting name -> :class:`StabilitySetting`."""
+
 REFERENCE_SETTING = "B-dirichlet random"
 """The setting the DP variants are compared with, with one chain (the paper's row B)."""
 CHAIN_SEED_STRIDE = 1000
@@ -102,16 +124,19 @@ def stability_study(
     """
     _check_runs(sweeps, seeds, chains)
     settings: dict[str, dict] = {
-        name: {"method": method, "init": init,
-               "anneal_sweeps": int(ANNEAL_FRACTION * sweeps) if anneal else 0,
+        name: {"method": setting.method, "init": setting.init,
+               "anneal_sweeps": int(ANNEAL_FRACTION * sweeps) if setting.anneal else 0,
+               "cluster_moves": setting.cluster_moves,
                "single": [], "best_of_chains": [], "chain_ari": [], "chains": []}
-        for name, (method, init, anneal) in STABILITY_SETTINGS.items()
+        for name, setting in STABILITY_SETTINGS.items()
     }  # fmt: skip
     for seed in seeds:
         house = make_house(seed=seed, spec=spec)
         num_categories = len(house.category_names)
         for row in settings.values():
-            config = method_config(row["method"], num_categories)
+            config = method_config(row["method"], num_categories).replace(
+                cluster_moves=row["cluster_moves"]
+            )
             results = [
                 fit_house(
                     house,
@@ -214,7 +239,8 @@ def robustness_markdown(stability: dict, sensitivity: dict) -> str:
         "",
         "One chain: chain 0. Best of K: the chain of highest best log joint. Chain ARI: mean ARI "
         "between the K chains' maps (1 = the chains agree). anneal: gamma ramped up over the "
-        f"first {int(ANNEAL_FRACTION * stability['sweeps'])} sweeps (burn-in).",
+        f"first {int(ANNEAL_FRACTION * stability['sweeps'])} sweeps (burn-in). cluster: a "
+        f"Swendsen-Wang move starts {CLUSTER_MOVES:.0%} of the sweeps.",
         "",
         "| setting | one chain: mean | sd | min | best of K: mean | sd | min "
         "| chain ARI: mean | min |",

@@ -735,7 +735,9 @@ def gibbs_sweep_numba(
     generator: torch.Generator,
     plan: SweepPlan | None = None,
 ) -> GibbsState:
-    """One iteration of Algorithm 1, compiled: every cell label, then pi, theta and w.
+    """One iteration of Algorithm 1, compiled: every cell label, then pi, theta and w (first,
+    with probability ``config.cluster_moves``, the Swendsen-Wang move of
+    :mod:`spcopyro.gibbs.cluster`, which runs in torch/scipy).
 
     A drop-in for :func:`~spcopyro.gibbs.sweep.gibbs_sweep` with the same distribution. Draws one
     seed from ``generator`` per call, so a seeded run is reproducible bit for bit.
@@ -744,6 +746,10 @@ def gibbs_sweep_numba(
         ValueError: the state's shapes do not match ``data`` / ``config``, a label lies outside
             [0, L), ``plan`` was made for other data, or gamma * D > 700 (overflow).
     """
+    if config.cluster_moves > 0.0:  # the Swendsen-Wang move (spcopyro.gibbs.cluster), in torch
+        from spcopyro.gibbs.cluster import maybe_cluster_move
+
+        state = maybe_cluster_move(state, data, config, generator)
     rng = rng_state(_draw_seed(generator))
     labels = _sample_labels_array(state, data, config, plan, rng)  # [N + D]
     previous = (state.log_theta, state.log_w)

@@ -247,7 +247,12 @@ def gibbs_sweep(
     generator: torch.Generator,
     plan: SweepPlan | None = None,
 ) -> GibbsState:
-    """One iteration of Algorithm 1: all cell labels, then pi, theta and w."""
+    """One iteration of Algorithm 1: all cell labels, then pi, theta and w (first, with
+    probability ``config.cluster_moves``, a Swendsen-Wang move, :mod:`spcopyro.gibbs.cluster`)."""
+    if config.cluster_moves > 0.0:
+        from spcopyro.gibbs.cluster import maybe_cluster_move  # it builds on this module
+
+        state = maybe_cluster_move(state, data, config, generator)
     labels = sample_labels(state, data, config, generator, plan)
     previous = (state.log_theta, state.log_w)
     return GibbsState(labels, *sample_globals(labels, data, config, generator, previous))

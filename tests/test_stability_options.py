@@ -1,4 +1,6 @@
-"""Gamma annealing (burn-in) and best-of-K chains: the stability options of issue 4."""
+"""The stability options of issue 4: gamma annealing (burn-in), Swendsen-Wang cluster moves and
+best-of-K chains. (The cluster move's distribution is tested in test_gibbs_joint.py: against the
+enumerated posterior, and in Geweke's test on both backends.)"""
 
 from __future__ import annotations
 
@@ -11,10 +13,11 @@ from gibbs_problems import config, random_problem
 from pyro.infer import MCMC
 
 from spcopyro.cli import main
-from spcopyro.config import preset
+from spcopyro.config import SpCoConfig, preset
 from spcopyro.fit import best_chain, fit_house, fit_house_chains, fit_house_converged
 from spcopyro.gibbs.anneal import annealed_config, annealed_gamma, check_anneal_sweeps
 from spcopyro.gibbs.api import run_gibbs
+from spcopyro.gibbs.cluster import bond_clusters, maybe_cluster_move
 from spcopyro.gibbs.init import initial_state
 from spcopyro.gibbs.kernel import SpCoGibbs
 from spcopyro.gibbs.state import make_sweep_plan
@@ -95,6 +98,28 @@ def test_kernel_anneals_over_warmup_only():
     assert gammas == [3.0] * 5
 
 
+def test_cluster_move_option():
+    with pytest.raises(ValueError, match="cluster_moves"):
+        SpCoConfig(cluster_moves=1.5)
+    cfg = config(gamma=0.9)
+    _, data = random_problem(seed=14)
+    generator = torch.Generator().manual_seed(1)
+    state = initial_state(data, cfg, generator)
+    before = generator.get_state()
+    assert maybe_cluster_move(state, data, cfg, generator) is state  # probability 0: no draw
+    assert torch.equal(generator.get_state(), before)
+    moved = maybe_cluster_move(state, data, cfg.replace(cluster_moves=1.0), generator)
+    assert moved is not state and moved.log_w is state.log_w  # labels only
+    # Bonds join agreeing neighbours only: with gamma huge, the clusters are the label regions.
+    labels = torch.zeros(data.num_free, dtype=torch.long)
+    labels[: data.num_free // 2] = 1
+    count, cluster = bond_clusters(labels, data.pairs, 50.0, generator)
+    same = labels[data.pairs[:, 0]] == labels[data.pairs[:, 1]]
+    joined = cluster[data.pairs[:, 0]] == cluster[data.pairs[:, 1]]
+    assert torch.equal(same, joined) and count == 2
+    assert bond_clusters(labels, data.pairs, 0.0, generator)[0] == data.num_free
+
+
 @pytest.fixture(scope="module")
 def house():
     return make_house(seed=4, spec=HouseSpec(height=36, width=44, num_rooms=3))
@@ -131,7 +156,7 @@ def test_cli_fit_with_chains_and_annealing(tmp_path, capsys):
     out = tmp_path / "fit"
     argv = ["fit", str(data), "--out", str(out), "--sweeps", "12", "--chains", "2",
             "--anneal-sweeps", "4", "--preset", "original-code", "--gamma", "3",
-            "--concepts", "8"]  # fmt: skip
+            "--concepts", "8", "--cluster-moves", "0.5"]  # fmt: skip
     assert main(argv) == 0
     assert "best of 2 chains: kept chain" in capsys.readouterr().out
     report = json.loads((out / "chains.json").read_text())
