@@ -92,7 +92,9 @@ GEWEKE_VARIANTS = [
     # 4 concepts, 3 observed cells: some concept always lacks observations, so the partial
     # refresh of theta and w (SpCoConfig.unobserved_refresh) is exercised.
     dict(num_concepts=4, unobserved_refresh=0.3),
-    # Half the sweeps start with a Swendsen-Wang cluster move (spcopyro.gibbs.cluster).
+    # Half the sweeps start with a Swendsen-Wang cluster move (spcopyro.gibbs.cluster). This checks
+    # the composition with the sweep; a wrong cluster weight is caught by the enumerated-posterior
+    # test below (the sweep that follows the move hides it from Geweke's statistics).
     dict(gamma=1.5, cluster_moves=0.5),
 ]
 
