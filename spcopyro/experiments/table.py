@@ -384,11 +384,7 @@ def run_experiment(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    notes = [
-        "The paper's own Table 4 numbers are not printed next to ours: we could not verify "
-        "them, and its real-house scores use hand-drawn ground truth that the public dataset "
-        "does not include.",
-    ]
+    notes: list[str] = []
     synthetic, house0, fits0 = run_synthetic(settings, report)
     if settings.dataset_root is None:
         notes.append(
