@@ -132,6 +132,8 @@ def test_write_robustness_files(tmp_path, monkeypatch, stability, sensitivity) -
     monkeypatch.setattr(robustness, "sensitivity_study", lambda **_: sensitivity)
     markdown = write_robustness(tmp_path, sweeps=4, seeds=SEEDS, chains=2, spec=SMALL)
     assert (tmp_path / "robustness.md").read_text() == markdown
+    assert (tmp_path / "figures" / "stability.png").stat().st_size > 10_000
+    assert "figures/stability.png" in markdown
     payload = json.loads((tmp_path / "robustness.json").read_text())
     assert set(payload) == {"stability", "sensitivity"}
     assert payload["stability"]["chains"] == 2
@@ -162,3 +164,11 @@ def test_heldout_sensitivity_on_a_public_house(dataset_root):
     assert result["parameters"]["gamma"][0]["top1"] == result["parameters"]["beta"][0]["top1"]
     markdown = heldout_sensitivity_markdown(result)
     assert "| gamma | 3 |" in markdown and "| beta | 0.1 |" in markdown
+
+
+def test_stability_figure_without_the_log_joint_panel(stability: dict, tmp_path) -> None:
+    """The right panel needs the named method's settings; without them it is left empty."""
+    from spcopyro.experiments.figures import plot_stability
+
+    only = dict(stability, settings={REFERENCE_SETTING: stability["settings"][REFERENCE_SETTING]})
+    assert plot_stability(only, tmp_path / "s.png").stat().st_size > 5_000

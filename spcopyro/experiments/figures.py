@@ -109,3 +109,56 @@ def write_figures(out: Path, result: ExperimentResult) -> list[Path]:
         if "A-dp" in fits and fits["A-dp"].result is not None:
             paths.append(plot_semantic_map(fits["A-dp"].result, folder / f"{name}_A-dp_words.png"))
     return paths
+
+
+def plot_stability(stability: dict, path: Path, method: str = "A-dp") -> Path:
+    """The stability study (:func:`~spcopyro.experiments.robustness.stability_study`) in two panels.
+
+    Left: every chain's ARI against the truth per setting (grey), chain 0 (circle) and the best
+    of K chains by log joint (cross), one marker per house seed. Right: for the settings of
+    ``method`` (one configuration, so their log joints compare within a house), each chain's ARI
+    against its best log joint minus the highest one reached on that house: whether a higher log
+    joint means a better map.
+    """
+    settings: dict[str, dict] = stability["settings"]
+    names = list(settings)
+    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 0.45 * len(names) + 2.0))
+    for y, name in enumerate(names):
+        row = settings[name]
+        chains = [c["ari"] for seed in row["chains"] for c in seed]
+        left.scatter(chains, np.full(len(chains), y), s=12, color="0.75", zorder=1)
+        left.scatter(row["single"], np.full(len(row["single"]), y - 0.15), s=28,
+                     facecolors="none", edgecolors="C0", zorder=2)  # fmt: skip
+        left.scatter(row["best_of_chains"], np.full(len(row["best_of_chains"]), y + 0.15),
+                     s=28, marker="x", color="C3", zorder=2)  # fmt: skip
+    left.set_yticks(range(len(names)), names, fontsize=8)
+    left.invert_yaxis()
+    left.set_xlabel("ARI against the truth")
+    left.scatter([], [], s=12, color="0.75", label="every chain")
+    left.scatter([], [], s=28, facecolors="none", edgecolors="C0", label="one chain (chain 0)")
+    left.scatter([], [], s=28, marker="x", color="C3", label="best of K by log joint")
+    left.legend(fontsize=7, loc="lower left")
+    left.set_title(f"{stability['chains']} chains x seeds {stability['seeds']}", fontsize=9)
+
+    family = [name for name in names if settings[name]["method"] == method]
+    num_seeds = len(stability["seeds"])
+    if not family:
+        right.set_axis_off()
+        family, num_seeds = [], 0
+    top = [max(c["best_log_joint"] for name in family for c in settings[name]["chains"][s])
+           for s in range(num_seeds)]  # fmt: skip
+    for colour, name in enumerate(family):
+        points = [(c["best_log_joint"] - top[s], c["ari"])
+                  for s in range(num_seeds) for c in settings[name]["chains"][s]]  # fmt: skip
+        x, y = np.array(points).T
+        right.scatter(x, y, s=18, color=f"C{colour}", label=name)
+    if family:
+        right.set_xlabel("best log joint - the house's highest (nats)")
+        right.set_ylabel("ARI against the truth")
+        right.set_title(f"{method}: does a higher log joint mean a better map?", fontsize=9)
+        right.legend(fontsize=7)
+    fig.suptitle(f"Stability, {stability['sweeps']} sweeps per chain")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
+    plt.close(fig)
+    return path

@@ -287,7 +287,8 @@ def write_robustness(
     dataset_root: str | Path | None = None,
 ) -> str:
     """Run both studies (and, given the public dataset, :func:`heldout_sensitivity` on all its
-    houses); write ``robustness.md`` and ``robustness.json`` into ``out``; return the markdown."""
+    houses); write ``robustness.md``, ``robustness.json`` and ``figures/stability.png``
+    (:func:`~spcopyro.experiments.figures.plot_stability`) into ``out``; return the markdown."""
     stability = stability_study(sweeps=sweeps, seeds=seeds, chains=chains, spec=spec)
     sensitivity = sensitivity_study(sweeps=sweeps, seeds=seeds, spec=spec)
     markdown = robustness_markdown(stability, sensitivity)
@@ -298,6 +299,10 @@ def write_robustness(
         payload["heldout_sensitivity"] = heldout
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    from spcopyro.experiments.figures import plot_stability  # matplotlib only when writing
+
+    plot_stability(stability, out / "figures" / "stability.png")
+    markdown += "\n![stability](figures/stability.png)\n"
     (out / "robustness.md").write_text(markdown)
     (out / "robustness.json").write_text(json.dumps(payload, indent=1) + "\n")
     return markdown
