@@ -155,7 +155,7 @@ def stability_study(
             row["best_of_chains"].append(aris[best_chain(results)])
             row["chain_ari"].append(float(pairs[np.triu_indices(chains, k=1)].mean()))
             row["chains"].append(
-                [{"ari": a, "best_log_joint": float(np.max(r.log_joint))}
+                [{"ari": a, "best_log_joint": r.best_log_joint}
                  for a, r in zip(aris, results, strict=True)]
             )  # fmt: skip
     for row in settings.values():
