@@ -141,22 +141,21 @@ def plot_stability(stability: dict, path: Path, method: str = "A-dp") -> Path:
     left.set_title(f"{stability['chains']} chains x seeds {stability['seeds']}", fontsize=9)
 
     family = [name for name in names if settings[name]["method"] == method]
-    num_seeds = len(stability["seeds"])
-    if not family:
-        right.set_axis_off()
-        family, num_seeds = [], 0
-    top = [max(c["best_log_joint"] for name in family for c in settings[name]["chains"][s])
-           for s in range(num_seeds)]  # fmt: skip
-    for colour, name in enumerate(family):
-        points = [(c["best_log_joint"] - top[s], c["ari"])
-                  for s in range(num_seeds) for c in settings[name]["chains"][s]]  # fmt: skip
-        x, y = np.array(points).T
-        right.scatter(x, y, s=18, color=f"C{colour}", label=name)
     if family:
+        seeds = range(len(stability["seeds"]))
+        top = [max(c["best_log_joint"] for name in family for c in settings[name]["chains"][s])
+               for s in seeds]  # fmt: skip
+        for colour, name in enumerate(family):
+            points = [(c["best_log_joint"] - top[s], c["ari"])
+                      for s in seeds for c in settings[name]["chains"][s]]  # fmt: skip
+            x, y = np.array(points).T
+            right.scatter(x, y, s=18, color=f"C{colour}", label=name)
         right.set_xlabel("best log joint - the house's highest (nats)")
         right.set_ylabel("ARI against the truth")
         right.set_title(f"{method}: does a higher log joint mean a better map?", fontsize=9)
         right.legend(fontsize=7)
+    else:
+        right.set_axis_off()
     fig.suptitle(f"Stability, {stability['sweeps']} sweeps per chain")
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120, bbox_inches="tight")

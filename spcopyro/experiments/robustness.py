@@ -29,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 
 from spcopyro.config import SpCoConfig, preset
-from spcopyro.fit import best_chain, fit_house
+from spcopyro.fit import best_chain, fit_house, fit_house_chains
 from spcopyro.metrics import adjusted_rand_index, pairwise_chain_ari
 from spcopyro.synthetic import HouseSpec, make_house
 
@@ -137,18 +137,11 @@ def stability_study(
             config = method_config(row["method"], num_categories).replace(
                 cluster_moves=row["cluster_moves"]
             )
-            results = [
-                fit_house(
-                    house,
-                    config,
-                    sweeps=sweeps,
-                    seed=seed + CHAIN_SEED_STRIDE * k,
-                    init=row["init"],
-                    progress=False,
-                    anneal_sweeps=row["anneal_sweeps"],
-                )  # fmt: skip
-                for k in range(chains)
-            ]
+            results = fit_house_chains(
+                house, config, sweeps=sweeps,
+                seeds=[seed + CHAIN_SEED_STRIDE * k for k in range(chains)],
+                init=row["init"], progress=False, anneal_sweeps=row["anneal_sweeps"],
+            )  # fmt: skip
             aris = [adjusted_rand_index(r.label_image(), house.truth) for r in results]  # [K]
             pairs = pairwise_chain_ari([r.labels_best for r in results])  # [K, K]
             row["single"].append(aris[0])
