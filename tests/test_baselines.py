@@ -16,7 +16,8 @@ from spcopyro.metrics import (
     heldout_word_prediction,
     matching_rate,
 )
-from spcopyro.synthetic import HouseSpec, _floor_plan, make_house
+from spcopyro.synthetic import HouseSpec, make_house
+from spcopyro.synthetic.floor_plan import _floor_plan
 
 
 def corridor(length: int = 5) -> OccupancyGrid:

@@ -1,0 +1,177 @@
+"""Per-cell sums of the observations: the sparse sufficient statistics the model reads.
+
+:func:`cell_counts` places every observation (:func:`~spcopyro.data.placement.place_observations`)
+and sums them per cell into a :class:`CellCounts`, with the image-feature scaling
+(:func:`scale_features`) and the word weighting (counts or tf-idf, paper eq. 20) as options.
+Observations that cannot be placed are logged (``logging``, logger ``"spcopyro"``) and listed in
+the counts' :class:`~spcopyro.data.placement.PlacementReport`.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from spcopyro.data.observations import Observations
+from spcopyro.data.placement import DEFAULT_SNAP_DISTANCE, PlacementReport, place_observations
+from spcopyro.data.text import WordWeighting, tfidf_weights, word_matrix
+from spcopyro.maps.grid import OccupancyGrid
+
+__all__ = ["CellCounts", "FeatureScaling", "cell_counts", "scale_features"]
+
+logger = logging.getLogger("spcopyro")
+
+FeatureScaling = Literal["probability", "floor100"] | float
+"""How image histograms become counts: ``"probability"`` (as they are), ``"floor100"``
+(``floor(100 f)``, as the released code did) or a positive float ``s`` (``s * f``,
+pseudo-counts)."""
+
+
+def scale_features(features: np.ndarray, scaling: FeatureScaling) -> np.ndarray:
+    """Image histograms ``[T, K]`` -> counts ``[T, K]`` float64.
+
+    ``"probability"``: f as it is; ``"floor100"``: floor(100 f) (the released code's integer
+    pseudo-counts; small probabilities become 0); a positive float s: s * f.
+    """
+    f = np.asarray(features, dtype=np.float64)
+    if isinstance(scaling, str):
+        if scaling == "probability":
+            return f.copy()
+        if scaling == "floor100":
+            return np.floor(100.0 * f)
+    elif (
+        isinstance(scaling, (int, float))
+        and not isinstance(scaling, bool)
+        and math.isfinite(scaling)
+        and scaling > 0
+    ):
+        return float(scaling) * f
+    raise ValueError(
+        f"feature_scaling={scaling!r}: must be 'probability', 'floor100' or a positive number"
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class CellCounts:
+    """Per-cell sufficient statistics for the model: only cells that hold observations (sparse).
+
+    M observed cells, K feature classes, V vocabulary tokens.
+    """
+
+    cells: np.ndarray  # [M] int64 free_index of cells with >= 1 placed observation, ascending
+    image_counts: np.ndarray  # [M, K] float64 scaled features summed per cell
+    word_counts: np.ndarray  # [M, V] float64 word counts (or tf-idf weights) summed per cell
+    vocabulary: tuple[str, ...]  # [V]
+    num_free: int
+    placement: PlacementReport = field(repr=False)
+
+
+def cell_counts(
+    grid: OccupancyGrid,
+    obs: Observations,
+    *,
+    feature_scaling: FeatureScaling = "probability",
+    word_weighting: WordWeighting = "count",
+    snap_distance: float = DEFAULT_SNAP_DISTANCE,
+    vocabulary: Sequence[str] | None = None,
+) -> CellCounts:
+    """Sum the observations per free cell (the model's sufficient statistics).
+
+    Each observation is placed by :func:`place_observations`; for every cell m holding at least
+    one placed observation::
+
+        image_counts[m] = sum over images i in m of scale(f_i)         (scale_features)
+        word_counts[m]  = sum over utterances d in m of n(., d)         word_weighting="count"
+                        = sum over utterances d in m of tfidf(., d)     word_weighting="tfidf"
+
+    tf-idf (eq. 20) treats all utterances of ``obs`` as the documents, placed or not.
+
+    Vocabulary: ``vocabulary`` given -> its order defines the V columns and a token of ``obs``
+    not in it raises ValueError (extend the vocabulary, or select the observations, first);
+    ``None`` -> ``obs.vocabulary``. An empty vocabulary is an error, except when ``obs`` holds no
+    utterances and the caller passes ``vocabulary=()`` explicitly (then V = 0).
+
+    Unplaced observations are logged (``logger.warning`` with their counts) and listed in
+    ``placement``; snapped ones are logged at INFO level.
+    """
+    if word_weighting not in ("count", "tfidf"):
+        raise ValueError(f"word_weighting={word_weighting!r}: must be 'count' or 'tfidf'")
+    if vocabulary is None:
+        vocab = obs.vocabulary
+        if not vocab:
+            raise ValueError(
+                "cell_counts: the observations hold no words (empty vocabulary); pass "
+                "vocabulary=() to build counts without words"
+            )
+    else:
+        vocab = tuple(vocabulary)
+        for token in vocab:
+            if not isinstance(token, str) or not token:
+                raise ValueError(f"vocabulary holds an invalid token: {token!r}")
+        if not vocab and obs.num_utterances:
+            raise ValueError(
+                f"cell_counts: empty vocabulary but the observations hold "
+                f"{obs.num_utterances} utterances"
+            )
+    features = scale_features(obs.image_features, feature_scaling)  # [T, K]
+    if word_weighting == "count":
+        words = word_matrix(obs.utterances, vocab)  # [U, V]
+    else:
+        words = tfidf_weights(obs.utterances, vocab)  # [U, V]
+
+    image_cell, image_snapped, image_unplaced = place_observations(
+        grid, obs.image_xy, snap_distance
+    )  # [T] x3
+    word_cell, word_snapped, word_unplaced = place_observations(grid, obs.word_xy, snap_distance)
+
+    image_ok = image_cell >= 0  # [T] bool
+    word_ok = word_cell >= 0  # [U] bool
+    cells = np.unique(np.concatenate([image_cell[image_ok], word_cell[word_ok]]))  # [M]
+    image_counts = np.zeros((cells.size, features.shape[1]), dtype=np.float64)  # [M, K]
+    np.add.at(image_counts, np.searchsorted(cells, image_cell[image_ok]), features[image_ok])
+    word_counts = np.zeros((cells.size, len(vocab)), dtype=np.float64)  # [M, V]
+    np.add.at(word_counts, np.searchsorted(cells, word_cell[word_ok]), words[word_ok])
+
+    report = PlacementReport(
+        images_on_free=int(obs.num_images - image_snapped.sum() - image_unplaced.sum()),
+        images_snapped=int(image_snapped.sum()),
+        images_unplaced=int(image_unplaced.sum()),
+        words_on_free=int(obs.num_utterances - word_snapped.sum() - word_unplaced.sum()),
+        words_snapped=int(word_snapped.sum()),
+        words_unplaced=int(word_unplaced.sum()),
+        unplaced_images=np.flatnonzero(image_unplaced).astype(np.int64),
+        unplaced_words=np.flatnonzero(word_unplaced).astype(np.int64),
+        snap_distance=float(snap_distance),
+    )
+    where = f" on map {grid.source}" if getattr(grid, "source", None) else ""
+    if report.images_unplaced or report.words_unplaced:
+        logger.warning(
+            "%d image(s) and %d utterance(s) are farther than %g m from free space%s and were "
+            "left out of the cell counts (image indices %s, utterance indices %s)",
+            report.images_unplaced,
+            report.words_unplaced,
+            snap_distance,
+            where,
+            report.unplaced_images.tolist()[:20],
+            report.unplaced_words.tolist()[:20],
+        )
+    if report.images_snapped or report.words_snapped:
+        logger.info(
+            "%d image(s) and %d utterance(s) snapped to the nearest free cell%s",
+            report.images_snapped,
+            report.words_snapped,
+            where,
+        )
+    return CellCounts(
+        cells=cells.astype(np.int64),
+        image_counts=image_counts,
+        word_counts=word_counts,
+        vocabulary=vocab,
+        num_free=int(grid.num_free),
+        placement=report,
+    )

@@ -1,0 +1,378 @@
+"""Houses of the public SpCoMapping dataset layout: finding, loading and saving them.
+
+:func:`load_house` reads a house folder (see the dataset's README.md) into a :class:`House` (its
+map, its :class:`~spcopyro.data.observations.Observations` and optional ground truth) and
+:func:`save_house` writes one; :func:`find_dataset_root` and :func:`list_houses` find the data
+set. Malformed files raise :class:`~spcopyro.data.observations.DataFormatError` naming the file,
+the 1-based line and the offending value.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from spcopyro.data.dataset_files import (
+    IMAGE_SUFFIXES,
+    _format_float,
+    _image_paths,
+    _read_column,
+    _read_matrix,
+    _read_trials,
+    _read_utterances_line,
+    _write_lines,
+)
+from spcopyro.data.observations import _MISSING, DataFormatError, Observations
+from spcopyro.data.text import tokenize
+from spcopyro.maps.grid import OccupancyGrid
+from spcopyro.maps.map_server import load_map, save_map
+
+__all__ = ["House", "find_dataset_root", "list_houses", "load_house", "save_house"]
+
+
+def find_dataset_root(path: str | os.PathLike[str] | None = None) -> Path | None:
+    """The public dataset folder (the one holding ``map/``), resolved.
+
+    Looked for in order: ``path`` if given (FileNotFoundError if it does not exist or holds no
+    ``map/``); ``$SPCOPYRO_DATA`` if set (FileNotFoundError likewise);
+    ``../shared/data/spcomapping`` relative to the current directory; the same relative to the
+    project root (the folder above the spcopyro package). None if no candidate holds a ``map/``
+    folder.
+    """
+    explicit = [(Path(path), "path")] if path is not None else []
+    env = os.environ.get("SPCOPYRO_DATA")
+    if not explicit and env:
+        explicit = [(Path(env), "$SPCOPYRO_DATA")]
+    for root, how in explicit:
+        if not root.exists():
+            raise FileNotFoundError(f"dataset folder {root} (from {how}) does not exist")
+        if not (root / "map").is_dir():
+            raise FileNotFoundError(f"dataset folder {root} (from {how}) holds no map/ folder")
+        return root.resolve()
+    relative = Path("..") / "shared" / "data" / "spcomapping"
+    for base in (Path.cwd(), Path(__file__).resolve().parents[2]):
+        root = base / relative
+        if (root / "map").is_dir():
+            return root.resolve()
+    return None
+
+
+def list_houses(root: str | os.PathLike[str]) -> list[str]:
+    """Names of the room folders under ``root`` that have a map ``root/map/NAME.yaml``, sorted."""
+    root = Path(root)
+    if not root.is_dir():
+        raise FileNotFoundError(f"dataset folder {root} does not exist")
+    return sorted(
+        entry.name
+        for entry in root.iterdir()
+        if entry.is_dir()
+        and entry.name != "map"
+        and (root / "map" / f"{entry.name}.yaml").is_file()
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class House:
+    """A house: its map, what the robot observed in it, and optional ground truth.
+
+    ``truth`` is ``[H, W]`` int64, the ground-truth category of each free cell (an index into
+    ``category_names`` when given, -1 for unlabelled free cells) and -1 on every non-free cell.
+    """
+
+    name: str
+    grid: OccupancyGrid
+    observations: Observations
+    truth: np.ndarray | None = None  # [H, W] int64, -1 off free
+    category_names: tuple[str, ...] | None = None
+    source: Path | None = None  # the room folder
+
+    def __post_init__(self) -> None:
+        if not self.name or self.name in (".", "..", "map") or re.search(r"[/\\]", self.name):
+            raise ValueError(f"House.name={self.name!r}: not usable as a room folder name")
+        if self.category_names is not None:
+            names = tuple(self.category_names)
+            if not all(isinstance(n, str) for n in names):
+                raise ValueError(f"House.category_names must be strings: {names!r}")
+            object.__setattr__(self, "category_names", names)
+        if self.truth is not None:
+            object.__setattr__(
+                self, "truth", _check_truth(self.truth, self.grid, self.category_names, None)
+            )
+        if self.source is not None:
+            object.__setattr__(self, "source", Path(self.source))
+
+
+def _check_truth(
+    truth: np.ndarray,
+    grid: OccupancyGrid,
+    category_names: tuple[str, ...] | None,
+    path: Path | None,
+) -> np.ndarray:
+    """Validated ``[H, W]`` int64 truth; DataFormatError naming ``path`` (ValueError if None)."""
+
+    def fail(problem: str, value: object = _MISSING) -> Exception:
+        if path is not None:
+            return DataFormatError(path, problem, value=value)
+        suffix = "" if value is _MISSING else f": {value!r}"
+        return ValueError(f"truth: {problem}{suffix}")
+
+    raw = np.asarray(truth)
+    if raw.dtype.kind not in "iu":
+        raise fail("ground truth must hold integers, got dtype", str(raw.dtype))
+    labels = raw.astype(np.int64)  # [H, W]
+    if labels.shape != tuple(grid.shape):
+        raise fail(f"shape differs from the map's {tuple(grid.shape)}", labels.shape)
+    if labels.size and labels.min() < -1:
+        raise fail("category ids must be >= -1, found", int(labels.min()))
+    if category_names is not None and labels.size and labels.max() >= len(category_names):
+        raise fail(f"category id out of range for {len(category_names)} names", int(labels.max()))
+    off_free = ~np.asarray(grid.free, dtype=bool) & (labels != -1)  # [H, W] bool
+    if off_free.any():
+        row, col = np.argwhere(off_free)[0]
+        raise fail(
+            f"{int(off_free.sum())} non-free cell(s) carry a category (must be -1); first at "
+            f"(row {row}, col {col})",
+            int(labels[row, col]),
+        )
+    return labels
+
+
+def load_house(
+    room_dir: str | os.PathLike[str], map_yaml: str | os.PathLike[str] | None = None
+) -> House:
+    """Read a house in the public SpCoMapping dataset layout (see the dataset's README.md).
+
+    ``room_dir`` = ``ROOT/NAME``; the map is ``ROOT/map/NAME.yaml`` unless ``map_yaml`` is given.
+    Files (ROOM/...):
+
+    * ``Ft.csv`` (required): one image per row, K comma-separated features >= 0, K the same in
+      every row; ``Xtx.csv``, ``Xty.csv`` (required): world x / y of each row, one per line.
+    * ``St.csv`` (required): one line of comma-separated utterances (trailing newline optional),
+      each tokenised with :func:`tokenize` (an entry may be a sentence); ``StXtx.csv``,
+      ``StXty.csv`` (required): world x / y of each utterance, one per line.
+    * ``pose_K.csv`` / ``word_K.csv`` (optional, K = trial id, in pairs): their row / line counts
+      split images / utterances into trials in order of K, and must add up to the Ft.csv rows /
+      St.csv utterances; pose rows are ``x, y, qz, qw`` (x, y equal to Xtx/Xty), giving
+      ``image_yaw = 2 atan2(qz, qw)``; word lines must repeat St.csv's utterances. Absent: all
+      observations are trial 0 and ``image_yaw`` is None.
+    * ``img_K/`` (optional): camera images, sorted by name, one per Ft row of trial K
+      (:data:`IMAGE_SUFFIXES`); a count mismatch logs a warning and leaves ``image_paths`` None.
+    * ``truth.npy`` ``[H, W]`` int and ``categories.json`` (list of names) (optional, written by
+      the synthetic generator): ground-truth category per cell, -1 off free.
+
+    Raises:
+        FileNotFoundError: a required file (or the map) is missing; the message names it.
+        DataFormatError: a malformed file: non-numeric, NaN / inf or negative features, rows of
+            different lengths, empty Ft.csv or St.csv, position files whose length differs from
+            their data file, pose / word files inconsistent with Ft.csv / St.csv, truth.npy
+            whose shape differs from the map; the message names file, 1-based line and value.
+    """
+    room = Path(room_dir)
+    if not room.is_dir():
+        raise FileNotFoundError(f"room folder {room} does not exist")
+    name = room.resolve().name
+    yaml_path = Path(map_yaml) if map_yaml is not None else room.parent / "map" / f"{name}.yaml"
+    if not yaml_path.is_file():
+        raise FileNotFoundError(f"{yaml_path}: map of house {name!r} not found")
+    grid = load_map(yaml_path)
+
+    files = {key: room / f"{key}.csv" for key in ("Ft", "Xtx", "Xty", "St", "StXtx", "StXty")}
+    features = _read_matrix(files["Ft"])  # [T, K]
+    if features.shape[0] == 0:
+        raise DataFormatError(files["Ft"], "holds no image features (empty file)")
+    if (features < 0).any():
+        row, col = np.argwhere(features < 0)[0]
+        raise DataFormatError(
+            files["Ft"],
+            "negative image feature",
+            line=int(row) + 1,
+            column=int(col) + 1,
+            value=float(features[row, col]),
+        )
+    num_images = features.shape[0]
+    image_xy = np.stack(
+        [
+            _read_column(files["Xtx"], num_images, files["Ft"]),
+            _read_column(files["Xty"], num_images, files["Ft"]),
+        ],
+        axis=1,
+    )  # [T, 2]
+    utterances = _read_utterances_line(files["St"])
+    word_xy = np.stack(
+        [
+            _read_column(files["StXtx"], len(utterances), files["St"]),
+            _read_column(files["StXty"], len(utterances), files["St"]),
+        ],
+        axis=1,
+    )  # [U, 2]
+    image_trial, word_trial, image_yaw, trial_ids, images_per_trial = _read_trials(
+        room, image_xy, utterances, files
+    )
+    image_paths = _image_paths(room, trial_ids, images_per_trial)
+    observations = Observations(
+        image_features=features,
+        image_xy=image_xy,
+        image_trial=image_trial,
+        utterances=utterances,
+        word_xy=word_xy,
+        word_trial=word_trial,
+        image_yaw=image_yaw,
+        image_paths=image_paths,
+    )
+
+    category_names = None
+    categories_path = room / "categories.json"
+    if categories_path.is_file():
+        try:
+            names = json.loads(categories_path.read_text(encoding="utf-8"))
+        except json.JSONDecodeError as error:
+            raise DataFormatError(
+                categories_path, f"not valid JSON ({error.msg})", line=error.lineno
+            ) from None
+        if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+            raise DataFormatError(categories_path, "must be a JSON list of strings", value=names)
+        category_names = tuple(names)
+    truth = None
+    truth_path = room / "truth.npy"
+    if truth_path.is_file():
+        try:
+            raw = np.load(truth_path, allow_pickle=False)
+        except ValueError as error:
+            raise DataFormatError(truth_path, f"not a numeric .npy array ({error})") from None
+        truth = _check_truth(raw, grid, category_names, truth_path)
+    return House(
+        name=name,
+        grid=grid,
+        observations=observations,
+        truth=truth,
+        category_names=category_names,
+        source=room.resolve(),
+    )
+
+
+_MANAGED_FILES = (
+    "Ft.csv",
+    "Xtx.csv",
+    "Xty.csv",
+    "St.csv",
+    "StXtx.csv",
+    "StXty.csv",
+    "truth.npy",
+    "categories.json",
+)
+
+
+def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = False) -> Path:
+    """Write ``house`` in the dataset layout under ``root``; the inverse of :func:`load_house`.
+
+    Writes ``root/map/NAME.{pgm,yaml}`` (:func:`spcopyro.maps.save_map`) and ``root/NAME/`` with
+    Ft.csv, Xtx.csv, Xty.csv, St.csv (tokens joined by single spaces, utterances comma separated,
+    no trailing newline, like the original), StXtx.csv, StXty.csv, one ``pose_K.csv``
+    (``x, y, qz, qw``; yaw 0 when unknown) and ``word_K.csv`` per trial K, copies of the camera
+    images as ``img_K/NNNNN.ext`` when ``image_paths`` is known, and truth.npy + categories.json
+    when present. Floats are written with ``repr`` (they read back exactly); yaw goes through
+    the quaternion, so it reads back to within rounding, wrapped to (-pi, pi].
+
+    Raises:
+        ValueError: no images or no utterances (load_house would reject the files); observations
+            not grouped by trial in ascending order; a token that would not read back as itself
+            (a comma, whitespace, upper case or edge punctuation).
+        FileExistsError: ``root/NAME`` is not empty or the map exists, and ``overwrite`` is
+            False. With ``overwrite`` the files this function writes (and stale pose_K, word_K,
+            img_K) are replaced; other files are left alone.
+
+    Returns:
+        The room folder ``root/NAME``.
+    """
+    obs = house.observations
+    if obs.num_images == 0 or obs.num_feature_classes == 0:
+        raise ValueError(f"save_house({house.name!r}): no images (Ft.csv would be empty)")
+    if obs.num_utterances == 0:
+        raise ValueError(f"save_house({house.name!r}): no utterances (St.csv would be empty)")
+    for name, trial in (("image_trial", obs.image_trial), ("word_trial", obs.word_trial)):
+        if (np.diff(trial) < 0).any():
+            raise ValueError(
+                f"save_house({house.name!r}): {name} is not in ascending order; the files store "
+                "observations trial after trial"
+            )
+    for u, tokens in enumerate(obs.utterances):
+        for token in tokens:
+            if "," in token:
+                raise ValueError(
+                    f"save_house({house.name!r}): utterance {u} token {token!r} contains a comma "
+                    "(St.csv separates utterances with commas)"
+                )
+            if tokenize(token) != (token,):
+                raise ValueError(
+                    f"save_house({house.name!r}): utterance {u} token {token!r} would read back "
+                    f"as {tokenize(token)!r}"
+                )
+
+    for source in obs.image_paths or ():
+        if source.suffix.lower() not in IMAGE_SUFFIXES:
+            raise ValueError(
+                f"save_house({house.name!r}): image {source} is not one of {IMAGE_SUFFIXES}"
+            )
+
+    root = Path(root)
+    room = root / house.name
+    map_yaml = root / "map" / f"{house.name}.yaml"
+    if (room.exists() and any(room.iterdir())) or map_yaml.exists():
+        if not overwrite:
+            raise FileExistsError(f"{room} (or {map_yaml}) already exists; pass overwrite=True")
+        sources = obs.image_paths or ()
+        if any(room.resolve() in p.resolve().parents for p in sources):
+            raise ValueError(
+                f"save_house: cannot overwrite {room}, the house's images are read from it"
+            )
+        for entry in room.iterdir() if room.exists() else ():
+            if entry.name in _MANAGED_FILES or re.fullmatch(r"(pose|word)_\d+\.csv", entry.name):
+                entry.unlink()
+            elif entry.is_dir() and re.fullmatch(r"img_\d+", entry.name):
+                shutil.rmtree(entry)
+    room.mkdir(parents=True, exist_ok=True)
+    (root / "map").mkdir(parents=True, exist_ok=True)
+    save_map(house.grid, map_yaml)
+
+    fmt = _format_float
+    _write_lines(room / "Ft.csv", (",".join(map(fmt, row)) for row in obs.image_features.tolist()))
+    _write_lines(room / "Xtx.csv", map(fmt, obs.image_xy[:, 0].tolist()))
+    _write_lines(room / "Xty.csv", map(fmt, obs.image_xy[:, 1].tolist()))
+    sentences = [" ".join(tokens) for tokens in obs.utterances]
+    _write_lines(room / "St.csv", [",".join(sentences)], trailing_newline=False)
+    _write_lines(room / "StXtx.csv", map(fmt, obs.word_xy[:, 0].tolist()))
+    _write_lines(room / "StXty.csv", map(fmt, obs.word_xy[:, 1].tolist()))
+
+    yaw = obs.image_yaw if obs.image_yaw is not None else np.zeros(obs.num_images)  # [T]
+    pose = np.stack(
+        [obs.image_xy[:, 0], obs.image_xy[:, 1], np.sin(yaw / 2), np.cos(yaw / 2)], axis=1
+    )  # [T, 4]
+    for k in obs.trials:
+        in_trial = np.flatnonzero(obs.image_trial == k)  # [n_k]
+        _write_lines(
+            room / f"pose_{k}.csv", (",".join(map(fmt, row)) for row in pose[in_trial].tolist())
+        )
+        _write_lines(
+            room / f"word_{k}.csv",
+            (s for s, t in zip(sentences, obs.word_trial, strict=True) if t == k),
+        )
+        if obs.image_paths is not None and in_trial.size:
+            folder = room / f"img_{k}"
+            folder.mkdir()
+            for number, i in enumerate(in_trial, start=1):
+                source = obs.image_paths[i]
+                shutil.copyfile(source, folder / f"{number:05d}{source.suffix.lower()}")
+
+    if house.truth is not None:
+        np.save(room / "truth.npy", np.asarray(house.truth, dtype=np.int64))
+    if house.category_names is not None:
+        (room / "categories.json").write_text(
+            json.dumps(list(house.category_names), indent=1) + "\n", encoding="utf-8"
+        )
+    return room

@@ -1,0 +1,260 @@
+"""Reading and writing the single files of a house folder in the public dataset layout.
+
+The helpers behind :func:`spcopyro.data.load_house` and :func:`spcopyro.data.save_house`: numeric
+CSV files (one row per line), St.csv's line of utterances, the per-trial ``pose_K.csv`` /
+``word_K.csv`` files and the camera image folders ``img_K/``. A malformed file raises
+:class:`~spcopyro.data.observations.DataFormatError` naming the file, the 1-based line and
+column and the offending value.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import re
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from spcopyro.data.observations import DataFormatError
+from spcopyro.data.text import tokenize
+
+logger = logging.getLogger("spcopyro")
+
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png")  # camera images looked for in ROOM/img_K/
+_POSE_XY_ATOL = 1e-6  # metres: pose_K.csv x, y must agree with Xtx.csv / Xty.csv to this
+
+
+def _read_lines(path: Path) -> list[str]:
+    """The file's lines (no line ends); blank lines at the end are dropped."""
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: required file not found")
+    lines = [line.rstrip("\r") for line in path.read_text(encoding="utf-8-sig").split("\n")]
+    while lines and not lines[-1].strip():
+        lines.pop()
+    return lines
+
+
+def _parse_number(path: Path, text: str, line: int, column: int | None) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise DataFormatError(
+            path, "not a number", line=line, column=column, value=text.strip()
+        ) from None
+    if not math.isfinite(value):
+        raise DataFormatError(path, "not finite", line=line, column=column, value=text.strip())
+    return value
+
+
+def _read_matrix(path: Path, columns: int | None = None) -> np.ndarray:
+    """Comma-separated numbers, one row per line; every row the same length -> ``[R, C]``."""
+    rows: list[list[float]] = []
+    width = columns
+    for number, line in enumerate(_read_lines(path), start=1):
+        if not line.strip():
+            raise DataFormatError(path, "empty line", line=number, value=line)
+        fields = line.split(",")
+        if width is None:
+            width = len(fields)
+        if len(fields) != width:
+            raise DataFormatError(
+                path, f"row has {len(fields)} values, expected {width}", line=number, value=line
+            )
+        rows.append([_parse_number(path, text, number, c) for c, text in enumerate(fields, 1)])
+    return np.array(rows, dtype=np.float64).reshape(len(rows), width or 0)
+
+
+def _read_column(path: Path, expected: int, data_file: Path) -> np.ndarray:
+    """One number per line -> ``[R]``; R must equal ``expected`` (the rows of ``data_file``)."""
+    values = _read_matrix(path, columns=1)[:, 0]  # [R]
+    if values.shape[0] != expected:
+        raise DataFormatError(
+            path,
+            f"holds {values.shape[0]} values but {data_file.name} holds {expected} entries",
+            value=values.shape[0],
+        )
+    return values
+
+
+def _read_utterances_line(path: Path) -> tuple[tuple[str, ...], ...]:
+    """St.csv: one line of comma-separated utterances, each tokenised."""
+    lines = _read_lines(path)
+    if len(lines) > 1:
+        raise DataFormatError(
+            path, "must be one line of comma-separated utterances", line=2, value=lines[1]
+        )
+    if not lines or not lines[0].strip():
+        raise DataFormatError(path, "holds no words (empty vocabulary)")
+    utterances = []
+    for entry_number, entry in enumerate(lines[0].split(","), start=1):
+        tokens = tokenize(entry)
+        if not tokens:
+            raise DataFormatError(
+                path, f"utterance {entry_number} holds no words", line=1, value=entry
+            )
+        utterances.append(tokens)
+    return tuple(utterances)
+
+
+def _trial_files(room: Path, prefix: str) -> dict[int, Path]:
+    pattern = re.compile(rf"{prefix}_(\d+)\.csv")
+    found = {}
+    for entry in room.iterdir():
+        match = pattern.fullmatch(entry.name)
+        if match and entry.is_file():
+            found[int(match.group(1))] = entry
+    return dict(sorted(found.items()))
+
+
+def _read_trials(
+    room: Path,
+    image_xy: np.ndarray,
+    utterances: tuple[tuple[str, ...], ...],
+    files: dict[str, Path],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, list[int], list[int]]:
+    """image_trial [T], word_trial [U], image_yaw [T] or None, trial ids, images per trial."""
+    num_images, num_utterances = image_xy.shape[0], len(utterances)
+    poses, words = _trial_files(room, "pose"), _trial_files(room, "word")
+    if not poses and not words:
+        return (
+            np.zeros(num_images, dtype=np.int64),
+            np.zeros(num_utterances, dtype=np.int64),
+            None,
+            [0],
+            [num_images],
+        )
+    for have, other, kind in ((poses, words, "word"), (words, poses, "pose")):
+        missing = sorted(set(have) - set(other))
+        if missing:
+            raise DataFormatError(
+                room / f"{kind}_{missing[0]}.csv",
+                f"missing: trials {sorted(have)} have {'pose' if kind == 'word' else 'word'} "
+                f"files but not {kind} files",
+            )
+    trials = list(poses)
+    pose_rows = [_read_matrix(poses[k], columns=4) for k in trials]  # [n_k, 4] each
+    image_counts = [p.shape[0] for p in pose_rows]
+    if sum(image_counts) != num_images:
+        raise DataFormatError(
+            files["Ft"],
+            f"holds {num_images} rows but the pose files hold {sum(image_counts)} ("
+            + ", ".join(f"{poses[k].name}: {n}" for k, n in zip(trials, image_counts, strict=True))
+            + ")",
+            value=num_images,
+        )
+    pose = np.concatenate(pose_rows, axis=0)  # [T, 4] x, y, qz, qw
+    first_row = np.cumsum([0, *image_counts])  # [n_trials + 1] first image of each trial
+
+    def locate(i: int) -> tuple[Path, int]:
+        """Pose file and 1-based line of image i."""
+        k = int(np.searchsorted(first_row, i, side="right")) - 1
+        return poses[trials[k]], i - int(first_row[k]) + 1
+
+    mismatch = ~np.isclose(pose[:, :2], image_xy, rtol=0.0, atol=_POSE_XY_ATOL).all(axis=1)
+    if mismatch.any():
+        i = int(np.flatnonzero(mismatch)[0])
+        path, line = locate(i)
+        raise DataFormatError(
+            path,
+            f"x, y differ from {files['Xtx'].name}/{files['Xty'].name} line {i + 1} "
+            f"({image_xy[i].tolist()})",
+            line=line,
+            value=pose[i, :2].tolist(),
+        )
+    zero = (pose[:, 2] == 0) & (pose[:, 3] == 0)
+    if zero.any():
+        i = int(np.flatnonzero(zero)[0])
+        path, line = locate(i)
+        raise DataFormatError(
+            path,
+            "quaternion (qz, qw) is zero",
+            line=line,
+            value=pose[i].tolist(),
+        )
+    yaw = 2.0 * np.arctan2(pose[:, 2], pose[:, 3])  # [T] planar rotation about z
+
+    word_counts = []
+    position = 0
+    for k in trials:
+        lines = _read_lines(words[k])
+        for number, line in enumerate(lines, start=1):
+            tokens = tokenize(line)
+            if not tokens:
+                raise DataFormatError(words[k], "utterance holds no words", line=number, value=line)
+            if position < num_utterances and tokens != utterances[position]:
+                raise DataFormatError(
+                    words[k],
+                    f"differs from {files['St'].name} utterance {position + 1} "
+                    f"({' '.join(utterances[position])!r})",
+                    line=number,
+                    value=line,
+                )
+            position += 1
+        word_counts.append(len(lines))
+    if sum(word_counts) != num_utterances:
+        raise DataFormatError(
+            files["St"],
+            f"holds {num_utterances} utterances but the word files hold {sum(word_counts)} ("
+            + ", ".join(f"{words[k].name}: {n}" for k, n in zip(trials, word_counts, strict=True))
+            + ")",
+            value=num_utterances,
+        )
+    trial_ids = np.array(trials, dtype=np.int64)  # [n_trials]
+    return (
+        np.repeat(trial_ids, image_counts),
+        np.repeat(trial_ids, word_counts),
+        yaw,
+        trials,
+        image_counts,
+    )
+
+
+def _image_paths(
+    room: Path, trials: Sequence[int], counts: Sequence[int]
+) -> tuple[Path, ...] | None:
+    """Camera images ROOM/img_K/* (sorted by name) for every trial, or None (logged) if absent
+    or inconsistent with the rows of Ft.csv."""
+    folders = {
+        int(m.group(1)): entry
+        for entry in room.iterdir()
+        if entry.is_dir() and (m := re.fullmatch(r"img_(\d+)", entry.name))
+    }
+    if not folders:
+        return None
+    paths: list[Path] = []
+    for k, n in zip(trials, counts, strict=True):
+        folder = folders.get(k)
+        if folder is None:
+            if n == 0:
+                continue
+            logger.warning("%s: no folder img_%d for trial %d; image_paths left None", room, k, k)
+            return None
+        files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+        if len(files) != n:
+            logger.warning(
+                "%s holds %d images but trial %d has %d rows in Ft.csv; image_paths left None",
+                folder,
+                len(files),
+                k,
+                n,
+            )
+            return None
+        paths.extend(files)
+    extra = sorted(set(folders) - set(trials))
+    if extra:
+        logger.warning("%s: img_%d has no trial; image_paths left None", room, extra[0])
+        return None
+    return tuple(paths)
+
+
+def _format_float(value: float) -> str:
+    return repr(float(value))  # shortest string that reads back to the same float
+
+
+def _write_lines(path: Path, lines: Iterable[str], trailing_newline: bool = True) -> None:
+    text = "\n".join(lines)
+    if trailing_newline and text:
+        text += "\n"
+    path.write_text(text, encoding="utf-8")

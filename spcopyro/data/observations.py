@@ -1,0 +1,204 @@
+"""What the robot observed, in world coordinates, and the error raised for malformed data.
+
+A robot takes images (each turned into a K-class place histogram by a CNN) and hears utterances,
+each at a world position. :class:`Observations` holds them (world coordinates, free vocabulary:
+nothing pre-listed), validated on construction; :class:`DataFormatError` is what the dataset
+readers raise for a malformed file or value, naming the file, the 1-based line and column and
+the offending value.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["DataFormatError", "Observations"]
+
+_MISSING = object()
+
+
+class DataFormatError(ValueError):
+    """A data file (or value) is malformed. The message names the file and, where they apply,
+    the 1-based line, the 1-based column and the offending value."""
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        problem: str,
+        *,
+        line: int | None = None,
+        column: int | None = None,
+        value: object = _MISSING,
+    ) -> None:
+        self.path = Path(path)
+        self.line = line
+        self.column = column
+        self.value = None if value is _MISSING else value
+        where = str(path)
+        if line is not None:
+            where += f", line {line}"
+        if column is not None:
+            where += f", column {column}"
+        message = f"{where}: {problem}"
+        if value is not _MISSING:
+            message += f": {value!r}"
+        super().__init__(message)
+
+
+# ---------------------------------------------------------------------------------------------
+# Observations
+# ---------------------------------------------------------------------------------------------
+
+
+def _as_xy(values: object, name: str, count: int | None = None) -> np.ndarray:
+    xy = np.array(values, dtype=np.float64)  # [N, 2]
+    if xy.size == 0:
+        xy = xy.reshape(0, 2)
+    if xy.ndim != 2 or xy.shape[1] != 2:
+        raise ValueError(f"{name} must have shape [N, 2], got {xy.shape}")
+    if count is not None and xy.shape[0] != count:
+        raise ValueError(f"{name} has {xy.shape[0]} rows, expected {count}")
+    bad = np.flatnonzero(~np.isfinite(xy).all(axis=1))
+    if bad.size:
+        raise ValueError(f"{name} row {bad[0]} is not finite: {xy[bad[0]].tolist()}")
+    return xy
+
+
+def _as_trial(values: object, name: str, count: int) -> np.ndarray:
+    raw = np.asarray(values)
+    if raw.size == 0:
+        raw = raw.astype(np.int64).reshape(0)
+    if raw.dtype.kind not in "iu":
+        raise ValueError(f"{name} must hold integers, got dtype {raw.dtype}")
+    trial = raw.astype(np.int64)  # [N]
+    if trial.shape != (count,):
+        raise ValueError(f"{name} must have shape [{count}], got {trial.shape}")
+    if trial.size and trial.min() < 0:
+        raise ValueError(f"{name} holds a negative trial id: {int(trial.min())}")
+    return trial
+
+
+@dataclass(frozen=True, eq=False)
+class Observations:
+    """What the robot observed, in world coordinates. Words are free vocabulary: nothing pre-listed.
+
+    T images, U utterances, K feature classes. Arrays are converted (copied) to the dtypes below
+    and validated on construction; a ``ValueError`` says which field is wrong.
+
+    Attributes:
+        image_features: ``[T, K]`` float64 >= 0, place-class histograms (rows sum to about 1).
+        image_xy: ``[T, 2]`` float64, world metres where each image was taken.
+        image_trial: ``[T]`` int64 >= 0, trial id of each image.
+        utterances: ``[U]`` each utterance's tokens (one word, or a tokenised sentence); every
+            utterance holds at least one non-empty token.
+        word_xy: ``[U, 2]`` float64, world metres where each utterance was heard.
+        word_trial: ``[U]`` int64 >= 0.
+        image_yaw: ``[T]`` float64 radians (from pose_K.csv quaternions) or None if unknown.
+        image_paths: ``[T]`` camera image files in image_features row order, or None.
+    """
+
+    image_features: np.ndarray  # [T, K] float64
+    image_xy: np.ndarray  # [T, 2] float64
+    image_trial: np.ndarray  # [T] int64
+    utterances: tuple[tuple[str, ...], ...]  # [U]
+    word_xy: np.ndarray  # [U, 2] float64
+    word_trial: np.ndarray  # [U] int64
+    image_yaw: np.ndarray | None = None  # [T] float64
+    image_paths: tuple[Path, ...] | None = None  # [T]
+
+    def __post_init__(self) -> None:
+        features = np.array(self.image_features, dtype=np.float64)  # [T, K]
+        if features.ndim != 2:
+            raise ValueError(f"image_features must have shape [T, K], got {features.shape}")
+        if not np.isfinite(features).all():
+            row, col = np.argwhere(~np.isfinite(features))[0]
+            raise ValueError(f"image_features[{row}, {col}] is not finite: {features[row, col]}")
+        if (features < 0).any():
+            row, col = np.argwhere(features < 0)[0]
+            raise ValueError(f"image_features[{row}, {col}] is negative: {features[row, col]}")
+        num_images = features.shape[0]
+        utterances = tuple(tuple(u) for u in self.utterances)
+        for u, tokens in enumerate(utterances):
+            if not tokens:
+                raise ValueError(f"utterance {u} holds no tokens")
+            for token in tokens:
+                if not isinstance(token, str) or not token:
+                    raise ValueError(f"utterance {u} holds an invalid token: {token!r}")
+        num_utterances = len(utterances)
+        set_ = object.__setattr__
+        set_(self, "image_features", features)
+        set_(self, "image_xy", _as_xy(self.image_xy, "image_xy", num_images))
+        set_(self, "image_trial", _as_trial(self.image_trial, "image_trial", num_images))
+        set_(self, "utterances", utterances)
+        set_(self, "word_xy", _as_xy(self.word_xy, "word_xy", num_utterances))
+        set_(self, "word_trial", _as_trial(self.word_trial, "word_trial", num_utterances))
+        if self.image_yaw is not None:
+            yaw = np.array(self.image_yaw, dtype=np.float64)  # [T]
+            if yaw.shape != (num_images,):
+                raise ValueError(f"image_yaw must have shape [{num_images}], got {yaw.shape}")
+            if not np.isfinite(yaw).all():
+                raise ValueError("image_yaw holds a non-finite value")
+            set_(self, "image_yaw", yaw)
+        if self.image_paths is not None:
+            paths = tuple(Path(p) for p in self.image_paths)
+            if len(paths) != num_images:
+                raise ValueError(f"image_paths has {len(paths)} entries, expected {num_images}")
+            set_(self, "image_paths", paths)
+
+    @property
+    def num_images(self) -> int:
+        """T."""
+        return int(self.image_features.shape[0])
+
+    @property
+    def num_feature_classes(self) -> int:
+        """K."""
+        return int(self.image_features.shape[1])
+
+    @property
+    def num_utterances(self) -> int:
+        """U."""
+        return len(self.utterances)
+
+    @cached_property
+    def trials(self) -> tuple[int, ...]:
+        """Sorted distinct trial ids over images and utterances."""
+        ids = np.union1d(self.image_trial, self.word_trial)
+        return tuple(int(t) for t in ids)
+
+    @cached_property
+    def vocabulary(self) -> tuple[str, ...]:
+        """Distinct tokens, in order of first appearance."""
+        return tuple(dict.fromkeys(token for tokens in self.utterances for token in tokens))
+
+    def select_trials(self, trials: Iterable[int]) -> Observations:
+        """Only the observations of these trials (e.g. for held-out folds), order kept.
+
+        Raises ValueError for a trial id that is not in :attr:`trials`.
+        """
+        wanted = np.array(sorted({int(t) for t in trials}), dtype=np.int64)  # [S]
+        unknown = np.setdiff1d(wanted, np.array(self.trials, dtype=np.int64))
+        if unknown.size:
+            raise ValueError(
+                f"select_trials: unknown trial ids {unknown.tolist()}; have {list(self.trials)}"
+            )
+        keep_images = np.isin(self.image_trial, wanted)  # [T] bool
+        keep_words = np.isin(self.word_trial, wanted)  # [U] bool
+        paths = self.image_paths
+        return Observations(
+            image_features=self.image_features[keep_images],
+            image_xy=self.image_xy[keep_images],
+            image_trial=self.image_trial[keep_images],
+            utterances=tuple(u for u, k in zip(self.utterances, keep_words, strict=True) if k),
+            word_xy=self.word_xy[keep_words],
+            word_trial=self.word_trial[keep_words],
+            image_yaw=None if self.image_yaw is None else self.image_yaw[keep_images],
+            image_paths=None
+            if paths is None
+            else tuple(p for p, k in zip(paths, keep_images, strict=True) if k),
+        )

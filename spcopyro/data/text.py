@@ -1,0 +1,119 @@
+"""Words: tokenisation, the utterance-by-token count matrix and tf-idf weights (paper eq. 20).
+
+Utterances are tokenised by :func:`tokenize` (lower case, edge punctuation stripped);
+:func:`word_matrix` counts each vocabulary token in each utterance and :func:`tfidf_weights`
+weights them by tf-idf, the two word weightings (:data:`WordWeighting`) of
+:func:`spcopyro.data.cell_counts`.
+"""
+
+from __future__ import annotations
+
+import string
+import unicodedata
+from collections.abc import Sequence
+from typing import Literal
+
+import numpy as np
+
+__all__ = ["WordWeighting", "tfidf_weights", "tokenize", "word_matrix"]
+
+WordWeighting = Literal["count", "tfidf"]
+
+_PUNCTUATION = set(string.punctuation)
+
+
+def _is_punctuation(char: str) -> bool:
+    return char in _PUNCTUATION or unicodedata.category(char).startswith("P")
+
+
+def tokenize(utterance: str) -> tuple[str, ...]:
+    """Tokens of an utterance: lower-cased, split on whitespace, punctuation stripped from both
+    ends of each token (inner punctuation, as in ``living-room``, stays); empty tokens vanish.
+
+    ``tokenize("Here is the kitchen.") == ("here", "is", "the", "kitchen")``.
+    """
+    tokens = []
+    for raw in utterance.lower().split():
+        start, end = 0, len(raw)
+        while start < end and _is_punctuation(raw[start]):
+            start += 1
+        while end > start and _is_punctuation(raw[end - 1]):
+            end -= 1
+        if start < end:
+            tokens.append(raw[start:end])
+    return tuple(tokens)
+
+
+def _vocabulary_index(vocabulary: Sequence[str]) -> dict[str, int]:
+    index = {token: v for v, token in enumerate(vocabulary)}
+    if len(index) != len(vocabulary):
+        seen: set[str] = set()
+        dup = next(t for t in vocabulary if t in seen or seen.add(t))
+        raise ValueError(f"vocabulary lists {dup!r} more than once")
+    return index
+
+
+def word_matrix(
+    utterances: Sequence[Sequence[str]], vocabulary: Sequence[str] | None = None
+) -> np.ndarray:
+    """``[U, V]`` float64 counts n(t, d) of each vocabulary token t in each utterance d.
+
+    ``vocabulary`` defaults to the distinct tokens in order of first appearance. A token that is
+    not in a given vocabulary raises ValueError (naming it): nothing is dropped silently.
+    """
+    if vocabulary is None:
+        vocabulary = tuple(dict.fromkeys(t for u in utterances for t in u))
+    index = _vocabulary_index(vocabulary)
+    rows, cols, unknown = [], [], {}
+    for d, tokens in enumerate(utterances):
+        for token in tokens:
+            v = index.get(token)
+            if v is None:
+                unknown.setdefault(token, d)
+            else:
+                rows.append(d)
+                cols.append(v)
+    if unknown:
+        listed = ", ".join(f"{t!r} (utterance {d})" for t, d in list(unknown.items())[:10])
+        raise ValueError(
+            f"{len(unknown)} token(s) not in the given vocabulary of {len(index)}: {listed}"
+        )
+    counts = np.zeros((len(utterances), len(index)), dtype=np.float64)  # [U, V]
+    np.add.at(counts, (np.array(rows, dtype=np.int64), np.array(cols, dtype=np.int64)), 1.0)
+    return counts
+
+
+def tfidf_weights(
+    utterances: Sequence[Sequence[str]], vocabulary: Sequence[str] | None = None
+) -> np.ndarray:
+    """tf-idf weight of every vocabulary token in every utterance (paper eq. 20).
+
+    Each utterance is a document d; D is the number of utterances::
+
+        tf(t, d)     = n(t, d) / |d|            n(t, d): occurrences of t in d, |d|: tokens in d
+        idf(t)       = log(D / df(t))           df(t): number of utterances containing t
+        tfidf(t, d)  = tf(t, d) * idf(t)
+
+    (natural log). A token present in *every* utterance gets weight 0 everywhere -- that is the
+    point of idf: it carries no information about where it was said. A vocabulary token that
+    occurs in no utterance (df = 0) gets weight 0. Each row sums to at most log(D).
+
+    Args:
+        utterances: ``[U]`` token sequences (each non-empty).
+        vocabulary: ``[V]`` columns; defaults to distinct tokens in order of first appearance.
+            A token not in a given vocabulary raises ValueError.
+
+    Returns:
+        ``[U, V]`` float64 matrix; row d holds tfidf(t, d) for every vocabulary token t
+        (0 for tokens not in d).
+    """
+    counts = word_matrix(utterances, vocabulary)  # [U, V]
+    num_docs = counts.shape[0]
+    length = counts.sum(axis=1, keepdims=True)  # [U, 1] |d|
+    if (length == 0).any():
+        raise ValueError(f"utterance {int(np.flatnonzero(length == 0)[0])} holds no tokens")
+    doc_freq = (counts > 0).sum(axis=0)  # [V] df(t)
+    idf = np.zeros(counts.shape[1], dtype=np.float64)  # [V]
+    seen = doc_freq > 0
+    idf[seen] = np.log(num_docs / doc_freq[seen])
+    return counts / length * idf  # [U, V]

@@ -1,0 +1,69 @@
+"""Occupancy grids in ROS map_server format: loading, geometry, neighbourhoods, semantic-map output.
+
+Modules (everything public is re-exported here, so ``from spcopyro.maps import X`` works):
+
+* :mod:`~spcopyro.maps.grid`: :class:`OccupancyGrid` and the cell codes ``FREE``, ``OCCUPIED``,
+  ``UNKNOWN``; the image-row-order conventions, world <-> cell (paper eq. 11), neighbour tables
+  and pairs, colour classes.
+* :mod:`~spcopyro.maps.map_server`: ROS map_server yaml + pgm files, :func:`load_map` (trinary
+  mode) and :func:`save_map`, :class:`MapFormatError`; the only module that imports OpenCV and
+  PyYAML.
+* :mod:`~spcopyro.maps.render`: semantic-map output, :func:`label_colours`,
+  :func:`render_labels`, :func:`save_label_png`, :func:`save_label_map_server` and
+  :func:`load_label_map_server`.
+"""
+
+from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
+from spcopyro.maps.map_server import (
+    PGM_FREE,
+    PGM_OCCUPIED,
+    PGM_UNKNOWN,
+    SAVE_FREE_THRESH,
+    SAVE_OCCUPIED_THRESH,
+    MapFileNotFoundError,
+    MapFormatError,
+    load_map,
+    save_map,
+)
+from spcopyro.maps.render import (
+    RAW_CONCEPT_VALUES,
+    RAW_FREE_UNLABELLED,
+    RAW_OCCUPIED,
+    RAW_UNKNOWN,
+    RGB_BACKGROUND,
+    RGB_OCCUPIED,
+    RGB_UNKNOWN,
+    label_colours,
+    load_label_map_server,
+    render_labels,
+    save_label_map_server,
+    save_label_png,
+)
+
+__all__ = [
+    "FREE",
+    "OCCUPIED",
+    "PGM_FREE",
+    "PGM_OCCUPIED",
+    "PGM_UNKNOWN",
+    "RAW_CONCEPT_VALUES",
+    "RAW_FREE_UNLABELLED",
+    "RAW_OCCUPIED",
+    "RAW_UNKNOWN",
+    "RGB_BACKGROUND",
+    "RGB_OCCUPIED",
+    "RGB_UNKNOWN",
+    "SAVE_FREE_THRESH",
+    "SAVE_OCCUPIED_THRESH",
+    "UNKNOWN",
+    "MapFileNotFoundError",
+    "MapFormatError",
+    "OccupancyGrid",
+    "label_colours",
+    "load_label_map_server",
+    "load_map",
+    "render_labels",
+    "save_label_map_server",
+    "save_label_png",
+    "save_map",
+]

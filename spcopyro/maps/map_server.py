@@ -1,0 +1,272 @@
+"""ROS map_server files: loading a map (yaml + image) as an occupancy grid, and saving one.
+
+Loading (:func:`load_map`) follows map_server's trinary mode: with the pixel value ``v`` (the mean
+over all channels for colour images, alpha included, as map_server does in trinary mode) the
+occupancy probability is ``p = (255 - v) / 255`` (``negate: 0``) or ``p = v / 255``
+(``negate: 1``); ``p > occupied_thresh`` is OCCUPIED, ``p < free_thresh`` is FREE and anything
+else (including values exactly at a threshold) is UNKNOWN. ``mode: scale`` and ``mode: raw`` are
+rejected with a clear error, because they produce values outside the three codes; semantic maps
+written by :func:`~spcopyro.maps.render.save_label_map_server` (``mode: raw``) are read back
+with :func:`~spcopyro.maps.render.load_label_map_server`.
+
+This is the only module of the package that reads or writes image and yaml files (OpenCV,
+PyYAML); :mod:`spcopyro.maps.render` writes its semantic maps through the helpers here.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+import yaml
+
+from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
+
+__all__ = [
+    "PGM_FREE",
+    "PGM_OCCUPIED",
+    "PGM_UNKNOWN",
+    "SAVE_FREE_THRESH",
+    "SAVE_OCCUPIED_THRESH",
+    "MapFileNotFoundError",
+    "MapFormatError",
+    "load_map",
+    "save_map",
+]
+
+# Pixel values written by save_map (those of map_server's map_saver).
+PGM_FREE, PGM_OCCUPIED, PGM_UNKNOWN = 254, 0, 205
+SAVE_OCCUPIED_THRESH = 0.65
+SAVE_FREE_THRESH = 0.196
+
+_REQUIRED_KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
+
+
+class MapFormatError(ValueError):
+    """A map yaml or image is malformed; the message names the file (and the key and value)."""
+
+
+class MapFileNotFoundError(MapFormatError, FileNotFoundError):
+    """A map yaml or the image it names does not exist."""
+
+
+# ---------------------------------------------------------------------- yaml parsing
+@dataclass(frozen=True)
+class _MapYaml:
+    path: Path
+    image: Path
+    resolution: float
+    origin: tuple[float, float, float]
+    negate: bool
+    occupied_thresh: float
+    free_thresh: float
+    mode: str
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
+    """Parse and validate a map_server yaml; errors name the file, line, key and value."""
+    path = Path(yaml_path)
+    if not path.is_file():
+        raise MapFileNotFoundError(f"{path}: map yaml not found")
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as err:
+        raise MapFormatError(f"{path}: cannot read map yaml: {err}") from err
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        raise MapFormatError(f"{path}: invalid yaml: {err}") from err
+    if not isinstance(doc, dict) or not isinstance(root, yaml.MappingNode):
+        raise MapFormatError(
+            f"{path}: map yaml must be a mapping of keys to values, got {type(doc).__name__}"
+        )
+    lines: dict[Any, int] = {}
+    for key_node, _ in root.value:
+        if not isinstance(key_node, yaml.ScalarNode):
+            raise MapFormatError(
+                f"{path}:{key_node.start_mark.line + 1}: map yaml keys must be plain names"
+            )
+        key = key_node.value
+        if key in lines:
+            raise MapFormatError(
+                f"{path}:{key_node.start_mark.line + 1}: duplicate key {key!r} "
+                f"(first at line {lines[key]})"
+            )
+        lines[key] = key_node.start_mark.line + 1
+
+    def where(key: str) -> str:
+        return f"{path}:{lines[key]}" if key in lines else str(path)
+
+    for key in _REQUIRED_KEYS:
+        if key not in doc:
+            raise MapFormatError(f"{path}: missing required key {key!r}")
+
+    def bad(key: str, expected: str) -> MapFormatError:
+        return MapFormatError(f"{where(key)}: key {key!r} must be {expected}, got {doc[key]!r}")
+
+    resolution = doc["resolution"]
+    if not _is_number(resolution) or not (math.isfinite(resolution) and resolution > 0):
+        raise bad("resolution", "a positive finite number")
+
+    origin = doc["origin"]
+    if (
+        not isinstance(origin, list)
+        or len(origin) != 3
+        or not all(_is_number(v) and math.isfinite(v) for v in origin)
+    ):
+        raise bad("origin", "a list of 3 finite numbers [x, y, yaw]")
+    if origin[2] != 0:
+        raise MapFormatError(
+            f"{where('origin')}: key 'origin' has yaw {origin[2]!r}; rotated maps are not "
+            "supported (yaw must be 0)"
+        )
+
+    negate = doc["negate"]
+    if not isinstance(negate, (int, bool)) or negate not in (0, 1):
+        raise bad("negate", "0 or 1")
+
+    for key in ("occupied_thresh", "free_thresh"):
+        value = doc[key]
+        if not _is_number(value) or not 0.0 <= value <= 1.0:
+            raise bad(key, "a number in [0, 1]")
+    if not doc["free_thresh"] < doc["occupied_thresh"]:
+        raise MapFormatError(
+            f"{where('free_thresh')}: key 'free_thresh' ({doc['free_thresh']!r}) must be less "
+            f"than 'occupied_thresh' ({doc['occupied_thresh']!r})"
+        )
+
+    mode = doc.get("mode", "trinary")
+    if mode not in ("trinary", "scale", "raw"):
+        raise bad("mode", "one of 'trinary', 'scale', 'raw'")
+
+    image = doc["image"]
+    if not isinstance(image, str) or not image:
+        raise bad("image", "a non-empty file name")
+    image_path = Path(image)
+    if not image_path.is_absolute():
+        image_path = path.parent / image_path
+
+    return _MapYaml(
+        path=path,
+        image=image_path,
+        resolution=float(resolution),
+        origin=(float(origin[0]), float(origin[1]), float(origin[2])),
+        negate=bool(negate),
+        occupied_thresh=float(doc["occupied_thresh"]),
+        free_thresh=float(doc["free_thresh"]),
+        mode=mode,
+    )
+
+
+def _read_image(spec: _MapYaml) -> np.ndarray:
+    """The map image as uint8 ``[H, W]`` (grey) or ``[H, W, C]`` (colour, OpenCV channel order)."""
+    if not spec.image.is_file():
+        raise MapFileNotFoundError(
+            f"{spec.path}: key 'image': image file {str(spec.image)!r} not found"
+        )
+    data = np.fromfile(spec.image, dtype=np.uint8)
+    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    if img is None:
+        raise MapFormatError(
+            f"{spec.path}: key 'image': {str(spec.image)!r} is not a readable image"
+        )
+    if img.dtype != np.uint8:
+        raise MapFormatError(
+            f"{spec.path}: key 'image': {str(spec.image)!r} has {img.dtype} pixels; only 8-bit "
+            "images are supported"
+        )
+    if img.ndim not in (2, 3) or img.shape[0] == 0 or img.shape[1] == 0:
+        raise MapFormatError(
+            f"{spec.path}: key 'image': {str(spec.image)!r} has unsupported shape {img.shape}"
+        )
+    return img
+
+
+def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
+    """Load a ROS map_server map (yaml + image) as an :class:`OccupancyGrid`.
+
+    Keys (all required, as in map_server): ``image`` (relative to the yaml's folder, or
+    absolute), ``resolution``, ``origin`` ``[x, y, yaw]`` (yaw must be 0), ``negate`` (0/1),
+    ``occupied_thresh``, ``free_thresh`` (in [0, 1], free < occupied); optional ``mode`` must be
+    ``trinary`` (the default). Unknown keys are ignored, as map_server does.
+
+    Cells: ``v`` = pixel value, averaged over all channels for colour images;
+    ``p = (255 - v) / 255`` if ``negate == 0`` else ``v / 255``; ``p > occupied_thresh`` ->
+    OCCUPIED, ``p < free_thresh`` -> FREE, otherwise UNKNOWN.
+
+    Raises:
+        MapFileNotFoundError: the yaml or its image does not exist.
+        MapFormatError: anything malformed; the message names the yaml (with the line where the
+            key is), the key and the offending value.
+    """
+    spec = _read_map_yaml(yaml_path)
+    if spec.mode != "trinary":
+        raise MapFormatError(
+            f"{spec.path}: key 'mode': {spec.mode!r} is not supported by load_map (only "
+            "'trinary'); semantic maps saved by save_label_map_server are read with "
+            "load_label_map_server"
+        )
+    img = _read_image(spec)
+    value = img.astype(np.float64) if img.ndim == 2 else img.mean(axis=2, dtype=np.float64)
+    p = value / 255.0 if spec.negate else (255.0 - value) / 255.0  # [H, W] occupancy probability
+    occupancy = np.full(p.shape, UNKNOWN, dtype=np.int8)  # [H, W]
+    occupancy[p > spec.occupied_thresh] = OCCUPIED
+    occupancy[p < spec.free_thresh] = FREE
+    return OccupancyGrid(occupancy, spec.resolution, spec.origin, source=spec.path)
+
+
+# ---------------------------------------------------------------------- writing
+def _yaml_target(yaml_path: str | os.PathLike) -> Path:
+    path = Path(yaml_path)
+    if path.suffix not in (".yaml", ".yml"):
+        raise ValueError(f"{path}: a map yaml path must end in .yaml or .yml")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _write_image(path: Path, img: np.ndarray) -> None:
+    ok, buf = cv2.imencode(path.suffix, img)
+    if not ok:
+        raise OSError(f"{path}: OpenCV could not encode the image")
+    path.write_bytes(buf.tobytes())
+
+
+def _write_map_yaml(path: Path, image: Path, grid: OccupancyGrid, mode: str | None) -> None:
+    doc: dict[str, Any] = {
+        "image": image.name,
+        "resolution": grid.resolution,
+        "origin": list(grid.origin),
+        "negate": 0,
+        "occupied_thresh": SAVE_OCCUPIED_THRESH,
+        "free_thresh": SAVE_FREE_THRESH,
+    }
+    if mode is not None:
+        doc["mode"] = mode
+    path.write_text(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None), encoding="utf-8")
+
+
+def save_map(grid: OccupancyGrid, yaml_path: str | os.PathLike) -> Path:
+    """Write ``grid`` as ``NAME.pgm`` (P5; 254 free, 0 occupied, 205 unknown) + ``NAME.yaml``.
+
+    The yaml has ``negate: 0``, ``occupied_thresh: 0.65``, ``free_thresh: 0.196`` and the image
+    name relative to its folder, so ``load_map(save_map(grid, path)) == grid``. Returns the yaml
+    path.
+    """
+    path = _yaml_target(yaml_path)
+    image = path.with_suffix(".pgm")
+    pgm = np.full(grid.shape, PGM_UNKNOWN, dtype=np.uint8)  # [H, W]
+    pgm[grid.occupancy == FREE] = PGM_FREE
+    pgm[grid.occupancy == OCCUPIED] = PGM_OCCUPIED
+    _write_image(image, pgm)
+    _write_map_yaml(path, image, grid, mode=None)
+    return path

@@ -1,0 +1,44 @@
+"""Seeded synthetic houses with known ground truth: the package's embedded default data set.
+
+:func:`make_house` draws a complete :class:`~spcopyro.data.House` from a seed and a
+:class:`HouseSpec`: an occupancy grid, a ground-truth spatial category for every free cell, and
+what a robot touring the house observed (place-class image histograms and utterances at world
+positions). The same seed and spec always give the same house; different seeds give different
+houses. :func:`write_synthetic` stores it in the public dataset's on-disk layout (plus
+``truth.npy`` and ``categories.json``) so every loader and command can read it.
+
+Modules (everything public is re-exported here, so ``from spcopyro.synthetic import X`` works):
+
+* :mod:`~spcopyro.synthetic.lexicon`: the words per category (:data:`CATEGORY_LEXICON`,
+  :func:`lexicon_for`), sentence templates and :data:`FILLER_WORDS`.
+* :mod:`~spcopyro.synthetic.spec`: :class:`HouseSpec` (every knob, validated),
+  :class:`HouseSpecError`, sizes and :meth:`HouseSpec.scaled` for benchmarks.
+* :mod:`~spcopyro.synthetic.floor_plan`: how a house is drawn, steps 1-3: rooms by binary space
+  partitioning with doorways, open-plan rooms, ground-truth categories per region.
+* :mod:`~spcopyro.synthetic.house`: steps 4-6: the robot's tour, image features and utterances;
+  :func:`make_house` and :func:`write_synthetic`.
+"""
+
+from spcopyro.synthetic.house import make_house, write_synthetic
+from spcopyro.synthetic.lexicon import (
+    CATEGORY_LEXICON,
+    DEFAULT_CATEGORY_NAMES,
+    FILLER_WORDS,
+    OPEN_PLAN_CATEGORIES,
+    CategoryLexicon,
+    lexicon_for,
+)
+from spcopyro.synthetic.spec import HouseSpec, HouseSpecError
+
+__all__ = [
+    "CATEGORY_LEXICON",
+    "DEFAULT_CATEGORY_NAMES",
+    "FILLER_WORDS",
+    "OPEN_PLAN_CATEGORIES",
+    "CategoryLexicon",
+    "HouseSpec",
+    "HouseSpecError",
+    "lexicon_for",
+    "make_house",
+    "write_synthetic",
+]

@@ -1,0 +1,231 @@
+"""The knobs of a synthetic house: :class:`HouseSpec`, its validation and :class:`HouseSpecError`.
+
+Sizes and benchmarks
+--------------------
+The default spec (60 x 80 cells at 0.1 m, 5 rooms, one open plan, 6 categories, 3 trials,
+180 images, 54 single-word utterances) has about 3600 free cells and is drawn in milliseconds.
+For benchmarks, :meth:`HouseSpec.scaled` keeps the room size and the observations per room and
+scales the number of rooms with the area::
+
+    from spcopyro.synthetic import HouseSpec, make_house, write_synthetic
+
+    spec = HouseSpec.scaled(1000, 1000)   # ~1100 rooms, ~1e6 cells, ~40k images
+    house = make_house(seed=0, spec=spec) # under a second; every step is vectorised over cells
+    write_synthetic("out/bench", seed=0, spec=spec, name="synthetic1000")  # ~10 s, ~180 MB CSV
+
+Pass further fields to :meth:`HouseSpec.scaled` (e.g. ``images_per_room_per_trial=3``) to thin
+the observations.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from spcopyro.synthetic.lexicon import _TOKEN, DEFAULT_CATEGORY_NAMES
+
+__all__ = ["HouseSpec", "HouseSpecError"]
+
+
+class HouseSpecError(ValueError):
+    """An invalid :class:`HouseSpec` field, or a spec whose floor plan cannot be drawn."""
+
+
+_DEFAULT_ROOM_AREA = 900  # cells per room that HouseSpec.scaled aims at (default: ~800)
+
+
+@dataclass(frozen=True)
+class HouseSpec:
+    """Every knob of :func:`make_house`; the defaults give the embedded default house.
+
+    Sizes are in cells. "Room" in the per-room counts means a ground-truth region: a walled
+    room, or one half of an open-plan room.
+    """
+
+    height: int = 60  # map rows
+    width: int = 80  # map columns
+    resolution: float = 0.1  # metres per cell
+    origin: tuple[float, float] | None = None  # world (x, y) of the lower-left cell's corner;
+    # None centres the map on the world origin
+    margin: int = 3  # UNKNOWN cells around the house
+    num_rooms: int = 5  # walled rooms
+    num_open_plan: int = 1  # rooms holding two categories with no wall between them
+    min_room_size: int = 12  # smallest side of a walled room
+    doorway_width: tuple[int, int] = (2, 4)  # inclusive range of doorway widths (>= 2)
+    clearance: int = 2  # image positions prefer cells more than this many cells from a wall
+    category_names: tuple[str, ...] = DEFAULT_CATEGORY_NAMES
+    num_feature_classes: int = 205  # K, like Places205
+    dominant_classes: int = 5  # |D_c|: classes carrying the category's own mass
+    shared_dominant_classes: int = 1  # of those, shared with the previous category
+    dominant_mass: float = 0.7  # m in phi_c = (1 - m) b + m w_c
+    feature_concentration: float = 30.0  # kappa in f ~ Dir(kappa phi_c)
+    num_trials: int = 3
+    images_per_room_per_trial: int = 10
+    utterances_per_room_per_trial: int = 3  # at most images_per_room_per_trial
+    sentence_fraction: float = 0.0  # share of sentences (the public data: single words only)
+    name_word_fraction: float = 0.5  # share of utterances naming the place (else an object)
+    word_noise: float = 0.05  # share of single words of another category
+
+    def __post_init__(self) -> None:
+        if isinstance(self.category_names, str) or not isinstance(self.category_names, Sequence):
+            raise HouseSpecError(
+                f"HouseSpec.category_names must be a sequence of names, got {self.category_names!r}"
+            )
+        object.__setattr__(self, "category_names", tuple(self.category_names))
+        if isinstance(self.doorway_width, Sequence) and len(self.doorway_width) == 2:
+            object.__setattr__(self, "doorway_width", tuple(self.doorway_width))
+        if self.origin is not None:
+            if not isinstance(self.origin, Sequence) or len(self.origin) != 2:
+                raise HouseSpecError(
+                    f"HouseSpec.origin must be None or two numbers (x, y), got {self.origin!r}"
+                )
+            origin = tuple(_finite("origin", v) for v in self.origin)
+            object.__setattr__(self, "origin", origin)
+        self._validate()
+
+    def _validate(self) -> None:
+        _int_at_least("height", self.height, 1)
+        _int_at_least("width", self.width, 1)
+        _positive("resolution", self.resolution)
+        _int_at_least("margin", self.margin, 0)
+        _int_at_least("num_rooms", self.num_rooms, 1)
+        _int_at_least("num_open_plan", self.num_open_plan, 0)
+        if self.num_open_plan > self.num_rooms:
+            raise HouseSpecError(
+                f"HouseSpec.num_open_plan must be at most num_rooms ({self.num_rooms}), "
+                f"got {self.num_open_plan}"
+            )
+        if not (
+            len(self.doorway_width) == 2
+            and all(_is_int(v) for v in self.doorway_width)
+            and 2 <= self.doorway_width[0] <= self.doorway_width[1]
+        ):
+            # Width 2 at least: a later wall may end next to one doorway cell, never two.
+            raise HouseSpecError(
+                "HouseSpec.doorway_width must be two integers (lo, hi) with 2 <= lo <= hi, "
+                f"got {self.doorway_width!r}"
+            )
+        # A wall is at least min_room_size long and keeps 1 cell of wall at each end of its door.
+        _int_at_least("min_room_size", self.min_room_size, max(4, self.doorway_width[1] + 2))
+        inner_h, inner_w = self.inner_shape
+        if min(inner_h, inner_w) < self.min_room_size:
+            raise HouseSpecError(
+                f"HouseSpec height x width {self.height} x {self.width} leaves a "
+                f"{inner_h} x {inner_w} inside after the margin ({self.margin}) and the outer "
+                f"wall: both sides must be at least min_room_size ({self.min_room_size})"
+            )
+        if self.num_rooms * self.min_room_size**2 > inner_h * inner_w:
+            raise HouseSpecError(
+                f"HouseSpec.num_rooms {self.num_rooms} rooms of at least "
+                f"{self.min_room_size} x {self.min_room_size} cells cannot fit in the "
+                f"{inner_h} x {inner_w} inside of the house; lower num_rooms or min_room_size, "
+                "or enlarge the map"
+            )
+        _int_at_least("clearance", self.clearance, 0)
+        names = self.category_names
+        if not names:
+            raise HouseSpecError("HouseSpec.category_names must not be empty")
+        for name in names:
+            if not isinstance(name, str) or _TOKEN.fullmatch(name) is None:
+                raise HouseSpecError(
+                    "HouseSpec.category_names entries must be single lower-case tokens "
+                    f"([a-z0-9_]+), got {name!r}"
+                )
+        if len(set(names)) != len(names):
+            raise HouseSpecError(f"HouseSpec.category_names has duplicates: {names!r}")
+        if self.num_open_plan > 0 and len(names) < 2:
+            raise HouseSpecError(
+                f"HouseSpec.num_open_plan > 0 needs at least two category_names, got {names!r}"
+            )
+        _int_at_least("num_feature_classes", self.num_feature_classes, 1)
+        _int_at_least("dominant_classes", self.dominant_classes, 1)
+        if self.dominant_classes > self.num_feature_classes:
+            raise HouseSpecError(
+                f"HouseSpec.dominant_classes must be at most num_feature_classes "
+                f"({self.num_feature_classes}), got {self.dominant_classes}"
+            )
+        _int_at_least("shared_dominant_classes", self.shared_dominant_classes, 0)
+        if self.shared_dominant_classes >= self.dominant_classes:
+            raise HouseSpecError(
+                "HouseSpec.shared_dominant_classes must be less than dominant_classes "
+                f"({self.dominant_classes}), got {self.shared_dominant_classes}"
+            )
+        _fraction("dominant_mass", self.dominant_mass)
+        _positive("feature_concentration", self.feature_concentration)
+        _int_at_least("num_trials", self.num_trials, 1)
+        _int_at_least("images_per_room_per_trial", self.images_per_room_per_trial, 1)
+        _int_at_least("utterances_per_room_per_trial", self.utterances_per_room_per_trial, 0)
+        if self.utterances_per_room_per_trial > self.images_per_room_per_trial:
+            raise HouseSpecError(
+                "HouseSpec.utterances_per_room_per_trial must be at most "
+                f"images_per_room_per_trial ({self.images_per_room_per_trial}): utterances are "
+                f"made at image positions; got {self.utterances_per_room_per_trial}"
+            )
+        _fraction("sentence_fraction", self.sentence_fraction)
+        _fraction("name_word_fraction", self.name_word_fraction)
+        _fraction("word_noise", self.word_noise)
+
+    @property
+    def inner_shape(self) -> tuple[int, int]:
+        """(rows, cols) inside the outer wall."""
+        return self.height - 2 * self.margin - 2, self.width - 2 * self.margin - 2
+
+    @property
+    def num_regions(self) -> int:
+        """Ground-truth regions: every walled room, plus one more per open-plan room."""
+        return self.num_rooms + self.num_open_plan
+
+    @property
+    def world_origin(self) -> tuple[float, float]:
+        """World (x, y) of the lower-left cell's corner (``origin``, or centred on (0, 0))."""
+        if self.origin is not None:
+            return self.origin
+        return -0.5 * self.width * self.resolution, -0.5 * self.height * self.resolution
+
+    @classmethod
+    def scaled(cls, height: int, width: int, **changes: object) -> HouseSpec:
+        """A spec for a ``height x width`` map with rooms of the default size.
+
+        The number of rooms grows with the inside area (one per ~900 cells, at least 1), one room
+        in five is open plan, and the per-room observation counts stay, so the number of
+        observations grows with the area too. ``changes`` override any field.
+        """
+        base = cls()
+        margin = int(changes.get("margin", base.margin))  # type: ignore[call-overload]
+        inner = max(height - 2 * margin - 2, 0) * max(width - 2 * margin - 2, 0)
+        num_rooms = changes.get("num_rooms", max(1, inner // _DEFAULT_ROOM_AREA))
+        fields: dict[str, object] = dict(height=height, width=width, num_rooms=num_rooms)
+        if _is_int(num_rooms):
+            fields["num_open_plan"] = max(1, num_rooms // 5) if num_rooms > 1 else 0  # type: ignore[operator]
+        fields.update(changes)
+        return cls(**fields)  # type: ignore[arg-type]
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, int | np.integer) and not isinstance(value, bool)
+
+
+def _int_at_least(field: str, value: object, low: int) -> None:
+    if not _is_int(value) or value < low:  # type: ignore[operator]
+        raise HouseSpecError(f"HouseSpec.{field} must be an integer >= {low}, got {value!r}")
+
+
+def _finite(field: str, value: object) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float | np.number):
+        raise HouseSpecError(f"HouseSpec.{field} must be a number, got {value!r}")
+    if not math.isfinite(float(value)):
+        raise HouseSpecError(f"HouseSpec.{field} must be finite, got {value!r}")
+    return float(value)
+
+
+def _positive(field: str, value: object) -> None:
+    if _finite(field, value) <= 0:
+        raise HouseSpecError(f"HouseSpec.{field} must be > 0, got {value!r}")
+
+
+def _fraction(field: str, value: object) -> None:
+    if not 0.0 <= _finite(field, value) <= 1.0:
+        raise HouseSpecError(f"HouseSpec.{field} must lie in [0, 1], got {value!r}")
