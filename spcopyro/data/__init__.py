@@ -4,6 +4,8 @@ A robot takes images (each turned into a K-class place histogram by a CNN) and h
 each at a world position. This package
 
 * holds them in :class:`Observations` (world coordinates, free vocabulary: nothing pre-listed),
+  together with any number of further modalities (:class:`ModalityObservations`: named count
+  vectors at world positions),
 * puts each observation on a free cell of an :class:`~spcopyro.maps.OccupancyGrid`
   (:func:`place_observations`: paper eq. 11, ``convert(x) = floor((x - origin) / resolution)``,
   with snapping of positions that land just off free space),
@@ -18,33 +20,54 @@ Nothing is dropped silently: observations that cannot be placed are logged (``lo
 
 Modules (everything public is re-exported here, so ``from spcopyro.data import X`` works):
 
-* :mod:`~spcopyro.data.observations`: :class:`Observations` and its validation,
-  :class:`DataFormatError`.
+* :mod:`~spcopyro.data.observations`: :class:`Observations`, :class:`ModalityObservations` and
+  their validation, :class:`DataFormatError`.
 * :mod:`~spcopyro.data.text`: :func:`tokenize`, :func:`word_matrix`, :func:`tfidf_weights`
   (eq. 20).
 * :mod:`~spcopyro.data.placement`: :func:`place_observations` (eq. 11, snapping),
-  :class:`PlacementReport`.
-* :mod:`~spcopyro.data.counts`: :func:`scale_features`, :class:`CellCounts`, :func:`cell_counts`.
+  :class:`PlacementReport`, :class:`ModalityPlacement`.
+* :mod:`~spcopyro.data.counts`: :func:`scale_features`, :class:`CellCounts`,
+  :class:`CellModalityCounts`, :func:`cell_counts`.
 * :mod:`~spcopyro.data.dataset`: :class:`House`, :func:`load_house`, :func:`save_house`,
   :func:`find_dataset_root`, :func:`list_houses`.
 * :mod:`~spcopyro.data.dataset_files`: the readers and writers of the single files of a house
-  folder (CSV files, trials, camera images).
+  folder (CSV files, trials, camera images, ``modality_<name>.csv``).
 """
 
-from spcopyro.data.counts import CellCounts, FeatureScaling, cell_counts, scale_features
+from spcopyro.data.counts import (
+    CellCounts,
+    CellModalityCounts,
+    FeatureScaling,
+    cell_counts,
+    scale_features,
+)
 from spcopyro.data.dataset import House, find_dataset_root, list_houses, load_house, save_house
 from spcopyro.data.dataset_files import IMAGE_SUFFIXES
-from spcopyro.data.observations import DataFormatError, Observations
-from spcopyro.data.placement import DEFAULT_SNAP_DISTANCE, PlacementReport, place_observations
+from spcopyro.data.observations import (
+    RESERVED_MODALITY_NAMES,
+    DataFormatError,
+    ModalityObservations,
+    Observations,
+)
+from spcopyro.data.placement import (
+    DEFAULT_SNAP_DISTANCE,
+    ModalityPlacement,
+    PlacementReport,
+    place_observations,
+)
 from spcopyro.data.text import WordWeighting, tfidf_weights, tokenize, word_matrix
 
 __all__ = [
     "DEFAULT_SNAP_DISTANCE",
     "IMAGE_SUFFIXES",
+    "RESERVED_MODALITY_NAMES",
     "CellCounts",
+    "CellModalityCounts",
     "DataFormatError",
     "FeatureScaling",
     "House",
+    "ModalityObservations",
+    "ModalityPlacement",
     "Observations",
     "PlacementReport",
     "WordWeighting",

@@ -3,6 +3,8 @@
 :func:`cell_counts` places every observation (:func:`~spcopyro.data.placement.place_observations`)
 and sums them per cell into a :class:`CellCounts`, with the image-feature scaling
 (:func:`scale_features`) and the word weighting (counts or tf-idf, paper eq. 20) as options.
+Further modalities (:class:`~spcopyro.data.observations.ModalityObservations`) are placed like
+images and their raw counts summed per cell (:class:`CellModalityCounts`).
 Observations that cannot be placed are logged (``logging``, logger ``"spcopyro"``) and listed in
 the counts' :class:`~spcopyro.data.placement.PlacementReport`.
 """
@@ -18,11 +20,16 @@ from typing import Literal
 import numpy as np
 
 from spcopyro.data.observations import Observations
-from spcopyro.data.placement import DEFAULT_SNAP_DISTANCE, PlacementReport, place_observations
+from spcopyro.data.placement import (
+    DEFAULT_SNAP_DISTANCE,
+    ModalityPlacement,
+    PlacementReport,
+    place_observations,
+)
 from spcopyro.data.text import WordWeighting, tfidf_weights, word_matrix
 from spcopyro.maps.grid import OccupancyGrid
 
-__all__ = ["CellCounts", "FeatureScaling", "cell_counts", "scale_features"]
+__all__ = ["CellCounts", "CellModalityCounts", "FeatureScaling", "cell_counts", "scale_features"]
 
 logger = logging.getLogger("spcopyro")
 
@@ -57,10 +64,23 @@ def scale_features(features: np.ndarray, scaling: FeatureScaling) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
+class CellModalityCounts:
+    """One further modality's counts summed per observed cell (rows follow ``CellCounts.cells``).
+
+    M observed cells, K items of the modality.
+    """
+
+    name: str
+    items: tuple[str, ...]  # [K]
+    counts: np.ndarray  # [M, K] float64 raw counts summed per cell
+
+
+@dataclass(frozen=True, eq=False)
 class CellCounts:
     """Per-cell sufficient statistics for the model: only cells that hold observations (sparse).
 
-    M observed cells, K feature classes, V vocabulary tokens.
+    M observed cells, K feature classes, V vocabulary tokens. The rows of every count matrix
+    (``image_counts``, ``word_counts``, each of ``modalities``) follow ``cells``.
     """
 
     cells: np.ndarray  # [M] int64 free_index of cells with >= 1 placed observation, ascending
@@ -69,6 +89,7 @@ class CellCounts:
     vocabulary: tuple[str, ...]  # [V]
     num_free: int
     placement: PlacementReport = field(repr=False)
+    modalities: tuple[CellModalityCounts, ...] = ()  # further modalities, in the obs' order
 
 
 def cell_counts(
@@ -88,8 +109,12 @@ def cell_counts(
         image_counts[m] = sum over images i in m of scale(f_i)         (scale_features)
         word_counts[m]  = sum over utterances d in m of n(., d)         word_weighting="count"
                         = sum over utterances d in m of tfidf(., d)     word_weighting="tfidf"
+        modalities[j].counts[m] = sum over observations o of modality j in m of counts_o
 
-    tf-idf (eq. 20) treats all utterances of ``obs`` as the documents, placed or not.
+    Further modalities are placed exactly like images (same snapping) and summed as they are
+    (no scaling or weighting). The observed cells are those holding at least one placed image,
+    utterance or observation of a further modality, so a row may be zero in some of the
+    matrices. tf-idf (eq. 20) treats all utterances of ``obs`` as the documents, placed or not.
 
     Vocabulary: ``vocabulary`` given -> its order defines the V columns and a token of ``obs``
     not in it raises ValueError (extend the vocabulary, or select the observations, first);
@@ -128,14 +153,22 @@ def cell_counts(
         grid, obs.image_xy, snap_distance
     )  # [T] x3
     word_cell, word_snapped, word_unplaced = place_observations(grid, obs.word_xy, snap_distance)
+    further = [place_observations(grid, m.positions, snap_distance) for m in obs.modalities]
 
     image_ok = image_cell >= 0  # [T] bool
     word_ok = word_cell >= 0  # [U] bool
-    cells = np.unique(np.concatenate([image_cell[image_ok], word_cell[word_ok]]))  # [M]
+    further_cells = [cell[cell >= 0] for cell, _, _ in further]  # [T_j] each
+    cells = np.unique(np.concatenate([image_cell[image_ok], word_cell[word_ok], *further_cells]))
     image_counts = np.zeros((cells.size, features.shape[1]), dtype=np.float64)  # [M, K]
     np.add.at(image_counts, np.searchsorted(cells, image_cell[image_ok]), features[image_ok])
     word_counts = np.zeros((cells.size, len(vocab)), dtype=np.float64)  # [M, V]
     np.add.at(word_counts, np.searchsorted(cells, word_cell[word_ok]), words[word_ok])
+    modality_counts = []
+    for modality, (cell, _, _) in zip(obs.modalities, further, strict=True):
+        ok = cell >= 0  # [T_j] bool
+        summed = np.zeros((cells.size, modality.num_items), dtype=np.float64)  # [M, K_j]
+        np.add.at(summed, np.searchsorted(cells, cell[ok]), modality.counts[ok])
+        modality_counts.append(CellModalityCounts(modality.name, modality.items, summed))
 
     report = PlacementReport(
         images_on_free=int(obs.num_images - image_snapped.sum() - image_unplaced.sum()),
@@ -147,6 +180,16 @@ def cell_counts(
         unplaced_images=np.flatnonzero(image_unplaced).astype(np.int64),
         unplaced_words=np.flatnonzero(word_unplaced).astype(np.int64),
         snap_distance=float(snap_distance),
+        modalities=tuple(
+            ModalityPlacement(
+                name=modality.name,
+                on_free=int(modality.num_observations - snapped.sum() - unplaced.sum()),
+                snapped=int(snapped.sum()),
+                unplaced=int(unplaced.sum()),
+                unplaced_indices=np.flatnonzero(unplaced).astype(np.int64),
+            )
+            for modality, (_, snapped, unplaced) in zip(obs.modalities, further, strict=True)
+        ),
     )
     where = f" on map {grid.source}" if getattr(grid, "source", None) else ""
     if report.images_unplaced or report.words_unplaced:
@@ -167,6 +210,24 @@ def cell_counts(
             report.words_snapped,
             where,
         )
+    for placed in report.modalities:
+        if placed.unplaced:
+            logger.warning(
+                "%d observation(s) of modality %r are farther than %g m from free space%s and "
+                "were left out of the cell counts (indices %s)",
+                placed.unplaced,
+                placed.name,
+                snap_distance,
+                where,
+                placed.unplaced_indices.tolist()[:20],
+            )
+        if placed.snapped:
+            logger.info(
+                "%d observation(s) of modality %r snapped to the nearest free cell%s",
+                placed.snapped,
+                placed.name,
+                where,
+            )
     return CellCounts(
         cells=cells.astype(np.int64),
         image_counts=image_counts,
@@ -174,4 +235,5 @@ def cell_counts(
         vocabulary=vocab,
         num_free=int(grid.num_free),
         placement=report,
+        modalities=tuple(modality_counts),
     )

@@ -19,11 +19,14 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro.data.dataset_files import (
+    _MODALITY_FILE,
     IMAGE_SUFFIXES,
     _format_float,
     _image_paths,
+    _modality_lines,
     _read_column,
     _read_matrix,
+    _read_modalities,
     _read_trials,
     _read_utterances_line,
     _write_lines,
@@ -165,13 +168,19 @@ def load_house(
       (:data:`IMAGE_SUFFIXES`); a count mismatch logs a warning and leaves ``image_paths`` None.
     * ``truth.npy`` ``[H, W]`` int and ``categories.json`` (list of names) (optional, written by
       the synthetic generator): ground-truth category per cell, -1 off free.
+    * ``modality_<name>.csv`` (optional, any number): a further modality
+      (:class:`~spcopyro.data.observations.ModalityObservations`, ``<name>`` a lower-case
+      identifier other than images and words): a header line ``trial,x,y,<item1>,<item2>,...``
+      naming the K >= 1 distinct items, then one observation per line: its trial id (an integer
+      >= 0), world x, y and K counts >= 0. ``observations.modalities`` holds them sorted by name.
 
     Raises:
         FileNotFoundError: a required file (or the map) is missing; the message names it.
         DataFormatError: a malformed file: non-numeric, NaN / inf or negative features, rows of
             different lengths, empty Ft.csv or St.csv, position files whose length differs from
             their data file, pose / word files inconsistent with Ft.csv / St.csv, truth.npy
-            whose shape differs from the map; the message names file, 1-based line and value.
+            whose shape differs from the map, a modality file with a bad name, header, trial id,
+            number or negative count; the message names file, 1-based line and value.
     """
     room = Path(room_dir)
     if not room.is_dir():
@@ -224,6 +233,7 @@ def load_house(
         word_trial=word_trial,
         image_yaw=image_yaw,
         image_paths=image_paths,
+        modalities=_read_modalities(room),
     )
 
     category_names = None
@@ -274,10 +284,12 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
     Writes ``root/map/NAME.{pgm,yaml}`` (:func:`spcopyro.maps.save_map`) and ``root/NAME/`` with
     Ft.csv, Xtx.csv, Xty.csv, St.csv (tokens joined by single spaces, utterances comma separated,
     no trailing newline, like the original), StXtx.csv, StXty.csv, one ``pose_K.csv``
-    (``x, y, qz, qw``; yaw 0 when unknown) and ``word_K.csv`` per trial K, copies of the camera
-    images as ``img_K/NNNNN.ext`` when ``image_paths`` is known, and truth.npy + categories.json
-    when present. Floats are written with ``repr`` (they read back exactly); yaw goes through
-    the quaternion, so it reads back to within rounding, wrapped to (-pi, pi].
+    (``x, y, qz, qw``; yaw 0 when unknown) and ``word_K.csv`` per trial K of the images and
+    utterances, copies of the camera images as ``img_K/NNNNN.ext`` when ``image_paths`` is
+    known, truth.npy + categories.json when present, and one ``modality_<name>.csv`` per further
+    modality (see :func:`load_house`). Floats are written with ``repr`` (they read back
+    exactly); yaw goes through the quaternion, so it reads back to within rounding, wrapped to
+    (-pi, pi].
 
     Raises:
         ValueError: no images or no utterances (load_house would reject the files); observations
@@ -285,7 +297,7 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
             (a comma, whitespace, upper case or edge punctuation).
         FileExistsError: ``root/NAME`` is not empty or the map exists, and ``overwrite`` is
             False. With ``overwrite`` the files this function writes (and stale pose_K, word_K,
-            img_K) are replaced; other files are left alone.
+            img_K, modality_<name>) are replaced; other files are left alone.
 
     Returns:
         The room folder ``root/NAME``.
@@ -332,7 +344,11 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
                 f"save_house: cannot overwrite {room}, the house's images are read from it"
             )
         for entry in room.iterdir() if room.exists() else ():
-            if entry.name in _MANAGED_FILES or re.fullmatch(r"(pose|word)_\d+\.csv", entry.name):
+            if (
+                entry.name in _MANAGED_FILES
+                or re.fullmatch(r"(pose|word)_\d+\.csv", entry.name)
+                or _MODALITY_FILE.fullmatch(entry.name)
+            ):
                 entry.unlink()
             elif entry.is_dir() and re.fullmatch(r"img_\d+", entry.name):
                 shutil.rmtree(entry)
@@ -353,7 +369,7 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
     pose = np.stack(
         [obs.image_xy[:, 0], obs.image_xy[:, 1], np.sin(yaw / 2), np.cos(yaw / 2)], axis=1
     )  # [T, 4]
-    for k in obs.trials:
+    for k in np.union1d(obs.image_trial, obs.word_trial).tolist():  # trials of images, words
         in_trial = np.flatnonzero(obs.image_trial == k)  # [n_k]
         _write_lines(
             room / f"pose_{k}.csv", (",".join(map(fmt, row)) for row in pose[in_trial].tolist())
@@ -368,6 +384,9 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
             for number, i in enumerate(in_trial, start=1):
                 source = obs.image_paths[i]
                 shutil.copyfile(source, folder / f"{number:05d}{source.suffix.lower()}")
+
+    for modality in obs.modalities:
+        _write_lines(room / f"modality_{modality.name}.csv", _modality_lines(modality))
 
     if house.truth is not None:
         np.save(room / "truth.npy", np.asarray(house.truth, dtype=np.int64))

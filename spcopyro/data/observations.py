@@ -5,11 +5,17 @@ each at a world position. :class:`Observations` holds them (world coordinates, f
 nothing pre-listed), validated on construction; :class:`DataFormatError` is what the dataset
 readers raise for a malformed file or value, naming the file, the 1-based line and column and
 the offending value.
+
+Places may be learnt from any number of modalities: besides images and words, an
+:class:`Observations` holds further modalities as :class:`ModalityObservations`, each a named
+set of count vectors over its own items (for instance the objects a detector saw, or the Wi-Fi
+access points heard), observed at world positions.
 """
 
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Iterable
 from dataclasses import dataclass
 from functools import cached_property
@@ -17,9 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["DataFormatError", "Observations"]
+__all__ = ["RESERVED_MODALITY_NAMES", "DataFormatError", "ModalityObservations", "Observations"]
 
 _MISSING = object()
+_MODALITY_NAME = re.compile(r"[a-z][a-z0-9_]*")  # also the file name modality_<name>.csv
+RESERVED_MODALITY_NAMES = ("images", "words")  # the two modalities Observations always holds
 
 
 class DataFormatError(ValueError):
@@ -83,6 +91,106 @@ def _as_trial(values: object, name: str, count: int) -> np.ndarray:
     return trial
 
 
+def _modality_name_problem(name: object) -> str | None:
+    """Why ``name`` cannot name a further modality, or None if it can."""
+    if not isinstance(name, str) or _MODALITY_NAME.fullmatch(name) is None:
+        return "a modality name must be a lower-case identifier ([a-z][a-z0-9_]*)"
+    if name in RESERVED_MODALITY_NAMES:
+        return f"a modality name must not be one of {RESERVED_MODALITY_NAMES} (always present)"
+    return None
+
+
+@dataclass(frozen=True, eq=False)
+class ModalityObservations:
+    """Observations of one further modality (beyond images and words): count vectors at positions.
+
+    T observations, each a vector of K non-negative counts (or weights) over the modality's
+    items, taken at a world position in a trial. Arrays are converted (copied) to the dtypes
+    below and validated on construction; a ``ValueError`` names the modality and the field.
+
+    Attributes:
+        name: identifier of the modality, a lower-case identifier (``[a-z][a-z0-9_]*``), not
+            ``"images"`` or ``"words"``; the dataset file is ``modality_<name>.csv``.
+        items: ``[K]`` distinct names of what each count column counts (K >= 1); non-empty,
+            without commas, line breaks or surrounding whitespace (they are CSV column names).
+        positions: ``[T, 2]`` float64, world metres (x, y) of each observation.
+        trials: ``[T]`` int64 >= 0, trial id of each observation.
+        counts: ``[T, K]`` float64, finite and >= 0.
+    """
+
+    name: str
+    items: tuple[str, ...]  # [K]
+    positions: np.ndarray  # [T, 2] float64
+    trials: np.ndarray  # [T] int64
+    counts: np.ndarray  # [T, K] float64
+
+    def __post_init__(self) -> None:
+        problem = _modality_name_problem(self.name)
+        if problem is not None:
+            raise ValueError(f"ModalityObservations.name={self.name!r}: {problem}")
+        what = f"modality {self.name!r}"
+        if isinstance(self.items, str):
+            raise ValueError(f"{what}: items must be a sequence of names, got {self.items!r}")
+        items = tuple(self.items)
+        if not items:
+            raise ValueError(f"{what}: items must name at least one count column")
+        for k, item in enumerate(items):
+            if (
+                not isinstance(item, str)
+                or not item
+                or item != item.strip()
+                or any(char in item for char in ",\r\n")
+            ):
+                raise ValueError(
+                    f"{what}: item {k} must be a non-empty string without commas, line breaks "
+                    f"or surrounding whitespace (a CSV column name), got {item!r}"
+                )
+        if len(set(items)) != len(items):
+            seen: set[str] = set()
+            dup = next(item for item in items if item in seen or seen.add(item))
+            raise ValueError(f"{what}: items list {dup!r} more than once")
+        counts = np.array(self.counts, dtype=np.float64)  # [T, K]
+        if counts.size == 0 and counts.ndim != 2:
+            counts = counts.reshape(0, len(items))
+        if counts.ndim != 2 or counts.shape[1] != len(items):
+            raise ValueError(
+                f"{what}: counts must have shape [T, {len(items)}] (one column per item), "
+                f"got {counts.shape}"
+            )
+        if not np.isfinite(counts).all():
+            row, col = np.argwhere(~np.isfinite(counts))[0]
+            raise ValueError(f"{what}: counts[{row}, {col}] is not finite: {counts[row, col]}")
+        if (counts < 0).any():
+            row, col = np.argwhere(counts < 0)[0]
+            raise ValueError(f"{what}: counts[{row}, {col}] is negative: {counts[row, col]}")
+        num = counts.shape[0]
+        set_ = object.__setattr__
+        set_(self, "items", items)
+        set_(self, "positions", _as_xy(self.positions, f"{what}: positions", num))
+        set_(self, "trials", _as_trial(self.trials, f"{what}: trials", num))
+        set_(self, "counts", counts)
+
+    @property
+    def num_observations(self) -> int:
+        """T."""
+        return int(self.counts.shape[0])
+
+    @property
+    def num_items(self) -> int:
+        """K."""
+        return len(self.items)
+
+    def _select(self, keep: np.ndarray) -> ModalityObservations:
+        """The observations where ``keep`` ([T] bool) holds; items and name kept."""
+        return ModalityObservations(
+            name=self.name,
+            items=self.items,
+            positions=self.positions[keep],
+            trials=self.trials[keep],
+            counts=self.counts[keep],
+        )
+
+
 @dataclass(frozen=True, eq=False)
 class Observations:
     """What the robot observed, in world coordinates. Words are free vocabulary: nothing pre-listed.
@@ -100,6 +208,8 @@ class Observations:
         word_trial: ``[U]`` int64 >= 0.
         image_yaw: ``[T]`` float64 radians (from pose_K.csv quaternions) or None if unknown.
         image_paths: ``[T]`` camera image files in image_features row order, or None.
+        modalities: further modalities (:class:`ModalityObservations`), with distinct names;
+            empty by default.
     """
 
     image_features: np.ndarray  # [T, K] float64
@@ -110,6 +220,7 @@ class Observations:
     word_trial: np.ndarray  # [U] int64
     image_yaw: np.ndarray | None = None  # [T] float64
     image_paths: tuple[Path, ...] | None = None  # [T]
+    modalities: tuple[ModalityObservations, ...] = ()
 
     def __post_init__(self) -> None:
         features = np.array(self.image_features, dtype=np.float64)  # [T, K]
@@ -149,6 +260,19 @@ class Observations:
             if len(paths) != num_images:
                 raise ValueError(f"image_paths has {len(paths)} entries, expected {num_images}")
             set_(self, "image_paths", paths)
+        if isinstance(self.modalities, ModalityObservations):
+            raise TypeError("modalities must be a sequence of ModalityObservations, not one")
+        modalities = tuple(self.modalities)
+        for m, modality in enumerate(modalities):
+            if not isinstance(modality, ModalityObservations):
+                raise TypeError(
+                    f"modalities[{m}] must be a ModalityObservations, got {type(modality).__name__}"
+                )
+        names = [modality.name for modality in modalities]
+        if len(set(names)) != len(names):
+            dup = next(name for n, name in enumerate(names) if name in names[:n])
+            raise ValueError(f"modalities: the name {dup!r} is used more than once")
+        set_(self, "modalities", modalities)
 
     @property
     def num_images(self) -> int:
@@ -167,9 +291,18 @@ class Observations:
 
     @cached_property
     def trials(self) -> tuple[int, ...]:
-        """Sorted distinct trial ids over images and utterances."""
+        """Sorted distinct trial ids over images, utterances and the further modalities."""
         ids = np.union1d(self.image_trial, self.word_trial)
+        for modality in self.modalities:
+            ids = np.union1d(ids, modality.trials)
         return tuple(int(t) for t in ids)
+
+    def modality(self, name: str) -> ModalityObservations:
+        """The further modality called ``name``; KeyError (listing the names) if there is none."""
+        for modality in self.modalities:
+            if modality.name == name:
+                return modality
+        raise KeyError(f"no modality {name!r}; have {[m.name for m in self.modalities]}")
 
     @cached_property
     def vocabulary(self) -> tuple[str, ...]:
@@ -178,6 +311,9 @@ class Observations:
 
     def select_trials(self, trials: Iterable[int]) -> Observations:
         """Only the observations of these trials (e.g. for held-out folds), order kept.
+
+        Further modalities are filtered the same way (a modality left with no observation stays,
+        with T = 0, so the modalities and their items do not change).
 
         Raises ValueError for a trial id that is not in :attr:`trials`.
         """
@@ -201,4 +337,5 @@ class Observations:
             image_paths=None
             if paths is None
             else tuple(p for p, k in zip(paths, keep_images, strict=True) if k),
+            modalities=tuple(m._select(np.isin(m.trials, wanted)) for m in self.modalities),
         )

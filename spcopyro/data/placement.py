@@ -18,7 +18,7 @@ from scipy.spatial import cKDTree
 from spcopyro.data.observations import _as_xy
 from spcopyro.maps.grid import OccupancyGrid
 
-__all__ = ["DEFAULT_SNAP_DISTANCE", "PlacementReport", "place_observations"]
+__all__ = ["DEFAULT_SNAP_DISTANCE", "ModalityPlacement", "PlacementReport", "place_observations"]
 
 # Positions in the public data were recorded by the robot and rounded onto the 5 cm grid; some
 # land on wall or unknown pixels (README "Quirks"). In the five public houses 27 images and 8
@@ -122,10 +122,25 @@ def place_observations(
 
 
 @dataclass(frozen=True, eq=False)
+class ModalityPlacement:
+    """Where the observations of one further modality went (see :class:`PlacementReport`).
+
+    ``on_free + snapped + unplaced`` is the modality's number of observations.
+    """
+
+    name: str
+    on_free: int
+    snapped: int
+    unplaced: int
+    unplaced_indices: np.ndarray  # [*] int64 indices into the modality's observations
+
+
+@dataclass(frozen=True, eq=False)
 class PlacementReport:
     """Where observations went: nothing is dropped silently.
 
-    ``*_on_free + *_snapped + *_unplaced`` is the number of images (words) observed.
+    ``*_on_free + *_snapped + *_unplaced`` is the number of images (words) observed;
+    ``modalities`` holds the same for each further modality, in the observations' order.
     """
 
     images_on_free: int
@@ -137,12 +152,17 @@ class PlacementReport:
     unplaced_images: np.ndarray  # [*] int64 indices into Observations images
     unplaced_words: np.ndarray  # [*] int64 indices into Observations utterances
     snap_distance: float  # metres
+    modalities: tuple[ModalityPlacement, ...] = ()
 
     def summary(self) -> str:
         """One human-readable line."""
+        further = "".join(
+            f"; {m.name}: {m.on_free} on free cells, {m.snapped} snapped, {m.unplaced} unplaced"
+            for m in self.modalities
+        )
         return (
             f"images: {self.images_on_free} on free cells, {self.images_snapped} snapped, "
             f"{self.images_unplaced} unplaced; words: {self.words_on_free} on free cells, "
-            f"{self.words_snapped} snapped, {self.words_unplaced} unplaced "
+            f"{self.words_snapped} snapped, {self.words_unplaced} unplaced{further} "
             f"(snap distance {self.snap_distance:g} m)"
         )
