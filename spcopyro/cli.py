@@ -17,9 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from spcopyro.config import DEFAULT_PRESET, PRESETS, preset
-from spcopyro.data import DEFAULT_SNAP_DISTANCE, House, cell_counts, load_house
-from spcopyro.gibbs.backends import BACKENDS
+from spcopyro.config import DEFAULT_PRESET, DEFAULT_SNAP_DISTANCE, PRESETS, preset
+from spcopyro.data import House, cell_counts, load_house
+from spcopyro.gibbs.options import BACKENDS, GibbsOptions
+from spcopyro.registry import DEFAULT_METHOD, INFERENCE_METHODS
 
 logger = logging.getLogger("spcopyro")
 
@@ -85,47 +86,56 @@ def _fit(args: argparse.Namespace) -> int:
     overrides = dict(
         prior=args.prior, num_concepts=args.concepts, gamma=args.gamma, alpha=args.alpha,
         beta=args.beta, chi=args.chi, connectivity=args.connectivity,
+        concentrations=_concentrations(args.concentration),
         word_weighting="tfidf" if args.tfidf else None,
-        unobserved_refresh=args.unobserved_refresh, cluster_moves=args.cluster_moves,
         feature_scaling=_feature_scaling(args.feature_scaling),
+        snap_distance=args.snap_distance,
     )  # fmt: skip
     if args.preset == "paper-dirichlet" and args.concepts is None and house.category_names:
         overrides["num_concepts"] = len(house.category_names)
-    config = preset(args.preset, **overrides)
+    settings = preset(args.preset, **overrides)
+    config = settings.model
+    options = GibbsOptions(
+        backend=args.backend, anneal_sweeps=args.anneal_sweeps,
+        unobserved_refresh=1.0 if args.unobserved_refresh is None else args.unobserved_refresh,
+        cluster_moves=0.0 if args.cluster_moves is None else args.cluster_moves,
+    )  # fmt: skip
     warning = gamma_warning(config)
     if warning:
         print(f"warning: {warning}", file=sys.stderr)
     print(_summary(house))
-    print(f"config           {config}")
+    print(f"model            {config}")
+    print(f"data             {settings.data}")
+    print(f"inference        {args.method}: {options}")
     diagnostics = None
     if args.sweeps == "auto":
         from spcopyro.fit import fit_house_converged
 
+        if args.method != "gibbs":
+            raise ValueError(f"--sweeps auto is Gibbs' convergence rule, not {args.method!r}'s")
         chains = 4 if args.chains is None else args.chains
         result, diagnostics = fit_house_converged(
-            house, config, chains=chains, max_sweeps=args.max_sweeps, seed=args.seed,
-            init=args.init, backend=args.backend, snap_distance=args.snap_distance,
-            anneal_sweeps=args.anneal_sweeps,
+            house, settings, options=options, chains=chains, max_sweeps=args.max_sweeps,
+            seed=args.seed, init=args.init,
         )  # fmt: skip
         chain_results = None
     else:
         chains = 1 if args.chains is None else args.chains
         chain_results = fit_house_chains(
-            house, config, sweeps=args.sweeps, seeds=[args.seed + k for k in range(chains)],
-            init=args.init, backend=args.backend, snap_distance=args.snap_distance,
-            anneal_sweeps=args.anneal_sweeps,
+            house, settings, method=args.method, options=options, sweeps=args.sweeps,
+            seeds=[args.seed + k for k in range(chains)], init=args.init,
         )  # fmt: skip
         kept = best_chain(chain_results)
         result = chain_results[kept]
     out = result.save(args.out)
     if chain_results is not None and chains > 1:
-        best_values = [r.best_log_joint for r in chain_results]
+        best_values = [r.best_objective for r in chain_results]
         report = {"seeds": [args.seed + k for k in range(chains)], "best_chain": kept,
                   "best_log_joint": best_values}  # fmt: skip
         (out / "chains.json").write_text(json.dumps(report, indent=1) + "\n")
         print(f"best of {chains} chains: kept chain {kept} (seed {args.seed + kept}), best log "
               f"joints {', '.join(f'{v:.1f}' for v in best_values)}")  # fmt: skip
-    sweeps_run = len(result.log_joint)
+    sweeps_run = len(result.trace.objective)
     if diagnostics is not None:
         (out / "convergence.json").write_text(json.dumps(diagnostics.to_json(), indent=1) + "\n")
         last = diagnostics.checks[-1]
@@ -137,7 +147,7 @@ def _fit(args: argparse.Namespace) -> int:
     plot_semantic_map(result, out / "semantic_map.png")
     plot_trace(result, out / "trace.png")
     plot_house(house, out / "house.png")
-    seconds = result.seconds[-1]
+    seconds = result.trace.seconds[-1]
     print(f"fitted {sweeps_run} sweeps in {seconds:.1f} s "
           f"({1e3 * seconds / sweeps_run:.2f} ms per sweep); "
           f"{len(result.concepts_in_use())} concepts in use")  # fmt: skip
@@ -148,8 +158,12 @@ def _fit(args: argparse.Namespace) -> int:
         np.save(out / "truth.npy", house.truth)
         (out / "scores.json").write_text(json.dumps({"ari": ari}) + "\n")
         print(f"adjusted Rand index against the ground truth: {ari:.3f}")
+    further = [t.name for t in result.emissions if t.name not in ("images", "words")]
     for concept in result.concepts()[:10]:
         words = ", ".join(f"{w} ({p:.2f})" for w, p in concept["top_words"][:3])
+        for name in further:
+            top = concept[f"top_{name}"][:2]
+            words += f"; {name}: " + ", ".join(f"{item} ({p:.2f})" for item, p in top)
         print(f"  concept {concept['concept']:>3}: {concept['cells']:>6} cells  {words}")
     vocabulary_size = len(result.vocabulary)
     used = result.concepts_in_use()
@@ -191,6 +205,22 @@ def _sweeps(value: str) -> int | str:
     if sweeps < 1:
         raise argparse.ArgumentTypeError(f"must be a positive integer or 'auto', got {value!r}")
     return sweeps
+
+
+def _concentrations(values: list[str] | None) -> dict[str, float] | None:
+    """``NAME=VALUE`` options as a mapping (None when there are none)."""
+    if not values:
+        return None
+    pairs = {}
+    for value in values:
+        name, sep, number = value.partition("=")
+        try:
+            pairs[name.strip()] = float(number)
+        except ValueError:
+            sep = ""
+        if not sep or not name.strip():
+            raise ValueError(f"--concentration must be NAME=NUMBER, got {value!r}")
+    return pairs
 
 
 def _feature_scaling(value: str | None) -> str | float | None:
@@ -311,7 +341,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="PNG file to write")
     p.set_defaults(func=_show)
 
-    p = sub.add_parser("fit", help="fit SpCoMapping by Gibbs sampling and write the semantic map")
+    p = sub.add_parser("fit", help="fit SpCoMapping (Gibbs sampling) and write the semantic map")
     p.add_argument("data", nargs="?", help="house folder (default: the synthetic house)")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--sweeps", type=_sweeps, default=5000,
@@ -333,6 +363,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--alpha", type=float)
     p.add_argument("--beta", type=float, help="word prior concentration")
     p.add_argument("--chi", type=float, help="image-feature prior concentration")
+    p.add_argument("--concentration", action="append", metavar="NAME=VALUE",
+                   help="Dirichlet concentration of a further modality (a modality_NAME.csv of "
+                        "the house); repeat for several")  # fmt: skip
     p.add_argument("--connectivity", type=int, choices=(4, 8))
     p.add_argument("--tfidf", action="store_true", help="weight words by tf-idf (eq. 20)")
     p.add_argument(
@@ -354,7 +387,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="starting labels: random, k-means Gaussians, or SpCoA pre-learning",
     )
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--backend", choices=BACKENDS, default="auto")
+    p.add_argument("--method", choices=sorted(INFERENCE_METHODS), default=DEFAULT_METHOD,
+                   help="inference method (default: gibbs, Algorithm 1)")  # fmt: skip
+    p.add_argument("--backend", choices=BACKENDS, default="auto",
+                   help="Gibbs sweep implementation: torch (reference) or numba (compiled); "
+                        "the two draw different random streams from one seed")  # fmt: skip
     p.add_argument("--snap-distance", type=float, default=DEFAULT_SNAP_DISTANCE,
                    help="metres an observation may be moved onto free space")  # fmt: skip
     p.set_defaults(func=_fit)

@@ -1,9 +1,15 @@
-"""Hyperparameters and variant switches of SpCoMapping, validated once, with named presets.
+"""What a fit is configured by, in two layers that do not depend on each other.
 
-Every variant of the model (DP or Dirichlet prior, 4- or 8-neighbourhood, modalities on or off,
-image-feature scaling, word weighting) is a field of :class:`SpCoConfig`, never a copy of the model.
+* :class:`SpCoConfig`: the **model's** hyperparameters and variant switches (paper eqs. 1-10):
+  everything :func:`~spcopyro.model.spcomapping_model` reads.
+* :class:`DataPreparation`: how observations become per-cell counts before the model sees them
+  (image-feature scaling, word weighting, snapping of positions to free cells).
 
-Presets (:func:`preset`):
+Inference options are per method and live beside the method (the Gibbs sampler's in
+:class:`spcopyro.gibbs.options.GibbsOptions`). This module imports nothing from the package, so
+``import spcopyro.model`` stays light (no OpenCV, no yaml).
+
+Presets (:func:`preset`) give both layers at once, as :class:`SpCoSettings`:
 
 ``paper-dp``
     The paper's Section 4.1 values for the weak-limit Dirichlet-process prior:
@@ -26,10 +32,18 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Literal
 
-from spcopyro.data import FeatureScaling, WordWeighting
+FeatureScaling = Literal["probability", "floor100"] | float
+"""How image histograms become counts: as they are, floor(100 f) (the released code), or s * f."""
+WordWeighting = Literal["count", "tfidf"]
+"""Word counts as they are, or tf-idf weighted (paper eq. 20)."""
+DEFAULT_SNAP_DISTANCE = 0.25  # metres: the largest snap the public houses need
+
+IMAGES, WORDS = "images", "words"
+"""The two modalities of the paper: place-class histograms of images (theta) and words (w)."""
 
 PRESETS: dict[str, dict[str, object]] = {
     "paper-dp": dict(
@@ -48,6 +62,10 @@ PRESETS: dict[str, dict[str, object]] = {
 DEFAULT_PRESET = "paper-dp"
 
 
+def _is_number(value: object) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
 @dataclass(frozen=True)
 class SpCoConfig:
     """Hyperparameters of SpCoMapping (paper eqs. 1-10) and the switches selecting a variant.
@@ -61,20 +79,11 @@ class SpCoConfig:
         chi: symmetric Dirichlet concentration of each image-feature distribution theta_l (eq. 4).
         gamma: Potts MRF coupling between 4- (or 8-) neighbouring cells (eq. 3), >= 0.
         connectivity: 4 (the paper) or 8.
-        use_images, use_words: switch an emission modality on or off.
-        feature_scaling: how image histograms become counts: ``"probability"`` (as they are),
-            ``"floor100"`` (floor(100 f), the released code) or a float s (s * f).
-        word_weighting: ``"count"`` or ``"tfidf"`` (paper eq. 20, for sentences).
-        unobserved_refresh: the probability that a sweep redraws theta_l and w_l of the concepts
-            that hold no observed cell (for them the conditional is the prior). 1.0 (default)
-            redraws every concept every sweep, as Algorithm 1 does; any value in (0, 1] leaves
-            the posterior invariant (a random choice of which conditionally independent blocks
-            to update, made independently of the state), and a small one makes the sweep's
-            cost nearly flat in L, since the [L, K] and [L, V] draws dominate for large L.
-        cluster_moves: the probability that a sweep starts with a Swendsen-Wang cluster move of
-            the labels (:mod:`spcopyro.gibbs.cluster`: whole regions change concept at once).
-            0 (default): Algorithm 1's single-site sweeps only. Any value in [0, 1] leaves the
-            posterior invariant (the choice is made independently of the state).
+        use_images, use_words: switch the paper's two emission modalities on or off (a switched-off
+            modality's distributions are still drawn, from their prior).
+        concentrations: the symmetric Dirichlet concentration of every *further* modality (e.g.
+            object-detection counts), by the modality's name; a mapping is accepted and stored as
+            sorted ``(name, concentration)`` pairs. See :meth:`concentration`.
     """
 
     num_concepts: int = 120
@@ -86,10 +95,7 @@ class SpCoConfig:
     connectivity: Literal[4, 8] = 4
     use_images: bool = True
     use_words: bool = True
-    feature_scaling: FeatureScaling = "probability"
-    word_weighting: WordWeighting = "count"
-    unobserved_refresh: float = 1.0
-    cluster_moves: float = 0.0
+    concentrations: tuple[tuple[str, float], ...] = ()
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -101,9 +107,9 @@ class SpCoConfig:
             raise bad("prior", "must be 'dp' or 'dirichlet'")
         for name in ("alpha", "beta", "chi"):
             value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            if not (_is_number(value) and math.isfinite(value) and value > 0):
                 raise bad(name, "must be a finite positive number")
-        if not (isinstance(self.gamma, (int, float)) and math.isfinite(self.gamma)):
+        if not (_is_number(self.gamma) and math.isfinite(self.gamma)):
             raise bad("gamma", "must be a finite number")
         if self.gamma < 0:
             # The sampler's fast path writes exp(gamma n) = 1 + expm1(gamma n) as a mixture of
@@ -114,18 +120,21 @@ class SpCoConfig:
             raise bad("gamma", f"gamma * connectivity must be <= 700, got {self.gamma}")
         if self.connectivity not in (4, 8):
             raise bad("connectivity", "must be 4 or 8")
-        fs = self.feature_scaling
-        is_scale = isinstance(fs, (int, float)) and not isinstance(fs, bool)
-        if not (fs in ("probability", "floor100") or (is_scale and math.isfinite(fs) and fs > 0)):
-            raise bad("feature_scaling", "must be 'probability', 'floor100' or a positive float")
-        refresh = self.unobserved_refresh
-        if not (isinstance(refresh, (int, float)) and 0.0 < refresh <= 1.0):
-            raise bad("unobserved_refresh", "must be a probability in (0, 1]")
-        moves = self.cluster_moves
-        if not (isinstance(moves, (int, float)) and 0.0 <= moves <= 1.0):
-            raise bad("cluster_moves", "must be a probability in [0, 1]")
-        if self.word_weighting not in ("count", "tfidf"):
-            raise bad("word_weighting", "must be 'count' or 'tfidf'")
+        pairs = self.concentrations
+        if isinstance(pairs, Mapping):
+            pairs = tuple(pairs.items())
+        try:
+            pairs = tuple(sorted((str(name), value) for name, value in pairs))
+        except (TypeError, ValueError):
+            raise bad("concentrations", "must map modality names to numbers") from None
+        for name, value in pairs:
+            if name in (IMAGES, WORDS):
+                raise bad("concentrations", f"{name!r} is set by chi / beta, not here")
+            if not (_is_number(value) and math.isfinite(value) and value > 0):
+                raise bad("concentrations", f"{name!r} must be a finite positive number")
+        if len({name for name, _ in pairs}) != len(pairs):
+            raise bad("concentrations", "names a modality twice")
+        object.__setattr__(self, "concentrations", tuple((n, float(v)) for n, v in pairs))
 
     @property
     def pi_concentration(self) -> float:
@@ -137,13 +146,107 @@ class SpCoConfig:
         """The Potts model's critical coupling ln(1 + sqrt(L)) on the square lattice."""
         return math.log1p(math.sqrt(self.num_concepts))
 
+    def concentration(self, modality: str) -> float:
+        """The symmetric Dirichlet concentration of a modality's distributions: chi for
+        ``"images"`` (eq. 4), beta for ``"words"`` (eq. 6), else from :attr:`concentrations`."""
+        if modality == IMAGES:
+            return float(self.chi)
+        if modality == WORDS:
+            return float(self.beta)
+        for name, value in self.concentrations:
+            if name == modality:
+                return value
+        raise ValueError(
+            f"no Dirichlet concentration for the further modality {modality!r}: set "
+            f"SpCoConfig.concentrations={{{modality!r}: ...}} (spcopyro fit: --concentration "
+            f"{modality}=VALUE)"
+        )
+
+    def uses(self, modality: str) -> bool:
+        """Whether a modality's observations enter the likelihood (``use_images`` /
+        ``use_words``; further modalities are always used)."""
+        if modality == IMAGES:
+            return bool(self.use_images)
+        if modality == WORDS:
+            return bool(self.use_words)
+        return True
+
     def replace(self, **changes: object) -> SpCoConfig:
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
 
+    def to_json(self) -> dict[str, object]:
+        """The fields as JSON values (``concentrations`` as a name -> value object)."""
+        values = dataclasses.asdict(self)
+        values["concentrations"] = dict(self.concentrations)
+        return values
 
-def preset(name: str = DEFAULT_PRESET, **overrides: object) -> SpCoConfig:
-    """The named preset (see the module docstring) with ``overrides`` applied.
+
+@dataclass(frozen=True)
+class DataPreparation:
+    """How observations become the per-cell counts the model reads
+    (:func:`spcopyro.data.cell_counts`).
+
+    Attributes:
+        feature_scaling: how image histograms become counts: ``"probability"`` (as they are),
+            ``"floor100"`` (floor(100 f), the released code) or a float s (s * f).
+        word_weighting: ``"count"`` or ``"tfidf"`` (paper eq. 20, for sentences).
+        snap_distance: metres within which an observation off free space is moved to the nearest
+            free cell (farther ones are reported and left out).
+    """
+
+    feature_scaling: FeatureScaling = "probability"
+    word_weighting: WordWeighting = "count"
+    snap_distance: float = DEFAULT_SNAP_DISTANCE
+
+    def __post_init__(self) -> None:
+        def bad(name: str, why: str) -> ValueError:
+            return ValueError(f"DataPreparation.{name}={getattr(self, name)!r}: {why}")
+
+        fs = self.feature_scaling
+        if not (
+            fs in ("probability", "floor100") or (_is_number(fs) and math.isfinite(fs) and fs > 0)
+        ):
+            raise bad("feature_scaling", "must be 'probability', 'floor100' or a positive float")
+        if self.word_weighting not in ("count", "tfidf"):
+            raise bad("word_weighting", "must be 'count' or 'tfidf'")
+        snap = self.snap_distance
+        if not (_is_number(snap) and math.isfinite(snap) and snap >= 0):
+            raise bad("snap_distance", "must be a finite number of metres >= 0")
+
+    def replace(self, **changes: object) -> DataPreparation:
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+
+@dataclass(frozen=True)
+class SpCoSettings:
+    """The model's hyperparameters and the data preparation they were chosen with (a preset)."""
+
+    model: SpCoConfig = SpCoConfig()
+    data: DataPreparation = DataPreparation()
+
+    def replace(self, **changes: object) -> SpCoSettings:
+        """A copy with fields of either layer changed, each routed by its name."""
+        model_fields = {f.name for f in dataclasses.fields(SpCoConfig)}
+        data_fields = {f.name for f in dataclasses.fields(DataPreparation)}
+        unknown = set(changes) - model_fields - data_fields
+        if unknown:
+            raise ValueError(
+                f"unknown settings {sorted(unknown)}: SpCoConfig has {sorted(model_fields)}, "
+                f"DataPreparation has {sorted(data_fields)}"
+            )
+        model = {k: v for k, v in changes.items() if k in model_fields}
+        data = {k: v for k, v in changes.items() if k in data_fields}
+        return SpCoSettings(
+            self.model.replace(**model) if model else self.model,
+            self.data.replace(**data) if data else self.data,
+        )
+
+
+def preset(name: str = DEFAULT_PRESET, **overrides: object) -> SpCoSettings:
+    """The named preset (see the module docstring) with ``overrides`` applied to whichever layer
+    (:class:`SpCoConfig` or :class:`DataPreparation`) has a field of that name.
 
     ``paper-dirichlet`` needs ``num_concepts`` (the known number of categories).
     Overrides whose value is ``None`` are ignored, so CLI options can be passed straight through.
@@ -156,7 +259,6 @@ def preset(name: str = DEFAULT_PRESET, **overrides: object) -> SpCoConfig:
         raise ValueError(
             f"preset {name!r} needs num_concepts (the known number of place categories)"
         )
-    unknown = set(values) - {f.name for f in dataclasses.fields(SpCoConfig)}
-    if unknown:
-        raise ValueError(f"unknown SpCoConfig fields {sorted(unknown)}")
-    return SpCoConfig(**values)  # type: ignore[arg-type]
+    data_fields = {f.name for f in dataclasses.fields(DataPreparation)}
+    data = {k: values.pop(k) for k in list(values) if k in data_fields}
+    return SpCoSettings(model=SpCoConfig(), data=DataPreparation()).replace(**values, **data)

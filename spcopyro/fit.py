@@ -1,7 +1,9 @@
-"""Fitting SpCoMapping to a house: observations -> per-cell counts -> Gibbs run -> result.
+"""Fitting SpCoMapping to a house: observations -> per-cell counts -> inference -> result.
 
 This is what ``spcopyro fit`` runs; each step is a public function of its own module, so a user
-can replace any of them (see :func:`fit_house`'s body).
+can replace any of them (see :func:`fit_house_chains`' body). The inference method is looked up
+by name in :mod:`spcopyro.registry` (``"gibbs"``: Algorithm 1); ``--sweeps auto``
+(:func:`fit_house_converged`) is Gibbs-specific.
 """
 
 from __future__ import annotations
@@ -12,9 +14,8 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from spcopyro.config import SpCoConfig
-from spcopyro.data import DEFAULT_SNAP_DISTANCE, CellCounts, House, cell_counts
-from spcopyro.gibbs.api import run_gibbs
+from spcopyro.config import IMAGES, WORDS, SpCoConfig, SpCoSettings, preset
+from spcopyro.data import CellCounts, House, cell_counts
 from spcopyro.gibbs.convergence import (
     DEFAULT_BLOCK,
     DEFAULT_CHAINS,
@@ -23,8 +24,12 @@ from spcopyro.gibbs.convergence import (
     ConvergenceDiagnostics,
     run_until_converged,
 )
-from spcopyro.gibbs.init import kmeans_gaussians, labels_from_gaussians
+from spcopyro.gibbs.method import output_from_run
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.initialisation import kmeans_gaussians, labels_from_gaussians
+from spcopyro.inference import InferenceOutput
 from spcopyro.model import DTYPE, ModelData, make_model_data
+from spcopyro.registry import DEFAULT_METHOD, get_method
 from spcopyro.results import SpCoResult
 
 logger = logging.getLogger("spcopyro")
@@ -63,182 +68,212 @@ def gaussian_initial_labels(
     return labels_from_gaussians(cell_xy, means, covariances, log_weights)
 
 
-def spcoa_initial_labels(house: House, config: SpCoConfig, seed: int) -> torch.Tensor:
+def spcoa_initial_labels(house: House, settings: SpCoSettings, seed: int) -> torch.Tensor:
     """[N] labels from spatial-concept pre-learning (paper Section 5, eqs. 21-22): the Gaussians
     of a SpCoA fit (:func:`spcopyro.baselines.spcoa.spcoa_gaussians`), at most L of them."""
     from spcopyro.baselines.spcoa import spcoa_gaussians
 
     cell_xy = free_cell_positions(house)  # [N, 2]
     means, covariances, log_weights = spcoa_gaussians(
-        house, num_concepts=config.num_concepts, seed=seed, word_weighting=config.word_weighting
-    )
+        house, num_concepts=settings.model.num_concepts, seed=seed,
+        word_weighting=settings.data.word_weighting,
+    )  # fmt: skip
     return labels_from_gaussians(cell_xy, means, covariances, log_weights)
 
 
-def prepare_model_data(
-    house: House, config: SpCoConfig, snap_distance: float
-) -> tuple[CellCounts, ModelData]:
-    """Per-cell counts of the house under the config's scaling/weighting, and the model's tensors
-    (warns, through the logger, when gamma is below the critical coupling)."""
-    warning = gamma_warning(config)
+def prepare_model_data(house: House, settings: SpCoSettings) -> tuple[CellCounts, ModelData]:
+    """Per-cell counts of the house under the settings' data preparation, and the model's
+    tensors (warns, through the logger, when gamma is below the critical coupling)."""
+    warning = gamma_warning(settings.model)
     if warning:
         logger.warning(warning)
     counts = cell_counts(
         house.grid,
         house.observations,
-        feature_scaling=config.feature_scaling,
-        word_weighting=config.word_weighting,
-        snap_distance=snap_distance,
+        feature_scaling=settings.data.feature_scaling,
+        word_weighting=settings.data.word_weighting,
+        snap_distance=settings.data.snap_distance,
     )
-    return counts, make_model_data(house.grid, counts, config.connectivity)
+    data = make_model_data(house.grid, counts, settings.model.connectivity)
+    for modality in data.modalities:
+        settings.model.concentration(modality.name)  # ValueError if a further one has none
+    return counts, data
 
 
-def _initial_labels(
+def modality_items(counts: CellCounts, data: ModelData) -> dict[str, tuple[str, ...]]:
+    """The item names of each modality: the vocabulary for words, each further modality's
+    item names (images keep their class numbers)."""
+    items = {WORDS: tuple(counts.vocabulary)}
+    for modality in getattr(counts, "modalities", ()):
+        items[modality.name] = tuple(modality.items)
+    return {m.name: items[m.name] for m in data.modalities if m.name in items}
+
+
+def result_of(
+    output: InferenceOutput,
     house: House,
     counts: CellCounts,
-    config: SpCoConfig,
+    data: ModelData,
+    settings: SpCoSettings,
+    method: str,
+) -> SpCoResult:
+    """The :class:`SpCoResult` of an inference output on ``house``."""
+    return SpCoResult.from_output(
+        output, house.grid, modality_items(counts, data), settings.model,
+        modalities=tuple(m.name for m in data.modalities), method=method,
+        preparation=settings.data, name=house.name,
+    )  # fmt: skip
+
+
+def initial_labels(
+    house: House,
+    counts: CellCounts,
+    settings: SpCoSettings,
     init: str,
     seed: int,
     generator: torch.Generator,
 ) -> torch.Tensor | None:
+    """[N] starting labels: None for ``"random"`` (the method draws them), else ``"gaussian"``
+    (k-means Gaussians over the observed cells) or ``"spcoa"`` (a SpCoA fit's Gaussians)."""
     if init not in INITS:
         raise ValueError(f"init must be one of {INITS}, got {init!r}")
     if init == "gaussian":
-        return gaussian_initial_labels(house, counts, config, generator)
+        return gaussian_initial_labels(house, counts, settings.model, generator)
     if init == "spcoa":
-        return spcoa_initial_labels(house, config, seed)
+        return spcoa_initial_labels(house, settings, seed)
     return None
 
 
 def best_chain(results: Sequence[SpCoResult]) -> int:
-    """Index of the chain whose MAP-visited state has the highest log joint
-    (``result.best_log_joint``; the first one on ties)."""
+    """Index of the chain whose point estimate has the highest objective
+    (``result.best_objective``: the MAP-visited state's log joint for Gibbs; the first on ties)."""
     if not results:
         raise ValueError("best_chain needs at least one chain")
-    return int(np.argmax([r.best_log_joint for r in results]))
+    return int(np.argmax([r.best_objective for r in results]))
 
 
 def fit_house_chains(
     house: House,
-    config: SpCoConfig,
+    settings: SpCoSettings | None = None,
     *,
+    method: str = DEFAULT_METHOD,
+    options: object | None = None,
     sweeps: int = 5000,
     seeds: Sequence[int] = (0,),
     init: str = "random",
-    backend: str = "auto",
-    snap_distance: float = DEFAULT_SNAP_DISTANCE,
     progress: bool | None = None,
-    anneal_sweeps: int = 0,
 ) -> list[SpCoResult]:
-    """One :class:`SpCoResult` per seed: a chain of ``sweeps`` Gibbs iterations (Algorithm 1)
-    from ``init`` drawn with that seed. The house's counts are computed once for all chains.
-    See :func:`fit_house` for the arguments; :func:`best_chain` picks the one to keep."""
+    """One :class:`SpCoResult` per seed: ``sweeps`` iterations of the inference method from
+    ``init`` drawn with that seed. The house's counts are computed once for all chains. See
+    :func:`fit_house` for the arguments; :func:`best_chain` picks the one to keep."""
     if isinstance(sweeps, bool) or not isinstance(sweeps, int | np.integer) or sweeps < 1:
         raise ValueError(f"sweeps must be a positive integer or 'auto', got {sweeps!r}")
     if len(seeds) == 0:
         raise ValueError("seeds must name at least one chain")
-    counts, data = prepare_model_data(house, config, snap_distance)
-    results = []
+    settings = preset() if settings is None else settings
+    inference = get_method(method)
+    counts, data = prepare_model_data(house, settings)
+    fits = []
     for seed in seeds:
         generator = torch.Generator().manual_seed(int(seed))
-        init_labels = _initial_labels(house, counts, config, init, int(seed), generator)
-        run = run_gibbs(
-            data,
-            config,
-            sweeps,
-            generator=generator,
-            init_labels=init_labels,
-            backend=backend,
-            progress=progress,
-            anneal_sweeps=anneal_sweeps,
-        )
-        results.append(
-            SpCoResult.from_run(run, house.grid, counts.vocabulary, config, name=house.name)
-        )
-    return results
+        start = initial_labels(house, counts, settings, init, int(seed), generator)
+        output = inference.run(
+            data, settings.model, iterations=int(sweeps), generator=generator,
+            init_labels=start, options=options, progress=progress,
+        )  # fmt: skip
+        output.options.update(seed=int(seed), init=init)
+        fits.append(result_of(output, house, counts, data, settings, method))
+    return fits
 
 
 def fit_house(
     house: House,
-    config: SpCoConfig,
+    settings: SpCoSettings | None = None,
     *,
+    method: str = DEFAULT_METHOD,
+    options: object | None = None,
     sweeps: int | str = 5000,
     seed: int = 0,
     init: str = "random",
-    backend: str = "auto",
-    snap_distance: float = DEFAULT_SNAP_DISTANCE,
     progress: bool | None = None,
     chains: int = 1,
-    anneal_sweeps: int = 0,
 ) -> SpCoResult:
-    """Fit SpCoMapping to a house with ``sweeps`` Gibbs iterations (Algorithm 1).
+    """Fit SpCoMapping to a house.
 
-    ``init``: ``"random"`` labels, ``"gaussian"`` (k-means Gaussians over the observed cells,
-    eqs. 21-22) or ``"spcoa"`` (the paper's pre-learning: Gaussians of a SpCoA fit).
-    ``chains``: run that many chains (seeds ``seed``, ``seed + 1``, ...) and keep the one whose
-    MAP-visited state has the highest log joint ("best of K chains", the remedy for the DP
-    variant's instability measured in :mod:`spcopyro.experiments.robustness`).
-    ``anneal_sweeps``: ramp gamma up over the first sweeps (:mod:`spcopyro.gibbs.anneal`).
-    ``sweeps="auto"``: :func:`fit_house_converged` (``chains`` chains, at least 2; 4 if
-    ``chains`` is 1) until split R-hat < 1.05; the diagnostics are logged at INFO level -- call
-    :func:`fit_house_converged` to get them.
+    Args:
+        settings: model hyperparameters and data preparation (default: :func:`preset`'s).
+        method: the inference method's name in :mod:`spcopyro.registry` (``"gibbs"``).
+        options: the method's options (``GibbsOptions`` for Gibbs; None for its defaults).
+        sweeps: iterations (Gibbs sweeps), or ``"auto"`` for Gibbs: :func:`fit_house_converged`
+            (``chains`` chains, at least 2; 4 if ``chains`` is 1) until split R-hat < 1.05;
+            the diagnostics are logged at INFO level -- call :func:`fit_house_converged` to get
+            them.
+        init: ``"random"`` labels, ``"gaussian"`` (k-means Gaussians over the observed cells,
+            eqs. 21-22) or ``"spcoa"`` (the paper's pre-learning: Gaussians of a SpCoA fit).
+        chains: run that many chains (seeds ``seed``, ``seed + 1``, ...) and keep the one whose
+            point estimate has the highest objective ("best of K chains", the remedy for the DP
+            variant's instability measured in :mod:`spcopyro.experiments.robustness`).
     """
     if not isinstance(chains, int) or chains < 1:
         raise ValueError(f"chains must be a positive integer, got {chains!r}")
     if sweeps == "auto":
+        if method != "gibbs":
+            raise ValueError(f"sweeps='auto' is Gibbs' convergence rule, not {method!r}'s")
         result, diagnostics = fit_house_converged(
-            house, config, chains=chains if chains > 1 else DEFAULT_CHAINS, seed=seed,
-            init=init, backend=backend, snap_distance=snap_distance, progress=progress,
-            anneal_sweeps=anneal_sweeps,
+            house, settings, options=options, chains=chains if chains > 1 else DEFAULT_CHAINS,
+            seed=seed, init=init, progress=progress,
         )  # fmt: skip
         logger.info("--sweeps auto: %s", diagnostics.to_json())
         return result
     results = fit_house_chains(
-        house, config, sweeps=sweeps, seeds=[seed + k for k in range(chains)], init=init,
-        backend=backend, snap_distance=snap_distance, progress=progress,
-        anneal_sweeps=anneal_sweeps,
+        house, settings, method=method, options=options, sweeps=sweeps,
+        seeds=[seed + k for k in range(chains)], init=init, progress=progress,
     )  # fmt: skip
     kept = best_chain(results)
     if chains > 1:
         logger.info(
-            "best of %d chains: kept chain %d (seed %d); best log joints %s", chains, kept,
-            seed + kept, [round(r.best_log_joint, 1) for r in results],
+            "best of %d chains: kept chain %d (seed %d); best objectives %s", chains, kept,
+            seed + kept, [round(r.best_objective, 1) for r in results],
         )  # fmt: skip
     return results[kept]
 
 
 def fit_house_converged(
     house: House,
-    config: SpCoConfig,
+    settings: SpCoSettings | None = None,
     *,
+    options: GibbsOptions | None = None,
     chains: int = DEFAULT_CHAINS,
     block: int = DEFAULT_BLOCK,
     max_sweeps: int = DEFAULT_MAX_SWEEPS,
     threshold: float = DEFAULT_THRESHOLD,
     seed: int = 0,
     init: str = "random",
-    backend: str = "auto",
-    snap_distance: float = DEFAULT_SNAP_DISTANCE,
     progress: bool | None = None,
-    anneal_sweeps: int = 0,
 ) -> tuple[SpCoResult, ConvergenceDiagnostics]:
-    """Fit with ``chains`` chains (seeds ``seed``, ``seed + 1``, ...) until split R-hat of the
-    log joint and of the number of concepts are below ``threshold``, or ``max_sweeps`` sweeps
-    (:func:`spcopyro.gibbs.convergence.run_until_converged`). Returns the chain of highest log
-    joint as the result, and the diagnostics. Chain k starts from ``init`` drawn with seed
-    ``seed + k``; ``anneal_sweeps`` of gamma annealing come first (burn-in).
+    """Fit by Gibbs sampling with ``chains`` chains (seeds ``seed``, ``seed + 1``, ...) until
+    split R-hat of the log joint and of the number of concepts are below ``threshold``, or
+    ``max_sweeps`` sweeps (:func:`spcopyro.gibbs.convergence.run_until_converged`). Returns the
+    chain of highest log joint as the result, and the diagnostics. Chain k starts from ``init``
+    drawn with seed ``seed + k``; ``options.anneal_sweeps`` of gamma annealing come first.
     """
-    counts, data = prepare_model_data(house, config, snap_distance)
+    settings = preset() if settings is None else settings
+    options = GibbsOptions() if options is None else options
+    counts, data = prepare_model_data(house, settings)
     starts = [
-        _initial_labels(
-            house, counts, config, init, seed + k, torch.Generator().manual_seed(int(seed + k))
+        initial_labels(
+            house, counts, settings, init, seed + k, torch.Generator().manual_seed(int(seed + k))
         )  # fmt: skip
         for k in range(chains)
     ]
     run, diagnostics = run_until_converged(
-        data, config, chains=chains, block=block, max_sweeps=max_sweeps, threshold=threshold,
-        seed=seed, init_labels=starts, backend=backend, progress=progress,
-        anneal_sweeps=anneal_sweeps,
+        data, settings.model, options=options, chains=chains, block=block,
+        max_sweeps=max_sweeps, threshold=threshold, seed=seed, init_labels=starts,
+        progress=progress,
     )  # fmt: skip
-    result = SpCoResult.from_run(run, house.grid, counts.vocabulary, config, name=house.name)
-    return result, diagnostics
+    record = {
+        "sweeps": "auto", "chains": chains, "seed": seed, "init": init,
+        **{k: v for k, v in vars(options).items()},
+    }  # fmt: skip
+    output = output_from_run(run, record)
+    return result_of(output, house, counts, data, settings, "gibbs"), diagnostics

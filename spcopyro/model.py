@@ -29,8 +29,33 @@ SITE_PI, SITE_THETA, SITE_W, SITE_LABELS = "pi", "theta", "w", "labels"
 SITE_POTTS, SITE_IMAGES, SITE_WORDS = "potts", "images", "words"
 
 
+class Modality(NamedTuple):
+    """One emission modality: what the observed cells hold of it, and the model's site names.
+
+    Every concept l has a distribution over the modality's K_m items, drawn from a symmetric
+    Dirichlet (concentration :meth:`SpCoConfig.concentration(name)
+    <spcopyro.config.SpCoConfig.concentration>`), and an observed cell's counts are multinomial
+    under its concept's distribution. The paper's two modalities are ``images`` (theta, eqs. 4-5)
+    and ``words`` (w, eqs. 6-7); any further one (sounds, object detections, ...) is one more entry.
+    """
+
+    name: str
+    """The observation site (``"images"``, ``"words"``, or the further modality's name)."""
+    parameter: str
+    """The site of the per-concept distributions ``[L, K_m]`` (``"theta"``, ``"w"``, ...)."""
+    counts: torch.Tensor
+    """[M, K_m] float64: the modality's counts summed per observed cell (may be real-valued)."""
+
+
+def parameter_site(modality: str) -> str:
+    """The site name of a modality's per-concept distributions: ``theta`` for images, ``w`` for
+    words (the paper's names), ``<name>_probs`` for a further modality."""
+    return {SITE_IMAGES: SITE_THETA, SITE_WORDS: SITE_W}.get(modality, f"{modality}_probs")
+
+
 class ModelData(NamedTuple):
-    """What the model conditions on: N free cells, M of them observed, K classes, V words."""
+    """What the model conditions on: N free cells, M of them observed, one count matrix per
+    modality (images ``[M, K]`` and words ``[M, V]`` first, then any further modality)."""
 
     num_free: int
     """N, the number of free cells (the ``cells`` plate)."""
@@ -42,10 +67,36 @@ class ModelData(NamedTuple):
     """Graph colouring: int64 free indices of each colour class (2 for D=4, 4 for D=8)."""
     obs_cells: torch.Tensor
     """[M] int64: free index of each cell holding observations (ascending)."""
-    image_counts: torch.Tensor
-    """[M, K] float64: image-feature counts summed per observed cell."""
-    word_counts: torch.Tensor
-    """[M, V] float64: word counts (or tf-idf weights) summed per observed cell."""
+    modalities: tuple[Modality, ...]
+    """The emission modalities, ``images`` and ``words`` first; their count rows follow
+    ``obs_cells``."""
+
+    def modality(self, name: str) -> Modality:
+        """The modality called ``name`` (KeyError naming the known ones if there is none)."""
+        for modality in self.modalities:
+            if modality.name == name:
+                return modality
+        known = [m.name for m in self.modalities]
+        raise KeyError(f"ModelData has no modality {name!r}; it has {known}")
+
+    def with_counts(self, name: str, counts: torch.Tensor) -> ModelData:
+        """A copy with the counts of modality ``name`` replaced."""
+        self.modality(name)  # raises for an unknown name
+        return self._replace(
+            modalities=tuple(
+                m._replace(counts=counts) if m.name == name else m for m in self.modalities
+            )
+        )
+
+    @property
+    def image_counts(self) -> torch.Tensor:
+        """[M, K] the image-feature counts (the ``images`` modality)."""
+        return self.modality(SITE_IMAGES).counts
+
+    @property
+    def word_counts(self) -> torch.Tensor:
+        """[M, V] the word counts or tf-idf weights (the ``words`` modality)."""
+        return self.modality(SITE_WORDS).counts
 
     @property
     def num_feature_classes(self) -> int:
@@ -63,7 +114,8 @@ class ModelData(NamedTuple):
 
 
 def make_model_data(grid: OccupancyGrid, counts: CellCounts, connectivity: int = 4) -> ModelData:
-    """The model's tensors from a grid and its :class:`~spcopyro.data.CellCounts`."""
+    """The model's tensors from a grid and its :class:`~spcopyro.data.CellCounts` (images and
+    words, then each further modality of ``counts.modalities``, if it has any)."""
     if counts.num_free != grid.num_free:
         raise ValueError(
             f"CellCounts were made for a map with {counts.num_free} free cells, "
@@ -73,14 +125,21 @@ def make_model_data(grid: OccupancyGrid, counts: CellCounts, connectivity: int =
     def as_long(a: np.ndarray) -> torch.Tensor:
         return torch.as_tensor(np.ascontiguousarray(a), dtype=torch.long)
 
+    named = [(SITE_IMAGES, counts.image_counts), (SITE_WORDS, counts.word_counts)]
+    named += [(m.name, m.counts) for m in getattr(counts, "modalities", ())]
+    names = [name for name, _ in named]
+    if len(set(names)) != len(names):
+        raise ValueError(f"modality names must be distinct, got {names}")
     return ModelData(
         num_free=int(grid.num_free),
         neighbours=as_long(grid.neighbour_table(connectivity)),
         pairs=as_long(grid.neighbour_pairs(connectivity)),
         colours=tuple(as_long(c) for c in grid.colour_classes(connectivity)),
         obs_cells=as_long(counts.cells),
-        image_counts=torch.as_tensor(counts.image_counts, dtype=DTYPE),
-        word_counts=torch.as_tensor(counts.word_counts, dtype=DTYPE),
+        modalities=tuple(
+            Modality(name, parameter_site(name), torch.as_tensor(values, dtype=DTYPE))
+            for name, values in named
+        ),
     )
 
 
@@ -125,17 +184,19 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
     space), which is what the joint-distribution tests sample from.
 
     Observations enter per observed cell: the features and words of all observations that fall
-    in one cell are summed (a multinomial's counts are sufficient), so the model reads
-    ``data.image_counts`` and ``data.word_counts`` ``[M, ...]``. Counts may be real-valued
-    (probabilities, tf-idf weights): see :class:`~spcopyro.distributions.MultinomialCounts`.
+    in one cell are summed (a multinomial's counts are sufficient), so the model reads one
+    ``[M, K_m]`` count matrix per modality (``data.modalities``: images and words, and any
+    further modality, each with its own Dirichlet concentration and site names). Counts may be
+    real-valued (probabilities, tf-idf weights):
+    see :class:`~spcopyro.distributions.MultinomialCounts`.
 
     **Running it forward.** Under :func:`pyro.poutine.uncondition` it draws pi, theta, w and
     emissions, but its ``labels`` draw ignores the Potts term (a factor cannot be sampled). A draw
-    of the whole prior, MRF included, is :func:`spcopyro.gibbs.prior.sample_prior_world`: pi from
+    of the whole prior, MRF included, is :func:`spcopyro.simulate.sample_prior_world`: pi from
     its prior, labels by label-only Gibbs sweeps of the kernel (the exact conditional of the Potts
     prior given pi), then this model conditioned on those labels draws theta, w and the emissions.
 
-    Complexity: one evaluation is O(N + P + M (K + V) + L (K + V)).
+    Complexity: one evaluation is O(N + P + (M + L) sum_m K_m).
 
     Args:
         data: the map structure and per-cell counts (:func:`make_model_data`).
@@ -146,15 +207,24 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
     Robotics and AI 6:31, 2019.
     """
     L = config.num_concepts
-    K, V = data.num_feature_classes, data.vocabulary_size
 
     pi = pyro.sample(
         SITE_PI, dist.Dirichlet(torch.full((L,), config.pi_concentration, dtype=DTYPE))
     )
     with pyro.plate("concepts", L, dim=-1):
-        theta = pyro.sample(SITE_THETA, dist.Dirichlet(torch.full((K,), config.chi, dtype=DTYPE)))
-        w = pyro.sample(SITE_W, dist.Dirichlet(torch.full((V,), config.beta, dtype=DTYPE)))
-    # theta: [L, K], w: [L, V]
+        parameters = [
+            pyro.sample(
+                modality.parameter,
+                dist.Dirichlet(
+                    torch.full(
+                        (modality.counts.shape[-1],),
+                        config.concentration(modality.name),
+                        dtype=DTYPE,
+                    )
+                ),
+            )
+            for modality in data.modalities
+        ]  # theta: [L, K], w: [L, V], ...: [L, K_m]
 
     with pyro.plate("cells", data.num_free, dim=-1):
         labels = pyro.sample(SITE_LABELS, dist.Categorical(pi))  # [N]
@@ -162,15 +232,10 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
 
     observed_labels = labels[data.obs_cells]  # [M]
     with pyro.plate("observed_cells", data.obs_cells.shape[0], dim=-1):
-        if config.use_images:
-            pyro.sample(
-                SITE_IMAGES,
-                MultinomialCounts(theta[observed_labels], data.image_counts.sum(-1)),
-                obs=data.image_counts,
-            )
-        if config.use_words:
-            pyro.sample(
-                SITE_WORDS,
-                MultinomialCounts(w[observed_labels], data.word_counts.sum(-1)),
-                obs=data.word_counts,
-            )
+        for modality, probs in zip(data.modalities, parameters, strict=True):
+            if config.uses(modality.name):
+                pyro.sample(
+                    modality.name,
+                    MultinomialCounts(probs[observed_labels], modality.counts.sum(-1)),
+                    obs=modality.counts,
+                )

@@ -1,9 +1,15 @@
-r"""A fitted SpCoMapping for its user: the semantic map, each concept's words, "where is X?".
+r"""A fitted SpCoMapping for its user, whatever method fitted it: the semantic map, each
+concept's words (and items of any further modality), "where is X?".
 
-:class:`SpCoResult` wraps a Gibbs run (:class:`~spcopyro.gibbs.api.GibbsRun`) with the map and the
-vocabulary. Its answers are computed from the *MAP-visited* state (the visited state of highest
-log joint) unless ``which="final"`` is asked for. Place estimation from a word is the paper's
-eq. (19):
+:class:`SpCoResult` holds a *point estimate* of every cell's concept (``labels``: Gibbs'
+MAP-visited state, or the most probable concept under a variational posterior), optionally the
+per-cell marginals ``[N, L]`` (a variational q(C), or label frequencies over samples), point
+estimates or posterior means of pi and of every modality's distributions, and a per-iteration
+:class:`~spcopyro.inference.Trace` (the log joint for Gibbs, the ELBO for variational methods). An inference method
+hands it an :class:`~spcopyro.inference.InferenceOutput`; :meth:`SpCoResult.from_output` adds the map, the item names
+and the settings.
+
+Place estimation from a word is the paper's eq. (19):
 
 .. math::
 
@@ -20,18 +26,28 @@ labelled l (the probability that a uniformly chosen free cell has concept l), wh
 from __future__ import annotations
 
 import csv
-import difflib
+import dataclasses
 import json
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from spcopyro.config import SpCoConfig
-from spcopyro.gibbs.api import GibbsRun
-from spcopyro.gibbs.state import GibbsState
+from spcopyro.config import IMAGES, WORDS, DataPreparation, SpCoConfig
+from spcopyro.inference import InferenceOutput, Trace
 from spcopyro.maps import OccupancyGrid, load_map, save_map
+from spcopyro.semantic_map import UnknownWordError, word_index
+
+__all__ = [
+    "EmissionTable",
+    "InferenceOutput",
+    "SpCoResult",
+    "Trace",
+    "UnknownWordError",
+    "WhereAnswer",
+    "word_index",
+]
 
 RESULT_FILE = "result.npz"
 MAP_FILE = "map.yaml"
@@ -49,120 +65,175 @@ class WhereAnswer:
     """[H, W] bool: the cells labelled with ``concept``."""
 
 
-class UnknownWordError(KeyError):
-    """A word that is not in the fitted vocabulary."""
+@dataclass(frozen=True)
+class EmissionTable:
+    """One modality's per-concept distributions, with the names of what they are over."""
 
-    def __str__(self) -> str:  # KeyError quotes its message; keep it readable
-        return str(self.args[0])
-
-
-def word_index(vocabulary: tuple[str, ...], word: str) -> int:
-    """The column of ``word`` (lower-cased) in ``vocabulary``; :class:`UnknownWordError` with
-    the closest known words when it is not there."""
-    try:
-        return vocabulary.index(word.lower())
-    except ValueError:
-        close = difflib.get_close_matches(word.lower(), vocabulary, n=3)
-        hint = f"; did you mean {', '.join(close)}?" if close else ""
-        raise UnknownWordError(
-            f"word {word!r} is not in the vocabulary of {len(vocabulary)} words{hint}"
-        ) from None
+    name: str
+    """The modality (``"images"``, ``"words"``, or a further one)."""
+    items: tuple[str, ...]
+    """[K_m] the names of the items (the vocabulary for words; class numbers for images)."""
+    probabilities: np.ndarray
+    """[L, K_m] each concept's distribution over the items."""
 
 
 @dataclass(frozen=True)
 class SpCoResult:
-    """A fitted semantic map (labels, pi, theta, w) with its map and vocabulary.
+    """A fitted semantic map with its map, vocabulary, settings and trace.
 
-    ``labels_best``/``labels_final`` are ``[N]`` concepts of the free cells in the grid's
-    ``free_index`` order; :meth:`label_image` gives them as an ``[H, W]`` image (-1 off free space).
+    ``labels`` is ``[N]``: the concepts of the free cells in the grid's ``free_index`` order;
+    :meth:`label_image` gives them as an ``[H, W]`` image (-1 off free space).
     """
 
     grid: OccupancyGrid
-    vocabulary: tuple[str, ...]
     config: SpCoConfig
-    labels_best: np.ndarray  # [N] int64
-    labels_final: np.ndarray  # [N] int64
-    pi: np.ndarray  # [L] of the MAP-visited state
-    theta: np.ndarray  # [L, K]
-    w: np.ndarray  # [L, V]
-    log_joint: np.ndarray  # [S]
-    num_concepts: np.ndarray  # [S]
-    seconds: np.ndarray  # [S]
-    best_sweep: int
+    labels: np.ndarray  # [N] int64
+    pi: np.ndarray  # [L]
+    emissions: tuple[EmissionTable, ...]
+    trace: Trace
+    best_iteration: int
+    method: str = "gibbs"
+    marginals: np.ndarray | None = None  # [N, L]
+    labels_final: np.ndarray | None = None  # [N]
+    preparation: DataPreparation = DataPreparation()
+    inference: dict[str, object] = field(default_factory=dict)
     name: str = ""
 
     @classmethod
-    def from_run(
+    def from_output(
         cls,
-        run: GibbsRun,
+        output: InferenceOutput,
         grid: OccupancyGrid,
-        vocabulary: tuple[str, ...],
+        items: dict[str, tuple[str, ...]],
         config: SpCoConfig,
+        *,
+        modalities: tuple[str, ...] = (IMAGES, WORDS),
+        method: str = "gibbs",
+        preparation: DataPreparation = DataPreparation(),
         name: str = "",
     ) -> SpCoResult:
-        best: GibbsState = run.best_state
+        """The result of ``output`` on ``grid``. ``modalities``: the names of the model data's
+        modalities in order; ``items``: the item names of each (class numbers are used for a
+        modality without names, e.g. images)."""
+        tables = []
+        for modality, table in zip(modalities, output.emissions, strict=True):
+            table = np.asarray(table)
+            names = tuple(items.get(modality, ())) or tuple(str(k) for k in range(table.shape[1]))
+            if len(names) != table.shape[1]:
+                raise ValueError(
+                    f"{len(names)} item names for the {table.shape[1]} items of {modality!r}"
+                )
+            tables.append(EmissionTable(modality, names, table))
         return cls(
             grid=grid,
-            vocabulary=tuple(vocabulary),
             config=config,
-            labels_best=best.labels.numpy().astype(np.int64),
-            labels_final=run.final_state.labels.numpy().astype(np.int64),
-            pi=best.log_pi.exp().numpy(),
-            theta=best.log_theta.exp().numpy(),
-            w=best.log_w.exp().numpy(),
-            log_joint=run.log_joint,
-            num_concepts=run.num_concepts,
-            seconds=run.seconds,
-            best_sweep=run.best_sweep,
+            labels=np.asarray(output.labels, dtype=np.int64),
+            pi=np.asarray(output.pi),
+            emissions=tuple(tables),
+            trace=output.trace,
+            best_iteration=int(output.best_iteration),
+            method=method,
+            marginals=output.marginals,
+            labels_final=output.labels_final,
+            preparation=preparation,
+            inference=dict(output.options),
             name=name,
         )
 
+    # -- the parts --------------------------------------------------------------------------------
+
+    def emission(self, modality: str) -> EmissionTable:
+        """The :class:`EmissionTable` of ``modality`` (KeyError naming the known ones)."""
+        for table in self.emissions:
+            if table.name == modality:
+                return table
+        raise KeyError(
+            f"no modality {modality!r} in this result; it has {[t.name for t in self.emissions]}"
+        )
+
     @property
-    def best_log_joint(self) -> float:
-        """The log joint of the MAP-visited state (``log_joint[best_sweep]``)."""
-        return float(self.log_joint[self.best_sweep])
+    def theta(self) -> np.ndarray:
+        """[L, K] the image-feature distributions."""
+        return self.emission(IMAGES).probabilities
 
-    # -- the semantic map ------------------------------------------------------------------------
+    @property
+    def w(self) -> np.ndarray:
+        """[L, V] the word distributions."""
+        return self.emission(WORDS).probabilities
 
-    def labels(self, which: str = "best") -> np.ndarray:
-        """[N] labels of the MAP-visited (``"best"``) or the last (``"final"``) state."""
+    @property
+    def vocabulary(self) -> tuple[str, ...]:
+        """[V] the words, in the columns' order of :attr:`w`."""
+        return self.emission(WORDS).items
+
+    @property
+    def best_objective(self) -> float:
+        """The objective (log joint or ELBO) of the state the point estimate comes from."""
+        return float(self.trace.objective[self.best_iteration])
+
+    # -- the semantic map -------------------------------------------------------------------------
+
+    def labels_of(self, which: str = "best") -> np.ndarray:
+        """[N] labels of the point estimate (``"best"``) or of a sampler's last state
+        (``"final"``)."""
         if which not in ("best", "final"):
             raise ValueError(f"which must be 'best' or 'final', got {which!r}")
-        return self.labels_best if which == "best" else self.labels_final
+        if which == "final":
+            if self.labels_final is None:
+                raise ValueError(f"a {self.method} result has no final state's labels")
+            return self.labels_final
+        return self.labels
 
     def label_image(self, which: str = "best") -> np.ndarray:
         """[H, W] int64 concept of every free cell, -1 elsewhere (map image row order)."""
         image = np.full(self.grid.shape, -1, dtype=np.int64)
-        image[self.grid.free] = self.labels(which)  # free cells in raster = free_index order
+        image[self.grid.free] = self.labels_of(which)  # free cells in raster = free_index order
         return image
+
+    def concept_sizes(self) -> np.ndarray:
+        """[L] the number of cells of each concept in the point estimate."""
+        return np.bincount(self.labels, minlength=self.config.num_concepts)
 
     def concepts_in_use(self, which: str = "best") -> np.ndarray:
         """Concept ids labelling at least one cell, largest region first."""
-        sizes = np.bincount(self.labels(which), minlength=self.config.num_concepts)
+        sizes = np.bincount(self.labels_of(which), minlength=self.config.num_concepts)
         used = np.flatnonzero(sizes)
         return used[np.argsort(-sizes[used], kind="stable")]
 
+    def top_items(self, modality: str, concept: int, n: int = 3) -> list[tuple[str, float]]:
+        """The ``n`` most probable items of a concept under a modality, with probabilities."""
+        table = self.emission(modality)
+        if not table.items:
+            return []
+        row = table.probabilities[concept]
+        order = np.argsort(-row, kind="stable")[:n]
+        return [(table.items[k], float(row[k])) for k in order]
+
     def top_words(self, concept: int, n: int = 3) -> list[tuple[str, float]]:
         """The ``n`` most probable words of a concept under w_concept, with their probabilities."""
-        if not self.vocabulary:
-            return []
-        order = np.argsort(-self.w[concept], kind="stable")[:n]
-        return [(self.vocabulary[v], float(self.w[concept, v])) for v in order]
+        return self.top_items(WORDS, concept, n)
 
     def concepts(self, n_words: int = 3) -> list[dict[str, object]]:
-        """Per concept in use: id, cell count, pi, top words with probabilities."""
-        sizes = np.bincount(self.labels_best, minlength=self.config.num_concepts)
-        return [
-            {
+        """Per concept in use: id, cell count, pi, top words (and the top items of every further
+        modality) with probabilities."""
+        sizes = self.concept_sizes()
+        further = [t.name for t in self.emissions if t.name not in (IMAGES, WORDS)]
+        summaries = []
+        for c in self.concepts_in_use():
+            summary: dict[str, object] = {
                 "concept": int(c),
                 "cells": int(sizes[c]),
                 "pi": float(self.pi[c]),
                 "top_words": [[word, p] for word, p in self.top_words(int(c), n_words)],
             }
-            for c in self.concepts_in_use()
-        ]
+            for modality in further:
+                summary[f"top_{modality}"] = [
+                    [item, p] for item, p in self.top_items(modality, int(c), n_words)
+                ]
+            summaries.append(summary)
+        return summaries
 
-    # -- "where is X?" (eq. 19) ----------------------------------------------------------------
+    # -- "where is X?" (eq. 19) ------------------------------------------------------------------
 
     def concept_given_word(self, word: str, prior: str = "pi") -> np.ndarray:
         """[L] p(C = l | word) proportional to w_{l,word} p(C = l) over concepts in use (eq. 19).
@@ -172,7 +243,7 @@ class SpCoResult:
         if prior not in ("pi", "area"):
             raise ValueError(f"prior must be 'pi' or 'area', got {prior!r}")
         v = word_index(self.vocabulary, word)
-        sizes = np.bincount(self.labels_best, minlength=self.config.num_concepts)
+        sizes = self.concept_sizes()
         weight = self.pi if prior == "pi" else sizes / sizes.sum()
         score = np.where(sizes > 0, self.w[:, v] * weight, 0.0)
         return score / score.sum()
@@ -190,43 +261,60 @@ class SpCoResult:
 
     # -- saving and loading ----------------------------------------------------------------------
 
+    def settings_json(self) -> dict[str, object]:
+        """The settings of the fit: model, data preparation, inference method and its options."""
+        return {
+            "model": self.config.to_json(),
+            "data": dataclasses.asdict(self.preparation),
+            "method": self.method,
+            "inference": self.inference,
+        }
+
     def save(self, out_dir: str | os.PathLike[str]) -> Path:
         """Write the result into ``out_dir``.
 
         Files: ``labels.npy`` ([H, W] int64, -1 off free space, concept ids >= 0, map image row
-        order; the MAP-visited state), ``concepts.json`` (per concept: cells, pi, top words),
-        ``trace.csv`` (sweep, log joint, concepts in use, seconds), ``map.yaml``/``map.pgm`` (the
-        occupancy grid), ``result.npz`` (everything needed by :meth:`load`), ``config.json``.
-        Figures are written by :mod:`spcopyro.plotting`.
+        order; the point estimate), ``concepts.json`` (per concept: cells, pi, top words),
+        ``trace.csv`` (iteration, objective, concepts in use, seconds), ``map.yaml``/``map.pgm``
+        (the occupancy grid), ``result.npz`` (everything needed by :meth:`load`),
+        ``config.json`` (:meth:`settings_json`). Figures are written by :mod:`spcopyro.plotting`.
         """
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         np.save(out / "labels.npy", self.label_image())
         (out / "concepts.json").write_text(json.dumps(self.concepts(n_words=10), indent=2) + "\n")
-        (out / "config.json").write_text(json.dumps(self.config.__dict__, indent=2) + "\n")
+        (out / "config.json").write_text(json.dumps(self.settings_json(), indent=2) + "\n")
+        trace = self.trace
         with open(out / "trace.csv", "w", newline="") as f:
             writer = csv.writer(f)
-            writer.writerow(["sweep", "log_joint", "num_concepts", "seconds"])
-            for s in range(len(self.log_joint)):
+            objective = trace.objective_name.replace(" ", "_").lower()
+            writer.writerow(["iteration", objective, "num_concepts", "seconds"])
+            for s in range(len(trace.objective)):
                 writer.writerow(
-                    [s + 1, repr(float(self.log_joint[s])), int(self.num_concepts[s]),
-                     f"{self.seconds[s]:.6f}"]
+                    [s + 1, repr(float(trace.objective[s])), int(trace.num_concepts[s]),
+                     f"{trace.seconds[s]:.6f}"]
                 )  # fmt: skip
         save_map(self.grid, out / MAP_FILE)
-        np.savez_compressed(
-            out / RESULT_FILE,
-            labels_best=self.labels_best,
-            labels_final=self.labels_final,
-            pi=self.pi,
-            theta=self.theta,
-            w=self.w,
-            log_joint=self.log_joint,
-            num_concepts=self.num_concepts,
-            seconds=self.seconds,
-            best_sweep=self.best_sweep,
-            vocabulary=np.array(self.vocabulary, dtype=str),
-            name=np.array(self.name),
-        )
+        arrays: dict[str, np.ndarray] = {
+            "labels": self.labels,
+            "pi": self.pi,
+            "objective": trace.objective,
+            "num_concepts": trace.num_concepts,
+            "seconds": trace.seconds,
+            "objective_name": np.array(trace.objective_name),
+            "best_iteration": np.array(self.best_iteration),
+            "modalities": np.array([t.name for t in self.emissions], dtype=str),
+            "method": np.array(self.method),
+            "name": np.array(self.name),
+        }
+        for table in self.emissions:
+            arrays[f"emission_{table.name}"] = table.probabilities
+            arrays[f"items_{table.name}"] = np.array(table.items, dtype=str)
+        if self.marginals is not None:
+            arrays["marginals"] = self.marginals
+        if self.labels_final is not None:
+            arrays["labels_final"] = self.labels_final
+        np.savez_compressed(out / RESULT_FILE, **arrays)
         return out
 
     @classmethod
@@ -240,19 +328,39 @@ class SpCoResult:
             )
         with np.load(path, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}
-        config = SpCoConfig(**json.loads((out / "config.json").read_text()))
+        settings = json.loads((out / "config.json").read_text())
+        if "labels_best" in arrays:
+            raise ValueError(
+                f"{path} was written by spcopyro before its results became method-neutral "
+                "(labels_best/theta/w); fit again to read it with this version"
+            )
+        model = dict(settings["model"])
+        model["concentrations"] = tuple(dict(model.get("concentrations", {})).items())
+        emissions = tuple(
+            EmissionTable(
+                str(name),
+                tuple(str(v) for v in arrays[f"items_{name}"]),
+                arrays[f"emission_{name}"],
+            )
+            for name in arrays["modalities"]
+        )
         return cls(
             grid=load_map(out / MAP_FILE),
-            vocabulary=tuple(str(v) for v in arrays["vocabulary"]),
-            config=config,
-            labels_best=arrays["labels_best"],
-            labels_final=arrays["labels_final"],
+            config=SpCoConfig(**model),
+            labels=arrays["labels"],
             pi=arrays["pi"],
-            theta=arrays["theta"],
-            w=arrays["w"],
-            log_joint=arrays["log_joint"],
-            num_concepts=arrays["num_concepts"],
-            seconds=arrays["seconds"],
-            best_sweep=int(arrays["best_sweep"]),
+            emissions=emissions,
+            trace=Trace(
+                objective=arrays["objective"],
+                num_concepts=arrays["num_concepts"],
+                seconds=arrays["seconds"],
+                objective_name=str(arrays["objective_name"]),
+            ),
+            best_iteration=int(arrays["best_iteration"]),
+            method=str(arrays["method"]),
+            marginals=arrays.get("marginals"),
+            labels_final=arrays.get("labels_final"),
+            preparation=DataPreparation(**settings["data"]),
+            inference=dict(settings.get("inference", {})),
             name=str(arrays["name"]),
         )

@@ -39,14 +39,14 @@ def _result_arrays(result) -> dict[str, np.ndarray]:
 
     concepts = json.dumps(result.concepts(n_words=5), sort_keys=True)
     return {
-        "labels_best": result.labels_best,
+        "labels_best": result.labels,
         "labels_final": result.labels_final,
         "pi": result.pi,
         "theta": result.theta,
         "w": result.w,
-        "log_joint": result.log_joint,
-        "num_concepts": result.num_concepts,
-        "best_sweep": np.array([result.best_sweep]),
+        "log_joint": result.trace.objective,
+        "num_concepts": result.trace.num_concepts,
+        "best_sweep": np.array([result.best_iteration]),
         "concepts": np.frombuffer(concepts.encode(), dtype=np.uint8),
     }
 
@@ -54,21 +54,26 @@ def _result_arrays(result) -> dict[str, np.ndarray]:
 def fit_scenario(backend: str, preset_name: str, **options) -> dict[str, np.ndarray]:
     from spcopyro.config import preset
     from spcopyro.fit import fit_house
+    from spcopyro.gibbs import GibbsOptions
 
     overrides = options.pop("overrides", {})
-    config = preset(preset_name, **overrides)
-    result = fit_house(_house(), config, backend=backend, progress=False, **options)
+    gibbs = {k: overrides.pop(k) for k in ("cluster_moves", "unobserved_refresh") if k in overrides}
+    gibbs["anneal_sweeps"] = options.pop("anneal_sweeps", 0)
+    settings = preset(preset_name, **overrides)
+    sampler = GibbsOptions(backend=backend, **gibbs)
+    result = fit_house(_house(), settings, options=sampler, progress=False, **options)
     return _result_arrays(result)
 
 
-def converged_scenario(backend: str) -> dict[str, np.ndarray]:
+def converged_scenario(backend: str, max_sweeps: int = 30) -> dict[str, np.ndarray]:
     from spcopyro.config import preset
     from spcopyro.fit import fit_house_converged
+    from spcopyro.gibbs import GibbsOptions
 
-    config = preset("original-code", gamma=3.0, num_concepts=12)
+    settings = preset("original-code", gamma=3.0, num_concepts=12)
     result, diagnostics = fit_house_converged(
-        _house(), config, chains=2, block=15, max_sweeps=30, backend=backend, progress=False,
-        anneal_sweeps=4,
+        _house(), settings, chains=2, block=15, max_sweeps=max_sweeps, progress=False,
+        options=GibbsOptions(backend=backend, anneal_sweeps=4),
     )
     arrays = _result_arrays(result)
     arrays["diag_log_joint"] = diagnostics.log_joint
@@ -84,12 +89,18 @@ def mcmc_scenario(backend: str) -> dict[str, np.ndarray]:
     from spcopyro.fit import prepare_model_data
     from spcopyro.gibbs.kernel import SpCoGibbs
 
-    config = preset("original-code", gamma=3.0, num_concepts=10, cluster_moves=0.5)
-    _, data = prepare_model_data(_house(), config, 0.25)
+    from spcopyro.gibbs import GibbsOptions
+
+    settings = preset("original-code", gamma=3.0, num_concepts=10)
+    _, data = prepare_model_data(_house(), settings)
     pyro.set_rng_seed(7)
-    kernel = SpCoGibbs(backend=backend, anneal=True, save_params=("labels", "log_joint", "pi"))
+    kernel = SpCoGibbs(
+        options=GibbsOptions(backend=backend, cluster_moves=0.5),
+        anneal=True,
+        save_params=("labels", "log_joint", "pi"),
+    )
     mcmc = MCMC(kernel, num_samples=6, warmup_steps=4, disable_progbar=True)
-    mcmc.run(data, config)
+    mcmc.run(data, settings.model)
     return {k: v.numpy() for k, v in mcmc.get_samples().items()}
 
 
@@ -98,13 +109,14 @@ def prior_scenario() -> dict[str, np.ndarray]:
 
     from spcopyro.config import preset
     from spcopyro.fit import prepare_model_data
-    from spcopyro.gibbs.prior import sample_prior_world
+    from spcopyro.simulate import sample_prior_world
 
-    config = preset("original-code", gamma=3.0, num_concepts=8, feature_scaling="floor100")
-    _, data = prepare_model_data(_house(), config, 0.25)
-    data = data._replace(word_counts=data.word_counts.round())
+    settings = preset("original-code", gamma=3.0, num_concepts=8, feature_scaling="floor100")
+    _, data = prepare_model_data(_house(), settings)
+    data = data.with_counts("words", data.word_counts.round())
     pyro.set_rng_seed(5)
-    state, drawn = sample_prior_world(data, config, torch.Generator().manual_seed(5), sweeps=20)
+    generator = torch.Generator().manual_seed(5)
+    state, drawn = sample_prior_world(data, settings.model, generator, sweeps=20)
     return {
         "labels": state.labels.numpy(),
         "log_pi": state.log_pi.numpy(),
@@ -142,6 +154,8 @@ SCENARIOS = {
     ),
     "converged-torch": lambda: converged_scenario("torch"),
     "converged-numba": lambda: converged_scenario("numba"),
+    "converged-torch-one-block": lambda: converged_scenario("torch", max_sweeps=15),
+    "converged-numba-one-block": lambda: converged_scenario("numba", max_sweeps=15),
     "mcmc-torch": lambda: mcmc_scenario("torch"),
     "mcmc-numba": lambda: mcmc_scenario("numba"),
     "prior-world": prior_scenario,

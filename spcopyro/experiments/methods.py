@@ -1,6 +1,7 @@
 """The methods of the comparison (paper Table 4), each fitted to one house the same way.
 
-Rows, in order (:data:`METHODS`):
+Rows, in order (:data:`REGISTRY`; a new row -- e.g. SpCoMapping fitted by another inference
+method of :mod:`spcopyro.registry` -- is one :func:`register` call):
 
 * ``A-dp``: SpCoMapping with the weak-limit DP prior, the ``paper-dp`` preset (Section 4.1:
   alpha 1e8, beta 500, chi 1e4, gamma 4, L 120), random initial labels.
@@ -19,6 +20,7 @@ Rows, in order (:data:`METHODS`):
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -28,24 +30,14 @@ from spcopyro.baselines.cnn import cnn_semantic_map
 from spcopyro.baselines.geometry import DEFAULT_DOOR_WIDTH, geometry_semantic_map
 from spcopyro.baselines.nearest import nearest_word_map
 from spcopyro.baselines.spcoa import fit_spcoa
-from spcopyro.config import SpCoConfig, preset
-from spcopyro.data import DEFAULT_SNAP_DISTANCE, House
-from spcopyro.fit import prepare_model_data
-from spcopyro.gibbs.api import run_gibbs
-from spcopyro.metrics import SemanticMapModel, SpCoSemanticMap, adjusted_rand_index
+from spcopyro.config import SpCoSettings, preset
+from spcopyro.data import House
+from spcopyro.fit import prepare_model_data, result_of
+from spcopyro.metrics import adjusted_rand_index
+from spcopyro.registry import get_method
 from spcopyro.results import SpCoResult
+from spcopyro.semantic_map import SemanticMapModel, SpCoSemanticMap
 
-SPCO_METHODS = ("A-dp", "A-orig-g3", "B-dirichlet")
-METHODS = (*SPCO_METHODS, "C-spcoa", "D-cnn", "E-nearest", "F-geometry")
-METHOD_LABELS = {
-    "A-dp": "(A) SpCoMapping DP [paper-dp: gamma 4, L 120]",
-    "A-orig-g3": "(A') SpCoMapping DP [original-code values, gamma 3]",
-    "B-dirichlet": "(B) SpCoMapping Dirichlet [paper-dirichlet, L = #categories]",
-    "C-spcoa": "(C) SpCoA (spatial concepts over observations)",
-    "D-cnn": "(D) CNN place classes, nearest-filled",
-    "E-nearest": "(E) nearest utterance's word",
-    "F-geometry": "(F) geometry only (room segmentation)",
-}
 SPCOA_CONCEPTS = 20
 """L of the SpCoA baseline (an upper bound: its weak-limit DP leaves unneeded concepts empty)."""
 PUBLIC_DOOR_WIDTH = 2.0
@@ -58,23 +50,10 @@ class RunSettings:
     """How long each method runs."""
 
     sweeps: int = 5000
-    """Gibbs sweeps of SpCoMapping (paper: 5000)."""
+    """Iterations of SpCoMapping's inference (Gibbs sweeps; paper: 5000)."""
     spcoa_iterations: int = 200
     trace_every: int = 50
     """Keep a label map every this many sweeps for the ARI-per-sweep figure (synthetic only)."""
-
-
-def spco_config(method: str, num_categories: int | None) -> SpCoConfig:
-    """The :class:`SpCoConfig` of an SpCoMapping row (see the module docstring)."""
-    if method == "A-dp":
-        return preset("paper-dp")
-    if method == "A-orig-g3":
-        return preset("original-code", gamma=3.0)
-    if method == "B-dirichlet":
-        if not num_categories:
-            raise ValueError("B-dirichlet needs the number of categories of the house (L)")
-        return preset("paper-dirichlet", num_concepts=int(num_categories))
-    raise ValueError(f"{method!r} is not an SpCoMapping method; choose one of {SPCO_METHODS}")
 
 
 @dataclass
@@ -91,33 +70,146 @@ class Fitted:
     notes: list[str] = field(default_factory=list)
 
 
+@dataclass(frozen=True)
+class FitContext:
+    """What a row's fit may read besides the house."""
+
+    settings: RunSettings
+    seed: int = 0
+    num_categories: int | None = None
+    """The number of ground-truth categories (L of ``B-dirichlet``)."""
+    public: bool = False
+    """The house is one of the public dataset."""
+
+
+@dataclass(frozen=True)
+class Method:
+    """One row of the comparison: a label for the table and how to fit it to a house."""
+
+    key: str
+    label: str
+    fit: Callable[[House, FitContext], Fitted]
+    spcomapping: bool = False
+    """A fit of SpCoMapping itself (any inference method), not a baseline."""
+
+
+REGISTRY: dict[str, Method] = {}
+"""Every row, in table order. A new row is one :func:`register` call."""
+
+
+def register(method: Method) -> Method:
+    """Add a row to :data:`REGISTRY` (ValueError if the key is taken)."""
+    if method.key in REGISTRY:
+        raise ValueError(f"method {method.key!r} is registered already")
+    REGISTRY[method.key] = method
+    return method
+
+
 def fit_spco(
     house: House,
-    config: SpCoConfig,
+    settings: SpCoSettings,
     *,
     sweeps: int,
     seed: int,
     thin: int = 0,
-    backend: str = "auto",
+    method: str = "gibbs",
+    options: object | None = None,
 ) -> tuple[SpCoResult, tuple[np.ndarray, np.ndarray] | None]:
-    """SpCoMapping from random labels (as :func:`spcopyro.fit.fit_house` with ``init="random"``),
-    keeping a label map every ``thin`` sweeps; with a truth, their ARI per sweep (paper Fig. 5).
+    """SpCoMapping by the inference method ``method`` (:mod:`spcopyro.registry`) from random
+    labels (as :func:`spcopyro.fit.fit_house` with ``init="random"``), keeping a label map every
+    ``thin`` iterations; with a truth, their ARI per iteration (paper Fig. 5).
     """
-    counts, data = prepare_model_data(house, config, DEFAULT_SNAP_DISTANCE)
+    counts, data = prepare_model_data(house, settings)
     generator = torch.Generator().manual_seed(int(seed))
-    run = run_gibbs(
-        data, config, sweeps, generator=generator, thin=thin, backend=backend, progress=False
-    )
-    result = SpCoResult.from_run(run, house.grid, counts.vocabulary, config, name=house.name)
+    output = get_method(method).run(
+        data, settings.model, iterations=sweeps, generator=generator, options=options,
+        progress=False, thin=thin,
+    )  # fmt: skip
+    result = result_of(output, house, counts, data, settings, method)
     trace = None
-    if house.truth is not None and run.label_samples is not None:
+    if house.truth is not None and output.label_samples is not None:
         image = np.full(house.grid.shape, -1, dtype=np.int64)  # [H, W]
         aris = []
-        for sample in run.label_samples:  # [N] int16 each
+        for sample in output.label_samples:  # [N] int16 each
             image[house.grid.free] = sample  # free cells in raster = free-index order
             aris.append(adjusted_rand_index(image, house.truth))
-        trace = (run.sample_sweeps + 1, np.asarray(aris))
+        trace = (output.sample_iterations + 1, np.asarray(aris))
     return result, trace
+
+
+def spcomapping_row(
+    key: str, label: str, settings: Callable[[int | None], SpCoSettings], method: str = "gibbs"
+) -> Method:
+    """A row fitting SpCoMapping with ``settings(num_categories)`` by the inference ``method``."""
+
+    def fit(house: House, context: FitContext) -> Fitted:
+        thin = context.settings.trace_every if house.truth is not None else 0
+        result, trace = fit_spco(
+            house, settings(context.num_categories), sweeps=context.settings.sweeps,
+            seed=context.seed, thin=thin, method=method,
+        )  # fmt: skip
+        return Fitted(key, SpCoSemanticMap(result), 0.0, result=result, ari_trace=trace)
+
+    return Method(key, label, fit, spcomapping=True)
+
+
+def _dirichlet_settings(num_categories: int | None) -> SpCoSettings:
+    if not num_categories:
+        raise ValueError("B-dirichlet needs the number of categories of the house (L)")
+    return preset("paper-dirichlet", num_concepts=int(num_categories))
+
+
+def _fit_spcoa(house: House, context: FitContext) -> Fitted:
+    model = fit_spcoa(
+        house, num_concepts=SPCOA_CONCEPTS, iterations=context.settings.spcoa_iterations,
+        seed=context.seed,
+    )  # fmt: skip
+    return Fitted("C-spcoa", model, 0.0)
+
+
+def _fit_geometry(house: House, context: FitContext) -> Fitted:
+    door = PUBLIC_DOOR_WIDTH if context.public else DEFAULT_DOOR_WIDTH
+    model = geometry_semantic_map(house.grid, house.observations, door_width=door)
+    return Fitted("F-geometry", model, 0.0)
+
+
+register(spcomapping_row(
+    "A-dp", "(A) SpCoMapping DP [paper-dp: gamma 4, L 120]", lambda _: preset("paper-dp"),
+))  # fmt: skip
+register(spcomapping_row(
+    "A-orig-g3", "(A') SpCoMapping DP [original-code values, gamma 3]",
+    lambda _: preset("original-code", gamma=3.0),
+))  # fmt: skip
+register(spcomapping_row(
+    "B-dirichlet", "(B) SpCoMapping Dirichlet [paper-dirichlet, L = #categories]",
+    _dirichlet_settings,
+))  # fmt: skip
+register(Method("C-spcoa", "(C) SpCoA (spatial concepts over observations)", _fit_spcoa))
+register(Method(
+    "D-cnn", "(D) CNN place classes, nearest-filled",
+    lambda house, _: Fitted("D-cnn", cnn_semantic_map(house.grid, house.observations), 0.0),
+))  # fmt: skip
+register(Method(
+    "E-nearest", "(E) nearest utterance's word",
+    lambda house, _: Fitted("E-nearest", nearest_word_map(house.grid, house.observations), 0.0),
+))  # fmt: skip
+register(Method("F-geometry", "(F) geometry only (room segmentation)", _fit_geometry))
+
+METHODS = tuple(REGISTRY)
+"""The rows' keys in table order."""
+SPCO_METHODS = tuple(key for key, method in REGISTRY.items() if method.spcomapping)
+METHOD_LABELS = {key: method.label for key, method in REGISTRY.items()}
+
+
+def spco_settings(method: str, num_categories: int | None) -> SpCoSettings:
+    """The settings of an SpCoMapping row of the stability study (see the module docstring)."""
+    if method == "A-dp":
+        return preset("paper-dp")
+    if method == "A-orig-g3":
+        return preset("original-code", gamma=3.0)
+    if method == "B-dirichlet":
+        return _dirichlet_settings(num_categories)
+    raise ValueError(f"{method!r} is not an SpCoMapping method; choose one of {SPCO_METHODS}")
 
 
 def fit_method(
@@ -129,31 +221,15 @@ def fit_method(
     num_categories: int | None = None,
     public: bool = False,
 ) -> Fitted:
-    """Fit ``method`` (one of :data:`METHODS`) to ``house``.
+    """Fit ``method`` (a key of :data:`REGISTRY`) to ``house``.
 
     ``num_categories``: L of ``B-dirichlet``. ``public``: the house is one of the public dataset
     (the geometry baseline then uses :data:`PUBLIC_DOOR_WIDTH`).
     """
-    start = time.perf_counter()
-    if method in SPCO_METHODS:
-        config = spco_config(method, num_categories)
-        thin = settings.trace_every if house.truth is not None else 0
-        result, trace = fit_spco(house, config, sweeps=settings.sweeps, seed=seed, thin=thin)
-        fitted = Fitted(method, SpCoSemanticMap(result), 0.0, result=result, ari_trace=trace)
-    elif method == "C-spcoa":
-        model = fit_spcoa(
-            house, num_concepts=SPCOA_CONCEPTS, iterations=settings.spcoa_iterations, seed=seed
-        )
-        fitted = Fitted(method, model, 0.0)
-    elif method == "D-cnn":
-        fitted = Fitted(method, cnn_semantic_map(house.grid, house.observations), 0.0)
-    elif method == "E-nearest":
-        fitted = Fitted(method, nearest_word_map(house.grid, house.observations), 0.0)
-    elif method == "F-geometry":
-        door = PUBLIC_DOOR_WIDTH if public else DEFAULT_DOOR_WIDTH
-        model = geometry_semantic_map(house.grid, house.observations, door_width=door)
-        fitted = Fitted(method, model, 0.0)
-    else:
+    if method not in REGISTRY:
         raise ValueError(f"unknown method {method!r}; choose one of {METHODS}")
+    start = time.perf_counter()
+    context = FitContext(settings, seed=seed, num_categories=num_categories, public=public)
+    fitted = REGISTRY[method].fit(house, context)
     fitted.seconds = time.perf_counter() - start
     return fitted

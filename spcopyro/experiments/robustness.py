@@ -28,8 +28,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from spcopyro.config import SpCoConfig, preset
+from spcopyro.config import SpCoSettings, preset
 from spcopyro.fit import best_chain, fit_house, fit_house_chains
+from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.metrics import adjusted_rand_index, pairwise_chain_ari
 from spcopyro.synthetic import HouseSpec, make_house
 
@@ -50,7 +51,7 @@ class StabilitySetting(NamedTuple):
     anneal: bool = False
     """Anneal gamma over the first :data:`ANNEAL_FRACTION` of the sweeps."""
     cluster_moves: float = 0.0
-    """``SpCoConfig.cluster_moves``: the share of sweeps that start with a Swendsen-Wang move."""
+    """``GibbsOptions.cluster_moves``: the share of sweeps that start with a Swendsen-Wang move."""
 
 
 STABILITY_SETTINGS: dict[str, StabilitySetting] = {
@@ -81,11 +82,11 @@ SENSITIVITY_GRID: dict[str, tuple[float, ...]] = {
 }
 
 
-def method_config(method: str, num_categories: int) -> SpCoConfig:
-    """The configuration of an SpCoMapping row (as :func:`~.methods.spco_config`)."""
-    from spcopyro.experiments.methods import spco_config
+def method_settings(method: str, num_categories: int) -> SpCoSettings:
+    """The settings of an SpCoMapping row (as :func:`~.methods.spco_settings`)."""
+    from spcopyro.experiments.methods import spco_settings
 
-    return spco_config(method, num_categories)
+    return spco_settings(method, num_categories)
 
 
 def spread(values: Sequence[float]) -> dict[str, float]:
@@ -134,21 +135,21 @@ def stability_study(
         house = make_house(seed=seed, spec=spec)
         num_categories = len(house.category_names)
         for row in settings.values():
-            config = method_config(row["method"], num_categories).replace(
-                cluster_moves=row["cluster_moves"]
+            options = GibbsOptions(
+                cluster_moves=row["cluster_moves"], anneal_sweeps=row["anneal_sweeps"]
             )
             results = fit_house_chains(
-                house, config, sweeps=sweeps,
-                seeds=[seed + CHAIN_SEED_STRIDE * k for k in range(chains)],
-                init=row["init"], progress=False, anneal_sweeps=row["anneal_sweeps"],
+                house, method_settings(row["method"], num_categories), options=options,
+                sweeps=sweeps, seeds=[seed + CHAIN_SEED_STRIDE * k for k in range(chains)],
+                init=row["init"], progress=False,
             )  # fmt: skip
             aris = [adjusted_rand_index(r.label_image(), house.truth) for r in results]  # [K]
-            pairs = pairwise_chain_ari([r.labels_best for r in results])  # [K, K]
+            pairs = pairwise_chain_ari([r.labels for r in results])  # [K, K]
             row["single"].append(aris[0])
             row["best_of_chains"].append(aris[best_chain(results)])
             row["chain_ari"].append(float(pairs[np.triu_indices(chains, k=1)].mean()))
             row["chains"].append(
-                [{"ari": a, "best_log_joint": r.best_log_joint}
+                [{"ari": a, "best_log_joint": r.best_objective}
                  for a, r in zip(aris, results, strict=True)]
             )  # fmt: skip
     for row in settings.values():
@@ -188,9 +189,9 @@ def sensitivity_study(
         if name not in ("gamma", "alpha", "beta", "chi"):
             raise ValueError(f"sensitivity grid parameter must be gamma/alpha/beta/chi: {name!r}")
     houses = [make_house(seed=seed, spec=spec) for seed in seeds]
-    cache: dict[SpCoConfig, tuple[list[float], list[int]]] = {}
+    cache: dict[SpCoSettings, tuple[list[float], list[int]]] = {}
 
-    def scores(config: SpCoConfig) -> tuple[list[float], list[int]]:
+    def scores(config: SpCoSettings) -> tuple[list[float], list[int]]:
         if config not in cache:
             aris, concepts = [], []
             for seed, house in zip(seeds, houses, strict=True):
@@ -317,16 +318,17 @@ def heldout_sensitivity(
     """
     from spcopyro.data import list_houses, load_house
     from spcopyro.experiments.table import heldout_folds
-    from spcopyro.metrics import SpCoSemanticMap, heldout_localisation, heldout_word_prediction
+    from spcopyro.metrics import heldout_localisation, heldout_word_prediction
+    from spcopyro.semantic_map import SpCoSemanticMap
 
     _check_runs(sweeps, (0,))
     grid = SENSITIVITY_GRID if grid is None else grid
     base = preset(str(SENSITIVITY_BASE["preset"]), gamma=SENSITIVITY_BASE["gamma"])
     names = tuple(houses) if houses is not None else tuple(list_houses(root))
     loaded = [load_house(Path(root) / name) for name in names]
-    cache: dict[SpCoConfig, dict[str, float]] = {}
+    cache: dict[SpCoSettings, dict[str, float]] = {}
 
-    def scores(config: SpCoConfig) -> dict[str, float]:
+    def scores(config: SpCoSettings) -> dict[str, float]:
         if config not in cache:
             top1, top3, distance = [], [], []
             for house in loaded:

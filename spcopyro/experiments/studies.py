@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from spcopyro.config import SpCoConfig
+from spcopyro.config import SpCoSettings
 from spcopyro.experiments.methods import fit_spco
 from spcopyro.metrics import adjusted_rand_index
 from spcopyro.synthetic import FILLER_WORDS, HouseSpec, make_house
@@ -27,7 +27,7 @@ ABLATIONS = {
 
 
 def modality_ablation(
-    config: SpCoConfig,
+    config: SpCoSettings,
     *,
     sweeps: int,
     seeds: tuple[int, ...] = (0, 1, 2),
@@ -54,7 +54,7 @@ class SentenceScores:
 
 
 def sentence_study(
-    config: SpCoConfig,
+    config: SpCoSettings,
     *,
     sweeps: int,
     seed: int = 0,
@@ -71,7 +71,7 @@ def sentence_study(
         result, _ = fit_spco(
             house, config.replace(word_weighting=weighting), sweeps=sweeps, seed=seed
         )
-        sizes = np.bincount(result.labels_best, minlength=result.config.num_concepts)
+        sizes = np.bincount(result.labels, minlength=result.config.num_concepts)
         concepts = [int(c) for c in result.concepts_in_use() if sizes[c] >= min_cells]
         words = [[w for w, _ in result.top_words(c, 3)] for c in concepts]
         tops[weighting] = words

@@ -26,7 +26,7 @@ from tqdm.auto import tqdm
 from spcopyro.features.backbone import WeightsSource
 from spcopyro.features.head import PlaceClassifier
 from spcopyro.features.images import UnreadableImagesError, iter_image_batches, list_images
-from spcopyro.gibbs.api import progress_enabled
+from spcopyro.progress import progress_enabled
 
 __all__ = [
     "ExtractionResult",

@@ -1,22 +1,36 @@
-"""The enumerated-Gibbs sampler of SpCoMapping: pure sweep functions, a run loop, a Pyro kernel.
+"""The enumerated-Gibbs sampler of SpCoMapping (Algorithm 1).
 
-``sweep.py`` is the readable PyTorch reference (eqs. 13-17); ``numba_sweep.py`` the compiled
-backend with the same distribution; ``api.run_gibbs`` the run loop; ``kernel.SpCoGibbs`` the
-:class:`pyro.infer.mcmc.MCMCKernel`.
+Read in this order: ``sweep.py`` (the readable PyTorch reference of eqs. 13-17: one sweep),
+``sampler.py`` (:func:`init` and :func:`step`: a sweep with the options' moves composed around
+it), ``run.py`` (the run loop: a resumable chain, :func:`run_gibbs`), ``kernel.py``
+(:class:`SpCoGibbs`, a :class:`pyro.infer.mcmc.MCMCKernel`), ``convergence.py`` (``--sweeps
+auto``). ``numba_sweep.py`` is the compiled backend (same distribution), ``backends.py`` what a
+backend supplies, ``options.py`` the sampler's options, ``cluster.py`` the Swendsen-Wang move,
+``anneal.py`` the gamma schedule. The model's per-cell math is shared with every other inference
+method in :mod:`spcopyro.likelihood`.
 """
 
-from spcopyro.gibbs.api import GibbsRun, run_gibbs
 from spcopyro.gibbs.kernel import SpCoGibbs, mcmc_diagnostics
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.gibbs.run import GibbsChain, GibbsRun, advance, run_gibbs, start_chain
+from spcopyro.gibbs.sampler import StepInfo, init, step
 from spcopyro.gibbs.state import GibbsState
 from spcopyro.gibbs.sweep import gibbs_sweep, label_log_conditionals, log_joint
 
 __all__ = [
+    "GibbsChain",
+    "GibbsOptions",
     "GibbsRun",
     "GibbsState",
     "SpCoGibbs",
+    "StepInfo",
+    "advance",
     "gibbs_sweep",
+    "init",
     "label_log_conditionals",
     "log_joint",
     "mcmc_diagnostics",
     "run_gibbs",
+    "start_chain",
+    "step",
 ]

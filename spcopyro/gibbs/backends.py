@@ -1,53 +1,88 @@
-"""Choice of sweep implementation: the readable PyTorch reference or the compiled numba one."""
+"""What a sweep backend supplies, and the two there are: the readable PyTorch reference and the
+compiled numba one. Both sample the same distribution (tested) from different random streams."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import NamedTuple
+from typing import Protocol
 
 import torch
 
-from spcopyro.gibbs.state import GibbsState
+from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.options import BACKENDS
+from spcopyro.gibbs.state import GibbsState, SweepPlan
 from spcopyro.gibbs.sweep import gibbs_sweep
-from spcopyro.model import potts_agreements
-
-SweepFunction = Callable[..., GibbsState]
-BACKENDS = ("auto", "torch", "numba")
+from spcopyro.model import ModelData, potts_agreements
 
 
-def sweep_function(backend: str = "auto") -> SweepFunction:
-    """The sweep implementation: ``"torch"`` (the readable reference, :func:`gibbs_sweep`),
-    ``"numba"`` (compiled, same distribution; needs the optional ``numba`` package) or ``"auto"``
-    (numba when installed). Both take ``(state, data, config, generator, plan)``.
+class SweepBackend(Protocol):
+    """One implementation of Algorithm 1's sweep.
+
+    ``sweep`` draws every cell label from eq. (13), colour block by colour block, then pi and
+    each modality's distributions from eqs. (14)-(17) -- redrawing, with probability
+    1 - ``unobserved_refresh``, only the rows of concepts holding an observed cell
+    (:func:`spcopyro.gibbs.sweep.concepts_to_refresh`). Moves and schedules around the sweep
+    (cluster moves, annealing) are composed once, in :func:`spcopyro.gibbs.sampler.step`.
+    ``potts_agreements`` is E(C), the statistic the per-sweep log joint needs.
     """
+
+    name: str
+
+    def sweep(
+        self,
+        state: GibbsState,
+        data: ModelData,
+        config: SpCoConfig,
+        generator: torch.Generator,
+        plan: SweepPlan | None,
+        unobserved_refresh: float,
+    ) -> GibbsState: ...
+
+    def potts_agreements(self, labels: torch.Tensor, pairs: torch.Tensor) -> torch.Tensor: ...
+
+
+class TorchBackend:
+    """The reference: :func:`spcopyro.gibbs.sweep.gibbs_sweep`."""
+
+    name = "torch"
+
+    def sweep(self, state, data, config, generator, plan, unobserved_refresh):  # noqa: D102
+        return gibbs_sweep(state, data, config, generator, plan, unobserved_refresh)
+
+    def potts_agreements(self, labels, pairs):  # noqa: D102
+        return potts_agreements(labels, pairs)
+
+
+class NumbaBackend:
+    """The compiled sweep: :func:`spcopyro.gibbs.numba_sweep.gibbs_sweep_numba`."""
+
+    name = "numba"
+
+    def __init__(self) -> None:
+        from spcopyro.gibbs import numba_sweep  # ImportError without numba
+
+        self._module = numba_sweep
+
+    def sweep(self, state, data, config, generator, plan, unobserved_refresh):  # noqa: D102
+        return self._module.gibbs_sweep_numba(
+            state, data, config, generator, plan, unobserved_refresh
+        )
+
+    def potts_agreements(self, labels, pairs):  # noqa: D102
+        return self._module.potts_agreements_numba(labels, pairs)
+
+
+def get_backend(backend: str = "auto") -> SweepBackend:
+    """The backend named ``backend``: ``"torch"``, ``"numba"`` (needs the optional ``numba``
+    package: ImportError without it) or ``"auto"`` (numba when installed, else torch)."""
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; choose one of {BACKENDS}")
     if backend == "torch":
-        return gibbs_sweep
+        return TorchBackend()
     try:
-        from spcopyro.gibbs.numba_sweep import gibbs_sweep_numba
+        return NumbaBackend()
     except ImportError:
         if backend == "numba":
             raise ImportError(
                 "backend 'numba' needs the numba package: pip install 'spcopyro[fast]'"
             ) from None
-        return gibbs_sweep
-    return gibbs_sweep_numba
-
-
-class Backend(NamedTuple):
-    """A sweep implementation and the matching Potts statistic E(C) (for the per-sweep trace)."""
-
-    name: str
-    sweep: SweepFunction
-    potts_agreements: Callable[[torch.Tensor, torch.Tensor], torch.Tensor]
-
-
-def get_backend(backend: str = "auto") -> Backend:
-    """The :class:`Backend` named ``backend`` (see :func:`sweep_function`)."""
-    sweep = sweep_function(backend)
-    if sweep is gibbs_sweep:
-        return Backend("torch", gibbs_sweep, potts_agreements)
-    from spcopyro.gibbs.numba_sweep import potts_agreements_numba
-
-    return Backend("numba", sweep, potts_agreements_numba)
+        return TorchBackend()

@@ -42,10 +42,10 @@ import torch
 from scipy.sparse.csgraph import connected_components
 
 from spcopyro.config import SpCoConfig
-from spcopyro.gibbs.random import sample_categorical_logits
 from spcopyro.gibbs.state import GibbsState
-from spcopyro.gibbs.sweep import observation_log_likelihood
+from spcopyro.likelihood import observation_log_likelihood
 from spcopyro.model import DTYPE, ModelData
+from spcopyro.random_draws import sample_categorical_logits
 
 
 def bond_clusters(
@@ -70,7 +70,7 @@ def cluster_log_weights(
     """[A, L] log prod_{i in A} phi_i(l): ``|A| log pi_l`` plus the observed cells' terms."""
     sizes = torch.bincount(cluster, minlength=count).to(DTYPE)  # [A]
     weights = sizes[:, None] * state.log_pi[None, :]  # [A, L]
-    observed = observation_log_likelihood(state.log_theta, state.log_w, data, config)  # [M, L]
+    observed = observation_log_likelihood(state.log_emissions, data, config)  # [M, L]
     return weights.index_add_(0, cluster[data.obs_cells], observed)
 
 
@@ -91,11 +91,14 @@ def cluster_move(
 
 
 def maybe_cluster_move(
-    state: GibbsState, data: ModelData, config: SpCoConfig, generator: torch.Generator
+    state: GibbsState,
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    probability: float,
 ) -> GibbsState:
-    """:func:`cluster_move` with probability ``config.cluster_moves``, else ``state`` (the first
-    step of both sweep backends; draws nothing from ``generator`` when the probability is 0)."""
-    probability = config.cluster_moves
+    """:func:`cluster_move` with probability ``probability`` (``GibbsOptions.cluster_moves``),
+    else ``state`` (draws nothing from ``generator`` when the probability is 0)."""
     if probability <= 0.0:
         return state
     if probability < 1.0 and float(torch.rand((), dtype=DTYPE, generator=generator)) >= probability:

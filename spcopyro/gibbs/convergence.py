@@ -16,12 +16,13 @@ The chains stop when R-hat < ``threshold`` (1.05 by default) for *both* statisti
 ``max_sweeps``. Labels themselves are never compared (concept numbers switch between chains).
 The answer is the chain of highest log joint, with the diagnostics of every check.
 
-With ``anneal_sweeps`` A > 0 every chain's first block starts with A sweeps of gamma annealing
-(:mod:`spcopyro.gibbs.anneal`); they are burn-in, left out of the R-hat windows and of
-``max_sweeps`` (the merged trace keeps them, first).
+With ``options.anneal_sweeps`` A > 0 every chain's first block starts with A sweeps of gamma
+annealing (:mod:`spcopyro.gibbs.anneal`); they are burn-in, left out of the R-hat windows and of
+``max_sweeps`` (the trace keeps them, first).
 
-Chains run one after another, each block continuing from the chain's last labels (the globals
-pi, theta, w are drawn anew given them, itself a Gibbs step, so the continuation is exact).
+Chains run one after another, each block continuing its chain where the last one stopped
+(:func:`spcopyro.gibbs.run.advance`: same state, same generator), so K chains of S sweeps in
+blocks are exactly K chains of S sweeps.
 """
 
 from __future__ import annotations
@@ -35,8 +36,8 @@ import torch
 from pyro.ops.stats import split_gelman_rubin
 
 from spcopyro.config import SpCoConfig
-from spcopyro.gibbs.anneal import check_anneal_sweeps
-from spcopyro.gibbs.api import GibbsRun, run_gibbs
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.gibbs.run import GibbsRun, advance, start_chain
 from spcopyro.model import ModelData
 
 DEFAULT_CHAINS = 4
@@ -143,54 +144,26 @@ class ConvergenceDiagnostics:
         }
 
 
-@dataclass
-class _Chain:
-    generator: torch.Generator
-    labels: torch.Tensor | None
-    runs: list[GibbsRun] = field(default_factory=list)
-
-    def merged(self) -> GibbsRun:
-        """One :class:`GibbsRun` of all blocks: traces concatenated, the best visited state."""
-        offsets = np.cumsum([0] + [len(r.log_joint) for r in self.runs])
-        seconds, elapsed = [], 0.0
-        for run in self.runs:
-            seconds.append(run.seconds + elapsed)
-            elapsed += float(run.seconds[-1])
-        best_block = int(np.argmax([r.log_joint[r.best_sweep] for r in self.runs]))
-        best = self.runs[best_block]
-        return GibbsRun(
-            final_state=self.runs[-1].final_state,
-            best_state=best.best_state,
-            best_sweep=int(offsets[best_block] + best.best_sweep),
-            log_joint=np.concatenate([r.log_joint for r in self.runs]),
-            num_concepts=np.concatenate([r.num_concepts for r in self.runs]),
-            seconds=np.concatenate(seconds),
-            label_samples=None,
-            sample_sweeps=None,
-        )
-
-
 def run_until_converged(
     data: ModelData,
     config: SpCoConfig,
     *,
+    options: GibbsOptions = GibbsOptions(),
     chains: int = DEFAULT_CHAINS,
     block: int = DEFAULT_BLOCK,
     max_sweeps: int = DEFAULT_MAX_SWEEPS,
     threshold: float = DEFAULT_THRESHOLD,
     seed: int = 0,
     init_labels: Sequence[torch.Tensor | None] | None = None,
-    backend: str = "auto",
     progress: bool | None = None,
-    anneal_sweeps: int = 0,
 ) -> tuple[GibbsRun, ConvergenceDiagnostics]:
     """Run ``chains`` chains (seeds ``seed``, ``seed + 1``, ...) in blocks of ``block`` sweeps until
     the split R-hat of the log joint and of the number of concepts are both below ``threshold``
     (see the module docstring), or ``max_sweeps`` sweeps per chain.
 
-    ``init_labels``: one ``[N]`` start (or None for random) per chain. ``anneal_sweeps``: gamma
-    annealing before the first block (see the module docstring).
-    Returns the merged run of the chain of highest log joint, and the diagnostics.
+    ``init_labels``: one ``[N]`` start (or None for random) per chain. ``options``: the sampler's
+    options; its ``anneal_sweeps`` come before the first block (see the module docstring).
+    Returns the run of the chain of highest log joint, and the diagnostics.
     """
     if chains < 2:
         raise ValueError(f"chains must be >= 2 to compare chains, got {chains}")
@@ -200,13 +173,13 @@ def run_until_converged(
         raise ValueError(f"max_sweeps must be >= 1, got {max_sweeps}")
     if not (math.isfinite(threshold) and threshold > 1.0):
         raise ValueError(f"threshold must be a finite number > 1, got {threshold}")
-    anneal_sweeps = check_anneal_sweeps(anneal_sweeps)
+    anneal_sweeps = options.anneal_sweeps
     starts = list(init_labels) if init_labels is not None else [None] * chains
     if len(starts) != chains:
         raise ValueError(f"init_labels has {len(starts)} entries for {chains} chains")
     seeds = tuple(int(seed) + k for k in range(chains))
-    states = [
-        _Chain(torch.Generator().manual_seed(s), start)
+    runs = [
+        start_chain(data, config, options=options, seed=s, init_labels=start)
         for s, start in zip(seeds, starts, strict=True)
     ]
 
@@ -215,28 +188,17 @@ def run_until_converged(
     while done < max_sweeps and not converged:
         sweeps = min(block, max_sweeps - done)
         anneal = anneal_sweeps if done == 0 else 0
-        for chain in states:
-            run = run_gibbs(
-                data,
-                config,
-                anneal + sweeps,
-                generator=chain.generator,
-                init_labels=chain.labels,
-                backend=backend,
-                progress=progress,
-                anneal_sweeps=anneal,
-            )
-            chain.runs.append(run)
-            chain.labels = run.final_state.labels
+        for chain in runs:
+            advance(chain, anneal + sweeps, progress=progress)
         done += sweeps
-        log_joint = np.stack([np.concatenate([r.log_joint for r in c.runs]) for c in states])
-        concepts = np.stack([np.concatenate([r.num_concepts for r in c.runs]) for c in states])
+        log_joint = np.array([chain.log_joint for chain in runs])  # [K, S]
+        concepts = np.array([chain.num_concepts for chain in runs], dtype=np.float64)  # [K, S]
         converged, check = check_convergence(
             log_joint[:, anneal_sweeps:], concepts[:, anneal_sweeps:], threshold
         )
         checks.append(check)
 
-    merged = [chain.merged() for chain in states]
+    merged = [chain.to_run() for chain in runs]
     best_values = np.array([run.log_joint[run.best_sweep] for run in merged])  # [K]
     best_chain = int(np.argmax(best_values))
     diagnostics = ConvergenceDiagnostics(

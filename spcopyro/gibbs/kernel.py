@@ -7,7 +7,8 @@
     mcmc.run(data, config)          # the model's arguments, as for NUTS
     mcmc.get_samples()["pi"]        # [num_samples * num_chains, L]
 
-The work is done by the pure functions of :mod:`spcopyro.gibbs.sweep`; this class adapts them to
+The work is done by the pure functions :func:`~spcopyro.gibbs.sampler.init` and
+:func:`~spcopyro.gibbs.sampler.step` (the same ones the run loop uses); this class adapts them to
 Pyro's MCMC driver and works around its habits:
 
 * MCMC concatenates every saved param into one float tensor per sample, so integer sites would come
@@ -18,7 +19,7 @@ Pyro's MCMC driver and works around its habits:
 * MCMC keeps every saved param of every sample in memory: by default only the small sites
   (``pi``, ``log_joint``, ``num_concepts``) are saved; add ``labels`` (N values a sample),
   ``theta`` or ``w`` through ``save_params`` when you want them and have the memory. For long runs
-  with thinned label maps use :func:`spcopyro.gibbs.api.run_gibbs`.
+  with thinned label maps use :func:`spcopyro.gibbs.run.run_gibbs`.
 * MCMC never calls ``end_warmup``, and with ``num_chains > 1`` runs each chain in a subprocess (the
   kernel pickles; each chain's generator is seeded from the worker's torch RNG, which MCMC seeds).
 """
@@ -34,19 +35,12 @@ from pyro.infer.mcmc.mcmc_kernel import MCMCKernel
 from pyro.infer.mcmc.util import diagnostics as pyro_diagnostics
 
 from spcopyro.config import SpCoConfig
-from spcopyro.gibbs.anneal import annealed_config
-from spcopyro.gibbs.backends import sweep_function
-from spcopyro.gibbs.init import initial_state
+from spcopyro.gibbs.backends import get_backend
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.gibbs.sampler import init, step, trace_point
 from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
-from spcopyro.gibbs.sweep import log_joint_constant, log_joint_variable, num_concepts_in_use
-from spcopyro.model import (
-    SITE_LABELS,
-    SITE_PI,
-    SITE_THETA,
-    SITE_W,
-    ModelData,
-    spcomapping_model,
-)
+from spcopyro.likelihood import log_joint_constant, num_concepts_in_use
+from spcopyro.model import SITE_LABELS, SITE_PI, ModelData, spcomapping_model
 
 DEFAULT_SAVE_PARAMS = ("log_joint", "num_concepts", "pi")
 ALL_PARAMS = ("labels", "log_joint", "num_concepts", "pi", "theta", "w")
@@ -70,8 +64,9 @@ class SpCoGibbs(MCMCKernel):
             in :meth:`setup`, so model and kernel cannot drift apart).
         init_labels: [N] starting labels (random if None).
         save_params: which of ``labels``, ``log_joint``, ``num_concepts``, ``pi``, ``theta``, ``w``
-            MCMC keeps for every sample.
-        backend: sweep implementation, see :func:`spcopyro.gibbs.backends.sweep_function`.
+            (and the parameter site of any further modality) MCMC keeps for every sample.
+        options: the sampler's options (:class:`~spcopyro.gibbs.options.GibbsOptions`: backend,
+            cluster moves, partial refresh); its ``anneal_sweeps`` must be 0 -- use ``anneal``.
         anneal: ramp the labels' coupling gamma up over MCMC's ``warmup_steps``
             (:mod:`spcopyro.gibbs.anneal`); the saved samples are all from the target model.
     """
@@ -81,14 +76,17 @@ class SpCoGibbs(MCMCKernel):
         model: Callable[[ModelData, SpCoConfig], None] = spcomapping_model,
         init_labels: torch.Tensor | None = None,
         save_params: Sequence[str] = DEFAULT_SAVE_PARAMS,
-        backend: str = "auto",
+        options: GibbsOptions = GibbsOptions(),
         anneal: bool = False,
     ) -> None:
-        unknown = set(save_params) - set(ALL_PARAMS)
-        if unknown:
-            raise ValueError(f"unknown save_params {sorted(unknown)}; choose from {ALL_PARAMS}")
+        if options.anneal_sweeps:
+            raise ValueError(
+                "SpCoGibbs anneals over MCMC's warmup steps: pass anneal=True, not "
+                f"options.anneal_sweeps={options.anneal_sweeps}"
+            )
         self.model = model
-        self._sweep = sweep_function(backend)
+        self.options = options
+        self._backend = get_backend(options.backend)
         self.init_labels = init_labels
         self.anneal = bool(anneal)
         self.save_params = sorted(save_params)
@@ -103,21 +101,29 @@ class SpCoGibbs(MCMCKernel):
         self._data, self._config = data, config
         self._warmup_steps, self._steps = warmup_steps, 0
         self._check_model_sites()
+        unknown = set(self.save_params) - set(self._all_params())
+        if unknown:
+            raise ValueError(
+                f"unknown save_params {sorted(unknown)}; choose from {self._all_params()}"
+            )
         seed = int(torch.randint(2**62, ()))  # MCMC seeds torch's global RNG per chain
         self._generator = torch.Generator().manual_seed(seed)
         self._plan = make_sweep_plan(data)
-        self._state = initial_state(data, config, self._generator, self.init_labels)
-        self._log_joint_constant = log_joint_constant(data, config, self._state)
+        self._state = init(data, config, self._generator, self.init_labels)
+        self._log_joint_constant = float(log_joint_constant(data, config))
+        anneal_sweeps = warmup_steps if self.anneal else 0
+        self._step_options = self.options.replace(anneal_sweeps=anneal_sweeps)
+
+    def _all_params(self) -> tuple[str, ...]:
+        parameters = tuple(m.parameter for m in self._data.modalities)
+        return tuple(sorted(set(ALL_PARAMS) | set(parameters)))
 
     def _check_model_sites(self) -> None:
         trace = poutine.trace(self.model).get_trace(self._data, self._config)
         L = self._config.num_concepts
-        expected = {
-            SITE_PI: (L,),
-            SITE_THETA: (L, self._data.num_feature_classes),
-            SITE_W: (L, self._data.vocabulary_size),
-            SITE_LABELS: (self._data.num_free,),
-        }
+        expected = {SITE_PI: (L,), SITE_LABELS: (self._data.num_free,)}
+        for modality in self._data.modalities:
+            expected[modality.parameter] = (L, modality.counts.shape[-1])
         for name, shape in expected.items():
             if name not in trace.nodes:
                 raise ValueError(f"model has no sample site {name!r}, which SpCoGibbs samples")
@@ -130,16 +136,19 @@ class SpCoGibbs(MCMCKernel):
     def _params(self, state: GibbsState) -> dict[str, torch.Tensor]:
         values = {
             "labels": lambda: state.labels,
-            "log_joint": lambda: (
-                self._log_joint_constant + log_joint_variable(state, self._data, self._config)
+            "log_joint": lambda: torch.tensor(
+                trace_point(
+                    state, self._data, self._config, self._log_joint_constant, self._backend
+                )[0],
+                dtype=torch.float64,
             ),
             "num_concepts": lambda: torch.tensor(
                 float(num_concepts_in_use(state.labels, self._config.num_concepts))
             ),
             "pi": lambda: state.log_pi.exp(),
-            "theta": lambda: state.log_theta.exp(),
-            "w": lambda: state.log_w.exp(),
         }
+        for modality, table in zip(self._data.modalities, state.log_emissions, strict=True):
+            values[modality.parameter] = lambda table=table: table.exp()
         return {name: values[name]() for name in self.save_params}
 
     @property
@@ -155,10 +164,10 @@ class SpCoGibbs(MCMCKernel):
 
     def sample(self, params: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         assert self._state is not None and self._generator is not None, "setup() not called"
-        config = self._config
-        if self.anneal:
-            config = annealed_config(config, self._steps, self._warmup_steps)
-        self._state = self._sweep(self._state, self._data, config, self._generator, self._plan)
+        self._state, _ = step(
+            self._state, self._data, self._config, self._generator, sweep=self._steps,
+            options=self._step_options, backend=self._backend, plan=self._plan,
+        )  # fmt: skip
         self._steps += 1
         return self._params(self._state)
 

@@ -438,69 +438,22 @@ def label_kernel(num_neighbours: int) -> Callable[..., None]:
 
 
 @njit(cache=True)
-def _concept_statistics(
-    labels: np.ndarray,
-    obs_cells: np.ndarray,
-    image_counts: np.ndarray,
-    word_counts: np.ndarray,
-    use_images: bool,
-    use_words: bool,
-    cells_per_concept: np.ndarray,
-    images: np.ndarray,
-    words: np.ndarray,
-) -> None:
-    """Fill the zeroed cells_per_concept [1, L], images [L, K], words [L, V] (eqs. 14-17)."""
+def _count_cells(labels: np.ndarray, cells_per_concept: np.ndarray) -> None:
+    """Add 1 to the zeroed cells_per_concept [1, L] for every label (eq. 14's m_l)."""
     for i in range(labels.shape[0]):
         cells_per_concept[0, labels[i]] += 1.0
-    for m in range(obs_cells.shape[0]):
-        c = labels[obs_cells[m]]
-        if use_images:
-            for k in range(image_counts.shape[1]):
-                images[c, k] += image_counts[m, k]
-        if use_words:
-            for v in range(word_counts.shape[1]):
-                words[c, v] += word_counts[m, v]
 
 
 @njit(cache=True)
-def _sample_globals_kernel(
-    labels: np.ndarray,
-    obs_cells: np.ndarray,
-    image_counts: np.ndarray,
-    word_counts: np.ndarray,
-    use_images: bool,
-    use_words: bool,
-    pi_concentration: float,
-    chi: float,
-    beta: float,
-    log_pi: np.ndarray,
-    log_theta: np.ndarray,
-    log_w: np.ndarray,
-    state: np.ndarray,
-) -> tuple[int, int, float]:
-    """Fill log_pi [1, L], log_theta [L, K], log_w [L, V] with *unnormalised* log-gamma draws
-    of the conjugate conditionals' concentrations (labels [N] valid, in [0, L)).
-
-    Returns (-1, -1, 0), or (which of pi / theta / w, flat index, value) of the first
-    concentration that is not finite and positive (negative or NaN counts).
-    """
-    cells_per_concept = np.zeros(log_pi.shape)
-    images = np.zeros(log_theta.shape)
-    words = np.zeros(log_w.shape)
-    _concept_statistics(
-        labels, obs_cells, image_counts, word_counts, use_images, use_words,
-        cells_per_concept, images, words,
-    )  # fmt: skip
-    bad = _fill_log_gamma(pi_concentration, cells_per_concept, log_pi, state)
-    if bad >= 0:
-        return 0, bad, pi_concentration + cells_per_concept.ravel()[bad]
-    bad = _fill_log_gamma(chi, images, log_theta, state)
-    if bad >= 0:
-        return 1, bad, chi + images.ravel()[bad]
-    bad = _fill_log_gamma(beta, words, log_w, state)
-    if bad >= 0:
-        return 2, bad, beta + words.ravel()[bad]
-    return -1, -1, 0.0
+def _modality_statistics(
+    labels: np.ndarray, obs_cells: np.ndarray, counts: np.ndarray, out: np.ndarray
+) -> None:
+    """Add each observed cell's counts [M, K_m] to its concept's row of the zeroed out [L, K_m]
+    (eqs. 16-17)."""
+    for m in range(obs_cells.shape[0]):
+        c = labels[obs_cells[m]]
+        for k in range(counts.shape[1]):
+            out[c, k] += counts[m, k]
 
 
 # ----------------------------------------------------------------------------- python side
@@ -519,21 +472,35 @@ def _check_data(data: ModelData) -> None:
         M and (int(data.obs_cells.min()) < 0 or int(data.obs_cells.max()) >= N)
     ):
         raise ValueError(f"ModelData.obs_cells must be [M] free indices in [0, {N})")
-    for name in ("image_counts", "word_counts"):
-        shape = tuple(getattr(data, name).shape)
+    for modality in data.modalities:
+        shape = tuple(modality.counts.shape)
         if len(shape) != 2 or shape[0] != M:
-            raise ValueError(f"ModelData.{name} has shape {shape}, expected ({M}, ...)")
+            raise ValueError(
+                f"the counts of modality {modality.name!r} have shape {shape}, expected ({M}, ...)"
+            )
 
 
 def _check_state(state: GibbsState, data: ModelData, config: SpCoConfig) -> None:
     """Shapes of the state against data and config; raises ValueError naming the mismatch."""
     _check_data(data)
-    L, K, V = config.num_concepts, data.num_feature_classes, data.vocabulary_size
-    expected = {"labels": (data.num_free,), "log_pi": (L,), "log_theta": (L, K), "log_w": (L, V)}
+    L = config.num_concepts
+    expected = {"labels": (data.num_free,), "log_pi": (L,)}
     for name, shape in expected.items():
         actual = tuple(getattr(state, name).shape)
         if actual != shape:
             raise ValueError(f"GibbsState.{name} has shape {actual}, expected {shape}")
+    if len(state.log_emissions) != len(data.modalities):
+        raise ValueError(
+            f"GibbsState.log_emissions has {len(state.log_emissions)} tables for "
+            f"{len(data.modalities)} modalities"
+        )
+    for modality, table in zip(data.modalities, state.log_emissions, strict=True):
+        shape = (L, modality.counts.shape[1])
+        if tuple(table.shape) != shape:
+            raise ValueError(
+                f"GibbsState.log_emissions of {modality.name!r} has shape "
+                f"{tuple(table.shape)}, expected {shape}"
+            )
 
 
 def _extended_labels(labels: torch.Tensor, num_neighbours: int, config: SpCoConfig) -> np.ndarray:
@@ -560,19 +527,24 @@ def _background_table(state: GibbsState, data: ModelData, config: SpCoConfig) ->
     """[M + 1, L + D] the per-cell backgrounds B (module doc), the D last columns 0.
 
     Row m < M: exp(log pi + loglik[m] - max), loglik [M, L] = f_m . log theta_l + S_m . log w_l
-    (eqs. 5, 7; the reference's ``observation_log_likelihood``); row M: exp(log pi - max).
+    (+ any further modality; eqs. 5, 7; :func:`spcopyro.likelihood.observation_log_likelihood`);
+    row M: exp(log pi - max).
     The zero columns are the sentinel labels of missing neighbours.
     """
     L, D, M = config.num_concepts, data.neighbours.shape[1], data.obs_cells.shape[0]
     # The products run in torch (MKL): numpy's OpenBLAS threads fight torch's OpenMP threads.
     logits_t = torch.zeros(M + 1, L, dtype=torch.float64)  # [M + 1, L]
-    if config.use_images:
-        log_theta = state.log_theta.detach().to(torch.float64)
-        counts = data.image_counts.to(torch.float64)
-        torch.matmul(counts, log_theta.T, out=logits_t[:M])  # [M, K] @ [K, L]
-    if config.use_words:
-        log_w = state.log_w.detach().to(torch.float64)
-        logits_t[:M].addmm_(data.word_counts.to(torch.float64), log_w.T)  # [M, V] @ [V, L]
+    for index, (modality, table) in enumerate(
+        zip(data.modalities, state.log_emissions, strict=True)
+    ):
+        if not config.uses(modality.name):
+            continue
+        log_phi = table.detach().to(torch.float64)  # [L, K_m]
+        counts = modality.counts.to(torch.float64)  # [M, K_m]
+        if index == 0:
+            torch.matmul(counts, log_phi.T, out=logits_t[:M])  # [M, K] @ [K, L]
+        else:
+            logits_t[:M].addmm_(counts, log_phi.T)  # [M, K_m] @ [K_m, L]
     logits = logits_t.numpy()
     logits[M] = 0.0
     logits += _as_array(state.log_pi, np.float64)
@@ -582,7 +554,7 @@ def _background_table(state: GibbsState, data: ModelData, config: SpCoConfig) ->
         where = f"the observed cell in row {row} of data.obs_cells" if row < M else "pi"
         raise ValueError(
             f"log pi + observation log-likelihood is not finite for {where}: NaN or infinite "
-            "values in GibbsState.log_pi / log_theta / log_w or in the data's counts"
+            "values in GibbsState.log_pi / log_emissions or in the data's counts"
         )
     logits -= top
     table = np.zeros((M + 1, L + D))  # [M + 1, L + D]
@@ -610,84 +582,78 @@ def _sample_labels_array(
     return labels
 
 
+def _statistics(
+    labels: np.ndarray, obs_cells: np.ndarray, data: ModelData, config: SpCoConfig
+) -> tuple[np.ndarray, list[np.ndarray]]:
+    """cells_per_concept [1, L] and, per modality, the counts per concept [L, K_m] (zeros for a
+    switched-off modality)."""
+    L = config.num_concepts
+    cells_per_concept = np.zeros((1, L))
+    _count_cells(labels, cells_per_concept)
+    per_modality = []
+    for modality in data.modalities:
+        out = np.zeros((L, modality.counts.shape[1]))
+        if config.uses(modality.name):
+            _modality_statistics(labels, obs_cells, _as_array(modality.counts, np.float64), out)
+        per_modality.append(out)
+    return cells_per_concept, per_modality
+
+
+def _bad_concentration(name: str, statistics: np.ndarray, base: float, index: int) -> ValueError:
+    row, column = divmod(index, statistics.shape[1])
+    value = base + statistics.ravel()[index]
+    return ValueError(
+        f"the Dirichlet concentration of {name}[{row}, {column}] is {value!r}, not finite and "
+        "positive: negative or non-finite values in the data's counts?"
+    )
+
+
 def _sample_globals_arrays(
     labels: np.ndarray,
     data: ModelData,
     config: SpCoConfig,
     rng: np.ndarray,
-    previous: tuple[torch.Tensor, torch.Tensor] | None = None,
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """(log pi, log theta, log w) given valid int64 labels [N] (or longer), drawn with ``rng``.
+    previous: tuple[torch.Tensor, ...] | None = None,
+    unobserved_refresh: float = 1.0,
+) -> tuple[torch.Tensor, tuple[torch.Tensor, ...]]:
+    """(log pi, per-modality log distributions) given valid int64 labels [N] (or longer), drawn
+    with ``rng``: pi first, then each modality in ``data.modalities`` order.
 
-    With ``previous`` (log theta, log w) and ``config.unobserved_refresh`` < 1, a sweep keeps,
-    with probability 1 - unobserved_refresh, the rows of concepts holding no observed cell (the
-    reference's :func:`~spcopyro.gibbs.sweep.concepts_to_refresh`).
+    With ``previous`` (the state's log distributions) and ``unobserved_refresh`` < 1, a sweep
+    keeps, with probability 1 - unobserved_refresh, the rows of concepts holding no observed cell
+    (the reference's :func:`~spcopyro.gibbs.sweep.concepts_to_refresh`; here the coin is the
+    first draw of the global step).
     """
-    L, K, V = config.num_concepts, data.num_feature_classes, data.vocabulary_size
     labels = labels[: data.num_free]
     obs_cells = _as_array(data.obs_cells, np.int64)
-    if previous is not None and config.unobserved_refresh < 1.0:
-        if _uniform(rng) >= config.unobserved_refresh:
-            return _sample_globals_partial(labels, obs_cells, data, config, rng, previous)
-    log_pi, log_theta, log_w = np.empty((1, L)), np.empty((L, K)), np.empty((L, V))
-    which, index, value = _sample_globals_kernel(
-        labels, obs_cells,
-        _as_array(data.image_counts, np.float64), _as_array(data.word_counts, np.float64),
-        bool(config.use_images), bool(config.use_words),
-        float(config.pi_concentration), float(config.chi), float(config.beta),
-        log_pi, log_theta, log_w, rng,
-    )  # fmt: skip
-    if which >= 0:
-        name, source = (("pi", "?"), ("theta", "image_counts"), ("w", "word_counts"))[which]
-        row, column = divmod(index, (L, K, V)[which])
-        raise ValueError(
-            f"the Dirichlet concentration of {name}[{row}, {column}] is {value!r}, not finite and "
-            f"positive: negative or non-finite values in data.{source}?"
-        )
-    return (
-        torch.from_numpy(_normalise_log_rows(log_pi)[0]),
-        torch.from_numpy(_normalise_log_rows(log_theta)),
-        torch.from_numpy(_normalise_log_rows(log_w)),
+    partial = (
+        previous is not None and unobserved_refresh < 1.0 and _uniform(rng) >= unobserved_refresh
     )
-
-
-def _sample_globals_partial(
-    labels: np.ndarray,
-    obs_cells: np.ndarray,
-    data: ModelData,
-    config: SpCoConfig,
-    rng: np.ndarray,
-    previous: tuple[torch.Tensor, torch.Tensor],
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """pi in full; theta and w only for the concepts holding an observed cell, the other rows
-    kept from ``previous``."""
-    L = config.num_concepts
-    cells_per_concept = np.zeros((1, L))
-    images = np.zeros((L, data.num_feature_classes))
-    words = np.zeros((L, data.vocabulary_size))
-    _concept_statistics(
-        labels, obs_cells, _as_array(data.image_counts, np.float64),
-        _as_array(data.word_counts, np.float64), bool(config.use_images),
-        bool(config.use_words), cells_per_concept, images, words,
-    )  # fmt: skip
-    rows = np.unique(labels[obs_cells])  # [G] concepts holding observed cells
-    log_pi = np.empty((1, L))
-    theta_rows = np.empty((rows.size, images.shape[1]))  # [G, K]
-    w_rows = np.empty((rows.size, words.shape[1]))  # [G, V]
-    for base, stats, draw in (
-        (config.pi_concentration, cells_per_concept, log_pi),
-        (config.chi, np.ascontiguousarray(images[rows]), theta_rows),
-        (config.beta, np.ascontiguousarray(words[rows]), w_rows),
-    ):
-        if _fill_log_gamma(float(base), stats, draw, rng) >= 0:
-            raise ValueError(
-                "a Dirichlet concentration is not finite and positive: negative or non-finite "
-                "values in data.image_counts or data.word_counts?"
-            )
-    log_theta, log_w = previous[0].clone(), previous[1].clone()
-    log_theta[torch.from_numpy(rows)] = torch.from_numpy(_normalise_log_rows(theta_rows))
-    log_w[torch.from_numpy(rows)] = torch.from_numpy(_normalise_log_rows(w_rows))
-    return torch.from_numpy(_normalise_log_rows(log_pi)[0]), log_theta, log_w
+    cells_per_concept, statistics = _statistics(labels, obs_cells, data, config)
+    rows = np.unique(labels[obs_cells]) if partial else None  # [G] concepts with observed cells
+    log_pi = np.empty((1, config.num_concepts))
+    bad = _fill_log_gamma(float(config.pi_concentration), cells_per_concept, log_pi, rng)
+    if bad >= 0:
+        raise _bad_concentration("pi", cells_per_concept, config.pi_concentration, bad)
+    tables = []
+    for modality, per_concept in zip(data.modalities, statistics, strict=True):
+        base = config.concentration(modality.name)
+        if rows is not None:
+            per_concept = np.ascontiguousarray(per_concept[rows])  # [G, K_m]
+        draw = np.empty(per_concept.shape)
+        bad = _fill_log_gamma(float(base), per_concept, draw, rng)
+        if bad >= 0:
+            raise _bad_concentration(modality.parameter, per_concept, base, bad)
+        tables.append(draw)
+    log_pi_t = torch.from_numpy(_normalise_log_rows(log_pi)[0])
+    if rows is None:
+        return log_pi_t, tuple(torch.from_numpy(_normalise_log_rows(t)) for t in tables)
+    log_emissions = []
+    for kept, draw in zip(previous, tables, strict=True):
+        table = kept.clone()
+        table[torch.from_numpy(rows)] = torch.from_numpy(_normalise_log_rows(draw))
+        log_emissions.append(table)
+    return log_pi_t, tuple(log_emissions)
 
 
 def sample_labels_numba(
@@ -711,8 +677,9 @@ def sample_labels_numba(
 
 def sample_globals_numba(
     labels: torch.Tensor, data: ModelData, config: SpCoConfig, generator: torch.Generator
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """(log pi [L], log theta [L, K], log w [L, V]) from their conjugate conditionals (eqs. 14-17).
+) -> tuple[torch.Tensor, tuple[torch.Tensor, ...]]:
+    """(log pi [L], per-modality log distributions [L, K_m]) from their conjugate conditionals
+    (eqs. 14-17).
 
     Same distribution as :func:`~spcopyro.gibbs.sweep.sample_globals`; draws one seed from
     ``generator``.
@@ -734,10 +701,10 @@ def gibbs_sweep_numba(
     config: SpCoConfig,
     generator: torch.Generator,
     plan: SweepPlan | None = None,
+    unobserved_refresh: float = 1.0,
 ) -> GibbsState:
-    """One iteration of Algorithm 1, compiled: every cell label, then pi, theta and w (first,
-    with probability ``config.cluster_moves``, the Swendsen-Wang move of
-    :mod:`spcopyro.gibbs.cluster`, which runs in torch/scipy).
+    """One iteration of Algorithm 1, compiled: every cell label, then pi and the emission
+    distributions.
 
     A drop-in for :func:`~spcopyro.gibbs.sweep.gibbs_sweep` with the same distribution. Draws one
     seed from ``generator`` per call, so a seeded run is reproducible bit for bit.
@@ -746,16 +713,11 @@ def gibbs_sweep_numba(
         ValueError: the state's shapes do not match ``data`` / ``config``, a label lies outside
             [0, L), ``plan`` was made for other data, or gamma * D > 700 (overflow).
     """
-    if config.cluster_moves > 0.0:  # the Swendsen-Wang move (spcopyro.gibbs.cluster), in torch
-        from spcopyro.gibbs.cluster import maybe_cluster_move
-
-        state = maybe_cluster_move(state, data, config, generator)
     rng = rng_state(_draw_seed(generator))
     labels = _sample_labels_array(state, data, config, plan, rng)  # [N + D]
-    previous = (state.log_theta, state.log_w)
     return GibbsState(
         torch.from_numpy(labels[: data.num_free]),
-        *_sample_globals_arrays(labels, data, config, rng, previous),
+        *_sample_globals_arrays(labels, data, config, rng, state.log_emissions, unobserved_refresh),
     )
 
 

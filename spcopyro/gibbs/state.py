@@ -10,16 +10,26 @@ from spcopyro.model import ModelData
 
 
 class GibbsState(NamedTuple):
-    """One point of the Markov chain. Globals are kept as log probabilities (see ``random.py``)."""
+    """One point of the Markov chain. Globals are kept as log probabilities
+    (see :mod:`spcopyro.random_draws`)."""
 
     labels: torch.Tensor
     """[N] int64: the concept C of every free cell (free-index order), in [0, L)."""
     log_pi: torch.Tensor
     """[L] float64: log concept weights."""
-    log_theta: torch.Tensor
-    """[L, K] float64: log image-feature distribution of each concept."""
-    log_w: torch.Tensor
-    """[L, V] float64: log word distribution of each concept."""
+    log_emissions: tuple[torch.Tensor, ...]
+    """Per modality of ``data.modalities``, [L, K_m] float64: each concept's log distribution
+    (log theta for images, log w for words, then any further modality)."""
+
+    @property
+    def log_theta(self) -> torch.Tensor:
+        """[L, K] log image-feature distributions (the first modality, ``images``)."""
+        return self.log_emissions[0]
+
+    @property
+    def log_w(self) -> torch.Tensor:
+        """[L, V] log word distributions (the second modality, ``words``)."""
+        return self.log_emissions[1]
 
 
 class ColourBlock(NamedTuple):

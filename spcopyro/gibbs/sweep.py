@@ -34,33 +34,16 @@ from __future__ import annotations
 import torch
 
 from spcopyro.config import SpCoConfig
-from spcopyro.distributions import multinomial_counts_log_prob
-from spcopyro.gibbs.random import sample_categorical_logits, sample_log_dirichlet
 from spcopyro.gibbs.state import ColourBlock, GibbsState, SweepPlan, make_sweep_plan
-from spcopyro.model import DTYPE, ModelData, potts_agreements
-
-
-def observation_log_likelihood(
-    log_theta: torch.Tensor, log_w: torch.Tensor, data: ModelData, config: SpCoConfig
-) -> torch.Tensor:
-    """[M, L] log-likelihood of each observed cell's counts under each concept (up to constants).
-
-    sum_k f_k log theta_{l,k} + sum_v S_v log w_{l,v}: the concept-dependent part of eqs. (5), (7).
-    """
-    M, L = data.obs_cells.shape[0], log_theta.shape[0]
-    loglik = torch.zeros(M, L, dtype=DTYPE)
-    if config.use_images:
-        loglik += data.image_counts @ log_theta.T  # [M, K] @ [K, L]
-    if config.use_words:
-        loglik += data.word_counts @ log_w.T  # [M, V] @ [V, L]
-    return loglik
-
-
-def neighbour_agreements(neighbour_labels: torch.Tensor, num_concepts: int) -> torch.Tensor:
-    """[n, L] n_l(i): how many of each cell's neighbours carry label l (``-1`` = no neighbour)."""
-    valid = neighbour_labels >= 0  # [n, D]
-    agree = torch.zeros(neighbour_labels.shape[0], num_concepts, dtype=DTYPE)
-    return agree.scatter_add_(1, neighbour_labels.clamp_min(0), valid.to(DTYPE))
+from spcopyro.likelihood import (
+    concept_statistics,
+    log_joint_constant,
+    log_joint_variable,
+    neighbour_agreements,
+    observation_log_likelihood,
+)
+from spcopyro.model import DTYPE, ModelData
+from spcopyro.random_draws import sample_categorical_logits, sample_log_dirichlet
 
 
 def _gather_neighbour_labels(labels: torch.Tensor, neighbours: torch.Tensor) -> torch.Tensor:
@@ -82,7 +65,7 @@ def label_log_conditionals(
     obs_row = data.observation_rows()[cells]  # [n]
     observed = obs_row >= 0
     if observed.any():
-        loglik = observation_log_likelihood(state.log_theta, state.log_w, data, config)
+        loglik = observation_log_likelihood(state.log_emissions, data, config)  # [M, L]
         logits[observed] += loglik[obs_row[observed]]
     return torch.log_softmax(logits, dim=-1)
 
@@ -162,7 +145,7 @@ def sample_labels(
     k = torch.arange(D + 1, dtype=DTYPE)
     tilt = torch.where(k > 0, torch.expm1(config.gamma * k) / k.clamp_min(1), 0.0)  # [D + 1]
     pi_cdf = pi.cumsum(0)  # [L]
-    loglik = observation_log_likelihood(state.log_theta, state.log_w, data, config)  # [M, L]
+    loglik = observation_log_likelihood(state.log_emissions, data, config)  # [M, L]
     for block in plan.blocks:
         _sample_block(
             labels_ext, block, state.log_pi, pi_ext, tilt, pi_cdf, loglik, config, generator
@@ -170,46 +153,31 @@ def sample_labels(
     return labels_ext[: data.num_free]
 
 
-def concept_statistics(
-    labels: torch.Tensor, data: ModelData, config: SpCoConfig
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """Sufficient statistics of the globals' conditionals.
-
-    Returns:
-        cells_per_concept [L], image_counts_per_concept [L, K], word_counts_per_concept [L, V]
-        (zero tensors for a modality that is switched off).
-    """
-    L = config.num_concepts
-    cells_per_concept = torch.bincount(labels, minlength=L).to(DTYPE)  # [L]
-    observed_labels = labels[data.obs_cells]  # [M]
-    images = torch.zeros(L, data.num_feature_classes, dtype=DTYPE)
-    words = torch.zeros(L, data.vocabulary_size, dtype=DTYPE)
-    if config.use_images:
-        images.index_add_(0, observed_labels, data.image_counts)
-    if config.use_words:
-        words.index_add_(0, observed_labels, data.word_counts)
-    return cells_per_concept, images, words
+def concepts_holding_observations(labels: torch.Tensor, data: ModelData) -> torch.Tensor:
+    """[G] the concepts labelling at least one observed cell (ascending): the rows of the
+    emission distributions whose conditional is not their prior."""
+    return torch.unique(labels[data.obs_cells])
 
 
 def concepts_to_refresh(
     labels: torch.Tensor,
     data: ModelData,
-    config: SpCoConfig,
+    unobserved_refresh: float,
     generator: torch.Generator,
-    previous: tuple[torch.Tensor, torch.Tensor] | None,
+    previous: tuple[torch.Tensor, ...] | None,
 ) -> torch.Tensor | None:
-    """The concepts whose theta and w this sweep redraws: None for all of them, else (with
-    probability 1 - ``config.unobserved_refresh``) only those holding an observed cell.
+    """The concepts whose emission distributions this sweep redraws: None for all of them, else
+    (with probability 1 - ``unobserved_refresh``) only those holding an observed cell.
 
     The choice is made before looking at the state, and the set depends only on the labels,
     which the global draws do not change; so each choice is a Gibbs update of conditionally
-    independent blocks, and the posterior stays invariant.
+    independent blocks, and the posterior stays invariant (``GibbsOptions.unobserved_refresh``).
     """
-    if previous is None or config.unobserved_refresh >= 1.0:
+    if previous is None or unobserved_refresh >= 1.0:
         return None
-    if float(torch.rand((), dtype=DTYPE, generator=generator)) < config.unobserved_refresh:
+    if float(torch.rand((), dtype=DTYPE, generator=generator)) < unobserved_refresh:
         return None
-    return torch.unique(labels[data.obs_cells])  # [G] concepts holding observed cells
+    return concepts_holding_observations(labels, data)  # [G]
 
 
 def sample_globals(
@@ -217,27 +185,32 @@ def sample_globals(
     data: ModelData,
     config: SpCoConfig,
     generator: torch.Generator,
-    previous: tuple[torch.Tensor, torch.Tensor] | None = None,
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-    """(log pi, log theta, log w) from their conjugate conditionals given the labels.
+    previous: tuple[torch.Tensor, ...] | None = None,
+    unobserved_refresh: float = 1.0,
+) -> tuple[torch.Tensor, tuple[torch.Tensor, ...]]:
+    """(log pi, per-modality log distributions) from their conjugate conditionals given labels.
 
     pi | C ~ Dir(alpha/L + m_l) (DP, eq. 14) or Dir(alpha + m_l) (eq. 15), m_l = #cells labelled l;
     theta_l | . ~ Dir(chi + sum of image counts in cells labelled l) (eq. 16);
-    w_l | . ~ Dir(beta + sum of word counts in cells labelled l) (eq. 17).
-    ``previous`` (log theta, log w) lets :func:`concepts_to_refresh` keep the rows of concepts
-    without observed cells (see ``SpCoConfig.unobserved_refresh``).
+    w_l | . ~ Dir(beta + sum of word counts in cells labelled l) (eq. 17); a further modality
+    likewise with its own concentration. ``previous`` (the state's log distributions) lets
+    :func:`concepts_to_refresh` keep the rows of concepts without observed cells.
     """
-    cells_per_concept, images, words = concept_statistics(labels, data, config)
-    log_pi = sample_log_dirichlet(config.pi_concentration + cells_per_concept, generator)
-    rows = concepts_to_refresh(labels, data, config, generator, previous)
+    statistics = concept_statistics(labels, data, config)
+    log_pi = sample_log_dirichlet(config.pi_concentration + statistics.cells, generator)
+    rows = concepts_to_refresh(labels, data, unobserved_refresh, generator, previous)
+    concentrations = [config.concentration(m.name) for m in data.modalities]
     if rows is None:
-        log_theta = sample_log_dirichlet(config.chi + images, generator)
-        log_w = sample_log_dirichlet(config.beta + words, generator)
-        return log_pi, log_theta, log_w
-    log_theta, log_w = previous[0].clone(), previous[1].clone()
-    log_theta[rows] = sample_log_dirichlet(config.chi + images[rows], generator)
-    log_w[rows] = sample_log_dirichlet(config.beta + words[rows], generator)
-    return log_pi, log_theta, log_w
+        return log_pi, tuple(
+            sample_log_dirichlet(a + counts, generator)
+            for a, counts in zip(concentrations, statistics.counts, strict=True)
+        )
+    log_emissions = []
+    for a, counts, kept in zip(concentrations, statistics.counts, previous, strict=True):
+        redrawn = kept.clone()
+        redrawn[rows] = sample_log_dirichlet(a + counts[rows], generator)
+        log_emissions.append(redrawn)
+    return log_pi, tuple(log_emissions)
 
 
 def gibbs_sweep(
@@ -246,66 +219,16 @@ def gibbs_sweep(
     config: SpCoConfig,
     generator: torch.Generator,
     plan: SweepPlan | None = None,
+    unobserved_refresh: float = 1.0,
 ) -> GibbsState:
-    """One iteration of Algorithm 1: all cell labels, then pi, theta and w (first, with
-    probability ``config.cluster_moves``, a Swendsen-Wang move, :mod:`spcopyro.gibbs.cluster`)."""
-    if config.cluster_moves > 0.0:
-        from spcopyro.gibbs.cluster import maybe_cluster_move  # it builds on this module
-
-        state = maybe_cluster_move(state, data, config, generator)
+    """One iteration of Algorithm 1 in torch: all cell labels (eq. 13), then pi and the emission
+    distributions (eqs. 14-17). The moves composed around it (cluster moves, annealing) are
+    :func:`spcopyro.gibbs.sampler.step`'s."""
     labels = sample_labels(state, data, config, generator, plan)
-    previous = (state.log_theta, state.log_w)
-    return GibbsState(labels, *sample_globals(labels, data, config, generator, previous))
-
-
-def _dirichlet_log_normaliser(shape: torch.Size, concentration: float) -> torch.Tensor:
-    """Sum over rows of log Gamma(K a) - K log Gamma(a): Dir's normaliser, rows of size K."""
-    K, rows = shape[-1], shape[:-1].numel()
-    a = torch.tensor(concentration, dtype=DTYPE)
-    return rows * (torch.lgamma(a * K) - K * torch.lgamma(a))
-
-
-def log_joint_constant(data: ModelData, config: SpCoConfig, state: GibbsState) -> torch.Tensor:
-    """The terms of :func:`log_joint` that no sweep changes: Dirichlet normalisers and the
-    multinomial coefficients lgamma(n + 1) - sum lgamma(x + 1) of the observed counts."""
-    total = _dirichlet_log_normaliser(state.log_pi.shape, config.pi_concentration)
-    total = total + _dirichlet_log_normaliser(state.log_theta.shape, config.chi)
-    total = total + _dirichlet_log_normaliser(state.log_w.shape, config.beta)
-    for used, counts in ((config.use_images, data.image_counts),
-                         (config.use_words, data.word_counts)):  # fmt: skip
-        if used:
-            zeros = torch.zeros_like(counts)
-            total = total + multinomial_counts_log_prob(counts, zeros).sum()
-    return total
-
-
-def log_joint_variable(
-    state: GibbsState,
-    data: ModelData,
-    config: SpCoConfig,
-    label_counts: torch.Tensor | None = None,
-    agreements: torch.Tensor | None = None,
-) -> torch.Tensor:
-    """The terms of :func:`log_joint` that depend on the state.
-
-    ``label_counts`` ([L] cells per concept) and ``agreements`` (E(C)) may be passed in when the
-    caller has them already (the run loop does, to keep the per-sweep trace cheap).
-    """
-    if label_counts is None:
-        label_counts = torch.bincount(state.labels, minlength=config.num_concepts)
-    if agreements is None:
-        agreements = potts_agreements(state.labels, data.pairs)
-    total = (config.pi_concentration - 1) * state.log_pi.sum()
-    total = total + (config.chi - 1) * state.log_theta.sum()
-    total = total + (config.beta - 1) * state.log_w.sum()
-    total = total + (label_counts.to(DTYPE) * state.log_pi).sum()  # sum_i log pi_{C_i}
-    total = total + config.gamma * agreements
-    observed_labels = state.labels[data.obs_cells]
-    if config.use_images:
-        total = total + (data.image_counts * state.log_theta[observed_labels]).sum()
-    if config.use_words:
-        total = total + (data.word_counts * state.log_w[observed_labels]).sum()
-    return total
+    previous = state.log_emissions
+    return GibbsState(
+        labels, *sample_globals(labels, data, config, generator, previous, unobserved_refresh)
+    )
 
 
 def log_joint(state: GibbsState, data: ModelData, config: SpCoConfig) -> torch.Tensor:
@@ -313,9 +236,6 @@ def log_joint(state: GibbsState, data: ModelData, config: SpCoConfig) -> torch.T
 
     Equal to the ``log_prob_sum`` of a Pyro trace of the model at this state (tested).
     """
-    return log_joint_constant(data, config, state) + log_joint_variable(state, data, config)
-
-
-def num_concepts_in_use(labels: torch.Tensor, num_concepts: int) -> int:
-    """How many distinct concepts label at least one cell."""
-    return int((torch.bincount(labels, minlength=num_concepts) > 0).sum())
+    return log_joint_constant(data, config) + log_joint_variable(
+        state.labels, state.log_pi, state.log_emissions, data, config
+    )

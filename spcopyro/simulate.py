@@ -1,4 +1,4 @@
-"""Running SpCoMapping forward: draw a synthetic world (concepts, labels, observations) from it.
+"""Running SpCoMapping forward: draw a world (concepts, labels, observations) from the model.
 
 The Pyro model can draw pi, theta, w and the emissions, but not the cell labels: their prior
 includes the Potts factor exp(gamma E(C)), which a ``pyro.factor`` only scores. The labels are
@@ -16,42 +16,31 @@ import pyro.poutine as poutine
 import torch
 
 from spcopyro.config import SpCoConfig
-from spcopyro.gibbs.random import sample_log_dirichlet
 from spcopyro.gibbs.state import GibbsState, make_sweep_plan
 from spcopyro.gibbs.sweep import sample_labels
-from spcopyro.model import (
-    DTYPE,
-    SITE_IMAGES,
-    SITE_LABELS,
-    SITE_PI,
-    SITE_THETA,
-    SITE_W,
-    SITE_WORDS,
-    ModelData,
-    spcomapping_model,
-)
+from spcopyro.model import DTYPE, SITE_LABELS, SITE_PI, ModelData, spcomapping_model
+from spcopyro.random_draws import sample_log_dirichlet
 
 
 def sample_observations(state: GibbsState, data: ModelData, config: SpCoConfig) -> ModelData:
     """New counts for the observed cells of ``data``, drawn from the model given the state.
 
     Each observed cell keeps its total counts (which must be integers); the model under
-    :func:`pyro.poutine.uncondition` draws f ~ Mult(theta_C), S ~ Mult(w_C) (eqs. 5, 7). Uses
-    torch's global RNG (seed it with ``pyro.set_rng_seed``).
+    :func:`pyro.poutine.uncondition` draws each modality's counts from its concept's
+    distribution, e.g. f ~ Mult(theta_C), S ~ Mult(w_C) (eqs. 5, 7). A switched-off modality
+    keeps its counts. Uses torch's global RNG (seed it with ``pyro.set_rng_seed``).
     """
-    values = {
-        SITE_PI: state.log_pi.exp(),
-        SITE_THETA: state.log_theta.exp(),
-        SITE_W: state.log_w.exp(),
-        SITE_LABELS: state.labels,
-    }
+    values = {SITE_PI: state.log_pi.exp(), SITE_LABELS: state.labels}
+    for modality, log_phi in zip(data.modalities, state.log_emissions, strict=True):
+        values[modality.parameter] = log_phi.exp()
     # uncondition innermost: it frees the observed sites, then condition fixes the latent ones
     # (the other way round, uncondition would free the conditioned latents too).
     forward = poutine.condition(poutine.uncondition(spcomapping_model), data=values)
     trace = poutine.trace(forward).get_trace(data, config)
-    images = trace.nodes[SITE_IMAGES]["value"] if config.use_images else data.image_counts
-    words = trace.nodes[SITE_WORDS]["value"] if config.use_words else data.word_counts
-    return data._replace(image_counts=images.to(DTYPE), word_counts=words.to(DTYPE))
+    for modality in data.modalities:
+        if config.uses(modality.name):
+            data = data.with_counts(modality.name, trace.nodes[modality.name]["value"].to(DTYPE))
+    return data
 
 
 def sample_prior_world(
@@ -62,15 +51,24 @@ def sample_prior_world(
     ``data`` gives the map and which cells hold how many observations (their totals).
     """
     L = config.num_concepts
-    K, V = data.num_feature_classes, data.vocabulary_size
     log_pi = sample_log_dirichlet(torch.full((L,), config.pi_concentration, dtype=DTYPE), generator)
-    log_theta = sample_log_dirichlet(torch.full((L, K), config.chi, dtype=DTYPE), generator)
-    log_w = sample_log_dirichlet(torch.full((L, V), config.beta, dtype=DTYPE), generator)
+    log_emissions = tuple(
+        sample_log_dirichlet(
+            torch.full((L, m.counts.shape[-1]), config.concentration(m.name), dtype=DTYPE),
+            generator,
+        )
+        for m in data.modalities
+    )
     u = torch.rand(data.num_free, dtype=DTYPE, generator=generator)
     labels = torch.searchsorted(log_pi.exp().cumsum(0), u, right=True).clamp_max(L - 1)
-    state = GibbsState(labels, log_pi, log_theta, log_w)
+    state = GibbsState(labels, log_pi, log_emissions)
+    # Label-only sweeps: the emissions' likelihood switched off (images and words by the config's
+    # switches, any further modality by leaving it out of the sweep's data).
     prior_only = config.replace(use_images=False, use_words=False)
+    label_data = data._replace(modalities=data.modalities[:2])
     plan = make_sweep_plan(data)
     for _ in range(sweeps):
-        state = state._replace(labels=sample_labels(state, data, prior_only, generator, plan))
+        label_state = state._replace(log_emissions=state.log_emissions[:2])
+        labels = sample_labels(label_state, label_data, prior_only, generator, plan)
+        state = state._replace(labels=labels)
     return state, sample_observations(state, data, config)

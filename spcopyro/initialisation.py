@@ -1,4 +1,4 @@
-r"""Starting points of the chain: random labels, a given label map, or per-concept Gaussians.
+r"""Starting labels for any inference method: random, given, or from per-concept Gaussians.
 
 The Gaussian start is the paper's pre-learning initialisation (Section 5, eqs. 21-22): given
 Gaussians N(mu_l, Sigma_l) over positions (from a spatial-concept model learnt beforehand), every
@@ -18,9 +18,7 @@ from __future__ import annotations
 import torch
 
 from spcopyro.config import SpCoConfig
-from spcopyro.gibbs.state import GibbsState
-from spcopyro.gibbs.sweep import sample_globals
-from spcopyro.model import DTYPE, ModelData
+from spcopyro.model import DTYPE
 
 
 def random_labels(num_free: int, config: SpCoConfig, generator: torch.Generator) -> torch.Tensor:
@@ -97,16 +95,3 @@ def kmeans_gaussians(
     )
     log_weights = torch.log((sizes + 1) / (sizes + 1).sum())
     return centres, covariances, log_weights
-
-
-def initial_state(
-    data: ModelData,
-    config: SpCoConfig,
-    generator: torch.Generator,
-    labels: torch.Tensor | None = None,
-) -> GibbsState:
-    """A state from initial labels (random if None), with globals drawn given those labels."""
-    if labels is None:
-        labels = random_labels(data.num_free, config, generator)
-    labels = check_labels(labels, data.num_free, config).clone()
-    return GibbsState(labels, *sample_globals(labels, data, config, generator))

@@ -1,0 +1,62 @@
+"""Gibbs sampling as an :class:`~spcopyro.inference.InferenceMethod` (its registry entry)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import torch
+
+from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.gibbs.run import GibbsRun, run_gibbs
+from spcopyro.inference import InferenceOutput, Trace
+from spcopyro.model import ModelData
+
+
+def output_from_run(run: GibbsRun, options: dict[str, object] | None = None) -> InferenceOutput:
+    """A run's :class:`InferenceOutput`: the MAP-visited state as the point estimate, the last
+    state's labels beside it, the log joint per sweep as the trace."""
+    best = run.best_state
+    return InferenceOutput(
+        labels=best.labels.numpy().astype("int64"),
+        pi=best.log_pi.exp().numpy(),
+        emissions=tuple(table.exp().numpy() for table in best.log_emissions),
+        trace=Trace(run.log_joint, run.num_concepts, run.seconds, "log joint"),
+        best_iteration=run.best_sweep,
+        labels_final=run.final_state.labels.numpy().astype("int64"),
+        options=dict(options or {}),
+        label_samples=run.label_samples,
+        sample_iterations=run.sample_sweeps,
+    )
+
+
+class GibbsInference:
+    """Algorithm 1 (:func:`spcopyro.gibbs.run.run_gibbs`) behind the common interface."""
+
+    name = "gibbs"
+    objective_name = "log joint"
+
+    def default_options(self) -> GibbsOptions:
+        return GibbsOptions()
+
+    def run(
+        self,
+        data: ModelData,
+        config: SpCoConfig,
+        *,
+        iterations: int,
+        generator: torch.Generator,
+        init_labels: torch.Tensor | None = None,
+        options: GibbsOptions | None = None,
+        progress: bool | None = None,
+        thin: int = 0,
+    ) -> InferenceOutput:
+        options = GibbsOptions() if options is None else options
+        if not isinstance(options, GibbsOptions):
+            raise TypeError(f"Gibbs sampling takes GibbsOptions, got {type(options).__name__}")
+        run = run_gibbs(
+            data, config, iterations, options=options, generator=generator,
+            init_labels=init_labels, progress=progress, thin=thin,
+        )  # fmt: skip
+        record = {"sweeps": iterations, **dataclasses.asdict(options)}
+        return output_from_run(run, record)

@@ -1,0 +1,58 @@
+"""The Gibbs sampler's own options: which backend, and the moves and schedules composed with
+Algorithm 1's sweep (none of them changes the model; see :class:`~spcopyro.config.SpCoConfig`)."""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+from spcopyro.gibbs.anneal import check_anneal_sweeps
+
+BACKENDS = ("auto", "torch", "numba")
+
+
+@dataclass(frozen=True)
+class GibbsOptions:
+    """How the Gibbs sampler runs.
+
+    Attributes:
+        backend: ``"torch"`` (the readable reference), ``"numba"`` (compiled, same distribution;
+            needs the optional ``numba`` package) or ``"auto"`` (numba when installed). The two
+            draw different random streams from the same seed: a seeded run reproduces bit for
+            bit on one backend only.
+        unobserved_refresh: the probability that a sweep redraws theta_l and w_l of the concepts
+            that hold no observed cell (for them the conditional is the prior). 1.0 (default)
+            redraws every concept every sweep, as Algorithm 1 does; any value in (0, 1] leaves
+            the posterior invariant (a random choice of which conditionally independent blocks
+            to update, made independently of the state), and a small one makes the sweep's
+            cost nearly flat in L, since the [L, K] and [L, V] draws dominate for large L.
+        cluster_moves: the probability that a sweep starts with a Swendsen-Wang cluster move of
+            the labels (:mod:`spcopyro.gibbs.cluster`: whole regions change concept at once).
+            0 (default): Algorithm 1's single-site sweeps only. Any value in [0, 1] leaves the
+            posterior invariant (the choice is made independently of the state).
+        anneal_sweeps: ramp the labels' coupling gamma up over the first ``anneal_sweeps``
+            sweeps of a chain (:mod:`spcopyro.gibbs.anneal`); those sweeps are burn-in.
+    """
+
+    backend: str = "auto"
+    unobserved_refresh: float = 1.0
+    cluster_moves: float = 0.0
+    anneal_sweeps: int = 0
+
+    def __post_init__(self) -> None:
+        def bad(name: str, why: str) -> ValueError:
+            return ValueError(f"GibbsOptions.{name}={getattr(self, name)!r}: {why}")
+
+        if self.backend not in BACKENDS:
+            raise bad("backend", f"choose one of {BACKENDS}")
+        refresh = self.unobserved_refresh
+        if not (isinstance(refresh, (int, float)) and 0.0 < refresh <= 1.0):
+            raise bad("unobserved_refresh", "must be a probability in (0, 1]")
+        moves = self.cluster_moves
+        if not (isinstance(moves, (int, float)) and 0.0 <= moves <= 1.0):
+            raise bad("cluster_moves", "must be a probability in [0, 1]")
+        object.__setattr__(self, "anneal_sweeps", check_anneal_sweeps(self.anneal_sweeps))
+
+    def replace(self, **changes: object) -> GibbsOptions:
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)

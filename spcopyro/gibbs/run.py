@@ -1,0 +1,208 @@
+"""The one run loop: a chain that sweeps, records, and can be continued from where it stopped.
+
+:func:`start_chain` makes a :class:`GibbsChain` (the state after :func:`~spcopyro.gibbs.sampler.
+init`, its generator, the map's sweep plan, the backend); :func:`advance` runs sweeps of
+:func:`~spcopyro.gibbs.sampler.step` on it, recording what a run needs and no more: the log joint
+and the number of concepts of every sweep (8 + 8 bytes a sweep), the state of highest log joint
+visited (the "MAP-visited" state, annealing sweeps left out), and, only if asked, label maps every
+``thin`` sweeps as int16 (2 bytes a cell). A later :func:`advance` continues the same chain --
+same state, same generator, same sweep count -- which is how ``--sweeps auto``
+(:mod:`spcopyro.gibbs.convergence`) runs its blocks and how a long fit can be resumed.
+:func:`run_gibbs` is start + advance in one call, returning a :class:`GibbsRun`.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+from tqdm.auto import tqdm
+
+from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.backends import SweepBackend, get_backend
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.gibbs.sampler import init, step, trace_point
+from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
+from spcopyro.likelihood import log_joint_constant
+from spcopyro.model import ModelData
+from spcopyro.progress import progress_enabled
+
+LABEL_DTYPE = torch.int16  # compact storage of label maps (L <= 32767)
+
+
+@dataclass
+class GibbsRun:
+    """What :func:`run_gibbs` returns. S sweeps, N free cells."""
+
+    final_state: GibbsState
+    best_state: GibbsState
+    """The visited state of highest log joint (after the annealing sweeps, if any)."""
+    best_sweep: int
+    """0-based sweep at which ``best_state`` was visited."""
+    log_joint: np.ndarray
+    """[S] float64 log joint after each sweep."""
+    num_concepts: np.ndarray
+    """[S] int64 concepts in use after each sweep."""
+    seconds: np.ndarray
+    """[S] float64 cumulative wall-clock seconds after each sweep."""
+    label_samples: np.ndarray | None
+    """[S', N] int16 label maps every ``thin`` sweeps (None unless ``thin`` > 0)."""
+    sample_sweeps: np.ndarray | None
+    """[S'] the 0-based sweeps of ``label_samples``."""
+
+
+def _compact(state: GibbsState) -> GibbsState:
+    return state._replace(labels=state.labels.to(LABEL_DTYPE))
+
+
+@dataclass
+class GibbsChain:
+    """A Markov chain in progress: its state and generator, and what it has recorded so far."""
+
+    data: ModelData
+    config: SpCoConfig
+    options: GibbsOptions
+    generator: torch.Generator
+    backend: SweepBackend
+    plan: SweepPlan
+    state: GibbsState
+    constant: float
+    """The log joint's state-independent part (:func:`spcopyro.likelihood.log_joint_constant`)."""
+    sweeps_done: int = 0
+    best_value: float = -np.inf
+    best_state: GibbsState | None = None
+    best_sweep: int = -1
+    log_joint: list[float] = field(default_factory=list)
+    num_concepts: list[int] = field(default_factory=list)
+    seconds: list[float] = field(default_factory=list)
+    label_samples: list[np.ndarray] = field(default_factory=list)
+    sample_sweeps: list[int] = field(default_factory=list)
+
+    def to_run(self) -> GibbsRun:
+        """The chain's record so far as a :class:`GibbsRun`."""
+        if not self.sweeps_done:
+            raise ValueError("the chain has run no sweep yet: call advance() first")
+        best = self.best_state if self.best_state is not None else _compact(self.state)
+        return GibbsRun(
+            final_state=self.state,
+            best_state=best._replace(labels=best.labels.to(torch.long)),
+            best_sweep=self.best_sweep,
+            log_joint=np.asarray(self.log_joint, dtype=np.float64),
+            num_concepts=np.asarray(self.num_concepts, dtype=np.int64),
+            seconds=np.asarray(self.seconds, dtype=np.float64),
+            label_samples=np.stack(self.label_samples) if self.label_samples else None,
+            sample_sweeps=(
+                np.asarray(self.sample_sweeps, dtype=np.int64) if self.label_samples else None
+            ),
+        )
+
+
+def start_chain(
+    data: ModelData,
+    config: SpCoConfig,
+    *,
+    options: GibbsOptions = GibbsOptions(),
+    generator: torch.Generator | None = None,
+    seed: int | None = None,
+    init_labels: torch.Tensor | None = None,
+) -> GibbsChain:
+    """A new chain at :func:`~spcopyro.gibbs.sampler.init` from ``init_labels`` (random if None).
+
+    ``generator`` / ``seed``: randomness; give one (``seed`` makes a fresh generator). A seeded
+    chain reproduces bit for bit (on one backend: the backends' random streams differ).
+    """
+    if generator is None:
+        generator = torch.Generator().manual_seed(0 if seed is None else int(seed))
+    backend = get_backend(options.backend)
+    state = init(data, config, generator, init_labels)
+    constant = float(log_joint_constant(data, config))
+    return GibbsChain(
+        data, config, options, generator, backend, make_sweep_plan(data), state, constant
+    )
+
+
+def advance(
+    chain: GibbsChain,
+    num_sweeps: int,
+    *,
+    thin: int = 0,
+    progress: bool | None = None,
+    callback: Callable[[int, GibbsState], None] | None = None,
+) -> GibbsChain:
+    """Run ``num_sweeps`` more sweeps of ``chain`` (in place; returned for chaining).
+
+    Args:
+        thin: keep a label map every ``thin`` sweeps of the chain (0: keep none).
+        progress: tqdm bar (default: on unless ``$CI`` is set).
+        callback: called as ``callback(sweep, state)`` after every sweep (0-based in the chain).
+    """
+    if num_sweeps < 1:
+        raise ValueError(f"num_sweeps must be >= 1, got {num_sweeps}")
+    if thin < 0:
+        raise ValueError(f"thin must be >= 0, got {thin}")
+    data, config, anneal = chain.data, chain.config, chain.options.anneal_sweeps
+    elapsed = chain.seconds[-1] if chain.seconds else 0.0
+    start = time.perf_counter()
+    first = chain.sweeps_done
+    bar = tqdm(
+        range(first, first + num_sweeps),
+        desc="Gibbs sweeps",
+        disable=not progress_enabled(progress),
+    )
+    for sweep in bar:
+        chain.state, _ = step(
+            chain.state, data, config, chain.generator, sweep=sweep, options=chain.options,
+            backend=chain.backend, plan=chain.plan,
+        )  # fmt: skip
+        value, concepts = trace_point(chain.state, data, config, chain.constant, chain.backend)
+        chain.log_joint.append(value)
+        chain.num_concepts.append(concepts)
+        chain.seconds.append(elapsed + time.perf_counter() - start)
+        chain.sweeps_done = sweep + 1
+        if value > chain.best_value and sweep + 1 >= anneal:
+            chain.best_value, chain.best_state = value, _compact(chain.state)
+            chain.best_sweep = sweep
+        if thin and (sweep + 1) % thin == 0:
+            chain.label_samples.append(chain.state.labels.to(LABEL_DTYPE).numpy().copy())
+            chain.sample_sweeps.append(sweep)
+        if callback is not None:
+            callback(sweep, chain.state)
+        if (sweep - first) % 50 == 0:
+            bar.set_postfix(log_joint=f"{value:.4g}", concepts=concepts)
+    bar.close()
+    return chain
+
+
+def run_gibbs(
+    data: ModelData,
+    config: SpCoConfig,
+    num_sweeps: int,
+    *,
+    options: GibbsOptions = GibbsOptions(),
+    generator: torch.Generator | None = None,
+    seed: int | None = None,
+    init_labels: torch.Tensor | None = None,
+    thin: int = 0,
+    progress: bool | None = None,
+    callback: Callable[[int, GibbsState], None] | None = None,
+) -> GibbsRun:
+    """Run ``num_sweeps`` Gibbs sweeps from ``init_labels`` (random if None): :func:`start_chain`
+    then :func:`advance` (see both for the arguments).
+
+    With ``options.anneal_sweeps`` A > 0 the first A sweeps ramp gamma up
+    (:mod:`spcopyro.gibbs.anneal`); they are burn-in, so the best state is taken from sweep
+    A - 1 on. The trace's log joint is always the target model's.
+    """
+    if num_sweeps < 1:
+        raise ValueError(f"num_sweeps must be >= 1, got {num_sweeps}")
+    if options.anneal_sweeps > num_sweeps:
+        raise ValueError(
+            f"anneal_sweeps ({options.anneal_sweeps}) must not exceed num_sweeps ({num_sweeps})"
+        )
+    chain = start_chain(
+        data, config, options=options, generator=generator, seed=seed, init_labels=init_labels
+    )
+    return advance(chain, num_sweeps, thin=thin, progress=progress, callback=callback).to_run()

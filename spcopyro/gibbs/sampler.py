@@ -1,0 +1,106 @@
+"""The Gibbs sampler as two pure functions, :func:`init` and :func:`step` (BlackJAX's shape).
+
+::
+
+    state = init(data, config, generator)                 # labels, then globals given them
+    for sweep in range(num_sweeps):
+        state, info = step(state, data, config, generator, sweep=sweep, options=options)
+
+:func:`step` is one iteration of Algorithm 1 with everything the options add composed around it,
+in this order, for every backend and every driver (the run loop, the Pyro kernel, ``--sweeps
+auto``):
+
+1. annealing: the labels' coupling of this sweep, gamma_s (:mod:`spcopyro.gibbs.anneal`);
+2. with probability ``options.cluster_moves``, a Swendsen-Wang move of the labels
+   (:mod:`spcopyro.gibbs.cluster`) under gamma_s;
+3. the backend's sweep: every label from eq. (13) under gamma_s, then pi and the emission
+   distributions (eqs. 14-17), partially refreshed per ``options.unobserved_refresh``.
+
+:func:`trace_point` is the per-sweep log joint and number of concepts, always of the target
+model (gamma, not gamma_s).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import torch
+
+from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.anneal import annealed_config
+from spcopyro.gibbs.backends import SweepBackend, get_backend
+from spcopyro.gibbs.cluster import maybe_cluster_move
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.gibbs.state import GibbsState, SweepPlan
+from spcopyro.gibbs.sweep import sample_globals
+from spcopyro.initialisation import check_labels, random_labels
+from spcopyro.likelihood import log_joint_variable
+from spcopyro.model import ModelData
+
+
+class StepInfo(NamedTuple):
+    """What one :func:`step` did."""
+
+    gamma: float
+    """The coupling the labels were drawn under (below the model's gamma while annealing)."""
+    annealing: bool
+    """Whether this was an annealing (burn-in) sweep, i.e. not a draw of the target chain."""
+
+
+def init(
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    labels: torch.Tensor | None = None,
+) -> GibbsState:
+    """A state from initial labels (uniformly random if None), with pi and the emission
+    distributions drawn from their conditionals given those labels (eqs. 14-17)."""
+    if labels is None:
+        labels = random_labels(data.num_free, config, generator)
+    labels = check_labels(labels, data.num_free, config).clone()
+    return GibbsState(labels, *sample_globals(labels, data, config, generator))
+
+
+def step(
+    state: GibbsState,
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    *,
+    sweep: int = 0,
+    options: GibbsOptions = GibbsOptions(),
+    backend: SweepBackend | None = None,
+    plan: SweepPlan | None = None,
+) -> tuple[GibbsState, StepInfo]:
+    """One sweep of the chain (the module docstring's steps 1-3).
+
+    Args:
+        sweep: the 0-based index of this sweep in the chain (annealing reads it).
+        options: the sampler's options (backend, cluster moves, refresh, annealing).
+        backend: the backend to use (default: ``options.backend``'s); pass one to reuse it.
+        plan: the map's :class:`~spcopyro.gibbs.state.SweepPlan` (made once per map if given).
+    """
+    backend = get_backend(options.backend) if backend is None else backend
+    sweep_config = annealed_config(config, sweep, options.anneal_sweeps)
+    state = maybe_cluster_move(state, data, sweep_config, generator, options.cluster_moves)
+    state = backend.sweep(state, data, sweep_config, generator, plan, options.unobserved_refresh)
+    return state, StepInfo(gamma=sweep_config.gamma, annealing=sweep + 1 < options.anneal_sweeps)
+
+
+def trace_point(
+    state: GibbsState,
+    data: ModelData,
+    config: SpCoConfig,
+    constant: float,
+    backend: SweepBackend,
+) -> tuple[float, int]:
+    """(log joint of the target model, number of concepts in use) at ``state``.
+
+    ``constant`` is :func:`spcopyro.likelihood.log_joint_constant` (computed once per chain).
+    """
+    label_counts = torch.bincount(state.labels, minlength=config.num_concepts)  # [L]
+    agreements = backend.potts_agreements(state.labels, data.pairs)
+    variable = log_joint_variable(
+        state.labels, state.log_pi, state.log_emissions, data, config, label_counts, agreements
+    )
+    return constant + float(variable), int((label_counts > 0).sum())

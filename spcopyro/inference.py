@@ -1,0 +1,91 @@
+"""What every inference method of SpCoMapping offers, and what it hands back.
+
+An inference method (Gibbs sampling in :mod:`spcopyro.gibbs`; variational methods beside it)
+is an object with a ``name``, the name of the objective it traces, its options' type and a
+:meth:`InferenceMethod.run` that fits the model to :class:`~spcopyro.model.ModelData` and returns
+an :class:`InferenceOutput`: a point estimate of the labels (and, where the method has them,
+per-cell marginals), point estimates or posterior means of pi and of each modality's
+distributions, and a per-iteration :class:`Trace`. :mod:`spcopyro.registry` lists the methods by
+name; :class:`spcopyro.results.SpCoResult` turns an output into what users query (the semantic
+map, words per concept, "where is X?"), the same way for every method. The model's per-cell math
+that a method needs is in :mod:`spcopyro.likelihood`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+import torch
+
+from spcopyro.config import SpCoConfig
+from spcopyro.model import ModelData
+
+
+@dataclass(frozen=True)
+class Trace:
+    """A fit's per-iteration record. S iterations (Gibbs sweeps or variational updates)."""
+
+    objective: np.ndarray
+    """[S] float64: the log joint after each sweep (Gibbs) or the ELBO (variational)."""
+    num_concepts: np.ndarray
+    """[S] int64: concepts in use after each iteration."""
+    seconds: np.ndarray
+    """[S] float64: cumulative wall-clock seconds."""
+    objective_name: str = "log joint"
+
+
+@dataclass(frozen=True)
+class InferenceOutput:
+    """What an inference method returns, before the map and item names are attached."""
+
+    labels: np.ndarray
+    """[N] int64 point estimate of every free cell's concept."""
+    pi: np.ndarray
+    """[L] point estimate or posterior mean of pi."""
+    emissions: tuple[np.ndarray, ...]
+    """Per modality of the model data, [L, K_m] point estimates or posterior means."""
+    trace: Trace
+    best_iteration: int
+    """The iteration (0-based) whose state ``labels`` and the globals are."""
+    marginals: np.ndarray | None = None
+    """[N, L] p(C_i = l) where the method has it (a variational q(C))."""
+    labels_final: np.ndarray | None = None
+    """[N] the last state's labels, for a sampler."""
+    options: dict[str, object] = field(default_factory=dict)
+    """The method's options (and seed, iterations), as JSON values: recorded with the result."""
+    label_samples: np.ndarray | None = None
+    """[S', N] int16 label maps kept along the way (a sampler with thinning), else None."""
+    sample_iterations: np.ndarray | None = None
+    """[S'] the 0-based iterations of ``label_samples``."""
+
+
+class InferenceMethod(Protocol):
+    """An inference method for :func:`~spcopyro.model.spcomapping_model` (see the module doc)."""
+
+    name: str
+    """The registry's key, e.g. ``"gibbs"``."""
+    objective_name: str
+    """What :attr:`Trace.objective` holds, e.g. ``"log joint"`` or ``"ELBO"``."""
+
+    def default_options(self) -> object:
+        """The method's options object with its defaults."""
+        ...
+
+    def run(
+        self,
+        data: ModelData,
+        config: SpCoConfig,
+        *,
+        iterations: int,
+        generator: torch.Generator,
+        init_labels: torch.Tensor | None = None,
+        options: object | None = None,
+        progress: bool | None = None,
+        thin: int = 0,
+    ) -> InferenceOutput:
+        """Fit the model to ``data`` with ``iterations`` iterations, drawing from ``generator``
+        (a seeded generator makes the fit reproducible); ``thin`` > 0 keeps a label map every
+        ``thin`` iterations where the method has such maps."""
+        ...

@@ -1,0 +1,25 @@
+"""The inference methods of spcopyro, by name: ``spcopyro fit --method NAME``,
+:func:`spcopyro.fit.fit_house(method=NAME) <spcopyro.fit.fit_house>` and the experiments read
+this table. A new method is one module implementing :class:`~spcopyro.inference.InferenceMethod`
+and one entry here.
+"""
+
+from __future__ import annotations
+
+from spcopyro.gibbs.method import GibbsInference
+from spcopyro.inference import InferenceMethod
+
+INFERENCE_METHODS: dict[str, InferenceMethod] = {
+    "gibbs": GibbsInference(),
+}
+DEFAULT_METHOD = "gibbs"
+
+
+def get_method(name: str) -> InferenceMethod:
+    """The inference method called ``name`` (ValueError listing the known ones)."""
+    try:
+        return INFERENCE_METHODS[name]
+    except KeyError:
+        raise ValueError(
+            f"unknown inference method {name!r}; choose one of {sorted(INFERENCE_METHODS)}"
+        ) from None
