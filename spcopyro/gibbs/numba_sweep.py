@@ -42,278 +42,49 @@ a < 1) and normalised by log-sum-exp, so concentrations far below 1 (alpha / L) 
 A switched-off modality contributes zero statistics (its distributions are drawn from the prior),
 as in the reference.
 
-**Randomness.** numba cannot draw from a :class:`torch.Generator`, and numba's own
-``np.random`` costs ~9 ns a uniform (a thread-local state lookup per call). Each call therefore
-draws one seed from the given generator and expands it with SplitMix64 into the state of an
-inlined xoshiro256++ generator (Blackman & Vigna, 2018; ~1.5 ns a uniform, doubles from its top
-53 bits); normals come from Doornik's (2005) ziggurat (~4 ns). A seeded run is reproducible bit
-for bit, but its numbers differ from the torch backend's: only the distributions agree (what the
-tests check).
+**Randomness** (:mod:`spcopyro.gibbs.numba_random`): each call draws one seed from the given
+:class:`torch.Generator` and runs its own xoshiro256++ stream from it. A seeded run is
+reproducible bit for bit, but its numbers differ from the torch backend's: only the
+distributions agree (what the tests check). The sweep plan is flattened and checked once per
+plan (:mod:`spcopyro.gibbs.numba_plan`).
 
 **Limits.** exp(gamma D) must stay finite: :class:`~spcopyro.config.SpCoConfig` keeps
 ``gamma * D <= 700``. The first call compiles the kernels (seconds); ``cache=True`` stores them
 next to this file for later processes. Importing this module raises :class:`ImportError` when
-numba is missing (:func:`~spcopyro.gibbs.backends.sweep_function` relies on that).
+numba is missing (:func:`~spcopyro.gibbs.backends.get_backend` relies on that).
 """
 
 from __future__ import annotations
 
 import functools
-import math
 from collections.abc import Callable
-from typing import NamedTuple
 
 import numpy as np
 import torch
 from numba import njit
 
 from spcopyro.config import SpCoConfig
-from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
+from spcopyro.gibbs.numba_plan import flat_plan
+from spcopyro.gibbs.numba_random import (
+    draw_seed,
+    fill_log_gamma,
+    normalise_log_rows,
+    rng_state,
+    sample_log_gamma_numba,
+    sample_standard_normal_numba,
+    uniform,
+)
+from spcopyro.gibbs.state import GibbsState, SweepPlan
 from spcopyro.model import ModelData
 
-SEED_BOUND = 2**62
-"""Seeds drawn from the torch generator lie in [0, SEED_BOUND)."""
-_PLAN_CACHE_SIZE = 8
-
-# ------------------------------------------------------------------------------ the sweep plan
-
-
-class FlatPlan(NamedTuple):
-    """A :class:`SweepPlan` as numpy arrays, its blocks laid end to end (the visiting order)."""
-
-    cells: np.ndarray
-    """[N] int64 free index of the cell at each position of the sweep (block after block)."""
-    neighbours: np.ndarray
-    """[N, D] int64 free indices of that cell's neighbours; a missing one in slot s is N + s."""
-    background_rows: np.ndarray
-    """[N] int64 the cell's row of the background table: its row in ``data.obs_cells``, or M."""
-    num_observed: int
-    """M, the number of observed cells of the data the plan was checked against."""
-
-
-# id(plan) -> (plan, its FlatPlan). The plan itself is held so that its id cannot be reused while
-# it is cached (SweepPlan is a NamedTuple: no weak references); at most _PLAN_CACHE_SIZE entries.
-_plan_cache: dict[int, tuple[SweepPlan, FlatPlan]] = {}
-
-
-def flatten_plan(plan: SweepPlan, data: ModelData) -> FlatPlan:
-    """The plan's blocks concatenated into numpy arrays, checked against ``data``.
-
-    The compiled sweep does no bounds checking, so every index is validated here: the cells must
-    be each free cell exactly once, neighbours must lie in [0, N + D), and the observed positions
-    and rows must agree with ``data.obs_cells``.
-
-    Raises:
-        ValueError: the plan does not belong to ``data``.
-    """
-    N, D = data.num_free, data.neighbours.shape[1]
-    M = data.obs_cells.shape[0]
-    empty = torch.zeros(0, dtype=torch.int64)
-    cells = torch.cat([b.cells for b in plan.blocks]).to(torch.int64) if plan.blocks else empty
-    in_range = cells.numel() == 0 or (int(cells.min()) >= 0 and int(cells.max()) < N)
-    if (
-        cells.shape != (N,)
-        or not in_range
-        or not bool((torch.bincount(cells, minlength=N) == 1).all())
-    ):
-        raise ValueError(
-            f"sweep plan does not match the data: its blocks hold {cells.numel()} cells, which "
-            f"must be each of the map's {N} free cells exactly once"
-        )
-    neighbours = torch.cat([b.neighbours for b in plan.blocks]).to(torch.int64)  # [N, D]
-    if neighbours.shape != (N, D):
-        raise ValueError(
-            f"sweep plan neighbours have shape {tuple(neighbours.shape)}, expected ({N}, {D})"
-        )
-    if N and (int(neighbours.min()) < 0 or int(neighbours.max()) >= N + D):
-        raise ValueError(
-            f"sweep plan neighbours must lie in [0, {N + D}) (N + slot where none), got values "
-            f"in [{int(neighbours.min())}, {int(neighbours.max())}]"
-        )
-    rows = torch.full((N,), M, dtype=torch.int64)  # [N]
-    offset = 0
-    for block in plan.blocks:
-        rows[offset + block.observed_positions] = block.observed_rows
-        offset += block.cells.shape[0]
-    expected = data.observation_rows()[cells]  # [N], -1 where unobserved
-    expected = torch.where(expected >= 0, expected, M)
-    if not torch.equal(rows, expected):
-        bad = int((rows != expected).nonzero()[0, 0])
-        raise ValueError(
-            f"sweep plan observed rows do not match data.obs_cells: free cell {int(cells[bad])} "
-            f"has row {int(rows[bad])} in the plan and {int(expected[bad])} in the data "
-            f"({M} = none)"
-        )
-    return FlatPlan(
-        cells=np.ascontiguousarray(cells.numpy()),
-        neighbours=np.ascontiguousarray(neighbours.numpy()),
-        background_rows=np.ascontiguousarray(rows.numpy()),
-        num_observed=M,
-    )
-
-
-def _flat_plan(plan: SweepPlan | None, data: ModelData) -> FlatPlan:
-    """The FlatPlan of ``plan`` (cached per plan object), or of a fresh plan if None."""
-    if plan is None:
-        return flatten_plan(make_sweep_plan(data), data)
-    entry = _plan_cache.get(id(plan))
-    if entry is None or entry[0] is not plan:
-        flat = flatten_plan(plan, data)
-        while len(_plan_cache) >= _PLAN_CACHE_SIZE:
-            del _plan_cache[next(iter(_plan_cache))]  # oldest first
-        _plan_cache[id(plan)] = (plan, flat)
-        return flat
-    flat = entry[1]
-    N, D, M = data.num_free, data.neighbours.shape[1], data.obs_cells.shape[0]
-    if flat.neighbours.shape != (N, D) or flat.num_observed != M:
-        raise ValueError(
-            f"sweep plan was made for {flat.neighbours.shape[0]} free cells, "
-            f"{flat.neighbours.shape[1]} neighbours and {flat.num_observed} observed cells; "
-            f"the data have {N}, {D} and {M}"
-        )
-    return flat
-
-
-# ----------------------------------------------------------------------------- random numbers
-
-_U11, _U17, _U23, _U41, _U45, _U19 = (np.uint64(k) for k in (11, 17, 23, 41, 45, 19))
-_U127 = np.uint64(127)
-_TWO_TO_MINUS_53 = 1.0 / 9007199254740992.0
-_MASK64 = (1 << 64) - 1
-
-
-def rng_state(seed: int) -> np.ndarray:
-    """[4] uint64 xoshiro256++ state from an integer seed, expanded by SplitMix64."""
-    words = []
-    x = seed & _MASK64
-    for _ in range(4):
-        x = (x + 0x9E3779B97F4A7C15) & _MASK64
-        z = ((x ^ (x >> 30)) * 0xBF58476D1CE4E5B9) & _MASK64
-        z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK64
-        words.append(z ^ (z >> 31))
-    return np.array(words, dtype=np.uint64)
-
-
-def _draw_seed(generator: torch.Generator) -> int:
-    """One seed in [0, SEED_BOUND) for the compiled sampler's RNG, from the torch generator."""
-    return int(torch.randint(SEED_BOUND, (), generator=generator))
-
-
-@njit(cache=True, inline="always")
-def _next_bits(state: np.ndarray) -> np.uint64:
-    """64 random bits from xoshiro256++ (Blackman & Vigna, 2018); advances ``state`` [4]."""
-    s0, s1, s2, s3 = state[0], state[1], state[2], state[3]
-    total = s0 + s3
-    result = ((total << _U23) | (total >> _U41)) + s0
-    t = s1 << _U17
-    s2 ^= s0
-    s3 ^= s1
-    s1 ^= s2
-    s0 ^= s3
-    s2 ^= t
-    s3 = (s3 << _U45) | (s3 >> _U19)
-    state[0], state[1], state[2], state[3] = s0, s1, s2, s3
-    return result
-
-
-@njit(cache=True, inline="always")
-def _uniform(state: np.ndarray) -> float:
-    """A uniform double in [0, 1) (the top 53 of 64 random bits)."""
-    return float(_next_bits(state) >> _U11) * _TWO_TO_MINUS_53
-
-
-def _ziggurat_tables(layers: int = 128) -> tuple[np.ndarray, np.ndarray, float]:
-    """Doornik's (2005) ZIGNOR tables: layer edges x [C + 1], ratios x[i+1] / x[i] [C], and R.
-
-    The C layers of equal area V under exp(-x^2 / 2) start at R = 3.442619855899 (C = 128).
-    """
-    tail_start, area = 3.442619855899, 9.91256303526217e-3
-    x = np.zeros(layers + 1)  # [C + 1]
-    f = math.exp(-0.5 * tail_start**2)
-    x[0], x[1] = area / f, tail_start
-    for i in range(2, layers):
-        x[i] = math.sqrt(-2.0 * math.log(area / x[i - 1] + f))
-        f = math.exp(-0.5 * x[i] ** 2)
-    return x, x[1:] / x[:-1], tail_start
-
-
-_ZIG_X, _ZIG_RATIO, _ZIG_TAIL = _ziggurat_tables()
-
-
-@njit(cache=True, inline="always")
-def _normal(state: np.ndarray) -> float:
-    """A standard normal by Doornik's ziggurat (ZIGNOR; layer and uniform from separate bits)."""
-    while True:
-        bits = _next_bits(state)
-        i = np.int64(bits & _U127)  # layer: the low 7 bits
-        u = 2.0 * (float(bits >> _U11) * _TWO_TO_MINUS_53) - 1.0  # (-1, 1): the top 53 bits
-        if abs(u) < _ZIG_RATIO[i]:
-            return u * _ZIG_X[i]  # inside the layer's rectangle (~99%)
-        if i == 0:  # the tail beyond R (Marsaglia, 1964)
-            while True:
-                x = math.log(1.0 - _uniform(state)) / _ZIG_TAIL
-                y = math.log(1.0 - _uniform(state))
-                if -2.0 * y >= x * x:
-                    return x - _ZIG_TAIL if u < 0.0 else _ZIG_TAIL - x
-        x = u * _ZIG_X[i]
-        f0 = math.exp(-0.5 * (_ZIG_X[i] * _ZIG_X[i] - x * x))
-        f1 = math.exp(-0.5 * (_ZIG_X[i + 1] * _ZIG_X[i + 1] - x * x))
-        if f1 + _uniform(state) * (f0 - f1) < 1.0:
-            return x
-
-
-@njit(cache=True)
-def _fill_normal(out: np.ndarray, state: np.ndarray) -> None:
-    """out [n] = standard normals."""
-    for i in range(out.shape[0]):
-        out[i] = _normal(state)
-
-
-@njit(cache=True)
-def _fill_log_gamma(base: float, statistics: np.ndarray, out: np.ndarray, state: np.ndarray) -> int:
-    """out[r, c] = log G, G ~ Gamma(base + statistics[r, c], 1), for [R, C] arrays.
-
-    Marsaglia-Tsang with its squeeze (shape a >= 1), taken in log space; for a < 1,
-    log G(a) = log G(a + 1) + log(U) / a, finite however small a is. Returns -1, or the flat
-    index r * C + c of the first shape that is not finite and positive (and stops there: the
-    rejection loop would never end).
-    """
-    R, C = statistics.shape
-    shape, d, scale = -1.0, 0.0, 0.0  # Marsaglia-Tsang's constants of the last shape seen
-    for r in range(R):
-        for c in range(C):
-            a = base + statistics[r, c]
-            if not 0.0 < a < np.inf:
-                return r * C + c
-            boost = 0.0
-            if a < 1.0:
-                boost = math.log(1.0 - _uniform(state)) / a  # 1 - U lies in (0, 1]
-                a += 1.0
-            if a != shape:  # most concepts hold no observations: their shapes repeat
-                shape, d = a, a - 1.0 / 3.0
-                scale = 1.0 / math.sqrt(9.0 * d)
-            while True:
-                x = _normal(state)
-                t = 1.0 + scale * x
-                if t <= 0.0:
-                    continue
-                v = t * t * t
-                u = 1.0 - _uniform(state)
-                x2 = x * x
-                if u < 1.0 - 0.0331 * x2 * x2 or math.log(u) < 0.5 * x2 + d * (
-                    1.0 - v + math.log(v)
-                ):
-                    out[r, c] = math.log(d * v) + boost
-                    break
-    return -1
-
-
-def _normalise_log_rows(log_g: np.ndarray) -> np.ndarray:
-    """log g - logsumexp(log g) over the last axis, in place (vectorised numpy exp)."""
-    log_g -= log_g.max(axis=-1, keepdims=True)
-    log_g -= np.log(np.exp(log_g).sum(axis=-1, keepdims=True))
-    return log_g
-
+__all__ = [
+    "gibbs_sweep_numba",
+    "potts_agreements_numba",
+    "sample_globals_numba",
+    "sample_labels_numba",
+    "sample_log_gamma_numba",
+    "sample_standard_normal_numba",
+]
 
 # ------------------------------------------------------------------------------ label kernels
 
@@ -374,9 +145,9 @@ def _background_label(
 
     Row M (no observations, pi): binary search in pi's CDF; an observed row: a linear scan.
     """
-    x = _uniform(state) * totals[r]
+    x = uniform(state) * totals[r]
     while x >= totals[r]:  # U * total can round up to total (probability ~1e-16): redraw
-        x = _uniform(state) * totals[r]
+        x = uniform(state) * totals[r]
     if r == totals.shape[0] - 1:
         return _upper_bound(pi_cdf, x)
     running = 0.0
@@ -426,7 +197,7 @@ def label_kernel(num_neighbours: int) -> Callable[..., None]:
                     agree += slot_labels[t] == slot_labels[s]
                 mass += background[r, slot_labels[s]] * tilt[agree]
                 cumulative[s] = mass
-            u = _uniform(state) * (totals[r] + mass)
+            u = uniform(state) * (totals[r] + mass)
             label = slot_labels[D - 1]
             for s in range(D - 2, -1, -1):
                 label = slot_labels[s] if u < cumulative[s] else label
@@ -572,7 +343,7 @@ def _sample_labels_array(
     """[N + D] int64 new labels (then the sentinels), drawn with the RNG state ``rng``."""
     _check_state(state, data, config)
     D = data.neighbours.shape[1]
-    flat = _flat_plan(plan, data)
+    flat = flat_plan(plan, data)
     tilt = _neighbour_tilt(config, D)
     labels = _extended_labels(state.labels, D, config)
     background = _background_table(state, data, config)
@@ -627,12 +398,12 @@ def _sample_globals_arrays(
     labels = labels[: data.num_free]
     obs_cells = _as_array(data.obs_cells, np.int64)
     partial = (
-        previous is not None and unobserved_refresh < 1.0 and _uniform(rng) >= unobserved_refresh
+        previous is not None and unobserved_refresh < 1.0 and uniform(rng) >= unobserved_refresh
     )
     cells_per_concept, statistics = _statistics(labels, obs_cells, data, config)
     rows = np.unique(labels[obs_cells]) if partial else None  # [G] concepts with observed cells
     log_pi = np.empty((1, config.num_concepts))
-    bad = _fill_log_gamma(float(config.pi_concentration), cells_per_concept, log_pi, rng)
+    bad = fill_log_gamma(float(config.pi_concentration), cells_per_concept, log_pi, rng)
     if bad >= 0:
         raise _bad_concentration("pi", cells_per_concept, config.pi_concentration, bad)
     tables = []
@@ -641,17 +412,17 @@ def _sample_globals_arrays(
         if rows is not None:
             per_concept = np.ascontiguousarray(per_concept[rows])  # [G, K_m]
         draw = np.empty(per_concept.shape)
-        bad = _fill_log_gamma(float(base), per_concept, draw, rng)
+        bad = fill_log_gamma(float(base), per_concept, draw, rng)
         if bad >= 0:
             raise _bad_concentration(modality.parameter, per_concept, base, bad)
         tables.append(draw)
-    log_pi_t = torch.from_numpy(_normalise_log_rows(log_pi)[0])
+    log_pi_t = torch.from_numpy(normalise_log_rows(log_pi)[0])
     if rows is None:
-        return log_pi_t, tuple(torch.from_numpy(_normalise_log_rows(t)) for t in tables)
+        return log_pi_t, tuple(torch.from_numpy(normalise_log_rows(t)) for t in tables)
     log_emissions = []
     for kept, draw in zip(previous, tables, strict=True):
         table = kept.clone()
-        table[torch.from_numpy(rows)] = torch.from_numpy(_normalise_log_rows(draw))
+        table[torch.from_numpy(rows)] = torch.from_numpy(normalise_log_rows(draw))
         log_emissions.append(table)
     return log_pi_t, tuple(log_emissions)
 
@@ -671,7 +442,7 @@ def sample_labels_numba(
     Raises:
         ValueError: as :func:`gibbs_sweep_numba`.
     """
-    labels = _sample_labels_array(state, data, config, plan, rng_state(_draw_seed(generator)))
+    labels = _sample_labels_array(state, data, config, plan, rng_state(draw_seed(generator)))
     return torch.from_numpy(labels[: data.num_free])
 
 
@@ -692,7 +463,7 @@ def sample_globals_numba(
     if tuple(labels.shape) != (data.num_free,):
         raise ValueError(f"labels have shape {tuple(labels.shape)}, expected ({data.num_free},)")
     checked = _extended_labels(labels, 0, config)
-    return _sample_globals_arrays(checked, data, config, rng_state(_draw_seed(generator)))
+    return _sample_globals_arrays(checked, data, config, rng_state(draw_seed(generator)))
 
 
 def gibbs_sweep_numba(
@@ -713,36 +484,12 @@ def gibbs_sweep_numba(
         ValueError: the state's shapes do not match ``data`` / ``config``, a label lies outside
             [0, L), ``plan`` was made for other data, or gamma * D > 700 (overflow).
     """
-    rng = rng_state(_draw_seed(generator))
+    rng = rng_state(draw_seed(generator))
     labels = _sample_labels_array(state, data, config, plan, rng)  # [N + D]
     return GibbsState(
         torch.from_numpy(labels[: data.num_free]),
         *_sample_globals_arrays(labels, data, config, rng, state.log_emissions, unobserved_refresh),
     )
-
-
-def sample_log_gamma_numba(concentration: np.ndarray, seed: int) -> np.ndarray:
-    """[n] log G_i, G_i ~ Gamma(concentration_i, 1): the compiled sampler's own log-gamma draws.
-
-    Exposed to test them against scipy.
-
-    Raises:
-        ValueError: a concentration is not finite and positive.
-    """
-    a = np.ascontiguousarray(concentration, dtype=np.float64).reshape(1, -1)  # [1, n]
-    invalid = ~(np.isfinite(a) & (a > 0))
-    if invalid.any():
-        raise ValueError(f"gamma concentration must be finite and positive, got {a[invalid][0]}")
-    out = np.empty_like(a)
-    _fill_log_gamma(0.0, a, out, rng_state(seed))
-    return out[0]  # [n]
-
-
-def sample_standard_normal_numba(size: int, seed: int) -> np.ndarray:
-    """[size] standard normals from the compiled sampler's ziggurat (exposed for testing)."""
-    out = np.empty(size)
-    _fill_normal(out, rng_state(seed))
-    return out
 
 
 @njit(cache=True)
