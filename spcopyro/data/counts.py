@@ -15,10 +15,10 @@ import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Literal
 
 import numpy as np
 
+from spcopyro.config import FeatureScaling
 from spcopyro.data.observations import Observations
 from spcopyro.data.placement import (
     DEFAULT_SNAP_DISTANCE,
@@ -33,10 +33,6 @@ __all__ = ["CellCounts", "CellModalityCounts", "FeatureScaling", "cell_counts", 
 
 logger = logging.getLogger("spcopyro")
 
-FeatureScaling = Literal["probability", "floor100"] | float
-"""How image histograms become counts: ``"probability"`` (as they are), ``"floor100"``
-(``floor(100 f)``, as the released code did) or a positive float ``s`` (``s * f``,
-pseudo-counts)."""
 
 
 def scale_features(features: np.ndarray, scaling: FeatureScaling) -> np.ndarray:

@@ -15,6 +15,7 @@ import numpy as np
 from scipy.ndimage import distance_transform_edt
 from scipy.spatial import cKDTree
 
+from spcopyro.config import DEFAULT_SNAP_DISTANCE
 from spcopyro.data.observations import _as_xy
 from spcopyro.maps.grid import OccupancyGrid
 
@@ -26,7 +27,6 @@ __all__ = ["DEFAULT_SNAP_DISTANCE", "ModalityPlacement", "PlacementReport", "pla
 # cell; the farthest (0.25 m = 5 cells) are a waypoint in the middle of a thick wall band with an
 # unknown core, and one just behind a wall. 0.25 m places all of them, while a position
 # deeper inside a wall or farther off the map (a real error) stays unplaced and is reported.
-DEFAULT_SNAP_DISTANCE = 0.25  # metres
 
 _SNAP_EPS = 1e-9  # cells: tolerance on the snap limit (0.15 / 0.05 == 2.9999999999999996)
 

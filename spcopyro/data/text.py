@@ -11,13 +11,13 @@ from __future__ import annotations
 import string
 import unicodedata
 from collections.abc import Sequence
-from typing import Literal
 
 import numpy as np
 
+from spcopyro.config import WordWeighting
+
 __all__ = ["WordWeighting", "tfidf_weights", "tokenize", "word_matrix"]
 
-WordWeighting = Literal["count", "tfidf"]
 
 _PUNCTUATION = set(string.punctuation)
 
