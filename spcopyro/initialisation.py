@@ -11,14 +11,25 @@ free cell starts in
 x_ij being the cell centre's world position. :func:`kmeans_gaussians` provides such Gaussians
 without a pre-learnt model (k-means on the observation positions); a spatial-concept learner can
 pass its own to :func:`labels_from_gaussians`.
+
+These helpers depend on neither the sampler nor its state: the Gibbs start
+(:func:`spcopyro.gibbs.sampler.init`) and the SpCoA baseline
+(:mod:`spcopyro.baselines.spcoa`, which labels map cells with :func:`labels_from_gaussians`)
+both use them.
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import torch
 
-from spcopyro.config import SpCoConfig
 from spcopyro.model import DTYPE
+
+if TYPE_CHECKING:
+    from spcopyro.config import SpCoConfig
+
+__all__ = ["check_labels", "kmeans_gaussians", "labels_from_gaussians", "random_labels"]
 
 
 def random_labels(num_free: int, config: SpCoConfig, generator: torch.Generator) -> torch.Tensor:

@@ -1,5 +1,10 @@
 """Figures: a house and its observations, the semantic map with words (paper Fig. 10F), traces
-(paper Figs. 5-6). Everything is drawn in world metres, cropped to the known part of the map."""
+(paper Figs. 5-6). Everything is drawn in world metres, cropped to the known part of the map.
+
+Figures are built as :class:`matplotlib.figure.Figure` objects and written with
+:meth:`~matplotlib.figure.Figure.savefig`: no pyplot, no window, and no backend is chosen on
+import (a notebook keeps its inline figures; headless runs need no display).
+"""
 
 from __future__ import annotations
 
@@ -7,16 +12,14 @@ import os
 from collections import Counter
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from scipy import ndimage
 
-matplotlib.use("Agg")  # files only; never open a window
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from scipy import ndimage  # noqa: E402
-
-from spcopyro.data import House  # noqa: E402
-from spcopyro.maps import UNKNOWN, OccupancyGrid, label_colours, render_labels  # noqa: E402
-from spcopyro.results import SpCoResult  # noqa: E402
+from spcopyro.data import House
+from spcopyro.maps import UNKNOWN, OccupancyGrid, label_colours, render_labels
+from spcopyro.results import SpCoResult
 
 MAX_WORD_COLOURS = 12  # words beyond the most frequent ones are drawn as "other"
 
@@ -41,7 +44,7 @@ def _extent(grid: OccupancyGrid, rows: slice, cols: slice) -> tuple[float, float
     return ox + cols.start * res, ox + cols.stop * res, bottom, top
 
 
-def _show_image(ax: plt.Axes, grid: OccupancyGrid, rgb: np.ndarray) -> tuple[slice, slice]:
+def _show_image(ax: Axes, grid: OccupancyGrid, rgb: np.ndarray) -> tuple[slice, slice]:
     rows, cols = known_bounds(grid)
     ax.imshow(rgb[rows, cols], extent=_extent(grid, rows, cols), interpolation="nearest")
     ax.set_xlabel("x [m]")
@@ -50,18 +53,18 @@ def _show_image(ax: plt.Axes, grid: OccupancyGrid, rgb: np.ndarray) -> tuple[sli
     return rows, cols
 
 
-def _save(fig: plt.Figure, path: str | os.PathLike[str]) -> Path:
+def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=150, bbox_inches="tight")
-    plt.close(fig)
     return path
 
 
 def plot_house(house: House, path: str | os.PathLike[str], title: str | None = None) -> Path:
     """The map (free white, walls black, unknown grey), image positions and words by colour."""
     grid, obs = house.grid, house.observations
-    fig, ax = plt.subplots(figsize=(8, 8))
+    fig = Figure(figsize=(8, 8))
+    ax = fig.subplots()
     _show_image(ax, grid, render_labels(np.full(grid.shape, -1), grid))
     ax.scatter(*obs.image_xy.T, s=6, c="0.45", marker="s", label=f"images ({obs.num_images})")
     first_words = [u[-1] if u else "" for u in obs.utterances]  # a sentence's last word
@@ -102,7 +105,8 @@ def plot_semantic_map(
     least ``min_region_fraction`` of the free cells (tiny specks would only clutter the map).
     """
     grid = result.grid
-    fig, ax = plt.subplots(figsize=(9, 9))
+    fig = Figure(figsize=(9, 9))
+    ax = fig.subplots()
     rows, cols = _show_image(ax, grid, render_labels(ranked_label_image(result), grid))
     image = result.label_image()
     for concept in result.concepts_in_use()[:max_labelled]:
@@ -125,7 +129,8 @@ def plot_semantic_map(
 def plot_trace(result: SpCoResult, path: str | os.PathLike[str]) -> Path:
     """Log joint and number of concepts per sweep (paper Figs. 5-6)."""
     sweeps = np.arange(1, len(result.log_joint) + 1)
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
+    fig = Figure(figsize=(7, 5))
+    top, bottom = fig.subplots(2, 1, sharex=True)
     top.plot(sweeps, result.log_joint, lw=0.8)
     top.axvline(result.best_sweep + 1, color="C3", lw=0.6, ls="--", label="MAP-visited state")
     top.set_ylabel("log joint")

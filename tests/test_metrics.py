@@ -25,7 +25,8 @@ from spcopyro.metrics import (
     pairwise_chain_ari,
     rank_of_truth,
 )
-from spcopyro.results import SpCoResult, UnknownWordError
+from spcopyro.results import SpCoResult
+from spcopyro.semantic_map import UnknownWordError
 
 
 def free_grid(height: int, width: int, resolution: float = 1.0) -> OccupancyGrid:

@@ -1,21 +1,22 @@
 """The experiment's figures: ARI and concepts per sweep (paper Figs. 5-6), maps side by side
-(Fig. 7), SpCoMapping's map with each concept's best words (Fig. 10F)."""
+(Fig. 7), SpCoMapping's map with each concept's best words (Fig. 10F).
+
+Drawn on :class:`matplotlib.figure.Figure` objects and written with ``savefig`` (no pyplot, no
+backend chosen on import), like :mod:`spcopyro.plotting`.
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from spcopyro.data import House  # noqa: E402
-from spcopyro.experiments.methods import METHOD_LABELS, Fitted  # noqa: E402
-from spcopyro.maps import render_labels  # noqa: E402
-from spcopyro.plotting import _extent, known_bounds, plot_semantic_map  # noqa: E402
+from spcopyro.data import House
+from spcopyro.experiments.methods import METHOD_LABELS, Fitted
+from spcopyro.maps import render_labels
+from spcopyro.plotting import _extent, known_bounds, plot_semantic_map
 
 if TYPE_CHECKING:
     from spcopyro.experiments.table import ExperimentResult
@@ -35,7 +36,8 @@ def _ranked(labels: np.ndarray) -> np.ndarray:
 
 def plot_traces(fits: dict[str, Fitted], path: Path, title: str) -> Path:
     """ARI against the truth (sampled every few sweeps) and concepts in use per sweep."""
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+    fig = Figure(figsize=(7, 6))
+    top, bottom = fig.subplots(2, 1, sharex=True)
     for method, fitted in fits.items():
         if fitted.result is None:
             continue
@@ -53,7 +55,6 @@ def plot_traces(fits: dict[str, Fitted], path: Path, title: str) -> Path:
     fig.suptitle(title)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120, bbox_inches="tight")
-    plt.close(fig)
     return path
 
 
@@ -64,7 +65,8 @@ def plot_maps(house: House, fits: dict[str, Fitted], path: Path, title: str) -> 
     panels += [(METHOD_LABELS[m], f.model.label_image()) for m, f in fits.items()]
     columns = min(4, len(panels))
     rows_n = -(-len(panels) // columns)
-    fig, axes = plt.subplots(rows_n, columns, figsize=(4 * columns, 3.6 * rows_n), squeeze=False)
+    fig = Figure(figsize=(4 * columns, 3.6 * rows_n))
+    axes = fig.subplots(rows_n, columns, squeeze=False)
     rows, cols = known_bounds(grid)
     for ax, (name, labels) in zip(axes.ravel(), panels, strict=False):
         rgb = render_labels(_ranked(np.asarray(labels)), grid)  # [H, W, 3]
@@ -77,7 +79,6 @@ def plot_maps(house: House, fits: dict[str, Fitted], path: Path, title: str) -> 
     fig.suptitle(title)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120, bbox_inches="tight")
-    plt.close(fig)
     return path
 
 
@@ -122,7 +123,8 @@ def plot_stability(stability: dict, path: Path, method: str = "A-dp") -> Path:
     """
     settings: dict[str, dict] = stability["settings"]
     names = list(settings)
-    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 0.45 * len(names) + 2.0))
+    fig = Figure(figsize=(12, 0.45 * len(names) + 2.0))
+    left, right = fig.subplots(1, 2)
     for y, name in enumerate(names):
         row = settings[name]
         chains = [c["ari"] for seed in row["chains"] for c in seed]
@@ -159,5 +161,4 @@ def plot_stability(stability: dict, path: Path, method: str = "A-dp") -> Path:
     fig.suptitle(f"Stability, {stability['sweeps']} sweeps per chain")
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120, bbox_inches="tight")
-    plt.close(fig)
     return path
