@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from spcopyro.config import IMAGES, WORDS, SpCoConfig, SpCoSettings, preset
+from spcopyro.config import WORDS, SpCoConfig, SpCoSettings, preset
 from spcopyro.data import CellCounts, House, cell_counts
 from spcopyro.gibbs.convergence import (
     DEFAULT_BLOCK,
@@ -26,8 +26,8 @@ from spcopyro.gibbs.convergence import (
 )
 from spcopyro.gibbs.method import output_from_run
 from spcopyro.gibbs.options import GibbsOptions
-from spcopyro.initialisation import kmeans_gaussians, labels_from_gaussians
 from spcopyro.inference import InferenceOutput
+from spcopyro.initialisation import kmeans_gaussians, labels_from_gaussians
 from spcopyro.model import DTYPE, ModelData, make_model_data
 from spcopyro.registry import DEFAULT_METHOD, get_method
 from spcopyro.results import SpCoResult

@@ -127,18 +127,20 @@ def plot_semantic_map(
 
 
 def plot_trace(result: SpCoResult, path: str | os.PathLike[str]) -> Path:
-    """Log joint and number of concepts per sweep (paper Figs. 5-6)."""
-    sweeps = np.arange(1, len(result.log_joint) + 1)
+    """The objective (log joint or ELBO) and the number of concepts per iteration (paper
+    Figs. 5-6), the point estimate's iteration marked."""
+    trace = result.trace
+    sweeps = np.arange(1, len(trace.objective) + 1)
     fig = Figure(figsize=(7, 5))
     top, bottom = fig.subplots(2, 1, sharex=True)
-    top.plot(sweeps, result.log_joint, lw=0.8)
-    top.axvline(result.best_sweep + 1, color="C3", lw=0.6, ls="--", label="MAP-visited state")
-    top.set_ylabel("log joint")
+    top.plot(sweeps, trace.objective, lw=0.8)
+    top.axvline(result.best_iteration + 1, color="C3", lw=0.6, ls="--", label="point estimate")
+    top.set_ylabel(trace.objective_name)
     top.legend(fontsize=8)
-    bottom.plot(sweeps, result.num_concepts, lw=0.8, color="C1")
+    bottom.plot(sweeps, trace.num_concepts, lw=0.8, color="C1")
     bottom.set_ylabel("concepts in use")
-    bottom.set_xlabel("sweep")
+    bottom.set_xlabel("sweep" if result.method == "gibbs" else "iteration")
     for ax in (top, bottom):
         ax.set_xscale("log")
-    fig.suptitle(result.name or "Gibbs trace")
+    fig.suptitle(f"{result.name or 'trace'} ({result.method})")
     return _save(fig, path)

@@ -5,9 +5,9 @@ concept's words (and items of any further modality), "where is X?".
 MAP-visited state, or the most probable concept under a variational posterior), optionally the
 per-cell marginals ``[N, L]`` (a variational q(C), or label frequencies over samples), point
 estimates or posterior means of pi and of every modality's distributions, and a per-iteration
-:class:`~spcopyro.inference.Trace` (the log joint for Gibbs, the ELBO for variational methods). An inference method
-hands it an :class:`~spcopyro.inference.InferenceOutput`; :meth:`SpCoResult.from_output` adds the map, the item names
-and the settings.
+:class:`~spcopyro.inference.Trace` (the log joint for Gibbs, the ELBO for variational methods).
+An inference method hands it an :class:`~spcopyro.inference.InferenceOutput`;
+:meth:`SpCoResult.from_output` adds the map, the item names and the settings.
 
 Place estimation from a word is the paper's eq. (19):
 

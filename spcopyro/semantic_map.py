@@ -293,15 +293,16 @@ class TabularSemanticMap:
 class SpCoResultLike(Protocol):
     """What :class:`SpCoSemanticMap` reads from a fitted SpCoMapping result.
 
-    :class:`~spcopyro.results.SpCoResult` offers it; it is checked by duck typing (this module
-    does not import the result module, which depends on the inference run loop).
+    :class:`~spcopyro.results.SpCoResult` offers it, whatever inference method fitted it; it
+    is checked by duck typing (this module does not import the result module).
 
     Attributes:
         grid: the occupancy grid of the fit.
         vocabulary: ``[V]`` words, the columns of ``w``.
-        w: ``[L, V]`` p(word | concept) of the MAP-visited state.
-        labels_best: ``[N]`` int concept of every free cell in the MAP-visited state
-            (``grid.free_index`` order).
+        w: ``[L, V]`` p(word | concept): a point estimate or posterior mean.
+        labels: ``[N]`` int point estimate of every free cell's concept (``grid.free_index``
+            order).
+        marginals: ``[N, L]`` p(C_i = l) where the method has it (variational), else None.
     """
 
     @property
@@ -314,10 +315,13 @@ class SpCoResultLike(Protocol):
     def w(self) -> np.ndarray: ...
 
     @property
-    def labels_best(self) -> np.ndarray: ...
+    def labels(self) -> np.ndarray: ...
+
+    @property
+    def marginals(self) -> np.ndarray | None: ...
 
     def label_image(self) -> np.ndarray:
-        """``[H, W]`` int64 concepts of the MAP-visited state, -1 off free space."""
+        """``[H, W]`` int64 concepts of the point estimate, -1 off free space."""
         ...
 
     def where(self, word: str, prior: str = "pi") -> Any:
@@ -329,12 +333,12 @@ class SpCoResultLike(Protocol):
 class SpCoSemanticMap:
     r"""A fitted :class:`~spcopyro.results.SpCoResult` seen through :class:`SemanticMapModel`.
 
-    ``p(word | cell) = sum_l p(C_cell = l) w_l`` with w of the MAP-visited state. Without
-    ``label_samples``, ``p(C_cell = l)`` is 1 for the MAP-visited label (a point estimate);
-    with ``label_samples`` (``[S, N]``, e.g. :attr:`~spcopyro.gibbs.api.GibbsRun.label_samples`)
-    it is the fraction of samples in which the cell has label l. The samples should come from
-    the same chain near the MAP-visited state: w belongs to one state, and concept ids are only
-    comparable within a chain (label switching). ``region(word)`` is
+    ``p(word | cell) = sum_l p(C_cell = l) w_l`` with the result's w. ``p(C_cell = l)`` is: with
+    ``label_samples`` (``[S, N]``, e.g. :attr:`~spcopyro.gibbs.run.GibbsRun.label_samples`) the
+    fraction of samples in which the cell has label l; else the result's per-cell ``marginals``
+    where it has them (a variational q(C)); else 1 for the point estimate's label. Samples
+    should come from the same chain near the point estimate: w belongs to one state, and concept
+    ids are only comparable within a chain (label switching). ``region(word)`` is
     :meth:`~spcopyro.results.SpCoResult.where` (eq. 19) with ``prior`` ("pi" or "area").
     """
 
@@ -372,9 +376,12 @@ class SpCoSemanticMap:
         """``[n]`` free-cell indices -> ``[n, V]`` p(word | cell) (see the class docstring)."""
         idx = _check_cells(cells, self.grid.num_free)
         w = np.asarray(self.result.w, dtype=np.float64)  # [L, V]
-        if self.label_samples is None:
-            return w[self.result.labels_best[idx]]
-        return w[self.label_samples[:, idx]].mean(axis=0)  # [S, n, V] -> [n, V]
+        if self.label_samples is not None:
+            return w[self.label_samples[:, idx]].mean(axis=0)  # [S, n, V] -> [n, V]
+        marginals = getattr(self.result, "marginals", None)
+        if marginals is not None:
+            return np.asarray(marginals, dtype=np.float64)[idx] @ w  # [n, L] @ [L, V]
+        return w[self.result.labels[idx]]
 
     def region(self, word: str) -> np.ndarray:
         return self.result.where(word, prior=self.prior).region

@@ -34,7 +34,6 @@ __all__ = ["CellCounts", "CellModalityCounts", "FeatureScaling", "cell_counts", 
 logger = logging.getLogger("spcopyro")
 
 
-
 def scale_features(features: np.ndarray, scaling: FeatureScaling) -> np.ndarray:
     """Image histograms ``[T, K]`` -> counts ``[T, K]`` float64.
 

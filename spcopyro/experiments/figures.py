@@ -44,8 +44,8 @@ def plot_traces(fits: dict[str, Fitted], path: Path, title: str) -> Path:
         label = METHOD_LABELS[method]
         if fitted.ari_trace is not None:
             top.plot(*fitted.ari_trace, lw=1.0, label=label)
-        sweeps = np.arange(1, len(fitted.result.num_concepts) + 1)
-        bottom.plot(sweeps, fitted.result.num_concepts, lw=1.0, label=label)
+        sweeps = np.arange(1, len(fitted.result.trace.num_concepts) + 1)
+        bottom.plot(sweeps, fitted.result.trace.num_concepts, lw=1.0, label=label)
     top.set_ylabel("ARI vs truth (Fig. 5)")
     bottom.set_ylabel("concepts in use (Fig. 6)")
     bottom.set_xlabel("sweep")

@@ -90,7 +90,7 @@ def co_assignment(
 
     Args:
         label_samples: ``[S, N]`` int labels of N free cells in S samples (e.g. thinned
-            :attr:`~spcopyro.gibbs.api.GibbsRun.label_samples`), S >= 1, N >= 2.
+            :attr:`~spcopyro.gibbs.run.GibbsRun.label_samples`), S >= 1, N >= 2.
     """
     samples = np.asarray(label_samples)
     if samples.ndim != 2 or samples.shape[0] < 1 or samples.shape[1] < 2:
