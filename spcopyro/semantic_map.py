@@ -39,15 +39,12 @@ from __future__ import annotations
 import difflib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
 from spcopyro.data import CellCounts
 from spcopyro.maps import OccupancyGrid
-
-if TYPE_CHECKING:
-    from spcopyro.results import SpCoResult
 
 __all__ = [
     "SemanticMapModel",
@@ -342,7 +339,7 @@ class SpCoSemanticMap:
     :meth:`~spcopyro.results.SpCoResult.where` (eq. 19) with ``prior`` ("pi" or "area").
     """
 
-    result: SpCoResult | SpCoResultLike
+    result: SpCoResultLike
     prior: str = "pi"
     label_samples: np.ndarray | None = None  # [S, N] int
 
@@ -387,7 +384,7 @@ class SpCoSemanticMap:
         return self.result.where(word, prior=self.prior).region
 
 
-def as_semantic_map(model: SemanticMapModel | SpCoResult) -> SemanticMapModel:
+def as_semantic_map(model: SemanticMapModel | SpCoResultLike) -> SemanticMapModel:
     """A :class:`~spcopyro.results.SpCoResult` (anything :class:`SpCoResultLike`) wrapped in
     :class:`SpCoSemanticMap`; a model as it is."""
     if isinstance(model, SpCoResultLike):

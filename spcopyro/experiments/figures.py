@@ -8,18 +8,14 @@ backend chosen on import), like :mod:`spcopyro.plotting`.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 from matplotlib.figure import Figure
 
 from spcopyro.data import House
-from spcopyro.experiments.methods import METHOD_LABELS, Fitted
+from spcopyro.experiments.methods import METHOD_LABELS, ExperimentResult, Fitted
 from spcopyro.maps import render_labels
 from spcopyro.plotting import _extent, known_bounds, plot_semantic_map
-
-if TYPE_CHECKING:
-    from spcopyro.experiments.table import ExperimentResult
 
 
 def _ranked(labels: np.ndarray) -> np.ndarray:

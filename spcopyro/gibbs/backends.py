@@ -58,17 +58,16 @@ class NumbaBackend:
     name = "numba"
 
     def __init__(self) -> None:
-        from spcopyro.gibbs import numba_sweep  # ImportError without numba
+        # ImportError without numba (get_backend relies on it).
+        from spcopyro.gibbs.numba_sweep import gibbs_sweep_numba, potts_agreements_numba
 
-        self._module = numba_sweep
+        self._sweep, self._potts_agreements = gibbs_sweep_numba, potts_agreements_numba
 
     def sweep(self, state, data, config, generator, plan, unobserved_refresh):  # noqa: D102
-        return self._module.gibbs_sweep_numba(
-            state, data, config, generator, plan, unobserved_refresh
-        )
+        return self._sweep(state, data, config, generator, plan, unobserved_refresh)
 
     def potts_agreements(self, labels, pairs):  # noqa: D102
-        return self._module.potts_agreements_numba(labels, pairs)
+        return self._potts_agreements(labels, pairs)
 
 
 def get_backend(backend: str = "auto") -> SweepBackend:

@@ -26,7 +26,7 @@ from spcopyro.semantic_map import word_index
 
 if TYPE_CHECKING:
     from spcopyro.baselines.spcoa.events import SpCoAData
-    from spcopyro.baselines.spcoa.sampler import SpCoAHyperparameters
+    from spcopyro.baselines.spcoa.hyperparameters import SpCoAHyperparameters
 
 __all__ = ["SpCoAResult"]
 
