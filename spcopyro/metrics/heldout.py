@@ -17,16 +17,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy import ndimage
 
 from spcopyro.data import DEFAULT_SNAP_DISTANCE, Observations, place_observations
-from spcopyro.semantic_map import SemanticMapModel, as_semantic_map
-
-if TYPE_CHECKING:
-    from spcopyro.results import SpCoResult
+from spcopyro.semantic_map import SemanticMapModel, SpCoResultLike, as_semantic_map
 
 __all__ = [
     "LocalisationScores",
@@ -156,7 +152,7 @@ def rank_of_truth(
 
 
 def heldout_word_prediction(
-    model: SemanticMapModel | SpCoResult,
+    model: SemanticMapModel | SpCoResultLike,
     observations: Observations,
     *,
     snap_distance: float = DEFAULT_SNAP_DISTANCE,
@@ -253,7 +249,7 @@ class LocalisationScores:
 
 
 def heldout_localisation(
-    model: SemanticMapModel | SpCoResult,
+    model: SemanticMapModel | SpCoResultLike,
     observations: Observations,
     *,
     snap_distance: float = DEFAULT_SNAP_DISTANCE,

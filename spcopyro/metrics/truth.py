@@ -14,15 +14,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from sklearn.metrics import adjusted_rand_score
 
-from spcopyro.semantic_map import SemanticMapModel, as_semantic_map
-
-if TYPE_CHECKING:
-    from spcopyro.results import SpCoResult
+from spcopyro.semantic_map import SemanticMapModel, SpCoResultLike, as_semantic_map
 
 __all__ = ["MATCHING_KINDS", "MatchingRate", "adjusted_rand_index", "matching_rate"]
 
@@ -87,7 +83,7 @@ def _category_words(
 
 
 def matching_rate(
-    model: SemanticMapModel | SpCoResult | Callable[[str], np.ndarray],
+    model: SemanticMapModel | SpCoResultLike | Callable[[str], np.ndarray],
     truth: np.ndarray,
     category_words: Mapping[str, int] | Sequence[str],
     *,

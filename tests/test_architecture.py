@@ -1,0 +1,174 @@
+"""The package's import graph: one direction, no cycle, and light imports where they matter.
+
+Every ``import`` and ``from ... import`` of every module is read with :mod:`ast` -- module-level,
+inside functions and under ``TYPE_CHECKING`` alike, since a cycle hidden by a lazy import is still
+a cycle -- and checked against the layers below (the issue-9 architecture):
+maps/data -> model -> inference (likelihood, gibbs, guides) -> results -> metrics/baselines
+-> fit -> experiments -> CLI. A module may import its own layer and lower ones only.
+"""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parents[1] / "spcopyro"
+
+LAYERS: tuple[tuple[str, ...], ...] = (
+    ("config", "distributions", "progress", "random_draws", "maps"),
+    ("data", "synthetic"),
+    ("model",),
+    ("likelihood", "initialisation", "semantic_map"),
+    ("gibbs", "guides", "inference", "simulate"),
+    ("registry",),
+    ("results",),
+    ("metrics", "plotting", "baselines", "features"),
+    ("fit",),
+    ("experiments",),
+    ("cli",),
+)
+"""Layer of every top-level module or subpackage of spcopyro, lowest first."""
+
+
+def _module_names() -> dict[str, Path]:
+    modules = {}
+    for path in PACKAGE.rglob("*.py"):
+        parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        modules[".".join(parts)] = path
+    return modules
+
+
+MODULES = _module_names()
+
+
+def _imports(module: str) -> set[str]:
+    """The spcopyro modules that ``module`` imports anywhere in its source."""
+    path = MODULES[module]
+    package = module if path.name == "__init__.py" else module.rsplit(".", 1)[0]
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parts = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join(parts + ([base] if base else []))
+            names = [base] + [f"{base}.{alias.name}" for alias in node.names]
+        else:
+            continue
+        for name in names:
+            while name and name not in MODULES:
+                name = name.rsplit(".", 1)[0] if "." in name else ""
+            if name.startswith("spcopyro.") and name != module:
+                found.add(name)
+    return found
+
+
+GRAPH = {module: _imports(module) for module in MODULES}
+
+
+def _layer(module: str) -> int:
+    top = module.split(".")[1]
+    for index, names in enumerate(LAYERS):
+        if top in names:
+            return index
+    raise AssertionError(f"{module} is in no layer of LAYERS: add its top-level name")
+
+
+INNER = [module for module in MODULES if module != "spcopyro"]
+"""Every module but the package's own ``__init__`` (which only holds the version)."""
+
+
+def test_every_module_has_a_layer():
+    for module in INNER:
+        _layer(module)
+
+
+def test_imports_point_down_the_layers():
+    wrong = [
+        f"{module} (layer {_layer(module)}) imports {target} (layer {_layer(target)})"
+        for module, targets in GRAPH.items()
+        if module != "spcopyro"
+        for target in targets
+        if target != "spcopyro" and _layer(target) > _layer(module)
+    ]
+    assert not wrong, "\n".join(wrong)
+
+
+def test_no_import_cycle():
+    """Tarjan's strongly connected components of the module graph are all single modules."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    cycles: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in GRAPH[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                cycles.append(sorted(component))
+
+    for module in GRAPH:
+        if module not in index:
+            visit(module)
+    assert not cycles, f"import cycles: {cycles}"
+
+
+def test_the_checker_sees_a_cycle_and_a_wrong_direction(monkeypatch):
+    """The two checks above can fail: a made-up edge model -> fit breaks both."""
+    graph = {module: set(targets) for module, targets in GRAPH.items()}
+    graph["spcopyro.model"].add("spcopyro.fit")
+    monkeypatch.setattr(sys.modules[__name__], "GRAPH", graph)
+    with pytest.raises(AssertionError, match="imports spcopyro.fit"):
+        test_imports_point_down_the_layers()
+    with pytest.raises(AssertionError, match="import cycles"):
+        test_no_import_cycle()
+
+
+@pytest.mark.parametrize("layer", ["baselines", "metrics", "semantic_map", "initialisation"])
+def test_baselines_and_metrics_do_not_import_inference(layer):
+    forbidden = ("spcopyro.gibbs", "spcopyro.results", "spcopyro.registry", "spcopyro.fit")
+    offenders = [
+        f"{module} imports {target}"
+        for module, targets in GRAPH.items()
+        if module != "spcopyro" and module.split(".")[1] == layer
+        for target in targets
+        if target.startswith(forbidden)
+    ]
+    assert not offenders, "\n".join(offenders)
+
+
+def test_importing_the_model_loads_neither_opencv_nor_yaml():
+    code = (
+        "import sys, spcopyro.model, spcopyro.likelihood, spcopyro.gibbs; "
+        "print(sorted(m for m in ('cv2', 'yaml', 'matplotlib', 'sklearn', 'torchvision') "
+        "if m in sys.modules))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True,
+        cwd=PACKAGE.parent,
+    )  # fmt: skip
+    assert out.stdout.strip() == "[]", out.stdout
