@@ -13,10 +13,11 @@ then pi, theta and w from their conjugate Dirichlet conditionals (eqs. 14-17). T
 measures, in one run:
 
 1. **Per house** (the five public houses, ``paper-dp``, L = 120): milliseconds per iteration of
-   each sweep backend ("torch", "numba" when installed) against :func:`per_cell_sweep`, a
-   straightforward per-cell implementation of Algorithm 1 written here (a Python loop over the
-   free cells in raster order, as the released code works), timed in the same process.
-2. **Headline run**: 5000 iterations of room2ldk4 through :func:`~spcopyro.gibbs.api.run_gibbs`
+   each sweep backend ("torch", "numba" when installed) against
+   :func:`reference_loop.per_cell_sweep`, a straightforward per-cell implementation of
+   Algorithm 1 (a Python loop over the free cells in raster order, as the released code works;
+   ``benchmarks/reference_loop.py``), timed in the same process.
+2. **Headline run**: 5000 iterations of room2ldk4 through :func:`~spcopyro.gibbs.run.run_gibbs`
    with the fastest backend, in a fresh subprocess, reporting the real wall time and the process's
    resident-set high-water mark (``ru_maxrss``).
 3. **Scaling**: synthetic maps (:meth:`~spcopyro.synthetic.HouseSpec.scaled`) from ~1e4 to ~1e6
@@ -50,18 +51,19 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 import torch
+from reference_loop import PerCellProblem, PerCellState, per_cell_sweep
 
-from spcopyro.config import SpCoConfig, preset
-from spcopyro.data import House, cell_counts, find_dataset_root, list_houses, load_house
-from spcopyro.gibbs.api import run_gibbs
-from spcopyro.gibbs.backends import sweep_function
-from spcopyro.gibbs.init import initial_state
-from spcopyro.gibbs.state import GibbsState, make_sweep_plan
-from spcopyro.model import ModelData, make_model_data
+from spcopyro.config import SpCoConfig, SpCoSettings, preset
+from spcopyro.data import House, find_dataset_root, list_houses, load_house
+from spcopyro.fit import prepare_model_data
+from spcopyro.gibbs import GibbsOptions, GibbsState, init, run_gibbs
+from spcopyro.gibbs.backends import get_backend
+from spcopyro.gibbs.state import make_sweep_plan
+from spcopyro.model import ModelData
 from spcopyro.synthetic import HouseSpec, make_house
 
 HEADLINE_HOUSE = "room2ldk4"
@@ -140,25 +142,21 @@ QUICK = BenchSizes(
 
 @dataclass(frozen=True)
 class Problem:
-    """A house turned into the model's tensors for one configuration."""
+    """A house turned into the model's tensors for one configuration (and the sweep's
+    ``unobserved_refresh``, :class:`~spcopyro.gibbs.options.GibbsOptions`)."""
 
     name: str
     data: ModelData
     config: SpCoConfig
     truth: np.ndarray | None  # [N] int64 ground-truth category per free cell, -1 unlabelled
+    unobserved_refresh: float = 1.0
 
 
-def make_problem(house: House, config: SpCoConfig) -> Problem:
-    """Per-cell counts and model tensors of ``house`` under ``config``."""
-    counts = cell_counts(
-        house.grid,
-        house.observations,
-        feature_scaling=config.feature_scaling,
-        word_weighting=config.word_weighting,
-    )
-    data = make_model_data(house.grid, counts, config.connectivity)
+def make_problem(house: House, settings: SpCoSettings, unobserved_refresh: float = 1.0) -> Problem:
+    """Per-cell counts and model tensors of ``house`` under ``settings``."""
+    _, data = prepare_model_data(house, settings)
     truth = None if house.truth is None else house.truth[house.grid.free]  # [N] raster order
-    return Problem(house.name, data, config, truth)
+    return Problem(house.name, data, settings.model, truth, unobserved_refresh)
 
 
 def synthetic_house(side: int, seed: int = SEED) -> House:
@@ -178,104 +176,13 @@ def load_headline_house(dataset: Path | None) -> House:
 # ---------------------------------------------------------------------------------------------
 
 
-class PerCellState(NamedTuple):
-    """The baseline's chain state (numpy). N cells, L concepts, K classes, V words."""
-
-    labels: np.ndarray  # [N] int64
-    log_pi: np.ndarray  # [L] float64
-    log_theta: np.ndarray  # [L, K] float64
-    log_w: np.ndarray  # [L, V] float64
-
-
-@dataclass(frozen=True)
-class PerCellProblem:
-    """The map and observations as plain numpy arrays (M observed cells)."""
-
-    neighbours: np.ndarray  # [N, D] int64, -1 where no free neighbour
-    obs_cells: np.ndarray  # [M] int64 free index of each observed cell
-    obs_row: np.ndarray  # [N] int64 row of each cell in the count arrays, -1 if unobserved
-    image_counts: np.ndarray  # [M, K] float64
-    word_counts: np.ndarray  # [M, V] float64
-
-    @classmethod
-    def from_model_data(cls, data: ModelData) -> PerCellProblem:
-        return cls(
-            neighbours=data.neighbours.numpy().copy(),
-            obs_cells=data.obs_cells.numpy().copy(),
-            obs_row=data.observation_rows().numpy().copy(),
-            image_counts=data.image_counts.numpy().copy(),
-            word_counts=data.word_counts.numpy().copy(),
-        )
-
-
-def _log_dirichlet_rows(concentration: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """log p, p ~ Dir(concentration) along the last axis (normalised gamma draws)."""
-    gammas = rng.standard_gamma(concentration)
-    log_g = np.log(np.maximum(gammas, np.finfo(np.float64).tiny))
-    peak = log_g.max(axis=-1, keepdims=True)
-    return log_g - (peak + np.log(np.exp(log_g - peak).sum(axis=-1, keepdims=True)))
-
-
-def per_cell_sweep(
-    state: PerCellState, problem: PerCellProblem, config: SpCoConfig, rng: np.random.Generator
-) -> PerCellState:
-    """One iteration of Algorithm 1, cell by cell: the benchmark's baseline.
-
-    For each free cell i in raster order (free-index order), with the labels drawn so far::
-
-        logits_l = log pi_l + gamma * #{j ~ i : C_j = l} + [i observed] loglik(i, l)   (eq. 13)
-        C_i ~ softmax(logits)
-
-    where loglik(i, l) = sum_k f_ik log theta_lk + sum_v S_iv log w_lv is computed once per sweep
-    for the observed cells (a [M, L] matrix product); the L-vector work per cell is numpy, the
-    loop over cells is Python. Then pi, theta and w are drawn from eqs. (14)-(17) by normalised
-    gamma variates. Returns the new state; ``state`` is not modified.
-    """
-    L = config.num_concepts
-    gamma = float(config.gamma)
-    log_pi = state.log_pi  # [L]
-    loglik = np.zeros((problem.obs_cells.shape[0], L))  # [M, L]
-    if config.use_images:
-        loglik += problem.image_counts @ state.log_theta.T
-    if config.use_words:
-        loglik += problem.word_counts @ state.log_w.T
-    labels = state.labels.copy()  # [N]
-    neighbours = problem.neighbours.tolist()  # N lists of D ints
-    obs_row = problem.obs_row.tolist()  # [N]
-    uniforms = rng.random(labels.shape[0])  # [N]
-    for i, cell_neighbours in enumerate(neighbours):
-        logits = log_pi.copy()  # [L]
-        for j in cell_neighbours:
-            if j >= 0:
-                logits[labels[j]] += gamma
-        row = obs_row[i]
-        if row >= 0:
-            logits += loglik[row]
-        weights = np.exp(logits - logits.max())  # [L]
-        cdf = np.cumsum(weights)  # [L]
-        labels[i] = min(int(np.searchsorted(cdf, uniforms[i] * cdf[-1], side="right")), L - 1)
-
-    cells_per_concept = np.bincount(labels, minlength=L).astype(np.float64)  # [L]
-    observed_labels = labels[problem.obs_cells]  # [M]
-    images = np.zeros((L, problem.image_counts.shape[1]))  # [L, K]
-    words = np.zeros((L, problem.word_counts.shape[1]))  # [L, V]
-    if config.use_images:
-        np.add.at(images, observed_labels, problem.image_counts)
-    if config.use_words:
-        np.add.at(words, observed_labels, problem.word_counts)
-    return PerCellState(
-        labels=labels,
-        log_pi=_log_dirichlet_rows(config.pi_concentration + cells_per_concept, rng),
-        log_theta=_log_dirichlet_rows(config.chi + images, rng),
-        log_w=_log_dirichlet_rows(config.beta + words, rng),
-    )
-
-
 def time_per_cell(problem: Problem, sweeps: int, seed: int = SEED) -> dict[str, Any]:
     """Seconds per iteration (median) of :func:`per_cell_sweep`, from the backends' start state."""
     generator = torch.Generator().manual_seed(seed)
-    start = initial_state(problem.data, problem.config, generator)
-    state = PerCellState(*(t.numpy().copy() for t in start))
+    start = init(problem.data, problem.config, generator)
+    state = PerCellState(
+        *(t.numpy().copy() for t in (start.labels, start.log_pi, start.log_theta, start.log_w))
+    )
     arrays = PerCellProblem.from_model_data(problem.data)
     rng = np.random.default_rng(seed)
     times = []
@@ -301,7 +208,7 @@ def available_backends(requested: Sequence[str]) -> tuple[list[str], dict[str, s
     usable, notes = [], {}
     for name in requested:
         try:
-            sweep_function(name)
+            get_backend(name)
         except Exception as error:  # noqa: BLE001 - a missing or broken backend is reported
             notes[name] = f"skipped: {type(error).__name__}: {error}"
         else:
@@ -318,32 +225,33 @@ def time_backend(
     budget_s: float | None = None,
     seed: int = SEED,
 ) -> dict[str, Any]:
-    """Milliseconds per iteration (label sweep + global draws) of one backend's sweep function.
+    """Milliseconds per iteration (label sweep + global draws) of one backend's sweep
+    (:meth:`~spcopyro.gibbs.backends.SweepBackend.sweep`, with ``problem.unobserved_refresh``).
 
     ``warmup`` sweeps first (the first one, which includes any JIT compilation, is reported
     separately), then either ``sweeps`` timed sweeps or as many as fit in ``budget_s`` seconds
     (at least 3). ``ms_per_iteration`` is the median sweep (robust to other processes taking the
-    CPU for a moment; the mean, min and max are kept too). Times the sweep function alone: no log
-    joint, no trace (see the headline run for :func:`run_gibbs` as a user calls it).
+    CPU for a moment; the mean, min and max are kept too). Times the backend's sweep alone: no
+    log joint, no trace (see the headline run for :func:`run_gibbs` as a user calls it).
     """
     if (sweeps is None) == (budget_s is None):
         raise ValueError("time_backend: give exactly one of sweeps and budget_s")
-    step = sweep_function(backend)
-    data, config = problem.data, problem.config
+    sweep = get_backend(backend).sweep
+    data, config, refresh = problem.data, problem.config, problem.unobserved_refresh
     generator = torch.Generator().manual_seed(seed)
     plan = make_sweep_plan(data)
-    state: GibbsState = initial_state(data, config, generator)
+    state: GibbsState = init(data, config, generator)
     first_sweep_s = math.nan
     for k in range(max(warmup, 1)):
         t0 = time.perf_counter()
-        state = step(state, data, config, generator, plan)
+        state = sweep(state, data, config, generator, plan, refresh)
         if k == 0:
             first_sweep_s = time.perf_counter() - t0
     times: list[float] = []
     started = time.perf_counter()
     while True:
         t0 = time.perf_counter()
-        state = step(state, data, config, generator, plan)
+        state = sweep(state, data, config, generator, plan, refresh)
         times.append(time.perf_counter() - t0)
         if sweeps is not None and len(times) >= sweeps:
             break
@@ -387,10 +295,10 @@ def bench_houses(
     """Per-house ms per iteration of every backend, the per-cell baseline and the speed-ups."""
     if dataset is None:
         return []
-    config = preset(PRESET)
+    settings = preset(PRESET)
     results = []
     for name in list_houses(dataset):
-        problem = make_problem(load_house(dataset / name), config)
+        problem = make_problem(load_house(dataset / name), settings)
         entry: dict[str, Any] = {
             "house": name,
             "free_cells": problem.data.num_free,
@@ -445,12 +353,18 @@ def child_run(dataset: Path | None, backend: str, sweeps: int) -> dict[str, Any]
     """The headline run, meant for a fresh process: load, run_gibbs, time and peak memory."""
     rss_after_import = _max_rss_bytes()
     t0 = time.perf_counter()
-    config = preset(PRESET)
-    problem = make_problem(load_headline_house(dataset), config)
+    problem = make_problem(load_headline_house(dataset), preset(PRESET))
     setup_s = time.perf_counter() - t0
     rss_before_run, rss_now_before_run = _max_rss_bytes(), _current_rss_bytes()
     t0 = time.perf_counter()
-    run = run_gibbs(problem.data, config, sweeps, seed=SEED, backend=backend, progress=False)
+    run = run_gibbs(
+        problem.data,
+        problem.config,
+        sweeps,
+        options=GibbsOptions(backend=backend),
+        seed=SEED,
+        progress=False,
+    )
     wall_s = time.perf_counter() - t0
     rss_now_after_run = _current_rss_bytes()
     return {
@@ -511,8 +425,8 @@ def bench_scaling(
     L series has a few thousand observed cells.
     """
     series: dict[str, list[dict[str, Any]]] = {"cells": [], "num_concepts": []}
-    points: list[tuple[str, str, Callable[[], House], SpCoConfig]] = [
-        ("cells", f"{side}x{side}", lambda side=side: synthetic_house(side), preset(PRESET))
+    points: list[tuple[str, str, Callable[[], House], SpCoSettings, float]] = [
+        ("cells", f"{side}x{side}", lambda side=side: synthetic_house(side), preset(PRESET), 1.0)
         for side in sizes.scaling_sides
     ]
     side = sizes.scaling_l_side
@@ -522,13 +436,14 @@ def bench_scaling(
             f"{side}x{side}",
             lambda: synthetic_house(side),
             preset(PRESET, num_concepts=num_concepts),
+            1.0,
         )
         for num_concepts in sizes.scaling_num_concepts
     ]
     if dataset is not None:
         # The same L values on room2ldk4, with Algorithm 1's full redraw of theta and w every
         # sweep, and redrawing the rows of concepts without observed cells in 10% of sweeps
-        # (SpCoConfig.unobserved_refresh, still an exact sampler).
+        # (GibbsOptions.unobserved_refresh, still an exact sampler).
         for kind, refresh in (("num_concepts_house", 1.0), ("num_concepts_house_refresh", 0.1)):
             series[kind] = []
             points += [
@@ -536,15 +451,17 @@ def bench_scaling(
                     kind,
                     HEADLINE_HOUSE,
                     lambda: load_house(dataset / HEADLINE_HOUSE),
-                    preset(PRESET, num_concepts=num_concepts, unobserved_refresh=refresh),
+                    preset(PRESET, num_concepts=num_concepts),
+                    refresh,
                 )
                 for num_concepts in sizes.scaling_num_concepts
             ]
     houses: dict[str, House] = {}
-    for kind, map_name, load, config in points:
+    for kind, map_name, load, settings, refresh in points:
         if map_name not in houses:
             houses = {map_name: load()}  # keep one map in memory at a time
-        problem = make_problem(houses[map_name], config)
+        problem = make_problem(houses[map_name], settings, refresh)
+        config = problem.config
         entry: dict[str, Any] = {
             "map": map_name,
             "free_cells": problem.data.num_free,
@@ -575,8 +492,9 @@ def bench_quality(backend: str, sizes: BenchSizes) -> list[dict[str, Any]]:
     checkpoints = sorted(set(sizes.quality_checkpoints))
     results = []
     for gamma in sizes.quality_gammas:
-        config = preset(PRESET) if gamma is None else preset(PRESET, gamma=gamma)
-        problem = make_problem(house, config)
+        settings = preset(PRESET) if gamma is None else preset(PRESET, gamma=gamma)
+        problem = make_problem(house, settings)
+        config = problem.config
         truth = problem.truth  # [N]
         labelled = truth >= 0  # [N] bool
         saved: dict[int, np.ndarray] = {}
@@ -590,8 +508,8 @@ def bench_quality(backend: str, sizes: BenchSizes) -> list[dict[str, Any]]:
             problem.data,
             config,
             checkpoints[-1],
+            options=GibbsOptions(backend=backend),
             seed=SEED,
-            backend=backend,
             progress=False,
             callback=keep,
         )
