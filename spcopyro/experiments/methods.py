@@ -89,8 +89,14 @@ class Method:
     key: str
     label: str
     fit: Callable[[House, FitContext], Fitted]
-    spcomapping: bool = False
-    """A fit of SpCoMapping itself (any inference method), not a baseline."""
+    settings: Callable[[int | None], SpCoSettings] | None = None
+    """For a fit of SpCoMapping itself (any inference method): its settings given the house's
+    number of categories; None for a baseline."""
+
+    @property
+    def spcomapping(self) -> bool:
+        """Whether the row fits SpCoMapping (rather than a baseline)."""
+        return self.settings is not None
 
 
 REGISTRY: dict[str, Method] = {}
@@ -150,7 +156,7 @@ def spcomapping_row(
         )  # fmt: skip
         return Fitted(key, SpCoSemanticMap(result), 0.0, result=result, ari_trace=trace)
 
-    return Method(key, label, fit, spcomapping=True)
+    return Method(key, label, fit, settings=settings)
 
 
 def _dirichlet_settings(num_categories: int | None) -> SpCoSettings:
@@ -202,14 +208,11 @@ METHOD_LABELS = {key: method.label for key, method in REGISTRY.items()}
 
 
 def spco_settings(method: str, num_categories: int | None) -> SpCoSettings:
-    """The settings of an SpCoMapping row of the stability study (see the module docstring)."""
-    if method == "A-dp":
-        return preset("paper-dp")
-    if method == "A-orig-g3":
-        return preset("original-code", gamma=3.0)
-    if method == "B-dirichlet":
-        return _dirichlet_settings(num_categories)
-    raise ValueError(f"{method!r} is not an SpCoMapping method; choose one of {SPCO_METHODS}")
+    """The settings of an SpCoMapping row (see the module docstring)."""
+    row = REGISTRY.get(method)
+    if row is None or row.settings is None:
+        raise ValueError(f"{method!r} is not an SpCoMapping method; choose one of {SPCO_METHODS}")
+    return row.settings(num_categories)
 
 
 def fit_method(
