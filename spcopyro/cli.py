@@ -95,18 +95,21 @@ def _fit(args: argparse.Namespace) -> int:
         overrides["num_concepts"] = len(house.category_names)
     settings = preset(args.preset, **overrides)
     config = settings.model
-    options = GibbsOptions(
-        backend=args.backend, anneal_sweeps=args.anneal_sweeps,
-        unobserved_refresh=1.0 if args.unobserved_refresh is None else args.unobserved_refresh,
-        cluster_moves=0.0 if args.cluster_moves is None else args.cluster_moves,
-    )  # fmt: skip
+    options = None  # a method other than Gibbs runs with its default options
+    if args.method == "gibbs":
+        options = GibbsOptions(
+            backend=args.backend, anneal_sweeps=args.anneal_sweeps,
+            unobserved_refresh=1.0 if args.unobserved_refresh is None else args.unobserved_refresh,
+            cluster_moves=0.0 if args.cluster_moves is None else args.cluster_moves,
+        )  # fmt: skip
     warning = gamma_warning(config)
     if warning:
         print(f"warning: {warning}", file=sys.stderr)
     print(_summary(house))
     print(f"model            {config}")
     print(f"data             {settings.data}")
-    print(f"inference        {args.method}: {options}")
+    default = INFERENCE_METHODS[args.method].default_options()
+    print(f"inference        {args.method}: {options if options is not None else default}")
     diagnostics = None
     if args.sweeps == "auto":
         from spcopyro.fit import fit_house_converged
