@@ -1,4 +1,5 @@
-"""Shared fixtures: a fixed seed per test, and the public dataset (skipped when absent)."""
+"""Shared fixtures: a fixed seed per test, the public dataset (skipped when absent) and the
+Gibbs sweep backends (each test taking ``backend`` runs once per backend)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import pytest
 import torch
 
 from spcopyro.data import find_dataset_root
+from spcopyro.gibbs.backends import SweepBackend, get_backend
 
 HOUSES = ("room1dk5", "room1dk6", "room1ldk4", "room1ldk5", "room2ldk4")
 
@@ -39,3 +41,15 @@ def _fixed_seed():
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(12345)
+
+
+@pytest.fixture(params=["torch", "numba"])
+def backend(request) -> SweepBackend:
+    """A sweep backend (:func:`spcopyro.gibbs.backends.get_backend`): the torch reference, then
+    the compiled numba one, skipped where the optional numba package is not installed."""
+    if request.param == "numba":
+        pytest.importorskip(
+            "numba", reason="numba is not installed: the compiled backend (spcopyro[fast]) is "
+            "tested only where it is"
+        )  # fmt: skip
+    return get_backend(request.param)

@@ -72,7 +72,12 @@ def converged_scenario(backend: str, max_sweeps: int = 30) -> dict[str, np.ndarr
 
     settings = preset("original-code", gamma=3.0, num_concepts=12)
     result, diagnostics = fit_house_converged(
-        _house(), settings, chains=2, block=15, max_sweeps=max_sweeps, progress=False,
+        _house(),
+        settings,
+        chains=2,
+        block=15,
+        max_sweeps=max_sweeps,
+        progress=False,
         options=GibbsOptions(backend=backend, anneal_sweeps=4),
     )
     arrays = _result_arrays(result)
@@ -87,9 +92,8 @@ def mcmc_scenario(backend: str) -> dict[str, np.ndarray]:
 
     from spcopyro.config import preset
     from spcopyro.fit import prepare_model_data
-    from spcopyro.gibbs.kernel import SpCoGibbs
-
     from spcopyro.gibbs import GibbsOptions
+    from spcopyro.gibbs.kernel import SpCoGibbs
 
     settings = preset("original-code", gamma=3.0, num_concepts=10)
     _, data = prepare_model_data(_house(), settings)
@@ -137,19 +141,38 @@ SCENARIOS = {
     "fit-torch-paper-dp": lambda: fit_scenario("torch", "paper-dp", sweeps=25, seed=1),
     "fit-numba-paper-dp": lambda: fit_scenario("numba", "paper-dp", sweeps=25, seed=1),
     "fit-torch-options": lambda: fit_scenario(
-        "torch", "original-code", sweeps=30, seed=4, chains=2, anneal_sweeps=8, init="gaussian",
+        "torch",
+        "original-code",
+        sweeps=30,
+        seed=4,
+        chains=2,
+        anneal_sweeps=8,
+        init="gaussian",
         overrides=dict(gamma=3.0, num_concepts=20, cluster_moves=0.3, unobserved_refresh=0.4),
     ),
     "fit-numba-options": lambda: fit_scenario(
-        "numba", "original-code", sweeps=30, seed=4, chains=2, anneal_sweeps=8, init="gaussian",
+        "numba",
+        "original-code",
+        sweeps=30,
+        seed=4,
+        chains=2,
+        anneal_sweeps=8,
+        init="gaussian",
         overrides=dict(gamma=3.0, num_concepts=20, cluster_moves=0.3, unobserved_refresh=0.4),
     ),
     "fit-numba-dirichlet-tfidf": lambda: fit_scenario(
-        "numba", "paper-dirichlet", sweeps=20, seed=2,
+        "numba",
+        "paper-dirichlet",
+        sweeps=20,
+        seed=2,
         overrides=dict(num_concepts=6, word_weighting="tfidf", use_images=False),
     ),
     "fit-torch-spcoa-init-8nbr": lambda: fit_scenario(
-        "torch", "original-code", sweeps=15, seed=0, init="spcoa",
+        "torch",
+        "original-code",
+        sweeps=15,
+        seed=0,
+        init="spcoa",
         overrides=dict(gamma=2.0, num_concepts=15, connectivity=8, use_words=False),
     ),
     "converged-torch": lambda: converged_scenario("torch"),

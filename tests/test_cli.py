@@ -1,7 +1,9 @@
-"""The `spcopyro` command line and the saved result, end to end on small inputs."""
+"""The `spcopyro` command line and the saved result (what it writes, and that it reads back,
+whatever the inference method), end to end on small inputs."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -57,7 +59,12 @@ def test_fit_then_where(small_house, tmp_path, capsys):
     assert sum(c["cells"] for c in concepts) == house.grid.num_free
     assert all(len(c["top_words"]) > 0 for c in concepts)
     trace = (out / "trace.csv").read_text().splitlines()
-    assert trace[0] == "sweep,log_joint,num_concepts,seconds" and len(trace) == 21
+    assert trace[0] == "iteration,log_joint,num_concepts,seconds" and len(trace) == 21
+    settings = json.loads((out / "config.json").read_text())
+    assert set(settings) == {"model", "data", "method", "inference"}
+    assert settings["method"] == "gibbs" and settings["model"]["gamma"] == 3.0
+    assert settings["data"]["feature_scaling"] == "floor100"  # the preset's data preparation
+    assert settings["inference"]["sweeps"] == 20 and settings["inference"]["seed"] == 0
 
     word = house.observations.vocabulary[0]
     assert main(["where", str(out), word, "--out", str(tmp_path / "where.png")]) == 0
@@ -103,6 +110,7 @@ def test_result_round_trips_and_answers_where(small_house, tmp_path):
     np.testing.assert_array_equal(loaded.label_image(), result.label_image())
     np.testing.assert_array_equal(loaded.w, result.w)
     assert loaded.vocabulary == result.vocabulary and loaded.config == result.config
+    assert_same_result(loaded, result)
     word = result.vocabulary[0]
     answer = result.where(word)
     posterior = result.concept_given_word(word)
@@ -115,3 +123,97 @@ def test_result_round_trips_and_answers_where(small_house, tmp_path):
     assert (answer.region == (result.label_image() == answer.concept)).all()
     with pytest.raises(UnknownWordError, match="did you mean"):
         result.where(word + "x")
+
+
+def assert_same_result(loaded: SpCoResult, result: SpCoResult) -> None:
+    """Every field of a loaded result equals the saved one's."""
+    np.testing.assert_array_equal(loaded.labels, result.labels)  # [N]
+    np.testing.assert_array_equal(loaded.pi, result.pi)  # [L]
+    assert [t.name for t in loaded.emissions] == [t.name for t in result.emissions]
+    for mine, theirs in zip(loaded.emissions, result.emissions, strict=True):
+        assert mine.items == theirs.items
+        np.testing.assert_array_equal(mine.probabilities, theirs.probabilities)  # [L, K_m]
+    for name in ("objective", "num_concepts", "seconds"):
+        np.testing.assert_array_equal(getattr(loaded.trace, name), getattr(result.trace, name))
+    assert loaded.trace.objective_name == result.trace.objective_name
+    assert loaded.best_iteration == result.best_iteration
+    assert loaded.best_objective == result.best_objective
+    assert loaded.method == result.method and loaded.name == result.name
+    assert loaded.inference == result.inference
+    assert loaded.config == result.config and loaded.preparation == result.preparation
+    for name in ("labels_final", "marginals"):
+        mine, theirs = getattr(loaded, name), getattr(result, name)
+        assert (mine is None) == (theirs is None), name
+        if theirs is not None:
+            np.testing.assert_array_equal(mine, theirs)
+    np.testing.assert_array_equal(loaded.grid.occupancy, result.grid.occupancy)
+
+
+def test_result_round_trips_every_field(small_house, tmp_path):
+    """A Gibbs result (trace, inference record, last state's labels, no marginals) and the same
+    result as a variational method would hand it (ELBO trace, marginals, no last state) both
+    read back field for field."""
+    from spcopyro.config import preset
+    from spcopyro.fit import fit_house
+    from spcopyro.gibbs.options import GibbsOptions
+
+    house = load_house(small_house)
+    settings = preset("original-code", gamma=3.0, num_concepts=6, snap_distance=0.5)
+    result = fit_house(house, settings, sweeps=6, seed=3, progress=False,
+                       options=GibbsOptions(cluster_moves=0.25))  # fmt: skip
+    assert result.method == "gibbs" and result.trace.objective_name == "log joint"
+    assert result.inference["sweeps"] == 6 and result.inference["seed"] == 3
+    assert result.inference["cluster_moves"] == 0.25
+    assert result.labels_final is not None and result.marginals is None
+    assert result.preparation == settings.data and result.name == house.name
+    assert_same_result(SpCoResult.load(result.save(tmp_path / "gibbs")), result)
+
+    rng = np.random.default_rng(0)
+    marginals = rng.dirichlet(np.ones(6), size=house.grid.num_free)  # [N, L]
+    variational = dataclasses.replace(
+        result,
+        method="variational",
+        marginals=marginals,
+        labels=marginals.argmax(1),
+        labels_final=None,
+        trace=dataclasses.replace(result.trace, objective_name="ELBO"),
+        inference={"iterations": 6, "learning_rate": 0.1},
+    )
+    loaded = SpCoResult.load(variational.save(tmp_path / "vi"))
+    assert_same_result(loaded, variational)
+    assert loaded.trace.objective_name == "ELBO"
+    with pytest.raises(ValueError, match="no final state"):
+        loaded.labels_of("final")
+    header = (tmp_path / "vi" / "trace.csv").read_text().splitlines()[0]
+    assert header == "iteration,elbo,num_concepts,seconds"
+
+
+def test_loading_an_old_result_says_to_fit_again(small_house, tmp_path, capsys):
+    """A folder written before results became method-neutral (result.npz with labels_best,
+    theta, w; a flat config.json) gives one clear error, also through `spcopyro where`."""
+    from spcopyro.config import preset
+    from spcopyro.fit import fit_house
+
+    house = load_house(small_house)
+    result = fit_house(house, preset("original-code", gamma=3.0, num_concepts=4), sweeps=2,
+                       progress=False)  # fmt: skip
+    out = result.save(tmp_path / "old")
+    np.savez_compressed(
+        out / "result.npz",
+        labels_best=result.labels,
+        labels_final=result.labels_final,
+        pi=result.pi,
+        theta=result.theta,
+        w=result.w,
+        vocabulary=np.array(result.vocabulary, dtype=str),
+        log_joint=result.trace.objective,
+        num_concepts=result.trace.num_concepts,
+        seconds=result.trace.seconds,
+        best_sweep=np.array(result.best_iteration),
+    )
+    flat = {**result.config.to_json(), "feature_scaling": "floor100", "word_weighting": "count"}
+    (out / "config.json").write_text(json.dumps(flat))
+    with pytest.raises(ValueError, match="before its results became method-neutral"):
+        SpCoResult.load(out)
+    assert main(["where", str(out), result.vocabulary[0]]) == 2
+    assert "fit again" in capsys.readouterr().err

@@ -1,4 +1,5 @@
-"""The ``--sweeps auto`` stopping rule: split R-hat of label-invariant statistics across chains."""
+"""The ``--sweeps auto`` stopping rule: split R-hat of label-invariant statistics across chains,
+checked after every block of sweeps; each block continues its chains exactly."""
 
 from __future__ import annotations
 
@@ -7,12 +8,17 @@ import math
 
 import numpy as np
 import pytest
+import torch
+from gibbs_problems import config as small_config
+from gibbs_problems import random_problem
 
 from spcopyro.cli import main
-from spcopyro.config import SpCoConfig
+from spcopyro.config import SpCoConfig, SpCoSettings
 from spcopyro.data import cell_counts
 from spcopyro.fit import fit_house_converged
 from spcopyro.gibbs.convergence import check_convergence, run_until_converged, split_rhat
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.gibbs.run import run_gibbs
 from spcopyro.model import make_model_data
 from spcopyro.synthetic import make_house
 
@@ -93,11 +99,39 @@ def test_hard_problem_runs_to_the_cap_and_blocks_continue(data):
     assert diag.num_concepts[:, -1].max() < diag.num_concepts[:, 29].min()
 
 
+def test_blocks_continue_each_chain_exactly(backend):
+    """K chains of S sweeps run in blocks are the K single runs of S sweeps (seeds seed + k):
+    the same trace sweep for sweep, and the returned chain's states are the single run's. The
+    options' moves and annealing are on, so their draws are continued too."""
+    cfg = small_config(gamma=1.2)
+    _, data = random_problem(seed=9, copies=3)
+    options = GibbsOptions(backend=backend.name, cluster_moves=0.3, unobserved_refresh=0.5,
+                           anneal_sweeps=3)  # fmt: skip
+    # A threshold no R-hat of real chains passes: the blocks run to max_sweeps (7 + 7 + 6).
+    run, diag = run_until_converged(data, cfg, options=options, chains=3, block=7, max_sweeps=20,
+                                    threshold=1 + 1e-12, seed=4, progress=False)  # fmt: skip
+    assert not diag.converged and diag.sweeps == 20
+    assert [c.sweeps for c in diag.checks] == [7, 14, 20]
+    assert diag.log_joint.shape == (3, 3 + 20)  # annealing sweeps first
+    singles = [
+        run_gibbs(data, cfg, 3 + 20, options=options, seed=4 + k, progress=False) for k in range(3)
+    ]
+    for k, single in enumerate(singles):
+        np.testing.assert_array_equal(diag.log_joint[k], single.log_joint)
+        np.testing.assert_array_equal(diag.num_concepts[k], single.num_concepts)
+    kept = singles[diag.best_chain]
+    np.testing.assert_array_equal(run.log_joint, kept.log_joint)
+    assert run.best_sweep == kept.best_sweep
+    assert torch.equal(run.final_state.labels, kept.final_state.labels)
+    assert torch.equal(run.best_state.labels, kept.best_state.labels)
+    assert torch.equal(run.final_state.log_w, kept.final_state.log_w)
+
+
 def test_fit_house_converged_and_cli(house, tmp_path):
     config = SpCoConfig(num_concepts=3, prior="dirichlet", alpha=1e3, gamma=0.0)
-    result, diag = fit_house_converged(house, config, chains=2, block=20, max_sweeps=40,
-                                       progress=False)  # fmt: skip
-    assert diag.converged and len(result.log_joint) == diag.sweeps == 20
+    result, diag = fit_house_converged(house, SpCoSettings(model=config), chains=2, block=20,
+                                       max_sweeps=40, progress=False)  # fmt: skip
+    assert diag.converged and len(result.trace.objective) == diag.sweeps == 20
     out = tmp_path / "fit"
     code = main(["fit", "--out", str(out), "--sweeps", "auto", "--chains", "2",
                  "--max-sweeps", "20", "--concepts", "8"])  # fmt: skip

@@ -8,7 +8,14 @@ import numpy as np
 import pytest
 
 from spcopyro.cli import main
-from spcopyro.experiments.methods import METHOD_LABELS, METHODS, spco_config
+from spcopyro.experiments.methods import (
+    METHOD_LABELS,
+    METHODS,
+    REGISTRY,
+    SPCO_METHODS,
+    register,
+    spco_settings,
+)
 from spcopyro.experiments.table import (
     PUBLIC_SCORES,
     QUICK_SPEC,
@@ -28,8 +35,12 @@ def test_methods_and_their_configs():
         "E-nearest",
         "F-geometry",
     )
-    assert set(METHOD_LABELS) == set(METHODS)
-    dp = spco_config("A-dp", None)
+    assert set(METHOD_LABELS) == set(METHODS) and tuple(REGISTRY) == METHODS
+    assert SPCO_METHODS == ("A-dp", "A-orig-g3", "B-dirichlet")
+    assert all(REGISTRY[key].spcomapping == (key in SPCO_METHODS) for key in METHODS)
+    with pytest.raises(ValueError, match="registered already"):
+        register(REGISTRY["A-dp"])
+    dp = spco_settings("A-dp", None).model
     assert (dp.prior, dp.gamma, dp.num_concepts, dp.alpha, dp.beta, dp.chi) == (
         "dp",
         4.0,
@@ -38,20 +49,21 @@ def test_methods_and_their_configs():
         500.0,
         1e4,
     )
-    orig = spco_config("A-orig-g3", None)
-    assert (orig.prior, orig.gamma, orig.beta, orig.chi, orig.feature_scaling) == (
+    orig = spco_settings("A-orig-g3", None)
+    model = orig.model
+    assert (model.prior, model.gamma, model.beta, model.chi, orig.data.feature_scaling) == (
         "dp",
         3.0,
         0.1,
         1.0,
         "floor100",
     )
-    dirichlet = spco_config("B-dirichlet", 6)
+    dirichlet = spco_settings("B-dirichlet", 6).model
     assert (dirichlet.prior, dirichlet.num_concepts, dirichlet.gamma) == ("dirichlet", 6, 3.0)
     with pytest.raises(ValueError, match="number of categories"):
-        spco_config("B-dirichlet", None)
+        spco_settings("B-dirichlet", None)
     with pytest.raises(ValueError, match="not an SpCoMapping method"):
-        spco_config("D-cnn", None)
+        spco_settings("D-cnn", None)
 
 
 def test_quick_experiment_writes_table_and_figures(tmp_path):
@@ -145,11 +157,11 @@ def test_quick_experiment_cli_on_the_public_dataset(dataset_root, tmp_path, caps
 
 
 def test_studies_run_and_report_every_setting():
-    from spcopyro.config import SpCoConfig
+    from spcopyro.config import SpCoConfig, SpCoSettings
     from spcopyro.experiments.studies import ABLATIONS, modality_ablation, sentence_study
     from spcopyro.synthetic import FILLER_WORDS
 
-    config = SpCoConfig(num_concepts=6, prior="dirichlet", alpha=10.0, gamma=2.0)
+    config = SpCoSettings(SpCoConfig(num_concepts=6, prior="dirichlet", alpha=10.0, gamma=2.0))
     scores = modality_ablation(config, sweeps=5, seeds=(0,), spec=QUICK_SPEC)
     assert list(scores) == list(ABLATIONS) == ["MRF only", "+ words", "+ images", "words + images"]
     assert all(len(v) == 1 and -1.0 <= v[0] <= 1.0 for v in scores.values())

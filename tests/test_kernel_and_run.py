@@ -1,6 +1,9 @@
-"""The run loop, the Pyro MCMC kernel, forward draws, initialisation and the synthetic-house fit."""
+"""The run loop (one resumable chain), the Pyro MCMC kernel, forward draws, initialisation, the
+presets and the synthetic-house fit."""
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pytest
@@ -8,43 +11,120 @@ import torch
 from gibbs_problems import config, random_problem
 from pyro.infer import MCMC
 
-from spcopyro.config import PRESETS, SpCoConfig, preset
+from spcopyro.config import PRESETS, DataPreparation, SpCoConfig, SpCoSettings, preset
 from spcopyro.fit import fit_house, gamma_warning
-from spcopyro.gibbs.api import LABEL_DTYPE, run_gibbs
-from spcopyro.gibbs.init import check_labels, kmeans_gaussians, labels_from_gaussians
 from spcopyro.gibbs.kernel import SpCoGibbs, mcmc_diagnostics
-from spcopyro.gibbs.prior import sample_prior_world
+from spcopyro.gibbs.method import output_from_run
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.gibbs.run import LABEL_DTYPE, advance, run_gibbs, start_chain
+from spcopyro.initialisation import check_labels, kmeans_gaussians, labels_from_gaussians
 from spcopyro.maps import FREE
 from spcopyro.metrics import adjusted_rand_index
+from spcopyro.registry import get_method
+from spcopyro.results import SpCoResult
+from spcopyro.simulate import sample_prior_world
 from spcopyro.synthetic import make_house
+
+TORCH = GibbsOptions(backend="torch")
 
 
 def test_seeded_run_reproduces_bit_for_bit():
     cfg = config()
     _, data = random_problem(seed=1)
-    a = run_gibbs(data, cfg, 30, seed=7, thin=10, backend="torch", progress=False)
-    b = run_gibbs(data, cfg, 30, seed=7, thin=10, backend="torch", progress=False)
+    a = run_gibbs(data, cfg, 30, seed=7, thin=10, options=TORCH, progress=False)
+    b = run_gibbs(data, cfg, 30, seed=7, thin=10, options=TORCH, progress=False)
     assert torch.equal(a.final_state.labels, b.final_state.labels)
     assert torch.equal(a.final_state.log_w, b.final_state.log_w)
     np.testing.assert_array_equal(a.log_joint, b.log_joint)
     np.testing.assert_array_equal(a.label_samples, b.label_samples)
-    c = run_gibbs(data, cfg, 30, seed=8, backend="torch", progress=False)
+    c = run_gibbs(data, cfg, 30, seed=8, options=TORCH, progress=False)
     assert not np.array_equal(a.log_joint, c.log_joint)
 
 
 def test_run_keeps_compact_thinned_labels_and_the_best_state():
     cfg = config()
     _, data = random_problem(seed=2)
-    run = run_gibbs(data, cfg, 25, seed=1, thin=5, backend="torch", progress=False)
+    run = run_gibbs(data, cfg, 25, seed=1, thin=5, options=TORCH, progress=False)
     assert run.label_samples.shape == (5, data.num_free)
     assert run.label_samples.dtype == np.int16
     np.testing.assert_array_equal(run.sample_sweeps, [4, 9, 14, 19, 24])
     assert run.best_state.labels.dtype == torch.long
     assert run.log_joint[run.best_sweep] == run.log_joint.max()
     assert run.log_joint.shape == run.num_concepts.shape == (25,)
-    none = run_gibbs(data, cfg, 5, seed=1, backend="torch", progress=False)
+    none = run_gibbs(data, cfg, 5, seed=1, options=TORCH, progress=False)
     assert none.label_samples is None
     assert LABEL_DTYPE == torch.int16
+
+
+def test_a_chain_advanced_in_parts_is_the_run_in_one_go(backend):
+    """start_chain + advance(10) + advance(15) is run_gibbs(25): same draws, trace, thinned maps,
+    best state and sweep count; seconds keep rising across the parts; callbacks get the chain's
+    own sweep numbers. The options' moves are on, so their random draws are continued too."""
+    cfg = config()
+    _, data = random_problem(seed=7)
+    options = GibbsOptions(backend=backend.name, cluster_moves=0.5, unobserved_refresh=0.5)
+    whole = run_gibbs(data, cfg, 25, options=options, seed=4, thin=5, progress=False)
+    seen: list[int] = []
+    chain = start_chain(data, cfg, options=options, seed=4)
+    with pytest.raises(ValueError, match="no sweep yet"):
+        chain.to_run()
+    advance(chain, 10, thin=5, progress=False, callback=lambda s, state: seen.append(s))
+    advance(chain, 15, thin=5, progress=False, callback=lambda s, state: seen.append(s))
+    parts = chain.to_run()
+    assert chain.sweeps_done == 25 and seen == list(range(25))
+    for mine, theirs in ((parts.final_state, whole.final_state), (parts.best_state,
+                         whole.best_state)):  # fmt: skip
+        assert torch.equal(mine.labels, theirs.labels)
+        assert torch.equal(mine.log_pi, theirs.log_pi)
+        for a, b in zip(mine.log_emissions, theirs.log_emissions, strict=True):
+            assert torch.equal(a, b)
+    np.testing.assert_array_equal(parts.log_joint, whole.log_joint)  # [25]
+    np.testing.assert_array_equal(parts.num_concepts, whole.num_concepts)
+    np.testing.assert_array_equal(parts.label_samples, whole.label_samples)  # [5, N]
+    np.testing.assert_array_equal(parts.sample_sweeps, whole.sample_sweeps)
+    assert parts.best_sweep == whole.best_sweep
+    assert parts.seconds.shape == (25,) and np.all(np.diff(parts.seconds) >= 0)
+    with pytest.raises(ValueError, match="num_sweeps must be >= 1"):
+        advance(chain, 0)
+
+
+def test_a_run_becomes_a_result_through_the_gibbs_method():
+    """output_from_run: the MAP-visited state is the point estimate, the last state's labels sit
+    beside it, the log joint is the trace; the registered method's run is run_gibbs with the same
+    generator; SpCoResult.from_output names the items."""
+    cfg = config()
+    grid, data = random_problem(seed=8, V=4)
+    run = run_gibbs(data, cfg, 12, options=TORCH, seed=5, thin=4, progress=False)
+    output = output_from_run(run, {"sweeps": 12})
+    np.testing.assert_array_equal(output.labels, run.best_state.labels.numpy())  # [N]
+    np.testing.assert_array_equal(output.labels_final, run.final_state.labels.numpy())  # [N]
+    np.testing.assert_allclose(output.pi, run.best_state.log_pi.exp().numpy())  # [L]
+    for table, log_table in zip(output.emissions, run.best_state.log_emissions, strict=True):
+        np.testing.assert_allclose(table, log_table.exp().numpy())  # [L, K_m]
+    np.testing.assert_array_equal(output.trace.objective, run.log_joint)  # [S]
+    assert output.trace.objective_name == "log joint" and output.best_iteration == run.best_sweep
+    assert output.options == {"sweeps": 12} and output.marginals is None
+    np.testing.assert_array_equal(output.label_samples, run.label_samples)  # [3, N]
+    np.testing.assert_array_equal(output.sample_iterations, [3, 7, 11])
+
+    method = get_method("gibbs")
+    assert method.name == "gibbs" and method.default_options() == GibbsOptions()
+    again = method.run(data, cfg, iterations=12, generator=torch.Generator().manual_seed(5),
+                       options=TORCH, progress=False)  # fmt: skip
+    np.testing.assert_array_equal(again.labels, output.labels)
+    np.testing.assert_array_equal(again.trace.objective, output.trace.objective)
+    assert again.options == {"sweeps": 12, **dataclasses.asdict(TORCH)}
+    with pytest.raises(TypeError, match="takes GibbsOptions"):
+        method.run(data, cfg, iterations=2, generator=torch.Generator(), options={"a": 1})
+
+    words = ("kitchen", "sofa", "bed", "sink")
+    result = SpCoResult.from_output(output, grid, {"words": words}, cfg, name="tiny")
+    assert result.vocabulary == words and result.method == "gibbs" and result.name == "tiny"
+    assert result.emission("images").items == ("0", "1", "2")  # class numbers: no names given
+    np.testing.assert_array_equal(result.labels_of("final"), output.labels_final)
+    assert result.best_objective == run.log_joint[run.best_sweep]
+    with pytest.raises(ValueError, match="4 item names for the 3 items"):
+        SpCoResult.from_output(output, grid, {"images": words}, cfg)
 
 
 def test_masked_cells_are_not_in_the_state_and_never_labelled():
@@ -52,7 +132,7 @@ def test_masked_cells_are_not_in_the_state_and_never_labelled():
     house = make_house(seed=3)
     result = fit_house(house, preset("original-code", gamma=3.0), sweeps=5, progress=False)
     image = result.label_image()
-    assert result.labels_best.shape == (house.grid.num_free,)
+    assert result.labels.shape == (house.grid.num_free,)
     assert (image[house.grid.occupancy != FREE] == -1).all()
     assert (image[house.grid.occupancy == FREE] >= 0).all()
 
@@ -66,7 +146,7 @@ def test_kernel_runs_under_pyro_mcmc_with_integer_labels(num_chains, parallel, m
     monkeypatch.setattr(pyro.infer.mcmc.api.mp, "cpu_count", lambda: 4 if parallel else 1)
     cfg = config()
     _, data = random_problem(seed=3)
-    kernel = SpCoGibbs(save_params=("labels", "pi", "log_joint", "num_concepts"), backend="torch")
+    kernel = SpCoGibbs(save_params=("labels", "pi", "log_joint", "num_concepts"), options=TORCH)
     mcmc = MCMC(kernel, num_samples=6, warmup_steps=3, num_chains=num_chains,
                 disable_progbar=True)  # fmt: skip
     mcmc.run(data, cfg)
@@ -86,19 +166,22 @@ def test_kernel_rejects_a_model_without_its_sites():
     def wrong_model(data, config):
         return None
 
-    kernel = SpCoGibbs(model=wrong_model, backend="torch")
+    kernel = SpCoGibbs(model=wrong_model, options=TORCH)
     _, data = random_problem(seed=4)
     with pytest.raises(ValueError, match="no sample site 'pi'"):
         kernel.setup(0, data, config())
-    with pytest.raises(ValueError, match="unknown save_params"):
-        SpCoGibbs(save_params=("labels", "beta"))
+    # The saved parameters depend on the data's modalities: checked at setup.
+    with pytest.raises(ValueError, match=r"unknown save_params \['beta'\]"):
+        SpCoGibbs(save_params=("labels", "beta"), options=TORCH).setup(0, data, config())
+    with pytest.raises(ValueError, match="pass anneal=True"):
+        SpCoGibbs(options=GibbsOptions(anneal_sweeps=3))
 
 
 def test_prior_world_has_regions_above_the_critical_coupling():
     cfg = config(gamma=2.0, num_concepts=3)  # ln(1 + sqrt(3)) = 1.0
     _, data = random_problem(seed=5, copies=4)
-    data = data._replace(
-        image_counts=data.image_counts.round(), word_counts=data.word_counts.round()
+    data = data.with_counts("images", data.image_counts.round()).with_counts(
+        "words", data.word_counts.round()
     )
     state, world = sample_prior_world(data, cfg, torch.Generator().manual_seed(0), sweeps=100)
     same = (state.labels[data.pairs[:, 0]] == state.labels[data.pairs[:, 1]]).double().mean()
@@ -129,9 +212,23 @@ def test_initial_labels_are_checked():
 
 
 def test_presets_and_validation():
-    assert preset().gamma == 4.0 and preset().num_concepts == 120
-    assert preset("original-code").feature_scaling == "floor100"
-    assert preset("paper-dirichlet", num_concepts=6).prior == "dirichlet"
+    assert isinstance(preset(), SpCoSettings)
+    assert preset().model.gamma == 4.0 and preset().model.num_concepts == 120
+    assert preset("original-code").data.feature_scaling == "floor100"
+    assert preset("paper-dirichlet", num_concepts=6).model.prior == "dirichlet"
+    # Overrides go to the layer with a field of that name; None is ignored (CLI pass-through).
+    routed = preset("paper-dp", gamma=3.0, word_weighting="tfidf", snap_distance=0.5, beta=None)
+    assert routed.model == SpCoConfig().replace(gamma=3.0)
+    assert routed.data == DataPreparation(word_weighting="tfidf", snap_distance=0.5)
+    assert routed.replace(chi=2.0, feature_scaling=3.0) == SpCoSettings(
+        routed.model.replace(chi=2.0), routed.data.replace(feature_scaling=3.0)
+    )
+    with pytest.raises(ValueError, match=r"unknown settings \['sweeps'\]"):
+        routed.replace(sweeps=10)
+    with pytest.raises(ValueError, match="feature_scaling"):
+        DataPreparation(feature_scaling="log")
+    with pytest.raises(ValueError, match="snap_distance"):
+        DataPreparation(snap_distance=-1.0)
     with pytest.raises(ValueError, match="needs num_concepts"):
         preset("paper-dirichlet")
     with pytest.raises(ValueError, match="unknown preset"):
@@ -142,9 +239,9 @@ def test_presets_and_validation():
         SpCoConfig(alpha=0.0)
     assert set(PRESETS) == {"paper-dp", "paper-dirichlet", "original-code"}
     # ln(1 + sqrt(120)) = 2.48: the released code's gamma 2.1 is below it.
-    assert preset("original-code").critical_gamma == pytest.approx(2.4811, abs=1e-4)
-    assert "below the Potts critical coupling" in gamma_warning(preset("original-code"))
-    assert gamma_warning(preset("paper-dp")) is None
+    assert preset("original-code").model.critical_gamma == pytest.approx(2.4811, abs=1e-4)
+    assert "below the Potts critical coupling" in gamma_warning(preset("original-code").model)
+    assert gamma_warning(preset("paper-dp").model) is None
 
 
 def _pairs_across_walls(occupancy: np.ndarray, truth: np.ndarray):
@@ -173,7 +270,7 @@ def test_synthetic_house_fit_recovers_the_rooms():
     """
     house = make_house(seed=0)
     result = fit_house(house, preset("original-code", gamma=3.0), sweeps=1000, seed=0,
-                       backend="auto", progress=False)  # fmt: skip
+                       options=GibbsOptions(backend="auto"), progress=False)  # fmt: skip
     image = result.label_image()
     ari = adjusted_rand_index(image, house.truth)
     assert ari > 0.8, ari
@@ -194,16 +291,14 @@ def test_synthetic_house_fit_recovers_the_rooms():
             assert inside > 0.5, (name, inside)
 
 
-@pytest.mark.parametrize("backend", ["torch", "numba"])
 def test_trace_log_joint_equals_the_models_log_joint(backend):
     """The run loop's cheap per-sweep log joint equals log_joint of the final state."""
-    if backend == "numba":
-        pytest.importorskip("numba")
     from spcopyro.gibbs.sweep import log_joint
 
     cfg = config()
     _, data = random_problem(seed=6)
-    run = run_gibbs(data, cfg, 7, seed=2, backend=backend, progress=False)
+    run = run_gibbs(data, cfg, 7, seed=2, options=GibbsOptions(backend=backend.name),
+                    progress=False)  # fmt: skip
     expected = float(log_joint(run.final_state, data, cfg))
     assert run.log_joint[-1] == pytest.approx(expected, rel=1e-12, abs=1e-9)
 

@@ -25,7 +25,7 @@ from spcopyro.metrics import (
     pairwise_chain_ari,
     rank_of_truth,
 )
-from spcopyro.results import SpCoResult
+from spcopyro.results import EmissionTable, SpCoResult, Trace
 from spcopyro.semantic_map import UnknownWordError
 
 
@@ -179,17 +179,16 @@ def spco_result() -> SpCoResult:
     """A hand-made fitted result on a 1 x 3 corridor: concepts 0 1 1."""
     return SpCoResult(
         grid=free_grid(1, 3),
-        vocabulary=("a", "b"),
         config=SpCoConfig(num_concepts=2, prior="dirichlet"),
-        labels_best=np.array([0, 1, 1]),
+        labels=np.array([0, 1, 1]),  # [N]
+        pi=np.array([0.5, 0.5]),  # [L]
+        emissions=(
+            EmissionTable("images", ("0", "1"), np.full((2, 2), 0.5)),  # theta [L, K]
+            EmissionTable("words", ("a", "b"), np.array([[0.7, 0.3], [0.1, 0.9]])),  # w [L, V]
+        ),
+        trace=Trace(objective=np.zeros(1), num_concepts=np.array([2]), seconds=np.zeros(1)),
+        best_iteration=0,
         labels_final=np.array([0, 1, 1]),
-        pi=np.array([0.5, 0.5]),
-        theta=np.full((2, 2), 0.5),
-        w=np.array([[0.7, 0.3], [0.1, 0.9]]),
-        log_joint=np.zeros(1),
-        num_concepts=np.array([2]),
-        seconds=np.zeros(1),
-        best_sweep=0,
     )
 
 

@@ -20,6 +20,7 @@ import torch
 from gibbs_problems import config, random_problem, replicate_grid
 from pyro.infer import MCMC
 from scipy import stats
+from statistical_checks import assert_conditionals_match_model, model_log_density
 
 from spcopyro.cli import main
 from spcopyro.config import preset
@@ -62,14 +63,6 @@ def objects_config(**changes):
     return config(concentrations={OBJECTS: 0.7}, **changes)
 
 
-def model_log_density(state, data, cfg) -> torch.Tensor:
-    values = {"pi": state.log_pi.exp(), "labels": state.labels}
-    for modality, table in zip(data.modalities, state.log_emissions, strict=True):
-        values[modality.parameter] = table.exp()
-    conditioned = poutine.condition(spcomapping_model, data=values)
-    return poutine.trace(conditioned).get_trace(data, cfg).log_prob_sum()
-
-
 def test_the_model_has_a_site_per_modality():
     grid, data = random_problem(seed=1)
     data = with_objects(grid, data)
@@ -92,15 +85,7 @@ def test_conditionals_and_log_joint_equal_the_model_density(variant):
         log_joint(state, data, cfg), model_log_density(state, data, cfg), atol=1e-6, rtol=1e-9
     )
     cells = torch.cat([data.obs_cells, torch.tensor([0, data.num_free - 1])]).unique()
-    conditionals = label_log_conditionals(state, data, cfg, cells)  # [n, L]
-    for row, cell in enumerate(cells.tolist()):
-        densities = []
-        for label in range(cfg.num_concepts):
-            labels = state.labels.clone()
-            labels[cell] = label
-            densities.append(model_log_density(state._replace(labels=labels), data, cfg))
-        expected = torch.log_softmax(torch.stack(densities), 0)
-        torch.testing.assert_close(conditionals[row], expected, atol=1e-5, rtol=0)
+    assert_conditionals_match_model(state, data, cfg, cells)
 
 
 def _label_sampler(name: str):

@@ -1,4 +1,8 @@
-"""Tests of the stability and sensitivity studies (tiny sweeps on a small synthetic house)."""
+"""Tests of the stability and sensitivity studies (tiny sweeps on a small synthetic house).
+
+The stability study runs every setting with 2 chains on 2 houses (about 15 s): the tests that read
+it are in the slow lane.
+"""
 
 from __future__ import annotations
 
@@ -45,15 +49,16 @@ def test_spread_by_hand() -> None:
         spread([])
 
 
-def test_best_chain_picks_the_highest_best_log_joint() -> None:
-    chains = [SimpleNamespace(best_log_joint=v) for v in (5.0, 4.0, 6.0)]
+def test_best_chain_picks_the_highest_best_objective() -> None:
+    chains = [SimpleNamespace(best_objective=v) for v in (5.0, 4.0, 6.0)]
     assert best_chain(chains) == 2
-    ties = [SimpleNamespace(best_log_joint=7.0), SimpleNamespace(best_log_joint=7.0)]
+    ties = [SimpleNamespace(best_objective=7.0), SimpleNamespace(best_objective=7.0)]
     assert best_chain(ties) == 0
     with pytest.raises(ValueError, match="at least one chain"):
         best_chain([])
 
 
+@pytest.mark.slow
 def test_stability_rows_and_ranges(stability: dict) -> None:
     assert list(stability["settings"]) == list(STABILITY_SETTINGS)
     assert stability["seeds"] == list(SEEDS) and stability["chains"] == 2
@@ -76,6 +81,7 @@ def test_stability_rows_and_ranges(stability: dict) -> None:
     assert any(s.cluster_moves > 0 for s in STABILITY_SETTINGS.values())
 
 
+@pytest.mark.slow
 def test_stability_best_of_chains_is_the_highest_log_joint(stability: dict) -> None:
     for row in stability["settings"].values():
         for seed_index, chains in enumerate(row["chains"]):
@@ -85,6 +91,7 @@ def test_stability_best_of_chains_is_the_highest_log_joint(stability: dict) -> N
             assert row["single"][seed_index] == chains[0]["ari"]
 
 
+@pytest.mark.slow
 def test_stability_verdict_matches_the_sds(stability: dict) -> None:
     reference = stability["settings"][REFERENCE_SETTING]["summary"]["single"]["sd"]
     assert stability["reference_sd"] == reference
@@ -118,6 +125,7 @@ def test_sensitivity_every_value_present(sensitivity: dict) -> None:
     assert all(r["concepts"] == base_rows[0]["concepts"] for r in base_rows)
 
 
+@pytest.mark.slow
 def test_markdown_has_every_row(stability: dict, sensitivity: dict) -> None:
     markdown = robustness_markdown(stability, sensitivity)
     for name in STABILITY_SETTINGS:
@@ -126,6 +134,7 @@ def test_markdown_has_every_row(stability: dict, sensitivity: dict) -> None:
     assert "| alpha | 1e+07 |" in markdown
 
 
+@pytest.mark.slow
 def test_write_robustness_files(tmp_path, monkeypatch, stability, sensitivity) -> None:
     # The studies themselves are tested above; here only what write_robustness writes.
     monkeypatch.setattr(robustness, "stability_study", lambda **_: stability)
@@ -166,6 +175,7 @@ def test_heldout_sensitivity_on_a_public_house(dataset_root):
     assert "| gamma | 3 |" in markdown and "| beta | 0.1 |" in markdown
 
 
+@pytest.mark.slow
 def test_stability_figure_without_the_log_joint_panel(stability: dict, tmp_path) -> None:
     """The right panel needs the named method's settings; without them it is left empty."""
     from spcopyro.experiments.figures import plot_stability

@@ -212,7 +212,7 @@ def sensitivity_study(
             })  # fmt: skip
         parameters[name] = rows
     return {
-        "base": SENSITIVITY_BASE, "critical_gamma": base.critical_gamma, "sweeps": sweeps,
+        "base": SENSITIVITY_BASE, "critical_gamma": base.model.critical_gamma, "sweeps": sweeps,
         "seeds": list(seeds), "parameters": parameters,
     }  # fmt: skip
 

@@ -372,7 +372,7 @@ def _statistics(
 
 def _bad_concentration(name: str, statistics: np.ndarray, base: float, index: int) -> ValueError:
     row, column = divmod(index, statistics.shape[1])
-    value = base + statistics.ravel()[index]
+    value = float(base + statistics.ravel()[index])
     return ValueError(
         f"the Dirichlet concentration of {name}[{row}, {column}] is {value!r}, not finite and "
         "positive: negative or non-finite values in the data's counts?"
