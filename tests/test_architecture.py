@@ -29,7 +29,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("metrics", "plotting", "baselines", "features"),
     ("fit",),
     ("experiments",),
-    ("cli",),
+    ("cli", "__main__"),
 )
 """Layer of every top-level module or subpackage of spcopyro, lowest first."""
 

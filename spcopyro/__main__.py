@@ -1,0 +1,7 @@
+"""``python -m spcopyro ...``: the ``spcopyro`` command."""
+
+import sys
+
+from spcopyro.cli import main
+
+sys.exit(main())
