@@ -250,19 +250,24 @@ def _where(args: argparse.Namespace) -> int:
     cells = np.argwhere(answer.region)  # [n, 2] (row, col)
     xy = grid.cell_to_world(cells)
     words = ", ".join(f"{w} ({p:.2f})" for w, p in result.top_words(answer.concept, 3))
-    print(f"'{answer.word}' is concept {answer.concept} (p = {answer.probability:.3f}; "
-          f"its words: {words})")  # fmt: skip
+    print(f"'{answer.word}' is concept {answer.concept} (p = {answer.probability:.3f}, "
+          f"{answer.prior} prior; its words: {words})")  # fmt: skip
+    if answer.runner_up is not None:
+        print(f"runner-up: concept {answer.runner_up} (p = {answer.runner_up_probability:.3f}); "
+              f"Bayes factor of the word for concept {answer.concept}: "
+              f"{answer.evidence:.2f}")  # fmt: skip
     if len(cells):
         (x0, y0), (x1, y1) = xy.min(0), xy.max(0)
         cx, cy = xy.mean(0)
         print(f"region: {len(cells)} cells ({len(cells) * grid.resolution**2:.2f} m^2), "
               f"centre x={cx:.2f} y={cy:.2f}, spanning x {x0:.2f}..{x1:.2f}, "
               f"y {y0:.2f}..{y1:.2f} m")  # fmt: skip
+    for warning in answer.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
     if args.out:
-        from spcopyro.maps import save_label_png
+        from spcopyro.plotting import plot_where
 
-        save_label_png(np.where(answer.region, 0, -1), args.out, grid)
-        print(f"wrote {args.out}")
+        print(f"wrote {plot_where(result, answer, args.out)}")
     return 0
 
 
@@ -402,12 +407,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("where", help='answer "where is WORD?" from a fitted result')
     p.add_argument("result", help="output folder of `spcopyro fit`")
     p.add_argument("word")
-    p.add_argument("--out", help="also draw the region into this PNG")
+    p.add_argument("--out", help="also draw the answer over the semantic map into this PNG")
     p.add_argument(
         "--prior",
-        choices=("pi", "area"),
-        default="pi",
-        help="p(C) in eq. (19): pi (the paper) or a concept's share of the map",
+        choices=("area", "pi"),
+        default="area",
+        help="p(C) in eq. (19): a concept's share of the map (default) or pi (the paper's eq. 19, "
+        "which weighs a one-cell speck like a room)",
     )
     p.set_defaults(func=_where)
 

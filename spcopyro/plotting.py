@@ -1,5 +1,11 @@
-"""Figures: a house and its observations, the semantic map with words (paper Fig. 10F), traces
-(paper Figs. 5-6). Everything is drawn in world metres, cropped to the known part of the map.
+"""Figures: a house and its observations, the semantic map with words (paper Fig. 10F), the
+answer to "where is X?", traces (paper Figs. 5-6). Everything is drawn in world metres, cropped to
+the known part of the map.
+
+The semantic map gives every concept in use its own colour, touching concepts the most different
+ones (:func:`~spcopyro.maps.palette.concept_colours`), and writes a label on every connected region
+of at least ``SMALL_REGION_FRACTION`` of the free cells (:func:`region_label_points`), so a
+concept split over two rooms is labelled in both.
 
 Figures are built as :class:`matplotlib.figure.Figure` objects and written with
 :meth:`~matplotlib.figure.Figure.savefig`: no pyplot, no window, and no backend is chosen on
@@ -9,19 +15,33 @@ import (a notebook keeps its inline figures; headless runs need no display).
 from __future__ import annotations
 
 import os
+import textwrap
 from collections import Counter
 from pathlib import Path
 
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.patches import Patch
 from scipy import ndimage
 
 from spcopyro.data import House
-from spcopyro.maps import UNKNOWN, OccupancyGrid, label_colours, render_labels
-from spcopyro.results import SpCoResult
+from spcopyro.maps import (
+    RGB_BACKGROUND,
+    RGB_OCCUPIED,
+    RGB_UNKNOWN,
+    UNKNOWN,
+    OccupancyGrid,
+    concept_colours,
+    label_colours,
+    render_labels,
+)
+from spcopyro.results import SMALL_REGION_FRACTION, SpCoResult, WhereAnswer
 
 MAX_WORD_COLOURS = 12  # words beyond the most frequent ones are drawn as "other"
+ANSWER_RGB = (214, 0, 0)  # the answer's region in plot_where
+RUNNER_UP_RGB = (0, 70, 200)  # the runner-up's region in plot_where
+FADE = 0.3  # plot_where draws the other concepts at this share of their colour (rest white)
 
 
 def known_bounds(grid: OccupancyGrid, margin: int = 3) -> tuple[slice, slice]:
@@ -84,7 +104,7 @@ def plot_house(house: House, path: str | os.PathLike[str], title: str | None = N
 
 
 def ranked_label_image(result: SpCoResult) -> np.ndarray:
-    """[H, W] labels renumbered by region size (0 = largest), so big regions get strong colours."""
+    """[H, W] labels renumbered by region size (0 = largest), -1 off free space."""
     image = result.label_image()
     order = result.concepts_in_use()
     rank = np.full(result.config.num_concepts, -1)
@@ -92,37 +112,151 @@ def ranked_label_image(result: SpCoResult) -> np.ndarray:
     return np.where(image >= 0, rank[np.maximum(image, 0)], -1)
 
 
+def semantic_colours(result: SpCoResult) -> np.ndarray:
+    """[L, 3] uint8 colour of every concept id (white for concepts not in use): all concepts in
+    use distinct, touching ones as different as the palette allows
+    (:func:`~spcopyro.maps.palette.concept_colours`, largest region first)."""
+    colours = np.full((result.config.num_concepts, 3), RGB_BACKGROUND, dtype=np.uint8)
+    used = result.concepts_in_use()
+    colours[used] = concept_colours(result.label_image(), used)
+    return colours
+
+
+def semantic_map_image(result: SpCoResult) -> np.ndarray:
+    """[H, W, 3] uint8 what :func:`plot_semantic_map` draws: every concept in its
+    :func:`semantic_colours` colour, walls black, unknown grey."""
+    return render_labels(result.label_image(), result.grid, semantic_colours(result))
+
+
+def region_label_points(
+    image: np.ndarray, min_cells: float
+) -> list[tuple[int, int, int, int, bool]]:
+    """Where to write a label on every sizeable connected region of an ``[H, W]`` label image.
+
+    Returns ``(concept, row, col, cells, largest)`` for every 4-connected region of one concept
+    with at least ``min_cells`` cells, concepts in ascending order and each concept's regions
+    largest first (``largest`` marks its largest one). ``(row, col)`` is the region's cell
+    farthest from its border (the maximum of the Euclidean distance transform), so the label
+    sits inside the region even when the region is not convex.
+    """
+    points = []
+    for concept in np.unique(image[image >= 0]):
+        regions, count = ndimage.label(image == concept)  # [H, W] int, 4-connected
+        if count == 0:
+            continue
+        sizes = np.bincount(regions.ravel())[1:]  # [count]
+        boxes = ndimage.find_objects(regions)
+        first = True
+        for index in np.argsort(-sizes, kind="stable"):
+            if sizes[index] < min_cells:
+                break
+            box = boxes[index]
+            inside = np.pad(regions[box] == index + 1, 1)  # [h + 2, w + 2] bool
+            distance = ndimage.distance_transform_edt(inside)
+            r, c = np.unravel_index(int(np.argmax(distance)), distance.shape)
+            row, col = box[0].start + int(r) - 1, box[1].start + int(c) - 1
+            points.append((int(concept), row, col, int(sizes[index]), first))
+            first = False
+    return points
+
+
 def plot_semantic_map(
     result: SpCoResult,
     path: str | os.PathLike[str],
     n_words: int = 3,
-    max_labelled: int = 20,
-    min_region_fraction: float = 0.005,
+    max_labelled: int | None = None,
+    min_region_fraction: float = SMALL_REGION_FRACTION,
 ) -> Path:
-    """Each concept a colour, walls black, its best words beside its largest region (Fig. 10F).
+    """Each concept its own colour, walls black, a label on every sizeable region (Fig. 10F).
 
-    Words are written for the ``max_labelled`` largest concepts whose largest region holds at
-    least ``min_region_fraction`` of the free cells (tiny specks would only clutter the map).
+    Every connected region holding at least ``min_region_fraction`` of the free cells gets a
+    label: ``[concept]`` and its ``n_words`` best words on the concept's largest region,
+    ``[concept]`` and its best word on each further one (a concept split over two rooms is
+    labelled in both).
+    ``max_labelled``: label only the regions of that many largest concepts (default: all).
     """
     grid = result.grid
     fig = Figure(figsize=(9, 9))
     ax = fig.subplots()
-    rows, cols = _show_image(ax, grid, render_labels(ranked_label_image(result), grid))
     image = result.label_image()
-    for concept in result.concepts_in_use()[:max_labelled]:
-        regions, count = ndimage.label(image == concept)
-        if count == 0:
+    _show_image(ax, grid, semantic_map_image(result))
+    labelled = result.concepts_in_use()[:max_labelled]
+    points = region_label_points(image, min_region_fraction * grid.num_free)
+    regions = 0
+    for concept, row, col, _, largest in points:
+        if concept not in labelled:
             continue
-        sizes = np.bincount(regions.ravel())[1:]
-        if sizes.max() < min_region_fraction * grid.num_free:
-            continue
-        r, c = np.argwhere(regions == 1 + int(np.argmax(sizes))).mean(0)
-        x, y = grid.cell_to_world(np.array([round(r), round(c)]))
-        words = "\n".join(f"{w} {p:.2f}" for w, p in result.top_words(int(concept), n_words))
-        ax.text(x, y, f"[{concept}]\n{words}", fontsize=6, ha="center", va="center",
+        regions += 1
+        x, y = grid.cell_to_world(np.array([row, col]))
+        words = result.top_words(concept, n_words if largest else 1)
+        text = "\n".join([f"[{concept}]"] + [f"{w} {p:.2f}" for w, p in words])
+        if not largest:
+            text = " ".join([f"[{concept}]"] + [w for w, _ in words])
+        ax.text(x, y, text, fontsize=6, ha="center", va="center",
                 bbox=dict(boxstyle="round,pad=0.2", fc="white", alpha=0.75, lw=0))  # fmt: skip
     used = len(result.concepts_in_use())
-    ax.set_title(f"{result.name or 'semantic map'}: {used} concepts in use")
+    ax.set_title(f"{result.name or 'semantic map'}: {used} concepts in use, {regions} labelled "
+                 f"regions (>= {min_region_fraction:.1%} of the free cells)")  # fmt: skip
+    return _save(fig, path)
+
+
+def where_image(result: SpCoResult, answer: WhereAnswer) -> np.ndarray:
+    """[H, W, 3] uint8 what :func:`plot_where` draws: the answer's region in ``ANSWER_RGB``, the
+    runner-up's in ``RUNNER_UP_RGB``, every other concept in its semantic-map colour faded to
+    ``FADE`` (the rest white), walls black, unknown grey."""
+    image = result.label_image()  # [H, W]
+    colours = semantic_colours(result).astype(np.float64)  # [L, 3]
+    faded = np.round(255.0 - FADE * (255.0 - colours)).astype(np.uint8)  # [L, 3]
+    rgb = render_labels(image, result.grid, faded)  # [H, W, 3]
+    if answer.runner_up is not None:
+        rgb[image == answer.runner_up] = RUNNER_UP_RGB
+    rgb[answer.region] = ANSWER_RGB
+    return rgb
+
+
+def plot_where(result: SpCoResult, answer: WhereAnswer, path: str | os.PathLike[str]) -> Path:
+    """The answer to "where is WORD?" over the semantic map (:func:`where_image`): a title with
+    the word, the concept, p and the prior, a legend, and the answer's warnings under the map.
+    A region smaller than ``SMALL_REGION_FRACTION`` of the free cells is ringed, so a speck can
+    be seen."""
+    grid = result.grid
+    fig = Figure(figsize=(9, 9))
+    ax = fig.subplots()
+    _show_image(ax, grid, where_image(result, answer))
+    area = grid.resolution**2
+    cells = int(answer.region.sum())
+    if 0 < cells < SMALL_REGION_FRACTION * grid.num_free:
+        labels, _ = ndimage.label(answer.region)
+        centres = ndimage.center_of_mass(answer.region, labels, range(1, int(labels.max()) + 1))
+        xy = grid.cell_to_world(np.round(np.array(centres)).astype(np.int64))  # [n, 2]
+        ax.scatter(*xy.T, s=300, facecolors="none", edgecolors=np.array(ANSWER_RGB) / 255.0,
+                   linewidths=1.5, zorder=3)  # fmt: skip
+    handles = [Patch(color=np.array(ANSWER_RGB) / 255.0,
+                     label=f"answer: concept {answer.concept}, p = {answer.probability:.3f} "
+                           f"({cells} cell{'s' if cells != 1 else ''}, "
+                           f"{cells * area:.2f} m^2)")]  # fmt: skip
+    if answer.runner_up is not None:
+        runner_cells = int((result.label_image() == answer.runner_up).sum())
+        runner_label = (
+            f"runner-up: concept {answer.runner_up}, p = {answer.runner_up_probability:.3f} "
+            f"({runner_cells} cells)"
+        )
+        handles.append(Patch(color=np.array(RUNNER_UP_RGB) / 255.0, label=runner_label))
+    handles += [
+        Patch(color=(0.85, 0.85, 0.85), label="other concepts (faded semantic-map colours)"),
+        Patch(color=np.array(RGB_OCCUPIED) / 255.0, label="walls"),
+        Patch(color=np.array(RGB_UNKNOWN) / 255.0, label="unknown"),
+    ]
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8,
+              frameon=False)  # fmt: skip
+    words = ", ".join(f"{w} {p:.2f}" for w, p in result.top_words(answer.concept, 3))
+    ax.set_title(f"where is '{answer.word}'? concept {answer.concept}, "
+                 f"p = {answer.probability:.3f} ({answer.prior} prior)\n"
+                 f"its words: {words}")  # fmt: skip
+    if answer.warnings:
+        text = "\n".join(textwrap.fill(f"warning: {w}", 110) for w in answer.warnings)
+        ax.text(0.0, -0.1, text, transform=ax.transAxes, fontsize=7, color="#b00000",
+                va="top", ha="left")  # fmt: skip
     return _save(fig, path)
 
 

@@ -72,6 +72,10 @@ def word_index(vocabulary: tuple[str, ...], word: str) -> int:
     except ValueError:
         close = difflib.get_close_matches(word.lower(), vocabulary, n=3)
         hint = f"; did you mean {', '.join(close)}?" if close else ""
+        if not close and vocabulary:  # nothing close: say which words there are
+            known = sorted(vocabulary)
+            more = f", ... ({len(known) - 10} more)" if len(known) > 10 else ""
+            hint = f"; known words: {', '.join(known[:10])}{more}"
         raise UnknownWordError(
             f"word {word!r} is not in the vocabulary of {len(vocabulary)} words{hint}"
         ) from None
@@ -321,7 +325,7 @@ class SpCoResultLike(Protocol):
         """``[H, W]`` int64 concepts of the point estimate, -1 off free space."""
         ...
 
-    def where(self, word: str, prior: str = "pi") -> Any:
+    def where(self, word: str, prior: str = "area") -> Any:
         """Eq. (19)'s answer for ``word``; its ``.region`` is the ``[H, W]`` bool place."""
         ...
 

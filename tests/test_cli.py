@@ -69,7 +69,8 @@ def test_fit_then_where(small_house, tmp_path, capsys):
     word = house.observations.vocabulary[0]
     assert main(["where", str(out), word, "--out", str(tmp_path / "where.png")]) == 0
     text = capsys.readouterr().out
-    assert f"'{word}' is concept" in text and "region:" in text
+    assert f"'{word}' is concept" in text and "region:" in text and "area prior" in text
+    assert (tmp_path / "where.png").stat().st_size > 0
     assert main(["where", str(out), "zzznotaword"]) == 1
     assert "not in the vocabulary" in capsys.readouterr().err
 
@@ -112,8 +113,8 @@ def test_result_round_trips_and_answers_where(small_house, tmp_path):
     assert loaded.vocabulary == result.vocabulary and loaded.config == result.config
     assert_same_result(loaded, result)
     word = result.vocabulary[0]
-    answer = result.where(word)
-    posterior = result.concept_given_word(word)
+    answer = result.where(word, prior="pi")
+    posterior = result.concept_given_word(word, prior="pi")
     assert answer.concept == int(np.argmax(posterior))
     assert posterior.sum() == pytest.approx(1.0)
     # eq. (19) by hand: proportional to w[l, word] * pi[l] over concepts in use
@@ -121,6 +122,10 @@ def test_result_round_trips_and_answers_where(small_house, tmp_path):
     by_hand = result.w[used, 0] * result.pi[used]
     assert answer.concept == used[np.argmax(by_hand)]
     assert (answer.region == (result.label_image() == answer.concept)).all()
+    # the default prior is the area: w[l, word] * (cells of l) over concepts in use
+    by_area = result.w[used, 0] * result.concept_sizes()[used]
+    assert result.where(word).concept == used[np.argmax(by_area)]
+    assert result.where(word).prior == "area"
     with pytest.raises(UnknownWordError, match="did you mean"):
         result.where(word + "x")
 

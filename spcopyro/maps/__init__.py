@@ -11,6 +11,8 @@ Modules (everything public is re-exported here, so ``from spcopyro.maps import X
 * :mod:`~spcopyro.maps.render`: semantic-map output, :func:`label_colours`,
   :func:`render_labels`, :func:`save_label_png`, :func:`save_label_map_server` and
   :func:`load_label_map_server`.
+* :mod:`~spcopyro.maps.palette`: colours a reader can tell apart (:func:`distinct_colours`,
+  :func:`concept_colours`: touching concepts get the most different ones).
 """
 
 from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
@@ -25,6 +27,7 @@ from spcopyro.maps.map_server import (
     load_map,
     save_map,
 )
+from spcopyro.maps.palette import concept_colours, distinct_colours, region_adjacency
 from spcopyro.maps.render import (
     RAW_CONCEPT_VALUES,
     RAW_FREE_UNLABELLED,
@@ -59,9 +62,12 @@ __all__ = [
     "MapFileNotFoundError",
     "MapFormatError",
     "OccupancyGrid",
+    "concept_colours",
+    "distinct_colours",
     "label_colours",
     "load_label_map_server",
     "load_map",
+    "region_adjacency",
     "render_labels",
     "save_label_map_server",
     "save_label_png",

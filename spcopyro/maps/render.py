@@ -129,12 +129,16 @@ def _check_labels(labels: Any, grid: OccupancyGrid | None) -> np.ndarray:
     return lab
 
 
-def render_labels(labels: Any, grid: OccupancyGrid | None = None) -> np.ndarray:
+def render_labels(
+    labels: Any, grid: OccupancyGrid | None = None, colours: Any = None
+) -> np.ndarray:
     """``[H, W]`` concept labels -> ``[H, W, 3]`` uint8 RGB image.
 
-    Concept ``k >= 0`` gets ``label_colours(max + 1)[k]``; with a grid, OCCUPIED cells are black
-    and UNKNOWN cells grey (205); cells labelled -1 that are free (or every -1 cell when no grid
-    is given) are white. Labels >= 0 on non-free cells are an error.
+    Concept ``k >= 0`` gets ``colours[k]`` (``[K, 3]`` uint8 with K > every label; default
+    ``label_colours(max + 1)``, or :func:`~spcopyro.maps.palette.concept_colours` for colours a
+    reader can tell apart); with a grid, OCCUPIED cells are black and UNKNOWN cells grey (205);
+    cells labelled -1 that are free (or every -1 cell when no grid is given) are white. Labels
+    >= 0 on non-free cells are an error.
     """
     lab = _check_labels(labels, grid)
     rgb = np.empty((*lab.shape, 3), dtype=np.uint8)  # [H, W, 3]
@@ -144,7 +148,14 @@ def render_labels(labels: Any, grid: OccupancyGrid | None = None) -> np.ndarray:
         rgb[grid.occupancy == UNKNOWN] = RGB_UNKNOWN
     labelled = lab >= 0  # [H, W] bool
     if labelled.any():
-        colours = label_colours(int(lab.max()) + 1)  # [K, 3]
+        if colours is None:
+            colours = label_colours(int(lab.max()) + 1)  # [K, 3]
+        colours = np.asarray(colours)
+        if colours.ndim != 2 or colours.shape[1] != 3 or colours.shape[0] <= lab.max():
+            raise ValueError(
+                f"colours must be [K, 3] with K > {int(lab.max())} (the largest label), got "
+                f"shape {colours.shape}"
+            )
         rgb[labelled] = colours[lab[labelled]]
     return rgb
 

@@ -1,0 +1,38 @@
+"""Hand-made fitted results whose answers can be worked out by hand (shared by the tests of
+"where is X?" and of the figures)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from spcopyro.config import SpCoConfig
+from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
+from spcopyro.results import EmissionTable, SpCoResult, Trace
+
+WORDS = ("kitchen", "bed", "sofa")
+
+
+def two_rooms() -> SpCoResult:
+    """A 10 x 31 map split by a wall (column 15): concept 0 fills the left room (150 cells),
+    concept 1 the right one (150 cells) but for one cell of concept 2 (a speck). pi is uniform;
+    "kitchen" is most probable under the speck, then under the left room."""
+    occupancy = np.full((10, 31), FREE, dtype=np.int8)
+    occupancy[:, 15] = OCCUPIED
+    grid = OccupancyGrid(occupancy=occupancy, resolution=0.1, origin=(0.0, 0.0, 0.0))
+    image = np.full(grid.shape, -1)
+    image[:, :15] = 0
+    image[:, 16:] = 1
+    image[5, 22] = 2
+    w = np.array([[0.6, 0.2, 0.2], [0.1, 0.6, 0.3], [0.7, 0.15, 0.15]])  # [L, V]
+    return SpCoResult(
+        grid=grid,
+        config=SpCoConfig(num_concepts=3, prior="dirichlet"),
+        labels=image[grid.free],  # [N]
+        pi=np.full(3, 1 / 3),  # [L]
+        emissions=(
+            EmissionTable("images", ("0", "1"), np.full((3, 2), 0.5)),  # [L, K]
+            EmissionTable("words", WORDS, w),
+        ),
+        trace=Trace(objective=np.zeros(1), num_concepts=np.array([3]), seconds=np.zeros(1)),
+        best_iteration=0,
+    )

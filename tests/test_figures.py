@@ -1,0 +1,129 @@
+"""Figures that say what they show: colours a reader can tell apart (every concept its own,
+touching concepts far apart), a label on every sizeable region, and the answer to "where is X?"
+drawn over the map -- checked on the helpers that compute them, and that the files are written."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hand_results import two_rooms
+
+from spcopyro.maps import (
+    RGB_OCCUPIED,
+    concept_colours,
+    distinct_colours,
+    label_colours,
+    region_adjacency,
+    render_labels,
+)
+from spcopyro.maps.palette import delta_e, srgb_to_lab
+from spcopyro.plotting import (
+    ANSWER_RGB,
+    RUNNER_UP_RGB,
+    plot_semantic_map,
+    plot_where,
+    region_label_points,
+    semantic_colours,
+    semantic_map_image,
+    where_image,
+)
+
+
+def smallest_difference(colours: np.ndarray) -> float:
+    """Smallest Delta E between two of ``[K, 3]`` colours."""
+    d = delta_e(colours[:, None, :], colours[None, :, :])  # [K, K]
+    np.fill_diagonal(d, np.inf)
+    return float(d.min())
+
+
+def test_srgb_to_lab_known_values():
+    np.testing.assert_allclose(srgb_to_lab([255, 255, 255]), [100.0, 0.0, 0.0], atol=1e-3)
+    np.testing.assert_allclose(srgb_to_lab([0, 0, 0]), [0.0, 0.0, 0.0], atol=1e-9)
+    np.testing.assert_allclose(srgb_to_lab([255, 0, 0]), [53.24, 80.09, 67.20], atol=0.01)
+
+
+@pytest.mark.parametrize(("n", "at_least"), [(10, 50.0), (40, 25.0), (120, 15.0)])
+def test_distinct_colours_look_different(n, at_least):
+    colours = distinct_colours(n)
+    assert colours.shape == (n, 3) and colours.dtype == np.uint8
+    assert len({tuple(c) for c in colours.tolist()}) == n
+    assert smallest_difference(colours) >= at_least
+    lightness = srgb_to_lab(colours)[:, 0]
+    assert lightness.min() >= 40 and lightness.max() <= 90  # neither wall-black nor free-white
+    np.testing.assert_array_equal(distinct_colours(n)[: n // 2], distinct_colours(n // 2))
+    # the plain label colours come far closer: why the semantic map no longer uses them
+    assert smallest_difference(label_colours(n)) < smallest_difference(colours)
+
+
+def test_region_adjacency_by_hand():
+    labels = np.array([[0, 0, 1], [2, -1, 1], [2, 3, -1]])
+    assert region_adjacency(labels) == {(0, 1), (0, 2), (2, 3)}
+
+
+def test_touching_concepts_get_the_most_different_colours():
+    # a 10 x 10 chessboard of concepts (tiles of 3 x 3 cells): each touches up to four others
+    tiles = np.arange(100).reshape(10, 10)
+    labels = np.kron(tiles, np.ones((3, 3), dtype=np.int64))  # [30, 30]
+    order = np.arange(100)
+    colours = concept_colours(labels, order)  # [100, 3]
+    assert len({tuple(c) for c in colours.tolist()}) == 100  # every concept its own colour
+    touching = np.array(sorted(region_adjacency(labels)))  # [E, 2]
+    spread = delta_e(colours[touching[:, 0]], colours[touching[:, 1]]).min()
+    palette = distinct_colours(100)  # the same colours in palette order
+    in_order = delta_e(palette[touching[:, 0]], palette[touching[:, 1]]).min()
+    assert spread > in_order + 20 and spread >= 40  # measured: 94 against 27
+
+
+def test_every_sizeable_region_gets_one_label_inside_it():
+    image = np.full((12, 12), -1)
+    image[:, :5] = 0  # concept 0, left ...
+    image[:, 7:] = 0  # ... and right: one concept in two regions
+    image[:, 5:7] = 1  # concept 1 between them
+    image[0, 5] = 2  # a one-cell speck
+    image[4:8, 8:] = 3  # concept 3 cuts a notch into the right region: a U of concept 0
+    points = region_label_points(image, min_cells=5)
+    assert [(c, cells, largest) for c, _, _, cells, largest in points] == [
+        (0, 60, True), (0, 44, False), (1, 23, True), (3, 16, True),
+    ]  # fmt: skip
+    for concept, row, col, _, _ in points:
+        assert image[row, col] == concept  # inside its region (the U's centroid is not)
+    assert region_label_points(image, min_cells=61) == []
+
+
+def test_semantic_colours_and_the_where_picture():
+    result = two_rooms()
+    colours = semantic_colours(result)  # [L, 3]
+    assert len({tuple(c) for c in colours.tolist()}) == 3
+    used = result.concepts_in_use()  # largest first: the palette's choice for touching regions
+    np.testing.assert_array_equal(colours[used], concept_colours(result.label_image(), used))
+    image = result.label_image()
+    drawn = semantic_map_image(result)  # [H, W, 3]
+    for concept in used:
+        assert (drawn[image == concept] == colours[concept]).all()
+    answer = result.where("kitchen", prior="pi")  # the speck, runner-up the left room
+    rgb = where_image(result, answer)  # [H, W, 3]
+    image = result.label_image()
+    assert (rgb[image == 2] == ANSWER_RGB).all()
+    assert (rgb[image == 0] == RUNNER_UP_RGB).all()
+    others = rgb[image == 1]
+    assert not (others == ANSWER_RGB).all(axis=1).any()
+    assert not (others == RUNNER_UP_RGB).all(axis=1).any()
+    assert (others > colours[1]).any()  # faded towards white
+    assert (rgb[:, 15] == RGB_OCCUPIED).all()
+
+
+def test_figures_are_written(tmp_path):
+    result = two_rooms()
+    assert plot_semantic_map(result, tmp_path / "map.png").stat().st_size > 0
+    answer = result.where("kitchen", prior="pi")
+    assert plot_where(result, answer, tmp_path / "where.png").stat().st_size > 0
+
+
+def test_render_labels_takes_colours():
+    labels = np.array([[0, 1], [-1, 1]])
+    colours = np.array([[10, 20, 30], [40, 50, 60]], dtype=np.uint8)
+    rgb = render_labels(labels, colours=colours)
+    np.testing.assert_array_equal(rgb[0, 1], [40, 50, 60])
+    np.testing.assert_array_equal(rgb[1, 0], [255, 255, 255])
+    with pytest.raises(ValueError, match="colours must be"):
+        render_labels(labels, colours=colours[:1])

@@ -1,0 +1,107 @@
+""" "Where is X?": the area prior as the default, the warnings of an answer close to a guess, the
+unknown word's suggestions, and `spcopyro where` printing and drawing them -- on a hand-made
+result whose answers are worked out by hand."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hand_results import two_rooms
+
+from spcopyro.cli import main
+from spcopyro.results import (
+    EVIDENCE_WARNING,
+    ODDS_WARNING,
+    SMALL_REGION_FRACTION,
+    UnknownWordError,
+    answer_warnings,
+)
+
+
+def test_the_default_prior_is_the_area_and_finds_the_room():
+    result = two_rooms()
+    # eq. (19) with pi: 0.6 : 0.1 : 0.7 -> the one-cell speck, p = 0.7 / 1.4
+    paper = result.where("kitchen", prior="pi")
+    assert paper.concept == 2 and paper.probability == pytest.approx(0.5)
+    assert paper.runner_up == 0 and paper.runner_up_probability == pytest.approx(0.6 / 1.4)
+    assert paper.region.sum() == 1
+    # the area prior (the default): 0.6 * 150 : 0.1 * 149 : 0.7 * 1 -> the left room
+    answer = result.where("Kitchen")
+    scores = np.array([0.6 * 150, 0.1 * 149, 0.7 * 1])
+    assert answer.prior == "area" and answer.word == "kitchen"
+    assert answer.concept == 0 and answer.probability == pytest.approx(scores[0] / scores.sum())
+    assert answer.runner_up == 1
+    np.testing.assert_array_equal(answer.region, result.label_image() == 0)
+    np.testing.assert_allclose(result.concept_given_word("kitchen"), scores / scores.sum())
+    # the Bayes factor: posterior odds of concept 0 over its prior odds (150 of 300 cells)
+    p = scores[0] / scores.sum()
+    assert answer.evidence == pytest.approx((p / (1 - p)) / (150 / 150))
+    assert answer.warnings == ()
+    with pytest.raises(ValueError, match="prior must be"):
+        result.where("kitchen", prior="uniform")
+
+
+def test_a_speck_barely_ahead_of_the_runner_up_is_flagged():
+    warnings = two_rooms().where("kitchen", prior="pi").warnings
+    # odds 0.7 / 0.6 < 3; Bayes factor (0.5 / 0.5) / (1/3 / 2/3) = 2 < 3; 1 cell of 300
+    assert len(warnings) == 3, warnings
+    odds, evidence, speck = warnings
+    assert "barely more probable than concept 0" in odds and "odds 1.17" in odds
+    assert "factor of 2.00" in evidence and "(pi)" in evidence
+    assert "1 cell (0.01 m^2" in speck and "speck" in speck and "--prior area" in speck
+
+
+def test_each_warning_fires_on_its_own_at_its_bound():
+    # odds only: 0.6 / 0.3 = 2 < 3; Bayes factor (0.6/0.4) / (0.2/0.8) = 6; 400 of 1000 cells
+    only_odds = answer_warnings(np.array([0.6, 0.3, 0.1]), np.array([0.2, 0.4, 0.4]),
+                                np.array([400, 400, 200]))  # fmt: skip
+    assert len(only_odds) == 1 and "odds 2.00" in only_odds[0]
+    # evidence only: odds 4, Bayes factor (0.8/0.2) / (0.7/0.3) = 1.71: the prior decides
+    only_evidence = answer_warnings(np.array([0.8, 0.2]), np.array([0.7, 0.3]),
+                                    np.array([700, 300]), prior_name="area")  # fmt: skip
+    assert len(only_evidence) == 1 and "factor of 1.71" in only_evidence[0]
+    assert "share of the map" in only_evidence[0]
+    # a speck only: odds 9, Bayes factor 9, 4 cells of 1000 (under 0.5%)
+    speck = answer_warnings(np.array([0.9, 0.1]), np.array([0.5, 0.5]), np.array([4, 996]),
+                            cell_area=0.0025)  # fmt: skip
+    assert len(speck) == 1 and "4 cells (0.01 m^2, 0.40% of the free cells" in speck[0]
+    # exactly at the bounds nothing fires
+    n = int(np.ceil(SMALL_REGION_FRACTION * 1000))
+    p = ODDS_WARNING / (1 + ODDS_WARNING)  # odds exactly 3
+    prior = p / (p + EVIDENCE_WARNING * (1 - p))  # Bayes factor exactly 3
+    at_bounds = answer_warnings(np.array([p, 1 - p]), np.array([prior, 1 - prior]),
+                                np.array([n, 1000 - n]))  # fmt: skip
+    assert at_bounds == ()
+    # one concept for the whole map: every word points there
+    (single,) = answer_warnings(np.array([1.0, 0.0]), np.array([1.0, 0.0]), np.array([50, 0]))
+    assert "one concept labels the whole map" in single
+
+
+def test_an_unknown_word_lists_the_closest_known_words():
+    result = two_rooms()
+    with pytest.raises(UnknownWordError, match="did you mean kitchen"):
+        result.where("kitchn")
+    with pytest.raises(UnknownWordError, match="known words: bed, kitchen, sofa$"):
+        result.where("garage")
+
+
+def test_where_prints_the_answer_its_warnings_and_draws_them(tmp_path, capsys):
+    out = two_rooms().save(tmp_path / "fit")
+    assert main(["where", str(out), "kitchen", "--out", str(tmp_path / "a.png")]) == 0
+    captured = capsys.readouterr()
+    assert "'kitchen' is concept 0" in captured.out and "area prior" in captured.out
+    assert "runner-up: concept 1" in captured.out and "region: 150 cells" in captured.out
+    assert "warning" not in captured.err
+    assert (tmp_path / "a.png").stat().st_size > 0
+
+    assert main(["where", str(out), "kitchen", "--prior", "pi", "--out",
+                 str(tmp_path / "p.png")]) == 0  # fmt: skip
+    captured = capsys.readouterr()
+    assert "'kitchen' is concept 2" in captured.out and "pi prior" in captured.out
+    assert captured.err.count("warning: ") == 3 and "a speck, not a place" in captured.err
+    assert (tmp_path / "p.png").stat().st_size > 0
+
+    assert main(["where", str(out), "kitchn"]) == 1
+    assert "did you mean kitchen" in capsys.readouterr().err
+    assert main(["where", str(out), "garage"]) == 1
+    assert "known words: bed, kitchen, sofa" in capsys.readouterr().err
