@@ -21,6 +21,7 @@ import torch
 from torchvision.transforms import InterpolationMode, v2
 
 from spcopyro.data import IMAGE_SUFFIXES
+from spcopyro.messages import echo
 
 __all__ = [
     "CROP_SIZE",
@@ -210,7 +211,7 @@ def read_labelled_images(path: str | os.PathLike[str]) -> tuple[list[Path], list
             continue
         fields = [f.strip() for f in line.split(",")]
         if len(fields) != 2 or not all(fields):
-            raise ValueError(f"{path}, line {number}: expected IMAGE,PLACE: {line!r}")
+            raise ValueError(f"{path}, line {number}: expected IMAGE,PLACE: {echo(line)}")
         image = Path(fields[0])
         paths.append(image if image.is_absolute() else path.parent / image)
         names.append(fields[1])
