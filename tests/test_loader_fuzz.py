@@ -467,3 +467,15 @@ def test_a_long_map_yaml_value_is_echoed_short(room):
     with pytest.raises(MapFormatError, match=r"key 'origin' must be .*\.\.\. \(1000 entries") as e:
         load_house(room)
     assert len(str(e.value).replace(str(yaml_path), "")) < 250
+
+
+def test_the_labels_file_of_features_head_says_the_same(tmp_path):
+    from spcopyro.features.images import read_labelled_images
+
+    labels = tmp_path / "labels.csv"
+    labels.write_bytes(b"a.jpg,kitchen\nb.jpg,b\xe9droom\n")
+    with pytest.raises(ValueError, match=r"labels\.csv: not UTF-8 text"):
+        read_labelled_images(labels)
+    labels.write_text("a.jpg,kitchen\n" + ",".join(["b.jpg"] * 300) + "\n")
+    with pytest.raises(ValueError, match=r"labels\.csv, line 2: .*\.\.\. \(300 values, 1799 char"):
+        read_labelled_images(labels)
