@@ -12,17 +12,20 @@ import dataclasses
 import json
 import logging
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
+from spcopyro import __version__
 from spcopyro.config import DEFAULT_PRESET, DEFAULT_SNAP_DISTANCE, PRESETS, preset
 from spcopyro.data import House, cell_counts, load_house
 from spcopyro.gibbs.options import BACKENDS, GibbsOptions
 from spcopyro.registry import DEFAULT_METHOD, INFERENCE_METHODS
 
 logger = logging.getLogger("spcopyro")
+_clock = time.perf_counter  # wall clock of a whole fit (all chains)
 
 
 def _load(data: str | None, seed: int = 0) -> House:
@@ -39,8 +42,13 @@ def _simulate(args: argparse.Namespace) -> int:
     spec = HouseSpec.scaled(*args.size, sentence_fraction=args.sentences) if args.size else None
     if spec is None and args.sentences:
         spec = HouseSpec(sentence_fraction=args.sentences)
-    room = write_synthetic(args.out, seed=args.seed, spec=spec, name=args.name,
-                           overwrite=args.overwrite)  # fmt: skip
+    try:
+        room = write_synthetic(args.out, seed=args.seed, spec=spec, name=args.name,
+                               overwrite=args.overwrite)  # fmt: skip
+    except FileExistsError as error:  # the library names its keyword, the command its flag
+        raise FileExistsError(
+            str(error).replace("pass overwrite=True", "pass --overwrite to replace it")
+        ) from None
     print(f"wrote synthetic house (seed {args.seed}) to {room}")
     print(f"  fit it with: spcopyro fit {room} --out {Path(args.out) / 'fit'}")
     return 0
@@ -111,6 +119,7 @@ def _fit(args: argparse.Namespace) -> int:
     default = INFERENCE_METHODS[args.method].default_options()
     print(f"inference        {args.method}: {options if options is not None else default}")
     diagnostics = None
+    start = _clock()
     if args.sweeps == "auto":
         from spcopyro.fit import fit_house_converged
 
@@ -130,6 +139,7 @@ def _fit(args: argparse.Namespace) -> int:
         )  # fmt: skip
         kept = best_chain(chain_results)
         result = chain_results[kept]
+    wall = _clock() - start
     out = result.save(args.out)
     if chain_results is not None and chains > 1:
         best_values = [r.best_objective for r in chain_results]
@@ -150,9 +160,9 @@ def _fit(args: argparse.Namespace) -> int:
     plot_semantic_map(result, out / "semantic_map.png")
     plot_trace(result, out / "trace.png")
     plot_house(house, out / "house.png")
-    seconds = result.trace.seconds[-1]
-    print(f"fitted {sweeps_run} sweeps in {seconds:.1f} s "
-          f"({1e3 * seconds / sweeps_run:.2f} ms per sweep); "
+    runs = f"{chains} chains x {sweeps_run} sweeps" if chains > 1 else f"{sweeps_run} sweeps"
+    print(f"fitted {runs} in {wall:.1f} s wall clock "
+          f"({1e3 * result.trace.seconds[-1] / sweeps_run:.2f} ms per sweep); "
           f"{len(result.concepts_in_use())} concepts in use")  # fmt: skip
     if house.truth is not None:
         from spcopyro.metrics import adjusted_rand_index
@@ -326,22 +336,47 @@ def _experiment(args: argparse.Namespace) -> int:
     return 0
 
 
+_PRESET_DEFAULT = "(default: the --preset's value)"
+
+
+class _HelpFormatter(argparse.HelpFormatter):
+    """Every option's help ends with its default, unless the help already says it: ``(default:
+    off)`` for a flag, ``(default: VALUE)`` otherwise (an option whose default is None says in
+    its own help what happens without it)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        if (
+            not action.option_strings
+            or action.default in (None, argparse.SUPPRESS)
+            or "default" in text.lower()
+        ):
+            return text
+        if action.nargs == 0:  # a flag
+            return f"{text} (default: {'on' if action.default else 'off'})"
+        return f"{text} (default: %(default)s)"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="spcopyro",
         description="SpCoMapping: semantic maps from an occupancy grid, images and words.",
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log details (INFO)")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("simulate", help="write a synthetic house in the public dataset's layout")
     p.add_argument("--out", required=True, help="root folder (gets map/ and NAME/)")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--name", default="synthetic")
-    p.add_argument("--size", type=int, nargs=2, metavar=("H", "W"), help="map size in cells")
+    p.add_argument("--seed", type=int, default=0, help="seed of the house's random draws")
+    p.add_argument("--name", default="synthetic", help="the house's folder name (NAME)")
+    p.add_argument("--size", type=int, nargs=2, metavar=("H", "W"),
+                   help="map size in cells; the number of rooms grows with the area "
+                        "(default: 60 x 80 cells, 5 rooms)")  # fmt: skip
     p.add_argument("--sentences", type=float, default=0.0,
                    help="share of utterances given as sentences (tf-idf setting)")  # fmt: skip
-    p.add_argument("--overwrite", action="store_true")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace a house of the same name under --out")  # fmt: skip
     p.set_defaults(func=_simulate)
 
     p = sub.add_parser("show", help="draw a house and its observations; print a summary")
@@ -364,17 +399,25 @@ def build_parser() -> argparse.ArgumentParser:
                         "default 0)")  # fmt: skip
     p.add_argument("--max-sweeps", type=int, default=5000,
                    help="cap per chain for --sweeps auto (default 5000)")  # fmt: skip
-    p.add_argument("--preset", choices=sorted(PRESETS), default=DEFAULT_PRESET)
-    p.add_argument("--prior", choices=("dp", "dirichlet"))
-    p.add_argument("--concepts", type=int, help="L, the number (upper bound) of concepts")
-    p.add_argument("--gamma", type=float, help="Potts coupling")
-    p.add_argument("--alpha", type=float)
-    p.add_argument("--beta", type=float, help="word prior concentration")
-    p.add_argument("--chi", type=float, help="image-feature prior concentration")
+    p.add_argument("--preset", choices=sorted(PRESETS), default=DEFAULT_PRESET,
+                   help="the model's hyperparameters and data preparation; the options below "
+                        "override its values")  # fmt: skip
+    p.add_argument("--prior", choices=("dp", "dirichlet"),
+                   help="prior of the concept weights pi: weak-limit DP or Dirichlet "
+                        f"{_PRESET_DEFAULT}")  # fmt: skip
+    p.add_argument("--concepts", type=int,
+                   help=f"L, the number (upper bound) of concepts {_PRESET_DEFAULT}")  # fmt: skip
+    p.add_argument("--gamma", type=float, help=f"Potts coupling {_PRESET_DEFAULT}")
+    p.add_argument("--alpha", type=float,
+                   help=f"concentration of the concept weights pi {_PRESET_DEFAULT}")  # fmt: skip
+    p.add_argument("--beta", type=float, help=f"word prior concentration {_PRESET_DEFAULT}")
+    p.add_argument("--chi", type=float,
+                   help=f"image-feature prior concentration {_PRESET_DEFAULT}")  # fmt: skip
     p.add_argument("--concentration", action="append", metavar="NAME=VALUE",
                    help="Dirichlet concentration of a further modality (a modality_NAME.csv of "
-                        "the house); repeat for several")  # fmt: skip
-    p.add_argument("--connectivity", type=int, choices=(4, 8))
+                        "the house); repeat for several (default: none)")  # fmt: skip
+    p.add_argument("--connectivity", type=int, choices=(4, 8),
+                   help=f"MRF neighbourhood of a cell {_PRESET_DEFAULT}")  # fmt: skip
     p.add_argument("--tfidf", action="store_true", help="weight words by tf-idf (eq. 20)")
     p.add_argument(
         "--unobserved-refresh",
@@ -387,27 +430,32 @@ def build_parser() -> argparse.ArgumentParser:
         help="share of sweeps that start with a Swendsen-Wang move: whole regions change concept "
         "at once (default 0)",
     )
-    p.add_argument("--feature-scaling", help="probability, floor100 or a number s (s * f)")
+    p.add_argument("--feature-scaling",
+                   help="image features as probability, floor100 or a number s (s * f) "
+                        f"{_PRESET_DEFAULT}")  # fmt: skip
     p.add_argument(
         "--init",
         choices=("random", "gaussian", "spcoa"),
         default="random",
         help="starting labels: random, k-means Gaussians, or SpCoA pre-learning",
     )
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the sampler (chain k of --chains gets seed + k)")  # fmt: skip
     p.add_argument("--method", choices=sorted(INFERENCE_METHODS), default=DEFAULT_METHOD,
                    help="inference method (default: gibbs, Algorithm 1)")  # fmt: skip
     p.add_argument("--backend", choices=BACKENDS, default="auto",
-                   help="Gibbs sweep implementation: torch (reference) or numba (compiled); "
-                        "the two draw different random streams from one seed")  # fmt: skip
+                   help="Gibbs sweep implementation: torch (reference), numba (compiled) or "
+                        "auto (numba where installed, else torch); the two draw different "
+                        "random streams from one seed")  # fmt: skip
     p.add_argument("--snap-distance", type=float, default=DEFAULT_SNAP_DISTANCE,
                    help="metres an observation may be moved onto free space")  # fmt: skip
     p.set_defaults(func=_fit)
 
     p = sub.add_parser("where", help='answer "where is WORD?" from a fitted result')
     p.add_argument("result", help="output folder of `spcopyro fit`")
-    p.add_argument("word")
-    p.add_argument("--out", help="also draw the answer over the semantic map into this PNG")
+    p.add_argument("word", help="the word to look up")
+    p.add_argument("--out", help="also draw the answer over the semantic map into this PNG "
+                   "(default: no PNG)")  # fmt: skip
     p.add_argument(
         "--prior",
         choices=("area", "pi"),
@@ -446,6 +494,8 @@ def build_parser() -> argparse.ArgumentParser:
     from spcopyro.features.cli import add_parser as add_features_parsers
 
     add_features_parsers(sub)  # features, features-head
+    for command in (parser, *sub.choices.values()):
+        command.formatter_class = _HelpFormatter
     return parser
 
 

@@ -27,6 +27,7 @@ from spcopyro.data.dataset_files import (
     _read_column,
     _read_matrix,
     _read_modalities,
+    _read_text,
     _read_trials,
     _read_utterances_line,
     _write_lines,
@@ -35,6 +36,7 @@ from spcopyro.data.observations import _MISSING, DataFormatError, Observations
 from spcopyro.data.text import tokenize
 from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.maps.map_server import load_map, save_map
+from spcopyro.messages import echo
 
 __all__ = ["House", "find_dataset_root", "list_houses", "load_house", "save_house"]
 
@@ -122,7 +124,7 @@ def _check_truth(
     def fail(problem: str, value: object = _MISSING) -> Exception:
         if path is not None:
             return DataFormatError(path, problem, value=value)
-        suffix = "" if value is _MISSING else f": {value!r}"
+        suffix = "" if value is _MISSING else f": {echo(value)}"
         return ValueError(f"truth: {problem}{suffix}")
 
     raw = np.asarray(truth)
@@ -180,7 +182,11 @@ def load_house(
             different lengths, empty Ft.csv or St.csv, position files whose length differs from
             their data file, pose / word files inconsistent with Ft.csv / St.csv, truth.npy
             whose shape differs from the map, a modality file with a bad name, header, trial id,
-            number or negative count; the message names file, 1-based line and value.
+            number or negative count, a file that is not UTF-8 text, two files for one trial
+            (``pose_1.csv`` and ``pose_01.csv``); the message names file, 1-based line and value
+            (a long value or line shortened: :func:`spcopyro.messages.echo`). Numbers are plain
+            decimals (``1e-3``, ``nan`` and ``inf`` read, then rejected as not finite; ``1_000``
+            or digits of other scripts do not read).
     """
     room = Path(room_dir)
     if not room.is_dir():
@@ -240,7 +246,7 @@ def load_house(
     categories_path = room / "categories.json"
     if categories_path.is_file():
         try:
-            names = json.loads(categories_path.read_text(encoding="utf-8"))
+            names = json.loads(_read_text(categories_path))
         except json.JSONDecodeError as error:
             raise DataFormatError(
                 categories_path, f"not valid JSON ({error.msg})", line=error.lineno
@@ -253,7 +259,7 @@ def load_house(
     if truth_path.is_file():
         try:
             raw = np.load(truth_path, allow_pickle=False)
-        except ValueError as error:
+        except (ValueError, EOFError) as error:  # EOFError: an empty file
             raise DataFormatError(truth_path, f"not a numeric .npy array ({error})") from None
         truth = _check_truth(raw, grid, category_names, truth_path)
     return House(
@@ -346,11 +352,11 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
         for entry in room.iterdir() if room.exists() else ():
             if (
                 entry.name in _MANAGED_FILES
-                or re.fullmatch(r"(pose|word)_\d+\.csv", entry.name)
+                or re.fullmatch(r"(pose|word)_[0-9]+\.csv", entry.name)
                 or _MODALITY_FILE.fullmatch(entry.name)
             ):
                 entry.unlink()
-            elif entry.is_dir() and re.fullmatch(r"img_\d+", entry.name):
+            elif entry.is_dir() and re.fullmatch(r"img_[0-9]+", entry.name):
                 shutil.rmtree(entry)
     room.mkdir(parents=True, exist_ok=True)
     (root / "map").mkdir(parents=True, exist_ok=True)

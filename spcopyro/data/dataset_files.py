@@ -5,7 +5,9 @@ CSV files (one row per line), St.csv's line of utterances, the per-trial ``pose_
 ``word_K.csv`` files, the camera image folders ``img_K/`` and the files of further modalities
 ``modality_<name>.csv``. A malformed file raises
 :class:`~spcopyro.data.observations.DataFormatError` naming the file, the 1-based line and
-column and the offending value.
+column and the offending value (shortened when long: :func:`spcopyro.messages.echo`).
+``tests/test_loader_fuzz.py`` corrupts a house's files at random to check that nothing else
+escapes.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from spcopyro.data.observations import (
     _modality_name_problem,
 )
 from spcopyro.data.text import tokenize
+from spcopyro.messages import echo
 
 logger = logging.getLogger("spcopyro")
 
@@ -33,18 +36,42 @@ _MODALITY_FILE = re.compile(r"modality_(.*)\.csv")  # ROOM/modality_<name>.csv, 
 _MODALITY_COLUMNS = ("trial", "x", "y")  # the columns before a modality file's items
 
 
+def _read_text(path: Path) -> str:
+    """The file's text (UTF-8, a byte-order mark dropped); DataFormatError naming the line and
+    the bytes where it is not UTF-8."""
+    content = path.read_bytes()
+    try:
+        return content.decode("utf-8-sig")
+    except UnicodeDecodeError as error:
+        line = content[: error.start].count(b"\n") + 1
+        raise DataFormatError(
+            path,
+            f"not UTF-8 text ({error.reason})",
+            line=line,
+            value=content[error.start : error.end],
+        ) from None
+
+
 def _read_lines(path: Path) -> list[str]:
     """The file's lines (no line ends); blank lines at the end are dropped."""
     if not path.is_file():
         raise FileNotFoundError(f"{path}: required file not found")
-    lines = [line.rstrip("\r") for line in path.read_text(encoding="utf-8-sig").split("\n")]
+    lines = [line.rstrip("\r") for line in _read_text(path).split("\n")]
     while lines and not lines[-1].strip():
         lines.pop()
     return lines
 
 
+_NUMBER = re.compile(
+    r"\s*[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?\s*|\s*[+-]?(inf|infinity|nan)\s*",
+    re.IGNORECASE,
+)  # a plain decimal number: no digit separators (1_000), no digits of other scripts
+
+
 def _parse_number(path: Path, text: str, line: int, column: int | None) -> float:
     try:
+        if _NUMBER.fullmatch(text) is None:
+            raise ValueError(text)
         value = float(text)
     except ValueError:
         raise DataFormatError(
@@ -105,13 +132,30 @@ def _read_utterances_line(path: Path) -> tuple[tuple[str, ...], ...]:
     return tuple(utterances)
 
 
+def _trial_id(path: Path, digits: str, kind: str, found: dict[int, Path]) -> int:
+    """The trial id K of ``<kind>_K``; DataFormatError if it does not fit int64 or a file (or
+    folder) of ``found`` has the same K written differently (``pose_1.csv``, ``pose_01.csv``)."""
+    trial = int(digits)
+    if trial >= 2**63:
+        raise DataFormatError(path, f"{kind} trial id does not fit a 64-bit integer", value=digits)
+    if trial in found:
+        raise DataFormatError(
+            path, f"trial {trial} has two {kind} entries (also {found[trial].name})", value=digits
+        )
+    return trial
+
+
 def _trial_files(room: Path, prefix: str) -> dict[int, Path]:
-    pattern = re.compile(rf"{prefix}_(\d+)\.csv")
-    found = {}
-    for entry in room.iterdir():
+    """``ROOM/<prefix>_K.csv`` by trial id K (ascending); a file whose name starts like one but
+    is not ``<prefix>_<digits>.csv`` is logged as ignored."""
+    pattern = re.compile(rf"{prefix}_([0-9]+)\.csv")
+    found: dict[int, Path] = {}
+    for entry in sorted(room.iterdir()):
         match = pattern.fullmatch(entry.name)
         if match and entry.is_file():
-            found[int(match.group(1))] = entry
+            found[_trial_id(entry, match.group(1), f"{prefix}_K.csv", found)] = entry
+        elif entry.name.startswith(f"{prefix}_") and entry.name.lower().endswith(".csv"):
+            logger.warning("%s: ignored (a trial file is named %s_<digits>.csv)", entry, prefix)
     return dict(sorted(found.items()))
 
 
@@ -194,7 +238,7 @@ def _read_trials(
                 raise DataFormatError(
                     words[k],
                     f"differs from {files['St'].name} utterance {position + 1} "
-                    f"({' '.join(utterances[position])!r})",
+                    f"({echo(' '.join(utterances[position]))})",
                     line=number,
                     value=line,
                 )
@@ -223,11 +267,14 @@ def _image_paths(
 ) -> tuple[Path, ...] | None:
     """Camera images ROOM/img_K/* (sorted by name) for every trial, or None (logged) if absent
     or inconsistent with the rows of Ft.csv."""
-    folders = {
-        int(m.group(1)): entry
-        for entry in room.iterdir()
-        if entry.is_dir() and (m := re.fullmatch(r"img_(\d+)", entry.name))
-    }
+    folders: dict[int, Path] = {}
+    for entry in sorted(room.iterdir()):
+        if entry.is_dir() and (m := re.fullmatch(r"img_([0-9]+)", entry.name)):
+            try:
+                folders[_trial_id(entry, m.group(1), "img_K", folders)] = entry
+            except DataFormatError as error:
+                logger.warning("%s; image_paths left None", error)
+                return None
     if not folders:
         return None
     paths: list[Path] = []

@@ -23,6 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
+from spcopyro.messages import echo
+
 __all__ = ["RESERVED_MODALITY_NAMES", "DataFormatError", "ModalityObservations", "Observations"]
 
 _MISSING = object()
@@ -54,7 +56,7 @@ class DataFormatError(ValueError):
             where += f", column {column}"
         message = f"{where}: {problem}"
         if value is not _MISSING:
-            message += f": {value!r}"
+            message += f": {echo(value)}"
         super().__init__(message)
 
 

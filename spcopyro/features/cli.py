@@ -134,7 +134,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("images", help="folder of images, or a house folder with img_K/ folders")
     p.add_argument("--out", required=True, help="Ft.csv file to write")
-    p.add_argument("--head", help="a place head file from `spcopyro features-head`")
+    p.add_argument("--head", help="a place head file from `spcopyro features-head` (default: "
+                   "none, the backbone's own classes)")  # fmt: skip
     p.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
     _common(p)
     p.set_defaults(func=_features)
@@ -158,11 +159,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=0,
         help="also fine-tune fc7 (1) or fc6 and fc7 (2); default: head only",
     )
-    p.add_argument("--epochs", type=int, default=100)
+    p.add_argument("--epochs", type=int, default=100, help="training epochs")
     p.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of random weights, batch order and dropout")  # fmt: skip
     p.add_argument("--held-out-trial", type=int, help="distillation: default the last trial")
     p.add_argument("--train-trials", type=int, nargs="+", help="distillation: default the rest")
-    p.add_argument("--max-images-per-trial", type=int, help="distillation: a quick run")
+    p.add_argument("--max-images-per-trial", type=int,
+                   help="distillation: a quick run (default: all images)")  # fmt: skip
     _common(p)
     p.set_defaults(func=_features_head)

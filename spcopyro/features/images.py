@@ -21,6 +21,7 @@ import torch
 from torchvision.transforms import InterpolationMode, v2
 
 from spcopyro.data import IMAGE_SUFFIXES
+from spcopyro.messages import echo
 
 __all__ = [
     "CROP_SIZE",
@@ -199,18 +200,23 @@ def read_labelled_images(path: str | os.PathLike[str]) -> tuple[list[Path], list
     Raises:
         FileNotFoundError: no such file.
         ValueError: a line without exactly one comma, or with an empty field (the message
-            names the file, the 1-based line and the line), or no labelled images at all.
+            names the file, the 1-based line and the line, shortened when long), no labelled
+            images at all, or a file that is not UTF-8 text.
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: labels file not found")
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as error:
+        raise ValueError(f"{path}: not UTF-8 text ({error.reason})") from None
     paths, names = [], []
-    for number, line in enumerate(path.read_text(encoding="utf-8-sig").splitlines(), start=1):
+    for number, line in enumerate(text.splitlines(), start=1):
         if not line.strip() or line.lstrip().startswith("#"):
             continue
         fields = [f.strip() for f in line.split(",")]
         if len(fields) != 2 or not all(fields):
-            raise ValueError(f"{path}, line {number}: expected IMAGE,PLACE: {line!r}")
+            raise ValueError(f"{path}, line {number}: expected IMAGE,PLACE: {echo(line)}")
         image = Path(fields[0])
         paths.append(image if image.is_absolute() else path.parent / image)
         names.append(fields[1])

@@ -22,7 +22,8 @@ annealing (:mod:`spcopyro.gibbs.anneal`); they are burn-in, left out of the R-ha
 
 Chains run one after another, each block continuing its chain where the last one stopped
 (:func:`spcopyro.gibbs.run.advance`: same state, same generator), so K chains of S sweeps in
-blocks are exactly K chains of S sweeps.
+blocks are exactly K chains of S sweeps. One progress bar counts the sweeps of all chains
+against the most they may run, K (A + ``max_sweeps``), with the last check's R-hat beside it.
 """
 
 from __future__ import annotations
@@ -34,11 +35,13 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 from pyro.ops.stats import split_gelman_rubin
+from tqdm.auto import tqdm
 
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsRun, advance, start_chain
 from spcopyro.model import ModelData
+from spcopyro.progress import progress_enabled
 
 DEFAULT_CHAINS = 4
 DEFAULT_BLOCK = 250
@@ -163,6 +166,7 @@ def run_until_converged(
 
     ``init_labels``: one ``[N]`` start (or None for random) per chain. ``options``: the sampler's
     options; its ``anneal_sweeps`` come before the first block (see the module docstring).
+    ``progress``: one tqdm bar over all chains (default: on unless ``$CI`` is set).
     Returns the run of the chain of highest log joint, and the diagnostics.
     """
     if chains < 2:
@@ -185,11 +189,17 @@ def run_until_converged(
 
     checks: list[ConvergenceCheck] = []
     done, converged = 0, False
+    bar = tqdm(  # one bar for all chains and blocks: sweeps done of the most that may run
+        total=chains * (anneal_sweeps + max_sweeps),
+        desc=f"Gibbs sweeps, {chains} chains",
+        unit="sweep",
+        disable=not progress_enabled(progress),
+    )
     while done < max_sweeps and not converged:
         sweeps = min(block, max_sweeps - done)
         anneal = anneal_sweeps if done == 0 else 0
         for chain in runs:
-            advance(chain, anneal + sweeps, progress=progress)
+            advance(chain, anneal + sweeps, progress=False, callback=lambda *_: bar.update())
         done += sweeps
         log_joint = np.array([chain.log_joint for chain in runs])  # [K, S]
         concepts = np.array([chain.num_concepts for chain in runs], dtype=np.float64)  # [K, S]
@@ -197,6 +207,9 @@ def run_until_converged(
             log_joint[:, anneal_sweeps:], concepts[:, anneal_sweeps:], threshold
         )
         checks.append(check)
+        bar.set_postfix(rhat_log_joint=f"{check.rhat_log_joint:.3f}",
+                        rhat_concepts=f"{check.rhat_num_concepts:.3f}")  # fmt: skip
+    bar.close()
 
     merged = [chain.to_run() for chain in runs]
     best_values = np.array([run.log_joint[run.best_sweep] for run in merged])  # [K]

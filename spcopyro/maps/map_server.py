@@ -26,6 +26,7 @@ import numpy as np
 import yaml
 
 from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
+from spcopyro.messages import echo
 
 __all__ = [
     "PGM_FREE",
@@ -99,7 +100,7 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
         key = key_node.value
         if key in lines:
             raise MapFormatError(
-                f"{path}:{key_node.start_mark.line + 1}: duplicate key {key!r} "
+                f"{path}:{key_node.start_mark.line + 1}: duplicate key {echo(key)} "
                 f"(first at line {lines[key]})"
             )
         lines[key] = key_node.start_mark.line + 1
@@ -112,7 +113,7 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
             raise MapFormatError(f"{path}: missing required key {key!r}")
 
     def bad(key: str, expected: str) -> MapFormatError:
-        return MapFormatError(f"{where(key)}: key {key!r} must be {expected}, got {doc[key]!r}")
+        return MapFormatError(f"{where(key)}: key {key!r} must be {expected}, got {echo(doc[key])}")
 
     resolution = doc["resolution"]
     if not _is_number(resolution) or not (math.isfinite(resolution) and resolution > 0):
@@ -127,7 +128,7 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
         raise bad("origin", "a list of 3 finite numbers [x, y, yaw]")
     if origin[2] != 0:
         raise MapFormatError(
-            f"{where('origin')}: key 'origin' has yaw {origin[2]!r}; rotated maps are not "
+            f"{where('origin')}: key 'origin' has yaw {echo(origin[2])}; rotated maps are not "
             "supported (yaw must be 0)"
         )
 
@@ -141,8 +142,8 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
             raise bad(key, "a number in [0, 1]")
     if not doc["free_thresh"] < doc["occupied_thresh"]:
         raise MapFormatError(
-            f"{where('free_thresh')}: key 'free_thresh' ({doc['free_thresh']!r}) must be less "
-            f"than 'occupied_thresh' ({doc['occupied_thresh']!r})"
+            f"{where('free_thresh')}: key 'free_thresh' ({echo(doc['free_thresh'])}) must be "
+            f"less than 'occupied_thresh' ({echo(doc['occupied_thresh'])})"
         )
 
     mode = doc.get("mode", "trinary")
@@ -175,7 +176,12 @@ def _read_image(spec: _MapYaml) -> np.ndarray:
             f"{spec.path}: key 'image': image file {str(spec.image)!r} not found"
         )
     data = np.fromfile(spec.image, dtype=np.uint8)
-    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # the error below says it
+    try:
+        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    finally:
+        cv2.utils.logging.setLogLevel(level)
     if img is None:
         raise MapFormatError(
             f"{spec.path}: key 'image': {str(spec.image)!r} is not a readable image"
@@ -212,7 +218,7 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
     spec = _read_map_yaml(yaml_path)
     if spec.mode != "trinary":
         raise MapFormatError(
-            f"{spec.path}: key 'mode': {spec.mode!r} is not supported by load_map (only "
+            f"{spec.path}: key 'mode': {echo(spec.mode)} is not supported by load_map (only "
             "'trinary'); semantic maps saved by save_label_map_server are read with "
             "load_label_map_server"
         )

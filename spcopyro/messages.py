@@ -1,0 +1,37 @@
+"""Short echoes of bad input in error messages: enough to recognise the value, never kilobytes.
+
+A loader that rejects a line echoes it, so the reader can find it; a ragged 205-column Ft.csv
+row is about 5 KB, which buries the message. :func:`echo` gives the ``repr`` of a value when it is
+short, else the first :data:`ECHO_LIMIT` characters and how long the whole is. Imports nothing of
+the package, so every layer (maps, data, features) can use it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sized
+
+__all__ = ["ECHO_LIMIT", "echo"]
+
+ECHO_LIMIT = 80
+"""Characters of a value that an error message shows."""
+
+
+def echo(value: object, limit: int = ECHO_LIMIT) -> str:
+    """``repr(value)``, shortened to its first ``limit`` characters when longer.
+
+    A long string (a line of a file) shows its first ``limit`` characters, then ``...`` and its
+    number of comma-separated values (when it holds commas) and characters, e.g.
+    ``'0.1,0.2,...'... (205 values, 4100 characters)``; another value's ``repr`` is cut the same
+    way, with its number of entries when it has a length.
+    """
+    if isinstance(value, str):
+        if len(value) <= limit:
+            return repr(value)
+        values = value.count(",") + 1
+        count = f"{values} values, " if values > 1 else ""
+        return f"{value[:limit]!r}... ({count}{len(value)} characters)"
+    text = repr(value)
+    if len(text) <= limit:
+        return text
+    count = f"{len(value)} entries, " if isinstance(value, Sized) else ""
+    return f"{text[:limit]}... ({count}{len(text)} characters)"

@@ -1,0 +1,137 @@
+"""Small things of the command line: every option's help shows its default, ``--version``, the
+flag named where the library names its keyword, and ``--sweeps auto``'s one progress bar and
+the wall time of the whole fit."""
+
+from __future__ import annotations
+
+import argparse
+import re
+
+import pytest
+from gibbs_problems import config as small_config
+from gibbs_problems import random_problem
+
+import spcopyro.gibbs.convergence
+import spcopyro.gibbs.run
+from spcopyro import __version__
+from spcopyro.cli import build_parser, main
+from spcopyro.gibbs.convergence import run_until_converged
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.synthetic import HouseSpec, write_synthetic
+
+
+def _subcommands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    (sub,) = (a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return dict(sub.choices)
+
+
+def test_every_option_has_a_help_that_shows_its_default():
+    parser = build_parser()
+    commands = {"spcopyro": parser, **_subcommands(parser)}
+    assert {"simulate", "show", "fit", "where", "experiment", "features"} <= set(commands)
+    for name, command in commands.items():
+        formatter = command._get_formatter()
+        for action in command._actions:
+            if isinstance(action, argparse._HelpAction | argparse._VersionAction):
+                continue
+            if isinstance(action, argparse._SubParsersAction):
+                continue
+            where = f"spcopyro {name} {'/'.join(action.option_strings) or action.dest}"
+            assert action.help, f"{where} has no help"
+            if action.option_strings and not action.required:
+                shown = formatter._expand_help(action)
+                assert "default" in shown.lower(), f"{where} does not show its default: {shown}"
+
+
+def test_fit_help_shows_the_defaults_of_seed_and_backend(capsys):
+    with pytest.raises(SystemExit) as done:
+        main(["fit", "--help"])
+    assert done.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())  # lines joined
+    assert re.search(r"--seed SEED seed of the sampler .*? \(default: 0\)", text)
+    assert re.search(r"--backend \{auto,torch,numba\} Gibbs sweep .*? \(default: auto\)", text)
+    assert "--sweeps SWEEPS Gibbs iterations" in text and "(default: 5000)" in text
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit) as done:
+        main(["--version"])
+    assert done.value.code == 0
+    assert capsys.readouterr().out == f"spcopyro {__version__}\n"
+
+
+def test_simulate_into_an_existing_folder_names_the_flag(tmp_path, capsys):
+    argv = ["simulate", "--out", str(tmp_path), "--size", "40", "50"]
+    assert main(argv) == 0
+    capsys.readouterr()
+    assert main(argv) == 2
+    error = capsys.readouterr().err
+    assert "already exists; pass --overwrite to replace it" in error
+    assert "overwrite=True" not in error
+    assert main([*argv, "--overwrite"]) == 0
+
+
+class _Bar:
+    """Stands in for tqdm: records every bar made, its total, whether shown, and its count."""
+
+    made: list[_Bar] = []
+
+    def __init__(self, iterable=None, *, total=None, disable=False, **_):
+        self.iterable, self.total, self.disable, self.n = iterable, total, disable, 0
+        _Bar.made.append(self)
+
+    def __iter__(self):
+        for item in self.iterable:
+            self.n += 1
+            yield item
+
+    def update(self, n=1):
+        self.n += n
+
+    def set_postfix(self, **_):
+        pass
+
+    def close(self):
+        pass
+
+
+@pytest.mark.parametrize("anneal", [0, 3])
+def test_sweeps_auto_shows_one_bar_over_all_chains(monkeypatch, anneal):
+    monkeypatch.setattr(_Bar, "made", [])
+    monkeypatch.setattr(spcopyro.gibbs.convergence, "tqdm", _Bar)
+    monkeypatch.setattr(spcopyro.gibbs.run, "tqdm", _Bar)
+    _, data = random_problem(0)
+    _, diagnostics = run_until_converged(
+        data, small_config(), options=GibbsOptions(anneal_sweeps=anneal), chains=3, block=5,
+        max_sweeps=15, threshold=1 + 1e-12, progress=True,
+    )  # fmt: skip
+    assert diagnostics.sweeps == 15 and len(diagnostics.checks) == 3
+    shown = [bar for bar in _Bar.made if not bar.disable]
+    assert len(shown) == 1, [(bar.total, bar.disable) for bar in _Bar.made]
+    assert shown[0].total == 3 * (anneal + 15)  # the most that may run, all chains
+    assert shown[0].n == 3 * (anneal + 15)  # every sweep of every chain counted once
+
+
+@pytest.fixture(scope="module")
+def small_house(tmp_path_factory):
+    root = tmp_path_factory.mktemp("data")
+    return write_synthetic(root, seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3))
+
+
+@pytest.mark.parametrize(
+    ("options", "reported"),
+    [
+        (["--sweeps", "auto", "--chains", "2", "--max-sweeps", "20"], "2 chains x 20 sweeps"),
+        (["--sweeps", "10", "--chains", "2"], "2 chains x 10 sweeps"),
+        (["--sweeps", "10"], "10 sweeps"),
+    ],
+)
+def test_fit_reports_the_wall_time_of_the_whole_fit(
+    small_house, tmp_path, capsys, monkeypatch, options, reported
+):
+    clock = iter([100.0, 142.5])  # the fit starts at 100 s and ends at 142.5 s
+    monkeypatch.setattr("spcopyro.cli._clock", lambda: next(clock))
+    argv = ["fit", str(small_house), "--out", str(tmp_path / "fit"), "--backend", "torch",
+            "--preset", "original-code", "--gamma", "3", "--concepts", "10", *options]  # fmt: skip
+    assert main(argv) == 0
+    assert f"fitted {reported} in 42.5 s wall clock (" in capsys.readouterr().out
