@@ -85,6 +85,8 @@ def test_count_totals_are_bounded_per_observation_and_in_all():
         check_count_totals(spread, "images")
     with pytest.raises(ValueError, match=r"utterance 1 \(entry 2\), column 0: the count becomes "):
         check_count_totals(np.array([[1.0], [math.inf]]), "words")
+    with pytest.raises(DataFormatError, match=r"St\.csv, line 1, column 1: utterance 1 "):
+        check_count_totals(np.array([[1.0], [math.inf]]), "words", source="/house")
     with pytest.raises(DataFormatError, match=r"modality_wifi\.csv, line 3, column 2: "
                        r"observation 1 of modality 'wifi'"):  # fmt: skip
         check_count_totals(np.array([[0.0, 1.0], [1.0, 2e15]]), "wifi", source="/house")
