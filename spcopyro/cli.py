@@ -55,7 +55,7 @@ def _simulate(args: argparse.Namespace) -> int:
 
 
 def _summary(house: House) -> str:
-    counts = cell_counts(house.grid, house.observations)
+    counts = cell_counts(house.grid, house.observations, source=house.source)
     p = counts.placement
     obs = house.observations
     lines = [
@@ -87,7 +87,7 @@ def _show(args: argparse.Namespace) -> int:
 
 
 def _fit(args: argparse.Namespace) -> int:
-    from spcopyro.fit import best_chain, fit_house_chains, gamma_warning
+    from spcopyro.fit import best_chain, config_warnings, fit_house_chains
     from spcopyro.plotting import plot_house, plot_semantic_map, plot_trace
 
     house = _load(args.data)
@@ -110,8 +110,7 @@ def _fit(args: argparse.Namespace) -> int:
             unobserved_refresh=1.0 if args.unobserved_refresh is None else args.unobserved_refresh,
             cluster_moves=0.0 if args.cluster_moves is None else args.cluster_moves,
         )  # fmt: skip
-    warning = gamma_warning(config)
-    if warning:
+    for warning in config_warnings(config):
         print(f"warning: {warning}", file=sys.stderr)
     print(_summary(house))
     print(f"model            {config}")

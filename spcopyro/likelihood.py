@@ -197,6 +197,50 @@ def log_joint_variable(
     return total
 
 
+def log_joint_terms(
+    labels: torch.Tensor,
+    log_pi: torch.Tensor,
+    log_parameters: Sequence[torch.Tensor],
+    data: ModelData,
+    config: SpCoConfig,
+) -> dict[str, float]:
+    """The log joint at ``[N]`` labels, term by term, to tell which one is not finite.
+
+    Their sum is :func:`log_joint_constant` + :func:`log_joint_variable` (up to rounding):
+    ``"normalisers"`` (the Dirichlet normalisers), ``"<m> coefficients"`` (the multinomial
+    coefficients of modality m's counts), ``"pi prior"`` (a_pi - 1) sum_l log pi_l,
+    ``"<m> prior"`` (a_m - 1) sum_lk log phi_mlk, ``"labels"`` sum_i log pi_{C_i},
+    ``"potts"`` gamma E(C) and ``"<m> data"`` sum_i x_i . log phi_{m, C_i} (modalities in use).
+    """
+    L = config.num_concepts
+    normalisers = _dirichlet_log_normaliser(1, L, config.pi_concentration)
+    for modality in data.modalities:
+        size = modality.counts.shape[-1]
+        normalisers = normalisers + _dirichlet_log_normaliser(
+            L, size, config.concentration(modality.name)
+        )
+    terms = {"normalisers": float(normalisers)}
+    used = [m for m in data.modalities if config.uses(m.name)]
+    for modality in used:
+        coefficient = multinomial_counts_log_prob(
+            modality.counts, torch.zeros_like(modality.counts)
+        )
+        terms[f"{modality.name} coefficients"] = float(coefficient.sum())
+    terms["pi prior"] = float((config.pi_concentration - 1) * log_pi.sum())
+    for modality, log_phi in zip(data.modalities, log_parameters, strict=True):
+        prior = (config.concentration(modality.name) - 1) * log_phi.sum()
+        terms[f"{modality.name} prior"] = float(prior)
+    label_counts = torch.bincount(labels, minlength=L).to(DTYPE)  # [L]
+    terms["labels"] = float((label_counts * log_pi).sum())
+    terms["potts"] = float(config.gamma * potts_agreements(labels, data.pairs))
+    observed_labels = labels[data.obs_cells]  # [M]
+    for modality, log_phi in zip(data.modalities, log_parameters, strict=True):
+        if config.uses(modality.name):
+            data_term = (modality.counts * log_phi[observed_labels]).sum()  # [M, K_m] -> []
+            terms[f"{modality.name} data"] = float(data_term)
+    return terms
+
+
 def num_concepts_in_use(labels: torch.Tensor, num_concepts: int) -> int:
     """How many distinct concepts label at least one cell."""
     return int((torch.bincount(labels, minlength=num_concepts) > 0).sum())

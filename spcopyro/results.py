@@ -438,7 +438,17 @@ class SpCoResult:
         ``trace.csv`` (iteration, objective, concepts in use, seconds), ``map.yaml``/``map.pgm``
         (the occupancy grid), ``result.npz`` (everything needed by :meth:`load`),
         ``config.json`` (:meth:`settings_json`). Figures are written by :mod:`spcopyro.plotting`.
+        Labels outside ``[0, L)`` (or not one per free cell) raise ValueError before any file
+        is written.
         """
+        labels, num_free, num_l = np.asarray(self.labels), self.grid.num_free, len(self.pi)
+        in_range = labels.size == 0 or 0 <= labels.min() <= labels.max() < num_l
+        if labels.shape != (num_free,) or not in_range:
+            values = f"{labels.min()}..{labels.max()}" if labels.size else "none"
+            raise ValueError(
+                f"not saving a corrupt result: labels must be {num_free} concepts in "
+                f"0..{num_l - 1}, got shape {labels.shape}, values {values}"
+            )
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         np.save(out / "labels.npy", self.label_image())

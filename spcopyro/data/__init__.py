@@ -27,7 +27,8 @@ Modules (everything public is re-exported here, so ``from spcopyro.data import X
 * :mod:`~spcopyro.data.placement`: :func:`place_observations` (eq. 11, snapping),
   :class:`PlacementReport`, :class:`ModalityPlacement`.
 * :mod:`~spcopyro.data.counts`: :func:`scale_features`, :class:`CellCounts`,
-  :class:`CellModalityCounts`, :func:`cell_counts`.
+  :class:`CellModalityCounts`, :func:`cell_counts`, :func:`check_count_totals`
+  (:data:`MAX_COUNT_TOTAL`).
 * :mod:`~spcopyro.data.dataset`: :class:`House`, :func:`load_house`, :func:`save_house`,
   :func:`find_dataset_root`, :func:`list_houses`.
 * :mod:`~spcopyro.data.dataset_files`: the readers and writers of the single files of a house
@@ -35,10 +36,12 @@ Modules (everything public is re-exported here, so ``from spcopyro.data import X
 """
 
 from spcopyro.data.counts import (
+    MAX_COUNT_TOTAL,
     CellCounts,
     CellModalityCounts,
     FeatureScaling,
     cell_counts,
+    check_count_totals,
     scale_features,
 )
 from spcopyro.data.dataset import House, find_dataset_root, list_houses, load_house, save_house
@@ -60,6 +63,7 @@ from spcopyro.data.text import WordWeighting, tfidf_weights, tokenize, word_matr
 __all__ = [
     "DEFAULT_SNAP_DISTANCE",
     "IMAGE_SUFFIXES",
+    "MAX_COUNT_TOTAL",
     "RESERVED_MODALITY_NAMES",
     "CellCounts",
     "CellModalityCounts",
@@ -72,6 +76,7 @@ __all__ = [
     "PlacementReport",
     "WordWeighting",
     "cell_counts",
+    "check_count_totals",
     "find_dataset_root",
     "list_houses",
     "load_house",

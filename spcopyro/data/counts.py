@@ -6,20 +6,27 @@ and sums them per cell into a :class:`CellCounts`, with the image-feature scalin
 Further modalities (:class:`~spcopyro.data.observations.ModalityObservations`) are placed like
 images and their raw counts summed per cell (:class:`CellModalityCounts`).
 Observations that cannot be placed are logged (``logging``, logger ``"spcopyro"``) and listed in
-the counts' :class:`~spcopyro.data.placement.PlacementReport`.
+the counts' :class:`~spcopyro.data.placement.PlacementReport`; so is a placement where most
+observations fall off free space (the sign of a wrong map or origin).
+
+Every count total must be finite and at most :data:`MAX_COUNT_TOTAL` (:func:`check_count_totals`):
+a value that scaling makes infinite (``floor100`` of 1e308) or a total far beyond any real
+count would otherwise turn every sweep's log joint into NaN or rounding noise.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
-from spcopyro.config import FeatureScaling
-from spcopyro.data.observations import Observations
+from spcopyro.config import IMAGES, WORDS, FeatureScaling
+from spcopyro.data.observations import DataFormatError, Observations
 from spcopyro.data.placement import (
     DEFAULT_SNAP_DISTANCE,
     ModalityPlacement,
@@ -29,9 +36,26 @@ from spcopyro.data.placement import (
 from spcopyro.data.text import WordWeighting, tfidf_weights, word_matrix
 from spcopyro.maps.grid import OccupancyGrid
 
-__all__ = ["CellCounts", "CellModalityCounts", "FeatureScaling", "cell_counts", "scale_features"]
+__all__ = [
+    "MAX_COUNT_TOTAL",
+    "CellCounts",
+    "CellModalityCounts",
+    "FeatureScaling",
+    "cell_counts",
+    "check_count_totals",
+    "scale_features",
+]
 
 logger = logging.getLogger("spcopyro")
+
+MAX_COUNT_TOTAL = 1e15
+"""The largest total of a modality's counts (one observation's, and all observations' together)
+that :func:`cell_counts` accepts. The log joint holds each modality's data term
+sum_i x_i . log phi_{C_i}, of magnitude about total * log K nats; float64 resolves it to
+2^-52 of that, so at a total of 1e15 over K = 205 image classes (5.3e15 nats) its rounding step
+reaches 1 nat and comparing the log joints of two sweeps (the best-sweep choice) becomes
+rounding noise; float64 also stops holding every integer count exactly at 2^53 = 9.0e15. Real
+data are far below it: a histogram sums to 1 (``floor100``: at most 100) per image."""
 
 
 def scale_features(features: np.ndarray, scaling: FeatureScaling) -> np.ndarray:
@@ -39,23 +63,97 @@ def scale_features(features: np.ndarray, scaling: FeatureScaling) -> np.ndarray:
 
     ``"probability"``: f as it is; ``"floor100"``: floor(100 f) (the released code's integer
     pseudo-counts; small probabilities become 0); a positive float s: s * f.
+    A huge feature can overflow to inf (``floor100`` of 1e308): :func:`cell_counts` checks the
+    result (:func:`check_count_totals`).
     """
     f = np.asarray(features, dtype=np.float64)
     if isinstance(scaling, str):
         if scaling == "probability":
             return f.copy()
         if scaling == "floor100":
-            return np.floor(100.0 * f)
+            with np.errstate(over="ignore"):  # inf is reported by check_count_totals
+                return np.floor(100.0 * f)
     elif (
         isinstance(scaling, (int, float))
         and not isinstance(scaling, bool)
         and math.isfinite(scaling)
         and scaling > 0
     ):
-        return float(scaling) * f
+        with np.errstate(over="ignore"):
+            return float(scaling) * f
     raise ValueError(
         f"feature_scaling={scaling!r}: must be 'probability', 'floor100' or a positive number"
     )
+
+
+def _location(modality: str, index: int, source: Path | None) -> tuple[Path | None, int, str]:
+    """(file, 1-based line, words) naming observation ``index`` of a modality as load_house
+    reads it from the house folder ``source``: Ft.csv row i is line i + 1, St.csv holds all
+    utterances on line 1, a modality_<name>.csv has a header line before its observations."""
+    if modality == IMAGES:
+        return (source / "Ft.csv" if source else None), index + 1, f"image {index}"
+    if modality == WORDS:
+        return (source / "St.csv" if source else None), 1, f"utterance {index} (entry {index + 1})"
+    file = source / f"modality_{modality}.csv" if source else None
+    return file, index + 2, f"observation {index} of modality {modality!r}"
+
+
+def check_count_totals(
+    counts: np.ndarray,
+    modality: str,
+    *,
+    raw: np.ndarray | None = None,
+    scaling: FeatureScaling | None = None,
+    source: str | os.PathLike[str] | None = None,
+) -> None:
+    """Reject counts that would make the log joint NaN or meaningless.
+
+    ``counts`` ``[T, K]``: one row per observation of ``modality`` (``"images"`` after
+    :func:`scale_features` with ``scaling``, whose input ``raw`` ``[T, K]`` names the value read;
+    ``"words"``; or a further modality's name). Every entry must be finite and, with
+    ``n_t = sum_k counts[t, k]``, every ``n_t`` and ``sum_t n_t`` at most :data:`MAX_COUNT_TOTAL`.
+
+    Raises:
+        DataFormatError: ``source`` (the house folder) given: names the file (Ft.csv, St.csv,
+            modality_<name>.csv), the line, the column and the value.
+        ValueError: else, naming the observation by its index, and the value.
+    """
+    counts = np.asarray(counts, dtype=np.float64)  # [T, K]
+    if counts.size == 0:
+        return
+    folder = Path(source) if source is not None else None
+    read = counts if raw is None else np.asarray(raw, dtype=np.float64)  # [T, K]
+    scaled = "" if scaling is None else f" under feature_scaling={scaling!r}"
+    limit = (
+        f"above MAX_COUNT_TOTAL = {MAX_COUNT_TOTAL:g} (beyond it the log joint's data term "
+        "outgrows float64's resolution of 1 nat: no real histogram or count comes near)"
+    )
+
+    def fail(index: int, column: int, problem: str) -> ValueError:
+        file, line, what = _location(modality, index, folder)
+        value = float(read[index, column])
+        if file is not None:
+            return DataFormatError(file, f"{what}: {problem}", line=line, column=column + 1,
+                                   value=value)  # fmt: skip
+        return ValueError(f"{what}, column {column}: {problem}: {value!r}")
+
+    finite = np.isfinite(counts)  # [T, K] bool
+    if not finite.all():
+        index, column = np.argwhere(~finite)[0]
+        raise fail(int(index), int(column), f"the count becomes {counts[index, column]}{scaled}")
+    with np.errstate(over="ignore"):
+        totals = counts.sum(axis=1)  # [T] n_t (inf where a row overflows)
+        grand = totals.sum()
+    largest = int(np.argmax(totals))
+    column = int(np.argmax(counts[largest]))
+    if totals[largest] > MAX_COUNT_TOTAL:
+        raise fail(largest, column, f"its counts total {totals[largest]:.4g}{scaled}, {limit}")
+    if grand > MAX_COUNT_TOTAL:
+        raise fail(
+            largest, column,
+            f"the {counts.shape[0]} observations of {modality!r} total {grand:.4g}{scaled}, "
+            f"{limit}; this one has the largest total, {totals[largest]:.4g}",
+        )  # fmt: skip
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,6 +193,7 @@ def cell_counts(
     word_weighting: WordWeighting = "count",
     snap_distance: float = DEFAULT_SNAP_DISTANCE,
     vocabulary: Sequence[str] | None = None,
+    source: str | os.PathLike[str] | None = None,
 ) -> CellCounts:
     """Sum the observations per free cell (the model's sufficient statistics).
 
@@ -117,7 +216,12 @@ def cell_counts(
     utterances and the caller passes ``vocabulary=()`` explicitly (then V = 0).
 
     Unplaced observations are logged (``logger.warning`` with their counts) and listed in
-    ``placement``; snapped ones are logged at INFO level.
+    ``placement``; snapped ones are logged at INFO level; more than half of all observations
+    off free space is logged as a warning (:meth:`PlacementReport.off_free_warning`).
+
+    Counts are checked by :func:`check_count_totals` (finite, totals at most
+    :data:`MAX_COUNT_TOTAL`): ``source``, the house folder the observations were read from
+    (``House.source``), lets its errors name the file and line; else they name the index.
     """
     if word_weighting not in ("count", "tfidf"):
         raise ValueError(f"word_weighting={word_weighting!r}: must be 'count' or 'tfidf'")
@@ -143,6 +247,11 @@ def cell_counts(
         words = word_matrix(obs.utterances, vocab)  # [U, V]
     else:
         words = tfidf_weights(obs.utterances, vocab)  # [U, V]
+    check_count_totals(features, IMAGES, raw=obs.image_features, scaling=feature_scaling,
+                       source=source)  # fmt: skip
+    check_count_totals(words, WORDS, source=source)
+    for modality in obs.modalities:
+        check_count_totals(modality.counts, modality.name, source=source)
 
     image_cell, image_snapped, image_unplaced = place_observations(
         grid, obs.image_xy, snap_distance
@@ -198,6 +307,9 @@ def cell_counts(
             report.unplaced_images.tolist()[:20],
             report.unplaced_words.tolist()[:20],
         )
+    off_free = report.off_free_warning(where)
+    if off_free:
+        logger.warning("%s", off_free)
     if report.images_snapped or report.words_snapped:
         logger.info(
             "%d image(s) and %d utterance(s) snapped to the nearest free cell%s",

@@ -154,6 +154,54 @@ class PlacementReport:
     snap_distance: float  # metres
     modalities: tuple[ModalityPlacement, ...] = ()
 
+    @property
+    def num_observations(self) -> int:
+        """All observations: images, utterances and every further modality's."""
+        return self.num_on_free + self.num_snapped + self.num_unplaced
+
+    @property
+    def num_on_free(self) -> int:
+        """Observations whose own cell is free (of every modality)."""
+        return self.images_on_free + self.words_on_free + sum(m.on_free for m in self.modalities)
+
+    @property
+    def num_snapped(self) -> int:
+        """Observations moved onto free space (of every modality)."""
+        return self.images_snapped + self.words_snapped + sum(m.snapped for m in self.modalities)
+
+    @property
+    def num_unplaced(self) -> int:
+        """Observations left out of the counts (of every modality)."""
+        return self.images_unplaced + self.words_unplaced + sum(m.unplaced for m in self.modalities)
+
+    def _off_free(self, where: str) -> str:
+        off = self.num_snapped + self.num_unplaced
+        return (
+            f"{off} of {self.num_observations} observations are not on a free cell{where} "
+            f"(but on occupied or unknown cells or outside the map; {self.num_snapped} snapped "
+            f"to free space within {self.snap_distance:g} m, {self.num_unplaced} left out)"
+        )
+
+    def off_free_warning(self, where: str = "") -> str | None:
+        """A warning when most observations (more than half) did not land on a free cell, else
+        None. ``where`` names the map in the message (e.g. ``" on map PATH"``)."""
+        if 2 * (self.num_snapped + self.num_unplaced) <= self.num_observations:
+            return None
+        return (
+            f"{self._off_free(where)}: the sign of a wrong map or origin (check the map yaml's "
+            "origin, resolution and negate flag)"
+        )
+
+    def check_on_free(self, where: str = "") -> None:
+        """Raise ValueError when observations exist but none landed on a free cell itself: the
+        map or its origin is wrong (or ``negate`` inverts free space), and a fit would learn
+        every concept from the prior alone."""
+        if self.num_observations and not self.num_on_free:
+            raise ValueError(
+                f"no observation lands on free space: {self._off_free(where)}; the map or its "
+                "origin is wrong, or its negate flag inverts free space (check the map yaml)"
+            )
+
     def summary(self) -> str:
         """One human-readable line."""
         further = "".join(

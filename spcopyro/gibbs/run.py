@@ -9,10 +9,15 @@ visited (the "MAP-visited" state, annealing sweeps left out), and, only if asked
 same state, same generator, same sweep count -- which is how ``--sweeps auto``
 (:mod:`spcopyro.gibbs.convergence`) runs its blocks and how a long fit can be resumed.
 :func:`run_gibbs` is start + advance in one call, returning a :class:`GibbsRun`.
+
+Numerics: labels are stored as int16, or int32 when L > 32767 (:func:`label_dtype`); a sweep
+whose log joint is not finite stops the chain (:class:`NonFiniteLogJointError`, naming the sweep
+and the terms that are not finite) instead of running on.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -26,11 +31,42 @@ from spcopyro.gibbs.backends import SweepBackend, get_backend
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.sampler import init, step, trace_point
 from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
-from spcopyro.likelihood import log_joint_constant
+from spcopyro.likelihood import log_joint_constant, log_joint_terms
 from spcopyro.model import ModelData
 from spcopyro.progress import progress_enabled
 
-LABEL_DTYPE = torch.int16  # compact storage of label maps (L <= 32767)
+LABEL_DTYPE = torch.int16  # compact storage of label maps (L <= 32767; see label_dtype)
+
+
+def label_dtype(num_concepts: int) -> torch.dtype:
+    """The compact storage of labels in [0, L): int16 when L <= 32767, else int32."""
+    return LABEL_DTYPE if num_concepts <= torch.iinfo(LABEL_DTYPE).max + 1 else torch.int32
+
+
+class NonFiniteLogJointError(FloatingPointError, ValueError):
+    """A sweep's log joint is NaN or infinite: counts or hyperparameters beyond what float64
+    carries (see :func:`spcopyro.fit.config_warnings`). A ValueError, so the command line reports
+    it as bad input."""
+
+
+def _check_log_joint(chain: GibbsChain, sweep: int, value: float) -> None:
+    """Raise :class:`NonFiniteLogJointError` if ``value``, the log joint of ``chain.state``
+    after ``sweep``, is not finite, naming the terms that are not
+    (:func:`spcopyro.likelihood.log_joint_terms`: computed only then)."""
+    if math.isfinite(value):
+        return
+    state = chain.state
+    terms = log_joint_terms(state.labels, state.log_pi, state.log_emissions, chain.data,
+                            chain.config)  # fmt: skip
+    bad = [f"{name} = {term}" for name, term in terms.items() if not math.isfinite(term)]
+    which = (
+        f"terms not finite: {', '.join(bad)}" if bad
+        else "every term is finite but their sum is not (overflow)"
+    )  # fmt: skip
+    raise NonFiniteLogJointError(
+        f"Gibbs sweep {sweep} (0-based): the log joint is {value}, not finite ({which}); "
+        "stopping instead of running on: check the counts and the hyperparameters"
+    )
 
 
 @dataclass
@@ -49,13 +85,14 @@ class GibbsRun:
     seconds: np.ndarray
     """[S] float64 cumulative wall-clock seconds after each sweep."""
     label_samples: np.ndarray | None
-    """[S', N] int16 label maps every ``thin`` sweeps (None unless ``thin`` > 0)."""
+    """[S', N] int16 (int32 when L > 32767) label maps every ``thin`` sweeps (None unless
+    ``thin`` > 0)."""
     sample_sweeps: np.ndarray | None
     """[S'] the 0-based sweeps of ``label_samples``."""
 
 
 def _compact(state: GibbsState) -> GibbsState:
-    return state._replace(labels=state.labels.to(LABEL_DTYPE))
+    return state._replace(labels=state.labels.to(label_dtype(state.log_pi.shape[-1])))
 
 
 @dataclass
@@ -158,6 +195,7 @@ def advance(
             backend=chain.backend, plan=chain.plan,
         )  # fmt: skip
         value, concepts = trace_point(chain.state, data, config, chain.constant, chain.backend)
+        _check_log_joint(chain, sweep, value)
         chain.log_joint.append(value)
         chain.num_concepts.append(concepts)
         chain.seconds.append(elapsed + time.perf_counter() - start)
@@ -166,7 +204,7 @@ def advance(
             chain.best_value, chain.best_state = value, _compact(chain.state)
             chain.best_sweep = sweep
         if thin and (sweep + 1) % thin == 0:
-            chain.label_samples.append(chain.state.labels.to(LABEL_DTYPE).numpy().copy())
+            chain.label_samples.append(_compact(chain.state).labels.numpy().copy())
             chain.sample_sweeps.append(sweep)
         if callback is not None:
             callback(sweep, chain.state)
