@@ -87,7 +87,7 @@ def _show(args: argparse.Namespace) -> int:
 
 
 def _fit(args: argparse.Namespace) -> int:
-    from spcopyro.fit import best_chain, config_warnings, fit_house_chains
+    from spcopyro.fit import best_chain, fit_house_chains
     from spcopyro.plotting import plot_house, plot_semantic_map, plot_trace
 
     house = _load(args.data)
@@ -110,8 +110,8 @@ def _fit(args: argparse.Namespace) -> int:
             unobserved_refresh=1.0 if args.unobserved_refresh is None else args.unobserved_refresh,
             cluster_moves=0.0 if args.cluster_moves is None else args.cluster_moves,
         )  # fmt: skip
-    for warning in config_warnings(config):
-        print(f"warning: {warning}", file=sys.stderr)
+    # The config's warnings (gamma, extreme concentrations) are logged by prepare_model_data,
+    # which the fit runs; main's logging handler prints them once, as "warning: ...".
     print(_summary(house))
     print(f"model            {config}")
     print(f"data             {settings.data}")
@@ -498,12 +498,39 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class _LowerCaseLevel(logging.Formatter):
+    """``warning: message`` (as the command's own messages), not ``WARNING: message``."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        return f"{record.levelname.lower()}: {record.getMessage()}"
+
+
+class _StderrHandler(logging.StreamHandler):
+    """Writes to whatever ``sys.stderr`` is when a message comes (not when it was made)."""
+
+    @property
+    def stream(self):  # noqa: D102
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value) -> None:
+        del value
+
+
+def _configure_logging(level: int) -> None:
+    """The library's messages (logger ``spcopyro``) on stderr, each once."""
+    logger.setLevel(level)
+    if not any(isinstance(h, _StderrHandler) for h in logger.handlers):
+        handler = _StderrHandler()
+        handler.setFormatter(_LowerCaseLevel())
+        logger.addHandler(handler)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if argv is not None:
         args.argv = list(argv)
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
-                        format="%(levelname)s: %(message)s")  # fmt: skip
+    _configure_logging(logging.INFO if args.verbose else logging.WARNING)
     try:
         return args.func(args)
     except (OSError, ValueError) as error:  # bad input: one clear line, no traceback
