@@ -172,8 +172,8 @@ def check_output(
     Raises :class:`OutputError` when ``out`` is a file, when it is a non-empty folder and
     ``overwrite`` is not given, when ``overwrite`` would replace a folder that no fit wrote (no
     ``result.npz`` and ``config.json``) or one holding the current directory, and when
-    ``OUT.checkpoint.npz`` holds an interrupted fit that this one neither resumes nor
-    ``overwrite``\\ s.
+    ``OUT.checkpoint.npz`` holds an interrupted fit that this one neither resumes (``resume``)
+    nor replaces (``overwrite``).
     """
     path = _absolute(out)
     if path.parent == path:

@@ -356,6 +356,7 @@ def test_ctrl_c_under_sweeps_auto_stops_cleanly(room, tmp_path, capsys, monkeypa
     assert "--resume continues Gibbs chains" in capsys.readouterr().err
 
 
+@pytest.mark.slow  # a fresh process: ~5 s of imports
 def test_a_real_ctrl_c_in_a_fit_process(room, tmp_path):
     """SIGINT to a ``python -m spcopyro fit`` process once it has done some sweeps: exit 130, no
     traceback, the last line says where the checkpoint is, which holds the sweeps done."""
