@@ -11,17 +11,24 @@ import argparse
 import dataclasses
 import json
 import logging
+import shlex
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from spcopyro import __version__
-from spcopyro.config import DEFAULT_PRESET, DEFAULT_SNAP_DISTANCE, PRESETS, preset
+from spcopyro.config import DEFAULT_PRESET, DEFAULT_SNAP_DISTANCE, PRESETS, SpCoSettings, preset
 from spcopyro.data import House, cell_counts, load_house
+from spcopyro.gibbs.backends import get_backend
 from spcopyro.gibbs.options import BACKENDS, GibbsOptions
+from spcopyro.outputs import StagedOutput
+
+if TYPE_CHECKING:
+    from spcopyro.fit import FitCheckpoint
 from spcopyro.registry import DEFAULT_METHOD, INFERENCE_METHODS
 
 logger = logging.getLogger("spcopyro")
@@ -87,10 +94,87 @@ def _show(args: argparse.Namespace) -> int:
 
 
 def _fit(args: argparse.Namespace) -> int:
-    from spcopyro.fit import best_chain, fit_house_chains
-    from spcopyro.plotting import plot_house, plot_semantic_map, plot_trace
+    """Check the arguments and OUT, then fit into a staging folder moved to OUT at the end
+    (:mod:`spcopyro.outputs`); Ctrl-C keeps a checkpoint beside OUT and exits with 130."""
+    from spcopyro.fit import FitCheckpoint, FitInterrupted
+    from spcopyro.outputs import checkpoint_path, stage_output
 
+    if args.sweeps == "auto" and args.method != "gibbs":
+        raise ValueError(f"--sweeps auto is Gibbs' convergence rule, not {args.method!r}'s")
+    if args.resume is not None and (args.sweeps == "auto" or args.method != "gibbs"):
+        raise ValueError(
+            "--resume continues Gibbs chains run for a number of --sweeps; "
+            f"--sweeps {args.sweeps} --method {args.method} keeps no checkpoint"
+        )
+    if args.sweeps != "auto" and args.anneal_sweeps > args.sweeps:
+        raise ValueError(f"anneal_sweeps ({args.anneal_sweeps}) must not exceed num_sweeps "
+                         f"({args.sweeps})")  # fmt: skip
+    if args.resume is not None and not Path(args.resume).is_file():
+        raise FileNotFoundError(f"--resume {args.resume}: no such checkpoint file")
     house = _load(args.data)
+    settings, options = _fit_settings(args, house)
+    staged = stage_output(args.out, overwrite=args.overwrite, resume=args.resume)
+    keeper = None  # keeps the Gibbs chains for a checkpoint beside OUT
+    if args.method == "gibbs" and args.sweeps != "auto":
+        keeper = FitCheckpoint(checkpoint_path(staged.out))
+    sampled: list[bool] = []  # set once sampling has ended
+    try:
+        return _fit_staged(args, house, settings, options, staged, keeper, sampled)
+    except KeyboardInterrupt as stop:
+        if staged.committed:
+            print(f"interrupted after {staged.out} was written", file=sys.stderr)
+            return 130
+        if isinstance(stop, FitInterrupted):  # while sampling
+            where, kept = f" ({stop.where})", stop.checkpoint
+        else:  # while reading the data, or writing the outputs
+            where = " while writing the outputs" if sampled else ""
+            kept = keeper.save() if keeper and sampled else None
+        print(_interrupted(args, where, kept, staged.out), file=sys.stderr)
+        return 130
+    except Exception:
+        writing = sampled and not (staged.committed or staged.kept)
+        kept = keeper.save() if keeper and writing else None
+        if kept is not None:  # an error while writing: the sampling is not lost
+            print(f"note: nothing written to {staged.out}; the finished chains are saved in "
+                  f"{kept} -- once fixed, continue with: {_resume_command(args, kept)}",
+                  file=sys.stderr)  # fmt: skip
+        raise
+    finally:
+        staged.discard()  # nothing once committed; else the run's partial outputs
+
+
+def _interrupted(args: argparse.Namespace, where: str, kept: Path | None, out: Path) -> str:
+    """The one line ``fit`` prints when Ctrl-C stops it (``kept``: the checkpoint, if any)."""
+    line = f"interrupted{where}: nothing written to {out}"
+    if kept is None:
+        why = "--sweeps auto" if args.sweeps == "auto" else f"the {args.method!r} method"
+        if args.sweeps != "auto" and args.method == "gibbs":
+            why = "no sweep was done"
+        return f"{line}; no checkpoint kept ({why})"
+    command = _resume_command(args, kept)
+    return f"{line}; the state reached is saved in {kept} -- continue with: {command}"
+
+
+def _command(args: argparse.Namespace) -> list[str]:
+    """The command line this run was started with (without the program's name)."""
+    return list(args.argv if getattr(args, "argv", None) else sys.argv[1:])
+
+
+def _resume_command(args: argparse.Namespace, checkpoint: Path) -> str:
+    """This run's command line with ``--resume CHECKPOINT`` (in place of an earlier one)."""
+    argv = _command(args)
+    for k in range(len(argv) - 1, -1, -1):
+        if argv[k] == "--resume":
+            del argv[k : k + 2]
+        elif argv[k].startswith("--resume="):
+            del argv[k]
+    return shlex.join(["spcopyro", *argv, "--resume", str(checkpoint)])
+
+
+def _fit_settings(
+    args: argparse.Namespace, house: House
+) -> tuple[SpCoSettings, GibbsOptions | None]:
+    """The model and data settings and the Gibbs options (None for another method) of ``fit``."""
     overrides = dict(
         prior=args.prior, num_concepts=args.concepts, gamma=args.gamma, alpha=args.alpha,
         beta=args.beta, chi=args.chi, connectivity=args.connectivity,
@@ -102,7 +186,6 @@ def _fit(args: argparse.Namespace) -> int:
     if args.preset == "paper-dirichlet" and args.concepts is None and house.category_names:
         overrides["num_concepts"] = len(house.category_names)
     settings = preset(args.preset, **overrides)
-    config = settings.model
     options = None  # a method other than Gibbs runs with its default options
     if args.method == "gibbs":
         options = GibbsOptions(
@@ -110,6 +193,29 @@ def _fit(args: argparse.Namespace) -> int:
             unobserved_refresh=1.0 if args.unobserved_refresh is None else args.unobserved_refresh,
             cluster_moves=0.0 if args.cluster_moves is None else args.cluster_moves,
         )  # fmt: skip
+        try:
+            get_backend(options.backend)
+        except ImportError as error:  # --backend numba without numba: before anything is written
+            raise ValueError(str(error)) from None
+    return settings, options
+
+
+def _fit_staged(
+    args: argparse.Namespace,
+    house: House,
+    settings: SpCoSettings,
+    options: GibbsOptions | None,
+    staged: StagedOutput,
+    keeper: FitCheckpoint | None,
+    sampled: list[bool],
+) -> int:
+    """Fit, write every output into ``staged.path``, then move it to OUT."""
+    from spcopyro.fit import best_chain, fit_house_chains
+    from spcopyro.outputs import checkpoint_path
+    from spcopyro.plotting import plot_house, plot_semantic_map, plot_trace
+
+    config = settings.model
+    source = "embedded synthetic house, seed 0" if args.data is None else None
     # The config's warnings (gamma, extreme concentrations) are logged by prepare_model_data,
     # which the fit runs; main's logging handler prints them once, as "warning: ...".
     print(_summary(house))
@@ -117,29 +223,35 @@ def _fit(args: argparse.Namespace) -> int:
     print(f"data             {settings.data}")
     default = INFERENCE_METHODS[args.method].default_options()
     print(f"inference        {args.method}: {options if options is not None else default}")
+    if options is not None:
+        print(f"backend used     {get_backend(options.backend).name}")
+    if args.resume is not None:
+        print(f"resuming         the chains saved in {args.resume}")
     diagnostics = None
     start = _clock()
     if args.sweeps == "auto":
         from spcopyro.fit import fit_house_converged
 
-        if args.method != "gibbs":
-            raise ValueError(f"--sweeps auto is Gibbs' convergence rule, not {args.method!r}'s")
         chains = 4 if args.chains is None else args.chains
         result, diagnostics = fit_house_converged(
             house, settings, options=options, chains=chains, max_sweeps=args.max_sweeps,
-            seed=args.seed, init=args.init,
+            seed=args.seed, init=args.init, source=source,
         )  # fmt: skip
         chain_results = None
     else:
         chains = 1 if args.chains is None else args.chains
         chain_results = fit_house_chains(
             house, settings, method=args.method, options=options, sweeps=args.sweeps,
-            seeds=[args.seed + k for k in range(chains)], init=args.init,
+            seeds=[args.seed + k for k in range(chains)], init=args.init, source=source,
+            checkpoint=keeper, resume=args.resume,
         )  # fmt: skip
         kept = best_chain(chain_results)
         result = chain_results[kept]
     wall = _clock() - start
-    out = result.save(args.out)
+    sampled.append(True)
+    command = shlex.join(["spcopyro", *_command(args)])
+    result = dataclasses.replace(result, provenance={**result.provenance, "command": command})
+    out = result.save(staged.path)
     if chain_results is not None and chains > 1:
         best_values = [r.best_objective for r in chain_results]
         report = {"seeds": [args.seed + k for k in range(chains)], "best_chain": kept,
@@ -186,6 +298,11 @@ def _fit(args: argparse.Namespace) -> int:
             "for sharper words try --beta 0.1 (or --preset original-code --gamma 3)",
             file=sys.stderr,
         )
+    out = staged.commit()
+    checkpoint = checkpoint_path(out)
+    if checkpoint.is_file():  # the one resumed from, or an old one --overwrite replaces
+        checkpoint.unlink(missing_ok=True)
+        print(f"removed {checkpoint}: the fit it held is complete or replaced")
     print(f"wrote {out}/: labels.npy semantic_map.png concepts.json trace.csv trace.png ...")
     return 0
 
@@ -385,7 +502,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("fit", help="fit SpCoMapping (Gibbs sampling) and write the semantic map")
     p.add_argument("data", nargs="?", help="house folder (default: the synthetic house)")
-    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--out", required=True,
+                   help="output folder (written whole at the end; new or empty)")  # fmt: skip
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the --out folder of an earlier fit (all its files)")  # fmt: skip
+    p.add_argument("--resume", metavar="CHECKPOINT",
+                   help="continue the interrupted fit saved in CHECKPOINT (OUT.checkpoint.npz; "
+                        "Ctrl-C writes it), with the same data and settings")  # fmt: skip
     p.add_argument("--sweeps", type=_sweeps, default=5000,
                    help="Gibbs iterations (paper: 5000), or 'auto': run --chains chains until "
                         "split R-hat of the log joint and of the number of concepts < 1.05 "
@@ -536,6 +659,9 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, ValueError) as error:  # bad input: one clear line, no traceback
         print(f"error: {error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C: one line, no traceback (fit says more itself)
+        print("interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

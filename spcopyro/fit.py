@@ -4,18 +4,31 @@ This is what ``spcopyro fit`` runs; each step is a public function of its own mo
 can replace any of them (see :func:`fit_house_chains`' body). The inference method is looked up
 by name in :mod:`spcopyro.registry` (``"gibbs"``: Algorithm 1); ``--sweeps auto``
 (:func:`fit_house_converged`) is Gibbs-specific.
+
+Gibbs chains can be interrupted and resumed: :func:`fit_house_chains` with ``checkpoint=PATH``
+(or a :class:`FitCheckpoint`) saves every chain's state there (:mod:`spcopyro.gibbs.checkpoint`)
+when Ctrl-C stops it, then raises :class:`FitInterrupted`; ``resume=PATH`` continues the saved
+chains, exactly as if they had never stopped. Every result records where its data came from,
+the package versions and the backend that ran (:func:`provenance`, written to ``config.json``).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
+import os
+import platform
 from collections.abc import Sequence
+from importlib import metadata
+from pathlib import Path
 
 import numpy as np
 import torch
 
+from spcopyro import __version__
 from spcopyro.config import WORDS, SpCoConfig, SpCoSettings, preset
 from spcopyro.data import CellCounts, House, cell_counts
+from spcopyro.gibbs.checkpoint import data_fingerprint, load_chains, save_chains
 from spcopyro.gibbs.convergence import (
     DEFAULT_BLOCK,
     DEFAULT_CHAINS,
@@ -24,8 +37,9 @@ from spcopyro.gibbs.convergence import (
     ConvergenceDiagnostics,
     run_until_converged,
 )
-from spcopyro.gibbs.method import output_from_run
+from spcopyro.gibbs.method import GibbsInference, gibbs_record, output_from_run
 from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.gibbs.run import GibbsChain, advance, start_chain
 from spcopyro.inference import InferenceOutput
 from spcopyro.initialisation import kmeans_gaussians, labels_from_gaussians
 from spcopyro.model import DTYPE, ModelData, make_model_data
@@ -35,6 +49,79 @@ from spcopyro.results import SpCoResult
 logger = logging.getLogger("spcopyro")
 
 INITS = ("random", "gaussian", "spcoa")
+RANDOM_STREAMS_NOTE = (
+    "the torch and numba Gibbs backends draw different random streams from one seed: a seeded "
+    "fit reproduces bit for bit only on the backend that ran it (inference.backend_used)"
+)
+
+
+class FitInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped a fit (a :class:`KeyboardInterrupt`, so code unaware of it still stops).
+
+    ``checkpoint``: the file holding the chains' state (None where none was kept);
+    ``where``: how far the fit had got, e.g. ``"chain 1 of 2, 120 of 5000 sweeps done"``.
+    """
+
+    def __init__(self, where: str, checkpoint: Path | None = None) -> None:
+        super().__init__(where)
+        self.where, self.checkpoint = where, checkpoint
+
+
+class FitCheckpoint:
+    """Where a Gibbs fit's chains are saved (:func:`~spcopyro.gibbs.checkpoint.save_chains`)
+    when it is interrupted.
+
+    :func:`fit_house_chains` fills :attr:`chains` (the very list it advances) and :attr:`record`
+    (its settings, checked on resuming), saves them on Ctrl-C, and leaves them here, so that the
+    caller can :meth:`save` the finished chains later too -- e.g. when Ctrl-C stops the writing of
+    the results.
+    """
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        self.path = Path(path)
+        self.chains: list[GibbsChain | None] = []
+        self.record: dict[str, object] = {}
+
+    def save(self) -> Path | None:
+        """Save the chains reached so far; None (nothing written) if none has started."""
+        if all(chain is None for chain in self.chains):
+            return None
+        return save_chains(self.chains, self.path, record=self.record)
+
+
+def software_versions() -> dict[str, str | None]:
+    """The versions of Python, spcopyro and the packages that shape a fit's draws (None: not
+    installed)."""
+    versions: dict[str, str | None] = {
+        "python": platform.python_version(),
+        "spcopyro": __version__,
+        "numpy": np.__version__,
+        "torch": torch.__version__,
+    }
+    for name, distribution in (("pyro", "pyro-ppl"), ("numba", "numba")):
+        try:
+            versions[name] = metadata.version(distribution)
+        except metadata.PackageNotFoundError:
+            versions[name] = None
+    return versions
+
+
+def provenance(house: House, data: ModelData, source: str | None = None) -> dict[str, object]:
+    """What ``config.json`` records beside the settings, to reproduce a fit: ``source`` (the
+    data: ``source``, e.g. ``"embedded synthetic house, seed 0"``, or the house's folder, and a
+    sha256 fingerprint of the model data), ``software`` (:func:`software_versions`) and a note on
+    the backends' random streams."""
+    if source is None:
+        source = (
+            str(Path(house.source).resolve())
+            if house.source is not None
+            else f"in-memory house {house.name!r} (not read from a folder)"
+        )
+    return {
+        "source": {"data": source, "house": house.name, "data_sha256": data_fingerprint(data)},
+        "software": software_versions(),
+        "reproducibility": RANDOM_STREAMS_NOTE,
+    }
 
 
 FREEZING_GAMMA = 10.0
@@ -188,12 +275,14 @@ def result_of(
     data: ModelData,
     settings: SpCoSettings,
     method: str,
+    record: dict[str, object] | None = None,
 ) -> SpCoResult:
-    """The :class:`SpCoResult` of an inference output on ``house``."""
+    """The :class:`SpCoResult` of an inference output on ``house`` (``record``: its
+    :func:`provenance`)."""
     return SpCoResult.from_output(
         output, house.grid, modality_items(counts, data), settings.model,
         modalities=tuple(m.name for m in data.modalities), method=method,
-        preparation=settings.data, name=house.name,
+        preparation=settings.data, name=house.name, provenance=record,
     )  # fmt: skip
 
 
@@ -234,17 +323,40 @@ def fit_house_chains(
     seeds: Sequence[int] = (0,),
     init: str = "random",
     progress: bool | None = None,
+    source: str | None = None,
+    checkpoint: str | os.PathLike[str] | FitCheckpoint | None = None,
+    resume: str | os.PathLike[str] | None = None,
 ) -> list[SpCoResult]:
     """One :class:`SpCoResult` per seed: ``sweeps`` iterations of the inference method from
     ``init`` drawn with that seed. The house's counts are computed once for all chains. See
-    :func:`fit_house` for the arguments; :func:`best_chain` picks the one to keep."""
+    :func:`fit_house` for the arguments; :func:`best_chain` picks the one to keep.
+
+    Args:
+        source: where the house came from, for ``config.json`` (:func:`provenance`).
+        checkpoint: Gibbs only: save the chains' state to this file on Ctrl-C, then raise
+            :class:`FitInterrupted` (a :class:`FitCheckpoint` keeps the chains for the caller).
+        resume: Gibbs only: continue the chains saved in this checkpoint (ValueError if it was
+            made for other data or settings, seeds, sweeps or init); chains it does not hold
+            start afresh. The results equal those of a fit that never stopped.
+    """
     if isinstance(sweeps, bool) or not isinstance(sweeps, int | np.integer) or sweeps < 1:
         raise ValueError(f"sweeps must be a positive integer or 'auto', got {sweeps!r}")
     if len(seeds) == 0:
         raise ValueError("seeds must name at least one chain")
     settings = preset() if settings is None else settings
     inference = get_method(method)
+    if not isinstance(inference, GibbsInference) and (checkpoint or resume):
+        raise ValueError(f"checkpoints hold Gibbs chains; the {method!r} method keeps none")
     counts, data = prepare_model_data(house, settings)
+    record = provenance(house, data, source)
+    if checkpoint is not None and not isinstance(checkpoint, FitCheckpoint):
+        checkpoint = FitCheckpoint(checkpoint)
+    if isinstance(inference, GibbsInference):
+        outputs = _gibbs_outputs(
+            house, counts, data, settings, options, int(sweeps), [int(s) for s in seeds], init,
+            progress, checkpoint, resume,
+        )  # fmt: skip
+        return [result_of(o, house, counts, data, settings, method, record) for o in outputs]
     fits = []
     for seed in seeds:
         generator = torch.Generator().manual_seed(int(seed))
@@ -254,8 +366,69 @@ def fit_house_chains(
             init_labels=start, options=options, progress=progress,
         )  # fmt: skip
         output.options.update(seed=int(seed), init=init)
-        fits.append(result_of(output, house, counts, data, settings, method))
+        fits.append(result_of(output, house, counts, data, settings, method, record))
     return fits
+
+
+def _gibbs_outputs(
+    house: House,
+    counts: CellCounts,
+    data: ModelData,
+    settings: SpCoSettings,
+    options: object | None,
+    sweeps: int,
+    seeds: list[int],
+    init: str,
+    progress: bool | None,
+    checkpoint: FitCheckpoint | None,
+    resume: str | os.PathLike[str] | None,
+) -> list[InferenceOutput]:
+    """Gibbs chains (:func:`~spcopyro.gibbs.run.start_chain`, :func:`~spcopyro.gibbs.run.advance`:
+    the same draws as :class:`~spcopyro.gibbs.method.GibbsInference`), saved and resumed."""
+    options = GibbsOptions() if options is None else options
+    if not isinstance(options, GibbsOptions):
+        raise TypeError(f"Gibbs sampling takes GibbsOptions, got {type(options).__name__}")
+    if options.anneal_sweeps > sweeps:
+        raise ValueError(
+            f"anneal_sweeps ({options.anneal_sweeps}) must not exceed num_sweeps ({sweeps})"
+        )
+    record = {"method": "gibbs", "sweeps": sweeps, "seeds": seeds, "init": init,
+              "data_preparation": dataclasses.asdict(settings.data)}  # fmt: skip
+    chains: list[GibbsChain | None] = [None] * len(seeds)
+    if resume is not None:
+        chains = load_chains(resume, data, settings.model, options, record=record)
+    if checkpoint is not None:
+        checkpoint.chains, checkpoint.record = chains, record
+    try:
+        for k, seed in enumerate(seeds):
+            chain = chains[k]
+            if chain is None:
+                generator = torch.Generator().manual_seed(seed)
+                start = initial_labels(house, counts, settings, init, seed, generator)
+                chain = start_chain(
+                    data, settings.model, options=options, generator=generator, init_labels=start
+                )
+                chains[k] = chain
+            if chain.sweeps_done < sweeps:
+                advance(chain, sweeps - chain.sweeps_done, progress=progress)
+    except KeyboardInterrupt:
+        saved = None if checkpoint is None else checkpoint.save()
+        raise FitInterrupted(_where_stopped(chains, sweeps), saved) from None
+    outputs = []
+    for chain, seed in zip(chains, seeds, strict=True):
+        assert chain is not None
+        entry = gibbs_record(options, sweeps, chain.backend.name)
+        outputs.append(output_from_run(chain.to_run(), {**entry, "seed": seed, "init": init}))
+    return outputs
+
+
+def _where_stopped(chains: Sequence[GibbsChain | None], sweeps: int) -> str:
+    """``"chain k of K, s of S sweeps done"`` for the first chain not finished."""
+    for k, chain in enumerate(chains):
+        done = 0 if chain is None else chain.sweeps_done
+        if done < sweeps:
+            return f"chain {k + 1} of {len(chains)}, {done} of {sweeps} sweeps done"
+    return f"all {len(chains)} chain(s) done ({sweeps} sweeps each)"
 
 
 def fit_house(
@@ -322,12 +495,14 @@ def fit_house_converged(
     seed: int = 0,
     init: str = "random",
     progress: bool | None = None,
+    source: str | None = None,
 ) -> tuple[SpCoResult, ConvergenceDiagnostics]:
     """Fit by Gibbs sampling with ``chains`` chains (seeds ``seed``, ``seed + 1``, ...) until
     split R-hat of the log joint and of the number of concepts are below ``threshold``, or
     ``max_sweeps`` sweeps (:func:`spcopyro.gibbs.convergence.run_until_converged`). Returns the
     chain of highest log joint as the result, and the diagnostics. Chain k starts from ``init``
     drawn with seed ``seed + k``; ``options.anneal_sweeps`` of gamma annealing come first.
+    ``source``: where the house came from, for ``config.json`` (:func:`provenance`).
     """
     settings = preset() if settings is None else settings
     options = GibbsOptions() if options is None else options
@@ -345,7 +520,8 @@ def fit_house_converged(
     )  # fmt: skip
     record = {
         "sweeps": "auto", "chains": chains, "seed": seed, "init": init,
-        **{k: v for k, v in vars(options).items()},
+        **{k: v for k, v in vars(options).items()}, "backend_used": run.backend,
     }  # fmt: skip
     output = output_from_run(run, record)
-    return result_of(output, house, counts, data, settings, "gibbs"), diagnostics
+    made = provenance(house, data, source)
+    return result_of(output, house, counts, data, settings, "gibbs", made), diagnostics

@@ -79,6 +79,8 @@ __all__ = [
 ]
 
 RESULT_FILE = "result.npz"
+_SETTINGS = ("model", "data", "method", "inference")
+"""The entries of ``config.json`` that are settings (the others are the provenance)."""
 MAP_FILE = "map.yaml"
 
 
@@ -238,6 +240,9 @@ class SpCoResult:
     preparation: DataPreparation = DataPreparation()
     inference: dict[str, object] = field(default_factory=dict)
     name: str = ""
+    provenance: dict[str, object] = field(default_factory=dict)
+    """Where the data came from, the software's versions, ... (:func:`spcopyro.fit.provenance`):
+    top-level entries of ``config.json`` beside the settings."""
 
     @classmethod
     def from_output(
@@ -251,6 +256,7 @@ class SpCoResult:
         method: str = "gibbs",
         preparation: DataPreparation = DataPreparation(),
         name: str = "",
+        provenance: dict[str, object] | None = None,
     ) -> SpCoResult:
         """The result of ``output`` on ``grid``. ``modalities``: the names of the model data's
         modalities in order; ``items``: the item names of each (class numbers are used for a
@@ -278,6 +284,7 @@ class SpCoResult:
             preparation=preparation,
             inference=dict(output.options),
             name=name,
+            provenance=dict(provenance or {}),
         )
 
     # -- the parts --------------------------------------------------------------------------------
@@ -422,13 +429,15 @@ class SpCoResult:
     # -- saving and loading ----------------------------------------------------------------------
 
     def settings_json(self) -> dict[str, object]:
-        """The settings of the fit: model, data preparation, inference method and its options."""
-        return {
+        """The settings of the fit: model, data preparation, inference method and its options,
+        then the :attr:`provenance` entries (data source, software versions)."""
+        settings = {
             "model": self.config.to_json(),
             "data": dataclasses.asdict(self.preparation),
             "method": self.method,
             "inference": self.inference,
         }
+        return {**settings, **{k: v for k, v in self.provenance.items() if k not in settings}}
 
     def save(self, out_dir: str | os.PathLike[str]) -> Path:
         """Write the result into ``out_dir``.
@@ -533,4 +542,5 @@ class SpCoResult:
             preparation=DataPreparation(**settings["data"]),
             inference=dict(settings.get("inference", {})),
             name=str(arrays["name"]),
+            provenance={k: v for k, v in settings.items() if k not in _SETTINGS},
         )

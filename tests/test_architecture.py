@@ -19,7 +19,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "spcopyro"
 
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("config", "distributions", "messages", "progress", "random_draws", "maps"),
+    ("config", "distributions", "messages", "progress", "random_draws", "maps", "outputs"),
     ("data", "synthetic"),
     ("model",),
     ("likelihood", "initialisation", "semantic_map"),

@@ -113,7 +113,7 @@ def test_a_run_becomes_a_result_through_the_gibbs_method():
                        options=TORCH, progress=False)  # fmt: skip
     np.testing.assert_array_equal(again.labels, output.labels)
     np.testing.assert_array_equal(again.trace.objective, output.trace.objective)
-    assert again.options == {"sweeps": 12, **dataclasses.asdict(TORCH)}
+    assert again.options == {"sweeps": 12, **dataclasses.asdict(TORCH), "backend_used": "torch"}
     with pytest.raises(TypeError, match="takes GibbsOptions"):
         method.run(data, cfg, iterations=2, generator=torch.Generator(), options={"a": 1})
 

@@ -30,6 +30,13 @@ def output_from_run(run: GibbsRun, options: dict[str, object] | None = None) -> 
     )
 
 
+def gibbs_record(options: GibbsOptions, sweeps: int | str, backend_used: str) -> dict[str, object]:
+    """The sampler's part of ``config.json``: the sweeps, the options (``backend`` as asked,
+    e.g. ``"auto"``) and ``backend_used``, the backend that ran (the torch and numba backends
+    draw different random streams from one seed)."""
+    return {"sweeps": sweeps, **dataclasses.asdict(options), "backend_used": backend_used}
+
+
 class GibbsInference:
     """Algorithm 1 (:func:`spcopyro.gibbs.run.run_gibbs`) behind the common interface."""
 
@@ -58,5 +65,4 @@ class GibbsInference:
             data, config, iterations, options=options, generator=generator,
             init_labels=init_labels, progress=progress, thin=thin,
         )  # fmt: skip
-        record = {"sweeps": iterations, **dataclasses.asdict(options)}
-        return output_from_run(run, record)
+        return output_from_run(run, gibbs_record(options, iterations, run.backend))

@@ -7,12 +7,18 @@ and the number of concepts of every sweep (8 + 8 bytes a sweep), the state of hi
 visited (the "MAP-visited" state, annealing sweeps left out), and, only if asked, label maps every
 ``thin`` sweeps as int16 (2 bytes a cell). A later :func:`advance` continues the same chain --
 same state, same generator, same sweep count -- which is how ``--sweeps auto``
-(:mod:`spcopyro.gibbs.convergence`) runs its blocks and how a long fit can be resumed.
+(:mod:`spcopyro.gibbs.convergence`) runs its blocks and how a long fit can be resumed
+(:mod:`spcopyro.gibbs.checkpoint` saves a chain to a file and loads it back).
 :func:`run_gibbs` is start + advance in one call, returning a :class:`GibbsRun`.
 
 Numerics: labels are stored as int16, or int32 when L > 32767 (:func:`label_dtype`); a sweep
 whose log joint is not finite stops the chain (:class:`NonFiniteLogJointError`, naming the sweep
 and the terms that are not finite) instead of running on.
+
+A Ctrl-C (:class:`KeyboardInterrupt`) during :func:`advance` leaves the chain at its last
+*completed* sweep: a sweep cut short is undone -- its state, its records and the draws it took
+from the generator -- before the interrupt is raised again, so a chain saved then and continued
+later is exactly the chain run without the interruption.
 """
 
 from __future__ import annotations
@@ -21,6 +27,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -89,6 +96,8 @@ class GibbsRun:
     ``thin`` > 0)."""
     sample_sweeps: np.ndarray | None
     """[S'] the 0-based sweeps of ``label_samples``."""
+    backend: str = ""
+    """The sweep backend that ran (``"torch"`` or ``"numba"``: ``"auto"`` resolved)."""
 
 
 def _compact(state: GibbsState) -> GibbsState:
@@ -134,7 +143,38 @@ class GibbsChain:
             sample_sweeps=(
                 np.asarray(self.sample_sweeps, dtype=np.int64) if self.label_samples else None
             ),
+            backend=self.backend.name,
         )
+
+    def _mark(self) -> _Mark:
+        """What :meth:`_undo` needs to bring the chain back to this point (cheap: the generator's
+        state is 5 kB, everything else is a reference or a length)."""
+        return _Mark(self.generator.get_state(), self.state, self.sweeps_done, self.best_value,
+                     self.best_state, self.best_sweep, len(self.label_samples))  # fmt: skip
+
+    def _undo(self, mark: _Mark) -> None:
+        """Back to :meth:`_mark`'s point: a sweep cut short by Ctrl-C leaves no trace."""
+        self.generator.set_state(mark.generator_state)
+        self.state, self.sweeps_done = mark.state, mark.sweeps_done
+        self.best_value, self.best_state, self.best_sweep = (
+            mark.best_value, mark.best_state, mark.best_sweep
+        )  # fmt: skip
+        for record in (self.log_joint, self.num_concepts, self.seconds):
+            del record[mark.sweeps_done :]
+        del self.label_samples[mark.samples_kept :]
+        del self.sample_sweeps[mark.samples_kept :]
+
+
+class _Mark(NamedTuple):
+    """A chain's position before a sweep (:meth:`GibbsChain._mark`)."""
+
+    generator_state: torch.Tensor  # [5056] uint8
+    state: GibbsState
+    sweeps_done: int
+    best_value: float
+    best_state: GibbsState | None
+    best_sweep: int
+    samples_kept: int
 
 
 def start_chain(
@@ -171,6 +211,10 @@ def advance(
 ) -> GibbsChain:
     """Run ``num_sweeps`` more sweeps of ``chain`` (in place; returned for chaining).
 
+    On Ctrl-C the sweep in progress is undone (see the module docstring) and the
+    :class:`KeyboardInterrupt` raised again: the chain then holds its last completed sweep. An
+    interrupt raised by ``callback`` comes after its sweep was recorded, so that sweep is kept.
+
     Args:
         thin: keep a label map every ``thin`` sweeps of the chain (0: keep none).
         progress: tqdm bar (default: on unless ``$CI`` is set).
@@ -189,28 +233,37 @@ def advance(
         desc="Gibbs sweeps",
         disable=not progress_enabled(progress),
     )
-    for sweep in bar:
-        chain.state, _ = step(
-            chain.state, data, config, chain.generator, sweep=sweep, options=chain.options,
-            backend=chain.backend, plan=chain.plan,
-        )  # fmt: skip
-        value, concepts = trace_point(chain.state, data, config, chain.constant, chain.backend)
-        _check_log_joint(chain, sweep, value)
-        chain.log_joint.append(value)
-        chain.num_concepts.append(concepts)
-        chain.seconds.append(elapsed + time.perf_counter() - start)
-        chain.sweeps_done = sweep + 1
-        if value > chain.best_value and sweep + 1 >= anneal:
-            chain.best_value, chain.best_state = value, _compact(chain.state)
-            chain.best_sweep = sweep
-        if thin and (sweep + 1) % thin == 0:
-            chain.label_samples.append(_compact(chain.state).labels.numpy().copy())
-            chain.sample_sweeps.append(sweep)
-        if callback is not None:
-            callback(sweep, chain.state)
-        if (sweep - first) % 50 == 0:
-            bar.set_postfix(log_joint=f"{value:.4g}", concepts=concepts)
-    bar.close()
+    try:
+        for sweep in bar:
+            mark = chain._mark()
+            try:
+                chain.state, _ = step(
+                    chain.state, data, config, chain.generator, sweep=sweep,
+                    options=chain.options, backend=chain.backend, plan=chain.plan,
+                )  # fmt: skip
+                value, concepts = trace_point(
+                    chain.state, data, config, chain.constant, chain.backend
+                )
+                _check_log_joint(chain, sweep, value)
+                chain.log_joint.append(value)
+                chain.num_concepts.append(concepts)
+                chain.seconds.append(elapsed + time.perf_counter() - start)
+                if value > chain.best_value and sweep + 1 >= anneal:
+                    chain.best_value, chain.best_state = value, _compact(chain.state)
+                    chain.best_sweep = sweep
+                if thin and (sweep + 1) % thin == 0:
+                    chain.label_samples.append(_compact(chain.state).labels.numpy().copy())
+                    chain.sample_sweeps.append(sweep)
+                chain.sweeps_done = sweep + 1
+            except KeyboardInterrupt:
+                chain._undo(mark)
+                raise
+            if callback is not None:
+                callback(sweep, chain.state)
+            if (sweep - first) % 50 == 0:
+                bar.set_postfix(log_joint=f"{value:.4g}", concepts=concepts)
+    finally:
+        bar.close()
     return chain
 
 

@@ -1,0 +1,243 @@
+"""Output folders that appear whole or not at all, and files replaced atomically.
+
+``spcopyro fit --out OUT`` writes every file of a run (result files, figures, scores, chains,
+convergence record) into a *staging* folder beside OUT -- ``OUT.partial-XXXXXXXX``, in OUT's
+parent, so that moving it into place is a ``rename`` on one file system, which is atomic -- and
+moves it to OUT only when everything is written (:meth:`StagedOutput.commit`). So a crash, a
+Ctrl-C, or a second fit into the same folder never leaves a mixture of two runs' files:
+
+* :func:`stage_output` refuses an OUT that exists and is not empty unless ``overwrite`` is given
+  (and refuses to overwrite a folder that no fit wrote, or one that holds the current
+  directory); it creates the staging folder at once, so an unwritable OUT or parent is reported
+  before any work is done.
+* With ``overwrite``, the whole old folder is replaced: no file of the old run survives.
+* Two fits into one OUT: the commits are serialised by a lock on the parent folder, and a fit
+  commits only if OUT is still the folder it saw when it started; otherwise it fails with
+  :class:`OutputError`, leaving OUT as the other fit wrote it and its own files in its staging
+  folder (named in the message: nothing is deleted).
+* An interrupted fit's checkpoint lives beside OUT as ``OUT.checkpoint.npz``
+  (:func:`checkpoint_path`), never inside it, so it cannot be mistaken for a result.
+
+This module imports nothing of the package.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import secrets
+import shutil
+import tempfile
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import BinaryIO
+
+try:  # POSIX: serialise commits into one parent folder
+    import fcntl
+except ImportError:  # pragma: no cover - Windows: commits are not serialised
+    fcntl = None  # type: ignore[assignment]
+
+CHECKPOINT_SUFFIX = ".checkpoint.npz"
+STAGING_INFIX = ".partial-"
+RESULT_MARKERS = ("result.npz", "config.json")
+"""A folder holding both was written by ``spcopyro fit``: the only kind ``overwrite`` replaces."""
+
+
+class OutputError(ValueError):
+    """An output folder that cannot be written as asked (the message says why and what to do)."""
+
+
+def checkpoint_path(out: str | os.PathLike[str]) -> Path:
+    """``OUT.checkpoint.npz``: where an interrupted fit into ``out`` keeps its state (beside
+    OUT, not inside it)."""
+    out = _absolute(out)
+    return out.parent / f"{out.name}{CHECKPOINT_SUFFIX}"
+
+
+def _absolute(path: str | os.PathLike[str]) -> Path:
+    return Path(os.path.abspath(os.fspath(path)))
+
+
+def _identity(path: Path) -> tuple[int, int] | None:
+    """(device, inode) of ``path`` (not following a link), None where nothing is there."""
+    try:
+        status = path.lstat()
+    except (FileNotFoundError, NotADirectoryError):
+        return None
+    return status.st_dev, status.st_ino
+
+
+def _is_empty_folder(path: Path) -> bool:
+    with os.scandir(path) as entries:
+        return next(entries, None) is None
+
+
+@contextlib.contextmanager
+def _parent_lock(parent: Path) -> Iterator[None]:
+    """An exclusive ``flock`` on the parent folder while a commit looks and renames."""
+    if fcntl is None:  # pragma: no cover
+        yield
+        return
+    descriptor = os.open(parent, os.O_RDONLY)
+    try:
+        fcntl.flock(descriptor, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(descriptor)  # releases the lock
+
+
+@dataclass
+class StagedOutput:
+    """A run's output folder in the making: write into :attr:`path`, then :meth:`commit`.
+
+    Used as a context manager, an exception (Ctrl-C included) before the commit removes the
+    staging folder, so nothing of the run is left behind.
+    """
+
+    out: Path
+    """The folder the outputs go to (absolute)."""
+    path: Path
+    """The staging folder the outputs are written into (beside :attr:`out`)."""
+    overwrite: bool
+    seen: tuple[int, int] | None
+    """(device, inode) of :attr:`out` when staged (None: absent): another fit's commit changes
+    it."""
+    committed: bool = False
+    kept: bool = False
+    """The staged files were kept after a failed commit (:meth:`discard` leaves them)."""
+
+    def commit(self) -> Path:
+        """Move the staged folder to :attr:`out` (replacing the old one if ``overwrite``).
+
+        Raises:
+            OutputError: another process wrote :attr:`out` since :func:`stage_output` (the staged
+                files stay in :attr:`path`, named in the message).
+        """
+        if self.committed:
+            raise OutputError(f"{self.out}: already committed")
+        with _parent_lock(self.out.parent):
+            if _identity(self.out) != self.seen:
+                self.kept = True
+                raise OutputError(
+                    f"{self.out} was written by another process while this fit ran; it is left "
+                    f"as that one wrote it, and this fit's outputs are in {self.path}"
+                )
+            if self.seen is not None and self.overwrite and not _is_empty_folder(self.out):
+                self._replace()
+            else:
+                try:
+                    os.rename(self.path, self.out)  # replaces an empty folder atomically
+                except OSError as error:
+                    self.kept = True
+                    raise OutputError(
+                        f"{self.out} could not be written ({error.strerror}); this fit's "
+                        f"outputs are in {self.path}"
+                    ) from None
+        self.committed = True
+        return self.out
+
+    def _replace(self) -> None:
+        """Old OUT aside, the staged folder in its place, then the old one removed."""
+        old = self.out.parent / f"{self.out.name}.replaced-{secrets.token_hex(4)}"
+        os.rename(self.out, old)
+        try:
+            os.rename(self.path, self.out)
+        except OSError:
+            os.rename(old, self.out)
+            raise
+        shutil.rmtree(old, ignore_errors=True)
+
+    def discard(self) -> None:
+        """Remove the staging folder (nothing of this run is kept), unless committed or kept."""
+        if not (self.committed or self.kept):
+            shutil.rmtree(self.path, ignore_errors=True)
+
+    def __enter__(self) -> StagedOutput:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, *_: object) -> None:
+        if kind is not None:
+            self.discard()
+
+
+def check_output(
+    out: str | os.PathLike[str],
+    *,
+    overwrite: bool = False,
+    resume: str | os.PathLike[str] | None = None,
+) -> Path:
+    """Check that a fit may write ``out`` (absolute path returned); writes nothing.
+
+    Raises :class:`OutputError` when ``out`` is a file, when it is a non-empty folder and
+    ``overwrite`` is not given, when ``overwrite`` would replace a folder that no fit wrote (no
+    ``result.npz`` and ``config.json``) or one holding the current directory, and when
+    ``OUT.checkpoint.npz`` holds an interrupted fit that this one neither resumes (``resume``)
+    nor replaces (``overwrite``).
+    """
+    path = _absolute(out)
+    if path.parent == path:
+        raise OutputError(f"--out {out}: the root folder cannot be an output folder")
+    existing = path
+    while not existing.exists() and existing.parent != existing:
+        existing = existing.parent  # the nearest part of the path that exists
+    if not existing.is_dir():
+        raise OutputError(f"--out {out}: {existing} is a file, not a folder")
+    if path.is_dir() and not _is_empty_folder(path):
+        if not overwrite:
+            raise OutputError(
+                f"--out {out}: {path} exists and is not empty; pass --overwrite to replace it "
+                "(its files are then deleted), or choose another --out"
+            )
+        missing = [name for name in RESULT_MARKERS if not (path / name).is_file()]
+        if missing:
+            raise OutputError(
+                f"--out {out}: {path} holds files that no fit wrote (no {' or '.join(missing)}); "
+                "--overwrite replaces only a fit's output folder: choose another --out"
+            )
+        if Path.cwd().resolve().is_relative_to(path.resolve()):
+            raise OutputError(f"--out {out}: {path} holds the current directory; not replacing it")
+    checkpoint = checkpoint_path(path)
+    resuming = resume is not None and _absolute(resume) == checkpoint
+    if checkpoint.exists() and not (resuming or overwrite):
+        raise OutputError(
+            f"{checkpoint} holds an interrupted fit into {path}: continue it with --resume "
+            f"{checkpoint}, or pass --overwrite to start afresh (the checkpoint is then replaced)"
+        )
+    return path
+
+
+def stage_output(
+    out: str | os.PathLike[str],
+    *,
+    overwrite: bool = False,
+    resume: str | os.PathLike[str] | None = None,
+) -> StagedOutput:
+    """:func:`check_output`, then create the staging folder beside ``out`` (and ``out``'s parent
+    if missing): an unwritable place fails here, with :class:`OutputError`, before any work."""
+    path = check_output(out, overwrite=overwrite, resume=resume)
+    seen = _identity(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        staging = tempfile.mkdtemp(prefix=f"{path.name}{STAGING_INFIX}", dir=path.parent)
+    except OSError as error:
+        raise OutputError(
+            f"--out {out}: cannot write in {path.parent} ({error.strerror or error})"
+        ) from None
+    return StagedOutput(out=path, path=Path(staging), overwrite=overwrite, seen=seen)
+
+
+def replace_file(path: str | os.PathLike[str], write: Callable[[BinaryIO], None]) -> Path:
+    """Write a file through ``write(file)`` into a temporary file beside ``path``, then rename it
+    over ``path``: readers see the old file or the new one, never a half-written one."""
+    path = _absolute(path)
+    descriptor, partial = tempfile.mkstemp(prefix=f"{path.name}{STAGING_INFIX}", dir=path.parent)
+    try:
+        with os.fdopen(descriptor, "wb") as file:
+            write(file)
+        os.replace(partial, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(partial)
+        raise
+    return path

@@ -1,0 +1,383 @@
+"""Ctrl-C and resuming: a chain stops at its last completed sweep, is saved
+(:mod:`spcopyro.gibbs.checkpoint`) and continues exactly; ``spcopyro fit`` keeps a checkpoint
+beside OUT, exits with 130, and ``--resume`` gives what a fit that never stopped gives."""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from gibbs_problems import config, random_problem
+
+import spcopyro.fit
+import spcopyro.gibbs.run as run_module
+from spcopyro.cli import main
+from spcopyro.gibbs.checkpoint import (
+    data_fingerprint,
+    load_chain,
+    load_chains,
+    read_record,
+    save_chain,
+    save_chains,
+)
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.gibbs.run import GibbsRun, advance, run_gibbs, start_chain
+from spcopyro.outputs import checkpoint_path
+from spcopyro.synthetic import HouseSpec, write_synthetic
+
+FIT = ["--sweeps", "12", "--preset", "original-code", "--gamma", "3", "--concepts", "8",
+       "--anneal-sweeps", "3", "--cluster-moves", "0.3"]  # fmt: skip
+
+
+def _options(backend) -> GibbsOptions:
+    return GibbsOptions(backend=backend.name, cluster_moves=0.5, unobserved_refresh=0.5,
+                        anneal_sweeps=3)  # fmt: skip
+
+
+def _assert_same_run(mine: GibbsRun, theirs: GibbsRun) -> None:
+    for a, b in ((mine.final_state, theirs.final_state), (mine.best_state, theirs.best_state)):
+        assert torch.equal(a.labels, b.labels)  # [N]
+        assert torch.equal(a.log_pi, b.log_pi)  # [L]
+        for x, y in zip(a.log_emissions, b.log_emissions, strict=True):
+            assert torch.equal(x, y)  # [L, K_m]
+    np.testing.assert_array_equal(mine.log_joint, theirs.log_joint)  # [S]
+    np.testing.assert_array_equal(mine.num_concepts, theirs.num_concepts)  # [S]
+    np.testing.assert_array_equal(mine.label_samples, theirs.label_samples)  # [S', N]
+    np.testing.assert_array_equal(mine.sample_sweeps, theirs.sample_sweeps)
+    assert mine.best_sweep == theirs.best_sweep and mine.backend == theirs.backend
+    assert len(mine.seconds) == len(theirs.seconds) and np.all(np.diff(mine.seconds) >= 0)
+
+
+# -- the run loop and the checkpoint file ------------------------------------------------------
+
+
+def test_a_chain_interrupted_saved_and_loaded_continues_exactly(backend, tmp_path):
+    """Ctrl-C through the run loop's callback after sweep 8 (of 20): the chain holds 9 sweeps;
+    saved, loaded and advanced to 20 it is run_gibbs(20) bit for bit, best state and thinned maps
+    included."""
+    cfg = config()
+    _, data = random_problem(seed=7)
+    options = _options(backend)
+    whole = run_gibbs(data, cfg, 20, options=options, seed=4, thin=3, progress=False)
+
+    def stop_after_8(sweep, state):
+        if sweep == 8:
+            raise KeyboardInterrupt
+
+    chain = start_chain(data, cfg, options=options, seed=4)
+    with pytest.raises(KeyboardInterrupt):
+        advance(chain, 20, thin=3, progress=False, callback=stop_after_8)
+    assert chain.sweeps_done == 9 and len(chain.log_joint) == 9
+    path = save_chain(chain, tmp_path / "c.checkpoint.npz", record={"note": "x"})
+    resumed = load_chain(path, data, cfg, options, record={"note": "x"})
+    assert resumed.sweeps_done == 9 and resumed.generator is not chain.generator
+    advance(resumed, 11, thin=3, progress=False)
+    _assert_same_run(resumed.to_run(), whole)
+    record = read_record(path)
+    assert "not a result" in record["what"] and record["chains"] == [
+        {"sweeps_done": 9, "best_sweep": chain.best_sweep}
+    ]
+
+
+class _Interrupting:
+    """A backend that raises KeyboardInterrupt in the middle of its ``at``-th call of ``method``
+    (after drawing from the generator, where the method draws)."""
+
+    def __init__(self, backend, method: str, at: int) -> None:
+        self.inner, self.method, self.at, self.calls = backend, method, at, 0
+        self.name = backend.name
+
+    def _maybe_stop(self, method: str) -> None:
+        if method == self.method:
+            self.calls += 1
+            if self.calls == self.at:
+                raise KeyboardInterrupt
+
+    def sweep(self, state, data, config, generator, plan, refresh):
+        new = self.inner.sweep(state, data, config, generator, plan, refresh)
+        self._maybe_stop("sweep")
+        return new
+
+    def potts_agreements(self, labels, pairs):
+        self._maybe_stop("potts_agreements")
+        return self.inner.potts_agreements(labels, pairs)
+
+
+class _Clock:
+    """``time`` for the run loop whose ``perf_counter`` raises KeyboardInterrupt at call
+    ``at`` (call 1 is advance's start; call 2 comes after the first sweep's log joint and
+    number of concepts were appended)."""
+
+    def __init__(self, at: int) -> None:
+        self.at, self.calls = at, 0
+
+    def perf_counter(self) -> float:
+        self.calls += 1
+        if self.calls == self.at:
+            raise KeyboardInterrupt
+        return time.perf_counter()
+
+
+@pytest.mark.parametrize("where", ["sweep", "trace", "records"])
+def test_an_interrupt_inside_a_sweep_is_undone(backend, where, monkeypatch):
+    """Ctrl-C in sweep 6 after it drew its random numbers (in the backend's sweep), after the
+    new state was taken (in the trace's log joint), or after part of the trace was appended: the
+    chain is back at 5 sweeps, generator included, and continues exactly."""
+    cfg = config()
+    _, data = random_problem(seed=3)
+    options = _options(backend)
+    whole = run_gibbs(data, cfg, 14, options=options, seed=2, thin=2, progress=False)
+    chain = start_chain(data, cfg, options=options, seed=2)
+    advance(chain, 5, thin=2, progress=False)
+    generator_state = chain.generator.get_state()
+    labels, best, samples = chain.state.labels, chain.best_sweep, len(chain.label_samples)
+    real = chain.backend
+    if where == "records":
+        monkeypatch.setattr(run_module, "time", _Clock(at=2))
+    else:
+        method = "sweep" if where == "sweep" else "potts_agreements"
+        chain.backend = _Interrupting(real, method, at=1)
+    with pytest.raises(KeyboardInterrupt):
+        advance(chain, 9, thin=2, progress=False)
+    monkeypatch.setattr(run_module, "time", time)
+    chain.backend = real
+    assert chain.sweeps_done == 5
+    assert len(chain.log_joint) == len(chain.num_concepts) == len(chain.seconds) == 5
+    assert torch.equal(chain.generator.get_state(), generator_state)
+    assert chain.state.labels is labels and chain.best_sweep == best
+    assert len(chain.label_samples) == len(chain.sample_sweeps) == samples
+    advance(chain, 9, thin=2, progress=False)
+    _assert_same_run(chain.to_run(), whole)
+
+
+def test_a_checkpoint_refuses_other_data_settings_and_backend(tmp_path):
+    cfg = config()
+    _, data = random_problem(seed=7)
+    torch_options = GibbsOptions(backend="torch")
+    chain = advance(start_chain(data, cfg, options=torch_options, seed=1), 3, progress=False)
+    path = save_chain(chain, tmp_path / "c.npz", record={"sweeps": 10})
+    _, other_data = random_problem(seed=8)
+    with pytest.raises(ValueError, match="other data or settings: the data differ"):
+        load_chain(path, other_data, cfg, torch_options)
+    with pytest.raises(ValueError, match=r"gamma: 0\.9 in the checkpoint, 2\.0 here"):
+        load_chain(path, data, cfg.replace(gamma=2.0), torch_options)
+    with pytest.raises(ValueError, match="cluster_moves: 0.0 in the checkpoint, 0.5 here"):
+        load_chain(path, data, cfg, torch_options.replace(cluster_moves=0.5))
+    with pytest.raises(ValueError, match="sweeps: 10 in the checkpoint, 20 here"):
+        load_chain(path, data, cfg, torch_options, record={"sweeps": 20})
+    pytest.importorskip("numba")
+    with pytest.raises(ValueError, match="'torch' ran the checkpoint's chains.*--backend torch"):
+        load_chain(path, data, cfg, GibbsOptions(backend="numba"))
+    assert data_fingerprint(data) == data_fingerprint(random_problem(seed=7)[1])
+
+
+def test_a_file_that_is_no_checkpoint_is_refused(tmp_path):
+    cfg = config()
+    _, data = random_problem(seed=7)
+    np.savez(tmp_path / "other.npz", labels=np.zeros(3))
+    with pytest.raises(ValueError, match="not a spcopyro checkpoint"):
+        load_chain(tmp_path / "other.npz", data, cfg)
+    (tmp_path / "text.npz").write_text("hello")
+    with pytest.raises(ValueError, match="not a spcopyro checkpoint"):
+        load_chain(tmp_path / "text.npz", data, cfg)
+    with pytest.raises(FileNotFoundError, match="no such checkpoint"):
+        load_chain(tmp_path / "missing.npz", data, cfg)
+
+
+def test_chains_not_started_are_saved_as_such(tmp_path):
+    cfg = config()
+    _, data = random_problem(seed=7)
+    options = GibbsOptions(backend="torch")
+    chain = advance(start_chain(data, cfg, options=options, seed=1), 2, progress=False)
+    path = save_chains([chain, None], tmp_path / "c.npz")
+    first, second = load_chains(path, data, cfg, options)
+    assert first.sweeps_done == 2 and second is None
+    with pytest.raises(ValueError, match="holds 2 chains, not one"):
+        load_chain(path, data, cfg, options)
+    with pytest.raises(ValueError, match="at least one started chain"):
+        save_chains([None], tmp_path / "d.npz")
+
+
+# -- spcopyro fit: Ctrl-C and --resume -----------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def room(tmp_path_factory):
+    root = tmp_path_factory.mktemp("data")
+    return write_synthetic(root, seed=2, spec=HouseSpec(height=36, width=44, num_rooms=3))
+
+
+@pytest.fixture(autouse=True)
+def _no_progress_bars(monkeypatch):
+    monkeypatch.setenv("CI", "1")  # stderr holds only what the command says
+
+
+def _interrupt_fit_at(monkeypatch, chain: int, sweep: int) -> None:
+    """Make ``fit``'s run loop raise KeyboardInterrupt (through its callback) after ``sweep`` of
+    the ``chain``-th chain advanced."""
+    calls: list[int] = []
+
+    def interrupting_advance(gibbs_chain, num_sweeps, **kwargs):
+        calls.append(1)
+
+        def stop(s, state):
+            if len(calls) - 1 == chain and s == sweep:
+                raise KeyboardInterrupt
+
+        return advance(gibbs_chain, num_sweeps, callback=stop, **kwargs)
+
+    monkeypatch.setattr(spcopyro.fit, "advance", interrupting_advance)
+
+
+def _same_outputs(mine, theirs) -> None:
+    """Two fit folders hold the same result (wall-clock seconds aside)."""
+    a, b = np.load(mine / "result.npz"), np.load(theirs / "result.npz")
+    assert set(a.files) == set(b.files)
+    for name in a.files:
+        if name != "seconds":
+            np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+    np.testing.assert_array_equal(np.load(mine / "labels.npy"), np.load(theirs / "labels.npy"))
+
+
+@pytest.mark.parametrize(("chains", "chain", "sweep"), [(1, 0, 6), (2, 0, 4), (2, 1, 8)])
+def test_ctrl_c_keeps_a_checkpoint_and_resume_gives_the_unbroken_fit(
+    room, tmp_path, capsys, monkeypatch, chains, chain, sweep
+):
+    out = tmp_path / "out"
+    argv = ["fit", str(room), "--out", str(out), *FIT, "--chains", str(chains)]
+    with monkeypatch.context() as patch:
+        _interrupt_fit_at(patch, chain, sweep)
+        assert main(argv) == 130
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("interrupted (")  # one line, no traceback
+    assert f"chain {chain + 1} of {chains}, {sweep + 1} of 12 sweeps done" in err
+    checkpoint = checkpoint_path(out)
+    assert f"saved in {checkpoint}" in err
+    assert {p.name for p in tmp_path.iterdir()} == {checkpoint.name}  # no OUT, no staging
+    record = read_record(checkpoint)
+    assert [c and c["sweeps_done"] for c in record["chains"]] == (
+        [sweep + 1] if chains == 1 else [12, sweep + 1] if chain == 1 else [sweep + 1, None]
+    )
+    assert record["caller"]["seeds"] == list(range(chains))
+
+    again = shlex.split(err.split("continue with: ")[1])
+    assert again[0] == "spcopyro" and again[-2:] == ["--resume", str(checkpoint)]
+    asked: list[tuple[int, int]] = []  # (sweeps done, sweeps asked) of each chain advanced
+
+    def recording_advance(gibbs_chain, num_sweeps, **kwargs):
+        asked.append((gibbs_chain.sweeps_done, num_sweeps))
+        return advance(gibbs_chain, num_sweeps, **kwargs)
+
+    with monkeypatch.context() as patch:
+        patch.setattr(spcopyro.fit, "advance", recording_advance)
+        assert main(again[1:]) == 0
+    assert asked[0] == (sweep + 1, 11 - sweep)  # the interrupted chain goes on where it stopped
+    assert asked[1:] == ([(0, 12)] if chains == 2 and chain == 0 else [])  # then any not begun
+    assert f"removed {checkpoint}" in capsys.readouterr().out
+    assert not checkpoint.exists()
+    assert main(["fit", str(room), "--out", str(tmp_path / "unbroken"), *FIT, "--chains",
+                 str(chains)]) == 0  # fmt: skip
+    _same_outputs(out, tmp_path / "unbroken")
+
+
+def test_a_fit_into_out_with_a_checkpoint_must_resume_or_overwrite(
+    room, tmp_path, capsys, monkeypatch
+):
+    out = tmp_path / "out"
+    argv = ["fit", str(room), "--out", str(out), *FIT]
+    with monkeypatch.context() as patch:
+        _interrupt_fit_at(patch, 0, 2)
+        assert main(argv) == 130
+    checkpoint = checkpoint_path(out)
+    capsys.readouterr()
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"{checkpoint} holds an interrupted fit" in err and "--resume" in err
+    assert main([*argv, "--gamma", "4", "--resume", str(checkpoint)]) == 2
+    err = capsys.readouterr().err
+    assert "made for other data or settings" in err and "gamma: 3.0 in the checkpoint, 4.0" in err
+    assert main([*argv[:5], "20", *argv[6:], "--resume", str(checkpoint)]) == 2  # --sweeps 20
+    assert "sweeps: 12 in the checkpoint, 20 here" in capsys.readouterr().err
+    assert not out.exists() and checkpoint.is_file()
+    assert main([*argv, "--overwrite"]) == 0  # starts afresh; the old checkpoint goes
+    assert not checkpoint.exists() and (out / "result.npz").is_file()
+
+
+def test_ctrl_c_while_writing_keeps_the_finished_chains(room, tmp_path, capsys, monkeypatch):
+    import spcopyro.plotting
+
+    out = tmp_path / "out"
+    argv = ["fit", str(room), "--out", str(out), *FIT]
+
+    def interrupted_drawing(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as patch:
+        patch.setattr(spcopyro.plotting, "plot_semantic_map", interrupted_drawing)
+        assert main(argv) == 130
+    err = capsys.readouterr().err
+    assert err.startswith("interrupted while writing the outputs: nothing written to")
+    assert not out.exists()
+
+    def no_sampling(*args, **kwargs):
+        raise AssertionError("the finished chains were sampled again")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(spcopyro.fit, "advance", no_sampling)
+        assert main([*argv, "--resume", str(checkpoint_path(out))]) == 0
+    assert main(["fit", str(room), "--out", str(tmp_path / "unbroken"), *FIT]) == 0
+    _same_outputs(out, tmp_path / "unbroken")
+
+
+def test_ctrl_c_under_sweeps_auto_stops_cleanly(room, tmp_path, capsys, monkeypatch):
+    import spcopyro.gibbs.convergence
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(spcopyro.gibbs.convergence, "advance", interrupted)
+    out = tmp_path / "out"
+    argv = ["fit", str(room), "--out", str(out), "--sweeps", "auto", "--chains", "2",
+            "--max-sweeps", "10", "--concepts", "4"]  # fmt: skip
+    assert main(argv) == 130
+    err = capsys.readouterr().err
+    assert err == f"interrupted: nothing written to {out}; no checkpoint kept (--sweeps auto)\n"
+    assert list(tmp_path.iterdir()) == []
+    assert main([*argv, "--resume", str(tmp_path / "x.npz")]) == 2
+    assert "--resume continues Gibbs chains" in capsys.readouterr().err
+
+
+@pytest.mark.slow  # a fresh process: ~5 s of imports
+def test_a_real_ctrl_c_in_a_fit_process(room, tmp_path):
+    """SIGINT to a ``python -m spcopyro fit`` process once it has done some sweeps: exit 130, no
+    traceback, the last line says where the checkpoint is, which holds the sweeps done."""
+    out = tmp_path / "out"
+    env = {k: v for k, v in os.environ.items() if k != "CI"}  # the progress bar shows sweeping
+    env["PYTHONPATH"] = str(Path(spcopyro.fit.__file__).parents[1])
+    argv = ["fit", str(room), "--out", str(out), "--sweeps", "1000000", "--concepts", "8"]
+    process = subprocess.Popen([sys.executable, "-m", "spcopyro", *argv], env=env,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)  # fmt: skip
+    seen = b""
+    while not re.search(rb"Gibbs sweeps: .*?\b[1-9][0-9]*/1000000 \[", seen):  # swept some
+        chunk = os.read(process.stderr.fileno(), 4096)
+        if not chunk:
+            break
+        seen += chunk
+    process.send_signal(signal.SIGINT)
+    _, rest = process.communicate(timeout=120)
+    err = (seen + rest).decode()
+    assert process.returncode == 130, err
+    assert "Traceback" not in err
+    last = err.strip().splitlines()[-1].split("\r")[-1]
+    assert last.startswith("interrupted (chain 1 of 1, ") and "continue with: spcopyro" in last
+    record = read_record(checkpoint_path(out))
+    assert 0 < record["chains"][0]["sweeps_done"] < 1000000 and not out.exists()

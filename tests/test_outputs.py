@@ -1,0 +1,359 @@
+"""Output folders that are never lost or mixed (:mod:`spcopyro.outputs`, ``fit --out``,
+``--overwrite``) and the record ``config.json`` keeps of a run."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+import spcopyro
+from spcopyro.cli import main
+from spcopyro.outputs import (
+    OutputError,
+    StagedOutput,
+    check_output,
+    checkpoint_path,
+    replace_file,
+    stage_output,
+)
+from spcopyro.results import SpCoResult
+from spcopyro.synthetic import HouseSpec, write_synthetic
+
+FIT = ["--sweeps", "6", "--preset", "original-code", "--gamma", "3", "--concepts", "8"]
+
+
+@pytest.fixture(scope="module")
+def room(tmp_path_factory):
+    root = tmp_path_factory.mktemp("data")
+    return write_synthetic(root, seed=1, spec=HouseSpec(height=36, width=44, num_rooms=3))
+
+
+@pytest.fixture(autouse=True)
+def _no_progress_bars(monkeypatch):
+    monkeypatch.setenv("CI", "1")  # stderr holds only what the command says
+
+
+def _fit(room, out, *extra: str) -> int:
+    return main(["fit", str(room), "--out", str(out), *FIT, *extra])
+
+
+def _entries(folder) -> set[str]:
+    return {path.name for path in folder.iterdir()}
+
+
+def _fit_folder(folder, files=("result.npz", "config.json")):
+    """A folder that looks like a fit's output."""
+    folder.mkdir(parents=True)
+    for name in files:
+        (folder / name).write_text("old run\n")
+    return folder
+
+
+# -- refusing and replacing --------------------------------------------------------------------
+
+
+def test_a_non_empty_out_is_refused_before_anything_is_read_or_sampled(
+    room, tmp_path, capsys, monkeypatch
+):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine\n")
+    import spcopyro.fit
+
+    def no_sampling(*args, **kwargs):
+        raise AssertionError("the fit went on to prepare its data")
+
+    monkeypatch.setattr(spcopyro.fit, "prepare_model_data", no_sampling)
+    before = _entries(tmp_path)
+    assert _fit(room, out) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: --out {out}: {out} exists and is not empty; pass --overwrite")
+    assert err.count("\n") == 1
+    assert _entries(tmp_path) == before and _entries(out) == {"notes.txt"}
+    # --overwrite replaces only a fit's folder: notes.txt is no fit's output
+    assert _fit(room, out, "--overwrite") == 2
+    assert "no result.npz or config.json" in capsys.readouterr().err
+    assert _entries(tmp_path) == before and _entries(out) == {"notes.txt"}
+
+
+def test_an_empty_or_missing_out_is_fine_and_a_file_is_not(tmp_path):
+    (tmp_path / "empty").mkdir()
+    assert check_output(tmp_path / "empty") == tmp_path / "empty"
+    assert check_output(tmp_path / "a" / "b") == tmp_path / "a" / "b"
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(OutputError, match="is a file, not a folder"):
+        check_output(tmp_path / "file")
+
+
+def test_overwrite_replaces_the_whole_folder(room, tmp_path, capsys):
+    """No file of the old run survives: chains.json of a two-chain fit, a stray file."""
+    out = tmp_path / "out"
+    assert _fit(room, out, "--chains", "2") == 0
+    assert "chains.json" in _entries(out)
+    (out / "stray.txt").write_text("old\n")
+    capsys.readouterr()
+    assert _fit(room, out) == 2  # without --overwrite: refused, untouched
+    assert "stray.txt" in _entries(out)
+    assert _fit(room, out, "--overwrite") == 0
+    assert "chains.json" not in _entries(out) and "stray.txt" not in _entries(out)
+    assert {"result.npz", "config.json", "labels.npy", "semantic_map.png"} <= _entries(out)
+    assert json.loads((out / "config.json").read_text())["inference"]["seed"] == 0
+    assert not [p for p in tmp_path.iterdir() if ".partial-" in p.name or ".replaced-" in p.name]
+
+
+def test_an_unwritable_place_is_reported_before_sampling(room, tmp_path, capsys, monkeypatch):
+    import spcopyro.fit
+
+    def no_sampling(*args, **kwargs):
+        raise AssertionError("the fit went on to prepare its data")
+
+    monkeypatch.setattr(spcopyro.fit, "prepare_model_data", no_sampling)
+    blocker = tmp_path / "a_file"
+    blocker.write_text("x")
+    assert _fit(room, blocker / "out") == 2  # its parent is a file
+    err = capsys.readouterr().err
+    assert err.startswith("error: --out ") and f"{blocker} is a file, not a folder" in err
+    import spcopyro.outputs
+
+    def refused(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    with monkeypatch.context() as patch:  # what a read-only parent does (also when run as root)
+        patch.setattr(spcopyro.outputs.tempfile, "mkdtemp", refused)
+        assert _fit(room, tmp_path / "out") == 2
+    err = capsys.readouterr().err
+    assert f"cannot write in {tmp_path} (Permission denied)" in err
+    assert _entries(tmp_path) == {"a_file"}
+    if os.geteuid() == 0:
+        pytest.skip("root writes into read-only folders: the real permission case is not checked")
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o500)
+    try:
+        assert _fit(room, locked / "out") == 2
+        assert "cannot write in" in capsys.readouterr().err
+        assert _entries(locked) == set()
+    finally:
+        locked.chmod(0o700)
+
+
+def test_a_failed_fit_leaves_no_output_and_keeps_its_chains(room, tmp_path, capsys, monkeypatch):
+    """An error while writing: no OUT, no staging folder; the finished chains stay in the
+    checkpoint, and resuming from it writes what an unbroken fit writes."""
+    import spcopyro.plotting
+
+    out = tmp_path / "out"
+    plot_trace = spcopyro.plotting.plot_trace
+
+    def broken(*args, **kwargs):
+        raise ValueError("the figure could not be drawn")
+
+    monkeypatch.setattr(spcopyro.plotting, "plot_trace", broken)
+    assert _fit(room, out) == 2
+    err = capsys.readouterr().err
+    assert "could not be drawn" in err and "continue with: spcopyro fit" in err
+    assert _entries(tmp_path) == {checkpoint_path(out).name}
+    monkeypatch.setattr(spcopyro.plotting, "plot_trace", plot_trace)
+    assert _fit(room, out, "--resume", str(checkpoint_path(out))) == 0
+    assert _fit(room, tmp_path / "unbroken") == 0
+    mine, theirs = np.load(out / "result.npz"), np.load(tmp_path / "unbroken" / "result.npz")
+    for name in ("labels", "pi", "objective", "labels_final"):
+        np.testing.assert_array_equal(mine[name], theirs[name])
+    assert _entries(tmp_path) == {"out", "unbroken"}
+
+
+def test_the_staging_folder_sits_beside_out_and_goes_when_discarded(tmp_path):
+    with pytest.raises(RuntimeError), stage_output(tmp_path / "out") as staged:
+        assert staged.path.parent == tmp_path and staged.path.name.startswith("out.partial-")
+        (staged.path / "half.txt").write_text("x")
+        raise RuntimeError("crash")
+    assert _entries(tmp_path) == set()
+
+
+# -- two fits into one folder --------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("overwrite", [False, True])
+def test_two_stagings_race_and_one_wins_whole(tmp_path, overwrite):
+    out = tmp_path / "out"
+    if overwrite:
+        _fit_folder(out, ("result.npz", "config.json", "old.txt"))
+    first = stage_output(out, overwrite=overwrite)
+    second = stage_output(out, overwrite=overwrite)
+    for staged, name in ((first, "first.txt"), (second, "second.txt")):
+        (staged.path / "result.npz").write_text(name)
+        (staged.path / name).write_text(name)
+    assert first.commit() == out
+    with pytest.raises(OutputError, match="written by another process") as error:
+        second.commit()
+    assert str(second.path) in str(error.value)
+    second.discard()  # kept: its files are named in the message
+    assert (second.path / "second.txt").is_file()
+    assert _entries(out) == {"result.npz", "first.txt"}
+    assert (out / "result.npz").read_text() == "first.txt"
+
+
+def test_two_processes_commit_at_once_and_one_wins_whole(tmp_path):
+    """Two processes stage OUT (an earlier fit's folder) with --overwrite, wait for each other,
+    then commit at once: one replaces OUT whole, the other fails and keeps its files."""
+    out = _fit_folder(tmp_path / "out", ("result.npz", "config.json", "old.txt"))
+    script = textwrap.dedent(
+        """
+        import sys, time
+        from pathlib import Path
+        from spcopyro.outputs import OutputError, stage_output
+        me, out = sys.argv[1], Path(sys.argv[2])
+        staged = stage_output(out, overwrite=True)
+        for name in ("result.npz", "config.json", me):
+            (staged.path / name).write_text(me)
+        (out.parent / f"ready-{me}").touch()
+        while len(list(out.parent.glob("ready-*"))) < 2:
+            time.sleep(0.01)
+        try:
+            staged.commit()
+        except OutputError as error:
+            print(error)
+            sys.exit(3)
+        """
+    )
+    env = {**os.environ, "PYTHONPATH": str(Path(spcopyro.__file__).parents[1])}
+    runs = [
+        subprocess.Popen(
+            [sys.executable, "-c", script, name, str(out)],
+            env=env,
+            stdout=subprocess.PIPE,
+            text=True,
+        )  # fmt: skip
+        for name in ("one", "two")
+    ]
+    messages = [run.communicate(timeout=120)[0] for run in runs]
+    codes = [run.returncode for run in runs]
+    assert sorted(codes) == [0, 3], messages
+    winner = ("one", "two")[codes.index(0)]
+    assert _entries(out) == {"result.npz", "config.json", winner}
+    assert all((out / name).read_text() == winner for name in _entries(out))
+    assert "written by another process" in messages[codes.index(3)]
+
+
+def test_a_commit_holds_a_lock_on_the_parent_folder(tmp_path, monkeypatch):
+    """While a commit looks at OUT and renames, no other commit can take the parent's lock."""
+    fcntl = pytest.importorskip("fcntl")
+    import spcopyro.outputs
+
+    rename = os.rename
+    tried: list[bool] = []
+
+    def rename_and_try_the_lock(source, target):
+        descriptor = os.open(tmp_path, os.O_RDONLY)
+        try:
+            fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            tried.append(True)  # the lock was free: another commit could interleave
+        except BlockingIOError:
+            tried.append(False)
+        finally:
+            os.close(descriptor)
+        rename(source, target)
+
+    staged = stage_output(tmp_path / "out")
+    monkeypatch.setattr(spcopyro.outputs.os, "rename", rename_and_try_the_lock)
+    staged.commit()
+    assert tried == [False]
+
+
+def test_a_second_cli_fit_that_finishes_first_wins_and_the_first_fails(
+    room, tmp_path, capsys, monkeypatch
+):
+    out = tmp_path / "out"
+    commit = StagedOutput.commit
+    raced: list[int] = []
+
+    def racing_commit(self):
+        if not raced:  # the first fit, about to commit: another one runs to its end first
+            raced.append(-1)
+            raced[0] = _fit(room, out, "--seed", "1")
+        return commit(self)
+
+    monkeypatch.setattr(StagedOutput, "commit", racing_commit)
+    assert _fit(room, out, "--seed", "0") == 2
+    assert raced == [0]
+    err = capsys.readouterr().err
+    assert "was written by another process while this fit ran" in err
+    assert json.loads((out / "config.json").read_text())["inference"]["seed"] == 1
+    kept = [p for p in tmp_path.iterdir() if p.name.startswith("out.partial-")]
+    assert len(kept) == 1 and str(kept[0]) in err
+    assert json.loads((kept[0] / "config.json").read_text())["inference"]["seed"] == 0
+    assert not checkpoint_path(out).exists()
+
+
+def test_replace_file_leaves_the_old_file_when_writing_fails(tmp_path):
+    path = tmp_path / "f.bin"
+    replace_file(path, lambda f: f.write(b"old"))
+
+    def half(file):
+        file.write(b"ne")
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        replace_file(path, half)
+    assert path.read_bytes() == b"old" and _entries(tmp_path) == {"f.bin"}
+
+
+# -- the record of a run -----------------------------------------------------------------------
+
+
+def test_config_json_records_source_versions_backend_and_command(room, tmp_path, capsys):
+    import pyro
+
+    out = tmp_path / "out"
+    assert _fit(room, out, "--backend", "torch") == 0
+    printed = capsys.readouterr().out
+    assert "backend used     torch" in printed
+    settings = json.loads((out / "config.json").read_text())
+    assert settings["source"]["data"] == str(room.resolve())
+    assert settings["source"]["house"] == room.name and len(settings["source"]["data_sha256"]) == 64
+    software = settings["software"]
+    assert software["torch"] == torch.__version__ and software["pyro"] == pyro.__version__
+    assert software["numpy"] == np.__version__ and software["spcopyro"]
+    assert "numba" in software and software["python"]
+    inference = settings["inference"]
+    assert inference["backend"] == "torch" and inference["backend_used"] == "torch"
+    assert inference["seed"] == 0 and inference["sweeps"] == 6 and inference["init"] == "random"
+    assert "different random streams" in settings["reproducibility"]
+    assert (
+        settings["command"].startswith("spcopyro fit ") and "--backend torch" in settings["command"]
+    )
+    loaded = SpCoResult.load(out)
+    assert loaded.provenance["source"] == settings["source"]
+    assert loaded.settings_json() == settings
+
+
+def test_auto_backend_is_resolved_and_the_embedded_house_named(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["fit", "--out", str(out), *FIT]) == 0
+    settings = json.loads((out / "config.json").read_text())
+    from spcopyro.gibbs.backends import get_backend
+
+    used = get_backend("auto").name
+    assert settings["inference"]["backend"] == "auto"
+    assert settings["inference"]["backend_used"] == used
+    assert f"backend used     {used}" in capsys.readouterr().out
+    assert settings["source"]["data"] == "embedded synthetic house, seed 0"
+
+
+def test_sweeps_auto_records_the_backend_used(room, tmp_path):
+    out = tmp_path / "out"
+    argv = ["fit", str(room), "--out", str(out), "--sweeps", "auto", "--chains", "2",
+            "--max-sweeps", "16", "--concepts", "4", "--backend", "torch"]  # fmt: skip
+    assert main(argv) == 0
+    settings = json.loads((out / "config.json").read_text())
+    assert settings["inference"]["backend_used"] == "torch"
+    assert settings["source"]["data"] == str(room.resolve())
+    assert {"convergence.json", "result.npz"} <= _entries(out)
