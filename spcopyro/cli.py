@@ -508,7 +508,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="replace the --out folder of an earlier fit (all its files)")  # fmt: skip
     p.add_argument("--resume", metavar="CHECKPOINT",
                    help="continue the interrupted fit saved in CHECKPOINT (OUT.checkpoint.npz; "
-                        "Ctrl-C writes it), with the same data and settings")  # fmt: skip
+                        "Ctrl-C writes it), with the same data and settings (default: a new "
+                        "fit)")  # fmt: skip
     p.add_argument("--sweeps", type=_sweeps, default=5000,
                    help="Gibbs iterations (paper: 5000), or 'auto': run --chains chains until "
                         "split R-hat of the log joint and of the number of concepts < 1.05 "
