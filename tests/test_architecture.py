@@ -19,6 +19,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "spcopyro"
 
 LAYERS: tuple[tuple[str, ...], ...] = (
+    ("threads",),
     ("config", "distributions", "progress", "random_draws", "maps"),
     ("data", "synthetic"),
     ("model",),
