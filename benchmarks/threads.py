@@ -91,7 +91,7 @@ class Sizes:
     busy_max_s: float  # a neighbour's own deadline (it is killed sooner, at the condition's end)
 
 
-FULL = Sizes(100, 3, True, None, (110, 334, 580, 1050), 2e6, 1800.0)
+FULL = Sizes(100, 3, True, None, (110, 180, 240, 334, 580, 1050), 2e6, 1800.0)
 QUICK = Sizes(3, 1, False, HouseSpec(height=30, width=40, num_rooms=2, num_trials=1), (60,),
               1e4, 120.0)  # fmt: skip
 
@@ -153,6 +153,25 @@ def _own_cpu_seconds() -> float:
     own = resource.getrusage(resource.RUSAGE_SELF)
     children = resource.getrusage(resource.RUSAGE_CHILDREN)
     return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
+def wait_until_idle(
+    max_wait_s: float, window_s: float = 2.0, max_other_cores: float = 0.1
+) -> float:
+    """Wait (at most ``max_wait_s``) until other processes use under ``max_other_cores`` CPUs
+    for two consecutive ``window_s`` windows. Returns the seconds waited (0 if not asked)."""
+    if max_wait_s <= 0 or _busy_cpu_seconds() is None:
+        return 0.0
+    started, quiet = time.perf_counter(), 0
+    while time.perf_counter() - started < max_wait_s and quiet < 2:
+        busy0, own0 = _busy_cpu_seconds(), _own_cpu_seconds()
+        time.sleep(window_s)
+        other = (_busy_cpu_seconds() - busy0) - (_own_cpu_seconds() - own0)  # type: ignore[operator]
+        quiet = quiet + 1 if other < max_other_cores * window_s else 0
+    waited = time.perf_counter() - started
+    if quiet < 2:
+        _progress(f"  machine still busy after waiting {waited:.0f} s; measuring anyway")
+    return waited
 
 
 @contextlib.contextmanager
@@ -249,6 +268,7 @@ def bench_load(
     sizes: Sizes,
     default_threads: int,
     busy_cores: int,
+    wait_idle_s: float = 0.0,
 ) -> list[dict[str, Any]]:
     """Section 1: default threads against the policy, idle and next to a busy neighbour."""
     problems = []
@@ -259,6 +279,8 @@ def bench_load(
     rows = []
     for condition in ("idle", "busy"):
         record: dict[str, Any] = {}
+        if condition == "idle":
+            record["waited_for_idle_s"] = wait_until_idle(wait_idle_s)
         context = (
             busy_neighbour(busy_cores, sizes.busy_max_s)
             if condition == "busy"
@@ -287,7 +309,7 @@ def bench_load(
 
 
 def bench_threshold(
-    sizes: Sizes, backends: Sequence[str], default_threads: int
+    sizes: Sizes, backends: Sequence[str], default_threads: int, wait_idle_s: float = 0.0
 ) -> list[dict[str, Any]]:
     """Section 2: one thread against the default on maps of growing size."""
     rows = []
@@ -299,7 +321,7 @@ def bench_threshold(
         sweeps = max(2, int(sizes.threshold_cell_sweeps // data.num_free))
         for backend in backends:
             _progress(f"  threshold: {data.num_free} cells, {backend}, {sweeps} sweeps a run")
-            record: dict[str, Any] = {}
+            record: dict[str, Any] = {"waited_for_idle_s": wait_until_idle(wait_idle_s)}
             with other_load(record):
                 result = compare(data, backend, sweeps, sizes.repeats,
                                  {"one": 1, "default": default_threads})  # fmt: skip
@@ -465,6 +487,13 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     )
     parser.add_argument("--sides", type=int, nargs="+", help="threshold map sides (cells)")
     parser.add_argument("--skip-threshold", action="store_true")
+    parser.add_argument(
+        "--wait-idle",
+        type=float,
+        default=0.0,
+        help="before the idle condition and each threshold point, wait up to this many seconds "
+        "for the other processes to leave the CPUs (default 0: measure at once)",
+    )
     parser.add_argument("--dataset", help="public dataset root (default: found automatically)")
     parser.add_argument("--no-dataset", action="store_true", help="synthetic houses only")
     args = parser.parse_args(argv)
@@ -504,9 +533,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     }  # fmt: skip
     houses = load_houses(sizes, dataset, notes)
     _progress("== default threads against the policy ==")
-    results["load"] = bench_load(houses, backends, sizes, default_threads, args.busy_cores)
+    results["load"] = bench_load(
+        houses, backends, sizes, default_threads, args.busy_cores, args.wait_idle
+    )
     _progress("== threshold ==")
-    results["threshold"] = bench_threshold(sizes, backends, default_threads)
+    results["threshold"] = bench_threshold(sizes, backends, default_threads, args.wait_idle)
     results["measured_threshold"] = measured_threshold(results["threshold"])
     out = args.out or SCRIPT_DIR / ("threads_quick.json" if args.quick else "threads_results.json")
     out.write_text(json.dumps(results, indent=1, default=str) + "\n")
