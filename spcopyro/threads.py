@@ -18,9 +18,15 @@ costs about
 
     t(T) \approx \frac{a N}{T} + b N_\text{ops} (T - 1) + \text{(waits for descheduled threads)},
 
-and the threshold is the N above which the first term's saving beats the rest on an idle
-2-core machine, measured with ``python benchmarks/threads.py`` (its "threshold" section); under
-load the waits dominate at every size, which is why the threshold leans towards one thread.
+and the threshold is the N from which the first term's saving beats the rest on an idle
+2-core machine, measured with ``python benchmarks/threads.py`` (its "threshold" section). Two
+idle runs (2026-11-22, 2 cores, paper-dp, L = 120) put two threads against one at 0.95-1.25x
+at 2.8e4 cells (torch backend; numba 1.15-1.18x), 1.47-1.89x (torch) and 1.18-1.27x (numba) at
+5.1e4 cells, and 1.5-1.8x at 1e6; at the public houses' 1.9e4 cells, 1.0x (numba) and 1.2x
+(torch). Next to one spinning neighbour process the same two threads were 2.3-3.9x *slower* on
+the public house and the synthetic one, and 4-25x slower among other test runs (one thread:
+identical labels every time). Above the threshold, a fit on a busy machine still gains from
+``threads=1`` (``--threads 1``): the policy cannot see the machine's load.
 
 :func:`torch_threads` sets the count around a fit and restores the previous one afterwards, even
 when the fit fails. What it does not touch:
@@ -52,9 +58,9 @@ import torch
 AUTO = "auto"
 """``threads`` value that applies :func:`policy_threads`."""
 
-MIN_CELLS_FOR_MORE_THREADS = 1_000_000
+MIN_CELLS_FOR_MORE_THREADS = 50_000
 """Free cells from which a map keeps torch's own thread count (``threads="auto"``); below it, one
-thread. Measured with ``python benchmarks/threads.py`` (see the module doc and README "Speed")."""
+thread. Measured with ``python benchmarks/threads.py`` (module doc, README "Speed")."""
 
 
 def policy_threads(num_cells: int) -> int | None:
