@@ -64,7 +64,7 @@ PUBLIC_HOUSE = "room1dk5"
 PRESET = "paper-dp"
 SEED = 0
 SCRIPT_DIR = Path(__file__).resolve().parent
-GAIN = 1.1
+GAIN = 1.2
 """More threads "pay" on a map when one thread is at least this much slower (threshold table)."""
 
 SPIN = r"""

@@ -19,14 +19,15 @@ costs about
     t(T) \approx \frac{a N}{T} + b N_\text{ops} (T - 1) + \text{(waits for descheduled threads)},
 
 and the threshold is the N from which the first term's saving beats the rest on an idle
-2-core machine, measured with ``python benchmarks/threads.py`` (its "threshold" section). Two
-idle runs (2026-11-22, 2 cores, paper-dp, L = 120) put two threads against one at 0.95-1.25x
-at 2.8e4 cells (torch backend; numba 1.15-1.18x), 1.47-1.89x (torch) and 1.18-1.27x (numba) at
-5.1e4 cells, and 1.5-1.8x at 1e6; at the public houses' 1.9e4 cells, 1.0x (numba) and 1.2x
-(torch). Next to one spinning neighbour process the same two threads were 2.3-3.9x *slower* on
-the public house and the synthetic one, and 4-25x slower among other test runs (one thread:
-identical labels every time). Above the threshold, a fit on a busy machine still gains from
-``threads=1`` (``--threads 1``): the policy cannot see the machine's load.
+2-core machine: the smallest map size from which two threads were at least 1.2x faster than one
+on both backends, median of three idle runs of ``python benchmarks/threads.py`` (2026-11-22,
+paper-dp, L = 120). Those medians, two threads against one: 1.18x (torch backend) and 1.09x
+(numba) at 1e4 free cells, 1.25x and 1.18x at 2.8e4, 1.47x and 1.21x at 5.1e4, 1.79x and 1.49x
+at 1e6; at room1dk5's 1.9e4 cells 1.2x (torch) and 1.0x (numba). Next to one spinning neighbour
+process the same two threads were 2.2-3.9x *slower* on room1dk5 and the synthetic house, and
+4-25x slower among other processes' test runs (labels identical every time). Above the
+threshold, a fit on a busy machine still gains from ``threads=1`` (``--threads 1``): the policy
+cannot see the machine's load.
 
 :func:`torch_threads` sets the count around a fit and restores the previous one afterwards, even
 when the fit fails. What it does not touch:
