@@ -30,6 +30,7 @@ from spcopyro.outputs import StagedOutput
 if TYPE_CHECKING:
     from spcopyro.fit import FitCheckpoint
 from spcopyro.registry import DEFAULT_METHOD, INFERENCE_METHODS
+from spcopyro.threads import AUTO, MIN_CELLS_FOR_MORE_THREADS, describe_threads
 
 logger = logging.getLogger("spcopyro")
 _clock = time.perf_counter  # wall clock of a whole fit (all chains)
@@ -223,6 +224,7 @@ def _fit_staged(
     print(f"data             {settings.data}")
     default = INFERENCE_METHODS[args.method].default_options()
     print(f"inference        {args.method}: {options if options is not None else default}")
+    print(f"threads          {describe_threads(args.threads, house.grid.num_free)}")
     if options is not None:
         print(f"backend used     {get_backend(options.backend).name}")
     if args.resume is not None:
@@ -235,7 +237,7 @@ def _fit_staged(
         chains = 4 if args.chains is None else args.chains
         result, diagnostics = fit_house_converged(
             house, settings, options=options, chains=chains, max_sweeps=args.max_sweeps,
-            seed=args.seed, init=args.init, source=source,
+            seed=args.seed, init=args.init, source=source, threads=args.threads,
         )  # fmt: skip
         chain_results = None
     else:
@@ -243,7 +245,7 @@ def _fit_staged(
         chain_results = fit_house_chains(
             house, settings, method=args.method, options=options, sweeps=args.sweeps,
             seeds=[args.seed + k for k in range(chains)], init=args.init, source=source,
-            checkpoint=keeper, resume=args.resume,
+            checkpoint=keeper, resume=args.resume, threads=args.threads,
         )  # fmt: skip
         kept = best_chain(chain_results)
         result = chain_results[kept]
@@ -334,6 +336,18 @@ def _sweeps(value: str) -> int | str:
     if sweeps < 1:
         raise argparse.ArgumentTypeError(f"must be a positive integer or 'auto', got {value!r}")
     return sweeps
+
+
+def _threads(value: str) -> int | str:
+    """``--threads``: ``auto`` or an integer >= 0 (0: torch's own setting)."""
+    if value == AUTO:
+        return value
+    try:
+        return _non_negative_int(value)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"must be 'auto' or an integer >= 0 (0: torch's own setting), got {value!r}"
+        ) from None
 
 
 def _concentrations(values: list[str] | None) -> dict[str, float] | None:
@@ -572,6 +586,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "random streams from one seed")  # fmt: skip
     p.add_argument("--snap-distance", type=float, default=DEFAULT_SNAP_DISTANCE,
                    help="metres an observation may be moved onto free space")  # fmt: skip
+    p.add_argument("--threads", type=_threads, default=AUTO,
+                   help="torch intra-op threads during the fit: auto (default: one thread unless "
+                        f"the map has >= {MIN_CELLS_FOR_MORE_THREADS} free cells), 0 (torch's own "
+                        "setting) or N; labels do not depend on it")  # fmt: skip
     p.set_defaults(func=_fit)
 
     p = sub.add_parser("where", help='answer "where is WORD?" from a fitted result')

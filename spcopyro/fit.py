@@ -45,6 +45,7 @@ from spcopyro.initialisation import kmeans_gaussians, labels_from_gaussians
 from spcopyro.model import DTYPE, ModelData, make_model_data
 from spcopyro.registry import DEFAULT_METHOD, get_method
 from spcopyro.results import SpCoResult
+from spcopyro.threads import AUTO, describe_threads, resolve_threads, torch_threads
 
 logger = logging.getLogger("spcopyro")
 
@@ -326,6 +327,7 @@ def fit_house_chains(
     source: str | None = None,
     checkpoint: str | os.PathLike[str] | FitCheckpoint | None = None,
     resume: str | os.PathLike[str] | None = None,
+    threads: int | str | None = AUTO,
 ) -> list[SpCoResult]:
     """One :class:`SpCoResult` per seed: ``sweeps`` iterations of the inference method from
     ``init`` drawn with that seed. The house's counts are computed once for all chains. See
@@ -347,26 +349,29 @@ def fit_house_chains(
     inference = get_method(method)
     if not isinstance(inference, GibbsInference) and (checkpoint or resume):
         raise ValueError(f"checkpoints hold Gibbs chains; the {method!r} method keeps none")
+    count = resolve_threads(threads, house.grid.num_free)
     counts, data = prepare_model_data(house, settings)
+    logger.info("threads: %s", describe_threads(threads, house.grid.num_free))
     record = provenance(house, data, source)
     if checkpoint is not None and not isinstance(checkpoint, FitCheckpoint):
         checkpoint = FitCheckpoint(checkpoint)
-    if isinstance(inference, GibbsInference):
-        outputs = _gibbs_outputs(
-            house, counts, data, settings, options, int(sweeps), [int(s) for s in seeds], init,
-            progress, checkpoint, resume,
-        )  # fmt: skip
-        return [result_of(o, house, counts, data, settings, method, record) for o in outputs]
-    fits = []
-    for seed in seeds:
-        generator = torch.Generator().manual_seed(int(seed))
-        start = initial_labels(house, counts, settings, init, int(seed), generator)
-        output = inference.run(
-            data, settings.model, iterations=int(sweeps), generator=generator,
-            init_labels=start, options=options, progress=progress,
-        )  # fmt: skip
-        output.options.update(seed=int(seed), init=init)
-        fits.append(result_of(output, house, counts, data, settings, method, record))
+    with torch_threads(count):
+        if isinstance(inference, GibbsInference):
+            outputs = _gibbs_outputs(
+                house, counts, data, settings, options, int(sweeps), [int(s) for s in seeds],
+                init, progress, checkpoint, resume,
+            )  # fmt: skip
+            return [result_of(o, house, counts, data, settings, method, record) for o in outputs]
+        fits = []
+        for seed in seeds:
+            generator = torch.Generator().manual_seed(int(seed))
+            start = initial_labels(house, counts, settings, init, int(seed), generator)
+            output = inference.run(
+                data, settings.model, iterations=int(sweeps), generator=generator,
+                init_labels=start, options=options, progress=progress,
+            )  # fmt: skip
+            output.options.update(seed=int(seed), init=init)
+            fits.append(result_of(output, house, counts, data, settings, method, record))
     return fits
 
 
@@ -442,6 +447,7 @@ def fit_house(
     init: str = "random",
     progress: bool | None = None,
     chains: int = 1,
+    threads: int | str | None = AUTO,
 ) -> SpCoResult:
     """Fit SpCoMapping to a house.
 
@@ -458,6 +464,9 @@ def fit_house(
         chains: run that many chains (seeds ``seed``, ``seed + 1``, ...) and keep the one whose
             point estimate has the highest objective ("best of K chains", the remedy for the DP
             variant's instability measured in :mod:`spcopyro.experiments.robustness`).
+        threads: torch intra-op threads during the fit (:mod:`spcopyro.threads`): ``"auto"`` (one
+            thread unless the map is large), 0 or None (torch's own setting), or a count. The
+            previous setting is restored afterwards; labels do not depend on it.
     """
     if not isinstance(chains, int) or chains < 1:
         raise ValueError(f"chains must be a positive integer, got {chains!r}")
@@ -466,13 +475,13 @@ def fit_house(
             raise ValueError(f"sweeps='auto' is Gibbs' convergence rule, not {method!r}'s")
         result, diagnostics = fit_house_converged(
             house, settings, options=options, chains=chains if chains > 1 else DEFAULT_CHAINS,
-            seed=seed, init=init, progress=progress,
+            seed=seed, init=init, progress=progress, threads=threads,
         )  # fmt: skip
         logger.info("--sweeps auto: %s", diagnostics.to_json())
         return result
     results = fit_house_chains(
         house, settings, method=method, options=options, sweeps=sweeps,
-        seeds=[seed + k for k in range(chains)], init=init, progress=progress,
+        seeds=[seed + k for k in range(chains)], init=init, progress=progress, threads=threads,
     )  # fmt: skip
     kept = best_chain(results)
     if chains > 1:
@@ -496,6 +505,7 @@ def fit_house_converged(
     init: str = "random",
     progress: bool | None = None,
     source: str | None = None,
+    threads: int | str | None = AUTO,
 ) -> tuple[SpCoResult, ConvergenceDiagnostics]:
     """Fit by Gibbs sampling with ``chains`` chains (seeds ``seed``, ``seed + 1``, ...) until
     split R-hat of the log joint and of the number of concepts are below ``threshold``, or
@@ -503,21 +513,23 @@ def fit_house_converged(
     chain of highest log joint as the result, and the diagnostics. Chain k starts from ``init``
     drawn with seed ``seed + k``; ``options.anneal_sweeps`` of gamma annealing come first.
     ``source``: where the house came from, for ``config.json`` (:func:`provenance`).
+    ``threads``: as for :func:`fit_house`.
     """
     settings = preset() if settings is None else settings
     options = GibbsOptions() if options is None else options
+    count = resolve_threads(threads, house.grid.num_free)
     counts, data = prepare_model_data(house, settings)
-    starts = [
-        initial_labels(
-            house, counts, settings, init, seed + k, torch.Generator().manual_seed(int(seed + k))
+    logger.info("threads: %s", describe_threads(threads, house.grid.num_free))
+    with torch_threads(count):
+        starts = []
+        for k in range(chains):
+            generator = torch.Generator().manual_seed(int(seed + k))
+            starts.append(initial_labels(house, counts, settings, init, seed + k, generator))
+        run, diagnostics = run_until_converged(
+            data, settings.model, options=options, chains=chains, block=block,
+            max_sweeps=max_sweeps, threshold=threshold, seed=seed, init_labels=starts,
+            progress=progress,
         )  # fmt: skip
-        for k in range(chains)
-    ]
-    run, diagnostics = run_until_converged(
-        data, settings.model, options=options, chains=chains, block=block,
-        max_sweeps=max_sweeps, threshold=threshold, seed=seed, init_labels=starts,
-        progress=progress,
-    )  # fmt: skip
     record = {
         "sweeps": "auto", "chains": chains, "seed": seed, "init": init,
         **{k: v for k, v in vars(options).items()}, "backend_used": run.backend,

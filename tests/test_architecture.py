@@ -19,6 +19,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "spcopyro"
 
 LAYERS: tuple[tuple[str, ...], ...] = (
+    ("threads",),
     ("config", "distributions", "messages", "progress", "random_draws", "maps", "outputs"),
     ("data", "synthetic"),
     ("model",),

@@ -43,3 +43,14 @@ def test_features_benchmark_quick(tmp_path):
     done = run_benchmark("features.py", out)
     assert done.returncode == 0, done.stderr[-3000:]
     assert out.is_file() and json.loads(out.read_text())
+
+
+@pytest.mark.slow
+def test_threads_benchmark_quick(tmp_path):
+    out = tmp_path / "threads.json"
+    done = run_benchmark("threads.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "Default threads against the policy" in done.stdout
+    results = json.loads(out.read_text())
+    assert {row["condition"] for row in results["load"]} == {"idle", "busy"}
+    assert all(row["labels_identical"] for row in results["load"])

@@ -37,6 +37,7 @@ from spcopyro.metrics import adjusted_rand_index
 from spcopyro.registry import get_method
 from spcopyro.results import SpCoResult
 from spcopyro.semantic_map import SemanticMapModel, SpCoSemanticMap
+from spcopyro.threads import AUTO, resolve_threads, torch_threads
 
 SPCOA_CONCEPTS = 20
 """L of the SpCoA baseline (an upper bound: its weak-limit DP leaves unneeded concepts empty)."""
@@ -120,17 +121,20 @@ def fit_spco(
     thin: int = 0,
     method: str = "gibbs",
     options: object | None = None,
+    threads: int | str | None = AUTO,
 ) -> tuple[SpCoResult, tuple[np.ndarray, np.ndarray] | None]:
     """SpCoMapping by the inference method ``method`` (:mod:`spcopyro.registry`) from random
     labels (as :func:`spcopyro.fit.fit_house` with ``init="random"``), keeping a label map every
-    ``thin`` iterations; with a truth, their ARI per iteration (paper Fig. 5).
+    ``thin`` iterations; with a truth, their ARI per iteration (paper Fig. 5). ``threads``: torch
+    intra-op threads during the run (:mod:`spcopyro.threads`; default: its policy).
     """
     counts, data = prepare_model_data(house, settings)
     generator = torch.Generator().manual_seed(int(seed))
-    output = get_method(method).run(
-        data, settings.model, iterations=sweeps, generator=generator, options=options,
-        progress=False, thin=thin,
-    )  # fmt: skip
+    with torch_threads(resolve_threads(threads, house.grid.num_free)):
+        output = get_method(method).run(
+            data, settings.model, iterations=sweeps, generator=generator, options=options,
+            progress=False, thin=thin,
+        )  # fmt: skip
     result = result_of(output, house, counts, data, settings, method)
     trace = None
     if house.truth is not None and output.label_samples is not None:

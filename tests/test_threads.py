@@ -1,0 +1,234 @@
+"""The thread policy (spcopyro.threads): what it chooses, that it restores torch's setting, that
+fits use it, and that the thread count changes no label."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+import spcopyro.fit
+from spcopyro.cli import build_parser
+from spcopyro.config import preset
+from spcopyro.fit import fit_house, fit_house_converged
+from spcopyro.gibbs import GibbsOptions
+from spcopyro.registry import get_method as registered_method
+from spcopyro.synthetic import HouseSpec, make_house
+from spcopyro.threads import (
+    MIN_CELLS_FOR_MORE_THREADS,
+    describe_threads,
+    policy_threads,
+    resolve_threads,
+    torch_threads,
+)
+
+
+@pytest.fixture
+def restore_threads():
+    """Leave torch's thread count as the test found it, whatever the test does."""
+    before = torch.get_num_threads()
+    yield before
+    torch.set_num_threads(before)
+
+
+@pytest.fixture(scope="module")
+def small_house():
+    return make_house(seed=3, spec=HouseSpec(height=30, width=40, num_rooms=2, num_trials=1))
+
+
+def test_the_policy_runs_small_maps_on_one_thread():
+    assert policy_threads(1) == 1
+    assert policy_threads(MIN_CELLS_FOR_MORE_THREADS - 1) == 1
+    assert policy_threads(MIN_CELLS_FOR_MORE_THREADS) is None  # torch's own setting
+
+
+@pytest.mark.parametrize(
+    ("threads", "expected"),
+    [("auto", 1), (None, None), (0, None), (3, 3), (np.int64(2), 2)],
+)
+def test_resolve_threads(threads, expected):
+    assert resolve_threads(threads, 100) == expected
+
+
+@pytest.mark.parametrize("bad", [-1, 1.5, "2", "all", True, [1]])
+def test_resolve_threads_names_a_bad_value(bad):
+    with pytest.raises(ValueError, match="threads must be") as error:
+        resolve_threads(bad, 100)
+    assert repr(bad) in str(error.value)
+
+
+def test_describe_threads_says_what_and_why():
+    assert describe_threads("auto", 100) == (
+        f"1 torch intra-op thread (policy: 100 free cells < {MIN_CELLS_FOR_MORE_THREADS})"
+    )
+    assert describe_threads(3, 100) == "3 torch intra-op threads (as asked)"
+    big = describe_threads("auto", MIN_CELLS_FOR_MORE_THREADS)
+    assert big.endswith(f"(policy: {MIN_CELLS_FOR_MORE_THREADS} free cells >= "
+                        f"{MIN_CELLS_FOR_MORE_THREADS})")  # fmt: skip
+
+
+def test_torch_threads_sets_and_restores(restore_threads):
+    torch.set_num_threads(2)
+    with torch_threads(1) as count:
+        assert count == 1 and torch.get_num_threads() == 1
+    assert torch.get_num_threads() == 2
+    with torch_threads(None) as count:  # leaves the setting alone
+        assert count == 2 and torch.get_num_threads() == 2
+    assert torch.get_num_threads() == 2
+
+
+def test_torch_threads_restores_after_an_error(restore_threads):
+    torch.set_num_threads(2)
+    with pytest.raises(RuntimeError, match="inside"), torch_threads(1):
+        raise RuntimeError("inside")
+    assert torch.get_num_threads() == 2
+
+
+@pytest.mark.parametrize("bad", [0, -2, 1.0, True])
+def test_torch_threads_rejects_a_bad_count(bad, restore_threads):
+    with pytest.raises(ValueError, match="positive integer"), torch_threads(bad):
+        pass
+
+
+class _RecordingMethod:
+    """Wraps an inference method; records torch's thread count while it runs."""
+
+    def __init__(self, method):
+        self.method, self.seen = method, []
+
+    def __getattr__(self, name):
+        return getattr(self.method, name)
+
+    def run(self, *args, **kwargs):
+        self.seen.append(torch.get_num_threads())
+        return self.method.run(*args, **kwargs)
+
+
+@pytest.mark.parametrize(("threads", "during"), [("auto", 1), (0, 2), (None, 2), (3, 3)])
+def test_fit_house_runs_with_the_chosen_count_and_restores(
+    small_house, monkeypatch, restore_threads, threads, during
+):
+    recorder = {}
+
+    def get_method(name):
+        recorder["method"] = _RecordingMethod(registered_method(name))
+        return recorder["method"]
+
+    monkeypatch.setattr(spcopyro.fit, "get_method", get_method)
+    torch.set_num_threads(2)
+    fit_house(small_house, preset("original-code", gamma=3.0), sweeps=2, progress=False,
+              threads=threads)  # fmt: skip
+    assert recorder["method"].seen == [during]
+    assert torch.get_num_threads() == 2
+
+
+def test_fit_house_converged_restores_the_setting(small_house, restore_threads):
+    torch.set_num_threads(2)
+    fit_house_converged(small_house, preset("original-code", gamma=3.0), chains=2, block=2,
+                        max_sweeps=2, progress=False, threads=1)  # fmt: skip
+    assert torch.get_num_threads() == 2
+
+
+def test_fit_house_names_a_bad_thread_count(small_house):
+    with pytest.raises(ValueError, match="got -1"):
+        fit_house(small_house, sweeps=1, threads=-1)
+
+
+@pytest.mark.parametrize("backend", ["torch", "numba"])
+def test_the_thread_count_changes_no_label(small_house, backend, restore_threads):
+    """torch's CPU random draws are serial: one thread and two give the same chain. Floats may
+    differ in their last bits (a reduction split across threads), labels may not."""
+    if backend == "numba":
+        pytest.importorskip("numba")
+    settings = preset("original-code", gamma=3.0)
+    options = GibbsOptions(backend=backend, cluster_moves=0.2)
+    fits = [
+        fit_house(
+            small_house,
+            settings,
+            sweeps=30,
+            options=options,
+            seed=1,
+            progress=False,
+            threads=threads,
+        )  # fmt: skip
+        for threads in (1, 2)
+    ]
+    np.testing.assert_array_equal(fits[0].labels, fits[1].labels)
+    np.testing.assert_array_equal(fits[0].labels_final, fits[1].labels_final)
+    np.testing.assert_allclose(fits[0].trace.objective, fits[1].trace.objective, rtol=1e-12)
+
+
+def test_fit_command_line_threads_option():
+    parse = build_parser().parse_args
+    assert parse(["fit", "--out", "x"]).threads == "auto"
+    assert parse(["fit", "--out", "x", "--threads", "0"]).threads == 0
+    assert parse(["fit", "--out", "x", "--threads", "3"]).threads == 3
+
+
+@pytest.mark.parametrize("bad", ["-1", "two", "1.5"])
+def test_fit_command_line_rejects_a_bad_thread_count(bad, capsys):
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["fit", "--out", "x", "--threads", bad])
+    assert "argument --threads: must be 'auto' or an integer >= 0" in capsys.readouterr().err
+
+
+@pytest.fixture
+def house_folder(tmp_path):
+    from spcopyro.synthetic import write_synthetic
+
+    spec = HouseSpec(height=30, width=40, num_rooms=2, num_trials=1)
+    return write_synthetic(tmp_path / "data", seed=3, spec=spec)
+
+
+@pytest.mark.parametrize("sweeps", ["2", "auto"])
+def test_fit_command_passes_threads_to_the_fit(
+    house_folder, tmp_path, monkeypatch, capsys, restore_threads, sweeps
+):
+    from spcopyro.cli import main
+
+    seen = []
+    real = spcopyro.fit.run_until_converged
+
+    def run_until_converged(*args, **kwargs):
+        seen.append(torch.get_num_threads())
+        return real(*args, **kwargs)
+
+    recorder = {}
+
+    def get_method(name):
+        recorder["method"] = _RecordingMethod(registered_method(name))
+        return recorder["method"]
+
+    monkeypatch.setattr(spcopyro.fit, "get_method", get_method)
+    monkeypatch.setattr(spcopyro.fit, "run_until_converged", run_until_converged)
+    torch.set_num_threads(2)
+    argv = ["fit", str(house_folder), "--out", str(tmp_path / "fit"), "--sweeps", sweeps,
+            "--max-sweeps", "2", "--chains", "2", "--threads", "3"]  # fmt: skip
+    assert main(argv) == 0
+    if sweeps == "auto":
+        assert seen == [3]
+    else:
+        assert recorder["method"].seen == [3, 3]  # one run per chain
+    assert "threads          3 torch intra-op threads (as asked)" in capsys.readouterr().out
+    assert torch.get_num_threads() == 2
+
+
+@pytest.mark.parametrize(("threads", "during"), [("auto", 1), (3, 3)])
+def test_experiment_fits_follow_the_policy(
+    small_house, monkeypatch, restore_threads, threads, during
+):
+    import spcopyro.experiments.methods as methods
+
+    recorder = {}
+
+    def get_method(name):
+        recorder["method"] = _RecordingMethod(registered_method(name))
+        return recorder["method"]
+
+    monkeypatch.setattr(methods, "get_method", get_method)
+    torch.set_num_threads(2)
+    methods.fit_spco(small_house, preset("original-code", gamma=3.0), sweeps=2, seed=0,
+                     threads=threads)  # fmt: skip
+    assert recorder["method"].seen == [during]
+    assert torch.get_num_threads() == 2
