@@ -39,11 +39,8 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import datetime
 import json
 import math
-import os
-import platform
 import resource
 import subprocess
 import sys
@@ -55,6 +52,15 @@ from typing import Any
 
 import numpy as np
 import torch
+from machine import (
+    available_backends,
+    busy_cpu_seconds,
+    format_table,
+    machine_info,
+    own_cpu_seconds,
+    progress,
+    wait_until_idle,
+)
 from reference_loop import PerCellProblem, PerCellState, per_cell_sweep
 
 from spcopyro.config import SpCoConfig, SpCoSettings, preset
@@ -203,19 +209,6 @@ def time_per_cell(problem: Problem, sweeps: int, seed: int = SEED) -> dict[str, 
 # ---------------------------------------------------------------------------------------------
 
 
-def available_backends(requested: Sequence[str]) -> tuple[list[str], dict[str, str]]:
-    """The requested backends that load, and a note for each one that does not."""
-    usable, notes = [], {}
-    for name in requested:
-        try:
-            get_backend(name)
-        except Exception as error:  # noqa: BLE001 - a missing or broken backend is reported
-            notes[name] = f"skipped: {type(error).__name__}: {error}"
-        else:
-            usable.append(name)
-    return usable, notes
-
-
 def time_backend(
     problem: Problem,
     backend: str,
@@ -276,17 +269,13 @@ def _try(what: str, action: Callable[[], dict[str, Any]]) -> dict[str, Any]:
         return action()
     except Exception as error:  # noqa: BLE001 - one broken backend must not end the benchmark
         message = f"{type(error).__name__}: {error}"
-        _progress(f"  FAILED {what}: {message}")
+        progress(f"  FAILED {what}: {message}")
         return {"error": message}
 
 
 # ---------------------------------------------------------------------------------------------
 # Sections
 # ---------------------------------------------------------------------------------------------
-
-
-def _progress(message: str) -> None:
-    print(message, file=sys.stderr, flush=True)
 
 
 def bench_houses(
@@ -306,7 +295,7 @@ def bench_houses(
             "backends": {},
         }
         for backend in backends:
-            _progress(f"[houses] {name}: {backend}, {sizes.house_sweeps} sweeps")
+            progress(f"[houses] {name}: {backend}, {sizes.house_sweeps} sweeps")
             entry["backends"][backend] = _try(
                 f"{name} {backend}",
                 lambda b=backend, p=problem: time_backend(
@@ -314,7 +303,7 @@ def bench_houses(
                 ),
             )
         if not skip_baseline:
-            _progress(f"[houses] {name}: per-cell loop, {sizes.baseline_sweeps} sweeps")
+            progress(f"[houses] {name}: per-cell loop, {sizes.baseline_sweeps} sweeps")
             entry["per_cell"] = time_per_cell(problem, sizes.baseline_sweeps)
         timed = {b: r for b, r in entry["backends"].items() if "error" not in r}
         if timed:
@@ -396,7 +385,7 @@ def bench_headline(dataset: Path | None, backend: str, sweeps: int) -> dict[str,
         command.append("--no-dataset")
     else:
         command += ["--dataset", str(dataset)]
-    _progress(f"[headline] {sweeps} sweeps, backend {backend}, in a subprocess")
+    progress(f"[headline] {sweeps} sweeps, backend {backend}, in a subprocess")
     t0 = time.perf_counter()
     done = subprocess.run(command, capture_output=True, text=True, check=False)
     process_s = time.perf_counter() - t0
@@ -470,7 +459,7 @@ def bench_scaling(
             "backends": {},
         }
         for backend in backends:
-            _progress(
+            progress(
                 f"[scaling] {map_name}, {problem.data.num_free} cells, "
                 f"L={config.num_concepts}: {backend}"
             )
@@ -503,7 +492,7 @@ def bench_quality(backend: str, sizes: BenchSizes) -> list[dict[str, Any]]:
             if sweep + 1 in checkpoints:
                 saved[sweep + 1] = state.labels.numpy().copy()
 
-        _progress(f"[quality] gamma={config.gamma:g}: {checkpoints[-1]} sweeps, {backend}")
+        progress(f"[quality] gamma={config.gamma:g}: {checkpoints[-1]} sweeps, {backend}")
         run = run_gibbs(
             problem.data,
             config,
@@ -545,24 +534,6 @@ def bench_quality(backend: str, sizes: BenchSizes) -> list[dict[str, Any]]:
 # ---------------------------------------------------------------------------------------------
 
 
-def _busy_cpu_seconds() -> float | None:
-    """CPU seconds all processes have spent busy since boot (Linux /proc/stat), else None."""
-    stat = Path("/proc/stat")
-    if not stat.is_file():
-        return None
-    fields = stat.read_text().splitlines()[0].split()[1:]  # cpu user nice system idle iowait ...
-    ticks = [int(v) for v in fields]
-    busy = sum(ticks) - ticks[3] - (ticks[4] if len(ticks) > 4 else 0)  # minus idle, iowait
-    return busy / os.sysconf("SC_CLK_TCK")
-
-
-def _own_cpu_seconds() -> float:
-    """CPU seconds of this process and its finished children."""
-    own = resource.getrusage(resource.RUSAGE_SELF)
-    children = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
-
-
 @contextlib.contextmanager
 def measure_contention(
     record: dict[str, dict[str, float | None]], name: str, wait_idle_s: float = 0.0
@@ -574,11 +545,11 @@ def measure_contention(
     above 0 means the timings of that section competed with other work for the CPUs.
     """
     waited = wait_until_idle(wait_idle_s)
-    busy0, own0, wall0 = _busy_cpu_seconds(), _own_cpu_seconds(), time.perf_counter()
+    busy0, own0, wall0 = busy_cpu_seconds(), own_cpu_seconds(), time.perf_counter()
     try:
         yield
     finally:
-        busy1, own1 = _busy_cpu_seconds(), _own_cpu_seconds()
+        busy1, own1 = busy_cpu_seconds(), own_cpu_seconds()
         other = None
         if busy0 is not None and busy1 is not None:
             other = max(0.0, (busy1 - busy0) - (own1 - own0))
@@ -587,73 +558,6 @@ def measure_contention(
             "other_cpu_s": other,
             "waited_for_idle_s": waited,
         }
-
-
-def wait_until_idle(
-    max_wait_s: float, window_s: float = 2.0, max_other_cores: float = 0.1
-) -> float:
-    """Wait (at most ``max_wait_s``) until other processes use under ``max_other_cores`` CPUs
-    for two consecutive ``window_s`` windows. Returns the seconds waited (0 if not asked)."""
-    if max_wait_s <= 0 or _busy_cpu_seconds() is None:
-        return 0.0
-    started = time.perf_counter()
-    quiet = 0
-    while time.perf_counter() - started < max_wait_s and quiet < 2:
-        busy0, own0 = _busy_cpu_seconds(), _own_cpu_seconds()
-        time.sleep(window_s)
-        other = (_busy_cpu_seconds() - busy0) - (_own_cpu_seconds() - own0)  # type: ignore[operator]
-        quiet = quiet + 1 if other < max_other_cores * window_s else 0
-    waited = time.perf_counter() - started
-    if quiet < 2:
-        _progress(f"  machine still busy after waiting {waited:.0f} s; measuring anyway")
-    return waited
-
-
-def machine_info() -> dict[str, Any]:
-    """CPU, library versions and thread counts."""
-    try:
-        import numba
-
-        numba_version: str | None = numba.__version__
-        numba_threads: int | None = int(numba.config.NUMBA_NUM_THREADS)
-    except ImportError:
-        numba_version, numba_threads = None, None
-    cpu_model = platform.processor() or None
-    cpuinfo = Path("/proc/cpuinfo")
-    if cpuinfo.is_file():
-        for line in cpuinfo.read_text().splitlines():
-            if line.startswith("model name"):
-                cpu_model = line.split(":", 1)[1].strip()
-                break
-    affinity = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
-    return {
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "hostname": platform.node(),
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-        "cpu_model": cpu_model,
-        "cpu_count": os.cpu_count(),
-        "cpus_usable": None if affinity is None else len(affinity),
-        "torch": torch.__version__,
-        "torch_threads": torch.get_num_threads(),
-        "numpy": np.__version__,
-        "numba": numba_version,
-        "numba_threads": numba_threads,
-        "load_average_1_5_15min": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
-    }
-
-
-def format_table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
-    """A plain-text table, columns right-aligned except the first."""
-    widths = [max(len(str(c)) for c in column) for column in zip(headers, *rows, strict=True)]
-
-    def line(cells: Sequence[str]) -> str:
-        first = str(cells[0]).ljust(widths[0])
-        rest = [str(c).rjust(w) for c, w in zip(cells[1:], widths[1:], strict=True)]
-        return "  ".join([first, *rest])
-
-    rule = "  ".join("-" * w for w in widths)
-    return "\n".join([line(headers), rule, *(line(r) for r in rows)])
 
 
 def _ms(result: dict[str, Any] | None, key: str = "ms_per_iteration", digits: int = 2) -> str:
@@ -759,7 +663,7 @@ def render(results: dict[str, Any]) -> str:
         "one iteration = all cell labels (eq. 13) + pi, theta, w draws (eqs. 14-17); "
         f"preset {PRESET}",
     ]
-    out += [f"backend {name}: {note}" for name, note in results["backend_notes"].items()]
+    out += [f"backend {name}: skipped: {note}" for name, note in results["backend_notes"].items()]
     contention = results.get("contention", {})
     if contention:
         parts = [
@@ -996,11 +900,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     out_path = args.out or SCRIPT_DIR / ("gibbs_quick.json" if args.quick else "gibbs_results.json")
     backends, notes = available_backends(args.backend_list)
     for name, note in notes.items():
-        _progress(f"backend {name}: {note}")
+        progress(f"backend {name}: {note}")
     if not backends:
         raise SystemExit(f"none of the backends {args.backend_list} can be loaded: {notes}")
     if dataset is None:
-        _progress("public dataset not found: per-house timings skipped, synthetic maps only")
+        progress("public dataset not found: per-house timings skipped, synthetic maps only")
 
     results: dict[str, Any] = {
         "quick": args.quick,

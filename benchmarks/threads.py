@@ -33,11 +33,8 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import datetime
 import json
 import os
-import platform
-import resource
 import signal
 import statistics
 import subprocess
@@ -48,14 +45,21 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
+from machine import (
+    available_backends,
+    busy_cpu_seconds,
+    format_table,
+    machine_info,
+    own_cpu_seconds,
+    progress,
+    wait_until_idle,
+)
 
 from spcopyro.config import preset
 from spcopyro.data import House, find_dataset_root, load_house
 from spcopyro.fit import prepare_model_data
 from spcopyro.gibbs import GibbsOptions, run_gibbs
-from spcopyro.gibbs.backends import get_backend
 from spcopyro.model import ModelData
 from spcopyro.synthetic import HouseSpec, make_house
 from spcopyro.threads import MIN_CELLS_FOR_MORE_THREADS, resolve_threads, torch_threads
@@ -96,10 +100,6 @@ QUICK = Sizes(3, 1, False, HouseSpec(height=30, width=40, num_rooms=2, num_trial
               1e4, 120.0)  # fmt: skip
 
 
-def _progress(message: str) -> None:
-    print(message, file=sys.stderr, flush=True)
-
-
 # ---------------------------------------------------------------------------------------------
 # The busy neighbour and the machine's other load
 # ---------------------------------------------------------------------------------------------
@@ -138,52 +138,16 @@ def busy_neighbour(cores: int, max_seconds: float) -> Iterator[list[subprocess.P
             proc.wait(timeout=10)
 
 
-def _busy_cpu_seconds() -> float | None:
-    """CPU seconds all processes have spent busy since boot (Linux /proc/stat), else None."""
-    stat = Path("/proc/stat")
-    if not stat.is_file():
-        return None
-    ticks = [int(v) for v in stat.read_text().splitlines()[0].split()[1:]]
-    busy = sum(ticks) - ticks[3] - (ticks[4] if len(ticks) > 4 else 0)  # minus idle, iowait
-    return busy / os.sysconf("SC_CLK_TCK")
-
-
-def _own_cpu_seconds() -> float:
-    """CPU seconds of this process and its waited-for children."""
-    own = resource.getrusage(resource.RUSAGE_SELF)
-    children = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
-
-
-def wait_until_idle(
-    max_wait_s: float, window_s: float = 2.0, max_other_cores: float = 0.1
-) -> float:
-    """Wait (at most ``max_wait_s``) until other processes use under ``max_other_cores`` CPUs
-    for two consecutive ``window_s`` windows. Returns the seconds waited (0 if not asked)."""
-    if max_wait_s <= 0 or _busy_cpu_seconds() is None:
-        return 0.0
-    started, quiet = time.perf_counter(), 0
-    while time.perf_counter() - started < max_wait_s and quiet < 2:
-        busy0, own0 = _busy_cpu_seconds(), _own_cpu_seconds()
-        time.sleep(window_s)
-        other = (_busy_cpu_seconds() - busy0) - (_own_cpu_seconds() - own0)  # type: ignore[operator]
-        quiet = quiet + 1 if other < max_other_cores * window_s else 0
-    waited = time.perf_counter() - started
-    if quiet < 2:
-        _progress(f"  machine still busy after waiting {waited:.0f} s; measuring anyway")
-    return waited
-
-
 @contextlib.contextmanager
 def other_load(record: dict[str, Any]) -> Iterator[None]:
     """Record the block's wall time and the CPUs that OTHER processes kept busy meanwhile
     (``other_cores``: their CPU seconds / wall seconds; the busy neighbour counts as other)."""
-    busy0, own0, wall0 = _busy_cpu_seconds(), _own_cpu_seconds(), time.perf_counter()
+    busy0, own0, wall0 = busy_cpu_seconds(), own_cpu_seconds(), time.perf_counter()
     try:
         yield
     finally:
         wall = time.perf_counter() - wall0
-        busy1, own1 = _busy_cpu_seconds(), _own_cpu_seconds()
+        busy1, own1 = busy_cpu_seconds(), own_cpu_seconds()
         other = None
         if busy0 is not None and busy1 is not None:
             other = max(0.0, (busy1 - busy0) - (own1 - own0))
@@ -194,19 +158,6 @@ def other_load(record: dict[str, Any]) -> Iterator[None]:
 # ---------------------------------------------------------------------------------------------
 # Timing
 # ---------------------------------------------------------------------------------------------
-
-
-def available_backends(requested: Sequence[str]) -> tuple[list[str], dict[str, str]]:
-    """The requested backends that load, and why each other one was skipped."""
-    found, skipped = [], {}
-    for name in requested:
-        try:
-            get_backend(name)
-        except (ImportError, ValueError) as error:
-            skipped[name] = str(error)
-        else:
-            found.append(name)
-    return found, skipped
 
 
 def timed_run(data: ModelData, backend: str, sweeps: int, threads: int | None) -> tuple[float, Any]:
@@ -291,7 +242,7 @@ def bench_load(
                 policy = resolve_threads("auto", data.num_free)
                 settings = {"default": default_threads, "policy": policy}
                 for backend in backends:
-                    _progress(f"  {condition}: {house.name} ({data.num_free} cells), {backend}")
+                    progress(f"  {condition}: {house.name} ({data.num_free} cells), {backend}")
                     result = compare(data, backend, sizes.sweeps, sizes.repeats, settings)
                     ms = result["ms_per_sweep"]
                     rows.append({
@@ -314,13 +265,13 @@ def bench_threshold(
     """Section 2: one thread against the default on maps of growing size."""
     rows = []
     for side in sizes.threshold_sides:
-        _progress(f"  threshold: building a {side} x {side} synthetic map")
+        progress(f"  threshold: building a {side} x {side} synthetic map")
         house = make_house(seed=SEED, spec=HouseSpec.scaled(side, side), name=f"synthetic{side}")
         _, data = prepare_model_data(house, preset(PRESET))
         warm_up(data, backends)
         sweeps = max(2, int(sizes.threshold_cell_sweeps // data.num_free))
         for backend in backends:
-            _progress(f"  threshold: {data.num_free} cells, {backend}, {sweeps} sweeps a run")
+            progress(f"  threshold: {data.num_free} cells, {backend}, {sweeps} sweeps a run")
             record: dict[str, Any] = {"waited_for_idle_s": wait_until_idle(wait_idle_s)}
             with other_load(record):
                 result = compare(data, backend, sweeps, sizes.repeats,
@@ -352,52 +303,6 @@ def measured_threshold(rows: Sequence[dict[str, Any]]) -> int | None:
 # ---------------------------------------------------------------------------------------------
 # Report
 # ---------------------------------------------------------------------------------------------
-
-
-def machine_info() -> dict[str, Any]:
-    """CPU, library versions and thread settings."""
-    try:
-        import numba
-
-        numba_version: str | None = numba.__version__
-    except ImportError:
-        numba_version = None
-    cpu_model = platform.processor() or None
-    cpuinfo = Path("/proc/cpuinfo")
-    if cpuinfo.is_file():
-        for line in cpuinfo.read_text().splitlines():
-            if line.startswith("model name"):
-                cpu_model = line.split(":", 1)[1].strip()
-                break
-    affinity = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
-    return {
-        "date": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-        "cpu_model": cpu_model,
-        "cpu_count": os.cpu_count(),
-        "cpus_usable": None if affinity is None else len(affinity),
-        "torch": torch.__version__,
-        "torch_threads_at_start": torch.get_num_threads(),
-        "numpy": np.__version__,
-        "numba": numba_version,
-        "env": {k: os.environ.get(k) for k in ("OMP_NUM_THREADS", "MKL_NUM_THREADS",
-                                               "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS")},
-        "load_average_1_5_15min": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
-    }  # fmt: skip
-
-
-def format_table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
-    """A plain-text table, columns right-aligned except the first."""
-    widths = [max(len(str(c)) for c in column) for column in zip(headers, *rows, strict=True)]
-
-    def line(cells: Sequence[str]) -> str:
-        first = str(cells[0]).ljust(widths[0])
-        rest = [str(c).rjust(w) for c, w in zip(cells[1:], widths[1:], strict=True)]
-        return "  ".join([first, *rest])
-
-    return "\n".join([line(headers), "  ".join("-" * w for w in widths),
-                      *(line(r) for r in rows)])  # fmt: skip
 
 
 def _load(row: dict[str, Any]) -> str:
@@ -532,11 +437,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         "notes": notes,
     }  # fmt: skip
     houses = load_houses(sizes, dataset, notes)
-    _progress("== default threads against the policy ==")
+    progress("== default threads against the policy ==")
     results["load"] = bench_load(
         houses, backends, sizes, default_threads, args.busy_cores, args.wait_idle
     )
-    _progress("== threshold ==")
+    progress("== threshold ==")
     results["threshold"] = bench_threshold(sizes, backends, default_threads, args.wait_idle)
     results["measured_threshold"] = measured_threshold(results["threshold"])
     out = args.out or SCRIPT_DIR / ("threads_quick.json" if args.quick else "threads_results.json")
