@@ -8,9 +8,11 @@ from __future__ import annotations
 
 from spcopyro.gibbs.method import GibbsInference
 from spcopyro.inference import InferenceMethod
+from spcopyro.variational.method import CAVIInference
 
 INFERENCE_METHODS: dict[str, InferenceMethod] = {
     "gibbs": GibbsInference(),
+    "cavi": CAVIInference(),
 }
 DEFAULT_METHOD = "gibbs"
 

@@ -24,7 +24,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("data", "synthetic"),
     ("model",),
     ("likelihood", "initialisation", "semantic_map"),
-    ("gibbs", "guides", "inference", "simulate"),
+    ("gibbs", "guides", "inference", "simulate", "variational"),
     ("registry",),
     ("results",),
     ("metrics", "plotting", "baselines", "features"),

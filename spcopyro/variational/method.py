@@ -1,0 +1,60 @@
+"""Mean-field CAVI as an :class:`~spcopyro.inference.InferenceMethod` (registry: ``cavi``)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import torch
+
+from spcopyro.config import SpCoConfig
+from spcopyro.inference import InferenceOutput, Trace
+from spcopyro.model import ModelData
+from spcopyro.variational.factors import mean_emissions, mean_pi
+from spcopyro.variational.options import VariationalOptions
+from spcopyro.variational.run import VariationalRun, initial_q, run_variational
+
+
+def output_from_variational(run: VariationalRun, options: dict[str, object]) -> InferenceOutput:
+    """A variational run's output: argmax q as the labels, q as the marginals (float32), the
+    posterior means of pi and phi, the ELBO per iteration as the trace."""
+    return InferenceOutput(
+        labels=run.labels.numpy().astype("int64"),
+        pi=mean_pi(run.factors).numpy(),
+        emissions=tuple(e.numpy() for e in mean_emissions(run.factors)),
+        trace=Trace(run.objective, run.num_concepts, run.seconds, "ELBO"),
+        best_iteration=len(run.objective) - 1,
+        marginals=run.q.numpy().astype(np.float32),
+        options=options,
+    )
+
+
+class CAVIInference:
+    """Mean-field coordinate ascent (:mod:`spcopyro.variational.cavi`) behind the common
+    interface."""
+
+    name = "cavi"
+    objective_name = "ELBO"
+
+    def default_options(self) -> VariationalOptions:
+        return VariationalOptions()
+
+    def run(
+        self,
+        data: ModelData,
+        config: SpCoConfig,
+        *,
+        iterations: int,
+        generator: torch.Generator,
+        init_labels: torch.Tensor | None = None,
+        options: VariationalOptions | None = None,
+        progress: bool | None = None,
+        thin: int = 0,
+    ) -> InferenceOutput:
+        options = VariationalOptions() if options is None else options
+        if not isinstance(options, VariationalOptions):
+            raise TypeError(f"CAVI takes VariationalOptions, got {type(options).__name__}")
+        q = initial_q(data, config, generator, init_labels)
+        run = run_variational(data, config, iterations, options=options, q=q, progress=progress)
+        record = {"iterations": iterations, **dataclasses.asdict(options)}
+        return output_from_variational(run, record)

@@ -1,0 +1,58 @@
+"""Options of the variational methods (CAVI, loopy BP), kept beside them as Gibbs' are."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+from spcopyro.variational.factors import PiFamily
+
+
+@dataclass(frozen=True)
+class VariationalOptions:
+    """How coordinate-ascent variational inference runs.
+
+    Attributes:
+        anneal_iterations: gamma rises linearly from 0 to the model's value over this many
+            iterations (0: no annealing). Mean field started at full coupling freezes in the first
+            labelling it sees; starting uncoupled lets the observations place their concepts
+            first. The ELBO only rises monotonically once gamma is at its value.
+        damping: each block's new q(C_i) is mixed with the old one,
+            ``q <- (1 - damping) q_new + damping q_old`` (0: exact coordinate ascent, which never
+            lowers the ELBO; > 0 gives that up to calm oscillations).
+        pi_family: q(pi) as the model states it (``"dirichlet"``) or the truncated stick-breaking
+            DP (``"stick-breaking"``, a different prior: see :mod:`spcopyro.variational.factors`).
+        tolerance: stop once an iteration at full gamma raises the ELBO by less than
+            ``tolerance * |ELBO|`` (0: run every iteration).
+        backend: ``"torch"`` (the dense reference), ``"numba"`` or ``"auto"``.
+    """
+
+    anneal_iterations: int = 0
+    damping: float = 0.0
+    pi_family: PiFamily = "dirichlet"
+    tolerance: float = 0.0
+    backend: Literal["auto", "torch", "numba"] = "auto"
+
+    def __post_init__(self) -> None:
+        def bad(name: str, why: str) -> ValueError:
+            return ValueError(f"VariationalOptions.{name}={getattr(self, name)!r}: {why}")
+
+        if not isinstance(self.anneal_iterations, int) or self.anneal_iterations < 0:
+            raise bad("anneal_iterations", "must be an integer >= 0")
+        if not (isinstance(self.damping, (int, float)) and 0 <= self.damping < 1):
+            raise bad("damping", "must lie in [0, 1)")
+        if self.pi_family not in ("dirichlet", "stick-breaking"):
+            raise bad("pi_family", "must be 'dirichlet' or 'stick-breaking'")
+        if not (isinstance(self.tolerance, (int, float)) and math.isfinite(self.tolerance)):
+            raise bad("tolerance", "must be a finite number >= 0")
+        if self.tolerance < 0:
+            raise bad("tolerance", "must be >= 0")
+        if self.backend not in ("auto", "torch", "numba"):
+            raise bad("backend", "must be 'auto', 'torch' or 'numba'")
+
+    def gamma_at(self, iteration: int, gamma: float) -> float:
+        """The coupling used by 0-based ``iteration``: ramped up, then the model's."""
+        if iteration >= self.anneal_iterations:
+            return gamma
+        return gamma * (iteration + 1) / (self.anneal_iterations + 1)

@@ -1,0 +1,141 @@
+"""The variational run loop: alternate the global factors and a label-field update, trace the
+objective, stop at convergence.
+
+Every variational method here shares it and differs only in how it updates q(C) given the
+global factors: mean field (:func:`spcopyro.variational.cavi.update_labels`), loopy belief
+propagation, or a compiled mean-field backend. A :class:`LabelUpdate` is that step.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from tqdm.auto import tqdm
+
+from spcopyro.config import SpCoConfig
+from spcopyro.initialisation import check_labels, random_labels
+from spcopyro.model import DTYPE, ModelData
+from spcopyro.progress import progress_enabled
+from spcopyro.variational.cavi import one_hot, update_globals, update_labels
+from spcopyro.variational.elbo import elbo
+from spcopyro.variational.factors import GlobalFactors
+from spcopyro.variational.options import VariationalOptions
+
+LabelUpdate = Callable[[torch.Tensor, GlobalFactors, float], torch.Tensor]
+"""``update(q, factors, gamma) -> q``: one pass over the label field at coupling ``gamma``."""
+
+Objective = Callable[[torch.Tensor, GlobalFactors], float]
+"""``objective(q, factors)``: the value traced each iteration (the model's ELBO by default)."""
+
+
+@dataclass
+class VariationalRun:
+    """A finished variational fit: q and what each iteration recorded."""
+
+    q: torch.Tensor
+    """[N, L] float64 q(C_i = l)."""
+    factors: GlobalFactors
+    objective: np.ndarray
+    """[S] the objective after each iteration (the ELBO at the model's gamma)."""
+    num_concepts: np.ndarray
+    """[S] concepts that are some cell's most probable one."""
+    seconds: np.ndarray
+    """[S] cumulative wall-clock seconds."""
+    gammas: np.ndarray
+    """[S] the coupling each iteration's label update used."""
+
+    @property
+    def labels(self) -> torch.Tensor:
+        """[N] every cell's most probable concept under q."""
+        return self.q.argmax(-1)
+
+
+def initial_q(
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    init_labels: torch.Tensor | None = None,
+    init_q: torch.Tensor | None = None,
+) -> torch.Tensor:
+    """[N, L] the starting q(C): ``init_q`` as given (checked), one-hot ``init_labels`` (a Gibbs
+    state's labels: the warm start from a sampler), or one-hot uniformly random labels."""
+    N, L = data.num_free, config.num_concepts
+    if init_q is not None:
+        if init_q.shape != (N, L):
+            raise ValueError(f"init_q must be [{N}, {L}], got {tuple(init_q.shape)}")
+        q = init_q.to(DTYPE).clone()
+        if (q < 0).any() or not torch.allclose(q.sum(-1), torch.ones(N, dtype=DTYPE)):
+            raise ValueError("init_q's rows must be probability vectors")
+        return q
+    labels = random_labels(N, config, generator) if init_labels is None else init_labels
+    return one_hot(check_labels(labels, N, config), L)
+
+
+def mean_field_update(data: ModelData, config: SpCoConfig, damping: float = 0.0) -> LabelUpdate:
+    """The dense mean-field label update (:func:`spcopyro.variational.cavi.update_labels`)."""
+
+    def update(q: torch.Tensor, factors: GlobalFactors, gamma: float) -> torch.Tensor:
+        return update_labels(q, factors, data, config, gamma, damping)
+
+    return update
+
+
+def run_variational(
+    data: ModelData,
+    config: SpCoConfig,
+    iterations: int,
+    *,
+    options: VariationalOptions | None = None,
+    q: torch.Tensor,
+    label_update: LabelUpdate | None = None,
+    objective: Objective | None = None,
+    progress: bool | None = None,
+    description: str = "CAVI",
+) -> VariationalRun:
+    """``iterations`` rounds of: global factors from q(C), then ``label_update`` (mean field by
+    default) at the annealed coupling. Stops early when ``options.tolerance`` says so.
+
+    ``q`` ``[N, L]`` is the start (see :func:`initial_q`) and is updated in place.
+    """
+    options = VariationalOptions() if options is None else options
+    if iterations < 1:
+        raise ValueError(f"iterations must be >= 1, got {iterations}")
+    label_update = label_update or mean_field_update(data, config, options.damping)
+    if objective is None:
+
+        def objective(q: torch.Tensor, factors: GlobalFactors) -> float:
+            return float(elbo(q, factors, data, config))
+
+    values, used, seconds, gammas = [], [], [], []
+    start = time.perf_counter()
+    bar = tqdm(total=iterations, desc=description, unit="it",
+               disable=not progress_enabled(progress))  # fmt: skip
+    factors = update_globals(q, data, config, options.pi_family)
+    with bar:
+        for iteration in range(iterations):
+            gamma = options.gamma_at(iteration, config.gamma)
+            q = label_update(q, factors, gamma)
+            factors = update_globals(q, data, config, options.pi_family)
+            values.append(objective(q, factors))
+            used.append(int(torch.unique(q.argmax(-1)).numel()))
+            seconds.append(time.perf_counter() - start)
+            gammas.append(gamma)
+            bar.update()
+            bar.set_postfix(objective=f"{values[-1]:.4g}", concepts=used[-1])
+            if _converged(values, gammas, config.gamma, options.tolerance):
+                break
+    return VariationalRun(
+        q, factors, np.asarray(values), np.asarray(used, dtype=np.int64),
+        np.asarray(seconds), np.asarray(gammas),
+    )  # fmt: skip
+
+
+def _converged(values: list[float], gammas: list[float], gamma: float, tolerance: float) -> bool:
+    """The last iteration at full gamma raised the objective by < tolerance * |objective|."""
+    if tolerance <= 0 or len(values) < 2 or gammas[-2] != gamma:
+        return False
+    return abs(values[-1] - values[-2]) < tolerance * abs(values[-1])
