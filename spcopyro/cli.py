@@ -213,7 +213,8 @@ def _fit_staged(
     """Fit, write every output into ``staged.path``, then move it to OUT."""
     from spcopyro.fit import best_chain, fit_house_chains
     from spcopyro.outputs import checkpoint_path
-    from spcopyro.plotting import plot_house, plot_semantic_map, plot_trace
+    from spcopyro.plotting import plot_house, plot_semantic_map, plot_trace, plot_uncertainty
+    from spcopyro.uncertainty import cell_entropy, free_cells_image
 
     config = settings.model
     source = "embedded synthetic house, seed 0" if args.data is None else None
@@ -229,6 +230,12 @@ def _fit_staged(
         print(f"backend used     {get_backend(options.backend).name}")
     if args.resume is not None:
         print(f"resuming         the chains saved in {args.resume}")
+    init = args.init
+    if args.init_from is not None:
+        from spcopyro.results import SpCoResult
+
+        init = SpCoResult.load(args.init_from)
+        print(f"starting from     the {init.method} fit in {args.init_from}")
     diagnostics = None
     start = _clock()
     if args.sweeps == "auto":
@@ -237,15 +244,16 @@ def _fit_staged(
         chains = 4 if args.chains is None else args.chains
         result, diagnostics = fit_house_converged(
             house, settings, options=options, chains=chains, max_sweeps=args.max_sweeps,
-            seed=args.seed, init=args.init, source=source, threads=args.threads,
+            seed=args.seed, init=init, source=source, threads=args.threads,
         )  # fmt: skip
         chain_results = None
     else:
         chains = 1 if args.chains is None else args.chains
         chain_results = fit_house_chains(
             house, settings, method=args.method, options=options, sweeps=args.sweeps,
-            seeds=[args.seed + k for k in range(chains)], init=args.init, source=source,
+            seeds=[args.seed + k for k in range(chains)], init=init, source=source,
             checkpoint=keeper, resume=args.resume, threads=args.threads,
+            marginal_samples=args.marginal_samples,
         )  # fmt: skip
         kept = best_chain(chain_results)
         result = chain_results[kept]
@@ -273,9 +281,15 @@ def _fit_staged(
     plot_semantic_map(result, out / "semantic_map.png")
     plot_trace(result, out / "trace.png")
     plot_house(house, out / "house.png")
-    runs = f"{chains} chains x {sweeps_run} sweeps" if chains > 1 else f"{sweeps_run} sweeps"
+    entropy = cell_entropy(result)
+    if entropy is not None:
+        np.save(out / "uncertainty.npy", free_cells_image(result, entropy))
+        plot_uncertainty(result, out / "uncertainty.png")
+    unit = "sweep" if result.trace.objective_name == "log joint" else "iteration"
+    runs = f"{chains} chains x " if chains > 1 else ""
+    runs += f"{sweeps_run} {unit}s"
     print(f"fitted {runs} in {wall:.1f} s wall clock "
-          f"({1e3 * result.trace.seconds[-1] / sweeps_run:.2f} ms per sweep); "
+          f"({1e3 * result.trace.seconds[-1] / sweeps_run:.2f} ms per {unit}); "
           f"{len(result.concepts_in_use())} concepts in use")  # fmt: skip
     if house.truth is not None:
         from spcopyro.metrics import adjusted_rand_index
@@ -404,10 +418,19 @@ def _where(args: argparse.Namespace) -> int:
               f"y {y0:.2f}..{y1:.2f} m")  # fmt: skip
     for warning in answer.warnings:
         print(f"warning: {warning}", file=sys.stderr)
+    from spcopyro.uncertainty import where_probability
+
+    probability = where_probability(result, args.word, args.prior)  # [N]
+    source = "marginals" if result.marginals is not None else "point estimate"
+    print(f"cells whose probability of being the place exceeds 0.5: "
+          f"{int((probability > 0.5).sum())} ({source})")  # fmt: skip
     if args.out:
-        from spcopyro.plotting import plot_where
+        from spcopyro.plotting import plot_where, plot_where_probability
 
         print(f"wrote {plot_where(result, answer, args.out)}")
+        out = Path(args.out)
+        probability_png = out.with_name(f"{out.stem}_probability.png")
+        print(f"wrote {plot_where_probability(result, args.word, probability_png, args.prior)}")
     return 0
 
 
@@ -576,6 +599,13 @@ def build_parser() -> argparse.ArgumentParser:
         default="random",
         help="starting labels: random, k-means Gaussians, or SpCoA pre-learning",
     )
+    p.add_argument("--init-from", metavar="OUT",
+                   help="start from the labels of an earlier fit's output folder on the same map "
+                        "(a warm start from any method to any method, e.g. a cavi fit starting "
+                        "gibbs); replaces --init (default: none)")  # fmt: skip
+    p.add_argument("--marginal-samples", type=_non_negative_int, default=50,
+                   help="Gibbs: label maps kept over the second half of the sweeps for the "
+                        "per-cell probabilities of uncertainty.png (0: none)")  # fmt: skip
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the sampler (chain k of --chains gets seed + k)")  # fmt: skip
     p.add_argument("--method", choices=sorted(INFERENCE_METHODS), default=DEFAULT_METHOD,
@@ -595,8 +625,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("where", help='answer "where is WORD?" from a fitted result')
     p.add_argument("result", help="output folder of `spcopyro fit`")
     p.add_argument("word", help="the word to look up")
-    p.add_argument("--out", help="also draw the answer over the semantic map into this PNG "
-                   "(default: no PNG)")  # fmt: skip
+    p.add_argument("--out", help="also draw the answer over the semantic map into this PNG, "
+                   "and the per-cell probability of the word's place into "
+                   "<name>_probability.png (default: no PNG)")  # fmt: skip
     p.add_argument(
         "--prior",
         choices=("area", "pi"),

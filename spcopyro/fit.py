@@ -46,6 +46,7 @@ from spcopyro.model import DTYPE, ModelData, make_model_data
 from spcopyro.registry import DEFAULT_METHOD, get_method
 from spcopyro.results import SpCoResult
 from spcopyro.threads import AUTO, describe_threads, resolve_threads, torch_threads
+from spcopyro.uncertainty import label_frequencies
 
 logger = logging.getLogger("spcopyro")
 
@@ -287,16 +288,47 @@ def result_of(
     )  # fmt: skip
 
 
+Init = str | SpCoResult
+"""A start: a name of :data:`INITS`, or a previous fit's :class:`SpCoResult` (a warm start)."""
+
+
+def init_name(init: Init) -> str:
+    """``init`` as ``config.json`` records it: the name, or ``"result of METHOD"``."""
+    return init if isinstance(init, str) else f"result of {init.method}"
+
+
+def result_labels(result: SpCoResult, house: House, config: SpCoConfig) -> torch.Tensor:
+    """[N] a previous fit's point labels as the start of a new one (a warm start: a Gibbs fit
+    starting variational inference, or the other way round); ValueError if it was made on
+    another map or with more concepts than ``config`` has."""
+    if result.grid.num_free != house.grid.num_free or result.grid.shape != house.grid.shape:
+        raise ValueError(
+            f"the starting result was fitted on a {result.grid.shape} map with "
+            f"{result.grid.num_free} free cells; this house's map is {house.grid.shape} with "
+            f"{house.grid.num_free}"
+        )
+    labels = np.asarray(result.labels)
+    if labels.max() >= config.num_concepts:
+        raise ValueError(
+            f"the starting result uses concept {labels.max()}, beyond this fit's "
+            f"num_concepts = {config.num_concepts}"
+        )
+    return torch.as_tensor(labels, dtype=torch.long)
+
+
 def initial_labels(
     house: House,
     counts: CellCounts,
     settings: SpCoSettings,
-    init: str,
+    init: Init,
     seed: int,
     generator: torch.Generator,
 ) -> torch.Tensor | None:
     """[N] starting labels: None for ``"random"`` (the method draws them), else ``"gaussian"``
-    (k-means Gaussians over the observed cells) or ``"spcoa"`` (a SpCoA fit's Gaussians)."""
+    (k-means Gaussians over the observed cells), ``"spcoa"`` (a SpCoA fit's Gaussians) or a
+    previous :class:`SpCoResult`'s labels (:func:`result_labels`)."""
+    if isinstance(init, SpCoResult):
+        return result_labels(init, house, settings.model)
     if init not in INITS:
         raise ValueError(f"init must be one of {INITS}, got {init!r}")
     if init == "gaussian":
@@ -322,12 +354,13 @@ def fit_house_chains(
     options: object | None = None,
     sweeps: int = 5000,
     seeds: Sequence[int] = (0,),
-    init: str = "random",
+    init: Init = "random",
     progress: bool | None = None,
     source: str | None = None,
     checkpoint: str | os.PathLike[str] | FitCheckpoint | None = None,
     resume: str | os.PathLike[str] | None = None,
     threads: int | str | None = AUTO,
+    marginal_samples: int = 0,
 ) -> list[SpCoResult]:
     """One :class:`SpCoResult` per seed: ``sweeps`` iterations of the inference method from
     ``init`` drawn with that seed. The house's counts are computed once for all chains. See
@@ -340,6 +373,10 @@ def fit_house_chains(
         resume: Gibbs only: continue the chains saved in this checkpoint (ValueError if it was
             made for other data or settings, seeds, sweeps or init); chains it does not hold
             start afresh. The results equal those of a fit that never stopped.
+        marginal_samples: Gibbs only: keep about this many label maps over the second half of
+            the sweeps and store their label frequencies as the result's ``marginals`` (the
+            uncertainty map and per-cell "where" probabilities read them); 0: none. A
+            variational method always returns its q(C) as marginals.
     """
     if isinstance(sweeps, bool) or not isinstance(sweeps, int | np.integer) or sweeps < 1:
         raise ValueError(f"sweeps must be a positive integer or 'auto', got {sweeps!r}")
@@ -359,7 +396,7 @@ def fit_house_chains(
         if isinstance(inference, GibbsInference):
             outputs = _gibbs_outputs(
                 house, counts, data, settings, options, int(sweeps), [int(s) for s in seeds],
-                init, progress, checkpoint, resume,
+                init, progress, checkpoint, resume, marginal_samples,
             )  # fmt: skip
             return [result_of(o, house, counts, data, settings, method, record) for o in outputs]
         fits = []
@@ -370,7 +407,7 @@ def fit_house_chains(
                 data, settings.model, iterations=int(sweeps), generator=generator,
                 init_labels=start, options=options, progress=progress,
             )  # fmt: skip
-            output.options.update(seed=int(seed), init=init)
+            output.options.update(seed=int(seed), init=init_name(init))
             fits.append(result_of(output, house, counts, data, settings, method, record))
     return fits
 
@@ -383,10 +420,11 @@ def _gibbs_outputs(
     options: object | None,
     sweeps: int,
     seeds: list[int],
-    init: str,
+    init: Init,
     progress: bool | None,
     checkpoint: FitCheckpoint | None,
     resume: str | os.PathLike[str] | None,
+    marginal_samples: int = 0,
 ) -> list[InferenceOutput]:
     """Gibbs chains (:func:`~spcopyro.gibbs.run.start_chain`, :func:`~spcopyro.gibbs.run.advance`:
     the same draws as :class:`~spcopyro.gibbs.method.GibbsInference`), saved and resumed."""
@@ -397,7 +435,7 @@ def _gibbs_outputs(
         raise ValueError(
             f"anneal_sweeps ({options.anneal_sweeps}) must not exceed num_sweeps ({sweeps})"
         )
-    record = {"method": "gibbs", "sweeps": sweeps, "seeds": seeds, "init": init,
+    record = {"method": "gibbs", "sweeps": sweeps, "seeds": seeds, "init": init_name(init),
               "data_preparation": dataclasses.asdict(settings.data)}  # fmt: skip
     chains: list[GibbsChain | None] = [None] * len(seeds)
     if resume is not None:
@@ -415,7 +453,8 @@ def _gibbs_outputs(
                 )
                 chains[k] = chain
             if chain.sweeps_done < sweeps:
-                advance(chain, sweeps - chain.sweeps_done, progress=progress)
+                thin = max(1, sweeps // (2 * marginal_samples)) if marginal_samples else 0
+                advance(chain, sweeps - chain.sweeps_done, thin=thin, progress=progress)
     except KeyboardInterrupt:
         saved = None if checkpoint is None else checkpoint.save()
         raise FitInterrupted(_where_stopped(chains, sweeps), saved) from None
@@ -423,8 +462,29 @@ def _gibbs_outputs(
     for chain, seed in zip(chains, seeds, strict=True):
         assert chain is not None
         entry = gibbs_record(options, sweeps, chain.backend.name)
-        outputs.append(output_from_run(chain.to_run(), {**entry, "seed": seed, "init": init}))
+        output = output_from_run(chain.to_run(), {**entry, "seed": seed, "init": init_name(init)})
+        outputs.append(_with_sample_marginals(output, sweeps, settings.model.num_concepts))
     return outputs
+
+
+def _with_sample_marginals(
+    output: InferenceOutput, sweeps: int, num_concepts: int
+) -> InferenceOutput:
+    """``output`` with the label frequencies of its samples from the second half of the sweeps
+    as its marginals (unchanged if it kept none there)."""
+    if output.label_samples is None or output.sample_iterations is None:
+        return output
+    late = np.asarray(output.sample_iterations) >= sweeps // 2
+    if not late.any():
+        return output
+    samples = np.asarray(output.label_samples)[late]  # [S', N]
+    marginals = label_frequencies(samples, num_concepts)  # [N, L]
+    return dataclasses.replace(
+        output,
+        marginals=marginals,
+        label_samples=None,
+        options={**output.options, "marginal_samples": len(samples)},
+    )
 
 
 def _where_stopped(chains: Sequence[GibbsChain | None], sweeps: int) -> str:
@@ -444,10 +504,11 @@ def fit_house(
     options: object | None = None,
     sweeps: int | str = 5000,
     seed: int = 0,
-    init: str = "random",
+    init: Init = "random",
     progress: bool | None = None,
     chains: int = 1,
     threads: int | str | None = AUTO,
+    marginal_samples: int = 0,
 ) -> SpCoResult:
     """Fit SpCoMapping to a house.
 
@@ -460,13 +521,16 @@ def fit_house(
             the diagnostics are logged at INFO level -- call :func:`fit_house_converged` to get
             them.
         init: ``"random"`` labels, ``"gaussian"`` (k-means Gaussians over the observed cells,
-            eqs. 21-22) or ``"spcoa"`` (the paper's pre-learning: Gaussians of a SpCoA fit).
+            eqs. 21-22), ``"spcoa"`` (the paper's pre-learning: Gaussians of a SpCoA fit), or a
+            previous fit's :class:`SpCoResult` on the same map (a warm start, any method from
+            any method: e.g. a CAVI result starting Gibbs).
         chains: run that many chains (seeds ``seed``, ``seed + 1``, ...) and keep the one whose
             point estimate has the highest objective ("best of K chains", the remedy for the DP
             variant's instability measured in :mod:`spcopyro.experiments.robustness`).
         threads: torch intra-op threads during the fit (:mod:`spcopyro.threads`): ``"auto"`` (one
             thread unless the map is large), 0 or None (torch's own setting), or a count. The
             previous setting is restored afterwards; labels do not depend on it.
+        marginal_samples: Gibbs only: see :func:`fit_house_chains`.
     """
     if not isinstance(chains, int) or chains < 1:
         raise ValueError(f"chains must be a positive integer, got {chains!r}")
@@ -482,6 +546,7 @@ def fit_house(
     results = fit_house_chains(
         house, settings, method=method, options=options, sweeps=sweeps,
         seeds=[seed + k for k in range(chains)], init=init, progress=progress, threads=threads,
+        marginal_samples=marginal_samples,
     )  # fmt: skip
     kept = best_chain(results)
     if chains > 1:
@@ -502,7 +567,7 @@ def fit_house_converged(
     max_sweeps: int = DEFAULT_MAX_SWEEPS,
     threshold: float = DEFAULT_THRESHOLD,
     seed: int = 0,
-    init: str = "random",
+    init: Init = "random",
     progress: bool | None = None,
     source: str | None = None,
     threads: int | str | None = AUTO,
@@ -531,7 +596,7 @@ def fit_house_converged(
             progress=progress,
         )  # fmt: skip
     record = {
-        "sweeps": "auto", "chains": chains, "seed": seed, "init": init,
+        "sweeps": "auto", "chains": chains, "seed": seed, "init": init_name(init),
         **{k: v for k, v in vars(options).items()}, "backend_used": run.backend,
     }  # fmt: skip
     output = output_from_run(run, record)

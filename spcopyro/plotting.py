@@ -37,6 +37,7 @@ from spcopyro.maps import (
     render_labels,
 )
 from spcopyro.results import SMALL_REGION_FRACTION, SpCoResult, WhereAnswer
+from spcopyro.uncertainty import cell_entropy, free_cells_image, where_probability
 
 MAX_WORD_COLOURS = 12  # words beyond the most frequent ones are drawn as "other"
 ANSWER_RGB = (214, 0, 0)  # the answer's region in plot_where
@@ -258,6 +259,62 @@ def plot_where(result: SpCoResult, answer: WhereAnswer, path: str | os.PathLike[
         ax.text(0.0, -0.1, text, transform=ax.transAxes, fontsize=7, color="#b00000",
                 va="top", ha="left")  # fmt: skip
     return _save(fig, path)
+
+
+def _plot_cell_values(
+    result: SpCoResult,
+    values: np.ndarray,
+    path: str | os.PathLike[str],
+    *,
+    title: str,
+    label: str,
+    vmax: float,
+    cmap: str,
+) -> Path:
+    """``[N]`` per-free-cell ``values`` as a colour map over the grid (walls black, unknown
+    grey), with a colour bar."""
+    grid = result.grid
+    fig = Figure(figsize=(9, 8))
+    ax = fig.subplots()
+    rgb = render_labels(np.full(grid.shape, -1), grid, np.zeros((1, 3), dtype=np.uint8))
+    rows, cols = _show_image(ax, grid, rgb)
+    image = free_cells_image(result, values)[rows, cols]  # [h, w], NaN off free space
+    shown = ax.imshow(image, extent=_extent(grid, rows, cols), origin="upper", cmap=cmap,
+                      vmin=0.0, vmax=vmax, interpolation="nearest")  # fmt: skip
+    fig.colorbar(shown, ax=ax, label=label, shrink=0.8)
+    ax.set_title(title)
+    return _save(fig, path)
+
+
+def plot_uncertainty(result: SpCoResult, path: str | os.PathLike[str]) -> Path | None:
+    """The uncertainty map: each free cell's entropy of p(C_i) in nats
+    (:func:`~spcopyro.uncertainty.cell_entropy`); None (nothing drawn) for a result without
+    marginals."""
+    entropy = cell_entropy(result)
+    if entropy is None:
+        return None
+    source = f"q(C) of {result.method}" if result.method != "gibbs" else "Gibbs label frequencies"
+    title = (
+        f"{result.name or 'uncertainty'}: entropy of p(C_i), {source}\nmean "
+        f"{entropy.mean():.3f} nats (at most log L = {np.log(len(result.pi)):.2f})"
+    )
+    return _plot_cell_values(result, entropy, path, title=title, label="entropy (nats)",
+                             vmax=max(float(entropy.max()), 1e-6), cmap="YlOrRd")  # fmt: skip
+
+
+def plot_where_probability(
+    result: SpCoResult, word: str, path: str | os.PathLike[str], prior: str = "area"
+) -> Path:
+    """The answer to "where is WORD?" as a probability per cell: p(cell in the word's place)
+    (:func:`~spcopyro.uncertainty.where_probability`)."""
+    probability = where_probability(result, word, prior)  # [N]
+    kind = "marginals" if result.marginals is not None else "point estimate"
+    title = (
+        f"where is '{word.lower()}'? p(cell in its place), {kind}, {prior} prior\n"
+        f"{int((probability > 0.5).sum())} cells above 0.5"
+    )
+    return _plot_cell_values(result, probability, path, title=title, label="probability",
+                             vmax=1.0, cmap="Blues")  # fmt: skip
 
 
 def plot_trace(result: SpCoResult, path: str | os.PathLike[str]) -> Path:

@@ -9,10 +9,12 @@ from __future__ import annotations
 from spcopyro.gibbs.method import GibbsInference
 from spcopyro.inference import InferenceMethod
 from spcopyro.variational.method import CAVIInference
+from spcopyro.variational.vi_gibbs import VIGibbsInference
 
 INFERENCE_METHODS: dict[str, InferenceMethod] = {
     "gibbs": GibbsInference(),
     "cavi": CAVIInference(),
+    "vi-gibbs": VIGibbsInference(),
 }
 DEFAULT_METHOD = "gibbs"
 

@@ -1,0 +1,154 @@
+"""Per-cell uncertainty and "where" probabilities for every method, warm starts both ways
+(a Gibbs fit starting CAVI, a CAVI fit starting Gibbs) and the VI-then-Gibbs method."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from spcopyro.cli import main
+from spcopyro.config import preset
+from spcopyro.fit import fit_house, prepare_model_data
+from spcopyro.metrics import adjusted_rand_index
+from spcopyro.registry import get_method
+from spcopyro.synthetic import HouseSpec, make_house
+from spcopyro.uncertainty import (
+    cell_entropy,
+    cell_probabilities,
+    free_cells_image,
+    label_frequencies,
+    where_probability,
+)
+from spcopyro.variational.options import VariationalOptions
+from spcopyro.variational.vi_gibbs import VIGibbsOptions
+
+SETTINGS = preset("original-code", gamma=3.0, num_concepts=8)
+
+
+@pytest.fixture(scope="module")
+def house():
+    return make_house(seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3, num_trials=3))
+
+
+@pytest.fixture(scope="module")
+def gibbs_fit(house):
+    return fit_house(house, SETTINGS, sweeps=60, progress=False, marginal_samples=10)
+
+
+def test_label_frequencies_count_each_cells_labels():
+    samples = np.array([[0, 1, 2], [0, 1, 1], [0, 2, 1], [0, 1, 1]])  # [S=4, N=3]
+    frequencies = label_frequencies(samples, 3)
+    np.testing.assert_allclose(
+        frequencies, [[1, 0, 0], [0, 0.75, 0.25], [0, 0.75, 0.25]], rtol=0, atol=1e-7
+    )
+    with pytest.raises(ValueError, match=r"\[S >= 1, N\]"):
+        label_frequencies(np.zeros((0, 3), dtype=int), 3)
+
+
+def test_gibbs_marginals_are_the_second_half_label_frequencies(gibbs_fit, house):
+    marginals = gibbs_fit.marginals
+    assert marginals.shape == (house.grid.num_free, 8)
+    np.testing.assert_allclose(marginals.sum(1), 1.0, rtol=1e-6)
+    # 60 sweeps, thin = 60 // 20 = 3: samples at sweeps 2, 5, ..., 59; the second half (>= 30)
+    # holds 10 of them, so every frequency is a multiple of 1/10.
+    assert gibbs_fit.inference["marginal_samples"] == 10
+    np.testing.assert_allclose(marginals * 10, np.round(marginals * 10), atol=1e-5)
+    # The MAP-visited labels come from the same chain: mostly the cells' most frequent labels.
+    assert (marginals.argmax(1) == gibbs_fit.labels).mean() > 0.8
+
+
+def test_entropy_and_where_probability_follow_their_formulas(gibbs_fit):
+    p = gibbs_fit.marginals.astype(np.float64)
+    entropy = cell_entropy(gibbs_fit)
+    expected = -np.where(p > 0, p * np.log(np.where(p > 0, p, 1)), 0).sum(1)
+    np.testing.assert_allclose(entropy, expected, rtol=1e-6)
+    assert (entropy >= 0).all() and (entropy <= np.log(8) + 1e-9).all()
+    word = gibbs_fit.vocabulary[0]
+    probability = where_probability(gibbs_fit, word)
+    np.testing.assert_allclose(probability, p @ gibbs_fit.concept_given_word(word), rtol=1e-6)
+    assert (probability >= 0).all() and (probability <= 1 + 1e-9).all()
+    image = free_cells_image(gibbs_fit, entropy)
+    assert np.isnan(image[~gibbs_fit.grid.free]).all()
+    np.testing.assert_allclose(image[gibbs_fit.grid.free], entropy)
+
+
+def test_a_point_estimate_has_no_uncertainty_and_a_constant_probability_per_concept(house):
+    point = fit_house(house, SETTINGS, sweeps=5, progress=False)
+    assert point.marginals is None and cell_entropy(point) is None
+    word = point.vocabulary[0]
+    np.testing.assert_allclose(
+        where_probability(point, word), point.concept_given_word(word)[point.labels]
+    )
+    assert (cell_probabilities(point).sum(1) == 1).all()
+
+
+def test_gibbs_state_starts_cavi_and_cavi_starts_gibbs(house, gibbs_fit):
+    cavi = fit_house(house, SETTINGS, method="cavi", sweeps=1, init=gibbs_fit,
+                     progress=False)  # fmt: skip
+    assert cavi.inference["init"] == "result of gibbs"
+    # One CAVI iteration from a one-hot start at the Gibbs labels stays close to them; a random
+    # start does not.
+    random_start = fit_house(house, SETTINGS, method="cavi", sweeps=1, progress=False)
+    agree = adjusted_rand_index(cavi.label_image(), gibbs_fit.label_image())
+    assert agree > 0.9 > adjusted_rand_index(random_start.label_image(), gibbs_fit.label_image())
+
+    gibbs = fit_house(house, SETTINGS, sweeps=1, init=cavi, progress=False)
+    assert gibbs.inference["init"] == "result of cavi"
+    assert adjusted_rand_index(gibbs.label_image(), cavi.label_image()) > 0.8
+
+
+def test_a_warm_start_from_another_map_or_more_concepts_is_refused(house, gibbs_fit):
+    other = make_house(seed=2, spec=HouseSpec(height=40, width=60, num_rooms=3, num_trials=2))
+    with pytest.raises(ValueError, match="map"):
+        fit_house(other, SETTINGS, method="cavi", sweeps=1, init=gibbs_fit, progress=False)
+    fewer = preset("original-code", gamma=3.0, num_concepts=2)
+    assert gibbs_fit.labels.max() >= 2
+    with pytest.raises(ValueError, match="num_concepts = 2"):
+        fit_house(house, fewer, method="cavi", sweeps=1, init=gibbs_fit, progress=False)
+
+
+def test_vi_then_gibbs_starts_the_sampler_where_cavi_ended(house):
+    counts, data = prepare_model_data(house, SETTINGS)
+    options = VIGibbsOptions(vi_iterations=15, variational=VariationalOptions())
+    output = get_method("vi-gibbs").run(
+        data, SETTINGS.model, iterations=10, generator=torch.Generator().manual_seed(0),
+        options=options, progress=False,
+    )  # fmt: skip
+    assert output.trace.objective_name == "log joint" and len(output.trace.objective) == 10
+    assert output.trace.seconds[0] > output.options["vi_seconds"] > 0
+    assert np.isfinite(output.options["vi_elbo"])
+    with pytest.raises(ValueError, match="vi_iterations"):
+        VIGibbsOptions(vi_iterations=0)
+    with pytest.raises(TypeError, match="VIGibbsOptions"):
+        get_method("vi-gibbs").run(
+            data, SETTINGS.model, iterations=1, generator=torch.Generator(),
+            options=VariationalOptions(),
+        )  # fmt: skip
+
+
+def test_fit_writes_the_uncertainty_map_and_where_its_probability_map(tmp_path, capsys):
+    common = ["--preset", "original-code", "--gamma", "3", "--concepts", "8"]
+    gibbs, cavi = tmp_path / "gibbs", tmp_path / "cavi"
+    assert main(["fit", "--out", str(gibbs), "--sweeps", "20", *common]) == 0
+    assert (gibbs / "uncertainty.png").is_file()
+    entropy = np.load(gibbs / "uncertainty.npy")
+    assert np.isfinite(entropy).sum() == np.load(gibbs / "labels.npy").__ge__(0).sum()
+    assert main(["fit", "--out", str(cavi), "--method", "cavi", "--sweeps", "5",
+                 "--init-from", str(gibbs), *common]) == 0  # fmt: skip
+    printed = capsys.readouterr().out
+    assert "starting from     the gibbs fit" in printed and "5 iterations" in printed
+    assert json.loads((cavi / "config.json").read_text())["inference"]["init"] == "result of gibbs"
+    assert (cavi / "uncertainty.png").is_file()
+
+    none = tmp_path / "none"
+    assert main(["fit", "--out", str(none), "--sweeps", "4", "--marginal-samples", "0",
+                 *common]) == 0  # fmt: skip
+    assert not (none / "uncertainty.png").exists()
+
+    word = json.loads((cavi / "concepts.json").read_text())[0]["top_words"][0][0]
+    assert main(["where", str(cavi), word, "--out", str(tmp_path / "w.png")]) == 0
+    assert (tmp_path / "w_probability.png").is_file()
+    assert "probability of being the place exceeds 0.5" in capsys.readouterr().out
