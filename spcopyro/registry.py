@@ -8,11 +8,13 @@ from __future__ import annotations
 
 from spcopyro.gibbs.method import GibbsInference
 from spcopyro.inference import InferenceMethod
+from spcopyro.variational.lbp_method import LBPInference
 from spcopyro.variational.method import CAVIInference
 
 INFERENCE_METHODS: dict[str, InferenceMethod] = {
     "gibbs": GibbsInference(),
     "cavi": CAVIInference(),
+    "lbp": LBPInference(),
 }
 DEFAULT_METHOD = "gibbs"
 
