@@ -148,8 +148,9 @@ def test_integrated_posterior_is_label_symmetric_and_its_coassignment_is_consist
 
 @pytest.mark.parametrize("overrides", VARIANTS + [dict(num_concepts=2, gamma=0.4)])
 def test_cavi_elbo_is_below_the_exact_log_evidence(overrides):
-    """CAVI's final ELBO (globals free, started from random labels) is below log sum_C int p*;
-    measured gaps on these maps: 0.1 to 2.5 nats."""
+    """CAVI's final ELBO (globals free, started from random labels) is below log sum_C int p*.
+    Measured gaps on these maps: 0.71 to 1.26 nats (of the order of log L!, the relabelled copies
+    of the posterior mode that one q can cover only one of)."""
     cfg = config(**overrides)
     data = tiny_problem(4)
     evidence = float(exact_log_evidence(data, cfg))
@@ -161,18 +162,19 @@ def test_cavi_elbo_is_below_the_exact_log_evidence(overrides):
 
 
 MARGINAL_CASES = [(2, 0.5), (3, 0.5), (2, 1.0), (3, 1.0)]
-MEAN_FIELD_BOUND = {0.5: 0.08, 1.0: 0.3}
+MEAN_FIELD_BOUND = {0.5: 0.08, 1.0: 0.45}
 LBP_BOUND = {0.5: 0.005, 1.0: 0.07}
 
 
 @pytest.mark.parametrize(("L", "gamma"), MARGINAL_CASES)
 def test_mean_field_and_lbp_marginals_against_exact(L, gamma):
     """3x3 free cells, globals fixed: CAVI (update_labels iterated) and LBP against the exact
-    marginals of the same field. Largest absolute errors measured over 10 random problems
-    (README notes): gamma 0.5: mean field 0.067 (L=2) / 0.046 (L=3), LBP 0.003 / 0.002;
-    gamma 1.0: mean field 0.23, LBP 0.05 / 0.04. The bounds here sit just above those; LBP's
-    mean error is at least 5x smaller than mean field's, and mean field is over-confident (its
-    cells' entropy is below the exact one on average)."""
+    marginals of the same field, on 3 maps. Largest absolute errors over the 10 maps of
+    spcopyro.variational.tiny_maps.marginal_error_study (README notes): gamma 0.5: mean field
+    0.059 (L=2) / 0.038 (L=3), LBP 0.003 / 0.002; gamma 1.0: mean field 0.38 / 0.32, LBP
+    0.045 / 0.050. The bounds sit above those; LBP's mean error must be at least 5x smaller than
+    mean field's (measured on average: 11x to 45x), and mean field is over-confident (its cells'
+    entropy is below the exact one on average)."""
     cfg = config(num_concepts=L, gamma=gamma)
     for seed in range(3):
         data = tiny_problem(seed)
