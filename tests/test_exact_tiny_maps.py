@@ -13,7 +13,7 @@ from torch.distributions import Dirichlet
 
 from spcopyro.gibbs.state import GibbsState, make_sweep_plan
 from spcopyro.gibbs.sweep import sample_labels
-from spcopyro.model import DTYPE, spcomapping_model
+from spcopyro.model import DTYPE, Modality, spcomapping_model
 from spcopyro.random_draws import sample_log_dirichlet
 from spcopyro.variational.cavi import update_labels
 from spcopyro.variational.exact import (
@@ -72,6 +72,22 @@ def pyro_log_density(labels, log_pi, log_emissions, data, cfg) -> torch.Tensor:
 
 
 VARIANTS = [dict(), dict(use_words=False), dict(prior="dirichlet", num_concepts=2, gamma=1.7)]
+MODEL_VARIANTS = VARIANTS + [dict(objects=0.7)]
+"""Config overrides; ``objects``: a third modality (Poisson counts) with that concentration."""
+
+
+def two_by_two(seed: int, overrides: dict):
+    """A 2x2 map with two observed cells, and its config (``overrides``, see MODEL_VARIANTS)."""
+    overrides = dict(overrides)
+    objects = overrides.pop("objects", None)
+    data = tiny_problem(seed, rows=("..", ".."), num_observed=2)
+    if objects is None:
+        return data, config(**overrides)
+    counts = torch.as_tensor(np.random.default_rng(seed).poisson(2.0, (2, 3)), dtype=DTYPE)
+    data = data._replace(
+        modalities=(*data.modalities, Modality("objects", "objects_probs", counts))
+    )
+    return data, config(concentrations={"objects": objects}, **overrides)
 
 
 def test_all_labellings_lists_every_labelling_once():
@@ -84,12 +100,11 @@ def test_all_labellings_lists_every_labelling_once():
     assert 3**13 <= MAX_LABELLINGS
 
 
-@pytest.mark.parametrize("overrides", VARIANTS)
+@pytest.mark.parametrize("overrides", MODEL_VARIANTS)
 def test_labelling_log_joint_is_the_pyro_models_log_density(overrides):
     """(a): at every labelling of a 2x2 map the enumerator's log p* equals the model's
     log_prob_sum, so exact_marginals cannot drift from model.py."""
-    cfg = config(**overrides)
-    data = tiny_problem(1, rows=["..", ".."], num_observed=2)
+    data, cfg = two_by_two(1, overrides)
     generator = torch.Generator().manual_seed(0)
     log_pi, log_emissions = random_globals(data, cfg, generator)
     labellings = all_labellings(data.num_free, cfg.num_concepts)
@@ -107,13 +122,12 @@ def test_labelling_log_joint_is_the_pyro_models_log_density(overrides):
     torch.testing.assert_close(marginals, expected, rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize("overrides", VARIANTS)
+@pytest.mark.parametrize("overrides", MODEL_VARIANTS)
 def test_labelling_log_evidence_integrates_the_pyro_model(overrides):
     """(b): for every labelling C, log p*(pi, phi, C, x) - log p(pi, phi | C, x) is the same at
     any pi, phi and equals the closed-form integral (the model's density from Pyro, the
     conjugate posterior Dirichlets of eqs. 14-17 written out independently here)."""
-    cfg = config(**overrides)
-    data = tiny_problem(2, rows=["..", ".."], num_observed=2)
+    data, cfg = two_by_two(2, overrides)
     labellings = all_labellings(data.num_free, cfg.num_concepts)
     ours = labelling_log_evidence(labellings, data, cfg)  # [S]
     generator = torch.Generator().manual_seed(1)
