@@ -215,8 +215,10 @@ def exact_posterior(data: ModelData, config: SpCoConfig) -> ExactPosterior:
     labellings = all_labellings(data.num_free, L)
     log_weights = labelling_log_evidence(labellings, data, config)  # [S]
     weights = torch.softmax(log_weights, 0)  # [S]
-    same = (labellings[:, :, None] == labellings[:, None, :]).to(DTYPE)  # [S, N, N]
-    coassignment = torch.einsum("s,sij->ij", weights, same)
+    coassignment = torch.zeros(data.num_free, data.num_free, dtype=DTYPE)  # [N, N]
+    for chunk, w in zip(labellings.split(_CHUNK), weights.split(_CHUNK), strict=True):
+        same = (chunk[:, :, None] == chunk[:, None, :]).to(DTYPE)  # [s, N, N]
+        coassignment += torch.einsum("s,sij->ij", w, same)
     return ExactPosterior(
         torch.logsumexp(log_weights, 0), _marginals(labellings, log_weights, L), coassignment
     )
