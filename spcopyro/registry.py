@@ -8,12 +8,14 @@ from __future__ import annotations
 
 from spcopyro.gibbs.method import GibbsInference
 from spcopyro.inference import InferenceMethod
+from spcopyro.variational.lbp_method import LBPInference
 from spcopyro.variational.method import CAVIInference
 from spcopyro.variational.vi_gibbs import VIGibbsInference
 
 INFERENCE_METHODS: dict[str, InferenceMethod] = {
     "gibbs": GibbsInference(),
     "cavi": CAVIInference(),
+    "lbp": LBPInference(),
     "vi-gibbs": VIGibbsInference(),
 }
 DEFAULT_METHOD = "gibbs"
