@@ -1,9 +1,14 @@
-"""Every teaching notebook runs from top to bottom (with its own small settings), in a kernel
-that imports this checkout's ``spcopyro`` (its root first on PYTHONPATH)."""
+"""The teaching notebooks: every one runs from top to bottom (in its small mode, in a kernel that
+imports this checkout's ``spcopyro``) without an error output, and the STORED notebooks -- what a
+reader sees on GitHub without running anything -- carry their outputs (figures included), no error
+and no progress bar, were run top to bottom, and stay small enough to review."""
 
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import nbformat
@@ -12,6 +17,25 @@ from nbclient import NotebookClient
 
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
+EXPECTED = ("01_generative_model", "02_gibbs_sampling", "04_a_real_house")
+"""Notebooks that must exist (issue 11; 03 and 05 follow the variational methods)."""
+SIZE_ENV = "SPCOPYRO_NOTEBOOK_SIZE"
+"""The size switch every notebook reads: ``small`` here, full (the stored outputs) by default."""
+MAX_BYTES = 1_500_000
+"""A stored notebook, outputs included, stays below this size."""
+SMALL_MODE_SECONDS = 120
+"""What a notebook's small mode is meant to take (reported, not asserted: the machine's load
+varies too much for a hard limit)."""
+
+
+def _errors(notebook: nbformat.NotebookNode) -> list[dict]:
+    return [
+        output
+        for cell in notebook.cells
+        if cell.cell_type == "code"
+        for output in cell.get("outputs", [])
+        if output.get("output_type") == "error"
+    ]
 
 
 @pytest.mark.slow
@@ -22,16 +46,68 @@ def test_notebook_executes(path, tmp_path):
     client = NotebookClient(notebook, timeout=600, kernel_name="python3",
                             resources={"metadata": {"path": str(tmp_path)}})  # fmt: skip
     pythonpath = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
-    client.execute(env={**os.environ, "PYTHONPATH": pythonpath})
-    errors = [
-        output
-        for cell in notebook.cells
-        if cell.cell_type == "code"
-        for output in cell.get("outputs", [])
-        if output.get("output_type") == "error"
-    ]
+    start = time.perf_counter()
+    client.execute(env={**os.environ, "PYTHONPATH": pythonpath, SIZE_ENV: "small"})
+    seconds = time.perf_counter() - start
+    errors = _errors(notebook)
     assert not errors, errors
+    if seconds > SMALL_MODE_SECONDS:
+        print(f"{path.name}: small mode took {seconds:.0f} s (meant: < {SMALL_MODE_SECONDS} s)")
 
 
 def test_there_are_notebooks():
-    assert NOTEBOOKS, "notebooks/ holds no .ipynb"
+    names = {p.stem for p in NOTEBOOKS}
+    missing = [name for name in EXPECTED if name not in names]
+    assert not missing, f"notebooks/ lacks {missing}"
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_stored_notebook_is_small(path):
+    size = path.stat().st_size
+    assert size < MAX_BYTES, f"{path.name} is {size / 1e6:.2f} MB (limit {MAX_BYTES / 1e6} MB)"
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_stored_notebook_has_outputs_and_no_error(path):
+    notebook = nbformat.read(path, as_version=4)
+    code = [cell for cell in notebook.cells if cell.cell_type == "code"]
+    assert code, f"{path.name} has no code cell"
+    counts = [cell.get("execution_count") for cell in code]
+    assert counts == list(range(1, len(code) + 1)), (
+        f"{path.name} was not stored after one run from top to bottom: execution counts {counts}"
+    )
+    assert not _errors(notebook), f"{path.name} stores an error output"
+    outputs = [output for cell in code for output in cell.get("outputs", [])]
+    figures = [o for o in outputs if "image/png" in o.get("data", {})]
+    assert figures, f"{path.name} stores no figure"
+    assert sum(1 for cell in code if cell.get("outputs")) >= len(code) // 2, (
+        f"{path.name}: most code cells store no output"
+    )
+    for output in outputs:
+        text = output.get("text", "") if output.get("output_type") == "stream" else ""
+        assert "it/s]" not in text and "\r" not in text, f"{path.name} stores a progress bar"
+        assert "Warning" not in text or output.get("name") != "stderr", (
+            f"{path.name} stores a warning: {text[:200]}"
+        )
+    for cell in code:
+        assert "matplotlib.use(" not in cell.source, f"{path.name} forces a matplotlib backend"
+        assert "progress=True" not in cell.source, f"{path.name} asks for progress bars"
+
+
+def test_plotting_leaves_the_matplotlib_backend_alone():
+    """Library figures render inline in a notebook: importing spcopyro.plotting must not choose a
+    backend (it builds Figure objects, never pyplot)."""
+    script = (
+        "import matplotlib\n"
+        "before = matplotlib.rcParams._get_backend_or_none()\n"
+        "import spcopyro.plotting, spcopyro.experiments.figures\n"
+        "after = matplotlib.rcParams._get_backend_or_none()\n"
+        "import sys\n"
+        "assert before == after, (before, after)\n"
+        "assert 'matplotlib.pyplot' not in sys.modules, 'pyplot imported'\n"
+    )
+    env = {key: value for key, value in os.environ.items() if key != "MPLBACKEND"}
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH")) if p)
+    completed = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True,
+                               text=True, timeout=120)  # fmt: skip
+    assert completed.returncode == 0, completed.stderr[-2000:]
