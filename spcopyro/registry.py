@@ -7,12 +7,14 @@ and one entry here.
 from __future__ import annotations
 
 from spcopyro.gibbs.method import GibbsInference
+from spcopyro.guides.method import SVIInference
 from spcopyro.inference import InferenceMethod
 from spcopyro.variational.method import CAVIInference
 
 INFERENCE_METHODS: dict[str, InferenceMethod] = {
     "gibbs": GibbsInference(),
     "cavi": CAVIInference(),
+    "svi": SVIInference(),
 }
 DEFAULT_METHOD = "gibbs"
 
