@@ -7,8 +7,9 @@ r"""A mean-field Pyro guide for :func:`spcopyro.model.spcomapping_model`.
         \prod_i \mathrm{Cat}(C_i \mid \mathrm{softmax}(\eta_i)),
 
 the family of :mod:`spcopyro.variational` (CAVI) written as a Pyro program: the concentrations
-:math:`a_\pi` ``[L]`` and :math:`a_{ml}` ``[L, K_m]`` are ``pyro.param`` s with a positive
-constraint, the labels' logits :math:`\eta` ``[N, L]`` an unconstrained ``pyro.param``. Its
+:math:`a_\pi` ``[L]`` and :math:`a_{ml}` ``[L, K_m]`` are ``pyro.param`` s constrained positive
+(by default above their prior's concentration, see ``bound``), the labels' logits :math:`\eta`
+``[N, L]`` an unconstrained ``pyro.param``. Its
 sample sites carry the model's names (``pi``, :func:`~spcopyro.model.parameter_site` of every
 modality, ``labels``) in the model's plates, so ``pyro.infer.Predictive(model, guide=guide)``
 draws the globals and the labels from q, and ``pyro.infer.SVI`` fits it with the loss of
