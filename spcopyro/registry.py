@@ -7,6 +7,7 @@ and one entry here.
 from __future__ import annotations
 
 from spcopyro.gibbs.method import GibbsInference
+from spcopyro.guides.method import SVIInference
 from spcopyro.inference import InferenceMethod
 from spcopyro.variational.lbp_method import LBPInference
 from spcopyro.variational.method import CAVIInference
@@ -16,6 +17,7 @@ INFERENCE_METHODS: dict[str, InferenceMethod] = {
     "gibbs": GibbsInference(),
     "cavi": CAVIInference(),
     "lbp": LBPInference(),
+    "svi": SVIInference(),
     "vi-gibbs": VIGibbsInference(),
 }
 DEFAULT_METHOD = "gibbs"

@@ -1,0 +1,220 @@
+"""The mean-field Pyro guide and its SVI loss (spcopyro.guides), and the ``svi`` method.
+
+The loss's estimate is checked against the closed-form ELBO of spcopyro.variational.elbo at the
+same variational parameters (value and gradient, within Monte Carlo error); the guide against
+``pyro.infer.SVI`` and ``pyro.infer.Predictive`` used the plain way; the method against an easy
+synthetic house (ARI to the truth) and against CAVI's ELBO on the same data.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pyro
+import pyro.optim
+import pytest
+import torch
+
+from spcopyro.config import preset
+from spcopyro.fit import fit_house, prepare_model_data
+from spcopyro.guides.loss import MeanFieldELBO
+from spcopyro.guides.mean_field import MeanFieldGuide
+from spcopyro.guides.method import SVIInference, SVIOptions, fit_svi
+from spcopyro.metrics import adjusted_rand_index
+from spcopyro.model import DTYPE, SITE_LABELS, SITE_PI, spcomapping_model
+from spcopyro.registry import get_method
+from spcopyro.synthetic import HouseSpec, make_house
+from spcopyro.variational.elbo import elbo
+from spcopyro.variational.factors import GlobalFactors
+from spcopyro.variational.options import VariationalOptions
+from spcopyro.variational.run import initial_q, run_variational
+
+
+@pytest.fixture(scope="module")
+def small():
+    """A two-room house of 340 free cells, 5 concepts: the unit tests' map."""
+    house = make_house(
+        seed=1, spec=HouseSpec(height=24, width=30, num_rooms=2, num_trials=2, min_room_size=8)
+    )
+    settings = preset("original-code", gamma=3.0, num_concepts=5)
+    _, data = prepare_model_data(house, settings)
+    return data, settings.model
+
+
+@pytest.fixture
+def store():
+    """A fresh param store for the test, the caller's restored afterwards."""
+    with pyro.get_param_store().scope():
+        yield pyro.get_param_store()
+
+
+def soft_guide(data, config, seed: int = 0, bound: str = "prior") -> MeanFieldGuide:
+    """A guide away from any optimum: soft random q(C), globals CAVI-optimal for it."""
+    g = torch.Generator().manual_seed(seed)
+    logits = 2 * torch.randn(data.num_free, config.num_concepts, generator=g, dtype=DTYPE)
+    return MeanFieldGuide(torch.softmax(logits, -1), data, config, bound=bound)
+
+
+def analytic_elbo(guide: MeanFieldGuide, data, config) -> torch.Tensor:
+    """spcopyro.variational.elbo.elbo at the guide's current params (differentiable)."""
+    factors = GlobalFactors(
+        guide.concentration(SITE_PI),
+        tuple(guide.concentration(m.parameter) for m in data.modalities),
+    )
+    return elbo(torch.softmax(guide.logits(), -1), factors, data, config)
+
+
+def test_the_estimate_averages_to_the_analytic_elbo(small, store):
+    data, config = small
+    guide = soft_guide(data, config)
+    loss = MeanFieldELBO()
+    draws = np.array([-loss.loss(spcomapping_model, guide, data, config) for _ in range(150)])
+    exact = float(analytic_elbo(guide, data, config).detach())
+    error = draws.std(ddof=1) / np.sqrt(len(draws))
+    assert 0 < error < 1.0  # the labels are exact: only the globals' draw is noisy
+    assert abs(draws.mean() - exact) < 4 * error, (draws.mean(), exact, error)
+
+
+@pytest.mark.parametrize("bound", ["prior", "zero"])
+def test_the_gradient_averages_to_the_analytic_gradient(small, store, bound):
+    data, config = small
+    guide = soft_guide(data, config, seed=1, bound=bound)
+    analytic_elbo(guide, data, config)  # creates the params
+    leaves = [store.get_param(name).unconstrained() for name in store.keys()]
+    exact = torch.autograd.grad(analytic_elbo(guide, data, config), leaves)
+    loss = MeanFieldELBO()
+
+    def estimate() -> torch.Tensor:
+        return -loss.differentiable_loss(spcomapping_model, guide, data, config)
+
+    grads = [torch.autograd.grad(estimate(), leaves) for _ in range(100)]
+    for k, (name, target) in enumerate(zip(store.keys(), exact, strict=True)):
+        draws = torch.stack([g[k] for g in grads])  # [draws, *shape]
+        error = draws.std(0) / len(grads) ** 0.5
+        scale = target.abs().max()
+        gap = (draws.mean(0) - target).abs()
+        assert (gap <= 5 * error + 1e-6 * scale).all(), (name, float((gap - 5 * error).max()))
+
+
+def test_svi_with_the_plain_api_raises_the_elbo(small, store):
+    data, config = small
+    guide = soft_guide(data, config)
+    before = float(analytic_elbo(guide, data, config).detach())
+    svi = pyro.infer.SVI(spcomapping_model, guide, pyro.optim.Adam({"lr": 0.05}), MeanFieldELBO())
+    losses = [svi.step(data, config) for _ in range(60)]
+    assert np.mean(losses[-10:]) < np.mean(losses[:10]) - 50
+    assert float(analytic_elbo(guide, data, config).detach()) > before + 50
+    assert np.isfinite(svi.evaluate_loss(data, config))
+    L = config.num_concepts
+    shapes = {name: tuple(store[name].shape) for name in store.keys()}
+    assert shapes == {
+        "spcomapping_guide.pi_concentration": (L,),
+        **{
+            f"spcomapping_guide.{m.parameter}_concentration": (L, m.counts.shape[-1])
+            for m in data.modalities
+        },  # fmt: skip
+        "spcomapping_guide.labels_logits": (data.num_free, L),
+    }
+    clipped = pyro.infer.SVI(
+        spcomapping_model, guide, pyro.optim.ClippedAdam({"lr": 0.05}), MeanFieldELBO(2)
+    )
+    assert np.isfinite(clipped.step(data, config))
+
+
+def test_predictive_draws_every_site_from_the_guide(small, store):
+    data, config = small
+    N, L = data.num_free, config.num_concepts
+    labels = torch.arange(N) % L
+    q = torch.nn.functional.one_hot(labels, L).to(DTYPE)
+    guide = MeanFieldGuide(q, data, config, label_smoothing=1e-12)
+    draws = pyro.infer.Predictive(spcomapping_model, guide=guide, num_samples=4)(data, config)
+    assert draws[SITE_PI].reshape(4, L).shape == (4, L)  # Pyro pads pi to [S, 1, L]
+    assert torch.allclose(draws[SITE_PI].sum(-1), torch.ones((), dtype=DTYPE))
+    for m in data.modalities:
+        assert draws[m.parameter].shape == (4, L, m.counts.shape[-1])
+        assert draws[m.name].shape == (4, *m.counts.shape)
+    assert draws[SITE_LABELS].shape == (4, N)
+    assert (draws[SITE_LABELS] == labels).all()  # drawn from the guide's (near one-hot) q(C)
+    mean_pi = guide.factors().pi / guide.factors().pi.sum()
+    assert torch.allclose(draws[SITE_PI].reshape(4, L), mean_pi, atol=0.01)
+
+
+def test_the_method_is_registered_reproducible_and_leaves_the_param_store(small, store):
+    data, config = small
+    pyro.param("someone_elses", torch.ones(2))
+    method = get_method("svi")
+    assert isinstance(method, SVIInference) and method.objective_name == "ELBO"
+
+    def run(seed: int):
+        g = torch.Generator().manual_seed(seed)
+        return method.run(data, config, iterations=5, generator=g, progress=False)
+
+    first, again, other = run(0), run(0), run(1)
+    assert list(store.keys()) == ["someone_elses"]
+    np.testing.assert_array_equal(first.marginals, again.marginals)
+    np.testing.assert_array_equal(first.trace.objective, again.trace.objective)
+    assert not np.array_equal(first.trace.objective, other.trace.objective)
+    assert first.marginals.shape == (data.num_free, config.num_concepts)
+    assert first.trace.objective.shape == (5,) and np.isfinite(first.trace.objective).all()
+    assert first.options["iterations"] == 5 and first.options["learning_rate"] == 0.1
+    np.testing.assert_allclose(first.pi.sum(), 1.0)
+    for m, table in zip(data.modalities, first.emissions, strict=True):
+        assert table.shape == (config.num_concepts, m.counts.shape[-1])
+    start = torch.arange(data.num_free) % 2
+    warm = method.run(data, config, iterations=1, generator=torch.Generator(),
+                      init_labels=start, options=SVIOptions(label_smoothing=0.01))  # fmt: skip
+    assert (warm.labels == start.numpy()).mean() > 0.9
+
+
+def test_bad_input_is_a_clear_error(small):
+    data, config = small
+    with pytest.raises(ValueError, match="learning_rate"):
+        SVIOptions(learning_rate=0)
+    with pytest.raises(ValueError, match="num_particles"):
+        SVIOptions(num_particles=0)
+    with pytest.raises(ValueError, match="bound"):
+        SVIOptions(bound="one")
+    with pytest.raises(TypeError, match="SVIOptions"):
+        SVIInference().run(data, config, iterations=1, generator=torch.Generator(),
+                           options=VariationalOptions())  # fmt: skip
+    with pytest.raises(ValueError, match=r"q must be \[340, 5\]"):
+        MeanFieldGuide(torch.ones(3, 5, dtype=DTYPE) / 5, data, config)
+    guide = soft_guide(data, config)
+    with pytest.raises(ValueError, match="L=6"):
+        guide(data, config.replace(num_concepts=6))
+
+
+@pytest.mark.slow
+def test_svi_finds_the_rooms_and_ends_near_cavi():
+    """On an easy house (the one tests/test_inference_interface.py fits), from the same random
+    start as annealed CAVI, SVI with its default options (300 steps) finds the rooms and ends
+    within 3 % of CAVI's ELBO (measured: -6233 vs -6131, 1.7 %; ARI 0.93 vs 0.95; over start
+    seeds 0-3 the two land in different local optima, SVI from 4 % above to 9 % below). Started
+    at CAVI's optimum, 100 SVI steps stay within 1 % of it (measured 0.45 %: the noise floor of
+    a constant step size) and keep its labels."""
+    house = make_house(seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3, num_trials=3))
+    settings = preset("original-code", gamma=3.0, num_concepts=8)
+    _, data = prepare_model_data(house, settings)
+    config = settings.model
+    q = initial_q(data, config, torch.Generator().manual_seed(0))
+    svi = fit_svi(data, config, 300, q=q.clone(), generator=torch.Generator().manual_seed(0),
+                  progress=False)  # fmt: skip
+    cavi = run_variational(data, config, 60, options=VariationalOptions(anneal_iterations=30),
+                           q=q.clone(), progress=False)  # fmt: skip
+    svi_elbo = float(elbo(svi.q, svi.factors, data, config))
+    cavi_elbo = float(elbo(cavi.q, cavi.factors, data, config))
+    assert abs(svi_elbo - cavi_elbo) < 0.03 * abs(cavi_elbo), (svi_elbo, cavi_elbo)
+    image = np.full(house.grid.shape, -1)
+    image[house.grid.free] = svi.labels.numpy()
+    assert adjusted_rand_index(image, house.truth) > 0.85
+    # the traced estimate tracks the exact ELBO at the end (noise of ~10 nats)
+    assert abs(svi.objective[-20:].mean() - svi_elbo) < 0.005 * abs(svi_elbo)
+
+    warm = SVIOptions(label_smoothing=0.001, anneal_iterations=0)
+    kept = fit_svi(data, config, 100, q=cavi.q.clone(), generator=torch.Generator(),
+                   options=warm, progress=False)  # fmt: skip
+    kept_elbo = float(elbo(kept.q, kept.factors, data, config))
+    assert abs(kept_elbo - cavi_elbo) < 0.01 * abs(cavi_elbo), (kept_elbo, cavi_elbo)
+    assert (kept.labels == cavi.labels).double().mean() > 0.99
+
+    result = fit_house(house, settings, method="svi", sweeps=3, progress=False)
+    assert result.method == "svi" and result.trace.objective_name == "ELBO"
