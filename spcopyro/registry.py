@@ -9,10 +9,12 @@ from __future__ import annotations
 from spcopyro.gibbs.method import GibbsInference
 from spcopyro.inference import InferenceMethod
 from spcopyro.variational.method import CAVIInference
+from spcopyro.variational.stochastic import StochasticVIInference
 
 INFERENCE_METHODS: dict[str, InferenceMethod] = {
     "gibbs": GibbsInference(),
     "cavi": CAVIInference(),
+    "stochastic-vi": StochasticVIInference(),
 }
 DEFAULT_METHOD = "gibbs"
 
