@@ -373,7 +373,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[1] if __doc__ else None)
     p.add_argument("--quick", action="store_true", help="a ~1e4-cell smoke test")
     p.add_argument("--side", type=int, default=1050, help="large map side (1050: ~1e6 cells)")
-    p.add_argument("--passes", type=int, default=30, help="passes on the large map")
+    p.add_argument("--passes", type=int, default=60, help="passes on the large map")
     p.add_argument("--anneal", type=int, default=10, help="annealing passes (all runs)")
     p.add_argument("--block-size", type=int, default=64)
     p.add_argument("--blocks-per-step", type=int, default=4)

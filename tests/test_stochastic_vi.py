@@ -259,6 +259,30 @@ def test_a_high_ari_on_an_easy_house_through_the_registry():
     np.testing.assert_allclose(output.pi.sum(), 1.0)
 
 
+def test_fit_house_and_the_cli_run_stochastic_vi(tmp_path):
+    import json
+
+    from spcopyro.cli import main
+    from spcopyro.fit import fit_house
+
+    house = make_house(seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3))
+    settings = preset("original-code", gamma=3.0, num_concepts=8)
+    options = StochasticOptions(block_size=12, anneal_passes=3)
+    result = fit_house(house, settings, method="stochastic-vi", options=options, sweeps=8,
+                       progress=False)  # fmt: skip
+    assert result.method == "stochastic-vi" and result.marginals.shape == (house.grid.num_free, 8)
+    assert result.trace.objective_name == "ELBO" and len(result.trace.objective) == 8
+    answer = result.where(result.vocabulary[0])
+    assert answer.region.sum() > 0
+    out = tmp_path / "fit"
+    args = ["fit", "--out", str(out), "--method", "stochastic-vi", "--sweeps", "3",
+            "--preset", "original-code", "--gamma", "3", "--concepts", "8"]  # fmt: skip
+    assert main(args) == 0
+    saved = json.loads((out / "config.json").read_text())
+    assert saved["method"] == "stochastic-vi" and saved["inference"]["iterations"] == 3
+    assert saved["inference"]["block_size"] == StochasticOptions().block_size
+
+
 # --------------------------------------------------------------------------------------------
 # Errors
 # --------------------------------------------------------------------------------------------
@@ -322,3 +346,26 @@ def test_warm_start_from_labels_and_tolerance_stop(small):
                          options=StochasticOptions(block_size=16, tolerance=1e-3),
                          progress=False)  # fmt: skip
     assert 2 <= len(run.objective) < 200
+
+
+@pytest.mark.slow
+def test_the_benchmark_runs_quick(tmp_path):
+    """``benchmarks/stochastic_vi.py --quick`` runs and writes its JSON (numbers not asserted)."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    path = os.pathsep.join(p for p in (str(root), os.environ.get("PYTHONPATH")) if p)
+    out = tmp_path / "stochastic_vi.json"
+    done = subprocess.run(
+        [sys.executable, str(root / "benchmarks" / "stochastic_vi.py"), "--quick", "--out",
+         str(out)],
+        capture_output=True, text=True, timeout=600, env={**os.environ, "PYTHONPATH": path},
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    results = json.loads(out.read_text())
+    assert "full-batch CAVI" in done.stdout and "Large map" in done.stdout
+    assert results["large"]["passes"] == 6 and results["large_cavi"]["iterations"] == 2

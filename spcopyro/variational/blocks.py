@@ -44,22 +44,25 @@ def cell_coordinates(neighbours: torch.Tensor | np.ndarray) -> np.ndarray:
     offsets = np.asarray(GRID_OFFSETS[:d], dtype=np.int64)  # [D, 2]
     if n == 0:
         return np.zeros((0, 2), dtype=np.int64)
-    has = table >= 0  # [N, D]
-    source = np.repeat(np.arange(n), d)[has.ravel()]  # [E]
-    target = table[has]  # [E]
-    _, labels = scipy.sparse.csgraph.connected_components(
-        scipy.sparse.csr_matrix((np.ones(source.size), (source, target)), shape=(n, n)),
-        directed=False,
-    )
+    # Each undirected edge once (the columns pointing forward in raster order), int32 indices.
+    forward = [k for k in range(d) if GRID_OFFSETS[k] > (0, 0)]
+    source = np.concatenate([np.flatnonzero(table[:, k] >= 0) for k in forward])  # [E]
+    target = np.concatenate([table[table[:, k] >= 0, k] for k in forward])  # [E]
+    source, target = source.astype(np.int32), target.astype(np.int32)
+
+    def graph(size: int, a: np.ndarray, b: np.ndarray) -> scipy.sparse.csr_matrix:
+        return scipy.sparse.csr_matrix((np.ones(a.size, dtype=np.float32), (a, b)), (size, size))
+
+    _, labels = scipy.sparse.csgraph.connected_components(graph(n, source, target), directed=False)
     roots = np.unique(labels, return_index=True)[1]  # [K] first cell of each component
     # One compiled BFS from an extra node n joined to every component's root.
-    source = np.concatenate([source, np.full(roots.size, n)])
-    target = np.concatenate([target, roots])
-    graph = scipy.sparse.csr_matrix((np.ones(source.size), (source, target)), shape=(n + 1, n + 1))
-    order, predecessors = scipy.sparse.csgraph.breadth_first_order(
-        graph, n, directed=False, return_predecessors=True
+    source = np.concatenate([source, np.full(roots.size, n, dtype=np.int32)])
+    target = np.concatenate([target, roots.astype(np.int32)])
+    _, predecessors = scipy.sparse.csgraph.breadth_first_order(
+        graph(n + 1, source, target), n, directed=False, return_predecessors=True
     )
-    parent = predecessors[:n].copy()  # [N]
+    del source, target
+    parent = predecessors[:n].astype(np.int64)  # [N]
     parent[roots] = roots
     # The edge parent -> child: the column d with table[parent, d] == child.
     child = np.flatnonzero(parent != np.arange(n))  # [N - K]
@@ -73,9 +76,12 @@ def cell_coordinates(neighbours: torch.Tensor | np.ndarray) -> np.ndarray:
         value, jump = value + value[jump], jump[jump]
     coordinate = value
     # Every edge of the table must agree with the coordinates.
-    rows, cols = np.nonzero(has)
-    if not np.array_equal(coordinate[table[rows, cols]] - coordinate[rows], offsets[cols]):
-        raise ValueError("the neighbour table is not a grid's: its offsets contradict each other")
+    for k in range(d):
+        cells = np.flatnonzero(table[:, k] >= 0)
+        if not (coordinate[table[cells, k]] - coordinate[cells] == offsets[k]).all():
+            raise ValueError(
+                "the neighbour table is not a grid's: its offsets contradict each other"
+            )
     # Shift each component to start at 0.
     if roots.size == 1:
         return coordinate - coordinate.min(0)

@@ -54,6 +54,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal, NamedTuple
 
@@ -286,9 +287,9 @@ def local_step(
             if cells.numel() == 0:
                 continue
             neighbours = data.neighbours[cells]  # [n, D]
-            valid = (neighbours >= 0).unsqueeze(-1)  # [n, D, 1]
-            around = q[neighbours.clamp_min(0)].to(DTYPE) * valid  # [n, D, L]
-            logits = log_pi + gamma * around.sum(1)  # [n, L]
+            valid = (neighbours >= 0).unsqueeze(-1).to(q.dtype)  # [n, D, 1]
+            around = (q[neighbours.clamp_min(0)] * valid).sum(1)  # [n, D, L] -> [n, L]
+            logits = log_pi + gamma * around.to(DTYPE)  # [n, L]
             cell_rows = rows[cells]  # [n]
             observed = torch.nonzero(cell_rows >= 0).squeeze(-1)  # [n_obs]
             if observed.numel():
@@ -420,7 +421,7 @@ def run_stochastic(
     options: StochasticOptions | None = None,
     blocks: Blocks | None = None,
     progress: bool | None = None,
-    callback: object | None = None,
+    callback: Callable[[int, StochasticState], None] | None = None,
     description: str = "memoized VI",
 ) -> VariationalRun:
     """``passes`` passes of memoized VI over the spatial blocks (module docstring), from ``q``
@@ -466,7 +467,7 @@ def run_stochastic(
             seconds.append(time.perf_counter() - start)
             gammas.append(gamma)
             if callback is not None:
-                callback(sweep, state)  # type: ignore[operator]
+                callback(sweep, state)
             bar.update()
             bar.set_postfix(elbo=f"{values[-1]:.6g}", concepts=used[-1])
             if _converged(values, gammas, config.gamma, options.tolerance):
