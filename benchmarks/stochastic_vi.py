@@ -61,7 +61,8 @@ MEMORY_NOTE = (
     "the interpreter, torch, and drawing the house (its observations, the per-cell counts). "
     "rss_after_data and rss_after_setup are the same high-water mark read after the model data "
     "and after the tiles and memo were built, so peak_rss - rss_after_data bounds what the "
-    "inference added. tensor_bytes are the run's own tensors."
+    "inference added (it includes the benchmark's own copy of every pass's labels, int8 [N] "
+    "per pass, for the ARI after the run). tensor_bytes are the run's own tensors."
 )
 
 

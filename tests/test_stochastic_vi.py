@@ -369,3 +369,12 @@ def test_the_benchmark_runs_quick(tmp_path):
     results = json.loads(out.read_text())
     assert "full-batch CAVI" in done.stdout and "Large map" in done.stdout
     assert results["large"]["passes"] == 6 and results["large_cavi"]["iterations"] == 2
+
+
+def test_chunked_coefficients_equal_the_dense_ones(small, monkeypatch):
+    from spcopyro.variational.elbo import multinomial_coefficients
+
+    _, data, config = small
+    monkeypatch.setattr(stochastic, "CHUNK", 29)
+    chunked = stochastic.chunked_coefficients(data, config)
+    assert float(chunked) == pytest.approx(float(multinomial_coefficients(data, config)), rel=1e-12)

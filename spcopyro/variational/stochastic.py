@@ -63,13 +63,13 @@ import torch
 from tqdm.auto import tqdm
 
 from spcopyro.config import SpCoConfig
+from spcopyro.distributions import multinomial_counts_log_prob
 from spcopyro.inference import InferenceOutput, Trace
 from spcopyro.initialisation import check_labels, random_labels
 from spcopyro.likelihood import ConceptStatistics
 from spcopyro.model import DTYPE, ModelData
 from spcopyro.progress import progress_enabled
 from spcopyro.variational.blocks import Blocks, grid_blocks
-from spcopyro.variational.elbo import multinomial_coefficients
 from spcopyro.variational.factors import (
     GlobalFactors,
     PiFamily,
@@ -316,10 +316,10 @@ def exact_elbo(
     sum_l N_l E[log pi_l] + sum_mlk S_mlk E[log phi_mlk], the Potts term and the entropy are
     summed over chunks of neighbour pairs and of cells (float64 accumulation).
     ``coefficients``: the observed counts' multinomial coefficients, if already computed
-    (:func:`~spcopyro.variational.elbo.multinomial_coefficients`).
+    (:func:`chunked_coefficients`).
     """
     if coefficients is None:
-        coefficients = multinomial_coefficients(data, config)
+        coefficients = chunked_coefficients(data, config)
     log_pi = expected_log_pi(factors)  # [L]
     total = (statistics.cells * log_pi).sum()
     for modality, counts, lphi in zip(
@@ -337,6 +337,18 @@ def exact_elbo(
         entropy -= torch.special.xlogy(chunk, chunk).sum()
     total = total + config.gamma * agreements + coefficients
     return float(total - kl_to_prior(factors, data, config) + entropy)
+
+
+def chunked_coefficients(data: ModelData, config: SpCoConfig) -> torch.Tensor:
+    """:func:`~spcopyro.variational.elbo.multinomial_coefficients` summed over chunks of
+    observed cells (the dense one holds several ``[M, K_m]`` temporaries at once)."""
+    total = torch.zeros((), dtype=DTYPE)
+    for modality in data.modalities:
+        if config.uses(modality.name):
+            for lo in range(0, modality.counts.shape[0], CHUNK):
+                counts = modality.counts[lo : lo + CHUNK]  # [c, K_m]
+                total += multinomial_counts_log_prob(counts, torch.zeros_like(counts)).sum()
+    return total
 
 
 def compact_initial_q(
@@ -436,7 +448,7 @@ def run_stochastic(
         raise ValueError(f"passes must be an integer >= 1, got {passes!r}")
     state = start_state(data, config, q, options, blocks)
     num_blocks = state.blocks.num_blocks
-    coefficients = multinomial_coefficients(data, config)
+    coefficients = chunked_coefficients(data, config)
     values, used, seconds, gammas = [], [], [], []
     start = time.perf_counter()
     bar = tqdm(total=passes, desc=description, unit="pass",
