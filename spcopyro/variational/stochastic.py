@@ -44,9 +44,11 @@ covering the map, a step is one iteration of full-batch CAVI
 
 **Memory.** q(C) is kept as one ``[N, L]`` tensor of ``dtype`` (float32 by default: 80 MB for
 10^6 cells at L = 20), updated in place; the exponentials and softmax are computed in float64 per
-step, on the step's cells only. The memo holds ``[B, L]`` concept sizes and ``[B_obs, L, K_m]``
-counts for the B_obs blocks that hold observations. The ELBO is accumulated over chunks of cells
-and neighbour pairs, so nothing ``[N, L]`` other than q is ever allocated.
+step, on the step's cells only (so with float32 storage each update is rounded to float32 and
+the ELBO's monotonicity holds up to that rounding; ``dtype="float64"`` makes it exact). The
+memo holds ``[B, L]`` concept sizes and ``[B_obs, L, K_m]`` counts for the B_obs blocks that hold
+observations. The ELBO is accumulated over chunks of cells and neighbour pairs, so nothing
+``[N, L]`` other than q is ever allocated. The blocks' index is O(N) int64.
 """
 
 from __future__ import annotations
@@ -179,7 +181,8 @@ class Memo:
 
     ``cells`` ``[B, L]`` are the blocks' expected concept sizes; ``counts[m]`` ``[B_obs, L, K_m]``
     the expected per-concept counts of modality m of each block holding observations (a block
-    without one contributes zero counts). ``total`` is prior-free: the sum over blocks.
+    without one contributes zero counts). ``total_cells`` and ``total_counts`` are their sums
+    over the blocks (without the prior), kept up to date by :meth:`replace`.
     """
 
     def __init__(
@@ -345,8 +348,9 @@ def chunked_coefficients(data: ModelData, config: SpCoConfig) -> torch.Tensor:
     total = torch.zeros((), dtype=DTYPE)
     for modality in data.modalities:
         if config.uses(modality.name):
-            for lo in range(0, modality.counts.shape[0], CHUNK):
-                counts = modality.counts[lo : lo + CHUNK]  # [c, K_m]
+            rows = max(1, CHUNK // modality.counts.shape[-1])  # about CHUNK numbers a chunk
+            for lo in range(0, modality.counts.shape[0], rows):
+                counts = modality.counts[lo : lo + rows]  # [c, K_m]
                 total += multinomial_counts_log_prob(counts, torch.zeros_like(counts)).sum()
     return total
 
