@@ -11,6 +11,7 @@ from spcopyro.guides.method import SVIInference
 from spcopyro.inference import InferenceMethod
 from spcopyro.variational.lbp_method import LBPInference
 from spcopyro.variational.method import CAVIInference
+from spcopyro.variational.stochastic import StochasticVIInference
 from spcopyro.variational.vi_gibbs import VIGibbsInference
 
 INFERENCE_METHODS: dict[str, InferenceMethod] = {
@@ -18,6 +19,7 @@ INFERENCE_METHODS: dict[str, InferenceMethod] = {
     "cavi": CAVIInference(),
     "lbp": LBPInference(),
     "svi": SVIInference(),
+    "stochastic-vi": StochasticVIInference(),
     "vi-gibbs": VIGibbsInference(),
 }
 DEFAULT_METHOD = "gibbs"
