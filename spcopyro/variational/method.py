@@ -26,6 +26,8 @@ def output_from_variational(run: VariationalRun, options: dict[str, object]) -> 
         best_iteration=len(run.objective) - 1,
         marginals=run.q.numpy().astype(np.float32),
         options=options,
+        label_samples=run.label_samples,
+        sample_iterations=run.sample_iterations,
     )
 
 
@@ -55,6 +57,8 @@ class CAVIInference:
         if not isinstance(options, VariationalOptions):
             raise TypeError(f"CAVI takes VariationalOptions, got {type(options).__name__}")
         q = initial_q(data, config, generator, init_labels)
-        run = run_variational(data, config, iterations, options=options, q=q, progress=progress)
+        run = run_variational(
+            data, config, iterations, options=options, q=q, progress=progress, thin=thin
+        )
         record = {"iterations": iterations, **dataclasses.asdict(options)}
         return output_from_variational(run, record)

@@ -25,7 +25,12 @@ class VariationalOptions:
             DP (``"stick-breaking"``, a different prior: see :mod:`spcopyro.variational.factors`).
         tolerance: stop once an iteration at full gamma raises the ELBO by less than
             ``tolerance * |ELBO|`` (0: run every iteration).
-        backend: ``"torch"`` (the dense reference), ``"numba"`` or ``"auto"``.
+        backend: ``"torch"`` (the dense reference), ``"numba"`` (the compiled sparse update of
+            :mod:`spcopyro.variational.numba_cavi`) or ``"auto"`` (numba where it imports).
+        support: the numba backend keeps at most this many concepts per cell (0: all L, no
+            truncation). Top-K truncation alone never lowers the ELBO (see that module).
+        threshold: the numba backend also drops a cell's concepts with mass below this (0: keep
+            all K); an iteration then lowers the ELBO by at most sum_i -log(1 - dropped_i).
     """
 
     anneal_iterations: int = 0
@@ -33,6 +38,8 @@ class VariationalOptions:
     pi_family: PiFamily = "dirichlet"
     tolerance: float = 0.0
     backend: Literal["auto", "torch", "numba"] = "auto"
+    support: int = 8
+    threshold: float = 1e-6
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -50,6 +57,10 @@ class VariationalOptions:
             raise bad("tolerance", "must be >= 0")
         if self.backend not in ("auto", "torch", "numba"):
             raise bad("backend", "must be 'auto', 'torch' or 'numba'")
+        if not isinstance(self.support, int) or self.support < 0:
+            raise bad("support", "must be an integer >= 0 (0: all concepts)")
+        if not (isinstance(self.threshold, (int, float)) and 0 <= self.threshold < 1):
+            raise bad("threshold", "must lie in [0, 1)")
 
     def gamma_at(self, iteration: int, gamma: float) -> float:
         """The coupling used by 0-based ``iteration``: ramped up, then the model's."""
