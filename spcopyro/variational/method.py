@@ -56,7 +56,7 @@ class CAVIInference:
         options = VariationalOptions() if options is None else options
         if not isinstance(options, VariationalOptions):
             raise TypeError(f"CAVI takes VariationalOptions, got {type(options).__name__}")
-        q = initial_q(data, config, generator, init_labels)
+        q = initial_q(data, config, generator, init_labels, init=options.init)
         run = run_variational(
             data, config, iterations, options=options, q=q, progress=progress, thin=thin
         )

@@ -27,6 +27,9 @@ class VariationalOptions:
             ``tolerance * |ELBO|`` (0: run every iteration).
         backend: ``"torch"`` (the dense reference), ``"numba"`` (the compiled sparse update of
             :mod:`spcopyro.variational.numba_cavi`) or ``"auto"`` (numba where it imports).
+        init: the start when no labels are given: ``"one-hot"`` (uniformly random labels, each
+            cell's q all on one concept) or ``"soft"`` (each q(C_i) a Dir(1) draw over the L
+            concepts: no cell is committed yet).
         support: the numba backend keeps at most this many concepts per cell (0: all L, no
             truncation). Top-K truncation alone never lowers the ELBO (see that module).
         threshold: the numba backend also drops a cell's concepts with mass below this (0: keep
@@ -38,6 +41,7 @@ class VariationalOptions:
     pi_family: PiFamily = "dirichlet"
     tolerance: float = 0.0
     backend: Literal["auto", "torch", "numba"] = "auto"
+    init: Literal["one-hot", "soft"] = "one-hot"
     support: int = 8
     threshold: float = 1e-6
 
@@ -57,6 +61,8 @@ class VariationalOptions:
             raise bad("tolerance", "must be >= 0")
         if self.backend not in ("auto", "torch", "numba"):
             raise bad("backend", "must be 'auto', 'torch' or 'numba'")
+        if self.init not in ("one-hot", "soft"):
+            raise bad("init", "must be 'one-hot' or 'soft'")
         if not isinstance(self.support, int) or self.support < 0:
             raise bad("support", "must be an integer >= 0 (0: all concepts)")
         if not (isinstance(self.threshold, (int, float)) and 0 <= self.threshold < 1):

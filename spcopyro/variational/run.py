@@ -65,9 +65,11 @@ def initial_q(
     generator: torch.Generator,
     init_labels: torch.Tensor | None = None,
     init_q: torch.Tensor | None = None,
+    init: str = "one-hot",
 ) -> torch.Tensor:
     """[N, L] the starting q(C): ``init_q`` as given (checked), one-hot ``init_labels`` (a Gibbs
-    state's labels: the warm start from a sampler), or one-hot uniformly random labels."""
+    state's labels: the warm start from a sampler), or else by ``init``: one-hot uniformly
+    random labels (``"one-hot"``) or a Dir(1) draw per cell (``"soft"``)."""
     N, L = data.num_free, config.num_concepts
     if init_q is not None:
         if init_q.shape != (N, L):
@@ -76,6 +78,11 @@ def initial_q(
         if (q < 0).any() or not torch.allclose(q.sum(-1), torch.ones(N, dtype=DTYPE)):
             raise ValueError("init_q's rows must be probability vectors")
         return q
+    if init_labels is None and init == "soft":
+        q = -torch.log(torch.rand(N, L, generator=generator, dtype=DTYPE))  # [N, L] Exp(1)
+        return q / q.sum(-1, keepdim=True)  # Dir(1) rows
+    if init not in ("one-hot", "soft"):
+        raise ValueError(f"init must be 'one-hot' or 'soft', got {init!r}")
     labels = random_labels(N, config, generator) if init_labels is None else init_labels
     return one_hot(check_labels(labels, N, config), L)
 
