@@ -13,6 +13,7 @@ from gibbs_problems import config, random_problem
 from statistical_checks import model_log_density
 from test_modalities import objects_config, with_objects
 
+from spcopyro.config import preset
 from spcopyro.fit import prepare_model_data
 from spcopyro.gibbs.state import GibbsState
 from spcopyro.likelihood import concept_statistics
@@ -56,6 +57,7 @@ BACKENDS = {
     "numba": dict(backend="numba", **EXACT),
     "numba-top2": dict(backend="numba", support=2, threshold=0.0),
 }
+PLAIN = dict(anneal_iterations=0, tolerance=0.0)  # exact coordinate ascent, every iteration
 
 
 @pytest.mark.parametrize("variant", VARIANTS)
@@ -66,7 +68,7 @@ def test_elbo_never_decreases(variant, backend):
     data, cfg, family = problem(variant)
     for seed in range(2):
         for init in ("one-hot", "soft"):
-            options = VariationalOptions(pi_family=family, init=init, **BACKENDS[backend])
+            options = VariationalOptions(pi_family=family, init=init, **BACKENDS[backend], **PLAIN)
             q = initial_q(data, cfg, torch.Generator().manual_seed(seed), init=init)
             run = run_variational(data, cfg, 12, options=options, q=q)
             steps = np.diff(run.objective)
@@ -79,7 +81,9 @@ def test_numba_equals_the_torch_reference_without_truncation(variant):
     q0 = initial_q(data, cfg, torch.Generator().manual_seed(3), init="soft")
     runs = {}
     for backend in ("torch", "numba"):
-        options = VariationalOptions(pi_family=family, **BACKENDS[backend], anneal_iterations=3)
+        options = VariationalOptions(
+            pi_family=family, **BACKENDS[backend], anneal_iterations=3, tolerance=0.0
+        )
         runs[backend] = run_variational(data, cfg, 12, options=options, q=q0.clone())
     np.testing.assert_allclose(runs["numba"].objective, runs["torch"].objective, rtol=1e-10)
     torch.testing.assert_close(runs["numba"].q, runs["torch"].q, atol=1e-10, rtol=0)
@@ -203,7 +207,8 @@ def test_analytic_elbo_equals_a_monte_carlo_estimate_from_the_pyro_model(variant
     cfg = dataclasses.replace(cfg, num_concepts=3)
     generator = torch.Generator().manual_seed(0)
     q = initial_q(data, cfg, generator, init="soft")
-    run = run_variational(data, cfg, 3, options=VariationalOptions(backend="torch"), q=q)
+    options = VariationalOptions(backend="torch", **PLAIN)
+    run = run_variational(data, cfg, 3, options=options, q=q)
     q, factors = run.q, run.factors
     q = 0.8 * q + 0.2 / cfg.num_concepts  # keep every label probable: a lower variance
     factors = update_globals(q, data, cfg)
@@ -232,7 +237,8 @@ def test_thin_keeps_argmax_labels():
     data, cfg, _ = problem("dp")
     generator = torch.Generator().manual_seed(0)
     for backend in ("torch", "numba"):
-        options = VariationalOptions(backend=backend, **({} if backend == "torch" else EXACT))
+        exact = {} if backend == "torch" else EXACT
+        options = VariationalOptions(backend=backend, **exact, **PLAIN)
         out = CAVIInference().run(
             data, cfg, iterations=10, generator=generator, options=options, thin=3
         )
@@ -240,7 +246,8 @@ def test_thin_keeps_argmax_labels():
         assert out.label_samples.shape == (3, data.num_free)
         np.testing.assert_array_equal(out.sample_iterations, [2, 5, 8])
     q = initial_q(data, cfg, generator)
-    run = run_variational(data, cfg, 4, options=VariationalOptions(backend="torch"), q=q, thin=4)
+    options = VariationalOptions(backend="torch", **PLAIN)
+    run = run_variational(data, cfg, 4, options=options, q=q, thin=4)
     np.testing.assert_array_equal(run.label_samples[-1], run.labels.numpy())
     none = run_variational(data, cfg, 2, q=initial_q(data, cfg, generator))
     assert none.label_samples is None and none.sample_iterations is None
@@ -261,14 +268,14 @@ def test_bad_options_and_inputs_are_refused():
 
 
 def test_defaults_reach_a_high_ari_on_an_easy_synthetic_house():
-    """The default options (numba backend) on a small synthetic house recover its rooms."""
-    house = make_house(seed=1, spec=HouseSpec.scaled(40, 40))
-    from spcopyro.config import preset
-
-    settings = preset("paper-dp")
+    """The default options (annealed gamma, numba backend) recover the rooms of a synthetic
+    house whose data have a say (the released code's values, gamma 3; ARI 0.93 when written).
+    Under ``paper-dp`` mean field does not (README notes)."""
+    house = make_house(seed=0, spec=HouseSpec.scaled(60, 60))
+    settings = preset("original-code", gamma=3.0, num_concepts=10)
     _, data = prepare_model_data(house, settings)
     out = CAVIInference().run(
-        data, settings.model, iterations=150, generator=torch.Generator().manual_seed(0)
+        data, settings.model, iterations=100, generator=torch.Generator().manual_seed(0)
     )
     truth = house.truth[house.grid.free]
-    assert adjusted_rand_index(out.labels, truth) > 0.6
+    assert adjusted_rand_index(out.labels, truth) > 0.8

@@ -2,7 +2,7 @@ r"""A compiled (numba) mean-field CAVI backend with a sparse q(C): the update of
 :mod:`spcopyro.variational.cavi`, at the cost of a Gibbs sweep.
 
 **Sparse q.** Each cell keeps at most ``support`` = K concepts: ``index [N + D, K]`` (int64),
-``value [N + D, K]`` (float64, sorted descending, so ``index[i, 0]`` is the argmax label) and
+``value [N + D, K]`` (float64; entry 0 is the largest, so ``index[i, 0]`` is the argmax label) and
 ``count [N + D]`` entries in use; the D rows after the N cells are the empty sentinels of the
 :class:`~spcopyro.gibbs.numba_plan.FlatPlan`'s missing neighbours (N + s). Nothing of size
 N x L exists during a run: the globals' statistics, the ELBO and the labels are read from the
@@ -92,6 +92,27 @@ def _insert(top_l, top_w, size, capacity, label, weight):  # noqa: ANN001, ANN20
 
 
 @njit(cache=True)
+def _select(cand_l, cand_w, nc, top_l, top_w):  # noqa: ANN001, ANN202
+    """The (at most K = len(top_l)) largest of the nc candidates into top_l, top_w, the largest
+    first (the rest unordered when all fit, else descending); returns how many."""
+    K = top_l.shape[0]
+    if nc > K:
+        size = 0
+        for c in range(nc):
+            size = _insert(top_l, top_w, size, K, cand_l[c], cand_w[c])
+        return size
+    best = 0
+    for c in range(nc):
+        top_l[c] = cand_l[c]
+        top_w[c] = cand_w[c]
+        if cand_w[c] > cand_w[best]:
+            best = c
+    top_l[0], top_l[best] = top_l[best], top_l[0]
+    top_w[0], top_w[best] = top_w[best], top_w[0]
+    return nc
+
+
+@njit(cache=True)
 def _update_cells(
     index: np.ndarray,
     value: np.ndarray,
@@ -124,6 +145,8 @@ def _update_cells(
     M = observed_logits.shape[0]
     top_l = np.empty(K, np.int64)
     top_w = np.empty(K)
+    cand_l = np.empty(L + K, np.int64)
+    cand_w = np.empty(L + K)
     stamp = mark.max()
     lost = 0.0
     for p in range(cells.shape[0]):
@@ -141,7 +164,7 @@ def _update_cells(
                     touched[nt] = l
                     nt += 1
                 field[l] += value[j, k]
-        size = 0
+        nc = 0
         if r == M:  # no observations: background B plus the neighbours' correction
             shift = 0.0
             for t in range(nt):
@@ -157,16 +180,20 @@ def _update_cells(
             floor = threshold * total  # candidates below it are dropped anyway: skip them
             for t in range(nt):
                 l = touched[t]
-                if field[l] >= floor or size == 0:
-                    size = _insert(top_l, top_w, size, K, l, field[l])
+                if field[l] >= floor or nc == 0:
+                    cand_l[nc] = l
+                    cand_w[nc] = field[l]
+                    nc += 1
             taken = 0
             for o in range(L):
                 l = order[o]
                 if mark[l] != stamp:
                     w = background[l] * below
-                    if (w < floor and size > 0) or taken == K:
+                    if (w < floor and nc > 0) or taken == K:
                         break  # descending order: every later one is smaller still
-                    size = _insert(top_l, top_w, size, K, l, w)
+                    cand_l[nc] = l
+                    cand_w[nc] = w
+                    nc += 1
                     taken += 1
         else:  # observed: every concept from the cell's row
             shift = -np.inf
@@ -178,7 +205,10 @@ def _update_cells(
                 extra = gamma * field[l] if mark[l] == stamp else 0.0
                 w = np.exp(observed_logits[r, l] + extra - shift)
                 total += w
-                size = _insert(top_l, top_w, size, K, l, w)
+                cand_l[nc] = l
+                cand_w[nc] = w
+                nc += 1
+        size = _select(cand_l, cand_w, nc, top_l, top_w)
         if damping > 0.0:  # mix with the old q_i, then truncate the union again
             stamp += 1
             for k in range(size):
@@ -196,15 +226,19 @@ def _update_cells(
                     touched[nt] = l
                     nt += 1
                 field[l] += damping * value[i, k]
-            size = 0
             total = 1.0
             for t in range(nt):
-                size = _insert(top_l, top_w, size, K, touched[t], field[touched[t]])
+                cand_l[t] = touched[t]
+                cand_w[t] = field[touched[t]]
+            size = _select(cand_l, cand_w, nt, top_l, top_w)
         kept = top_w[0]
         n = 1
-        while n < size and top_w[n] >= threshold * total:
-            kept += top_w[n]
-            n += 1
+        for k in range(1, size):
+            if top_w[k] >= threshold * total:
+                top_l[n] = top_l[k]
+                top_w[n] = top_w[k]
+                kept += top_w[k]
+                n += 1
         for k in range(n):
             index[i, k] = top_l[k]
             value[i, k] = top_w[k] / kept
@@ -259,11 +293,16 @@ def _from_dense(q: np.ndarray, index: np.ndarray, value: np.ndarray, count: np.n
     K = index.shape[1]
     top_l = np.empty(K, np.int64)
     top_w = np.empty(K)
+    cand_l = np.empty(q.shape[1], np.int64)
+    cand_w = np.empty(q.shape[1])
     for i in range(q.shape[0]):
-        size = 0
+        nc = 0
         for l in range(q.shape[1]):
             if q[i, l] > 0.0:
-                size = _insert(top_l, top_w, size, K, l, q[i, l])
+                cand_l[nc] = l
+                cand_w[nc] = q[i, l]
+                nc += 1
+        size = _select(cand_l, cand_w, nc, top_l, top_w)
         kept = 0.0
         for k in range(size):
             kept += top_w[k]

@@ -36,10 +36,10 @@ class VariationalOptions:
             all K); an iteration then lowers the ELBO by at most sum_i -log(1 - dropped_i).
     """
 
-    anneal_iterations: int = 0
+    anneal_iterations: int = 30
     damping: float = 0.0
     pi_family: PiFamily = "dirichlet"
-    tolerance: float = 0.0
+    tolerance: float = 1e-7
     backend: Literal["auto", "torch", "numba"] = "auto"
     init: Literal["one-hot", "soft"] = "one-hot"
     support: int = 8
