@@ -12,7 +12,12 @@ from spcopyro.inference import InferenceOutput, Trace
 from spcopyro.model import ModelData
 from spcopyro.variational.factors import mean_emissions, mean_pi
 from spcopyro.variational.options import VariationalOptions
-from spcopyro.variational.run import VariationalRun, initial_q, run_variational
+from spcopyro.variational.run import (
+    VariationalRun,
+    initial_q,
+    resolve_backend,
+    run_variational,
+)
 
 
 def output_from_variational(run: VariationalRun, options: dict[str, object]) -> InferenceOutput:
@@ -60,5 +65,9 @@ class CAVIInference:
         run = run_variational(
             data, config, iterations, options=options, q=q, progress=progress, thin=thin
         )
-        record = {"iterations": iterations, **dataclasses.asdict(options)}
+        record = {
+            "iterations": iterations,
+            **dataclasses.asdict(options),
+            "backend_used": resolve_backend(options.backend),
+        }
         return output_from_variational(run, record)
