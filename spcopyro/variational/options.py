@@ -48,7 +48,7 @@ class VariationalOptions:
     backend: Literal["auto", "torch", "numba"] = "auto"
     init: Literal["one-hot", "soft"] = "one-hot"
     support: int = 0
-    threshold: float = 1e-6
+    threshold: float = 1e-4
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
