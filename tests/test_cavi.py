@@ -230,7 +230,6 @@ def test_analytic_elbo_equals_a_monte_carlo_estimate_from_the_pyro_model(variant
     error = draws.std(ddof=1) / np.sqrt(len(draws))
     analytic = float(elbo(q, factors, data, cfg))
     assert abs(draws.mean() - analytic) < 4 * error, (draws.mean(), analytic, error)
-    print(variant, draws.mean(), analytic, error)
 
 
 def test_thin_keeps_argmax_labels():
