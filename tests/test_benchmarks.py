@@ -54,3 +54,14 @@ def test_threads_benchmark_quick(tmp_path):
     results = json.loads(out.read_text())
     assert {row["condition"] for row in results["load"]} == {"idle", "busy"}
     assert all(row["labels_identical"] for row in results["load"])
+
+
+@pytest.mark.slow
+def test_variational_benchmark_quick(tmp_path):
+    out = tmp_path / "variational.json"
+    done = run_benchmark("variational.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "numba / Gibbs" in done.stdout
+    results = json.loads(out.read_text())
+    assert all(row["ratio_numba_to_gibbs"] > 0 for row in results["iterations"])
+    assert results["ordering"]

@@ -12,7 +12,12 @@ from spcopyro.inference import InferenceOutput, Trace
 from spcopyro.model import ModelData
 from spcopyro.variational.factors import mean_emissions, mean_pi
 from spcopyro.variational.options import VariationalOptions
-from spcopyro.variational.run import VariationalRun, initial_q, run_variational
+from spcopyro.variational.run import (
+    VariationalRun,
+    initial_q,
+    resolve_backend,
+    run_variational,
+)
 
 
 def output_from_variational(run: VariationalRun, options: dict[str, object]) -> InferenceOutput:
@@ -26,6 +31,8 @@ def output_from_variational(run: VariationalRun, options: dict[str, object]) -> 
         best_iteration=len(run.objective) - 1,
         marginals=run.q.numpy().astype(np.float32),
         options=options,
+        label_samples=run.label_samples,
+        sample_iterations=run.sample_iterations,
     )
 
 
@@ -54,7 +61,13 @@ class CAVIInference:
         options = VariationalOptions() if options is None else options
         if not isinstance(options, VariationalOptions):
             raise TypeError(f"CAVI takes VariationalOptions, got {type(options).__name__}")
-        q = initial_q(data, config, generator, init_labels)
-        run = run_variational(data, config, iterations, options=options, q=q, progress=progress)
-        record = {"iterations": iterations, **dataclasses.asdict(options)}
+        q = initial_q(data, config, generator, init_labels, init=options.init)
+        run = run_variational(
+            data, config, iterations, options=options, q=q, progress=progress, thin=thin
+        )
+        record = {
+            "iterations": iterations,
+            **dataclasses.asdict(options),
+            "backend_used": resolve_backend(options.backend),
+        }
         return output_from_variational(run, record)

@@ -15,9 +15,12 @@ class VariationalOptions:
 
     Attributes:
         anneal_iterations: gamma rises linearly from 0 to the model's value over this many
-            iterations (0: no annealing). Mean field started at full coupling freezes in the first
-            labelling it sees; starting uncoupled lets the observations place their concepts
-            first. The ELBO only rises monotonically once gamma is at its value.
+            iterations (0: no annealing, the default). Mean field started at full coupling
+            freezes near the first labelling it sees; starting uncoupled lets the observations
+            place their concepts first, but with many concepts (L = 120) a q annealed from
+            gamma = 0 stays in mean field's disordered fixed point, stable up to gamma = L / D
+            (:mod:`spcopyro.variational.cavi`). The ELBO only rises monotonically once gamma is
+            at its value.
         damping: each block's new q(C_i) is mixed with the old one,
             ``q <- (1 - damping) q_new + damping q_old`` (0: exact coordinate ascent, which never
             lowers the ELBO; > 0 gives that up to calm oscillations).
@@ -25,14 +28,27 @@ class VariationalOptions:
             DP (``"stick-breaking"``, a different prior: see :mod:`spcopyro.variational.factors`).
         tolerance: stop once an iteration at full gamma raises the ELBO by less than
             ``tolerance * |ELBO|`` (0: run every iteration).
-        backend: ``"torch"`` (the dense reference), ``"numba"`` or ``"auto"``.
+        backend: ``"torch"`` (the dense reference), ``"numba"`` (the compiled sparse update of
+            :mod:`spcopyro.variational.numba_cavi`) or ``"auto"`` (numba where it imports).
+        init: the start when no labels are given: ``"one-hot"`` (uniformly random labels, each
+            cell's q all on one concept) or ``"soft"`` (each q(C_i) a Dir(1) draw over the L
+            concepts: no cell is committed yet).
+        support: the numba backend keeps at most this many concepts per cell (0: all L, no
+            cap). Top-K truncation alone never lowers the ELBO (see that module), but it changes
+            what mean field finds: a cell near disorder spreads its mass over all L concepts, and
+            cutting it to K behaves like a K-state Potts model (it orders at a lower gamma).
+        threshold: the numba backend also drops a cell's concepts with mass below this (0: keep
+            all K); an iteration then lowers the ELBO by at most sum_i -log(1 - dropped_i).
     """
 
     anneal_iterations: int = 0
     damping: float = 0.0
     pi_family: PiFamily = "dirichlet"
-    tolerance: float = 0.0
+    tolerance: float = 1e-7
     backend: Literal["auto", "torch", "numba"] = "auto"
+    init: Literal["one-hot", "soft"] = "one-hot"
+    support: int = 0
+    threshold: float = 1e-4
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -50,6 +66,12 @@ class VariationalOptions:
             raise bad("tolerance", "must be >= 0")
         if self.backend not in ("auto", "torch", "numba"):
             raise bad("backend", "must be 'auto', 'torch' or 'numba'")
+        if self.init not in ("one-hot", "soft"):
+            raise bad("init", "must be 'one-hot' or 'soft'")
+        if not isinstance(self.support, int) or self.support < 0:
+            raise bad("support", "must be an integer >= 0 (0: all concepts)")
+        if not (isinstance(self.threshold, (int, float)) and 0 <= self.threshold < 1):
+            raise bad("threshold", "must lie in [0, 1)")
 
     def gamma_at(self, iteration: int, gamma: float) -> float:
         """The coupling used by 0-based ``iteration``: ramped up, then the model's."""

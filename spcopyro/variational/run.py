@@ -18,11 +18,12 @@ from tqdm.auto import tqdm
 
 from spcopyro.config import SpCoConfig
 from spcopyro.initialisation import check_labels, random_labels
+from spcopyro.likelihood import ConceptStatistics, concept_statistics
 from spcopyro.model import DTYPE, ModelData
 from spcopyro.progress import progress_enabled
-from spcopyro.variational.cavi import one_hot, update_globals, update_labels
+from spcopyro.variational.cavi import one_hot, update_labels
 from spcopyro.variational.elbo import elbo
-from spcopyro.variational.factors import GlobalFactors
+from spcopyro.variational.factors import GlobalFactors, update_factors
 from spcopyro.variational.options import VariationalOptions
 
 LabelUpdate = Callable[[torch.Tensor, GlobalFactors, float], torch.Tensor]
@@ -47,6 +48,10 @@ class VariationalRun:
     """[S] cumulative wall-clock seconds."""
     gammas: np.ndarray
     """[S] the coupling each iteration's label update used."""
+    label_samples: np.ndarray | None = None
+    """[S', N] int16 (int32 when L > 32767) argmax labels every ``thin`` iterations, or None."""
+    sample_iterations: np.ndarray | None = None
+    """[S'] the 0-based iterations of ``label_samples``."""
 
     @property
     def labels(self) -> torch.Tensor:
@@ -60,9 +65,11 @@ def initial_q(
     generator: torch.Generator,
     init_labels: torch.Tensor | None = None,
     init_q: torch.Tensor | None = None,
+    init: str = "one-hot",
 ) -> torch.Tensor:
     """[N, L] the starting q(C): ``init_q`` as given (checked), one-hot ``init_labels`` (a Gibbs
-    state's labels: the warm start from a sampler), or one-hot uniformly random labels."""
+    state's labels: the warm start from a sampler), or else by ``init``: one-hot uniformly
+    random labels (``"one-hot"``) or a Dir(1) draw per cell (``"soft"``)."""
     N, L = data.num_free, config.num_concepts
     if init_q is not None:
         if init_q.shape != (N, L):
@@ -71,6 +78,11 @@ def initial_q(
         if (q < 0).any() or not torch.allclose(q.sum(-1), torch.ones(N, dtype=DTYPE)):
             raise ValueError("init_q's rows must be probability vectors")
         return q
+    if init_labels is None and init == "soft":
+        q = -torch.log(torch.rand(N, L, generator=generator, dtype=DTYPE))  # [N, L] Exp(1)
+        return q / q.sum(-1, keepdim=True)  # Dir(1) rows
+    if init not in ("one-hot", "soft"):
+        raise ValueError(f"init must be 'one-hot' or 'soft', got {init!r}")
     labels = random_labels(N, config, generator) if init_labels is None else init_labels
     return one_hot(check_labels(labels, N, config), L)
 
@@ -84,6 +96,56 @@ def mean_field_update(data: ModelData, config: SpCoConfig, damping: float = 0.0)
     return update
 
 
+def resolve_backend(backend: str) -> str:
+    """``"torch"`` or ``"numba"``: ``"auto"`` is numba where it imports, else torch.
+
+    Raises:
+        ImportError: ``"numba"`` was asked for and numba is missing.
+    """
+    if backend == "torch":
+        return "torch"
+    try:
+        import spcopyro.variational.numba_cavi  # noqa: F401
+    except ImportError:
+        if backend == "numba":
+            raise
+        return "torch"
+    return "numba"
+
+
+class _DenseField:
+    """The torch reference's label field: a dense q [N, L] and a :class:`LabelUpdate`."""
+
+    def __init__(
+        self,
+        q: torch.Tensor,
+        data: ModelData,
+        config: SpCoConfig,
+        label_update: LabelUpdate,
+        objective: Objective,
+    ) -> None:
+        self.q, self.data, self.config = q, data, config
+        self.label_update, self.objective = label_update, objective
+
+    def update(self, factors: GlobalFactors, gamma: float) -> None:
+        self.q = self.label_update(self.q, factors, gamma)
+
+    def statistics(self) -> ConceptStatistics:
+        return concept_statistics(self.q, self.data, self.config)
+
+    def elbo(self, factors: GlobalFactors) -> float:
+        return self.objective(self.q, factors)
+
+    def labels(self) -> torch.Tensor:
+        return self.q.argmax(-1)
+
+    def num_used(self) -> int:
+        return int(torch.unique(self.q.argmax(-1)).numel())
+
+    def dense(self, out: torch.Tensor) -> torch.Tensor:
+        return self.q
+
+
 def run_variational(
     data: ModelData,
     config: SpCoConfig,
@@ -95,42 +157,70 @@ def run_variational(
     objective: Objective | None = None,
     progress: bool | None = None,
     description: str = "CAVI",
+    thin: int = 0,
 ) -> VariationalRun:
     """``iterations`` rounds of: global factors from q(C), then ``label_update`` (mean field by
     default) at the annealed coupling. Stops early when ``options.tolerance`` says so.
 
-    ``q`` ``[N, L]`` is the start (see :func:`initial_q`) and is updated in place.
+    ``q`` ``[N, L]`` is the start (see :func:`initial_q`) and is updated in place. With neither
+    ``label_update`` nor ``objective`` given, ``options.backend`` picks the mean-field update:
+    the dense torch reference or the compiled sparse one
+    (:class:`spcopyro.variational.numba_cavi.SparseMeanField`, ``options.support`` and
+    ``options.threshold``), which keeps q sparse through the run and writes the dense q once at
+    the end. ``thin`` > 0 keeps the argmax labels every ``thin`` iterations (int16, as Gibbs'
+    label maps).
     """
     options = VariationalOptions() if options is None else options
     if iterations < 1:
         raise ValueError(f"iterations must be >= 1, got {iterations}")
-    label_update = label_update or mean_field_update(data, config, options.damping)
-    if objective is None:
+    if not isinstance(thin, int) or thin < 0:
+        raise ValueError(f"thin must be an integer >= 0, got {thin!r}")
+    custom = label_update is not None or objective is not None
+    backend = "torch" if custom else resolve_backend(options.backend)
+    if backend == "numba":
+        from spcopyro.variational.numba_cavi import SparseMeanField
 
-        def objective(q: torch.Tensor, factors: GlobalFactors) -> float:
-            return float(elbo(q, factors, data, config))
+        field: _DenseField | SparseMeanField = SparseMeanField(
+            q, data, config, support=options.support, threshold=options.threshold,
+            damping=options.damping,
+        )  # fmt: skip
+    else:
+        if objective is None:
 
-    values, used, seconds, gammas = [], [], [], []
+            def objective(q: torch.Tensor, factors: GlobalFactors) -> float:
+                return float(elbo(q, factors, data, config))
+
+        update = label_update or mean_field_update(data, config, options.damping)
+        field = _DenseField(q, data, config, update, objective)
+
+    label_dtype = np.int16 if config.num_concepts <= np.iinfo(np.int16).max else np.int32
+    values, used, seconds, gammas, samples, sampled = [], [], [], [], [], []
     start = time.perf_counter()
     bar = tqdm(total=iterations, desc=description, unit="it",
                disable=not progress_enabled(progress))  # fmt: skip
-    factors = update_globals(q, data, config, options.pi_family)
+    factors = update_factors(field.statistics(), data, config, options.pi_family)
     with bar:
         for iteration in range(iterations):
             gamma = options.gamma_at(iteration, config.gamma)
-            q = label_update(q, factors, gamma)
-            factors = update_globals(q, data, config, options.pi_family)
-            values.append(objective(q, factors))
-            used.append(int(torch.unique(q.argmax(-1)).numel()))
+            field.update(factors, gamma)
+            factors = update_factors(field.statistics(), data, config, options.pi_family)
+            values.append(field.elbo(factors))
+            used.append(field.num_used())
+            if thin and (iteration + 1) % thin == 0:
+                samples.append(field.labels().numpy().astype(label_dtype))
+                sampled.append(iteration)
             seconds.append(time.perf_counter() - start)
             gammas.append(gamma)
             bar.update()
             bar.set_postfix(objective=f"{values[-1]:.4g}", concepts=used[-1])
             if _converged(values, gammas, config.gamma, options.tolerance):
                 break
+    q = field.dense(q)
     return VariationalRun(
         q, factors, np.asarray(values), np.asarray(used, dtype=np.int64),
         np.asarray(seconds), np.asarray(gammas),
+        np.stack(samples) if samples else None,
+        np.asarray(sampled, dtype=np.int64) if samples else None,
     )  # fmt: skip
 
 
