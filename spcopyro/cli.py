@@ -25,6 +25,7 @@ from spcopyro.config import DEFAULT_PRESET, DEFAULT_SNAP_DISTANCE, PRESETS, SpCo
 from spcopyro.data import House, cell_counts, load_house
 from spcopyro.gibbs.backends import get_backend
 from spcopyro.gibbs.options import BACKENDS, GibbsOptions
+from spcopyro.inference import with_options
 from spcopyro.outputs import StagedOutput
 
 if TYPE_CHECKING:
@@ -174,8 +175,8 @@ def _resume_command(args: argparse.Namespace, checkpoint: Path) -> str:
 
 def _fit_settings(
     args: argparse.Namespace, house: House
-) -> tuple[SpCoSettings, GibbsOptions | None]:
-    """The model and data settings and the Gibbs options (None for another method) of ``fit``."""
+) -> tuple[SpCoSettings, object | None]:
+    """The model and data settings and the method's options (None: its defaults) of ``fit``."""
     overrides = dict(
         prior=args.prior, num_concepts=args.concepts, gamma=args.gamma, alpha=args.alpha,
         beta=args.beta, chi=args.chi, connectivity=args.connectivity,
@@ -187,13 +188,17 @@ def _fit_settings(
     if args.preset == "paper-dirichlet" and args.concepts is None and house.category_names:
         overrides["num_concepts"] = len(house.category_names)
     settings = preset(args.preset, **overrides)
-    options = None  # a method other than Gibbs runs with its default options
+    options = None  # a method other than Gibbs runs with its defaults and --method-option
+    if args.method_option:
+        default = INFERENCE_METHODS[args.method].default_options()
+        options = with_options(default, args.method_option)
     if args.method == "gibbs":
         options = GibbsOptions(
             backend=args.backend, anneal_sweeps=args.anneal_sweeps,
             unobserved_refresh=1.0 if args.unobserved_refresh is None else args.unobserved_refresh,
             cluster_moves=0.0 if args.cluster_moves is None else args.cluster_moves,
         )  # fmt: skip
+        options = with_options(options, args.method_option or [])
         try:
             get_backend(options.backend)
         except ImportError as error:  # --backend numba without numba: before anything is written
@@ -205,7 +210,7 @@ def _fit_staged(
     args: argparse.Namespace,
     house: House,
     settings: SpCoSettings,
-    options: GibbsOptions | None,
+    options: object | None,
     staged: StagedOutput,
     keeper: FitCheckpoint | None,
     sampled: list[bool],
@@ -226,7 +231,7 @@ def _fit_staged(
     default = INFERENCE_METHODS[args.method].default_options()
     print(f"inference        {args.method}: {options if options is not None else default}")
     print(f"threads          {describe_threads(args.threads, house.grid.num_free)}")
-    if options is not None:
+    if isinstance(options, GibbsOptions):
         print(f"backend used     {get_backend(options.backend).name}")
     if args.resume is not None:
         print(f"resuming         the chains saved in {args.resume}")
@@ -610,6 +615,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="seed of the sampler (chain k of --chains gets seed + k)")  # fmt: skip
     p.add_argument("--method", choices=sorted(INFERENCE_METHODS), default=DEFAULT_METHOD,
                    help="inference method (default: gibbs, Algorithm 1)")  # fmt: skip
+    p.add_argument("--method-option", action="append", metavar="NAME=VALUE",
+                   help="set a field of the method's options, e.g. anneal_iterations=30 (cavi), "
+                        "damping=0.5 (lbp), lr=0.05 (svi), block_size=32 (stochastic-vi), "
+                        "variational.anneal_iterations=30 (vi-gibbs); repeat for several "
+                        "(default: the method's defaults, printed by the fit)")  # fmt: skip
     p.add_argument("--backend", choices=BACKENDS, default="auto",
                    help="Gibbs sweep implementation: torch (reference), numba (compiled) or "
                         "auto (numba where installed, else torch); the two draw different "

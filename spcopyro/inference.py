@@ -13,6 +13,8 @@ that a method needs is in :mod:`spcopyro.likelihood`.
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -89,3 +91,51 @@ class InferenceMethod(Protocol):
         (a seeded generator makes the fit reproducible); ``thin`` > 0 keeps a label map every
         ``thin`` iterations where the method has such maps."""
         ...
+
+
+def _parse_value(text: str, current: object, where: str) -> object:
+    """``text`` as a value of ``current``'s type (bool, int, float or str)."""
+    if isinstance(current, bool):
+        if text.lower() in ("true", "1", "yes", "on"):
+            return True
+        if text.lower() in ("false", "0", "no", "off"):
+            return False
+        raise ValueError(f"{where}: expected true or false, got {text!r}")
+    for kind in (int, float):
+        if isinstance(current, kind):
+            try:
+                return kind(text)
+            except ValueError:
+                wanted = "an integer" if kind is int else "a number"
+                raise ValueError(f"{where}: expected {wanted}, got {text!r}") from None
+    return text
+
+
+def with_options(options: object, assignments: Sequence[str]) -> object:
+    """A copy of a method's options dataclass with ``NAME=VALUE`` assignments applied (each
+    value parsed as its field's current type; ``outer.inner=VALUE`` reaches a nested options
+    object, e.g. vi-gibbs' ``variational.anneal_iterations``). The dataclass validates the
+    result; an unknown name is a ValueError listing the known ones."""
+    for assignment in assignments:
+        name, sep, text = assignment.partition("=")
+        if not sep or not name:
+            raise ValueError(f"method option {assignment!r}: expected NAME=VALUE")
+        options = _assign(options, name.strip().split("."), text.strip(), assignment)
+    return options
+
+
+def _assign(options: object, path: list[str], text: str, assignment: str) -> object:
+    if not dataclasses.is_dataclass(options):
+        raise ValueError(f"method option {assignment!r}: {type(options).__name__} has no fields")
+    fields = {f.name for f in dataclasses.fields(options)}
+    if path[0] not in fields:
+        raise ValueError(
+            f"method option {assignment!r}: {type(options).__name__} has no field "
+            f"{path[0]!r}; it has {sorted(fields)}"
+        )
+    current = getattr(options, path[0])
+    if len(path) > 1:
+        value = _assign(current, path[1:], text, assignment)
+    else:
+        value = _parse_value(text, current, f"method option {assignment!r}")
+    return dataclasses.replace(options, **{path[0]: value})

@@ -1,0 +1,49 @@
+"""``spcopyro fit --method-option NAME=VALUE``: any method's options set from the command line."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from spcopyro.cli import main
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.inference import with_options
+from spcopyro.variational.options import VariationalOptions
+from spcopyro.variational.vi_gibbs import VIGibbsOptions
+
+
+def test_values_are_parsed_as_their_fields_types_nested_included():
+    options = with_options(VariationalOptions(), ["anneal_iterations=7", "damping=0.25"])
+    assert options.anneal_iterations == 7 and options.damping == 0.25
+    nested = with_options(VIGibbsOptions(), ["variational.anneal_iterations=3", "vi_iterations=9"])
+    assert nested.variational.anneal_iterations == 3 and nested.vi_iterations == 9
+    gibbs = with_options(GibbsOptions(), ["cluster_moves=0.1", "backend=torch"])
+    assert gibbs.cluster_moves == 0.1 and gibbs.backend == "torch"
+
+
+@pytest.mark.parametrize(
+    "assignment, message",
+    [
+        ("anneal_iterations", "expected NAME=VALUE"),
+        ("anneal=3", "has no field 'anneal'; it has .*anneal_iterations"),
+        ("anneal_iterations=x", "expected an integer, got 'x'"),
+        ("damping=much", "expected a number"),
+        ("damping=2", "damping"),  # the dataclass's own validation
+        ("damping.x=1", "has no fields"),
+    ],
+)
+def test_bad_assignments_are_clear_errors(assignment, message):
+    with pytest.raises(ValueError, match=message):
+        with_options(VariationalOptions(), [assignment])
+
+
+def test_fit_runs_a_method_with_the_options_given(tmp_path, capsys):
+    out = tmp_path / "lbp"
+    args = ["fit", "--out", str(out), "--method", "lbp", "--sweeps", "2", "--preset",
+            "original-code", "--concepts", "6", "--method-option", "damping=0.3"]  # fmt: skip
+    assert main(args) == 0
+    assert "LBPOptions(damping=0.3" in capsys.readouterr().out
+    assert json.loads((out / "config.json").read_text())["inference"]["damping"] == 0.3
+    assert main([*args[:-1], "dampin=0.3", "--overwrite"]) == 2
+    assert "has no field 'dampin'" in capsys.readouterr().err
