@@ -225,6 +225,8 @@ def test_quick_command_writes_table_json_and_figure(tmp_path, capsys, monkeypatc
         t95 = record["time_to_95"]["ari"]
         assert math.isnan(t95) or t95 <= record["seconds"]
         assert record["concepts"] >= 1 and record["top_words"]
+        assert set(record["final_given_labels"]) == set(record["final"])
+        assert record["final_given_labels"]["ari"] == record["final"]["ari"]  # same labels
         assert 0 <= record["overconfidence"]["wrong_share"] <= 1
     assert set(gibbs["ess_per_second"]) == {"log_joint", "agreement"}
     assert "ess_per_second" not in cavi

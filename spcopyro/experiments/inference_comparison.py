@@ -272,6 +272,9 @@ def fit_and_score(variant: Variant, problem: Problem, iterations: int) -> dict[s
     wall = time.perf_counter() - start
     final_result = result(output)
     final = _scores(final_result, problem, final=True)
+    # the same labels with the globals' posterior means given them: separates the label map's
+    # quality from the kind of parameter estimate (a sampler hands back drawn pi and phi)
+    given_labels = _scores(result(_output_of_labels(output.labels, data, config)), problem, True)
     total = float(output.trace.seconds[-1])
     curve: list[dict[str, float]] = []
     if output.label_samples is not None and len(output.label_samples):
@@ -300,6 +303,7 @@ def fit_and_score(variant: Variant, problem: Problem, iterations: int) -> dict[s
         "seconds": total,
         "wall_seconds": wall,
         "final": final,
+        "final_given_labels": given_labels,
         "curve": curve,
         "curve_kind": curve_kind,
         "time_to_95": {
