@@ -468,12 +468,12 @@ def _experiment(args: argparse.Namespace) -> int:
 
 def _compare_inference(args: argparse.Namespace) -> int:
     from spcopyro.data import find_dataset_root
+    from spcopyro.experiments.comparison_report import run_comparison
     from spcopyro.experiments.inference_comparison import (
         HOUSE_TYPES,
         VARIANTS,
         ComparisonSettings,
         check_variants,
-        run_comparison,
     )
 
     variants = check_variants(args.methods) if args.methods else tuple(VARIANTS)

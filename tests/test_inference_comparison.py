@@ -220,7 +220,7 @@ def test_quick_command_writes_table_json_and_figure(tmp_path, capsys, monkeypatc
         seconds = [p["seconds"] for p in curve]
         assert seconds == sorted(seconds) and seconds[-1] == record["seconds"]
         assert {k: curve[-1][k] for k in ("ari", "matching_rate")} == {
-            k: record["final"][k] for k in ("ari", "matching_rate")
+            k: record["final_given_labels"][k] for k in ("ari", "matching_rate")
         }
         t95 = record["time_to_95"]["ari"]
         assert math.isnan(t95) or t95 <= record["seconds"]
