@@ -705,7 +705,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--iterations",
         nargs="+",
         metavar="METHOD=N",
-        help="replace a method's iteration budget, e.g. gibbs=2000 cavi=50",
+        help="replace a method's iteration budget, e.g. gibbs=2000 cavi=50 (default: each "
+        "method's own, e.g. gibbs 5000 sweeps, cavi 100 iterations; --quick: a few)",
     )
     p.add_argument(
         "--quick",
