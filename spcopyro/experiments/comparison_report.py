@@ -355,10 +355,23 @@ def write_report(out: Path, summary: dict[str, object]) -> list[Path]:
     ]
     summary["figures"] = [p.name for p in figures]
     json_path = out / "comparison.json"
-    json_path.write_text(json.dumps(summary, indent=1, default=_json_default) + "\n")
+    text = json.dumps(_finite(summary), indent=1, default=_json_default, allow_nan=False)
+    json_path.write_text(text + "\n")
     md_path = out / "comparison.md"
     md_path.write_text(table_markdown(summary))
     return [json_path, md_path, *figures]
+
+
+def _finite(value: object) -> object:
+    """``value`` with every NaN or infinite float replaced by None (strict JSON: null), e.g. a
+    time-to-95% never reached."""
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    if isinstance(value, (float, np.floating)) and not math.isfinite(value):
+        return None
+    return value
 
 
 def _json_default(value: object) -> object:
