@@ -235,6 +235,7 @@ def _scores(result: SpCoResult, problem: Problem, final: bool) -> dict[str, floa
     scores = {"top1": words.top1}
     if final:
         scores |= {"top3": words.top3, "mean_rank": words.mean_rank}
+        scores["scored_words"] = float(words.num_scored)  # held-out tokens the model knows
     scores["distance_m"] = heldout_localisation(model, problem.test).mean_distance
     return scores
 
