@@ -1,0 +1,427 @@
+"""The inference comparison's run (:func:`run_comparison`, behind ``spcopyro
+compare-inference``), summary, findings, table (``comparison.md``) and figures; the fits and
+their scoring are :mod:`spcopyro.experiments.inference_comparison`.
+
+:func:`summarise` reduces the per-fit records of
+:func:`~spcopyro.experiments.inference_comparison.run_comparison` to means per variant and
+house type and states, from those numbers alone, where mean field loses and where it wins
+(:func:`findings`); :func:`write_report` writes the JSON, the markdown and one figure of quality
+against wall-clock time (log axis) per house type. Figures are drawn on
+:class:`matplotlib.figure.Figure` objects (no pyplot), as in :mod:`spcopyro.experiments.figures`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from spcopyro.experiments.comparison_stats import CONFIDENT
+from spcopyro.experiments.inference_comparison import (
+    LOWER_IS_BETTER,
+    PRIMARY,
+    PUBLIC,
+    SCORES,
+    SYNTHETIC,
+    VARIANTS,
+    ComparisonSettings,
+    available_variants,
+    budget,
+    fit_and_score,
+    problems,
+    warm_up,
+)
+
+SCORE_NAMES = {
+    "ari": "ARI",
+    "matching_rate": "matching rate",
+    "top1": "held-out top-1",
+    "top3": "held-out top-3",
+    "mean_rank": "held-out mean rank",
+    "distance_m": "localisation distance (m)",
+}
+
+
+def _mean_sd(values: list[float]) -> dict[str, float]:
+    x = np.asarray([v for v in values if v is not None and math.isfinite(v)], dtype=np.float64)
+    if x.size == 0:
+        return {"mean": math.nan, "sd": math.nan, "n": 0}
+    return {"mean": float(x.mean()), "sd": float(x.std(ddof=1)) if x.size > 1 else 0.0,
+            "n": int(x.size)}  # fmt: skip
+
+
+def _summarise_variant(records: list[dict]) -> dict[str, object]:
+    first = records[0]
+    out: dict[str, object] = {
+        "final": {s: _mean_sd([r["final"][s] for r in records]) for s in first["final"]},
+        "final_given_labels": {
+            s: _mean_sd([r["final_given_labels"][s] for r in records])
+            for s in first["final_given_labels"]
+        },
+        "time_to_95": {
+            s: _mean_sd([r["time_to_95"][s] for r in records]) for s in first["time_to_95"]
+        },
+        "seconds": _mean_sd([r["seconds"] for r in records]),
+        "iterations": _mean_sd([r["iterations"] for r in records]),
+        "concepts": _mean_sd([r["concepts"] for r in records]),
+        "objective": first["objective"],
+        "curve_kind": first["curve_kind"],
+        "top_words_first_fit": first["top_words"],
+    }
+    if "ess_per_second" in first:
+        out["ess_per_second"] = {
+            k: _mean_sd([r["ess_per_second"][k] for r in records]) for k in first["ess_per_second"]
+        }
+    if "truth_categories" in first:
+        out["truth_categories"] = _mean_sd([r["truth_categories"] for r in records])
+    if all("overconfidence" in r for r in records):
+        out["overconfidence"] = {
+            k: _mean_sd([r["overconfidence"][k] for r in records]) for k in first["overconfidence"]
+        }
+    return out
+
+
+def summarise(
+    records: dict[str, dict[str, list[dict]]],
+    settings: ComparisonSettings,
+    notes: list[str],
+    seconds: float,
+) -> dict[str, object]:
+    """The JSON of the comparison: settings, per house type and variant the means (and sd) of
+    every score, and every fit's record with its curve."""
+    summary: dict[str, object] = {
+        "command": settings.command,
+        "settings": {
+            "preset": settings.preset,
+            "overrides": settings.overrides,
+            "seeds": settings.seeds,
+            "synthetic_spec": None
+            if settings.synthetic_spec is None
+            else dataclasses.asdict(settings.synthetic_spec),
+            "dataset_root": None if settings.dataset_root is None else str(settings.dataset_root),
+            "quick": settings.quick,
+            "iterations": {
+                key: budget(VARIANTS[key], settings)
+                for by_variant in records.values()
+                for key in by_variant
+            },
+            "options": {key: VARIANTS[key].options for key in settings.variants},
+        },  # fmt: skip
+        "methods": {
+            key: VARIANTS[key].label for by_variant in records.values() for key in by_variant
+        },
+        "summary": {
+            house_type: {key: _summarise_variant(recs) for key, recs in by_variant.items() if recs}
+            for house_type, by_variant in records.items()
+        },
+        "records": records,
+        "seconds": seconds,
+    }
+    summary["notes"] = [*notes, *findings(summary["summary"])]  # type: ignore[arg-type]
+    return summary
+
+
+def _m(entry: dict, *keys: str) -> float:
+    for key in keys:
+        entry = entry.get(key, {}) if isinstance(entry, dict) else {}
+    return entry.get("mean", math.nan) if isinstance(entry, dict) else math.nan
+
+
+def _ratio(a: float, b: float) -> str:
+    if not (math.isfinite(a) and math.isfinite(b)) or a <= 0 or b <= 0:
+        return "n/a"
+    return f"{b / a:.1f}x faster" if a < b else f"{a / b:.1f}x slower"
+
+
+def findings(summary: dict[str, dict[str, dict]]) -> list[str]:
+    """Plain statements, from the measured means only, of how each method compares with Gibbs
+    (Algorithm 1): final quality, time to 95% of it, concepts, confidence on wrong cells, ESS."""
+    notes = []
+    for house_type, by_variant in summary.items():
+        ref = by_variant.get("gibbs")
+        if ref is None:
+            continue
+        primary = PRIMARY[house_type]
+        better_low = primary in LOWER_IS_BETTER
+        for key, s in by_variant.items():
+            if key == "gibbs":
+                continue
+            q = _m(s, "final_given_labels", primary)
+            q_ref = _m(ref, "final_given_labels", primary)
+            diff = q - q_ref
+            if abs(diff) < 5e-4:
+                verdict = "equal"
+            else:
+                better = (diff < 0) == better_low
+                verdict = f"{'better' if better else 'worse'} by {abs(diff):.3f}"
+            parts = [
+                f"{house_type}, {key} against gibbs: final {SCORE_NAMES[primary]} (labels, means "
+                f"given them) {q:.3f} vs "
+                f"{q_ref:.3f} ({verdict})",
+                f"95% of its own final {SCORE_NAMES[primary]} after "
+                f"{_m(s, 'time_to_95', primary):.2f} s vs {_m(ref, 'time_to_95', primary):.2f} s "
+                f"({_ratio(_m(s, 'time_to_95', primary), _m(ref, 'time_to_95', primary))})",
+                f"whole run {_m(s, 'seconds'):.1f} s vs {_m(ref, 'seconds'):.1f} s",
+                f"concepts {_m(s, 'concepts'):.1f} vs {_m(ref, 'concepts'):.1f}",
+            ]
+            if house_type == SYNTHETIC:
+                k = _m(s, "truth_categories")
+                parts[-1] += f" (truth: {k:.1f} categories)"
+                if _m(s, "concepts") < k:
+                    parts.append("fewer concepts than categories: it merges places")
+            oc, oc_ref = s.get("overconfidence"), ref.get("overconfidence")
+            if house_type == SYNTHETIC:
+                own, own_ref = _m(s, "final", "matching_rate"), _m(ref, "final", "matching_rate")
+                means = _m(s, "final_given_labels", "matching_rate")
+                means_ref = _m(ref, "final_given_labels", "matching_rate")
+                parts.append(
+                    f"matching rate of its own output {own:.3f} vs gibbs {own_ref:.3f}, with the "
+                    f"means given the labels {means:.3f} vs {means_ref:.3f}"
+                )
+            else:
+                own, own_ref = _m(s, "final", "top1"), _m(ref, "final", "top1")
+                dist, dist_ref = _m(s, "final", "distance_m"), _m(ref, "final", "distance_m")
+                parts.append(
+                    f"top-1 of its own output {own:.3f} vs gibbs {own_ref:.3f}; localisation "
+                    f"distance {dist:.2f} m vs {dist_ref:.2f} m"
+                )
+            if oc and oc_ref:
+                parts.append(
+                    f"share of its wrong cells labelled with confidence >= {CONFIDENT}: "
+                    f"{_m(oc, 'confident_wrong_share'):.2f} vs gibbs "
+                    f"{_m(oc_ref, 'confident_wrong_share'):.2f} (mean confidence on wrong "
+                    f"cells {_m(oc, 'confidence_wrong'):.3f} vs "
+                    f"{_m(oc_ref, 'confidence_wrong'):.3f})"
+                )
+            if "ess_per_second" in s and "ess_per_second" in ref:
+                parts.append(
+                    f"ESS/s of the log joint {_m(s, 'ess_per_second', 'log_joint'):.2f} vs "
+                    f"{_m(ref, 'ess_per_second', 'log_joint'):.2f}, of the agreement count "
+                    f"{_m(s, 'ess_per_second', 'agreement'):.2f} vs "
+                    f"{_m(ref, 'ess_per_second', 'agreement'):.2f}"
+                )
+            notes.append("; ".join(parts) + ".")
+    return notes
+
+
+def _fmt(entry: dict | None, digits: int = 3, sd: bool = True) -> str:
+    if not entry or not math.isfinite(entry.get("mean", math.nan)):
+        return "—"
+    text = f"{entry['mean']:.{digits}f}"
+    if sd and entry.get("n", 0) > 1:
+        text += f" ± {entry['sd']:.{digits}f}"
+    return text
+
+
+def _t95(entry: dict | None, runs: int) -> str:
+    if not entry or entry.get("n", 0) == 0:
+        return "never"
+    text = f"{entry['mean']:.2f}"
+    return text if entry["n"] == runs else f"{text} ({entry['n']}/{runs} reached)"
+
+
+def table_markdown(summary: dict[str, object]) -> str:
+    """``comparison.md``: one table per house type, the settings and the findings."""
+    settings: dict = summary["settings"]  # type: ignore[assignment]
+    methods: dict = summary["methods"]  # type: ignore[assignment]
+    by_type: dict = summary["summary"]  # type: ignore[assignment]
+    lines = ["# Gibbs sampling against variational inference: quality against time", ""]
+    if summary["command"]:
+        lines += [f"Made by: `{summary['command']}`", ""]
+    overrides = ", ".join(f"{k} {v}" for k, v in settings["overrides"].items())
+    lines += [
+        f"Preset `{settings['preset']}`" + (f" ({overrides})" if overrides else "")
+        + ", random initial labels. Iterations: "
+        + ", ".join(f"{k} {v}" for k, v in settings["iterations"].items())
+        + f". Whole command: {summary['seconds']:.0f} s wall-clock.",
+        "",
+        "Times are wall-clock seconds of the inference alone, mean over fits. t95: time to reach "
+        "95% of the method's own final quality along its run. ESS/s: effective sample size per "
+        "second over the second half of a sampler's run, of the log joint and of the Potts "
+        "agreement count.",
+        "",
+    ]  # fmt: skip
+    for house_type, by_variant in by_type.items():
+        records = summary["records"][house_type]  # type: ignore[index]
+        if house_type == SYNTHETIC:
+            lines += [
+                f"## Synthetic houses ({settings['seeds']} seeds, ground truth)",
+                "",
+                "Matching rate (means | labels): the same label map scored with pi and phi set "
+                "to their posterior means given it, instead of the method's own estimates (a "
+                "sampler's are draws). ARI and t95 read the labels only.",
+                "",
+                "| method | ARI | matching rate | matching rate (means \\| labels) "
+                "| concepts (truth) | t95 ARI (s) | s per fit "
+                "| ESS/s log joint | ESS/s agreement | wrong cells | of them sure (>= 0.99) |",
+                "|---|---|---|---|---|---|---|---|---|---|---|",
+            ]
+        else:
+            lines += [
+                "## Public houses (held-out trials: one fit per trial, scored on it)",
+                "",
+                "Top-1 (means \\| labels): the same label map scored with pi and phi set to "
+                "their posterior means given it. t95 is measured on that score along the run.",
+                "",
+                "| method | top-1 | top-1 (means \\| labels) | top-3 | mean rank | distance (m) "
+                "| concepts | t95 top-1 (s) | s per fit | ESS/s log joint | ESS/s agreement |",
+                "|---|---|---|---|---|---|---|---|---|---|---|",
+            ]
+        for key, s in by_variant.items():
+            runs = len(records[key])
+            ess = s.get("ess_per_second", {})
+            common_tail = (
+                f"| {_fmt(s['seconds'], 1, False)} | {_fmt(ess.get('log_joint'), 1, False)} "
+                f"| {_fmt(ess.get('agreement'), 1, False)} "
+            )
+            if house_type == SYNTHETIC:
+                oc = s.get("overconfidence", {})
+                lines.append(
+                    f"| {methods[key]} | {_fmt(s['final']['ari'])} "
+                    f"| {_fmt(s['final']['matching_rate'])} "
+                    f"| {_fmt(s['final_given_labels']['matching_rate'])} "
+                    f"| {_fmt(s['concepts'], 1, False)} ({_fmt(s['truth_categories'], 0, False)}) "
+                    f"| {_t95(s['time_to_95'].get('ari'), runs)} {common_tail}"
+                    f"| {_fmt(oc.get('wrong_share'), 3, False)} "
+                    f"| {_fmt(oc.get('confident_wrong_share'), 2, False)} |"
+                )
+            else:
+                f = s["final"]
+                lines.append(
+                    f"| {methods[key]} | {_fmt(f['top1'])} "
+                    f"| {_fmt(s['final_given_labels']['top1'])} | {_fmt(f['top3'])} "
+                    f"| {_fmt(f['mean_rank'], 2)} | {_fmt(f['distance_m'], 2)} "
+                    f"| {_fmt(s['concepts'], 1, False)} "
+                    f"| {_t95(s['time_to_95'].get('top1'), runs)} {common_tail}|"
+                )
+        lines += ["", f"![quality against time](comparison_{house_type}.png)", ""]
+    lines += [
+        "## Concepts found (the first fit of each house type: top 2 words of the largest "
+        "8 concepts)",
+        "",
+    ]
+    for house_type, by_variant in by_type.items():
+        for key, s in by_variant.items():
+            words = "; ".join(s["top_words_first_fit"])
+            lines.append(f"- {house_type}, {key}: {words}")
+    lines += ["", "## Findings (from the numbers above)", ""]
+    lines += [f"- {note}" for note in summary["notes"]]  # type: ignore[union-attr]
+    return "\n".join(lines) + "\n"
+
+
+def plot_curves(summary: dict[str, object], house_type: str, path: Path) -> Path:
+    """Quality against wall-clock time (log axis) of every fit of one house type: one panel
+    per score of :data:`SCORES`, one colour per method, each fit one thin line."""
+    records: dict = summary["records"][house_type]  # type: ignore[index]
+    methods: dict = summary["methods"]  # type: ignore[assignment]
+    scores = SCORES[house_type]
+    fig = Figure(figsize=(5.2 * len(scores), 4.2))
+    axes = fig.subplots(1, len(scores))
+    colours = {key: f"C{i}" for i, key in enumerate(VARIANTS)}
+    for ax, score in zip(np.atleast_1d(axes), scores, strict=True):
+        for key, recs in records.items():
+            for i, record in enumerate(recs):
+                t = [p["seconds"] for p in record["curve"]]
+                v = [p[score] for p in record["curve"]]
+                ax.plot(t, v, color=colours[key], lw=1.0, alpha=0.6, marker=".", ms=3,
+                        label=methods[key] if i == 0 else None)  # fmt: skip
+        ax.set_xscale("log")
+        ax.set_xlabel("wall-clock seconds")
+        ax.set_ylabel(SCORE_NAMES[score] + (" (lower is better)" if score in LOWER_IS_BETTER
+                                            else ""))  # fmt: skip
+        ax.grid(alpha=0.3, which="both")
+    np.atleast_1d(axes)[0].legend(fontsize=7)
+    title = "synthetic houses (one line per seed)" if house_type == SYNTHETIC else (
+        "public houses (one line per house and held-out trial)")  # fmt: skip
+    fig.suptitle(f"Quality against time, {title}")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    return path
+
+
+def write_report(out: Path, summary: dict[str, object]) -> list[Path]:
+    """Write ``comparison.json``, ``comparison.md`` and the figures; returns their paths."""
+    figures = [
+        plot_curves(summary, house_type, out / f"comparison_{house_type}.png")
+        for house_type in (SYNTHETIC, PUBLIC)
+        if house_type in summary["records"]  # type: ignore[operator]
+    ]
+    summary["figures"] = [p.name for p in figures]
+    json_path = out / "comparison.json"
+    text = json.dumps(_finite(summary), indent=1, default=_json_default, allow_nan=False)
+    json_path.write_text(text + "\n")
+    md_path = out / "comparison.md"
+    md_path.write_text(table_markdown(summary))
+    return [json_path, md_path, *figures]
+
+
+def _finite(value: object) -> object:
+    """``value`` with every NaN or infinite float replaced by None (strict JSON: null), e.g. a
+    time-to-95% never reached."""
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(v) for v in value]
+    if isinstance(value, (float, np.floating)) and not math.isfinite(value):
+        return None
+    return value
+
+
+def _json_default(value: object) -> object:
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (tuple, Path)):
+        return str(value)
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def _nothing(message: str) -> None:
+    del message
+
+
+def run_comparison(
+    out: str | Path,
+    settings: ComparisonSettings,
+    report: Callable[[str], None] = _nothing,
+) -> dict[str, object]:
+    """Run every available variant on every house of ``settings``; write ``comparison.json``,
+    ``comparison.md`` and one figure per house type (``comparison_{synthetic,public}.png``)
+    into ``out``. Returns the summary written to the JSON; ``report`` gets one line per fit."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    keys, notes = available_variants(settings.variants, report)
+    records: dict[str, dict[str, list[dict[str, object]]]] = {}
+    for house_type in settings.house_types:
+        todo = problems(settings, house_type)
+        if not todo:
+            notes.append(
+                f"{house_type} houses skipped: "
+                + ("no seeds" if house_type == SYNTHETIC else "the public dataset was not found")
+            )
+            continue
+        records[house_type] = {key: [] for key in keys}
+        for key in keys:  # compile / load the compiled code once, outside every measured fit
+            warm_up(VARIANTS[key], todo[0])
+        for problem in todo:
+            for key in keys:
+                variant = VARIANTS[key]
+                record = fit_and_score(variant, problem, budget(variant, settings))
+                records[house_type][key].append(record)
+                final = record["final"]
+                report(
+                    f"{house_type} {problem.name} {key}: "
+                    + ", ".join(f"{s} {final[s]:.3f}" for s in SCORES[house_type])
+                    + f", {record['concepts']} concepts, {record['seconds']:.1f} s"
+                )
+    summary = summarise(records, settings, notes, time.perf_counter() - start)
+    summary["load_average_at_end"] = list(os.getloadavg())
+    write_report(out, summary)
+    return summary

@@ -1,0 +1,240 @@
+"""``spcopyro compare-inference``: the Gibbs-versus-VI comparison (issue #10), its helpers on
+constructed inputs, and the command end to end on a tiny synthetic house."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+import torch
+from scipy.signal import lfilter
+
+from spcopyro.cli import main
+from spcopyro.experiments import inference_comparison as comparison
+from spcopyro.experiments.comparison_stats import (
+    agreement_counts,
+    effective_sample_size,
+    ess_per_second,
+    geometric_budgets,
+    geometric_indices,
+    overconfidence,
+    sample_confidence,
+    time_to_fraction,
+    wrong_cells,
+)
+from spcopyro.experiments.inference_comparison import (
+    VARIANTS,
+    Variant,
+    available_variants,
+    check_variants,
+)
+
+# -- time to 95% ---------------------------------------------------------------------------------
+
+
+def test_time_to_fraction_higher_is_better():
+    seconds = np.array([1.0, 2.0, 3.0, 4.0])
+    values = np.array([0.0, 0.5, 0.96, 1.0])
+    assert time_to_fraction(seconds, values, 1.0) == 3.0
+    assert time_to_fraction(seconds, values, 1.0, fraction=0.5) == 2.0
+    assert time_to_fraction(seconds, values, 1.0, fraction=1.0) == 4.0
+    # the first crossing counts, even if the curve drops again later
+    assert time_to_fraction(seconds, np.array([0.0, 0.97, 0.2, 1.0]), 1.0) == 2.0
+    # never reached (the final value lies above the curve): NaN
+    assert math.isnan(time_to_fraction(seconds, values, 2.0))
+    # a non-positive final quality: the target is the final value itself
+    assert time_to_fraction(seconds, np.array([-0.5, -0.2, -0.1, -0.1]), -0.1) == 3.0
+
+
+def test_time_to_fraction_lower_is_better():
+    seconds = np.array([1.0, 2.0, 3.0, 4.0])
+    distance = np.array([5.0, 2.0, 1.04, 1.0])  # target 1 / 0.95 = 1.0526
+    assert time_to_fraction(seconds, distance, 1.0, higher_is_better=False) == 3.0
+    assert math.isnan(time_to_fraction(seconds, distance, 0.0, higher_is_better=False))
+    assert math.isnan(time_to_fraction(seconds, distance, 0.5, higher_is_better=False))
+
+
+def test_time_to_fraction_rejects_bad_input():
+    with pytest.raises(ValueError, match="equal"):
+        time_to_fraction(np.zeros(3), np.zeros(4), 1.0)
+    with pytest.raises(ValueError, match="fraction"):
+        time_to_fraction(np.zeros(3), np.zeros(3), 1.0, fraction=1.5)
+    assert math.isnan(time_to_fraction(np.arange(3.0), np.ones(3), math.nan))
+
+
+# -- effective sample size -----------------------------------------------------------------------
+
+
+def _ar1(rho: float, n: int, seed: int) -> np.ndarray:
+    """x_t = rho x_{t-1} + sqrt(1 - rho^2) e_t, started in its stationary law."""
+    rng = np.random.default_rng(seed)
+    noise = rng.normal(size=n) * math.sqrt(1 - rho**2)
+    noise[0] = rng.normal()
+    return lfilter([1.0], [1.0, -rho], noise)
+
+
+@pytest.mark.parametrize("rho", [0.0, 0.5, 0.9])
+def test_ess_of_an_ar1_series(rho):
+    """ESS of AR(1) with coefficient rho tends to n (1 - rho) / (1 + rho)."""
+    n = 40_000
+    expected = n * (1 - rho) / (1 + rho)
+    estimates = [effective_sample_size(_ar1(rho, n, seed)) for seed in range(3)]
+    assert np.mean(estimates) == pytest.approx(expected, rel=0.12)
+
+
+def test_ess_agrees_with_pyro():
+    """The numpy estimator is Pyro's (Geyer's initial monotone sequence), to 1% on one chain."""
+    from pyro.ops.stats import effective_sample_size as pyro_ess
+
+    for rho in (0.0, 0.7):
+        x = _ar1(rho, 400, 3)
+        expected = float(pyro_ess(torch.as_tensor(x)[None], chain_dim=0, sample_dim=1))
+        assert effective_sample_size(x) == pytest.approx(expected, rel=0.01)
+
+
+def test_ess_degenerate_series():
+    assert math.isnan(effective_sample_size(np.ones(100)))
+    assert math.isnan(effective_sample_size(np.arange(3.0)))
+    with pytest.raises(ValueError, match="one-dimensional"):
+        effective_sample_size(np.zeros((2, 5)))
+
+
+def test_ess_per_second_uses_the_second_half_and_its_time():
+    n = 20_000
+    x = _ar1(0.5, n, 7)
+    seconds = 0.002 * np.arange(1, n + 1)  # 2 ms per draw
+    window_ess = effective_sample_size(x[n // 2 :])
+    elapsed = seconds[-1] - seconds[n // 2 - 1]  # the second half's own time: 20 s
+    assert elapsed == pytest.approx(20.0)
+    assert ess_per_second(x, seconds) == pytest.approx(window_ess / elapsed)
+    # about n/2 * (1 - rho)/(1 + rho) / 20 s = 166.7 per second
+    assert ess_per_second(x, seconds) == pytest.approx(n / 2 / 3 / 20.0, rel=0.15)
+    assert ess_per_second(x, seconds, burn_in=0.0) == pytest.approx(
+        effective_sample_size(x) / seconds[-1]
+    )
+    with pytest.raises(ValueError, match="differ"):
+        ess_per_second(x, seconds[:-1])
+
+
+# -- label-map statistics ------------------------------------------------------------------------
+
+
+def test_agreement_counts_on_a_two_by_two_grid():
+    pairs = torch.tensor([[0, 1], [0, 2], [1, 3], [2, 3]])  # cells 0 1 / 2 3
+    samples = np.array([[0, 0, 1, 1], [0, 0, 0, 0], [0, 1, 1, 0]], dtype=np.int16)
+    np.testing.assert_array_equal(agreement_counts(samples, pairs), [2.0, 4.0, 0.0])
+
+
+def test_wrong_cells_and_overconfidence():
+    labels = np.array([0, 0, 0, 1, 1, 2])
+    truth = np.array([0, 0, 1, 1, 1, 1])
+    # concept 0 reads as category 0 (cell 2 is wrong); concepts 1 and 2 as category 1 (a split
+    # category is not penalised)
+    wrong = wrong_cells(labels, truth)
+    np.testing.assert_array_equal(wrong, [False, False, True, False, False, False])
+    confidence = np.array([0.5, 0.6, 0.995, 0.9, 0.8, 0.7])
+    scores = overconfidence(confidence, wrong)
+    assert scores["wrong_share"] == pytest.approx(1 / 6)
+    assert scores["confidence_wrong"] == pytest.approx(0.995)
+    assert scores["confidence_right"] == pytest.approx(np.mean([0.5, 0.6, 0.9, 0.8, 0.7]))
+    assert scores["confident_wrong_share"] == 1.0
+    with pytest.raises(ValueError, match="non-negative"):
+        wrong_cells(np.array([0, -1]), np.array([0, 0]))
+
+
+def test_sample_confidence_counts_the_second_half():
+    samples = np.array([[9, 9], [9, 9], [1, 2], [1, 3], [1, 2], [0, 2]])
+    np.testing.assert_allclose(sample_confidence(samples, np.array([1, 2])), [2 / 3, 2 / 3])
+
+
+def test_geometric_points():
+    np.testing.assert_array_equal(geometric_indices(1, 5), [0])
+    indices = geometric_indices(200, 20)
+    assert indices[0] == 0 and indices[-1] == 199 and np.all(np.diff(indices) > 0)
+    assert len(indices) <= 20
+    assert geometric_budgets(100, 7) == [1, 3, 6, 12, 25, 50, 100]
+    assert geometric_budgets(4, 7) == [1, 2, 4]
+
+
+# -- the method list -----------------------------------------------------------------------------
+
+
+def test_unknown_method_is_an_error(tmp_path, capsys):
+    with pytest.raises(ValueError, match=r"unknown method\(s\) \['nope'\].*choose from"):
+        check_variants(["gibbs", "nope"])
+    code = main(["compare-inference", "--out", str(tmp_path), "--methods", "gibbs", "nope"])
+    assert code == 2
+    assert "unknown method(s) ['nope']" in capsys.readouterr().err
+    assert not (tmp_path / "comparison.json").exists()
+    assert check_variants(["cavi", "gibbs"]) == ("gibbs", "cavi")  # table order
+
+
+def test_a_method_missing_from_the_registry_is_skipped(monkeypatch):
+    monkeypatch.setitem(VARIANTS, "fake", Variant("fake", "no-such-method", "fake", 5, 2))
+    messages: list[str] = []
+    kept, skipped = available_variants(["gibbs", "fake"], messages.append)
+    assert kept == ["gibbs"]
+    assert skipped == messages and len(messages) == 1
+    assert (
+        "skipped fake" in messages[0] and "'no-such-method' is not in the registry" in messages[0]
+    )
+
+
+def test_variant_options_change_the_defaults():
+    from spcopyro.gibbs.options import GibbsOptions
+
+    assert comparison.variant_options(VARIANTS["gibbs"]) == GibbsOptions()
+    assert comparison.variant_options(VARIANTS["gibbs-sw"]) == GibbsOptions(cluster_moves=0.1)
+
+
+# -- the command ---------------------------------------------------------------------------------
+
+
+def _no_constant(name: str) -> None:
+    raise AssertionError(f"comparison.json holds {name}: not strict JSON")
+
+
+def test_quick_command_writes_table_json_and_figure(tmp_path, capsys, monkeypatch):
+    monkeypatch.setitem(VARIANTS, "fake", Variant("fake", "no-such-method", "fake", 5, 2))
+    out = tmp_path / "cmp"
+    code = main([
+        "compare-inference", "--out", str(out), "--quick", "--houses", "synthetic",
+        "--methods", "gibbs", "cavi", "fake", "--iterations", "gibbs=40", "cavi=6",
+    ])  # fmt: skip
+    assert code == 0
+    printed = capsys.readouterr().out
+    assert "skipped fake" in printed
+    summary = json.loads((out / "comparison.json").read_text(), parse_constant=_no_constant)
+    assert summary["figures"] == ["comparison_synthetic.png"]
+    assert (out / "comparison_synthetic.png").stat().st_size > 10_000
+    assert set(summary["records"]["synthetic"]) == {"gibbs", "cavi"}
+    assert summary["settings"]["iterations"] == {"gibbs": 40, "cavi": 6}
+    assert any("skipped fake" in note for note in summary["notes"])
+    gibbs = summary["records"]["synthetic"]["gibbs"][0]
+    cavi = summary["records"]["synthetic"]["cavi"][0]
+    # a sampler is scored at its kept maps, CAVI (no kept maps) by re-runs; both end at the
+    # method's own output at the run's full time
+    assert gibbs["curve_kind"] == "kept label maps"
+    assert cavi["curve_kind"] == "re-runs at geometric budgets"
+    assert [p["iteration"] for p in cavi["curve"]] == [1, 3, 6]
+    for record in (gibbs, cavi):
+        curve = record["curve"]
+        seconds = [p["seconds"] for p in curve]
+        assert seconds == sorted(seconds) and seconds[-1] == record["seconds"]
+        assert {k: curve[-1][k] for k in ("ari", "matching_rate")} == {
+            k: record["final_given_labels"][k] for k in ("ari", "matching_rate")
+        }
+        t95 = record["time_to_95"]["ari"]
+        assert t95 is None or t95 <= record["seconds"]  # None: never reached (NaN -> null)
+        assert record["concepts"] >= 1 and record["top_words"]
+        assert set(record["final_given_labels"]) == set(record["final"])
+        assert record["final_given_labels"]["ari"] == record["final"]["ari"]  # same labels
+        assert 0 <= record["overconfidence"]["wrong_share"] <= 1
+    assert set(gibbs["ess_per_second"]) == {"log_joint", "agreement"}
+    assert "ess_per_second" not in cavi
+    table = (out / "comparison.md").read_text()
+    assert "| Gibbs (Algorithm 1) |" in table and "| CAVI (mean field" in table
+    assert "## Findings" in table and "cavi against gibbs" in table
+    assert "![quality against time](comparison_synthetic.png)" in table
