@@ -7,6 +7,7 @@ PYTHONPATH), whichever copy the environment has installed.
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import sys
@@ -65,3 +66,15 @@ def test_variational_benchmark_quick(tmp_path):
     results = json.loads(out.read_text())
     assert all(row["ratio_numba_to_gibbs"] > 0 for row in results["iterations"])
     assert results["ordering"]
+
+
+@pytest.mark.slow
+def test_svi_vs_cavi_benchmark_quick(tmp_path):
+    out = tmp_path / "svi.json"
+    done = run_benchmark("svi_vs_cavi.py", out)
+    assert done.returncode == 0, done.stderr
+    record = json.loads(out.read_text())
+    assert record["steps"] == 10 and len(record["rows"]) == 1
+    row = record["rows"][0]
+    assert math.isfinite(row["svi_elbo"]) and math.isfinite(row["cavi_elbo"])
+    assert "SVI below CAVI" in done.stdout

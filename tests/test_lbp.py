@@ -193,6 +193,10 @@ def test_the_registered_lbp_method_returns_beliefs_and_a_bethe_trace():
                               "tolerance": 0.0}  # fmt: skip
     with pytest.raises(TypeError, match="LBPOptions"):
         method.run(data, cfg, iterations=1, generator=torch.Generator(), options=object())
+    thinned = method.run(data, cfg, iterations=8, generator=torch.Generator().manual_seed(0),
+                         options=options, thin=3)  # fmt: skip
+    np.testing.assert_array_equal(thinned.sample_iterations, [2, 5])
+    assert thinned.label_samples.shape == (2, data.num_free)
 
 
 def test_lbp_reaches_a_high_ari_on_an_easy_synthetic_house():

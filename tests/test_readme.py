@@ -11,6 +11,7 @@ README = Path(__file__).resolve().parents[1] / "README.md"
 SMALLER = {  # README text -> what the test runs instead (each must occur in the snippets)
     "make_house(seed=0)": "make_house(seed=0, spec=HouseSpec(height=40, width=50, num_rooms=3))",
     "sweeps=1000": "sweeps=12",
+    "sweeps=100,": "sweeps=5,",
     "anneal_sweeps=200": "anneal_sweeps=4",
     "advance(chain, 500)": "advance(chain, 6)",
     "num_samples=500, warmup_steps=500": "num_samples=5, warmup_steps=5",

@@ -115,7 +115,14 @@ VARIANTS: dict[str, Variant] = {
         ),  # fmt: skip
         Variant("lbp", "lbp", "loopy BP (Bethe)", 100, 8),
         Variant("svi", "svi", "SVI (Pyro guide)", 2000, 20),
-        Variant("stochastic-vi", "stochastic-vi", "stochastic VI (spatial blocks)", 100, 8),
+        Variant(
+            "stochastic-vi",
+            "stochastic-vi",
+            "memoized VI (spatial tiles; gamma annealed over 10 passes)",
+            100,
+            8,
+            {"anneal_passes": 10},
+        ),  # fmt: skip
         Variant("vi-gibbs", "vi-gibbs", "VI then Gibbs", 5000, 60),
     )
 }

@@ -76,11 +76,12 @@ def run_lbp(
     q: torch.Tensor,
     options: LBPOptions | None = None,
     progress: bool | None = None,
+    thin: int = 0,
 ) -> tuple[VariationalRun, LoopyBP]:
     """``iterations`` outer iterations of (global factors from the beliefs, ``options.passes``
     message passes), tracing the Bethe objective at the model's gamma; ``q`` ``[N, L]`` is the
     start (the messages are initialised from it) and is updated in place. Returns the run and the
-    BP state (its messages)."""
+    BP state (its messages). ``thin`` > 0 keeps the argmax labels every ``thin`` iterations."""
     options = LBPOptions() if options is None else options
     bp = LoopyBP(data, config, options.damping, options.passes)
 
@@ -91,6 +92,7 @@ def run_lbp(
     run = run_variational(
         data, config, iterations, options=options.variational(), q=q,
         label_update=bp.update, objective=objective, progress=progress, description="LBP",
+        thin=thin,
     )  # fmt: skip
     return run, bp
 
@@ -121,7 +123,9 @@ class LBPInference:
         if not isinstance(options, LBPOptions):
             raise TypeError(f"LBP takes LBPOptions, got {type(options).__name__}")
         q = initial_q(data, config, generator, init_labels)
-        run, _ = run_lbp(data, config, iterations, q=q, options=options, progress=progress)
+        run, _ = run_lbp(
+            data, config, iterations, q=q, options=options, progress=progress, thin=thin
+        )
         record = {"iterations": iterations, **dataclasses.asdict(options)}
         output = output_from_variational(run, record)
         trace = dataclasses.replace(output.trace, objective_name=self.objective_name)
