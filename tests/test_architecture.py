@@ -30,7 +30,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("metrics", "plotting", "baselines", "features"),
     ("fit",),
     ("experiments",),
-    ("cli", "__main__"),
+    ("cli", "cli_common", "cli_fit", "__main__"),
 )
 """Layer of every top-level module or subpackage of spcopyro, lowest first."""
 

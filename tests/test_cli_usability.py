@@ -130,7 +130,7 @@ def test_fit_reports_the_wall_time_of_the_whole_fit(
     small_house, tmp_path, capsys, monkeypatch, options, reported
 ):
     clock = iter([100.0, 142.5])  # the fit starts at 100 s and ends at 142.5 s
-    monkeypatch.setattr("spcopyro.cli._clock", lambda: next(clock))
+    monkeypatch.setattr("spcopyro.cli_fit._clock", lambda: next(clock))
     argv = ["fit", str(small_house), "--out", str(tmp_path / "fit"), "--backend", "torch",
             "--preset", "original-code", "--gamma", "3", "--concepts", "10", *options]  # fmt: skip
     assert main(argv) == 0

@@ -5,4 +5,5 @@
 * :mod:`spcopyro.experiments.table`: scores on synthetic houses (ARI, matching rate) and on the
   public houses (held-out-trial word prediction and localisation); ``table.md`` / ``table.json``.
 * :mod:`spcopyro.experiments.figures`: ARI and concepts per sweep, the maps side by side.
+* :mod:`spcopyro.experiments.cli`: the ``experiment`` and ``compare-inference`` commands.
 """

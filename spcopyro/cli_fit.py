@@ -1,0 +1,370 @@
+"""The ``spcopyro fit`` command: check the arguments, fit, write OUT whole, keep a checkpoint.
+
+:func:`add_parser` registers ``fit`` on the main parser's subparsers (:mod:`spcopyro.cli`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import shlex
+import sys
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from spcopyro.cli_common import (
+    _PRESET_DEFAULT,
+    _concentrations,
+    _feature_scaling,
+    _load,
+    _non_negative_int,
+    _positive_int,
+    _summary,
+    _sweeps,
+    _threads,
+)
+from spcopyro.config import DEFAULT_PRESET, DEFAULT_SNAP_DISTANCE, PRESETS, SpCoSettings, preset
+from spcopyro.data import House
+from spcopyro.gibbs.backends import get_backend
+from spcopyro.gibbs.options import BACKENDS, GibbsOptions
+from spcopyro.inference import with_options
+from spcopyro.outputs import StagedOutput
+from spcopyro.registry import DEFAULT_METHOD, INFERENCE_METHODS
+from spcopyro.threads import AUTO, MIN_CELLS_FOR_MORE_THREADS, describe_threads
+
+if TYPE_CHECKING:
+    from spcopyro.fit import FitCheckpoint
+
+__all__ = ["add_parser"]
+
+_clock = time.perf_counter  # wall clock of a whole fit (all chains)
+
+
+def _fit(args: argparse.Namespace) -> int:
+    """Check the arguments and OUT, then fit into a staging folder moved to OUT at the end
+    (:mod:`spcopyro.outputs`); Ctrl-C keeps a checkpoint beside OUT and exits with 130."""
+    from spcopyro.fit import FitCheckpoint, FitInterrupted
+    from spcopyro.outputs import checkpoint_path, stage_output
+
+    if args.sweeps == "auto" and args.method != "gibbs":
+        raise ValueError(f"--sweeps auto is Gibbs' convergence rule, not {args.method!r}'s")
+    if args.resume is not None and (args.sweeps == "auto" or args.method != "gibbs"):
+        raise ValueError(
+            "--resume continues Gibbs chains run for a number of --sweeps; "
+            f"--sweeps {args.sweeps} --method {args.method} keeps no checkpoint"
+        )
+    if args.sweeps != "auto" and args.anneal_sweeps > args.sweeps:
+        raise ValueError(f"anneal_sweeps ({args.anneal_sweeps}) must not exceed num_sweeps "
+                         f"({args.sweeps})")  # fmt: skip
+    if args.resume is not None and not Path(args.resume).is_file():
+        raise FileNotFoundError(f"--resume {args.resume}: no such checkpoint file")
+    house = _load(args.data)
+    settings, options = _fit_settings(args, house)
+    staged = stage_output(args.out, overwrite=args.overwrite, resume=args.resume)
+    keeper = None  # keeps the Gibbs chains for a checkpoint beside OUT
+    if args.method == "gibbs" and args.sweeps != "auto":
+        keeper = FitCheckpoint(checkpoint_path(staged.out))
+    sampled: list[bool] = []  # set once sampling has ended
+    try:
+        return _fit_staged(args, house, settings, options, staged, keeper, sampled)
+    except KeyboardInterrupt as stop:
+        if staged.committed:
+            print(f"interrupted after {staged.out} was written", file=sys.stderr)
+            return 130
+        if isinstance(stop, FitInterrupted):  # while sampling
+            where, kept = f" ({stop.where})", stop.checkpoint
+        else:  # while reading the data, or writing the outputs
+            where = " while writing the outputs" if sampled else ""
+            kept = keeper.save() if keeper and sampled else None
+        print(_interrupted(args, where, kept, staged.out), file=sys.stderr)
+        return 130
+    except Exception:
+        writing = sampled and not (staged.committed or staged.kept)
+        kept = keeper.save() if keeper and writing else None
+        if kept is not None:  # an error while writing: the sampling is not lost
+            print(f"note: nothing written to {staged.out}; the finished chains are saved in "
+                  f"{kept} -- once fixed, continue with: {_resume_command(args, kept)}",
+                  file=sys.stderr)  # fmt: skip
+        raise
+    finally:
+        staged.discard()  # nothing once committed; else the run's partial outputs
+
+
+def _interrupted(args: argparse.Namespace, where: str, kept: Path | None, out: Path) -> str:
+    """The one line ``fit`` prints when Ctrl-C stops it (``kept``: the checkpoint, if any)."""
+    line = f"interrupted{where}: nothing written to {out}"
+    if kept is None:
+        why = "--sweeps auto" if args.sweeps == "auto" else f"the {args.method!r} method"
+        if args.sweeps != "auto" and args.method == "gibbs":
+            why = "no sweep was done"
+        return f"{line}; no checkpoint kept ({why})"
+    command = _resume_command(args, kept)
+    return f"{line}; the state reached is saved in {kept} -- continue with: {command}"
+
+
+def _command(args: argparse.Namespace) -> list[str]:
+    """The command line this run was started with (without the program's name)."""
+    return list(args.argv if getattr(args, "argv", None) else sys.argv[1:])
+
+
+def _resume_command(args: argparse.Namespace, checkpoint: Path) -> str:
+    """This run's command line with ``--resume CHECKPOINT`` (in place of an earlier one)."""
+    argv = _command(args)
+    for k in range(len(argv) - 1, -1, -1):
+        if argv[k] == "--resume":
+            del argv[k : k + 2]
+        elif argv[k].startswith("--resume="):
+            del argv[k]
+    return shlex.join(["spcopyro", *argv, "--resume", str(checkpoint)])
+
+
+def _fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings, object | None]:
+    """The model and data settings and the method's options (None: its defaults) of ``fit``."""
+    overrides = dict(
+        prior=args.prior, num_concepts=args.concepts, gamma=args.gamma, alpha=args.alpha,
+        beta=args.beta, chi=args.chi, connectivity=args.connectivity,
+        concentrations=_concentrations(args.concentration),
+        word_weighting="tfidf" if args.tfidf else None,
+        feature_scaling=_feature_scaling(args.feature_scaling),
+        snap_distance=args.snap_distance,
+    )  # fmt: skip
+    if args.preset == "paper-dirichlet" and args.concepts is None and house.category_names:
+        overrides["num_concepts"] = len(house.category_names)
+    settings = preset(args.preset, **overrides)
+    options = None  # a method other than Gibbs runs with its defaults and --method-option
+    if args.method_option:
+        default = INFERENCE_METHODS[args.method].default_options()
+        options = with_options(default, args.method_option)
+    if args.method == "gibbs":
+        options = GibbsOptions(
+            backend=args.backend, anneal_sweeps=args.anneal_sweeps,
+            unobserved_refresh=1.0 if args.unobserved_refresh is None else args.unobserved_refresh,
+            cluster_moves=0.0 if args.cluster_moves is None else args.cluster_moves,
+        )  # fmt: skip
+        options = with_options(options, args.method_option or [])
+        try:
+            get_backend(options.backend)
+        except ImportError as error:  # --backend numba without numba: before anything is written
+            raise ValueError(str(error)) from None
+    return settings, options
+
+
+def _fit_staged(
+    args: argparse.Namespace,
+    house: House,
+    settings: SpCoSettings,
+    options: object | None,
+    staged: StagedOutput,
+    keeper: FitCheckpoint | None,
+    sampled: list[bool],
+) -> int:
+    """Fit, write every output into ``staged.path``, then move it to OUT."""
+    from spcopyro.fit import best_chain, fit_house_chains
+    from spcopyro.outputs import checkpoint_path
+    from spcopyro.plotting import plot_house, plot_semantic_map, plot_trace, plot_uncertainty
+    from spcopyro.uncertainty import cell_entropy, free_cells_image
+
+    config = settings.model
+    source = "embedded synthetic house, seed 0" if args.data is None else None
+    # The config's warnings (gamma, extreme concentrations) are logged by prepare_model_data,
+    # which the fit runs; main's logging handler prints them once, as "warning: ...".
+    print(_summary(house))
+    print(f"model            {config}")
+    print(f"data             {settings.data}")
+    default = INFERENCE_METHODS[args.method].default_options()
+    print(f"inference        {args.method}: {options if options is not None else default}")
+    print(f"threads          {describe_threads(args.threads, house.grid.num_free)}")
+    if isinstance(options, GibbsOptions):
+        print(f"backend used     {get_backend(options.backend).name}")
+    if args.resume is not None:
+        print(f"resuming         the chains saved in {args.resume}")
+    init = args.init
+    if args.init_from is not None:
+        from spcopyro.results import SpCoResult
+
+        init = SpCoResult.load(args.init_from)
+        print(f"starting from     the {init.method} fit in {args.init_from}")
+    diagnostics = None
+    start = _clock()
+    if args.sweeps == "auto":
+        from spcopyro.fit import fit_house_converged
+
+        chains = 4 if args.chains is None else args.chains
+        result, diagnostics = fit_house_converged(
+            house, settings, options=options, chains=chains, max_sweeps=args.max_sweeps,
+            seed=args.seed, init=init, source=source, threads=args.threads,
+        )  # fmt: skip
+        chain_results = None
+    else:
+        chains = 1 if args.chains is None else args.chains
+        chain_results = fit_house_chains(
+            house, settings, method=args.method, options=options, sweeps=args.sweeps,
+            seeds=[args.seed + k for k in range(chains)], init=init, source=source,
+            checkpoint=keeper, resume=args.resume, threads=args.threads,
+            marginal_samples=args.marginal_samples,
+        )  # fmt: skip
+        kept = best_chain(chain_results)
+        result = chain_results[kept]
+    wall = _clock() - start
+    sampled.append(True)
+    command = shlex.join(["spcopyro", *_command(args)])
+    result = dataclasses.replace(result, provenance={**result.provenance, "command": command})
+    out = result.save(staged.path)
+    if chain_results is not None and chains > 1:
+        best_values = [r.best_objective for r in chain_results]
+        report = {"seeds": [args.seed + k for k in range(chains)], "best_chain": kept,
+                  "best_log_joint": best_values}  # fmt: skip
+        (out / "chains.json").write_text(json.dumps(report, indent=1) + "\n")
+        print(f"best of {chains} chains: kept chain {kept} (seed {args.seed + kept}), best log "
+              f"joints {', '.join(f'{v:.1f}' for v in best_values)}")  # fmt: skip
+    sweeps_run = len(result.trace.objective)
+    if diagnostics is not None:
+        (out / "convergence.json").write_text(json.dumps(diagnostics.to_json(), indent=1) + "\n")
+        last = diagnostics.checks[-1]
+        state = "converged" if diagnostics.converged else "NOT converged (hit --max-sweeps)"
+        print(f"--sweeps auto: {chains} chains {state} after {sweeps_run} sweeps each "
+              f"(split R-hat: log joint {last.rhat_log_joint:.3f}, concepts "
+              f"{last.rhat_num_concepts:.3f}); kept chain {diagnostics.best_chain} "
+              f"(seed {diagnostics.seeds[diagnostics.best_chain]}), highest log joint")  # fmt: skip
+    plot_semantic_map(result, out / "semantic_map.png")
+    plot_trace(result, out / "trace.png")
+    plot_house(house, out / "house.png")
+    entropy = cell_entropy(result)
+    if entropy is not None:
+        np.save(out / "uncertainty.npy", free_cells_image(result, entropy))
+        plot_uncertainty(result, out / "uncertainty.png")
+    unit = "sweep" if result.trace.objective_name == "log joint" else "iteration"
+    runs = f"{chains} chains x " if chains > 1 else ""
+    runs += f"{sweeps_run} {unit}s"
+    print(f"fitted {runs} in {wall:.1f} s wall clock "
+          f"({1e3 * result.trace.seconds[-1] / sweeps_run:.2f} ms per {unit}); "
+          f"{len(result.concepts_in_use())} concepts in use")  # fmt: skip
+    if house.truth is not None:
+        from spcopyro.metrics import adjusted_rand_index
+
+        ari = adjusted_rand_index(result.label_image(), house.truth)
+        np.save(out / "truth.npy", house.truth)
+        (out / "scores.json").write_text(json.dumps({"ari": ari}) + "\n")
+        print(f"adjusted Rand index against the ground truth: {ari:.3f}")
+    further = [t.name for t in result.emissions if t.name not in ("images", "words")]
+    for concept in result.concepts()[:10]:
+        words = ", ".join(f"{w} ({p:.2f})" for w, p in concept["top_words"][:3])
+        for name in further:
+            top = concept[f"top_{name}"][:2]
+            words += f"; {name}: " + ", ".join(f"{item} ({p:.2f})" for item, p in top)
+        print(f"  concept {concept['concept']:>3}: {concept['cells']:>6} cells  {words}")
+    vocabulary_size = len(result.vocabulary)
+    used = result.concepts_in_use()
+    if vocabulary_size and result.w[used].max() < 2.0 / vocabulary_size:
+        print(
+            f"note: every concept's word distribution is close to uniform: beta = "
+            f"{config.beta:g} outweighs the {house.observations.num_utterances} utterances; "
+            "for sharper words try --beta 0.1 (or --preset original-code --gamma 3)",
+            file=sys.stderr,
+        )
+    out = staged.commit()
+    checkpoint = checkpoint_path(out)
+    if checkpoint.is_file():  # the one resumed from, or an old one --overwrite replaces
+        checkpoint.unlink(missing_ok=True)
+        print(f"removed {checkpoint}: the fit it held is complete or replaced")
+    print(f"wrote {out}/: labels.npy semantic_map.png concepts.json trace.csv trace.png ...")
+    return 0
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``fit`` (its options and their help, as ``spcopyro fit --help`` lists them)."""
+    p = subparsers.add_parser(
+        "fit", help="fit SpCoMapping (Gibbs sampling) and write the semantic map"
+    )
+    p.add_argument("data", nargs="?", help="house folder (default: the synthetic house)")
+    p.add_argument("--out", required=True,
+                   help="output folder (written whole at the end; new or empty)")  # fmt: skip
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the --out folder of an earlier fit (all its files)")  # fmt: skip
+    p.add_argument("--resume", metavar="CHECKPOINT",
+                   help="continue the interrupted fit saved in CHECKPOINT (OUT.checkpoint.npz; "
+                        "Ctrl-C writes it), with the same data and settings (default: a new "
+                        "fit)")  # fmt: skip
+    p.add_argument("--sweeps", type=_sweeps, default=5000,
+                   help="Gibbs iterations (paper: 5000), or 'auto': run --chains chains until "
+                        "split R-hat of the log joint and of the number of concepts < 1.05 "
+                        "(at most --max-sweeps)")  # fmt: skip
+    p.add_argument("--chains", type=_positive_int,
+                   help="run this many chains (seeds --seed, --seed + 1, ...) and keep the one of "
+                        "highest log joint (default 1; 4 with --sweeps auto)")  # fmt: skip
+    p.add_argument("--anneal-sweeps", type=_non_negative_int, default=0,
+                   help="ramp gamma up from gamma/N to gamma over the first N sweeps (burn-in; "
+                        "default 0)")  # fmt: skip
+    p.add_argument("--max-sweeps", type=int, default=5000,
+                   help="cap per chain for --sweeps auto (default 5000)")  # fmt: skip
+    p.add_argument("--preset", choices=sorted(PRESETS), default=DEFAULT_PRESET,
+                   help="the model's hyperparameters and data preparation; the options below "
+                        "override its values")  # fmt: skip
+    p.add_argument("--prior", choices=("dp", "dirichlet"),
+                   help="prior of the concept weights pi: weak-limit DP or Dirichlet "
+                        f"{_PRESET_DEFAULT}")  # fmt: skip
+    p.add_argument("--concepts", type=int,
+                   help=f"L, the number (upper bound) of concepts {_PRESET_DEFAULT}")  # fmt: skip
+    p.add_argument("--gamma", type=float, help=f"Potts coupling {_PRESET_DEFAULT}")
+    p.add_argument("--alpha", type=float,
+                   help=f"concentration of the concept weights pi {_PRESET_DEFAULT}")  # fmt: skip
+    p.add_argument("--beta", type=float, help=f"word prior concentration {_PRESET_DEFAULT}")
+    p.add_argument("--chi", type=float,
+                   help=f"image-feature prior concentration {_PRESET_DEFAULT}")  # fmt: skip
+    p.add_argument("--concentration", action="append", metavar="NAME=VALUE",
+                   help="Dirichlet concentration of a further modality (a modality_NAME.csv of "
+                        "the house); repeat for several (default: none)")  # fmt: skip
+    p.add_argument("--connectivity", type=int, choices=(4, 8),
+                   help=f"MRF neighbourhood of a cell {_PRESET_DEFAULT}")  # fmt: skip
+    p.add_argument("--tfidf", action="store_true", help="weight words by tf-idf (eq. 20)")
+    p.add_argument(
+        "--unobserved-refresh",
+        type=float,
+        help="share of sweeps that redraw theta/w of concepts without observations (default 1)",
+    )
+    p.add_argument(
+        "--cluster-moves",
+        type=float,
+        help="share of sweeps that start with a Swendsen-Wang move: whole regions change concept "
+        "at once (default 0)",
+    )
+    p.add_argument("--feature-scaling",
+                   help="image features as probability, floor100 or a number s (s * f) "
+                        f"{_PRESET_DEFAULT}")  # fmt: skip
+    p.add_argument(
+        "--init",
+        choices=("random", "gaussian", "spcoa"),
+        default="random",
+        help="starting labels: random, k-means Gaussians, or SpCoA pre-learning",
+    )
+    p.add_argument("--init-from", metavar="OUT",
+                   help="start from the labels of an earlier fit's output folder on the same map "
+                        "(a warm start from any method to any method, e.g. a cavi fit starting "
+                        "gibbs); replaces --init (default: none)")  # fmt: skip
+    p.add_argument("--marginal-samples", type=_non_negative_int, default=50,
+                   help="Gibbs: label maps kept over the second half of the sweeps for the "
+                        "per-cell probabilities of uncertainty.png (0: none)")  # fmt: skip
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the sampler (chain k of --chains gets seed + k)")  # fmt: skip
+    p.add_argument("--method", choices=sorted(INFERENCE_METHODS), default=DEFAULT_METHOD,
+                   help="inference method (default: gibbs, Algorithm 1)")  # fmt: skip
+    p.add_argument("--method-option", action="append", metavar="NAME=VALUE",
+                   help="set a field of the method's options, e.g. anneal_iterations=30 (cavi), "
+                        "damping=0.5 (lbp), lr=0.05 (svi), block_size=32 (stochastic-vi), "
+                        "variational.anneal_iterations=30 (vi-gibbs); repeat for several "
+                        "(default: the method's defaults, printed by the fit)")  # fmt: skip
+    p.add_argument("--backend", choices=BACKENDS, default="auto",
+                   help="Gibbs sweep implementation: torch (reference), numba (compiled) or "
+                        "auto (numba where installed, else torch); the two draw different "
+                        "random streams from one seed")  # fmt: skip
+    p.add_argument("--snap-distance", type=float, default=DEFAULT_SNAP_DISTANCE,
+                   help="metres an observation may be moved onto free space")  # fmt: skip
+    p.add_argument("--threads", type=_threads, default=AUTO,
+                   help="torch intra-op threads during the fit: auto (default: one thread unless "
+                        f"the map has >= {MIN_CELLS_FOR_MORE_THREADS} free cells), 0 (torch's own "
+                        "setting) or N; labels do not depend on it")  # fmt: skip
+    p.set_defaults(func=_fit)
