@@ -201,7 +201,8 @@ def test_quick_command_writes_table_json_and_figure(tmp_path, capsys, monkeypatc
     out = tmp_path / "cmp"
     code = main([
         "compare-inference", "--out", str(out), "--quick", "--houses", "synthetic",
-        "--methods", "gibbs", "cavi", "fake", "--iterations", "gibbs=40", "cavi=6",
+        "--methods", "gibbs", "cavi", "stochastic-vi", "fake",
+        "--iterations", "gibbs=40", "cavi=6", "stochastic-vi=6",
     ])  # fmt: skip
     assert code == 0
     printed = capsys.readouterr().out
@@ -209,17 +210,18 @@ def test_quick_command_writes_table_json_and_figure(tmp_path, capsys, monkeypatc
     summary = json.loads((out / "comparison.json").read_text(), parse_constant=_no_constant)
     assert summary["figures"] == ["comparison_synthetic.png"]
     assert (out / "comparison_synthetic.png").stat().st_size > 10_000
-    assert set(summary["records"]["synthetic"]) == {"gibbs", "cavi"}
-    assert summary["settings"]["iterations"] == {"gibbs": 40, "cavi": 6}
+    assert set(summary["records"]["synthetic"]) == {"gibbs", "cavi", "stochastic-vi"}
+    assert summary["settings"]["iterations"] == {"gibbs": 40, "cavi": 6, "stochastic-vi": 6}
     assert any("skipped fake" in note for note in summary["notes"])
     gibbs = summary["records"]["synthetic"]["gibbs"][0]
     cavi = summary["records"]["synthetic"]["cavi"][0]
-    # a sampler is scored at its kept maps, CAVI (no kept maps) by re-runs; both end at the
-    # method's own output at the run's full time
-    assert gibbs["curve_kind"] == "kept label maps"
-    assert cavi["curve_kind"] == "re-runs at geometric budgets"
-    assert [p["iteration"] for p in cavi["curve"]] == [1, 3, 6]
-    for record in (gibbs, cavi):
+    memoized = summary["records"]["synthetic"]["stochastic-vi"][0]
+    # the sampler and CAVI are scored at their kept maps, memoized VI (no kept maps) by re-runs;
+    # all end at the method's own output at the run's full time
+    assert gibbs["curve_kind"] == cavi["curve_kind"] == "kept label maps"
+    assert memoized["curve_kind"] == "re-runs at geometric budgets"
+    assert [p["iteration"] for p in memoized["curve"]] == [1, 3, 6]
+    for record in (gibbs, cavi, memoized):
         curve = record["curve"]
         seconds = [p["seconds"] for p in curve]
         assert seconds == sorted(seconds) and seconds[-1] == record["seconds"]
