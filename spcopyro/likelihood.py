@@ -139,20 +139,26 @@ def _dirichlet_log_normaliser(rows: int, size: int, concentration: float) -> tor
     return rows * (torch.lgamma(a * size) - size * torch.lgamma(a))
 
 
-def log_joint_constant(data: ModelData, config: SpCoConfig) -> torch.Tensor:
-    """The terms of the log joint that no label or parameter value changes: the Dirichlet
-    normalisers and the multinomial coefficients lgamma(n + 1) - sum lgamma(x + 1) of the
-    observed counts."""
-    L = config.num_concepts
-    total = _dirichlet_log_normaliser(1, L, config.pi_concentration)
-    for modality in data.modalities:
-        size = modality.counts.shape[-1]
-        total = total + _dirichlet_log_normaliser(L, size, config.concentration(modality.name))
+def multinomial_coefficients(data: ModelData, config: SpCoConfig) -> torch.Tensor:
+    """sum over the modalities in use of the observed counts' multinomial coefficients
+    lgamma(n + 1) - sum lgamma(x + 1) (no label or parameter changes them)."""
+    total = torch.zeros((), dtype=DTYPE)
     for modality in data.modalities:
         if config.uses(modality.name):
             zeros = torch.zeros_like(modality.counts)
             total = total + multinomial_counts_log_prob(modality.counts, zeros).sum()
     return total
+
+
+def log_joint_constant(data: ModelData, config: SpCoConfig) -> torch.Tensor:
+    """The terms of the log joint that no label or parameter value changes: the Dirichlet
+    normalisers and the multinomial coefficients (:func:`multinomial_coefficients`)."""
+    L = config.num_concepts
+    total = _dirichlet_log_normaliser(1, L, config.pi_concentration)
+    for modality in data.modalities:
+        size = modality.counts.shape[-1]
+        total = total + _dirichlet_log_normaliser(L, size, config.concentration(modality.name))
+    return total + multinomial_coefficients(data, config)
 
 
 def log_joint_variable(

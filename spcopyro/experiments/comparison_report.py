@@ -38,6 +38,7 @@ from spcopyro.experiments.inference_comparison import (
     problems,
     warm_up,
 )
+from spcopyro.experiments.table import json_default
 
 SCORE_NAMES = {
     "ari": "ARI",
@@ -355,7 +356,7 @@ def write_report(out: Path, summary: dict[str, object]) -> list[Path]:
     ]
     summary["figures"] = [p.name for p in figures]
     json_path = out / "comparison.json"
-    text = json.dumps(_finite(summary), indent=1, default=_json_default, allow_nan=False)
+    text = json.dumps(_finite(summary), indent=1, default=json_default, allow_nan=False)
     json_path.write_text(text + "\n")
     md_path = out / "comparison.md"
     md_path.write_text(table_markdown(summary))
@@ -372,14 +373,6 @@ def _finite(value: object) -> object:
     if isinstance(value, (float, np.floating)) and not math.isfinite(value):
         return None
     return value
-
-
-def _json_default(value: object) -> object:
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, (tuple, Path)):
-        return str(value)
-    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
 def _nothing(message: str) -> None:

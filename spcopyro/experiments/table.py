@@ -380,12 +380,13 @@ def run_experiment(
     notes.extend(_findings(summary))
     notes.append(f"Wall-clock time of the whole run: {time.perf_counter() - start:.0f} s.")
     summary["figures"] = [str(p.relative_to(out)) for p in write_figures(out, result)]
-    (out / "table.json").write_text(json.dumps(summary, indent=1, default=_json_default) + "\n")
+    (out / "table.json").write_text(json.dumps(summary, indent=1, default=json_default) + "\n")
     (out / "table.md").write_text(table_markdown(summary))
     return summary
 
 
-def _json_default(value: object) -> object:
+def json_default(value: object) -> object:
+    """``json.dumps``' ``default``: numpy scalars as Python numbers, tuples and paths as text."""
     if isinstance(value, np.generic):
         return value.item()
     if isinstance(value, (tuple, Path)):

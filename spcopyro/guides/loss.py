@@ -73,9 +73,12 @@ from pyro import poutine
 from pyro.infer import ELBO
 
 from spcopyro.config import SpCoConfig
-from spcopyro.likelihood import expected_agreements, observation_log_likelihood
+from spcopyro.likelihood import (
+    expected_agreements,
+    multinomial_coefficients,
+    observation_log_likelihood,
+)
 from spcopyro.model import DTYPE, SITE_LABELS, SITE_PI, ModelData
-from spcopyro.variational.elbo import multinomial_coefficients
 
 Program = Callable[[ModelData, SpCoConfig], None]
 

@@ -21,9 +21,12 @@ from __future__ import annotations
 import torch
 
 from spcopyro.config import SpCoConfig
-from spcopyro.distributions import multinomial_counts_log_prob
-from spcopyro.likelihood import expected_agreements, observation_log_likelihood
-from spcopyro.model import DTYPE, ModelData
+from spcopyro.likelihood import (
+    expected_agreements,
+    multinomial_coefficients,
+    observation_log_likelihood,
+)
+from spcopyro.model import ModelData
 from spcopyro.variational.factors import (
     GlobalFactors,
     expected_log_emissions,
@@ -40,16 +43,6 @@ def label_entropy(q: torch.Tensor) -> torch.Tensor:
 def cell_entropy(q: torch.Tensor) -> torch.Tensor:
     """[N] each cell's entropy of q(C_i) in nats: the uncertainty map."""
     return -torch.special.xlogy(q, q).sum(-1)
-
-
-def multinomial_coefficients(data: ModelData, config: SpCoConfig) -> torch.Tensor:
-    """The observed counts' multinomial coefficients (no label or parameter changes them)."""
-    total = torch.zeros((), dtype=DTYPE)
-    for modality in data.modalities:
-        if config.uses(modality.name):
-            zeros = torch.zeros_like(modality.counts)
-            total = total + multinomial_counts_log_prob(modality.counts, zeros).sum()
-    return total
 
 
 def expected_log_likelihood(

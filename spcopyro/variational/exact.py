@@ -52,9 +52,12 @@ from typing import NamedTuple
 import torch
 
 from spcopyro.config import SpCoConfig
-from spcopyro.likelihood import log_joint_constant, observation_log_likelihood
+from spcopyro.likelihood import (
+    log_joint_constant,
+    multinomial_coefficients,
+    observation_log_likelihood,
+)
 from spcopyro.model import DTYPE, ModelData, potts_agreements
-from spcopyro.variational.elbo import multinomial_coefficients
 
 MAX_LABELLINGS = 2_000_000
 """The most labellings the enumerator will list (L^N; 3^13 is 1.6 million)."""

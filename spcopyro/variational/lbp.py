@@ -56,9 +56,8 @@ from typing import NamedTuple
 import torch
 
 from spcopyro.config import SpCoConfig
-from spcopyro.likelihood import observation_log_likelihood
+from spcopyro.likelihood import multinomial_coefficients, observation_log_likelihood
 from spcopyro.model import DTYPE, ModelData
-from spcopyro.variational.elbo import multinomial_coefficients
 from spcopyro.variational.factors import (
     GlobalFactors,
     expected_log_emissions,

@@ -69,9 +69,12 @@ from numba import njit
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.numba_plan import flat_plan
 from spcopyro.gibbs.state import SweepPlan
-from spcopyro.likelihood import ConceptStatistics, observation_log_likelihood
+from spcopyro.likelihood import (
+    ConceptStatistics,
+    multinomial_coefficients,
+    observation_log_likelihood,
+)
 from spcopyro.model import DTYPE, ModelData
-from spcopyro.variational.elbo import multinomial_coefficients
 from spcopyro.variational.factors import (
     GlobalFactors,
     expected_log_emissions,

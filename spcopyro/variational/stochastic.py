@@ -343,7 +343,7 @@ def exact_elbo(
 
 
 def chunked_coefficients(data: ModelData, config: SpCoConfig) -> torch.Tensor:
-    """:func:`~spcopyro.variational.elbo.multinomial_coefficients` summed over chunks of
+    """:func:`~spcopyro.likelihood.multinomial_coefficients` summed over chunks of
     observed cells (the dense one holds several ``[M, K_m]`` temporaries at once)."""
     total = torch.zeros((), dtype=DTYPE)
     for modality in data.modalities:
