@@ -29,7 +29,7 @@ from spcopyro.variational.run import initial_q, run_variational
 
 numba_cavi = pytest.importorskip("spcopyro.variational.numba_cavi")
 
-EXACT = dict(support=0, threshold=0.0)  # the numba backend without truncation
+EXACT = dict(support=0, threshold=0.0, active_tolerance=0.0)  # the numba backend without truncation
 
 
 def problem(variant: str, seed: int = 0):
