@@ -173,7 +173,9 @@ def _resume_command(args: argparse.Namespace, checkpoint: Path) -> str:
     return shlex.join(["spcopyro", *argv, "--resume", str(checkpoint)])
 
 
-def _fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings, object | None]:
+def _fit_settings(
+    args: argparse.Namespace, house: House
+) -> tuple[SpCoSettings, object | None]:
     """The model and data settings and the method's options (None: its defaults) of ``fit``."""
     overrides = dict(
         prior=args.prior, num_concepts=args.concepts, gamma=args.gamma, alpha=args.alpha,
