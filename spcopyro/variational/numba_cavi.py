@@ -43,6 +43,44 @@ set of K concepts, the old q_i's support included. So:
 The ELBO traced is the exact ELBO of the sparse q (zero mass outside the support), a valid lower
 bound of the same evidence as the reference's.
 
+**Active set** (``active_tolerance`` = tau). A cell's update reads the logits
+:math:`a_l + \gamma n_l(i)` (a = E log pi, or E log pi plus the cell's expected log-likelihood
+for an observed cell). If every logit moved by delta_l with :math:`|\delta_l - c| \le
+\varepsilon` for a constant c since the cell's last update, its exact update moved by at most a
+factor :math:`e^{\pm 2\varepsilon}` per concept (the normaliser moves by at most
+:math:`e^{\pm\varepsilon}`). Each cell carries a bound on that epsilon, the sum of
+
+* the globals' part: half the range over l of this iteration's change of E log pi (cells
+  without observations) or of the observed cell's row (computed once per iteration, [M + 1]);
+* the coupling's: :math:`|\Delta\gamma| D / 2` (n_l(i) lies in [0, D]);
+* the neighbours': :math:`\gamma \sum_{r \sim i} \max_l |\Delta q_r(l)|`, each neighbour's
+  change at its latest visit (0 when it was skipped). Every neighbour lies in another colour
+  block, so it is visited exactly once between two visits of the cell: its latest change is
+  its change since the cell's last update.
+
+The bound accumulates while the cell is skipped and restarts at 0 when it is updated; a cell is
+skipped while it is <= tau (never with damping; every cell is updated on the first pass). Then:
+
+* **the ELBO stays monotone**: a skipped cell keeps its q, the updated ones are exact
+  coordinate steps (truncated as above), the globals' update is exact. Skipping only forgoes
+  the gain of the skipped updates, :math:`\mathrm{KL}(q_i \| q_i^*) \le
+  \log(1 + (e^{2\tau} - 1)^2) \approx 4\tau^2` per skipped cell (its log ratio to the exact
+  update q_i^* lies in [-2 tau, 2 tau]): at most 0.11 nats an iteration on room2ldk4's 27,746
+  cells with the default tau = 1e-3;
+* every q_i is within a factor :math:`e^{\pm 2\tau}` of its exact update, concept by concept
+  (tested against the dense reference block by block); the fixed point the run converges to
+  satisfies the mean-field equations to that accuracy;
+* tau = 0 skips a cell only when nothing it reads changed (the globals, the coupling and its
+  neighbours' q all bit-for-bit the same): then the update is the same as the reference's.
+
+**Running sums.** The globals' statistics (sum_i q_i), the entropy sum_i H[q_i] and the pairs'
+term sum_{a~b} q_a . q_b are kept up to date cell by cell in the label pass: a cell's entropy
+costs one log (:math:`H = \log\text{kept} - \sum_k v_k \log w_k`, the log weights being the
+logits the update already has), the pairs' term changes by :math:`(q_i^{new} - q_i^{old}) \cdot
+n(i)`, the field the update read. They are recomputed from scratch every ``RECOUNT_EVERY``
+updates (and after every update with damping), which bounds their rounding drift (tested equal to
+the recount and to the dense formulas). The ELBO then costs O(M L) plus the globals' KL.
+
 **What truncation does to the fit** (measured on the synthetic house, ``paper-dp``, README notes):
 a cell near disorder spreads its mass over all L concepts, and a top-K cap renormalises it onto K
 of them, which behaves like a K-state Potts model: it orders at a much lower gamma (a cap of 8
