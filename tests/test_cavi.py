@@ -263,6 +263,10 @@ def test_bad_options_and_inputs_are_refused():
         VariationalOptions(threshold=1.0)
     with pytest.raises(ValueError, match="init"):
         VariationalOptions(init="zeros")
+    with pytest.raises(ValueError, match="active_tolerance"):
+        VariationalOptions(active_tolerance=-1e-3)
+    with pytest.raises(ValueError, match="active_tolerance"):
+        VariationalOptions(active_tolerance=float("inf"))
     data, cfg, _ = problem("dp")
     with pytest.raises(ValueError, match=r"q must be \["):
         numba_cavi.SparseMeanField(torch.ones(3, cfg.num_concepts), data, cfg)

@@ -115,6 +115,7 @@ from spcopyro.variational.factors import (
     expected_log_emissions,
     expected_log_pi,
     kl_to_prior,
+    prior_factors,
 )
 
 __all__ = ["SparseMeanField", "sparse_from_dense"]
@@ -559,7 +560,8 @@ class SparseMeanField:
         (0 without a threshold)."""
         self._constant = float(multinomial_coefficients(data, config))
         self._summary: tuple[ConceptStatistics, np.ndarray, float, float] | None = None
-        self._loglik: tuple[GlobalFactors, torch.Tensor, torch.Tensor] | None = None
+        self._loglik: tuple | None = None  # (factors, E log pi, loglik, E log phi)
+        self._prior: tuple[GlobalFactors, list[float]] | None = None
 
     def _recount(self) -> None:
         """The running sums (sizes, argmax counts, entropy, pairs' term) from scratch."""
@@ -577,8 +579,31 @@ class SparseMeanField:
             log_pi = expected_log_pi(factors)  # [L]
             log_phi = expected_log_emissions(factors)
             loglik = observation_log_likelihood(log_phi, self.data, self.config)  # [M, L]
-            self._loglik = (factors, log_pi, loglik)
+            self._loglik = (factors, log_pi, loglik, log_phi)
         return self._loglik[1], self._loglik[2]
+
+    def _kl_to_prior(self, factors: GlobalFactors) -> float:
+        r""":func:`~spcopyro.variational.factors.kl_to_prior`, the q(phi) part reusing the cached
+        E log phi = psi(a) - psi(a_0): per modality, with the prior's b (constant),
+        :math:`\sum_l [\log\Gamma(a_{l0}) - \log\Gamma(b_0)] + \sum_{lk} [\log\Gamma(b_k)
+        - \log\Gamma(a_{lk}) + (a_{lk} - b_k) E\log\phi_{lk}]` (one lgamma per entry, no
+        digamma)."""
+        self._expectations(factors)
+        log_phi = self._loglik[3]
+        if self._prior is None:
+            prior = prior_factors(self.data, self.config, factors.pi_family)
+            constants = [float(torch.lgamma(b).sum() - torch.lgamma(b.sum(-1)).sum())
+                         for b in prior.emissions]  # fmt: skip
+            self._prior = (prior, constants)
+        prior, constants = self._prior
+        pi_only = GlobalFactors(factors.pi, (), factors.pi_family)
+        total = float(kl_to_prior(pi_only, self.data._replace(modalities=()), self.config))
+        for a, b, e, constant in zip(factors.emissions, prior.emissions, log_phi, constants,
+                                     strict=True):  # fmt: skip
+            rows = float(torch.lgamma(a.sum(-1)).sum())
+            entries = float(((a - b) * e).sum() - torch.lgamma(a).sum())
+            total += rows + entries + constant
+        return total
 
     def update(self, factors: GlobalFactors, gamma: float) -> None:
         """One pass over every cell, colour block by colour block, at coupling ``gamma``."""
@@ -640,7 +665,7 @@ class SparseMeanField:
         log_pi, loglik = self._expectations(factors)
         expected = float((statistics.cells * log_pi).sum()) + gamma * agreements
         expected += float((loglik.numpy() * observed_q).sum()) + self._constant
-        return expected - float(kl_to_prior(factors, self.data, self.config)) + entropy
+        return expected - self._kl_to_prior(factors) + entropy
 
     def labels(self) -> torch.Tensor:
         """[N] int64 every cell's most probable concept (its first sparse entry)."""
