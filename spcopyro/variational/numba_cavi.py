@@ -54,9 +54,9 @@ factor :math:`e^{\pm 2\varepsilon}` per concept (the normaliser moves by at most
   without observations) or of the observed cell's row (computed once per iteration, [M + 1]);
 * the coupling's: :math:`|\Delta\gamma| D / 2` (n_l(i) lies in [0, D]);
 * the neighbours': :math:`\gamma \sum_{r \sim i} \max_l |\Delta q_r(l)|`, each neighbour's
-  change at its latest visit (0 when it was skipped). Every neighbour lies in another colour
-  block, so it is visited exactly once between two visits of the cell: its latest change is
-  its change since the cell's last update.
+  change at its latest visit (0 when it was skipped). The pass visits every cell once, in the
+  same order each time, so every neighbour is visited exactly once between two visits of the
+  cell: its latest change is its change since the cell's last update.
 
 The bound accumulates while the cell is skipped and restarts at 0 when it is updated; a cell is
 skipped while it is <= tau (never with damping; every cell is updated on the first pass). Then:
