@@ -29,7 +29,7 @@ from spcopyro.variational.run import initial_q, run_variational
 
 numba_cavi = pytest.importorskip("spcopyro.variational.numba_cavi")
 
-EXACT = dict(support=0, threshold=0.0)  # the numba backend without truncation
+EXACT = dict(support=0, threshold=0.0, active_tolerance=0.0)  # the numba backend without truncation
 
 
 def problem(variant: str, seed: int = 0):
@@ -56,6 +56,7 @@ BACKENDS = {
     "torch": dict(backend="torch"),
     "numba": dict(backend="numba", **EXACT),
     "numba-top2": dict(backend="numba", support=2, threshold=0.0),
+    "numba-active": dict(backend="numba", support=0, threshold=0.0, active_tolerance=0.05),
 }
 PLAIN = dict(anneal_iterations=0, tolerance=0.0)  # exact coordinate ascent, every iteration
 
@@ -64,7 +65,8 @@ PLAIN = dict(anneal_iterations=0, tolerance=0.0)  # exact coordinate ascent, eve
 @pytest.mark.parametrize("backend", list(BACKENDS))
 def test_elbo_never_decreases(variant, backend):
     """Without annealing or damping every iteration is coordinate ascent: the ELBO rises (also
-    for top-K truncation alone, the optimum over "q_i with at most K concepts")."""
+    for top-K truncation alone, the optimum over "q_i with at most K concepts", and with an
+    active set, whose skipped cells keep their value)."""
     data, cfg, family = problem(variant)
     for seed in range(2):
         for init in ("one-hot", "soft"):
@@ -261,6 +263,10 @@ def test_bad_options_and_inputs_are_refused():
         VariationalOptions(threshold=1.0)
     with pytest.raises(ValueError, match="init"):
         VariationalOptions(init="zeros")
+    with pytest.raises(ValueError, match="active_tolerance"):
+        VariationalOptions(active_tolerance=-1e-3)
+    with pytest.raises(ValueError, match="active_tolerance"):
+        VariationalOptions(active_tolerance=float("inf"))
     data, cfg, _ = problem("dp")
     with pytest.raises(ValueError, match=r"q must be \["):
         numba_cavi.SparseMeanField(torch.ones(3, cfg.num_concepts), data, cfg)
@@ -316,3 +322,99 @@ def test_truncated_update_is_the_exact_update_cut_block_by_block(support, thresh
         state[cells] = got[cells]
         lost += dropped
     assert field.truncation_bound == pytest.approx(lost, rel=1e-9, abs=1e-12)
+
+
+def _active_field(tolerance: float, seed: int = 9):
+    data, cfg, _ = problem("objects", seed=seed)
+    q = initial_q(data, cfg, torch.Generator().manual_seed(seed), init="soft")
+    field = numba_cavi.SparseMeanField(q, data, cfg, active_tolerance=tolerance, **EXACT_CUT)
+    return data, cfg, field
+
+
+EXACT_CUT = dict(support=0, threshold=0.0)
+
+
+@pytest.mark.parametrize("tolerance", [0.02, 0.2])
+def test_active_set_keeps_each_cell_within_its_bound_of_the_exact_update(tolerance):
+    """With an active set (no truncation), every cell after a pass is within a factor
+    exp(+-2 tolerance) of the exact update of its block (given the earlier blocks' values and
+    the current globals): a skipped cell's logits moved by at most the tolerance since its
+    last update. Some cells are skipped, and some skipped ones differ from the exact update
+    (so the bound is what is tested, not equality)."""
+    data, cfg, field = _active_field(tolerance)
+    factors = update_factors(field.statistics(), data, cfg)
+    skipped_any = differs = False
+    for _ in range(25):
+        state = field.dense()
+        field.update(factors, cfg.gamma)
+        got = field.dense()
+        skipped_any |= field.updated_cells < data.num_free
+        for cells in data.colours:
+            one = data._replace(colours=(cells,))
+            exact = update_labels(state.clone(), factors, one, cfg, cfg.gamma)[cells]
+            gap = (got[cells].log() - exact.log()).abs().max()
+            assert gap <= 2 * tolerance + 1e-9, (gap, tolerance)
+            differs |= bool(gap > 1e-9)
+            state[cells] = got[cells]
+        factors = update_factors(field.statistics(), data, cfg)
+    assert skipped_any and differs
+
+
+def test_active_set_tolerance_zero_skips_only_unchanged_cells():
+    """Tolerance 0 skips a cell only when nothing it reads changed: with the globals and the
+    coupling held fixed, a second pass after convergence recomputes nothing and changes
+    nothing; the first pass after a change of the coupling recomputes every cell."""
+    data, cfg, field = _active_field(0.0)
+    factors = update_factors(field.statistics(), data, cfg)
+    for _ in range(200):
+        field.update(factors, cfg.gamma)
+    before = field.dense()
+    field.update(factors, cfg.gamma)
+    assert field.updated_cells == 0
+    torch.testing.assert_close(field.dense(), before, atol=0, rtol=0)
+    field.update(factors, 0.5 * cfg.gamma)
+    assert field.updated_cells == data.num_free
+
+
+@pytest.mark.parametrize("damping", [0.0, 0.3])
+def test_running_sums_equal_a_recount_and_the_dense_formulas(damping):
+    """The statistics, entropy and pairs' term kept up to date cell by cell (also while the
+    active set skips cells) equal their recomputation from scratch and the dense reference's
+    functions of the same q, after many updates."""
+    data, cfg, _ = problem("objects", seed=10)
+    q = initial_q(data, cfg, torch.Generator().manual_seed(5), init="soft")
+    field = numba_cavi.SparseMeanField(
+        q, data, cfg, support=3, threshold=0.01, damping=damping, active_tolerance=0.05
+    )
+    factors = update_factors(field.statistics(), data, cfg)
+    for _ in range(numba_cavi.RECOUNT_EVERY - 3):  # no recount in between
+        field.update(factors, cfg.gamma)
+        factors = update_factors(field.statistics(), data, cfg)
+    running = (field.sizes.copy(), field._argmax_cells.copy(), field.totals.copy())
+    dense = field.dense()
+    assert field.elbo(factors) == pytest.approx(float(elbo(dense, factors, data, cfg)), rel=1e-12)
+    field._recount()
+    np.testing.assert_allclose(running[0], field.sizes, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(running[1], field._argmax_cells)
+    np.testing.assert_allclose(running[2], field.totals, rtol=1e-12, atol=1e-10)
+    torch.testing.assert_close(field.statistics().cells, concept_statistics(dense, data, cfg).cells)
+
+
+def test_dirichlet_kl_equals_torch_distributions():
+    """The closed form over the entries that differ equals torch's KL, with and without
+    entries equal to the prior (rows equal to it, single entries, broadcast prior)."""
+    from torch.distributions import Dirichlet, kl_divergence
+
+    from spcopyro.variational.factors import dirichlet_kl
+
+    generator = torch.Generator().manual_seed(0)
+    a = torch.rand(6, 5, generator=generator, dtype=DTYPE) * 30 + 0.01
+    b = torch.rand(5, generator=generator, dtype=DTYPE) + 0.1
+    a[1] = b
+    a[2, 3] = b[3]
+    expected = kl_divergence(Dirichlet(a), Dirichlet(b.expand_as(a))).sum()
+    assert float(dirichlet_kl(a, b)) == pytest.approx(float(expected), rel=1e-12)
+    assert float(dirichlet_kl(a[0], b)) == pytest.approx(
+        float(kl_divergence(Dirichlet(a[0]), Dirichlet(b))), rel=1e-12
+    )
+    assert float(dirichlet_kl(b.expand(3, 5), b)) == 0.0

@@ -39,6 +39,12 @@ class VariationalOptions:
             cutting it to K behaves like a K-state Potts model (it orders at a lower gamma).
         threshold: the numba backend also drops a cell's concepts with mass below this (0: keep
             all K); an iteration then lowers the ELBO by at most sum_i -log(1 - dropped_i).
+        active_tolerance: the numba backend skips a cell while the bound on how far its
+            logits moved since its last update (the globals' change, the coupling's, and gamma
+            times its neighbours' largest change of q) stays <= this: its q is then within a
+            factor exp(+-2 active_tolerance) of its exact update, concept by concept. Skipping
+            never lowers the ELBO (the cell keeps its value); 0 skips only cells whose inputs did
+            not change at all (exact).
     """
 
     anneal_iterations: int = 0
@@ -49,6 +55,7 @@ class VariationalOptions:
     init: Literal["one-hot", "soft"] = "one-hot"
     support: int = 0
     threshold: float = 1e-4
+    active_tolerance: float = 1e-3
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -72,6 +79,12 @@ class VariationalOptions:
             raise bad("support", "must be an integer >= 0 (0: all concepts)")
         if not (isinstance(self.threshold, (int, float)) and 0 <= self.threshold < 1):
             raise bad("threshold", "must lie in [0, 1)")
+        if not (
+            isinstance(self.active_tolerance, (int, float))
+            and math.isfinite(self.active_tolerance)
+            and self.active_tolerance >= 0
+        ):
+            raise bad("active_tolerance", "must be a finite number >= 0")
 
     def gamma_at(self, iteration: int, gamma: float) -> float:
         """The coupling used by 0-based ``iteration``: ramped up, then the model's."""

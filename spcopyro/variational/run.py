@@ -182,7 +182,7 @@ def run_variational(
 
         field: _DenseField | SparseMeanField = SparseMeanField(
             q, data, config, support=options.support, threshold=options.threshold,
-            damping=options.damping,
+            damping=options.damping, active_tolerance=options.active_tolerance,
         )  # fmt: skip
     else:
         if objective is None:
