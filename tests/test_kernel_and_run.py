@@ -242,6 +242,7 @@ def test_presets_and_validation():
     assert preset("original-code").model.critical_gamma == pytest.approx(2.4811, abs=1e-4)
     assert "below the Potts critical coupling" in gamma_warning(preset("original-code").model)
     assert gamma_warning(preset("paper-dp").model) is None
+    assert gamma_warning(preset("original-code", connectivity=8).model) is None  # 4-lattice value
 
 
 def _pairs_across_walls(occupancy: np.ndarray, truth: np.ndarray):
