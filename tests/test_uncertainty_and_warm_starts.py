@@ -112,12 +112,15 @@ def test_a_warm_start_from_another_map_or_more_concepts_is_refused(house, gibbs_
 
 def test_vi_then_gibbs_starts_the_sampler_where_cavi_ended(house):
     counts, data = prepare_model_data(house, SETTINGS)
-    options = VIGibbsOptions(vi_iterations=15, variational=VariationalOptions())
+    options = VIGibbsOptions(vi_iterations=30, variational=VariationalOptions(anneal_iterations=10))
     output = get_method("vi-gibbs").run(
         data, SETTINGS.model, iterations=10, generator=torch.Generator().manual_seed(0),
         options=options, progress=False,
     )  # fmt: skip
     assert output.trace.objective_name == "log joint" and len(output.trace.objective) == 10
+    labels = np.full(house.grid.shape, -1)
+    labels[house.grid.free] = output.labels
+    assert adjusted_rand_index(labels, house.truth) > 0.8
     assert output.trace.seconds[0] > output.options["vi_seconds"] > 0
     assert np.isfinite(output.options["vi_elbo"])
     with pytest.raises(ValueError, match="vi_iterations"):
