@@ -346,8 +346,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "(a warm start from any method to any method, e.g. a cavi fit starting "
                         "gibbs); replaces --init (default: none)")  # fmt: skip
     p.add_argument("--marginal-samples", type=_non_negative_int, default=50,
-                   help="Gibbs: label maps kept over the second half of the sweeps for the "
-                        "per-cell probabilities of uncertainty.png (0: none)")  # fmt: skip
+                   help="gibbs, vi-gibbs: label maps kept over the second half of the sweeps for "
+                        "the per-cell probabilities of uncertainty.png (0: none)")  # fmt: skip
     p.add_argument("--seed", type=int, default=0,
                    help="seed of the sampler (chain k of --chains gets seed + k)")  # fmt: skip
     p.add_argument("--method", choices=sorted(INFERENCE_METHODS), default=DEFAULT_METHOD,

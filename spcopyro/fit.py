@@ -377,10 +377,10 @@ def fit_house_chains(
         resume: Gibbs only: continue the chains saved in this checkpoint (ValueError if it was
             made for other data or settings, seeds, sweeps or init); chains it does not hold
             start afresh. The results equal those of a fit that never stopped.
-        marginal_samples: Gibbs only: keep about this many label maps over the second half of
-            the sweeps and store their label frequencies as the result's ``marginals`` (the
-            uncertainty map and per-cell "where" probabilities read them); 0: none. A
-            variational method always returns its q(C) as marginals.
+        marginal_samples: a sampler (Gibbs, vi-gibbs): keep about this many label maps over the
+            second half of the sweeps and store their label frequencies as the result's
+            ``marginals`` (the uncertainty map and per-cell "where" probabilities read them); 0:
+            none. A variational method returns its q(C) as marginals anyway.
     """
     if isinstance(sweeps, bool) or not isinstance(sweeps, int | np.integer) or sweeps < 1:
         raise ValueError(f"sweeps must be a positive integer or 'auto', got {sweeps!r}")
@@ -410,8 +410,11 @@ def fit_house_chains(
             output = inference.run(
                 data, settings.model, iterations=int(sweeps), generator=generator,
                 init_labels=start, options=options, progress=progress,
+                thin=_marginal_thin(int(sweeps), marginal_samples),
             )  # fmt: skip
             output.options.update(seed=int(seed), init=init_name(init))
+            if output.marginals is None:  # a sampler (vi-gibbs): its label frequencies
+                output = _with_sample_marginals(output, int(sweeps), settings.model.num_concepts)
             fits.append(result_of(output, house, counts, data, settings, method, record))
     return fits
 
@@ -457,7 +460,7 @@ def _gibbs_outputs(
                 )
                 chains[k] = chain
             if chain.sweeps_done < sweeps:
-                thin = max(1, sweeps // (2 * marginal_samples)) if marginal_samples else 0
+                thin = _marginal_thin(sweeps, marginal_samples)
                 advance(chain, sweeps - chain.sweeps_done, thin=thin, progress=progress)
     except KeyboardInterrupt:
         saved = None if checkpoint is None else checkpoint.save()
@@ -469,6 +472,12 @@ def _gibbs_outputs(
         output = output_from_run(chain.to_run(), {**entry, "seed": seed, "init": init_name(init)})
         outputs.append(_with_sample_marginals(output, sweeps, settings.model.num_concepts))
     return outputs
+
+
+def _marginal_thin(sweeps: int, marginal_samples: int) -> int:
+    """Every how many iterations to keep a label map so that about ``marginal_samples`` fall in
+    the second half of ``sweeps`` (0: keep none)."""
+    return max(1, sweeps // (2 * marginal_samples)) if marginal_samples else 0
 
 
 def _with_sample_marginals(

@@ -155,3 +155,15 @@ def test_fit_writes_the_uncertainty_map_and_where_its_probability_map(tmp_path, 
     assert main(["where", str(cavi), word, "--out", str(tmp_path / "w.png")]) == 0
     assert (tmp_path / "w_probability.png").is_file()
     assert "probability of being the place exceeds 0.5" in capsys.readouterr().out
+
+
+def test_vi_then_gibbs_fits_carry_label_frequencies_too(house):
+    options = VIGibbsOptions(vi_iterations=10, variational=VariationalOptions(anneal_iterations=5))
+    fit = fit_house(house, SETTINGS, method="vi-gibbs", sweeps=40, options=options,
+                    progress=False, marginal_samples=10)  # fmt: skip
+    assert fit.inference["marginal_samples"] == 10
+    np.testing.assert_allclose(fit.marginals.sum(1), 1.0, rtol=1e-6)
+    assert cell_entropy(fit) is not None
+    plain = fit_house(house, SETTINGS, method="vi-gibbs", sweeps=4, options=options,
+                      progress=False)  # fmt: skip
+    assert plain.marginals is None
