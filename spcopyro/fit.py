@@ -40,7 +40,7 @@ from spcopyro.gibbs.convergence import (
 from spcopyro.gibbs.method import GibbsInference, gibbs_record, output_from_run
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsChain, advance, start_chain
-from spcopyro.inference import InferenceOutput
+from spcopyro.inference import InferenceOutput, method_options
 from spcopyro.initialisation import kmeans_gaussians, labels_from_gaussians
 from spcopyro.model import DTYPE, ModelData, make_model_data
 from spcopyro.registry import DEFAULT_METHOD, get_method
@@ -435,9 +435,7 @@ def _gibbs_outputs(
 ) -> list[InferenceOutput]:
     """Gibbs chains (:func:`~spcopyro.gibbs.run.start_chain`, :func:`~spcopyro.gibbs.run.advance`:
     the same draws as :class:`~spcopyro.gibbs.method.GibbsInference`), saved and resumed."""
-    options = GibbsOptions() if options is None else options
-    if not isinstance(options, GibbsOptions):
-        raise TypeError(f"Gibbs sampling takes GibbsOptions, got {type(options).__name__}")
+    options = method_options(options, GibbsOptions, "Gibbs sampling")
     if options.anneal_sweeps > sweeps:
         raise ValueError(
             f"anneal_sweeps ({options.anneal_sweeps}) must not exceed num_sweeps ({sweeps})"

@@ -16,7 +16,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Protocol, TypeVar
 
 import numpy as np
 import torch
@@ -61,6 +61,19 @@ class InferenceOutput:
     """[S', N] int16 label maps kept along the way (a sampler with thinning), else None."""
     sample_iterations: np.ndarray | None = None
     """[S'] the 0-based iterations of ``label_samples``."""
+
+
+OptionsT = TypeVar("OptionsT")
+
+
+def method_options(options: object | None, kind: type[OptionsT], method: str) -> OptionsT:
+    """A method's options: ``kind()`` (its defaults) for None, ``options`` when it is a ``kind``,
+    else TypeError naming the method and the type it takes."""
+    if options is None:
+        return kind()
+    if not isinstance(options, kind):
+        raise TypeError(f"{method} takes {kind.__name__}, got {type(options).__name__}")
+    return options
 
 
 class InferenceMethod(Protocol):

@@ -38,7 +38,7 @@ from spcopyro.experiments.inference_comparison import (
     problems,
     warm_up,
 )
-from spcopyro.experiments.table import json_default
+from spcopyro.experiments.table import json_default, report_nothing
 
 SCORE_NAMES = {
     "ari": "ARI",
@@ -375,14 +375,10 @@ def _finite(value: object) -> object:
     return value
 
 
-def _nothing(message: str) -> None:
-    del message
-
-
 def run_comparison(
     out: str | Path,
     settings: ComparisonSettings,
-    report: Callable[[str], None] = _nothing,
+    report: Callable[[str], None] = report_nothing,
 ) -> dict[str, object]:
     """Run every available variant on every house of ``settings``; write ``comparison.json``,
     ``comparison.md`` and one figure per house type (``comparison_{synthetic,public}.png``)

@@ -93,12 +93,13 @@ class ExperimentSettings:
         return cls(**values)  # type: ignore[arg-type]
 
 
-def _report_nothing(message: str) -> None:
+def report_nothing(message: str) -> None:
+    """The experiments' default ``report``: say nothing."""
     del message
 
 
 def run_synthetic(
-    settings: ExperimentSettings, report: Callable[[str], None] = _report_nothing
+    settings: ExperimentSettings, report: Callable[[str], None] = report_nothing
 ) -> tuple[dict[str, list[dict[str, float]]], House, dict[str, Fitted]]:
     """Every method on every synthetic house; returns records, house 0 and its fits."""
     records: dict[str, list[dict[str, float]]] = {m: [] for m in settings.methods}
@@ -150,7 +151,7 @@ def heldout_folds(house: House) -> Iterator[tuple[int, int, House, Observations]
 
 
 def run_public(
-    settings: ExperimentSettings, report: Callable[[str], None] = _report_nothing
+    settings: ExperimentSettings, report: Callable[[str], None] = report_nothing
 ) -> tuple[dict[str, dict[str, list[dict[str, float]]]], dict[str, House], dict]:
     """Every method on every public house, one fold per held-out trial."""
     root = settings.dataset_root
@@ -357,7 +358,7 @@ def _findings(summary: dict[str, object]) -> list[str]:
 def run_experiment(
     out: str | Path,
     settings: ExperimentSettings,
-    report: Callable[[str], None] = _report_nothing,
+    report: Callable[[str], None] = report_nothing,
 ) -> dict[str, object]:
     """Run the comparison, write ``table.md``, ``table.json`` and the figures into ``out``.
 

@@ -9,7 +9,7 @@ import torch
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsRun, run_gibbs
-from spcopyro.inference import InferenceOutput, Trace
+from spcopyro.inference import InferenceOutput, Trace, method_options
 from spcopyro.model import ModelData
 
 
@@ -58,9 +58,7 @@ class GibbsInference:
         progress: bool | None = None,
         thin: int = 0,
     ) -> InferenceOutput:
-        options = GibbsOptions() if options is None else options
-        if not isinstance(options, GibbsOptions):
-            raise TypeError(f"Gibbs sampling takes GibbsOptions, got {type(options).__name__}")
+        options = method_options(options, GibbsOptions, "Gibbs sampling")
         run = run_gibbs(
             data, config, iterations, options=options, generator=generator,
             init_labels=init_labels, progress=progress, thin=thin,

@@ -31,7 +31,7 @@ from tqdm.auto import tqdm
 from spcopyro.config import SpCoConfig
 from spcopyro.guides.loss import MeanFieldELBO
 from spcopyro.guides.mean_field import MeanFieldGuide
-from spcopyro.inference import InferenceOutput
+from spcopyro.inference import InferenceOutput, method_options
 from spcopyro.model import ModelData, spcomapping_model
 from spcopyro.progress import progress_enabled
 from spcopyro.variational.method import output_from_variational
@@ -195,9 +195,7 @@ class SVIInference:
         progress: bool | None = None,
         thin: int = 0,
     ) -> InferenceOutput:
-        options = SVIOptions() if options is None else options
-        if not isinstance(options, SVIOptions):
-            raise TypeError(f"SVI takes SVIOptions, got {type(options).__name__}")
+        options = method_options(options, SVIOptions, "SVI")
         q = initial_q(data, config, generator, init_labels)
         run = fit_svi(
             data, config, iterations, q=q, generator=generator, options=options,

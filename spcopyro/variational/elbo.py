@@ -40,11 +40,6 @@ def label_entropy(q: torch.Tensor) -> torch.Tensor:
     return -torch.special.xlogy(q, q).sum()
 
 
-def cell_entropy(q: torch.Tensor) -> torch.Tensor:
-    """[N] each cell's entropy of q(C_i) in nats: the uncertainty map."""
-    return -torch.special.xlogy(q, q).sum(-1)
-
-
 def expected_log_likelihood(
     q: torch.Tensor,
     factors: GlobalFactors,

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import torch
 
 from spcopyro.config import SpCoConfig
-from spcopyro.inference import InferenceOutput
+from spcopyro.inference import InferenceOutput, method_options
 from spcopyro.model import ModelData
 from spcopyro.variational.factors import GlobalFactors, PiFamily
 from spcopyro.variational.lbp import LoopyBP, bethe_objective
@@ -119,9 +119,7 @@ class LBPInference:
         progress: bool | None = None,
         thin: int = 0,
     ) -> InferenceOutput:
-        options = LBPOptions() if options is None else options
-        if not isinstance(options, LBPOptions):
-            raise TypeError(f"LBP takes LBPOptions, got {type(options).__name__}")
+        options = method_options(options, LBPOptions, "LBP")
         q = initial_q(data, config, generator, init_labels)
         run, _ = run_lbp(
             data, config, iterations, q=q, options=options, progress=progress, thin=thin

@@ -8,7 +8,7 @@ import numpy as np
 import torch
 
 from spcopyro.config import SpCoConfig
-from spcopyro.inference import InferenceOutput, Trace
+from spcopyro.inference import InferenceOutput, Trace, method_options
 from spcopyro.model import ModelData
 from spcopyro.variational.factors import mean_emissions, mean_pi
 from spcopyro.variational.options import VariationalOptions
@@ -58,9 +58,7 @@ class CAVIInference:
         progress: bool | None = None,
         thin: int = 0,
     ) -> InferenceOutput:
-        options = VariationalOptions() if options is None else options
-        if not isinstance(options, VariationalOptions):
-            raise TypeError(f"CAVI takes VariationalOptions, got {type(options).__name__}")
+        options = method_options(options, VariationalOptions, "CAVI")
         q = initial_q(data, config, generator, init_labels, init=options.init)
         run = run_variational(
             data, config, iterations, options=options, q=q, progress=progress, thin=thin

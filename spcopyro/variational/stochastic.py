@@ -66,7 +66,7 @@ from tqdm.auto import tqdm
 
 from spcopyro.config import SpCoConfig
 from spcopyro.distributions import multinomial_counts_log_prob
-from spcopyro.inference import InferenceOutput, Trace
+from spcopyro.inference import InferenceOutput, Trace, method_options
 from spcopyro.initialisation import check_labels, random_labels
 from spcopyro.likelihood import ConceptStatistics
 from spcopyro.model import DTYPE, ModelData
@@ -528,9 +528,7 @@ class StochasticVIInference:
         progress: bool | None = None,
         thin: int = 0,
     ) -> InferenceOutput:
-        options = StochasticOptions() if options is None else options
-        if not isinstance(options, StochasticOptions):
-            raise TypeError(f"stochastic-vi takes StochasticOptions, got {type(options).__name__}")
+        options = method_options(options, StochasticOptions, "stochastic-vi")
         q = compact_initial_q(data, config, generator, init_labels, dtype=_DTYPES[options.dtype])
         run = run_stochastic(data, config, iterations, q=q, generator=generator,
                              options=options, progress=progress)  # fmt: skip

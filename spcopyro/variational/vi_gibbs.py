@@ -18,7 +18,7 @@ from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.method import gibbs_record, output_from_run
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import run_gibbs
-from spcopyro.inference import InferenceOutput
+from spcopyro.inference import InferenceOutput, method_options
 from spcopyro.model import ModelData
 from spcopyro.variational.options import VariationalOptions
 from spcopyro.variational.run import initial_q, run_variational
@@ -64,9 +64,7 @@ class VIGibbsInference:
         progress: bool | None = None,
         thin: int = 0,
     ) -> InferenceOutput:
-        options = VIGibbsOptions() if options is None else options
-        if not isinstance(options, VIGibbsOptions):
-            raise TypeError(f"VI-then-Gibbs takes VIGibbsOptions, got {type(options).__name__}")
+        options = method_options(options, VIGibbsOptions, "VI-then-Gibbs")
         q = initial_q(data, config, generator, init_labels)
         vi = run_variational(
             data, config, options.vi_iterations, options=options.variational, q=q,
