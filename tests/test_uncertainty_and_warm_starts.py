@@ -146,6 +146,11 @@ def test_fit_writes_the_uncertainty_map_and_where_its_probability_map(tmp_path, 
     assert json.loads((cavi / "config.json").read_text())["inference"]["init"] == "result of gibbs"
     assert (cavi / "uncertainty.png").is_file()
 
+    missing = tmp_path / "missing"
+    assert main(["fit", "--out", str(tmp_path / "x"), "--init-from", str(missing), *common]) == 2
+    assert f"{missing}/result.npz: no fitted result here" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
+
     none = tmp_path / "none"
     assert main(["fit", "--out", str(none), "--sweeps", "4", "--marginal-samples", "0",
                  *common]) == 0  # fmt: skip
