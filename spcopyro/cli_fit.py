@@ -33,6 +33,7 @@ from spcopyro.gibbs.backends import get_backend
 from spcopyro.gibbs.options import BACKENDS, GibbsOptions
 from spcopyro.inference import with_options
 from spcopyro.outputs import StagedOutput
+from spcopyro.point_estimate import POINT_ESTIMATES
 from spcopyro.registry import DEFAULT_METHOD, INFERENCE_METHODS
 from spcopyro.threads import AUTO, MIN_CELLS_FOR_MORE_THREADS, describe_threads
 
@@ -56,6 +57,15 @@ def _fit(args: argparse.Namespace) -> int:
         raise ValueError(
             "--resume continues Gibbs chains run for a number of --sweeps; "
             f"--sweeps {args.sweeps} --method {args.method} keeps no checkpoint"
+        )
+    if args.point_estimate != "map-visited" and (
+        args.sweeps == "auto"
+        or args.method not in ("gibbs", "vi-gibbs")
+        or not args.marginal_samples
+    ):
+        raise ValueError(
+            f"--point-estimate {args.point_estimate} is made over the label maps of "
+            "--marginal-samples (> 0) of a gibbs or vi-gibbs fit with a number of --sweeps"
         )
     if args.sweeps != "auto" and args.anneal_sweeps > args.sweeps:
         raise ValueError(f"anneal_sweeps ({args.anneal_sweeps}) must not exceed num_sweeps "
@@ -144,6 +154,7 @@ def _fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings,
             backend=args.backend, anneal_sweeps=args.anneal_sweeps,
             unobserved_refresh=1.0 if args.unobserved_refresh is None else args.unobserved_refresh,
             cluster_moves=0.0 if args.cluster_moves is None else args.cluster_moves,
+            merge_moves=0.0 if args.merge_moves is None else args.merge_moves,
         )  # fmt: skip
         options = with_options(options, args.method_option or [])
         try:
@@ -205,7 +216,7 @@ def _fit_staged(
             house, settings, method=args.method, options=options, sweeps=args.sweeps,
             seeds=[args.seed + k for k in range(chains)], init=init, source=source,
             checkpoint=keeper, resume=args.resume, threads=args.threads,
-            marginal_samples=args.marginal_samples,
+            marginal_samples=args.marginal_samples, point_estimate=args.point_estimate,
         )  # fmt: skip
         kept = best_chain(chain_results)
         result = chain_results[kept]
@@ -237,6 +248,14 @@ def _fit_staged(
     if entropy is not None:
         np.save(out / "uncertainty.npy", free_cells_image(result, entropy))
         plot_uncertainty(result, out / "uncertainty.png")
+    if result.agreement is not None:
+        from spcopyro.plotting import plot_agreement
+
+        np.save(out / "agreement.npy", free_cells_image(result, result.agreement))
+        plot_agreement(result, out / "agreement.png")
+        print(f"point estimate   {args.point_estimate} (expected loss "
+              f"{result.inference['expected_loss']:.4g}, best single sample "
+              f"{result.inference['best_sample_loss']:.4g}); agreement.png")  # fmt: skip
     unit = "sweep" if result.trace.objective_name == "log joint" else "iteration"
     runs = f"{chains} chains x " if chains > 1 else ""
     runs += f"{sweeps_run} {unit}s"
@@ -332,6 +351,16 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="share of sweeps that start with a Swendsen-Wang move: whole regions change concept "
         "at once (default 0)",
     )
+    p.add_argument(
+        "--merge-moves",
+        type=float,
+        help="share of sweeps that start with a split-merge move: two touching concepts merge "
+        "or one splits, parameters integrated out (default 0)",
+    )
+    p.add_argument("--point-estimate", choices=POINT_ESTIMATES, default="map-visited",
+                   help="the reported map: the highest-log-joint state visited (map-visited, "
+                        "default) or the partition minimising the expected binder or vi loss "
+                        "over the --marginal-samples maps; writes agreement.png")  # fmt: skip
     p.add_argument("--feature-scaling",
                    help="image features as probability, floor100 or a number s (s * f) "
                         f"{_PRESET_DEFAULT}")  # fmt: skip

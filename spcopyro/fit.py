@@ -43,6 +43,7 @@ from spcopyro.gibbs.run import GibbsChain, advance, start_chain
 from spcopyro.inference import InferenceOutput, method_options
 from spcopyro.initialisation import kmeans_gaussians, labels_from_gaussians
 from spcopyro.model import DTYPE, ModelData, make_model_data
+from spcopyro.point_estimate import check_point_estimate, with_point_estimate
 from spcopyro.registry import DEFAULT_METHOD, get_method
 from spcopyro.results import SpCoResult
 from spcopyro.threads import AUTO, describe_threads, resolve_threads, torch_threads
@@ -292,6 +293,9 @@ def result_of(
     )  # fmt: skip
 
 
+SAMPLERS = ("gibbs", "vi-gibbs")
+"""The methods that keep label maps (``marginal_samples``), over which a point estimate is made."""
+
 Init = str | SpCoResult
 """A start: a name of :data:`INITS`, or a previous fit's :class:`SpCoResult` (a warm start)."""
 
@@ -365,6 +369,7 @@ def fit_house_chains(
     resume: str | os.PathLike[str] | None = None,
     threads: int | str | None = AUTO,
     marginal_samples: int = 0,
+    point_estimate: str = "map-visited",
 ) -> list[SpCoResult]:
     """One :class:`SpCoResult` per seed: ``sweeps`` iterations of the inference method from
     ``init`` drawn with that seed. The house's counts are computed once for all chains. See
@@ -381,7 +386,18 @@ def fit_house_chains(
             second half of the sweeps and store their label frequencies as the result's
             ``marginals`` (the uncertainty map and per-cell "where" probabilities read them); 0:
             none. A variational method returns its q(C) as marginals anyway.
+        point_estimate: a sampler: the map to report, ``"map-visited"`` (the state of highest
+            log joint) or the partition minimising the expected ``"binder"`` or ``"vi"`` loss
+            over those label maps (:mod:`spcopyro.point_estimate`; needs marginal_samples).
     """
+    if check_point_estimate(point_estimate) != "map-visited" and (
+        method not in SAMPLERS or not marginal_samples
+    ):
+        raise ValueError(
+            f"point estimate {point_estimate!r} is computed over the label maps a sampler "
+            f"({', '.join(SAMPLERS)}) keeps: it needs marginal_samples > 0 (method {method!r}, "
+            f"marginal_samples {marginal_samples})"
+        )
     if isinstance(sweeps, bool) or not isinstance(sweeps, int | np.integer) or sweeps < 1:
         raise ValueError(f"sweeps must be a positive integer or 'auto', got {sweeps!r}")
     if len(seeds) == 0:
@@ -400,7 +416,7 @@ def fit_house_chains(
         if isinstance(inference, GibbsInference):
             outputs = _gibbs_outputs(
                 house, counts, data, settings, options, int(sweeps), [int(s) for s in seeds],
-                init, progress, checkpoint, resume, marginal_samples,
+                init, progress, checkpoint, resume, marginal_samples, point_estimate,
             )  # fmt: skip
             return [result_of(o, house, counts, data, settings, method, record) for o in outputs]
         fits = []
@@ -414,7 +430,9 @@ def fit_house_chains(
             )  # fmt: skip
             output.options.update(seed=int(seed), init=init_name(init))
             if output.marginals is None:  # a sampler (vi-gibbs): its label frequencies
-                output = _with_sample_marginals(output, int(sweeps), settings.model.num_concepts)
+                output = _with_sample_marginals(
+                    output, int(sweeps), settings.model.num_concepts, point_estimate
+                )
             fits.append(result_of(output, house, counts, data, settings, method, record))
     return fits
 
@@ -432,6 +450,7 @@ def _gibbs_outputs(
     checkpoint: FitCheckpoint | None,
     resume: str | os.PathLike[str] | None,
     marginal_samples: int = 0,
+    point_estimate: str = "map-visited",
 ) -> list[InferenceOutput]:
     """Gibbs chains (:func:`~spcopyro.gibbs.run.start_chain`, :func:`~spcopyro.gibbs.run.advance`:
     the same draws as :class:`~spcopyro.gibbs.method.GibbsInference`), saved and resumed."""
@@ -468,7 +487,8 @@ def _gibbs_outputs(
         assert chain is not None
         entry = gibbs_record(options, sweeps, chain.backend.name)
         output = output_from_run(chain.to_run(), {**entry, "seed": seed, "init": init_name(init)})
-        outputs.append(_with_sample_marginals(output, sweeps, settings.model.num_concepts))
+        L = settings.model.num_concepts
+        outputs.append(_with_sample_marginals(output, sweeps, L, point_estimate))
     return outputs
 
 
@@ -479,10 +499,11 @@ def _marginal_thin(sweeps: int, marginal_samples: int) -> int:
 
 
 def _with_sample_marginals(
-    output: InferenceOutput, sweeps: int, num_concepts: int
+    output: InferenceOutput, sweeps: int, num_concepts: int, point_estimate: str = "map-visited"
 ) -> InferenceOutput:
     """``output`` with the label frequencies of its samples from the second half of the sweeps
-    as its marginals (unchanged if it kept none there)."""
+    as its marginals (unchanged if it kept none there), and reporting ``point_estimate`` over
+    them (:func:`spcopyro.point_estimate.with_point_estimate`)."""
     if output.label_samples is None or output.sample_iterations is None:
         return output
     late = np.asarray(output.sample_iterations) >= sweeps // 2
@@ -490,6 +511,7 @@ def _with_sample_marginals(
         return output
     samples = np.asarray(output.label_samples)[late]  # [S', N]
     marginals = label_frequencies(samples, num_concepts)  # [N, L]
+    output = with_point_estimate(output, samples, point_estimate, num_concepts)
     return dataclasses.replace(
         output,
         marginals=marginals,
@@ -520,6 +542,7 @@ def fit_house(
     chains: int = 1,
     threads: int | str | None = AUTO,
     marginal_samples: int = 0,
+    point_estimate: str = "map-visited",
 ) -> SpCoResult:
     """Fit SpCoMapping to a house.
 
@@ -541,11 +564,13 @@ def fit_house(
         threads: torch intra-op threads during the fit (:mod:`spcopyro.threads`): ``"auto"`` (one
             thread unless the map is large), 0 or None (torch's own setting), or a count. The
             previous setting is restored afterwards; labels do not depend on it.
-        marginal_samples: Gibbs only: see :func:`fit_house_chains`.
+        marginal_samples, point_estimate: a sampler only: see :func:`fit_house_chains`.
     """
     if not isinstance(chains, int) or chains < 1:
         raise ValueError(f"chains must be a positive integer, got {chains!r}")
     if sweeps == "auto":
+        if point_estimate != "map-visited":
+            raise ValueError("sweeps='auto' reports the best visited state only")
         if method != "gibbs":
             raise ValueError(f"sweeps='auto' is Gibbs' convergence rule, not {method!r}'s")
         result, diagnostics = fit_house_converged(
@@ -557,7 +582,7 @@ def fit_house(
     results = fit_house_chains(
         house, settings, method=method, options=options, sweeps=sweeps,
         seeds=[seed + k for k in range(chains)], init=init, progress=progress, threads=threads,
-        marginal_samples=marginal_samples,
+        marginal_samples=marginal_samples, point_estimate=point_estimate,
     )  # fmt: skip
     kept = best_chain(results)
     if chains > 1:

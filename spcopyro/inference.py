@@ -61,6 +61,9 @@ class InferenceOutput:
     """[S', N] int16 label maps kept along the way (a sampler with thinning), else None."""
     sample_iterations: np.ndarray | None = None
     """[S'] the 0-based iterations of ``label_samples``."""
+    agreement: np.ndarray | None = None
+    """[N] where ``labels`` is a posterior point estimate over label samples
+    (:mod:`spcopyro.point_estimate`): each cell's share of samples agreeing with it."""
 
 
 OptionsT = TypeVar("OptionsT")

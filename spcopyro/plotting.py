@@ -302,6 +302,22 @@ def plot_uncertainty(result: SpCoResult, path: str | os.PathLike[str]) -> Path |
                              vmax=max(float(entropy.max()), 1e-6), cmap="YlOrRd")  # fmt: skip
 
 
+def plot_agreement(result: SpCoResult, path: str | os.PathLike[str]) -> Path | None:
+    """Each free cell's probability of agreeing with the reported point estimate (the share of
+    label samples, matched to it, that give the cell its label: :mod:`spcopyro.point_estimate`);
+    None (nothing drawn) for a result that is not such an estimate."""
+    if result.agreement is None:
+        return None
+    agreement = np.asarray(result.agreement)
+    kind = result.inference.get("point_estimate", "point estimate")
+    title = (
+        f"{result.name or 'agreement'}: p(sample agrees with the {kind} estimate)\n"
+        f"mean {agreement.mean():.3f}, {int((agreement < 0.5).sum())} cells below 0.5"
+    )
+    return _plot_cell_values(result, agreement, path, title=title, label="probability",
+                             vmax=1.0, cmap="Greens")  # fmt: skip
+
+
 def plot_where_probability(
     result: SpCoResult, word: str, path: str | os.PathLike[str], prior: str = "area"
 ) -> Path:

@@ -237,6 +237,7 @@ class SpCoResult:
     method: str = "gibbs"
     marginals: np.ndarray | None = None  # [N, L]
     labels_final: np.ndarray | None = None  # [N]
+    agreement: np.ndarray | None = None  # [N] p(sample agrees with a point estimate's labels)
     preparation: DataPreparation = DataPreparation()
     inference: dict[str, object] = field(default_factory=dict)
     name: str = ""
@@ -281,6 +282,7 @@ class SpCoResult:
             method=method,
             marginals=output.marginals,
             labels_final=output.labels_final,
+            agreement=output.agreement,
             preparation=preparation,
             inference=dict(output.options),
             name=name,
@@ -493,6 +495,8 @@ class SpCoResult:
             arrays["marginals"] = self.marginals
         if self.labels_final is not None:
             arrays["labels_final"] = self.labels_final
+        if self.agreement is not None:
+            arrays["agreement"] = self.agreement
         np.savez_compressed(out / RESULT_FILE, **arrays)
         return out
 
@@ -539,6 +543,7 @@ class SpCoResult:
             method=str(arrays["method"]),
             marginals=arrays.get("marginals"),
             labels_final=arrays.get("labels_final"),
+            agreement=arrays.get("agreement"),
             preparation=DataPreparation(**settings["data"]),
             inference=dict(settings.get("inference", {})),
             name=str(arrays["name"]),

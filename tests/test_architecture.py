@@ -26,7 +26,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("likelihood", "initialisation", "semantic_map"),
     ("gibbs", "guides", "inference", "simulate", "variational"),
     ("registry",),
-    ("results", "uncertainty"),
+    ("results", "uncertainty", "point_estimate"),
     ("metrics", "plotting", "baselines", "features"),
     ("fit",),
     ("experiments",),

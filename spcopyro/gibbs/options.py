@@ -30,6 +30,10 @@ class GibbsOptions:
             the labels (:mod:`spcopyro.gibbs.cluster`: whole regions change concept at once).
             0 (default): Algorithm 1's single-site sweeps only. Any value in [0, 1] leaves the
             posterior invariant (the choice is made independently of the state).
+        merge_moves: the probability that a sweep starts with a split-merge move
+            (:mod:`spcopyro.gibbs.merge`: two touching concepts merge, or one splits in two, by
+            Metropolis-Hastings with pi, theta and w integrated out). 0 (default): none. Any
+            value in [0, 1] leaves the posterior invariant.
         anneal_sweeps: ramp the labels' coupling gamma up over the first ``anneal_sweeps``
             sweeps of a chain (:mod:`spcopyro.gibbs.anneal`); those sweeps are burn-in.
     """
@@ -38,6 +42,7 @@ class GibbsOptions:
     unobserved_refresh: float = 1.0
     cluster_moves: float = 0.0
     anneal_sweeps: int = 0
+    merge_moves: float = 0.0
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -51,6 +56,9 @@ class GibbsOptions:
         moves = self.cluster_moves
         if not (isinstance(moves, (int, float)) and 0.0 <= moves <= 1.0):
             raise bad("cluster_moves", "must be a probability in [0, 1]")
+        merges = self.merge_moves
+        if not (isinstance(merges, (int, float)) and 0.0 <= merges <= 1.0):
+            raise bad("merge_moves", "must be a probability in [0, 1]")
         object.__setattr__(self, "anneal_sweeps", check_anneal_sweeps(self.anneal_sweeps))
 
     def replace(self, **changes: object) -> GibbsOptions:

@@ -13,7 +13,10 @@ auto``):
 1. annealing: the labels' coupling of this sweep, gamma_s (:mod:`spcopyro.gibbs.anneal`);
 2. with probability ``options.cluster_moves``, a Swendsen-Wang move of the labels
    (:mod:`spcopyro.gibbs.cluster`) under gamma_s;
-3. the backend's sweep: every label from eq. (13) under gamma_s, then pi and the emission
+3. with probability ``options.merge_moves``, a split-merge move of the labels with the
+   parameters integrated out, then pi, theta, w redrawn if it was accepted
+   (:mod:`spcopyro.gibbs.merge`), under gamma_s;
+4. the backend's sweep: every label from eq. (13) under gamma_s, then pi and the emission
    distributions (eqs. 14-17), partially refreshed per ``options.unobserved_refresh``.
 
 :func:`trace_point` is the per-sweep log joint and number of concepts, always of the target
@@ -30,6 +33,7 @@ from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.anneal import annealed_config
 from spcopyro.gibbs.backends import SweepBackend, get_backend
 from spcopyro.gibbs.cluster import maybe_cluster_move
+from spcopyro.gibbs.merge import maybe_merge_move
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.state import GibbsState, SweepPlan
 from spcopyro.gibbs.sweep import sample_globals
@@ -72,7 +76,7 @@ def step(
     backend: SweepBackend | None = None,
     plan: SweepPlan | None = None,
 ) -> tuple[GibbsState, StepInfo]:
-    """One sweep of the chain (the module docstring's steps 1-3).
+    """One sweep of the chain (the module docstring's steps 1-4).
 
     Args:
         sweep: the 0-based index of this sweep in the chain (annealing reads it).
@@ -83,6 +87,7 @@ def step(
     backend = get_backend(options.backend) if backend is None else backend
     sweep_config = annealed_config(config, sweep, options.anneal_sweeps)
     state = maybe_cluster_move(state, data, sweep_config, generator, options.cluster_moves)
+    state = maybe_merge_move(state, data, sweep_config, generator, options.merge_moves)
     state = backend.sweep(state, data, sweep_config, generator, plan, options.unobserved_refresh)
     return state, StepInfo(gamma=sweep_config.gamma, annealing=sweep + 1 < options.anneal_sweeps)
 

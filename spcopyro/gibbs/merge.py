@@ -1,0 +1,366 @@
+r"""A split-merge move for the labels: two touching concepts become one, or one becomes two.
+
+Single-site Gibbs (eq. 13) and the Swendsen-Wang move (:mod:`spcopyro.gibbs.cluster`) both work
+*given* pi, theta and w; a room carried by two concepts stays so as long as each concept's
+parameters fit its own half. This move compares "one concept" with "two concepts" with the
+parameters integrated out, so two concepts whose emissions are indistinguishable merge, and it
+is exact: a Metropolis-Hastings step on the labels that leaves p(C | data) invariant, after
+which (if accepted) pi and the emission distributions are redrawn from their conditionals
+(eqs. 14-17). Propose-then-redraw leaves the joint p(C, pi, theta, w | data) invariant; when the
+move is rejected, keeping the parameters is also exact, since the acceptance does not look at
+them.
+
+**Target.** With the Dirichlet priors integrated out (the Dirichlet-multinomial marginals, valid
+for real-valued counts too: the multinomial coefficients do not depend on C),
+
+.. math::
+
+    \log p(C \mid x) = \gamma E(C) + \sum_l \Big[\log\Gamma(a_\pi + m_l)
+        + \sum_{\text{modality } u} \log B(a_u \mathbf{1} + n^u_l) - \log B(a_u \mathbf{1})\Big]
+        + \text{const},
+
+with :math:`m_l` the cells of concept l, :math:`n^u_l` its summed counts of modality u,
+:math:`a_\pi` = alpha/L (DP, eq. 1) or alpha, :math:`a_u` = chi, beta, ... and
+:math:`B(v) = \prod_k \Gamma(v_k) / \Gamma(\sum_k v_k)`. A merge or split changes only the two
+concepts' terms and :math:`E(C)` by the number of neighbouring pairs across them.
+
+**Proposal** (Jain & Neal 2004, "A split-merge Markov chain Monte Carlo procedure for the
+Dirichlet process mixture model", restricted Gibbs version, adapted to the grid):
+
+1. a fair coin chooses *merge* or *split*;
+2. merge: a directed neighbouring pair (i, j) with :math:`C_i \ne C_j`, uniformly among the
+   :math:`2 D(C)` such pairs (:math:`D(C)` = disagreeing neighbour pairs), so touching concepts
+   are proposed in proportion to their common border; every cell of :math:`b = C_j` takes
+   :math:`a = C_i`. Split: a directed pair (i, j) with :math:`C_i = C_j = a`, uniformly among the
+   :math:`2 A(C)` agreeing ones, and a label b uniformly among the :math:`Z(C)` empty labels (no
+   move if there is none); the cells of a are split into "i's side" (keeps a) and "j's side"
+   (takes b) by step 3;
+3. the split itself: over T, the cells of a and b, a *launch state* -- each cell on the side of
+   i or j whichever is nearer along the grid inside T (breadth-first distances; ties and cells
+   that reach neither by a fair coin) -- refined by ``scans`` restricted scans, then a final
+   restricted scan. A restricted scan redraws, colour block by colour block (vectorised: cells of
+   one colour do not touch), each cell of T but i and j between the two sides with
+   probabilities
+
+   .. math::
+
+       q_k(s) \propto e^{\gamma n_s(k)} \, (a_\pi + m^{-k}_s)
+           \prod_u \frac{B(a_u + n^{u,-k}_s + x^u_k)}{B(a_u + n^{u,-k}_s)},
+
+   with :math:`n_s(k)` the neighbours of k on side s and the side totals taken at the block's
+   start without k (any well-defined proposal will do; this one resembles the collapsed
+   conditional). The launch depends on T, i and j only, the same set in both directions, so (Jain
+   & Neal's argument) the reverse of a split is a merge, and the reverse of a merge is the split
+   whose final scan lands exactly on the current labels: its probability
+   :math:`q_\text{final}(C \mid \text{launch})` is the product of the final scan's
+   :math:`q_k` evaluated at the current sides.
+
+**Acceptance.** For a merge :math:`C \to C'`,
+
+.. math::
+
+    \log r = \log\frac{p(C' \mid x)}{p(C \mid x)} + \log\frac{2 D(C)}{2 A(C')}
+        - \log Z(C') + \log q_\text{final}(C \mid \text{launch}),
+
+and a split :math:`C \to C'` has the reciprocal terms
+:math:`\log\frac{2 A(C)}{2 D(C')} + \log Z(C) - \log q_\text{final}(C' \mid \text{launch})`.
+The move is accepted with probability :math:`\min(1, r)`. The tests compare it with the
+enumerated posterior on a tiny map, and show that dropping the proposal terms is detected.
+
+Cost: O(N + P) per move (the masks and the breadth-first search over T) plus
+``2 (scans + 1)`` vectorised colour-block passes over T -- about a single-site sweep's cost for
+a large concept (measured in the README).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+import scipy.sparse
+import torch
+from scipy.sparse.csgraph import dijkstra
+
+from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.state import GibbsState
+from spcopyro.gibbs.sweep import sample_globals
+from spcopyro.model import DTYPE, ModelData
+
+MERGE_SCANS = 3
+"""Restricted scans between the launch state and the final scan (Jain & Neal's t)."""
+
+
+class MoveInfo(NamedTuple):
+    """What one split-merge proposal did."""
+
+    kind: str
+    """``"merge"``, ``"split"``, or ``"none"`` (no pair or no empty label to propose with)."""
+    accepted: bool
+    log_ratio: float
+    """log r of the Metropolis-Hastings ratio (-inf for ``"none"``)."""
+
+
+def _used_modalities(data: ModelData, config: SpCoConfig) -> list[tuple[torch.Tensor, float]]:
+    """(counts [M, K_u], concentration a_u) of every modality the model uses."""
+    return [
+        (m.counts, config.concentration(m.name)) for m in data.modalities if config.uses(m.name)
+    ]
+
+
+def _log_beta(concentration: float, counts: torch.Tensor) -> torch.Tensor:
+    """[...] log B(a + n) - log B(a) for symmetric concentration a along the last axis of n."""
+    size = counts.shape[-1]
+    a = torch.tensor(concentration, dtype=DTYPE)
+    posterior = torch.lgamma(a + counts).sum(-1) - torch.lgamma(size * a + counts.sum(-1))
+    return posterior - (size * torch.lgamma(a) - torch.lgamma(size * a))
+
+
+def concept_log_marginals(
+    sizes: torch.Tensor, counts: list[torch.Tensor], config: SpCoConfig
+) -> torch.Tensor:
+    """[G] each concept's term of the collapsed log posterior (module doc): log Gamma(a_pi + m)
+    plus the Dirichlet-multinomial marginals of its counts (``counts``: per modality in use,
+    [G, K_u] with the concentrations of :func:`_used_modalities`' order)."""
+    a_pi = torch.tensor(config.pi_concentration, dtype=DTYPE)
+    total = torch.lgamma(a_pi + sizes.to(DTYPE))  # [G]
+    for concentration, per_concept in counts:
+        total = total + _log_beta(concentration, per_concept)
+    return total
+
+
+def collapsed_log_posterior(labels: torch.Tensor, data: ModelData, config: SpCoConfig) -> float:
+    """log p(C | x) up to a constant (the module doc's target), pi, theta and w integrated out."""
+    L = config.num_concepts
+    sizes = torch.bincount(labels, minlength=L)  # [L]
+    counts = []
+    for modality_counts, concentration in _used_modalities(data, config):
+        per_concept = torch.zeros(L, modality_counts.shape[-1], dtype=DTYPE)  # [L, K_u]
+        per_concept.index_add_(0, labels[data.obs_cells], modality_counts)
+        counts.append((concentration, per_concept))
+    agreements = (labels[data.pairs[:, 0]] == labels[data.pairs[:, 1]]).sum().to(DTYPE)
+    return float(config.gamma * agreements + concept_log_marginals(sizes, counts, config).sum())
+
+
+class _Restricted(NamedTuple):
+    """The cells T of the two concepts, in local indices 0..n_T-1."""
+
+    cells: torch.Tensor  # [n_T] free indices
+    neighbours: torch.Tensor  # [n_T, D] local indices of neighbours in T, -1 otherwise
+    blocks: tuple[torch.Tensor, ...]  # local indices per colour, i and j left out
+    observed: torch.Tensor  # [M_T] local indices of T's observed cells
+    counts: list[tuple[float, torch.Tensor]]  # per modality in use: (a_u, [M_T, K_u])
+    first: int  # local index of i
+    second: int  # local index of j
+
+
+def _restricted(
+    mask: torch.Tensor, i: int, j: int, data: ModelData, config: SpCoConfig
+) -> _Restricted:
+    cells = mask.nonzero(as_tuple=True)[0]  # [n_T]
+    local = torch.full((data.num_free,), -1, dtype=torch.long)
+    local[cells] = torch.arange(cells.shape[0])
+    nb = data.neighbours[cells]  # [n_T, D]
+    neighbours = torch.where(nb >= 0, local[nb.clamp_min(0)], -1)  # [n_T, D]
+    fixed = torch.zeros(data.num_free, dtype=torch.bool)
+    fixed[[i, j]] = True
+    blocks = tuple(local[c[mask[c] & ~fixed[c]]] for c in data.colours)
+    obs_in = mask[data.obs_cells]  # [M]
+    counts = [(a, c[obs_in]) for c, a in _used_modalities(data, config)]
+    return _Restricted(
+        cells, neighbours, blocks, local[data.obs_cells[obs_in]], counts, int(local[i]),
+        int(local[j]),
+    )  # fmt: skip
+
+
+def _launch(
+    region: _Restricted, pairs: torch.Tensor, local_of: torch.Tensor, generator: torch.Generator
+) -> torch.Tensor:
+    """[n_T] launch sides: nearer to i (0) or j (1) along the grid inside T; ties by a coin."""
+    n = region.cells.shape[0]
+    inside = (local_of[pairs[:, 0]] >= 0) & (local_of[pairs[:, 1]] >= 0)  # [P]
+    rows = local_of[pairs[inside, 0]].numpy()
+    cols = local_of[pairs[inside, 1]].numpy()
+    graph = scipy.sparse.coo_matrix((np.ones(rows.shape[0]), (rows, cols)), shape=(n, n)).tocsr()
+    distance = dijkstra(graph, directed=False, indices=[region.first, region.second],
+                        unweighted=True)  # fmt: skip  # [2, n_T]
+    near_i = torch.from_numpy(distance[0] < distance[1])
+    near_j = torch.from_numpy(distance[1] < distance[0])
+    coin = torch.rand(n, dtype=DTYPE, generator=generator) < 0.5  # [n_T]
+    side = torch.where(near_i, False, torch.where(near_j, True, coin)).long()
+    side[region.first], side[region.second] = 0, 1
+    return side
+
+
+def _restricted_scan(
+    side: torch.Tensor,
+    region: _Restricted,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    forced: torch.Tensor | None = None,
+) -> tuple[torch.Tensor, float]:
+    """One restricted scan (module doc, step 3): (new sides [n_T], log q of the scan's outcome).
+
+    ``forced``: the sides to land on (for the reverse of a merge): nothing is drawn, and the
+    log probability of reaching ``forced`` is returned.
+    """
+    side = side.clone()
+    a_pi = config.pi_concentration
+    observed_row = torch.full((side.shape[0],), -1, dtype=torch.long)
+    observed_row[region.observed] = torch.arange(region.observed.shape[0])
+    log_q = 0.0
+    for block in region.blocks:
+        if block.numel() == 0:
+            continue
+        onehot = torch.nn.functional.one_hot(side, 2).to(DTYPE)  # [n_T, 2]
+        sizes = onehot.sum(0)  # [2]
+        own = onehot[block]  # [nb, 2]
+        nb = region.neighbours[block]  # [nb, D]
+        padded = torch.cat([onehot, torch.zeros(1, 2, dtype=DTYPE)])  # [n_T + 1, 2]
+        field = padded[torch.where(nb >= 0, nb, side.shape[0])].sum(1)  # [nb, 2]
+        logits = config.gamma * field + torch.log(a_pi + sizes - own)  # [nb, 2]
+        rows = observed_row[block]  # [nb]
+        hit = rows >= 0
+        if hit.any():
+            obs_onehot = onehot[region.observed]  # [M_T, 2]
+            for concentration, counts in region.counts:
+                totals = obs_onehot.T @ counts  # [2, K_u]
+                x = counts[rows[hit]]  # [h, K_u]
+                without = totals[None] - own[hit][:, :, None] * x[:, None, :]  # [h, 2, K_u]
+                predictive = _log_beta(concentration, without + x[:, None, :]) - _log_beta(
+                    concentration, without
+                )  # [h, 2]
+                logits[hit] += predictive
+        log_p = torch.log_softmax(logits, -1)  # [nb, 2]
+        if forced is None:
+            u = torch.rand(block.shape[0], dtype=DTYPE, generator=generator)
+            new = (u >= log_p[:, 0].exp()).long()  # [nb]
+        else:
+            new = forced[block]
+        log_q += float(log_p.gather(1, new[:, None]).sum())
+        side[block] = new
+    return side, log_q
+
+
+def _log_acceptance_ratio(delta_log_target: float, log_forward: float, log_reverse: float) -> float:
+    """log r = log p(C')/p(C) + log q(C | C') - log q(C' | C)."""
+    return delta_log_target + log_reverse - log_forward
+
+
+def _pair_terms(
+    labels: torch.Tensor, data: ModelData, config: SpCoConfig, a: int, b: int
+) -> tuple[torch.Tensor, list[tuple[float, torch.Tensor]], int]:
+    """Sizes [2], per-modality counts [2, K_u] of concepts a and b, and their common border."""
+    sizes = torch.stack([(labels == a).sum(), (labels == b).sum()])  # [2]
+    observed = labels[data.obs_cells]  # [M]
+    counts = []
+    for modality_counts, concentration in _used_modalities(data, config):
+        per = torch.stack(
+            [modality_counts[observed == a].sum(0), modality_counts[observed == b].sum(0)]
+        )  # [2, K_u]
+        counts.append((concentration, per))
+    first, second = labels[data.pairs[:, 0]], labels[data.pairs[:, 1]]
+    border = int((((first == a) & (second == b)) | ((first == b) & (second == a))).sum())
+    return sizes, counts, border
+
+
+def _merge_delta(sizes, counts, border: int, config: SpCoConfig) -> float:  # noqa: ANN001
+    """log p(merged) - log p(split) of the module doc, given the split pair's statistics."""
+    split = concept_log_marginals(sizes, counts, config).sum()
+    merged_sizes = torch.stack([sizes.sum(), torch.zeros((), dtype=sizes.dtype)])
+    merged_counts = [(a, torch.stack([c.sum(0), torch.zeros_like(c[0])])) for a, c in counts]
+    merged = concept_log_marginals(merged_sizes, merged_counts, config).sum()
+    return float(merged - split + config.gamma * border)
+
+
+def split_merge_labels(
+    labels: torch.Tensor,
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    scans: int = MERGE_SCANS,
+) -> tuple[torch.Tensor, MoveInfo]:
+    """One split-merge Metropolis-Hastings step on ``labels`` [N] targeting p(C | x) (module
+    doc). Returns the new labels (``labels`` itself when nothing changes) and what happened."""
+    L = config.num_concepts
+    first, second = labels[data.pairs[:, 0]], labels[data.pairs[:, 1]]  # [P]
+    agree = first == second  # [P]
+    num_agree = int(agree.sum())
+    num_disagree = agree.shape[0] - num_agree
+    used = torch.bincount(labels, minlength=L) > 0  # [L]
+    num_empty = L - int(used.sum())
+    merge = float(torch.rand((), dtype=DTYPE, generator=generator)) < 0.5
+    candidates = (~agree if merge else agree).nonzero(as_tuple=True)[0]
+    if candidates.numel() == 0 or (not merge and num_empty == 0):
+        return labels, MoveInfo("merge" if merge else "split", False, -math.inf)
+    pick = int(torch.randint(candidates.numel(), (), generator=generator))
+    i, j = (int(v) for v in data.pairs[candidates[pick]])
+    if float(torch.rand((), dtype=DTYPE, generator=generator)) < 0.5:
+        i, j = j, i
+    a = int(labels[i])
+    if merge:
+        b = int(labels[j])
+        mask = (labels == a) | (labels == b)
+    else:
+        empty = (~used).nonzero(as_tuple=True)[0]
+        b = int(empty[int(torch.randint(empty.numel(), (), generator=generator))])
+        mask = labels == a
+    region = _restricted(mask, i, j, data, config)
+    local_of = torch.full((data.num_free,), -1, dtype=torch.long)
+    local_of[region.cells] = torch.arange(region.cells.shape[0])
+    side = _launch(region, data.pairs, local_of, generator)
+    for _ in range(scans):
+        side, _ = _restricted_scan(side, region, config, generator)
+    if merge:
+        current = (labels[region.cells] == b).long()  # [n_T] the split we are in
+        _, log_final = _restricted_scan(side, region, config, generator, forced=current)
+        sizes, counts, border = _pair_terms(labels, data, config, a, b)
+        delta = _merge_delta(sizes, counts, border, config)
+        log_forward = -math.log(2 * num_disagree)
+        log_reverse = -math.log(2 * (num_agree + border)) - math.log(num_empty + 1) + log_final
+        proposed = torch.where(mask, a, labels)
+    else:
+        side, log_final = _restricted_scan(side, region, config, generator)
+        proposed = labels.clone()
+        proposed[region.cells[side == 1]] = b
+        sizes, counts, border = _pair_terms(proposed, data, config, a, b)
+        delta = -_merge_delta(sizes, counts, border, config)
+        log_forward = -math.log(2 * num_agree) - math.log(num_empty) + log_final
+        log_reverse = -math.log(2 * (num_disagree + border))
+    log_ratio = _log_acceptance_ratio(delta, log_forward, log_reverse)
+    accept = (
+        log_ratio >= 0
+        or math.log(float(torch.rand((), dtype=DTYPE, generator=generator))) < log_ratio
+    )
+    kind = "merge" if merge else "split"
+    return (proposed if accept else labels), MoveInfo(kind, bool(accept), log_ratio)
+
+
+def merge_move(
+    state: GibbsState,
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    scans: int = MERGE_SCANS,
+) -> tuple[GibbsState, MoveInfo]:
+    """:func:`split_merge_labels`, then (if accepted) pi, theta and w redrawn given the labels."""
+    labels, info = split_merge_labels(state.labels, data, config, generator, scans)
+    if not info.accepted:
+        return state, info
+    return GibbsState(labels, *sample_globals(labels, data, config, generator)), info
+
+
+def maybe_merge_move(
+    state: GibbsState,
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    probability: float,
+) -> GibbsState:
+    """:func:`merge_move` with probability ``probability`` (``GibbsOptions.merge_moves``), else
+    ``state`` (draws nothing from ``generator`` when the probability is 0)."""
+    if probability <= 0.0:
+        return state
+    if probability < 1.0 and float(torch.rand((), dtype=DTYPE, generator=generator)) >= probability:
+        return state
+    return merge_move(state, data, config, generator)[0]

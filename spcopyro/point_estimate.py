@@ -1,0 +1,300 @@
+r"""A posterior point estimate of the labels: the partition that minimises an expected loss.
+
+A sampler keeps label maps :math:`c^{(1)}, \dots, c^{(S)}` (thinned, second half of the run).
+The state of highest log joint visited (``"map-visited"``, the default report) is one draw that
+happened to score well; in a posterior spread over many near-equal states it says little about
+what the draws share. Following Dahl, Johnson & Müller (2022, "Search algorithms and loss
+functions for Bayesian clustering", JCGS 31:1189), the point estimate is instead
+
+.. math::
+
+    \hat c = \arg\min_{c} \frac1S \sum_{s} \mathcal L(c, c^{(s)}),
+
+a partition of the N cells (labels only matter up to renaming). Both losses are functions of the
+contingency table :math:`n_{kj} = \#\{i : c_i = k, c^{(s)}_i = j\}` with margins :math:`a_k, b_j`:
+
+* Binder's loss (Binder 1978; unit costs), the share of ordered cell pairs on which the two
+  partitions disagree (together in one, apart in the other):
+  :math:`\mathcal L_B = (\sum_k a_k^2 + \sum_j b_j^2 - 2 \sum_{kj} n_{kj}^2) / N^2`;
+* the variation of information (Meilă 2007; Wade & Ghahramani 2018), in nats:
+  :math:`\mathcal L_{VI} = (\sum_k a_k \log a_k + \sum_j b_j \log b_j
+  - 2 \sum_{kj} n_{kj} \log n_{kj}) / N`.
+
+Both are :math:`(F(a) + F(b) - 2 F(n)) / Z` with :math:`F(x) = \sum f(x)`, :math:`f(x) = x^2` or
+:math:`x \log x`, so moving one cell i from cluster k to k' changes the expected loss by
+
+.. math::
+
+    \Delta_i(k') = \big[f(a_{k'} + 1) - f(a_{k'}) + f(a_k - 1) - f(a_k)\big]
+        - \frac{2}{S} \sum_s \big[f(n^s_{k' j_s} + 1) - f(n^s_{k' j_s})
+        + f(n^s_{k j_s} - 1) - f(n^s_{k j_s})\big], \quad j_s = c^{(s)}_i,
+
+(divided by Z), read off the S contingency tables -- never an N x N matrix. The search (SALSO's
+greedy sweeps, vectorised): start from the samples of lowest expected loss; in each sweep
+compute :math:`\Delta_i(k')` for every cell and every cluster (one spare empty cluster
+included) at once, move every cell whose best move lowers the loss, and if the moves taken
+together do not lower the exact loss (they interact through the tables), keep only the better
+half of them, and so on (one move alone always lowers it); stop when no cell can improve. The
+estimate's expected loss is therefore never above that of the best sample it started from.
+
+:func:`agreement_probability` is the uncertainty map: for every sample, its labels matched to
+the estimate's clusters by the Hungarian method on their contingency table (the matching that
+keeps the most cells), and per cell the share of samples whose matched label equals the
+estimate's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import TYPE_CHECKING, NamedTuple
+
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+if TYPE_CHECKING:
+    from spcopyro.inference import InferenceOutput
+
+LOSSES = ("binder", "vi")
+"""The expected losses :func:`point_estimate` minimises."""
+POINT_ESTIMATES = ("map-visited", *LOSSES)
+"""What a fit may report as its map: the highest-log-joint state visited, or a loss's minimiser."""
+DEFAULT_STARTS = 3
+"""How many of the lowest-loss samples the greedy search starts from."""
+MAX_SWEEPS = 50
+
+
+def _f(x: np.ndarray, loss: str) -> np.ndarray:
+    """f of the module doc, elementwise: x^2 (Binder) or x log x (VI, 0 at 0)."""
+    x = np.asarray(x, dtype=np.float64)
+    if loss == "binder":
+        return x * x
+    return x * np.log(np.where(x > 0, x, 1.0))
+
+
+def _check(samples: np.ndarray, loss: str) -> np.ndarray:
+    if loss not in LOSSES:
+        raise ValueError(f"loss {loss!r}: choose one of {LOSSES}")
+    samples = np.asarray(samples)
+    if samples.ndim != 2 or samples.shape[0] < 1 or samples.shape[1] < 1:
+        raise ValueError(f"label samples must be [S, N] with S, N >= 1, got {samples.shape}")
+    if not np.issubdtype(samples.dtype, np.integer) or samples.min() < 0:
+        raise ValueError("label samples must be non-negative integers")
+    return samples
+
+
+def compact(labels: np.ndarray) -> tuple[np.ndarray, int]:
+    """([N] labels renamed 0..K-1 in order of first appearance's value, K)."""
+    values, codes = np.unique(np.asarray(labels), return_inverse=True)
+    return codes.astype(np.int64), int(values.shape[0])
+
+
+def contingency(first: np.ndarray, second: np.ndarray, k1: int, k2: int) -> np.ndarray:
+    """[k1, k2] the number of cells with label k in ``first`` and j in ``second``."""
+    return np.bincount(first * k2 + second, minlength=k1 * k2).reshape(k1, k2)
+
+
+def pair_loss(first: np.ndarray, second: np.ndarray, loss: str) -> float:
+    """The loss between two labelings [N] (symmetric; renaming labels does not change it)."""
+    a, ka = compact(first)
+    b, kb = compact(second)
+    table = contingency(a, b, ka, kb)
+    value = _f(table.sum(1), loss).sum() + _f(table.sum(0), loss).sum() - 2 * _f(table, loss).sum()
+    n = a.shape[0]
+    return float(value / (n * n if loss == "binder" else n))
+
+
+class _Samples(NamedTuple):
+    codes: np.ndarray  # [S, N] each sample's labels renamed 0..J_s-1
+    sizes: tuple[int, ...]  # J_s
+    constant: float  # sum_s F(b^s) / S
+
+
+def _prepare(samples: np.ndarray, loss: str) -> _Samples:
+    codes, sizes, constant = [], [], 0.0
+    for sample in samples:
+        c, k = compact(sample)
+        codes.append(c)
+        sizes.append(k)
+        constant += _f(np.bincount(c), loss).sum()
+    return _Samples(np.stack(codes), tuple(sizes), constant / len(sizes))
+
+
+def _tables(estimate: np.ndarray, k: int, prepared: _Samples) -> list[np.ndarray]:
+    return [
+        contingency(estimate, c, k, j) for c, j in zip(prepared.codes, prepared.sizes, strict=True)
+    ]
+
+
+def _expected(estimate: np.ndarray, k: int, prepared: _Samples, loss: str) -> float:
+    tables = _tables(estimate, k, prepared)
+    shared = np.mean([_f(t, loss).sum() for t in tables])
+    sizes = np.bincount(estimate, minlength=k)
+    value = _f(sizes, loss).sum() + prepared.constant - 2 * shared
+    n = estimate.shape[0]
+    return float(value / (n * n if loss == "binder" else n))
+
+
+def expected_loss(estimate: np.ndarray, samples: np.ndarray, loss: str) -> float:
+    """(1/S) sum_s loss(estimate, sample s), from the S contingency tables."""
+    samples = _check(samples, loss)
+    codes, k = compact(estimate)
+    return _expected(codes, k, _prepare(samples, loss), loss)
+
+
+def _changes(estimate: np.ndarray, k: int, prepared: _Samples, loss: str) -> np.ndarray:
+    """[k + 1, N] Delta_i(k') of the module doc (times Z); cluster k is the spare empty one."""
+    n = estimate.shape[0]
+    sizes = np.bincount(estimate, minlength=k + 1).astype(np.float64)  # [k + 1]
+    own = sizes[estimate]  # [N]
+    leave = _f(own - 1, loss) - _f(own, loss)  # [N]
+    change = (_f(sizes + 1, loss) - _f(sizes, loss))[:, None] + leave[None, :]  # [k + 1, N]
+    shared = np.zeros((k + 1, n))
+    for table, codes in zip(_tables(estimate, k + 1, prepared), prepared.codes, strict=True):
+        column = table[:, codes].astype(np.float64)  # [k + 1, N]: n_{k' j_s(i)}
+        stay = column[estimate, np.arange(n)]  # [N]
+        shared += _f(column + 1, loss) - _f(column, loss)
+        shared += (_f(stay - 1, loss) - _f(stay, loss))[None, :]
+    change -= 2.0 * shared / len(prepared.sizes)
+    change[estimate, np.arange(n)] = 0.0  # staying changes nothing
+    return change
+
+
+def _greedy(
+    start: np.ndarray, prepared: _Samples, loss: str, max_clusters: int | None
+) -> tuple[np.ndarray, float]:
+    estimate, k = compact(start)
+    value = _expected(estimate, k, prepared, loss)
+    for _ in range(MAX_SWEEPS):
+        change = _changes(estimate, k, prepared, loss)  # [k + 1, N]
+        if max_clusters is not None and k >= max_clusters:
+            change[k] = np.inf  # no new cluster beyond the cap
+        target = change.argmin(0)  # [N]
+        gain = change[target, np.arange(estimate.shape[0])]  # [N]
+        movers = np.flatnonzero(gain < -1e-9)
+        if movers.size == 0:
+            break
+        movers = movers[np.argsort(gain[movers])]  # best first
+        improved = False
+        while movers.size:
+            trial = estimate.copy()
+            trial[movers] = target[movers]
+            codes, kk = compact(trial)
+            trial_value = _expected(codes, kk, prepared, loss)
+            if trial_value < value - 1e-12:
+                estimate, k, value, improved = codes, kk, trial_value, True
+                break
+            movers = movers[: movers.size // 2]
+        if not improved:
+            break
+    return estimate, value
+
+
+class PointEstimate(NamedTuple):
+    """What :func:`point_estimate` found."""
+
+    labels: np.ndarray
+    """[N] int64 the estimate's clusters, 0..K-1."""
+    expected_loss: float
+    best_sample_loss: float
+    """The lowest expected loss of any single sample (the estimate's is never above it)."""
+
+
+def point_estimate(
+    samples: np.ndarray,
+    loss: str = "vi",
+    starts: int = DEFAULT_STARTS,
+    max_clusters: int | None = None,
+) -> PointEstimate:
+    """The partition minimising the expected ``loss`` over ``samples`` [S, N] (module doc).
+
+    Args:
+        starts: greedy searches from that many samples of lowest expected loss; the best wins.
+        max_clusters: open no new cluster once the estimate has this many (e.g. the model's
+            L; the samples' labels are below it, so the estimate's clusters stay within it).
+    """
+    samples = _check(samples, loss)
+    prepared = _prepare(samples, loss)
+    losses = np.array(
+        [
+            _expected(c, j, prepared, loss)
+            for c, j in zip(prepared.codes, prepared.sizes, strict=True)
+        ]
+    )  # [S]
+    order = np.argsort(losses, kind="stable")[: max(1, starts)]
+    best, best_value = None, np.inf
+    for s in order:
+        estimate, value = _greedy(prepared.codes[s], prepared, loss, max_clusters)
+        if value < best_value:
+            best, best_value = estimate, value
+    assert best is not None
+    return PointEstimate(compact(best)[0], float(best_value), float(losses.min()))
+
+
+def matched_labels(estimate: np.ndarray, sample: np.ndarray) -> np.ndarray:
+    """[N] the sample's labels renamed to the estimate's clusters they are matched with (the
+    Hungarian matching of most shared cells; -1 for a sample label matched with none)."""
+    e, k = compact(estimate)
+    s, j = compact(sample)
+    table = contingency(e, s, k, j)  # [K, J]
+    rows, cols = linear_sum_assignment(table, maximize=True)
+    renamed = np.full(j, -1, dtype=np.int64)
+    renamed[cols] = rows
+    values = np.unique(np.asarray(estimate))
+    return np.where(renamed[s] >= 0, values[np.maximum(renamed[s], 0)], -1)
+
+
+def agreement_probability(estimate: np.ndarray, samples: np.ndarray) -> np.ndarray:
+    """[N] per cell, the share of samples whose (matched) label agrees with ``estimate``."""
+    samples = np.asarray(samples)
+    agree = np.zeros(np.asarray(estimate).shape[0])
+    for sample in samples:
+        agree += matched_labels(estimate, sample) == np.asarray(estimate)
+    return agree / samples.shape[0]
+
+
+def concept_labels(estimate: np.ndarray, reference: np.ndarray, num_concepts: int) -> np.ndarray:
+    """[N] the estimate's clusters named by concepts of ``reference`` [N] (the state whose pi
+    and emissions a result reports): the Hungarian matching of most shared cells; clusters left
+    over take concepts that ``reference`` does not use."""
+    e, k = compact(estimate)
+    if k > num_concepts:
+        raise ValueError(f"the estimate has {k} clusters, more than {num_concepts} concepts")
+    table = contingency(e, np.asarray(reference, dtype=np.int64), k, num_concepts)  # [K, L]
+    rows, cols = linear_sum_assignment(table, maximize=True)
+    name = np.empty(k, dtype=np.int64)
+    name[rows] = cols
+    return name[e]
+
+
+def check_point_estimate(name: str) -> str:
+    """``name`` if it is one of :data:`POINT_ESTIMATES`, else ValueError listing them."""
+    if name not in POINT_ESTIMATES:
+        raise ValueError(f"point estimate {name!r}: choose one of {POINT_ESTIMATES}")
+    return name
+
+
+def with_point_estimate(
+    output: InferenceOutput, samples: np.ndarray, name: str, num_concepts: int
+) -> InferenceOutput:
+    """``output`` reporting the point estimate ``name`` over ``samples`` [S, N] as its labels
+    (unchanged for ``"map-visited"``), with :func:`agreement_probability` as its ``agreement``.
+
+    The estimate's clusters are named by the concepts of ``output.labels`` they share most cells
+    with (:func:`concept_labels`), so pi and the emission distributions of the reported state
+    describe them; the expected losses go into ``options``.
+    """
+    if check_point_estimate(name) == "map-visited":
+        return output
+    found = point_estimate(samples, name, max_clusters=num_concepts)
+    labels = concept_labels(found.labels, np.asarray(output.labels), num_concepts)
+    return dataclasses.replace(
+        output,
+        labels=labels,
+        agreement=agreement_probability(labels, samples),
+        options={
+            **output.options,
+            "point_estimate": name,
+            "expected_loss": found.expected_loss,
+            "best_sample_loss": found.best_sample_loss,
+        },
+    )

@@ -1,0 +1,147 @@
+"""The posterior point estimate (spcopyro.point_estimate): losses from contingency tables against
+brute force, label switching, the greedy search's guarantee, and the agreement map."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from spcopyro.point_estimate import (
+    LOSSES,
+    _changes,
+    _prepare,
+    agreement_probability,
+    compact,
+    concept_labels,
+    expected_loss,
+    pair_loss,
+    point_estimate,
+)
+
+
+def _binder_brute(first: np.ndarray, second: np.ndarray) -> float:
+    """Ordered pairs i != j together in one labeling and apart in the other, over N^2."""
+    n = len(first)
+    wrong = sum(
+        (first[i] == first[j]) != (second[i] == second[j])
+        for i, j in itertools.permutations(range(n), 2)
+    )
+    return wrong / n**2
+
+
+def _vi_brute(first: np.ndarray, second: np.ndarray) -> float:
+    """H(first | second) + H(second | first) from the joint frequencies, in nats."""
+    n = len(first)
+    joint: dict[tuple[int, int], int] = {}
+    for x, y in zip(first, second, strict=True):
+        joint[(x, y)] = joint.get((x, y), 0) + 1
+    total = 0.0
+    for (x, y), count in joint.items():
+        p = count / n
+        px = np.mean(first == x)
+        py = np.mean(second == y)
+        total -= p * (math.log(p / py) + math.log(p / px))
+    return total
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_losses_from_contingency_tables_equal_brute_force(seed):
+    rng = np.random.default_rng(seed)
+    first, second = rng.integers(0, 4, 9), rng.integers(0, 3, 9) * 7  # sparse label values
+    assert pair_loss(first, second, "binder") == pytest.approx(_binder_brute(first, second))
+    assert pair_loss(first, second, "vi") == pytest.approx(_vi_brute(first, second))
+    assert pair_loss(first, first, "vi") == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.parametrize("loss", LOSSES)
+def test_label_switching_changes_nothing(loss):
+    rng = np.random.default_rng(1)
+    samples = rng.integers(0, 5, (6, 40))
+    estimate = rng.integers(0, 3, 40)
+    value = expected_loss(estimate, samples, loss)
+    renamed = np.stack([rng.permutation(10)[s] for s in samples])  # each sample renamed its way
+    assert expected_loss(rng.permutation(7)[estimate], renamed, loss) == pytest.approx(value)
+    a = point_estimate(samples, loss)
+    b = point_estimate(renamed, loss)
+    assert a.expected_loss == pytest.approx(b.expected_loss)
+    assert pair_loss(a.labels, b.labels, loss) == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.parametrize("loss", LOSSES)
+def test_one_cell_changes_match_the_recomputed_loss(loss):
+    rng = np.random.default_rng(2)
+    samples = rng.integers(0, 4, (5, 30))
+    estimate, k = compact(rng.integers(0, 3, 30))
+    change = _changes(estimate, k, _prepare(samples, loss), loss)  # [k + 1, N]
+    scale = 30**2 if loss == "binder" else 30
+    base = expected_loss(estimate, samples, loss)
+    for cell, target in [(0, 1), (5, 2), (7, k), (11, 0), (29, k)]:
+        moved = estimate.copy()
+        moved[cell] = target
+        expected = expected_loss(moved, samples, loss) - base
+        assert change[target, cell] / scale == pytest.approx(expected, abs=1e-12)
+
+
+@pytest.mark.parametrize("loss", LOSSES)
+def test_estimate_loss_is_no_larger_than_any_samples_and_finds_the_shared_partition(loss):
+    rng = np.random.default_rng(3)
+    truth = np.repeat(np.arange(4), 50)  # [200] four clusters of 50
+    samples = []
+    for _ in range(30):  # each sample: the truth, renamed, with 15% of cells relabelled at random
+        sample = rng.permutation(6)[truth]
+        noisy = rng.random(200) < 0.15
+        sample[noisy] = rng.integers(0, 6, noisy.sum())
+        samples.append(sample)
+    samples = np.stack(samples)
+    result = point_estimate(samples, loss)
+    each = [expected_loss(s, samples, loss) for s in samples]
+    assert result.expected_loss <= min(each) + 1e-12
+    assert result.best_sample_loss == pytest.approx(min(each))
+    assert result.expected_loss == pytest.approx(expected_loss(result.labels, samples, loss))
+    # Every sample is noisy; the estimate removes the noise: it is the truth (up to names).
+    assert pair_loss(result.labels, truth, loss) == pytest.approx(0.0, abs=1e-12)
+    assert result.expected_loss < min(each)
+
+
+def test_cluster_cap_is_kept():
+    rng = np.random.default_rng(4)
+    samples = rng.integers(0, 3, (10, 60))  # three labels, noise: more clusters would help
+    assert compact(point_estimate(samples, "binder").labels)[1] > 3
+    result = point_estimate(samples, "binder", max_clusters=3)
+    assert compact(result.labels)[1] <= 3
+
+
+def test_agreement_probability():
+    estimate = np.array([0, 0, 0, 1, 1, 1])
+    samples = np.array(
+        [
+            [5, 5, 5, 2, 2, 2],  # the estimate renamed: every cell agrees
+            [1, 1, 1, 0, 0, 0],
+            [3, 3, 4, 4, 4, 4],  # cell 2 moved to the other cluster
+            [3, 3, 3, 4, 4, 9],  # cell 5 in a cluster of its own (matched with nothing)
+        ]
+    )
+    agree = agreement_probability(estimate, samples)
+    np.testing.assert_allclose(agree, [1, 1, 0.75, 1, 1, 0.75])
+
+
+def test_concept_labels_follow_the_reference_state():
+    estimate = np.array([0, 0, 1, 1, 2, 2])
+    reference = np.array([7, 7, 3, 3, 3, 3])  # clusters 1 and 2 both overlap concept 3 most
+    named = concept_labels(estimate, reference, num_concepts=10)
+    assert named[0] == 7 and named[2] == 3  # the larger overlaps keep their concepts ...
+    assert named[4] not in (3, 7) and len(set(named)) == 3  # ... the rest take unused ones
+    with pytest.raises(ValueError, match="more than 2 concepts"):
+        concept_labels(estimate, reference, num_concepts=2)
+
+
+def test_bad_samples_are_refused():
+    with pytest.raises(ValueError, match="loss"):
+        point_estimate(np.zeros((2, 3), dtype=int), "rand")
+    with pytest.raises(ValueError, match=r"\[S, N\]"):
+        point_estimate(np.zeros(3, dtype=int), "vi")
+    with pytest.raises(ValueError, match="non-negative integers"):
+        point_estimate(np.full((2, 3), -1), "vi")
