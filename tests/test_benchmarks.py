@@ -78,3 +78,13 @@ def test_svi_vs_cavi_benchmark_quick(tmp_path):
     row = record["rows"][0]
     assert math.isfinite(row["svi_elbo"]) and math.isfinite(row["cavi_elbo"])
     assert "SVI below CAVI" in done.stdout
+
+
+@pytest.mark.slow
+def test_merge_moves_benchmark_quick(tmp_path):
+    out = tmp_path / "merge.json"
+    done = run_benchmark("merge_moves.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "concepts>=1%" in done.stdout
+    rows = json.loads(out.read_text())["rows"]
+    assert [r["merge_moves"] for r in rows] == [0.0, 0.2]

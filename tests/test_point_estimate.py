@@ -145,3 +145,42 @@ def test_bad_samples_are_refused():
         point_estimate(np.zeros(3, dtype=int), "vi")
     with pytest.raises(ValueError, match="non-negative integers"):
         point_estimate(np.full((2, 3), -1), "vi")
+
+
+def test_fit_reports_the_estimate_with_its_agreement_map(tmp_path, capsys):
+    from spcopyro.cli import main
+    from spcopyro.config import preset
+    from spcopyro.fit import fit_house
+    from spcopyro.gibbs import GibbsOptions
+    from spcopyro.results import SpCoResult
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    house = make_house(seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3, num_trials=2))
+    settings = preset("original-code", gamma=3.0, num_concepts=8)
+    common = dict(sweeps=40, progress=False, marginal_samples=10, seed=3)
+    options = GibbsOptions(backend="torch", merge_moves=0.5)
+    visited = fit_house(house, settings, options=options, **common)
+    fit = fit_house(house, settings, options=options, point_estimate="vi", **common)
+    assert visited.agreement is None and "point_estimate" not in visited.inference
+    assert fit.inference["point_estimate"] == "vi"
+    assert fit.inference["expected_loss"] <= fit.inference["best_sample_loss"] + 1e-12
+    assert fit.agreement.shape == fit.labels.shape and 0 <= fit.agreement.min() <= 1
+    assert fit.agreement.max() <= 1 and fit.labels.max() < 8
+    np.testing.assert_array_equal(fit.pi, visited.pi)  # same chain: the reported state's globals
+    saved = SpCoResult.load(fit.save(tmp_path / "saved"))
+    np.testing.assert_array_equal(saved.agreement, fit.agreement)
+    with pytest.raises(ValueError, match="marginal_samples > 0"):
+        fit_house(house, settings, sweeps=4, progress=False, point_estimate="binder")
+    with pytest.raises(ValueError, match="point estimate 'mode'"):
+        fit_house(house, settings, sweeps=4, progress=False, point_estimate="mode")
+
+    cli = ["--preset", "original-code", "--gamma", "3", "--concepts", "8", "--sweeps", "10"]
+    out = tmp_path / "cli"
+    assert main(["fit", "--out", str(out), *cli, "--point-estimate", "binder",
+                 "--merge-moves", "0.5", "--backend", "torch"]) == 0  # fmt: skip
+    assert (out / "agreement.png").is_file() and (out / "agreement.npy").is_file()
+    assert "point estimate   binder (expected loss" in capsys.readouterr().out
+    assert main(["fit", "--out", str(tmp_path / "x"), *cli, "--point-estimate", "vi",
+                 "--marginal-samples", "0"]) == 2  # fmt: skip
+    assert "--point-estimate vi is made over" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()
