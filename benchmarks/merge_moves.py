@@ -148,6 +148,7 @@ def main(argv: list[str] | None = None) -> int:
             for share in (0.0, args.merge_moves):
                 print(f"{house.name} merge_moves={share} seed={seed}", file=sys.stderr)
                 rows.append(run_chain(house, args.preset, share, sweeps, seed, 50))
+                print(json.dumps(rows[-1]), file=sys.stderr)  # each row as soon as it is done
     table = [
         [
             r["house"], r["merge_moves"], r["seed"],

@@ -60,7 +60,8 @@ POINT_ESTIMATES = ("map-visited", *LOSSES)
 """What a fit may report as its map: the highest-log-joint state visited, or a loss's minimiser."""
 DEFAULT_STARTS = 3
 """How many of the lowest-loss samples the greedy search starts from."""
-MAX_SWEEPS = 50
+MAX_SWEEPS = 30
+"""At most this many greedy sweeps per start."""
 
 
 def _f(x: np.ndarray, loss: str) -> np.ndarray:
@@ -142,20 +143,26 @@ def expected_loss(estimate: np.ndarray, samples: np.ndarray, loss: str) -> float
 
 
 def _changes(estimate: np.ndarray, k: int, prepared: _Samples, loss: str) -> np.ndarray:
-    """[k + 1, N] Delta_i(k') of the module doc (times Z); cluster k is the spare empty one."""
+    """[k + 1, N] Delta_i(k') of the module doc (times Z); cluster k is the spare empty one.
+
+    The f-differences are taken on each small contingency table first, then gathered per cell:
+    O(S (k + 1) N) gathers, no logarithm per cell.
+    """
     n = estimate.shape[0]
+    cells = np.arange(n)
     sizes = np.bincount(estimate, minlength=k + 1).astype(np.float64)  # [k + 1]
     own = sizes[estimate]  # [N]
     leave = _f(own - 1, loss) - _f(own, loss)  # [N]
     change = (_f(sizes + 1, loss) - _f(sizes, loss))[:, None] + leave[None, :]  # [k + 1, N]
     shared = np.zeros((k + 1, n))
     for table, codes in zip(_tables(estimate, k + 1, prepared), prepared.codes, strict=True):
-        column = table[:, codes].astype(np.float64)  # [k + 1, N]: n_{k' j_s(i)}
-        stay = column[estimate, np.arange(n)]  # [N]
-        shared += _f(column + 1, loss) - _f(column, loss)
-        shared += (_f(stay - 1, loss) - _f(stay, loss))[None, :]
+        table = table.astype(np.float64)  # [k + 1, J]
+        join = _f(table + 1, loss) - _f(table, loss)  # [k + 1, J]
+        depart = _f(table - 1, loss) - _f(table, loss)  # [k + 1, J]
+        shared += join[:, codes]  # [k + 1, N]: f(n_{k' j_s(i)} + 1) - f(n_{k' j_s(i)})
+        shared += depart[estimate, codes][None, :]  # [N]: the cell leaving n_{k j_s(i)}
     change -= 2.0 * shared / len(prepared.sizes)
-    change[estimate, np.arange(n)] = 0.0  # staying changes nothing
+    change[estimate, cells] = 0.0  # staying changes nothing
     return change
 
 

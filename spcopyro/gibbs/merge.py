@@ -116,12 +116,13 @@ def _log_beta(concentration: float, counts: torch.Tensor) -> torch.Tensor:
     return posterior - (size * torch.lgamma(a) - torch.lgamma(size * a))
 
 
-def concept_log_marginals(
-    sizes: torch.Tensor, counts: list[torch.Tensor], config: SpCoConfig
-) -> torch.Tensor:
+Counts = list[tuple[float, torch.Tensor]]
+"""Per modality in use: (its concentration a_u, [G, K_u] summed counts of G concepts)."""
+
+
+def concept_log_marginals(sizes: torch.Tensor, counts: Counts, config: SpCoConfig) -> torch.Tensor:
     """[G] each concept's term of the collapsed log posterior (module doc): log Gamma(a_pi + m)
-    plus the Dirichlet-multinomial marginals of its counts (``counts``: per modality in use,
-    [G, K_u] with the concentrations of :func:`_used_modalities`' order)."""
+    for sizes [G] plus the Dirichlet-multinomial marginals of its counts."""
     a_pi = torch.tensor(config.pi_concentration, dtype=DTYPE)
     total = torch.lgamma(a_pi + sizes.to(DTYPE))  # [G]
     for concentration, per_concept in counts:
@@ -149,7 +150,7 @@ class _Restricted(NamedTuple):
     neighbours: torch.Tensor  # [n_T, D] local indices of neighbours in T, -1 otherwise
     blocks: tuple[torch.Tensor, ...]  # local indices per colour, i and j left out
     observed: torch.Tensor  # [M_T] local indices of T's observed cells
-    counts: list[tuple[float, torch.Tensor]]  # per modality in use: (a_u, [M_T, K_u])
+    counts: Counts  # per modality in use: (a_u, [M_T, K_u]) of T's observed cells
     first: int  # local index of i
     second: int  # local index of j
 
@@ -249,7 +250,7 @@ def _log_acceptance_ratio(delta_log_target: float, log_forward: float, log_rever
 
 def _pair_terms(
     labels: torch.Tensor, data: ModelData, config: SpCoConfig, a: int, b: int
-) -> tuple[torch.Tensor, list[tuple[float, torch.Tensor]], int]:
+) -> tuple[torch.Tensor, Counts, int]:
     """Sizes [2], per-modality counts [2, K_u] of concepts a and b, and their common border."""
     sizes = torch.stack([(labels == a).sum(), (labels == b).sum()])  # [2]
     observed = labels[data.obs_cells]  # [M]
@@ -264,7 +265,7 @@ def _pair_terms(
     return sizes, counts, border
 
 
-def _merge_delta(sizes, counts, border: int, config: SpCoConfig) -> float:  # noqa: ANN001
+def _merge_delta(sizes: torch.Tensor, counts: Counts, border: int, config: SpCoConfig) -> float:
     """log p(merged) - log p(split) of the module doc, given the split pair's statistics."""
     split = concept_log_marginals(sizes, counts, config).sum()
     merged_sizes = torch.stack([sizes.sum(), torch.zeros((), dtype=sizes.dtype)])
