@@ -153,6 +153,10 @@ GEWEKE_VARIANTS = [
     # test of test_gibbs_joint.py (the sweep that follows the move hides it from Geweke's
     # statistics).
     pytest.param(dict(gamma=1.5), GibbsOptions(cluster_moves=0.5), id="cluster-0.5"),
+    # A third of the sweeps start with a split-merge move (spcopyro.gibbs.merge): the globals
+    # redrawn after an accepted move and kept after a rejected one. Its exactness on the labels
+    # is test_merge_move.py's enumerated-posterior test.
+    pytest.param(dict(gamma=1.5), GibbsOptions(merge_moves=0.3), id="merge-0.3"),
     pytest.param(dict(connectivity=8, gamma=0.7), GibbsOptions(), id="8-neighbours"),
 ]
 """(config overrides, sampler options) of Geweke's test; the options' backend is replaced by
