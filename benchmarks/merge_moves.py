@@ -67,9 +67,15 @@ def _ari(house: House, labels: np.ndarray) -> float | None:
 
 
 def run_chain(
-    house: House, preset_name: str, merge_share: float, sweeps: int, seed: int, samples: int
+    house: House,
+    preset_name: str,
+    merge_share: float,
+    sweeps: int,
+    seed: int,
+    samples: int,
+    gamma: float | None = None,
 ) -> dict[str, object]:
-    settings = preset(preset_name)
+    settings = preset(preset_name) if gamma is None else preset(preset_name, gamma=gamma)
     _, data = prepare_model_data(house, settings)
     config = settings.model
     generator = torch.Generator().manual_seed(seed)
@@ -109,6 +115,7 @@ def run_chain(
     return {
         "house": house.name,
         "preset": preset_name,
+        "gamma": config.gamma,
         "merge_moves": merge_share,
         "sweeps": sweeps,
         "seed": seed,
@@ -129,6 +136,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sweeps", type=int, default=1000)
     parser.add_argument("--merge-moves", type=float, default=0.2, help="share with moves")
     parser.add_argument("--preset", default="paper-dp")
+    parser.add_argument("--gamma", type=float, help="override the preset's gamma")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
     parser.add_argument("--public", default=PUBLIC_HOUSE, help="public house ('' for none)")
     parser.add_argument("--out", type=Path)
@@ -147,7 +155,7 @@ def main(argv: list[str] | None = None) -> int:
         for seed in args.seeds:
             for share in (0.0, args.merge_moves):
                 print(f"{house.name} merge_moves={share} seed={seed}", file=sys.stderr)
-                rows.append(run_chain(house, args.preset, share, sweeps, seed, 50))
+                rows.append(run_chain(house, args.preset, share, sweeps, seed, 50, args.gamma))
                 print(json.dumps(rows[-1]), file=sys.stderr)  # each row as soon as it is done
     table = [
         [
