@@ -157,7 +157,7 @@ def test_fit_reports_the_estimate_with_its_agreement_map(tmp_path, capsys):
 
     house = make_house(seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3, num_trials=2))
     settings = preset("original-code", gamma=3.0, num_concepts=8)
-    common = dict(sweeps=40, progress=False, marginal_samples=10, seed=3)
+    common = dict(sweeps=30, progress=False, marginal_samples=10, seed=3)
     options = GibbsOptions(backend="torch", merge_moves=0.5)
     visited = fit_house(house, settings, options=options, **common)
     fit = fit_house(house, settings, options=options, point_estimate="vi", **common)
@@ -174,7 +174,7 @@ def test_fit_reports_the_estimate_with_its_agreement_map(tmp_path, capsys):
     with pytest.raises(ValueError, match="point estimate 'mode'"):
         fit_house(house, settings, sweeps=4, progress=False, point_estimate="mode")
 
-    cli = ["--preset", "original-code", "--gamma", "3", "--concepts", "8", "--sweeps", "10"]
+    cli = ["--preset", "original-code", "--gamma", "3", "--concepts", "8", "--sweeps", "6"]
     out = tmp_path / "cli"
     assert main(["fit", "--out", str(out), *cli, "--point-estimate", "binder",
                  "--merge-moves", "0.5", "--backend", "torch"]) == 0  # fmt: skip
