@@ -95,10 +95,11 @@ class MoveInfo(NamedTuple):
     """What one split-merge proposal did."""
 
     kind: str
-    """``"merge"``, ``"split"``, or ``"none"`` (no pair or no empty label to propose with)."""
+    """``"merge"`` or ``"split"`` (the coin's choice)."""
     accepted: bool
     log_ratio: float
-    """log r of the Metropolis-Hastings ratio (-inf for ``"none"``)."""
+    """log r of the Metropolis-Hastings ratio; -inf when there was nothing to propose (no pair
+    of that kind, or no empty label for a split)."""
 
 
 def _used_modalities(data: ModelData, config: SpCoConfig) -> list[tuple[torch.Tensor, float]]:
@@ -329,9 +330,8 @@ def split_merge_labels(
         log_forward = -math.log(2 * num_agree) - math.log(num_empty) + log_final
         log_reverse = -math.log(2 * (num_disagree + border))
     log_ratio = _log_acceptance_ratio(delta, log_forward, log_reverse)
-    accept = (
-        log_ratio >= 0
-        or math.log(float(torch.rand((), dtype=DTYPE, generator=generator))) < log_ratio
+    accept = log_ratio >= 0 or float(torch.rand((), dtype=DTYPE, generator=generator)) < math.exp(
+        log_ratio
     )
     kind = "merge" if merge else "split"
     return (proposed if accept else labels), MoveInfo(kind, bool(accept), log_ratio)
