@@ -148,6 +148,9 @@ def build_parser() -> argparse.ArgumentParser:
     from spcopyro.features.cli import add_parser as add_features_parsers
 
     add_features_parsers(sub)  # features, features-head
+    from spcopyro.cli_export import add_parser as add_export_parser
+
+    add_export_parser(sub)  # export
     for command in (parser, *sub.choices.values()):
         command.formatter_class = _HelpFormatter
     return parser

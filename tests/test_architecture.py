@@ -27,10 +27,10 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("gibbs", "guides", "inference", "simulate", "variational"),
     ("registry",),
     ("results", "uncertainty"),
-    ("metrics", "plotting", "baselines", "features"),
+    ("metrics", "plotting", "baselines", "features", "nav2", "map_simulation"),
     ("fit",),
     ("experiments",),
-    ("cli", "cli_common", "cli_fit", "__main__"),
+    ("cli", "cli_common", "cli_fit", "cli_export", "__main__"),
 )
 """Layer of every top-level module or subpackage of spcopyro, lowest first."""
 
