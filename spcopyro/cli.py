@@ -14,6 +14,7 @@ share (DATA, the house summary, argument types, the help formatter) in :mod:`spc
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import logging
 import sys
 from pathlib import Path
@@ -30,6 +31,11 @@ logger = logging.getLogger("spcopyro")
 def _simulate(args: argparse.Namespace) -> int:
     from spcopyro.synthetic import HouseSpec, write_synthetic
 
+    if args.map is not None:
+        return _simulate_on_map(args)
+    if args.categories is not None:
+        raise ValueError("--categories needs --map (the synthetic house draws its own rooms)")
+    args.name = args.name or "synthetic"
     spec = HouseSpec.scaled(*args.size, sentence_fraction=args.sentences) if args.size else None
     if spec is None and args.sentences:
         spec = HouseSpec(sentence_fraction=args.sentences)
@@ -41,6 +47,35 @@ def _simulate(args: argparse.Namespace) -> int:
             str(error).replace("pass overwrite=True", "pass --overwrite to replace it")
         ) from None
     print(f"wrote synthetic house (seed {args.seed}) to {room}")
+    print(f"  fit it with: spcopyro fit {room} --out {Path(args.out) / 'fit'}")
+    return 0
+
+
+def _simulate_on_map(args: argparse.Namespace) -> int:
+    from spcopyro.map_simulation import MapTour, write_simulated_map
+
+    if args.size:
+        raise ValueError("--size and --map exclude each other: the map gives the size")
+    tour = MapTour(door_width=args.door_width, min_room_area=args.min_room_area,
+                   sentence_fraction=args.sentences)  # fmt: skip
+    if args.categories is not None:
+        names = tuple(c.strip() for c in args.categories.split(",") if c.strip())
+        tour = dataclasses.replace(tour, categories=names)
+    try:
+        room, simulated = write_simulated_map(args.map, args.out, seed=args.seed, tour=tour,
+                                              name=args.name, overwrite=args.overwrite)  # fmt: skip
+    except FileExistsError as error:
+        raise FileExistsError(
+            str(error).replace("pass overwrite=True", "pass --overwrite to replace it")
+        ) from None
+    house = simulated.house
+    print(f"wrote a simulated tour of {args.map} (seed {args.seed}) to {room}: "
+          f"{int(simulated.room_category.size)} rooms, {house.observations.num_images} images, "
+          f"{house.observations.num_utterances} utterances")  # fmt: skip
+    names = house.category_names or ()
+    for r, c in enumerate(simulated.room_category.tolist()):
+        cells = int((simulated.rooms == r).sum())
+        print(f"  room {r}: {names[c]} ({cells * house.grid.resolution**2:.1f} m^2)")
     print(f"  fit it with: spcopyro fit {room} --out {Path(args.out) / 'fit'}")
     return 0
 
@@ -109,7 +144,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("simulate", help="write a synthetic house in the public dataset's layout")
     p.add_argument("--out", required=True, help="root folder (gets map/ and NAME/)")
     p.add_argument("--seed", type=int, default=0, help="seed of the house's random draws")
-    p.add_argument("--name", default="synthetic", help="the house's folder name (NAME)")
+    p.add_argument("--name", help="the house's folder name (NAME; default: synthetic, or the "
+                   "--map file's name)")  # fmt: skip
     p.add_argument("--size", type=int, nargs=2, metavar=("H", "W"),
                    help="map size in cells; the number of rooms grows with the area "
                         "(default: 60 x 80 cells, 5 rooms)")  # fmt: skip
@@ -117,6 +153,19 @@ def build_parser() -> argparse.ArgumentParser:
                    help="share of utterances given as sentences (tf-idf setting)")  # fmt: skip
     p.add_argument("--overwrite", action="store_true",
                    help="replace a house of the same name under --out")  # fmt: skip
+    p.add_argument("--map", metavar="MAP.yaml",
+                   help="simulate a tour on this map_server map instead of a drawn house: "
+                        "rooms from a room segmentation of its free space (default: draw a "
+                        "house)")  # fmt: skip
+    p.add_argument("--categories", metavar="A,B,...",
+                   help="with --map: the rooms' categories, one per room, cycled (default: "
+                        "kitchen,living,bedroom,bathroom,toilet,entrance,...)")  # fmt: skip
+    p.add_argument("--door-width", type=float, default=1.0,
+                   help="with --map: metres; doorways up to about this wide separate rooms "
+                        "(about 2 for the public dataset's houses)")  # fmt: skip
+    p.add_argument("--min-room-area", type=float, default=1.0,
+                   help="with --map: square metres; smaller free segments are not visited and "
+                        "have no ground truth")  # fmt: skip
     p.set_defaults(func=_simulate)
 
     p = sub.add_parser("show", help="draw a house and its observations; print a summary")
