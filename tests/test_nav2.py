@@ -234,3 +234,21 @@ def test_bad_options_are_refused(fit, tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["export", str(fit), "--nav2", out, "--threshold", "1.5"])
     assert not (tmp_path / "n").exists()
+
+
+@pytest.mark.slow
+def test_simulate_fit_export_end_to_end(tmp_path, capsys):
+    """Your floor plan -> simulated tour -> fit -> keepout mask on that floor plan (~10 s)."""
+    from test_map_simulation import three_rooms
+
+    plan, grid = three_rooms(tmp_path)
+    assert main(["simulate", "--map", str(plan), "--out", str(tmp_path / "data")]) == 0
+    fit = ["fit", str(tmp_path / "data" / "flat"), "--sweeps", "20", "--backend", "torch",
+           "--preset", "original-code", "--gamma", "3", "--out", str(tmp_path / "fit")]  # fmt: skip
+    assert main(fit) == 0
+    out = tmp_path / "nav2"
+    assert main(["export", str(tmp_path / "fit"), "--nav2", str(out), "--word", "kitchen"]) == 0
+    mask = load_filter_mask(out / "keepout_kitchen.yaml")
+    assert (mask.resolution, mask.origin, mask.values.shape) == (0.1, (-2.0, 1.0, 0.0), grid.shape)
+    region = SpCoResult.load(tmp_path / "fit").where("kitchen").region
+    assert region.any() and np.array_equal(mask.values == 100, region)
