@@ -376,8 +376,8 @@ def export_nav2(
             filters_yaml,
             costmap_filters([(mode, name) for name in names]),
             "Costmap filter entries for nav2_params.yaml (spcopyro export): merge them into\n"
-            "the global_costmap / local_costmap sections (Nav2 Humble and earlier list filters\n"
-            "under 'plugins' instead of 'filters')",
+            "the global_costmap / local_costmap sections (Nav2 Foxy, from before the 'filters'\n"
+            "parameter of Galactic, lists filters under 'plugins')",
         )
         base, multiplier = BASE_MULTIPLIER[mode]
         summary = {
