@@ -201,6 +201,9 @@ def build_parser() -> argparse.ArgumentParser:
     from spcopyro.cli_export import add_parser as add_export_parser
 
     add_export_parser(sub)  # export
+    from spcopyro.rosbag.cli import add_parser as add_rosbag_parsers
+
+    add_rosbag_parsers(sub)  # import-bag, simulate-bag
     for command in (parser, *sub.choices.values()):
         command.formatter_class = _HelpFormatter
     return parser

@@ -27,7 +27,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("gibbs", "guides", "inference", "simulate", "variational"),
     ("registry",),
     ("results", "uncertainty"),
-    ("metrics", "plotting", "baselines", "features", "nav2", "map_simulation"),
+    ("metrics", "plotting", "baselines", "features", "nav2", "map_simulation", "rosbag"),
     ("fit",),
     ("experiments",),
     ("cli", "cli_common", "cli_fit", "cli_export", "__main__"),
