@@ -77,6 +77,7 @@ def _simulate_bag(args: argparse.Namespace) -> int:
             storage=args.storage,
             image_format=args.image_format,
             image_size=tuple(args.image_size),
+            trials=args.trials,
         )
     except RosbagsMissingError as error:
         print(f"error: {error}", file=sys.stderr)
@@ -166,4 +167,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "/camera/image/compressed (default jpeg)")  # fmt: skip
     p.add_argument("--image-size", type=int, nargs=2, default=(48, 64), metavar=("H", "W"),
                    help="image height and width in pixels (default 48 64)")  # fmt: skip
+    p.add_argument("--trials", type=int, nargs="+", metavar="K",
+                   help="record only these trials of the house (default: all)")  # fmt: skip
     p.set_defaults(func=_simulate_bag)

@@ -55,6 +55,7 @@ from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.maps.map_server import load_map, save_map
 from spcopyro.rosbag.bag import (
     BagContentError,
+    _rosbags,
     iter_images,
     open_bag,
     read_pose_topic,
@@ -75,7 +76,7 @@ __all__ = [
 ]
 
 MARKER = "bag_import.json"
-"""The file that marks a folder written by :func:`import_bags` (``overwrite`` replaces only those)."""
+"""Marks a folder written by :func:`import_bags` (``overwrite`` replaces only those)."""
 
 
 class PoseOutsideMapError(BagContentError):
@@ -197,7 +198,7 @@ def _check_inside(grid: OccupancyGrid, xy: np.ndarray, times: np.ndarray, what: 
         raise PoseOutsideMapError(
             f"{what} at {times[i]:.6f} s has pose x={xy[i, 0]:.3f}, y={xy[i, 1]:.3f} m, outside "
             f"the map {grid.source or ''} (x {x0:.2f}..{x1:.2f}, y {y0:.2f}..{y1:.2f} m); "
-            f"{int((~inside).sum())} of {len(inside)} such poses are outside. Is it the map "
+            f"{int((~inside).sum())} of {len(inside)} such are outside. Is it the map "
             "the robot localised in, and the pose in its frame?"
         )
 
@@ -361,6 +362,7 @@ def import_bags(
         PoseOutsideMapError: a kept observation's pose outside the map.
         RosbagsMissingError: rosbags is not installed.
     """
+    _rosbags()  # a missing rosbags is said before anything else
     if not bags:
         raise ValueError("import_bags: no bag given")
     if int(first_trial) != first_trial or first_trial < 0:

@@ -53,8 +53,10 @@ class PoseTrack:
     """Poses of one frame in another over time (or one static pose).
 
     ``times`` [P] float64 seconds, strictly increasing; ``xy`` [P, 2]; ``yaw`` [P] radians.
-    ``static``: one pose (P = 1) valid at every time. ``name`` says where it came from (a topic,
-    or a tf edge ``parent -> child``), for messages.
+    ``static``: one pose (P = 1) valid at every time. ``inverted``: :meth:`at` gives the inverse
+    of the interpolated pose (as tf2 does for an edge walked backwards; interpolating inverted
+    samples would differ between samples). ``name`` says where it came from (a topic, or a tf
+    edge ``parent -> child``), for messages.
     """
 
     name: str
@@ -62,6 +64,7 @@ class PoseTrack:
     xy: np.ndarray  # [P, 2] float64 m
     yaw: np.ndarray  # [P] float64 rad
     static: bool = False
+    inverted: bool = False  # the parent in the child frame: interpolated, then inverted
 
     def __post_init__(self) -> None:
         times = np.asarray(self.times, dtype=np.float64).reshape(-1)  # [P]
@@ -99,22 +102,30 @@ class PoseTrack:
         x, y; yaw by the shortest angle); clamped to the first / last sample outside them."""
         t = np.asarray(t, dtype=np.float64)  # [M]
         if self.static or self.times.size == 1:
-            return np.repeat(self.xy, t.size, axis=0), np.repeat(self.yaw, t.size)
-        right = np.clip(np.searchsorted(self.times, t, side="right"), 1, self.times.size - 1)
-        left = right - 1  # [M] segments [left, right]
-        t0, t1 = self.times[left], self.times[right]  # [M]
-        s = np.clip((t - t0) / (t1 - t0), 0.0, 1.0)[:, None]  # [M, 1]
-        xy = self.xy[left] + s * (self.xy[right] - self.xy[left])  # [M, 2]
-        turn = wrap_angle(self.yaw[right] - self.yaw[left])  # [M]
-        yaw = wrap_angle(self.yaw[left] + s[:, 0] * turn)  # [M]
+            xy, yaw = np.repeat(self.xy, t.size, axis=0), np.repeat(self.yaw, t.size)
+        else:
+            right = np.clip(np.searchsorted(self.times, t, side="right"), 1, self.times.size - 1)
+            left = right - 1  # [M] segments [left, right]
+            t0, t1 = self.times[left], self.times[right]  # [M]
+            s = np.clip((t - t0) / (t1 - t0), 0.0, 1.0)[:, None]  # [M, 1]
+            xy = self.xy[left] + s * (self.xy[right] - self.xy[left])  # [M, 2]
+            turn = wrap_angle(self.yaw[right] - self.yaw[left])  # [M]
+            yaw = wrap_angle(self.yaw[left] + s[:, 0] * turn)  # [M]
+        if self.inverted:
+            return _invert(xy, yaw)
         return xy, yaw
 
     def inverse(self) -> PoseTrack:
-        """The track of the parent frame in the child frame (each pose inverted)."""
-        c, s = np.cos(self.yaw), np.sin(self.yaw)  # [P]
-        x, y = self.xy[:, 0], self.xy[:, 1]
-        xy = np.stack([-(c * x + s * y), s * x - c * y], axis=1)  # [P, 2]: -R(-yaw) (x, y)
-        return PoseTrack(f"inverse of {self.name}", self.times, xy, -self.yaw, self.static)
+        """The track of the parent frame in the child frame (each interpolated pose inverted)."""
+        name = self.name[len("inverse of ") :] if self.inverted else f"inverse of {self.name}"
+        return PoseTrack(name, self.times, self.xy, self.yaw, self.static, not self.inverted)
+
+
+def _invert(xy: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """SE(2) inverses of poses ``xy`` [M, 2], ``yaw`` [M]: ``(-R(-yaw) (x, y), -yaw)``."""
+    c, s = np.cos(yaw), np.sin(yaw)  # [M]
+    x, y = xy[:, 0], xy[:, 1]
+    return np.stack([-(c * x + s * y), s * x - c * y], axis=1), wrap_angle(-yaw)
 
 
 def compose(

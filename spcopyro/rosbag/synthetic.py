@@ -26,6 +26,7 @@ interpolates them back exactly to the house's positions.
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -58,7 +59,9 @@ POSE_TYPE = {
 
 
 def _ns(t: float) -> int:
-    return int(round(t * 1e9))
+    """Nanoseconds of ``t`` seconds (whole seconds apart: ``t * 1e9`` would round to 256 ns)."""
+    sec = math.floor(t)
+    return int(sec) * 10**9 + int(round((t - sec) * 1e9))
 
 
 class BagWriter:
@@ -318,6 +321,9 @@ def write_synthetic_bags(
     out = Path(out)
     obs = house.observations
     chosen = sorted(set(obs.trials if trials is None else trials))
+    unknown = sorted(set(chosen) - set(np.asarray(obs.trials).tolist()))
+    if unknown:
+        raise ValueError(f"the house has no trial {unknown[0]} (its trials: {list(obs.trials)})")
     names = [out / (f"trial_{k}.bag" if ros == 1 else f"trial_{k}") for k in chosen]
     map_yaml = out / "map.yaml"
     for path in (*names, map_yaml):
@@ -335,8 +341,6 @@ def write_synthetic_bags(
     image_topic = "/camera/image" if image_format == "raw" else "/camera/image/compressed"
     for n, (k, path) in enumerate(zip(chosen, names, strict=True)):
         images = np.flatnonzero(obs.image_trial == k)  # [n_k]
-        if not images.size:
-            raise ValueError(f"trial {k} has no images in the house")
         track, arrive = _trial_track(
             obs.image_xy[images], yaw_all[images], T0 + 10_000.0 * n, speed, dwell
         )
@@ -350,8 +354,8 @@ def write_synthetic_bags(
                 writer.pose("/amcl_pose", t, xy[p, 0], xy[p, 1], yaw[p])
                 writer.pose("/odom", t, odom_xy[p, 0], odom_xy[p, 1], odom_yaw[p], kind="odom",
                             frame="odom")  # fmt: skip
-                writer.tf(t, [("map", "odom", *MAP_TO_ODOM),
-                              ("odom", "base_link", odom_xy[p, 0], odom_xy[p, 1], odom_yaw[p])])  # fmt: skip
+                odom_base = ("odom", "base_link", odom_xy[p, 0], odom_xy[p, 1], odom_yaw[p])
+                writer.tf(t, [("map", "odom", *MAP_TO_ODOM), odom_base])
             writer.tf(stamps[0], [("base_link", "camera_link", *BASE_TO_CAMERA)], static=True)
             shot = arrive + dwell / 2  # [n_k] image stamps
             for j, i in enumerate(images.tolist()):
