@@ -230,6 +230,39 @@ def test_min_distance_and_interval(tmp_path, map_yaml):
     assert np.allclose(x, [0.0, 0.2, 0.4, 0.6, 0.8, 1.0])
 
 
+def test_padded_mono_and_unstamped_images(tmp_path, map_yaml):
+    """Rows padded to ``step`` bytes, a mono8 image, a zero header stamp (-> the log time), and
+    an undecodable image (reported, not written)."""
+    bag = _bag_path(tmp_path, 2)
+    rgb = _image(3)  # [6, 8, 3]
+    grey = rgb[..., 0].copy()  # [6, 8]
+    with BagWriter(bag, ros=2) as w:
+        for t in T0 + np.arange(4.0):
+            w.pose("/amcl_pose", t, 0.5 * (t - T0), 0.0, 0.0)
+        image = w.types["sensor_msgs/msg/Image"]
+        padded = np.concatenate([rgb.reshape(6, 24), np.full((6, 4), 7, np.uint8)], axis=1)
+        w.write("/camera/image", "sensor_msgs/msg/Image", image(
+            header=w.header(T0 + 1.0, "cam"), height=6, width=8, encoding="rgb8",
+            is_bigendian=0, step=28, data=padded.reshape(-1)), log_time=T0 + 1.0)  # fmt: skip
+        w.write("/camera/image", "sensor_msgs/msg/Image", image(
+            header=w.header(0.0, "cam"), height=6, width=8, encoding="mono8",
+            is_bigendian=0, step=8, data=grey.reshape(-1)), log_time=T0 + 2.0)  # fmt: skip
+        w.write("/camera/image", "sensor_msgs/msg/Image", image(
+            header=w.header(T0 + 2.5, "cam"), height=6, width=8, encoding="rgb8",
+            is_bigendian=0, step=24, data=np.zeros(10, np.uint8)), log_time=T0 + 2.5)  # fmt: skip
+        w.text("/speech", T0 + 1.0, "hall")
+    out = tmp_path / "data" / "house"
+    report = import_bags([bag], map_yaml, out)
+    files = sorted((out / "img_0").iterdir())
+    assert len(files) == 2
+    assert np.array_equal(cv2.cvtColor(cv2.imread(str(files[0])), cv2.COLOR_BGR2RGB), rgb)
+    assert np.array_equal(cv2.imread(str(files[1]))[..., 0], grey)
+    assert np.allclose(np.loadtxt(out / "Xtx.csv"), [0.5, 1.0])  # the mono image at log 2 s
+    (skip,) = report.skipped
+    assert skip.kind == "image" and skip.stamp == pytest.approx(T0 + 2.5)
+    assert "not decodable" in skip.reason and "holds 10 bytes, expected 144" in skip.reason
+
+
 def test_missing_topic_lists_the_bags_topics(tmp_path, map_yaml):
     bag = _bag_path(tmp_path, 2)
     _write_basic(bag, 2, "sqlite3")

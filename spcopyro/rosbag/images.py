@@ -3,13 +3,15 @@
 A ``CompressedImage`` holding a JPEG or PNG is stored as it is (its own bytes, ``.jpg`` /
 ``.png``: no second lossy compression), after checking that OpenCV decodes it. Any other image
 (a raw ``sensor_msgs/Image`` in any encoding rosbags-image converts -- rgb8, bgr8, mono8, mono16,
-bayer_*, ... -- or another compressed format) is decoded to 8-bit BGR and stored as a lossless
-PNG. An image that cannot be decoded raises :class:`ImageDecodeError` with the reason; the
-import reports it (with its timestamp) in skipped.csv rather than stopping.
+bayer_*, ... -- rows padded to ``step`` bytes included, or another compressed format) is
+decoded to 8-bit BGR and stored as a lossless PNG. An image that cannot be decoded raises
+:class:`ImageDecodeError` with the reason; the import reports it (with its timestamp) in
+skipped.csv rather than stopping.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import cv2
@@ -39,6 +41,7 @@ def decode_image(msg: Any) -> np.ndarray:
         return image
     try:
         from rosbags.image import message_to_cvimage
+        from rosbags.image.image import to_cvtype
     except ImportError as error:
         raise RosbagsMissingError(
             f"decoding sensor_msgs/Image needs 'rosbags-image' ({error}); install it with: "
@@ -51,6 +54,12 @@ def decode_image(msg: Any) -> np.ndarray:
             f"expected {expected}"
         )
     try:
+        _, _, typestr, channels = to_cvtype(msg.encoding)
+        row_bytes = int(msg.width) * channels * np.dtype(typestr).itemsize
+        if int(msg.step) > row_bytes:  # rows padded to `step` bytes: drop the padding
+            rows = np.frombuffer(bytes(msg.data), np.uint8)[:expected]  # [H * step]
+            data = rows.reshape(int(msg.height), int(msg.step))[:, :row_bytes].reshape(-1)
+            msg = dataclasses.replace(msg, data=data, step=row_bytes)
         image = message_to_cvimage(msg, "bgr8")
     except Exception as error:  # noqa: BLE001 - rosbags-image raises several kinds
         raise ImageDecodeError(f"image encoding {msg.encoding!r}: {error}") from None

@@ -49,10 +49,12 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
+from tqdm.auto import tqdm
 
 from spcopyro.data.text import tokenize
 from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.maps.map_server import load_map, save_map
+from spcopyro.progress import progress_enabled
 from spcopyro.rosbag.bag import (
     BagContentError,
     _rosbags,
@@ -215,6 +217,7 @@ def _import_one(
     grid: OccupancyGrid,
     staging: Path,
     skipped: list[SkippedObservation],
+    progress: bool | None = None,
 ) -> _Trial:
     tol = options.pose_tolerance
     with open_bag(bag) as reader:
@@ -239,7 +242,10 @@ def _import_one(
         folder.mkdir()
         written: dict[int, str] = {}
         undecodable = 0
+        bar = tqdm(total=kept.size, desc=f"images of trial {trial}", unit="img",
+                   disable=not progress_enabled(progress), leave=False)  # fmt: skip
         for index, msg in iter_images(reader, images.topic, set(kept.tolist())):
+            bar.update(1)
             try:
                 data, suffix = encoded_image(msg)
             except ImageDecodeError as error:
@@ -249,6 +255,7 @@ def _import_one(
             name = f"img_{trial}/{len(written) + 1:05d}{suffix}"
             (staging / name).write_bytes(data)
             written[index] = name
+        bar.close()
         stored = np.asarray(sorted(written), dtype=np.int64)  # [n]
 
         # Utterances: pose and words.
@@ -347,9 +354,11 @@ def import_bags(
     *,
     first_trial: int = 0,
     overwrite: bool = False,
+    progress: bool | None = None,
 ) -> BagImportReport:
     """Import ``bags`` (one trial each) recorded in the map ``map_yaml`` into the house folder
-    ``out`` (see the module docstring for what is read, kept and written).
+    ``out`` (see the module docstring for what is read, kept and written). ``progress``: a
+    progress bar over each bag's images (default: on unless ``$CI`` is set).
 
     Raises:
         FileNotFoundError: a bag or the map is missing.
@@ -381,7 +390,7 @@ def import_bags(
     skipped: list[SkippedObservation] = []
     try:
         trials = [
-            _import_one(Path(bag), first_trial + k, options, grid, staging, skipped)
+            _import_one(Path(bag), first_trial + k, options, grid, staging, skipped, progress)
             for k, bag in enumerate(bags)
         ]
         for what, key in (("image", "images_kept"), ("utterance", "utterances_kept")):
