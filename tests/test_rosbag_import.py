@@ -359,6 +359,8 @@ def test_rosbags_missing_is_a_clear_error(tmp_path, monkeypatch):
 @pytest.mark.parametrize(("ros", "storage"), FORMATS, ids=FORMAT_IDS)
 def test_synthetic_bags_round_trip(tmp_path, ros, storage):
     """The synthetic house recorded and imported: positions, yaws and words come back."""
+    from spcopyro.config import preset
+    from spcopyro.fit import fit_house
     from spcopyro.synthetic import HouseSpec, make_house
 
     spec = HouseSpec.scaled(30, 40, images_per_room_per_trial=3, utterances_per_room_per_trial=2,
@@ -371,11 +373,18 @@ def test_synthetic_bags_round_trip(tmp_path, ros, storage):
     obs = house.observations
     assert np.allclose(np.loadtxt(out / "Xtx.csv"), obs.image_xy[:, 0], atol=1e-9)
     assert np.allclose(np.loadtxt(out / "StXty.csv"), obs.word_xy[:, 1], atol=1e-9)
-    (out / "Ft.csv").write_text("1.0\n" * obs.num_images)
-    loaded = load_house(out).observations
+    # With the house's own features, the imported house is the house: the same fit, bit for bit.
+    rows = (",".join(repr(float(v)) for v in row) for row in obs.image_features)
+    (out / "Ft.csv").write_text("\n".join(rows) + "\n")
+    imported = load_house(out)
+    loaded = imported.observations
     assert loaded.utterances == obs.utterances
     assert np.array_equal(loaded.word_trial, obs.word_trial)
+    assert np.array_equal(loaded.image_trial, obs.image_trial)
     assert np.allclose(wrap_angle(loaded.image_yaw - obs.image_yaw), 0.0, atol=1e-9)
+    settings = preset("original-code", gamma=3.0, num_concepts=6)
+    fits = [fit_house(h, settings, sweeps=3, seed=2, progress=False) for h in (house, imported)]
+    assert np.array_equal(fits[0].label_image(), fits[1].label_image())
     # tf (map -> odom -> base_link) gives the same poses as /amcl_pose.
     via_tf = tmp_path / "data" / "tf"
     options = ImportOptions(image_topic=bags.image_topic, pose_tf=("map", "base_link"))

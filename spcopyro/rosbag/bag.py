@@ -116,6 +116,8 @@ def open_bag(path: str | os.PathLike[str]) -> Iterator[Any]:
         ) from None
     try:
         yield reader
+    except highlevel.AnyReaderError as error:  # a message that does not deserialise
+        raise BagFormatError(f"{path}: unreadable message ({error})") from None
     finally:
         reader.close()
 
