@@ -1,5 +1,5 @@
 """The ``spcopyro`` command line: simulate, show, fit, where, experiment, compare-inference,
-features, features-head, export.
+features, features-head, export, import-bag, simulate-bag.
 
 DATA is a house folder in the public dataset's layout (its map at ``DATA/../map/NAME.yaml``), e.g.
 ``../shared/data/spcomapping/room1dk5``, or one written by ``spcopyro simulate``. Where DATA is
@@ -8,8 +8,9 @@ left out, the embedded default is used: the synthetic house of seed 0, generated
 This module holds the parser, :func:`main`, the logging set-up and the small commands; ``fit`` is
 in :mod:`spcopyro.cli_fit`, ``experiment`` and ``compare-inference`` in
 :mod:`spcopyro.experiments.cli`, ``features`` in :mod:`spcopyro.features.cli`, ``export`` in
-:mod:`spcopyro.cli_export` (``simulate --map`` runs :mod:`spcopyro.map_simulation`), and what they
-share (DATA, the house summary, argument types, the help formatter) in :mod:`spcopyro.cli_common`.
+:mod:`spcopyro.cli_export` (``simulate --map`` runs :mod:`spcopyro.map_simulation`),
+``import-bag`` and ``simulate-bag`` in :mod:`spcopyro.rosbag.cli`, and what they share (DATA, the
+house summary, argument types, the help formatter) in :mod:`spcopyro.cli_common`.
 """
 
 from __future__ import annotations
