@@ -27,6 +27,7 @@ from spcopyro.cli_common import (
     _sweeps,
     _threads,
 )
+from spcopyro.concept_words import format_concept_words
 from spcopyro.config import DEFAULT_PRESET, DEFAULT_SNAP_DISTANCE, PRESETS, SpCoSettings, preset
 from spcopyro.data import House
 from spcopyro.gibbs.backends import get_backend
@@ -38,6 +39,7 @@ from spcopyro.threads import AUTO, MIN_CELLS_FOR_MORE_THREADS, describe_threads
 
 if TYPE_CHECKING:
     from spcopyro.fit import FitCheckpoint
+    from spcopyro.results import SpCoResult
 
 __all__ = ["add_parser"]
 
@@ -250,13 +252,7 @@ def _fit_staged(
         np.save(out / "truth.npy", house.truth)
         (out / "scores.json").write_text(json.dumps({"ari": ari}) + "\n")
         print(f"adjusted Rand index against the ground truth: {ari:.3f}")
-    further = [t.name for t in result.emissions if t.name not in ("images", "words")]
-    for concept in result.concepts()[:10]:
-        words = ", ".join(f"{w} ({p:.2f})" for w, p in concept["top_words"][:3])
-        for name in further:
-            top = concept[f"top_{name}"][:2]
-            words += f"; {name}: " + ", ".join(f"{item} ({p:.2f})" for item, p in top)
-        print(f"  concept {concept['concept']:>3}: {concept['cells']:>6} cells  {words}")
+    print_concepts(result)
     vocabulary_size = len(result.vocabulary)
     used = result.concepts_in_use()
     if vocabulary_size and result.w[used].max() < 2.0 / vocabulary_size:
@@ -273,6 +269,30 @@ def _fit_staged(
         print(f"removed {checkpoint}: the fit it held is complete or replaced")
     print(f"wrote {out}/: labels.npy semantic_map.png concepts.json trace.csv trace.png ...")
     return 0
+
+
+def print_concepts(result: SpCoResult, limit: int = 10) -> None:
+    """The ``limit`` largest concepts, one line each: cells, words heard there, the top words
+    (posterior means) and the distinctive ones with their lifts
+    (:mod:`spcopyro.concept_words`), or that no word was heard there."""
+    parameters = result.inference.get("parameters", "")
+    print(f"words per concept ({parameters or 'as the method estimates them'}); distinctive: "
+          "lift = p(word | concept) / p(word), p(word) the area-weighted mix of the concepts")  # fmt: skip
+    further = [t.name for t in result.emissions if t.name not in ("images", "words")]
+    for concept in result.concepts()[:limit]:
+        heard = concept["words_heard"]
+        words = format_concept_words(
+            [(w, p) for w, p in concept["top_words"]],
+            [(w, r, p) for w, r, p in concept["distinctive_words"]],
+            heard,
+        )
+        for name in further:
+            top = concept[f"top_{name}"][:2]
+            words += f"; {name}: " + ", ".join(f"{item} ({p:.2f})" for item, p in top)
+        count = "" if heard is None else f"{heard:>5.4g} words  "
+        print(f"  concept {concept['concept']:>3}: {concept['cells']:>6} cells {count}{words}")
+    if len(result.concepts_in_use()) > limit:
+        print(f"  ... {len(result.concepts_in_use()) - limit} smaller concepts in concepts.json")
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
