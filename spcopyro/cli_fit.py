@@ -27,7 +27,7 @@ from spcopyro.cli_common import (
     _sweeps,
     _threads,
 )
-from spcopyro.concept_words import format_concept_words
+from spcopyro.concept_words import MIN_LIFT, format_concept_words
 from spcopyro.config import DEFAULT_PRESET, DEFAULT_SNAP_DISTANCE, PRESETS, SpCoSettings, preset
 from spcopyro.data import House
 from spcopyro.gibbs.backends import get_backend
@@ -232,7 +232,7 @@ def _fit_staged(
               f"(split R-hat: log joint {last.rhat_log_joint:.3f}, concepts "
               f"{last.rhat_num_concepts:.3f}); kept chain {diagnostics.best_chain} "
               f"(seed {diagnostics.seeds[diagnostics.best_chain]}), highest log joint")  # fmt: skip
-    plot_semantic_map(result, out / "semantic_map.png")
+    plot_semantic_map(result, out / "semantic_map.png", observations=house.observations)
     plot_trace(result, out / "trace.png")
     plot_house(house, out / "house.png")
     entropy = cell_entropy(result)
@@ -275,11 +275,12 @@ def print_concepts(result: SpCoResult, limit: int = 10) -> None:
     """The ``limit`` largest concepts, one line each: cells, words heard there, the top words
     (posterior means) and the distinctive ones with their lifts
     (:mod:`spcopyro.concept_words`), or that no word was heard there."""
-    parameters = result.inference.get("parameters", "")
-    print(f"words per concept ({parameters or 'as the method estimates them'}); distinctive: "
-          "lift = p(word | concept) / p(word), p(word) the area-weighted mix of the concepts")  # fmt: skip
+    parameters = result.inference.get("parameters", "words as the method estimates them")
+    print(f"concepts (words: {parameters}; distinctive: lift = p(word | concept) / p(word) > "
+          f"{MIN_LIFT:g}, p(word) the area-weighted mix):")  # fmt: skip
     further = [t.name for t in result.emissions if t.name not in ("images", "words")]
-    for concept in result.concepts()[:limit]:
+    concepts = result.concepts()
+    for concept in concepts[:limit]:
         heard = concept["words_heard"]
         words = format_concept_words(
             [(w, p) for w, p in concept["top_words"]],
@@ -289,10 +290,12 @@ def print_concepts(result: SpCoResult, limit: int = 10) -> None:
         for name in further:
             top = concept[f"top_{name}"][:2]
             words += f"; {name}: " + ", ".join(f"{item} ({p:.2f})" for item, p in top)
-        count = "" if heard is None else f"{heard:>5.4g} words  "
+        count = "" if heard is None else f"{heard:>4.4g} words  "
         print(f"  concept {concept['concept']:>3}: {concept['cells']:>6} cells {count}{words}")
-    if len(result.concepts_in_use()) > limit:
-        print(f"  ... {len(result.concepts_in_use()) - limit} smaller concepts in concepts.json")
+    if len(concepts) > limit:
+        print(f"  ... {len(concepts) - limit} smaller concepts in concepts.json")
+    if not any(c["distinctive_words"] for c in concepts):
+        print(f"  no concept has a distinctive word (every lift <= {MIN_LIFT:g})")
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

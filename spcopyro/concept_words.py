@@ -85,13 +85,11 @@ def format_concept_words(
     heard: float | None,
 ) -> str:
     """One line for a concept: ``NO_WORDS`` when ``heard`` is 0, else its top words with their
-    probabilities and its distinctive words with their lifts, e.g.
+    probabilities and its distinctive words (if any) with their lifts, e.g.
     ``"kitchen 0.31, the 0.12 | distinctive: kitchen x4.2, fridge x3.1"``."""
     if heard is not None and heard <= 0:
         return f"({NO_WORDS})"
     text = ", ".join(f"{w} {p:.2f}" for w, p in top)
     if distinctive:
-        text += " | distinctive: " + ", ".join(f"{w} x{r:.2f}" for w, r, _ in distinctive)
-    else:
-        text += f" | no distinctive word (lift <= {MIN_LIFT:g})"
+        text += " | distinctive: " + ", ".join(f"{w} x{r:.1f}" for w, r, _ in distinctive)
     return text

@@ -96,9 +96,7 @@ def posterior_means(
     for sample in samples:  # one map at a time: [N]
         statistics = concept_statistics(sample, data, config)
         pi += (c + statistics.cells) / (num_l * c + data.num_free)
-        for table, modality, counts in zip(
-            tables, data.modalities, statistics.counts, strict=True
-        ):
+        for table, modality, counts in zip(tables, data.modalities, statistics.counts, strict=True):
             a = config.concentration(modality.name)
             k = counts.shape[-1]
             table += (a + counts) / (k * a + counts.sum(-1, keepdim=True))  # [L, K_m]

@@ -385,9 +385,7 @@ class SpCoResult:
         if self.heard(concept) == 0:
             return []
         table = self.emission(WORDS)
-        return distinctive_items(
-            table.probabilities[concept], self.lift()[concept], table.items, n
-        )
+        return distinctive_items(table.probabilities[concept], self.lift()[concept], table.items, n)
 
     def concepts(self, n_words: int = 3) -> list[dict[str, object]]:
         """Per concept in use: id, cell count, pi, top words (and the top items of every further

@@ -27,7 +27,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("gibbs", "guides", "inference", "simulate", "variational", "posterior_means"),
     ("registry",),
     ("results", "uncertainty", "concept_words"),
-    ("metrics", "plotting", "baselines", "features"),
+    ("metrics", "plotting", "baselines", "features", "figures_map"),
     ("fit",),
     ("experiments",),
     ("cli", "cli_common", "cli_fit", "__main__"),
