@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 from matplotlib import patheffects
 from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
@@ -28,6 +30,7 @@ __all__ = [
     "concept_handles",
     "draw_outline",
     "draw_utterances",
+    "place_labels",
     "region_text",
     "utterance_concepts",
 ]
@@ -149,3 +152,27 @@ def draw_outline(
     x = left + (np.arange(w) + 0.5) * (right - left) / w
     y = top - (np.arange(h) + 0.5) * (top - bottom) / h
     ax.contour(x, y, part, levels=[0.5], **style)
+
+
+def place_labels(
+    fig: Figure, ax: Axes, labels: list[tuple[float, float, str, dict[str, object]]]
+) -> tuple[int, int]:
+    """Write each ``(x, y, text, style)`` label centred at (x, y) with the white halo
+    :data:`OUTLINE`, in the given order, leaving out any label whose box would overlap one
+    already written. Returns (written, left out). The boxes are measured by rendering the
+    figure on an Agg canvas (no backend is selected for anything else)."""
+    if fig.canvas is None or not hasattr(fig.canvas, "get_renderer"):
+        FigureCanvasAgg(fig)
+    renderer = fig.canvas.get_renderer()
+    boxes = []
+    skipped = 0
+    for x, y, text, style in labels:
+        artist = ax.text(x, y, text, ha="center", va="center", path_effects=OUTLINE, zorder=4,
+                         **style)  # fmt: skip
+        box = artist.get_window_extent(renderer=renderer).expanded(1.15, 1.25)
+        if any(box.overlaps(other) for other in boxes):
+            artist.remove()
+            skipped += 1
+            continue
+        boxes.append(box)
+    return len(boxes), skipped

@@ -29,10 +29,10 @@ from scipy import ndimage
 from spcopyro.concept_words import NO_WORDS
 from spcopyro.data import House, Observations
 from spcopyro.figures_map import (
-    OUTLINE,
     concept_handles,
     draw_outline,
     draw_utterances,
+    place_labels,
     region_text,
 )
 from spcopyro.maps import (
@@ -195,7 +195,9 @@ def semantic_map_figure(
     """Each concept its own colour, walls black, its words on the map itself (Fig. 10F).
 
     Every connected region holding at least ``min_region_fraction`` of the free cells gets a
-    label at its most interior cell (:func:`region_label_points`), in black with a white halo:
+    label at its most interior cell (:func:`region_label_points`), in black with a white halo
+    (a label that would overlap the label of a larger region is left out and counted in the
+    title, :func:`~spcopyro.figures_map.place_labels`):
     ``[concept]`` and its ``n_words`` most probable words with their probabilities (and the
     lift of the distinctive ones, ``x4.2``) on the concept's largest region, ``[concept]`` and
     its best word on each further one, "no words heard here" for a concept whose region holds
@@ -210,16 +212,18 @@ def semantic_map_figure(
     image = result.label_image()
     colours = semantic_colours(result)  # [L, 3]
     _show_image(ax, grid, render_labels(image, grid, colours))
-    labelled = result.concepts_in_use()[:max_labelled]
+    labelled = set(result.concepts_in_use()[:max_labelled].tolist())
     points = region_label_points(image, min_region_fraction * grid.num_free)
-    regions = 0
+    points = [p for p in points if p[0] in labelled]
+    points.sort(key=lambda p: -p[3])  # largest region first: its label wins a collision
+    labels = []
     for concept, row, col, _, largest in points:
-        if concept not in labelled:
-            continue
-        regions += 1
         x, y = grid.cell_to_world(np.array([row, col]))
-        ax.text(x, y, region_text(result, concept, n_words, largest), fontsize=7,
-                ha="center", va="center", path_effects=OUTLINE, zorder=4)  # fmt: skip
+        silent = result.heard(concept) == 0
+        labels.append((float(x), float(y), region_text(result, concept, n_words, largest),
+                       {"fontsize": 6 if silent else 7, "style": "italic" if silent else
+                        "normal", "color": "0.25" if silent else "black"}))  # fmt: skip
+    regions, skipped = place_labels(fig, ax, labels)
     handles: list[Patch | Line2D] = list(concept_handles(result, colours, n_words))
     if observations is not None:
         marker = draw_utterances(ax, result, observations, colours)
@@ -230,8 +234,9 @@ def semantic_map_figure(
               frameon=False, title="concepts, largest first: words (posterior mean p; "
               "x lift = p(word | concept) / p(word))", title_fontsize=7)  # fmt: skip
     used = len(result.concepts_in_use())
+    crowded = f"; {skipped} more left unlabelled where labels would overlap" if skipped else ""
     ax.set_title(f"{result.name or 'semantic map'}: {used} concepts in use, {regions} labelled "
-                 f"regions (>= {min_region_fraction:.1%} of the free cells)")  # fmt: skip
+                 f"regions (>= {min_region_fraction:.1%} of the free cells{crowded})")  # fmt: skip
     return fig
 
 
