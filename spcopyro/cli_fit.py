@@ -258,8 +258,9 @@ def _fit_staged(
     if vocabulary_size and result.w[used].max() < 2.0 / vocabulary_size:
         print(
             f"note: every concept's word distribution is close to uniform: beta = "
-            f"{config.beta:g} outweighs the {house.observations.num_utterances} utterances; "
-            "for sharper words try --beta 0.1 (or --preset original-code --gamma 3)",
+            f"{config.beta:g} outweighs the {house.observations.num_utterances} utterances "
+            "(each list still follows the counts heard there); for sharper words try "
+            "--beta 0.1 (or --preset original-code --gamma 3)",
             file=sys.stderr,
         )
     out = staged.commit()
