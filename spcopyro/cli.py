@@ -104,6 +104,11 @@ def _where(args: argparse.Namespace) -> int:
     cells = np.argwhere(answer.region)  # [n, 2] (row, col)
     xy = grid.cell_to_world(cells)
     words = ", ".join(f"{w} ({p:.2f})" for w, p in result.top_words(answer.concept, 3))
+    distinctive = result.distinctive_words(answer.concept, 3)
+    if result.heard(answer.concept) == 0:
+        words = "none, no words heard here"
+    elif distinctive:
+        words += "; distinctive: " + ", ".join(f"{w} x{r:.1f}" for w, r, _ in distinctive)
     print(f"'{answer.word}' is concept {answer.concept} (p = {answer.probability:.3f}, "
           f"{answer.prior} prior; its words: {words})")  # fmt: skip
     if answer.runner_up is not None:

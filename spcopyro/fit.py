@@ -43,6 +43,7 @@ from spcopyro.gibbs.run import GibbsChain, advance, start_chain
 from spcopyro.inference import InferenceOutput, method_options
 from spcopyro.initialisation import kmeans_gaussians, labels_from_gaussians
 from spcopyro.model import DTYPE, ModelData, make_model_data
+from spcopyro.posterior_means import concept_totals, with_posterior_means
 from spcopyro.registry import DEFAULT_METHOD, get_method
 from spcopyro.results import SpCoResult
 from spcopyro.threads import AUTO, describe_threads, resolve_threads, torch_threads
@@ -284,11 +285,16 @@ def result_of(
     record: dict[str, object] | None = None,
 ) -> SpCoResult:
     """The :class:`SpCoResult` of an inference output on ``house`` (``record``: its
-    :func:`provenance`)."""
+    :func:`provenance`). A sampler's drawn pi and emissions are replaced by their posterior means
+    given its labels (:mod:`spcopyro.posterior_means`; a variational method's are E_q already);
+    the result records each concept's observed cells and counts under the point labels."""
+    if output.parameters_drawn:
+        output = with_posterior_means(output, data, settings.model)
     return SpCoResult.from_output(
         output, house.grid, modality_items(counts, data), settings.model,
         modalities=tuple(m.name for m in data.modalities), method=method,
         preparation=settings.data, name=house.name, provenance=record,
+        concept_totals=concept_totals(output.labels, data, settings.model),
     )  # fmt: skip
 
 
@@ -414,7 +420,7 @@ def fit_house_chains(
             )  # fmt: skip
             output.options.update(seed=int(seed), init=init_name(init))
             if output.marginals is None:  # a sampler (vi-gibbs): its label frequencies
-                output = _with_sample_marginals(output, int(sweeps), settings.model.num_concepts)
+                output = _with_sample_marginals(output, int(sweeps), data, settings.model)
             fits.append(result_of(output, house, counts, data, settings, method, record))
     return fits
 
@@ -468,7 +474,7 @@ def _gibbs_outputs(
         assert chain is not None
         entry = gibbs_record(options, sweeps, chain.backend.name)
         output = output_from_run(chain.to_run(), {**entry, "seed": seed, "init": init_name(init)})
-        outputs.append(_with_sample_marginals(output, sweeps, settings.model.num_concepts))
+        outputs.append(_with_sample_marginals(output, sweeps, data, settings.model))
     return outputs
 
 
@@ -479,17 +485,21 @@ def _marginal_thin(sweeps: int, marginal_samples: int) -> int:
 
 
 def _with_sample_marginals(
-    output: InferenceOutput, sweeps: int, num_concepts: int
+    output: InferenceOutput, sweeps: int, data: ModelData, config: SpCoConfig
 ) -> InferenceOutput:
     """``output`` with the label frequencies of its samples from the second half of the sweeps
-    as its marginals (unchanged if it kept none there)."""
+    as its marginals (unchanged if it kept none there), and a sampler's pi and emissions as
+    their posterior means averaged over those samples
+    (:func:`~spcopyro.posterior_means.with_posterior_means`)."""
     if output.label_samples is None or output.sample_iterations is None:
         return output
     late = np.asarray(output.sample_iterations) >= sweeps // 2
     if not late.any():
         return output
     samples = np.asarray(output.label_samples)[late]  # [S', N]
-    marginals = label_frequencies(samples, num_concepts)  # [N, L]
+    marginals = label_frequencies(samples, config.num_concepts)  # [N, L]
+    if output.parameters_drawn:
+        output = with_posterior_means(output, data, config, samples)
     return dataclasses.replace(
         output,
         marginals=marginals,

@@ -78,3 +78,13 @@ def test_svi_vs_cavi_benchmark_quick(tmp_path):
     row = record["rows"][0]
     assert math.isfinite(row["svi_elbo"]) and math.isfinite(row["cavi_elbo"])
     assert "SVI below CAVI" in done.stdout
+
+
+@pytest.mark.slow
+def test_word_tables_benchmark_quick(tmp_path):
+    out = tmp_path / "words.json"
+    done = run_benchmark("word_tables.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "| original-code, gamma 3 | mean given labels |" in done.stdout
+    records = json.loads(out.read_text())["records"]
+    assert set(records["paper-dp"]) == {"draw", "mean given labels", "mean over samples"}

@@ -15,7 +15,9 @@ from spcopyro.model import ModelData
 
 def output_from_run(run: GibbsRun, options: dict[str, object] | None = None) -> InferenceOutput:
     """A run's :class:`InferenceOutput`: the MAP-visited state as the point estimate, the last
-    state's labels beside it, the log joint per sweep as the trace."""
+    state's labels beside it, the log joint per sweep as the trace. pi and the emissions are
+    that state's draws (``parameters_drawn``): a result reports their posterior means given the
+    labels instead (:mod:`spcopyro.posterior_means`)."""
     best = run.best_state
     return InferenceOutput(
         labels=best.labels.numpy().astype("int64"),
@@ -27,6 +29,7 @@ def output_from_run(run: GibbsRun, options: dict[str, object] | None = None) -> 
         options=dict(options or {}),
         label_samples=run.label_samples,
         sample_iterations=run.sample_sweeps,
+        parameters_drawn=True,
     )
 
 
