@@ -34,13 +34,25 @@ def _simulate(args: argparse.Namespace) -> int:
     from spcopyro.synthetic import HouseSpec, write_synthetic
 
     if args.map is not None:
+        if args.density != "dense" or args.rooms is not None:
+            raise ValueError("--density and --rooms draw a synthetic house; --map tours a map")
         return _simulate_on_map(args)
     if args.categories is not None:
         raise ValueError("--categories needs --map (the synthetic house draws its own rooms)")
     args.name = args.name or "synthetic"
-    spec = HouseSpec.scaled(*args.size, sentence_fraction=args.sentences) if args.size else None
-    if spec is None and args.sentences:
-        spec = HouseSpec(sentence_fraction=args.sentences)
+    if args.density == "sparse":  # as sparse as the public houses (HouseSpec.public_like)
+        changes: dict[str, object] = dict(sentence_fraction=args.sentences)
+        if args.size:
+            changes.update(height=args.size[0], width=args.size[1])
+        if args.rooms is not None:
+            changes["num_rooms"] = args.rooms
+        spec = HouseSpec.public_like(**changes)
+    else:
+        spec = HouseSpec.scaled(*args.size, sentence_fraction=args.sentences) if args.size else None
+        if spec is None and (args.sentences or args.rooms is not None):
+            spec = HouseSpec(sentence_fraction=args.sentences)
+        if args.rooms is not None:
+            spec = dataclasses.replace(spec, num_rooms=args.rooms)  # type: ignore[arg-type]
     try:
         room = write_synthetic(args.out, seed=args.seed, spec=spec, name=args.name,
                                overwrite=args.overwrite)  # fmt: skip
@@ -156,6 +168,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--size", type=int, nargs=2, metavar=("H", "W"),
                    help="map size in cells; the number of rooms grows with the area "
                         "(default: 60 x 80 cells, 5 rooms)")  # fmt: skip
+    p.add_argument("--density", choices=("dense", "sparse"), default="dense",
+                   help="dense: the default house (4.9%% of the free cells observed); sparse: as "
+                        "sparse as the public houses (HouseSpec.public_like: 0.05 m cells, "
+                        "~23,500 free, ~70 observed, 0.3%%)")  # fmt: skip
+    p.add_argument("--rooms", type=int, help="walled rooms (default: the setting's own)")
     p.add_argument("--sentences", type=float, default=0.0,
                    help="share of utterances given as sentences (tf-idf setting)")  # fmt: skip
     p.add_argument("--overwrite", action="store_true",
