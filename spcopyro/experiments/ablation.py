@@ -26,7 +26,6 @@ over seeds) into ``ablation.md``, ``ablation.json`` and ``ablation.png``.
 from __future__ import annotations
 
 import concurrent.futures
-import dataclasses
 import multiprocessing
 import os
 import time
@@ -38,9 +37,10 @@ import numpy as np
 import torch
 
 from spcopyro.data import House, list_houses, load_house, place_observations
+from spcopyro.experiments.ablation_report import TABLE2_CATEGORIES, settings_json, write_report
 from spcopyro.experiments.ablation_variants import Variant, parse_variant
 from spcopyro.experiments.methods import RunSettings, fit_method
-from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
+from spcopyro.experiments.table import heldout_folds
 from spcopyro.fit import fit_house
 from spcopyro.metrics import (
     SpCoSemanticMap,
@@ -63,6 +63,7 @@ __all__ = [
     "jobs_of",
     "run_ablation",
     "run_job",
+    "settings_json",
 ]
 
 SYNTHETIC_HOUSES: dict[str, HouseSpec] = {
@@ -82,9 +83,6 @@ QUICK_HOUSES: dict[str, HouseSpec] = {
     "sparse": HouseSpec.public_like(height=70, width=70, num_rooms=2),
 }
 """Small houses for ``--quick`` (smoke runs and tests)."""
-
-TABLE2_CATEGORIES: dict[str, int] = dict(PUBLIC_CATEGORIES)
-"""Ground-truth categories per public house: the paper's Table 2 (6, 5, 7, 7, 7)."""
 
 PAPER_PLACE_WORDS = frozenset(
     ("bedroom", "shower", "kitchen", "entrance", "living", "dining", "closet", "corridor", "parlor")
@@ -337,8 +335,6 @@ def run_ablation(
 ) -> dict[str, object]:
     """Run every job, write ``ablation.md``, ``ablation.json`` and ``ablation.png`` into
     ``out``; returns the summary written to ``ablation.json``."""
-    from spcopyro.experiments.ablation_report import write_report
-
     jobs = jobs_of(settings)
     start = time.perf_counter()
     order = {(j.row, j.house, j.seed): k for k, j in enumerate(jobs)}
@@ -348,24 +344,3 @@ def run_ablation(
     )
     seconds = time.perf_counter() - start
     return write_report(Path(out), settings, records, seconds)
-
-
-def settings_json(settings: AblationSettings) -> dict[str, object]:
-    """The run's settings as JSON values."""
-    return {
-        "variants": [v.to_json() for v in settings.variants],
-        "variant_texts": [v.describe() for v in settings.variants],
-        "baselines": list(settings.baselines),
-        "synthetic": {
-            name: dataclasses.asdict(settings.houses[name]) for name in settings.synthetic
-        },
-        "seeds": settings.seeds,
-        "public_seeds": settings.public_seeds,
-        "dataset_root": None if settings.dataset_root is None else str(settings.dataset_root),
-        "public_houses": None if settings.public_houses is None else list(settings.public_houses),
-        "sweeps": settings.sweeps,
-        "spcoa_iterations": settings.spcoa_iterations,
-        "observations_off": settings.observations_off,
-        "workers": settings.workers,
-        "command": settings.command,
-    }

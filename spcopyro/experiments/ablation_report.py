@@ -10,17 +10,25 @@ targets, checked), ``records`` (one per job) and ``seconds`` (the whole run).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from spcopyro.experiments.ablation import TABLE2_CATEGORIES, AblationSettings, settings_json
-from spcopyro.experiments.table import json_default
+from spcopyro.experiments.table import PUBLIC_CATEGORIES, json_default
 from spcopyro.synthetic.statistics import public_and_synthetic_statistics, statistics_table
 
-__all__ = ["SCORES", "summarise", "targets", "write_report"]
+__all__ = ["SCORES", "TABLE2_CATEGORIES", "settings_json", "summarise", "targets", "write_report"]
+
+TABLE2_CATEGORIES: dict[str, int] = dict(PUBLIC_CATEGORIES)
+"""Ground-truth categories per public house: the paper's Table 2 (6, 5, 7, 7, 7)."""
+
+AblationSettings = Any
+"""An :class:`spcopyro.experiments.ablation.AblationSettings` (not imported: that module
+imports this one)."""
 
 SCORES = (
     "ari", "ari_off", "ari_on_off", "matching_rate", "matching_rate_area", "concepts",
@@ -295,3 +303,24 @@ def write_report(
     (out / "ablation.json").write_text(json.dumps(report, indent=1, default=json_default) + "\n")
     figure(report, settings, out / "ablation.png")
     return report
+
+
+def settings_json(settings: AblationSettings) -> dict[str, object]:
+    """The run's settings as JSON values."""
+    return {
+        "variants": [v.to_json() for v in settings.variants],
+        "variant_texts": [v.describe() for v in settings.variants],
+        "baselines": list(settings.baselines),
+        "synthetic": {
+            name: dataclasses.asdict(settings.houses[name]) for name in settings.synthetic
+        },
+        "seeds": settings.seeds,
+        "public_seeds": settings.public_seeds,
+        "dataset_root": None if settings.dataset_root is None else str(settings.dataset_root),
+        "public_houses": None if settings.public_houses is None else list(settings.public_houses),
+        "sweeps": settings.sweeps,
+        "spcoa_iterations": settings.spcoa_iterations,
+        "observations_off": settings.observations_off,
+        "workers": settings.workers,
+        "command": settings.command,
+    }
