@@ -33,7 +33,7 @@ imports this one)."""
 SCORES = (
     "ari", "ari_off", "ari_on_off", "matching_rate", "matching_rate_area", "concepts",
     "concepts_1pct", "concepts_1pct_off", "place_top_share", "top1", "top3", "mean_rank",
-    "distance_m", "inside_rate", "seconds", "seconds_off",
+    "distance_m", "inside_rate", "seconds", "seconds_off", "cpu_seconds", "cpu_seconds_off",
 )  # fmt: skip
 """Every score a record may hold (a record holds those that apply to its row and house)."""
 
@@ -109,6 +109,13 @@ def _fmt(spread: dict | None, digits: int = 3) -> str:
     return f"{spread['mean']:.{digits}f} ± {spread['sd']:.{digits}f}"
 
 
+def _seconds(scores: dict) -> str:
+    wall, cpu = scores.get("seconds"), scores.get("cpu_seconds")
+    if wall is None:
+        return "—"
+    return f"{wall['mean']:.1f}" + ("" if cpu is None else f" / {cpu['mean']:.1f}")
+
+
 def _top_words(records: list[dict[str, object]]) -> dict[str, dict[str, list]]:
     """row -> house -> the top words of seed 0 (the lowest seed run)."""
     found: dict[str, dict[str, tuple[int, list]]] = {}
@@ -152,7 +159,8 @@ def markdown(report: dict, settings: AblationSettings) -> str:
             f"{spec.num_regions} regions)",
             "",
             "| row | ARI | ARI, observations off | ARI(with, without) | matching rate | "
-            "matching rate (area prior) | concepts ≥ 1% | top word a place | s per fit |",
+            "matching rate (area prior) | concepts ≥ 1% | top word a place | s per fit "
+            "(wall / CPU) |",
             "|---|---|---|---|---|---|---|---|---|",
         ]
         for row in rows:
@@ -163,7 +171,7 @@ def markdown(report: dict, settings: AblationSettings) -> str:
                 f"| {row} | {_fmt(s.get('ari'))} | {_fmt(s.get('ari_off'))} "
                 f"| {_fmt(s.get('ari_on_off'))} | {_fmt(s.get('matching_rate'))} "
                 f"| {_fmt(s.get('matching_rate_area'))} | {_fmt(s.get('concepts_1pct'), 1)} "
-                f"| {_fmt(s.get('place_top_share'), 2)} | {_fmt(s.get('seconds'), 1)} |"
+                f"| {_fmt(s.get('place_top_share'), 2)} | {_seconds(s)} |"
             )
         lines.append("")
     public = _public_houses(report["records"])
