@@ -115,7 +115,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "frame (default /amcl_pose)")  # fmt: skip
     p.add_argument("--pose-tf", nargs=2, metavar=("PARENT", "CHILD"),
                    help="take the pose of frame CHILD in frame PARENT from /tf and /tf_static "
-                        "instead (e.g. map base_link)")  # fmt: skip
+                        "instead (e.g. map base_link; default: off, the pose topic)")  # fmt: skip
     p.add_argument(
         "--image-topic",
         default="/camera/image",
