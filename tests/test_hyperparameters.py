@@ -17,7 +17,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pyro.poutine as poutine
 import pytest
 import torch
 from gibbs_problems import all_labelings, config, model_data, random_problem, replicate_grid
@@ -46,7 +45,7 @@ from spcopyro.gibbs.state import GibbsState, make_sweep_plan
 from spcopyro.gibbs.sweep import label_log_conditionals
 from spcopyro.inference import with_options
 from spcopyro.likelihood import concept_statistics
-from spcopyro.model import DTYPE, potts_agreements, spcomapping_model
+from spcopyro.model import DTYPE, potts_agreements
 from spcopyro.random_draws import sample_log_dirichlet
 
 
