@@ -468,25 +468,28 @@ def test_checkpoint_resumes_sampled_hyperparameters_exactly(backend, tmp_path):
 
 def test_interrupted_sweep_undoes_the_hyperparameters():
     """Ctrl-C inside a sweep leaves the chain at its last completed sweep, hyperparameters and
-    their trace included."""
+    their trace included (interrupted after the step changed the chain's config)."""
     cfg = config(alpha=2.0, gamma=0.8)
     _, data = random_problem(16)
     options = GibbsOptions(backend="torch", hyper=HYPER_ALL)
     chain = start_chain(data, cfg, options=options, seed=8)
     advance(chain, 4, progress=False)
     before = (chain.model_config, list(chain.hyper_trace), chain.constant)
-    import spcopyro.gibbs.hyperparameters as module
+    import spcopyro.gibbs.run as run_module
 
-    original = module.update_gamma_exchange
+    original = run_module.hyperparameter_values
+    changed = []
 
-    def interrupted(*args, **kwargs):
+    def interrupted(data, config):
+        changed.append(config != before[0])
         raise KeyboardInterrupt
 
-    module.update_gamma_exchange = interrupted
+    run_module.hyperparameter_values = interrupted
     try:
         with pytest.raises(KeyboardInterrupt):
             advance(chain, 1, progress=False)
     finally:
-        module.update_gamma_exchange = original
+        run_module.hyperparameter_values = original
+    assert changed == [True]  # the sweep had changed the config before the interrupt
     assert (chain.model_config, chain.hyper_trace, chain.constant) == before
     assert chain.sweeps_done == 4
