@@ -493,3 +493,48 @@ def test_interrupted_sweep_undoes_the_hyperparameters():
     assert changed == [True]  # the sweep had changed the config before the interrupt
     assert (chain.model_config, chain.hyper_trace, chain.constant) == before
     assert chain.sweeps_done == 4
+
+
+@pytest.mark.slow
+def test_hyperparameter_benchmark_quick(tmp_path):
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    path = os.pathsep.join(p for p in (str(root), os.environ.get("PYTHONPATH")) if p)
+    out = tmp_path / "hyper.json"
+    done = subprocess.run(
+        [sys.executable, str(root / "benchmarks" / "hyperparameters.py"), "--quick",
+         "--out", str(out)],
+        capture_output=True, text=True, timeout=600, env={**os.environ, "PYTHONPATH": path},
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "Hyperparameters inferred" in done.stdout
+    rows = json.loads(out.read_text())["rows"]
+    assert {r["variant"] for r in rows} >= {"fixed", "all", "gamma-pl"}
+    assert set(rows[-1]["hyperparameters"]) == {"alpha", "gamma", "chi", "beta"}
+
+
+def test_pyro_kernel_carries_sampled_hyperparameters():
+    """The Pyro MCMC kernel passes each step's config on to the next (and its log joint is the
+    chain's, hyperpriors included)."""
+    from pyro.infer import MCMC
+
+    from spcopyro.gibbs.kernel import SpCoGibbs
+    from spcopyro.gibbs.sweep import log_joint
+
+    cfg = config(alpha=2.0, gamma=0.8)
+    _, data = random_problem(17)
+    options = GibbsOptions(backend="torch", hyper=HYPER_ALL)
+    kernel = SpCoGibbs(save_params=("labels", "log_joint"), options=options)
+    mcmc = MCMC(kernel, num_samples=8, warmup_steps=2, disable_progbar=True)
+    mcmc.run(data, cfg)
+    final = kernel._config
+    assert final != cfg  # it moved
+    from spcopyro.gibbs.hyperparameters import log_hyperprior
+
+    expected = float(log_joint(kernel.state, data, final)) + log_hyperprior(data, final, HYPER_ALL)
+    assert float(mcmc.get_samples()["log_joint"][-1]) == pytest.approx(expected, rel=1e-10)
