@@ -226,6 +226,12 @@ def _statistics(log_alpha, log_gamma, log_chi, log_beta, labels, log_pi, log_the
             log_theta.exp()[rows, first, 0], log_w.exp()[rows, last, 1],
             images[:, 0, 0], words[:, -1, 1],
             log_gamma * potts_agreements(labels, data.pairs),
+            # how spread the distributions are, with and against their concentrations
+            (log_theta.exp()[:, :, 0] - 0.5).abs().mean(-1),
+            log_chi * (log_theta.exp()[:, :, 0] - 0.5).abs().mean(-1),
+            (log_w.exp() - 1 / 3).abs().mean((-1, -2)),
+            log_beta * (log_w.exp() - 1 / 3).abs().mean((-1, -2)),
+            log_alpha * log_pi.exp().amax(-1),
         ],
         dim=-1,
     )  # fmt: skip

@@ -11,16 +11,20 @@ auxiliary draw below is approximate:
 
 1. **Concentrations** (chi, beta, each further modality's :math:`a_m`): ``concentration_moves``
    random-walk Metropolis-Hastings steps on :math:`\log a_m` under the Dirichlet-multinomial
-   marginal of the concepts' counts (:math:`\phi_m` integrated out), then, *if the value
-   changed*, :math:`\phi_m` is redrawn from its conjugate conditional given the labels and the
-   new :math:`a_m`. Together a blocked update of :math:`(a_m, \phi_m)` given C, exact: the
-   redraw is the blocked update's second half, and skipping it after a rejection is exact too
-   (the rejection depends on :math:`a_m` and the proposal's random numbers only, so the kept
-   :math:`\phi_m` is still a draw from its conditional).
+   marginal of the concepts' counts (:math:`\phi_m` integrated out).
 2. **alpha**: an exchange update with pi integrated out, :math:`f(C; \alpha) = B(a_\pi + n(C)) /
-   B(a_\pi)` times the Potts factor (which cancels), then pi redrawn from Dir(a_pi + n(C)) if
-   alpha changed. (A plain MH step on :math:`p(\alpha)\,\mathrm{Dir}(\pi; a_\pi)` would be exact
-   only at gamma = 0: the model's normaliser Z(gamma, alpha) depends on alpha.)
+   B(a_\pi)` times the Potts factor (which cancels). (A plain MH step on
+   :math:`p(\alpha)\,\mathrm{Dir}(\pi; a_\pi)` would be exact only at gamma = 0: the model's
+   normaliser Z(gamma, alpha) depends on alpha. The joint-distribution test tells the two apart:
+   with that target, log alpha's z-score is 10.)
+
+   Then, *if alpha or a concentration changed*, pi and every modality's distributions are
+   redrawn from their conjugate conditionals given the labels and the new values (eqs. 14-17,
+   by the backend's own globals draw). Updates 1-2 leave p(hyper | C) invariant with the globals
+   integrated out, so with this redraw they are a blocked update of (hyper, globals) given C,
+   exact. Skipping the redraw when every proposal was rejected is exact too: the rejections
+   depend on the hyperparameters and the proposals' random numbers only, so the kept globals
+   are still a draw from their conditional.
 3. **gamma** (``hyper.gamma``):
 
    * ``"exchange"`` (use this one): propose :math:`\log\gamma' = \log\gamma + \epsilon`, draw
@@ -153,20 +157,19 @@ def _accept(log_ratio: float, generator: torch.Generator) -> bool:
 
 
 def update_concentration(
-    state: GibbsState,
     data: ModelData,
     config: SpCoConfig,
     generator: torch.Generator,
     hyper: HyperparameterOptions,
     index: int,
     counts: torch.Tensor,
-    held: torch.Tensor,
-) -> tuple[GibbsState, SpCoConfig, int]:
-    """The blocked update of modality ``index``'s concentration and distributions (module doc,
-    1). ``counts`` is [L, K_m] the concepts' counts, ``held`` [G] the concepts holding any
-    observed cell. Returns (state, config, number of accepted steps)."""
+) -> tuple[SpCoConfig, int]:
+    """``concentration_moves`` MH steps on modality ``index``'s log concentration under its
+    Dirichlet-multinomial marginal (module doc, 1; the distributions are redrawn by
+    :func:`update_hyperparameters`). ``counts`` is [G, K_m]: the counts of the concepts holding
+    any observed cell (the others add nothing). Returns (config, number of accepted steps)."""
     modality = data.modalities[index]
-    rows = counts[held]  # [G, K_m]
+    rows = counts  # [G, K_m]
     old = config.concentration(modality.name)
     log_a = math.log(old)
 
@@ -185,13 +188,8 @@ def update_concentration(
         if _accept(candidate - current, generator):
             log_a, current, accepted = proposal, candidate, accepted + 1
     if not accepted:
-        return state, config, 0
-    new = math.exp(log_a)
-    config = with_concentration(config, modality.name, new)
-    table = sample_log_dirichlet(new + counts, generator)  # [L, K_m]
-    emissions = list(state.log_emissions)
-    emissions[index] = table
-    return state._replace(log_emissions=tuple(emissions)), config, accepted
+        return config, 0
+    return with_concentration(config, modality.name, math.exp(log_a)), accepted
 
 
 # -- the auxiliary draw ----------------------------------------------------------------------------
@@ -218,6 +216,18 @@ def prior_map(data: ModelData) -> tuple[ModelData, SweepPlan]:
     plan = make_sweep_plan(prior_data)
     _PRIOR_MAP[:] = [_PriorMap(data, prior_data, plan)]
     return prior_data, plan
+
+
+def globals_sampler(backend_name: str) -> Callable[..., tuple]:
+    """The backend's draw of pi and every modality's distributions given the labels (eqs.
+    14-17): ``f(labels, data, config, generator) -> (log pi, log emissions)``."""
+    if backend_name == "numba":
+        from spcopyro.gibbs.numba_sweep import sample_globals_numba
+
+        return sample_globals_numba
+    from spcopyro.gibbs.sweep import sample_globals
+
+    return sample_globals
 
 
 def label_sampler(backend_name: str) -> Callable[..., torch.Tensor]:
@@ -267,16 +277,16 @@ def update_alpha(
     generator: torch.Generator,
     hyper: HyperparameterOptions,
     aux_draw: AuxiliaryDraw,
-) -> tuple[GibbsState, SpCoConfig, bool]:
-    """The exchange update of alpha with pi integrated out, then pi redrawn if it changed
-    (module doc, 2). Returns (state, config, accepted)."""
+) -> tuple[SpCoConfig, bool]:
+    """The exchange update of alpha with pi integrated out (module doc, 2; pi is redrawn by
+    :func:`update_hyperparameters`). Returns (config, accepted)."""
     L = config.num_concepts
     log_alpha = math.log(config.alpha)
     proposal = log_alpha + hyper.alpha_step * _normal(generator)
     try:
         proposed = config.replace(alpha=math.exp(proposal))
     except ValueError:  # overflow or underflow of alpha: outside the model, rejected
-        return state, config, False
+        return config, False
     aux = aux_draw(state.labels, proposed, generator)  # [N] under alpha'
     counts = torch.bincount(state.labels, minlength=L)  # [L]
     aux_counts = torch.bincount(aux, minlength=L)  # [L]
@@ -290,9 +300,8 @@ def update_alpha(
         label_log_marginal(aux_counts, a_old),
     )
     if not _accept(log_ratio, generator):
-        return state, config, False
-    log_pi = sample_log_dirichlet(a_new + counts.to(DTYPE), generator)  # [L]
-    return state._replace(log_pi=log_pi), proposed, True
+        return config, False
+    return proposed, True
 
 
 # -- 3. gamma ----------------------------------------------------------------------------------
@@ -413,12 +422,13 @@ def update_hyperparameters(
 
     proposed: dict[str, int] = {}
     accepted: dict[str, int] = {}
+    before = config
     if hyper.concentrations:
         statistics = concept_statistics(state.labels, data, config)
         held = torch.unique(state.labels[data.obs_cells])  # [G]
         for index, modality in enumerate(data.modalities):
-            state, config, ok = update_concentration(
-                state, data, config, generator, hyper, index, statistics.counts[index], held
+            config, ok = update_concentration(
+                data, config, generator, hyper, index, statistics.counts[index][held]
             )
             name = concentration_name(modality.name)
             proposed[name], accepted[name] = hyper.concentration_moves, ok
@@ -427,8 +437,14 @@ def update_hyperparameters(
         u = float(torch.rand((), dtype=DTYPE, generator=generator))
         exchange = u < hyper.exchange_probability
     if hyper.alpha and exchange:
-        state, config, ok = update_alpha(state, data, config, generator, hyper, aux_draw)
+        config, ok = update_alpha(state, data, config, generator, hyper, aux_draw)
         proposed["alpha"], accepted["alpha"] = 1, int(ok)
+    if config != before:  # the blocked updates' second half: the globals given C and the values
+        state = state._replace(
+            **dict(zip(("log_pi", "log_emissions"),
+                       globals_sampler(backend_name)(state.labels, data, config, generator),
+                       strict=True))
+        )  # fmt: skip
     if hyper.gamma == "exchange" and exchange:
         config, ok = update_gamma_exchange(
             state, data, config, generator, hyper, aux_draw, agreements
