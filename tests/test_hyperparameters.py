@@ -544,3 +544,31 @@ def test_pyro_kernel_carries_sampled_hyperparameters():
 
     expected = float(log_joint(kernel.state, data, final)) + log_hyperprior(data, final, HYPER_ALL)
     assert float(mcmc.get_samples()["log_joint"][-1]) == pytest.approx(expected, rel=1e-10)
+
+
+def test_fit_command_reports_the_inferred_hyperparameters(tmp_path, capsys):
+    """``fit --method-option hyper.NAME=VALUE``: the summary line and config.json's record."""
+    import json
+
+    from spcopyro.cli import main
+    from spcopyro.synthetic import HouseSpec, write_synthetic
+
+    house = write_synthetic(
+        tmp_path / "d", seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3)
+    )
+    out = tmp_path / "fit"
+    argv = ["fit", str(house), "--out", str(out), "--sweeps", "6", "--backend", "torch",
+            "--preset", "original-code", "--gamma", "3", "--concepts", "10",
+            "--method-option", "hyper.concentrations=true",
+            "--method-option", "hyper.gamma=pseudolikelihood"]  # fmt: skip
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    line = next(row for row in text.splitlines() if row.startswith("hyperparameters"))
+    assert "gamma" in line and "chi" in line and "beta" in line and "alpha" not in line
+    settings = json.loads((out / "config.json").read_text())
+    inference = settings["inference"]
+    assert inference["hyper"]["gamma"] == "pseudolikelihood"
+    summary = inference["hyperparameters"]
+    assert set(summary) == {"gamma", "chi", "beta"}
+    assert summary["gamma"]["initial"] == 3.0 == settings["model"]["gamma"]
+    assert {"final", "posterior_mean", "posterior_sd"} <= set(summary["beta"])
