@@ -31,6 +31,7 @@ from spcopyro.concept_words import MIN_LIFT, format_concept_words
 from spcopyro.config import DEFAULT_PRESET, DEFAULT_SNAP_DISTANCE, PRESETS, SpCoSettings, preset
 from spcopyro.data import House
 from spcopyro.gibbs.backends import get_backend
+from spcopyro.gibbs.hyperparameters import describe_hyperparameters
 from spcopyro.gibbs.options import BACKENDS, GibbsOptions
 from spcopyro.inference import with_options
 from spcopyro.outputs import StagedOutput
@@ -245,6 +246,9 @@ def _fit_staged(
     print(f"fitted {runs} in {wall:.1f} s wall clock "
           f"({1e3 * result.trace.seconds[-1] / sweeps_run:.2f} ms per {unit}); "
           f"{len(result.concepts_in_use())} concepts in use")  # fmt: skip
+    if result.inference.get("hyperparameters"):
+        line = describe_hyperparameters(result.inference["hyperparameters"])  # type: ignore[arg-type]
+        print(f"hyperparameters  {line} (posterior mean +- sd over the second half)")
     if house.truth is not None:
         from spcopyro.metrics import adjusted_rand_index
 

@@ -618,7 +618,7 @@ def fit_house_converged(
         )  # fmt: skip
     record = {
         "sweeps": "auto", "chains": chains, "seed": seed, "init": init_name(init),
-        **{k: v for k, v in vars(options).items()}, "backend_used": run.backend,
+        **dataclasses.asdict(options), "backend_used": run.backend,
     }  # fmt: skip
     output = output_from_run(run, record)
     made = provenance(house, data, source)

@@ -7,6 +7,7 @@ import dataclasses
 from dataclasses import dataclass
 
 from spcopyro.gibbs.anneal import check_anneal_sweeps
+from spcopyro.gibbs.hyper_options import HyperparameterOptions, as_hyper_options
 
 BACKENDS = ("auto", "torch", "numba")
 
@@ -32,12 +33,15 @@ class GibbsOptions:
             posterior invariant (the choice is made independently of the state).
         anneal_sweeps: ramp the labels' coupling gamma up over the first ``anneal_sweeps``
             sweeps of a chain (:mod:`spcopyro.gibbs.anneal`); those sweeps are burn-in.
+        hyper: which hyperparameters (alpha, the concentrations, gamma) the chain samples
+            (:class:`~spcopyro.gibbs.hyper_options.HyperparameterOptions`; none by default).
     """
 
     backend: str = "auto"
     unobserved_refresh: float = 1.0
     cluster_moves: float = 0.0
     anneal_sweeps: int = 0
+    hyper: HyperparameterOptions = HyperparameterOptions()
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -52,6 +56,7 @@ class GibbsOptions:
         if not (isinstance(moves, (int, float)) and 0.0 <= moves <= 1.0):
             raise bad("cluster_moves", "must be a probability in [0, 1]")
         object.__setattr__(self, "anneal_sweeps", check_anneal_sweeps(self.anneal_sweeps))
+        object.__setattr__(self, "hyper", as_hyper_options(self.hyper))
 
     def replace(self, **changes: object) -> GibbsOptions:
         """A copy with some fields changed (validated again)."""
