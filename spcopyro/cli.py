@@ -1,5 +1,5 @@
 """The ``spcopyro`` command line: simulate, show, fit, where, experiment, compare-inference,
-features, features-head.
+features, features-head, export, import-bag, simulate-bag.
 
 DATA is a house folder in the public dataset's layout (its map at ``DATA/../map/NAME.yaml``), e.g.
 ``../shared/data/spcomapping/room1dk5``, or one written by ``spcopyro simulate``. Where DATA is
@@ -7,13 +7,16 @@ left out, the embedded default is used: the synthetic house of seed 0, generated
 
 This module holds the parser, :func:`main`, the logging set-up and the small commands; ``fit`` is
 in :mod:`spcopyro.cli_fit`, ``experiment`` and ``compare-inference`` in
-:mod:`spcopyro.experiments.cli`, ``features`` in :mod:`spcopyro.features.cli`, and what they
-share (DATA, the house summary, argument types, the help formatter) in :mod:`spcopyro.cli_common`.
+:mod:`spcopyro.experiments.cli`, ``features`` in :mod:`spcopyro.features.cli`, ``export`` in
+:mod:`spcopyro.cli_export` (``simulate --map`` runs :mod:`spcopyro.map_simulation`),
+``import-bag`` and ``simulate-bag`` in :mod:`spcopyro.rosbag.cli`, and what they share (DATA, the
+house summary, argument types, the help formatter) in :mod:`spcopyro.cli_common`.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import logging
 import sys
 from pathlib import Path
@@ -30,9 +33,26 @@ logger = logging.getLogger("spcopyro")
 def _simulate(args: argparse.Namespace) -> int:
     from spcopyro.synthetic import HouseSpec, write_synthetic
 
-    spec = HouseSpec.scaled(*args.size, sentence_fraction=args.sentences) if args.size else None
-    if spec is None and args.sentences:
-        spec = HouseSpec(sentence_fraction=args.sentences)
+    if args.map is not None:
+        if args.density != "dense" or args.rooms is not None:
+            raise ValueError("--density and --rooms draw a synthetic house; --map tours a map")
+        return _simulate_on_map(args)
+    if args.categories is not None:
+        raise ValueError("--categories needs --map (the synthetic house draws its own rooms)")
+    args.name = args.name or "synthetic"
+    if args.density == "sparse":  # as sparse as the public houses (HouseSpec.public_like)
+        changes: dict[str, object] = dict(sentence_fraction=args.sentences)
+        if args.size:
+            changes.update(height=args.size[0], width=args.size[1])
+        if args.rooms is not None:
+            changes["num_rooms"] = args.rooms
+        spec = HouseSpec.public_like(**changes)
+    else:
+        spec = HouseSpec.scaled(*args.size, sentence_fraction=args.sentences) if args.size else None
+        if spec is None and (args.sentences or args.rooms is not None):
+            spec = HouseSpec(sentence_fraction=args.sentences)
+        if args.rooms is not None:
+            spec = dataclasses.replace(spec, num_rooms=args.rooms)  # type: ignore[arg-type]
     try:
         room = write_synthetic(args.out, seed=args.seed, spec=spec, name=args.name,
                                overwrite=args.overwrite)  # fmt: skip
@@ -41,6 +61,35 @@ def _simulate(args: argparse.Namespace) -> int:
             str(error).replace("pass overwrite=True", "pass --overwrite to replace it")
         ) from None
     print(f"wrote synthetic house (seed {args.seed}) to {room}")
+    print(f"  fit it with: spcopyro fit {room} --out {Path(args.out) / 'fit'}")
+    return 0
+
+
+def _simulate_on_map(args: argparse.Namespace) -> int:
+    from spcopyro.map_simulation import MapTour, write_simulated_map
+
+    if args.size:
+        raise ValueError("--size and --map exclude each other: the map gives the size")
+    tour = MapTour(door_width=args.door_width, min_room_area=args.min_room_area,
+                   sentence_fraction=args.sentences)  # fmt: skip
+    if args.categories is not None:
+        names = tuple(c.strip() for c in args.categories.split(",") if c.strip())
+        tour = dataclasses.replace(tour, categories=names)
+    try:
+        room, simulated = write_simulated_map(args.map, args.out, seed=args.seed, tour=tour,
+                                              name=args.name, overwrite=args.overwrite)  # fmt: skip
+    except FileExistsError as error:
+        raise FileExistsError(
+            str(error).replace("pass overwrite=True", "pass --overwrite to replace it")
+        ) from None
+    house = simulated.house
+    print(f"wrote a simulated tour of {args.map} (seed {args.seed}) to {room}: "
+          f"{int(simulated.room_category.size)} rooms, {house.observations.num_images} images, "
+          f"{house.observations.num_utterances} utterances")  # fmt: skip
+    names = house.category_names or ()
+    for r, c in enumerate(simulated.room_category.tolist()):
+        cells = int((simulated.rooms == r).sum())
+        print(f"  room {r}: {names[c]} ({cells * house.grid.resolution**2:.1f} m^2)")
     print(f"  fit it with: spcopyro fit {room} --out {Path(args.out) / 'fit'}")
     return 0
 
@@ -67,6 +116,11 @@ def _where(args: argparse.Namespace) -> int:
     cells = np.argwhere(answer.region)  # [n, 2] (row, col)
     xy = grid.cell_to_world(cells)
     words = ", ".join(f"{w} ({p:.2f})" for w, p in result.top_words(answer.concept, 3))
+    distinctive = result.distinctive_words(answer.concept, 3)
+    if result.heard(answer.concept) == 0:
+        words = "none, no words heard here"
+    elif distinctive:
+        words += "; distinctive: " + ", ".join(f"{w} x{r:.1f}" for w, r, _ in distinctive)
     print(f"'{answer.word}' is concept {answer.concept} (p = {answer.probability:.3f}, "
           f"{answer.prior} prior; its words: {words})")  # fmt: skip
     if answer.runner_up is not None:
@@ -109,14 +163,33 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("simulate", help="write a synthetic house in the public dataset's layout")
     p.add_argument("--out", required=True, help="root folder (gets map/ and NAME/)")
     p.add_argument("--seed", type=int, default=0, help="seed of the house's random draws")
-    p.add_argument("--name", default="synthetic", help="the house's folder name (NAME)")
+    p.add_argument("--name", help="the house's folder name (NAME; default: synthetic, or the "
+                   "--map file's name)")  # fmt: skip
     p.add_argument("--size", type=int, nargs=2, metavar=("H", "W"),
                    help="map size in cells; the number of rooms grows with the area "
                         "(default: 60 x 80 cells, 5 rooms)")  # fmt: skip
+    p.add_argument("--density", choices=("dense", "sparse"), default="dense",
+                   help="dense: the default house (4.9%% of the free cells observed); sparse: as "
+                        "sparse as the public houses (HouseSpec.public_like: 0.05 m cells, "
+                        "~23,500 free, ~70 observed, 0.3%%)")  # fmt: skip
+    p.add_argument("--rooms", type=int, help="walled rooms (default: the setting's own)")
     p.add_argument("--sentences", type=float, default=0.0,
                    help="share of utterances given as sentences (tf-idf setting)")  # fmt: skip
     p.add_argument("--overwrite", action="store_true",
                    help="replace a house of the same name under --out")  # fmt: skip
+    p.add_argument("--map", metavar="MAP.yaml",
+                   help="simulate a tour on this map_server map instead of a drawn house: "
+                        "rooms from a room segmentation of its free space (default: draw a "
+                        "house)")  # fmt: skip
+    p.add_argument("--categories", metavar="A,B,...",
+                   help="with --map: the rooms' categories, one per room, cycled (default: "
+                        "kitchen,living,bedroom,bathroom,toilet,entrance,...)")  # fmt: skip
+    p.add_argument("--door-width", type=float, default=1.0,
+                   help="with --map: metres; doorways up to about this wide separate rooms "
+                        "(about 2 for the public dataset's houses)")  # fmt: skip
+    p.add_argument("--min-room-area", type=float, default=1.0,
+                   help="with --map: square metres; smaller free segments are not visited and "
+                        "have no ground truth")  # fmt: skip
     p.set_defaults(func=_simulate)
 
     p = sub.add_parser("show", help="draw a house and its observations; print a summary")
@@ -148,6 +221,12 @@ def build_parser() -> argparse.ArgumentParser:
     from spcopyro.features.cli import add_parser as add_features_parsers
 
     add_features_parsers(sub)  # features, features-head
+    from spcopyro.cli_export import add_parser as add_export_parser
+
+    add_export_parser(sub)  # export
+    from spcopyro.rosbag.cli import add_parser as add_rosbag_parsers
+
+    add_rosbag_parsers(sub)  # import-bag, simulate-bag
     for command in (parser, *sub.choices.values()):
         command.formatter_class = _HelpFormatter
     return parser

@@ -27,9 +27,11 @@ from spcopyro.cli_common import (
     _sweeps,
     _threads,
 )
+from spcopyro.concept_words import MIN_LIFT, format_concept_words
 from spcopyro.config import DEFAULT_PRESET, DEFAULT_SNAP_DISTANCE, PRESETS, SpCoSettings, preset
 from spcopyro.data import House
 from spcopyro.gibbs.backends import get_backend
+from spcopyro.gibbs.hyperparameters import describe_hyperparameters
 from spcopyro.gibbs.options import BACKENDS, GibbsOptions
 from spcopyro.inference import with_options
 from spcopyro.outputs import StagedOutput
@@ -39,6 +41,7 @@ from spcopyro.threads import AUTO, MIN_CELLS_FOR_MORE_THREADS, describe_threads
 
 if TYPE_CHECKING:
     from spcopyro.fit import FitCheckpoint
+    from spcopyro.results import SpCoResult
 
 __all__ = ["add_parser"]
 
@@ -241,7 +244,7 @@ def _fit_staged(
               f"(split R-hat: log joint {last.rhat_log_joint:.3f}, concepts "
               f"{last.rhat_num_concepts:.3f}); kept chain {diagnostics.best_chain} "
               f"(seed {diagnostics.seeds[diagnostics.best_chain]}), highest log joint")  # fmt: skip
-    plot_semantic_map(result, out / "semantic_map.png")
+    plot_semantic_map(result, out / "semantic_map.png", observations=house.observations)
     plot_trace(result, out / "trace.png")
     plot_house(house, out / "house.png")
     entropy = cell_entropy(result)
@@ -262,6 +265,9 @@ def _fit_staged(
     print(f"fitted {runs} in {wall:.1f} s wall clock "
           f"({1e3 * result.trace.seconds[-1] / sweeps_run:.2f} ms per {unit}); "
           f"{len(result.concepts_in_use())} concepts in use")  # fmt: skip
+    if result.inference.get("hyperparameters"):
+        line = describe_hyperparameters(result.inference["hyperparameters"])  # type: ignore[arg-type]
+        print(f"hyperparameters  {line} (posterior mean +- sd over the second half)")
     if house.truth is not None:
         from spcopyro.metrics import adjusted_rand_index
 
@@ -269,20 +275,15 @@ def _fit_staged(
         np.save(out / "truth.npy", house.truth)
         (out / "scores.json").write_text(json.dumps({"ari": ari}) + "\n")
         print(f"adjusted Rand index against the ground truth: {ari:.3f}")
-    further = [t.name for t in result.emissions if t.name not in ("images", "words")]
-    for concept in result.concepts()[:10]:
-        words = ", ".join(f"{w} ({p:.2f})" for w, p in concept["top_words"][:3])
-        for name in further:
-            top = concept[f"top_{name}"][:2]
-            words += f"; {name}: " + ", ".join(f"{item} ({p:.2f})" for item, p in top)
-        print(f"  concept {concept['concept']:>3}: {concept['cells']:>6} cells  {words}")
+    print_concepts(result)
     vocabulary_size = len(result.vocabulary)
     used = result.concepts_in_use()
     if vocabulary_size and result.w[used].max() < 2.0 / vocabulary_size:
         print(
             f"note: every concept's word distribution is close to uniform: beta = "
-            f"{config.beta:g} outweighs the {house.observations.num_utterances} utterances; "
-            "for sharper words try --beta 0.1 (or --preset original-code --gamma 3)",
+            f"{config.beta:g} outweighs the {house.observations.num_utterances} utterances "
+            "(each list still follows the counts heard there); for sharper words try "
+            "--beta 0.1 (or --preset original-code --gamma 3)",
             file=sys.stderr,
         )
     out = staged.commit()
@@ -292,6 +293,33 @@ def _fit_staged(
         print(f"removed {checkpoint}: the fit it held is complete or replaced")
     print(f"wrote {out}/: labels.npy semantic_map.png concepts.json trace.csv trace.png ...")
     return 0
+
+
+def print_concepts(result: SpCoResult, limit: int = 10) -> None:
+    """The ``limit`` largest concepts, one line each: cells, words heard there, the top words
+    (posterior means) and the distinctive ones with their lifts
+    (:mod:`spcopyro.concept_words`), or that no word was heard there."""
+    parameters = result.inference.get("parameters", "words as the method estimates them")
+    print(f"concepts (words: {parameters}; distinctive: lift = p(word | concept) / p(word) > "
+          f"{MIN_LIFT:g}, p(word) the area-weighted mix):")  # fmt: skip
+    further = [t.name for t in result.emissions if t.name not in ("images", "words")]
+    concepts = result.concepts()
+    for concept in concepts[:limit]:
+        heard = concept["words_heard"]
+        words = format_concept_words(
+            [(w, p) for w, p in concept["top_words"]],
+            [(w, r, p) for w, r, p in concept["distinctive_words"]],
+            heard,
+        )
+        for name in further:
+            top = concept[f"top_{name}"][:2]
+            words += f"; {name}: " + ", ".join(f"{item} ({p:.2f})" for item, p in top)
+        count = "" if heard is None else f"{heard:>4.4g} words  "
+        print(f"  concept {concept['concept']:>3}: {concept['cells']:>6} cells {count}{words}")
+    if len(concepts) > limit:
+        print(f"  ... {len(concepts) - limit} smaller concepts in concepts.json")
+    if not any(c["distinctive_words"] for c in concepts):
+        print(f"  no concept has a distinctive word (every lift <= {MIN_LIFT:g})")
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

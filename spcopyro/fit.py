@@ -44,6 +44,7 @@ from spcopyro.inference import InferenceOutput, method_options
 from spcopyro.initialisation import kmeans_gaussians, labels_from_gaussians
 from spcopyro.model import DTYPE, ModelData, make_model_data
 from spcopyro.point_estimate import check_point_estimate, with_point_estimate
+from spcopyro.posterior_means import concept_totals, with_posterior_means
 from spcopyro.registry import DEFAULT_METHOD, get_method
 from spcopyro.results import SpCoResult
 from spcopyro.threads import AUTO, describe_threads, resolve_threads, torch_threads
@@ -285,11 +286,16 @@ def result_of(
     record: dict[str, object] | None = None,
 ) -> SpCoResult:
     """The :class:`SpCoResult` of an inference output on ``house`` (``record``: its
-    :func:`provenance`)."""
+    :func:`provenance`). A sampler's drawn pi and emissions are replaced by their posterior means
+    given its labels (:mod:`spcopyro.posterior_means`; a variational method's are E_q already);
+    the result records each concept's observed cells and counts under the point labels."""
+    if output.parameters_drawn:
+        output = with_posterior_means(output, data, settings.model)
     return SpCoResult.from_output(
         output, house.grid, modality_items(counts, data), settings.model,
         modalities=tuple(m.name for m in data.modalities), method=method,
         preparation=settings.data, name=house.name, provenance=record,
+        concept_totals=concept_totals(output.labels, data, settings.model),
     )  # fmt: skip
 
 
@@ -431,7 +437,7 @@ def fit_house_chains(
             output.options.update(seed=int(seed), init=init_name(init))
             if output.marginals is None:  # a sampler (vi-gibbs): its label frequencies
                 output = _with_sample_marginals(
-                    output, int(sweeps), settings.model.num_concepts, point_estimate
+                    output, int(sweeps), data, settings.model, point_estimate
                 )
             fits.append(result_of(output, house, counts, data, settings, method, record))
     return fits
@@ -487,8 +493,7 @@ def _gibbs_outputs(
         assert chain is not None
         entry = gibbs_record(options, sweeps, chain.backend.name)
         output = output_from_run(chain.to_run(), {**entry, "seed": seed, "init": init_name(init)})
-        L = settings.model.num_concepts
-        outputs.append(_with_sample_marginals(output, sweeps, L, point_estimate))
+        outputs.append(_with_sample_marginals(output, sweeps, data, settings.model, point_estimate))
     return outputs
 
 
@@ -499,19 +504,28 @@ def _marginal_thin(sweeps: int, marginal_samples: int) -> int:
 
 
 def _with_sample_marginals(
-    output: InferenceOutput, sweeps: int, num_concepts: int, point_estimate: str = "map-visited"
+    output: InferenceOutput,
+    sweeps: int,
+    data: ModelData,
+    config: SpCoConfig,
+    point_estimate: str = "map-visited",
 ) -> InferenceOutput:
     """``output`` with the label frequencies of its samples from the second half of the sweeps
-    as its marginals (unchanged if it kept none there), and reporting ``point_estimate`` over
-    them (:func:`spcopyro.point_estimate.with_point_estimate`)."""
+    as its marginals (unchanged if it kept none there), reporting ``point_estimate`` over them
+    (:func:`spcopyro.point_estimate.with_point_estimate`), and a sampler's pi and emissions as
+    their posterior means: given the point estimate's labels when it is one, else averaged over
+    those samples (:func:`~spcopyro.posterior_means.with_posterior_means`)."""
     if output.label_samples is None or output.sample_iterations is None:
         return output
     late = np.asarray(output.sample_iterations) >= sweeps // 2
     if not late.any():
         return output
     samples = np.asarray(output.label_samples)[late]  # [S', N]
-    marginals = label_frequencies(samples, num_concepts)  # [N, L]
-    output = with_point_estimate(output, samples, point_estimate, num_concepts)
+    marginals = label_frequencies(samples, config.num_concepts)  # [N, L]
+    output = with_point_estimate(output, samples, point_estimate, config.num_concepts)
+    if output.parameters_drawn:
+        given = None if point_estimate != "map-visited" else samples  # tables of its clusters
+        output = with_posterior_means(output, data, config, given)
     return dataclasses.replace(
         output,
         marginals=marginals,
@@ -633,7 +647,7 @@ def fit_house_converged(
         )  # fmt: skip
     record = {
         "sweeps": "auto", "chains": chains, "seed": seed, "init": init_name(init),
-        **{k: v for k, v in vars(options).items()}, "backend_used": run.backend,
+        **dataclasses.asdict(options), "backend_used": run.backend,
     }  # fmt: skip
     output = output_from_run(run, record)
     made = provenance(house, data, source)

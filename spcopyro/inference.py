@@ -61,6 +61,10 @@ class InferenceOutput:
     """[S', N] int16 label maps kept along the way (a sampler with thinning), else None."""
     sample_iterations: np.ndarray | None = None
     """[S'] the 0-based iterations of ``label_samples``."""
+    parameters_drawn: bool = False
+    """True when ``pi`` and ``emissions`` are one posterior draw (a sampler's state), not means:
+    :func:`spcopyro.fit.result_of` then reports their posterior means given the labels
+    (:mod:`spcopyro.posterior_means`)."""
     agreement: np.ndarray | None = None
     """[N] where ``labels`` is a posterior point estimate over label samples
     (:mod:`spcopyro.point_estimate`): each cell's share of samples agreeing with it."""

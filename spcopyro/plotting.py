@@ -22,10 +22,19 @@ from pathlib import Path
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from scipy import ndimage
 
-from spcopyro.data import House
+from spcopyro.concept_words import NO_WORDS
+from spcopyro.data import House, Observations
+from spcopyro.figures_map import (
+    concept_handles,
+    draw_outline,
+    draw_utterances,
+    place_labels,
+    region_text,
+)
 from spcopyro.maps import (
     RGB_BACKGROUND,
     RGB_OCCUPIED,
@@ -42,7 +51,7 @@ from spcopyro.uncertainty import cell_entropy, free_cells_image, where_probabili
 MAX_WORD_COLOURS = 12  # words beyond the most frequent ones are drawn as "other"
 ANSWER_RGB = (214, 0, 0)  # the answer's region in plot_where
 RUNNER_UP_RGB = (0, 70, 200)  # the runner-up's region in plot_where
-FADE = 0.3  # plot_where draws the other concepts at this share of their colour (rest white)
+GREY_FREE_RGB = (225, 225, 225)  # plot_where draws the free cells of the map in this grey
 
 
 def known_bounds(grid: OccupancyGrid, margin: int = 3) -> tuple[slice, slice]:
@@ -167,48 +176,77 @@ def plot_semantic_map(
     n_words: int = 3,
     max_labelled: int | None = None,
     min_region_fraction: float = SMALL_REGION_FRACTION,
+    observations: Observations | None = None,
 ) -> Path:
-    """Each concept its own colour, walls black, a label on every sizeable region (Fig. 10F).
+    """Write :func:`semantic_map_figure` to ``path``."""
+    figure = semantic_map_figure(
+        result, n_words, max_labelled, min_region_fraction, observations=observations
+    )
+    return _save(figure, path)
+
+
+def semantic_map_figure(
+    result: SpCoResult,
+    n_words: int = 3,
+    max_labelled: int | None = None,
+    min_region_fraction: float = SMALL_REGION_FRACTION,
+    observations: Observations | None = None,
+) -> Figure:
+    """Each concept its own colour, walls black, its words on the map itself (Fig. 10F).
 
     Every connected region holding at least ``min_region_fraction`` of the free cells gets a
-    label: ``[concept]`` and its ``n_words`` best words on the concept's largest region,
-    ``[concept]`` and its best word on each further one (a concept split over two rooms is
-    labelled in both).
-    ``max_labelled``: label only the regions of that many largest concepts (default: all).
+    label at its most interior cell (:func:`region_label_points`), in black with a white halo
+    (a label that would overlap the label of a larger region is left out and counted in the
+    title, :func:`~spcopyro.figures_map.place_labels`):
+    ``[concept]`` and its ``n_words`` most probable words with their probabilities (and the
+    lift of the distinctive ones, ``x4.2``) on the concept's largest region, ``[concept]`` and
+    its best word on each further one, "no words heard here" for a concept whose region holds
+    no observed word (:func:`~spcopyro.figures_map.region_text`). A legend lists the largest
+    concepts with their words; ``observations`` given, a circle marks where each word was heard,
+    filled with the colour of the concept there. ``max_labelled``: label only the regions of
+    that many largest concepts (default: all).
     """
     grid = result.grid
-    fig = Figure(figsize=(9, 9))
+    fig = Figure(figsize=(13, 9))
     ax = fig.subplots()
     image = result.label_image()
-    _show_image(ax, grid, semantic_map_image(result))
-    labelled = result.concepts_in_use()[:max_labelled]
+    colours = semantic_colours(result)  # [L, 3]
+    _show_image(ax, grid, render_labels(image, grid, colours))
+    labelled = set(result.concepts_in_use()[:max_labelled].tolist())
     points = region_label_points(image, min_region_fraction * grid.num_free)
-    regions = 0
+    points = [p for p in points if p[0] in labelled]
+    points.sort(key=lambda p: -p[3])  # largest region first: its label wins a collision
+    labels = []
     for concept, row, col, _, largest in points:
-        if concept not in labelled:
-            continue
-        regions += 1
         x, y = grid.cell_to_world(np.array([row, col]))
-        words = result.top_words(concept, n_words if largest else 1)
-        text = "\n".join([f"[{concept}]"] + [f"{w} {p:.2f}" for w, p in words])
-        if not largest:
-            text = " ".join([f"[{concept}]"] + [w for w, _ in words])
-        ax.text(x, y, text, fontsize=6, ha="center", va="center",
-                bbox=dict(boxstyle="round,pad=0.2", fc="white", alpha=0.75, lw=0))  # fmt: skip
+        silent = result.heard(concept) == 0
+        labels.append((float(x), float(y), region_text(result, concept, n_words, largest),
+                       {"fontsize": 6 if silent else 7, "style": "italic" if silent else
+                        "normal", "color": "0.25" if silent else "black"}))  # fmt: skip
+    regions, skipped = place_labels(fig, ax, labels)
+    handles: list[Patch | Line2D] = list(concept_handles(result, colours, n_words))
+    if observations is not None:
+        marker = draw_utterances(ax, result, observations, colours)
+        handles += [marker] if marker is not None else []
+    handles += [Patch(color=np.array(RGB_OCCUPIED) / 255.0, label="walls"),
+                Patch(color=np.array(RGB_UNKNOWN) / 255.0, label="unknown")]  # fmt: skip
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7,
+              frameon=False, title="concepts, largest first: words (posterior mean p; "
+              "x lift = p(word | concept) / p(word))", title_fontsize=7)  # fmt: skip
     used = len(result.concepts_in_use())
+    crowded = f"; {skipped} more left unlabelled where labels would overlap" if skipped else ""
     ax.set_title(f"{result.name or 'semantic map'}: {used} concepts in use, {regions} labelled "
-                 f"regions (>= {min_region_fraction:.1%} of the free cells)")  # fmt: skip
-    return _save(fig, path)
+                 f"regions (>= {min_region_fraction:.1%} of the free cells{crowded})")  # fmt: skip
+    return fig
 
 
 def where_image(result: SpCoResult, answer: WhereAnswer) -> np.ndarray:
-    """[H, W, 3] uint8 what :func:`plot_where` draws: the answer's region in ``ANSWER_RGB``, the
-    runner-up's in ``RUNNER_UP_RGB``, every other concept in its semantic-map colour faded to
-    ``FADE`` (the rest white), walls black, unknown grey."""
+    """[H, W, 3] uint8 the map in grey (free cells ``GREY_FREE_RGB``, walls black, unknown
+    grey), the answer's region in ``ANSWER_RGB`` and the runner-up's in ``RUNNER_UP_RGB``: what
+    :func:`plot_where` draws for a result without marginals."""
     image = result.label_image()  # [H, W]
-    colours = semantic_colours(result).astype(np.float64)  # [L, 3]
-    faded = np.round(255.0 - FADE * (255.0 - colours)).astype(np.uint8)  # [L, 3]
-    rgb = render_labels(image, result.grid, faded)  # [H, W, 3]
+    grey = np.tile(np.array(GREY_FREE_RGB, dtype=np.uint8), (result.config.num_concepts, 1))
+    rgb = render_labels(image, result.grid, grey)  # [H, W, 3]
     if answer.runner_up is not None:
         rgb[image == answer.runner_up] = RUNNER_UP_RGB
     rgb[answer.region] = ANSWER_RGB
@@ -216,49 +254,88 @@ def where_image(result: SpCoResult, answer: WhereAnswer) -> np.ndarray:
 
 
 def plot_where(result: SpCoResult, answer: WhereAnswer, path: str | os.PathLike[str]) -> Path:
-    """The answer to "where is WORD?" over the semantic map (:func:`where_image`): a title with
-    the word, the concept, p and the prior, a legend, and the answer's warnings under the map.
-    A region smaller than ``SMALL_REGION_FRACTION`` of the free cells is ringed, so a speck can
-    be seen."""
+    """Write :func:`where_figure` to ``path``."""
+    return _save(where_figure(result, answer), path)
+
+
+def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
+    """The answer to "where is WORD?" over the map drawn in grey: with per-cell marginals, each
+    cell's probability of lying in the word's place
+    (:func:`~spcopyro.uncertainty.where_probability`) as a colour scale, the answer's region
+    outlined in red and the runner-up's in dashed blue; without them (a point estimate), the
+    answer's region filled red and the runner-up's blue (:func:`where_image`). A title with the
+    word, the concept, p, the prior and the concept's words, a legend, and the answer's
+    warnings under the map. A region smaller than ``SMALL_REGION_FRACTION`` of the free cells
+    is ringed, so a speck can be seen."""
     grid = result.grid
-    fig = Figure(figsize=(9, 9))
+    fig = Figure(figsize=(11, 9))
     ax = fig.subplots()
-    _show_image(ax, grid, where_image(result, answer))
     area = grid.resolution**2
     cells = int(answer.region.sum())
+    image = result.label_image()
+    runner = image == answer.runner_up if answer.runner_up is not None else None
+    handles: list[Patch | Line2D] = []
+    if result.marginals is None:
+        _show_image(ax, grid, where_image(result, answer))
+        answer_handle: Patch | Line2D = Patch(color=np.array(ANSWER_RGB) / 255.0, label="")
+        runner_handle: Patch | Line2D = Patch(color=np.array(RUNNER_UP_RGB) / 255.0, label="")
+    else:
+        grey = np.tile(np.array(GREY_FREE_RGB, dtype=np.uint8), (result.config.num_concepts, 1))
+        rows, cols = _show_image(ax, grid, render_labels(image, grid, grey))
+        extent = _extent(grid, rows, cols)
+        probability = free_cells_image(result, where_probability(result, answer.word,
+                                                                 answer.prior))  # fmt: skip
+        shown = np.ma.masked_less(probability[rows, cols], 0.01)  # [h, w]: grey below 1%
+        scale = ax.imshow(shown, extent=extent, cmap="Reds", vmin=0.0, vmax=1.0,
+                          interpolation="nearest", alpha=0.9)  # fmt: skip
+        fig.colorbar(scale, ax=ax, shrink=0.6, pad=0.02,
+                     label=f"p(cell in the place of '{answer.word}')")  # fmt: skip
+        red, blue = np.array(ANSWER_RGB) / 255.0, np.array(RUNNER_UP_RGB) / 255.0
+        draw_outline(ax, grid, answer.region, rows, cols, extent, colors=[red], linewidths=2.0)
+        if runner is not None:
+            draw_outline(ax, grid, runner, rows, cols, extent, colors=[blue], linewidths=1.5,
+                         linestyles="dashed")  # fmt: skip
+        answer_handle = Line2D([], [], color=red, lw=2.0, label="")
+        runner_handle = Line2D([], [], color=blue, lw=1.5, ls="--", label="")
     if 0 < cells < SMALL_REGION_FRACTION * grid.num_free:
         labels, _ = ndimage.label(answer.region)
         centres = ndimage.center_of_mass(answer.region, labels, range(1, int(labels.max()) + 1))
         xy = grid.cell_to_world(np.round(np.array(centres)).astype(np.int64))  # [n, 2]
         ax.scatter(*xy.T, s=300, facecolors="none", edgecolors=np.array(ANSWER_RGB) / 255.0,
                    linewidths=1.5, zorder=3)  # fmt: skip
-    handles = [Patch(color=np.array(ANSWER_RGB) / 255.0,
-                     label=f"answer: concept {answer.concept}, p = {answer.probability:.3f} "
-                           f"({cells} cell{'s' if cells != 1 else ''}, "
-                           f"{cells * area:.2f} m^2)")]  # fmt: skip
-    if answer.runner_up is not None:
-        runner_cells = int((result.label_image() == answer.runner_up).sum())
-        runner_label = (
+    answer_handle.set_label(
+        f"answer: concept {answer.concept}, p = {answer.probability:.3f} "
+        f"({cells} cell{'s' if cells != 1 else ''}, {cells * area:.2f} m^2)"
+    )
+    handles.append(answer_handle)
+    if runner is not None:
+        runner_handle.set_label(
             f"runner-up: concept {answer.runner_up}, p = {answer.runner_up_probability:.3f} "
-            f"({runner_cells} cells)"
+            f"({int(runner.sum())} cells)"
         )
-        handles.append(Patch(color=np.array(RUNNER_UP_RGB) / 255.0, label=runner_label))
+        handles.append(runner_handle)
     handles += [
-        Patch(color=(0.85, 0.85, 0.85), label="other concepts (faded semantic-map colours)"),
+        Patch(color=np.array(GREY_FREE_RGB) / 255.0, label="free space"),
         Patch(color=np.array(RGB_OCCUPIED) / 255.0, label="walls"),
         Patch(color=np.array(RGB_UNKNOWN) / 255.0, label="unknown"),
     ]
-    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8,
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0) if
+              result.marginals is None else (0.0, -0.08), fontsize=8,
               frameon=False)  # fmt: skip
-    words = ", ".join(f"{w} {p:.2f}" for w, p in result.top_words(answer.concept, 3))
+    if result.heard(answer.concept) == 0:
+        words = NO_WORDS
+    else:
+        words = ", ".join(f"{w} {p:.2f}" for w, p in result.top_words(answer.concept, 3))
+    kind = "per-cell probability from the marginals" if result.marginals is not None else (
+        "point estimate")  # fmt: skip
     ax.set_title(f"where is '{answer.word}'? concept {answer.concept}, "
-                 f"p = {answer.probability:.3f} ({answer.prior} prior)\n"
+                 f"p = {answer.probability:.3f} ({answer.prior} prior; {kind})\n"
                  f"its words: {words}")  # fmt: skip
     if answer.warnings:
         text = "\n".join(textwrap.fill(f"warning: {w}", 110) for w in answer.warnings)
-        ax.text(0.0, -0.1, text, transform=ax.transAxes, fontsize=7, color="#b00000",
-                va="top", ha="left")  # fmt: skip
-    return _save(fig, path)
+        ax.text(0.0, -0.1 if result.marginals is None else -0.25, text, transform=ax.transAxes,
+                fontsize=7, color="#b00000", va="top", ha="left")  # fmt: skip
+    return fig
 
 
 def _plot_cell_values(

@@ -58,6 +58,7 @@ from pathlib import Path
 
 import numpy as np
 
+from spcopyro.concept_words import NO_WORDS, distinctive_items, lift
 from spcopyro.config import IMAGES, WORDS, DataPreparation, SpCoConfig
 from spcopyro.inference import InferenceOutput, Trace
 from spcopyro.maps import OccupancyGrid, load_map, save_map
@@ -244,6 +245,9 @@ class SpCoResult:
     provenance: dict[str, object] = field(default_factory=dict)
     """Where the data came from, the software's versions, ... (:func:`spcopyro.fit.provenance`):
     top-level entries of ``config.json`` beside the settings."""
+    concept_totals: np.ndarray | None = None
+    """[L, 1 + n_modalities] per concept under ``labels``: its observed cells, then each
+    modality's total count there (emissions' order); None when unknown (an old result)."""
 
     @classmethod
     def from_output(
@@ -258,6 +262,7 @@ class SpCoResult:
         preparation: DataPreparation = DataPreparation(),
         name: str = "",
         provenance: dict[str, object] | None = None,
+        concept_totals: np.ndarray | None = None,
     ) -> SpCoResult:
         """The result of ``output`` on ``grid``. ``modalities``: the names of the model data's
         modalities in order; ``items``: the item names of each (class numbers are used for a
@@ -287,6 +292,7 @@ class SpCoResult:
             inference=dict(output.options),
             name=name,
             provenance=dict(provenance or {}),
+            concept_totals=concept_totals,
         )
 
     # -- the parts --------------------------------------------------------------------------------
@@ -362,18 +368,51 @@ class SpCoResult:
         """The ``n`` most probable words of a concept under w_concept, with their probabilities."""
         return self.top_items(WORDS, concept, n)
 
+    def heard(self, concept: int, modality: str = WORDS) -> float | None:
+        """The total count of ``modality`` observed in the concept's region (words: how many
+        were heard there, tf-idf weighted if so prepared); None when the result does not know."""
+        if self.concept_totals is None:
+            return None
+        names = [t.name for t in self.emissions]
+        return float(self.concept_totals[concept, 1 + names.index(modality)])
+
+    def lift(self, modality: str = WORDS) -> np.ndarray:
+        """[L, K_m] p(item | concept) / p(item), p(item) the area-weighted mixture over the
+        concepts in use (:func:`spcopyro.concept_words.lift`)."""
+        return lift(self.emission(modality).probabilities, self.concept_sizes())
+
+    def distinctive_words(self, concept: int, n: int = 3) -> list[tuple[str, float, float]]:
+        """The ``n`` words of largest lift above 1 for a concept, as ``(word, lift, p)``
+        (:mod:`spcopyro.concept_words`); empty when no word was heard in its region."""
+        if self.heard(concept) == 0:
+            return []
+        table = self.emission(WORDS)
+        return distinctive_items(table.probabilities[concept], self.lift()[concept], table.items, n)
+
     def concepts(self, n_words: int = 3) -> list[dict[str, object]]:
         """Per concept in use: id, cell count, pi, top words (and the top items of every further
-        modality) with probabilities."""
+        modality) with probabilities; the observed cells and words heard in its region
+        (``observed_cells``, ``words_heard``; None when unknown), its distinctive words
+        ``[word, lift, p]`` and, for a region where no word was heard, ``words_note`` =
+        :data:`~spcopyro.concept_words.NO_WORDS` and no word lists."""
         sizes = self.concept_sizes()
         further = [t.name for t in self.emissions if t.name not in (IMAGES, WORDS)]
         summaries = []
         for c in self.concepts_in_use():
+            heard = self.heard(int(c))
+            silent = heard == 0
+            top = [] if silent else self.top_words(int(c), n_words)
+            distinctive = self.distinctive_words(int(c), n_words)
+            cells = None if self.concept_totals is None else int(self.concept_totals[c, 0])
             summary: dict[str, object] = {
                 "concept": int(c),
                 "cells": int(sizes[c]),
                 "pi": float(self.pi[c]),
-                "top_words": [[word, p] for word, p in self.top_words(int(c), n_words)],
+                "top_words": [[word, p] for word, p in top],
+                "observed_cells": cells,
+                "words_heard": heard,
+                "distinctive_words": [[w, r, p] for w, r, p in distinctive],
+                "words_note": NO_WORDS if silent else None,
             }
             for modality in further:
                 summary[f"top_{modality}"] = [
@@ -495,6 +534,8 @@ class SpCoResult:
             arrays["marginals"] = self.marginals
         if self.labels_final is not None:
             arrays["labels_final"] = self.labels_final
+        if self.concept_totals is not None:
+            arrays["concept_totals"] = self.concept_totals
         if self.agreement is not None:
             arrays["agreement"] = self.agreement
         np.savez_compressed(out / RESULT_FILE, **arrays)
@@ -548,4 +589,5 @@ class SpCoResult:
             inference=dict(settings.get("inference", {})),
             name=str(arrays["name"]),
             provenance={k: v for k, v in settings.items() if k not in _SETTINGS},
+            concept_totals=arrays.get("concept_totals"),
         )

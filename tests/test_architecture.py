@@ -24,13 +24,14 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("data", "synthetic"),
     ("model",),
     ("likelihood", "initialisation", "semantic_map"),
-    ("gibbs", "guides", "inference", "simulate", "variational"),
+    ("gibbs", "guides", "inference", "simulate", "variational", "posterior_means"),
     ("registry",),
-    ("results", "uncertainty", "point_estimate"),
-    ("metrics", "plotting", "baselines", "features"),
+    ("results", "uncertainty", "concept_words", "point_estimate"),
+    ("metrics", "plotting", "baselines", "features", "figures_map", "nav2", "map_simulation",
+     "rosbag"),
     ("fit",),
     ("experiments",),
-    ("cli", "cli_common", "cli_fit", "__main__"),
+    ("cli", "cli_common", "cli_fit", "cli_export", "__main__"),
 )
 """Layer of every top-level module or subpackage of spcopyro, lowest first."""
 

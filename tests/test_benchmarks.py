@@ -81,6 +81,16 @@ def test_svi_vs_cavi_benchmark_quick(tmp_path):
 
 
 @pytest.mark.slow
+def test_word_tables_benchmark_quick(tmp_path):
+    out = tmp_path / "words.json"
+    done = run_benchmark("word_tables.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "| original-code, gamma 3 | mean given labels |" in done.stdout
+    records = json.loads(out.read_text())["records"]
+    assert set(records["paper-dp"]) == {"draw", "mean given labels", "mean over samples"}
+
+
+@pytest.mark.slow
 def test_merge_moves_benchmark_quick(tmp_path):
     out = tmp_path / "merge.json"
     done = run_benchmark("merge_moves.py", out)

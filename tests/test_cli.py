@@ -57,7 +57,9 @@ def test_fit_then_where(small_house, tmp_path, capsys):
     assert (labels[~house.grid.free] == -1).all() and (labels[house.grid.free] >= 0).all()
     concepts = json.loads((out / "concepts.json").read_text())
     assert sum(c["cells"] for c in concepts) == house.grid.num_free
-    assert all(len(c["top_words"]) > 0 for c in concepts)
+    assert all(len(c["top_words"]) > 0 or c["words_note"] == "no words heard here"
+               for c in concepts)  # fmt: skip
+    assert any(len(c["top_words"]) > 0 for c in concepts)
     trace = (out / "trace.csv").read_text().splitlines()
     assert trace[0] == "iteration,log_joint,num_concepts,seconds" and len(trace) == 21
     settings = json.loads((out / "config.json").read_text())

@@ -26,11 +26,12 @@ and its labels scored at each budget's wall-clock time. The last point is the me
 labels (Gibbs: the MAP-visited state) at the run's full time. From the curve: the time to reach
 95% of that final quality (:func:`~.comparison_stats.time_to_fraction`).
 
-**Final quality** is given twice: of the method's own output (its labels with its own pi and
-phi: a sampler's are draws, a variational method's posterior means under q) and of its labels
-with the means given them (``final_given_labels``, the curve's last point). Scores that read the
-parameters (matching rate through eq. 19, held-out word prediction) can differ a lot between
-the two; ARI cannot.
+**Final quality** is given twice: of the method's result (its labels with its pi and phi: a
+variational method's posterior means under q; a sampler's drawn pi and phi are replaced by the
+means given its labels in :func:`~spcopyro.fit.result_of`, so for a sampler the two agree) and of
+its labels with the means given them (``final_given_labels``, the curve's last point). Scores
+that read the parameters (matching rate through eq. 19, held-out word prediction) can differ a
+lot between E_q and the means given the labels; ARI cannot.
 
 **Samplers** (objective "log joint" and kept label maps): the effective sample size per second of
 the log joint (every sweep) and of the Potts agreement count (the kept maps), both over the

@@ -6,10 +6,12 @@ it), ``run.py`` (the run loop: a resumable chain, :func:`run_gibbs`), ``kernel.p
 (:class:`SpCoGibbs`, a :class:`pyro.infer.mcmc.MCMCKernel`), ``convergence.py`` (``--sweeps
 auto``). ``numba_sweep.py`` is the compiled backend (same distribution), ``backends.py`` what a
 backend supplies, ``options.py`` the sampler's options, ``cluster.py`` the Swendsen-Wang move,
-``anneal.py`` the gamma schedule. The model's per-cell math is shared with every other inference
-method in :mod:`spcopyro.likelihood`.
+``anneal.py`` the gamma schedule, ``hyperparameters.py`` (with ``hyper_targets.py`` and
+``hyper_options.py``) alpha, the concentrations and gamma sampled inside the chain. The model's
+per-cell math is shared with every other inference method in :mod:`spcopyro.likelihood`.
 """
 
+from spcopyro.gibbs.hyper_options import HyperparameterOptions
 from spcopyro.gibbs.kernel import SpCoGibbs, mcmc_diagnostics
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsChain, GibbsRun, advance, run_gibbs, start_chain
@@ -22,6 +24,7 @@ __all__ = [
     "GibbsOptions",
     "GibbsRun",
     "GibbsState",
+    "HyperparameterOptions",
     "SpCoGibbs",
     "StepInfo",
     "advance",

@@ -14,7 +14,12 @@ A checkpoint is one ``.npz`` file (written whole or not at all:
 ``chain{k}.seconds``                       [S] float64 cumulative wall-clock seconds
 ``chain{k}.best_labels`` ...               the best state visited (int16 labels), if any
 ``chain{k}.label_samples``                 [S', N] int16 kept label maps, if any
+``chain{k}.hyperparameters``               [S, H] float64 sampled hyperparameters per sweep
+                                           (only when ``GibbsOptions.hyper`` samples them)
 =========================================  ====================================================
+
+With sampled hyperparameters, each chain's entry of the record also holds ``model_current``,
+the chain's model config at its last sweep (the values it continues from).
 
 and ``record``, a JSON text: the format, what the file is (an interrupted fit, *not* a result),
 the model's settings (:meth:`~spcopyro.config.SpCoConfig.to_json`), the sampler's options and
@@ -112,12 +117,16 @@ def save_chains(
                 or chain.options != first.options):  # fmt: skip
             raise ValueError("save_chains: the chains must share data, config and options")
     arrays: dict[str, np.ndarray] = {}
-    per_chain: list[dict[str, int] | None] = []
+    per_chain: list[dict[str, object] | None] = []
     for k, chain in enumerate(chains):
         if chain is None:
             per_chain.append(None)
             continue
-        per_chain.append({"sweeps_done": chain.sweeps_done, "best_sweep": chain.best_sweep})
+        entry: dict[str, object] = {"sweeps_done": chain.sweeps_done,
+                                    "best_sweep": chain.best_sweep}  # fmt: skip
+        if chain.current is not None:
+            entry["model_current"] = chain.current.to_json()
+        per_chain.append(entry)
         arrays.update(_state_arrays(f"chain{k}.", chain.state))
         arrays[f"chain{k}.generator"] = chain.generator.get_state().numpy()
         arrays[f"chain{k}.log_joint"] = np.asarray(chain.log_joint, dtype=np.float64)
@@ -128,6 +137,8 @@ def save_chains(
         if chain.label_samples:
             arrays[f"chain{k}.label_samples"] = np.stack(chain.label_samples)
             arrays[f"chain{k}.sample_sweeps"] = np.asarray(chain.sample_sweeps, dtype=np.int64)
+        if chain.hyper_trace:
+            arrays[f"chain{k}.hyperparameters"] = np.asarray(chain.hyper_trace, dtype=np.float64)
     header = {
         "format": FORMAT,
         "version": VERSION,
@@ -235,14 +246,14 @@ def load_chains(
 def _chain(
     z: np.lib.npyio.NpzFile,
     k: int,
-    entry: Mapping[str, int],
+    entry: Mapping[str, object],
     data: ModelData,
     config: SpCoConfig,
     options: GibbsOptions,
 ) -> GibbsChain:
     prefix = f"chain{k}."
     state = _state(z, prefix, data, config)
-    done, best_sweep = int(entry["sweeps_done"]), int(entry["best_sweep"])
+    done, best_sweep = int(entry["sweeps_done"]), int(entry["best_sweep"])  # type: ignore[arg-type]
     log_joint = z[f"{prefix}log_joint"].astype(np.float64)  # [S]
     num_concepts = z[f"{prefix}num_concepts"].astype(np.int64)  # [S]
     seconds = z[f"{prefix}seconds"].astype(np.float64)  # [S]
@@ -255,6 +266,14 @@ def _chain(
     samples = z[f"{prefix}label_samples"] if f"{prefix}label_samples" in z.files else None
     generator = torch.Generator()
     generator.set_state(torch.from_numpy(z[f"{prefix}generator"].astype(np.uint8)))
+    current = None
+    if entry.get("model_current") is not None:
+        current = SpCoConfig(**entry["model_current"])  # type: ignore[arg-type]
+    hyper_trace: list[list[float]] = []
+    if f"{prefix}hyperparameters" in z.files:
+        hyper_trace = z[f"{prefix}hyperparameters"].astype(np.float64).tolist()
+    if options.hyper.active and len(hyper_trace) != done:
+        raise ValueError(f"chain {k}: its hyperparameter trace does not hold its {done} sweeps")
     return GibbsChain(
         data=data,
         config=config,
@@ -263,7 +282,7 @@ def _chain(
         backend=get_backend(options.backend),
         plan=make_sweep_plan(data),
         state=state,
-        constant=float(log_joint_constant(data, config)),
+        constant=float(log_joint_constant(data, config if current is None else current)),
         sweeps_done=done,
         best_value=float(log_joint[best_sweep]) if best_sweep >= 0 else -np.inf,
         best_state=best_state,
@@ -273,6 +292,8 @@ def _chain(
         seconds=seconds.tolist(),
         label_samples=[] if samples is None else [row.copy() for row in samples],
         sample_sweeps=[] if samples is None else z[f"{prefix}sample_sweeps"].tolist(),
+        current=current,
+        hyper_trace=hyper_trace,
     )
 
 

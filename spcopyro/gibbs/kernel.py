@@ -138,7 +138,12 @@ class SpCoGibbs(MCMCKernel):
             "labels": lambda: state.labels,
             "log_joint": lambda: torch.tensor(
                 trace_point(
-                    state, self._data, self._config, self._log_joint_constant, self._backend
+                    state,
+                    self._data,
+                    self._config,
+                    self._log_joint_constant,
+                    self._backend,
+                    self.options,
                 )[0],
                 dtype=torch.float64,
             ),
@@ -164,10 +169,13 @@ class SpCoGibbs(MCMCKernel):
 
     def sample(self, params: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         assert self._state is not None and self._generator is not None, "setup() not called"
-        self._state, _ = step(
+        self._state, info = step(
             self._state, self._data, self._config, self._generator, sweep=self._steps,
             options=self._step_options, backend=self._backend, plan=self._plan,
         )  # fmt: skip
+        if info.config is not None and info.config != self._config:  # sampled hyperparameters
+            self._config = info.config
+            self._log_joint_constant = float(log_joint_constant(self._data, info.config))
         self._steps += 1
         return self._params(self._state)
 

@@ -7,6 +7,8 @@ import dataclasses
 import torch
 
 from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.hyper_options import as_hyper_options
+from spcopyro.gibbs.hyperparameters import hyperparameter_summary
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsRun, run_gibbs
 from spcopyro.inference import InferenceOutput, Trace, method_options
@@ -15,8 +17,18 @@ from spcopyro.model import ModelData
 
 def output_from_run(run: GibbsRun, options: dict[str, object] | None = None) -> InferenceOutput:
     """A run's :class:`InferenceOutput`: the MAP-visited state as the point estimate, the last
-    state's labels beside it, the log joint per sweep as the trace."""
+    state's labels beside it, the log joint per sweep as the trace. pi and the emissions are
+    that state's draws (``parameters_drawn``): a result reports their posterior means given the
+    labels instead (:mod:`spcopyro.posterior_means`). With sampled hyperparameters,
+    ``options["hyperparameters"]`` holds their summary (initial, final, posterior mean and sd over
+    the second half of the sweeps: :func:`~spcopyro.gibbs.hyperparameters.hyperparameter_summary`)."""
     best = run.best_state
+    options = dict(options or {})
+    if run.hyperparameters is not None and "hyper" in options:
+        hyper = as_hyper_options(options["hyper"])
+        options["hyperparameters"] = hyperparameter_summary(
+            run.hyperparameters, run.initial_config, hyper
+        )
     return InferenceOutput(
         labels=best.labels.numpy().astype("int64"),
         pi=best.log_pi.exp().numpy(),
@@ -24,9 +36,10 @@ def output_from_run(run: GibbsRun, options: dict[str, object] | None = None) -> 
         trace=Trace(run.log_joint, run.num_concepts, run.seconds, "log joint"),
         best_iteration=run.best_sweep,
         labels_final=run.final_state.labels.numpy().astype("int64"),
-        options=dict(options or {}),
+        options=options,
         label_samples=run.label_samples,
         sample_iterations=run.sample_sweeps,
+        parameters_drawn=True,
     )
 
 

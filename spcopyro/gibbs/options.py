@@ -7,6 +7,7 @@ import dataclasses
 from dataclasses import dataclass
 
 from spcopyro.gibbs.anneal import check_anneal_sweeps
+from spcopyro.gibbs.hyper_options import HyperparameterOptions, as_hyper_options
 
 BACKENDS = ("auto", "torch", "numba")
 
@@ -36,6 +37,8 @@ class GibbsOptions:
             value in [0, 1] leaves the posterior invariant.
         anneal_sweeps: ramp the labels' coupling gamma up over the first ``anneal_sweeps``
             sweeps of a chain (:mod:`spcopyro.gibbs.anneal`); those sweeps are burn-in.
+        hyper: which hyperparameters (alpha, the concentrations, gamma) the chain samples
+            (:class:`~spcopyro.gibbs.hyper_options.HyperparameterOptions`; none by default).
     """
 
     backend: str = "auto"
@@ -43,6 +46,7 @@ class GibbsOptions:
     cluster_moves: float = 0.0
     anneal_sweeps: int = 0
     merge_moves: float = 0.0
+    hyper: HyperparameterOptions = HyperparameterOptions()
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -60,6 +64,7 @@ class GibbsOptions:
         if not (isinstance(merges, (int, float)) and 0.0 <= merges <= 1.0):
             raise bad("merge_moves", "must be a probability in [0, 1]")
         object.__setattr__(self, "anneal_sweeps", check_anneal_sweeps(self.anneal_sweeps))
+        object.__setattr__(self, "hyper", as_hyper_options(self.hyper))
 
     def replace(self, **changes: object) -> GibbsOptions:
         """A copy with some fields changed (validated again)."""

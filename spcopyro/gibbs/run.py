@@ -35,6 +35,7 @@ from tqdm.auto import tqdm
 
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.backends import SweepBackend, get_backend
+from spcopyro.gibbs.hyperparameters import hyperparameter_names, hyperparameter_values
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.sampler import init, step, trace_point
 from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
@@ -64,7 +65,7 @@ def _check_log_joint(chain: GibbsChain, sweep: int, value: float) -> None:
         return
     state = chain.state
     terms = log_joint_terms(state.labels, state.log_pi, state.log_emissions, chain.data,
-                            chain.config)  # fmt: skip
+                            chain.model_config)  # fmt: skip
     bad = [f"{name} = {term}" for name, term in terms.items() if not math.isfinite(term)]
     which = (
         f"terms not finite: {', '.join(bad)}" if bad
@@ -98,6 +99,14 @@ class GibbsRun:
     """[S'] the 0-based sweeps of ``label_samples``."""
     backend: str = ""
     """The sweep backend that ran (``"torch"`` or ``"numba"``: ``"auto"`` resolved)."""
+    hyperparameters: dict[str, np.ndarray] | None = None
+    """When ``options.hyper`` samples hyperparameters: [S] float64 per name of
+    :func:`~spcopyro.gibbs.hyperparameters.hyperparameter_names` (alpha, gamma, chi, beta, ...),
+    the values after each sweep; else None."""
+    final_config: SpCoConfig | None = None
+    """The chain's model config after its last sweep (its sampled hyperparameters' values)."""
+    initial_config: SpCoConfig | None = None
+    """The model config the chain started from (the fit's settings)."""
 
 
 def _compact(state: GibbsState) -> GibbsState:
@@ -126,6 +135,17 @@ class GibbsChain:
     seconds: list[float] = field(default_factory=list)
     label_samples: list[np.ndarray] = field(default_factory=list)
     sample_sweeps: list[int] = field(default_factory=list)
+    current: SpCoConfig | None = None
+    """The model config of the chain's state when hyperparameters are sampled (None: ``config``,
+    the fit's own settings, which stay what the chain was started with)."""
+    hyper_trace: list[list[float]] = field(default_factory=list)
+    """Per sweep, the values of :func:`~spcopyro.gibbs.hyperparameters.hyperparameter_names`
+    (recorded only when hyperparameters are sampled)."""
+
+    @property
+    def model_config(self) -> SpCoConfig:
+        """The model config the next sweep runs under (``current``, else ``config``)."""
+        return self.config if self.current is None else self.current
 
     def to_run(self) -> GibbsRun:
         """The chain's record so far as a :class:`GibbsRun`."""
@@ -144,13 +164,26 @@ class GibbsChain:
                 np.asarray(self.sample_sweeps, dtype=np.int64) if self.label_samples else None
             ),
             backend=self.backend.name,
+            hyperparameters=self._hyper_arrays(),
+            final_config=self.model_config,
+            initial_config=self.config,
         )
+
+    def _hyper_arrays(self) -> dict[str, np.ndarray] | None:
+        if not self.options.hyper.active:
+            return None
+        values = np.asarray(self.hyper_trace, dtype=np.float64).reshape(
+            len(self.hyper_trace), -1
+        )  # [S, H]
+        names = hyperparameter_names(self.data)
+        return {name: values[:, h].copy() for h, name in enumerate(names)}
 
     def _mark(self) -> _Mark:
         """What :meth:`_undo` needs to bring the chain back to this point (cheap: the generator's
         state is 5 kB, everything else is a reference or a length)."""
         return _Mark(self.generator.get_state(), self.state, self.sweeps_done, self.best_value,
-                     self.best_state, self.best_sweep, len(self.label_samples))  # fmt: skip
+                     self.best_state, self.best_sweep, len(self.label_samples), self.current,
+                     self.constant)  # fmt: skip
 
     def _undo(self, mark: _Mark) -> None:
         """Back to :meth:`_mark`'s point: a sweep cut short by Ctrl-C leaves no trace."""
@@ -159,7 +192,8 @@ class GibbsChain:
         self.best_value, self.best_state, self.best_sweep = (
             mark.best_value, mark.best_state, mark.best_sweep
         )  # fmt: skip
-        for record in (self.log_joint, self.num_concepts, self.seconds):
+        self.current, self.constant = mark.current, mark.constant
+        for record in (self.log_joint, self.num_concepts, self.seconds, self.hyper_trace):
             del record[mark.sweeps_done :]
         del self.label_samples[mark.samples_kept :]
         del self.sample_sweeps[mark.samples_kept :]
@@ -175,6 +209,8 @@ class _Mark(NamedTuple):
     best_state: GibbsState | None
     best_sweep: int
     samples_kept: int
+    current: SpCoConfig | None
+    constant: float
 
 
 def start_chain(
@@ -224,7 +260,8 @@ def advance(
         raise ValueError(f"num_sweeps must be >= 1, got {num_sweeps}")
     if thin < 0:
         raise ValueError(f"thin must be >= 0, got {thin}")
-    data, config, anneal = chain.data, chain.config, chain.options.anneal_sweeps
+    data, anneal = chain.data, chain.options.anneal_sweeps
+    hyper = chain.options.hyper.active
     elapsed = chain.seconds[-1] if chain.seconds else 0.0
     start = time.perf_counter()
     first = chain.sweeps_done
@@ -237,13 +274,20 @@ def advance(
         for sweep in bar:
             mark = chain._mark()
             try:
-                chain.state, _ = step(
-                    chain.state, data, config, chain.generator, sweep=sweep,
+                before = chain.model_config
+                chain.state, info = step(
+                    chain.state, data, before, chain.generator, sweep=sweep,
                     options=chain.options, backend=chain.backend, plan=chain.plan,
                 )  # fmt: skip
+                if info.config is not None and info.config != before:
+                    chain.current = info.config
+                    chain.constant = float(log_joint_constant(data, info.config))
                 value, concepts = trace_point(
-                    chain.state, data, config, chain.constant, chain.backend
-                )
+                    chain.state, data, chain.model_config, chain.constant, chain.backend,
+                    chain.options,
+                )  # fmt: skip
+                if hyper:
+                    chain.hyper_trace.append(hyperparameter_values(data, chain.model_config))
                 _check_log_joint(chain, sweep, value)
                 chain.log_joint.append(value)
                 chain.num_concepts.append(concepts)

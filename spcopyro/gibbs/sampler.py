@@ -17,7 +17,11 @@ auto``):
    parameters integrated out, then pi, theta, w redrawn if it was accepted
    (:mod:`spcopyro.gibbs.merge`), under gamma_s;
 4. the backend's sweep: every label from eq. (13) under gamma_s, then pi and the emission
-   distributions (eqs. 14-17), partially refreshed per ``options.unobserved_refresh``.
+   distributions (eqs. 14-17), partially refreshed per ``options.unobserved_refresh``;
+5. when ``options.hyper`` samples hyperparameters (and the sweep is not an annealing one), their
+   updates given the new labels, each a blocked update that redraws the globals it changes
+   (:mod:`spcopyro.gibbs.hyperparameters`); the chain's config then changes: :class:`StepInfo`
+   carries the new one, which the caller passes to the next step.
 
 :func:`trace_point` is the per-sweep log joint and number of concepts, always of the target
 model (gamma, not gamma_s).
@@ -33,6 +37,7 @@ from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.anneal import annealed_config
 from spcopyro.gibbs.backends import SweepBackend, get_backend
 from spcopyro.gibbs.cluster import maybe_cluster_move
+from spcopyro.gibbs.hyperparameters import AuxiliaryDraw, log_hyperprior, update_hyperparameters
 from spcopyro.gibbs.merge import maybe_merge_move
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.state import GibbsState, SweepPlan
@@ -49,6 +54,9 @@ class StepInfo(NamedTuple):
     """The coupling the labels were drawn under (below the model's gamma while annealing)."""
     annealing: bool
     """Whether this was an annealing (burn-in) sweep, i.e. not a draw of the target chain."""
+    config: SpCoConfig | None = None
+    """The chain's model config after this step when ``options.hyper`` samples hyperparameters
+    (the next step's ``config``), else None (unchanged)."""
 
 
 def init(
@@ -75,21 +83,33 @@ def step(
     options: GibbsOptions = GibbsOptions(),
     backend: SweepBackend | None = None,
     plan: SweepPlan | None = None,
+    aux_draw: AuxiliaryDraw | None = None,
 ) -> tuple[GibbsState, StepInfo]:
-    """One sweep of the chain (the module docstring's steps 1-4).
+    """One sweep of the chain (the module docstring's steps 1-5).
 
     Args:
         sweep: the 0-based index of this sweep in the chain (annealing reads it).
         options: the sampler's options (backend, cluster moves, refresh, annealing).
         backend: the backend to use (default: ``options.backend``'s); pass one to reuse it.
         plan: the map's :class:`~spcopyro.gibbs.state.SweepPlan` (made once per map if given).
+        aux_draw: the hyperparameters' auxiliary label draw (default: the approximate one of
+            :func:`~spcopyro.gibbs.hyperparameters.auxiliary_labels`; the tests pass an exact one).
     """
     backend = get_backend(options.backend) if backend is None else backend
     sweep_config = annealed_config(config, sweep, options.anneal_sweeps)
     state = maybe_cluster_move(state, data, sweep_config, generator, options.cluster_moves)
     state = maybe_merge_move(state, data, sweep_config, generator, options.merge_moves)
     state = backend.sweep(state, data, sweep_config, generator, plan, options.unobserved_refresh)
-    return state, StepInfo(gamma=sweep_config.gamma, annealing=sweep + 1 < options.anneal_sweeps)
+    annealing = sweep + 1 < options.anneal_sweeps
+    if not options.hyper.active:
+        return state, StepInfo(gamma=sweep_config.gamma, annealing=annealing)
+    if not annealing:
+        state, config, _ = update_hyperparameters(
+            state, data, config, generator, options.hyper, backend_name=backend.name,
+            agreements=lambda labels: float(backend.potts_agreements(labels, data.pairs)),
+            aux_draw=aux_draw,
+        )  # fmt: skip
+    return state, StepInfo(gamma=sweep_config.gamma, annealing=annealing, config=config)
 
 
 def trace_point(
@@ -98,14 +118,22 @@ def trace_point(
     config: SpCoConfig,
     constant: float,
     backend: SweepBackend,
+    options: GibbsOptions | None = None,
 ) -> tuple[float, int]:
     """(log joint of the target model, number of concepts in use) at ``state``.
 
-    ``constant`` is :func:`spcopyro.likelihood.log_joint_constant` (computed once per chain).
+    ``constant`` is :func:`spcopyro.likelihood.log_joint_constant` (computed once per chain, and
+    again whenever sampled hyperparameters change it). When ``options.hyper`` samples
+    hyperparameters, ``config`` is the chain's current one and the log joint includes the log
+    hyperpriors of the sampled log hyperparameters (not the intractable Potts normaliser
+    Z(gamma, alpha): see :mod:`spcopyro.gibbs.hyper_targets`).
     """
     label_counts = torch.bincount(state.labels, minlength=config.num_concepts)  # [L]
     agreements = backend.potts_agreements(state.labels, data.pairs)
     variable = log_joint_variable(
         state.labels, state.log_pi, state.log_emissions, data, config, label_counts, agreements
     )
-    return constant + float(variable), int((label_counts > 0).sum())
+    value = constant + float(variable)
+    if options is not None and options.hyper.active:
+        value += log_hyperprior(data, config, options.hyper)
+    return value, int((label_counts > 0).sum())

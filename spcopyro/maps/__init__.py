@@ -11,10 +11,13 @@ Modules (everything public is re-exported here, so ``from spcopyro.maps import X
 * :mod:`~spcopyro.maps.render`: semantic-map output, :func:`label_colours`,
   :func:`render_labels`, :func:`save_label_png`, :func:`save_label_map_server` and
   :func:`load_label_map_server`.
+* :mod:`~spcopyro.maps.filter_mask`: Nav2 costmap-filter masks (``mode: scale`` maps of values
+  0..100), :func:`save_filter_mask` and :func:`load_filter_mask` (map_server's three modes).
 * :mod:`~spcopyro.maps.palette`: colours a reader can tell apart (:func:`distinct_colours`,
   :func:`concept_colours`: touching concepts get the most different ones).
 """
 
+from spcopyro.maps.filter_mask import FilterMask, load_filter_mask, save_filter_mask
 from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from spcopyro.maps.map_server import (
     PGM_FREE,
@@ -60,15 +63,18 @@ __all__ = [
     "SAVE_OCCUPIED_THRESH",
     "UNKNOWN",
     "MapFileNotFoundError",
+    "FilterMask",
     "MapFormatError",
     "OccupancyGrid",
     "concept_colours",
     "distinct_colours",
     "label_colours",
+    "load_filter_mask",
     "load_label_map_server",
     "load_map",
     "region_adjacency",
     "render_labels",
+    "save_filter_mask",
     "save_label_map_server",
     "save_label_png",
     "save_map",

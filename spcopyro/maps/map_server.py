@@ -247,14 +247,21 @@ def _write_image(path: Path, img: np.ndarray) -> None:
     path.write_bytes(buf.tobytes())
 
 
-def _write_map_yaml(path: Path, image: Path, grid: OccupancyGrid, mode: str | None) -> None:
+def _write_map_yaml(
+    path: Path,
+    image: Path,
+    grid: OccupancyGrid,
+    mode: str | None,
+    thresholds: tuple[float, float] = (SAVE_FREE_THRESH, SAVE_OCCUPIED_THRESH),
+) -> None:
+    """The map yaml of ``image``; ``thresholds`` are (free_thresh, occupied_thresh)."""
     doc: dict[str, Any] = {
         "image": image.name,
         "resolution": grid.resolution,
         "origin": list(grid.origin),
         "negate": 0,
-        "occupied_thresh": SAVE_OCCUPIED_THRESH,
-        "free_thresh": SAVE_FREE_THRESH,
+        "occupied_thresh": float(thresholds[1]),
+        "free_thresh": float(thresholds[0]),
     }
     if mode is not None:
         doc["mode"] = mode

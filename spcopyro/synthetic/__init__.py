@@ -12,7 +12,10 @@ Modules (everything public is re-exported here, so ``from spcopyro.synthetic imp
 * :mod:`~spcopyro.synthetic.lexicon`: the words per category (:data:`CATEGORY_LEXICON`,
   :func:`lexicon_for`), sentence templates and :data:`FILLER_WORDS`.
 * :mod:`~spcopyro.synthetic.spec`: :class:`HouseSpec` (every knob, validated),
-  :class:`HouseSpecError`, sizes and :meth:`HouseSpec.scaled` for benchmarks.
+  :class:`HouseSpecError`, sizes and :meth:`HouseSpec.scaled` for benchmarks,
+  :meth:`HouseSpec.public_like` (as sparse as the public houses).
+* :mod:`~spcopyro.synthetic.statistics`: :func:`house_statistics` (free and observed cells,
+  density, images, utterances, tour) and :func:`statistics_table`, public and synthetic alike.
 * :mod:`~spcopyro.synthetic.floor_plan`: how a house is drawn, steps 1-3: rooms by binary space
   partitioning with doorways, open-plan rooms, ground-truth categories per region.
 * :mod:`~spcopyro.synthetic.house`: steps 4-6: the robot's tour, image features and utterances;
@@ -29,6 +32,7 @@ from spcopyro.synthetic.lexicon import (
     lexicon_for,
 )
 from spcopyro.synthetic.spec import HouseSpec, HouseSpecError
+from spcopyro.synthetic.statistics import HouseStatistics, house_statistics, statistics_table
 
 __all__ = [
     "CATEGORY_LEXICON",
@@ -38,7 +42,10 @@ __all__ = [
     "CategoryLexicon",
     "HouseSpec",
     "HouseSpecError",
+    "HouseStatistics",
+    "house_statistics",
     "lexicon_for",
     "make_house",
+    "statistics_table",
     "write_synthetic",
 ]

@@ -7,7 +7,11 @@ dataset's on-disk layout. After the floor plan and its ground truth (steps 1-3, 
 
 4. **Tour.** In each of ``num_trials`` trials the robot visits every region once, in a random
    order, and takes ``images_per_room_per_trial`` images at free cells of the region, preferring
-   cells more than ``clearance`` cells from any wall, in a sweep around the region's centre. A
+   cells more than ``clearance`` cells from any wall, in a sweep around the region's centre
+   (with ``revisit_waypoints``, the positions of each region are drawn once and every trial
+   takes its images there again, as the public houses' robot did; with ``waypoint_radius``, a
+   visit's positions lie within that many metres of a random anchor cell of the region and a
+   trial walks from a random region to the nearest unvisited one, as a robot would). A
    position is its cell's centre plus a uniform jitter of at most 0.45 cells per axis, so it never
    leaves its free cell; the yaw of an image is the heading towards the next position of the trial.
 5. **Images.** Category c has a place-class distribution over the K classes (Places205: 205),
@@ -96,6 +100,20 @@ def _cells_by_region(mask: np.ndarray, region: np.ndarray, num_regions: int) -> 
     return [cells[order[bounds[r] : bounds[r + 1]]] for r in range(num_regions)]
 
 
+def _nearest_neighbour_order(rows: np.ndarray, cols: np.ndarray, start: int) -> np.ndarray:
+    """Regions in the order of a greedy walk from ``start`` to the nearest unvisited centre."""
+    count = rows.size
+    distance = np.hypot(rows[:, None] - rows[None, :], cols[:, None] - cols[None, :])  # [R, R]
+    order = [start]
+    visited = np.zeros(count, dtype=bool)
+    visited[start] = True
+    for _ in range(count - 1):
+        step = np.where(visited, np.inf, distance[order[-1]])
+        order.append(int(np.argmin(step)))
+        visited[order[-1]] = True
+    return np.asarray(order, dtype=np.int64)
+
+
 @dataclass(frozen=True)
 class _Tour:
     xy: np.ndarray  # [T, 2] float64 world positions
@@ -123,13 +141,33 @@ def _tour(
     n = spec.images_per_room_per_trial
     flat_parts: list[np.ndarray] = []
     region_parts: list[np.ndarray] = []
+
+    def draw(r: int) -> np.ndarray:  # [n] flat cells of one visit of region r
+        candidates = roomy_cells[r] if roomy_cells[r].size else free_cells[r]
+        if spec.waypoint_radius is not None:  # a spot of the room: cells near a random anchor
+            anchor = rng.choice(candidates)
+            drow, dcol = np.divmod(candidates, width)
+            arow, acol = divmod(int(anchor), width)
+            near = np.hypot(drow - arow, dcol - acol) * spec.resolution <= spec.waypoint_radius
+            candidates = candidates[near]
+        return rng.choice(candidates, size=n, replace=n > candidates.size)
+
+    # With revisit_waypoints, one set of positions per region, revisited by every trial.
+    waypoints = [draw(r) for r in range(plan.num_regions)] if spec.revisit_waypoints else None
     for _trial in range(spec.num_trials):
-        for r in rng.permutation(plan.num_regions):
-            candidates = roomy_cells[r] if roomy_cells[r].size else free_cells[r]
-            chosen = rng.choice(candidates, size=n, replace=n > candidates.size)  # [n]
+        order = rng.permutation(plan.num_regions)
+        if spec.waypoint_radius is not None:  # a walk: from a random region to the nearest next
+            order = _nearest_neighbour_order(centre_row, centre_col, int(order[0]))
+        for r in order:
+            chosen = waypoints[r] if waypoints is not None else draw(r)  # [n]
             rows, cols = np.divmod(chosen, width)
-            # Sweep around the region's centre, starting at a random angle.
-            angle = np.arctan2(-(rows - centre_row[r]), cols - centre_col[r])
+            # Sweep around the region's centre (around the spot with waypoint_radius), starting
+            # at a random angle.
+            if spec.waypoint_radius is not None:
+                row0, col0 = rows.mean(), cols.mean()
+            else:
+                row0, col0 = centre_row[r], centre_col[r]
+            angle = np.arctan2(-(rows - row0), cols - col0)
             angle = np.mod(angle - rng.uniform(-np.pi, np.pi), 2 * np.pi)
             flat_parts.append(chosen[np.argsort(angle, kind="stable")])
             region_parts.append(np.full(n, r, dtype=np.int64))

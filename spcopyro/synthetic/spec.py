@@ -68,6 +68,10 @@ class HouseSpec:
     sentence_fraction: float = 0.0  # share of sentences (the public data: single words only)
     name_word_fraction: float = 0.5  # share of utterances naming the place (else an object)
     word_noise: float = 0.05  # share of single words of another category
+    revisit_waypoints: bool = False  # every trial revisits one set of image positions per room
+    # (the public houses' tour: ~80 waypoints, each photographed once per trial)
+    waypoint_radius: float | None = None  # metres: a visit's images lie within this distance of
+    # one random spot of the room (None: anywhere in the room)
 
     def __post_init__(self) -> None:
         if isinstance(self.category_names, str) or not isinstance(self.category_names, Sequence):
@@ -167,6 +171,12 @@ class HouseSpec:
         _fraction("sentence_fraction", self.sentence_fraction)
         _fraction("name_word_fraction", self.name_word_fraction)
         _fraction("word_noise", self.word_noise)
+        if self.waypoint_radius is not None:
+            _positive("waypoint_radius", self.waypoint_radius)
+        if not isinstance(self.revisit_waypoints, bool | np.bool_):
+            raise HouseSpecError(
+                f"HouseSpec.revisit_waypoints must be True or False, got {self.revisit_waypoints!r}"
+            )
 
     @property
     def inner_shape(self) -> tuple[int, int]:
@@ -202,6 +212,46 @@ class HouseSpec:
             fields["num_open_plan"] = max(1, num_rooms // 5) if num_rooms > 1 else 0  # type: ignore[operator]
         fields.update(changes)
         return cls(**fields)  # type: ignore[arg-type]
+
+    @classmethod
+    def public_like(cls, **changes: object) -> HouseSpec:
+        """A house as sparse as the five public SpCoMapping houses (issue #14 item 5).
+
+        Measured on the public houses (:func:`spcopyro.synthetic.statistics.house_statistics`;
+        ranges over the five): 18,026-27,746 free cells at 0.05 m (45-69 m^2), 58-86 observed
+        cells (0.29-0.43 % of the free cells), 142-223 images and 45-76 single-word utterances
+        in 3 trials, a tour of 58-75 m, with every trial revisiting the same ~60-90 waypoints
+        (one image per waypoint and trial, utterances at image positions). This spec draws
+        160 x 165 cells at 0.05 m with 6 walled rooms, one of them open plan (7 regions, 7
+        categories, as in Table 2's LDK houses): about 23,500 free cells (59 m^2); 10 waypoints
+        per region within 0.25 m of one spot of the room, revisited by each of the 3 trials
+        (210 images on ~70 cells: density ~0.30 %), 3 utterances per region and trial (63),
+        and a tour walking to the nearest unvisited room (~74 m over the 3 trials; seeds 0-4).
+        Doorways are 0.7-0.9 m wide and images stay 0.3 m from walls. The default
+        :class:`HouseSpec` is 15 times denser (176 observed cells of 3,600, 4.9 %).
+        ``changes`` override any field, e.g. ``num_rooms=3`` or ``height=240, width=240,
+        num_rooms=12`` for other layouts and sizes.
+        """
+        fields = dict(PUBLIC_LIKE_FIELDS)
+        fields.update(changes)
+        return cls(**fields)  # type: ignore[arg-type]
+
+
+PUBLIC_LIKE_FIELDS: dict[str, object] = dict(
+    height=160,
+    width=165,
+    resolution=0.05,
+    num_rooms=6,
+    num_open_plan=1,
+    min_room_size=24,
+    doorway_width=(14, 18),
+    clearance=6,
+    images_per_room_per_trial=10,
+    utterances_per_room_per_trial=3,
+    revisit_waypoints=True,
+    waypoint_radius=0.25,
+)
+"""The fields of :meth:`HouseSpec.public_like` (see there for the measured statistics)."""
 
 
 def _is_int(value: object) -> bool:

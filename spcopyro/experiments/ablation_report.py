@@ -1,0 +1,334 @@
+"""The ablation's outputs: per-seed records -> mean +- sd per row and house -> ``ablation.md``,
+``ablation.json`` and ``ablation.png`` (:func:`write_report`; the runs are in
+:mod:`spcopyro.experiments.ablation`).
+
+``ablation.json`` holds ``settings``, ``statistics`` (the houses' sparsity, public and
+synthetic), ``summary`` (row -> house -> score -> {mean, sd, n}), ``top_words`` (row -> house ->
+the top words of the largest concepts holding an utterance, seed 0), ``targets`` (the issue's
+targets, checked), ``records`` (one per job) and ``seconds`` (the whole run).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spcopyro.experiments.table import PUBLIC_CATEGORIES, json_default
+from spcopyro.synthetic.statistics import public_and_synthetic_statistics, statistics_table
+
+__all__ = ["SCORES", "TABLE2_CATEGORIES", "settings_json", "summarise", "targets", "write_report"]
+
+TABLE2_CATEGORIES: dict[str, int] = dict(PUBLIC_CATEGORIES)
+"""Ground-truth categories per public house: the paper's Table 2 (6, 5, 7, 7, 7)."""
+
+AblationSettings = Any
+"""An :class:`spcopyro.experiments.ablation.AblationSettings` (not imported: that module
+imports this one)."""
+
+SCORES = (
+    "ari", "ari_off", "ari_on_off", "matching_rate", "matching_rate_area", "concepts",
+    "concepts_1pct", "concepts_1pct_off", "place_top_share", "top1", "top3", "mean_rank",
+    "distance_m", "inside_rate", "seconds", "seconds_off", "cpu_seconds", "cpu_seconds_off",
+)  # fmt: skip
+"""Every score a record may hold (a record holds those that apply to its row and house)."""
+
+JSON_KEYS = ("settings", "statistics", "summary", "top_words", "targets", "records", "seconds")
+
+
+def _spread(values: list[float]) -> dict[str, float]:
+    array = np.asarray([v for v in values if v is not None], dtype=np.float64)
+    finite = array[np.isfinite(array)]
+    if finite.size == 0:
+        return {"mean": math.nan, "sd": math.nan, "n": 0}
+    sd = float(finite.std(ddof=1)) if finite.size > 1 else 0.0
+    return {"mean": float(finite.mean()), "sd": sd, "n": int(finite.size)}
+
+
+def summarise(records: list[dict[str, object]]) -> dict[str, dict[str, dict[str, dict]]]:
+    """row -> house -> score -> {mean, sd (sample), n} over the seeds (non-finite left out)."""
+    summary: dict[str, dict[str, dict[str, dict]]] = {}
+    for record in records:
+        by_house = summary.setdefault(str(record["row"]), {})
+        by_house.setdefault(str(record["house"]), {})
+    for row, by_house in summary.items():
+        for house in by_house:
+            mine = [r for r in records if r["row"] == row and r["house"] == house]
+            by_house[house] = {
+                score: _spread([r[score] for r in mine])  # type: ignore[misc]
+                for score in SCORES
+                if any(score in r for r in mine)
+            }
+    return summary
+
+
+def targets(summary: dict, settings: AblationSettings) -> list[str]:
+    """The issue's targets, checked per variant: on each synthetic house the variant's ARI
+    beats (C) and (F) with a seed-to-seed sd no larger than theirs; on each public house its
+    concept count (>= 1 % of the cells) is within 2 of Table 2's."""
+    lines = []
+    baselines = [b for b in settings.baselines if b in summary]
+    for variant in settings.variants:
+        row = summary.get(variant.name, {})
+        for house in settings.synthetic:
+            if house not in row or "ari" not in row[house]:
+                continue
+            mine = row[house]["ari"]
+            verdicts = []
+            for base in baselines:
+                theirs = summary[base].get(house, {}).get("ari")
+                if theirs is None:
+                    continue
+                beats = mine["mean"] > theirs["mean"]
+                steady = mine["sd"] <= theirs["sd"]
+                verdicts.append(
+                    f"{'beats' if beats else 'does NOT beat'} {base} "
+                    f"({mine['mean']:.3f} vs {theirs['mean']:.3f}), sd "
+                    f"{'<=' if steady else '>'} theirs ({mine['sd']:.3f} vs {theirs['sd']:.3f})"
+                )
+            if verdicts:
+                lines.append(f"{variant.name} on {house}: ARI " + "; ".join(verdicts))
+        for house, count in TABLE2_CATEGORIES.items():
+            if house in row and "concepts_1pct" in row[house]:
+                mean = row[house]["concepts_1pct"]["mean"]
+                within = abs(mean - count) <= 2
+                lines.append(
+                    f"{variant.name} on {house}: {mean:.1f} concepts >= 1% vs Table 2's {count}: "
+                    + ("within 2" if within else "NOT within 2")
+                )
+    return lines
+
+
+def _fmt(spread: dict | None, digits: int = 3) -> str:
+    if spread is None or not math.isfinite(spread["mean"]):
+        return "—"
+    return f"{spread['mean']:.{digits}f} ± {spread['sd']:.{digits}f}"
+
+
+def _seconds(scores: dict) -> str:
+    wall, cpu = scores.get("seconds"), scores.get("cpu_seconds")
+    if wall is None:
+        return "—"
+    return f"{wall['mean']:.1f}" + ("" if cpu is None else f" / {cpu['mean']:.1f}")
+
+
+def _top_words(records: list[dict[str, object]]) -> dict[str, dict[str, list]]:
+    """row -> house -> the top words of seed 0 (the lowest seed run)."""
+    found: dict[str, dict[str, tuple[int, list]]] = {}
+    for r in records:
+        if "top_words" not in r:
+            continue
+        by_house = found.setdefault(str(r["row"]), {})
+        seed = int(r["seed"])  # type: ignore[call-overload]
+        if str(r["house"]) not in by_house or seed < by_house[str(r["house"])][0]:
+            by_house[str(r["house"])] = (seed, r["top_words"])  # type: ignore[assignment]
+    return {row: {h: words for h, (_, words) in v.items()} for row, v in found.items()}
+
+
+def _words_text(words: list) -> str:
+    return "; ".join(", ".join(f"{w} {p:.2f}" for w, p in concept) for concept in words) or "—"
+
+
+def markdown(report: dict, settings: AblationSettings) -> str:
+    """``ablation.md``: settings, statistics, one table per synthetic house, the public tables,
+    the top words and the targets."""
+    summary: dict = report["summary"]
+    rows = [v.name for v in settings.variants] + list(settings.baselines)
+    lines = ["# Ablation (issue #14)", ""]
+    if settings.command:
+        lines += [f"Made by: `{settings.command}`", ""]
+    lines += [
+        f"{settings.sweeps} Gibbs sweeps per fit (SpCoA: {settings.spcoa_iterations} "
+        f"iterations); synthetic seeds 0-{settings.seeds - 1} (house and fit); public houses: "
+        f"{settings.public_seeds} seed(s), seed s holding out trial s mod 3. Mean ± sd over "
+        f"seeds. Whole run: {report['seconds']:.0f} s with {settings.workers} worker(s).",
+        "",
+        "Variants:",
+        "",
+    ]
+    lines += [f"- `{v.describe()}`" for v in settings.variants]
+    lines += ["", "## The houses", "", report["statistics_md"], ""]
+    for house in settings.synthetic:
+        spec = settings.houses[house]
+        lines += [
+            f"## Synthetic: {house} ({spec.height} x {spec.width} cells at {spec.resolution} m, "
+            f"{spec.num_regions} regions)",
+            "",
+            "| row | ARI | ARI, observations off | ARI(with, without) | matching rate | "
+            "matching rate (area prior) | concepts ≥ 1% | top word a place | s per fit "
+            "(wall / CPU) |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
+        for row in rows:
+            s = summary.get(row, {}).get(house)
+            if s is None:
+                continue
+            lines.append(
+                f"| {row} | {_fmt(s.get('ari'))} | {_fmt(s.get('ari_off'))} "
+                f"| {_fmt(s.get('ari_on_off'))} | {_fmt(s.get('matching_rate'))} "
+                f"| {_fmt(s.get('matching_rate_area'))} | {_fmt(s.get('concepts_1pct'), 1)} "
+                f"| {_fmt(s.get('place_top_share'), 2)} | {_seconds(s)} |"
+            )
+        lines.append("")
+    public = _public_houses(report["records"])
+    if public:
+        lines += [
+            "## Public houses: concepts holding ≥ 1% of the free cells",
+            "",
+            "Fitted on two of the three trials. Table 2: the paper's ground-truth categories.",
+            "",
+            "| row | " + " | ".join(public) + " |",
+            "|---|" + "---|" * len(public),
+            "| Table 2 | " + " | ".join(str(TABLE2_CATEGORIES.get(h, "?")) for h in public) + " |",
+        ]
+        for row in rows:
+            cells = [_fmt(summary.get(row, {}).get(h, {}).get("concepts_1pct"), 1) for h in public]
+            lines.append(f"| {row} | " + " | ".join(cells) + " |")
+        lines += [
+            "",
+            "## Public houses: held-out trial",
+            "",
+            "Each cell: word prediction top-1, mean distance (m) from where a held-out word was "
+            "said to the region it names, ARI between the maps fitted with and without the "
+            "observations (1: the data did not move the map).",
+            "",
+            "| row | " + " | ".join(public) + " |",
+            "|---|" + "---|" * len(public),
+        ]
+        for row in rows:
+            cells = []
+            for h in public:
+                s = summary.get(row, {}).get(h, {})
+                cells.append(
+                    f"{_fmt(s.get('top1'), 2)} / {_fmt(s.get('distance_m'), 2)} m / "
+                    f"{_fmt(s.get('ari_on_off'), 2)}"
+                )
+            lines.append(f"| {row} | " + " | ".join(cells) + " |")
+        lines += [
+            "",
+            "## Public houses: top words of the largest concepts that hold an utterance (seed 0)",
+            "",
+            "| row | house | top words (per concept; probability) | top word a place |",
+            "|---|---|---|---|",
+        ]
+        for row in rows:
+            for h in public:
+                words = report["top_words"].get(row, {}).get(h)
+                if words is None:
+                    continue
+                share = summary[row][h].get("place_top_share")
+                lines.append(f"| {row} | {h} | {_words_text(words)} | {_fmt(share, 2)} |")
+        lines.append("")
+    lines += ["## Targets", ""] + [f"- {t}" for t in report["targets"]]
+    lines += ["", "Figure: `ablation.png`.", ""]
+    return "\n".join(lines)
+
+
+def _public_houses(records: list[dict[str, object]]) -> list[str]:
+    return list(dict.fromkeys(str(r["house"]) for r in records if r["public"]))
+
+
+def figure(report: dict, settings: AblationSettings, path: Path) -> Path:
+    """``ablation.png``: ARI per synthetic house (bars: with observations, mean ± sd; open
+    circles: observations off) and concepts >= 1% per public house against Table 2."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    summary: dict = report["summary"]
+    rows = [v.name for v in settings.variants] + list(settings.baselines)
+    public = _public_houses(report["records"])
+    panels = 2 if public else 1
+    fig, axes = plt.subplots(1, panels, figsize=(6 + 5 * panels, 4.5), squeeze=False)
+    width = 0.8 / max(len(rows), 1)
+    colours = plt.get_cmap("tab10")
+
+    def bars(ax, houses: list[str], score: str, off: str | None) -> None:
+        x = np.arange(len(houses))
+        for k, row in enumerate(rows):
+            stats = [summary.get(row, {}).get(h, {}).get(score) for h in houses]
+            mean = [s["mean"] if s else np.nan for s in stats]
+            sd = [s["sd"] if s else 0.0 for s in stats]
+            pos = x - 0.4 + width * (k + 0.5)
+            ax.bar(pos, mean, width, yerr=sd, label=row, color=colours(k % 10), capsize=2)
+            if off:
+                offs = [summary.get(row, {}).get(h, {}).get(off) for h in houses]
+                ax.plot(pos, [s["mean"] if s else np.nan for s in offs], "o", mfc="none",
+                        mec="black", ms=5)  # fmt: skip
+        ax.set_xticks(x, houses)
+
+    ax = axes[0, 0]
+    bars(ax, list(settings.synthetic), "ari", "ari_off")
+    ax.set_ylabel("ARI against the truth (circles: observations off)")
+    ax.set_title("synthetic houses")
+    ax.legend(fontsize=7, loc="best")
+    if public:
+        ax = axes[0, 1]
+        bars(ax, public, "concepts_1pct", None)
+        counts = [TABLE2_CATEGORIES.get(h, np.nan) for h in public]
+        x = np.arange(len(public))
+        ax.hlines(counts, x - 0.45, x + 0.45, colors="black", linewidth=2, label="Table 2")
+        ax.set_ylabel("concepts holding >= 1% of the free cells")
+        ax.set_title("public houses (black: Table 2)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def write_report(
+    out: Path, settings: AblationSettings, records: list[dict[str, object]], seconds: float
+) -> dict[str, object]:
+    """Write ``ablation.md``, ``ablation.json`` and ``ablation.png`` into ``out``."""
+    from spcopyro.data import load_house
+
+    out.mkdir(parents=True, exist_ok=True)
+    public_names = _public_houses(records)
+    public = []
+    if settings.dataset_root is not None:
+        public = [load_house(Path(settings.dataset_root) / name) for name in public_names]
+    synthetic = {name: settings.houses[name] for name in settings.synthetic}
+    stats = public_and_synthetic_statistics(public, synthetic, seeds=range(min(settings.seeds, 5)))
+    summary = summarise(records)
+    report: dict[str, object] = {
+        "settings": settings_json(settings),
+        "statistics": [s.to_json() for s in stats],
+        "summary": summary,
+        "top_words": _top_words(records),
+        "targets": targets(summary, settings),
+        "records": records,
+        "seconds": seconds,
+    }
+    report["statistics_md"] = statistics_table(stats)
+    text = markdown(report, settings)
+    del report["statistics_md"]
+    (out / "ablation.md").write_text(text)
+    (out / "ablation.json").write_text(json.dumps(report, indent=1, default=json_default) + "\n")
+    figure(report, settings, out / "ablation.png")
+    return report
+
+
+def settings_json(settings: AblationSettings) -> dict[str, object]:
+    """The run's settings as JSON values."""
+    return {
+        "variants": [v.to_json() for v in settings.variants],
+        "variant_texts": [v.describe() for v in settings.variants],
+        "baselines": list(settings.baselines),
+        "synthetic": {
+            name: dataclasses.asdict(settings.houses[name]) for name in settings.synthetic
+        },
+        "seeds": settings.seeds,
+        "public_seeds": settings.public_seeds,
+        "dataset_root": None if settings.dataset_root is None else str(settings.dataset_root),
+        "public_houses": None if settings.public_houses is None else list(settings.public_houses),
+        "sweeps": settings.sweeps,
+        "spcoa_iterations": settings.spcoa_iterations,
+        "observations_off": settings.observations_off,
+        "workers": settings.workers,
+        "command": settings.command,
+    }

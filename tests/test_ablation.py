@@ -1,0 +1,284 @@
+"""Tests of the ablation harness (spcopyro.experiments.ablation*) and of the sparse synthetic
+houses it runs on (HouseSpec.public_like, spcopyro.synthetic.statistics)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from spcopyro.cli import main
+from spcopyro.data import load_house
+from spcopyro.experiments.ablation import (
+    AblationSettings,
+    concepts_over,
+    jobs_of,
+)
+from spcopyro.experiments.ablation_report import JSON_KEYS, targets
+from spcopyro.experiments.ablation_variants import (
+    Variant,
+    VariantError,
+    make_variant,
+    parse_variant,
+)
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.synthetic import HouseSpec, house_statistics, make_house
+
+# The five public houses, measured with house_statistics (min, max over the houses); the test
+# against the dataset below checks these numbers when the dataset is present.
+PUBLIC_RANGES = {
+    "free_cells": (18026, 27746),
+    "observed_cells": (58, 86),
+    "density": (0.0028, 0.0043),
+    "images": (142, 223),
+    "utterances": (45, 76),
+    "tour_m": (57.7, 74.5),
+}
+
+
+# ------------------------------------------------------------------------------------------
+# Sparse synthetic houses
+# ------------------------------------------------------------------------------------------
+
+
+def test_public_ranges_match_the_dataset(dataset_root):
+    stats = [house_statistics(load_house(dataset_root / name)) for name in PUBLIC_RANGES_HOUSES]
+    for key, (low, high) in PUBLIC_RANGES.items():
+        values = [getattr(s, key) for s in stats]
+        assert min(values) == pytest.approx(low, rel=0.03), key
+        assert max(values) == pytest.approx(high, rel=0.03), key
+
+
+PUBLIC_RANGES_HOUSES = ("room1dk5", "room1dk6", "room1ldk4", "room1ldk5", "room2ldk4")
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_public_like_house_is_as_sparse_as_the_public_houses(seed):
+    stats = house_statistics(make_house(seed=seed, spec=HouseSpec.public_like()))
+    for key, (low, high) in PUBLIC_RANGES.items():
+        value = getattr(stats, key)
+        # within the public houses' range, with 10 % slack on either side
+        assert 0.9 * low <= value <= 1.1 * high, (key, value, (low, high))
+    assert stats.resolution == 0.05 and stats.trials == 3
+    # and 15 times sparser than the default house
+    dense = house_statistics(make_house(seed=seed))
+    assert dense.density > 10 * stats.density
+
+
+def test_public_like_waypoints_are_revisited_by_every_trial():
+    house = make_house(seed=3, spec=HouseSpec.public_like())
+    obs = house.observations
+    cells_by_trial = [
+        {tuple(c) for c in house.grid.world_to_cell(obs.image_xy[obs.image_trial == t])}
+        for t in obs.trials
+    ]
+    assert cells_by_trial[0] == cells_by_trial[1] == cells_by_trial[2]
+    # without revisiting, the trials draw new positions
+    other = make_house(seed=3, spec=HouseSpec.public_like(revisit_waypoints=False))
+    assert house_statistics(other).observed_cells > 2 * house_statistics(house).observed_cells
+
+
+def test_public_like_layouts_and_errors():
+    small = HouseSpec.public_like(num_rooms=3)
+    assert small.num_regions == 4 and small.resolution == 0.05
+    with pytest.raises(ValueError, match="waypoint_radius"):
+        HouseSpec(waypoint_radius=0.0)
+    with pytest.raises(ValueError, match="revisit_waypoints"):
+        HouseSpec(revisit_waypoints="yes")
+
+
+def test_simulate_writes_a_sparse_house(tmp_path, capsys):
+    code = main(["simulate", "--out", str(tmp_path), "--density", "sparse", "--rooms", "4"])
+    assert code == 0
+    house = load_house(tmp_path / "synthetic")
+    stats = house_statistics(house)
+    assert stats.resolution == 0.05 and stats.density < 0.005
+    assert len(house.category_names) == 5  # 4 rooms, one open plan
+
+
+# ------------------------------------------------------------------------------------------
+# Variants
+# ------------------------------------------------------------------------------------------
+
+
+def test_variant_routes_each_key_to_its_layer():
+    v = parse_variant("mix:preset=original-code,gamma=3.5,feature_scaling=100,cluster_moves=0.2,"
+                      "chains=2,init=gaussian")  # fmt: skip
+    assert v.preset == "original-code"
+    settings = v.spco_settings(6)
+    assert settings.model.gamma == 3.5 and settings.data.feature_scaling == 100.0
+    assert settings.model.alpha == 1e7  # the preset's own value stays
+    assert v.method_options() == GibbsOptions(cluster_moves=0.2)
+    assert v.fit_kwargs() == {"chains": 2, "init": "gaussian"}
+    assert parse_variant(v.describe()) == v  # the text round-trips
+    # observations off on top of the variant's own values
+    off = v.spco_settings(6, use_images=False, use_words=False)
+    assert not off.model.use_images and not off.model.use_words and off.model.gamma == 3.5
+
+
+def test_variant_prefixes_and_nested_options():
+    v = make_variant("p", {"settings.gamma": 3, "options.cluster_moves": 0.5, "fit.chains": 2})
+    assert v.spco_settings().model.gamma == 3
+    assert v.method_options().cluster_moves == 0.5 and v.fit_kwargs() == {"chains": 2}
+    # a nested options field, by a dotted path (vi-gibbs holds its CAVI options)
+    nested = parse_variant("n:method=vi-gibbs,variational.anneal_iterations=7")
+    assert nested.method_options().variational.anneal_iterations == 7
+    # paper-dirichlet takes L from the house's number of categories unless set
+    assert parse_variant("d:preset=paper-dirichlet").spco_settings(7).model.num_concepts == 7
+    assert (
+        make_variant("d", {"preset": "paper-dirichlet", "num_concepts": 4})
+        .spco_settings(7)
+        .model.num_concepts
+        == 4
+    )
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("x:gama=3", "unknown key 'gama'"),
+        ("x:gamma=abc", "expected a number"),
+        ("x:chains=two", "expected an integer"),
+        ("x:use_words=maybe", "expected true or false"),
+        ("x:cluster_moves=2", "must be a probability"),
+        ("x:gamma=-1", "gamma"),
+        ("x:preset=paper", "choose one of"),
+        ("x:method=nope", "method='nope'"),
+        ("x:sweeps=10", "set by the ablation itself"),
+        ("x:seed=3", "set by the ablation itself"),
+        ("x:gamma", "is not KEY=VALUE"),
+        ("x:gamma=3,gamma=4", "given twice"),
+        ("x:options.gamma=3", "has no field"),
+        ("x:settings.cluster_moves=1", "have no field"),
+        ("x:fit.bogus=1", "no argument 'bogus'"),
+        ("x:cluster_moves.inner=1", "unknown key"),
+        ("x:options.cluster_moves.inner=1", "has no field"),
+        (":gamma=3", "must be non-empty"),
+    ],
+)
+def test_variant_errors_name_the_problem(text, message):
+    with pytest.raises(VariantError, match=message) as info:
+        parse_variant(text)
+    if text.startswith("x:"):
+        assert "variant 'x" in str(info.value)  # the variant is named
+
+
+def test_ambiguous_key_needs_a_prefix(monkeypatch):
+    import spcopyro.experiments.ablation_variants as module
+
+    # pretend fit_house took an argument named like a model setting
+    parameters = dict(module._fit_parameters())
+    parameters["gamma"] = parameters["chains"]
+    monkeypatch.setattr(module, "_fit_parameters", lambda: parameters)
+    with pytest.raises(VariantError, match="settings.gamma or fit.gamma"):
+        module.make_variant("a", {"gamma": 3})
+    assert module.make_variant("a", {"settings.gamma": 3}).spco_settings().model.gamma == 3
+
+
+# ------------------------------------------------------------------------------------------
+# The harness
+# ------------------------------------------------------------------------------------------
+
+
+def test_jobs_cover_rows_houses_and_seeds():
+    settings = AblationSettings.quick(
+        variants=(parse_variant("a"), parse_variant("b:gamma=3")), seeds=3
+    )
+    jobs = jobs_of(settings)
+    assert len(jobs) == 4 * 2 * 3  # (2 variants + 2 baselines) x 2 houses x 3 seeds
+    assert {(j.row, j.house, j.seed) for j in jobs} == {
+        (r, h, s) for r in ("a", "b", "C-spcoa", "F-geometry") for h in ("dense", "sparse")
+        for s in range(3)
+    }  # fmt: skip
+    with pytest.raises(ValueError, match="unknown synthetic house"):
+        jobs_of(AblationSettings.quick(synthetic=("nope",)))
+
+
+def test_concepts_over_counts_labels_with_one_percent():
+    labels = np.repeat(np.arange(4), [500, 480, 15, 5])  # 1000 cells
+    assert concepts_over(labels) == 3  # 15 >= 10, 5 < 10
+    assert concepts_over(labels, share=0.02) == 2
+
+
+def test_targets_are_checked_against_the_baselines():
+    v = Variant("v")
+    settings = AblationSettings.quick(variants=(v,), synthetic=("dense",))
+    spread = lambda m, s: {"mean": m, "sd": s, "n": 10}  # noqa: E731
+    summary = {
+        "v": {"dense": {"ari": spread(0.9, 0.01)}, "room1dk5": {"concepts_1pct": spread(7, 0)}},
+        "C-spcoa": {"dense": {"ari": spread(0.8, 0.1)}},
+        "F-geometry": {"dense": {"ari": spread(0.95, 0.0)}},
+    }
+    lines = targets(summary, settings)
+    assert "beats C-spcoa" in lines[0] and "sd <= theirs" in lines[0]
+    assert "does NOT beat F-geometry" in lines[0] and "sd > theirs" in lines[0]
+    assert "within 2" in lines[1] and "NOT" not in lines[1]
+
+
+def _check_outputs(out, rows, houses, seeds):
+    assert {p.name for p in out.iterdir()} >= {"ablation.md", "ablation.json", "ablation.png"}
+    report = json.loads((out / "ablation.json").read_text())
+    assert set(report) == set(JSON_KEYS)
+    assert len(report["records"]) == len(rows) * len(houses) * seeds
+    for row in rows:
+        for house in houses:
+            scores = report["summary"][row][house]
+            assert {"concepts_1pct", "seconds"} <= set(scores)
+            assert set(scores["seconds"]) == {"mean", "sd", "n"}
+    return report
+
+
+def test_quick_run_end_to_end(tmp_path):
+    settings = AblationSettings.quick(
+        variants=(parse_variant("g3:preset=original-code,gamma=3"),),
+        baselines=("F-geometry",), seeds=2, sweeps=5,
+    )  # fmt: skip
+    from spcopyro.experiments.ablation import run_ablation
+
+    lines = []
+    report = run_ablation(tmp_path, settings, report=lines.append)
+    assert len(lines) == 2 * 2 * 2
+    _check_outputs(tmp_path, ["g3", "F-geometry"], ["dense", "sparse"], 2)
+    g3 = report["summary"]["g3"]["dense"]
+    for key in ("ari", "ari_off", "ari_on_off", "matching_rate", "matching_rate_area",
+                "concepts", "place_top_share", "seconds_off"):  # fmt: skip
+        assert key in g3, key
+        assert g3[key]["n"] == 2 or key == "place_top_share"
+    assert "ari_off" not in report["summary"]["F-geometry"]["dense"]
+    record = report["records"][0]
+    assert record["row"] == "g3" and record["top_words"] and len(record["top_words"][0]) == 3
+    text = (tmp_path / "ablation.md").read_text()
+    assert "## Synthetic: dense" in text and "## Synthetic: sparse" in text
+    assert "`g3:preset=original-code,settings.gamma=3.0`" in text
+    assert "## Targets" in text and "| house | cell (m) |" in text
+
+
+def test_quick_run_on_a_public_house(tmp_path, dataset_root):
+    settings = AblationSettings.quick(
+        variants=(parse_variant("dp"),), baselines=("F-geometry",), synthetic=(),
+        dataset_root=dataset_root, public_houses=("room1ldk4",), sweeps=3,
+    )  # fmt: skip
+    from spcopyro.experiments.ablation import run_ablation
+
+    report = run_ablation(tmp_path, settings)
+    _check_outputs(tmp_path, ["dp", "F-geometry"], ["room1ldk4"], 1)
+    dp = report["summary"]["dp"]["room1ldk4"]
+    assert {"top1", "top3", "distance_m", "ari_on_off", "concepts_1pct"} <= set(dp)
+    assert report["records"][0]["held_out_trial"] == 0
+    text = (tmp_path / "ablation.md").read_text()
+    assert "| Table 2 | 7 |" in text  # room1ldk4's categories in the paper's Table 2
+
+
+def test_cli_runs_and_rejects_bad_variants(tmp_path, capsys):
+    out = tmp_path / "abl"
+    code = main(["ablation", "--out", str(out), "--quick", "--no-public", "--seeds", "1",
+                 "--sweeps", "3", "--houses", "sparse", "--baselines",
+                 "--variant", "sw:cluster_moves=0.5"])  # fmt: skip
+    assert code == 0
+    report = _check_outputs(out, ["sw"], ["sparse"], 1)
+    assert report["settings"]["variants"][0]["options"] == {"cluster_moves": 0.5}
+    assert "ablation.md" in capsys.readouterr().out
+    assert main(["ablation", "--out", str(tmp_path / "x"), "--quick", "--variant", "x:gama=3"]) == 2
+    assert "unknown key 'gama'" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists()

@@ -1,0 +1,129 @@
+"""`spcopyro simulate --map`: a simulated tour on a given floor plan, written in the dataset
+layout with the ground truth it used."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from spcopyro.cli import main
+from spcopyro.data import load_house
+from spcopyro.map_simulation import MapTour, simulate_on_map
+from spcopyro.maps import FREE, OCCUPIED, UNKNOWN, OccupancyGrid, load_map, save_map
+from spcopyro.synthetic import lexicon_for
+
+
+def three_rooms(tmp_path):
+    """A 40 x 62 map at 0.1 m, origin (-2, 1): three rooms side by side (walls on columns 21
+    and 41, 0.6 m doors), an unknown margin of 1 cell, and a free speck outside the walls."""
+    occupancy = np.full((40, 62), UNKNOWN, dtype=np.int8)
+    occupancy[1:39, 1:61] = OCCUPIED
+    occupancy[2:38, 2:60] = FREE
+    for col in (21, 41):
+        occupancy[2:38, col] = OCCUPIED
+        occupancy[18:24, col] = FREE
+    occupancy[0, 0] = FREE  # a speck: not a room
+    grid = OccupancyGrid(occupancy, 0.1, (-2.0, 1.0, 0.0))
+    return save_map(grid, tmp_path / "plan" / "flat.yaml"), grid
+
+
+def _check_on_free_cells(house):
+    obs = house.observations
+    for xy in (obs.image_xy, obs.word_xy):
+        rows, cols = house.grid.world_to_cell(xy).T
+        assert house.grid.in_bounds(np.stack([rows, cols], -1)).all()
+        assert house.grid.free[rows, cols].all()
+
+
+def test_simulate_on_a_map_written_here(tmp_path, capsys):
+    yaml_path, grid = three_rooms(tmp_path)
+    out = tmp_path / "data"
+    argv = ["simulate", "--map", str(yaml_path), "--out", str(out), "--seed", "3",
+            "--categories", "kitchen,bedroom,study,garage"]  # fmt: skip
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "3 rooms, 90 images, 27 utterances" in printed
+    house = load_house(out / "flat")  # named after the map
+    assert house.grid == grid and load_map(out / "map" / "flat.yaml") == grid
+    assert house.category_names == ("kitchen", "bedroom", "study")  # 3 rooms: first 3 names
+    truth = house.truth  # [H, W]
+    rooms = np.load(out / "flat" / "rooms.npy")  # [H, W]
+    assert truth.shape == rooms.shape == grid.shape
+    assert (truth[~grid.free] == -1).all() and truth[0, 0] == -1 == rooms[0, 0]  # speck
+    assert (truth[grid.free] >= 0).sum() == grid.num_free - 1
+    record = json.loads((out / "flat" / "rooms.json").read_text())
+    assert len(record["rooms"]) == 3 and record["free_cells_in_rooms"] == grid.num_free - 1
+    for room in record["rooms"]:  # one category per room, each room one side of the flat
+        cells = rooms == room["room"]
+        assert cells.sum() == room["cells"]
+        assert set(np.unique(truth[cells])) == {house.category_names.index(room["category"])}
+    assert sorted(r["category"] for r in record["rooms"]) == ["bedroom", "kitchen", "study"]
+    _check_on_free_cells(house)
+
+    # Observations follow their room's category: images were taken in every room in every
+    # trial, and the single words mostly come from the room's own lexicon (5% noise).
+    obs = house.observations
+    cells = grid.world_to_cell(obs.image_xy)  # [T, 2]
+    image_room = rooms[cells[:, 0], cells[:, 1]]  # [T]
+    assert (image_room >= 0).all() and np.bincount(image_room).tolist() == [30, 30, 30]
+    word_cells = grid.world_to_cell(obs.word_xy)
+    spoken_in = truth[word_cells[:, 0], word_cells[:, 1]]  # [U] category of the place
+    own = [u[0] in lexicon_for(house.category_names[c]).words
+           for u, c in zip(obs.utterances, spoken_in, strict=True)]  # fmt: skip
+    assert np.mean(own) >= 0.8
+
+    assert main([*argv]) == 2  # exists: needs --overwrite
+    assert "pass --overwrite to replace it" in capsys.readouterr().err
+    assert main([*argv, "--overwrite"]) == 0
+
+
+def test_the_simulation_is_seeded():
+    grid = OccupancyGrid(np.zeros((20, 30), dtype=np.int8), 0.1, (0.0, 0.0, 0.0))
+    a, b = (simulate_on_map(grid, seed=1) for _ in range(2))
+    c = simulate_on_map(grid, seed=2, tour=MapTour(images_per_room=4, utterances_per_room=1))
+    assert np.array_equal(a.house.observations.image_xy, b.house.observations.image_xy)
+    assert a.house.observations.utterances == b.house.observations.utterances
+    assert c.house.observations.num_images == 3 * 4 and a.room_category.size == 1
+
+
+def test_simulate_on_a_public_house_map(dataset_root, tmp_path, capsys):
+    map_yaml = dataset_root / "map" / "room1dk5.yaml"
+    argv = ["simulate", "--map", str(map_yaml), "--out", str(tmp_path), "--door-width", "2",
+            "--categories", "kitchen,bedroom,bathroom", "--name", "mine"]  # fmt: skip
+    assert main(argv) == 0
+    assert "3 rooms, 90 images" in capsys.readouterr().out
+    house = load_house(tmp_path / "mine")
+    assert house.grid == load_map(map_yaml)
+    assert house.truth.shape == house.grid.shape and set(np.unique(house.truth)) == {-1, 0, 1, 2}
+    _check_on_free_cells(house)
+
+
+def test_bad_maps_and_options_are_clear_errors(tmp_path, capsys):
+    out = str(tmp_path / "out")
+    missing = tmp_path / "missing.yaml"
+    assert main(["simulate", "--map", str(missing), "--out", out]) == 2
+    assert f"{missing}: map yaml not found" in capsys.readouterr().err
+
+    yaml_path, _ = three_rooms(tmp_path)
+    text = yaml_path.read_text()
+    yaml_path.write_text(text.replace("resolution: 0.1", "resolution: -1"))
+    assert main(["simulate", "--map", str(yaml_path), "--out", out]) == 2
+    assert "key 'resolution' must be a positive finite number" in capsys.readouterr().err
+    yaml_path.write_text(text)
+
+    for extra, message in (
+        (["--min-room-area", "100"], "no room of at least 100 m^2"),
+        (["--categories", "Kitchen,bed"], "categories entries must be single lower-case tokens"),
+        (["--size", "40", "50"], "--size and --map exclude each other"),
+    ):
+        assert main(["simulate", "--map", str(yaml_path), "--out", out, *extra]) == 2
+        assert message in capsys.readouterr().err, extra
+    assert main(["simulate", "--out", out, "--categories", "kitchen"]) == 2
+    assert "--categories needs --map" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+    tiny = OccupancyGrid(np.zeros((4, 4), dtype=np.int8), 0.1, (0.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match="too small"):
+        simulate_on_map(tiny)

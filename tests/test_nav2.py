@@ -1,0 +1,254 @@
+"""`spcopyro export --nav2`: costmap-filter masks in Nav2's conventions, read back through the
+package's own map_server loader (:func:`spcopyro.maps.load_filter_mask`, which decodes a mask
+as nav2_map_server's map_io does)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import yaml
+
+from spcopyro.cli import main
+from spcopyro.config import SpCoConfig
+from spcopyro.maps import (
+    FREE,
+    OCCUPIED,
+    UNKNOWN,
+    OccupancyGrid,
+    load_filter_mask,
+    load_map,
+    save_filter_mask,
+)
+from spcopyro.nav2 import export_nav2, speed_percent
+from spcopyro.results import EmissionTable, SpCoResult, Trace
+from spcopyro.uncertainty import where_probability
+
+WORDS = ("kitchen", "bed", "sofa")
+H, W = 13, 20
+
+
+def top_and_bottom() -> SpCoResult:
+    """A 13 x 20 map at 0.05 m, origin (1.5, -2.0): a wall on row 6, an unknown column 0.
+    Concept 0 (kitchen words) labels the top room, concept 1 (bed words) the bottom one; the
+    marginals make p(C_i = 0) grow from left to right in each room, so the probability of the
+    kitchen's place varies over the cells."""
+    occupancy = np.full((H, W), FREE, dtype=np.int8)
+    occupancy[6, :] = OCCUPIED
+    occupancy[:, 0] = UNKNOWN
+    grid = OccupancyGrid(occupancy=occupancy, resolution=0.05, origin=(1.5, -2.0, 0.0))
+    image = np.full(grid.shape, -1)
+    image[:6] = 0
+    image[7:] = 1
+    labels = image[grid.free]  # [N]
+    rows, cols = np.nonzero(grid.free)  # free cells in raster (free_index) order
+    lean = 0.5 + 0.45 * cols / (W - 1)  # [N] weight of the cell's own concept
+    marginals = np.zeros((grid.num_free, 2))  # [N, L]
+    marginals[np.arange(grid.num_free), labels] = lean
+    marginals[np.arange(grid.num_free), 1 - labels] = 1 - lean
+    w = np.array([[0.7, 0.1, 0.2], [0.1, 0.7, 0.2]])  # [L, V]
+    return SpCoResult(
+        grid=grid,
+        config=SpCoConfig(num_concepts=2, prior="dirichlet"),
+        labels=labels,
+        pi=np.full(2, 0.5),
+        emissions=(
+            EmissionTable("images", ("0", "1"), np.full((2, 2), 0.5)),
+            EmissionTable("words", WORDS, w),
+        ),
+        trace=Trace(objective=np.zeros(1), num_concepts=np.array([2]), seconds=np.zeros(1)),
+        best_iteration=0,
+        marginals=marginals,
+    )
+
+
+@pytest.fixture
+def fit(tmp_path):
+    return top_and_bottom().save(tmp_path / "fit")
+
+
+def _read_yaml(path):
+    return yaml.safe_load(path.read_text())
+
+
+def test_keepout_mask_is_the_where_answer_in_nav2_conventions(fit, tmp_path, capsys):
+    out = tmp_path / "nav2"
+    assert main(["export", str(fit), "--nav2", str(out), "--word", "kitchen", "Bed"]) == 0
+    assert (
+        "keepout mask for 'kitchen' (concept 0): 114 of 228 free cells" in capsys.readouterr().out
+    )
+    result = SpCoResult.load(fit)
+
+    doc = _read_yaml(out / "keepout_kitchen.yaml")
+    assert doc == {
+        "image": "keepout_kitchen.pgm",
+        "resolution": 0.05,
+        "origin": [1.5, -2.0, 0.0],
+        "negate": 0,
+        "occupied_thresh": 1.0,
+        "free_thresh": 0.0,
+        "mode": "scale",
+    }
+    mask = load_filter_mask(out / "keepout_kitchen.yaml")
+    assert mask.mode == "scale" and mask.values.shape == (H, W)
+    assert (mask.resolution, mask.origin) == (result.grid.resolution, result.grid.origin)
+    assert set(np.unique(mask.values)) == {0, 100}
+    # The occupied (lethal) cells are exactly the where-answer's region, the TOP room: the
+    # image's first row is the map's top (largest world y).
+    assert np.array_equal(mask.values == 100, result.where("kitchen").region)
+    assert (mask.values[:6, 1:] == 100).all() and (mask.values[6:] == 0).all()
+    top_row, _ = result.grid.world_to_cell(np.array([[1.5 + 0.3, -2.0 + 12.5 * 0.05]]))[0]
+    assert top_row == 0 and mask.values[top_row, 5] == 100
+    bed = load_filter_mask(out / "keepout_bed.yaml").values
+    assert np.array_equal(bed == 100, result.where("bed").region) and bed[7:, 1:].all()
+    assert load_map(out / "map.yaml") == result.grid  # the map the masks lie on
+
+    params = _read_yaml(out / "keepout_kitchen_params.yaml")
+    info = params["keepout_kitchen_filter_info_server"]["ros__parameters"]
+    server = params["keepout_kitchen_mask_server"]["ros__parameters"]
+    assert info == {"type": 0, "filter_info_topic": "/keepout_kitchen_filter_info",
+                    "mask_topic": "/keepout_kitchen_filter_mask", "base": 0.0,
+                    "multiplier": 1.0}  # fmt: skip
+    assert server["topic_name"] == info["mask_topic"] and server["frame_id"] == "map"
+    assert server["yaml_filename"] == str((out / "keepout_kitchen.yaml").resolve())
+    costmaps = _read_yaml(out / "costmap_filters.yaml")
+    for costmap in ("global_costmap", "local_costmap"):
+        ros = costmaps[costmap][costmap]["ros__parameters"]
+        assert ros["filters"] == ["keepout_kitchen_filter", "keepout_bed_filter"]
+        assert ros["keepout_kitchen_filter"] == {
+            "plugin": "nav2_costmap_2d::KeepoutFilter", "enabled": True,
+            "filter_info_topic": info["filter_info_topic"]}  # fmt: skip
+    summary = json.loads((out / "nav2_export.json").read_text())
+    assert [m["word"] for m in summary["masks"]] == ["kitchen", "bed"]
+
+
+def test_keepout_with_a_probability_threshold(fit, tmp_path):
+    result = SpCoResult.load(fit)
+    export = export_nav2(result, tmp_path / "nav2", ["kitchen"], threshold=0.6)
+    values = load_filter_mask(export.masks[0].mask_yaml).values
+    probability = where_probability(result, "kitchen")  # [N]
+    assert np.array_equal(values[result.grid.free] == 100, probability >= 0.6)
+    assert (values[~result.grid.free] == 0).all()
+    assert 0 < export.masks[0].cells < 114  # part of the top room only
+
+
+def test_speed_mask_decodes_to_a_limit_falling_with_the_probability(fit, tmp_path):
+    out = tmp_path / "speed"
+    assert main(["export", str(fit), "--nav2", str(out), "--word", "kitchen", "--mode", "speed",
+                 "--min-speed", "20", "--max-speed", "90"]) == 0  # fmt: skip
+    result = SpCoResult.load(fit)
+    params = _read_yaml(out / "speed_kitchen_params.yaml")
+    info = params["speed_kitchen_filter_info_server"]["ros__parameters"]
+    assert (info["type"], info["base"], info["multiplier"]) == (1, 100.0, -1.0)
+    costmaps = _read_yaml(out / "costmap_filters.yaml")
+    assert "local_costmap" not in costmaps  # Nav2: a speed filter in one costmap only
+    plugin = costmaps["global_costmap"]["global_costmap"]["ros__parameters"]["speed_kitchen_filter"]
+    assert plugin["plugin"] == "nav2_costmap_2d::SpeedFilter"
+
+    mask = load_filter_mask(out / "speed_kitchen.yaml")
+    assert (mask.resolution, mask.origin) == (0.05, (1.5, -2.0, 0.0))
+    values = mask.values[result.grid.free].astype(float)  # [N]
+    assert ((0 <= mask.values) & (mask.values <= 100)).all()
+    assert (mask.values[~result.grid.free] == 0).all()  # off free space: no limit
+    # SpeedFilter: 0 = no limit, else limit = base + multiplier * value (percent).
+    limit = np.where(values == 0, 100.0, info["base"] + info["multiplier"] * values)  # [N]
+    probability = where_probability(result, "kitchen")  # [N]
+    assert np.array_equal(limit, np.rint(90 - 70 * probability))
+    assert ((20 <= limit) & (limit <= 90)).all() and len(np.unique(limit)) > 10
+    order = np.argsort(probability, kind="stable")
+    assert (np.diff(limit[order]) <= 0).all()  # monotone: more probable, slower
+    assert speed_percent(np.array([0.0, 1.0]), 0.0, 100.0).tolist() == [100.0, 0.0]
+
+
+def test_every_mask_value_reads_back_exactly(tmp_path):
+    grid = OccupancyGrid(np.zeros((11, 11), dtype=np.int8), 0.1, (0.0, 0.0, 0.0))
+    values = np.append(np.arange(101), [0] * 20).reshape(11, 11)
+    mask = load_filter_mask(save_filter_mask(values, grid, tmp_path / "m.yaml"))
+    assert np.array_equal(mask.values, values)
+    with pytest.raises(ValueError, match="0..100"):
+        save_filter_mask(values + 1, grid, tmp_path / "bad.yaml")
+
+
+def test_load_filter_mask_decodes_like_nav2_map_server(tmp_path):
+    """Hand-computed cells of map_io.cpp's three modes (occ = 1 - v / 255, negate 0)."""
+    pixels = np.array([[0, 64, 128, 200, 255]], dtype=np.uint8)
+    grid = OccupancyGrid(np.zeros((1, 5), dtype=np.int8), 0.1, (0.0, 0.0, 0.0))
+    save_filter_mask(np.zeros((1, 5), dtype=int), grid, tmp_path / "m.yaml")
+    import cv2
+
+    cv2.imwrite(str(tmp_path / "m.pgm"), pixels)
+    text = (tmp_path / "m.yaml").read_text()
+    expected = {  # occ = 1.0, 0.749, 0.498, 0.216, 0.0
+        "scale": [100, 100, 62, 0, 0],  # thresholds 0.25 / 0.65: rint((occ-.25)/.4*100)
+        "trinary": [100, 100, -1, 0, 0],
+        "raw": [0, 64, -1, -1, -1],  # the byte itself when <= 100
+    }
+    for mode, cells in expected.items():
+        (tmp_path / "m.yaml").write_text(
+            text.replace("mode: scale", f"mode: {mode}")
+            .replace("occupied_thresh: 1.0", "occupied_thresh: 0.65")
+            .replace("free_thresh: 0.0", "free_thresh: 0.25")
+        )
+        assert load_filter_mask(tmp_path / "m.yaml").values.tolist() == [cells], mode
+
+
+def test_unknown_word_is_a_clear_error_and_writes_nothing(fit, tmp_path, capsys):
+    out = tmp_path / "nav2"
+    assert main(["export", str(fit), "--nav2", str(out), "--word", "kitchn"]) == 2
+    assert "'kitchn' is not in the vocabulary of 3 words; did you mean kitchen?" in (
+        capsys.readouterr().err
+    )
+    assert not out.exists() and list(tmp_path.iterdir()) == [fit]
+    assert main(["export", str(fit), "--nav2", str(out), "--word", "garage"]) == 2
+    assert "known words: bed, kitchen, sofa" in capsys.readouterr().err
+
+
+def test_an_existing_folder_needs_overwrite(fit, tmp_path, capsys):
+    out = tmp_path / "nav2"
+    assert main(["export", str(fit), "--nav2", str(out), "--word", "kitchen"]) == 0
+    before = sorted(p.name for p in out.iterdir())
+    assert main(["export", str(fit), "--nav2", str(out), "--word", "bed"]) == 2
+    assert "exists and is not empty; pass --overwrite" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == before
+    assert main(["export", str(fit), "--nav2", str(out), "--word", "bed", "--overwrite"]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert "keepout_bed.yaml" in names and "keepout_kitchen.yaml" not in names  # replaced whole
+    assert not [p for p in tmp_path.iterdir() if ".partial-" in p.name]
+
+    other = tmp_path / "mine"
+    other.mkdir()
+    (other / "notes.txt").write_text("keep me")
+    assert main(["export", str(fit), "--nav2", str(other), "--overwrite"]) == 2
+    assert "no Nav2 export wrote" in capsys.readouterr().err
+    assert (other / "notes.txt").read_text() == "keep me"
+
+
+def test_bad_options_are_refused(fit, tmp_path, capsys):
+    out = str(tmp_path / "n")
+    assert main(["export", str(fit), "--nav2", out, "--word", "bed", "--mode", "speed",
+                 "--threshold", "0.5"]) == 2  # fmt: skip
+    assert "--threshold applies to --mode keepout only" in capsys.readouterr().err
+    assert main(["export", str(fit), "--nav2", out, "--mode", "speed", "--min-speed", "80",
+                 "--max-speed", "50"]) == 2  # fmt: skip
+    with pytest.raises(SystemExit):
+        main(["export", str(fit), "--nav2", out, "--threshold", "1.5"])
+    assert not (tmp_path / "n").exists()
+
+
+@pytest.mark.slow
+def test_simulate_fit_export_end_to_end(tmp_path, capsys):
+    """Your floor plan -> simulated tour -> fit -> keepout mask on that floor plan (~10 s)."""
+    from test_map_simulation import three_rooms
+
+    plan, grid = three_rooms(tmp_path)
+    assert main(["simulate", "--map", str(plan), "--out", str(tmp_path / "data")]) == 0
+    fit = ["fit", str(tmp_path / "data" / "flat"), "--sweeps", "20", "--backend", "torch",
+           "--preset", "original-code", "--gamma", "3", "--out", str(tmp_path / "fit")]  # fmt: skip
+    assert main(fit) == 0
+    out = tmp_path / "nav2"
+    assert main(["export", str(tmp_path / "fit"), "--nav2", str(out), "--word", "kitchen"]) == 0
+    mask = load_filter_mask(out / "keepout_kitchen.yaml")
+    assert (mask.resolution, mask.origin, mask.values.shape) == (0.1, (-2.0, 1.0, 0.0), grid.shape)
+    region = SpCoResult.load(tmp_path / "fit").where("kitchen").region
+    assert region.any() and np.array_equal(mask.values == 100, region)

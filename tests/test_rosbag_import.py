@@ -1,0 +1,431 @@
+"""``spcopyro import-bag`` (spcopyro/rosbag/): small bags of ROS 1 and ROS 2 (sqlite3, mcap)
+written with rosbags' writers, imported and read back with the real loaders.
+
+Checks: poses interpolated at known stamps (linear x, y; yaw the short way round 180 deg), tf
+chains composed (dynamic, static, inverted edges), images decoded equal, words kept (sentences
+tokenised), thinning by distance and time, skipped observations reported (skipped.csv, never
+dropped silently), every error case (missing topic, unknown type, stamps going backwards, pose
+outside the map, not a bag, no tf chain, existing output), the synthetic bags of the synthetic
+house, and import -> features -> load_house -> fit.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip install .[ros])")
+
+from spcopyro.cli import main  # noqa: E402
+from spcopyro.data import load_house  # noqa: E402
+from spcopyro.maps.grid import FREE, OccupancyGrid  # noqa: E402
+from spcopyro.maps.map_server import save_map  # noqa: E402
+from spcopyro.rosbag import (  # noqa: E402
+    BagContentError,
+    BagFormatError,
+    BagWriter,
+    ImportOptions,
+    PoseOutsideMapError,
+    RosbagsMissingError,
+    import_bags,
+    write_synthetic_bags,
+)
+from spcopyro.rosbag.poses import PoseTrack, compose, wrap_angle  # noqa: E402
+
+T0 = 1_600_000_000.0
+FORMATS = [(1, "sqlite3"), (2, "sqlite3"), (2, "mcap")]
+FORMAT_IDS = ["ros1", "ros2-sqlite3", "ros2-mcap"]
+
+
+@pytest.fixture
+def map_yaml(tmp_path: Path) -> Path:
+    """A 60 x 60 free map at 0.1 m, origin (-3, -3): x, y in [-3, 3) m."""
+    grid = OccupancyGrid(np.full((60, 60), FREE, dtype=np.int8), 0.1, (-3.0, -3.0, 0.0))
+    return save_map(grid, tmp_path / "maps" / "floor.yaml")
+
+
+def _bag_path(tmp_path: Path, ros: int, name: str = "rec") -> Path:
+    return tmp_path / (f"{name}.bag" if ros == 1 else name)
+
+
+def _image(seed: int) -> np.ndarray:
+    return np.random.default_rng(seed).integers(0, 256, size=(6, 8, 3), dtype=np.uint8)
+
+
+def _trajectory(t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pose samples: x = 0.5 s, y = 0.25 s (s = t - T0), yaw 170 deg then -170 deg, ..."""
+    s = t - T0
+    yaw = np.deg2rad(np.where(np.arange(t.size) % 2 == 0, 170.0, -170.0))
+    return 0.5 * s, 0.25 * s, yaw
+
+
+def _write_basic(path: Path, ros: int, storage: str, image_format: str = "raw") -> dict:
+    """Poses at 1 Hz over 0..4 s; images at 0.5, 1.25, 2.75 and 9 s (no pose: skipped);
+    utterances at 1.5 s (a sentence), 3 s ('') and 20 s (no pose)."""
+    pose_t = T0 + np.arange(5.0)  # [5]
+    x, y, yaw = _trajectory(pose_t)
+    image_t = T0 + np.array([0.5, 1.25, 2.75, 9.0])
+    images = [_image(i) for i in range(image_t.size)]
+    with BagWriter(path, ros=ros, storage=storage) as w:
+        for i, t in enumerate(pose_t.tolist()):
+            w.pose("/amcl_pose", t, x[i], y[i], yaw[i])
+        for t, rgb in zip(image_t.tolist(), images, strict=True):
+            w.image("/camera/image", t, rgb, image_format)
+        w.text("/speech", T0 + 1.5, "Here is the Kitchen, near the sink!")
+        w.text("/speech", T0 + 3.0, "  ...  ")
+        w.text("/speech", T0 + 20.0, "bedroom")
+    return {"pose_t": pose_t, "image_t": image_t, "images": images}
+
+
+def test_pose_track_interpolation_and_composition():
+    track = PoseTrack("p", [0.0, 1.0, 3.0], [[0, 0], [1, 2], [3, 2]], np.deg2rad([170, -170, 0]))
+    xy, yaw = track.at(np.array([0.5, 2.0, -1.0, 5.0]))
+    assert np.allclose(xy, [[0.5, 1.0], [2.0, 2.0], [0, 0], [3, 2]])
+    # 170 deg -> -170 deg turns 20 deg through 180, not 340 deg through 0.
+    assert np.isclose(abs(np.rad2deg(yaw[0])), 180.0)
+    assert np.isclose(np.rad2deg(yaw[1]), -85.0)
+    assert np.allclose(track.gap(np.array([0.4, 2.2, 4.5])), [0.4, 0.8, 1.5])
+    # A track composed with its inverse is the identity; the tolerance names the track.
+    xy, yaw, ok, reasons = compose([track, track.inverse()], np.array([0.25, 2.5, 10.0]), 1.0)
+    assert np.allclose(xy, 0.0, atol=1e-12) and np.allclose(wrap_angle(yaw), 0.0, atol=1e-12)
+    assert ok.tolist() == [True, True, False] and "no pose of p within 1 s" in reasons[2]
+    with pytest.raises(ValueError, match="not strictly increasing"):
+        PoseTrack("q", [0.0, 0.0], [[0, 0], [1, 1]], [0, 0])
+
+
+@pytest.mark.parametrize(("ros", "storage"), FORMATS, ids=FORMAT_IDS)
+def test_round_trip(tmp_path, map_yaml, ros, storage):
+    bag = _bag_path(tmp_path, ros)
+    written = _write_basic(bag, ros, storage)
+    out = tmp_path / "data" / "house"
+    report = import_bags([bag], map_yaml, out, ImportOptions(pose_tolerance=0.6))
+    # Poses: linear in x, y between the samples at 0, 1, 2, 3 s.
+    x = np.loadtxt(out / "Xtx.csv", ndmin=1)
+    y = np.loadtxt(out / "Xty.csv", ndmin=1)
+    s = written["image_t"][:3] - T0
+    assert np.allclose(x, 0.5 * s, atol=1e-9) and np.allclose(y, 0.25 * s, atol=1e-9)
+    pose = np.loadtxt(out / "pose_0.csv", delimiter=",", ndmin=2)  # x, y, qz, qw
+    yaw = np.rad2deg(2 * np.arctan2(pose[:, 2], pose[:, 3]))
+    # Yaw the short way round: 170 -> -170 deg halfway is 180 deg; -170 -> 170 deg a quarter
+    # of the way (1.25 s) is -175 deg, 170 -> -170 deg three quarters (2.75 s) is -175 deg.
+    assert np.allclose(np.abs(yaw[0]), 180.0) and np.allclose(yaw[1:], [-175.0, -175.0])
+    # Images decoded equal (raw -> lossless PNG); the one without a pose is not written.
+    files = sorted((out / "img_0").iterdir())
+    assert [f.name for f in files] == ["00001.png", "00002.png", "00003.png"]
+    for f, rgb in zip(files, written["images"][:3], strict=True):
+        assert np.array_equal(cv2.cvtColor(cv2.imread(str(f)), cv2.COLOR_BGR2RGB), rgb)
+    # Words: the sentence tokenised (comma and punctuation gone), the empty one reported.
+    assert (out / "word_0.csv").read_text().splitlines() == ["here is the kitchen near the sink"]
+    assert np.loadtxt(out / "StXtx.csv", ndmin=1) == pytest.approx([0.75])
+    # Skipped: the image at 9 s, the empty utterance, the utterance at 20 s.
+    with (out / "skipped.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert [r["kind"] for r in rows] == ["image", "utterance", "utterance"]
+    assert [float(r["stamp"]) - T0 for r in rows] == pytest.approx([9.0, 3.0, 20.0])
+    assert "no words" in rows[1]["reason"] and "'bedroom'" in rows[2]["reason"]
+    assert "no pose of /amcl_pose within 0.6 s (nearest 5.000 s away)" in rows[0]["reason"]
+    assert len(report.skipped) == 3 and report.trials[0]["images_kept"] == 3
+    # The real loader reads it once Ft.csv exists (the map beside it as the loaders expect).
+    assert (tmp_path / "data" / "map" / "house.yaml").is_file()
+    (out / "Ft.csv").write_text("0.5,0.5\n" * 3)
+    house = load_house(out)
+    assert house.observations.num_images == 3
+    assert house.observations.utterances == (
+        ("here", "is", "the", "kitchen", "near", "the", "sink"),
+    )
+    assert [p.name for p in house.observations.image_paths] == [f.name for f in files]
+    assert np.allclose(wrap_angle(house.observations.image_yaw - np.deg2rad(yaw)), 0.0)
+
+
+@pytest.mark.parametrize("image_format", ["jpeg", "png"])
+def test_compressed_images_stored_as_recorded(tmp_path, map_yaml, image_format):
+    bag = _bag_path(tmp_path, 2)
+    written = _write_basic(bag, 2, "mcap", image_format)
+    out = tmp_path / "data" / "house"
+    import_bags([bag], map_yaml, out, ImportOptions(image_topic="/camera/image"))
+    suffix = ".jpg" if image_format == "jpeg" else ".png"
+    files = sorted((out / "img_0").iterdir())
+    assert [f.suffix for f in files] == [suffix] * 3
+    for f, rgb in zip(files, written["images"][:3], strict=True):
+        ok, data = cv2.imencode(f".{image_format}", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+        assert f.read_bytes() == data.tobytes()  # the recorded bytes, not re-encoded
+
+
+@pytest.mark.parametrize(("ros", "storage"), FORMATS[:2], ids=FORMAT_IDS[:2])
+def test_tf_chain(tmp_path, map_yaml, ros, storage):
+    """map -> odom (1 Hz, x 1 m, yaw 90 deg), odom -> base_link (10 Hz, x = s), static
+    base_link -> camera_link (x 0.1): camera_link in map is (1, s + 0.1) facing 90 deg."""
+    bag = _bag_path(tmp_path, ros)
+    with BagWriter(bag, ros=ros, storage=storage) as w:
+        for t in T0 + np.arange(0.0, 4.01, 1.0):
+            w.tf(t, [("map", "odom", 1.0, 0.0, np.pi / 2)])
+        for t in T0 + np.arange(0.0, 4.01, 0.1):
+            w.tf(t, [("odom", "base_link", t - T0, 0.0, 0.0)])
+        w.tf(T0, [("base_link", "camera_link", 0.1, 0.0, 0.0)], static=True)
+        w.image("/camera/image", T0 + 1.55, _image(0))
+        w.image("/camera/image", T0 + 2.0, _image(1))
+        w.text("/speech", T0 + 1.0, "kitchen")
+    out = tmp_path / "data" / "house"
+    import_bags([bag], map_yaml, out, ImportOptions(pose_tf=("map", "camera_link")))
+    pose = np.loadtxt(out / "pose_0.csv", delimiter=",", ndmin=2)
+    assert np.allclose(pose[:, :2], [[1.0, 1.65], [1.0, 2.1]], atol=1e-9)
+    assert np.allclose(2 * np.arctan2(pose[:, 2], pose[:, 3]), np.pi / 2)
+    # The inverse direction: odom in base_link frame walks the edges backwards.
+    out2 = tmp_path / "data" / "inverse"
+    import_bags([bag], map_yaml, out2, ImportOptions(pose_tf=("base_link", "odom")))
+    assert np.allclose(np.loadtxt(out2 / "Xtx.csv"), [-1.55, -2.0], atol=1e-9)
+    with pytest.raises(BagContentError, match="no chain of tf transforms from frame 'map' to "
+                       "'laser'.*odom -> base_link"):  # fmt: skip
+        import_bags([bag], map_yaml, tmp_path / "x" / "h", ImportOptions(pose_tf=("map", "laser")))
+
+
+@pytest.mark.parametrize("kind", ["odom", "pose"])
+def test_odometry_and_pose_stamped(tmp_path, map_yaml, kind):
+    bag = _bag_path(tmp_path, 1)
+    with BagWriter(bag, ros=1) as w:
+        for t in T0 + np.arange(3.0):
+            w.pose("/odom", t, t - T0, 0.0, 0.0, kind=kind, frame="odom")
+        w.image("/camera/image", T0 + 0.5, _image(0))
+        w.text("/speech", T0 + 1.5, "sofa")
+    out = tmp_path / "data" / "house"
+    import_bags([bag], map_yaml, out, ImportOptions(pose_topic="/odom"))
+    assert np.loadtxt(out / "Xtx.csv", ndmin=1) == pytest.approx([0.5])
+    assert np.loadtxt(out / "StXtx.csv", ndmin=1) == pytest.approx([1.5])
+
+
+def test_min_distance_and_interval(tmp_path, map_yaml):
+    """Poses x = 0.2 s; images every 0.5 s over 0..5 s, at x = 0, 0.1, ..., 1.0 m."""
+    bag = _bag_path(tmp_path, 2)
+    with BagWriter(bag, ros=2) as w:
+        for t in T0 + np.arange(6.0):
+            w.pose("/amcl_pose", t, 0.2 * (t - T0), 0.0, 0.0)
+        for t in T0 + np.arange(0.0, 5.01, 0.5):
+            w.image("/camera/image", t, _image(0))
+        w.text("/speech", T0, "hall")
+    runs = iter(range(10))
+
+    def kept(**options):
+        out = tmp_path / "data" / f"h{next(runs)}"
+        report = import_bags([bag], map_yaml, out, ImportOptions(**options))
+        return np.loadtxt(out / "Xtx.csv", ndmin=1), report.trials[0]
+
+    x, trial = kept()
+    assert x.size == 11 and trial["images_thinned"] == 0
+    x, trial = kept(min_distance=0.25)
+    assert np.allclose(x, [0.0, 0.3, 0.6, 0.9]) and trial["images_thinned"] == 7
+    # No silent loss: every image is kept, thinned or skipped.
+    assert trial["images_kept"] + trial["images_thinned"] + trial["images_no_pose"] == 11
+    x, _ = kept(min_interval=2.0)
+    assert np.allclose(x, [0.0, 0.4, 0.8])
+    x, _ = kept(min_interval=1.0, min_distance=0.35)  # both must hold
+    assert np.allclose(x, [0.0, 0.4, 0.8])
+    x, _ = kept(min_interval=1.0, min_distance=0.15)
+    assert np.allclose(x, [0.0, 0.2, 0.4, 0.6, 0.8, 1.0])
+
+
+def test_padded_mono_and_unstamped_images(tmp_path, map_yaml):
+    """Rows padded to ``step`` bytes, a mono8 image, a zero header stamp (-> the log time), and
+    an undecodable image (reported, not written)."""
+    bag = _bag_path(tmp_path, 2)
+    rgb = _image(3)  # [6, 8, 3]
+    grey = rgb[..., 0].copy()  # [6, 8]
+    with BagWriter(bag, ros=2) as w:
+        for t in T0 + np.arange(4.0):
+            w.pose("/amcl_pose", t, 0.5 * (t - T0), 0.0, 0.0)
+        image = w.types["sensor_msgs/msg/Image"]
+        padded = np.concatenate([rgb.reshape(6, 24), np.full((6, 4), 7, np.uint8)], axis=1)
+        w.write("/camera/image", "sensor_msgs/msg/Image", image(
+            header=w.header(T0 + 1.0, "cam"), height=6, width=8, encoding="rgb8",
+            is_bigendian=0, step=28, data=padded.reshape(-1)), log_time=T0 + 1.0)  # fmt: skip
+        w.write("/camera/image", "sensor_msgs/msg/Image", image(
+            header=w.header(0.0, "cam"), height=6, width=8, encoding="mono8",
+            is_bigendian=0, step=8, data=grey.reshape(-1)), log_time=T0 + 2.0)  # fmt: skip
+        w.write("/camera/image", "sensor_msgs/msg/Image", image(
+            header=w.header(T0 + 2.5, "cam"), height=6, width=8, encoding="rgb8",
+            is_bigendian=0, step=24, data=np.zeros(10, np.uint8)), log_time=T0 + 2.5)  # fmt: skip
+        w.text("/speech", T0 + 1.0, "hall")
+    out = tmp_path / "data" / "house"
+    report = import_bags([bag], map_yaml, out)
+    files = sorted((out / "img_0").iterdir())
+    assert len(files) == 2
+    assert np.array_equal(cv2.cvtColor(cv2.imread(str(files[0])), cv2.COLOR_BGR2RGB), rgb)
+    assert np.array_equal(cv2.imread(str(files[1]))[..., 0], grey)
+    assert np.allclose(np.loadtxt(out / "Xtx.csv"), [0.5, 1.0])  # the mono image at log 2 s
+    (skip,) = report.skipped
+    assert skip.kind == "image" and skip.stamp == pytest.approx(T0 + 2.5)
+    assert "not decodable" in skip.reason and "holds 10 bytes, expected 144" in skip.reason
+
+
+def test_missing_topic_lists_the_bags_topics(tmp_path, map_yaml):
+    bag = _bag_path(tmp_path, 2)
+    _write_basic(bag, 2, "sqlite3")
+    with pytest.raises(BagContentError) as error:
+        import_bags([bag], map_yaml, tmp_path / "d" / "h", ImportOptions(words_topic="/words"))
+    message = str(error.value)
+    assert "no utterance topic '/words'" in message
+    assert "/speech (std_msgs/msg/String)" in message
+    assert "/amcl_pose (geometry_msgs/msg/PoseWithCovarianceStamped)" in message
+    assert not (tmp_path / "d" / "h").exists() and not list((tmp_path / "d").glob(".h.partial*"))
+
+
+def test_unknown_message_type(tmp_path, map_yaml):
+    bag = _bag_path(tmp_path, 1)
+    with BagWriter(bag, ros=1) as w:
+        w.text("/amcl_pose", T0, "not a pose")
+    with pytest.raises(BagContentError, match="pose topic /amcl_pose has message type "
+                       "std_msgs/msg/String, which the import does not read"):  # fmt: skip
+        import_bags([bag], map_yaml, tmp_path / "d" / "h")
+
+
+@pytest.mark.parametrize(("ros", "storage"), FORMATS, ids=FORMAT_IDS)
+def test_timestamps_going_backwards(tmp_path, map_yaml, ros, storage):
+    bag = _bag_path(tmp_path, ros)
+    with BagWriter(bag, ros=ros, storage=storage) as w:
+        for t in T0 + np.arange(3.0):
+            w.pose("/amcl_pose", t, 0.0, 0.0, 0.0)
+        w.image("/camera/image", T0 + 1.5, _image(0), log_time=T0 + 1.0)
+        w.image("/camera/image", T0 + 1.25, _image(1), log_time=T0 + 2.0)  # stamp goes back
+        w.text("/speech", T0, "hall")
+    with pytest.raises(BagContentError, match=r"topic /camera/image: timestamps go backwards: "
+                       r"message 2 is stamped 1600000001\.250000000 s after message 1 at "
+                       r"1600000001\.500000000 s"):  # fmt: skip
+        import_bags([bag], map_yaml, tmp_path / "d" / "h")
+
+
+def test_pose_outside_the_map(tmp_path, map_yaml):
+    bag = _bag_path(tmp_path, 2)
+    with BagWriter(bag, ros=2) as w:
+        for t in T0 + np.arange(3.0):
+            w.pose("/amcl_pose", t, 5.0 * (t - T0), 0.0, 0.0)  # x 0, 5, 10: the map ends at 3
+        w.image("/camera/image", T0 + 0.1, _image(0))
+        w.image("/camera/image", T0 + 1.0, _image(1))
+        w.text("/speech", T0, "hall")
+    with pytest.raises(PoseOutsideMapError, match=r"image on /camera/image at 1600000001\.0+ s "
+                       r"has pose x=5\.000, y=0\.000 m, outside the map .*floor\.yaml "
+                       r"\(x -3\.00\.\.3\.00, y -3\.00\.\.3\.00 m\)"):  # fmt: skip
+        import_bags([bag], map_yaml, tmp_path / "d" / "h")
+
+
+def test_not_a_bag(tmp_path, map_yaml):
+    junk = tmp_path / "junk.bag"
+    junk.write_bytes(b"this is not a bag" * 10)
+    with pytest.raises(BagFormatError, match=r"junk\.bag: not a readable bag"):
+        import_bags([junk], map_yaml, tmp_path / "d" / "h")
+    text = tmp_path / "notes.txt"
+    text.write_text("hello")
+    with pytest.raises(BagFormatError, match=r"notes\.txt: not a bag"):
+        import_bags([text], map_yaml, tmp_path / "d" / "h")
+    with pytest.raises(BagFormatError, match="folder with metadata.yaml"):
+        import_bags([tmp_path / "maps"], map_yaml, tmp_path / "d" / "h")
+    with pytest.raises(FileNotFoundError, match="bag not found"):
+        import_bags([tmp_path / "nothing.bag"], map_yaml, tmp_path / "d" / "h")
+
+
+def test_existing_output_and_overwrite(tmp_path, map_yaml):
+    bag = _bag_path(tmp_path, 2)
+    _write_basic(bag, 2, "sqlite3")
+    out = tmp_path / "data" / "house"
+    import_bags([bag], map_yaml, out)
+    with pytest.raises(FileExistsError, match="pass --overwrite"):
+        import_bags([bag], map_yaml, out)
+    import_bags([bag, bag], map_yaml, out, overwrite=True, first_trial=1)  # two trials
+    assert sorted(p.name for p in out.glob("pose_*.csv")) == ["pose_1.csv", "pose_2.csv"]
+    assert json.loads((out / "bag_import.json").read_text())["first_trial"] == 1
+    other = tmp_path / "data" / "mine"
+    other.mkdir()
+    (other / "notes.txt").write_text("keep me")
+    with pytest.raises(FileExistsError, match="not written by import-bag"):
+        import_bags([bag], map_yaml, other, overwrite=True)
+    assert (other / "notes.txt").read_text() == "keep me"
+
+
+def test_rosbags_missing_is_a_clear_error(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "rosbags", None)
+    monkeypatch.setitem(sys.modules, "rosbags.highlevel", None)
+    with pytest.raises(RosbagsMissingError, match=r'pip install "spcopyro\[ros\]"'):
+        import_bags([tmp_path / "x.bag"], tmp_path / "m.yaml", tmp_path / "d" / "h")
+    # and importing spcopyro and its rosbag commands works without rosbags (blocked here)
+    code = "import sys; sys.modules['rosbags'] = None; import spcopyro, spcopyro.rosbag.cli"
+    assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
+
+
+@pytest.mark.parametrize(("ros", "storage"), FORMATS, ids=FORMAT_IDS)
+def test_synthetic_bags_round_trip(tmp_path, ros, storage):
+    """The synthetic house recorded and imported: positions, yaws and words come back."""
+    from spcopyro.config import preset
+    from spcopyro.fit import fit_house
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    spec = HouseSpec.scaled(30, 40, images_per_room_per_trial=3, utterances_per_room_per_trial=2,
+                            num_trials=2, sentence_fraction=0.5)  # fmt: skip
+    house = make_house(seed=1, spec=spec)
+    bags = write_synthetic_bags(tmp_path / "bags", house=house, ros=ros, storage=storage,
+                                image_format="png", image_size=(12, 16))  # fmt: skip
+    out = tmp_path / "data" / "house"
+    import_bags(bags.bags, bags.map_yaml, out, ImportOptions(image_topic=bags.image_topic))
+    obs = house.observations
+    assert np.allclose(np.loadtxt(out / "Xtx.csv"), obs.image_xy[:, 0], atol=1e-9)
+    assert np.allclose(np.loadtxt(out / "StXty.csv"), obs.word_xy[:, 1], atol=1e-9)
+    # With the house's own features, the imported house is the house: the same fit, bit for bit.
+    rows = (",".join(repr(float(v)) for v in row) for row in obs.image_features)
+    (out / "Ft.csv").write_text("\n".join(rows) + "\n")
+    imported = load_house(out)
+    loaded = imported.observations
+    assert loaded.utterances == obs.utterances
+    assert np.array_equal(loaded.word_trial, obs.word_trial)
+    assert np.array_equal(loaded.image_trial, obs.image_trial)
+    assert np.allclose(wrap_angle(loaded.image_yaw - obs.image_yaw), 0.0, atol=1e-9)
+    settings = preset("original-code", gamma=3.0, num_concepts=6)
+    fits = [fit_house(h, settings, sweeps=3, seed=2, progress=False) for h in (house, imported)]
+    assert np.array_equal(fits[0].label_image(), fits[1].label_image())
+    # tf (map -> odom -> base_link) gives the same poses as /amcl_pose.
+    via_tf = tmp_path / "data" / "tf"
+    options = ImportOptions(image_topic=bags.image_topic, pose_tf=("map", "base_link"))
+    import_bags(bags.bags, bags.map_yaml, via_tf, options)
+    assert np.allclose(np.loadtxt(via_tf / "Xty.csv"), obs.image_xy[:, 1], atol=1e-9)
+    # Images of rooms of different categories differ in colour.
+    cells = house.grid.world_to_cell(obs.image_xy)
+    category = house.truth[cells[:, 0], cells[:, 1]]
+    hue = [cv2.cvtColor(cv2.imread(str(p)), cv2.COLOR_BGR2HSV)[..., 0].mean()
+           for p in loaded.image_paths]  # fmt: skip
+    for c in np.unique(category):
+        assert np.ptp(np.asarray(hue)[category == c]) < 3
+    assert len({round(h) for h in hue}) >= min(3, len(np.unique(category)))
+
+
+def test_cli_simulate_import_features_fit(tmp_path, capsys):
+    """The README walkthrough, small: simulate-bag -> import-bag -> features -> load -> fit."""
+    from spcopyro.config import preset
+    from spcopyro.features.extract import extract_to_csv
+    from spcopyro.fit import fit_house
+
+    code = main(["simulate-bag", "--out", str(tmp_path / "bags"), "--ros", "1",
+                 "--image-size", "16", "20", "--trials", "0"])  # fmt: skip
+    assert code == 0
+    bags = sorted(str(p) for p in (tmp_path / "bags").glob("trial_*.bag"))
+    assert len(bags) == 1
+    out = tmp_path / "data" / "house"
+    code = main(["import-bag", *bags[:1], "--map", str(tmp_path / "bags" / "map.yaml"),
+                 "--image-topic", "/camera/image/compressed", "--min-distance", "1.0",
+                 "--out", str(out)])  # fmt: skip
+    assert code == 0
+    printed = capsys.readouterr().out
+    assert "thinned by --min-distance" in printed and f"spcopyro features {out}" in printed
+    extract_to_csv(out, out / "Ft.csv", weights="random", progress=False, batch_size=8)
+    house = load_house(out)
+    assert house.observations.num_images == len(list((out / "img_0").iterdir())) > 3
+    result = fit_house(house, preset("original-code", gamma=3.0, num_concepts=6), sweeps=3,
+                       progress=False)  # fmt: skip
+    assert result.label_image().shape == house.grid.shape
+    # A CLI error is one line and exit code 2.
+    code = main(["import-bag", *bags[:1], "--map", str(tmp_path / "bags" / "map.yaml"),
+                 "--out", str(out)])  # fmt: skip
+    assert code == 2
+    assert "already exists" in capsys.readouterr().err

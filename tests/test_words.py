@@ -1,0 +1,215 @@
+"""Word lists a person can read: posterior means of w (not one draw), the lift of a word for a
+concept, "no words heard here", the new keys of concepts.json, and the words on the figures."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+from hand_results import WORDS, two_rooms
+from matplotlib.collections import PathCollection
+from matplotlib.contour import ContourSet
+
+from spcopyro.cli_fit import print_concepts
+from spcopyro.concept_words import NO_WORDS, distinctive_items, format_concept_words, lift
+from spcopyro.config import preset
+from spcopyro.data import Observations
+from spcopyro.figures_map import region_text, utterance_concepts
+from spcopyro.fit import fit_house, prepare_model_data
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.gibbs.sweep import sample_globals
+from spcopyro.plotting import (
+    ANSWER_RGB,
+    GREY_FREE_RGB,
+    RUNNER_UP_RGB,
+    semantic_map_figure,
+    where_figure,
+    where_image,
+)
+from spcopyro.posterior_means import concept_totals, posterior_means
+from spcopyro.results import SpCoResult
+from spcopyro.synthetic import HouseSpec, make_house
+
+
+@pytest.fixture(scope="module")
+def small_house():
+    return make_house(seed=3, spec=HouseSpec(height=40, width=50, num_rooms=3, num_trials=1))
+
+
+def _prepared(house, **overrides):
+    settings = preset("original-code", num_concepts=5, **overrides)
+    _, data = prepare_model_data(house, settings)
+    return data, settings.model
+
+
+def test_posterior_mean_equals_the_average_of_the_samplers_draws(small_house):
+    """E[w_l | C, x] = (beta + n_lv) / (V beta + n_l) (and likewise theta, pi) against the mean
+    of 800 conjugate draws of the sampler's global update (eqs. 14-17) with the labels fixed:
+    every entry within 5 Monte Carlo standard errors."""
+    data, config = _prepared(small_house, beta=0.5, chi=2.0)
+    generator = torch.Generator().manual_seed(0)
+    labels = torch.randint(0, 4, (data.num_free,), generator=generator)  # [N], concept 4 empty
+    pi, (theta, w) = posterior_means(labels, data, config)
+    draws = 800
+    tables = [np.zeros_like(pi), np.zeros_like(theta), np.zeros_like(w)]
+    squares = [np.zeros_like(t) for t in tables]
+    for _ in range(draws):
+        log_pi, (log_theta, log_w) = sample_globals(labels, data, config, generator)
+        for k, value in enumerate((log_pi.exp(), log_theta.exp(), log_w.exp())):
+            tables[k] += value.numpy()
+            squares[k] += value.numpy() ** 2
+    for mean, total, square in zip((pi, theta, w), tables, squares, strict=True):
+        average = total / draws
+        error = np.sqrt(np.maximum(square / draws - average**2, 1e-30) / draws)
+        assert np.all(np.abs(average - mean) < 5 * error + 1e-12)
+    # by hand for the words: counts of the cells labelled 1
+    counts = np.zeros(w.shape[1])
+    observed = labels[data.obs_cells].numpy()
+    counts += data.modality("words").counts.numpy()[observed == 1].sum(0)
+    V = w.shape[1]
+    np.testing.assert_allclose(w[1], (0.5 + counts) / (V * 0.5 + counts.sum()), rtol=1e-12)
+    np.testing.assert_allclose(w[4], np.full(V, 1 / V))  # no cell: the prior mean, uniform
+
+
+def test_posterior_means_average_over_label_samples(small_house):
+    data, config = _prepared(small_house)
+    generator = torch.Generator().manual_seed(1)
+    maps = torch.randint(0, 5, (3, data.num_free), generator=generator)  # [S, N]
+    pi, tables = posterior_means(maps, data, config)
+    singles = [posterior_means(m, data, config) for m in maps]
+    np.testing.assert_allclose(pi, np.mean([p for p, _ in singles], axis=0))
+    for m, table in enumerate(tables):
+        np.testing.assert_allclose(table, np.mean([t[m] for _, t in singles], axis=0))
+    with pytest.raises(ValueError, match="concepts in 0..4"):
+        posterior_means(maps + 5, data, config)
+
+
+def test_a_gibbs_result_reports_posterior_means_not_draws(small_house):
+    """fit_house's Gibbs result: w, theta, pi are the means given its labels (or averaged over
+    the kept label maps with marginal_samples), and config.json's inference says which."""
+    settings = preset("original-code", gamma=3.0, num_concepts=8)
+    options = GibbsOptions(backend="torch")
+    result = fit_house(small_house, settings, options=options, sweeps=20, progress=False)
+    _, data = prepare_model_data(small_house, settings)
+    pi, (theta, w) = posterior_means(result.labels, data, settings.model)
+    np.testing.assert_allclose(result.w, w, rtol=1e-12)
+    np.testing.assert_allclose(result.theta, theta, rtol=1e-12)
+    np.testing.assert_allclose(result.pi, pi, rtol=1e-12)
+    assert result.inference["parameters"] == "posterior mean given the point labels"
+    totals = concept_totals(result.labels, data, settings.model)
+    np.testing.assert_array_equal(result.concept_totals, totals)
+    assert totals[:, 0].sum() == len(data.obs_cells)  # every observed cell in one concept
+    sampled = fit_house(small_house, settings, options=options, sweeps=20, progress=False,
+                        marginal_samples=5)  # fmt: skip
+    assert "averaged over 5 label samples" in sampled.inference["parameters"]
+    np.testing.assert_allclose(sampled.w.sum(-1), 1.0)
+
+
+def test_lift_by_hand_and_as_the_where_bayes_ratio():
+    """two_rooms: concept sizes 150, 149, 1; p(kitchen) = (150 .6 + 149 .1 + 1 .7) / 300."""
+    result = two_rooms()
+    p_kitchen = (150 * 0.6 + 149 * 0.1 + 1 * 0.7) / 300
+    ratios = result.lift()  # [L, V]
+    assert ratios[0, 0] == pytest.approx(0.6 / p_kitchen)
+    assert ratios[1, 0] == pytest.approx(0.1 / p_kitchen)
+    np.testing.assert_allclose(lift(result.w, [150, 149, 1]), ratios)
+    # lift = p(C = l | v) / p(C = l) under the area prior of "where is v?"
+    sizes = result.concept_sizes() / result.concept_sizes().sum()
+    for v, word in enumerate(WORDS):
+        np.testing.assert_allclose(ratios[:, v], result.concept_given_word(word) / sizes)
+    assert distinctive_items(result.w[1], ratios[1], WORDS, n=3) == [
+        ("bed", pytest.approx(0.6 / ((150 * 0.2 + 149 * 0.6 + 0.15) / 300)), 0.6),
+        ("sofa", pytest.approx(0.3 / ((150 * 0.2 + 149 * 0.3 + 0.15) / 300)), 0.3),
+    ]  # kitchen's lift (0.28) is below MIN_LIFT: not distinctive
+
+
+def _silent_speck() -> SpCoResult:
+    """two_rooms, where words were heard in the two rooms but none on the speck (concept 2)."""
+    result = two_rooms()
+    totals = np.array([[3.0, 3.0, 5.0], [2.0, 2.0, 4.0], [0.0, 0.0, 0.0]])  # [L, 1 + 2]
+    return SpCoResult(**{**result.__dict__, "concept_totals": totals})
+
+
+def test_a_concept_where_no_word_was_heard_says_so(capsys):
+    result = _silent_speck()
+    summaries = {c["concept"]: c for c in result.concepts()}
+    assert summaries[2]["words_note"] == NO_WORDS
+    assert summaries[2]["top_words"] == [] and summaries[2]["distinctive_words"] == []
+    assert summaries[0]["words_note"] is None and summaries[0]["top_words"][0][0] == "kitchen"
+    assert format_concept_words([], [], 0.0) == f"({NO_WORDS})"
+    assert region_text(result, 2) == f"[2]\n{NO_WORDS}"
+    assert region_text(result, 0).splitlines()[1] == "kitchen 0.60 x1.7"
+    print_concepts(result)
+    lines = capsys.readouterr().out.splitlines()
+    assert any(line.strip().startswith("concept   2:") and NO_WORDS in line for line in lines)
+    assert any("concept   1:" in line and "distinctive: bed x1.5" in line for line in lines)
+
+
+def test_concepts_json_keeps_the_old_keys_and_adds_the_new(tmp_path):
+    result = _silent_speck()
+    result.save(tmp_path)
+    concepts = json.loads((tmp_path / "concepts.json").read_text())
+    old = {"concept", "cells", "pi", "top_words"}
+    new = {"observed_cells", "words_heard", "distinctive_words", "words_note"}
+    assert all(old | new <= set(c) for c in concepts)
+    first = concepts[0]
+    assert first["observed_cells"] == 3 and first["words_heard"] == 5.0
+    assert first["distinctive_words"][0][0] == "kitchen" and first["distinctive_words"][0][1] > 1
+    loaded = SpCoResult.load(tmp_path)
+    np.testing.assert_array_equal(loaded.concept_totals, result.concept_totals)
+    # a result that does not know its counts (an old one) shows its words as before
+    unknown = two_rooms()
+    assert unknown.heard(2) is None and unknown.concepts()[0]["words_heard"] is None
+    assert unknown.concepts()[-1]["top_words"]
+
+
+def test_semantic_map_figure_writes_words_on_their_regions_and_marks_utterances():
+    result = _silent_speck()
+    image = result.label_image()
+    observations = Observations(
+        image_features=np.zeros((0, 2)), image_xy=np.zeros((0, 2)),
+        image_trial=np.zeros(0, dtype=int),
+        utterances=(("kitchen",), ("bed",)),
+        word_xy=np.array([[0.55, 0.55], [2.25, 0.35]]), word_trial=np.zeros(2, dtype=int),
+    )  # fmt: skip
+    np.testing.assert_array_equal(utterance_concepts(result, observations.word_xy), [0, 1])
+    figure = semantic_map_figure(result, observations=observations, min_region_fraction=0.0)
+    ax = figure.axes[0]
+    texts = {t.get_text(): t.get_position() for t in ax.texts}
+    for concept in (0, 1, 2):
+        text = next(t for t in texts if t.startswith(f"[{concept}]"))
+        row, col = result.grid.world_to_cell(np.array(texts[text]))
+        assert image[row, col] == concept  # written on its own region
+    assert f"[2]\n{NO_WORDS}" in texts
+    assert any(t.get_path_effects() for t in ax.texts)  # the readable outline
+    markers = [c for c in ax.collections if isinstance(c, PathCollection)]
+    assert len(markers) == 1 and len(markers[0].get_offsets()) == 2
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert any(NO_WORDS in t for t in legend) and any("where a word was heard" in t for t in legend)
+    assert any("distinctive: kitchen x1.7" in t for t in legend)
+
+
+def test_where_figure_draws_the_answer_over_the_grey_map():
+    result = _silent_speck()
+    answer = result.where("bed")
+    rgb = where_image(result, answer)  # [H, W, 3] point estimate: filled regions
+    image = result.label_image()
+    assert (rgb[answer.region] == ANSWER_RGB).all()
+    assert (rgb[image == answer.runner_up] == RUNNER_UP_RGB).all()
+    others = ~answer.region & (image >= 0) & (image != answer.runner_up)
+    assert (rgb[others] == GREY_FREE_RGB).all()
+    assert not where_figure(result, answer).axes[0].collections  # no outline needed
+    # with marginals: the per-cell probability as a colour scale and the regions outlined
+    marginals = np.eye(3)[result.labels] * 0.8 + 0.2 / 3  # [N, L]
+    soft = SpCoResult(**{**result.__dict__, "marginals": marginals})
+    figure = where_figure(soft, soft.where("bed"))
+    ax = figure.axes[0]
+    assert len(ax.images) == 2  # the grey map, then the probability
+    assert ax.images[1].get_cmap().name == "Reds"
+    outlines = [c for c in ax.collections if isinstance(c, ContourSet)] or [
+        c for c in ax.collections
+    ]
+    assert len(outlines) >= 2  # answer and runner-up
+    assert len(figure.axes) == 2  # and its colour bar
