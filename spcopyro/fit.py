@@ -257,6 +257,9 @@ def prepare_model_data(house: House, settings: SpCoSettings) -> tuple[CellCounts
         word_weighting=settings.data.word_weighting,
         snap_distance=settings.data.snap_distance,
         source=house.source,
+        footprint_radius=settings.data.footprint_radius,
+        footprint_kernel=settings.data.footprint_kernel,
+        footprint_fov=settings.data.footprint_fov,
     )
     counts.placement.check_on_free(where)
     data = make_model_data(house.grid, counts, settings.model.connectivity)
