@@ -379,7 +379,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         type=float,
         default=None,
         metavar="DEGREES",
-        help="images inform only the cells within +-DEGREES/2 of their yaw",
+        help="images inform only the cells within +-DEGREES/2 of their yaw (default: the "
+        "whole disc)",
     )
     p.add_argument("--threads", type=_threads, default=AUTO,
                    help="torch intra-op threads during the fit: auto (default: one thread unless "
