@@ -105,6 +105,9 @@ def run(args: argparse.Namespace) -> dict[str, object]:
                     }  # fmt: skip
                     row["_image"] = image
                     rows.append(row)
+                    if args.out is not None:  # partial results survive an interrupted run
+                        partial = [{k: v for k, v in r.items() if k != "_image"} for r in rows]
+                        args.out.with_suffix(".partial.json").write_text(json.dumps(partial))
                     progress(
                         f"{preset_name} {house_name} seed {seed} {label}: ARI truth "
                         f"{row['ari_truth']}, vs no obs {row['ari_vs_no_observations']:.3f}, "
