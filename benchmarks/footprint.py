@@ -165,7 +165,7 @@ def summary_table(results: dict[str, object]) -> str:
             f"{preset_name} {house}", fit, _mean_sd(truth),
             _mean_sd([r["ari_vs_no_observations"] for r in group]), _mean_sd(seeds),
             f"{np.mean([r['concepts_1pct'] for r in group]):.1f}",
-            f"{np.mean([r['cells_reached'] for r in group]) / group[0]['free_cells']:.3f}",
+            f"{np.mean([r['cells_reached'] / r['free_cells'] for r in group]):.3f}",
             f"{np.mean([r['seconds'] for r in group]):.1f}",
         ])  # fmt: skip
     headers = ["preset house", "fit", "ARI truth", "ARI vs no obs", "ARI seeds", "concepts>=1%",
