@@ -78,13 +78,3 @@ def test_svi_vs_cavi_benchmark_quick(tmp_path):
     row = record["rows"][0]
     assert math.isfinite(row["svi_elbo"]) and math.isfinite(row["cavi_elbo"])
     assert "SVI below CAVI" in done.stdout
-
-
-@pytest.mark.slow
-def test_footprint_benchmark_quick(tmp_path):
-    out = tmp_path / "footprint.json"
-    done = run_benchmark("footprint.py", out)
-    assert done.returncode == 0, done.stderr[-3000:]
-    assert "ARI vs no obs" in done.stdout
-    rows = json.loads(out.read_text())["rows"]
-    assert {row["fit"] for row in rows} == {"no observations", "R = 0 m", "R = 0.5 m"}

@@ -19,6 +19,7 @@ import torch
 from gibbs_problems import config, tiny_grid
 from scipy import stats
 from statistical_checks import assert_conditionals_match_model, backend_samplers, model_log_density
+from test_benchmarks import run_benchmark
 
 from spcopyro.cli import main
 from spcopyro.config import DataPreparation, preset
@@ -414,3 +415,14 @@ def test_fit_footprint_option_reaches_config_json(tmp_path):
     assert settings["data"]["footprint_radius"] == 0.5
     assert settings["data"]["footprint_kernel"] == "gaussian"
     assert settings["data"]["footprint_fov"] is None
+
+
+@pytest.mark.slow
+def test_footprint_benchmark_quick(tmp_path):
+    """benchmarks/footprint.py --quick runs (its numbers are not asserted)."""
+    out = tmp_path / "footprint.json"
+    done = run_benchmark("footprint.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "ARI vs no obs" in done.stdout
+    rows = json.loads(out.read_text())["rows"]
+    assert {row["fit"] for row in rows} == {"no observations", "R = 0 m", "R = 0.5 m"}
