@@ -143,7 +143,8 @@ def _fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings,
         concentrations=_concentrations(args.concentration),
         word_weighting="tfidf" if args.tfidf else None,
         feature_scaling=_feature_scaling(args.feature_scaling),
-        snap_distance=args.snap_distance,
+        snap_distance=args.snap_distance, footprint_radius=args.footprint,
+        footprint_kernel=args.footprint_kernel, footprint_fov=args.footprint_fov,
     )  # fmt: skip
     if args.preset == "paper-dirichlet" and args.concepts is None and house.category_names:
         overrides["num_concepts"] = len(house.category_names)
@@ -420,6 +421,24 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "random streams from one seed")  # fmt: skip
     p.add_argument("--snap-distance", type=float, default=DEFAULT_SNAP_DISTANCE,
                    help="metres an observation may be moved onto free space")  # fmt: skip
+    p.add_argument("--footprint", type=float, default=None, metavar="RADIUS",
+                   help="observation footprint: spread each observation over the free cells "
+                        "within RADIUS metres (geodesic, never through walls), weights summing "
+                        "to one observation (default 0: its own cell, the paper)")  # fmt: skip
+    p.add_argument(
+        "--footprint-kernel",
+        choices=("uniform", "gaussian"),
+        default=None,
+        help="the footprint's weights: uniform (default) or gaussian (sigma = R/2)",
+    )
+    p.add_argument(
+        "--footprint-fov",
+        type=float,
+        default=None,
+        metavar="DEGREES",
+        help="images inform only the cells within +-DEGREES/2 of their yaw (default: the "
+        "whole disc)",
+    )
     p.add_argument("--threads", type=_threads, default=AUTO,
                    help="torch intra-op threads during the fit: auto (default: one thread unless "
                         f"the map has >= {MIN_CELLS_FOR_MORE_THREADS} free cells), 0 (torch's own "

@@ -259,6 +259,9 @@ def prepare_model_data(house: House, settings: SpCoSettings) -> tuple[CellCounts
         word_weighting=settings.data.word_weighting,
         snap_distance=settings.data.snap_distance,
         source=house.source,
+        footprint_radius=settings.data.footprint_radius,
+        footprint_kernel=settings.data.footprint_kernel,
+        footprint_fov=settings.data.footprint_fov,
     )
     counts.placement.check_on_free(where)
     data = make_model_data(house.grid, counts, settings.model.connectivity)
@@ -466,7 +469,7 @@ def _gibbs_outputs(
             f"anneal_sweeps ({options.anneal_sweeps}) must not exceed num_sweeps ({sweeps})"
         )
     record = {"method": "gibbs", "sweeps": sweeps, "seeds": seeds, "init": init_name(init),
-              "data_preparation": dataclasses.asdict(settings.data)}  # fmt: skip
+              "data_preparation": _preparation_record(settings)}  # fmt: skip
     chains: list[GibbsChain | None] = [None] * len(seeds)
     if resume is not None:
         chains = load_chains(resume, data, settings.model, options, record=record)
@@ -495,6 +498,16 @@ def _gibbs_outputs(
         output = output_from_run(chain.to_run(), {**entry, "seed": seed, "init": init_name(init)})
         outputs.append(_with_sample_marginals(output, sweeps, data, settings.model, point_estimate))
     return outputs
+
+
+def _preparation_record(settings: SpCoSettings) -> dict[str, object]:
+    """The data preparation as a checkpoint records it: the footprint fields only when the
+    footprint is on, so checkpoints made before it existed still resume."""
+    record = dataclasses.asdict(settings.data)
+    if not settings.data.footprint_radius:
+        for name in ("footprint_radius", "footprint_kernel", "footprint_fov"):
+            record.pop(name)
+    return record
 
 
 def _marginal_thin(sweeps: int, marginal_samples: int) -> int:

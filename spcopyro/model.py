@@ -188,7 +188,10 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
     ``[M, K_m]`` count matrix per modality (``data.modalities``: images and words, and any
     further modality, each with its own Dirichlet concentration and site names). Counts may be
     real-valued (probabilities, tf-idf weights):
-    see :class:`~spcopyro.distributions.MultinomialCounts`.
+    see :class:`~spcopyro.distributions.MultinomialCounts`. The observation footprint
+    (``DataPreparation.footprint_radius``, :mod:`spcopyro.data.footprint`) is such counts: each
+    observation spread over the cells around it with weights w_tc summing to one, so that this
+    density is, up to a constant, the tempered product prod_t prod_c p(x_t | C_c)^{w_tc}.
 
     **Running it forward.** Under :func:`pyro.poutine.uncondition` it draws pi, theta, w and
     emissions, but its ``labels`` draw ignores the Potts term (a factor cannot be sampled). A draw

@@ -25,7 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from spcopyro.config import IMAGES, WORDS, FeatureScaling
+from spcopyro.config import IMAGES, WORDS, FeatureScaling, FootprintKernel
+from spcopyro.data.footprint import footprint_weights, free_cell_graph, spread_counts
 from spcopyro.data.observations import DataFormatError, Observations
 from spcopyro.data.placement import (
     DEFAULT_SNAP_DISTANCE,
@@ -194,6 +195,9 @@ def cell_counts(
     snap_distance: float = DEFAULT_SNAP_DISTANCE,
     vocabulary: Sequence[str] | None = None,
     source: str | os.PathLike[str] | None = None,
+    footprint_radius: float = 0.0,
+    footprint_kernel: FootprintKernel = "uniform",
+    footprint_fov: float | None = None,
 ) -> CellCounts:
     """Sum the observations per free cell (the model's sufficient statistics).
 
@@ -218,6 +222,13 @@ def cell_counts(
     Unplaced observations are logged (``logger.warning`` with their counts) and listed in
     ``placement``; snapped ones are logged at INFO level; more than half of all observations
     off free space is logged as a warning (:meth:`PlacementReport.off_free_warning`).
+
+    Observation footprint (``footprint_radius`` > 0, :mod:`spcopyro.data.footprint`): every
+    placed observation o is spread over the free cells within that geodesic distance of its
+    cell with weights w_oc summing to 1 (``footprint_kernel``; ``footprint_fov`` degrees around
+    ``obs.image_yaw`` for images), so each sum above becomes sum_o w_oc counts_o and the observed
+    cells are every cell with a positive weight. ``footprint_radius = 0`` leaves the counts
+    exactly as without it.
 
     Counts are checked by :func:`check_count_totals` (finite, totals at most
     :data:`MAX_COUNT_TOTAL`): ``source``, the house folder the observations were read from
@@ -259,6 +270,13 @@ def cell_counts(
     word_cell, word_snapped, word_unplaced = place_observations(grid, obs.word_xy, snap_distance)
     further = [place_observations(grid, m.positions, snap_distance) for m in obs.modalities]
 
+    if footprint_radius:
+        return _with_footprint(
+            cell_counts(grid, obs, feature_scaling=feature_scaling, word_weighting=word_weighting,
+                        snap_distance=snap_distance, vocabulary=vocab, source=source),
+            grid, obs, features, words, (image_cell, word_cell, [cell for cell, _, _ in further]),
+            footprint_radius, footprint_kernel, footprint_fov,
+        )  # fmt: skip
     image_ok = image_cell >= 0  # [T] bool
     word_ok = word_cell >= 0  # [U] bool
     further_cells = [cell[cell >= 0] for cell, _, _ in further]  # [T_j] each
@@ -343,4 +361,49 @@ def cell_counts(
         num_free=int(grid.num_free),
         placement=report,
         modalities=tuple(modality_counts),
+    )
+
+
+def _with_footprint(
+    plain: CellCounts,
+    grid: OccupancyGrid,
+    obs: Observations,
+    features: np.ndarray,
+    words: np.ndarray,
+    placed: tuple[np.ndarray, np.ndarray, list[np.ndarray]],
+    radius: float,
+    kernel: FootprintKernel,
+    fov: float | None,
+) -> CellCounts:
+    """``plain`` (the counts without footprint: placement report, vocabulary) with every
+    observation spread over its footprint (:func:`~spcopyro.data.footprint.footprint_weights`).
+
+    ``features`` [T, K] and ``words`` [U, V] are the scaled / weighted rows per observation,
+    ``placed`` the free index of each image, utterance and further observation (-1: unplaced).
+    """
+    if fov is not None and obs.num_images and obs.image_yaw is None:
+        raise ValueError(
+            "footprint_fov needs each image's yaw, and these observations hold none "
+            "(pose_K.csv files give it); leave footprint_fov unset to use the whole disc"
+        )
+    image_cell, word_cell, further_cells = placed
+    graph = free_cell_graph(grid)
+    image_w = footprint_weights(grid, image_cell, radius, kernel, yaw=obs.image_yaw, fov=fov,
+                                graph=graph)  # fmt: skip  # [T, N]
+    word_w = footprint_weights(grid, word_cell, radius, kernel, graph=graph)  # [U, N]
+    further_w = [footprint_weights(grid, c, radius, kernel, graph=graph) for c in further_cells]
+    reached = [np.unique(w.indices) for w in (image_w, word_w, *further_w)]
+    cells = np.unique(np.concatenate(reached)).astype(np.int64)  # [M]
+    modalities = tuple(
+        CellModalityCounts(m.name, m.items, spread_counts(w, obs.modality(m.name).counts, cells))
+        for m, w in zip(plain.modalities, further_w, strict=True)
+    )
+    return CellCounts(
+        cells=cells,
+        image_counts=spread_counts(image_w, features, cells),  # [M, K]
+        word_counts=spread_counts(word_w, words, cells),  # [M, V]
+        vocabulary=plain.vocabulary,
+        num_free=plain.num_free,
+        placement=plain.placement,
+        modalities=modalities,
     )
