@@ -85,9 +85,11 @@ __all__ = [
 ]
 
 DEFAULT_UPDATE_SWEEPS = 300
-"""Sweeps (or iterations) of an update when none are given: see the README's online-update
-table (benchmarks/online_update.py) for the measured counts at which a resumed fit reaches the
-log joint of a from-scratch fit."""
+"""Sweeps (or iterations) of an update when none are given. Measured (benchmarks/online_update.py,
+trials 1-2 fitted with 5000 sweeps, updated with trial 3): 300 sweeps cost 2.5-10% of a 5000-sweep
+refit, and their mean log joint over the last 100 sweeps was, in median over 3 seeds, within the
+refits' seed-to-seed spread on the five public houses and the synthetic one (paper-dp); with
+original-code and gamma 3 the synthetic house's ARI was 0.975 against the refit's 0.980."""
 
 _TINY = np.finfo(np.float64).tiny
 """Probabilities of the saved globals are floored here before their log: a Gibbs draw with a
