@@ -379,7 +379,7 @@ def fit_update(
                     generator=generator, init_labels=start.labels, options=options,
                     progress=progress, thin=thin,
                 )  # fmt: skip
-            output = _with_sample_marginals(output, int(sweeps), start.settings.model.num_concepts)
+            output = _with_sample_marginals(output, int(sweeps), start.data, start.settings.model)
             output.options.update(
                 seed=int(seed), init=f"update of {where}",
                 update_of=update_record(saved, start.merge, where),
