@@ -250,11 +250,14 @@ def main(argv: list[str] | None = None) -> int:
         f"preset {args.preset}, gamma {settings.model.gamma:g}; medians over {args.seeds} seeds"
     )
     print(text)
-    print("LJ: log joint; best: of the best state visited; typical: mean over the last "
-          f"{WINDOW} sweeps (at N = 0: the start state's). * scratch row: ARI between the "
-          "scratch fits of consecutive seeds (refit agreement). 'reached' ('reached typical'): "
-          "per seed, the first update length whose best (typical) log joint is at least the "
-          "scratch fit's ('-': not within the last).")  # fmt: skip
+    print(
+        f"LJ: log joint; best: of the best state visited; typical: mean over the last {WINDOW} "
+        "sweeps (at N = 0: the start state's, whose globals are the saved fit's posterior means "
+        "where it kept them, not draws: not comparable). * scratch row: ARI between the scratch "
+        "fits of consecutive seeds (refit agreement). 'reached' ('reached typical'): per seed, "
+        "the first update length whose best (typical) log joint is at least the scratch fit's "
+        "('-': not within the last)."
+    )
     out = args.out or Path(__file__).with_name("online_update_results.json")
     record = {"machine": machine_info(), "preset": args.preset,
               "settings": settings.model.to_json(), "sweeps": args.sweeps, "seeds": args.seeds,
