@@ -254,7 +254,8 @@ def _fit_staged(
         chain_results = fit_update(
             saved, house, settings, method=args.method, options=options, sweeps=args.sweeps,
             seeds=[args.seed + k for k in range(chains)], source=source, threads=args.threads,
-            marginal_samples=args.marginal_samples, where=args.update,
+            marginal_samples=args.marginal_samples, point_estimate=args.point_estimate,
+            where=args.update,
         )  # fmt: skip
         words = chain_results[0].inference["update_of"]["new_words"]
         print(f"new words        {len(words)}: {', '.join(words[:20]) or '-'}")

@@ -341,6 +341,7 @@ def fit_update(
     source: str | None = None,
     threads: int | str | None = AUTO,
     marginal_samples: int = 0,
+    point_estimate: str = "map-visited",
     where: str | os.PathLike[str] = "the saved fit",
 ) -> list[SpCoResult]:
     """One :class:`SpCoResult` per seed: ``sweeps`` iterations of ``method`` on all of
@@ -351,7 +352,8 @@ def fit_update(
         house: the same house with the old and the new observations.
         settings: must equal the saved fit's (None: take them from it).
         where: the saved fit's folder, for messages and ``config.json``.
-        Others: as for :func:`spcopyro.fit.fit_house_chains`.
+        Others (``marginal_samples``, ``point_estimate``, ...): as for
+            :func:`spcopyro.fit.fit_house_chains`.
     """
     if isinstance(sweeps, bool) or not isinstance(sweeps, int | np.integer) or sweeps < 1:
         raise ValueError(f"sweeps must be a positive integer, got {sweeps!r}")
@@ -379,7 +381,9 @@ def fit_update(
                     generator=generator, init_labels=start.labels, options=options,
                     progress=progress, thin=thin,
                 )  # fmt: skip
-            output = _with_sample_marginals(output, int(sweeps), start.data, start.settings.model)
+            output = _with_sample_marginals(
+                output, int(sweeps), start.data, start.settings.model, point_estimate
+            )
             output.options.update(
                 seed=int(seed), init=f"update of {where}",
                 update_of=update_record(saved, start.merge, where),
