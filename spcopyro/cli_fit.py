@@ -46,6 +46,8 @@ if TYPE_CHECKING:
 __all__ = ["add_parser"]
 
 _clock = time.perf_counter  # wall clock of a whole fit (all chains)
+FIT_SWEEPS = 5000  # --sweeps of a fit from scratch (the paper's)
+UPDATE_SWEEPS = 300  # --sweeps of --update (spcopyro.online.DEFAULT_UPDATE_SWEEPS)
 
 
 def _fit(args: argparse.Namespace) -> int:
@@ -54,6 +56,10 @@ def _fit(args: argparse.Namespace) -> int:
     from spcopyro.fit import FitCheckpoint, FitInterrupted
     from spcopyro.outputs import checkpoint_path, stage_output
 
+    if args.sweeps is None:  # the parser's default: fewer sweeps continue a fit than start one
+        args.sweeps = UPDATE_SWEEPS if args.update is not None else FIT_SWEEPS
+    if args.update is not None:
+        _check_update_args(args)
     if args.sweeps == "auto" and args.method != "gibbs":
         raise ValueError(f"--sweeps auto is Gibbs' convergence rule, not {args.method!r}'s")
     if args.resume is not None and (args.sweeps == "auto" or args.method != "gibbs"):
@@ -73,13 +79,18 @@ def _fit(args: argparse.Namespace) -> int:
     if args.sweeps != "auto" and args.anneal_sweeps > args.sweeps:
         raise ValueError(f"anneal_sweeps ({args.anneal_sweeps}) must not exceed num_sweeps "
                          f"({args.sweeps})")  # fmt: skip
+    if args.resume is not None and (Path(args.resume) / "result.npz").is_file():
+        raise ValueError(
+            f"--resume {args.resume} is a finished fit, not a checkpoint: to continue it with "
+            f"new observations use --update {args.resume}"
+        )
     if args.resume is not None and not Path(args.resume).is_file():
         raise FileNotFoundError(f"--resume {args.resume}: no such checkpoint file")
     house = _load(args.data)
     settings, options = _fit_settings(args, house)
     staged = stage_output(args.out, overwrite=args.overwrite, resume=args.resume)
     keeper = None  # keeps the Gibbs chains for a checkpoint beside OUT
-    if args.method == "gibbs" and args.sweeps != "auto":
+    if args.method == "gibbs" and args.sweeps != "auto" and args.update is None:
         keeper = FitCheckpoint(checkpoint_path(staged.out))
     sampled: list[bool] = []  # set once sampling has ended
     try:
@@ -107,13 +118,29 @@ def _fit(args: argparse.Namespace) -> int:
         staged.discard()  # nothing once committed; else the run's partial outputs
 
 
+def _check_update_args(args: argparse.Namespace) -> None:
+    """``--update OUT``: a finished fit's folder, and no option that chooses another start."""
+    if args.resume is not None or args.init_from is not None or args.init != "random":
+        given = "--resume" if args.resume is not None else (
+            "--init-from" if args.init_from is not None else "--init"
+        )  # fmt: skip
+        raise ValueError(f"--update starts from the saved fit; {given} chooses another start")
+    if args.sweeps == "auto":
+        raise ValueError("--update runs a number of --sweeps; --sweeps auto starts from scratch")
+    if not (Path(args.update) / "result.npz").is_file():
+        raise FileNotFoundError(
+            f"--update {args.update}: no finished fit there (a folder written by spcopyro fit "
+            "--out, holding result.npz)"
+        )
+
+
 def _interrupted(args: argparse.Namespace, where: str, kept: Path | None, out: Path) -> str:
     """The one line ``fit`` prints when Ctrl-C stops it (``kept``: the checkpoint, if any)."""
     line = f"interrupted{where}: nothing written to {out}"
     if kept is None:
         why = "--sweeps auto" if args.sweeps == "auto" else f"the {args.method!r} method"
         if args.sweeps != "auto" and args.method == "gibbs":
-            why = "no sweep was done"
+            why = "no sweep was done" if args.update is None else "--update"
         return f"{line}; no checkpoint kept ({why})"
     command = _resume_command(args, kept)
     return f"{line}; the state reached is saved in {kept} -- continue with: {command}"
@@ -198,6 +225,13 @@ def _fit_staged(
     if args.resume is not None:
         print(f"resuming         the chains saved in {args.resume}")
     init = args.init
+    saved = None
+    if args.update is not None:
+        from spcopyro.results import SpCoResult
+
+        saved = SpCoResult.load(args.update)
+        print(f"updating         the {saved.method} fit in {args.update} "
+              f"({len(saved.trace.objective)} iterations) with all of this data")  # fmt: skip
     if args.init_from is not None:
         from spcopyro.results import SpCoResult
 
@@ -214,6 +248,20 @@ def _fit_staged(
             seed=args.seed, init=init, source=source, threads=args.threads,
         )  # fmt: skip
         chain_results = None
+    elif saved is not None:
+        from spcopyro.online import fit_update
+
+        chains = 1 if args.chains is None else args.chains
+        chain_results = fit_update(
+            saved, house, settings, method=args.method, options=options, sweeps=args.sweeps,
+            seeds=[args.seed + k for k in range(chains)], source=source, threads=args.threads,
+            marginal_samples=args.marginal_samples, point_estimate=args.point_estimate,
+            where=args.update,
+        )  # fmt: skip
+        words = chain_results[0].inference["update_of"]["new_words"]
+        print(f"new words        {len(words)}: {', '.join(words[:20]) or '-'}")
+        kept = best_chain(chain_results)
+        result = chain_results[kept]
     else:
         chains = 1 if args.chains is None else args.chains
         chain_results = fit_house_chains(
@@ -337,10 +385,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    help="continue the interrupted fit saved in CHECKPOINT (OUT.checkpoint.npz; "
                         "Ctrl-C writes it), with the same data and settings (default: a new "
                         "fit)")  # fmt: skip
-    p.add_argument("--sweeps", type=_sweeps, default=5000,
-                   help="Gibbs iterations (paper: 5000), or 'auto': run --chains chains until "
-                        "split R-hat of the log joint and of the number of concepts < 1.05 "
-                        "(at most --max-sweeps)")  # fmt: skip
+    p.add_argument("--update", metavar="OUT",
+                   help="continue the finished fit in the folder OUT with this data (its old "
+                        "and new observations together, e.g. a new trial): its labels, pi and "
+                        "distributions start the run, new words get new columns under the "
+                        "prior; the map and settings must be the saved fit's (default: a new "
+                        "fit)")  # fmt: skip
+    p.add_argument("--sweeps", type=_sweeps, default=None,
+                   help="Gibbs iterations (the paper's: 5000), or 'auto': run --chains chains "
+                        "until split R-hat of the log joint and of the number of concepts < "
+                        f"1.05 (at most --max-sweeps); {UPDATE_SWEEPS} with --update "
+                        f"(default: {FIT_SWEEPS})")  # fmt: skip
     p.add_argument("--chains", type=_positive_int,
                    help="run this many chains (seeds --seed, --seed + 1, ...) and keep the one of "
                         "highest log joint (default 1; 4 with --sweeps auto)")  # fmt: skip

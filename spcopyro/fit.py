@@ -233,9 +233,13 @@ def spcoa_initial_labels(house: House, settings: SpCoSettings, seed: int) -> tor
     return labels_from_gaussians(cell_xy, means, covariances, log_weights)
 
 
-def prepare_model_data(house: House, settings: SpCoSettings) -> tuple[CellCounts, ModelData]:
+def prepare_model_data(
+    house: House, settings: SpCoSettings, vocabulary: Sequence[str] | None = None
+) -> tuple[CellCounts, ModelData]:
     """Per-cell counts of the house under the settings' data preparation, and the model's
-    tensors. Logs :func:`config_warnings` (logger ``"spcopyro"``).
+    tensors. Logs :func:`config_warnings` (logger ``"spcopyro"``). ``vocabulary``: the word
+    columns in order (None: the observations' own; an online update passes the union with a
+    saved fit's, :mod:`spcopyro.online`).
 
     Raises:
         ValueError: the map has no free cell, or no observation lands on a free cell (a wrong
@@ -258,6 +262,7 @@ def prepare_model_data(house: House, settings: SpCoSettings) -> tuple[CellCounts
         feature_scaling=settings.data.feature_scaling,
         word_weighting=settings.data.word_weighting,
         snap_distance=settings.data.snap_distance,
+        vocabulary=vocabulary,
         source=house.source,
         footprint_radius=settings.data.footprint_radius,
         footprint_kernel=settings.data.footprint_kernel,

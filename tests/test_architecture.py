@@ -29,7 +29,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("results", "uncertainty", "concept_words", "point_estimate"),
     ("metrics", "plotting", "baselines", "features", "figures_map", "nav2", "map_simulation",
      "rosbag"),
-    ("fit",),
+    ("fit", "online"),
     ("experiments",),
     ("cli", "cli_common", "cli_fit", "cli_export", "__main__"),
 )

@@ -98,3 +98,17 @@ def test_merge_moves_benchmark_quick(tmp_path):
     assert "concepts>=1%" in done.stdout
     rows = json.loads(out.read_text())["rows"]
     assert [r["merge_moves"] for r in rows] == [0.0, 0.2]
+
+
+@pytest.mark.slow
+def test_online_update_benchmark_quick(tmp_path):
+    out = tmp_path / "online.json"
+    done = run_benchmark("online_update.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "Online update (trials 1-2 fitted, then trial 3 added)" in done.stdout
+    record = json.loads(out.read_text())
+    (house,) = record["houses"]
+    assert house["house"] == "synthetic" and len(house["runs"]) == 2
+    points = house["runs"][0]["update"]["points"]
+    assert [p["sweeps"] for p in points] == record["checkpoints"]
+    assert house["runs"][0]["update"]["new_words"] == ["kitchen", "sofa"]

@@ -1,0 +1,165 @@
+"""Online updates (spcopyro.online, ``spcopyro fit DATA --update OUT``): a saved fit continued
+with new observations -- vocabulary union, new words under the prior, the saved state at sweep
+0, clear errors for another map or other settings, and the command end to end."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from spcopyro.cli import main
+from spcopyro.config import preset
+from spcopyro.data import Observations, save_house
+from spcopyro.fit import fit_house
+from spcopyro.online import (
+    check_compatible,
+    extend_emission,
+    fit_update,
+    merge_vocabulary,
+    start_update,
+    start_update_chain,
+)
+from spcopyro.results import SpCoResult
+from spcopyro.synthetic import make_house
+
+SETTINGS = preset("original-code", gamma=3.0)
+
+
+def _trials(house, trials):
+    return dataclasses.replace(house, observations=house.observations.select_trials(trials))
+
+
+@pytest.fixture(scope="module")
+def house():
+    return make_house(0)
+
+
+@pytest.fixture(scope="module")
+def saved(house):
+    """A short fit of trials 0-1 of the synthetic house (whose trial 2 adds two words)."""
+    return fit_house(_trials(house, [0, 1]), SETTINGS, sweeps=60, seed=0, progress=False)
+
+
+def test_merge_vocabulary_keeps_the_saved_columns():
+    merge = merge_vocabulary(("c", "a", "b"), ("b", "e", "a", "d", "e"))
+    assert merge.vocabulary == ("c", "a", "b", "e", "d")  # saved columns, then first heard
+    assert merge.old_size == 3 and merge.new_words == ("e", "d")
+    assert merge.unheard_words == ("c",)
+    assert merge.column("b") == 2 and merge.column("d") == 4
+    assert merge_vocabulary(("a",), ()).vocabulary == ("a",)
+
+
+def test_update_counts_words_in_the_merged_columns(house, saved):
+    start = start_update(saved, house, SETTINGS)
+    vocabulary = start.counts.vocabulary
+    assert vocabulary[: len(saved.vocabulary)] == saved.vocabulary
+    assert set(start.merge.new_words) == set(house.observations.vocabulary) - set(saved.vocabulary)
+    assert start.merge.new_words  # trial 2 of this house holds words trials 0-1 do not
+    tokens = [t for u in house.observations.utterances for t in u]
+    totals = start.counts.word_counts.sum(axis=0)  # [V'] every utterance is placed here
+    for word in vocabulary:
+        assert totals[start.merge.column(word)] == tokens.count(word), word
+
+
+def test_new_words_get_the_prior_mean_and_draws_of_the_conditional():
+    w = np.array([[0.5, 0.3, 0.2], [0.1, 0.1, 0.8]])  # [L=2, V=3]
+    totals, beta = np.array([10.0, 0.0]), 2.0
+    mean = extend_emission(w, totals, beta, 2)  # [2, 5]
+    np.testing.assert_allclose(mean.sum(axis=1), 1.0)
+    # Dir(beta + n) extended by two words without counts: each new word's mean is
+    # beta / (beta V' + n_l), and the old words keep their ratios.
+    np.testing.assert_allclose(mean[:, 3:], (beta / (beta * 5 + totals))[:, None] * np.ones(2))
+    np.testing.assert_allclose(mean[:, :3] / mean[:, :3].sum(1, keepdims=True), w)
+    generator = torch.Generator().manual_seed(0)
+    many = np.repeat(w, 4000, axis=0)  # [8000, 3]
+    drawn = extend_emission(many, np.repeat(totals, 4000), beta, 2, generator)  # [8000, 5]
+    np.testing.assert_allclose(drawn.sum(axis=1), 1.0)
+    np.testing.assert_allclose(drawn[:, :3] / drawn[:, :3].sum(1, keepdims=True), many)
+    for row, expected in ((slice(0, 4000), mean[0]), (slice(4000, None), mean[1])):
+        new_mass = drawn[row, 3:].sum(axis=1)  # Beta(beta V', n + beta V) ... its mean:
+        np.testing.assert_allclose(new_mass.mean(), expected[3:].sum(), rtol=0.05)
+    assert np.array_equal(extend_emission(w, totals, beta, 0), w)
+
+
+def test_an_update_starts_from_the_saved_state(house, saved):
+    chain, start = start_update_chain(saved, house, SETTINGS, seed=3)
+    assert chain.sweeps_done == 0
+    assert np.array_equal(chain.state.labels.numpy(), saved.labels)
+    np.testing.assert_allclose(chain.state.log_pi.exp().numpy(), saved.pi, rtol=1e-12)
+    np.testing.assert_allclose(chain.state.log_theta.exp().numpy(), saved.theta, rtol=1e-12)
+    w = chain.state.log_w.exp().numpy()  # [L, V']
+    old = len(saved.vocabulary)
+    np.testing.assert_allclose(w.sum(axis=1), 1.0)
+    np.testing.assert_allclose(w[:, :old] / w[:, :old].sum(1, keepdims=True), saved.w,
+                               rtol=1e-9, atol=1e-300)  # fmt: skip
+    assert (w[:, old:] > 0).all()
+
+
+def test_an_update_runs_on_all_the_data_with_the_merged_vocabulary(house, saved):
+    (result,) = fit_update(saved, house, SETTINGS, sweeps=5, progress=False)
+    assert result.vocabulary[: len(saved.vocabulary)] == saved.vocabulary
+    assert set(result.vocabulary) == set(house.observations.vocabulary)
+    assert len(result.trace.objective) == 5
+    record = result.inference["update_of"]
+    assert record["iterations"] == len(saved.trace.objective) and record["new_words"]
+    (cavi,) = fit_update(saved, house, SETTINGS, method="cavi", sweeps=2, progress=False)
+    assert cavi.w.shape[1] == len(result.vocabulary) and cavi.method == "cavi"
+
+
+def test_other_settings_map_or_image_classes_are_clear_errors(house, saved):
+    with pytest.raises(ValueError, match=r"gamma: saved fit 3\.0, this run 4\.0"):
+        check_compatible(saved, house, SETTINGS.replace(gamma=4.0))
+    with pytest.raises(ValueError, match=r"word_weighting: saved fit 'count', this run 'tfidf'"):
+        check_compatible(saved, house, SETTINGS.replace(word_weighting="tfidf"))
+    other = make_house(1)
+    with pytest.raises(ValueError, match=r"map"):
+        check_compatible(saved, other, SETTINGS)
+    obs = house.observations
+    wider = Observations(
+        image_features=np.hstack([obs.image_features, np.zeros((obs.num_images, 1))]),
+        image_xy=obs.image_xy, image_trial=obs.image_trial, utterances=obs.utterances,
+        word_xy=obs.word_xy, word_trial=obs.word_trial,
+    )  # fmt: skip
+    classes = obs.num_feature_classes
+    with pytest.raises(ValueError, match=rf"image classes: saved fit {classes}, this run's "
+                                         rf"Ft.csv {classes + 1}"):  # fmt: skip
+        start_update(saved, dataclasses.replace(house, observations=wider), SETTINGS)
+    check_compatible(saved, house, SETTINGS)  # the same house and settings: no error
+
+
+def test_fit_update_command_end_to_end(tmp_path, house, capsys):
+    """The synthetic house split in two: trials 0-1 fitted, then updated with all three."""
+    save_house(_trials(house, [0, 1]), tmp_path / "old")
+    save_house(house, tmp_path / "all")
+    flags = ["--preset", "original-code", "--gamma", "3", "--seed", "1"]
+    first = tmp_path / "first"
+    assert main(["fit", str(tmp_path / "old" / "synthetic"), "--out", str(first),
+                 "--sweeps", "40", *flags]) == 0  # fmt: skip
+    updated = tmp_path / "updated"
+    assert main(["fit", str(tmp_path / "all" / "synthetic"), "--out", str(updated),
+                 "--update", str(first), "--sweeps", "20", *flags]) == 0  # fmt: skip
+    out = capsys.readouterr().out
+    assert "new words        2: kitchen, sofa" in out
+    saved, result = SpCoResult.load(first), SpCoResult.load(updated)
+    assert result.vocabulary == saved.vocabulary + ("kitchen", "sofa")
+    assert len(result.trace.objective) == 20
+    config = json.loads((updated / "config.json").read_text())
+    assert config["inference"]["update_of"]["new_words"] == ["kitchen", "sofa"]
+    assert config["inference"]["init"] == f"update of {first}"
+    # Other settings than the saved fit's: exit 2, naming the difference, nothing written.
+    again = tmp_path / "again"
+    assert main(["fit", str(tmp_path / "all" / "synthetic"), "--out", str(again),
+                 "--update", str(first), "--sweeps", "20", "--preset", "original-code",
+                 "--gamma", "3.5"]) == 2  # fmt: skip
+    assert "gamma: saved fit 3.0, this run 3.5" in capsys.readouterr().err
+    assert not again.exists()
+    # --resume given a finished fit points to --update.
+    assert main(["fit", str(tmp_path / "all" / "synthetic"), "--out", str(again),
+                 "--resume", str(first), *flags]) == 2  # fmt: skip
+    assert f"use --update {first}" in capsys.readouterr().err
+    assert main(["fit", "--out", str(again), "--update", str(tmp_path)]) == 2
+    assert "no finished fit there" in capsys.readouterr().err
