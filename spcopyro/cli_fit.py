@@ -28,7 +28,14 @@ from spcopyro.cli_common import (
     _threads,
 )
 from spcopyro.concept_words import MIN_LIFT, format_concept_words
-from spcopyro.config import DEFAULT_PRESET, DEFAULT_SNAP_DISTANCE, PRESETS, SpCoSettings, preset
+from spcopyro.config import (
+    DEFAULT_PRESET,
+    DEFAULT_SNAP_DISTANCE,
+    PRESETS,
+    SpCoSettings,
+    preset,
+    preset_inference,
+)
 from spcopyro.data import House
 from spcopyro.gibbs.backends import get_backend
 from spcopyro.gibbs.hyperparameters import describe_hyperparameters
@@ -58,6 +65,7 @@ def _fit(args: argparse.Namespace) -> int:
 
     if args.sweeps is None:  # the parser's default: fewer sweeps continue a fit than start one
         args.sweeps = UPDATE_SWEEPS if args.update is not None else FIT_SWEEPS
+    _apply_preset_inference(args)
     if args.update is not None:
         _check_update_args(args)
     if args.sweeps == "auto" and args.method != "gibbs":
@@ -116,6 +124,25 @@ def _fit(args: argparse.Namespace) -> int:
         raise
     finally:
         staged.discard()  # nothing once committed; else the run's partial outputs
+
+
+def _apply_preset_inference(args: argparse.Namespace) -> None:
+    """Fill the inference options the command line left unset (None) with what the preset
+    recommends (:func:`spcopyro.config.preset_inference`: ``auto`` starts from the rooms, adds
+    merge moves and reports the VI point estimate), where they apply to this run, else with the
+    plain defaults (random start, no merge moves, the highest-log-joint state visited)."""
+    recommended = preset_inference(args.preset)
+    starts_elsewhere = any(x is not None for x in (args.update, args.init_from, args.resume))
+    samples = args.sweeps != "auto" and args.method in ("gibbs", "vi-gibbs")
+    if args.init is None:
+        args.init = "random" if starts_elsewhere else recommended.get("init", "random")
+    if args.merge_moves is None and args.method == "gibbs":
+        args.merge_moves = recommended.get("merge_moves")
+    if args.point_estimate is None:
+        usable = samples and args.marginal_samples > 0
+        args.point_estimate = (
+            recommended.get("point_estimate", "map-visited") if usable else "map-visited"
+        )
 
 
 def _check_update_args(args: argparse.Namespace) -> None:
@@ -439,20 +466,22 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--merge-moves",
         type=float,
         help="share of sweeps that start with a split-merge move: two touching concepts merge "
-        "or one splits, parameters integrated out (default 0)",
+        "or one splits, parameters integrated out (default: 0.2 with --preset auto, else 0)",
     )
-    p.add_argument("--point-estimate", choices=POINT_ESTIMATES, default="map-visited",
-                   help="the reported map: the highest-log-joint state visited (map-visited, "
-                        "default) or the partition minimising the expected binder or vi loss "
-                        "over the --marginal-samples maps; writes agreement.png")  # fmt: skip
+    p.add_argument("--point-estimate", choices=POINT_ESTIMATES, default=None,
+                   help="the reported map: the highest-log-joint state visited (map-visited) "
+                        "or the partition minimising the expected binder or vi loss over the "
+                        "--marginal-samples maps; writes agreement.png (default: vi with --preset "
+                        "auto, else map-visited)")  # fmt: skip
     p.add_argument("--feature-scaling",
                    help="image features as probability, floor100 or a number s (s * f) "
                         f"{_PRESET_DEFAULT}")  # fmt: skip
     p.add_argument(
         "--init",
-        choices=("random", "gaussian", "spcoa"),
-        default="random",
-        help="starting labels: random, k-means Gaussians, or SpCoA pre-learning",
+        choices=("random", "gaussian", "spcoa", "rooms"),  # fit.INITS (fit loads lazily)
+        default=None,
+        help="starting labels: random, k-means Gaussians, SpCoA pre-learning, or one concept per "
+        "room of a geometric room segmentation (default: rooms with --preset auto, else random)",
     )
     p.add_argument("--init-from", metavar="OUT",
                    help="start from the labels of an earlier fit's output folder on the same map "

@@ -20,6 +20,14 @@ Presets (:func:`preset`) give both layers at once, as :class:`SpCoSettings`:
 ``original-code``
     The released implementation's values: alpha 1e7, beta 0.1, chi 1.0, gamma 2.1, L 120,
     image features as floor(100 f).
+``auto`` (the default)
+    What the ablation of issue #14 supports (README, "Maps that are right out of the box"):
+    the released code's emissions (beta 0.1, chi 1.0, floor(100 f): word and image tables the
+    data can move, where the paper's beta 500 / chi 1e4 leave every concept's words uniform),
+    gamma 3.0 (above the critical 2.48 for L = 120, so regions form), and, as recommended
+    inference settings (:data:`PRESET_INFERENCE`), a start from a geometric room segmentation,
+    split-merge moves in a fifth of the sweeps and the variation-of-information point estimate
+    over the kept label maps as the reported map. The paper's presets stay as they are.
 
 A note on gamma. The Potts prior over L labels on a square lattice has its critical coupling at
 ``ln(1 + sqrt(L))`` (2.48 for L = 120). Below it the MRF alone does not form regions: measured with
@@ -60,8 +68,29 @@ PRESETS: dict[str, dict[str, object]] = {
         prior="dp", alpha=1e7, beta=0.1, chi=1.0, gamma=2.1, num_concepts=120,
         feature_scaling="floor100",
     ),
+    "auto": dict(
+        prior="dp", alpha=1e7, beta=0.1, chi=1.0, gamma=3.0, num_concepts=120,
+        feature_scaling="floor100",
+    ),
 }  # fmt: skip
-DEFAULT_PRESET = "paper-dp"
+DEFAULT_PRESET = "auto"
+
+PRESET_INFERENCE: dict[str, dict[str, object]] = {
+    "auto": dict(init="rooms", merge_moves=0.2, point_estimate="vi"),
+}
+"""The inference settings a preset recommends beside its model (names of ``fit_house`` keyword
+arguments and :class:`~spcopyro.gibbs.options.GibbsOptions` fields, as plain values so that this
+module stays free of the package): ``spcopyro fit`` applies them where the command line leaves
+them unset; in Python pass them yourself (:func:`preset_inference`)."""
+
+
+def preset_inference(name: str) -> dict[str, object]:
+    """The inference settings :data:`PRESET_INFERENCE` recommends for preset ``name`` (empty
+    for the paper's presets, which reproduce the paper: random start, single-site sweeps, the
+    highest-log-joint state visited as the map)."""
+    if name not in PRESETS:
+        raise ValueError(f"unknown preset {name!r}; choose one of {sorted(PRESETS)}")
+    return dict(PRESET_INFERENCE.get(name, {}))
 
 
 def _is_number(value: object) -> bool:

@@ -52,7 +52,7 @@ from spcopyro.uncertainty import label_frequencies
 
 logger = logging.getLogger("spcopyro")
 
-INITS = ("random", "gaussian", "spcoa")
+INITS = ("random", "gaussian", "spcoa", "rooms")
 RANDOM_STREAMS_NOTE = (
     "the torch and numba Gibbs backends draw different random streams from one seed: a seeded "
     "fit reproduces bit for bit only on the backend that ran it (inference.backend_used)"
@@ -338,6 +338,27 @@ def result_labels(result: SpCoResult, house: House, config: SpCoConfig) -> torch
     return torch.as_tensor(labels, dtype=torch.long)
 
 
+def rooms_initial_labels(
+    house: House, config: SpCoConfig, generator: torch.Generator, door_width: float | None = None
+) -> torch.Tensor:
+    """[N] labels from the map alone: one concept per room of a geometric room segmentation
+    (:func:`spcopyro.baselines.geometry.room_segments`, the (F) baseline's; doorways up to
+    ``door_width`` metres, default its own, separate rooms), rooms beyond L sharing concepts
+    (room r gets r mod L), cells outside every room (specks under the smallest room) uniformly
+    random. A start, not a prior: the sampler then lets the observations move, merge (merge
+    moves) and split the regions; only the speed at which it gets there depends on the start."""
+    from spcopyro.baselines.geometry import DEFAULT_DOOR_WIDTH, room_segments
+
+    grid = house.grid
+    width = DEFAULT_DOOR_WIDTH if door_width is None else door_width
+    rooms = room_segments(grid, door_width=width)  # [H, W], -1 off the rooms
+    cells = np.asarray(grid.free_cells)  # [N, 2] (row, column) in free-index order
+    room = torch.as_tensor(rooms[cells[:, 0], cells[:, 1]], dtype=torch.long)  # [N]
+    L = config.num_concepts
+    random = torch.randint(L, (len(room),), generator=generator)  # [N]
+    return torch.where(room >= 0, room % L, random)
+
+
 def initial_labels(
     house: House,
     counts: CellCounts,
@@ -347,8 +368,9 @@ def initial_labels(
     generator: torch.Generator,
 ) -> torch.Tensor | None:
     """[N] starting labels: None for ``"random"`` (the method draws them), else ``"gaussian"``
-    (k-means Gaussians over the observed cells), ``"spcoa"`` (a SpCoA fit's Gaussians) or a
-    previous :class:`SpCoResult`'s labels (:func:`result_labels`)."""
+    (k-means Gaussians over the observed cells), ``"spcoa"`` (a SpCoA fit's Gaussians),
+    ``"rooms"`` (one concept per geometric room: :func:`rooms_initial_labels`) or a previous
+    :class:`SpCoResult`'s labels (:func:`result_labels`)."""
     if isinstance(init, SpCoResult):
         return result_labels(init, house, settings.model)
     if init not in INITS:
@@ -357,6 +379,8 @@ def initial_labels(
         return gaussian_initial_labels(house, counts, settings.model, generator)
     if init == "spcoa":
         return spcoa_initial_labels(house, settings, seed)
+    if init == "rooms":
+        return rooms_initial_labels(house, settings.model, generator)
     return None
 
 

@@ -21,7 +21,8 @@ def output_from_run(run: GibbsRun, options: dict[str, object] | None = None) -> 
     that state's draws (``parameters_drawn``): a result reports their posterior means given the
     labels instead (:mod:`spcopyro.posterior_means`). With sampled hyperparameters,
     ``options["hyperparameters"]`` holds their summary (initial, final, posterior mean and sd over
-    the second half of the sweeps: :func:`~spcopyro.gibbs.hyperparameters.hyperparameter_summary`)."""
+    the second half of the sweeps:
+    :func:`~spcopyro.gibbs.hyperparameters.hyperparameter_summary`)."""
     best = run.best_state
     options = dict(options or {})
     if run.hyperparameters is not None and "hyper" in options:
