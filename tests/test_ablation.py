@@ -282,3 +282,17 @@ def test_cli_runs_and_rejects_bad_variants(tmp_path, capsys):
     assert main(["ablation", "--out", str(tmp_path / "x"), "--quick", "--variant", "x:gama=3"]) == 2
     assert "unknown key 'gama'" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+def test_public_only_run_with_no_synthetic_seed(tmp_path, dataset_root):
+    """`--seeds 0`: the synthetic settings stay named but run no house; the report still writes
+    (it once failed describing synthetic houses of no seed)."""
+    settings = AblationSettings.quick(
+        variants=(parse_variant("dp"),), baselines=(), seeds=0,
+        dataset_root=dataset_root, public_houses=("room1ldk4",), sweeps=3,
+    )  # fmt: skip
+    from spcopyro.experiments.ablation import run_ablation
+
+    report = run_ablation(tmp_path, settings)
+    assert [s["name"] for s in report["statistics"]] == ["room1ldk4"]
+    assert (tmp_path / "ablation.md").is_file()

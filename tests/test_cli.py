@@ -86,7 +86,7 @@ def test_fit_warns_below_the_critical_coupling(small_house, tmp_path, capsys):
 
 def test_fit_says_when_the_word_prior_swamps_the_words(small_house, tmp_path, capsys):
     argv = ["fit", str(small_house), "--out", str(tmp_path / "f"), "--sweeps", "3",
-            "--concepts", "10"]  # fmt: skip
+            "--concepts", "10", "--preset", "paper-dp"]  # fmt: skip
     assert main(argv) == 0  # paper-dp: beta = 500
     assert "close to uniform" in capsys.readouterr().err
     argv += ["--beta", "0.01", "--out", str(tmp_path / "g")]

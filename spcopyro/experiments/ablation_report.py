@@ -293,6 +293,8 @@ def write_report(
     if settings.dataset_root is not None:
         public = [load_house(Path(settings.dataset_root) / name) for name in public_names]
     synthetic = {name: settings.houses[name] for name in settings.synthetic}
+    if settings.seeds < 1:  # public houses only (--seeds 0): no synthetic house to describe
+        synthetic = {}
     stats = public_and_synthetic_statistics(public, synthetic, seeds=range(min(settings.seeds, 5)))
     summary = summarise(records)
     report: dict[str, object] = {
