@@ -11,7 +11,14 @@ import torch
 from gibbs_problems import config, random_problem
 from pyro.infer import MCMC
 
-from spcopyro.config import PRESETS, DataPreparation, SpCoConfig, SpCoSettings, preset
+from spcopyro.config import (
+    PRESETS,
+    DataPreparation,
+    SpCoConfig,
+    SpCoSettings,
+    preset,
+    preset_inference,
+)
 from spcopyro.fit import fit_house, gamma_warning
 from spcopyro.gibbs.kernel import SpCoGibbs, mcmc_diagnostics
 from spcopyro.gibbs.method import output_from_run
@@ -213,7 +220,14 @@ def test_initial_labels_are_checked():
 
 def test_presets_and_validation():
     assert isinstance(preset(), SpCoSettings)
-    assert preset().model.gamma == 4.0 and preset().model.num_concepts == 120
+    assert preset() == preset("auto")  # the default since issue #14
+    assert preset().model.gamma == 3.0 and preset().data.feature_scaling == "floor100"
+    assert preset("paper-dp").model.gamma == 4.0 and preset("paper-dp").model.num_concepts == 120
+    assert preset("paper-dp").model.beta == 500.0  # the paper's presets stay as they were
+    assert preset_inference("auto") == dict(init="rooms", merge_moves=0.2, point_estimate="vi")
+    assert preset_inference("paper-dp") == {}
+    with pytest.raises(ValueError, match="unknown preset"):
+        preset_inference("nope")
     assert preset("original-code").data.feature_scaling == "floor100"
     assert preset("paper-dirichlet", num_concepts=6).model.prior == "dirichlet"
     # Overrides go to the layer with a field of that name; None is ignored (CLI pass-through).
@@ -237,7 +251,7 @@ def test_presets_and_validation():
         SpCoConfig(gamma=-1.0)
     with pytest.raises(ValueError, match="alpha"):
         SpCoConfig(alpha=0.0)
-    assert set(PRESETS) == {"paper-dp", "paper-dirichlet", "original-code"}
+    assert set(PRESETS) == {"auto", "paper-dp", "paper-dirichlet", "original-code"}
     # ln(1 + sqrt(120)) = 2.48: the released code's gamma 2.1 is below it.
     assert preset("original-code").model.critical_gamma == pytest.approx(2.4811, abs=1e-4)
     assert "below the Potts critical coupling" in gamma_warning(preset("original-code").model)
