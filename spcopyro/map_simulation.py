@@ -41,17 +41,11 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro.baselines.geometry import DEFAULT_DOOR_WIDTH, room_segments
-from spcopyro.data import House, Observations, save_house
+from spcopyro.data import House, save_house
 from spcopyro.maps import UNKNOWN, OccupancyGrid, load_map
 from spcopyro.synthetic import DEFAULT_CATEGORY_NAMES, HouseSpec, HouseSpecError
 from spcopyro.synthetic.floor_plan import _FloorPlan
-from spcopyro.synthetic.house import (
-    _image_features,
-    _place_distributions,
-    _tour,
-    _utterance_positions,
-    _utterances,
-)
+from spcopyro.synthetic.house import tour_observations
 
 __all__ = [
     "CLEARANCE",
@@ -156,21 +150,7 @@ def simulate_on_map(
     tour_grid = OccupancyGrid(occupancy.astype(np.int8), grid.resolution, grid.origin)
     plan = _FloorPlan(tour_grid.occupancy, rooms, num_rooms, 0)
 
-    phi = _place_distributions(spec, num_categories, rng)  # [C, K]
-    visits = _tour(spec, tour_grid, plan, rng)
-    image_category = room_category[visits.region]  # [T]
-    features = _image_features(phi[image_category], spec.feature_concentration, rng)  # [T, K]
-    spoken_at = _utterance_positions(spec, visits, rng)  # [U]
-    utterances = _utterances(spec, image_category[spoken_at], num_categories, rng)
-    observations = Observations(
-        image_features=features,
-        image_xy=visits.xy,
-        image_trial=visits.trial,
-        utterances=utterances,
-        word_xy=visits.xy[spoken_at].copy(),
-        word_trial=visits.trial[spoken_at].copy(),
-        image_yaw=visits.yaw,
-    )
+    observations = tour_observations(spec, tour_grid, plan, room_category, num_categories, rng)
     house = House(
         name=name,
         grid=grid,

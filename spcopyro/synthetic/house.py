@@ -248,6 +248,35 @@ def _utterances(
 # --------------------------------------------------------------------------------------------
 
 
+def tour_observations(
+    spec: HouseSpec,
+    grid: OccupancyGrid,
+    plan: _FloorPlan,
+    region_category: np.ndarray,
+    num_categories: int,
+    rng: np.random.Generator,
+) -> Observations:
+    """The synthetic observation model on a floor plan: a tour of its regions (``plan.region``,
+    ``region_category`` [R] the category of each), a place histogram per image from its
+    category's Dirichlet, utterances at image positions from the category's lexicon. Used by
+    :func:`make_house` and by ``simulate --map`` (:mod:`spcopyro.map_simulation`)."""
+    phi = _place_distributions(spec, num_categories, rng)  # [C, K]
+    tour = _tour(spec, grid, plan, rng)
+    image_category = region_category[tour.region]  # [T]
+    features = _image_features(phi[image_category], spec.feature_concentration, rng)  # [T, K]
+    spoken_at = _utterance_positions(spec, tour, rng)  # [U]
+    utterances = _utterances(spec, image_category[spoken_at], num_categories, rng)
+    return Observations(
+        image_features=features,
+        image_xy=tour.xy,
+        image_trial=tour.trial,
+        utterances=utterances,
+        word_xy=tour.xy[spoken_at].copy(),
+        word_trial=tour.trial[spoken_at].copy(),
+        image_yaw=tour.yaw,
+    )
+
+
 def make_house(seed: int = 0, spec: HouseSpec | None = None, name: str = "synthetic") -> House:
     """Draw a synthetic house with ground truth from ``seed`` (see the module docstrings of
     :mod:`spcopyro.synthetic.floor_plan` and :mod:`spcopyro.synthetic.house`).
@@ -272,22 +301,7 @@ def make_house(seed: int = 0, spec: HouseSpec | None = None, name: str = "synthe
         occupancy=plan.occupancy, resolution=float(spec.resolution), origin=(ox, oy, 0.0)
     )
 
-    phi = _place_distributions(spec, num_categories, rng)  # [C, K]
-    tour = _tour(spec, grid, plan, rng)
-    image_category = region_category[tour.region]  # [T]
-    features = _image_features(phi[image_category], spec.feature_concentration, rng)  # [T, K]
-    spoken_at = _utterance_positions(spec, tour, rng)  # [U]
-    utterances = _utterances(spec, image_category[spoken_at], num_categories, rng)
-
-    observations = Observations(
-        image_features=features,
-        image_xy=tour.xy,
-        image_trial=tour.trial,
-        utterances=utterances,
-        word_xy=tour.xy[spoken_at].copy(),
-        word_trial=tour.trial[spoken_at].copy(),
-        image_yaw=tour.yaw,
-    )
+    observations = tour_observations(spec, grid, plan, region_category, num_categories, rng)
     return House(
         name=name,
         grid=grid,
