@@ -37,6 +37,7 @@ from spcopyro.gibbs.convergence import (
     ConvergenceDiagnostics,
     run_until_converged,
 )
+from spcopyro.gibbs.hyperparameters import config_at_posterior_mean
 from spcopyro.gibbs.method import GibbsInference, gibbs_record, output_from_run
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsChain, advance, start_chain
@@ -295,10 +296,12 @@ def result_of(
 ) -> SpCoResult:
     """The :class:`SpCoResult` of an inference output on ``house`` (``record``: its
     :func:`provenance`). A sampler's drawn pi and emissions are replaced by their posterior means
-    given its labels (:mod:`spcopyro.posterior_means`; a variational method's are E_q already);
+    given its labels (:mod:`spcopyro.posterior_means`; a variational method's are E_q already),
+    under the posterior means of any hyperparameters the chain sampled;
     the result records each concept's observed cells and counts under the point labels."""
     if output.parameters_drawn:
-        output = with_posterior_means(output, data, settings.model)
+        config = config_at_posterior_mean(settings.model, output.options.get("hyperparameters"))
+        output = with_posterior_means(output, data, config)
     return SpCoResult.from_output(
         output, house.grid, modality_items(counts, data), settings.model,
         modalities=tuple(m.name for m in data.modalities), method=method,
@@ -567,7 +570,8 @@ def _with_sample_marginals(
     output = with_point_estimate(output, samples, point_estimate, config.num_concepts)
     if output.parameters_drawn:
         given = None if point_estimate != "map-visited" else samples  # tables of its clusters
-        output = with_posterior_means(output, data, config, given)
+        sampled = config_at_posterior_mean(config, output.options.get("hyperparameters"))
+        output = with_posterior_means(output, data, sampled, given)
     return dataclasses.replace(
         output,
         marginals=marginals,

@@ -213,3 +213,27 @@ def test_where_figure_draws_the_answer_over_the_grey_map():
     ]
     assert len(outlines) >= 2  # answer and runner-up
     assert len(figure.axes) == 2  # and its colour bar
+
+
+def test_tables_use_the_posterior_mean_of_sampled_hyperparameters(small_house):
+    """With hyper.concentrations (and alpha) sampled, w, theta and pi are the posterior means
+    given the labels under the sampled values' posterior means, not under the preset's."""
+    from spcopyro.gibbs import HyperparameterOptions
+    from spcopyro.gibbs.hyperparameters import config_at_posterior_mean
+
+    settings = preset("original-code", gamma=3.0, num_concepts=8)
+    hyper = HyperparameterOptions(alpha=True, concentrations=True)
+    options = GibbsOptions(backend="torch", hyper=hyper)
+    result = fit_house(small_house, settings, options=options, sweeps=30, progress=False)
+    summary = result.inference["hyperparameters"]
+    assert {"alpha", "beta", "chi"} <= set(summary)
+    sampled = config_at_posterior_mean(settings.model, summary)
+    assert sampled.beta == summary["beta"]["posterior_mean"] != settings.model.beta
+    assert sampled.chi == summary["chi"]["posterior_mean"] != settings.model.chi
+    assert sampled.alpha == summary["alpha"]["posterior_mean"] != settings.model.alpha
+    _, data = prepare_model_data(small_house, settings)
+    pi, (theta, w) = posterior_means(result.labels, data, sampled)
+    np.testing.assert_allclose(result.w, w, rtol=1e-12)
+    np.testing.assert_allclose(result.theta, theta, rtol=1e-12)
+    np.testing.assert_allclose(result.pi, pi, rtol=1e-12)
+    assert config_at_posterior_mean(settings.model, None) == settings.model

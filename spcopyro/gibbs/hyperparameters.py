@@ -485,6 +485,22 @@ def hyperparameter_summary(
     return summary
 
 
+def config_at_posterior_mean(
+    config: SpCoConfig, summary: dict[str, dict[str, float]] | None
+) -> SpCoConfig:
+    """``config`` with every hyperparameter in ``summary`` (:func:`hyperparameter_summary`) set
+    to its posterior mean: what a fit's reported tables (posterior means of pi, theta, w given
+    the labels) are computed under when the chain sampled them. Unchanged when nothing was."""
+    for name, values in (summary or {}).items():
+        value = float(values["posterior_mean"])
+        if name in ("alpha", "gamma"):
+            config = config.replace(**{name: value})
+        else:
+            modality = {"chi": IMAGES, "beta": WORDS}.get(name, name)
+            config = with_concentration(config, modality, value)
+    return config
+
+
 def _initial(config: SpCoConfig, name: str) -> float:
     if name in ("alpha", "gamma", "chi", "beta"):
         return float(getattr(config, name))
