@@ -68,3 +68,15 @@ def sample_categorical_logits(logits: torch.Tensor, generator: torch.Generator) 
     u = torch.rand(logits.shape, dtype=logits.dtype, generator=generator)
     u = u.clamp_min(torch.finfo(logits.dtype).tiny)
     return torch.argmax(logits - torch.log(-torch.log(u)), dim=-1)
+
+
+def coin_flip(probability: float, generator: torch.Generator) -> bool:
+    """True with ``probability``: one float64 uniform draw from ``generator``, but none at all
+    when ``probability`` is <= 0 (False) or >= 1 (True), so a move switched fully off or on
+    leaves the random stream as it is. How the sampler chooses, independently of the state,
+    whether a sweep makes an optional move (cluster, merge, exchange updates)."""
+    if probability <= 0.0:
+        return False
+    if probability >= 1.0:
+        return True
+    return float(torch.rand((), dtype=torch.float64, generator=generator)) < probability

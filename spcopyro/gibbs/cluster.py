@@ -45,7 +45,7 @@ from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.state import GibbsState
 from spcopyro.likelihood import observation_log_likelihood
 from spcopyro.model import DTYPE, ModelData
-from spcopyro.random_draws import sample_categorical_logits
+from spcopyro.random_draws import coin_flip, sample_categorical_logits
 
 
 def bond_clusters(
@@ -99,8 +99,6 @@ def maybe_cluster_move(
 ) -> GibbsState:
     """:func:`cluster_move` with probability ``probability`` (``GibbsOptions.cluster_moves``),
     else ``state`` (draws nothing from ``generator`` when the probability is 0)."""
-    if probability <= 0.0:
-        return state
-    if probability < 1.0 and float(torch.rand((), dtype=DTYPE, generator=generator)) >= probability:
+    if not coin_flip(probability, generator):
         return state
     return cluster_move(state, data, config, generator)

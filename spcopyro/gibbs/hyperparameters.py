@@ -83,7 +83,7 @@ from spcopyro.gibbs.hyper_targets import (
 from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
 from spcopyro.likelihood import concept_statistics
 from spcopyro.model import DTYPE, ModelData, potts_agreements
-from spcopyro.random_draws import sample_log_dirichlet
+from spcopyro.random_draws import coin_flip, sample_log_dirichlet
 
 AuxiliaryDraw = Callable[[torch.Tensor, SpCoConfig, torch.Generator], torch.Tensor]
 """``aux_draw(labels, config, generator) -> [N] labels``: a draw from the labels' prior under
@@ -433,9 +433,7 @@ def update_hyperparameters(
             name = concentration_name(modality.name)
             proposed[name], accepted[name] = hyper.concentration_moves, ok
     exchange = hyper.alpha or hyper.gamma == "exchange"
-    if exchange and hyper.exchange_probability < 1.0:
-        u = float(torch.rand((), dtype=DTYPE, generator=generator))
-        exchange = u < hyper.exchange_probability
+    exchange = exchange and coin_flip(hyper.exchange_probability, generator)
     if hyper.alpha and exchange:
         config, ok = update_alpha(state, data, config, generator, hyper, aux_draw)
         proposed["alpha"], accepted["alpha"] = 1, int(ok)

@@ -86,6 +86,7 @@ from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.state import GibbsState
 from spcopyro.gibbs.sweep import sample_globals
 from spcopyro.model import DTYPE, ModelData
+from spcopyro.random_draws import coin_flip
 
 MERGE_SCANS = 3
 """Restricted scans between the launch state and the final scan (Jain & Neal's t)."""
@@ -360,8 +361,6 @@ def maybe_merge_move(
 ) -> GibbsState:
     """:func:`merge_move` with probability ``probability`` (``GibbsOptions.merge_moves``), else
     ``state`` (draws nothing from ``generator`` when the probability is 0)."""
-    if probability <= 0.0:
-        return state
-    if probability < 1.0 and float(torch.rand((), dtype=DTYPE, generator=generator)) >= probability:
+    if not coin_flip(probability, generator):
         return state
     return merge_move(state, data, config, generator)[0]
