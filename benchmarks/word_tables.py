@@ -38,7 +38,7 @@ import numpy as np
 import torch
 
 from spcopyro.config import preset
-from spcopyro.fit import _with_sample_marginals, prepare_model_data, result_of
+from spcopyro.fit import prepare_model_data, result_of, with_sample_marginals
 from spcopyro.gibbs.method import GibbsInference
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.metrics import matching_rate
@@ -97,7 +97,7 @@ def run(seeds: int, sweeps: int, spec: HouseSpec | None, report) -> dict[str, ob
                 options=GibbsOptions(), progress=False, thin=max(1, sweeps // 100),
             )  # fmt: skip
             drawn = dataclasses.replace(output, parameters_drawn=False)
-            sampled = _with_sample_marginals(output, sweeps, data, settings.model)
+            sampled = with_sample_marginals(output, sweeps, data, settings.model)
             for kind, out in zip(KINDS, (drawn, output, sampled), strict=True):
                 result = result_of(out, house, counts, data, settings, "gibbs")
                 records[label][kind].append({"seed": seed, **score(result, house)})

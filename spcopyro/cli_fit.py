@@ -41,6 +41,7 @@ from spcopyro.gibbs.backends import get_backend
 from spcopyro.gibbs.hyperparameters import describe_hyperparameters
 from spcopyro.gibbs.options import BACKENDS, GibbsOptions
 from spcopyro.inference import with_options
+from spcopyro.initialisation import INITS
 from spcopyro.outputs import StagedOutput
 from spcopyro.point_estimate import POINT_ESTIMATES
 from spcopyro.registry import DEFAULT_METHOD, INFERENCE_METHODS
@@ -478,7 +479,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         f"{_PRESET_DEFAULT}")  # fmt: skip
     p.add_argument(
         "--init",
-        choices=("random", "gaussian", "spcoa", "rooms"),  # fit.INITS (fit loads lazily)
+        choices=INITS,
         default=None,
         help="starting labels: random, k-means Gaussians, SpCoA pre-learning, or one concept per "
         "room of a geometric room segmentation (default: rooms with --preset auto, else random)",

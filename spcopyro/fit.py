@@ -42,7 +42,7 @@ from spcopyro.gibbs.method import GibbsInference, gibbs_record, output_from_run
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsChain, advance, start_chain
 from spcopyro.inference import InferenceOutput, method_options
-from spcopyro.initialisation import kmeans_gaussians, labels_from_gaussians
+from spcopyro.initialisation import INITS, kmeans_gaussians, labels_from_gaussians
 from spcopyro.model import DTYPE, ModelData, make_model_data
 from spcopyro.point_estimate import check_point_estimate, with_point_estimate
 from spcopyro.posterior_means import concept_totals, with_posterior_means
@@ -53,7 +53,6 @@ from spcopyro.uncertainty import label_frequencies
 
 logger = logging.getLogger("spcopyro")
 
-INITS = ("random", "gaussian", "spcoa", "rooms")
 RANDOM_STREAMS_NOTE = (
     "the torch and numba Gibbs backends draw different random streams from one seed: a seeded "
     "fit reproduces bit for bit only on the backend that ran it (inference.backend_used)"
@@ -467,11 +466,11 @@ def fit_house_chains(
             output = inference.run(
                 data, settings.model, iterations=int(sweeps), generator=generator,
                 init_labels=start, options=options, progress=progress,
-                thin=_marginal_thin(int(sweeps), marginal_samples),
+                thin=marginal_thin(int(sweeps), marginal_samples),
             )  # fmt: skip
             output.options.update(seed=int(seed), init=init_name(init))
             if output.marginals is None:  # a sampler (vi-gibbs): its label frequencies
-                output = _with_sample_marginals(
+                output = with_sample_marginals(
                     output, int(sweeps), data, settings.model, point_estimate
                 )
             fits.append(result_of(output, house, counts, data, settings, method, record))
@@ -518,7 +517,7 @@ def _gibbs_outputs(
                 )
                 chains[k] = chain
             if chain.sweeps_done < sweeps:
-                thin = _marginal_thin(sweeps, marginal_samples)
+                thin = marginal_thin(sweeps, marginal_samples)
                 advance(chain, sweeps - chain.sweeps_done, thin=thin, progress=progress)
     except KeyboardInterrupt:
         saved = None if checkpoint is None else checkpoint.save()
@@ -528,7 +527,7 @@ def _gibbs_outputs(
         assert chain is not None
         entry = gibbs_record(options, sweeps, chain.backend.name)
         output = output_from_run(chain.to_run(), {**entry, "seed": seed, "init": init_name(init)})
-        outputs.append(_with_sample_marginals(output, sweeps, data, settings.model, point_estimate))
+        outputs.append(with_sample_marginals(output, sweeps, data, settings.model, point_estimate))
     return outputs
 
 
@@ -542,13 +541,13 @@ def _preparation_record(settings: SpCoSettings) -> dict[str, object]:
     return record
 
 
-def _marginal_thin(sweeps: int, marginal_samples: int) -> int:
+def marginal_thin(sweeps: int, marginal_samples: int) -> int:
     """Every how many iterations to keep a label map so that about ``marginal_samples`` fall in
     the second half of ``sweeps`` (0: keep none)."""
     return max(1, sweeps // (2 * marginal_samples)) if marginal_samples else 0
 
 
-def _with_sample_marginals(
+def with_sample_marginals(
     output: InferenceOutput,
     sweeps: int,
     data: ModelData,

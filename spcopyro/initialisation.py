@@ -29,7 +29,12 @@ from spcopyro.model import DTYPE
 if TYPE_CHECKING:
     from spcopyro.config import SpCoConfig
 
-__all__ = ["check_labels", "kmeans_gaussians", "labels_from_gaussians", "random_labels"]
+__all__ = ["INITS", "check_labels", "kmeans_gaussians", "labels_from_gaussians", "random_labels"]
+
+INITS = ("random", "gaussian", "spcoa", "rooms")
+"""The named starts of a fit (:func:`spcopyro.fit.initial_labels`; ``fit --init``): uniformly
+random labels, k-means Gaussians over the observed cells, SpCoA pre-learning, or one concept per
+geometric room."""
 
 
 def random_labels(num_free: int, config: SpCoConfig, generator: torch.Generator) -> torch.Tensor:

@@ -55,11 +55,11 @@ import torch
 from spcopyro.config import IMAGES, WORDS, SpCoSettings
 from spcopyro.data import CellCounts, House
 from spcopyro.fit import (
-    _marginal_thin,
-    _with_sample_marginals,
+    marginal_thin,
     prepare_model_data,
     provenance,
     result_of,
+    with_sample_marginals,
 )
 from spcopyro.gibbs.method import GibbsInference, gibbs_record, output_from_run
 from spcopyro.gibbs.options import GibbsOptions
@@ -361,7 +361,7 @@ def fit_update(
         raise ValueError("seeds must name at least one chain")
     where = str(where)
     inference = get_method(method)
-    thin = _marginal_thin(int(sweeps), marginal_samples)
+    thin = marginal_thin(int(sweeps), marginal_samples)
     results = []
     with torch_threads(resolve_threads(threads, house.grid.num_free)):
         for seed in seeds:
@@ -381,7 +381,7 @@ def fit_update(
                     generator=generator, init_labels=start.labels, options=options,
                     progress=progress, thin=thin,
                 )  # fmt: skip
-            output = _with_sample_marginals(
+            output = with_sample_marginals(
                 output, int(sweeps), start.data, start.settings.model, point_estimate
             )
             output.options.update(
