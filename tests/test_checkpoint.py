@@ -111,6 +111,9 @@ class _Interrupting:
         self._maybe_stop("potts_agreements")
         return self.inner.potts_agreements(labels, pairs)
 
+    def __getattr__(self, name):  # label_counts, log_joint_variable: as the backend's
+        return getattr(self.inner, name)
+
 
 class _Clock:
     """``time`` for the run loop whose ``perf_counter`` raises KeyboardInterrupt at call

@@ -11,6 +11,7 @@ from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.options import BACKENDS
 from spcopyro.gibbs.state import GibbsState, SweepPlan
 from spcopyro.gibbs.sweep import gibbs_sweep
+from spcopyro.likelihood import log_joint_variable
 from spcopyro.model import ModelData, potts_agreements
 
 
@@ -22,7 +23,10 @@ class SweepBackend(Protocol):
     1 - ``unobserved_refresh``, only the rows of concepts holding an observed cell
     (:func:`spcopyro.gibbs.sweep.concepts_to_refresh`). Moves and schedules around the sweep
     (cluster moves, annealing) are composed once, in :func:`spcopyro.gibbs.sampler.step`.
-    ``potts_agreements`` is E(C), the statistic the per-sweep log joint needs.
+    ``potts_agreements`` is E(C) and ``label_counts`` the cells per concept: the statistics the
+    per-sweep log joint needs (the compiled backend has them from the sweep that drew the
+    labels); ``log_joint_variable`` is :func:`spcopyro.likelihood.log_joint_variable` of a hard
+    labelling given them (compiled in the numba backend).
     """
 
     name: str
@@ -39,6 +43,17 @@ class SweepBackend(Protocol):
 
     def potts_agreements(self, labels: torch.Tensor, pairs: torch.Tensor) -> torch.Tensor: ...
 
+    def label_counts(self, labels: torch.Tensor, num_concepts: int) -> torch.Tensor: ...
+
+    def log_joint_variable(
+        self,
+        state: GibbsState,
+        data: ModelData,
+        config: SpCoConfig,
+        label_counts: torch.Tensor,
+        agreements: torch.Tensor,
+    ) -> float: ...
+
 
 class TorchBackend:
     """The reference: :func:`spcopyro.gibbs.sweep.gibbs_sweep`."""
@@ -51,6 +66,15 @@ class TorchBackend:
     def potts_agreements(self, labels, pairs):  # noqa: D102
         return potts_agreements(labels, pairs)
 
+    def label_counts(self, labels, num_concepts):  # noqa: D102
+        return torch.bincount(labels, minlength=num_concepts)
+
+    def log_joint_variable(self, state, data, config, label_counts, agreements):  # noqa: D102
+        return float(
+            log_joint_variable(state.labels, state.log_pi, state.log_emissions, data, config,
+                               label_counts, agreements)
+        )  # fmt: skip
+
 
 class NumbaBackend:
     """The compiled sweep: :func:`spcopyro.gibbs.numba_sweep.gibbs_sweep_numba`."""
@@ -59,15 +83,28 @@ class NumbaBackend:
 
     def __init__(self) -> None:
         # ImportError without numba (get_backend relies on it).
-        from spcopyro.gibbs.numba_sweep import gibbs_sweep_numba, potts_agreements_numba
+        from spcopyro.gibbs.numba_log_joint import log_joint_variable_numba
+        from spcopyro.gibbs.numba_sweep import (
+            gibbs_sweep_numba,
+            label_counts_numba,
+            potts_agreements_numba,
+        )
 
-        self._sweep, self._potts_agreements = gibbs_sweep_numba, potts_agreements_numba
+        self._sweep, self._label_counts = gibbs_sweep_numba, label_counts_numba
+        self._potts_agreements = potts_agreements_numba
+        self._log_joint_variable = log_joint_variable_numba
 
     def sweep(self, state, data, config, generator, plan, unobserved_refresh):  # noqa: D102
         return self._sweep(state, data, config, generator, plan, unobserved_refresh)
 
     def potts_agreements(self, labels, pairs):  # noqa: D102
         return self._potts_agreements(labels, pairs)
+
+    def label_counts(self, labels, num_concepts):  # noqa: D102
+        return self._label_counts(labels, num_concepts)
+
+    def log_joint_variable(self, state, data, config, label_counts, agreements):  # noqa: D102
+        return self._log_joint_variable(state, data, config, label_counts, agreements)
 
 
 def get_backend(backend: str = "auto") -> SweepBackend:

@@ -46,9 +46,12 @@ def draw_seed(generator: torch.Generator) -> int:
 
 
 @njit(cache=True, inline="always")
-def _next_bits(state: np.ndarray) -> np.uint64:
-    """64 random bits from xoshiro256++ (Blackman & Vigna, 2018); advances ``state`` [4]."""
-    s0, s1, s2, s3 = state[0], state[1], state[2], state[3]
+def next_bits(
+    s0: np.uint64, s1: np.uint64, s2: np.uint64, s3: np.uint64
+) -> tuple[np.uint64, np.uint64, np.uint64, np.uint64, np.uint64]:
+    """xoshiro256++ (Blackman & Vigna, 2018) on a state held in four local variables:
+    (64 random bits, the next state). The hot loops keep the state in registers this way and
+    write it back to the [4] array once (an array state costs a store and a reload per draw)."""
     total = s0 + s3
     result = ((total << _U23) | (total >> _U41)) + s0
     t = s1 << _U17
@@ -58,8 +61,20 @@ def _next_bits(state: np.ndarray) -> np.uint64:
     s0 ^= s3
     s2 ^= t
     s3 = (s3 << _U45) | (s3 >> _U19)
-    state[0], state[1], state[2], state[3] = s0, s1, s2, s3
-    return result
+    return result, s0, s1, s2, s3
+
+
+@njit(cache=True, inline="always")
+def bits_to_uniform(bits: np.uint64) -> float:
+    """A uniform double in [0, 1) from the top 53 of 64 random bits."""
+    return float(bits >> _U11) * _TWO_TO_MINUS_53
+
+
+@njit(cache=True, inline="always")
+def _next_bits(state: np.ndarray) -> np.uint64:
+    """64 random bits from xoshiro256++; advances the array ``state`` [4]."""
+    bits, state[0], state[1], state[2], state[3] = next_bits(state[0], state[1], state[2], state[3])
+    return bits
 
 
 @njit(cache=True, inline="always")
@@ -116,42 +131,142 @@ def _fill_normal(out: np.ndarray, state: np.ndarray) -> None:
 
 
 @njit(cache=True)
-def fill_log_gamma(base: float, statistics: np.ndarray, out: np.ndarray, state: np.ndarray) -> int:
-    """out[r, c] = log G, G ~ Gamma(base + statistics[r, c], 1), for [R, C] arrays.
+def _normal_slow_path(bits: np.uint64, state: np.ndarray) -> float:
+    """The rest of :func:`_normal` after its first 64 bits missed the layer's rectangle
+    (~1% of draws): out of line, so that the fast path stays small where it is inlined."""
+    i = np.int64(bits & _U127)
+    u = 2.0 * (float(bits >> _U11) * _TWO_TO_MINUS_53) - 1.0
+    if i == 0:  # the tail beyond R (Marsaglia, 1964)
+        while True:
+            x = math.log(1.0 - uniform(state)) / _ZIG_TAIL
+            y = math.log(1.0 - uniform(state))
+            if -2.0 * y >= x * x:
+                return x - _ZIG_TAIL if u < 0.0 else _ZIG_TAIL - x
+    x = u * _ZIG_X[i]
+    f0 = math.exp(-0.5 * (_ZIG_X[i] * _ZIG_X[i] - x * x))
+    f1 = math.exp(-0.5 * (_ZIG_X[i + 1] * _ZIG_X[i + 1] - x * x))
+    if f1 + uniform(state) * (f0 - f1) < 1.0:
+        return x
+    return _normal(state)  # rejected: a fresh normal
 
-    Marsaglia-Tsang with its squeeze (shape a >= 1), taken in log space; for a < 1,
-    log G(a) = log G(a + 1) + log(U) / a, finite however small a is. Returns -1, or the flat
-    index r * C + c of the first shape that is not finite and positive (and stops there: the
-    rejection loop would never end).
+
+@njit(cache=True)
+def _fill_gamma_linear(
+    base: float,
+    statistics: np.ndarray,
+    out: np.ndarray,
+    boost: np.ndarray,
+    row_sums: np.ndarray,
+    row_boosted: np.ndarray,
+    state: np.ndarray,
+) -> int:
+    """The rejection part of :func:`fill_log_gamma`: out[r, c] = G(a') (linear) with
+    a' = a + 1 where a = base + statistics[r, c] < 1 (then boost[r, c] = log(U) / a, else 0),
+    row_sums[r] = sum_c out[r, c], row_boosted[r] = whether row r has a shape below 1.
+    Returns -1 or the flat index of the first a that is not finite and positive. The RNG state
+    stays in registers; the ziggurat's fast path is inlined.
     """
     R, C = statistics.shape
+    s0, s1, s2, s3 = state[0], state[1], state[2], state[3]
     shape, d, scale = -1.0, 0.0, 0.0  # Marsaglia-Tsang's constants of the last shape seen
     for r in range(R):
+        total = 0.0
+        row_boosted[r] = False
         for c in range(C):
             a = base + statistics[r, c]
             if not 0.0 < a < np.inf:
+                state[0], state[1], state[2], state[3] = s0, s1, s2, s3
                 return r * C + c
-            boost = 0.0
+            extra = 0.0
             if a < 1.0:
-                boost = math.log(1.0 - uniform(state)) / a  # 1 - U lies in (0, 1]
+                bits, s0, s1, s2, s3 = next_bits(s0, s1, s2, s3)
+                extra = math.log(1.0 - bits_to_uniform(bits)) / a  # 1 - U lies in (0, 1]
                 a += 1.0
+                row_boosted[r] = True
+            boost[r, c] = extra
             if a != shape:  # most concepts hold no observations: their shapes repeat
                 shape, d = a, a - 1.0 / 3.0
                 scale = 1.0 / math.sqrt(9.0 * d)
             while True:
-                x = _normal(state)
+                bits, s0, s1, s2, s3 = next_bits(s0, s1, s2, s3)
+                layer = np.int64(bits & _U127)
+                z = 2.0 * (float(bits >> _U11) * _TWO_TO_MINUS_53) - 1.0
+                if abs(z) < _ZIG_RATIO[layer]:
+                    x = z * _ZIG_X[layer]  # the ziggurat's rectangle (~99%)
+                else:
+                    state[0], state[1], state[2], state[3] = s0, s1, s2, s3
+                    x = _normal_slow_path(bits, state)
+                    s0, s1, s2, s3 = state[0], state[1], state[2], state[3]
                 t = 1.0 + scale * x
                 if t <= 0.0:
                     continue
                 v = t * t * t
-                u = 1.0 - uniform(state)
+                bits, s0, s1, s2, s3 = next_bits(s0, s1, s2, s3)
+                u = 1.0 - bits_to_uniform(bits)
                 x2 = x * x
                 if u < 1.0 - 0.0331 * x2 * x2 or math.log(u) < 0.5 * x2 + d * (
                     1.0 - v + math.log(v)
                 ):
-                    out[r, c] = math.log(d * v) + boost
+                    out[r, c] = d * v
+                    total += d * v
                     break
+        row_sums[r] = total
+    state[0], state[1], state[2], state[3] = s0, s1, s2, s3
     return -1
+
+
+def fill_log_gamma(base: float, statistics: np.ndarray, out: np.ndarray, state: np.ndarray) -> int:
+    """out[r, c] = log G, G ~ Gamma(base + statistics[r, c], 1), for [R, C] float64 arrays.
+
+    Marsaglia-Tsang with its squeeze (shape a >= 1); for a < 1,
+    log G(a) = log G(a + 1) + log(U) / a, finite however small a is. Returns -1, or the flat
+    index r * C + c of the first shape that is not finite and positive (and stops there: the
+    rejection loop would never end).
+    """
+    log_rows, bad = _log_gamma_rows(base, statistics, state, normalise=False)
+    if bad < 0:
+        out[...] = log_rows
+    return bad
+
+
+def _log_gamma_rows(
+    base: float, statistics: np.ndarray, state: np.ndarray, normalise: bool
+) -> tuple[np.ndarray, int]:
+    """([R, C] log G, or log(G / sum_c G) with ``normalise``; the bad index or -1).
+
+    The rejection loop draws G linearly (:func:`_fill_gamma_linear`), then one vectorised log
+    pass; a row whose shapes are all >= 1 normalises as log G - log(sum G) (its sum is finite:
+    no underflow above shape 1), one with shapes below 1 in log space (G(a) = G(a+1) U^(1/a)
+    underflows for small a).
+    """
+    R, C = statistics.shape
+    out = np.empty((R, C))
+    boost = np.empty((R, C))
+    row_sums = np.empty(R)
+    boosted = np.empty(R, dtype=np.bool_)  # [R] rows with a shape below 1
+    bad = _fill_gamma_linear(float(base), statistics, out, boost, row_sums, boosted, state)
+    if bad >= 0:
+        return out, bad
+    np.log(out, out=out)
+    if not boosted.any():  # every shape >= 1: the linear sums are safe
+        if normalise:
+            out -= np.log(row_sums)[:, None]
+        return out, -1
+    out[boosted] += boost[boosted]
+    if normalise:
+        plain = ~boosted
+        out[plain] -= np.log(row_sums[plain])[:, None]
+        out[boosted] = normalise_log_rows(out[boosted])
+    return out, -1
+
+
+def dirichlet_log_rows(
+    base: float, statistics: np.ndarray, state: np.ndarray
+) -> tuple[np.ndarray, int]:
+    """([R, C] log of R Dirichlet(base + statistics[r]) draws, -1), or (garbage, the flat index
+    of the first concentration that is not finite and positive): normalised Gamma variates
+    (:func:`fill_log_gamma`'s), in log space where a shape is below 1."""
+    return _log_gamma_rows(base, statistics, state, normalise=True)
 
 
 def normalise_log_rows(log_g: np.ndarray) -> np.ndarray:

@@ -30,17 +30,17 @@ e^{gamma n} = 1 + expm1(gamma n),
 
 a_s being the label in neighbour slot s (slots sharing a label add up to that label's part, and
 a missing neighbour carries a sentinel label L + s of background weight 0): with probability
-sum(B) / (sum(B) + neighbour mass) the label comes from B (a binary search in pi's CDF, or a
-scan of an observed cell's row), else from the slots. That is O(D^2 + log L) a cell without
-observations and O(D^2 + L) one with; the kernel is compiled per D, its slot loops unrolled and
-branch-free.
+sum(B) / (sum(B) + neighbour mass) the label comes from B (pi's alias table for a cell without
+observations, a scan of its row for one with), else from the slots. The loop itself, its layout
+and what it counts on the way (E(C) and the concept sizes, for the run loop's log joint) are
+:mod:`spcopyro.gibbs.numba_labels`'s.
 
 **Globals (eqs. 14-17).** pi ~ Dir(pi_concentration + m), theta_l ~ Dir(chi + image counts of
-the cells labelled l), w_l ~ Dir(beta + word counts of those cells), drawn in log space from
-log-gamma variates (Marsaglia & Tsang, 2000, with log G(a) = log G(a + 1) + log(U) / a for
-a < 1) and normalised by log-sum-exp, so concentrations far below 1 (alpha / L) never underflow.
-A switched-off modality contributes zero statistics (its distributions are drawn from the prior),
-as in the reference.
+the cells labelled l), w_l ~ Dir(beta + word counts of those cells), from normalised gamma
+variates (:func:`~spcopyro.gibbs.numba_random.dirichlet_log_rows`: Marsaglia & Tsang, 2000, drawn
+linearly and logged in one vectorised pass; log G(a) = log G(a + 1) + log(U) / a for a < 1, in
+log space, so concentrations far below 1 (alpha / L) never underflow). A switched-off modality
+contributes zero statistics (its distributions are drawn from the prior), as in the reference.
 
 **Randomness** (:mod:`spcopyro.gibbs.numba_random`): each call draws one seed from the given
 :class:`torch.Generator` and runs its own xoshiro256++ stream from it. A seeded run is
@@ -56,29 +56,36 @@ numba is missing (:func:`~spcopyro.gibbs.backends.get_backend` relies on that).
 
 from __future__ import annotations
 
-import functools
-from collections.abc import Callable
+import weakref
+from typing import NamedTuple
 
 import numpy as np
 import torch
 from numba import njit
 
 from spcopyro.config import SpCoConfig
-from spcopyro.gibbs.numba_plan import flat_plan
+from spcopyro.gibbs.numba_labels import (
+    agreements_of,
+    compact_label_dtype,
+    compact_labels,
+    count_cells,
+    label_plan,
+    label_sweep_kernel,
+)
 from spcopyro.gibbs.numba_random import (
+    dirichlet_log_rows,
     draw_seed,
-    fill_log_gamma,
-    normalise_log_rows,
     rng_state,
     sample_log_gamma_numba,
     sample_standard_normal_numba,
     uniform,
 )
-from spcopyro.gibbs.state import GibbsState, SweepPlan
+from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
 from spcopyro.model import ModelData
 
 __all__ = [
     "gibbs_sweep_numba",
+    "label_counts_numba",
     "potts_agreements_numba",
     "sample_globals_numba",
     "sample_labels_numba",
@@ -86,133 +93,7 @@ __all__ = [
     "sample_standard_normal_numba",
 ]
 
-# ------------------------------------------------------------------------------ label kernels
-
-
-@njit(cache=True, inline="always")
-def _upper_bound(cdf: np.ndarray, x: float) -> int:
-    """The first l with cdf[l] > x (cdf [L] non-decreasing, x < cdf[L - 1]), branch-free."""
-    base = 0
-    length = cdf.shape[0]
-    while length > 1:
-        half = length >> 1
-        base = base + half if cdf[base + half - 1] <= x else base
-        length -= half
-    return base
-
-
-@njit(cache=True)
-def _prepare_labels(labels: np.ndarray, out: np.ndarray, num_concepts: int) -> int:
-    """Copy labels [N] into out [N + D] with sentinels L + s at N + s; the first label outside
-    [0, L) gives its position (-1 if all are valid)."""
-    N = labels.shape[0]
-    bad = -1
-    for i in range(N):
-        value = labels[i]
-        if bad < 0 and (value < 0 or value >= num_concepts):
-            bad = i
-        out[i] = value
-    for s in range(out.shape[0] - N):
-        out[N + s] = num_concepts + s
-    return bad
-
-
-@njit(cache=True)
-def _background_sums(background: np.ndarray, num_concepts: int) -> tuple[np.ndarray, np.ndarray]:
-    """(totals [M + 1] row sums of background[:, :L], cdf [L] of its last row, pi's).
-
-    Summed in the order the background draws scan them, so a uniform below a total always
-    finds its label.
-    """
-    rows = background.shape[0]
-    totals = np.empty(rows)
-    cdf = np.empty(num_concepts)
-    for r in range(rows):
-        running = 0.0
-        for l in range(num_concepts):
-            running += background[r, l]
-            if r == rows - 1:
-                cdf[l] = running
-        totals[r] = running
-    return totals, cdf
-
-
-@njit(cache=True, inline="always")
-def _background_label(
-    background: np.ndarray, totals: np.ndarray, pi_cdf: np.ndarray, r: int, state: np.ndarray
-) -> int:
-    """A label l drawn with probability background[r, l] / totals[r].
-
-    Row M (no observations, pi): binary search in pi's CDF; an observed row: a linear scan.
-    """
-    x = uniform(state) * totals[r]
-    while x >= totals[r]:  # U * total can round up to total (probability ~1e-16): redraw
-        x = uniform(state) * totals[r]
-    if r == totals.shape[0] - 1:
-        return _upper_bound(pi_cdf, x)
-    running = 0.0
-    label = 0
-    while label < pi_cdf.shape[0] - 1:  # x < totals[r], the running sum's last value
-        running += background[r, label]
-        if running > x:
-            break
-        label += 1
-    return label
-
-
-@functools.cache
-def label_kernel(num_neighbours: int) -> Callable[..., None]:
-    """The compiled label sweep for D = ``num_neighbours`` (one compilation per D).
-
-    D is a compile-time constant of the kernel (a closure variable), so its loops over the
-    neighbour slots unroll and the D^2 label comparisons run branch-free. The kernel's arguments:
-    labels [N + D] int64 (sentinels L + s at N + s), redrawn in place; cells [N], neighbours
-    [N, D], rows [N] (M where unobserved) of the :class:`FlatPlan`; background [M + 1, L + D]
-    (zero columns L..L+D-1); tilt [D + 1] expm1(gamma k) / k; state the RNG.
-    """
-    D = num_neighbours
-
-    @njit(cache=True)
-    def sample_labels(
-        labels: np.ndarray,
-        cells: np.ndarray,
-        neighbours: np.ndarray,
-        rows: np.ndarray,
-        background: np.ndarray,
-        tilt: np.ndarray,
-        state: np.ndarray,
-    ) -> None:
-        L = background.shape[1] - D
-        totals, pi_cdf = _background_sums(background, L)
-        slot_labels = np.empty(D, np.int64)  # [D] a_s
-        cumulative = np.empty(D)  # [D] running slot masses
-        for p in range(cells.shape[0]):
-            r = rows[p]
-            for s in range(D):
-                slot_labels[s] = labels[neighbours[p, s]]
-            mass = 0.0  # slot s: B_{a_s} expm1(gamma n_{a_s}) / n_{a_s}
-            for s in range(D):
-                agree = 0
-                for t in range(D):
-                    agree += slot_labels[t] == slot_labels[s]
-                mass += background[r, slot_labels[s]] * tilt[agree]
-                cumulative[s] = mass
-            u = uniform(state) * (totals[r] + mass)
-            label = slot_labels[D - 1]
-            for s in range(D - 2, -1, -1):
-                label = slot_labels[s] if u < cumulative[s] else label
-            if u >= mass:  # the background part: B_l / totals[r]
-                label = _background_label(background, totals, pi_cdf, r, state)
-            labels[cells[p]] = label
-
-    return sample_labels
-
-
-@njit(cache=True)
-def _count_cells(labels: np.ndarray, cells_per_concept: np.ndarray) -> None:
-    """Add 1 to the zeroed cells_per_concept [1, L] for every label (eq. 14's m_l)."""
-    for i in range(labels.shape[0]):
-        cells_per_concept[0, labels[i]] += 1.0
+# ------------------------------------------------------------------------------ statistics
 
 
 @njit(cache=True)
@@ -275,10 +156,12 @@ def _check_state(state: GibbsState, data: ModelData, config: SpCoConfig) -> None
 
 
 def _extended_labels(labels: torch.Tensor, num_neighbours: int, config: SpCoConfig) -> np.ndarray:
-    """[N + D] int64 copy of the labels followed by the sentinels L + s; checks 0 <= label < L."""
+    """[N + D] compact copy (:func:`~spcopyro.gibbs.numba_labels.compact_label_dtype`) of the
+    labels followed by the sentinels L + s; checks 0 <= label < L."""
     source = _as_array(labels, np.int64)  # [N]
-    out = np.empty(source.shape[0] + num_neighbours, dtype=np.int64)
-    bad = _prepare_labels(source, out, config.num_concepts)
+    dtype = compact_label_dtype(config.num_concepts, num_neighbours)
+    out = np.empty(source.shape[0] + num_neighbours, dtype=dtype)
+    bad = compact_labels(source, out, config.num_concepts)
     if bad >= 0:
         raise ValueError(
             f"labels[{bad}] = {int(source[bad])} lies outside [0, {config.num_concepts}) "
@@ -339,28 +222,31 @@ def _sample_labels_array(
     config: SpCoConfig,
     plan: SweepPlan | None,
     rng: np.ndarray,
-) -> np.ndarray:
-    """[N + D] int64 new labels (then the sentinels), drawn with the RNG state ``rng``."""
+) -> tuple[np.ndarray, int]:
+    """([N + D] compact new labels (then the sentinels), E(C) of those labels), drawn with the
+    RNG state ``rng`` (:mod:`spcopyro.gibbs.numba_labels`)."""
     _check_state(state, data, config)
     D = data.neighbours.shape[1]
-    flat = flat_plan(plan, data)
+    layout = label_plan(make_sweep_plan(data) if plan is None else plan, data)
     tilt = _neighbour_tilt(config, D)
     labels = _extended_labels(state.labels, D, config)
     background = _background_table(state, data, config)
-    label_kernel(D)(
-        labels, flat.cells, flat.neighbours, flat.background_rows, background, tilt, rng
-    )
-    return labels
+    agreements = label_sweep_kernel(D)(
+        labels, layout.order, layout.neighbours, layout.rows, layout.segments, layout.modes,
+        layout.earlier,
+        background, tilt, rng,
+    )  # fmt: skip
+    return labels, int(agreements)
 
 
 def _statistics(
     labels: np.ndarray, obs_cells: np.ndarray, data: ModelData, config: SpCoConfig
 ) -> tuple[np.ndarray, list[np.ndarray]]:
     """cells_per_concept [1, L] and, per modality, the counts per concept [L, K_m] (zeros for a
-    switched-off modality)."""
+    switched-off modality), from integer labels [N] (or longer: the first N count)."""
     L = config.num_concepts
     cells_per_concept = np.zeros((1, L))
-    _count_cells(labels, cells_per_concept)
+    count_cells(labels, data.num_free, cells_per_concept[0])
     per_modality = []
     for modality in data.modalities:
         out = np.zeros((L, modality.counts.shape[1]))
@@ -386,6 +272,7 @@ def _sample_globals_arrays(
     rng: np.ndarray,
     previous: tuple[torch.Tensor, ...] | None = None,
     unobserved_refresh: float = 1.0,
+    cell_counts: np.ndarray | None = None,
 ) -> tuple[torch.Tensor, tuple[torch.Tensor, ...]]:
     """(log pi, per-modality log distributions) given valid int64 labels [N] (or longer), drawn
     with ``rng``: pi first, then each modality in ``data.modalities`` order.
@@ -393,17 +280,17 @@ def _sample_globals_arrays(
     With ``previous`` (the state's log distributions) and ``unobserved_refresh`` < 1, a sweep
     keeps, with probability 1 - unobserved_refresh, the rows of concepts holding no observed cell
     (the reference's :func:`~spcopyro.gibbs.sweep.concepts_to_refresh`; here the coin is the
-    first draw of the global step).
+    first draw of the global step). ``cell_counts`` [L], if given, receives the concept sizes.
     """
-    labels = labels[: data.num_free]
     obs_cells = _as_array(data.obs_cells, np.int64)
     partial = (
         previous is not None and unobserved_refresh < 1.0 and uniform(rng) >= unobserved_refresh
     )
     cells_per_concept, statistics = _statistics(labels, obs_cells, data, config)
-    rows = np.unique(labels[obs_cells]) if partial else None  # [G] concepts with observed cells
-    log_pi = np.empty((1, config.num_concepts))
-    bad = fill_log_gamma(float(config.pi_concentration), cells_per_concept, log_pi, rng)
+    if cell_counts is not None:
+        cell_counts[:] = cells_per_concept[0]
+    rows = np.unique(labels[obs_cells]).astype(np.int64) if partial else None  # [G] concepts
+    log_pi, bad = dirichlet_log_rows(float(config.pi_concentration), cells_per_concept, rng)
     if bad >= 0:
         raise _bad_concentration("pi", cells_per_concept, config.pi_concentration, bad)
     tables = []
@@ -411,20 +298,56 @@ def _sample_globals_arrays(
         base = config.concentration(modality.name)
         if rows is not None:
             per_concept = np.ascontiguousarray(per_concept[rows])  # [G, K_m]
-        draw = np.empty(per_concept.shape)
-        bad = fill_log_gamma(float(base), per_concept, draw, rng)
+        draw, bad = dirichlet_log_rows(float(base), per_concept, rng)
         if bad >= 0:
             raise _bad_concentration(modality.parameter, per_concept, base, bad)
         tables.append(draw)
-    log_pi_t = torch.from_numpy(normalise_log_rows(log_pi)[0])
+    log_pi_t = torch.from_numpy(log_pi[0])
     if rows is None:
-        return log_pi_t, tuple(torch.from_numpy(normalise_log_rows(t)) for t in tables)
+        return log_pi_t, tuple(torch.from_numpy(t) for t in tables)
     log_emissions = []
     for kept, draw in zip(previous, tables, strict=True):
         table = kept.clone()
-        table[torch.from_numpy(rows)] = torch.from_numpy(normalise_log_rows(draw))
+        table[torch.from_numpy(rows)] = torch.from_numpy(draw)
         log_emissions.append(table)
     return log_pi_t, tuple(log_emissions)
+
+
+class _SweepFacts(NamedTuple):
+    """What a compiled sweep learnt about the labels it returned, for the run loop's trace."""
+
+    labels: weakref.ref  # the [N] labels tensor the sweep returned
+    version: int  # its in-place version counter then: a later in-place change voids the facts
+    pairs: weakref.ref  # the data's [P, 2] pairs the agreements count
+    agreements: int  # E(C)
+    label_counts: torch.Tensor  # [L] int64 cells per concept
+
+
+_FACTS_KEPT = 64
+# id(labels tensor) -> its facts (oldest first; checked by weak reference and version).
+_facts: dict[int, _SweepFacts] = {}
+
+
+def _remember(
+    labels: torch.Tensor, pairs: torch.Tensor, agreements: int, counts: np.ndarray
+) -> None:
+    while len(_facts) >= _FACTS_KEPT:
+        del _facts[next(iter(_facts))]
+    _facts[id(labels)] = _SweepFacts(
+        weakref.ref(labels), labels._version, weakref.ref(pairs), agreements,
+        torch.from_numpy(counts.astype(np.int64)),
+    )  # fmt: skip
+
+
+def _recall(labels: torch.Tensor, pairs: torch.Tensor | None = None) -> _SweepFacts | None:
+    """The facts of ``labels`` if a compiled sweep returned this very tensor and it was not
+    changed in place since (and, given ``pairs``, they were counted on these pairs)."""
+    facts = _facts.get(id(labels))
+    if facts is None or facts.labels() is not labels or facts.version != labels._version:
+        return None
+    if pairs is not None and facts.pairs() is not pairs:
+        return None
+    return facts
 
 
 def sample_labels_numba(
@@ -442,8 +365,9 @@ def sample_labels_numba(
     Raises:
         ValueError: as :func:`gibbs_sweep_numba`.
     """
-    labels = _sample_labels_array(state, data, config, plan, rng_state(draw_seed(generator)))
-    return torch.from_numpy(labels[: data.num_free])
+    rng = rng_state(draw_seed(generator))
+    labels, _ = _sample_labels_array(state, data, config, plan, rng)  # [N + D]
+    return torch.from_numpy(labels[: data.num_free].astype(np.int64))
 
 
 def sample_globals_numba(
@@ -478,29 +402,39 @@ def gibbs_sweep_numba(
     distributions.
 
     A drop-in for :func:`~spcopyro.gibbs.sweep.gibbs_sweep` with the same distribution. Draws one
-    seed from ``generator`` per call, so a seeded run is reproducible bit for bit.
+    seed from ``generator`` per call, so a seeded run is reproducible bit for bit. The sweep
+    remembers E(C) and the concept sizes of the labels it returns (:func:`potts_agreements_numba`
+    and :func:`label_counts_numba` then cost nothing).
 
     Raises:
         ValueError: the state's shapes do not match ``data`` / ``config``, a label lies outside
             [0, L), ``plan`` was made for other data, or gamma * D > 700 (overflow).
     """
     rng = rng_state(draw_seed(generator))
-    labels = _sample_labels_array(state, data, config, plan, rng)  # [N + D]
-    return GibbsState(
-        torch.from_numpy(labels[: data.num_free]),
-        *_sample_globals_arrays(labels, data, config, rng, state.log_emissions, unobserved_refresh),
+    compact, agreements = _sample_labels_array(state, data, config, plan, rng)  # [N + D]
+    counts = np.empty(config.num_concepts)  # [L]
+    log_pi, log_emissions = _sample_globals_arrays(
+        compact, data, config, rng, state.log_emissions, unobserved_refresh, counts
     )
-
-
-@njit(cache=True)
-def _potts_agreements_kernel(labels: np.ndarray, pairs: np.ndarray) -> int:
-    total = 0
-    for p in range(pairs.shape[0]):
-        total += labels[pairs[p, 0]] == labels[pairs[p, 1]]
-    return total
+    labels = torch.from_numpy(compact[: data.num_free].astype(np.int64))  # [N]
+    _remember(labels, data.pairs, agreements, counts)
+    return GibbsState(labels, log_pi, log_emissions)
 
 
 def potts_agreements_numba(labels: torch.Tensor, pairs: torch.Tensor) -> torch.Tensor:
-    """E(C) of :func:`spcopyro.model.potts_agreements` (float64 scalar), compiled."""
-    total = _potts_agreements_kernel(_as_array(labels, np.int64), _as_array(pairs, np.int64))
+    """E(C) of :func:`spcopyro.model.potts_agreements` (float64 scalar), compiled (or what the
+    sweep that returned ``labels`` counted)."""
+    facts = _recall(labels, pairs)
+    if facts is not None:
+        return torch.tensor(float(facts.agreements), dtype=torch.float64)
+    total = agreements_of(_as_array(labels, np.int64), _as_array(pairs, np.int64))
     return torch.tensor(float(total), dtype=torch.float64)
+
+
+def label_counts_numba(labels: torch.Tensor, num_concepts: int) -> torch.Tensor:
+    """[L] int64 cells per concept (``torch.bincount(labels, minlength=L)``), or what the sweep
+    that returned ``labels`` counted."""
+    facts = _recall(labels)
+    if facts is not None and facts.label_counts.shape[0] == num_concepts:
+        return facts.label_counts
+    return torch.bincount(labels, minlength=num_concepts)

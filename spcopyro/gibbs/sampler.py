@@ -31,6 +31,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import numpy as np
 import torch
 
 from spcopyro.config import SpCoConfig
@@ -43,7 +44,6 @@ from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.state import GibbsState, SweepPlan
 from spcopyro.gibbs.sweep import sample_globals
 from spcopyro.initialisation import check_labels, random_labels
-from spcopyro.likelihood import log_joint_variable
 from spcopyro.model import ModelData
 
 
@@ -128,12 +128,9 @@ def trace_point(
     hyperpriors of the sampled log hyperparameters (not the intractable Potts normaliser
     Z(gamma, alpha): see :mod:`spcopyro.gibbs.hyper_targets`).
     """
-    label_counts = torch.bincount(state.labels, minlength=config.num_concepts)  # [L]
+    label_counts = backend.label_counts(state.labels, config.num_concepts)  # [L]
     agreements = backend.potts_agreements(state.labels, data.pairs)
-    variable = log_joint_variable(
-        state.labels, state.log_pi, state.log_emissions, data, config, label_counts, agreements
-    )
-    value = constant + float(variable)
+    value = constant + backend.log_joint_variable(state, data, config, label_counts, agreements)
     if options is not None and options.hyper.active:
         value += log_hyperprior(data, config, options.hyper)
-    return value, int((label_counts > 0).sum())
+    return value, int(np.count_nonzero(label_counts.numpy()))
