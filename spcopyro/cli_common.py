@@ -75,6 +75,18 @@ def _sweeps(value: str) -> int | str:
     return sweeps
 
 
+def _chain_workers(value: str) -> int | str:
+    """``--chain-workers``: ``auto`` or an integer >= 1."""
+    if value == AUTO:
+        return value
+    try:
+        return _positive_int(value)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"must be 'auto' or an integer >= 1, got {value!r}"
+        ) from None
+
+
 def _threads(value: str) -> int | str:
     """``--threads``: ``auto`` or an integer >= 0 (0: torch's own setting)."""
     if value == AUTO:

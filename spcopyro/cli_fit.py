@@ -18,6 +18,7 @@ import numpy as np
 
 from spcopyro.cli_common import (
     _PRESET_DEFAULT,
+    _chain_workers,
     _concentrations,
     _feature_scaling,
     _load,
@@ -297,6 +298,7 @@ def _fit_staged(
             seeds=[args.seed + k for k in range(chains)], init=init, source=source,
             checkpoint=keeper, resume=args.resume, threads=args.threads,
             marginal_samples=args.marginal_samples, point_estimate=args.point_estimate,
+            chain_workers=args.chain_workers,
         )  # fmt: skip
         kept = best_chain(chain_results)
         result = chain_results[kept]
@@ -427,6 +429,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--chains", type=_positive_int,
                    help="run this many chains (seeds --seed, --seed + 1, ...) and keep the one of "
                         "highest log joint (default 1; 4 with --sweeps auto)")  # fmt: skip
+    p.add_argument("--chain-workers", type=_chain_workers, default=AUTO,
+                   help="Gibbs chains advancing at once, one thread each: auto (default: one per "
+                        "usable CPU) or N (1: one after another); results do not depend on "
+                        "it")  # fmt: skip
     p.add_argument("--anneal-sweeps", type=_non_negative_int, default=0,
                    help="ramp gamma up from gamma/N to gamma over the first N sweeps (burn-in; "
                         "default 0)")  # fmt: skip

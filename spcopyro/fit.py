@@ -28,6 +28,7 @@ import torch
 from spcopyro import __version__
 from spcopyro.config import WORDS, SpCoConfig, SpCoSettings, preset
 from spcopyro.data import CellCounts, House, cell_counts
+from spcopyro.gibbs.chains import advance_chains, resolve_workers
 from spcopyro.gibbs.checkpoint import data_fingerprint, load_chains, save_chains
 from spcopyro.gibbs.convergence import (
     DEFAULT_BLOCK,
@@ -40,7 +41,7 @@ from spcopyro.gibbs.convergence import (
 from spcopyro.gibbs.hyperparameters import config_at_posterior_mean
 from spcopyro.gibbs.method import GibbsInference, gibbs_record, output_from_run
 from spcopyro.gibbs.options import GibbsOptions
-from spcopyro.gibbs.run import GibbsChain, advance, start_chain
+from spcopyro.gibbs.run import GibbsChain, start_chain
 from spcopyro.inference import InferenceOutput, method_options
 from spcopyro.initialisation import INITS, kmeans_gaussians, labels_from_gaussians
 from spcopyro.model import DTYPE, ModelData, make_model_data
@@ -410,6 +411,7 @@ def fit_house_chains(
     threads: int | str | None = AUTO,
     marginal_samples: int = 0,
     point_estimate: str = "map-visited",
+    chain_workers: int | str | None = AUTO,
 ) -> list[SpCoResult]:
     """One :class:`SpCoResult` per seed: ``sweeps`` iterations of the inference method from
     ``init`` drawn with that seed. The house's counts are computed once for all chains. See
@@ -429,6 +431,10 @@ def fit_house_chains(
         point_estimate: a sampler: the map to report, ``"map-visited"`` (the state of highest
             log joint) or the partition minimising the expected ``"binder"`` or ``"vi"`` loss
             over those label maps (:mod:`spcopyro.point_estimate`; needs marginal_samples).
+        chain_workers: Gibbs only: how many chains advance at once, each on its own thread
+            (:func:`~spcopyro.gibbs.chains.advance_chains`; results identical to one after
+            another): ``"auto"`` (one per usable CPU) or a count. With more than one, ``threads``
+            ``"auto"`` means one torch thread per chain.
     """
     if check_point_estimate(point_estimate) != "map-visited" and (
         method not in SAMPLERS or not marginal_samples
@@ -447,6 +453,11 @@ def fit_house_chains(
     if not isinstance(inference, GibbsInference) and (checkpoint or resume):
         raise ValueError(f"checkpoints hold Gibbs chains; the {method!r} method keeps none")
     count = resolve_threads(threads, house.grid.num_free)
+    workers = (
+        resolve_workers(chain_workers, len(seeds)) if isinstance(inference, GibbsInference) else 1
+    )
+    if workers > 1 and threads == AUTO:
+        count = 1  # the chains are the parallelism: no intra-op threads on top
     counts, data = prepare_model_data(house, settings)
     logger.info("threads: %s", describe_threads(threads, house.grid.num_free))
     record = provenance(house, data, source)
@@ -456,7 +467,7 @@ def fit_house_chains(
         if isinstance(inference, GibbsInference):
             outputs = _gibbs_outputs(
                 house, counts, data, settings, options, int(sweeps), [int(s) for s in seeds],
-                init, progress, checkpoint, resume, marginal_samples, point_estimate,
+                init, progress, checkpoint, resume, marginal_samples, point_estimate, workers,
             )  # fmt: skip
             return [result_of(o, house, counts, data, settings, method, record) for o in outputs]
         fits = []
@@ -491,9 +502,11 @@ def _gibbs_outputs(
     resume: str | os.PathLike[str] | None,
     marginal_samples: int = 0,
     point_estimate: str = "map-visited",
+    workers: int = 1,
 ) -> list[InferenceOutput]:
     """Gibbs chains (:func:`~spcopyro.gibbs.run.start_chain`, :func:`~spcopyro.gibbs.run.advance`:
-    the same draws as :class:`~spcopyro.gibbs.method.GibbsInference`), saved and resumed."""
+    the same draws as :class:`~spcopyro.gibbs.method.GibbsInference`), saved and resumed; up to
+    ``workers`` of them advance at once (:func:`~spcopyro.gibbs.chains.advance_chains`)."""
     options = method_options(options, GibbsOptions, "Gibbs sampling")
     if options.anneal_sweeps > sweeps:
         raise ValueError(
@@ -508,17 +521,15 @@ def _gibbs_outputs(
         checkpoint.chains, checkpoint.record = chains, record
     try:
         for k, seed in enumerate(seeds):
-            chain = chains[k]
-            if chain is None:
+            if chains[k] is None:
                 generator = torch.Generator().manual_seed(seed)
                 start = initial_labels(house, counts, settings, init, seed, generator)
-                chain = start_chain(
+                chains[k] = start_chain(
                     data, settings.model, options=options, generator=generator, init_labels=start
                 )
-                chains[k] = chain
-            if chain.sweeps_done < sweeps:
-                thin = marginal_thin(sweeps, marginal_samples)
-                advance(chain, sweeps - chain.sweeps_done, thin=thin, progress=progress)
+        runs = [(chain, sweeps - chain.sweeps_done) for chain in chains if chain is not None]
+        thin = marginal_thin(sweeps, marginal_samples)
+        advance_chains(runs, workers=workers, thin=thin, progress=progress)
     except KeyboardInterrupt:
         saved = None if checkpoint is None else checkpoint.save()
         raise FitInterrupted(_where_stopped(chains, sweeps), saved) from None
@@ -602,6 +613,7 @@ def fit_house(
     threads: int | str | None = AUTO,
     marginal_samples: int = 0,
     point_estimate: str = "map-visited",
+    chain_workers: int | str | None = AUTO,
 ) -> SpCoResult:
     """Fit SpCoMapping to a house.
 
@@ -623,7 +635,7 @@ def fit_house(
         threads: torch intra-op threads during the fit (:mod:`spcopyro.threads`): ``"auto"`` (one
             thread unless the map is large), 0 or None (torch's own setting), or a count. The
             previous setting is restored afterwards; labels do not depend on it.
-        marginal_samples, point_estimate: a sampler only: see :func:`fit_house_chains`.
+        marginal_samples, point_estimate, chain_workers: see :func:`fit_house_chains`.
     """
     if not isinstance(chains, int) or chains < 1:
         raise ValueError(f"chains must be a positive integer, got {chains!r}")
@@ -642,6 +654,7 @@ def fit_house(
         house, settings, method=method, options=options, sweeps=sweeps,
         seeds=[seed + k for k in range(chains)], init=init, progress=progress, threads=threads,
         marginal_samples=marginal_samples, point_estimate=point_estimate,
+        chain_workers=chain_workers,
     )  # fmt: skip
     kept = best_chain(results)
     if chains > 1:

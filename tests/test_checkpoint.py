@@ -19,6 +19,7 @@ import torch
 from gibbs_problems import config, random_problem
 
 import spcopyro.fit
+import spcopyro.gibbs.chains
 import spcopyro.gibbs.run as run_module
 from spcopyro.cli import main
 from spcopyro.gibbs.checkpoint import (
@@ -229,16 +230,18 @@ def _interrupt_fit_at(monkeypatch, chain: int, sweep: int) -> None:
     the ``chain``-th chain advanced."""
     calls: list[int] = []
 
-    def interrupting_advance(gibbs_chain, num_sweeps, **kwargs):
+    def interrupting_advance(gibbs_chain, num_sweeps, callback=None, **kwargs):
         calls.append(1)
 
         def stop(s, state):
+            if callback is not None:
+                callback(s, state)
             if len(calls) - 1 == chain and s == sweep:
                 raise KeyboardInterrupt
 
         return advance(gibbs_chain, num_sweeps, callback=stop, **kwargs)
 
-    monkeypatch.setattr(spcopyro.fit, "advance", interrupting_advance)
+    monkeypatch.setattr(spcopyro.gibbs.chains, "advance", interrupting_advance)
 
 
 def _same_outputs(mine, theirs) -> None:
@@ -256,7 +259,10 @@ def test_ctrl_c_keeps_a_checkpoint_and_resume_gives_the_unbroken_fit(
     room, tmp_path, capsys, monkeypatch, chains, chain, sweep
 ):
     out = tmp_path / "out"
-    argv = ["fit", str(room), "--out", str(out), *FIT, "--chains", str(chains)]
+    # One chain after another, so that chain k's interruption leaves those after it unstarted
+    # (test_chains.py interrupts chains advancing side by side).
+    argv = ["fit", str(room), "--out", str(out), *FIT, "--chains", str(chains),
+            "--chain-workers", "1"]  # fmt: skip
     with monkeypatch.context() as patch:
         _interrupt_fit_at(patch, chain, sweep)
         assert main(argv) == 130
@@ -268,8 +274,8 @@ def test_ctrl_c_keeps_a_checkpoint_and_resume_gives_the_unbroken_fit(
     assert {p.name for p in tmp_path.iterdir()} == {checkpoint.name}  # no OUT, no staging
     record = read_record(checkpoint)
     assert [c and c["sweeps_done"] for c in record["chains"]] == (
-        [sweep + 1] if chains == 1 else [12, sweep + 1] if chain == 1 else [sweep + 1, None]
-    )
+        [sweep + 1] if chains == 1 else [12, sweep + 1] if chain == 1 else [sweep + 1, 0]
+    )  # every chain is started (its sweep 0 saved) before any advances
     assert record["caller"]["seeds"] == list(range(chains))
 
     again = shlex.split(err.split("continue with: ")[1])
@@ -281,7 +287,7 @@ def test_ctrl_c_keeps_a_checkpoint_and_resume_gives_the_unbroken_fit(
         return advance(gibbs_chain, num_sweeps, **kwargs)
 
     with monkeypatch.context() as patch:
-        patch.setattr(spcopyro.fit, "advance", recording_advance)
+        patch.setattr(spcopyro.gibbs.chains, "advance", recording_advance)
         assert main(again[1:]) == 0
     assert asked[0] == (sweep + 1, 11 - sweep)  # the interrupted chain goes on where it stopped
     assert asked[1:] == ([(0, 12)] if chains == 2 and chain == 0 else [])  # then any not begun
@@ -335,7 +341,7 @@ def test_ctrl_c_while_writing_keeps_the_finished_chains(room, tmp_path, capsys, 
         raise AssertionError("the finished chains were sampled again")
 
     with monkeypatch.context() as patch:
-        patch.setattr(spcopyro.fit, "advance", no_sampling)
+        patch.setattr(spcopyro.gibbs.chains, "advance", no_sampling)
         assert main([*argv, "--resume", str(checkpoint_path(out))]) == 0
     assert main(["fit", str(room), "--out", str(tmp_path / "unbroken"), *FIT]) == 0
     _same_outputs(out, tmp_path / "unbroken")

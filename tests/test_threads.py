@@ -8,6 +8,7 @@ import pytest
 import torch
 
 import spcopyro.fit
+import spcopyro.gibbs.chains
 from spcopyro.cli import build_parser
 from spcopyro.config import preset
 from spcopyro.fit import fit_house, fit_house_converged
@@ -188,7 +189,7 @@ def test_fit_command_passes_threads_to_the_fit(
     from spcopyro.cli import main
 
     seen = []
-    real_converged, real_advance = spcopyro.fit.run_until_converged, spcopyro.fit.advance
+    real_converged, real_advance = spcopyro.fit.run_until_converged, spcopyro.gibbs.chains.advance
 
     def run_until_converged(*args, **kwargs):
         seen.append(torch.get_num_threads())
@@ -199,7 +200,7 @@ def test_fit_command_passes_threads_to_the_fit(
         return real_advance(*args, **kwargs)
 
     monkeypatch.setattr(spcopyro.fit, "run_until_converged", run_until_converged)
-    monkeypatch.setattr(spcopyro.fit, "advance", advance)
+    monkeypatch.setattr(spcopyro.gibbs.chains, "advance", advance)
     torch.set_num_threads(2)
     argv = ["fit", str(house_folder), "--out", str(tmp_path / "fit"), "--sweeps", sweeps,
             "--max-sweeps", "2", "--chains", "2", "--threads", "3"]  # fmt: skip

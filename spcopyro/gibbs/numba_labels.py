@@ -39,6 +39,7 @@ D is a compile-time constant of each kernel (a closure variable), so the slot lo
 from __future__ import annotations
 
 import functools
+import threading
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -74,8 +75,9 @@ class LabelPlan(NamedTuple):
 
 
 # id(plan) -> (plan, its LabelPlan), as numba_plan's cache (the plan is held so that its id is
-# not reused while cached).
+# not reused while cached); changes hold the lock (chains may sweep in threads).
 _label_plans: dict[int, tuple[SweepPlan, LabelPlan]] = {}
+_label_plans_lock = threading.Lock()
 
 
 def label_plan(plan: SweepPlan, data: ModelData) -> LabelPlan:
@@ -122,9 +124,10 @@ def label_plan(plan: SweepPlan, data: ModelData) -> LabelPlan:
         modes=modes,
         earlier=earlier,
     )
-    while len(_label_plans) >= _LABEL_PLAN_CACHE_SIZE:
-        del _label_plans[next(iter(_label_plans))]  # oldest first
-    _label_plans[id(plan)] = (plan, result)
+    with _label_plans_lock:
+        while len(_label_plans) >= _LABEL_PLAN_CACHE_SIZE:
+            del _label_plans[next(iter(_label_plans))]  # oldest first
+        _label_plans[id(plan)] = (plan, result)
     return result
 
 
@@ -134,7 +137,7 @@ def compact_label_dtype(num_concepts: int, num_neighbours: int) -> type:
     return np.uint8 if top <= 255 else np.uint16 if top <= 65535 else np.int32
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def compact_labels(labels: np.ndarray, out: np.ndarray, num_concepts: int) -> int:
     """Copy int64 labels [N] into the narrower out [N + D], sentinels L + s at N + s; returns
     the first position whose label lies outside [0, L), or -1."""
@@ -149,7 +152,7 @@ def compact_labels(labels: np.ndarray, out: np.ndarray, num_concepts: int) -> in
     return -1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def alias_table(weights: np.ndarray, probability: np.ndarray, alias: np.ndarray) -> None:
     """Walker's alias table of the non-negative weights [L] (not all 0), by Vose's (1991) method:
     draw i uniform in [0, L), keep it with probability[i], else take alias[i]."""
@@ -200,7 +203,7 @@ def label_sweep_kernel(num_neighbours: int) -> Callable[..., int]:
     """
     D = num_neighbours
 
-    @njit(cache=True)
+    @njit(cache=True, nogil=True)
     def sweep_labels(
         labels: np.ndarray,
         order: np.ndarray,
@@ -288,7 +291,7 @@ def label_sweep_kernel(num_neighbours: int) -> Callable[..., int]:
     return sweep_labels
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def count_cells(labels: np.ndarray, num_free: int, out: np.ndarray) -> None:
     """out [L] (zeroed) += 1 for the label of each of the first ``num_free`` cells (eq. 14's
     m_l)."""
@@ -296,7 +299,7 @@ def count_cells(labels: np.ndarray, num_free: int, out: np.ndarray) -> None:
         out[labels[i]] += 1.0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def agreements_of(labels: np.ndarray, pairs: np.ndarray) -> int:
     """E(C): the number of pairs [P, 2] whose two cells hold the same label."""
     total = 0

@@ -26,7 +26,7 @@ from spcopyro.gibbs.state import GibbsState
 from spcopyro.model import ModelData
 
 
-@njit(cache=True, fastmath={"reassoc", "contract"})
+@njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
 def _log_joint_variable(
     log_pi: np.ndarray,
     label_counts: np.ndarray,

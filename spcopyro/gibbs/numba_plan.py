@@ -3,6 +3,7 @@ sweep (which indexes without bounds checks), and cached per plan object."""
 
 from __future__ import annotations
 
+import threading
 from typing import NamedTuple
 
 import numpy as np
@@ -30,6 +31,7 @@ class FlatPlan(NamedTuple):
 # id(plan) -> (plan, its FlatPlan). The plan itself is held so that its id cannot be reused while
 # it is cached (SweepPlan is a NamedTuple: no weak references); at most _PLAN_CACHE_SIZE entries.
 _plan_cache: dict[int, tuple[SweepPlan, FlatPlan]] = {}
+_plan_cache_lock = threading.Lock()  # chains may sweep in threads (spcopyro.gibbs.chains)
 
 
 def flatten_plan(plan: SweepPlan, data: ModelData) -> FlatPlan:
@@ -95,9 +97,10 @@ def flat_plan(plan: SweepPlan | None, data: ModelData) -> FlatPlan:
     entry = _plan_cache.get(id(plan))
     if entry is None or entry[0] is not plan:
         flat = flatten_plan(plan, data)
-        while len(_plan_cache) >= _PLAN_CACHE_SIZE:
-            del _plan_cache[next(iter(_plan_cache))]  # oldest first
-        _plan_cache[id(plan)] = (plan, flat)
+        with _plan_cache_lock:
+            while len(_plan_cache) >= _PLAN_CACHE_SIZE:
+                del _plan_cache[next(iter(_plan_cache))]  # oldest first
+            _plan_cache[id(plan)] = (plan, flat)
         return flat
     flat = entry[1]
     N, D, M = data.num_free, data.neighbours.shape[1], data.obs_cells.shape[0]

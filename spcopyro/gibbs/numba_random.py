@@ -123,14 +123,14 @@ def _normal(state: np.ndarray) -> float:
             return x
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _fill_normal(out: np.ndarray, state: np.ndarray) -> None:
     """out [n] = standard normals."""
     for i in range(out.shape[0]):
         out[i] = _normal(state)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _normal_slow_path(bits: np.uint64, state: np.ndarray) -> float:
     """The rest of :func:`_normal` after its first 64 bits missed the layer's rectangle
     (~1% of draws): out of line, so that the fast path stays small where it is inlined."""
@@ -150,7 +150,7 @@ def _normal_slow_path(bits: np.uint64, state: np.ndarray) -> float:
     return _normal(state)  # rejected: a fresh normal
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _fill_gamma_linear(
     base: float,
     statistics: np.ndarray,

@@ -56,6 +56,7 @@ numba is missing (:func:`~spcopyro.gibbs.backends.get_backend` relies on that).
 
 from __future__ import annotations
 
+import threading
 import weakref
 from typing import NamedTuple
 
@@ -96,7 +97,7 @@ __all__ = [
 # ------------------------------------------------------------------------------ statistics
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _modality_statistics(
     labels: np.ndarray, obs_cells: np.ndarray, counts: np.ndarray, out: np.ndarray
 ) -> None:
@@ -324,19 +325,23 @@ class _SweepFacts(NamedTuple):
 
 
 _FACTS_KEPT = 64
-# id(labels tensor) -> its facts (oldest first; checked by weak reference and version).
+# id(labels tensor) -> its facts (oldest first; checked by weak reference and version). Chains
+# advancing in threads (spcopyro.gibbs.chains) share it: changes hold the lock.
 _facts: dict[int, _SweepFacts] = {}
+_facts_lock = threading.Lock()
 
 
 def _remember(
     labels: torch.Tensor, pairs: torch.Tensor, agreements: int, counts: np.ndarray
 ) -> None:
-    while len(_facts) >= _FACTS_KEPT:
-        del _facts[next(iter(_facts))]
-    _facts[id(labels)] = _SweepFacts(
+    facts = _SweepFacts(
         weakref.ref(labels), labels._version, weakref.ref(pairs), agreements,
         torch.from_numpy(counts.astype(np.int64)),
     )  # fmt: skip
+    with _facts_lock:
+        while len(_facts) >= _FACTS_KEPT:
+            del _facts[next(iter(_facts))]
+        _facts[id(labels)] = facts
 
 
 def _recall(labels: torch.Tensor, pairs: torch.Tensor | None = None) -> _SweepFacts | None:

@@ -1,0 +1,114 @@
+"""Many Gibbs chains at once, in one process: :func:`advance_chains`.
+
+``--chains K`` used to run its chains one after another. Here they share what a process sets up
+once (the imports, the house, the model data, the sweep plan, the compiled kernels) and advance
+side by side on up to ``workers`` threads: the compiled sweep releases the GIL (its kernels are
+``nogil``; torch's operations release it too), so on a 2-core machine two chains run at once.
+
+Each chain keeps its own generator and advances exactly as :func:`~spcopyro.gibbs.run.advance`
+would advance it alone, so chain k of a parallel run is the chain of seed k run by itself, bit for
+bit (tested). There is no barrier between chains: a chain whose thread the scheduler sets aside
+delays itself only, which keeps a busy machine from costing more than its share (a lock-step
+batched sweep would wait for the slowest chain at every sweep; and on the CPU it saves nothing,
+the per-cell work being the same scalar loop).
+
+Ctrl-C stops every chain at its last *completed* sweep (the one in progress finishes), then the
+:class:`KeyboardInterrupt` is raised again, as :func:`~spcopyro.gibbs.run.advance` does for one
+chain: a checkpoint saved then resumes to the uninterrupted result.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
+
+from tqdm.auto import tqdm
+
+from spcopyro.gibbs.run import GibbsChain, advance
+from spcopyro.progress import progress_enabled
+
+AUTO = "auto"
+
+
+class _Stopped(Exception):
+    """Raised by a chain's callback after a sweep, once Ctrl-C asked every chain to stop."""
+
+
+def usable_cpus() -> int:
+    """The CPUs this process may run on (its affinity mask where the OS has one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def resolve_workers(workers: int | str | None, num_chains: int) -> int:
+    """Threads for ``num_chains`` chains: ``"auto"`` / None -> one per usable CPU, at most one per
+    chain; a count -> that many (at most one per chain).
+
+    Raises:
+        ValueError: a count below 1, or neither a count nor ``"auto"``.
+    """
+    if workers is None or workers == AUTO:
+        count = usable_cpus()
+    elif isinstance(workers, int) and not isinstance(workers, bool) and workers >= 1:
+        count = workers
+    else:
+        raise ValueError(f"chain workers must be a positive integer or 'auto', got {workers!r}")
+    return max(1, min(count, num_chains))
+
+
+def advance_chains(
+    runs: Sequence[tuple[GibbsChain, int]],
+    *,
+    workers: int | str | None = AUTO,
+    thin: int = 0,
+    progress: bool | None = None,
+) -> None:
+    """Advance each ``(chain, num_sweeps)`` of ``runs`` by its number of sweeps, up to
+    ``workers`` chains at a time (:func:`resolve_workers`), in place.
+
+    One progress bar counts the sweeps of all chains. With one worker the chains run one after
+    another in this thread (what :func:`~spcopyro.gibbs.run.advance` in a loop did).
+    """
+    runs = [(chain, int(n)) for chain, n in runs if int(n) > 0]
+    if not runs:
+        return
+    count = resolve_workers(workers, len(runs))
+    total = sum(n for _, n in runs)
+    stop = threading.Event()
+    bar = tqdm(total=total, desc="Gibbs sweeps", disable=not progress_enabled(progress))
+    lock = threading.Lock()
+
+    def after_sweep(*_: object) -> None:
+        with lock:
+            bar.update()
+        if stop.is_set():
+            raise _Stopped
+
+    def run_one(chain: GibbsChain, num_sweeps: int) -> None:
+        try:
+            advance(chain, num_sweeps, thin=thin, progress=False, callback=after_sweep)
+        except _Stopped:
+            pass
+
+    try:
+        if count == 1:
+            for chain, num_sweeps in runs:
+                advance(chain, num_sweeps, thin=thin, progress=False, callback=after_sweep)
+            return
+        with ThreadPoolExecutor(max_workers=count, thread_name_prefix="gibbs-chain") as pool:
+            futures = [pool.submit(run_one, chain, n) for chain, n in runs]
+            try:
+                for future in futures:
+                    future.result()
+            except BaseException:  # Ctrl-C here, or a chain's error
+                stop.set()  # every running chain stops after its sweep; queued ones never start
+                for future in futures:
+                    future.cancel()
+                pool.shutdown(wait=True)
+                raise
+    finally:
+        bar.close()

@@ -1,0 +1,120 @@
+"""Chains advancing side by side on threads (spcopyro.gibbs.chains): each is, bit for bit, the
+chain its seed gives alone; an interruption leaves every chain at a completed sweep, from which
+continuing gives the uninterrupted chain."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from gibbs_problems import config, random_problem
+
+from spcopyro.gibbs.chains import advance_chains, resolve_workers
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.gibbs.run import advance, start_chain
+
+
+def _chains(data, cfg, backend, seeds):
+    options = GibbsOptions(backend=backend)
+    return [start_chain(data, cfg, options=options, seed=seed) for seed in seeds]
+
+
+def _same(a, b) -> None:
+    ra, rb = a.to_run(), b.to_run()
+    torch.testing.assert_close(ra.final_state.labels, rb.final_state.labels, rtol=0, atol=0)
+    torch.testing.assert_close(ra.final_state.log_pi, rb.final_state.log_pi, rtol=0, atol=0)
+    np.testing.assert_array_equal(ra.log_joint, rb.log_joint)
+    assert ra.best_sweep == rb.best_sweep
+    if ra.label_samples is not None:
+        np.testing.assert_array_equal(ra.label_samples, rb.label_samples)
+
+
+def _backend(name: str) -> str:
+    if name == "numba":
+        pytest.importorskip("numba")
+    return name
+
+
+@pytest.mark.parametrize("backend", ["torch", "numba"])
+def test_parallel_chains_equal_the_chains_run_alone(backend):
+    backend = _backend(backend)
+    cfg = config(num_concepts=6, gamma=1.5)
+    _, data = random_problem(seed=11, copies=6)
+    seeds = [3, 4, 5]
+    alone = _chains(data, cfg, backend, seeds)
+    for chain in alone:
+        advance(chain, 12, thin=4, progress=False)
+    together = _chains(data, cfg, backend, seeds)
+    advance_chains([(chain, 12) for chain in together], workers=2, thin=4, progress=False)
+    for a, b in zip(alone, together, strict=True):
+        _same(a, b)
+
+
+def test_chains_with_different_sweeps_left_each_get_theirs():
+    cfg = config(num_concepts=4)
+    _, data = random_problem(seed=12, copies=2)
+    chains = _chains(data, cfg, "torch", [0, 1, 2])
+    advance(chains[1], 3, progress=False)
+    advance_chains([(chains[0], 5), (chains[1], 2), (chains[2], 0)], workers=3, progress=False)
+    assert [c.sweeps_done for c in chains] == [5, 5, 0]
+
+
+class _InterruptingBackend:
+    """Raises KeyboardInterrupt at the ``at``-th sweep of the chain it belongs to."""
+
+    def __init__(self, inner, at: int) -> None:
+        self.inner, self.at, self.calls, self.name = inner, at, 0, inner.name
+
+    def sweep(self, *args):
+        self.calls += 1
+        if self.calls == self.at:
+            raise KeyboardInterrupt
+        return self.inner.sweep(*args)
+
+    def __getattr__(self, name):
+        return getattr(self.inner, name)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_ctrl_c_leaves_every_chain_at_a_completed_sweep_and_continuing_is_exact(workers):
+    cfg = config(num_concepts=5, gamma=1.0)
+    _, data = random_problem(seed=13, copies=4)
+    seeds = [7, 8]
+    reference = _chains(data, cfg, "torch", seeds)
+    for chain in reference:
+        advance(chain, 10, progress=False)
+    chains = _chains(data, cfg, "torch", seeds)
+    chains[1].backend = _InterruptingBackend(chains[1].backend, at=4)
+    with pytest.raises(KeyboardInterrupt):
+        advance_chains([(chain, 10) for chain in chains], workers=workers, progress=False)
+    assert chains[1].sweeps_done == 3  # the fourth sweep was undone
+    for chain in chains:
+        assert len(chain.log_joint) == chain.sweeps_done <= 10
+    chains[1].backend = chains[1].backend.inner
+    advance_chains([(c, 10 - c.sweeps_done) for c in chains], workers=workers, progress=False)
+    for a, b in zip(reference, chains, strict=True):
+        _same(a, b)
+
+
+def test_workers_resolve_to_at_most_one_per_chain():
+    assert resolve_workers(8, 3) == 3
+    assert resolve_workers(1, 3) == 1
+    assert 1 <= resolve_workers("auto", 4) <= 4
+    for bad in (0, -1, "two", 1.5, True):
+        with pytest.raises(ValueError, match="chain workers"):
+            resolve_workers(bad, 2)
+
+
+def test_fit_with_parallel_chains_gives_the_sequential_fit():
+    from spcopyro.config import preset
+    from spcopyro.fit import fit_house_chains
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    house = make_house(seed=2, spec=HouseSpec(height=40, width=50, num_rooms=3, num_trials=1))
+    settings = preset("paper-dp", num_concepts=8)
+    kwargs = dict(sweeps=6, seeds=[0, 1, 2], progress=False)
+    one = fit_house_chains(house, settings, chain_workers=1, **kwargs)
+    two = fit_house_chains(house, settings, chain_workers=2, **kwargs)
+    for a, b in zip(one, two, strict=True):
+        np.testing.assert_array_equal(a.labels, b.labels)
+        np.testing.assert_array_equal(a.trace.objective, b.trace.objective)
