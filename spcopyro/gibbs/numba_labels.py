@@ -26,6 +26,10 @@ distribution tests still pass):
   the table is built per sweep in O(L)) instead of a binary search; cells with observations
   scan their row.
 - **The RNG state in registers** (:func:`~spcopyro.gibbs.numba_random.next_bits`).
+- **A short path inside regions**: a cell without observations whose D neighbours all hold one
+  label a (most cells of a settled map) is a from p(a) = B_a e^{gamma D} / (sum(B) +
+  B_a expm1(gamma D)), else a draw from pi: the same conditional, without the D^2 comparisons
+  (a third faster on room2ldk4 once regions have formed).
 - **The Potts statistic for free**: when a cell is drawn, its neighbours in *earlier* blocks
   already hold their final labels for this sweep, so counting its agreements with them counts
   every neighbouring pair exactly once (a pair's two cells lie in different blocks): the sweep
@@ -228,6 +232,7 @@ def label_sweep_kernel(num_neighbours: int) -> Callable[..., int]:
         alias = np.empty(L, np.int64)
         alias_table(background[M, :L], keep, alias)
         pi_total = totals[M]
+        whole_tilt = tilt[D] * D  # expm1(gamma D)
         slots = np.empty(D, np.int64)  # [D] a_s
         agree = np.empty(D, np.int64)  # [D] n_{a_s}(i): the slots holding a_s
         cumulative = np.empty(D)  # [D] running slot masses
@@ -240,6 +245,27 @@ def label_sweep_kernel(num_neighbours: int) -> Callable[..., int]:
                 r = rows[p] if observed else M
                 for s in range(D):
                     slots[s] = labels[neighbours[p, s]]
+                first = slots[0]
+                alike = first < L
+                for s in range(1, D):
+                    alike = alike and slots[s] == first
+                if alike and not observed:  # inside a region: p(a) = B_a e^{gamma D} / Z
+                    mass = background[M, first] * whole_tilt  # B_a expm1(gamma D)
+                    bits, s0, s1, s2, s3 = next_bits(s0, s1, s2, s3)
+                    label = first
+                    if bits_to_uniform(bits) * (pi_total + mass) >= mass:  # from pi
+                        bits, s0, s1, s2, s3 = next_bits(s0, s1, s2, s3)
+                        y = bits_to_uniform(bits) * L
+                        i = min(int(y), L - 1)
+                        label = i if y - i < keep[i] else alias[i]
+                    labels[order[p]] = label
+                    if label == first and counting == 1:
+                        agreements += D
+                    elif label == first and counting == 2:
+                        mask = earlier[p]
+                        for s in range(D):
+                            agreements += (mask >> s) & 1
+                    continue
                 mass = 0.0  # slot s: B_{a_s} expm1(gamma n_{a_s}) / n_{a_s}
                 for s in range(D):
                     same = 0
