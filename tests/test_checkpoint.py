@@ -108,11 +108,11 @@ class _Interrupting:
         self._maybe_stop("sweep")
         return new
 
-    def potts_agreements(self, labels, pairs):
-        self._maybe_stop("potts_agreements")
-        return self.inner.potts_agreements(labels, pairs)
+    def trace(self, state, data, config):
+        self._maybe_stop("trace")
+        return self.inner.trace(state, data, config)
 
-    def __getattr__(self, name):  # label_counts, log_joint_variable: as the backend's
+    def __getattr__(self, name):  # the rest as the backend's
         return getattr(self.inner, name)
 
 
@@ -148,8 +148,7 @@ def test_an_interrupt_inside_a_sweep_is_undone(backend, where, monkeypatch):
     if where == "records":
         monkeypatch.setattr(run_module, "time", _Clock(at=2))
     else:
-        method = "sweep" if where == "sweep" else "potts_agreements"
-        chain.backend = _Interrupting(real, method, at=1)
+        chain.backend = _Interrupting(real, where, at=1)
     with pytest.raises(KeyboardInterrupt):
         advance(chain, 9, thin=2, progress=False)
     monkeypatch.setattr(run_module, "time", time)

@@ -5,6 +5,8 @@ hands to the run loop's log joint. Its *distribution* is judged with the torch r
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -139,20 +141,27 @@ def test_wide_labels_draw_pi_through_the_alias_table():
     [dict(prior="dp"), dict(prior="dirichlet", alpha=2.0), dict(use_words=False), dict(gamma=0.0)],
     ids=str,
 )
-def test_compiled_log_joint_equals_the_reference(variant):
-    """The run loop's compiled log joint (numba backend) against likelihood.log_joint_variable."""
+def test_compiled_trace_equals_the_reference(variant):
+    """The run loop's per-sweep record on the numba backend (from what the sweep counted, and
+    recounted after a change in place) against the torch backend's (likelihood.log_joint_variable
+    and a bincount)."""
     from spcopyro.gibbs.backends import get_backend
-    from spcopyro.likelihood import log_joint_variable
 
     cfg = config(**variant)
     _, data = random_problem(seed=10, copies=3)
     generator = torch.Generator().manual_seed(5)
     state = gibbs_sweep_numba(init(data, cfg, generator), data, cfg, generator)
-    backend = get_backend("numba")
-    counts = backend.label_counts(state.labels, cfg.num_concepts)
-    agreements = backend.potts_agreements(state.labels, data.pairs)
-    expected = log_joint_variable(
-        state.labels, state.log_pi, state.log_emissions, data, cfg, None, None
-    )
-    value = backend.log_joint_variable(state, data, cfg, counts, agreements)
-    assert value == pytest.approx(float(expected), rel=1e-12, abs=1e-9)
+    torch_backend, numba_backend = get_backend("torch"), get_backend("numba")
+
+    def agree(config_) -> None:
+        expected, concepts = torch_backend.trace(state, data, config_)
+        value, counted = numba_backend.trace(state, data, config_)
+        assert value == pytest.approx(expected, rel=1e-12, abs=1e-9) and counted == concepts
+
+    agree(cfg)  # what the sweep recorded
+    agree(dataclasses.replace(cfg, gamma=cfg.gamma + 0.5))  # the chain's gamma after annealing
+    agree(dataclasses.replace(cfg, chi=cfg.chi + 1.0))  # other hyperparameters: recomputed
+    state.log_pi.add_(0.01)  # in place: recomputed
+    agree(cfg)
+    state.labels[:5] = (state.labels[:5] + 1) % cfg.num_concepts  # in place: recounted
+    agree(cfg)

@@ -25,8 +25,8 @@ class SweepBackend(Protocol):
     (cluster moves, annealing) are composed once, in :func:`spcopyro.gibbs.sampler.step`.
     ``potts_agreements`` is E(C) and ``label_counts`` the cells per concept: the statistics the
     per-sweep log joint needs (the compiled backend has them from the sweep that drew the
-    labels); ``log_joint_variable`` is :func:`spcopyro.likelihood.log_joint_variable` of a hard
-    labelling given them (compiled in the numba backend).
+    labels); ``trace`` is the per-sweep record: :func:`spcopyro.likelihood.log_joint_variable`
+    at a state and its number of concepts in use (compiled in the numba backend).
     """
 
     name: str
@@ -45,14 +45,9 @@ class SweepBackend(Protocol):
 
     def label_counts(self, labels: torch.Tensor, num_concepts: int) -> torch.Tensor: ...
 
-    def log_joint_variable(
-        self,
-        state: GibbsState,
-        data: ModelData,
-        config: SpCoConfig,
-        label_counts: torch.Tensor,
-        agreements: torch.Tensor,
-    ) -> float: ...
+    def trace(
+        self, state: GibbsState, data: ModelData, config: SpCoConfig
+    ) -> tuple[float, int]: ...
 
 
 class TorchBackend:
@@ -69,11 +64,12 @@ class TorchBackend:
     def label_counts(self, labels, num_concepts):  # noqa: D102
         return torch.bincount(labels, minlength=num_concepts)
 
-    def log_joint_variable(self, state, data, config, label_counts, agreements):  # noqa: D102
-        return float(
-            log_joint_variable(state.labels, state.log_pi, state.log_emissions, data, config,
-                               label_counts, agreements)
-        )  # fmt: skip
+    def trace(self, state, data, config):  # noqa: D102
+        counts = torch.bincount(state.labels, minlength=config.num_concepts)  # [L]
+        agreements = potts_agreements(state.labels, data.pairs)
+        value = log_joint_variable(state.labels, state.log_pi, state.log_emissions, data, config,
+                                   counts, agreements)  # fmt: skip
+        return float(value), int((counts > 0).sum())
 
 
 class NumbaBackend:
@@ -83,16 +79,15 @@ class NumbaBackend:
 
     def __init__(self) -> None:
         # ImportError without numba (get_backend relies on it).
-        from spcopyro.gibbs.numba_log_joint import log_joint_variable_numba
         from spcopyro.gibbs.numba_sweep import (
             gibbs_sweep_numba,
             label_counts_numba,
             potts_agreements_numba,
+            trace_numba,
         )
 
         self._sweep, self._label_counts = gibbs_sweep_numba, label_counts_numba
-        self._potts_agreements = potts_agreements_numba
-        self._log_joint_variable = log_joint_variable_numba
+        self._potts_agreements, self._trace = potts_agreements_numba, trace_numba
 
     def sweep(self, state, data, config, generator, plan, unobserved_refresh):  # noqa: D102
         return self._sweep(state, data, config, generator, plan, unobserved_refresh)
@@ -103,8 +98,8 @@ class NumbaBackend:
     def label_counts(self, labels, num_concepts):  # noqa: D102
         return self._label_counts(labels, num_concepts)
 
-    def log_joint_variable(self, state, data, config, label_counts, agreements):  # noqa: D102
-        return self._log_joint_variable(state, data, config, label_counts, agreements)
+    def trace(self, state, data, config):  # noqa: D102
+        return self._trace(state, data, config)
 
 
 def get_backend(backend: str = "auto") -> SweepBackend:

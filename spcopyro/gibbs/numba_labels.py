@@ -320,9 +320,19 @@ def label_sweep_kernel(num_neighbours: int) -> Callable[..., int]:
 @njit(cache=True, nogil=True)
 def count_cells(labels: np.ndarray, num_free: int, out: np.ndarray) -> None:
     """out [L] (zeroed) += 1 for the label of each of the first ``num_free`` cells (eq. 14's
-    m_l)."""
-    for i in range(num_free):
-        out[labels[i]] += 1.0
+    m_l). Four interleaved integer tallies: runs of one label do not wait on one counter."""
+    L = out.shape[0]
+    tallies = np.zeros((4, L), np.int64)
+    head = num_free - num_free % 4
+    for i in range(0, head, 4):
+        tallies[0, labels[i]] += 1
+        tallies[1, labels[i + 1]] += 1
+        tallies[2, labels[i + 2]] += 1
+        tallies[3, labels[i + 3]] += 1
+    for i in range(head, num_free):
+        tallies[0, labels[i]] += 1
+    for l in range(L):
+        out[l] += tallies[0, l] + tallies[1, l] + tallies[2, l] + tallies[3, l]
 
 
 @njit(cache=True, nogil=True)

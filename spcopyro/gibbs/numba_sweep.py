@@ -56,9 +56,7 @@ numba is missing (:func:`~spcopyro.gibbs.backends.get_backend` relies on that).
 
 from __future__ import annotations
 
-import threading
-import weakref
-from typing import NamedTuple
+import functools
 
 import numpy as np
 import torch
@@ -66,12 +64,17 @@ from numba import njit
 
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.numba_labels import (
-    agreements_of,
     compact_label_dtype,
     compact_labels,
     count_cells,
     label_plan,
     label_sweep_kernel,
+)
+from spcopyro.gibbs.numba_log_joint import (
+    label_counts_numba,
+    potts_agreements_numba,
+    remember_sweep,
+    trace_numba,
 )
 from spcopyro.gibbs.numba_random import (
     dirichlet_log_rows,
@@ -88,6 +91,7 @@ __all__ = [
     "gibbs_sweep_numba",
     "label_counts_numba",
     "potts_agreements_numba",
+    "trace_numba",
     "sample_globals_numba",
     "sample_labels_numba",
     "sample_log_gamma_numba",
@@ -173,9 +177,16 @@ def _extended_labels(labels: torch.Tensor, num_neighbours: int, config: SpCoConf
 
 def _neighbour_tilt(config: SpCoConfig, num_neighbours: int) -> np.ndarray:
     """[D + 1] expm1(gamma k) / k for k = 0..D (0 at k = 0); finite because SpCoConfig keeps
-    gamma * D <= 700."""
+    gamma * D <= 700. Read-only, cached per (gamma, D)."""
+    return _tilt(float(config.gamma), int(num_neighbours))
+
+
+@functools.lru_cache(maxsize=64)
+def _tilt(gamma: float, num_neighbours: int) -> np.ndarray:
     k = np.arange(num_neighbours + 1, dtype=np.float64)  # [D + 1]
-    return np.expm1(config.gamma * k) / np.maximum(k, 1.0)
+    tilt = np.expm1(gamma * k) / np.maximum(k, 1.0)
+    tilt.flags.writeable = False
+    return tilt
 
 
 def _background_table(state: GibbsState, data: ModelData, config: SpCoConfig) -> np.ndarray:
@@ -314,47 +325,6 @@ def _sample_globals_arrays(
     return log_pi_t, tuple(log_emissions)
 
 
-class _SweepFacts(NamedTuple):
-    """What a compiled sweep learnt about the labels it returned, for the run loop's trace."""
-
-    labels: weakref.ref  # the [N] labels tensor the sweep returned
-    version: int  # its in-place version counter then: a later in-place change voids the facts
-    pairs: weakref.ref  # the data's [P, 2] pairs the agreements count
-    agreements: int  # E(C)
-    label_counts: torch.Tensor  # [L] int64 cells per concept
-
-
-_FACTS_KEPT = 64
-# id(labels tensor) -> its facts (oldest first; checked by weak reference and version). Chains
-# advancing in threads (spcopyro.gibbs.chains) share it: changes hold the lock.
-_facts: dict[int, _SweepFacts] = {}
-_facts_lock = threading.Lock()
-
-
-def _remember(
-    labels: torch.Tensor, pairs: torch.Tensor, agreements: int, counts: np.ndarray
-) -> None:
-    facts = _SweepFacts(
-        weakref.ref(labels), labels._version, weakref.ref(pairs), agreements,
-        torch.from_numpy(counts.astype(np.int64)),
-    )  # fmt: skip
-    with _facts_lock:
-        while len(_facts) >= _FACTS_KEPT:
-            del _facts[next(iter(_facts))]
-        _facts[id(labels)] = facts
-
-
-def _recall(labels: torch.Tensor, pairs: torch.Tensor | None = None) -> _SweepFacts | None:
-    """The facts of ``labels`` if a compiled sweep returned this very tensor and it was not
-    changed in place since (and, given ``pairs``, they were counted on these pairs)."""
-    facts = _facts.get(id(labels))
-    if facts is None or facts.labels() is not labels or facts.version != labels._version:
-        return None
-    if pairs is not None and facts.pairs() is not pairs:
-        return None
-    return facts
-
-
 def sample_labels_numba(
     state: GibbsState,
     data: ModelData,
@@ -422,24 +392,8 @@ def gibbs_sweep_numba(
         compact, data, config, rng, state.log_emissions, unobserved_refresh, counts
     )
     labels = torch.from_numpy(compact[: data.num_free].astype(np.int64))  # [N]
-    _remember(labels, data.pairs, agreements, counts)
-    return GibbsState(labels, log_pi, log_emissions)
-
-
-def potts_agreements_numba(labels: torch.Tensor, pairs: torch.Tensor) -> torch.Tensor:
-    """E(C) of :func:`spcopyro.model.potts_agreements` (float64 scalar), compiled (or what the
-    sweep that returned ``labels`` counted)."""
-    facts = _recall(labels, pairs)
-    if facts is not None:
-        return torch.tensor(float(facts.agreements), dtype=torch.float64)
-    total = agreements_of(_as_array(labels, np.int64), _as_array(pairs, np.int64))
-    return torch.tensor(float(total), dtype=torch.float64)
-
-
-def label_counts_numba(labels: torch.Tensor, num_concepts: int) -> torch.Tensor:
-    """[L] int64 cells per concept (``torch.bincount(labels, minlength=L)``), or what the sweep
-    that returned ``labels`` counted."""
-    facts = _recall(labels)
-    if facts is not None and facts.label_counts.shape[0] == num_concepts:
-        return facts.label_counts
-    return torch.bincount(labels, minlength=num_concepts)
+    state = GibbsState(labels, log_pi, log_emissions)
+    obs_cells = _as_array(data.obs_cells, np.int64)
+    counts_m = tuple(_as_array(modality.counts, np.float64) for modality in data.modalities)
+    remember_sweep(state, data, config, agreements, counts, obs_cells, counts_m, compact)
+    return state

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-import numpy as np
 import torch
 
 from spcopyro.config import SpCoConfig
@@ -128,9 +127,8 @@ def trace_point(
     hyperpriors of the sampled log hyperparameters (not the intractable Potts normaliser
     Z(gamma, alpha): see :mod:`spcopyro.gibbs.hyper_targets`).
     """
-    label_counts = backend.label_counts(state.labels, config.num_concepts)  # [L]
-    agreements = backend.potts_agreements(state.labels, data.pairs)
-    value = constant + backend.log_joint_variable(state, data, config, label_counts, agreements)
+    variable, concepts = backend.trace(state, data, config)
+    value = constant + variable
     if options is not None and options.hyper.active:
         value += log_hyperprior(data, config, options.hyper)
-    return value, int(np.count_nonzero(label_counts.numpy()))
+    return value, concepts
