@@ -347,12 +347,10 @@ def test_ctrl_c_while_writing_keeps_the_finished_chains(room, tmp_path, capsys, 
 
 
 def test_ctrl_c_under_sweeps_auto_stops_cleanly(room, tmp_path, capsys, monkeypatch):
-    import spcopyro.gibbs.convergence
-
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(spcopyro.gibbs.convergence, "advance", interrupted)
+    monkeypatch.setattr(spcopyro.gibbs.chains, "advance", interrupted)
     out = tmp_path / "out"
     argv = ["fit", str(room), "--out", str(out), "--sweeps", "auto", "--chains", "2",
             "--max-sweeps", "10", "--concepts", "4"]  # fmt: skip

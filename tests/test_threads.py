@@ -206,7 +206,7 @@ def test_fit_command_passes_threads_to_the_fit(
             "--max-sweeps", "2", "--chains", "2", "--threads", "3"]  # fmt: skip
     assert main(argv) == 0
     if sweeps == "auto":
-        assert seen == [3]
+        assert seen == [3, 3, 3]  # the driver, then its one block's run per chain
     else:
         assert seen == [3, 3]  # one run per chain
     assert "threads          3 torch intra-op threads (as asked)" in capsys.readouterr().out

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import os
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 from tqdm.auto import tqdm
@@ -66,12 +66,14 @@ def advance_chains(
     workers: int | str | None = AUTO,
     thin: int = 0,
     progress: bool | None = None,
+    on_sweep: Callable[[], None] | None = None,
 ) -> None:
     """Advance each ``(chain, num_sweeps)`` of ``runs`` by its number of sweeps, up to
     ``workers`` chains at a time (:func:`resolve_workers`), in place.
 
-    One progress bar counts the sweeps of all chains. With one worker the chains run one after
-    another in this thread (what :func:`~spcopyro.gibbs.run.advance` in a loop did).
+    One progress bar counts the sweeps of all chains; ``on_sweep`` is called (under a lock)
+    after every sweep of any chain. With one worker the chains run one after another in this
+    thread (what :func:`~spcopyro.gibbs.run.advance` in a loop did).
     """
     runs = [(chain, int(n)) for chain, n in runs if int(n) > 0]
     if not runs:
@@ -85,6 +87,8 @@ def advance_chains(
     def after_sweep(*_: object) -> None:
         with lock:
             bar.update()
+            if on_sweep is not None:
+                on_sweep()
         if stop.is_set():
             raise _Stopped
 

@@ -38,8 +38,9 @@ from pyro.ops.stats import split_gelman_rubin
 from tqdm.auto import tqdm
 
 from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.chains import AUTO, advance_chains
 from spcopyro.gibbs.options import GibbsOptions
-from spcopyro.gibbs.run import GibbsRun, advance, start_chain
+from spcopyro.gibbs.run import GibbsRun, start_chain
 from spcopyro.model import ModelData
 from spcopyro.progress import progress_enabled
 
@@ -159,6 +160,7 @@ def run_until_converged(
     seed: int = 0,
     init_labels: Sequence[torch.Tensor | None] | None = None,
     progress: bool | None = None,
+    workers: int | str | None = AUTO,
 ) -> tuple[GibbsRun, ConvergenceDiagnostics]:
     """Run ``chains`` chains (seeds ``seed``, ``seed + 1``, ...) in blocks of ``block`` sweeps until
     the split R-hat of the log joint and of the number of concepts are both below ``threshold``
@@ -167,6 +169,8 @@ def run_until_converged(
     ``init_labels``: one ``[N]`` start (or None for random) per chain. ``options``: the sampler's
     options; its ``anneal_sweeps`` come before the first block (see the module docstring).
     ``progress``: one tqdm bar over all chains (default: on unless ``$CI`` is set).
+    ``workers``: chains advancing at once within a block (:func:`~spcopyro.gibbs.chains.
+    advance_chains`; the chains are the same whatever it is).
     Returns the run of the chain of highest log joint, and the diagnostics.
     """
     if chains < 2:
@@ -198,8 +202,8 @@ def run_until_converged(
     while done < max_sweeps and not converged:
         sweeps = min(block, max_sweeps - done)
         anneal = anneal_sweeps if done == 0 else 0
-        for chain in runs:
-            advance(chain, anneal + sweeps, progress=False, callback=lambda *_: bar.update())
+        advance_chains([(chain, anneal + sweeps) for chain in runs], workers=workers,
+                       progress=False, on_sweep=bar.update)  # fmt: skip
         done += sweeps
         log_joint = np.array([chain.log_joint for chain in runs])  # [K, S]
         concepts = np.array([chain.num_concepts for chain in runs], dtype=np.float64)  # [K, S]
