@@ -101,39 +101,11 @@ def _ziggurat_tables(layers: int = 128) -> tuple[np.ndarray, np.ndarray, float]:
 _ZIG_X, _ZIG_RATIO, _ZIG_TAIL = _ziggurat_tables()
 
 
-@njit(cache=True, inline="always")
-def _normal(state: np.ndarray) -> float:
-    """A standard normal by Doornik's ziggurat (ZIGNOR; layer and uniform from separate bits)."""
-    while True:
-        bits = _next_bits(state)
-        i = np.int64(bits & _U127)  # layer: the low 7 bits
-        u = 2.0 * (float(bits >> _U11) * _TWO_TO_MINUS_53) - 1.0  # (-1, 1): the top 53 bits
-        if abs(u) < _ZIG_RATIO[i]:
-            return u * _ZIG_X[i]  # inside the layer's rectangle (~99%)
-        if i == 0:  # the tail beyond R (Marsaglia, 1964)
-            while True:
-                x = math.log(1.0 - uniform(state)) / _ZIG_TAIL
-                y = math.log(1.0 - uniform(state))
-                if -2.0 * y >= x * x:
-                    return x - _ZIG_TAIL if u < 0.0 else _ZIG_TAIL - x
-        x = u * _ZIG_X[i]
-        f0 = math.exp(-0.5 * (_ZIG_X[i] * _ZIG_X[i] - x * x))
-        f1 = math.exp(-0.5 * (_ZIG_X[i + 1] * _ZIG_X[i + 1] - x * x))
-        if f1 + uniform(state) * (f0 - f1) < 1.0:
-            return x
-
-
-@njit(cache=True, nogil=True)
-def _fill_normal(out: np.ndarray, state: np.ndarray) -> None:
-    """out [n] = standard normals."""
-    for i in range(out.shape[0]):
-        out[i] = _normal(state)
-
-
 @njit(cache=True, nogil=True)
 def _normal_slow_path(bits: np.uint64, state: np.ndarray) -> float:
-    """The rest of :func:`_normal` after its first 64 bits missed the layer's rectangle
-    (~1% of draws): out of line, so that the fast path stays small where it is inlined."""
+    """The rest of Doornik's ziggurat after its first 64 bits missed the layer's rectangle
+    (~1% of draws): the tail or the wedge, NaN where the wedge rejects (then start afresh).
+    Out of line, so that the fast path stays small where it is inlined."""
     i = np.int64(bits & _U127)
     u = 2.0 * (float(bits >> _U11) * _TWO_TO_MINUS_53) - 1.0
     if i == 0:  # the tail beyond R (Marsaglia, 1964)
@@ -147,7 +119,28 @@ def _normal_slow_path(bits: np.uint64, state: np.ndarray) -> float:
     f1 = math.exp(-0.5 * (_ZIG_X[i + 1] * _ZIG_X[i + 1] - x * x))
     if f1 + uniform(state) * (f0 - f1) < 1.0:
         return x
-    return _normal(state)  # rejected: a fresh normal
+    return math.nan
+
+
+@njit(cache=True, inline="always")
+def _normal(state: np.ndarray) -> float:
+    """A standard normal by Doornik's ziggurat (ZIGNOR; layer and uniform from separate bits)."""
+    while True:
+        bits = _next_bits(state)
+        i = np.int64(bits & _U127)  # layer: the low 7 bits
+        u = 2.0 * (float(bits >> _U11) * _TWO_TO_MINUS_53) - 1.0  # (-1, 1): the top 53 bits
+        if abs(u) < _ZIG_RATIO[i]:
+            return u * _ZIG_X[i]  # inside the layer's rectangle (~99%)
+        x = _normal_slow_path(bits, state)
+        if not math.isnan(x):
+            return x
+
+
+@njit(cache=True, nogil=True)
+def _fill_normal(out: np.ndarray, state: np.ndarray) -> None:
+    """out [n] = standard normals."""
+    for i in range(out.shape[0]):
+        out[i] = _normal(state)
 
 
 @njit(cache=True, nogil=True)
@@ -197,6 +190,8 @@ def _fill_gamma_linear(
                     state[0], state[1], state[2], state[3] = s0, s1, s2, s3
                     x = _normal_slow_path(bits, state)
                     s0, s1, s2, s3 = state[0], state[1], state[2], state[3]
+                    if math.isnan(x):  # the wedge rejected: a fresh normal
+                        continue
                 t = 1.0 + scale * x
                 if t <= 0.0:
                     continue
