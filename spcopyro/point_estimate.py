@@ -50,7 +50,6 @@ import dataclasses
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 if TYPE_CHECKING:
     from spcopyro.inference import InferenceOutput
@@ -255,6 +254,8 @@ def point_estimate(
 def matched_labels(estimate: np.ndarray, sample: np.ndarray) -> np.ndarray:
     """[N] the sample's labels renamed to the estimate's clusters they are matched with (the
     Hungarian matching of most shared cells; -1 for a sample label matched with none)."""
+    from scipy.optimize import linear_sum_assignment  # here: a fit without one skips its import
+
     e, k = compact(estimate)
     s, j = compact(sample)
     table = contingency(e, s, k, j)  # [K, J]
@@ -278,6 +279,8 @@ def concept_labels(estimate: np.ndarray, reference: np.ndarray, num_concepts: in
     """[N] the estimate's clusters named by concepts of ``reference`` [N] (the state whose pi
     and emissions a result reports): the Hungarian matching of most shared cells; clusters left
     over take concepts that ``reference`` does not use."""
+    from scipy.optimize import linear_sum_assignment
+
     e, k = compact(estimate)
     if k > num_concepts:
         raise ValueError(f"the estimate has {k} clusters, more than {num_concepts} concepts")
