@@ -87,13 +87,14 @@ def fit_once(
     startup = record["entered"] - launched
     row: dict[str, Any] = {
         "sweeps": sweeps,
-        "figures": figures,
+        "with_figures": figures,
         "wall": wall,
         "startup": startup,
         **{name: seconds.get(name, 0.0) for name in PHASES},
         "sweep_seconds": record["sweep_seconds"],
         "exit": wall - startup - record["total"],
         "pngs": pngs,
+        "imported": record.get("imported", []),  # of spcopyro.timings.OPTIONAL_HEAVY
     }
     row["fit_outside_sweeps"] = row["fit"] - row["sweep_seconds"]
     row["wall_outside_sweeps"] = wall - row["sweep_seconds"]

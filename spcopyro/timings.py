@@ -15,11 +15,28 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import time
 from pathlib import Path
 
 TIMINGS_ENV = "SPCOPYRO_TIMINGS"
 """The environment variable naming the JSON file :meth:`Phases.write` writes (unset: none)."""
+OPTIONAL_HEAVY = (
+    "matplotlib",
+    "sklearn",
+    "torchvision",
+    "scipy.ndimage",
+    "scipy.optimize",
+    "scipy.sparse",
+    "scipy.spatial",
+)
+"""Modules a fit imports only where it uses them (figures, footprints, cluster and merge moves,
+snapping, a point estimate): :func:`imported_heavy` lists those loaded."""
+
+
+def imported_heavy() -> list[str]:
+    """Those of :data:`OPTIONAL_HEAVY` this process has imported."""
+    return [name for name in OPTIONAL_HEAVY if name in sys.modules]
 
 
 class Phases:
@@ -44,6 +61,7 @@ class Phases:
             "entered": self.entered,
             "seconds": {k: round(v, 6) for k, v in self.seconds.items()},
             "total": round(sum(self.seconds.values()), 6),
+            "imported": imported_heavy(),
             **extra,
         }
 
