@@ -12,6 +12,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from spcopyro.cli import main
 from spcopyro.timings import OPTIONAL_HEAVY, TIMINGS_ENV, Phases
 
@@ -82,3 +84,21 @@ def test_the_command_exits_with_mains_code():
                           capture_output=True, text=True, env=_env(), timeout=300)  # fmt: skip
     assert done.returncode == 2, done.stderr
     assert done.stderr.startswith("error:")
+
+
+def test_point_estimate_tables_over_pairs_equal_the_cells_tables(rng):
+    """The point estimate's contingency tables, summed over (cluster, sample column) pairs,
+    equal :func:`contingency` over the cells, and its distinct columns are np.unique's."""
+    from spcopyro import point_estimate as pe
+
+    for trial in range(30):
+        samples = rng.integers(0, 1 + trial % 5, size=(1 + trial % 6, 40 + trial))  # [S, N]
+        samples[:, ::3] = samples[0, ::3]  # shared columns
+        prepared = pe._prepare(samples, "vi")
+        signatures, signature = np.unique(prepared.codes, axis=1, return_inverse=True)
+        assert np.array_equal(prepared.signatures, signatures)
+        assert np.array_equal(prepared.signature, signature.reshape(-1))
+        estimate, k = pe.compact(rng.integers(0, 4, size=samples.shape[1]))
+        tables = pe._tables(estimate, k + 1, prepared)
+        for table, codes, j in zip(tables, prepared.codes, prepared.sizes, strict=True):
+            assert np.array_equal(table, pe.contingency(estimate, codes, k + 1, j))
