@@ -287,8 +287,10 @@ def console_main() -> NoReturn:
     by then, and the standard streams are still flushed at exit. Only the command does this: a
     program calling :func:`main` keeps its collector as it was.
     """
-    code = main()
-    gc.freeze()
+    try:
+        code = main()
+    finally:  # also after --help, --version and usage errors (argparse's SystemExit)
+        gc.freeze()
     sys.exit(code)
 
 
