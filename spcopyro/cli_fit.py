@@ -382,7 +382,8 @@ def _fit_staged(
         print(f"wrote {out}/: labels.npy semantic_map.png concepts.json trace.csv trace.png ...")
     phases.mark("commit")
     phases.write(sweeps=sweeps_run, sweep_seconds=float(result.trace.seconds[-1]),
-                 chains=chains, figures=not args.no_figures)  # fmt: skip
+                 first_sweep_seconds=float(result.trace.seconds[0]), chains=chains,
+                 figures=not args.no_figures)  # fmt: skip
     return 0
 
 
