@@ -102,3 +102,20 @@ def test_point_estimate_tables_over_pairs_equal_the_cells_tables(rng):
         tables = pe._tables(estimate, k + 1, prepared)
         for table, codes, j in zip(tables, prepared.codes, prepared.sizes, strict=True):
             assert np.array_equal(table, pe.contingency(estimate, codes, k + 1, j))
+
+
+def test_adjusted_rand_score_equals_scikit_learns(rng):
+    """The numpy ARI the fit reports (no scikit-learn import) returns scikit-learn's float."""
+    import pytest
+
+    sklearn_metrics = pytest.importorskip("sklearn.metrics")
+    from spcopyro.metrics.rand import adjusted_rand_score
+
+    cases = [([], []), ([0] * 5, [0] * 5), (list(range(5)), [0] * 5), (["a", "b", "a"], [1, 2, 2])]
+    for _ in range(200):
+        n = int(rng.integers(1, 200))
+        high = rng.integers(1, 9, size=2)
+        cases.append((rng.integers(-1, high[0], n), rng.integers(0, high[1], n)))
+    for first, second in cases:
+        expected = sklearn_metrics.adjusted_rand_score(np.asarray(first), np.asarray(second))
+        assert adjusted_rand_score(np.asarray(first), np.asarray(second)) == expected
