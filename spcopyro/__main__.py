@@ -1,7 +1,5 @@
 """``python -m spcopyro ...``: the ``spcopyro`` command."""
 
-import sys
+from spcopyro.cli import console_main
 
-from spcopyro.cli import main
-
-sys.exit(main())
+console_main()

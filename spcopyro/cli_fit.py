@@ -47,6 +47,7 @@ from spcopyro.outputs import StagedOutput
 from spcopyro.point_estimate import POINT_ESTIMATES
 from spcopyro.registry import DEFAULT_METHOD, INFERENCE_METHODS
 from spcopyro.threads import AUTO, MIN_CELLS_FOR_MORE_THREADS, describe_threads
+from spcopyro.timings import Phases
 
 if TYPE_CHECKING:
     from spcopyro.fit import FitCheckpoint
@@ -65,6 +66,7 @@ def _fit(args: argparse.Namespace) -> int:
     from spcopyro.fit import FitCheckpoint, FitInterrupted
     from spcopyro.outputs import checkpoint_path, stage_output
 
+    args.phases = Phases()  # seconds per phase, written to $SPCOPYRO_TIMINGS if set
     if args.sweeps is None:  # the parser's default: fewer sweeps continue a fit than start one
         args.sweeps = UPDATE_SWEEPS if args.update is not None else FIT_SWEEPS
     _apply_preset_inference(args)
@@ -97,8 +99,10 @@ def _fit(args: argparse.Namespace) -> int:
     if args.resume is not None and not Path(args.resume).is_file():
         raise FileNotFoundError(f"--resume {args.resume}: no such checkpoint file")
     house = _load(args.data)
+    args.phases.mark("load")
     settings, options = _fit_settings(args, house)
     staged = stage_output(args.out, overwrite=args.overwrite, resume=args.resume)
+    args.phases.mark("settings")
     keeper = None  # keeps the Gibbs chains for a checkpoint beside OUT
     if args.method == "gibbs" and args.sweeps != "auto" and args.update is None:
         keeper = FitCheckpoint(checkpoint_path(staged.out))
@@ -236,9 +240,9 @@ def _fit_staged(
     """Fit, write every output into ``staged.path``, then move it to OUT."""
     from spcopyro.fit import best_chain, fit_house_chains
     from spcopyro.outputs import checkpoint_path
-    from spcopyro.plotting import plot_house, plot_semantic_map, plot_trace, plot_uncertainty
     from spcopyro.uncertainty import cell_entropy, free_cells_image
 
+    phases = args.phases
     config = settings.model
     source = "embedded synthetic house, seed 0" if args.data is None else None
     # The config's warnings (gamma, extreme concentrations) are logged by prepare_model_data,
@@ -267,6 +271,7 @@ def _fit_staged(
         init = SpCoResult.load(args.init_from)
         print(f"starting from     the {init.method} fit in {args.init_from}")
     diagnostics = None
+    phases.mark("summary")
     start = _clock()
     if args.sweeps == "auto":
         from spcopyro.fit import fit_house_converged
@@ -303,10 +308,12 @@ def _fit_staged(
         kept = best_chain(chain_results)
         result = chain_results[kept]
     wall = _clock() - start
+    phases.mark("fit")
     sampled.append(True)
     command = shlex.join(["spcopyro", *_command(args)])
     result = dataclasses.replace(result, provenance={**result.provenance, "command": command})
     out = result.save(staged.path)
+    phases.mark("save")
     if chain_results is not None and chains > 1:
         best_values = [r.best_objective for r in chain_results]
         report = {"seeds": [args.seed + k for k in range(chains)], "best_chain": kept,
@@ -323,21 +330,20 @@ def _fit_staged(
               f"(split R-hat: log joint {last.rhat_log_joint:.3f}, concepts "
               f"{last.rhat_num_concepts:.3f}); kept chain {diagnostics.best_chain} "
               f"(seed {diagnostics.seeds[diagnostics.best_chain]}), highest log joint")  # fmt: skip
-    plot_semantic_map(result, out / "semantic_map.png", observations=house.observations)
-    plot_trace(result, out / "trace.png")
-    plot_house(house, out / "house.png")
     entropy = cell_entropy(result)
     if entropy is not None:
         np.save(out / "uncertainty.npy", free_cells_image(result, entropy))
-        plot_uncertainty(result, out / "uncertainty.png")
     if result.agreement is not None:
-        from spcopyro.plotting import plot_agreement
-
         np.save(out / "agreement.npy", free_cells_image(result, result.agreement))
-        plot_agreement(result, out / "agreement.png")
+    phases.mark("save")
+    if not args.no_figures:  # matplotlib is imported only here
+        _write_figures(result, house, out, uncertainty=entropy is not None)
+    phases.mark("figures")
+    if result.agreement is not None:
         print(f"point estimate   {args.point_estimate} (expected loss "
               f"{result.inference['expected_loss']:.4g}, best single sample "
-              f"{result.inference['best_sample_loss']:.4g}); agreement.png")  # fmt: skip
+              f"{result.inference['best_sample_loss']:.4g})"
+              f"{'' if args.no_figures else '; agreement.png'}")  # fmt: skip
     unit = "sweep" if result.trace.objective_name == "log joint" else "iteration"
     runs = f"{chains} chains x " if chains > 1 else ""
     runs += f"{sweeps_run} {unit}s"
@@ -365,13 +371,42 @@ def _fit_staged(
             "--beta 0.1 (or --preset original-code --gamma 3)",
             file=sys.stderr,
         )
+    phases.mark("report")
     out = staged.commit()
     checkpoint = checkpoint_path(out)
     if checkpoint.is_file():  # the one resumed from, or an old one --overwrite replaces
         checkpoint.unlink(missing_ok=True)
         print(f"removed {checkpoint}: the fit it held is complete or replaced")
-    print(f"wrote {out}/: labels.npy semantic_map.png concepts.json trace.csv trace.png ...")
+    if args.no_figures:
+        print(f"wrote {out}/: labels.npy concepts.json trace.csv ... (figures skipped: "
+              "--no-figures)")  # fmt: skip
+    else:
+        print(f"wrote {out}/: labels.npy semantic_map.png concepts.json trace.csv trace.png ...")
+    phases.mark("commit")
+    phases.write(sweeps=sweeps_run, sweep_seconds=float(result.trace.seconds[-1]),
+                 first_sweep_seconds=float(result.trace.seconds[0]), chains=chains,
+                 figures=not args.no_figures)  # fmt: skip
     return 0
+
+
+def _write_figures(result: SpCoResult, house: House, out: Path, uncertainty: bool) -> None:
+    """The fit's PNGs: semantic map, trace, house, and the uncertainty and agreement maps of a
+    result that has them (:mod:`spcopyro.plotting`, matplotlib's Agg canvas)."""
+    from spcopyro.plotting import (
+        plot_agreement,
+        plot_house,
+        plot_semantic_map,
+        plot_trace,
+        plot_uncertainty,
+    )
+
+    plot_semantic_map(result, out / "semantic_map.png", observations=house.observations)
+    plot_trace(result, out / "trace.png")
+    plot_house(house, out / "house.png")
+    if uncertainty:
+        plot_uncertainty(result, out / "uncertainty.png")
+    if result.agreement is not None:
+        plot_agreement(result, out / "agreement.png")
 
 
 def print_concepts(result: SpCoResult, limit: int = 10) -> None:
@@ -530,6 +565,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="images inform only the cells within +-DEGREES/2 of their yaw (default: the "
         "whole disc)",
     )
+    p.add_argument("--no-figures", action="store_true",
+                   help="write no PNG figures (semantic_map, trace, house, uncertainty, "
+                        "agreement), saving seconds and matplotlib's import: labels.npy, "
+                        "concepts.json, result.npz, the .npy maps and the printed summary are "
+                        "written as always (default: figures written)")  # fmt: skip
     p.add_argument("--threads", type=_threads, default=AUTO,
                    help="torch intra-op threads during the fit: auto (default: one thread unless "
                         f"the map has >= {MIN_CELLS_FOR_MORE_THREADS} free cells), 0 (torch's own "

@@ -50,7 +50,6 @@ import dataclasses
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 if TYPE_CHECKING:
     from spcopyro.inference import InferenceOutput
@@ -125,14 +124,53 @@ def _prepare(samples: np.ndarray, loss: str) -> _Samples:
         sizes.append(k)
         constant += _f(np.bincount(c), loss).sum()
     stacked = np.stack(codes)  # [S, N]
-    signatures, signature = np.unique(stacked, axis=1, return_inverse=True)
-    return _Samples(stacked, tuple(sizes), constant / len(sizes), signatures,
-                    signature.reshape(-1))  # fmt: skip
+    # The distinct columns in lexicographic order (row 0 first), as np.unique(stacked, axis=1)
+    # numbers them, one sample at a time: a column's rank so far, refined by the next row.
+    signature = np.zeros(stacked.shape[1], dtype=np.int64)  # [N]
+    for row, size in zip(stacked, sizes, strict=True):
+        _, signature = np.unique(signature * size + row, return_inverse=True)
+        signature = signature.reshape(-1)
+    first = np.zeros(int(signature.max()) + 1, dtype=np.int64)  # [U] a cell of each column
+    first[signature[::-1]] = np.arange(signature.shape[0])[::-1]
+    return _Samples(stacked, tuple(sizes), constant / len(sizes), stacked[:, first],
+                    signature)  # fmt: skip
+
+
+class _Pairs(NamedTuple):
+    """The (cluster of the estimate, distinct column of the samples) pairs that cells take: a
+    contingency table of any sample is a sum over these P pairs (a few thousand on a settled
+    map) rather than over the N cells."""
+
+    cluster: np.ndarray  # [P] the estimate's cluster of each pair
+    column: np.ndarray  # [P] its column of signatures
+    cells: np.ndarray  # [P] float64 number of cells of each pair
+    of_cell: np.ndarray  # [N] each cell's pair
+
+
+def _pairs(estimate: np.ndarray, prepared: _Samples) -> _Pairs:
+    width = prepared.signatures.shape[1]  # U
+    key = estimate * width + prepared.signature  # [N]
+    counts = np.bincount(key)  # [<= k U]
+    present = np.flatnonzero(counts)  # [P]
+    index = np.zeros(counts.shape[0], dtype=np.int64)
+    index[present] = np.arange(present.shape[0])
+    return _Pairs(present // width, present % width, counts[present].astype(np.float64),
+                  index[key])  # fmt: skip
+
+
+def _pair_table(pairs: _Pairs, columns: np.ndarray, k: int, j: int) -> np.ndarray:
+    """[k, j] float64 the contingency table of the estimate against the sample whose labels of
+    the distinct columns are ``columns`` [U]: integer counts, exact in float64, equal to
+    :func:`contingency` of the cells."""
+    index = pairs.cluster * j + columns[pairs.column]  # [P]
+    return np.bincount(index, weights=pairs.cells, minlength=k * j).reshape(k, j)
 
 
 def _tables(estimate: np.ndarray, k: int, prepared: _Samples) -> list[np.ndarray]:
+    pairs = _pairs(estimate, prepared)
     return [
-        contingency(estimate, c, k, j) for c, j in zip(prepared.codes, prepared.sizes, strict=True)
+        _pair_table(pairs, columns, k, j)
+        for columns, j in zip(prepared.signatures, prepared.sizes, strict=True)
     ]
 
 
@@ -166,15 +204,15 @@ def _changes(estimate: np.ndarray, k: int, prepared: _Samples, loss: str) -> np.
     leave = _f(own - 1, loss) - _f(own, loss)  # [N]
     change = (_f(sizes + 1, loss) - _f(sizes, loss))[:, None] + leave[None, :]  # [k + 1, N]
     joined = np.zeros((k + 1, prepared.signatures.shape[1]))  # [k + 1, U]
-    departed = np.zeros(n)  # [N]
-    tables = _tables(estimate, k + 1, prepared)
-    for table, codes, columns in zip(tables, prepared.codes, prepared.signatures, strict=True):
-        table = table.astype(np.float64)  # [k + 1, J]
+    pairs = _pairs(estimate, prepared)
+    departed = np.zeros(pairs.cluster.shape[0])  # [P], summed in the samples' order
+    for columns, j in zip(prepared.signatures, prepared.sizes, strict=True):
+        table = _pair_table(pairs, columns, k + 1, j)  # [k + 1, J]
         join = _f(table + 1, loss) - _f(table, loss)  # [k + 1, J]
         depart = _f(table - 1, loss) - _f(table, loss)  # [k + 1, J]
         joined += join[:, columns]  # f(n_{k' j_s} + 1) - f(n_{k' j_s}) per distinct column
-        departed += depart[estimate, codes]  # the cell leaving n_{k j_s(i)}
-    shared = joined[:, prepared.signature] + departed[None, :]  # [k + 1, N]
+        departed += depart[pairs.cluster, columns[pairs.column]]  # a cell leaving n_{k j_s(i)}
+    shared = joined[:, prepared.signature] + departed[pairs.of_cell][None, :]  # [k + 1, N]
     change -= 2.0 * shared / len(prepared.sizes)
     change[estimate, cells] = 0.0  # staying changes nothing
     return change
@@ -255,6 +293,8 @@ def point_estimate(
 def matched_labels(estimate: np.ndarray, sample: np.ndarray) -> np.ndarray:
     """[N] the sample's labels renamed to the estimate's clusters they are matched with (the
     Hungarian matching of most shared cells; -1 for a sample label matched with none)."""
+    from scipy.optimize import linear_sum_assignment  # here: a fit without one skips its import
+
     e, k = compact(estimate)
     s, j = compact(sample)
     table = contingency(e, s, k, j)  # [K, J]
@@ -278,6 +318,8 @@ def concept_labels(estimate: np.ndarray, reference: np.ndarray, num_concepts: in
     """[N] the estimate's clusters named by concepts of ``reference`` [N] (the state whose pi
     and emissions a result reports): the Hungarian matching of most shared cells; clusters left
     over take concepts that ``reference`` does not use."""
+    from scipy.optimize import linear_sum_assignment
+
     e, k = compact(estimate)
     if k > num_concepts:
         raise ValueError(f"the estimate has {k} clusters, more than {num_concepts} concepts")

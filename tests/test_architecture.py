@@ -21,6 +21,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "spcopyro"
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("threads",),
     ("config", "distributions", "messages", "progress", "random_draws", "maps", "outputs"),
+    ("timings",),
     ("data", "synthetic"),
     ("model",),
     ("likelihood", "initialisation", "semantic_map"),

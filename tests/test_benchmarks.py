@@ -112,3 +112,21 @@ def test_online_update_benchmark_quick(tmp_path):
     points = house["runs"][0]["update"]["points"]
     assert [p["sweeps"] for p in points] == record["checkpoints"]
     assert house["runs"][0]["update"]["new_words"] == ["kitchen", "sofa"]
+
+
+def test_fixed_cost_benchmark_quick(tmp_path):
+    """Two fresh ``spcopyro fit --no-figures`` runs: their phases, the fixed cost, no PNG and
+    none of the optional heavy modules imported (on the dataset's room2ldk4 if present, else the
+    synthetic default house)."""
+    out = tmp_path / "fixed_cost.json"
+    done = run_benchmark("fixed_cost.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "fixed cost paper-dp" in done.stdout
+    record = json.loads(out.read_text())
+    (result,) = record["results"]
+    assert [run["sweeps"] for run in result["runs"]] == [1, 3]
+    for run in result["runs"]:
+        assert run["pngs"] == [] and not run["with_figures"]
+        assert "matplotlib" not in run["imported"], run["imported"]
+        assert run["wall"] >= run["startup"] > 0.0 and run["sweep_seconds"] > 0.0
+    assert math.isfinite(result["fixed_cost"]) and result["fixed_cost_method"]

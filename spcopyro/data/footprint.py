@@ -48,13 +48,14 @@ not call this module then).
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-from scipy import sparse
-from scipy.sparse.csgraph import dijkstra
 
 from spcopyro.maps.grid import OccupancyGrid
+
+if TYPE_CHECKING:  # scipy.sparse is imported where a footprint is built (0.3 s of every fit else)
+    from scipy import sparse
 
 __all__ = [
     "FOOTPRINT_KERNELS",
@@ -73,6 +74,8 @@ def free_cell_graph(grid: OccupancyGrid) -> sparse.csr_matrix:
     """[N, N] symmetric sparse graph of the free cells (free-index order), edge weights in
     metres: 4-neighbours at one resolution, diagonal neighbours at sqrt(2) resolutions where
     both cells beside the diagonal step are free (no corner cutting)."""
+    from scipy import sparse
+
     free = np.asarray(grid.free, dtype=bool)  # [H, W]
     index = np.asarray(grid.free_index, dtype=np.int64)  # [H, W], -1 off free
     height, width = free.shape
@@ -141,6 +144,9 @@ def footprint_weights(
         csr ``[T, N]`` float64, every placed observation's row summing to 1 (its own cell always
         has positive weight), unplaced rows empty.
     """
+    from scipy import sparse
+    from scipy.sparse.csgraph import dijkstra
+
     _check(radius, kernel, fov)
     cells = np.asarray(cells, dtype=np.int64).reshape(-1)  # [T]
     num_obs, n = cells.size, int(grid.num_free)

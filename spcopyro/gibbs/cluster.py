@@ -37,9 +37,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.sparse
 import torch
-from scipy.sparse.csgraph import connected_components
 
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.state import GibbsState
@@ -52,6 +50,9 @@ def bond_clusters(
     labels: torch.Tensor, pairs: torch.Tensor, gamma: float, generator: torch.Generator
 ) -> tuple[int, torch.Tensor]:
     """Steps 1-2: (number of clusters A, [N] int64 cluster of every cell)."""
+    import scipy.sparse  # here, not at import: a fit without cluster moves skips scipy.sparse
+    from scipy.sparse.csgraph import connected_components
+
     num_cells = labels.shape[0]
     first, second = pairs[:, 0], pairs[:, 1]  # [P]
     uniform = torch.rand(first.shape[0], dtype=DTYPE, generator=generator)  # [P]

@@ -78,9 +78,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-import scipy.sparse
 import torch
-from scipy.sparse.csgraph import dijkstra
 
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.state import GibbsState
@@ -180,6 +178,9 @@ def _launch(
     region: _Restricted, pairs: torch.Tensor, local_of: torch.Tensor, generator: torch.Generator
 ) -> torch.Tensor:
     """[n_T] launch sides: nearer to i (0) or j (1) along the grid inside T; ties by a coin."""
+    import scipy.sparse  # here, not at import: a fit without merge moves skips scipy.sparse
+    from scipy.sparse.csgraph import dijkstra
+
     n = region.cells.shape[0]
     inside = (local_of[pairs[:, 0]] >= 0) & (local_of[pairs[:, 1]] >= 0)  # [P]
     rows = local_of[pairs[inside, 0]].numpy()

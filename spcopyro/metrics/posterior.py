@@ -12,7 +12,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from sklearn.metrics import adjusted_rand_score
+
+from spcopyro.metrics.rand import adjusted_rand_score
 
 __all__ = ["CoAssignment", "chain_ari", "co_assignment", "num_concepts", "pairwise_chain_ari"]
 

@@ -16,8 +16,8 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from sklearn.metrics import adjusted_rand_score
 
+from spcopyro.metrics.rand import adjusted_rand_score
 from spcopyro.semantic_map import SemanticMapModel, SpCoResultLike, as_semantic_map
 
 __all__ = ["MATCHING_KINDS", "MatchingRate", "adjusted_rand_index", "matching_rate"]

@@ -20,8 +20,6 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-import scipy.sparse
-import scipy.sparse.csgraph
 import torch
 
 from spcopyro.model import ModelData
@@ -37,6 +35,9 @@ def cell_coordinates(neighbours: torch.Tensor | np.ndarray) -> np.ndarray:
     Exact up to a shift per connected component (each component's coordinates start at 0).
     Raises ValueError for a table whose offsets contradict each other (not a grid's table).
     """
+    import scipy.sparse  # here, not at import: ``spcopyro fit`` imports this module's method
+    import scipy.sparse.csgraph
+
     table = np.asarray(neighbours, dtype=np.int64)  # [N, D]
     if table.ndim != 2 or table.shape[1] not in (4, 8):
         raise ValueError(f"neighbours must be [N, 4] or [N, 8], got {table.shape}")

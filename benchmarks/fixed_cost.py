@@ -1,0 +1,275 @@
+#!/usr/bin/env python
+r"""Fixed cost of a whole ``spcopyro fit`` (issue #15 item 2): what a user's fit spends outside
+the Gibbs sweeps -- starting the interpreter, the imports, loading the house, building the model
+data, starting the chain, writing the outputs (labels, json, figures).
+
+Every run is ``python -m spcopyro fit DATA --preset P --sweeps S --seed 0 --out TMP
+[--no-figures]`` in a fresh subprocess (``CI=1``: no progress bars), this checkout's package
+first on ``PYTHONPATH``. Per run it reports the wall seconds the subprocess took and the fit's
+own breakdown, which ``fit`` writes to ``$SPCOPYRO_TIMINGS`` (:mod:`spcopyro.timings`):
+
+* ``startup``: launch to the start of ``fit``'s own work -- the interpreter, the imports, the
+  argument parser (the launch time taken here, the start by the fit, both ``time.time()``);
+* ``load``, ``settings``, ``summary``, ``fit``, ``save``, ``figures``, ``report``, ``commit``:
+  the fit's phases (``fit`` holds ``sweeps``, the trace's cumulative seconds of the sweeps, the
+  first of which loads the compiled kernel from numba's cache; ``fit - sweeps`` is the model
+  data, the chain's start and the chain's outputs);
+* ``exit``: the rest of the wall (the fit's end to the process's exit, interpreter shutdown).
+
+**Fixed cost**, two ways:
+
+* *direct* (the headline, judged against the target): the wall of the longer run less its sweeps
+  at their steady cost, ``wall - S * (sweeps(S) - sweep1) / (S - 1)``, from the fit's own trace
+  (``sweep1``: the first sweep's seconds, which hold the kernel's load from numba's cache, so
+  that load counts as fixed);
+* *extrapolated*: the wall extrapolated to 0 sweeps from the runs of S1 < S2 sweeps,
+  ``wall(S1) - S1 * (wall(S2) - wall(S1)) / (S2 - S1)``. It needs no trace but takes the noise
+  of two processes' walls, and a cost that depends on the chain's state as well as its length
+  (preset ``auto``'s point estimate over the 50 kept label maps: a chain of 1 sweep keeps one
+  map, a less settled chain has more distinct maps to search) lands in the slope.
+
+S1, S2 are 1 and 201 by default (:data:`SWEEPS`; from 100 sweeps on a fit keeps its 50 maps).
+Each configuration is run ``--repeats`` times and the fastest run kept (the least disturbed by
+other load on the machine).
+
+Usage::
+
+    python benchmarks/fixed_cost.py                  # room2ldk4, presets paper-dp and auto
+    python benchmarks/fixed_cost.py --quick          # smoke test: 1 and 3 sweeps, no repeats
+    python benchmarks/fixed_cost.py --dataset /path/to/spcomapping --house room1dk5
+
+Without the public dataset it fits the embedded synthetic default house and says so. It prints a
+table and writes every number to ``benchmarks/fixed_cost.json`` (``fixed_cost_quick.json`` with
+``--quick``). :func:`measure_fixed_cost` is what ``benchmarks/gibbs.py`` can call.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+SCRIPT_DIR = Path(__file__).resolve().parent
+ROOT = SCRIPT_DIR.parent
+TARGET_SECONDS = 2.0  # issue #15 item 2: under 2 s outside the sweeps (room2ldk4)
+SWEEPS = (1, 201)
+"""Default run lengths S1, S2 (module docstring)."""
+PHASES = ("load", "settings", "summary", "fit", "save", "figures", "report", "commit")
+
+
+def _environment() -> dict[str, str]:
+    path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
+    return {**os.environ, "CI": "1", "PYTHONPATH": path}
+
+
+def fit_once(
+    data: Path | None, preset: str, sweeps: int, figures: bool, seed: int = 0
+) -> dict[str, Any]:
+    """One ``spcopyro fit`` in a fresh subprocess: its wall seconds and its phases."""
+    with tempfile.TemporaryDirectory(prefix="spcopyro-fixed-cost-") as tmp:
+        timings = Path(tmp) / "timings.json"
+        command = [sys.executable, "-m", "spcopyro", "fit"]
+        command += [str(data)] if data is not None else []
+        command += ["--preset", preset, "--sweeps", str(sweeps), "--seed", str(seed)]
+        command += ["--out", str(Path(tmp) / "out")] + ([] if figures else ["--no-figures"])
+        env = {**_environment(), "SPCOPYRO_TIMINGS": str(timings)}
+        launched = time.time()
+        start = time.perf_counter()
+        done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=900)
+        wall = time.perf_counter() - start
+        if done.returncode != 0:
+            raise RuntimeError(f"{' '.join(command)} failed ({done.returncode}):\n"
+                               f"{done.stderr[-3000:]}")  # fmt: skip
+        record = json.loads(timings.read_text())
+        pngs = sorted(p.name for p in (Path(tmp) / "out").glob("*.png"))
+    seconds = dict(record["seconds"])
+    startup = record["entered"] - launched
+    row: dict[str, Any] = {
+        "sweeps": sweeps,
+        "with_figures": figures,
+        "wall": wall,
+        "startup": startup,
+        **{name: seconds.get(name, 0.0) for name in PHASES},
+        "sweep_seconds": record["sweep_seconds"],
+        "first_sweep_seconds": record["first_sweep_seconds"],
+        "exit": wall - startup - record["total"],
+        "pngs": pngs,
+        "imported": record.get("imported", []),  # of spcopyro.timings.OPTIONAL_HEAVY
+    }
+    row["fit_outside_sweeps"] = row["fit"] - row["sweep_seconds"]
+    row["wall_outside_sweeps"] = wall - row["sweep_seconds"]
+    steady = row["sweep_seconds"] - row["first_sweep_seconds"]  # sweeps 2..S
+    row["fixed_direct"] = wall - sweeps * steady / (sweeps - 1) if sweeps > 1 else None
+    return row
+
+
+def measure_fixed_cost(
+    dataset_root: Path | str | None,
+    house: str = "room2ldk4",
+    preset: str = "paper-dp",
+    sweeps: tuple[int, int] = SWEEPS,
+    figures: bool = True,
+    repeats: int = 1,
+) -> dict[str, Any]:
+    """Fixed cost of ``spcopyro fit`` of ``house`` under ``preset``: runs of ``sweeps[0]`` and
+    ``sweeps[1]`` sweeps (each the fastest of ``repeats``), the fixed cost extrapolated to 0
+    sweeps (see the module docstring) and the seconds per sweep. ``dataset_root`` None or
+    without ``house``: the embedded synthetic default house (``house`` in the result says so).
+    """
+    low, high = sweeps
+    if not 1 <= low < high:
+        raise ValueError(f"sweeps must be two counts 1 <= S1 < S2, got {sweeps}")
+    data = None if dataset_root is None else Path(dataset_root) / house
+    if data is not None and not data.is_dir():
+        data = None
+    runs = []
+    for count in (low, high):
+        tries = [fit_once(data, preset, count, figures) for _ in range(max(repeats, 1))]
+        runs.append(min(tries, key=lambda r: r["wall"]))
+    per_sweep = (runs[1]["wall"] - runs[0]["wall"]) / (high - low)
+    fixed = runs[0]["wall"] - low * per_sweep
+    return {
+        "house": house if data is not None else "synthetic default house (dataset absent)",
+        "data": None if data is None else str(data),
+        "preset": preset,
+        "figures": figures,
+        "repeats": max(repeats, 1),
+        "runs": runs,
+        "seconds_per_sweep": per_sweep,
+        "fixed_cost": runs[1]["fixed_direct"],
+        "fixed_cost_method": f"wall of the {high}-sweep run less {high} steady sweeps (trace)",
+        "fixed_cost_extrapolated": fixed,
+        "extrapolation": f"wall extrapolated to 0 sweeps from {low} and {high} sweeps",
+        "target_seconds": TARGET_SECONDS,
+        "meets_target": runs[1]["fixed_direct"] < TARGET_SECONDS,
+    }
+
+
+def render(results: Sequence[dict[str, Any]]) -> str:
+    """The table: one line per run, then the fixed cost of every configuration."""
+    headers = ["preset", "figs", "sweeps", "wall", "startup", "load", "settings", "summary",
+               "fit-sw", "sweeps s", "save", "figures", "report", "commit", "exit",
+               "fixed"]  # fmt: skip
+    rows = []
+    for result in results:
+        for run in result["runs"]:
+            rows.append([result["preset"], "yes" if result["figures"] else "no",
+                         str(run["sweeps"]), f"{run['wall']:.2f}", f"{run['startup']:.2f}",
+                         *(f"{run[k]:.2f}" for k in ("load", "settings", "summary")),
+                         f"{run['fit_outside_sweeps']:.2f}", f"{run['sweep_seconds']:.2f}",
+                         *(f"{run[k]:.2f}" for k in ("save", "figures", "report", "commit")),
+                         f"{run['exit']:.2f}", "-" if run["fixed_direct"] is None
+                         else f"{run['fixed_direct']:.2f}"])  # fmt: skip
+    title = (f"house: {results[0]['house']}; seconds, fastest of {results[0]['repeats']} "
+             "run(s) each (fit-sw: the fit phase less its sweeps; fixed: the wall less the "
+             "sweeps at their steady cost)")  # fmt: skip
+    lines = [title, _table(headers, rows), ""]
+    for result in results:
+        verdict = "PASS" if result["meets_target"] else "FAIL"
+        lines.append(
+            f"fixed cost {result['preset']:<9} figures {'on ' if result['figures'] else 'off'}: "
+            f"{result['fixed_cost']:.2f} s direct, {result['fixed_cost_extrapolated']:.2f} s "
+            f"extrapolated ({1e3 * result['seconds_per_sweep']:.2f} ms a sweep between the runs)"
+            f"  target < {result['target_seconds']:g} s: {verdict}"
+        )
+    return "\n".join(lines)
+
+
+def _table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    widths = [max(len(str(c)) for c in column) for column in zip(headers, *rows, strict=True)]
+
+    def line(cells: Sequence[str]) -> str:
+        return "  ".join(
+            [str(cells[0]).ljust(widths[0])]
+            + [str(c).rjust(w) for c, w in zip(cells[1:], widths[1:], strict=True)]
+        )
+
+    return "\n".join([line(headers), "  ".join("-" * w for w in widths), *map(line, rows)])
+
+
+def import_seconds() -> dict[str, float]:
+    """Wall seconds of ``python -c 'import M'`` in a fresh interpreter, for the heavy modules a
+    fit may import (the floor under the fixed cost: ``torch`` alone is most of it)."""
+    seconds = {}
+    for module in ("pass", "numpy", "torch", "numba", "pyro", "matplotlib.figure", "spcopyro.cli"):
+        statement = module if module == "pass" else f"import {module}"
+        start = time.perf_counter()
+        subprocess.run([sys.executable, "-c", statement], check=True, env=_environment())
+        seconds[module] = time.perf_counter() - start
+    return seconds
+
+
+def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description="Fixed cost of spcopyro fit (module docstring).")
+    parser.add_argument("--quick", action="store_true",
+                        help="smoke test: paper-dp, 1 and 3 sweeps, no figures, 1 run")  # fmt: skip
+    parser.add_argument("--dataset", type=Path, default=None,
+                        help="dataset root (default: find_dataset_root())")  # fmt: skip
+    parser.add_argument("--house", default="room2ldk4", help="house of the dataset")
+    parser.add_argument("--presets", default="paper-dp,auto", help="comma-separated presets")
+    parser.add_argument("--sweeps", type=int, nargs=2, default=SWEEPS, metavar=("S1", "S2"),
+                        help="the two run lengths the fixed cost is extrapolated from")  # fmt: skip
+    parser.add_argument("--repeats", type=int, default=3, help="runs per configuration")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="JSON output (default benchmarks/fixed_cost.json, fixed_cost_quick."
+                             "json with --quick)")  # fmt: skip
+    return parser.parse_args(argv)
+
+
+def _dataset(path: Path | None) -> Path | None:
+    sys.path.insert(0, str(ROOT))
+    from spcopyro.data.dataset import find_dataset_root
+
+    try:
+        return find_dataset_root(path)
+    except FileNotFoundError as error:
+        print(f"note: {error}; using the synthetic default house", file=sys.stderr)
+        return None
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = parse_args(argv)
+    dataset = _dataset(args.dataset)
+    if args.quick:
+        presets, sweeps, figures, repeats = ["paper-dp"], (1, 3), [False], 1
+    else:
+        presets = [p.strip() for p in args.presets.split(",") if p.strip()]
+        sweeps, figures, repeats = tuple(args.sweeps), [True, False], args.repeats
+    results = []
+    for preset in presets:
+        for with_figures in figures:
+            print(f"fitting {args.house} ({preset}, figures {with_figures}) ...", file=sys.stderr)
+            results.append(measure_fixed_cost(dataset, args.house, preset, sweeps,
+                                              with_figures, repeats))  # fmt: skip
+    imports = {} if args.quick else import_seconds()
+    print(render(results))
+    if imports:
+        print("\nimport alone, fresh interpreter (s): "
+              + ", ".join(f"{m} {s:.2f}" for m, s in imports.items()))  # fmt: skip
+    if results[0]["data"] is None:
+        print("note: the public dataset was not found: the synthetic default house was fitted")
+    record = {
+        "machine": {
+            "python": sys.version.split()[0],
+            "platform": platform.platform(),
+            "cpu_count": os.cpu_count(),
+        },  # fmt: skip
+        "results": results,
+        "import_seconds": imports,
+    }
+    out = args.out or SCRIPT_DIR / ("fixed_cost_quick.json" if args.quick else "fixed_cost.json")
+    out.write_text(json.dumps(record, indent=1) + "\n")
+    print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,121 @@
+"""The fit's fixed cost (issue #15 item 2): ``fit --no-figures``, the phase timings
+(:mod:`spcopyro.timings`) and the heavy optional modules kept off the fit's import path.
+
+Nothing here times anything: ``benchmarks/fixed_cost.py`` measures the seconds.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from spcopyro.cli import main
+from spcopyro.timings import OPTIONAL_HEAVY, TIMINGS_ENV, Phases
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _env() -> dict[str, str]:
+    path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
+    return {**os.environ, "PYTHONPATH": path, "CI": "1"}
+
+
+def test_fit_no_figures_writes_outputs_but_no_png(tmp_path, capsys, monkeypatch):
+    timings = tmp_path / "timings.json"
+    monkeypatch.setenv(TIMINGS_ENV, str(timings))
+    out = tmp_path / "fit"
+    assert main(["fit", "--sweeps", "4", "--out", str(out), "--no-figures"]) == 0
+    printed = capsys.readouterr().out
+    assert "figures skipped" in printed and "concept" in printed
+    assert not list(out.glob("*.png"))
+    for name in ("labels.npy", "concepts.json", "config.json", "result.npz", "trace.csv"):
+        assert (out / name).is_file(), name
+    assert json.loads((out / "concepts.json").read_text())
+    record = json.loads(timings.read_text())
+    assert record["figures"] is False and record["sweeps"] == 4
+    assert set(record["seconds"]) >= {"load", "fit", "save", "figures", "report", "commit"}
+
+
+def test_fit_with_figures_writes_the_pngs_and_times_them(tmp_path, capsys, monkeypatch):
+    timings = tmp_path / "timings.json"
+    monkeypatch.setenv(TIMINGS_ENV, str(timings))
+    out = tmp_path / "fit"
+    assert main(["fit", "--sweeps", "4", "--out", str(out)]) == 0
+    assert "figures skipped" not in capsys.readouterr().out
+    pngs = {p.name for p in out.glob("*.png")}
+    assert {"semantic_map.png", "trace.png", "house.png"} <= pngs
+    record = json.loads(timings.read_text())
+    assert record["figures"] is True and record["seconds"]["figures"] > 0.0
+
+
+def test_no_timings_file_unless_asked(tmp_path, monkeypatch):
+    monkeypatch.delenv(TIMINGS_ENV, raising=False)
+    clock = Phases()
+    clock.mark("a")
+    clock.mark("a")
+    assert set(clock.seconds) == {"a"} and clock.seconds["a"] >= 0.0
+    assert clock.write() is None
+    monkeypatch.setenv(TIMINGS_ENV, str(tmp_path / "t.json"))
+    assert clock.write(extra=1) == tmp_path / "t.json"
+    record = json.loads((tmp_path / "t.json").read_text())
+    assert record["extra"] == 1 and record["total"] >= 0.0 and "entered" in record
+
+
+def test_the_fit_path_imports_no_optional_heavy_module():
+    """Importing the command (and the fit) loads none of matplotlib, scikit-learn, torchvision
+    and the scipy subpackages a fit uses only in some configurations."""
+    code = (
+        "import sys, spcopyro.cli, spcopyro.fit, spcopyro.gibbs.backends; "
+        f"print(sorted(m for m in sys.modules if m in {list(OPTIONAL_HEAVY)!r}))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=_env(), timeout=300, check=True)  # fmt: skip
+    assert done.stdout.strip() == "[]", done.stdout
+
+
+def test_the_command_exits_with_mains_code():
+    """``python -m spcopyro`` (console_main: main, gc.freeze, exit) returns main's status."""
+    done = subprocess.run([sys.executable, "-m", "spcopyro", "where", "/nonexistent/fit", "x"],
+                          capture_output=True, text=True, env=_env(), timeout=300)  # fmt: skip
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.startswith("error:")
+
+
+def test_point_estimate_tables_over_pairs_equal_the_cells_tables(rng):
+    """The point estimate's contingency tables, summed over (cluster, sample column) pairs,
+    equal :func:`contingency` over the cells, and its distinct columns are np.unique's."""
+    from spcopyro import point_estimate as pe
+
+    for trial in range(30):
+        samples = rng.integers(0, 1 + trial % 5, size=(1 + trial % 6, 40 + trial))  # [S, N]
+        samples[:, ::3] = samples[0, ::3]  # shared columns
+        prepared = pe._prepare(samples, "vi")
+        signatures, signature = np.unique(prepared.codes, axis=1, return_inverse=True)
+        assert np.array_equal(prepared.signatures, signatures)
+        assert np.array_equal(prepared.signature, signature.reshape(-1))
+        estimate, k = pe.compact(rng.integers(0, 4, size=samples.shape[1]))
+        tables = pe._tables(estimate, k + 1, prepared)
+        for table, codes, j in zip(tables, prepared.codes, prepared.sizes, strict=True):
+            assert np.array_equal(table, pe.contingency(estimate, codes, k + 1, j))
+
+
+def test_adjusted_rand_score_equals_scikit_learns(rng):
+    """The numpy ARI the fit reports (no scikit-learn import) returns scikit-learn's float."""
+    import pytest
+
+    sklearn_metrics = pytest.importorskip("sklearn.metrics")
+    from spcopyro.metrics.rand import adjusted_rand_score
+
+    cases = [([], []), ([0] * 5, [0] * 5), (list(range(5)), [0] * 5), (["a", "b", "a"], [1, 2, 2])]
+    for _ in range(200):
+        n = int(rng.integers(1, 200))
+        high = rng.integers(1, 9, size=2)
+        cases.append((rng.integers(-1, high[0], n), rng.integers(0, high[1], n)))
+    for first, second in cases:
+        expected = sklearn_metrics.adjusted_rand_score(np.asarray(first), np.asarray(second))
+        assert adjusted_rand_score(np.asarray(first), np.asarray(second)) == expected
