@@ -71,15 +71,22 @@ def _environment() -> dict[str, str]:
 
 
 def fit_once(
-    data: Path | None, preset: str, sweeps: int, figures: bool, seed: int = 0
+    data: Path | None,
+    preset: str,
+    sweeps: int,
+    figures: bool,
+    seed: int = 0,
+    extra: Sequence[str] = (),
 ) -> dict[str, Any]:
-    """One ``spcopyro fit`` in a fresh subprocess: its wall seconds and its phases."""
+    """One ``spcopyro fit`` in a fresh subprocess (``extra``: more of its arguments): its wall
+    seconds and its phases."""
     with tempfile.TemporaryDirectory(prefix="spcopyro-fixed-cost-") as tmp:
         timings = Path(tmp) / "timings.json"
         command = [sys.executable, "-m", "spcopyro", "fit"]
         command += [str(data)] if data is not None else []
         command += ["--preset", preset, "--sweeps", str(sweeps), "--seed", str(seed)]
         command += ["--out", str(Path(tmp) / "out")] + ([] if figures else ["--no-figures"])
+        command += list(extra)
         env = {**_environment(), "SPCOPYRO_TIMINGS": str(timings)}
         launched = time.time()
         start = time.perf_counter()

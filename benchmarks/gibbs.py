@@ -24,6 +24,18 @@ measures, in one run:
    free cells at L = 120, and L in (10, 120, 500) at ~1e5 cells: ms per sweep and ns per cell.
 4. **Quality against time**: adjusted Rand index of the label map against the ground truth of the
    default synthetic house after 10, 100, 1000, 5000 sweeps, with the cumulative seconds.
+5. **Run loop against kernel** (issue 15): per preset, 5000 sweeps of the bare compiled sweep
+   against a 5000-sweep ``run_gibbs`` of the same chain (:mod:`gibbs_run_loop`).
+6. **Whole fits** (issue 15): ``spcopyro fit`` of room2ldk4 for 5000 sweeps in a fresh process
+   per preset (the released code's values first): ms per sweep from the fit's own trace, the
+   per-cell loop's seconds per iteration under the same preset timed here, and the fixed cost
+   outside the sweeps (:mod:`fixed_cost`).
+7. **Many chains** (issue 15): 4 chains side by side against one after another, in process, and
+   ``spcopyro fit --chains 4`` against four single fits.
+
+The per-cell loop is the only baseline a ratio is taken against; the released script's loop was
+measured elsewhere (issue 15: 0.41-0.52 s an iteration on room2ldk4, about 1.5x slower than the
+per-cell loop) and is only quoted, never divided by.
 
 Usage::
 
@@ -40,7 +52,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
-import math
 import resource
 import subprocess
 import sys
@@ -52,37 +63,51 @@ from typing import Any
 
 import numpy as np
 import torch
+from bench_setup import (
+    HEADLINE_HOUSE,
+    SEED,
+    _try,
+    load_headline_house,
+    make_problem,
+    synthetic_house,
+    time_backend,
+    time_per_cell,
+)
+from gibbs_report import (
+    PRESET,
+    TARGET_CHAINS_RATIO,
+    TARGET_FIT_MS_PER_SWEEP,
+    TARGET_FIT_SPEEDUP,
+    TARGET_FIXED_SECONDS,
+    TARGET_HEADLINE_SECONDS,
+    TARGET_NS_PER_CELL,
+    TARGET_PEAK_BYTES,
+    TARGET_RUN_OVER_KERNEL,
+    TARGET_SPEEDUP,
+    evaluate_targets,
+    render,
+)
+from gibbs_run_loop import chains_as_fits, chains_in_process, kernel_and_run, whole_fit
 from machine import (
     available_backends,
     busy_cpu_seconds,
-    format_table,
     machine_info,
     own_cpu_seconds,
     progress,
     wait_until_idle,
 )
-from reference_loop import PerCellProblem, PerCellState, per_cell_sweep
 
-from spcopyro.config import SpCoConfig, SpCoSettings, preset
+from spcopyro.config import SpCoSettings, preset
 from spcopyro.data import House, find_dataset_root, list_houses, load_house
-from spcopyro.fit import prepare_model_data
-from spcopyro.gibbs import GibbsOptions, GibbsState, init, run_gibbs
-from spcopyro.gibbs.backends import get_backend
-from spcopyro.gibbs.state import make_sweep_plan
-from spcopyro.model import ModelData
-from spcopyro.synthetic import HouseSpec, make_house
+from spcopyro.gibbs import GibbsOptions, GibbsState, run_gibbs
+from spcopyro.synthetic import make_house
 
-HEADLINE_HOUSE = "room2ldk4"
-HEADLINE_SIDE = 180  # a synthetic stand-in of ~28k free cells when the dataset is absent
-PRESET = "paper-dp"
-SEED = 0
 KNOWN_BACKENDS = ("torch", "numba")
 SCRIPT_DIR = Path(__file__).resolve().parent
-
-# The issue's targets on a 2-core machine.
-TARGET_SPEEDUP = 300.0  # x faster per iteration than the per-cell loop
-TARGET_HEADLINE_SECONDS = 15.0  # 5000 iterations of room2ldk4
-TARGET_PEAK_BYTES = 1 << 30  # 1 GiB resident-set high-water mark for the headline run
+RUN_LOOP_PRESETS = ("paper-dp", "paper-dirichlet", "original-code", "auto")
+"""Every preset, for the run loop against the kernel (paper-dirichlet with L = 10 concepts)."""
+FIT_PRESETS = ("original-code", "paper-dp", "auto")
+"""The presets of the whole fits: the released code's values first (the headline)."""
 
 MEMORY_NOTE = (
     "peak_rss is the resident-set high-water mark (getrusage(RUSAGE_SELF).ru_maxrss) of a fresh "
@@ -113,6 +138,12 @@ class BenchSizes:
     scaling_budget_s: float  # seconds of timed sweeps per scaling point (at least 3 sweeps)
     quality_checkpoints: tuple[int, ...]  # sweeps after which the ARI is taken
     quality_gammas: tuple[float | None, ...]  # None: the preset's gamma
+    run_loop_sweeps: int  # sweeps of the bare kernel and of run_gibbs, per preset
+    run_loop_repeats: int  # each timed this often, alternating; the fastest kept
+    fit_sweeps: int  # sweeps of each whole `spcopyro fit` (a fresh process)
+    chains: int  # chains of the many-chains section
+    chains_sweeps: int  # their sweeps in process
+    chains_fit_sweeps: int  # their sweeps as `fit --chains K` against K single fits
 
 
 FULL = BenchSizes(
@@ -126,6 +157,12 @@ FULL = BenchSizes(
     scaling_budget_s=2.0,
     quality_checkpoints=(10, 100, 1000, 5000),
     quality_gammas=(None, 3.0, 2.1),
+    run_loop_sweeps=5000,
+    run_loop_repeats=2,
+    fit_sweeps=5000,
+    chains=4,
+    chains_sweeps=1000,
+    chains_fit_sweeps=5000,
 )
 QUICK = BenchSizes(
     house_warmup=2,
@@ -138,139 +175,13 @@ QUICK = BenchSizes(
     scaling_budget_s=0.05,
     quality_checkpoints=(5, 20),
     quality_gammas=(None,),
+    run_loop_sweeps=20,
+    run_loop_repeats=1,
+    fit_sweeps=3,
+    chains=2,
+    chains_sweeps=5,
+    chains_fit_sweeps=2,
 )
-
-
-# ---------------------------------------------------------------------------------------------
-# Problems
-# ---------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Problem:
-    """A house turned into the model's tensors for one configuration (and the sweep's
-    ``unobserved_refresh``, :class:`~spcopyro.gibbs.options.GibbsOptions`)."""
-
-    name: str
-    data: ModelData
-    config: SpCoConfig
-    truth: np.ndarray | None  # [N] int64 ground-truth category per free cell, -1 unlabelled
-    unobserved_refresh: float = 1.0
-
-
-def make_problem(house: House, settings: SpCoSettings, unobserved_refresh: float = 1.0) -> Problem:
-    """Per-cell counts and model tensors of ``house`` under ``settings``."""
-    _, data = prepare_model_data(house, settings)
-    truth = None if house.truth is None else house.truth[house.grid.free]  # [N] raster order
-    return Problem(house.name, data, settings.model, truth, unobserved_refresh)
-
-
-def synthetic_house(side: int, seed: int = SEED) -> House:
-    """A ``side x side`` synthetic house with rooms of the default size."""
-    return make_house(seed=seed, spec=HouseSpec.scaled(side, side), name=f"synthetic{side}")
-
-
-def load_headline_house(dataset: Path | None) -> House:
-    """room2ldk4 from the dataset, or a synthetic stand-in of similar size when it is absent."""
-    if dataset is not None:
-        return load_house(dataset / HEADLINE_HOUSE)
-    return synthetic_house(HEADLINE_SIDE)
-
-
-# ---------------------------------------------------------------------------------------------
-# The per-cell baseline
-# ---------------------------------------------------------------------------------------------
-
-
-def time_per_cell(problem: Problem, sweeps: int, seed: int = SEED) -> dict[str, Any]:
-    """Seconds per iteration (median) of :func:`per_cell_sweep`, from the backends' start state."""
-    generator = torch.Generator().manual_seed(seed)
-    start = init(problem.data, problem.config, generator)
-    state = PerCellState(
-        *(t.numpy().copy() for t in (start.labels, start.log_pi, start.log_theta, start.log_w))
-    )
-    arrays = PerCellProblem.from_model_data(problem.data)
-    rng = np.random.default_rng(seed)
-    times = []
-    for _ in range(sweeps):
-        t0 = time.perf_counter()
-        state = per_cell_sweep(state, arrays, problem.config, rng)
-        times.append(time.perf_counter() - t0)
-    return {
-        "sweeps": sweeps,
-        "seconds_per_iteration": float(np.median(times)),
-        "seconds_mean": float(np.mean(times)),
-        "seconds_each": [float(t) for t in times],
-    }
-
-
-# ---------------------------------------------------------------------------------------------
-# The library's backends
-# ---------------------------------------------------------------------------------------------
-
-
-def time_backend(
-    problem: Problem,
-    backend: str,
-    *,
-    warmup: int,
-    sweeps: int | None = None,
-    budget_s: float | None = None,
-    seed: int = SEED,
-) -> dict[str, Any]:
-    """Milliseconds per iteration (label sweep + global draws) of one backend's sweep
-    (:meth:`~spcopyro.gibbs.backends.SweepBackend.sweep`, with ``problem.unobserved_refresh``).
-
-    ``warmup`` sweeps first (the first one, which includes any JIT compilation, is reported
-    separately), then either ``sweeps`` timed sweeps or as many as fit in ``budget_s`` seconds
-    (at least 3). ``ms_per_iteration`` is the median sweep (robust to other processes taking the
-    CPU for a moment; the mean, min and max are kept too). Times the backend's sweep alone: no
-    log joint, no trace (see the headline run for :func:`run_gibbs` as a user calls it).
-    """
-    if (sweeps is None) == (budget_s is None):
-        raise ValueError("time_backend: give exactly one of sweeps and budget_s")
-    sweep = get_backend(backend).sweep
-    data, config, refresh = problem.data, problem.config, problem.unobserved_refresh
-    generator = torch.Generator().manual_seed(seed)
-    plan = make_sweep_plan(data)
-    state: GibbsState = init(data, config, generator)
-    first_sweep_s = math.nan
-    for k in range(max(warmup, 1)):
-        t0 = time.perf_counter()
-        state = sweep(state, data, config, generator, plan, refresh)
-        if k == 0:
-            first_sweep_s = time.perf_counter() - t0
-    times: list[float] = []
-    started = time.perf_counter()
-    while True:
-        t0 = time.perf_counter()
-        state = sweep(state, data, config, generator, plan, refresh)
-        times.append(time.perf_counter() - t0)
-        if sweeps is not None and len(times) >= sweeps:
-            break
-        if budget_s is not None and len(times) >= 3 and time.perf_counter() - started >= budget_s:
-            break
-    ms = 1e3 * np.asarray(times)
-    median = float(np.median(ms))
-    return {
-        "sweeps": len(times),
-        "ms_per_iteration": median,
-        "ms_mean": float(ms.mean()),
-        "ms_min": float(ms.min()),
-        "ms_max": float(ms.max()),
-        "first_sweep_ms": 1e3 * first_sweep_s,
-        "ns_per_cell": median * 1e6 / data.num_free,
-    }
-
-
-def _try(what: str, action: Callable[[], dict[str, Any]]) -> dict[str, Any]:
-    """Run one measurement; a failure is reported (stderr and the JSON), not raised."""
-    try:
-        return action()
-    except Exception as error:  # noqa: BLE001 - one broken backend must not end the benchmark
-        message = f"{type(error).__name__}: {error}"
-        progress(f"  FAILED {what}: {message}")
-        return {"error": message}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -534,6 +445,76 @@ def bench_quality(backend: str, sizes: BenchSizes) -> list[dict[str, Any]]:
 # ---------------------------------------------------------------------------------------------
 
 
+def _preset_settings(name: str) -> SpCoSettings:
+    """A preset's settings; paper-dirichlet (the number of concepts known) with L = 10."""
+    return preset(name, num_concepts=10) if name == "paper-dirichlet" else preset(name)
+
+
+def bench_run_loop(house: House, backend: str, sizes: BenchSizes) -> list[dict[str, Any]]:
+    """Per preset: S bare kernel sweeps against a run_gibbs of S sweeps, the same chain."""
+    results = []
+    for name in RUN_LOOP_PRESETS:
+        problem = make_problem(house, _preset_settings(name))
+        progress(f"[run loop] {name}: {sizes.run_loop_sweeps} sweeps, kernel and run_gibbs")
+        entry = _try(
+            f"run loop {name}",
+            lambda p=problem: kernel_and_run(
+                p.data, p.config, sizes.run_loop_sweeps, backend=backend,
+                repeats=sizes.run_loop_repeats,
+            ),
+        )  # fmt: skip
+        results.append({"preset": name, "house": house.name, **entry})
+    return results
+
+
+def bench_fits(
+    dataset: Path | None, house: House, sizes: BenchSizes, skip_baseline: bool
+) -> list[dict[str, Any]]:
+    """Whole `spcopyro fit` runs of the headline house per preset (fresh processes), each with
+    the per-cell loop's seconds per iteration under the same preset, measured here."""
+    path = None if dataset is None else dataset / HEADLINE_HOUSE
+    results = []
+    for name in FIT_PRESETS:
+        progress(f"[whole fit] {name}: spcopyro fit, {sizes.fit_sweeps} sweeps, a fresh process")
+        entry: dict[str, Any] = {"preset": name, "house": HEADLINE_HOUSE if path else None}
+        entry.update(_try(f"whole fit {name}", lambda n=name: whole_fit(path, n, sizes.fit_sweeps)))
+        if not skip_baseline and "error" not in entry:
+            problem = make_problem(house, _preset_settings(name))
+            entry["per_cell"] = time_per_cell(problem, sizes.baseline_sweeps)
+            per_cell_ms = 1e3 * entry["per_cell"]["seconds_per_iteration"]
+            entry["speedup_vs_per_cell"] = per_cell_ms / entry["ms_per_sweep"]
+        results.append(entry)
+    return results
+
+
+def bench_chains(
+    dataset: Path | None, house: House, backend: str, sizes: BenchSizes
+) -> dict[str, Any]:
+    """K chains together against one after another (in process), and `fit --chains K` against
+    K single fits (fresh processes), preset original-code."""
+    name = FIT_PRESETS[0]
+    problem = make_problem(house, _preset_settings(name))
+    progress(f"[chains] {sizes.chains} chains x {sizes.chains_sweeps} sweeps in process")
+    in_process = _try(
+        "chains in process",
+        lambda: chains_in_process(
+            problem.data, problem.config, sizes.chains, sizes.chains_sweeps, backend=backend
+        ),
+    )
+    path = None if dataset is None else dataset / HEADLINE_HOUSE
+    progress(f"[chains] fit --chains {sizes.chains} against {sizes.chains} single fits")
+    as_fits = _try(
+        "chains as fits",
+        lambda: chains_as_fits(path, name, sizes.chains, sizes.chains_fit_sweeps),
+    )
+    gpu = (
+        "a CUDA device is present, but the sweep has no batched GPU path yet: not measured"
+        if torch.cuda.is_available()
+        else "no CUDA device on this machine: the batched GPU sweep was not measured"
+    )
+    return {"preset": name, "in_process": in_process, "as_fits": as_fits, "gpu": gpu}
+
+
 @contextlib.contextmanager
 def measure_contention(
     record: dict[str, dict[str, float | None]], name: str, wait_idle_s: float = 0.0
@@ -558,278 +539,6 @@ def measure_contention(
             "other_cpu_s": other,
             "waited_for_idle_s": waited,
         }
-
-
-def _ms(result: dict[str, Any] | None, key: str = "ms_per_iteration", digits: int = 2) -> str:
-    if result is None:
-        return "-"
-    if "error" in result:
-        return "failed"
-    return f"{result[key]:.{digits}f}"
-
-
-def _mib(value: int | None) -> str:
-    return "-" if value is None else f"{value / 2**20:.0f}"
-
-
-def _verdict(ok: bool) -> str:
-    return "PASS" if ok else "FAIL"
-
-
-def evaluate_targets(results: dict[str, Any]) -> list[dict[str, Any]]:
-    """The issue's four targets against what was measured."""
-    targets = []
-    speedups = [
-        max(h["speedup"].values()) for h in results["houses"] if h.get("speedup")
-    ]  # best backend per house
-    if speedups:
-        worst = min(speedups)
-        targets.append(
-            {
-                "target": f">= {TARGET_SPEEDUP:g}x faster per iteration than the per-cell loop",
-                "measured": f"{worst:.0f}x (worst house, fastest backend)",
-                "ok": worst >= TARGET_SPEEDUP,
-            }
-        )
-    headline = results.get("headline")
-    if headline and "error" not in headline:
-        where = "synthetic stand-in" if headline["synthetic_stand_in"] else HEADLINE_HOUSE
-        if headline["sweeps"] == 5000:
-            targets.append(
-                {
-                    "target": f"5000 iterations of {HEADLINE_HOUSE} "
-                    f"< {TARGET_HEADLINE_SECONDS:g} s",
-                    "measured": f"{headline['wall_s']:.1f} s run_gibbs wall ({where}, "
-                    f"{headline['backend']})",
-                    "ok": headline["wall_s"] < TARGET_HEADLINE_SECONDS,
-                }
-            )
-        targets.append(
-            {
-                "target": "peak memory of that run < 1 GiB",
-                "measured": f"{headline['peak_rss_bytes'] / 2**20:.0f} MiB peak RSS",
-                "ok": headline["peak_rss_bytes"] < TARGET_PEAK_BYTES,
-            }
-        )
-    scaling = results.get("scaling", {})
-    for backend in results["backends"]:
-        cells = [
-            e["backends"][backend]
-            for e in scaling.get("cells", [])
-            if "error" not in e["backends"].get(backend, {"error": ""})
-        ]
-        if len(cells) >= 2:
-            ratio = cells[-1]["ns_per_cell"] / cells[0]["ns_per_cell"]
-            targets.append(
-                {
-                    "target": f"time linear in cells ({backend}: ns/cell largest / smallest map)",
-                    "measured": f"{ratio:.2f}",
-                    "ok": 0.5 <= ratio <= 2.0,
-                }
-            )
-        for kind in ("num_concepts", "num_concepts_house", "num_concepts_house_refresh"):
-            by_l = [
-                e
-                for e in scaling.get(kind, [])
-                if "error" not in e["backends"].get(backend, {"error": ""})
-            ]
-            if len(by_l) < 2:
-                continue
-            low, high = by_l[0], by_l[-1]
-            ratio = (
-                high["backends"][backend]["ms_per_iteration"]
-                / low["backends"][backend]["ms_per_iteration"]
-            )
-            targets.append(
-                {
-                    "target": f"time nearly flat in L ({backend}, {low['map']}"
-                    + (", refresh 0.1" if kind.endswith("refresh") else "")
-                    + f": ms at L={high['num_concepts']} / L={low['num_concepts']})",
-                    "measured": f"{ratio:.2f}",
-                    "ok": ratio <= 2.0,
-                }
-            )
-    return targets
-
-
-def render(results: dict[str, Any]) -> str:
-    """The plain-text report printed to stdout."""
-    info = results["machine"]
-    backends = results["backends"]
-    out = [
-        f"SpCoMapping Gibbs benchmark ({'quick' if results['quick'] else 'full'}), {info['date']}",
-        f"{info['cpu_model']}, {info['cpus_usable']} usable CPUs; torch {info['torch']} "
-        f"({info['torch_threads']} threads); numba {info['numba'] or 'not installed'}",
-        "one iteration = all cell labels (eq. 13) + pi, theta, w draws (eqs. 14-17); "
-        f"preset {PRESET}",
-    ]
-    out += [f"backend {name}: skipped: {note}" for name, note in results["backend_notes"].items()]
-    contention = results.get("contention", {})
-    if contention:
-        parts = [
-            f"{name} {c['other_cpu_s']:.0f} of {c['wall_s']:.0f} s"
-            + (f" (after waiting {c['waited_for_idle_s']:.0f} s)" if c["waited_for_idle_s"] else "")
-            for name, c in contention.items()
-            if c.get("other_cpu_s") is not None
-        ]
-        out.append(
-            "CPU time used by OTHER processes during each section (0 = machine to ourselves): "
-            + ", ".join(parts)
-        )
-    out.append("")
-    out.append("== Per house (L=120) ==")
-    if results["dataset"] is None:
-        out.append(
-            "SKIPPED: no public dataset (not found, or --no-dataset; set SPCOPYRO_DATA): "
-            "synthetic maps only"
-        )
-    else:
-        headers = ["house", "free cells", "obs cells", "per-cell s/it"]
-        headers += [f"{b} ms/it" for b in backends]
-        headers += [f"{b} speed-up" for b in backends]
-        headers += [f"{b} 5000 it s" for b in backends]
-        rows = []
-        for h in results["houses"]:
-            row = [h["house"], str(h["free_cells"]), str(h["observed_cells"])]
-            row.append(
-                f"{h['per_cell']['seconds_per_iteration']:.3f}" if "per_cell" in h else "skipped"
-            )
-            row += [_ms(h["backends"].get(b)) for b in backends]
-            row += [
-                f"{h['speedup'][b]:.0f}x" if b in h.get("speedup", {}) else "-" for b in backends
-            ]
-            row += [
-                f"{h['projected_5000_s'][b]:.1f}" if b in h.get("projected_5000_s", {}) else "-"
-                for b in backends
-            ]
-            rows.append(row)
-        out.append(format_table(headers, rows))
-        out.append(
-            "(ms/it, s/it: median of the timed sweeps of the sweep function after warm-up; "
-            "5000 it s: 5000 times that)"
-        )
-
-    headline = results.get("headline")
-    out.append("")
-    out.append("== Headline: run_gibbs in a fresh process ==")
-    if headline is None:
-        out.append("not run")
-    elif "error" in headline:
-        out.append(f"FAILED: {headline['error']}")
-    else:
-        where = headline["house"]
-        if headline["synthetic_stand_in"]:
-            where += " (synthetic stand-in)"
-        out.append(
-            format_table(
-                [
-                    "house",
-                    "free cells",
-                    "backend",
-                    "sweeps",
-                    "wall s",
-                    "ms/it",
-                    "first sweep s",
-                    "peak RSS MiB",
-                    "RSS before / after run MiB",
-                    "concepts",
-                ],
-                [
-                    [
-                        where,
-                        str(headline["free_cells"]),
-                        headline["backend"],
-                        str(headline["sweeps"]),
-                        f"{headline['wall_s']:.2f}",
-                        f"{headline['ms_per_iteration']:.2f}",
-                        f"{headline['first_sweep_s']:.2f}",
-                        f"{headline['peak_rss_bytes'] / 2**20:.0f}",
-                        f"{_mib(headline['rss_now_before_run_bytes'])} / "
-                        f"{_mib(headline['rss_now_after_run_bytes'])}",
-                        str(headline["final_concepts"]),
-                    ]
-                ],
-            )
-        )
-        out.append(
-            "(wall s: run_gibbs including its per-sweep log joint and trace; peak RSS: "
-            "ru_maxrss of that process, interpreter and torch included)"
-        )
-
-    for kind, title in (
-        ("cells", "Scaling in cells (L=120)"),
-        ("num_concepts", "Scaling in L (synthetic, ~1e5 cells)"),
-        ("num_concepts_house", f"Scaling in L ({HEADLINE_HOUSE})"),
-        (
-            "num_concepts_house_refresh",
-            f"Scaling in L ({HEADLINE_HOUSE}, unobserved_refresh 0.1)",
-        ),
-    ):
-        entries = results.get("scaling", {}).get(kind, [])
-        if not entries:
-            continue
-        out.append("")
-        out.append(f"== {title} ==")
-        headers = ["map", "free cells", "obs cells", "L"]
-        headers += [h for b in backends for h in (f"{b} ms/sweep", f"{b} ns/cell")]
-        rows = []
-        for e in entries:
-            row = [e["map"], str(e["free_cells"]), str(e["observed_cells"])]
-            row.append(str(e["num_concepts"]))
-            for b in backends:
-                r = e["backends"].get(b)
-                row += [_ms(r), _ms(r, "ns_per_cell", 1)]
-            rows.append(row)
-        out.append(format_table(headers, rows))
-
-    quality = results.get("quality", [])
-    if quality:
-        q0 = quality[0]
-        out.append("")
-        out.append(
-            f"== Quality vs time: default synthetic house ({q0['free_cells']} cells, "
-            f"{q0['true_categories']} categories), L={q0['num_concepts']}, {q0['backend']} =="
-        )
-        rows = []
-        for q in quality:
-            side = "above" if q["gamma"] > q["critical_gamma"] else "below"
-            for p in q["points"]:
-                rows.append(
-                    [
-                        f"{q['gamma']:g} ({side} {q['critical_gamma']:.2f})",
-                        str(p["sweeps"]),
-                        f"{p['seconds']:.2f}",
-                        f"{p['ari']:.3f}",
-                        str(p["concepts"]),
-                    ]
-                )
-            best = [
-                f"{q['gamma']:g} best visited",
-                str(q["best_sweep"]),
-                "",
-                f"{q['best_ari']:.3f}",
-            ]
-            rows.append([*best, ""])
-        out.append(format_table(["gamma (critical)", "sweeps", "seconds", "ARI", "concepts"], rows))
-
-    targets = results.get("targets", [])
-    if targets:
-        out.append("")
-        out.append("== Targets ==")
-        out.append(
-            format_table(
-                ["target", "measured", ""],
-                [[t["target"], t["measured"], _verdict(t["ok"])] for t in targets],
-            )
-        )
-    out.append("")
-    out.append(f"total {results['total_s']:.0f} s; JSON: {results['out']}")
-    return "\n".join(out)
-
-
-# ---------------------------------------------------------------------------------------------
-# Command line
-# ---------------------------------------------------------------------------------------------
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
@@ -920,6 +629,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             "speedup": TARGET_SPEEDUP,
             "headline_seconds": TARGET_HEADLINE_SECONDS,
             "peak_bytes": TARGET_PEAK_BYTES,
+            "run_over_kernel": TARGET_RUN_OVER_KERNEL,
+            "fixed_seconds": TARGET_FIXED_SECONDS,
+            "ns_per_cell": TARGET_NS_PER_CELL,
+            "fit_ms_per_sweep": TARGET_FIT_MS_PER_SWEEP,
+            "fit_speedup": TARGET_FIT_SPEEDUP,
+            "chains_ratio": TARGET_CHAINS_RATIO,
         },
     }
     contention: dict[str, dict[str, float | None]] = {}
@@ -945,6 +660,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         results["headline"] = _try(
             "headline run", lambda: bench_headline(dataset, fastest, sizes.headline_sweeps)
         )
+    headline_house = load_headline_house(dataset)
+    compiled = "numba" if "numba" in backends else fastest
+    with measure_contention(contention, "run loop", args.wait_idle):
+        results["run_loop"] = bench_run_loop(headline_house, compiled, sizes)
+    with measure_contention(contention, "whole fits", args.wait_idle):
+        results["fits"] = bench_fits(dataset, headline_house, sizes, args.skip_baseline)
+    with measure_contention(contention, "chains", args.wait_idle):
+        results["chains"] = bench_chains(dataset, headline_house, compiled, sizes)
     with measure_contention(contention, "scaling", args.wait_idle):
         results["scaling"] = bench_scaling(dataset, backends, sizes)
     with measure_contention(contention, "quality", args.wait_idle):

@@ -36,6 +36,15 @@ def test_gibbs_benchmark_quick(tmp_path):
     assert "Targets" in done.stdout
     results = json.loads(out.read_text())
     assert results["machine"]["cpu_count"] >= 1
+    # Issue 15's sections: every preset's run loop against the kernel, whole fits, chains.
+    for title in ("Run loop against the bare kernel", "Whole `spcopyro fit`", "Many chains"):
+        assert title in done.stdout
+    assert [e["preset"] for e in results["run_loop"]] == [
+        "paper-dp", "paper-dirichlet", "original-code", "auto"
+    ]  # fmt: skip
+    assert all(e["ratio"] > 0 for e in results["run_loop"])
+    assert all("error" not in e and e["ms_per_sweep"] > 0 for e in results["fits"])
+    assert results["chains"]["as_fits"]["ratio"] > 0
 
 
 @pytest.mark.slow

@@ -1,0 +1,152 @@
+"""Issue 15's measurements for ``benchmarks/gibbs.py``: the run loop against the bare kernel per
+preset, a user's whole ``spcopyro fit`` (sweeps and fixed cost, in fresh processes), and many
+chains at once.
+
+* :func:`kernel_and_run`: S sweeps of the backend's bare sweep (``backend.sweep`` in a loop, the
+  state passed from one to the next, nothing recorded) against :func:`~spcopyro.gibbs.run.
+  run_gibbs` of S sweeps from the same seed -- the same chain, so the difference is exactly what
+  the run loop adds (the per-sweep log joint, the trace, the best visited state, Ctrl-C
+  bookkeeping, the progress bar). Each is timed ``repeats`` times, alternating, fastest kept.
+* :func:`whole_fit`: ``spcopyro fit`` of a house for S sweeps in a fresh process
+  (:func:`fixed_cost.fit_once`): ms per sweep from the fit's own trace (run loop included) and
+  the fixed cost outside the sweeps.
+* :func:`chains_in_process`: K chains advanced together by
+  :func:`~spcopyro.gibbs.chains.advance_chains` (one thread per usable CPU) against the same K
+  chains one after another; :func:`chains_as_fits`: ``spcopyro fit --chains K`` against K single
+  fits, each a fresh process.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import torch
+from fixed_cost import fit_once
+
+from spcopyro.config import SpCoConfig
+from spcopyro.gibbs import GibbsOptions, init, run_gibbs
+from spcopyro.gibbs.backends import get_backend
+from spcopyro.gibbs.chains import advance_chains, resolve_workers, usable_cpus
+from spcopyro.gibbs.run import advance, start_chain
+from spcopyro.gibbs.state import make_sweep_plan
+from spcopyro.model import ModelData
+
+
+def _bare_kernel_seconds(
+    data: ModelData, config: SpCoConfig, sweeps: int, backend: str, seed: int
+) -> float:
+    """Seconds of ``sweeps`` bare sweeps from :func:`~spcopyro.gibbs.init` with ``seed``."""
+    sweep = get_backend(backend).sweep
+    generator = torch.Generator().manual_seed(seed)
+    plan = make_sweep_plan(data)
+    state = init(data, config, generator)
+    start = time.perf_counter()
+    for _ in range(sweeps):
+        state = sweep(state, data, config, generator, plan, 1.0)
+    return time.perf_counter() - start
+
+
+def _run_gibbs_seconds(
+    data: ModelData, config: SpCoConfig, sweeps: int, backend: str, seed: int
+) -> float:
+    """Seconds of :func:`run_gibbs`'s ``sweeps`` sweeps from ``seed``: its
+    :func:`~spcopyro.gibbs.run.advance` and the run it returns, after the chain's start (the
+    bare kernel's timing leaves out the start too)."""
+    chain = start_chain(data, config, options=GibbsOptions(backend=backend), seed=seed)
+    start = time.perf_counter()
+    advance(chain, sweeps, progress=False).to_run()
+    return time.perf_counter() - start
+
+
+def kernel_and_run(
+    data: ModelData,
+    config: SpCoConfig,
+    sweeps: int,
+    *,
+    backend: str = "numba",
+    seed: int = 0,
+    repeats: int = 2,
+) -> dict[str, Any]:
+    """The bare kernel's and ``run_gibbs``'s seconds for the same ``sweeps``-sweep chain."""
+    _bare_kernel_seconds(data, config, 2, backend, seed)  # compile / load the kernels first
+    bare, run = [], []
+    for _ in range(max(repeats, 1)):
+        bare.append(_bare_kernel_seconds(data, config, sweeps, backend, seed))
+        run.append(_run_gibbs_seconds(data, config, sweeps, backend, seed))
+    kernel_s, run_s = min(bare), min(run)
+    return {
+        "sweeps": sweeps,
+        "backend": backend,
+        "free_cells": data.num_free,
+        "num_concepts": config.num_concepts,
+        "kernel_s": kernel_s,
+        "run_gibbs_s": run_s,
+        "kernel_ms_per_sweep": 1e3 * kernel_s / sweeps,
+        "run_gibbs_ms_per_sweep": 1e3 * run_s / sweeps,
+        "kernel_ns_per_cell": 1e9 * kernel_s / sweeps / data.num_free,
+        "ratio": run_s / kernel_s,
+        "repeats": max(repeats, 1),
+        "kernel_each_s": bare,
+        "run_gibbs_each_s": run,
+    }
+
+
+def whole_fit(
+    house: Path | None, preset: str, sweeps: int, *, figures: bool = True
+) -> dict[str, Any]:
+    """``spcopyro fit`` of ``house`` (None: the embedded default) for ``sweeps`` sweeps in a fresh
+    process: ms per sweep (the fit's trace: run loop included) and the seconds outside them."""
+    row = fit_once(house, preset, sweeps, figures)
+    row["preset"] = preset
+    row["ms_per_sweep"] = 1e3 * row["sweep_seconds"] / sweeps
+    row["steady_ms_per_sweep"] = (
+        1e3 * (row["sweep_seconds"] - row["first_sweep_seconds"]) / (sweeps - 1)
+        if sweeps > 1 else row["ms_per_sweep"]
+    )  # fmt: skip
+    return row
+
+
+def chains_in_process(
+    data: ModelData, config: SpCoConfig, chains: int, sweeps: int, *, backend: str = "numba"
+) -> dict[str, Any]:
+    """``chains`` chains of ``sweeps`` sweeps advanced together (one worker per usable CPU) and
+    one after another (one worker): seconds of each, and a single chain's."""
+    options = GibbsOptions(backend=backend)
+    run_gibbs(data, config, 2, options=options, seed=0, progress=False)  # kernels loaded
+    seconds = {}
+    for name, workers in (("one_chain", 1), ("sequential", 1), ("together", "auto")):
+        count = 1 if name == "one_chain" else chains
+        runs = [start_chain(data, config, options=options, seed=k) for k in range(count)]
+        start = time.perf_counter()
+        advance_chains([(chain, sweeps) for chain in runs], workers=workers, progress=False)
+        seconds[name] = time.perf_counter() - start
+    return {
+        "chains": chains,
+        "sweeps": sweeps,
+        "workers": resolve_workers("auto", chains),
+        "usable_cpus": usable_cpus(),
+        "one_chain_s": seconds["one_chain"],
+        "sequential_s": seconds["sequential"],
+        "together_s": seconds["together"],
+        "together_over_one": seconds["together"] / seconds["one_chain"],
+        "together_over_sequential": seconds["together"] / seconds["sequential"],
+    }
+
+
+def chains_as_fits(house: Path | None, preset: str, chains: int, sweeps: int) -> dict[str, Any]:
+    """``spcopyro fit --chains K`` against K single fits (seeds 0..K-1), each a fresh process,
+    figures off (they are the same for both)."""
+    together = fit_once(house, preset, sweeps, False, extra=["--chains", str(chains)])
+    singles = [fit_once(house, preset, sweeps, False, seed=k) for k in range(chains)]
+    single_s = sum(r["wall"] for r in singles)
+    return {
+        "preset": preset,
+        "chains": chains,
+        "sweeps": sweeps,
+        "chains_fit_s": together["wall"],
+        "single_fits_s": single_s,
+        "single_fit_each_s": [r["wall"] for r in singles],
+        "ratio": together["wall"] / single_s,
+    }
