@@ -81,7 +81,9 @@ def test_collapsed_target_is_the_models_marginal():
     assert np.ptp(differences) < 1e-9, differences
 
 
-def _invariance_p_value(generator_seed: int, copies: int, moves: int) -> float:
+def _invariance_p_value(
+    generator_seed: int, copies: int, moves: int, compiled: bool = False
+) -> float:
     cfg, n, data = _tiny_problem()
     labelings = all_labelings(n, cfg.num_concepts)
     log_p = torch.tensor(
@@ -94,7 +96,7 @@ def _invariance_p_value(generator_seed: int, copies: int, moves: int) -> float:
     for index in start:
         labels = labelings[index].clone()
         for _ in range(moves):
-            labels, _ = split_merge_labels(labels, data, cfg, generator, scans=1)
+            labels, _ = split_merge_labels(labels, data, cfg, generator, 1, compiled)
         final.append(labels)
     observed = torch.bincount(state_index(torch.stack(final), cfg.num_concepts),
                               minlength=len(labelings)).double()  # fmt: skip
@@ -106,8 +108,13 @@ def _invariance_p_value(generator_seed: int, copies: int, moves: int) -> float:
 
 
 @pytest.mark.slow
-def test_split_merge_leaves_the_enumerated_posterior_invariant():
-    p_value = _invariance_p_value(5, copies=800, moves=2)
+@pytest.mark.parametrize("compiled", [False, True], ids=["torch", "numba"])
+def test_split_merge_leaves_the_enumerated_posterior_invariant(compiled):
+    """Both implementations of the launch and scans (the numba backend's chains use the
+    compiled one)."""
+    if compiled:
+        pytest.importorskip("numba")
+    p_value = _invariance_p_value(5, copies=800, moves=2, compiled=compiled)
     assert p_value > 1e-3, p_value
 
 
@@ -176,3 +183,37 @@ def test_merge_move_option_and_step_composition():
     with pytest.raises(ValueError, match="merge_moves"):
         GibbsOptions(merge_moves=1.5)
     assert stepped.log_pi.dtype == DTYPE
+
+
+def test_compiled_scans_give_the_torch_scans_probabilities():
+    """Landing on a given outcome from a given start has one probability, computed by either
+    implementation (the numba backend's chains use the compiled one); and the launch puts every
+    cell nearer to i than to j on i's side, as the torch launch does."""
+    pytest.importorskip("numba")
+    cfg = config(gamma=0.7, num_concepts=4)
+    _, data = random_problem(seed=15, copies=3)
+    generator = torch.Generator().manual_seed(4)
+    mask = torch.ones(data.num_free, dtype=torch.bool)
+    i, j = (int(v) for v in data.pairs[3])
+    region = merge._restricted(mask, i, j, data, cfg)
+    scan = merge._compiled_scans(region, cfg, generator)
+    for seed in range(4):
+        start = torch.randint(0, 2, (region.cells.shape[0],), generator=generator)
+        start[region.first], start[region.second] = 0, 1
+        target = torch.randint(0, 2, start.shape, generator=generator)
+        target[region.first], target[region.second] = 0, 1
+        _, expected = merge._restricted_scan(start, region, cfg, generator, forced=target)
+        landed, log_q = scan(start, target)
+        assert torch.equal(landed, target)
+        assert log_q == pytest.approx(expected, rel=1e-9, abs=1e-9), seed
+    from spcopyro.gibbs.merge_numba import _distances
+
+    neighbours = region.neighbours.numpy()
+    to_i, to_j = _distances(neighbours, region.first), _distances(neighbours, region.second)
+    sides = scan(None).numpy()
+    assert (sides[to_i < to_j] == 0).all() and (sides[to_j < to_i] == 1).all()
+    assert (to_i < to_j).any() and (to_j < to_i).any() and (to_i == to_j).any()  # coins too
+    # the distances are the grid's: each cell one step further than its nearest neighbour's
+    for k in np.flatnonzero((to_i > 0) & (to_i < np.iinfo(np.int64).max)):
+        reached = [to_i[m] for m in neighbours[k] if m >= 0]
+        assert min(reached) == to_i[k] - 1

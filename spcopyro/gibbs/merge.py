@@ -75,6 +75,7 @@ a large concept (measured in the README).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
@@ -246,6 +247,41 @@ def _restricted_scan(
     return side, log_q
 
 
+def _compiled_scans(
+    region: _Restricted, config: SpCoConfig, generator: torch.Generator
+) -> Callable[..., object]:
+    """The compiled launch and scans over ``region`` (:mod:`spcopyro.gibbs.merge_numba`), as one
+    function: ``scan(None)`` is the launch sides [n_T]; ``scan(side)`` a restricted scan from
+    ``side``, ``scan(side, forced)`` its probability of landing on ``forced``: (new sides [n_T]
+    torch, log q). One seed is drawn from ``generator`` for the whole move."""
+    from spcopyro.gibbs.merge_numba import launch_sides, restricted_scan
+    from spcopyro.gibbs.numba_random import draw_seed, rng_state
+
+    rng = rng_state(draw_seed(generator))
+    neighbours = np.ascontiguousarray(region.neighbours.numpy())  # [n_T, D]
+    blocks = [b.numpy() for b in region.blocks]
+    block_cells = np.concatenate(blocks) if blocks else np.zeros(0, dtype=np.int64)
+    block_starts = np.cumsum([0] + [len(b) for b in blocks]).astype(np.int64)  # [B + 1]
+    observed = np.ascontiguousarray(region.observed.numpy())  # [M_T]
+    counts = tuple(np.ascontiguousarray(c.numpy()) for _, c in region.counts)
+    concentrations = np.array([a for a, _ in region.counts] or [1.0], dtype=np.float64)
+    placeholder = counts or (np.zeros((observed.shape[0], 1)),)
+    no_forcing = np.zeros(0, dtype=np.int64)
+
+    def scan(side: torch.Tensor | None, forced: torch.Tensor | None = None) -> object:
+        if side is None:
+            return torch.from_numpy(launch_sides(neighbours, region.first, region.second, rng))
+        out = side.numpy().copy()
+        log_q = restricted_scan(
+            out, neighbours, block_cells, block_starts, observed, placeholder, concentrations,
+            len(counts), float(config.gamma), float(config.pi_concentration),
+            no_forcing if forced is None else forced.numpy(), forced is not None, rng,
+        )  # fmt: skip
+        return torch.from_numpy(out), float(log_q)
+
+    return scan
+
+
 def _log_acceptance_ratio(delta_log_target: float, log_forward: float, log_reverse: float) -> float:
     """log r = log p(C')/p(C) + log q(C | C') - log q(C' | C)."""
     return delta_log_target + log_reverse - log_forward
@@ -283,9 +319,15 @@ def split_merge_labels(
     config: SpCoConfig,
     generator: torch.Generator,
     scans: int = MERGE_SCANS,
+    compiled: bool = False,
 ) -> tuple[torch.Tensor, MoveInfo]:
     """One split-merge Metropolis-Hastings step on ``labels`` [N] targeting p(C | x) (module
-    doc). Returns the new labels (``labels`` itself when nothing changes) and what happened."""
+    doc). Returns the new labels (``labels`` itself when nothing changes) and what happened.
+
+    ``compiled``: the launch and the restricted scans by :mod:`spcopyro.gibbs.merge_numba` (the
+    same proposal, from the compiled sampler's own random stream; the numba backend's chains use
+    it), else by the torch functions here.
+    """
     L = config.num_concepts
     first, second = labels[data.pairs[:, 0]], labels[data.pairs[:, 1]]  # [P]
     agree = first == second  # [P]
@@ -310,21 +352,28 @@ def split_merge_labels(
         b = int(empty[int(torch.randint(empty.numel(), (), generator=generator))])
         mask = labels == a
     region = _restricted(mask, i, j, data, config)
-    local_of = torch.full((data.num_free,), -1, dtype=torch.long)
-    local_of[region.cells] = torch.arange(region.cells.shape[0])
-    side = _launch(region, data.pairs, local_of, generator)
+    scan = _compiled_scans(region, config, generator) if compiled else None
+    if scan is not None:
+        side = scan(None)
+    else:
+        local_of = torch.full((data.num_free,), -1, dtype=torch.long)
+        local_of[region.cells] = torch.arange(region.cells.shape[0])
+        side = _launch(region, data.pairs, local_of, generator)
     for _ in range(scans):
-        side, _ = _restricted_scan(side, region, config, generator)
+        side, _ = scan(side) if scan else _restricted_scan(side, region, config, generator)
     if merge:
         current = (labels[region.cells] == b).long()  # [n_T] the split we are in
-        _, log_final = _restricted_scan(side, region, config, generator, forced=current)
+        if scan is not None:
+            _, log_final = scan(side, current)
+        else:
+            _, log_final = _restricted_scan(side, region, config, generator, forced=current)
         sizes, counts, border = _pair_terms(labels, data, config, a, b)
         delta = _merge_delta(sizes, counts, border, config)
         log_forward = -math.log(2 * num_disagree)
         log_reverse = -math.log(2 * (num_agree + border)) - math.log(num_empty + 1) + log_final
         proposed = torch.where(mask, a, labels)
     else:
-        side, log_final = _restricted_scan(side, region, config, generator)
+        side, log_final = scan(side) if scan else _restricted_scan(side, region, config, generator)
         proposed = labels.clone()
         proposed[region.cells[side == 1]] = b
         sizes, counts, border = _pair_terms(proposed, data, config, a, b)
@@ -345,9 +394,10 @@ def merge_move(
     config: SpCoConfig,
     generator: torch.Generator,
     scans: int = MERGE_SCANS,
+    compiled: bool = False,
 ) -> tuple[GibbsState, MoveInfo]:
     """:func:`split_merge_labels`, then (if accepted) pi, theta and w redrawn given the labels."""
-    labels, info = split_merge_labels(state.labels, data, config, generator, scans)
+    labels, info = split_merge_labels(state.labels, data, config, generator, scans, compiled)
     if not info.accepted:
         return state, info
     return GibbsState(labels, *sample_globals(labels, data, config, generator)), info
@@ -359,9 +409,11 @@ def maybe_merge_move(
     config: SpCoConfig,
     generator: torch.Generator,
     probability: float,
+    compiled: bool = False,
 ) -> GibbsState:
     """:func:`merge_move` with probability ``probability`` (``GibbsOptions.merge_moves``), else
-    ``state`` (draws nothing from ``generator`` when the probability is 0)."""
+    ``state`` (draws nothing from ``generator`` when the probability is 0). ``compiled``: as for
+    :func:`split_merge_labels`."""
     if not coin_flip(probability, generator):
         return state
-    return merge_move(state, data, config, generator)[0]
+    return merge_move(state, data, config, generator, compiled=compiled)[0]

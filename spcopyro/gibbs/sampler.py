@@ -97,7 +97,8 @@ def step(
     backend = get_backend(options.backend) if backend is None else backend
     sweep_config = annealed_config(config, sweep, options.anneal_sweeps)
     state = maybe_cluster_move(state, data, sweep_config, generator, options.cluster_moves)
-    state = maybe_merge_move(state, data, sweep_config, generator, options.merge_moves)
+    state = maybe_merge_move(state, data, sweep_config, generator, options.merge_moves,
+                             compiled=backend.name == "numba")  # fmt: skip
     state = backend.sweep(state, data, sweep_config, generator, plan, options.unobserved_refresh)
     annealing = sweep + 1 < options.anneal_sweeps
     if not options.hyper.active:
