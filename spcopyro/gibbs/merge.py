@@ -396,10 +396,15 @@ def merge_move(
     scans: int = MERGE_SCANS,
     compiled: bool = False,
 ) -> tuple[GibbsState, MoveInfo]:
-    """:func:`split_merge_labels`, then (if accepted) pi, theta and w redrawn given the labels."""
+    """:func:`split_merge_labels`, then (if accepted) pi, theta and w redrawn given the labels
+    (by the compiled sampler's draws when ``compiled``)."""
     labels, info = split_merge_labels(state.labels, data, config, generator, scans, compiled)
     if not info.accepted:
         return state, info
+    if compiled:  # the numba backend's own draw of the same conditionals
+        from spcopyro.gibbs.numba_sweep import sample_globals_numba
+
+        return GibbsState(labels, *sample_globals_numba(labels, data, config, generator)), info
     return GibbsState(labels, *sample_globals(labels, data, config, generator)), info
 
 
