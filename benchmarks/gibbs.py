@@ -139,7 +139,7 @@ class BenchSizes:
     quality_checkpoints: tuple[int, ...]  # sweeps after which the ARI is taken
     quality_gammas: tuple[float | None, ...]  # None: the preset's gamma
     run_loop_sweeps: int  # sweeps of the bare kernel and of run_gibbs, per preset
-    run_loop_repeats: int  # each timed this often, alternating; the fastest kept
+    run_loop_block: int  # the two alternate in blocks of this many sweeps
     fit_sweeps: int  # sweeps of each whole `spcopyro fit` (a fresh process)
     chains: int  # chains of the many-chains section
     chains_sweeps: int  # their sweeps in process
@@ -158,7 +158,7 @@ FULL = BenchSizes(
     quality_checkpoints=(10, 100, 1000, 5000),
     quality_gammas=(None, 3.0, 2.1),
     run_loop_sweeps=5000,
-    run_loop_repeats=2,
+    run_loop_block=250,
     fit_sweeps=5000,
     chains=4,
     chains_sweeps=1000,
@@ -176,7 +176,7 @@ QUICK = BenchSizes(
     quality_checkpoints=(5, 20),
     quality_gammas=(None,),
     run_loop_sweeps=20,
-    run_loop_repeats=1,
+    run_loop_block=5,
     fit_sweeps=3,
     chains=2,
     chains_sweeps=5,
@@ -460,7 +460,7 @@ def bench_run_loop(house: House, backend: str, sizes: BenchSizes) -> list[dict[s
             f"run loop {name}",
             lambda p=problem: kernel_and_run(
                 p.data, p.config, sizes.run_loop_sweeps, backend=backend,
-                repeats=sizes.run_loop_repeats,
+                block=sizes.run_loop_block,
             ),
         )  # fmt: skip
         results.append({"preset": name, "house": house.name, **entry})
