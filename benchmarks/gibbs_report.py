@@ -372,8 +372,9 @@ def render_issue15(results: dict[str, Any]) -> list[str]:
               f"{e['ratio']:.2f}"] for e in run_loop],
         ))  # fmt: skip
         out.append(
-            "(the same chain from the same seed: bare backend.sweep in a loop vs "
-            "run_gibbs with its log joint, trace and best state; fastest of the repeats)"
+            "(the same chain from the same seed: bare backend.sweep in a loop vs the run loop "
+            "with its log joint, trace and best state, alternating in blocks of "
+            f"{run_loop[0]['block']} sweeps; same chain: {all(e['same_chain'] for e in run_loop)})"
         )
     fits = [e for e in results.get("fits", []) if _ok(e)]
     if fits:
