@@ -38,7 +38,8 @@ import numpy as np
 import torch
 
 from spcopyro.config import preset
-from spcopyro.fit import prepare_model_data, result_of, with_sample_marginals
+from spcopyro.fit import prepare_model_data, result_of
+from spcopyro.fit_gibbs import with_sample_marginals
 from spcopyro.gibbs.method import GibbsInference
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.metrics import matching_rate

@@ -50,7 +50,7 @@ from spcopyro.threads import AUTO, MIN_CELLS_FOR_MORE_THREADS, describe_threads
 from spcopyro.timings import Phases
 
 if TYPE_CHECKING:
-    from spcopyro.fit import FitCheckpoint
+    from spcopyro.fit_gibbs import FitCheckpoint
     from spcopyro.results import SpCoResult
 
 __all__ = ["add_parser"]
@@ -63,7 +63,7 @@ UPDATE_SWEEPS = 300  # --sweeps of --update (spcopyro.online.DEFAULT_UPDATE_SWEE
 def _fit(args: argparse.Namespace) -> int:
     """Check the arguments and OUT, then fit into a staging folder moved to OUT at the end
     (:mod:`spcopyro.outputs`); Ctrl-C keeps a checkpoint beside OUT and exits with 130."""
-    from spcopyro.fit import FitCheckpoint, FitInterrupted
+    from spcopyro.fit_gibbs import FitCheckpoint, FitInterrupted
     from spcopyro.outputs import checkpoint_path, stage_output
 
     args.phases = Phases()  # seconds per phase, written to $SPCOPYRO_TIMINGS if set

@@ -28,8 +28,14 @@ import torch
 from spcopyro import __version__
 from spcopyro.config import WORDS, SpCoConfig, SpCoSettings, preset
 from spcopyro.data import CellCounts, House, cell_counts
-from spcopyro.gibbs.chains import advance_chains, resolve_workers
-from spcopyro.gibbs.checkpoint import data_fingerprint, load_chains, save_chains
+from spcopyro.fit_gibbs import (
+    FitCheckpoint,
+    gibbs_outputs,
+    marginal_thin,
+    with_sample_marginals,
+)
+from spcopyro.gibbs.chains import resolve_workers
+from spcopyro.gibbs.checkpoint import data_fingerprint
 from spcopyro.gibbs.convergence import (
     DEFAULT_BLOCK,
     DEFAULT_CHAINS,
@@ -39,18 +45,16 @@ from spcopyro.gibbs.convergence import (
     run_until_converged,
 )
 from spcopyro.gibbs.hyperparameters import config_at_posterior_mean
-from spcopyro.gibbs.method import GibbsInference, gibbs_record, output_from_run
+from spcopyro.gibbs.method import GibbsInference, output_from_run
 from spcopyro.gibbs.options import GibbsOptions
-from spcopyro.gibbs.run import GibbsChain, start_chain
-from spcopyro.inference import InferenceOutput, method_options
+from spcopyro.inference import InferenceOutput
 from spcopyro.initialisation import INITS, kmeans_gaussians, labels_from_gaussians
 from spcopyro.model import DTYPE, ModelData, make_model_data
-from spcopyro.point_estimate import check_point_estimate, with_point_estimate
+from spcopyro.point_estimate import check_point_estimate
 from spcopyro.posterior_means import concept_totals, with_posterior_means
 from spcopyro.registry import DEFAULT_METHOD, get_method
 from spcopyro.results import SpCoResult
 from spcopyro.threads import AUTO, describe_threads, resolve_threads, torch_threads
-from spcopyro.uncertainty import label_frequencies
 
 logger = logging.getLogger("spcopyro")
 
@@ -58,40 +62,6 @@ RANDOM_STREAMS_NOTE = (
     "the torch and numba Gibbs backends draw different random streams from one seed: a seeded "
     "fit reproduces bit for bit only on the backend that ran it (inference.backend_used)"
 )
-
-
-class FitInterrupted(KeyboardInterrupt):
-    """Ctrl-C stopped a fit (a :class:`KeyboardInterrupt`, so code unaware of it still stops).
-
-    ``checkpoint``: the file holding the chains' state (None where none was kept);
-    ``where``: how far the fit had got, e.g. ``"chain 1 of 2, 120 of 5000 sweeps done"``.
-    """
-
-    def __init__(self, where: str, checkpoint: Path | None = None) -> None:
-        super().__init__(where)
-        self.where, self.checkpoint = where, checkpoint
-
-
-class FitCheckpoint:
-    """Where a Gibbs fit's chains are saved (:func:`~spcopyro.gibbs.checkpoint.save_chains`)
-    when it is interrupted.
-
-    :func:`fit_house_chains` fills :attr:`chains` (the very list it advances) and :attr:`record`
-    (its settings, checked on resuming), saves them on Ctrl-C, and leaves them here, so that the
-    caller can :meth:`save` the finished chains later too -- e.g. when Ctrl-C stops the writing of
-    the results.
-    """
-
-    def __init__(self, path: str | os.PathLike[str]) -> None:
-        self.path = Path(path)
-        self.chains: list[GibbsChain | None] = []
-        self.record: dict[str, object] = {}
-
-    def save(self) -> Path | None:
-        """Save the chains reached so far; None (nothing written) if none has started."""
-        if all(chain is None for chain in self.chains):
-            return None
-        return save_chains(self.chains, self.path, record=self.record)
 
 
 def software_versions() -> dict[str, str | None]:
@@ -465,9 +435,11 @@ def fit_house_chains(
         checkpoint = FitCheckpoint(checkpoint)
     with torch_threads(count):
         if isinstance(inference, GibbsInference):
-            outputs = _gibbs_outputs(
-                house, counts, data, settings, options, int(sweeps), [int(s) for s in seeds],
-                init, progress, checkpoint, resume, marginal_samples, point_estimate, workers,
+            outputs = gibbs_outputs(
+                data, settings, options, int(sweeps), [int(s) for s in seeds], init_name(init),
+                lambda seed, generator: initial_labels(house, counts, settings, init, seed,
+                                                       generator),
+                progress, checkpoint, resume, marginal_samples, point_estimate, workers,
             )  # fmt: skip
             return [result_of(o, house, counts, data, settings, method, record) for o in outputs]
         fits = []
@@ -486,117 +458,6 @@ def fit_house_chains(
                 )
             fits.append(result_of(output, house, counts, data, settings, method, record))
     return fits
-
-
-def _gibbs_outputs(
-    house: House,
-    counts: CellCounts,
-    data: ModelData,
-    settings: SpCoSettings,
-    options: object | None,
-    sweeps: int,
-    seeds: list[int],
-    init: Init,
-    progress: bool | None,
-    checkpoint: FitCheckpoint | None,
-    resume: str | os.PathLike[str] | None,
-    marginal_samples: int = 0,
-    point_estimate: str = "map-visited",
-    workers: int = 1,
-) -> list[InferenceOutput]:
-    """Gibbs chains (:func:`~spcopyro.gibbs.run.start_chain`, :func:`~spcopyro.gibbs.run.advance`:
-    the same draws as :class:`~spcopyro.gibbs.method.GibbsInference`), saved and resumed; up to
-    ``workers`` of them advance at once (:func:`~spcopyro.gibbs.chains.advance_chains`)."""
-    options = method_options(options, GibbsOptions, "Gibbs sampling")
-    if options.anneal_sweeps > sweeps:
-        raise ValueError(
-            f"anneal_sweeps ({options.anneal_sweeps}) must not exceed num_sweeps ({sweeps})"
-        )
-    record = {"method": "gibbs", "sweeps": sweeps, "seeds": seeds, "init": init_name(init),
-              "data_preparation": _preparation_record(settings)}  # fmt: skip
-    chains: list[GibbsChain | None] = [None] * len(seeds)
-    if resume is not None:
-        chains = load_chains(resume, data, settings.model, options, record=record)
-    if checkpoint is not None:
-        checkpoint.chains, checkpoint.record = chains, record
-    try:
-        for k, seed in enumerate(seeds):
-            if chains[k] is None:
-                generator = torch.Generator().manual_seed(seed)
-                start = initial_labels(house, counts, settings, init, seed, generator)
-                chains[k] = start_chain(
-                    data, settings.model, options=options, generator=generator, init_labels=start
-                )
-        runs = [(chain, sweeps - chain.sweeps_done) for chain in chains if chain is not None]
-        thin = marginal_thin(sweeps, marginal_samples)
-        advance_chains(runs, workers=workers, thin=thin, progress=progress)
-    except KeyboardInterrupt:
-        saved = None if checkpoint is None else checkpoint.save()
-        raise FitInterrupted(_where_stopped(chains, sweeps), saved) from None
-    outputs = []
-    for chain, seed in zip(chains, seeds, strict=True):
-        assert chain is not None
-        entry = gibbs_record(options, sweeps, chain.backend.name)
-        output = output_from_run(chain.to_run(), {**entry, "seed": seed, "init": init_name(init)})
-        outputs.append(with_sample_marginals(output, sweeps, data, settings.model, point_estimate))
-    return outputs
-
-
-def _preparation_record(settings: SpCoSettings) -> dict[str, object]:
-    """The data preparation as a checkpoint records it: the footprint fields only when the
-    footprint is on, so checkpoints made before it existed still resume."""
-    record = dataclasses.asdict(settings.data)
-    if not settings.data.footprint_radius:
-        for name in ("footprint_radius", "footprint_kernel", "footprint_fov"):
-            record.pop(name)
-    return record
-
-
-def marginal_thin(sweeps: int, marginal_samples: int) -> int:
-    """Every how many iterations to keep a label map so that about ``marginal_samples`` fall in
-    the second half of ``sweeps`` (0: keep none)."""
-    return max(1, sweeps // (2 * marginal_samples)) if marginal_samples else 0
-
-
-def with_sample_marginals(
-    output: InferenceOutput,
-    sweeps: int,
-    data: ModelData,
-    config: SpCoConfig,
-    point_estimate: str = "map-visited",
-) -> InferenceOutput:
-    """``output`` with the label frequencies of its samples from the second half of the sweeps
-    as its marginals (unchanged if it kept none there), reporting ``point_estimate`` over them
-    (:func:`spcopyro.point_estimate.with_point_estimate`), and a sampler's pi and emissions as
-    their posterior means: given the point estimate's labels when it is one, else averaged over
-    those samples (:func:`~spcopyro.posterior_means.with_posterior_means`)."""
-    if output.label_samples is None or output.sample_iterations is None:
-        return output
-    late = np.asarray(output.sample_iterations) >= sweeps // 2
-    if not late.any():
-        return output
-    samples = np.asarray(output.label_samples)[late]  # [S', N]
-    marginals = label_frequencies(samples, config.num_concepts)  # [N, L]
-    output = with_point_estimate(output, samples, point_estimate, config.num_concepts)
-    if output.parameters_drawn:
-        given = None if point_estimate != "map-visited" else samples  # tables of its clusters
-        sampled = config_at_posterior_mean(config, output.options.get("hyperparameters"))
-        output = with_posterior_means(output, data, sampled, given)
-    return dataclasses.replace(
-        output,
-        marginals=marginals,
-        label_samples=None,
-        options={**output.options, "marginal_samples": len(samples)},
-    )
-
-
-def _where_stopped(chains: Sequence[GibbsChain | None], sweeps: int) -> str:
-    """``"chain k of K, s of S sweeps done"`` for the first chain not finished."""
-    for k, chain in enumerate(chains):
-        done = 0 if chain is None else chain.sweeps_done
-        if done < sweeps:
-            return f"chain {k + 1} of {len(chains)}, {done} of {sweeps} sweeps done"
-    return f"all {len(chains)} chain(s) done ({sweeps} sweeps each)"
 
 
 def fit_house(

@@ -54,13 +54,8 @@ import torch
 
 from spcopyro.config import IMAGES, WORDS, SpCoSettings
 from spcopyro.data import CellCounts, House
-from spcopyro.fit import (
-    marginal_thin,
-    prepare_model_data,
-    provenance,
-    result_of,
-    with_sample_marginals,
-)
+from spcopyro.fit import prepare_model_data, provenance, result_of
+from spcopyro.fit_gibbs import marginal_thin, with_sample_marginals
 from spcopyro.gibbs.method import GibbsInference, gibbs_record, output_from_run
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsChain, advance, start_chain

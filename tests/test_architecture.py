@@ -38,6 +38,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "map_simulation",
         "rosbag",
     ),
+    ("fit_gibbs",),
     ("fit", "online"),
     ("experiments",),
     ("cli", "cli_common", "cli_fit", "cli_export", "__main__"),
