@@ -6,8 +6,9 @@ by name in :mod:`spcopyro.registry` (``"gibbs"``: Algorithm 1); ``--sweeps auto`
 (:func:`fit_house_converged`) is Gibbs-specific.
 
 Gibbs chains can be interrupted and resumed: :func:`fit_house_chains` with ``checkpoint=PATH``
-(or a :class:`FitCheckpoint`) saves every chain's state there (:mod:`spcopyro.gibbs.checkpoint`)
-when Ctrl-C stops it, then raises :class:`FitInterrupted`; ``resume=PATH`` continues the saved
+(or a :class:`~spcopyro.fit_gibbs.FitCheckpoint`) saves every chain's state there
+(:mod:`spcopyro.gibbs.checkpoint`) when Ctrl-C stops it, then raises
+:class:`~spcopyro.fit_gibbs.FitInterrupted`; ``resume=PATH`` continues the saved
 chains, exactly as if they had never stopped. Every result records where its data came from,
 the package versions and the backend that ran (:func:`provenance`, written to ``config.json``).
 """
