@@ -177,6 +177,15 @@ def _fill_gamma_linear(
                 a += 1.0
                 row_boosted[r] = True
             boost[r, c] = extra
+            if a == 1.0:  # Gamma(1) is Exp(1): -log(1 - U), exactly (chi = 1, empty concepts)
+                bits, s0, s1, s2, s3 = next_bits(s0, s1, s2, s3)
+                draw = -math.log(1.0 - bits_to_uniform(bits))
+                while draw == 0.0:  # U = 0 exactly (p = 2^-53): log G would be -inf
+                    bits, s0, s1, s2, s3 = next_bits(s0, s1, s2, s3)
+                    draw = -math.log(1.0 - bits_to_uniform(bits))
+                out[r, c] = draw
+                total += draw
+                continue
             if a != shape:  # most concepts hold no observations: their shapes repeat
                 shape, d = a, a - 1.0 / 3.0
                 scale = 1.0 / math.sqrt(9.0 * d)
@@ -213,7 +222,8 @@ def _fill_gamma_linear(
 def fill_log_gamma(base: float, statistics: np.ndarray, out: np.ndarray, state: np.ndarray) -> int:
     """out[r, c] = log G, G ~ Gamma(base + statistics[r, c], 1), for [R, C] float64 arrays.
 
-    Marsaglia-Tsang with its squeeze (shape a >= 1); for a < 1,
+    Shape exactly 1 (chi = 1 with no counts: most rows of the released code's theta) is an
+    exponential, -log(1 - U); other shapes Marsaglia-Tsang with its squeeze (a >= 1); for a < 1,
     log G(a) = log G(a + 1) + log(U) / a, finite however small a is. Returns -1, or the flat
     index r * C + c of the first shape that is not finite and positive (and stops there: the
     rejection loop would never end).
