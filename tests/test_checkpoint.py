@@ -362,6 +362,13 @@ def test_ctrl_c_under_sweeps_auto_stops_cleanly(room, tmp_path, capsys, monkeypa
     assert "--resume continues Gibbs chains" in capsys.readouterr().err
 
 
+def _default_sigint() -> None:
+    """In the child: SIGINT back to its default, so that Python installs its KeyboardInterrupt
+    handler even when the test runner was started with SIGINT ignored (a background job of a
+    shell without job control, ``nohup``: children inherit the ignore)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 @pytest.mark.slow  # a fresh process: ~5 s of imports
 def test_a_real_ctrl_c_in_a_fit_process(room, tmp_path):
     """SIGINT to a ``python -m spcopyro fit`` process once it has done some sweeps: exit 130, no
@@ -371,7 +378,8 @@ def test_a_real_ctrl_c_in_a_fit_process(room, tmp_path):
     env["PYTHONPATH"] = str(Path(spcopyro.fit.__file__).parents[1])
     argv = ["fit", str(room), "--out", str(out), "--sweeps", "1000000", "--concepts", "8"]
     process = subprocess.Popen([sys.executable, "-m", "spcopyro", *argv], env=env,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)  # fmt: skip
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                               preexec_fn=_default_sigint)  # fmt: skip
     seen = b""
     while not re.search(rb"Gibbs sweeps: .*?\b[1-9][0-9]*/1000000 \[", seen):  # swept some
         chunk = os.read(process.stderr.fileno(), 4096)
