@@ -196,7 +196,7 @@ def test_compiled_scans_give_the_torch_scans_probabilities():
     mask = torch.ones(data.num_free, dtype=torch.bool)
     i, j = (int(v) for v in data.pairs[3])
     region = merge._restricted(mask, i, j, data, cfg)
-    scan = merge._compiled_scans(region, cfg, generator)
+    scan = merge._compiled_scans(region, data, cfg, generator)
     for seed in range(4):
         start = torch.randint(0, 2, (region.cells.shape[0],), generator=generator)
         start[region.first], start[region.second] = 0, 1

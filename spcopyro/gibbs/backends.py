@@ -3,6 +3,7 @@ compiled numba one. Both sample the same distribution (tested) from different ra
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Protocol
 
 import torch
@@ -100,6 +101,29 @@ class NumbaBackend:
 
     def trace(self, state, data, config):  # noqa: D102
         return self._trace(state, data, config)
+
+
+def globals_sampler(backend_name: str) -> Callable[..., tuple]:
+    """The backend's draw of pi and every modality's distributions given the labels (eqs.
+    14-17): ``f(labels, data, config, generator) -> (log pi, log emissions)``."""
+    if backend_name == "numba":
+        from spcopyro.gibbs.numba_sweep import sample_globals_numba
+
+        return sample_globals_numba
+    from spcopyro.gibbs.sweep import sample_globals
+
+    return sample_globals
+
+
+def label_sampler(backend_name: str) -> Callable[..., torch.Tensor]:
+    """The backend's label-only sweep: ``f(state, data, config, generator, plan) -> [N]``."""
+    if backend_name == "numba":
+        from spcopyro.gibbs.numba_sweep import sample_labels_numba
+
+        return sample_labels_numba
+    from spcopyro.gibbs.sweep import sample_labels
+
+    return sample_labels
 
 
 def get_backend(backend: str = "auto") -> SweepBackend:

@@ -71,6 +71,7 @@ import numpy as np
 import torch
 
 from spcopyro.config import IMAGES, WORDS, SpCoConfig
+from spcopyro.gibbs.backends import globals_sampler, label_sampler
 from spcopyro.gibbs.cluster import swendsen_wang_labels
 from spcopyro.gibbs.hyper_options import HyperparameterOptions
 from spcopyro.gibbs.hyper_targets import (
@@ -216,29 +217,6 @@ def prior_map(data: ModelData) -> tuple[ModelData, SweepPlan]:
     plan = make_sweep_plan(prior_data)
     _PRIOR_MAP[:] = [_PriorMap(data, prior_data, plan)]
     return prior_data, plan
-
-
-def globals_sampler(backend_name: str) -> Callable[..., tuple]:
-    """The backend's draw of pi and every modality's distributions given the labels (eqs.
-    14-17): ``f(labels, data, config, generator) -> (log pi, log emissions)``."""
-    if backend_name == "numba":
-        from spcopyro.gibbs.numba_sweep import sample_globals_numba
-
-        return sample_globals_numba
-    from spcopyro.gibbs.sweep import sample_globals
-
-    return sample_globals
-
-
-def label_sampler(backend_name: str) -> Callable[..., torch.Tensor]:
-    """The backend's label-only sweep: ``f(state, data, config, generator, plan) -> [N]``."""
-    if backend_name == "numba":
-        from spcopyro.gibbs.numba_sweep import sample_labels_numba
-
-        return sample_labels_numba
-    from spcopyro.gibbs.sweep import sample_labels
-
-    return sample_labels
 
 
 def auxiliary_labels(

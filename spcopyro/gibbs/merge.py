@@ -82,8 +82,8 @@ import numpy as np
 import torch
 
 from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.backends import globals_sampler
 from spcopyro.gibbs.state import GibbsState
-from spcopyro.gibbs.sweep import sample_globals
 from spcopyro.model import DTYPE, ModelData
 from spcopyro.random_draws import coin_flip
 
@@ -247,13 +247,32 @@ def _restricted_scan(
     return side, log_q
 
 
+Scans = Callable[..., object]
+"""A move's launch and restricted scans over its region, as one function: ``scan(None)`` is the
+launch sides [n_T]; ``scan(side)`` a restricted scan from ``side``, and ``scan(side, forced)``
+its probability of landing on ``forced``: (new sides [n_T], log q)."""
+
+
+def _torch_scans(
+    region: _Restricted, data: ModelData, config: SpCoConfig, generator: torch.Generator
+) -> Scans:
+    """:data:`Scans` by the torch functions :func:`_launch` and :func:`_restricted_scan`."""
+
+    def scan(side: torch.Tensor | None, forced: torch.Tensor | None = None) -> object:
+        if side is None:
+            local_of = torch.full((data.num_free,), -1, dtype=torch.long)
+            local_of[region.cells] = torch.arange(region.cells.shape[0])
+            return _launch(region, data.pairs, local_of, generator)
+        return _restricted_scan(side, region, config, generator, forced=forced)
+
+    return scan
+
+
 def _compiled_scans(
-    region: _Restricted, config: SpCoConfig, generator: torch.Generator
-) -> Callable[..., object]:
-    """The compiled launch and scans over ``region`` (:mod:`spcopyro.gibbs.merge_numba`), as one
-    function: ``scan(None)`` is the launch sides [n_T]; ``scan(side)`` a restricted scan from
-    ``side``, ``scan(side, forced)`` its probability of landing on ``forced``: (new sides [n_T]
-    torch, log q). One seed is drawn from ``generator`` for the whole move."""
+    region: _Restricted, data: ModelData, config: SpCoConfig, generator: torch.Generator
+) -> Scans:
+    """:data:`Scans` by :mod:`spcopyro.gibbs.merge_numba`, from the compiled sampler's own
+    stream: one seed is drawn from ``generator`` for the whole move."""
     from spcopyro.gibbs.merge_numba import launch_sides, restricted_scan
     from spcopyro.gibbs.numba_random import draw_seed, rng_state
 
@@ -352,28 +371,20 @@ def split_merge_labels(
         b = int(empty[int(torch.randint(empty.numel(), (), generator=generator))])
         mask = labels == a
     region = _restricted(mask, i, j, data, config)
-    scan = _compiled_scans(region, config, generator) if compiled else None
-    if scan is not None:
-        side = scan(None)
-    else:
-        local_of = torch.full((data.num_free,), -1, dtype=torch.long)
-        local_of[region.cells] = torch.arange(region.cells.shape[0])
-        side = _launch(region, data.pairs, local_of, generator)
+    scan = (_compiled_scans if compiled else _torch_scans)(region, data, config, generator)
+    side = scan(None)
     for _ in range(scans):
-        side, _ = scan(side) if scan else _restricted_scan(side, region, config, generator)
+        side, _ = scan(side)
     if merge:
         current = (labels[region.cells] == b).long()  # [n_T] the split we are in
-        if scan is not None:
-            _, log_final = scan(side, current)
-        else:
-            _, log_final = _restricted_scan(side, region, config, generator, forced=current)
+        _, log_final = scan(side, current)
         sizes, counts, border = _pair_terms(labels, data, config, a, b)
         delta = _merge_delta(sizes, counts, border, config)
         log_forward = -math.log(2 * num_disagree)
         log_reverse = -math.log(2 * (num_agree + border)) - math.log(num_empty + 1) + log_final
         proposed = torch.where(mask, a, labels)
     else:
-        side, log_final = scan(side) if scan else _restricted_scan(side, region, config, generator)
+        side, log_final = scan(side)
         proposed = labels.clone()
         proposed[region.cells[side == 1]] = b
         sizes, counts, border = _pair_terms(proposed, data, config, a, b)
@@ -401,10 +412,7 @@ def merge_move(
     labels, info = split_merge_labels(state.labels, data, config, generator, scans, compiled)
     if not info.accepted:
         return state, info
-    if compiled:  # the numba backend's own draw of the same conditionals
-        from spcopyro.gibbs.numba_sweep import sample_globals_numba
-
-        return GibbsState(labels, *sample_globals_numba(labels, data, config, generator)), info
+    sample_globals = globals_sampler("numba" if compiled else "torch")
     return GibbsState(labels, *sample_globals(labels, data, config, generator)), info
 
 
