@@ -24,8 +24,7 @@ class SweepBackend(Protocol):
     1 - ``unobserved_refresh``, only the rows of concepts holding an observed cell
     (:func:`spcopyro.gibbs.sweep.concepts_to_refresh`). Moves and schedules around the sweep
     (cluster moves, annealing) are composed once, in :func:`spcopyro.gibbs.sampler.step`.
-    ``potts_agreements`` is E(C) and ``label_counts`` the cells per concept: the statistics the
-    per-sweep log joint needs (the compiled backend has them from the sweep that drew the
+    ``potts_agreements`` is E(C) (the compiled backend has it from the sweep that drew the
     labels); ``trace`` is the per-sweep record: :func:`spcopyro.likelihood.log_joint_variable`
     at a state and its number of concepts in use (compiled in the numba backend).
     """
@@ -44,8 +43,6 @@ class SweepBackend(Protocol):
 
     def potts_agreements(self, labels: torch.Tensor, pairs: torch.Tensor) -> torch.Tensor: ...
 
-    def label_counts(self, labels: torch.Tensor, num_concepts: int) -> torch.Tensor: ...
-
     def trace(
         self, state: GibbsState, data: ModelData, config: SpCoConfig
     ) -> tuple[float, int]: ...
@@ -61,9 +58,6 @@ class TorchBackend:
 
     def potts_agreements(self, labels, pairs):  # noqa: D102
         return potts_agreements(labels, pairs)
-
-    def label_counts(self, labels, num_concepts):  # noqa: D102
-        return torch.bincount(labels, minlength=num_concepts)
 
     def trace(self, state, data, config):  # noqa: D102
         counts = torch.bincount(state.labels, minlength=config.num_concepts)  # [L]
@@ -82,22 +76,18 @@ class NumbaBackend:
         # ImportError without numba (get_backend relies on it).
         from spcopyro.gibbs.numba_sweep import (
             gibbs_sweep_numba,
-            label_counts_numba,
             potts_agreements_numba,
             trace_numba,
         )
 
-        self._sweep, self._label_counts = gibbs_sweep_numba, label_counts_numba
-        self._potts_agreements, self._trace = potts_agreements_numba, trace_numba
+        self._sweep, self._trace = gibbs_sweep_numba, trace_numba
+        self._potts_agreements = potts_agreements_numba
 
     def sweep(self, state, data, config, generator, plan, unobserved_refresh):  # noqa: D102
         return self._sweep(state, data, config, generator, plan, unobserved_refresh)
 
     def potts_agreements(self, labels, pairs):  # noqa: D102
         return self._potts_agreements(labels, pairs)
-
-    def label_counts(self, labels, num_concepts):  # noqa: D102
-        return self._label_counts(labels, num_concepts)
 
     def trace(self, state, data, config):  # noqa: D102
         return self._trace(state, data, config)

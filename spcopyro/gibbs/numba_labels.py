@@ -50,9 +50,9 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from spcopyro.gibbs.numba_plan import flat_plan
+from spcopyro.gibbs.numba_plan import FlatPlan, flat_plan, flatten_plan
 from spcopyro.gibbs.numba_random import bits_to_uniform, next_bits
-from spcopyro.gibbs.state import SweepPlan
+from spcopyro.gibbs.state import SweepPlan, make_sweep_plan
 from spcopyro.model import ModelData
 
 _LABEL_PLAN_CACHE_SIZE = 8
@@ -84,13 +84,27 @@ _label_plans: dict[int, tuple[SweepPlan, LabelPlan]] = {}
 _label_plans_lock = threading.Lock()
 
 
-def label_plan(plan: SweepPlan, data: ModelData) -> LabelPlan:
+def label_plan(plan: SweepPlan | None, data: ModelData) -> LabelPlan:
     """The :class:`LabelPlan` of ``plan`` (checked against ``data`` by
-    :func:`~spcopyro.gibbs.numba_plan.flat_plan`; cached per plan object)."""
+    :func:`~spcopyro.gibbs.numba_plan.flat_plan`; cached per plan object), or of a fresh plan of
+    ``data`` if None (not cached: that plan dies with the call)."""
+    if plan is None:
+        plan = make_sweep_plan(data)
+        return _layout(plan, flatten_plan(plan, data), data)
     flat = flat_plan(plan, data)  # validates (and caches) the plan for these data
     entry = _label_plans.get(id(plan))
     if entry is not None and entry[0] is plan:
         return entry[1]
+    result = _layout(plan, flat, data)
+    with _label_plans_lock:
+        while len(_label_plans) >= _LABEL_PLAN_CACHE_SIZE:
+            del _label_plans[next(iter(_label_plans))]  # oldest first
+        _label_plans[id(plan)] = (plan, result)
+    return result
+
+
+def _layout(plan: SweepPlan, flat: FlatPlan, data: ModelData) -> LabelPlan:
+    """The :class:`LabelPlan` of a plan already checked and flattened (``flat``)."""
     N, D, M = data.num_free, data.neighbours.shape[1], flat.num_observed
     block_of = np.empty(N + D, dtype=np.int64)  # [N + D] block of each free cell; D sentinels
     block_of[N:] = len(plan.blocks)  # never "earlier"
@@ -120,7 +134,7 @@ def label_plan(plan: SweepPlan, data: ModelData) -> LabelPlan:
             modes[g] = 1
         else:
             modes[g] = 2
-    result = LabelPlan(
+    return LabelPlan(
         order=np.ascontiguousarray(flat.cells[positions], dtype=np.int32),
         neighbours=np.ascontiguousarray(neighbours, dtype=np.int32),
         rows=np.ascontiguousarray(flat.background_rows[positions], dtype=np.int32),
@@ -128,11 +142,6 @@ def label_plan(plan: SweepPlan, data: ModelData) -> LabelPlan:
         modes=modes,
         earlier=earlier,
     )
-    with _label_plans_lock:
-        while len(_label_plans) >= _LABEL_PLAN_CACHE_SIZE:
-            del _label_plans[next(iter(_label_plans))]  # oldest first
-        _label_plans[id(plan)] = (plan, result)
-    return result
 
 
 def compact_label_dtype(num_concepts: int, num_neighbours: int) -> type:

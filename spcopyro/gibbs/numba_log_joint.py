@@ -130,8 +130,9 @@ def _tensors(state: GibbsState) -> tuple[torch.Tensor, ...]:
     return (state.labels, state.log_pi, *state.log_emissions)
 
 
-def _key(data: ModelData, config: SpCoConfig) -> tuple[float, ...]:
-    concentrations, used = _parameters(data, config)
+def _key(config: SpCoConfig, concentrations: np.ndarray, used: np.ndarray) -> tuple[float, ...]:
+    """What a recorded log joint depends on besides the state: (a_pi, a_m..., used_m...), from
+    :func:`_parameters`' ``concentrations`` and ``used``."""
     return (float(config.pi_concentration), *concentrations.tolist(), *used.tolist())
 
 
@@ -156,7 +157,8 @@ def remember_sweep(
     tensors = _tensors(state)
     record = _SweepRecord(
         tuple(weakref.ref(t) for t in tensors), tuple(t._version for t in tensors),
-        weakref.ref(data.pairs), int(agreements), label_counts, _key(data, config), variable,
+        weakref.ref(data.pairs), int(agreements), label_counts,
+        _key(config, concentrations, used), variable,
     )  # fmt: skip
     with _records_lock:
         while len(_records) >= _RECORDS_KEPT:
@@ -190,7 +192,8 @@ def trace_numba(state: GibbsState, data: ModelData, config: SpCoConfig) -> tuple
     record = _recall(state.labels, data.pairs)
     if record is not None and record.label_counts.shape[0] == config.num_concepts:
         counts, agreements = record.label_counts, record.agreements
-        if _same_state(record, state) and record.concentrations == _key(data, config):
+        current = _key(config, *_parameters(data, config))
+        if _same_state(record, state) and record.concentrations == current:
             value = record.variable + float(config.gamma) * agreements
             return value, int(np.count_nonzero(counts))
     else:

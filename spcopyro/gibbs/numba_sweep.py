@@ -84,7 +84,7 @@ from spcopyro.gibbs.numba_random import (
     sample_standard_normal_numba,
     uniform,
 )
-from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
+from spcopyro.gibbs.state import GibbsState, SweepPlan
 from spcopyro.model import ModelData
 
 __all__ = [
@@ -239,7 +239,7 @@ def _sample_labels_array(
     RNG state ``rng`` (:mod:`spcopyro.gibbs.numba_labels`)."""
     _check_state(state, data, config)
     D = data.neighbours.shape[1]
-    layout = label_plan(make_sweep_plan(data) if plan is None else plan, data)
+    layout = label_plan(plan, data)
     tilt = _neighbour_tilt(config, D)
     labels = _extended_labels(state.labels, D, config)
     background = _background_table(state, data, config)
