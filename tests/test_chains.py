@@ -118,3 +118,17 @@ def test_fit_with_parallel_chains_gives_the_sequential_fit():
     for a, b in zip(one, two, strict=True):
         np.testing.assert_array_equal(a.labels, b.labels)
         np.testing.assert_array_equal(a.trace.objective, b.trace.objective)
+
+
+def test_fit_command_line_chain_workers_option(capsys):
+    from spcopyro.cli import build_parser
+
+    parse = build_parser().parse_args
+    assert parse(["fit", "--out", "x"]).chain_workers == "auto"
+    assert parse(["fit", "--out", "x", "--chain-workers", "3"]).chain_workers == 3
+    for bad in ("0", "-1", "two", "1.5"):
+        with pytest.raises(SystemExit):
+            parse(["fit", "--out", "x", "--chain-workers", bad])
+        assert "argument --chain-workers: must be 'auto' or an integer >= 1" in (
+            capsys.readouterr().err
+        )
