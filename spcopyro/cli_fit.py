@@ -238,7 +238,7 @@ def _fit_staged(
     sampled: list[bool],
 ) -> int:
     """Fit, write every output into ``staged.path``, then move it to OUT."""
-    from spcopyro.fit import best_chain, fit_house_chains
+    from spcopyro.fit import best_chain, fit_house_chains, log_degenerate_map
     from spcopyro.outputs import checkpoint_path
     from spcopyro.uncertainty import cell_entropy, free_cells_image
 
@@ -361,6 +361,7 @@ def _fit_staged(
         (out / "scores.json").write_text(json.dumps({"ari": ari}) + "\n")
         print(f"adjusted Rand index against the ground truth: {ari:.3f}")
     print_concepts(result)
+    log_degenerate_map(result, house)  # printed once, as "warning: ..."
     vocabulary_size = len(result.vocabulary)
     used = result.concepts_in_use()
     if vocabulary_size and result.w[used].max() < 2.0 / vocabulary_size:

@@ -50,6 +50,7 @@ from spcopyro.gibbs.method import GibbsInference, output_from_run
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.inference import InferenceOutput
 from spcopyro.initialisation import INITS, kmeans_gaussians, labels_from_gaussians
+from spcopyro.map_checks import house_map_warning
 from spcopyro.model import DTYPE, ModelData, make_model_data
 from spcopyro.point_estimate import check_point_estimate
 from spcopyro.posterior_means import concept_totals, with_posterior_means
@@ -170,6 +171,16 @@ def config_warnings(config: SpCoConfig) -> list[str]:
                 "nothing"
             )
     return warnings
+
+
+def log_degenerate_map(result: SpCoResult, house: House) -> str | None:
+    """Log (logger ``"spcopyro"``) and return the warning of a degenerate reported map -- one
+    concept over most of the free cells while words said at different places lie inside it
+    (:func:`spcopyro.map_checks.degenerate_map_warning`) -- else None."""
+    warning = house_map_warning(result.labels, house, result.preparation.snap_distance)
+    if warning:
+        logger.warning(warning)
+    return warning
 
 
 def free_cell_positions(house: House) -> torch.Tensor:
@@ -477,7 +488,9 @@ def fit_house(
     point_estimate: str = "map-visited",
     chain_workers: int | str | None = AUTO,
 ) -> SpCoResult:
-    """Fit SpCoMapping to a house.
+    """Fit SpCoMapping to a house. A degenerate reported map (one concept over most of the
+    map while words said at different places lie inside it) is logged as a warning
+    (:func:`log_degenerate_map`).
 
     Args:
         settings: model hyperparameters and data preparation (default: :func:`preset`'s).
@@ -511,6 +524,7 @@ def fit_house(
             seed=seed, init=init, progress=progress, threads=threads,
         )  # fmt: skip
         logger.info("--sweeps auto: %s", diagnostics.to_json())
+        log_degenerate_map(result, house)
         return result
     results = fit_house_chains(
         house, settings, method=method, options=options, sweeps=sweeps,
@@ -524,6 +538,7 @@ def fit_house(
             "best of %d chains: kept chain %d (seed %d); best objectives %s", chains, kept,
             seed + kept, [round(r.best_objective, 1) for r in results],
         )  # fmt: skip
+    log_degenerate_map(results[kept], house)
     return results[kept]
 
 

@@ -27,7 +27,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("likelihood", "initialisation", "semantic_map"),
     ("gibbs", "guides", "inference", "simulate", "variational", "posterior_means"),
     ("registry",),
-    ("results", "uncertainty", "concept_words", "point_estimate"),
+    ("results", "uncertainty", "concept_words", "point_estimate", "map_checks"),
     (
         "metrics",
         "plotting",
