@@ -42,13 +42,14 @@ def _simulate(args: argparse.Namespace) -> int:
     if args.categories is not None:
         raise ValueError("--categories needs --map (the synthetic house draws its own rooms)")
     args.name = args.name or "synthetic"
-    if args.density == "sparse":  # as sparse as the public houses (HouseSpec.public_like)
+    if args.density in ("sparse", "open-plan"):  # HouseSpec.public_like / HouseSpec.open_plan
         changes: dict[str, object] = dict(sentence_fraction=args.sentences)
         if args.size:
             changes.update(height=args.size[0], width=args.size[1])
         if args.rooms is not None:
             changes["num_rooms"] = args.rooms
-        spec = HouseSpec.public_like(**changes)
+        factory = HouseSpec.public_like if args.density == "sparse" else HouseSpec.open_plan
+        spec = factory(**changes)
     else:
         spec = HouseSpec.scaled(*args.size, sentence_fraction=args.sentences) if args.size else None
         if spec is None and (args.sentences or args.rooms is not None):
@@ -170,11 +171,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--size", type=int, nargs=2, metavar=("H", "W"),
                    help="map size in cells; the number of rooms grows with the area "
                         "(default: 60 x 80 cells, 5 rooms)")  # fmt: skip
-    p.add_argument("--density", choices=("dense", "sparse"), default="dense",
+    p.add_argument("--density", choices=("dense", "sparse", "open-plan"), default="dense",
                    help="dense: the default house (4.9%% of the free cells observed); sparse: as "
                         "sparse as the public houses (HouseSpec.public_like: 0.05 m cells, "
-                        "~23,500 free, ~70 observed, 0.3%%)")  # fmt: skip
-    p.add_argument("--rooms", type=int, help="walled rooms (default: the setting's own)")
+                        "~23,500 free, ~70 observed, 0.3%%); open-plan: as sparse, 65%% of it "
+                        "one walled space holding living, dining and kitchen with no wall "
+                        "between them, plus 3 small walled rooms "
+                        "(HouseSpec.open_plan)")  # fmt: skip
+    p.add_argument("--rooms", type=int, help="walled rooms (default: the setting's own; "
+                   "open-plan: 4, one of them the open plan)")  # fmt: skip
     p.add_argument("--sentences", type=float, default=0.0,
                    help="share of utterances given as sentences (tf-idf setting)")  # fmt: skip
     p.add_argument("--overwrite", action="store_true",

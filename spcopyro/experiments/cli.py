@@ -265,7 +265,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--houses",
         nargs="+",
-        help="synthetic settings (default: dense sparse dense-large sparse-small)",
+        help="synthetic settings (default: dense sparse dense-large sparse-small open-plan)",
     )
     p.add_argument("--seeds", type=int, help="synthetic seeds 0..n-1 (default 10)")
     p.add_argument("--public-seeds", type=int, help="seeds per public house (default 3)")

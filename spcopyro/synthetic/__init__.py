@@ -13,7 +13,8 @@ Modules (everything public is re-exported here, so ``from spcopyro.synthetic imp
   :func:`lexicon_for`), sentence templates and :data:`FILLER_WORDS`.
 * :mod:`~spcopyro.synthetic.spec`: :class:`HouseSpec` (every knob, validated),
   :class:`HouseSpecError`, sizes and :meth:`HouseSpec.scaled` for benchmarks,
-  :meth:`HouseSpec.public_like` (as sparse as the public houses).
+  :meth:`HouseSpec.public_like` (as sparse as the public houses), :meth:`HouseSpec.open_plan`
+  (public-like, most of it one open-plan space of three categories).
 * :mod:`~spcopyro.synthetic.statistics`: :func:`house_statistics` (free and observed cells,
   density, images, utterances, tour) and :func:`statistics_table`, public and synthetic alike.
 * :mod:`~spcopyro.synthetic.floor_plan`: how a house is drawn, steps 1-3: rooms by binary space
