@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import shlex
 import sys
 import time
@@ -38,6 +39,7 @@ from spcopyro.config import (
     preset_inference,
 )
 from spcopyro.data import House
+from spcopyro.data.model_grid import model_house
 from spcopyro.gibbs.backends import get_backend
 from spcopyro.gibbs.hyperparameters import describe_hyperparameters
 from spcopyro.gibbs.options import BACKENDS, GibbsOptions
@@ -101,6 +103,7 @@ def _fit(args: argparse.Namespace) -> int:
     house = _load(args.data)
     args.phases.mark("load")
     settings, options = _fit_settings(args, house)
+    house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
     staged = stage_output(args.out, overwrite=args.overwrite, resume=args.resume)
     args.phases.mark("settings")
     keeper = None  # keeps the Gibbs chains for a checkpoint beside OUT
@@ -195,6 +198,21 @@ def _resume_command(args: argparse.Namespace, checkpoint: Path) -> str:
     return shlex.join(["spcopyro", *argv, "--resume", str(checkpoint)])
 
 
+def _cell_size(value: str | None) -> float | None | str:
+    """``--cell-size``: None (unset: the preset's), 'map' (the map's own cells) or metres."""
+    if value is None:
+        return None
+    if value == "map":
+        return "map"
+    try:
+        size = float(value)
+    except ValueError:
+        size = float("nan")
+    if not (math.isfinite(size) and size > 0):
+        raise ValueError(f"--cell-size {value!r}: give a positive number of metres or 'map'")
+    return size
+
+
 def _fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings, object | None]:
     """The model and data settings and the method's options (None: its defaults) of ``fit``."""
     overrides = dict(
@@ -204,6 +222,7 @@ def _fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings,
         word_weighting="tfidf" if args.tfidf else None,
         feature_scaling=_feature_scaling(args.feature_scaling),
         snap_distance=args.snap_distance, footprint_radius=args.footprint,
+        cell_size=_cell_size(args.cell_size), word_scaling=args.word_scaling,
         footprint_kernel=args.footprint_kernel, footprint_fov=args.footprint_fov,
     )  # fmt: skip
     if args.preset == "paper-dirichlet" and args.concepts is None and house.category_names:
@@ -548,6 +567,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "random streams from one seed")  # fmt: skip
     p.add_argument("--snap-distance", type=float, default=DEFAULT_SNAP_DISTANCE,
                    help="metres an observation may be moved onto free space")  # fmt: skip
+    p.add_argument("--cell-size", default=None, metavar="METRES",
+                   help="the model's grid: fit on cells of about METRES a side (the map "
+                        "coarsened, walls kept), or 'map' for the map's own cells "
+                        f"{_PRESET_DEFAULT}")  # fmt: skip
+    p.add_argument("--word-scaling", type=float, default=None, metavar="S",
+                   help="count each utterance's words S times: the words' weight against the "
+                        f"images and the MRF {_PRESET_DEFAULT}")  # fmt: skip
     p.add_argument("--footprint", type=float, default=None, metavar="RADIUS",
                    help="observation footprint: spread each observation over the free cells "
                         "within RADIUS metres (geodesic, never through walls), weights summing "

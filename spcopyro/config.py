@@ -20,7 +20,14 @@ Presets (:func:`preset`) give both layers at once, as :class:`SpCoSettings`:
 ``original-code``
     The released implementation's values: alpha 1e7, beta 0.1, chi 1.0, gamma 2.1, L 120,
     image features as floor(100 f).
-``auto`` (the default)
+``coarse`` (the default)
+    Chosen on the public houses against the project's region truth, the synthetic houses and
+    the open-plan houses together (issue 21; docs/real_houses.md, ``benchmarks/real_houses.py``):
+    ``auto``'s model on a model grid of 0.25 m cells (``cell_size``: the Potts border cost per
+    metre and the label-count prior no longer grow with the map's resolution), each utterance
+    counted 10 times (``word_scaling``) and spread over a 1 m footprint, image histograms as
+    probabilities (one observation each, not 100 draws), and ``auto``'s inference settings.
+``auto``
     What the ablation of issue #14 supports (README, "Maps that are right out of the box"):
     the released code's emissions (beta 0.1, chi 1.0, floor(100 f): word and image tables the
     data can move, where the paper's beta 500 / chi 1e4 leave every concept's words uniform),
@@ -72,11 +79,16 @@ PRESETS: dict[str, dict[str, object]] = {
         prior="dp", alpha=1e7, beta=0.1, chi=1.0, gamma=3.0, num_concepts=120,
         feature_scaling="floor100",
     ),
+    "coarse": dict(
+        prior="dp", alpha=1e7, beta=0.1, chi=1.0, gamma=3.0, num_concepts=120,
+        feature_scaling="probability", cell_size=0.25, word_scaling=10.0, footprint_radius=1.0,
+    ),
 }  # fmt: skip
-DEFAULT_PRESET = "auto"
+DEFAULT_PRESET = "coarse"
 
 PRESET_INFERENCE: dict[str, dict[str, object]] = {
     "auto": dict(init="rooms", merge_moves=0.2, point_estimate="vi"),
+    "coarse": dict(init="rooms", merge_moves=0.2, point_estimate="vi"),
 }
 """The inference settings a preset recommends beside its model (names of ``fit_house`` keyword
 arguments and :class:`~spcopyro.gibbs.options.GibbsOptions` fields, as plain values so that this
@@ -234,6 +246,15 @@ class DataPreparation:
         footprint_kernel: ``"uniform"`` or ``"gaussian"`` (sigma = radius / 2) weights.
         footprint_fov: degrees: an image informs only the cells within +-fov/2 of its yaw
             (needs the data's image yaw); None: the whole disc. Words always use the disc.
+        word_scaling: s > 0: each utterance's word counts (or tf-idf weights) times s, the
+            words' weight against the images and the MRF (1: the paper). A tempered likelihood,
+            as ``feature_scaling`` is for images (``floor100`` counts a histogram as 100 draws).
+        cell_size: metres, or None (the map's own cells, the paper): the model's grid. The map is
+            coarsened to cells of ``round(cell_size / resolution)`` map cells a side
+            (:mod:`spcopyro.maps.coarse`: a model cell is free when at least half of its map
+            cells are free and none is occupied), so the Potts border cost per metre and the
+            number of unobserved cells voting in the label prior no longer grow with the map's
+            resolution (docs/real_houses.md). The fit's result lives on that grid.
     """
 
     feature_scaling: FeatureScaling = "probability"
@@ -242,6 +263,8 @@ class DataPreparation:
     footprint_radius: float = 0.0
     footprint_kernel: FootprintKernel = "uniform"
     footprint_fov: float | None = None
+    word_scaling: float = 1.0
+    cell_size: float | None = None
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -265,6 +288,12 @@ class DataPreparation:
         fov = self.footprint_fov
         if fov is not None and not (_is_number(fov) and math.isfinite(fov) and 0 < fov <= 360):
             raise bad("footprint_fov", "must be None or an angle in degrees in (0, 360]")
+        ws = self.word_scaling
+        if not (_is_number(ws) and math.isfinite(ws) and ws > 0):
+            raise bad("word_scaling", "must be a positive finite number (1: the paper)")
+        size = self.cell_size
+        if size is not None and not (_is_number(size) and math.isfinite(size) and size > 0):
+            raise bad("cell_size", "must be None (the map's cells) or a positive number of metres")
 
     def replace(self, **changes: object) -> DataPreparation:
         """A copy with some fields changed (validated again)."""
@@ -307,6 +336,8 @@ def preset(name: str = DEFAULT_PRESET, **overrides: object) -> SpCoSettings:
         raise ValueError(f"unknown preset {name!r}; choose one of {sorted(PRESETS)}")
     values = dict(PRESETS[name])
     values.update({k: v for k, v in overrides.items() if v is not None})
+    if values.get("cell_size") == "map":  # the map's own cells, over a preset's cell size
+        values["cell_size"] = None
     if values.get("num_concepts") is None:
         raise ValueError(
             f"preset {name!r} needs num_concepts (the known number of place categories)"

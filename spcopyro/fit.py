@@ -29,6 +29,7 @@ import torch
 from spcopyro import __version__
 from spcopyro.config import WORDS, SpCoConfig, SpCoSettings, preset
 from spcopyro.data import CellCounts, House, cell_counts
+from spcopyro.data.model_grid import model_house
 from spcopyro.fit_gibbs import (
     FitCheckpoint,
     gibbs_outputs,
@@ -250,6 +251,7 @@ def prepare_model_data(
         footprint_radius=settings.data.footprint_radius,
         footprint_kernel=settings.data.footprint_kernel,
         footprint_fov=settings.data.footprint_fov,
+        word_scaling=settings.data.word_scaling,
     )
     counts.placement.check_on_free(where)
     data = make_model_data(house.grid, counts, settings.model.connectivity)
@@ -431,6 +433,7 @@ def fit_house_chains(
     if len(seeds) == 0:
         raise ValueError("seeds must name at least one chain")
     settings = preset() if settings is None else settings
+    house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
     inference = get_method(method)
     if not isinstance(inference, GibbsInference) and (checkpoint or resume):
         raise ValueError(f"checkpoints hold Gibbs chains; the {method!r} method keeps none")
@@ -512,6 +515,8 @@ def fit_house(
             previous setting is restored afterwards; labels do not depend on it.
         marginal_samples, point_estimate, chain_workers: see :func:`fit_house_chains`.
     """
+    settings = preset() if settings is None else settings
+    house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
     if not isinstance(chains, int) or chains < 1:
         raise ValueError(f"chains must be a positive integer, got {chains!r}")
     if sweeps == "auto":
@@ -566,6 +571,7 @@ def fit_house_converged(
     ``threads``: as for :func:`fit_house`.
     """
     settings = preset() if settings is None else settings
+    house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
     options = GibbsOptions() if options is None else options
     count = resolve_threads(threads, house.grid.num_free)
     counts, data = prepare_model_data(house, settings)

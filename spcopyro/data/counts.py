@@ -198,6 +198,7 @@ def cell_counts(
     footprint_radius: float = 0.0,
     footprint_kernel: FootprintKernel = "uniform",
     footprint_fov: float | None = None,
+    word_scaling: float = 1.0,
 ) -> CellCounts:
     """Sum the observations per free cell (the model's sufficient statistics).
 
@@ -228,7 +229,8 @@ def cell_counts(
     cell with weights w_oc summing to 1 (``footprint_kernel``; ``footprint_fov`` degrees around
     ``obs.image_yaw`` for images), so each sum above becomes sum_o w_oc counts_o and the observed
     cells are every cell with a positive weight. ``footprint_radius = 0`` leaves the counts
-    exactly as without it.
+    exactly as without it. ``word_scaling`` s multiplies every utterance's word counts (or
+    tf-idf weights) by s before they are placed (``DataPreparation.word_scaling``).
 
     Counts are checked by :func:`check_count_totals` (finite, totals at most
     :data:`MAX_COUNT_TOTAL`): ``source``, the house folder the observations were read from
@@ -258,6 +260,8 @@ def cell_counts(
         words = word_matrix(obs.utterances, vocab)  # [U, V]
     else:
         words = tfidf_weights(obs.utterances, vocab)  # [U, V]
+    if word_scaling != 1.0:
+        words = words * float(word_scaling)  # [U, V]: each utterance counted s times
     check_count_totals(features, IMAGES, raw=obs.image_features, scaling=feature_scaling,
                        source=source)  # fmt: skip
     check_count_totals(words, WORDS, source=source)
@@ -273,7 +277,8 @@ def cell_counts(
     if footprint_radius:
         return _with_footprint(
             cell_counts(grid, obs, feature_scaling=feature_scaling, word_weighting=word_weighting,
-                        snap_distance=snap_distance, vocabulary=vocab, source=source),
+                        snap_distance=snap_distance, vocabulary=vocab, source=source,
+                        word_scaling=word_scaling),
             grid, obs, features, words, (image_cell, word_cell, [cell for cell, _, _ in further]),
             footprint_radius, footprint_kernel, footprint_fov,
         )  # fmt: skip

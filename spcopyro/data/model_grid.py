@@ -1,0 +1,39 @@
+"""A house on the model's grid (``DataPreparation.cell_size``, :mod:`spcopyro.maps.coarse`)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from spcopyro.data.dataset import House
+from spcopyro.maps.coarse import coarsen_grid, coarsening_factor, model_cell_of
+
+__all__ = ["model_house"]
+
+
+def _coarsen_truth(house: House, factor: int, coarse_free: np.ndarray) -> np.ndarray:
+    """``[h, w]`` truth: each free model cell's most frequent category among its map cells'
+    (the smallest on ties), -1 where none is labelled or off free."""
+    truth = np.asarray(house.truth)  # [H, W]
+    rows, cols = model_cell_of(house.grid, factor)
+    labelled = truth >= 0
+    block = rows[:, None] * coarse_free.shape[1] + cols[None, :]  # [H, W] model cell id
+    num_categories = int(truth.max()) + 1 if labelled.any() else 1
+    votes = np.zeros((coarse_free.size, num_categories), dtype=np.int64)  # [h*w, K]
+    np.add.at(votes, (block[labelled], truth[labelled]), 1)
+    best = np.where(votes.any(axis=1), votes.argmax(axis=1), -1).reshape(coarse_free.shape)
+    return np.where(coarse_free, best, -1).astype(np.int64)
+
+
+def model_house(house: House, cell_size: float | None) -> House:
+    """The house with its map coarsened to the model's cells of about ``cell_size`` metres
+    (:func:`~spcopyro.maps.coarse.coarsen_grid`; the observations are world positions and stay
+    as they are; a ground truth is coarsened by majority). ``None``, or a cell size that rounds
+    to the map's own cells, returns the house itself, so applying it twice changes nothing."""
+    factor = coarsening_factor(house.grid.resolution, cell_size)
+    if factor == 1:
+        return house
+    grid = coarsen_grid(house.grid, factor)
+    truth = None if house.truth is None else _coarsen_truth(house, factor, grid.free)
+    return dataclasses.replace(house, grid=grid, truth=truth)

@@ -1,0 +1,95 @@
+r"""The model's grid when it is coarser than the map's: coarsening, and labels back on the map.
+
+SpCoMapping's Potts prior couples neighbouring *cells*, so its answer depends on the cell size:
+a border of length b metres costs gamma * b / resolution nats, and every unobserved cell votes in
+the label prior, while the observations stay as many as they are. At 0.05 m (the public houses)
+a 3 m border costs 180 nats at gamma 3, against about 10 nats that two places' words gain from
+being told apart: the posterior puts the whole house in one concept (docs/real_houses.md).
+Fitting on cells of about 0.25 m keeps the map's walls and doorways and makes the model's answer
+a property of the house, not of the scanner's resolution.
+
+Coarsening by an integer factor f (:func:`coarsen_grid`): the map is padded with UNKNOWN cells
+at the top and on the right (so the origin, the lower-left corner, stays where it is) to a
+multiple of f, and cut into f x f blocks. A block is
+
+* OCCUPIED if any of its map cells is occupied (walls are never lost; they thicken to one
+  model cell),
+* FREE if at least half of its map cells are free and none is occupied,
+* UNKNOWN otherwise.
+
+A map cell (row r, col c) lies in model cell ``((r + pad) // f, c // f)`` with ``pad`` the
+padding rows (:func:`model_cell_of`). :func:`refine_labels` takes a model label image back to the
+map: every free map cell takes its block's label, or, where its block is not free (next to a
+wall), the label of the nearest free block.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import ndimage
+
+from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
+
+__all__ = ["coarsen_grid", "coarsening_factor", "model_cell_of", "refine_labels"]
+
+
+def coarsening_factor(resolution: float, cell_size: float | None) -> int:
+    """Map cells per model cell side: ``round(cell_size / resolution)``, at least 1 (None: 1)."""
+    if cell_size is None:
+        return 1
+    if not (math.isfinite(cell_size) and cell_size > 0):
+        raise ValueError(f"cell_size must be a positive number of metres, got {cell_size!r}")
+    return max(1, int(math.floor(cell_size / resolution + 0.5)))
+
+
+def _padding(grid: OccupancyGrid, factor: int) -> tuple[int, int]:
+    return (-grid.height) % factor, (-grid.width) % factor
+
+
+def coarsen_grid(grid: OccupancyGrid, factor: int) -> OccupancyGrid:
+    """The grid of ``factor x factor`` blocks of ``grid`` (module docstring); ``factor`` 1: the
+    grid itself."""
+    if isinstance(factor, bool) or not isinstance(factor, int | np.integer) or factor < 1:
+        raise ValueError(f"factor must be an integer >= 1, got {factor!r}")
+    if factor == 1:
+        return grid
+    pad_rows, pad_cols = _padding(grid, factor)
+    occupancy = np.pad(
+        np.asarray(grid.occupancy), ((pad_rows, 0), (0, pad_cols)), constant_values=UNKNOWN
+    )  # [H', W'], multiples of factor
+    h, w = occupancy.shape[0] // factor, occupancy.shape[1] // factor
+    blocks = occupancy.reshape(h, factor, w, factor).swapaxes(1, 2)  # [h, w, f, f]
+    occupied = (blocks == OCCUPIED).any(axis=(2, 3))  # [h, w]
+    free = (blocks == FREE).sum(axis=(2, 3)) * 2 >= factor * factor  # [h, w]
+    coarse = np.full((h, w), UNKNOWN, dtype=np.int8)
+    coarse[free] = FREE
+    coarse[occupied] = OCCUPIED
+    resolution = round(grid.resolution * factor, 12)  # 0.1 * 3 -> 0.3, not 0.30000000000000004
+    return OccupancyGrid(coarse, resolution, grid.origin, source=grid.source)
+
+
+def model_cell_of(grid: OccupancyGrid, factor: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(rows [H], cols [W])``: the model-grid row of every map row and column of every map
+    column under :func:`coarsen_grid` with ``factor``."""
+    pad_rows, _ = _padding(grid, factor)
+    return (np.arange(grid.height) + pad_rows) // factor, np.arange(grid.width) // factor
+
+
+def refine_labels(labels: np.ndarray, grid: OccupancyGrid, factor: int) -> np.ndarray:
+    """``[H, W]`` labels on ``grid`` (the map) from ``[h, w]`` labels on its coarsened grid
+    (-1 off free): each free map cell takes its block's label, or the nearest labelled
+    block's where its own is not free; -1 off free."""
+    labels = np.asarray(labels)
+    if factor == 1:
+        return np.where(grid.free, labels, -1)
+    labelled = labels >= 0  # [h, w]
+    if not labelled.any():
+        return np.full(grid.shape, -1, dtype=np.int64)
+    nearest = ndimage.distance_transform_edt(
+        ~labelled, return_distances=False, return_indices=True
+    )  # [2, h, w]
+    filled = labels[nearest[0], nearest[1]]  # [h, w]
+    rows, cols = model_cell_of(grid, factor)
+    return np.where(grid.free, filled[rows[:, None], cols[None, :]], -1).astype(np.int64)
