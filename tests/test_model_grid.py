@@ -1,0 +1,125 @@
+"""The model's grid (``cell_size``), word scaling and the public houses' region truth (issue 21)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from spcopyro.config import DataPreparation, preset
+from spcopyro.data import cell_counts, find_dataset_root, load_house
+from spcopyro.data.model_grid import model_house
+from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
+from spcopyro.maps.coarse import coarsen_grid, coarsening_factor, model_cell_of, refine_labels
+from spcopyro.synthetic import HouseSpec, make_house
+
+
+def _two_rooms() -> OccupancyGrid:
+    """9 x 10 cells at 0.05 m: two rooms split by a one-cell wall at column 4 with a door."""
+    occ = np.full((9, 10), FREE, dtype=np.int8)
+    occ[:, 4] = OCCUPIED
+    occ[4, 4] = FREE  # the door
+    return OccupancyGrid(occ, 0.05, (-1.0, -2.0, 0.0))
+
+
+def test_coarsening_factor_rounds_and_is_at_least_one():
+    assert coarsening_factor(0.05, None) == 1
+    assert coarsening_factor(0.05, 0.25) == 5
+    assert coarsening_factor(0.1, 0.25) == 3  # 2.5 rounds up
+    assert coarsening_factor(0.5, 0.25) == 1
+    with pytest.raises(ValueError, match="cell_size"):
+        coarsening_factor(0.05, -1.0)
+
+
+def test_coarse_grid_keeps_walls_origin_and_world_positions():
+    grid = _two_rooms()
+    coarse = coarsen_grid(grid, 2)
+    assert coarse.resolution == 0.1 and coarse.origin == grid.origin
+    assert coarse.shape == (5, 5)  # 9 rows padded on top to 10, 10 columns
+    # Every block holding a wall cell is occupied: the wall is never lost.
+    rows, cols = model_cell_of(grid, 2)
+    wall = np.asarray(grid.occupancy) == OCCUPIED
+    assert np.all(np.asarray(coarse.occupancy)[rows[:, None], cols[None, :]][wall] == OCCUPIED)
+    # The padded top row's blocks hold 2 free map cells of 4: free (at least half), but the
+    # wall's column stays occupied.
+    assert list(np.asarray(coarse.occupancy)[0]) == [FREE, FREE, OCCUPIED, FREE, FREE]
+    # A world point lands in the model cell that holds its map cell.
+    xy = grid.cell_to_world(grid.free_cells)  # [N, 2] centres
+    fine = grid.world_to_cell(xy)
+    assert np.array_equal(
+        coarse.world_to_cell(xy), np.stack([rows[fine[:, 0]], cols[fine[:, 1]]], 1)
+    )
+
+
+def test_refine_labels_gives_every_free_map_cell_a_label():
+    grid = _two_rooms()
+    coarse = coarsen_grid(grid, 2)
+    labels = np.where(
+        coarse.free, np.arange(coarse.height * coarse.width).reshape(coarse.shape), -1
+    )
+    fine = refine_labels(labels, grid, 2)
+    assert np.all(fine[grid.free] >= 0) and np.all(fine[~grid.free] == -1)
+    rows, cols = model_cell_of(grid, 2)
+    block = labels[rows[:, None], cols[None, :]]
+    keep = grid.free & (block >= 0)
+    assert np.array_equal(fine[keep], block[keep])  # a free block's cells keep its label
+
+
+def test_model_house_is_idempotent_and_coarsens_the_truth():
+    house = make_house(seed=0, spec=HouseSpec())
+    assert model_house(house, None) is house
+    coarse = model_house(house, 0.25)
+    assert coarse.grid.resolution == pytest.approx(0.3)
+    assert model_house(coarse, 0.25) is coarse
+    assert coarse.truth.shape == coarse.grid.shape
+    assert np.all(coarse.truth[~coarse.grid.free] == -1)
+    assert set(np.unique(coarse.truth[coarse.grid.free])) <= set(range(len(house.category_names)))
+    assert coarse.observations is house.observations
+
+
+def test_word_scaling_multiplies_word_counts_only():
+    house = make_house(seed=1, spec=HouseSpec())
+    plain = cell_counts(house.grid, house.observations)
+    scaled = cell_counts(house.grid, house.observations, word_scaling=10.0)
+    np.testing.assert_allclose(scaled.word_counts, 10.0 * plain.word_counts)
+    np.testing.assert_array_equal(scaled.image_counts, plain.image_counts)
+    with pytest.raises(ValueError, match="word_scaling"):
+        DataPreparation(word_scaling=0.0)
+    with pytest.raises(ValueError, match="cell_size"):
+        DataPreparation(cell_size=float("nan"))
+
+
+def test_cell_size_map_over_a_preset_means_the_maps_own_cells():
+    assert preset("coarse").data.cell_size == 0.25
+    assert preset("coarse", cell_size="map").data.cell_size is None
+
+
+def test_default_fit_on_the_model_grid_scores_against_the_truth():
+    from spcopyro.fit import fit_house
+    from spcopyro.gibbs import GibbsOptions
+    from spcopyro.metrics import adjusted_rand_index
+
+    house = make_house(seed=0, spec=HouseSpec())
+    result = fit_house(house, preset(), options=GibbsOptions(merge_moves=0.2), sweeps=300,
+                       init="rooms", progress=False, marginal_samples=50,
+                       point_estimate="vi")  # fmt: skip
+    assert result.grid.resolution == pytest.approx(0.3)
+    fine = refine_labels(result.label_image(), house.grid, 3)
+    assert adjusted_rand_index(fine, house.truth) > 0.8
+
+
+@pytest.mark.dataset
+def test_public_truth_has_a_category_per_place_word_and_labels_every_reached_cell():
+    from spcopyro.experiments.public_truth import PLACE_CATEGORIES, public_truth
+
+    root = find_dataset_root()
+    if root is None:
+        pytest.skip("public dataset not found ($SPCOPYRO_DATA or ../shared/data/spcomapping)")
+    house = load_house(root / "room1ldk4")
+    truth = public_truth(house)
+    words = {tokens[-1] for tokens in house.observations.utterances}
+    assert set(truth.categories) == {PLACE_CATEGORIES[w] for w in words if w in PLACE_CATEGORIES}
+    assert np.all(truth.labels[~house.grid.free] == -1)
+    assert (truth.labels[house.grid.free] >= 0).mean() > 0.99
+    assert 0 < len(truth.strays) < truth.num_place_utterances / 4
+    # The same evidence gives the same truth (a reproducible method).
+    np.testing.assert_array_equal(public_truth(house).labels, truth.labels)
