@@ -220,8 +220,12 @@ def test_initial_labels_are_checked():
 
 def test_presets_and_validation():
     assert isinstance(preset(), SpCoSettings)
-    assert preset() == preset("auto")  # the default since issue #14
-    assert preset().model.gamma == 3.0 and preset().data.feature_scaling == "floor100"
+    assert preset() == preset("coarse")  # the default since issue #21 (auto from #14)
+    assert preset().model.gamma == 3.0 and preset().data.feature_scaling == "probability"
+    assert preset().data.cell_size == 0.25 and preset().data.word_scaling == 10.0
+    assert (
+        preset("auto").data.feature_scaling == "floor100" and preset("auto").data.cell_size is None
+    )
     assert preset("paper-dp").model.gamma == 4.0 and preset("paper-dp").model.num_concepts == 120
     assert preset("paper-dp").model.beta == 500.0  # the paper's presets stay as they were
     assert preset_inference("auto") == dict(init="rooms", merge_moves=0.2, point_estimate="vi")
@@ -251,7 +255,7 @@ def test_presets_and_validation():
         SpCoConfig(gamma=-1.0)
     with pytest.raises(ValueError, match="alpha"):
         SpCoConfig(alpha=0.0)
-    assert set(PRESETS) == {"auto", "paper-dp", "paper-dirichlet", "original-code"}
+    assert set(PRESETS) == {"coarse", "auto", "paper-dp", "paper-dirichlet", "original-code"}
     # ln(1 + sqrt(120)) = 2.48: the released code's gamma 2.1 is below it.
     assert preset("original-code").model.critical_gamma == pytest.approx(2.4811, abs=1e-4)
     assert "below the Potts critical coupling" in gamma_warning(preset("original-code").model)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import logging
 
 import numpy as np
 
@@ -30,10 +31,22 @@ def model_house(house: House, cell_size: float | None) -> House:
     """The house with its map coarsened to the model's cells of about ``cell_size`` metres
     (:func:`~spcopyro.maps.coarse.coarsen_grid`; the observations are world positions and stay
     as they are; a ground truth is coarsened by majority). ``None``, or a cell size that rounds
-    to the map's own cells, returns the house itself, so applying it twice changes nothing."""
+    to the map's own cells, returns the house itself, so applying it twice changes nothing;
+    so does a map whose free space is too thin to leave a free model cell (with a warning)."""
     factor = coarsening_factor(house.grid.resolution, cell_size)
     if factor == 1:
         return house
     grid = coarsen_grid(house.grid, factor)
+    if grid.num_free == 0:  # thin free space only (or an inverted map): the map's own cells
+        logging.getLogger("spcopyro").warning(
+            "house %r: cells of %g m leave no free cell of map %s (%d free cells of %g m); "
+            "fitting on the map's own cells",
+            house.name,
+            grid.resolution,
+            house.grid.source or "",
+            house.grid.num_free,
+            house.grid.resolution,
+        )
+        return house
     truth = None if house.truth is None else _coarsen_truth(house, factor, grid.free)
     return dataclasses.replace(house, grid=grid, truth=truth)

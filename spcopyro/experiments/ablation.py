@@ -38,6 +38,7 @@ import numpy as np
 import torch
 
 from spcopyro.data import House, list_houses, load_house, place_observations
+from spcopyro.data.model_grid import model_house
 from spcopyro.experiments.ablation_report import TABLE2_CATEGORIES, settings_json, write_report
 from spcopyro.experiments.ablation_variants import Variant, parse_variant
 from spcopyro.experiments.methods import RunSettings, fit_method
@@ -275,6 +276,9 @@ def run_job(job: Job) -> dict[str, object]:
         record["seconds"] = time.perf_counter() - start
         record["cpu_seconds"] = time.process_time() - cpu
     else:
+        # A variant with a model grid (cell_size) is scored on that grid: its result lives there.
+        cell_size = job.variant.spco_settings(num_categories).data.cell_size
+        house = model_house(house, cell_size)
         result, record["seconds"], record["cpu_seconds"] = _fit_variant(job, house, num_categories)
         model = SpCoSemanticMap(result)
         record["concepts"] = int(len(result.concepts_in_use()))

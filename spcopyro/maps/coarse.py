@@ -28,7 +28,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import ndimage
 
 from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 
@@ -79,17 +78,36 @@ def model_cell_of(grid: OccupancyGrid, factor: int) -> tuple[np.ndarray, np.ndar
 
 def refine_labels(labels: np.ndarray, grid: OccupancyGrid, factor: int) -> np.ndarray:
     """``[H, W]`` labels on ``grid`` (the map) from ``[h, w]`` labels on its coarsened grid
-    (-1 off free): each free map cell takes its block's label, or the nearest labelled
-    block's where its own is not free; -1 off free."""
+    (-1 off free): each free map cell in a labelled block takes the block's label; the others
+    (in blocks that hold a wall) take the label that reaches them first by growing through the
+    map's free cells (4-neighbourhood, never through a wall), and free cells no label reaches
+    the nearest labelled block's. -1 off free."""
     labels = np.asarray(labels)
     if factor == 1:
         return np.where(grid.free, labels, -1)
-    labelled = labels >= 0  # [h, w]
-    if not labelled.any():
+    if not (labels >= 0).any():
         return np.full(grid.shape, -1, dtype=np.int64)
-    nearest = ndimage.distance_transform_edt(
-        ~labelled, return_distances=False, return_indices=True
-    )  # [2, h, w]
-    filled = labels[nearest[0], nearest[1]]  # [h, w]
     rows, cols = model_cell_of(grid, factor)
-    return np.where(grid.free, filled[rows[:, None], cols[None, :]], -1).astype(np.int64)
+    free = np.asarray(grid.free)  # [H, W]
+    fine = np.where(free, labels[rows[:, None], cols[None, :]], -1).astype(np.int64)  # [H, W]
+    h, w = fine.shape
+    while True:  # breadth-first growth through free cells (up, down, left, right: first wins)
+        missing = free & (fine < 0)
+        if not missing.any():
+            return fine
+        padded = np.pad(fine, 1, constant_values=-1)
+        candidate = np.full_like(fine, -1)
+        for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+            shifted = padded[1 + dr : 1 + dr + h, 1 + dc : 1 + dc + w]
+            candidate = np.where(candidate < 0, shifted, candidate)
+        grow = missing & (candidate >= 0)
+        if not grow.any():
+            break
+        fine[grow] = candidate[grow]
+    from scipy import ndimage  # here, not on the fit's import path
+
+    nearest = ndimage.distance_transform_edt(
+        labels < 0, return_distances=False, return_indices=True
+    )  # [2, h, w]
+    filled = labels[nearest[0], nearest[1]][rows[:, None], cols[None, :]]  # [H, W]
+    return np.where(free & (fine < 0), filled, fine).astype(np.int64)
