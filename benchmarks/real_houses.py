@@ -17,6 +17,13 @@ for the default preset (with its inference settings), the previous default ``aut
 houses (seeds 0..n-1; their own truth): ``open-plan`` (several categories in one walled space),
 ``sparse`` (``HouseSpec.public_like``) and ``dense`` (the embedded default house).
 
+Further sections (each from the same run): held-out word top-1 on the public houses (fit on two
+trials, predict the third's words from where they were said; one fold per house), every
+inference method's default on the public houses (``--method-iterations`` iterations), a
+simulated tour on each public map (``simulate --map`` at the 2 m door width its help recommends
+for these houses) scored against the simulation's own truth, and the default fit run four times
+as long.
+
 Prints markdown tables and writes the JSON (per house and method, and the means).
 """
 
@@ -36,11 +43,13 @@ from spcopyro.baselines.nearest import nearest_word_map
 from spcopyro.config import DEFAULT_PRESET, preset, preset_inference
 from spcopyro.data import find_dataset_root, load_house
 from spcopyro.experiments.public_truth import public_truth
-from spcopyro.experiments.table import PUBLIC_CATEGORIES
+from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
 from spcopyro.fit import fit_house
 from spcopyro.gibbs import GibbsOptions
+from spcopyro.map_simulation import MapTour, simulate_on_map
 from spcopyro.maps.coarse import coarsening_factor, refine_labels
-from spcopyro.metrics import adjusted_rand_index
+from spcopyro.metrics import adjusted_rand_index, heldout_word_prediction
+from spcopyro.semantic_map import SpCoSemanticMap
 from spcopyro.synthetic import HouseSpec, make_house
 
 PRESETS = (DEFAULT_PRESET, "auto", "paper-dp")
@@ -51,27 +60,45 @@ SYNTHETIC = {
 }
 
 
-def fit_preset(house, name: str, sweeps: int, seed: int) -> tuple[np.ndarray, float]:
-    """``[H, W]`` label image of the preset's default fit on the house's map, and seconds."""
+METHODS = ("cavi", "lbp", "svi", "stochastic-vi", "vi-gibbs")
+SIMULATION_DOOR_WIDTH = 2.0  # m: what `spcopyro simulate --help` recommends for these houses
+
+
+def fit_result(house, name: str, sweeps: int, seed: int, method: str = "gibbs"):
+    """The preset's default fit (its recommended inference settings for Gibbs; a variational
+    method with its default options) and its seconds."""
     settings = preset(name)
-    recommended = preset_inference(name)
+    recommended = preset_inference(name) if method == "gibbs" else {}
+    sampler = method in ("gibbs", "vi-gibbs")
+    estimate = str(recommended.get("point_estimate", "map-visited"))
     start = time.perf_counter()
     result = fit_house(
         house,
         settings,
-        options=GibbsOptions(merge_moves=float(recommended.get("merge_moves", 0.0))),
+        method=method,
+        options=GibbsOptions(merge_moves=float(recommended.get("merge_moves", 0.0)))
+        if method == "gibbs"
+        else None,
         sweeps=sweeps,
         seed=seed,
         init=str(recommended.get("init", "random")),
         progress=False,
-        marginal_samples=50
-        if recommended.get("point_estimate", "map-visited") != "map-visited"
-        else 0,
-        point_estimate=str(recommended.get("point_estimate", "map-visited")),
+        marginal_samples=50 if sampler and estimate != "map-visited" else 0,
+        point_estimate=estimate if sampler else "map-visited",
     )
-    seconds = time.perf_counter() - start
-    factor = coarsening_factor(house.grid.resolution, settings.data.cell_size)
-    return refine_labels(result.label_image(), house.grid, factor), seconds
+    return result, time.perf_counter() - start
+
+
+def on_map(result, house, name: str) -> np.ndarray:
+    """``[H, W]`` the result's labels on the house's own map cells."""
+    factor = coarsening_factor(house.grid.resolution, preset(name).data.cell_size)
+    return refine_labels(result.label_image(), house.grid, factor)
+
+
+def fit_preset(house, name: str, sweeps: int, seed: int) -> tuple[np.ndarray, float]:
+    """``[H, W]`` label image of the preset's default fit on the house's map, and seconds."""
+    result, seconds = fit_result(house, name, sweeps, seed)
+    return on_map(result, house, name), seconds
 
 
 def scores(labels: np.ndarray, truth: np.ndarray, free: np.ndarray) -> dict[str, float]:
@@ -98,6 +125,53 @@ def score_house(house, truth: np.ndarray, sweeps: int, seed: int) -> dict[str, d
         labels = geometry_semantic_map(house.grid, obs, door_width=door).labels
         rows[f"F geometry {door:g} m"] = scores(labels, truth, free)
     return rows
+
+
+def heldout_top1(house, sweeps: int) -> dict[str, float]:
+    """Held-out word top-1 (fold 0: the first trial held out) of the presets and baselines."""
+    _, _, train, test = next(iter(heldout_folds(house)))
+    out = {}
+    for name in PRESETS:
+        result, _ = fit_result(train, name, sweeps, 0)
+        out[name] = heldout_word_prediction(SpCoSemanticMap(result), test).top1
+    obs = train.observations
+    out["E nearest"] = heldout_word_prediction(nearest_word_map(train.grid, obs), test).top1
+    geometry = geometry_semantic_map(train.grid, obs, door_width=2.0)
+    out["F geometry 2 m"] = heldout_word_prediction(geometry, test).top1
+    return out
+
+
+def methods_on(house, truth: np.ndarray, iterations: int) -> dict[str, dict]:
+    """Every other inference method's default (options and preset) on a house."""
+    out = {}
+    for method in METHODS:
+        result, seconds = fit_result(house, DEFAULT_PRESET, iterations, 0, method=method)
+        labels = on_map(result, house, DEFAULT_PRESET)
+        out[method] = {**scores(labels, truth, house.grid.free), "seconds": seconds}
+        print(f"  {house.name} {method}: ARI {out[method]['ari']:.3f}", file=sys.stderr, flush=True)
+    return out
+
+
+def simulated_on(house, sweeps: int) -> dict[str, float]:
+    """``simulate --map`` on the house's map (2 m door width), then the default fit, scored
+    against the simulation's truth; the simulated rooms are never handed to the fit."""
+    simulated = simulate_on_map(
+        house.grid, seed=0, tour=MapTour(door_width=SIMULATION_DOOR_WIDTH), name=house.name
+    ).house
+    labels, seconds = fit_preset(simulated, DEFAULT_PRESET, sweeps, 0)
+    return {**scores(labels, simulated.truth, simulated.grid.free), "seconds": seconds}
+
+
+def simple_table(title: str, rows: dict[str, dict[str, float]], key: str | None, note: str) -> str:
+    houses = list(rows)
+    columns = list(next(iter(rows.values())))
+    lines = [f"### {title}", "", "| | " + " | ".join(houses) + " | mean |"]
+    lines.append("|---" * (len(houses) + 2) + "|")
+    for column in columns:
+        values = [rows[h][column] if key is None else rows[h][column][key] for h in houses]
+        cells = " | ".join(f"{v:.2f}" for v in values)
+        lines.append(f"| {column} | {cells} | {np.mean(values):.3f} |")
+    return "\n".join([*lines, "", note, ""])
 
 
 def table(title: str, per_house: dict[str, dict[str, dict]], expected: dict | None) -> str:
@@ -132,6 +206,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, default=3, help="synthetic seeds 0..n-1")
     parser.add_argument("--out", default="benchmarks/real_houses.json")
     parser.add_argument("--no-synthetic", action="store_true")
+    parser.add_argument(
+        "--method-iterations",
+        type=int,
+        default=200,
+        help="iterations of each variational method (and vi-gibbs' sweeps)",
+    )
+    parser.add_argument(
+        "--no-extras",
+        action="store_true",
+        help="only the ARI tables (no held-out words, methods, simulation, 4x)",
+    )
     args = parser.parse_args(argv)
     logging.getLogger("spcopyro").setLevel(logging.ERROR)
     report: dict[str, object] = {"default_preset": DEFAULT_PRESET, "sweeps": args.sweeps}
