@@ -271,9 +271,10 @@ def table_markdown(summary: dict[str, object]) -> str:
                 "Top-1 (means \\| labels): the same label map scored with pi and phi set to "
                 "their posterior means given it. t95 is measured on that score along the run.",
                 "",
-                "| method | top-1 | top-1 (means \\| labels) | top-3 | mean rank | distance (m) "
-                "| concepts | t95 top-1 (s) | s per fit | ESS/s log joint | ESS/s agreement |",
-                "|---|---|---|---|---|---|---|---|---|---|---|",
+                "| method | ARI (region truth) | top-1 | top-1 (means \\| labels) | top-3 "
+                "| mean rank | distance (m) | concepts | t95 top-1 (s) | s per fit "
+                "| ESS/s log joint | ESS/s agreement |",
+                "|---|---|---|---|---|---|---|---|---|---|---|---|",
             ]
         for key, s in by_variant.items():
             runs = len(records[key])
@@ -296,7 +297,7 @@ def table_markdown(summary: dict[str, object]) -> str:
             else:
                 f = s["final"]
                 lines.append(
-                    f"| {methods[key]} | {_fmt(f['top1'])} "
+                    f"| {methods[key]} | {_fmt(f.get('ari'))} | {_fmt(f['top1'])} "
                     f"| {_fmt(s['final_given_labels']['top1'])} | {_fmt(f['top3'])} "
                     f"| {_fmt(f['mean_rank'], 2)} | {_fmt(f['distance_m'], 2)} "
                     f"| {_fmt(s['concepts'], 1, False)} "

@@ -59,7 +59,9 @@ import torch
 
 from spcopyro.config import SpCoSettings, preset
 from spcopyro.data import House, Observations, list_houses, load_house
+from spcopyro.data.model_grid import model_house
 from spcopyro.experiments import comparison_stats as stats
+from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import heldout_folds
 from spcopyro.fit import prepare_model_data, result_of
 from spcopyro.inference import InferenceOutput, Trace
@@ -241,6 +243,8 @@ def _scores(result: SpCoResult, problem: Problem, final: bool) -> dict[str, floa
     model = SpCoSemanticMap(result)
     words = heldout_word_prediction(model, problem.test)
     scores = {"top1": words.top1}
+    if house.truth is not None:  # the public houses' region truth (public_truth)
+        scores["ari"] = adjusted_rand_index(result.label_image(), house.truth)
     if final:
         scores |= {"top3": words.top3, "mean_rank": words.mean_rank}
         scores["scored_words"] = float(words.num_scored)  # held-out tokens the model knows
@@ -378,8 +382,14 @@ def problems(settings: ComparisonSettings, house_type: str) -> list[Problem]:
     """The fits of one house type: synthetic seeds, or public houses x held-out folds."""
     if house_type == SYNTHETIC:
         spec = settings.synthetic_spec or (QUICK_SPEC if settings.quick else None)
+        cell_size = _settings(settings).data.cell_size
         return [
-            Problem(make_house(seed=s, spec=spec), _settings(settings), s, name=f"seed {s}")
+            Problem(
+                model_house(make_house(seed=s, spec=spec), cell_size),
+                _settings(settings),
+                s,
+                name=f"seed {s}",
+            )  # fmt: skip
             for s in range(settings.seeds)
         ]
     root = settings.dataset_root
@@ -389,6 +399,9 @@ def problems(settings: ComparisonSettings, house_type: str) -> list[Problem]:
     out = []
     for name in names:
         house = load_house(Path(root) / name)
+        truth = public_truth(house)  # scored on the project's region truth too
+        house = dataclasses.replace(house, truth=truth.labels, category_names=truth.categories)
+        house = model_house(house, _settings(settings).data.cell_size)
         for fold, held, train, test in heldout_folds(house):
             if settings.folds is not None and fold >= settings.folds:
                 break
