@@ -123,3 +123,22 @@ def test_public_truth_has_a_category_per_place_word_and_labels_every_reached_cel
     assert 0 < len(truth.strays) < truth.num_place_utterances / 4
     # The same evidence gives the same truth (a reproducible method).
     np.testing.assert_array_equal(public_truth(house).labels, truth.labels)
+
+
+def test_gibbs_conditionals_on_the_model_grid_equal_the_pyro_models_density_differences():
+    """The default's model (0.3 m model cells on the 0.1 m house, words x10 over a 1 m
+    footprint, images as probabilities) is the Pyro model on the coarse grid's counts: the
+    sampler's enumerated conditionals (eq. 13) equal the model's log-density differences."""
+    import torch
+    from statistical_checks import assert_conditionals_match_model
+
+    from spcopyro.fit import prepare_model_data
+    from spcopyro.gibbs.sampler import init
+
+    settings = preset(num_concepts=4)
+    house = model_house(make_house(seed=2, spec=HouseSpec()), settings.data.cell_size)
+    _, data = prepare_model_data(house, settings)
+    state = init(data, settings.model, torch.Generator().manual_seed(0))
+    rng = np.random.default_rng(0)
+    cells = np.sort(rng.choice(data.obs_cells.numpy(), 6, replace=False))
+    assert_conditionals_match_model(state, data, settings.model, torch.as_tensor(cells))
