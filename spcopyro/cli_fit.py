@@ -104,7 +104,10 @@ def _fit(args: argparse.Namespace) -> int:
     args.phases.mark("load")
     settings, options = _fit_settings(args, house)
     house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
-    staged = stage_output(args.out, overwrite=args.overwrite, resume=args.resume)
+    staged = stage_output(
+        args.out, overwrite=args.overwrite, resume=args.resume,
+        inputs=(house.source, house.grid.source, args.update),
+    )  # fmt: skip
     args.phases.mark("settings")
     keeper = None  # keeps the Gibbs chains for a checkpoint beside OUT
     if args.method == "gibbs" and args.sweeps != "auto" and args.update is None:

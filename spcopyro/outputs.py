@@ -28,7 +28,7 @@ import os
 import secrets
 import shutil
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -166,18 +166,26 @@ def check_output(
     *,
     overwrite: bool = False,
     resume: str | os.PathLike[str] | None = None,
+    inputs: Sequence[str | os.PathLike[str] | None] = (),
 ) -> Path:
     """Check that a fit may write ``out`` (absolute path returned); writes nothing.
 
-    Raises :class:`OutputError` when ``out`` is a file, when it is a non-empty folder and
-    ``overwrite`` is not given, when ``overwrite`` would replace a folder that no fit wrote (no
-    ``result.npz`` and ``config.json``) or one holding the current directory, and when
+    Raises :class:`OutputError` when ``out`` is a file, when it is or holds one of ``inputs``
+    (the data the fit reads: replacing ``out`` would delete it), when it is a non-empty folder
+    and ``overwrite`` is not given, when ``overwrite`` would replace a folder that no fit wrote
+    (no ``result.npz`` and ``config.json``) or one holding the current directory, and when
     ``OUT.checkpoint.npz`` holds an interrupted fit that this one neither resumes (``resume``)
     nor replaces (``overwrite``).
     """
     path = _absolute(out)
     if path.parent == path:
         raise OutputError(f"--out {out}: the root folder cannot be an output folder")
+    for read in inputs:
+        if read is not None and _absolute(read).resolve().is_relative_to(path.resolve()):
+            raise OutputError(
+                f"--out {out}: {path} holds the input {read}, which replacing the folder would "
+                "delete; choose an --out outside the data"
+            )
     existing = path
     while not existing.exists() and existing.parent != existing:
         existing = existing.parent  # the nearest part of the path that exists
@@ -212,10 +220,11 @@ def stage_output(
     *,
     overwrite: bool = False,
     resume: str | os.PathLike[str] | None = None,
+    inputs: Sequence[str | os.PathLike[str] | None] = (),
 ) -> StagedOutput:
     """:func:`check_output`, then create the staging folder beside ``out`` (and ``out``'s parent
     if missing): an unwritable place fails here, with :class:`OutputError`, before any work."""
-    path = check_output(out, overwrite=overwrite, resume=resume)
+    path = check_output(out, overwrite=overwrite, resume=resume, inputs=inputs)
     seen = _identity(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -357,3 +357,21 @@ def test_sweeps_auto_records_the_backend_used(room, tmp_path):
     assert settings["inference"]["backend_used"] == "torch"
     assert settings["source"]["data"] == str(room.resolve())
     assert {"convergence.json", "result.npz"} <= _entries(out)
+
+
+def test_overwrite_refuses_an_out_that_holds_the_input_data(tmp_path, capsys):
+    """Issue 22 item 3: ``fit proj/synthetic --out proj --overwrite``, where ``proj`` is an
+    earlier fit's folder that also holds the data, used to delete ``proj/synthetic`` and
+    ``proj/map``. Now refused, naming the input, and nothing is deleted."""
+    proj = _fit_folder(tmp_path / "proj")  # an earlier fit's folder ...
+    data = write_synthetic(proj, seed=1, spec=HouseSpec(height=36, width=44, num_rooms=3))
+    before = sorted(p.relative_to(proj) for p in proj.rglob("*"))
+    capsys.readouterr()
+    assert _fit(data, proj, "--overwrite") == 2
+    err = capsys.readouterr().err
+    assert f"holds the input {data}" in err and "choose an --out outside the data" in err
+    assert sorted(p.relative_to(proj) for p in proj.rglob("*")) == before
+    # The library check names the input too, with or without --overwrite.
+    with pytest.raises(OutputError, match="holds the input"):
+        check_output(proj, overwrite=False, inputs=(data / "Ft.csv",))
+    assert check_output(tmp_path / "elsewhere", inputs=(data,)) == tmp_path / "elsewhere"
