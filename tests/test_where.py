@@ -101,7 +101,15 @@ def test_where_prints_the_answer_its_warnings_and_draws_them(tmp_path, capsys):
     assert captured.err.count("warning: ") == 3 and "a speck, not a place" in captured.err
     assert (tmp_path / "p.png").stat().st_size > 0
 
-    assert main(["where", str(out), "kitchn"]) == 1
+    # An unknown word is a bad argument: exit 2, as every other error (issue 22 item 10).
+    assert main(["where", str(out), "kitchn"]) == 2
     assert "did you mean kitchen" in capsys.readouterr().err
-    assert main(["where", str(out), "garage"]) == 1
+    assert main(["where", str(out), "garage"]) == 2
     assert "known words: bed, kitchen, sofa" in capsys.readouterr().err
+    # where --out never replaces the fit's own files (issue 22 item 4).
+    for name in ("semantic_map.png", "uncertainty.png", "uncertainty"):
+        before = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
+        assert main(["where", str(out), "kitchen", "--out", str(out / name)]) == 2
+        assert "is a file of the fit" in capsys.readouterr().err
+        assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == before
+    assert main(["where", str(out), "kitchen", "--out", str(out / "kitchen.png")]) == 0
