@@ -73,7 +73,7 @@ def test_fit_then_where(small_house, tmp_path, capsys):
     text = capsys.readouterr().out
     assert f"'{word}' is concept" in text and "region:" in text and "area prior" in text
     assert (tmp_path / "where.png").stat().st_size > 0
-    assert main(["where", str(out), "zzznotaword"]) == 1
+    assert main(["where", str(out), "zzznotaword"]) == 2
     assert "not in the vocabulary" in capsys.readouterr().err
 
 
