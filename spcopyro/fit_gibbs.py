@@ -27,7 +27,7 @@ from spcopyro.inference import InferenceOutput, method_options
 from spcopyro.model import ModelData
 from spcopyro.point_estimate import with_point_estimate
 from spcopyro.posterior_means import with_posterior_means
-from spcopyro.uncertainty import label_frequencies
+from spcopyro.uncertainty import align_samples, label_frequencies
 
 
 class FitInterrupted(KeyboardInterrupt):
@@ -155,8 +155,11 @@ def with_sample_marginals(
     if not late.any():
         return output
     samples = np.asarray(output.label_samples)[late]  # [S', N]
-    marginals = label_frequencies(samples, config.num_concepts)  # [N, L]
     output = with_point_estimate(output, samples, point_estimate, config.num_concepts)
+    # One set of concept names per result: the kept samples renamed to the reported map's
+    # concepts before their frequencies are counted (issue 22 item 1).
+    samples = align_samples(samples, np.asarray(output.labels), config.num_concepts)
+    marginals = label_frequencies(samples, config.num_concepts)  # [N, L]
     if output.parameters_drawn:
         given = None if point_estimate != "map-visited" else samples  # tables of its clusters
         sampled = config_at_posterior_mean(config, output.options.get("hyperparameters"))

@@ -44,6 +44,31 @@ def label_frequencies(samples: np.ndarray, num_concepts: int) -> np.ndarray:
     return counts / S
 
 
+def align_samples(samples: np.ndarray, reference: np.ndarray, num_concepts: int) -> np.ndarray:
+    """``[S, N]`` the label ``samples`` renamed to the ``[N]`` ``reference`` map's concepts.
+
+    A sampler's concept ids are arbitrary and change along a chain (a merge move, a relabelling),
+    so the concept called 3 in a kept sample need not be the reported map's concept 3. Each
+    sample is renamed by the one-to-one map of its ids onto the reference's ids that maximises
+    the cells on which the two agree (the assignment problem on their ``[L, L]`` contingency
+    table, ``scipy.optimize.linear_sum_assignment``): per-cell frequencies over the renamed
+    samples then speak of the reported concepts. A sample that equals the reference up to names
+    becomes the reference exactly."""
+    from scipy.optimize import linear_sum_assignment  # here, not on the fit's import path
+
+    samples = np.asarray(samples)
+    reference = np.asarray(reference)
+    aligned = np.empty_like(samples)
+    for s, labels in enumerate(samples):
+        overlap = np.zeros((num_concepts, num_concepts), dtype=np.int64)  # [L sample, L ref]
+        np.add.at(overlap, (labels, reference), 1)
+        rows, cols = linear_sum_assignment(overlap, maximize=True)
+        rename = np.empty(num_concepts, dtype=samples.dtype)
+        rename[rows] = cols
+        aligned[s] = rename[labels]
+    return aligned
+
+
 def cell_probabilities(result: SpCoResult) -> np.ndarray:
     """[N, L] p(C_i = l): the result's marginals, or one-hot point labels if it has none."""
     if result.marginals is not None:

@@ -12,10 +12,12 @@ import torch
 from spcopyro.cli import main
 from spcopyro.config import preset
 from spcopyro.fit import fit_house, prepare_model_data
+from spcopyro.gibbs import GibbsOptions
 from spcopyro.metrics import adjusted_rand_index
 from spcopyro.registry import get_method
 from spcopyro.synthetic import HouseSpec, make_house
 from spcopyro.uncertainty import (
+    align_samples,
     cell_entropy,
     cell_probabilities,
     free_cells_image,
@@ -46,6 +48,42 @@ def test_label_frequencies_count_each_cells_labels():
     )
     with pytest.raises(ValueError, match=r"\[S >= 1, N\]"):
         label_frequencies(np.zeros((0, 3), dtype=int), 3)
+
+
+def test_samples_are_renamed_to_the_reported_maps_concepts():
+    """Issue 22 item 1: a kept sample whose regions carry other names (a merge move renamed
+    them after the best state) counted as they are puts the reported region's probability on
+    another concept. Renamed one-to-one by overlap, it speaks of the reported concepts."""
+    reference = np.array([0, 0, 0, 1, 1, 2, 2, 2])  # the reported map
+    renamed = np.array([5, 5, 5, 0, 0, 1, 1, 1])  # the same regions, other names
+    drifted = np.array([5, 5, 0, 0, 0, 1, 1, 3])  # one cell moved, one new speck
+    samples = np.stack([renamed, drifted])  # [S=2, N=8]
+    mixed = label_frequencies(samples, 6)
+    assert mixed[np.arange(8), reference].min() == 0.0  # counted as they are: wrong names
+    aligned = align_samples(samples, reference, 6)
+    np.testing.assert_array_equal(aligned[0], reference)
+    np.testing.assert_array_equal(aligned[1][[0, 1, 3, 4, 5, 6]], reference[[0, 1, 3, 4, 5, 6]])
+    assert aligned[1][7] not in (0, 1, 2)  # the speck keeps a name of its own
+    frequencies = label_frequencies(aligned, 6)
+    assert (frequencies.argmax(1) == reference).all()
+
+
+def test_the_defaults_marginals_and_where_probability_follow_the_reported_map():
+    """A default fit (split-merge moves, the VI point estimate): every cell's most frequent
+    concept over the kept samples is mostly its reported concept, and the 'where' probability
+    is high inside the answer's own region."""
+    from spcopyro.uncertainty import where_probability
+
+    house = make_house(seed=0, spec=HouseSpec())
+    result = fit_house(house, preset(), sweeps=300, init="rooms", progress=False,
+                       marginal_samples=30, point_estimate="vi",
+                       options=GibbsOptions(merge_moves=0.5))  # fmt: skip
+    assert (result.marginals.argmax(1) == result.labels).mean() > 0.95
+    word = "kitchen"
+    answer = result.where(word)
+    probability = where_probability(result, word)  # [N]
+    inside = answer.region[result.grid.free]  # [N] bool
+    assert probability[inside].mean() > 0.7
 
 
 def test_gibbs_marginals_are_the_second_half_label_frequencies(gibbs_fit, house):
