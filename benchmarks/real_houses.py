@@ -200,6 +200,44 @@ def table(title: str, per_house: dict[str, dict[str, dict]], expected: dict | No
     return "\n".join(lines)
 
 
+def extras(root: Path, args: argparse.Namespace, report: dict) -> list[str]:
+    """Held-out words, the inference methods, simulate --map and the 4x chain (module
+    docstring), as markdown sections; their numbers go into ``report``."""
+    houses = {name: load_house(root / name) for name in PUBLIC_CATEGORIES}
+    truths = {name: public_truth(h).labels for name, h in houses.items()}
+    text = []
+    top1 = {name: heldout_top1(h, args.sweeps) for name, h in houses.items()}
+    report["heldout_top1"] = top1
+    text.append(simple_table("Held-out word top-1 (trial 1 held out)", top1, None,
+                             "Share of the held-out trial's words ranked first."))  # fmt: skip
+    methods = {n: methods_on(h, truths[n], args.method_iterations) for n, h in houses.items()}
+    report["methods"] = methods
+    text.append(simple_table(
+        f"Inference methods' defaults ({args.method_iterations} iterations): ARI", methods, "ari",
+        "Their largest concept's share is the next table.",
+    ))  # fmt: skip
+    shares = {n: {m: v["largest_share"] for m, v in row.items()} for n, row in methods.items()}
+    text.append(simple_table("Inference methods' defaults: largest concept's share", shares,
+                             None, "A share of 1.00 is a one-concept map."))  # fmt: skip
+    simulated = {n: {"default": simulated_on(h, args.sweeps)} for n, h in houses.items()}
+    report["simulated"] = simulated
+    text.append(simple_table(
+        "simulate --map on each public map (door width 2 m), then the default fit", simulated,
+        "ari", "ARI against the simulation's own truth; its rooms are never handed to the fit.",
+    ))  # fmt: skip
+    longer = {}
+    for name, house in houses.items():
+        longer[name] = {}
+        for factor in (1, 4):
+            labels, _ = fit_preset(house, DEFAULT_PRESET, factor * args.sweeps, 0)
+            row = f"{factor} x {args.sweeps} sweeps"
+            longer[name][row] = scores(labels, truths[name], house.grid.free)
+    report["longer_chain"] = longer
+    text.append(simple_table("The default, four times as long: ARI", longer, "ari",
+                             "The map is the posterior's if the two rows agree."))  # fmt: skip
+    return text
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sweeps", type=int, default=2000)
@@ -235,6 +273,8 @@ def main(argv: list[str] | None = None) -> int:
         text.append(
             table("Public houses, against the project's region truth", public, PUBLIC_CATEGORIES)
         )
+        if not args.no_extras:
+            text += extras(Path(root), args, report)
     if not args.no_synthetic:
         for kind, spec in SYNTHETIC.items():
             per_seed = {}
