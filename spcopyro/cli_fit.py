@@ -144,7 +144,9 @@ def _apply_preset_inference(args: argparse.Namespace) -> None:
     merge moves and reports the VI point estimate), where they apply to this run, else with the
     plain defaults (random start, no merge moves, the highest-log-joint state visited)."""
     recommended = preset_inference(args.preset)
-    starts_elsewhere = any(x is not None for x in (args.update, args.init_from, args.resume))
+    # --resume continues chains that started as the preset says: their start is the preset's
+    # (the checkpoint checks it), so only --update and --init-from start elsewhere.
+    starts_elsewhere = any(x is not None for x in (args.update, args.init_from))
     samples = args.sweeps != "auto" and args.method in ("gibbs", "vi-gibbs")
     if args.init is None:
         args.init = "random" if starts_elsewhere else recommended.get("init", "random")

@@ -297,6 +297,21 @@ def test_ctrl_c_keeps_a_checkpoint_and_resume_gives_the_unbroken_fit(
     _same_outputs(out, tmp_path / "unbroken")
 
 
+def test_the_printed_resume_command_works_for_a_default_fit(room, tmp_path, capsys, monkeypatch):
+    """Issue 22 item 6: the default preset starts from the rooms; --resume used to force a
+    random start and fail ("init: 'rooms' in the checkpoint, 'random' here")."""
+    out = tmp_path / "out"
+    argv = ["fit", str(room), "--out", str(out), "--sweeps", "12", "--no-figures"]
+    with monkeypatch.context() as patch:
+        _interrupt_fit_at(patch, 0, 5)
+        assert main(argv) == 130
+    err = capsys.readouterr().err
+    again = shlex.split(err.split("continue with: ")[1])
+    assert main(again[1:]) == 0, capsys.readouterr().err
+    assert main([*argv[:3], str(tmp_path / "unbroken"), *argv[4:]]) == 0
+    _same_outputs(out, tmp_path / "unbroken")
+
+
 def test_a_fit_into_out_with_a_checkpoint_must_resume_or_overwrite(
     room, tmp_path, capsys, monkeypatch
 ):
