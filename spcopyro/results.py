@@ -51,8 +51,11 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import io
 import json
 import os
+import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -550,9 +553,47 @@ class SpCoResult:
             raise FileNotFoundError(
                 f"{path}: no fitted result here (run `spcopyro fit DATA --out {out}` first)"
             )
-        with np.load(path, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
-        settings = json.loads((out / "config.json").read_text())
+        try:
+            # From memory: a damaged zip then leaves no file handle open behind numpy.
+            with np.load(io.BytesIO(path.read_bytes()), allow_pickle=False) as z:
+                arrays = {k: z[k] for k in z.files}
+        except (
+            OSError,
+            ValueError,
+            EOFError,
+            zipfile.BadZipFile,
+            zlib.error,
+            NotImplementedError,
+        ) as error:
+            raise ValueError(
+                f"{path}: not a readable spcopyro result ({type(error).__name__}: {error}); "
+                "the file is damaged or truncated: fit again"
+            ) from None
+        config_path = out / "config.json"
+        try:
+            settings = json.loads(config_path.read_text(encoding="utf-8"))
+        except json.JSONDecodeError as error:
+            raise ValueError(
+                f"{config_path}: line {error.lineno}, column {error.colno}: {error.msg} "
+                "(a damaged config.json: fit again)"
+            ) from None
+        except UnicodeDecodeError as error:
+            raise ValueError(f"{config_path}: not UTF-8 text ({error.reason})") from None
+        try:
+            return cls._from_saved(out, path, arrays, settings)
+        except (KeyError, TypeError, ValueError, AttributeError, IndexError) as error:
+            raise ValueError(
+                f"{path} and {config_path} do not form a spcopyro result "
+                f"({type(error).__name__}: {error}); the files are damaged: fit again"
+            ) from None
+
+    @classmethod
+    def _from_saved(
+        cls, out: Path, path: Path, arrays: dict[str, np.ndarray], settings: dict
+    ) -> SpCoResult:
+        """The result from ``result.npz``'s arrays and ``config.json``'s settings."""
+        if not isinstance(settings, dict):
+            raise TypeError(f"config.json holds a {type(settings).__name__}, not an object")
         if "labels_best" in arrays:
             raise ValueError(
                 f"{path} was written by spcopyro before its results became method-neutral "

@@ -36,8 +36,11 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import io
 import json
 import os
+import zipfile
+import zlib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -173,15 +176,31 @@ def _open(path: str | os.PathLike[str]) -> np.lib.npyio.NpzFile:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such checkpoint file")
     try:
-        return np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as error:
+        # From memory: a damaged zip then leaves no file handle open behind numpy.
+        return np.load(io.BytesIO(path.read_bytes()), allow_pickle=False)
+    except (
+        OSError,
+        ValueError,
+        EOFError,
+        zipfile.BadZipFile,
+        zlib.error,
+        NotImplementedError,
+    ) as error:
         raise ValueError(f"{path}: not a spcopyro checkpoint ({error})") from None
 
 
 def _record(path: str | os.PathLike[str], z: np.lib.npyio.NpzFile) -> dict[str, object]:
     try:
         record = json.loads(str(z["record"]))
-    except (KeyError, ValueError):
+    except (
+        KeyError,
+        ValueError,
+        EOFError,
+        OSError,
+        zipfile.BadZipFile,
+        zlib.error,
+        NotImplementedError,
+    ):
         record = None
     if not isinstance(record, dict) or record.get("format") != FORMAT:
         raise ValueError(f"{path}: not a spcopyro checkpoint (no {FORMAT} record)")
@@ -239,7 +258,8 @@ def load_chains(
                 None if entry is None else _chain(z, k, entry, data, config, options)
                 for k, entry in enumerate(saved["chains"])  # type: ignore[arg-type]
             ]
-        except (KeyError, ValueError, RuntimeError) as error:
+        except (KeyError, ValueError, RuntimeError, TypeError, IndexError, EOFError, OSError,
+                zipfile.BadZipFile, zlib.error, NotImplementedError) as error:  # fmt: skip
             raise ValueError(f"{path}: a damaged checkpoint ({error})") from None
 
 
