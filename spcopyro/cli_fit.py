@@ -6,12 +6,16 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import math
 import shlex
+import signal
 import sys
+import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -62,9 +66,34 @@ FIT_SWEEPS = 5000  # --sweeps of a fit from scratch (the paper's)
 UPDATE_SWEEPS = 300  # --sweeps of --update (spcopyro.online.DEFAULT_UPDATE_SWEEPS)
 
 
+@contextlib.contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM (what ``timeout``, systemd, docker and Slurm send) stops a fit as Ctrl-C does:
+    a KeyboardInterrupt in the main thread, so the chains stop at a completed sweep and the
+    checkpoint and the command to continue are kept. The previous handler comes back after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def _fit(args: argparse.Namespace) -> int:
     """Check the arguments and OUT, then fit into a staging folder moved to OUT at the end
-    (:mod:`spcopyro.outputs`); Ctrl-C keeps a checkpoint beside OUT and exits with 130."""
+    (:mod:`spcopyro.outputs`); Ctrl-C or SIGTERM keeps a checkpoint beside OUT and exits with
+    130."""
+    with _sigterm_as_interrupt():
+        return _fit_interruptible(args)
+
+
+def _fit_interruptible(args: argparse.Namespace) -> int:
     from spcopyro.fit_gibbs import FitCheckpoint, FitInterrupted
     from spcopyro.outputs import checkpoint_path, stage_output
 

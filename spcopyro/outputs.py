@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import secrets
 import shutil
 import tempfile
@@ -215,6 +216,35 @@ def check_output(
     return path
 
 
+def staging_prefix(path: Path) -> str:
+    """``OUT.partial-PID-``: a staging folder's name tells which process made it, so a later run
+    can tell a dead run's leftovers (SIGKILL, a power cut) from a live run's."""
+    return f"{path.name}{STAGING_INFIX}{os.getpid()}-"
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's process: alive
+        return True
+    return True
+
+
+def remove_stale_stagings(path: Path) -> list[Path]:
+    """Remove the staging folders beside ``path`` (``OUT.partial-PID-...``) whose process is
+    gone: what a killed fit into the same OUT left behind. Returns what was removed."""
+    removed = []
+    pattern = re.compile(re.escape(f"{path.name}{STAGING_INFIX}") + r"(\d+)-")
+    for candidate in path.parent.glob(f"{path.name}{STAGING_INFIX}*"):
+        match = pattern.match(candidate.name)
+        if match and candidate.is_dir() and not _alive(int(match.group(1))):
+            shutil.rmtree(candidate, ignore_errors=True)
+            removed.append(candidate)
+    return removed
+
+
 def stage_output(
     out: str | os.PathLike[str],
     *,
@@ -228,7 +258,8 @@ def stage_output(
     seen = _identity(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        staging = tempfile.mkdtemp(prefix=f"{path.name}{STAGING_INFIX}", dir=path.parent)
+        remove_stale_stagings(path)
+        staging = tempfile.mkdtemp(prefix=staging_prefix(path), dir=path.parent)
     except OSError as error:
         raise OutputError(
             f"--out {out}: cannot write in {path.parent} ({error.strerror or error})"

@@ -385,9 +385,11 @@ def _default_sigint() -> None:
 
 
 @pytest.mark.slow  # a fresh process: ~5 s of imports
-def test_a_real_ctrl_c_in_a_fit_process(room, tmp_path):
-    """SIGINT to a ``python -m spcopyro fit`` process once it has done some sweeps: exit 130, no
-    traceback, the last line says where the checkpoint is, which holds the sweeps done."""
+@pytest.mark.parametrize("sent", [signal.SIGINT, signal.SIGTERM])
+def test_a_real_ctrl_c_in_a_fit_process(room, tmp_path, sent):
+    """SIGINT (Ctrl-C) or SIGTERM (timeout, systemd, docker, Slurm: issue 22 item 7) to a
+    ``python -m spcopyro fit`` process once it has done some sweeps: exit 130, no traceback,
+    the last line says where the checkpoint is, which holds the sweeps done."""
     out = tmp_path / "out"
     env = {k: v for k, v in os.environ.items() if k != "CI"}  # the progress bar shows sweeping
     env["PYTHONPATH"] = str(Path(spcopyro.fit.__file__).parents[1])
@@ -401,7 +403,7 @@ def test_a_real_ctrl_c_in_a_fit_process(room, tmp_path):
         if not chunk:
             break
         seen += chunk
-    process.send_signal(signal.SIGINT)
+    process.send_signal(sent)
     _, rest = process.communicate(timeout=120)
     err = (seen + rest).decode()
     assert process.returncode == 130, err
@@ -410,3 +412,23 @@ def test_a_real_ctrl_c_in_a_fit_process(room, tmp_path):
     assert last.startswith("interrupted (chain 1 of 1, ") and "continue with: spcopyro" in last
     record = read_record(checkpoint_path(out))
     assert 0 < record["chains"][0]["sweeps_done"] < 1000000 and not out.exists()
+
+
+def test_a_killed_runs_staging_folder_is_removed_by_the_next_run_into_out(room, tmp_path):
+    """Issue 22 item 7: ``kill -9`` leaves ``OUT.partial-PID-*``; the next fit into the same
+    OUT removes it (its process is gone) and leaves a live process's staging alone."""
+    from spcopyro.outputs import remove_stale_stagings, staging_prefix
+
+    out = tmp_path / "out"
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    stale = tmp_path / f"out.partial-{dead.pid}-abc123"
+    stale.mkdir()
+    (stale / "labels.npy").write_bytes(b"half written")
+    live = tmp_path / f"{staging_prefix(out)}xyz"  # this process: alive
+    live.mkdir()
+    other = tmp_path / "out.partial-oldstyle"  # no pid: not ours to judge
+    other.mkdir()
+    assert main(["fit", str(room), "--out", str(out), *FIT]) == 0
+    assert not stale.exists() and live.exists() and other.exists()
+    assert remove_stale_stagings(out) == []
