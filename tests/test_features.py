@@ -541,3 +541,18 @@ def test_cli_features_and_features_head(checkpoint, images_dir, tmp_path, capsys
     bad.write_text("images/00000.jpg,kitchen\nimages/00001.png\n")
     with pytest.raises(ValueError, match="bad_labels.csv, line 2: expected IMAGE,PLACE"):
         run("features-head", bad, "--out", tmp_path / "h2.pt", "--weights", "random")
+
+
+def test_an_image_missing_from_a_trial_is_an_error_naming_it(tmp_path):
+    """Issue 22 item 2: one image missing from img_K/ used to give one row fewer than the poses,
+    every later image's features on the wrong pose. Now an error before any work, naming the
+    folder, the counts and the missing file."""
+    house = tmp_path / "house"
+    (house / "img_1").mkdir(parents=True)
+    for name in ("00000.jpg", "00001.jpg", "00003.jpg"):  # 00002.jpg is missing
+        _write(house / "img_1" / name, _solid(2, 2, (1, 2, 3)))
+    (house / "pose_1.csv").write_text("".join(f"{k},0,0,1\n" for k in range(4)))
+    with pytest.raises(ValueError, match=r"3 images but pose_1.csv has 4 poses.*00002\.jpg"):
+        list_images(house)
+    _write(house / "img_1" / "00002.jpg", _solid(2, 2, (1, 2, 3)))
+    assert [p.name for p in list_images(house)] == [f"0000{k}.jpg" for k in range(4)]

@@ -138,19 +138,47 @@ def list_images(directory: str | os.PathLike[str]) -> list[Path]:
             f"{directory}: holds both images ({flat[0].name}, ...) and img_K folders "
             f"({trial_folders[0][1].name}, ...); give one of them"
         )
-    paths = flat or [
-        p
-        for _, folder in trial_folders
-        for p in sorted(
+    paths = list(flat)
+    for trial, folder in trial_folders:
+        images = sorted(
             q for q in folder.iterdir() if q.is_file() and q.suffix.lower() in IMAGE_SUFFIXES
         )
-    ]
+        _check_against_poses(directory, trial, folder, images)
+        paths += images
     if not paths:
         raise FileNotFoundError(
             f"{directory}: no images (files ending in {', '.join(IMAGE_SUFFIXES)}, directly or "
             "in img_K/ folders)"
         )
     return paths
+
+
+def _check_against_poses(directory: Path, trial: int, folder: Path, images: list[Path]) -> None:
+    """A house folder's ``img_K/`` must hold one image per line of its ``pose_K.csv`` (when
+    there is one): a missing image would shift every later image's features onto the wrong
+    pose. ValueError naming the folder, both counts and the missing names if they are numbered."""
+    poses = next(
+        (p for p in directory.glob("pose_*.csv") if re.fullmatch(rf"pose_0*{trial}\.csv", p.name)),
+        None,
+    )
+    if poses is None:
+        return
+    lines = [line for line in poses.read_text(errors="replace").splitlines() if line.strip()]
+    if len(lines) == len(images):
+        return
+    missing = ""
+    numbered = [int(p.stem) for p in images if p.stem.isdigit()]
+    if len(numbered) == len(images) and len(images) < len(lines):
+        width = len(images[0].stem) if images else 5
+        suffix = images[0].suffix if images else ".jpg"
+        expected = range(min(numbered, default=0), min(numbered, default=0) + len(lines))
+        gaps = sorted(set(expected) - set(numbered))[:5]
+        if gaps:
+            missing = "; missing: " + ", ".join(f"{g:0{width}d}{suffix}" for g in gaps)
+    raise ValueError(
+        f"{folder}: {len(images)} images but {poses.name} has {len(lines)} poses: every image "
+        f"after a missing one would get the wrong pose's features{missing}"
+    )
 
 
 @dataclass(frozen=True)
