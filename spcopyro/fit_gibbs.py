@@ -117,7 +117,11 @@ def gibbs_outputs(
         assert chain is not None
         entry = gibbs_record(options, sweeps, chain.backend.name)
         output = output_from_run(chain.to_run(), {**entry, "seed": seed, "init": init})
-        outputs.append(with_sample_marginals(output, sweeps, data, settings.model, point_estimate))
+        outputs.append(
+            with_sample_marginals(
+                output, sweeps, data, settings.model, point_estimate, progress=progress
+            )
+        )
     return outputs
 
 
@@ -143,6 +147,7 @@ def with_sample_marginals(
     data: ModelData,
     config: SpCoConfig,
     point_estimate: str = "map-visited",
+    progress: bool | None = False,
 ) -> InferenceOutput:
     """``output`` with the label frequencies of its samples from the second half of the sweeps
     as its marginals (unchanged if it kept none there), reporting ``point_estimate`` over them
@@ -155,7 +160,9 @@ def with_sample_marginals(
     if not late.any():
         return output
     samples = np.asarray(output.label_samples)[late]  # [S', N]
-    output = with_point_estimate(output, samples, point_estimate, config.num_concepts)
+    output = with_point_estimate(
+        output, samples, point_estimate, config.num_concepts, progress=progress
+    )
     # One set of concept names per result: the kept samples renamed to the reported map's
     # concepts before their frequencies are counted (issue 22 item 1).
     samples = align_samples(samples, np.asarray(output.labels), config.num_concepts)

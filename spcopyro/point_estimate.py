@@ -264,6 +264,7 @@ def point_estimate(
     loss: str = "vi",
     starts: int = DEFAULT_STARTS,
     max_clusters: int | None = None,
+    progress: bool | None = False,
 ) -> PointEstimate:
     """The partition minimising the expected ``loss`` over ``samples`` [S, N] (module doc).
 
@@ -271,21 +272,35 @@ def point_estimate(
         starts: greedy searches from that many samples of lowest expected loss; the best wins.
         max_clusters: open no new cluster once the estimate has this many (e.g. the model's
             L; the samples' labels are below it, so the estimate's clusters stay within it).
+        progress: a progress bar (with its time estimate) over the samples' expected losses and
+            the greedy searches; None: on unless under CI (:mod:`spcopyro.progress`).
     """
+    from tqdm.auto import tqdm
+
+    from spcopyro.progress import progress_enabled
+
     samples = _check(samples, loss)
     prepared = _prepare(samples, loss)
-    losses = np.array(
-        [
-            _expected(c, j, prepared, loss)
-            for c, j in zip(prepared.codes, prepared.sizes, strict=True)
-        ]
-    )  # [S]
-    order = np.argsort(losses, kind="stable")[: max(1, starts)]
-    best, best_value = None, np.inf
-    for s in order:
-        estimate, value = _greedy(prepared.codes[s], prepared, loss, max_clusters)
-        if value < best_value:
-            best, best_value = estimate, value
+    order_count = max(1, starts)
+    with tqdm(
+        total=len(prepared.codes) + min(order_count, len(prepared.codes)),
+        desc=f"point estimate ({loss})",
+        unit="step",
+        disable=not progress_enabled(progress),
+        leave=False,
+    ) as bar:
+        losses = []
+        for c, j in zip(prepared.codes, prepared.sizes, strict=True):
+            losses.append(_expected(c, j, prepared, loss))
+            bar.update()
+        losses = np.array(losses)  # [S]
+        order = np.argsort(losses, kind="stable")[:order_count]
+        best, best_value = None, np.inf
+        for s in order:
+            estimate, value = _greedy(prepared.codes[s], prepared, loss, max_clusters)
+            bar.update()
+            if value < best_value:
+                best, best_value = estimate, value
     assert best is not None
     return PointEstimate(compact(best)[0], float(best_value), float(losses.min()))
 
@@ -338,7 +353,11 @@ def check_point_estimate(name: str) -> str:
 
 
 def with_point_estimate(
-    output: InferenceOutput, samples: np.ndarray, name: str, num_concepts: int
+    output: InferenceOutput,
+    samples: np.ndarray,
+    name: str,
+    num_concepts: int,
+    progress: bool | None = False,
 ) -> InferenceOutput:
     """``output`` reporting the point estimate ``name`` over ``samples`` [S, N] as its labels
     (unchanged for ``"map-visited"``), with :func:`agreement_probability` as its ``agreement``.
@@ -349,7 +368,7 @@ def with_point_estimate(
     """
     if check_point_estimate(name) == "map-visited":
         return output
-    found = point_estimate(samples, name, max_clusters=num_concepts)
+    found = point_estimate(samples, name, max_clusters=num_concepts, progress=progress)
     labels = concept_labels(found.labels, np.asarray(output.labels), num_concepts)
     return dataclasses.replace(
         output,

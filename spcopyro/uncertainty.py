@@ -50,22 +50,29 @@ def align_samples(samples: np.ndarray, reference: np.ndarray, num_concepts: int)
     A sampler's concept ids are arbitrary and change along a chain (a merge move, a relabelling),
     so the concept called 3 in a kept sample need not be the reported map's concept 3. Each
     sample is renamed by the one-to-one map of its ids onto the reference's ids that maximises
-    the cells on which the two agree (the assignment problem on their ``[L, L]`` contingency
-    table, ``scipy.optimize.linear_sum_assignment``): per-cell frequencies over the renamed
-    samples then speak of the reported concepts. A sample that equals the reference up to names
-    becomes the reference exactly."""
+    the cells on which the two agree (the assignment problem on the contingency table of the
+    labels each uses, ``scipy.optimize.linear_sum_assignment``); a sample's concept matched
+    with none of the reference's takes an id the reference does not use. Per-cell frequencies
+    over the renamed samples then speak of the reported concepts. A sample that equals the
+    reference up to names becomes the reference exactly. Cost per sample: O(N + K^3) for the
+    K concepts in use (not L)."""
     from scipy.optimize import linear_sum_assignment  # here, not on the fit's import path
 
     samples = np.asarray(samples)
     reference = np.asarray(reference)
+    ref_ids, ref_codes = np.unique(reference, return_inverse=True)  # [K_r], [N]
+    free_ids = np.setdiff1d(np.arange(num_concepts), ref_ids)  # ids the reference leaves free
     aligned = np.empty_like(samples)
     for s, labels in enumerate(samples):
-        overlap = np.zeros((num_concepts, num_concepts), dtype=np.int64)  # [L sample, L ref]
-        np.add.at(overlap, (labels, reference), 1)
+        ids, codes = np.unique(labels, return_inverse=True)  # [K_s], [N]
+        overlap = np.zeros((ids.size, ref_ids.size), dtype=np.int64)  # [K_s, K_r]
+        np.add.at(overlap, (codes, ref_codes), 1)
         rows, cols = linear_sum_assignment(overlap, maximize=True)
-        rename = np.empty(num_concepts, dtype=samples.dtype)
-        rename[rows] = cols
-        aligned[s] = rename[labels]
+        rename = np.full(ids.size, -1, dtype=np.int64)
+        rename[rows] = ref_ids[cols]
+        unmatched = np.flatnonzero(rename < 0)
+        rename[unmatched] = free_ids[: unmatched.size]
+        aligned[s] = rename[codes]
     return aligned
 
 

@@ -184,3 +184,15 @@ def test_fit_reports_the_estimate_with_its_agreement_map(tmp_path, capsys):
                  "--marginal-samples", "0"]) == 2  # fmt: skip
     assert "--point-estimate vi is made over" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+def test_the_point_estimate_shows_its_progress(capsys, monkeypatch):
+    """Issue 22 item 8: with many concepts the point estimate ran for minutes without a word;
+    now it has a progress bar (with tqdm's time estimate) when progress is on."""
+    monkeypatch.delenv("CI", raising=False)
+    rng = np.random.default_rng(0)
+    samples = rng.integers(0, 5, size=(6, 40))
+    point_estimate(samples, "vi", progress=True)
+    assert "point estimate (vi)" in capsys.readouterr().err
+    point_estimate(samples, "vi", progress=False)
+    assert "point estimate" not in capsys.readouterr().err
