@@ -26,7 +26,7 @@ from typing import NoReturn
 import numpy as np
 
 from spcopyro import __version__
-from spcopyro.cli_common import _HelpFormatter, _load, _summary
+from spcopyro.cli_common import _HelpFormatter, _load, _seed, _summary
 from spcopyro.cli_fit import add_parser as add_fit_parser
 
 logger = logging.getLogger("spcopyro")
@@ -189,7 +189,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("simulate", help="write a synthetic house in the public dataset's layout")
     p.add_argument("--out", required=True, help="root folder (gets map/ and NAME/)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the house's random draws")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the house's random draws")
     p.add_argument("--name", help="the house's folder name (NAME; default: synthetic, or the "
                    "--map file's name)")  # fmt: skip
     p.add_argument("--size", type=int, nargs=2, metavar=("H", "W"),

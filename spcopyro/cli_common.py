@@ -61,6 +61,15 @@ def _integer_at_least(minimum: int) -> Callable[[str], int]:
 
 _positive_int = _integer_at_least(1)
 _non_negative_int = _integer_at_least(0)
+MAX_SEED = 2**63 - 1  # torch.Generator.manual_seed takes a signed 64-bit integer
+
+
+def _seed(value: str) -> int:
+    """``--seed``: an integer in 0 .. 2**63 - 1 (argparse names the option on an error)."""
+    number = _non_negative_int(value)
+    if number > MAX_SEED:
+        raise argparse.ArgumentTypeError(f"must be at most 2**63 - 1 = {MAX_SEED}, got {value!r}")
+    return number
 
 
 def _sweeps(value: str) -> int | str:

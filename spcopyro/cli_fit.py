@@ -29,6 +29,7 @@ from spcopyro.cli_common import (
     _load,
     _non_negative_int,
     _positive_int,
+    _seed,
     _summary,
     _sweeps,
     _threads,
@@ -418,13 +419,16 @@ def _fit_staged(
     vocabulary_size = len(result.vocabulary)
     used = result.concepts_in_use()
     if vocabulary_size and result.w[used].max() < 2.0 / vocabulary_size:
-        print(
-            f"note: every concept's word distribution is close to uniform: beta = "
-            f"{config.beta:g} outweighs the {house.observations.num_utterances} utterances "
-            "(each list still follows the counts heard there); for sharper words try "
-            "--beta 0.1 (or --preset original-code --gamma 3)",
-            file=sys.stderr,
-        )
+        if config.beta > 0.1:
+            why = (f"beta = {config.beta:g} outweighs the {house.observations.num_utterances} "
+                   "utterances (each list still follows the counts heard there); for sharper "
+                   "words try --beta 0.1 (or --preset original-code --gamma 3)")  # fmt: skip
+        else:
+            why = (f"with beta = {config.beta:g} this comes from the words themselves: every "
+                   "place heard much the same words (e.g. only fillers or stopwords); "
+                   "--tfidf weighs down words said everywhere")  # fmt: skip
+        print(f"note: every concept's word distribution is close to uniform: {why}",
+              file=sys.stderr)  # fmt: skip
     phases.mark("report")
     out = staged.commit()
     checkpoint = checkpoint_path(out)
@@ -586,7 +590,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--marginal-samples", type=_non_negative_int, default=50,
                    help="gibbs, vi-gibbs: label maps kept over the second half of the sweeps for "
                         "the per-cell probabilities of uncertainty.png (0: none)")  # fmt: skip
-    p.add_argument("--seed", type=int, default=0,
+    p.add_argument("--seed", type=_seed, default=0,
                    help="seed of the sampler (chain k of --chains gets seed + k)")  # fmt: skip
     p.add_argument("--method", choices=sorted(INFERENCE_METHODS), default=DEFAULT_METHOD,
                    help="inference method (default: gibbs, Algorithm 1)")  # fmt: skip

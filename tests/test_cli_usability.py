@@ -135,3 +135,13 @@ def test_fit_reports_the_wall_time_of_the_whole_fit(
             "--preset", "original-code", "--gamma", "3", "--concepts", "10", *options]  # fmt: skip
     assert main(argv) == 0
     assert f"fitted {reported} in 42.5 s wall clock (" in capsys.readouterr().out
+
+
+def test_a_seed_beyond_64_bits_names_the_option(capsys):
+    """Issue 22 item 10: --seed 99999999999999999999 used to fail inside torch with "Overflow
+    when unpacking long long", without naming --seed."""
+    with pytest.raises(SystemExit) as stop:
+        main(["fit", "--seed", "99999999999999999999", "--out", "unused"])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert "argument --seed: must be at most 2**63 - 1" in err
