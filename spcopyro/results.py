@@ -373,11 +373,14 @@ class SpCoResult:
 
     def heard(self, concept: int, modality: str = WORDS) -> float | None:
         """The total count of ``modality`` observed in the concept's region (words: how many
-        were heard there, tf-idf weighted if so prepared); None when the result does not know."""
+        were heard there, tf-idf weighted if so prepared, in utterances: the model's counts
+        divided by ``word_scaling``); None when the result does not know."""
         if self.concept_totals is None:
             return None
         names = [t.name for t in self.emissions]
-        return float(self.concept_totals[concept, 1 + names.index(modality)])
+        total = float(self.concept_totals[concept, 1 + names.index(modality)])
+        scaling = getattr(self.preparation, "word_scaling", 1.0) if modality == WORDS else 1.0
+        return total / scaling
 
     def lift(self, modality: str = WORDS) -> np.ndarray:
         """[L, K_m] p(item | concept) / p(item), p(item) the area-weighted mixture over the
