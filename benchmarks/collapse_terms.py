@@ -116,6 +116,7 @@ def compare(house, truth: np.ndarray) -> dict[str, dict[str, float]]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", default="benchmarks/collapse_terms.json")
+    parser.add_argument("--quick", action="store_true", help="accepted for the smoke tests")
     args = parser.parse_args(argv)
     logging.getLogger("spcopyro").setLevel(logging.ERROR)
     torch.set_num_threads(1)

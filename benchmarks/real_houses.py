@@ -200,10 +200,10 @@ def table(title: str, per_house: dict[str, dict[str, dict]], expected: dict | No
     return "\n".join(lines)
 
 
-def extras(root: Path, args: argparse.Namespace, report: dict) -> list[str]:
+def extras(root: Path, args: argparse.Namespace, report: dict, names: dict) -> list[str]:
     """Held-out words, the inference methods, simulate --map and the 4x chain (module
     docstring), as markdown sections; their numbers go into ``report``."""
-    houses = {name: load_house(root / name) for name in PUBLIC_CATEGORIES}
+    houses = {name: load_house(root / name) for name in names}
     truths = {name: public_truth(h).labels for name, h in houses.items()}
     text = []
     top1 = {name: heldout_top1(h, args.sweeps) for name, h in houses.items()}
@@ -255,7 +255,16 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="only the ARI tables (no held-out words, methods, simulation, 4x)",
     )
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="a smoke run: 60 sweeps, one public house, one seed, 5 iterations",
+    )
     args = parser.parse_args(argv)
+    houses = dict(PUBLIC_CATEGORIES)
+    if args.quick:
+        args.sweeps, args.seeds, args.method_iterations = 60, 1, 5
+        houses = dict(list(houses.items())[:1])
     logging.getLogger("spcopyro").setLevel(logging.ERROR)
     report: dict[str, object] = {"default_preset": DEFAULT_PRESET, "sweeps": args.sweeps}
     text = [f"# Real houses (default preset {DEFAULT_PRESET!r}, {args.sweeps} sweeps, seed 0)", ""]
@@ -266,15 +275,13 @@ def main(argv: list[str] | None = None) -> int:
         )
     else:
         public = {}
-        for name in PUBLIC_CATEGORIES:
+        for name in houses:
             house = load_house(Path(root) / name)
             public[name] = score_house(house, public_truth(house).labels, args.sweeps, 0)
         report["public"] = public
-        text.append(
-            table("Public houses, against the project's region truth", public, PUBLIC_CATEGORIES)
-        )
+        text.append(table("Public houses, against the project's region truth", public, houses))
         if not args.no_extras:
-            text += extras(Path(root), args, report)
+            text += extras(Path(root), args, report, houses)
     if not args.no_synthetic:
         for kind, spec in SYNTHETIC.items():
             per_seed = {}

@@ -139,3 +139,26 @@ def test_fixed_cost_benchmark_quick(tmp_path):
         assert "matplotlib" not in run["imported"], run["imported"]
         assert run["wall"] >= run["startup"] > 0.0 and run["sweep_seconds"] > 0.0
     assert math.isfinite(result["fixed_cost"]) and result["fixed_cost_method"]
+
+
+@pytest.mark.slow
+def test_real_houses_benchmark_quick(tmp_path):
+    out = tmp_path / "real_houses.json"
+    done = run_benchmark("real_houses.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    results = json.loads(out.read_text())
+    assert {"open-plan", "sparse", "dense"} <= set(results)
+    if "public" in results:  # the dataset is there: every section ran
+        assert {"heldout_top1", "methods", "simulated", "longer_chain"} <= set(results)
+        assert "Held-out word top-1" in done.stdout
+
+
+@pytest.mark.slow
+def test_collapse_terms_benchmark_quick(tmp_path):
+    out = tmp_path / "collapse_terms.json"
+    done = run_benchmark("collapse_terms.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    results = json.loads(out.read_text())
+    for rows in results.values():
+        for terms in rows.values():
+            assert math.isfinite(terms["total"])
