@@ -24,15 +24,20 @@ This module imports nothing of the package.
 from __future__ import annotations
 
 import contextlib
+import io
 import os
 import re
 import secrets
 import shutil
 import tempfile
+import zipfile
+import zlib
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
+
+import numpy as np
 
 try:  # POSIX: serialise commits into one parent folder
     import fcntl
@@ -43,6 +48,18 @@ CHECKPOINT_SUFFIX = ".checkpoint.npz"
 STAGING_INFIX = ".partial-"
 RESULT_MARKERS = ("result.npz", "config.json")
 """A folder holding both was written by ``spcopyro fit``: the only kind ``overwrite`` replaces."""
+
+
+DAMAGED_FILE_ERRORS = (
+    OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, NotImplementedError,
+)  # fmt: skip
+"""What reading a damaged or truncated ``.npz`` raises (numpy, zipfile and zlib each their own)."""
+
+
+def read_npz(path: Path) -> np.lib.npyio.NpzFile:
+    """``np.load`` of ``path`` from memory: a damaged zip then leaves no file handle open behind
+    numpy (which warns later, as an unclosed file). Raises one of :data:`DAMAGED_FILE_ERRORS`."""
+    return np.load(io.BytesIO(Path(path).read_bytes()), allow_pickle=False)
 
 
 class OutputError(ValueError):

@@ -51,11 +51,8 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import io
 import json
 import os
-import zipfile
-import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -65,6 +62,7 @@ from spcopyro.concept_words import NO_WORDS, distinctive_items, lift
 from spcopyro.config import IMAGES, WORDS, DataPreparation, SpCoConfig
 from spcopyro.inference import InferenceOutput, Trace
 from spcopyro.maps import OccupancyGrid, load_map, save_map
+from spcopyro.outputs import DAMAGED_FILE_ERRORS, read_npz
 from spcopyro.semantic_map import UnknownWordError, word_index
 
 __all__ = [
@@ -557,17 +555,9 @@ class SpCoResult:
                 f"{path}: no fitted result here (run `spcopyro fit DATA --out {out}` first)"
             )
         try:
-            # From memory: a damaged zip then leaves no file handle open behind numpy.
-            with np.load(io.BytesIO(path.read_bytes()), allow_pickle=False) as z:
+            with read_npz(path) as z:
                 arrays = {k: z[k] for k in z.files}
-        except (
-            OSError,
-            ValueError,
-            EOFError,
-            zipfile.BadZipFile,
-            zlib.error,
-            NotImplementedError,
-        ) as error:
+        except DAMAGED_FILE_ERRORS as error:
             raise ValueError(
                 f"{path}: not a readable spcopyro result ({type(error).__name__}: {error}); "
                 "the file is damaged or truncated: fit again"

@@ -36,11 +36,8 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import io
 import json
 import os
-import zipfile
-import zlib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -54,7 +51,7 @@ from spcopyro.gibbs.run import LABEL_DTYPE, GibbsChain
 from spcopyro.gibbs.state import GibbsState, make_sweep_plan
 from spcopyro.likelihood import log_joint_constant
 from spcopyro.model import ModelData
-from spcopyro.outputs import replace_file
+from spcopyro.outputs import DAMAGED_FILE_ERRORS, read_npz, replace_file
 
 FORMAT = "spcopyro-gibbs-checkpoint"
 VERSION = 1
@@ -176,31 +173,15 @@ def _open(path: str | os.PathLike[str]) -> np.lib.npyio.NpzFile:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such checkpoint file")
     try:
-        # From memory: a damaged zip then leaves no file handle open behind numpy.
-        return np.load(io.BytesIO(path.read_bytes()), allow_pickle=False)
-    except (
-        OSError,
-        ValueError,
-        EOFError,
-        zipfile.BadZipFile,
-        zlib.error,
-        NotImplementedError,
-    ) as error:
+        return read_npz(path)
+    except DAMAGED_FILE_ERRORS as error:
         raise ValueError(f"{path}: not a spcopyro checkpoint ({error})") from None
 
 
 def _record(path: str | os.PathLike[str], z: np.lib.npyio.NpzFile) -> dict[str, object]:
     try:
         record = json.loads(str(z["record"]))
-    except (
-        KeyError,
-        ValueError,
-        EOFError,
-        OSError,
-        zipfile.BadZipFile,
-        zlib.error,
-        NotImplementedError,
-    ):
+    except (KeyError, *DAMAGED_FILE_ERRORS):
         record = None
     if not isinstance(record, dict) or record.get("format") != FORMAT:
         raise ValueError(f"{path}: not a spcopyro checkpoint (no {FORMAT} record)")
@@ -258,8 +239,7 @@ def load_chains(
                 None if entry is None else _chain(z, k, entry, data, config, options)
                 for k, entry in enumerate(saved["chains"])  # type: ignore[arg-type]
             ]
-        except (KeyError, ValueError, RuntimeError, TypeError, IndexError, EOFError, OSError,
-                zipfile.BadZipFile, zlib.error, NotImplementedError) as error:  # fmt: skip
+        except (KeyError, RuntimeError, TypeError, IndexError, *DAMAGED_FILE_ERRORS) as error:
             raise ValueError(f"{path}: a damaged checkpoint ({error})") from None
 
 
