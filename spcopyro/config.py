@@ -302,10 +302,15 @@ class DataPreparation:
 
 @dataclass(frozen=True)
 class SpCoSettings:
-    """The model's hyperparameters and the data preparation they were chosen with (a preset)."""
+    """The model's hyperparameters and the data preparation they were chosen with (a preset).
+
+    ``preset``: the name of the preset they came from (:func:`preset`; kept by
+    :meth:`replace`, not part of equality), so that a fit can tell when it skips the inference
+    settings that preset recommends (:func:`preset_inference`)."""
 
     model: SpCoConfig = SpCoConfig()
     data: DataPreparation = DataPreparation()
+    preset: str | None = dataclasses.field(default=None, compare=False)
 
     def replace(self, **changes: object) -> SpCoSettings:
         """A copy with fields of either layer changed, each routed by its name."""
@@ -322,6 +327,7 @@ class SpCoSettings:
         return SpCoSettings(
             self.model.replace(**model) if model else self.model,
             self.data.replace(**data) if data else self.data,
+            preset=self.preset,
         )
 
 
@@ -344,4 +350,6 @@ def preset(name: str = DEFAULT_PRESET, **overrides: object) -> SpCoSettings:
         )
     data_fields = {f.name for f in dataclasses.fields(DataPreparation)}
     data = {k: values.pop(k) for k in list(values) if k in data_fields}
-    return SpCoSettings(model=SpCoConfig(), data=DataPreparation()).replace(**values, **data)
+    return SpCoSettings(model=SpCoConfig(), data=DataPreparation(), preset=name).replace(
+        **values, **data
+    )

@@ -27,7 +27,7 @@ import numpy as np
 import torch
 
 from spcopyro import __version__
-from spcopyro.config import WORDS, SpCoConfig, SpCoSettings, preset
+from spcopyro.config import PRESETS, WORDS, SpCoConfig, SpCoSettings, preset, preset_inference
 from spcopyro.data import CellCounts, House, cell_counts
 from spcopyro.data.model_grid import model_house
 from spcopyro.fit_gibbs import (
@@ -475,6 +475,30 @@ def fit_house_chains(
     return fits
 
 
+def log_skipped_preset_inference(
+    settings: SpCoSettings, init: Init, options: object | None, point_estimate: str
+) -> None:
+    """Warn (logger ``"spcopyro"``) when a Gibbs fit from a preset's settings runs without the
+    inference settings that preset recommends (:func:`~spcopyro.config.preset_inference`), which
+    ``spcopyro fit`` applies: the library and the command would give different maps."""
+    recommended = preset_inference(settings.preset) if settings.preset in PRESETS else {}
+    if not recommended:
+        return
+    merge = float(getattr(options, "merge_moves", 0.0) or 0.0)
+    running = {"init": init_name(init), "merge_moves": merge, "point_estimate": point_estimate}
+    skipped = {k: v for k, v in recommended.items() if k in running and running[k] != v}
+    if skipped:
+        logger.warning(
+            "preset %r recommends %s (what spcopyro fit runs); this fit runs %s, so its map can "
+            "differ from the command's: pass them (spcopyro.config.preset_inference(%r); "
+            "point_estimate needs marginal_samples > 0, merge_moves goes in GibbsOptions)",
+            settings.preset,
+            ", ".join(f"{k}={v!r}" for k, v in skipped.items()),
+            ", ".join(f"{k}={running[k]!r}" for k in skipped),
+            settings.preset,
+        )
+
+
 def fit_house(
     house: House,
     settings: SpCoSettings | None = None,
@@ -517,6 +541,8 @@ def fit_house(
     """
     settings = preset() if settings is None else settings
     house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
+    if method == DEFAULT_METHOD:
+        log_skipped_preset_inference(settings, init, options, point_estimate)
     if not isinstance(chains, int) or chains < 1:
         raise ValueError(f"chains must be a positive integer, got {chains!r}")
     if sweeps == "auto":

@@ -331,3 +331,30 @@ def test_fit_from_gaussian_initialisations(init):
     assert adjusted_rand_index(result.label_image("final"), house.truth) > 0.3
     with pytest.raises(ValueError, match="init must be one of"):
         fit_house(house, cfg, sweeps=1, init="kmeans", progress=False)
+
+
+def test_a_library_fit_says_when_it_skips_its_presets_inference_settings(caplog):
+    """Issue 22 item 5: fit_house(house, preset("auto")) ran a random start without merge moves
+    and reported the best visited state, while spcopyro fit ran what the preset recommends, and
+    nothing said so. Now the library says which settings it skips."""
+    import logging
+
+    from spcopyro.fit import fit_house
+    from spcopyro.gibbs import GibbsOptions
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    house = make_house(seed=0, spec=HouseSpec(height=30, width=36, num_rooms=2))
+    assert preset("auto").preset == "auto" and preset("auto").replace(gamma=2.9).preset == "auto"
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        fit_house(house, preset("auto"), sweeps=4, progress=False)
+    skipped = [r.getMessage() for r in caplog.records if "recommends" in r.getMessage()]
+    assert len(skipped) == 1
+    assert "init='rooms'" in skipped[0] and "merge_moves=0.2" in skipped[0]
+    assert "point_estimate='vi'" in skipped[0] and "init='random'" in skipped[0]
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        fit_house(house, preset("auto"), sweeps=4, progress=False, init="rooms",
+                  options=GibbsOptions(merge_moves=0.2), marginal_samples=2,
+                  point_estimate="vi")  # fmt: skip
+        fit_house(house, preset("paper-dp"), sweeps=4, progress=False)  # recommends nothing
+    assert not [r for r in caplog.records if "recommends" in r.getMessage()]
