@@ -51,7 +51,7 @@ from spcopyro.gibbs.method import GibbsInference, output_from_run
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.inference import InferenceOutput
 from spcopyro.initialisation import INITS, kmeans_gaussians, labels_from_gaussians
-from spcopyro.map_checks import house_map_warning
+from spcopyro.map_checks import coverage_warning, house_map_warning
 from spcopyro.model import DTYPE, ModelData, make_model_data
 from spcopyro.point_estimate import check_point_estimate
 from spcopyro.posterior_means import concept_totals, with_posterior_means
@@ -254,6 +254,9 @@ def prepare_model_data(
         word_scaling=settings.data.word_scaling,
     )
     counts.placement.check_on_free(where)
+    coverage = coverage_warning(house)
+    if coverage:
+        logger.warning(coverage)
     data = make_model_data(house.grid, counts, settings.model.connectivity)
     for modality in data.modalities:
         settings.model.concentration(modality.name)  # ValueError if a further one has none

@@ -29,6 +29,8 @@ if TYPE_CHECKING:
     from spcopyro.data import House
 
 __all__ = [
+    "MIN_COVERAGE",
+    "coverage_warning",
     "DEGENERATE_SEPARATION",
     "DEGENERATE_SHARE",
     "NAMED_WORDS",
@@ -117,3 +119,32 @@ def house_map_warning(labels: np.ndarray, house: House, snap_distance: float) ->
         return None
     cells, _, _ = place_observations(house.grid, observations.word_xy, snap_distance)
     return degenerate_map_warning(labels, cells, observations.word_xy, observations.utterances)
+
+
+MIN_COVERAGE = 0.55
+"""Share of the free space's extent (per axis) below which the observations' extent makes a
+wrong map resolution likely: a tour of the house covers 0.66-0.96 of it on every public and
+synthetic house; a map whose resolution is twice too large shrinks the tour to about half."""
+
+
+def coverage_warning(house: House) -> str | None:
+    """A warning when the observations span less than :data:`MIN_COVERAGE` of the free space's
+    extent along both axes (issue 22 item 4: a map whose yaml resolution was off by 2x fitted
+    without a word): the map's resolution or origin may be wrong, or the robot saw only part of
+    the map. None otherwise."""
+    grid, obs = house.grid, house.observations
+    positions = np.concatenate([obs.image_xy, obs.word_xy])  # [T + U, 2]
+    if grid.num_free < 2 or positions.shape[0] < 2:
+        return None
+    free_xy = grid.cell_to_world(grid.free_cells)  # [N, 2]
+    span = np.ptp(free_xy, axis=0)  # [2]
+    if not (span > 0).all():
+        return None
+    covered = np.ptp(positions, axis=0) / span  # [2]
+    if (covered >= MIN_COVERAGE).any():
+        return None
+    return (
+        f"the observations span only {covered[0]:.0%} x {covered[1]:.0%} of the free space of "
+        f"map {grid.source or ''} (x x y): if the robot toured the whole map, its resolution "
+        f"({grid.resolution:g} m) or origin may be wrong"
+    )

@@ -3,6 +3,7 @@ while words said at different places lie inside it (:mod:`spcopyro.map_checks`).
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 
 import numpy as np
@@ -96,3 +97,40 @@ def test_fit_house_logs_the_warning_of_a_one_concept_map(caplog):
     heard = {w for u in house.observations.utterances for w in u}
     named = warning.split("lie inside it: ")[1].split(";")[0]
     assert sum(word in heard for word in named.replace(",", " ").split()) >= 2
+
+
+def test_a_map_whose_resolution_is_twice_too_large_is_warned_about(caplog):
+    """Issue 22 item 4: a map whose yaml resolution was off by 2x fitted without a word."""
+    import logging
+
+    from spcopyro.config import preset
+    from spcopyro.fit import prepare_model_data
+    from spcopyro.map_checks import coverage_warning
+    from spcopyro.maps import OccupancyGrid
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    house = make_house(seed=0, spec=HouseSpec())
+    assert coverage_warning(house) is None
+    wrong = OccupancyGrid(house.grid.occupancy, 2 * house.grid.resolution, house.grid.origin)
+    wrong_house = dataclasses.replace(house, grid=wrong, truth=None, category_names=None)
+    message = coverage_warning(wrong_house)
+    assert message is not None and "resolution (0.2 m)" in message
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        prepare_model_data(wrong_house, preset("paper-dp"))
+    assert any("may be wrong" in r.getMessage() for r in caplog.records)
+
+
+def test_an_all_zero_feature_file_is_warned_about(tmp_path, caplog):
+    """Issue 22 item 4: an all-zero Ft.csv fitted without a warning."""
+    import logging
+
+    from spcopyro.data import load_house
+    from spcopyro.synthetic import HouseSpec, write_synthetic
+
+    room = write_synthetic(tmp_path, seed=1, spec=HouseSpec(height=30, width=36, num_rooms=2))
+    rows = (room / "Ft.csv").read_text().splitlines()
+    (room / "Ft.csv").write_text("\n".join(",".join("0" for _ in r.split(",")) for r in rows))
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        load_house(room)
+    messages = [r.getMessage() for r in caplog.records]
+    assert any("Ft.csv: all image feature rows are all zero" in m for m in messages), messages

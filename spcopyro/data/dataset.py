@@ -10,6 +10,7 @@ the 1-based line and the offending value.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import re
 import shutil
@@ -209,6 +210,20 @@ def load_house(
             line=int(row) + 1,
             column=int(col) + 1,
             value=float(features[row, col]),
+        )
+    zero_rows = np.flatnonzero(features.sum(axis=1) == 0)  # [z]
+    if zero_rows.size:  # issue 22 item 4: an all-zero Ft.csv used to fit without a word
+        every = zero_rows.size == features.shape[0]
+        logging.getLogger("spcopyro").warning(
+            "%s: %s image feature rows are all zero (%s): %s",
+            files["Ft"],
+            "all" if every else f"{zero_rows.size} of {features.shape[0]}",
+            "lines "
+            + ", ".join(str(r + 1) for r in zero_rows[:5])
+            + (", ..." if zero_rows.size > 5 else ""),
+            "the images carry no information (was the feature extraction run?)"
+            if every
+            else "those images carry no information",
         )
     num_images = features.shape[0]
     image_xy = np.stack(
