@@ -23,8 +23,9 @@ def _load(data: str | None, seed: int = 0) -> House:
     return load_house(Path(data))
 
 
-def _summary(house: House) -> str:
-    counts = cell_counts(house.grid, house.observations, source=house.source)
+def _summary(house: House, warn: bool = True) -> str:
+    """The house's summary lines; ``warn=False`` when the fit will count (and warn) again."""
+    counts = cell_counts(house.grid, house.observations, source=house.source, warn=warn)
     p = counts.placement
     obs = house.observations
     lines = [

@@ -145,3 +145,19 @@ def test_a_seed_beyond_64_bits_names_the_option(capsys):
     assert stop.value.code == 2
     err = capsys.readouterr().err
     assert "argument --seed: must be at most 2**63 - 1" in err
+
+
+def test_an_off_map_utterance_is_warned_about_once(tmp_path, capsys, monkeypatch):
+    """Issue 22 item 10: every off-map warning of spcopyro fit was printed twice (once by the
+    house summary, once by the fit's own counts)."""
+    from spcopyro.synthetic import HouseSpec, write_synthetic
+
+    monkeypatch.setenv("CI", "1")
+    room = write_synthetic(tmp_path, seed=1, spec=HouseSpec(height=30, width=36, num_rooms=2))
+    lines = (room / "StXtx.csv").read_text().splitlines()
+    (room / "StXtx.csv").write_text("\n".join(["55.0", *lines[1:]]) + "\n")
+    argv = ["fit", str(room), "--out", str(tmp_path / "out"), "--sweeps", "2", "--no-figures"]
+    assert main(argv) == 0
+    assert capsys.readouterr().err.count("farther than 0.25 m from free space") == 1
+    assert main(["show", str(room), "--out", str(tmp_path / "house.png")]) == 0
+    assert capsys.readouterr().err.count("farther than 0.25 m from free space") == 1

@@ -199,6 +199,7 @@ def cell_counts(
     footprint_kernel: FootprintKernel = "uniform",
     footprint_fov: float | None = None,
     word_scaling: float = 1.0,
+    warn: bool = True,
 ) -> CellCounts:
     """Sum the observations per free cell (the model's sufficient statistics).
 
@@ -229,8 +230,10 @@ def cell_counts(
     cell with weights w_oc summing to 1 (``footprint_kernel``; ``footprint_fov`` degrees around
     ``obs.image_yaw`` for images), so each sum above becomes sum_o w_oc counts_o and the observed
     cells are every cell with a positive weight. ``footprint_radius = 0`` leaves the counts
-    exactly as without it. ``word_scaling`` s multiplies every utterance's word counts (or
-    tf-idf weights) by s before they are placed (``DataPreparation.word_scaling``).
+    exactly as without it. ``warn=False`` leaves out the warnings about observations left out
+    (a caller that counts the same observations twice says them once). ``word_scaling`` s
+    multiplies every utterance's word counts (or tf-idf weights) by s before they are placed
+    (``DataPreparation.word_scaling``).
 
     Counts are checked by :func:`check_count_totals` (finite, totals at most
     :data:`MAX_COUNT_TOTAL`): ``source``, the house folder the observations were read from
@@ -319,7 +322,7 @@ def cell_counts(
         ),
     )
     where = f" on map {grid.source}" if getattr(grid, "source", None) else ""
-    if report.images_unplaced or report.words_unplaced:
+    if warn and (report.images_unplaced or report.words_unplaced):
         logger.warning(
             "%d image(s) and %d utterance(s) are farther than %g m from free space%s and were "
             "left out of the cell counts (image indices %s, utterance indices %s)",
@@ -331,7 +334,7 @@ def cell_counts(
             report.unplaced_words.tolist()[:20],
         )
     off_free = report.off_free_warning(where)
-    if off_free:
+    if warn and off_free:
         logger.warning("%s", off_free)
     if report.images_snapped or report.words_snapped:
         logger.info(
@@ -341,7 +344,7 @@ def cell_counts(
             where,
         )
     for placed in report.modalities:
-        if placed.unplaced:
+        if warn and placed.unplaced:
             logger.warning(
                 "%d observation(s) of modality %r are farther than %g m from free space%s and "
                 "were left out of the cell counts (indices %s)",
