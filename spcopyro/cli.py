@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import errno
 import gc
 import logging
 import sys
@@ -291,6 +292,18 @@ def _configure_logging(level: int) -> None:
         logger.addHandler(handler)
 
 
+def _error_line(error: BaseException) -> str:
+    """The one line an error is told in: a full disk says so and names the file being written
+    (issue 22 item 10: it was a bare "[Errno 28] No space left on device")."""
+    if isinstance(error, OSError) and error.errno == errno.ENOSPC:
+        where = f" while writing {error.filename}" if error.filename else ""
+        return (
+            f"the disk is full{where} ({error.strerror}): free some space or choose another "
+            "--out; a fit's staging folder is removed, its output left as it was"
+        )
+    return str(error)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     if argv is not None:
@@ -299,7 +312,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.func(args)
     except (OSError, ValueError) as error:  # bad input: one clear line, no traceback
-        print(f"error: {error}", file=sys.stderr)
+        print(f"error: {_error_line(error)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:  # Ctrl-C: one line, no traceback (fit says more itself)
         print("interrupted", file=sys.stderr)

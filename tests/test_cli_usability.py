@@ -161,3 +161,15 @@ def test_an_off_map_utterance_is_warned_about_once(tmp_path, capsys, monkeypatch
     assert capsys.readouterr().err.count("farther than 0.25 m from free space") == 1
     assert main(["show", str(room), "--out", str(tmp_path / "house.png")]) == 0
     assert capsys.readouterr().err.count("farther than 0.25 m from free space") == 1
+
+
+def test_a_full_disk_is_said_in_words():
+    """Issue 22 item 10: a full disk gave a bare "[Errno 28] No space left on device"."""
+    import errno
+
+    from spcopyro.cli import _error_line
+
+    full = OSError(errno.ENOSPC, "No space left on device", "/data/out/labels.npy")
+    line = _error_line(full)
+    assert line.startswith("the disk is full while writing /data/out/labels.npy")
+    assert _error_line(ValueError("bad value")) == "bad value"
