@@ -23,9 +23,13 @@ def _load(data: str | None, seed: int = 0) -> House:
     return load_house(Path(data))
 
 
-def _summary(house: House, warn: bool = True) -> str:
-    """The house's summary lines; ``warn=False`` when the fit will count (and warn) again."""
-    counts = cell_counts(house.grid, house.observations, source=house.source, warn=warn)
+def _summary(house: House, warn: bool = True, feature_scaling: object = "probability") -> str:
+    """The house's summary lines; ``warn=False`` when the fit will count (and warn) again,
+    ``feature_scaling`` the run's (so a bad count is told under the scaling it has there)."""
+    counts = cell_counts(
+        house.grid, house.observations, source=house.source, warn=warn,
+        feature_scaling=feature_scaling,
+    )  # fmt: skip
     p = counts.placement
     obs = house.observations
     lines = [

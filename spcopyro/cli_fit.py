@@ -301,7 +301,8 @@ def _fit_staged(
     source = "embedded synthetic house, seed 0" if args.data is None else None
     # The config's warnings (gamma, extreme concentrations) are logged by prepare_model_data,
     # which the fit runs; main's logging handler prints them once, as "warning: ...".
-    print(_summary(house, warn=False))  # the fit's own counts say what is left out, once
+    # The fit's own counts say what is left out (once), under the run's feature scaling.
+    print(_summary(house, warn=False, feature_scaling=settings.data.feature_scaling))
     print(f"model            {config}")
     print(f"data             {settings.data}")
     default = INFERENCE_METHODS[args.method].default_options()

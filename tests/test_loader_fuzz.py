@@ -479,3 +479,29 @@ def test_the_labels_file_of_features_head_says_the_same(tmp_path):
     labels.write_text("a.jpg,kitchen\n" + ",".join(["b.jpg"] * 300) + "\n")
     with pytest.raises(ValueError, match=r"labels\.csv, line 2: .*\.\.\. \(300 values, 1799 char"):
         read_labelled_images(labels)
+
+
+def test_a_far_off_position_names_its_file_and_line(room):
+    """Issue 22 item 10: a 1e308 position gave "xy is too far from the map origin to index a
+    cell" without a file or line."""
+    lines = (room / "StXty.csv").read_text().splitlines()
+    lines[2] = "1e308"
+    (room / "StXty.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(DataFormatError, match=r"StXty\.csv, line 3: a position farther than"):
+        load_house(room)
+
+
+def test_a_huge_feature_is_told_under_the_runs_feature_scaling(room, tmp_path, capsys):
+    """Issue 22 item 10: the 1e308 error named 'probability' under a floor100 run (the house
+    summary counted with the default scaling first)."""
+    from spcopyro.cli import main
+
+    lines = (room / "Ft.csv").read_text().splitlines()
+    row = lines[1].split(",")
+    row[0] = "1e308"
+    lines[1] = ",".join(row)
+    (room / "Ft.csv").write_text("\n".join(lines) + "\n")
+    argv = ["fit", str(room), "--out", str(tmp_path / "out"), "--sweeps", "2", "--preset", "auto"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "Ft.csv, line 2, column 1" in err and "feature_scaling='floor100'" in err

@@ -149,6 +149,11 @@ def _check_truth(
     return labels
 
 
+MAX_COORDINATE = 1e6
+"""Metres: a world position farther than this from the map's frame origin (1000 km) is a data
+error, named with its file and line (issue 22 item 10), not a map-indexing failure later."""
+
+
 def load_house(
     room_dir: str | os.PathLike[str], map_yaml: str | os.PathLike[str] | None = None
 ) -> House:
@@ -241,6 +246,20 @@ def load_house(
         ],
         axis=1,
     )  # [U, 2]
+    for positions, (x_file, y_file) in (
+        (image_xy, (files["Xtx"], files["Xty"])),
+        (word_xy, (files["StXtx"], files["StXty"])),
+    ):
+        far = np.abs(positions) > MAX_COORDINATE  # [n, 2] bool
+        if far.any():
+            row, axis = np.argwhere(far)[0]
+            raise DataFormatError(
+                (x_file, y_file)[axis],
+                f"a position farther than {MAX_COORDINATE:g} m from the map's frame origin "
+                "(a unit or parsing error?)",
+                line=int(row) + 1,
+                value=float(positions[row, axis]),
+            )
     image_trial, word_trial, image_yaw, trial_ids, images_per_trial = _read_trials(
         room, image_xy, utterances, files
     )
