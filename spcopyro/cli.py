@@ -107,22 +107,17 @@ def _show(args: argparse.Namespace) -> int:
     return 0
 
 
-FIT_FILES = frozenset(
-    "agreement.npy agreement.png chains.json concepts.json config.json convergence.json "
-    "house.png labels.npy map.yaml map.pgm result.npz scores.json semantic_map.png trace.csv "
-    "trace.png truth.npy uncertainty.npy uncertainty.png".split()
-)
-"""The files ``spcopyro fit`` writes into its output folder (``where --out`` never replaces one)."""
-
-
 def _check_where_out(result_dir: str, out: str) -> None:
     """``where --out``: refuse a figure (or its ``_probability`` sibling) that would replace
-    one of the fit's own files (:data:`FIT_FILES`)."""
+    one of the fit's own files (its manifest, :func:`spcopyro.outputs.fit_written`)."""
+    from spcopyro.outputs import fit_written
+
     folder = Path(result_dir).resolve()
+    own = fit_written(folder)
     path = Path(out).resolve()
-    written = path if path.suffix else path.with_suffix(".png")  # matplotlib adds .png
-    for target in (written, path.with_name(f"{path.stem}_probability.png")):
-        if target.parent == folder and target.name in FIT_FILES:
+    figure = path if path.suffix else path.with_suffix(".png")  # matplotlib adds .png
+    for target in (figure, path.with_name(f"{path.stem}_probability.png")):
+        if target.parent == folder and target.name in own:
             raise ValueError(
                 f"--out {out}: {target.name} is a file of the fit in {result_dir}, which the "
                 "figure would replace; choose another name"

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import json
 import os
 import re
 import secrets
@@ -60,6 +61,38 @@ def read_npz(path: Path) -> np.lib.npyio.NpzFile:
     """``np.load`` of ``path`` from memory: a damaged zip then leaves no file handle open behind
     numpy (which warns later, as an unclosed file). Raises one of :data:`DAMAGED_FILE_ERRORS`."""
     return np.load(io.BytesIO(Path(path).read_bytes()), allow_pickle=False)
+
+
+MANIFEST = "outputs.json"
+"""The list of the files a fit wrote into its folder (``{"files": [...]}``): ``--overwrite``
+replaces those and keeps everything else (issue 22 item 3)."""
+FIT_FILES = frozenset(
+    "agreement.npy agreement.png chains.json concepts.json config.json convergence.json "
+    "house.png labels.npy map.yaml map.pgm result.npz scores.json semantic_map.png trace.csv "
+    "trace.png truth.npy uncertainty.npy uncertainty.png".split()
+)
+"""The files ``spcopyro fit`` writes: what a folder without a manifest (a fit of an older
+version) is taken to hold of the fit's own; ``where --out`` never replaces one."""
+
+
+def write_manifest(folder: Path) -> Path:
+    """Write :data:`MANIFEST` into ``folder``, listing every entry in it (and itself)."""
+    names = sorted({entry.name for entry in folder.iterdir()} | {MANIFEST})
+    path = folder / MANIFEST
+    path.write_text(json.dumps({"files": names}, indent=1) + "\n")
+    return path
+
+
+def fit_written(folder: Path) -> frozenset[str]:
+    """The names of the entries a fit wrote into ``folder``: its manifest's, or :data:`FIT_FILES`
+    (and the manifest) when it has none or a damaged one."""
+    try:
+        names = json.loads((folder / MANIFEST).read_text())["files"]
+        if isinstance(names, list) and all(isinstance(n, str) for n in names):
+            return frozenset(names) | {MANIFEST}
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    return FIT_FILES | {MANIFEST}
 
 
 class OutputError(ValueError):
@@ -134,6 +167,7 @@ class StagedOutput:
         """
         if self.committed:
             raise OutputError(f"{self.out}: already committed")
+        write_manifest(self.path)
         with _parent_lock(self.out.parent):
             if _identity(self.out) != self.seen:
                 self.kept = True
@@ -156,7 +190,9 @@ class StagedOutput:
         return self.out
 
     def _replace(self) -> None:
-        """Old OUT aside, the staged folder in its place, then the old one removed."""
+        """Old OUT aside, the staged folder in its place, then what the old fit did not write
+        (not in its manifest: a user's notes, ``where`` figures) carried into the new OUT, and
+        the rest of the old one removed."""
         old = self.out.parent / f"{self.out.name}.replaced-{secrets.token_hex(4)}"
         os.rename(self.out, old)
         try:
@@ -164,6 +200,10 @@ class StagedOutput:
         except OSError:
             os.rename(old, self.out)
             raise
+        written = fit_written(old)
+        for entry in old.iterdir():
+            if entry.name not in written and not (self.out / entry.name).exists():
+                os.rename(entry, self.out / entry.name)
         shutil.rmtree(old, ignore_errors=True)
 
     def discard(self) -> None:

@@ -93,17 +93,22 @@ def test_an_empty_or_missing_out_is_fine_and_a_file_is_not(tmp_path):
         check_output(tmp_path / "file")
 
 
-def test_overwrite_replaces_the_whole_folder(room, tmp_path, capsys):
-    """No file of the old run survives: chains.json of a two-chain fit, a stray file."""
+def test_overwrite_replaces_the_fits_files_and_keeps_the_rest(room, tmp_path, capsys):
+    """No file the old run wrote survives (chains.json of a two-chain fit); what it did not
+    write (a user's notes) is kept: its manifest says which are its own (issue 22 item 3)."""
     out = tmp_path / "out"
     assert _fit(room, out, "--chains", "2") == 0
     assert "chains.json" in _entries(out)
+    manifest = json.loads((out / "outputs.json").read_text())["files"]
+    assert set(manifest) == _entries(out)
     (out / "stray.txt").write_text("old\n")
     capsys.readouterr()
     assert _fit(room, out) == 2  # without --overwrite: refused, untouched
     assert "stray.txt" in _entries(out)
     assert _fit(room, out, "--overwrite") == 0
-    assert "chains.json" not in _entries(out) and "stray.txt" not in _entries(out)
+    assert "chains.json" not in _entries(out)
+    assert (out / "stray.txt").read_text() == "old\n"
+    assert "stray.txt" not in json.loads((out / "outputs.json").read_text())["files"]
     assert {"result.npz", "config.json", "labels.npy", "semantic_map.png"} <= _entries(out)
     assert json.loads((out / "config.json").read_text())["inference"]["seed"] == 0
     assert not [p for p in tmp_path.iterdir() if ".partial-" in p.name or ".replaced-" in p.name]
@@ -197,7 +202,8 @@ def test_two_stagings_race_and_one_wins_whole(tmp_path, overwrite):
     assert str(second.path) in str(error.value)
     second.discard()  # kept: its files are named in the message
     assert (second.path / "second.txt").is_file()
-    assert _entries(out) == {"result.npz", "first.txt"}
+    kept = {"old.txt"} if overwrite else set()  # not the old fit's: carried over
+    assert _entries(out) == {"result.npz", "first.txt", "outputs.json"} | kept
     assert (out / "result.npz").read_text() == "first.txt"
 
 
@@ -238,8 +244,9 @@ def test_two_processes_commit_at_once_and_one_wins_whole(tmp_path):
     codes = [run.returncode for run in runs]
     assert sorted(codes) == [0, 3], messages
     winner = ("one", "two")[codes.index(0)]
-    assert _entries(out) == {"result.npz", "config.json", winner}
-    assert all((out / name).read_text() == winner for name in _entries(out))
+    assert _entries(out) == {"result.npz", "config.json", winner, "outputs.json", "old.txt"}
+    written = _entries(out) - {"outputs.json", "old.txt"}  # old.txt: the user's, carried over
+    assert all((out / name).read_text() == winner for name in written)
     assert "written by another process" in messages[codes.index(3)]
 
 
