@@ -14,8 +14,10 @@ import (a notebook keeps its inline figures; headless runs need no display).
 
 from __future__ import annotations
 
+import logging
 import os
 import textwrap
+import warnings
 from collections import Counter
 from pathlib import Path
 
@@ -25,6 +27,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
+from matplotlib.text import Text
 from scipy import ndimage
 
 from spcopyro.concept_words import NO_WORDS
@@ -86,6 +89,59 @@ def _show_image(ax: Axes, grid: OccupancyGrid, rgb: np.ndarray) -> tuple[slice, 
     return rows, cols
 
 
+CJK_FONTS = (
+    "Noto Sans CJK JP", "Noto Sans JP", "IPAexGothic", "IPAGothic", "TakaoGothic",
+    "Source Han Sans JP", "Hiragino Sans", "Yu Gothic", "MS Gothic", "Noto Sans CJK SC",
+    "WenQuanYi Zen Hei",
+)  # fmt: skip
+"""Fonts with Japanese (and Chinese) glyphs that the figures fall back to, in this order, when
+one is installed: words of any script are drawn, not as boxes (issue 22 item 10)."""
+_warned_glyphs: set[str] = set()
+
+
+def _font_families() -> list[str]:
+    """matplotlib's sans-serif font first, then every installed font of :data:`CJK_FONTS`."""
+    from matplotlib import font_manager, rcParams
+
+    installed = {font.name for font in font_manager.fontManager.ttflist}
+    return [*rcParams["font.sans-serif"][:1], *(f for f in CJK_FONTS if f in installed)]
+
+
+def _covered(families: list[str]) -> set[int]:
+    """The code points the ``families`` fonts have glyphs for."""
+    from matplotlib import font_manager
+    from matplotlib.ft2font import FT2Font
+
+    points: set[int] = set()
+    for family in families:
+        path = font_manager.findfont(family, fallback_to_default=False)
+        points |= set(FT2Font(path).get_charmap())
+    return points
+
+
+def _check_glyphs(fig: Figure, families: list[str]) -> None:
+    """Log once (logger ``"spcopyro"``) the words of the figure that no font can draw, and how
+    to get a font that can."""
+    from matplotlib.text import Text
+
+    texts = {t.get_text() for t in fig.findobj(Text)}
+    strange = {c for text in texts for c in text if ord(c) > 0x24F and not c.isspace()}
+    if not strange:
+        return
+    covered = _covered(families)
+    missing = sorted(c for c in strange if ord(c) not in covered and c not in _warned_glyphs)
+    if not missing:
+        return
+    _warned_glyphs.update(missing)
+    words = sorted({w for text in texts for w in text.split() if set(w) & set(missing)})[:5]
+    logging.getLogger("spcopyro").warning(
+        "the figures' fonts have no glyphs for %s (in %s): they are drawn as boxes; install a "
+        "font that has them (e.g. Debian's fonts-noto-cjk for Japanese) and the figures use it",
+        "".join(missing[:10]),
+        ", ".join(words),
+    )
+
+
 def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
     """Write ``fig`` as a PNG at ``DPI``, cropped to its artists plus ``PAD_INCHES``.
 
@@ -96,9 +152,15 @@ def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    renderer = FigureCanvasAgg(fig).get_renderer()
-    box = fig.get_tightbbox(renderer).padded(PAD_INCHES)
-    fig.savefig(path, dpi=DPI, bbox_inches=box)
+    families = _font_families()
+    for text in fig.findobj(Text):
+        text.set_fontfamily(families)  # any script: the first font that has the glyph
+    _check_glyphs(fig, families)
+    with warnings.catch_warnings():  # told once, in words, by _check_glyphs
+        warnings.filterwarnings("ignore", message="Glyph .* missing from font")
+        renderer = FigureCanvasAgg(fig).get_renderer()
+        box = fig.get_tightbbox(renderer).padded(PAD_INCHES)
+        fig.savefig(path, dpi=DPI, bbox_inches=box)
     return path
 
 

@@ -128,3 +128,47 @@ def test_render_labels_takes_colours():
     np.testing.assert_array_equal(rgb[1, 0], [255, 255, 255])
     with pytest.raises(ValueError, match="colours must be"):
         render_labels(labels, colours=colours[:1])
+
+
+def _japanese_house():
+    import dataclasses
+
+    from spcopyro.synthetic import make_house
+
+    house = make_house(seed=0)
+    utterances = tuple(
+        ("キッチン",) if k % 5 == 0 else u for k, u in enumerate(house.observations.utterances)
+    )
+    return dataclasses.replace(
+        house, observations=dataclasses.replace(house.observations, utterances=utterances)
+    )
+
+
+def test_words_no_font_can_draw_are_told_once_in_words(tmp_path, caplog, monkeypatch):
+    """Issue 22 item 10: Japanese words showed as boxes without a word. With no font that has
+    their glyphs, the figures say so once (and matplotlib's per-glyph warnings stay quiet)."""
+    import logging
+
+    import spcopyro.plotting as plotting
+
+    monkeypatch.setattr(plotting, "CJK_FONTS", ())  # as on a machine without such a font
+    monkeypatch.setattr(plotting, "_warned_glyphs", set())
+    house = _japanese_house()
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        plotting.plot_house(house, tmp_path / "a.png")
+        plotting.plot_house(house, tmp_path / "b.png")
+    told = [r.getMessage() for r in caplog.records if "no glyphs" in r.getMessage()]
+    assert len(told) == 1 and "キッチン" in told[0] and "fonts-noto-cjk" in told[0]
+
+
+def test_an_installed_japanese_font_draws_the_words(tmp_path, caplog, monkeypatch):
+    import logging
+
+    import spcopyro.plotting as plotting
+
+    if len(plotting._font_families()) < 2:
+        pytest.skip("no font with Japanese glyphs installed (e.g. fonts-ipafont-gothic)")
+    monkeypatch.setattr(plotting, "_warned_glyphs", set())
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        plotting.plot_house(_japanese_house(), tmp_path / "a.png")
+    assert not [r for r in caplog.records if "no glyphs" in r.getMessage()]
