@@ -35,6 +35,16 @@ def _percent(value: str) -> float:
     return number
 
 
+def _min_speed(value: str) -> float:
+    """``--min-speed``: a percentage in [1, 100]: Nav2 reads a 0 % limit as no limit."""
+    number = _percent(value)
+    if number < 1.0:
+        raise argparse.ArgumentTypeError(
+            f"must be at least 1 (percent): Nav2 reads a 0 % limit as no limit, got {value!r}"
+        )
+    return number
+
+
 def _export(args: argparse.Namespace) -> int:
     from spcopyro.nav2 import export_nav2
     from spcopyro.results import SpCoResult, UnknownWordError
@@ -113,9 +123,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--min-speed",
-        type=_percent,
+        type=_min_speed,
         default=30.0,
-        help="speed: limit in percent of the maximum speed where the probability is 1",
+        help="speed: limit in percent of the maximum speed where the probability is 1; at "
+        "least 1 (Nav2 reads a 0 %% limit as no limit)",
     )
     p.add_argument(
         "--max-speed",

@@ -152,10 +152,17 @@ def _check_threshold(threshold: float) -> None:
         raise ValueError(f"the place's probability threshold must lie in (0, 1], got {threshold!r}")
 
 
+MIN_SPEED_LIMIT = 1.0
+"""Percent: the smallest speed limit a mask may set. Nav2 reads a limit of 0 as "no speed
+limit" (``NO_SPEED_LIMIT``), so a limit rounded to 0 % would let the robot drive at full speed
+exactly where the word's place is (issue 24 item 2)."""
+
+
 def _check_speeds(min_speed: float, max_speed: float) -> None:
-    if not (0.0 <= min_speed <= max_speed <= 100.0):
+    if not (MIN_SPEED_LIMIT <= min_speed <= max_speed <= 100.0):
         raise ValueError(
-            "speed limits must satisfy 0 <= min <= max <= 100 (percent of the maximum speed), "
+            "speed limits must satisfy 1 <= min <= max <= 100 (percent of the maximum speed; "
+            "Nav2 reads a 0 % limit as no limit at all), "
             f"got min {min_speed!r}, max {max_speed!r}"
         )
 

@@ -158,7 +158,7 @@ def test_speed_mask_decodes_to_a_limit_falling_with_the_probability(fit, tmp_pat
     assert ((20 <= limit) & (limit <= 90)).all() and len(np.unique(limit)) > 10
     order = np.argsort(probability, kind="stable")
     assert (np.diff(limit[order]) <= 0).all()  # monotone: more probable, slower
-    assert speed_percent(np.array([0.0, 1.0]), 0.0, 100.0).tolist() == [100.0, 0.0]
+    assert speed_percent(np.array([0.0, 1.0]), 1.0, 100.0).tolist() == [100.0, 1.0]
 
 
 def test_every_mask_value_reads_back_exactly(tmp_path):
@@ -234,6 +234,24 @@ def test_bad_options_are_refused(fit, tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["export", str(fit), "--nav2", out, "--threshold", "1.5"])
     assert not (tmp_path / "n").exists()
+
+
+def test_a_speed_mask_never_writes_no_limit_inside_the_place(fit, tmp_path, capsys):
+    """Issue 24 item 2: --min-speed 0 made the cells surest to be the place a 0 % limit, which
+    Nav2 reads as "no speed limit": the place became the one where the robot drives fastest.
+    --min-speed below 1 is refused; at 1 every limited cell keeps a limit of at least 1 %."""
+    from spcopyro.nav2 import speed_percent
+
+    out = tmp_path / "n"
+    with pytest.raises(SystemExit):
+        main(["export", str(fit), "--nav2", str(out), "--word", "bed", "--mode", "speed",
+              "--min-speed", "0"])  # fmt: skip
+    assert "Nav2 reads a 0 % limit as no limit" in capsys.readouterr().err
+    assert not out.exists()
+    with pytest.raises(ValueError, match="1 <= min"):
+        speed_percent(np.array([1.0]), min_speed=0.0)
+    percent = speed_percent(np.linspace(0, 1, 101), min_speed=1.0, max_speed=100.0)
+    assert percent.min() >= 1 and percent[0] == 100  # p = 0: no limit, as intended
 
 
 @pytest.mark.slow
