@@ -126,6 +126,18 @@ class HouseSpec:
                 f"{inner_h} x {inner_w} inside after the margin ({self.margin}) and the outer "
                 f"wall: both sides must be at least min_room_size ({self.min_room_size})"
             )
+        # Every room needs min_room_size cells and a wall cell along each axis: no partition by
+        # walls holds more rooms than this grid (issue 24 item 7: the area bound let
+        # HouseSpec(30, 40, num_rooms=3) through, and make_house then failed for every seed).
+        side = self.min_room_size + 1
+        most = ((inner_h + 1) // side) * ((inner_w + 1) // side)
+        if self.num_rooms > most:
+            raise HouseSpecError(
+                f"HouseSpec.num_rooms {self.num_rooms}: rooms of at least {self.min_room_size} "
+                f"cells a side with a wall between them fit at most {most} to the "
+                f"{inner_h} x {inner_w} inside of a {self.height} x {self.width} house; lower "
+                "num_rooms or min_room_size, or enlarge the map"
+            )
         if self.num_rooms * self.min_room_size**2 > inner_h * inner_w:
             raise HouseSpecError(
                 f"HouseSpec.num_rooms {self.num_rooms} rooms of at least "
