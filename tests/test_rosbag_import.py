@@ -429,3 +429,56 @@ def test_cli_simulate_import_features_fit(tmp_path, capsys):
                  "--out", str(out)])  # fmt: skip
     assert code == 2
     assert "already exists" in capsys.readouterr().err
+
+
+def _strip_definitions(bag: Path) -> None:
+    """Make a ROS 2 sqlite3 bag look like Foxy's, Galactic's or Humble's: no message
+    definitions stored (an older database schema without the message_definitions table)."""
+    import sqlite3
+
+    (db,) = bag.glob("*.db3")
+    with sqlite3.connect(db) as con:
+        con.execute("DROP TABLE message_definitions")
+        con.execute("UPDATE schema SET schema_version = 3")
+    meta = bag / "metadata.yaml"
+    meta.write_text(meta.read_text().replace("  version: 9", "  version: 5"))
+
+
+@pytest.mark.parametrize("distro", ["foxy", "humble", "jazzy"])
+def test_a_bag_without_message_definitions_imports_like_its_twin(tmp_path, map_yaml, distro):
+    """Issue 24 item 1: real Foxy / Galactic / Humble bags store no message definitions and
+    ended with "Bag contains no type definitions". They are read with the --ros-distro
+    typestore and give the same observations as the same bag with definitions."""
+    from spcopyro.rosbag.bag import open_bag
+
+    twin, bare = tmp_path / "twin", tmp_path / "bare"
+    _write_basic(twin, 2, "sqlite3")
+    _write_basic(bare, 2, "sqlite3")
+    _strip_definitions(bare)
+    with pytest.raises(Exception, match="no type definitions"):  # rosbags alone cannot
+        from rosbags.highlevel import AnyReader
+
+        with AnyReader([bare]):
+            pass
+    options = ImportOptions(pose_tolerance=0.6, ros_distro=distro)
+    import_bags([twin], map_yaml, tmp_path / "a" / "house", options)
+    report = import_bags([bare], map_yaml, tmp_path / "b" / "house", options)
+    for name in ("Xtx.csv", "Xty.csv", "StXtx.csv", "StXty.csv", "word_0.csv", "pose_0.csv"):
+        a = (tmp_path / "a" / "house" / name).read_text()
+        assert (tmp_path / "b" / "house" / name).read_text() == a, name
+    record = json.loads((report.out / "bag_import.json").read_text())
+    assert record["options"]["ros_distro"] == distro
+    with open_bag(bare, distro) as reader:
+        assert {c.msgtype for c in reader.connections} >= {"std_msgs/msg/String"}
+
+
+def test_the_cli_names_the_ros_distro_it_read_with(tmp_path, map_yaml, capsys):
+    bare = tmp_path / "bare"
+    _write_basic(bare, 2, "sqlite3")
+    _strip_definitions(bare)
+    argv = ["import-bag", str(bare), "--map", str(map_yaml), "--out", str(tmp_path / "h"),
+            "--pose-tolerance", "0.6", "--ros-distro", "foxy"]  # fmt: skip
+    assert main(argv) == 0
+    assert "ROS 2 types      foxy" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        main([*argv[:-1], "rolling"])

@@ -27,6 +27,9 @@ import numpy as np
 from spcopyro.rosbag.poses import PoseTrack, quaternion_yaw
 
 __all__ = [
+    "DEFAULT_ROS_DISTRO",
+    "ROS_DISTROS",
+    "typestore",
     "IMAGE_TYPES",
     "POSE_TYPES",
     "TEXT_TYPES",
@@ -83,10 +86,29 @@ def stamp_seconds(stamp: Any) -> float:
     return float(stamp.sec) + float(stamp.nanosec) * 1e-9
 
 
+ROS_DISTROS = ("foxy", "galactic", "humble", "iron", "jazzy", "kilted")
+"""ROS 2 distributions whose message definitions a bag without its own can be read with."""
+DEFAULT_ROS_DISTRO = "humble"
+"""The message definitions a ROS 2 bag that stores none is read with (``--ros-distro``): Foxy,
+Galactic and Humble record no definitions in their sqlite3 bags. The messages spcopyro reads
+(poses, tf, images, strings) are the same in every distribution since Foxy."""
+
+
+def typestore(distro: str) -> Any:
+    """rosbags' typestore of a ROS 2 distribution of :data:`ROS_DISTROS`."""
+    from rosbags.typesys import Stores, get_typestore
+
+    if distro not in ROS_DISTROS:
+        raise ValueError(f"unknown ROS 2 distribution {distro!r}; choose one of {ROS_DISTROS}")
+    return get_typestore(Stores[f"ROS2_{distro.upper()}"])
+
+
 @contextmanager
-def open_bag(path: str | os.PathLike[str]) -> Iterator[Any]:
+def open_bag(path: str | os.PathLike[str], ros_distro: str = DEFAULT_ROS_DISTRO) -> Iterator[Any]:
     """An open :class:`rosbags.highlevel.AnyReader` of one bag: a ROS 1 ``.bag`` file, a ROS 2
-    bag folder (with ``metadata.yaml``), or a ROS 2 ``.db3`` / ``.mcap`` file.
+    bag folder (with ``metadata.yaml``), or a ROS 2 ``.db3`` / ``.mcap`` file. A ROS 2 bag that
+    stores no message definitions (Foxy, Galactic, Humble) is read with those of ``ros_distro``
+    (:data:`ROS_DISTROS`); one that stores its own is read with its own.
 
     Raises:
         FileNotFoundError: no such file or folder.
@@ -94,6 +116,7 @@ def open_bag(path: str | os.PathLike[str]) -> Iterator[Any]:
         RosbagsMissingError: rosbags is not installed.
     """
     highlevel = _rosbags()
+    store = typestore(ros_distro)
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: bag not found")
@@ -107,7 +130,7 @@ def open_bag(path: str | os.PathLike[str]) -> Iterator[Any]:
             f"{path}: not a bag (expected a ROS 1 .bag file, or a ROS 2 bag folder, .db3 or "
             f".mcap file; got suffix {path.suffix!r})"
         )
-    reader = highlevel.AnyReader([path])
+    reader = highlevel.AnyReader([path], default_typestore=store)
     try:
         reader.open()
     except (highlevel.AnyReaderError, OSError, KeyError, ValueError, AssertionError) as error:

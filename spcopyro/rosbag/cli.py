@@ -10,6 +10,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from spcopyro.rosbag.bag import DEFAULT_ROS_DISTRO, ROS_DISTROS
+
 __all__ = ["add_parser"]
 
 PRINTED_SKIPS = 50  # skipped observations printed (all are in skipped.csv)
@@ -37,6 +39,7 @@ def _import_bag(args: argparse.Namespace) -> int:
         min_distance=args.min_distance,
         min_interval=args.min_interval,
         pose_tolerance=args.pose_tolerance,
+        ros_distro=args.ros_distro,
     )
     try:
         report = import_bags(
@@ -51,6 +54,7 @@ def _import_bag(args: argparse.Namespace) -> int:
         print(f"error: {error}", file=sys.stderr)
         return 2
     print(f"pose from        {options.pose_source} (tolerance {options.pose_tolerance:g} s)")
+    print(f"ROS 2 types      {options.ros_distro} (for bags that store no message definitions)")
     print(report.text())
     if report.skipped:
         print(f"skipped {len(report.skipped)} observation(s) (all listed in "
@@ -144,6 +148,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--first-trial", type=int, default=0, help="trial id of the first bag (default 0)"
     )
+    p.add_argument("--ros-distro", choices=ROS_DISTROS, default=DEFAULT_ROS_DISTRO,
+                   help="ROS 2 distribution whose message definitions read a bag that stores "
+                        "none (Foxy, Galactic and Humble sqlite3 bags; a bag's own definitions "
+                        f"win) (default {DEFAULT_ROS_DISTRO})")  # fmt: skip
     p.add_argument("--overwrite", action="store_true",
                    help="replace OUT (only a folder import-bag wrote) and its map")  # fmt: skip
     p.set_defaults(func=_import_bag)

@@ -56,6 +56,8 @@ from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.maps.map_server import load_map, save_map
 from spcopyro.progress import progress_enabled
 from spcopyro.rosbag.bag import (
+    DEFAULT_ROS_DISTRO,
+    ROS_DISTROS,
     BagContentError,
     _rosbags,
     iter_images,
@@ -99,12 +101,15 @@ class ImportOptions:
     min_distance: float = 0.0  # metres between kept images
     min_interval: float = 0.0  # seconds between kept images
     pose_tolerance: float = 0.5  # seconds to the nearest pose sample
+    ros_distro: str = DEFAULT_ROS_DISTRO  # definitions for ROS 2 bags that store none
 
     def __post_init__(self) -> None:
         for name in ("min_distance", "min_interval", "pose_tolerance"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+        if self.ros_distro not in ROS_DISTROS:
+            raise ValueError(f"ros_distro must be one of {ROS_DISTROS}, got {self.ros_distro!r}")
         if self.pose_tf is not None and len(self.pose_tf) != 2:
             raise ValueError(f"pose_tf must be (parent frame, child frame), got {self.pose_tf!r}")
 
@@ -220,7 +225,7 @@ def _import_one(
     progress: bool | None = None,
 ) -> _Trial:
     tol = options.pose_tolerance
-    with open_bag(bag) as reader:
+    with open_bag(bag, options.ros_distro) as reader:
         if options.pose_tf:
             chain = read_tf_chain(reader, *options.pose_tf)
         else:
