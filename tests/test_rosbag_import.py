@@ -195,7 +195,10 @@ def test_odometry_and_pose_stamped(tmp_path, map_yaml, kind):
         w.image("/camera/image", T0 + 0.5, _image(0))
         w.text("/speech", T0 + 1.5, "sofa")
     out = tmp_path / "data" / "house"
-    import_bags([bag], map_yaml, out, ImportOptions(pose_topic="/odom"))
+    # The poses are in frame odom: placed on the map only when the map is in that frame.
+    with pytest.raises(BagContentError, match="frame 'odom', not the map's frame 'map'"):
+        import_bags([bag], map_yaml, out, ImportOptions(pose_topic="/odom"))
+    import_bags([bag], map_yaml, out, ImportOptions(pose_topic="/odom", map_frame="odom"))
     assert np.loadtxt(out / "Xtx.csv", ndmin=1) == pytest.approx([0.5])
     assert np.loadtxt(out / "StXtx.csv", ndmin=1) == pytest.approx([1.5])
 
@@ -482,3 +485,33 @@ def test_the_cli_names_the_ros_distro_it_read_with(tmp_path, map_yaml, capsys):
     assert "ROS 2 types      foxy" in capsys.readouterr().out
     with pytest.raises(SystemExit):
         main([*argv[:-1], "rolling"])
+
+
+def test_poses_merged_by_coarse_stamps_are_counted(tmp_path, map_yaml):
+    """Issue 24 item 3: a bag whose header stamps have 1 s resolution kept the first pose of
+    each stamp without a count or a warning."""
+    bag = tmp_path / "coarse"
+    with BagWriter(bag, ros=2) as w:
+        for k in range(40):  # 10 Hz poses, stamps floored to whole seconds
+            t = T0 + np.floor(k / 10.0)
+            w.pose("/amcl_pose", t, 0.01 * k, 0.0, 0.0, log_time=T0 + k / 10.0)
+        w.image("/camera/image", T0 + 1.0, _image(0))
+        w.text("/speech", T0 + 1.0, "kitchen")
+    report = import_bags([bag], map_yaml, tmp_path / "h", ImportOptions())
+    assert report.trials[0]["poses_merged"] == 36  # 40 samples, 4 distinct stamps
+    assert "36 pose sample(s) repeated the previous one's stamp" in report.text()
+    assert report.trials[0]["pose_frame"] == "map"
+
+
+def test_poses_in_another_frame_are_an_error(tmp_path, map_yaml):
+    """Issue 24 item 3: header.frame_id was never checked against the map's frame."""
+    bag = tmp_path / "odom"
+    with BagWriter(bag, ros=2) as w:
+        for k in range(5):
+            w.pose("/amcl_pose", T0 + k, 0.1 * k, 0.0, 0.0, frame="odom")
+        w.image("/camera/image", T0 + 1.0, _image(0))
+        w.text("/speech", T0 + 1.0, "kitchen")
+    with pytest.raises(BagContentError, match=r"frame 'odom', not the map's frame 'map'"):
+        import_bags([bag], map_yaml, tmp_path / "h", ImportOptions())
+    report = import_bags([bag], map_yaml, tmp_path / "h2", ImportOptions(map_frame="odom"))
+    assert report.trials[0]["pose_frame"] == "odom"

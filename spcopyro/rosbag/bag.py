@@ -187,13 +187,20 @@ def _check_order(topic: str, times: list[float], what: str = "") -> None:
         )
 
 
-def _track(name: str, times: list[float], poses: list[tuple[float, float, float]]) -> PoseTrack:
-    """A pose track from samples in order; a repeated stamp keeps the first sample."""
+def _track(
+    name: str,
+    times: list[float],
+    poses: list[tuple[float, float, float]],
+    frame: str | None = None,
+) -> PoseTrack:
+    """A pose track from samples in order; a repeated stamp keeps the first sample (how many
+    were dropped is the track's ``merged``, reported by the import)."""
     t = np.asarray(times, dtype=np.float64)  # [P]
     keep = np.ones(t.size, dtype=bool)
     keep[1:] = np.diff(t) > 0
     p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)[keep]  # [P', 3]
-    return PoseTrack(name, t[keep], p[:, :2], p[:, 2])
+    merged = int((~keep).sum())
+    return PoseTrack(name, t[keep], p[:, :2], p[:, 2], merged=merged, frame=frame)
 
 
 def _planar(pose: Any) -> tuple[float, float, float]:
@@ -201,20 +208,35 @@ def _planar(pose: Any) -> tuple[float, float, float]:
     return float(pose.position.x), float(pose.position.y), quaternion_yaw(q.x, q.y, q.z, q.w)
 
 
-def read_pose_topic(reader: Any, topic: str) -> PoseTrack:
-    """The poses of a PoseWithCovarianceStamped, Odometry or PoseStamped topic as a track."""
+def read_pose_topic(reader: Any, topic: str, map_frame: str | None = None) -> PoseTrack:
+    """The poses of a PoseWithCovarianceStamped, Odometry or PoseStamped topic as a track.
+
+    ``map_frame``: the frame of the map the poses are placed on; a pose whose
+    ``header.frame_id`` names another frame is a :class:`BagContentError` (placed on the map it
+    would be wrong by the transform between the two: compose a tf chain from the map's frame
+    instead, ``pose_tf``). An empty frame_id is taken to be the map's."""
     connections = _connections(reader, topic, POSE_TYPES, "pose")
     times: list[float] = []
     poses: list[tuple[float, float, float]] = []
+    frames: set[str] = set()
     for connection, log_ns, raw in reader.messages(connections=connections):
         msg = reader.deserialize(raw, connection.msgtype)
         pose = msg.pose if connection.msgtype.endswith("PoseStamped") else msg.pose.pose
         times.append(_message_time(msg, log_ns))
         poses.append(_planar(pose))
+        frames.add(_frame(msg.header.frame_id))
     if not times:
         raise BagContentError(f"{reader.paths[0]}: pose topic {topic} holds no messages")
     _check_order(topic, times)
-    return _track(topic, times, poses)
+    named = sorted(f for f in frames if f)
+    if map_frame is not None and any(f != _frame(map_frame) for f in named):
+        other = next(f for f in named if f != _frame(map_frame))
+        raise BagContentError(
+            f"{reader.paths[0]}: pose topic {topic} gives poses in frame {other!r}, not the "
+            f"map's frame {_frame(map_frame)!r}: pass --map-frame {other} if the map is in that "
+            f"frame, or read the pose from tf with --pose-tf {_frame(map_frame)} BASE_FRAME"
+        )
+    return _track(topic, times, poses, frame=named[0] if named else None)
 
 
 def _frame(name: str) -> str:

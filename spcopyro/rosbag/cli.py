@@ -40,6 +40,7 @@ def _import_bag(args: argparse.Namespace) -> int:
         min_interval=args.min_interval,
         pose_tolerance=args.pose_tolerance,
         ros_distro=args.ros_distro,
+        map_frame=args.map_frame,
     )
     try:
         report = import_bags(
@@ -55,6 +56,8 @@ def _import_bag(args: argparse.Namespace) -> int:
         return 2
     print(f"pose from        {options.pose_source} (tolerance {options.pose_tolerance:g} s)")
     print(f"ROS 2 types      {options.ros_distro} (for bags that store no message definitions)")
+    frames = sorted({str(t.get("pose_frame") or "(none given)") for t in report.trials})
+    print(f"pose frame       {', '.join(frames)} (the map's: {options.map_frame})")
     print(report.text())
     if report.skipped:
         print(f"skipped {len(report.skipped)} observation(s) (all listed in "
@@ -147,6 +150,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "are skipped and reported (default 0.5)")  # fmt: skip
     p.add_argument(
         "--first-trial", type=int, default=0, help="trial id of the first bag (default 0)"
+    )
+    p.add_argument(
+        "--map-frame",
+        default="map",
+        help="the map's frame: a pose topic whose header names another frame is an "
+        "error (read the pose from tf with --pose-tf instead) (default map)",
     )
     p.add_argument("--ros-distro", choices=ROS_DISTROS, default=DEFAULT_ROS_DISTRO,
                    help="ROS 2 distribution whose message definitions read a bag that stores "

@@ -102,6 +102,7 @@ class ImportOptions:
     min_interval: float = 0.0  # seconds between kept images
     pose_tolerance: float = 0.5  # seconds to the nearest pose sample
     ros_distro: str = DEFAULT_ROS_DISTRO  # definitions for ROS 2 bags that store none
+    map_frame: str = "map"  # the frame of the map: a pose topic's poses must be in it
 
     def __post_init__(self) -> None:
         for name in ("min_distance", "min_interval", "pose_tolerance"):
@@ -159,6 +160,12 @@ class BagImportReport:
     def text(self) -> str:
         lines = []
         for t in self.trials:
+            if t.get("poses_merged"):
+                lines.append(
+                    f"trial {t['trial']} ({t['bag']}): {t['poses_merged']} pose sample(s) "
+                    "repeated the previous one's stamp and were merged into it (the first "
+                    "kept): the bag's stamps are coarser than its pose rate"
+                )
             lines.append(
                 f"trial {t['trial']} ({t['bag']}): images {t['images_kept']} kept of "
                 f"{t['images_in_bag']} ({t['images_no_pose']} without pose, "
@@ -168,6 +175,10 @@ class BagImportReport:
                 f"{t['utterances_empty']} without words)"
             )
         return "\n".join(lines)
+
+
+def _frame_name(name: str) -> str:
+    return name.strip().lstrip("/")
 
 
 def _pose_at(
@@ -229,7 +240,7 @@ def _import_one(
         if options.pose_tf:
             chain = read_tf_chain(reader, *options.pose_tf)
         else:
-            chain = [read_pose_topic(reader, options.pose_topic)]
+            chain = [read_pose_topic(reader, options.pose_topic, options.map_frame)]
         images = read_stamps(reader, options.image_topic)
         words = read_texts(reader, options.words_topic)
 
@@ -282,6 +293,8 @@ def _import_one(
         rows = np.asarray(word_rows, dtype=np.int64)
         _check_inside(grid, word_xy[rows], words.times[rows], f"utterance on {words.topic}")
     counts = {
+        "pose_frame": chain[0].frame if not options.pose_tf else _frame_name(options.pose_tf[0]),
+        "poses_merged": int(sum(track.merged for track in chain)),
         "images_in_bag": int(images.times.size),
         "images_no_pose": int((~ok).sum()),
         "images_thinned": int(candidates.size - kept.size),

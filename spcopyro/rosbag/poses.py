@@ -65,6 +65,8 @@ class PoseTrack:
     yaw: np.ndarray  # [P] float64 rad
     static: bool = False
     inverted: bool = False  # the parent in the child frame: interpolated, then inverted
+    merged: int = 0  # samples dropped because they repeated the previous sample's stamp
+    frame: str | None = None  # the frame the poses are given in (a pose topic's header)
 
     def __post_init__(self) -> None:
         times = np.asarray(self.times, dtype=np.float64).reshape(-1)  # [P]
