@@ -61,7 +61,7 @@ def _export(args: argparse.Namespace) -> int:
         export = export_nav2(
             result, args.nav2, args.word or (), mode=args.mode, prior=args.prior,
             threshold=args.threshold, min_speed=args.min_speed, max_speed=args.max_speed,
-            overwrite=args.overwrite, source=args.result,
+            overwrite=args.overwrite, source=args.result, namespace=args.namespace,
         )  # fmt: skip
     except UnknownWordError as error:
         print(f"error: {error.args[0]}", file=sys.stderr)
@@ -134,5 +134,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=100.0,
         help="speed: limit in percent where the probability is 0 (100: no limit)",
     )
+    p.add_argument("--namespace", metavar="NS",
+                   help="the robot's ROS namespace: the masks', filter infos' and speed limit's "
+                        "topics become /NS/... (default: none, absolute topics)")  # fmt: skip
     p.add_argument("--overwrite", action="store_true", help="replace an earlier export in DIR")
     p.set_defaults(func=_export)

@@ -206,11 +206,34 @@ def _ros_name(word: str) -> str:
     return name or "word"
 
 
-def mask_params(mode: str, name: str, mask_yaml: Path) -> dict[str, object]:
+def topic(name: str, namespace: str | None = None) -> str:
+    """The absolute topic ``/NAME``, or ``/NAMESPACE/NAME`` for a robot in a namespace (the
+    filters' topics must follow the robot's namespace: issue 24 item 3)."""
+    return f"/{namespace.strip('/')}/{name}" if namespace and namespace.strip("/") else f"/{name}"
+
+
+def check_namespace(namespace: str | None) -> str | None:
+    """A ROS namespace (``robot1``, ``/fleet/robot1``), stripped of its outer slashes; None or
+    empty: none. ValueError for a name ROS would refuse."""
+    if namespace is None or not namespace.strip("/"):
+        return None
+    clean = namespace.strip("/")
+    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*", clean):
+        raise ValueError(
+            f"namespace {namespace!r}: ROS names are letters, digits and underscores, each "
+            "part starting with a letter, parts separated by /"
+        )
+    return clean
+
+
+def mask_params(
+    mode: str, name: str, mask_yaml: Path, namespace: str | None = None
+) -> dict[str, object]:
     """The ``ros__parameters`` of the mask's ``map_server`` and ``costmap_filter_info_server``
-    nodes, as one params file (Nav2 keepout / speed-filter tutorials, step 2)."""
+    nodes, as one params file (Nav2 keepout / speed-filter tutorials, step 2); their topics in
+    the robot's ``namespace`` when one is given."""
     base, multiplier = BASE_MULTIPLIER[mode]
-    mask_topic = f"/{name}_filter_mask"
+    mask_topic = topic(f"{name}_filter_mask", namespace)
     return {
         f"{name}_mask_server": {
             "ros__parameters": {
@@ -222,7 +245,7 @@ def mask_params(mode: str, name: str, mask_yaml: Path) -> dict[str, object]:
         f"{name}_filter_info_server": {
             "ros__parameters": {
                 "type": FILTER_TYPES[mode],
-                "filter_info_topic": f"/{name}_filter_info",
+                "filter_info_topic": topic(f"{name}_filter_info", namespace),
                 "mask_topic": mask_topic,
                 "base": base,
                 "multiplier": multiplier,
@@ -231,14 +254,17 @@ def mask_params(mode: str, name: str, mask_yaml: Path) -> dict[str, object]:
     }
 
 
-def costmap_filters(masks: list[tuple[str, str]]) -> dict[str, object]:
+def costmap_filters(
+    masks: list[tuple[str, str]], namespace: str | None = None
+) -> dict[str, object]:
     """The costmap entries (``filters`` list and one plugin per mask) for ``nav2_params.yaml``:
     keepout filters in the global and the local costmap (plans avoid the place, and the
     controller does not drive in), speed filters in the global costmap only (Nav2: never in
     both, or the limit flips at every boundary). ``masks``: (mode, name) pairs."""
     costmaps: dict[str, dict[str, object]] = {"global_costmap": {}, "local_costmap": {}}
     for mode, name in masks:
-        plugin: dict[str, object] = {"enabled": True, "filter_info_topic": f"/{name}_filter_info"}
+        info = topic(f"{name}_filter_info", namespace)
+        plugin: dict[str, object] = {"enabled": True, "filter_info_topic": info}
         if mode == "keepout":
             plugin = {"plugin": "nav2_costmap_2d::KeepoutFilter", **plugin}
             targets = ("global_costmap", "local_costmap")
@@ -246,7 +272,7 @@ def costmap_filters(masks: list[tuple[str, str]]) -> dict[str, object]:
             plugin = {
                 "plugin": "nav2_costmap_2d::SpeedFilter",
                 **plugin,
-                "speed_limit_topic": SPEED_LIMIT_TOPIC,
+                "speed_limit_topic": topic(SPEED_LIMIT_TOPIC.lstrip("/"), namespace),
             }
             targets = ("global_costmap",)
         for costmap in targets:
@@ -305,6 +331,7 @@ def export_nav2(
     max_speed: float = DEFAULT_MAX_SPEED,
     overwrite: bool = False,
     source: str | os.PathLike[str] | None = None,
+    namespace: str | None = None,
 ) -> Nav2Export:
     """Write ``result``'s map, semantic map and one ``mode`` mask per word into ``out`` (module
     docstring), whole or not at all (a staging folder beside ``out``, renamed when done).
@@ -320,6 +347,8 @@ def export_nav2(
         min_speed, max_speed: speed only: the limits (percent) at probability 1 and 0.
         overwrite: replace an earlier export in ``out``.
         source: the fit's folder (recorded in ``nav2_export.json``).
+        namespace: the robot's ROS namespace: the masks', filter infos' and speed limit's
+            topics are put in it (``/NS/speed_kitchen_filter_mask``); None: absolute topics.
 
     Raises:
         UnknownWordError: a word outside the vocabulary (with the closest known words); nothing
@@ -333,6 +362,7 @@ def export_nav2(
             raise ValueError("a probability threshold applies to keepout masks only")
         _check_threshold(threshold)
     _check_speeds(min_speed, max_speed)
+    namespace = check_namespace(namespace)
     words = list(dict.fromkeys(w.lower() for w in words))
     for word in words:  # every word known before anything is written
         word_index(result.vocabulary, word)
@@ -367,7 +397,7 @@ def export_nav2(
             params_yaml = folder / f"{name}_params.yaml"
             _write_yaml(
                 params_yaml,
-                mask_params(mode, name, final / mask_yaml.name),
+                mask_params(mode, name, final / mask_yaml.name, namespace),
                 f"Nav2 {mode} filter for {word!r} (spcopyro export): params of its mask server "
                 "and costmap filter info server",
             )
@@ -381,7 +411,7 @@ def export_nav2(
         filters_yaml = folder / "costmap_filters.yaml"
         _write_yaml(
             filters_yaml,
-            costmap_filters([(mode, name) for name in names]),
+            costmap_filters([(mode, name) for name in names], namespace),
             "Costmap filter entries for nav2_params.yaml (spcopyro export): merge them into\n"
             "the global_costmap / local_costmap sections (Nav2 Foxy, from before the 'filters'\n"
             "parameter of Galactic, lists filters under 'plugins')",
@@ -397,6 +427,7 @@ def export_nav2(
             "threshold": threshold,
             "min_speed": min_speed if mode == "speed" else None,
             "max_speed": max_speed if mode == "speed" else None,
+            "namespace": namespace,
             "map": {
                 "resolution": grid.resolution,
                 "origin": list(grid.origin),

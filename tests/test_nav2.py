@@ -270,3 +270,24 @@ def test_simulate_fit_export_end_to_end(tmp_path, capsys):
     assert (mask.resolution, mask.origin, mask.values.shape) == (0.1, (-2.0, 1.0, 0.0), grid.shape)
     region = SpCoResult.load(tmp_path / "fit").where("kitchen").region
     assert region.any() and np.array_equal(mask.values == 100, region)
+
+
+def test_topics_follow_the_robots_namespace(fit, tmp_path):
+    """Issue 24 item 3: the filter topics were absolute, so a namespaced robot could not use
+    them as written."""
+    out = tmp_path / "ns"
+    assert main(["export", str(fit), "--nav2", str(out), "--word", "kitchen", "--mode", "speed",
+                 "--namespace", "/robot1/"]) == 0  # fmt: skip
+    params = _read_yaml(out / "speed_kitchen_params.yaml")
+    mask = params["speed_kitchen_mask_server"]["ros__parameters"]
+    info = params["speed_kitchen_filter_info_server"]["ros__parameters"]
+    assert mask["topic_name"] == info["mask_topic"] == "/robot1/speed_kitchen_filter_mask"
+    assert info["filter_info_topic"] == "/robot1/speed_kitchen_filter_info"
+    costmaps = _read_yaml(out / "costmap_filters.yaml")
+    plugin = costmaps["global_costmap"]["global_costmap"]["ros__parameters"]["speed_kitchen_filter"]
+    assert plugin["filter_info_topic"] == "/robot1/speed_kitchen_filter_info"
+    assert plugin["speed_limit_topic"] == "/robot1/speed_limit"
+    with pytest.raises(ValueError, match="namespace"):
+        from spcopyro.nav2 import check_namespace
+
+        check_namespace("robot 1")
