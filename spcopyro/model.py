@@ -214,6 +214,12 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
     pi = pyro.sample(
         SITE_PI, dist.Dirichlet(torch.full((L,), config.pi_concentration, dtype=DTYPE))
     )
+    if pi.dim() > 1:  # Predictive(parallel=True) hands a batch of samples
+        raise ValueError(
+            f"spcomapping_model takes one sample of pi at a time, got a batch of shape "
+            f"{tuple(pi.shape)} (its labels are indexed per cell and its Potts factor is not "
+            "batched): use pyro.infer.Predictive(..., parallel=False)"
+        )
     with pyro.plate("concepts", L, dim=-1):
         parameters = [
             pyro.sample(

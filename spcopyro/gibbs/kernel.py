@@ -16,10 +16,11 @@ Pyro's MCMC driver and works around its habits:
   ``mcmc.diagnostics()`` then crashes on that integer site (it fills NaN into an int tensor), so
   use :func:`mcmc_diagnostics`, which gives ESS and split R-hat of the float sites (a label's
   R-hat means nothing under label switching anyway; ``num_concepts`` stays float for this).
-* MCMC keeps every saved param of every sample in memory: by default only the small sites
-  (``pi``, ``log_joint``, ``num_concepts``) are saved; add ``labels`` (N values a sample),
-  ``theta`` or ``w`` through ``save_params`` when you want them and have the memory. For long runs
-  with thinned label maps use :func:`spcopyro.gibbs.run.run_gibbs`.
+* MCMC keeps every saved param of every sample in memory: by default every site of the model
+  (``labels`` -- N values a sample --, ``pi``, ``theta``, ``w``) and the diagnostics ``log_joint``
+  and ``num_concepts`` are saved, so that Pyro's :class:`~pyro.infer.Predictive` conditions on the
+  whole posterior state; pass ``save_params=DEFAULT_SAVE_PARAMS`` (the small sites) for long runs
+  on large maps, or use :func:`spcopyro.gibbs.run.run_gibbs` with thinned label maps.
 * MCMC never calls ``end_warmup``, and with ``num_chains > 1`` runs each chain in a subprocess (the
   kernel pickles; each chain's generator is seeded from the worker's torch RNG, which MCMC seeds).
 """
@@ -43,6 +44,7 @@ from spcopyro.likelihood import log_joint_constant, num_concepts_in_use
 from spcopyro.model import SITE_LABELS, SITE_PI, ModelData, spcomapping_model
 
 DEFAULT_SAVE_PARAMS = ("log_joint", "num_concepts", "pi")
+"""The small sites: what to save for long runs on large maps (the default saves every site)."""
 ALL_PARAMS = ("labels", "log_joint", "num_concepts", "pi", "theta", "w")
 
 
@@ -64,7 +66,12 @@ class SpCoGibbs(MCMCKernel):
             in :meth:`setup`, so model and kernel cannot drift apart).
         init_labels: [N] starting labels (random if None).
         save_params: which of ``labels``, ``log_joint``, ``num_concepts``, ``pi``, ``theta``, ``w``
-            (and the parameter site of any further modality) MCMC keeps for every sample.
+            (and the parameter site of any further modality) MCMC keeps for every sample; None
+            (the default): all of them, so that ``mcmc.get_samples()`` holds every latent site
+            of the model and ``Predictive(model, posterior_samples=mcmc.get_samples())`` draws
+            from the posterior predictive (with a site missing, Predictive would draw it from
+            its prior: issue 24 item 4). Labels cost N values a sample: pass the small sites
+            only (:data:`DEFAULT_SAVE_PARAMS`) for long runs on large maps.
         options: the sampler's options (:class:`~spcopyro.gibbs.options.GibbsOptions`: backend,
             cluster moves, partial refresh); its ``anneal_sweeps`` must be 0 -- use ``anneal``.
         anneal: ramp the labels' coupling gamma up over MCMC's ``warmup_steps``
@@ -75,7 +82,7 @@ class SpCoGibbs(MCMCKernel):
         self,
         model: Callable[[ModelData, SpCoConfig], None] = spcomapping_model,
         init_labels: torch.Tensor | None = None,
-        save_params: Sequence[str] = DEFAULT_SAVE_PARAMS,
+        save_params: Sequence[str] | None = None,
         options: GibbsOptions = GibbsOptions(),
         anneal: bool = False,
     ) -> None:
@@ -89,7 +96,8 @@ class SpCoGibbs(MCMCKernel):
         self._backend = get_backend(options.backend)
         self.init_labels = init_labels
         self.anneal = bool(anneal)
-        self.save_params = sorted(save_params)
+        self._requested_params = None if save_params is None else tuple(save_params)
+        self.save_params = sorted(save_params) if save_params is not None else []
         self.transforms = {"labels": _ToInteger(torch.long)}
         self._state: GibbsState | None = None
         self._generator: torch.Generator | None = None
@@ -101,6 +109,8 @@ class SpCoGibbs(MCMCKernel):
         self._data, self._config = data, config
         self._warmup_steps, self._steps = warmup_steps, 0
         self._check_model_sites()
+        requested = self._requested_params
+        self.save_params = sorted(self._all_params() if requested is None else requested)
         unknown = set(self.save_params) - set(self._all_params())
         if unknown:
             raise ValueError(
