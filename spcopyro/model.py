@@ -214,7 +214,7 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
     pi = pyro.sample(
         SITE_PI, dist.Dirichlet(torch.full((L,), config.pi_concentration, dtype=DTYPE))
     )
-    if pi.dim() > 1:  # Predictive(parallel=True) hands a batch of samples
+    if pi.shape[:-1].numel() > 1:  # Predictive(parallel=True) hands a batch (a guide: [1, L])
         raise ValueError(
             f"spcomapping_model takes one sample of pi at a time, got a batch of shape "
             f"{tuple(pi.shape)} (its labels are indexed per cell and its Potts factor is not "
