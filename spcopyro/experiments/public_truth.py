@@ -14,9 +14,10 @@ Method (:func:`public_truth`)
    washroom, toilet and bath. These are the categories (:data:`PLACE_CATEGORIES`), except that
    *bath* joins *shower* (one room: the two are said at the same spots of room1ldk5, the only
    house with both). Object words (bed, sofa, TV, table, door, wall, ...) name no region and are
-   not used. Categories per house: 7, 6, 7, 8, 7 against the paper's Table 2 counts 6, 5, 7, 7, 7.
+   not used. Categories per house: 7, 6, 8, 8, 8 against the paper's Table 2 counts 6, 5, 7, 7, 7.
 2. **Geodesic distances.** Free cells form a graph (8-neighbourhood, diagonal steps of sqrt(2)
-   cells only where both side cells are free, so no step cuts a wall corner); a place-word
+   cells only where both side cells are free, so no step cuts a wall corner: the footprint's
+   graph, :func:`spcopyro.data.footprint.free_cell_graph`); a place-word
    utterance sits on the free cell it falls in (snapped to the nearest free cell within
    ``snap_distance``, as fitting does). Distances run through free space, never through walls.
 3. **Stray utterances.** An utterance whose ``k = 4`` geodesically nearest place-word utterances
@@ -44,13 +45,12 @@ Limits, stated where the numbers are quoted
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
 from spcopyro.data import DEFAULT_SNAP_DISTANCE, House, place_observations
-from spcopyro.maps import OccupancyGrid
+from spcopyro.data.footprint import free_cell_graph
 
-__all__ = ["PLACE_CATEGORIES", "PublicTruth", "free_space_graph", "public_truth"]
+__all__ = ["PLACE_CATEGORIES", "PublicTruth", "public_truth"]
 
 PLACE_CATEGORIES: dict[str, str] = {
     "bedroom": "bedroom",
@@ -95,30 +95,6 @@ class PublicTruth:
         return self.categories.index(category) if category in self.categories else None
 
 
-def free_space_graph(grid: OccupancyGrid) -> csr_matrix:
-    """``[N, N]`` sparse graph of the free cells (free-index order): 8-neighbourhood, step
-    lengths 1 and sqrt(2) cells, a diagonal only where both cells beside it are free."""
-    index = np.pad(grid.free_index, 1, constant_values=-1)  # [H+2, W+2]
-    h, w = grid.shape
-    here = index[1:-1, 1:-1]  # [H, W]
-    rows, cols, lengths = [], [], []
-    for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        there = index[1 + dr : 1 + dr + h, 1 + dc : 1 + dc + w]  # [H, W]
-        ok = (here >= 0) & (there >= 0)
-        if dr and dc:  # no corner cutting: both side cells free
-            side_a = index[1 + dr : 1 + dr + h, 1 : 1 + w]
-            side_b = index[1 : 1 + h, 1 + dc : 1 + dc + w]
-            ok &= (side_a >= 0) & (side_b >= 0)
-        rows.append(here[ok])
-        cols.append(there[ok])
-        lengths.append(np.full(int(ok.sum()), np.hypot(dr, dc)))
-    r, c, d = np.concatenate(rows), np.concatenate(cols), np.concatenate(lengths)
-    n = grid.num_free
-    return csr_matrix(
-        (np.concatenate([d, d]), (np.concatenate([r, c]), np.concatenate([c, r]))), shape=(n, n)
-    )
-
-
 def public_truth(house: House, *, snap_distance: float = DEFAULT_SNAP_DISTANCE) -> PublicTruth:
     """The region truth of a public house (module docstring: steps 1-4)."""
     grid, observations = house.grid, house.observations
@@ -131,7 +107,8 @@ def public_truth(house: House, *, snap_distance: float = DEFAULT_SNAP_DISTANCE) 
     categories = tuple(sorted({PLACE_CATEGORIES[words[u]] for u in keep}))
     category = np.array([categories.index(PLACE_CATEGORIES[words[u]]) for u in keep])  # [U']
     sources = cells[keep]  # [U'] free index of each place utterance's cell
-    graph = free_space_graph(grid)
+    graph = free_cell_graph(grid)  # never through walls or cut corners
+    graph.data /= grid.resolution  # in cells: ties between utterances broken as in cells
     # Distances between the utterances' cells (step 3).
     unique_sources, inverse = np.unique(sources, return_inverse=True)
     between = dijkstra(graph, indices=unique_sources)[:, unique_sources]  # [S, S]
