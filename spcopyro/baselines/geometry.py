@@ -49,6 +49,7 @@ from scipy import ndimage
 
 from spcopyro.data import DEFAULT_SNAP_DISTANCE, Observations, cell_counts
 from spcopyro.maps import OccupancyGrid
+from spcopyro.maps.coarse import grow_labels
 from spcopyro.semantic_map import TabularSemanticMap
 
 __all__ = ["DEFAULT_DOOR_WIDTH", "DEFAULT_MIN_ROOM_AREA", "geometry_semantic_map", "room_segments"]
@@ -66,24 +67,6 @@ def _positive_number(name: str, value: float) -> float:
     return float(value)
 
 
-def _grow(labels: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """Breadth-first growth of ``[H, W]`` labels (> 0) over ``mask`` until nothing changes."""
-    labels = labels.copy()  # [H, W]
-    h, w = labels.shape
-    padded = np.zeros((h + 2, w + 2), dtype=labels.dtype)
-    while True:
-        padded[1:-1, 1:-1] = labels
-        candidate = np.zeros_like(labels)  # [H, W]
-        # Neighbours above, below, left, right; an earlier direction wins ties.
-        for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):
-            shifted = padded[1 + dr : 1 + dr + h, 1 + dc : 1 + dc + w]  # [H, W]
-            candidate = np.where(candidate == 0, shifted, candidate)
-        grow = mask & (labels == 0) & (candidate > 0)  # [H, W] bool
-        if not grow.any():
-            return labels
-        labels[grow] = candidate[grow]
-
-
 def _flood(distance: np.ndarray, levels: np.ndarray, min_cells: float) -> np.ndarray:
     """``[H, W]`` int64 room id (1..) per reached cell, 0 elsewhere (the module's algorithm).
 
@@ -94,7 +77,7 @@ def _flood(distance: np.ndarray, levels: np.ndarray, min_cells: float) -> np.nda
     next_id = 1
     for r in levels:
         above = distance > r + _EPS  # [H, W] bool
-        rooms = _grow(rooms, above)
+        rooms = grow_labels(rooms - 1, above) + 1  # room ids >= 1; 0: none yet
         components, count = ndimage.label(above)  # [H, W], 0 = background
         if count == 0:
             continue

@@ -31,7 +31,7 @@ import numpy as np
 
 from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 
-__all__ = ["coarsen_grid", "coarsening_factor", "model_cell_of", "refine_labels"]
+__all__ = ["coarsen_grid", "coarsening_factor", "grow_labels", "model_cell_of", "refine_labels"]
 
 
 def coarsening_factor(resolution: float, cell_size: float | None) -> int:
@@ -76,6 +76,27 @@ def model_cell_of(grid: OccupancyGrid, factor: int) -> tuple[np.ndarray, np.ndar
     return (np.arange(grid.height) + pad_rows) // factor, np.arange(grid.width) // factor
 
 
+def grow_labels(labels: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """``[H, W]`` labels (>= 0; -1: none yet) grown over ``mask`` by a breadth-first wavefront
+    (4-neighbourhood, one cell a step, all labels at once; ties go to the neighbour above,
+    below, left, right in that order) until nothing changes. Cells of ``mask`` that no label
+    reaches stay -1."""
+    labels = np.asarray(labels, dtype=np.int64).copy()  # [H, W]
+    mask = np.asarray(mask, dtype=bool)
+    h, w = labels.shape
+    padded = np.full((h + 2, w + 2), -1, dtype=np.int64)
+    while True:
+        padded[1:-1, 1:-1] = labels
+        candidate = np.full_like(labels, -1)  # [H, W]
+        for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):  # an earlier direction wins ties
+            shifted = padded[1 + dr : 1 + dr + h, 1 + dc : 1 + dc + w]  # [H, W]
+            candidate = np.where(candidate < 0, shifted, candidate)
+        grow = mask & (labels < 0) & (candidate >= 0)  # [H, W] bool
+        if not grow.any():
+            return labels
+        labels[grow] = candidate[grow]
+
+
 def refine_labels(labels: np.ndarray, grid: OccupancyGrid, factor: int) -> np.ndarray:
     """``[H, W]`` labels on ``grid`` (the map) from ``[h, w]`` labels on its coarsened grid
     (-1 off free): each free map cell in a labelled block takes the block's label; the others
@@ -90,24 +111,14 @@ def refine_labels(labels: np.ndarray, grid: OccupancyGrid, factor: int) -> np.nd
     rows, cols = model_cell_of(grid, factor)
     free = np.asarray(grid.free)  # [H, W]
     fine = np.where(free, labels[rows[:, None], cols[None, :]], -1).astype(np.int64)  # [H, W]
-    h, w = fine.shape
-    while True:  # breadth-first growth through free cells (up, down, left, right: first wins)
-        missing = free & (fine < 0)
-        if not missing.any():
-            return fine
-        padded = np.pad(fine, 1, constant_values=-1)
-        candidate = np.full_like(fine, -1)
-        for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):
-            shifted = padded[1 + dr : 1 + dr + h, 1 + dc : 1 + dc + w]
-            candidate = np.where(candidate < 0, shifted, candidate)
-        grow = missing & (candidate >= 0)
-        if not grow.any():
-            break
-        fine[grow] = candidate[grow]
+    fine = grow_labels(fine, free)  # through free map cells, never through a wall
+    unreached = free & (fine < 0)  # [H, W]: free cells cut off from every labelled block
+    if not unreached.any():
+        return fine
     from scipy import ndimage  # here, not on the fit's import path
 
     nearest = ndimage.distance_transform_edt(
         labels < 0, return_distances=False, return_indices=True
     )  # [2, h, w]
     filled = labels[nearest[0], nearest[1]][rows[:, None], cols[None, :]]  # [H, W]
-    return np.where(free & (fine < 0), filled, fine).astype(np.int64)
+    return np.where(unreached, filled, fine).astype(np.int64)
