@@ -59,6 +59,7 @@ from spcopyro.rosbag.bag import (
     DEFAULT_ROS_DISTRO,
     ROS_DISTROS,
     BagContentError,
+    _frame,
     _rosbags,
     iter_images,
     open_bag,
@@ -177,10 +178,6 @@ class BagImportReport:
         return "\n".join(lines)
 
 
-def _frame_name(name: str) -> str:
-    return name.strip().lstrip("/")
-
-
 def _pose_at(
     chain: list[PoseTrack], times: np.ndarray, tolerance: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str | None]]:
@@ -293,7 +290,7 @@ def _import_one(
         rows = np.asarray(word_rows, dtype=np.int64)
         _check_inside(grid, word_xy[rows], words.times[rows], f"utterance on {words.topic}")
     counts = {
-        "pose_frame": chain[0].frame if not options.pose_tf else _frame_name(options.pose_tf[0]),
+        "pose_frame": chain[0].frame if not options.pose_tf else _frame(options.pose_tf[0]),
         "poses_merged": int(sum(track.merged for track in chain)),
         "images_in_bag": int(images.times.size),
         "images_no_pose": int((~ok).sum()),
