@@ -119,12 +119,10 @@ def _covered(families: list[str]) -> set[int]:
     return points
 
 
-def _check_glyphs(fig: Figure, families: list[str]) -> None:
-    """Log once (logger ``"spcopyro"``) the words of the figure that no font can draw, and how
-    to get a font that can."""
-    from matplotlib.text import Text
-
-    texts = {t.get_text() for t in fig.findobj(Text)}
+def _check_glyphs(artists: list[Text], families: list[str]) -> None:
+    """Log once (logger ``"spcopyro"``) the words of a figure's text ``artists`` that no font
+    can draw, and how to get a font that can."""
+    texts = {t.get_text() for t in artists}
     strange = {c for text in texts for c in text if ord(c) > 0x24F and not c.isspace()}
     if not strange:
         return
@@ -153,9 +151,10 @@ def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     families = _font_families()
-    for text in fig.findobj(Text):
+    artists = fig.findobj(Text)
+    for text in artists:
         text.set_fontfamily(families)  # any script: the first font that has the glyph
-    _check_glyphs(fig, families)
+    _check_glyphs(artists, families)
     with warnings.catch_warnings():  # told once, in words, by _check_glyphs
         warnings.filterwarnings("ignore", message="Glyph .* missing from font")
         renderer = FigureCanvasAgg(fig).get_renderer()
