@@ -17,7 +17,7 @@ import torch
 from spcopyro.config import preset
 from spcopyro.fit import fit_house, prepare_model_data
 from spcopyro.guides.loss import MeanFieldELBO
-from spcopyro.guides.mean_field import MeanFieldGuide
+from spcopyro.guides.mean_field import MeanFieldGuide, WrongLossError
 from spcopyro.guides.method import SVIInference, SVIOptions, fit_svi
 from spcopyro.metrics import adjusted_rand_index
 from spcopyro.model import DTYPE, SITE_LABELS, SITE_PI, spcomapping_model
@@ -51,7 +51,7 @@ def soft_guide(data, config, seed: int = 0, bound: str = "prior") -> MeanFieldGu
     """A guide away from any optimum: soft random q(C), globals CAVI-optimal for it."""
     g = torch.Generator().manual_seed(seed)
     logits = 2 * torch.randn(data.num_free, config.num_concepts, generator=g, dtype=DTYPE)
-    return MeanFieldGuide(torch.softmax(logits, -1), data, config, bound=bound)
+    return MeanFieldGuide(data, config, q=torch.softmax(logits, -1), bound=bound)
 
 
 def analytic_elbo(guide: MeanFieldGuide, data, config) -> torch.Tensor:
@@ -78,7 +78,7 @@ def test_the_estimate_averages_to_the_analytic_elbo(small, store):
 def test_the_gradient_averages_to_the_analytic_gradient(small, store, bound):
     data, config = small
     guide = soft_guide(data, config, seed=1, bound=bound)
-    analytic_elbo(guide, data, config)  # creates the params
+    guide(data, config)  # a call puts the params in the store
     leaves = [store.get_param(name).unconstrained() for name in store.keys()]
     exact = torch.autograd.grad(analytic_elbo(guide, data, config), leaves)
     loss = MeanFieldELBO()
@@ -125,7 +125,7 @@ def test_predictive_draws_every_site_from_the_guide(small, store):
     N, L = data.num_free, config.num_concepts
     labels = torch.arange(N) % L
     q = torch.nn.functional.one_hot(labels, L).to(DTYPE)
-    guide = MeanFieldGuide(q, data, config, label_smoothing=1e-12)
+    guide = MeanFieldGuide(data, config, q=q, label_smoothing=1e-12)
     draws = pyro.infer.Predictive(spcomapping_model, guide=guide, num_samples=4)(data, config)
     assert draws[SITE_PI].reshape(4, L).shape == (4, L)  # Pyro pads pi to [S, 1, L]
     assert torch.allclose(draws[SITE_PI].sum(-1), torch.ones((), dtype=DTYPE))
@@ -165,6 +165,51 @@ def test_the_method_is_registered_reproducible_and_leaves_the_param_store(small,
     assert (warm.labels == start.numpy()).mean() > 0.9
 
 
+def test_the_guide_is_a_pyro_module_built_from_the_models_arguments(small, store):
+    """Issue 24 item 4: built like Pyro's autoguides from (data, config), parameters named
+    under the module (its ``name``), a torch module's parameters, a random start by default."""
+    data, config = small
+    guide = MeanFieldGuide(data, config, generator=torch.Generator().manual_seed(0))
+    assert isinstance(guide, pyro.nn.PyroModule)
+    guide(data, config)
+    names = {f"spcomapping_guide.{m.parameter}_concentration" for m in data.modalities}
+    names |= {"spcomapping_guide.pi_concentration", "spcomapping_guide.labels_logits"}
+    assert set(store.keys()) == names and guide.logits_name == "spcomapping_guide.labels_logits"
+    assert len(list(guide.parameters())) == len(names)  # the unconstrained values, in torch
+    q = guide.marginals()  # the default start: near uniform (smoothing 0.9), randomly tilted
+    L = config.num_concepts
+    assert ((q - 1 / L).abs() < 1 / L).all() and (q.argmax(-1) != q.argmax(-1)[0]).any()
+    other = MeanFieldGuide(data, config, name="second")
+    other(data, config)
+    assert "second.labels_logits" in store.keys() and len(store.keys()) == 2 * len(names)
+    with pytest.raises(TypeError, match="takes the model's ModelData first"):
+        MeanFieldGuide(spcomapping_model, config)
+
+
+@pytest.mark.parametrize(
+    "loss",
+    [
+        pyro.infer.Trace_ELBO(),
+        pyro.infer.TraceGraph_ELBO(),
+        pyro.infer.TraceMeanField_ELBO(),
+        pyro.infer.TraceEnum_ELBO(max_plate_nesting=1),
+    ],
+    ids=lambda loss: type(loss).__name__,
+)
+def test_an_elbo_that_cannot_fit_the_guide_is_a_named_error(small, store, loss):
+    """Issue 24 item 6 / 4: Pyro's ELBOs took steps on the guide without error although they
+    cannot fit it; now the guide refuses to run under them and names the loss that can."""
+    data, config = small
+    guide = soft_guide(data, config)
+    svi = pyro.infer.SVI(spcomapping_model, guide, pyro.optim.Adam({"lr": 0.05}), loss)
+    with pytest.raises(WrongLossError, match=rf"{type(loss).__name__} cannot fit MeanFieldGuide"
+                       r".*MeanFieldELBO\(\)"):  # fmt: skip
+        svi.step(data, config)
+    good = pyro.infer.SVI(spcomapping_model, guide, pyro.optim.Adam({"lr": 0.05}), MeanFieldELBO())
+    assert np.isfinite(good.step(data, config))  # the guide itself is fine
+    guide(data, config)  # and a plain call (no ELBO) runs
+
+
 def test_bad_input_is_a_clear_error(small):
     data, config = small
     with pytest.raises(ValueError, match="learning_rate"):
@@ -177,7 +222,7 @@ def test_bad_input_is_a_clear_error(small):
         SVIInference().run(data, config, iterations=1, generator=torch.Generator(),
                            options=VariationalOptions())  # fmt: skip
     with pytest.raises(ValueError, match=r"q must be \[340, 5\]"):
-        MeanFieldGuide(torch.ones(3, 5, dtype=DTYPE) / 5, data, config)
+        MeanFieldGuide(data, config, q=torch.ones(3, 5, dtype=DTYPE) / 5)
     guide = soft_guide(data, config)
     with pytest.raises(ValueError, match="L=6"):
         guide(data, config.replace(num_concepts=6))

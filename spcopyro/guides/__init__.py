@@ -6,3 +6,8 @@ the model's site names), :class:`~spcopyro.guides.loss.MeanFieldELBO` the loss S
 (globals reparameterised, labels in closed form), and :mod:`spcopyro.guides.method` the ``svi``
 inference method built from the two.
 """
+
+from spcopyro.guides.loss import MeanFieldELBO
+from spcopyro.guides.mean_field import MeanFieldGuide, WrongLossError
+
+__all__ = ["MeanFieldELBO", "MeanFieldGuide", "WrongLossError"]

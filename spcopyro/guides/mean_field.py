@@ -6,10 +6,13 @@ r"""A mean-field Pyro guide for :func:`spcopyro.model.spcomapping_model`.
         \prod_m \prod_l \mathrm{Dir}(\phi_{ml} \mid a_{ml})
         \prod_i \mathrm{Cat}(C_i \mid \mathrm{softmax}(\eta_i)),
 
-the family of :mod:`spcopyro.variational` (CAVI) written as a Pyro program: the concentrations
-:math:`a_\pi` ``[L]`` and :math:`a_{ml}` ``[L, K_m]`` are ``pyro.param`` s constrained positive
-(by default above their prior's concentration, see ``bound``), the labels' logits :math:`\eta`
-``[N, L]`` an unconstrained ``pyro.param``. Its
+the family of :mod:`spcopyro.variational` (CAVI) written as a Pyro program, a
+:class:`~pyro.nn.PyroModule` built from the model's arguments like Pyro's autoguides
+(``MeanFieldGuide(data, config)``): the concentrations :math:`a_\pi` ``[L]`` and :math:`a_{ml}`
+``[L, K_m]`` are :class:`~pyro.nn.PyroParam` s constrained positive (by default above their
+prior's concentration, see ``bound``), the labels' logits :math:`\eta` ``[N, L]`` an
+unconstrained one, all named under the module (``spcomapping_guide.pi_concentration``,
+``spcomapping_guide.theta_concentration``, ..., ``spcomapping_guide.labels_logits``). Its
 sample sites carry the model's names (``pi``, :func:`~spcopyro.model.parameter_site` of every
 modality, ``labels``) in the model's plates, so ``pyro.infer.Predictive(model, guide=guide)``
 draws the globals and the labels from q, and ``pyro.infer.SVI`` fits it with the loss of
@@ -18,35 +21,69 @@ draws the globals and the labels from q, and ``pyro.infer.SVI`` fits it with the
 The guide's parameters start at the CAVI-optimal global factors for the starting q(C)
 (:func:`spcopyro.variational.cavi.update_globals`, eqs. 14-17 in expectation) and at logits
 ``log((1 - s) q + s / L)`` for that q (label smoothing ``s`` keeps a one-hot start finite).
-Each guide names its parameters with its own ``prefix``, so two guides can share a param store.
+Each guide names its parameters with its own ``name``, so two guides can share a param store.
+
+Only :class:`~spcopyro.guides.loss.MeanFieldELBO` fits it: run under any other
+:class:`pyro.infer.ELBO` (``Trace_ELBO``, ``TraceGraph_ELBO``, ``TraceEnum_ELBO``, ...) the guide
+raises :class:`WrongLossError` naming that loss, rather than letting SVI take steps that cannot
+fit it (the reasons are in :mod:`spcopyro.guides.loss`).
 """
 
 from __future__ import annotations
 
+import sys
 from typing import Literal
 
 import pyro
 import pyro.distributions as dist
 import torch
+from pyro.infer import ELBO
+from pyro.nn import PyroModule, PyroParam
 from torch.distributions import constraints
 
 from spcopyro.config import SpCoConfig
+from spcopyro.guides.loss import MeanFieldELBO
 from spcopyro.model import DTYPE, SITE_LABELS, SITE_PI, ModelData
 from spcopyro.variational.cavi import update_globals
 from spcopyro.variational.factors import GlobalFactors, prior_factors
+from spcopyro.variational.run import initial_q
 
 _MARGIN = 1e-3
 """Start of every concentration above its prior's under ``bound="prior"`` (expected counts)."""
 
+GUIDE_NAME = "spcomapping_guide"
+"""The default name of a guide: the start of its parameters' names in the param store."""
 
-class MeanFieldGuide:
+
+class WrongLossError(TypeError):
+    """The guide was run by an ELBO that cannot fit it (module docstring)."""
+
+
+def _calling_elbo() -> ELBO | None:
+    """The innermost :class:`pyro.infer.ELBO` whose method is running the caller, if any: an
+    ELBO's ``loss``, ``loss_and_grads`` or ``differentiable_loss`` is on the call stack whenever
+    it runs a guide (``Predictive`` and a plain call run none)."""
+    frame = sys._getframe(2)
+    while frame is not None:
+        owner = frame.f_locals.get("self")
+        if isinstance(owner, ELBO):
+            return owner
+        frame = frame.f_back
+    return None
+
+
+class MeanFieldGuide(PyroModule):
     """The mean-field guide (module docstring): call it as ``guide(data, config)``, like the model.
 
     Args:
-        q: ``[N, L]`` the starting q(C) (e.g. :func:`spcopyro.variational.run.initial_q`).
-        data, config: the model's arguments; the starting global factors are CAVI's optimum
-            given ``q``.
-        label_smoothing: s in the starting logits ``log((1 - s) q + s / L)``, in (0, 1).
+        data, config: the model's arguments; they fix N, L and the modalities' sites, and the
+            starting global factors are CAVI's optimum given the starting q(C).
+        q: ``[N, L]`` the starting q(C) (e.g. :func:`spcopyro.variational.run.initial_q` with
+            a Gibbs state's labels). By default random one-hot labels drawn with ``generator``
+            (torch's global generator when ``None``).
+        label_smoothing: s in the starting logits ``log((1 - s) q + s / L)``, in (0, 1). By
+            default 0.9 for the random start (near uniform with a small random tilt: the start
+            the ``svi`` method anneals from) and 0.05 for a given ``q`` (kept nearly as given).
         bound: the constraint of the concentrations: ``"prior"`` (the default), each above its
             prior's, ``a = a_prior + exp(u)`` with u the unconstrained parameter, or ``"zero"``,
             plain positive, ``a = exp(u)``. Every mean-field optimum lies above the prior (the
@@ -54,20 +91,31 @@ class MeanFieldGuide:
             the bound loses nothing; it gives the optimiser the scale of the *counts*. With the
             presets' pi concentration of ~1e6, a step of 0.01 in log a moves a by ~1e4, more than
             all the cells' counts, while a step in log(a - a_prior) moves the counts by 1 %.
-        prefix: the start of every ``pyro.param`` name of this guide.
+        name: the module's name, the start of every parameter's name in the param store.
     """
 
     def __init__(
         self,
-        q: torch.Tensor,
         data: ModelData,
         config: SpCoConfig,
         *,
-        label_smoothing: float = 0.05,
+        q: torch.Tensor | None = None,
+        generator: torch.Generator | None = None,
+        label_smoothing: float | None = None,
         bound: Literal["prior", "zero"] = "prior",
-        prefix: str = "spcomapping_guide",
+        name: str = GUIDE_NAME,
     ) -> None:
+        if not isinstance(data, ModelData):
+            raise TypeError(
+                f"MeanFieldGuide(data, config) takes the model's ModelData first, got "
+                f"{type(data).__name__} (see spcopyro.fit.prepare_model_data)"
+            )
+        super().__init__(name=name)
         N, L = data.num_free, config.num_concepts
+        if label_smoothing is None:
+            label_smoothing = 0.9 if q is None else 0.05
+        if q is None:
+            q = initial_q(data, config, generator or torch.default_generator)
         if tuple(q.shape) != (N, L):
             raise ValueError(f"q must be [{N}, {L}], got {tuple(q.shape)}")
         if not 0 < label_smoothing < 1:
@@ -77,22 +125,22 @@ class MeanFieldGuide:
         smoothed = (1 - label_smoothing) * q.to(DTYPE) + label_smoothing / L  # [N, L]
         factors = update_globals(smoothed, data, config)  # Dirichlet q(pi): the prior's family
         prior = prior_factors(data, config)
-        self.prefix = prefix
         self.num_free, self.num_concepts = N, L
         self.parameter_sites = tuple(m.parameter for m in data.modalities)
         starts = (factors.pi, *factors.emissions)  # [L], [L, K_m] ...
         lows = (prior.pi, *prior.emissions) if bound == "prior" else (0.0,) * len(starts)
-        self._init, self._constraints = {self._name(SITE_LABELS): smoothed.log()}, {}
+        setattr(self, self._attribute(SITE_LABELS), PyroParam(smoothed.log()))  # [N, L]
         for site, start, low in zip((SITE_PI, *self.parameter_sites), starts, lows, strict=True):
             # start strictly above the bound: a word no cell holds has no counts to add
-            self._init[self._name(site)] = start + _MARGIN if bound == "prior" else start
-            self._constraints[self._name(site)] = (
-                constraints.greater_than(low) if bound == "prior" else constraints.positive
-            )
+            if bound == "prior":
+                param = PyroParam(start + _MARGIN, constraint=constraints.greater_than(low))
+            else:
+                param = PyroParam(start, constraint=constraints.positive)
+            setattr(self, self._attribute(site), param)
 
-    def _name(self, site: str) -> str:
-        kind = "logits" if site == SITE_LABELS else "concentration"
-        return f"{self.prefix}.{site}_{kind}"
+    @staticmethod
+    def _attribute(site: str) -> str:
+        return f"{site}_{'logits' if site == SITE_LABELS else 'concentration'}"
 
     def _check(self, data: ModelData, config: SpCoConfig) -> None:
         if (data.num_free, config.num_concepts) != (self.num_free, self.num_concepts):
@@ -103,22 +151,33 @@ class MeanFieldGuide:
         sites = tuple(m.parameter for m in data.modalities)
         if sites != self.parameter_sites:
             raise ValueError(f"this guide has sites {self.parameter_sites}, the data {sites}")
+        loss = _calling_elbo()
+        if loss is not None and not isinstance(loss, MeanFieldELBO):
+            raise WrongLossError(
+                f"{type(loss).__name__} cannot fit MeanFieldGuide: use "
+                "spcopyro.guides.loss.MeanFieldELBO() as the loss, "
+                "pyro.infer.SVI(spcomapping_model, guide, optim, MeanFieldELBO()). Pyro's ELBOs "
+                "would estimate the labels' gradient by score functions over N Potts-coupled "
+                "cells (variance growing with N) or enumerate them (cost L ** map width); "
+                "MeanFieldELBO takes their expectation in closed form"
+            )
+
+    def _full_name(self, site: str) -> str:
+        return f"{self._pyro_name}.{self._attribute(site)}" if self._pyro_name else site
 
     @property
     def logits_name(self) -> str:
-        """The ``pyro.param`` name of the labels' logits."""
-        return self._name(SITE_LABELS)
+        """The param store's name of the labels' logits."""
+        return self._full_name(SITE_LABELS)
 
     def concentration(self, site: str) -> torch.Tensor:
         """The current Dirichlet concentration of ``pi`` ``[L]`` or of a modality's site
-        ``[L, K_m]`` (a ``pyro.param``: created with its start value on first use)."""
-        name = self._name(site)
-        return pyro.param(name, lambda: self._init[name], constraint=self._constraints[name])
+        ``[L, K_m]`` (from the param store: created with its start value on first use)."""
+        return getattr(self, self._attribute(site))
 
     def logits(self) -> torch.Tensor:
         """[N, L] the current logits of q(C_i)."""
-        name = self._name(SITE_LABELS)
-        return pyro.param(name, lambda: self._init[name])
+        return getattr(self, self._attribute(SITE_LABELS))
 
     def marginals(self) -> torch.Tensor:
         """[N, L] q(C_i = l), detached."""
@@ -133,7 +192,7 @@ class MeanFieldGuide:
             "dirichlet",
         )
 
-    def __call__(self, data: ModelData, config: SpCoConfig) -> None:
+    def forward(self, data: ModelData, config: SpCoConfig) -> None:
         self._check(data, config)
         pyro.sample(SITE_PI, dist.Dirichlet(self.concentration(SITE_PI)))
         with pyro.plate("concepts", self.num_concepts, dim=-1):

@@ -151,7 +151,7 @@ def fit_svi(
     with torch.random.fork_rng(devices=[]), pyro.get_param_store().scope(), bar:
         torch.manual_seed(seed)
         guide = MeanFieldGuide(
-            q, data, config, label_smoothing=options.label_smoothing, bound=options.bound
+            data, config, q=q, label_smoothing=options.label_smoothing, bound=options.bound
         )
         loss = MeanFieldELBO(num_particles=options.num_particles)
         svi = pyro.infer.SVI(spcomapping_model, guide, options.optimiser_for(guide), loss)
