@@ -2,11 +2,12 @@
 written with rosbags' writers, imported and read back with the real loaders.
 
 Checks: poses interpolated at known stamps (linear x, y; yaw the short way round 180 deg), tf
-chains composed (dynamic, static, inverted edges), images decoded equal, words kept (sentences
-tokenised), thinning by distance and time, skipped observations reported (skipped.csv, never
-dropped silently), every error case (missing topic, unknown type, stamps going backwards, pose
-outside the map, not a bag, no tf chain, existing output), the synthetic bags of the synthetic
-house, and import -> features -> load_house -> fit.
+chains composed (dynamic, static, inverted edges), a pose topic in another frame placed on the
+map through tf, bags without message definitions (sqlite3 and mcap), images decoded equal,
+words kept (sentences tokenised), thinning by distance and time, skipped observations reported
+(skipped.csv, never dropped silently), every error case (missing topic, unknown type, stamps
+going backwards, pose outside the map, not a bag, no tf chain, existing output), the synthetic
+bags of the synthetic house, and import -> features -> load_house -> fit.
 """
 
 from __future__ import annotations
@@ -447,22 +448,69 @@ def _strip_definitions(bag: Path) -> None:
     meta.write_text(meta.read_text().replace("  version: 9", "  version: 5"))
 
 
-@pytest.mark.parametrize("distro", ["foxy", "humble", "jazzy"])
-def test_a_bag_without_message_definitions_imports_like_its_twin(tmp_path, map_yaml, distro):
+def _blank_mcap_schemas(monkeypatch, encoding: str, types: set[str] | None = None) -> None:
+    """Make the mcap bags written next store no definitions: each schema (of ``types``, or all)
+    is written with empty data and ``encoding``, as rosbag2 does for a type whose definition it
+    cannot find (``unknown``; rosbag2_cpp's LocalMessageDefinitionSource) or as the MCAP
+    specification allows (``""``). The schema's name still names the type, as it must: an
+    mcap channel has no other place for it. Done in rosbags' own mcap writer, whose
+    ``add_msgtype`` writes the schema record (in the chunk, and from ``schemas`` in the
+    summary)."""
+    from rosbags.rosbag2.storage_mcap import McapWriter, Schema, write_schema
+
+    original = McapWriter.add_msgtype
+
+    def add_msgtype(self, connection):
+        if types is not None and connection.msgtype not in types:
+            return original(self, connection)
+        self.schemas.append(Schema(len(self.schemas) + 1, connection.msgtype, encoding, ""))
+        write_schema(self.chunk.bio, self.schemas[-1])
+
+    monkeypatch.setattr(McapWriter, "add_msgtype", add_msgtype)
+
+
+BARE_BAGS = {  # id: (storage, distro, mcap schema encoding, types without definitions)
+    "foxy": ("sqlite3", "foxy", None, None),
+    "humble": ("sqlite3", "humble", None, None),
+    "jazzy": ("sqlite3", "jazzy", None, None),
+    "mcap-unknown": ("mcap", "jazzy", "unknown", None),
+    "mcap-empty-encoding": ("mcap", "humble", "", None),
+    "mcap-one-topic-unknown": ("mcap", "jazzy", "unknown", {"std_msgs/msg/String"}),
+}
+
+
+@pytest.mark.parametrize("case", list(BARE_BAGS))
+def test_a_bag_without_message_definitions_imports_like_its_twin(
+    tmp_path, map_yaml, monkeypatch, case
+):
     """Issue 24 item 1: real Foxy / Galactic / Humble bags store no message definitions and
     ended with "Bag contains no type definitions". They are read with the --ros-distro
-    typestore and give the same observations as the same bag with definitions."""
-    from spcopyro.rosbag.bag import open_bag
+    typestore and give the same observations as the same bag with definitions. So are mcap
+    bags whose schemas hold no definition (empty data): with an empty encoding rosbags needs
+    the typestore as for sqlite3; with rosbag2's ``unknown`` rosbags 0.11 fails with
+    ``KeyError: 'unknown'`` even when given one, and even when only one topic's definition is
+    missing (open_bag reads such schemas as "no definition")."""
+    from rosbags.highlevel import AnyReader
 
+    from spcopyro.rosbag.bag import open_bag, typestore
+
+    storage, distro, encoding, types = BARE_BAGS[case]
     twin, bare = tmp_path / "twin", tmp_path / "bare"
-    _write_basic(twin, 2, "sqlite3")
-    _write_basic(bare, 2, "sqlite3")
-    _strip_definitions(bare)
-    with pytest.raises(Exception, match="no type definitions"):  # rosbags alone cannot
-        from rosbags.highlevel import AnyReader
-
-        with AnyReader([bare]):
-            pass
+    _write_basic(twin, 2, storage)
+    if storage == "sqlite3":
+        _write_basic(bare, 2, storage)
+        _strip_definitions(bare)
+    else:
+        with monkeypatch.context() as patch:
+            _blank_mcap_schemas(patch, encoding, types)
+            _write_basic(bare, 2, storage)
+    # rosbags alone cannot: without a typestore, and with one for rosbag2's 'unknown'.
+    if encoding == "unknown":
+        with pytest.raises(KeyError, match="'unknown'"):
+            AnyReader([bare], default_typestore=typestore(distro)).open()
+    else:
+        with pytest.raises(Exception, match="no type definitions"):
+            AnyReader([bare]).open()
     options = ImportOptions(pose_tolerance=0.6, ros_distro=distro)
     import_bags([twin], map_yaml, tmp_path / "a" / "house", options)
     report = import_bags([bare], map_yaml, tmp_path / "b" / "house", options)
@@ -511,7 +559,61 @@ def test_poses_in_another_frame_are_an_error(tmp_path, map_yaml):
             w.pose("/amcl_pose", T0 + k, 0.1 * k, 0.0, 0.0, frame="odom")
         w.image("/camera/image", T0 + 1.0, _image(0))
         w.text("/speech", T0 + 1.0, "kitchen")
-    with pytest.raises(BagContentError, match=r"frame 'odom', not the map's frame 'map'"):
+    with pytest.raises(BagContentError, match=r"frame 'odom', not the map's frame 'map', and no "
+                       r"tf chain links them \(the bag has no /tf"):  # fmt: skip
         import_bags([bag], map_yaml, tmp_path / "h", ImportOptions())
     report = import_bags([bag], map_yaml, tmp_path / "h2", ImportOptions(map_frame="odom"))
     assert report.trials[0]["pose_frame"] == "odom"
+    assert report.trials[0]["pose_frame_via_tf"] is None
+
+
+@pytest.mark.parametrize(("ros", "storage"), FORMATS, ids=FORMAT_IDS)
+def test_poses_in_another_frame_are_placed_on_the_map_through_tf(
+    tmp_path, map_yaml, ros, storage, capsys
+):
+    """Issue 24 item 1: a pose topic in frame odom, with tf map -> odom in the bag, is placed
+    on the map through that transform, and the import says so.
+
+    Odometry in odom: x = 0.5 s, y = 0.2, yaw 0.3 (s = t - T0). tf map -> odom at 1 Hz:
+    x = 1 + 0.1 s, y 0, yaw 90 deg, so R(90 deg) (x, y) = (-y, x) and the pose on the map is
+    (1 + 0.1 s - 0.2, 0.5 s), yaw 90 deg + 0.3 rad. At the image (s = 1.5): (0.95, 0.75); at
+    the utterance (s = 2.25): (1.025, 1.125)."""
+    bag = _bag_path(tmp_path, ros)
+    with BagWriter(bag, ros=ros, storage=storage) as w:
+        for t in T0 + np.arange(0.0, 4.01, 0.5):
+            w.pose("/amcl_pose", t, 0.5 * (t - T0), 0.2, 0.3, frame="odom")
+        for t in T0 + np.arange(0.0, 4.01, 1.0):
+            w.tf(t, [("map", "odom", 1.0 + 0.1 * (t - T0), 0.0, np.pi / 2)])
+        w.image("/camera/image", T0 + 1.5, _image(0))
+        w.text("/speech", T0 + 2.25, "kitchen")
+    out = tmp_path / "data" / "house"
+    argv = ["import-bag", str(bag), "--map", str(map_yaml), "--out", str(out)]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "pose frame       odom (the map's: map)" in printed
+    assert "pose frame -> map through tf map -> odom" in printed
+    assert "poses in frame odom placed on the map through tf map -> odom" in printed
+    pose = np.loadtxt(out / "pose_0.csv", delimiter=",", ndmin=2)  # x, y, qz, qw
+    assert np.allclose(pose[:, :2], [[0.95, 0.75]], atol=1e-9)
+    assert np.allclose(2 * np.arctan2(pose[:, 2], pose[:, 3]), np.pi / 2 + 0.3)
+    assert np.allclose(np.loadtxt(out / "StXtx.csv", ndmin=1), [1.025], atol=1e-9)
+    assert np.allclose(np.loadtxt(out / "StXty.csv", ndmin=1), [1.125], atol=1e-9)
+    record = json.loads((out / "bag_import.json").read_text())["trials"][0]
+    assert (record["pose_frame"], record["pose_frame_via_tf"]) == ("odom", "map -> odom")
+
+
+def test_poses_in_a_frame_tf_does_not_reach_are_an_error(tmp_path, map_yaml):
+    """A bag with tf, but none of it linking the map to the poses' frame."""
+    bag = tmp_path / "odom"
+    with BagWriter(bag, ros=2) as w:
+        for k in range(5):
+            w.pose("/amcl_pose", T0 + k, 0.1 * k, 0.0, 0.0, frame="odom")
+            w.tf(T0 + k, [("base_link", "laser", 0.1, 0.0, 0.0)])
+        w.image("/camera/image", T0 + 1.0, _image(0))
+        w.text("/speech", T0 + 1.0, "kitchen")
+    expected = (
+        r"frame 'odom', not the map's frame 'map', and no tf chain links them "
+        r"\(the bag's tf edges: base_link -> laser\)"
+    )
+    with pytest.raises(BagContentError, match=expected):
+        import_bags([bag], map_yaml, tmp_path / "h", ImportOptions())

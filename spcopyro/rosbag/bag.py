@@ -39,6 +39,7 @@ __all__ = [
     "RosbagsMissingError",
     "TopicData",
     "open_bag",
+    "read_pose_in_map",
     "read_pose_topic",
     "read_tf_chain",
     "read_stamps",
@@ -104,11 +105,42 @@ def typestore(distro: str) -> Any:
 
 
 @contextmanager
+def _schemas_without_data_as_none() -> Iterator[None]:
+    """While a bag opens: an mcap schema with no data is read as "no definition", whatever
+    its encoding, so that the ``--ros-distro`` typestore serves its type.
+
+    rosbag2 records a type whose definition it cannot find with ``encoding: unknown`` and empty
+    data (rosbag2_cpp ``LocalMessageDefinitionSource::get_full_text``, ``Format::UNKNOWN``);
+    rosbags 0.11 maps an mcap schema's encoding through a fixed table (``ros2msg``,
+    ``ros2idl``, ``omgidl`` and ``""`` only: ``storage_mcap.get_msgdef``) and fails on such a bag
+    with ``KeyError: 'unknown'``, or parses empty ``ros2msg`` data as a type without fields.
+    rosbags reads schemas only when a bag opens, so the module function is wrapped for that
+    call only (not thread-safe against another thread opening an mcap bag meanwhile)."""
+    try:
+        from rosbags.rosbag2 import storage_mcap
+    except ImportError:  # another rosbags layout: nothing to wrap
+        yield
+        return
+    original = storage_mcap.get_msgdef
+
+    def get_msgdef(schema: Any) -> Any:
+        return original(None if schema is not None and not schema.data else schema)
+
+    storage_mcap.get_msgdef = get_msgdef
+    try:
+        yield
+    finally:
+        storage_mcap.get_msgdef = original
+
+
+@contextmanager
 def open_bag(path: str | os.PathLike[str], ros_distro: str = DEFAULT_ROS_DISTRO) -> Iterator[Any]:
     """An open :class:`rosbags.highlevel.AnyReader` of one bag: a ROS 1 ``.bag`` file, a ROS 2
     bag folder (with ``metadata.yaml``), or a ROS 2 ``.db3`` / ``.mcap`` file. A ROS 2 bag that
     stores no message definitions (Foxy, Galactic, Humble) is read with those of ``ros_distro``
-    (:data:`ROS_DISTROS`); one that stores its own is read with its own.
+    (:data:`ROS_DISTROS`); one that stores its own is read with its own, and the types it stores
+    none for (an mcap schema with empty data, as rosbag2 writes when it cannot find a
+    definition: :func:`_schemas_without_data_as_none`) with those of ``ros_distro``.
 
     Raises:
         FileNotFoundError: no such file or folder.
@@ -132,11 +164,15 @@ def open_bag(path: str | os.PathLike[str], ros_distro: str = DEFAULT_ROS_DISTRO)
         )
     reader = highlevel.AnyReader([path], default_typestore=store)
     try:
-        reader.open()
+        with _schemas_without_data_as_none():
+            reader.open()
     except (highlevel.AnyReaderError, OSError, KeyError, ValueError, AssertionError) as error:
         raise BagFormatError(
             f"{path}: not a readable bag ({error or type(error).__name__})"
         ) from None
+    if reader.is2:  # types it stores no definition for (empty mcap schemas): ros_distro's
+        known = reader.typestore.fielddefs
+        reader.typestore.register({k: v for k, v in store.fielddefs.items() if k not in known})
     try:
         yield reader
     except highlevel.AnyReaderError as error:  # a message that does not deserialise
@@ -208,13 +244,13 @@ def _planar(pose: Any) -> tuple[float, float, float]:
     return float(pose.position.x), float(pose.position.y), quaternion_yaw(q.x, q.y, q.z, q.w)
 
 
-def read_pose_topic(reader: Any, topic: str, map_frame: str | None = None) -> PoseTrack:
-    """The poses of a PoseWithCovarianceStamped, Odometry or PoseStamped topic as a track.
+def read_pose_topic(reader: Any, topic: str) -> PoseTrack:
+    """The poses of a PoseWithCovarianceStamped, Odometry or PoseStamped topic as a track, in
+    the frame its headers name (the track's ``frame``; None when every frame_id is empty; an
+    empty frame_id among named ones, as some drivers leave the first, is taken to be theirs).
 
-    ``map_frame``: the frame of the map the poses are placed on; a pose whose
-    ``header.frame_id`` names another frame is a :class:`BagContentError` (placed on the map it
-    would be wrong by the transform between the two: compose a tf chain from the map's frame
-    instead, ``pose_tf``). An empty frame_id is taken to be the map's."""
+    A topic whose messages name two different frames is a :class:`BagContentError`: its
+    samples could not be interpolated into one another."""
     connections = _connections(reader, topic, POSE_TYPES, "pose")
     times: list[float] = []
     poses: list[tuple[float, float, float]] = []
@@ -229,31 +265,55 @@ def read_pose_topic(reader: Any, topic: str, map_frame: str | None = None) -> Po
         raise BagContentError(f"{reader.paths[0]}: pose topic {topic} holds no messages")
     _check_order(topic, times)
     named = sorted(f for f in frames if f)
-    if map_frame is not None and any(f != _frame(map_frame) for f in named):
-        other = next(f for f in named if f != _frame(map_frame))
+    if len(named) > 1:
         raise BagContentError(
-            f"{reader.paths[0]}: pose topic {topic} gives poses in frame {other!r}, not the "
-            f"map's frame {_frame(map_frame)!r}: pass --map-frame {other} if the map is in that "
-            f"frame, or read the pose from tf with --pose-tf {_frame(map_frame)} BASE_FRAME"
+            f"{reader.paths[0]}: pose topic {topic} gives poses in several frames "
+            f"({', '.join(repr(f) for f in named)}); the import reads one frame per topic"
         )
     return _track(topic, times, poses, frame=named[0] if named else None)
+
+
+def read_pose_in_map(reader: Any, topic: str, map_frame: str) -> tuple[list[PoseTrack], str | None]:
+    """The pose topic's poses placed on the map of frame ``map_frame``: the chain to
+    :func:`~spcopyro.rosbag.poses.compose` at each observation's stamp, and the tf path used
+    (``"map -> odom"``; None when the poses are in the map's frame already).
+
+    A pose topic whose ``header.frame_id`` names another frame (``odom``) is placed on the map
+    through the bag's tf: the chain is the tf edges from ``map_frame`` to that frame
+    (:func:`read_tf_chain`, each edge interpolated at the observation's stamp, as tf2's
+    ``lookupTransform`` would) followed by the pose topic's own track, so every observation
+    needs a sample of every edge within the pose tolerance (else it is skipped and reported,
+    naming the edge). Without such a chain the poses would be wrong on the map by the transform
+    between the frames: :class:`BagContentError`, saying so. An empty frame_id is taken to be
+    the map's."""
+    track = read_pose_topic(reader, topic)
+    frame, map_frame = track.frame, _frame(map_frame)
+    if frame is None or frame == map_frame:
+        return [track], None
+    tracks = _tf_tracks(reader)
+    found = None if tracks is None else _tf_path(tracks, map_frame, frame)
+    if found is None:
+        why = "the bag has no /tf or /tf_static topic" if tracks is None else _edges(tracks)
+        raise BagContentError(
+            f"{reader.paths[0]}: pose topic {topic} gives poses in frame {frame!r}, not the "
+            f"map's frame {map_frame!r}, and no tf chain links them ({why}): pass "
+            f"--map-frame {frame} if the map is in that frame, or read the pose from tf with "
+            f"--pose-tf {map_frame} BASE_FRAME"
+        )
+    chain, path = found
+    return [*chain, track], " -> ".join(path)
 
 
 def _frame(name: str) -> str:
     return name.strip().lstrip("/")
 
 
-def read_tf_chain(reader: Any, parent: str, child: str) -> list[PoseTrack]:
-    """The tf edges from frame ``parent`` to frame ``child`` (``/tf`` and ``/tf_static``) as
-    pose tracks whose product (:func:`spcopyro.rosbag.poses.compose`) is the pose of ``child``
-    in ``parent``; edges walked against their direction are inverted."""
-    parent, child = _frame(parent), _frame(child)
+def _tf_tracks(reader: Any) -> dict[tuple[str, str], PoseTrack] | None:
+    """Every tf edge ``(parent, child)`` of ``/tf`` and ``/tf_static`` as a pose track of the
+    child in the parent; None when the bag has neither topic."""
     topics = [t for t in ("/tf", "/tf_static", "tf", "tf_static") if t in reader.topics]
     if not topics:
-        raise BagContentError(
-            f"{reader.paths[0]}: no /tf or /tf_static topic for the tf pose "
-            f"{parent} -> {child}; the bag has: {_topic_listing(reader) or 'no topics'}"
-        )
+        return None
     connections = [c for t in topics for c in _connections(reader, t, TF_TYPES, "tf")]
     samples: dict[tuple[str, str], tuple[list[float], list[tuple[float, float, float]]]] = {}
     static: dict[tuple[str, str], tuple[float, float, float]] = {}
@@ -278,6 +338,18 @@ def read_tf_chain(reader: Any, parent: str, child: str) -> list[PoseTrack]:
         tracks[edge] = PoseTrack(
             f"tf_static {edge[0]} -> {edge[1]}", [0.0], [pose[:2]], [pose[2]], static=True
         )
+    return tracks
+
+
+def _edges(tracks: dict[tuple[str, str], PoseTrack]) -> str:
+    return "the bag's tf edges: " + (", ".join(f"{a} -> {b}" for a, b in sorted(tracks)) or "none")
+
+
+def _tf_path(
+    tracks: dict[tuple[str, str], PoseTrack], parent: str, child: str
+) -> tuple[list[PoseTrack], list[str]] | None:
+    """The chain of ``tracks`` (:func:`_tf_tracks`) from frame ``parent`` to frame ``child``
+    and the frames it walks (``[parent, ..., child]``); None when no chain links them."""
     # Breadth-first search over the tree, edges usable both ways.
     neighbours: dict[str, list[tuple[str, tuple[str, str], bool]]] = {}
     for a, b in tracks:
@@ -292,18 +364,36 @@ def read_tf_chain(reader: Any, parent: str, child: str) -> list[PoseTrack]:
                 previous[other] = (frame, edge, inverted)
                 queue.append(other)
     if child not in previous or parent not in neighbours:
-        edges = ", ".join(f"{a} -> {b}" for a, b in sorted(tracks)) or "none"
-        raise BagContentError(
-            f"{reader.paths[0]}: no chain of tf transforms from frame {parent!r} to {child!r}; "
-            f"the bag's tf edges: {edges}"
-        )
+        return None
     chain: list[PoseTrack] = []
+    path = [child]
     frame = child
     while (step := previous[frame]) is not None:
         before, edge, inverted = step
         chain.append(tracks[edge].inverse() if inverted else tracks[edge])
+        path.append(before)
         frame = before
-    return chain[::-1]
+    return chain[::-1], path[::-1]
+
+
+def read_tf_chain(reader: Any, parent: str, child: str) -> list[PoseTrack]:
+    """The tf edges from frame ``parent`` to frame ``child`` (``/tf`` and ``/tf_static``) as
+    pose tracks whose product (:func:`spcopyro.rosbag.poses.compose`) is the pose of ``child``
+    in ``parent``; edges walked against their direction are inverted."""
+    parent, child = _frame(parent), _frame(child)
+    tracks = _tf_tracks(reader)
+    if tracks is None:
+        raise BagContentError(
+            f"{reader.paths[0]}: no /tf or /tf_static topic for the tf pose "
+            f"{parent} -> {child}; the bag has: {_topic_listing(reader) or 'no topics'}"
+        )
+    found = _tf_path(tracks, parent, child)
+    if found is None:
+        raise BagContentError(
+            f"{reader.paths[0]}: no chain of tf transforms from frame {parent!r} to {child!r}; "
+            f"{_edges(tracks)}"
+        )
+    return found[0]
 
 
 @dataclass

@@ -58,6 +58,9 @@ def _import_bag(args: argparse.Namespace) -> int:
     print(f"ROS 2 types      {options.ros_distro} (for bags that store no message definitions)")
     frames = sorted({str(t.get("pose_frame") or "(none given)") for t in report.trials})
     print(f"pose frame       {', '.join(frames)} (the map's: {options.map_frame})")
+    via = sorted({str(t["pose_frame_via_tf"]) for t in report.trials if t["pose_frame_via_tf"]})
+    if via:  # poses in another frame, placed on the map through the bag's tf
+        print(f"pose frame -> map through tf {', '.join(via)}")
     print(report.text())
     if report.skipped:
         print(f"skipped {len(report.skipped)} observation(s) (all listed in "
@@ -119,7 +122,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="house folder to write (its name names the house)")
     p.add_argument("--pose-topic", default="/amcl_pose",
                    help="PoseWithCovarianceStamped, Odometry or PoseStamped topic in the map "
-                        "frame (default /amcl_pose)")  # fmt: skip
+                        "frame, or one the bag's tf links to it (default /amcl_pose)")  # fmt: skip
     p.add_argument("--pose-tf", nargs=2, metavar=("PARENT", "CHILD"),
                    help="take the pose of frame CHILD in frame PARENT from /tf and /tf_static "
                         "instead (e.g. map base_link; default: off, the pose topic)")  # fmt: skip
@@ -154,8 +157,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--map-frame",
         default="map",
-        help="the map's frame: a pose topic whose header names another frame is an "
-        "error (read the pose from tf with --pose-tf instead) (default map)",
+        help="the map's frame: a pose topic whose header names another frame (odom) is "
+        "placed on the map through the bag's tf chain from this frame to it, and is an error "
+        "without one (default map)",
     )
     p.add_argument("--ros-distro", choices=ROS_DISTROS, default=DEFAULT_ROS_DISTRO,
                    help="ROS 2 distribution whose message definitions read a bag that stores "

@@ -6,7 +6,10 @@ bag the import reads:
 * the robot's pose: a pose topic (``geometry_msgs/PoseWithCovarianceStamped`` from amcl,
   ``nav_msgs/Odometry`` or ``geometry_msgs/PoseStamped``) or a tf frame pair (the chain of
   ``/tf`` and ``/tf_static`` transforms from the map frame to the robot's frame, composed in
-  SE(2): :mod:`spcopyro.rosbag.poses`);
+  SE(2): :mod:`spcopyro.rosbag.poses`). A pose topic in another frame than the map's
+  (``odom``) is placed on the map through the bag's tf chain ``map -> ... -> odom``, and is an
+  error without one; the report and ``bag_import.json`` name the frame (``pose_frame``) and
+  the chain (``pose_frame_via_tf``);
 * camera images (``sensor_msgs/Image`` or ``CompressedImage``) and utterances
   (``std_msgs/String``: a word or a whole sentence).
 
@@ -63,7 +66,7 @@ from spcopyro.rosbag.bag import (
     _rosbags,
     iter_images,
     open_bag,
-    read_pose_topic,
+    read_pose_in_map,
     read_stamps,
     read_texts,
     read_tf_chain,
@@ -103,7 +106,7 @@ class ImportOptions:
     min_interval: float = 0.0  # seconds between kept images
     pose_tolerance: float = 0.5  # seconds to the nearest pose sample
     ros_distro: str = DEFAULT_ROS_DISTRO  # definitions for ROS 2 bags that store none
-    map_frame: str = "map"  # the frame of the map: a pose topic's poses must be in it
+    map_frame: str = "map"  # the map's frame: a pose topic's poses are in it or linked by tf
 
     def __post_init__(self) -> None:
         for name in ("min_distance", "min_interval", "pose_tolerance"):
@@ -166,6 +169,11 @@ class BagImportReport:
                     f"trial {t['trial']} ({t['bag']}): {t['poses_merged']} pose sample(s) "
                     "repeated the previous one's stamp and were merged into it (the first "
                     "kept): the bag's stamps are coarser than its pose rate"
+                )
+            if t.get("pose_frame_via_tf"):
+                lines.append(
+                    f"trial {t['trial']} ({t['bag']}): poses in frame {t['pose_frame']} placed "
+                    f"on the map through tf {t['pose_frame_via_tf']}"
                 )
             lines.append(
                 f"trial {t['trial']} ({t['bag']}): images {t['images_kept']} kept of "
@@ -236,8 +244,10 @@ def _import_one(
     with open_bag(bag, options.ros_distro) as reader:
         if options.pose_tf:
             chain = read_tf_chain(reader, *options.pose_tf)
+            pose_frame, via_tf = _frame(options.pose_tf[0]), None  # the chain is the pose
         else:
-            chain = [read_pose_topic(reader, options.pose_topic, options.map_frame)]
+            chain, via_tf = read_pose_in_map(reader, options.pose_topic, options.map_frame)
+            pose_frame = chain[-1].frame
         images = read_stamps(reader, options.image_topic)
         words = read_texts(reader, options.words_topic)
 
@@ -290,7 +300,8 @@ def _import_one(
         rows = np.asarray(word_rows, dtype=np.int64)
         _check_inside(grid, word_xy[rows], words.times[rows], f"utterance on {words.topic}")
     counts = {
-        "pose_frame": chain[0].frame if not options.pose_tf else _frame(options.pose_tf[0]),
+        "pose_frame": pose_frame,  # the frame the poses came in (None: no frame_id)
+        "pose_frame_via_tf": via_tf,  # "map -> odom": the tf chain that placed them on the map
         "poses_merged": int(sum(track.merged for track in chain)),
         "images_in_bag": int(images.times.size),
         "images_no_pose": int((~ok).sum()),
