@@ -171,26 +171,101 @@ def test_every_mask_value_reads_back_exactly(tmp_path):
 
 
 def test_load_filter_mask_decodes_like_nav2_map_server(tmp_path):
-    """Hand-computed cells of map_io.cpp's three modes (occ = 1 - v / 255, negate 0)."""
-    pixels = np.array([[0, 64, 128, 200, 255]], dtype=np.uint8)
+    """Hand-computed cells of map_io.cpp's three modes, without and with ``negate``.
+
+    nav2_map_server ``map_io.cpp`` (``loadMapFromFile``): ``shade`` = the pixel's mean over its
+    channels in [0, 1]; ``occ = negate ? shade : 1 - shade``; trinary and scale threshold
+    ``occ``, while raw takes ``round(shade * 255)`` -- ``shade``, not ``occ``, so ``negate``
+    does not apply in raw mode."""
+    pixels = np.array([[0, 64, 128, 200, 255]], dtype=np.uint8)  # shade 0, .251, .502, .784, 1
     grid = OccupancyGrid(np.zeros((1, 5), dtype=np.int8), 0.1, (0.0, 0.0, 0.0))
     save_filter_mask(np.zeros((1, 5), dtype=int), grid, tmp_path / "m.yaml")
     import cv2
 
     cv2.imwrite(str(tmp_path / "m.pgm"), pixels)
     text = (tmp_path / "m.yaml").read_text()
-    expected = {  # occ = 1.0, 0.749, 0.498, 0.216, 0.0
-        "scale": [100, 100, 62, 0, 0],  # thresholds 0.25 / 0.65: rint((occ-.25)/.4*100)
-        "trinary": [100, 100, -1, 0, 0],
-        "raw": [0, 64, -1, -1, -1],  # the byte itself when <= 100
+    expected = {  # (mode, negate): cells; thresholds free 0.25, occupied 0.65
+        # negate 0: occ = 1 - shade = 1.0, 0.749, 0.498, 0.216, 0.0
+        ("scale", 0): [100, 100, 62, 0, 0],  # rint((occ - .25) / .4 * 100) in between
+        ("trinary", 0): [100, 100, -1, 0, 0],
+        ("raw", 0): [0, 64, -1, -1, -1],  # the byte itself when <= 100
+        # negate 1: occ = shade = 0.0, 0.251, 0.502, 0.784, 1.0
+        ("scale", 1): [0, 0, 63, 100, 100],  # rint(.00098 / .4 * 100) = 0, rint(62.99) = 63
+        ("trinary", 1): [0, -1, -1, 100, 100],  # .251 is not below free_thresh .25
+        ("raw", 1): [0, 64, -1, -1, -1],  # as without negate
     }
-    for mode, cells in expected.items():
+    for (mode, negate), cells in expected.items():
         (tmp_path / "m.yaml").write_text(
             text.replace("mode: scale", f"mode: {mode}")
+            .replace("negate: 0", f"negate: {negate}")
             .replace("occupied_thresh: 1.0", "occupied_thresh: 0.65")
             .replace("free_thresh: 0.0", "free_thresh: 0.25")
         )
-        assert load_filter_mask(tmp_path / "m.yaml").values.tolist() == [cells], mode
+        mask = load_filter_mask(tmp_path / "m.yaml")
+        assert mask.negate == bool(negate)
+        assert mask.values.tolist() == [cells], (mode, negate)
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        {"mode": "keepout"},
+        {"mode": "keepout", "prior": "pi"},
+        {"mode": "keepout", "threshold": 0.6},
+        {"mode": "keepout", "threshold": 1.0},
+        {"mode": "speed"},
+        {"mode": "speed", "min_speed": 1.0, "max_speed": 100.0},
+        {"mode": "speed", "min_speed": 20.0, "max_speed": 90.0, "prior": "pi"},
+        {"mode": "speed", "min_speed": 50.0, "max_speed": 50.0},
+    ],
+    ids=lambda options: "-".join(f"{k}={v}" for k, v in options.items()),
+)
+def test_every_exported_mask_reads_back_as_intended_by_nav2s_rules(fit, tmp_path, options):
+    """Issue 24 item 2: every mask the exporter writes (keepout and speed, for every word and
+    every option that changes the values) loaded with map_server's rules
+    (:func:`load_filter_mask`, with the yaml's own mode, negate and thresholds) and decoded with
+    the filter info's ``base + multiplier * value``: lethal cells (keepout 100) are exactly the
+    word's place, and the speed limit of every free cell is exactly the intended one, never the
+    "no limit" value (0) where a limit below 100 % was intended."""
+    from spcopyro.nav2 import (
+        DEFAULT_MAX_SPEED,
+        DEFAULT_MIN_SPEED,
+        keepout_values,
+        speed_values,
+        word_place,
+    )
+
+    result = SpCoResult.load(fit)
+    export = export_nav2(result, tmp_path / "nav2", list(WORDS), **options)
+    mode = options["mode"]
+    rest = {k: v for k, v in options.items() if k != "mode"}
+    free = result.grid.free  # [H, W] bool
+    assert [m.word for m in export.masks] == list(WORDS)
+    for exported in export.masks:
+        mask = load_filter_mask(exported.mask_yaml)
+        info = _read_yaml(exported.params_yaml)[f"{exported.name}_filter_info_server"]
+        base, multiplier = info["ros__parameters"]["base"], info["ros__parameters"]["multiplier"]
+        assert mask.values.shape == result.grid.shape and (mask.values >= 0).all()
+        filter_value = base + multiplier * mask.values.astype(float)  # [H, W]
+        if mode == "keepout":
+            place = word_place(result, exported.word, **rest)  # [H, W] bool
+            assert np.array_equal(mask.values, keepout_values(place)), exported.word
+            assert np.array_equal(filter_value == 100, place)  # lethal: exactly the place
+            assert (filter_value[~place] == 0).all()  # free everywhere else
+            assert exported.cells == int(place[free].sum())
+        else:
+            intended, probability = speed_values(result, exported.word, **rest)  # [H, W], [N]
+            assert np.array_equal(mask.values, intended), exported.word
+            # SpeedFilter: mask value 0 = no limit; otherwise the limit in percent.
+            limit = np.where(mask.values == 0, 100.0, filter_value)  # [H, W]
+            want = speed_percent(probability, rest.get("min_speed", DEFAULT_MIN_SPEED),
+                                 rest.get("max_speed", DEFAULT_MAX_SPEED))  # fmt: skip
+            assert np.array_equal(limit[free], want)
+            limited = want < 100  # [N] cells meant to be slowed down
+            assert (mask.values[free][limited] != 0).all()  # none reads as "no limit"
+            assert (limit[free][limited] >= 1).all()
+            assert (mask.values[~free] == 0).all()  # off free space: no limit
+            assert exported.cells == int(limited.sum())
 
 
 def test_unknown_word_is_a_clear_error_and_writes_nothing(fit, tmp_path, capsys):
