@@ -204,8 +204,10 @@ class SpCoGibbs(MCMCKernel):
             "concepts": num_concepts_in_use(self._state.labels, self._config.num_concepts),
         }
 
-    def diagnostics(self) -> dict[str, float]:
-        return {"sweeps": float(self._steps)}
+    def diagnostics(self) -> dict[str, object]:
+        """The sweeps run and the divergences (none: a Gibbs sampler has no trajectories to
+        diverge; ArviZ's ``az.from_pyro`` asks every kernel for them)."""
+        return {"sweeps": float(self._steps), "divergences": []}
 
 
 def mcmc_diagnostics(mcmc: MCMC) -> dict[str, dict[str, torch.Tensor]]:
