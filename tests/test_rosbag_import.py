@@ -180,11 +180,20 @@ def test_tf_chain(tmp_path, map_yaml, ros, storage):
     assert np.allclose(2 * np.arctan2(pose[:, 2], pose[:, 3]), np.pi / 2)
     # The inverse direction: odom in base_link frame walks the edges backwards.
     out2 = tmp_path / "data" / "inverse"
-    import_bags([bag], map_yaml, out2, ImportOptions(pose_tf=("base_link", "odom")))
+    inverse = ImportOptions(pose_tf=("base_link", "odom"), map_frame="base_link")
+    import_bags([bag], map_yaml, out2, inverse)
     assert np.allclose(np.loadtxt(out2 / "Xtx.csv"), [-1.55, -2.0], atol=1e-9)
     with pytest.raises(BagContentError, match="no chain of tf transforms from frame 'map' to "
                        "'laser'.*odom -> base_link"):  # fmt: skip
         import_bags([bag], map_yaml, tmp_path / "x" / "h", ImportOptions(pose_tf=("map", "laser")))
+
+
+def test_a_pose_tf_whose_parent_is_not_the_maps_frame_is_refused():
+    """--pose-tf odom base_link put odom-frame poses on a map-frame map without a word."""
+    with pytest.raises(ValueError, match=r"--pose-tf odom base_link gives poses in frame 'odom', "
+                       r"not the map's frame 'map': pass --pose-tf map base_link"):  # fmt: skip
+        ImportOptions(pose_tf=("odom", "base_link"))
+    assert ImportOptions(pose_tf=("/odom", "base_link"), map_frame="odom").pose_tf[0] == "/odom"
 
 
 @pytest.mark.parametrize("kind", ["odom", "pose"])

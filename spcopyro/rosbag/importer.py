@@ -117,6 +117,14 @@ class ImportOptions:
             raise ValueError(f"ros_distro must be one of {ROS_DISTROS}, got {self.ros_distro!r}")
         if self.pose_tf is not None and len(self.pose_tf) != 2:
             raise ValueError(f"pose_tf must be (parent frame, child frame), got {self.pose_tf!r}")
+        if self.pose_tf is not None and _frame(self.pose_tf[0]) != _frame(self.map_frame):
+            parent, child = _frame(self.pose_tf[0]), _frame(self.pose_tf[1])
+            raise ValueError(
+                f"--pose-tf {parent} {child} gives poses in frame {parent!r}, not the map's "
+                f"frame {_frame(self.map_frame)!r}: pass --pose-tf {_frame(self.map_frame)} "
+                f"{child} (the tf chain is followed through {parent}), or --map-frame {parent} "
+                "if the map is in that frame"
+            )
 
     @property
     def pose_source(self) -> str:
