@@ -20,6 +20,7 @@ import dataclasses
 import errno
 import gc
 import logging
+import math
 import sys
 from pathlib import Path
 from typing import NoReturn
@@ -69,6 +70,19 @@ def _simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _door_width(text: str) -> float | str:
+    """``--door-width``: ``auto`` or a positive number of metres."""
+    if text == "auto":
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is neither auto nor metres") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: a door width must be > 0 metres")
+    return value
+
+
 def _simulate_on_map(args: argparse.Namespace) -> int:
     from spcopyro.map_simulation import MapTour, write_simulated_map
 
@@ -90,6 +104,8 @@ def _simulate_on_map(args: argparse.Namespace) -> int:
     print(f"wrote a simulated tour of {args.map} (seed {args.seed}) to {room}: "
           f"{int(simulated.room_category.size)} rooms, {house.observations.num_images} images, "
           f"{house.observations.num_utterances} utterances")  # fmt: skip
+    how = "read from the map" if args.door_width == "auto" else "given"
+    print(f"  rooms cut at doorways up to {simulated.door_width:g} m wide ({how})")
     names = house.category_names or ()
     for r, c in enumerate(simulated.room_category.tolist()):
         cells = int((simulated.rooms == r).sum())
@@ -211,9 +227,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--categories", metavar="A,B,...",
                    help="with --map: the rooms' categories, one per room, cycled (default: "
                         "kitchen,living,bedroom,bathroom,toilet,entrance,...)")  # fmt: skip
-    p.add_argument("--door-width", type=float, default=1.0,
-                   help="with --map: metres; doorways up to about this wide separate rooms "
-                        "(about 2 for the public dataset's houses)")  # fmt: skip
+    p.add_argument("--door-width", type=_door_width, default="auto",
+                   help="with --map: metres; doorways up to about this wide separate rooms, or "
+                        "auto: read from the map, the narrowest of 0.75, 1, ..., 3 m that "
+                        "separates two rooms (1.5 to 2.25 m on the public dataset's houses) "
+                        "(default: auto)")  # fmt: skip
     p.add_argument("--min-room-area", type=float, default=1.0,
                    help="with --map: square metres; smaller free segments are not visited and "
                         "have no ground truth")  # fmt: skip

@@ -8,9 +8,13 @@ public dataset's layout (so ``spcopyro fit`` reads it) together with the ground 
 
 1. **Rooms.** The free space is cut into rooms by baseline (F)'s geometric room segmentation
    (:func:`spcopyro.baselines.geometry.room_segments`: a distance-transform watershed that cuts
-   at doorways narrower than ``door_width``). Segments smaller than ``min_room_area`` (nooks,
-   scan noise, free specks outside the walls) are not rooms: the robot does not visit them and
-   their ground truth is -1 (undefined), as for unlabelled cells of any house.
+   at doorways narrower than ``door_width``). ``door_width="auto"`` (the default) reads it from
+   the map (:func:`~spcopyro.baselines.geometry.auto_door_width`: the narrowest of 0.75, 1.0,
+   ..., 3 m that separates two rooms); a map that stays one room at every width is simulated as
+   one room, with a warning (its truth has one category, so ARI against it says nothing).
+   Segments smaller than ``min_room_area`` (nooks, scan noise, free specks outside the walls)
+   are not rooms: the robot does not visit them and their ground truth is -1 (undefined), as
+   for unlabelled cells of any house.
 2. **Categories.** With R rooms and n names (``categories``), the multiset of categories is
    ``i mod n`` for ``i < R`` (balanced; the first min(R, n) names are used), assigned to the rooms
    in a random order.
@@ -33,19 +37,23 @@ segmentation's settings).
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 
-from spcopyro.baselines.geometry import DEFAULT_DOOR_WIDTH, room_segments
+from spcopyro.baselines.geometry import auto_door_width, room_segments
 from spcopyro.data import House, save_house
 from spcopyro.maps import UNKNOWN, OccupancyGrid, load_map
 from spcopyro.synthetic import DEFAULT_CATEGORY_NAMES, HouseSpec, HouseSpecError
 from spcopyro.synthetic.floor_plan import _FloorPlan
 from spcopyro.synthetic.house import tour_observations
+
+logger = logging.getLogger("spcopyro")
 
 __all__ = [
     "CLEARANCE",
@@ -67,7 +75,8 @@ class MapTour:
     """The knobs of :func:`simulate_on_map` (defaults: those of the synthetic house)."""
 
     categories: tuple[str, ...] = DEFAULT_CATEGORY_NAMES
-    door_width: float = DEFAULT_DOOR_WIDTH
+    door_width: float | Literal["auto"] = "auto"
+    """Metres, or ``"auto"``: read from the map (module docstring)."""
     min_room_area: float = DEFAULT_MIN_ROOM_AREA
     num_trials: int = 3
     images_per_room: int = 10
@@ -85,6 +94,8 @@ class SimulatedMap:
     room_category: np.ndarray
     """[R] int64 category id (index into ``house.category_names``) of every room."""
     tour: MapTour
+    door_width: float = math.nan
+    """The door width the rooms were cut at, metres (``tour.door_width`` resolved)."""
 
 
 def _house_spec(grid: OccupancyGrid, tour: MapTour) -> HouseSpec:
@@ -128,7 +139,18 @@ def simulate_on_map(
         raise ValueError(f"{grid.source or 'map'}: the map has no free cell to tour")
     rng = np.random.default_rng(seed)
 
-    segments = room_segments(grid, door_width=tour.door_width, min_room_area=tour.min_room_area)
+    door_width = tour.door_width
+    if door_width == "auto":
+        door_width, found = auto_door_width(grid, min_room_area=tour.min_room_area)
+        if found < 2:
+            logger.warning(
+                "%s: the free space is one room at every door width up to %g m: the simulated "
+                "truth has one category, so a fit's ARI against it says nothing",
+                grid.source or "map", door_width,
+            )  # fmt: skip
+    elif not (isinstance(door_width, int | float) and math.isfinite(door_width) and door_width > 0):
+        raise ValueError(f"door width must be 'auto' or metres > 0, got {door_width!r}")
+    segments = room_segments(grid, door_width=door_width, min_room_area=tour.min_room_area)
     sizes = np.bincount(segments[segments >= 0])  # [S] cells per segment
     large = np.flatnonzero(sizes * grid.resolution**2 >= tour.min_room_area)  # [R] segment ids
     if large.size == 0:
@@ -158,7 +180,10 @@ def simulate_on_map(
         truth=truth.astype(np.int64),
         category_names=tuple(spec.category_names[:num_categories]),
     )
-    return SimulatedMap(house=house, rooms=rooms, room_category=room_category, tour=tour)
+    return SimulatedMap(
+        house=house, rooms=rooms, room_category=room_category, tour=tour,
+        door_width=float(door_width),
+    )  # fmt: skip
 
 
 def write_simulated_map(
@@ -187,7 +212,8 @@ def write_simulated_map(
     record = {
         "map": str(Path(map_yaml).resolve()),
         "seed": seed,
-        "door_width": simulated.tour.door_width,
+        "door_width": simulated.door_width,
+        "door_width_option": simulated.tour.door_width,
         "min_room_area": simulated.tour.min_room_area,
         "free_cells": int(grid.num_free),
         "free_cells_in_rooms": int(cells.sum()),

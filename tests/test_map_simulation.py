@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pytest
 
+from spcopyro.baselines.geometry import auto_door_width
 from spcopyro.cli import main
 from spcopyro.data import load_house
 from spcopyro.map_simulation import MapTour, simulate_on_map
@@ -127,3 +128,47 @@ def test_bad_maps_and_options_are_clear_errors(tmp_path, capsys):
     tiny = OccupancyGrid(np.zeros((4, 4), dtype=np.int8), 0.1, (0.0, 0.0, 0.0))
     with pytest.raises(ValueError, match="too small"):
         simulate_on_map(tiny)
+
+
+def test_the_door_width_is_read_from_the_map(tmp_path, capsys, caplog):
+    """Issue 21: a fixed 1 m found one room on every public house (a one-category truth, on
+    which ARI says nothing) and 2 m one room on room1dk6. ``auto`` takes the narrowest width
+    that separates two rooms."""
+    yaml_path, grid = three_rooms(tmp_path)  # 0.6 m doors
+    assert auto_door_width(grid, min_room_area=1.0) == (0.75, 3)
+    wide = grid.occupancy.copy()
+    for col in (21, 41):
+        wide[14:26, col] = FREE  # 1.2 m openings: 0.75 and 1 m no longer cut there
+    wide_grid = OccupancyGrid(wide, 0.1, grid.origin)
+    assert auto_door_width(wide_grid, min_room_area=1.0) == (1.25, 3)
+    simulated = simulate_on_map(wide_grid, seed=0)
+    assert simulated.door_width == 1.25 and simulated.room_category.size == 3
+    fixed = simulate_on_map(wide_grid, seed=0, tour=MapTour(door_width=1.0))
+    assert fixed.door_width == 1.0 and fixed.room_category.size == 1
+
+    out = tmp_path / "data"
+    assert main(["simulate", "--map", str(yaml_path), "--out", str(out)]) == 0
+    assert "rooms cut at doorways up to 0.75 m wide (read from the map)" in capsys.readouterr().out
+    record = json.loads((out / "flat" / "rooms.json").read_text())
+    assert record["door_width"] == 0.75 and record["door_width_option"] == "auto"
+
+    open_space = OccupancyGrid(np.zeros((20, 30), dtype=np.int8), 0.1, (0.0, 0.0, 0.0))
+    with caplog.at_level("WARNING", logger="spcopyro"):
+        one = simulate_on_map(open_space, seed=0)
+    assert one.room_category.size == 1 and one.door_width == 3.0
+    assert "one room at every door width up to 3 m" in caplog.text
+    for bad in ("0", "wide"):
+        with pytest.raises(SystemExit):
+            main(["simulate", "--map", str(yaml_path), "--out", str(out), "--door-width", bad])
+    with pytest.raises(ValueError, match="door width must be 'auto' or metres > 0"):
+        simulate_on_map(grid, tour=MapTour(door_width=-1.0))
+
+
+def test_the_public_maps_door_widths(dataset_root):
+    """What ``auto`` reads from the five public maps (README and docs/real_houses.md quote it)."""
+    widths = {}
+    for name in ("room1dk5", "room1dk6", "room1ldk4", "room1ldk5", "room2ldk4"):
+        widths[name] = auto_door_width(load_map(dataset_root / "map" / f"{name}.yaml"),
+                                       min_room_area=1.0)  # fmt: skip
+    assert widths == {"room1dk5": (2.0, 3), "room1dk6": (2.25, 3), "room1ldk4": (1.5, 2),
+                      "room1ldk5": (1.5, 2), "room2ldk4": (1.75, 3)}  # fmt: skip

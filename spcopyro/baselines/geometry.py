@@ -52,10 +52,19 @@ from spcopyro.maps import OccupancyGrid
 from spcopyro.maps.coarse import grow_labels
 from spcopyro.semantic_map import TabularSemanticMap
 
-__all__ = ["DEFAULT_DOOR_WIDTH", "DEFAULT_MIN_ROOM_AREA", "geometry_semantic_map", "room_segments"]
+__all__ = [
+    "AUTO_DOOR_WIDTHS",
+    "DEFAULT_DOOR_WIDTH",
+    "DEFAULT_MIN_ROOM_AREA",
+    "auto_door_width",
+    "geometry_semantic_map",
+    "room_segments",
+]
 
 DEFAULT_DOOR_WIDTH = 1.0  # metres: doorways up to this wide separate rooms
 DEFAULT_MIN_ROOM_AREA = 0.25  # square metres: smallest new room at its level
+AUTO_DOOR_WIDTHS = tuple(0.75 + 0.25 * k for k in range(10))
+"""Metres: the door widths :func:`auto_door_width` tries, 0.75 to 3 m (doors to open arches)."""
 _EPS = 1e-9  # cells
 
 
@@ -164,3 +173,31 @@ def geometry_semantic_map(
         name="geometry",
         notes=(f"{segments} room segments (door width {door_width:g} m)",),
     )
+
+
+def auto_door_width(
+    grid: OccupancyGrid,
+    *,
+    min_room_area: float,
+    candidates: tuple[float, ...] = AUTO_DOOR_WIDTHS,
+) -> tuple[float, int]:
+    """The door width read from the map: the narrowest of ``candidates`` at which
+    :func:`room_segments` cuts the free space into at least two rooms of ``min_room_area``
+    square metres or more, and that number of rooms.
+
+    A fixed width suits some maps only: on the public houses 1 m finds one room in each, while
+    2 m finds one in room1dk6 and three in room1dk5 (their doorways and arches are 1.5 to 2.5 m
+    wide in the scans). The narrowest width that separates anything is the map's own door
+    scale; wider ones start cutting open space at its narrowings. When no candidate separates
+    two rooms the widest is returned with its count of 1 (the caller says so).
+    """
+    if not candidates:
+        raise ValueError("auto_door_width needs at least one candidate width")
+    rooms = 0
+    for width in sorted(candidates):
+        segments = room_segments(grid, door_width=width, min_room_area=min_room_area)
+        sizes = np.bincount(segments[segments >= 0])
+        rooms = int((sizes * grid.resolution**2 >= min_room_area).sum())
+        if rooms >= 2:
+            return float(width), rooms
+    return float(max(candidates)), rooms
