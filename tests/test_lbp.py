@@ -190,7 +190,17 @@ def test_the_registered_lbp_method_returns_beliefs_and_a_bethe_trace():
     assert np.isfinite(output.trace.objective).all()
     assert output.options == {"iterations": 8, "damping": 0.3, "passes": 3,
                               "anneal_iterations": 2, "pi_family": "dirichlet",
-                              "tolerance": 0.0}  # fmt: skip
+                              "tolerance": 1e-7, "stopped": "ran the 8 iterations asked for "
+                              "(not converged within them at tolerance 1e-07)"}  # fmt: skip
+    settled = method.run(data, cfg, iterations=500, generator=torch.Generator().manual_seed(0))
+    stop = len(settled.trace.objective)  # issue 23: by default LBP stops by itself, and says so
+    assert stop < 100
+    assert settled.options["stopped"] == (
+        f"converged after {stop} iterations: the objective changed by less than tolerance "
+        "1e-07 x |objective|"
+    )
+    last = settled.trace.objective[-2:]
+    assert abs(last[1] - last[0]) < 1e-7 * abs(last[1])
     with pytest.raises(TypeError, match="LBPOptions"):
         method.run(data, cfg, iterations=1, generator=torch.Generator(), options=object())
     thinned = method.run(data, cfg, iterations=8, generator=torch.Generator().manual_seed(0),

@@ -35,14 +35,16 @@ class LBPOptions:
         pi_family: q(pi) as the model states it (``"dirichlet"``) or the truncated
             stick-breaking DP (``"stick-breaking"``).
         tolerance: stop once an outer iteration at full gamma changes the Bethe objective by less
-            than ``tolerance * |objective|`` (0: run every iteration).
+            than ``tolerance * |objective|`` (0: run every iteration). The default 1e-7 is
+            CAVI's: on the embedded house LBP settles within a few iterations and, without it,
+            ran all 5000 of a plain ``spcopyro fit --method lbp`` (2 minutes).
     """
 
     damping: float = 0.5
     passes: int = 2
     anneal_iterations: int = 0
     pi_family: PiFamily = "dirichlet"
-    tolerance: float = 0.0
+    tolerance: float = 1e-7
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:

@@ -22,7 +22,10 @@ from spcopyro.variational.run import (
 
 def output_from_variational(run: VariationalRun, options: dict[str, object]) -> InferenceOutput:
     """A variational run's output: argmax q as the labels, q as the marginals (float32), the
-    posterior means of pi and phi, the ELBO per iteration as the trace."""
+    posterior means of pi and phi, the ELBO per iteration as the trace; why it stopped is the
+    record's ``stopped``."""
+    if run.stop_reason:
+        options = {**options, "stopped": run.stop_reason}
     return InferenceOutput(
         labels=run.labels.numpy().astype("int64"),
         pi=mean_pi(run.factors).numpy(),

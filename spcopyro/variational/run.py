@@ -52,6 +52,8 @@ class VariationalRun:
     """[S', N] int16 (int32 when L > 32767) argmax labels every ``thin`` iterations, or None."""
     sample_iterations: np.ndarray | None = None
     """[S'] the 0-based iterations of ``label_samples``."""
+    stop_reason: str = ""
+    """Why the run stopped: converged (the tolerance met) or the iteration ceiling reached."""
 
     @property
     def labels(self) -> torch.Tensor:
@@ -214,13 +216,21 @@ def run_variational(
             bar.update()
             bar.set_postfix(objective=f"{values[-1]:.4g}", concepts=used[-1])
             if _converged(values, gammas, config.gamma, options.tolerance):
+                reason = (
+                    f"converged after {iteration + 1} iterations: the objective changed by less "
+                    f"than tolerance {options.tolerance:g} x |objective|"
+                )
                 break
+        else:
+            reason = f"ran the {iterations} iterations asked for (not converged within them"
+            reason += f" at tolerance {options.tolerance:g})" if options.tolerance else ")"
     q = field.dense(q)
     return VariationalRun(
         q, factors, np.asarray(values), np.asarray(used, dtype=np.int64),
         np.asarray(seconds), np.asarray(gammas),
         np.stack(samples) if samples else None,
         np.asarray(sampled, dtype=np.int64) if samples else None,
+        reason,
     )  # fmt: skip
 
 
