@@ -32,15 +32,26 @@ S1, S2 are 1 and 201 by default (:data:`SWEEPS`; from 100 sweeps on a fit keeps 
 Each configuration is run ``--repeats`` times and the fastest run kept (the least disturbed by
 other load on the machine).
 
+**Start-up of the questions** (issue 25 item 2): ``spcopyro --help``, ``where`` and ``export``
+on a saved fit, each timed as a whole process (``python -m spcopyro ...``, launch to exit), the
+fastest of ``--repeats`` runs, beside ``python -c pass`` timed in the same run (the interpreter's
+own start, which no command can go under). The saved fit is a default fit of the same house with
+:data:`STARTUP_FIT_SWEEPS` sweeps (``--no-figures``); the word asked is its first concept's top
+word. Each command is run once more to list the heavy modules (torch, pyro, numba) it imported,
+which should be none. ``show`` of the house is in the table for information: it draws with
+matplotlib, whose import alone is most of its time, and is not held to the target.
+
 Usage::
 
     python benchmarks/fixed_cost.py                  # room2ldk4, presets paper-dp and auto
     python benchmarks/fixed_cost.py --quick          # smoke test: 1 and 3 sweeps, no repeats
     python benchmarks/fixed_cost.py --dataset /path/to/spcomapping --house room1dk5
+    python benchmarks/fixed_cost.py --startup-only   # only the start-up of the questions
 
 Without the public dataset it fits the embedded synthetic default house and says so. It prints a
 table and writes every number to ``benchmarks/fixed_cost.json`` (``fixed_cost_quick.json`` with
-``--quick``). :func:`measure_fixed_cost` is what ``benchmarks/gibbs.py`` can call.
+``--quick``, ``startup.json`` with ``--startup-only``). :func:`measure_fixed_cost` is what
+``benchmarks/gibbs.py`` can call.
 """
 
 from __future__ import annotations
@@ -63,6 +74,17 @@ TARGET_SECONDS = 2.0  # issue #15 item 2: under 2 s outside the sweeps (room2ldk
 SWEEPS = (1, 201)
 """Default run lengths S1, S2 (module docstring)."""
 PHASES = ("load", "settings", "summary", "fit", "save", "figures", "report", "commit")
+STARTUP_TARGET_SECONDS = 0.5  # issue 25 item 2: --help, where, export as whole processes
+STARTUP_FIT_SWEEPS = 20
+"""Sweeps of the fit the start-up questions are asked of (its files, not its quality, matter)."""
+HEAVY = ("torch", "pyro", "numba")
+_REPORT_HEAVY = (
+    "import atexit, runpy, sys; atexit.register(lambda: print('heavy:', ','.join(m for m in "
+    f"{HEAVY!r} if m in sys.modules), file=sys.stderr)); sys.argv[0] = 'spcopyro'; "
+    "runpy.run_module('spcopyro', run_name='__main__')"
+)
+"""``python -c`` program running ``spcopyro`` that lists on stderr, at exit, the heavy modules
+it imported."""
 
 
 def _environment() -> dict[str, str]:
@@ -118,6 +140,13 @@ def fit_once(
     return row
 
 
+def _house_folder(dataset_root: Path | str | None, house: str) -> Path | None:
+    """The folder of ``house`` in the dataset, or None (the embedded synthetic default house)
+    when there is no dataset or it lacks the house."""
+    data = None if dataset_root is None else Path(dataset_root) / house
+    return data if data is not None and data.is_dir() else None
+
+
 def measure_fixed_cost(
     dataset_root: Path | str | None,
     house: str = "room2ldk4",
@@ -134,9 +163,7 @@ def measure_fixed_cost(
     low, high = sweeps
     if not 1 <= low < high:
         raise ValueError(f"sweeps must be two counts 1 <= S1 < S2, got {sweeps}")
-    data = None if dataset_root is None else Path(dataset_root) / house
-    if data is not None and not data.is_dir():
-        data = None
+    data = _house_folder(dataset_root, house)
     runs = []
     for count in (low, high):
         tries = [fit_once(data, preset, count, figures) for _ in range(max(repeats, 1))]
@@ -202,6 +229,99 @@ def _table(headers: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
     return "\n".join([line(headers), "  ".join("-" * w for w in widths), *map(line, rows)])
 
 
+def _startup_commands(data: Path | None, fit: Path, word: str, tmp: Path) -> dict[str, list[str]]:
+    """The commands of the start-up table (arguments of ``spcopyro``), by name."""
+    return {
+        "--help": ["--help"],
+        "where": ["where", str(fit), word],
+        "export": ["export", str(fit), "--nav2", str(tmp / "nav2"), "--word", word, "--overwrite"],
+        "show (info)": [
+            "show",
+            *([str(data)] if data is not None else []),
+            "--out",
+            str(tmp / "house.png"),
+        ],
+    }
+
+
+def measure_startup(data: Path | None, repeats: int = 3) -> dict[str, Any]:
+    """Wall seconds of ``spcopyro --help``, ``where``, ``export`` and ``show`` as whole processes
+    (each the fastest of ``repeats``) and of ``python -c pass`` in the same run, on a fit of
+    ``data`` (None: the embedded synthetic default house) saved first; the heavy modules each
+    imported. See the module docstring."""
+    env = _environment()
+    with tempfile.TemporaryDirectory(prefix="spcopyro-startup-") as name:
+        tmp = Path(name)
+        fit = tmp / "fit"
+        command = [sys.executable, "-m", "spcopyro", "fit", *([str(data)] if data else [])]
+        command += ["--sweeps", str(STARTUP_FIT_SWEEPS), "--no-figures", "--out", str(fit)]
+        subprocess.run(command, check=True, capture_output=True, env=env, timeout=900)
+        concepts = json.loads((fit / "concepts.json").read_text())
+        word = next(c["top_words"][0][0] for c in concepts if c["top_words"])
+        programs = {"python -c pass": [sys.executable, "-c", "pass"]}
+        for label, args in _startup_commands(data, fit, word, tmp).items():
+            programs[label] = [sys.executable, "-m", "spcopyro", *args]
+        rows = []
+        for label, program in programs.items():
+            walls = []
+            for _ in range(max(repeats, 1)):
+                start = time.perf_counter()
+                done = subprocess.run(program, capture_output=True, text=True, env=env,
+                                      timeout=300)  # fmt: skip
+                walls.append(time.perf_counter() - start)
+                if done.returncode != 0:
+                    raise RuntimeError(f"{' '.join(program)} failed ({done.returncode}):\n"
+                                       f"{done.stderr[-3000:]}")  # fmt: skip
+            heavy = None
+            if program[1:3] == ["-m", "spcopyro"]:
+                again = subprocess.run([sys.executable, "-c", _REPORT_HEAVY, *program[3:]],
+                                       capture_output=True, text=True, env=env,
+                                       timeout=300)  # fmt: skip
+                lines = [x for x in again.stderr.splitlines() if x.startswith("heavy:")]
+                heavy = [m for m in lines[-1].removeprefix("heavy:").strip().split(",") if m]
+            judged = label in ("--help", "where", "export")
+            rows.append({
+                "command": label,
+                "argv": program[1:],
+                "seconds": min(walls),
+                "median_seconds": sorted(walls)[len(walls) // 2],
+                "runs": walls,
+                "heavy_imported": heavy,
+                "judged": judged,
+                "meets_target": min(walls) < STARTUP_TARGET_SECONDS if judged else None,
+            })  # fmt: skip
+    return {
+        "house": str(data) if data is not None else "synthetic default house (dataset absent)",
+        "word": word,
+        "fit_sweeps": STARTUP_FIT_SWEEPS,
+        "repeats": max(repeats, 1),
+        "target_seconds": STARTUP_TARGET_SECONDS,
+        "commands": rows,
+        "meets_target": all(r["meets_target"] for r in rows if r["judged"]),
+        "no_heavy_imports": all(
+            not r["heavy_imported"] for r in rows if r["heavy_imported"] is not None
+        ),
+    }
+
+
+def render_startup(startup: dict[str, Any]) -> str:
+    """The start-up table: seconds of each command, less ``python -c pass``, verdicts."""
+    baseline = startup["commands"][0]["seconds"]
+    rows = []
+    for row in startup["commands"]:
+        heavy = row["heavy_imported"]
+        verdict = "-" if not row["judged"] else "PASS" if row["meets_target"] else "FAIL"
+        rows.append([row["command"], f"{row['seconds']:.3f}", f"{row['median_seconds']:.3f}",
+                     f"{row['seconds'] - baseline:+.3f}",
+                     "-" if heavy is None else ",".join(heavy) or "none", verdict])  # fmt: skip
+    title = (f"start-up of the questions as whole processes (house: {startup['house']}; a "
+             f"fit of {startup['fit_sweeps']} sweeps, word {startup['word']!r}; seconds, fastest "
+             f"and median of {startup['repeats']}; target < {startup['target_seconds']:g} "
+             "s)")  # fmt: skip
+    headers = ["command", "fastest", "median", "vs pass", "torch/pyro/numba", "target"]
+    return "\n".join([title, _table(headers, rows)])
+
+
 def import_seconds() -> dict[str, float]:
     """Wall seconds of ``python -c 'import M'`` in a fresh interpreter, for the heavy modules a
     fit may import (the floor under the fixed cost: ``torch`` alone is most of it)."""
@@ -227,7 +347,10 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--repeats", type=int, default=3, help="runs per configuration")
     parser.add_argument("--out", type=Path, default=None,
                         help="JSON output (default benchmarks/fixed_cost.json, fixed_cost_quick."
-                             "json with --quick)")  # fmt: skip
+                             "json with --quick, startup.json with --startup-only)")  # fmt: skip
+    parser.add_argument("--startup-only", action="store_true",
+                        help="only the start-up of --help, where, export and show (no fits "
+                             "timed)")  # fmt: skip
     return parser.parse_args(argv)
 
 
@@ -251,17 +374,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         presets = [p.strip() for p in args.presets.split(",") if p.strip()]
         sweeps, figures, repeats = tuple(args.sweeps), [True, False], args.repeats
     results = []
-    for preset in presets:
+    for preset in [] if args.startup_only else presets:
         for with_figures in figures:
             print(f"fitting {args.house} ({preset}, figures {with_figures}) ...", file=sys.stderr)
             results.append(measure_fixed_cost(dataset, args.house, preset, sweeps,
                                               with_figures, repeats))  # fmt: skip
-    imports = {} if args.quick else import_seconds()
-    print(render(results))
+    print(f"start-up of the questions on {args.house} ...", file=sys.stderr)
+    startup = measure_startup(_house_folder(dataset, args.house), repeats)
+    imports = {} if args.quick or args.startup_only else import_seconds()
+    if results:
+        print(render(results) + "\n")
+    print(render_startup(startup))
     if imports:
         print("\nimport alone, fresh interpreter (s): "
               + ", ".join(f"{m} {s:.2f}" for m, s in imports.items()))  # fmt: skip
-    if results[0]["data"] is None:
+    if _house_folder(dataset, args.house) is None:
         print("note: the public dataset was not found: the synthetic default house was fitted")
     record = {
         "machine": {
@@ -270,9 +397,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             "cpu_count": os.cpu_count(),
         },  # fmt: skip
         "results": results,
+        "startup": startup,
         "import_seconds": imports,
     }
-    out = args.out or SCRIPT_DIR / ("fixed_cost_quick.json" if args.quick else "fixed_cost.json")
+    default = "fixed_cost_quick.json" if args.quick else "fixed_cost.json"
+    out = args.out or SCRIPT_DIR / ("startup.json" if args.startup_only else default)
     out.write_text(json.dumps(record, indent=1) + "\n")
     print(f"wrote {out}")
     return 0

@@ -190,7 +190,14 @@ def _where(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``spcopyro`` parser, every command with its options.
+
+    ``command`` is the command about to be parsed (:func:`main` passes it): when it is given and
+    is not ``fit``, ``fit`` is registered by name and help only, so that ``spcopyro --help``,
+    ``where``, ``show`` and ``export`` import no torch for the fit's option choices (the
+    parsers of the other commands import none anyway).
+    """
     parser = argparse.ArgumentParser(
         prog="spcopyro",
         description="SpCoMapping: semantic maps from an occupancy grid, images and words.",
@@ -242,7 +249,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="PNG file to write")
     p.set_defaults(func=_show)
 
-    add_fit_parser(sub)  # fit
+    add_fit_parser(sub, options=command in (None, "fit"))  # fit
 
     p = sub.add_parser("where", help='answer "where is WORD?" from a fitted result')
     p.add_argument("result", help="output folder of `spcopyro fit`")
@@ -317,8 +324,15 @@ def _error_line(error: BaseException) -> str:
     return str(error)
 
 
+def _command_name(argv: list[str] | None) -> str:
+    """The command named on the command line ("" when none is: ``--help``, ``--version``); the
+    main parser's own options take no value, so it is the first word that is not an option."""
+    words = sys.argv[1:] if argv is None else argv
+    return next((word for word in words if not word.startswith("-")), "")
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    args = build_parser(_command_name(argv)).parse_args(argv)
     if argv is not None:
         args.argv = list(argv)
     _configure_logging(logging.INFO if args.verbose else logging.WARNING)

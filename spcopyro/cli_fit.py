@@ -1,6 +1,10 @@
 """The ``spcopyro fit`` command: check the arguments, fit, write OUT whole, keep a checkpoint.
 
-:func:`add_parser` registers ``fit`` on the main parser's subparsers (:mod:`spcopyro.cli`).
+:func:`add_parser` registers ``fit`` on the main parser's subparsers (:mod:`spcopyro.cli`). What
+imports torch, pyro or numba (the sampler, the inference methods, their option tables) is imported
+inside the functions that use it, so that registering ``fit`` by name, as every other command's
+parser does, imports none of them (``spcopyro --help``, ``where``, ``show`` and ``export`` run
+without torch; ``tests/test_cli_startup.py``).
 """
 
 from __future__ import annotations
@@ -45,14 +49,8 @@ from spcopyro.config import (
 )
 from spcopyro.data import House
 from spcopyro.data.model_grid import model_house
-from spcopyro.gibbs.backends import get_backend
-from spcopyro.gibbs.hyperparameters import describe_hyperparameters
-from spcopyro.gibbs.options import BACKENDS, GibbsOptions
-from spcopyro.inference import with_options
-from spcopyro.initialisation import INITS
 from spcopyro.outputs import StagedOutput
 from spcopyro.point_estimate import POINT_ESTIMATES
-from spcopyro.registry import DEFAULT_METHOD, INFERENCE_METHODS
 from spcopyro.threads import AUTO, MIN_CELLS_FOR_MORE_THREADS, describe_threads
 from spcopyro.timings import Phases
 
@@ -250,6 +248,11 @@ def _cell_size(value: str | None) -> float | None | str:
 
 def _fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings, object | None]:
     """The model and data settings and the method's options (None: its defaults) of ``fit``."""
+    from spcopyro.gibbs.backends import get_backend
+    from spcopyro.gibbs.options import GibbsOptions
+    from spcopyro.inference import with_options
+    from spcopyro.registry import INFERENCE_METHODS
+
     overrides = dict(
         prior=args.prior, num_concepts=args.concepts, gamma=args.gamma, alpha=args.alpha,
         beta=args.beta, chi=args.chi, connectivity=args.connectivity,
@@ -293,7 +296,11 @@ def _fit_staged(
 ) -> int:
     """Fit, write every output into ``staged.path``, then move it to OUT."""
     from spcopyro.fit import best_chain, fit_house_chains, log_degenerate_map
+    from spcopyro.gibbs.backends import get_backend
+    from spcopyro.gibbs.hyperparameters import describe_hyperparameters
+    from spcopyro.gibbs.options import GibbsOptions
     from spcopyro.outputs import checkpoint_path
+    from spcopyro.registry import INFERENCE_METHODS
     from spcopyro.uncertainty import cell_entropy, free_cells_image
 
     phases = args.phases
@@ -495,11 +502,21 @@ def print_concepts(result: SpCoResult, limit: int = 10) -> None:
         print(f"  no concept has a distinctive word (every lift <= {MIN_LIFT:g})")
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    """Register ``fit`` (its options and their help, as ``spcopyro fit --help`` lists them)."""
+def add_parser(subparsers: argparse._SubParsersAction, options: bool = True) -> None:
+    """Register ``fit`` (its options and their help, as ``spcopyro fit --help`` lists them).
+
+    ``options=False`` registers the command by name and help only: what ``spcopyro --help`` and
+    the other commands need, without importing torch for the choices of ``--method``,
+    ``--backend`` and ``--init`` (:func:`spcopyro.cli.build_parser`)."""
     p = subparsers.add_parser(
         "fit", help="fit SpCoMapping (Gibbs sampling) and write the semantic map"
     )
+    if not options:
+        return
+    from spcopyro.gibbs.options import BACKENDS
+    from spcopyro.initialisation import INITS
+    from spcopyro.registry import DEFAULT_METHOD, INFERENCE_METHODS
+
     p.add_argument("data", nargs="?", help="house folder (default: the synthetic house)")
     p.add_argument("--out", required=True,
                    help="output folder (written whole at the end; new or empty)")  # fmt: skip

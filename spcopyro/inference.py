@@ -16,13 +16,16 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Protocol, TypeVar
+from typing import TYPE_CHECKING, Protocol, TypeVar
 
 import numpy as np
-import torch
 
 from spcopyro.config import SpCoConfig
-from spcopyro.model import ModelData
+
+if TYPE_CHECKING:  # annotations only: a saved result is read without torch (spcopyro.results)
+    import torch
+
+    from spcopyro.model import ModelData
 
 
 @dataclass(frozen=True)

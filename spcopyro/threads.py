@@ -55,8 +55,6 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from numbers import Integral
 
-import torch
-
 AUTO = "auto"
 """``threads`` value that applies :func:`policy_threads`."""
 
@@ -95,6 +93,8 @@ def resolve_threads(threads: int | str | None, num_cells: int) -> int | None:
 
 def describe_threads(threads: int | str | None, num_cells: int) -> str:
     """One line on the thread count a fit of ``num_cells`` free cells will use, and why."""
+    import torch  # here, not at the top: the commands that only parse need no torch
+
     count = resolve_threads(threads, num_cells)
     current = torch.get_num_threads()
     if threads == AUTO:
@@ -114,6 +114,8 @@ def describe_threads(threads: int | str | None, num_cells: int) -> str:
 def torch_threads(count: int | None) -> Iterator[int]:
     """Run the block with ``count`` torch intra-op threads (None: leave the setting alone), then
     restore the previous count -- also when the block raises. Yields the count in effect."""
+    import torch
+
     integer = isinstance(count, Integral) and not isinstance(count, bool)
     if count is not None and not (integer and count >= 1):
         raise ValueError(f"count must be a positive integer or None, got {count!r}")

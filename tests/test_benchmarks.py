@@ -139,6 +139,14 @@ def test_fixed_cost_benchmark_quick(tmp_path):
         assert "matplotlib" not in run["imported"], run["imported"]
         assert run["wall"] >= run["startup"] > 0.0 and run["sweep_seconds"] > 0.0
     assert math.isfinite(result["fixed_cost"]) and result["fixed_cost_method"]
+    # the start-up table: the questions as whole processes, none importing torch/pyro/numba
+    assert "start-up of the questions as whole processes" in done.stdout
+    startup = record["startup"]
+    commands = {row["command"]: row for row in startup["commands"]}
+    assert list(commands) == ["python -c pass", "--help", "where", "export", "show (info)"]
+    assert all(row["seconds"] > 0.0 for row in commands.values())
+    assert startup["no_heavy_imports"], commands
+    assert all(commands[name]["heavy_imported"] == [] for name in ("--help", "where", "export"))
 
 
 @pytest.mark.slow

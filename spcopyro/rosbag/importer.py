@@ -52,7 +52,6 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from spcopyro.data.text import tokenize
 from spcopyro.maps.grid import OccupancyGrid
@@ -273,6 +272,8 @@ def _import_one(
         folder.mkdir()
         written: dict[int, str] = {}
         undecodable = 0
+        from tqdm.auto import tqdm  # here: `spcopyro --help` imports this module, not tqdm
+
         bar = tqdm(total=kept.size, desc=f"images of trial {trial}", unit="img",
                    disable=not progress_enabled(progress), leave=False)  # fmt: skip
         for index, msg in iter_images(reader, images.topic, set(kept.tolist())):

@@ -1,0 +1,125 @@
+"""Questions without torch (issue 25 item 2): ``spcopyro --help``, ``where``, ``show`` and
+``export`` on a saved fit import none of torch, pyro and numba.
+
+Each command runs in a fresh interpreter, which then prints the heavy modules it imported.
+Nothing here times anything: ``python benchmarks/fixed_cost.py --startup-only`` measures the
+start-up of these commands as whole processes.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from spcopyro.cli import build_parser, main
+from spcopyro.synthetic import HouseSpec, write_synthetic
+
+ROOT = Path(__file__).resolve().parents[1]
+HEAVY = ("torch", "pyro", "numba")
+MARK = "heavy modules imported:"
+
+# The command, then the heavy modules it prints as imported, on its last line of stdout.
+_PROGRAM = f"""
+import json, sys
+sys.argv = ["spcopyro", *json.loads(sys.argv[1])]
+try:
+    from spcopyro.cli import console_main
+    console_main()
+finally:
+    print({MARK!r}, json.dumps(sorted(m for m in {HEAVY!r} if m in sys.modules)), flush=True)
+"""
+
+
+def _env() -> dict[str, str]:
+    path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
+    return {**os.environ, "PYTHONPATH": path, "CI": "1"}
+
+
+def heavy_imports(args: list[str]) -> tuple[list[str], str]:
+    """Run ``spcopyro ARGS`` in a fresh interpreter: the heavy modules it imported, its stdout."""
+    done = subprocess.run(
+        [sys.executable, "-c", _PROGRAM, json.dumps(args)],
+        capture_output=True, text=True, env=_env(), timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, f"spcopyro {' '.join(args)}: {done.stderr[-3000:]}"
+    *printed, last = done.stdout.rstrip("\n").split("\n")
+    assert last.startswith(MARK), done.stdout[-3000:]
+    return json.loads(last[len(MARK) :]), "\n".join(printed)
+
+
+@pytest.fixture(scope="module")
+def saved_fit(tmp_path_factory) -> tuple[Path, Path]:
+    """A house folder and a fit of it saved with the library (a few sweeps)."""
+    from spcopyro.config import preset
+    from spcopyro.data import load_house
+    from spcopyro.fit import fit_house
+
+    root = tmp_path_factory.mktemp("startup")
+    house_dir = write_synthetic(root / "data", seed=1, spec=HouseSpec(height=40, width=50,
+                                                                      num_rooms=3))  # fmt: skip
+    settings = preset("original-code", gamma=3.0, num_concepts=6)
+    result = fit_house(load_house(house_dir), settings, sweeps=5, progress=False)
+    return house_dir, result.save(root / "fit")
+
+
+def _word(fit: Path) -> str:
+    concepts = json.loads((fit / "concepts.json").read_text())
+    return next(c["top_words"][0][0] for c in concepts if c["top_words"])
+
+
+def test_help_imports_no_torch():
+    imported, printed = heavy_imports(["--help"])
+    assert imported == []
+    assert "fit" in printed and "where" in printed and "export" in printed
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["where", "{fit}", "{word}"],
+        ["-v", "where", "{fit}", "{word}", "--prior", "pi"],
+        ["where", "{fit}", "{word}", "--out", "{tmp}/where.png"],
+        ["export", "{fit}", "--nav2", "{tmp}/keepout", "--word", "{word}"],
+        ["export", "{fit}", "--nav2", "{tmp}/speed", "--word", "{word}", "--mode", "speed"],
+        ["show", "{house}", "--out", "{tmp}/house.png"],
+        ["show", "--out", "{tmp}/default.png"],
+        ["where", "--help"],
+    ],
+    ids=[
+        "where",
+        "where-pi",
+        "where-png",
+        "export-keepout",
+        "export-speed",
+        "show-house",
+        "show-default",
+        "where-help",
+    ],
+)
+def test_questions_on_a_saved_fit_import_no_torch(saved_fit, tmp_path, command):
+    house, fit = saved_fit
+    values = dict(fit=fit, word=_word(fit), tmp=tmp_path, house=house)
+    args = [part.format(**values) for part in command]
+    imported, printed = heavy_imports(args)
+    assert imported == [], f"spcopyro {' '.join(args)} imported {imported}"
+    assert printed.strip()
+    if "--out" in args and "--help" not in args:
+        assert Path(args[args.index("--out") + 1]).is_file()
+
+
+def test_fit_help_still_lists_every_option(capsys):
+    """``fit`` is registered by name only when another command runs; its own parse and help
+    are whole, as is :func:`build_parser` called without a command."""
+    with pytest.raises(SystemExit):
+        main(["-v", "fit", "--help"])
+    assert "--backend {auto,torch,numba}" in capsys.readouterr().out
+    for parser in (build_parser(), build_parser("fit")):
+        assert parser.parse_args(["fit", "--out", "x", "--backend", "numba"]).backend == "numba"
+    (sub,) = (a for a in build_parser("where")._actions if hasattr(a, "choices") and a.choices
+              and "fit" in a.choices)  # fmt: skip
+    assert "fit" in sub.choices and "where" in sub.choices
