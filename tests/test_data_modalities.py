@@ -140,6 +140,9 @@ def test_modality_observations_converts_and_counts():
         (dict(name="wi-fi"), ValueError, "lower-case identifier"),
         (dict(name="images"), ValueError, "must not be one of"),
         (dict(name="words"), ValueError, "must not be one of"),
+        (dict(name="theta"), ValueError, "would take the name of a model site"),
+        (dict(name="log_joint"), ValueError, "or of a sampler diagnostic"),  # mcmc.get_samples()
+        (dict(name="wifi_probs"), ValueError, "end in _probs"),  # modality wifi's parameters
         (dict(items=(), counts=np.zeros((5, 0))), ValueError, "at least one"),
         (dict(items="ap1"), ValueError, "sequence of names"),
         (dict(items=("ap1", "ap2", "ap1")), ValueError, "'ap1' more than once"),
