@@ -279,6 +279,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     from spcopyro.rosbag.cli import add_parser as add_rosbag_parsers
 
     add_rosbag_parsers(sub)  # import-bag, simulate-bag
+    from spcopyro.cli_navigate import add_parser as add_navigate_parser
+
+    add_navigate_parser(sub)  # navigate
     for command in (parser, *sub.choices.values()):
         command.formatter_class = _HelpFormatter
     return parser

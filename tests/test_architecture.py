@@ -37,11 +37,12 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "nav2",
         "map_simulation",
         "rosbag",
+        "navigation",
     ),
     ("fit_gibbs",),
     ("fit", "online"),
     ("experiments",),
-    ("cli", "cli_common", "cli_fit", "cli_export", "__main__"),
+    ("cli", "cli_common", "cli_fit", "cli_export", "cli_navigate", "__main__"),
 )
 """Layer of every top-level module or subpackage of spcopyro, lowest first."""
 

@@ -1,0 +1,126 @@
+r"""Where the robot may drive: the clearance of every free cell and the graph paths run over.
+
+**Clearance.** A free cell's clearance is the Euclidean distance from its centre to the centre
+of the nearest cell that is not free (occupied, unknown, or beyond the map's edge), less half a
+cell: the distance to that cell's near side along a row or column
+(``scipy.ndimage.distance_transform_edt``). A cell next to a wall has half a cell of clearance.
+
+**Hard exclusion.** The robot, a disc of radius ``radius`` metres, may stand on a free cell whose
+clearance is at least ``radius``; every other cell is left out of the planning graph. There is
+no soft cost near walls: a path is the shortest one through the cells the robot fits on, and it
+may run along the edge of that set (exactly ``radius`` from a wall), which is what Nav2's
+inflation layer is for once the robot drives.
+
+**The graph** is :func:`spcopyro.data.footprint.free_cell_graph` of the map with the excluded
+cells made occupied: 8-connected, steps of one cell or sqrt(2) cells (in metres), a diagonal step
+only where both cells beside it are allowed (no corner cutting), so a path never crosses or
+touches a cell the robot does not fit on. Shortest paths: ``scipy.sparse.csgraph.dijkstra``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from spcopyro.data.footprint import free_cell_graph
+from spcopyro.maps import OCCUPIED, OccupancyGrid
+
+if TYPE_CHECKING:
+    from scipy import sparse
+
+__all__ = ["PlanningGrid", "clearance_map", "planning_grid", "shortest_paths", "trace_path"]
+
+
+def clearance_map(grid: OccupancyGrid) -> np.ndarray:
+    """``[H, W]`` float64 metres: each free cell's clearance (module docstring), 0 elsewhere."""
+    from scipy.ndimage import distance_transform_edt
+
+    free = np.pad(np.asarray(grid.free, dtype=bool), 1, constant_values=False)  # edge: not free
+    distance = distance_transform_edt(free)[1:-1, 1:-1] * grid.resolution  # [H, W] to a centre
+    return np.where(grid.free, np.maximum(distance - grid.resolution / 2, 0.0), 0.0)
+
+
+@dataclass(frozen=True)
+class PlanningGrid:
+    """The cells a robot of ``radius`` fits on and the graph between them.
+
+    ``allowed`` is a copy of the fit's grid whose free cells are the allowed ones (the others
+    made occupied); its ``free_index`` numbers the graph's nodes ("allowed index")."""
+
+    grid: OccupancyGrid
+    """The fit's grid."""
+    radius: float
+    clearance: np.ndarray
+    """[H, W] metres (:func:`clearance_map`)."""
+    allowed: OccupancyGrid
+    graph: sparse.csr_matrix
+    """[M, M] edge lengths in metres between allowed cells."""
+
+    @property
+    def num_allowed(self) -> int:
+        return int(self.allowed.num_free)
+
+    def node_of(self, cell: tuple[int, int] | np.ndarray) -> int:
+        """The allowed index of a (row, col) cell, -1 when the robot does not fit there."""
+        row, col = int(cell[0]), int(cell[1])
+        if not (0 <= row < self.grid.height and 0 <= col < self.grid.width):
+            return -1
+        return int(self.allowed.free_index[row, col])
+
+    def cells(self, nodes: np.ndarray) -> np.ndarray:
+        """``[K, 2]`` (row, col) of allowed indices ``nodes`` ``[K]``."""
+        return self.allowed.free_cells[np.asarray(nodes, dtype=np.int64)]
+
+    def free_index_of(self, nodes: np.ndarray) -> np.ndarray:
+        """``[K]`` the fit's free index (its labels' order) of allowed indices ``nodes``."""
+        cells = self.cells(nodes)
+        return self.grid.free_index[cells[:, 0], cells[:, 1]]
+
+
+def planning_grid(grid: OccupancyGrid, radius: float) -> PlanningGrid:
+    """The :class:`PlanningGrid` of a robot of ``radius`` metres (>= 0) on ``grid``."""
+    if not (np.isfinite(radius) and radius >= 0):
+        raise ValueError(f"the robot's radius must be a finite number of metres >= 0, got {radius}")
+    clearance = clearance_map(grid)  # [H, W]
+    ok = grid.free & (clearance >= radius - 1e-9)  # [H, W]
+    occupancy = np.where(grid.free & ~ok, OCCUPIED, grid.occupancy).astype(grid.occupancy.dtype)
+    allowed = OccupancyGrid(occupancy, grid.resolution, grid.origin, source=grid.source)
+    return PlanningGrid(grid, float(radius), clearance, allowed, free_cell_graph(allowed))
+
+
+def shortest_paths(planning: PlanningGrid, source: int) -> tuple[np.ndarray, np.ndarray]:
+    """(``[M]`` metres from allowed cell ``source`` to every allowed cell, inf where unreachable;
+    ``[M]`` predecessors, -9999 at the source and where unreachable)."""
+    from scipy.sparse.csgraph import dijkstra
+
+    distance, predecessors = dijkstra(
+        planning.graph, directed=False, indices=int(source), return_predecessors=True
+    )
+    return distance, predecessors
+
+
+def trace_path(predecessors: np.ndarray, target: int) -> np.ndarray:
+    """``[K]`` allowed indices from the source of ``predecessors`` to ``target`` (inclusive)."""
+    path = [int(target)]
+    while predecessors[path[-1]] >= 0:
+        path.append(int(predecessors[path[-1]]))
+    return np.array(path[::-1], dtype=np.int64)
+
+
+def fit_cells_on(fit_grid: OccupancyGrid, grid: OccupancyGrid) -> np.ndarray:
+    """``[N]`` for every free cell of ``grid`` (a map in the same frame, e.g. the finer map a
+    coarse fit was made from), the free index in ``fit_grid`` of the fit cell holding its centre,
+    or, where that cell is not free in the fit (a wall thickened by coarsening, or off the fit's
+    map), of the nearest free fit cell (Euclidean, in fit cells)."""
+    from scipy.ndimage import distance_transform_edt
+
+    if fit_grid.num_free == 0:
+        raise ValueError("the fit's map has no free cell")
+    centres = grid.cell_to_world(grid.free_cells)  # [N, 2]
+    cells = fit_grid.world_to_cell(centres)  # [N, 2] may lie off the fit's map
+    rows = np.clip(cells[:, 0], 0, fit_grid.height - 1)
+    cols = np.clip(cells[:, 1], 0, fit_grid.width - 1)
+    _, (near_r, near_c) = distance_transform_edt(~np.asarray(fit_grid.free), return_indices=True)
+    return fit_grid.free_index[near_r[rows, cols], near_c[rows, cols]]

@@ -1,0 +1,291 @@
+"""`spcopyro navigate` (issue 27): goals from words, shortest paths with clearance, the outputs.
+
+The house: four rooms in a row joined by 0.5 m doorways -- A (bedroom), B (corridor),
+C (kitchen), E (bedroom again: the word is ambiguous) -- and D (closet) below them, walled off:
+its place can never be reached."""
+
+from __future__ import annotations
+
+import csv
+import math
+
+import numpy as np
+import pytest
+import yaml
+
+from spcopyro.cli import main
+from spcopyro.config import SpCoConfig
+from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
+from spcopyro.navigation import (
+    AmbiguousGoalError,
+    UnreachableGoalError,
+    navigate,
+    parse_instruction,
+    planning_grid,
+)
+from spcopyro.navigation.graph import fit_cells_on
+from spcopyro.navigation.outputs import write_plan
+from spcopyro.results import EmissionTable, SpCoResult, Trace
+
+WORDS = ("bedroom", "corridor", "kitchen", "closet", "the")
+RES = 0.1
+ROOMS = {"A": (1, 10), "B": (11, 20), "C": (21, 30), "E": (31, 40)}  # columns [start, stop)
+CONCEPT = {"A": 0, "B": 1, "C": 2, "E": 0, "D": 3}
+
+
+def house_grid() -> OccupancyGrid:
+    occupancy = np.full((29, 41), OCCUPIED, dtype=np.int8)  # [H, W]
+    for c0, c1 in ROOMS.values():
+        occupancy[1:19, c0:c1] = FREE
+    for wall in (10, 20, 30):
+        occupancy[8:13, wall] = FREE  # 0.5 m doorways
+    occupancy[20:28, 1:40] = FREE  # D, no door
+    return OccupancyGrid(occupancy=occupancy, resolution=RES, origin=(0.0, 0.0, 0.0))
+
+
+def house_result() -> SpCoResult:
+    grid = house_grid()
+    image = np.full(grid.shape, -1)
+    for room, (c0, c1) in ROOMS.items():
+        image[1:19, c0:c1] = CONCEPT[room]
+    for wall in (10, 20, 30):
+        image[8:13, wall] = CONCEPT["B"] if wall < 30 else CONCEPT["C"]
+    image[20:28, 1:40] = CONCEPT["D"]
+    labels = image[grid.free]
+    w = np.full((4, len(WORDS)), 0.02)  # [L, V]
+    for concept in range(4):
+        w[concept, concept] = 0.9
+    w /= w.sum(1, keepdims=True)
+    return SpCoResult(
+        grid=grid,
+        config=SpCoConfig(num_concepts=4, prior="dirichlet"),
+        labels=labels,
+        pi=np.full(4, 0.25),
+        emissions=(
+            EmissionTable("images", ("0", "1"), np.full((4, 2), 0.5)),
+            EmissionTable("words", WORDS, w),
+        ),
+        trace=Trace(objective=np.zeros(1), num_concepts=np.array([4]), seconds=np.zeros(1)),
+        best_iteration=0,
+    )
+
+
+def xy(row: int, col: int) -> tuple[float, float]:
+    x, y = house_grid().cell_to_world(np.array([row, col]))
+    return float(x), float(y)
+
+
+START_A = xy(4, 3)  # in room A
+START_B = xy(10, 12)  # in the corridor, near A's door
+
+
+@pytest.fixture(scope="module")
+def result():
+    return house_result()
+
+
+@pytest.fixture
+def fit(tmp_path, result):
+    return result.save(tmp_path / "fit")
+
+
+def room_of(result, point) -> str:
+    row, col = result.grid.world_to_cell(np.array(point))
+    label = result.label_image()[row, col]
+    if row >= 20:
+        return "D"
+    return next(r for r, (c0, c1) in ROOMS.items() if c0 <= col < c1) if label >= 0 else "?"
+
+
+def brute_clearance(grid: OccupancyGrid, cell) -> float:
+    blocked = np.argwhere(~np.pad(grid.free, 1, constant_values=False)) - 1  # [B, 2]
+    d = np.hypot(*(blocked - np.asarray(cell)).T).min() * grid.resolution
+    return d - grid.resolution / 2
+
+
+@pytest.mark.parametrize("radius", [0.0, 0.1, 0.2])
+def test_paths_stay_on_free_cells_and_keep_the_clearance(result, radius):
+    plan = navigate(result, "go to the kitchen via the corridor", START_A, radius=radius)
+    grid = result.grid
+    cells = grid.world_to_cell(plan.path_xy)  # [K, 2]
+    assert grid.is_free(cells).all()
+    for cell in cells:
+        assert brute_clearance(grid, cell) >= radius - 1e-9
+    steps = np.diff(cells, axis=0)
+    assert np.abs(steps).max() == 1  # 8-neighbours, no jumps
+    for (r, c), (dr, dc) in zip(cells[:-1], steps, strict=True):
+        if dr and dc:  # no corner cutting: both cells beside a diagonal step are allowed
+            for side in ((r + dr, c), (r, c + dc)):
+                assert brute_clearance(grid, side) >= radius - 1e-9
+    assert room_of(result, plan.goal.xy) == "C"
+    assert plan.length == pytest.approx(np.hypot(*np.diff(plan.path_xy, axis=0).T).sum())
+
+
+def test_a_radius_wider_than_the_doorways_makes_the_kitchen_unreachable(result):
+    with pytest.raises(UnreachableGoalError, match="cannot be reached"):
+        navigate(result, "kitchen", xy(9, 5), radius=0.3)  # 0.5 m doorways: 0.25 m at most
+
+
+def test_an_unreachable_place_is_reported_not_returned(result, fit, capsys):
+    with pytest.raises(UnreachableGoalError, match="'closet'"):
+        navigate(result, "go to the closet", START_A)
+    out = fit.parent / "plan"
+    code = main(["navigate", str(fit), "go to the closet", f"--start={START_A[0]},{START_A[1]}",
+                 "--out", str(out)])  # fmt: skip
+    assert code == 3
+    assert "no place of 'closet' is reachable" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_via_orders_are_kept(result):
+    assert parse_instruction("go to the kitchen via the corridor", WORDS).places == (
+        "corridor", "kitchen")  # fmt: skip
+    assert parse_instruction("via the corridor to the kitchen", WORDS).places == (
+        "corridor", "kitchen")  # fmt: skip
+    parsed = parse_instruction("to the kitchen via the corridor, then the bedroom", WORDS)
+    assert parsed.places == ("corridor", "kitchen", "bedroom")
+    assert parsed.via == (True, False, False)
+    start_e = xy(10, 35)  # in E: the kitchen is next door, the corridor beyond it
+    plan = navigate(result, "go to the kitchen via the corridor", start_e)
+    assert [s.word for s in plan.stops] == ["corridor", "kitchen"]
+    corridor, kitchen = plan.stops
+    assert room_of(result, corridor.xy) == "B" and room_of(result, kitchen.xy) == "C"
+    assert 0 < corridor.path_index < kitchen.path_index == len(plan.path_xy) - 1
+    assert tuple(plan.path_xy[corridor.path_index]) == pytest.approx(corridor.xy)
+    direct = navigate(result, "go to the kitchen", start_e)
+    assert plan.length > direct.length + 2.0  # the detour through the corridor is driven
+
+
+def test_an_ambiguous_word_takes_the_nearer_unless_strict(result, fit, capsys):
+    plan = navigate(result, "bedroom", START_B)
+    choice = plan.goal.choice
+    assert choice.ambiguous and len(choice.candidates) == 2
+    assert room_of(result, plan.goal.xy) == "A"  # nearer to the corridor's left end
+    far = navigate(result, "bedroom", xy(10, 28))  # in C, next to E
+    assert room_of(result, far.goal.xy) == "E"
+    with pytest.raises(AmbiguousGoalError, match="ambiguous: 2 separate regions"):
+        navigate(result, "bedroom", START_B, strict=True)
+    start = f"--start={START_B[0]},{START_B[1]}"
+    assert main(["navigate", str(fit), "go to the bedroom", start]) == 0
+    printed = capsys.readouterr().out
+    assert "ambiguous: 2 separate regions" in printed and printed.count(" m away") == 2
+    assert main(["navigate", str(fit), "go to the bedroom", start, "--strict"]) == 2
+    assert "--strict takes none" in capsys.readouterr().err
+
+
+def test_the_goal_lies_in_the_middle_of_a_region_of_equal_probability(result):
+    goal = navigate(result, "kitchen", START_A).goal
+    row, col = result.grid.world_to_cell(np.array(goal.xy))
+    assert 7 <= row <= 11 and 23 <= col <= 27  # room C spans rows 1-18, cols 21-29
+
+
+def _load(path):
+    return yaml.safe_load(path.read_text())
+
+
+def _check_pose_stamped(message, frame):
+    assert set(message) == {"header", "pose"}
+    assert message["header"] == {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": frame}
+    assert set(message["pose"]["position"]) == {"x", "y", "z"}
+    q = message["pose"]["orientation"]
+    assert set(q) == {"x", "y", "z", "w"}
+    assert q["x"] == q["y"] == 0.0
+    assert math.isclose(q["z"] ** 2 + q["w"] ** 2, 1.0)
+    return message["pose"]["position"], 2 * math.atan2(q["z"], q["w"])
+
+
+def test_outputs_load_into_the_fields_of_nav2_messages(fit, tmp_path, capsys):
+    out = tmp_path / "plan"
+    code = main(["navigate", str(fit), "go to the kitchen via the corridor",
+                 f"--start={START_A[0]},{START_A[1]}", "--out", str(out),
+                 "--frame", "robot1/map"])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    assert "corridor (via) -> kitchen" in capsys.readouterr().out
+    goal_position, goal_yaw = _check_pose_stamped(_load(out / "goal.yaml"), "robot1/map")
+    path = _load(out / "path.yaml")
+    assert set(path) == {"header", "poses"} and path["header"]["frame_id"] == "robot1/map"
+    poses = [_check_pose_stamped(p, "robot1/map") for p in path["poses"]]
+    assert poses[-1][0] == goal_position
+    last, before = poses[-1][0], poses[-2][0]
+    heading = math.atan2(last["y"] - before["y"], last["x"] - before["x"])
+    assert goal_yaw == pytest.approx(heading)  # facing along the path's end
+    for (a, yaw), (b, _) in zip(poses[:-1], poses[1:], strict=True):
+        assert yaw == pytest.approx(math.atan2(b["y"] - a["y"], b["x"] - a["x"]))
+    waypoints = _load(out / "waypoints.yaml")
+    assert set(waypoints) == {"poses"} and len(waypoints["poses"]) == 2
+    assert _check_pose_stamped(waypoints["poses"][-1], "robot1/map")[0] == goal_position
+    with open(out / "path.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == len(poses) and list(rows[0]) == ["index", "x", "y", "yaw", "distance_m"]
+    assert float(rows[-1]["x"]) == pytest.approx(goal_position["x"], abs=1e-4)
+    assert (out / "navigate.png").stat().st_size > 0
+    summary = yaml.safe_load((out / "navigate.json").read_text())  # JSON is YAML
+    assert summary["places"] == ["corridor", "kitchen"] and summary["frame_id"] == "robot1/map"
+    # a second run into the folder needs --overwrite, and replaces only a plan
+    argv = ["navigate", str(fit), "kitchen", f"--start={START_A[0]},{START_A[1]}", "--out",
+            str(out), "--no-figure"]  # fmt: skip
+    assert main(argv) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert main([*argv, "--overwrite"]) == 0
+    assert not (out / "navigate.png").exists()
+    assert main([*argv[:4], "--out", str(fit), "--overwrite"]) == 2
+    assert "no navigate wrote" in capsys.readouterr().err
+
+
+def test_a_run_is_reproducible(result, tmp_path):
+    files = []
+    for k in range(2):
+        plan = navigate(result, "go to the bedroom via the kitchen", START_B, radius=0.1)
+        written = write_plan(plan, tmp_path / f"plan{k}", figure=False)
+        files.append({n: p.read_bytes() for n, p in written.items() if n != "navigate.json"})
+    assert files[0] == files[1]
+
+
+def test_a_seeded_fit_gives_the_same_plan(tmp_path):
+    from spcopyro.config import preset
+    from spcopyro.fit import fit_house
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    house = make_house(seed=0, spec=HouseSpec.scaled(45, 60))
+    word = house.category_names[0]
+    goals = []
+    for _ in range(2):
+        fitted = fit_house(house, preset("coarse"), sweeps=20, seed=3, progress=False)
+        start = house.grid.cell_to_world(house.grid.free_cells[len(house.grid.free_cells) // 2])
+        plan = navigate(fitted, word, tuple(start), radius=0.0, grid=house.grid)
+        goals.append((plan.goal.xy, plan.path_xy.tolist()))
+    assert goals[0] == goals[1]
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["go to the kitchn", "--start=0.35,1.45"], "did you mean kitchen"),
+        (["go there now", "--start=0.35,1.45"], "names no place the fit knows"),
+        (["kitchen", "--start=50,1"], "off the map, which spans x 0.00..4.10"),
+        (["kitchen", "--start=0.05,1.45"], "not free (a wall or unknown space)"),
+        (["kitchen", "--start=0.15,1.45", "--radius", "0.2"], "closer than the robot's radius"),
+        (["kitchen", "--start=0.35,1.45", "--frame", "map frame"], "a tf frame id"),
+    ],
+)
+def test_command_line_errors_are_clear(fit, capsys, argv, message):
+    assert main(["navigate", str(fit), *argv]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_a_bad_start_value_is_a_usage_error(fit, capsys):
+    with pytest.raises(SystemExit):
+        main(["navigate", str(fit), "kitchen", "--start", "one,two"])
+    assert "give X,Y in metres" in capsys.readouterr().err
+
+
+def test_a_finer_map_takes_the_fits_probabilities(result):
+    grid = result.grid
+    fine_occupancy = np.repeat(np.repeat(grid.occupancy, 2, axis=0), 2, axis=1)
+    fine = OccupancyGrid(fine_occupancy, RES / 2, grid.origin)
+    carried = fit_cells_on(grid, fine)  # [N_fine]
+    expected = grid.free_index[fine.free_cells[:, 0] // 2, fine.free_cells[:, 1] // 2]
+    np.testing.assert_array_equal(carried, expected)
+    plan = navigate(result, "kitchen", START_A, grid=fine, radius=0.1)
+    assert room_of(result, plan.goal.xy) == "C"
+    assert planning_grid(fine, 0.1).num_allowed < fine.num_free
