@@ -412,6 +412,8 @@ def _fit_staged(
     print(f"fitted {runs} in {wall:.1f} s wall clock "
           f"({1e3 * result.trace.seconds[-1] / sweeps_run:.2f} ms per {unit}); "
           f"{len(result.concepts_in_use())} concepts in use")  # fmt: skip
+    if result.inference.get("stopped"):  # a variational method: converged, or --sweeps reached
+        print(f"stopped          {result.inference['stopped']}")
     if result.inference.get("hyperparameters"):
         line = describe_hyperparameters(result.inference["hyperparameters"])  # type: ignore[arg-type]
         print(f"hyperparameters  {line} (posterior mean +- sd over the second half)")
@@ -535,7 +537,9 @@ def add_parser(subparsers: argparse._SubParsersAction, options: bool = True) -> 
     p.add_argument("--sweeps", type=_sweeps, default=None,
                    help="Gibbs iterations (the paper's: 5000), or 'auto': run --chains chains "
                         "until split R-hat of the log joint and of the number of concepts < "
-                        f"1.05 (at most --max-sweeps); {UPDATE_SWEEPS} with --update "
+                        f"1.05 (at most --max-sweeps); {UPDATE_SWEEPS} with --update; for "
+                        "cavi, lbp and vi-gibbs's CAVI a ceiling: they stop once an iteration "
+                        "changes the objective by less than tolerance (1e-7) x |objective| "
                         f"(default: {FIT_SWEEPS})")  # fmt: skip
     p.add_argument("--chains", type=_positive_int,
                    help="run this many chains (seeds --seed, --seed + 1, ...) and keep the one of "

@@ -224,3 +224,19 @@ def test_loading_an_old_result_says_to_fit_again(small_house, tmp_path, capsys):
         SpCoResult.load(out)
     assert main(["where", str(out), result.vocabulary[0]]) == 2
     assert "fit again" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("method", ["cavi", "lbp"])
+def test_variational_fits_stop_by_themselves_and_say_why(method, tmp_path, capsys):
+    """Issue 23: `fit --method lbp` ran all 5000 iterations on the embedded house (2 minutes);
+    --sweeps is now a ceiling for the variational methods, and the summary says why they
+    stopped (also in config.json's record)."""
+    out = tmp_path / "fit"
+    assert main(["fit", "--method", method, "--out", str(out), "--no-figures"]) == 0
+    printed = capsys.readouterr().out
+    line = next(text for text in printed.splitlines() if text.startswith("stopped "))
+    iterations = int(line.split("converged after ")[1].split()[0])
+    assert iterations < 100 and f"fitted {iterations} iterations" in printed
+    assert "tolerance 1e-07 x |objective|" in line
+    record = json.loads((out / "config.json").read_text())
+    assert "converged after" in json.dumps(record)
