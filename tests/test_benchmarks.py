@@ -170,3 +170,14 @@ def test_collapse_terms_benchmark_quick(tmp_path):
     for rows in results.values():
         for terms in rows.values():
             assert math.isfinite(terms["total"])
+
+
+@pytest.mark.slow
+def test_navigation_benchmark_quick(tmp_path):
+    out = tmp_path / "navigation.json"
+    done = run_benchmark("navigation.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    results = json.loads(out.read_text())
+    for row in results["synthetic"].values():
+        assert 0.0 <= row["navigate"] <= 1.0 and row["utterances"] > 0
+    assert "nearest training utterance" in done.stdout
