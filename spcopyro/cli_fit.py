@@ -38,7 +38,7 @@ from spcopyro.cli_common import (
     _sweeps,
     _threads,
 )
-from spcopyro.concept_words import MIN_LIFT, format_concept_words
+from spcopyro.concept_words import MIN_LIFT, format_concept_words, format_words_heard
 from spcopyro.config import (
     DEFAULT_PRESET,
     DEFAULT_SNAP_DISTANCE,
@@ -496,7 +496,7 @@ def print_concepts(result: SpCoResult, limit: int = 10) -> None:
         for name in further:
             top = concept[f"top_{name}"][:2]
             words += f"; {name}: " + ", ".join(f"{item} ({p:.2f})" for item, p in top)
-        count = "" if heard is None else f"{heard:>4.4g} words  "
+        count = "" if heard is None else f"{format_words_heard(heard):>4} words  "
         print(f"  concept {concept['concept']:>3}: {concept['cells']:>6} cells {count}{words}")
     if len(concepts) > limit:
         print(f"  ... {len(concepts) - limit} smaller concepts in concepts.json")

@@ -34,6 +34,7 @@ __all__ = [
     "NO_WORDS",
     "distinctive_items",
     "format_concept_words",
+    "format_words_heard",
     "item_marginal",
     "lift",
 ]
@@ -45,6 +46,13 @@ MIN_LIFT = 1.1
 """Distinctive words are those whose lift exceeds this: at least 10% more probable in the concept
 than on the map as a whole (a display threshold, not a test: a lift of 1.01 under paper-dp's
 beta = 500 says nothing a reader could use)."""
+
+
+def format_words_heard(heard: float) -> str:
+    """Words heard in a concept's cells, to one decimal, ``"9"`` rather than ``"9.0"``: with an
+    observation footprint an utterance's weight is spread over cells that may lie in two
+    concepts, so the count is fractional (8.964 read as noise beside whole utterances)."""
+    return f"{heard:.1f}".removesuffix(".0")
 
 
 def item_marginal(table: np.ndarray, sizes: np.ndarray) -> np.ndarray:

@@ -19,7 +19,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from spcopyro.concept_words import MIN_LIFT, NO_WORDS
+from spcopyro.concept_words import MIN_LIFT, NO_WORDS, format_words_heard
 from spcopyro.data import Observations
 from spcopyro.maps import OccupancyGrid
 from spcopyro.results import SpCoResult
@@ -86,7 +86,7 @@ def concept_handles(
                 words += "\n      distinctive: " + ", ".join(
                     f"{w} x{r:.1f}" for w, r, _ in distinctive
                 )
-        count = "" if heard is None else f", {heard:.4g} words heard"
+        count = "" if heard is None else f", {format_words_heard(heard)} words heard"
         handles.append(
             Patch(color=colours[c] / 255.0, label=f"[{c}] {cells} cells{count}: {words}")
         )
