@@ -282,6 +282,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     from spcopyro.cli_navigate import add_parser as add_navigate_parser
 
     add_navigate_parser(sub)  # navigate
+    from spcopyro.cli_study import add_parser as add_study_parser
+
+    add_study_parser(sub)  # study
     for command in (parser, *sub.choices.values()):
         command.formatter_class = _HelpFormatter
     return parser

@@ -42,7 +42,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("fit_gibbs",),
     ("fit", "online"),
     ("experiments",),
-    ("cli", "cli_common", "cli_fit", "cli_export", "cli_navigate", "__main__"),
+    ("study",),
+    ("cli", "cli_common", "cli_fit", "cli_export", "cli_navigate", "cli_study", "__main__"),
 )
 """Layer of every top-level module or subpackage of spcopyro, lowest first."""
 

@@ -1,0 +1,102 @@
+"""A 20-cell study in-process against a Dask LocalCluster of 2 workers, from one run (issue 26).
+
+    python benchmarks/study_dask.py [--workers 2] [--sweeps 2000] [--out benchmarks/study_dask.json]
+    python benchmarks/study_dask.py --quick      # smoke test: 4 cells, a few sweeps
+
+The same study (2 variants x 2 synthetic houses x 5 seeds, Gibbs; :mod:`spcopyro.study`) runs
+twice into two fresh folders: first cell after cell in this process, then on a
+``LocalCluster(n_workers=2, threads_per_worker=1, processes=True)`` (its start-up and shutdown
+included in the wall time). Prints both wall times, their ratio (cluster / in-process; the
+issue's target is <= 0.6 on a 2-core machine), whether both tables hold the same numbers, and
+the CPU the machine's other processes used meanwhile (a shared machine: read the ratio with it).
+Writes the JSON to ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from machine import busy_cpu_seconds, machine_info, own_cpu_seconds, progress
+
+from spcopyro.study.run import run_study
+from spcopyro.study.spec import Study, study_from_dict
+from spcopyro.study.table import read_table
+
+TIMING = ("seconds", "cpu_seconds")
+
+
+def benchmark_study(sweeps: int, seeds: int, quick: bool) -> Study:
+    """2 variants x 2 houses x ``seeds`` seeds."""
+    size = {"height": 40, "width": 50, "num_rooms": 2} if quick else {}
+    return study_from_dict({
+        "study": {"name": "study-dask-benchmark", "seeds": seeds, "sweeps": sweeps},
+        "variants": {
+            "orig-g3": {"preset": "original-code", "gamma": 3.0},
+            "paper-dp": {"preset": "paper-dp"},
+        },
+        "data": {
+            "dense": {"synthetic": "default", **size},
+            "dense-3rooms": {"synthetic": "default", **size, "num_rooms": 3},
+        },
+    })  # fmt: skip
+
+
+def timed_run(study: Study, out: Path, workers: int) -> dict[str, object]:
+    """Run ``study`` into ``out``: wall seconds, and the other processes' CPU meanwhile."""
+    busy, own = busy_cpu_seconds(), own_cpu_seconds()
+    start = time.perf_counter()
+    run = run_study(study, out, workers=workers, progress=False, report=progress)
+    seconds = time.perf_counter() - start
+    entry: dict[str, object] = {
+        "where": run.where, "cells": run.cells, "ran": run.ran, "failed": run.failed,
+        "seconds": seconds,
+    }  # fmt: skip
+    if busy is not None:
+        other = (busy_cpu_seconds() - busy) - (own_cpu_seconds() - own)  # type: ignore[operator]
+        entry["other_cores"] = max(0.0, other / seconds)
+    return entry
+
+
+def scores(out: Path) -> list[dict[str, object]]:
+    return [
+        {k: v for k, v in r.items() if k not in TIMING} for r in read_table(out / "results.csv")
+    ]
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="smoke test: 4 cells, 10 sweeps")
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--sweeps", type=int, default=None, help="default 2000 (quick: 10)")
+    parser.add_argument("--out", default="benchmarks/study_dask.json")
+    args = parser.parse_args(argv)
+    sweeps = args.sweeps or (10 if args.quick else 2000)
+    study = benchmark_study(sweeps, seeds=1 if args.quick else 5, quick=args.quick)
+    with tempfile.TemporaryDirectory() as folder:
+        local = timed_run(study, Path(folder) / "in_process", workers=1)
+        cluster = timed_run(study, Path(folder) / "cluster", workers=args.workers)
+        same = scores(Path(folder) / "in_process") == scores(Path(folder) / "cluster")
+    ratio = cluster["seconds"] / local["seconds"]  # type: ignore[operator]
+    results = {
+        "machine": machine_info(), "sweeps": sweeps, "workers": args.workers,
+        "in_process": local, "local_cluster": cluster, "ratio": ratio, "same_numbers": same,
+    }  # fmt: skip
+    print("| run | cells | wall s | other processes' cores |\n|---|---|---|---|")
+    for entry in (local, cluster):
+        other = entry.get("other_cores")
+        print(f"| {entry['where']} | {entry['ran']} | {entry['seconds']:.1f} | "
+              f"{'' if other is None else f'{other:.2f}'} |")  # fmt: skip
+    print(f"ratio (cluster / in-process): {ratio:.2f} (target <= 0.6); same numbers: {same}")
+    Path(args.out).write_text(json.dumps(results, indent=1, default=str))
+    print(f"wrote {args.out}")
+    return 0 if same else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

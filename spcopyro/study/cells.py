@@ -1,0 +1,110 @@
+"""The grid of a study: one :class:`Cell` per (variant or baseline, data, method, seed).
+
+A cell's :attr:`~Cell.key` is the sha256 of its full input -- the data's digest
+(:func:`spcopyro.study.sources.data_digest`), the resolved model settings, the method and its
+resolved options, the fit's keyword arguments, the iterations, the seed and the package version
+-- and not of its names: renaming a variant or a data source reruns nothing, changing any value
+that reaches the fit reruns exactly the cells it reaches. The cache
+(:mod:`spcopyro.study.run`) stores each finished cell's scores under that key.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+from spcopyro import __version__
+from spcopyro.experiments.ablation_variants import Variant
+from spcopyro.study.sources import data_digest, resolve_source
+from spcopyro.study.spec import DataSource, Study
+
+__all__ = ["BASELINE_METHOD", "Cell", "cells_of"]
+
+BASELINE_METHOD = "baseline"
+"""The method column of a baseline row."""
+
+
+@dataclass(frozen=True)
+class Cell:
+    """One fit of a study and how it is scored. Picklable: it travels to the workers, which
+    load its data themselves."""
+
+    variant: Variant | None  # None: a baseline
+    row: str  # the variant's or the baseline's name
+    data: DataSource  # resolved (absolute paths)
+    method: str  # an inference method of spcopyro.registry, or BASELINE_METHOD
+    seed: int
+    sweeps: int
+    spcoa_iterations: int
+    key: str = ""
+
+    def inputs(self) -> dict[str, object]:
+        """The cell's input columns of the table (names and values)."""
+        variant, public = self.variant, self.data.kind == "public"
+        return {
+            "key": self.key,
+            "variant": self.row,
+            "data": self.data.name,
+            "method": self.method,
+            "seed": self.seed,
+            "data_kind": self.data.kind,
+            "data_source": Path(self.data.target).name if public else self.data.target,
+            "house_seed": self.seed if self.data.house_seed is None else self.data.house_seed,
+            "heldout": self.data.heldout,
+            "sweeps": self.sweeps,
+            "preset": variant.preset if variant else "",
+            "overrides": variant.describe().partition(":")[2] if variant else "",
+            "version": __version__,
+        }
+
+
+def _settings_json(variant: Variant) -> dict[str, object]:
+    """Everything of the variant that reaches the fit, resolved (preset values included);
+    ``num_concepts`` of a finite prior comes from the data, whose digest is in the key."""
+    settings = variant.spco_settings(None)
+    return {
+        "model": dataclasses.asdict(settings.model),
+        "data": dataclasses.asdict(settings.data),
+        "options": dataclasses.asdict(variant.method_options()),  # type: ignore[call-overload]
+        "fit": dict(variant.fit),
+    }
+
+
+def cell_key(cell: Cell, digest: str) -> str:
+    """sha256 (hex) of the cell's full input (module docstring)."""
+    if cell.variant is None:
+        inputs: dict[str, object] = {"baseline": cell.row}
+        if cell.row == "C-spcoa":  # the only baseline that iterates
+            inputs["spcoa_iterations"] = cell.spcoa_iterations
+    else:
+        inputs = {"settings": _settings_json(cell.variant), "sweeps": cell.sweeps}
+    inputs.update(method=cell.method, seed=cell.seed, data=digest, version=__version__)
+    text = json.dumps(inputs, sort_keys=True, default=repr)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def cells_of(study: Study, root: str | Path | None = None) -> list[Cell]:
+    """Every cell of ``study`` with its key, in table order: data, seed, variant, method, then
+    the baselines. Public houses and maps are found (under ``root`` or the dataset root) and
+    digested here, once per source and seed."""
+    sources = [resolve_source(data, root) for data in study.data]
+    cells = []
+    for data in sources:
+        for seed in study.seeds:
+            digest = data_digest(data, seed)
+            planned: list[Cell] = []
+            for variant in study.variants:
+                methods = study.methods or (variant.method,)
+                for method in methods:
+                    changed = dataclasses.replace(variant, method=method)
+                    sweeps = study.sweeps_for(method)
+                    planned.append(Cell(changed, variant.name, data, method, seed, sweeps,
+                                        study.spcoa_iterations))  # fmt: skip
+            for baseline in study.baselines:
+                planned.append(Cell(None, baseline, data, BASELINE_METHOD, seed,
+                                    study.sweeps_for("gibbs"), study.spcoa_iterations))  # fmt: skip
+            cells += [dataclasses.replace(c, key=cell_key(c, digest)) for c in planned]
+    return cells

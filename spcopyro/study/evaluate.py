@@ -1,0 +1,132 @@
+"""One cell of a study: load its data, fit, score. This is the task a worker runs.
+
+:func:`run_cell` never raises for a failing fit: the error's type and message go into the
+record (``status = "error"``) and the study goes on. Only KeyboardInterrupt (and SystemExit)
+pass through, so Ctrl-C stops the study.
+
+Scores (every one that applies; the others are left empty in the table, :data:`SCORES`):
+
+* ``ari``: adjusted Rand index of the map against the truth -- a synthetic house's, a simulated
+  tour's, or a public house's region truth (:mod:`spcopyro.experiments.public_truth`); a fit on a
+  coarser model grid is refined back to the map's cells first
+  (:func:`spcopyro.maps.coarse.refine_labels`);
+* ``matching_rate``: place estimation from the category names (synthetic houses and tours),
+  on the model's grid;
+* ``top1``, ``top3``, ``mean_rank``, ``distance_m``, ``inside_rate``: held-out word prediction
+  and localisation when the source holds a trial out;
+* ``concepts`` (in use), ``concepts_1pct`` (holding >= 1 % of the free cells),
+  ``largest_share`` (the largest concept's share of the free cells), ``free_cells``;
+* ``seconds`` (wall clock) and ``cpu_seconds`` of the fit, ``iterations``;
+* the trace (objective, concepts in use and seconds per iteration), returned beside the
+  record and saved by the caller as ``traces/KEY.npz``.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from spcopyro.data.model_grid import model_house
+from spcopyro.experiments.ablation import concepts_over
+from spcopyro.experiments.methods import RunSettings, fit_method
+from spcopyro.fit import fit_house
+from spcopyro.maps.coarse import coarsening_factor, refine_labels
+from spcopyro.metrics import (
+    SpCoSemanticMap,
+    adjusted_rand_index,
+    heldout_localisation,
+    heldout_word_prediction,
+    matching_rate,
+)
+from spcopyro.study.cells import Cell
+from spcopyro.study.sources import load_cell_data
+from spcopyro.threads import torch_threads
+
+__all__ = ["SCORES", "STATUS_COLUMNS", "run_cell"]
+
+SCORES = (
+    "ari", "matching_rate", "top1", "top3", "mean_rank", "distance_m", "inside_rate",
+    "concepts", "concepts_1pct", "largest_share", "free_cells", "held_out_trial", "seconds",
+    "cpu_seconds", "iterations",
+)  # fmt: skip
+"""The score columns of the table, in order."""
+STATUS_COLUMNS = ("status", "error_type", "error")
+"""``ok`` or ``error``, and the error's type and message."""
+
+
+def run_cell(cell: Cell) -> tuple[dict[str, object], dict[str, np.ndarray] | None]:
+    """The cell's record (status and scores, keyed by ``cell.key``) and its trace (None for a
+    baseline or a failed cell). Runs torch with one intra-op thread."""
+    record: dict[str, object] = {"key": cell.key, "status": "ok", "error_type": "", "error": ""}
+    trace = None
+    try:
+        with torch_threads(1):
+            scores, trace = _fit_and_score(cell)
+        record.update(scores)
+    except Exception as error:  # recorded; the study goes on
+        record.update(status="error", error_type=type(error).__name__, error=str(error)[:2000])
+    return record, trace
+
+
+def _fit_and_score(cell: Cell) -> tuple[dict[str, object], dict[str, np.ndarray] | None]:
+    loaded = load_cell_data(cell.data, cell.seed)
+    house = loaded.house
+    start, cpu = time.perf_counter(), time.process_time()
+    result = None
+    if cell.variant is None:  # a baseline row of spcopyro.experiments.methods
+        fitted = fit_method(
+            cell.row, house, RunSettings(sweeps=cell.sweeps, spcoa_iterations=cell.spcoa_iterations,
+                                         trace_every=0),
+            seed=cell.seed, num_categories=loaded.num_categories, public=cell.data.kind == "public",
+        )  # fmt: skip
+        model, labels, scored_house = fitted.model, fitted.model.label_image(), house
+    else:
+        variant = cell.variant
+        settings = variant.spco_settings(loaded.num_categories)
+        result = fit_house(
+            house, settings, method=cell.method, options=variant.method_options(),
+            sweeps=cell.sweeps, seed=cell.seed, progress=False, threads=1, **variant.fit_kwargs(),
+        )  # fmt: skip
+        model = SpCoSemanticMap(result)
+        labels = result.label_image()  # [h, w] on the model's grid
+        if labels.shape != house.grid.shape:  # back on the map's cells
+            factor = coarsening_factor(house.grid.resolution, settings.data.cell_size)
+            labels = refine_labels(labels, house.grid, factor)
+        scored_house = model_house(loaded.full, settings.data.cell_size)  # the model's grid
+    scores: dict[str, object] = {
+        "seconds": time.perf_counter() - start,
+        "cpu_seconds": time.process_time() - cpu,
+    }
+    scores.update(_map_scores(labels, house.grid.free, loaded.truth))
+    if loaded.categories and scored_house.truth is not None:
+        scores["matching_rate"] = matching_rate(model, scored_house.truth, loaded.categories).value
+    if loaded.test is not None:
+        words = heldout_word_prediction(model, loaded.test)
+        places = heldout_localisation(model, loaded.test)
+        scores.update(top1=words.top1, top3=words.top3, mean_rank=words.mean_rank,
+                      distance_m=places.mean_distance, inside_rate=places.inside_rate,
+                      held_out_trial=loaded.held_out_trial)  # fmt: skip
+    if result is None:
+        return scores, None
+    trace = result.trace
+    scores["concepts"] = len(result.concepts_in_use())
+    scores["iterations"] = len(trace.objective)
+    arrays = {
+        name: np.asarray(getattr(trace, name)) for name in ("objective", "num_concepts", "seconds")
+    }
+    return scores, arrays
+
+
+def _map_scores(labels: np.ndarray, free: np.ndarray, truth: np.ndarray | None) -> dict:
+    """Scores of an ``[H, W]`` label map on the map's cells (``free`` ``[H, W]``)."""
+    on_free = labels[free]  # [N]
+    sizes = np.bincount(on_free[on_free >= 0])
+    scores: dict[str, object] = {
+        "free_cells": int(free.sum()),
+        "concepts_1pct": concepts_over(on_free),
+        "largest_share": float(sizes.max() / sizes.sum()) if sizes.sum() else float("nan"),
+    }
+    if truth is not None:
+        scores["ari"] = adjusted_rand_index(labels, truth)
+    return scores

@@ -1,0 +1,103 @@
+"""A study's report, drawn from its table only (issue 26 item 2): nothing is refitted, so a
+report can be redrawn or re-cut from ``results.csv`` alone (``spcopyro study ... --report-only``).
+
+:func:`summary_rows` groups the table's rows by (variant, data, method) and gives each score's
+mean and sample standard deviation over the seeds that finished; :func:`report_markdown` writes
+one markdown table per data source (the scores that apply to it) and lists the failed cells.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from spcopyro.study.evaluate import SCORES
+
+__all__ = ["REPORT_SCORES", "report_markdown", "summary_rows", "write_report"]
+
+REPORT_SCORES = (
+    "ari", "matching_rate", "top1", "top3", "mean_rank", "distance_m", "concepts",
+    "concepts_1pct", "largest_share", "seconds",
+)  # fmt: skip
+"""The scores a report shows by default (every score is in the table)."""
+GROUP = ("variant", "data", "method")
+
+
+def summary_rows(
+    rows: Sequence[dict[str, object]], scores: Sequence[str] = SCORES
+) -> list[dict[str, object]]:
+    """Per (variant, data, method), in the table's order: ``n`` (finished seeds), ``failed``,
+    and ``SCORE`` -> (mean, sd, count) over the rows where it is a number."""
+    groups: dict[tuple, list[dict[str, object]]] = {}
+    for row in rows:
+        groups.setdefault(tuple(row[k] for k in GROUP), []).append(row)
+    summary = []
+    for group, members in groups.items():
+        ok = [r for r in members if r.get("status") == "ok"]
+        entry: dict[str, object] = dict(zip(GROUP, group, strict=True))
+        entry.update(n=len(ok), failed=len(members) - len(ok))
+        for score in scores:
+            values = [float(r[score]) for r in ok if _is_number(r.get(score))]  # type: ignore[arg-type]
+            if values:
+                array = np.asarray(values)
+                sd = float(array.std(ddof=1)) if array.size > 1 else math.nan
+                entry[score] = (float(array.mean()), sd, len(values))
+        summary.append(entry)
+    return summary
+
+
+def _is_number(value: object) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _mean_sd(value: object) -> str:
+    if not isinstance(value, tuple):
+        return ""
+    mean, sd, _ = value
+    digits = 1 if abs(mean) >= 100 else 3
+    return f"{mean:.{digits}f}" if math.isnan(sd) else f"{mean:.{digits}f} +- {sd:.{digits}f}"
+
+
+def report_markdown(
+    rows: Sequence[dict[str, object]], title: str = "study", scores: Sequence[str] = REPORT_SCORES
+) -> str:
+    """Markdown: per data source, a table of mean +- sd over seeds per (variant, method);
+    then the failed cells with their errors."""
+    summary = summary_rows(rows, scores)
+    lines = [f"# {title}", "", f"{len(rows)} cells in the table; mean +- sample sd over seeds.", ""]
+    for data in dict.fromkeys(str(e["data"]) for e in summary):
+        entries = [e for e in summary if e["data"] == data]
+        shown = [s for s in scores if any(s in e for e in entries)]
+        lines += [f"## {data}", ""]
+        lines.append("| variant | method | seeds | " + " | ".join(shown) + " |")
+        lines.append("|---|---|---|" + "---|" * len(shown))
+        for e in entries:
+            seeds = f"{e['n']}" + (f" ({e['failed']} failed)" if e["failed"] else "")
+            cells = [_mean_sd(e.get(s)) for s in shown]
+            lines.append(
+                f"| {e['variant']} | {e['method']} | {seeds} | " + " | ".join(cells) + " |"
+            )
+        lines.append("")
+    failed = [r for r in rows if r.get("status") != "ok"]
+    if failed:
+        lines += ["## Failed cells", ""]
+        for r in failed:
+            lines.append(f"- {r['variant']} / {r['data']} / {r['method']} / seed {r['seed']}: "
+                         f"{r['error_type']}: {r['error']}")  # fmt: skip
+        lines.append("")
+    return "\n".join(lines)
+
+
+def write_report(
+    table: str | os.PathLike[str], out: str | os.PathLike[str], title: str = "study"
+) -> Path:
+    """Read ``results.csv`` and write its report to ``out``."""
+    from spcopyro.study.table import read_table
+
+    path = Path(out)
+    path.write_text(report_markdown(read_table(table), title))
+    return path

@@ -1,0 +1,318 @@
+"""A study, declared: what to fit to what, how long, with which seeds (issue 26 item 1).
+
+A study is a grid: variants x data sources x inference methods x seeds (plus baseline rows x
+data x seeds). It is written as a TOML file (:func:`load_study`) or built in Python
+(:func:`study_from_dict` with the same keys, or :class:`Study` from its parts)::
+
+    [study]
+    name = "ablation-small"
+    seeds = 3                      # 0, 1, 2; or a list [0, 4, 7]
+    sweeps = 200                   # or per method: { gibbs = 200, cavi = 50 }
+    methods = ["gibbs", "cavi"]    # optional; default: each variant's own method (gibbs)
+    baselines = ["F-geometry"]     # optional rows of spcopyro.experiments.methods
+
+    [variants.paper-dp]            # a variant: named overrides (see
+    preset = "paper-dp"            # spcopyro.experiments.ablation_variants: SpCoConfig,
+                                   # DataPreparation, method options, fit_house keywords)
+    [variants.orig-g3]
+    preset = "original-code"
+    gamma = 3.0
+
+    [data.small]                   # synthetic: HouseSpec (factory default | public_like |
+    synthetic = "default"          # open_plan | scaled) and any HouseSpec field
+    height = 24
+    width = 30
+
+    [data.room1dk5]                # a public house under the dataset root ($SPCOPYRO_DATA)
+    public = "room1dk5"            # held out: trial (seed mod trials) unless heldout = false
+
+    [data.tour]                    # `simulate --map`: a tour on a map_server map
+    map = "room1dk5"               # a public house's map, or a path to MAP.yaml
+    door_width = "auto"            # and any MapTour field
+
+Every key is checked when the study is read: a bad one raises :class:`StudyError` naming the
+file, the key and the value.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from spcopyro.experiments.ablation_variants import Variant, VariantError, make_variant
+from spcopyro.experiments.methods import REGISTRY as BASELINE_REGISTRY
+from spcopyro.map_simulation import MapTour
+from spcopyro.registry import INFERENCE_METHODS
+from spcopyro.synthetic import HouseSpec
+
+__all__ = ["DataSource", "Study", "StudyError", "load_study", "study_from_dict"]
+
+SYNTHETIC_FACTORIES = {
+    "default": HouseSpec,
+    "public_like": HouseSpec.public_like,
+    "open_plan": HouseSpec.open_plan,
+    "scaled": HouseSpec.scaled,
+}
+"""``synthetic = NAME`` of a data source: how its :class:`HouseSpec` is made (``scaled`` needs
+``height`` and ``width``)."""
+
+BASELINES = tuple(key for key, row in BASELINE_REGISTRY.items() if not row.spcomapping)
+"""Rows a study may add beside its variants (``baselines = [...]``)."""
+
+_STUDY_KEYS = {"name", "seeds", "sweeps", "methods", "baselines", "spcoa_iterations",
+               "description"}  # fmt: skip
+_KINDS = ("synthetic", "public", "map")
+
+
+class StudyError(ValueError):
+    """A study that cannot be read: the message names the file, the key and the value."""
+
+
+@dataclass(frozen=True)
+class DataSource:
+    """One data source of a study: a synthetic house, a public house or a tour on a map.
+
+    ``options`` are the HouseSpec fields (synthetic) or MapTour fields (map) as (name, value)
+    pairs. ``house_seed``: draw the house (or tour) with this seed in every cell; None: with
+    the cell's seed. ``heldout``: fit on all trials but one and score the held-out trial's
+    words (trial = seed mod the number of trials).
+    """
+
+    name: str
+    kind: str  # "synthetic" | "public" | "map"
+    target: str  # synthetic: a key of SYNTHETIC_FACTORIES; public: house folder; map: MAP.yaml
+    options: tuple[tuple[str, Any], ...] = ()
+    house_seed: int | None = None
+    heldout: bool = False
+
+    def house_spec(self) -> HouseSpec:
+        """A synthetic source's :class:`HouseSpec`."""
+        return SYNTHETIC_FACTORIES[self.target](**dict(self.options))
+
+    def map_tour(self) -> MapTour:
+        """A map source's :class:`MapTour`."""
+        values = dict(self.options)
+        if "categories" in values:
+            values["categories"] = tuple(values["categories"])
+        return MapTour(**values)
+
+    def to_json(self) -> dict[str, object]:
+        """The source as JSON values."""
+        return {
+            "name": self.name, "kind": self.kind, "target": self.target,
+            "options": dict(self.options), "house_seed": self.house_seed,
+            "heldout": self.heldout,
+        }  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Study:
+    """A declared study (module docstring). ``sweeps`` maps a method (or ``"*"``) to its
+    iterations; ``methods`` empty: each variant with its own method."""
+
+    name: str
+    variants: tuple[Variant, ...]
+    data: tuple[DataSource, ...]
+    seeds: tuple[int, ...] = (0,)
+    sweeps: tuple[tuple[str, int], ...] = (("*", 1000),)
+    methods: tuple[str, ...] = ()
+    baselines: tuple[str, ...] = ()
+    spcoa_iterations: int = 100
+    description: str = ""
+    source: str = field(default="<python>", compare=False)
+    """Where the study was read from (named in errors and in study.json)."""
+
+    def sweeps_for(self, method: str) -> int:
+        """The iterations of ``method`` (its own entry, else ``"*"``)."""
+        table = dict(self.sweeps)
+        return int(table.get(method, table.get("*", 1000)))
+
+    def to_json(self) -> dict[str, object]:
+        """The study as JSON values (written beside its results)."""
+        return {
+            "name": self.name, "description": self.description, "source": self.source,
+            "seeds": list(self.seeds), "sweeps": dict(self.sweeps), "methods": list(self.methods),
+            "baselines": list(self.baselines), "spcoa_iterations": self.spcoa_iterations,
+            "variants": [v.to_json() for v in self.variants],
+            "data": [d.to_json() for d in self.data],
+        }  # fmt: skip
+
+
+def load_study(path: str | os.PathLike[str]) -> Study:
+    """The study in the TOML file ``path`` (:class:`StudyError` for bad content)."""
+    try:
+        import tomllib
+    except ModuleNotFoundError:  # Python 3.10
+        try:
+            import tomli as tomllib  # type: ignore[no-redef]
+        except ModuleNotFoundError:
+            raise StudyError(f"{path}: reading TOML on Python 3.10 needs tomli") from None
+    source = str(path)
+    try:
+        with open(path, "rb") as file:
+            values = tomllib.load(file)
+    except tomllib.TOMLDecodeError as error:
+        raise StudyError(f"{source}: not valid TOML: {error}") from None
+    return study_from_dict(values, source=source)
+
+
+def _fail(source: str, where: str, value: object, why: str) -> StudyError:
+    return StudyError(f"{source}: {where} = {value!r}: {why}")
+
+
+def _seeds(source: str, value: object) -> tuple[int, ...]:
+    if isinstance(value, int) and not isinstance(value, bool):
+        if value < 1:
+            raise _fail(source, "[study] seeds", value, "a count must be >= 1")
+        return tuple(range(value))
+    if isinstance(value, list | tuple) and value:
+        if all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in value):
+            if len(set(value)) != len(value):
+                raise _fail(source, "[study] seeds", value, "a seed is given twice")
+            return tuple(int(s) for s in value)
+    raise _fail(source, "[study] seeds", value, "expected a count >= 1 or a list of seeds >= 0")
+
+
+def _positive_int(source: str, where: str, value: object, minimum: int = 1) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise _fail(source, where, value, f"expected an integer >= {minimum}")
+    return int(value)
+
+
+def _sweeps(source: str, value: object) -> tuple[tuple[str, int], ...]:
+    if isinstance(value, Mapping):
+        out = []
+        for method, count in value.items():
+            if method != "*" and method not in INFERENCE_METHODS:
+                known = sorted(INFERENCE_METHODS)
+                raise _fail(source, f"[study] sweeps.{method}", count,
+                            f"unknown method; choose from {known} or '*'")  # fmt: skip
+            out.append((str(method), _positive_int(source, f"[study] sweeps.{method}", count)))
+        return tuple(out)
+    return (("*", _positive_int(source, "[study] sweeps", value)),)
+
+
+def _names(source: str, where: str, value: object, known: tuple[str, ...]) -> tuple[str, ...]:
+    if not isinstance(value, list | tuple) or not all(isinstance(v, str) for v in value):
+        raise _fail(source, where, value, "expected a list of names")
+    unknown = [v for v in value if v not in known]
+    if unknown:
+        raise _fail(source, where, value, f"unknown {unknown}; choose from {list(known)}")
+    return tuple(value)
+
+
+def _variants(source: str, table: object, methods: tuple[str, ...]) -> tuple[Variant, ...]:
+    if not isinstance(table, Mapping) or not table:
+        raise _fail(source, "[variants]", table, "expected at least one [variants.NAME] table")
+    variants = []
+    for name, overrides in table.items():
+        if not isinstance(overrides, Mapping):
+            raise _fail(source, f"variants.{name}", overrides, "expected a table of overrides")
+        if methods and "method" in overrides:
+            raise _fail(source, f"[variants.{name}] method", overrides["method"],
+                        "[study] methods is given: it sets every variant's method")  # fmt: skip
+        try:
+            variant = make_variant(name, _flatten(overrides))
+            for method in methods:  # the variant's options must exist for every method
+                dataclasses.replace(variant, method=method).method_options()
+        except VariantError as error:
+            raise StudyError(f"{source}: [variants.{name}]: {error}") from None
+        variants.append(variant)
+    return tuple(variants)
+
+
+def _flatten(overrides: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """``{hyper = {alpha = 1}}`` -> ``{"hyper.alpha": 1}`` (nested method options)."""
+    flat: dict[str, Any] = {}
+    for key, value in overrides.items():
+        if isinstance(value, Mapping):
+            flat.update(_flatten(value, f"{prefix}{key}."))
+        else:
+            flat[f"{prefix}{key}"] = value
+    return flat
+
+
+def _data_source(source: str, name: str, table: object) -> DataSource:
+    where = f"[data.{name}]"
+    if not isinstance(table, Mapping):
+        raise _fail(source, f"data.{name}", table, "expected a table")
+    values = dict(table)
+    kinds = [k for k in _KINDS if k in values]
+    if len(kinds) != 1:
+        raise _fail(source, where, sorted(values),
+                    "give one of synthetic = SETTING, public = HOUSE, map = MAP")  # fmt: skip
+    kind = kinds[0]
+    target = values.pop(kind)
+    house_seed = values.pop("seed", None)
+    if house_seed is not None:
+        house_seed = _positive_int(source, f"{where} seed", house_seed, minimum=0)
+    heldout = values.pop("heldout", kind == "public")
+    if not isinstance(heldout, bool):
+        raise _fail(source, f"{where} heldout", heldout, "expected true or false")
+    if not isinstance(target, str):
+        raise _fail(source, f"{where} {kind}", target, "expected text")
+    if kind == "synthetic" and target not in SYNTHETIC_FACTORIES:
+        raise _fail(source, f"{where} synthetic", target,
+                    f"choose one of {sorted(SYNTHETIC_FACTORIES)}")  # fmt: skip
+    if kind == "public" and values:
+        raise _fail(source, where, sorted(values), "a public house takes only heldout and seed")
+    data = DataSource(name, kind, target, tuple(values.items()), house_seed, heldout)
+    if kind != "public":
+        check, known = (
+            (data.house_spec, HouseSpec) if kind == "synthetic" else (data.map_tour, MapTour)
+        )
+        fields = {f.name for f in dataclasses.fields(known)}
+        for key, value in values.items():
+            if key not in fields:
+                why = f"{known.__name__} has no such field; it has {sorted(fields)}"
+                raise _fail(source, f"{where} {key}", value, why)
+        try:
+            check()
+        except (TypeError, ValueError) as error:
+            raise StudyError(f"{source}: {where} {dict(values)}: {error}") from None
+    return data
+
+
+def study_from_dict(values: Mapping[str, Any], *, source: str = "<python>") -> Study:
+    """A study from the keys of a study file (module docstring); ``source`` names it in
+    errors."""
+    unknown = sorted(set(values) - {"study", "variants", "data"})
+    if unknown:
+        raise _fail(source, "top-level tables", unknown, "expected only [study], [variants.*], "
+                    "[data.*]")  # fmt: skip
+    head = values.get("study", {})
+    if not isinstance(head, Mapping):
+        raise _fail(source, "[study]", head, "expected a table")
+    extra = sorted(set(head) - _STUDY_KEYS)
+    if extra:
+        raise _fail(source, f"[study] {extra[0]}", head[extra[0]],
+                    f"unknown key; known: {sorted(_STUDY_KEYS)}")  # fmt: skip
+    name = head.get("name", Path(source).stem if source != "<python>" else "study")
+    if not isinstance(name, str) or not name.strip():
+        raise _fail(source, "[study] name", name, "expected non-empty text")
+    methods = _names(source, "[study] methods", head.get("methods", []),
+                     tuple(INFERENCE_METHODS))  # fmt: skip
+    baselines = _names(source, "[study] baselines", head.get("baselines", []), BASELINES)
+    variants = _variants(source, values.get("variants", {}), methods)
+    data_table = values.get("data", {})
+    if not isinstance(data_table, Mapping) or not data_table:
+        raise _fail(source, "[data]", data_table, "expected at least one [data.NAME] table")
+    data = tuple(_data_source(source, str(k), v) for k, v in data_table.items())
+    return Study(
+        name=name.strip(),
+        variants=variants,
+        data=data,
+        seeds=_seeds(source, head.get("seeds", 1)),
+        sweeps=_sweeps(source, head.get("sweeps", 1000)),
+        methods=methods,
+        baselines=baselines,
+        spcoa_iterations=_positive_int(
+            source, "[study] spcoa_iterations", head.get("spcoa_iterations", 100)
+        ),
+        description=str(head.get("description", "")),
+        source=source,
+    )

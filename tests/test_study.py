@@ -1,0 +1,263 @@
+"""Studies (issue 26): the spec, the tidy table, Dask against in-process, resuming, failures.
+
+Tiny synthetic houses and 5-10 sweeps: the numbers are checked for equality between runs, never
+for their values.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from spcopyro.cli import main
+from spcopyro.cli_study import study_path
+from spcopyro.study import STUDIES, evaluate
+from spcopyro.study.cells import cells_of
+from spcopyro.study.run import run_study
+from spcopyro.study.spec import StudyError, load_study, study_from_dict
+from spcopyro.study.table import COLUMNS, read_table
+
+ROOT = Path(__file__).resolve().parents[1]
+
+TINY = """
+[study]
+name = "tiny"
+seeds = 2
+sweeps = 8
+baselines = ["F-geometry"]
+
+[variants.og3]
+preset = "original-code"
+gamma = 3.0
+
+[variants.dp]
+preset = "paper-dp"
+
+[data.small]
+synthetic = "default"
+height = 24
+width = 30
+num_rooms = 2
+num_trials = 2
+min_room_size = 8
+heldout = true
+"""
+
+TINY_DICT = {
+    "study": {"name": "tiny", "seeds": 2, "sweeps": 8, "baselines": ["F-geometry"]},
+    "variants": {"og3": {"preset": "original-code", "gamma": 3.0}, "dp": {"preset": "paper-dp"}},
+    "data": {
+        "small": {"synthetic": "default", "height": 24, "width": 30, "num_rooms": 2,
+                  "num_trials": 2, "min_room_size": 8, "heldout": True},
+    },
+}  # fmt: skip
+TIMING = {"seconds", "cpu_seconds"}
+
+
+def _write(tmp_path: Path, text: str = TINY, name: str = "tiny.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def _scores(rows: list[dict]) -> list[dict]:
+    """The rows without their timings (which differ between any two runs)."""
+    return [{k: v for k, v in row.items() if k not in TIMING} for row in rows]
+
+
+@pytest.fixture(scope="module")
+def in_process(tmp_path_factory) -> tuple[Path, Path]:
+    """The tiny study run in this process: (study file, output folder)."""
+    root = tmp_path_factory.mktemp("study")
+    path = _write(root)
+    out = root / "out"
+    run = run_study(load_study(path), out, workers=1, progress=False)
+    assert (run.cells, run.ran, run.failed, run.cached) == (6, 6, 0, 0)
+    return path, out
+
+
+def test_spec_from_toml_equals_spec_from_python(tmp_path):
+    from_file = load_study(_write(tmp_path))
+    from_python = study_from_dict(TINY_DICT)
+    assert from_file == from_python
+    assert [v.name for v in from_file.variants] == ["og3", "dp"]
+    assert from_file.seeds == (0, 1) and from_file.sweeps_for("gibbs") == 8
+    assert len(cells_of(from_file)) == 2 * (2 + 1)  # seeds x (variants + baseline)
+
+
+@pytest.mark.parametrize(
+    "old, new, words",
+    [
+        ("num_rooms = 2", "num_roms = 2", ["[data.small] num_roms", "2", "HouseSpec has no"]),
+        ("seeds = 2", "seeds = -1", ["[study] seeds", "-1"]),
+        ("sweeps = 8", "sweeps = { gibs = 8 }", ["sweeps.gibs", "8", "unknown method"]),
+        ('baselines = ["F-geometry"]', 'baselines = ["G-nothing"]', ["baselines", "G-nothing"]),
+        ("gamma = 3.0", "gama = 3.0", ["[variants.og3]", "gama", "unknown key"]),
+        ("gamma = 3.0", 'gamma = "hot"', ["[variants.og3]", "gamma", "hot"]),
+        ('synthetic = "default"', 'synthetic = "castle"', ["[data.small] synthetic", "castle"]),
+        ("seeds = 2", "seedz = 2", ["[study] seedz", "unknown key"]),
+        ("seeds = 2", "seeds = [", ["not valid TOML"]),
+    ],
+)
+def test_bad_spec_names_file_key_and_value(tmp_path, old, new, words):
+    path = _write(tmp_path, TINY.replace(old, new), name="bad.toml")
+    with pytest.raises(StudyError) as caught:
+        load_study(path)
+    message = str(caught.value)
+    assert str(path) in message
+    for word in words:
+        assert word in message, message
+
+
+def test_python_spec_errors_and_method_grid():
+    with pytest.raises(StudyError, match="<python>: \\[data\\]"):
+        study_from_dict({"variants": {"a": {}}})
+    values = json.loads(json.dumps(TINY_DICT))
+    values["study"]["methods"] = ["gibbs", "cavi"]
+    study = study_from_dict(values)
+    assert [c.method for c in cells_of(study)][:4] == ["gibbs", "cavi", "gibbs", "cavi"]
+    values["variants"]["og3"]["method"] = "lbp"
+    with pytest.raises(StudyError, match="variants.og3. method"):
+        study_from_dict(values)
+
+
+def test_in_process_run_gives_the_tidy_table(in_process):
+    _, out = in_process
+    rows = read_table(out / "results.csv")
+    assert len(rows) == 6 and list(rows[0]) == list(COLUMNS)
+    assert {(r["variant"], r["seed"]) for r in rows} == {
+        (v, s) for v in ("og3", "dp", "F-geometry") for s in (0, 1)
+    }
+    for row in rows:
+        assert row["status"] == "ok", row["error"]
+        assert row["data"] == "small" and row["data_kind"] == "synthetic"
+        for score in ("ari", "matching_rate", "top1", "top3", "mean_rank", "largest_share",
+                      "concepts_1pct", "free_cells", "seconds"):  # fmt: skip
+            assert isinstance(row[score], int | float), (score, row)
+        assert row["held_out_trial"] == row["seed"] % 2
+    fits = [r for r in rows if r["method"] == "gibbs"]
+    assert all(r["iterations"] == 8 and (out / r["trace"]).is_file() for r in fits)
+    report = (out / "report.md").read_text()
+    assert "| og3 | gibbs | 2 |" in report and "+-" in report
+
+
+def test_local_cluster_gives_the_same_numbers(in_process, tmp_path):
+    pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    path, out = in_process
+    run = run_study(load_study(path), tmp_path / "dask", workers=2, progress=False)
+    assert run.where == "LocalCluster(2 workers)" and run.ran == 6 and run.failed == 0
+    local = read_table(out / "results.csv")
+    dask = read_table(tmp_path / "dask" / "results.csv")
+    assert _scores(dask) == _scores(local)
+
+
+def test_interrupted_study_runs_only_the_missing_cells(in_process, tmp_path, monkeypatch):
+    path, _ = in_process
+    study = load_study(path)
+    real = evaluate.run_cell
+    calls: list[str] = []
+
+    def stops_at_the_third(cell):
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        calls.append(cell.key)
+        return real(cell)
+
+    monkeypatch.setattr(evaluate, "run_cell", stops_at_the_third)
+    with pytest.raises(KeyboardInterrupt):
+        run_study(study, tmp_path / "out", progress=False)
+    assert len(read_table(tmp_path / "out" / "results.csv")) == 2  # the finished cells, kept
+    first = list(calls)
+
+    def counts(cell):
+        calls.append(cell.key)
+        return real(cell)
+
+    monkeypatch.setattr(evaluate, "run_cell", counts)
+    run = run_study(study, tmp_path / "out", progress=False)
+    assert (run.cached, run.ran) == (2, 4)
+    assert set(calls[2:]).isdisjoint(first) and len(calls) == 6
+    lines: list[str] = []
+    again = run_study(study, tmp_path / "out", progress=False, report=lines.append)
+    assert again.ran == 0 and again.cached == 6 and len(calls) == 6
+    assert lines and lines[0].startswith("nothing to run: all 6 cells")
+
+
+def test_added_seed_runs_only_new_cells_and_names_do_not_count(in_process, tmp_path):
+    path, out = in_process
+    renamed = TINY.replace("[variants.og3]", "[variants.gamma3]").replace("seeds = 2", "seeds = 3")
+    run = run_study(load_study(_write(tmp_path, renamed)), out, progress=False)
+    assert (run.cached, run.ran) == (6, 3)  # seed 2 only; og3 renamed gamma3 reuses its cells
+    rows = read_table(out / "results.csv")
+    assert {r["variant"] for r in rows} == {"gamma3", "dp", "F-geometry"}
+    longer = TINY.replace("sweeps = 8", "sweeps = 9")
+    keys = {c.key for c in cells_of(load_study(_write(tmp_path, longer)))}
+    before = {c.key for c in cells_of(load_study(path))}
+    assert len(keys & before) == 2  # only the baseline's cells (it has no sweeps) are shared
+
+
+def test_failing_cell_is_recorded_and_the_study_goes_on(tmp_path):
+    text = TINY + '\n[variants.broken]\npreset = "original-code"\npoint_estimate = "binder"\n'
+    lines: list[str] = []
+    run = run_study(load_study(_write(tmp_path, text)), tmp_path / "out", progress=False,
+                    report=lines.append)  # fmt: skip
+    assert (run.ran, run.failed) == (8, 2)
+    rows = read_table(tmp_path / "out" / "results.csv")
+    broken = [r for r in rows if r["variant"] == "broken"]
+    assert [r["status"] for r in broken] == ["error", "error"]
+    assert broken[0]["error_type"] == "ValueError" and "marginal_samples" in broken[0]["error"]
+    assert broken[0]["ari"] is None
+    assert all(r["status"] == "ok" for r in rows if r["variant"] != "broken")
+    assert any("failed: ValueError" in line for line in lines)
+    assert "Failed cells" in (tmp_path / "out" / "report.md").read_text()
+    again = run_study(load_study(_write(tmp_path, text)), tmp_path / "out", progress=False)
+    assert again.ran == 0  # a failure is kept ...
+    retried = run_study(load_study(_write(tmp_path, text)), tmp_path / "out", progress=False,
+                        retry_failed=True)  # fmt: skip
+    assert (retried.ran, retried.failed) == (2, 2)  # ... until asked to retry
+
+
+def test_cli_runs_resumes_and_redraws(in_process, tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("CI", "1")  # no progress bar
+    path, _ = in_process
+    out = tmp_path / "cli"
+    assert main(["study", str(path), "--out", str(out), "--workers", "1"]) == 0
+    assert "| og3 | gibbs |" in capsys.readouterr().out
+    assert main(["study", str(path), "--out", str(out), "--workers", "1"]) == 0
+    assert "nothing to run" in capsys.readouterr().out
+    report = (out / "report.md").read_text()
+    (out / "report.md").unlink()
+    assert main(["study", str(path), "--out", str(out), "--report-only"]) == 0
+    assert (out / "report.md").read_text() == report
+    assert main(["study", str(tmp_path / "none.toml"), "--out", str(out)]) == 2
+    assert "ablation_small" in capsys.readouterr().err
+
+
+def test_shipped_study_parses():
+    path = study_path("ablation_small")
+    assert path.parent == STUDIES
+    study = load_study(path)
+    assert len(cells_of(study)) == 16
+
+
+@pytest.mark.slow
+def test_dask_benchmark_quick(tmp_path):
+    pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    out = tmp_path / "study_dask.json"
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
+    }
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "study_dask.py"), "--quick", "--out", str(out)],
+        capture_output=True, text=True, timeout=600, env=env,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    results = json.loads(out.read_text())
+    assert results["in_process"]["seconds"] > 0 and results["local_cluster"]["seconds"] > 0
+    assert results["same_numbers"] is True
