@@ -245,11 +245,11 @@ def _interrupt_fit_at(monkeypatch, chain: int, sweep: int) -> None:
 
 def _same_outputs(mine, theirs) -> None:
     """Two fit folders hold the same result (wall-clock seconds aside)."""
-    a, b = np.load(mine / "result.npz"), np.load(theirs / "result.npz")
-    assert set(a.files) == set(b.files)
-    for name in a.files:
-        if name != "seconds":
-            np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+    with np.load(mine / "result.npz") as a, np.load(theirs / "result.npz") as b:  # closed
+        assert set(a.files) == set(b.files)
+        for name in a.files:
+            if name != "seconds":
+                np.testing.assert_array_equal(a[name], b[name], err_msg=name)
     np.testing.assert_array_equal(np.load(mine / "labels.npy"), np.load(theirs / "labels.npy"))
 
 
