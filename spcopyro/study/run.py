@@ -41,6 +41,9 @@ from spcopyro.study.table import TABLE, CellStore, table_rows, write_table
 
 __all__ = ["StudyRun", "default_workers", "run_study"]
 
+PRE_SPAWN_ENVIRON = "distributed.nanny.pre-spawn-environ"
+"""Dask's config of the environment its nanny gives each worker process."""
+
 Outcome = tuple[Cell, dict[str, object], object]
 """A finished cell, its record and its trace."""
 
@@ -188,11 +191,18 @@ def _on_dask(cells: list[Cell], workers: int, scheduler: str | None) -> Iterator
         ) from None
     cluster = None
     if scheduler is None:
-        cluster = LocalCluster(
-            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
-            silence_logs=logging.ERROR,
-            env={"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"},
-        )  # fmt: skip
+        import dask
+
+        # Dask's nanny sets MALLOC_TRIM_THRESHOLD_ in every worker (any value turns off
+        # glibc's dynamic mmap threshold), so each array over 128 KiB is a fresh mmap whose
+        # pages fault in on first touch: a cell's sweeps ran 1.5-2x slower in a worker than
+        # in-process (measured, thread CPU time). Unset there, they run as fast.
+        with dask.config.set({f"{PRE_SPAWN_ENVIRON}.MALLOC_TRIM_THRESHOLD_": None}):
+            cluster = LocalCluster(
+                n_workers=workers, threads_per_worker=1, processes=True,
+                dashboard_address=":0", silence_logs=logging.ERROR,
+                env={"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"},
+            )  # fmt: skip
         client = Client(cluster)
     else:
         client = Client(scheduler)
