@@ -43,6 +43,22 @@ def _radius(text: str) -> float:
     return value
 
 
+def _source_map(result: object) -> str | None:
+    """The map_server yaml a coarse fit's grid was coarsened from, when the fit's data folder
+    still sits in the dataset layout (``DATA/../map/HOUSE.yaml``): coarsening thickens walls
+    and can close doorways, so a path is planned on the robot's own map. None for a fit on the
+    map's own cells or when the file is gone."""
+    from pathlib import Path
+
+    if getattr(result.preparation, "cell_size", None) is None:  # type: ignore[attr-defined]
+        return None
+    source = (result.provenance or {}).get("source") or {}  # type: ignore[attr-defined]
+    if not source.get("data") or not source.get("house"):
+        return None
+    path = Path(source["data"]).parent / "map" / f"{source['house']}.yaml"
+    return str(path) if path.is_file() else None
+
+
 def _navigate(args: argparse.Namespace) -> int:
     from spcopyro.navigation import navigate
     from spcopyro.navigation.goals import UnreachableGoalError
@@ -52,10 +68,14 @@ def _navigate(args: argparse.Namespace) -> int:
     check_frame(args.frame)
     result = SpCoResult.load(args.result)
     grid = None
-    if args.map:
+    map_yaml = args.map or _source_map(result)
+    if map_yaml:
         from spcopyro.maps import load_map
 
-        grid = load_map(args.map)
+        grid = load_map(map_yaml)
+        if not args.map:
+            print(f"planning on {map_yaml}, the map the fit's {result.grid.resolution:g} m "
+                  "cells were coarsened from (--map to choose another)")  # fmt: skip
     try:
         plan = navigate(result, args.instruction, args.start, radius=args.radius,
                         strict=args.strict, prior=args.prior, grid=grid)  # fmt: skip
@@ -116,7 +136,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--map", metavar="MAP.yaml",
                    help="plan on this map_server map (the robot's map in the fit's frame, e.g. "
                         "the one a coarse fit was made from, whose doorways coarsening narrows) "
-                        "(default: the fit's own grid)")  # fmt: skip
+                        "(default: for a coarse fit, the map of its data folder when it is still "
+                        "there, DATA/../map/HOUSE.yaml; else the fit's own grid)")  # fmt: skip
     p.add_argument("--strict", action="store_true",
                    help="an ambiguous word (two separate regions of near-equal probability) is "
                         "an error instead of taking the nearer")  # fmt: skip

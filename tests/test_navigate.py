@@ -289,3 +289,29 @@ def test_a_finer_map_takes_the_fits_probabilities(result):
     plan = navigate(result, "kitchen", START_A, grid=fine, radius=0.1)
     assert room_of(result, plan.goal.xy) == "C"
     assert planning_grid(fine, 0.1).num_allowed < fine.num_free
+
+
+def test_a_coarse_fit_plans_on_the_map_its_data_came_with(result, tmp_path, capsys):
+    """A coarse fit's grid thickens walls and can close doorways: without --map, navigate plans
+    on DATA/../map/HOUSE.yaml when the fit's provenance names a data folder that still has it,
+    and says so; on a fit of the map's own cells, or with the map gone, it uses the fit's grid."""
+    import dataclasses
+
+    from spcopyro.config import DataPreparation
+    from spcopyro.maps import save_map
+
+    save_map(house_grid(), tmp_path / "data" / "map" / "flat.yaml")
+    source = {"data": str(tmp_path / "data" / "flat"), "house": "flat"}
+    coarse = dataclasses.replace(result, preparation=DataPreparation(cell_size=0.2),
+                                 provenance={"source": source})  # fmt: skip
+    fit = coarse.save(tmp_path / "coarse")
+    start = f"--start={START_A[0]},{START_A[1]}"
+    assert main(["navigate", str(fit), "go to the kitchen", start]) == 0
+    printed = capsys.readouterr().out
+    assert f"planning on {tmp_path / 'data' / 'map' / 'flat.yaml'}" in printed
+    (tmp_path / "data" / "map" / "flat.yaml").unlink()
+    assert main(["navigate", str(fit), "go to the kitchen", start]) == 0
+    assert "planning on" not in capsys.readouterr().out
+    fine = result.save(tmp_path / "fine")
+    assert main(["navigate", str(fine), "go to the kitchen", start]) == 0
+    assert "planning on" not in capsys.readouterr().out
