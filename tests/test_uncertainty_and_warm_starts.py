@@ -170,6 +170,28 @@ def test_vi_then_gibbs_starts_the_sampler_where_cavi_ended(house):
         )  # fmt: skip
 
 
+def test_vi_then_gibbs_honours_its_cavi_options(house):
+    """Issue 23: vi-gibbs accepted VariationalOptions.init and ignored it (its CAVI always
+    started one-hot). Each CAVI option now reaches the CAVI run and the record says what ran:
+    the start (``init``), the stopping rule (``tolerance``) and the schedule."""
+    _, data = prepare_model_data(house, SETTINGS)
+
+    def run(**variational):
+        options = VIGibbsOptions(vi_iterations=40, variational=VariationalOptions(**variational))
+        return get_method("vi-gibbs").run(
+            data, SETTINGS.model, iterations=2, generator=torch.Generator().manual_seed(0),
+            options=options, progress=False,
+        ).options  # fmt: skip
+
+    one_hot, soft = run(init="one-hot", tolerance=0.0), run(init="soft", tolerance=0.0)
+    assert soft["variational"]["init"] == "soft" and one_hot["vi_elbo"] != soft["vi_elbo"]
+    assert one_hot["vi_iterations_run"] == 40 and "ran the 40 iterations" in one_hot["vi_stopped"]
+    stopped = run(tolerance=1e-3)
+    assert stopped["vi_iterations_run"] < 40 and "converged after" in stopped["vi_stopped"]
+    annealed = run(anneal_iterations=20, tolerance=0.0)
+    assert annealed["vi_elbo"] != one_hot["vi_elbo"]
+
+
 def test_fit_writes_the_uncertainty_map_and_where_its_probability_map(tmp_path, capsys):
     common = ["--preset", "original-code", "--gamma", "3", "--concepts", "8"]
     gibbs, cavi = tmp_path / "gibbs", tmp_path / "cavi"

@@ -65,7 +65,7 @@ class VIGibbsInference:
         thin: int = 0,
     ) -> InferenceOutput:
         options = method_options(options, VIGibbsOptions, "VI-then-Gibbs")
-        q = initial_q(data, config, generator, init_labels)
+        q = initial_q(data, config, generator, init_labels, init=options.variational.init)
         vi = run_variational(
             data, config, options.vi_iterations, options=options.variational, q=q,
             progress=progress,
@@ -82,5 +82,7 @@ class VIGibbsInference:
             "variational": dataclasses.asdict(options.variational),
             "vi_seconds": offset,
             "vi_elbo": float(vi.objective[-1]),
+            "vi_iterations_run": len(vi.objective),
+            "vi_stopped": vi.stop_reason,
         }
         return output_from_run(run, record)
