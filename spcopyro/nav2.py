@@ -48,7 +48,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -56,7 +55,7 @@ import numpy as np
 import yaml
 
 from spcopyro.maps import save_filter_mask, save_label_map_server, save_map
-from spcopyro.outputs import STAGING_INFIX, OutputError, StagedOutput
+from spcopyro.outputs import stage_marked_folder
 from spcopyro.results import DEFAULT_WHERE_PRIOR, SpCoResult
 from spcopyro.semantic_map import word_index
 from spcopyro.uncertainty import where_probability
@@ -285,38 +284,11 @@ def costmap_filters(
     return document
 
 
-def _write_yaml(path: Path, document: dict[str, object], comment: str) -> None:
+def write_commented_yaml(path: Path, document: dict[str, object], comment: str) -> None:
+    """``document`` as block YAML in its own key order, under ``comment`` as ``#`` lines."""
     text = yaml.safe_dump(document, sort_keys=False, default_flow_style=False)
     header = "".join(f"# {line}\n" for line in comment.splitlines())
     path.write_text(header + text, encoding="utf-8")
-
-
-def _stage(out: str | os.PathLike[str], overwrite: bool) -> StagedOutput:
-    """A staging folder beside ``out``; refuses a non-empty ``out`` without ``overwrite``, and
-    with it any folder that no export wrote (no :data:`EXPORT_MARKER`)."""
-    path = Path(os.path.abspath(os.fspath(out)))
-    if path.exists() and not path.is_dir():
-        raise OutputError(f"--nav2 {out}: {path} is a file, not a folder")
-    if path.is_dir() and any(path.iterdir()):
-        if not overwrite:
-            raise OutputError(
-                f"--nav2 {out}: {path} exists and is not empty; pass --overwrite to replace it "
-                "(its files are then deleted), or choose another folder"
-            )
-        if not (path / EXPORT_MARKER).is_file():
-            raise OutputError(
-                f"--nav2 {out}: {path} holds files that no Nav2 export wrote (no "
-                f"{EXPORT_MARKER}); --overwrite replaces only an export folder"
-            )
-        if Path.cwd().resolve().is_relative_to(path.resolve()):
-            raise OutputError(f"--nav2 {out}: {path} holds the current directory")
-    seen = (path.lstat().st_dev, path.lstat().st_ino) if path.exists() else None
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        staging = tempfile.mkdtemp(prefix=f"{path.name}{STAGING_INFIX}", dir=path.parent)
-    except OSError as error:
-        raise OutputError(f"--nav2 {out}: cannot write in {path.parent} ({error})") from None
-    return StagedOutput(out=path, path=Path(staging), overwrite=overwrite, seen=seen)
 
 
 def export_nav2(
@@ -373,7 +345,9 @@ def export_nav2(
             name += "_"
         names.append(name)
 
-    staged = _stage(out, overwrite)
+    staged = stage_marked_folder(
+        out, overwrite, option="--nav2", marker=EXPORT_MARKER, writer="Nav2 export"
+    )
     with staged:
         folder, final = staged.path, staged.out
         grid = result.grid
@@ -395,7 +369,7 @@ def export_nav2(
                                          max_speed=max_speed)  # fmt: skip
             mask_yaml = save_filter_mask(values, grid, folder / f"{name}.yaml")
             params_yaml = folder / f"{name}_params.yaml"
-            _write_yaml(
+            write_commented_yaml(
                 params_yaml,
                 mask_params(mode, name, final / mask_yaml.name, namespace),
                 f"Nav2 {mode} filter for {word!r} (spcopyro export): params of its mask server "
@@ -409,7 +383,7 @@ def export_nav2(
                             "params": params_yaml.name, "cells": cells, "concept": concept,
                             "warnings": list(warnings)})  # fmt: skip
         filters_yaml = folder / "costmap_filters.yaml"
-        _write_yaml(
+        write_commented_yaml(
             filters_yaml,
             costmap_filters([(mode, name) for name in names], namespace),
             "Costmap filter entries for nav2_params.yaml (spcopyro export): merge them into\n"

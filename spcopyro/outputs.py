@@ -324,6 +324,39 @@ def stage_output(
     return StagedOutput(out=path, path=Path(staging), overwrite=overwrite, seen=seen)
 
 
+def stage_marked_folder(
+    out: str | os.PathLike[str], overwrite: bool, *, option: str, marker: str, writer: str
+) -> StagedOutput:
+    """A staging folder beside ``out`` for a command that writes one folder whole (the Nav2
+    export, a navigation plan): refuses a file at ``out``, a non-empty ``out`` without
+    ``overwrite``, and with it any folder that holds no ``marker`` (so ``--overwrite`` never
+    deletes a folder that ``writer`` did not write) or holds the current directory. ``option``
+    names the command-line option in every message."""
+    path = Path(os.path.abspath(os.fspath(out)))
+    if path.exists() and not path.is_dir():
+        raise OutputError(f"{option} {out}: {path} is a file, not a folder")
+    if path.is_dir() and any(path.iterdir()):
+        if not overwrite:
+            raise OutputError(
+                f"{option} {out}: {path} exists and is not empty; pass --overwrite to replace "
+                "it (its files are then deleted), or choose another folder"
+            )
+        if not (path / marker).is_file():
+            raise OutputError(
+                f"{option} {out}: {path} holds files that no {writer} wrote (no {marker}); "
+                f"--overwrite replaces only a folder that {writer} wrote"
+            )
+        if Path.cwd().resolve().is_relative_to(path.resolve()):
+            raise OutputError(f"{option} {out}: {path} holds the current directory")
+    seen = (path.lstat().st_dev, path.lstat().st_ino) if path.exists() else None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        staging = tempfile.mkdtemp(prefix=f"{path.name}{STAGING_INFIX}", dir=path.parent)
+    except OSError as error:
+        raise OutputError(f"{option} {out}: cannot write in {path.parent} ({error})") from None
+    return StagedOutput(out=path, path=Path(staging), overwrite=overwrite, seen=seen)
+
+
 def replace_file(path: str | os.PathLike[str], write: Callable[[BinaryIO], None]) -> Path:
     """Write a file through ``write(file)`` into a temporary file beside ``path``, then rename it
     over ``path``: readers see the old file or the new one, never a half-written one."""

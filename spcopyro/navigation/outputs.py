@@ -29,14 +29,13 @@ import csv
 import json
 import math
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
-import yaml
 
+from spcopyro.nav2 import write_commented_yaml
 from spcopyro.navigation.planning import NavigationPlan
-from spcopyro.outputs import STAGING_INFIX, OutputError, StagedOutput
+from spcopyro.outputs import stage_marked_folder
 
 __all__ = [
     "PLAN_MARKER",
@@ -85,37 +84,6 @@ def path_message(plan: NavigationPlan, frame: str = "map") -> dict[str, object]:
 def waypoints_goal(plan: NavigationPlan, frame: str = "map") -> dict[str, object]:
     """The goal of ``nav2_msgs/action/FollowWaypoints``: ``poses``, one per stop in order."""
     return {"poses": [pose_stamped(*stop.xy, stop.yaw, frame) for stop in plan.stops]}
-
-
-def _dump(path: Path, document: dict[str, object], comment: str) -> None:
-    text = yaml.safe_dump(document, sort_keys=False, default_flow_style=False)
-    path.write_text("".join(f"# {line}\n" for line in comment.splitlines()) + text, "utf-8")
-
-
-def _stage(out: str | os.PathLike[str], overwrite: bool) -> StagedOutput:
-    path = Path(os.path.abspath(os.fspath(out)))
-    if path.exists() and not path.is_dir():
-        raise OutputError(f"--out {out}: {path} is a file, not a folder")
-    if path.is_dir() and any(path.iterdir()):
-        if not overwrite:
-            raise OutputError(
-                f"--out {out}: {path} exists and is not empty; pass --overwrite to replace it "
-                "(its files are then deleted), or choose another folder"
-            )
-        if not (path / PLAN_MARKER).is_file():
-            raise OutputError(
-                f"--out {out}: {path} holds files that no navigate wrote (no {PLAN_MARKER}); "
-                "--overwrite replaces only a plan's folder"
-            )
-        if Path.cwd().resolve().is_relative_to(path.resolve()):
-            raise OutputError(f"--out {out}: {path} holds the current directory")
-    seen = (path.lstat().st_dev, path.lstat().st_ino) if path.exists() else None
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        staging = tempfile.mkdtemp(prefix=f"{path.name}{STAGING_INFIX}", dir=path.parent)
-    except OSError as error:
-        raise OutputError(f"--out {out}: cannot write in {path.parent} ({error})") from None
-    return StagedOutput(out=path, path=Path(staging), overwrite=overwrite, seen=seen)
 
 
 def summary(plan: NavigationPlan, frame: str, source: str | None) -> dict[str, object]:
@@ -171,17 +139,19 @@ def write_plan(
 ) -> dict[str, Path]:
     """Write the plan's files into ``out`` (module docstring); their final paths by name."""
     frame = check_frame(frame)
-    staged = _stage(out, overwrite)
+    staged = stage_marked_folder(
+        out, overwrite, option="--out", marker=PLAN_MARKER, writer="navigate"
+    )
     names = {}
     with staged:
         folder = staged.path
         goal = plan.goal
-        _dump(folder / "goal.yaml", pose_stamped(*goal.xy, goal.yaw, frame),
+        write_commented_yaml(folder / "goal.yaml", pose_stamped(*goal.xy, goal.yaw, frame),
               f"geometry_msgs/PoseStamped: the goal of {plan.instruction.text!r} (spcopyro "
               "navigate)")  # fmt: skip
-        _dump(folder / "path.yaml", path_message(plan, frame),
+        write_commented_yaml(folder / "path.yaml", path_message(plan, frame),
               "nav_msgs/Path (spcopyro navigate)")  # fmt: skip
-        _dump(folder / "waypoints.yaml", waypoints_goal(plan, frame),
+        write_commented_yaml(folder / "waypoints.yaml", waypoints_goal(plan, frame),
               "nav2_msgs/action/FollowWaypoints goal: the instruction's stops in order "
               "(spcopyro navigate)")  # fmt: skip
         with open(folder / "path.csv", "w", newline="") as f:
