@@ -115,6 +115,10 @@ def _simulate_on_map(args: argparse.Namespace) -> int:
 
 
 def _show(args: argparse.Namespace) -> int:
+    if args.graph:
+        from spcopyro.cli_navigate import show_graph
+
+        return show_graph(args)
     from spcopyro.plotting import plot_house
 
     house = _load(args.data)
@@ -247,6 +251,11 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     p = sub.add_parser("show", help="draw a house and its observations; print a summary")
     p.add_argument("data", nargs="?", help="house folder (default: the synthetic house)")
     p.add_argument("--out", required=True, help="PNG file to write")
+    p.add_argument("--graph", action="store_true", help="DATA is a fit's output folder: draw "
+                   "its place graph (regions as nodes, shared borders and doorways as edges) "
+                   "and write graph.json beside the PNG")  # fmt: skip
+    p.add_argument("--min-area", type=float, default=0.25, metavar="M2",
+                   help="with --graph: smaller regions are not places")  # fmt: skip
     p.set_defaults(func=_show)
 
     add_fit_parser(sub, options=command in (None, "fit"))  # fit

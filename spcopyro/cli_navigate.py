@@ -105,6 +105,10 @@ def _navigate(args: argparse.Namespace) -> int:
                           f"{c.area:.1f} m^2, {c.distance:.2f} m away")  # fmt: skip
         for note in choice.notes:
             print(f"warning: {note}", file=sys.stderr)
+    if plan.route:
+        how = "" if plan.route_from == "graph" else " (the places the path crosses: no route "
+        how = how and how + "over the place graph)"
+        print(f"route: {' -> '.join(plan.route_words)}{how}")
     print(f"path: {len(plan.path_xy)} poses, {plan.length:.2f} m, clearance {plan.radius:g} m "
           f"from walls (frame {args.frame})")  # fmt: skip
     if args.out:
@@ -114,6 +118,35 @@ def _navigate(args: argparse.Namespace) -> int:
                              source=args.result, figure=not args.no_figure)  # fmt: skip
         print(f"wrote {', '.join(p.name for p in written.values())} to "
               f"{next(iter(written.values())).parent}")  # fmt: skip
+    return 0
+
+
+def show_graph(args: argparse.Namespace) -> int:
+    """``spcopyro show OUT --graph --out graph.png``: the fit's place graph drawn over its map,
+    and ``graph.json`` beside the PNG."""
+    import json
+
+    from spcopyro.navigation.figure import plot_place_graph
+    from spcopyro.navigation.places import place_graph
+    from spcopyro.results import SpCoResult
+
+    if not args.data:
+        raise ValueError("show --graph: give the output folder of `spcopyro fit`")
+    result = SpCoResult.load(args.data)
+    graph = place_graph(result, min_area=args.min_area)
+    png = plot_place_graph(result, graph, args.out)
+    written = png.with_name("graph.json")
+    written.write_text(json.dumps(graph.to_json(), indent=2) + "\n")
+    doors = sum(e.doorway for e in graph.passages)
+    print(f"{len(graph.places)} places, {len(graph.passages)} passages ({doors} doorways); "
+          f"{graph.dropped} regions under {graph.min_area:g} m^2 left out "
+          f"({graph.dropped_area:.2f} m^2)")  # fmt: skip
+    for place in graph.places:
+        near = [e.b if e.a == place.id else e.a for e in graph.passages
+                if place.id in (e.a, e.b)]  # fmt: skip
+        print(f"  {place.id}: {place.name} ({place.area:.1f} m^2) at x={place.centroid[0]:.2f} "
+              f"y={place.centroid[1]:.2f}, next to {near or 'nothing'}")  # fmt: skip
+    print(f"wrote {png} and {written}")
     return 0
 
 

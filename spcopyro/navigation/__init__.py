@@ -5,6 +5,8 @@
 * :mod:`~spcopyro.navigation.goals`: an instruction's place words in visiting order; a word's goal
   (candidate regions, ambiguity, reachability).
 * :mod:`~spcopyro.navigation.planning`: :func:`navigate`, the plan through every stop.
+* :mod:`~spcopyro.navigation.places`: the place graph (regions as nodes, shared borders and
+  doorways as edges) and the route over it that a plan reports.
 * :mod:`~spcopyro.navigation.outputs`: the plan as ROS message YAML, CSV, JSON
   (:func:`write_plan`); :mod:`~spcopyro.navigation.figure`: its PNG.
 """

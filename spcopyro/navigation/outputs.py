@@ -16,7 +16,8 @@ a non-empty DIR needs ``overwrite`` and must hold an earlier plan, :data:`PLAN_M
   destination), facing along the path where it reaches them.
 * ``navigate.png``: the map, the destination word's probability map, the path, start, stops.
 * ``navigate.json``: the instruction, its places, every candidate region, the lengths and
-  settings, and the fit it came from.
+  settings, the route over the place graph and the graph itself
+  (:mod:`~spcopyro.navigation.places`), and the fit it came from.
 
 Stamps are 0 (``stamp: {sec: 0, nanosec: 0}``: "latest" to tf2). ``frame_id`` is the map frame
 (``map`` unless given; a robot whose tf frames carry a prefix passes e.g. ``robot1/map``).
@@ -119,6 +120,12 @@ def summary(plan: NavigationPlan, frame: str, source: str | None) -> dict[str, o
         "length_m": plan.length,
         "poses": len(plan.path_xy),
         "stops": stops,
+        "route": {
+            "places": list(plan.route),
+            "words": list(plan.route_words),
+            "from": plan.route_from,
+        },
+        "place_graph": plan.places.to_json() if plan.places is not None else None,
         "map": {
             "resolution": grid.resolution,
             "origin": list(grid.origin),

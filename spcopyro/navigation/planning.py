@@ -34,6 +34,7 @@ from spcopyro.navigation.graph import (
     shortest_paths,
     trace_path,
 )
+from spcopyro.navigation.places import PlaceGraph, place_graph, places_along
 from spcopyro.results import DEFAULT_WHERE_PRIOR, SpCoResult
 from spcopyro.uncertainty import where_probability
 
@@ -75,6 +76,19 @@ class NavigationPlan:
     length: float
     """Metres along the path."""
     planning: PlanningGrid
+    places: PlaceGraph | None = None
+    """The fit's place graph (:func:`~spcopyro.navigation.places.place_graph`)."""
+    route: tuple[int, ...] = ()
+    """Place ids from the start's place through every stop's place: the shortest route over the
+    place graph, leg by leg (the topological summary of the path; the path itself is planned on
+    the grid). Where the graph has no route (regions under its ``min_area`` dropped), the places
+    the path crosses, in order; ``route_from`` says which."""
+    route_from: str = "graph"
+
+    @property
+    def route_words(self) -> tuple[str, ...]:
+        """The top word of every place of :attr:`route`."""
+        return tuple(self.places.places[i].name for i in self.route) if self.places else ()
 
     @property
     def goal(self) -> Stop:
@@ -141,12 +155,15 @@ def navigate(
     prior: str = DEFAULT_WHERE_PRIOR,
     grid: OccupancyGrid | None = None,
     planning: PlanningGrid | None = None,
+    places: PlaceGraph | None = None,
 ) -> NavigationPlan:
     """Plan ``instruction`` from ``start`` (world x, y in metres) on ``grid``: a map in the
     fit's frame (the map a coarse fit was made from: walls as thin as the robot's map has
     them), the fit's probabilities carried onto its cells (:func:`~spcopyro.navigation.graph.
     fit_cells_on`); None: the fit's own grid. ``planning``: a ready :func:`planning_grid` of that
-    grid (reused across calls).
+    grid (reused across calls); ``places``: a ready :func:`~spcopyro.navigation.places.
+    place_graph` of the fit, whose route through the stops' places the plan reports
+    (:attr:`NavigationPlan.route`: computed once the goals are chosen, from the start's place).
 
     Raises:
         ValueError: a misspelt word or none naming a place (the close known words named).
@@ -178,6 +195,8 @@ def navigate(
         arrive = float(yaw[index - 1]) if index > 0 else float(yaw[index])
         stops.append(Stop(word, via, choice, (float(xy[index, 0]), float(xy[index, 1])), arrive,
                           index, probability))  # fmt: skip
+    places = place_graph(result) if places is None else places
+    route, route_from = _route(result, places, [start, *(stop.xy for stop in stops)], xy)
     return NavigationPlan(
         instruction=parsed,
         start=(float(start[0]), float(start[1])),
@@ -188,4 +207,23 @@ def navigate(
         path_yaw=yaw,
         length=float(steps.sum()),
         planning=planning,
+        places=places,
+        route=route,
+        route_from=route_from,
     )
+
+
+def _route(
+    result: SpCoResult, places: PlaceGraph, points: list, path_xy: np.ndarray
+) -> tuple[tuple[int, ...], str]:
+    """:attr:`NavigationPlan.route` through the places of ``points`` (start, stops; world x, y),
+    and where it came from (``graph`` or ``path``)."""
+    cells = result.grid.world_to_cell(np.asarray(points, dtype=float))  # [S, 2] on the fit's grid
+    stops = [places.place_of(cell) for cell in cells]
+    route = [stops[0]]
+    for a, b in zip(stops[:-1], stops[1:], strict=True):
+        leg = places.route(a, b) if min(a, b) >= 0 else None
+        if leg is None:
+            return places_along(places, result.grid.world_to_cell(path_xy)), "path"
+        route += leg[1:]
+    return tuple(route), "graph"

@@ -1,0 +1,149 @@
+"""The place graph (issue 27 item 2): regions as nodes, shared borders as edges, the route.
+
+On the house of tests/test_navigate.py (0.1 m cells): A bedroom (cols 1-9), B corridor (cols
+11-19 and the two doorway columns 10 and 20, rows 8-12), C kitchen (cols 21-29 and the doorway
+column 30), E bedroom again (cols 31-39), all rows 1-18; D closet below (rows 20-27, cols 1-39),
+walled off. Hand-counted: A = E = 18 x 9 = 162 cells, B = 162 + 2 x 5 = 172, C = 162 + 5 = 167,
+D = 8 x 39 = 312; each doorway column touches the next room along 5 cells = 0.5 m.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from test_cli_startup import heavy_imports
+from test_navigate import START_A, house_result
+
+from spcopyro.cli import main
+from spcopyro.navigation import navigate
+from spcopyro.navigation.places import place_graph, places_along
+
+ROOM_CELLS = {"D": 312, "B": 172, "C": 167, "A": 162, "E": 162}  # largest first = place ids
+
+
+@pytest.fixture(scope="module")
+def result():
+    return house_result()
+
+
+def _by_room(graph):
+    """Room letter -> place, told apart by where each centroid lies."""
+    rooms = {}
+    for place in graph.places:
+        x, y = place.centroid
+        room = "D" if y < 1.0 else "ABCE"[min(int(x), 3)]
+        rooms[room] = place
+    return rooms
+
+
+def test_nodes_have_the_hand_counted_areas_words_and_centroids(result):
+    graph = place_graph(result)
+    assert [p.cells for p in graph.places] == list(ROOM_CELLS.values())
+    rooms = _by_room(graph)
+    assert sorted(rooms) == sorted(ROOM_CELLS)
+    for room, cells in ROOM_CELLS.items():
+        assert rooms[room].cells == cells
+        assert rooms[room].area == pytest.approx(cells * 0.01)
+    assert [rooms[r].name for r in "ABCED"] == ["bedroom", "corridor", "kitchen", "bedroom",
+                                                 "closet"]  # fmt: skip
+    assert rooms["A"].concept == rooms["E"].concept  # one concept, two places
+    assert len(rooms["B"].words) == 3
+    # A: columns 1..9 -> x = 0.15..0.95, mean 0.55; rows 1..18 -> y mean 1.9
+    assert rooms["A"].centroid == pytest.approx((0.55, 1.9))
+    assert graph.dropped == 0 and graph.dropped_area == 0
+    assert (graph.regions >= 0).sum() == sum(ROOM_CELLS.values())
+
+
+def test_edges_are_the_doorways_with_their_border_lengths(result):
+    graph = place_graph(result)
+    rooms = _by_room(graph)
+    ids = {p.id: room for room, p in rooms.items()}
+    edges = {frozenset((ids[e.a], ids[e.b])): e for e in graph.passages}
+    assert set(edges) == {frozenset("AB"), frozenset("BC"), frozenset("CE")}  # D: no door
+    for edge in edges.values():
+        assert edge.border == pytest.approx(0.5)  # 5 touching cell pairs x 0.1 m
+        assert edge.doorway
+        assert edge.distance == pytest.approx(
+            np.hypot(*np.subtract(graph.places[edge.a].centroid, graph.places[edge.b].centroid))
+        )
+    as_json = json.loads(json.dumps(graph.to_json()))
+    assert len(as_json["places"]) == 5 and len(as_json["passages"]) == 3
+    assert as_json["passages"][0]["border_m"] == pytest.approx(0.5)
+
+
+def test_a_wide_shared_border_is_not_a_doorway(result):
+    """Open the wall between A and B along rows 1..18 (1.8 m): one long border, no doorway."""
+    grid = result.grid
+    occupancy = grid.occupancy.copy()
+    occupancy[1:19, 10] = 0  # FREE
+    open_grid = replace(grid, occupancy=occupancy)
+    image = result.label_image()
+    image[1:19, 10] = np.where(image[1:19, 10] >= 0, image[1:19, 10], 1)  # the corridor's
+    opened = replace(result, grid=open_grid, labels=image[open_grid.free])
+    graph = place_graph(opened)
+    ab = [e for e in graph.passages if {graph.places[e.a].name, graph.places[e.b].name}
+          == {"bedroom", "corridor"} and min(graph.places[e.a].centroid[0],
+                                              graph.places[e.b].centroid[0]) < 1]  # fmt: skip
+    assert len(ab) == 1
+    assert ab[0].border == pytest.approx(1.8) and not ab[0].doorway
+
+
+def test_small_regions_are_dropped_and_counted(result):
+    graph = place_graph(result, min_area=1.65)  # A and E (1.62 m^2) go
+    assert graph.dropped == 2
+    assert graph.dropped_area == pytest.approx(3.24)
+    assert [p.cells for p in graph.places] == [312, 172, 167]
+    assert len(graph.passages) == 1  # only corridor - kitchen is left
+    assert graph.regions[4, 3] == -1  # a cell of A
+    # a cell in a dropped region belongs to the nearest place (A's -> the corridor's doorway)
+    assert graph.places[graph.place_of(np.array([4, 3]))].name == "corridor"
+
+
+def test_the_route_lists_the_rooms_passed_in_order(result):
+    plan = navigate(result, "go to the kitchen", START_A)
+    assert plan.route_words == ("bedroom", "corridor", "kitchen")
+    assert plan.route_from == "graph"
+    assert plan.route == (3, 1, 2)  # A, B, C by the hand-counted sizes
+    # through a via place and on to the far bedroom (E, the nearer bedroom from the kitchen)
+    plan = navigate(result, "go to the bedroom via the kitchen", START_A)
+    assert plan.route_words == ("bedroom", "corridor", "kitchen", "bedroom")
+    assert plan.route == (3, 1, 2, 4)
+    # the grid path itself crosses the same places in the same order
+    assert places_along(plan.places, result.grid.world_to_cell(plan.path_xy)) == plan.route
+
+
+def test_without_a_route_over_the_graph_the_path_s_places_are_reported(result):
+    graph = replace(place_graph(result), passages=())
+    plan = navigate(result, "go to the kitchen", START_A, places=graph)
+    assert plan.route_from == "path"
+    assert plan.route_words == ("bedroom", "corridor", "kitchen")
+
+
+def test_navigate_prints_and_writes_the_route(result, tmp_path, capsys):
+    fit = result.save(tmp_path / "fit")
+    out = tmp_path / "plan"
+    start = f"--start={START_A[0]},{START_A[1]}"
+    assert main(["navigate", str(fit), "go to the kitchen", start, "--out", str(out),
+                 "--no-figure"]) == 0  # fmt: skip
+    assert "route: bedroom -> corridor -> kitchen" in capsys.readouterr().out
+    written = json.loads((out / "navigate.json").read_text())
+    assert written["route"]["words"] == ["bedroom", "corridor", "kitchen"]
+    assert len(written["place_graph"]["places"]) == 5
+
+
+def test_show_graph_writes_png_and_json_and_imports_no_torch(result, tmp_path):
+    fit = result.save(tmp_path / "fit")
+    png = tmp_path / "figs" / "graph.png"
+    imported, printed = heavy_imports(["show", str(fit), "--graph", "--out", str(png)])
+    assert imported == []
+    assert png.is_file() and png.stat().st_size > 1000
+    graph = json.loads((png.parent / "graph.json").read_text())
+    assert len(graph["places"]) == 5 and len(graph["passages"]) == 3
+    assert "5 places, 3 passages (3 doorways)" in printed
+
+
+def test_show_graph_needs_a_fit_folder(tmp_path):
+    assert main(["show", "--graph", "--out", str(tmp_path / "g.png")]) == 2
