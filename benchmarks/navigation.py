@@ -38,12 +38,11 @@ from pathlib import Path
 
 import numpy as np
 
-from spcopyro.config import DEFAULT_PRESET, preset, preset_inference
+from spcopyro.config import DEFAULT_PRESET, preset
 from spcopyro.data import find_dataset_root, load_house, place_observations
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
-from spcopyro.fit import fit_house
-from spcopyro.gibbs import GibbsOptions
+from spcopyro.fit import fit_house, preset_fit_kwargs
 from spcopyro.navigation import NavigationError, navigate, planning_grid
 from spcopyro.navigation.graph import shortest_paths
 from spcopyro.synthetic import HouseSpec, make_house
@@ -52,19 +51,8 @@ SYNTHETIC_RADIUS = 0.05
 
 
 def fit_default(house, sweeps: int, seed: int):
-    recommended = preset_inference(DEFAULT_PRESET)
-    estimate = str(recommended.get("point_estimate", "map-visited"))
-    return fit_house(
-        house,
-        preset(DEFAULT_PRESET),
-        options=GibbsOptions(merge_moves=float(recommended.get("merge_moves", 0.0))),
-        sweeps=sweeps,
-        seed=seed,
-        init=str(recommended.get("init", "random")),
-        progress=False,
-        marginal_samples=50 if estimate != "map-visited" else 0,
-        point_estimate=estimate,
-    )
+    return fit_house(house, preset(DEFAULT_PRESET), sweeps=sweeps, seed=seed, progress=False,
+                     **preset_fit_kwargs(DEFAULT_PRESET))  # fmt: skip
 
 
 def nearest_allowed(planning, xy: np.ndarray) -> int:

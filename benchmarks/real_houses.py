@@ -39,12 +39,11 @@ import numpy as np
 
 from spcopyro.baselines.geometry import geometry_semantic_map
 from spcopyro.baselines.nearest import nearest_word_map
-from spcopyro.config import DEFAULT_PRESET, preset, preset_inference
+from spcopyro.config import DEFAULT_PRESET, preset
 from spcopyro.data import find_dataset_root, load_house
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
-from spcopyro.fit import fit_house
-from spcopyro.gibbs import GibbsOptions
+from spcopyro.fit import fit_house, preset_fit_kwargs
 from spcopyro.map_simulation import MapTour, simulate_on_map
 from spcopyro.maps.coarse import coarsening_factor, refine_labels
 from spcopyro.metrics import adjusted_rand_index, heldout_word_prediction
@@ -65,25 +64,10 @@ METHODS = ("cavi", "lbp", "svi", "stochastic-vi", "vi-gibbs")
 def fit_result(house, name: str, sweeps: int, seed: int, method: str = "gibbs"):
     """The preset's default fit (its recommended inference settings for Gibbs; a variational
     method with its default options) and its seconds."""
-    settings = preset(name)
-    recommended = preset_inference(name) if method == "gibbs" else {}
-    sampler = method in ("gibbs", "vi-gibbs")
-    estimate = str(recommended.get("point_estimate", "map-visited"))
+    kwargs = preset_fit_kwargs(name) if method == "gibbs" else {}  # else fit_house's defaults
     start = time.perf_counter()
-    result = fit_house(
-        house,
-        settings,
-        method=method,
-        options=GibbsOptions(merge_moves=float(recommended.get("merge_moves", 0.0)))
-        if method == "gibbs"
-        else None,
-        sweeps=sweeps,
-        seed=seed,
-        init=str(recommended.get("init", "random")),
-        progress=False,
-        marginal_samples=50 if sampler and estimate != "map-visited" else 0,
-        point_estimate=estimate if sampler else "map-visited",
-    )
+    result = fit_house(house, preset(name), method=method, sweeps=sweeps, seed=seed,
+                       progress=False, **kwargs)  # fmt: skip
     return result, time.perf_counter() - start
 
 

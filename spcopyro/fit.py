@@ -478,6 +478,21 @@ def fit_house_chains(
     return fits
 
 
+def preset_fit_kwargs(name: str, marginal_samples: int = 50) -> dict[str, object]:
+    """The :func:`fit_house` keywords of a Gibbs fit that runs preset ``name`` as ``spcopyro fit
+    --preset name`` does: its recommended start, merge moves and point estimate
+    (:func:`~spcopyro.config.preset_inference`), with ``marginal_samples`` label maps kept when
+    that point estimate needs them. Empty recommendations give the paper's run."""
+    recommended = preset_inference(name)
+    estimate = str(recommended.get("point_estimate", "map-visited"))
+    return {
+        "options": GibbsOptions(merge_moves=float(recommended.get("merge_moves", 0.0))),
+        "init": str(recommended.get("init", "random")),
+        "marginal_samples": marginal_samples if estimate != "map-visited" else 0,
+        "point_estimate": estimate,
+    }
+
+
 def log_skipped_preset_inference(
     settings: SpCoSettings, init: Init, options: object | None, point_estimate: str
 ) -> None:
@@ -493,8 +508,7 @@ def log_skipped_preset_inference(
     if skipped:
         logger.warning(
             "preset %r recommends %s (what spcopyro fit runs); this fit runs %s, so its map can "
-            "differ from the command's: pass them (spcopyro.config.preset_inference(%r); "
-            "point_estimate needs marginal_samples > 0, merge_moves goes in GibbsOptions)",
+            "differ from the command's: pass them (spcopyro.fit.preset_fit_kwargs(%r))",
             settings.preset,
             ", ".join(f"{k}={v!r}" for k, v in skipped.items()),
             ", ".join(f"{k}={running[k]!r}" for k in skipped),

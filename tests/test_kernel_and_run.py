@@ -339,7 +339,7 @@ def test_a_library_fit_says_when_it_skips_its_presets_inference_settings(caplog)
     nothing said so. Now the library says which settings it skips."""
     import logging
 
-    from spcopyro.fit import fit_house
+    from spcopyro.fit import fit_house, preset_fit_kwargs
     from spcopyro.gibbs import GibbsOptions
     from spcopyro.synthetic import HouseSpec, make_house
 
@@ -357,7 +357,15 @@ def test_a_library_fit_says_when_it_skips_its_presets_inference_settings(caplog)
                   options=GibbsOptions(merge_moves=0.2), marginal_samples=2,
                   point_estimate="vi")  # fmt: skip
         fit_house(house, preset("paper-dp"), sweeps=4, progress=False)  # recommends nothing
+        fit_house(house, preset("coarse"), sweeps=4, progress=False,
+                  **preset_fit_kwargs("coarse", marginal_samples=2))  # fmt: skip
     assert not [r for r in caplog.records if "recommends" in r.getMessage()]
+    kwargs = preset_fit_kwargs("auto")  # what spcopyro fit --preset auto runs
+    assert kwargs["init"] == "rooms" and kwargs["options"] == GibbsOptions(merge_moves=0.2)
+    assert kwargs["point_estimate"] == "vi" and kwargs["marginal_samples"] == 50
+    paper = preset_fit_kwargs("paper-dp")  # the paper's run
+    assert paper == {"options": GibbsOptions(), "init": "random", "marginal_samples": 0,
+                     "point_estimate": "map-visited"}  # fmt: skip
 
 
 def test_predictive_after_mcmc_keeps_the_chains_labels():
