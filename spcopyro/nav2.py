@@ -54,7 +54,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from spcopyro.maps import save_filter_mask, save_label_map_server, save_map
+from spcopyro.maps import OccupancyGrid, save_filter_mask, save_label_map_server, save_map
 from spcopyro.outputs import stage_marked_folder
 from spcopyro.results import DEFAULT_WHERE_PRIOR, SpCoResult
 from spcopyro.semantic_map import word_index
@@ -284,6 +284,16 @@ def costmap_filters(
     return document
 
 
+def grid_record(grid: OccupancyGrid) -> dict[str, object]:
+    """Where the grid lies and how big it is, for a JSON summary (resolution, origin, size)."""
+    return {
+        "resolution": grid.resolution,
+        "origin": list(grid.origin),
+        "height": grid.height,
+        "width": grid.width,
+    }
+
+
 def write_commented_yaml(path: Path, document: dict[str, object], comment: str) -> None:
     """``document`` as block YAML in its own key order, under ``comment`` as ``#`` lines."""
     text = yaml.safe_dump(document, sort_keys=False, default_flow_style=False)
@@ -402,12 +412,7 @@ def export_nav2(
             "min_speed": min_speed if mode == "speed" else None,
             "max_speed": max_speed if mode == "speed" else None,
             "namespace": namespace,
-            "map": {
-                "resolution": grid.resolution,
-                "origin": list(grid.origin),
-                "height": grid.height,
-                "width": grid.width,
-            },  # fmt: skip
+            "map": grid_record(grid),
             "masks": records,
         }
         (folder / EXPORT_MARKER).write_text(json.dumps(summary, indent=2) + "\n")

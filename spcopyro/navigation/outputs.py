@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from spcopyro.nav2 import write_commented_yaml
+from spcopyro.nav2 import grid_record, write_commented_yaml
 from spcopyro.navigation.planning import NavigationPlan
 from spcopyro.outputs import stage_marked_folder
 
@@ -126,12 +126,7 @@ def summary(plan: NavigationPlan, frame: str, source: str | None) -> dict[str, o
             "from": plan.route_from,
         },
         "place_graph": plan.places.to_json() if plan.places is not None else None,
-        "map": {
-            "resolution": grid.resolution,
-            "origin": list(grid.origin),
-            "height": grid.height,
-            "width": grid.width,
-        },  # fmt: skip
+        "map": grid_record(grid),
     }
 
 
