@@ -46,6 +46,7 @@ from spcopyro.maps import (
     UNKNOWN,
     OccupancyGrid,
     concept_colours,
+    concept_regions,
     label_colours,
     render_labels,
 )
@@ -222,28 +223,21 @@ def region_label_points(
     farthest from its border (the maximum of the Euclidean distance transform), so the label
     sits inside the region even when the region is not convex.
     """
+    regions, concept_of = concept_regions(image)  # [H, W] region ids, [R] their concepts
+    sizes = np.bincount(regions[regions >= 0], minlength=len(concept_of))  # [R]
+    boxes = ndimage.find_objects(regions + 1)  # [R] each region's bounding box
     points = []
-    image = np.asarray(image)
-    # Each concept's bounding box (one pass over the image), then its regions inside that box
-    # only: the same regions, numbered in the same raster order, as over the whole image.
-    crops = ndimage.find_objects(np.where(image >= 0, image + 1, 0))  # [max label + 1] boxes
-    for concept in np.unique(image[image >= 0]):
-        crop = crops[concept]
-        regions, count = ndimage.label(image[crop] == concept)  # [h, w] int, 4-connected
-        if count == 0:
-            continue
-        sizes = np.bincount(regions.ravel())[1:]  # [count]
-        boxes = ndimage.find_objects(regions)
+    for concept in np.unique(concept_of):
+        ids = np.flatnonzero(concept_of == concept)  # the concept's regions, in raster order
         first = True
-        for index in np.argsort(-sizes, kind="stable"):
+        for index in ids[np.argsort(-sizes[ids], kind="stable")]:
             if sizes[index] < min_cells:
                 break
             box = boxes[index]
-            inside = np.pad(regions[box] == index + 1, 1)  # [h + 2, w + 2] bool
+            inside = np.pad(regions[box] == index, 1)  # [h + 2, w + 2] bool
             distance = ndimage.distance_transform_edt(inside)
             r, c = np.unravel_index(int(np.argmax(distance)), distance.shape)
-            row = crop[0].start + box[0].start + int(r) - 1
-            col = crop[1].start + box[1].start + int(c) - 1
+            row, col = box[0].start + int(r) - 1, box[1].start + int(c) - 1
             points.append((int(concept), row, col, int(sizes[index]), first))
             first = False
     return points

@@ -15,6 +15,8 @@ Modules (everything public is re-exported here, so ``from spcopyro.maps import X
   0..100), :func:`save_filter_mask` and :func:`load_filter_mask` (map_server's three modes).
 * :mod:`~spcopyro.maps.palette`: colours a reader can tell apart (:func:`distinct_colours`,
   :func:`concept_colours`: touching concepts get the most different ones).
+* :mod:`~spcopyro.maps.regions`: which labels touch (:func:`region_contacts`) and each label's
+  connected regions (:func:`concept_regions`).
 """
 
 from spcopyro.maps.filter_mask import FilterMask, load_filter_mask, save_filter_mask
@@ -31,6 +33,7 @@ from spcopyro.maps.map_server import (
     save_map,
 )
 from spcopyro.maps.palette import concept_colours, distinct_colours, region_adjacency
+from spcopyro.maps.regions import concept_regions, region_contacts
 from spcopyro.maps.render import (
     RAW_CONCEPT_VALUES,
     RAW_FREE_UNLABELLED,
@@ -67,12 +70,14 @@ __all__ = [
     "MapFormatError",
     "OccupancyGrid",
     "concept_colours",
+    "concept_regions",
     "distinct_colours",
     "label_colours",
     "load_filter_mask",
     "load_label_map_server",
     "load_map",
     "region_adjacency",
+    "region_contacts",
     "render_labels",
     "save_filter_mask",
     "save_label_map_server",

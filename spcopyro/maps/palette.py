@@ -29,6 +29,8 @@ from typing import Any
 
 import numpy as np
 
+from spcopyro.maps.regions import region_contacts
+
 __all__ = ["concept_colours", "delta_e", "distinct_colours", "region_adjacency", "srgb_to_lab"]
 
 _RESERVED = np.array([[0, 0, 0], [255, 255, 255], [205, 205, 205]], dtype=np.uint8)
@@ -113,17 +115,10 @@ def distinct_colours(n: int) -> np.ndarray:
 
 def region_adjacency(labels: Any) -> set[tuple[int, int]]:
     """Pairs ``(a, b)``, ``a < b``, of labels >= 0 that touch across a 4-neighbour edge of the
-    ``[H, W]`` label image (-1 cells touch nothing)."""
-    lab = np.asarray(labels)
-    if lab.ndim != 2:
-        raise ValueError(f"labels must be a 2-D [H, W] array, got shape {lab.shape}")
-    pairs: set[tuple[int, int]] = set()
-    for a, b in ((lab[:, :-1], lab[:, 1:]), (lab[:-1, :], lab[1:, :])):  # horizontal, vertical
-        touch = (a >= 0) & (b >= 0) & (a != b)
-        lo = np.minimum(a[touch], b[touch])
-        hi = np.maximum(a[touch], b[touch])
-        pairs.update(zip(lo.tolist(), hi.tolist(), strict=True))
-    return pairs
+    ``[H, W]`` label image (-1 cells touch nothing): :func:`~spcopyro.maps.regions.region_contacts`
+    as a set."""
+    a, b, _ = region_contacts(labels)
+    return set(zip(a.tolist(), b.tolist(), strict=True))
 
 
 def concept_colours(labels: Any, concepts: Any) -> np.ndarray:

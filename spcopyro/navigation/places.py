@@ -20,6 +20,8 @@ from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import shortest_path
 
+from spcopyro.maps.regions import concept_regions, region_contacts
+
 __all__ = [
     "DEFAULT_MIN_AREA",
     "DOORWAY_WIDTH",
@@ -140,22 +142,6 @@ class PlaceGraph:
         }  # fmt: skip
 
 
-def _touching(regions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The pairs ``a < b`` of region ids that are 4-neighbours somewhere, and how many touching
-    cell pairs each has."""
-    pairs = []
-    for first, second in ((regions[:, :-1], regions[:, 1:]), (regions[:-1, :], regions[1:, :])):
-        touch = (first >= 0) & (second >= 0) & (first != second)
-        u, v = first[touch], second[touch]
-        pairs.append(np.stack([np.minimum(u, v), np.maximum(u, v)], axis=1))  # [P, 2]
-    both = np.concatenate(pairs)
-    if not len(both):
-        empty = np.zeros(0, dtype=np.int64)
-        return empty, empty, empty
-    unique, counts = np.unique(both, axis=0, return_counts=True)
-    return unique[:, 0], unique[:, 1], counts
-
-
 def place_graph(result: object, min_area: float = DEFAULT_MIN_AREA) -> PlaceGraph:
     """The place graph of a fit (:class:`~spcopyro.results.SpCoResult`; module docstring).
 
@@ -165,17 +151,8 @@ def place_graph(result: object, min_area: float = DEFAULT_MIN_AREA) -> PlaceGrap
     grid = result.grid  # type: ignore[attr-defined]
     image = np.asarray(result.label_image())  # type: ignore[attr-defined]  # [H, W]
     cell_area = grid.resolution**2
-    components = np.full(image.shape, -1, dtype=np.int64)  # [H, W] region id, before dropping
-    concept_of, count = [], 0
-    crops = ndimage.find_objects(np.where(image >= 0, image + 1, 0))
-    for concept in np.unique(image[image >= 0]):
-        crop = crops[concept]
-        labelled, n = ndimage.label(image[crop] == concept)  # 4-connected
-        if n:
-            view = components[crop]
-            view[labelled > 0] = labelled[labelled > 0] - 1 + count
-            concept_of += [int(concept)] * n
-            count += n
+    components, concept_of = concept_regions(image)  # [H, W] region id before dropping, [R]
+    count = len(concept_of)
     sizes = np.bincount(components[components >= 0], minlength=count)  # [count]
     keep = sizes * cell_area >= min_area - 1e-12
     order = np.flatnonzero(keep)
@@ -195,13 +172,13 @@ def place_graph(result: object, min_area: float = DEFAULT_MIN_AREA) -> PlaceGrap
     words: dict[int, tuple[str, ...]] = {}
     places = []
     for node, region in enumerate(order):
-        concept = concept_of[region]
+        concept = int(concept_of[region])
         if concept not in words:
             words[concept] = tuple(w for w, _ in result.top_words(concept, 3))  # type: ignore[attr-defined]
         places.append(Place(node, concept, int(cells[node]), float(cells[node] * cell_area),
                             (float(centroid[node, 0]), float(centroid[node, 1])),
                             words[concept]))  # fmt: skip
-    a, b, touching = _touching(regions)
+    a, b, touching = region_contacts(regions)
     gap = np.hypot(*(centroid[a] - centroid[b]).T) if len(a) else np.zeros(0)
     border = touching * grid.resolution
     passages = tuple(
