@@ -170,14 +170,17 @@ def _apply_preset_inference(args: argparse.Namespace) -> None:
     """Fill the inference options the command line left unset (None) with what the preset
     recommends (:func:`spcopyro.config.preset_inference`: ``auto`` starts from the rooms, adds
     merge moves and reports the VI point estimate), where they apply to this run, else with the
-    plain defaults (random start, no merge moves, the highest-log-joint state visited)."""
+    plain defaults (random start, no merge moves, the highest-log-joint state visited). The
+    start and the merge moves are Gibbs's: on the public houses the rooms start is one room, and
+    a variational method started there stays one concept (it has no move that splits)."""
     recommended = preset_inference(args.preset)
     # --resume continues chains that started as the preset says: their start is the preset's
     # (the checkpoint checks it), so only --update and --init-from start elsewhere.
     starts_elsewhere = any(x is not None for x in (args.update, args.init_from))
     samples = args.sweeps != "auto" and args.method in ("gibbs", "vi-gibbs")
-    if args.init is None:
-        args.init = "random" if starts_elsewhere else recommended.get("init", "random")
+    if args.init is None:  # the rooms start is Gibbs's: its merge (split) moves leave it
+        gibbs = args.method == "gibbs" and not starts_elsewhere
+        args.init = recommended.get("init", "random") if gibbs else "random"
     if args.merge_moves is None and args.method == "gibbs":
         args.merge_moves = recommended.get("merge_moves")
     if args.point_estimate is None:
@@ -603,7 +606,8 @@ def add_parser(subparsers: argparse._SubParsersAction, options: bool = True) -> 
         choices=INITS,
         default=None,
         help="starting labels: random, k-means Gaussians, SpCoA pre-learning, or one concept per "
-        "room of a geometric room segmentation (default: rooms with --preset auto, else random)",
+        "room of a geometric room segmentation (default: rooms for a Gibbs fit with --preset "
+        "coarse or auto, whose merge moves can split a room; else random)",
     )
     p.add_argument("--init-from", metavar="OUT",
                    help="start from the labels of an earlier fit's output folder on the same map "
