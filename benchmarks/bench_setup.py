@@ -16,7 +16,7 @@ from reference_loop import PerCellProblem, PerCellState, per_cell_sweep
 
 from spcopyro.config import SpCoConfig, SpCoSettings
 from spcopyro.data import House, load_house
-from spcopyro.fit import prepare_model_data
+from spcopyro.fit.house import prepare_model_data
 from spcopyro.gibbs import GibbsState, init
 from spcopyro.gibbs.backends import get_backend
 from spcopyro.gibbs.state import make_sweep_plan

@@ -40,7 +40,7 @@ from spcopyro.config import preset
 from spcopyro.data import find_dataset_root, load_house
 from spcopyro.data.model_grid import model_house
 from spcopyro.experiments.public_truth import public_truth
-from spcopyro.fit import prepare_model_data
+from spcopyro.fit.house import prepare_model_data
 from spcopyro.synthetic import HouseSpec, make_house
 
 VARIANTS = {

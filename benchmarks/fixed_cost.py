@@ -6,7 +6,7 @@ data, starting the chain, writing the outputs (labels, json, figures).
 Every run is ``python -m spcopyro fit DATA --preset P --sweeps S --seed 0 --out TMP
 [--no-figures]`` in a fresh subprocess (``CI=1``: no progress bars), this checkout's package
 first on ``PYTHONPATH``. Per run it reports the wall seconds the subprocess took and the fit's
-own breakdown, which ``fit`` writes to ``$SPCOPYRO_TIMINGS`` (:mod:`spcopyro.timings`):
+own breakdown, which ``fit`` writes to ``$SPCOPYRO_TIMINGS`` (:mod:`spcopyro._util.timings`):
 
 * ``startup``: launch to the start of ``fit``'s own work -- the interpreter, the imports, the
   argument parser (the launch time taken here, the start by the fit, both ``time.time()``);
@@ -131,7 +131,7 @@ def fit_once(
         "first_sweep_seconds": record["first_sweep_seconds"],
         "exit": wall - startup - record["total"],
         "pngs": pngs,
-        "imported": record.get("imported", []),  # of spcopyro.timings.OPTIONAL_HEAVY
+        "imported": record.get("imported", []),  # of spcopyro._util.timings.OPTIONAL_HEAVY
     }
     row["fit_outside_sweeps"] = row["fit"] - row["sweep_seconds"]
     row["wall_outside_sweeps"] = wall - row["sweep_seconds"]
@@ -326,7 +326,15 @@ def import_seconds() -> dict[str, float]:
     """Wall seconds of ``python -c 'import M'`` in a fresh interpreter, for the heavy modules a
     fit may import (the floor under the fixed cost: ``torch`` alone is most of it)."""
     seconds = {}
-    for module in ("pass", "numpy", "torch", "numba", "pyro", "matplotlib.figure", "spcopyro.cli"):
+    for module in (
+        "pass",
+        "numpy",
+        "torch",
+        "numba",
+        "pyro",
+        "matplotlib.figure",
+        "spcopyro.cli.main",
+    ):
         statement = module if module == "pass" else f"import {module}"
         start = time.perf_counter()
         subprocess.run([sys.executable, "-c", statement], check=True, env=_environment())

@@ -33,7 +33,7 @@ from machine import format_table, machine_info, progress
 from spcopyro.config import preset
 from spcopyro.data import find_dataset_root, load_house
 from spcopyro.experiments.methods import fit_spco
-from spcopyro.fit import prepare_model_data
+from spcopyro.fit.house import prepare_model_data
 from spcopyro.metrics import adjusted_rand_index
 from spcopyro.synthetic import HouseSpec, make_house
 

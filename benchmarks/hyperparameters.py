@@ -36,7 +36,7 @@ from machine import available_backends, format_table, machine_info, progress
 
 from spcopyro.config import preset
 from spcopyro.data import find_dataset_root, load_house
-from spcopyro.fit import prepare_model_data
+from spcopyro.fit.house import prepare_model_data
 from spcopyro.gibbs import GibbsOptions, run_gibbs
 from spcopyro.gibbs.hyper_options import HyperparameterOptions
 from spcopyro.gibbs.hyperparameters import hyperparameter_summary

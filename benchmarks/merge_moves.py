@@ -9,7 +9,7 @@ with the merge move timed separately. Reported per run:
 
 * concepts holding at least 1% of the free cells, in the last state and in the reported map
   (the highest-log-joint state visited, and the VI / Binder point estimates of
-  :mod:`spcopyro.point_estimate` over ~50 label maps of the second half);
+  :mod:`spcopyro.results.point_estimate` over ~50 label maps of the second half);
 * the adjusted Rand index of each of those maps against the ground truth (where the house has
   one);
 * seconds per sweep (whole step), seconds per split-merge move, and the moves proposed and
@@ -38,7 +38,7 @@ from machine import format_table, machine_info
 
 from spcopyro.config import preset
 from spcopyro.data import House, find_dataset_root, load_house
-from spcopyro.fit import prepare_model_data
+from spcopyro.fit.house import prepare_model_data
 from spcopyro.gibbs import GibbsOptions
 from spcopyro.gibbs.backends import get_backend
 from spcopyro.gibbs.merge import merge_move
@@ -46,7 +46,7 @@ from spcopyro.gibbs.sampler import init, step, trace_point
 from spcopyro.gibbs.state import make_sweep_plan
 from spcopyro.likelihood import log_joint_constant
 from spcopyro.metrics import adjusted_rand_index
-from spcopyro.point_estimate import point_estimate
+from spcopyro.results.point_estimate import point_estimate
 from spcopyro.synthetic import make_house
 
 SCRIPT_DIR = Path(__file__).resolve().parent

@@ -42,9 +42,9 @@ from spcopyro.config import DEFAULT_PRESET, preset
 from spcopyro.data import find_dataset_root, load_house, place_observations
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
-from spcopyro.fit import fit_house, preset_fit_kwargs
-from spcopyro.navigation import NavigationError, navigate, planning_grid
-from spcopyro.navigation.graph import shortest_paths
+from spcopyro.fit.house import fit_house, preset_fit_kwargs
+from spcopyro.robot.navigation import NavigationError, navigate, planning_grid
+from spcopyro.robot.navigation.graph import shortest_paths
 from spcopyro.synthetic import HouseSpec, make_house
 
 SYNTHETIC_RADIUS = 0.05

@@ -8,8 +8,8 @@ every seed:
 1. **old**: ``fit_house`` on the first two trials (trial ids 0 and 1: "trials 1-2"),
    S sweeps (default 5000, ``spcopyro fit``'s);
 2. **scratch**: ``fit_house`` on all three trials, S sweeps from random labels (the refit);
-3. **update**: :func:`spcopyro.online.start_update_chain` from the old fit with all three trials
-   (the saved labels and globals at sweep 0, new words under the prior), then Gibbs sweeps,
+3. **update**: :func:`spcopyro.robot.online.start_update_chain` from the old fit with all three
+trials (the saved labels and globals at sweep 0, new words under the prior), then Gibbs sweeps,
    read after N = 0, 25, 50, 100, 200, 300, 500, 1000 sweeps of one chain.
 
 Quality (all on the same model and data, so comparable): the **log joint** of the best state
@@ -53,13 +53,13 @@ from machine import format_table, machine_info, progress
 
 from spcopyro.config import preset
 from spcopyro.data import House, find_dataset_root, load_house
-from spcopyro.fit import fit_house, result_of
+from spcopyro.fit.house import fit_house, result_of
 from spcopyro.gibbs.method import output_from_run
 from spcopyro.gibbs.run import advance
 from spcopyro.gibbs.sampler import trace_point
 from spcopyro.metrics import adjusted_rand_index, matching_rate
-from spcopyro.online import start_update_chain
-from spcopyro.semantic_map import SpCoSemanticMap
+from spcopyro.results.semantic_map import SpCoSemanticMap
+from spcopyro.robot.online import start_update_chain
 from spcopyro.synthetic import make_house
 
 PUBLIC = ("room1dk5", "room1dk6", "room1ldk4", "room1ldk5", "room2ldk4")

@@ -43,11 +43,11 @@ from spcopyro.config import DEFAULT_PRESET, preset
 from spcopyro.data import find_dataset_root, load_house
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
-from spcopyro.fit import fit_house, preset_fit_kwargs
-from spcopyro.map_simulation import MapTour, simulate_on_map
+from spcopyro.fit.house import fit_house, preset_fit_kwargs
 from spcopyro.maps.coarse import coarsening_factor, refine_labels
 from spcopyro.metrics import adjusted_rand_index, heldout_word_prediction
-from spcopyro.semantic_map import SpCoSemanticMap
+from spcopyro.results.semantic_map import SpCoSemanticMap
+from spcopyro.robot.map_simulation import MapTour, simulate_on_map
 from spcopyro.synthetic import HouseSpec, make_house
 
 PRESETS = (DEFAULT_PRESET, "auto", "paper-dp")

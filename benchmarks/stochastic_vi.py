@@ -1,14 +1,14 @@
 #!/usr/bin/env python
 r"""Benchmark of memoized VI on spatial blocks (``--method stochastic-vi``) on maps of 10^6 cells.
 
-:mod:`spcopyro.variational.stochastic` visits the map one batch of square tiles at a time: the
+:mod:`spcopyro.guides.memoized` visits the map one batch of square tiles at a time: the
 tiles' q(C) are updated colour class by colour class against their boundary, their cached
 expected statistics are swapped, and the global Dirichlet factors are the prior plus the sum of
 all tiles' statistics (Hughes & Sudderth 2013). One *pass* visits every tile once. Measured in
 one run:
 
 1. **Small houses, against full-batch CAVI**
-   (:func:`~spcopyro.variational.run.run_variational`, float64 q): the synthetic default house
+   (:func:`~spcopyro.guides.run.run_variational`, float64 q): the synthetic default house
    and an easy one (30 images per room and trial, no open plan), the same settings, start and
    annealing for every row: final ELBO, ARI against the ground truth, seconds, seconds per pass.
 2. **A synthetic map of ~10^6 free cells** (:meth:`HouseSpec.scaled(1050, 1050)
@@ -87,7 +87,7 @@ def _problem(side: int | None, easy: bool = False, num_concepts: int = 20):
     """(house, model data, config, [N] truth) of a synthetic house: the default one (side None)
     or ``HouseSpec.scaled(side, side)``."""
     from spcopyro.config import preset
-    from spcopyro.fit import prepare_model_data
+    from spcopyro.fit.house import prepare_model_data
     from spcopyro.synthetic import HouseSpec, make_house
 
     if side is None:
@@ -127,9 +127,9 @@ def _stable(values: np.ndarray, aris: np.ndarray, gammas: np.ndarray, gamma: flo
 
 
 def bench_small(passes: int, anneal: int) -> list[dict[str, Any]]:
-    from spcopyro.variational.options import VariationalOptions
-    from spcopyro.variational.run import initial_q, run_variational
-    from spcopyro.variational.stochastic import StochasticOptions, run_stochastic
+    from spcopyro.guides.memoized import StochasticOptions, run_stochastic
+    from spcopyro.guides.options import VariationalOptions
+    from spcopyro.guides.run import initial_q, run_variational
 
     variants = [
         ("memoized 16x16, 1 block/step", dict(block_size=16)),
@@ -175,7 +175,7 @@ def bench_small(passes: int, anneal: int) -> list[dict[str, Any]]:
 
 def child_stochastic(side: int, passes: int, anneal: int, block: int, per_step: int) -> dict:
     """Memoized VI on the ``side x side`` map: times, ELBO and ARI per pass, memory."""
-    from spcopyro.variational.stochastic import (
+    from spcopyro.guides.memoized import (
         StochasticOptions,
         compact_initial_q,
         run_stochastic,
@@ -250,7 +250,7 @@ def child_stochastic(side: int, passes: int, anneal: int, block: int, per_step: 
 
 def child_cavi(side: int, iterations: int) -> dict:
     """Full-batch CAVI (float64 q, dense reference update) on the same map."""
-    from spcopyro.variational.run import initial_q, run_variational
+    from spcopyro.guides.run import initial_q, run_variational
 
     rss_import = _max_rss_bytes()
     _, data, config, truth = _problem(side)

@@ -3,9 +3,9 @@
 
 On the 3-room synthetic house of the tests (``make_house(seed=1, HouseSpec(40, 50, 3 rooms, 3
 trials))``, 1299 free cells, preset ``original-code`` with gamma 3, L = 8), for each start seed:
-SVI (:func:`spcopyro.guides.method.fit_svi`, its default options) for ``--steps`` steps and CAVI
+SVI (:func:`spcopyro.guides.svi_method.fit_svi`, its default options) for ``--steps`` steps and CAVI
 (dense torch reference, gamma annealed over 30 of 60 iterations) from the same random q; both
-scored by the exact ELBO (:func:`spcopyro.variational.elbo.elbo`) at their final parameters and by
+scored by the exact ELBO (:func:`spcopyro.guides.elbo.elbo`) at their final parameters and by
 the ARI of argmax q against the ground truth. Also SVI's traced estimate (mean of its last 20
 steps) beside the exact ELBO.
 
@@ -29,13 +29,13 @@ import torch
 from machine import format_table, machine_info, progress
 
 from spcopyro.config import preset
-from spcopyro.fit import prepare_model_data
-from spcopyro.guides.method import SVIOptions, fit_svi
+from spcopyro.fit.house import prepare_model_data
+from spcopyro.guides.elbo import elbo
+from spcopyro.guides.options import VariationalOptions
+from spcopyro.guides.run import initial_q, run_variational
+from spcopyro.guides.svi_method import SVIOptions, fit_svi
 from spcopyro.metrics import adjusted_rand_index
 from spcopyro.synthetic import HouseSpec, make_house
-from spcopyro.variational.elbo import elbo
-from spcopyro.variational.options import VariationalOptions
-from spcopyro.variational.run import initial_q, run_variational
 
 SCRIPT_DIR = Path(__file__).resolve().parent
 

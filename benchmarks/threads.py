@@ -1,5 +1,6 @@
 #!/usr/bin/env python
-r"""Threads that do not fight: torch's default intra-op threads against :mod:`spcopyro.threads`.
+r"""Threads that do not fight: torch's default intra-op threads against
+:mod:`spcopyro._util.threads`.
 
 A Gibbs sweep is hundreds of small torch operations; with T > 1 intra-op threads each of them
 forks and joins an OpenMP team, and on a machine that is doing anything else every join waits for
@@ -8,7 +9,8 @@ the thread the scheduler set aside. This benchmark measures, in one run:
 1. **Under load.** ``run_gibbs`` for S sweeps (the loop a fit runs: sweep, log joint, trace) on
    room1dk5 (public dataset; skipped with a note when absent) and the default synthetic house,
    both backends, under torch's default thread count and under the policy
-   (:func:`spcopyro.threads.resolve_threads` with ``"auto"``), first as the machine is ("idle":
+   (:func:`spcopyro._util.threads.resolve_threads` with ``"auto"``), first as the machine is
+   ("idle":
    the CPU time other processes used meanwhile is reported) and then next to a busy neighbour:
    ``--busy-cores`` processes started by the benchmark that spin, each bounded in time and killed
    when the condition ends, also on error or Ctrl-C. The settings alternate within a condition
@@ -16,7 +18,7 @@ the thread the scheduler set aside. This benchmark measures, in one run:
    The final labels of both settings are compared: the thread count must not change them.
 2. **Threshold.** Synthetic maps of ~1e4 to ~1e6 free cells (``HouseSpec.scaled``), both
    backends, one thread against the default, on the machine as it is: where more threads start to
-   pay. :data:`spcopyro.threads.MIN_CELLS_FOR_MORE_THREADS` is read off this table.
+   pay. :data:`spcopyro._util.threads.MIN_CELLS_FOR_MORE_THREADS` is read off this table.
 
 Usage::
 
@@ -56,13 +58,13 @@ from machine import (
     wait_until_idle,
 )
 
+from spcopyro._util.threads import MIN_CELLS_FOR_MORE_THREADS, resolve_threads, torch_threads
 from spcopyro.config import preset
 from spcopyro.data import House, find_dataset_root, load_house
-from spcopyro.fit import prepare_model_data
+from spcopyro.fit.house import prepare_model_data
 from spcopyro.gibbs import GibbsOptions, run_gibbs
 from spcopyro.model import ModelData
 from spcopyro.synthetic import HouseSpec, make_house
-from spcopyro.threads import MIN_CELLS_FOR_MORE_THREADS, resolve_threads, torch_threads
 
 PUBLIC_HOUSE = "room1dk5"
 PRESET = "paper-dp"

@@ -1,8 +1,8 @@
-"""Benchmark mean-field CAVI (spcopyro.variational) against the compiled Gibbs sweep.
+"""Benchmark mean-field CAVI (spcopyro.guides) against the compiled Gibbs sweep.
 
 1. **Per iteration**: seconds per CAVI iteration (label pass + globals + ELBO + concepts in use,
-   what :func:`~spcopyro.variational.run.run_variational` does each iteration) of the dense torch
-   reference and of the compiled sparse backend (:mod:`spcopyro.variational.numba_cavi`, default
+   what :func:`~spcopyro.guides.run.run_variational` does each iteration) of the dense torch
+   reference and of the compiled sparse backend (:mod:`spcopyro.guides.numba_cavi`, default
    options, and with a cap of K = 8 concepts a cell), and seconds per compiled Gibbs sweep
    (:func:`~spcopyro.gibbs.run.run_gibbs`'s sweep + log joint), on room2ldk4 (``paper-dp``) and
    the embedded synthetic house, at L = 10 and 120, all measured in the same run; the ratio
@@ -33,15 +33,15 @@ from machine import format_table, machine_info, progress, wait_until_idle
 
 from spcopyro.config import SpCoSettings, preset
 from spcopyro.data import find_dataset_root, load_house
-from spcopyro.fit import prepare_model_data
+from spcopyro.fit.house import prepare_model_data
 from spcopyro.gibbs import init
 from spcopyro.gibbs.backends import get_backend
 from spcopyro.gibbs.state import make_sweep_plan
+from spcopyro.guides.options import VariationalOptions
+from spcopyro.guides.run import initial_q, run_variational
 from spcopyro.likelihood import expected_agreements, log_joint_variable
 from spcopyro.model import ModelData, potts_agreements
 from spcopyro.synthetic import make_house
-from spcopyro.variational.options import VariationalOptions
-from spcopyro.variational.run import initial_q, run_variational
 
 PRESET = "paper-dp"  # the ordering table's preset
 TIMED_PRESETS = ("paper-dp", "original-code")  # the per-iteration table's

@@ -7,13 +7,13 @@ the labels being the same (the MAP-visited state):
 
 * ``draw``: pi, theta and w as drawn at that state (what results held before issue 14);
 * ``mean given labels``: their posterior means given those labels
-  (:func:`spcopyro.posterior_means.posterior_means`);
+  (:func:`spcopyro.results.posterior_means.posterior_means`);
 * ``mean over samples``: those means averaged over the kept label maps (what ``spcopyro fit``
   reports with ``--marginal-samples``, its default).
 
 Scores: the matching rate (eq. 18, places by eq. 19) with the pi prior and with the area prior
-(:class:`spcopyro.semantic_map.SpCoSemanticMap`), and the share of the concepts in use where a
-word was heard whose top word (the most probable) names the category that holds most of the
+(:class:`spcopyro.results.semantic_map.SpCoSemanticMap`), and the share of the concepts in use
+where a word was heard whose top word (the most probable) names the category that holds most of the
 concept's cells.
 
 Usage::
@@ -38,13 +38,13 @@ import numpy as np
 import torch
 
 from spcopyro.config import preset
-from spcopyro.fit import prepare_model_data, result_of
-from spcopyro.fit_gibbs import with_sample_marginals
+from spcopyro.fit.gibbs_chains import with_sample_marginals
+from spcopyro.fit.house import prepare_model_data, result_of
 from spcopyro.gibbs.method import GibbsInference
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.metrics import matching_rate
-from spcopyro.results import SpCoResult
-from spcopyro.semantic_map import SpCoSemanticMap
+from spcopyro.results.result import SpCoResult
+from spcopyro.results.semantic_map import SpCoSemanticMap
 from spcopyro.synthetic import HouseSpec, make_house
 
 SETTINGS = {

@@ -1,5 +1,5 @@
 """``python -m spcopyro ...``: the ``spcopyro`` command."""
 
-from spcopyro.cli import console_main
+from spcopyro.cli.main import console_main
 
 console_main()

@@ -15,11 +15,11 @@ from __future__ import annotations
 import pyro.poutine as poutine
 import torch
 
+from spcopyro._util.random_draws import sample_log_dirichlet
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.state import GibbsState, make_sweep_plan
 from spcopyro.gibbs.sweep import sample_labels
 from spcopyro.model import DTYPE, SITE_LABELS, SITE_PI, ModelData, spcomapping_model
-from spcopyro.random_draws import sample_log_dirichlet
 
 
 def sample_observations(state: GibbsState, data: ModelData, config: SpCoConfig) -> ModelData:

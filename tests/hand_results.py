@@ -7,7 +7,7 @@ import numpy as np
 
 from spcopyro.config import SpCoConfig
 from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
-from spcopyro.results import EmissionTable, SpCoResult, Trace
+from spcopyro.results.result import EmissionTable, SpCoResult, Trace
 
 WORDS = ("kitchen", "bed", "sofa")
 

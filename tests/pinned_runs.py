@@ -116,7 +116,7 @@ def _result_arrays(result) -> dict[str, np.ndarray]:
 
 def fit_scenario(backend: str, preset_name: str, **options) -> dict[str, np.ndarray]:
     from spcopyro.config import preset
-    from spcopyro.fit import fit_house
+    from spcopyro.fit.house import fit_house
     from spcopyro.gibbs import GibbsOptions
 
     overrides = options.pop("overrides", {})
@@ -130,7 +130,7 @@ def fit_scenario(backend: str, preset_name: str, **options) -> dict[str, np.ndar
 
 def converged_scenario(backend: str, max_sweeps: int = 30) -> dict[str, np.ndarray]:
     from spcopyro.config import preset
-    from spcopyro.fit import fit_house_converged
+    from spcopyro.fit.house import fit_house_converged
     from spcopyro.gibbs import GibbsOptions
 
     settings = preset("original-code", gamma=3.0, num_concepts=12)
@@ -154,7 +154,7 @@ def mcmc_scenario(backend: str) -> dict[str, np.ndarray]:
     from pyro.infer import MCMC
 
     from spcopyro.config import preset
-    from spcopyro.fit import prepare_model_data
+    from spcopyro.fit.house import prepare_model_data
     from spcopyro.gibbs import GibbsOptions
     from spcopyro.gibbs.kernel import SpCoGibbs
 
@@ -175,7 +175,7 @@ def prior_scenario() -> dict[str, np.ndarray]:
     import pyro
 
     from spcopyro.config import preset
-    from spcopyro.fit import prepare_model_data
+    from spcopyro.fit.house import prepare_model_data
     from spcopyro.simulate import sample_prior_world
 
     settings = preset("original-code", gamma=3.0, num_concepts=8, feature_scaling="floor100")

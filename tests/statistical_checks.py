@@ -24,13 +24,13 @@ from gibbs_problems import all_labelings, model_data, random_problem, replicate_
 from pyro.ops.stats import effective_sample_size
 from scipy import stats
 
+from spcopyro._util.random_draws import sample_log_dirichlet
 from spcopyro.gibbs.backends import get_backend
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.sampler import init, step
 from spcopyro.gibbs.state import GibbsState, make_sweep_plan
 from spcopyro.gibbs.sweep import label_log_conditionals
 from spcopyro.model import DTYPE, ModelData, potts_agreements, spcomapping_model
-from spcopyro.random_draws import sample_log_dirichlet
 from spcopyro.simulate import sample_observations
 
 # -- the reference against the model --------------------------------------------------------------
@@ -77,8 +77,8 @@ class Samplers(NamedTuple):
 def backend_samplers(name: str) -> Samplers:
     """The label, globals and log-gamma samplers of the backend called ``name``."""
     if name == "torch":
+        from spcopyro._util.random_draws import sample_log_gamma
         from spcopyro.gibbs.sweep import sample_globals, sample_labels
-        from spcopyro.random_draws import sample_log_gamma
 
         def log_gamma(shapes: np.ndarray, seed: int) -> np.ndarray:
             generator = torch.Generator().manual_seed(seed)

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from spcopyro.cli import main
+from spcopyro.cli.main import main
 from spcopyro.data import load_house
 from spcopyro.experiments.ablation import (
     AblationSettings,

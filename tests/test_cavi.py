@@ -1,4 +1,4 @@
-"""Mean-field CAVI (spcopyro.variational): the ELBO's monotonicity, the compiled sparse backend
+"""Mean-field CAVI (spcopyro.guides): the ELBO's monotonicity, the compiled sparse backend
 against the dense torch reference, coordinate optimality of each step, the analytic ELBO against
 a Monte-Carlo estimate from the Pyro model's density, thinning and quality on a synthetic house."""
 
@@ -14,21 +14,21 @@ from statistical_checks import model_log_density
 from test_modalities import objects_config, with_objects
 
 from spcopyro.config import preset
-from spcopyro.fit import prepare_model_data
+from spcopyro.fit.house import prepare_model_data
 from spcopyro.gibbs.state import GibbsState
+from spcopyro.guides.cavi import update_globals, update_labels
+from spcopyro.guides.cavi_method import CAVIInference
+from spcopyro.guides.elbo import elbo
+from spcopyro.guides.factors import GlobalFactors, update_factors
+from spcopyro.guides.options import VariationalOptions
+from spcopyro.guides.run import initial_q, run_variational
 from spcopyro.likelihood import concept_statistics
 from spcopyro.metrics.truth import adjusted_rand_index
 from spcopyro.model import DTYPE
 from spcopyro.synthetic import make_house
-from spcopyro.variational.cavi import update_globals, update_labels
-from spcopyro.variational.elbo import elbo
-from spcopyro.variational.factors import GlobalFactors, update_factors
-from spcopyro.variational.method import CAVIInference
-from spcopyro.variational.options import VariationalOptions
-from spcopyro.variational.run import initial_q, run_variational
 
 try:  # the compiled backend is the fast extra's; the torch reference's tests run without it
-    from spcopyro.variational import numba_cavi
+    from spcopyro.guides import numba_cavi
 except ImportError:
     numba_cavi = None
 needs_numba = pytest.mark.skipif(numba_cavi is None, reason="numba is not installed (.[fast])")
@@ -453,7 +453,7 @@ def test_dirichlet_kl_equals_torch_distributions():
     entries equal to the prior (rows equal to it, single entries, broadcast prior)."""
     from torch.distributions import Dirichlet, kl_divergence
 
-    from spcopyro.variational.factors import dirichlet_kl
+    from spcopyro.guides.factors import dirichlet_kl
 
     generator = torch.Generator().manual_seed(0)
     a = torch.rand(6, 5, generator=generator, dtype=DTYPE) * 30 + 0.01

@@ -107,7 +107,7 @@ def test_workers_resolve_to_at_most_one_per_chain():
 
 def test_fit_with_parallel_chains_gives_the_sequential_fit():
     from spcopyro.config import preset
-    from spcopyro.fit import fit_house_chains
+    from spcopyro.fit.house import fit_house_chains
     from spcopyro.synthetic import HouseSpec, make_house
 
     house = make_house(seed=2, spec=HouseSpec(height=40, width=50, num_rooms=3, num_trials=1))
@@ -121,7 +121,7 @@ def test_fit_with_parallel_chains_gives_the_sequential_fit():
 
 
 def test_fit_command_line_chain_workers_option(capsys):
-    from spcopyro.cli import build_parser
+    from spcopyro.cli.main import build_parser
 
     parse = build_parser().parse_args
     assert parse(["fit", "--out", "x"]).chain_workers == "auto"

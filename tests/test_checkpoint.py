@@ -18,10 +18,11 @@ import pytest
 import torch
 from gibbs_problems import config, random_problem
 
-import spcopyro.fit
+import spcopyro.fit.house
 import spcopyro.gibbs.chains
 import spcopyro.gibbs.run as run_module
-from spcopyro.cli import main
+from spcopyro._util.outputs import checkpoint_path
+from spcopyro.cli.main import main
 from spcopyro.gibbs.checkpoint import (
     data_fingerprint,
     load_chain,
@@ -32,7 +33,6 @@ from spcopyro.gibbs.checkpoint import (
 )
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsRun, advance, run_gibbs, start_chain
-from spcopyro.outputs import checkpoint_path
 from spcopyro.synthetic import HouseSpec, write_synthetic
 
 FIT = ["--sweeps", "12", "--preset", "original-code", "--gamma", "3", "--concepts", "8",
@@ -336,7 +336,7 @@ def test_a_fit_into_out_with_a_checkpoint_must_resume_or_overwrite(
 
 
 def test_ctrl_c_while_writing_keeps_the_finished_chains(room, tmp_path, capsys, monkeypatch):
-    import spcopyro.plotting
+    import spcopyro.figures.plotting
 
     out = tmp_path / "out"
     argv = ["fit", str(room), "--out", str(out), *FIT]
@@ -345,7 +345,7 @@ def test_ctrl_c_while_writing_keeps_the_finished_chains(room, tmp_path, capsys, 
         raise KeyboardInterrupt
 
     with monkeypatch.context() as patch:
-        patch.setattr(spcopyro.plotting, "plot_semantic_map", interrupted_drawing)
+        patch.setattr(spcopyro.figures.plotting, "plot_semantic_map", interrupted_drawing)
         assert main(argv) == 130
     err = capsys.readouterr().err
     assert err.startswith("interrupted while writing the outputs: nothing written to")
@@ -392,7 +392,7 @@ def test_a_real_ctrl_c_in_a_fit_process(room, tmp_path, sent):
     the last line says where the checkpoint is, which holds the sweeps done."""
     out = tmp_path / "out"
     env = {k: v for k, v in os.environ.items() if k != "CI"}  # the progress bar shows sweeping
-    env["PYTHONPATH"] = str(Path(spcopyro.fit.__file__).parents[1])
+    env["PYTHONPATH"] = str(Path(spcopyro.fit.house.__file__).parents[1])
     argv = ["fit", str(room), "--out", str(out), "--sweeps", "1000000", "--concepts", "8"]
     process = subprocess.Popen([sys.executable, "-m", "spcopyro", *argv], env=env,
                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
@@ -417,7 +417,7 @@ def test_a_real_ctrl_c_in_a_fit_process(room, tmp_path, sent):
 def test_a_killed_runs_staging_folder_is_removed_by_the_next_run_into_out(room, tmp_path):
     """Issue 22 item 7: ``kill -9`` leaves ``OUT.partial-PID-*``; the next fit into the same
     OUT removes it (its process is gone) and leaves a live process's staging alone."""
-    from spcopyro.outputs import remove_stale_stagings, staging_prefix
+    from spcopyro._util.outputs import remove_stale_stagings, staging_prefix
 
     out = tmp_path / "out"
     dead = subprocess.Popen([sys.executable, "-c", "pass"])

@@ -9,9 +9,9 @@ import json
 import numpy as np
 import pytest
 
-from spcopyro.cli import main
+from spcopyro.cli.main import main
 from spcopyro.data import load_house
-from spcopyro.results import SpCoResult, UnknownWordError
+from spcopyro.results.result import SpCoResult, UnknownWordError
 from spcopyro.synthetic import HouseSpec, write_synthetic
 
 
@@ -104,7 +104,7 @@ def test_bad_input_is_one_clear_line(tmp_path, capsys):
 
 def test_result_round_trips_and_answers_where(small_house, tmp_path):
     from spcopyro.config import preset
-    from spcopyro.fit import fit_house
+    from spcopyro.fit.house import fit_house
 
     house = load_house(small_house)
     result = fit_house(house, preset("original-code", gamma=3.0, num_concepts=10), sweeps=10,
@@ -161,7 +161,7 @@ def test_result_round_trips_every_field(small_house, tmp_path):
     result as a variational method would hand it (ELBO trace, marginals, no last state) both
     read back field for field."""
     from spcopyro.config import preset
-    from spcopyro.fit import fit_house
+    from spcopyro.fit.house import fit_house
     from spcopyro.gibbs.options import GibbsOptions
 
     house = load_house(small_house)
@@ -199,7 +199,7 @@ def test_loading_an_old_result_says_to_fit_again(small_house, tmp_path, capsys):
     """A folder written before results became method-neutral (result.npz with labels_best,
     theta, w; a flat config.json) gives one clear error, also through `spcopyro where`."""
     from spcopyro.config import preset
-    from spcopyro.fit import fit_house
+    from spcopyro.fit.house import fit_house
 
     house = load_house(small_house)
     result = fit_house(house, preset("original-code", gamma=3.0, num_concepts=4), sweeps=2,

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from spcopyro.cli import build_parser, main
+from spcopyro.cli.main import build_parser, main
 from spcopyro.synthetic import HouseSpec, write_synthetic
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -28,7 +28,7 @@ _PROGRAM = f"""
 import json, sys
 sys.argv = ["spcopyro", *json.loads(sys.argv[1])]
 try:
-    from spcopyro.cli import console_main
+    from spcopyro.cli.main import console_main
     console_main()
 finally:
     print({MARK!r}, json.dumps(sorted(m for m in {HEAVY!r} if m in sys.modules)), flush=True)
@@ -57,7 +57,7 @@ def saved_fit(tmp_path_factory) -> tuple[Path, Path]:
     """A house folder and a fit of it saved with the library (a few sweeps)."""
     from spcopyro.config import preset
     from spcopyro.data import load_house
-    from spcopyro.fit import fit_house
+    from spcopyro.fit.house import fit_house
 
     root = tmp_path_factory.mktemp("startup")
     house_dir = write_synthetic(root / "data", seed=1, spec=HouseSpec(height=40, width=50,

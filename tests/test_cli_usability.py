@@ -14,7 +14,7 @@ from gibbs_problems import random_problem
 import spcopyro.gibbs.convergence
 import spcopyro.gibbs.run
 from spcopyro import __version__
-from spcopyro.cli import build_parser, main
+from spcopyro.cli.main import build_parser, main
 from spcopyro.gibbs.convergence import run_until_converged
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.synthetic import HouseSpec, write_synthetic
@@ -130,7 +130,7 @@ def test_fit_reports_the_wall_time_of_the_whole_fit(
     small_house, tmp_path, capsys, monkeypatch, options, reported
 ):
     clock = iter([100.0, 142.5])  # the fit starts at 100 s and ends at 142.5 s
-    monkeypatch.setattr("spcopyro.cli_fit._clock", lambda: next(clock))
+    monkeypatch.setattr("spcopyro.cli.fit._clock", lambda: next(clock))
     argv = ["fit", str(small_house), "--out", str(tmp_path / "fit"), "--backend", "torch",
             "--preset", "original-code", "--gamma", "3", "--concepts", "10", *options]  # fmt: skip
     assert main(argv) == 0
@@ -167,7 +167,7 @@ def test_a_full_disk_is_said_in_words():
     """Issue 22 item 10: a full disk gave a bare "[Errno 28] No space left on device"."""
     import errno
 
-    from spcopyro.cli import _error_line
+    from spcopyro.cli.main import _error_line
 
     full = OSError(errno.ENOSPC, "No space left on device", "/data/out/labels.npy")
     line = _error_line(full)

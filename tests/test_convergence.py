@@ -12,10 +12,10 @@ import torch
 from gibbs_problems import config as small_config
 from gibbs_problems import random_problem
 
-from spcopyro.cli import main
+from spcopyro.cli.main import main
 from spcopyro.config import SpCoConfig, SpCoSettings
 from spcopyro.data import cell_counts
-from spcopyro.fit import fit_house_converged
+from spcopyro.fit.house import fit_house_converged
 from spcopyro.gibbs.convergence import check_convergence, run_until_converged, split_rhat
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import run_gibbs

@@ -1,5 +1,5 @@
 """The warning of a degenerate map (issue 21, item 5): one concept over most of the free cells
-while words said at different places lie inside it (:mod:`spcopyro.map_checks`)."""
+while words said at different places lie inside it (:mod:`spcopyro.results.map_checks`)."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from spcopyro.config import preset
-from spcopyro.fit import fit_house
-from spcopyro.map_checks import (
+from spcopyro.fit.house import fit_house
+from spcopyro.results.map_checks import (
     DEGENERATE_SEPARATION,
     DEGENERATE_SHARE,
     NAMED_WORDS,
@@ -104,9 +104,9 @@ def test_a_map_whose_resolution_is_twice_too_large_is_warned_about(caplog):
     import logging
 
     from spcopyro.config import preset
-    from spcopyro.fit import prepare_model_data
-    from spcopyro.map_checks import coverage_warning
+    from spcopyro.fit.house import prepare_model_data
     from spcopyro.maps import OccupancyGrid
+    from spcopyro.results.map_checks import coverage_warning
     from spcopyro.synthetic import HouseSpec, make_house
 
     house = make_house(seed=0, spec=HouseSpec())

@@ -1,4 +1,4 @@
-"""The tiny-map enumerator (spcopyro.variational.exact) against the Pyro model itself, and the
+"""The tiny-map enumerator (spcopyro.guides.testing) against the Pyro model itself, and the
 approximate methods (mean field, loopy BP, Gibbs, the CAVI ELBO) against the enumerator."""
 
 from __future__ import annotations
@@ -11,12 +11,13 @@ from gibbs_problems import config, model_data, replicate_grid, tiny_grid
 from scipy import stats
 from torch.distributions import Dirichlet
 
+from spcopyro._util.random_draws import sample_log_dirichlet
 from spcopyro.gibbs.state import GibbsState, make_sweep_plan
 from spcopyro.gibbs.sweep import sample_labels
-from spcopyro.model import DTYPE, Modality, spcomapping_model
-from spcopyro.random_draws import sample_log_dirichlet
-from spcopyro.variational.cavi import update_labels
-from spcopyro.variational.exact import (
+from spcopyro.guides.cavi import update_labels
+from spcopyro.guides.options import VariationalOptions
+from spcopyro.guides.run import initial_q, run_variational
+from spcopyro.guides.testing import (
     MAX_LABELLINGS,
     all_labellings,
     exact_log_evidence,
@@ -25,9 +26,8 @@ from spcopyro.variational.exact import (
     labelling_log_evidence,
     labelling_log_joint,
 )
-from spcopyro.variational.options import VariationalOptions
-from spcopyro.variational.run import initial_q, run_variational
-from spcopyro.variational.tiny_maps import compare_on_tiny_map, labelled_factors, tiny_map
+from spcopyro.guides.tiny_maps import compare_on_tiny_map, labelled_factors, tiny_map
+from spcopyro.model import DTYPE, Modality, spcomapping_model
 
 SQUARE = ("...", "...", "...")
 
@@ -184,7 +184,7 @@ LBP_BOUND = {0.5: 0.005, 1.0: 0.07}
 def test_mean_field_and_lbp_marginals_against_exact(L, gamma):
     """3x3 free cells, globals fixed: CAVI (update_labels iterated) and LBP against the exact
     marginals of the same field, on 3 maps. Largest absolute errors over the 10 maps of
-    spcopyro.variational.tiny_maps.marginal_error_study (README notes): gamma 0.5: mean field
+    spcopyro.guides.tiny_maps.marginal_error_study (README notes): gamma 0.5: mean field
     0.059 (L=2) / 0.038 (L=3), LBP 0.003 / 0.002; gamma 1.0: mean field 0.38 / 0.32, LBP
     0.045 / 0.050. The bounds sit above those; LBP's mean error must be at least 5x smaller than
     mean field's (measured on average: 11x to 45x), and mean field is over-confident (its cells'

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from spcopyro.cli import main
+from spcopyro.cli.main import main
 from spcopyro.experiments.methods import (
     METHOD_LABELS,
     METHODS,

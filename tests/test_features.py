@@ -473,7 +473,7 @@ def test_resolve_device():
 @pytest.mark.dataset
 def test_extracted_ft_csv_loads_with_load_house_and_fits(dataset_root, model, tmp_path):
     from spcopyro.config import preset
-    from spcopyro.fit import fit_house
+    from spcopyro.fit.house import fit_house
 
     house = load_house(dataset_root / "room1dk5")
     obs = house.observations

@@ -8,16 +8,7 @@ import numpy as np
 import pytest
 from hand_results import two_rooms
 
-from spcopyro.maps import (
-    RGB_OCCUPIED,
-    concept_colours,
-    distinct_colours,
-    label_colours,
-    region_adjacency,
-    render_labels,
-)
-from spcopyro.maps.palette import delta_e, srgb_to_lab
-from spcopyro.plotting import (
+from spcopyro.figures.plotting import (
     ANSWER_RGB,
     GREY_FREE_RGB,
     RUNNER_UP_RGB,
@@ -28,6 +19,15 @@ from spcopyro.plotting import (
     semantic_map_image,
     where_image,
 )
+from spcopyro.maps import (
+    RGB_OCCUPIED,
+    concept_colours,
+    distinct_colours,
+    label_colours,
+    region_adjacency,
+    render_labels,
+)
+from spcopyro.maps.palette import delta_e, srgb_to_lab
 
 
 def smallest_difference(colours: np.ndarray) -> float:
@@ -149,7 +149,7 @@ def test_words_no_font_can_draw_are_told_once_in_words(tmp_path, caplog, monkeyp
     their glyphs, the figures say so once (and matplotlib's per-glyph warnings stay quiet)."""
     import logging
 
-    import spcopyro.plotting as plotting
+    import spcopyro.figures.plotting as plotting
 
     monkeypatch.setattr(plotting, "CJK_FONTS", ())  # as on a machine without such a font
     monkeypatch.setattr(plotting, "_warned_glyphs", set())
@@ -164,7 +164,7 @@ def test_words_no_font_can_draw_are_told_once_in_words(tmp_path, caplog, monkeyp
 def test_an_installed_japanese_font_draws_the_words(tmp_path, caplog, monkeypatch):
     import logging
 
-    import spcopyro.plotting as plotting
+    import spcopyro.figures.plotting as plotting
 
     if len(plotting._font_families()) < 2:
         pytest.skip("no font with Japanese glyphs installed (e.g. fonts-ipafont-gothic)")

@@ -1,5 +1,5 @@
 """The fit's fixed cost (issue #15 item 2): ``fit --no-figures``, the phase timings
-(:mod:`spcopyro.timings`) and the heavy optional modules kept off the fit's import path.
+(:mod:`spcopyro._util.timings`) and the heavy optional modules kept off the fit's import path.
 
 Nothing here times anything: ``benchmarks/fixed_cost.py`` measures the seconds.
 """
@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from spcopyro.cli import main
-from spcopyro.timings import OPTIONAL_HEAVY, TIMINGS_ENV, Phases
+from spcopyro._util.timings import OPTIONAL_HEAVY, TIMINGS_ENV, Phases
+from spcopyro.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -70,7 +70,7 @@ def test_the_fit_path_imports_no_optional_heavy_module():
     """Importing the command (and the fit) loads none of matplotlib, scikit-learn, torchvision
     and the scipy subpackages a fit uses only in some configurations."""
     code = (
-        "import sys, spcopyro.cli, spcopyro.fit, spcopyro.gibbs.backends; "
+        "import sys, spcopyro.cli.main, spcopyro.fit.house, spcopyro.gibbs.backends; "
         f"print(sorted(m for m in sys.modules if m in {list(OPTIONAL_HEAVY)!r}))"
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -89,7 +89,7 @@ def test_the_command_exits_with_mains_code():
 def test_point_estimate_tables_over_pairs_equal_the_cells_tables(rng):
     """The point estimate's contingency tables, summed over (cluster, sample column) pairs,
     equal :func:`contingency` over the cells, and its distinct columns are np.unique's."""
-    from spcopyro import point_estimate as pe
+    from spcopyro.results import point_estimate as pe
 
     for trial in range(30):
         samples = rng.integers(0, 1 + trial % 5, size=(1 + trial % 6, 40 + trial))  # [S, N]

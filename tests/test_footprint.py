@@ -21,7 +21,7 @@ from scipy import stats
 from statistical_checks import assert_conditionals_match_model, backend_samplers, model_log_density
 from test_benchmarks import run_benchmark
 
-from spcopyro.cli import main
+from spcopyro.cli.main import main
 from spcopyro.config import DataPreparation, preset
 from spcopyro.data import ModalityObservations, Observations, cell_counts, place_observations
 from spcopyro.data.footprint import footprint_weights, free_cell_graph, spread_counts
@@ -29,10 +29,10 @@ from spcopyro.distributions import multinomial_counts_log_prob
 from spcopyro.gibbs.sampler import init
 from spcopyro.gibbs.state import make_sweep_plan
 from spcopyro.gibbs.sweep import label_log_conditionals
+from spcopyro.guides.options import VariationalOptions
+from spcopyro.guides.run import initial_q, run_variational
 from spcopyro.likelihood import concept_statistics
 from spcopyro.model import make_model_data
-from spcopyro.variational.options import VariationalOptions
-from spcopyro.variational.run import initial_q, run_variational
 
 # 0.1 m cells, origin (0, 0): a wall down column 5 with a doorway in row 5 (the bottom row)
 ROWS = [
@@ -382,7 +382,7 @@ def test_dirichlet_posterior_counts_are_the_weighted_sums(problem, name):
 @pytest.mark.parametrize("backend", ["torch", "numba"])
 def test_cavi_elbo_never_decreases_with_footprint(problem, backend):
     if backend == "numba":
-        pytest.importorskip("spcopyro.variational.numba_cavi")
+        pytest.importorskip("spcopyro.guides.numba_cavi")
     _, _, _, data = footprint_data(problem)
     cfg = objects_cfg(num_concepts=4, gamma=1.2)
     exact = dict(support=0, threshold=0.0, active_tolerance=0.0) if backend == "numba" else {}

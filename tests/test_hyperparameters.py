@@ -23,6 +23,7 @@ from gibbs_problems import all_labelings, config, model_data, random_problem, re
 from pyro.ops.stats import effective_sample_size
 from statistical_checks import Z_LIMIT, draw_counts, model_log_density
 
+from spcopyro._util.random_draws import sample_log_dirichlet
 from spcopyro.gibbs.backends import get_backend
 from spcopyro.gibbs.checkpoint import load_chain, save_chain
 from spcopyro.gibbs.hyper_options import HyperparameterOptions
@@ -43,10 +44,9 @@ from spcopyro.gibbs.run import advance, start_chain
 from spcopyro.gibbs.sampler import init, step
 from spcopyro.gibbs.state import GibbsState, make_sweep_plan
 from spcopyro.gibbs.sweep import label_log_conditionals
-from spcopyro.inference import with_options
+from spcopyro.inference.protocol import with_options
 from spcopyro.likelihood import concept_statistics
 from spcopyro.model import DTYPE, potts_agreements
-from spcopyro.random_draws import sample_log_dirichlet
 
 
 def _state(data, cfg, seed: int) -> GibbsState:
@@ -550,7 +550,7 @@ def test_fit_command_reports_the_inferred_hyperparameters(tmp_path, capsys):
     """``fit --method-option hyper.NAME=VALUE``: the summary line and config.json's record."""
     import json
 
-    from spcopyro.cli import main
+    from spcopyro.cli.main import main
     from spcopyro.synthetic import HouseSpec, write_synthetic
 
     house = write_synthetic(

@@ -11,7 +11,7 @@ import pytest
 import torch
 from scipy.signal import lfilter
 
-from spcopyro.cli import main
+from spcopyro.cli.main import main
 from spcopyro.experiments import inference_comparison as comparison
 from spcopyro.experiments.comparison_stats import (
     agreement_counts,

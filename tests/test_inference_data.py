@@ -103,7 +103,7 @@ def test_per_sweep_chains_split_warmup_like_the_stopping_rule(problem):
 
 def test_gibbs_results_convert_and_an_optimisers_trace_is_refused():
     from spcopyro.config import preset
-    from spcopyro.fit import fit_house_chains
+    from spcopyro.fit.house import fit_house_chains
     from spcopyro.synthetic import HouseSpec, make_house
 
     house = make_house(seed=1, spec=HouseSpec(height=24, width=30, num_rooms=2, num_trials=2,

@@ -15,11 +15,12 @@ import numpy as np
 import pytest
 import torch
 
-from spcopyro import registry
-from spcopyro.cli import main
+from spcopyro.cli.main import main
 from spcopyro.config import SpCoConfig, preset
-from spcopyro.fit import fit_house
-from spcopyro.inference import InferenceOutput, Trace
+from spcopyro.figures.plotting import plot_trace
+from spcopyro.fit import registry
+from spcopyro.fit.house import fit_house
+from spcopyro.inference.protocol import InferenceOutput, Trace
 from spcopyro.likelihood import (
     concept_statistics,
     log_joint_constant,
@@ -29,9 +30,8 @@ from spcopyro.likelihood import (
 )
 from spcopyro.metrics import adjusted_rand_index, heldout_word_prediction
 from spcopyro.model import DTYPE, ModelData
-from spcopyro.plotting import plot_trace
-from spcopyro.results import SpCoResult
-from spcopyro.semantic_map import SpCoSemanticMap
+from spcopyro.results.result import SpCoResult
+from spcopyro.results.semantic_map import SpCoSemanticMap
 from spcopyro.synthetic import HouseSpec, make_house
 
 

@@ -19,16 +19,16 @@ from spcopyro.config import (
     preset,
     preset_inference,
 )
-from spcopyro.fit import fit_house, gamma_warning
+from spcopyro.fit.house import fit_house, gamma_warning
+from spcopyro.fit.registry import get_method
 from spcopyro.gibbs.kernel import SpCoGibbs, mcmc_diagnostics
 from spcopyro.gibbs.method import output_from_run
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import LABEL_DTYPE, advance, run_gibbs, start_chain
-from spcopyro.initialisation import check_labels, kmeans_gaussians, labels_from_gaussians
+from spcopyro.inference.initialisation import check_labels, kmeans_gaussians, labels_from_gaussians
 from spcopyro.maps import FREE
 from spcopyro.metrics import adjusted_rand_index
-from spcopyro.registry import get_method
-from spcopyro.results import SpCoResult
+from spcopyro.results.result import SpCoResult
 from spcopyro.simulate import sample_prior_world
 from spcopyro.synthetic import make_house
 
@@ -339,7 +339,7 @@ def test_a_library_fit_says_when_it_skips_its_presets_inference_settings(caplog)
     nothing said so. Now the library says which settings it skips."""
     import logging
 
-    from spcopyro.fit import fit_house, preset_fit_kwargs
+    from spcopyro.fit.house import fit_house, preset_fit_kwargs
     from spcopyro.gibbs import GibbsOptions
     from spcopyro.synthetic import HouseSpec, make_house
 

@@ -1,4 +1,4 @@
-"""Loopy belief propagation (spcopyro.variational.lbp): exact on a tree, the O(L) Potts message
+"""Loopy belief propagation (spcopyro.guides.lbp): exact on a tree, the O(L) Potts message
 and pairwise beliefs against explicit tables, finite at strong coupling, the alternation with the
 global factors, and the registered ``lbp`` method (ARI on an easy synthetic house)."""
 
@@ -12,15 +12,11 @@ import torch
 from gibbs_problems import config, random_problem
 
 from spcopyro.config import preset
-from spcopyro.fit import fit_house
-from spcopyro.metrics import adjusted_rand_index
-from spcopyro.model import DTYPE
-from spcopyro.registry import get_method
-from spcopyro.synthetic import HouseSpec, make_house
-from spcopyro.variational.cavi import one_hot, update_globals
-from spcopyro.variational.exact import exact_log_partition, exact_marginals
-from spcopyro.variational.factors import expected_log_emissions, expected_log_pi
-from spcopyro.variational.lbp import (
+from spcopyro.fit.house import fit_house
+from spcopyro.fit.registry import get_method
+from spcopyro.guides.cavi import one_hot, update_globals
+from spcopyro.guides.factors import expected_log_emissions, expected_log_pi
+from spcopyro.guides.lbp import (
     LoopyBP,
     bethe_label_objective,
     bethe_objective,
@@ -28,9 +24,13 @@ from spcopyro.variational.lbp import (
     node_log_potentials,
     potts_log_message,
 )
-from spcopyro.variational.lbp_method import LBPOptions, run_lbp
-from spcopyro.variational.run import initial_q
-from spcopyro.variational.tiny_maps import labelled_factors, tiny_map
+from spcopyro.guides.lbp_method import LBPOptions, run_lbp
+from spcopyro.guides.run import initial_q
+from spcopyro.guides.testing import exact_log_partition, exact_marginals
+from spcopyro.guides.tiny_maps import labelled_factors, tiny_map
+from spcopyro.metrics import adjusted_rand_index
+from spcopyro.model import DTYPE
+from spcopyro.synthetic import HouseSpec, make_house
 
 
 @pytest.fixture(autouse=True, scope="module")

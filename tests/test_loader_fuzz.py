@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from spcopyro._util.messages import echo
 from spcopyro.data import (
     DataFormatError,
     House,
@@ -36,7 +37,6 @@ from spcopyro.data import (
     save_house,
 )
 from spcopyro.maps import FREE, OCCUPIED, MapFormatError, OccupancyGrid
-from spcopyro.messages import echo
 
 NAME = "room"
 CASES = 300
@@ -494,7 +494,7 @@ def test_a_far_off_position_names_its_file_and_line(room):
 def test_a_huge_feature_is_told_under_the_runs_feature_scaling(room, tmp_path, capsys):
     """Issue 22 item 10: the 1e308 error named 'probability' under a floor100 run (the house
     summary counted with the default scaling first)."""
-    from spcopyro.cli import main
+    from spcopyro.cli.main import main
 
     lines = (room / "Ft.csv").read_text().splitlines()
     row = lines[1].split(",")

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from spcopyro.baselines.geometry import auto_door_width
-from spcopyro.cli import main
+from spcopyro.cli.main import main
 from spcopyro.data import load_house
-from spcopyro.map_simulation import MapTour, simulate_on_map
 from spcopyro.maps import FREE, OCCUPIED, UNKNOWN, OccupancyGrid, load_map, save_map
+from spcopyro.robot.map_simulation import MapTour, simulate_on_map
 from spcopyro.synthetic import lexicon_for
 
 

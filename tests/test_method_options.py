@@ -6,11 +6,11 @@ import json
 
 import pytest
 
-from spcopyro.cli import main
+from spcopyro.cli.main import main
 from spcopyro.gibbs.options import GibbsOptions
-from spcopyro.inference import with_options
-from spcopyro.variational.options import VariationalOptions
-from spcopyro.variational.vi_gibbs import VIGibbsOptions
+from spcopyro.guides.options import VariationalOptions
+from spcopyro.guides.vi_gibbs import VIGibbsOptions
+from spcopyro.inference.protocol import with_options
 
 
 def test_values_are_parsed_as_their_fields_types_nested_included():

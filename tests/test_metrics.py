@@ -25,8 +25,8 @@ from spcopyro.metrics import (
     pairwise_chain_ari,
     rank_of_truth,
 )
-from spcopyro.results import EmissionTable, SpCoResult, Trace
-from spcopyro.semantic_map import UnknownWordError
+from spcopyro.results.result import EmissionTable, SpCoResult, Trace
+from spcopyro.results.semantic_map import UnknownWordError
 
 
 def free_grid(height: int, width: int, resolution: float = 1.0) -> OccupancyGrid:

@@ -22,18 +22,18 @@ from pyro.infer import MCMC
 from scipy import stats
 from statistical_checks import assert_conditionals_match_model, model_log_density
 
-from spcopyro.cli import main
+from spcopyro.cli.main import main
 from spcopyro.config import preset
 from spcopyro.data import ModalityObservations, save_house
-from spcopyro.fit import fit_house
+from spcopyro.fit.house import fit_house
 from spcopyro.gibbs import GibbsOptions, SpCoGibbs
 from spcopyro.gibbs.backends import get_backend
 from spcopyro.gibbs.sampler import init
 from spcopyro.gibbs.state import make_sweep_plan
 from spcopyro.gibbs.sweep import label_log_conditionals, log_joint, sample_globals, sample_labels
 from spcopyro.model import make_model_data, spcomapping_model
-from spcopyro.results import SpCoResult
-from spcopyro.semantic_map import SpCoSemanticMap
+from spcopyro.results.result import SpCoResult
+from spcopyro.results.semantic_map import SpCoSemanticMap
 from spcopyro.synthetic import HouseSpec, make_house
 
 OBJECTS = "objects"

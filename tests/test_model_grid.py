@@ -94,7 +94,7 @@ def test_cell_size_map_over_a_preset_means_the_maps_own_cells():
 
 
 def test_default_fit_on_the_model_grid_scores_against_the_truth():
-    from spcopyro.fit import fit_house
+    from spcopyro.fit.house import fit_house
     from spcopyro.gibbs import GibbsOptions
     from spcopyro.metrics import adjusted_rand_index
 
@@ -132,7 +132,7 @@ def test_gibbs_conditionals_on_the_model_grid_equal_the_pyro_models_density_diff
     import torch
     from statistical_checks import assert_conditionals_match_model
 
-    from spcopyro.fit import prepare_model_data
+    from spcopyro.fit.house import prepare_model_data
     from spcopyro.gibbs.sampler import init
 
     settings = preset(num_concepts=4)

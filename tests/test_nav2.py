@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
-from spcopyro.cli import main
+from spcopyro.cli.main import main
 from spcopyro.config import SpCoConfig
 from spcopyro.maps import (
     FREE,
@@ -21,9 +21,9 @@ from spcopyro.maps import (
     load_map,
     save_filter_mask,
 )
-from spcopyro.nav2 import export_nav2, speed_percent
-from spcopyro.results import EmissionTable, SpCoResult, Trace
-from spcopyro.uncertainty import where_probability
+from spcopyro.results.result import EmissionTable, SpCoResult, Trace
+from spcopyro.results.uncertainty import where_probability
+from spcopyro.robot.nav2 import export_nav2, speed_percent
 
 WORDS = ("kitchen", "bed", "sofa")
 H, W = 13, 20
@@ -227,7 +227,7 @@ def test_every_exported_mask_reads_back_as_intended_by_nav2s_rules(fit, tmp_path
     the filter info's ``base + multiplier * value``: lethal cells (keepout 100) are exactly the
     word's place, and the speed limit of every free cell is exactly the intended one, never the
     "no limit" value (0) where a limit below 100 % was intended."""
-    from spcopyro.nav2 import (
+    from spcopyro.robot.nav2 import (
         DEFAULT_MAX_SPEED,
         DEFAULT_MIN_SPEED,
         keepout_values,
@@ -315,7 +315,7 @@ def test_a_speed_mask_never_writes_no_limit_inside_the_place(fit, tmp_path, caps
     """Issue 24 item 2: --min-speed 0 made the cells surest to be the place a 0 % limit, which
     Nav2 reads as "no speed limit": the place became the one where the robot drives fastest.
     --min-speed below 1 is refused; at 1 every limited cell keeps a limit of at least 1 %."""
-    from spcopyro.nav2 import speed_percent
+    from spcopyro.robot.nav2 import speed_percent
 
     out = tmp_path / "n"
     with pytest.raises(SystemExit):
@@ -363,6 +363,6 @@ def test_topics_follow_the_robots_namespace(fit, tmp_path):
     assert plugin["filter_info_topic"] == "/robot1/speed_kitchen_filter_info"
     assert plugin["speed_limit_topic"] == "/robot1/speed_limit"
     with pytest.raises(ValueError, match="namespace"):
-        from spcopyro.nav2 import check_namespace
+        from spcopyro.robot.nav2 import check_namespace
 
         check_namespace("robot 1")

@@ -13,19 +13,19 @@ import numpy as np
 import pytest
 import yaml
 
-from spcopyro.cli import main
+from spcopyro.cli.main import main
 from spcopyro.config import SpCoConfig
 from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
-from spcopyro.navigation import (
+from spcopyro.results.result import EmissionTable, SpCoResult, Trace
+from spcopyro.robot.navigation import (
     AmbiguousGoalError,
     UnreachableGoalError,
     navigate,
     parse_instruction,
     planning_grid,
 )
-from spcopyro.navigation.graph import fit_cells_on
-from spcopyro.navigation.outputs import write_plan
-from spcopyro.results import EmissionTable, SpCoResult, Trace
+from spcopyro.robot.navigation.graph import fit_cells_on
+from spcopyro.robot.navigation.outputs import write_plan
 
 WORDS = ("bedroom", "corridor", "kitchen", "closet", "the")
 RES = 0.1
@@ -243,7 +243,7 @@ def test_a_run_is_reproducible(result, tmp_path):
 
 def test_a_seeded_fit_gives_the_same_plan(tmp_path):
     from spcopyro.config import preset
-    from spcopyro.fit import fit_house
+    from spcopyro.fit.house import fit_house
     from spcopyro.synthetic import HouseSpec, make_house
 
     house = make_house(seed=0, spec=HouseSpec.scaled(45, 60))

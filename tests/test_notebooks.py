@@ -101,12 +101,12 @@ def test_stored_notebook_has_outputs_and_no_error(path):
 
 
 def test_plotting_leaves_the_matplotlib_backend_alone():
-    """Library figures render inline in a notebook: importing spcopyro.plotting must not choose a
-    backend (it builds Figure objects, never pyplot)."""
+    """Library figures render inline in a notebook: importing spcopyro.figures.plotting must not
+    choose a backend (it builds Figure objects, never pyplot)."""
     script = (
         "import matplotlib\n"
         "before = matplotlib.rcParams._get_backend_or_none()\n"
-        "import spcopyro.plotting, spcopyro.experiments.figures\n"
+        "import spcopyro.figures.plotting, spcopyro.experiments.figures\n"
         "after = matplotlib.rcParams._get_backend_or_none()\n"
         "import sys\n"
         "assert before == after, (before, after)\n"

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import torch
 
-from spcopyro.cli import main
+from spcopyro.cli.main import main
 from spcopyro.config import SpCoConfig, preset
 from spcopyro.data import (
     MAX_COUNT_TOTAL,
@@ -23,7 +23,7 @@ from spcopyro.data import (
     check_count_totals,
     load_house,
 )
-from spcopyro.fit import FREEZING_GAMMA, config_warnings, prepare_model_data
+from spcopyro.fit.house import FREEZING_GAMMA, config_warnings, prepare_model_data
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import NonFiniteLogJointError, label_dtype, run_gibbs
 from spcopyro.likelihood import log_joint_constant, log_joint_terms, log_joint_variable
@@ -139,7 +139,7 @@ def test_label_storage_holds_more_concepts_than_int16(backend):
 
 
 def test_a_result_with_labels_out_of_range_is_never_written(tmp_path):
-    from spcopyro.fit import fit_house
+    from spcopyro.fit.house import fit_house
 
     house = make_house(seed=0, spec=HouseSpec(height=30, width=40, num_rooms=2))
     result = fit_house(house, preset("original-code", gamma=3.0, num_concepts=5), sweeps=2,

@@ -1,4 +1,4 @@
-"""Online updates (spcopyro.online, ``spcopyro fit DATA --update OUT``): a saved fit continued
+"""Online updates (spcopyro.robot.online, ``spcopyro fit DATA --update OUT``): a saved fit continued
 with new observations -- vocabulary union, new words under the prior, the saved state at sweep
 0, clear errors for another map or other settings, and the command end to end."""
 
@@ -11,11 +11,12 @@ import numpy as np
 import pytest
 import torch
 
-from spcopyro.cli import main
+from spcopyro.cli.main import main
 from spcopyro.config import preset
 from spcopyro.data import Observations, save_house
-from spcopyro.fit import fit_house
-from spcopyro.online import (
+from spcopyro.fit.house import fit_house
+from spcopyro.results.result import SpCoResult
+from spcopyro.robot.online import (
     check_compatible,
     extend_emission,
     fit_update,
@@ -23,7 +24,6 @@ from spcopyro.online import (
     start_update,
     start_update_chain,
 )
-from spcopyro.results import SpCoResult
 from spcopyro.synthetic import make_house
 
 SETTINGS = preset("original-code", gamma=3.0)

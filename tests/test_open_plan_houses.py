@@ -8,7 +8,7 @@ import pytest
 
 from spcopyro.baselines.geometry import geometry_semantic_map, room_segments
 from spcopyro.baselines.nearest import nearest_word_map
-from spcopyro.cli import main
+from spcopyro.cli.main import main
 from spcopyro.data import load_house
 from spcopyro.experiments.ablation import SYNTHETIC_HOUSES, AblationSettings, jobs_of
 from spcopyro.experiments.open_plan import categories_in_segments, open_plan_scores

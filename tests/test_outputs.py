@@ -1,4 +1,4 @@
-"""Output folders that are never lost or mixed (:mod:`spcopyro.outputs`, ``fit --out``,
+"""Output folders that are never lost or mixed (:mod:`spcopyro._util.outputs`, ``fit --out``,
 ``--overwrite``) and the record ``config.json`` keeps of a run."""
 
 from __future__ import annotations
@@ -15,8 +15,7 @@ import pytest
 import torch
 
 import spcopyro
-from spcopyro.cli import main
-from spcopyro.outputs import (
+from spcopyro._util.outputs import (
     OutputError,
     StagedOutput,
     check_output,
@@ -24,7 +23,8 @@ from spcopyro.outputs import (
     replace_file,
     stage_output,
 )
-from spcopyro.results import SpCoResult
+from spcopyro.cli.main import main
+from spcopyro.results.result import SpCoResult
 from spcopyro.synthetic import HouseSpec, write_synthetic
 
 FIT = ["--sweeps", "6", "--preset", "original-code", "--gamma", "3", "--concepts", "8"]
@@ -66,12 +66,12 @@ def test_a_non_empty_out_is_refused_before_anything_is_read_or_sampled(
     out = tmp_path / "out"
     out.mkdir()
     (out / "notes.txt").write_text("mine\n")
-    import spcopyro.fit
+    import spcopyro.fit.house
 
     def no_sampling(*args, **kwargs):
         raise AssertionError("the fit went on to prepare its data")
 
-    monkeypatch.setattr(spcopyro.fit, "prepare_model_data", no_sampling)
+    monkeypatch.setattr(spcopyro.fit.house, "prepare_model_data", no_sampling)
     before = _entries(tmp_path)
     assert _fit(room, out) == 2
     err = capsys.readouterr().err
@@ -115,24 +115,24 @@ def test_overwrite_replaces_the_fits_files_and_keeps_the_rest(room, tmp_path, ca
 
 
 def test_an_unwritable_place_is_reported_before_sampling(room, tmp_path, capsys, monkeypatch):
-    import spcopyro.fit
+    import spcopyro.fit.house
 
     def no_sampling(*args, **kwargs):
         raise AssertionError("the fit went on to prepare its data")
 
-    monkeypatch.setattr(spcopyro.fit, "prepare_model_data", no_sampling)
+    monkeypatch.setattr(spcopyro.fit.house, "prepare_model_data", no_sampling)
     blocker = tmp_path / "a_file"
     blocker.write_text("x")
     assert _fit(room, blocker / "out") == 2  # its parent is a file
     err = capsys.readouterr().err
     assert err.startswith("error: --out ") and f"{blocker} is a file, not a folder" in err
-    import spcopyro.outputs
+    import spcopyro._util.outputs
 
     def refused(*args, **kwargs):
         raise PermissionError(13, "Permission denied")
 
     with monkeypatch.context() as patch:  # what a read-only parent does (also when run as root)
-        patch.setattr(spcopyro.outputs.tempfile, "mkdtemp", refused)
+        patch.setattr(spcopyro._util.outputs.tempfile, "mkdtemp", refused)
         assert _fit(room, tmp_path / "out") == 2
     err = capsys.readouterr().err
     assert f"cannot write in {tmp_path} (Permission denied)" in err
@@ -153,20 +153,20 @@ def test_an_unwritable_place_is_reported_before_sampling(room, tmp_path, capsys,
 def test_a_failed_fit_leaves_no_output_and_keeps_its_chains(room, tmp_path, capsys, monkeypatch):
     """An error while writing: no OUT, no staging folder; the finished chains stay in the
     checkpoint, and resuming from it writes what an unbroken fit writes."""
-    import spcopyro.plotting
+    import spcopyro.figures.plotting
 
     out = tmp_path / "out"
-    plot_trace = spcopyro.plotting.plot_trace
+    plot_trace = spcopyro.figures.plotting.plot_trace
 
     def broken(*args, **kwargs):
         raise ValueError("the figure could not be drawn")
 
-    monkeypatch.setattr(spcopyro.plotting, "plot_trace", broken)
+    monkeypatch.setattr(spcopyro.figures.plotting, "plot_trace", broken)
     assert _fit(room, out) == 2
     err = capsys.readouterr().err
     assert "could not be drawn" in err and "continue with: spcopyro fit" in err
     assert _entries(tmp_path) == {checkpoint_path(out).name}
-    monkeypatch.setattr(spcopyro.plotting, "plot_trace", plot_trace)
+    monkeypatch.setattr(spcopyro.figures.plotting, "plot_trace", plot_trace)
     assert _fit(room, out, "--resume", str(checkpoint_path(out))) == 0
     assert _fit(room, tmp_path / "unbroken") == 0
     unbroken = tmp_path / "unbroken" / "result.npz"
@@ -216,7 +216,7 @@ def test_two_processes_commit_at_once_and_one_wins_whole(tmp_path):
         """
         import sys, time
         from pathlib import Path
-        from spcopyro.outputs import OutputError, stage_output
+        from spcopyro._util.outputs import OutputError, stage_output
         me, out = sys.argv[1], Path(sys.argv[2])
         staged = stage_output(out, overwrite=True)
         for name in ("result.npz", "config.json", me):
@@ -254,7 +254,7 @@ def test_two_processes_commit_at_once_and_one_wins_whole(tmp_path):
 def test_a_commit_holds_a_lock_on_the_parent_folder(tmp_path, monkeypatch):
     """While a commit looks at OUT and renames, no other commit can take the parent's lock."""
     fcntl = pytest.importorskip("fcntl")
-    import spcopyro.outputs
+    import spcopyro._util.outputs
 
     rename = os.rename
     tried: list[bool] = []
@@ -271,7 +271,7 @@ def test_a_commit_holds_a_lock_on_the_parent_folder(tmp_path, monkeypatch):
         rename(source, target)
 
     staged = stage_output(tmp_path / "out")
-    monkeypatch.setattr(spcopyro.outputs.os, "rename", rename_and_try_the_lock)
+    monkeypatch.setattr(spcopyro._util.outputs.os, "rename", rename_and_try_the_lock)
     staged.commit()
     assert tried == [False]
 

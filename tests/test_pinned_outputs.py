@@ -14,8 +14,8 @@ the change); the one-block runs ``converged-*-one-block``, whose digests were co
 code of 6278b5e, show that everything up to the first block boundary is unchanged.
 
 A second intended change (issue 14, readable word lists): a Gibbs result reports the posterior
-means of pi, theta and w given its labels (:mod:`spcopyro.posterior_means`) instead of the best
-state's draws, and ``concepts()`` gains keys. The ``fit-*`` and ``converged-*`` digests were
+means of pi, theta and w given its labels (:mod:`spcopyro.results.posterior_means`) instead of the
+best state's draws, and ``concepts()`` gains keys. The ``fit-*`` and ``converged-*`` digests were
 recorded again after that change; their labels and traces are unchanged (only the concept tables
 and summaries differ), and the ``mcmc-*``, ``prior-world`` and ``spcoa`` digests are untouched.
 

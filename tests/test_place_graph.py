@@ -17,9 +17,9 @@ import pytest
 from test_cli_startup import heavy_imports
 from test_navigate import START_A, house_result
 
-from spcopyro.cli import main
-from spcopyro.navigation import navigate
-from spcopyro.navigation.places import place_graph, places_along
+from spcopyro.cli.main import main
+from spcopyro.robot.navigation import navigate
+from spcopyro.robot.navigation.places import place_graph, places_along
 
 ROOM_CELLS = {"D": 312, "B": 172, "C": 167, "A": 162, "E": 162}  # largest first = place ids
 

@@ -1,5 +1,5 @@
-"""The posterior point estimate (spcopyro.point_estimate): losses from contingency tables against
-brute force, label switching, the greedy search's guarantee, and the agreement map."""
+"""The posterior point estimate (spcopyro.results.point_estimate): losses from contingency tables
+against brute force, label switching, the greedy search's guarantee, and the agreement map."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from spcopyro.point_estimate import (
+from spcopyro.results.point_estimate import (
     LOSSES,
     _changes,
     _prepare,
@@ -148,11 +148,11 @@ def test_bad_samples_are_refused():
 
 
 def test_fit_reports_the_estimate_with_its_agreement_map(tmp_path, capsys):
-    from spcopyro.cli import main
+    from spcopyro.cli.main import main
     from spcopyro.config import preset
-    from spcopyro.fit import fit_house
+    from spcopyro.fit.house import fit_house
     from spcopyro.gibbs import GibbsOptions
-    from spcopyro.results import SpCoResult
+    from spcopyro.results.result import SpCoResult
     from spcopyro.synthetic import HouseSpec, make_house
 
     house = make_house(seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3, num_trials=2))

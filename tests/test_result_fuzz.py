@@ -10,9 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from spcopyro.cli import main
+from spcopyro.cli.main import main
 from spcopyro.gibbs.checkpoint import read_record
-from spcopyro.results import SpCoResult
+from spcopyro.results.result import SpCoResult
 from spcopyro.synthetic import HouseSpec, write_synthetic
 
 CASES = 40

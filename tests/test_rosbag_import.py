@@ -1,4 +1,4 @@
-"""``spcopyro import-bag`` (spcopyro/rosbag/): small bags of ROS 1 and ROS 2 (sqlite3, mcap)
+"""``spcopyro import-bag`` (spcopyro/robot/rosbag/): small bags of ROS 1 and ROS 2 (sqlite3, mcap)
 written with rosbags' writers, imported and read back with the real loaders.
 
 Checks: poses interpolated at known stamps (linear x, y; yaw the short way round 180 deg), tf
@@ -24,11 +24,11 @@ import pytest
 
 pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip install .[ros])")
 
-from spcopyro.cli import main  # noqa: E402
+from spcopyro.cli.main import main  # noqa: E402
 from spcopyro.data import load_house  # noqa: E402
 from spcopyro.maps.grid import FREE, OccupancyGrid  # noqa: E402
 from spcopyro.maps.map_server import save_map  # noqa: E402
-from spcopyro.rosbag import (  # noqa: E402
+from spcopyro.robot.rosbag import (  # noqa: E402
     BagContentError,
     BagFormatError,
     BagWriter,
@@ -38,7 +38,7 @@ from spcopyro.rosbag import (  # noqa: E402
     import_bags,
     write_synthetic_bags,
 )
-from spcopyro.rosbag.poses import PoseTrack, compose, wrap_angle  # noqa: E402
+from spcopyro.robot.rosbag.poses import PoseTrack, compose, wrap_angle  # noqa: E402
 
 T0 = 1_600_000_000.0
 FORMATS = [(1, "sqlite3"), (2, "sqlite3"), (2, "mcap")]
@@ -365,7 +365,7 @@ def test_rosbags_missing_is_a_clear_error(tmp_path, monkeypatch):
     with pytest.raises(RosbagsMissingError, match=r'pip install "spcopyro\[ros\]"'):
         import_bags([tmp_path / "x.bag"], tmp_path / "m.yaml", tmp_path / "d" / "h")
     # and importing spcopyro and its rosbag commands works without rosbags (blocked here)
-    code = "import sys; sys.modules['rosbags'] = None; import spcopyro, spcopyro.rosbag.cli"
+    code = "import sys; sys.modules['rosbags'] = None; import spcopyro, spcopyro.robot.rosbag.cli"
     assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0
 
 
@@ -373,7 +373,7 @@ def test_rosbags_missing_is_a_clear_error(tmp_path, monkeypatch):
 def test_synthetic_bags_round_trip(tmp_path, ros, storage):
     """The synthetic house recorded and imported: positions, yaws and words come back."""
     from spcopyro.config import preset
-    from spcopyro.fit import fit_house
+    from spcopyro.fit.house import fit_house
     from spcopyro.synthetic import HouseSpec, make_house
 
     spec = HouseSpec.scaled(30, 40, images_per_room_per_trial=3, utterances_per_room_per_trial=2,
@@ -417,7 +417,7 @@ def test_cli_simulate_import_features_fit(tmp_path, capsys):
     """The README walkthrough, small: simulate-bag -> import-bag -> features -> load -> fit."""
     from spcopyro.config import preset
     from spcopyro.features.extract import extract_to_csv
-    from spcopyro.fit import fit_house
+    from spcopyro.fit.house import fit_house
 
     code = main(["simulate-bag", "--out", str(tmp_path / "bags"), "--ros", "1",
                  "--image-size", "16", "20", "--trials", "0"])  # fmt: skip
@@ -501,7 +501,7 @@ def test_a_bag_without_message_definitions_imports_like_its_twin(
     missing (open_bag reads such schemas as "no definition")."""
     from rosbags.highlevel import AnyReader
 
-    from spcopyro.rosbag.bag import open_bag, typestore
+    from spcopyro.robot.rosbag.bag import open_bag, typestore
 
     storage, distro, encoding, types = BARE_BAGS[case]
     twin, bare = tmp_path / "twin", tmp_path / "bare"

@@ -26,10 +26,10 @@ from spcopyro.baselines.spcoa import (
     spcoa_gaussians,
 )
 from spcopyro.data import House, Observations, load_house
-from spcopyro.initialisation import labels_from_gaussians
+from spcopyro.inference.initialisation import labels_from_gaussians
 from spcopyro.maps import FREE, OccupancyGrid
 from spcopyro.metrics import adjusted_rand_index
-from spcopyro.semantic_map import UnknownWordError
+from spcopyro.results.semantic_map import UnknownWordError
 from spcopyro.synthetic import lexicon_for, make_house
 
 F64 = torch.float64

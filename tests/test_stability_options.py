@@ -13,9 +13,9 @@ import torch
 from gibbs_problems import config, random_problem
 from pyro.infer import MCMC
 
-from spcopyro.cli import main
+from spcopyro.cli.main import main
 from spcopyro.config import preset
-from spcopyro.fit import best_chain, fit_house, fit_house_chains, fit_house_converged
+from spcopyro.fit.house import best_chain, fit_house, fit_house_chains, fit_house_converged
 from spcopyro.gibbs.anneal import annealed_config, annealed_gamma, check_anneal_sweeps
 from spcopyro.gibbs.backends import get_backend
 from spcopyro.gibbs.cluster import bond_clusters, maybe_cluster_move

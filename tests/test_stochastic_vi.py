@@ -9,24 +9,18 @@ import numpy as np
 import pytest
 import torch
 
-from spcopyro import registry
 from spcopyro.config import preset
-from spcopyro.fit import prepare_model_data
-from spcopyro.likelihood import concept_statistics
-from spcopyro.maps.grid import OccupancyGrid
-from spcopyro.metrics import adjusted_rand_index
-from spcopyro.synthetic import HouseSpec, make_house
-from spcopyro.variational import stochastic
-from spcopyro.variational.blocks import (
+from spcopyro.fit import registry
+from spcopyro.fit.house import prepare_model_data
+from spcopyro.guides import memoized as stochastic
+from spcopyro.guides.blocks import (
     cell_coordinates,
     grid_blocks,
     make_blocks,
     tile_ids,
 )
-from spcopyro.variational.elbo import elbo
-from spcopyro.variational.options import VariationalOptions
-from spcopyro.variational.run import initial_q, run_variational
-from spcopyro.variational.stochastic import (
+from spcopyro.guides.elbo import elbo
+from spcopyro.guides.memoized import (
     Memo,
     StochasticOptions,
     compact_initial_q,
@@ -35,6 +29,12 @@ from spcopyro.variational.stochastic import (
     run_stochastic,
     start_state,
 )
+from spcopyro.guides.options import VariationalOptions
+from spcopyro.guides.run import initial_q, run_variational
+from spcopyro.likelihood import concept_statistics
+from spcopyro.maps.grid import OccupancyGrid
+from spcopyro.metrics import adjusted_rand_index
+from spcopyro.synthetic import HouseSpec, make_house
 
 
 @pytest.fixture(autouse=True)
@@ -265,8 +265,8 @@ def test_a_high_ari_on_an_easy_house_through_the_registry():
 def test_fit_house_and_the_cli_run_stochastic_vi(tmp_path):
     import json
 
-    from spcopyro.cli import main
-    from spcopyro.fit import fit_house
+    from spcopyro.cli.main import main
+    from spcopyro.fit.house import fit_house
 
     house = make_house(seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3))
     settings = preset("original-code", gamma=3.0, num_concepts=8)
@@ -375,7 +375,7 @@ def test_the_benchmark_runs_quick(tmp_path):
 
 
 def test_chunked_coefficients_equal_the_dense_ones(small, monkeypatch):
-    from spcopyro.variational.elbo import multinomial_coefficients
+    from spcopyro.guides.elbo import multinomial_coefficients
 
     _, data, config = small
     monkeypatch.setattr(stochastic, "CHUNK", 2000)  # 9 rows of 205 image classes

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from spcopyro.cli import main
-from spcopyro.cli_study import study_path
+from spcopyro.cli.main import main
+from spcopyro.cli.study import study_path
 from spcopyro.study import STUDIES, evaluate
 from spcopyro.study.cells import cells_of
 from spcopyro.study.run import run_study

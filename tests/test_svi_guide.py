@@ -1,6 +1,6 @@
 """The mean-field Pyro guide and its SVI loss (spcopyro.guides), and the ``svi`` method.
 
-The loss's estimate is checked against the closed-form ELBO of spcopyro.variational.elbo at the
+The loss's estimate is checked against the closed-form ELBO of spcopyro.guides.elbo at the
 same variational parameters (value and gradient, within Monte Carlo error); the guide against
 ``pyro.infer.SVI`` and ``pyro.infer.Predictive`` used the plain way; the method against an easy
 synthetic house (ARI to the truth) and against CAVI's ELBO on the same data.
@@ -15,18 +15,18 @@ import pytest
 import torch
 
 from spcopyro.config import preset
-from spcopyro.fit import fit_house, prepare_model_data
+from spcopyro.fit.house import fit_house, prepare_model_data
+from spcopyro.fit.registry import get_method
+from spcopyro.guides.elbo import elbo
+from spcopyro.guides.factors import GlobalFactors
 from spcopyro.guides.loss import MeanFieldELBO
 from spcopyro.guides.mean_field import MeanFieldGuide, WrongLossError
-from spcopyro.guides.method import SVIInference, SVIOptions, fit_svi
+from spcopyro.guides.options import VariationalOptions
+from spcopyro.guides.run import initial_q, run_variational
+from spcopyro.guides.svi_method import SVIInference, SVIOptions, fit_svi
 from spcopyro.metrics import adjusted_rand_index
 from spcopyro.model import DTYPE, SITE_LABELS, SITE_PI, spcomapping_model
-from spcopyro.registry import get_method
 from spcopyro.synthetic import HouseSpec, make_house
-from spcopyro.variational.elbo import elbo
-from spcopyro.variational.factors import GlobalFactors
-from spcopyro.variational.options import VariationalOptions
-from spcopyro.variational.run import initial_q, run_variational
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +55,7 @@ def soft_guide(data, config, seed: int = 0, bound: str = "prior") -> MeanFieldGu
 
 
 def analytic_elbo(guide: MeanFieldGuide, data, config) -> torch.Tensor:
-    """spcopyro.variational.elbo.elbo at the guide's current params (differentiable)."""
+    """spcopyro.guides.elbo.elbo at the guide's current params (differentiable)."""
     factors = GlobalFactors(
         guide.concentration(SITE_PI),
         tuple(guide.concentration(m.parameter) for m in data.modalities),

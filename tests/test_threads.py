@@ -1,5 +1,5 @@
-"""The thread policy (spcopyro.threads): what it chooses, that it restores torch's setting, that
-fits use it, and that the thread count changes no label."""
+"""The thread policy (spcopyro._util.threads): what it chooses, that it restores torch's setting,
+that fits use it, and that the thread count changes no label."""
 
 from __future__ import annotations
 
@@ -7,21 +7,21 @@ import numpy as np
 import pytest
 import torch
 
-import spcopyro.fit
+import spcopyro.fit.house
 import spcopyro.gibbs.chains
-from spcopyro.cli import build_parser
-from spcopyro.config import preset
-from spcopyro.fit import fit_house, fit_house_converged
-from spcopyro.gibbs import GibbsOptions
-from spcopyro.registry import get_method as registered_method
-from spcopyro.synthetic import HouseSpec, make_house
-from spcopyro.threads import (
+from spcopyro._util.threads import (
     MIN_CELLS_FOR_MORE_THREADS,
     describe_threads,
     policy_threads,
     resolve_threads,
     torch_threads,
 )
+from spcopyro.cli.main import build_parser
+from spcopyro.config import preset
+from spcopyro.fit.house import fit_house, fit_house_converged
+from spcopyro.fit.registry import get_method as registered_method
+from spcopyro.gibbs import GibbsOptions
+from spcopyro.synthetic import HouseSpec, make_house
 
 
 @pytest.fixture
@@ -115,7 +115,7 @@ def test_fit_house_runs_with_the_chosen_count_and_restores(
         recorder["method"] = _RecordingMethod(registered_method(name))
         return recorder["method"]
 
-    monkeypatch.setattr(spcopyro.fit, "get_method", get_method)
+    monkeypatch.setattr(spcopyro.fit.house, "get_method", get_method)
     torch.set_num_threads(2)
     fit_house(small_house, preset("original-code", gamma=3.0), sweeps=2, progress=False,
               threads=threads)  # fmt: skip
@@ -186,10 +186,13 @@ def house_folder(tmp_path):
 def test_fit_command_passes_threads_to_the_fit(
     house_folder, tmp_path, monkeypatch, capsys, restore_threads, sweeps
 ):
-    from spcopyro.cli import main
+    from spcopyro.cli.main import main
 
     seen = []
-    real_converged, real_advance = spcopyro.fit.run_until_converged, spcopyro.gibbs.chains.advance
+    real_converged, real_advance = (
+        spcopyro.fit.house.run_until_converged,
+        spcopyro.gibbs.chains.advance,
+    )
 
     def run_until_converged(*args, **kwargs):
         seen.append(torch.get_num_threads())
@@ -199,7 +202,7 @@ def test_fit_command_passes_threads_to_the_fit(
         seen.append(torch.get_num_threads())
         return real_advance(*args, **kwargs)
 
-    monkeypatch.setattr(spcopyro.fit, "run_until_converged", run_until_converged)
+    monkeypatch.setattr(spcopyro.fit.house, "run_until_converged", run_until_converged)
     monkeypatch.setattr(spcopyro.gibbs.chains, "advance", advance)
     torch.set_num_threads(2)
     argv = ["fit", str(house_folder), "--out", str(tmp_path / "fit"), "--sweeps", sweeps,

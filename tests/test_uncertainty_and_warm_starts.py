@@ -9,14 +9,15 @@ import numpy as np
 import pytest
 import torch
 
-from spcopyro.cli import main
+from spcopyro.cli.main import main
 from spcopyro.config import preset
-from spcopyro.fit import fit_house, prepare_model_data
+from spcopyro.fit.house import fit_house, prepare_model_data
+from spcopyro.fit.registry import get_method
 from spcopyro.gibbs import GibbsOptions
+from spcopyro.guides.options import VariationalOptions
+from spcopyro.guides.vi_gibbs import VIGibbsOptions
 from spcopyro.metrics import adjusted_rand_index
-from spcopyro.registry import get_method
-from spcopyro.synthetic import HouseSpec, make_house
-from spcopyro.uncertainty import (
+from spcopyro.results.uncertainty import (
     align_samples,
     cell_entropy,
     cell_probabilities,
@@ -24,8 +25,7 @@ from spcopyro.uncertainty import (
     label_frequencies,
     where_probability,
 )
-from spcopyro.variational.options import VariationalOptions
-from spcopyro.variational.vi_gibbs import VIGibbsOptions
+from spcopyro.synthetic import HouseSpec, make_house
 
 SETTINGS = preset("original-code", gamma=3.0, num_concepts=8)
 
@@ -72,7 +72,7 @@ def test_the_defaults_marginals_and_where_probability_follow_the_reported_map():
     """A default fit (split-merge moves, the VI point estimate): every cell's most frequent
     concept over the kept samples is mostly its reported concept, and the 'where' probability
     is high inside the answer's own region."""
-    from spcopyro.uncertainty import where_probability
+    from spcopyro.results.uncertainty import where_probability
 
     house = make_house(seed=0, spec=HouseSpec())
     result = fit_house(house, preset(), sweeps=300, init="rooms", progress=False,

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from hand_results import two_rooms
 
-from spcopyro.cli import main
-from spcopyro.results import (
+from spcopyro.cli.main import main
+from spcopyro.results.result import (
     EVIDENCE_WARNING,
     ODDS_WARNING,
     SMALL_REGION_FRACTION,

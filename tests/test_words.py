@@ -12,15 +12,11 @@ from hand_results import WORDS, two_rooms
 from matplotlib.collections import PathCollection
 from matplotlib.contour import ContourSet
 
-from spcopyro.cli_fit import print_concepts
-from spcopyro.concept_words import NO_WORDS, distinctive_items, format_concept_words, lift
+from spcopyro.cli.fit import print_concepts
 from spcopyro.config import preset
 from spcopyro.data import Observations
-from spcopyro.figures_map import region_text, utterance_concepts
-from spcopyro.fit import fit_house, prepare_model_data
-from spcopyro.gibbs.options import GibbsOptions
-from spcopyro.gibbs.sweep import sample_globals
-from spcopyro.plotting import (
+from spcopyro.figures.map_pieces import region_text, utterance_concepts
+from spcopyro.figures.plotting import (
     ANSWER_RGB,
     GREY_FREE_RGB,
     RUNNER_UP_RGB,
@@ -28,8 +24,12 @@ from spcopyro.plotting import (
     where_figure,
     where_image,
 )
-from spcopyro.posterior_means import concept_totals, posterior_means
-from spcopyro.results import SpCoResult
+from spcopyro.fit.house import fit_house, prepare_model_data
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.gibbs.sweep import sample_globals
+from spcopyro.results.concept_words import NO_WORDS, distinctive_items, format_concept_words, lift
+from spcopyro.results.posterior_means import concept_totals, posterior_means
+from spcopyro.results.result import SpCoResult
 from spcopyro.synthetic import HouseSpec, make_house
 
 

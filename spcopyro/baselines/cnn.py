@@ -22,7 +22,7 @@ cell (utterances are made where images are taken, so this is the class of the co
 image). Counting these gives ``n_{k,v}``, the times word v was heard in class k:
 ``region(v)`` is the map's cells of the class under which v was heard most often, and
 ``p(v | cell) = (n_{k,v} + eps) / (n_k + V eps)`` for the cell's class k
-(:class:`~spcopyro.semantic_map.TabularSemanticMap`).
+(:class:`~spcopyro.results.semantic_map.TabularSemanticMap`).
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from scipy import ndimage
 
 from spcopyro.data import DEFAULT_SNAP_DISTANCE, Observations, cell_counts
 from spcopyro.maps import OccupancyGrid
-from spcopyro.semantic_map import TabularSemanticMap
+from spcopyro.results.semantic_map import TabularSemanticMap
 
 __all__ = ["cnn_label_image", "cnn_semantic_map"]
 

@@ -50,7 +50,7 @@ from scipy import ndimage
 from spcopyro.data import DEFAULT_SNAP_DISTANCE, Observations, cell_counts
 from spcopyro.maps import OccupancyGrid
 from spcopyro.maps.coarse import grow_labels
-from spcopyro.semantic_map import TabularSemanticMap
+from spcopyro.results.semantic_map import TabularSemanticMap
 
 __all__ = [
     "AUTO_DOOR_WIDTHS",
@@ -158,7 +158,7 @@ def geometry_semantic_map(
     ``n_{s,v}`` counts word v in the utterances placed in segment s (as in fitting:
     :func:`spcopyro.data.cell_counts`); ``p(v | cell) = (n_{s,v} + eps) / (n_s + V eps)`` and
     ``region(v)`` is the segment where v was heard most often
-    (:class:`~spcopyro.semantic_map.TabularSemanticMap`). Images are not used.
+    (:class:`~spcopyro.results.semantic_map.TabularSemanticMap`). Images are not used.
     """
     labels = room_segments(grid, door_width=door_width, min_room_area=min_room_area)
     vocabulary = None if observations.num_utterances else ()

@@ -19,7 +19,7 @@ map is the Voronoi diagram of the utterance positions, each cell labelled with a
 * ``region(word)`` = the cells labelled with that word (empty if it labels none);
   ``p(word | cell)`` is one-hot at the cell's word with epsilon smoothing,
   ``(1[word = label] + eps) / (1 + V eps)`` (the identity table of
-  :class:`~spcopyro.semantic_map.TabularSemanticMap`), so every word has a rank.
+  :class:`~spcopyro.results.semantic_map.TabularSemanticMap`), so every word has a rank.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from scipy.spatial import cKDTree
 
 from spcopyro.data import DEFAULT_SNAP_DISTANCE, Observations, place_observations
 from spcopyro.maps import OccupancyGrid
-from spcopyro.semantic_map import TabularSemanticMap
+from spcopyro.results.semantic_map import TabularSemanticMap
 
 __all__ = ["nearest_word_map"]
 

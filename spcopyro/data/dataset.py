@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from spcopyro._util.messages import echo
 from spcopyro.data.dataset_files import (
     _MODALITY_FILE,
     IMAGE_SUFFIXES,
@@ -37,7 +38,6 @@ from spcopyro.data.observations import _MISSING, DataFormatError, Observations
 from spcopyro.data.text import tokenize
 from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.maps.map_server import load_map, save_map
-from spcopyro.messages import echo
 
 __all__ = ["House", "find_dataset_root", "list_houses", "load_house", "save_house"]
 
@@ -190,7 +190,8 @@ def load_house(
             whose shape differs from the map, a modality file with a bad name, header, trial id,
             number or negative count, a file that is not UTF-8 text, two files for one trial
             (``pose_1.csv`` and ``pose_01.csv``); the message names file, 1-based line and value
-            (a long value or line shortened: :func:`spcopyro.messages.echo`). Numbers are plain
+            (a long value or line shortened: :func:`spcopyro._util.messages.echo`). Numbers are
+            plain
             decimals (``1e-3``, ``nan`` and ``inf`` read, then rejected as not finite; ``1_000``
             or digits of other scripts do not read).
     """

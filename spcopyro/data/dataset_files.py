@@ -5,7 +5,7 @@ CSV files (one row per line), St.csv's line of utterances, the per-trial ``pose_
 ``word_K.csv`` files, the camera image folders ``img_K/`` and the files of further modalities
 ``modality_<name>.csv``. A malformed file raises
 :class:`~spcopyro.data.observations.DataFormatError` naming the file, the 1-based line and
-column and the offending value (shortened when long: :func:`spcopyro.messages.echo`).
+column and the offending value (shortened when long: :func:`spcopyro._util.messages.echo`).
 ``tests/test_loader_fuzz.py`` corrupts a house's files at random to check that nothing else
 escapes.
 """
@@ -20,13 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
+from spcopyro._util.messages import echo
 from spcopyro.data.observations import (
     DataFormatError,
     ModalityObservations,
     _modality_name_problem,
 )
 from spcopyro.data.text import tokenize
-from spcopyro.messages import echo
 
 logger = logging.getLogger("spcopyro")
 

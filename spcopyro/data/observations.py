@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from spcopyro.messages import echo
+from spcopyro._util.messages import echo
 
 __all__ = ["RESERVED_MODALITY_NAMES", "DataFormatError", "ModalityObservations", "Observations"]
 

@@ -43,7 +43,7 @@ from spcopyro.experiments.ablation_report import TABLE2_CATEGORIES, settings_jso
 from spcopyro.experiments.ablation_variants import Variant, parse_variant
 from spcopyro.experiments.methods import RunSettings, fit_method
 from spcopyro.experiments.table import heldout_folds
-from spcopyro.fit import fit_house
+from spcopyro.fit.house import fit_house
 from spcopyro.metrics import (
     SpCoSemanticMap,
     adjusted_rand_index,

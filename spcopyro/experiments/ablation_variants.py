@@ -9,10 +9,10 @@ ablation (:mod:`spcopyro.experiments.ablation`, issue #14 "Evidence required"):
   radius once the model has one, ...), applied with :func:`spcopyro.config.preset`;
 * ``options``: fields of the inference method's options (:class:`~spcopyro.gibbs.GibbsOptions`
   for Gibbs), nested ones by a dotted path (``hyper.alpha``), as ``fit --method-option`` sets
-  them (:func:`spcopyro.inference.with_options`);
-* ``fit``: keyword arguments of :func:`spcopyro.fit.fit_house` (``chains``, ``init``,
+  them (:func:`spcopyro.inference.protocol.with_options`);
+* ``fit``: keyword arguments of :func:`spcopyro.fit.house.fit_house` (``chains``, ``init``,
   ``marginal_samples``, a point-estimate option once fit_house has one, ...);
-* ``method``: the inference method's name in :mod:`spcopyro.registry` (default ``gibbs``).
+* ``method``: the inference method's name in :mod:`spcopyro.fit.registry` (default ``gibbs``).
 
 Written as text (``--variant`` of ``spcopyro ablation``)::
 
@@ -37,8 +37,8 @@ from typing import Any
 
 from spcopyro.config import DEFAULT_PRESET, PRESETS, DataPreparation, SpCoConfig, SpCoSettings
 from spcopyro.config import preset as make_preset
-from spcopyro.fit import fit_house
-from spcopyro.registry import get_method
+from spcopyro.fit.house import fit_house
+from spcopyro.fit.registry import get_method
 
 __all__ = ["FIT_RESERVED", "Variant", "VariantError", "make_variant", "parse_variant"]
 
@@ -94,7 +94,7 @@ class Variant:
         return options
 
     def fit_kwargs(self) -> dict[str, Any]:
-        """The extra keyword arguments of :func:`spcopyro.fit.fit_house`."""
+        """The extra keyword arguments of :func:`spcopyro.fit.house.fit_house`."""
         return dict(self.fit)
 
     def describe(self) -> str:

@@ -1,6 +1,6 @@
 """The ``spcopyro experiment``, ``spcopyro compare-inference`` and ``spcopyro ablation`` commands.
 
-:func:`add_parser` registers both on the main parser's subparsers (:mod:`spcopyro.cli`); the
+:func:`add_parser` registers both on the main parser's subparsers (:mod:`spcopyro.cli.main`); the
 experiments' own modules are imported only when one of them runs.
 """
 

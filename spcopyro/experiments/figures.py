@@ -2,7 +2,7 @@
 (Fig. 7), SpCoMapping's map with each concept's best words (Fig. 10F).
 
 Drawn on :class:`matplotlib.figure.Figure` objects and written with ``savefig`` (no pyplot, no
-backend chosen on import), like :mod:`spcopyro.plotting`.
+backend chosen on import), like :mod:`spcopyro.figures.plotting`.
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ from matplotlib.figure import Figure
 
 from spcopyro.data import House
 from spcopyro.experiments.methods import METHOD_LABELS, ExperimentResult, Fitted
+from spcopyro.figures.plotting import _extent, known_bounds, plot_semantic_map
 from spcopyro.maps import render_labels
-from spcopyro.plotting import _extent, known_bounds, plot_semantic_map
 
 
 def _ranked(labels: np.ndarray) -> np.ndarray:

@@ -2,7 +2,7 @@ r"""Gibbs sampling against variational inference: quality against wall-clock tim
 (``spcopyro compare-inference``, issue #10's comparison; run and written by
 :func:`spcopyro.experiments.comparison_report.run_comparison`).
 
-Every *variant* (:data:`VARIANTS`) is an inference method of :mod:`spcopyro.registry` with its
+Every *variant* (:data:`VARIANTS`) is an inference method of :mod:`spcopyro.fit.registry` with its
 options changed from the method's defaults (``gibbs-sw`` is ``gibbs`` with Swendsen-Wang moves)
 and an iteration budget. A variant whose method the registry does not hold is skipped with a
 message, so the command runs with whatever methods are installed; a name that is no variant is
@@ -18,9 +18,9 @@ the ``A-orig-g3`` row of ``spcopyro experiment``) from random labels
 
 **Quality along the run** is the quality of the label map a method holds at time t, scored
 with the global parameters that map implies (the posterior means of pi and phi given the labels:
-the Dirichlet updates of eqs. 14-17, :func:`~spcopyro.variational.factors.update_factors` of
+the Dirichlet updates of eqs. 14-17, :func:`~spcopyro.guides.factors.update_factors` of
 one-hot labels), the same way for every method. A method that keeps label maps (``thin`` > 0;
-Gibbs) is scored at its kept maps, at the times :attr:`~spcopyro.inference.Trace.seconds`
+Gibbs) is scored at its kept maps, at the times :attr:`~spcopyro.inference.protocol.Trace.seconds`
 records for them; a method that keeps none is re-run from the same seed at budgets n/2, n/4, ...
 and its labels scored at each budget's wall-clock time. The last point is the method's final
 labels (Gibbs: the MAP-visited state) at the run's full time. From the curve: the time to reach
@@ -28,8 +28,8 @@ labels (Gibbs: the MAP-visited state) at the run's full time. From the curve: th
 
 **Final quality** is given twice: of the method's result (its labels with its pi and phi: a
 variational method's posterior means under q; a sampler's drawn pi and phi are replaced by the
-means given its labels in :func:`~spcopyro.fit.result_of`, so for a sampler the two agree) and of
-its labels with the means given them (``final_given_labels``, the curve's last point). Scores
+means given its labels in :func:`~spcopyro.fit.house.result_of`, so for a sampler the two agree)
+and of its labels with the means given them (``final_given_labels``, the curve's last point). Scores
 that read the parameters (matching rate through eq. 19, held-out word prediction) can differ a
 lot between E_q and the means given the labels; ARI cannot.
 
@@ -57,14 +57,17 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from spcopyro._util.threads import AUTO, resolve_threads, torch_threads
 from spcopyro.config import SpCoSettings, preset
 from spcopyro.data import House, Observations, list_houses, load_house
 from spcopyro.data.model_grid import model_house
 from spcopyro.experiments import comparison_stats as stats
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import heldout_folds
-from spcopyro.fit import prepare_model_data, result_of
-from spcopyro.inference import InferenceOutput, Trace
+from spcopyro.fit.house import prepare_model_data, result_of
+from spcopyro.fit.registry import INFERENCE_METHODS
+from spcopyro.guides.factors import mean_emissions, mean_pi, update_factors
+from spcopyro.inference.protocol import InferenceOutput, Trace
 from spcopyro.likelihood import concept_statistics
 from spcopyro.metrics import (
     SpCoSemanticMap,
@@ -74,11 +77,8 @@ from spcopyro.metrics import (
     matching_rate,
 )
 from spcopyro.model import ModelData
-from spcopyro.registry import INFERENCE_METHODS
-from spcopyro.results import SpCoResult
+from spcopyro.results.result import SpCoResult
 from spcopyro.synthetic import HouseSpec, make_house
-from spcopyro.threads import AUTO, resolve_threads, torch_threads
-from spcopyro.variational.factors import mean_emissions, mean_pi, update_factors
 
 
 @dataclass(frozen=True)
@@ -87,7 +87,7 @@ class Variant:
 
     key: str
     method: str
-    """The method's name in :data:`spcopyro.registry.INFERENCE_METHODS`."""
+    """The method's name in :data:`spcopyro.fit.registry.INFERENCE_METHODS`."""
     label: str
     iterations: int
     """Iterations of a full run (Gibbs sweeps, variational updates, SVI steps)."""

@@ -1,7 +1,7 @@
 """The methods of the comparison (paper Table 4), each fitted to one house the same way.
 
 Rows, in order (:data:`REGISTRY`; a new row -- e.g. SpCoMapping fitted by another inference
-method of :mod:`spcopyro.registry` -- is one :func:`register` call):
+method of :mod:`spcopyro.fit.registry` -- is one :func:`register` call):
 
 * ``A-dp``: SpCoMapping with the weak-limit DP prior, the ``paper-dp`` preset (Section 4.1:
   alpha 1e8, beta 500, chi 1e4, gamma 4, L 120), random initial labels.
@@ -26,18 +26,18 @@ from dataclasses import dataclass, field
 import numpy as np
 import torch
 
+from spcopyro._util.threads import AUTO, resolve_threads, torch_threads
 from spcopyro.baselines.cnn import cnn_semantic_map
 from spcopyro.baselines.geometry import DEFAULT_DOOR_WIDTH, geometry_semantic_map
 from spcopyro.baselines.nearest import nearest_word_map
 from spcopyro.baselines.spcoa import fit_spcoa
 from spcopyro.config import SpCoSettings, preset
 from spcopyro.data import House
-from spcopyro.fit import prepare_model_data, result_of
+from spcopyro.fit.house import prepare_model_data, result_of
+from spcopyro.fit.registry import get_method
 from spcopyro.metrics import adjusted_rand_index
-from spcopyro.registry import get_method
-from spcopyro.results import SpCoResult
-from spcopyro.semantic_map import SemanticMapModel, SpCoSemanticMap
-from spcopyro.threads import AUTO, resolve_threads, torch_threads
+from spcopyro.results.result import SpCoResult
+from spcopyro.results.semantic_map import SemanticMapModel, SpCoSemanticMap
 
 SPCOA_CONCEPTS = 20
 """L of the SpCoA baseline (an upper bound: its weak-limit DP leaves unneeded concepts empty)."""
@@ -123,10 +123,11 @@ def fit_spco(
     options: object | None = None,
     threads: int | str | None = AUTO,
 ) -> tuple[SpCoResult, tuple[np.ndarray, np.ndarray] | None]:
-    """SpCoMapping by the inference method ``method`` (:mod:`spcopyro.registry`) from random
-    labels (as :func:`spcopyro.fit.fit_house` with ``init="random"``), keeping a label map every
+    """SpCoMapping by the inference method ``method`` (:mod:`spcopyro.fit.registry`) from random
+    labels (as :func:`spcopyro.fit.house.fit_house` with ``init="random"``), keeping a label map
+    every
     ``thin`` iterations; with a truth, their ARI per iteration (paper Fig. 5). ``threads``: torch
-    intra-op threads during the run (:mod:`spcopyro.threads`; default: its policy).
+    intra-op threads during the run (:mod:`spcopyro._util.threads`; default: its policy).
     """
     counts, data = prepare_model_data(house, settings)
     generator = torch.Generator().manual_seed(int(seed))

@@ -7,7 +7,7 @@
   gamma annealed over the first fifth of the sweeps (:mod:`spcopyro.gibbs.anneal`) or with
   Swendsen-Wang cluster moves in a tenth of the sweeps (:mod:`spcopyro.gibbs.cluster`); each with
   one chain and with the best of K chains (the chain whose MAP-visited state has the highest log
-  joint, :func:`spcopyro.fit.best_chain`), and the ARI between the K chains' maps
+  joint, :func:`spcopyro.fit.house.best_chain`), and the ARI between the K chains' maps
   (:func:`spcopyro.metrics.chain_ari`).
   It reports which DP settings are at least as stable (sd of ARI over seeds no larger) as the
   Dirichlet prior with one chain from random labels (the paper's row B).
@@ -29,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 
 from spcopyro.config import SpCoSettings, preset
-from spcopyro.fit import best_chain, fit_house, fit_house_chains
+from spcopyro.fit.house import best_chain, fit_house, fit_house_chains
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.metrics import adjusted_rand_index, pairwise_chain_ari
 from spcopyro.synthetic import HouseSpec, make_house
@@ -47,7 +47,7 @@ class StabilitySetting(NamedTuple):
     method: str
     """SpCoMapping row of :mod:`spcopyro.experiments.methods` (its configuration)."""
     init: str = "random"
-    """``init`` of :func:`~spcopyro.fit.fit_house`."""
+    """``init`` of :func:`~spcopyro.fit.house.fit_house`."""
     anneal: bool = False
     """Anneal gamma over the first :data:`ANNEAL_FRACTION` of the sweeps."""
     cluster_moves: float = 0.0
@@ -319,7 +319,7 @@ def heldout_sensitivity(
     from spcopyro.data import list_houses, load_house
     from spcopyro.experiments.table import heldout_folds
     from spcopyro.metrics import heldout_localisation, heldout_word_prediction
-    from spcopyro.semantic_map import SpCoSemanticMap
+    from spcopyro.results.semantic_map import SpCoSemanticMap
 
     _check_runs(sweeps, (0,))
     grid = SENSITIVITY_GRID if grid is None else grid

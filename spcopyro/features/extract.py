@@ -23,10 +23,10 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
+from spcopyro._util.progress import progress_enabled
 from spcopyro.features.backbone import WeightsSource
 from spcopyro.features.head import PlaceClassifier
 from spcopyro.features.images import UnreadableImagesError, iter_image_batches, list_images
-from spcopyro.progress import progress_enabled
 
 __all__ = [
     "ExtractionResult",

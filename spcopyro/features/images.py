@@ -20,8 +20,8 @@ import numpy as np
 import torch
 from torchvision.transforms import InterpolationMode, v2
 
+from spcopyro._util.messages import echo
 from spcopyro.data import IMAGE_SUFFIXES
-from spcopyro.messages import echo
 
 __all__ = [
     "CROP_SIZE",

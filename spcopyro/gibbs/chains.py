@@ -26,8 +26,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 from tqdm.auto import tqdm
 
+from spcopyro._util.progress import progress_enabled
 from spcopyro.gibbs.run import GibbsChain, advance
-from spcopyro.progress import progress_enabled
 
 AUTO = "auto"
 

@@ -1,7 +1,8 @@
 """Saving Gibbs chains to a file and loading them back: how an interrupted fit goes on.
 
 A checkpoint is one ``.npz`` file (written whole or not at all:
-:func:`spcopyro.outputs.replace_file`) holding, for each chain k that had started, everything a
+:func:`spcopyro._util.outputs.replace_file`) holding, for each chain k that had started, everything
+a
 :class:`~spcopyro.gibbs.run.GibbsChain` needs to continue exactly as if it had never stopped
 (N free cells, L concepts, S sweeps done, M_m items of modality m):
 
@@ -44,6 +45,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from spcopyro._util.outputs import DAMAGED_FILE_ERRORS, read_npz, replace_file
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.backends import get_backend
 from spcopyro.gibbs.options import GibbsOptions
@@ -51,7 +53,6 @@ from spcopyro.gibbs.run import LABEL_DTYPE, GibbsChain
 from spcopyro.gibbs.state import GibbsState, make_sweep_plan
 from spcopyro.likelihood import log_joint_constant
 from spcopyro.model import ModelData
-from spcopyro.outputs import DAMAGED_FILE_ERRORS, read_npz, replace_file
 
 FORMAT = "spcopyro-gibbs-checkpoint"
 VERSION = 1

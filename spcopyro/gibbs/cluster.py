@@ -39,11 +39,11 @@ import math
 import numpy as np
 import torch
 
+from spcopyro._util.random_draws import coin_flip, sample_categorical_logits
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.state import GibbsState
 from spcopyro.likelihood import observation_log_likelihood
 from spcopyro.model import DTYPE, ModelData
-from spcopyro.random_draws import coin_flip, sample_categorical_logits
 
 
 def bond_clusters(

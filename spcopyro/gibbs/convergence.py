@@ -37,12 +37,12 @@ import torch
 from pyro.ops.stats import split_gelman_rubin
 from tqdm.auto import tqdm
 
+from spcopyro._util.progress import progress_enabled
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.chains import AUTO, advance_chains
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsRun, start_chain
 from spcopyro.model import ModelData
-from spcopyro.progress import progress_enabled
 
 DEFAULT_CHAINS = 4
 DEFAULT_BLOCK = 250

@@ -70,6 +70,7 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
+from spcopyro._util.random_draws import coin_flip, sample_log_dirichlet
 from spcopyro.config import IMAGES, WORDS, SpCoConfig
 from spcopyro.gibbs.backends import globals_sampler, label_sampler
 from spcopyro.gibbs.cluster import swendsen_wang_labels
@@ -84,7 +85,6 @@ from spcopyro.gibbs.hyper_targets import (
 from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
 from spcopyro.likelihood import concept_statistics
 from spcopyro.model import DTYPE, ModelData, potts_agreements
-from spcopyro.random_draws import coin_flip, sample_log_dirichlet
 
 AuxiliaryDraw = Callable[[torch.Tensor, SpCoConfig, torch.Generator], torch.Tensor]
 """``aux_draw(labels, config, generator) -> [N] labels``: a draw from the labels' prior under

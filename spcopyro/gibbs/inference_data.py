@@ -35,8 +35,8 @@ values there say nothing about convergence. ``log_joint``, ``num_concepts`` and 
 them, as ``--sweeps auto`` does (:mod:`spcopyro.gibbs.convergence`).
 
 **Warm-up.** An MCMC run's samples are already past its ``warmup_steps``. Per-sweep traces
-(:class:`~spcopyro.gibbs.run.GibbsRun`, :class:`~spcopyro.results.SpCoResult`) hold every sweep:
-``warmup`` sweeps (by default the first half, as :mod:`spcopyro.gibbs.convergence` discards)
+(:class:`~spcopyro.gibbs.run.GibbsRun`, :class:`~spcopyro.results.result.SpCoResult`) hold every
+sweep: ``warmup`` sweeps (by default the first half, as :mod:`spcopyro.gibbs.convergence` discards)
 go to ``warmup_posterior``, the rest to ``posterior``.
 """
 
@@ -173,9 +173,9 @@ def to_inference_data(
     Args:
         source: a ``pyro.infer.MCMC`` run of :class:`~spcopyro.gibbs.kernel.SpCoGibbs` (one
             chain or several), or one chain's :class:`~spcopyro.gibbs.run.GibbsRun` /
-            Gibbs :class:`~spcopyro.results.SpCoResult`, or a sequence of them (several
+            Gibbs :class:`~spcopyro.results.result.SpCoResult`, or a sequence of them (several
             chains of the same number of sweeps, e.g. from
-            :func:`~spcopyro.fit.fit_house_chains`).
+            :func:`~spcopyro.fit.house.fit_house_chains`).
         warmup: per-sweep traces only: how many first sweeps are warm-up (default: half).
         include_labels: put the saved ``labels`` ``[C, D, N]`` in the posterior too (large,
             and their R-hat is meaningless under label switching).

@@ -81,11 +81,11 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
+from spcopyro._util.random_draws import coin_flip
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.backends import globals_sampler
 from spcopyro.gibbs.state import GibbsState
 from spcopyro.model import DTYPE, ModelData
-from spcopyro.random_draws import coin_flip
 
 MERGE_SCANS = 3
 """Restricted scans between the launch state and the final scan (Jain & Neal's t)."""

@@ -1,4 +1,5 @@
-"""Gibbs sampling as an :class:`~spcopyro.inference.InferenceMethod` (its registry entry)."""
+"""Gibbs sampling as an :class:`~spcopyro.inference.protocol.InferenceMethod` (its registry
+entry)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ from spcopyro.gibbs.hyper_options import as_hyper_options
 from spcopyro.gibbs.hyperparameters import hyperparameter_summary
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsRun, run_gibbs
-from spcopyro.inference import InferenceOutput, Trace, method_options
+from spcopyro.inference.protocol import InferenceOutput, Trace, method_options
 from spcopyro.model import ModelData
 
 
@@ -19,7 +20,7 @@ def output_from_run(run: GibbsRun, options: dict[str, object] | None = None) -> 
     """A run's :class:`InferenceOutput`: the MAP-visited state as the point estimate, the last
     state's labels beside it, the log joint per sweep as the trace. pi and the emissions are
     that state's draws (``parameters_drawn``): a result reports their posterior means given the
-    labels instead (:mod:`spcopyro.posterior_means`). With sampled hyperparameters,
+    labels instead (:mod:`spcopyro.results.posterior_means`). With sampled hyperparameters,
     ``options["hyperparameters"]`` holds their summary (initial, final, posterior mean and sd over
     the second half of the sweeps:
     :func:`~spcopyro.gibbs.hyperparameters.hyperparameter_summary`)."""

@@ -33,6 +33,7 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
+from spcopyro._util.progress import progress_enabled
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.backends import SweepBackend, get_backend
 from spcopyro.gibbs.hyperparameters import hyperparameter_names, hyperparameter_values
@@ -41,7 +42,6 @@ from spcopyro.gibbs.sampler import init, step, trace_point
 from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
 from spcopyro.likelihood import log_joint_constant, log_joint_terms
 from spcopyro.model import ModelData
-from spcopyro.progress import progress_enabled
 
 LABEL_DTYPE = torch.int16  # compact storage of label maps (L <= 32767; see label_dtype)
 
@@ -53,8 +53,8 @@ def label_dtype(num_concepts: int) -> torch.dtype:
 
 class NonFiniteLogJointError(FloatingPointError, ValueError):
     """A sweep's log joint is NaN or infinite: counts or hyperparameters beyond what float64
-    carries (see :func:`spcopyro.fit.config_warnings`). A ValueError, so the command line reports
-    it as bad input."""
+    carries (see :func:`spcopyro.fit.house.config_warnings`). A ValueError, so the command line
+    reports it as bad input."""
 
 
 def _check_log_joint(chain: GibbsChain, sweep: int, value: float) -> None:

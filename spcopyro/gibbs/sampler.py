@@ -42,7 +42,7 @@ from spcopyro.gibbs.merge import maybe_merge_move
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.state import GibbsState, SweepPlan
 from spcopyro.gibbs.sweep import sample_globals
-from spcopyro.initialisation import check_labels, random_labels
+from spcopyro.inference.initialisation import check_labels, random_labels
 from spcopyro.model import ModelData
 
 

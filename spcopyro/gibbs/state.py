@@ -11,7 +11,7 @@ from spcopyro.model import ModelData
 
 class GibbsState(NamedTuple):
     """One point of the Markov chain. Globals are kept as log probabilities
-    (see :mod:`spcopyro.random_draws`)."""
+    (see :mod:`spcopyro._util.random_draws`)."""
 
     labels: torch.Tensor
     """[N] int64: the concept C of every free cell (free-index order), in [0, L)."""

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import torch
 
+from spcopyro._util.random_draws import sample_categorical_logits, sample_log_dirichlet
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.state import ColourBlock, GibbsState, SweepPlan, make_sweep_plan
 from spcopyro.likelihood import (
@@ -43,7 +44,6 @@ from spcopyro.likelihood import (
     observation_log_likelihood,
 )
 from spcopyro.model import DTYPE, ModelData
-from spcopyro.random_draws import sample_categorical_logits, sample_log_dirichlet
 
 
 def _gather_neighbour_labels(labels: torch.Tensor, neighbours: torch.Tensor) -> torch.Tensor:

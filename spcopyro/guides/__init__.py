@@ -1,9 +1,16 @@
-"""Pyro guides for :func:`spcopyro.model.spcomapping_model`, fitted with ``pyro.infer.SVI``.
+"""Variational inference for SpCoMapping, as :mod:`spcopyro.gibbs` holds the sampler.
 
-:class:`~spcopyro.guides.mean_field.MeanFieldGuide` is the mean-field family of
-:mod:`spcopyro.variational` as a Pyro program (Dirichlet globals, per-cell categorical labels,
+Mean-field coordinate ascent (CAVI: :mod:`~spcopyro.guides.cavi`, its compiled backend
+:mod:`~spcopyro.guides.numba_cavi`, the ``cavi`` method :mod:`~spcopyro.guides.cavi_method`),
+loopy belief propagation (:mod:`~spcopyro.guides.lbp`), memoized block-coordinate VI
+(:mod:`~spcopyro.guides.memoized`), VI then Gibbs (:mod:`~spcopyro.guides.vi_gibbs`), their
+options, and exact-enumeration oracles for tests (:mod:`~spcopyro.guides.testing`).
+
+The Pyro guide for :func:`spcopyro.model.spcomapping_model`, fitted with ``pyro.infer.SVI``:
+:class:`~spcopyro.guides.mean_field.MeanFieldGuide` is the mean-field family as a Pyro program
+(Dirichlet globals, per-cell categorical labels,
 the model's site names), :class:`~spcopyro.guides.loss.MeanFieldELBO` the loss SVI fits it with
-(globals reparameterised, labels in closed form), and :mod:`spcopyro.guides.method` the ``svi``
+(globals reparameterised, labels in closed form), and :mod:`spcopyro.guides.svi_method` the ``svi``
 inference method built from the two.
 """
 

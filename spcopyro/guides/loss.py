@@ -3,7 +3,7 @@ r"""The SVI loss of the mean-field guide: globals reparameterised, labels in clo
 For the guide :math:`q(\pi, \phi, C) = q(\pi) \prod_{ml} q(\phi_{ml}) \prod_i q(C_i)` of
 :mod:`spcopyro.guides.mean_field` the ELBO of the model's unnormalised joint
 (:func:`spcopyro.model.spcomapping_model`; the same bound as
-:func:`spcopyro.variational.elbo.elbo`) splits as
+:func:`spcopyro.guides.elbo.elbo`) splits as
 
 .. math::
 

@@ -6,7 +6,7 @@ r"""A mean-field Pyro guide for :func:`spcopyro.model.spcomapping_model`.
         \prod_m \prod_l \mathrm{Dir}(\phi_{ml} \mid a_{ml})
         \prod_i \mathrm{Cat}(C_i \mid \mathrm{softmax}(\eta_i)),
 
-the family of :mod:`spcopyro.variational` (CAVI) written as a Pyro program, a
+the family of :mod:`spcopyro.guides` (CAVI) written as a Pyro program, a
 :class:`~pyro.nn.PyroModule` built from the model's arguments like Pyro's autoguides
 (``MeanFieldGuide(data, config)``): the concentrations :math:`a_\pi` ``[L]`` and :math:`a_{ml}`
 ``[L, K_m]`` are :class:`~pyro.nn.PyroParam` s constrained positive (by default above their
@@ -19,7 +19,7 @@ draws the globals and the labels from q, and ``pyro.infer.SVI`` fits it with the
 :mod:`spcopyro.guides.loss` (Pyro's own ELBOs cannot: see there).
 
 The guide's parameters start at the CAVI-optimal global factors for the starting q(C)
-(:func:`spcopyro.variational.cavi.update_globals`, eqs. 14-17 in expectation) and at logits
+(:func:`spcopyro.guides.cavi.update_globals`, eqs. 14-17 in expectation) and at logits
 ``log((1 - s) q + s / L)`` for that q (label smoothing ``s`` keeps a one-hot start finite).
 Each guide names its parameters with its own ``name``, so two guides can share a param store.
 
@@ -42,11 +42,11 @@ from pyro.nn import PyroModule, PyroParam
 from torch.distributions import constraints
 
 from spcopyro.config import SpCoConfig
+from spcopyro.guides.cavi import update_globals
+from spcopyro.guides.factors import GlobalFactors, prior_factors
 from spcopyro.guides.loss import MeanFieldELBO
+from spcopyro.guides.run import initial_q
 from spcopyro.model import DTYPE, SITE_LABELS, SITE_PI, ModelData
-from spcopyro.variational.cavi import update_globals
-from spcopyro.variational.factors import GlobalFactors, prior_factors
-from spcopyro.variational.run import initial_q
 
 _MARGIN = 1e-3
 """Start of every concentration above its prior's under ``bound="prior"`` (expected counts)."""
@@ -78,7 +78,7 @@ class MeanFieldGuide(PyroModule):
     Args:
         data, config: the model's arguments; they fix N, L and the modalities' sites, and the
             starting global factors are CAVI's optimum given the starting q(C).
-        q: ``[N, L]`` the starting q(C) (e.g. :func:`spcopyro.variational.run.initial_q` with
+        q: ``[N, L]`` the starting q(C) (e.g. :func:`spcopyro.guides.run.initial_q` with
             a Gibbs state's labels). By default random one-hot labels drawn with ``generator``
             (torch's global generator when ``None``).
         label_smoothing: s in the starting logits ``log((1 - s) q + s / L)``, in (0, 1). By
@@ -108,7 +108,7 @@ class MeanFieldGuide(PyroModule):
         if not isinstance(data, ModelData):
             raise TypeError(
                 f"MeanFieldGuide(data, config) takes the model's ModelData first, got "
-                f"{type(data).__name__} (see spcopyro.fit.prepare_model_data)"
+                f"{type(data).__name__} (see spcopyro.fit.house.prepare_model_data)"
             )
         super().__init__(name=name)
         N, L = data.num_free, config.num_concepts
@@ -184,8 +184,8 @@ class MeanFieldGuide(PyroModule):
         return torch.softmax(self.logits().detach(), dim=-1)
 
     def factors(self) -> GlobalFactors:
-        """The current q(pi), q(phi) as :class:`~spcopyro.variational.factors.GlobalFactors`
-        (detached), for :func:`spcopyro.variational.elbo.elbo` and the posterior means."""
+        """The current q(pi), q(phi) as :class:`~spcopyro.guides.factors.GlobalFactors`
+        (detached), for :func:`spcopyro.guides.elbo.elbo` and the posterior means."""
         return GlobalFactors(
             self.concentration(SITE_PI).detach(),
             tuple(self.concentration(site).detach() for site in self.parameter_sites),

@@ -25,8 +25,8 @@ import cv2
 import numpy as np
 import yaml
 
+from spcopyro._util.messages import echo
 from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
-from spcopyro.messages import echo
 
 __all__ = [
     "PGM_FREE",

@@ -6,8 +6,8 @@ regions of each label.
 * :func:`concept_regions` -- the 4-connected regions of every label, numbered label by label.
 
 The semantic map's colours (:func:`spcopyro.maps.palette.concept_colours`), its region labels
-(:func:`spcopyro.plotting.region_label_points`) and the place graph
-(:mod:`spcopyro.navigation.places`) read their regions from here.
+(:func:`spcopyro.figures.plotting.region_label_points`) and the place graph
+(:mod:`spcopyro.robot.navigation.places`) read their regions from here.
 """
 
 from __future__ import annotations

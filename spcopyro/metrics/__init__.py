@@ -1,12 +1,12 @@
 r"""Scores of a semantic map: against ground truth, on held-out trials, and across samples.
 
 Every score here takes any method's output through one small interface,
-:class:`~spcopyro.semantic_map.SemanticMapModel` (a label image, ``p(word | cell)`` over a
+:class:`~spcopyro.results.semantic_map.SemanticMapModel` (a label image, ``p(word | cell)`` over a
 vocabulary, and the region a word names), so SpCoMapping
-(:class:`~spcopyro.semantic_map.SpCoSemanticMap` wraps a :class:`~spcopyro.results.SpCoResult`)
-and the baselines of :mod:`spcopyro.baselines`
-(:class:`~spcopyro.semantic_map.TabularSemanticMap`) are scored by the same code. The interface
-lives in :mod:`spcopyro.semantic_map`; its names are re-exported here.
+(:class:`~spcopyro.results.semantic_map.SpCoSemanticMap` wraps a
+:class:`~spcopyro.results.result.SpCoResult`) and the baselines of :mod:`spcopyro.baselines`
+(:class:`~spcopyro.results.semantic_map.TabularSemanticMap`) are scored by the same code. The
+interface lives in :mod:`spcopyro.results.semantic_map`; its names are re-exported here.
 
 Scores
 ------
@@ -22,8 +22,8 @@ Scores
   concepts are numbered (label switching).
 
 Conventions: label images are ``[H, W]`` integer arrays in map-image row order with -1 off free
-space (:meth:`spcopyro.results.SpCoResult.label_image`); a "cell" passed to
-:meth:`~spcopyro.semantic_map.SemanticMapModel.word_distribution` is a free-cell index
+space (:meth:`spcopyro.results.result.SpCoResult.label_image`); a "cell" passed to
+:meth:`~spcopyro.results.semantic_map.SemanticMapModel.word_distribution` is a free-cell index
 (``grid.free_index``), the order every per-free-cell array of the package uses.
 """
 
@@ -47,7 +47,7 @@ from spcopyro.metrics.truth import (
     adjusted_rand_index,
     matching_rate,
 )
-from spcopyro.semantic_map import (
+from spcopyro.results.semantic_map import (
     SemanticMapModel,
     SpCoResultLike,
     SpCoSemanticMap,

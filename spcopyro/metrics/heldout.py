@@ -9,7 +9,7 @@ placed on a free cell as in fitting, then
 * :func:`heldout_localisation` measures how far each word was said from the region the model
   answers "where is it?" with (:class:`LocalisationScores`).
 
-A "cell" passed to :meth:`~spcopyro.semantic_map.SemanticMapModel.word_distribution` is a
+A "cell" passed to :meth:`~spcopyro.results.semantic_map.SemanticMapModel.word_distribution` is a
 free-cell index (``grid.free_index``).
 """
 
@@ -22,7 +22,7 @@ import numpy as np
 from scipy import ndimage
 
 from spcopyro.data import DEFAULT_SNAP_DISTANCE, Observations, place_observations
-from spcopyro.semantic_map import SemanticMapModel, SpCoResultLike, as_semantic_map
+from spcopyro.results.semantic_map import SemanticMapModel, SpCoResultLike, as_semantic_map
 
 __all__ = [
     "LocalisationScores",
@@ -167,7 +167,8 @@ def heldout_word_prediction(
 
         p(\text{word} \mid \text{cell}) = \sum_l p(C_{\text{cell}} = l)\, w_{l,\text{word}}
 
-    (:meth:`~spcopyro.semantic_map.SemanticMapModel.word_distribution`) ranks the vocabulary,
+    (:meth:`~spcopyro.results.semantic_map.SemanticMapModel.word_distribution`) ranks the
+    vocabulary,
     and the true token's rank (:func:`rank_of_truth`: 1 = best, ties at their expected position)
     and top-1 / top-3 hits are recorded. Tokens the model does not know and utterances off free
     space are counted in the answer, not scored. A sentence's filler words are tokens like any

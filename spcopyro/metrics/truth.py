@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from spcopyro.metrics.rand import adjusted_rand_score
-from spcopyro.semantic_map import SemanticMapModel, SpCoResultLike, as_semantic_map
+from spcopyro.results.semantic_map import SemanticMapModel, SpCoResultLike, as_semantic_map
 
 __all__ = ["MATCHING_KINDS", "MatchingRate", "adjusted_rand_index", "matching_rate"]
 
@@ -111,8 +111,8 @@ def matching_rate(
     such words stay in the average and are listed in the answer.
 
     Args:
-        model: a :class:`~spcopyro.semantic_map.SemanticMapModel`, a
-            :class:`~spcopyro.results.SpCoResult` (eq. 19 with prior pi), or any
+        model: a :class:`~spcopyro.results.semantic_map.SemanticMapModel`, a
+            :class:`~spcopyro.results.result.SpCoResult` (eq. 19 with prior pi), or any
             function ``word -> [H, W] bool``; it may raise ``KeyError`` for an unknown word.
         truth: ``[H, W]`` int ground-truth category per cell, -1 where undefined.
         category_words: the word naming each category: a sequence (entry c names category c,

@@ -9,7 +9,7 @@ run in-process or on a Dask cluster, cached by each cell's input, results as one
 * :mod:`~spcopyro.study.table`: the cache on disk and ``results.csv``;
 * :mod:`~spcopyro.study.report`: markdown mean +- sd tables from the table only.
 
-``spcopyro study STUDY.toml --out OUT`` runs one (:mod:`spcopyro.cli_study`; docs/studies.md).
+``spcopyro study STUDY.toml --out OUT`` runs one (:mod:`spcopyro.cli.study`; docs/studies.md).
 """
 
 from __future__ import annotations

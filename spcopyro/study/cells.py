@@ -35,7 +35,7 @@ class Cell:
     variant: Variant | None  # None: a baseline
     row: str  # the variant's or the baseline's name
     data: DataSource  # resolved (absolute paths)
-    method: str  # an inference method of spcopyro.registry, or BASELINE_METHOD
+    method: str  # an inference method of spcopyro.fit.registry, or BASELINE_METHOD
     seed: int
     sweeps: int
     spcoa_iterations: int

@@ -27,10 +27,11 @@ import time
 
 import numpy as np
 
+from spcopyro._util.threads import torch_threads
 from spcopyro.data.model_grid import model_house
 from spcopyro.experiments.ablation import concepts_over
 from spcopyro.experiments.methods import RunSettings, fit_method
-from spcopyro.fit import fit_house
+from spcopyro.fit.house import fit_house
 from spcopyro.maps.coarse import coarsening_factor, refine_labels
 from spcopyro.metrics import (
     SpCoSemanticMap,
@@ -41,7 +42,6 @@ from spcopyro.metrics import (
 )
 from spcopyro.study.cells import Cell
 from spcopyro.study.sources import load_cell_data
-from spcopyro.threads import torch_threads
 
 __all__ = ["SCORES", "STATUS_COLUMNS", "run_cell"]
 

@@ -31,8 +31,8 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+from spcopyro._util.progress import progress_enabled
 from spcopyro.gibbs.chains import usable_cpus
-from spcopyro.progress import progress_enabled
 from spcopyro.study import evaluate
 from spcopyro.study.cells import Cell, cells_of
 from spcopyro.study.report import write_report

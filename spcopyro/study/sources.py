@@ -22,8 +22,8 @@ import numpy as np
 from spcopyro.data import House, Observations, find_dataset_root, load_house
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
-from spcopyro.map_simulation import simulate_on_map
 from spcopyro.maps import load_map
+from spcopyro.robot.map_simulation import simulate_on_map
 from spcopyro.study.spec import DataSource
 from spcopyro.synthetic import make_house
 

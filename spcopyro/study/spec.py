@@ -45,8 +45,8 @@ from typing import Any
 
 from spcopyro.experiments.ablation_variants import Variant, VariantError, make_variant
 from spcopyro.experiments.methods import REGISTRY as BASELINE_REGISTRY
-from spcopyro.map_simulation import MapTour
-from spcopyro.registry import INFERENCE_METHODS
+from spcopyro.fit.registry import INFERENCE_METHODS
+from spcopyro.robot.map_simulation import MapTour
 from spcopyro.synthetic import HouseSpec
 
 __all__ = ["DataSource", "Study", "StudyError", "load_study", "study_from_dict"]

@@ -259,7 +259,7 @@ def tour_observations(
     """The synthetic observation model on a floor plan: a tour of its regions (``plan.region``,
     ``region_category`` [R] the category of each), a place histogram per image from its
     category's Dirichlet, utterances at image positions from the category's lexicon. Used by
-    :func:`make_house` and by ``simulate --map`` (:mod:`spcopyro.map_simulation`)."""
+    :func:`make_house` and by ``simulate --map`` (:mod:`spcopyro.robot.map_simulation`)."""
     phi = _place_distributions(spec, num_categories, rng)  # [C, K]
     tour = _tour(spec, grid, plan, rng)
     image_category = region_category[tour.region]  # [T]

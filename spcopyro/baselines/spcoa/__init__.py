@@ -25,7 +25,8 @@ The package, one module per responsibility:
   (paper eqs. 21-22) -- :class:`SpCoAResult`.
 
 Nothing here imports SpCoMapping's sampler: the random draws come from
-:mod:`spcopyro.random_draws`, the cell labelling from :mod:`spcopyro.initialisation`.
+:mod:`spcopyro._util.random_draws`, the cell labelling from
+:mod:`spcopyro.inference.initialisation`.
 """
 
 from spcopyro.baselines.spcoa.events import DEFAULT_PAIR_DISTANCE, SpCoAData, spcoa_data

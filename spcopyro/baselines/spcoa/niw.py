@@ -19,8 +19,8 @@ import math
 
 import torch
 
+from spcopyro._util.random_draws import sample_log_gamma
 from spcopyro.model import DTYPE
-from spcopyro.random_draws import sample_log_gamma
 
 __all__ = ["DIM", "niw_log_marginal", "niw_posterior", "sample_niw"]
 

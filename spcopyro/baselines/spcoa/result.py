@@ -2,8 +2,8 @@ r"""The fitted SpCoA baseline and the semantic map it makes (paper eqs. 21-22).
 
 Each free cell, at world position x_ij (its centre), gets the concept
 argmax_l log pi_l + log N(x_ij | mu_l, Sigma_l) over the concepts that hold at least one event
-(exactly :func:`spcopyro.initialisation.labels_from_gaussians`); these Gaussians are also the
-pre-learning initialisation of SpCoMapping (paper Section 5):
+(exactly :func:`spcopyro.inference.initialisation.labels_from_gaussians`); these Gaussians are also
+the pre-learning initialisation of SpCoMapping (paper Section 5):
 :func:`~spcopyro.baselines.spcoa.spcoa_gaussians`.
 "Where is WORD?" is the eq. (19) analogue argmax_l pi_l w_{l,WORD}, taken over the concepts that
 label at least one cell, and p(word | cell) = sum_l p(l | x_cell) w_l with
@@ -19,10 +19,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 import torch
 
-from spcopyro.initialisation import labels_from_gaussians
+from spcopyro.inference.initialisation import labels_from_gaussians
 from spcopyro.maps import OccupancyGrid
 from spcopyro.model import DTYPE
-from spcopyro.semantic_map import word_index
+from spcopyro.results.semantic_map import word_index
 
 if TYPE_CHECKING:
     from spcopyro.baselines.spcoa.events import SpCoAData
@@ -138,7 +138,8 @@ class SpCoAResult:
     def region(self, word: str) -> np.ndarray:
         """[H, W] bool: the cells labelled with argmax_l pi_l w_{l,word} (eq. 19 analogue).
 
-        Raises :class:`~spcopyro.semantic_map.UnknownWordError` (a KeyError) for a word outside
+        Raises :class:`~spcopyro.results.semantic_map.UnknownWordError` (a KeyError) for a word
+        outside
         :attr:`vocabulary`.
         """
         concept = int(np.argmax(self.concept_given_word(word)))

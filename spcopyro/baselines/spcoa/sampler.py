@@ -43,6 +43,7 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
+from spcopyro._util.random_draws import sample_categorical_logits, sample_log_dirichlet
 from spcopyro.baselines.spcoa.events import DEFAULT_PAIR_DISTANCE, SpCoAData, spcoa_data
 from spcopyro.baselines.spcoa.hyperparameters import SpCoAHyperparameters
 from spcopyro.baselines.spcoa.niw import (
@@ -55,7 +56,6 @@ from spcopyro.baselines.spcoa.niw import (
 from spcopyro.baselines.spcoa.result import SpCoAResult
 from spcopyro.data import FeatureScaling, House, WordWeighting
 from spcopyro.model import DTYPE
-from spcopyro.random_draws import sample_categorical_logits, sample_log_dirichlet
 
 __all__ = [
     "EventTensors",
@@ -323,8 +323,8 @@ def spcoa_gaussians(
     """Pre-learning for SpCoMapping (paper Section 5): fit SpCoA, return its Gaussians.
 
     ``options`` go to :func:`fit_spcoa`. Pass SpCoMapping's L as ``num_concepts`` so that the
-    labels of :func:`spcopyro.initialisation.labels_from_gaussians` (indices into the G <= L
-    Gaussians) are valid concepts.
+    labels of :func:`spcopyro.inference.initialisation.labels_from_gaussians` (indices into the G
+    <= L Gaussians) are valid concepts.
 
     Returns:
         means [G, 2], covariances [G, 2, 2], log_weights [G] (float64) of the G concepts in use.

@@ -1,0 +1,163 @@
+"""What the ``spcopyro`` commands share: loading DATA, the house summary, argument types.
+
+The argument types raise :class:`argparse.ArgumentTypeError`, so a bad value is reported by
+argparse on the command's usage line; :class:`_HelpFormatter` ends every option's help with its
+default (``spcopyro COMMAND --help``).
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from pathlib import Path
+
+from spcopyro._util.threads import AUTO
+from spcopyro.data import House, cell_counts, load_house
+
+
+def _load(data: str | None, seed: int = 0) -> House:
+    if data is None:
+        from spcopyro.synthetic import make_house
+
+        return make_house(seed=seed)
+    return load_house(Path(data))
+
+
+def _summary(house: House, warn: bool = True, feature_scaling: object = "probability") -> str:
+    """The house's summary lines; ``warn=False`` when the fit will count (and warn) again,
+    ``feature_scaling`` the run's (so a bad count is told under the scaling it has there)."""
+    counts = cell_counts(
+        house.grid, house.observations, source=house.source, warn=warn,
+        feature_scaling=feature_scaling,
+    )  # fmt: skip
+    p = counts.placement
+    obs = house.observations
+    lines = [
+        f"house            {house.name}",
+        f"map              {house.grid.height} x {house.grid.width} cells at "
+        f"{house.grid.resolution} m, {house.grid.num_free} free",
+        f"images           {obs.num_images} ({obs.num_feature_classes} feature classes) in "
+        f"{len(obs.trials)} trial(s)",
+        f"utterances       {obs.num_utterances}, vocabulary of {len(counts.vocabulary)} words",
+        f"observed cells   {len(counts.cells)}",
+        f"placement        images: {p.images_on_free} on free cells, {p.images_snapped} snapped, "
+        f"{p.images_unplaced} unplaced; words: {p.words_on_free} on free cells, "
+        f"{p.words_snapped} snapped, {p.words_unplaced} unplaced "
+        f"(snap distance {p.snap_distance} m)",
+    ]
+    if house.category_names:
+        lines.append(f"ground truth     {len(house.category_names)} categories: "
+                     + ", ".join(house.category_names))  # fmt: skip
+    return "\n".join(lines)
+
+
+def _integer_at_least(minimum: int) -> Callable[[str], int]:
+    def parse(value: str) -> int:
+        try:
+            number = int(value)
+        except ValueError:
+            number = minimum - 1
+        if number < minimum:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {minimum}, got {value!r}")
+        return number
+
+    return parse
+
+
+_positive_int = _integer_at_least(1)
+_non_negative_int = _integer_at_least(0)
+FIT_SWEEPS = 5000  # --sweeps of a fit from scratch (the paper's)
+UPDATE_SWEEPS = 300  # --sweeps of --update (spcopyro.robot.online.DEFAULT_UPDATE_SWEEPS)
+MAX_SEED = 2**63 - 1  # torch.Generator.manual_seed takes a signed 64-bit integer
+
+
+def _seed(value: str) -> int:
+    """``--seed``: an integer in 0 .. 2**63 - 1 (argparse names the option on an error)."""
+    number = _non_negative_int(value)
+    if number > MAX_SEED:
+        raise argparse.ArgumentTypeError(f"must be at most 2**63 - 1 = {MAX_SEED}, got {value!r}")
+    return number
+
+
+def _sweeps(value: str) -> int | str:
+    if value == "auto":
+        return value
+    try:
+        sweeps = int(value)
+    except ValueError:
+        sweeps = 0
+    if sweeps < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer or 'auto', got {value!r}")
+    return sweeps
+
+
+def _chain_workers(value: str) -> int | str:
+    """``--chain-workers``: ``auto`` or an integer >= 1."""
+    if value == AUTO:
+        return value
+    try:
+        return _positive_int(value)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"must be 'auto' or an integer >= 1, got {value!r}"
+        ) from None
+
+
+def _threads(value: str) -> int | str:
+    """``--threads``: ``auto`` or an integer >= 0 (0: torch's own setting)."""
+    if value == AUTO:
+        return value
+    try:
+        return _non_negative_int(value)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"must be 'auto' or an integer >= 0 (0: torch's own setting), got {value!r}"
+        ) from None
+
+
+def _concentrations(values: list[str] | None) -> dict[str, float] | None:
+    """``NAME=VALUE`` options as a mapping (None when there are none)."""
+    if not values:
+        return None
+    pairs = {}
+    for value in values:
+        name, sep, number = value.partition("=")
+        try:
+            pairs[name.strip()] = float(number)
+        except ValueError:
+            sep = ""
+        if not sep or not name.strip():
+            raise ValueError(f"--concentration must be NAME=NUMBER, got {value!r}")
+    return pairs
+
+
+def _feature_scaling(value: str | None) -> str | float | None:
+    if value is None or value in ("probability", "floor100"):
+        return value
+    try:
+        return float(value)
+    except ValueError:
+        raise SystemExit(
+            f"--feature-scaling must be probability, floor100 or a number, got {value!r}"
+        ) from None
+
+
+_PRESET_DEFAULT = "(default: the --preset's value)"
+
+
+class _HelpFormatter(argparse.HelpFormatter):
+    """Every option's help ends with its default, unless the help already says it: ``(default:
+    off)`` for a flag, ``(default: VALUE)`` otherwise (an option whose default is None says in
+    its own help what happens without it)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        if (
+            not action.option_strings
+            or action.default in (None, argparse.SUPPRESS)
+            or "default" in text.lower()
+        ):
+            return text
+        if action.nargs == 0:  # a flag
+            return f"{text} (default: {'on' if action.default else 'off'})"
+        return f"{text} (default: %(default)s)"

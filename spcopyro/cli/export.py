@@ -1,0 +1,141 @@
+"""The ``spcopyro export`` command: a fitted semantic map as Nav2 costmap-filter masks.
+
+``spcopyro export OUT --nav2 DIR --word kitchen --mode keepout`` reads the fit in OUT and writes
+into DIR the map, the semantic map and, per word, a filter mask with its parameter files
+(:mod:`spcopyro.robot.nav2`). :func:`add_parser` registers it on the main parser's subparsers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from spcopyro.cli.common import _HelpFormatter
+
+__all__ = ["add_parser"]
+
+
+def _probability(value: str) -> float:
+    try:
+        number = float(value)
+    except ValueError:
+        number = -1.0
+    if not 0.0 < number <= 1.0:
+        raise argparse.ArgumentTypeError(f"must be a probability in (0, 1], got {value!r}")
+    return number
+
+
+def _percent(value: str) -> float:
+    try:
+        number = float(value)
+    except ValueError:
+        number = -1.0
+    if not 0.0 <= number <= 100.0:
+        raise argparse.ArgumentTypeError(f"must be a percentage in [0, 100], got {value!r}")
+    return number
+
+
+def _min_speed(value: str) -> float:
+    """``--min-speed``: a percentage in [1, 100]: Nav2 reads a 0 % limit as no limit."""
+    number = _percent(value)
+    if number < 1.0:
+        raise argparse.ArgumentTypeError(
+            f"must be at least 1 (percent): Nav2 reads a 0 % limit as no limit, got {value!r}"
+        )
+    return number
+
+
+def _export(args: argparse.Namespace) -> int:
+    from spcopyro.results.result import SpCoResult, UnknownWordError
+    from spcopyro.robot.nav2 import export_nav2
+
+    if args.threshold is not None and args.mode != "keepout":
+        print("error: --threshold applies to --mode keepout only", file=sys.stderr)
+        return 2
+    if args.min_speed > args.max_speed:
+        print(f"error: --min-speed {args.min_speed:g} exceeds --max-speed {args.max_speed:g}",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    result = SpCoResult.load(args.result)
+    try:
+        export = export_nav2(
+            result, args.nav2, args.word or (), mode=args.mode, prior=args.prior,
+            threshold=args.threshold, min_speed=args.min_speed, max_speed=args.max_speed,
+            overwrite=args.overwrite, source=args.result, namespace=args.namespace,
+        )  # fmt: skip
+    except UnknownWordError as error:
+        print(f"error: {error.args[0]}", file=sys.stderr)
+        return 2
+    free = result.grid.num_free
+    print(f"wrote {export.map_yaml} and {export.semantic_map_yaml}")
+    for mask in export.masks:
+        how = f"concept {mask.concept}" if mask.concept is not None else "per-cell probability"
+        print(f"{mask.mode} mask for {mask.word!r} ({how}): {mask.cells} of {free} free cells "
+              f"-> {mask.mask_yaml}, params {mask.params_yaml}")  # fmt: skip
+        for warning in mask.warnings:
+            print(f"warning: {mask.word!r}: {warning}", file=sys.stderr)
+    if not export.masks:
+        print("no --word given: wrote the map and the semantic map only")
+    print(f"costmap plugin entries for nav2_params.yaml: {export.costmap_filters_yaml}")
+    return 0
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``export`` on the main parser's subparsers."""
+    p = subparsers.add_parser(
+        "export",
+        help="write a fitted semantic map as Nav2 costmap-filter masks (keepout or speed)",
+        formatter_class=_HelpFormatter,
+    )
+    p.add_argument("result", help="output folder of `spcopyro fit`")
+    p.add_argument(
+        "--nav2",
+        required=True,
+        metavar="DIR",
+        help="folder to write the map, the semantic map and the masks into",
+    )
+    p.add_argument(
+        "--word",
+        action="extend",
+        nargs="+",
+        metavar="WORD",
+        help="word(s) whose place gets a mask (repeatable; default: none, only the "
+        "maps are written)",
+    )
+    p.add_argument(
+        "--mode",
+        choices=("keepout", "speed"),
+        default="keepout",
+        help="keepout: the place is lethal (KeepoutFilter); speed: a speed limit that "
+        "falls with the probability of being in the place (SpeedFilter)",
+    )
+    p.add_argument(
+        "--prior",
+        choices=("area", "pi"),
+        default="area",
+        help="p(C) of the where-answer (as in `spcopyro where`)",
+    )
+    p.add_argument(
+        "--threshold",
+        type=_probability,
+        help="keepout: the place is every free cell whose probability of being the "
+        "word's place is at least this (default: the where-answer's region)",
+    )
+    p.add_argument(
+        "--min-speed",
+        type=_min_speed,
+        default=30.0,
+        help="speed: limit in percent of the maximum speed where the probability is 1; at "
+        "least 1 (Nav2 reads a 0 %% limit as no limit)",
+    )
+    p.add_argument(
+        "--max-speed",
+        type=_percent,
+        default=100.0,
+        help="speed: limit in percent where the probability is 0 (100: no limit)",
+    )
+    p.add_argument("--namespace", metavar="NS",
+                   help="the robot's ROS namespace: the masks', filter infos' and speed limit's "
+                        "topics become /NS/... (default: none, absolute topics)")  # fmt: skip
+    p.add_argument("--overwrite", action="store_true", help="replace an earlier export in DIR")
+    p.set_defaults(func=_export)

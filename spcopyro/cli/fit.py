@@ -1,0 +1,494 @@
+"""The ``spcopyro fit`` command: check the arguments, fit, write OUT whole, keep a checkpoint.
+
+:func:`run_fit` runs it on the parsed arguments; its options are in :mod:`spcopyro.cli.fit_parser`.
+What imports torch, pyro or numba (the sampler, the inference methods) is imported inside the
+functions that use it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import dataclasses
+import json
+import math
+import shlex
+import signal
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from spcopyro._util.outputs import StagedOutput
+from spcopyro._util.threads import describe_threads
+from spcopyro._util.timings import Phases
+from spcopyro.cli.common import (
+    FIT_SWEEPS,
+    UPDATE_SWEEPS,
+    _concentrations,
+    _feature_scaling,
+    _load,
+    _summary,
+)
+from spcopyro.config import (
+    SpCoSettings,
+    preset,
+    preset_inference,
+)
+from spcopyro.data import House
+from spcopyro.data.model_grid import model_house
+from spcopyro.results.concept_words import MIN_LIFT, format_concept_words, format_words_heard
+
+if TYPE_CHECKING:
+    from spcopyro.fit.gibbs_chains import FitCheckpoint
+    from spcopyro.results.result import SpCoResult
+
+__all__ = ["run_fit"]
+
+_clock = time.perf_counter  # wall clock of a whole fit (all chains)
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM (what ``timeout``, systemd, docker and Slurm send) stops a fit as Ctrl-C does:
+    a KeyboardInterrupt in the main thread, so the chains stop at a completed sweep and the
+    checkpoint and the command to continue are kept. The previous handler comes back after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def run_fit(args: argparse.Namespace) -> int:
+    """Check the arguments and OUT, then fit into a staging folder moved to OUT at the end
+    (:mod:`spcopyro._util.outputs`); Ctrl-C or SIGTERM keeps a checkpoint beside OUT and exits with
+    130."""
+    with _sigterm_as_interrupt():
+        return _fit_interruptible(args)
+
+
+def _fit_interruptible(args: argparse.Namespace) -> int:
+    from spcopyro._util.outputs import checkpoint_path, stage_output
+    from spcopyro.fit.gibbs_chains import FitCheckpoint, FitInterrupted
+
+    args.phases = Phases()  # seconds per phase, written to $SPCOPYRO_TIMINGS if set
+    if args.sweeps is None:  # the parser's default: fewer sweeps continue a fit than start one
+        args.sweeps = UPDATE_SWEEPS if args.update is not None else FIT_SWEEPS
+    _apply_preset_inference(args)
+    if args.update is not None:
+        _check_update_args(args)
+    if args.sweeps == "auto" and args.method != "gibbs":
+        raise ValueError(f"--sweeps auto is Gibbs' convergence rule, not {args.method!r}'s")
+    if args.resume is not None and (args.sweeps == "auto" or args.method != "gibbs"):
+        raise ValueError(
+            "--resume continues Gibbs chains run for a number of --sweeps; "
+            f"--sweeps {args.sweeps} --method {args.method} keeps no checkpoint"
+        )
+    if args.point_estimate != "map-visited" and (
+        args.sweeps == "auto"
+        or args.method not in ("gibbs", "vi-gibbs")
+        or not args.marginal_samples
+    ):
+        raise ValueError(
+            f"--point-estimate {args.point_estimate} is made over the label maps of "
+            "--marginal-samples (> 0) of a gibbs or vi-gibbs fit with a number of --sweeps"
+        )
+    if args.sweeps != "auto" and args.anneal_sweeps > args.sweeps:
+        raise ValueError(f"anneal_sweeps ({args.anneal_sweeps}) must not exceed num_sweeps "
+                         f"({args.sweeps})")  # fmt: skip
+    if args.resume is not None and (Path(args.resume) / "result.npz").is_file():
+        raise ValueError(
+            f"--resume {args.resume} is a finished fit, not a checkpoint: to continue it with "
+            f"new observations use --update {args.resume}"
+        )
+    if args.resume is not None and not Path(args.resume).is_file():
+        raise FileNotFoundError(f"--resume {args.resume}: no such checkpoint file")
+    house = _load(args.data)
+    args.phases.mark("load")
+    settings, options = _fit_settings(args, house)
+    house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
+    staged = stage_output(
+        args.out, overwrite=args.overwrite, resume=args.resume,
+        inputs=(house.source, house.grid.source, args.update),
+    )  # fmt: skip
+    args.phases.mark("settings")
+    keeper = None  # keeps the Gibbs chains for a checkpoint beside OUT
+    if args.method == "gibbs" and args.sweeps != "auto" and args.update is None:
+        keeper = FitCheckpoint(checkpoint_path(staged.out))
+    sampled: list[bool] = []  # set once sampling has ended
+    try:
+        return _fit_staged(args, house, settings, options, staged, keeper, sampled)
+    except KeyboardInterrupt as stop:
+        if staged.committed:
+            print(f"interrupted after {staged.out} was written", file=sys.stderr)
+            return 130
+        if isinstance(stop, FitInterrupted):  # while sampling
+            where, kept = f" ({stop.where})", stop.checkpoint
+        else:  # while reading the data, or writing the outputs
+            where = " while writing the outputs" if sampled else ""
+            kept = keeper.save() if keeper and sampled else None
+        print(_interrupted(args, where, kept, staged.out), file=sys.stderr)
+        return 130
+    except Exception:
+        writing = sampled and not (staged.committed or staged.kept)
+        kept = keeper.save() if keeper and writing else None
+        if kept is not None:  # an error while writing: the sampling is not lost
+            print(f"note: nothing written to {staged.out}; the finished chains are saved in "
+                  f"{kept} -- once fixed, continue with: {_resume_command(args, kept)}",
+                  file=sys.stderr)  # fmt: skip
+        raise
+    finally:
+        staged.discard()  # nothing once committed; else the run's partial outputs
+
+
+def _apply_preset_inference(args: argparse.Namespace) -> None:
+    """Fill the inference options the command line left unset (None) with what the preset
+    recommends (:func:`spcopyro.config.preset_inference`: ``auto`` starts from the rooms, adds
+    merge moves and reports the VI point estimate), where they apply to this run, else with the
+    plain defaults (random start, no merge moves, the highest-log-joint state visited). The
+    start and the merge moves are Gibbs's: on the public houses the rooms start is one room, and
+    a variational method started there stays one concept (it has no move that splits)."""
+    recommended = preset_inference(args.preset)
+    # --resume continues chains that started as the preset says: their start is the preset's
+    # (the checkpoint checks it), so only --update and --init-from start elsewhere.
+    starts_elsewhere = any(x is not None for x in (args.update, args.init_from))
+    samples = args.sweeps != "auto" and args.method in ("gibbs", "vi-gibbs")
+    if args.init is None:  # the rooms start is Gibbs's: its merge (split) moves leave it
+        gibbs = args.method == "gibbs" and not starts_elsewhere
+        args.init = recommended.get("init", "random") if gibbs else "random"
+    if args.merge_moves is None and args.method == "gibbs":
+        args.merge_moves = recommended.get("merge_moves")
+    if args.point_estimate is None:
+        usable = samples and args.marginal_samples > 0
+        args.point_estimate = (
+            recommended.get("point_estimate", "map-visited") if usable else "map-visited"
+        )
+
+
+def _check_update_args(args: argparse.Namespace) -> None:
+    """``--update OUT``: a finished fit's folder, and no option that chooses another start."""
+    if args.resume is not None or args.init_from is not None or args.init != "random":
+        given = "--resume" if args.resume is not None else (
+            "--init-from" if args.init_from is not None else "--init"
+        )  # fmt: skip
+        raise ValueError(f"--update starts from the saved fit; {given} chooses another start")
+    if args.sweeps == "auto":
+        raise ValueError("--update runs a number of --sweeps; --sweeps auto starts from scratch")
+    if not (Path(args.update) / "result.npz").is_file():
+        raise FileNotFoundError(
+            f"--update {args.update}: no finished fit there (a folder written by spcopyro fit "
+            "--out, holding result.npz)"
+        )
+
+
+def _interrupted(args: argparse.Namespace, where: str, kept: Path | None, out: Path) -> str:
+    """The one line ``fit`` prints when Ctrl-C stops it (``kept``: the checkpoint, if any)."""
+    line = f"interrupted{where}: nothing written to {out}"
+    if kept is None:
+        why = "--sweeps auto" if args.sweeps == "auto" else f"the {args.method!r} method"
+        if args.sweeps != "auto" and args.method == "gibbs":
+            why = "no sweep was done" if args.update is None else "--update"
+        return f"{line}; no checkpoint kept ({why})"
+    command = _resume_command(args, kept)
+    return f"{line}; the state reached is saved in {kept} -- continue with: {command}"
+
+
+def _command(args: argparse.Namespace) -> list[str]:
+    """The command line this run was started with (without the program's name)."""
+    return list(args.argv if getattr(args, "argv", None) else sys.argv[1:])
+
+
+def _resume_command(args: argparse.Namespace, checkpoint: Path) -> str:
+    """This run's command line with ``--resume CHECKPOINT`` (in place of an earlier one)."""
+    argv = _command(args)
+    for k in range(len(argv) - 1, -1, -1):
+        if argv[k] == "--resume":
+            del argv[k : k + 2]
+        elif argv[k].startswith("--resume="):
+            del argv[k]
+    return shlex.join(["spcopyro", *argv, "--resume", str(checkpoint)])
+
+
+def _cell_size(value: str | None) -> float | None | str:
+    """``--cell-size``: None (unset: the preset's), 'map' (the map's own cells) or metres."""
+    if value is None:
+        return None
+    if value == "map":
+        return "map"
+    try:
+        size = float(value)
+    except ValueError:
+        size = float("nan")
+    if not (math.isfinite(size) and size > 0):
+        raise ValueError(f"--cell-size {value!r}: give a positive number of metres or 'map'")
+    return size
+
+
+def _fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings, object | None]:
+    """The model and data settings and the method's options (None: its defaults) of ``fit``."""
+    from spcopyro.fit.registry import INFERENCE_METHODS
+    from spcopyro.gibbs.backends import get_backend
+    from spcopyro.gibbs.options import GibbsOptions
+    from spcopyro.inference.protocol import with_options
+
+    overrides = dict(
+        prior=args.prior, num_concepts=args.concepts, gamma=args.gamma, alpha=args.alpha,
+        beta=args.beta, chi=args.chi, connectivity=args.connectivity,
+        concentrations=_concentrations(args.concentration),
+        word_weighting="tfidf" if args.tfidf else None,
+        feature_scaling=_feature_scaling(args.feature_scaling),
+        snap_distance=args.snap_distance, footprint_radius=args.footprint,
+        cell_size=_cell_size(args.cell_size), word_scaling=args.word_scaling,
+        footprint_kernel=args.footprint_kernel, footprint_fov=args.footprint_fov,
+    )  # fmt: skip
+    if args.preset == "paper-dirichlet" and args.concepts is None and house.category_names:
+        overrides["num_concepts"] = len(house.category_names)
+    settings = preset(args.preset, **overrides)
+    options = None  # a method other than Gibbs runs with its defaults and --method-option
+    if args.method_option:
+        default = INFERENCE_METHODS[args.method].default_options()
+        options = with_options(default, args.method_option)
+    if args.method == "gibbs":
+        options = GibbsOptions(
+            backend=args.backend, anneal_sweeps=args.anneal_sweeps,
+            unobserved_refresh=1.0 if args.unobserved_refresh is None else args.unobserved_refresh,
+            cluster_moves=0.0 if args.cluster_moves is None else args.cluster_moves,
+            merge_moves=0.0 if args.merge_moves is None else args.merge_moves,
+        )  # fmt: skip
+        options = with_options(options, args.method_option or [])
+        try:
+            get_backend(options.backend)
+        except ImportError as error:  # --backend numba without numba: before anything is written
+            raise ValueError(str(error)) from None
+    return settings, options
+
+
+def _fit_staged(
+    args: argparse.Namespace,
+    house: House,
+    settings: SpCoSettings,
+    options: object | None,
+    staged: StagedOutput,
+    keeper: FitCheckpoint | None,
+    sampled: list[bool],
+) -> int:
+    """Fit, write every output into ``staged.path``, then move it to OUT."""
+    from spcopyro._util.outputs import checkpoint_path
+    from spcopyro.fit.house import best_chain, fit_house_chains, log_degenerate_map
+    from spcopyro.fit.registry import INFERENCE_METHODS
+    from spcopyro.gibbs.backends import get_backend
+    from spcopyro.gibbs.hyperparameters import describe_hyperparameters
+    from spcopyro.gibbs.options import GibbsOptions
+    from spcopyro.results.uncertainty import cell_entropy, free_cells_image
+
+    phases = args.phases
+    config = settings.model
+    source = "embedded synthetic house, seed 0" if args.data is None else None
+    # The config's warnings (gamma, extreme concentrations) are logged by prepare_model_data,
+    # which the fit runs; main's logging handler prints them once, as "warning: ...".
+    # The fit's own counts say what is left out (once), under the run's feature scaling.
+    print(_summary(house, warn=False, feature_scaling=settings.data.feature_scaling))
+    print(f"model            {config}")
+    print(f"data             {settings.data}")
+    default = INFERENCE_METHODS[args.method].default_options()
+    print(f"inference        {args.method}: {options if options is not None else default}")
+    print(f"threads          {describe_threads(args.threads, house.grid.num_free)}")
+    if isinstance(options, GibbsOptions):
+        print(f"backend used     {get_backend(options.backend).name}")
+    if args.resume is not None:
+        print(f"resuming         the chains saved in {args.resume}")
+    init = args.init
+    saved = None
+    if args.update is not None:
+        from spcopyro.results.result import SpCoResult
+
+        saved = SpCoResult.load(args.update)
+        print(f"updating         the {saved.method} fit in {args.update} "
+              f"({len(saved.trace.objective)} iterations) with all of this data")  # fmt: skip
+    if args.init_from is not None:
+        from spcopyro.results.result import SpCoResult
+
+        init = SpCoResult.load(args.init_from)
+        print(f"starting from     the {init.method} fit in {args.init_from}")
+    diagnostics = None
+    phases.mark("summary")
+    start = _clock()
+    if args.sweeps == "auto":
+        from spcopyro.fit.house import fit_house_converged
+
+        chains = 4 if args.chains is None else args.chains
+        result, diagnostics = fit_house_converged(
+            house, settings, options=options, chains=chains, max_sweeps=args.max_sweeps,
+            seed=args.seed, init=init, source=source, threads=args.threads,
+        )  # fmt: skip
+        chain_results = None
+    elif saved is not None:
+        from spcopyro.robot.online import fit_update
+
+        chains = 1 if args.chains is None else args.chains
+        chain_results = fit_update(
+            saved, house, settings, method=args.method, options=options, sweeps=args.sweeps,
+            seeds=[args.seed + k for k in range(chains)], source=source, threads=args.threads,
+            marginal_samples=args.marginal_samples, point_estimate=args.point_estimate,
+            where=args.update,
+        )  # fmt: skip
+        words = chain_results[0].inference["update_of"]["new_words"]
+        print(f"new words        {len(words)}: {', '.join(words[:20]) or '-'}")
+        kept = best_chain(chain_results)
+        result = chain_results[kept]
+    else:
+        chains = 1 if args.chains is None else args.chains
+        chain_results = fit_house_chains(
+            house, settings, method=args.method, options=options, sweeps=args.sweeps,
+            seeds=[args.seed + k for k in range(chains)], init=init, source=source,
+            checkpoint=keeper, resume=args.resume, threads=args.threads,
+            marginal_samples=args.marginal_samples, point_estimate=args.point_estimate,
+            chain_workers=args.chain_workers,
+        )  # fmt: skip
+        kept = best_chain(chain_results)
+        result = chain_results[kept]
+    wall = _clock() - start
+    phases.mark("fit")
+    sampled.append(True)
+    command = shlex.join(["spcopyro", *_command(args)])
+    result = dataclasses.replace(result, provenance={**result.provenance, "command": command})
+    out = result.save(staged.path)
+    phases.mark("save")
+    if chain_results is not None and chains > 1:
+        best_values = [r.best_objective for r in chain_results]
+        report = {"seeds": [args.seed + k for k in range(chains)], "best_chain": kept,
+                  "best_log_joint": best_values}  # fmt: skip
+        (out / "chains.json").write_text(json.dumps(report, indent=1) + "\n")
+        print(f"best of {chains} chains: kept chain {kept} (seed {args.seed + kept}), best log "
+              f"joints {', '.join(f'{v:.1f}' for v in best_values)}")  # fmt: skip
+    sweeps_run = len(result.trace.objective)
+    if diagnostics is not None:
+        (out / "convergence.json").write_text(json.dumps(diagnostics.to_json(), indent=1) + "\n")
+        last = diagnostics.checks[-1]
+        state = "converged" if diagnostics.converged else "NOT converged (hit --max-sweeps)"
+        print(f"--sweeps auto: {chains} chains {state} after {sweeps_run} sweeps each "
+              f"(split R-hat: log joint {last.rhat_log_joint:.3f}, concepts "
+              f"{last.rhat_num_concepts:.3f}); kept chain {diagnostics.best_chain} "
+              f"(seed {diagnostics.seeds[diagnostics.best_chain]}), highest log joint")  # fmt: skip
+    entropy = cell_entropy(result)
+    if entropy is not None:
+        np.save(out / "uncertainty.npy", free_cells_image(result, entropy))
+    if result.agreement is not None:
+        np.save(out / "agreement.npy", free_cells_image(result, result.agreement))
+    phases.mark("save")
+    if not args.no_figures:  # matplotlib is imported only here
+        _write_figures(result, house, out, uncertainty=entropy is not None)
+    phases.mark("figures")
+    if result.agreement is not None:
+        print(f"point estimate   {args.point_estimate} (expected loss "
+              f"{result.inference['expected_loss']:.4g}, best single sample "
+              f"{result.inference['best_sample_loss']:.4g})"
+              f"{'' if args.no_figures else '; agreement.png'}")  # fmt: skip
+    unit = "sweep" if result.trace.objective_name == "log joint" else "iteration"
+    runs = f"{chains} chains x " if chains > 1 else ""
+    runs += f"{sweeps_run} {unit}s"
+    print(f"fitted {runs} in {wall:.1f} s wall clock "
+          f"({1e3 * result.trace.seconds[-1] / sweeps_run:.2f} ms per {unit}); "
+          f"{len(result.concepts_in_use())} concepts in use")  # fmt: skip
+    if result.inference.get("stopped"):  # a variational method: converged, or --sweeps reached
+        print(f"stopped          {result.inference['stopped']}")
+    if result.inference.get("hyperparameters"):
+        line = describe_hyperparameters(result.inference["hyperparameters"])  # type: ignore[arg-type]
+        print(f"hyperparameters  {line} (posterior mean +- sd over the second half)")
+    if house.truth is not None:
+        from spcopyro.metrics import adjusted_rand_index
+
+        ari = adjusted_rand_index(result.label_image(), house.truth)
+        np.save(out / "truth.npy", house.truth)
+        (out / "scores.json").write_text(json.dumps({"ari": ari}) + "\n")
+        print(f"adjusted Rand index against the ground truth: {ari:.3f}")
+    print_concepts(result)
+    log_degenerate_map(result, house)  # printed once, as "warning: ..."
+    vocabulary_size = len(result.vocabulary)
+    used = result.concepts_in_use()
+    if vocabulary_size and result.w[used].max() < 2.0 / vocabulary_size:
+        if config.beta > 0.1:
+            why = (f"beta = {config.beta:g} outweighs the {house.observations.num_utterances} "
+                   "utterances (each list still follows the counts heard there); for sharper "
+                   "words try --beta 0.1 (or --preset original-code --gamma 3)")  # fmt: skip
+        else:
+            why = (f"with beta = {config.beta:g} this comes from the words themselves: every "
+                   "place heard much the same words (e.g. only fillers or stopwords); "
+                   "--tfidf weighs down words said everywhere")  # fmt: skip
+        print(f"note: every concept's word distribution is close to uniform: {why}",
+              file=sys.stderr)  # fmt: skip
+    phases.mark("report")
+    out = staged.commit()
+    checkpoint = checkpoint_path(out)
+    if checkpoint.is_file():  # the one resumed from, or an old one --overwrite replaces
+        checkpoint.unlink(missing_ok=True)
+        print(f"removed {checkpoint}: the fit it held is complete or replaced")
+    if args.no_figures:
+        print(f"wrote {out}/: labels.npy concepts.json trace.csv ... (figures skipped: "
+              "--no-figures)")  # fmt: skip
+    else:
+        print(f"wrote {out}/: labels.npy semantic_map.png concepts.json trace.csv trace.png ...")
+    phases.mark("commit")
+    phases.write(sweeps=sweeps_run, sweep_seconds=float(result.trace.seconds[-1]),
+                 first_sweep_seconds=float(result.trace.seconds[0]), chains=chains,
+                 figures=not args.no_figures)  # fmt: skip
+    return 0
+
+
+def _write_figures(result: SpCoResult, house: House, out: Path, uncertainty: bool) -> None:
+    """The fit's PNGs: semantic map, trace, house, and the uncertainty and agreement maps of a
+    result that has them (:mod:`spcopyro.figures.plotting`, matplotlib's Agg canvas)."""
+    from spcopyro.figures.plotting import (
+        plot_agreement,
+        plot_house,
+        plot_semantic_map,
+        plot_trace,
+        plot_uncertainty,
+    )
+
+    plot_semantic_map(result, out / "semantic_map.png", observations=house.observations)
+    plot_trace(result, out / "trace.png")
+    plot_house(house, out / "house.png")
+    if uncertainty:
+        plot_uncertainty(result, out / "uncertainty.png")
+    if result.agreement is not None:
+        plot_agreement(result, out / "agreement.png")
+
+
+def print_concepts(result: SpCoResult, limit: int = 10) -> None:
+    """The ``limit`` largest concepts, one line each: cells, words heard there, the top words
+    (posterior means) and the distinctive ones with their lifts
+    (:mod:`spcopyro.results.concept_words`), or that no word was heard there."""
+    parameters = result.inference.get("parameters", "words as the method estimates them")
+    print(f"concepts (words: {parameters}; distinctive: lift = p(word | concept) / p(word) > "
+          f"{MIN_LIFT:g}, p(word) the area-weighted mix):")  # fmt: skip
+    further = [t.name for t in result.emissions if t.name not in ("images", "words")]
+    concepts = result.concepts()
+    for concept in concepts[:limit]:
+        heard = concept["words_heard"]
+        words = format_concept_words(
+            [(w, p) for w, p in concept["top_words"]],
+            [(w, r, p) for w, r, p in concept["distinctive_words"]],
+            heard,
+        )
+        for name in further:
+            top = concept[f"top_{name}"][:2]
+            words += f"; {name}: " + ", ".join(f"{item} ({p:.2f})" for item, p in top)
+        count = "" if heard is None else f"{format_words_heard(heard):>4} words  "
+        print(f"  concept {concept['concept']:>3}: {concept['cells']:>6} cells {count}{words}")
+    if len(concepts) > limit:
+        print(f"  ... {len(concepts) - limit} smaller concepts in concepts.json")
+    if not any(c["distinctive_words"] for c in concepts):
+        print(f"  no concept has a distinctive word (every lift <= {MIN_LIFT:g})")

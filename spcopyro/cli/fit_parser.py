@@ -1,0 +1,195 @@
+"""The options of ``spcopyro fit`` and their help, as ``spcopyro fit --help`` lists them.
+
+:func:`add_parser` registers ``fit`` on the main parser's subparsers (:mod:`spcopyro.cli.main`).
+Registering it by name (``options=False``), as every other command's parser does, imports
+neither torch, pyro nor numba (``spcopyro --help``, ``where``, ``show`` and ``export`` run
+without torch; ``tests/test_cli_startup.py``); the fit itself is :mod:`spcopyro.cli.fit`.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from spcopyro._util.threads import AUTO, MIN_CELLS_FOR_MORE_THREADS
+from spcopyro.cli.common import (
+    _PRESET_DEFAULT,
+    FIT_SWEEPS,
+    UPDATE_SWEEPS,
+    _chain_workers,
+    _non_negative_int,
+    _positive_int,
+    _seed,
+    _sweeps,
+    _threads,
+)
+from spcopyro.config import DEFAULT_PRESET, DEFAULT_SNAP_DISTANCE, PRESETS
+from spcopyro.results.point_estimate import POINT_ESTIMATES
+
+__all__ = ["add_parser"]
+
+
+def _run_fit(args: argparse.Namespace) -> int:
+    from spcopyro.cli.fit import run_fit
+
+    return run_fit(args)
+
+
+def add_parser(subparsers: argparse._SubParsersAction, options: bool = True) -> None:
+    """Register ``fit`` (its options and their help, as ``spcopyro fit --help`` lists them).
+
+    ``options=False`` registers the command by name and help only: what ``spcopyro --help`` and
+    the other commands need, without importing torch for the choices of ``--method``,
+    ``--backend`` and ``--init`` (:func:`spcopyro.cli.main.build_parser`)."""
+    p = subparsers.add_parser(
+        "fit", help="fit SpCoMapping (Gibbs sampling) and write the semantic map"
+    )
+    if not options:
+        return
+    from spcopyro.fit.registry import DEFAULT_METHOD, INFERENCE_METHODS
+    from spcopyro.gibbs.options import BACKENDS
+    from spcopyro.inference.initialisation import INITS
+
+    p.add_argument("data", nargs="?", help="house folder (default: the synthetic house)")
+    p.add_argument("--out", required=True,
+                   help="output folder (written whole at the end; new or empty)")  # fmt: skip
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the --out folder of an earlier fit (all its files)")  # fmt: skip
+    p.add_argument("--resume", metavar="CHECKPOINT",
+                   help="continue the interrupted fit saved in CHECKPOINT (OUT.checkpoint.npz; "
+                        "Ctrl-C writes it), with the same data and settings (default: a new "
+                        "fit)")  # fmt: skip
+    p.add_argument("--update", metavar="OUT",
+                   help="continue the finished fit in the folder OUT with this data (its old "
+                        "and new observations together, e.g. a new trial): its labels, pi and "
+                        "distributions start the run, new words get new columns under the "
+                        "prior; the map and settings must be the saved fit's (default: a new "
+                        "fit)")  # fmt: skip
+    p.add_argument("--sweeps", type=_sweeps, default=None,
+                   help="Gibbs iterations (the paper's: 5000), or 'auto': run --chains chains "
+                        "until split R-hat of the log joint and of the number of concepts < "
+                        f"1.05 (at most --max-sweeps); {UPDATE_SWEEPS} with --update; for "
+                        "cavi, lbp and vi-gibbs's CAVI a ceiling: they stop once an iteration "
+                        "changes the objective by less than tolerance (1e-7) x |objective| "
+                        f"(default: {FIT_SWEEPS})")  # fmt: skip
+    p.add_argument("--chains", type=_positive_int,
+                   help="run this many chains (seeds --seed, --seed + 1, ...) and keep the one of "
+                        "highest log joint (default 1; 4 with --sweeps auto)")  # fmt: skip
+    p.add_argument("--chain-workers", type=_chain_workers, default=AUTO,
+                   help="Gibbs chains advancing at once, one thread each: auto (default: one per "
+                        "usable CPU) or N (1: one after another); results do not depend on "
+                        "it")  # fmt: skip
+    p.add_argument("--anneal-sweeps", type=_non_negative_int, default=0,
+                   help="ramp gamma up from gamma/N to gamma over the first N sweeps (burn-in; "
+                        "default 0)")  # fmt: skip
+    p.add_argument("--max-sweeps", type=int, default=5000,
+                   help="cap per chain for --sweeps auto (default 5000)")  # fmt: skip
+    p.add_argument("--preset", choices=sorted(PRESETS), default=DEFAULT_PRESET,
+                   help="the model's hyperparameters and data preparation; the options below "
+                        "override its values")  # fmt: skip
+    p.add_argument("--prior", choices=("dp", "dirichlet"),
+                   help="prior of the concept weights pi: weak-limit DP or Dirichlet "
+                        f"{_PRESET_DEFAULT}")  # fmt: skip
+    p.add_argument("--concepts", type=int,
+                   help=f"L, the number (upper bound) of concepts {_PRESET_DEFAULT}")  # fmt: skip
+    p.add_argument("--gamma", type=float, help=f"Potts coupling {_PRESET_DEFAULT}")
+    p.add_argument("--alpha", type=float,
+                   help=f"concentration of the concept weights pi {_PRESET_DEFAULT}")  # fmt: skip
+    p.add_argument("--beta", type=float, help=f"word prior concentration {_PRESET_DEFAULT}")
+    p.add_argument("--chi", type=float,
+                   help=f"image-feature prior concentration {_PRESET_DEFAULT}")  # fmt: skip
+    p.add_argument("--concentration", action="append", metavar="NAME=VALUE",
+                   help="Dirichlet concentration of a further modality (a modality_NAME.csv of "
+                        "the house); repeat for several (default: none)")  # fmt: skip
+    p.add_argument("--connectivity", type=int, choices=(4, 8),
+                   help=f"MRF neighbourhood of a cell {_PRESET_DEFAULT}")  # fmt: skip
+    p.add_argument("--tfidf", action="store_true", help="weight words by tf-idf (eq. 20)")
+    p.add_argument(
+        "--unobserved-refresh",
+        type=float,
+        help="share of sweeps that redraw theta/w of concepts without observations (default 1)",
+    )
+    p.add_argument(
+        "--cluster-moves",
+        type=float,
+        help="share of sweeps that start with a Swendsen-Wang move: whole regions change concept "
+        "at once (default 0)",
+    )
+    p.add_argument(
+        "--merge-moves",
+        type=float,
+        help="share of sweeps that start with a split-merge move: two touching concepts merge "
+        "or one splits, parameters integrated out (default: 0.2 with --preset auto, else 0)",
+    )
+    p.add_argument("--point-estimate", choices=POINT_ESTIMATES, default=None,
+                   help="the reported map: the highest-log-joint state visited (map-visited) "
+                        "or the partition minimising the expected binder or vi loss over the "
+                        "--marginal-samples maps; writes agreement.png (default: vi with --preset "
+                        "auto, else map-visited)")  # fmt: skip
+    p.add_argument("--feature-scaling",
+                   help="image features as probability, floor100 or a number s (s * f) "
+                        f"{_PRESET_DEFAULT}")  # fmt: skip
+    p.add_argument(
+        "--init",
+        choices=INITS,
+        default=None,
+        help="starting labels: random, k-means Gaussians, SpCoA pre-learning, or one concept per "
+        "room of a geometric room segmentation (default: rooms for a Gibbs fit with --preset "
+        "coarse or auto, whose merge moves can split a room; else random)",
+    )
+    p.add_argument("--init-from", metavar="OUT",
+                   help="start from the labels of an earlier fit's output folder on the same map "
+                        "(a warm start from any method to any method, e.g. a cavi fit starting "
+                        "gibbs); replaces --init (default: none)")  # fmt: skip
+    p.add_argument("--marginal-samples", type=_non_negative_int, default=50,
+                   help="gibbs, vi-gibbs: label maps kept over the second half of the sweeps for "
+                        "the per-cell probabilities of uncertainty.png (0: none)")  # fmt: skip
+    p.add_argument("--seed", type=_seed, default=0,
+                   help="seed of the sampler (chain k of --chains gets seed + k)")  # fmt: skip
+    p.add_argument("--method", choices=sorted(INFERENCE_METHODS), default=DEFAULT_METHOD,
+                   help="inference method (default: gibbs, Algorithm 1)")  # fmt: skip
+    p.add_argument("--method-option", action="append", metavar="NAME=VALUE",
+                   help="set a field of the method's options, e.g. anneal_iterations=30 (cavi), "
+                        "damping=0.5 (lbp), lr=0.05 (svi), block_size=32 (stochastic-vi), "
+                        "variational.anneal_iterations=30 (vi-gibbs); repeat for several "
+                        "(default: the method's defaults, printed by the fit)")  # fmt: skip
+    p.add_argument("--backend", choices=BACKENDS, default="auto",
+                   help="Gibbs sweep implementation: torch (reference), numba (compiled) or "
+                        "auto (numba where installed, else torch); the two draw different "
+                        "random streams from one seed")  # fmt: skip
+    p.add_argument("--snap-distance", type=float, default=DEFAULT_SNAP_DISTANCE,
+                   help="metres an observation may be moved onto free space")  # fmt: skip
+    p.add_argument("--cell-size", default=None, metavar="METRES",
+                   help="the model's grid: fit on cells of about METRES a side (the map "
+                        "coarsened, walls kept), or 'map' for the map's own cells "
+                        f"{_PRESET_DEFAULT}")  # fmt: skip
+    p.add_argument("--word-scaling", type=float, default=None, metavar="S",
+                   help="count each utterance's words S times: the words' weight against the "
+                        f"images and the MRF {_PRESET_DEFAULT}")  # fmt: skip
+    p.add_argument("--footprint", type=float, default=None, metavar="RADIUS",
+                   help="observation footprint: spread each observation over the free cells "
+                        "within RADIUS metres (geodesic, never through walls), weights summing "
+                        "to one observation (default 0: its own cell, the paper)")  # fmt: skip
+    p.add_argument(
+        "--footprint-kernel",
+        choices=("uniform", "gaussian"),
+        default=None,
+        help="the footprint's weights: uniform (default) or gaussian (sigma = R/2)",
+    )
+    p.add_argument(
+        "--footprint-fov",
+        type=float,
+        default=None,
+        metavar="DEGREES",
+        help="images inform only the cells within +-DEGREES/2 of their yaw (default: the "
+        "whole disc)",
+    )
+    p.add_argument("--no-figures", action="store_true",
+                   help="write no PNG figures (semantic_map, trace, house, uncertainty, "
+                        "agreement), saving seconds and matplotlib's import: labels.npy, "
+                        "concepts.json, result.npz, the .npy maps and the printed summary are "
+                        "written as always (default: figures written)")  # fmt: skip
+    p.add_argument("--threads", type=_threads, default=AUTO,
+                   help="torch intra-op threads during the fit: auto (default: one thread unless "
+                        f"the map has >= {MIN_CELLS_FOR_MORE_THREADS} free cells), 0 (torch's own "
+                        "setting) or N; labels do not depend on it")  # fmt: skip
+    p.set_defaults(func=_run_fit)

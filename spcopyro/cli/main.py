@@ -1,0 +1,382 @@
+"""The ``spcopyro`` command line: simulate, show, fit, where, experiment, compare-inference,
+features, features-head, export, import-bag, simulate-bag.
+
+DATA is a house folder in the public dataset's layout (its map at ``DATA/../map/NAME.yaml``), e.g.
+``../shared/data/spcomapping/room1dk5``, or one written by ``spcopyro simulate``. Where DATA is
+left out, the embedded default is used: the synthetic house of seed 0, generated in memory.
+
+This module holds the parser, :func:`main`, the logging set-up and the small commands; ``fit`` is
+in :mod:`spcopyro.cli.fit`, ``experiment`` and ``compare-inference`` in
+:mod:`spcopyro.experiments.cli`, ``features`` in :mod:`spcopyro.features.cli`, ``export`` in
+:mod:`spcopyro.cli.export` (``simulate --map`` runs :mod:`spcopyro.robot.map_simulation`),
+``import-bag`` and ``simulate-bag`` in :mod:`spcopyro.robot.rosbag.cli`, and what they share (DATA,
+the house summary, argument types, the help formatter) in :mod:`spcopyro.cli.common`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import errno
+import gc
+import logging
+import math
+import sys
+from pathlib import Path
+from typing import NoReturn
+
+import numpy as np
+
+from spcopyro import __version__
+from spcopyro.cli.common import _HelpFormatter, _load, _seed, _summary
+from spcopyro.cli.fit_parser import add_parser as add_fit_parser
+
+logger = logging.getLogger("spcopyro")
+
+
+def _simulate(args: argparse.Namespace) -> int:
+    from spcopyro.synthetic import HouseSpec, write_synthetic
+
+    if args.map is not None:
+        if args.density != "dense" or args.rooms is not None:
+            raise ValueError("--density and --rooms draw a synthetic house; --map tours a map")
+        return _simulate_on_map(args)
+    if args.categories is not None:
+        raise ValueError("--categories needs --map (the synthetic house draws its own rooms)")
+    args.name = args.name or "synthetic"
+    if args.density in ("sparse", "open-plan"):  # HouseSpec.public_like / HouseSpec.open_plan
+        changes: dict[str, object] = dict(sentence_fraction=args.sentences)
+        if args.size:
+            changes.update(height=args.size[0], width=args.size[1])
+        if args.rooms is not None:
+            changes["num_rooms"] = args.rooms
+        factory = HouseSpec.public_like if args.density == "sparse" else HouseSpec.open_plan
+        spec = factory(**changes)
+    else:
+        spec = HouseSpec.scaled(*args.size, sentence_fraction=args.sentences) if args.size else None
+        if spec is None and (args.sentences or args.rooms is not None):
+            spec = HouseSpec(sentence_fraction=args.sentences)
+        if args.rooms is not None:
+            spec = dataclasses.replace(spec, num_rooms=args.rooms)  # type: ignore[arg-type]
+    try:
+        room = write_synthetic(args.out, seed=args.seed, spec=spec, name=args.name,
+                               overwrite=args.overwrite)  # fmt: skip
+    except FileExistsError as error:  # the library names its keyword, the command its flag
+        raise FileExistsError(
+            str(error).replace("pass overwrite=True", "pass --overwrite to replace it")
+        ) from None
+    print(f"wrote synthetic house (seed {args.seed}) to {room}")
+    print(f"  fit it with: spcopyro fit {room} --out {Path(args.out) / 'fit'}")
+    return 0
+
+
+def _door_width(text: str) -> float | str:
+    """``--door-width``: ``auto`` or a positive number of metres."""
+    if text == "auto":
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is neither auto nor metres") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: a door width must be > 0 metres")
+    return value
+
+
+def _simulate_on_map(args: argparse.Namespace) -> int:
+    from spcopyro.robot.map_simulation import MapTour, write_simulated_map
+
+    if args.size:
+        raise ValueError("--size and --map exclude each other: the map gives the size")
+    tour = MapTour(door_width=args.door_width, min_room_area=args.min_room_area,
+                   sentence_fraction=args.sentences)  # fmt: skip
+    if args.categories is not None:
+        names = tuple(c.strip() for c in args.categories.split(",") if c.strip())
+        tour = dataclasses.replace(tour, categories=names)
+    try:
+        room, simulated = write_simulated_map(args.map, args.out, seed=args.seed, tour=tour,
+                                              name=args.name, overwrite=args.overwrite)  # fmt: skip
+    except FileExistsError as error:
+        raise FileExistsError(
+            str(error).replace("pass overwrite=True", "pass --overwrite to replace it")
+        ) from None
+    house = simulated.house
+    print(f"wrote a simulated tour of {args.map} (seed {args.seed}) to {room}: "
+          f"{int(simulated.room_category.size)} rooms, {house.observations.num_images} images, "
+          f"{house.observations.num_utterances} utterances")  # fmt: skip
+    how = "read from the map" if args.door_width == "auto" else "given"
+    print(f"  rooms cut at doorways up to {simulated.door_width:g} m wide ({how})")
+    names = house.category_names or ()
+    for r, c in enumerate(simulated.room_category.tolist()):
+        cells = int((simulated.rooms == r).sum())
+        print(f"  room {r}: {names[c]} ({cells * house.grid.resolution**2:.1f} m^2)")
+    print(f"  fit it with: spcopyro fit {room} --out {Path(args.out) / 'fit'}")
+    return 0
+
+
+def _show(args: argparse.Namespace) -> int:
+    if args.graph:
+        from spcopyro.cli.navigate import show_graph
+
+        return show_graph(args)
+    from spcopyro.figures.plotting import plot_house
+
+    house = _load(args.data)
+    print(_summary(house))
+    print(f"wrote {plot_house(house, args.out)}")
+    return 0
+
+
+def _check_where_out(result_dir: str, out: str) -> None:
+    """``where --out``: refuse a figure (or its ``_probability`` sibling) that would replace
+    one of the fit's own files (its manifest, :func:`spcopyro._util.outputs.fit_written`)."""
+    from spcopyro._util.outputs import fit_written
+
+    folder = Path(result_dir).resolve()
+    own = fit_written(folder)
+    path = Path(out).resolve()
+    figure = path if path.suffix else path.with_suffix(".png")  # matplotlib adds .png
+    for target in (figure, path.with_name(f"{path.stem}_probability.png")):
+        if target.parent == folder and target.name in own:
+            raise ValueError(
+                f"--out {out}: {target.name} is a file of the fit in {result_dir}, which the "
+                "figure would replace; choose another name"
+            )
+
+
+def _where(args: argparse.Namespace) -> int:
+    from spcopyro.results.result import SpCoResult, UnknownWordError
+
+    if args.out:
+        _check_where_out(args.result, args.out)
+    result = SpCoResult.load(args.result)
+    try:
+        answer = result.where(args.word, prior=args.prior)
+    except UnknownWordError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2  # a bad argument, as every other error of the command line
+    grid = result.grid
+    cells = np.argwhere(answer.region)  # [n, 2] (row, col)
+    xy = grid.cell_to_world(cells)
+    words = ", ".join(f"{w} ({p:.2f})" for w, p in result.top_words(answer.concept, 3))
+    distinctive = result.distinctive_words(answer.concept, 3)
+    if result.heard(answer.concept) == 0:
+        words = "none, no words heard here"
+    elif distinctive:
+        words += "; distinctive: " + ", ".join(f"{w} x{r:.1f}" for w, r, _ in distinctive)
+    print(f"'{answer.word}' is concept {answer.concept} (p = {answer.probability:.3f}, "
+          f"{answer.prior} prior; its words: {words})")  # fmt: skip
+    if answer.runner_up is not None:
+        print(f"runner-up: concept {answer.runner_up} (p = {answer.runner_up_probability:.3f}); "
+              f"Bayes factor of the word for concept {answer.concept}: "
+              f"{answer.evidence:.2f}")  # fmt: skip
+    if len(cells):
+        (x0, y0), (x1, y1) = xy.min(0), xy.max(0)
+        cx, cy = xy.mean(0)
+        print(f"region: {len(cells)} cells ({len(cells) * grid.resolution**2:.2f} m^2), "
+              f"centre x={cx:.2f} y={cy:.2f}, spanning x {x0:.2f}..{x1:.2f}, "
+              f"y {y0:.2f}..{y1:.2f} m")  # fmt: skip
+    for warning in answer.warnings:
+        print(f"warning: {warning}", file=sys.stderr)
+    from spcopyro.results.uncertainty import where_probability
+
+    probability = where_probability(result, args.word, args.prior)  # [N]
+    source = "marginals" if result.marginals is not None else "point estimate"
+    print(f"cells whose probability of being the place exceeds 0.5: "
+          f"{int((probability > 0.5).sum())} ({source})")  # fmt: skip
+    if args.out:
+        from spcopyro.figures.plotting import plot_where, plot_where_probability
+
+        print(f"wrote {plot_where(result, answer, args.out)}")
+        out = Path(args.out)
+        probability_png = out.with_name(f"{out.stem}_probability.png")
+        print(f"wrote {plot_where_probability(result, args.word, probability_png, args.prior)}")
+    return 0
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``spcopyro`` parser, every command with its options.
+
+    ``command`` is the command about to be parsed (:func:`main` passes it): when it is given and
+    is not ``fit``, ``fit`` is registered by name and help only, so that ``spcopyro --help``,
+    ``where``, ``show`` and ``export`` import no torch for the fit's option choices (the
+    parsers of the other commands import none anyway).
+    """
+    parser = argparse.ArgumentParser(
+        prog="spcopyro",
+        description="SpCoMapping: semantic maps from an occupancy grid, images and words.",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help="log details (INFO)")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("simulate", help="write a synthetic house in the public dataset's layout")
+    p.add_argument("--out", required=True, help="root folder (gets map/ and NAME/)")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the house's random draws")
+    p.add_argument("--name", help="the house's folder name (NAME; default: synthetic, or the "
+                   "--map file's name)")  # fmt: skip
+    p.add_argument("--size", type=int, nargs=2, metavar=("H", "W"),
+                   help="map size in cells; the number of rooms grows with the area "
+                        "(default: 60 x 80 cells, 5 rooms)")  # fmt: skip
+    p.add_argument("--density", choices=("dense", "sparse", "open-plan"), default="dense",
+                   help="dense: the default house (4.9%% of the free cells observed); sparse: as "
+                        "sparse as the public houses (HouseSpec.public_like: 0.05 m cells, "
+                        "~23,500 free, ~70 observed, 0.3%%); open-plan: as sparse, 65%% of it "
+                        "one walled space holding living, dining and kitchen with no wall "
+                        "between them, plus 3 small walled rooms "
+                        "(HouseSpec.open_plan)")  # fmt: skip
+    p.add_argument("--rooms", type=int, help="walled rooms (default: the setting's own; "
+                   "open-plan: 4, one of them the open plan)")  # fmt: skip
+    p.add_argument("--sentences", type=float, default=0.0,
+                   help="share of utterances given as sentences (tf-idf setting)")  # fmt: skip
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace a house of the same name under --out")  # fmt: skip
+    p.add_argument("--map", metavar="MAP.yaml",
+                   help="simulate a tour on this map_server map instead of a drawn house: "
+                        "rooms from a room segmentation of its free space (default: draw a "
+                        "house)")  # fmt: skip
+    p.add_argument("--categories", metavar="A,B,...",
+                   help="with --map: the rooms' categories, one per room, cycled (default: "
+                        "kitchen,living,bedroom,bathroom,toilet,entrance,...)")  # fmt: skip
+    p.add_argument("--door-width", type=_door_width, default="auto",
+                   help="with --map: metres; doorways up to about this wide separate rooms, or "
+                        "auto: read from the map, the narrowest of 0.75, 1, ..., 3 m that "
+                        "separates two rooms (1.5 to 2.25 m on the public dataset's houses) "
+                        "(default: auto)")  # fmt: skip
+    p.add_argument("--min-room-area", type=float, default=1.0,
+                   help="with --map: square metres; smaller free segments are not visited and "
+                        "have no ground truth")  # fmt: skip
+    p.set_defaults(func=_simulate)
+
+    p = sub.add_parser("show", help="draw a house and its observations; print a summary")
+    p.add_argument("data", nargs="?", help="house folder (default: the synthetic house)")
+    p.add_argument("--out", required=True, help="PNG file to write")
+    p.add_argument("--graph", action="store_true", help="DATA is a fit's output folder: draw "
+                   "its place graph (regions as nodes, shared borders and doorways as edges) "
+                   "and write graph.json beside the PNG")  # fmt: skip
+    p.add_argument("--min-area", type=float, default=0.25, metavar="M2",
+                   help="with --graph: smaller regions are not places")  # fmt: skip
+    p.set_defaults(func=_show)
+
+    add_fit_parser(sub, options=command in (None, "fit"))  # fit
+
+    p = sub.add_parser("where", help='answer "where is WORD?" from a fitted result')
+    p.add_argument("result", help="output folder of `spcopyro fit`")
+    p.add_argument("word", help="the word to look up")
+    p.add_argument("--out", help="also draw the answer over the semantic map into this PNG, "
+                   "and the per-cell probability of the word's place into "
+                   "<name>_probability.png (default: no PNG)")  # fmt: skip
+    p.add_argument(
+        "--prior",
+        choices=("area", "pi"),
+        default="area",
+        help="p(C) in eq. (19): a concept's share of the map (default) or pi (the paper's eq. 19, "
+        "which weighs a one-cell speck like a room)",
+    )
+    p.set_defaults(func=_where)
+
+    from spcopyro.experiments.cli import add_parser as add_experiment_parsers
+
+    add_experiment_parsers(sub)  # experiment, compare-inference
+
+    from spcopyro.features.cli import add_parser as add_features_parsers
+
+    add_features_parsers(sub)  # features, features-head
+    from spcopyro.cli.export import add_parser as add_export_parser
+
+    add_export_parser(sub)  # export
+    from spcopyro.robot.rosbag.cli import add_parser as add_rosbag_parsers
+
+    add_rosbag_parsers(sub)  # import-bag, simulate-bag
+    from spcopyro.cli.navigate import add_parser as add_navigate_parser
+
+    add_navigate_parser(sub)  # navigate
+    from spcopyro.cli.study import add_parser as add_study_parser
+
+    add_study_parser(sub)  # study
+    for command in (parser, *sub.choices.values()):
+        command.formatter_class = _HelpFormatter
+    return parser
+
+
+class _LowerCaseLevel(logging.Formatter):
+    """``warning: message`` (as the command's own messages), not ``WARNING: message``."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        return f"{record.levelname.lower()}: {record.getMessage()}"
+
+
+class _StderrHandler(logging.StreamHandler):
+    """Writes to whatever ``sys.stderr`` is when a message comes (not when it was made)."""
+
+    @property
+    def stream(self):  # noqa: D102
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value) -> None:
+        del value
+
+
+def _configure_logging(level: int) -> None:
+    """The library's messages (logger ``spcopyro``) on stderr, each once."""
+    logger.setLevel(level)
+    if not any(isinstance(h, _StderrHandler) for h in logger.handlers):
+        handler = _StderrHandler()
+        handler.setFormatter(_LowerCaseLevel())
+        logger.addHandler(handler)
+
+
+def _error_line(error: BaseException) -> str:
+    """The one line an error is told in: a full disk says so and names the file being written
+    (issue 22 item 10: it was a bare "[Errno 28] No space left on device")."""
+    if isinstance(error, OSError) and error.errno == errno.ENOSPC:
+        where = f" while writing {error.filename}" if error.filename else ""
+        return (
+            f"the disk is full{where} ({error.strerror}): free some space or choose another "
+            "--out; a fit's staging folder is removed, its output left as it was"
+        )
+    return str(error)
+
+
+def _command_name(argv: list[str] | None) -> str:
+    """The command named on the command line ("" when none is: ``--help``, ``--version``); the
+    main parser's own options take no value, so it is the first word that is not an option."""
+    words = sys.argv[1:] if argv is None else argv
+    return next((word for word in words if not word.startswith("-")), "")
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser(_command_name(argv)).parse_args(argv)
+    if argv is not None:
+        args.argv = list(argv)
+    _configure_logging(logging.INFO if args.verbose else logging.WARNING)
+    try:
+        return args.func(args)
+    except (OSError, ValueError) as error:  # bad input: one clear line, no traceback
+        print(f"error: {_error_line(error)}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:  # Ctrl-C: one line, no traceback (fit says more itself)
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+def console_main() -> NoReturn:
+    """The ``spcopyro`` console script and ``python -m spcopyro``: :func:`main`, then exit.
+
+    Before exiting, :func:`gc.freeze` moves every object alive into the collector's permanent
+    generation, so the interpreter's shutdown skips its final garbage collections over the
+    hundreds of thousands of objects torch's import creates (about 0.5 s of every command's exit
+    on a 2-core machine; ``benchmarks/fixed_cost.py``). The outputs are all written and closed
+    by then, and the standard streams are still flushed at exit. Only the command does this: a
+    program calling :func:`main` keeps its collector as it was.
+    """
+    try:
+        code = main()
+    finally:  # also after --help, --version and usage errors (argparse's SystemExit)
+        gc.freeze()
+    sys.exit(code)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    console_main()

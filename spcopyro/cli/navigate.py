@@ -1,0 +1,188 @@
+"""The ``spcopyro navigate`` command: from an instruction to a goal pose and a path.
+
+``spcopyro navigate OUT "go to the bedroom via the corridor" --start X,Y --out DIR`` reads the
+fit in OUT, plans (:mod:`spcopyro.robot.navigation`) and prints the stops, the candidates of an
+ambiguous word and the path's length; with ``--out`` it writes goal.yaml, path.yaml, path.csv,
+waypoints.yaml, navigate.png and navigate.json (:mod:`spcopyro.robot.navigation.outputs`).
+:func:`add_parser` registers it; nothing heavy is imported before the command runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+
+from spcopyro.cli.common import _HelpFormatter
+
+__all__ = ["add_parser"]
+
+UNREACHABLE_EXIT = 3
+"""Exit status when no place of a word can be reached (bad input is 2, as everywhere)."""
+
+
+def _point(text: str) -> tuple[float, float]:
+    """``--start X,Y`` in metres."""
+    parts = text.replace(" ", "").split(",")
+    try:
+        x, y = (float(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: give X,Y in metres, e.g. 1.5,-2") from None
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise argparse.ArgumentTypeError(f"{text!r}: X and Y must be finite")
+    return x, y
+
+
+def _radius(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: the radius is metres >= 0")
+    return value
+
+
+def _source_map(result: object) -> str | None:
+    """The map_server yaml a coarse fit's grid was coarsened from, when the fit's data folder
+    still sits in the dataset layout (``DATA/../map/HOUSE.yaml``): coarsening thickens walls
+    and can close doorways, so a path is planned on the robot's own map. None for a fit on the
+    map's own cells or when the file is gone."""
+    from pathlib import Path
+
+    if getattr(result.preparation, "cell_size", None) is None:  # type: ignore[attr-defined]
+        return None
+    source = (result.provenance or {}).get("source") or {}  # type: ignore[attr-defined]
+    if not source.get("data") or not source.get("house"):
+        return None
+    path = Path(source["data"]).parent / "map" / f"{source['house']}.yaml"
+    return str(path) if path.is_file() else None
+
+
+def _navigate(args: argparse.Namespace) -> int:
+    from spcopyro.results.result import SpCoResult
+    from spcopyro.robot.navigation import navigate
+    from spcopyro.robot.navigation.goals import UnreachableGoalError
+    from spcopyro.robot.navigation.outputs import check_frame
+
+    check_frame(args.frame)
+    result = SpCoResult.load(args.result)
+    grid = None
+    map_yaml = args.map or _source_map(result)
+    if map_yaml:
+        from spcopyro.maps import load_map
+
+        grid = load_map(map_yaml)
+        if not args.map:
+            print(f"planning on {map_yaml}, the map the fit's {result.grid.resolution:g} m "
+                  "cells were coarsened from (--map to choose another)")  # fmt: skip
+    try:
+        plan = navigate(result, args.instruction, args.start, radius=args.radius,
+                        strict=args.strict, prior=args.prior, grid=grid)  # fmt: skip
+    except UnreachableGoalError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return UNREACHABLE_EXIT
+    if plan.instruction.ignored:
+        print(f"warning: ignored (not in the fit's vocabulary, nothing close): "
+              f"{', '.join(plan.instruction.ignored)}", file=sys.stderr)  # fmt: skip
+    order = " -> ".join(f"{s.word}{' (via)' if s.via else ''}" for s in plan.stops)
+    print(f"instruction {plan.instruction.text!r}: {order}")
+    for stop in plan.stops:
+        choice = stop.choice
+        print(
+            f"{stop.word}: goal x={stop.xy[0]:.2f} y={stop.xy[1]:.2f} yaw={stop.yaw:.2f} "
+            f"(p = {choice.candidate.probability:.3f}, region {choice.candidate.area:.1f} m^2)"
+        )
+        if choice.ambiguous:
+            print(
+                f"  ambiguous: {sum(c.reachable for c in choice.candidates)} separate regions "
+                "of near-equal probability; the nearer is taken (--strict refuses):"
+            )
+            for c in choice.candidates:
+                if c.reachable:
+                    mark = "*" if c.node == choice.node else " "
+                    print(f"  {mark} x={c.xy[0]:.2f} y={c.xy[1]:.2f} p = {c.probability:.3f} "
+                          f"{c.area:.1f} m^2, {c.distance:.2f} m away")  # fmt: skip
+        for note in choice.notes:
+            print(f"warning: {note}", file=sys.stderr)
+    if plan.route:
+        how = "" if plan.route_from == "graph" else " (the places the path crosses: no route "
+        how = how and how + "over the place graph)"
+        print(f"route: {' -> '.join(plan.route_words)}{how}")
+    print(f"path: {len(plan.path_xy)} poses, {plan.length:.2f} m, clearance {plan.radius:g} m "
+          f"from walls (frame {args.frame})")  # fmt: skip
+    if args.out:
+        from spcopyro.robot.navigation.outputs import write_plan
+
+        written = write_plan(plan, args.out, frame=args.frame, overwrite=args.overwrite,
+                             source=args.result, figure=not args.no_figure)  # fmt: skip
+        print(f"wrote {', '.join(p.name for p in written.values())} to "
+              f"{next(iter(written.values())).parent}")  # fmt: skip
+    return 0
+
+
+def show_graph(args: argparse.Namespace) -> int:
+    """``spcopyro show OUT --graph --out graph.png``: the fit's place graph drawn over its map,
+    and ``graph.json`` beside the PNG."""
+    import json
+
+    from spcopyro.results.result import SpCoResult
+    from spcopyro.robot.navigation.figure import plot_place_graph
+    from spcopyro.robot.navigation.places import place_graph
+
+    if not args.data:
+        raise ValueError("show --graph: give the output folder of `spcopyro fit`")
+    result = SpCoResult.load(args.data)
+    graph = place_graph(result, min_area=args.min_area)
+    png = plot_place_graph(result, graph, args.out)
+    written = png.with_name("graph.json")
+    written.write_text(json.dumps(graph.to_json(), indent=2) + "\n")
+    doors = sum(e.doorway for e in graph.passages)
+    print(f"{len(graph.places)} places, {len(graph.passages)} passages ({doors} doorways); "
+          f"{graph.dropped} regions under {graph.min_area:g} m^2 left out "
+          f"({graph.dropped_area:.2f} m^2)")  # fmt: skip
+    for place in graph.places:
+        near = [e.b if e.a == place.id else e.a for e in graph.passages
+                if place.id in (e.a, e.b)]  # fmt: skip
+        print(f"  {place.id}: {place.name} ({place.area:.1f} m^2) at x={place.centroid[0]:.2f} "
+              f"y={place.centroid[1]:.2f}, next to {near or 'nothing'}")  # fmt: skip
+    print(f"wrote {png} and {written}")
+    return 0
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``navigate`` on the main parser's subparsers."""
+    p = subparsers.add_parser(
+        "navigate",
+        help="plan a goal pose and a path for an instruction ('go to the bedroom via the "
+        "corridor') from a fitted result",
+        formatter_class=_HelpFormatter,
+    )
+    p.add_argument("result", help="output folder of `spcopyro fit`")
+    p.add_argument("instruction", help="the instruction; its place words are visited in order, "
+                   "a place after 'via' before the destination said before it")  # fmt: skip
+    p.add_argument("--start", type=_point, required=True, metavar="X,Y",
+                   help="the robot's position in the map frame, metres")  # fmt: skip
+    p.add_argument("--radius", type=_radius, default=0.2, metavar="M",
+                   help="the robot's radius: cells closer than this to a wall or unknown space "
+                        "are never entered")  # fmt: skip
+    p.add_argument("--map", metavar="MAP.yaml",
+                   help="plan on this map_server map (the robot's map in the fit's frame, e.g. "
+                        "the one a coarse fit was made from, whose doorways coarsening narrows) "
+                        "(default: for a coarse fit, the map of its data folder when it is still "
+                        "there, DATA/../map/HOUSE.yaml; else the fit's own grid)")  # fmt: skip
+    p.add_argument("--strict", action="store_true",
+                   help="an ambiguous word (two separate regions of near-equal probability) is "
+                        "an error instead of taking the nearer")  # fmt: skip
+    p.add_argument("--prior", choices=("area", "pi"), default="area",
+                   help="p(C) of the word's place (as in `spcopyro where`)")  # fmt: skip
+    p.add_argument(
+        "--out",
+        metavar="DIR",
+        help="write goal.yaml, path.yaml, path.csv, "
+        "waypoints.yaml, navigate.png, navigate.json here (default: print only)",
+    )
+    p.add_argument("--frame", default="map", help="frame_id of the poses (the map frame)")
+    p.add_argument("--no-figure", action="store_true", help="do not draw navigate.png")
+    p.add_argument("--overwrite", action="store_true", help="replace an earlier plan in DIR")
+    p.set_defaults(func=_navigate)

@@ -1,0 +1,85 @@
+"""The ``spcopyro study`` command: run a study file (:mod:`spcopyro.study`, docs/studies.md).
+
+``spcopyro study STUDY.toml --out OUT [--workers N] [--scheduler ADDRESS]`` runs the cells of
+the study that OUT does not hold yet and writes ``OUT/results.csv`` and ``OUT/report.md``.
+STUDY may also name a study shipped with the package (``ablation_small``). :func:`add_parser`
+registers the command; nothing heavy (torch, pyro, dask) is imported before it runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from spcopyro.cli.common import _HelpFormatter, _positive_int
+
+__all__ = ["add_parser", "study_path"]
+
+
+def study_path(text: str) -> Path:
+    """A study file: a path, or the name of one shipped in ``spcopyro/study/studies``."""
+    from spcopyro.study import STUDIES
+
+    path = Path(text)
+    if path.is_file():
+        return path
+    shipped = STUDIES / (text if text.endswith(".toml") else f"{text}.toml")
+    if len(path.parts) == 1 and shipped.is_file():
+        return shipped
+    names = sorted(p.stem for p in STUDIES.glob("*.toml"))
+    raise FileNotFoundError(f"study file {text} does not exist (shipped studies: {names})")
+
+
+def _study(args: argparse.Namespace) -> int:
+    from spcopyro.study.report import write_report
+    from spcopyro.study.run import default_workers, run_study
+    from spcopyro.study.spec import load_study
+    from spcopyro.study.table import TABLE
+
+    path = study_path(args.study)
+    study = load_study(path)
+    out = Path(args.out)
+    if args.report_only:
+        if not (out / TABLE).is_file():
+            raise FileNotFoundError(f"--report-only: {out / TABLE} does not exist; run the study")
+        print(f"wrote {write_report(out / TABLE, out / 'report.md', title=study.name)}")
+        return 0
+    workers = args.workers if args.workers is not None else default_workers()
+    run = run_study(
+        study, out, workers=workers, scheduler=args.scheduler, retry_failed=args.retry_failed,
+        root=args.data, report=print,
+    )  # fmt: skip
+    if run.ran:
+        print((out / "report.md").read_text())
+    return 1 if run.failed else 0
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Register ``study`` on the main parser's subparsers."""
+    p = sub.add_parser(
+        "study",
+        help="run a study: variants x data x methods x seeds, cached, in-process or on Dask",
+        description="Run the cells of a study file that OUT does not hold yet, then write "
+        "OUT/results.csv (one row per variant x data x method x seed: every input and score) "
+        "and OUT/report.md (mean +- sd over seeds). A restarted study continues where it "
+        "stopped; see docs/studies.md.",
+        formatter_class=_HelpFormatter,
+    )
+    p.add_argument("study", help="study file (TOML; docs/studies.md), or the name of a shipped "
+                   "one: ablation_small")  # fmt: skip
+    p.add_argument("--out", required=True, help="results folder: cells/ (the cache), traces/, "
+                   "results.csv, report.md; finished cells there are not run again")  # fmt: skip
+    p.add_argument("--workers", type=_positive_int, default=None,
+                   help="1: run the cells one after another in this process; N > 1: a Dask "
+                        "LocalCluster of N processes, one thread each (default: the machine's "
+                        "usable cores)")  # fmt: skip
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run on the Dask cluster whose scheduler is at ADDRESS "
+                        "(tcp://host:8786); --workers is then ignored (default: none)")  # fmt: skip
+    p.add_argument("--data", help="public dataset root for sources named by house (default: "
+                   "$SPCOPYRO_DATA or ../shared/data/spcomapping)")  # fmt: skip
+    p.add_argument("--retry-failed", action="store_true",
+                   help="run again the cells stored with an error (default: keep it)")  # fmt: skip
+    p.add_argument("--report-only", action="store_true",
+                   help="redraw report.md from OUT/results.csv; fit nothing")  # fmt: skip
+    p.set_defaults(func=_study)

@@ -1,0 +1,178 @@
+"""The pieces of the semantic-map and "where is X?" figures that a person reads (paper Fig. 10F):
+the words written on the map itself with an outline that keeps them readable over any colour,
+the legend of concepts with their words, the places where words were heard, and the outline of
+a where-answer's region. :mod:`spcopyro.figures.plotting` assembles them into figures.
+
+The words are the posterior means of w (:mod:`spcopyro.results.posterior_means`) with their
+probability, and the lift p(word | concept) / p(word) next to the words that are distinctive
+(:mod:`spcopyro.results.concept_words`); a concept whose region holds no observed word says
+:data:`~spcopyro.results.concept_words.NO_WORDS` instead.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib import patheffects
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+
+from spcopyro.data import Observations
+from spcopyro.maps import OccupancyGrid
+from spcopyro.results.concept_words import MIN_LIFT, NO_WORDS, format_words_heard
+from spcopyro.results.result import SpCoResult
+
+__all__ = [
+    "OFF_MAP_RGB",
+    "OUTLINE",
+    "concept_handles",
+    "draw_outline",
+    "draw_utterances",
+    "place_labels",
+    "region_text",
+    "utterance_concepts",
+]
+
+OUTLINE = [patheffects.withStroke(linewidth=2.5, foreground="white")]
+"""Path effect drawn under every text on a map: a white halo that keeps it readable on any
+concept colour or wall."""
+OFF_MAP_RGB = (0.5, 0.5, 0.5)
+"""Marker colour of an utterance heard off free space (no concept there)."""
+MAX_LEGEND_CONCEPTS = 12
+"""The legend lists this many of the largest concepts (the rest are counted in one line)."""
+
+
+def _word_line(word: str, p: float, lift: float) -> str:
+    """``"kitchen .31 x4.2"``: a word, its probability, and its lift when it is distinctive."""
+    text = f"{word} {p:.2f}"
+    return text + (f" x{lift:.1f}" if lift > MIN_LIFT else "")
+
+
+def region_text(result: SpCoResult, concept: int, n_words: int = 3, largest: bool = True) -> str:
+    """The label of one region: ``[concept]`` then its ``n_words`` most probable words, one a
+    line, each with its probability and, if distinctive, its lift (``"kitchen 0.31 x4.2"``);
+    on a further region of the same concept, ``[concept]`` and its best word on one line.
+    A concept where no word was heard: ``[concept]`` and ``"no words heard here"``."""
+    if result.heard(concept) == 0:
+        return f"[{concept}]\n{NO_WORDS}" if largest else f"[{concept}]"
+    lifts = result.lift()[concept]  # [V]
+    index = {w: k for k, w in enumerate(result.vocabulary)}
+    words = result.top_words(concept, n_words if largest else 1)
+    if not largest:
+        return " ".join([f"[{concept}]"] + [w for w, _ in words])
+    return "\n".join([f"[{concept}]"] + [_word_line(w, p, lifts[index[w]]) for w, p in words])
+
+
+def concept_handles(
+    result: SpCoResult, colours: np.ndarray, n_words: int = 3, limit: int = MAX_LEGEND_CONCEPTS
+) -> list[Patch]:
+    """Legend entries of the ``limit`` largest concepts: the colour, ``[concept]``, its cells,
+    the words heard there, its top words and its distinctive words with their lifts
+    (``colours``: ``[L, 3]`` uint8, :func:`spcopyro.figures.plotting.semantic_colours`)."""
+    handles = []
+    used = result.concepts_in_use()
+    for concept in used[:limit]:
+        c = int(concept)
+        heard = result.heard(c)
+        cells = int(result.concept_sizes()[c])
+        if heard == 0:
+            words = NO_WORDS
+        else:
+            words = ", ".join(f"{w} {p:.2f}" for w, p in result.top_words(c, n_words))
+            distinctive = result.distinctive_words(c, n_words)
+            if distinctive:
+                words += "\n      distinctive: " + ", ".join(
+                    f"{w} x{r:.1f}" for w, r, _ in distinctive
+                )
+        count = "" if heard is None else f", {format_words_heard(heard)} words heard"
+        handles.append(
+            Patch(color=colours[c] / 255.0, label=f"[{c}] {cells} cells{count}: {words}")
+        )
+    if len(used) > limit:
+        handles.append(Patch(color="white", label=f"... {len(used) - limit} smaller concepts"))
+    return handles
+
+
+def utterance_concepts(result: SpCoResult, xy: np.ndarray) -> np.ndarray:
+    """[U] the concept of the cell under each world point ``[U, 2]`` (-1 off the map or off
+    free space)."""
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
+    if len(xy) == 0:
+        return np.zeros(0, dtype=np.int64)
+    grid = result.grid
+    cells = grid.world_to_cell(xy)  # [U, 2] (row, col)
+    inside = (
+        (cells[:, 0] >= 0) & (cells[:, 0] < grid.height)
+        & (cells[:, 1] >= 0) & (cells[:, 1] < grid.width)
+    )  # fmt: skip
+    image = result.label_image()  # [H, W]
+    concepts = np.full(len(xy), -1, dtype=np.int64)
+    concepts[inside] = image[cells[inside, 0], cells[inside, 1]]
+    return concepts
+
+
+def draw_utterances(
+    ax: Axes, result: SpCoResult, observations: Observations, colours: np.ndarray
+) -> Line2D | None:
+    """Mark where each utterance was heard (Fig. 10F): a circle in the colour of the concept
+    under it (grey off free space) with a black rim. Returns a legend handle (None when the
+    observations hold no utterance)."""
+    xy = np.asarray(observations.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
+    if len(xy) == 0:
+        return None
+    concepts = utterance_concepts(result, xy)  # [U]
+    rgb = np.where(
+        concepts[:, None] >= 0, colours[np.maximum(concepts, 0)] / 255.0, OFF_MAP_RGB
+    )  # [U, 3]
+    ax.scatter(*xy.T, s=22, c=rgb, edgecolors="black", linewidths=0.7, zorder=3)
+    return Line2D(
+        [], [], marker="o", ls="", markerfacecolor="0.8", markeredgecolor="black",
+        label=f"where a word was heard ({len(xy)} utterances; fill: the concept there)",
+    )  # fmt: skip
+
+
+def draw_outline(
+    ax: Axes,
+    grid: OccupancyGrid,
+    region: np.ndarray,
+    rows: slice,
+    cols: slice,
+    extent: tuple[float, float, float, float],
+    **style: object,
+) -> None:
+    """Draw the border of an ``[H, W]`` bool region (cropped to ``rows``, ``cols``, shown at
+    ``extent``) as a contour line with ``style`` (colors, linewidths, linestyles)."""
+    part = np.asarray(region, dtype=np.float64)[rows, cols]  # [h, w]
+    if not part.any():
+        return
+    h, w = part.shape
+    left, right, bottom, top = extent
+    x = left + (np.arange(w) + 0.5) * (right - left) / w
+    y = top - (np.arange(h) + 0.5) * (top - bottom) / h
+    ax.contour(x, y, part, levels=[0.5], **style)
+
+
+def place_labels(
+    fig: Figure, ax: Axes, labels: list[tuple[float, float, str, dict[str, object]]]
+) -> tuple[int, int]:
+    """Write each ``(x, y, text, style)`` label centred at (x, y) with the white halo
+    :data:`OUTLINE`, in the given order, leaving out any label whose box would overlap one
+    already written. Returns (written, left out). The boxes are measured by rendering the
+    figure on an Agg canvas (no backend is selected for anything else)."""
+    if fig.canvas is None or not hasattr(fig.canvas, "get_renderer"):
+        FigureCanvasAgg(fig)
+    renderer = fig.canvas.get_renderer()
+    boxes = []
+    skipped = 0
+    for x, y, text, style in labels:
+        artist = ax.text(x, y, text, ha="center", va="center", path_effects=OUTLINE, zorder=4,
+                         **style)  # fmt: skip
+        box = artist.get_window_extent(renderer=renderer).expanded(1.15, 1.25)
+        if any(box.overlaps(other) for other in boxes):
+            artist.remove()
+            skipped += 1
+            continue
+        boxes.append(box)
+    return len(boxes), skipped

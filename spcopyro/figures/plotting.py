@@ -1,0 +1,504 @@
+"""Figures: a house and its observations, the semantic map with words (paper Fig. 10F), the
+answer to "where is X?", traces (paper Figs. 5-6). Everything is drawn in world metres, cropped to
+the known part of the map.
+
+The semantic map gives every concept in use its own colour, touching concepts the most different
+ones (:func:`~spcopyro.maps.palette.concept_colours`), and writes a label on every connected region
+of at least ``SMALL_REGION_FRACTION`` of the free cells (:func:`region_label_points`), so a
+concept split over two rooms is labelled in both.
+
+Figures are built as :class:`matplotlib.figure.Figure` objects and written with
+:meth:`~matplotlib.figure.Figure.savefig`: no pyplot, no window, and no backend is chosen on
+import (a notebook keeps its inline figures; headless runs need no display).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import textwrap
+import warnings
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
+from matplotlib.text import Text
+from scipy import ndimage
+
+from spcopyro.data import House, Observations
+from spcopyro.figures.map_pieces import (
+    concept_handles,
+    draw_outline,
+    draw_utterances,
+    place_labels,
+    region_text,
+)
+from spcopyro.maps import (
+    RGB_BACKGROUND,
+    RGB_OCCUPIED,
+    RGB_UNKNOWN,
+    UNKNOWN,
+    OccupancyGrid,
+    concept_colours,
+    concept_regions,
+    label_colours,
+    render_labels,
+)
+from spcopyro.results.concept_words import NO_WORDS
+from spcopyro.results.result import SMALL_REGION_FRACTION, SpCoResult, WhereAnswer
+from spcopyro.results.uncertainty import cell_entropy, free_cells_image, where_probability
+
+DPI = 150  # of every PNG
+PAD_INCHES = 0.1  # around the artists (matplotlib's savefig.pad_inches)
+MAX_WORD_COLOURS = 12  # words beyond the most frequent ones are drawn as "other"
+ANSWER_RGB = (214, 0, 0)  # the answer's region in plot_where
+RUNNER_UP_RGB = (0, 70, 200)  # the runner-up's region in plot_where
+GREY_FREE_RGB = (225, 225, 225)  # plot_where draws the free cells of the map in this grey
+
+
+def known_bounds(grid: OccupancyGrid, margin: int = 3) -> tuple[slice, slice]:
+    """Row and column slices of the map's known (not UNKNOWN) cells, plus a margin."""
+    rows, cols = np.nonzero(grid.occupancy != UNKNOWN)
+    if rows.size == 0:
+        return slice(0, grid.height), slice(0, grid.width)
+    return (
+        slice(max(rows.min() - margin, 0), min(rows.max() + margin + 1, grid.height)),
+        slice(max(cols.min() - margin, 0), min(cols.max() + margin + 1, grid.width)),
+    )
+
+
+def _extent(grid: OccupancyGrid, rows: slice, cols: slice) -> tuple[float, float, float, float]:
+    """imshow extent (left, right, bottom, top) in world metres of a cropped image."""
+    ox, oy, _ = grid.origin
+    res = grid.resolution
+    top = oy + (grid.height - rows.start) * res
+    bottom = oy + (grid.height - rows.stop) * res
+    return ox + cols.start * res, ox + cols.stop * res, bottom, top
+
+
+def _show_image(ax: Axes, grid: OccupancyGrid, rgb: np.ndarray) -> tuple[slice, slice]:
+    rows, cols = known_bounds(grid)
+    ax.imshow(rgb[rows, cols], extent=_extent(grid, rows, cols), interpolation="nearest")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_aspect("equal")
+    return rows, cols
+
+
+CJK_FONTS = (
+    "Noto Sans CJK JP", "Noto Sans JP", "IPAexGothic", "IPAGothic", "TakaoGothic",
+    "Source Han Sans JP", "Hiragino Sans", "Yu Gothic", "MS Gothic", "Noto Sans CJK SC",
+    "WenQuanYi Zen Hei",
+)  # fmt: skip
+"""Fonts with Japanese (and Chinese) glyphs that the figures fall back to, in this order, when
+one is installed: words of any script are drawn, not as boxes (issue 22 item 10)."""
+_warned_glyphs: set[str] = set()
+
+
+def _font_families() -> list[str]:
+    """matplotlib's sans-serif font first, then every installed font of :data:`CJK_FONTS`."""
+    from matplotlib import font_manager, rcParams
+
+    installed = {font.name for font in font_manager.fontManager.ttflist}
+    return [*rcParams["font.sans-serif"][:1], *(f for f in CJK_FONTS if f in installed)]
+
+
+def _covered(families: list[str]) -> set[int]:
+    """The code points the ``families`` fonts have glyphs for."""
+    from matplotlib import font_manager
+    from matplotlib.ft2font import FT2Font
+
+    points: set[int] = set()
+    for family in families:
+        path = font_manager.findfont(family, fallback_to_default=False)
+        points |= set(FT2Font(path).get_charmap())
+    return points
+
+
+def _check_glyphs(artists: list[Text], families: list[str]) -> None:
+    """Log once (logger ``"spcopyro"``) the words of a figure's text ``artists`` that no font
+    can draw, and how to get a font that can."""
+    texts = {t.get_text() for t in artists}
+    strange = {c for text in texts for c in text if ord(c) > 0x24F and not c.isspace()}
+    if not strange:
+        return
+    covered = _covered(families)
+    missing = sorted(c for c in strange if ord(c) not in covered and c not in _warned_glyphs)
+    if not missing:
+        return
+    _warned_glyphs.update(missing)
+    words = sorted({w for text in texts for w in text.split() if set(w) & set(missing)})[:5]
+    logging.getLogger("spcopyro").warning(
+        "the figures' fonts have no glyphs for %s (in %s): they are drawn as boxes; install a "
+        "font that has them (e.g. Debian's fonts-noto-cjk for Japanese) and the figures use it",
+        "".join(missing[:10]),
+        ", ".join(words),
+    )
+
+
+def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
+    """Write ``fig`` as a PNG at ``DPI``, cropped to its artists plus ``PAD_INCHES``.
+
+    The crop box is measured on the figure's Agg canvas (:meth:`Figure.get_tightbbox`) and
+    given to :meth:`~Figure.savefig`: the figure is drawn once. ``bbox_inches="tight"`` draws
+    it twice (a dry run to find the box, then the PNG), a third of the time of a semantic map;
+    the two boxes differ by a few pixels at most.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    families = _font_families()
+    artists = fig.findobj(Text)
+    for text in artists:
+        text.set_fontfamily(families)  # any script: the first font that has the glyph
+    _check_glyphs(artists, families)
+    with warnings.catch_warnings():  # told once, in words, by _check_glyphs
+        warnings.filterwarnings("ignore", message="Glyph .* missing from font")
+        renderer = FigureCanvasAgg(fig).get_renderer()
+        box = fig.get_tightbbox(renderer).padded(PAD_INCHES)
+        fig.savefig(path, dpi=DPI, bbox_inches=box)
+    return path
+
+
+def plot_house(house: House, path: str | os.PathLike[str], title: str | None = None) -> Path:
+    """The map (free white, walls black, unknown grey), image positions and words by colour."""
+    grid, obs = house.grid, house.observations
+    fig = Figure(figsize=(8, 8))
+    ax = fig.subplots()
+    _show_image(ax, grid, render_labels(np.full(grid.shape, -1), grid))
+    ax.scatter(*obs.image_xy.T, s=6, c="0.45", marker="s", label=f"images ({obs.num_images})")
+    first_words = [u[-1] if u else "" for u in obs.utterances]  # a sentence's last word
+    frequent = [w for w, _ in Counter(first_words).most_common(MAX_WORD_COLOURS)]
+    colours = label_colours(len(frequent) + 1) / 255.0
+    for k, word in enumerate(frequent):
+        mask = np.array([w == word for w in first_words])
+        ax.scatter(*obs.word_xy[mask].T, s=28, color=colours[k], edgecolors="k", linewidths=0.4,
+                   label=word)  # fmt: skip
+    rest = np.array([w not in frequent for w in first_words])
+    if rest.any():
+        ax.scatter(*obs.word_xy[rest].T, s=28, color=colours[-1], edgecolors="k",
+                   linewidths=0.4, label="other words")  # fmt: skip
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+    ax.set_title(title or f"{house.name}: {grid.num_free} free cells")
+    return _save(fig, path)
+
+
+def ranked_label_image(result: SpCoResult) -> np.ndarray:
+    """[H, W] labels renumbered by region size (0 = largest), -1 off free space."""
+    image = result.label_image()
+    order = result.concepts_in_use()
+    rank = np.full(result.config.num_concepts, -1)
+    rank[order] = np.arange(order.size)
+    return np.where(image >= 0, rank[np.maximum(image, 0)], -1)
+
+
+def semantic_colours(result: SpCoResult) -> np.ndarray:
+    """[L, 3] uint8 colour of every concept id (white for concepts not in use): all concepts in
+    use distinct, touching ones as different as the palette allows
+    (:func:`~spcopyro.maps.palette.concept_colours`, largest region first)."""
+    colours = np.full((result.config.num_concepts, 3), RGB_BACKGROUND, dtype=np.uint8)
+    used = result.concepts_in_use()
+    colours[used] = concept_colours(result.label_image(), used)
+    return colours
+
+
+def semantic_map_image(result: SpCoResult) -> np.ndarray:
+    """[H, W, 3] uint8 what :func:`plot_semantic_map` draws: every concept in its
+    :func:`semantic_colours` colour, walls black, unknown grey."""
+    return render_labels(result.label_image(), result.grid, semantic_colours(result))
+
+
+def region_label_points(
+    image: np.ndarray, min_cells: float
+) -> list[tuple[int, int, int, int, bool]]:
+    """Where to write a label on every sizeable connected region of an ``[H, W]`` label image.
+
+    Returns ``(concept, row, col, cells, largest)`` for every 4-connected region of one concept
+    with at least ``min_cells`` cells, concepts in ascending order and each concept's regions
+    largest first (``largest`` marks its largest one). ``(row, col)`` is the region's cell
+    farthest from its border (the maximum of the Euclidean distance transform), so the label
+    sits inside the region even when the region is not convex.
+    """
+    regions, concept_of = concept_regions(image)  # [H, W] region ids, [R] their concepts
+    sizes = np.bincount(regions[regions >= 0], minlength=len(concept_of))  # [R]
+    boxes = ndimage.find_objects(regions + 1)  # [R] each region's bounding box
+    points = []
+    for concept in np.unique(concept_of):
+        ids = np.flatnonzero(concept_of == concept)  # the concept's regions, in raster order
+        first = True
+        for index in ids[np.argsort(-sizes[ids], kind="stable")]:
+            if sizes[index] < min_cells:
+                break
+            box = boxes[index]
+            inside = np.pad(regions[box] == index, 1)  # [h + 2, w + 2] bool
+            distance = ndimage.distance_transform_edt(inside)
+            r, c = np.unravel_index(int(np.argmax(distance)), distance.shape)
+            row, col = box[0].start + int(r) - 1, box[1].start + int(c) - 1
+            points.append((int(concept), row, col, int(sizes[index]), first))
+            first = False
+    return points
+
+
+def plot_semantic_map(
+    result: SpCoResult,
+    path: str | os.PathLike[str],
+    n_words: int = 3,
+    max_labelled: int | None = None,
+    min_region_fraction: float = SMALL_REGION_FRACTION,
+    observations: Observations | None = None,
+) -> Path:
+    """Write :func:`semantic_map_figure` to ``path``."""
+    figure = semantic_map_figure(
+        result, n_words, max_labelled, min_region_fraction, observations=observations
+    )
+    return _save(figure, path)
+
+
+def semantic_map_figure(
+    result: SpCoResult,
+    n_words: int = 3,
+    max_labelled: int | None = None,
+    min_region_fraction: float = SMALL_REGION_FRACTION,
+    observations: Observations | None = None,
+) -> Figure:
+    """Each concept its own colour, walls black, its words on the map itself (Fig. 10F).
+
+    Every connected region holding at least ``min_region_fraction`` of the free cells gets a
+    label at its most interior cell (:func:`region_label_points`), in black with a white halo
+    (a label that would overlap the label of a larger region is left out and counted in the
+    title, :func:`~spcopyro.figures.map_pieces.place_labels`):
+    ``[concept]`` and its ``n_words`` most probable words with their probabilities (and the
+    lift of the distinctive ones, ``x4.2``) on the concept's largest region, ``[concept]`` and
+    its best word on each further one, "no words heard here" for a concept whose region holds
+    no observed word (:func:`~spcopyro.figures.map_pieces.region_text`). A legend lists the largest
+    concepts with their words; ``observations`` given, a circle marks where each word was heard,
+    filled with the colour of the concept there. ``max_labelled``: label only the regions of
+    that many largest concepts (default: all).
+    """
+    grid = result.grid
+    fig = Figure(figsize=(13, 9))
+    ax = fig.subplots()
+    image = result.label_image()
+    colours = semantic_colours(result)  # [L, 3]
+    _show_image(ax, grid, render_labels(image, grid, colours))
+    labelled = set(result.concepts_in_use()[:max_labelled].tolist())
+    points = region_label_points(image, min_region_fraction * grid.num_free)
+    points = [p for p in points if p[0] in labelled]
+    points.sort(key=lambda p: -p[3])  # largest region first: its label wins a collision
+    labels = []
+    for concept, row, col, _, largest in points:
+        x, y = grid.cell_to_world(np.array([row, col]))
+        silent = result.heard(concept) == 0
+        labels.append((float(x), float(y), region_text(result, concept, n_words, largest),
+                       {"fontsize": 6 if silent else 7, "style": "italic" if silent else
+                        "normal", "color": "0.25" if silent else "black"}))  # fmt: skip
+    regions, skipped = place_labels(fig, ax, labels)
+    handles: list[Patch | Line2D] = list(concept_handles(result, colours, n_words))
+    if observations is not None:
+        marker = draw_utterances(ax, result, observations, colours)
+        handles += [marker] if marker is not None else []
+    handles += [Patch(color=np.array(RGB_OCCUPIED) / 255.0, label="walls"),
+                Patch(color=np.array(RGB_UNKNOWN) / 255.0, label="unknown")]  # fmt: skip
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7,
+              frameon=False, title="concepts, largest first: words (posterior mean p; "
+              "x lift = p(word | concept) / p(word))", title_fontsize=7)  # fmt: skip
+    used = len(result.concepts_in_use())
+    crowded = f"; {skipped} more left unlabelled where labels would overlap" if skipped else ""
+    ax.set_title(f"{result.name or 'semantic map'}: {used} concepts in use, {regions} labelled "
+                 f"regions (>= {min_region_fraction:.1%} of the free cells{crowded})")  # fmt: skip
+    return fig
+
+
+def where_image(result: SpCoResult, answer: WhereAnswer) -> np.ndarray:
+    """[H, W, 3] uint8 the map in grey (free cells ``GREY_FREE_RGB``, walls black, unknown
+    grey), the answer's region in ``ANSWER_RGB`` and the runner-up's in ``RUNNER_UP_RGB``: what
+    :func:`plot_where` draws for a result without marginals."""
+    image = result.label_image()  # [H, W]
+    grey = np.tile(np.array(GREY_FREE_RGB, dtype=np.uint8), (result.config.num_concepts, 1))
+    rgb = render_labels(image, result.grid, grey)  # [H, W, 3]
+    if answer.runner_up is not None:
+        rgb[image == answer.runner_up] = RUNNER_UP_RGB
+    rgb[answer.region] = ANSWER_RGB
+    return rgb
+
+
+def plot_where(result: SpCoResult, answer: WhereAnswer, path: str | os.PathLike[str]) -> Path:
+    """Write :func:`where_figure` to ``path``."""
+    return _save(where_figure(result, answer), path)
+
+
+def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
+    """The answer to "where is WORD?" over the map drawn in grey: with per-cell marginals, each
+    cell's probability of lying in the word's place
+    (:func:`~spcopyro.results.uncertainty.where_probability`) as a colour scale, the answer's region
+    outlined in red and the runner-up's in dashed blue; without them (a point estimate), the
+    answer's region filled red and the runner-up's blue (:func:`where_image`). A title with the
+    word, the concept, p, the prior and the concept's words, a legend, and the answer's
+    warnings under the map. A region smaller than ``SMALL_REGION_FRACTION`` of the free cells
+    is ringed, so a speck can be seen."""
+    grid = result.grid
+    fig = Figure(figsize=(11, 9))
+    ax = fig.subplots()
+    area = grid.resolution**2
+    cells = int(answer.region.sum())
+    image = result.label_image()
+    runner = image == answer.runner_up if answer.runner_up is not None else None
+    handles: list[Patch | Line2D] = []
+    if result.marginals is None:
+        _show_image(ax, grid, where_image(result, answer))
+        answer_handle: Patch | Line2D = Patch(color=np.array(ANSWER_RGB) / 255.0, label="")
+        runner_handle: Patch | Line2D = Patch(color=np.array(RUNNER_UP_RGB) / 255.0, label="")
+    else:
+        grey = np.tile(np.array(GREY_FREE_RGB, dtype=np.uint8), (result.config.num_concepts, 1))
+        rows, cols = _show_image(ax, grid, render_labels(image, grid, grey))
+        extent = _extent(grid, rows, cols)
+        probability = free_cells_image(result, where_probability(result, answer.word,
+                                                                 answer.prior))  # fmt: skip
+        shown = np.ma.masked_less(probability[rows, cols], 0.01)  # [h, w]: grey below 1%
+        scale = ax.imshow(shown, extent=extent, cmap="Reds", vmin=0.0, vmax=1.0,
+                          interpolation="nearest", alpha=0.9)  # fmt: skip
+        fig.colorbar(scale, ax=ax, shrink=0.6, pad=0.02,
+                     label=f"p(cell in the place of '{answer.word}')")  # fmt: skip
+        red, blue = np.array(ANSWER_RGB) / 255.0, np.array(RUNNER_UP_RGB) / 255.0
+        draw_outline(ax, grid, answer.region, rows, cols, extent, colors=[red], linewidths=2.0)
+        if runner is not None:
+            draw_outline(ax, grid, runner, rows, cols, extent, colors=[blue], linewidths=1.5,
+                         linestyles="dashed")  # fmt: skip
+        answer_handle = Line2D([], [], color=red, lw=2.0, label="")
+        runner_handle = Line2D([], [], color=blue, lw=1.5, ls="--", label="")
+    if 0 < cells < SMALL_REGION_FRACTION * grid.num_free:
+        labels, _ = ndimage.label(answer.region)
+        centres = ndimage.center_of_mass(answer.region, labels, range(1, int(labels.max()) + 1))
+        xy = grid.cell_to_world(np.round(np.array(centres)).astype(np.int64))  # [n, 2]
+        ax.scatter(*xy.T, s=300, facecolors="none", edgecolors=np.array(ANSWER_RGB) / 255.0,
+                   linewidths=1.5, zorder=3)  # fmt: skip
+    answer_handle.set_label(
+        f"answer: concept {answer.concept}, p = {answer.probability:.3f} "
+        f"({cells} cell{'s' if cells != 1 else ''}, {cells * area:.2f} m^2)"
+    )
+    handles.append(answer_handle)
+    if runner is not None:
+        runner_handle.set_label(
+            f"runner-up: concept {answer.runner_up}, p = {answer.runner_up_probability:.3f} "
+            f"({int(runner.sum())} cells)"
+        )
+        handles.append(runner_handle)
+    handles += [
+        Patch(color=np.array(GREY_FREE_RGB) / 255.0, label="free space"),
+        Patch(color=np.array(RGB_OCCUPIED) / 255.0, label="walls"),
+        Patch(color=np.array(RGB_UNKNOWN) / 255.0, label="unknown"),
+    ]
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0) if
+              result.marginals is None else (0.0, -0.08), fontsize=8,
+              frameon=False)  # fmt: skip
+    if result.heard(answer.concept) == 0:
+        words = NO_WORDS
+    else:
+        words = ", ".join(f"{w} {p:.2f}" for w, p in result.top_words(answer.concept, 3))
+    kind = "per-cell probability from the marginals" if result.marginals is not None else (
+        "point estimate")  # fmt: skip
+    ax.set_title(f"where is '{answer.word}'? concept {answer.concept}, "
+                 f"p = {answer.probability:.3f} ({answer.prior} prior; {kind})\n"
+                 f"its words: {words}")  # fmt: skip
+    if answer.warnings:
+        text = "\n".join(textwrap.fill(f"warning: {w}", 110) for w in answer.warnings)
+        ax.text(0.0, -0.1 if result.marginals is None else -0.25, text, transform=ax.transAxes,
+                fontsize=7, color="#b00000", va="top", ha="left")  # fmt: skip
+    return fig
+
+
+def _plot_cell_values(
+    result: SpCoResult,
+    values: np.ndarray,
+    path: str | os.PathLike[str],
+    *,
+    title: str,
+    label: str,
+    vmax: float,
+    cmap: str,
+) -> Path:
+    """``[N]`` per-free-cell ``values`` as a colour map over the grid (walls black, unknown
+    grey), with a colour bar."""
+    grid = result.grid
+    fig = Figure(figsize=(9, 8))
+    ax = fig.subplots()
+    rgb = render_labels(np.full(grid.shape, -1), grid, np.zeros((1, 3), dtype=np.uint8))
+    rows, cols = _show_image(ax, grid, rgb)
+    image = free_cells_image(result, values)[rows, cols]  # [h, w], NaN off free space
+    shown = ax.imshow(image, extent=_extent(grid, rows, cols), origin="upper", cmap=cmap,
+                      vmin=0.0, vmax=vmax, interpolation="nearest")  # fmt: skip
+    fig.colorbar(shown, ax=ax, label=label, shrink=0.8)
+    ax.set_title(title)
+    return _save(fig, path)
+
+
+def plot_uncertainty(result: SpCoResult, path: str | os.PathLike[str]) -> Path | None:
+    """The uncertainty map: each free cell's entropy of p(C_i) in nats
+    (:func:`~spcopyro.results.uncertainty.cell_entropy`); None (nothing drawn) for a result without
+    marginals."""
+    entropy = cell_entropy(result)
+    if entropy is None:
+        return None
+    source = f"q(C) of {result.method}" if result.method != "gibbs" else "Gibbs label frequencies"
+    title = (
+        f"{result.name or 'uncertainty'}: entropy of p(C_i), {source}\nmean "
+        f"{entropy.mean():.3f} nats (at most log L = {np.log(len(result.pi)):.2f})"
+    )
+    return _plot_cell_values(result, entropy, path, title=title, label="entropy (nats)",
+                             vmax=max(float(entropy.max()), 1e-6), cmap="YlOrRd")  # fmt: skip
+
+
+def plot_agreement(result: SpCoResult, path: str | os.PathLike[str]) -> Path | None:
+    """Each free cell's probability of agreeing with the reported point estimate (the share of
+    label samples, matched to it, that give the cell its label:
+    :mod:`spcopyro.results.point_estimate`);
+    None (nothing drawn) for a result that is not such an estimate."""
+    if result.agreement is None:
+        return None
+    agreement = np.asarray(result.agreement)
+    kind = result.inference.get("point_estimate", "point estimate")
+    title = (
+        f"{result.name or 'agreement'}: p(sample agrees with the {kind} estimate)\n"
+        f"mean {agreement.mean():.3f}, {int((agreement < 0.5).sum())} cells below 0.5"
+    )
+    return _plot_cell_values(result, agreement, path, title=title, label="probability",
+                             vmax=1.0, cmap="Greens")  # fmt: skip
+
+
+def plot_where_probability(
+    result: SpCoResult, word: str, path: str | os.PathLike[str], prior: str = "area"
+) -> Path:
+    """The answer to "where is WORD?" as a probability per cell: p(cell in the word's place)
+    (:func:`~spcopyro.results.uncertainty.where_probability`)."""
+    probability = where_probability(result, word, prior)  # [N]
+    kind = "marginals" if result.marginals is not None else "point estimate"
+    title = (
+        f"where is '{word.lower()}'? p(cell in its place), {kind}, {prior} prior\n"
+        f"{int((probability > 0.5).sum())} cells above 0.5"
+    )
+    return _plot_cell_values(result, probability, path, title=title, label="probability",
+                             vmax=1.0, cmap="Blues")  # fmt: skip
+
+
+def plot_trace(result: SpCoResult, path: str | os.PathLike[str]) -> Path:
+    """The objective (log joint or ELBO) and the number of concepts per iteration (paper
+    Figs. 5-6), the point estimate's iteration marked."""
+    trace = result.trace
+    sweeps = np.arange(1, len(trace.objective) + 1)
+    fig = Figure(figsize=(7, 5))
+    top, bottom = fig.subplots(2, 1, sharex=True)
+    top.plot(sweeps, trace.objective, lw=0.8)
+    top.axvline(result.best_iteration + 1, color="C3", lw=0.6, ls="--", label="point estimate")
+    top.set_ylabel(trace.objective_name)
+    top.legend(fontsize=8)
+    bottom.plot(sweeps, trace.num_concepts, lw=0.8, color="C1")
+    bottom.set_ylabel("concepts in use")
+    bottom.set_xlabel("sweep" if result.method == "gibbs" else "iteration")
+    for ax in (top, bottom):
+        ax.set_xscale("log")
+    fig.suptitle(f"{result.name or 'trace'} ({result.method})")
+    return _save(fig, path)

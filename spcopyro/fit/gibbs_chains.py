@@ -1,0 +1,188 @@
+"""The Gibbs chains of a fit: started, advanced side by side, saved on Ctrl-C and resumed, and
+turned into outputs (label frequencies, the point estimate, posterior means).
+
+:func:`gibbs_outputs` is what :func:`spcopyro.fit.house.fit_house_chains` runs for the Gibbs method;
+:class:`FitCheckpoint` and :class:`FitInterrupted` are how a caller (``spcopyro fit``) keeps the
+chains of an interrupted fit.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from spcopyro.config import SpCoConfig, SpCoSettings
+from spcopyro.gibbs.chains import advance_chains
+from spcopyro.gibbs.checkpoint import load_chains, save_chains
+from spcopyro.gibbs.hyperparameters import config_at_posterior_mean
+from spcopyro.gibbs.method import gibbs_record, output_from_run
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.gibbs.run import GibbsChain, start_chain
+from spcopyro.inference.protocol import InferenceOutput, method_options
+from spcopyro.model import ModelData
+from spcopyro.results.point_estimate import with_point_estimate
+from spcopyro.results.posterior_means import with_posterior_means
+from spcopyro.results.uncertainty import align_samples, label_frequencies
+
+
+class FitInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped a fit (a :class:`KeyboardInterrupt`, so code unaware of it still stops).
+
+    ``checkpoint``: the file holding the chains' state (None where none was kept);
+    ``where``: how far the fit had got, e.g. ``"chain 1 of 2, 120 of 5000 sweeps done"``.
+    """
+
+    def __init__(self, where: str, checkpoint: Path | None = None) -> None:
+        super().__init__(where)
+        self.where, self.checkpoint = where, checkpoint
+
+
+class FitCheckpoint:
+    """Where a Gibbs fit's chains are saved (:func:`~spcopyro.gibbs.checkpoint.save_chains`)
+    when it is interrupted.
+
+    :func:`fit_house_chains` fills :attr:`chains` (the very list it advances) and :attr:`record`
+    (its settings, checked on resuming), saves them on Ctrl-C, and leaves them here, so that the
+    caller can :meth:`save` the finished chains later too -- e.g. when Ctrl-C stops the writing of
+    the results.
+    """
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        self.path = Path(path)
+        self.chains: list[GibbsChain | None] = []
+        self.record: dict[str, object] = {}
+
+    def save(self) -> Path | None:
+        """Save the chains reached so far; None (nothing written) if none has started."""
+        if all(chain is None for chain in self.chains):
+            return None
+        return save_chains(self.chains, self.path, record=self.record)
+
+
+def gibbs_outputs(
+    data: ModelData,
+    settings: SpCoSettings,
+    options: object | None,
+    sweeps: int,
+    seeds: list[int],
+    init: str,
+    start_labels: Callable[[int, torch.Generator], torch.Tensor],
+    progress: bool | None,
+    checkpoint: FitCheckpoint | None,
+    resume: str | os.PathLike[str] | None,
+    marginal_samples: int = 0,
+    point_estimate: str = "map-visited",
+    workers: int = 1,
+) -> list[InferenceOutput]:
+    """One output per seed: Gibbs chains (:func:`~spcopyro.gibbs.run.start_chain`,
+    :func:`~spcopyro.gibbs.run.advance`: the same draws as
+    :class:`~spcopyro.gibbs.method.GibbsInference`), saved on Ctrl-C into ``checkpoint`` and
+    continued from ``resume``; up to ``workers`` of them advance at once
+    (:func:`~spcopyro.gibbs.chains.advance_chains`). ``init``: the start's name as recorded;
+    ``start_labels(seed, generator)``: chain ``seed``'s initial labels, drawn with its
+    generator."""
+    options = method_options(options, GibbsOptions, "Gibbs sampling")
+    if options.anneal_sweeps > sweeps:
+        raise ValueError(
+            f"anneal_sweeps ({options.anneal_sweeps}) must not exceed num_sweeps ({sweeps})"
+        )
+    record = {"method": "gibbs", "sweeps": sweeps, "seeds": seeds, "init": init,
+              "data_preparation": _preparation_record(settings)}  # fmt: skip
+    chains: list[GibbsChain | None] = [None] * len(seeds)
+    if resume is not None:
+        chains = load_chains(resume, data, settings.model, options, record=record)
+    if checkpoint is not None:
+        checkpoint.chains, checkpoint.record = chains, record
+    try:
+        for k, seed in enumerate(seeds):
+            if chains[k] is None:
+                generator = torch.Generator().manual_seed(seed)
+                start = start_labels(seed, generator)
+                chains[k] = start_chain(
+                    data, settings.model, options=options, generator=generator, init_labels=start
+                )
+        runs = [(chain, sweeps - chain.sweeps_done) for chain in chains if chain is not None]
+        thin = marginal_thin(sweeps, marginal_samples)
+        advance_chains(runs, workers=workers, thin=thin, progress=progress)
+    except KeyboardInterrupt:
+        saved = None if checkpoint is None else checkpoint.save()
+        raise FitInterrupted(_where_stopped(chains, sweeps), saved) from None
+    outputs = []
+    for chain, seed in zip(chains, seeds, strict=True):
+        assert chain is not None
+        entry = gibbs_record(options, sweeps, chain.backend.name)
+        output = output_from_run(chain.to_run(), {**entry, "seed": seed, "init": init})
+        outputs.append(
+            with_sample_marginals(
+                output, sweeps, data, settings.model, point_estimate, progress=progress
+            )
+        )
+    return outputs
+
+
+def _preparation_record(settings: SpCoSettings) -> dict[str, object]:
+    """The data preparation as a checkpoint records it: the footprint fields only when the
+    footprint is on, so checkpoints made before it existed still resume."""
+    record = dataclasses.asdict(settings.data)
+    if not settings.data.footprint_radius:
+        for name in ("footprint_radius", "footprint_kernel", "footprint_fov"):
+            record.pop(name)
+    return record
+
+
+def marginal_thin(sweeps: int, marginal_samples: int) -> int:
+    """Every how many iterations to keep a label map so that about ``marginal_samples`` fall in
+    the second half of ``sweeps`` (0: keep none)."""
+    return max(1, sweeps // (2 * marginal_samples)) if marginal_samples else 0
+
+
+def with_sample_marginals(
+    output: InferenceOutput,
+    sweeps: int,
+    data: ModelData,
+    config: SpCoConfig,
+    point_estimate: str = "map-visited",
+    progress: bool | None = False,
+) -> InferenceOutput:
+    """``output`` with the label frequencies of its samples from the second half of the sweeps
+    as its marginals (unchanged if it kept none there), reporting ``point_estimate`` over them
+    (:func:`spcopyro.results.point_estimate.with_point_estimate`), and a sampler's pi and emissions
+    as their posterior means: given the point estimate's labels when it is one, else averaged over
+    those samples (:func:`~spcopyro.results.posterior_means.with_posterior_means`)."""
+    if output.label_samples is None or output.sample_iterations is None:
+        return output
+    late = np.asarray(output.sample_iterations) >= sweeps // 2
+    if not late.any():
+        return output
+    samples = np.asarray(output.label_samples)[late]  # [S', N]
+    output = with_point_estimate(
+        output, samples, point_estimate, config.num_concepts, progress=progress
+    )
+    # One set of concept names per result: the kept samples renamed to the reported map's
+    # concepts before their frequencies are counted (issue 22 item 1).
+    samples = align_samples(samples, np.asarray(output.labels), config.num_concepts)
+    marginals = label_frequencies(samples, config.num_concepts)  # [N, L]
+    if output.parameters_drawn:
+        given = None if point_estimate != "map-visited" else samples  # tables of its clusters
+        sampled = config_at_posterior_mean(config, output.options.get("hyperparameters"))
+        output = with_posterior_means(output, data, sampled, given)
+    return dataclasses.replace(
+        output,
+        marginals=marginals,
+        label_samples=None,
+        options={**output.options, "marginal_samples": len(samples)},
+    )
+
+
+def _where_stopped(chains: Sequence[GibbsChain | None], sweeps: int) -> str:
+    """``"chain k of K, s of S sweeps done"`` for the first chain not finished."""
+    for k, chain in enumerate(chains):
+        done = 0 if chain is None else chain.sweeps_done
+        if done < sweeps:
+            return f"chain {k + 1} of {len(chains)}, {done} of {sweeps} sweeps done"
+    return f"all {len(chains)} chain(s) done ({sweeps} sweeps each)"

@@ -1,0 +1,532 @@
+"""Fitting SpCoMapping to a house: observations -> per-cell counts -> inference -> result.
+
+This is what ``spcopyro fit`` runs; each step is a public function of its own module, so a user
+can replace any of them (see :func:`fit_house_chains`' body). The inference method is looked up
+by name in :mod:`spcopyro.fit.registry` (``"gibbs"``: Algorithm 1); ``--sweeps auto``
+(:func:`fit_house_converged`) is Gibbs-specific.
+
+Gibbs chains can be interrupted and resumed: :func:`fit_house_chains` with ``checkpoint=PATH``
+(or a :class:`~spcopyro.fit.gibbs_chains.FitCheckpoint`) saves every chain's state there
+(:mod:`spcopyro.gibbs.checkpoint`) when Ctrl-C stops it, then raises
+:class:`~spcopyro.fit.gibbs_chains.FitInterrupted`; ``resume=PATH`` continues the saved
+chains, exactly as if they had never stopped. Every result records where its data came from,
+the package versions and the backend that ran (:func:`provenance`, written to ``config.json``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import os
+import platform
+from collections.abc import Sequence
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from spcopyro import __version__
+from spcopyro._util.threads import AUTO, describe_threads, resolve_threads, torch_threads
+from spcopyro.config import PRESETS, WORDS, SpCoConfig, SpCoSettings, preset, preset_inference
+from spcopyro.data import CellCounts, House, cell_counts
+from spcopyro.data.model_grid import model_house
+from spcopyro.fit.gibbs_chains import (
+    FitCheckpoint,
+    gibbs_outputs,
+    marginal_thin,
+    with_sample_marginals,
+)
+from spcopyro.fit.registry import DEFAULT_METHOD, get_method
+from spcopyro.fit.starts import Init, init_name, initial_labels
+from spcopyro.gibbs.chains import resolve_workers
+from spcopyro.gibbs.checkpoint import data_fingerprint
+from spcopyro.gibbs.convergence import (
+    DEFAULT_BLOCK,
+    DEFAULT_CHAINS,
+    DEFAULT_MAX_SWEEPS,
+    DEFAULT_THRESHOLD,
+    ConvergenceDiagnostics,
+    run_until_converged,
+)
+from spcopyro.gibbs.hyperparameters import config_at_posterior_mean
+from spcopyro.gibbs.method import GibbsInference, output_from_run
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.inference.protocol import InferenceOutput
+from spcopyro.model import ModelData, make_model_data
+from spcopyro.results.map_checks import coverage_warning, house_map_warning
+from spcopyro.results.point_estimate import check_point_estimate
+from spcopyro.results.posterior_means import concept_totals, with_posterior_means
+from spcopyro.results.result import SpCoResult
+
+logger = logging.getLogger("spcopyro")
+
+RANDOM_STREAMS_NOTE = (
+    "the torch and numba Gibbs backends draw different random streams from one seed: a seeded "
+    "fit reproduces bit for bit only on the backend that ran it (inference.backend_used)"
+)
+
+
+def software_versions() -> dict[str, str | None]:
+    """The versions of Python, spcopyro and the packages that shape a fit's draws (None: not
+    installed)."""
+    versions: dict[str, str | None] = {
+        "python": platform.python_version(),
+        "spcopyro": __version__,
+        "numpy": np.__version__,
+        "torch": torch.__version__,
+    }
+    for name, distribution in (("pyro", "pyro-ppl"), ("numba", "numba")):
+        try:
+            versions[name] = metadata.version(distribution)
+        except metadata.PackageNotFoundError:
+            versions[name] = None
+    return versions
+
+
+def provenance(house: House, data: ModelData, source: str | None = None) -> dict[str, object]:
+    """What ``config.json`` records beside the settings, to reproduce a fit: ``source`` (the
+    data: ``source``, e.g. ``"embedded synthetic house, seed 0"``, or the house's folder, and a
+    sha256 fingerprint of the model data), ``software`` (:func:`software_versions`) and a note on
+    the backends' random streams."""
+    if source is None:
+        source = (
+            str(Path(house.source).resolve())
+            if house.source is not None
+            else f"in-memory house {house.name!r} (not read from a folder)"
+        )
+    return {
+        "source": {"data": source, "house": house.name, "data_sha256": data_fingerprint(data)},
+        "software": software_versions(),
+        "reproducibility": RANDOM_STREAMS_NOTE,
+    }
+
+
+FREEZING_GAMMA = 10.0
+"""gamma at and above which the sampler freezes: measured from random labels on the synthetic
+house of seed 0 (3600 free cells, L = 120, 1000 sweeps), gamma 4 ended with 16 concepts, 8 with
+83 (paper-dp; 54 with original-code), 10 with 111 (89), and 12 to 30 with 117 of 120, no concept
+vanishing after sweep 200 (106 with original-code): a domain wall moves only at a cost of about
+exp(-gamma) per flip, so the random start's patches stay."""
+CONCENTRATION_RANGE = (1e-3, 1e12)
+"""alpha, beta, chi and further concentrations outside this range make the log joint rounding
+noise or dominated by empty concepts' parameters (see :func:`config_warnings`)."""
+
+
+def gamma_warning(config: SpCoConfig) -> str | None:
+    """A warning when gamma is below the Potts critical coupling ln(1 + sqrt(L)), else None.
+
+    That value is the 4-neighbour square lattice's; with 8 neighbours every cell has twice the
+    bonds and regions form at a weaker coupling (the 05 notebook fits gamma 1.5 with L = 30 at
+    ARI 0.97), so no warning is given there."""
+    if config.gamma >= config.critical_gamma or config.connectivity != 4:
+        return None
+    return (
+        f"gamma = {config.gamma:g} is below the Potts critical coupling ln(1 + sqrt(L)) = "
+        f"{config.critical_gamma:.3f} for L = {config.num_concepts}: the MRF will not form "
+        "regions (labels stay in patches of a few cells); raise --gamma or lower --concepts"
+    )
+
+
+def config_warnings(config: SpCoConfig) -> list[str]:
+    """Warnings, with the reason, for legal but extreme model settings (empty if none).
+
+    * gamma below the Potts critical coupling ln(1 + sqrt(L)) (:func:`gamma_warning`): no
+      regions form;
+    * gamma >= :data:`FREEZING_GAMMA`: the sampler freezes in its starting patches;
+    * a concentration a (alpha, beta, chi or a further modality's) above 1e12: the log joint
+      holds (a - 1) sum log phi, of order a L K log K, which float64 resolves to 2^-52 of
+      itself; measured on a small house, the log joint jumped by 4e3 nats between sweeps at
+      chi = 1e15 (300 at 1e12) and was meaningless (1e19 to 1e289) from 1e20 on;
+    * a concentration below 1e-3: an empty concept's parameters are drawn from Dir(a), with
+      log phi of order -1/a, and the term (a - 1) sum log phi of order L K / a swamps the data
+      terms; the log joint then follows those draws, not the map (measured: it swung between
+      sweeps by 2e4-5e4 nats at 3e-3 against 400 at 0.1-10, and was 1e302 at 1e-300).
+
+    In both concentration cases the trace and the choice of the best sweep mean nothing.
+    """
+    warnings = [w for w in (gamma_warning(config),) if w]
+    if config.gamma >= FREEZING_GAMMA:
+        warnings.append(
+            f"gamma = {config.gamma:g} is at or above {FREEZING_GAMMA:g}, where the sampler "
+            "freezes: a domain wall moves only at a cost of about exp(-gamma) per cell, so "
+            "labels stay in the random start's patches (measured: gamma 12 to 30 kept 117 of "
+            "120 concepts over 1000 sweeps); lower --gamma (regions form just above the "
+            f"critical {config.critical_gamma:.2f})"
+        )
+    low, high = CONCENTRATION_RANGE
+    concentrations = [("alpha", config.alpha), ("beta", config.beta), ("chi", config.chi)]
+    concentrations += [(f"concentration {n!r}", v) for n, v in config.concentrations]
+    for name, value in concentrations:
+        if value > high:
+            warnings.append(
+                f"{name} = {value:g} is above {high:g}: the log joint's prior term (a - 1) "
+                "sum log phi grows beyond what float64 resolves to 1 nat, so the log joint per "
+                "sweep and the choice of the best sweep become rounding noise"
+            )
+        elif value < low:
+            warnings.append(
+                f"{name} = {value:g} is below {low:g}: concepts without data draw parameters "
+                f"with log values of order -1/{name} and the log joint follows those draws, "
+                "not the map; the log joint per sweep and the choice of the best sweep mean "
+                "nothing"
+            )
+    return warnings
+
+
+def log_degenerate_map(result: SpCoResult, house: House) -> str | None:
+    """Log (logger ``"spcopyro"``) and return the warning of a degenerate reported map -- one
+    concept over most of the free cells while words said at different places lie inside it
+    (:func:`spcopyro.results.map_checks.degenerate_map_warning`) -- else None."""
+    warning = house_map_warning(result.labels, house, result.preparation.snap_distance)
+    if warning:
+        logger.warning(warning)
+    return warning
+
+
+def prepare_model_data(
+    house: House, settings: SpCoSettings, vocabulary: Sequence[str] | None = None
+) -> tuple[CellCounts, ModelData]:
+    """Per-cell counts of the house under the settings' data preparation, and the model's
+    tensors. Logs :func:`config_warnings` (logger ``"spcopyro"``). ``vocabulary``: the word
+    columns in order (None: the observations' own; an online update passes the union with a
+    saved fit's, :mod:`spcopyro.robot.online`).
+
+    Raises:
+        ValueError: the map has no free cell, or no observation lands on a free cell (a wrong
+            map, origin or negate flag: the fit would learn every concept from the prior);
+            counts that are not finite or too large (:func:`~spcopyro.data.check_count_totals`,
+            naming the file and line of a loaded house).
+    """
+    for warning in config_warnings(settings.model):
+        logger.warning(warning)
+    grid = house.grid
+    where = f" on map {grid.source}" if getattr(grid, "source", None) else ""
+    if grid.num_free == 0:
+        raise ValueError(
+            f"house {house.name!r}: the map {grid.source or ''} has no free cell, nothing to "
+            "label (check the map image and its yaml's negate flag and free/occupied thresholds)"
+        )
+    counts = cell_counts(
+        grid,
+        house.observations,
+        feature_scaling=settings.data.feature_scaling,
+        word_weighting=settings.data.word_weighting,
+        snap_distance=settings.data.snap_distance,
+        vocabulary=vocabulary,
+        source=house.source,
+        footprint_radius=settings.data.footprint_radius,
+        footprint_kernel=settings.data.footprint_kernel,
+        footprint_fov=settings.data.footprint_fov,
+        word_scaling=settings.data.word_scaling,
+    )
+    counts.placement.check_on_free(where)
+    coverage = coverage_warning(house)
+    if coverage:
+        logger.warning(coverage)
+    data = make_model_data(house.grid, counts, settings.model.connectivity)
+    for modality in data.modalities:
+        settings.model.concentration(modality.name)  # ValueError if a further one has none
+    return counts, data
+
+
+def modality_items(counts: CellCounts, data: ModelData) -> dict[str, tuple[str, ...]]:
+    """The item names of each modality: the vocabulary for words, each further modality's
+    item names (images keep their class numbers)."""
+    items = {WORDS: tuple(counts.vocabulary)}
+    for modality in getattr(counts, "modalities", ()):
+        items[modality.name] = tuple(modality.items)
+    return {m.name: items[m.name] for m in data.modalities if m.name in items}
+
+
+def result_of(
+    output: InferenceOutput,
+    house: House,
+    counts: CellCounts,
+    data: ModelData,
+    settings: SpCoSettings,
+    method: str,
+    record: dict[str, object] | None = None,
+) -> SpCoResult:
+    """The :class:`SpCoResult` of an inference output on ``house`` (``record``: its
+    :func:`provenance`). A sampler's drawn pi and emissions are replaced by their posterior means
+    given its labels (:mod:`spcopyro.results.posterior_means`; a variational method's are E_q
+    already), under the posterior means of any hyperparameters the chain sampled;
+    the result records each concept's observed cells and counts under the point labels."""
+    if output.parameters_drawn:
+        config = config_at_posterior_mean(settings.model, output.options.get("hyperparameters"))
+        output = with_posterior_means(output, data, config)
+    return SpCoResult.from_output(
+        output, house.grid, modality_items(counts, data), settings.model,
+        modalities=tuple(m.name for m in data.modalities), method=method,
+        preparation=settings.data, name=house.name, provenance=record,
+        concept_totals=concept_totals(output.labels, data, settings.model),
+    )  # fmt: skip
+
+
+SAMPLERS = ("gibbs", "vi-gibbs")
+"""The methods that keep label maps (``marginal_samples``), over which a point estimate is made."""
+
+
+def best_chain(results: Sequence[SpCoResult]) -> int:
+    """Index of the chain whose point estimate has the highest objective
+    (``result.best_objective``: the MAP-visited state's log joint for Gibbs; the first on ties)."""
+    if not results:
+        raise ValueError("best_chain needs at least one chain")
+    return int(np.argmax([r.best_objective for r in results]))
+
+
+def fit_house_chains(
+    house: House,
+    settings: SpCoSettings | None = None,
+    *,
+    method: str = DEFAULT_METHOD,
+    options: object | None = None,
+    sweeps: int = 5000,
+    seeds: Sequence[int] = (0,),
+    init: Init = "random",
+    progress: bool | None = None,
+    source: str | None = None,
+    checkpoint: str | os.PathLike[str] | FitCheckpoint | None = None,
+    resume: str | os.PathLike[str] | None = None,
+    threads: int | str | None = AUTO,
+    marginal_samples: int = 0,
+    point_estimate: str = "map-visited",
+    chain_workers: int | str | None = AUTO,
+) -> list[SpCoResult]:
+    """One :class:`SpCoResult` per seed: ``sweeps`` iterations of the inference method from
+    ``init`` drawn with that seed. The house's counts are computed once for all chains. See
+    :func:`fit_house` for the arguments; :func:`best_chain` picks the one to keep.
+
+    Args:
+        source: where the house came from, for ``config.json`` (:func:`provenance`).
+        checkpoint: Gibbs only: save the chains' state to this file on Ctrl-C, then raise
+            :class:`FitInterrupted` (a :class:`FitCheckpoint` keeps the chains for the caller).
+        resume: Gibbs only: continue the chains saved in this checkpoint (ValueError if it was
+            made for other data or settings, seeds, sweeps or init); chains it does not hold
+            start afresh. The results equal those of a fit that never stopped.
+        marginal_samples: a sampler (Gibbs, vi-gibbs): keep about this many label maps over the
+            second half of the sweeps and store their label frequencies as the result's
+            ``marginals`` (the uncertainty map and per-cell "where" probabilities read them); 0:
+            none. A variational method returns its q(C) as marginals anyway.
+        point_estimate: a sampler: the map to report, ``"map-visited"`` (the state of highest
+            log joint) or the partition minimising the expected ``"binder"`` or ``"vi"`` loss
+            over those label maps (:mod:`spcopyro.results.point_estimate`; needs marginal_samples).
+        chain_workers: Gibbs only: how many chains advance at once, each on its own thread
+            (:func:`~spcopyro.gibbs.chains.advance_chains`; results identical to one after
+            another): ``"auto"`` (one per usable CPU) or a count. With more than one, ``threads``
+            ``"auto"`` means one torch thread per chain.
+    """
+    if check_point_estimate(point_estimate) != "map-visited" and (
+        method not in SAMPLERS or not marginal_samples
+    ):
+        raise ValueError(
+            f"point estimate {point_estimate!r} is computed over the label maps a sampler "
+            f"({', '.join(SAMPLERS)}) keeps: it needs marginal_samples > 0 (method {method!r}, "
+            f"marginal_samples {marginal_samples})"
+        )
+    if isinstance(sweeps, bool) or not isinstance(sweeps, int | np.integer) or sweeps < 1:
+        raise ValueError(f"sweeps must be a positive integer or 'auto', got {sweeps!r}")
+    if len(seeds) == 0:
+        raise ValueError("seeds must name at least one chain")
+    settings = preset() if settings is None else settings
+    house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
+    inference = get_method(method)
+    if not isinstance(inference, GibbsInference) and (checkpoint or resume):
+        raise ValueError(f"checkpoints hold Gibbs chains; the {method!r} method keeps none")
+    count = resolve_threads(threads, house.grid.num_free)
+    workers = (
+        resolve_workers(chain_workers, len(seeds)) if isinstance(inference, GibbsInference) else 1
+    )
+    if workers > 1 and threads == AUTO:
+        count = 1  # the chains are the parallelism: no intra-op threads on top
+    counts, data = prepare_model_data(house, settings)
+    logger.info("threads: %s", describe_threads(threads, house.grid.num_free))
+    record = provenance(house, data, source)
+    if checkpoint is not None and not isinstance(checkpoint, FitCheckpoint):
+        checkpoint = FitCheckpoint(checkpoint)
+    with torch_threads(count):
+        if isinstance(inference, GibbsInference):
+            outputs = gibbs_outputs(
+                data, settings, options, int(sweeps), [int(s) for s in seeds], init_name(init),
+                lambda seed, generator: initial_labels(house, counts, settings, init, seed,
+                                                       generator),
+                progress, checkpoint, resume, marginal_samples, point_estimate, workers,
+            )  # fmt: skip
+            return [result_of(o, house, counts, data, settings, method, record) for o in outputs]
+        fits = []
+        for seed in seeds:
+            generator = torch.Generator().manual_seed(int(seed))
+            start = initial_labels(house, counts, settings, init, int(seed), generator)
+            output = inference.run(
+                data, settings.model, iterations=int(sweeps), generator=generator,
+                init_labels=start, options=options, progress=progress,
+                thin=marginal_thin(int(sweeps), marginal_samples),
+            )  # fmt: skip
+            output.options.update(seed=int(seed), init=init_name(init))
+            if output.marginals is None:  # a sampler (vi-gibbs): its label frequencies
+                output = with_sample_marginals(
+                    output, int(sweeps), data, settings.model, point_estimate, progress=progress
+                )
+            fits.append(result_of(output, house, counts, data, settings, method, record))
+    return fits
+
+
+def preset_fit_kwargs(name: str, marginal_samples: int = 50) -> dict[str, object]:
+    """The :func:`fit_house` keywords of a Gibbs fit that runs preset ``name`` as ``spcopyro fit
+    --preset name`` does: its recommended start, merge moves and point estimate
+    (:func:`~spcopyro.config.preset_inference`), with ``marginal_samples`` label maps kept when
+    that point estimate needs them. Empty recommendations give the paper's run."""
+    recommended = preset_inference(name)
+    estimate = str(recommended.get("point_estimate", "map-visited"))
+    return {
+        "options": GibbsOptions(merge_moves=float(recommended.get("merge_moves", 0.0))),
+        "init": str(recommended.get("init", "random")),
+        "marginal_samples": marginal_samples if estimate != "map-visited" else 0,
+        "point_estimate": estimate,
+    }
+
+
+def log_skipped_preset_inference(
+    settings: SpCoSettings, init: Init, options: object | None, point_estimate: str
+) -> None:
+    """Warn (logger ``"spcopyro"``) when a Gibbs fit from a preset's settings runs without the
+    inference settings that preset recommends (:func:`~spcopyro.config.preset_inference`), which
+    ``spcopyro fit`` applies: the library and the command would give different maps."""
+    recommended = preset_inference(settings.preset) if settings.preset in PRESETS else {}
+    if not recommended:
+        return
+    merge = float(getattr(options, "merge_moves", 0.0) or 0.0)
+    running = {"init": init_name(init), "merge_moves": merge, "point_estimate": point_estimate}
+    skipped = {k: v for k, v in recommended.items() if k in running and running[k] != v}
+    if skipped:
+        logger.warning(
+            "preset %r recommends %s (what spcopyro fit runs); this fit runs %s, so its map can "
+            "differ from the command's: pass them (spcopyro.fit.house.preset_fit_kwargs(%r))",
+            settings.preset,
+            ", ".join(f"{k}={v!r}" for k, v in skipped.items()),
+            ", ".join(f"{k}={running[k]!r}" for k in skipped),
+            settings.preset,
+        )
+
+
+def fit_house(
+    house: House,
+    settings: SpCoSettings | None = None,
+    *,
+    method: str = DEFAULT_METHOD,
+    options: object | None = None,
+    sweeps: int | str = 5000,
+    seed: int = 0,
+    init: Init = "random",
+    progress: bool | None = None,
+    chains: int = 1,
+    threads: int | str | None = AUTO,
+    marginal_samples: int = 0,
+    point_estimate: str = "map-visited",
+    chain_workers: int | str | None = AUTO,
+) -> SpCoResult:
+    """Fit SpCoMapping to a house. A degenerate reported map (one concept over most of the
+    map while words said at different places lie inside it) is logged as a warning
+    (:func:`log_degenerate_map`).
+
+    Args:
+        settings: model hyperparameters and data preparation (default: :func:`preset`'s).
+        method: the inference method's name in :mod:`spcopyro.fit.registry` (``"gibbs"``).
+        options: the method's options (``GibbsOptions`` for Gibbs; None for its defaults).
+        sweeps: iterations (Gibbs sweeps), or ``"auto"`` for Gibbs: :func:`fit_house_converged`
+            (``chains`` chains, at least 2; 4 if ``chains`` is 1) until split R-hat < 1.05;
+            the diagnostics are logged at INFO level -- call :func:`fit_house_converged` to get
+            them.
+        init: ``"random"`` labels, ``"gaussian"`` (k-means Gaussians over the observed cells,
+            eqs. 21-22), ``"spcoa"`` (the paper's pre-learning: Gaussians of a SpCoA fit), or a
+            previous fit's :class:`SpCoResult` on the same map (a warm start, any method from
+            any method: e.g. a CAVI result starting Gibbs).
+        chains: run that many chains (seeds ``seed``, ``seed + 1``, ...) and keep the one whose
+            point estimate has the highest objective ("best of K chains", the remedy for the DP
+            variant's instability measured in :mod:`spcopyro.experiments.robustness`).
+        threads: torch intra-op threads during the fit (:mod:`spcopyro._util.threads`): ``"auto"``
+        (one thread unless the map is large), 0 or None (torch's own setting), or a count. The
+            previous setting is restored afterwards; labels do not depend on it.
+        marginal_samples, point_estimate, chain_workers: see :func:`fit_house_chains`.
+    """
+    settings = preset() if settings is None else settings
+    house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
+    if method == DEFAULT_METHOD:
+        log_skipped_preset_inference(settings, init, options, point_estimate)
+    if not isinstance(chains, int) or chains < 1:
+        raise ValueError(f"chains must be a positive integer, got {chains!r}")
+    if sweeps == "auto":
+        if point_estimate != "map-visited":
+            raise ValueError("sweeps='auto' reports the best visited state only")
+        if method != "gibbs":
+            raise ValueError(f"sweeps='auto' is Gibbs' convergence rule, not {method!r}'s")
+        result, diagnostics = fit_house_converged(
+            house, settings, options=options, chains=chains if chains > 1 else DEFAULT_CHAINS,
+            seed=seed, init=init, progress=progress, threads=threads,
+        )  # fmt: skip
+        logger.info("--sweeps auto: %s", diagnostics.to_json())
+        log_degenerate_map(result, house)
+        return result
+    results = fit_house_chains(
+        house, settings, method=method, options=options, sweeps=sweeps,
+        seeds=[seed + k for k in range(chains)], init=init, progress=progress, threads=threads,
+        marginal_samples=marginal_samples, point_estimate=point_estimate,
+        chain_workers=chain_workers,
+    )  # fmt: skip
+    kept = best_chain(results)
+    if chains > 1:
+        logger.info(
+            "best of %d chains: kept chain %d (seed %d); best objectives %s", chains, kept,
+            seed + kept, [round(r.best_objective, 1) for r in results],
+        )  # fmt: skip
+    log_degenerate_map(results[kept], house)
+    return results[kept]
+
+
+def fit_house_converged(
+    house: House,
+    settings: SpCoSettings | None = None,
+    *,
+    options: GibbsOptions | None = None,
+    chains: int = DEFAULT_CHAINS,
+    block: int = DEFAULT_BLOCK,
+    max_sweeps: int = DEFAULT_MAX_SWEEPS,
+    threshold: float = DEFAULT_THRESHOLD,
+    seed: int = 0,
+    init: Init = "random",
+    progress: bool | None = None,
+    source: str | None = None,
+    threads: int | str | None = AUTO,
+) -> tuple[SpCoResult, ConvergenceDiagnostics]:
+    """Fit by Gibbs sampling with ``chains`` chains (seeds ``seed``, ``seed + 1``, ...) until
+    split R-hat of the log joint and of the number of concepts are below ``threshold``, or
+    ``max_sweeps`` sweeps (:func:`spcopyro.gibbs.convergence.run_until_converged`). Returns the
+    chain of highest log joint as the result, and the diagnostics. Chain k starts from ``init``
+    drawn with seed ``seed + k``; ``options.anneal_sweeps`` of gamma annealing come first.
+    ``source``: where the house came from, for ``config.json`` (:func:`provenance`).
+    ``threads``: as for :func:`fit_house`.
+    """
+    settings = preset() if settings is None else settings
+    house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
+    options = GibbsOptions() if options is None else options
+    count = resolve_threads(threads, house.grid.num_free)
+    counts, data = prepare_model_data(house, settings)
+    logger.info("threads: %s", describe_threads(threads, house.grid.num_free))
+    with torch_threads(count):
+        starts = []
+        for k in range(chains):
+            generator = torch.Generator().manual_seed(int(seed + k))
+            starts.append(initial_labels(house, counts, settings, init, seed + k, generator))
+        run, diagnostics = run_until_converged(
+            data, settings.model, options=options, chains=chains, block=block,
+            max_sweeps=max_sweeps, threshold=threshold, seed=seed, init_labels=starts,
+            progress=progress,
+        )  # fmt: skip
+    record = {
+        "sweeps": "auto", "chains": chains, "seed": seed, "init": init_name(init),
+        **dataclasses.asdict(options), "backend_used": run.backend,
+    }  # fmt: skip
+    output = output_from_run(run, record)
+    made = provenance(house, data, source)
+    return result_of(output, house, counts, data, settings, "gibbs", made), diagnostics

@@ -1,0 +1,124 @@
+"""Where a fit's labels start: the paper's Gaussians over the observed cells (eqs. 21-22), a
+SpCoA fit's Gaussians, one concept per geometric room, or a previous fit's labels (a warm start).
+
+:func:`initial_labels` picks one by name (:data:`~spcopyro.inference.initialisation.INITS`);
+``"random"`` leaves the start to the inference method.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from spcopyro.config import SpCoConfig, SpCoSettings
+from spcopyro.data import CellCounts, House
+from spcopyro.inference.initialisation import INITS, kmeans_gaussians, labels_from_gaussians
+from spcopyro.model import DTYPE
+from spcopyro.results.result import SpCoResult
+
+
+def free_cell_positions(house: House) -> torch.Tensor:
+    """[N, 2] world (x, y) of every free cell's centre, in free-index order."""
+    grid = house.grid
+    return torch.as_tensor(grid.cell_to_world(grid.free_cells), dtype=DTYPE)
+
+
+def gaussian_initial_labels(
+    house: House, counts: CellCounts, config: SpCoConfig, generator: torch.Generator
+) -> torch.Tensor:
+    """[N] labels from Gaussians over the positions of the observed cells (eqs. 21-22).
+
+    A stand-in for spatial-concept pre-learning: k-means with k = L on the observed cells'
+    centres, then each free cell takes its most probable Gaussian.
+    """
+    cell_xy = free_cell_positions(house)  # [N, 2]
+    points = cell_xy[torch.as_tensor(counts.cells)]  # [M, 2]
+    means, covariances, log_weights = kmeans_gaussians(points, config.num_concepts, generator)
+    return labels_from_gaussians(cell_xy, means, covariances, log_weights)
+
+
+def spcoa_initial_labels(house: House, settings: SpCoSettings, seed: int) -> torch.Tensor:
+    """[N] labels from spatial-concept pre-learning (paper Section 5, eqs. 21-22): the Gaussians
+    of a SpCoA fit (:func:`spcopyro.baselines.spcoa.spcoa_gaussians`), at most L of them."""
+    from spcopyro.baselines.spcoa import spcoa_gaussians
+
+    cell_xy = free_cell_positions(house)  # [N, 2]
+    means, covariances, log_weights = spcoa_gaussians(
+        house, num_concepts=settings.model.num_concepts, seed=seed,
+        word_weighting=settings.data.word_weighting,
+    )  # fmt: skip
+    return labels_from_gaussians(cell_xy, means, covariances, log_weights)
+
+
+Init = str | SpCoResult
+"""A start: a name of :data:`INITS`, or a previous fit's :class:`SpCoResult` (a warm start)."""
+
+
+def init_name(init: Init) -> str:
+    """``init`` as ``config.json`` records it: the name, or ``"result of METHOD"``."""
+    return init if isinstance(init, str) else f"result of {init.method}"
+
+
+def result_labels(result: SpCoResult, house: House, config: SpCoConfig) -> torch.Tensor:
+    """[N] a previous fit's point labels as the start of a new one (a warm start: a Gibbs fit
+    starting variational inference, or the other way round); ValueError if it was made on
+    another map or with more concepts than ``config`` has."""
+    if result.grid.num_free != house.grid.num_free or result.grid.shape != house.grid.shape:
+        raise ValueError(
+            f"the starting result was fitted on a {result.grid.shape} map with "
+            f"{result.grid.num_free} free cells; this house's map is {house.grid.shape} with "
+            f"{house.grid.num_free}"
+        )
+    labels = np.asarray(result.labels)
+    if labels.max() >= config.num_concepts:
+        raise ValueError(
+            f"the starting result uses concept {labels.max()}, beyond this fit's "
+            f"num_concepts = {config.num_concepts}"
+        )
+    return torch.as_tensor(labels, dtype=torch.long)
+
+
+def rooms_initial_labels(
+    house: House, config: SpCoConfig, generator: torch.Generator, door_width: float | None = None
+) -> torch.Tensor:
+    """[N] labels from the map alone: one concept per room of a geometric room segmentation
+    (:func:`spcopyro.baselines.geometry.room_segments`, the (F) baseline's; doorways up to
+    ``door_width`` metres, default its own, separate rooms), rooms beyond L sharing concepts
+    (room r gets r mod L), cells outside every room (specks under the smallest room) uniformly
+    random. A start, not a prior: the sampler then lets the observations move, merge (merge
+    moves) and split the regions; only the speed at which it gets there depends on the start."""
+    from spcopyro.baselines.geometry import DEFAULT_DOOR_WIDTH, room_segments
+
+    grid = house.grid
+    width = DEFAULT_DOOR_WIDTH if door_width is None else door_width
+    rooms = room_segments(grid, door_width=width)  # [H, W], -1 off the rooms
+    cells = np.asarray(grid.free_cells)  # [N, 2] (row, column) in free-index order
+    room = torch.as_tensor(rooms[cells[:, 0], cells[:, 1]], dtype=torch.long)  # [N]
+    L = config.num_concepts
+    random = torch.randint(L, (len(room),), generator=generator)  # [N]
+    return torch.where(room >= 0, room % L, random)
+
+
+def initial_labels(
+    house: House,
+    counts: CellCounts,
+    settings: SpCoSettings,
+    init: Init,
+    seed: int,
+    generator: torch.Generator,
+) -> torch.Tensor | None:
+    """[N] starting labels: None for ``"random"`` (the method draws them), else ``"gaussian"``
+    (k-means Gaussians over the observed cells), ``"spcoa"`` (a SpCoA fit's Gaussians),
+    ``"rooms"`` (one concept per geometric room: :func:`rooms_initial_labels`) or a previous
+    :class:`SpCoResult`'s labels (:func:`result_labels`)."""
+    if isinstance(init, SpCoResult):
+        return result_labels(init, house, settings.model)
+    if init not in INITS:
+        raise ValueError(f"init must be one of {INITS}, got {init!r}")
+    if init == "gaussian":
+        return gaussian_initial_labels(house, counts, settings.model, generator)
+    if init == "spcoa":
+        return spcoa_initial_labels(house, settings, seed)
+    if init == "rooms":
+        return rooms_initial_labels(house, settings.model, generator)
+    return None

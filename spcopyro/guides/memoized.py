@@ -1,0 +1,543 @@
+r"""Memoized variational inference on spatial blocks, for maps of millions of cells.
+
+**Which stochastic VI, and why memoized.** Two ways to update the global factors q(pi), q(phi)
+from part of the map at a time exist. Natural-gradient stochastic VI (Hoffman, Blei, Wang &
+Paisley 2013, JMLR 14) rescales one block's expected statistics to the whole map and moves the
+factors' natural parameters a Robbins-Monro step rho_t = (tau + t)^-kappa towards it; it needs
+(tau, kappa) tuned, its ELBO is noisy, and it only converges as rho_t -> 0. Memoized VI (Hughes &
+Sudderth 2013, NIPS) caches every block's expected sufficient statistics S_b and keeps
+
+.. math::
+
+    q(\pi) = \mathrm{Dir}\big(a_\pi + \textstyle\sum_b S_b^{\mathrm{cells}}\big), \qquad
+    q(\phi_{ml}) = \mathrm{Dir}\big(a_m + \textstyle\sum_b S_{b,ml}^{(m)}\big),
+
+(eqs. 14-17 in expectation, :func:`~spcopyro.guides.factors.update_factors`), replacing
+block b's term when b is revisited. Because the memo of every block always equals the statistic
+of its current q(C), the factors are exactly the optimal ones for the whole current q: each step
+is exact block-coordinate ascent on the full ELBO (:mod:`spcopyro.guides.elbo`) -- no step
+size, and at a fixed coupling the ELBO never decreases, after every step and every pass. The usual
+objection to memoizing (the local parameters of the whole data set must be kept) does not apply
+here: the Potts field couples every block to its neighbours, so q(C) of the whole map is kept
+anyway, as the boundary condition of the next block's local step. That is why this module is
+memoized VI, not SVI.
+
+**One step** takes ``blocks_per_step`` blocks (:mod:`spcopyro.guides.blocks`: square tiles
+of the grid) and
+
+1. updates q(C_i) of their cells, colour class by colour class (``local_sweeps`` times), with
+   the mean-field update of eq. (13) in expectation (:mod:`spcopyro.guides.cavi`),
+
+   .. math::
+
+       \log q(C_i = l) = E[\log\pi_l] + \gamma \sum_{r \sim i} q_r(l)
+           + \textstyle\sum_m x_i^{(m)} \cdot E[\log\phi_{ml}] + \text{const},
+
+   the neighbours r outside the blocks keeping their current q (the block's boundary);
+2. recomputes the blocks' statistics S_b from their new q and swaps them into the running sums;
+3. sets the global factors from the sums.
+
+One *pass* visits every block once (in a fresh random order, or raster order); after it the sums
+are re-added from the memo (no drift) and the ELBO is evaluated exactly, in chunks. With one block
+covering the map, a step is one iteration of full-batch CAVI
+(:func:`~spcopyro.guides.run.run_variational`) -- tested equal.
+
+**Memory.** q(C) is kept as one ``[N, L]`` tensor of ``dtype`` (float32 by default: 80 MB for
+10^6 cells at L = 20), updated in place; the exponentials and softmax are computed in float64 per
+step, on the step's cells only (so with float32 storage each update is rounded to float32 and
+the ELBO's monotonicity holds up to that rounding; ``dtype="float64"`` makes it exact). The
+memo holds ``[B, L]`` concept sizes and ``[B_obs, L, K_m]`` counts for the B_obs blocks that hold
+observations. The ELBO is accumulated over chunks of cells and neighbour pairs, so nothing
+``[N, L]`` other than q is ever allocated. The blocks' index is O(N) int64.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Literal, NamedTuple
+
+import numpy as np
+import torch
+from tqdm.auto import tqdm
+
+from spcopyro._util.progress import progress_enabled
+from spcopyro.config import SpCoConfig
+from spcopyro.distributions import multinomial_counts_log_prob
+from spcopyro.guides.blocks import Blocks, grid_blocks
+from spcopyro.guides.factors import (
+    GlobalFactors,
+    PiFamily,
+    expected_log_emissions,
+    expected_log_pi,
+    kl_to_prior,
+    mean_emissions,
+    mean_pi,
+    update_factors,
+)
+from spcopyro.guides.run import VariationalRun
+from spcopyro.inference.initialisation import check_labels, random_labels
+from spcopyro.inference.protocol import InferenceOutput, Trace, method_options
+from spcopyro.likelihood import ConceptStatistics
+from spcopyro.model import DTYPE, ModelData
+
+CHUNK = 1 << 16
+"""Cells (or neighbour pairs) per chunk of the exact ELBO."""
+
+_DTYPES = {"float32": torch.float32, "float64": torch.float64}
+
+
+@dataclass(frozen=True)
+class StochasticOptions:
+    """How memoized VI on spatial blocks runs (module docstring).
+
+    Attributes:
+        block_size: a block is a ``block_size x block_size`` tile of the grid (cells).
+        blocks_per_step: blocks whose local steps share one global update.
+        local_sweeps: colour-scheduled mean-field sweeps over a step's cells before the global
+            update (more than one refines the blocks' q against their boundary first).
+        order: ``"random"``: every pass visits the blocks in a fresh random order (drawn from the
+            run's generator); ``"raster"``: in tile order.
+        anneal_passes: gamma rises linearly from 0 to the model's value over this many passes
+            (0: no annealing); the ELBO rises monotonically only once gamma is at its value.
+        pi_family: q(pi) Dirichlet (the model's) or truncated stick-breaking
+            (:mod:`spcopyro.guides.factors`).
+        tolerance: stop once a pass at full gamma raises the ELBO by less than
+            ``tolerance * |ELBO|`` (0: run every pass).
+        dtype: storage of q(C), ``"float32"`` (compact) or ``"float64"``.
+    """
+
+    block_size: int = 64
+    blocks_per_step: int = 1
+    local_sweeps: int = 1
+    order: Literal["random", "raster"] = "random"
+    anneal_passes: int = 0
+    pi_family: PiFamily = "dirichlet"
+    tolerance: float = 0.0
+    dtype: Literal["float32", "float64"] = "float32"
+
+    def __post_init__(self) -> None:
+        def bad(name: str, why: str) -> ValueError:
+            return ValueError(f"StochasticOptions.{name}={getattr(self, name)!r}: {why}")
+
+        for name in ("block_size", "blocks_per_step", "local_sweeps"):
+            value = getattr(self, name)
+            if not _is_int(value) or value < 1:
+                raise bad(name, "must be an integer >= 1")
+        if not _is_int(self.anneal_passes) or self.anneal_passes < 0:
+            raise bad("anneal_passes", "must be an integer >= 0")
+        if self.order not in ("random", "raster"):
+            raise bad("order", "must be 'random' or 'raster'")
+        if self.pi_family not in ("dirichlet", "stick-breaking"):
+            raise bad("pi_family", "must be 'dirichlet' or 'stick-breaking'")
+        tolerance = self.tolerance
+        if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)):
+            raise bad("tolerance", "must be a finite number >= 0")
+        if not math.isfinite(tolerance) or tolerance < 0:
+            raise bad("tolerance", "must be a finite number >= 0")
+        if self.dtype not in _DTYPES:
+            raise bad("dtype", f"must be one of {sorted(_DTYPES)}")
+
+    def gamma_at(self, sweep: int, gamma: float) -> float:
+        """The coupling of 0-based pass ``sweep``: ramped up, then the model's."""
+        if sweep >= self.anneal_passes:
+            return gamma
+        return gamma * (sweep + 1) / (self.anneal_passes + 1)
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+# ---------------------------------------------------------------------------------------------
+# The memo: each block's expected sufficient statistics, and their running sums
+# ---------------------------------------------------------------------------------------------
+
+
+class _ObservedIndex(NamedTuple):
+    """The observed cells grouped by block."""
+
+    cells: torch.Tensor  # [M] int64 free indices, sorted by block
+    rows: torch.Tensor  # [M] int64 their rows in the count matrices
+    starts: torch.Tensor  # [B + 1] int64 slice bounds per block
+    slot: torch.Tensor  # [B] int64 the block's row in the count memo, -1 if no observation
+
+
+def _observed_index(data: ModelData, blocks: Blocks) -> _ObservedIndex:
+    block = blocks.block_of[data.obs_cells]  # [M]
+    perm = torch.argsort(block, stable=True)  # [M]
+    starts = torch.searchsorted(block[perm], torch.arange(blocks.num_blocks + 1))  # [B + 1]
+    has = starts[1:] > starts[:-1]  # [B]
+    slot = torch.full((blocks.num_blocks,), -1, dtype=torch.long)
+    slot[has] = torch.arange(int(has.sum()))
+    return _ObservedIndex(data.obs_cells[perm], perm, starts, slot)
+
+
+class Memo:
+    """Every block's expected sufficient statistics S_b and their sums (module docstring).
+
+    ``cells`` ``[B, L]`` are the blocks' expected concept sizes; ``counts[m]`` ``[B_obs, L, K_m]``
+    the expected per-concept counts of modality m of each block holding observations (a block
+    without one contributes zero counts). ``total_cells`` and ``total_counts`` are their sums
+    over the blocks (without the prior), kept up to date by :meth:`replace`.
+    """
+
+    def __init__(
+        self, q: torch.Tensor, data: ModelData, config: SpCoConfig, blocks: Blocks
+    ) -> None:
+        self.data, self.config, self.blocks = data, config, blocks
+        self.observed = _observed_index(data, blocks)
+        B, L = blocks.num_blocks, q.shape[1]
+        num_observed = int((self.observed.slot >= 0).sum())
+        self.used = tuple(config.uses(m.name) for m in data.modalities)
+        self.cells = torch.zeros(B, L, dtype=DTYPE)  # [B, L]
+        self.counts = tuple(
+            torch.zeros(num_observed if used else 0, L, m.counts.shape[-1], dtype=DTYPE)
+            for m, used in zip(data.modalities, self.used, strict=True)
+        )  # per modality [B_obs, L, K_m]
+        for block in range(B):
+            self._store(block, *self.block_statistics(q, block))
+        self.resum()
+
+    def block_statistics(
+        self, q: torch.Tensor, block: int
+    ) -> tuple[torch.Tensor, tuple[torch.Tensor | None, ...]]:
+        """S_b from the current q: ``[L]`` concept sizes, per modality ``[L, K_m]`` counts
+        (None for a switched-off modality or a block without observations)."""
+        cells = q[self.blocks.cells(block)].to(DTYPE).sum(0)  # [L]
+        lo, hi = int(self.observed.starts[block]), int(self.observed.starts[block + 1])
+        if lo == hi:
+            return cells, tuple(None for _ in self.used)
+        observed_q = q[self.observed.cells[lo:hi]].to(DTYPE)  # [m, L]
+        rows = self.observed.rows[lo:hi]  # [m]
+        counts = tuple(
+            observed_q.T @ modality.counts[rows] if used else None  # [L, m] @ [m, K_m]
+            for modality, used in zip(self.data.modalities, self.used, strict=True)
+        )
+        return cells, counts
+
+    def _store(
+        self, block: int, cells: torch.Tensor, counts: tuple[torch.Tensor | None, ...]
+    ) -> None:
+        self.cells[block] = cells
+        slot = int(self.observed.slot[block])
+        for memo, value in zip(self.counts, counts, strict=True):
+            if value is not None:
+                memo[slot] = value
+
+    def replace(self, q: torch.Tensor, block: int) -> None:
+        """Swap block b's memo for the statistic of its current q, and the sums with it."""
+        cells, counts = self.block_statistics(q, block)
+        self.total_cells += cells - self.cells[block]
+        slot = int(self.observed.slot[block])
+        for total, memo, value in zip(self.total_counts, self.counts, counts, strict=True):
+            if value is not None:
+                total += value - memo[slot]
+        self._store(block, cells, counts)
+
+    def resum(self) -> None:
+        """Re-add the sums from the memo (clears the rounding drift of the swaps)."""
+        self.total_cells = self.cells.sum(0)  # [L]
+        self.total_counts = [
+            memo.sum(0) if used else torch.zeros(memo.shape[1], m.counts.shape[-1], dtype=DTYPE)
+            for memo, m, used in zip(self.counts, self.data.modalities, self.used, strict=True)
+        ]  # per modality [L, K_m]
+
+    def statistics(self) -> ConceptStatistics:
+        """The sums over all blocks, as :func:`spcopyro.likelihood.concept_statistics` gives
+        them for the whole q."""
+        return ConceptStatistics(self.total_cells, tuple(self.total_counts))
+
+    def nbytes(self) -> int:
+        return sum(t.element_size() * t.numel() for t in (self.cells, *self.counts))
+
+
+# ---------------------------------------------------------------------------------------------
+# Steps and passes
+# ---------------------------------------------------------------------------------------------
+
+
+def local_step(
+    q: torch.Tensor,
+    factors: GlobalFactors,
+    data: ModelData,
+    config: SpCoConfig,
+    blocks: Blocks,
+    batch: list[int],
+    gamma: float,
+    rows: torch.Tensor,
+    sweeps: int = 1,
+) -> None:
+    """Update q(C) of the cells of the blocks in ``batch`` in place, colour class by colour
+    class, given the global ``factors`` and the current q outside (module docstring, step 1).
+
+    ``rows``: ``[N]`` each cell's row in the count matrices, -1 if unobserved
+    (:meth:`ModelData.observation_rows <spcopyro.model.ModelData.observation_rows>`).
+    """
+    log_pi = expected_log_pi(factors)  # [L]
+    log_phi = expected_log_emissions(factors)  # per modality [L, K_m]
+    colours = blocks.starts.shape[1] - 1
+    parts = [
+        torch.cat([blocks.order[int(blocks.starts[b, c]) : int(blocks.starts[b, c + 1])]
+                   for b in batch])
+        for c in range(colours)
+    ]  # fmt: skip
+    for _ in range(sweeps):
+        for cells in parts:
+            if cells.numel() == 0:
+                continue
+            neighbours = data.neighbours[cells]  # [n, D]
+            valid = (neighbours >= 0).unsqueeze(-1).to(q.dtype)  # [n, D, 1]
+            around = (q[neighbours.clamp_min(0)] * valid).sum(1)  # [n, D, L] -> [n, L]
+            logits = log_pi + gamma * around.to(DTYPE)  # [n, L]
+            cell_rows = rows[cells]  # [n]
+            observed = torch.nonzero(cell_rows >= 0).squeeze(-1)  # [n_obs]
+            if observed.numel():
+                obs_rows = cell_rows[observed]
+                loglik = torch.zeros(observed.numel(), q.shape[1], dtype=DTYPE)  # [n_obs, L]
+                for modality, lphi in zip(data.modalities, log_phi, strict=True):
+                    if config.uses(modality.name):
+                        loglik += modality.counts[obs_rows] @ lphi.T  # [n_obs, K_m] @ [K_m, L]
+                logits[observed] += loglik
+            q[cells] = torch.softmax(logits, dim=-1).to(q.dtype)
+
+
+def exact_elbo(
+    q: torch.Tensor,
+    factors: GlobalFactors,
+    statistics: ConceptStatistics,
+    data: ModelData,
+    config: SpCoConfig,
+    coefficients: torch.Tensor | None = None,
+) -> float:
+    """The ELBO of :func:`spcopyro.guides.elbo.elbo`, accumulated over chunks.
+
+    ``statistics`` must be q's (the memo's sums): the label and observation terms are
+    sum_l N_l E[log pi_l] + sum_mlk S_mlk E[log phi_mlk], the Potts term and the entropy are
+    summed over chunks of neighbour pairs and of cells (float64 accumulation).
+    ``coefficients``: the observed counts' multinomial coefficients, if already computed
+    (:func:`chunked_coefficients`).
+    """
+    if coefficients is None:
+        coefficients = chunked_coefficients(data, config)
+    log_pi = expected_log_pi(factors)  # [L]
+    total = (statistics.cells * log_pi).sum()
+    for modality, counts, lphi in zip(
+        data.modalities, statistics.counts, expected_log_emissions(factors), strict=True
+    ):
+        if config.uses(modality.name):
+            total = total + (counts * lphi).sum()
+    agreements = torch.zeros((), dtype=DTYPE)
+    for lo in range(0, data.pairs.shape[0], CHUNK):
+        pairs = data.pairs[lo : lo + CHUNK]  # [c, 2]
+        agreements += (q[pairs[:, 0]].to(DTYPE) * q[pairs[:, 1]].to(DTYPE)).sum()
+    entropy = torch.zeros((), dtype=DTYPE)
+    for lo in range(0, q.shape[0], CHUNK):
+        chunk = q[lo : lo + CHUNK].to(DTYPE)  # [c, L]
+        entropy -= torch.special.xlogy(chunk, chunk).sum()
+    total = total + config.gamma * agreements + coefficients
+    return float(total - kl_to_prior(factors, data, config) + entropy)
+
+
+def chunked_coefficients(data: ModelData, config: SpCoConfig) -> torch.Tensor:
+    """:func:`~spcopyro.likelihood.multinomial_coefficients` summed over chunks of
+    observed cells (the dense one holds several ``[M, K_m]`` temporaries at once)."""
+    total = torch.zeros((), dtype=DTYPE)
+    for modality in data.modalities:
+        if config.uses(modality.name):
+            rows = max(1, CHUNK // modality.counts.shape[-1])  # about CHUNK numbers a chunk
+            for lo in range(0, modality.counts.shape[0], rows):
+                counts = modality.counts[lo : lo + rows]  # [c, K_m]
+                total += multinomial_counts_log_prob(counts, torch.zeros_like(counts)).sum()
+    return total
+
+
+def compact_initial_q(
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    init_labels: torch.Tensor | None = None,
+    init_q: torch.Tensor | None = None,
+    dtype: torch.dtype = torch.float32,
+) -> torch.Tensor:
+    """[N, L] the starting q(C) in ``dtype``, as :func:`~spcopyro.guides.run.initial_q`
+    (the same random labels from the same generator) but never materialised in float64."""
+    N, L = data.num_free, config.num_concepts
+    if init_q is not None:
+        init_q = torch.as_tensor(init_q)
+        if init_q.shape != (N, L):
+            raise ValueError(f"init_q must be [{N}, {L}], got {tuple(init_q.shape)}")
+        if not torch.is_floating_point(init_q):
+            raise ValueError(f"init_q must be floating point, got {init_q.dtype}")
+        sums = init_q.to(DTYPE).sum(-1)
+        if (init_q < 0).any() or not torch.allclose(sums, torch.ones_like(sums), atol=1e-5):
+            raise ValueError("init_q's rows must be probability vectors")
+        return init_q.to(dtype).clone()
+    labels = random_labels(N, config, generator) if init_labels is None else init_labels
+    labels = check_labels(labels, N, config)
+    return torch.zeros(N, L, dtype=dtype).scatter_(1, labels.unsqueeze(1), 1.0)
+
+
+@dataclass
+class StochasticState:
+    """What a run keeps: q(C), the blocks, the memo and the global factors made from it."""
+
+    q: torch.Tensor
+    blocks: Blocks
+    memo: Memo
+    factors: GlobalFactors
+    rows: torch.Tensor
+
+    def nbytes(self) -> dict[str, int]:
+        """Bytes of the run's own tensors (q, the blocks' index, the memo, the row map)."""
+
+        def size(*tensors: torch.Tensor) -> int:
+            return sum(t.element_size() * t.numel() for t in tensors)
+
+        return {
+            "q": size(self.q),
+            "blocks": size(*self.blocks),
+            "memo": self.memo.nbytes(),
+            "rows": size(self.rows),
+        }
+
+
+def start_state(
+    data: ModelData,
+    config: SpCoConfig,
+    q: torch.Tensor,
+    options: StochasticOptions,
+    blocks: Blocks | None = None,
+) -> StochasticState:
+    """The memo and the global factors of q (updated in place by :func:`run_stochastic`)."""
+    if q.shape != (data.num_free, config.num_concepts):
+        raise ValueError(
+            f"q must be [{data.num_free}, {config.num_concepts}], got {tuple(q.shape)}"
+        )
+    blocks = grid_blocks(data, options.block_size) if blocks is None else blocks
+    if blocks.block_of.shape != (data.num_free,):
+        raise ValueError(
+            f"blocks were made for {blocks.block_of.shape[0]} cells, the data has {data.num_free}"
+        )
+    memo = Memo(q, data, config, blocks)
+    factors = update_factors(memo.statistics(), data, config, options.pi_family)
+    return StochasticState(q, blocks, memo, factors, data.observation_rows())
+
+
+def run_stochastic(
+    data: ModelData,
+    config: SpCoConfig,
+    passes: int,
+    *,
+    q: torch.Tensor,
+    generator: torch.Generator,
+    options: StochasticOptions | None = None,
+    blocks: Blocks | None = None,
+    progress: bool | None = None,
+    callback: Callable[[int, StochasticState], None] | None = None,
+    description: str = "memoized VI",
+) -> VariationalRun:
+    """``passes`` passes of memoized VI over the spatial blocks (module docstring), from ``q``
+    ``[N, L]`` (updated in place; :func:`compact_initial_q`). ``blocks`` overrides the tiles of
+    ``options.block_size``; ``generator`` draws the random block orders. ``callback(pass,
+    state)``, if given, is called after every pass. Stops early when ``options.tolerance``
+    says so."""
+    options = StochasticOptions() if options is None else options
+    if not isinstance(options, StochasticOptions):
+        raise TypeError(f"options must be StochasticOptions, got {type(options).__name__}")
+    if not _is_int(passes) or passes < 1:
+        raise ValueError(f"passes must be an integer >= 1, got {passes!r}")
+    state = start_state(data, config, q, options, blocks)
+    num_blocks = state.blocks.num_blocks
+    coefficients = chunked_coefficients(data, config)
+    values, used, seconds, gammas = [], [], [], []
+    start = time.perf_counter()
+    bar = tqdm(total=passes, desc=description, unit="pass",
+               disable=not progress_enabled(progress))  # fmt: skip
+    with bar:
+        for sweep in range(passes):
+            gamma = options.gamma_at(sweep, config.gamma)
+            if options.order == "random":
+                visit = torch.randperm(num_blocks, generator=generator).tolist()
+            else:
+                visit = list(range(num_blocks))
+            for lo in range(0, num_blocks, options.blocks_per_step):
+                batch = visit[lo : lo + options.blocks_per_step]
+                local_step(state.q, state.factors, data, config, state.blocks, batch, gamma,
+                           state.rows, options.local_sweeps)  # fmt: skip
+                for block in batch:
+                    state.memo.replace(state.q, block)
+                state.factors = update_factors(
+                    state.memo.statistics(), data, config, options.pi_family
+                )
+            state.memo.resum()
+            state.factors = update_factors(state.memo.statistics(), data, config, options.pi_family)
+            statistics = state.memo.statistics()
+            values.append(
+                exact_elbo(state.q, state.factors, statistics, data, config, coefficients)
+            )
+            used.append(int(torch.unique(state.q.argmax(-1)).numel()))
+            seconds.append(time.perf_counter() - start)
+            gammas.append(gamma)
+            if callback is not None:
+                callback(sweep, state)
+            bar.update()
+            bar.set_postfix(elbo=f"{values[-1]:.6g}", concepts=used[-1])
+            if _converged(values, gammas, config.gamma, options.tolerance):
+                break
+    return VariationalRun(
+        state.q, state.factors, np.asarray(values), np.asarray(used, dtype=np.int64),
+        np.asarray(seconds), np.asarray(gammas),
+    )  # fmt: skip
+
+
+def _converged(values: list[float], gammas: list[float], gamma: float, tolerance: float) -> bool:
+    """The last pass at full gamma raised the ELBO by < tolerance * |ELBO|."""
+    if tolerance <= 0 or len(values) < 2 or gammas[-2] != gamma:
+        return False
+    return abs(values[-1] - values[-2]) < tolerance * abs(values[-1])
+
+
+# ---------------------------------------------------------------------------------------------
+# The inference method
+# ---------------------------------------------------------------------------------------------
+
+
+class StochasticVIInference:
+    """Memoized VI on spatial blocks behind the common interface (registry: ``stochastic-vi``);
+    ``iterations`` are passes over the blocks."""
+
+    name = "stochastic-vi"
+    objective_name = "ELBO"
+
+    def default_options(self) -> StochasticOptions:
+        return StochasticOptions()
+
+    def run(
+        self,
+        data: ModelData,
+        config: SpCoConfig,
+        *,
+        iterations: int,
+        generator: torch.Generator,
+        init_labels: torch.Tensor | None = None,
+        options: StochasticOptions | None = None,
+        progress: bool | None = None,
+        thin: int = 0,
+    ) -> InferenceOutput:
+        options = method_options(options, StochasticOptions, "stochastic-vi")
+        q = compact_initial_q(data, config, generator, init_labels, dtype=_DTYPES[options.dtype])
+        run = run_stochastic(data, config, iterations, q=q, generator=generator,
+                             options=options, progress=progress)  # fmt: skip
+        return InferenceOutput(
+            labels=run.labels.numpy().astype("int64"),
+            pi=mean_pi(run.factors).numpy(),
+            emissions=tuple(e.numpy() for e in mean_emissions(run.factors)),
+            trace=Trace(run.objective, run.num_concepts, run.seconds, "ELBO"),
+            best_iteration=len(run.objective) - 1,
+            marginals=run.q.to(torch.float32).numpy(),
+            options={"iterations": iterations, **dataclasses.asdict(options)},
+        )

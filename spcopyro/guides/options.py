@@ -1,0 +1,93 @@
+"""Options of the variational methods (CAVI, loopy BP), kept beside them as Gibbs' are."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+from spcopyro.guides.factors import PiFamily
+
+
+@dataclass(frozen=True)
+class VariationalOptions:
+    """How coordinate-ascent variational inference runs.
+
+    Attributes:
+        anneal_iterations: gamma rises linearly from 0 to the model's value over this many
+            iterations (0: no annealing, the default). Mean field started at full coupling
+            freezes near the first labelling it sees; starting uncoupled lets the observations
+            place their concepts first, but with many concepts (L = 120) a q annealed from
+            gamma = 0 stays in mean field's disordered fixed point, stable up to gamma = L / D
+            (:mod:`spcopyro.guides.cavi`). The ELBO only rises monotonically once gamma is
+            at its value.
+        damping: each block's new q(C_i) is mixed with the old one,
+            ``q <- (1 - damping) q_new + damping q_old`` (0: exact coordinate ascent, which never
+            lowers the ELBO; > 0 gives that up to calm oscillations).
+        pi_family: q(pi) as the model states it (``"dirichlet"``) or the truncated stick-breaking
+            DP (``"stick-breaking"``, a different prior: see :mod:`spcopyro.guides.factors`).
+        tolerance: stop once an iteration at full gamma raises the ELBO by less than
+            ``tolerance * |ELBO|`` (0: run every iteration).
+        backend: ``"torch"`` (the dense reference), ``"numba"`` (the compiled sparse update of
+            :mod:`spcopyro.guides.numba_cavi`) or ``"auto"`` (numba where it imports).
+        init: the start when no labels are given: ``"one-hot"`` (uniformly random labels, each
+            cell's q all on one concept) or ``"soft"`` (each q(C_i) a Dir(1) draw over the L
+            concepts: no cell is committed yet).
+        support: the numba backend keeps at most this many concepts per cell (0: all L, no
+            cap). Top-K truncation alone never lowers the ELBO (see that module), but it changes
+            what mean field finds: a cell near disorder spreads its mass over all L concepts, and
+            cutting it to K behaves like a K-state Potts model (it orders at a lower gamma).
+        threshold: the numba backend also drops a cell's concepts with mass below this (0: keep
+            all K); an iteration then lowers the ELBO by at most sum_i -log(1 - dropped_i).
+        active_tolerance: the numba backend skips a cell while the bound on how far its
+            logits moved since its last update (the globals' change, the coupling's, and gamma
+            times its neighbours' largest change of q) stays <= this: its q is then within a
+            factor exp(+-2 active_tolerance) of its exact update, concept by concept. Skipping
+            never lowers the ELBO (the cell keeps its value); 0 skips only cells whose inputs did
+            not change at all (exact).
+    """
+
+    anneal_iterations: int = 0
+    damping: float = 0.0
+    pi_family: PiFamily = "dirichlet"
+    tolerance: float = 1e-7
+    backend: Literal["auto", "torch", "numba"] = "auto"
+    init: Literal["one-hot", "soft"] = "one-hot"
+    support: int = 0
+    threshold: float = 1e-4
+    active_tolerance: float = 1e-3
+
+    def __post_init__(self) -> None:
+        def bad(name: str, why: str) -> ValueError:
+            return ValueError(f"VariationalOptions.{name}={getattr(self, name)!r}: {why}")
+
+        if not isinstance(self.anneal_iterations, int) or self.anneal_iterations < 0:
+            raise bad("anneal_iterations", "must be an integer >= 0")
+        if not (isinstance(self.damping, (int, float)) and 0 <= self.damping < 1):
+            raise bad("damping", "must lie in [0, 1)")
+        if self.pi_family not in ("dirichlet", "stick-breaking"):
+            raise bad("pi_family", "must be 'dirichlet' or 'stick-breaking'")
+        if not (isinstance(self.tolerance, (int, float)) and math.isfinite(self.tolerance)):
+            raise bad("tolerance", "must be a finite number >= 0")
+        if self.tolerance < 0:
+            raise bad("tolerance", "must be >= 0")
+        if self.backend not in ("auto", "torch", "numba"):
+            raise bad("backend", "must be 'auto', 'torch' or 'numba'")
+        if self.init not in ("one-hot", "soft"):
+            raise bad("init", "must be 'one-hot' or 'soft'")
+        if not isinstance(self.support, int) or self.support < 0:
+            raise bad("support", "must be an integer >= 0 (0: all concepts)")
+        if not (isinstance(self.threshold, (int, float)) and 0 <= self.threshold < 1):
+            raise bad("threshold", "must lie in [0, 1)")
+        if not (
+            isinstance(self.active_tolerance, (int, float))
+            and math.isfinite(self.active_tolerance)
+            and self.active_tolerance >= 0
+        ):
+            raise bad("active_tolerance", "must be a finite number >= 0")
+
+    def gamma_at(self, iteration: int, gamma: float) -> float:
+        """The coupling used by 0-based ``iteration``: ramped up, then the model's."""
+        if iteration >= self.anneal_iterations:
+            return gamma
+        return gamma * (iteration + 1) / (self.anneal_iterations + 1)

@@ -1,0 +1,205 @@
+r"""Stochastic variational inference with the mean-field guide, as an
+:class:`~spcopyro.inference.protocol.InferenceMethod` (registry: ``svi``).
+
+Each iteration is one ``pyro.infer.SVI`` step: the loss of :mod:`spcopyro.guides.loss` (globals
+by reparameterisation, labels in closed form) and one Adam (or ClippedAdam) update of the guide's
+``pyro.param`` s (:mod:`spcopyro.guides.mean_field`). The trace is the ELBO estimate of each step
+(at the step's coupling while gamma is annealed), so it is noisy where CAVI's is exact; the output
+holds the posterior means of pi and phi under the final guide and its q(C) as the marginals, like
+CAVI's (:func:`spcopyro.guides.cavi_method.output_from_variational`).
+
+Every fit runs in a fresh ``pyro`` param-store scope (:meth:`pyro.params.ParamStoreDict.scope`):
+two fits never share parameters and the caller's param store is left as it was. Pyro's draws
+come from the global torch RNG, seeded from ``generator`` inside :func:`torch.random.fork_rng`,
+so a seeded generator makes a fit reproducible without disturbing the caller's RNG.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import pyro
+import pyro.optim
+import torch
+from tqdm.auto import tqdm
+
+from spcopyro._util.progress import progress_enabled
+from spcopyro.config import SpCoConfig
+from spcopyro.guides.cavi_method import output_from_variational
+from spcopyro.guides.loss import MeanFieldELBO
+from spcopyro.guides.mean_field import MeanFieldGuide
+from spcopyro.guides.run import VariationalRun, initial_q
+from spcopyro.inference.protocol import InferenceOutput, method_options
+from spcopyro.model import ModelData, spcomapping_model
+
+
+@dataclass(frozen=True)
+class SVIOptions:
+    """How stochastic variational inference runs.
+
+    Attributes:
+        learning_rate: the optimiser's step size for the labels' logits.
+        global_learning_rate: the step size for the unconstrained parameters of q(pi) and
+            q(phi) (None: ``learning_rate``). With ``bound="prior"`` these are the logs of the
+            expected counts and one step size suits both; with ``bound="zero"`` they are the logs
+            of concentrations of up to ~1e6 (the presets' pi), where Adam's first steps of about
+            ``learning_rate`` each move a by far more than all the cells' counts: give them a
+            step of ~1e-3.
+        optimiser: ``"adam"`` or ``"clipped-adam"`` (Pyro's ClippedAdam: gradients clipped to
+            ``clip_norm`` per parameter).
+        clip_norm: ClippedAdam's clipping norm.
+        num_particles: draws of the globals per step (the estimate's variance falls as 1 / this).
+        anneal_iterations: gamma rises linearly from 0 to the model's value over this many steps
+            (0: none), as for CAVI (:class:`spcopyro.guides.options.VariationalOptions`).
+            Gradient steps move a boundary between two concepts' domains by about a cell per
+            step, so a label field that froze into small random domains at full coupling
+            coarsens far too slowly; started uncoupled, the observations place the concepts
+            first and the domains grow from them.
+        label_smoothing: s in the starting logits ``log((1 - s) q0 + s / L)``. The default 0.9
+            starts near uniform with a small random tilt (the random one-hot q0 of
+            :func:`~spcopyro.guides.run.initial_q`), which is what lets annealing work;
+            use a small value (0.01-0.1) to keep a warm start's ``init_labels``.
+        bound: the concentrations' constraint, ``"prior"`` (above the prior's) or ``"zero"``
+            (positive): see :class:`~spcopyro.guides.mean_field.MeanFieldGuide`.
+    """
+
+    learning_rate: float = 0.1
+    global_learning_rate: float | None = None
+    optimiser: Literal["adam", "clipped-adam"] = "adam"
+    clip_norm: float = 10.0
+    num_particles: int = 1
+    anneal_iterations: int = 100
+    label_smoothing: float = 0.9
+    bound: Literal["prior", "zero"] = "prior"
+
+    def __post_init__(self) -> None:
+        def bad(name: str, why: str) -> ValueError:
+            return ValueError(f"SVIOptions.{name}={getattr(self, name)!r}: {why}")
+
+        def positive(value: object) -> bool:
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+            return ok and math.isfinite(value) and value > 0
+
+        if not positive(self.learning_rate):
+            raise bad("learning_rate", "must be a finite number > 0")
+        if self.global_learning_rate is not None and not positive(self.global_learning_rate):
+            raise bad("global_learning_rate", "must be None or a finite number > 0")
+        if self.optimiser not in ("adam", "clipped-adam"):
+            raise bad("optimiser", "must be 'adam' or 'clipped-adam'")
+        if not positive(self.clip_norm):
+            raise bad("clip_norm", "must be a finite number > 0")
+        if not isinstance(self.num_particles, int) or self.num_particles < 1:
+            raise bad("num_particles", "must be an integer >= 1")
+        if not isinstance(self.anneal_iterations, int) or self.anneal_iterations < 0:
+            raise bad("anneal_iterations", "must be an integer >= 0")
+        if not (isinstance(self.label_smoothing, (int, float)) and 0 < self.label_smoothing < 1):
+            raise bad("label_smoothing", "must lie in (0, 1)")
+        if self.bound not in ("prior", "zero"):
+            raise bad("bound", "must be 'prior' or 'zero'")
+
+    def gamma_at(self, iteration: int, gamma: float) -> float:
+        """The coupling used by 0-based ``iteration``: ramped up, then the model's."""
+        if iteration >= self.anneal_iterations:
+            return gamma
+        return gamma * (iteration + 1) / (self.anneal_iterations + 1)
+
+    def optimiser_for(self, guide: MeanFieldGuide) -> pyro.optim.PyroOptim:
+        """The Pyro optimiser: per-parameter step sizes (logits vs concentrations)."""
+        logits = guide.logits_name
+        global_rate = self.global_learning_rate or self.learning_rate
+
+        def per_param(param_name: str) -> dict[str, float]:
+            rate = self.learning_rate if param_name == logits else global_rate
+            if self.optimiser == "clipped-adam":
+                return {"lr": rate, "clip_norm": self.clip_norm}
+            return {"lr": rate}
+
+        if self.optimiser == "clipped-adam":
+            return pyro.optim.ClippedAdam(per_param)
+        return pyro.optim.Adam(per_param)
+
+
+def fit_svi(
+    data: ModelData,
+    config: SpCoConfig,
+    steps: int,
+    *,
+    q: torch.Tensor,
+    generator: torch.Generator,
+    options: SVIOptions | None = None,
+    progress: bool | None = None,
+) -> VariationalRun:
+    """``steps`` SVI steps of the mean-field guide started at ``q`` ``[N, L]``.
+
+    Runs in a fresh param-store scope (module docstring); the returned
+    :class:`~spcopyro.guides.run.VariationalRun` holds the final guide's q(C) and global
+    factors and, per step, the ELBO estimate (minus the SVI loss), the concepts in use, the
+    seconds and the coupling.
+    """
+    options = SVIOptions() if options is None else options
+    if steps < 1:
+        raise ValueError(f"steps must be >= 1, got {steps}")
+    seed = int(torch.randint(0, 2**62, (), generator=generator))
+    values, used, seconds, gammas = [], [], [], []
+    configs: dict[float, SpCoConfig] = {}
+    bar = tqdm(total=steps, desc="SVI", unit="step", disable=not progress_enabled(progress))
+    with torch.random.fork_rng(devices=[]), pyro.get_param_store().scope(), bar:
+        torch.manual_seed(seed)
+        guide = MeanFieldGuide(
+            data, config, q=q, label_smoothing=options.label_smoothing, bound=options.bound
+        )
+        loss = MeanFieldELBO(num_particles=options.num_particles)
+        svi = pyro.infer.SVI(spcomapping_model, guide, options.optimiser_for(guide), loss)
+        start = time.perf_counter()
+        for step in range(steps):
+            gamma = options.gamma_at(step, config.gamma)
+            if gamma not in configs:
+                configs[gamma] = config if gamma == config.gamma else config.replace(gamma=gamma)
+            values.append(-svi.step(data, configs[gamma]))
+            used.append(int(torch.unique(guide.logits().detach().argmax(-1)).numel()))
+            seconds.append(time.perf_counter() - start)
+            gammas.append(gamma)
+            bar.update()
+            bar.set_postfix(elbo=f"{values[-1]:.4g}", concepts=used[-1])
+        marginals, factors = guide.marginals(), guide.factors()
+    return VariationalRun(
+        marginals, factors, np.asarray(values), np.asarray(used, dtype=np.int64),
+        np.asarray(seconds), np.asarray(gammas),
+    )  # fmt: skip
+
+
+class SVIInference:
+    """Stochastic variational inference (:func:`fit_svi`) behind the common interface: one
+    iteration is one SVI step, the trace the ELBO estimate per step."""
+
+    name = "svi"
+    objective_name = "ELBO"
+
+    def default_options(self) -> SVIOptions:
+        return SVIOptions()
+
+    def run(
+        self,
+        data: ModelData,
+        config: SpCoConfig,
+        *,
+        iterations: int,
+        generator: torch.Generator,
+        init_labels: torch.Tensor | None = None,
+        options: SVIOptions | None = None,
+        progress: bool | None = None,
+        thin: int = 0,
+    ) -> InferenceOutput:
+        options = method_options(options, SVIOptions, "SVI")
+        q = initial_q(data, config, generator, init_labels)
+        run = fit_svi(
+            data, config, iterations, q=q, generator=generator, options=options,
+            progress=progress,
+        )  # fmt: skip
+        record = {"iterations": iterations, **dataclasses.asdict(options)}
+        return output_from_variational(run, record)

@@ -1,0 +1,167 @@
+"""What every inference method of SpCoMapping offers, and what it hands back.
+
+An inference method (Gibbs sampling in :mod:`spcopyro.gibbs`; variational methods beside it)
+is an object with a ``name``, the name of the objective it traces, its options' type and a
+:meth:`InferenceMethod.run` that fits the model to :class:`~spcopyro.model.ModelData` and returns
+an :class:`InferenceOutput`: a point estimate of the labels (and, where the method has them,
+per-cell marginals), point estimates or posterior means of pi and of each modality's
+distributions, and a per-iteration :class:`Trace`. :mod:`spcopyro.fit.registry` lists the methods by
+name; :class:`spcopyro.results.result.SpCoResult` turns an output into what users query (the
+semantic
+map, words per concept, "where is X?"), the same way for every method. The model's per-cell math
+that a method needs is in :mod:`spcopyro.likelihood`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Protocol, TypeVar
+
+import numpy as np
+
+from spcopyro.config import SpCoConfig
+
+if (
+    TYPE_CHECKING
+):  # annotations only: a saved result is read without torch (spcopyro.results.result)
+    import torch
+
+    from spcopyro.model import ModelData
+
+
+@dataclass(frozen=True)
+class Trace:
+    """A fit's per-iteration record. S iterations (Gibbs sweeps or variational updates)."""
+
+    objective: np.ndarray
+    """[S] float64: the log joint after each sweep (Gibbs) or the ELBO (variational)."""
+    num_concepts: np.ndarray
+    """[S] int64: concepts in use after each iteration."""
+    seconds: np.ndarray
+    """[S] float64: cumulative wall-clock seconds."""
+    objective_name: str = "log joint"
+
+
+@dataclass(frozen=True)
+class InferenceOutput:
+    """What an inference method returns, before the map and item names are attached."""
+
+    labels: np.ndarray
+    """[N] int64 point estimate of every free cell's concept."""
+    pi: np.ndarray
+    """[L] point estimate or posterior mean of pi."""
+    emissions: tuple[np.ndarray, ...]
+    """Per modality of the model data, [L, K_m] point estimates or posterior means."""
+    trace: Trace
+    best_iteration: int
+    """The iteration (0-based) whose state ``labels`` and the globals are."""
+    marginals: np.ndarray | None = None
+    """[N, L] p(C_i = l) where the method has it (a variational q(C))."""
+    labels_final: np.ndarray | None = None
+    """[N] the last state's labels, for a sampler."""
+    options: dict[str, object] = field(default_factory=dict)
+    """The method's options (and seed, iterations), as JSON values: recorded with the result."""
+    label_samples: np.ndarray | None = None
+    """[S', N] int16 label maps kept along the way (a sampler with thinning), else None."""
+    sample_iterations: np.ndarray | None = None
+    """[S'] the 0-based iterations of ``label_samples``."""
+    parameters_drawn: bool = False
+    """True when ``pi`` and ``emissions`` are one posterior draw (a sampler's state), not means:
+    :func:`spcopyro.fit.house.result_of` then reports their posterior means given the labels
+    (:mod:`spcopyro.results.posterior_means`)."""
+    agreement: np.ndarray | None = None
+    """[N] where ``labels`` is a posterior point estimate over label samples
+    (:mod:`spcopyro.results.point_estimate`): each cell's share of samples agreeing with it."""
+
+
+OptionsT = TypeVar("OptionsT")
+
+
+def method_options(options: object | None, kind: type[OptionsT], method: str) -> OptionsT:
+    """A method's options: ``kind()`` (its defaults) for None, ``options`` when it is a ``kind``,
+    else TypeError naming the method and the type it takes."""
+    if options is None:
+        return kind()
+    if not isinstance(options, kind):
+        raise TypeError(f"{method} takes {kind.__name__}, got {type(options).__name__}")
+    return options
+
+
+class InferenceMethod(Protocol):
+    """An inference method for :func:`~spcopyro.model.spcomapping_model` (see the module doc)."""
+
+    name: str
+    """The registry's key, e.g. ``"gibbs"``."""
+    objective_name: str
+    """What :attr:`Trace.objective` holds, e.g. ``"log joint"`` or ``"ELBO"``."""
+
+    def default_options(self) -> object:
+        """The method's options object with its defaults."""
+        ...
+
+    def run(
+        self,
+        data: ModelData,
+        config: SpCoConfig,
+        *,
+        iterations: int,
+        generator: torch.Generator,
+        init_labels: torch.Tensor | None = None,
+        options: object | None = None,
+        progress: bool | None = None,
+        thin: int = 0,
+    ) -> InferenceOutput:
+        """Fit the model to ``data`` with ``iterations`` iterations, drawing from ``generator``
+        (a seeded generator makes the fit reproducible); ``thin`` > 0 keeps a label map every
+        ``thin`` iterations where the method has such maps."""
+        ...
+
+
+def _parse_value(text: str, current: object, where: str) -> object:
+    """``text`` as a value of ``current``'s type (bool, int, float or str)."""
+    if isinstance(current, bool):
+        if text.lower() in ("true", "1", "yes", "on"):
+            return True
+        if text.lower() in ("false", "0", "no", "off"):
+            return False
+        raise ValueError(f"{where}: expected true or false, got {text!r}")
+    for kind in (int, float):
+        if isinstance(current, kind):
+            try:
+                return kind(text)
+            except ValueError:
+                wanted = "an integer" if kind is int else "a number"
+                raise ValueError(f"{where}: expected {wanted}, got {text!r}") from None
+    return text
+
+
+def with_options(options: object, assignments: Sequence[str]) -> object:
+    """A copy of a method's options dataclass with ``NAME=VALUE`` assignments applied (each
+    value parsed as its field's current type; ``outer.inner=VALUE`` reaches a nested options
+    object, e.g. vi-gibbs' ``variational.anneal_iterations``). The dataclass validates the
+    result; an unknown name is a ValueError listing the known ones."""
+    for assignment in assignments:
+        name, sep, text = assignment.partition("=")
+        if not sep or not name:
+            raise ValueError(f"method option {assignment!r}: expected NAME=VALUE")
+        options = _assign(options, name.strip().split("."), text.strip(), assignment)
+    return options
+
+
+def _assign(options: object, path: list[str], text: str, assignment: str) -> object:
+    if not dataclasses.is_dataclass(options):
+        raise ValueError(f"method option {assignment!r}: {type(options).__name__} has no fields")
+    fields = {f.name for f in dataclasses.fields(options)}
+    if path[0] not in fields:
+        raise ValueError(
+            f"method option {assignment!r}: {type(options).__name__} has no field "
+            f"{path[0]!r}; it has {sorted(fields)}"
+        )
+    current = getattr(options, path[0])
+    if len(path) > 1:
+        value = _assign(current, path[1:], text, assignment)
+    else:
+        value = _parse_value(text, current, f"method option {assignment!r}")
+    return dataclasses.replace(options, **{path[0]: value})

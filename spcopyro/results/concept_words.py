@@ -1,0 +1,103 @@
+r"""Word lists a person can read: each concept's most probable and most *distinctive* words.
+
+A concept's most probable words under w_l are often the words every concept shares: fillers
+("the", "is") or, under a large beta, any word at all (beta = 500 against a few dozen words
+makes every w_l nearly uniform: "0.06" for every word). The **lift** of a word v for concept l
+sets its probability in the concept against its probability anywhere on the map:
+
+.. math::
+
+    \text{lift}_{lv} = \frac{p(v \mid l)}{p(v)}, \qquad
+    p(v) = \sum_{l'} \frac{N_{l'}}{N}\, w_{l'v},
+
+with :math:`N_{l'}` the cells of concept l' in the point estimate: p(v) is the **area-weighted
+mixture** of the concepts' word distributions, the probability of hearing v at a free cell drawn
+uniformly from the map (not the observed-count marginal, which measures how often v was said in
+the data, not where). With this p(v), the lift is exactly the word's Bayes ratio for the concept
+in "where is v?" under the area prior (:meth:`spcopyro.results.result.SpCoResult.where`):
+:math:`p(C = l \mid v) / p(C = l) = \text{lift}_{lv}`. A distinctive word of a concept is thus one
+that points "where is v?" towards it; a lift near 1 says the word says nothing about the place.
+
+A concept whose region holds no observed word gets no word list at all (:data:`NO_WORDS`): its
+w_l is its prior (the uniform posterior mean, or a random draw for a sampler's state), not
+something learnt.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+__all__ = [
+    "MIN_LIFT",
+    "NO_WORDS",
+    "distinctive_items",
+    "format_concept_words",
+    "format_words_heard",
+    "item_marginal",
+    "lift",
+]
+
+NO_WORDS = "no words heard here"
+"""What a concept whose region holds no observed word shows instead of a word list."""
+
+MIN_LIFT = 1.1
+"""Distinctive words are those whose lift exceeds this: at least 10% more probable in the concept
+than on the map as a whole (a display threshold, not a test: a lift of 1.01 under paper-dp's
+beta = 500 says nothing a reader could use)."""
+
+
+def format_words_heard(heard: float) -> str:
+    """Words heard in a concept's cells, to one decimal, ``"9"`` rather than ``"9.0"``: with an
+    observation footprint an utterance's weight is spread over cells that may lie in two
+    concepts, so the count is fractional (8.964 read as noise beside whole utterances)."""
+    return f"{heard:.1f}".removesuffix(".0")
+
+
+def item_marginal(table: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    """[K] p(item) = sum_l (N_l / N) table[l] over the concepts in use (``sizes`` ``[L]``: their
+    cells): the area-weighted mixture of the rows of ``table`` ``[L, K]``."""
+    sizes = np.asarray(sizes, dtype=np.float64)  # [L]
+    if sizes.sum() <= 0:
+        raise ValueError("no concept labels a cell: the item marginal is undefined")
+    return (sizes / sizes.sum()) @ np.asarray(table, dtype=np.float64)  # [K]
+
+
+def lift(table: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    """[L, K] p(item | concept) / p(item) (module docstring; 0 where p(item) is 0)."""
+    table = np.asarray(table, dtype=np.float64)  # [L, K]
+    marginal = item_marginal(table, sizes)  # [K]
+    safe = np.where(marginal > 0, marginal, 1.0)
+    return np.where(marginal > 0, table / safe, 0.0)
+
+
+def distinctive_items(
+    row: np.ndarray,
+    lift_row: np.ndarray,
+    items: Sequence[str],
+    n: int = 3,
+    min_lift: float = MIN_LIFT,
+) -> list[tuple[str, float, float]]:
+    """The ``n`` items of largest lift above ``min_lift`` as ``(item, lift, probability)``,
+    largest lift first (ties: the more probable first); fewer when fewer items pass."""
+    row, lift_row = np.asarray(row), np.asarray(lift_row)  # [K], [K]
+    order = np.lexsort((-row, -lift_row))  # by lift, then probability, descending
+    chosen = [k for k in order if lift_row[k] > min_lift][:n]
+    return [(items[k], float(lift_row[k]), float(row[k])) for k in chosen]
+
+
+def format_concept_words(
+    top: Sequence[tuple[str, float]],
+    distinctive: Sequence[tuple[str, float, float]],
+    heard: float | None,
+) -> str:
+    """One line for a concept: ``NO_WORDS`` when ``heard`` is 0, else its top words with their
+    probabilities and its distinctive words (if any) with their lifts, e.g.
+    ``"kitchen 0.31, the 0.12 | distinctive: kitchen x4.2, fridge x3.1"``."""
+    if heard is not None and heard <= 0:
+        return f"({NO_WORDS})"
+    text = ", ".join(f"{w} {p:.2f}" for w, p in top)
+    if distinctive:
+        text += " | distinctive: " + ", ".join(f"{w} x{r:.1f}" for w, r, _ in distinctive)
+    return text

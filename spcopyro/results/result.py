@@ -1,0 +1,482 @@
+r"""A fitted SpCoMapping for its user, whatever method fitted it: the semantic map, each
+concept's words (and items of any further modality), "where is X?".
+
+:class:`SpCoResult` holds a *point estimate* of every cell's concept (``labels``: Gibbs'
+MAP-visited state, or the most probable concept under a variational posterior), optionally the
+per-cell marginals ``[N, L]`` (a variational q(C), or label frequencies over samples), point
+estimates or posterior means of pi and of every modality's distributions, and a per-iteration
+:class:`~spcopyro.inference.protocol.Trace` (the log joint for Gibbs, the ELBO for variational
+methods). An inference method hands it an :class:`~spcopyro.inference.protocol.InferenceOutput`;
+:meth:`SpCoResult.from_output` adds the map, the item names and the settings.
+
+"Where is X?" (the paper's eq. 19, with the area prior by default) and the warnings of an answer
+close to a guess are in :mod:`spcopyro.results.where`.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from spcopyro._util.outputs import DAMAGED_FILE_ERRORS, read_npz
+from spcopyro.config import IMAGES, WORDS, DataPreparation, SpCoConfig
+from spcopyro.inference.protocol import InferenceOutput, Trace
+from spcopyro.maps import OccupancyGrid, load_map, save_map
+from spcopyro.results.concept_words import NO_WORDS, distinctive_items, lift
+from spcopyro.results.semantic_map import UnknownWordError, word_index
+from spcopyro.results.where import (
+    DEFAULT_WHERE_PRIOR,
+    EVIDENCE_WARNING,
+    ODDS_WARNING,
+    SMALL_REGION_FRACTION,
+    WHERE_PRIORS,
+    WhereAnswer,
+    answer_warnings,
+    bayes_factor,
+)
+
+__all__ = [
+    "DEFAULT_WHERE_PRIOR",
+    "EVIDENCE_WARNING",
+    "ODDS_WARNING",
+    "SMALL_REGION_FRACTION",
+    "EmissionTable",
+    "InferenceOutput",
+    "SpCoResult",
+    "Trace",
+    "UnknownWordError",
+    "WhereAnswer",
+    "answer_warnings",
+    "word_index",
+]
+
+RESULT_FILE = "result.npz"
+_SETTINGS = ("model", "data", "method", "inference")
+"""The entries of ``config.json`` that are settings (the others are the provenance)."""
+MAP_FILE = "map.yaml"
+
+
+@dataclass(frozen=True)
+class EmissionTable:
+    """One modality's per-concept distributions, with the names of what they are over."""
+
+    name: str
+    """The modality (``"images"``, ``"words"``, or a further one)."""
+    items: tuple[str, ...]
+    """[K_m] the names of the items (the vocabulary for words; class numbers for images)."""
+    probabilities: np.ndarray
+    """[L, K_m] each concept's distribution over the items."""
+
+
+@dataclass(frozen=True)
+class SpCoResult:
+    """A fitted semantic map with its map, vocabulary, settings and trace.
+
+    ``labels`` is ``[N]``: the concepts of the free cells in the grid's ``free_index`` order;
+    :meth:`label_image` gives them as an ``[H, W]`` image (-1 off free space).
+    """
+
+    grid: OccupancyGrid
+    config: SpCoConfig
+    labels: np.ndarray  # [N] int64
+    pi: np.ndarray  # [L]
+    emissions: tuple[EmissionTable, ...]
+    trace: Trace
+    best_iteration: int
+    method: str = "gibbs"
+    marginals: np.ndarray | None = None  # [N, L]
+    labels_final: np.ndarray | None = None  # [N]
+    agreement: np.ndarray | None = None  # [N] p(sample agrees with a point estimate's labels)
+    preparation: DataPreparation = DataPreparation()
+    inference: dict[str, object] = field(default_factory=dict)
+    name: str = ""
+    provenance: dict[str, object] = field(default_factory=dict)
+    """Where the data came from, the software's versions, ...
+    (:func:`spcopyro.fit.house.provenance`):
+    top-level entries of ``config.json`` beside the settings."""
+    concept_totals: np.ndarray | None = None
+    """[L, 1 + n_modalities] per concept under ``labels``: its observed cells, then each
+    modality's total count there (emissions' order); None when unknown (an old result)."""
+
+    @classmethod
+    def from_output(
+        cls,
+        output: InferenceOutput,
+        grid: OccupancyGrid,
+        items: dict[str, tuple[str, ...]],
+        config: SpCoConfig,
+        *,
+        modalities: tuple[str, ...] = (IMAGES, WORDS),
+        method: str = "gibbs",
+        preparation: DataPreparation = DataPreparation(),
+        name: str = "",
+        provenance: dict[str, object] | None = None,
+        concept_totals: np.ndarray | None = None,
+    ) -> SpCoResult:
+        """The result of ``output`` on ``grid``. ``modalities``: the names of the model data's
+        modalities in order; ``items``: the item names of each (class numbers are used for a
+        modality without names, e.g. images)."""
+        tables = []
+        for modality, table in zip(modalities, output.emissions, strict=True):
+            table = np.asarray(table)
+            names = tuple(items.get(modality, ())) or tuple(str(k) for k in range(table.shape[1]))
+            if len(names) != table.shape[1]:
+                raise ValueError(
+                    f"{len(names)} item names for the {table.shape[1]} items of {modality!r}"
+                )
+            tables.append(EmissionTable(modality, names, table))
+        return cls(
+            grid=grid,
+            config=config,
+            labels=np.asarray(output.labels, dtype=np.int64),
+            pi=np.asarray(output.pi),
+            emissions=tuple(tables),
+            trace=output.trace,
+            best_iteration=int(output.best_iteration),
+            method=method,
+            marginals=output.marginals,
+            labels_final=output.labels_final,
+            agreement=output.agreement,
+            preparation=preparation,
+            inference=dict(output.options),
+            name=name,
+            provenance=dict(provenance or {}),
+            concept_totals=concept_totals,
+        )
+
+    # -- the parts --------------------------------------------------------------------------------
+
+    def emission(self, modality: str) -> EmissionTable:
+        """The :class:`EmissionTable` of ``modality`` (KeyError naming the known ones)."""
+        for table in self.emissions:
+            if table.name == modality:
+                return table
+        raise KeyError(
+            f"no modality {modality!r} in this result; it has {[t.name for t in self.emissions]}"
+        )
+
+    @property
+    def theta(self) -> np.ndarray:
+        """[L, K] the image-feature distributions."""
+        return self.emission(IMAGES).probabilities
+
+    @property
+    def w(self) -> np.ndarray:
+        """[L, V] the word distributions."""
+        return self.emission(WORDS).probabilities
+
+    @property
+    def vocabulary(self) -> tuple[str, ...]:
+        """[V] the words, in the columns' order of :attr:`w`."""
+        return self.emission(WORDS).items
+
+    @property
+    def best_objective(self) -> float:
+        """The objective (log joint or ELBO) of the state the point estimate comes from."""
+        return float(self.trace.objective[self.best_iteration])
+
+    # -- the semantic map -------------------------------------------------------------------------
+
+    def labels_of(self, which: str = "best") -> np.ndarray:
+        """[N] labels of the point estimate (``"best"``) or of a sampler's last state
+        (``"final"``)."""
+        if which not in ("best", "final"):
+            raise ValueError(f"which must be 'best' or 'final', got {which!r}")
+        if which == "final":
+            if self.labels_final is None:
+                raise ValueError(f"a {self.method} result has no final state's labels")
+            return self.labels_final
+        return self.labels
+
+    def label_image(self, which: str = "best") -> np.ndarray:
+        """[H, W] int64 concept of every free cell, -1 elsewhere (map image row order)."""
+        image = np.full(self.grid.shape, -1, dtype=np.int64)
+        image[self.grid.free] = self.labels_of(which)  # free cells in raster = free_index order
+        return image
+
+    def concept_sizes(self) -> np.ndarray:
+        """[L] the number of cells of each concept in the point estimate."""
+        return np.bincount(self.labels, minlength=self.config.num_concepts)
+
+    def concepts_in_use(self, which: str = "best") -> np.ndarray:
+        """Concept ids labelling at least one cell, largest region first."""
+        sizes = np.bincount(self.labels_of(which), minlength=self.config.num_concepts)
+        used = np.flatnonzero(sizes)
+        return used[np.argsort(-sizes[used], kind="stable")]
+
+    def top_items(self, modality: str, concept: int, n: int = 3) -> list[tuple[str, float]]:
+        """The ``n`` most probable items of a concept under a modality, with probabilities."""
+        table = self.emission(modality)
+        if not table.items:
+            return []
+        row = table.probabilities[concept]
+        order = np.argsort(-row, kind="stable")[:n]
+        return [(table.items[k], float(row[k])) for k in order]
+
+    def top_words(self, concept: int, n: int = 3) -> list[tuple[str, float]]:
+        """The ``n`` most probable words of a concept under w_concept, with their probabilities."""
+        return self.top_items(WORDS, concept, n)
+
+    def heard(self, concept: int, modality: str = WORDS) -> float | None:
+        """The total count of ``modality`` observed in the concept's region (words: how many
+        were heard there, tf-idf weighted if so prepared, in utterances: the model's counts
+        divided by ``word_scaling``); None when the result does not know."""
+        if self.concept_totals is None:
+            return None
+        names = [t.name for t in self.emissions]
+        total = float(self.concept_totals[concept, 1 + names.index(modality)])
+        scaling = getattr(self.preparation, "word_scaling", 1.0) if modality == WORDS else 1.0
+        return total / scaling
+
+    def lift(self, modality: str = WORDS) -> np.ndarray:
+        """[L, K_m] p(item | concept) / p(item), p(item) the area-weighted mixture over the
+        concepts in use (:func:`spcopyro.results.concept_words.lift`)."""
+        return lift(self.emission(modality).probabilities, self.concept_sizes())
+
+    def distinctive_words(self, concept: int, n: int = 3) -> list[tuple[str, float, float]]:
+        """The ``n`` words of largest lift above 1 for a concept, as ``(word, lift, p)``
+        (:mod:`spcopyro.results.concept_words`); empty when no word was heard in its region."""
+        if self.heard(concept) == 0:
+            return []
+        table = self.emission(WORDS)
+        return distinctive_items(table.probabilities[concept], self.lift()[concept], table.items, n)
+
+    def concepts(self, n_words: int = 3) -> list[dict[str, object]]:
+        """Per concept in use: id, cell count, pi, top words (and the top items of every further
+        modality) with probabilities; the observed cells and words heard in its region
+        (``observed_cells``, ``words_heard``; None when unknown), its distinctive words
+        ``[word, lift, p]`` and, for a region where no word was heard, ``words_note`` =
+        :data:`~spcopyro.results.concept_words.NO_WORDS` and no word lists."""
+        sizes = self.concept_sizes()
+        further = [t.name for t in self.emissions if t.name not in (IMAGES, WORDS)]
+        summaries = []
+        for c in self.concepts_in_use():
+            heard = self.heard(int(c))
+            silent = heard == 0
+            top = [] if silent else self.top_words(int(c), n_words)
+            distinctive = self.distinctive_words(int(c), n_words)
+            cells = None if self.concept_totals is None else int(self.concept_totals[c, 0])
+            summary: dict[str, object] = {
+                "concept": int(c),
+                "cells": int(sizes[c]),
+                "pi": float(self.pi[c]),
+                "top_words": [[word, p] for word, p in top],
+                "observed_cells": cells,
+                "words_heard": heard,
+                "distinctive_words": [[w, r, p] for w, r, p in distinctive],
+                "words_note": NO_WORDS if silent else None,
+            }
+            for modality in further:
+                summary[f"top_{modality}"] = [
+                    [item, p] for item, p in self.top_items(modality, int(c), n_words)
+                ]
+            summaries.append(summary)
+        return summaries
+
+    # -- "where is X?" (eq. 19) ------------------------------------------------------------------
+
+    def concept_prior(self, prior: str = DEFAULT_WHERE_PRIOR) -> np.ndarray:
+        """[L] p(C = l) of eq. (19) over the concepts in use (0 elsewhere), summing to 1:
+        ``"area"`` the share of the map's cells labelled l, ``"pi"`` the fitted pi."""
+        if prior not in WHERE_PRIORS:
+            raise ValueError(f"prior must be 'area' or 'pi', got {prior!r}")
+        sizes = self.concept_sizes()
+        weight = np.where(sizes > 0, self.pi if prior == "pi" else sizes / sizes.sum(), 0.0)
+        return weight / weight.sum()
+
+    def concept_given_word(self, word: str, prior: str = DEFAULT_WHERE_PRIOR) -> np.ndarray:
+        """[L] p(C = l | word) proportional to w_{l,word} p(C = l) over concepts in use (eq. 19).
+
+        ``prior``: ``"area"`` (share of cells labelled l; the default) or ``"pi"`` (eq. 19 as in
+        the paper); see the module docstring for why area is the default.
+        """
+        v = word_index(self.vocabulary, word)
+        score = self.w[:, v] * self.concept_prior(prior)  # [L]
+        return score / score.sum()
+
+    def where(self, word: str, prior: str = DEFAULT_WHERE_PRIOR) -> WhereAnswer:
+        """The concept argmax_C p(C | word) (eq. 19), its region, the runner-up and the
+        warnings of an answer close to a guess (:func:`answer_warnings`); ``prior`` as in
+        :meth:`concept_given_word` (default ``"area"``; ``"pi"`` is the paper's eq. 19)."""
+        posterior = self.concept_given_word(word, prior)  # [L]
+        weights = self.concept_prior(prior)  # [L]
+        sizes = self.concept_sizes()  # [L]
+        order = np.argsort(-posterior, kind="stable")
+        concept = int(order[0])
+        runner_up = int(order[1]) if (sizes > 0).sum() > 1 else None
+        return WhereAnswer(
+            word=word.lower(),
+            concept=concept,
+            probability=float(posterior[concept]),
+            region=self.label_image() == concept,
+            prior=prior,
+            runner_up=runner_up,
+            runner_up_probability=0.0 if runner_up is None else float(posterior[runner_up]),
+            evidence=bayes_factor(float(posterior[concept]), float(weights[concept])),
+            warnings=answer_warnings(
+                posterior, weights, sizes, word=word.lower(), prior_name=prior,
+                cell_area=self.grid.resolution**2,
+            ),
+        )  # fmt: skip
+
+    # -- saving and loading ----------------------------------------------------------------------
+
+    def settings_json(self) -> dict[str, object]:
+        """The settings of the fit: model, data preparation, inference method and its options,
+        then the :attr:`provenance` entries (data source, software versions)."""
+        settings = {
+            "model": self.config.to_json(),
+            "data": dataclasses.asdict(self.preparation),
+            "method": self.method,
+            "inference": self.inference,
+        }
+        return {**settings, **{k: v for k, v in self.provenance.items() if k not in settings}}
+
+    def save(self, out_dir: str | os.PathLike[str]) -> Path:
+        """Write the result into ``out_dir``.
+
+        Files: ``labels.npy`` ([H, W] int64, -1 off free space, concept ids >= 0, map image row
+        order; the point estimate), ``concepts.json`` (per concept: cells, pi, top words),
+        ``trace.csv`` (iteration, objective, concepts in use, seconds), ``map.yaml``/``map.pgm``
+        (the occupancy grid), ``result.npz`` (everything needed by :meth:`load`),
+        ``config.json`` (:meth:`settings_json`). Figures are written by
+        :mod:`spcopyro.figures.plotting`.
+        Labels outside ``[0, L)`` (or not one per free cell) raise ValueError before any file
+        is written.
+        """
+        labels, num_free, num_l = np.asarray(self.labels), self.grid.num_free, len(self.pi)
+        in_range = labels.size == 0 or 0 <= labels.min() <= labels.max() < num_l
+        if labels.shape != (num_free,) or not in_range:
+            values = f"{labels.min()}..{labels.max()}" if labels.size else "none"
+            raise ValueError(
+                f"not saving a corrupt result: labels must be {num_free} concepts in "
+                f"0..{num_l - 1}, got shape {labels.shape}, values {values}"
+            )
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        np.save(out / "labels.npy", self.label_image())
+        (out / "concepts.json").write_text(json.dumps(self.concepts(n_words=10), indent=2) + "\n")
+        (out / "config.json").write_text(json.dumps(self.settings_json(), indent=2) + "\n")
+        trace = self.trace
+        with open(out / "trace.csv", "w", newline="") as f:
+            writer = csv.writer(f)
+            objective = trace.objective_name.replace(" ", "_").lower()
+            writer.writerow(["iteration", objective, "num_concepts", "seconds"])
+            for s in range(len(trace.objective)):
+                writer.writerow(
+                    [s + 1, repr(float(trace.objective[s])), int(trace.num_concepts[s]),
+                     f"{trace.seconds[s]:.6f}"]
+                )  # fmt: skip
+        save_map(self.grid, out / MAP_FILE)
+        arrays: dict[str, np.ndarray] = {
+            "labels": self.labels,
+            "pi": self.pi,
+            "objective": trace.objective,
+            "num_concepts": trace.num_concepts,
+            "seconds": trace.seconds,
+            "objective_name": np.array(trace.objective_name),
+            "best_iteration": np.array(self.best_iteration),
+            "modalities": np.array([t.name for t in self.emissions], dtype=str),
+            "method": np.array(self.method),
+            "name": np.array(self.name),
+        }
+        for table in self.emissions:
+            arrays[f"emission_{table.name}"] = table.probabilities
+            arrays[f"items_{table.name}"] = np.array(table.items, dtype=str)
+        if self.marginals is not None:
+            arrays["marginals"] = self.marginals
+        if self.labels_final is not None:
+            arrays["labels_final"] = self.labels_final
+        if self.concept_totals is not None:
+            arrays["concept_totals"] = self.concept_totals
+        if self.agreement is not None:
+            arrays["agreement"] = self.agreement
+        np.savez_compressed(out / RESULT_FILE, **arrays)
+        return out
+
+    @classmethod
+    def load(cls, out_dir: str | os.PathLike[str]) -> SpCoResult:
+        """Read a result written by :meth:`save`."""
+        out = Path(out_dir)
+        path = out / RESULT_FILE
+        if not path.is_file():
+            raise FileNotFoundError(
+                f"{path}: no fitted result here (run `spcopyro fit DATA --out {out}` first)"
+            )
+        try:
+            with read_npz(path) as z:
+                arrays = {k: z[k] for k in z.files}
+        except DAMAGED_FILE_ERRORS as error:
+            raise ValueError(
+                f"{path}: not a readable spcopyro result ({type(error).__name__}: {error}); "
+                "the file is damaged or truncated: fit again"
+            ) from None
+        config_path = out / "config.json"
+        try:
+            settings = json.loads(config_path.read_text(encoding="utf-8"))
+        except json.JSONDecodeError as error:
+            raise ValueError(
+                f"{config_path}: line {error.lineno}, column {error.colno}: {error.msg} "
+                "(a damaged config.json: fit again)"
+            ) from None
+        except UnicodeDecodeError as error:
+            raise ValueError(f"{config_path}: not UTF-8 text ({error.reason})") from None
+        try:
+            return cls._from_saved(out, path, arrays, settings)
+        except (KeyError, TypeError, ValueError, AttributeError, IndexError) as error:
+            raise ValueError(
+                f"{path} and {config_path} do not form a spcopyro result "
+                f"({type(error).__name__}: {error}); the files are damaged: fit again"
+            ) from None
+
+    @classmethod
+    def _from_saved(
+        cls, out: Path, path: Path, arrays: dict[str, np.ndarray], settings: dict
+    ) -> SpCoResult:
+        """The result from ``result.npz``'s arrays and ``config.json``'s settings."""
+        if not isinstance(settings, dict):
+            raise TypeError(f"config.json holds a {type(settings).__name__}, not an object")
+        if "labels_best" in arrays:
+            raise ValueError(
+                f"{path} was written by spcopyro before its results became method-neutral "
+                "(labels_best/theta/w); fit again to read it with this version"
+            )
+        model = dict(settings["model"])
+        model["concentrations"] = tuple(dict(model.get("concentrations", {})).items())
+        emissions = tuple(
+            EmissionTable(
+                str(name),
+                tuple(str(v) for v in arrays[f"items_{name}"]),
+                arrays[f"emission_{name}"],
+            )
+            for name in arrays["modalities"]
+        )
+        return cls(
+            grid=load_map(out / MAP_FILE),
+            config=SpCoConfig(**model),
+            labels=arrays["labels"],
+            pi=arrays["pi"],
+            emissions=emissions,
+            trace=Trace(
+                objective=arrays["objective"],
+                num_concepts=arrays["num_concepts"],
+                seconds=arrays["seconds"],
+                objective_name=str(arrays["objective_name"]),
+            ),
+            best_iteration=int(arrays["best_iteration"]),
+            method=str(arrays["method"]),
+            marginals=arrays.get("marginals"),
+            labels_final=arrays.get("labels_final"),
+            agreement=arrays.get("agreement"),
+            preparation=DataPreparation(**settings["data"]),
+            inference=dict(settings.get("inference", {})),
+            name=str(arrays["name"]),
+            provenance={k: v for k, v in settings.items() if k not in _SETTINGS},
+            concept_totals=arrays.get("concept_totals"),
+        )

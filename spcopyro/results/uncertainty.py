@@ -1,0 +1,110 @@
+r"""Per-cell uncertainty of a fit, and "where is X?" as a probability per cell.
+
+Every inference method can give per-cell label probabilities :math:`p(C_i = l)`: a variational
+method's q(C_i) (:attr:`SpCoResult.marginals <spcopyro.results.result.SpCoResult.marginals>`), or a
+Gibbs chain's label frequencies over the samples it kept (:func:`label_frequencies`, stored as
+the result's marginals by ``spcopyro fit``). From them:
+
+* the **uncertainty map** :math:`H_i = -\sum_l p(C_i = l) \log p(C_i = l)` (nats; 0 where every
+  sample or all of q agrees, log L at most) -- :func:`cell_entropy`;
+* the **probability that a cell belongs to the word's place** (eq. 19 spread over the cells):
+
+  .. math::
+
+      p(i \in \text{place}(S)) = \sum_l p(C_i = l)\, p(C = l \mid S),
+
+  the chance that the cell's concept is the word's, with both uncertain and independent --
+  :func:`where_probability`. With a point estimate only (no marginals) it is
+  :math:`p(C = C_i \mid S)`, constant over each concept's region.
+
+A mean-field q is over-confident near region borders and in regions no observation reaches
+(its entropy there is lower than the posterior's); Gibbs frequencies from a few dozen samples of
+one chain miss modes the chain never visited. Compare the two maps with that in mind.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from spcopyro.results.result import SpCoResult
+
+
+def label_frequencies(samples: np.ndarray, num_concepts: int) -> np.ndarray:
+    """[N, L] float32 the fraction of the ``[S, N]`` label ``samples`` in which each cell has each
+    concept (the Monte Carlo estimate of p(C_i = l))."""
+    samples = np.asarray(samples)
+    if samples.ndim != 2 or samples.shape[0] == 0:
+        raise ValueError(f"samples must be [S >= 1, N], got shape {samples.shape}")
+    S, N = samples.shape
+    counts = np.zeros((N, num_concepts), dtype=np.float32)  # [N, L]
+    np.add.at(counts, (np.broadcast_to(np.arange(N), (S, N)), samples), 1.0)
+    return counts / S
+
+
+def align_samples(samples: np.ndarray, reference: np.ndarray, num_concepts: int) -> np.ndarray:
+    """``[S, N]`` the label ``samples`` renamed to the ``[N]`` ``reference`` map's concepts.
+
+    A sampler's concept ids are arbitrary and change along a chain (a merge move, a relabelling),
+    so the concept called 3 in a kept sample need not be the reported map's concept 3. Each
+    sample is renamed by the one-to-one map of its ids onto the reference's ids that maximises
+    the cells on which the two agree (the assignment problem on the contingency table of the
+    labels each uses, ``scipy.optimize.linear_sum_assignment``); a sample's concept matched
+    with none of the reference's takes an id the reference does not use. Per-cell frequencies
+    over the renamed samples then speak of the reported concepts. A sample that equals the
+    reference up to names becomes the reference exactly. Cost per sample: O(N + K^3) for the
+    K concepts in use (not L)."""
+    from scipy.optimize import linear_sum_assignment  # here, not on the fit's import path
+
+    samples = np.asarray(samples)
+    reference = np.asarray(reference)
+    ref_ids, ref_codes = np.unique(reference, return_inverse=True)  # [K_r], [N]
+    free_ids = np.setdiff1d(np.arange(num_concepts), ref_ids)  # ids the reference leaves free
+    aligned = np.empty_like(samples)
+    for s, labels in enumerate(samples):
+        ids, codes = np.unique(labels, return_inverse=True)  # [K_s], [N]
+        overlap = np.zeros((ids.size, ref_ids.size), dtype=np.int64)  # [K_s, K_r]
+        np.add.at(overlap, (codes, ref_codes), 1)
+        rows, cols = linear_sum_assignment(overlap, maximize=True)
+        rename = np.full(ids.size, -1, dtype=np.int64)
+        rename[rows] = ref_ids[cols]
+        unmatched = np.flatnonzero(rename < 0)
+        rename[unmatched] = free_ids[: unmatched.size]
+        aligned[s] = rename[codes]
+    return aligned
+
+
+def cell_probabilities(result: SpCoResult) -> np.ndarray:
+    """[N, L] p(C_i = l): the result's marginals, or one-hot point labels if it has none."""
+    if result.marginals is not None:
+        return np.asarray(result.marginals, dtype=np.float64)
+    one_hot = np.zeros((result.grid.num_free, len(result.pi)))
+    one_hot[np.arange(result.grid.num_free), result.labels] = 1.0
+    return one_hot
+
+
+def cell_entropy(result: SpCoResult) -> np.ndarray | None:
+    """[N] each free cell's entropy of p(C_i) in nats, or None when the result holds a point
+    estimate only (no marginals: nothing to say about uncertainty)."""
+    if result.marginals is None:
+        return None
+    p = np.asarray(result.marginals, dtype=np.float64)  # [N, L]
+    logs = np.log(np.where(p > 0, p, 1.0))
+    return -(p * logs).sum(-1)
+
+
+def where_probability(result: SpCoResult, word: str, prior: str = "area") -> np.ndarray:
+    """[N] p(cell i belongs to the place of ``word``) (module docstring; ``prior`` as in
+    :meth:`SpCoResult.concept_given_word
+    <spcopyro.results.result.SpCoResult.concept_given_word>`)."""
+    concept_given_word = result.concept_given_word(word, prior)  # [L]
+    return cell_probabilities(result) @ concept_given_word  # [N, L] @ [L]
+
+
+def free_cells_image(result: SpCoResult, values: np.ndarray) -> np.ndarray:
+    """[H, W] float64 ``values`` ``[N]`` of the free cells drawn on the map, NaN elsewhere."""
+    image = np.full(result.grid.shape, np.nan)  # [H, W]
+    image[result.grid.free] = values  # free cells in raster = free_index order
+    return image

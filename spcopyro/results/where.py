@@ -1,0 +1,179 @@
+r""" "Where is X?" from a fitted map, and when its answer is close to a guess.
+
+Place estimation from a word is the paper's eq. (19):
+
+.. math::
+
+    \hat C = \arg\max_l p(C = l \mid S) = \arg\max_l \; w_{l,S} \, \pi_l ,
+
+taken over the concepts that label at least one cell (a concept that labels no cell has no
+region to point at). With the presets' huge alpha (1e7-1e8), pi is nearly uniform, so eq. (19)
+weighs a concept of three cells like one of a thousand and can point at a speck whose few
+observed cells hold the word. ``prior="area"`` replaces pi_l by the share of the map's cells
+labelled l (the probability that a uniformly chosen free cell has concept l), which answers
+"which region would a word uttered somewhere on this map come from?":
+
+.. math::
+
+    p(C = l \mid S) \propto w_{l,S} \, \frac{n_l}{N}
+    = \frac{1}{N} \sum_{i : C_i = l} w_{C_i, S},
+
+the word's posterior over the cells where it may have been said (uniform over the N free cells)
+summed over each concept's n_l cells -- so the area prior *is* the word's posterior over cells,
+read per concept. It is the default of :meth:`~spcopyro.results.result.SpCoResult.where` and of
+``spcopyro where``.
+On the default synthetic house fitted with ``paper-dp`` (5000 sweeps, seed 0) eq. (19) with pi
+answers "kitchen" with a concept of one cell in a doorway (p = 0.134, every concept between 0.12
+and 0.134), while the area prior answers with the 992-cell region that holds all 510 kitchen
+cells (and the living room). With the released code's values and gamma 3 the area prior's
+matching rate over five synthetic houses is 0.995 against 0.428 for pi (the experiments' table,
+which keeps both columns: ``SpCoSemanticMap`` still defaults to pi). Under ``paper-dp`` neither
+is good (0.181 area, 0.286 pi): beta = 500 leaves every concept's words near uniform, so the area
+prior answers every word with the largest region and pi with whichever concept's few words lean
+its way -- the warnings below say so. ``prior="pi"`` remains the paper's eq. (19).
+
+Answers close to a guess carry warnings (:attr:`WhereAnswer.warnings`): the best concept's
+posterior odds over the runner-up below :data:`ODDS_WARNING`, the word's Bayes factor for the
+best concept (how much hearing it changes that concept's odds from the prior) below
+:data:`EVIDENCE_WARNING`, or a region smaller than :data:`SMALL_REGION_FRACTION` of the free
+cells (see :func:`answer_warnings`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "DEFAULT_WHERE_PRIOR",
+    "EVIDENCE_WARNING",
+    "ODDS_WARNING",
+    "SMALL_REGION_FRACTION",
+    "WHERE_PRIORS",
+    "WhereAnswer",
+    "answer_warnings",
+    "bayes_factor",
+]
+
+WHERE_PRIORS = ("area", "pi")
+DEFAULT_WHERE_PRIOR = "area"
+"""p(C) of "where is X?" by default: each concept's share of the map (see the module docstring)."""
+
+ODDS_WARNING = 3.0
+"""Posterior odds p(best | word) / p(runner-up | word) below which an answer is flagged as close
+to a guess between the two concepts. 3 is the bound of Kass and Raftery (1995, JASA 90:773) under
+which odds are "not worth more than a bare mention". Measured (original-code, gamma 3, 1000
+sweeps): the six category words of the synthetic house of seed 0 have odds 4-85 with the area
+prior, 1.02-1.39 with pi (which picks one-cell specks); under paper-dp's near-uniform words every
+answer has odds near 1."""
+
+EVIDENCE_WARNING = 3.0
+"""Bayes factor of the word for the best concept against the others, below which the answer is
+flagged as coming from the prior (the region's size, or pi) rather than from the word. Same
+bound as :data:`ODDS_WARNING`. On that fit: 15-261 (area prior); under paper-dp about 1."""
+
+SMALL_REGION_FRACTION = 0.005
+"""An answer's region holding fewer than this share of the free cells is flagged as a speck:
+0.5% is the size under which :func:`spcopyro.figures.plotting.plot_semantic_map` writes no label on
+a region (93 cells, 0.23 m^2, in room1dk5; 18 cells in the synthetic house, whose smallest room
+holds 13%)."""
+
+
+@dataclass(frozen=True)
+class WhereAnswer:
+    """The answer to "where is WORD?"."""
+
+    word: str
+    concept: int
+    probability: float
+    """p(C = concept | word) (eq. 19), normalised over the concepts in use."""
+    region: np.ndarray
+    """[H, W] bool: the cells labelled with ``concept``."""
+    prior: str = DEFAULT_WHERE_PRIOR
+    """p(C) used: ``"area"`` (share of the map) or ``"pi"`` (the paper's eq. 19)."""
+    runner_up: int | None = None
+    """The second most probable concept (None when one concept labels the whole map)."""
+    runner_up_probability: float = 0.0
+    """p(C = runner_up | word)."""
+    evidence: float = float("inf")
+    """Bayes factor of the word for ``concept`` against the other concepts in use:
+    posterior odds of ``concept`` divided by its prior odds."""
+    warnings: tuple[str, ...] = ()
+    """Why the answer is close to a guess, one sentence each (empty for a clear answer)."""
+
+
+def answer_warnings(
+    posterior: np.ndarray,
+    prior: np.ndarray,
+    sizes: np.ndarray,
+    *,
+    word: str = "",
+    prior_name: str = DEFAULT_WHERE_PRIOR,
+    cell_area: float = 1.0,
+) -> tuple[str, ...]:
+    r"""The warnings of the answer argmax ``posterior`` (see :class:`WhereAnswer`).
+
+    Args:
+        posterior: [L] p(C = l | word), summing to 1 over the concepts in use, 0 elsewhere.
+        prior: [L] p(C = l) over the concepts in use (sums to 1), 0 elsewhere.
+        sizes: [L] cells of each concept.
+        word: the word (for the messages).
+        prior_name: ``"area"`` or ``"pi"`` (for the messages).
+        cell_area: square metres of one cell.
+
+    With c the best concept and c' the runner-up, it warns when
+
+    .. math::
+
+        rac{p(c \mid S)}{p(c' \mid S)} < 	ext{ODDS\_WARNING}, \qquad
+        K = rac{p(c \mid S) / (1 - p(c \mid S))}{p(c) / (1 - p(c))}
+          < 	ext{EVIDENCE\_WARNING}, \qquad
+        n_c < 	ext{SMALL\_REGION\_FRACTION} \cdot N,
+
+    and when one concept labels the whole map (every word points there).
+    """
+    posterior = np.asarray(posterior, dtype=np.float64)  # [L]
+    order = np.argsort(-posterior, kind="stable")
+    concept = int(order[0])
+    used = int((sizes > 0).sum())
+    num_free = int(sizes.sum())
+    warnings = []
+    if used < 2:
+        return (f"one concept labels the whole map: every word points to concept {concept}",)
+    best, second = float(posterior[concept]), float(posterior[order[1]])
+    if second > 0 and best / second < ODDS_WARNING:
+        warnings.append(
+            f"concept {concept} is barely more probable than concept {int(order[1])} "
+            f"(p = {best:.3f} against {second:.3f}, odds {best / second:.2f} < "
+            f"{ODDS_WARNING:g}): the answer is close to a guess between them"
+        )
+    evidence = bayes_factor(best, float(prior[concept]))
+    if evidence < EVIDENCE_WARNING:
+        basis = "its share of the map" if prior_name == "area" else "pi"
+        warnings.append(
+            f"the word {word!r} says little about concept {concept}: it changes that concept's "
+            f"odds by a factor of {evidence:.2f} (< {EVIDENCE_WARNING:g}), so the answer "
+            f"follows mostly from the prior ({basis})"
+        )
+    cells = int(sizes[concept])
+    if cells < SMALL_REGION_FRACTION * num_free:
+        hint = (
+            " (eq. 19 with pi weighs a speck like a room; --prior area weighs concepts by their "
+            "share of the map)"
+            if prior_name == "pi"
+            else ""
+        )
+        warnings.append(
+            f"the region is {cells} cell{'s' if cells != 1 else ''} "
+            f"({cells * cell_area:.2f} m^2, {cells / num_free:.2%} of the free cells, under "
+            f"{SMALL_REGION_FRACTION:.1%}): a speck, not a place{hint}"
+        )
+    return tuple(warnings)
+
+
+def bayes_factor(posterior: float, prior: float) -> float:
+    """Posterior odds over prior odds of one concept (inf when either is 0 or 1)."""
+    if not 0 < posterior < 1 or not 0 < prior < 1:
+        return float("inf")
+    return (posterior / (1 - posterior)) / (prior / (1 - prior))

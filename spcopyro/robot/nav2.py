@@ -1,0 +1,427 @@
+r"""A fitted semantic map as Nav2 costmap-filter masks: keep out of a word's place, or slow down
+in it.
+
+Nav2's costmap filters read a *filter mask* (a map_server map, published by a second
+``map_server`` node) and a ``nav2_msgs/CostmapFilterInfo`` message (published by a
+``costmap_filter_info_server`` node) that says how to decode it:
+``filter_value = base + multiplier * mask_value`` for mask values 0..100 (Nav2 documentation:
+"Navigating with Keepout Zones", "Navigating with Speed Limits", "Costmap Filter Info Server").
+:func:`export_nav2` writes, for each word, such a mask and the parameters of both nodes:
+
+**Keepout** (``type: 0``, ``base: 0.0``, ``multiplier: 1.0``: the mask value is the cost, 100 =
+lethal, 0 = free). The word's place -- by default the region of the where-answer
+(:meth:`SpCoResult.where <spcopyro.results.result.SpCoResult.where>`, eq. 19 with the area prior),
+or, with ``threshold``, the free cells whose probability of belonging to the word's place
+(:func:`~spcopyro.results.uncertainty.where_probability`) is at least ``threshold`` -- gets 100,
+every other cell 0.
+
+**Speed** (``type: 1``: the filter value is a speed limit in percent of the robot's maximum;
+``base: 100.0``, ``multiplier: -1.0``, as in Nav2's speed-filter tutorial, so the limit is
+``100 - mask`` and darker pixels are slower). A free cell whose probability of belonging to the
+word's place is p gets the limit
+
+.. math::
+
+    s(p) = s_\max - (s_\max - s_\min)\, p \quad\text{(percent, rounded to 1\%)},
+
+non-increasing in p; its mask value is ``100 - s(p)``. A value of 0 means *no limit* to the
+SpeedFilter, which is also what ``s = 100%`` means, so the encoding has no gap. Non-free cells
+get 0.
+
+Both masks are written in ``mode: scale`` with ``free_thresh: 0.0``, ``occupied_thresh: 1.0``
+(:func:`spcopyro.maps.save_filter_mask`): pixel lightness maps linearly onto 0..100, which is
+what the speed mask needs, and for the keepout mask (values 0 and 100 only) it reads exactly as
+``trinary`` would with map_saver's thresholds, while leaving room for graded keepout costs.
+Every mask has the fitted map's resolution and origin (yaw 0) and its size, the image's first row
+being the map's top.
+
+The export folder holds ``map.yaml``/``map.pgm`` (the occupancy map the fit used),
+``semantic_map.yaml``/``.pgm``/``.labels.json`` (the concept labels, ``mode: raw``),
+``MODE_WORD.yaml``/``.pgm`` (a mask), ``MODE_WORD_params.yaml`` (the ``ros__parameters`` of
+the mask server ``MODE_WORD_mask_server`` and of ``MODE_WORD_filter_info_server``),
+``costmap_filters.yaml`` (the costmap plugin entries to merge into ``nav2_params.yaml``) and
+``nav2_export.json`` (what was exported, from which fit, with which settings).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from spcopyro._util.outputs import stage_marked_folder
+from spcopyro.maps import OccupancyGrid, save_filter_mask, save_label_map_server, save_map
+from spcopyro.results.result import DEFAULT_WHERE_PRIOR, SpCoResult
+from spcopyro.results.semantic_map import word_index
+from spcopyro.results.uncertainty import where_probability
+
+__all__ = [
+    "DEFAULT_MAX_SPEED",
+    "DEFAULT_MIN_SPEED",
+    "EXPORT_MARKER",
+    "FILTER_TYPES",
+    "MODES",
+    "ExportedMask",
+    "Nav2Export",
+    "export_nav2",
+    "keepout_values",
+    "speed_percent",
+    "speed_values",
+    "word_place",
+]
+
+MODES = ("keepout", "speed")
+FILTER_TYPES = {"keepout": 0, "speed": 1}
+"""``CostmapFilterInfo.type``: 0 keepout zones / preferred lanes, 1 speed limit in percent."""
+BASE_MULTIPLIER = {"keepout": (0.0, 1.0), "speed": (100.0, -1.0)}
+"""(base, multiplier) of ``filter_value = base + multiplier * mask_value`` per mode."""
+DEFAULT_MIN_SPEED, DEFAULT_MAX_SPEED = 30.0, 100.0
+"""Percent of the maximum speed at probability 1 and 0 of being in the word's place."""
+EXPORT_MARKER = "nav2_export.json"
+"""A folder holding it was written by :func:`export_nav2`: the only kind ``overwrite`` replaces."""
+SPEED_LIMIT_TOPIC = "/speed_limit"
+
+
+# ---------------------------------------------------------------------------------------------
+# Mask values
+# ---------------------------------------------------------------------------------------------
+
+
+def word_place(
+    result: SpCoResult,
+    word: str,
+    *,
+    prior: str = DEFAULT_WHERE_PRIOR,
+    threshold: float | None = None,
+) -> np.ndarray:
+    """[H, W] bool the word's place: the where-answer's region, or (``threshold`` in (0, 1]) the
+    free cells whose :func:`~spcopyro.results.uncertainty.where_probability` is at least
+    ``threshold``.
+    Raises :class:`~spcopyro.results.semantic_map.UnknownWordError` (naming close words) for a word
+    outside the vocabulary."""
+    if threshold is None:
+        return np.asarray(result.where(word, prior=prior).region, dtype=bool)
+    _check_threshold(threshold)
+    probability = where_probability(result, word, prior)  # [N]
+    place = np.zeros(result.grid.shape, dtype=bool)  # [H, W]
+    place[result.grid.free] = probability >= threshold  # free cells in free_index order
+    return place
+
+
+def keepout_values(place: np.ndarray) -> np.ndarray:
+    """[H, W] int8 keepout mask values: 100 (lethal) on ``place`` ([H, W] bool), 0 elsewhere."""
+    return np.where(np.asarray(place, dtype=bool), 100, 0).astype(np.int8)
+
+
+def speed_percent(
+    probability: np.ndarray,
+    min_speed: float = DEFAULT_MIN_SPEED,
+    max_speed: float = DEFAULT_MAX_SPEED,
+) -> np.ndarray:
+    """[N] speed limit in percent, ``max - (max - min) p``, rounded to whole percent, for the
+    ``[N]`` probabilities ``p`` of being in the word's place (module docstring)."""
+    _check_speeds(min_speed, max_speed)
+    p = np.clip(np.asarray(probability, dtype=np.float64), 0.0, 1.0)
+    return np.rint(max_speed - (max_speed - min_speed) * p)
+
+
+def speed_values(
+    result: SpCoResult,
+    word: str,
+    *,
+    prior: str = DEFAULT_WHERE_PRIOR,
+    min_speed: float = DEFAULT_MIN_SPEED,
+    max_speed: float = DEFAULT_MAX_SPEED,
+) -> tuple[np.ndarray, np.ndarray]:
+    """([H, W] int8 speed mask values ``100 - limit`` (0 off free space: no limit), [N] the
+    probabilities of the word's place they come from)."""
+    probability = where_probability(result, word, prior)  # [N]
+    percent = speed_percent(probability, min_speed, max_speed)  # [N]
+    values = np.zeros(result.grid.shape, dtype=np.int8)  # [H, W]
+    values[result.grid.free] = (100.0 - percent).astype(np.int8)
+    return values, probability
+
+
+def _check_threshold(threshold: float) -> None:
+    if not (isinstance(threshold, (int, float)) and 0.0 < threshold <= 1.0):
+        raise ValueError(f"the place's probability threshold must lie in (0, 1], got {threshold!r}")
+
+
+MIN_SPEED_LIMIT = 1.0
+"""Percent: the smallest speed limit a mask may set. Nav2 reads a limit of 0 as "no speed
+limit" (``NO_SPEED_LIMIT``), so a limit rounded to 0 % would let the robot drive at full speed
+exactly where the word's place is (issue 24 item 2)."""
+
+
+def _check_speeds(min_speed: float, max_speed: float) -> None:
+    if not (MIN_SPEED_LIMIT <= min_speed <= max_speed <= 100.0):
+        raise ValueError(
+            "speed limits must satisfy 1 <= min <= max <= 100 (percent of the maximum speed; "
+            "Nav2 reads a 0 % limit as no limit at all), "
+            f"got min {min_speed!r}, max {max_speed!r}"
+        )
+
+
+# ---------------------------------------------------------------------------------------------
+# Files
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ExportedMask:
+    """One word's mask and the nodes that serve it."""
+
+    word: str
+    mode: str
+    name: str
+    """``MODE_WORD``: the files' stem and the prefix of the nodes and topics."""
+    mask_yaml: Path
+    params_yaml: Path
+    cells: int
+    """Free cells with a non-zero mask value (kept out of, or slowed down in)."""
+    concept: int | None = None
+    """The where-answer's concept (keepout without a threshold)."""
+    warnings: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Nav2Export:
+    """What :func:`export_nav2` wrote."""
+
+    out: Path
+    map_yaml: Path
+    semantic_map_yaml: Path
+    costmap_filters_yaml: Path
+    masks: tuple[ExportedMask, ...] = field(default_factory=tuple)
+
+
+def _ros_name(word: str) -> str:
+    """A ROS-name-safe form of a word: lower case, ``[a-z0-9_]`` only."""
+    name = re.sub(r"[^a-z0-9_]", "_", word.lower()).strip("_")
+    return name or "word"
+
+
+def topic(name: str, namespace: str | None = None) -> str:
+    """The absolute topic ``/NAME``, or ``/NAMESPACE/NAME`` for a robot in a namespace (the
+    filters' topics must follow the robot's namespace: issue 24 item 3)."""
+    return f"/{namespace.strip('/')}/{name}" if namespace and namespace.strip("/") else f"/{name}"
+
+
+def check_namespace(namespace: str | None) -> str | None:
+    """A ROS namespace (``robot1``, ``/fleet/robot1``), stripped of its outer slashes; None or
+    empty: none. ValueError for a name ROS would refuse."""
+    if namespace is None or not namespace.strip("/"):
+        return None
+    clean = namespace.strip("/")
+    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*", clean):
+        raise ValueError(
+            f"namespace {namespace!r}: ROS names are letters, digits and underscores, each "
+            "part starting with a letter, parts separated by /"
+        )
+    return clean
+
+
+def mask_params(
+    mode: str, name: str, mask_yaml: Path, namespace: str | None = None
+) -> dict[str, object]:
+    """The ``ros__parameters`` of the mask's ``map_server`` and ``costmap_filter_info_server``
+    nodes, as one params file (Nav2 keepout / speed-filter tutorials, step 2); their topics in
+    the robot's ``namespace`` when one is given."""
+    base, multiplier = BASE_MULTIPLIER[mode]
+    mask_topic = topic(f"{name}_filter_mask", namespace)
+    return {
+        f"{name}_mask_server": {
+            "ros__parameters": {
+                "frame_id": "map",
+                "topic_name": mask_topic,
+                "yaml_filename": str(mask_yaml),
+            }
+        },
+        f"{name}_filter_info_server": {
+            "ros__parameters": {
+                "type": FILTER_TYPES[mode],
+                "filter_info_topic": topic(f"{name}_filter_info", namespace),
+                "mask_topic": mask_topic,
+                "base": base,
+                "multiplier": multiplier,
+            }
+        },
+    }
+
+
+def costmap_filters(
+    masks: list[tuple[str, str]], namespace: str | None = None
+) -> dict[str, object]:
+    """The costmap entries (``filters`` list and one plugin per mask) for ``nav2_params.yaml``:
+    keepout filters in the global and the local costmap (plans avoid the place, and the
+    controller does not drive in), speed filters in the global costmap only (Nav2: never in
+    both, or the limit flips at every boundary). ``masks``: (mode, name) pairs."""
+    costmaps: dict[str, dict[str, object]] = {"global_costmap": {}, "local_costmap": {}}
+    for mode, name in masks:
+        info = topic(f"{name}_filter_info", namespace)
+        plugin: dict[str, object] = {"enabled": True, "filter_info_topic": info}
+        if mode == "keepout":
+            plugin = {"plugin": "nav2_costmap_2d::KeepoutFilter", **plugin}
+            targets = ("global_costmap", "local_costmap")
+        else:
+            plugin = {
+                "plugin": "nav2_costmap_2d::SpeedFilter",
+                **plugin,
+                "speed_limit_topic": topic(SPEED_LIMIT_TOPIC.lstrip("/"), namespace),
+            }
+            targets = ("global_costmap",)
+        for costmap in targets:
+            costmaps[costmap][f"{name}_filter"] = dict(plugin)  # no shared node: no yaml alias
+    document: dict[str, object] = {}
+    for costmap, plugins in costmaps.items():
+        if plugins:
+            parameters = {"filters": list(plugins), **plugins}
+            document[costmap] = {costmap: {"ros__parameters": parameters}}
+    return document
+
+
+def grid_record(grid: OccupancyGrid) -> dict[str, object]:
+    """Where the grid lies and how big it is, for a JSON summary (resolution, origin, size)."""
+    return {
+        "resolution": grid.resolution,
+        "origin": list(grid.origin),
+        "height": grid.height,
+        "width": grid.width,
+    }
+
+
+def write_commented_yaml(path: Path, document: dict[str, object], comment: str) -> None:
+    """``document`` as block YAML in its own key order, under ``comment`` as ``#`` lines."""
+    text = yaml.safe_dump(document, sort_keys=False, default_flow_style=False)
+    header = "".join(f"# {line}\n" for line in comment.splitlines())
+    path.write_text(header + text, encoding="utf-8")
+
+
+def export_nav2(
+    result: SpCoResult,
+    out: str | os.PathLike[str],
+    words: tuple[str, ...] | list[str] = (),
+    *,
+    mode: str = "keepout",
+    prior: str = DEFAULT_WHERE_PRIOR,
+    threshold: float | None = None,
+    min_speed: float = DEFAULT_MIN_SPEED,
+    max_speed: float = DEFAULT_MAX_SPEED,
+    overwrite: bool = False,
+    source: str | os.PathLike[str] | None = None,
+    namespace: str | None = None,
+) -> Nav2Export:
+    """Write ``result``'s map, semantic map and one ``mode`` mask per word into ``out`` (module
+    docstring), whole or not at all (a staging folder beside ``out``, renamed when done).
+
+    Args:
+        result: the fit (:meth:`SpCoResult.load`).
+        out: the export folder; a non-empty one needs ``overwrite`` and must be an export's.
+        words: the words to export (each once; lower-cased).
+        mode: ``"keepout"`` or ``"speed"``.
+        prior: p(C) of the where-answer (``"area"`` or ``"pi"``).
+        threshold: keepout only: the place is the cells whose probability of being the word's
+            place is at least this, instead of the where-answer's region.
+        min_speed, max_speed: speed only: the limits (percent) at probability 1 and 0.
+        overwrite: replace an earlier export in ``out``.
+        source: the fit's folder (recorded in ``nav2_export.json``).
+        namespace: the robot's ROS namespace: the masks', filter infos' and speed limit's
+            topics are put in it (``/NS/speed_kitchen_filter_mask``); None: absolute topics.
+
+    Raises:
+        UnknownWordError: a word outside the vocabulary (with the closest known words); nothing
+            is written.
+        ValueError: a bad mode, threshold or speed; OutputError (a ValueError) for ``out``.
+    """
+    if mode not in MODES:
+        raise ValueError(f"mode must be one of {', '.join(MODES)}, got {mode!r}")
+    if threshold is not None:
+        if mode != "keepout":
+            raise ValueError("a probability threshold applies to keepout masks only")
+        _check_threshold(threshold)
+    _check_speeds(min_speed, max_speed)
+    namespace = check_namespace(namespace)
+    words = list(dict.fromkeys(w.lower() for w in words))
+    for word in words:  # every word known before anything is written
+        word_index(result.vocabulary, word)
+    names: list[str] = []
+    for word in words:
+        name = f"{mode}_{_ros_name(word)}"
+        while name in names:
+            name += "_"
+        names.append(name)
+
+    staged = stage_marked_folder(
+        out, overwrite, option="--nav2", marker=EXPORT_MARKER, writer="Nav2 export"
+    )
+    with staged:
+        folder, final = staged.path, staged.out
+        grid = result.grid
+        map_yaml = save_map(grid, folder / "map.yaml")
+        semantic_yaml = save_label_map_server(result.label_image(), grid,
+                                              folder / "semantic_map.yaml")  # fmt: skip
+        masks: list[ExportedMask] = []
+        records: list[dict[str, object]] = []
+        for word, name in zip(words, names, strict=True):
+            concept, warnings = None, ()
+            if mode == "keepout":
+                if threshold is None:
+                    answer = result.where(word, prior=prior)
+                    concept, warnings = answer.concept, answer.warnings
+                values = keepout_values(word_place(result, word, prior=prior,
+                                                   threshold=threshold))  # fmt: skip
+            else:
+                values, _ = speed_values(result, word, prior=prior, min_speed=min_speed,
+                                         max_speed=max_speed)  # fmt: skip
+            mask_yaml = save_filter_mask(values, grid, folder / f"{name}.yaml")
+            params_yaml = folder / f"{name}_params.yaml"
+            write_commented_yaml(
+                params_yaml,
+                mask_params(mode, name, final / mask_yaml.name, namespace),
+                f"Nav2 {mode} filter for {word!r} (spcopyro export): params of its mask server "
+                "and costmap filter info server",
+            )
+            cells = int((values[grid.free] != 0).sum())
+            masks.append(ExportedMask(word, mode, name, final / mask_yaml.name,
+                                      final / params_yaml.name, cells, concept,
+                                      tuple(warnings)))  # fmt: skip
+            records.append({"word": word, "name": name, "mask": mask_yaml.name,
+                            "params": params_yaml.name, "cells": cells, "concept": concept,
+                            "warnings": list(warnings)})  # fmt: skip
+        filters_yaml = folder / "costmap_filters.yaml"
+        write_commented_yaml(
+            filters_yaml,
+            costmap_filters([(mode, name) for name in names], namespace),
+            "Costmap filter entries for nav2_params.yaml (spcopyro export): merge them into\n"
+            "the global_costmap / local_costmap sections (Nav2 Foxy, from before the 'filters'\n"
+            "parameter of Galactic, lists filters under 'plugins')",
+        )
+        base, multiplier = BASE_MULTIPLIER[mode]
+        summary = {
+            "source": None if source is None else str(Path(source).resolve()),
+            "mode": mode,
+            "type": FILTER_TYPES[mode],
+            "base": base,
+            "multiplier": multiplier,
+            "prior": prior,
+            "threshold": threshold,
+            "min_speed": min_speed if mode == "speed" else None,
+            "max_speed": max_speed if mode == "speed" else None,
+            "namespace": namespace,
+            "map": grid_record(grid),
+            "masks": records,
+        }
+        (folder / EXPORT_MARKER).write_text(json.dumps(summary, indent=2) + "\n")
+        staged.commit()
+    return Nav2Export(
+        out=final,
+        map_yaml=final / map_yaml.name,
+        semantic_map_yaml=final / semantic_yaml.name,
+        costmap_filters_yaml=final / filters_yaml.name,
+        masks=tuple(masks),
+    )

@@ -1,0 +1,84 @@
+"""``navigate.png``: the map, the destination word's probability map, the path, start and stops;
+``graph.png`` (``spcopyro show OUT --graph``): the place graph over the semantic map."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from spcopyro.figures.plotting import _extent, _save, _show_image, semantic_colours
+from spcopyro.maps.render import render_labels
+from spcopyro.results.result import SpCoResult
+from spcopyro.robot.navigation.places import DOORWAY_WIDTH, PlaceGraph
+from spcopyro.robot.navigation.planning import NavigationPlan
+
+__all__ = ["plot_place_graph", "plot_plan"]
+
+
+def plot_plan(plan: NavigationPlan, path: str | os.PathLike[str]) -> Path:
+    """Draw ``plan`` (module docstring) into the PNG ``path``."""
+    grid = plan.planning.grid
+    fig = Figure(figsize=(9, 8))
+    ax = fig.subplots()
+    rgb = render_labels(np.full(grid.shape, -1), grid, np.zeros((1, 3), dtype=np.uint8))
+    rows, cols = _show_image(ax, grid, rgb)
+    goal = plan.goal
+    image = np.full(grid.shape, np.nan)  # [H, W]
+    image[grid.free] = goal.probability
+    shown = ax.imshow(image[rows, cols], extent=_extent(grid, rows, cols), origin="upper",
+                      cmap="Blues", vmin=0.0, vmax=1.0, interpolation="nearest")  # fmt: skip
+    fig.colorbar(shown, ax=ax, label=f"p(cell in the place of '{goal.word}')", shrink=0.8)
+    ax.plot(plan.path_xy[:, 0], plan.path_xy[:, 1], color="C3", lw=2, label="path")
+    ax.plot(*plan.start, marker="o", color="C2", ms=9, ls="", label="start")
+    for stop in plan.stops[:-1]:
+        ax.plot(*stop.xy, marker="s", color="C1", ms=8, ls="")
+        ax.annotate(stop.word, stop.xy, xytext=(5, 5), textcoords="offset points", fontsize=9)
+    ax.plot(*goal.xy, marker="*", color="C3", ms=16, ls="", label=f"goal: {goal.word}")
+    length = 0.3 * max(1.0, plan.radius * 4)
+    ax.arrow(goal.xy[0], goal.xy[1], length * np.cos(goal.yaw), length * np.sin(goal.yaw),
+             width=0.02, color="C3")  # fmt: skip
+    for stop in plan.stops:
+        for c in stop.choice.candidates:
+            if (c.xy != stop.xy) or not c.reachable:
+                ax.plot(*c.xy, marker="x", color="C4", ms=8, ls="")
+    ax.legend(fontsize=8, loc="best")
+    ax.set_title(f"navigate: {plan.instruction.text!r}\n{plan.length:.2f} m, "
+                 f"radius {plan.radius:g} m")  # fmt: skip
+    return _save(fig, path)
+
+
+def plot_place_graph(result: SpCoResult, graph: PlaceGraph, path: str | os.PathLike[str]) -> Path:
+    """The semantic map (the colours of ``spcopyro fit``'s map) with every place of ``graph`` at
+    its centroid (marker area by the region's area, labelled with its top word and area) and its
+    passages as lines between them: doorways dashed, longer shared borders solid."""
+    grid = result.grid
+    colours = semantic_colours(result)  # [L, 3] uint8
+    rgb = render_labels(result.label_image(), grid, colours)
+    fig = Figure(figsize=(9, 8))
+    ax = fig.subplots()
+    _show_image(ax, grid, rgb)
+    xy = np.array([p.centroid for p in graph.places]).reshape(-1, 2)  # [N, 2]
+    for e in graph.passages:
+        (x0, y0), (x1, y1) = xy[e.a], xy[e.b]
+        ax.plot([x0, x1], [y0, y1], color="k", lw=1.5, ls="--" if e.doorway else "-", zorder=3)
+    if len(xy):
+        area = np.array([p.area for p in graph.places])
+        size = 40 + 260 * area / area.max()
+        face = colours[[p.concept for p in graph.places]] / 255.0
+        ax.scatter(*xy.T, s=size, c=face, edgecolors="k", linewidths=1.2, zorder=4)
+    box = {"boxstyle": "round,pad=0.2", "fc": "white", "alpha": 0.8, "lw": 0}
+    for p in graph.places:
+        ax.annotate(f"{p.name} ({p.area:.1f} m²)", p.centroid, xytext=(6, 6),
+                    textcoords="offset points", fontsize=8, zorder=5, bbox=box)  # fmt: skip
+    ax.plot([], [], color="k", ls="--", label=f"doorway (border <= {DOORWAY_WIDTH:g} m)")
+    ax.plot([], [], color="k", ls="-", label="wider shared border")
+    ax.legend(fontsize=8, loc="best")
+    dropped = ""
+    if graph.dropped:
+        dropped = f"; {graph.dropped} regions under {graph.min_area:g} m² left out"
+    ax.set_title(f"place graph: {len(graph.places)} places, {len(graph.passages)} "
+                 f"passages{dropped}")  # fmt: skip
+    return _save(fig, path)

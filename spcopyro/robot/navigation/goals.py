@@ -1,0 +1,274 @@
+r"""From an instruction to the places it names, and from a place word to a goal cell.
+
+**Instruction** (:func:`parse_instruction`). The instruction is split into lower-case words
+(letters, digits, ``_``, ``'`` and ``-``). Connecting and filler words (:data:`STOP_WORDS`: "go",
+"to", "the", "via", "then", ...) are skipped even when the fit's vocabulary holds them (a fit on
+sentences does). Every other word of the vocabulary names a place. A word outside it with a
+close known word (``difflib``, as ``spcopyro where`` suggests) is an error that names them (a
+typo must not send the robot elsewhere); one with no close word is ignored and reported.
+
+The places are visited in the order the instruction gives them, except that a place after
+"via", "through" or "past" is visited *before* the destination said just before it: "go to the
+bedroom via the corridor" visits the corridor, then the bedroom; "via the corridor to the
+bedroom" the same; "to the kitchen via the hall, then the bedroom" the hall, the kitchen, the
+bedroom. "then", "to", "and then" end a "via" phrase.
+
+**Goal** (:func:`choose_goal`). p = p(cell in the place of the word)
+(:func:`spcopyro.results.uncertainty.where_probability`: the fit's marginals, or its point estimate)
+over the cells the robot fits on (:mod:`spcopyro.robot.navigation.graph`).
+
+1. Candidate regions: the 8-connected components of the allowed cells with
+   p >= :data:`AMBIGUITY_RATIO` x max p, each at least :data:`MIN_CANDIDATE_AREA` (the largest
+   is kept if none is). Two or more candidates are separate regions of near-equal probability:
+   the word is **ambiguous**.
+2. A candidate the robot cannot reach from where it is (another component of the planning graph)
+   is reported and never returned. If none is reachable, :class:`UnreachableGoalError`.
+3. Of the reachable candidates, the nearer by path length is taken (``strict``:
+   :class:`AmbiguousGoalError` listing them instead).
+4. In the chosen region the goal is the cell of largest p, within :data:`P_TOLERANCE` of it the
+   cell deepest inside the region (largest distance to the region's edge, so a region of equal
+   p -- a point estimate -- gets its middle, not its doorway), then the nearest.
+"""
+
+from __future__ import annotations
+
+import difflib
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from spcopyro.robot.navigation.graph import PlanningGrid
+
+__all__ = [
+    "AMBIGUITY_RATIO",
+    "MIN_CANDIDATE_AREA",
+    "P_TOLERANCE",
+    "STOP_WORDS",
+    "AmbiguousGoalError",
+    "Candidate",
+    "GoalChoice",
+    "Instruction",
+    "NavigationError",
+    "UnreachableGoalError",
+    "choose_goal",
+    "parse_instruction",
+]
+
+VIA_WORDS = frozenset({"via", "through", "past", "thru"})
+RESET_WORDS = frozenset({"then", "to", "towards", "toward", "into", "finally"})
+STOP_WORDS = frozenset(
+    {"go", "goto", "move", "drive", "walk", "head", "come", "take", "bring", "me", "us", "please",
+     "the", "a", "an", "my", "our", "your", "this", "that", "and", "or", "of", "in", "at", "on",
+     "by", "way", "room", "area", "place", "here", "there", "is", "it", "robot", "now", "first",
+     "next", "after", "before", "back", "along", "from", "then", "to", "towards", "toward",
+     "into", "finally", "via", "through", "past", "thru", "out", "over", "up", "down", "just"}
+)  # fmt: skip
+"""Words of an instruction that name no place (module docstring)."""
+AMBIGUITY_RATIO = 0.8
+"""A region whose best p is at least this share of the map's best p is a candidate: with two or
+more, the word is ambiguous (near-equal: odds below 1.25)."""
+MIN_CANDIDATE_AREA = 0.5
+"""Square metres: smaller high-probability patches are not candidate places."""
+P_TOLERANCE = 0.02
+"""Cells within this of a region's best p count as equally good; the deepest one is the goal."""
+
+
+class NavigationError(ValueError):
+    """An instruction the robot cannot carry out (its message says why)."""
+
+
+class UnreachableGoalError(NavigationError):
+    """No candidate place of a word is reachable from where the robot is."""
+
+
+class AmbiguousGoalError(NavigationError):
+    """``strict`` and a word with two or more candidate places."""
+
+
+@dataclass(frozen=True)
+class Instruction:
+    """The places an instruction names, in the order they are visited."""
+
+    text: str
+    places: tuple[str, ...]
+    """Place words, visiting order (the last is the destination)."""
+    via: tuple[bool, ...]
+    """Per place: said after "via" (a waypoint)."""
+    ignored: tuple[str, ...] = ()
+    """Words neither known nor close to a known word."""
+
+
+def _tokens(text: str) -> list[str]:
+    return re.findall(r"[a-z0-9_'\-]+", text.lower())
+
+
+def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
+    """The places of ``text`` (module docstring). ValueError naming the close known words for a
+    misspelt word, or when no place word is left."""
+    known = {word.lower() for word in vocabulary}
+    candidates = sorted(known - STOP_WORDS)
+    places: list[str] = []
+    via: list[bool] = []
+    ignored: list[str] = []
+    mode, destination = "to", None  # destination: index of the last destination in places
+    for token in _tokens(text):
+        if token in VIA_WORDS:
+            mode = "via"
+            continue
+        if token in RESET_WORDS:
+            mode = "to"
+            continue
+        if token in STOP_WORDS:
+            continue
+        if token not in known:
+            close = difflib.get_close_matches(token, candidates, n=3)
+            if close:
+                raise ValueError(
+                    f"word {token!r} of the instruction is not in the fit's vocabulary of "
+                    f"{len(vocabulary)} words; did you mean {', '.join(close)}?"
+                )
+            ignored.append(token)
+            continue
+        if mode == "via" and destination is not None:
+            places.insert(destination, token)
+            via.insert(destination, True)
+            destination += 1
+        else:
+            places.append(token)
+            via.append(mode == "via")
+            if mode == "to":
+                destination = len(places) - 1
+    if not places:
+        shown = ", ".join(candidates[:12]) + (f", ... ({len(candidates) - 12} more)"
+                                                if len(candidates) > 12 else "")  # fmt: skip
+        extra = f" (ignored: {', '.join(ignored)})" if ignored else ""
+        raise ValueError(
+            f"the instruction {text!r} names no place the fit knows{extra}; known words: {shown}"
+        )
+    return Instruction(text, tuple(places), tuple(via), tuple(ignored))
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One separate region of high probability for a word."""
+
+    node: int
+    """Its best cell (allowed index; the goal if chosen)."""
+    xy: tuple[float, float]
+    probability: float
+    """p at its best cell."""
+    area: float
+    """Square metres."""
+    distance: float
+    """Path length from where the robot is, metres (inf: unreachable)."""
+
+    @property
+    def reachable(self) -> bool:
+        return bool(np.isfinite(self.distance))
+
+
+@dataclass(frozen=True)
+class GoalChoice:
+    """The goal of one place word."""
+
+    word: str
+    node: int
+    candidate: Candidate
+    candidates: tuple[Candidate, ...]
+    """Every candidate region, best p first."""
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def ambiguous(self) -> bool:
+        return sum(c.reachable for c in self.candidates) > 1
+
+
+def _components(mask: np.ndarray) -> tuple[np.ndarray, int]:
+    from scipy.ndimage import label
+
+    return label(mask, structure=np.ones((3, 3), dtype=bool))
+
+
+def _depth(mask: np.ndarray) -> np.ndarray:
+    from scipy.ndimage import distance_transform_edt
+
+    return distance_transform_edt(np.pad(mask, 1, constant_values=False))[1:-1, 1:-1]
+
+
+def choose_goal(
+    planning: PlanningGrid,
+    word: str,
+    probability: np.ndarray,
+    distance: np.ndarray,
+    *,
+    strict: bool = False,
+) -> GoalChoice:
+    """The goal of ``word`` (module docstring).
+
+    Args:
+        planning: the cells the robot fits on.
+        word: the place word (for messages).
+        probability: ``[N]`` p(cell in the word's place) over the fit's free cells.
+        distance: ``[M]`` path length in metres from where the robot is to every allowed cell
+            (:func:`~spcopyro.robot.navigation.graph.shortest_paths`).
+        strict: an ambiguous word is an error instead of the nearer candidate.
+    """
+    grid = planning.grid
+    if planning.num_allowed == 0:
+        raise UnreachableGoalError(
+            f"no free cell has {planning.radius:g} m of clearance: the robot fits nowhere"
+        )
+    nodes = np.arange(planning.num_allowed)
+    p_node = np.asarray(probability, dtype=np.float64)[planning.free_index_of(nodes)]  # [M]
+    p_image = np.full(grid.shape, -np.inf)  # [H, W]
+    cells = planning.cells(nodes)  # [M, 2]
+    p_image[cells[:, 0], cells[:, 1]] = p_node
+    best = float(p_node.max())
+    strong = p_image >= AMBIGUITY_RATIO * best  # [H, W]
+    labels, count = _components(strong)
+    sizes = np.bincount(labels.ravel(), minlength=count + 1)[1:]  # [count]
+    cell_area = grid.resolution**2
+    keep = [k + 1 for k in range(count) if sizes[k] * cell_area >= MIN_CANDIDATE_AREA]
+    if not keep:
+        keep = [int(np.argmax(sizes)) + 1]
+    candidates = []
+    for k in keep:
+        region = labels == k  # [H, W]
+        rows, cols = np.nonzero(region)
+        region_nodes = planning.allowed.free_index[rows, cols]  # [n]
+        p = p_node[region_nodes]
+        top = p >= p.max() - P_TOLERANCE
+        depth = _depth(region)[rows, cols]  # [n] cells
+        d = distance[region_nodes]
+        order = np.lexsort((region_nodes, d, -depth, ~top))  # top, deepest, nearest, index
+        node = int(region_nodes[order[0]])
+        xy = grid.cell_to_world(planning.cells(np.array([node]))[0])
+        candidates.append(Candidate(node, (float(xy[0]), float(xy[1])), float(p_node[node]),
+                                    float(region.sum() * cell_area),
+                                    float(distance[node])))  # fmt: skip
+    candidates.sort(key=lambda c: (-c.probability, -c.area, c.node))
+    reachable = [c for c in candidates if c.reachable]
+    notes = []
+    for c in candidates:
+        if not c.reachable:
+            notes.append(
+                f"{word!r}: the region at x={c.xy[0]:.2f} y={c.xy[1]:.2f} "
+                f"(p = {c.probability:.3f}, {c.area:.1f} m^2) cannot be reached from here "
+                f"with {planning.radius:g} m of clearance; not a goal"
+            )
+    if not reachable:
+        raise UnreachableGoalError(
+            f"no place of {word!r} is reachable: " + "; ".join(n.split(": ", 1)[1] for n in notes)
+        )
+    if len(reachable) > 1 and strict:
+        listed = "; ".join(
+            f"x={c.xy[0]:.2f} y={c.xy[1]:.2f} (p = {c.probability:.3f}, {c.distance:.1f} m away)"
+            for c in reachable
+        )
+        raise AmbiguousGoalError(
+            f"{word!r} is ambiguous: {len(reachable)} separate regions of near-equal probability "
+            f"({listed}); --strict takes none of them (leave it out to take the nearer)"
+        )
+    chosen = min(reachable, key=lambda c: (c.distance, -c.probability, c.node))
+    return GoalChoice(word, chosen.node, chosen, tuple(candidates), tuple(notes))

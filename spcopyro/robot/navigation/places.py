@@ -1,0 +1,209 @@
+"""A topological map of places (issue 27 item 2, SpCoTMHP's place graph).
+
+Nodes: the connected regions of one concept on the fit's grid (4-connected components of
+:meth:`~spcopyro.results.result.SpCoResult.label_image`), each with its area, centroid and the
+concept's top words; regions smaller than ``min_area`` square metres are dropped (and counted).
+Edges: two regions whose cells touch (4-neighbours), with the length of the shared border
+(number of touching cell pairs x the cell size) and whether it is a doorway (a border of at most
+:data:`DOORWAY_WIDTH` metres). :meth:`PlaceGraph.route` is the shortest route over the edges,
+weighted by the distance between the regions' centroids.
+
+numpy and scipy only (no torch): ``spcopyro show OUT --graph`` imports it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import shortest_path
+
+from spcopyro.maps.regions import concept_regions, region_contacts
+
+__all__ = [
+    "DEFAULT_MIN_AREA",
+    "DOORWAY_WIDTH",
+    "Passage",
+    "Place",
+    "PlaceGraph",
+    "place_graph",
+    "places_along",
+]
+
+DEFAULT_MIN_AREA = 0.25
+"""Square metres: smaller regions are not places."""
+
+DOORWAY_WIDTH = 1.2
+"""Metres: a shared border at most this long is a narrow passage (a doorway)."""
+
+
+@dataclass(frozen=True)
+class Place:
+    """One node: a connected region of one concept."""
+
+    id: int
+    concept: int
+    cells: int
+    area: float
+    """Square metres."""
+    centroid: tuple[float, float]
+    """World x, y (metres) of the mean of its cells' centres (may lie outside a concave one)."""
+    words: tuple[str, ...]
+    """The concept's top words, most probable first."""
+
+    @property
+    def name(self) -> str:
+        """Its top word, or ``concept N`` for a concept without words."""
+        return self.words[0] if self.words else f"concept {self.concept}"
+
+
+@dataclass(frozen=True)
+class Passage:
+    """One edge: two places whose cells touch."""
+
+    a: int
+    b: int
+    border: float
+    """Metres: touching 4-neighbour cell pairs x the cell size."""
+    doorway: bool
+    """The border is at most :data:`DOORWAY_WIDTH` long."""
+    distance: float
+    """Metres between the two centroids (the edge's weight in :meth:`PlaceGraph.route`)."""
+
+
+@dataclass(frozen=True)
+class PlaceGraph:
+    """The place graph of a fit (:func:`place_graph`)."""
+
+    places: tuple[Place, ...]
+    passages: tuple[Passage, ...]
+    regions: np.ndarray
+    """[H, W] int64 the place id of every cell of the fit's grid, -1 elsewhere (walls, unknown,
+    dropped regions)."""
+    min_area: float
+    dropped: int
+    """How many regions were smaller than ``min_area``."""
+    dropped_area: float
+    """Their total area, square metres."""
+
+    def place_of(self, cell: np.ndarray) -> int:
+        """The place of a grid cell ``(row, col)``: the region it lies in, else the nearest one
+        (a wall cell, a dropped region or a cell off a coarser grid); -1 for an empty graph or a
+        cell off the grid."""
+        row, col = (int(v) for v in np.asarray(cell).reshape(2))
+        height, width = self.regions.shape
+        if not self.places or not (0 <= row < height and 0 <= col < width):
+            return -1
+        if self.regions[row, col] >= 0:
+            return int(self.regions[row, col])
+        _, (rows, cols) = ndimage.distance_transform_edt(self.regions < 0, return_indices=True)
+        return int(self.regions[rows[row, col], cols[row, col]])
+
+    def route(self, start: int, goal: int) -> list[int] | None:
+        """Place ids from ``start`` to ``goal`` along the shortest route over the passages
+        (centroid distances); None when no route joins them."""
+        if start == goal:
+            return [start]
+        n = len(self.places)
+        a = np.array([p.a for p in self.passages], dtype=np.int64)
+        b = np.array([p.b for p in self.passages], dtype=np.int64)
+        w = np.array([p.distance for p in self.passages])
+        # a tiny floor keeps a zero-length edge (coincident centroids) an edge in the sparse graph
+        matrix = coo_matrix((np.maximum(w, 1e-9), (a, b)), shape=(n, n)).tocsr()
+        distance, predecessors = shortest_path(
+            matrix, directed=False, indices=start, return_predecessors=True
+        )
+        if not np.isfinite(distance[goal]):
+            return None
+        path = [goal]
+        while path[-1] != start:
+            path.append(int(predecessors[path[-1]]))
+        return path[::-1]
+
+    def to_json(self) -> dict[str, object]:
+        """The graph as plain JSON values (``graph.json``, ``navigate.json``)."""
+        return {
+            "places": [
+                {"id": p.id, "concept": p.concept, "area_m2": p.area, "cells": p.cells,
+                 "x": p.centroid[0], "y": p.centroid[1], "words": list(p.words)}
+                for p in self.places
+            ],
+            "passages": [
+                {"a": e.a, "b": e.b, "border_m": e.border, "doorway": e.doorway,
+                 "distance_m": e.distance}
+                for e in self.passages
+            ],
+            "min_area_m2": self.min_area,
+            "doorway_width_m": DOORWAY_WIDTH,
+            "dropped_regions": self.dropped,
+            "dropped_area_m2": self.dropped_area,
+        }  # fmt: skip
+
+
+def place_graph(result: object, min_area: float = DEFAULT_MIN_AREA) -> PlaceGraph:
+    """The place graph of a fit (:class:`~spcopyro.results.result.SpCoResult`; module docstring).
+
+    Places are numbered largest first (ties in the order of concept, then raster order of the
+    region's first cell).
+    """
+    grid = result.grid  # type: ignore[attr-defined]
+    image = np.asarray(result.label_image())  # type: ignore[attr-defined]  # [H, W]
+    cell_area = grid.resolution**2
+    components, concept_of = concept_regions(image)  # [H, W] region id before dropping, [R]
+    count = len(concept_of)
+    sizes = np.bincount(components[components >= 0], minlength=count)  # [count]
+    keep = sizes * cell_area >= min_area - 1e-12
+    order = np.flatnonzero(keep)
+    order = order[np.argsort(-sizes[order], kind="stable")]
+    renumber = np.full(count + 1, -1, dtype=np.int64)  # index count: -1 stays -1
+    renumber[order] = np.arange(order.size)
+    regions = renumber[components]  # [H, W]
+
+    ids = regions.ravel()
+    inside = ids >= 0
+    rows, cols = np.divmod(np.flatnonzero(inside), image.shape[1])
+    xy = grid.cell_to_world(np.stack([rows, cols], axis=1)).reshape(-1, 2)  # [M, 2]
+    n = order.size
+    cells = np.bincount(ids[inside], minlength=n)
+    centroid = np.stack([np.bincount(ids[inside], weights=xy[:, k], minlength=n)
+                         for k in (0, 1)], axis=1) / np.maximum(cells, 1)[:, None]  # fmt: skip
+    words: dict[int, tuple[str, ...]] = {}
+    places = []
+    for node, region in enumerate(order):
+        concept = int(concept_of[region])
+        if concept not in words:
+            words[concept] = tuple(w for w, _ in result.top_words(concept, 3))  # type: ignore[attr-defined]
+        places.append(Place(node, concept, int(cells[node]), float(cells[node] * cell_area),
+                            (float(centroid[node, 0]), float(centroid[node, 1])),
+                            words[concept]))  # fmt: skip
+    a, b, touching = region_contacts(regions)
+    gap = np.hypot(*(centroid[a] - centroid[b]).T) if len(a) else np.zeros(0)
+    border = touching * grid.resolution
+    passages = tuple(
+        Passage(int(i), int(j), float(length), bool(length <= DOORWAY_WIDTH + 1e-9), float(d))
+        for i, j, length, d in zip(a, b, border, gap, strict=True)
+    )
+    return PlaceGraph(
+        places=tuple(places),
+        passages=passages,
+        regions=regions,
+        min_area=float(min_area),
+        dropped=int((~keep).sum()),
+        dropped_area=float(sizes[~keep].sum() * cell_area),
+    )
+
+
+def places_along(graph: PlaceGraph, cells: np.ndarray) -> tuple[int, ...]:
+    """The places that ``cells`` ([K, 2] row, col on the fit's grid, e.g. a path's) pass
+    through, in order, each run of one place once; cells off the grid or in no place skipped."""
+    cells = np.asarray(cells).reshape(-1, 2)
+    height, width = graph.regions.shape
+    on = (cells[:, 0] >= 0) & (cells[:, 0] < height) & (cells[:, 1] >= 0) & (cells[:, 1] < width)
+    ids = graph.regions[cells[on, 0], cells[on, 1]]
+    ids = ids[ids >= 0]
+    if not len(ids):
+        return ()
+    first = np.concatenate([[True], ids[1:] != ids[:-1]])
+    return tuple(int(i) for i in ids[first])

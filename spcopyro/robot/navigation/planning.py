@@ -1,0 +1,229 @@
+r"""``spcopyro navigate``: from an instruction and a start to goals and one path through them.
+
+:func:`navigate` parses the instruction into place words (:func:`~spcopyro.robot.navigation.goals.
+parse_instruction`), then, from the start, for each place in order: the shortest paths from where
+the robot is (:func:`~spcopyro.robot.navigation.graph.shortest_paths`), the word's goal among the
+regions it can reach (:func:`~spcopyro.robot.navigation.goals.choose_goal`), and the leg of the path
+there. The path is the legs joined: a shortest path through the stops in order (each leg
+shortest; the stops are fixed one after the other, not jointly). Everything is deterministic:
+the same fit, instruction and start give the same plan.
+
+Orientation: every pose of the path faces the next one; the last faces along the last step
+(a path of one cell faces +x). A waypoint's pose faces along the step that reached it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from spcopyro.maps import OccupancyGrid
+from spcopyro.results.result import DEFAULT_WHERE_PRIOR, SpCoResult
+from spcopyro.results.uncertainty import where_probability
+from spcopyro.robot.navigation.goals import (
+    GoalChoice,
+    Instruction,
+    NavigationError,
+    choose_goal,
+    parse_instruction,
+)
+from spcopyro.robot.navigation.graph import (
+    PlanningGrid,
+    fit_cells_on,
+    planning_grid,
+    shortest_paths,
+    trace_path,
+)
+from spcopyro.robot.navigation.places import PlaceGraph, place_graph, places_along
+
+__all__ = ["DEFAULT_RADIUS", "NavigationPlan", "Stop", "navigate", "start_node"]
+
+DEFAULT_RADIUS = 0.2
+"""Metres: the robot's radius (clearance from walls) when none is given."""
+
+
+@dataclass(frozen=True)
+class Stop:
+    """One place of the instruction and where the robot goes for it."""
+
+    word: str
+    via: bool
+    choice: GoalChoice
+    xy: tuple[float, float]
+    yaw: float
+    """Radians: facing along the step that reached it."""
+    path_index: int
+    """Index of its pose in the path."""
+    probability: np.ndarray
+    """[N] p(cell in the word's place) over the planning map's free cells."""
+
+
+@dataclass(frozen=True)
+class NavigationPlan:
+    """What :func:`navigate` planned."""
+
+    instruction: Instruction
+    start: tuple[float, float]
+    radius: float
+    prior: str
+    stops: tuple[Stop, ...]
+    path_xy: np.ndarray
+    """[K, 2] world x, y of the path's cells (start first, goal last)."""
+    path_yaw: np.ndarray
+    """[K] radians."""
+    length: float
+    """Metres along the path."""
+    planning: PlanningGrid
+    places: PlaceGraph | None = None
+    """The fit's place graph (:func:`~spcopyro.robot.navigation.places.place_graph`)."""
+    route: tuple[int, ...] = ()
+    """Place ids from the start's place through every stop's place: the shortest route over the
+    place graph, leg by leg (the topological summary of the path; the path itself is planned on
+    the grid). Where the graph has no route (regions under its ``min_area`` dropped), the places
+    the path crosses, in order; ``route_from`` says which."""
+    route_from: str = "graph"
+
+    @property
+    def route_words(self) -> tuple[str, ...]:
+        """The top word of every place of :attr:`route`."""
+        return tuple(self.places.places[i].name for i in self.route) if self.places else ()
+
+    @property
+    def goal(self) -> Stop:
+        return self.stops[-1]
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        return tuple(note for stop in self.stops for note in stop.choice.notes)
+
+
+def start_node(planning: PlanningGrid, start: tuple[float, float]) -> int:
+    """The allowed index of the start's cell; NavigationError saying why it is none (off the map,
+    on a wall or unknown cell, closer to a wall than the robot's radius)."""
+    grid = planning.grid
+    x, y = float(start[0]), float(start[1])
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise NavigationError(f"--start {x},{y}: not a finite point")
+    cell = grid.world_to_cell(np.array([x, y]))
+    if not bool(grid.in_bounds(cell)):
+        corners = np.array([[grid.height - 1, 0], [0, grid.width - 1]])  # lower left, upper right
+        (x0, y0), (x1, y1) = grid.cell_to_world(corners)
+        half = grid.resolution / 2
+        raise NavigationError(
+            f"--start {x:g},{y:g} is off the map, which spans x {x0 - half:.2f}..{x1 + half:.2f}, "
+            f"y {y0 - half:.2f}..{y1 + half:.2f} m"
+        )
+    if not bool(grid.is_free(cell)):
+        raise NavigationError(
+            f"--start {x:g},{y:g} lies on a cell that is not free (a wall or unknown space); "
+            "give the robot's position on free space"
+        )
+    node = planning.node_of(cell)
+    if node < 0:
+        clearance = float(planning.clearance[cell[0], cell[1]])
+        hint = ""
+        if planning.num_allowed:
+            centres = grid.cell_to_world(planning.allowed.free_cells)  # [M, 2]
+            near = int(np.argmin(np.hypot(centres[:, 0] - x, centres[:, 1] - y)))
+            near_x, near_y = centres[near]
+            hint = f"; the nearest cell with it is at x={near_x:.2f} y={near_y:.2f}"
+        raise NavigationError(
+            f"--start {x:g},{y:g} is {clearance:.2f} m from a wall or unknown space, closer than "
+            f"the robot's radius {planning.radius:g} m (--radius){hint}"
+        )
+    return node
+
+
+def _yaws(xy: np.ndarray) -> np.ndarray:
+    """[K] the heading of every pose: towards the next, the last along the last step."""
+    if len(xy) < 2:
+        return np.zeros(len(xy))
+    step = np.diff(xy, axis=0)  # [K-1, 2]
+    heading = np.arctan2(step[:, 1], step[:, 0])
+    return np.concatenate([heading, heading[-1:]])
+
+
+def navigate(
+    result: SpCoResult,
+    instruction: str,
+    start: tuple[float, float],
+    *,
+    radius: float = DEFAULT_RADIUS,
+    strict: bool = False,
+    prior: str = DEFAULT_WHERE_PRIOR,
+    grid: OccupancyGrid | None = None,
+    planning: PlanningGrid | None = None,
+    places: PlaceGraph | None = None,
+) -> NavigationPlan:
+    """Plan ``instruction`` from ``start`` (world x, y in metres) on ``grid``: a map in the
+    fit's frame (the map a coarse fit was made from: walls as thin as the robot's map has
+    them), the fit's probabilities carried onto its cells (:func:`~spcopyro.robot.navigation.graph.
+    fit_cells_on`); None: the fit's own grid. ``planning``: a ready :func:`planning_grid` of that
+    grid (reused across calls); ``places``: a ready :func:`~spcopyro.robot.navigation.places.
+    place_graph` of the fit, whose route through the stops' places the plan reports
+    (:attr:`NavigationPlan.route`: computed once the goals are chosen, from the start's place).
+
+    Raises:
+        ValueError: a misspelt word or none naming a place (the close known words named).
+        NavigationError: a bad start; UnreachableGoalError, AmbiguousGoalError (``strict``).
+    """
+    parsed = parse_instruction(instruction, result.vocabulary)
+    grid = result.grid if grid is None else grid
+    planning = planning_grid(grid, radius) if planning is None else planning
+    carry = None if grid is result.grid else fit_cells_on(result.grid, grid)  # [N_map]
+    current = start_node(planning, start)
+    legs = [np.array([current], dtype=np.int64)]
+    stops_info = []
+    for word, via in zip(parsed.places, parsed.via, strict=True):
+        probability = where_probability(result, word, prior)  # [N] on the fit's cells
+        if carry is not None:
+            probability = probability[carry]  # [N] on the planning map's cells
+        distance, predecessors = shortest_paths(planning, current)
+        choice = choose_goal(planning, word, probability, distance, strict=strict)
+        leg = trace_path(predecessors, choice.node)  # [k] from current to the goal
+        legs.append(leg[1:])
+        stops_info.append((word, via, choice, probability, sum(len(g) for g in legs) - 1))
+        current = choice.node
+    nodes = np.concatenate(legs)  # [K]
+    xy = planning.grid.cell_to_world(planning.cells(nodes))  # [K, 2]
+    yaw = _yaws(xy)
+    steps = np.hypot(*np.diff(xy, axis=0).T) if len(xy) > 1 else np.zeros(0)
+    stops = []
+    for word, via, choice, probability, index in stops_info:
+        arrive = float(yaw[index - 1]) if index > 0 else float(yaw[index])
+        stops.append(Stop(word, via, choice, (float(xy[index, 0]), float(xy[index, 1])), arrive,
+                          index, probability))  # fmt: skip
+    places = place_graph(result) if places is None else places
+    route, route_from = _route(result, places, [start, *(stop.xy for stop in stops)], xy)
+    return NavigationPlan(
+        instruction=parsed,
+        start=(float(start[0]), float(start[1])),
+        radius=float(radius),
+        prior=prior,
+        stops=tuple(stops),
+        path_xy=xy,
+        path_yaw=yaw,
+        length=float(steps.sum()),
+        planning=planning,
+        places=places,
+        route=route,
+        route_from=route_from,
+    )
+
+
+def _route(
+    result: SpCoResult, places: PlaceGraph, points: list, path_xy: np.ndarray
+) -> tuple[tuple[int, ...], str]:
+    """:attr:`NavigationPlan.route` through the places of ``points`` (start, stops; world x, y),
+    and where it came from (``graph`` or ``path``)."""
+    cells = result.grid.world_to_cell(np.asarray(points, dtype=float))  # [S, 2] on the fit's grid
+    stops = [places.place_of(cell) for cell in cells]
+    route = [stops[0]]
+    for a, b in zip(stops[:-1], stops[1:], strict=True):
+        leg = places.route(a, b) if min(a, b) >= 0 else None
+        if leg is None:
+            return places_along(places, result.grid.world_to_cell(path_xy)), "path"
+        route += leg[1:]
+    return tuple(route), "graph"

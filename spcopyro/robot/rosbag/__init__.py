@@ -1,0 +1,38 @@
+"""Robot recordings (rosbags) in and out: ``spcopyro import-bag`` and ``spcopyro simulate-bag``.
+
+* :mod:`~spcopyro.robot.rosbag.poses`: planar pose tracks, interpolation at a stamp, tf composition.
+* :mod:`~spcopyro.robot.rosbag.bag`: reading a ROS 1 or ROS 2 bag (rosbags' AnyReader): topics,
+poses, the tf chain, image stamps, utterances; clear errors for what is missing or malformed.
+* :mod:`~spcopyro.robot.rosbag.images`: the file to store for an image message.
+* :mod:`~spcopyro.robot.rosbag.importer`: :func:`import_bags`, bags -> a house folder of the dataset
+  layout (``fit`` reads it once ``features`` has written Ft.csv).
+* :mod:`~spcopyro.robot.rosbag.synthetic`: :class:`BagWriter` and :func:`write_synthetic_bags` (the
+  synthetic house recorded as bags).
+* :mod:`~spcopyro.robot.rosbag.cli`: the two commands.
+
+``rosbags`` and ``rosbags-image`` are optional (``pip install "spcopyro[ros]"``): nothing here
+imports them until a bag is read or written, and ``import spcopyro`` never does.
+"""
+
+from spcopyro.robot.rosbag.bag import BagContentError, BagFormatError, RosbagsMissingError
+from spcopyro.robot.rosbag.importer import (
+    BagImportReport,
+    ImportOptions,
+    PoseOutsideMapError,
+    SkippedObservation,
+    import_bags,
+)
+from spcopyro.robot.rosbag.synthetic import BagWriter, write_synthetic_bags
+
+__all__ = [
+    "BagContentError",
+    "BagFormatError",
+    "BagImportReport",
+    "BagWriter",
+    "ImportOptions",
+    "PoseOutsideMapError",
+    "RosbagsMissingError",
+    "SkippedObservation",
+    "import_bags",
+    "write_synthetic_bags",
+]

@@ -1,0 +1,437 @@
+"""Reading a recording with ``rosbags``: topics, poses, tf, image stamps and utterances.
+
+``rosbags`` (pure Python; ROS 1 ``.bag`` files and ROS 2 bags in sqlite3 or mcap storage, read
+alike through :class:`rosbags.highlevel.AnyReader`) is an optional dependency: it is imported
+only here, when a bag is opened, and a clear :class:`RosbagsMissingError` names
+``pip install "spcopyro[ros]"`` when it is absent. rosbags gives message types in ROS 2 spelling
+(``geometry_msgs/msg/PoseWithCovarianceStamped``) for both ROS versions.
+
+Timestamps: a message with a ``header`` is placed at its header stamp (when the sensor saw it);
+one without (``std_msgs/String``) or with a zero stamp at the time the bag recorded it. The stamps
+of one topic (of one tf edge) must not go backwards: :class:`BagContentError` names the topic and
+the two stamps. Equal consecutive pose stamps keep the first pose.
+"""
+
+from __future__ import annotations
+
+import os
+from collections import deque
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from spcopyro.robot.rosbag.poses import PoseTrack, quaternion_yaw
+
+__all__ = [
+    "DEFAULT_ROS_DISTRO",
+    "ROS_DISTROS",
+    "typestore",
+    "IMAGE_TYPES",
+    "POSE_TYPES",
+    "TEXT_TYPES",
+    "TF_TYPES",
+    "BagContentError",
+    "BagFormatError",
+    "RosbagsMissingError",
+    "TopicData",
+    "open_bag",
+    "read_pose_in_map",
+    "read_pose_topic",
+    "read_tf_chain",
+    "read_stamps",
+    "read_texts",
+    "stamp_seconds",
+]
+
+INSTALL_HINT = 'pip install "spcopyro[ros]"'
+
+POSE_TYPES = (
+    "geometry_msgs/msg/PoseWithCovarianceStamped",  # amcl's /amcl_pose
+    "nav_msgs/msg/Odometry",
+    "geometry_msgs/msg/PoseStamped",
+)
+IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
+TEXT_TYPES = ("std_msgs/msg/String",)
+TF_TYPES = ("tf2_msgs/msg/TFMessage", "tf/msg/tfMessage")
+
+
+class RosbagsMissingError(ImportError):
+    """The optional ``rosbags`` (or ``rosbags-image``) package is not installed."""
+
+
+class BagFormatError(ValueError):
+    """A path that is not a readable ROS 1 or ROS 2 bag (the message names it and why)."""
+
+
+class BagContentError(ValueError):
+    """A bag that lacks what the import needs, or holds it malformed (topic, type, stamps)."""
+
+
+def _rosbags() -> Any:
+    try:
+        from rosbags import highlevel
+    except ImportError as error:
+        raise RosbagsMissingError(
+            f"reading rosbags needs the optional package 'rosbags' ({error}); install it with: "
+            f"{INSTALL_HINT}"
+        ) from None
+    return highlevel
+
+
+def stamp_seconds(stamp: Any) -> float:
+    """A ROS time (``sec``, ``nanosec``) in float64 seconds."""
+    return float(stamp.sec) + float(stamp.nanosec) * 1e-9
+
+
+ROS_DISTROS = ("foxy", "galactic", "humble", "iron", "jazzy", "kilted")
+"""ROS 2 distributions whose message definitions a bag without its own can be read with."""
+DEFAULT_ROS_DISTRO = "humble"
+"""The message definitions a ROS 2 bag that stores none is read with (``--ros-distro``): Foxy,
+Galactic and Humble record no definitions in their sqlite3 bags. The messages spcopyro reads
+(poses, tf, images, strings) are the same in every distribution since Foxy."""
+
+
+def typestore(distro: str) -> Any:
+    """rosbags' typestore of a ROS 2 distribution of :data:`ROS_DISTROS`."""
+    from rosbags.typesys import Stores, get_typestore
+
+    if distro not in ROS_DISTROS:
+        raise ValueError(f"unknown ROS 2 distribution {distro!r}; choose one of {ROS_DISTROS}")
+    return get_typestore(Stores[f"ROS2_{distro.upper()}"])
+
+
+@contextmanager
+def _schemas_without_data_as_none() -> Iterator[None]:
+    """While a bag opens: an mcap schema with no data is read as "no definition", whatever
+    its encoding, so that the ``--ros-distro`` typestore serves its type.
+
+    rosbag2 records a type whose definition it cannot find with ``encoding: unknown`` and empty
+    data (rosbag2_cpp ``LocalMessageDefinitionSource::get_full_text``, ``Format::UNKNOWN``);
+    rosbags 0.11 maps an mcap schema's encoding through a fixed table (``ros2msg``,
+    ``ros2idl``, ``omgidl`` and ``""`` only: ``storage_mcap.get_msgdef``) and fails on such a bag
+    with ``KeyError: 'unknown'``, or parses empty ``ros2msg`` data as a type without fields.
+    rosbags reads schemas only when a bag opens, so the module function is wrapped for that
+    call only (not thread-safe against another thread opening an mcap bag meanwhile)."""
+    try:
+        from rosbags.rosbag2 import storage_mcap
+    except ImportError:  # another rosbags layout: nothing to wrap
+        yield
+        return
+    original = storage_mcap.get_msgdef
+
+    def get_msgdef(schema: Any) -> Any:
+        return original(None if schema is not None and not schema.data else schema)
+
+    storage_mcap.get_msgdef = get_msgdef
+    try:
+        yield
+    finally:
+        storage_mcap.get_msgdef = original
+
+
+@contextmanager
+def open_bag(path: str | os.PathLike[str], ros_distro: str = DEFAULT_ROS_DISTRO) -> Iterator[Any]:
+    """An open :class:`rosbags.highlevel.AnyReader` of one bag: a ROS 1 ``.bag`` file, a ROS 2
+    bag folder (with ``metadata.yaml``), or a ROS 2 ``.db3`` / ``.mcap`` file. A ROS 2 bag that
+    stores no message definitions (Foxy, Galactic, Humble) is read with those of ``ros_distro``
+    (:data:`ROS_DISTROS`); one that stores its own is read with its own, and the types it stores
+    none for (an mcap schema with empty data, as rosbag2 writes when it cannot find a
+    definition: :func:`_schemas_without_data_as_none`) with those of ``ros_distro``.
+
+    Raises:
+        FileNotFoundError: no such file or folder.
+        BagFormatError: anything else that is not a readable bag (the message names the path).
+        RosbagsMissingError: rosbags is not installed.
+    """
+    highlevel = _rosbags()
+    store = typestore(ros_distro)
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: bag not found")
+    if path.is_dir() and not (path / "metadata.yaml").is_file():
+        raise BagFormatError(
+            f"{path}: not a bag (a ROS 2 bag is a folder with metadata.yaml; a ROS 1 bag a .bag "
+            "file)"
+        )
+    if path.is_file() and path.suffix not in (".bag", ".db3", ".mcap"):
+        raise BagFormatError(
+            f"{path}: not a bag (expected a ROS 1 .bag file, or a ROS 2 bag folder, .db3 or "
+            f".mcap file; got suffix {path.suffix!r})"
+        )
+    reader = highlevel.AnyReader([path], default_typestore=store)
+    try:
+        with _schemas_without_data_as_none():
+            reader.open()
+    except (highlevel.AnyReaderError, OSError, KeyError, ValueError, AssertionError) as error:
+        raise BagFormatError(
+            f"{path}: not a readable bag ({error or type(error).__name__})"
+        ) from None
+    if reader.is2:  # types it stores no definition for (empty mcap schemas): ros_distro's
+        known = reader.typestore.fielddefs
+        reader.typestore.register({k: v for k, v in store.fielddefs.items() if k not in known})
+    try:
+        yield reader
+    except highlevel.AnyReaderError as error:  # a message that does not deserialise
+        raise BagFormatError(f"{path}: unreadable message ({error})") from None
+    finally:
+        reader.close()
+
+
+def _topic_listing(reader: Any) -> str:
+    return ", ".join(f"{name} ({info.msgtype})" for name, info in sorted(reader.topics.items()))
+
+
+def _connections(reader: Any, topic: str, allowed: tuple[str, ...], role: str) -> list[Any]:
+    """The connections of ``topic``; BagContentError if it is absent (listing the bag's topics
+    and types) or of a type not in ``allowed``."""
+    found = [c for c in reader.connections if c.topic == topic]
+    if not found:
+        raise BagContentError(
+            f"{reader.paths[0]}: no {role} topic {topic!r}; the bag has: "
+            f"{_topic_listing(reader) or 'no topics'}"
+        )
+    for connection in found:
+        if connection.msgtype not in allowed:
+            raise BagContentError(
+                f"{reader.paths[0]}: {role} topic {topic} has message type "
+                f"{connection.msgtype}, which the import does not read (expected one of: "
+                f"{', '.join(allowed)})"
+            )
+    return found
+
+
+def _message_time(msg: Any, log_ns: int) -> float:
+    header = getattr(msg, "header", None)
+    if header is not None:
+        t = stamp_seconds(header.stamp)
+        if t > 0:
+            return t
+    return log_ns * 1e-9
+
+
+def _check_order(topic: str, times: list[float], what: str = "") -> None:
+    steps = np.diff(np.asarray(times, dtype=np.float64))
+    if (steps < 0).any():
+        k = int(np.flatnonzero(steps < 0)[0])
+        raise BagContentError(
+            f"topic {topic}{what}: timestamps go backwards: message {k + 2} is stamped "
+            f"{times[k + 1]:.9f} s after message {k + 1} at {times[k]:.9f} s"
+        )
+
+
+def _track(
+    name: str,
+    times: list[float],
+    poses: list[tuple[float, float, float]],
+    frame: str | None = None,
+) -> PoseTrack:
+    """A pose track from samples in order; a repeated stamp keeps the first sample (how many
+    were dropped is the track's ``merged``, reported by the import)."""
+    t = np.asarray(times, dtype=np.float64)  # [P]
+    keep = np.ones(t.size, dtype=bool)
+    keep[1:] = np.diff(t) > 0
+    p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)[keep]  # [P', 3]
+    merged = int((~keep).sum())
+    return PoseTrack(name, t[keep], p[:, :2], p[:, 2], merged=merged, frame=frame)
+
+
+def _planar(pose: Any) -> tuple[float, float, float]:
+    q = pose.orientation
+    return float(pose.position.x), float(pose.position.y), quaternion_yaw(q.x, q.y, q.z, q.w)
+
+
+def read_pose_topic(reader: Any, topic: str) -> PoseTrack:
+    """The poses of a PoseWithCovarianceStamped, Odometry or PoseStamped topic as a track, in
+    the frame its headers name (the track's ``frame``; None when every frame_id is empty; an
+    empty frame_id among named ones, as some drivers leave the first, is taken to be theirs).
+
+    A topic whose messages name two different frames is a :class:`BagContentError`: its
+    samples could not be interpolated into one another."""
+    connections = _connections(reader, topic, POSE_TYPES, "pose")
+    times: list[float] = []
+    poses: list[tuple[float, float, float]] = []
+    frames: set[str] = set()
+    for connection, log_ns, raw in reader.messages(connections=connections):
+        msg = reader.deserialize(raw, connection.msgtype)
+        pose = msg.pose if connection.msgtype.endswith("PoseStamped") else msg.pose.pose
+        times.append(_message_time(msg, log_ns))
+        poses.append(_planar(pose))
+        frames.add(_frame(msg.header.frame_id))
+    if not times:
+        raise BagContentError(f"{reader.paths[0]}: pose topic {topic} holds no messages")
+    _check_order(topic, times)
+    named = sorted(f for f in frames if f)
+    if len(named) > 1:
+        raise BagContentError(
+            f"{reader.paths[0]}: pose topic {topic} gives poses in several frames "
+            f"({', '.join(repr(f) for f in named)}); the import reads one frame per topic"
+        )
+    return _track(topic, times, poses, frame=named[0] if named else None)
+
+
+def read_pose_in_map(reader: Any, topic: str, map_frame: str) -> tuple[list[PoseTrack], str | None]:
+    """The pose topic's poses placed on the map of frame ``map_frame``: the chain to
+    :func:`~spcopyro.robot.rosbag.poses.compose` at each observation's stamp, and the tf path used
+    (``"map -> odom"``; None when the poses are in the map's frame already).
+
+    A pose topic whose ``header.frame_id`` names another frame (``odom``) is placed on the map
+    through the bag's tf: the chain is the tf edges from ``map_frame`` to that frame
+    (:func:`read_tf_chain`, each edge interpolated at the observation's stamp, as tf2's
+    ``lookupTransform`` would) followed by the pose topic's own track, so every observation
+    needs a sample of every edge within the pose tolerance (else it is skipped and reported,
+    naming the edge). Without such a chain the poses would be wrong on the map by the transform
+    between the frames: :class:`BagContentError`, saying so. An empty frame_id is taken to be
+    the map's."""
+    track = read_pose_topic(reader, topic)
+    frame, map_frame = track.frame, _frame(map_frame)
+    if frame is None or frame == map_frame:
+        return [track], None
+    tracks = _tf_tracks(reader)
+    found = None if tracks is None else _tf_path(tracks, map_frame, frame)
+    if found is None:
+        why = "the bag has no /tf or /tf_static topic" if tracks is None else _edges(tracks)
+        raise BagContentError(
+            f"{reader.paths[0]}: pose topic {topic} gives poses in frame {frame!r}, not the "
+            f"map's frame {map_frame!r}, and no tf chain links them ({why}): pass "
+            f"--map-frame {frame} if the map is in that frame, or read the pose from tf with "
+            f"--pose-tf {map_frame} BASE_FRAME"
+        )
+    chain, path = found
+    return [*chain, track], " -> ".join(path)
+
+
+def _frame(name: str) -> str:
+    return name.strip().lstrip("/")
+
+
+def _tf_tracks(reader: Any) -> dict[tuple[str, str], PoseTrack] | None:
+    """Every tf edge ``(parent, child)`` of ``/tf`` and ``/tf_static`` as a pose track of the
+    child in the parent; None when the bag has neither topic."""
+    topics = [t for t in ("/tf", "/tf_static", "tf", "tf_static") if t in reader.topics]
+    if not topics:
+        return None
+    connections = [c for t in topics for c in _connections(reader, t, TF_TYPES, "tf")]
+    samples: dict[tuple[str, str], tuple[list[float], list[tuple[float, float, float]]]] = {}
+    static: dict[tuple[str, str], tuple[float, float, float]] = {}
+    for connection, log_ns, raw in reader.messages(connections=connections):
+        msg = reader.deserialize(raw, connection.msgtype)
+        is_static = connection.topic.lstrip("/") == "tf_static"
+        for transform in msg.transforms:
+            edge = (_frame(transform.header.frame_id), _frame(transform.child_frame_id))
+            tr, q = transform.transform.translation, transform.transform.rotation
+            pose = (float(tr.x), float(tr.y), quaternion_yaw(q.x, q.y, q.z, q.w))
+            if is_static:
+                static[edge] = pose
+                continue
+            times, poses = samples.setdefault(edge, ([], []))
+            times.append(_message_time(transform, log_ns))
+            poses.append(pose)
+    tracks: dict[tuple[str, str], PoseTrack] = {}
+    for edge, (times, poses) in samples.items():
+        _check_order("/tf", times, f" (edge {edge[0]} -> {edge[1]})")
+        tracks[edge] = _track(f"tf {edge[0]} -> {edge[1]}", times, poses)
+    for edge, pose in static.items():
+        tracks[edge] = PoseTrack(
+            f"tf_static {edge[0]} -> {edge[1]}", [0.0], [pose[:2]], [pose[2]], static=True
+        )
+    return tracks
+
+
+def _edges(tracks: dict[tuple[str, str], PoseTrack]) -> str:
+    return "the bag's tf edges: " + (", ".join(f"{a} -> {b}" for a, b in sorted(tracks)) or "none")
+
+
+def _tf_path(
+    tracks: dict[tuple[str, str], PoseTrack], parent: str, child: str
+) -> tuple[list[PoseTrack], list[str]] | None:
+    """The chain of ``tracks`` (:func:`_tf_tracks`) from frame ``parent`` to frame ``child``
+    and the frames it walks (``[parent, ..., child]``); None when no chain links them."""
+    # Breadth-first search over the tree, edges usable both ways.
+    neighbours: dict[str, list[tuple[str, tuple[str, str], bool]]] = {}
+    for a, b in tracks:
+        neighbours.setdefault(a, []).append((b, (a, b), False))
+        neighbours.setdefault(b, []).append((a, (a, b), True))
+    previous: dict[str, tuple[str, tuple[str, str], bool] | None] = {parent: None}
+    queue = deque([parent])
+    while queue:
+        frame = queue.popleft()
+        for other, edge, inverted in neighbours.get(frame, []):
+            if other not in previous:
+                previous[other] = (frame, edge, inverted)
+                queue.append(other)
+    if child not in previous or parent not in neighbours:
+        return None
+    chain: list[PoseTrack] = []
+    path = [child]
+    frame = child
+    while (step := previous[frame]) is not None:
+        before, edge, inverted = step
+        chain.append(tracks[edge].inverse() if inverted else tracks[edge])
+        path.append(before)
+        frame = before
+    return chain[::-1], path[::-1]
+
+
+def read_tf_chain(reader: Any, parent: str, child: str) -> list[PoseTrack]:
+    """The tf edges from frame ``parent`` to frame ``child`` (``/tf`` and ``/tf_static``) as
+    pose tracks whose product (:func:`spcopyro.robot.rosbag.poses.compose`) is the pose of ``child``
+    in ``parent``; edges walked against their direction are inverted."""
+    parent, child = _frame(parent), _frame(child)
+    tracks = _tf_tracks(reader)
+    if tracks is None:
+        raise BagContentError(
+            f"{reader.paths[0]}: no /tf or /tf_static topic for the tf pose "
+            f"{parent} -> {child}; the bag has: {_topic_listing(reader) or 'no topics'}"
+        )
+    found = _tf_path(tracks, parent, child)
+    if found is None:
+        raise BagContentError(
+            f"{reader.paths[0]}: no chain of tf transforms from frame {parent!r} to {child!r}; "
+            f"{_edges(tracks)}"
+        )
+    return found[0]
+
+
+@dataclass
+class TopicData:
+    """What the first pass keeps of an image or text topic: per message (in bag order) its
+    stamp ``times`` [M] seconds, and for text the strings."""
+
+    topic: str
+    msgtype: str
+    times: np.ndarray  # [M] float64 s
+    texts: list[str] = field(default_factory=list)
+
+
+def read_stamps(reader: Any, topic: str) -> TopicData:
+    """The stamps of an image topic's messages (the images are decoded later, only those kept)."""
+    connections = _connections(reader, topic, IMAGE_TYPES, "image")
+    times = []
+    for connection, log_ns, raw in reader.messages(connections=connections):
+        times.append(_message_time(reader.deserialize(raw, connection.msgtype), log_ns))
+    _check_order(topic, times)
+    return TopicData(topic, connections[0].msgtype, np.asarray(times, dtype=np.float64))
+
+
+def read_texts(reader: Any, topic: str) -> TopicData:
+    """The strings of a std_msgs/String topic, at the times the bag recorded them."""
+    connections = _connections(reader, topic, TEXT_TYPES, "utterance")
+    times, texts = [], []
+    for connection, log_ns, raw in reader.messages(connections=connections):
+        msg = reader.deserialize(raw, connection.msgtype)
+        times.append(_message_time(msg, log_ns))
+        texts.append(str(msg.data))
+    _check_order(topic, times)
+    return TopicData(topic, connections[0].msgtype, np.asarray(times, dtype=np.float64), texts)
+
+
+def iter_images(reader: Any, topic: str, keep: set[int]) -> Iterator[tuple[int, Any]]:
+    """``(index, message)`` of the image messages whose index (bag order) is in ``keep``."""
+    connections = _connections(reader, topic, IMAGE_TYPES, "image")
+    for index, (connection, _log_ns, raw) in enumerate(reader.messages(connections=connections)):
+        if index in keep:
+            yield index, reader.deserialize(raw, connection.msgtype)

@@ -1,0 +1,193 @@
+"""The ``spcopyro import-bag`` and ``spcopyro simulate-bag`` commands.
+
+:func:`add_parser` registers both on the main parser's subparsers; rosbags is imported only when
+one of them runs (a clear error naming ``pip install "spcopyro[ros]"`` when it is absent).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from spcopyro.robot.rosbag.bag import DEFAULT_ROS_DISTRO, ROS_DISTROS
+
+__all__ = ["add_parser"]
+
+PRINTED_SKIPS = 50  # skipped observations printed (all are in skipped.csv)
+
+
+def _non_negative(value: str) -> float:
+    try:
+        number = float(value)
+    except ValueError:
+        number = -1.0
+    if not number >= 0 or number == float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {value!r}")
+    return number
+
+
+def _import_bag(args: argparse.Namespace) -> int:
+    from spcopyro.robot.rosbag.bag import RosbagsMissingError
+    from spcopyro.robot.rosbag.importer import ImportOptions, import_bags
+
+    options = ImportOptions(
+        pose_topic=args.pose_topic,
+        pose_tf=tuple(args.pose_tf) if args.pose_tf else None,
+        image_topic=args.image_topic,
+        words_topic=args.words_topic,
+        min_distance=args.min_distance,
+        min_interval=args.min_interval,
+        pose_tolerance=args.pose_tolerance,
+        ros_distro=args.ros_distro,
+        map_frame=args.map_frame,
+    )
+    try:
+        report = import_bags(
+            args.bags,
+            args.map,
+            args.out,
+            options,
+            first_trial=args.first_trial,
+            overwrite=args.overwrite,
+        )
+    except RosbagsMissingError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    print(f"pose from        {options.pose_source} (tolerance {options.pose_tolerance:g} s)")
+    print(f"ROS 2 types      {options.ros_distro} (for bags that store no message definitions)")
+    frames = sorted({str(t.get("pose_frame") or "(none given)") for t in report.trials})
+    print(f"pose frame       {', '.join(frames)} (the map's: {options.map_frame})")
+    via = sorted({str(t["pose_frame_via_tf"]) for t in report.trials if t["pose_frame_via_tf"]})
+    if via:  # poses in another frame, placed on the map through the bag's tf
+        print(f"pose frame -> map through tf {', '.join(via)}")
+    print(report.text())
+    if report.skipped:
+        print(f"skipped {len(report.skipped)} observation(s) (all listed in "
+              f"{report.out / 'skipped.csv'}):", file=sys.stderr)  # fmt: skip
+        for skipped in report.skipped[:PRINTED_SKIPS]:
+            print(f"  {skipped.line()}", file=sys.stderr)
+        if len(report.skipped) > PRINTED_SKIPS:
+            print(f"  ... and {len(report.skipped) - PRINTED_SKIPS} more", file=sys.stderr)
+    print(f"wrote {report.out} (map: {report.map_yaml})")
+    print(f"  next: spcopyro features {report.out} --out {report.out / 'Ft.csv'}")
+    print(f"  then: spcopyro fit {report.out} --out {report.out.parent / 'fit'}")
+    return 0
+
+
+def _simulate_bag(args: argparse.Namespace) -> int:
+    from spcopyro.robot.rosbag.bag import RosbagsMissingError
+    from spcopyro.robot.rosbag.synthetic import write_synthetic_bags
+
+    try:
+        result = write_synthetic_bags(
+            args.out,
+            seed=args.seed,
+            ros=args.ros,
+            storage=args.storage,
+            image_format=args.image_format,
+            image_size=tuple(args.image_size),
+            trials=args.trials,
+        )
+    except RosbagsMissingError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    for bag in result.bags:
+        print(f"wrote {bag}")
+    print(f"wrote {result.map_yaml}")
+    bags = " ".join(str(b) for b in result.bags)
+    print(f"  import with: spcopyro import-bag {bags} --map {result.map_yaml} "
+          f"--image-topic {result.image_topic} --out {Path(args.out) / 'house'}")  # fmt: skip
+    return 0
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``import-bag`` and ``simulate-bag``."""
+    p = subparsers.add_parser(
+        "import-bag",
+        help="a robot's rosbags (ROS 1 or 2) -> a house folder in the dataset layout",
+        description=(
+            "Read poses, camera images and utterances from ROS 1 (.bag) or ROS 2 (sqlite3 or "
+            "mcap) bags, one trial per bag, and write a house folder OUT (img_K/, pose_K.csv, "
+            "word_K.csv, Xtx/Xty, St/StXtx/StXty, skipped.csv) with the map at "
+            "OUT/../map/NAME.yaml. Each image and utterance gets the pose interpolated at its "
+            "timestamp; those without a pose within --pose-tolerance are reported and listed in "
+            "skipped.csv. Then: spcopyro features OUT --out OUT/Ft.csv; spcopyro fit OUT."
+        ),
+    )
+    p.add_argument("bags", nargs="+", metavar="BAG",
+                   help="a ROS 1 .bag file, or a ROS 2 bag folder (or its .db3 / .mcap file); "
+                        "several: trials K, K+1, ... in this order")  # fmt: skip
+    p.add_argument("--map", required=True, help="map_server yaml of the map the robot used")
+    p.add_argument("--out", required=True, help="house folder to write (its name names the house)")
+    p.add_argument("--pose-topic", default="/amcl_pose",
+                   help="PoseWithCovarianceStamped, Odometry or PoseStamped topic in the map "
+                        "frame, or one the bag's tf links to it (default /amcl_pose)")  # fmt: skip
+    p.add_argument("--pose-tf", nargs=2, metavar=("PARENT", "CHILD"),
+                   help="take the pose of frame CHILD in frame PARENT from /tf and /tf_static "
+                        "instead (e.g. map base_link; default: off, the pose topic)")  # fmt: skip
+    p.add_argument(
+        "--image-topic",
+        default="/camera/image",
+        help="sensor_msgs/Image or CompressedImage topic (default /camera/image)",
+    )
+    p.add_argument(
+        "--words-topic",
+        default="/speech",
+        help="std_msgs/String topic of utterances: words or sentences (default /speech)",
+    )
+    p.add_argument(
+        "--min-distance",
+        type=_non_negative,
+        default=0.0,
+        help="keep an image only this many metres from the last kept one (default 0)",
+    )
+    p.add_argument(
+        "--min-interval",
+        type=_non_negative,
+        default=0.0,
+        help="keep an image only this many seconds after the last kept one (default 0)",
+    )
+    p.add_argument("--pose-tolerance", type=_non_negative, default=0.5,
+                   help="seconds from an observation to the nearest pose sample; farther ones "
+                        "are skipped and reported (default 0.5)")  # fmt: skip
+    p.add_argument(
+        "--first-trial", type=int, default=0, help="trial id of the first bag (default 0)"
+    )
+    p.add_argument(
+        "--map-frame",
+        default="map",
+        help="the map's frame: a pose topic whose header names another frame (odom) is "
+        "placed on the map through the bag's tf chain from this frame to it, and is an error "
+        "without one (default map)",
+    )
+    p.add_argument("--ros-distro", choices=ROS_DISTROS, default=DEFAULT_ROS_DISTRO,
+                   help="ROS 2 distribution whose message definitions read a bag that stores "
+                        "none (Foxy, Galactic and Humble sqlite3 bags; a bag's own definitions "
+                        f"win) (default {DEFAULT_ROS_DISTRO})")  # fmt: skip
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace OUT (only a folder import-bag wrote) and its map")  # fmt: skip
+    p.set_defaults(func=_import_bag)
+
+    p = subparsers.add_parser(
+        "simulate-bag",
+        help="record the synthetic house as rosbags (one per trial) with its map",
+        description=(
+            "Write the synthetic house of --seed as bags: /amcl_pose, /odom, /tf, /tf_static, "
+            "camera images coloured by room category, and /speech utterances; plus "
+            "OUT/map.yaml. Import them with spcopyro import-bag."
+        ),
+    )
+    p.add_argument("--out", required=True, help="folder for the bags and map.yaml")
+    p.add_argument("--seed", type=int, default=0, help="seed of the synthetic house")
+    p.add_argument("--ros", type=int, choices=(1, 2), default=2, help="ROS version (default 2)")
+    p.add_argument("--storage", choices=("sqlite3", "mcap"), default="sqlite3",
+                   help="ROS 2 storage (default sqlite3)")  # fmt: skip
+    p.add_argument("--image-format", choices=("raw", "jpeg", "png"), default="jpeg",
+                   help="raw: sensor_msgs/Image on /camera/image; jpeg, png: CompressedImage on "
+                        "/camera/image/compressed (default jpeg)")  # fmt: skip
+    p.add_argument("--image-size", type=int, nargs=2, default=(48, 64), metavar=("H", "W"),
+                   help="image height and width in pixels (default 48 64)")  # fmt: skip
+    p.add_argument("--trials", type=int, nargs="+", metavar="K",
+                   help="record only these trials of the house (default: all)")  # fmt: skip
+    p.set_defaults(func=_simulate_bag)

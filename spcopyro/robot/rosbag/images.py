@@ -1,0 +1,85 @@
+"""Camera images from ROS messages: the bytes to store for one ``sensor_msgs`` image.
+
+A ``CompressedImage`` holding a JPEG or PNG is stored as it is (its own bytes, ``.jpg`` /
+``.png``: no second lossy compression), after checking that OpenCV decodes it. Any other image
+(a raw ``sensor_msgs/Image`` in any encoding rosbags-image converts -- rgb8, bgr8, mono8, mono16,
+bayer_*, ... -- rows padded to ``step`` bytes included, or another compressed format) is
+decoded to 8-bit BGR and stored as a lossless PNG. An image that cannot be decoded raises
+:class:`ImageDecodeError` with the reason; the import reports it (with its timestamp) in
+skipped.csv rather than stopping.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import cv2
+import numpy as np
+
+from spcopyro.robot.rosbag.bag import INSTALL_HINT, RosbagsMissingError
+
+__all__ = ["ImageDecodeError", "decode_image", "encoded_image"]
+
+_JPEG_MAGIC = b"\xff\xd8\xff"
+_PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+class ImageDecodeError(ValueError):
+    """One image message could not be decoded (the message says why)."""
+
+
+def decode_image(msg: Any) -> np.ndarray:
+    """``[H, W, 3]`` uint8 BGR of an Image or CompressedImage message."""
+    if hasattr(msg, "format"):  # CompressedImage
+        data = np.frombuffer(bytes(msg.data), dtype=np.uint8)  # [bytes]
+        image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
+        if image is None:
+            raise ImageDecodeError(
+                f"compressed image (format {msg.format!r}, {data.size} bytes) does not decode"
+            )
+        return image
+    try:
+        from rosbags.image import message_to_cvimage
+        from rosbags.image.image import to_cvtype
+    except ImportError as error:
+        raise RosbagsMissingError(
+            f"decoding sensor_msgs/Image needs 'rosbags-image' ({error}); install it with: "
+            f"{INSTALL_HINT}"
+        ) from None
+    expected = int(msg.height) * int(msg.step)
+    if int(msg.height) * int(msg.width) == 0 or len(msg.data) < expected:
+        raise ImageDecodeError(
+            f"image {msg.width} x {msg.height} ({msg.encoding}) holds {len(msg.data)} bytes, "
+            f"expected {expected}"
+        )
+    try:
+        _, _, typestr, channels = to_cvtype(msg.encoding)
+        row_bytes = int(msg.width) * channels * np.dtype(typestr).itemsize
+        if int(msg.step) > row_bytes:  # rows padded to `step` bytes: drop the padding
+            rows = np.frombuffer(bytes(msg.data), np.uint8)[:expected]  # [H * step]
+            data = rows.reshape(int(msg.height), int(msg.step))[:, :row_bytes].reshape(-1)
+            msg = dataclasses.replace(msg, data=data, step=row_bytes)
+        image = message_to_cvimage(msg, "bgr8")
+    except Exception as error:  # noqa: BLE001 - rosbags-image raises several kinds
+        raise ImageDecodeError(f"image encoding {msg.encoding!r}: {error}") from None
+    image = np.ascontiguousarray(image)
+    if image.dtype != np.uint8:  # 16-bit or float encodings: scale to 8 bits
+        image = cv2.normalize(image, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8)
+    if image.ndim == 2:
+        image = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+    return image
+
+
+def encoded_image(msg: Any) -> tuple[bytes, str]:
+    """The file content and suffix (``.jpg`` or ``.png``) to store for an image message."""
+    if hasattr(msg, "format"):
+        data = bytes(msg.data)
+        for magic, suffix in ((_JPEG_MAGIC, ".jpg"), (_PNG_MAGIC, ".png")):
+            if data.startswith(magic):
+                decode_image(msg)  # check that it decodes
+                return data, suffix
+    ok, png = cv2.imencode(".png", decode_image(msg))
+    if not ok:  # pragma: no cover - OpenCV encodes any uint8 BGR image
+        raise ImageDecodeError("OpenCV could not encode it as PNG")
+    return png.tobytes(), ".png"

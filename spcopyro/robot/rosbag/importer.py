@@ -1,0 +1,461 @@
+"""``spcopyro import-bag``: a robot's recordings -> a house folder in the dataset layout.
+
+Each bag is one trial K (``first_trial``, ``first_trial + 1``, ... in the order given). From a
+bag the import reads:
+
+* the robot's pose: a pose topic (``geometry_msgs/PoseWithCovarianceStamped`` from amcl,
+  ``nav_msgs/Odometry`` or ``geometry_msgs/PoseStamped``) or a tf frame pair (the chain of
+  ``/tf`` and ``/tf_static`` transforms from the map frame to the robot's frame, composed in
+  SE(2): :mod:`spcopyro.robot.rosbag.poses`). A pose topic in another frame than the map's
+  (``odom``) is placed on the map through the bag's tf chain ``map -> ... -> odom``, and is an
+  error without one; the report and ``bag_import.json`` name the frame (``pose_frame``) and
+  the chain (``pose_frame_via_tf``);
+* camera images (``sensor_msgs/Image`` or ``CompressedImage``) and utterances
+  (``std_msgs/String``: a word or a whole sentence).
+
+Every image and utterance gets the pose interpolated at its timestamp (linear in x, y; yaw by the
+shortest angle). One with no pose sample within ``pose_tolerance`` seconds is *skipped and
+reported*: printed with its timestamp and listed in ``skipped.csv`` (``trial,bag,topic,kind,
+stamp,reason``), as is an image that does not decode or an utterance without a word. Of the
+images with a pose, an image is kept when at least ``min_interval`` seconds have passed and the
+robot is at least ``min_distance`` metres (straight line) from where the last kept image was
+taken (both 0 by default: every image is kept); the others are counted, not listed.
+
+Output ``OUT`` (a house folder named NAME = OUT's folder name), read by
+:func:`spcopyro.data.load_house` once ``spcopyro features OUT --out OUT/Ft.csv`` has written the
+image features:
+
+* ``img_K/NNNNN.jpg|png`` (a JPEG or PNG CompressedImage stored as recorded, anything else as a
+  lossless PNG), ``pose_K.csv`` (``x, y, qz, qw`` per image), ``word_K.csv`` (one utterance a
+  line: its tokens joined by spaces), ``Xtx.csv``, ``Xty.csv``, ``St.csv``, ``StXtx.csv``,
+  ``StXty.csv`` (all trials concatenated), ``skipped.csv`` and ``bag_import.json`` (the bags,
+  topics, options and counts);
+* the map, re-saved as map_server yaml + pgm at ``OUT/../map/NAME.yaml`` where the loaders look
+  for it (an existing different map there is refused unless ``overwrite``).
+
+The folder is written in a staging folder beside OUT and renamed into place when whole; an
+existing non-empty OUT is refused unless ``overwrite`` (which replaces only a folder an earlier
+import wrote). A pose of a kept observation outside the map's bounds stops the import
+(:class:`PoseOutsideMapError`: a wrong map, or a pose in another frame).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import secrets
+import shutil
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from spcopyro._util.progress import progress_enabled
+from spcopyro.data.text import tokenize
+from spcopyro.maps.grid import OccupancyGrid
+from spcopyro.maps.map_server import load_map, save_map
+from spcopyro.robot.rosbag.bag import (
+    DEFAULT_ROS_DISTRO,
+    ROS_DISTROS,
+    BagContentError,
+    _frame,
+    _rosbags,
+    iter_images,
+    open_bag,
+    read_pose_in_map,
+    read_stamps,
+    read_texts,
+    read_tf_chain,
+)
+from spcopyro.robot.rosbag.images import ImageDecodeError, encoded_image
+from spcopyro.robot.rosbag.poses import PoseTrack, compose
+
+__all__ = [
+    "MARKER",
+    "BagImportReport",
+    "ImportOptions",
+    "PoseOutsideMapError",
+    "SkippedObservation",
+    "import_bags",
+]
+
+MARKER = "bag_import.json"
+"""Marks a folder written by :func:`import_bags` (``overwrite`` replaces only those)."""
+
+
+class PoseOutsideMapError(BagContentError):
+    """An observation's pose lies outside the map (a wrong map, or poses in another frame)."""
+
+
+@dataclass(frozen=True)
+class ImportOptions:
+    """Which topics to read and which observations to keep (see the module docstring).
+
+    ``pose_tf`` (parent frame, child frame), when given, replaces ``pose_topic``.
+    """
+
+    pose_topic: str = "/amcl_pose"
+    pose_tf: tuple[str, str] | None = None
+    image_topic: str = "/camera/image"
+    words_topic: str = "/speech"
+    min_distance: float = 0.0  # metres between kept images
+    min_interval: float = 0.0  # seconds between kept images
+    pose_tolerance: float = 0.5  # seconds to the nearest pose sample
+    ros_distro: str = DEFAULT_ROS_DISTRO  # definitions for ROS 2 bags that store none
+    map_frame: str = "map"  # the map's frame: a pose topic's poses are in it or linked by tf
+
+    def __post_init__(self) -> None:
+        for name in ("min_distance", "min_interval", "pose_tolerance"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+        if self.ros_distro not in ROS_DISTROS:
+            raise ValueError(f"ros_distro must be one of {ROS_DISTROS}, got {self.ros_distro!r}")
+        if self.pose_tf is not None and len(self.pose_tf) != 2:
+            raise ValueError(f"pose_tf must be (parent frame, child frame), got {self.pose_tf!r}")
+        if self.pose_tf is not None and _frame(self.pose_tf[0]) != _frame(self.map_frame):
+            parent, child = _frame(self.pose_tf[0]), _frame(self.pose_tf[1])
+            raise ValueError(
+                f"--pose-tf {parent} {child} gives poses in frame {parent!r}, not the map's "
+                f"frame {_frame(self.map_frame)!r}: pass --pose-tf {_frame(self.map_frame)} "
+                f"{child} (the tf chain is followed through {parent}), or --map-frame {parent} "
+                "if the map is in that frame"
+            )
+
+    @property
+    def pose_source(self) -> str:
+        return f"tf {self.pose_tf[0]} -> {self.pose_tf[1]}" if self.pose_tf else self.pose_topic
+
+
+@dataclass(frozen=True)
+class SkippedObservation:
+    """An image or utterance left out, with its timestamp and why."""
+
+    trial: int
+    bag: str
+    topic: str
+    kind: str  # "image" or "utterance"
+    stamp: float  # seconds
+    reason: str
+
+    def line(self) -> str:
+        return (
+            f"trial {self.trial} {self.kind} at {self.stamp:.6f} s on {self.topic}: {self.reason}"
+        )
+
+
+@dataclass
+class _Trial:
+    trial: int
+    bag: str
+    image_xy: np.ndarray  # [n, 2]
+    image_yaw: np.ndarray  # [n]
+    image_files: list[str]  # relative to OUT
+    utterances: list[str]  # tokens joined by spaces
+    word_xy: np.ndarray  # [u, 2]
+    counts: dict[str, int] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class BagImportReport:
+    """What :func:`import_bags` wrote: the house folder, the map, and per trial the counts."""
+
+    out: Path
+    map_yaml: Path
+    trials: tuple[dict[str, object], ...]
+    skipped: tuple[SkippedObservation, ...]
+
+    def text(self) -> str:
+        lines = []
+        for t in self.trials:
+            if t.get("poses_merged"):
+                lines.append(
+                    f"trial {t['trial']} ({t['bag']}): {t['poses_merged']} pose sample(s) "
+                    "repeated the previous one's stamp and were merged into it (the first "
+                    "kept): the bag's stamps are coarser than its pose rate"
+                )
+            if t.get("pose_frame_via_tf"):
+                lines.append(
+                    f"trial {t['trial']} ({t['bag']}): poses in frame {t['pose_frame']} placed "
+                    f"on the map through tf {t['pose_frame_via_tf']}"
+                )
+            lines.append(
+                f"trial {t['trial']} ({t['bag']}): images {t['images_kept']} kept of "
+                f"{t['images_in_bag']} ({t['images_no_pose']} without pose, "
+                f"{t['images_thinned']} thinned by --min-distance/--min-interval, "
+                f"{t['images_undecodable']} undecodable); utterances {t['utterances_kept']} of "
+                f"{t['utterances_in_bag']} ({t['utterances_no_pose']} without pose, "
+                f"{t['utterances_empty']} without words)"
+            )
+        return "\n".join(lines)
+
+
+def _pose_at(
+    chain: list[PoseTrack], times: np.ndarray, tolerance: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str | None]]:
+    return compose(chain, times, tolerance)
+
+
+def _thin(
+    times: np.ndarray, xy: np.ndarray, candidates: np.ndarray, min_interval: float, min_dist: float
+) -> np.ndarray:
+    """Indices of ``candidates`` (ascending) kept: each at least ``min_interval`` s and
+    ``min_dist`` m after / from the last kept one (the first candidate is kept)."""
+    if min_interval <= 0 and min_dist <= 0:
+        return candidates
+    kept: list[int] = []
+    for i in candidates.tolist():  # one step per image, not per cell
+        if kept:
+            j = kept[-1]
+            if times[i] - times[j] < min_interval:
+                continue
+            if math.hypot(*(xy[i] - xy[j])) < min_dist:
+                continue
+        kept.append(i)
+    return np.asarray(kept, dtype=np.int64)
+
+
+def _check_inside(grid: OccupancyGrid, xy: np.ndarray, times: np.ndarray, what: str) -> None:
+    if not xy.size:
+        return
+    inside = grid.in_bounds(grid.world_to_cell(xy))  # [n] bool
+    if not inside.all():
+        i = int(np.flatnonzero(~inside)[0])
+        (x0, y0), (x1, y1) = _extent(grid)
+        raise PoseOutsideMapError(
+            f"{what} at {times[i]:.6f} s has pose x={xy[i, 0]:.3f}, y={xy[i, 1]:.3f} m, outside "
+            f"the map {grid.source or ''} (x {x0:.2f}..{x1:.2f}, y {y0:.2f}..{y1:.2f} m); "
+            f"{int((~inside).sum())} of {len(inside)} such are outside. Is it the map "
+            "the robot localised in, and the pose in its frame?"
+        )
+
+
+def _extent(grid: OccupancyGrid) -> tuple[tuple[float, float], tuple[float, float]]:
+    ox, oy = grid.origin[0], grid.origin[1]
+    return (ox, oy), (ox + grid.width * grid.resolution, oy + grid.height * grid.resolution)
+
+
+def _import_one(
+    bag: Path,
+    trial: int,
+    options: ImportOptions,
+    grid: OccupancyGrid,
+    staging: Path,
+    skipped: list[SkippedObservation],
+    progress: bool | None = None,
+) -> _Trial:
+    tol = options.pose_tolerance
+    with open_bag(bag, options.ros_distro) as reader:
+        if options.pose_tf:
+            chain = read_tf_chain(reader, *options.pose_tf)
+            pose_frame, via_tf = _frame(options.pose_tf[0]), None  # the chain is the pose
+        else:
+            chain, via_tf = read_pose_in_map(reader, options.pose_topic, options.map_frame)
+            pose_frame = chain[-1].frame
+        images = read_stamps(reader, options.image_topic)
+        words = read_texts(reader, options.words_topic)
+
+        def skip(topic: str, kind: str, stamp: float, reason: str) -> None:
+            skipped.append(SkippedObservation(trial, str(bag), topic, kind, float(stamp), reason))
+
+        # Images: pose, then thinning, then decoding (only the kept ones are decoded).
+        image_xy, image_yaw, ok, reasons = _pose_at(chain, images.times, tol)
+        for i in np.flatnonzero(~ok).tolist():
+            skip(images.topic, "image", images.times[i], reasons[i] or "no pose")
+        candidates = np.flatnonzero(ok)
+        kept = _thin(images.times, image_xy, candidates, options.min_interval, options.min_distance)
+        _check_inside(grid, image_xy[kept], images.times[kept], f"image on {images.topic}")
+        folder = staging / f"img_{trial}"
+        folder.mkdir()
+        written: dict[int, str] = {}
+        undecodable = 0
+        from tqdm.auto import tqdm  # here: `spcopyro --help` imports this module, not tqdm
+
+        bar = tqdm(total=kept.size, desc=f"images of trial {trial}", unit="img",
+                   disable=not progress_enabled(progress), leave=False)  # fmt: skip
+        for index, msg in iter_images(reader, images.topic, set(kept.tolist())):
+            bar.update(1)
+            try:
+                data, suffix = encoded_image(msg)
+            except ImageDecodeError as error:
+                skip(images.topic, "image", images.times[index], f"not decodable: {error}")
+                undecodable += 1
+                continue
+            name = f"img_{trial}/{len(written) + 1:05d}{suffix}"
+            (staging / name).write_bytes(data)
+            written[index] = name
+        bar.close()
+        stored = np.asarray(sorted(written), dtype=np.int64)  # [n]
+
+        # Utterances: pose and words.
+        word_xy, _, word_ok, word_reasons = _pose_at(chain, words.times, tol)
+        sentences: list[str] = []
+        word_rows: list[int] = []
+        empty = 0
+        for u, text in enumerate(words.texts):
+            if not word_ok[u]:
+                skip(words.topic, "utterance", words.times[u], f"{word_reasons[u]}: {text!r}")
+                continue
+            tokens = tokenize(text.replace(",", " "))  # a comma would split St.csv's entry
+            if not tokens:
+                skip(words.topic, "utterance", words.times[u], f"no words in {text!r}")
+                empty += 1
+                continue
+            sentences.append(" ".join(tokens))
+            word_rows.append(u)
+        rows = np.asarray(word_rows, dtype=np.int64)
+        _check_inside(grid, word_xy[rows], words.times[rows], f"utterance on {words.topic}")
+    counts = {
+        "pose_frame": pose_frame,  # the frame the poses came in (None: no frame_id)
+        "pose_frame_via_tf": via_tf,  # "map -> odom": the tf chain that placed them on the map
+        "poses_merged": int(sum(track.merged for track in chain)),
+        "images_in_bag": int(images.times.size),
+        "images_no_pose": int((~ok).sum()),
+        "images_thinned": int(candidates.size - kept.size),
+        "images_undecodable": undecodable,
+        "images_kept": int(stored.size),
+        "utterances_in_bag": len(words.texts),
+        "utterances_no_pose": int((~word_ok).sum()),
+        "utterances_empty": empty,
+        "utterances_kept": len(sentences),
+    }
+    return _Trial(
+        trial=trial,
+        bag=str(bag),
+        image_xy=image_xy[stored],
+        image_yaw=image_yaw[stored],
+        image_files=[written[i] for i in stored.tolist()],
+        utterances=sentences,
+        word_xy=word_xy[rows],
+        counts=counts,
+    )
+
+
+def _lines(path: Path, lines: Sequence[str], trailing_newline: bool = True) -> None:
+    text = "\n".join(lines)
+    path.write_text(text + ("\n" if trailing_newline and text else ""), encoding="utf-8")
+
+
+def _write_house(staging: Path, trials: list[_Trial]) -> None:
+    fmt = lambda v: repr(float(v))  # noqa: E731 - shortest string that reads back exactly
+    image_xy = np.concatenate([t.image_xy for t in trials])  # [T, 2]
+    word_xy = np.concatenate([t.word_xy for t in trials])  # [U, 2]
+    _lines(staging / "Xtx.csv", [fmt(v) for v in image_xy[:, 0]])
+    _lines(staging / "Xty.csv", [fmt(v) for v in image_xy[:, 1]])
+    _lines(staging / "St.csv", [",".join(s for t in trials for s in t.utterances)], False)
+    _lines(staging / "StXtx.csv", [fmt(v) for v in word_xy[:, 0]])
+    _lines(staging / "StXty.csv", [fmt(v) for v in word_xy[:, 1]])
+    for t in trials:
+        pose = np.column_stack(
+            [t.image_xy, np.sin(t.image_yaw / 2), np.cos(t.image_yaw / 2)]
+        )  # [n, 4] x, y, qz, qw
+        _lines(staging / f"pose_{t.trial}.csv", [",".join(map(fmt, row)) for row in pose])
+        _lines(staging / f"word_{t.trial}.csv", t.utterances)
+
+
+def _write_skipped(path: Path, skipped: Sequence[SkippedObservation]) -> None:
+    import csv
+
+    with path.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["trial", "bag", "topic", "kind", "stamp", "reason"])
+        for s in skipped:
+            writer.writerow([s.trial, s.bag, s.topic, s.kind, f"{s.stamp:.9f}", s.reason])
+
+
+def _check_out(out: Path, overwrite: bool) -> None:
+    name = out.name
+    if not name or name in (".", "..", "map") or re.search(r"[/\\,]", name):
+        raise ValueError(f"{out}: its folder name {name!r} cannot name a house")
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"{out} exists and is not a folder")
+    if out.is_dir() and any(out.iterdir()):
+        if not overwrite:
+            raise FileExistsError(f"{out} already exists and is not empty; pass --overwrite")
+        if not (out / MARKER).is_file():
+            raise FileExistsError(
+                f"{out} was not written by import-bag (no {MARKER}); not replacing it"
+            )
+
+
+def import_bags(
+    bags: Sequence[str | os.PathLike[str]],
+    map_yaml: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    options: ImportOptions = ImportOptions(),
+    *,
+    first_trial: int = 0,
+    overwrite: bool = False,
+    progress: bool | None = None,
+) -> BagImportReport:
+    """Import ``bags`` (one trial each) recorded in the map ``map_yaml`` into the house folder
+    ``out`` (see the module docstring for what is read, kept and written). ``progress``: a
+    progress bar over each bag's images (default: on unless ``$CI`` is set).
+
+    Raises:
+        FileNotFoundError: a bag or the map is missing.
+        FileExistsError: ``out`` (or a different map at ``out/../map/NAME.yaml``) exists and
+            ``overwrite`` is not given.
+        BagFormatError: a path that is not a bag.
+        BagContentError: a missing topic (the message lists the bag's topics and types), a
+            topic of a type the import does not read, timestamps that go backwards (topic and
+            the two stamps), no image or no utterance left to write.
+        PoseOutsideMapError: a kept observation's pose outside the map.
+        RosbagsMissingError: rosbags is not installed.
+    """
+    _rosbags()  # a missing rosbags is said before anything else
+    if not bags:
+        raise ValueError("import_bags: no bag given")
+    if int(first_trial) != first_trial or first_trial < 0:
+        raise ValueError(f"first_trial must be an integer >= 0, got {first_trial!r}")
+    out = Path(os.path.abspath(out))
+    _check_out(out, overwrite)
+    grid = load_map(map_yaml)
+    map_target = out.parent / "map" / f"{out.name}.yaml"
+    if map_target.exists() and not overwrite and load_map(map_target) != grid:
+        raise FileExistsError(
+            f"{map_target} exists and differs from {map_yaml}; pass --overwrite to replace it"
+        )
+    out.parent.mkdir(parents=True, exist_ok=True)
+    staging = out.parent / f".{out.name}.partial-{secrets.token_hex(4)}"
+    staging.mkdir()
+    skipped: list[SkippedObservation] = []
+    try:
+        trials = [
+            _import_one(Path(bag), first_trial + k, options, grid, staging, skipped, progress)
+            for k, bag in enumerate(bags)
+        ]
+        for what, key in (("image", "images_kept"), ("utterance", "utterances_kept")):
+            if not sum(t.counts[key] for t in trials):
+                topic = options.image_topic if what == "image" else options.words_topic
+                raise BagContentError(
+                    f"no {what} left to write from {topic} (see the {len(skipped)} skipped "
+                    "observations above); a house needs at least one image and one utterance"
+                )
+        _write_house(staging, trials)
+        _write_skipped(staging / "skipped.csv", skipped)
+        record = {
+            "bags": [str(Path(b).resolve()) for b in bags],
+            "map": str(Path(map_yaml).resolve()),
+            "options": asdict(options),
+            "first_trial": first_trial,
+            "trials": [{"trial": t.trial, "bag": t.bag, **t.counts} for t in trials],
+            "skipped": len(skipped),
+        }
+        (staging / MARKER).write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
+        save_map(grid, map_target)
+        if out.exists():
+            shutil.rmtree(out)
+        os.replace(staging, out)
+    finally:
+        if staging.exists():
+            shutil.rmtree(staging)
+    return BagImportReport(
+        out=out,
+        map_yaml=map_target,
+        trials=tuple({"trial": t.trial, "bag": t.bag, **t.counts} for t in trials),
+        skipped=tuple(skipped),
+    )
