@@ -38,6 +38,15 @@ here, so the labels are those recorded before. Integer arrays are now pinned exa
 numbers of the ``concepts()`` table among them, its text pinned exactly without them) as
 reference values in ``pinned_outputs.npz`` compared to a relative 1e-9 (see :mod:`pinned_runs`).
 All pins were recorded again on that machine; no scenario's behaviour changed.
+
+A fifth change (issue 23): ``fit-numba-options`` failed on an AMD EPYC with AVX2 only (znver2)
+while passing on the AVX-512 machine of its pin. Its labels, traces and floats were identical; the
+concept table's word order was not: two words with the same counts (sofa, tv) tie in lift, and
+the lift's denominator, a matrix product, differs in its last bits between columns under the
+BLAS kernel OpenBLAS picks for the CPU (``OPENBLAS_CORETYPE=Nehalem`` gave the old pin here, every
+other kernel the other order). Words are now ranked after rounding to 1e-9, ties in item order
+(:func:`spcopyro.results.concept_words.ranked`): the same digest under every OpenBLAS kernel tried
+(Haswell, Sandybridge, Nehalem, Prescott). Only that scenario's pin was recorded again.
 """
 
 from __future__ import annotations

@@ -237,3 +237,24 @@ def test_tables_use_the_posterior_mean_of_sampled_hyperparameters(small_house):
     np.testing.assert_allclose(result.theta, theta, rtol=1e-12)
     np.testing.assert_allclose(result.pi, pi, rtol=1e-12)
     assert config_at_posterior_mean(settings.model, None) == settings.model
+
+
+def test_word_ranks_ignore_last_bit_noise_between_ties():
+    """Two words with the same counts tie; their lifts come from a matrix product whose last bits
+    differ between columns and CPUs (OpenBLAS picks its kernel by CPU). Ranked as computed, the
+    order of such a tie followed the machine (the pinned ``fit-numba-options`` concept table
+    differed between an AVX-512 and an AVX2 machine); ranked after rounding, ties go in item
+    order."""
+    from spcopyro.results.concept_words import ranked
+
+    tie = 0.28767123287671231
+    noisy = np.array([0.1, tie, np.nextafter(tie, 1.0), 0.5])  # items 1 and 2 tie but for one ulp
+    assert list(ranked(noisy)) == [3, 1, 2, 0]
+    assert list(np.argsort(-noisy, kind="stable")) == [3, 2, 1, 0]  # what it guards against
+    lifts = np.array([3.1955102, np.nextafter(3.1955102, 0.0), 1.1 + 1e-15, 0.5])
+    rows = np.array([np.nextafter(tie, 0.0), tie, 0.3, 0.1])  # a and b tie in probability too
+    chosen = distinctive_items(rows, lifts, ["a", "b", "c", "d"], n=4)
+    assert [item for item, _, _ in chosen] == [
+        "a",
+        "b",
+    ]  # the tie in item order; 1.1 + 1e-15 is 1.1

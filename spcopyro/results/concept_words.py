@@ -37,6 +37,7 @@ __all__ = [
     "format_words_heard",
     "item_marginal",
     "lift",
+    "ranked",
 ]
 
 NO_WORDS = "no words heard here"
@@ -46,6 +47,22 @@ MIN_LIFT = 1.1
 """Distinctive words are those whose lift exceeds this: at least 10% more probable in the concept
 than on the map as a whole (a display threshold, not a test: a lift of 1.01 under paper-dp's
 beta = 500 says nothing a reader could use)."""
+
+
+RANK_DECIMALS = 9
+"""Probabilities and lifts are ranked after rounding to this many decimals, ties by item order.
+Two items with the same counts have the same value mathematically, but a sum over concepts
+(:func:`item_marginal`'s matrix product) can differ in its last bits between columns and between
+CPUs (the vector width decides the order of the additions); unrounded, such a tie would order
+the words differently on different machines."""
+
+
+def ranked(*keys: np.ndarray) -> np.ndarray:
+    """Indices that sort by the first key descending, then the next, ..., then by index: each
+    key rounded to :data:`RANK_DECIMALS` first, so that last-bit noise cannot reorder ties."""
+    rounded = [np.round(np.asarray(key, dtype=np.float64), RANK_DECIMALS) for key in keys]
+    index = np.arange(len(rounded[0]))
+    return np.lexsort((index, *(-key for key in reversed(rounded))))
 
 
 def format_words_heard(heard: float) -> str:
@@ -82,8 +99,9 @@ def distinctive_items(
     """The ``n`` items of largest lift above ``min_lift`` as ``(item, lift, probability)``,
     largest lift first (ties: the more probable first); fewer when fewer items pass."""
     row, lift_row = np.asarray(row), np.asarray(lift_row)  # [K], [K]
-    order = np.lexsort((-row, -lift_row))  # by lift, then probability, descending
-    chosen = [k for k in order if lift_row[k] > min_lift][:n]
+    order = ranked(lift_row, row)  # by lift, then probability, descending
+    passes = np.round(lift_row, RANK_DECIMALS) > min_lift  # [K]
+    chosen = [k for k in order if passes[k]][:n]
     return [(items[k], float(lift_row[k]), float(row[k])) for k in chosen]
 
 

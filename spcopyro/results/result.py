@@ -28,7 +28,7 @@ from spcopyro._util.outputs import DAMAGED_FILE_ERRORS, read_npz
 from spcopyro.config import IMAGES, WORDS, DataPreparation, SpCoConfig
 from spcopyro.inference.protocol import InferenceOutput, Trace
 from spcopyro.maps import OccupancyGrid, load_map, save_map
-from spcopyro.results.concept_words import NO_WORDS, distinctive_items, lift
+from spcopyro.results.concept_words import NO_WORDS, distinctive_items, lift, ranked
 from spcopyro.results.semantic_map import UnknownWordError, word_index
 from spcopyro.results.where import (
     DEFAULT_WHERE_PRIOR,
@@ -216,7 +216,7 @@ class SpCoResult:
         if not table.items:
             return []
         row = table.probabilities[concept]
-        order = np.argsort(-row, kind="stable")[:n]
+        order = ranked(row)[:n]  # ties (to the last bits) in item order, on any CPU
         return [(table.items[k], float(row[k])) for k in order]
 
     def top_words(self, concept: int, n: int = 3) -> list[tuple[str, float]]:
