@@ -3,6 +3,8 @@ approximate methods (mean field, loopy BP, Gibbs, the CAVI ELBO) against the enu
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pyro.poutine as poutine
 import pytest
@@ -164,15 +166,17 @@ def test_integrated_posterior_is_label_symmetric_and_its_coassignment_is_consist
 def test_cavi_elbo_is_below_the_exact_log_evidence(overrides):
     """CAVI's final ELBO (globals free, started from random labels) is below log sum_C int p*.
     Measured gaps on these maps: 0.71 to 1.26 nats (of the order of log L!, the relabelled copies
-    of the posterior mode that one q can cover only one of)."""
+    of the posterior mode that one q can cover only one of). The bound is log L! + 0.5 nats: 2.29
+    for L = 3 (gaps 1.23-1.26 measured), 1.19 for L = 2 (0.71-1.01)."""
     cfg = config(**overrides)
+    bound = math.lgamma(cfg.num_concepts + 1) + 0.5
     data = tiny_problem(4)
     evidence = float(exact_log_evidence(data, cfg))
     for seed in range(3):
         q = initial_q(data, cfg, torch.Generator().manual_seed(seed))
         run = run_variational(data, cfg, 60, q=q, options=VariationalOptions(), progress=False)
         assert run.objective[-1] < evidence
-        assert evidence - run.objective[-1] < 10.0  # a bound, not a vacuous one
+        assert evidence - run.objective[-1] < bound
 
 
 MARGINAL_CASES = [(2, 0.5), (3, 0.5), (2, 1.0), (3, 1.0)]

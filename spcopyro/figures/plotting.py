@@ -187,15 +187,6 @@ def plot_house(house: House, path: str | os.PathLike[str], title: str | None = N
     return _save(fig, path)
 
 
-def ranked_label_image(result: SpCoResult) -> np.ndarray:
-    """[H, W] labels renumbered by region size (0 = largest), -1 off free space."""
-    image = result.label_image()
-    order = result.concepts_in_use()
-    rank = np.full(result.config.num_concepts, -1)
-    rank[order] = np.arange(order.size)
-    return np.where(image >= 0, rank[np.maximum(image, 0)], -1)
-
-
 def semantic_colours(result: SpCoResult) -> np.ndarray:
     """[L, 3] uint8 colour of every concept id (white for concepts not in use): all concepts in
     use distinct, touching ones as different as the palette allows

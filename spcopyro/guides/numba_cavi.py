@@ -331,10 +331,6 @@ class SparseMeanField:
         self._summaries()
         return int((self._argmax_cells > 0).sum())
 
-    def support_sizes(self) -> np.ndarray:
-        """[N] how many concepts each cell keeps."""
-        return self.count[: self.data.num_free].copy()
-
     def dense(self, out: torch.Tensor | None = None) -> torch.Tensor:
         """q as a dense ``[N, L]`` float64 tensor (written into ``out`` when given)."""
         N, L = self.data.num_free, self.config.num_concepts
