@@ -115,12 +115,12 @@ class SpCoConfig:
 
     Attributes:
         num_concepts: L, the number of concepts (the weak-limit upper bound for ``prior="dp"``).
-        prior: ``"dp"``: pi ~ Dir(alpha/L, ..., alpha/L) (weak-limit DP, eq. 2);
+        prior: ``"dp"``: pi ~ Dir(alpha/L, ..., alpha/L) (weak-limit DP, eq. 7);
             ``"dirichlet"``: pi ~ Dir(alpha, ..., alpha) (number of concepts known).
         alpha: concentration of the prior over pi.
-        beta: symmetric Dirichlet concentration of each word distribution w_l (eq. 6).
-        chi: symmetric Dirichlet concentration of each image-feature distribution theta_l (eq. 4).
-        gamma: Potts MRF coupling between 4- (or 8-) neighbouring cells (eq. 3), >= 0.
+        beta: symmetric Dirichlet concentration of each word distribution w_l (eq. 4).
+        chi: symmetric Dirichlet concentration of each image-feature distribution theta_l (eq. 3).
+        gamma: Potts MRF coupling between 4- (or 8-) neighbouring cells (eqs. 8-10), >= 0.
         connectivity: 4 (the paper) or 8.
         use_images, use_words: switch the paper's two emission modalities on or off (a switched-off
             modality's distributions are still drawn, from their prior).
@@ -191,7 +191,7 @@ class SpCoConfig:
 
     def concentration(self, modality: str) -> float:
         """The symmetric Dirichlet concentration of a modality's distributions: chi for
-        ``"images"`` (eq. 4), beta for ``"words"`` (eq. 6), else from :attr:`concentrations`."""
+        ``"images"`` (eq. 3), beta for ``"words"`` (eq. 4), else from :attr:`concentrations`."""
         if modality == IMAGES:
             return float(self.chi)
         if modality == WORDS:

@@ -1,6 +1,6 @@
 r"""The emission distribution of SpCoMapping: a multinomial whose counts may be real-valued.
 
-The paper emits image features and words by Mult(theta_C) and Mult(w_C) (eqs. 5 and 7), but feeds
+The paper emits image features and words by Mult(theta_C) and Mult(w_C) (eqs. 5 and 6), but feeds
 them real-valued counts: CNN probabilities (or ``floor(100 f)``) and tf-idf weights (eq. 20).
 :class:`MultinomialCounts` keeps the multinomial's log density, extended to real counts through the
 gamma function,

@@ -9,7 +9,7 @@ special case of ``q`` (tested equal).
 
 With :math:`n_l(i) = \sum_{r \sim i} q_r(l)` the neighbour field and
 :math:`\ell_{ml} = \sum_m \sum_k x^{(m)}_{ik} \log\phi^{(m)}_{lk}` the observed cell's
-log-likelihood under concept l (the concept-dependent part of eqs. 5 and 7, summed over the
+log-likelihood under concept l (the concept-dependent part of eqs. 5 and 6, summed over the
 modalities in use), the full conditional of a cell label (eq. 13) and the mean-field update of
 q(C_i) share one form:
 
@@ -50,7 +50,7 @@ def observation_log_likelihood(
     log_parameters: Sequence[torch.Tensor], data: ModelData, config: SpCoConfig
 ) -> torch.Tensor:
     """[M, L] each observed cell's log-likelihood under each concept (up to constants):
-    sum over the modalities in use of counts_m @ log_phi_m^T (eqs. 5, 7).
+    sum over the modalities in use of counts_m @ log_phi_m^T (eqs. 5, 6).
 
     ``log_parameters``: one ``[L, K_m]`` tensor per modality of ``data.modalities`` (log
     distributions for Gibbs, E[log phi] under q(phi) for variational inference).

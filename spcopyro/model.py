@@ -35,8 +35,8 @@ class Modality(NamedTuple):
     Every concept l has a distribution over the modality's K_m items, drawn from a symmetric
     Dirichlet (concentration :meth:`SpCoConfig.concentration(name)
     <spcopyro.config.SpCoConfig.concentration>`), and an observed cell's counts are multinomial
-    under its concept's distribution. The paper's two modalities are ``images`` (theta, eqs. 4-5)
-    and ``words`` (w, eqs. 6-7); any further one (sounds, object detections, ...) is one more entry.
+    under its concept's distribution. The paper's two modalities are ``images`` (theta, eqs. 3, 5)
+    and ``words`` (w, eqs. 4, 6); any further one (sounds, object detections, ...) is one more.
     """
 
     name: str
@@ -158,14 +158,14 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
     .. math::
 
         \pi &\sim \mathrm{Dir}(\alpha/L, \dots, \alpha/L)
-            \;\text{(weak-limit DP, eq. 2) or}\; \mathrm{Dir}(\alpha, \dots, \alpha) \\
+            \;\text{(weak-limit DP, eqs. 1, 7) or}\; \mathrm{Dir}(\alpha, \dots, \alpha) \\
         \theta_l &\sim \mathrm{Dir}(\chi), \quad w_l \sim \mathrm{Dir}(\beta),
-            \qquad l = 1..L \quad\text{(eqs. 4, 6)} \\
+            \qquad l = 1..L \quad\text{(eqs. 3, 4)} \\
         p(C \mid \pi, \gamma) &\propto \prod_{ij} \mathrm{Mult}(C_{ij} \mid \pi)\,
             \exp\Big(\gamma \sum_{(ij, i'j') \in \mathcal{N}} \delta(C_{ij}, C_{i'j'})\Big)
-            \quad\text{(eqs. 1, 3)} \\
+            \quad\text{(eqs. 2, 8-10)} \\
         f_t &\sim \mathrm{Mult}(\theta_{C_{\mathrm{convert}(x_t)}}), \quad
-        S_t \sim \mathrm{Mult}(w_{C_{\mathrm{convert}(x_t)}}) \quad\text{(eqs. 5, 7, 11)}
+        S_t \sim \mathrm{Mult}(w_{C_{\mathrm{convert}(x_t)}}) \quad\text{(eqs. 5, 6, 11)}
 
     **The density.** As in the paper, the Potts normaliser :math:`Z(\pi, \gamma)` is left out: the
     ``labels`` site scores :math:`\sum_{ij} \log \pi_{C_{ij}}` and the ``potts`` factor adds

@@ -27,7 +27,7 @@ def sample_observations(state: GibbsState, data: ModelData, config: SpCoConfig) 
 
     Each observed cell keeps its total counts (which must be integers); the model under
     :func:`pyro.poutine.uncondition` draws each modality's counts from its concept's
-    distribution, e.g. f ~ Mult(theta_C), S ~ Mult(w_C) (eqs. 5, 7). A switched-off modality
+    distribution, e.g. f ~ Mult(theta_C), S ~ Mult(w_C) (eqs. 5, 6). A switched-off modality
     keeps its counts. Uses torch's global RNG (seed it with ``pyro.set_rng_seed``).
     """
     values = {SITE_PI: state.log_pi.exp(), SITE_LABELS: state.labels}

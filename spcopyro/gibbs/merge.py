@@ -20,7 +20,7 @@ for real-valued counts too: the multinomial coefficients do not depend on C),
         + \text{const},
 
 with :math:`m_l` the cells of concept l, :math:`n^u_l` its summed counts of modality u,
-:math:`a_\pi` = alpha/L (DP, eq. 1) or alpha, :math:`a_u` = chi, beta, ... and
+:math:`a_\pi` = alpha/L (weak-limit DP, eq. 7) or alpha, :math:`a_u` = chi, beta, ... and
 :math:`B(v) = \prod_k \Gamma(v_k) / \Gamma(\sum_k v_k)`. A merge or split changes only the two
 concepts' terms and :math:`E(C)` by the number of neighbouring pairs across them.
 

@@ -193,7 +193,7 @@ def _background_table(state: GibbsState, data: ModelData, config: SpCoConfig) ->
     """[M + 1, L + D] the per-cell backgrounds B (module doc), the D last columns 0.
 
     Row m < M: exp(log pi + loglik[m] - max), loglik [M, L] = f_m . log theta_l + S_m . log w_l
-    (+ any further modality; eqs. 5, 7; :func:`spcopyro.likelihood.observation_log_likelihood`);
+    (+ any further modality; eqs. 5, 6; :func:`spcopyro.likelihood.observation_log_likelihood`);
     row M: exp(log pi - max).
     The zero columns are the sentinel labels of missing neighbours.
     """

@@ -4,7 +4,7 @@ of the global factors.
 Given the global factors q(pi), q(phi) the label field is a pairwise MRF with node potentials
 :math:`\psi_i(l) = \exp h_i(l)`, :math:`h_i(l) = E[\log\pi_l] + \ell_{il}` (the observed cell's
 expected log-likelihood, eq. 13 in expectation; 0 for cells without observations) and Potts pair
-potentials :math:`\exp(\gamma\,\delta(k, l))` (eq. 3). Sum-product sends, along every directed
+potentials :math:`\exp(\gamma\,\delta(k, l))` (eqs. 8-9). Sum-product sends, along every directed
 edge i -> j,
 
 .. math::

@@ -14,8 +14,8 @@ For the guide :math:`q(\pi, \phi, C) = q(\pi) \prod_{ml} q(\phi_{ml}) \prod_i q(
         = \sum_{i,l} q_i(l) \log\pi_l + \gamma \sum_{(a,b)} q_a \cdot q_b
         + \sum_{i \in \mathrm{obs}} \sum_l q_i(l)\, \ell_{il}(\phi) + \text{coefficients},
 
-with :math:`\ell_{il}(\phi) = \sum_m x^{(m)}_i \cdot \log\phi_{ml}` (eqs. 5, 7, 13). F is exact:
-under a factorised q(C) the expectation of the Potts statistic (eq. 3) is the sum over neighbour
+with :math:`\ell_{il}(\phi) = \sum_m x^{(m)}_i \cdot \log\phi_{ml}` (eqs. 5, 6, 13). F is exact:
+under a factorised q(C) the expectation of the Potts statistic (eq. 8) is the sum over neighbour
 pairs of :math:`q_a \cdot q_b`, and every other label term is linear in one q_i.
 
 **The estimator.** One draw :math:`(\tilde\pi, \tilde\phi)` from q by reparameterisation

@@ -13,7 +13,7 @@ C, the Potts-coupled field
     \log p^*(\pi, \phi, C, x) = \sum_i \log\pi_{C_i} + \gamma E(C)
         + \sum_{i \in \mathrm{obs}} \sum_m x^{(m)}_i \cdot \log\phi_{m, C_i} + \text{const},
 
-(eqs. 1, 3, 5, 7), so p(C | x, pi, phi) is its softmax over labellings and
+(eqs. 5-10), so p(C | x, pi, phi) is its softmax over labellings and
 p(C_i = l | x, pi, phi) a sum of that softmax. :func:`labelling_log_joint` is the whole log p*,
 constants included, and is tested equal to the Pyro model's own ``log_prob_sum`` at every
 labelling of a small map.

@@ -14,7 +14,7 @@ posterior mean is exact (the Dirichlet updates of eqs. 14-17, in mean):
 
 with :math:`n^{(m)}_{lk}` the counts of item k of modality m over the observed cells labelled l,
 :math:`n^{(m)}_l = \sum_k n^{(m)}_{lk}`, :math:`a_m` the modality's concentration (beta for
-words, chi for images), :math:`N_l` the cells labelled l and c = alpha/L (weak-limit DP, eq. 2)
+words, chi for images), :math:`N_l` the cells labelled l and c = alpha/L (weak-limit DP, eq. 7)
 or alpha (Dirichlet prior). For words this is :math:`(\beta + n_{lv}) / (V\beta + n_l)`. The
 paper averages 100 draws of w_l (Section 5: "we sample w_l for 100 times and use the average");
 that average is a Monte Carlo estimate of exactly this mean, which is computed here without the
