@@ -1,5 +1,5 @@
-"""Questions without torch (issue 25 item 2): ``spcopyro --help``, ``where``, ``show`` and
-``export`` on a saved fit import none of torch, pyro and numba.
+"""Questions without torch (issue 25 item 2): ``spcopyro --help``, ``fit --help``, ``where``,
+``show`` and ``export`` on a saved fit import none of torch, pyro and numba.
 
 Each command runs in a fresh interpreter, which then prints the heavy modules it imported.
 Nothing here times anything: ``python benchmarks/fixed_cost.py --startup-only`` measures the
@@ -76,6 +76,19 @@ def test_help_imports_no_torch():
     imported, printed = heavy_imports(["--help"])
     assert imported == []
     assert "fit" in printed and "where" in printed and "export" in printed
+
+
+def test_fit_help_imports_no_torch():
+    """``fit --help`` lists the methods, starts and backends from :mod:`spcopyro.inference.names`
+    (no torch), and those are the registry's, the starts' and the sweep's own."""
+    from spcopyro.fit.registry import INFERENCE_METHODS
+    from spcopyro.inference import names
+
+    imported, printed = heavy_imports(["fit", "--help"])
+    assert imported == []
+    for name in (*names.INFERENCE_METHOD_NAMES, *names.INITS, *names.BACKENDS):
+        assert name in printed
+    assert tuple(INFERENCE_METHODS) == names.INFERENCE_METHOD_NAMES
 
 
 @pytest.mark.parametrize(

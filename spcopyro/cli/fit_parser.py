@@ -1,9 +1,9 @@
 """The options of ``spcopyro fit`` and their help, as ``spcopyro fit --help`` lists them.
 
 :func:`add_parser` registers ``fit`` on the main parser's subparsers (:mod:`spcopyro.cli.main`).
-Registering it by name (``options=False``), as every other command's parser does, imports
-neither torch, pyro nor numba (``spcopyro --help``, ``where``, ``show`` and ``export`` run
-without torch; ``tests/test_cli_startup.py``); the fit itself is :mod:`spcopyro.cli.fit`.
+Registering it imports neither torch, pyro nor numba (``spcopyro --help``, ``fit --help``,
+``where``, ``show`` and ``export`` run without torch; ``tests/test_cli_startup.py``); the fit
+itself is :mod:`spcopyro.cli.fit`.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from spcopyro.cli.common import (
     _threads,
 )
 from spcopyro.config import DEFAULT_PRESET, DEFAULT_SNAP_DISTANCE, PRESETS
+from spcopyro.inference.names import BACKENDS, DEFAULT_METHOD, INFERENCE_METHOD_NAMES, INITS
 from spcopyro.results.point_estimate import POINT_ESTIMATES
 
 __all__ = ["add_parser"]
@@ -38,16 +39,14 @@ def add_parser(subparsers: argparse._SubParsersAction, options: bool = True) -> 
     """Register ``fit`` (its options and their help, as ``spcopyro fit --help`` lists them).
 
     ``options=False`` registers the command by name and help only: what ``spcopyro --help`` and
-    the other commands need, without importing torch for the choices of ``--method``,
-    ``--backend`` and ``--init`` (:func:`spcopyro.cli.main.build_parser`)."""
+    the other commands need (:func:`spcopyro.cli.main.build_parser`). Either way nothing heavy is
+    imported: the choices of ``--method``, ``--backend`` and ``--init`` come from
+    :mod:`spcopyro.inference.names`."""
     p = subparsers.add_parser(
         "fit", help="fit SpCoMapping (Gibbs sampling) and write the semantic map"
     )
     if not options:
         return
-    from spcopyro.fit.registry import DEFAULT_METHOD, INFERENCE_METHODS
-    from spcopyro.gibbs.options import BACKENDS
-    from spcopyro.inference.initialisation import INITS
 
     p.add_argument("data", nargs="?", help="house folder (default: the synthetic house)")
     p.add_argument("--out", required=True,
@@ -145,7 +144,7 @@ def add_parser(subparsers: argparse._SubParsersAction, options: bool = True) -> 
                         "the per-cell probabilities of uncertainty.png (0: none)")  # fmt: skip
     p.add_argument("--seed", type=_seed, default=0,
                    help="seed of the sampler (chain k of --chains gets seed + k)")  # fmt: skip
-    p.add_argument("--method", choices=sorted(INFERENCE_METHODS), default=DEFAULT_METHOD,
+    p.add_argument("--method", choices=sorted(INFERENCE_METHOD_NAMES), default=DEFAULT_METHOD,
                    help="inference method (default: gibbs, Algorithm 1)")  # fmt: skip
     p.add_argument("--method-option", action="append", metavar="NAME=VALUE",
                    help="set a field of the method's options, e.g. anneal_iterations=30 (cavi), "

@@ -12,6 +12,7 @@ from spcopyro.guides.lbp_method import LBPInference
 from spcopyro.guides.memoized import StochasticVIInference
 from spcopyro.guides.svi_method import SVIInference
 from spcopyro.guides.vi_gibbs import VIGibbsInference
+from spcopyro.inference.names import DEFAULT_METHOD, INFERENCE_METHOD_NAMES
 from spcopyro.inference.protocol import InferenceMethod
 
 INFERENCE_METHODS: dict[str, InferenceMethod] = {
@@ -22,7 +23,15 @@ INFERENCE_METHODS: dict[str, InferenceMethod] = {
     "stochastic-vi": StochasticVIInference(),
     "vi-gibbs": VIGibbsInference(),
 }
-DEFAULT_METHOD = "gibbs"
+
+
+__all__ = ["DEFAULT_METHOD", "INFERENCE_METHODS", "get_method"]
+
+if tuple(INFERENCE_METHODS) != INFERENCE_METHOD_NAMES:  # the command line lists the names
+    raise ImportError(
+        f"spcopyro.inference.names.INFERENCE_METHOD_NAMES {INFERENCE_METHOD_NAMES} must list "
+        f"the registry's methods {tuple(INFERENCE_METHODS)}, in order"
+    )
 
 
 def get_method(name: str) -> InferenceMethod:

@@ -8,8 +8,7 @@ from dataclasses import dataclass
 
 from spcopyro.gibbs.anneal import check_anneal_sweeps
 from spcopyro.gibbs.hyper_options import HyperparameterOptions, as_hyper_options
-
-BACKENDS = ("auto", "torch", "numba")
+from spcopyro.inference.names import BACKENDS
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 
 import torch
 
+from spcopyro.inference.names import INITS
 from spcopyro.model import DTYPE
 
 if TYPE_CHECKING:
@@ -31,10 +32,6 @@ if TYPE_CHECKING:
 
 __all__ = ["INITS", "check_labels", "kmeans_gaussians", "labels_from_gaussians", "random_labels"]
 
-INITS = ("random", "gaussian", "spcoa", "rooms")
-"""The named starts of a fit (:func:`spcopyro.fit.starts.initial_labels`; ``fit --init``): uniformly
-random labels, k-means Gaussians over the observed cells, SpCoA pre-learning, or one concept per
-geometric room."""
 
 
 def random_labels(num_free: int, config: SpCoConfig, generator: torch.Generator) -> torch.Tensor:

@@ -1,0 +1,22 @@
+"""The names a user chooses from (``spcopyro fit --method/--init/--backend``), in a module that
+imports nothing, so that the command line lists them without importing torch.
+
+:data:`INFERENCE_METHOD_NAMES` are the keys of :data:`spcopyro.fit.registry.INFERENCE_METHODS`,
+:data:`INITS` the starts of :func:`spcopyro.fit.starts.initial_labels`, :data:`BACKENDS` the Gibbs
+sweep's implementations (:class:`spcopyro.gibbs.options.GibbsOptions`); tests check each against
+the table it names.
+"""
+
+INFERENCE_METHOD_NAMES = ("gibbs", "cavi", "lbp", "svi", "stochastic-vi", "vi-gibbs")
+"""The inference methods by name (:mod:`spcopyro.fit.registry`)."""
+
+DEFAULT_METHOD = "gibbs"
+"""Algorithm 1 of the paper."""
+
+INITS = ("random", "gaussian", "spcoa", "rooms")
+"""The named starts of a fit (:func:`spcopyro.fit.starts.initial_labels`; ``fit --init``): uniformly
+random labels, k-means Gaussians over the observed cells, SpCoA pre-learning, or one concept per
+geometric room."""
+
+BACKENDS = ("auto", "torch", "numba")
+"""The Gibbs sweep's implementations: ``auto`` takes numba when it is installed."""
