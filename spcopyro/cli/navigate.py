@@ -12,8 +12,12 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from typing import TYPE_CHECKING
 
 from spcopyro.cli.common import _HelpFormatter
+
+if TYPE_CHECKING:
+    from spcopyro.robot.navigation.planning import NavigationPlan
 
 __all__ = ["add_parser"]
 
@@ -78,7 +82,8 @@ def _navigate(args: argparse.Namespace) -> int:
                   "cells were coarsened from (--map to choose another)")  # fmt: skip
     try:
         plan = navigate(result, args.instruction, args.start, radius=args.radius,
-                        strict=args.strict, prior=args.prior, grid=grid)  # fmt: skip
+                        strict=args.strict, prior=args.prior, grid=grid,
+                        planner=args.planner)  # fmt: skip
     except UnreachableGoalError as error:
         print(f"error: {error}", file=sys.stderr)
         return UNREACHABLE_EXIT
@@ -109,6 +114,7 @@ def _navigate(args: argparse.Namespace) -> int:
         how = "" if plan.route_from == "graph" else " (the places the path crosses: no route "
         how = how and how + "over the place graph)"
         print(f"route: {' -> '.join(plan.route_words)}{how}")
+    _print_planner(plan)
     print(f"path: {len(plan.path_xy)} poses, {plan.length:.2f} m, clearance {plan.radius:g} m "
           f"from walls (frame {args.frame})")  # fmt: skip
     if args.out:
@@ -119,6 +125,21 @@ def _navigate(args: argparse.Namespace) -> int:
         print(f"wrote {', '.join(p.name for p in written.values())} to "
               f"{next(iter(written.values())).parent}")  # fmt: skip
     return 0
+
+
+def _print_planner(plan: NavigationPlan) -> None:
+    """How the path was planned: hierarchical, asked for the grid, or fallen back (and why)."""
+    if plan.planner == "grid":
+        print("planner: grid (asked): the shortest path over every cell the robot fits on")
+    elif plan.planned == "hierarchical":
+        print(f"planner: hierarchical: the route over the place graph, then the grid path kept "
+              f"to its places ({plan.length:.2f} m; the shortest grid path "
+              f"{plan.grid_length:.2f} m)")  # fmt: skip
+    else:
+        print(f"planner: {plan.planned} (hierarchical asked; fell back to the shortest grid "
+              f"path on {len(plan.fallbacks)} of {len(plan.legs)} legs):")  # fmt: skip
+        for reason in plan.fallbacks:
+            print(f"  {reason}")
 
 
 def show_graph(args: argparse.Namespace) -> int:
@@ -174,6 +195,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--strict", action="store_true",
                    help="an ambiguous word (two separate regions of near-equal probability) is "
                         "an error instead of taking the nearer")  # fmt: skip
+    p.add_argument("--planner", choices=("hierarchical", "grid"), default="hierarchical",
+                   help="hierarchical: the route over the place graph first, then the grid path "
+                        "kept to the route's places (the shortest grid path, with the reason, "
+                        "where that does not exist); grid: the shortest grid path")  # fmt: skip
     p.add_argument("--prior", choices=("area", "pi"), default="area",
                    help="p(C) of the word's place (as in `spcopyro where`)")  # fmt: skip
     p.add_argument(

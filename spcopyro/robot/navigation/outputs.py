@@ -17,7 +17,9 @@ a non-empty DIR needs ``overwrite`` and must hold an earlier plan, :data:`PLAN_M
 * ``navigate.png``: the map, the destination word's probability map, the path, start, stops.
 * ``navigate.json``: the instruction, its places, every candidate region, the lengths and
   settings, the route over the place graph and the graph itself
-  (:mod:`~spcopyro.robot.navigation.places`), and the fit it came from.
+  (:mod:`~spcopyro.robot.navigation.places`), how each leg was planned (``planner``: asked,
+  used, the leg's route, the reason of a fallback to the grid path,
+  :mod:`~spcopyro.robot.navigation.hierarchy`), and the fit it came from.
 
 Stamps are 0 (``stamp: {sec: 0, nanosec: 0}``: "latest" to tf2). ``frame_id`` is the map frame
 (``map`` unless given; a robot whose tf frames carry a prefix passes e.g. ``robot1/map``).
@@ -87,6 +89,25 @@ def waypoints_goal(plan: NavigationPlan, frame: str = "map") -> dict[str, object
     return {"poses": [pose_stamped(*stop.xy, stop.yaw, frame) for stop in plan.stops]}
 
 
+def planner_record(plan: NavigationPlan) -> dict[str, object]:
+    """How the path was planned (``navigate.json``'s ``planner``): asked and used, the lengths,
+    and per leg its route over the place graph and why it fell back to the grid path."""
+    names = plan.places.places if plan.places is not None else ()
+    return {
+        "asked": plan.planner,
+        "used": plan.planned,
+        "length_m": plan.length,
+        "grid_length_m": plan.grid_length,
+        "border_margin_m": plan.margin,
+        "legs": [
+            {"to": stop.word, "route": list(leg.places),
+             "words": [names[i].name for i in leg.places], "planner": leg.planner,
+             "fallback": leg.reason, "length_m": leg.length, "grid_length_m": leg.grid_length}
+            for stop, leg in zip(plan.stops, plan.legs, strict=True)
+        ],
+    }  # fmt: skip
+
+
 def summary(plan: NavigationPlan, frame: str, source: str | None) -> dict[str, object]:
     """What ``navigate.json`` holds."""
     grid = plan.planning.grid
@@ -125,6 +146,7 @@ def summary(plan: NavigationPlan, frame: str, source: str | None) -> dict[str, o
             "words": list(plan.route_words),
             "from": plan.route_from,
         },
+        "planner": planner_record(plan),
         "place_graph": plan.places.to_json() if plan.places is not None else None,
         "map": grid_record(grid),
     }

@@ -2,11 +2,13 @@ r"""``spcopyro navigate``: from an instruction and a start to goals and one path
 
 :func:`navigate` parses the instruction into place words (:func:`~spcopyro.robot.navigation.goals.
 parse_instruction`), then, from the start, for each place in order: the shortest paths from where
-the robot is (:func:`~spcopyro.robot.navigation.graph.shortest_paths`), the word's goal among the
-regions it can reach (:func:`~spcopyro.robot.navigation.goals.choose_goal`), and the leg of the path
-there. The path is the legs joined: a shortest path through the stops in order (each leg
-shortest; the stops are fixed one after the other, not jointly). Everything is deterministic:
-the same fit, instruction and start give the same plan.
+the robot is (:func:`~spcopyro.robot.navigation.graph.shortest_paths`) and the word's goal among
+the regions it can reach (:func:`~spcopyro.robot.navigation.goals.choose_goal`). Then each leg
+(start to the first stop, stop to stop): hierarchically by default, the route over the place
+graph first and the grid path kept to the route's places, else the shortest grid path with the
+reason (:mod:`~spcopyro.robot.navigation.hierarchy`); ``planner="grid"``: the shortest grid path.
+The path is the legs joined (the stops are fixed one after the other, not jointly). Everything is
+deterministic: the same fit, instruction and start give the same plan.
 
 Orientation: every pose of the path faces the next one; the last faces along the last step
 (a path of one cell faces +x). A waypoint's pose faces along the step that reached it.
@@ -34,7 +36,14 @@ from spcopyro.robot.navigation.graph import (
     fit_cells_on,
     planning_grid,
     shortest_paths,
-    trace_path,
+)
+from spcopyro.robot.navigation.hierarchy import (
+    BORDER_MARGIN,
+    GRID,
+    HIERARCHICAL,
+    Leg,
+    node_places,
+    plan_leg,
 )
 from spcopyro.robot.navigation.places import PlaceGraph, place_graph, places_along
 
@@ -79,11 +88,36 @@ class NavigationPlan:
     places: PlaceGraph | None = None
     """The fit's place graph (:func:`~spcopyro.robot.navigation.places.place_graph`)."""
     route: tuple[int, ...] = ()
-    """Place ids from the start's place through every stop's place: the shortest route over the
-    place graph, leg by leg (the topological summary of the path; the path itself is planned on
-    the grid). Where the graph has no route (regions under its ``min_area`` dropped), the places
-    the path crosses, in order; ``route_from`` says which."""
+    """Place ids from the start's place through every stop's place: the legs' routes over the
+    place graph joined (each leg's shortest route, :mod:`~spcopyro.robot.navigation.hierarchy`).
+    Where a leg has no route over the graph (regions under its ``min_area`` dropped), the places
+    its path crosses, in order; ``route_from`` says which (``graph`` or ``path``)."""
     route_from: str = "graph"
+    planner: str = HIERARCHICAL
+    """The planner asked for (``hierarchical`` or ``grid``)."""
+    legs: tuple[Leg, ...] = ()
+    """Start to the first stop, then stop to stop: how each was planned."""
+    margin: float = BORDER_MARGIN
+    """Metres: the width of the shared borders a hierarchical leg may use."""
+
+    @property
+    def planned(self) -> str:
+        """How the path was planned: ``hierarchical`` (every leg kept to its route's places),
+        ``grid`` (asked for, or every leg fell back) or ``mixed``."""
+        used = {leg.planner for leg in self.legs}
+        return used.pop() if len(used) == 1 else ("mixed" if used else self.planner)
+
+    @property
+    def fallbacks(self) -> tuple[str, ...]:
+        """Why legs fell back to the grid path (one line per such leg)."""
+        return tuple(f"leg {k + 1}: {leg.reason}" for k, leg in enumerate(self.legs)
+                     if leg.reason)  # fmt: skip
+
+    @property
+    def grid_length(self) -> float:
+        """Metres along the shortest grid path through the same stops (the hierarchy's cost:
+        ``length / grid_length``)."""
+        return float(sum(leg.grid_length for leg in self.legs))
 
     @property
     def route_words(self) -> tuple[str, ...]:
@@ -156,25 +190,34 @@ def navigate(
     grid: OccupancyGrid | None = None,
     planning: PlanningGrid | None = None,
     places: PlaceGraph | None = None,
+    planner: str = HIERARCHICAL,
+    margin: float = BORDER_MARGIN,
 ) -> NavigationPlan:
     """Plan ``instruction`` from ``start`` (world x, y in metres) on ``grid``: a map in the
     fit's frame (the map a coarse fit was made from: walls as thin as the robot's map has
     them), the fit's probabilities carried onto its cells (:func:`~spcopyro.robot.navigation.graph.
     fit_cells_on`); None: the fit's own grid. ``planning``: a ready :func:`planning_grid` of that
     grid (reused across calls); ``places``: a ready :func:`~spcopyro.robot.navigation.places.
-    place_graph` of the fit, whose route through the stops' places the plan reports
-    (:attr:`NavigationPlan.route`: computed once the goals are chosen, from the start's place).
+    place_graph` of the fit. ``planner``: ``hierarchical`` (each leg over the place graph, then
+    kept to its route's places; ``margin`` metres: the shared borders' width, at least the fit's
+    cell size) or ``grid`` (:mod:`~spcopyro.robot.navigation.hierarchy`).
 
     Raises:
-        ValueError: a misspelt word or none naming a place (the close known words named).
+        ValueError: a misspelt word or none naming a place (the close known words named), an
+            unknown planner.
         NavigationError: a bad start; UnreachableGoalError, AmbiguousGoalError (``strict``).
     """
+    if planner not in (HIERARCHICAL, GRID):
+        raise ValueError(f"planner {planner!r}: {HIERARCHICAL} or {GRID}")
     parsed = parse_instruction(instruction, result.vocabulary)
     grid = result.grid if grid is None else grid
     planning = planning_grid(grid, radius) if planning is None else planning
     carry = None if grid is result.grid else fit_cells_on(result.grid, grid)  # [N_map]
+    places = place_graph(result) if places is None else places
+    node_place = node_places(places, result.grid, planning, carry)  # [M]
+    margin = max(float(margin), result.grid.resolution)
     current = start_node(planning, start)
-    legs = [np.array([current], dtype=np.int64)]
+    legs: list[Leg] = []
     stops_info = []
     for word, via in zip(parsed.places, parsed.via, strict=True):
         probability = where_probability(result, word, prior)  # [N] on the fit's cells
@@ -182,11 +225,11 @@ def navigate(
             probability = probability[carry]  # [N] on the planning map's cells
         distance, predecessors = shortest_paths(planning, current)
         choice = choose_goal(planning, word, probability, distance, strict=strict)
-        leg = trace_path(predecessors, choice.node)  # [k] from current to the goal
-        legs.append(leg[1:])
-        stops_info.append((word, via, choice, probability, sum(len(g) for g in legs) - 1))
+        legs.append(plan_leg(planning, places, node_place, current, choice.node, distance,
+                             predecessors, planner=planner, margin=margin))  # fmt: skip
+        stops_info.append((word, via, choice, probability, sum(len(g.nodes) - 1 for g in legs)))
         current = choice.node
-    nodes = np.concatenate(legs)  # [K]
+    nodes = np.concatenate([legs[0].nodes[:1]] + [leg.nodes[1:] for leg in legs])  # [K]
     xy = planning.grid.cell_to_world(planning.cells(nodes))  # [K, 2]
     yaw = _yaws(xy)
     steps = np.hypot(*np.diff(xy, axis=0).T) if len(xy) > 1 else np.zeros(0)
@@ -195,8 +238,7 @@ def navigate(
         arrive = float(yaw[index - 1]) if index > 0 else float(yaw[index])
         stops.append(Stop(word, via, choice, (float(xy[index, 0]), float(xy[index, 1])), arrive,
                           index, probability))  # fmt: skip
-    places = place_graph(result) if places is None else places
-    route, route_from = _route(result, places, [start, *(stop.xy for stop in stops)], xy)
+    route, route_from = _route(result, places, legs, planning)
     return NavigationPlan(
         instruction=parsed,
         start=(float(start[0]), float(start[1])),
@@ -210,20 +252,25 @@ def navigate(
         places=places,
         route=route,
         route_from=route_from,
+        planner=planner,
+        legs=tuple(legs),
+        margin=margin,
     )
 
 
 def _route(
-    result: SpCoResult, places: PlaceGraph, points: list, path_xy: np.ndarray
+    result: SpCoResult, places: PlaceGraph, legs: list[Leg], planning: PlanningGrid
 ) -> tuple[tuple[int, ...], str]:
-    """:attr:`NavigationPlan.route` through the places of ``points`` (start, stops; world x, y),
-    and where it came from (``graph`` or ``path``)."""
-    cells = result.grid.world_to_cell(np.asarray(points, dtype=float))  # [S, 2] on the fit's grid
-    stops = [places.place_of(cell) for cell in cells]
-    route = [stops[0]]
-    for a, b in zip(stops[:-1], stops[1:], strict=True):
-        leg = places.route(a, b) if min(a, b) >= 0 else None
-        if leg is None:
-            return places_along(places, result.grid.world_to_cell(path_xy)), "path"
-        route += leg[1:]
-    return tuple(route), "graph"
+    """:attr:`NavigationPlan.route`: the legs' routes joined, and where it came from (``graph``,
+    or ``path`` where a leg had no route and the places its path crosses stand in)."""
+    route: list[int] = []
+    source = "graph"
+    for leg in legs:
+        if leg.places:
+            part = list(leg.places)
+        else:
+            source = "path"
+            xy = planning.grid.cell_to_world(planning.cells(leg.nodes))  # [k, 2]
+            part = list(places_along(places, result.grid.world_to_cell(xy)))
+        route += part[1:] if route and part and part[0] == route[-1] else part
+    return tuple(route), source

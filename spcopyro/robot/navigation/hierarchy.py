@@ -1,0 +1,184 @@
+r"""Hierarchical planning (issue 27 item 2, SpCoTMHP's hierarchy): over the place graph first,
+then within the grid, kept to the route's places.
+
+For every leg of a plan (from where the robot is to the next stop's goal cell):
+
+1. **Places.** Every cell the robot fits on belongs to a place of the fit's place graph
+   (:func:`node_places`): the place of the fit cell holding its centre (a finer planning map's
+   cell through :func:`~spcopyro.robot.navigation.graph.fit_cells_on`); a cell of a region too
+   small to be a place (or of a wall thickened by coarsening) takes the nearest place.
+2. **Route.** The shortest route over the place graph from the leg's first place to its last
+   (:meth:`~spcopyro.robot.navigation.places.PlaceGraph.route`: passages weighted by the distance
+   between the places' centroids).
+3. **Corridor** (:func:`corridor`). The cells the leg may use: the allowed cells (the robot's
+   clearance kept: :mod:`~spcopyro.robot.navigation.graph`) of the route's places, plus the
+   shared border of every two consecutive places of the route: the allowed cells within
+   ``margin`` metres of both (default :data:`BORDER_MARGIN` or the fit's cell size, the larger:
+   region borders on a coarse fit are jagged at its cell size, and a doorway's few cells may
+   carry a third concept's label).
+4. **Grid path.** The shortest 8-connected path from the leg's start to its goal over the
+   corridor's cells only.
+
+**Fallback.** Where the graph has no route between the two places (a dropped small region was
+their only link) or the corridor does not join start and goal (a doorway between two route
+places that the robot's clearance or the fit's labels close), the leg is the shortest grid path
+over every allowed cell, and the reason is recorded (:attr:`Leg.reason`) and printed. The goals
+themselves do not change: they are chosen before (by unconstrained path length,
+:func:`~spcopyro.robot.navigation.goals.choose_goal`), so the hierarchy changes the way, never
+where the robot ends up.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from spcopyro.maps import OccupancyGrid
+from spcopyro.robot.navigation.graph import PlanningGrid, trace_path
+from spcopyro.robot.navigation.places import PlaceGraph
+
+__all__ = [
+    "BORDER_MARGIN",
+    "GRID",
+    "HIERARCHICAL",
+    "PLANNERS",
+    "Leg",
+    "corridor",
+    "node_places",
+    "plan_leg",
+]
+
+HIERARCHICAL = "hierarchical"
+"""The planner that keeps each leg to its route's places (module docstring)."""
+GRID = "grid"
+"""The planner that takes the shortest grid path over every allowed cell."""
+PLANNERS = (HIERARCHICAL, GRID)
+BORDER_MARGIN = 0.25
+"""Metres: cells this close to both of two consecutive places of a route are their shared
+border (at least the fit's cell size is used)."""
+
+
+@dataclass(frozen=True)
+class Leg:
+    """One leg of a plan: from where the robot is to the next stop's goal."""
+
+    places: tuple[int, ...]
+    """The route over the place graph (place ids, the leg's first place to its last); () when
+    the graph has none."""
+    planner: str
+    """How its path was planned: :data:`HIERARCHICAL` (kept to the route's places) or
+    :data:`GRID` (asked for, or the fallback)."""
+    reason: str | None
+    """Why a hierarchical plan fell back to the grid path; None otherwise."""
+    nodes: np.ndarray
+    """[k] allowed indices from the leg's start to its goal (inclusive)."""
+    length: float
+    """Metres along the leg's path."""
+    grid_length: float
+    """Metres along the shortest grid path over every allowed cell (``length`` >= it)."""
+
+    @property
+    def detour(self) -> float:
+        """``length / grid_length`` (1 for a leg of no length)."""
+        return self.length / self.grid_length if self.grid_length > 0 else 1.0
+
+
+def node_places(
+    places: PlaceGraph, fit_grid: OccupancyGrid, planning: PlanningGrid, carry: np.ndarray | None
+) -> np.ndarray:
+    """``[M]`` the place id of every allowed cell of ``planning`` (module docstring, 1);
+    ``carry``: ``[N]`` the fit's free index of every free cell of the planning map
+    (:func:`~spcopyro.robot.navigation.graph.fit_cells_on`), None when it is the fit's grid.
+    All -1 for a graph without places."""
+    from scipy.ndimage import distance_transform_edt
+
+    if not places.places:
+        return np.full(planning.num_allowed, -1, dtype=np.int64)
+    regions = places.regions  # [H, W] on the fit's grid
+    _, (rows, cols) = distance_transform_edt(regions < 0, return_indices=True)
+    filled = regions[rows, cols]  # [H, W] every cell: its place, else the nearest one's
+    fit_free = planning.free_index_of(np.arange(planning.num_allowed))  # [M] planning free index
+    if carry is not None:
+        fit_free = carry[fit_free]  # [M] the fit's free index
+    cells = fit_grid.free_cells[fit_free]  # [M, 2]
+    return filled[cells[:, 0], cells[:, 1]].astype(np.int64)
+
+
+def corridor(
+    planning: PlanningGrid, node_place: np.ndarray, route: tuple[int, ...], margin: float
+) -> np.ndarray:
+    """``[M]`` bool: the allowed cells a leg along ``route`` may use (module docstring, 3)."""
+    from scipy.ndimage import distance_transform_edt
+
+    inside = np.isin(node_place, np.asarray(route, dtype=np.int64))  # [M]
+    if len(route) < 2:
+        return inside
+    cells = planning.cells(np.arange(planning.num_allowed))  # [M, 2]
+    image = np.full(planning.grid.shape, -1, dtype=np.int64)  # [H, W] place of allowed cells
+    image[cells[:, 0], cells[:, 1]] = node_place
+    near = {}
+    for place in set(route):
+        distance = distance_transform_edt(image != place) * planning.grid.resolution  # [H, W]
+        near[place] = distance[cells[:, 0], cells[:, 1]] <= margin + 1e-9  # [M]
+    for a, b in zip(route[:-1], route[1:], strict=True):
+        inside |= near[a] & near[b]
+    return inside
+
+
+def _names(places: PlaceGraph, route: tuple[int, ...] | list[int]) -> str:
+    return " -> ".join(places.places[i].name for i in route)
+
+
+def plan_leg(
+    planning: PlanningGrid,
+    places: PlaceGraph,
+    node_place: np.ndarray,
+    source: int,
+    target: int,
+    grid_distance: np.ndarray,
+    grid_predecessors: np.ndarray,
+    *,
+    planner: str = HIERARCHICAL,
+    margin: float = BORDER_MARGIN,
+) -> Leg:
+    """The leg from allowed cell ``source`` to ``target`` (module docstring);
+    ``grid_distance``, ``grid_predecessors``: the unconstrained shortest paths from ``source``
+    (:func:`~spcopyro.robot.navigation.graph.shortest_paths`), the fallback."""
+    from scipy.sparse.csgraph import dijkstra
+
+    if planner not in PLANNERS:
+        raise ValueError(f"planner {planner!r}: one of {', '.join(PLANNERS)}")
+    grid_length = float(grid_distance[target])
+    start_place, goal_place = int(node_place[source]), int(node_place[target])
+    route = places.route(start_place, goal_place) if min(start_place, goal_place) >= 0 else None
+    places_on = tuple(route) if route is not None else ()
+
+    def fallback(reason: str | None) -> Leg:
+        nodes = trace_path(grid_predecessors, target)
+        return Leg(places_on, GRID, reason, nodes, grid_length, grid_length)
+
+    if planner == GRID:
+        return fallback(None)
+    if route is None:
+        if min(start_place, goal_place) < 0:
+            return fallback("the fit has no places (every region under the place graph's "
+                            f"{places.min_area:g} m^2)")  # fmt: skip
+        return fallback(
+            f"no route over the place graph from {_names(places, [start_place])} (place "
+            f"{start_place}) to {_names(places, [goal_place])} (place {goal_place})"
+        )
+    allowed = np.flatnonzero(corridor(planning, node_place, places_on, margin))  # [m]
+    local = np.full(planning.num_allowed, -1, dtype=np.int64)
+    local[allowed] = np.arange(allowed.size)
+    sub = planning.graph[allowed][:, allowed]
+    distance, predecessors = dijkstra(
+        sub, directed=False, indices=int(local[source]), return_predecessors=True
+    )
+    if not np.isfinite(distance[local[target]]):
+        return fallback(
+            f"the places of the route {_names(places, places_on)} do not join the leg's start "
+            f"and goal with {planning.radius:g} m of clearance"
+        )
+    nodes = allowed[trace_path(predecessors, int(local[target]))]
+    return Leg(places_on, HIERARCHICAL, None, nodes, float(distance[local[target]]), grid_length)
