@@ -1,9 +1,11 @@
-"""Tests of the ablation harness (spcopyro.experiments.ablation*) and of the sparse synthetic
-houses it runs on (HouseSpec.public_like, spcopyro.synthetic.statistics)."""
+"""Tests of the ablation (spcopyro.experiments.ablation*, run as a study by
+spcopyro.study.ablation, issue 26) and of the sparse synthetic houses it runs on
+(HouseSpec.public_like, spcopyro.synthetic.statistics)."""
 
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,6 +13,8 @@ import pytest
 from spcopyro.cli.main import main
 from spcopyro.data import load_house
 from spcopyro.experiments.ablation import (
+    QUICK_HOUSES,
+    SYNTHETIC_HOUSES,
     AblationSettings,
     concepts_over,
     jobs_of,
@@ -23,7 +27,20 @@ from spcopyro.experiments.ablation_variants import (
     parse_variant,
 )
 from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.study.ablation import (
+    ABLATION,
+    ABLATION_QUICK,
+    ablation_settings,
+    ablation_study,
+    run_ablation,
+)
+from spcopyro.study.cells import cells_of
+from spcopyro.study.spec import load_study
 from spcopyro.synthetic import HouseSpec, house_statistics, make_house
+
+OLD_RECORDS = Path(__file__).with_name("ablation_old_records.json")
+"""The records (times left out) the ablation's own loop gave for :data:`OLD_GRID`, before it
+became a study (issue 26)."""
 
 # The five public houses, measured with house_statistics (min, max over the houses); the test
 # against the dataset below checks these numbers when the dataset is present.
@@ -181,6 +198,17 @@ def test_ambiguous_key_needs_a_prefix(monkeypatch):
 # ------------------------------------------------------------------------------------------
 
 
+def _old_grid(root) -> AblationSettings:
+    """The grid of :data:`OLD_RECORDS`: 2 variants and both baselines on the two quick houses
+    (seeds 0-1) and room1ldk4 (seeds 0-1: trials 0 and 1 held out), 5 sweeps."""
+    return AblationSettings.quick(
+        variants=(parse_variant("g3:preset=original-code,gamma=3"),
+                  parse_variant("dp+sw:preset=paper-dp,cluster_moves=0.2")),
+        baselines=("C-spcoa", "F-geometry"), seeds=2, sweeps=5, spcoa_iterations=5,
+        dataset_root=root, public_houses=("room1ldk4",), public_seeds=2,
+    )  # fmt: skip
+
+
 def test_jobs_cover_rows_houses_and_seeds():
     settings = AblationSettings.quick(
         variants=(parse_variant("a"), parse_variant("b:gamma=3")), seeds=3
@@ -191,8 +219,57 @@ def test_jobs_cover_rows_houses_and_seeds():
         (r, h, s) for r in ("a", "b", "C-spcoa", "F-geometry") for h in ("dense", "sparse")
         for s in range(3)
     }  # fmt: skip
+    cells = cells_of(ablation_study(settings))
+    assert [(c.row, c.data.name, c.seed) for c in cells] == [(j.row, j.house, j.seed) for j in jobs]
+    assert all(c.observations_off == (c.variant is not None) for c in cells)
     with pytest.raises(ValueError, match="unknown synthetic house"):
         jobs_of(AblationSettings.quick(synthetic=("nope",)))
+    with pytest.raises(ValueError, match="unknown synthetic house"):
+        ablation_study(AblationSettings.quick(synthetic=("nope",)))
+
+
+@pytest.mark.parametrize("quick", [False, True])
+def test_shipped_study_files_are_the_ablations_grid(quick, dataset_root):
+    """ablation(_quick).toml holds the ablation's defaults: the same cells, key for key, as
+    the settings the command had (AblationSettings / .quick with the dataset's houses)."""
+    study = load_study(ABLATION_QUICK if quick else ABLATION)
+    if quick:
+        settings = AblationSettings.quick(dataset_root=dataset_root, public_houses=("room1dk5",))
+    else:
+        settings = AblationSettings(dataset_root=dataset_root)
+    assert ablation_settings(study, dataset_root).houses == (
+        QUICK_HOUSES if quick else SYNTHETIC_HOUSES
+    )
+    keys = [c.key for c in cells_of(study, dataset_root)]
+    assert keys == [c.key for c in cells_of(ablation_study(settings))]
+    again = ablation_study(ablation_settings(study, dataset_root))
+    assert [c.key for c in cells_of(again)] == keys
+    assert len(keys) == (25 if quick else 325)
+
+
+def test_the_study_gives_the_old_loops_numbers(tmp_path, dataset_root):
+    """The ablation as a study reproduces, score for score, what its own loop gave before
+    issue 26 for the same grid and seeds (recorded in ablation_old_records.json); the report
+    is drawn from results.csv, and rerunning fits nothing."""
+    old = json.loads(OLD_RECORDS.read_text())["records"]
+    report = run_ablation(tmp_path, _old_grid(dataset_root))
+    times = {"seconds", "cpu_seconds", "seconds_off", "cpu_seconds_off"}
+    new = [{k: v for k, v in r.items() if k not in times} for r in report["records"]]
+    assert [(r["row"], r["house"], r["seed"]) for r in new] == [
+        (r["row"], r["house"], r["seed"]) for r in old
+    ]
+    for was, now in zip(old, new, strict=True):
+        assert set(now) == set(was), (was["row"], was["house"], set(now) ^ set(was))
+        for key, value in was.items():
+            if isinstance(value, float):
+                assert now[key] == pytest.approx(value, rel=1e-9, nan_ok=True), key
+            else:
+                assert now[key] == value, (was["row"], was["house"], was["seed"], key)
+    assert report["failed"] == 0
+    lines = []
+    again = run_ablation(tmp_path, _old_grid(dataset_root), report=lines.append)
+    assert "nothing to run" in lines[0]
+    assert again["summary"] == report["summary"]
 
 
 def test_concepts_over_counts_labels_with_one_percent():
@@ -234,12 +311,9 @@ def test_quick_run_end_to_end(tmp_path):
         variants=(parse_variant("g3:preset=original-code,gamma=3"),),
         baselines=("F-geometry",), seeds=2, sweeps=5,
     )  # fmt: skip
-    from spcopyro.experiments.ablation import run_ablation
-
-    lines = []
-    report = run_ablation(tmp_path, settings, report=lines.append)
-    assert len(lines) == 2 * 2 * 2
+    report = run_ablation(tmp_path, settings)
     _check_outputs(tmp_path, ["g3", "F-geometry"], ["dense", "sparse"], 2)
+    assert {"results.csv", "report.md", "cells"} <= {p.name for p in tmp_path.iterdir()}
     g3 = report["summary"]["g3"]["dense"]
     for key in ("ari", "ari_off", "ari_on_off", "matching_rate", "matching_rate_area",
                 "concepts", "place_top_share", "seconds_off"):  # fmt: skip
@@ -259,12 +333,11 @@ def test_quick_run_on_a_public_house(tmp_path, dataset_root):
         variants=(parse_variant("dp"),), baselines=("F-geometry",), synthetic=(),
         dataset_root=dataset_root, public_houses=("room1ldk4",), sweeps=3,
     )  # fmt: skip
-    from spcopyro.experiments.ablation import run_ablation
-
     report = run_ablation(tmp_path, settings)
     _check_outputs(tmp_path, ["dp", "F-geometry"], ["room1ldk4"], 1)
     dp = report["summary"]["dp"]["room1ldk4"]
     assert {"top1", "top3", "distance_m", "ari_on_off", "concepts_1pct"} <= set(dp)
+    assert not {"ari", "ari_off", "matching_rate"} & set(dp)  # the ablation's public columns
     assert report["records"][0]["held_out_trial"] == 0
     text = (tmp_path / "ablation.md").read_text()
     assert "| Table 2 | 7 |" in text  # room1ldk4's categories in the paper's Table 2
@@ -278,7 +351,13 @@ def test_cli_runs_and_rejects_bad_variants(tmp_path, capsys):
     assert code == 0
     report = _check_outputs(out, ["sw"], ["sparse"], 1)
     assert report["settings"]["variants"][0]["options"] == {"cluster_moves": 0.5}
+    assert report["settings"]["sweeps"] == 3 and report["settings"]["spcoa_iterations"] == 5
     assert "ablation.md" in capsys.readouterr().out
+    # the alias is a study: the same command again runs nothing
+    assert main(["ablation", "--out", str(out), "--quick", "--no-public", "--seeds", "1",
+                 "--sweeps", "3", "--houses", "sparse", "--baselines",
+                 "--variant", "sw:cluster_moves=0.5"]) == 0  # fmt: skip
+    assert "nothing to run: all 1 cells" in capsys.readouterr().out
     assert main(["ablation", "--out", str(tmp_path / "x"), "--quick", "--variant", "x:gama=3"]) == 2
     assert "unknown key 'gama'" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
@@ -291,8 +370,6 @@ def test_public_only_run_with_no_synthetic_seed(tmp_path, dataset_root):
         variants=(parse_variant("dp"),), baselines=(), seeds=0,
         dataset_root=dataset_root, public_houses=("room1ldk4",), sweeps=3,
     )  # fmt: skip
-    from spcopyro.experiments.ablation import run_ablation
-
     report = run_ablation(tmp_path, settings)
     assert [s["name"] for s in report["statistics"]] == ["room1ldk4"]
     assert (tmp_path / "ablation.md").is_file()

@@ -278,6 +278,9 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     from spcopyro.experiments.cli import add_parser as add_experiment_parsers
 
     add_experiment_parsers(sub)  # experiment, compare-inference
+    from spcopyro.study.commands import add_parser as add_study_aliases
+
+    add_study_aliases(sub)  # ablation (a shipped study)
 
     from spcopyro.features.cli import add_parser as add_features_parsers
 

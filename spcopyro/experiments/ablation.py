@@ -1,14 +1,18 @@
 r"""The ablation of issue #14 ("Evidence required"): every variant on dense, sparse and other
 synthetic houses and on the public houses, beside the baselines (C) SpCoA and (F) geometry.
 
-For each row (a :class:`~spcopyro.experiments.ablation_variants.Variant` of SpCoMapping, or a
-baseline of :mod:`spcopyro.experiments.methods`) x house x seed, one job (:func:`run_job`):
+This module holds what the ablation *is*: its synthetic settings (:data:`SYNTHETIC_HOUSES`),
+default rows, options (:class:`AblationSettings`) and the scorers only it uses
+(:func:`concepts_over`, :func:`top_words`). It runs as a study (issue 26):
+:func:`spcopyro.study.ablation.run_ablation` fits each row x house x seed as a cell of the
+study engine (shipped as ``spcopyro/study/studies/ablation.toml``), scored by
+:func:`spcopyro.study.evaluate.run_cell`:
 
-* **synthetic houses** (:data:`SYNTHETIC_HOUSES`; house seed = fit seed): the ARI of the map
-  against the truth (:func:`~spcopyro.metrics.adjusted_rand_index`), the matching rate (eq. 18,
-  places by eq. 19 with p(C) = pi, and with the area prior), the ARI of the same fit with the
-  observations switched off (``use_images = use_words = False``, same seed: what the map would
-  be from the MRF alone) and the ARI between the two maps (how much the data moved the map);
+* **synthetic houses** (house seed = fit seed): the ARI of the map against the truth
+  (:func:`~spcopyro.metrics.adjusted_rand_index`), the matching rate (eq. 18, places by eq. 19
+  with p(C) = pi, and with the area prior), the ARI of the same fit with the observations
+  switched off (``use_images = use_words = False``, same seed: what the map would be from the
+  MRF alone) and the ARI between the two maps (how much the data moved the map);
 * **public houses** (no drawn truth): the fit on two trials, the third held out (trial
   ``seed mod 3``): held-out word prediction (top-1 / top-3 / mean rank,
   :func:`~spcopyro.metrics.heldout_word_prediction`) and localisation (mean distance to the
@@ -19,39 +23,21 @@ baseline of :mod:`spcopyro.experiments.methods`) x house x seed, one job (:func:
   that hold an utterance and whether the top word is a place word, the fit's seconds (wall
   clock and CPU time of the process: on a shared machine the CPU time is what to plan with).
 
-:func:`run_ablation` runs the jobs (in a process pool with ``workers`` > 1, each process with
-one torch thread), then :mod:`spcopyro.experiments.ablation_report` aggregates them (mean +- sd
-over seeds) into ``ablation.md``, ``ablation.json`` and ``ablation.png``.
+:mod:`spcopyro.experiments.ablation_report` aggregates the records (mean +- sd over seeds) into
+``ablation.md``, ``ablation.json`` and ``ablation.png``.
 """
 
 from __future__ import annotations
 
-import concurrent.futures
-import multiprocessing
-import os
-import time
-from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import torch
 
-from spcopyro.data import House, list_houses, load_house, place_observations
-from spcopyro.data.model_grid import model_house
-from spcopyro.experiments.ablation_report import TABLE2_CATEGORIES, settings_json, write_report
+from spcopyro.data import House, list_houses, place_observations
+from spcopyro.experiments.ablation_report import TABLE2_CATEGORIES, settings_json
 from spcopyro.experiments.ablation_variants import Variant, parse_variant
-from spcopyro.experiments.methods import RunSettings, fit_method
-from spcopyro.experiments.table import heldout_folds
-from spcopyro.fit.house import fit_house
-from spcopyro.metrics import (
-    SpCoSemanticMap,
-    adjusted_rand_index,
-    heldout_localisation,
-    heldout_word_prediction,
-    matching_rate,
-)
-from spcopyro.synthetic import HouseSpec, lexicon_for, make_house
+from spcopyro.synthetic import HouseSpec, lexicon_for
 
 __all__ = [
     "BASELINES",
@@ -62,10 +48,10 @@ __all__ = [
     "TABLE2_CATEGORIES",
     "AblationSettings",
     "Job",
+    "concepts_over",
     "jobs_of",
-    "run_ablation",
-    "run_job",
     "settings_json",
+    "top_words",
 ]
 
 SYNTHETIC_HOUSES: dict[str, HouseSpec] = {
@@ -165,7 +151,9 @@ class Job:
 
 
 def jobs_of(settings: AblationSettings) -> list[Job]:
-    """Every job of a run, synthetic first, in row order within each house and seed."""
+    """Every row x house x seed of a run, synthetic first, in row order within each house and
+    seed: the cells of :func:`spcopyro.study.ablation.ablation_study`, listed without running
+    anything."""
     jobs = []
     rows: list[tuple[str, Variant | None]] = [(v.name, v) for v in settings.variants]
     rows += [(b, None) for b in settings.baselines]
@@ -194,11 +182,6 @@ def jobs_of(settings: AblationSettings) -> list[Job]:
     return jobs
 
 
-def _free_labels(model: object, house: House) -> np.ndarray:
-    """[N] the label of every free cell (free-index order)."""
-    return model.label_image()[house.grid.free]  # type: ignore[attr-defined]
-
-
 def concepts_over(labels: np.ndarray, share: float = MIN_SHARE) -> int:
     """The number of labels holding at least ``share`` of the cells ``labels`` ([N])."""
     sizes = np.bincount(labels[labels >= 0])
@@ -211,9 +194,10 @@ def _place_words(house: House) -> frozenset[str]:
     return frozenset(lexicon_for(name).name_word for name in house.category_names)
 
 
-def _top_words(result: object, house: House) -> tuple[list[list[tuple[str, float]]], float]:
+def top_words(result: object, house: House) -> tuple[list[list[tuple[str, float]]], float]:
     """The top words of the largest concepts holding an utterance, and the share of them whose
-    top word is a place word (nan when none holds an utterance)."""
+    top word is a place word (nan when none holds an utterance). ``house`` on the model's grid
+    (:func:`spcopyro.data.model_grid.model_house`), as the fit saw it."""
     cells, _, unplaced = place_observations(
         house.grid,
         house.observations.word_xy,
@@ -227,130 +211,3 @@ def _top_words(result: object, house: House) -> tuple[list[list[tuple[str, float
     places = _place_words(house)
     share = float(np.mean([bool(w) and w[0][0] in places for w in words])) if words else np.nan
     return [[(str(k), round(float(p), 3)) for k, p in w] for w in words], share
-
-
-def _fit_variant(job: Job, house: House, num_categories: int | None, **extra: object):
-    assert job.variant is not None
-    variant = job.variant
-    settings = variant.spco_settings(num_categories, **extra)
-    start, cpu = time.perf_counter(), time.process_time()
-    result = fit_house(
-        house, settings, method=variant.method, options=variant.method_options(),
-        sweeps=job.sweeps, seed=job.seed, progress=False, threads=1, **variant.fit_kwargs(),
-    )  # fmt: skip
-    return result, time.perf_counter() - start, time.process_time() - cpu
-
-
-def _load(job: Job) -> House:
-    if job.public:
-        assert job.house_path is not None
-        return load_house(job.house_path)
-    return make_house(seed=job.seed, spec=job.spec, name=job.house)
-
-
-def run_job(job: Job) -> dict[str, object]:
-    """Fit one row to one house with one seed; the record of its scores (module docstring)."""
-    torch.set_num_threads(1)
-    house = _load(job)
-    record: dict[str, object] = {
-        "row": job.row, "house": job.house, "public": job.public, "seed": job.seed,
-        "baseline": job.variant is None, "free_cells": int(house.grid.num_free),
-    }  # fmt: skip
-    test = None
-    if job.public:
-        num_categories = TABLE2_CATEGORIES.get(job.house)
-        folds = list(heldout_folds(house))
-        _, held, house, test = folds[job.seed % len(folds)]
-        record["held_out_trial"] = held
-    else:
-        assert house.category_names is not None
-        num_categories = len(house.category_names)
-    result = None
-    if job.variant is None:
-        start, cpu = time.perf_counter(), time.process_time()
-        fitted = fit_method(
-            job.row, house, RunSettings(sweeps=job.sweeps, spcoa_iterations=job.spcoa_iterations),
-            seed=job.seed, num_categories=num_categories, public=job.public,
-        )  # fmt: skip
-        model = fitted.model
-        record["seconds"] = time.perf_counter() - start
-        record["cpu_seconds"] = time.process_time() - cpu
-    else:
-        # A variant with a model grid (cell_size) is scored on that grid: its result lives there.
-        cell_size = job.variant.spco_settings(num_categories).data.cell_size
-        house = model_house(house, cell_size)
-        result, record["seconds"], record["cpu_seconds"] = _fit_variant(job, house, num_categories)
-        model = SpCoSemanticMap(result)
-        record["concepts"] = int(len(result.concepts_in_use()))
-        record["top_words"], record["place_top_share"] = _top_words(result, house)
-    labels = _free_labels(model, house)  # [N]
-    record["concepts_1pct"] = concepts_over(labels)
-    if job.public:
-        assert test is not None
-        words = heldout_word_prediction(model, test)
-        places = heldout_localisation(model, test)
-        record.update(top1=words.top1, top3=words.top3, mean_rank=words.mean_rank,
-                      distance_m=places.mean_distance, inside_rate=places.inside_rate)  # fmt: skip
-    else:
-        truth = house.truth
-        assert truth is not None and house.category_names is not None
-        record["ari"] = adjusted_rand_index(model.label_image(), truth)
-        record["matching_rate"] = matching_rate(model, truth, house.category_names).value
-        if result is not None:
-            area = SpCoSemanticMap(result, prior="area")
-            record["matching_rate_area"] = matching_rate(area, truth, house.category_names).value
-    if result is not None and job.observations_off:
-        off, record["seconds_off"], record["cpu_seconds_off"] = _fit_variant(
-            job, house, num_categories, use_images=False, use_words=False
-        )
-        off_image = off.label_image()
-        record["ari_on_off"] = adjusted_rand_index(model.label_image(), off_image)
-        record["concepts_1pct_off"] = concepts_over(off_image[house.grid.free])
-        if not job.public:
-            record["ari_off"] = adjusted_rand_index(off_image, house.truth)
-    return record
-
-
-def _run_jobs(
-    jobs: list[Job], workers: int, report: Callable[[str], None]
-) -> Iterator[dict[str, object]]:
-    def line(record: dict[str, object], done: int) -> str:
-        score = record.get("ari", record.get("top1"))
-        name = "ARI" if "ari" in record else "top-1"
-        return (
-            f"[{done}/{len(jobs)}] {record['house']} seed {record['seed']} {record['row']}: "
-            f"{name} {score:.3f}, concepts >= 1% {record['concepts_1pct']} "
-            f"({record['seconds']:.1f} s)"
-        )
-
-    if workers <= 1:
-        for done, job in enumerate(jobs, 1):
-            record = run_job(job)
-            report(line(record, done))
-            yield record
-        return
-    context = multiprocessing.get_context("spawn")  # no forked torch / numba thread pools
-    with concurrent.futures.ProcessPoolExecutor(workers, mp_context=context) as pool:
-        futures = [pool.submit(run_job, job) for job in jobs]
-        for done, future in enumerate(concurrent.futures.as_completed(futures), 1):
-            record = future.result()
-            report(line(record, done))
-            yield record
-
-
-def run_ablation(
-    out: str | os.PathLike[str],
-    settings: AblationSettings,
-    report: Callable[[str], None] = lambda message: None,
-) -> dict[str, object]:
-    """Run every job, write ``ablation.md``, ``ablation.json`` and ``ablation.png`` into
-    ``out``; returns the summary written to ``ablation.json``."""
-    jobs = jobs_of(settings)
-    start = time.perf_counter()
-    order = {(j.row, j.house, j.seed): k for k, j in enumerate(jobs)}
-    records = sorted(
-        _run_jobs(jobs, settings.workers, report),
-        key=lambda r: order[(r["row"], r["house"], r["seed"])],  # type: ignore[index]
-    )
-    seconds = time.perf_counter() - start
-    return write_report(Path(out), settings, records, seconds)

@@ -1,4 +1,5 @@
-"""The ``spcopyro experiment``, ``spcopyro compare-inference`` and ``spcopyro ablation`` commands.
+"""The ``spcopyro experiment`` and ``spcopyro compare-inference`` commands (``spcopyro ablation``
+is a shipped study: :mod:`spcopyro.study.commands`).
 
 :func:`add_parser` registers both on the main parser's subparsers (:mod:`spcopyro.cli.main`); the
 experiments' own modules are imported only when one of them runs.
@@ -116,60 +117,8 @@ def _compare_inference(args: argparse.Namespace) -> int:
     return 0
 
 
-def _ablation(args: argparse.Namespace) -> int:
-    from spcopyro.data import find_dataset_root
-    from spcopyro.experiments.ablation import (
-        BASELINES,
-        DEFAULT_VARIANTS,
-        AblationSettings,
-        run_ablation,
-    )
-    from spcopyro.experiments.ablation_variants import parse_variant
-    from spcopyro.experiments.methods import METHODS
-
-    variants = tuple(parse_variant(text) for text in (args.variant or DEFAULT_VARIANTS))
-    names = [v.name for v in variants]
-    if len(set(names)) != len(names):
-        raise ValueError(f"--variant names must differ, got {names}")
-    baselines = BASELINES if args.baselines is None else tuple(args.baselines)
-    unknown = sorted(set(baselines) - set(METHODS))
-    if unknown:
-        raise ValueError(f"unknown --baselines {unknown}; choose from {list(METHODS)}")
-    root = None if args.no_public else find_dataset_root(args.data)
-    if root is None and not args.no_public:
-        print("note: public dataset not found ($SPCOPYRO_DATA, ../shared/data/spcomapping); "
-              "skipping the public houses", file=sys.stderr)  # fmt: skip
-    command = "spcopyro " + " ".join(sys.argv[1:] if args.argv is None else args.argv)
-    changes: dict[str, object] = dict(
-        variants=variants, baselines=baselines, dataset_root=root, command=command,
-        workers=args.workers, observations_off=not args.no_off,
-    )  # fmt: skip
-    for key in ("seeds", "public_seeds", "sweeps", "spcoa_iterations"):
-        if getattr(args, key) is not None:
-            changes[key] = getattr(args, key)
-    if args.public_houses:
-        changes["public_houses"] = tuple(args.public_houses)
-    make = AblationSettings.quick if args.quick else AblationSettings
-    if args.quick and root is not None and not args.public_houses:
-        from spcopyro.data import list_houses
-
-        changes["public_houses"] = tuple(list_houses(root)[:1])
-    settings = make(**changes)  # type: ignore[arg-type]
-    if args.houses:
-        missing = sorted(set(args.houses) - set(settings.houses))
-        if missing:
-            raise ValueError(f"unknown --houses {missing}; choose from {list(settings.houses)}")
-        settings = dataclasses.replace(settings, synthetic=tuple(args.houses))
-    run_ablation(args.out, settings, report=print)
-    out = Path(args.out)
-    print((out / "ablation.md").read_text())
-    print(f"wrote {out / 'ablation.md'}, {out / 'ablation.json'} and {out / 'ablation.png'}")
-    return 0
-
-
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    """Register ``experiment`` (Table 4, Figs. 5-7), ``compare-inference`` (issue #10) and
-    ``ablation`` (issue #14)."""
+    """Register ``experiment`` (Table 4, Figs. 5-7) and ``compare-inference`` (issue #10)."""
     p = subparsers.add_parser("experiment", help="the paper's comparison (Table 4, Figs. 5-7)")
     p.add_argument("--out", required=True, help="results folder (table.md, table.json, figures/)")
     p.add_argument(
@@ -243,42 +192,3 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--gamma", type=float, default=3.0, help="the Potts coupling, replacing the preset's"
     )
     p.set_defaults(func=_compare_inference, argv=None)
-
-    p = subparsers.add_parser(
-        "ablation",
-        help="every variant (named overrides) on dense, sparse and other synthetic houses and "
-        "the public houses, beside SpCoA and geometry (issue #14)",
-    )
-    p.add_argument("--out", required=True, help="results folder (ablation.md, .json, .png)")
-    p.add_argument(
-        "--variant",
-        action="append",
-        metavar="NAME:KEY=VALUE,...",
-        help="a row: a preset, SpCoConfig/DataPreparation fields, GibbsOptions fields (nested "
-        "as a.b) and fit_house arguments, e.g. 'sw:preset=paper-dp,cluster_moves=0.2'; "
-        "repeat for more rows (default: paper-dp, original-code gamma 3, paper-dp + cluster "
-        "moves)",
-    )
-    p.add_argument(
-        "--baselines", nargs="*", help="baseline rows (default: C-spcoa F-geometry; none: no value)"
-    )
-    p.add_argument(
-        "--houses",
-        nargs="+",
-        help="synthetic settings (default: dense sparse dense-large sparse-small open-plan)",
-    )
-    p.add_argument("--seeds", type=int, help="synthetic seeds 0..n-1 (default 10)")
-    p.add_argument("--public-seeds", type=int, help="seeds per public house (default 3)")
-    p.add_argument("--public-houses", nargs="+", help="public houses (default: all)")
-    p.add_argument("--sweeps", type=int, help="Gibbs sweeps per fit (default 1000)")
-    p.add_argument("--spcoa-iterations", type=int, help="SpCoA iterations (default 100)")
-    p.add_argument("--workers", type=int, default=1, help="processes (one torch thread each)")
-    p.add_argument("--no-off", action="store_true", help="skip the fits without observations")
-    p.add_argument("--data", help="public dataset folder (default: found automatically)")
-    p.add_argument("--no-public", action="store_true", help="synthetic houses only")
-    p.add_argument(
-        "--quick",
-        action="store_true",
-        help="smoke run: two small houses, 2 seeds, 30 sweeps, one public house and seed",
-    )
-    p.set_defaults(func=_ablation, argv=None)

@@ -39,6 +39,8 @@ class Cell:
     seed: int
     sweeps: int
     spcoa_iterations: int
+    observations_off: bool = False
+    """Also fit with the observations off (a variant cell of a study that asks for it)."""
     key: str = ""
 
     def inputs(self) -> dict[str, object]:
@@ -55,6 +57,7 @@ class Cell:
             "house_seed": self.seed if self.data.house_seed is None else self.data.house_seed,
             "heldout": self.data.heldout,
             "sweeps": self.sweeps,
+            "observations_off": self.observations_off,
             "preset": variant.preset if variant else "",
             "overrides": variant.describe().partition(":")[2] if variant else "",
             "version": __version__,
@@ -81,6 +84,8 @@ def cell_key(cell: Cell, digest: str) -> str:
             inputs["spcoa_iterations"] = cell.spcoa_iterations
     else:
         inputs = {"settings": _settings_json(cell.variant), "sweeps": cell.sweeps}
+        if cell.observations_off:  # only when asked: earlier cells keep their keys
+            inputs["observations_off"] = True
     inputs.update(method=cell.method, seed=cell.seed, data=digest, version=__version__)
     text = json.dumps(inputs, sort_keys=True, default=repr)
     return hashlib.sha256(text.encode()).hexdigest()
@@ -93,7 +98,7 @@ def cells_of(study: Study, root: str | Path | None = None) -> list[Cell]:
     sources = [resolve_source(data, root) for data in study.data]
     cells = []
     for data in sources:
-        for seed in study.seeds:
+        for seed in study.seeds if data.seeds is None else data.seeds:
             digest = data_digest(data, seed)
             planned: list[Cell] = []
             for variant in study.variants:
@@ -102,7 +107,8 @@ def cells_of(study: Study, root: str | Path | None = None) -> list[Cell]:
                     changed = dataclasses.replace(variant, method=method)
                     sweeps = study.sweeps_for(method)
                     planned.append(Cell(changed, variant.name, data, method, seed, sweeps,
-                                        study.spcoa_iterations))  # fmt: skip
+                                        study.spcoa_iterations,
+                                        study.observations_off))  # fmt: skip
             for baseline in study.baselines:
                 planned.append(Cell(None, baseline, data, BASELINE_METHOD, seed,
                                     study.sweeps_for("gibbs"), study.spcoa_iterations))  # fmt: skip

@@ -11,11 +11,18 @@ Scores (every one that applies; the others are left empty in the table, :data:`S
   coarser model grid is refined back to the map's cells first
   (:func:`spcopyro.maps.coarse.refine_labels`);
 * ``matching_rate``: place estimation from the category names (synthetic houses and tours),
-  on the model's grid;
+  on the model's grid; ``matching_rate_area``: the same with the area prior instead of pi
+  (variants);
 * ``top1``, ``top3``, ``mean_rank``, ``distance_m``, ``inside_rate``: held-out word prediction
   and localisation when the source holds a trial out;
 * ``concepts`` (in use), ``concepts_1pct`` (holding >= 1 % of the free cells),
   ``largest_share`` (the largest concept's share of the free cells), ``free_cells``;
+* ``top_words`` (JSON text: the top 3 words of the 3 largest concepts holding an utterance)
+  and ``place_top_share`` (the share of those whose top word is a place word), variants;
+* with the study's ``observations_off``, a variant is fitted again with
+  ``use_images = use_words = False`` (same seed): ``ari_off`` (against the truth),
+  ``ari_on_off`` (between the two maps), ``concepts_1pct_off``, ``seconds_off`` and
+  ``cpu_seconds_off``;
 * ``seconds`` (wall clock) and ``cpu_seconds`` of the fit, ``iterations``;
 * the trace (objective, concepts in use and seconds per iteration), returned beside the
   record and saved by the caller as ``traces/KEY.npz``.
@@ -23,13 +30,14 @@ Scores (every one that applies; the others are left empty in the table, :data:`S
 
 from __future__ import annotations
 
+import json
 import time
 
 import numpy as np
 
 from spcopyro._util.threads import torch_threads
 from spcopyro.data.model_grid import model_house
-from spcopyro.experiments.ablation import concepts_over
+from spcopyro.experiments.ablation import concepts_over, top_words
 from spcopyro.experiments.methods import RunSettings, fit_method
 from spcopyro.fit.house import fit_house
 from spcopyro.maps.coarse import coarsening_factor, refine_labels
@@ -46,9 +54,10 @@ from spcopyro.study.sources import load_cell_data
 __all__ = ["SCORES", "STATUS_COLUMNS", "run_cell"]
 
 SCORES = (
-    "ari", "matching_rate", "top1", "top3", "mean_rank", "distance_m", "inside_rate",
-    "concepts", "concepts_1pct", "largest_share", "free_cells", "held_out_trial", "seconds",
-    "cpu_seconds", "iterations",
+    "ari", "matching_rate", "matching_rate_area", "top1", "top3", "mean_rank", "distance_m",
+    "inside_rate", "concepts", "concepts_1pct", "largest_share", "free_cells", "held_out_trial",
+    "place_top_share", "top_words", "ari_off", "ari_on_off", "concepts_1pct_off", "seconds",
+    "cpu_seconds", "seconds_off", "cpu_seconds_off", "iterations",
 )  # fmt: skip
 """The score columns of the table, in order."""
 STATUS_COLUMNS = ("status", "error_type", "error")
@@ -82,17 +91,10 @@ def _fit_and_score(cell: Cell) -> tuple[dict[str, object], dict[str, np.ndarray]
         )  # fmt: skip
         model, labels, scored_house = fitted.model, fitted.model.label_image(), house
     else:
-        variant = cell.variant
-        settings = variant.spco_settings(loaded.num_categories)
-        result = fit_house(
-            house, settings, method=cell.method, options=variant.method_options(),
-            sweeps=cell.sweeps, seed=cell.seed, progress=False, threads=1, **variant.fit_kwargs(),
-        )  # fmt: skip
+        settings = cell.variant.spco_settings(loaded.num_categories)
+        result = _fit(cell, house, settings)
         model = SpCoSemanticMap(result)
-        labels = result.label_image()  # [h, w] on the model's grid
-        if labels.shape != house.grid.shape:  # back on the map's cells
-            factor = coarsening_factor(house.grid.resolution, settings.data.cell_size)
-            labels = refine_labels(labels, house.grid, factor)
+        labels = _on_map(result, house, settings)
         scored_house = model_house(loaded.full, settings.data.cell_size)  # the model's grid
     scores: dict[str, object] = {
         "seconds": time.perf_counter() - start,
@@ -101,6 +103,18 @@ def _fit_and_score(cell: Cell) -> tuple[dict[str, object], dict[str, np.ndarray]
     scores.update(_map_scores(labels, house.grid.free, loaded.truth))
     if loaded.categories and scored_house.truth is not None:
         scores["matching_rate"] = matching_rate(model, scored_house.truth, loaded.categories).value
+        if result is not None:
+            area = SpCoSemanticMap(result, prior="area")
+            scores["matching_rate_area"] = matching_rate(
+                area, scored_house.truth, loaded.categories
+            ).value
+    if result is not None:
+        words, scores["place_top_share"] = top_words(
+            result, model_house(house, settings.data.cell_size)
+        )
+        scores["top_words"] = json.dumps(words)
+        if cell.observations_off:
+            scores.update(_observations_off(cell, loaded, labels))
     if loaded.test is not None:
         words = heldout_word_prediction(model, loaded.test)
         places = heldout_localisation(model, loaded.test)
@@ -116,6 +130,44 @@ def _fit_and_score(cell: Cell) -> tuple[dict[str, object], dict[str, np.ndarray]
         name: np.asarray(getattr(trace, name)) for name in ("objective", "num_concepts", "seconds")
     }
     return scores, arrays
+
+
+def _fit(cell: Cell, house, settings):
+    """The variant's fit of ``house`` with ``settings``."""
+    variant = cell.variant
+    assert variant is not None
+    return fit_house(
+        house, settings, method=cell.method, options=variant.method_options(),
+        sweeps=cell.sweeps, seed=cell.seed, progress=False, threads=1, **variant.fit_kwargs(),
+    )  # fmt: skip
+
+
+def _on_map(result, house, settings) -> np.ndarray:
+    """``[H, W]`` the fit's labels on the map's cells (refined from a coarser model grid)."""
+    labels = result.label_image()  # [h, w] on the model's grid
+    if labels.shape != house.grid.shape:
+        factor = coarsening_factor(house.grid.resolution, settings.data.cell_size)
+        labels = refine_labels(labels, house.grid, factor)
+    return labels
+
+
+def _observations_off(cell: Cell, loaded, labels: np.ndarray) -> dict[str, object]:
+    """The same fit with images and words off: what the map is from the MRF alone, and how
+    much the data moved it (``labels`` ``[H, W]``: the fit's map on the map's cells)."""
+    assert cell.variant is not None
+    house = loaded.house
+    settings = cell.variant.spco_settings(loaded.num_categories, use_images=False, use_words=False)
+    start, cpu = time.perf_counter(), time.process_time()
+    off = _on_map(_fit(cell, house, settings), house, settings)
+    scores: dict[str, object] = {
+        "seconds_off": time.perf_counter() - start,
+        "cpu_seconds_off": time.process_time() - cpu,
+        "ari_on_off": adjusted_rand_index(labels, off),
+        "concepts_1pct_off": concepts_over(off[house.grid.free]),
+    }
+    if loaded.truth is not None:
+        scores["ari_off"] = adjusted_rand_index(off, loaded.truth)
+    return scores
 
 
 def _map_scores(labels: np.ndarray, free: np.ndarray, truth: np.ndarray | None) -> dict:

@@ -64,7 +64,7 @@ BASELINES = tuple(key for key, row in BASELINE_REGISTRY.items() if not row.spcom
 """Rows a study may add beside its variants (``baselines = [...]``)."""
 
 _STUDY_KEYS = {"name", "seeds", "sweeps", "methods", "baselines", "spcoa_iterations",
-               "description"}  # fmt: skip
+               "observations_off", "description"}  # fmt: skip
 _KINDS = ("synthetic", "public", "map")
 
 
@@ -79,7 +79,8 @@ class DataSource:
     ``options`` are the HouseSpec fields (synthetic) or MapTour fields (map) as (name, value)
     pairs. ``house_seed``: draw the house (or tour) with this seed in every cell; None: with
     the cell's seed. ``heldout``: fit on all trials but one and score the held-out trial's
-    words (trial = seed mod the number of trials).
+    words (trial = seed mod the number of trials). ``seeds``: the seeds of this source's cells
+    when they differ from the study's (the ablation runs 10 synthetic, 3 public).
     """
 
     name: str
@@ -88,6 +89,8 @@ class DataSource:
     options: tuple[tuple[str, Any], ...] = ()
     house_seed: int | None = None
     heldout: bool = False
+    seeds: tuple[int, ...] | None = None
+    """This source's seeds (``seeds = N`` or a list in its table); None: the study's."""
 
     def house_spec(self) -> HouseSpec:
         """A synthetic source's :class:`HouseSpec`."""
@@ -105,7 +108,7 @@ class DataSource:
         return {
             "name": self.name, "kind": self.kind, "target": self.target,
             "options": dict(self.options), "house_seed": self.house_seed,
-            "heldout": self.heldout,
+            "heldout": self.heldout, "seeds": None if self.seeds is None else list(self.seeds),
         }  # fmt: skip
 
 
@@ -122,6 +125,9 @@ class Study:
     methods: tuple[str, ...] = ()
     baselines: tuple[str, ...] = ()
     spcoa_iterations: int = 100
+    observations_off: bool = False
+    """Also fit every variant cell with ``use_images = use_words = False`` (same seed) and score
+    that map: ``ari_off``, ``ari_on_off``, ``concepts_1pct_off``, ``seconds_off``."""
     description: str = ""
     source: str = field(default="<python>", compare=False)
     """Where the study was read from (named in errors and in study.json)."""
@@ -137,6 +143,7 @@ class Study:
             "name": self.name, "description": self.description, "source": self.source,
             "seeds": list(self.seeds), "sweeps": dict(self.sweeps), "methods": list(self.methods),
             "baselines": list(self.baselines), "spcoa_iterations": self.spcoa_iterations,
+            "observations_off": self.observations_off,
             "variants": [v.to_json() for v in self.variants],
             "data": [d.to_json() for d in self.data],
         }  # fmt: skip
@@ -164,23 +171,29 @@ def _fail(source: str, where: str, value: object, why: str) -> StudyError:
     return StudyError(f"{source}: {where} = {value!r}: {why}")
 
 
-def _seeds(source: str, value: object) -> tuple[int, ...]:
+def _seeds(source: str, value: object, where: str = "[study] seeds") -> tuple[int, ...]:
     if isinstance(value, int) and not isinstance(value, bool):
         if value < 1:
-            raise _fail(source, "[study] seeds", value, "a count must be >= 1")
+            raise _fail(source, where, value, "a count must be >= 1")
         return tuple(range(value))
     if isinstance(value, list | tuple) and value:
         if all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in value):
             if len(set(value)) != len(value):
-                raise _fail(source, "[study] seeds", value, "a seed is given twice")
+                raise _fail(source, where, value, "a seed is given twice")
             return tuple(int(s) for s in value)
-    raise _fail(source, "[study] seeds", value, "expected a count >= 1 or a list of seeds >= 0")
+    raise _fail(source, where, value, "expected a count >= 1 or a list of seeds >= 0")
 
 
 def _positive_int(source: str, where: str, value: object, minimum: int = 1) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
         raise _fail(source, where, value, f"expected an integer >= {minimum}")
     return int(value)
+
+
+def _bool(source: str, where: str, value: object) -> bool:
+    if not isinstance(value, bool):
+        raise _fail(source, where, value, "expected true or false")
+    return value
 
 
 def _sweeps(source: str, value: object) -> tuple[tuple[str, int], ...]:
@@ -250,6 +263,9 @@ def _data_source(source: str, name: str, table: object) -> DataSource:
     house_seed = values.pop("seed", None)
     if house_seed is not None:
         house_seed = _positive_int(source, f"{where} seed", house_seed, minimum=0)
+    seeds = values.pop("seeds", None)
+    if seeds is not None:
+        seeds = _seeds(source, seeds, f"{where} seeds")
     heldout = values.pop("heldout", kind == "public")
     if not isinstance(heldout, bool):
         raise _fail(source, f"{where} heldout", heldout, "expected true or false")
@@ -259,8 +275,9 @@ def _data_source(source: str, name: str, table: object) -> DataSource:
         raise _fail(source, f"{where} synthetic", target,
                     f"choose one of {sorted(SYNTHETIC_FACTORIES)}")  # fmt: skip
     if kind == "public" and values:
-        raise _fail(source, where, sorted(values), "a public house takes only heldout and seed")
-    data = DataSource(name, kind, target, tuple(values.items()), house_seed, heldout)
+        raise _fail(source, where, sorted(values),
+                    "a public house takes only heldout, seed and seeds")  # fmt: skip
+    data = DataSource(name, kind, target, tuple(values.items()), house_seed, heldout, seeds)
     if kind != "public":
         check, known = (
             (data.house_spec, HouseSpec) if kind == "synthetic" else (data.map_tour, MapTour)
@@ -313,6 +330,9 @@ def study_from_dict(values: Mapping[str, Any], *, source: str = "<python>") -> S
         spcoa_iterations=_positive_int(
             source, "[study] spcoa_iterations", head.get("spcoa_iterations", 100)
         ),
+        observations_off=_bool(
+            source, "[study] observations_off", head.get("observations_off", False)
+        ),  # fmt: skip
         description=str(head.get("description", "")),
         source=source,
     )

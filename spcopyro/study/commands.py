@@ -1,0 +1,111 @@
+"""Commands that are shipped studies under their old names (issue 26 item 1).
+
+``spcopyro ablation`` runs the study engine on ``spcopyro/study/studies/ablation.toml``
+(``ablation_quick.toml`` with ``--quick``), its options changing that study
+(:func:`spcopyro.study.ablation.ablation_settings`), and writes the ablation's tables
+(``ablation.md``, ``ablation.json``, ``ablation.png``) from the study's ``results.csv``. As a
+study, it is cached and resumable: rerun the same command in the same ``--out`` and only the
+missing cells run. :func:`add_parser` registers it; nothing heavy is imported before it runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+__all__ = ["add_parser"]
+
+
+def _ablation(args: argparse.Namespace) -> int:
+    from spcopyro.data import find_dataset_root
+    from spcopyro.experiments.ablation_variants import parse_variant
+    from spcopyro.study.ablation import ABLATION, ABLATION_QUICK, ablation_settings, run_ablation
+    from spcopyro.study.spec import BASELINES, load_study
+
+    study = load_study(ABLATION_QUICK if args.quick else ABLATION)
+    root = None if args.no_public else find_dataset_root(args.data)
+    if root is None and not args.no_public:
+        print("note: public dataset not found ($SPCOPYRO_DATA, ../shared/data/spcomapping); "
+              "skipping the public houses", file=sys.stderr)  # fmt: skip
+    command = "spcopyro " + " ".join(sys.argv[1:] if args.argv is None else args.argv)
+    changes: dict[str, object] = dict(command=command, workers=args.workers)
+    if args.no_off:
+        changes["observations_off"] = False
+    if args.variant:
+        variants = tuple(parse_variant(text) for text in args.variant)
+        names = [v.name for v in variants]
+        if len(set(names)) != len(names):
+            raise ValueError(f"--variant names must differ, got {names}")
+        changes["variants"] = variants
+    if args.baselines is not None:
+        unknown = sorted(set(args.baselines) - set(BASELINES))
+        if unknown:
+            raise ValueError(f"unknown --baselines {unknown}; choose from {list(BASELINES)}")
+        changes["baselines"] = tuple(args.baselines)
+    for key in ("seeds", "public_seeds", "sweeps", "spcoa_iterations"):
+        if getattr(args, key) is not None:
+            changes[key] = getattr(args, key)
+    if args.public_houses:
+        changes["public_houses"] = tuple(args.public_houses)
+    settings = ablation_settings(study, root, **changes)
+    if args.houses:
+        missing = sorted(set(args.houses) - set(settings.houses))
+        if missing:
+            raise ValueError(f"unknown --houses {missing}; choose from {list(settings.houses)}")
+        settings = ablation_settings(study, root, **changes, synthetic=tuple(args.houses))
+    summary = run_ablation(args.out, settings, report=print, retry_failed=args.retry_failed)
+    out = Path(args.out)
+    print((out / "ablation.md").read_text())
+    print(f"wrote {out / 'ablation.md'}, {out / 'ablation.json'} and {out / 'ablation.png'} "
+          f"(the study's table: {out / 'results.csv'})")  # fmt: skip
+    return 1 if summary["failed"] else 0
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    """Register ``ablation`` (issue #14; the shipped study ``ablation``)."""
+    p = subparsers.add_parser(
+        "ablation",
+        help="every variant (named overrides) on dense, sparse and other synthetic houses and "
+        "the public houses, beside SpCoA and geometry (issue #14); the shipped study "
+        "'ablation' (docs/studies.md)",
+    )
+    p.add_argument("--out", required=True, help="results folder: ablation.md, .json, .png, and "
+                   "the study's cells/ (cache), results.csv, report.md")  # fmt: skip
+    p.add_argument(
+        "--variant",
+        action="append",
+        metavar="NAME:KEY=VALUE,...",
+        help="a row: a preset, SpCoConfig/DataPreparation fields, GibbsOptions fields (nested "
+        "as a.b) and fit_house arguments, e.g. 'sw:preset=paper-dp,cluster_moves=0.2'; "
+        "repeat for more rows (default: the study file's: paper-dp, original-code gamma 3, "
+        "paper-dp + cluster moves)",
+    )
+    p.add_argument(
+        "--baselines", nargs="*", help="baseline rows (default: C-spcoa F-geometry; none: no value)"
+    )
+    p.add_argument(
+        "--houses",
+        nargs="+",
+        help="synthetic settings (default: dense sparse dense-large sparse-small open-plan)",
+    )
+    p.add_argument("--seeds", type=int, help="synthetic seeds 0..n-1 (default 10)")
+    p.add_argument("--public-seeds", type=int, help="seeds per public house (default 3)")
+    p.add_argument("--public-houses", nargs="+", help="public houses (default: the five of the "
+                   "public dataset)")  # fmt: skip
+    p.add_argument("--sweeps", type=int, help="Gibbs sweeps per fit (default 1000)")
+    p.add_argument("--spcoa-iterations", type=int, help="SpCoA iterations (default 100)")
+    p.add_argument("--workers", type=int, default=1, help="1: in this process; N > 1: a Dask "
+                   "LocalCluster of N processes, one torch thread each")  # fmt: skip
+    p.add_argument("--no-off", action="store_true", help="skip the fits without observations")
+    p.add_argument("--data", help="public dataset folder (default: found automatically)")
+    p.add_argument("--no-public", action="store_true", help="synthetic houses only")
+    p.add_argument("--retry-failed", action="store_true",
+                   help="run again the cells stored with an error in --out")  # fmt: skip
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="smoke run (the study ablation_quick): two small houses, 2 seeds, 30 sweeps, one "
+        "public house and seed",
+    )
+    p.set_defaults(func=_ablation, argv=None)
