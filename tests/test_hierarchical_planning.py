@@ -36,15 +36,16 @@ ROOMS = {  # rows [start, stop), cols [start, stop), concept
 }
 
 
-def third_room_result(bc_door: tuple[int, int] = (23, 28)) -> SpCoResult:
-    """The third-room house (module docstring); ``bc_door``: the B-C door's columns [a, b)."""
+def third_room_result(bc_door: tuple[int, int] = (23, 28), ab_door: bool = True) -> SpCoResult:
+    """The third-room house (module docstring); ``bc_door``: the B-C door's columns [a, b);
+    ``ab_door=False``: the A-B door walled up (as a coarse fit's thickened walls close one)."""
     occupancy = np.full((42, 31), OCCUPIED, dtype=np.int8)  # [H, W]
     image = np.full(occupancy.shape, -1)
     for (r0, r1), (c0, c1), concept in ROOMS.values():
         occupancy[r0:r1, c0:c1] = FREE
         image[r0:r1, c0:c1] = concept
-    doors = [((4, 5), (3, 8), 1), ((4, 5), bc_door, 1), ((8, 13), (10, 11), 3),
-             ((8, 13), (20, 21), 3)]  # fmt: skip
+    doors = [((4, 5), bc_door, 1), ((8, 13), (10, 11), 3), ((8, 13), (20, 21), 3)]
+    doors += [((4, 5), (3, 8), 1)] if ab_door else []
     for (r0, r1), (c0, c1), concept in doors:
         occupancy[r0:r1, c0:c1] = FREE
         image[r0:r1, c0:c1] = concept
@@ -129,7 +130,7 @@ def test_the_corridor_is_the_routes_places_and_their_shared_borders():
     graph = place_graph(result)
     plan = navigate(result, "go to the kitchen", START, radius=0.0)
     planning = plan.planning
-    node_place = node_places(graph, result.grid, planning, None)
+    node_place = node_places(graph, result.grid, planning)
     a, b, c = plan.route
     only = corridor(planning, node_place, (a,), 0.0)
     assert only.sum() == (node_place == a).sum()
@@ -159,6 +160,27 @@ def test_a_fallback_to_the_grid_path_is_reported():
     assert plan.planned == "grid" and "no route over the place graph" in plan.fallbacks[0]
     assert plan.route_from == "path"
     assert plan.route_words == ("bedroom", "living", "kitchen")
+
+
+def test_a_finer_map_adds_the_passages_its_doorways_open():
+    """A fit whose grid has the A-B door walled up, planned on the map that has it: the place
+    graph gains the passage A-B (on_map), and the route goes A-B-C as on the full map."""
+    fit = third_room_result(ab_door=False)
+    robot_map = third_room_result().grid
+    graph = place_graph(fit)
+    assert len(graph.passages) == 3  # B-C, A-T, T-C
+    on_own = navigate(fit, "go to the kitchen", START, radius=0.1)
+    assert on_own.route_words == ("bedroom", "living", "kitchen")
+    plan = navigate(fit, "go to the kitchen", START, radius=0.1, grid=robot_map)
+    added = [e for e in plan.places.passages if e.on_map]
+    assert len(added) == 1
+    assert {plan.places.places[added[0].a].name, plan.places.places[added[0].b].name} == {
+        "bedroom", "corridor"}  # fmt: skip
+    assert added[0].doorway
+    assert plan.route_words == ("bedroom", "corridor", "kitchen")
+    assert plan.planned == "hierarchical"
+    assert concepts_on(fit, plan.path_xy) <= {0, 1, 2, -1}  # never in T (-1: the door)
+    assert plan.places.to_json()["passages"][-1]["on_map"] is True
 
 
 def test_an_unknown_planner_is_refused():

@@ -4,12 +4,16 @@ then within the grid, kept to the route's places.
 For every leg of a plan (from where the robot is to the next stop's goal cell):
 
 1. **Places.** Every cell the robot fits on belongs to a place of the fit's place graph
-   (:func:`node_places`): the place of the fit cell holding its centre (a finer planning map's
-   cell through :func:`~spcopyro.robot.navigation.graph.fit_cells_on`); a cell of a region too
-   small to be a place (or of a wall thickened by coarsening) takes the nearest place.
+   (:func:`node_places`): the place of the fit cell holding its centre; a cell of a region too
+   small to be a place (or under a wall that coarsening thickened) takes the place of the
+   nearest such cell along the planning graph.
 2. **Route.** The shortest route over the place graph from the leg's first place to its last
    (:meth:`~spcopyro.robot.navigation.places.PlaceGraph.route`: passages weighted by the distance
-   between the places' centroids).
+   between the places' centroids). Planning on another map than the fit's grid (the finer map a
+   coarse fit was made from), the graph first gains a passage for every two places whose cells
+   the robot fits on touch on that map but not on the fit's grid (:func:`with_map_passages`):
+   coarsening thickens walls and closes doorways, so a coarse fit's regions often do not touch
+   where the robot can pass.
 3. **Corridor** (:func:`corridor`). The cells the leg may use: the allowed cells (the robot's
    clearance kept: :mod:`~spcopyro.robot.navigation.graph`) of the route's places, plus the
    shared border of every two consecutive places of the route: the allowed cells within
@@ -36,7 +40,7 @@ import numpy as np
 
 from spcopyro.maps import OccupancyGrid
 from spcopyro.robot.navigation.graph import PlanningGrid, trace_path
-from spcopyro.robot.navigation.places import PlaceGraph
+from spcopyro.robot.navigation.places import DOORWAY_WIDTH, Passage, PlaceGraph
 
 __all__ = [
     "BORDER_MARGIN",
@@ -47,6 +51,7 @@ __all__ = [
     "corridor",
     "node_places",
     "plan_leg",
+    "with_map_passages",
 ]
 
 HIERARCHICAL = "hierarchical"
@@ -84,25 +89,65 @@ class Leg:
         return self.length / self.grid_length if self.grid_length > 0 else 1.0
 
 
-def node_places(
-    places: PlaceGraph, fit_grid: OccupancyGrid, planning: PlanningGrid, carry: np.ndarray | None
-) -> np.ndarray:
-    """``[M]`` the place id of every allowed cell of ``planning`` (module docstring, 1);
-    ``carry``: ``[N]`` the fit's free index of every free cell of the planning map
-    (:func:`~spcopyro.robot.navigation.graph.fit_cells_on`), None when it is the fit's grid.
-    All -1 for a graph without places."""
+def node_places(places: PlaceGraph, fit_grid: OccupancyGrid, planning: PlanningGrid) -> np.ndarray:
+    """``[M]`` the place id of every allowed cell of ``planning`` (module docstring, 1): the
+    place of the fit cell holding its centre; a cell whose fit cell is in no place (a wall that
+    coarsening thickened, a dropped small region, off the fit's map) takes the place of the
+    nearest such cell along the planning graph (geodesic: never a place behind a wall), or the
+    Euclidean nearest place where its component holds none. All -1 for a graph without
+    places."""
     from scipy.ndimage import distance_transform_edt
+    from scipy.sparse.csgraph import dijkstra
 
-    if not places.places:
-        return np.full(planning.num_allowed, -1, dtype=np.int64)
+    m = planning.num_allowed
+    if not places.places or m == 0:
+        return np.full(m, -1, dtype=np.int64)
     regions = places.regions  # [H, W] on the fit's grid
-    _, (rows, cols) = distance_transform_edt(regions < 0, return_indices=True)
-    filled = regions[rows, cols]  # [H, W] every cell: its place, else the nearest one's
-    fit_free = planning.free_index_of(np.arange(planning.num_allowed))  # [M] planning free index
-    if carry is not None:
-        fit_free = carry[fit_free]  # [M] the fit's free index
-    cells = fit_grid.free_cells[fit_free]  # [M, 2]
-    return filled[cells[:, 0], cells[:, 1]].astype(np.int64)
+    centres = planning.grid.cell_to_world(planning.cells(np.arange(m)))  # [M, 2]
+    cells = fit_grid.world_to_cell(centres)  # [M, 2] may lie off the fit's map
+    height, width = regions.shape
+    on = (cells[:, 0] >= 0) & (cells[:, 0] < height) & (cells[:, 1] >= 0) & (cells[:, 1] < width)
+    rows, cols = np.clip(cells[:, 0], 0, height - 1), np.clip(cells[:, 1], 0, width - 1)
+    direct = np.where(on, regions[rows, cols], -1).astype(np.int64)  # [M]
+    seeds = np.flatnonzero(direct >= 0)
+    out = direct.copy()
+    rest = direct < 0
+    if seeds.size and rest.any():
+        distance, _, source = dijkstra(planning.graph, directed=False, indices=seeds,
+                                       min_only=True, return_predecessors=True)  # fmt: skip
+        reached = rest & np.isfinite(distance) & (source >= 0)
+        out[reached] = direct[source[reached]]
+        rest &= ~reached
+    if rest.any():  # a component of the planning graph without a place's cell: the nearest
+        _, (near_r, near_c) = distance_transform_edt(regions < 0, return_indices=True)
+        out[rest] = regions[near_r[rows[rest], cols[rest]], near_c[rows[rest], cols[rest]]]
+    return out
+
+
+def with_map_passages(
+    places: PlaceGraph, planning: PlanningGrid, node_place: np.ndarray
+) -> PlaceGraph:
+    """``places`` with a passage (:attr:`~spcopyro.robot.navigation.places.Passage.on_map`) for
+    every two places whose allowed cells touch on the planning map (4-neighbours, ``node_place``
+    from :func:`node_places`) and that have none yet; its border: the touching cell pairs x the
+    planning map's cell size."""
+    from dataclasses import replace
+
+    from spcopyro.maps.regions import region_contacts
+
+    cells = planning.cells(np.arange(planning.num_allowed))  # [M, 2]
+    image = np.full(planning.grid.shape, -1, dtype=np.int64)  # [H, W]
+    image[cells[:, 0], cells[:, 1]] = node_place
+    known = {(min(e.a, e.b), max(e.a, e.b)) for e in places.passages}
+    added = []
+    for a, b, touching in zip(*region_contacts(image), strict=True):
+        if (int(a), int(b)) in known:
+            continue
+        border = float(touching * planning.grid.resolution)
+        gap = float(np.hypot(*np.subtract(places.places[a].centroid, places.places[b].centroid)))
+        added.append(Passage(int(a), int(b), border, bool(border <= DOORWAY_WIDTH + 1e-9), gap,
+                             on_map=True))  # fmt: skip
+    return replace(places, passages=places.passages + tuple(added)) if added else places
 
 
 def corridor(

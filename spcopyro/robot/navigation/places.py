@@ -71,6 +71,10 @@ class Passage:
     """The border is at most :data:`DOORWAY_WIDTH` long."""
     distance: float
     """Metres between the two centroids (the edge's weight in :meth:`PlaceGraph.route`)."""
+    on_map: bool = False
+    """Found on the robot's planning map, not on the fit's grid: the two places' cells touch
+    there where the fit's coarser cells put a wall between them
+    (:func:`~spcopyro.robot.navigation.hierarchy.with_map_passages`)."""
 
 
 @dataclass(frozen=True)
@@ -132,7 +136,7 @@ class PlaceGraph:
             ],
             "passages": [
                 {"a": e.a, "b": e.b, "border_m": e.border, "doorway": e.doorway,
-                 "distance_m": e.distance}
+                 "distance_m": e.distance, "on_map": e.on_map}
                 for e in self.passages
             ],
             "min_area_m2": self.min_area,

@@ -44,6 +44,7 @@ from spcopyro.robot.navigation.hierarchy import (
     Leg,
     node_places,
     plan_leg,
+    with_map_passages,
 )
 from spcopyro.robot.navigation.places import PlaceGraph, place_graph, places_along
 
@@ -86,7 +87,9 @@ class NavigationPlan:
     """Metres along the path."""
     planning: PlanningGrid
     places: PlaceGraph | None = None
-    """The fit's place graph (:func:`~spcopyro.robot.navigation.places.place_graph`)."""
+    """The fit's place graph (:func:`~spcopyro.robot.navigation.places.place_graph`); planning on
+    another map, with the passages that map adds
+    (:func:`~spcopyro.robot.navigation.hierarchy.with_map_passages`)."""
     route: tuple[int, ...] = ()
     """Place ids from the start's place through every stop's place: the legs' routes over the
     place graph joined (each leg's shortest route, :mod:`~spcopyro.robot.navigation.hierarchy`).
@@ -214,7 +217,9 @@ def navigate(
     planning = planning_grid(grid, radius) if planning is None else planning
     carry = None if grid is result.grid else fit_cells_on(result.grid, grid)  # [N_map]
     places = place_graph(result) if places is None else places
-    node_place = node_places(places, result.grid, planning, carry)  # [M]
+    node_place = node_places(places, result.grid, planning)  # [M]
+    if carry is not None:  # another map: passages its doorways open (hierarchy, 2.)
+        places = with_map_passages(places, planning, node_place)
     margin = max(float(margin), result.grid.resolution)
     current = start_node(planning, start)
     legs: list[Leg] = []
