@@ -102,6 +102,8 @@ def test_spec_from_toml_equals_spec_from_python(tmp_path):
         ('synthetic = "default"', 'synthetic = "castle"', ["[data.small] synthetic", "castle"]),
         ("seeds = 2", "seedz = 2", ["[study] seedz", "unknown key"]),
         ("seeds = 2", "seeds = [", ["not valid TOML"]),
+        ("heldout = true", "heldout = true\nseeds = 0", ["[data.small] seeds", "0"]),
+        ("seeds = 2", "seeds = 2\nobservations_off = 1", ["[study] observations_off", "1"]),
     ],
 )
 def test_bad_spec_names_file_key_and_value(tmp_path, old, new, words):
@@ -124,6 +126,22 @@ def test_python_spec_errors_and_method_grid():
     values["variants"]["og3"]["method"] = "lbp"
     with pytest.raises(StudyError, match="variants.og3. method"):
         study_from_dict(values)
+
+
+def test_source_seeds_and_observations_off_reach_the_cells():
+    """A source's own seeds replace the study's; observations_off changes the variants' keys
+    (and only theirs), so earlier cells of a study without it keep theirs."""
+    values = json.loads(json.dumps(TINY_DICT))
+    plain = {c.key for c in cells_of(study_from_dict(values))}
+    values["data"]["small"]["seeds"] = [3]
+    values["data"]["other"] = {"synthetic": "scaled", "height": 24, "width": 30, "seeds": 1}
+    cells = cells_of(study_from_dict(values))
+    assert [(c.data.name, c.seed) for c in cells] == [("small", 3)] * 3 + [("other", 0)] * 3
+    values = json.loads(json.dumps(TINY_DICT))
+    values["study"]["observations_off"] = True
+    off = cells_of(study_from_dict(values))
+    assert [c.observations_off for c in off] == [True, True, False] * 2
+    assert {c.key for c in off} & plain == {c.key for c in off if c.variant is None}
 
 
 def test_in_process_run_gives_the_tidy_table(in_process):
