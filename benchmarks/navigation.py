@@ -1,20 +1,26 @@
 """Does ``navigate`` drive to the right place? Held-out place words on the public and synthetic
-houses (issue 27 item 4).
+houses (issue 27 item 4), on the default preset's map and on the paper's (``paper-dp``).
 
     python benchmarks/navigation.py [--sweeps 2000] [--seeds 3] [--radius 0.2]
+                                    [--planner hierarchical|grid] [--houses H ...]
                                     [--out benchmarks/navigation.json] [--quick]
 
 Per public house (``$SPCOPYRO_DATA`` or ``../shared/data/spcomapping``): the first trial is held
-out (fold 0 of :func:`spcopyro.experiments.table.heldout_folds`), the default preset is fitted on
-the others (its recommended inference settings, seed 0, ``--sweeps``), and the robot starts
-where the held-out trial's first image was taken. For every held-out utterance of a place word
-(:data:`~spcopyro.experiments.public_truth.PLACE_CATEGORIES`) that the fit knows, ``navigate``
-plans to the word on the house's own map (``--map``: 0.05 m cells, ``--radius``); **success**:
-the goal lies in the truth region of the word's category
-(:func:`~spcopyro.experiments.public_truth.public_truth`, built from every trial's words). The
-**baseline** drives to the training utterance of the same word nearest to the start by path
-(snapped to the nearest cell the robot fits on); success the same way. Also the path's length
-over the shortest path from the start into the truth region (``navigate`` successes only).
+out (fold 0 of :func:`spcopyro.experiments.table.heldout_folds`), each preset of :data:`PRESETS`
+(the default, ``coarse``, and ``paper-dp``) is fitted on the others with its recommended
+inference settings (:func:`spcopyro.fit.house.preset_fit_kwargs`, seed 0, ``--sweeps``), and the
+robot starts where the held-out trial's first image was taken. For every held-out utterance of a
+place word (:data:`~spcopyro.experiments.public_truth.PLACE_CATEGORIES`) that the fit knows,
+``navigate`` plans to the word on the house's own map (0.05 m cells, ``--radius``, the
+hierarchical planner unless ``--planner grid``); **success**: the goal lies in the truth region
+of the word's category (:func:`~spcopyro.experiments.public_truth.public_truth`, built from
+every trial's words). The **baseline** drives to the training utterance of the same word
+nearest to the start by path (snapped to the nearest cell the robot fits on); success the same
+way. **path / shortest**: the path's length over the shortest path from the start into the
+truth region (the median over the successes of that method): 1 is the shortest possible way
+into the right region; the goal is a region's middle, so a success is longer. Also per preset:
+the share of plans that kept every leg to its route over the place graph (no fallback to the
+grid path) and the median **detour**, the path over the shortest grid path to the same goal.
 
 The truth is a geodesic Voronoi partition of the place words' positions, training ones
 included, so a training utterance lies in its own word's region unless it is a stray: the
@@ -24,7 +30,7 @@ Synthetic houses (``HouseSpec()``, seeds 0..n-1): the same, scored against their
 with a place word being a category name; their doorways are 0.2-0.3 m wide, so the robot there
 has a radius of 0.05 m.
 
-Prints a markdown table and writes the JSON.
+Prints markdown tables and writes the JSON (per house, per method, per word).
 """
 
 from __future__ import annotations
@@ -45,14 +51,18 @@ from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
 from spcopyro.fit.house import fit_house, preset_fit_kwargs
 from spcopyro.robot.navigation import NavigationError, navigate, planning_grid
 from spcopyro.robot.navigation.graph import shortest_paths
+from spcopyro.robot.navigation.places import place_graph
 from spcopyro.synthetic import HouseSpec, make_house
 
 SYNTHETIC_RADIUS = 0.05
+PRESETS = (DEFAULT_PRESET, "paper-dp")
+"""The maps whose goals are scored: the default preset's and the paper's (DP prior)."""
 
 
-def fit_default(house, sweeps: int, seed: int):
-    return fit_house(house, preset(DEFAULT_PRESET), sweeps=sweeps, seed=seed, progress=False,
-                     **preset_fit_kwargs(DEFAULT_PRESET))  # fmt: skip
+def fit_preset(house, name: str, sweeps: int, seed: int):
+    """``name``'s recommended Gibbs fit (as ``spcopyro fit --preset name`` runs it)."""
+    return fit_house(house, preset(name), sweeps=sweeps, seed=seed, progress=False,
+                     **preset_fit_kwargs(name))  # fmt: skip
 
 
 def nearest_allowed(planning, xy: np.ndarray) -> int:
@@ -61,12 +71,39 @@ def nearest_allowed(planning, xy: np.ndarray) -> int:
     return int(np.argmin(np.hypot(*(centres - xy).T)))
 
 
-def score_house(house, truth: np.ndarray, category_of, sweeps: int, seed: int, radius: float):
-    """Success rates of navigate and of the nearest-training-utterance baseline on fold 0."""
+def _median(values) -> float:
+    values = [v for v in values if np.isfinite(v)]
+    return float(np.median(values)) if values else float("nan")
+
+
+def score_plans(result, words, house, planning, start_xy, truth_at, shortest, planner):
+    """Per word: does ``navigate`` on ``result`` reach the word's truth region, its path length
+    over the shortest one into the region, and how the path was planned."""
+    places = place_graph(result)
+    out = {}
+    for word, category in words.items():
+        try:
+            plan = navigate(result, word, start_xy, radius=planning.radius, grid=house.grid,
+                            planning=planning, places=places, planner=planner)  # fmt: skip
+        except (NavigationError, ValueError) as error:  # unreachable, or an unknown word
+            out[word] = {"success": False, "length_ratio": float("nan"), "planned": None,
+                         "detour": float("nan"), "error": str(error)}  # fmt: skip
+            continue
+        row, col = house.grid.world_to_cell(np.array(plan.goal.xy))
+        ok = bool(truth_at[row, col] == category)
+        best = shortest[category]
+        ratio = plan.length / best if ok and best > 0 else (1.0 if ok else float("nan"))
+        out[word] = {"success": ok, "length_ratio": ratio, "planned": plan.planned,
+                     "detour": plan.length / plan.grid_length if plan.grid_length > 0 else 1.0,
+                     "places": len(places.places)}  # fmt: skip
+    return out
+
+
+def score_house(house, truth: np.ndarray, category_of, sweeps: int, seed: int, radius: float,
+                planner: str = "hierarchical", presets=PRESETS):  # fmt: skip
+    """Success rates and path lengths of navigate on every preset's map and of the
+    nearest-training-utterance baseline, fold 0 (module docstring)."""
     _, _, train, test = next(iter(heldout_folds(house)))
-    start_time = time.perf_counter()
-    result = fit_default(train, sweeps, seed)
-    fit_seconds = time.perf_counter() - start_time
     planning = planning_grid(house.grid, radius)
     start = nearest_allowed(planning, test.image_xy[0])
     start_xy = tuple(house.grid.cell_to_world(planning.cells(np.array([start]))[0]))
@@ -74,55 +111,71 @@ def score_house(house, truth: np.ndarray, category_of, sweeps: int, seed: int, r
     allowed_truth = truth[planning.allowed.free_cells[:, 0], planning.allowed.free_cells[:, 1]]
     train_words = [u[-1].lower() for u in train.observations.utterances]
     train_cells = [nearest_allowed(planning, xy) for xy in train.observations.word_xy]
+    results, methods = {}, {}
+    for name in presets:
+        start_time = time.perf_counter()
+        results[name] = fit_preset(train, name, sweeps, seed)
+        methods[name] = {"fit_seconds": time.perf_counter() - start_time}
+    known = set(results[presets[0]].vocabulary)  # the same training words for every preset
     _, _, unplaced = place_observations(house.grid, test.word_xy, 0.25)
-    rows, cache = [], {}
+    held = []  # the held-out place words the fit knows, one per utterance
     for word_tokens, off in zip(test.utterances, unplaced, strict=True):
         word = word_tokens[-1].lower()
-        category = category_of(word)
-        if category is None or off or word not in result.vocabulary:
-            continue
-        if word not in cache:
-            try:
-                plan = navigate(result, word, start_xy, radius=radius, grid=house.grid,
-                                planning=planning)  # fmt: skip
-                row, col = house.grid.world_to_cell(np.array(plan.goal.xy))
-                ok = bool(truth[row, col] == category)
-                length = plan.length
-            except NavigationError:
-                ok, length = False, float("nan")
-            region = allowed_truth == category
-            shortest = float(distance[region].min()) if region.any() else float("nan")
-            same = [c for w, c in zip(train_words, train_cells, strict=True) if w == word]
-            if same:
-                target = min(same, key=lambda c: distance[c])
-                baseline = bool(np.isfinite(distance[target]) and allowed_truth[target] == category)
-            else:
-                baseline = False
-            ratio = length / shortest if ok and shortest > 0 else (1.0 if ok else float("nan"))
-            cache[word] = {"navigate": ok, "baseline": baseline, "length_ratio": ratio}
-        rows.append({"word": word, **cache[word]})
-    n = len(rows)
-    ratios = [r["length_ratio"] for r in rows if r["navigate"] and np.isfinite(r["length_ratio"])]
-    return {
-        "utterances": n,
-        "navigate": float(np.mean([r["navigate"] for r in rows])) if n else float("nan"),
-        "baseline": float(np.mean([r["baseline"] for r in rows])) if n else float("nan"),
-        "length_ratio": float(np.median(ratios)) if ratios else float("nan"),
-        "per_word": {w: v for w, v in cache.items()},
-        "fit_seconds": fit_seconds,
-    }
+        if category_of(word) is not None and not off and word in known:
+            held.append(word)
+    words = {w: category_of(w) for w in dict.fromkeys(held)}
+    shortest = {}
+    for category in set(words.values()):
+        region = allowed_truth == category
+        shortest[category] = float(distance[region].min()) if region.any() else float("nan")
+    per_word = {w: {} for w in words}
+    for word, category in words.items():  # the baseline: the nearest training utterance
+        same = [c for w, c in zip(train_words, train_cells, strict=True) if w == word]
+        target = min(same, key=lambda c: distance[c]) if same else None
+        ok = bool(target is not None and np.isfinite(distance[target])
+                  and allowed_truth[target] == category)  # fmt: skip
+        best = shortest[category]
+        ratio = float(distance[target]) / best if ok and best > 0 else (1.0 if ok else np.nan)
+        per_word[word]["baseline"] = {"success": ok, "length_ratio": ratio}
+    for name, result in results.items():
+        scored = score_plans(result, words, house, planning, start_xy, truth, shortest, planner)
+        for word in words:
+            per_word[word][name] = scored[word]
+    summary = {}
+    for method in (*presets, "baseline"):
+        rows = [per_word[w][method] for w in held]
+        summary[method] = {
+            "success": float(np.mean([r["success"] for r in rows])) if rows else float("nan"),
+            "length_ratio": _median(r["length_ratio"] for r in rows if r["success"]),
+            **methods.get(method, {}),
+        }
+        if method != "baseline":
+            summary[method]["hierarchical"] = (
+                float(np.mean([r["planned"] == "hierarchical" for r in rows])) if rows
+                else float("nan"))  # fmt: skip
+            summary[method]["detour"] = _median(r["detour"] for r in rows)
+    return {"utterances": len(held), **summary, "per_word": per_word}
 
 
-def table(title: str, rows: dict[str, dict]) -> str:
-    lines = [f"### {title}", "", "| house | utterances | navigate | nearest training utterance "
-             "| median path / shortest |", "|---|---|---|---|---|"]  # fmt: skip
+def table(title: str, rows: dict[str, dict], presets=PRESETS) -> str:
+    methods = (*presets, "baseline")
+    head = " | ".join(f"{m} success | {m} path/shortest" for m in methods)
+    lines = [f"### {title}", "", f"| house | utterances | {head} |",
+             "|---|---|" + "---|---|" * len(methods)]  # fmt: skip
     for name, r in rows.items():
-        lines.append(f"| {name} | {r['utterances']} | {r['navigate']:.2f} | {r['baseline']:.2f} "
-                     f"| {r['length_ratio']:.2f} |")  # fmt: skip
-    nav = np.mean([r["navigate"] for r in rows.values()])
-    base = np.mean([r["baseline"] for r in rows.values()])
-    lines += [f"| mean | | {nav:.3f} | {base:.3f} | |", ""]
-    return "\n".join(lines)
+        cells = " | ".join(f"{r[m]['success']:.2f} | {r[m]['length_ratio']:.2f}" for m in methods)
+        lines.append(f"| {name} | {r['utterances']} | {cells} |")
+    means = " | ".join(f"{np.mean([r[m]['success'] for r in rows.values()]):.3f} | "
+                       for m in methods)  # fmt: skip
+    lines += [f"| mean | | {means} |", ""]
+    lines += ["How the paths were planned (share of utterances whose plan kept every leg to its "
+              "route's places; median path length over the shortest grid path to the same goal):",
+              "", "| house | " + " | ".join(f"{m} hierarchical | {m} detour" for m in presets)
+              + " |", "|---|" + "---|---|" * len(presets)]  # fmt: skip
+    for name, r in rows.items():
+        cells = " | ".join(f"{r[m]['hierarchical']:.2f} | {r[m]['detour']:.2f}" for m in presets)
+        lines.append(f"| {name} | {cells} |")
+    return "\n".join(lines + [""])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -132,17 +185,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--radius", type=float, default=0.2, help="metres (public houses)")
     parser.add_argument("--out", default="benchmarks/navigation.json")
     parser.add_argument("--no-synthetic", action="store_true")
+    parser.add_argument("--planner", choices=("hierarchical", "grid"), default="hierarchical")
+    parser.add_argument("--houses", nargs="*", help="public houses (default: all five)")
     parser.add_argument("--quick", action="store_true",
                         help="a smoke run: 30 sweeps, one public house, one seed")  # fmt: skip
     args = parser.parse_args(argv)
-    houses = list(PUBLIC_CATEGORIES)
+    houses = args.houses or list(PUBLIC_CATEGORIES)
     if args.quick:
         args.sweeps, args.seeds, houses = 30, 1, houses[:1]
     logging.getLogger("spcopyro").setLevel(logging.ERROR)
-    report: dict[str, object] = {"default_preset": DEFAULT_PRESET, "sweeps": args.sweeps,
-                                 "radius": args.radius}  # fmt: skip
-    text = [f"# navigate on held-out place words (preset {DEFAULT_PRESET!r}, {args.sweeps} "
-            "sweeps, fold 0)", ""]  # fmt: skip
+    report: dict[str, object] = {"presets": list(PRESETS), "sweeps": args.sweeps,
+                                 "radius": args.radius, "planner": args.planner}  # fmt: skip
+    text = [f"# navigate on held-out place words (maps of {', '.join(PRESETS)}; {args.sweeps} "
+            f"sweeps, fold 0; {args.planner} planner)", ""]  # fmt: skip
     root = find_dataset_root()
     if root is None:
         text.append("public houses skipped: no dataset at $SPCOPYRO_DATA")
@@ -152,9 +207,10 @@ def main(argv: list[str] | None = None) -> int:
             house = load_house(Path(root) / name)
             truth = public_truth(house)
             public[name] = score_house(house, truth.labels, truth.category_of_word, args.sweeps,
-                                       0, args.radius)  # fmt: skip
-            print(f"  {name}: navigate {public[name]['navigate']:.2f}, baseline "
-                  f"{public[name]['baseline']:.2f}", file=sys.stderr, flush=True)  # fmt: skip
+                                       0, args.radius, args.planner)  # fmt: skip
+            print(f"  {name}: " + ", ".join(f"{m} {public[name][m]['success']:.2f}"
+                                            for m in (*PRESETS, "baseline")),
+                  file=sys.stderr, flush=True)  # fmt: skip
         report["public"] = public
         text.append(table(f"Public houses (radius {args.radius:g} m)", public))
     if not args.no_synthetic:
@@ -166,8 +222,9 @@ def main(argv: list[str] | None = None) -> int:
             def category_of(word: str, names=names) -> int | None:
                 return names.index(word) if word in names else None
 
-            synthetic[f"seed {seed}"] = score_house(house, house.truth, category_of, args.sweeps,
-                                                    seed, SYNTHETIC_RADIUS)  # fmt: skip
+            synthetic[f"seed {seed}"] = score_house(
+                house, house.truth, category_of, args.sweeps, seed, SYNTHETIC_RADIUS, args.planner
+            )
         report["synthetic"] = synthetic
         text.append(table(f"Synthetic houses (radius {SYNTHETIC_RADIUS:g} m)", synthetic))
     print("\n".join(text))

@@ -1,4 +1,5 @@
-"""``navigate.png``: the map, the destination word's probability map, the path, start and stops;
+"""``navigate.png``: the map, the destination word's probability map, the route's places (the
+cells a hierarchical plan was kept to), the path, start and stops;
 ``graph.png`` (``spcopyro show OUT --graph``): the place graph over the semantic map."""
 
 from __future__ import annotations
@@ -31,6 +32,14 @@ def plot_plan(plan: NavigationPlan, path: str | os.PathLike[str]) -> Path:
     shown = ax.imshow(image[rows, cols], extent=_extent(grid, rows, cols), origin="upper",
                       cmap="Blues", vmin=0.0, vmax=1.0, interpolation="nearest")  # fmt: skip
     fig.colorbar(shown, ax=ax, label=f"p(cell in the place of '{goal.word}')", shrink=0.8)
+    kept = [leg.corridor for leg in plan.legs if leg.corridor is not None]
+    if kept:  # the cells a hierarchical plan was kept to: its routes' places
+        cells = plan.planning.cells(np.flatnonzero(np.logical_or.reduce(kept)))
+        overlay = np.zeros((*grid.shape, 4))  # [H, W, RGBA]
+        overlay[cells[:, 0], cells[:, 1]] = (1.0, 0.6, 0.0, 0.25)
+        ax.imshow(overlay[rows, cols], extent=_extent(grid, rows, cols), origin="upper",
+                  interpolation="nearest")  # fmt: skip
+        ax.plot([], [], color=(1.0, 0.6, 0.0), lw=6, alpha=0.4, label="route's places")
     ax.plot(plan.path_xy[:, 0], plan.path_xy[:, 1], color="C3", lw=2, label="path")
     ax.plot(*plan.start, marker="o", color="C2", ms=9, ls="", label="start")
     for stop in plan.stops[:-1]:

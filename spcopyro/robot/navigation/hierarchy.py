@@ -82,6 +82,9 @@ class Leg:
     """Metres along the leg's path."""
     grid_length: float
     """Metres along the shortest grid path over every allowed cell (``length`` >= it)."""
+    corridor: np.ndarray | None = None
+    """[M] bool: the allowed cells the leg was kept to (:func:`corridor`); None for a grid
+    path."""
 
     @property
     def detour(self) -> float:
@@ -213,7 +216,8 @@ def plan_leg(
             f"no route over the place graph from {_names(places, [start_place])} (place "
             f"{start_place}) to {_names(places, [goal_place])} (place {goal_place})"
         )
-    allowed = np.flatnonzero(corridor(planning, node_place, places_on, margin))  # [m]
+    inside = corridor(planning, node_place, places_on, margin)  # [M]
+    allowed = np.flatnonzero(inside)  # [m]
     local = np.full(planning.num_allowed, -1, dtype=np.int64)
     local[allowed] = np.arange(allowed.size)
     sub = planning.graph[allowed][:, allowed]
@@ -226,4 +230,5 @@ def plan_leg(
             f"and goal with {planning.radius:g} m of clearance"
         )
     nodes = allowed[trace_path(predecessors, int(local[target]))]
-    return Leg(places_on, HIERARCHICAL, None, nodes, float(distance[local[target]]), grid_length)
+    length = float(distance[local[target]])
+    return Leg(places_on, HIERARCHICAL, None, nodes, length, grid_length, inside)
