@@ -123,6 +123,15 @@ def test_python_spec_errors_and_method_grid():
     values["study"]["methods"] = ["gibbs", "cavi"]
     study = study_from_dict(values)
     assert [c.method for c in cells_of(study)][:4] == ["gibbs", "cavi", "gibbs", "cavi"]
+    values["study"]["sweeps"] = {"og3": 7, "cavi": 3, "*": 5}  # variant, then method, then *
+    study = study_from_dict(values)
+    assert [(c.row, c.method, c.sweeps) for c in cells_of(study)][:4] == [
+        ("og3", "gibbs", 7), ("og3", "cavi", 7), ("dp", "gibbs", 5), ("dp", "cavi", 3)
+    ]  # fmt: skip
+    values["study"]["sweeps"] = {"og4": 7}
+    with pytest.raises(StudyError, match="sweeps.og4.*unknown method or variant"):
+        study_from_dict(values)
+    values["study"]["sweeps"] = 5
     values["variants"]["og3"]["method"] = "lbp"
     with pytest.raises(StudyError, match="variants.og3. method"):
         study_from_dict(values)

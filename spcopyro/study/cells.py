@@ -105,7 +105,7 @@ def cells_of(study: Study, root: str | Path | None = None) -> list[Cell]:
                 methods = study.methods or (variant.method,)
                 for method in methods:
                     changed = dataclasses.replace(variant, method=method)
-                    sweeps = study.sweeps_for(method)
+                    sweeps = study.sweeps_for(method, variant.name)
                     planned.append(Cell(changed, variant.name, data, method, seed, sweeps,
                                         study.spcoa_iterations,
                                         study.observations_off))  # fmt: skip

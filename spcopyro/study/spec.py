@@ -7,7 +7,7 @@ data x seeds). It is written as a TOML file (:func:`load_study`) or built in Pyt
     [study]
     name = "ablation-small"
     seeds = 3                      # 0, 1, 2; or a list [0, 4, 7]
-    sweeps = 200                   # or per method: { gibbs = 200, cavi = 50 }
+    sweeps = 200                   # or per method or variant: { gibbs = 200, cavi = 50 }
     methods = ["gibbs", "cavi"]    # optional; default: each variant's own method (gibbs)
     baselines = ["F-geometry"]     # optional rows of spcopyro.experiments.methods
 
@@ -114,8 +114,9 @@ class DataSource:
 
 @dataclass(frozen=True)
 class Study:
-    """A declared study (module docstring). ``sweeps`` maps a method (or ``"*"``) to its
-    iterations; ``methods`` empty: each variant with its own method."""
+    """A declared study (module docstring). ``sweeps`` maps a variant's name, a method or
+    ``"*"`` to iterations (:meth:`sweeps_for`); ``methods`` empty: each variant with its own
+    method."""
 
     name: str
     variants: tuple[Variant, ...]
@@ -132,9 +133,12 @@ class Study:
     source: str = field(default="<python>", compare=False)
     """Where the study was read from (named in errors and in study.json)."""
 
-    def sweeps_for(self, method: str) -> int:
-        """The iterations of ``method`` (its own entry, else ``"*"``)."""
+    def sweeps_for(self, method: str, variant: str | None = None) -> int:
+        """The iterations of ``variant`` fitted with ``method``: the variant's own entry, else
+        the method's, else ``"*"``."""
         table = dict(self.sweeps)
+        if variant is not None and variant in table:
+            return int(table[variant])
         return int(table.get(method, table.get("*", 1000)))
 
     def to_json(self) -> dict[str, object]:
@@ -196,14 +200,17 @@ def _bool(source: str, where: str, value: object) -> bool:
     return value
 
 
-def _sweeps(source: str, value: object) -> tuple[tuple[str, int], ...]:
+def _sweeps(
+    source: str, value: object, variants: tuple[str, ...] = ()
+) -> tuple[tuple[str, int], ...]:
     if isinstance(value, Mapping):
         out = []
         for method, count in value.items():
-            if method != "*" and method not in INFERENCE_METHODS:
+            if method != "*" and method not in INFERENCE_METHODS and method not in variants:
                 known = sorted(INFERENCE_METHODS)
                 raise _fail(source, f"[study] sweeps.{method}", count,
-                            f"unknown method; choose from {known} or '*'")  # fmt: skip
+                            f"unknown method or variant; choose from the methods {known}, the "
+                            f"variants {list(variants)} or '*'")  # fmt: skip
             out.append((str(method), _positive_int(source, f"[study] sweeps.{method}", count)))
         return tuple(out)
     return (("*", _positive_int(source, "[study] sweeps", value)),)
@@ -324,7 +331,7 @@ def study_from_dict(values: Mapping[str, Any], *, source: str = "<python>") -> S
         variants=variants,
         data=data,
         seeds=_seeds(source, head.get("seeds", 1)),
-        sweeps=_sweeps(source, head.get("sweeps", 1000)),
+        sweeps=_sweeps(source, head.get("sweeps", 1000), tuple(v.name for v in variants)),
         methods=methods,
         baselines=baselines,
         spcoa_iterations=_positive_int(
