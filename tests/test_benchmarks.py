@@ -178,6 +178,10 @@ def test_navigation_benchmark_quick(tmp_path):
     done = run_benchmark("navigation.py", out)
     assert done.returncode == 0, done.stderr[-3000:]
     results = json.loads(out.read_text())
+    assert results["presets"] == ["coarse", "paper-dp"]
     for row in results["synthetic"].values():
-        assert 0.0 <= row["navigate"] <= 1.0 and row["utterances"] > 0
-    assert "nearest training utterance" in done.stdout
+        assert row["utterances"] > 0
+        for method in ("coarse", "paper-dp", "baseline"):
+            assert 0.0 <= row[method]["success"] <= 1.0
+        assert 0.0 <= row["coarse"]["hierarchical"] <= 1.0
+    assert "paper-dp success" in done.stdout and "baseline path/shortest" in done.stdout
