@@ -2,4 +2,5 @@
 
 from spcopyro.cli.main import console_main
 
-console_main()
+if __name__ == "__main__":  # imported (e.g. by the docs' API reference), it runs nothing
+    console_main()

@@ -183,7 +183,7 @@ def _check_against_poses(directory: Path, trial: int, folder: Path, images: list
 
 @dataclass(frozen=True)
 class ImageBatch:
-    """Images ``start .. start + len(paths) - 1`` of a list; ``pixels`` holds those that decoded.
+    """Images ``start`` to ``start + len(paths) - 1`` of a list; ``pixels`` holds the decoded.
 
     ``pixels`` is ``[B, 3, crop, crop]`` float32 (B = len(paths)) when ``failures`` is empty;
     otherwise ``None``, and ``failures`` lists ``(path, reason)`` of every image that did not.

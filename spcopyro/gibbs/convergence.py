@@ -169,8 +169,8 @@ def run_until_converged(
     ``init_labels``: one ``[N]`` start (or None for random) per chain. ``options``: the sampler's
     options; its ``anneal_sweeps`` come before the first block (see the module docstring).
     ``progress``: one tqdm bar over all chains (default: on unless ``$CI`` is set).
-    ``workers``: chains advancing at once within a block (:func:`~spcopyro.gibbs.chains.
-    advance_chains`; the chains are the same whatever it is).
+    ``workers``: chains advancing at once within a block
+    (:func:`~spcopyro.gibbs.chains.advance_chains`; the chains are the same whatever it is).
     Returns the run of the chain of highest log joint, and the diagnostics.
     """
     if chains < 2:

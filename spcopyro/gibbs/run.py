@@ -1,14 +1,14 @@
 """The one run loop: a chain that sweeps, records, and can be continued from where it stopped.
 
-:func:`start_chain` makes a :class:`GibbsChain` (the state after :func:`~spcopyro.gibbs.sampler.
-init`, its generator, the map's sweep plan, the backend); :func:`advance` runs sweeps of
-:func:`~spcopyro.gibbs.sampler.step` on it, recording what a run needs and no more: the log joint
-and the number of concepts of every sweep (8 + 8 bytes a sweep), the state of highest log joint
-visited (the "MAP-visited" state, annealing sweeps left out), and, only if asked, label maps every
-``thin`` sweeps as int16 (2 bytes a cell). A later :func:`advance` continues the same chain --
-same state, same generator, same sweep count -- which is how ``--sweeps auto``
-(:mod:`spcopyro.gibbs.convergence`) runs its blocks and how a long fit can be resumed
-(:mod:`spcopyro.gibbs.checkpoint` saves a chain to a file and loads it back).
+:func:`start_chain` makes a :class:`GibbsChain` (the state after
+:func:`~spcopyro.gibbs.sampler.init`, its generator, the map's sweep plan, the backend);
+:func:`advance` runs sweeps of :func:`~spcopyro.gibbs.sampler.step` on it, recording what a run
+needs and no more: the log joint and the number of concepts of every sweep (8 + 8 bytes a sweep),
+the state of highest log joint visited (the "MAP-visited" state, annealing sweeps left out), and,
+only if asked, label maps every ``thin`` sweeps as int16 (2 bytes a cell). A later :func:`advance`
+continues the same chain -- same state, same generator, same sweep count -- which is how
+``--sweeps auto`` (:mod:`spcopyro.gibbs.convergence`) runs its blocks and how a long fit can be
+resumed (:mod:`spcopyro.gibbs.checkpoint` saves a chain to a file and loads it back).
 :func:`run_gibbs` is start + advance in one call, returning a :class:`GibbsRun`.
 
 Numerics: labels are stored as int16, or int32 when L > 32767 (:func:`label_dtype`); a sweep

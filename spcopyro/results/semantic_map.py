@@ -26,8 +26,8 @@ Two implementations live here:
 * :class:`TabularSemanticMap`: a label image plus a table of word counts per label, the form
   the baselines (D)-(F) give their answer in;
 * :class:`SpCoSemanticMap`: a fitted SpCoMapping result
-(:class:`~spcopyro.results.result.SpCoResult`
-  or anything offering the same members, :class:`SpCoResultLike`) seen through the protocol.
+  (:class:`~spcopyro.results.result.SpCoResult` or anything offering the same members,
+  :class:`SpCoResultLike`) seen through the protocol.
   :func:`as_semantic_map` wraps such a result and passes a semantic map through unchanged.
 
 Also here: :func:`word_index` and :class:`UnknownWordError`, how a word is looked up in a

@@ -126,10 +126,10 @@ def answer_warnings(
 
     .. math::
 
-        rac{p(c \mid S)}{p(c' \mid S)} < 	ext{ODDS\_WARNING}, \qquad
-        K = rac{p(c \mid S) / (1 - p(c \mid S))}{p(c) / (1 - p(c))}
-          < 	ext{EVIDENCE\_WARNING}, \qquad
-        n_c < 	ext{SMALL\_REGION\_FRACTION} \cdot N,
+        \frac{p(c \mid S)}{p(c' \mid S)} < \text{ODDS\_WARNING}, \qquad
+        K = \frac{p(c \mid S) / (1 - p(c \mid S))}{p(c) / (1 - p(c))}
+          < \text{EVIDENCE\_WARNING}, \qquad
+        n_c < \text{SMALL\_REGION\_FRACTION} \cdot N,
 
     and when one concept labels the whole map (every word points there).
     """

@@ -1,5 +1,6 @@
 """A study's report, drawn from its table only (issue 26 item 2): nothing is refitted, so a
-report can be redrawn or re-cut from ``results.csv`` alone (``spcopyro study ... --report-only``).
+report can be redrawn or re-cut from ``results.csv`` alone (``spcopyro study STUDY --out OUT
+--report-only``).
 
 :func:`summary_rows` groups the table's rows by (variant, data, method) and gives each score's
 mean and sample standard deviation over the seeds that finished; :func:`report_markdown` writes

@@ -16,7 +16,7 @@ be fractional (probability histograms, tf-idf weights); their likelihood is
 prod_k theta_lk^{f_tk}, the multinomial coefficient being a constant of the data.
 
 Blocked Gibbs sampling (uncollapsed, every step vectorised over events and concepts)
------------------------------------------------------------------------------------
+------------------------------------------------------------------------------------
 Given the globals the C_t are independent:
 
 .. math::
@@ -115,10 +115,8 @@ class SpCoAParameters(NamedTuple):
 def assignment_logits(
     xy: torch.Tensor, features: torch.Tensor, words: torch.Tensor, params: SpCoAParameters
 ) -> torch.Tensor:
-    """[T, L] unnormalised log p(C_t = l | x_t, f_t, s_t, globals), eq. (C5)::
-
-    log pi_l + log N(x_t | mu_l, Sigma_l) + sum_k f_tk log theta_lk + sum_v s_tv log w_lv
-    """
+    """[T, L] unnormalised log p(C_t = l | x_t, f_t, s_t, globals), eq. (C5):
+    ``log pi_l + log N(x_t | mu_l, Sigma_l) + sum_k f_tk log theta_lk + sum_v s_tv log w_lv``."""
     gaussians = torch.distributions.MultivariateNormal(
         params.means, covariance_matrix=params.covariances
     )

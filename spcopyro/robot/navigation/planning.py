@@ -1,13 +1,14 @@
 r"""``spcopyro navigate``: from an instruction and a start to goals and one path through them.
 
-:func:`navigate` parses the instruction into place words (:func:`~spcopyro.robot.navigation.goals.
-parse_instruction`), then, from the start, for each place in order: the shortest paths from where
-the robot is (:func:`~spcopyro.robot.navigation.graph.shortest_paths`) and the word's goal among
-the regions it can reach (:func:`~spcopyro.robot.navigation.goals.choose_goal`). Then each leg
-(start to the first stop, stop to stop): hierarchically by default, the route over the place
-graph first and the grid path kept to the route's places, else the shortest grid path with the
-reason (:mod:`~spcopyro.robot.navigation.hierarchy`); ``planner="grid"``: the shortest grid path.
-The path is the legs joined (the stops are fixed one after the other, not jointly). Everything is
+:func:`navigate` parses the instruction into place words
+(:func:`~spcopyro.robot.navigation.goals.parse_instruction`), then, from the start, for each place
+in order: the shortest paths from where the robot is
+(:func:`~spcopyro.robot.navigation.graph.shortest_paths`) and the word's goal among the regions it
+can reach (:func:`~spcopyro.robot.navigation.goals.choose_goal`). Then each leg (start to the first
+stop, stop to stop): hierarchically by default, the route over the place graph first and the grid
+path kept to the route's places, else the shortest grid path with the reason
+(:mod:`~spcopyro.robot.navigation.hierarchy`); ``planner="grid"``: the shortest grid path. The path
+is the legs joined (the stops are fixed one after the other, not jointly). Everything is
 deterministic: the same fit, instruction and start give the same plan.
 
 Orientation: every pose of the path faces the next one; the last faces along the last step
@@ -198,12 +199,13 @@ def navigate(
 ) -> NavigationPlan:
     """Plan ``instruction`` from ``start`` (world x, y in metres) on ``grid``: a map in the
     fit's frame (the map a coarse fit was made from: walls as thin as the robot's map has
-    them), the fit's probabilities carried onto its cells (:func:`~spcopyro.robot.navigation.graph.
-    fit_cells_on`); None: the fit's own grid. ``planning``: a ready :func:`planning_grid` of that
-    grid (reused across calls); ``places``: a ready :func:`~spcopyro.robot.navigation.places.
-    place_graph` of the fit. ``planner``: ``hierarchical`` (each leg over the place graph, then
-    kept to its route's places; ``margin`` metres: the shared borders' width, at least the fit's
-    cell size) or ``grid`` (:mod:`~spcopyro.robot.navigation.hierarchy`).
+    them), the fit's probabilities carried onto its cells
+    (:func:`~spcopyro.robot.navigation.graph.fit_cells_on`); None: the fit's own grid.
+    ``planning``: a ready :func:`planning_grid` of that grid (reused across calls); ``places``: a
+    ready :func:`~spcopyro.robot.navigation.places.place_graph` of the fit. ``planner``:
+    ``hierarchical`` (each leg over the place graph, then kept to its route's places; ``margin``
+    metres: the shared borders' width, at least the fit's cell size) or ``grid``
+    (:mod:`~spcopyro.robot.navigation.hierarchy`).
 
     Raises:
         ValueError: a misspelt word or none naming a place (the close known words named), an

@@ -133,7 +133,7 @@ def _invert(xy: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def compose(
     chain: list[PoseTrack], t: np.ndarray, tolerance: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str | None]]:
-    """The chain's product ``T_0 T_1 ... T_n`` at each of ``t`` [M].
+    """The chain's product ``T_0 T_1 … T_n`` at each of ``t`` [M].
 
     Returns ``xy`` [M, 2], ``yaw`` [M], ``ok`` [M] bool (every track of the chain has a sample
     within ``tolerance`` seconds) and, per timestamp, None or the reason it has no pose (the
