@@ -163,7 +163,8 @@ def test_memo_always_equals_the_full_recomputation_and_the_elbo_rises_every_step
         for block in batch:
             state.memo.replace(q, block)
         _assert_memo_exact(state.memo, q, data, config)  # before any re-summing
-        state.factors = stochastic.update_factors(state.memo.statistics(), data, config)
+        factors = stochastic.update_factors(state.memo.statistics(), data, config)
+        state = state._replace(factors=factors)  # the state is a NamedTuple
         value = exact_elbo(q, state.factors, state.memo.statistics(), data, config)
         slack = 1e-9 if dtype == torch.float64 else 1e-5
         assert value >= previous - slack * abs(value), step

@@ -67,9 +67,11 @@ def add_parser(subparsers: argparse._SubParsersAction, options: bool = True) -> 
                    help="Gibbs iterations (the paper's: 5000), or 'auto': run --chains chains "
                         "until split R-hat of the log joint and of the number of concepts < "
                         f"1.05 (at most --max-sweeps); {UPDATE_SWEEPS} with --update; for "
-                        "cavi, lbp and vi-gibbs's CAVI a ceiling: they stop once an iteration "
-                        "changes the objective by less than tolerance (1e-7) x |objective| "
-                        f"(default: {FIT_SWEEPS})")  # fmt: skip
+                        "the variational methods a ceiling: they stop once the objective "
+                        "settles, changing by less than tolerance x |objective| (cavi, lbp, "
+                        "stochastic-vi and vi-gibbs's CAVI: tolerance 1e-7 per iteration; svi: "
+                        "1e-4 between the means of windows of 50 steps; --method-option "
+                        f"tolerance=0 runs them all) (default: {FIT_SWEEPS})")  # fmt: skip
     p.add_argument("--chains", type=_positive_int,
                    help="run this many chains (seeds --seed, --seed + 1, ...) and keep the one of "
                         "highest log joint (default 1; 4 with --sweeps auto)")  # fmt: skip

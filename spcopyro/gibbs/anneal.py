@@ -1,6 +1,7 @@
 r"""Annealing of the Potts coupling gamma during burn-in (an option of the stability study, #4).
 
 With ``A`` annealing sweeps, sweep ``s`` (0-based) of a run updates the labels under the coupling
+of :func:`spcopyro.inference.schedule.annealed_gamma`, the schedule every inference method uses
 
 .. math::
 
@@ -21,21 +22,14 @@ helps is measured, not assumed: see :func:`spcopyro.experiments.robustness.stabi
 from __future__ import annotations
 
 from spcopyro.config import SpCoConfig
+from spcopyro.inference.schedule import annealed_gamma, check_anneal_steps
+
+__all__ = ["annealed_config", "annealed_gamma", "check_anneal_sweeps"]
 
 
 def check_anneal_sweeps(anneal_sweeps: int) -> int:
     """``anneal_sweeps`` as an int, or ValueError if it is not a non-negative integer."""
-    if isinstance(anneal_sweeps, bool) or int(anneal_sweeps) != anneal_sweeps or anneal_sweeps < 0:
-        raise ValueError(f"anneal_sweeps must be a non-negative integer, got {anneal_sweeps!r}")
-    return int(anneal_sweeps)
-
-
-def annealed_gamma(gamma: float, sweep: int, anneal_sweeps: int) -> float:
-    """The coupling of 0-based sweep ``sweep``: ``gamma * min(1, (sweep + 1) / anneal_sweeps)``
-    (``gamma`` itself when ``anneal_sweeps`` is 0)."""
-    if anneal_sweeps <= 0 or sweep + 1 >= anneal_sweeps:
-        return float(gamma)
-    return float(gamma) * (sweep + 1) / anneal_sweeps
+    return check_anneal_steps(anneal_sweeps, "anneal_sweeps")
 
 
 def annealed_config(config: SpCoConfig, sweep: int, anneal_sweeps: int) -> SpCoConfig:

@@ -5,14 +5,12 @@ from __future__ import annotations
 
 import dataclasses
 
-import torch
-
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.hyper_options import as_hyper_options
 from spcopyro.gibbs.hyperparameters import hyperparameter_summary
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsRun, run_gibbs
-from spcopyro.inference.protocol import InferenceOutput, Trace, method_options
+from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs, Trace
 from spcopyro.model import ModelData
 
 
@@ -52,30 +50,19 @@ def gibbs_record(options: GibbsOptions, sweeps: int | str, backend_used: str) ->
     return {"sweeps": sweeps, **dataclasses.asdict(options), "backend_used": backend_used}
 
 
-class GibbsInference:
+class GibbsInference(InferenceMethod):
     """Algorithm 1 (:func:`spcopyro.gibbs.run.run_gibbs`) behind the common interface."""
 
     name = "gibbs"
     objective_name = "log joint"
+    options_type = GibbsOptions
+    title = "Gibbs sampling"
 
-    def default_options(self) -> GibbsOptions:
-        return GibbsOptions()
-
-    def run(
-        self,
-        data: ModelData,
-        config: SpCoConfig,
-        *,
-        iterations: int,
-        generator: torch.Generator,
-        init_labels: torch.Tensor | None = None,
-        options: GibbsOptions | None = None,
-        progress: bool | None = None,
-        thin: int = 0,
+    def fit(
+        self, data: ModelData, config: SpCoConfig, options: GibbsOptions, request: RunArgs
     ) -> InferenceOutput:
-        options = method_options(options, GibbsOptions, "Gibbs sampling")
         run = run_gibbs(
-            data, config, iterations, options=options, generator=generator,
-            init_labels=init_labels, progress=progress, thin=thin,
+            data, config, request.iterations, options=options, generator=request.generator,
+            init_labels=request.init_labels, progress=request.progress, thin=request.thin,
         )  # fmt: skip
-        return output_from_run(run, gibbs_record(options, iterations, run.backend))
+        return output_from_run(run, gibbs_record(options, request.iterations, run.backend))

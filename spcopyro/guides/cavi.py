@@ -53,9 +53,12 @@ gamma = 1.5 (:mod:`spcopyro.guides.numba_cavi`).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, NamedTuple
+
 import torch
 
 from spcopyro.config import SpCoConfig
+from spcopyro.guides.elbo import elbo
 from spcopyro.guides.factors import (
     GlobalFactors,
     PiFamily,
@@ -65,6 +68,9 @@ from spcopyro.guides.factors import (
 )
 from spcopyro.likelihood import concept_statistics, neighbour_field, observation_log_likelihood
 from spcopyro.model import DTYPE, ModelData
+
+if TYPE_CHECKING:
+    from spcopyro.guides.options import VariationalOptions
 
 
 def one_hot(labels: torch.Tensor, num_concepts: int) -> torch.Tensor:
@@ -104,3 +110,51 @@ def update_labels(
             new = (1 - damping) * new + damping * q[cells]
         q[cells] = new
     return q
+
+
+def num_used(q: torch.Tensor) -> int:
+    """How many concepts are some cell's most probable one under q ``[N, L]``."""
+    return int(torch.unique(q.argmax(-1)).numel())
+
+
+class CAVIState(NamedTuple):
+    """The state of CAVI: q(C) and the global factors optimal given it."""
+
+    q: torch.Tensor
+    """[N, L] float64 q(C_i = l)."""
+    factors: GlobalFactors
+    """q(pi) and every q(phi_m), from q (:func:`update_globals`)."""
+
+
+class CAVIInfo(NamedTuple):
+    """What one CAVI iteration did (either backend)."""
+
+    objective: float
+    """The ELBO after the iteration, at the model's gamma."""
+    num_concepts: int
+    """Concepts that are some cell's most probable one."""
+    gamma: float
+    """The coupling the label update used (below the model's while annealing)."""
+
+
+def init(
+    q: torch.Tensor, data: ModelData, config: SpCoConfig, options: VariationalOptions
+) -> CAVIState:
+    """The state at q ``[N, L]`` (:func:`spcopyro.guides.run.initial_q`): the globals from it."""
+    return CAVIState(q, update_globals(q, data, config, options.pi_family))
+
+
+def step(
+    state: CAVIState,
+    data: ModelData,
+    config: SpCoConfig,
+    gamma: float,
+    options: VariationalOptions,
+) -> tuple[CAVIState, CAVIInfo]:
+    """One iteration: every q(C_i) given the globals at coupling ``gamma`` (:func:`update_labels`,
+    on a copy: ``state`` is left as it was), then the globals given the new q
+    (:func:`update_globals`), then the ELBO at the model's gamma."""
+    q = update_labels(state.q.clone(), state.factors, data, config, gamma, options.damping)
+    factors = update_globals(q, data, config, options.pi_family)
+    value = float(elbo(q, factors, data, config))
+    return CAVIState(q, factors), CAVIInfo(value, num_used(q), float(gamma))

@@ -6,7 +6,6 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-import torch
 
 from spcopyro.config import SpCoConfig
 from spcopyro.guides.factors import mean_emissions, mean_pi
@@ -17,7 +16,7 @@ from spcopyro.guides.run import (
     resolve_backend,
     run_variational,
 )
-from spcopyro.inference.protocol import InferenceOutput, Trace, method_options
+from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs, Trace
 from spcopyro.model import ModelData
 
 
@@ -40,35 +39,23 @@ def output_from_variational(run: VariationalRun, options: dict[str, object]) -> 
     )
 
 
-class CAVIInference:
+class CAVIInference(InferenceMethod):
     """Mean-field coordinate ascent (:mod:`spcopyro.guides.cavi`) behind the common
     interface."""
 
     name = "cavi"
     objective_name = "ELBO"
+    options_type = VariationalOptions
+    title = "CAVI"
 
-    def default_options(self) -> VariationalOptions:
-        return VariationalOptions()
-
-    def run(
-        self,
-        data: ModelData,
-        config: SpCoConfig,
-        *,
-        iterations: int,
-        generator: torch.Generator,
-        init_labels: torch.Tensor | None = None,
-        options: VariationalOptions | None = None,
-        progress: bool | None = None,
-        thin: int = 0,
+    def fit(
+        self, data: ModelData, config: SpCoConfig, options: VariationalOptions, request: RunArgs
     ) -> InferenceOutput:
-        options = method_options(options, VariationalOptions, "CAVI")
-        q = initial_q(data, config, generator, init_labels, init=options.init)
-        run = run_variational(
-            data, config, iterations, options=options, q=q, progress=progress, thin=thin
-        )
+        q = initial_q(data, config, request.generator, request.init_labels, init=options.init)
+        run = run_variational(data, config, request.iterations, options=options, q=q,
+                              progress=request.progress, thin=request.thin)  # fmt: skip
         record = {
-            "iterations": iterations,
+            "iterations": request.iterations,
             **dataclasses.asdict(options),
             "backend_used": resolve_backend(options.backend),
         }

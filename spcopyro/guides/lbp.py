@@ -24,7 +24,7 @@ of one class share no edge, so a class's outgoing messages read only messages th
 classes sent. **Damping** mixes each new message with the old one,
 ``m <- (1 - damping) m_new + damping m_old`` (in probability space), which calms the oscillations
 loopy BP can have on a grid. Messages persist across outer iterations: each outer iteration
-(:func:`spcopyro.guides.run.run_variational` with this module's ``label_update``) updates
+(:func:`spcopyro.guides.lbp_method.step`, run by :func:`spcopyro.inference.driver.drive`) updates
 the global factors from the beliefs, then runs ``passes`` message passes under the new node
 potentials, starting from the previous messages. **Beliefs** are q(C):
 :math:`q_i(l) \propto \psi_i(l) \prod_{r \sim i} m_{r \to i}(l)`.
@@ -195,8 +195,8 @@ class LoopyBP:
         return self.beliefs(h)
 
     def update(self, q: torch.Tensor, factors: GlobalFactors, gamma: float) -> torch.Tensor:
-        """The :data:`~spcopyro.guides.run.LabelUpdate` hook: node potentials from the
-        global factors, ``passes`` message passes, beliefs written into ``q``."""
+        """A label update in place: node potentials from the global factors, ``passes`` message
+        passes, beliefs written into ``q``."""
         if self.h is None:  # the first call: start the messages from the run's initial q
             self.start_from(q, gamma)
         q[:] = self.run(node_log_potentials(factors, self.data, self.config), gamma)

@@ -1,22 +1,27 @@
 """Loopy BP as an :class:`~spcopyro.inference.protocol.InferenceMethod` (registry: ``lbp``): its
-options, the run (the shared variational loop with :class:`~spcopyro.guides.lbp.LoopyBP`'s label
-update and the Bethe objective) and the method object."""
+options, its :func:`init` / :func:`step` (one outer iteration: the global factors' optimum
+given the beliefs alternating with :class:`~spcopyro.guides.lbp.LoopyBP`'s message passes,
+traced by the Bethe objective), the run (the shared driver,
+:func:`spcopyro.inference.driver.drive`) and the method object."""
 
 from __future__ import annotations
 
 import dataclasses
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import torch
 
 from spcopyro.config import SpCoConfig
+from spcopyro.guides.cavi import num_used, update_globals
 from spcopyro.guides.cavi_method import output_from_variational
 from spcopyro.guides.factors import GlobalFactors, PiFamily
-from spcopyro.guides.lbp import LoopyBP, bethe_objective
+from spcopyro.guides.lbp import LoopyBP, bethe_objective, node_log_potentials
 from spcopyro.guides.options import VariationalOptions
-from spcopyro.guides.run import VariationalRun, initial_q, run_variational
-from spcopyro.inference.protocol import InferenceOutput, method_options
+from spcopyro.guides.run import VariationalRun, initial_q
+from spcopyro.inference.driver import drive
+from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
 from spcopyro.model import ModelData
 
 
@@ -30,8 +35,9 @@ class LBPOptions:
             oscillate on a loopy grid at strong coupling).
         passes: message passes (every colour class sends once per pass) per outer iteration,
             between two updates of the global factors.
-        anneal_iterations: gamma rises linearly from 0 to the model's value over this many
-            outer iterations (0: none), as for CAVI.
+        anneal_iterations: gamma rises linearly to the model's value over this many outer
+            iterations (0: none), on the schedule of every method
+            (:func:`spcopyro.inference.schedule.annealed_gamma`).
         pi_family: q(pi) as the model states it (``"dirichlet"``) or the truncated
             stick-breaking DP (``"stick-breaking"``).
         tolerance: stop once an outer iteration at full gamma changes the Bethe objective by less
@@ -56,18 +62,55 @@ class LBPOptions:
             raise bad("passes", "must be an integer >= 1")
         # The shared options check the rest (and name the field).
         try:
-            self.variational()
+            VariationalOptions(anneal_iterations=self.anneal_iterations,
+                               pi_family=self.pi_family, tolerance=self.tolerance)  # fmt: skip
         except ValueError as error:
             raise ValueError(str(error).replace("VariationalOptions", "LBPOptions")) from None
 
-    def variational(self) -> VariationalOptions:
-        """The run loop's options (annealing, q(pi)'s family, stopping rule)."""
-        return VariationalOptions(
-            anneal_iterations=self.anneal_iterations,
-            pi_family=self.pi_family,
-            tolerance=self.tolerance,
-            backend="torch",
-        )
+
+class LBPState(NamedTuple):
+    """The state of loopy BP between outer iterations."""
+
+    bp: LoopyBP
+    """The messages (updated in place by :func:`step`: they are ``[N, D, L]``)."""
+    q: torch.Tensor
+    """[N, L] float64 the beliefs q(C_i = l)."""
+    factors: GlobalFactors
+    """q(pi) and every q(phi_m), optimal given the beliefs."""
+
+
+class LBPInfo(NamedTuple):
+    """What one outer iteration of loopy BP did."""
+
+    objective: float
+    """The Bethe objective after it, at the model's gamma (NaN where not finite)."""
+    num_concepts: int
+    """Concepts that are some cell's most probable one."""
+    gamma: float
+    """The coupling of its message passes."""
+
+
+def init(q: torch.Tensor, data: ModelData, config: SpCoConfig, options: LBPOptions) -> LBPState:
+    """The state at beliefs ``q`` ``[N, L]``: the globals from them; the messages start from q
+    at the first step's coupling."""
+    bp = LoopyBP(data, config, options.damping, options.passes)
+    return LBPState(bp, q, update_globals(q, data, config, options.pi_family))
+
+
+def step(
+    state: LBPState, data: ModelData, config: SpCoConfig, gamma: float, options: LBPOptions
+) -> tuple[LBPState, LBPInfo]:
+    """One outer iteration at coupling ``gamma``: ``options.passes`` message passes under the
+    node potentials of the globals, the beliefs from the messages, the globals given the
+    beliefs, the Bethe objective."""
+    bp = state.bp
+    if bp.h is None:  # the first step: messages a cell with belief q would send
+        bp.start_from(state.q, gamma)
+    q = bp.run(node_log_potentials(state.factors, data, config), gamma)  # [N, L]
+    factors = update_globals(q, data, config, options.pi_family)
+    value = float(bethe_objective(bp, factors, data, config))
+    value = value if math.isfinite(value) else float("nan")
+    return LBPState(bp, q, factors), LBPInfo(value, num_used(q), float(gamma))
 
 
 def run_lbp(
@@ -80,53 +123,38 @@ def run_lbp(
     progress: bool | None = None,
     thin: int = 0,
 ) -> tuple[VariationalRun, LoopyBP]:
-    """``iterations`` outer iterations of (global factors from the beliefs, ``options.passes``
-    message passes), tracing the Bethe objective at the model's gamma; ``q`` ``[N, L]`` is the
-    start (the messages are initialised from it) and is updated in place. Returns the run and the
-    BP state (its messages). ``thin`` > 0 keeps the argmax labels every ``thin`` iterations."""
+    """At most ``iterations`` outer iterations of :func:`step` from beliefs ``q`` ``[N, L]``
+    (written with the final beliefs), stopping once the Bethe objective settles
+    (``options.tolerance``). Returns the run and the BP state (its messages). ``thin`` > 0
+    keeps the argmax labels every ``thin`` iterations."""
     options = LBPOptions() if options is None else options
-    bp = LoopyBP(data, config, options.damping, options.passes)
-
-    def objective(q: torch.Tensor, factors: GlobalFactors) -> float:
-        value = float(bethe_objective(bp, factors, data, config))
-        return value if math.isfinite(value) else float("nan")
-
-    run = run_variational(
-        data, config, iterations, options=options.variational(), q=q,
-        label_update=bp.update, objective=objective, progress=progress, description="LBP",
-        thin=thin,
+    run = drive(
+        init(q, data, config, options),
+        lambda state, gamma: step(state, data, config, gamma, options), iterations,
+        gamma=config.gamma, anneal=options.anneal_iterations, tolerance=options.tolerance,
+        thin=thin, labels=lambda state: state.q.argmax(-1), num_concepts=config.num_concepts,
+        progress=progress, description="LBP",
     )  # fmt: skip
-    return run, bp
+    q.copy_(run.state.q)
+    return VariationalRun.of(run, q, run.state.factors), run.state.bp
 
 
-class LBPInference:
+class LBPInference(InferenceMethod):
     """Loopy belief propagation (:mod:`spcopyro.guides.lbp`) behind the common interface:
     the beliefs are the marginals, the trace is the Bethe approximation of the ELBO."""
 
     name = "lbp"
     objective_name = "Bethe ELBO"
+    options_type = LBPOptions
+    title = "LBP"
 
-    def default_options(self) -> LBPOptions:
-        return LBPOptions()
-
-    def run(
-        self,
-        data: ModelData,
-        config: SpCoConfig,
-        *,
-        iterations: int,
-        generator: torch.Generator,
-        init_labels: torch.Tensor | None = None,
-        options: LBPOptions | None = None,
-        progress: bool | None = None,
-        thin: int = 0,
+    def fit(
+        self, data: ModelData, config: SpCoConfig, options: LBPOptions, request: RunArgs
     ) -> InferenceOutput:
-        options = method_options(options, LBPOptions, "LBP")
-        q = initial_q(data, config, generator, init_labels)
-        run, _ = run_lbp(
-            data, config, iterations, q=q, options=options, progress=progress, thin=thin
-        )
-        record = {"iterations": iterations, **dataclasses.asdict(options)}
+        q = initial_q(data, config, request.generator, request.init_labels)
+        run, _ = run_lbp(data, config, request.iterations, q=q, options=options,
+                         progress=request.progress, thin=request.thin)  # fmt: skip
+        record = {"iterations": request.iterations, **dataclasses.asdict(options)}
         output = output_from_variational(run, record)
         trace = dataclasses.replace(output.trace, objective_name=self.objective_name)
         return dataclasses.replace(output, trace=trace)

@@ -40,7 +40,8 @@ of the grid) and
 One *pass* visits every block once (in a fresh random order, or raster order); after it the sums
 are re-added from the memo (no drift) and the ELBO is evaluated exactly, in chunks. With one block
 covering the map, a step is one iteration of full-batch CAVI
-(:func:`~spcopyro.guides.run.run_variational`) -- tested equal.
+(:func:`~spcopyro.guides.run.run_variational`) -- tested equal. Both are run by the shared
+driver (:func:`spcopyro.inference.driver.drive`), a pass being one :func:`step`.
 
 **Memory.** q(C) is kept as one ``[N, L]`` tensor of ``dtype`` (float32 by default: 80 MB for
 10^6 cells at L = 20), updated in place; the exponentials and softmax are computed in float64 per
@@ -55,32 +56,29 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal, NamedTuple
 
 import numpy as np
 import torch
-from tqdm.auto import tqdm
 
-from spcopyro._util.progress import progress_enabled
 from spcopyro.config import SpCoConfig
 from spcopyro.distributions import multinomial_counts_log_prob
 from spcopyro.guides.blocks import Blocks, grid_blocks
+from spcopyro.guides.cavi_method import output_from_variational
 from spcopyro.guides.factors import (
     GlobalFactors,
     PiFamily,
     expected_log_emissions,
     expected_log_pi,
     kl_to_prior,
-    mean_emissions,
-    mean_pi,
     update_factors,
 )
 from spcopyro.guides.run import VariationalRun
+from spcopyro.inference.driver import drive
 from spcopyro.inference.initialisation import check_labels, random_labels
-from spcopyro.inference.protocol import InferenceOutput, Trace, method_options
+from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
 from spcopyro.likelihood import ConceptStatistics
 from spcopyro.model import DTYPE, ModelData
 
@@ -101,12 +99,15 @@ class StochasticOptions:
             update (more than one refines the blocks' q against their boundary first).
         order: ``"random"``: every pass visits the blocks in a fresh random order (drawn from the
             run's generator); ``"raster"``: in tile order.
-        anneal_passes: gamma rises linearly from 0 to the model's value over this many passes
-            (0: no annealing); the ELBO rises monotonically only once gamma is at its value.
+        anneal_passes: gamma rises linearly to the model's value over this many passes (0: no
+            annealing), on the schedule of every method
+            (:func:`spcopyro.inference.schedule.annealed_gamma`); the ELBO rises monotonically
+            only once gamma is at its value.
         pi_family: q(pi) Dirichlet (the model's) or truncated stick-breaking
             (:mod:`spcopyro.guides.factors`).
-        tolerance: stop once a pass at full gamma raises the ELBO by less than
-            ``tolerance * |ELBO|`` (0: run every pass).
+        tolerance: stop once a pass at full gamma changes the ELBO by less than
+            ``tolerance * |ELBO|`` (0: run every pass; the passes asked for are a ceiling). The
+            default 1e-7 is CAVI's.
         dtype: storage of q(C), ``"float32"`` (compact) or ``"float64"``.
     """
 
@@ -116,7 +117,7 @@ class StochasticOptions:
     order: Literal["random", "raster"] = "random"
     anneal_passes: int = 0
     pi_family: PiFamily = "dirichlet"
-    tolerance: float = 0.0
+    tolerance: float = 1e-7
     dtype: Literal["float32", "float64"] = "float32"
 
     def __post_init__(self) -> None:
@@ -140,12 +141,6 @@ class StochasticOptions:
             raise bad("tolerance", "must be a finite number >= 0")
         if self.dtype not in _DTYPES:
             raise bad("dtype", f"must be one of {sorted(_DTYPES)}")
-
-    def gamma_at(self, sweep: int, gamma: float) -> float:
-        """The coupling of 0-based pass ``sweep``: ramped up, then the model's."""
-        if sweep >= self.anneal_passes:
-            return gamma
-        return gamma * (sweep + 1) / (self.anneal_passes + 1)
 
 
 def _is_int(value: object) -> bool:
@@ -381,15 +376,20 @@ def compact_initial_q(
     return torch.zeros(N, L, dtype=dtype).scatter_(1, labels.unsqueeze(1), 1.0)
 
 
-@dataclass
-class StochasticState:
-    """What a run keeps: q(C), the blocks, the memo and the global factors made from it."""
+class StochasticState(NamedTuple):
+    """The state of memoized VI between passes. :func:`step` updates ``q`` and ``memo`` in place
+    (q is the map's largest tensor) and returns the state with the new ``factors``."""
 
     q: torch.Tensor
+    """[N, L] q(C_i = l) in the options' ``dtype``."""
     blocks: Blocks
     memo: Memo
     factors: GlobalFactors
+    """q(pi) and every q(phi_m) from the memo's sums: the optimum given the whole q."""
     rows: torch.Tensor
+    """[N] int64 each cell's row in the count matrices, -1 if unobserved."""
+    coefficients: torch.Tensor
+    """[] the observed counts' multinomial coefficients (:func:`chunked_coefficients`)."""
 
     def nbytes(self) -> dict[str, int]:
         """Bytes of the run's own tensors (q, the blocks' index, the memo, the row map)."""
@@ -405,6 +405,17 @@ class StochasticState:
         }
 
 
+class StochasticInfo(NamedTuple):
+    """What one pass of memoized VI did."""
+
+    objective: float
+    """The exact ELBO after the pass, at the model's gamma."""
+    num_concepts: int
+    """Concepts that are some cell's most probable one."""
+    gamma: float
+    """The coupling of the pass's local steps."""
+
+
 def start_state(
     data: ModelData,
     config: SpCoConfig,
@@ -412,7 +423,8 @@ def start_state(
     options: StochasticOptions,
     blocks: Blocks | None = None,
 ) -> StochasticState:
-    """The memo and the global factors of q (updated in place by :func:`run_stochastic`)."""
+    """``init``: the memo and the global factors of q ``[N, L]`` (:func:`compact_initial_q`);
+    ``blocks`` overrides the tiles of ``options.block_size``."""
     if q.shape != (data.num_free, config.num_concepts):
         raise ValueError(
             f"q must be [{data.num_free}, {config.num_concepts}], got {tuple(q.shape)}"
@@ -424,7 +436,44 @@ def start_state(
         )
     memo = Memo(q, data, config, blocks)
     factors = update_factors(memo.statistics(), data, config, options.pi_family)
-    return StochasticState(q, blocks, memo, factors, data.observation_rows())
+    coefficients = chunked_coefficients(data, config)
+    return StochasticState(q, blocks, memo, factors, data.observation_rows(), coefficients)
+
+
+init = start_state
+
+
+def step(
+    state: StochasticState,
+    data: ModelData,
+    config: SpCoConfig,
+    gamma: float,
+    options: StochasticOptions,
+    generator: torch.Generator,
+) -> tuple[StochasticState, StochasticInfo]:
+    """One pass at coupling ``gamma`` (module docstring): the blocks in a fresh random order
+    drawn from ``generator`` (or raster order), ``options.blocks_per_step`` at a time: their
+    local step, their memo swapped, the globals from the sums; then the sums re-added from the
+    memo and the exact ELBO."""
+    num_blocks = state.blocks.num_blocks
+    if options.order == "random":
+        visit = torch.randperm(num_blocks, generator=generator).tolist()
+    else:
+        visit = list(range(num_blocks))
+    factors = state.factors
+    for lo in range(0, num_blocks, options.blocks_per_step):
+        batch = visit[lo : lo + options.blocks_per_step]
+        local_step(state.q, factors, data, config, state.blocks, batch, gamma, state.rows,
+                   options.local_sweeps)  # fmt: skip
+        for block in batch:
+            state.memo.replace(state.q, block)
+        factors = update_factors(state.memo.statistics(), data, config, options.pi_family)
+    state.memo.resum()
+    statistics = state.memo.statistics()
+    factors = update_factors(statistics, data, config, options.pi_family)
+    value = exact_elbo(state.q, factors, statistics, data, config, state.coefficients)
+    used = int(torch.unique(state.q.argmax(-1)).numel())
+    return state._replace(factors=factors), StochasticInfo(value, used, float(gamma))
 
 
 def run_stochastic(
@@ -439,66 +488,27 @@ def run_stochastic(
     progress: bool | None = None,
     callback: Callable[[int, StochasticState], None] | None = None,
     description: str = "memoized VI",
+    thin: int = 0,
 ) -> VariationalRun:
-    """``passes`` passes of memoized VI over the spatial blocks (module docstring), from ``q``
-    ``[N, L]`` (updated in place; :func:`compact_initial_q`). ``blocks`` overrides the tiles of
-    ``options.block_size``; ``generator`` draws the random block orders. ``callback(pass,
-    state)``, if given, is called after every pass. Stops early when ``options.tolerance``
-    says so."""
+    """At most ``passes`` passes of memoized VI (:func:`step`) from ``q`` ``[N, L]`` (updated in
+    place; :func:`compact_initial_q`), run by the shared driver: annealed per
+    ``options.anneal_passes``, stopped once the ELBO settles (``options.tolerance``).
+    ``blocks`` overrides the tiles of ``options.block_size``; ``generator`` draws the random
+    block orders. ``callback(pass, state)``, if given, is called after every pass; ``thin`` > 0
+    keeps the argmax labels every ``thin`` passes."""
     options = StochasticOptions() if options is None else options
     if not isinstance(options, StochasticOptions):
         raise TypeError(f"options must be StochasticOptions, got {type(options).__name__}")
     if not _is_int(passes) or passes < 1:
         raise ValueError(f"passes must be an integer >= 1, got {passes!r}")
-    state = start_state(data, config, q, options, blocks)
-    num_blocks = state.blocks.num_blocks
-    coefficients = chunked_coefficients(data, config)
-    values, used, seconds, gammas = [], [], [], []
-    start = time.perf_counter()
-    bar = tqdm(total=passes, desc=description, unit="pass",
-               disable=not progress_enabled(progress))  # fmt: skip
-    with bar:
-        for sweep in range(passes):
-            gamma = options.gamma_at(sweep, config.gamma)
-            if options.order == "random":
-                visit = torch.randperm(num_blocks, generator=generator).tolist()
-            else:
-                visit = list(range(num_blocks))
-            for lo in range(0, num_blocks, options.blocks_per_step):
-                batch = visit[lo : lo + options.blocks_per_step]
-                local_step(state.q, state.factors, data, config, state.blocks, batch, gamma,
-                           state.rows, options.local_sweeps)  # fmt: skip
-                for block in batch:
-                    state.memo.replace(state.q, block)
-                state.factors = update_factors(
-                    state.memo.statistics(), data, config, options.pi_family
-                )
-            state.memo.resum()
-            state.factors = update_factors(state.memo.statistics(), data, config, options.pi_family)
-            statistics = state.memo.statistics()
-            values.append(
-                exact_elbo(state.q, state.factors, statistics, data, config, coefficients)
-            )
-            used.append(int(torch.unique(state.q.argmax(-1)).numel()))
-            seconds.append(time.perf_counter() - start)
-            gammas.append(gamma)
-            if callback is not None:
-                callback(sweep, state)
-            bar.update()
-            bar.set_postfix(elbo=f"{values[-1]:.6g}", concepts=used[-1])
-            if _converged(values, gammas, config.gamma, options.tolerance):
-                break
-    return VariationalRun(
-        state.q, state.factors, np.asarray(values), np.asarray(used, dtype=np.int64),
-        np.asarray(seconds), np.asarray(gammas),
+    run = drive(
+        start_state(data, config, q, options, blocks),
+        lambda state, gamma: step(state, data, config, gamma, options, generator), passes,
+        gamma=config.gamma, anneal=options.anneal_passes, tolerance=options.tolerance, thin=thin,
+        labels=lambda state: state.q.argmax(-1), num_concepts=config.num_concepts,
+        progress=progress, description=description, unit="pass", callback=callback,
     )  # fmt: skip
-
-
-def _converged(values: list[float], gammas: list[float], gamma: float, tolerance: float) -> bool:
-    """The last pass at full gamma raised the ELBO by < tolerance * |ELBO|."""
-    if tolerance <= 0 or len(values) < 2 or gammas[-2] != gamma:
-        return False
-    return abs(values[-1] - values[-2]) < tolerance * abs(values[-1])
+    return VariationalRun.of(run, run.state.q, run.state.factors)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -506,38 +516,23 @@ def _converged(values: list[float], gammas: list[float], gamma: float, tolerance
 # ---------------------------------------------------------------------------------------------
 
 
-class StochasticVIInference:
+class StochasticVIInference(InferenceMethod):
     """Memoized VI on spatial blocks behind the common interface (registry: ``stochastic-vi``);
-    ``iterations`` are passes over the blocks."""
+    ``iterations`` are passes over the blocks (a ceiling: it stops at ``options.tolerance``)."""
 
     name = "stochastic-vi"
     objective_name = "ELBO"
+    options_type = StochasticOptions
+    title = "stochastic-vi"
 
-    def default_options(self) -> StochasticOptions:
-        return StochasticOptions()
-
-    def run(
-        self,
-        data: ModelData,
-        config: SpCoConfig,
-        *,
-        iterations: int,
-        generator: torch.Generator,
-        init_labels: torch.Tensor | None = None,
-        options: StochasticOptions | None = None,
-        progress: bool | None = None,
-        thin: int = 0,
+    def fit(
+        self, data: ModelData, config: SpCoConfig, options: StochasticOptions, request: RunArgs
     ) -> InferenceOutput:
-        options = method_options(options, StochasticOptions, "stochastic-vi")
-        q = compact_initial_q(data, config, generator, init_labels, dtype=_DTYPES[options.dtype])
-        run = run_stochastic(data, config, iterations, q=q, generator=generator,
-                             options=options, progress=progress)  # fmt: skip
-        return InferenceOutput(
-            labels=run.labels.numpy().astype("int64"),
-            pi=mean_pi(run.factors).numpy(),
-            emissions=tuple(e.numpy() for e in mean_emissions(run.factors)),
-            trace=Trace(run.objective, run.num_concepts, run.seconds, "ELBO"),
-            best_iteration=len(run.objective) - 1,
-            marginals=run.q.to(torch.float32).numpy(),
-            options={"iterations": iterations, **dataclasses.asdict(options)},
-        )
+        q = compact_initial_q(data, config, request.generator, request.init_labels,
+                              dtype=_DTYPES[options.dtype])  # fmt: skip
+        run = run_stochastic(
+            data, config, request.iterations, q=q, generator=request.generator, options=options,
+            progress=request.progress, thin=request.thin,
+        )  # fmt: skip
+        record = {"iterations": request.iterations, **dataclasses.asdict(options)}
+        return output_from_variational(run, record)

@@ -100,18 +100,22 @@ Importing this module raises :class:`ImportError` when numba is missing.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, NamedTuple
+
 import numpy as np
 import torch
 
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.numba_plan import flat_plan
 from spcopyro.gibbs.state import SweepPlan
+from spcopyro.guides.cavi import CAVIInfo
 from spcopyro.guides.factors import (
     GlobalFactors,
     expected_log_emissions,
     expected_log_pi,
     kl_to_prior,
     prior_factors,
+    update_factors,
 )
 from spcopyro.guides.numba_cavi_kernels import (
     _entropies,
@@ -128,7 +132,10 @@ from spcopyro.likelihood import (
 )
 from spcopyro.model import DTYPE, ModelData
 
-__all__ = ["SparseMeanField", "sparse_from_dense"]
+if TYPE_CHECKING:
+    from spcopyro.guides.options import VariationalOptions
+
+__all__ = ["SparseCAVIState", "SparseMeanField", "init", "sparse_from_dense", "step"]
 
 RECOUNT_EVERY = 50
 """Updates between recomputations of the running sums from scratch (bounds their rounding)."""
@@ -154,9 +161,9 @@ def sparse_from_dense(
 class SparseMeanField:
     """The numba backend's label field: a sparse q(C) (module docstring) and its updates.
 
-    The methods the run loop (:func:`spcopyro.guides.run.run_variational`) calls:
-    :meth:`update` (one colour-block pass at a coupling), :meth:`statistics` (for the globals),
-    :meth:`elbo`, :meth:`labels`, and :meth:`dense` at the end.
+    What :func:`step` calls: :meth:`update` (one colour-block pass at a coupling),
+    :meth:`statistics` (for the globals), :meth:`elbo`, :meth:`num_used`; :meth:`labels` for
+    thinning, and :meth:`dense` at the end.
     """
 
     def __init__(
@@ -339,3 +346,42 @@ class SparseMeanField:
         if out is None:
             return torch.from_numpy(q)
         return out.copy_(torch.from_numpy(q))
+
+
+class SparseCAVIState(NamedTuple):
+    """The compiled backend's CAVI state: the sparse q and the global factors optimal given it.
+
+    Unlike the torch reference's :class:`~spcopyro.guides.cavi.CAVIState`, :func:`step` updates
+    ``field`` in place (a copy per iteration would cost as much as the update)."""
+
+    field: SparseMeanField
+    factors: GlobalFactors
+
+
+def init(
+    q: torch.Tensor, data: ModelData, config: SpCoConfig, options: VariationalOptions
+) -> SparseCAVIState:
+    """The state at the dense start q ``[N, L]`` (truncated per ``options.support`` and
+    ``options.threshold``), with the globals from it."""
+    field = SparseMeanField(
+        q, data, config, support=options.support, threshold=options.threshold,
+        damping=options.damping, active_tolerance=options.active_tolerance,
+    )  # fmt: skip
+    return SparseCAVIState(field, update_factors(field.statistics(), data, config,
+                                                 options.pi_family))  # fmt: skip
+
+
+def step(
+    state: SparseCAVIState,
+    data: ModelData,
+    config: SpCoConfig,
+    gamma: float,
+    options: VariationalOptions,
+) -> tuple[SparseCAVIState, CAVIInfo]:
+    """One iteration, as :func:`spcopyro.guides.cavi.step`: the sparse label pass at ``gamma``
+    (in place), the globals from the new q, the ELBO at the model's gamma."""
+    field = state.field
+    field.update(state.factors, gamma)
+    factors = update_factors(field.statistics(), data, config, options.pi_family)
+    info = CAVIInfo(field.elbo(factors), field.num_used(), float(gamma))
+    return SparseCAVIState(field, factors), info

@@ -14,20 +14,22 @@ class VariationalOptions:
     """How coordinate-ascent variational inference runs.
 
     Attributes:
-        anneal_iterations: gamma rises linearly from 0 to the model's value over this many
-            iterations (0: no annealing, the default). Mean field started at full coupling
-            freezes near the first labelling it sees; starting uncoupled lets the observations
-            place their concepts first, but with many concepts (L = 120) a q annealed from
-            gamma = 0 stays in mean field's disordered fixed point, stable up to gamma = L / D
-            (:mod:`spcopyro.guides.cavi`). The ELBO only rises monotonically once gamma is
-            at its value.
+        anneal_iterations: gamma rises linearly to the model's value over this many
+            iterations, iteration s at gamma min(1, (s + 1) / A) as Gibbs' ``anneal_sweeps``
+            (:func:`spcopyro.inference.schedule.annealed_gamma`; 0: no annealing, the default).
+            Mean field started at full coupling freezes near the first labelling it sees;
+            starting uncoupled lets the observations place their concepts first, but with many
+            concepts (L = 120) a q annealed from gamma = 0 stays in mean field's disordered
+            fixed point, stable up to gamma = L / D (:mod:`spcopyro.guides.cavi`). The ELBO
+            only rises monotonically once gamma is at its value.
         damping: each block's new q(C_i) is mixed with the old one,
             ``q <- (1 - damping) q_new + damping q_old`` (0: exact coordinate ascent, which never
             lowers the ELBO; > 0 gives that up to calm oscillations).
         pi_family: q(pi) as the model states it (``"dirichlet"``) or the truncated stick-breaking
             DP (``"stick-breaking"``, a different prior: see :mod:`spcopyro.guides.factors`).
-        tolerance: stop once an iteration at full gamma raises the ELBO by less than
-            ``tolerance * |ELBO|`` (0: run every iteration).
+        tolerance: stop once an iteration at full gamma changes the ELBO by less than
+            ``tolerance * |ELBO|`` (:func:`spcopyro.inference.schedule.converged`; 0: run every
+            iteration); the iterations asked for are then a ceiling.
         backend: ``"torch"`` (the dense reference), ``"numba"`` (the compiled sparse update of
             :mod:`spcopyro.guides.numba_cavi`) or ``"auto"`` (numba where it imports).
         init: the start when no labels are given: ``"one-hot"`` (uniformly random labels, each
@@ -85,9 +87,3 @@ class VariationalOptions:
             and self.active_tolerance >= 0
         ):
             raise bad("active_tolerance", "must be a finite number >= 0")
-
-    def gamma_at(self, iteration: int, gamma: float) -> float:
-        """The coupling used by 0-based ``iteration``: ramped up, then the model's."""
-        if iteration >= self.anneal_iterations:
-            return gamma
-        return gamma * (iteration + 1) / (self.anneal_iterations + 1)

@@ -18,23 +18,20 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import time
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, NamedTuple
 
-import numpy as np
 import pyro
 import pyro.optim
 import torch
-from tqdm.auto import tqdm
 
-from spcopyro._util.progress import progress_enabled
 from spcopyro.config import SpCoConfig
 from spcopyro.guides.cavi_method import output_from_variational
 from spcopyro.guides.loss import MeanFieldELBO
 from spcopyro.guides.mean_field import MeanFieldGuide
 from spcopyro.guides.run import VariationalRun, initial_q
-from spcopyro.inference.protocol import InferenceOutput, method_options
+from spcopyro.inference.driver import drive
+from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
 from spcopyro.model import ModelData, spcomapping_model
 
 
@@ -54,8 +51,9 @@ class SVIOptions:
             ``clip_norm`` per parameter).
         clip_norm: ClippedAdam's clipping norm.
         num_particles: draws of the globals per step (the estimate's variance falls as 1 / this).
-        anneal_iterations: gamma rises linearly from 0 to the model's value over this many steps
-            (0: none), as for CAVI (:class:`spcopyro.guides.options.VariationalOptions`).
+        anneal_iterations: gamma rises linearly to the model's value over this many steps
+            (0: none), on the schedule of every method
+            (:func:`spcopyro.inference.schedule.annealed_gamma`).
             Gradient steps move a boundary between two concepts' domains by about a cell per
             step, so a label field that froze into small random domains at full coupling
             coarsens far too slowly; started uncoupled, the observations place the concepts
@@ -66,6 +64,12 @@ class SVIOptions:
             use a small value (0.01-0.1) to keep a warm start's ``init_labels``.
         bound: the concentrations' constraint, ``"prior"`` (above the prior's) or ``"zero"``
             (positive): see :class:`~spcopyro.guides.mean_field.MeanFieldGuide`.
+        tolerance: stop once the mean ELBO estimate of the last ``window`` steps at full gamma
+            differs from that of the ``window`` steps before by less than
+            ``tolerance * |ELBO|`` (:func:`spcopyro.inference.schedule.converged`; 0: run
+            every step, the steps asked for are then a ceiling). The estimate is noisy, so the
+            rule compares means over windows, not single steps.
+        window: steps per window of the stopping rule.
     """
 
     learning_rate: float = 0.1
@@ -76,6 +80,8 @@ class SVIOptions:
     anneal_iterations: int = 100
     label_smoothing: float = 0.9
     bound: Literal["prior", "zero"] = "prior"
+    tolerance: float = 1e-4
+    window: int = 50
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -101,12 +107,10 @@ class SVIOptions:
             raise bad("label_smoothing", "must lie in (0, 1)")
         if self.bound not in ("prior", "zero"):
             raise bad("bound", "must be 'prior' or 'zero'")
-
-    def gamma_at(self, iteration: int, gamma: float) -> float:
-        """The coupling used by 0-based ``iteration``: ramped up, then the model's."""
-        if iteration >= self.anneal_iterations:
-            return gamma
-        return gamma * (iteration + 1) / (self.anneal_iterations + 1)
+        if not (positive(self.tolerance) or self.tolerance == 0):
+            raise bad("tolerance", "must be a finite number >= 0")
+        if not isinstance(self.window, int) or isinstance(self.window, bool) or self.window < 1:
+            raise bad("window", "must be an integer >= 1")
 
     def optimiser_for(self, guide: MeanFieldGuide) -> pyro.optim.PyroOptim:
         """The Pyro optimiser: per-parameter step sizes (logits vs concentrations)."""
@@ -124,6 +128,50 @@ class SVIOptions:
         return pyro.optim.Adam(per_param)
 
 
+class SVIState(NamedTuple):
+    """The state of SVI between steps. The guide's parameters live in Pyro's param store (the
+    run's own scope) and the optimiser's moments in ``svi``: :func:`step` updates both in
+    place."""
+
+    svi: pyro.infer.SVI
+    guide: MeanFieldGuide
+    configs: dict[float, SpCoConfig]
+    """The model config per coupling used so far (made once each)."""
+
+
+class SVIInfo(NamedTuple):
+    """What one SVI step did."""
+
+    objective: float
+    """The ELBO estimate of the step (minus its loss), at the step's coupling."""
+    num_concepts: int
+    """Concepts that are some cell's most probable one under the guide's q(C)."""
+    gamma: float
+    """The step's coupling."""
+
+
+def init(q: torch.Tensor, data: ModelData, config: SpCoConfig, options: SVIOptions) -> SVIState:
+    """The guide started at ``q`` ``[N, L]`` (smoothed per ``options.label_smoothing``), its loss
+    and optimiser. Call inside the param-store scope the run uses (:func:`fit_svi`)."""
+    guide = MeanFieldGuide(
+        data, config, q=q, label_smoothing=options.label_smoothing, bound=options.bound
+    )
+    loss = MeanFieldELBO(num_particles=options.num_particles)
+    svi = pyro.infer.SVI(spcomapping_model, guide, options.optimiser_for(guide), loss)
+    return SVIState(svi, guide, {config.gamma: config})
+
+
+def step(
+    state: SVIState, data: ModelData, config: SpCoConfig, gamma: float
+) -> tuple[SVIState, SVIInfo]:
+    """One SVI step at coupling ``gamma``: the loss's gradient, one optimiser update."""
+    if gamma not in state.configs:
+        state.configs[gamma] = config.replace(gamma=gamma)
+    value = -state.svi.step(data, state.configs[gamma])
+    used = int(torch.unique(state.guide.logits().detach().argmax(-1)).numel())
+    return state, SVIInfo(value, used, float(gamma))
+
+
 def fit_svi(
     data: ModelData,
     config: SpCoConfig,
@@ -133,73 +181,53 @@ def fit_svi(
     generator: torch.Generator,
     options: SVIOptions | None = None,
     progress: bool | None = None,
+    thin: int = 0,
 ) -> VariationalRun:
-    """``steps`` SVI steps of the mean-field guide started at ``q`` ``[N, L]``.
+    """At most ``steps`` SVI steps (:func:`step`) of the mean-field guide started at ``q``
+    ``[N, L]``, run by the shared driver: annealed per ``options.anneal_iterations``, stopped
+    once the windowed ELBO estimate settles (``options.tolerance``, ``options.window``).
 
     Runs in a fresh param-store scope (module docstring); the returned
     :class:`~spcopyro.guides.run.VariationalRun` holds the final guide's q(C) and global
     factors and, per step, the ELBO estimate (minus the SVI loss), the concepts in use, the
-    seconds and the coupling.
+    seconds and the coupling. ``thin`` > 0 keeps the argmax labels every ``thin`` steps.
     """
     options = SVIOptions() if options is None else options
     if steps < 1:
         raise ValueError(f"steps must be >= 1, got {steps}")
     seed = int(torch.randint(0, 2**62, (), generator=generator))
-    values, used, seconds, gammas = [], [], [], []
-    configs: dict[float, SpCoConfig] = {}
-    bar = tqdm(total=steps, desc="SVI", unit="step", disable=not progress_enabled(progress))
-    with torch.random.fork_rng(devices=[]), pyro.get_param_store().scope(), bar:
+    with torch.random.fork_rng(devices=[]), pyro.get_param_store().scope():
         torch.manual_seed(seed)
-        guide = MeanFieldGuide(
-            data, config, q=q, label_smoothing=options.label_smoothing, bound=options.bound
-        )
-        loss = MeanFieldELBO(num_particles=options.num_particles)
-        svi = pyro.infer.SVI(spcomapping_model, guide, options.optimiser_for(guide), loss)
-        start = time.perf_counter()
-        for step in range(steps):
-            gamma = options.gamma_at(step, config.gamma)
-            if gamma not in configs:
-                configs[gamma] = config if gamma == config.gamma else config.replace(gamma=gamma)
-            values.append(-svi.step(data, configs[gamma]))
-            used.append(int(torch.unique(guide.logits().detach().argmax(-1)).numel()))
-            seconds.append(time.perf_counter() - start)
-            gammas.append(gamma)
-            bar.update()
-            bar.set_postfix(elbo=f"{values[-1]:.4g}", concepts=used[-1])
-        marginals, factors = guide.marginals(), guide.factors()
-    return VariationalRun(
-        marginals, factors, np.asarray(values), np.asarray(used, dtype=np.int64),
-        np.asarray(seconds), np.asarray(gammas),
-    )  # fmt: skip
+        run = drive(
+            init(q, data, config, options),
+            lambda state, gamma: step(state, data, config, gamma), steps, gamma=config.gamma,
+            anneal=options.anneal_iterations, tolerance=options.tolerance,
+            window=options.window, thin=thin,
+            labels=lambda state: state.guide.logits().detach().argmax(-1),
+            num_concepts=config.num_concepts, progress=progress, description="SVI",
+            unit="step",
+        )  # fmt: skip
+        guide = run.state.guide
+        return VariationalRun.of(run, guide.marginals(), guide.factors())
 
 
-class SVIInference:
+class SVIInference(InferenceMethod):
     """Stochastic variational inference (:func:`fit_svi`) behind the common interface: one
-    iteration is one SVI step, the trace the ELBO estimate per step."""
+    iteration is one SVI step (a ceiling: it stops at ``options.tolerance``), the trace the ELBO
+    estimate per step."""
 
     name = "svi"
     objective_name = "ELBO"
+    options_type = SVIOptions
+    title = "SVI"
 
-    def default_options(self) -> SVIOptions:
-        return SVIOptions()
-
-    def run(
-        self,
-        data: ModelData,
-        config: SpCoConfig,
-        *,
-        iterations: int,
-        generator: torch.Generator,
-        init_labels: torch.Tensor | None = None,
-        options: SVIOptions | None = None,
-        progress: bool | None = None,
-        thin: int = 0,
+    def fit(
+        self, data: ModelData, config: SpCoConfig, options: SVIOptions, request: RunArgs
     ) -> InferenceOutput:
-        options = method_options(options, SVIOptions, "SVI")
-        q = initial_q(data, config, generator, init_labels)
+        q = initial_q(data, config, request.generator, request.init_labels)
         run = fit_svi(
-            data, config, iterations, q=q, generator=generator, options=options,
-            progress=progress,
+            data, config, request.iterations, q=q, generator=request.generator,
+            options=options, progress=request.progress, thin=request.thin,
         )  # fmt: skip
-        record = {"iterations": iterations, **dataclasses.asdict(options)}
+        record = {"iterations": request.iterations, **dataclasses.asdict(options)}
         return output_from_variational(run, record)

@@ -12,7 +12,6 @@ import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
-import torch
 
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.method import gibbs_record, output_from_run
@@ -20,7 +19,7 @@ from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import run_gibbs
 from spcopyro.guides.options import VariationalOptions
 from spcopyro.guides.run import initial_q, run_variational
-from spcopyro.inference.protocol import InferenceOutput, method_options
+from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
 from spcopyro.model import ModelData
 
 
@@ -40,44 +39,34 @@ class VIGibbsOptions:
             )
 
 
-class VIGibbsInference:
+class VIGibbsInference(InferenceMethod):
     """CAVI, then Gibbs from its labels. ``iterations`` counts the Gibbs sweeps; the trace is the
     sampler's log joint, its clock starting at the CAVI time (so quality-against-time curves
     include the warm start); the CAVI part is recorded in the options (``vi_seconds``,
-    ``vi_elbo``)."""
+    ``vi_elbo``). Every option reaches its part: ``variational`` (its init, annealing, tolerance,
+    backend, ...) the CAVI run of at most ``vi_iterations``, ``gibbs`` the sampler; ``thin``
+    the sampler's label maps."""
 
     name = "vi-gibbs"
     objective_name = "log joint"
+    options_type = VIGibbsOptions
+    title = "VI-then-Gibbs"
 
-    def default_options(self) -> VIGibbsOptions:
-        return VIGibbsOptions()
-
-    def run(
-        self,
-        data: ModelData,
-        config: SpCoConfig,
-        *,
-        iterations: int,
-        generator: torch.Generator,
-        init_labels: torch.Tensor | None = None,
-        options: VIGibbsOptions | None = None,
-        progress: bool | None = None,
-        thin: int = 0,
+    def fit(
+        self, data: ModelData, config: SpCoConfig, options: VIGibbsOptions, request: RunArgs
     ) -> InferenceOutput:
-        options = method_options(options, VIGibbsOptions, "VI-then-Gibbs")
-        q = initial_q(data, config, generator, init_labels, init=options.variational.init)
-        vi = run_variational(
-            data, config, options.vi_iterations, options=options.variational, q=q,
-            progress=progress,
-        )  # fmt: skip
+        generator, progress = request.generator, request.progress
+        q = initial_q(data, config, generator, request.init_labels, init=options.variational.init)
+        vi = run_variational(data, config, options.vi_iterations, options=options.variational,
+                             q=q, progress=progress)  # fmt: skip
         run = run_gibbs(
-            data, config, iterations, options=options.gibbs, generator=generator,
-            init_labels=vi.labels, progress=progress, thin=thin,
+            data, config, request.iterations, options=options.gibbs, generator=generator,
+            init_labels=vi.labels, progress=progress, thin=request.thin,
         )  # fmt: skip
         offset = float(vi.seconds[-1])
         run = dataclasses.replace(run, seconds=np.asarray(run.seconds) + offset)
         record = {
-            **gibbs_record(options.gibbs, iterations, run.backend),
+            **gibbs_record(options.gibbs, request.iterations, run.backend),
             "vi_iterations": options.vi_iterations,
             "variational": dataclasses.asdict(options.variational),
             "vi_seconds": offset,

@@ -17,7 +17,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Protocol, TypeVar
+from typing import TYPE_CHECKING, NamedTuple, Protocol, TypeVar
 
 import numpy as np
 
@@ -89,17 +89,37 @@ def method_options(options: object | None, kind: type[OptionsT], method: str) ->
     return options
 
 
+class RunArgs(NamedTuple):
+    """The arguments of :meth:`InferenceMethod.run` other than the data, config and options,
+    as :meth:`InferenceMethod.fit` receives them."""
+
+    iterations: int
+    generator: torch.Generator
+    init_labels: torch.Tensor | None = None
+    progress: bool | None = None
+    thin: int = 0
+
+
 class InferenceMethod(Protocol):
-    """An inference method for :func:`~spcopyro.model.spcomapping_model` (see the module doc)."""
+    """An inference method for :func:`~spcopyro.model.spcomapping_model` (see the module doc).
+
+    A method may implement :meth:`run` itself (the protocol), or subclass this class, set
+    ``options_type`` and ``title`` and implement :meth:`fit`: the :meth:`run` below then checks the
+    options and hands the rest to :meth:`fit` (every method of spcopyro does so).
+    """
 
     name: str
     """The registry's key, e.g. ``"gibbs"``."""
     objective_name: str
     """What :attr:`Trace.objective` holds, e.g. ``"log joint"`` or ``"ELBO"``."""
+    options_type: type = type(None)
+    """The type of the method's options (for subclasses: :meth:`run` checks it)."""
+    title: str = ""
+    """The method's name in messages, e.g. ``"Gibbs sampling"``."""
 
     def default_options(self) -> object:
         """The method's options object with its defaults."""
-        ...
+        return self.options_type()
 
     def run(
         self,
@@ -113,10 +133,19 @@ class InferenceMethod(Protocol):
         progress: bool | None = None,
         thin: int = 0,
     ) -> InferenceOutput:
-        """Fit the model to ``data`` with ``iterations`` iterations, drawing from ``generator``
-        (a seeded generator makes the fit reproducible); ``thin`` > 0 keeps a label map every
-        ``thin`` iterations where the method has such maps."""
-        ...
+        """Fit the model to ``data`` with ``iterations`` iterations (a ceiling for a method that
+        stops at convergence), drawing from ``generator`` (a seeded generator makes the fit
+        reproducible); ``thin`` > 0 keeps a label map every ``thin`` iterations where the method
+        has such maps."""
+        options = method_options(options, self.options_type, self.title or self.name)
+        request = RunArgs(iterations, generator, init_labels, progress, thin)
+        return self.fit(data, config, options, request)
+
+    def fit(
+        self, data: ModelData, config: SpCoConfig, options: object, request: RunArgs
+    ) -> InferenceOutput:
+        """:meth:`run` with its options checked (for subclasses)."""
+        raise NotImplementedError(f"{type(self).__name__} implements neither run nor fit")
 
 
 def _parse_value(text: str, current: object, where: str) -> object:

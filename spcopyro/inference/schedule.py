@@ -1,0 +1,63 @@
+r"""The annealing schedule and the stopping rule, one definition for every inference method.
+
+**Annealing.** With ``A`` annealing iterations, iteration ``s`` (0-based: a Gibbs sweep, a CAVI or
+LBP iteration, a pass of memoized VI, an SVI step) uses the Potts coupling
+
+.. math::
+
+    \gamma_s = \gamma \, \min\!\left(1, \frac{s + 1}{A}\right),
+
+so the first iterations see an almost free field (the observations place the labels) and from
+iteration ``A - 1`` on the method runs at the model's gamma. ``A = 0`` is no annealing.
+
+**Convergence.** An iterative variational method stops once its objective (the ELBO, or the
+Bethe objective) settles at the model's coupling: with window ``w`` (1 for the exact
+objectives of CAVI, LBP and memoized VI; more for SVI's noisy estimate), after iteration ``t``
+when the last ``2 w`` iterations all ran at full gamma and
+
+.. math::
+
+    \left|\bar f_{t-w+1..t} - \bar f_{t-2w+1..t-w}\right| < \mathrm{tol}\,|\bar f_{t-w+1..t}|,
+
+the means of the objective over the last window and the one before. ``tol = 0`` never stops.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+
+def check_anneal_steps(anneal_steps: int, name: str = "anneal_sweeps") -> int:
+    """``anneal_steps`` as an int, or ValueError (naming ``name``) if it is not a non-negative
+    integer."""
+    if isinstance(anneal_steps, bool) or int(anneal_steps) != anneal_steps or anneal_steps < 0:
+        raise ValueError(f"{name} must be a non-negative integer, got {anneal_steps!r}")
+    return int(anneal_steps)
+
+
+def annealed_gamma(gamma: float, step: int, anneal_steps: int) -> float:
+    """The coupling of 0-based iteration ``step``: ``gamma * min(1, (step + 1) / anneal_steps)``
+    (``gamma`` itself when ``anneal_steps`` is 0)."""
+    if anneal_steps <= 0 or step + 1 >= anneal_steps:
+        return float(gamma)
+    return float(gamma) * (step + 1) / anneal_steps
+
+
+def converged(
+    values: Sequence[float],
+    gammas: Sequence[float],
+    gamma: float,
+    tolerance: float,
+    window: int = 1,
+) -> bool:
+    """Whether the objective ``values`` (one per iteration, run at couplings ``gammas``) has
+    settled at the model's ``gamma`` (module docstring; ``tolerance`` <= 0: never)."""
+    if tolerance <= 0 or len(values) < 2 * window:
+        return False
+    if any(g != gamma for g in gammas[-2 * window :]):
+        return False
+    last = float(np.mean(values[-window:]))
+    before = float(np.mean(values[-2 * window : -window]))
+    return abs(last - before) < tolerance * abs(last)
