@@ -216,11 +216,12 @@ def test_quick_command_writes_table_json_and_figure(tmp_path, capsys, monkeypatc
     gibbs = summary["records"]["synthetic"]["gibbs"][0]
     cavi = summary["records"]["synthetic"]["cavi"][0]
     memoized = summary["records"]["synthetic"]["stochastic-vi"][0]
-    # the sampler and CAVI are scored at their kept maps, memoized VI (no kept maps) by re-runs;
-    # all end at the method's own output at the run's full time
-    assert gibbs["curve_kind"] == cavi["curve_kind"] == "kept label maps"
-    assert memoized["curve_kind"] == "re-runs at geometric budgets"
-    assert [p["iteration"] for p in memoized["curve"]] == [1, 3, 6]
+    # every method is scored at its kept maps (memoized VI honours thin since issue 23; it was
+    # scored by re-runs at budgets 1, 3, 6 before); all end at the method's own output at the
+    # run's full time
+    assert gibbs["curve_kind"] == cavi["curve_kind"] == memoized["curve_kind"] == "kept label maps"
+    iterations = [p["iteration"] for p in memoized["curve"]]
+    assert iterations == sorted(iterations) and iterations[-1] == 6
     for record in (gibbs, cavi, memoized):
         curve = record["curve"]
         seconds = [p["seconds"] for p in curve]
