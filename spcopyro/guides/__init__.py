@@ -4,7 +4,9 @@ Mean-field coordinate ascent (CAVI: :mod:`~spcopyro.guides.cavi`, its compiled b
 :mod:`~spcopyro.guides.numba_cavi`, the ``cavi`` method :mod:`~spcopyro.guides.cavi_method`),
 loopy belief propagation (:mod:`~spcopyro.guides.lbp`), memoized block-coordinate VI
 (:mod:`~spcopyro.guides.memoized`), VI then Gibbs (:mod:`~spcopyro.guides.vi_gibbs`), their
-options, and exact-enumeration oracles for tests (:mod:`~spcopyro.guides.testing`).
+options, and exact-enumeration oracles for tests (:mod:`~spcopyro.guides.testing`). Each method
+is a state NamedTuple with an ``init`` and a ``step`` (as :mod:`spcopyro.gibbs.sampler`), run by
+the shared driver :func:`spcopyro.inference.driver.drive`.
 
 The Pyro guide for :func:`spcopyro.model.spcomapping_model`, fitted with ``pyro.infer.SVI``:
 :class:`~spcopyro.guides.mean_field.MeanFieldGuide` is the mean-field family as a Pyro program
