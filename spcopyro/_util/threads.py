@@ -5,9 +5,7 @@ torch runs each operation on a tensor with up to ``torch.get_num_threads()`` int
 of the N free cells or fewer (N ~ 2e4 on the public houses), the L x K emission tables, an
 M x K by K x L product over the M observed cells -- so a second thread saves little per
 operation and costs a fork/join at each of them. On a machine doing anything else it costs far
-more: the OpenMP team waits at every join for whichever thread the scheduler has set aside. The
-issue measured ``spcopyro fit`` on room1dk5 at 137 s with torch's 2 threads on a busy 2-core
-machine and at 10.5 s with one, labels identical.
+more: the OpenMP team waits at every join for whichever thread the scheduler has set aside.
 
 **The policy** (``threads="auto"``, the default of :func:`spcopyro.fit.house.fit_house` and
 ``spcopyro fit``): a map of fewer than :data:`MIN_CELLS_FOR_MORE_THREADS` free cells runs with
@@ -18,16 +16,12 @@ costs about
 
     t(T) \approx \frac{a N}{T} + b N_\text{ops} (T - 1) + \text{(waits for descheduled threads)},
 
-and the threshold is the N from which the first term's saving beats the rest on an idle
-2-core machine: the smallest map size from which two threads were at least 1.2x faster than one
-on both backends, median of three idle runs of ``python benchmarks/threads.py`` (2026-11-22,
-paper-dp, L = 120). Those medians, two threads against one: 1.18x (torch backend) and 1.09x
-(numba) at 1e4 free cells, 1.25x and 1.18x at 2.8e4, 1.47x and 1.21x at 5.1e4, 1.79x and 1.49x
-at 1e6; at room1dk5's 1.9e4 cells 1.2x (torch) and 1.0x (numba). Next to one spinning neighbour
-process the same two threads were 2.2-3.9x *slower* on room1dk5 and the synthetic house, and
-4-25x slower among other processes' test runs (labels identical every time). Above the
-threshold, a fit on a busy machine still gains from ``threads=1`` (``--threads 1``): the policy
-cannot see the machine's load.
+and the threshold is the N from which the first term's saving beats the rest on an idle 2-core
+machine: the smallest map size from which two threads were at least 1.2x faster than one on both
+backends (``python benchmarks/threads.py``; its measurements are in ``docs/speed.md``, "Threads").
+Next to a busy neighbour the second thread makes a fit several times *slower*, labels identical;
+above the threshold, a fit on a busy machine still gains from ``threads=1`` (``--threads 1``): the
+policy cannot see the machine's load.
 
 :func:`torch_threads` sets the count around a fit and restores the previous one afterwards, even
 when the fit fails. What it does not touch:
@@ -60,7 +54,7 @@ AUTO = "auto"
 
 MIN_CELLS_FOR_MORE_THREADS = 50_000
 """Free cells from which a map keeps torch's own thread count (``threads="auto"``); below it, one
-thread. Measured with ``python benchmarks/threads.py`` (module doc, README "Speed")."""
+thread. Measured with ``python benchmarks/threads.py`` (``docs/speed.md``)."""
 
 
 def policy_threads(num_cells: int) -> int | None:
