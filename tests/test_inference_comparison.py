@@ -1,10 +1,12 @@
 """``spcopyro compare-inference``: the Gibbs-versus-VI comparison (issue #10), its helpers on
-constructed inputs, and the command end to end on a tiny synthetic house."""
+constructed inputs, the command end to end on a tiny synthetic house, and the comparison as a
+study (issue 26) against numbers recorded from its former loop."""
 
 from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -26,10 +28,15 @@ from spcopyro.experiments.comparison_stats import (
 )
 from spcopyro.experiments.inference_comparison import (
     VARIANTS,
+    ComparisonSettings,
     Variant,
     available_variants,
     check_variants,
 )
+from spcopyro.study import STUDIES
+from spcopyro.study.cells import cells_of
+from spcopyro.study.comparison import comparison_study, run_comparison
+from spcopyro.study.spec import load_study
 
 # -- time to 95% ---------------------------------------------------------------------------------
 
@@ -241,3 +248,62 @@ def test_quick_command_writes_table_json_and_figure(tmp_path, capsys, monkeypatc
     assert "| Gibbs (Algorithm 1) |" in table and "| CAVI (mean field" in table
     assert "## Findings" in table and "cavi against gibbs" in table
     assert "![quality against time](comparison_synthetic.png)" in table
+    assert (out / "results.csv").is_file()  # the comparison is a study: cached in --out
+
+
+# -- the comparison as a study (issue 26) --------------------------------------------------------
+
+OLD_RECORDS = Path(__file__).with_name("comparison_old_records.json")
+"""What the comparison's own loop gave (times left out) before it became a study."""
+TIMES = ("seconds", "wall_seconds", "time_to_95", "ess_per_second")
+
+
+def _untimed(record: dict) -> dict:
+    record = {k: v for k, v in record.items() if k not in TIMES}
+    record["curve"] = [{k: v for k, v in p.items() if k != "seconds"} for p in record["curve"]]
+    return record
+
+
+def _recorded_grid(root, **changes) -> ComparisonSettings:
+    values: dict = dict(
+        variants=("gibbs", "gibbs-sw", "cavi", "stochastic-vi"), seeds=2, dataset_root=root,
+        public_houses=("room1ldk4",), folds=1, quick=True,
+        iterations={"gibbs": 40, "gibbs-sw": 40, "cavi": 6, "stochastic-vi": 6},
+    )  # fmt: skip
+    values.update(changes)
+    return ComparisonSettings(**values)
+
+
+def test_the_study_gives_the_old_loops_numbers(tmp_path, dataset_root):
+    """Every score of every fit (times aside) equals what the comparison's own loop gave for the
+    same grid and seeds: 4 lines on 2 synthetic houses, CAVI on a held-out trial of room1ldk4;
+    a rerun fits nothing and writes the same summary."""
+    old = json.loads(OLD_RECORDS.read_text())["records"]
+    only_public = _recorded_grid(dataset_root, house_types=("public",), variants=("cavi",))
+    only_synthetic = _recorded_grid(dataset_root, house_types=("synthetic",))
+    synthetic = run_comparison(tmp_path / "s", only_synthetic)
+    public = run_comparison(tmp_path / "p", only_public)
+    new = {**synthetic["records"], **public["records"]}
+    assert {h: list(v) for h, v in new.items()} == {h: list(v) for h, v in old.items()}
+    for house_type, by_variant in old.items():
+        for key, records in by_variant.items():
+            assert [_untimed(r) for r in new[house_type][key]] == records, (house_type, key)
+    assert synthetic["failed"] == public["failed"] == 0
+    lines: list[str] = []
+    again = run_comparison(tmp_path / "p", only_public, lines.append)
+    assert any("nothing to run" in line for line in lines)
+    assert again["summary"] == public["summary"]
+
+
+@pytest.mark.parametrize("quick", [False, True])
+def test_shipped_study_files_are_the_commands_grid(quick, dataset_root):
+    """compare_inference(_quick).toml: the same cells, key for key, as the command's defaults
+    (--quick: one public house, one held-out trial)."""
+    name = "compare_inference_quick" if quick else "compare_inference"
+    study = load_study(STUDIES / f"{name}.toml")
+    settings = ComparisonSettings(dataset_root=dataset_root, seeds=1 if quick else 5, quick=quick,
+                                  public_houses=("room1dk5",) if quick else None,
+                                  folds=1 if quick else None)  # fmt: skip
+    keys = [c.key for c in cells_of(study, dataset_root)]
+    assert keys == [c.key for c in cells_of(comparison_study(settings))]
+    assert len(keys) == (14 if quick else 140)

@@ -1,7 +1,7 @@
-"""The ``spcopyro experiment`` and ``spcopyro compare-inference`` commands (``spcopyro ablation``
-is a shipped study: :mod:`spcopyro.study.commands`).
+"""The ``spcopyro experiment`` command (``spcopyro ablation`` and ``spcopyro compare-inference``
+run shipped studies: :mod:`spcopyro.study.commands`).
 
-:func:`add_parser` registers both on the main parser's subparsers (:mod:`spcopyro.cli.main`); the
+:func:`add_parser` registers it on the main parser's subparsers (:mod:`spcopyro.cli.main`); the
 experiments' own modules are imported only when one of them runs.
 """
 
@@ -11,8 +11,6 @@ import argparse
 import dataclasses
 import sys
 from pathlib import Path
-
-from spcopyro.config import PRESETS
 
 __all__ = ["add_parser"]
 
@@ -72,53 +70,8 @@ def _experiment(args: argparse.Namespace) -> int:
     return 0
 
 
-def _compare_inference(args: argparse.Namespace) -> int:
-    from spcopyro.data import find_dataset_root
-    from spcopyro.experiments.comparison_report import run_comparison
-    from spcopyro.experiments.inference_comparison import (
-        HOUSE_TYPES,
-        VARIANTS,
-        ComparisonSettings,
-        check_variants,
-    )
-
-    variants = check_variants(args.methods) if args.methods else tuple(VARIANTS)
-    iterations = {}
-    for item in args.iterations or ():
-        key, _, value = item.partition("=")
-        if key not in VARIANTS or not value.isdigit() or int(value) < 1:
-            raise ValueError(f"--iterations takes METHOD=N (N >= 1, METHOD one of "
-                             f"{list(VARIANTS)}), got {item!r}")  # fmt: skip
-        iterations[key] = int(value)
-    house_types = HOUSE_TYPES if args.houses == "both" else (args.houses,)
-    root = find_dataset_root(args.data) if "public" in house_types else None
-    if "public" in house_types and root is None:
-        print("note: public dataset not found ($SPCOPYRO_DATA, ../shared/data/spcomapping); "
-              "skipping the public houses", file=sys.stderr)  # fmt: skip
-    public_houses = tuple(args.public_houses) if args.public_houses else None
-    folds = args.folds
-    if args.quick and root is not None:
-        from spcopyro.data import list_houses
-
-        public_houses = public_houses or tuple(list_houses(root)[:1])
-        folds = 1 if folds is None else folds
-    command = "spcopyro " + " ".join(sys.argv[1:] if args.argv is None else args.argv)
-    settings = ComparisonSettings(
-        variants=variants, seeds=args.seeds if args.seeds is not None else (1 if args.quick else 5),
-        house_types=house_types, dataset_root=root, public_houses=public_houses, folds=folds,
-        preset=args.preset, overrides={} if args.gamma is None else {"gamma": args.gamma},
-        iterations=iterations, quick=args.quick, command=command,
-    )  # fmt: skip
-    summary = run_comparison(args.out, settings, report=print)
-    out = Path(args.out)
-    print((out / "comparison.md").read_text())
-    print(f"wrote {out / 'comparison.md'}, {out / 'comparison.json'} and "
-          f"{', '.join(str(out / f) for f in summary['figures'])}")  # fmt: skip
-    return 0
-
-
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    """Register ``experiment`` (Table 4, Figs. 5-7) and ``compare-inference`` (issue #10)."""
+    """Register ``experiment`` (Table 4, Figs. 5-7)."""
     p = subparsers.add_parser("experiment", help="the paper's comparison (Table 4, Figs. 5-7)")
     p.add_argument("--out", required=True, help="results folder (table.md, table.json, figures/)")
     p.add_argument(
@@ -144,51 +97,3 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="also the stability (seeds, chains, init) and sensitivity studies (robustness.md)",
     )
     p.set_defaults(func=_experiment, argv=None)
-
-    p = subparsers.add_parser(
-        "compare-inference",
-        help="Gibbs against variational inference: quality against wall-clock time (issue #10)",
-    )
-    p.add_argument(
-        "--out",
-        required=True,
-        help="results folder (comparison.md, comparison.json, comparison_*.png)",
-    )
-    p.add_argument(
-        "--houses",
-        choices=("synthetic", "public", "both"),
-        default="both",
-        help="which house types",
-    )
-    p.add_argument(
-        "--seeds", type=int, help="synthetic houses, seeds 0..n-1 (default: 5; 1 with --quick)"
-    )
-    p.add_argument(
-        "--methods",
-        nargs="+",
-        help="methods to compare (default: all; those the "
-        "registry lacks are skipped with a message)",
-    )
-    p.add_argument(
-        "--iterations",
-        nargs="+",
-        metavar="METHOD=N",
-        help="replace a method's iteration budget, e.g. gibbs=2000 cavi=50 (default: each "
-        "method's own, e.g. gibbs 5000 sweeps, cavi 100 iterations; --quick: a few)",
-    )
-    p.add_argument(
-        "--quick",
-        action="store_true",
-        help="smoke run: a tiny synthetic house, "
-        "1 seed, a few iterations, one public house and one held-out trial",
-    )
-    p.add_argument("--data", help="public dataset folder (default: found automatically)")
-    p.add_argument("--public-houses", nargs="+", help="public houses (default: all)")
-    p.add_argument("--folds", type=int, help="held-out trials per public house (default: all)")
-    p.add_argument(
-        "--preset", default="original-code", choices=sorted(PRESETS), help="model settings"
-    )
-    p.add_argument(
-        "--gamma", type=float, default=3.0, help="the Potts coupling, replacing the preset's"
-    )
-    p.set_defaults(func=_compare_inference, argv=None)

@@ -1,13 +1,13 @@
-"""The inference comparison's run (:func:`run_comparison`, behind ``spcopyro
-compare-inference``), summary, findings, table (``comparison.md``) and figures; the fits and
-their scoring are :mod:`spcopyro.experiments.inference_comparison`.
+"""The inference comparison's summary, findings, table (``comparison.md``) and figures; the fits
+and their scoring are :mod:`spcopyro.experiments.inference_comparison`, the run is a study
+(:func:`spcopyro.study.comparison.run_comparison`, behind ``spcopyro compare-inference``).
 
-:func:`summarise` reduces the per-fit records of
-:func:`~spcopyro.experiments.inference_comparison.run_comparison` to means per variant and
-house type and states, from those numbers alone, where mean field loses and where it wins
-(:func:`findings`); :func:`write_report` writes the JSON, the markdown and one figure of quality
-against wall-clock time (log axis) per house type. Figures are drawn on
-:class:`matplotlib.figure.Figure` objects (no pyplot), as in :mod:`spcopyro.experiments.figures`.
+:func:`summarise` reduces the per-fit records (house type -> variant -> records, drawn from the
+study's table) to means per variant and house type and states, from those numbers alone, where
+mean field loses and where it wins (:func:`findings`); :func:`write_report` writes the JSON, the
+markdown and one figure of quality against wall-clock time (log axis) per house type. Figures
+are drawn on :class:`matplotlib.figure.Figure` objects (no pyplot), as in
+:mod:`spcopyro.experiments.figures`.
 """
 
 from __future__ import annotations
@@ -15,9 +15,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -32,13 +29,9 @@ from spcopyro.experiments.inference_comparison import (
     SYNTHETIC,
     VARIANTS,
     ComparisonSettings,
-    available_variants,
     budget,
-    fit_and_score,
-    problems,
-    warm_up,
 )
-from spcopyro.experiments.table import json_default, report_nothing
+from spcopyro.experiments.table import json_default
 
 SCORE_NAMES = {
     "ari": "ARI",
@@ -374,44 +367,3 @@ def _finite(value: object) -> object:
     if isinstance(value, (float, np.floating)) and not math.isfinite(value):
         return None
     return value
-
-
-def run_comparison(
-    out: str | Path,
-    settings: ComparisonSettings,
-    report: Callable[[str], None] = report_nothing,
-) -> dict[str, object]:
-    """Run every available variant on every house of ``settings``; write ``comparison.json``,
-    ``comparison.md`` and one figure per house type (``comparison_{synthetic,public}.png``)
-    into ``out``. Returns the summary written to the JSON; ``report`` gets one line per fit."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    start = time.perf_counter()
-    keys, notes = available_variants(settings.variants, report)
-    records: dict[str, dict[str, list[dict[str, object]]]] = {}
-    for house_type in settings.house_types:
-        todo = problems(settings, house_type)
-        if not todo:
-            notes.append(
-                f"{house_type} houses skipped: "
-                + ("no seeds" if house_type == SYNTHETIC else "the public dataset was not found")
-            )
-            continue
-        records[house_type] = {key: [] for key in keys}
-        for key in keys:  # compile / load the compiled code once, outside every measured fit
-            warm_up(VARIANTS[key], todo[0])
-        for problem in todo:
-            for key in keys:
-                variant = VARIANTS[key]
-                record = fit_and_score(variant, problem, budget(variant, settings))
-                records[house_type][key].append(record)
-                final = record["final"]
-                report(
-                    f"{house_type} {problem.name} {key}: "
-                    + ", ".join(f"{s} {final[s]:.3f}" for s in SCORES[house_type])
-                    + f", {record['concepts']} concepts, {record['seconds']:.1f} s"
-                )
-    summary = summarise(records, settings, notes, time.perf_counter() - start)
-    summary["load_average_at_end"] = list(os.getloadavg())
-    write_report(out, summary)
-    return summary

@@ -1,6 +1,7 @@
 r"""Gibbs sampling against variational inference: quality against wall-clock time
-(``spcopyro compare-inference``, issue #10's comparison; run and written by
-:func:`spcopyro.experiments.comparison_report.run_comparison`).
+(``spcopyro compare-inference``, issue #10's comparison; run as a study by
+:func:`spcopyro.study.comparison.run_comparison`, each fit a cell scored by
+:func:`fit_and_score`, written by :mod:`spcopyro.experiments.comparison_report`).
 
 Every *variant* (:data:`VARIANTS`) is an inference method of :mod:`spcopyro.fit.registry` with its
 options changed from the method's defaults (``gibbs-sw`` is ``gibbs`` with Swendsen-Wang moves)
@@ -58,12 +59,9 @@ import numpy as np
 import torch
 
 from spcopyro._util.threads import AUTO, resolve_threads, torch_threads
-from spcopyro.config import SpCoSettings, preset
-from spcopyro.data import House, Observations, list_houses, load_house
-from spcopyro.data.model_grid import model_house
+from spcopyro.config import SpCoSettings
+from spcopyro.data import House, Observations
 from spcopyro.experiments import comparison_stats as stats
-from spcopyro.experiments.public_truth import public_truth
-from spcopyro.experiments.table import heldout_folds
 from spcopyro.fit.house import prepare_model_data, result_of
 from spcopyro.fit.registry import INFERENCE_METHODS
 from spcopyro.guides.factors import mean_emissions, mean_pi, update_factors
@@ -78,7 +76,7 @@ from spcopyro.metrics import (
 )
 from spcopyro.model import ModelData
 from spcopyro.results.result import SpCoResult
-from spcopyro.synthetic import HouseSpec, make_house
+from spcopyro.synthetic import HouseSpec
 
 
 @dataclass(frozen=True)
@@ -372,42 +370,6 @@ def _confidence(output: InferenceOutput) -> np.ndarray | None:
 
 
 # -- the whole comparison ------------------------------------------------------------------------
-
-
-def _settings(settings: ComparisonSettings, **extra: object) -> SpCoSettings:
-    return preset(settings.preset, **{**settings.overrides, **extra})
-
-
-def problems(settings: ComparisonSettings, house_type: str) -> list[Problem]:
-    """The fits of one house type: synthetic seeds, or public houses x held-out folds."""
-    if house_type == SYNTHETIC:
-        spec = settings.synthetic_spec or (QUICK_SPEC if settings.quick else None)
-        cell_size = _settings(settings).data.cell_size
-        return [
-            Problem(
-                model_house(make_house(seed=s, spec=spec), cell_size),
-                _settings(settings),
-                s,
-                name=f"seed {s}",
-            )  # fmt: skip
-            for s in range(settings.seeds)
-        ]
-    root = settings.dataset_root
-    if root is None:
-        return []
-    names = settings.public_houses or tuple(list_houses(root))
-    out = []
-    for name in names:
-        house = load_house(Path(root) / name)
-        truth = public_truth(house)  # scored on the project's region truth too
-        house = dataclasses.replace(house, truth=truth.labels, category_names=truth.categories)
-        house = model_house(house, _settings(settings).data.cell_size)
-        for fold, held, train, test in heldout_folds(house):
-            if settings.folds is not None and fold >= settings.folds:
-                break
-            problem_name = f"{name} (held-out trial {held})"
-            out.append(Problem(train, _settings(settings), fold, test, problem_name))
-    return out
 
 
 def warm_up(variant: Variant, problem: Problem) -> None:

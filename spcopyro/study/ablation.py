@@ -40,6 +40,7 @@ __all__ = [
     "ablation_study",
     "records_of_rows",
     "run_ablation",
+    "spec_options",
 ]
 
 ABLATION = STUDIES / "ablation.toml"
@@ -88,7 +89,7 @@ def ablation_settings(
     return AblationSettings(**values)  # type: ignore[arg-type]
 
 
-def _spec_options(spec: HouseSpec) -> tuple[tuple[str, object], ...]:
+def spec_options(spec: HouseSpec) -> tuple[tuple[str, object], ...]:
     """The fields of ``spec`` that differ from ``HouseSpec()`` (``HouseSpec(**them) == spec``)."""
     default = HouseSpec()
     return tuple(
@@ -109,7 +110,7 @@ def ablation_study(settings: AblationSettings, name: str = "ablation") -> Study:
                 f"unknown synthetic house {house!r}; choose from {list(settings.houses)}"
             )
         if settings.seeds >= 1:
-            spec = _spec_options(settings.houses[house])
+            spec = spec_options(settings.houses[house])
             seeds = tuple(range(settings.seeds))
             data.append(DataSource(house, "synthetic", "default", spec, seeds=seeds))
     root = settings.dataset_root

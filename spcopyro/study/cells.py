@@ -41,6 +41,9 @@ class Cell:
     spcoa_iterations: int
     observations_off: bool = False
     """Also fit with the observations off (a variant cell of a study that asks for it)."""
+    scoring: str = "study"
+    """``study`` (:mod:`spcopyro.study.evaluate`) or ``comparison``
+    (:mod:`spcopyro.study.comparison_cell`)."""
     key: str = ""
 
     def inputs(self) -> dict[str, object]:
@@ -58,6 +61,7 @@ class Cell:
             "heldout": self.data.heldout,
             "sweeps": self.sweeps,
             "observations_off": self.observations_off,
+            "scoring": self.scoring,
             "preset": variant.preset if variant else "",
             "overrides": variant.describe().partition(":")[2] if variant else "",
             "version": __version__,
@@ -86,6 +90,8 @@ def cell_key(cell: Cell, digest: str) -> str:
         inputs = {"settings": _settings_json(cell.variant), "sweeps": cell.sweeps}
         if cell.observations_off:  # only when asked: earlier cells keep their keys
             inputs["observations_off"] = True
+        if cell.scoring != "study":
+            inputs["scoring"] = cell.scoring
     inputs.update(method=cell.method, seed=cell.seed, data=digest, version=__version__)
     text = json.dumps(inputs, sort_keys=True, default=repr)
     return hashlib.sha256(text.encode()).hexdigest()
@@ -107,8 +113,8 @@ def cells_of(study: Study, root: str | Path | None = None) -> list[Cell]:
                     changed = dataclasses.replace(variant, method=method)
                     sweeps = study.sweeps_for(method, variant.name)
                     planned.append(Cell(changed, variant.name, data, method, seed, sweeps,
-                                        study.spcoa_iterations,
-                                        study.observations_off))  # fmt: skip
+                                        study.spcoa_iterations, study.observations_off,
+                                        study.scoring))  # fmt: skip
             for baseline in study.baselines:
                 planned.append(Cell(None, baseline, data, BASELINE_METHOD, seed,
                                     study.sweeps_for("gibbs"), study.spcoa_iterations))  # fmt: skip

@@ -1,5 +1,9 @@
 """Commands that are shipped studies under their old names (issue 26 item 1).
 
+``spcopyro compare-inference`` runs the study engine on the grid of its options
+(:func:`spcopyro.study.comparison.comparison_study`; its defaults and ``--quick`` are the cells of
+the shipped ``compare_inference.toml`` and ``compare_inference_quick.toml``) and writes the
+comparison's ``comparison.md``, ``comparison.json`` and figures from the study's table.
 ``spcopyro ablation`` runs the study engine on ``spcopyro/study/studies/ablation.toml``
 (``ablation_quick.toml`` with ``--quick``), its options changing that study
 (:func:`spcopyro.study.ablation.ablation_settings`), and writes the ablation's tables
@@ -13,6 +17,8 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+
+from spcopyro.config import PRESETS
 
 __all__ = ["add_parser"]
 
@@ -62,8 +68,110 @@ def _ablation(args: argparse.Namespace) -> int:
     return 1 if summary["failed"] else 0
 
 
+def _compare_inference(args: argparse.Namespace) -> int:
+    from spcopyro.data import find_dataset_root
+    from spcopyro.experiments.inference_comparison import (
+        HOUSE_TYPES,
+        VARIANTS,
+        ComparisonSettings,
+        check_variants,
+    )
+    from spcopyro.study.comparison import run_comparison
+
+    variants = check_variants(args.methods) if args.methods else tuple(VARIANTS)
+    iterations = {}
+    for item in args.iterations or ():
+        key, _, value = item.partition("=")
+        if key not in VARIANTS or not value.isdigit() or int(value) < 1:
+            raise ValueError(f"--iterations takes METHOD=N (N >= 1, METHOD one of "
+                             f"{list(VARIANTS)}), got {item!r}")  # fmt: skip
+        iterations[key] = int(value)
+    house_types = HOUSE_TYPES if args.houses == "both" else (args.houses,)
+    root = find_dataset_root(args.data) if "public" in house_types else None
+    if "public" in house_types and root is None:
+        print("note: public dataset not found ($SPCOPYRO_DATA, ../shared/data/spcomapping); "
+              "skipping the public houses", file=sys.stderr)  # fmt: skip
+    public_houses = tuple(args.public_houses) if args.public_houses else None
+    folds = args.folds
+    if args.quick and root is not None:
+        from spcopyro.data import list_houses
+
+        public_houses = public_houses or tuple(list_houses(root)[:1])
+        folds = 1 if folds is None else folds
+    command = "spcopyro " + " ".join(sys.argv[1:] if args.argv is None else args.argv)
+    settings = ComparisonSettings(
+        variants=variants, seeds=args.seeds if args.seeds is not None else (1 if args.quick else 5),
+        house_types=house_types, dataset_root=root, public_houses=public_houses, folds=folds,
+        preset=args.preset, overrides={} if args.gamma is None else {"gamma": args.gamma},
+        iterations=iterations, quick=args.quick, command=command,
+    )  # fmt: skip
+    summary = run_comparison(args.out, settings, report=print, workers=args.workers,
+                             retry_failed=args.retry_failed)  # fmt: skip
+    out = Path(args.out)
+    print((out / "comparison.md").read_text())
+    print(f"wrote {out / 'comparison.md'}, {out / 'comparison.json'} and "
+          f"{', '.join(str(out / f) for f in summary['figures'])} (the study's table: "
+          f"{out / 'results.csv'})")  # fmt: skip
+    return 1 if summary["failed"] else 0
+
+
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    """Register ``ablation`` (issue #14; the shipped study ``ablation``)."""
+    """Register ``compare-inference`` (issue #10) and ``ablation`` (issue #14), the shipped
+    studies ``compare_inference`` and ``ablation``."""
+    p = subparsers.add_parser(
+        "compare-inference",
+        help="Gibbs against variational inference: quality against wall-clock time (issue #10); "
+        "the shipped study 'compare_inference' (docs/studies.md)",
+    )
+    p.add_argument(
+        "--out",
+        required=True,
+        help="results folder: comparison.md, comparison.json, comparison_*.png, and the "
+        "study's cells/ (cache), results.csv, report.md",
+    )
+    p.add_argument(
+        "--houses",
+        choices=("synthetic", "public", "both"),
+        default="both",
+        help="which house types",
+    )
+    p.add_argument(
+        "--seeds", type=int, help="synthetic houses, seeds 0..n-1 (default: 5; 1 with --quick)"
+    )
+    p.add_argument(
+        "--methods",
+        nargs="+",
+        help="methods to compare (default: all; those the "
+        "registry lacks are skipped with a message)",
+    )
+    p.add_argument(
+        "--iterations",
+        nargs="+",
+        metavar="METHOD=N",
+        help="replace a method's iteration budget, e.g. gibbs=2000 cavi=50 (default: each "
+        "method's own, e.g. gibbs 5000 sweeps, cavi 100 iterations; --quick: a few)",
+    )
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="smoke run: a tiny synthetic house, "
+        "1 seed, a few iterations, one public house and one held-out trial",
+    )
+    p.add_argument("--data", help="public dataset folder (default: found automatically)")
+    p.add_argument("--public-houses", nargs="+", help="public houses (default: all)")
+    p.add_argument("--folds", type=int, help="held-out trials per public house (default: all)")
+    p.add_argument(
+        "--preset", default="original-code", choices=sorted(PRESETS), help="model settings"
+    )
+    p.add_argument(
+        "--gamma", type=float, default=3.0, help="the Potts coupling, replacing the preset's"
+    )
+    p.add_argument("--workers", type=int, default=1, help="1: in this process, one fit at a "
+                   "time (comparable times); N > 1: a Dask LocalCluster of N")  # fmt: skip
+    p.add_argument("--retry-failed", action="store_true",
+                   help="run again the cells stored with an error in --out")  # fmt: skip
+    p.set_defaults(func=_compare_inference, argv=None)
+
     p = subparsers.add_parser(
         "ablation",
         help="every variant (named overrides) on dense, sparse and other synthetic houses and "

@@ -25,7 +25,10 @@ Scores (every one that applies; the others are left empty in the table, :data:`S
   ``cpu_seconds_off``;
 * ``seconds`` (wall clock) and ``cpu_seconds`` of the fit, ``iterations``;
 * the trace (objective, concepts in use and seconds per iteration), returned beside the
-  record and saved by the caller as ``traces/KEY.npz``.
+  record and saved by the caller as ``traces/KEY.npz``;
+* ``details``: a study with ``scoring = "comparison"`` scores its cells as ``compare-inference``
+  does (:mod:`spcopyro.study.comparison_cell`): the final scores in the columns above, the
+  comparison's whole record (curve, time to 95 %, ESS, over-confidence) as JSON text here.
 """
 
 from __future__ import annotations
@@ -49,6 +52,7 @@ from spcopyro.metrics import (
     matching_rate,
 )
 from spcopyro.study.cells import Cell
+from spcopyro.study.comparison_cell import COMPARISON, comparison_scores
 from spcopyro.study.sources import load_cell_data
 
 __all__ = ["SCORES", "STATUS_COLUMNS", "run_cell"]
@@ -57,7 +61,7 @@ SCORES = (
     "ari", "matching_rate", "matching_rate_area", "top1", "top3", "mean_rank", "distance_m",
     "inside_rate", "concepts", "concepts_1pct", "largest_share", "free_cells", "held_out_trial",
     "place_top_share", "top_words", "ari_off", "ari_on_off", "concepts_1pct_off", "seconds",
-    "cpu_seconds", "seconds_off", "cpu_seconds_off", "iterations",
+    "cpu_seconds", "seconds_off", "cpu_seconds_off", "iterations", "details",
 )  # fmt: skip
 """The score columns of the table, in order."""
 STATUS_COLUMNS = ("status", "error_type", "error")
@@ -71,7 +75,10 @@ def run_cell(cell: Cell) -> tuple[dict[str, object], dict[str, np.ndarray] | Non
     trace = None
     try:
         with torch_threads(1):
-            scores, trace = _fit_and_score(cell)
+            if cell.scoring == COMPARISON:
+                scores, trace = comparison_scores(cell), None
+            else:
+                scores, trace = _fit_and_score(cell)
         record.update(scores)
     except Exception as error:  # recorded; the study goes on
         record.update(status="error", error_type=type(error).__name__, error=str(error)[:2000])

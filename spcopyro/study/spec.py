@@ -64,7 +64,10 @@ BASELINES = tuple(key for key, row in BASELINE_REGISTRY.items() if not row.spcom
 """Rows a study may add beside its variants (``baselines = [...]``)."""
 
 _STUDY_KEYS = {"name", "seeds", "sweeps", "methods", "baselines", "spcoa_iterations",
-               "observations_off", "description"}  # fmt: skip
+               "observations_off", "scoring", "description"}  # fmt: skip
+SCORINGS = ("study", "comparison")
+"""How a study's cells are fitted and scored: ``study`` (:mod:`spcopyro.study.evaluate`) or
+``comparison``, as ``compare-inference`` does (:mod:`spcopyro.study.comparison_cell`)."""
 _KINDS = ("synthetic", "public", "map")
 
 
@@ -129,6 +132,8 @@ class Study:
     observations_off: bool = False
     """Also fit every variant cell with ``use_images = use_words = False`` (same seed) and score
     that map: ``ari_off``, ``ari_on_off``, ``concepts_1pct_off``, ``seconds_off``."""
+    scoring: str = "study"
+    """:data:`SCORINGS`."""
     description: str = ""
     source: str = field(default="<python>", compare=False)
     """Where the study was read from (named in errors and in study.json)."""
@@ -147,7 +152,7 @@ class Study:
             "name": self.name, "description": self.description, "source": self.source,
             "seeds": list(self.seeds), "sweeps": dict(self.sweeps), "methods": list(self.methods),
             "baselines": list(self.baselines), "spcoa_iterations": self.spcoa_iterations,
-            "observations_off": self.observations_off,
+            "observations_off": self.observations_off, "scoring": self.scoring,
             "variants": [v.to_json() for v in self.variants],
             "data": [d.to_json() for d in self.data],
         }  # fmt: skip
@@ -326,7 +331,16 @@ def study_from_dict(values: Mapping[str, Any], *, source: str = "<python>") -> S
     if not isinstance(data_table, Mapping) or not data_table:
         raise _fail(source, "[data]", data_table, "expected at least one [data.NAME] table")
     data = tuple(_data_source(source, str(k), v) for k, v in data_table.items())
+    scoring = head.get("scoring", "study")
+    if scoring not in SCORINGS:
+        raise _fail(source, "[study] scoring", scoring, f"choose one of {list(SCORINGS)}")
+    if scoring == "comparison":
+        kinds = sorted({d.kind for d in data} - {"synthetic", "public"})
+        if baselines or head.get("observations_off") or kinds:
+            why = "it takes no baselines or observations_off, and synthetic and public houses"
+            raise _fail(source, "[study] scoring", scoring, why)
     return Study(
+        scoring=scoring,
         name=name.strip(),
         variants=variants,
         data=data,

@@ -32,7 +32,7 @@ __all__ = ["COLUMNS", "INPUT_COLUMNS", "CellStore", "read_table", "table_rows", 
 
 INPUT_COLUMNS = (
     "variant", "data", "method", "seed", "data_kind", "data_source", "house_seed", "heldout",
-    "sweeps", "observations_off", "preset", "overrides", "version", "key",
+    "sweeps", "observations_off", "scoring", "preset", "overrides", "version", "key",
 )  # fmt: skip
 """What made a row (:meth:`Cell.inputs`)."""
 COLUMNS = (*INPUT_COLUMNS, *STATUS_COLUMNS, *SCORES, "trace")
@@ -116,7 +116,8 @@ def _cell_text(value: object) -> object:
 
 TEXT_COLUMNS = frozenset(
     ("variant", "data", "method", "data_kind", "data_source", "preset", "overrides", "version",
-     "key", "status", "error_type", "error", "trace", "top_words")
+     "key", "status", "error_type", "error", "trace", "top_words", "details",
+     "scoring")
 )  # fmt: skip
 """Columns read back as text, even when they look like a number."""
 

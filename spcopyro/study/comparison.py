@@ -1,0 +1,132 @@
+"""Gibbs against variational inference (issue #10) as a study (issue 26 item 1):
+``spcopyro compare-inference`` runs the study engine on the grid of its settings and draws
+``comparison.md``, ``comparison.json`` and the quality-against-time figures from the study's
+``results.csv``.
+
+The comparison's grid is its variants (:data:`~spcopyro.experiments.inference_comparison.VARIANTS`
+whose method the registry holds, each with the preset and gamma of the settings and its own
+budget) x the synthetic houses (seeds 0 .. seeds - 1, house and fit) and the public houses
+(one cell per held-out trial: seeds 0 .. folds - 1). Its cells are scored as the comparison
+scores a fit (``scoring = "comparison"``, :mod:`spcopyro.study.comparison_cell`). The shipped
+``compare_inference.toml`` (``compare_inference_quick.toml``) holds the same cells, key for key,
+as the command's defaults (``--quick``) on the public dataset.
+
+* :func:`comparison_study`: the study of a :class:`ComparisonSettings`;
+* :func:`records_of_rows`: the comparison's per-fit records from ``results.csv`` rows;
+* :func:`run_comparison`: run the study (cached and resumable in ``out``) and write the
+  comparison's report from its table.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from spcopyro.data import list_houses, load_house
+from spcopyro.experiments.ablation_variants import make_variant
+from spcopyro.experiments.comparison_report import summarise, write_report
+from spcopyro.experiments.inference_comparison import (
+    PUBLIC,
+    QUICK_SPEC,
+    SYNTHETIC,
+    VARIANTS,
+    ComparisonSettings,
+    available_variants,
+    budget,
+)
+from spcopyro.experiments.table import heldout_folds, report_nothing
+from spcopyro.study.ablation import spec_options
+from spcopyro.study.comparison_cell import COMPARISON
+from spcopyro.study.run import run_study
+from spcopyro.study.spec import DataSource, Study
+from spcopyro.study.table import TABLE, read_table
+from spcopyro.synthetic import HouseSpec
+
+__all__ = ["comparison_study", "records_of_rows", "run_comparison"]
+
+
+def _folds(root: Path, house: str, folds: int | None) -> int:
+    count = len(load_house(root / house).observations.trials)
+    if count < 2:
+        list(heldout_folds(load_house(root / house)))  # raises, naming the house
+    return count if folds is None else min(folds, count)
+
+
+def comparison_study(
+    settings: ComparisonSettings, keys: Sequence[str] | None = None, name: str = "compare-inference"
+) -> Study:
+    """The study of ``settings`` (module docstring); ``keys``: the variants to run (default:
+    ``settings.variants``; every one's method must be in the registry)."""
+    keys = tuple(settings.variants if keys is None else keys)
+    variants = []
+    for key in keys:
+        line = VARIANTS[key]
+        overrides = {"preset": settings.preset, **settings.overrides, "method": line.method}
+        variants.append(make_variant(key, {**overrides, **line.options}))
+    data = []
+    if SYNTHETIC in settings.house_types and settings.seeds >= 1:
+        spec = settings.synthetic_spec or (QUICK_SPEC if settings.quick else HouseSpec())
+        seeds = tuple(range(settings.seeds))
+        data.append(DataSource(SYNTHETIC, "synthetic", "default", spec_options(spec), seeds=seeds))
+    root = settings.dataset_root
+    if PUBLIC in settings.house_types and root is not None:
+        for house in settings.public_houses or tuple(list_houses(root)):
+            seeds = tuple(range(_folds(Path(root), house, settings.folds)))
+            if seeds:
+                target = str(Path(root) / house)
+                data.append(DataSource(house, "public", target, heldout=True, seeds=seeds))
+    return Study(
+        name=name, variants=tuple(variants), data=tuple(data),
+        sweeps=tuple((key, budget(VARIANTS[key], settings)) for key in keys),
+        scoring=COMPARISON, description=settings.command,
+    )  # fmt: skip
+
+
+def records_of_rows(rows: Sequence[dict[str, object]]) -> dict[str, dict[str, list[dict]]]:
+    """house type -> variant -> the comparison's records (finished cells, table order)."""
+    records: dict[str, dict[str, list[dict]]] = {}
+    for row in rows:
+        if row.get("status") != "ok" or not row.get("details"):
+            continue
+        house_type = SYNTHETIC if row["data_kind"] == "synthetic" else PUBLIC
+        by_variant = records.setdefault(house_type, {})
+        by_variant.setdefault(str(row["variant"]), []).append(json.loads(str(row["details"])))
+    return records
+
+
+def run_comparison(
+    out: str | os.PathLike[str],
+    settings: ComparisonSettings,
+    report: Callable[[str], None] = report_nothing,
+    *,
+    workers: int = 1,
+    retry_failed: bool = False,
+) -> dict[str, object]:
+    """Run the cells of :func:`comparison_study` that ``out`` does not hold yet (``workers``
+    > 1: on a Dask LocalCluster; times are then measured beside other fits), then write
+    ``comparison.json``, ``comparison.md`` and one figure per house type
+    (``comparison_{synthetic,public}.png``) from ``out/results.csv``. Returns the summary
+    written to the JSON, with ``failed``: the cells that failed (left out of it)."""
+    out = Path(out)
+    keys, notes = available_variants(settings.variants, report)
+    study = comparison_study(settings, keys)
+    kinds = {d.kind for d in study.data}
+    if SYNTHETIC in settings.house_types and "synthetic" not in kinds:
+        notes.append(f"{SYNTHETIC} houses skipped: no seeds")
+    if PUBLIC in settings.house_types and "public" not in kinds:
+        notes.append(f"{PUBLIC} houses skipped: the public dataset was not found")
+    run = run_study(
+        study, out, workers=workers, retry_failed=retry_failed, report=report,
+        root=settings.dataset_root,
+    )  # fmt: skip
+    rows = read_table(out / TABLE)
+    records = records_of_rows(rows)
+    for house_type, by_variant in records.items():  # every available variant, as before
+        records[house_type] = {key: by_variant.get(key, []) for key in keys}
+    summary = summarise(records, settings, notes, run.seconds)
+    summary["load_average_at_end"] = list(os.getloadavg())
+    write_report(out, summary)
+    summary["failed"] = sum(1 for r in rows if r.get("status") != "ok")
+    return summary

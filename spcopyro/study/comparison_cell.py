@@ -1,0 +1,95 @@
+"""A study cell scored the way ``compare-inference`` scores a fit (``scoring = "comparison"``).
+
+The inference comparison (issue #10, :mod:`spcopyro.experiments.inference_comparison`) runs an
+inference method directly on the model's data and scores its label map *along the run* (kept
+maps, or re-runs at smaller budgets), its effective sample size per second and the confidence
+of its wrong cells. A cell of a study with ``scoring = "comparison"`` does exactly that
+(:func:`~spcopyro.experiments.inference_comparison.fit_and_score`, after a 2-iteration warm-up
+so no measured fit pays for numba's compilation), on the problem the comparison builds:
+
+* a synthetic source: the house drawn with the cell's seed (no name), on the model's grid,
+  scored against its truth;
+* a public source: the house with the project's region truth (categories included) on the
+  model's grid, trial ``seed mod trials`` held out, fitted with the fold's index as its seed.
+
+The cell's record holds the final scores in the table's columns (``ari``, ``matching_rate``,
+``top1``, ``top3``, ``mean_rank``, ``distance_m``, ``concepts``, ``iterations``, ``seconds``:
+the inference's own time) and the whole comparison record (the curve, time to 95 %, ESS,
+over-confidence, top words) as JSON text in ``details``, from which
+:mod:`spcopyro.study.comparison` draws ``comparison.md`` and its figures. Threads: as the
+comparison, the method runs with :func:`spcopyro._util.threads.policy_threads` of the map.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+from spcopyro.data import load_house
+from spcopyro.data.model_grid import model_house
+from spcopyro.experiments import inference_comparison as comparison
+from spcopyro.experiments.public_truth import public_truth
+from spcopyro.experiments.table import heldout_folds, json_default
+from spcopyro.study.cells import Cell
+from spcopyro.synthetic import make_house
+
+__all__ = ["COMPARISON", "comparison_scores", "comparison_variant", "problem_of"]
+
+COMPARISON = "comparison"
+"""The ``scoring`` of a study whose cells are scored as ``compare-inference`` scores a fit."""
+
+FINAL_SCORES = ("ari", "matching_rate", "top1", "top3", "mean_rank", "distance_m")
+
+
+def comparison_variant(cell: Cell) -> comparison.Variant:
+    """The comparison's line for the cell's variant: its method, its resolved options (every
+    field, so nested ones count too) and the cell's budget."""
+    variant = cell.variant
+    assert variant is not None
+    options = variant.method_options()
+    fields = {f.name: getattr(options, f.name) for f in dataclasses.fields(options)}  # type: ignore[arg-type]
+    known = comparison.VARIANTS.get(cell.row)
+    label = known.label if known is not None else cell.row
+    return comparison.Variant(cell.row, cell.method, label, cell.sweeps, cell.sweeps, fields)
+
+
+def problem_of(cell: Cell) -> comparison.Problem:
+    """The comparison's problem for the cell (module docstring)."""
+    assert cell.variant is not None
+    data = cell.data
+    seed = cell.seed if data.house_seed is None else data.house_seed
+    if data.kind == "synthetic":
+        house = make_house(seed=seed, spec=data.house_spec())
+        settings = cell.variant.spco_settings(len(house.category_names or ()) or None)
+        house = model_house(house, settings.data.cell_size)
+        return comparison.Problem(house, settings, cell.seed, name=f"seed {seed}")
+    if data.kind != "public":
+        raise ValueError(f"data source {data.name!r}: comparison scoring takes synthetic and "
+                         f"public houses, not {data.kind}")  # fmt: skip
+    house = load_house(data.target)
+    truth = public_truth(house)  # scored on the project's region truth too
+    house = dataclasses.replace(house, truth=truth.labels, category_names=truth.categories)
+    settings = cell.variant.spco_settings(None)
+    house = model_house(house, settings.data.cell_size)
+    folds = list(heldout_folds(house))
+    fold, held, train, test = folds[cell.seed % len(folds)]
+    name = f"{data.name} (held-out trial {held})"
+    return comparison.Problem(train, settings, fold, test, name)
+
+
+def comparison_scores(cell: Cell) -> dict[str, object]:
+    """Fit and score the cell as the comparison does; its record's columns (module docstring)."""
+    variant = comparison_variant(cell)
+    if cell.variant is not None and cell.variant.fit:
+        raise ValueError(f"variant {cell.row!r}: comparison scoring runs the method directly; "
+                         f"it takes no fit_house arguments ({dict(cell.variant.fit)})")  # fmt: skip
+    problem = problem_of(cell)
+    comparison.warm_up(variant, problem)
+    record = comparison.fit_and_score(variant, problem, cell.sweeps)
+    final = record["final"]
+    scores: dict[str, object] = {s: final[s] for s in FINAL_SCORES if s in final}  # type: ignore[index]
+    scores.update(
+        concepts=record["concepts"], iterations=record["iterations"], seconds=record["seconds"],
+        details=json.dumps(record, default=json_default),
+    )  # fmt: skip
+    return scores
