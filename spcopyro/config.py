@@ -28,7 +28,7 @@ Presets (:func:`preset`) give both layers at once, as :class:`SpCoSettings`:
     counted 10 times (``word_scaling``) and spread over a 1 m footprint, image histograms as
     probabilities (one observation each, not 100 draws), and ``auto``'s inference settings.
 ``auto``
-    What the ablation of issue #14 supports (README, "Maps that are right out of the box"):
+    What the ablation of issue #14 supports (docs/defaults.md, its first section):
     the released code's emissions (beta 0.1, chi 1.0, floor(100 f): word and image tables the
     data can move, where the paper's beta 500 / chi 1e4 leave every concept's words uniform),
     gamma 3.0 (above the critical 2.48 for L = 120, so regions form), and, as recommended

@@ -319,7 +319,7 @@ def test_bad_options_and_inputs_are_refused():
 def test_defaults_reach_a_high_ari_on_an_easy_synthetic_house():
     """The default options (numba backend, exact but for masses < 1e-4) recover the rooms of
     a synthetic house whose data have a say (the released code's values, gamma 3; ARI 0.93
-    when written). Under ``paper-dp`` mean field does not (ARI 0.23; README notes)."""
+    when written). Under ``paper-dp`` mean field does not (ARI 0.23; docs/variational.md)."""
     house = make_house(seed=0)
     settings = preset("original-code", gamma=3.0)
     _, data = prepare_model_data(house, settings)

@@ -188,7 +188,7 @@ LBP_BOUND = {0.5: 0.005, 1.0: 0.07}
 def test_mean_field_and_lbp_marginals_against_exact(L, gamma):
     """3x3 free cells, globals fixed: CAVI (update_labels iterated) and LBP against the exact
     marginals of the same field, on 3 maps. Largest absolute errors over the 10 maps of
-    spcopyro.guides.tiny_maps.marginal_error_study (README notes): gamma 0.5: mean field
+    spcopyro.guides.tiny_maps.marginal_error_study (docs/variational.md): gamma 0.5: mean field
     0.059 (L=2) / 0.038 (L=3), LBP 0.003 / 0.002; gamma 1.0: mean field 0.38 / 0.32, LBP
     0.045 / 0.050. The bounds sit above those; LBP's mean error must be at least 5x smaller than
     mean field's (measured on average: 11x to 45x), and mean field is over-confident (its cells'

@@ -165,7 +165,7 @@ def test_the_door_width_is_read_from_the_map(tmp_path, capsys, caplog):
 
 
 def test_the_public_maps_door_widths(dataset_root):
-    """What ``auto`` reads from the five public maps (README and docs/real_houses.md quote it)."""
+    """What ``auto`` reads from the five public maps (docs/real_houses.md quotes it)."""
     widths = {}
     for name in ("room1dk5", "room1dk6", "room1ldk4", "room1ldk5", "room2ldk4"):
         widths[name] = auto_door_width(load_map(dataset_root / "map" / f"{name}.yaml"),

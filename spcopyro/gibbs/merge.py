@@ -69,7 +69,7 @@ enumerated posterior on a tiny map, and show that dropping the proposal terms is
 
 Cost: O(N + P) per move (the masks and the breadth-first search over T) plus
 ``2 (scans + 1)`` vectorised colour-block passes over T -- about a single-site sweep's cost for
-a large concept (measured in the README).
+a large concept (measured in docs/defaults.md, "Split-merge moves").
 """
 
 from __future__ import annotations

@@ -39,16 +39,11 @@ while one started from a labelling with domains (a Gibbs warm start) freezes int
 γ = 4 a cell on a straight domain wall sees 3 neighbours of its own and 1 of the other concept,
 a logit gap of 2γ = 8, and mean field has no fluctuation to move the wall (Gibbs does).
 
-Measured on the synthetic house (``benchmarks/variational.py``, L = 120, 100 iterations at fixed
-gamma from random labels; prior only and with the data alike): mean field started from a soft
-Dir(1) q stays disordered (E_q[agreeing pairs] = 1/L) at every gamma up to 4; started from
-one-hot random labels it melts into the disordered solution up to gamma = 3 and forms regions
-at gamma = 4 (90% of neighbour pairs agree in expectation, 49 concepts). Gibbs forms regions
-between 2.5 and 3 (11% -> 88% agreeing pairs), at the exact transition. So on this map the
-equilibrium statement (mean field orders first) is invisible and the dynamics dominate: with many
-concepts mean field needs a *stronger* coupling than Gibbs to leave disorder. A top-K cap on q
-changes this: with K = 8 mean field behaves as an 8-state model and forms regions from
-gamma = 1.5 (:mod:`spcopyro.guides.numba_cavi`).
+With many concepts the dynamics can hide the equilibrium statement: started from random labels,
+mean field may need a *stronger* coupling than Gibbs to leave disorder, since its disordered
+solution stays stable up to γ = L / D; a top-K cap on q (:mod:`spcopyro.guides.numba_cavi`) makes
+it behave as a K-state model. What ``benchmarks/variational.py`` measured on the synthetic house
+is in ``docs/variational.md`` ("Where mean field orders").
 """
 
 from __future__ import annotations

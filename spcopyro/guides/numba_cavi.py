@@ -81,18 +81,15 @@ n(i)`, the field the update read. They are recomputed from scratch every ``RECOU
 updates (and after every update with damping), which bounds their rounding drift (tested equal to
 the recount and to the dense formulas). The ELBO then costs O(M L) plus the globals' KL.
 
-**What truncation does to the fit** (measured on the synthetic house, ``paper-dp``, README notes):
-a cell near disorder spreads its mass over all L concepts, and a top-K cap renormalises it onto K
-of them, which behaves like a K-state Potts model: it orders at a much lower gamma (a cap of 8
-made mean field form regions from gamma 1.5 instead of staying disordered) and it changed the
-default fit (ARI 0.09 with 90 concepts instead of the exact update's 0.23 with 49). The default is
-therefore no cap (``support=0``) and a threshold of 1e-4: a disordered cell keeps all its
-concepts (1/L > 1e-4 for L < 10^4), an ordered one its few non-negligible ones. On the synthetic
-house a threshold of 1e-6 kept ~50 concepts a cell (at gamma = 4 a cell with 3 agreeing
-neighbours still gives the others e^-12 = 6e-6) and cost 7x the time of 1e-4, for the same map
-(ARI 0.231, 49 concepts) and an ELBO 18 nats (0.3%) higher; 1e-3 keeps 1.1 concepts a cell and
-loses 120 nats. The ELBO lost is at most the reported bound (``benchmarks/variational.py``
-counts the decreases).
+**What truncation does to the fit.** A cell near disorder spreads its mass over all L concepts,
+and a top-K cap renormalises it onto K of them, which behaves like a K-state Potts model: it
+orders at a much lower gamma and changes the fit. The default is therefore no cap
+(``support=0``) and a threshold of 1e-4: a disordered cell keeps all its concepts (1/L > 1e-4 for
+L < 10^4), an ordered one its few non-negligible ones (at gamma = 4 a cell with 3 agreeing
+neighbours still gives the others e^-12 = 6e-6, which a threshold of 1e-6 would keep). The ELBO
+lost is at most the reported bound (``benchmarks/variational.py`` counts the decreases). The
+measurements behind these defaults are in ``docs/variational.md`` ("Defaults and what they
+give").
 
 The first call compiles the kernels (seconds; ``cache=True`` keeps them for later processes).
 Importing this module raises :class:`ImportError` when numba is missing.

@@ -1,6 +1,6 @@
 """Mean field, loopy BP and exact label marginals side by side on tiny maps (the teaching
-notebook "Gibbs versus VI" shows them), and the measurement behind the README's statement of
-how far each approximation is from exact.
+notebook "Gibbs versus VI" shows them), and the measurement behind docs/variational.md's
+statement of how far each approximation is from exact.
 
 All three describe the same label field, the one a variational label update sees: with the
 global factors q(pi), q(phi) held fixed, node terms E[log pi_l] + the observed cell's expected
@@ -32,7 +32,7 @@ from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
 from spcopyro.model import DTYPE, ModelData, make_model_data
 
 SQUARE = ("...", "...", "...")
-"""3 x 3 free cells: the tiny map of the tests and the README's numbers."""
+"""3 x 3 free cells: the tiny map of the tests and of docs/variational.md's numbers."""
 
 
 class TinyMapComparison(NamedTuple):
