@@ -156,12 +156,14 @@ def run_ablation(
     report: Callable[[str], None] = lambda message: None,
     *,
     retry_failed: bool = False,
+    name: str = "ablation",
 ) -> dict[str, object]:
     """Run the cells of :func:`ablation_study` that ``out`` does not hold yet (``settings.workers``
     > 1: on a Dask LocalCluster), then write ``ablation.md``, ``ablation.json`` and
     ``ablation.png`` from ``out/results.csv``; returns the summary written to ``ablation.json``.
-    A failed cell is reported and left out of the summary (``failed`` in the returned dict)."""
-    study = ablation_study(settings)
+    A failed cell is reported and left out of the summary (``failed`` in the returned dict);
+    ``name``: the study's (in ``report.md``)."""
+    study = ablation_study(settings, name)
     run = run_study(
         study, out, workers=settings.workers, retry_failed=retry_failed, report=report,
         root=settings.dataset_root,

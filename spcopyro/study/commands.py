@@ -60,7 +60,8 @@ def _ablation(args: argparse.Namespace) -> int:
         if missing:
             raise ValueError(f"unknown --houses {missing}; choose from {list(settings.houses)}")
         settings = ablation_settings(study, root, **changes, synthetic=tuple(args.houses))
-    summary = run_ablation(args.out, settings, report=print, retry_failed=args.retry_failed)
+    summary = run_ablation(args.out, settings, report=print, retry_failed=args.retry_failed,
+                           name=study.name)  # fmt: skip
     out = Path(args.out)
     print((out / "ablation.md").read_text())
     print(f"wrote {out / 'ablation.md'}, {out / 'ablation.json'} and {out / 'ablation.png'} "
