@@ -131,6 +131,15 @@ def test_the_cli_offers_a_registered_method(registered, tmp_path, capsys):
     assert "Gibbs' convergence rule" in capsys.readouterr().err
 
 
+def test_an_unknown_method_on_the_command_line_is_a_clear_error(tmp_path, capsys):
+    """``--method`` lists the known methods without importing torch, so it has no argparse
+    choices (a program may register one at run time): the fit checks the name first."""
+    assert main(["fit", "--out", str(tmp_path / "fit"), "--method", "nope"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown inference method 'nope'" in err and "gibbs" in err and "cavi" in err
+    assert not (tmp_path / "fit").exists()
+
+
 def test_unknown_method_is_a_clear_error(house):
     with pytest.raises(ValueError, match="unknown inference method 'nope'.*gibbs"):
         fit_house(house, method="nope", sweeps=1, progress=False)

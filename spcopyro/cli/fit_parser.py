@@ -40,8 +40,9 @@ def add_parser(subparsers: argparse._SubParsersAction, options: bool = True) -> 
 
     ``options=False`` registers the command by name and help only: what ``spcopyro --help`` and
     the other commands need (:func:`spcopyro.cli.main.build_parser`). Either way nothing heavy is
-    imported: the choices of ``--method``, ``--backend`` and ``--init`` come from
-    :mod:`spcopyro.inference.names`."""
+    imported: the choices of ``--backend`` and ``--init`` and the methods ``--method`` lists come
+    from :mod:`spcopyro.inference.names` (a method registered at run time is checked against the
+    registry when the fit starts)."""
     p = subparsers.add_parser(
         "fit", help="fit SpCoMapping (Gibbs sampling) and write the semantic map"
     )
@@ -146,8 +147,10 @@ def add_parser(subparsers: argparse._SubParsersAction, options: bool = True) -> 
                         "the per-cell probabilities of uncertainty.png (0: none)")  # fmt: skip
     p.add_argument("--seed", type=_seed, default=0,
                    help="seed of the sampler (chain k of --chains gets seed + k)")  # fmt: skip
-    p.add_argument("--method", choices=sorted(INFERENCE_METHOD_NAMES), default=DEFAULT_METHOD,
-                   help="inference method (default: gibbs, Algorithm 1)")  # fmt: skip
+    p.add_argument("--method", metavar="METHOD", default=DEFAULT_METHOD,
+                   help=f"inference method: {', '.join(INFERENCE_METHOD_NAMES)}, or one a program "
+                        "registered in spcopyro.fit.registry.INFERENCE_METHODS (default: gibbs, "
+                        "Algorithm 1)")  # fmt: skip
     p.add_argument("--method-option", action="append", metavar="NAME=VALUE",
                    help="set a field of the method's options, e.g. anneal_iterations=30 (cavi), "
                         "damping=0.5 (lbp), lr=0.05 (svi), block_size=32 (stochastic-vi), "
