@@ -28,7 +28,7 @@ def site(tmp_path_factory) -> Path:
     """The built site (once for this module's tests)."""
     missing = _missing_tools()
     if missing:
-        pytest.skip(f"{', '.join(missing)} not installed: pip install -e '.[docs]' (in .[dev] too)")
+        pytest.skip(f"{', '.join(missing)} not installed: pip install -e '.[dev]' (or .[docs])")
     out = tmp_path_factory.mktemp("docs")
     html = out / "html"
     command = [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html",
