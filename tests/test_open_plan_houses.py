@@ -10,9 +10,10 @@ from spcopyro.baselines.geometry import geometry_semantic_map, room_segments
 from spcopyro.baselines.nearest import nearest_word_map
 from spcopyro.cli.main import main
 from spcopyro.data import load_house
-from spcopyro.experiments.ablation import SYNTHETIC_HOUSES, AblationSettings, jobs_of
+from spcopyro.experiments.ablation import SYNTHETIC_HOUSES, AblationSettings
 from spcopyro.experiments.open_plan import categories_in_segments, open_plan_scores
 from spcopyro.metrics import adjusted_rand_index
+from spcopyro.study.ablation import ablation_study, spec_options
 from spcopyro.synthetic import HouseSpec, HouseSpecError, make_house
 from spcopyro.synthetic.floor_plan import _floor_plan
 
@@ -116,7 +117,10 @@ def test_cutting_at_doors_scores_at_most_half(house):
 def test_studies_and_the_cli_name_the_house(tmp_path, capsys):
     assert SYNTHETIC_HOUSES["open-plan"] == OPEN_PLAN
     settings = AblationSettings.quick(houses=dict(SYNTHETIC_HOUSES), synthetic=("open-plan",))
-    assert {job.spec for job in jobs_of(settings)} == {OPEN_PLAN}
+    study = ablation_study(settings)
+    assert [(d.name, d.kind, d.options) for d in study.data] == [
+        ("open-plan", "synthetic", spec_options(OPEN_PLAN))
+    ]
     assert main(["simulate", "--out", str(tmp_path), "--density", "open-plan", "--seed", "1"]) == 0
     written = load_house(tmp_path / "synthetic")
     assert written.category_names == make_house(seed=1, spec=OPEN_PLAN).category_names

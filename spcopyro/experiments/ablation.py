@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from spcopyro.data import House, list_houses, place_observations
+from spcopyro.data import House, place_observations
 from spcopyro.experiments.ablation_report import TABLE2_CATEGORIES, settings_json
 from spcopyro.experiments.ablation_variants import Variant, parse_variant
 from spcopyro.synthetic import HouseSpec, lexicon_for
@@ -47,9 +47,7 @@ __all__ = [
     "SYNTHETIC_HOUSES",
     "TABLE2_CATEGORIES",
     "AblationSettings",
-    "Job",
     "concepts_over",
-    "jobs_of",
     "settings_json",
     "top_words",
 ]
@@ -132,54 +130,6 @@ class AblationSettings:
         )  # fmt: skip
         values.update(changes)
         return cls(**values)  # type: ignore[arg-type]
-
-
-@dataclass(frozen=True)
-class Job:
-    """One row x house x seed."""
-
-    row: str
-    variant: Variant | None  # None: a baseline
-    house: str  # a synthetic setting or a public house's name
-    public: bool
-    seed: int
-    spec: HouseSpec | None = None  # synthetic only
-    house_path: str | None = None  # public only
-    sweeps: int = 1000
-    spcoa_iterations: int = 100
-    observations_off: bool = True
-
-
-def jobs_of(settings: AblationSettings) -> list[Job]:
-    """Every row x house x seed of a run, synthetic first, in row order within each house and
-    seed: the cells of :func:`spcopyro.study.ablation.ablation_study`, listed without running
-    anything."""
-    jobs = []
-    rows: list[tuple[str, Variant | None]] = [(v.name, v) for v in settings.variants]
-    rows += [(b, None) for b in settings.baselines]
-    common = dict(
-        sweeps=settings.sweeps, spcoa_iterations=settings.spcoa_iterations,
-        observations_off=settings.observations_off,
-    )  # fmt: skip
-    for name in settings.synthetic:
-        if name not in settings.houses:
-            raise ValueError(
-                f"unknown synthetic house {name!r}; choose from {list(settings.houses)}"
-            )
-        for seed in range(settings.seeds):
-            for row, variant in rows:
-                jobs.append(
-                    Job(row, variant, name, False, seed, spec=settings.houses[name], **common)
-                )
-    root = settings.dataset_root
-    if root is not None:
-        names = settings.public_houses or tuple(list_houses(root))
-        for name in names:
-            for seed in range(settings.public_seeds):
-                for row, variant in rows:
-                    path = str(Path(root) / name)
-                    jobs.append(Job(row, variant, name, True, seed, house_path=path, **common))
-    return jobs
 
 
 def concepts_over(labels: np.ndarray, share: float = MIN_SHARE) -> int:
