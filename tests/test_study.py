@@ -171,6 +171,37 @@ def test_in_process_run_gives_the_tidy_table(in_process):
     assert all(r["iterations"] == 8 and (out / r["trace"]).is_file() for r in fits)
     report = (out / "report.md").read_text()
     assert "| og3 | gibbs | 2 |" in report and "+-" in report
+    assert "](quality_time.png)" in report and (out / "quality_time.png").is_file()
+
+
+def test_quality_time_figure_shows_every_group_and_skips_what_it_cannot_place():
+    from matplotlib.collections import PathCollection
+
+    from spcopyro.study.figures import quality_time_figure
+
+    def row(data, variant, method, seconds, ari, status="ok"):
+        return dict(data=data, variant=variant, method=method, seconds=seconds, ari=ari,
+                    status=status)  # fmt: skip
+
+    rows = [
+        row("dense", "default", "gibbs", 10.0, 0.9), row("dense", "default", "gibbs", 12.0, 0.8),
+        row("dense", "default", "cavi", 1.0, 0.6), row("public", "default", "gibbs", 30.0, 0.5),
+        row("public", "default", "cavi", None, 0.4),  # no time: left out
+        row("public", "default", "cavi", 0.0, 0.4),  # no place on a log axis
+        row("public", "g3", "gibbs", 5.0, 0.3, status="failed"),  # failed: left out
+    ]  # fmt: skip
+    fig = quality_time_figure(rows)
+    panels = [ax for ax in fig.axes if ax.get_title()]
+    assert [ax.get_title() for ax in panels] == ["dense", "public"]
+    assert all(ax.get_xscale() == "log" for ax in panels)
+    seeds = [len(c.get_offsets()) for c in panels[0].collections if isinstance(c, PathCollection)]
+    assert sorted(seeds) == [1, 2]  # gibbs' two seeds, cavi's one
+    dense_means = sorted(
+        line.get_ydata()[0] for line in panels[0].lines if line.get_marker() == "o"
+    )
+    assert dense_means == pytest.approx([0.6, 0.85])
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == ["gibbs", "cavi"]
+    assert quality_time_figure([row("dense", "default", "gibbs", 1.0, None)]) is None
 
 
 def test_local_cluster_gives_the_same_numbers(in_process, tmp_path):

@@ -96,9 +96,15 @@ def report_markdown(
 def write_report(
     table: str | os.PathLike[str], out: str | os.PathLike[str], title: str = "study"
 ) -> Path:
-    """Read ``results.csv`` and write its report to ``out``."""
+    """Read ``results.csv`` and write its report to ``out``, with the quality-against-time figure
+    (:mod:`spcopyro.study.figures`) beside it when rows have an ARI and a time."""
+    from spcopyro.study.figures import QUALITY_TIME_FILE, write_quality_time
     from spcopyro.study.table import read_table
 
     path = Path(out)
-    path.write_text(report_markdown(read_table(table), title))
+    rows = read_table(table)
+    text = report_markdown(rows, title)
+    if write_quality_time(rows, path.parent / QUALITY_TIME_FILE) is not None:
+        text += f"\n![ARI against wall time per fit]({QUALITY_TIME_FILE})\n"
+    path.write_text(text)
     return path

@@ -1,0 +1,104 @@
+"""A study's quality-against-time figure, drawn from its table only (issue 26 item 2).
+
+One panel per data source; in it, one colour per (variant, method): every finished seed as a
+faint point at (wall seconds of its fit, its score), and the group's mean score with its sample
+standard deviation over the seeds at the geometric mean of its times. The time axis is
+logarithmic, since methods differ by orders of magnitude (a CAVI run in seconds, 5000 Gibbs
+sweeps in minutes). What is plotted is what ``results.csv`` holds: a report redrawn from the
+table (``spcopyro study STUDY --out OUT --report-only``) redraws this figure too.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+from matplotlib import colormaps
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+
+__all__ = ["QUALITY_TIME_FILE", "quality_time_figure", "write_quality_time"]
+
+QUALITY_TIME_FILE = "quality_time.png"
+"""The figure's file name, beside ``report.md``."""
+
+
+def _number(value: object) -> float | None:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    return float(value) if math.isfinite(value) and value == value else None
+
+
+def _group_label(variant: str, method: str) -> str:
+    return method if variant in ("", "default") else f"{variant} / {method}"
+
+
+def quality_time_figure(
+    rows: Sequence[dict[str, object]], score: str = "ari", time: str = "seconds"
+) -> Figure | None:
+    """The figure of ``score`` against ``time`` (module docstring) for the rows that finished
+    with both numbers (a time of 0 is left out: the log axis has no place for it); None when no
+    row has them (a study that scores no ``score``, or none finished)."""
+    points = []  # (data, variant, method, seconds, score)
+    for row in rows:
+        seconds, value = _number(row.get(time)), _number(row.get(score))
+        if row.get("status") == "ok" and seconds is not None and seconds > 0 and value is not None:
+            points.append((str(row["data"]), str(row["variant"]), str(row["method"]), seconds,
+                           value))  # fmt: skip
+    if not points:
+        return None
+    sources = list(dict.fromkeys(p[0] for p in points))
+    groups = list(dict.fromkeys((p[1], p[2]) for p in points))
+    palette = colormaps["tab10" if len(groups) <= 10 else "tab20"]
+    colour = {group: palette(i % palette.N) for i, group in enumerate(groups)}
+    columns = min(len(sources), 3)
+    lines = math.ceil(len(sources) / columns)
+    fig = Figure(figsize=(4.3 * columns, 3.5 * lines + 0.5 + 0.25 * math.ceil(len(groups) / 4)))
+    for k, source in enumerate(sources):
+        ax = fig.add_subplot(lines, columns, k + 1)
+        for group in groups:
+            mine = [(s, v) for d, *g, s, v in points if d == source and tuple(g) == group]
+            if not mine:
+                continue
+            seconds, values = np.asarray(mine).T  # [n], [n]
+            ax.scatter(seconds, values, s=14, color=colour[group], alpha=0.35, linewidths=0)
+            spread = float(values.std(ddof=1)) if len(values) > 1 else 0.0
+            ax.errorbar(
+                float(np.exp(np.log(seconds).mean())),
+                float(values.mean()),
+                yerr=spread or None,
+                fmt="o",
+                ms=6,
+                capsize=3,
+                color=colour[group],
+            )  # fmt: skip  (no zero-height bar: one seed)
+        ax.set_xscale("log")
+        times = [s for d, _, _, s, _ in points if d == source]
+        ax.set_xlim(min(times) / 1.5, max(times) * 1.5)  # a panel of equal times is not singular
+        ax.set_title(source, fontsize=10)
+        ax.set_xlabel(f"{time} per fit (log scale)")
+        ax.set_ylabel(score)
+        ax.grid(alpha=0.3)
+    handles = [Line2D([], [], marker="o", ls="", color=colour[g]) for g in groups]
+    fig.legend(handles, [_group_label(*g) for g in groups], loc="lower center",
+               ncol=min(len(groups), 4), frameon=False, fontsize=8)  # fmt: skip
+    fig.suptitle(f"{score} against {time}: seeds (faint), mean ± sd (marked)", fontsize=11)
+    legend_rows = math.ceil(len(groups) / 4)
+    fig.tight_layout(rect=(0, min(0.3, 0.06 * legend_rows + 0.03), 1, 0.95))
+    return fig
+
+
+def write_quality_time(
+    rows: Sequence[dict[str, object]], path: str | os.PathLike[str], score: str = "ari"
+) -> Path | None:
+    """Write :func:`quality_time_figure` as a PNG at ``path`` (None, and nothing written, when
+    no row has both numbers)."""
+    fig = quality_time_figure(rows, score)
+    if fig is None:
+        return None
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    return path
