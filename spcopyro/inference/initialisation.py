@@ -33,7 +33,6 @@ if TYPE_CHECKING:
 __all__ = ["INITS", "check_labels", "kmeans_gaussians", "labels_from_gaussians", "random_labels"]
 
 
-
 def random_labels(num_free: int, config: SpCoConfig, generator: torch.Generator) -> torch.Tensor:
     """[N] labels drawn uniformly from the L concepts."""
     return torch.randint(config.num_concepts, (num_free,), generator=generator)
