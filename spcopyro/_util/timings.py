@@ -9,14 +9,22 @@ every phase and the wall-clock time (``time.time()``, seconds since the epoch) a
 started its work, so a caller that noted when it launched the process can tell the interpreter's
 start and the imports (launch to ``entered``) from the rest. The outputs of a fit (OUT) do not
 change.
+
+Inside a phase, the library times its parts with :func:`timed` (the model data, the chain's
+start, the sweeps, the point estimate, the label frequencies, each figure, ...): the seconds add
+up per name in this process (:func:`parts`) and :meth:`Phases.to_json` writes them under
+``"parts"``, so ``benchmarks/end_to_end.py`` splits a fit into its start-up, data, sweeps and
+post-processing (issue 25 item 1). Timing a part costs two clock reads.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 TIMINGS_ENV = "SPCOPYRO_TIMINGS"
@@ -39,12 +47,36 @@ def imported_heavy() -> list[str]:
     return [name for name in OPTIONAL_HEAVY if name in sys.modules]
 
 
+_PARTS: dict[str, float] = {}
+
+
+@contextlib.contextmanager
+def timed(name: str) -> Iterator[None]:
+    """Add the wall seconds of the ``with`` block to the part ``name`` (:func:`parts`)."""
+    start = time.perf_counter()
+    try:
+        yield
+    finally:
+        _PARTS[name] = _PARTS.get(name, 0.0) + time.perf_counter() - start
+
+
+def parts() -> dict[str, float]:
+    """Seconds of every part :func:`timed` so far in this process, by name (a copy)."""
+    return dict(_PARTS)
+
+
+def reset_parts() -> None:
+    """Forget the parts timed so far (a command that times one fit starts here)."""
+    _PARTS.clear()
+
+
 class Phases:
     """A clock of consecutive phases: :meth:`mark` ends the current one under a name (a name
     marked again adds up)."""
 
     def __init__(self) -> None:
         self.entered = time.time()  # epoch seconds: when the command started its own work
+        reset_parts()
         self.seconds: dict[str, float] = {}
         self._last = time.perf_counter()
 
@@ -61,6 +93,7 @@ class Phases:
             "entered": self.entered,
             "seconds": {k: round(v, 6) for k, v in self.seconds.items()},
             "total": round(sum(self.seconds.values()), 6),
+            "parts": {k: round(v, 6) for k, v in _PARTS.items()},
             "imported": imported_heavy(),
             **extra,
         }

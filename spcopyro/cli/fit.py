@@ -25,7 +25,7 @@ import numpy as np
 
 from spcopyro._util.outputs import StagedOutput
 from spcopyro._util.threads import describe_threads
-from spcopyro._util.timings import Phases
+from spcopyro._util.timings import Phases, timed
 from spcopyro.cli.common import (
     FIT_SWEEPS,
     UPDATE_SWEEPS,
@@ -34,6 +34,7 @@ from spcopyro.cli.common import (
     _load,
     _summary,
 )
+from spcopyro.cli.fit_figures import FigurePrefetch, write_figures
 from spcopyro.config import (
     SpCoSettings,
     preset,
@@ -82,7 +83,9 @@ def run_fit(args: argparse.Namespace) -> int:
 def _fit_interruptible(args: argparse.Namespace) -> int:
     from spcopyro._util.outputs import checkpoint_path, stage_output
     from spcopyro.fit.gibbs_chains import FitCheckpoint, FitInterrupted
+    from spcopyro.fit.registry import get_method
 
+    get_method(args.method)  # ValueError naming the registered methods
     args.phases = Phases()  # seconds per phase, written to $SPCOPYRO_TIMINGS if set
     if args.sweeps is None:  # the parser's default: fewer sweeps continue a fit than start one
         args.sweeps = UPDATE_SWEEPS if args.update is not None else FIT_SWEEPS
@@ -284,18 +287,13 @@ def _fit_staged(
     keeper: FitCheckpoint | None,
     sampled: list[bool],
 ) -> int:
-    """Fit, write every output into ``staged.path``, then move it to OUT."""
-    from spcopyro._util.outputs import checkpoint_path
-    from spcopyro.fit.house import best_chain, fit_house_chains, log_degenerate_map
+    """Print what is fitted, fit, write every output into ``staged.path``, then move it to
+    OUT."""
     from spcopyro.fit.registry import INFERENCE_METHODS
     from spcopyro.gibbs.backends import get_backend
-    from spcopyro.gibbs.hyperparameters import describe_hyperparameters
     from spcopyro.gibbs.options import GibbsOptions
-    from spcopyro.results.uncertainty import cell_entropy, free_cells_image
 
-    phases = args.phases
     config = settings.model
-    source = "embedded synthetic house, seed 0" if args.data is None else None
     # The config's warnings (gamma, extreme concentrations) are logged by prepare_model_data,
     # which the fit runs; main's logging handler prints them once, as "warning: ...".
     # The fit's own counts say what is left out (once), under the run's feature scaling.
@@ -322,8 +320,39 @@ def _fit_staged(
 
         init = SpCoResult.load(args.init_from)
         print(f"starting from     the {init.method} fit in {args.init_from}")
+    args.phases.mark("summary")
+    # house.png and the figures' imports, drawn on a thread of their own while the chains run
+    prefetch = None if args.no_figures else FigurePrefetch(house, staged.path)
+    try:
+        return _fit_and_write(args, house, settings, options, staged, keeper, sampled, init,
+                              saved, prefetch)  # fmt: skip
+    finally:
+        if prefetch is not None:  # nothing written into the staging folder after this
+            prefetch.join()
+
+
+def _fit_and_write(
+    args: argparse.Namespace,
+    house: House,
+    settings: SpCoSettings,
+    options: object | None,
+    staged: StagedOutput,
+    keeper: FitCheckpoint | None,
+    sampled: list[bool],
+    init: object,
+    saved: SpCoResult | None,
+    prefetch: FigurePrefetch | None,
+) -> int:
+    """The fit itself, then every output into ``staged.path``, then OUT (:func:`_fit_staged`)."""
+    from spcopyro._util.outputs import checkpoint_path
+    from spcopyro.fit.house import best_chain, fit_house_chains, log_degenerate_map
+    from spcopyro.gibbs.hyperparameters import describe_hyperparameters
+    from spcopyro.results.uncertainty import cell_entropy, free_cells_image
+
+    phases = args.phases
+    config = settings.model
+    source = "embedded synthetic house, seed 0" if args.data is None else None
     diagnostics = None
-    phases.mark("summary")
     start = _clock()
     if args.sweeps == "auto":
         from spcopyro.fit.house import fit_house_converged
@@ -382,14 +411,15 @@ def _fit_staged(
               f"(split R-hat: log joint {last.rhat_log_joint:.3f}, concepts "
               f"{last.rhat_num_concepts:.3f}); kept chain {diagnostics.best_chain} "
               f"(seed {diagnostics.seeds[diagnostics.best_chain]}), highest log joint")  # fmt: skip
-    entropy = cell_entropy(result)
-    if entropy is not None:
-        np.save(out / "uncertainty.npy", free_cells_image(result, entropy))
-    if result.agreement is not None:
-        np.save(out / "agreement.npy", free_cells_image(result, result.agreement))
+    with timed("uncertainty"):
+        entropy = cell_entropy(result)
+        if entropy is not None:
+            np.save(out / "uncertainty.npy", free_cells_image(result, entropy))
+        if result.agreement is not None:
+            np.save(out / "agreement.npy", free_cells_image(result, result.agreement))
     phases.mark("save")
-    if not args.no_figures:  # matplotlib is imported only here
-        _write_figures(result, house, out, uncertainty=entropy is not None)
+    if prefetch is not None:  # matplotlib is imported only for the figures
+        write_figures(result, house, out, uncertainty=entropy is not None, prefetch=prefetch)
     phases.mark("figures")
     if result.agreement is not None:
         print(f"point estimate   {args.point_estimate} (expected loss "
@@ -445,26 +475,6 @@ def _fit_staged(
                  first_sweep_seconds=float(result.trace.seconds[0]), chains=chains,
                  figures=not args.no_figures)  # fmt: skip
     return 0
-
-
-def _write_figures(result: SpCoResult, house: House, out: Path, uncertainty: bool) -> None:
-    """The fit's PNGs: semantic map, trace, house, and the uncertainty and agreement maps of a
-    result that has them (:mod:`spcopyro.figures.plotting`, matplotlib's Agg canvas)."""
-    from spcopyro.figures.plotting import (
-        plot_agreement,
-        plot_house,
-        plot_semantic_map,
-        plot_trace,
-        plot_uncertainty,
-    )
-
-    plot_semantic_map(result, out / "semantic_map.png", observations=house.observations)
-    plot_trace(result, out / "trace.png")
-    plot_house(house, out / "house.png")
-    if uncertainty:
-        plot_uncertainty(result, out / "uncertainty.png")
-    if result.agreement is not None:
-        plot_agreement(result, out / "agreement.png")
 
 
 def print_concepts(result: SpCoResult, limit: int = 10) -> None:

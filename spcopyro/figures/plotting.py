@@ -28,6 +28,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.text import Text
+from matplotlib.ticker import FuncFormatter
 from scipy import ndimage
 
 from spcopyro.data import House, Observations
@@ -38,6 +39,7 @@ from spcopyro.figures.map_pieces import (
     place_labels,
     region_text,
 )
+from spcopyro.figures.png import save_png
 from spcopyro.maps import (
     RGB_BACKGROUND,
     RGB_OCCUPIED,
@@ -153,14 +155,15 @@ def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     families = _font_families()
     artists = fig.findobj(Text)
-    for text in artists:
-        text.set_fontfamily(families)  # any script: the first font that has the glyph
+    if len(families) > 1:  # fallback fonts installed; else every text keeps its own (the same)
+        for text in artists:
+            text.set_fontfamily(families)  # any script: the first font that has the glyph
     _check_glyphs(artists, families)
     with warnings.catch_warnings():  # told once, in words, by _check_glyphs
         warnings.filterwarnings("ignore", message="Glyph .* missing from font")
         renderer = FigureCanvasAgg(fig).get_renderer()
         box = fig.get_tightbbox(renderer).padded(PAD_INCHES)
-        fig.savefig(path, dpi=DPI, bbox_inches=box)
+        save_png(fig, path, DPI, box)  # on a thread inside png.background_writes()
     return path
 
 
@@ -475,6 +478,11 @@ def plot_where_probability(
                              vmax=1.0, cmap="Blues")  # fmt: skip
 
 
+def _plain_number(value: float, position: int | None = None) -> str:
+    """A tick label: ``value`` as a plain number (``1000``, ``0.1``)."""
+    return f"{value:g}"
+
+
 def plot_trace(result: SpCoResult, path: str | os.PathLike[str]) -> Path:
     """The objective (log joint or ELBO) and the number of concepts per iteration (paper
     Figs. 5-6), the point estimate's iteration marked."""
@@ -491,5 +499,8 @@ def plot_trace(result: SpCoResult, path: str | os.PathLike[str]) -> Path:
     bottom.set_xlabel("sweep" if result.method == "gibbs" else "iteration")
     for ax in (top, bottom):
         ax.set_xscale("log")
+        ax.minorticks_off()  # a Tick is some 20 artists: 60 of them were most of the figure
+    # sweeps as plain numbers (1, 10, 100, 1000), not 10^k in mathtext (its parser's start-up)
+    bottom.xaxis.set_major_formatter(FuncFormatter(_plain_number))
     fig.suptitle(f"{result.name or 'trace'} ({result.method})")
     return _save(fig, path)

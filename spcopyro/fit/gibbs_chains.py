@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from spcopyro._util.timings import timed
 from spcopyro.config import SpCoConfig, SpCoSettings
 from spcopyro.gibbs.chains import advance_chains
 from spcopyro.gibbs.checkpoint import load_chains, save_chains
@@ -99,16 +100,19 @@ def gibbs_outputs(
     if checkpoint is not None:
         checkpoint.chains, checkpoint.record = chains, record
     try:
-        for k, seed in enumerate(seeds):
-            if chains[k] is None:
-                generator = torch.Generator().manual_seed(seed)
-                start = start_labels(seed, generator)
-                chains[k] = start_chain(
-                    data, settings.model, options=options, generator=generator, init_labels=start
-                )
+        with timed("chain_start"):
+            for k, seed in enumerate(seeds):
+                if chains[k] is None:
+                    generator = torch.Generator().manual_seed(seed)
+                    start = start_labels(seed, generator)
+                    chains[k] = start_chain(
+                        data, settings.model, options=options, generator=generator,
+                        init_labels=start,
+                    )  # fmt: skip
         runs = [(chain, sweeps - chain.sweeps_done) for chain in chains if chain is not None]
         thin = marginal_thin(sweeps, marginal_samples)
-        advance_chains(runs, workers=workers, thin=thin, progress=progress)
+        with timed("sweeps"):
+            advance_chains(runs, workers=workers, thin=thin, progress=progress)
     except KeyboardInterrupt:
         saved = None if checkpoint is None else checkpoint.save()
         raise FitInterrupted(_where_stopped(chains, sweeps), saved) from None
@@ -165,12 +169,14 @@ def with_sample_marginals(
     )
     # One set of concept names per result: the kept samples renamed to the reported map's
     # concepts before their frequencies are counted (issue 22 item 1).
-    samples = align_samples(samples, np.asarray(output.labels), config.num_concepts)
-    marginals = label_frequencies(samples, config.num_concepts)  # [N, L]
+    with timed("label_frequencies"):
+        samples = align_samples(samples, np.asarray(output.labels), config.num_concepts)
+        marginals = label_frequencies(samples, config.num_concepts)  # [N, L]
     if output.parameters_drawn:
         given = None if point_estimate != "map-visited" else samples  # tables of its clusters
         sampled = config_at_posterior_mean(config, output.options.get("hyperparameters"))
-        output = with_posterior_means(output, data, sampled, given)
+        with timed("posterior_means"):
+            output = with_posterior_means(output, data, sampled, given)
     return dataclasses.replace(
         output,
         marginals=marginals,

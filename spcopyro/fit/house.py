@@ -28,6 +28,7 @@ import torch
 
 from spcopyro import __version__
 from spcopyro._util.threads import AUTO, describe_threads, resolve_threads, torch_threads
+from spcopyro._util.timings import timed
 from spcopyro.config import PRESETS, WORDS, SpCoConfig, SpCoSettings, preset, preset_inference
 from spcopyro.data import CellCounts, House, cell_counts
 from spcopyro.data.model_grid import model_house
@@ -340,9 +341,10 @@ def fit_house_chains(
     )
     if workers > 1 and threads == AUTO:
         count = 1  # the chains are the parallelism: no intra-op threads on top
-    counts, data = prepare_model_data(house, settings)
+    with timed("model_data"):
+        counts, data = prepare_model_data(house, settings)
+        record = provenance(house, data, source)
     logger.info("threads: %s", describe_threads(threads, house.grid.num_free))
-    record = provenance(house, data, source)
     if checkpoint is not None and not isinstance(checkpoint, FitCheckpoint):
         checkpoint = FitCheckpoint(checkpoint)
     with torch_threads(count):
@@ -353,7 +355,10 @@ def fit_house_chains(
                                                        generator),
                 progress, checkpoint, resume, marginal_samples, point_estimate, workers,
             )  # fmt: skip
-            return [result_of(o, house, counts, data, settings, method, record) for o in outputs]
+            with timed("result"):
+                return [
+                    result_of(o, house, counts, data, settings, method, record) for o in outputs
+                ]
         fits = []
         for seed in seeds:
             generator = torch.Generator().manual_seed(int(seed))

@@ -51,6 +51,8 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
+from spcopyro._util.timings import timed
+
 if TYPE_CHECKING:
     from spcopyro.inference.protocol import InferenceOutput
 
@@ -368,12 +370,15 @@ def with_point_estimate(
     """
     if check_point_estimate(name) == "map-visited":
         return output
-    found = point_estimate(samples, name, max_clusters=num_concepts, progress=progress)
-    labels = concept_labels(found.labels, np.asarray(output.labels), num_concepts)
+    with timed("point_estimate"):
+        found = point_estimate(samples, name, max_clusters=num_concepts, progress=progress)
+        labels = concept_labels(found.labels, np.asarray(output.labels), num_concepts)
+    with timed("agreement"):
+        agreement = agreement_probability(labels, samples)
     return dataclasses.replace(
         output,
         labels=labels,
-        agreement=agreement_probability(labels, samples),
+        agreement=agreement,
         options={
             **output.options,
             "point_estimate": name,

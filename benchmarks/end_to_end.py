@@ -1,0 +1,274 @@
+#!/usr/bin/env python
+r"""The whole default fit, end to end (issue 25, "Done when"): for the embedded house and each
+public house, one ``spcopyro fit [HOUSE]`` with the default settings (preset, start, merge moves,
+point estimate, 50 kept label maps, 5000 sweeps, figures) as a fresh process, its wall time split
+into
+
+* **start-up**: launch to the start of ``fit``'s own work (the interpreter, the imports, the
+  argument parser);
+* **data**: loading the house, the settings, the summary, the model data and the chain's start
+  (``load``, ``settings``, ``summary``, and the ``fit`` phase less its sweeps and its
+  post-processing);
+* **sweeps**: the wall of the chain's sweeps (``advance_chains``, the run loop included);
+* **post-processing** (what issue 25 item 1 holds to the time of 500 sweeps): the point
+  estimate over the kept label maps, the agreement map, the label frequencies, the posterior
+  means and the result (``result``), the uncertainty and agreement maps written, and the
+  figures (the ``figures`` phase: what is left of their imports, each figure, and the wait for
+  the figures' prefetch thread, if it had not finished with the sweeps);
+* **outputs and exit**: writing the result's files (``save`` less the maps), the printed report,
+  moving OUT into place, and the interpreter's exit.
+
+What the fit does on its figures' prefetch thread while the chains run (the figures' imports and
+``house.png``, :mod:`spcopyro.cli.fit_figures`) is in the sweeps' wall; its own seconds are shown
+beside it (``overlapped``), not added.
+
+The parts come from the fit's own clock (:mod:`spcopyro._util.timings`: the phases and the parts
+timed with ``timed``, written to ``$SPCOPYRO_TIMINGS``). The target (issue 25 item 1): the
+post-processing at most the time of 500 sweeps of the same run (``500 / S`` of its sweeps).
+
+Then the start-up of ``spcopyro --help``, ``where`` and ``export`` on a saved fit as whole
+processes (target < 0.5 s each; ``benchmarks/fixed_cost.py``'s :func:`measure_startup`, beside
+``python -c pass`` in the same run).
+
+Usage::
+
+    python benchmarks/end_to_end.py                       # embedded house + every public house
+    python benchmarks/end_to_end.py --houses embedded,room2ldk4 --repeats 2
+    python benchmarks/end_to_end.py --quick               # smoke test: 200 sweeps, embedded only
+
+Prints a table and writes every number to ``benchmarks/end_to_end.json`` (``--out``; git-ignored).
+Each house is fitted ``--repeats`` times and the run of the least post-processing kept (the least
+disturbed by other load; its sweeps are those of the same run).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+SCRIPT_DIR = Path(__file__).resolve().parent
+sys.path.insert(0, str(SCRIPT_DIR))
+
+from fixed_cost import (  # noqa: E402  (a script beside this one)
+    ROOT,
+    _environment,
+    _table,
+    measure_startup,
+    render_startup,
+)
+
+EMBEDDED = "embedded"
+PUBLIC = ("room1dk5", "room1dk6", "room1ldk4", "room1ldk5", "room2ldk4")
+REFERENCE_SWEEPS = 500  # issue 25 item 1: post-processing <= the time of 500 sweeps
+DATA_PHASES = ("load", "settings", "summary")
+IN_FIT_POST = ("point_estimate", "agreement", "label_frequencies", "posterior_means", "result")
+"""The parts of the ``fit`` phase after the sweeps (:mod:`spcopyro._util.timings`)."""
+OVERLAPPED = ("prefetch imports", "prefetch house")
+"""Parts done on the figures' prefetch thread, during the sweeps."""
+
+
+def fit_default(data: Path | None, sweeps: int | None, seed: int = 0) -> dict[str, Any]:
+    """One default ``spcopyro fit`` of ``data`` (None: the embedded house) in a fresh process:
+    its wall seconds split as the module docstring says."""
+    with tempfile.TemporaryDirectory(prefix="spcopyro-end-to-end-") as tmp:
+        timings = Path(tmp) / "timings.json"
+        command = [sys.executable, "-m", "spcopyro", "fit"]
+        command += [str(data)] if data is not None else []
+        command += [] if sweeps is None else ["--sweeps", str(sweeps)]
+        command += ["--seed", str(seed), "--out", str(Path(tmp) / "out")]
+        env = {**_environment(), "SPCOPYRO_TIMINGS": str(timings)}
+        launched = time.time()
+        start = time.perf_counter()
+        done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=1800)
+        wall = time.perf_counter() - start
+        if done.returncode != 0:
+            raise RuntimeError(f"{' '.join(command)} failed ({done.returncode}):\n"
+                               f"{done.stderr[-3000:]}")  # fmt: skip
+        record = json.loads(timings.read_text())
+        pngs = sorted(p.name for p in (Path(tmp) / "out").glob("*.png"))
+    return split(record, wall, record["entered"] - launched, pngs)
+
+
+def split(record: dict[str, Any], wall: float, startup: float, pngs: Sequence[str] = ()) -> dict:
+    """The start-up, data, sweeps, post-processing and outputs of one fit from its timings
+    ``record`` (the module docstring)."""
+    seconds, parts = record["seconds"], record.get("parts", {})
+    sweeps = parts["sweeps"]
+    in_fit_post = {name: parts.get(name, 0.0) for name in IN_FIT_POST}
+    fit_rest = seconds["fit"] - sweeps - sum(in_fit_post.values())  # model data, chain start
+    data = sum(seconds.get(name, 0.0) for name in DATA_PHASES) + fit_rest
+    maps = parts.get("uncertainty", 0.0)  # inside the "save" phase
+    post = {**in_fit_post, "maps": maps, "figures": seconds.get("figures", 0.0)}
+    exit_seconds = wall - startup - record["total"]
+    outputs = {"save": seconds.get("save", 0.0) - maps, "report": seconds.get("report", 0.0),
+               "commit": seconds.get("commit", 0.0), "exit": exit_seconds}  # fmt: skip
+    figures = {k.removeprefix("figure "): v for k, v in parts.items() if k.startswith("figure ")}
+    figures["prefetch wait"] = parts.get("prefetch wait", 0.0)
+    count = int(record["sweeps"])
+    reference = sweeps * REFERENCE_SWEEPS / count
+    total_post = sum(post.values())
+    return {
+        "wall": wall,
+        "startup": startup,
+        "data": data,
+        "data_parts": {
+            **{n: seconds.get(n, 0.0) for n in DATA_PHASES},
+            "model_data": parts.get("model_data", 0.0),
+            "chain_start": parts.get("chain_start", 0.0),
+        },  # fmt: skip
+        "sweeps": sweeps,
+        "sweep_count": count,
+        "sweeps_trace": record.get("sweep_seconds"),
+        "post": total_post,
+        "post_parts": post,
+        "outputs": sum(outputs.values()),
+        "output_parts": outputs,
+        "overlapped": {name: parts.get(name, 0.0) for name in OVERLAPPED},
+        "figures": figures,
+        "reference_sweeps": REFERENCE_SWEEPS,
+        "reference_seconds": reference,
+        "post_over_reference": total_post / reference,
+        "meets_target": total_post <= reference,
+        "pngs": list(pngs),
+        "parts": parts,
+        "seconds": seconds,
+    }
+
+
+def house_path(root: Path | None, name: str) -> Path | None:
+    """The folder of a public house (None for the embedded house)."""
+    if name == EMBEDDED:
+        return None
+    if root is None or not (root / name).is_dir():
+        raise FileNotFoundError(f"house {name!r}: no public dataset folder {root}/{name}")
+    return root / name
+
+
+def render(rows: Sequence[dict[str, Any]]) -> str:
+    """The table: per house, the wall split, the post-processing by part and the verdict."""
+    headers = ["house", "wall", "startup", "data", "sweeps", "post", "out+exit",
+               f"{REFERENCE_SWEEPS} sw", "post/ref", "pt est", "agree", "freq", "maps",
+               "figures", "overlap", "target"]  # fmt: skip
+    table = []
+    for row in rows:
+        r, p = row["fit"], row["fit"]["post_parts"]
+        freq = p["label_frequencies"] + p["posterior_means"] + p["result"]
+        table.append([row["house"], *(f"{r[k]:.2f}" for k in ("wall", "startup", "data",
+                      "sweeps", "post", "outputs", "reference_seconds")),
+                      f"{r['post_over_reference']:.2f}",
+                      *(f"{p[k]:.2f}" for k in ("point_estimate", "agreement")), f"{freq:.2f}",
+                      *(f"{p[k]:.2f}" for k in ("maps", "figures")),
+                      f"{sum(r['overlapped'].values()):.2f}",
+                      "PASS" if r["meets_target"] else "FAIL"])  # fmt: skip
+    names = sorted({k for row in rows for k in row["fit"]["figures"]})
+    figure_rows = [[row["house"], *(f"{row['fit']['figures'].get(k, 0.0):.2f}" for k in names),
+                    *(f"{v:.2f}" for v in row["fit"]["overlapped"].values())]
+                   for row in rows]  # fmt: skip
+    return "\n".join([
+        "default fit as a whole process (wall seconds; sweeps: their wall in the run, "
+        f"{REFERENCE_SWEEPS} sw: {REFERENCE_SWEEPS}/S of it; post: point estimate, agreement, "
+        "label frequencies (freq, with the posterior means), uncertainty/agreement maps, figures; "
+        "out+exit: the result's files, report, exit; overlap: the figures' prefetch thread "
+        "during the sweeps, not added)",
+        _table(headers, table),
+        "",
+        "figures by part (seconds; the last two on the prefetch thread, during the sweeps)",
+        _table(["house", *names, *OVERLAPPED], figure_rows),
+    ])  # fmt: skip
+
+
+def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description="The whole default fit, end to end.")
+    parser.add_argument("--houses", default=",".join((EMBEDDED, *PUBLIC)),
+                        help="comma-separated: 'embedded' and public house names")  # fmt: skip
+    parser.add_argument("--dataset", type=Path, default=None,
+                        help="dataset root (default: find_dataset_root())")  # fmt: skip
+    parser.add_argument("--sweeps", type=int, default=None,
+                        help="sweeps of each fit (default: the fit's own default)")  # fmt: skip
+    parser.add_argument("--repeats", type=int, default=1, help="fits per house (least post kept)")
+    parser.add_argument("--startup-repeats", type=int, default=3,
+                        help="runs of each start-up command (fastest kept)")  # fmt: skip
+    parser.add_argument("--no-startup", action="store_true", help="skip the start-up table")
+    parser.add_argument("--quick", action="store_true",
+                        help="smoke test: the embedded house, 200 sweeps, 1 run")  # fmt: skip
+    parser.add_argument("--out", type=Path, default=None,
+                        help="JSON output (default benchmarks/end_to_end.json)")  # fmt: skip
+    return parser.parse_args(argv)
+
+
+def _dataset(path: Path | None) -> Path | None:
+    sys.path.insert(0, str(ROOT))
+    from spcopyro.data.dataset import find_dataset_root
+
+    try:
+        return find_dataset_root(path)
+    except FileNotFoundError as error:
+        print(f"note: {error}; the public houses are skipped", file=sys.stderr)
+        return None
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = parse_args(argv)
+    root = _dataset(args.dataset)
+    houses = [h.strip() for h in args.houses.split(",") if h.strip()]
+    sweeps, repeats, startup_repeats = args.sweeps, max(args.repeats, 1), args.startup_repeats
+    if args.quick:
+        houses, sweeps, repeats, startup_repeats = [EMBEDDED], sweeps or 200, 1, 1
+    if root is None:
+        skipped = [h for h in houses if h != EMBEDDED]
+        houses = [h for h in houses if h == EMBEDDED]
+        if skipped:
+            print(f"note: no public dataset: skipped {', '.join(skipped)}", file=sys.stderr)
+    rows = []
+    for house in houses:
+        data = house_path(root, house)
+        tries = []
+        for k in range(repeats):
+            print(f"fitting {house} ({k + 1} of {repeats}) ...", file=sys.stderr)
+            tries.append(fit_default(data, sweeps))
+        rows.append({"house": house, "data": None if data is None else str(data),
+                     "fit": min(tries, key=lambda r: r["post"]), "tries": tries})  # fmt: skip
+    startup = None
+    if not args.no_startup:
+        first = next((h for h in houses if h != EMBEDDED), EMBEDDED)
+        print(f"start-up of the questions on {first} ...", file=sys.stderr)
+        startup = measure_startup(house_path(root, first), startup_repeats)
+    print(render(rows))
+    if startup is not None:
+        print("\n" + render_startup(startup))
+    verdict = all(row["fit"]["meets_target"] for row in rows)
+    print(f"\npost-processing <= {REFERENCE_SWEEPS} sweeps on every house: "
+          f"{'PASS' if verdict else 'FAIL'}")  # fmt: skip
+    if startup is not None:
+        print(f"start-up of --help, where, export < {startup['target_seconds']:g} s: "
+              f"{'PASS' if startup['meets_target'] else 'FAIL'}")  # fmt: skip
+    record = {
+        "machine": {
+            "python": sys.version.split()[0],
+            "platform": platform.platform(),
+            "cpu_count": os.cpu_count(),
+            "load_average": os.getloadavg(),
+        },  # fmt: skip
+        "sweeps": sweeps,
+        "repeats": repeats,
+        "houses": rows,
+        "post_meets_target": verdict,
+        "startup": startup,
+    }
+    out = args.out or SCRIPT_DIR / "end_to_end.json"
+    out.write_text(json.dumps(record, indent=1) + "\n")
+    print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,102 @@
+"""The figures of ``spcopyro fit``: its PNGs, and what of them can be done while the chains run.
+
+A default fit's sweeps run in compiled kernels that release the GIL, one chain on one core.
+:class:`FigurePrefetch` uses that time: on a thread of its own it imports what the figures and
+the point estimate import (matplotlib, scipy's image and assignment modules: about a second of a
+fresh process) and draws ``house.png``, which needs the house only. After the fit,
+:func:`write_figures` draws the figures that need the result. While the thread works the
+interpreter's switch interval is shortened, so a sweep that ends waits at most that long for the
+GIL. The figures are those drawn without it, file for file (issue 25 item 1).
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from spcopyro._util.timings import timed
+
+if TYPE_CHECKING:
+    from spcopyro.data import House
+    from spcopyro.results.result import SpCoResult
+
+__all__ = ["FigurePrefetch", "write_figures"]
+
+PREFETCH_SWITCH_INTERVAL = 0.0005
+"""Seconds: :func:`sys.setswitchinterval` while :class:`FigurePrefetch` works (Python's default
+is 0.005, a sweep's length on a public house)."""
+
+
+class FigurePrefetch:
+    """Import the figures' modules and draw ``house.png`` into ``out`` on a daemon thread,
+    started at once. :meth:`join` waits for it; an error there is not raised but left to the
+    figures drawn after the fit (which draw ``house.png`` again)."""
+
+    def __init__(self, house: House, out: Path) -> None:
+        self.house_drawn = False
+        self._previous = sys.getswitchinterval()
+        sys.setswitchinterval(min(self._previous, PREFETCH_SWITCH_INTERVAL))
+        self._thread = threading.Thread(
+            target=self._run, args=(house, Path(out)), name="spcopyro-figures", daemon=True
+        )
+        self._thread.start()
+
+    def _run(self, house: House, out: Path) -> None:
+        try:
+            with timed("prefetch imports"):
+                import scipy.optimize  # noqa: F401  (the point estimate's matching)
+
+                from spcopyro.figures.plotting import plot_house
+            with timed("prefetch house"):
+                plot_house(house, out / "house.png")
+            self.house_drawn = True
+        except Exception:  # drawn again, with its error, after the fit
+            self.house_drawn = False
+        finally:
+            sys.setswitchinterval(self._previous)
+
+    def join(self) -> bool:
+        """Wait for the thread; whether ``house.png`` was drawn."""
+        if self._thread.is_alive():
+            with timed("prefetch wait"):
+                self._thread.join()
+        return self.house_drawn
+
+
+def write_figures(
+    result: SpCoResult,
+    house: House,
+    out: Path,
+    uncertainty: bool,
+    prefetch: FigurePrefetch | None = None,
+) -> None:
+    """The fit's PNGs: semantic map, trace, house (unless ``prefetch`` drew it), and the
+    uncertainty and agreement maps of a result that has them (:mod:`spcopyro.figures.plotting`,
+    matplotlib's Agg canvas)."""
+    house_drawn = prefetch is not None and prefetch.join()
+    with timed("figure imports"):
+        from spcopyro.figures.plotting import (
+            plot_agreement,
+            plot_house,
+            plot_semantic_map,
+            plot_trace,
+            plot_uncertainty,
+        )
+        from spcopyro.figures.png import background_writes
+
+    with background_writes():  # each PNG compressed on a thread while the next is drawn
+        with timed("figure semantic_map"):
+            plot_semantic_map(result, out / "semantic_map.png", observations=house.observations)
+        with timed("figure trace"):
+            plot_trace(result, out / "trace.png")
+        if not house_drawn:
+            with timed("figure house"):
+                plot_house(house, out / "house.png")
+        if uncertainty:
+            with timed("figure uncertainty"):
+                plot_uncertainty(result, out / "uncertainty.png")
+        if result.agreement is not None:
+            with timed("figure agreement"):
+                plot_agreement(result, out / "agreement.png")

@@ -1,0 +1,77 @@
+"""Writing a drawn figure as a PNG, on a thread of its own where the caller asks for it.
+
+Compressing a figure's pixels into a PNG is a tenth to a third of its time, and Pillow releases
+the GIL while it compresses. Inside :func:`background_writes` (what ``spcopyro fit`` uses for its
+figures, issue 25 item 1), :func:`save_png` renders the figure into an RGBA buffer in the calling
+thread and leaves the PNG to one writer thread, so the next figure is drawn meanwhile; the block
+ends when every file is written (and raises the first error). The file is byte for byte the one
+:meth:`~matplotlib.figure.Figure.savefig` writes (the same pixels, the same ``Software`` text
+chunk and resolution). Outside the block it is :meth:`~matplotlib.figure.Figure.savefig`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+from collections.abc import Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
+
+from matplotlib.figure import Figure
+from matplotlib.transforms import Bbox
+
+from spcopyro._util.timings import timed
+
+_writer: list[ThreadPoolExecutor] = []  # the one writer of the open block, if any
+_pending: list[Future[None]] = []
+
+
+@contextlib.contextmanager
+def background_writes() -> Iterator[None]:
+    """PNGs saved by :func:`save_png` inside the block are compressed and written on a thread;
+    all are written when the block ends (the first error raised). Not reentrant from threads:
+    one block at a time, figures saved from the thread that opened it."""
+    if _writer:  # nested: the outer block waits for them
+        yield
+        return
+    executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="spcopyro-png")
+    _writer.append(executor)
+    try:
+        yield
+    finally:
+        _writer.clear()
+        with timed("figure png wait"):  # for the PNGs still being written
+            executor.shutdown(wait=True)
+        done, _pending[:] = list(_pending), []
+        for future in done:
+            future.result()  # the first error, raised here
+
+
+def save_png(fig: Figure, path: str | os.PathLike[str], dpi: float, box: Bbox) -> None:
+    """Write ``fig`` at ``dpi`` cropped to ``box`` (inches) as the PNG ``path``: here, or on the
+    writer thread of an open :func:`background_writes` block."""
+    if not _writer:
+        fig.savefig(path, dpi=dpi, bbox_inches=box)
+        return
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="rgba", dpi=dpi, bbox_inches=box)
+    pixels = buffer.getvalue()
+    renderer = getattr(fig.canvas, "renderer", None)  # the Agg renderer it was drawn on
+    size = (int(getattr(renderer, "width", 0)), int(getattr(renderer, "height", 0)))
+    if size[0] * size[1] * 4 != len(pixels):  # not as drawn here: draw it again, as a PNG
+        fig.savefig(path, dpi=dpi, bbox_inches=box)
+        return
+    _pending.append(_writer[0].submit(_write, os.fspath(path), pixels, size, dpi))
+
+
+def _write(path: str, pixels: bytes, size: tuple[int, int], dpi: float) -> None:
+    """The PNG :func:`matplotlib.image.imsave` writes for the RGBA ``pixels`` of ``size``."""
+    import matplotlib
+    from PIL import Image, PngImagePlugin
+
+    image = Image.frombuffer("RGBA", size, pixels, "raw", "RGBA", 0, 1)
+    info = PngImagePlugin.PngInfo()
+    info.add_text(
+        "Software", f"Matplotlib version{matplotlib.__version__}, https://matplotlib.org/"
+    )
+    image.save(path, format="png", pnginfo=info, dpi=(dpi, dpi))
