@@ -115,6 +115,19 @@ def test_the_route_lists_the_rooms_passed_in_order(result):
     assert places_along(plan.places, result.grid.world_to_cell(plan.path_xy)) == plan.route
 
 
+def test_a_stop_s_place_reads_as_the_word_the_robot_was_sent_with(result):
+    """A kitchen whose most probable word is "sink" is named "kitchen" on a route to the kitchen;
+    a place passed on the way keeps its top word."""
+    graph = place_graph(result)
+    places = tuple(
+        replace(p, words=("sink", *p.words)) if p.name in ("kitchen", "corridor") else p
+        for p in graph.places
+    )
+    plan = navigate(result, "go to the kitchen", START_A, places=replace(graph, places=places))
+    assert plan.route == (3, 1, 2)
+    assert plan.route_words == ("bedroom", "sink", "kitchen")  # the corridor stays "sink"
+
+
 def test_without_a_route_over_the_graph_the_path_s_places_are_reported(result):
     graph = replace(place_graph(result), passages=())
     plan = navigate(result, "go to the kitchen", START_A, places=graph)

@@ -125,8 +125,14 @@ class NavigationPlan:
 
     @property
     def route_words(self) -> tuple[str, ...]:
-        """The top word of every place of :attr:`route`."""
-        return tuple(self.places.places[i].name for i in self.route) if self.places else ()
+        """A word for every place of :attr:`route`: a stop's place reads as the instruction's word
+        for it (the robot sent to the kitchen reads "kitchen" there, though the place's most
+        probable word may be "sink"), every other place as its top word."""
+        if not self.places:
+            return ()
+        legs = zip(self.legs, self.stops, strict=False)
+        said = {leg.places[-1]: stop.word for leg, stop in legs if leg.places}
+        return tuple(said.get(i, self.places.places[i].name) for i in self.route)
 
     @property
     def goal(self) -> Stop:
