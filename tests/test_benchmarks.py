@@ -185,3 +185,22 @@ def test_navigation_benchmark_quick(tmp_path):
             assert 0.0 <= row[method]["success"] <= 1.0
         assert 0.0 <= row["coarse"]["hierarchical"] <= 1.0
     assert "paper-dp success" in done.stdout and "baseline path/shortest" in done.stdout
+
+
+def test_end_to_end_benchmark_quick(tmp_path):
+    """Issue 25: one default fit of the embedded house as a whole process, split into start-up,
+    data, sweeps, post-processing and outputs that add up to its wall; the start-up table."""
+    out = tmp_path / "end_to_end.json"
+    done = run_benchmark("end_to_end.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "default fit as a whole process" in done.stdout
+    record = json.loads(out.read_text())
+    (house,) = record["houses"]
+    fit = house["fit"]
+    assert house["house"] == "embedded" and fit["sweep_count"] == 200
+    parts = ("startup", "data", "sweeps", "post", "outputs")
+    assert all(fit[name] > 0.0 for name in parts)
+    assert math.isclose(sum(fit[name] for name in parts), fit["wall"], rel_tol=1e-6)
+    assert {"semantic_map.png", "trace.png", "house.png", "agreement.png"} <= set(fit["pngs"])
+    assert fit["post_parts"]["point_estimate"] > 0.0 and fit["figures"]["semantic_map"] > 0.0
+    assert record["startup"]["commands"][1]["command"] == "--help"

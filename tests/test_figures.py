@@ -172,3 +172,18 @@ def test_an_installed_japanese_font_draws_the_words(tmp_path, caplog, monkeypatc
     with caplog.at_level(logging.WARNING, logger="spcopyro"):
         plotting.plot_house(_japanese_house(), tmp_path / "a.png")
     assert not [r for r in caplog.records if "no glyphs" in r.getMessage()]
+
+
+def test_background_writes_give_the_files_savefig_gives(tmp_path):
+    """Issue 25 item 1: inside ``png.background_writes`` a figure's PNG is compressed on a
+    thread, byte for byte the file written without it; the block ends with every file there."""
+    from spcopyro.figures.png import background_writes
+
+    result = two_rooms()
+    plot_semantic_map(result, tmp_path / "plain.png")
+    with background_writes():
+        plot_semantic_map(result, tmp_path / "threaded.png")
+        answer = result.where("kitchen", prior="pi")
+        plot_where(result, answer, tmp_path / "where.png")
+    assert (tmp_path / "threaded.png").read_bytes() == (tmp_path / "plain.png").read_bytes()
+    assert (tmp_path / "where.png").stat().st_size > 0
