@@ -28,7 +28,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.text import Text
-from matplotlib.ticker import FuncFormatter
+from matplotlib.ticker import FuncFormatter, MaxNLocator
 from scipy import ndimage
 
 from spcopyro.data import House, Observations
@@ -496,6 +496,7 @@ def plot_trace(result: SpCoResult, path: str | os.PathLike[str]) -> Path:
     top.legend(fontsize=8)
     bottom.plot(sweeps, trace.num_concepts, lw=0.8, color="C1")
     bottom.set_ylabel("concepts in use")
+    bottom.yaxis.set_major_locator(MaxNLocator(integer=True))  # a count: no 12.5 concepts
     bottom.set_xlabel("sweep" if result.method == "gibbs" else "iteration")
     for ax in (top, bottom):
         ax.set_xscale("log")
