@@ -59,9 +59,9 @@ SCRIPT_DIR = Path(__file__).resolve().parent
 sys.path.insert(0, str(SCRIPT_DIR))
 
 from fixed_cost import (  # noqa: E402  (a script beside this one)
-    ROOT,
     _environment,
     _table,
+    dataset_or_note,
     measure_startup,
     render_startup,
 )
@@ -205,20 +205,9 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
-def _dataset(path: Path | None) -> Path | None:
-    sys.path.insert(0, str(ROOT))
-    from spcopyro.data.dataset import find_dataset_root
-
-    try:
-        return find_dataset_root(path)
-    except FileNotFoundError as error:
-        print(f"note: {error}; the public houses are skipped", file=sys.stderr)
-        return None
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
-    root = _dataset(args.dataset)
+    root = dataset_or_note(args.dataset, without="the public houses are skipped")
     houses = [h.strip() for h in args.houses.split(",") if h.strip()]
     sweeps, repeats, startup_repeats = args.sweeps, max(args.repeats, 1), args.startup_repeats
     if args.quick:

@@ -362,20 +362,24 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
-def _dataset(path: Path | None) -> Path | None:
+def dataset_or_note(
+    path: Path | None, without: str = "using the synthetic default house"
+) -> Path | None:
+    """The public dataset's root (``--dataset``, ``$SPCOPYRO_DATA`` or ../shared), or None with a
+    note saying what the benchmark does ``without`` it."""
     sys.path.insert(0, str(ROOT))
     from spcopyro.data.dataset import find_dataset_root
 
     try:
         return find_dataset_root(path)
     except FileNotFoundError as error:
-        print(f"note: {error}; using the synthetic default house", file=sys.stderr)
+        print(f"note: {error}; {without}", file=sys.stderr)
         return None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
-    dataset = _dataset(args.dataset)
+    dataset = dataset_or_note(args.dataset)
     if args.quick:
         presets, sweeps, figures, repeats = ["paper-dp"], (1, 3), [False], 1
     else:
