@@ -47,10 +47,7 @@ import argparse
 import json
 import os
 import platform
-import subprocess
 import sys
-import tempfile
-import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -59,11 +56,11 @@ SCRIPT_DIR = Path(__file__).resolve().parent
 sys.path.insert(0, str(SCRIPT_DIR))
 
 from fixed_cost import (  # noqa: E402  (a script beside this one)
-    _environment,
     _table,
     dataset_or_note,
     measure_startup,
     render_startup,
+    run_fit_process,
 )
 
 EMBEDDED = "embedded"
@@ -79,23 +76,14 @@ OVERLAPPED = ("prefetch imports", "prefetch house")
 def fit_default(data: Path | None, sweeps: int | None, seed: int = 0) -> dict[str, Any]:
     """One default ``spcopyro fit`` of ``data`` (None: the embedded house) in a fresh process:
     its wall seconds split as the module docstring says."""
-    with tempfile.TemporaryDirectory(prefix="spcopyro-end-to-end-") as tmp:
-        timings = Path(tmp) / "timings.json"
-        command = [sys.executable, "-m", "spcopyro", "fit"]
-        command += [str(data)] if data is not None else []
-        command += [] if sweeps is None else ["--sweeps", str(sweeps)]
-        command += ["--seed", str(seed), "--out", str(Path(tmp) / "out")]
-        env = {**_environment(), "SPCOPYRO_TIMINGS": str(timings)}
-        launched = time.time()
-        start = time.perf_counter()
-        done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=1800)
-        wall = time.perf_counter() - start
-        if done.returncode != 0:
-            raise RuntimeError(f"{' '.join(command)} failed ({done.returncode}):\n"
-                               f"{done.stderr[-3000:]}")  # fmt: skip
-        record = json.loads(timings.read_text())
-        pngs = sorted(p.name for p in (Path(tmp) / "out").glob("*.png"))
-    return split(record, wall, record["entered"] - launched, pngs)
+    arguments = [
+        *([str(data)] if data is not None else []),
+        *([] if sweeps is None else ["--sweeps", str(sweeps)]),
+        "--seed",
+        str(seed),
+    ]
+    record, wall, startup, pngs = run_fit_process(arguments, timeout=1800)
+    return split(record, wall, startup, pngs)
 
 
 def split(record: dict[str, Any], wall: float, startup: float, pngs: Sequence[str] = ()) -> dict:

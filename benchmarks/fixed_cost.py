@@ -92,6 +92,29 @@ def _environment() -> dict[str, str]:
     return {**os.environ, "CI": "1", "PYTHONPATH": path}
 
 
+def run_fit_process(
+    arguments: Sequence[str], timeout: float
+) -> tuple[dict[str, Any], float, float, list[str]]:
+    """``spcopyro fit ARGUMENTS --out TMP`` in a fresh subprocess with ``$SPCOPYRO_TIMINGS`` set:
+    (its timings record, its wall seconds, its start-up seconds up to entering ``main``, the
+    names of the PNGs it wrote). RuntimeError with its stderr if it fails."""
+    with tempfile.TemporaryDirectory(prefix="spcopyro-fit-process-") as tmp:
+        timings = Path(tmp) / "timings.json"
+        out = Path(tmp) / "out"
+        command = [sys.executable, "-m", "spcopyro", "fit", *arguments, "--out", str(out)]
+        env = {**_environment(), "SPCOPYRO_TIMINGS": str(timings)}
+        launched = time.time()
+        start = time.perf_counter()
+        done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=timeout)
+        wall = time.perf_counter() - start
+        if done.returncode != 0:
+            raise RuntimeError(f"{' '.join(command)} failed ({done.returncode}):\n"
+                               f"{done.stderr[-3000:]}")  # fmt: skip
+        record = json.loads(timings.read_text())
+        pngs = sorted(p.name for p in out.glob("*.png"))
+    return record, wall, record["entered"] - launched, pngs
+
+
 def fit_once(
     data: Path | None,
     preset: str,
@@ -102,25 +125,11 @@ def fit_once(
 ) -> dict[str, Any]:
     """One ``spcopyro fit`` in a fresh subprocess (``extra``: more of its arguments): its wall
     seconds and its phases."""
-    with tempfile.TemporaryDirectory(prefix="spcopyro-fixed-cost-") as tmp:
-        timings = Path(tmp) / "timings.json"
-        command = [sys.executable, "-m", "spcopyro", "fit"]
-        command += [str(data)] if data is not None else []
-        command += ["--preset", preset, "--sweeps", str(sweeps), "--seed", str(seed)]
-        command += ["--out", str(Path(tmp) / "out")] + ([] if figures else ["--no-figures"])
-        command += list(extra)
-        env = {**_environment(), "SPCOPYRO_TIMINGS": str(timings)}
-        launched = time.time()
-        start = time.perf_counter()
-        done = subprocess.run(command, capture_output=True, text=True, env=env, timeout=900)
-        wall = time.perf_counter() - start
-        if done.returncode != 0:
-            raise RuntimeError(f"{' '.join(command)} failed ({done.returncode}):\n"
-                               f"{done.stderr[-3000:]}")  # fmt: skip
-        record = json.loads(timings.read_text())
-        pngs = sorted(p.name for p in (Path(tmp) / "out").glob("*.png"))
+    arguments = [*([str(data)] if data is not None else []), "--preset", preset,
+                 "--sweeps", str(sweeps), "--seed", str(seed),
+                 *([] if figures else ["--no-figures"]), *extra]  # fmt: skip
+    record, wall, startup, pngs = run_fit_process(arguments, timeout=900)
     seconds = dict(record["seconds"])
-    startup = record["entered"] - launched
     row: dict[str, Any] = {
         "sweeps": sweeps,
         "with_figures": figures,
