@@ -36,3 +36,27 @@ def two_rooms() -> SpCoResult:
         trace=Trace(objective=np.zeros(1), num_concepts=np.array([3]), seconds=np.zeros(1)),
         best_iteration=0,
     )
+
+
+def one_word_per_concept(grid: OccupancyGrid, labels: np.ndarray, words: tuple[str, ...],
+                         num_concepts: int = 4) -> SpCoResult:  # fmt: skip
+    """A result on ``grid`` with ``labels`` [N] in which concept l's most probable word is
+    ``words[l]`` (0.9 against 0.02 for every other word, renormalised), pi uniform, images
+    uninformative: the navigation tests' hand-built houses."""
+    w = np.full((num_concepts, len(words)), 0.02)  # [L, V]
+    w[np.arange(num_concepts), np.arange(num_concepts)] = 0.9
+    w /= w.sum(1, keepdims=True)
+    return SpCoResult(
+        grid=grid,
+        config=SpCoConfig(num_concepts=num_concepts, prior="dirichlet"),
+        labels=labels,  # [N]
+        pi=np.full(num_concepts, 1 / num_concepts),  # [L]
+        emissions=(
+            EmissionTable("images", ("0", "1"), np.full((num_concepts, 2), 0.5)),  # [L, K]
+            EmissionTable("words", words, w),
+        ),
+        trace=Trace(
+            objective=np.zeros(1), num_concepts=np.array([num_concepts]), seconds=np.zeros(1)
+        ),  # fmt: skip
+        best_iteration=0,
+    )

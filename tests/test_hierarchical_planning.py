@@ -16,12 +16,12 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from hand_results import one_word_per_concept
 from test_navigate import START_A, house_result
 
 from spcopyro.cli.main import main
-from spcopyro.config import SpCoConfig
 from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
-from spcopyro.results.result import EmissionTable, SpCoResult, Trace
+from spcopyro.results.result import SpCoResult
 from spcopyro.robot.navigation import navigate
 from spcopyro.robot.navigation.hierarchy import corridor, node_places
 from spcopyro.robot.navigation.places import place_graph
@@ -50,21 +50,7 @@ def third_room_result(bc_door: tuple[int, int] = (23, 28), ab_door: bool = True)
         occupancy[r0:r1, c0:c1] = FREE
         image[r0:r1, c0:c1] = concept
     grid = OccupancyGrid(occupancy=occupancy, resolution=RES, origin=(0.0, 0.0, 0.0))
-    w = np.full((4, len(WORDS)), 0.02)  # [L, V]
-    w[np.arange(4), np.arange(4)] = 0.9
-    w /= w.sum(1, keepdims=True)
-    return SpCoResult(
-        grid=grid,
-        config=SpCoConfig(num_concepts=4, prior="dirichlet"),
-        labels=image[grid.free],
-        pi=np.full(4, 0.25),
-        emissions=(
-            EmissionTable("images", ("0", "1"), np.full((4, 2), 0.5)),
-            EmissionTable("words", WORDS, w),
-        ),
-        trace=Trace(objective=np.zeros(1), num_concepts=np.array([4]), seconds=np.zeros(1)),
-        best_iteration=0,
-    )
+    return one_word_per_concept(grid, image[grid.free], WORDS)
 
 
 def cell_xy(row: int, col: int) -> tuple[float, float]:

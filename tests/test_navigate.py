@@ -12,11 +12,11 @@ import math
 import numpy as np
 import pytest
 import yaml
+from hand_results import one_word_per_concept
 
 from spcopyro.cli.main import main
-from spcopyro.config import SpCoConfig
 from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
-from spcopyro.results.result import EmissionTable, SpCoResult, Trace
+from spcopyro.results.result import SpCoResult
 from spcopyro.robot.navigation import (
     AmbiguousGoalError,
     UnreachableGoalError,
@@ -52,22 +52,7 @@ def house_result() -> SpCoResult:
         image[8:13, wall] = CONCEPT["B"] if wall < 30 else CONCEPT["C"]
     image[20:28, 1:40] = CONCEPT["D"]
     labels = image[grid.free]
-    w = np.full((4, len(WORDS)), 0.02)  # [L, V]
-    for concept in range(4):
-        w[concept, concept] = 0.9
-    w /= w.sum(1, keepdims=True)
-    return SpCoResult(
-        grid=grid,
-        config=SpCoConfig(num_concepts=4, prior="dirichlet"),
-        labels=labels,
-        pi=np.full(4, 0.25),
-        emissions=(
-            EmissionTable("images", ("0", "1"), np.full((4, 2), 0.5)),
-            EmissionTable("words", WORDS, w),
-        ),
-        trace=Trace(objective=np.zeros(1), num_concepts=np.array([4]), seconds=np.zeros(1)),
-        best_iteration=0,
-    )
+    return one_word_per_concept(grid, labels, WORDS)
 
 
 def xy(row: int, col: int) -> tuple[float, float]:
