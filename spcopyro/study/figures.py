@@ -20,16 +20,12 @@ from matplotlib import colormaps
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
+from spcopyro.study.table import is_number
+
 __all__ = ["QUALITY_TIME_FILE", "quality_time_figure", "write_quality_time"]
 
 QUALITY_TIME_FILE = "quality_time.png"
 """The figure's file name, beside ``report.md``."""
-
-
-def _number(value: object) -> float | None:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        return None
-    return float(value) if math.isfinite(value) and value == value else None
 
 
 def _group_label(variant: str, method: str) -> str:
@@ -44,10 +40,10 @@ def quality_time_figure(
     row has them (a study that scores no ``score``, or none finished)."""
     points = []  # (data, variant, method, seconds, score)
     for row in rows:
-        seconds, value = _number(row.get(time)), _number(row.get(score))
-        if row.get("status") == "ok" and seconds is not None and seconds > 0 and value is not None:
-            points.append((str(row["data"]), str(row["variant"]), str(row["method"]), seconds,
-                           value))  # fmt: skip
+        seconds, value = row.get(time), row.get(score)
+        if row.get("status") == "ok" and is_number(seconds) and seconds > 0 and is_number(value):
+            points.append((str(row["data"]), str(row["variant"]), str(row["method"]),
+                           float(seconds), float(value)))  # fmt: skip
     if not points:
         return None
     sources = list(dict.fromkeys(p[0] for p in points))
@@ -56,7 +52,8 @@ def quality_time_figure(
     colour = {group: palette(i % palette.N) for i, group in enumerate(groups)}
     columns = min(len(sources), 3)
     lines = math.ceil(len(sources) / columns)
-    fig = Figure(figsize=(4.3 * columns, 3.5 * lines + 0.5 + 0.25 * math.ceil(len(groups) / 4)))
+    legend_rows = math.ceil(len(groups) / 4)
+    fig = Figure(figsize=(4.3 * columns, 3.5 * lines + 0.5 + 0.25 * legend_rows))
     for k, source in enumerate(sources):
         ax = fig.add_subplot(lines, columns, k + 1)
         for group in groups:
@@ -86,7 +83,6 @@ def quality_time_figure(
     fig.legend(handles, [_group_label(*g) for g in groups], loc="lower center",
                ncol=min(len(groups), 4), frameon=False, fontsize=8)  # fmt: skip
     fig.suptitle(f"{score} against {time}: seeds (faint), mean ± sd (marked)", fontsize=11)
-    legend_rows = math.ceil(len(groups) / 4)
     fig.tight_layout(rect=(0, min(0.3, 0.06 * legend_rows + 0.03), 1, 0.95))
     return fig
 

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro.study.evaluate import SCORES
+from spcopyro.study.table import is_number
 
 __all__ = ["REPORT_SCORES", "report_markdown", "summary_rows", "write_report"]
 
@@ -42,17 +43,13 @@ def summary_rows(
         entry: dict[str, object] = dict(zip(GROUP, group, strict=True))
         entry.update(n=len(ok), failed=len(members) - len(ok))
         for score in scores:
-            values = [float(r[score]) for r in ok if _is_number(r.get(score))]  # type: ignore[arg-type]
+            values = [float(r[score]) for r in ok if is_number(r.get(score))]  # type: ignore[arg-type]
             if values:
                 array = np.asarray(values)
                 sd = float(array.std(ddof=1)) if array.size > 1 else math.nan
                 entry[score] = (float(array.mean()), sd, len(values))
         summary.append(entry)
     return summary
-
-
-def _is_number(value: object) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def _mean_sd(value: object) -> str:

@@ -28,7 +28,9 @@ import numpy as np
 from spcopyro.study.cells import Cell
 from spcopyro.study.evaluate import SCORES, STATUS_COLUMNS
 
-__all__ = ["COLUMNS", "INPUT_COLUMNS", "CellStore", "read_table", "table_rows", "write_table"]
+__all__ = [
+    "COLUMNS", "INPUT_COLUMNS", "CellStore", "is_number", "read_table", "table_rows", "write_table",
+]  # fmt: skip
 
 INPUT_COLUMNS = (
     "variant", "data", "method", "seed", "data_kind", "data_source", "house_seed", "heldout",
@@ -73,6 +75,12 @@ class CellStore:
         staging = self.cells / f".{key}.json"
         staging.write_text(json.dumps(record, default=_json_value, indent=1))
         os.replace(staging, self.cells / f"{key}.json")
+
+
+def is_number(value: object) -> bool:
+    """Whether a table value is a finite number (a score that applied; not a bool, None or
+    text)."""
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def _json_value(value: object) -> object:
