@@ -9,11 +9,11 @@ import pytest
 from hand_results import two_rooms
 
 from spcopyro.cli.main import main
-from spcopyro.results.result import (
+from spcopyro.results.semantic_map import UnknownWordError
+from spcopyro.results.where import (
     EVIDENCE_WARNING,
     ODDS_WARNING,
     SMALL_REGION_FRACTION,
-    UnknownWordError,
     answer_warnings,
 )
 

@@ -52,8 +52,9 @@ from spcopyro.maps import (
     render_labels,
 )
 from spcopyro.results.concept_words import NO_WORDS
-from spcopyro.results.result import SMALL_REGION_FRACTION, SpCoResult, WhereAnswer
+from spcopyro.results.result import SpCoResult
 from spcopyro.results.uncertainty import cell_entropy, free_cells_image, where_probability
+from spcopyro.results.where import SMALL_REGION_FRACTION, WhereAnswer
 
 DPI = 150  # of every PNG
 PAD_INCHES = 0.1  # around the artists (matplotlib's savefig.pad_inches)

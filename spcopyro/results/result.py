@@ -32,9 +32,6 @@ from spcopyro.results.concept_words import NO_WORDS, distinctive_items, lift, ra
 from spcopyro.results.semantic_map import UnknownWordError, word_index
 from spcopyro.results.where import (
     DEFAULT_WHERE_PRIOR,
-    EVIDENCE_WARNING,
-    ODDS_WARNING,
-    SMALL_REGION_FRACTION,
     WHERE_PRIORS,
     WhereAnswer,
     answer_warnings,
@@ -42,17 +39,11 @@ from spcopyro.results.where import (
 )
 
 __all__ = [
-    "DEFAULT_WHERE_PRIOR",
-    "EVIDENCE_WARNING",
-    "ODDS_WARNING",
-    "SMALL_REGION_FRACTION",
     "EmissionTable",
     "InferenceOutput",
     "SpCoResult",
     "Trace",
     "UnknownWordError",
-    "WhereAnswer",
-    "answer_warnings",
     "word_index",
 ]
 

@@ -56,9 +56,10 @@ import yaml
 
 from spcopyro._util.outputs import stage_marked_folder
 from spcopyro.maps import OccupancyGrid, save_filter_mask, save_label_map_server, save_map
-from spcopyro.results.result import DEFAULT_WHERE_PRIOR, SpCoResult
+from spcopyro.results.result import SpCoResult
 from spcopyro.results.semantic_map import word_index
 from spcopyro.results.uncertainty import where_probability
+from spcopyro.results.where import DEFAULT_WHERE_PRIOR
 
 __all__ = [
     "DEFAULT_MAX_SPEED",

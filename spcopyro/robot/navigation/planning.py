@@ -23,8 +23,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from spcopyro.maps import OccupancyGrid
-from spcopyro.results.result import DEFAULT_WHERE_PRIOR, SpCoResult
+from spcopyro.results.result import SpCoResult
 from spcopyro.results.uncertainty import where_probability
+from spcopyro.results.where import DEFAULT_WHERE_PRIOR
 from spcopyro.robot.navigation.goals import (
     GoalChoice,
     Instruction,
