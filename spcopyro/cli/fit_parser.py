@@ -35,20 +35,15 @@ def _run_fit(args: argparse.Namespace) -> int:
     return run_fit(args)
 
 
-def add_parser(subparsers: argparse._SubParsersAction, options: bool = True) -> None:
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
     """Register ``fit`` (its options and their help, as ``spcopyro fit --help`` lists them).
 
-    ``options=False`` registers the command by name and help only: what ``spcopyro --help`` and
-    the other commands need (:func:`spcopyro.cli.main.build_parser`). Either way nothing heavy is
-    imported: the choices of ``--backend`` and ``--init`` and the methods ``--method`` lists come
-    from :mod:`spcopyro.inference.names` (a method registered at run time is checked against the
-    registry when the fit starts)."""
+    Nothing heavy is imported: the choices of ``--backend`` and ``--init`` and the methods
+    ``--method`` lists come from :mod:`spcopyro.inference.names` (a method registered at run time
+    is checked against the registry when the fit starts)."""
     p = subparsers.add_parser(
         "fit", help="fit SpCoMapping (Gibbs sampling) and write the semantic map"
     )
-    if not options:
-        return
-
     p.add_argument("data", nargs="?", help="house folder (default: the synthetic house)")
     p.add_argument("--out", required=True,
                    help="output folder (written whole at the end; new or empty)")  # fmt: skip

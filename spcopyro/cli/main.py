@@ -194,14 +194,10 @@ def _where(args: argparse.Namespace) -> int:
     return 0
 
 
-def build_parser(command: str | None = None) -> argparse.ArgumentParser:
-    """The ``spcopyro`` parser, every command with its options.
-
-    ``command`` is the command about to be parsed (:func:`main` passes it): when it is given and
-    is not ``fit``, ``fit`` is registered by name and help only, so that ``spcopyro --help``,
-    ``where``, ``show`` and ``export`` import no torch for the fit's option choices (the
-    parsers of the other commands import none anyway).
-    """
+def build_parser() -> argparse.ArgumentParser:
+    """The ``spcopyro`` parser, every command with its options. Building it imports neither
+    torch, pyro nor numba (``spcopyro --help``, ``where``, ``show`` and ``export`` run without
+    them; the commands that need them import them when they run)."""
     parser = argparse.ArgumentParser(
         prog="spcopyro",
         description="SpCoMapping: semantic maps from an occupancy grid, images and words.",
@@ -258,7 +254,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
                    help="with --graph: smaller regions are not places")  # fmt: skip
     p.set_defaults(func=_show)
 
-    add_fit_parser(sub, options=command in (None, "fit"))  # fit
+    add_fit_parser(sub)  # fit
 
     p = sub.add_parser("where", help='answer "where is WORD?" from a fitted result')
     p.add_argument("result", help="output folder of `spcopyro fit`")
@@ -342,15 +338,8 @@ def _error_line(error: BaseException) -> str:
     return str(error)
 
 
-def _command_name(argv: list[str] | None) -> str:
-    """The command named on the command line ("" when none is: ``--help``, ``--version``); the
-    main parser's own options take no value, so it is the first word that is not an option."""
-    words = sys.argv[1:] if argv is None else argv
-    return next((word for word in words if not word.startswith("-")), "")
-
-
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser(_command_name(argv)).parse_args(argv)
+    args = build_parser().parse_args(argv)
     if argv is not None:
         args.argv = list(argv)
     _configure_logging(logging.INFO if args.verbose else logging.WARNING)
