@@ -20,7 +20,7 @@ from gibbs_problems import config, random_problem
 
 import spcopyro.fit.house
 import spcopyro.gibbs.chains
-import spcopyro.gibbs.run as run_module
+import spcopyro.inference.driver as driver_module
 from spcopyro._util.outputs import checkpoint_path
 from spcopyro.cli.main import main
 from spcopyro.gibbs.checkpoint import (
@@ -146,12 +146,12 @@ def test_an_interrupt_inside_a_sweep_is_undone(backend, where, monkeypatch):
     labels, best, samples = chain.state.labels, chain.best_sweep, len(chain.label_samples)
     real = chain.backend
     if where == "records":
-        monkeypatch.setattr(run_module, "time", _Clock(at=2))
+        monkeypatch.setattr(driver_module, "time", _Clock(at=2))
     else:
         chain.backend = _Interrupting(real, where, at=1)
     with pytest.raises(KeyboardInterrupt):
         advance(chain, 9, thin=2, progress=False)
-    monkeypatch.setattr(run_module, "time", time)
+    monkeypatch.setattr(driver_module, "time", time)
     chain.backend = real
     assert chain.sweeps_done == 5
     assert len(chain.log_joint) == len(chain.num_concepts) == len(chain.seconds) == 5

@@ -120,6 +120,59 @@ def test_ctrl_c_hands_back_the_completed_iterations():
     assert trajectory.stop_reason == "interrupted (Ctrl-C) after 3 iterations"
 
 
+def test_a_continued_run_goes_on_with_its_schedule_thinning_and_numbers():
+    """``first``: a run continued at iteration 3 anneals, thins and calls back as the iterations
+    3.. of one run would, and an interrupt in the callback keeps its iteration."""
+    seen = []
+    labels = lambda state: torch.full((2,), state)  # noqa: E731
+    run = drive(0, _counting_step([0.0] * 9), 4, gamma=2.0, anneal=5, first=3, thin=2,
+                labels=labels, num_concepts=3, progress=False,
+                callback=lambda s, state: seen.append(s))  # fmt: skip
+    assert seen == [3, 4, 5, 6]
+    assert run.gammas.tolist() == [annealed_gamma(2.0, s, 5) for s in (3, 4, 5, 6)]
+    assert run.sample_iterations.tolist() == [3, 5]
+
+    def stop_at_5(iteration, state):
+        if iteration == 5:
+            raise KeyboardInterrupt
+
+    with pytest.raises(DriveInterrupted) as caught:
+        drive(0, _counting_step([0.0] * 9), 4, gamma=2.0, first=3, progress=False,
+              callback=stop_at_5)  # fmt: skip
+    assert caught.value.trajectory.state == 3 and len(caught.value.trajectory.objective) == 3
+
+
+def test_gibbs_sweeps_run_through_the_same_driver(problem, monkeypatch):
+    """One driver runs every method: a Gibbs chain's sweeps are drive()'s iterations (its log
+    joint the objective, numbered on from the chain's sweeps), and Ctrl-C hands back the
+    completed sweeps as a DriveInterrupted."""
+    import spcopyro.gibbs.run as gibbs_run
+
+    data, cfg = problem
+    calls = []
+    real = gibbs_run.drive
+
+    def spy(state, step, iterations, **kwargs):
+        calls.append((iterations, kwargs["first"], kwargs["unit"]))
+        return real(state, step, iterations, **kwargs)
+
+    monkeypatch.setattr(gibbs_run, "drive", spy)
+    chain = gibbs_run.start_chain(data, cfg, seed=0)
+    gibbs_run.advance(chain, 3, progress=False)
+    gibbs_run.advance(chain, 2, progress=False)
+    assert calls == [(3, 0, "sweep"), (2, 3, "sweep")]
+    assert len(chain.log_joint) == 5 and np.all(np.diff(chain.seconds) >= 0)
+
+    def stop(sweep, state):
+        if sweep == 6:
+            raise KeyboardInterrupt
+
+    with pytest.raises(DriveInterrupted) as caught:
+        gibbs_run.advance(chain, 4, progress=False, callback=stop)
+    assert caught.value.trajectory.objective.tolist() == chain.log_joint[5:7]
+    assert chain.sweeps_done == 7
+
+
 def test_the_torch_cavi_step_is_pure(problem):
     data, cfg = problem
     options = VariationalOptions(backend="torch")

@@ -1,8 +1,9 @@
-"""The one run loop: a chain that sweeps, records, and can be continued from where it stopped.
+"""A Gibbs chain that sweeps, records, and can be continued from where it stopped.
 
 :func:`start_chain` makes a :class:`GibbsChain` (the state after
 :func:`~spcopyro.gibbs.sampler.init`, its generator, the map's sweep plan, the backend);
-:func:`advance` runs sweeps of :func:`~spcopyro.gibbs.sampler.step` on it, recording what a run
+:func:`advance` runs sweeps of :func:`~spcopyro.gibbs.sampler.step` on it through the driver of
+every inference method (:func:`spcopyro.inference.driver.drive`), recording what a run
 needs and no more: the log joint and the number of concepts of every sweep (8 + 8 bytes a sweep),
 the state of highest log joint visited (the "MAP-visited" state, annealing sweeps left out), and,
 only if asked, label maps every ``thin`` sweeps as int16 (2 bytes a cell). A later :func:`advance`
@@ -11,7 +12,7 @@ continues the same chain -- same state, same generator, same sweep count -- whic
 resumed (:mod:`spcopyro.gibbs.checkpoint` saves a chain to a file and loads it back).
 :func:`run_gibbs` is start + advance in one call, returning a :class:`GibbsRun`.
 
-Numerics: labels are stored as int16, or int32 when L > 32767 (:func:`label_dtype`); a sweep
+Numerics: labels are stored as int16, or int32 when L > 32768 (:func:`label_dtype`); a sweep
 whose log joint is not finite stops the chain (:class:`NonFiniteLogJointError`, naming the sweep
 and the terms that are not finite) instead of running on.
 
@@ -24,30 +25,28 @@ later is exactly the chain run without the interruption.
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
 import torch
-from tqdm.auto import tqdm
 
-from spcopyro._util.progress import progress_enabled
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.backends import SweepBackend, get_backend
 from spcopyro.gibbs.hyperparameters import hyperparameter_names, hyperparameter_values
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.sampler import init, step, trace_point
 from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
+from spcopyro.inference.driver import DriveInterrupted, Trajectory, drive
 from spcopyro.likelihood import log_joint_constant, log_joint_terms
 from spcopyro.model import ModelData
 
-LABEL_DTYPE = torch.int16  # compact storage of label maps (L <= 32767; see label_dtype)
+LABEL_DTYPE = torch.int16  # compact storage of label maps (L <= 32768; see label_dtype)
 
 
 def label_dtype(num_concepts: int) -> torch.dtype:
-    """The compact storage of labels in [0, L): int16 when L <= 32767, else int32."""
+    """The compact storage of labels in [0, L): int16 when L <= 32768, else int32."""
     return LABEL_DTYPE if num_concepts <= torch.iinfo(LABEL_DTYPE).max + 1 else torch.int32
 
 
@@ -93,7 +92,7 @@ class GibbsRun:
     seconds: np.ndarray
     """[S] float64 cumulative wall-clock seconds after each sweep."""
     label_samples: np.ndarray | None
-    """[S', N] int16 (int32 when L > 32767) label maps every ``thin`` sweeps (None unless
+    """[S', N] int16 (int32 when L > 32768) label maps every ``thin`` sweeps (None unless
     ``thin`` > 0)."""
     sample_sweeps: np.ndarray | None
     """[S'] the 0-based sweeps of ``label_samples``."""
@@ -182,8 +181,7 @@ class GibbsChain:
         """What :meth:`_undo` needs to bring the chain back to this point (cheap: the generator's
         state is 5 kB, everything else is a reference or a length)."""
         return _Mark(self.generator.get_state(), self.state, self.sweeps_done, self.best_value,
-                     self.best_state, self.best_sweep, len(self.label_samples), self.current,
-                     self.constant)  # fmt: skip
+                     self.best_state, self.best_sweep, self.current, self.constant)  # fmt: skip
 
     def _undo(self, mark: _Mark) -> None:
         """Back to :meth:`_mark`'s point: a sweep cut short by Ctrl-C leaves no trace."""
@@ -193,10 +191,17 @@ class GibbsChain:
             mark.best_value, mark.best_state, mark.best_sweep
         )  # fmt: skip
         self.current, self.constant = mark.current, mark.constant
-        for record in (self.log_joint, self.num_concepts, self.seconds, self.hyper_trace):
-            del record[mark.sweeps_done :]
-        del self.label_samples[mark.samples_kept :]
-        del self.sample_sweeps[mark.samples_kept :]
+        del self.hyper_trace[mark.sweeps_done :]
+
+    def _record(self, run: Trajectory) -> None:
+        """Add the driver's record of the sweeps after ``len(self.log_joint)`` to the chain's."""
+        elapsed = self.seconds[-1] if self.seconds else 0.0
+        self.log_joint.extend(run.objective.tolist())
+        self.num_concepts.extend(run.num_concepts.tolist())
+        self.seconds.extend((elapsed + run.seconds).tolist())
+        if run.label_samples is not None:
+            self.label_samples.extend(run.label_samples)
+            self.sample_sweeps.extend(run.sample_iterations.tolist())
 
 
 class _Mark(NamedTuple):
@@ -208,7 +213,6 @@ class _Mark(NamedTuple):
     best_value: float
     best_state: GibbsState | None
     best_sweep: int
-    samples_kept: int
     current: SpCoConfig | None
     constant: float
 
@@ -237,6 +241,37 @@ def start_chain(
     )
 
 
+class SweepInfo(NamedTuple):
+    """What the driver records of one sweep of a chain."""
+
+    objective: float
+    """The log joint of the target model after the sweep (:func:`trace_point`)."""
+    num_concepts: int
+    gamma: float
+    """The coupling the labels were drawn under (below gamma while annealing)."""
+
+
+def _sweep(chain: GibbsChain) -> SweepInfo:
+    """One sweep of ``chain`` (in place), its best state and sampled hyperparameters updated."""
+    data, sweep, before = chain.data, chain.sweeps_done, chain.model_config
+    chain.state, info = step(
+        chain.state, data, before, chain.generator, sweep=sweep, options=chain.options,
+        backend=chain.backend, plan=chain.plan,
+    )  # fmt: skip
+    if info.config is not None and info.config != before:
+        chain.current = info.config
+        chain.constant = float(log_joint_constant(data, info.config))
+    value, concepts = trace_point(chain.state, data, chain.model_config, chain.constant,
+                                  chain.backend, chain.options)  # fmt: skip
+    _check_log_joint(chain, sweep, value)
+    if chain.options.hyper.active:
+        chain.hyper_trace.append(hyperparameter_values(data, chain.model_config))
+    if value > chain.best_value and sweep + 1 >= chain.options.anneal_sweeps:
+        chain.best_value, chain.best_state, chain.best_sweep = value, _compact(chain.state), sweep
+    chain.sweeps_done = sweep + 1
+    return SweepInfo(value, concepts, info.gamma)
+
+
 def advance(
     chain: GibbsChain,
     num_sweeps: int,
@@ -245,11 +280,14 @@ def advance(
     progress: bool | None = None,
     callback: Callable[[int, GibbsState], None] | None = None,
 ) -> GibbsChain:
-    """Run ``num_sweeps`` more sweeps of ``chain`` (in place; returned for chaining).
+    """Run ``num_sweeps`` more sweeps of ``chain`` (in place; returned for chaining), through the
+    driver of every inference method (:func:`spcopyro.inference.driver.drive`, numbered from the
+    chain's sweeps so far), and add what it recorded to the chain's.
 
     On Ctrl-C the sweep in progress is undone (see the module docstring) and the
-    :class:`KeyboardInterrupt` raised again: the chain then holds its last completed sweep. An
-    interrupt raised by ``callback`` comes after its sweep was recorded, so that sweep is kept.
+    :class:`~spcopyro.inference.driver.DriveInterrupted` (a :class:`KeyboardInterrupt`) raised
+    again: the chain then holds its last completed sweep. An interrupt raised by ``callback``
+    comes after its sweep was recorded, so that sweep is kept.
 
     Args:
         thin: keep a label map every ``thin`` sweeps of the chain (0: keep none).
@@ -260,54 +298,29 @@ def advance(
         raise ValueError(f"num_sweeps must be >= 1, got {num_sweeps}")
     if thin < 0:
         raise ValueError(f"thin must be >= 0, got {thin}")
-    data, anneal = chain.data, chain.options.anneal_sweeps
-    hyper = chain.options.hyper.active
-    elapsed = chain.seconds[-1] if chain.seconds else 0.0
-    start = time.perf_counter()
     first = chain.sweeps_done
-    bar = tqdm(
-        range(first, first + num_sweeps),
-        desc="Gibbs sweeps",
-        disable=not progress_enabled(progress),
-    )
+    last: list[_Mark] = []  # the chain before the sweep it is in: what a Ctrl-C undoes
+
+    def one_sweep(state: GibbsState, gamma: float) -> tuple[GibbsState, SweepInfo]:
+        # ``gamma`` is the schedule's coupling of this sweep; step() anneals by the same
+        # schedule from the chain's sweep count (a chain sampling gamma runs at its own).
+        last[:] = [chain._mark()]
+        return chain.state, _sweep(chain)
+
     try:
-        for sweep in bar:
-            mark = chain._mark()
-            try:
-                before = chain.model_config
-                chain.state, info = step(
-                    chain.state, data, before, chain.generator, sweep=sweep,
-                    options=chain.options, backend=chain.backend, plan=chain.plan,
-                )  # fmt: skip
-                if info.config is not None and info.config != before:
-                    chain.current = info.config
-                    chain.constant = float(log_joint_constant(data, info.config))
-                value, concepts = trace_point(
-                    chain.state, data, chain.model_config, chain.constant, chain.backend,
-                    chain.options,
-                )  # fmt: skip
-                if hyper:
-                    chain.hyper_trace.append(hyperparameter_values(data, chain.model_config))
-                _check_log_joint(chain, sweep, value)
-                chain.log_joint.append(value)
-                chain.num_concepts.append(concepts)
-                chain.seconds.append(elapsed + time.perf_counter() - start)
-                if value > chain.best_value and sweep + 1 >= anneal:
-                    chain.best_value, chain.best_state = value, _compact(chain.state)
-                    chain.best_sweep = sweep
-                if thin and (sweep + 1) % thin == 0:
-                    chain.label_samples.append(_compact(chain.state).labels.numpy().copy())
-                    chain.sample_sweeps.append(sweep)
-                chain.sweeps_done = sweep + 1
-            except KeyboardInterrupt:
-                chain._undo(mark)
-                raise
-            if callback is not None:
-                callback(sweep, chain.state)
-            if (sweep - first) % 50 == 0:
-                bar.set_postfix(log_joint=f"{value:.4g}", concepts=concepts)
-    finally:
-        bar.close()
+        run = drive(
+            chain.state, one_sweep, num_sweeps, gamma=chain.config.gamma,
+            anneal=chain.options.anneal_sweeps, first=first, thin=thin,
+            labels=lambda state: state.labels, num_concepts=chain.state.log_pi.shape[-1],
+            progress=progress, description="Gibbs sweeps", unit="sweep", callback=callback,
+        )  # fmt: skip
+    except DriveInterrupted as stop:
+        completed = first + len(stop.trajectory.objective)
+        if last and last[0].sweeps_done == completed:  # a sweep begun and not recorded
+            chain._undo(last[0])
+        chain._record(stop.trajectory)
+        raise
+    chain._record(run)
     return chain
 
 

@@ -41,7 +41,7 @@ class VariationalRun:
     gammas: np.ndarray
     """[S] the coupling each iteration's label update used."""
     label_samples: np.ndarray | None = None
-    """[S', N] int16 (int32 when L > 32767) argmax labels every ``thin`` iterations, or None."""
+    """[S', N] int16 (int32 when L > 32768) argmax labels every ``thin`` iterations, or None."""
     sample_iterations: np.ndarray | None = None
     """[S'] the 0-based iterations of ``label_samples``."""
     stop_reason: str = ""

@@ -1,25 +1,27 @@
-"""The run loop of the iterative variational methods: one driver for CAVI (both backends), loopy
-BP, memoized VI and SVI.
+"""The one run loop of inference: the Gibbs sampler's sweeps (:func:`spcopyro.gibbs.run.advance`)
+and the iterations of CAVI (both backends), loopy BP, memoized VI and SVI.
 
-Each method is two functions in BlackJAX's shape, as the Gibbs sampler is
-(:mod:`spcopyro.gibbs.sampler`): ``init`` makes a state NamedTuple, and ``step(state, gamma)``
-(the method's other arguments bound) does one iteration at coupling ``gamma`` and returns the
-new state and an info NamedTuple with at least ``objective`` (the value traced: the ELBO, or the
-Bethe objective), ``num_concepts`` (concepts that are some cell's most probable one) and
+Each method is two functions in BlackJAX's shape: ``init`` makes a state NamedTuple, and
+``step(state, gamma)`` (the method's other arguments bound) does one iteration at coupling
+``gamma`` and returns the new state and an info NamedTuple with at least ``objective`` (the value
+traced: the log joint, the ELBO, or the Bethe objective), ``num_concepts`` (concepts in use) and
 ``gamma``. :func:`drive` runs ``step`` and owns everything around it, the same way for every
 method:
 
-* the annealing schedule (:func:`spcopyro.inference.schedule.annealed_gamma`, Gibbs' too);
+* the annealing schedule (:func:`spcopyro.inference.schedule.annealed_gamma`), numbered from
+  ``first`` so a continued run goes on with it;
 * the trace (objective, concepts in use, cumulative seconds, coupling per iteration);
 * the stop: at convergence (:func:`spcopyro.inference.schedule.converged`) or at the ceiling of
   ``iterations``, and why, in words (:attr:`Trajectory.stop_reason`);
-* thinning: the argmax labels every ``thin`` iterations, int16 as Gibbs' label maps;
+* thinning: the labels every ``thin`` iterations, int16 as Gibbs' label maps;
 * the progress bar, and a per-iteration ``callback``;
-* Ctrl-C: a :class:`KeyboardInterrupt` during an iteration is raised again as
+* Ctrl-C: a :class:`KeyboardInterrupt` during an iteration or its callback is raised again as
   :class:`DriveInterrupted` (still a KeyboardInterrupt, so code unaware of it stops) carrying
-  the :class:`Trajectory` of the iterations completed before it. Several methods update their
-  state in place (the compiled CAVI backend, memoized VI, SVI's parameters), so its ``state`` is
-  the one the interrupted iteration left: a valid q, part-way through that iteration.
+  the :class:`Trajectory` of the iterations completed before it (an interrupt in a callback
+  comes after its iteration was recorded, which is kept). Its ``state`` is the last completed
+  iteration's; a method that updates its state in place (the compiled CAVI backend, memoized
+  VI, SVI's parameters) hands back the object the interrupted iteration was changing, a valid q
+  part-way through that iteration, and the Gibbs chain undoes its cut-short sweep itself.
 """
 
 from __future__ import annotations
@@ -65,7 +67,7 @@ class Trajectory(Generic[StateT]):
     gammas: np.ndarray
     """[S] float64 the coupling of each iteration."""
     label_samples: np.ndarray | None
-    """[S', N] int16 (int32 when L > 32767) argmax labels every ``thin`` iterations, or None."""
+    """[S', N] int16 (int32 when L > 32768) argmax labels every ``thin`` iterations, or None."""
     sample_iterations: np.ndarray | None
     """[S'] the 0-based iterations of ``label_samples``."""
     stop_reason: str
@@ -83,8 +85,8 @@ class DriveInterrupted(KeyboardInterrupt):
 
 
 def label_storage(num_concepts: int) -> type:
-    """The compact dtype of label maps in [0, L): int16 when L <= 32767, else int32."""
-    return np.int16 if num_concepts <= np.iinfo(np.int16).max else np.int32
+    """The compact dtype of label maps in [0, L): int16 when L <= 32768, else int32."""
+    return np.int16 if num_concepts <= np.iinfo(np.int16).max + 1 else np.int32
 
 
 def drive(
@@ -94,6 +96,7 @@ def drive(
     *,
     gamma: float,
     anneal: int = 0,
+    first: int = 0,
     tolerance: float = 0.0,
     window: int = 1,
     thin: int = 0,
@@ -109,11 +112,14 @@ def drive(
     Args:
         gamma: the model's coupling; iteration ``s`` runs at ``annealed_gamma(gamma, s, anneal)``.
         anneal: annealing iterations (0: none).
+        first: the number of the first iteration: a run continued from an earlier one (a Gibbs
+            chain resumed) goes on with its schedule, thinning and callback numbers.
         tolerance, window: the stopping rule of :func:`~spcopyro.inference.schedule.converged`
             (``tolerance`` 0: run every iteration).
-        thin: keep ``labels(state)`` ``[N]`` every ``thin`` iterations (0: none); ``labels`` is
-            required then, and ``num_concepts`` (L) picks the storage dtype.
-        callback: called as ``callback(iteration, state)`` after every iteration (0-based).
+        thin: keep ``labels(state)`` ``[N]`` after iteration ``s`` when ``(s + 1) % thin == 0``
+            (0: none); ``labels`` is required then, and ``num_concepts`` (L) picks the dtype.
+        callback: called as ``callback(iteration, state)`` after every iteration is recorded;
+            a Ctrl-C in it keeps that iteration.
     """
     if not isinstance(iterations, (int, np.integer)) or iterations < 1:
         raise ValueError(f"iterations must be an integer >= 1, got {iterations!r}")
@@ -122,49 +128,55 @@ def drive(
     if thin and labels is None:
         raise ValueError("thin > 0 needs labels(state) to keep")
     dtype = label_storage(num_concepts)
-    values: list[float] = []
-    used: list[int] = []
-    seconds: list[float] = []
-    gammas: list[float] = []
-    samples: list[np.ndarray] = []
+    # One row per completed iteration, appended in one operation, so a Ctrl-C anywhere leaves
+    # whole rows: (objective, concepts in use, coupling, cumulative seconds).
+    rows: list[tuple[float, int, float, float]] = []
+    samples: list[np.ndarray] = []  # [N] each, the maps kept (appended before their row)
     sampled: list[int] = []
+    recorded = state  # the state of the last completed iteration
 
     def trajectory(reason: str, done: bool = False) -> Trajectory[StateT]:
+        table = np.asarray(rows, dtype=np.float64).reshape(len(rows), 4)  # [S, 4]
+        kept = sum(1 for s in sampled if s < first + len(rows))  # maps of completed iterations
         return Trajectory(
-            state, np.asarray(values, dtype=np.float64), np.asarray(used, dtype=np.int64),
-            np.asarray(seconds, dtype=np.float64), np.asarray(gammas, dtype=np.float64),
-            np.stack(samples) if samples else None,
-            np.asarray(sampled, dtype=np.int64) if samples else None, reason, done,
+            recorded, table[:, 0], table[:, 1].astype(np.int64), table[:, 3], table[:, 2],
+            np.stack(samples[:kept]) if kept else None,
+            np.asarray(sampled[:kept], dtype=np.int64) if kept else None, reason, done,
         )  # fmt: skip
+
+    def settled() -> bool:
+        last = rows[-2 * window :]
+        return converged([r[0] for r in last], [r[2] for r in last], gamma, tolerance, window)
 
     start = time.perf_counter()
     bar = tqdm(total=iterations, desc=description, unit=unit,
                disable=not progress_enabled(progress))  # fmt: skip
     with bar:
-        for iteration in range(iterations):
-            coupling = annealed_gamma(gamma, iteration, anneal)
-            try:
-                state, info = step(state, coupling)
-            except KeyboardInterrupt:
-                reason = f"interrupted (Ctrl-C) after {iteration} iterations"
-                raise DriveInterrupted(trajectory(reason)) from None
-            values.append(float(info.objective))
-            used.append(int(info.num_concepts))
-            gammas.append(float(info.gamma))
-            if thin and (iteration + 1) % thin == 0:
-                samples.append(labels(state).numpy().astype(dtype))
-                sampled.append(iteration)
-            seconds.append(time.perf_counter() - start)
-            if callback is not None:
-                callback(iteration, state)
-            bar.update()
-            bar.set_postfix(objective=f"{values[-1]:.6g}", concepts=used[-1])
-            if converged(values, gammas, gamma, tolerance, window):
-                return trajectory(
-                    f"converged after {iteration + 1} iterations: the objective changed by less "
-                    f"than tolerance {tolerance:g} x |objective|",
-                    done=True,
-                )
+        try:
+            for iteration in range(first, first + iterations):
+                state, info = step(state, annealed_gamma(gamma, iteration, anneal))
+                if thin and (iteration + 1) % thin == 0:
+                    samples.append(labels(state).numpy().astype(dtype))
+                    sampled.append(iteration)
+                row = (float(info.objective), int(info.num_concepts), float(info.gamma),
+                       time.perf_counter() - start)  # fmt: skip
+                rows.append(row)
+                recorded = state
+                if callback is not None:
+                    callback(iteration, state)
+                bar.set_postfix(objective=f"{row[0]:.6g}", concepts=row[1], refresh=False)
+                bar.update()
+                if converged_now := settled():
+                    break
+        except KeyboardInterrupt:
+            reason = f"interrupted (Ctrl-C) after {len(rows)} iterations"
+            raise DriveInterrupted(trajectory(reason)) from None
+    if converged_now:
+        return trajectory(
+            f"converged after {len(rows)} iterations: the objective changed by less than "
+            f"tolerance {tolerance:g} x |objective|",
+            done=True,
+        )
     reason = f"ran the {iterations} iterations asked for (not converged within them"
     reason += f" at tolerance {tolerance:g})" if tolerance else ")"
     return trajectory(reason)
