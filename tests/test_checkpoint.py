@@ -312,6 +312,34 @@ def test_the_printed_resume_command_works_for_a_default_fit(room, tmp_path, caps
     _same_outputs(out, tmp_path / "unbroken")
 
 
+@pytest.mark.parametrize("method", ["cavi", "vi-gibbs"])
+def test_ctrl_c_in_a_variational_fit_says_how_far_it_got(
+    room, tmp_path, capsys, monkeypatch, method
+):
+    """The driver's record of an interrupted run reaches the command's one line: which fit,
+    how many iterations were done (vi-gibbs: its VI stage, through the same driver)."""
+    import spcopyro.guides.cavi as cavi
+
+    calls: list[int] = []
+    real = cavi.step
+
+    def interrupting(state, *args, **kwargs):
+        calls.append(1)
+        if len(calls) == 4:
+            raise KeyboardInterrupt
+        return real(state, *args, **kwargs)
+
+    monkeypatch.setattr(cavi, "step", interrupting)
+    out = tmp_path / "out"
+    prefix = "" if method == "cavi" else "variational."
+    argv = ["fit", str(room), "--out", str(out), *FIT, "--method", method, "--method-option",
+            f"{prefix}backend=torch", "--method-option", f"{prefix}tolerance=0"]  # fmt: skip
+    assert main(argv) == 130
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith(f"interrupted ({method} fit 1 of 1, 3 of ")
+    assert "no checkpoint kept" in err and not out.exists()
+
+
 def test_a_fit_into_out_with_a_checkpoint_must_resume_or_overwrite(
     room, tmp_path, capsys, monkeypatch
 ):

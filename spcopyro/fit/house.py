@@ -34,6 +34,7 @@ from spcopyro.data import CellCounts, House, cell_counts
 from spcopyro.data.model_grid import model_house
 from spcopyro.fit.gibbs_chains import (
     FitCheckpoint,
+    FitInterrupted,
     gibbs_outputs,
     marginal_thin,
     with_sample_marginals,
@@ -53,6 +54,7 @@ from spcopyro.gibbs.convergence import (
 from spcopyro.gibbs.hyperparameters import config_at_posterior_mean
 from spcopyro.gibbs.method import GibbsInference, output_from_run
 from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.inference.driver import DriveInterrupted
 from spcopyro.inference.protocol import InferenceOutput
 from spcopyro.model import ModelData, make_model_data
 from spcopyro.results.map_checks import coverage_warning, house_map_warning
@@ -360,14 +362,19 @@ def fit_house_chains(
                     result_of(o, house, counts, data, settings, method, record) for o in outputs
                 ]
         fits = []
-        for seed in seeds:
+        for k, seed in enumerate(seeds):
             generator = torch.Generator().manual_seed(int(seed))
             start = initial_labels(house, counts, settings, init, int(seed), generator)
-            output = inference.run(
-                data, settings.model, iterations=int(sweeps), generator=generator,
-                init_labels=start, options=options, progress=progress,
-                thin=marginal_thin(int(sweeps), marginal_samples),
-            )  # fmt: skip
+            try:
+                output = inference.run(
+                    data, settings.model, iterations=int(sweeps), generator=generator,
+                    init_labels=start, options=options, progress=progress,
+                    thin=marginal_thin(int(sweeps), marginal_samples),
+                )  # fmt: skip
+            except DriveInterrupted as stop:  # the driver's record of how far it got
+                done = len(stop.trajectory.objective)
+                where = f"{method} fit {k + 1} of {len(seeds)}, {done} of {sweeps} iterations done"
+                raise FitInterrupted(where) from None
             output.options.update(seed=int(seed), init=init_name(init))
             if output.marginals is None:  # a sampler (vi-gibbs): its label frequencies
                 output = with_sample_marginals(
