@@ -12,7 +12,7 @@ from gibbs_problems import config as small_config
 from gibbs_problems import random_problem
 
 import spcopyro.gibbs.convergence
-import spcopyro.gibbs.run
+import spcopyro.inference.driver
 from spcopyro import __version__
 from spcopyro.cli.main import build_parser, main
 from spcopyro.gibbs.convergence import run_until_converged
@@ -94,12 +94,18 @@ class _Bar:
     def close(self):
         pass
 
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *_):
+        self.close()
+
 
 @pytest.mark.parametrize("anneal", [0, 3])
 def test_sweeps_auto_shows_one_bar_over_all_chains(monkeypatch, anneal):
     monkeypatch.setattr(_Bar, "made", [])
     monkeypatch.setattr(spcopyro.gibbs.convergence, "tqdm", _Bar)
-    monkeypatch.setattr(spcopyro.gibbs.run, "tqdm", _Bar)
+    monkeypatch.setattr(spcopyro.inference.driver, "tqdm", _Bar)  # the chains' sweeps
     _, data = random_problem(0)
     _, diagnostics = run_until_converged(
         data, small_config(), options=GibbsOptions(anneal_sweeps=anneal), chains=3, block=5,

@@ -46,11 +46,44 @@ from spcopyro.results.concept_words import MIN_LIFT, format_concept_words, forma
 
 if TYPE_CHECKING:
     from spcopyro.fit.gibbs_chains import FitCheckpoint
+    from spcopyro.gibbs.convergence import ConvergenceDiagnostics
     from spcopyro.results.result import SpCoResult
 
 __all__ = ["run_fit"]
 
 _clock = time.perf_counter  # wall clock of a whole fit (all chains)
+
+
+@dataclasses.dataclass
+class FitJob:
+    """One ``fit`` command in progress: its arguments, what they resolved to, where it writes."""
+
+    args: argparse.Namespace
+    house: House
+    """The house on the model's grid (``--cell-size``)."""
+    settings: SpCoSettings
+    options: object | None
+    """The method's options (None: its defaults)."""
+    staged: StagedOutput
+    keeper: FitCheckpoint | None
+    """Keeps the Gibbs chains for a checkpoint beside OUT (None where none is kept)."""
+    sampled: bool = False
+    """Set once the fit is done: a Ctrl-C while writing then keeps the finished chains."""
+
+
+@dataclasses.dataclass
+class Fitted:
+    """What the fit of a :class:`FitJob` gave, before anything is written."""
+
+    result: SpCoResult
+    """The chain kept (the best of ``chain_results``)."""
+    chain_results: list[SpCoResult] | None
+    """Every chain's result (None for ``--sweeps auto``, which reports ``diagnostics``)."""
+    chains: int
+    kept: int
+    diagnostics: ConvergenceDiagnostics | None
+    wall: float
+    """Seconds of wall clock the fit took (all chains)."""
 
 
 @contextlib.contextmanager
@@ -127,12 +160,12 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
         inputs=(house.source, house.grid.source, args.update),
     )  # fmt: skip
     args.phases.mark("settings")
-    keeper = None  # keeps the Gibbs chains for a checkpoint beside OUT
+    keeper = None
     if args.method == "gibbs" and args.sweeps != "auto" and args.update is None:
         keeper = FitCheckpoint(checkpoint_path(staged.out))
-    sampled: list[bool] = []  # set once sampling has ended
+    job = FitJob(args, house, settings, options, staged, keeper)
     try:
-        return _fit_staged(args, house, settings, options, staged, keeper, sampled)
+        return _fit_staged(job)
     except KeyboardInterrupt as stop:
         if staged.committed:
             print(f"interrupted after {staged.out} was written", file=sys.stderr)
@@ -140,12 +173,12 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
         if isinstance(stop, FitInterrupted):  # while sampling
             where, kept = f" ({stop.where})", stop.checkpoint
         else:  # while reading the data, or writing the outputs
-            where = " while writing the outputs" if sampled else ""
-            kept = keeper.save() if keeper and sampled else None
+            where = " while writing the outputs" if job.sampled else ""
+            kept = keeper.save() if keeper and job.sampled else None
         print(_interrupted(args, where, kept, staged.out), file=sys.stderr)
         return 130
     except Exception:
-        writing = sampled and not (staged.committed or staged.kept)
+        writing = job.sampled and not (staged.committed or staged.kept)
         kept = keeper.save() if keeper and writing else None
         if kept is not None:  # an error while writing: the sampling is not lost
             print(f"note: nothing written to {staged.out}; the finished chains are saved in "
@@ -278,21 +311,14 @@ def _fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings,
     return settings, options
 
 
-def _fit_staged(
-    args: argparse.Namespace,
-    house: House,
-    settings: SpCoSettings,
-    options: object | None,
-    staged: StagedOutput,
-    keeper: FitCheckpoint | None,
-    sampled: list[bool],
-) -> int:
+def _fit_staged(job: FitJob) -> int:
     """Print what is fitted, fit, write every output into ``staged.path``, then move it to
     OUT."""
     from spcopyro.fit.registry import INFERENCE_METHODS
     from spcopyro.gibbs.backends import get_backend
     from spcopyro.gibbs.options import GibbsOptions
 
+    args, house, settings, options = job.args, job.house, job.settings, job.options
     config = settings.model
     # The config's warnings (gamma, extreme concentrations) are logged by prepare_model_data,
     # which the fit runs; main's logging handler prints them once, as "warning: ...".
@@ -322,35 +348,22 @@ def _fit_staged(
         print(f"starting from     the {init.method} fit in {args.init_from}")
     args.phases.mark("summary")
     # house.png and the figures' imports, drawn on a thread of their own while the chains run
-    prefetch = None if args.no_figures else FigurePrefetch(house, staged.path)
+    prefetch = None if args.no_figures else FigurePrefetch(house, job.staged.path)
     try:
-        return _fit_and_write(args, house, settings, options, staged, keeper, sampled, init,
-                              saved, prefetch)  # fmt: skip
+        fitted = _fit(job, init, saved)
+        job.sampled = True
+        return _write(job, fitted, prefetch)
     finally:
         if prefetch is not None:  # nothing written into the staging folder after this
             prefetch.join()
 
 
-def _fit_and_write(
-    args: argparse.Namespace,
-    house: House,
-    settings: SpCoSettings,
-    options: object | None,
-    staged: StagedOutput,
-    keeper: FitCheckpoint | None,
-    sampled: list[bool],
-    init: object,
-    saved: SpCoResult | None,
-    prefetch: FigurePrefetch | None,
-) -> int:
-    """The fit itself, then every output into ``staged.path``, then OUT (:func:`_fit_staged`)."""
-    from spcopyro._util.outputs import checkpoint_path
-    from spcopyro.fit.house import best_chain, fit_house_chains, log_degenerate_map
-    from spcopyro.gibbs.hyperparameters import describe_hyperparameters
-    from spcopyro.results.uncertainty import cell_entropy, free_cells_image
+def _fit(job: FitJob, init: object, saved: SpCoResult | None) -> Fitted:
+    """The fit itself: ``--sweeps auto``'s chains, ``--update``'s, or ``--chains`` chains from
+    ``init`` (:func:`_fit_staged`)."""
+    from spcopyro.fit.house import best_chain, fit_house_chains
 
-    phases = args.phases
-    config = settings.model
+    args, house, settings, options = job.args, job.house, job.settings, job.options
     source = "embedded synthetic house, seed 0" if args.data is None else None
     diagnostics = None
     start = _clock()
@@ -362,7 +375,7 @@ def _fit_and_write(
             house, settings, options=options, chains=chains, max_sweeps=args.max_sweeps,
             seed=args.seed, init=init, source=source, threads=args.threads,
         )  # fmt: skip
-        chain_results = None
+        chain_results, kept = None, 0
     elif saved is not None:
         from spcopyro.robot.online import fit_update
 
@@ -382,15 +395,28 @@ def _fit_and_write(
         chain_results = fit_house_chains(
             house, settings, method=args.method, options=options, sweeps=args.sweeps,
             seeds=[args.seed + k for k in range(chains)], init=init, source=source,
-            checkpoint=keeper, resume=args.resume, threads=args.threads,
+            checkpoint=job.keeper, resume=args.resume, threads=args.threads,
             marginal_samples=args.marginal_samples, point_estimate=args.point_estimate,
             chain_workers=args.chain_workers,
         )  # fmt: skip
         kept = best_chain(chain_results)
         result = chain_results[kept]
-    wall = _clock() - start
+    return Fitted(result, chain_results, chains, kept, diagnostics, _clock() - start)
+
+
+def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
+    """Every output of ``fitted`` into ``job.staged.path``, what the fit found printed, then the
+    staging folder moved to OUT (:func:`_fit_staged`)."""
+    from spcopyro._util.outputs import checkpoint_path
+    from spcopyro.fit.house import log_degenerate_map
+    from spcopyro.gibbs.hyperparameters import describe_hyperparameters
+    from spcopyro.results.uncertainty import cell_entropy, free_cells_image
+
+    args, house, staged, config = job.args, job.house, job.staged, job.settings.model
+    result, chain_results, chains = fitted.result, fitted.chain_results, fitted.chains
+    kept, diagnostics, wall = fitted.kept, fitted.diagnostics, fitted.wall
+    phases = args.phases
     phases.mark("fit")
-    sampled.append(True)
     command = shlex.join(["spcopyro", *_command(args)])
     result = dataclasses.replace(result, provenance={**result.provenance, "command": command})
     out = result.save(staged.path)
