@@ -1,8 +1,10 @@
-"""``spcopyro experiment``: the comparison table and figures, end to end on a smoke run."""
+"""``spcopyro experiment``: the comparison table and figures, end to end on a smoke run of its
+shipped study (issue 26), and the numbers of the loop it replaced."""
 
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,16 +15,21 @@ from spcopyro.experiments.methods import (
     METHODS,
     REGISTRY,
     SPCO_METHODS,
+    fit_spco,
     register,
     spco_settings,
 )
-from spcopyro.experiments.table import (
-    PUBLIC_SCORES,
-    QUICK_SPEC,
-    ExperimentSettings,
-    run_experiment,
-    table_markdown,
-)
+from spcopyro.experiments.table import PUBLIC_CATEGORIES, PUBLIC_SCORES, table_markdown
+from spcopyro.fit.house import fit_house
+from spcopyro.study.experiment import EXPERIMENT, EXPERIMENT_QUICK, experiment_study, run_experiment
+from spcopyro.study.maps import load_label_map
+from spcopyro.study.spec import load_study
+from spcopyro.study.table import read_table
+from spcopyro.synthetic import HouseSpec, make_house
+
+OLD_RECORDS = Path(__file__).with_name("experiment_old_records.json")
+"""The per-seed and per-fold records (times left out) of the experiment's own loop before it
+became a study (issue 26), for the shipped quick study with room1dk5."""
 
 
 def test_methods_and_their_configs():
@@ -66,12 +73,19 @@ def test_methods_and_their_configs():
         spco_settings("D-cnn", None)
 
 
+def _quick(**changes):
+    return experiment_study(load_study(EXPERIMENT_QUICK), **changes)
+
+
 def test_quick_experiment_writes_table_and_figures(tmp_path):
-    settings = ExperimentSettings.quick(command="spcopyro experiment --quick")
-    summary = run_experiment(tmp_path, settings)
+    """The shipped quick study without the public houses: table.json / table.md as the old
+    command wrote them, figures from the stored maps and traces; a rerun fits nothing."""
+    study = _quick(public=False, command="spcopyro experiment --quick")
+    lines: list[str] = []
+    summary = run_experiment(tmp_path, study, report=lines.append)
     md = (tmp_path / "table.md").read_text()
     data = json.loads((tmp_path / "table.json").read_text())
-    assert data["command"] == "spcopyro experiment --quick"
+    assert data["command"] == "spcopyro experiment --quick" and data["failed"] == 0
     assert data["settings"]["sweeps"] == 20 and data["settings"]["seeds"] == 2
     assert list(data["synthetic"]) == list(METHODS)
     for method in METHODS:
@@ -88,13 +102,80 @@ def test_quick_experiment_writes_table_and_figures(tmp_path):
     assert (
         "| method | ARI | matching rate | matching rate (area prior) | concepts | s per fit |" in md
     )
-    assert data["public"] == {} and "Public houses skipped" in md  # no dataset_root given
-    figures = data["figures"]
-    assert figures == summary["figures"]
-    for name in ("figures/synthetic_traces.png", "figures/synthetic_maps.png"):
-        assert name in figures
-    for name in figures:
+    assert data["public"] == {} and "Public houses skipped" in md
+    assert summary["figures"] == data["figures"] == [
+        "figures/synthetic_maps.png", "figures/synthetic_traces.png",
+    ]  # fmt: skip
+    for name in data["figures"]:
         assert (tmp_path / name).stat().st_size > 1000
+    rows = read_table(tmp_path / "results.csv")
+    assert len(rows) == 14 and all(r["label_map"] for r in rows)
+    stored = load_label_map(tmp_path, rows[0])
+    assert stored is not None and stored.truth is not None
+    assert stored.labels.shape == stored.grid.shape == stored.truth.shape
+    with np.load(tmp_path / str(rows[0]["trace"])) as trace:  # A-dp, seed 0: the ARI per 5 sweeps
+        assert list(trace["ari_iterations"]) == [5, 10, 15, 20]
+        assert np.all(np.abs(trace["ari"]) <= 1.0)  # the samples' (the map: the best visited)
+    lines.clear()
+    again = run_experiment(tmp_path, study, report=lines.append)
+    assert lines[0].startswith("nothing to run: all 14 cells")
+    assert again["synthetic_per_seed"] == summary["synthetic_per_seed"]
+
+
+def test_experiment_options_change_the_shipped_study():
+    study = _quick(houses=["room1dk6"], methods=["E-nearest", "A-dp"], seeds=3, sweeps=300,
+                   spcoa_iterations=7)  # fmt: skip
+    assert [v.name for v in study.variants] == ["A-dp"] and study.baselines == ("E-nearest",)
+    synthetic, public = study.data
+    assert synthetic.seeds == (0, 1, 2) and (public.target, public.seeds) == ("room1dk6", (0, 1, 2))
+    assert study.sweeps_for("gibbs") == 300 and study.ari_every == 3
+    assert study.spcoa_iterations == 7
+    with pytest.raises(ValueError, match="unknown --methods"):
+        _quick(methods=["Z-none"])
+    full = load_study(EXPERIMENT)
+    assert [v.name for v in full.variants] == list(SPCO_METHODS)
+    assert SPCO_METHODS + full.baselines == METHODS
+    assert full.sweeps_for("gibbs") == 5000 and full.spcoa_iterations == 200
+    assert full.ari_every == 50 and full.seeds == tuple(range(5))
+    assert [d.name for d in full.data if d.kind == "public"] == list(PUBLIC_CATEGORIES)
+    for method in SPCO_METHODS:  # the variants are the registry's rows
+        variant = next(v for v in full.variants if v.name == method)
+        assert variant.spco_settings(6) == spco_settings(method, 6)
+
+
+def test_fit_spco_gives_fit_houses_labels():
+    """A study with ari_every fits its variants with fit_spco (to keep label maps along the
+    run); the labels are fit_house's."""
+    house = make_house(seed=1, spec=HouseSpec.scaled(45, 60))
+    for method in SPCO_METHODS:
+        settings = spco_settings(method, 3)
+        kept, (iterations, aris) = fit_spco(house, settings, sweeps=12, seed=1, thin=4)
+        plain = fit_house(house, settings, sweeps=12, seed=1, progress=False, threads=1)
+        assert np.array_equal(kept.labels, plain.labels), method
+        assert list(iterations) == [4, 8, 12] and len(aris) == 3
+
+
+def test_experiment_reproduces_the_old_loop(dataset_root, tmp_path):
+    """The shipped quick study gives the numbers the experiment's own loop gave before issue 26
+    for the same seeds and budgets (recorded in experiment_old_records.json)."""
+    old = json.loads(OLD_RECORDS.read_text())
+    summary = run_experiment(tmp_path, _quick(), root=dataset_root)
+    assert summary["failed"] == 0
+
+    def same(was: list[dict], now: list[dict], where: object) -> None:
+        assert len(was) == len(now), where
+        for a, b in zip(was, now, strict=True):
+            b = {k: v for k, v in b.items() if k != "seconds"}
+            assert set(a) == set(b), (where, set(a) ^ set(b))
+            for key, value in a.items():
+                assert b[key] == pytest.approx(value, rel=1e-9, nan_ok=True), (where, key)
+
+    for method, records in old["synthetic_per_seed"].items():
+        same(records, summary["synthetic_per_seed"][method], method)
+    for house, by_method in old["public_per_fold"].items():
+        for method, records in by_method.items():
+            same(records, summary["public_per_fold"][house][method], (house, method))
+    assert (tmp_path / "figures" / "room1dk5_maps.png").is_file()
 
 
 def test_public_table_layout():
@@ -162,7 +243,7 @@ def test_studies_run_and_report_every_setting():
     from spcopyro.synthetic import FILLER_WORDS
 
     config = SpCoSettings(SpCoConfig(num_concepts=6, prior="dirichlet", alpha=10.0, gamma=2.0))
-    scores = modality_ablation(config, sweeps=5, seeds=(0,), spec=QUICK_SPEC)
+    scores = modality_ablation(config, sweeps=5, seeds=(0,), spec=HouseSpec.scaled(45, 60))
     assert list(scores) == list(ABLATIONS) == ["MRF only", "+ words", "+ images", "words + images"]
     assert all(len(v) == 1 and -1.0 <= v[0] <= 1.0 for v in scores.values())
     sentences = sentence_study(config, sweeps=5, min_cells=1)

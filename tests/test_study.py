@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -344,3 +345,94 @@ def test_dask_benchmark_quick(tmp_path):
     results = json.loads(out.read_text())
     assert results["in_process"]["seconds"] > 0 and results["local_cluster"]["seconds"] > 0
     assert results["same_numbers"] is True
+
+
+def test_finished_study_restarted_does_nothing_and_says_so(in_process, tmp_path, monkeypatch):
+    """Issue 26: a restarted finished study runs no cell, says so, and leaves its table and
+    report as they were."""
+    path, finished = in_process
+    out = tmp_path / "out"
+    shutil.copytree(finished, out)  # other tests add cells to the shared folder
+
+    def must_not_run(cell):
+        raise AssertionError(f"cell {cell.key} ran again")
+
+    monkeypatch.setattr(evaluate, "run_cell", must_not_run)
+    before: dict[str, bytes] = {}
+    for _ in range(2):
+        lines: list[str] = []
+        run = run_study(load_study(path), out, progress=False, report=lines.append)
+        assert (run.ran, run.cached, run.failed) == (0, 6, 0)
+        assert lines == [f"nothing to run: all 6 cells of study 'tiny' are finished in {out} "
+                         "(delete cells/ there to run them again)"]  # fmt: skip
+        now = {p.name: p.read_bytes() for p in out.iterdir() if p.is_file()}
+        assert now == (before or now)
+        before = now
+    assert len(read_table(out / "results.csv")) == 6
+
+
+def test_cells_store_their_label_maps_and_the_report_draws_them(in_process, tmp_path):
+    from spcopyro.study.maps import load_label_map
+    from spcopyro.study.report import write_report
+
+    _, out = in_process
+    rows = read_table(out / "results.csv")
+    for row in rows:
+        stored = load_label_map(out, row)
+        assert stored is not None and row["label_map"] == f"maps/{row['key']}.npz"
+        assert stored.labels.shape == stored.grid.shape == stored.truth.shape
+        free = stored.grid.free
+        assert (stored.labels[free] >= 0).all() and (stored.labels[~free] == -1).all()
+    report = (out / "report.md").read_text()
+    assert "![maps_small](maps_small.png)" in report
+    copy = tmp_path / "copy"  # the table and the stored maps alone redraw it
+    copy.mkdir()
+    (copy / "results.csv").write_bytes((out / "results.csv").read_bytes())
+    (copy / "maps").symlink_to(out / "maps")
+    write_report(copy / "results.csv", copy / "report.md", title="tiny")
+    assert (copy / "maps_small.png").stat().st_size > 1000
+    assert (copy / "report.md").read_text() == report
+
+
+def test_results_parquet_equals_the_csv(in_process):
+    pytest.importorskip("pyarrow", reason="the parquet extra (pyarrow)")
+    from spcopyro.study.table import PARQUET, read_parquet
+
+    _, out = in_process
+    csv_rows, parquet_rows = read_table(out / "results.csv"), read_parquet(out / PARQUET)
+    assert parquet_rows == csv_rows and list(parquet_rows[0]) == list(COLUMNS)
+    assert isinstance(parquet_rows[0]["seed"], int) and isinstance(parquet_rows[0]["ari"], float)
+
+
+def test_no_parquet_without_pyarrow(tmp_path, monkeypatch):
+    from spcopyro.study.table import write_parquet
+
+    monkeypatch.setitem(sys.modules, "pyarrow", None)  # import pyarrow raises ImportError
+    assert write_parquet(tmp_path / "results.parquet", [{"seed": 1}]) is None
+    assert not (tmp_path / "results.parquet").exists()
+
+
+@pytest.mark.parametrize(
+    "extra, words",
+    [
+        ('scoring = "comparison"\nari_every = 2', ["ari_every", "scoring"]),
+        ("ari_every = 0.5", ["ari_every", "0.5"]),
+    ],
+)
+def test_ari_every_is_checked(tmp_path, extra, words):
+    text = TINY.replace('baselines = ["F-geometry"]', extra)
+    with pytest.raises(StudyError) as caught:
+        load_study(_write(tmp_path, text))
+    assert all(word in str(caught.value) for word in words), caught.value
+
+
+def test_ari_every_needs_fits_from_random_labels(tmp_path):
+    text = TINY.replace("sweeps = 8", "sweeps = 8\nari_every = 2").replace(
+        'preset = "paper-dp"', 'preset = "paper-dp"\ninit = "rooms"'
+    )
+    with pytest.raises(StudyError, match="variant 'dp' sets fit keywords"):
+        load_study(_write(tmp_path, text))
+    study = load_study(_write(tmp_path, TINY.replace("sweeps = 8", "sweeps = 8\nari_every = 2")))
+    keys = {c.key for c in cells_of(study)} & {c.key for c in cells_of(load_study(_write(
+        tmp_path, TINY, "plain.toml")))}  # fmt: skip
+    assert len(keys) == 2  # the variants' keys change with it; the baseline's do not

@@ -6,8 +6,8 @@ DATA is a house folder in the public dataset's layout (its map at ``DATA/../map/
 left out, the embedded default is used: the synthetic house of seed 0, generated in memory.
 
 This module holds the parser, :func:`main`, the logging set-up and the small commands; ``fit`` is
-in :mod:`spcopyro.cli.fit`, ``experiment`` and ``compare-inference`` in
-:mod:`spcopyro.experiments.cli`, ``features`` in :mod:`spcopyro.features.cli`, ``export`` in
+in :mod:`spcopyro.cli.fit`, ``experiment``, ``compare-inference`` and ``ablation`` in
+:mod:`spcopyro.study.commands`, ``features`` in :mod:`spcopyro.features.cli`, ``export`` in
 :mod:`spcopyro.cli.export` (``simulate --map`` runs :mod:`spcopyro.robot.map_simulation`),
 ``import-bag`` and ``simulate-bag`` in :mod:`spcopyro.robot.rosbag.cli`, and what they share (DATA,
 the house summary, argument types, the help formatter) in :mod:`spcopyro.cli.common`.
@@ -271,12 +271,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.set_defaults(func=_where)
 
-    from spcopyro.experiments.cli import add_parser as add_experiment_parsers
-
-    add_experiment_parsers(sub)  # experiment, compare-inference
     from spcopyro.study.commands import add_parser as add_study_aliases
 
-    add_study_aliases(sub)  # ablation (a shipped study)
+    add_study_aliases(sub)  # experiment, compare-inference, ablation (shipped studies)
 
     from spcopyro.features.cli import add_parser as add_features_parsers
 

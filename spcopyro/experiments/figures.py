@@ -1,5 +1,6 @@
-"""The experiment's figures: ARI and concepts per sweep (paper Figs. 5-6), maps side by side
-(Fig. 7), SpCoMapping's map with each concept's best words (Fig. 10F).
+"""The stability study's figure (:func:`plot_stability`). The comparison's figures (ARI and
+concepts per sweep, maps side by side: paper Figs. 5-7) are drawn from a study's stored results
+(:mod:`spcopyro.study.experiment`, :mod:`spcopyro.study.maps`).
 
 Drawn on :class:`matplotlib.figure.Figure` objects and written with ``savefig`` (no pyplot, no
 backend chosen on import), like :mod:`spcopyro.figures.plotting`.
@@ -11,101 +12,6 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
-
-from spcopyro.data import House
-from spcopyro.experiments.methods import METHOD_LABELS, ExperimentResult, Fitted
-from spcopyro.figures.plotting import _extent, known_bounds, plot_semantic_map
-from spcopyro.maps import render_labels
-
-
-def _ranked(labels: np.ndarray) -> np.ndarray:
-    """[H, W] labels renumbered by region size (0 = largest), -1 kept."""
-    inside = labels >= 0
-    if not inside.any():
-        return labels
-    values, sizes = np.unique(labels[inside], return_counts=True)
-    order = values[np.argsort(-sizes, kind="stable")]
-    rank = np.full(int(labels.max()) + 1, -1)
-    rank[order] = np.arange(order.size)
-    return np.where(inside, rank[np.maximum(labels, 0)], -1)
-
-
-def plot_traces(fits: dict[str, Fitted], path: Path, title: str) -> Path:
-    """ARI against the truth (sampled every few sweeps) and concepts in use per sweep."""
-    fig = Figure(figsize=(7, 6))
-    top, bottom = fig.subplots(2, 1, sharex=True)
-    for method, fitted in fits.items():
-        if fitted.result is None:
-            continue
-        label = METHOD_LABELS[method]
-        if fitted.ari_trace is not None:
-            top.plot(*fitted.ari_trace, lw=1.0, label=label)
-        sweeps = np.arange(1, len(fitted.result.trace.num_concepts) + 1)
-        bottom.plot(sweeps, fitted.result.trace.num_concepts, lw=1.0, label=label)
-    top.set_ylabel("ARI vs truth (Fig. 5)")
-    bottom.set_ylabel("concepts in use (Fig. 6)")
-    bottom.set_xlabel("sweep")
-    for ax in (top, bottom):
-        ax.set_xscale("log")
-    top.legend(fontsize=7)
-    fig.suptitle(title)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120, bbox_inches="tight")
-    return path
-
-
-def plot_maps(house: House, fits: dict[str, Fitted], path: Path, title: str) -> Path:
-    """The truth (when known) and every method's label map side by side (Fig. 7)."""
-    grid = house.grid
-    panels = [("ground truth", house.truth)] if house.truth is not None else []
-    panels += [(METHOD_LABELS[m], f.model.label_image()) for m, f in fits.items()]
-    columns = min(4, len(panels))
-    rows_n = -(-len(panels) // columns)
-    fig = Figure(figsize=(4 * columns, 3.6 * rows_n))
-    axes = fig.subplots(rows_n, columns, squeeze=False)
-    rows, cols = known_bounds(grid)
-    for ax, (name, labels) in zip(axes.ravel(), panels, strict=False):
-        rgb = render_labels(_ranked(np.asarray(labels)), grid)  # [H, W, 3]
-        ax.imshow(rgb[rows, cols], extent=_extent(grid, rows, cols), interpolation="nearest")
-        ax.set_title(name, fontsize=7)
-        ax.set_xticks([])
-        ax.set_yticks([])
-    for ax in axes.ravel()[len(panels) :]:
-        ax.axis("off")
-    fig.suptitle(title)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120, bbox_inches="tight")
-    return path
-
-
-def write_figures(out: Path, result: ExperimentResult) -> list[Path]:
-    """All figures of a run into ``out/figures``; returns their paths."""
-    folder = out / "figures"
-    house = result.synthetic_house
-    paths = [
-        plot_traces(
-            result.synthetic_fits,
-            folder / "synthetic_traces.png",
-            f"{house.name} seed 0: ARI and concepts per sweep",
-        ),
-        plot_maps(
-            house,
-            result.synthetic_fits,
-            folder / "synthetic_maps.png",
-            f"{house.name} seed 0: every method's map",
-        ),
-    ]
-    for method, fitted in result.synthetic_fits.items():
-        if fitted.result is not None:
-            paths.append(plot_semantic_map(fitted.result, folder / f"synthetic_{method}_words.png"))
-    for name, fits in result.public_fits.items():
-        title = f"{name}: every method's map (fitted on all but the first trial)"
-        paths.append(
-            plot_maps(result.public_houses[name], fits, folder / f"{name}_maps.png", title)
-        )
-        if "A-dp" in fits and fits["A-dp"].result is not None:
-            paths.append(plot_semantic_map(fits["A-dp"].result, folder / f"{name}_A-dp_words.png"))
-    return paths
 
 
 def plot_stability(stability: dict, path: Path, method: str = "A-dp") -> Path:

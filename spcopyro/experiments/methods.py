@@ -241,20 +241,3 @@ def fit_method(
     fitted = REGISTRY[method].fit(house, context)
     fitted.seconds = time.perf_counter() - start
     return fitted
-
-
-@dataclass
-class ExperimentResult:
-    """Per-seed / per-fold scores, and the fits kept for the figures."""
-
-    synthetic: dict[str, list[dict[str, float]]]
-    """method -> one record per seed (seed, ari, matching_rate, seconds)."""
-    public: dict[str, dict[str, list[dict[str, float]]]]
-    """house -> method -> one record per fold (held-out trial, top1, top3, mean_rank, ...)."""
-    synthetic_house: House
-    synthetic_fits: dict[str, Fitted]
-    """The fits on the synthetic house of seed 0."""
-    public_houses: dict[str, House]
-    public_fits: dict[str, dict[str, Fitted]]
-    """house -> method -> the fit of fold 0."""
-    notes: list[str]

@@ -44,6 +44,8 @@ class Cell:
     scoring: str = "study"
     """``study`` (:mod:`spcopyro.study.evaluate`) or ``comparison``
     (:mod:`spcopyro.study.comparison_cell`)."""
+    ari_every: int = 0
+    """Keep the ARI against the truth every this many iterations in the trace (variants)."""
     key: str = ""
 
     def inputs(self) -> dict[str, object]:
@@ -92,6 +94,8 @@ def cell_key(cell: Cell, digest: str) -> str:
             inputs["observations_off"] = True
         if cell.scoring != "study":
             inputs["scoring"] = cell.scoring
+        if cell.ari_every:  # only when asked: earlier cells keep their keys
+            inputs["ari_every"] = cell.ari_every
     inputs.update(method=cell.method, seed=cell.seed, data=digest, version=__version__)
     text = json.dumps(inputs, sort_keys=True, default=repr)
     return hashlib.sha256(text.encode()).hexdigest()
@@ -114,7 +118,7 @@ def cells_of(study: Study, root: str | Path | None = None) -> list[Cell]:
                     sweeps = study.sweeps_for(method, variant.name)
                     planned.append(Cell(changed, variant.name, data, method, seed, sweeps,
                                         study.spcoa_iterations, study.observations_off,
-                                        study.scoring))  # fmt: skip
+                                        study.scoring, study.ari_every))  # fmt: skip
             for baseline in study.baselines:
                 planned.append(Cell(None, baseline, data, BASELINE_METHOD, seed,
                                     study.sweeps_for("gibbs"), study.spcoa_iterations))  # fmt: skip

@@ -1,5 +1,11 @@
 """Commands that are shipped studies under their old names (issue 26 item 1).
 
+``spcopyro experiment`` runs the study engine on ``spcopyro/study/studies/experiment.toml``
+(``experiment_quick.toml`` with ``--quick``), its options changing that study
+(:func:`spcopyro.study.experiment.experiment_study`), and writes the paper's comparison
+(``table.md``, ``table.json``, ``figures/``) from the study's table and stored maps; its
+``--studies`` and ``--robustness`` still run their own loops
+(:mod:`spcopyro.experiments.studies`, :mod:`spcopyro.experiments.robustness`).
 ``spcopyro compare-inference`` runs the study engine on the grid of its options
 (:func:`spcopyro.study.comparison.comparison_study`; its defaults and ``--quick`` are the cells of
 the shipped ``compare_inference.toml`` and ``compare_inference_quick.toml``) and writes the
@@ -21,6 +27,51 @@ from pathlib import Path
 from spcopyro.config import PRESETS
 
 __all__ = ["add_parser"]
+
+
+def _experiment(args: argparse.Namespace) -> int:
+    from spcopyro.data import find_dataset_root
+    from spcopyro.study.experiment import (
+        EXPERIMENT,
+        EXPERIMENT_QUICK,
+        experiment_study,
+        run_experiment,
+    )
+    from spcopyro.study.spec import load_study
+
+    study = load_study(EXPERIMENT_QUICK if args.quick else EXPERIMENT)
+    root = None if args.no_public else find_dataset_root(args.data)
+    if args.data is None and root is None and not args.no_public:
+        print("note: public dataset not found ($SPCOPYRO_DATA, ../shared/data/spcomapping); "
+              "skipping the public houses", file=sys.stderr)  # fmt: skip
+    command = "spcopyro " + " ".join(sys.argv[1:] if args.argv is None else args.argv)
+    study = experiment_study(
+        study, public=root is not None, houses=args.houses, methods=args.methods,
+        seeds=args.seeds, sweeps=args.sweeps, spcoa_iterations=args.spcoa_iterations,
+        command=command,
+    )  # fmt: skip
+    summary = run_experiment(args.out, study, root=root, workers=args.workers,
+                             retry_failed=args.retry_failed, report=print)  # fmt: skip
+    out = Path(args.out)
+    print((out / "table.md").read_text())
+    print(f"wrote {out / 'table.md'}, {out / 'table.json'} and {len(summary['figures'])} "
+          f"figures under {out / 'figures'} (the study's table: "
+          f"{out / 'results.csv'})")  # fmt: skip
+    sweeps = study.sweeps_for("gibbs")
+    count = summary["settings"]["seeds"]  # type: ignore[index]
+    if args.studies:
+        from spcopyro.experiments.studies import write_studies
+
+        print(write_studies(out, sweeps=min(sweeps, 1000), seeds=tuple(range(min(count, 3)))))
+        print(f"wrote {out / 'studies.md'} and {out / 'studies.json'}")
+    if args.robustness:
+        from spcopyro.experiments.robustness import write_robustness
+
+        print(write_robustness(out, sweeps=min(sweeps, 1000),
+                               seeds=tuple(range(min(count, 3))), chains=3,
+                               dataset_root=root))  # fmt: skip
+        print(f"wrote {out / 'robustness.md'} and {out / 'robustness.json'}")
+    return 1 if summary["failed"] else 0
 
 
 def _ablation(args: argparse.Namespace) -> int:
@@ -117,8 +168,48 @@ def _compare_inference(args: argparse.Namespace) -> int:
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    """Register ``compare-inference`` (issue #10) and ``ablation`` (issue #14), the shipped
-    studies ``compare_inference`` and ``ablation``."""
+    """Register ``experiment`` (Table 4, Figs. 5-7), ``compare-inference`` (issue #10) and
+    ``ablation`` (issue #14), the shipped studies ``experiment``, ``compare_inference`` and
+    ``ablation``."""
+    p = subparsers.add_parser(
+        "experiment",
+        help="the paper's comparison (Table 4, Figs. 5-7); the shipped study 'experiment' "
+        "(docs/studies.md)",
+    )
+    p.add_argument("--out", required=True, help="results folder: table.md, table.json, "
+                   "figures/, and the study's cells/ (cache), maps/, traces/, results.csv, "
+                   "report.md; finished cells there are not run again")  # fmt: skip
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="smoke run (the study experiment_quick): small synthetic house, 2 seeds, 20 "
+        "sweeps, one public house",
+    )
+    p.add_argument("--seeds", type=int, help="synthetic houses (default 5)")
+    p.add_argument("--sweeps", type=int, help="SpCoMapping Gibbs sweeps (default 5000)")
+    p.add_argument("--spcoa-iterations", type=int, help="SpCoA iterations (default 200)")
+    p.add_argument("--data", help="public dataset folder (default: found automatically)")
+    p.add_argument("--no-public", action="store_true", help="synthetic houses only")
+    p.add_argument("--houses", nargs="+", help="public houses to score (default: the five of "
+                   "the public dataset)")  # fmt: skip
+    p.add_argument("--methods", nargs="+", help="rows to run (default: all: A-dp A-orig-g3 "
+                   "B-dirichlet C-spcoa D-cnn E-nearest F-geometry)")  # fmt: skip
+    p.add_argument("--workers", type=int, default=1, help="1: in this process; N > 1: a Dask "
+                   "LocalCluster of N processes, one torch thread each")  # fmt: skip
+    p.add_argument("--retry-failed", action="store_true",
+                   help="run again the cells stored with an error in --out")  # fmt: skip
+    p.add_argument(
+        "--studies",
+        action="store_true",
+        help="also the modality ablation and the sentence (tf-idf) study (studies.md)",
+    )
+    p.add_argument(
+        "--robustness",
+        action="store_true",
+        help="also the stability (seeds, chains, init) and sensitivity studies (robustness.md)",
+    )
+    p.set_defaults(func=_experiment, argv=None)
+
     p = subparsers.add_parser(
         "compare-inference",
         help="Gibbs against variational inference: quality against wall-clock time (issue #10); "

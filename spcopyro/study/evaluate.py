@@ -14,7 +14,9 @@ Scores (every one that applies; the others are left empty in the table, :data:`S
   on the model's grid; ``matching_rate_area``: the same with the area prior instead of pi
   (variants);
 * ``top1``, ``top3``, ``mean_rank``, ``distance_m``, ``inside_rate``: held-out word prediction
-  and localisation when the source holds a trial out;
+  and localisation when the source holds a trial out, with the words scored
+  (``scored_words``), the held-out tokens the map has never heard (``unknown_tokens``) and the
+  words whose region is empty (``empty_regions``);
 * ``concepts`` (in use), ``concepts_1pct`` (holding >= 1 % of the free cells),
   ``largest_share`` (the largest concept's share of the free cells), ``free_cells``;
 * ``top_words`` (JSON text: the top 3 words of the 3 largest concepts holding an utterance)
@@ -24,8 +26,13 @@ Scores (every one that applies; the others are left empty in the table, :data:`S
   ``ari_on_off`` (between the two maps), ``concepts_1pct_off``, ``seconds_off`` and
   ``cpu_seconds_off``;
 * ``seconds`` (wall clock) and ``cpu_seconds`` of the fit, ``iterations``;
-* the trace (objective, concepts in use and seconds per iteration), returned beside the
-  record and saved by the caller as ``traces/KEY.npz``;
+* the trace (objective, concepts in use and seconds per iteration; with the study's
+  ``ari_every``, also ``ari`` against the truth at ``ari_iterations``, paper Fig. 5), returned
+  beside the record and saved by the caller as ``traces/KEY.npz``;
+* the cell's label map on the map's cells with the map itself (:func:`label_map_arrays`: int16
+  labels, int8 occupancy, resolution, origin and the truth when there is one), returned beside
+  the record and saved by the caller as ``maps/KEY.npz``: the report's per-house maps are drawn
+  from it, with no refit;
 * ``details``: a study with ``scoring = "comparison"`` scores its cells as ``compare-inference``
   does (:mod:`spcopyro.study.comparison_cell`): the final scores in the columns above, the
   comparison's whole record (curve, time to 95 %, ESS, over-confidence) as JSON text here.
@@ -33,6 +40,7 @@ Scores (every one that applies; the others are left empty in the table, :data:`S
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 
@@ -41,7 +49,7 @@ import numpy as np
 from spcopyro._util.threads import torch_threads
 from spcopyro.data.model_grid import model_house
 from spcopyro.experiments.ablation import concepts_over, top_words
-from spcopyro.experiments.methods import RunSettings, fit_method
+from spcopyro.experiments.methods import RunSettings, fit_method, fit_spco
 from spcopyro.fit.house import fit_house
 from spcopyro.maps.coarse import coarsening_factor, refine_labels
 from spcopyro.metrics import (
@@ -55,37 +63,59 @@ from spcopyro.study.cells import Cell
 from spcopyro.study.comparison_cell import COMPARISON, comparison_scores
 from spcopyro.study.sources import load_cell_data
 
-__all__ = ["SCORES", "STATUS_COLUMNS", "run_cell"]
+__all__ = ["SCORES", "STATUS_COLUMNS", "Arrays", "label_map_arrays", "run_cell"]
 
 SCORES = (
     "ari", "matching_rate", "matching_rate_area", "top1", "top3", "mean_rank", "distance_m",
-    "inside_rate", "concepts", "concepts_1pct", "largest_share", "free_cells", "held_out_trial",
-    "place_top_share", "top_words", "ari_off", "ari_on_off", "concepts_1pct_off", "seconds",
-    "cpu_seconds", "seconds_off", "cpu_seconds_off", "iterations", "details",
+    "inside_rate", "scored_words", "unknown_tokens", "empty_regions", "concepts",
+    "concepts_1pct", "largest_share", "free_cells", "held_out_trial", "place_top_share",
+    "top_words", "ari_off", "ari_on_off", "concepts_1pct_off", "seconds", "cpu_seconds",
+    "seconds_off", "cpu_seconds_off", "iterations", "details",
 )  # fmt: skip
 """The score columns of the table, in order."""
 STATUS_COLUMNS = ("status", "error_type", "error")
 """``ok`` or ``error``, and the error's type and message."""
 
+Arrays = dict[str, np.ndarray]
+"""Named arrays saved as one ``.npz`` (a trace, a label map)."""
 
-def run_cell(cell: Cell) -> tuple[dict[str, object], dict[str, np.ndarray] | None]:
-    """The cell's record (status and scores, keyed by ``cell.key``) and its trace (None for a
-    baseline or a failed cell). Runs torch with one intra-op thread."""
+
+def run_cell(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays | None]:
+    """The cell's record (status and scores, keyed by ``cell.key``), its trace (None for a
+    baseline or a failed cell) and its label map (:func:`label_map_arrays`; None for a failed
+    or a comparison cell). Runs torch with one intra-op thread."""
     record: dict[str, object] = {"key": cell.key, "status": "ok", "error_type": "", "error": ""}
-    trace = None
+    trace = label_map = None
     try:
         with torch_threads(1):
             if cell.scoring == COMPARISON:
-                scores, trace = comparison_scores(cell), None
+                scores = comparison_scores(cell)
             else:
-                scores, trace = _fit_and_score(cell)
+                scores, trace, label_map = _fit_and_score(cell)
         record.update(scores)
     except Exception as error:  # recorded; the study goes on
         record.update(status="error", error_type=type(error).__name__, error=str(error)[:2000])
-    return record, trace
+        trace = label_map = None
+    return record, trace, label_map
 
 
-def _fit_and_score(cell: Cell) -> tuple[dict[str, object], dict[str, np.ndarray] | None]:
+def label_map_arrays(labels: np.ndarray, house, truth: np.ndarray | None) -> Arrays:
+    """A cell's ``[H, W]`` label map on the map's cells as stored (``maps/KEY.npz``): ``labels``
+    int16 (-1: not a free cell), the map's ``occupancy`` int8, ``resolution`` and ``origin``,
+    and ``truth`` int16 when the source has one -- all a figure needs to draw the map."""
+    grid = house.grid
+    arrays: Arrays = {
+        "labels": np.asarray(labels, dtype=np.int16),
+        "occupancy": np.asarray(grid.occupancy, dtype=np.int8),
+        "resolution": np.float64(grid.resolution),
+        "origin": np.asarray(grid.origin, dtype=np.float64),
+    }
+    if truth is not None:
+        arrays["truth"] = np.asarray(truth, dtype=np.int16)
+    return arrays
+
+
+def _fit_and_score(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays]:
     loaded = load_cell_data(cell.data, cell.seed)
     house = loaded.house
     start, cpu = time.perf_counter(), time.process_time()
@@ -99,7 +129,7 @@ def _fit_and_score(cell: Cell) -> tuple[dict[str, object], dict[str, np.ndarray]
         model, labels, scored_house = fitted.model, fitted.model.label_image(), house
     else:
         settings = cell.variant.spco_settings(loaded.num_categories)
-        result = _fit(cell, house, settings)
+        result, ari_trace = _fit(cell, house, settings, loaded.truth)
         model = SpCoSemanticMap(result)
         labels = _on_map(result, house, settings)
         scored_house = model_house(loaded.full, settings.data.cell_size)  # the model's grid
@@ -127,26 +157,42 @@ def _fit_and_score(cell: Cell) -> tuple[dict[str, object], dict[str, np.ndarray]
         places = heldout_localisation(model, loaded.test)
         scores.update(top1=words.top1, top3=words.top3, mean_rank=words.mean_rank,
                       distance_m=places.mean_distance, inside_rate=places.inside_rate,
+                      scored_words=words.num_scored, unknown_tokens=words.unknown_tokens,
+                      empty_regions=places.empty_regions,
                       held_out_trial=loaded.held_out_trial)  # fmt: skip
+    label_map = label_map_arrays(labels, house, loaded.truth)
     if result is None:
-        return scores, None
+        return scores, None, label_map
     trace = result.trace
     scores["concepts"] = len(result.concepts_in_use())
     scores["iterations"] = len(trace.objective)
     arrays = {
         name: np.asarray(getattr(trace, name)) for name in ("objective", "num_concepts", "seconds")
     }
-    return scores, arrays
+    if ari_trace is not None:
+        arrays["ari_iterations"], arrays["ari"] = ari_trace
+    return scores, arrays, label_map
 
 
-def _fit(cell: Cell, house, settings):
-    """The variant's fit of ``house`` with ``settings``."""
+def _fit(cell: Cell, house, settings, truth: np.ndarray | None = None):
+    """The variant's fit of ``house`` with ``settings``, and (iterations, ARI against
+    ``truth``) every ``cell.ari_every`` iterations when asked and a truth is known (else
+    None). Such a fit runs the method from random labels (:func:`fit_spco`: the same labels as
+    ``fit_house``'s, checked in tests/test_experiments.py) on a variant without fit keywords
+    or a coarser model grid (:func:`spcopyro.study.spec.study_from_dict` checks that)."""
     variant = cell.variant
     assert variant is not None
-    return fit_house(
+    if cell.ari_every and truth is not None:
+        house = dataclasses.replace(house, truth=truth)
+        return fit_spco(
+            house, settings, sweeps=cell.sweeps, seed=cell.seed, thin=cell.ari_every,
+            method=cell.method, options=variant.method_options(), threads=1,
+        )  # fmt: skip
+    result = fit_house(
         house, settings, method=cell.method, options=variant.method_options(),
         sweeps=cell.sweeps, seed=cell.seed, progress=False, threads=1, **variant.fit_kwargs(),
     )  # fmt: skip
+    return result, None
 
 
 def _on_map(result, house, settings) -> np.ndarray:
@@ -165,7 +211,7 @@ def _observations_off(cell: Cell, loaded, labels: np.ndarray) -> dict[str, objec
     house = loaded.house
     settings = cell.variant.spco_settings(loaded.num_categories, use_images=False, use_words=False)
     start, cpu = time.perf_counter(), time.process_time()
-    off = _on_map(_fit(cell, house, settings), house, settings)
+    off = _on_map(_fit(cell, house, settings)[0], house, settings)
     scores: dict[str, object] = {
         "seconds_off": time.perf_counter() - start,
         "cpu_seconds_off": time.process_time() - cpu,

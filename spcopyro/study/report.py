@@ -94,8 +94,10 @@ def write_report(
     table: str | os.PathLike[str], out: str | os.PathLike[str], title: str = "study"
 ) -> Path:
     """Read ``results.csv`` and write its report to ``out``, with the quality-against-time figure
-    (:mod:`spcopyro.study.figures`) beside it when rows have an ARI and a time."""
+    (:mod:`spcopyro.study.figures`) beside it when rows have an ARI and a time, and each data
+    source's maps (:mod:`spcopyro.study.maps`, from the stored label maps beside the table)."""
     from spcopyro.study.figures import QUALITY_TIME_FILE, write_quality_time
+    from spcopyro.study.maps import write_house_maps
     from spcopyro.study.table import read_table
 
     path = Path(out)
@@ -103,5 +105,9 @@ def write_report(
     text = report_markdown(rows, title)
     if write_quality_time(rows, path.parent / QUALITY_TIME_FILE) is not None:
         text += f"\n![ARI against wall time per fit]({QUALITY_TIME_FILE})\n"
+    maps = write_house_maps(rows, Path(table).parent)
+    if maps:
+        text += "\n## Maps (each source's first seed)\n\n"
+        text += "".join(f"![{p.stem}]({os.path.relpath(p, path.parent)})\n" for p in maps)
     path.write_text(text)
     return path

@@ -44,8 +44,8 @@ __all__ = ["StudyRun", "default_workers", "run_study"]
 PRE_SPAWN_ENVIRON = "distributed.nanny.pre-spawn-environ"
 """Dask's config of the environment its nanny gives each worker process."""
 
-Outcome = tuple[Cell, dict[str, object], object]
-"""A finished cell, its record and its trace."""
+Outcome = tuple[Cell, dict[str, object], object, object]
+"""A finished cell, its record, its trace and its label map."""
 
 
 @dataclass(frozen=True)
@@ -128,8 +128,8 @@ def run_study(
             if scheduler is None and workers <= 1
             else _on_dask(pending, workers, scheduler)
         )
-        for cell, record, trace in outcomes:
-            store.put(record, trace)  # type: ignore[arg-type]
+        for cell, record, trace, label_map in outcomes:
+            store.put(record, trace, label_map)  # type: ignore[arg-type]
             ran += 1
             if record["status"] != "ok":
                 failed += 1
@@ -175,8 +175,8 @@ def _finish(out: Path, study: Study, cells: list[Cell], store: CellStore) -> Non
 
 def _in_process(cells: list[Cell]) -> Iterator[Outcome]:
     for cell in cells:
-        record, trace = evaluate.run_cell(cell)
-        yield cell, record, trace
+        record, trace, label_map = evaluate.run_cell(cell)
+        yield cell, record, trace, label_map
 
 
 def _on_dask(cells: list[Cell], workers: int, scheduler: str | None) -> Iterator[Outcome]:
@@ -214,13 +214,13 @@ def _on_dask(cells: list[Cell], workers: int, scheduler: str | None) -> Iterator
         for future in as_completed(futures):
             cell = futures[future]
             try:
-                record, trace = future.result()
+                record, trace, label_map = future.result()
             except Exception as error:  # the worker died, or the task could not run
                 record = {"key": cell.key, "status": "error", "error_type": type(error).__name__,
                           "error": str(error)[:2000]}  # fmt: skip
-                trace = None
+                trace = label_map = None
             future.release()
-            yield cell, record, trace
+            yield cell, record, trace, label_map
     finally:
         client.close()
         if cluster is not None:

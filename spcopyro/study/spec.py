@@ -64,7 +64,7 @@ BASELINES = tuple(key for key, row in BASELINE_REGISTRY.items() if not row.spcom
 """Rows a study may add beside its variants (``baselines = [...]``)."""
 
 _STUDY_KEYS = {"name", "seeds", "sweeps", "methods", "baselines", "spcoa_iterations",
-               "observations_off", "scoring", "description"}  # fmt: skip
+               "observations_off", "scoring", "description", "ari_every"}  # fmt: skip
 SCORINGS = ("study", "comparison")
 """How a study's cells are fitted and scored: ``study`` (:mod:`spcopyro.study.evaluate`) or
 ``comparison``, as ``compare-inference`` does (:mod:`spcopyro.study.comparison_cell`)."""
@@ -134,6 +134,9 @@ class Study:
     that map: ``ari_off``, ``ari_on_off``, ``concepts_1pct_off``, ``seconds_off``."""
     scoring: str = "study"
     """:data:`SCORINGS`."""
+    ari_every: int = 0
+    """Keep a variant's label map every this many iterations and store its ARI against the
+    truth in the trace (``ari``, ``ari_iterations``: paper Fig. 5); 0: not."""
     description: str = ""
     source: str = field(default="<python>", compare=False)
     """Where the study was read from (named in errors and in study.json)."""
@@ -153,7 +156,7 @@ class Study:
             "seeds": list(self.seeds), "sweeps": dict(self.sweeps), "methods": list(self.methods),
             "baselines": list(self.baselines), "spcoa_iterations": self.spcoa_iterations,
             "observations_off": self.observations_off, "scoring": self.scoring,
-            "variants": [v.to_json() for v in self.variants],
+            "ari_every": self.ari_every, "variants": [v.to_json() for v in self.variants],
             "data": [d.to_json() for d in self.data],
         }  # fmt: skip
 
@@ -306,6 +309,18 @@ def _data_source(source: str, name: str, table: object) -> DataSource:
     return data
 
 
+def _check_ari_every(source: str, every: int, scoring: str, variants: tuple[Variant, ...]) -> None:
+    """A study with ``ari_every`` fits its variants from random labels on the map's own grid
+    (:func:`spcopyro.study.evaluate._fit`): no fit keywords, no coarser model grid."""
+    if scoring != "study":
+        raise _fail(source, "[study] ari_every", every, f"not with scoring = {scoring!r}")
+    for variant in variants:
+        if variant.fit or variant.spco_settings(None).data.cell_size is not None:
+            why = (f"variant {variant.name!r} sets fit keywords or cell_size; the ARI trace is "
+                   "kept for fits from random labels on the map's own grid")  # fmt: skip
+            raise _fail(source, "[study] ari_every", every, why)
+
+
 def study_from_dict(values: Mapping[str, Any], *, source: str = "<python>") -> Study:
     """A study from the keys of a study file (module docstring); ``source`` names it in
     errors."""
@@ -339,7 +354,12 @@ def study_from_dict(values: Mapping[str, Any], *, source: str = "<python>") -> S
         if baselines or head.get("observations_off") or kinds:
             why = "it takes no baselines or observations_off, and synthetic and public houses"
             raise _fail(source, "[study] scoring", scoring, why)
+    ari_every = head.get("ari_every", 0)
+    if ari_every:
+        ari_every = _positive_int(source, "[study] ari_every", ari_every)
+        _check_ari_every(source, ari_every, scoring, variants)
     return Study(
+        ari_every=int(ari_every),
         scoring=scoring,
         name=name.strip(),
         variants=variants,

@@ -4,8 +4,12 @@ Layout of ``OUT``::
 
     study.json        the study as run (resolved paths)
     cells/KEY.json    one finished cell: its status, error and scores (the cache)
-    traces/KEY.npz    its trace: objective, num_concepts, seconds per iteration
+    traces/KEY.npz    its trace: objective, num_concepts, seconds per iteration (and the ARI
+                      per kept iteration with the study's ari_every)
+    maps/KEY.npz      its label map on the map's cells (int16) with the map and the truth
+                      (spcopyro.study.evaluate.label_map_arrays): figures need no refit
     results.csv       the tidy table: one row per (variant, data, method, seed) of the study
+    results.parquet   the same table as Parquet, when pyarrow is installed (the parquet extra)
     report.md         mean +- sd tables drawn from results.csv (spcopyro.study.report)
 
 A cell is written (atomically) the moment it finishes, so an interrupted study keeps every
@@ -29,7 +33,8 @@ from spcopyro.study.cells import Cell
 from spcopyro.study.evaluate import SCORES, STATUS_COLUMNS
 
 __all__ = [
-    "COLUMNS", "INPUT_COLUMNS", "CellStore", "is_number", "read_table", "table_rows", "write_table",
+    "COLUMNS", "INPUT_COLUMNS", "PARQUET", "CellStore", "is_number", "read_parquet", "read_table",
+    "table_rows", "write_parquet", "write_table",
 ]  # fmt: skip
 
 INPUT_COLUMNS = (
@@ -37,9 +42,11 @@ INPUT_COLUMNS = (
     "sweeps", "observations_off", "scoring", "preset", "overrides", "version", "key",
 )  # fmt: skip
 """What made a row (:meth:`Cell.inputs`)."""
-COLUMNS = (*INPUT_COLUMNS, *STATUS_COLUMNS, *SCORES, "trace")
+COLUMNS = (*INPUT_COLUMNS, *STATUS_COLUMNS, *SCORES, "trace", "label_map")
 """Every column of ``results.csv``, in order."""
 TABLE = "results.csv"
+PARQUET = "results.parquet"
+"""The table as Parquet, written beside ``results.csv`` when pyarrow can be imported."""
 
 
 class CellStore:
@@ -49,6 +56,7 @@ class CellStore:
         self.out = Path(out)
         self.cells = self.out / "cells"
         self.traces = self.out / "traces"
+        self.maps = self.out / "maps"
 
     def finished(self) -> dict[str, dict[str, object]]:
         """Every stored record, by key (a half-written file is never there: writes are atomic)."""
@@ -62,16 +70,23 @@ class CellStore:
                 continue
         return records
 
-    def put(self, record: dict[str, object], trace: dict[str, np.ndarray] | None) -> None:
-        """Store one finished cell (and its trace) under its key."""
+    def put(
+        self,
+        record: dict[str, object],
+        trace: dict[str, np.ndarray] | None,
+        label_map: dict[str, np.ndarray] | None = None,
+    ) -> None:
+        """Store one finished cell (its trace and its label map first) under its key."""
         key = str(record["key"])
         self.cells.mkdir(parents=True, exist_ok=True)
-        if trace is not None:
-            self.traces.mkdir(parents=True, exist_ok=True)
-            staging = self.traces / f".{key}.npz"
-            np.savez_compressed(staging, **trace)
-            os.replace(staging, self.traces / f"{key}.npz")
-            record = {**record, "trace": f"traces/{key}.npz"}
+        for column, folder, arrays in (("trace", self.traces, trace),
+                                       ("label_map", self.maps, label_map)):  # fmt: skip
+            if arrays is not None:
+                folder.mkdir(parents=True, exist_ok=True)
+                staging = folder / f".{key}.npz"
+                np.savez_compressed(staging, **arrays)
+                os.replace(staging, folder / f"{key}.npz")
+                record = {**record, column: f"{folder.name}/{key}.npz"}
         staging = self.cells / f".{key}.json"
         staging.write_text(json.dumps(record, default=_json_value, indent=1))
         os.replace(staging, self.cells / f"{key}.json")
@@ -104,7 +119,8 @@ def table_rows(cells: Iterable[Cell], records: dict[str, dict[str, object]]) -> 
 
 
 def write_table(path: str | os.PathLike[str], rows: list[dict]) -> Path:
-    """Write ``rows`` as CSV with the :data:`COLUMNS` header (atomically)."""
+    """Write ``rows`` as CSV with the :data:`COLUMNS` header (atomically), and the same table
+    as :data:`PARQUET` beside it when pyarrow is installed (:func:`write_parquet`)."""
     path = Path(path)
     staging = path.with_name(f".{path.name}")
     with open(staging, "w", newline="") as file:
@@ -113,7 +129,49 @@ def write_table(path: str | os.PathLike[str], rows: list[dict]) -> Path:
         for row in rows:
             writer.writerow({k: _cell_text(v) for k, v in row.items()})
     os.replace(staging, path)
+    write_parquet(path.with_name(PARQUET), read_table(path))
     return path
+
+
+def write_parquet(path: str | os.PathLike[str], rows: list[dict[str, object]]) -> Path | None:
+    """Write ``rows`` (as :func:`read_table` gives them) as Parquet, one column per
+    :data:`COLUMNS` entry: text columns as strings, the others as int64, float64 or bool where
+    every value is one (None: null), else as text. Returns None (writes nothing) without
+    pyarrow (``pip install 'spcopyro[parquet]'``)."""
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+    except ModuleNotFoundError:
+        return None
+    columns = {}
+    for name in COLUMNS:
+        values = [row.get(name) for row in rows]
+        columns[name] = pa.array(values, type=_arrow_type(name, values, pa))
+    path = Path(path)
+    staging = path.with_name(f".{path.name}")
+    pq.write_table(pa.table(columns), staging)
+    os.replace(staging, path)
+    return path
+
+
+def _arrow_type(name: str, values: list[object], pa):
+    present = [v for v in values if v is not None]
+    if name in TEXT_COLUMNS:
+        return pa.string()
+    for kind, arrow in ((bool, pa.bool_()), (int, pa.int64())):
+        if present and all(type(v) is kind for v in present):
+            return arrow
+    if present and all(isinstance(v, int | float) and not isinstance(v, bool) for v in present):
+        return pa.float64()
+    return pa.string() if present else pa.null()
+
+
+def read_parquet(path: str | os.PathLike[str]) -> list[dict[str, object]]:
+    """The rows of a ``results.parquet`` as :func:`read_table` gives those of the CSV (needs
+    pyarrow)."""
+    import pyarrow.parquet as pq
+
+    return pq.read_table(path).to_pylist()
 
 
 def _cell_text(value: object) -> object:
@@ -125,7 +183,7 @@ def _cell_text(value: object) -> object:
 TEXT_COLUMNS = frozenset(
     ("variant", "data", "method", "data_kind", "data_source", "preset", "overrides", "version",
      "key", "status", "error_type", "error", "trace", "top_words", "details",
-     "scoring")
+     "scoring", "label_map")
 )  # fmt: skip
 """Columns read back as text, even when they look like a number."""
 

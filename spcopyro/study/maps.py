@@ -1,0 +1,146 @@
+"""Per-house maps drawn from a study's stored label maps (issue 26 item 2): nothing is refitted.
+
+Every finished cell stores its label map on the map's cells with the map itself and the truth
+(``OUT/maps/KEY.npz``, :func:`spcopyro.study.evaluate.label_map_arrays`; the table's
+``label_map`` column names the file). :func:`write_house_maps` draws, per data source, one
+figure of every row's map (variant or baseline, with its method) at the source's first seed,
+beside the truth when it is known -- from ``results.csv`` and those files alone, so
+``--report-only`` redraws them.
+
+Drawn on :class:`matplotlib.figure.Figure` objects and written with ``savefig`` (no pyplot),
+like :mod:`spcopyro.figures.plotting`.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from spcopyro.maps import OccupancyGrid
+
+__all__ = ["MAPS_PREFIX", "StoredMap", "load_label_map", "plot_label_maps", "write_house_maps"]
+
+MAPS_PREFIX = "maps_"
+"""A source's figure is ``OUT/maps_<data>.png``."""
+
+
+@dataclass(frozen=True)
+class StoredMap:
+    """A cell's stored label map: ``labels`` ``[H, W]`` (-1: not a free cell), the map's
+    ``grid`` and the source's ``truth`` ``[H, W]`` (None when unknown)."""
+
+    labels: np.ndarray
+    grid: OccupancyGrid
+    truth: np.ndarray | None
+
+
+def load_label_map(folder: str | os.PathLike[str], row: dict[str, object]) -> StoredMap | None:
+    """The stored label map of a table row (its ``label_map`` file under ``folder``); None when
+    the row has none (a failed or comparison cell, or one stored before label maps were)."""
+    name = row.get("label_map")
+    if not name or row.get("status") != "ok":
+        return None
+    path = Path(folder) / str(name)
+    if not path.is_file():
+        return None
+    with np.load(path) as stored:
+        grid = OccupancyGrid(
+            stored["occupancy"], float(stored["resolution"]), tuple(stored["origin"].tolist())
+        )
+        truth = stored["truth"] if "truth" in stored.files else None
+        return StoredMap(stored["labels"].astype(np.int64), grid, truth)
+
+
+def _ranked(labels: np.ndarray) -> np.ndarray:
+    """[H, W] labels renumbered by region size (0 = largest), -1 kept: the same colours for
+    the same-sized regions of two maps."""
+    inside = labels >= 0
+    if not inside.any():
+        return labels
+    values, sizes = np.unique(labels[inside], return_counts=True)
+    order = values[np.argsort(-sizes, kind="stable")]
+    rank = np.full(int(labels.max()) + 1, -1)
+    rank[order] = np.arange(order.size)
+    return np.where(inside, rank[np.maximum(labels, 0)], -1)
+
+
+def plot_label_maps(
+    grid: OccupancyGrid, panels: Sequence[tuple[str, np.ndarray]], path: Path, title: str
+) -> Path:
+    """Label maps ``[H, W]`` of one map side by side, at most four a row (paper Fig. 7), each
+    coloured by region size; written to ``path``."""
+    from matplotlib.figure import Figure
+
+    from spcopyro.figures.plotting import _extent, known_bounds
+    from spcopyro.maps import render_labels
+
+    columns = max(1, min(4, len(panels)))
+    rows_n = max(1, -(-len(panels) // columns))
+    fig = Figure(figsize=(4 * columns, 3.6 * rows_n))
+    axes = fig.subplots(rows_n, columns, squeeze=False)
+    rows, cols = known_bounds(grid)
+    for ax, (name, labels) in zip(axes.ravel(), panels, strict=False):
+        rgb = render_labels(_ranked(np.asarray(labels)), grid)  # [H, W, 3]
+        ax.imshow(rgb[rows, cols], extent=_extent(grid, rows, cols), interpolation="nearest")
+        ax.set_title(name, fontsize=7)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    for ax in axes.ravel()[len(panels) :]:
+        ax.axis("off")
+    fig.suptitle(title)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
+    return path
+
+
+def _file_name(data: str) -> str:
+    return MAPS_PREFIX + re.sub(r"[^\w.-]", "_", data) + ".png"
+
+
+def source_panels(
+    rows: Sequence[dict[str, object]], folder: str | os.PathLike[str], data: str,
+    seed: int | None = None, label=None,
+) -> tuple[OccupancyGrid, list[tuple[str, np.ndarray]], int] | None:  # fmt: skip
+    """The panels of source ``data`` at ``seed`` (None: its first seed with a stored map):
+    the truth when known, then each row's map in the table's order, named by ``label(row)``
+    (default ``variant / method``, or the baseline's name); None when no map is stored."""
+    mine = [r for r in rows if r["data"] == data and load_label_map(folder, r) is not None]
+    if not mine:
+        return None
+    if seed is None:
+        seed = min(int(r["seed"]) for r in mine)  # type: ignore[call-overload]
+    maps = [(r, load_label_map(folder, r)) for r in mine if r["seed"] == seed]
+    if not maps:
+        return None
+    grid, truth = maps[0][1].grid, maps[0][1].truth  # type: ignore[union-attr]
+    panels = [] if truth is None else [("truth", truth)]
+    for row, stored in maps:
+        assert stored is not None
+        name = label(row) if label is not None else (
+            str(row["variant"]) if row["method"] == "baseline"
+            else f"{row['variant']} / {row['method']}"
+        )  # fmt: skip
+        panels.append((name, stored.labels))
+    return grid, panels, seed
+
+
+def write_house_maps(
+    rows: Sequence[dict[str, object]], folder: str | os.PathLike[str]
+) -> list[Path]:
+    """One figure per data source (``folder/maps_<data>.png``): every row's stored map at the
+    source's first seed, beside the truth when known (module docstring). Returns the paths."""
+    folder = Path(folder)
+    paths = []
+    for data in dict.fromkeys(str(r["data"]) for r in rows):
+        found = source_panels(rows, folder, data)
+        if found is None:
+            continue
+        grid, panels, seed = found
+        title = f"{data}, seed {seed}: every row's map"
+        paths.append(plot_label_maps(grid, panels, folder / _file_name(data), title))
+    return paths
