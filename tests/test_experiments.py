@@ -27,6 +27,8 @@ from spcopyro.study.spec import load_study
 from spcopyro.study.table import read_table
 from spcopyro.synthetic import HouseSpec, make_house
 
+OLD_SIDE_RECORDS = Path(__file__).with_name("experiment_side_old_records.json")
+"""What the side studies' and robustness' own loops wrote before issue 26."""
 OLD_RECORDS = Path(__file__).with_name("experiment_old_records.json")
 """The per-seed and per-fold records (times left out) of the experiment's own loop before it
 became a study (issue 26), for the shipped quick study with room1dk5."""
@@ -237,31 +239,25 @@ def test_quick_experiment_cli_on_the_public_dataset(dataset_root, tmp_path, caps
     assert "wrote" in capsys.readouterr().out
 
 
-def test_studies_run_and_report_every_setting():
-    from spcopyro.config import SpCoConfig, SpCoSettings
-    from spcopyro.experiments.studies import ABLATIONS, modality_ablation, sentence_study
-    from spcopyro.synthetic import FILLER_WORDS
+def test_side_studies_give_the_old_loops_numbers(tmp_path):
+    """``--studies`` as the shipped studies modality and sentences: the same studies.json and
+    studies.md as the former loops for the same sweeps and seeds; a rerun fits nothing."""
+    from spcopyro.experiments.studies import ABLATIONS
+    from spcopyro.study.side_studies import side_studies, write_studies
 
-    config = SpCoSettings(SpCoConfig(num_concepts=6, prior="dirichlet", alpha=10.0, gamma=2.0))
-    scores = modality_ablation(config, sweeps=5, seeds=(0,), spec=HouseSpec.scaled(45, 60))
-    assert list(scores) == list(ABLATIONS) == ["MRF only", "+ words", "+ images", "words + images"]
-    assert all(len(v) == 1 and -1.0 <= v[0] <= 1.0 for v in scores.values())
-    sentences = sentence_study(config, sweeps=5, min_cells=1)
-    assert set(sentences.filler_top_share) == {"count", "tfidf"}
-    for weighting, tops in sentences.top_words.items():
-        share = np.mean([t[0] in FILLER_WORDS for t in tops])
-        assert sentences.filler_top_share[weighting] == pytest.approx(share)
-
-
-def test_write_studies_writes_both_tables(tmp_path):
-    import json
-
-    from spcopyro.experiments.studies import ABLATIONS, write_studies
-
-    markdown = write_studies(tmp_path, sweeps=3, seeds=(0,))
+    old = json.loads(OLD_SIDE_RECORDS.read_text())["studies"]
+    markdown = write_studies(tmp_path, sweeps=20, seeds=(0, 1))
+    assert json.loads((tmp_path / "studies.json").read_text()) == old
     assert (tmp_path / "studies.md").read_text() == markdown
     for name in ABLATIONS:
         assert f"| {name} |" in markdown
     assert "| count |" in markdown and "| tfidf |" in markdown
-    payload = json.loads((tmp_path / "studies.json").read_text())
-    assert set(payload["ablation"]) == set(ABLATIONS) and payload["sweeps"] == 3
+    modality, sentences = side_studies(sweeps=1000, seeds=(0, 1, 2))
+    assert [v.name for v in modality.variants] == list(ABLATIONS)
+    for variant in modality.variants:  # the (A') row with the modalities switched
+        expected = spco_settings("A-orig-g3", None).replace(**ABLATIONS[variant.name])
+        assert variant.spco_settings(None) == expected
+    assert sentences.seeds == (0,) and [v.name for v in sentences.variants] == ["count", "tfidf"]
+    lines: list[str] = []
+    assert write_studies(tmp_path, sweeps=20, seeds=(0, 1), report=lines.append) == markdown
+    assert len(lines) == 2 and all(line.startswith("nothing to run") for line in lines)

@@ -1,44 +1,53 @@
-"""Tests of the stability and sensitivity studies (tiny sweeps on a small synthetic house).
+"""Tests of the stability and sensitivity studies (tiny sweeps on a small synthetic house), run
+as the shipped studies ``stability`` and ``sensitivity`` (issue 26), and the numbers of the
+loops they replaced (experiment_side_old_records.json).
 
-The stability study runs every setting with 2 chains on 2 houses (about 15 s): the tests that read
-it are in the slow lane.
+The stability study runs every setting with 2 chains on 2 houses: the tests that read it are in
+the slow lane.
 """
 
 from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
 
-from spcopyro.experiments import robustness
 from spcopyro.experiments.robustness import (
     ANNEAL_FRACTION,
     REFERENCE_SETTING,
     SENSITIVITY_GRID,
     STABILITY_SETTINGS,
-    best_chain,
     robustness_markdown,
-    sensitivity_study,
     spread,
-    stability_study,
-    write_robustness,
 )
+from spcopyro.fit.house import best_chain
+from spcopyro.study.robustness import robustness_studies, write_robustness
 from spcopyro.synthetic import HouseSpec
 
 SMALL = HouseSpec(height=30, width=40, num_rooms=2, num_open_plan=0, min_room_size=10)
 SEEDS = (0, 1)
+OLD_RECORDS = Path(__file__).with_name("experiment_side_old_records.json")
+"""What the stability, sensitivity and side studies' own loops wrote before issue 26."""
 
 
 @pytest.fixture(scope="module")
-def stability() -> dict:
-    return stability_study(sweeps=10, seeds=SEEDS, chains=2, spec=SMALL)
+def written(tmp_path_factory) -> tuple[Path, str]:
+    """The robustness studies on the small house, 10 sweeps, 2 chains: (out, markdown)."""
+    out = tmp_path_factory.mktemp("robustness")
+    return out, write_robustness(out, sweeps=10, seeds=SEEDS, chains=2, spec=SMALL)
 
 
 @pytest.fixture(scope="module")
-def sensitivity() -> dict:
-    return sensitivity_study(sweeps=3, seeds=(0,), spec=SMALL)
+def stability(written) -> dict:
+    return json.loads((written[0] / "robustness.json").read_text())["stability"]
+
+
+@pytest.fixture(scope="module")
+def sensitivity(written) -> dict:
+    return json.loads((written[0] / "robustness.json").read_text())["sensitivity"]
 
 
 def test_spread_by_hand() -> None:
@@ -111,7 +120,7 @@ def test_sensitivity_every_value_present(sensitivity: dict) -> None:
     for name, values in SENSITIVITY_GRID.items():
         assert [row["value"] for row in parameters[name]] == list(values)
         for row in parameters[name]:
-            assert len(row["ari"]) == 1 and -1.0 <= row["ari"][0] <= 1.0
+            assert len(row["ari"]) == len(SEEDS) and -1.0 <= row["ari"][0] <= 1.0
             assert 1 <= row["concepts"][0] <= 120
     assert sensitivity["critical_gamma"] == pytest.approx(math.log(1 + math.sqrt(120)))
     # gamma 3, beta 0.1, chi 1 and alpha 1e7 are all the base configuration: one fit, shared.
@@ -135,44 +144,82 @@ def test_markdown_has_every_row(stability: dict, sensitivity: dict) -> None:
 
 
 @pytest.mark.slow
-def test_write_robustness_files(tmp_path, monkeypatch, stability, sensitivity) -> None:
-    # The studies themselves are tested above; here only what write_robustness writes.
-    monkeypatch.setattr(robustness, "stability_study", lambda **_: stability)
-    monkeypatch.setattr(robustness, "sensitivity_study", lambda **_: sensitivity)
-    markdown = write_robustness(tmp_path, sweeps=4, seeds=SEEDS, chains=2, spec=SMALL)
-    assert (tmp_path / "robustness.md").read_text() == markdown
-    assert (tmp_path / "figures" / "stability.png").stat().st_size > 10_000
+def test_write_robustness_files(written) -> None:
+    out, markdown = written
+    assert (out / "robustness.md").read_text() == markdown
+    assert (out / "figures" / "stability.png").stat().st_size > 10_000
     assert "figures/stability.png" in markdown
-    payload = json.loads((tmp_path / "robustness.json").read_text())
-    assert set(payload) == {"stability", "sensitivity"}
+    payload = json.loads((out / "robustness.json").read_text())
+    assert set(payload) == {"stability", "sensitivity"}  # no dataset: no held-out sensitivity
     assert payload["stability"]["chains"] == 2
+    for name in ("stability", "sensitivity"):  # each a study, cached in out/robustness/
+        assert (out / "robustness" / name / "results.csv").is_file()
+    lines: list[str] = []
+    again = write_robustness(out, sweeps=10, seeds=SEEDS, chains=2, spec=SMALL,
+                             report=lines.append)  # fmt: skip
+    assert again == markdown and all(line.startswith("nothing to run") for line in lines)
 
 
 def test_bad_arguments() -> None:
     with pytest.raises(ValueError, match="chains"):
-        stability_study(sweeps=2, seeds=(0,), chains=1, spec=SMALL)
+        robustness_studies(sweeps=2, seeds=(0,), chains=1)
     with pytest.raises(ValueError, match="seeds"):
-        stability_study(sweeps=2, seeds=(), chains=2, spec=SMALL)
+        robustness_studies(sweeps=2, seeds=(), chains=2)
     with pytest.raises(ValueError, match="sweeps"):
-        sensitivity_study(sweeps=0, seeds=(0,), spec=SMALL)
-    with pytest.raises(ValueError, match="'kappa'"):
-        sensitivity_study(sweeps=2, seeds=(0,), grid={"kappa": (1.0,)}, spec=SMALL)
+        robustness_studies(sweeps=0, seeds=(0,))
 
 
-def test_heldout_sensitivity_on_a_public_house(dataset_root):
-    from spcopyro.experiments.robustness import heldout_sensitivity, heldout_sensitivity_markdown
+def test_shipped_studies_are_the_former_grids() -> None:
+    stability, sensitivity = robustness_studies(sweeps=1000, seeds=(0, 1, 2), chains=3)
+    assert [v.name for v in stability.variants] == list(STABILITY_SETTINGS)
+    for variant in stability.variants:
+        setting = STABILITY_SETTINGS[variant.name]
+        options = dict(variant.options)
+        assert options.get("anneal_sweeps", 0) == (200 if setting.anneal else 0)
+        assert options.get("cluster_moves", 0.0) == setting.cluster_moves
+        assert dict(variant.fit).get("init", "random") == setting.init
+    assert [(d.house_seed, d.seeds) for d in stability.data] == [
+        (s, (s, s + 1000, s + 2000)) for s in (0, 1, 2)
+    ]
+    names = [v.name for v in sensitivity.variants]
+    assert names == [f"{p} {v:g}" for p, values in SENSITIVITY_GRID.items() for v in values]
+    assert len(sensitivity.data) == 6 and sensitivity.seeds == (0, 1, 2)
 
-    grid = {"gamma": (3.0, 4.0), "beta": (0.1,)}
-    result = heldout_sensitivity(dataset_root, sweeps=3, houses=["room1dk5"], grid=grid)
-    assert [r["value"] for r in result["parameters"]["gamma"]] == [3.0, 4.0]
-    for rows in result["parameters"].values():
-        for row in rows:
-            assert 0.0 <= row["top1"] <= row["top3"] <= 1.0
-            assert row["distance_m"] >= 0.0
-    # gamma 3 and beta 0.1 are both the base: fitted once, the same scores.
-    assert result["parameters"]["gamma"][0]["top1"] == result["parameters"]["beta"][0]["top1"]
-    markdown = heldout_sensitivity_markdown(result)
-    assert "| gamma | 3 |" in markdown and "| beta | 0.1 |" in markdown
+
+def _same(old: object, new: object, where: str = "") -> None:
+    """Equal JSON values, NaN equal to NaN."""
+    if isinstance(old, dict):
+        assert isinstance(new, dict) and set(old) == set(new), where
+        for key in old:
+            _same(old[key], new[key], f"{where}/{key}")
+    elif isinstance(old, list):
+        assert isinstance(new, list) and len(old) == len(new), where
+        for k, (a, b) in enumerate(zip(old, new, strict=True)):
+            _same(a, b, f"{where}[{k}]")
+    elif isinstance(old, float) and math.isnan(old):
+        assert isinstance(new, float) and math.isnan(new), where
+    else:
+        assert old == new, where
+
+
+def test_the_studies_give_the_old_loops_numbers(tmp_path) -> None:
+    """Stability and sensitivity on the default house, as studies: every number the former
+    loops wrote for the same seeds, chains and sweeps (the public houses: the slow test)."""
+    old = json.loads(OLD_RECORDS.read_text())["robustness"]
+    write_robustness(tmp_path, sweeps=20, seeds=(0, 1), chains=2)
+    new = json.loads((tmp_path / "robustness.json").read_text())
+    _same(old["stability"], new["stability"])
+    _same(old["sensitivity"], new["sensitivity"])
+
+
+@pytest.mark.slow
+def test_heldout_sensitivity_gives_the_old_loops_numbers(tmp_path, dataset_root) -> None:
+    old = json.loads(OLD_RECORDS.read_text())["robustness"]
+    markdown = write_robustness(tmp_path, sweeps=20, seeds=(0, 1), chains=2,
+                                dataset_root=dataset_root)  # fmt: skip
+    new = json.loads((tmp_path / "robustness.json").read_text())
+    _same(old, new)
+    assert "| gamma | 3 |" in markdown and "## Sensitivity on the public houses" in markdown
 
 
 @pytest.mark.slow

@@ -4,8 +4,9 @@
 (``experiment_quick.toml`` with ``--quick``), its options changing that study
 (:func:`spcopyro.study.experiment.experiment_study`), and writes the paper's comparison
 (``table.md``, ``table.json``, ``figures/``) from the study's table and stored maps; its
-``--studies`` and ``--robustness`` still run their own loops
-(:mod:`spcopyro.experiments.studies`, :mod:`spcopyro.experiments.robustness`).
+``--studies`` and ``--robustness`` run the shipped studies ``modality`` and ``sentences``
+(:mod:`spcopyro.study.side_studies`), ``stability`` and ``sensitivity``
+(:mod:`spcopyro.study.robustness`) into ``OUT/studies/`` and ``OUT/robustness/``.
 ``spcopyro compare-inference`` runs the study engine on the grid of its options
 (:func:`spcopyro.study.comparison.comparison_study`; its defaults and ``--quick`` are the cells of
 the shipped ``compare_inference.toml`` and ``compare_inference_quick.toml``) and writes the
@@ -60,16 +61,18 @@ def _experiment(args: argparse.Namespace) -> int:
     sweeps = study.sweeps_for("gibbs")
     count = summary["settings"]["seeds"]  # type: ignore[index]
     if args.studies:
-        from spcopyro.experiments.studies import write_studies
+        from spcopyro.study.side_studies import write_studies
 
-        print(write_studies(out, sweeps=min(sweeps, 1000), seeds=tuple(range(min(count, 3)))))
+        print(write_studies(out, sweeps=min(sweeps, 1000), seeds=tuple(range(min(count, 3))),
+                            workers=args.workers, report=print))  # fmt: skip
         print(f"wrote {out / 'studies.md'} and {out / 'studies.json'}")
     if args.robustness:
-        from spcopyro.experiments.robustness import write_robustness
+        from spcopyro.study.robustness import write_robustness
 
         print(write_robustness(out, sweeps=min(sweeps, 1000),
                                seeds=tuple(range(min(count, 3))), chains=3,
-                               dataset_root=root))  # fmt: skip
+                               dataset_root=root, workers=args.workers,
+                               report=print))  # fmt: skip
         print(f"wrote {out / 'robustness.md'} and {out / 'robustness.json'}")
     return 1 if summary["failed"] else 0
 

@@ -25,7 +25,13 @@ Scores (every one that applies; the others are left empty in the table, :data:`S
   ``use_images = use_words = False`` (same seed): ``ari_off`` (against the truth),
   ``ari_on_off`` (between the two maps), ``concepts_1pct_off``, ``seconds_off`` and
   ``cpu_seconds_off``;
-* ``seconds`` (wall clock) and ``cpu_seconds`` of the fit, ``iterations``;
+* ``seconds`` (wall clock) and ``cpu_seconds`` of the fit, ``iterations``, and
+  ``best_objective`` (the reported state's log joint or ELBO: the best of K chains is the
+  chain where it is highest);
+* on a synthetic house with sentences (``sentence_fraction`` > 0, the paper's Table 5
+  setting): ``concept_words`` (JSON text: the top 3 words of each concept labelling at least
+  :data:`SENTENCE_MIN_CELLS` cells) and ``filler_top_share`` (the share of them whose top word
+  is a filler, :data:`spcopyro.synthetic.FILLER_WORDS`);
 * the trace (objective, concepts in use and seconds per iteration; with the study's
   ``ari_every``, also ``ari`` against the truth at ``ari_iterations``, paper Fig. 5), returned
   beside the record and saved by the caller as ``traces/KEY.npz``;
@@ -62,6 +68,7 @@ from spcopyro.metrics import (
 from spcopyro.study.cells import Cell
 from spcopyro.study.comparison_cell import COMPARISON, comparison_scores
 from spcopyro.study.sources import load_cell_data
+from spcopyro.synthetic import FILLER_WORDS
 
 __all__ = ["SCORES", "STATUS_COLUMNS", "Arrays", "label_map_arrays", "run_cell"]
 
@@ -70,11 +77,14 @@ SCORES = (
     "inside_rate", "scored_words", "unknown_tokens", "empty_regions", "concepts",
     "concepts_1pct", "largest_share", "free_cells", "held_out_trial", "place_top_share",
     "top_words", "ari_off", "ari_on_off", "concepts_1pct_off", "seconds", "cpu_seconds",
-    "seconds_off", "cpu_seconds_off", "iterations", "details",
+    "seconds_off", "cpu_seconds_off", "iterations", "best_objective", "filler_top_share",
+    "concept_words", "details",
 )  # fmt: skip
 """The score columns of the table, in order."""
 STATUS_COLUMNS = ("status", "error_type", "error")
 """``ok`` or ``error``, and the error's type and message."""
+SENTENCE_MIN_CELLS = 50
+"""A concept counts in ``filler_top_share`` when it labels at least this many cells."""
 
 Arrays = dict[str, np.ndarray]
 """Named arrays saved as one ``.npz`` (a trace, a label map)."""
@@ -146,6 +156,9 @@ def _fit_and_score(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays
                 area, scored_house.truth, loaded.categories
             ).value
     if result is not None:
+        scores["best_objective"] = float(result.best_objective)
+        if cell.data.kind == "synthetic" and cell.data.house_spec().sentence_fraction > 0:
+            scores.update(_sentence_scores(result))
         words, scores["place_top_share"] = top_words(
             result, model_house(house, settings.data.cell_size)
         )
@@ -221,6 +234,16 @@ def _observations_off(cell: Cell, loaded, labels: np.ndarray) -> dict[str, objec
     if loaded.truth is not None:
         scores["ari_off"] = adjusted_rand_index(off, loaded.truth)
     return scores
+
+
+def _sentence_scores(result) -> dict[str, object]:
+    """``filler_top_share`` and ``concept_words`` of a fit (module docstring)."""
+    sizes = np.bincount(result.labels, minlength=result.config.num_concepts)
+    concepts = [int(c) for c in result.concepts_in_use() if sizes[c] >= SENTENCE_MIN_CELLS]
+    words = [[w for w, _ in result.top_words(c, 3)] for c in concepts]
+    fillers = [bool(ws) and ws[0] in FILLER_WORDS for ws in words]
+    share = float(np.mean(fillers)) if fillers else float("nan")
+    return {"filler_top_share": share, "concept_words": json.dumps(words)}
 
 
 def _map_scores(labels: np.ndarray, free: np.ndarray, truth: np.ndarray | None) -> dict:
