@@ -15,7 +15,7 @@ from matplotlib.figure import Figure
 
 
 def plot_stability(stability: dict, path: Path, method: str = "A-dp") -> Path:
-    """The stability study (:func:`~spcopyro.experiments.robustness.stability_study`) in two panels.
+    """The stability study (:func:`~spcopyro.study.robustness.stability_of_rows`) in two panels.
 
     Left: every chain's ARI against the truth per setting (grey), chain 0 (circle) and the best
     of K chains by log joint (cross), one marker per house seed. Right: for the settings of

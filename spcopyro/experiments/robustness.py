@@ -68,7 +68,7 @@ CHAIN_SEED_STRIDE = 1000
 """Chain k of house seed s runs with seed ``s + CHAIN_SEED_STRIDE * k`` (chain 0: seed s)."""
 
 SENSITIVITY_BASE = dict(preset="original-code", gamma=3.0)
-"""The configuration every one-at-a-time sweep of :func:`sensitivity_study` starts from."""
+"""The configuration every one-at-a-time sweep of the sensitivity study starts from."""
 SENSITIVITY_GRID: dict[str, tuple[float, ...]] = {
     "gamma": (2.0, 2.48, 3.0, 4.0),
     "beta": (0.1, 10.0, 500.0),
@@ -179,7 +179,8 @@ def robustness_markdown(stability: dict, sensitivity: dict) -> str:
 
 
 def heldout_sensitivity_markdown(heldout: dict) -> str:
-    """The table of :func:`heldout_sensitivity`."""
+    """The table of the sensitivity study on the public houses
+    (:func:`spcopyro.study.robustness.sensitivity_of_rows`)."""
     lines = [
         "## Sensitivity on the public houses (held-out trials)",
         "",

@@ -16,7 +16,7 @@ configuration throughout.
 
 The motivation is the paper's open problem: with a strong coupling from the first sweep, regions
 freeze around whatever the random start or the first few observations suggest. Whether annealing
-helps is measured, not assumed: see :func:`spcopyro.experiments.robustness.stability_study`.
+helps is measured, not assumed: see the stability study, :mod:`spcopyro.study.robustness`.
 """
 
 from __future__ import annotations
