@@ -158,9 +158,18 @@ def test_gibbs_sweeps_run_through_the_same_driver(problem, monkeypatch):
 
     monkeypatch.setattr(gibbs_run, "drive", spy)
     chain = gibbs_run.start_chain(data, cfg, seed=0)
-    gibbs_run.advance(chain, 3, progress=False)
+    after: list[np.ndarray] = []  # the chain's labels after each sweep
+
+    def keep(sweep, state):
+        assert state is chain.state  # the callback sees the sweep's own state
+        after.append(chain.state.labels.numpy().copy())
+
+    gibbs_run.advance(chain, 3, thin=1, progress=False, callback=keep)
     gibbs_run.advance(chain, 2, progress=False)
     assert calls == [(3, 0, "sweep"), (2, 3, "sweep")]
+    assert chain.sample_sweeps == [0, 1, 2]  # each kept map is its own sweep's, not the one before
+    for kept, state in zip(chain.label_samples, after, strict=True):
+        np.testing.assert_array_equal(kept, state)
     assert len(chain.log_joint) == 5 and np.all(np.diff(chain.seconds) >= 0)
 
     def stop(sweep, state):

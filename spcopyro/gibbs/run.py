@@ -305,7 +305,8 @@ def advance(
         # ``gamma`` is the schedule's coupling of this sweep; step() anneals by the same
         # schedule from the chain's sweep count (a chain sampling gamma runs at its own).
         last[:] = [chain._mark()]
-        return chain.state, _sweep(chain)
+        info = _sweep(chain)  # chain.state is the new one only after it
+        return chain.state, info
 
     try:
         run = drive(
