@@ -1,9 +1,11 @@
 """The ``spcopyro study`` command: run a study file (:mod:`spcopyro.study`, docs/studies.md).
 
 ``spcopyro study STUDY.toml --out OUT [--workers N] [--scheduler ADDRESS]`` runs the cells of
-the study that OUT does not hold yet and writes ``OUT/results.csv`` and ``OUT/report.md``.
-STUDY may also name a study shipped with the package (``ablation_small``). :func:`add_parser`
-registers the command; nothing heavy (torch, pyro, dask) is imported before it runs.
+the study that OUT does not hold yet and writes ``OUT/results.csv`` (and ``results.parquet``
+with pyarrow) and ``OUT/report.md``.
+STUDY may also name a study shipped with the package (``experiment``, ``ablation_small``, ...).
+:func:`add_parser` registers the command; nothing heavy (torch, pyro, dask) is imported before
+it runs.
 """
 
 from __future__ import annotations
@@ -66,7 +68,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         formatter_class=_HelpFormatter,
     )
     p.add_argument("study", help="study file (TOML; docs/studies.md), or the name of a shipped "
-                   "one: ablation_small")  # fmt: skip
+                   "one: experiment, ablation, compare_inference, modality, sentences, "
+                   "stability, sensitivity, their _quick versions, ablation_small")  # fmt: skip
     p.add_argument("--out", required=True, help="results folder: cells/ (the cache), traces/, "
                    "results.csv, report.md; finished cells there are not run again")  # fmt: skip
     p.add_argument("--workers", type=_positive_int, default=None,
