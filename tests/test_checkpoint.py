@@ -33,6 +33,7 @@ from spcopyro.gibbs.checkpoint import (
 )
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsRun, advance, run_gibbs, start_chain
+from spcopyro.guides.checkpoint import is_variational_checkpoint
 from spcopyro.synthetic import HouseSpec, write_synthetic
 
 FIT = ["--sweeps", "12", "--preset", "original-code", "--gamma", "3", "--concepts", "8",
@@ -312,12 +313,8 @@ def test_the_printed_resume_command_works_for_a_default_fit(room, tmp_path, caps
     _same_outputs(out, tmp_path / "unbroken")
 
 
-@pytest.mark.parametrize("method", ["cavi", "vi-gibbs"])
-def test_ctrl_c_in_a_variational_fit_says_how_far_it_got(
-    room, tmp_path, capsys, monkeypatch, method
-):
-    """The driver's record of an interrupted run reaches the command's one line: which fit,
-    how many iterations were done (vi-gibbs: its VI stage, through the same driver)."""
+def _interrupt_cavi_at(monkeypatch, call: int) -> None:
+    """Make CAVI's torch step raise KeyboardInterrupt at its ``call``-th call."""
     import spcopyro.guides.cavi as cavi
 
     calls: list[int] = []
@@ -325,19 +322,102 @@ def test_ctrl_c_in_a_variational_fit_says_how_far_it_got(
 
     def interrupting(state, *args, **kwargs):
         calls.append(1)
-        if len(calls) == 4:
+        if len(calls) == call:
             raise KeyboardInterrupt
         return real(state, *args, **kwargs)
 
     monkeypatch.setattr(cavi, "step", interrupting)
-    out = tmp_path / "out"
+
+
+def _variational_argv(room, out, method: str) -> list[str]:
     prefix = "" if method == "cavi" else "variational."
-    argv = ["fit", str(room), "--out", str(out), *FIT, "--method", method, "--method-option",
+    return ["fit", str(room), "--out", str(out), *FIT, "--method", method, "--method-option",
             f"{prefix}backend=torch", "--method-option", f"{prefix}tolerance=0"]  # fmt: skip
-    assert main(argv) == 130
+
+
+def test_ctrl_c_in_a_vi_gibbs_fit_says_how_far_it_got(room, tmp_path, capsys, monkeypatch):
+    """The driver's record of an interrupted run reaches the command's one line: which fit,
+    how many iterations were done (vi-gibbs: its VI stage, through the same driver)."""
+    _interrupt_cavi_at(monkeypatch, 4)
+    out = tmp_path / "out"
+    assert main(_variational_argv(room, out, "vi-gibbs")) == 130
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith(f"interrupted ({method} fit 1 of 1, 3 of ")
-    assert "no checkpoint kept" in err and not out.exists()
+    assert err.count("\n") == 1 and err.startswith("interrupted (vi-gibbs fit 1 of 1, 3 of ")
+    assert "no checkpoint kept (the 'vi-gibbs' method)" in err and not out.exists()
+
+
+def test_ctrl_c_in_a_cavi_fit_keeps_its_q_and_resume_gives_the_unbroken_fit(
+    room, tmp_path, capsys, monkeypatch
+):
+    """A variational fit interrupted after 3 iterations is saved (its q(C) and record); the
+    printed command goes on from there, and with CAVI's torch backend the result is the fit that
+    never stopped, trace and kept maps included (issue 23 item 1)."""
+    out = tmp_path / "out"
+    argv = _variational_argv(room, out, "cavi")
+    with monkeypatch.context() as patch:
+        _interrupt_cavi_at(patch, 4)
+        assert main(argv) == 130
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("interrupted (cavi fit 1 of 1, 3 of 12 ")
+    checkpoint = checkpoint_path(out)
+    assert f"saved in {checkpoint}" in err and not out.exists()
+    assert is_variational_checkpoint(checkpoint) and not is_variational_checkpoint(room / "x")
+    again = shlex.split(err.split("continue with: ")[1])
+    assert again[-2:] == ["--resume", str(checkpoint)]
+    assert main([*again[1:], "--gamma", "4"]) == 2  # other settings: refused, naming them
+    assert "gamma: 3.0 in the checkpoint, 4.0 here" in capsys.readouterr().err
+    assert main(again[1:]) == 0
+    assert "resuming         the fit saved in" in capsys.readouterr().out
+    assert not checkpoint.exists()
+    assert main([*argv[:3], str(tmp_path / "unbroken"), *argv[4:]]) == 0
+    _same_outputs(out, tmp_path / "unbroken")
+
+
+@pytest.mark.parametrize("method", ["svi", "cavi-numba"])
+def test_other_variational_fits_resume_from_the_q_reached(room, tmp_path, monkeypatch, method):
+    """SVI and CAVI's compiled backend go on from the saved q(C) (a warm start): the trace
+    continues the saved one and the fit completes its iterations."""
+    import spcopyro.guides.run
+    import spcopyro.guides.svi_method
+    from spcopyro.data import load_house
+    from spcopyro.fit.gibbs_chains import FitInterrupted
+    from spcopyro.fit.house import fit_house_chains
+    from spcopyro.guides.options import VariationalOptions
+    from spcopyro.guides.svi_method import SVIOptions
+
+    if method == "svi":
+        name, module, options = "svi", spcopyro.guides.svi_method, SVIOptions(tolerance=0.0)
+    else:
+        pytest.importorskip("numba")
+        name, module = "cavi", spcopyro.guides.run
+        options = VariationalOptions(backend="numba", tolerance=0.0)
+    house = load_house(room)
+    path = tmp_path / "fit.checkpoint.npz"
+    kwargs = dict(method=name, options=options, sweeps=12, progress=False)
+    real = driver_module.drive
+
+    def drive_stopped_at_6(state, step, iterations, **more):
+        steps = 0
+
+        def stopping(state, gamma):
+            nonlocal steps
+            steps += 1
+            if steps == 6:
+                raise KeyboardInterrupt
+            return step(state, gamma)
+
+        return real(state, stopping, iterations, **more)
+
+    with monkeypatch.context() as patch:
+        patch.setattr(module, "drive", drive_stopped_at_6)
+        with pytest.raises(FitInterrupted) as caught:
+            fit_house_chains(house, checkpoint=path, **kwargs)
+    assert caught.value.checkpoint == path and "5 of 12 iterations done" in caught.value.where
+    (result,) = fit_house_chains(house, resume=path, **kwargs)
+    assert len(result.trace.objective) == 12
+    with np.load(path) as saved:
+        np.testing.assert_array_equal(result.trace.objective[:5], saved["objective"])
+        np.testing.assert_allclose(saved["marginals"].sum(-1), 1.0)  # a q(C) per free cell
 
 
 def test_a_fit_into_out_with_a_checkpoint_must_resume_or_overwrite(

@@ -142,6 +142,33 @@ def test_a_continued_run_goes_on_with_its_schedule_thinning_and_numbers():
     assert caught.value.trajectory.state == 3 and len(caught.value.trajectory.objective) == 3
 
 
+def test_a_run_resumed_from_its_interrupted_record_is_the_unbroken_run():
+    """``resume``: the record of an interrupted run (what a variational checkpoint keeps) comes
+    first, the new iterations are numbered on from it, the stopping rule sees both; ``marginals``
+    hands the interrupted state's q(C) back."""
+    values = [-100.0, -50.0, -40.0, -30.0, -30.0 + 1e-9, -30.0, -30.0]
+    labels = lambda state: torch.full((2,), state)  # noqa: E731
+    kwargs = dict(gamma=2.0, anneal=3, tolerance=1e-7, thin=2, labels=labels, num_concepts=3,
+                  progress=False)  # fmt: skip
+    unbroken = drive(0, _counting_step(values), 7, **kwargs)
+
+    def stop_at_3(state, gamma):
+        if state == 3:
+            raise KeyboardInterrupt
+        return _counting_step(values)(state, gamma)
+
+    with pytest.raises(DriveInterrupted) as caught:
+        drive(0, stop_at_3, 7, marginals=lambda state: torch.full((2, 3), state / 3), **kwargs)
+    stopped = caught.value.trajectory
+    assert stopped.state == 3 and caught.value.marginals[0, 0] == 1.0
+    resumed = drive(stopped.state, _counting_step(values), 7 - 3, resume=stopped, **kwargs)
+    assert resumed.state == unbroken.state == 5 and resumed.converged
+    assert resumed.stop_reason == unbroken.stop_reason
+    for name in ("objective", "num_concepts", "gammas", "label_samples", "sample_iterations"):
+        np.testing.assert_array_equal(getattr(resumed, name), getattr(unbroken, name))
+    assert np.all(np.diff(resumed.seconds) >= 0) and resumed.seconds[2] == stopped.seconds[2]
+
+
 def test_gibbs_sweeps_run_through_the_same_driver(problem, monkeypatch):
     """One driver runs every method: a Gibbs chain's sweeps are drive()'s iterations (its log
     joint the objective, numbered on from the chain's sweeps), and Ctrl-C hands back the

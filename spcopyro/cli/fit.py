@@ -127,10 +127,12 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
         _check_update_args(args)
     if args.sweeps == "auto" and args.method != "gibbs":
         raise ValueError(f"--sweeps auto is Gibbs' convergence rule, not {args.method!r}'s")
-    if args.resume is not None and (args.sweeps == "auto" or args.method != "gibbs"):
+    checkpointed = _keeps_checkpoint(args)
+    if args.resume is not None and not checkpointed:
         raise ValueError(
-            "--resume continues Gibbs chains run for a number of --sweeps; "
-            f"--sweeps {args.sweeps} --method {args.method} keeps no checkpoint"
+            "--resume continues Gibbs chains run for a number of --sweeps, or one fit "
+            f"(--chains 1) of {', '.join(_resumable())}; --sweeps {args.sweeps} --method "
+            f"{args.method} keeps no checkpoint"
         )
     if args.point_estimate != "map-visited" and (
         args.sweeps == "auto"
@@ -160,9 +162,7 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
         inputs=(house.source, house.grid.source, args.update),
     )  # fmt: skip
     args.phases.mark("settings")
-    keeper = None
-    if args.method == "gibbs" and args.sweeps != "auto" and args.update is None:
-        keeper = FitCheckpoint(checkpoint_path(staged.out))
+    keeper = FitCheckpoint(checkpoint_path(staged.out)) if checkpointed else None
     job = FitJob(args, house, settings, options, staged, keeper)
     try:
         return _fit_staged(job)
@@ -187,6 +187,21 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
         raise
     finally:
         staged.discard()  # nothing once committed; else the run's partial outputs
+
+
+def _resumable() -> list[str]:
+    """The variational methods whose fit is saved on Ctrl-C (:mod:`spcopyro.guides.checkpoint`)."""
+    from spcopyro.fit.registry import INFERENCE_METHODS
+
+    return [name for name, method in INFERENCE_METHODS.items() if method.resumable]
+
+
+def _keeps_checkpoint(args: argparse.Namespace) -> bool:
+    """Whether Ctrl-C keeps a checkpoint of this fit: Gibbs chains run for a number of
+    ``--sweeps``, or one fit of a variational method that resumes; never an ``--update``."""
+    if args.sweeps == "auto" or args.update is not None:
+        return False
+    return args.method == "gibbs" or (args.method in _resumable() and args.chains in (None, 1))
 
 
 def _apply_preset_inference(args: argparse.Namespace) -> None:
@@ -234,8 +249,12 @@ def _interrupted(args: argparse.Namespace, where: str, kept: Path | None, out: P
     line = f"interrupted{where}: nothing written to {out}"
     if kept is None:
         why = "--sweeps auto" if args.sweeps == "auto" else f"the {args.method!r} method"
-        if args.sweeps != "auto" and args.method == "gibbs":
-            why = "no sweep was done" if args.update is None else "--update"
+        if args.sweeps != "auto" and args.update is not None:
+            why = "--update"
+        elif _keeps_checkpoint(args):
+            why = "no sweep was done" if args.method == "gibbs" else "no iteration was done"
+        elif args.method in _resumable():
+            why = f"--chains {args.chains}: a {args.method} checkpoint holds one fit"
         return f"{line}; no checkpoint kept ({why})"
     command = _resume_command(args, kept)
     return f"{line}; the state reached is saved in {kept} -- continue with: {command}"
@@ -332,7 +351,8 @@ def _fit_staged(job: FitJob) -> int:
     if isinstance(options, GibbsOptions):
         print(f"backend used     {get_backend(options.backend).name}")
     if args.resume is not None:
-        print(f"resuming         the chains saved in {args.resume}")
+        saved_fit = "chains" if args.method == "gibbs" else "fit"
+        print(f"resuming         the {saved_fit} saved in {args.resume}")
     init = args.init
     saved = None
     if args.update is not None:

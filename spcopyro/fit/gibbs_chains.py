@@ -93,7 +93,7 @@ def gibbs_outputs(
             f"anneal_sweeps ({options.anneal_sweeps}) must not exceed num_sweeps ({sweeps})"
         )
     record = {"method": "gibbs", "sweeps": sweeps, "seeds": seeds, "init": init,
-              "data_preparation": _preparation_record(settings)}  # fmt: skip
+              "data_preparation": preparation_record(settings)}  # fmt: skip
     chains: list[GibbsChain | None] = [None] * len(seeds)
     if resume is not None:
         chains = load_chains(resume, data, settings.model, options, record=record)
@@ -129,7 +129,7 @@ def gibbs_outputs(
     return outputs
 
 
-def _preparation_record(settings: SpCoSettings) -> dict[str, object]:
+def preparation_record(settings: SpCoSettings) -> dict[str, object]:
     """The data preparation as a checkpoint records it: the footprint fields only when the
     footprint is on, so checkpoints made before it existed still resume."""
     record = dataclasses.asdict(settings.data)

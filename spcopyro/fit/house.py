@@ -41,6 +41,7 @@ from spcopyro.fit.gibbs_chains import (
 )
 from spcopyro.fit.registry import DEFAULT_METHOD, get_method
 from spcopyro.fit.starts import Init, init_name, initial_labels
+from spcopyro.fit.variational_checkpoint import VariationalSaving
 from spcopyro.gibbs.chains import resolve_workers
 from spcopyro.gibbs.checkpoint import data_fingerprint
 from spcopyro.gibbs.convergence import (
@@ -303,11 +304,15 @@ def fit_house_chains(
 
     Args:
         source: where the house came from, for ``config.json`` (:func:`provenance`).
-        checkpoint: Gibbs only: save the chains' state to this file on Ctrl-C, then raise
+        checkpoint: save the chains' state (Gibbs) or the q(C) reached (one seed of a
+            variational method that resumes, ``InferenceMethod.resumable``: cavi, svi;
+            :mod:`spcopyro.guides.checkpoint`) to this file on Ctrl-C, then raise
             :class:`FitInterrupted` (a :class:`FitCheckpoint` keeps the chains for the caller).
-        resume: Gibbs only: continue the chains saved in this checkpoint (ValueError if it was
-            made for other data or settings, seeds, sweeps or init); chains it does not hold
-            start afresh. The results equal those of a fit that never stopped.
+        resume: continue the chains, or the variational fit, saved in this checkpoint
+            (ValueError if it was made for other data or settings, seeds, sweeps or init);
+            chains it does not hold start afresh. Gibbs' results equal those of a fit that
+            never stopped, as do CAVI's with the torch backend; the other variational methods
+            go on from the q(C) reached (a warm start: see the checkpoint module).
         marginal_samples: a sampler (Gibbs, vi-gibbs): keep about this many label maps over the
             second half of the sweeps and store their label frequencies as the result's
             ``marginals`` (the uncertainty map and per-cell "where" probabilities read them); 0:
@@ -336,7 +341,11 @@ def fit_house_chains(
     house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
     inference = get_method(method)
     if not isinstance(inference, GibbsInference) and (checkpoint or resume):
-        raise ValueError(f"checkpoints hold Gibbs chains; the {method!r} method keeps none")
+        if not inference.resumable:
+            raise ValueError(f"checkpoints hold Gibbs chains or a variational q(C); the "
+                             f"{method!r} method keeps neither")  # fmt: skip
+        if len(seeds) > 1:
+            raise ValueError(f"a {method!r} checkpoint holds one fit; {len(seeds)} seeds asked")
     count = resolve_threads(threads, house.grid.num_free)
     workers = (
         resolve_workers(chain_workers, len(seeds)) if isinstance(inference, GibbsInference) else 1
@@ -365,16 +374,19 @@ def fit_house_chains(
         for k, seed in enumerate(seeds):
             generator = torch.Generator().manual_seed(int(seed))
             start = initial_labels(house, counts, settings, init, int(seed), generator)
+            saving = VariationalSaving(inference, options, data, settings, sweeps, seeds, init)
             try:
                 output = inference.run(
                     data, settings.model, iterations=int(sweeps), generator=generator,
                     init_labels=start, options=options, progress=progress,
                     thin=marginal_thin(int(sweeps), marginal_samples),
+                    resume=None if resume is None else saving.load(resume),
                 )  # fmt: skip
             except DriveInterrupted as stop:  # the driver's record of how far it got
                 done = len(stop.trajectory.objective)
                 where = f"{method} fit {k + 1} of {len(seeds)}, {done} of {sweeps} iterations done"
-                raise FitInterrupted(where) from None
+                path = None if checkpoint is None else saving.save(checkpoint.path, stop)
+                raise FitInterrupted(where, path) from None
             output.options.update(seed=int(seed), init=init_name(init))
             if output.marginals is None:  # a sampler (vi-gibbs): its label frequencies
                 output = with_sample_marginals(

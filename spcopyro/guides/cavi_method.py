@@ -13,7 +13,9 @@ from spcopyro.guides.options import VariationalOptions
 from spcopyro.guides.run import (
     VariationalRun,
     initial_q,
+    remaining,
     resolve_backend,
+    resumed,
     run_variational,
 )
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs, Trace
@@ -47,13 +49,18 @@ class CAVIInference(InferenceMethod):
     objective_name = "ELBO"
     options_type = VariationalOptions
     title = "CAVI"
+    resumable = True
 
     def fit(
         self, data: ModelData, config: SpCoConfig, options: VariationalOptions, request: RunArgs
     ) -> InferenceOutput:
-        q = initial_q(data, config, request.generator, request.init_labels, init=options.init)
-        run = run_variational(data, config, request.iterations, options=options, q=q,
-                              progress=request.progress, thin=request.thin)  # fmt: skip
+        q, before = resumed(request) or (
+            initial_q(data, config, request.generator, request.init_labels, init=options.init),
+            None,
+        )
+        run = run_variational(data, config, remaining(request), options=options, q=q,
+                              progress=request.progress, thin=request.thin,
+                              resume=before)  # fmt: skip
         record = {
             "iterations": request.iterations,
             **dataclasses.asdict(options),

@@ -22,6 +22,7 @@ from spcopyro.guides.factors import GlobalFactors
 from spcopyro.guides.options import VariationalOptions
 from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.initialisation import check_labels, random_labels
+from spcopyro.inference.protocol import RunArgs
 from spcopyro.model import DTYPE, ModelData
 
 
@@ -89,6 +90,25 @@ def initial_q(
     return one_hot(check_labels(labels, N, config), L)
 
 
+def resumed(request: RunArgs) -> tuple[torch.Tensor, Trajectory] | None:
+    """``(q [N, L], record)`` of ``request.resume`` (q copied: a run writes into its own), or
+    None when the run starts afresh."""
+    if request.resume is None:
+        return None
+    return request.resume.marginals.to(DTYPE).clone(), request.resume.trajectory
+
+
+def remaining(request: RunArgs) -> int:
+    """The iterations left of ``request.iterations`` after those of the run resumed."""
+    done = 0 if request.resume is None else len(request.resume.trajectory.objective)
+    if done >= request.iterations:
+        raise ValueError(
+            f"the checkpoint's run has done {done} iterations: nothing left of the "
+            f"{request.iterations} asked for"
+        )
+    return request.iterations - done
+
+
 def resolve_backend(backend: str) -> str:
     """``"torch"`` or ``"numba"``: ``"auto"`` is numba where it imports, else torch.
 
@@ -116,6 +136,7 @@ def run_variational(
     progress: bool | None = None,
     description: str = "CAVI",
     thin: int = 0,
+    resume: Trajectory | None = None,
 ) -> VariationalRun:
     """At most ``iterations`` CAVI iterations from ``q`` ``[N, L]`` (see :func:`initial_q`;
     written with the final q): :func:`spcopyro.guides.cavi.step` or, with ``options.backend``
@@ -123,25 +144,32 @@ def run_variational(
     ``options.threshold``: q stays sparse through the run, densified once at the end), run by the
     shared driver at the annealed coupling (``options.anneal_iterations``) until the ELBO
     settles (``options.tolerance``). ``thin`` > 0 keeps the argmax labels every ``thin``
-    iterations (int16, as Gibbs' label maps)."""
+    iterations (int16, as Gibbs' label maps). ``resume``: the record of the run ``q`` was
+    reached by (a checkpoint's: :mod:`spcopyro.guides.checkpoint`), continued here."""
     options = VariationalOptions() if options is None else options
     if resolve_backend(options.backend) == "numba":
         import spcopyro.guides.numba_cavi as backend
 
         def labels(state: backend.SparseCAVIState) -> torch.Tensor:
             return state.field.labels()
+
+        def marginals(state: backend.SparseCAVIState) -> torch.Tensor:
+            return state.field.dense()
     else:
         backend = cavi  # type: ignore[assignment]
 
         def labels(state: cavi.CAVIState) -> torch.Tensor:  # type: ignore[misc]
             return state.q.argmax(-1)
 
+        def marginals(state: cavi.CAVIState) -> torch.Tensor:  # type: ignore[misc]
+            return state.q
+
     state = backend.init(q, data, config, options)
     run = drive(
         state, lambda state, gamma: backend.step(state, data, config, gamma, options), iterations,
         gamma=config.gamma, anneal=options.anneal_iterations, tolerance=options.tolerance,
         thin=thin, labels=labels, num_concepts=config.num_concepts, progress=progress,
-        description=description,
+        description=description, resume=resume, marginals=marginals,
     )  # fmt: skip
     final = run.state
     dense = final.q if isinstance(final, cavi.CAVIState) else final.field.dense()

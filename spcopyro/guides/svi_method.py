@@ -29,8 +29,8 @@ from spcopyro.config import SpCoConfig
 from spcopyro.guides.cavi_method import output_from_variational
 from spcopyro.guides.loss import MeanFieldELBO
 from spcopyro.guides.mean_field import MeanFieldGuide
-from spcopyro.guides.run import VariationalRun, initial_q
-from spcopyro.inference.driver import drive
+from spcopyro.guides.run import VariationalRun, initial_q, remaining, resumed
+from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
 from spcopyro.model import ModelData, spcomapping_model
 
@@ -182,6 +182,7 @@ def fit_svi(
     options: SVIOptions | None = None,
     progress: bool | None = None,
     thin: int = 0,
+    resume: Trajectory | None = None,
 ) -> VariationalRun:
     """At most ``steps`` SVI steps (:func:`step`) of the mean-field guide started at ``q``
     ``[N, L]``, run by the shared driver: annealed per ``options.anneal_iterations``, stopped
@@ -191,6 +192,8 @@ def fit_svi(
     :class:`~spcopyro.guides.run.VariationalRun` holds the final guide's q(C) and global
     factors and, per step, the ELBO estimate (minus the SVI loss), the concepts in use, the
     seconds and the coupling. ``thin`` > 0 keeps the argmax labels every ``thin`` steps.
+    ``resume``: the record of the run ``q`` was reached by (a checkpoint's), continued here
+    with a fresh optimiser (its moments are not kept).
     """
     options = SVIOptions() if options is None else options
     if steps < 1:
@@ -205,7 +208,8 @@ def fit_svi(
             window=options.window, thin=thin,
             labels=lambda state: state.guide.logits().detach().argmax(-1),
             num_concepts=config.num_concepts, progress=progress, description="SVI",
-            unit="step",
+            unit="step", resume=resume,
+            marginals=lambda state: state.guide.marginals().detach(),
         )  # fmt: skip
         guide = run.state.guide
         return VariationalRun.of(run, guide.marginals(), guide.factors())
@@ -220,14 +224,18 @@ class SVIInference(InferenceMethod):
     objective_name = "ELBO"
     options_type = SVIOptions
     title = "SVI"
+    resumable = True
 
     def fit(
         self, data: ModelData, config: SpCoConfig, options: SVIOptions, request: RunArgs
     ) -> InferenceOutput:
-        q = initial_q(data, config, request.generator, request.init_labels)
+        q, before = resumed(request) or (
+            initial_q(data, config, request.generator, request.init_labels),
+            None,
+        )
         run = fit_svi(
-            data, config, request.iterations, q=q, generator=request.generator,
-            options=options, progress=request.progress, thin=request.thin,
+            data, config, remaining(request), q=q, generator=request.generator,
+            options=options, progress=request.progress, thin=request.thin, resume=before,
         )  # fmt: skip
         record = {"iterations": request.iterations, **dataclasses.asdict(options)}
         return output_from_variational(run, record)

@@ -77,11 +77,13 @@ class Trajectory(Generic[StateT]):
 
 
 class DriveInterrupted(KeyboardInterrupt):
-    """Ctrl-C stopped :func:`drive`; ``trajectory`` holds the iterations completed before it."""
+    """Ctrl-C stopped :func:`drive`; ``trajectory`` holds the iterations completed before it
+    (and those of the run it resumed), ``marginals`` the ``[N, L]`` q(C) its state holds where
+    the method hands one to :func:`drive` (what a variational checkpoint keeps), else None."""
 
-    def __init__(self, trajectory: Trajectory) -> None:
+    def __init__(self, trajectory: Trajectory, marginals: torch.Tensor | None = None) -> None:
         super().__init__(trajectory.stop_reason)
-        self.trajectory = trajectory
+        self.trajectory, self.marginals = trajectory, marginals
 
 
 def label_storage(num_concepts: int) -> type:
@@ -106,6 +108,8 @@ def drive(
     description: str = "VI",
     unit: str = "it",
     callback: Callable[[int, StateT], None] | None = None,
+    resume: Trajectory | None = None,
+    marginals: Callable[[StateT], torch.Tensor] | None = None,
 ) -> Trajectory[StateT]:
     """Run ``step`` from ``state`` for at most ``iterations`` iterations (module docstring).
 
@@ -120,6 +124,12 @@ def drive(
             (0: none); ``labels`` is required then, and ``num_concepts`` (L) picks the dtype.
         callback: called as ``callback(iteration, state)`` after every iteration is recorded;
             a Ctrl-C in it keeps that iteration.
+        resume: the record of an earlier run that ``state`` continues (a variational
+            checkpoint's): its iterations come first in the returned record, the new ones are
+            numbered on from them (``first``), their seconds added to its last, and the stopping
+            rule sees both.
+        marginals: ``marginals(state)`` ``[N, L]``, the q(C) a Ctrl-C hands back in
+            :class:`DriveInterrupted` (None: none).
     """
     if not isinstance(iterations, (int, np.integer)) or iterations < 1:
         raise ValueError(f"iterations must be an integer >= 1, got {iterations!r}")
@@ -134,10 +144,19 @@ def drive(
     samples: list[np.ndarray] = []  # [N] each, the maps kept (appended before their row)
     sampled: list[int] = []
     recorded = state  # the state of the last completed iteration
+    offset = 0.0  # the seconds of the run resumed
+    if resume is not None:
+        rows += zip(resume.objective.tolist(), resume.num_concepts.tolist(),
+                    resume.gammas.tolist(), resume.seconds.tolist(), strict=True)  # fmt: skip
+        if resume.label_samples is not None:
+            samples += list(resume.label_samples)
+            sampled += resume.sample_iterations.tolist()
+        first, offset = len(rows), (rows[-1][3] if rows else 0.0)
+    begun = len(rows)
 
     def trajectory(reason: str, done: bool = False) -> Trajectory[StateT]:
         table = np.asarray(rows, dtype=np.float64).reshape(len(rows), 4)  # [S, 4]
-        kept = sum(1 for s in sampled if s < first + len(rows))  # maps of completed iterations
+        kept = sum(1 for s in sampled if s < first - begun + len(rows))  # of completed iterations
         return Trajectory(
             recorded, table[:, 0], table[:, 1].astype(np.int64), table[:, 3], table[:, 2],
             np.stack(samples[:kept]) if kept else None,
@@ -159,7 +178,7 @@ def drive(
                     samples.append(labels(state).numpy().astype(dtype))
                     sampled.append(iteration)
                 row = (float(info.objective), int(info.num_concepts), float(info.gamma),
-                       time.perf_counter() - start)  # fmt: skip
+                       offset + time.perf_counter() - start)  # fmt: skip
                 rows.append(row)
                 recorded = state
                 if callback is not None:
@@ -170,13 +189,14 @@ def drive(
                     break
         except KeyboardInterrupt:
             reason = f"interrupted (Ctrl-C) after {len(rows)} iterations"
-            raise DriveInterrupted(trajectory(reason)) from None
+            held = None if marginals is None else marginals(recorded)
+            raise DriveInterrupted(trajectory(reason), held) from None
     if converged_now:
         return trajectory(
             f"converged after {len(rows)} iterations: the objective changed by less than "
             f"tolerance {tolerance:g} x |objective|",
             done=True,
         )
-    reason = f"ran the {iterations} iterations asked for (not converged within them"
+    reason = f"ran the {len(rows)} iterations asked for (not converged within them"
     reason += f" at tolerance {tolerance:g})" if tolerance else ")"
     return trajectory(reason)

@@ -28,6 +28,7 @@ if (
 ):  # annotations only: a saved result is read without torch (spcopyro.results.result)
     import torch
 
+    from spcopyro.inference.driver import Trajectory
     from spcopyro.model import ModelData
 
 
@@ -89,6 +90,17 @@ def method_options(options: object | None, kind: type[OptionsT], method: str) ->
     return options
 
 
+class Resumption(NamedTuple):
+    """Where a variational fit that was interrupted goes on (a checkpoint's content,
+    :mod:`spcopyro.guides.checkpoint`): the q(C) it had reached and the record of its
+    iterations so far."""
+
+    marginals: torch.Tensor
+    """[N, L] float64 q(C_i = l) after the last completed iteration."""
+    trajectory: Trajectory
+    """The driver's record of those iterations (the new ones are numbered on from it)."""
+
+
 class RunArgs(NamedTuple):
     """The arguments of :meth:`InferenceMethod.run` other than the data, config and options,
     as :meth:`InferenceMethod.fit` receives them."""
@@ -98,6 +110,8 @@ class RunArgs(NamedTuple):
     init_labels: torch.Tensor | None = None
     progress: bool | None = None
     thin: int = 0
+    resume: Resumption | None = None
+    """A variational method: go on from here (``iterations`` stays the whole run's ceiling)."""
 
 
 class InferenceMethod(Protocol):
@@ -116,6 +130,9 @@ class InferenceMethod(Protocol):
     """The type of the method's options (for subclasses: :meth:`run` checks it)."""
     title: str = ""
     """The method's name in messages, e.g. ``"Gibbs sampling"``."""
+    resumable: bool = False
+    """Whether :meth:`run` takes ``resume`` (a variational checkpoint's q(C) and record; Gibbs
+    chains resume through :mod:`spcopyro.gibbs.checkpoint`)."""
 
     def default_options(self) -> object:
         """The method's options object with its defaults."""
@@ -132,13 +149,17 @@ class InferenceMethod(Protocol):
         options: object | None = None,
         progress: bool | None = None,
         thin: int = 0,
+        resume: Resumption | None = None,
     ) -> InferenceOutput:
         """Fit the model to ``data`` with ``iterations`` iterations (a ceiling for a method that
         stops at convergence), drawing from ``generator`` (a seeded generator makes the fit
         reproducible); ``thin`` > 0 keeps a label map every ``thin`` iterations where the method
-        has such maps."""
+        has such maps. ``resume``: a variational method (:attr:`resumable`) goes on from an
+        interrupted run's q(C) and record instead of starting at ``init_labels``."""
         options = method_options(options, self.options_type, self.title or self.name)
-        request = RunArgs(iterations, generator, init_labels, progress, thin)
+        if resume is not None and not self.resumable:
+            raise ValueError(f"{self.title or self.name} does not resume from a checkpoint")
+        request = RunArgs(iterations, generator, init_labels, progress, thin, resume)
         return self.fit(data, config, options, request)
 
     def fit(

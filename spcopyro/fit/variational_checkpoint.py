@@ -1,0 +1,59 @@
+"""A variational fit of :func:`spcopyro.fit.house.fit_house_chains` saved on Ctrl-C and resumed:
+the fit's settings as the checkpoint records them (:mod:`spcopyro.guides.checkpoint`)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from spcopyro.config import SpCoSettings
+from spcopyro.fit.gibbs_chains import preparation_record
+from spcopyro.fit.starts import Init, init_name
+from spcopyro.guides.checkpoint import load_variational, save_variational
+from spcopyro.inference.driver import DriveInterrupted
+from spcopyro.inference.protocol import InferenceMethod, Resumption, method_options
+from spcopyro.model import ModelData
+
+
+@dataclass
+class VariationalSaving:
+    """What a variational fit's checkpoint is made for: the method and its options, the data,
+    the settings, and the caller's run (sweeps, seeds, start); checked on resuming."""
+
+    inference: InferenceMethod
+    options: object | None
+    data: ModelData
+    settings: SpCoSettings
+    sweeps: int
+    seeds: Sequence[int]
+    init: Init
+
+    def _options(self) -> object:
+        kind = self.inference.options_type
+        return method_options(self.options, kind, self.inference.title or self.inference.name)
+
+    def _record(self) -> dict[str, object]:
+        return {"method": self.inference.name, "sweeps": int(self.sweeps),
+                "seeds": [int(s) for s in self.seeds], "init": init_name(self.init),
+                "data_preparation": preparation_record(self.settings)}  # fmt: skip
+
+    def save(self, path: str | os.PathLike[str], stop: DriveInterrupted) -> Path | None:
+        """Save the q(C) and record ``stop`` carries into ``path``; None (nothing written) when
+        it carries no q(C) or no iteration was completed."""
+        if stop.marginals is None or not len(stop.trajectory.objective):
+            return None
+        return save_variational(
+            path, stop.marginals, stop.trajectory, method=self.inference.name,
+            options=self._options(), config=self.settings.model, data=self.data,
+            record=self._record(),
+        )  # fmt: skip
+
+    def load(self, path: str | os.PathLike[str]) -> Resumption:
+        """The q(C) and record saved in ``path`` (ValueError naming what differs if it was made
+        for another fit)."""
+        return load_variational(
+            path, self.data, self.settings.model, method=self.inference.name,
+            options=self._options(), record=self._record(),
+        )  # fmt: skip

@@ -1,0 +1,178 @@
+"""Saving an interrupted variational fit to a file and going on from it.
+
+A variational method's state is, up to what it can recompute, its q(C): CAVI's global factors
+are a function of q (eqs. 14-17 in expectation), memoized VI's memo is q summed block by block,
+LBP's beliefs are its q. A checkpoint therefore keeps q and the driver's record of the
+iterations so far (:class:`~spcopyro.inference.driver.Trajectory`), and the run goes on with
+the method started at that q, its new iterations numbered on from the record
+(:class:`~spcopyro.inference.protocol.Resumption`). For CAVI's torch backend the state *is* q
+and its factors, so the continued run equals the run never stopped; the other methods go on
+from the same q with what they rebuild from it (CAVI's compiled backend its active set, SVI its
+optimiser's moments): a warm start at the objective reached, not the same iterates.
+
+One ``.npz`` file (written whole or not at all: :func:`spcopyro._util.outputs.replace_file`), N
+free cells, L concepts, S iterations done:
+
+=============================  =================================================================
+``marginals``                  [N, L] float64 q(C_i = l) after iteration S - 1
+``objective`` / ``gammas``     [S] float64 the driver's record
+``num_concepts``               [S] int64
+``seconds``                    [S] float64 cumulative wall-clock seconds
+``label_samples``              [S', N] int16 kept label maps, with ``sample_iterations`` [S']
+``record``                     JSON: format, what the file is, the method and its options, the
+                               model's settings, the data's fingerprint, the caller's settings
+=============================  =================================================================
+
+:func:`load_variational` refuses a checkpoint made for another method, options, model
+settings, data or caller's settings, naming what differs, as Gibbs checkpoints do
+(:mod:`spcopyro.gibbs.checkpoint`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from spcopyro._util.outputs import DAMAGED_FILE_ERRORS, read_npz, replace_file
+from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.checkpoint import data_fingerprint, differences
+from spcopyro.inference.driver import Trajectory
+from spcopyro.inference.protocol import Resumption
+from spcopyro.model import DTYPE, ModelData
+
+FORMAT = "spcopyro-variational-checkpoint"
+VERSION = 1
+WHAT = (
+    "the q(C) of an interrupted spcopyro variational fit -- not a result: continue it with "
+    "`spcopyro fit DATA --out OUT ... --resume THIS_FILE` (or spcopyro.guides.checkpoint."
+    "load_variational)"
+)
+RECORDS = ("objective", "num_concepts", "seconds", "gammas")
+
+
+def _header(method: str, options: object, config: SpCoConfig, data: ModelData) -> dict:
+    return {
+        "method": method,
+        "options": dataclasses.asdict(options) if dataclasses.is_dataclass(options) else {},
+        "model": config.to_json(),
+        "data_sha256": data_fingerprint(data),
+    }
+
+
+def save_variational(
+    path: str | os.PathLike[str],
+    marginals: torch.Tensor,
+    trajectory: Trajectory,
+    *,
+    method: str,
+    options: object,
+    config: SpCoConfig,
+    data: ModelData,
+    record: Mapping[str, object] | None = None,
+) -> Path:
+    """Write q(C) ``marginals`` ``[N, L]`` and the ``trajectory`` so far into ``path``,
+    replacing any file there atomically. ``record``: the caller's settings, checked on loading."""
+    if marginals.shape != (data.num_free, config.num_concepts):
+        raise ValueError(
+            f"marginals must be [{data.num_free}, {config.num_concepts}], "
+            f"got {tuple(marginals.shape)}"
+        )
+    arrays: dict[str, np.ndarray] = {
+        "marginals": marginals.detach().to(DTYPE).numpy(),
+        "objective": trajectory.objective.astype(np.float64),
+        "num_concepts": trajectory.num_concepts.astype(np.int64),
+        "seconds": trajectory.seconds.astype(np.float64),
+        "gammas": trajectory.gammas.astype(np.float64),
+    }
+    if trajectory.label_samples is not None:
+        arrays["label_samples"] = trajectory.label_samples
+        arrays["sample_iterations"] = trajectory.sample_iterations.astype(np.int64)
+    header = {
+        "format": FORMAT,
+        "version": VERSION,
+        "what": WHAT,
+        **_header(method, options, config, data),
+        "iterations_done": len(trajectory.objective),
+        "caller": dict(record or {}),
+    }
+    arrays["record"] = np.array(json.dumps(header))
+    return replace_file(path, lambda file: np.savez_compressed(file, **arrays))
+
+
+def is_variational_checkpoint(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` is a readable variational checkpoint (a Gibbs one is not)."""
+    try:
+        with read_npz(Path(path)) as z:
+            return json.loads(str(z["record"])).get("format") == FORMAT
+    except (OSError, KeyError, ValueError, AttributeError, *DAMAGED_FILE_ERRORS):
+        return False
+
+
+def load_variational(
+    path: str | os.PathLike[str],
+    data: ModelData,
+    config: SpCoConfig,
+    *,
+    method: str,
+    options: object,
+    record: Mapping[str, object] | None = None,
+) -> Resumption:
+    """The q(C) and record saved in ``path``, for ``InferenceMethod.run(..., resume=...)``.
+
+    Raises:
+        FileNotFoundError: no file at ``path``.
+        ValueError: ``path`` is not a variational checkpoint, or was made for another method,
+            options, model settings (``config``), ``data`` or caller's settings (``record``);
+            the message names what differs.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no such checkpoint file")
+    try:
+        z = read_npz(path)
+    except DAMAGED_FILE_ERRORS as error:
+        raise ValueError(f"{path}: not a spcopyro checkpoint ({error})") from None
+    with z:
+        try:
+            saved = json.loads(str(z["record"]))
+        except (KeyError, *DAMAGED_FILE_ERRORS):
+            saved = None
+        if not isinstance(saved, dict) or saved.get("format") != FORMAT:
+            raise ValueError(f"{path}: not a variational checkpoint (no {FORMAT} record)")
+        if saved.get("version") != VERSION:
+            raise ValueError(f"{path}: checkpoint version {saved.get('version')!r}; this "
+                             f"spcopyro reads version {VERSION}")  # fmt: skip
+        here = _header(method, options, config, data)
+        problems = [] if saved["data_sha256"] == here["data_sha256"] else [
+            f"the data differ (model data fingerprint {str(saved['data_sha256'])[:12]} in the "
+            f"checkpoint, {here['data_sha256'][:12]} here)"
+        ]  # fmt: skip
+        problems += differences({"method": saved["method"]}, {"method": method})
+        problems += differences(saved["model"], here["model"])
+        problems += differences(saved["options"], here["options"])
+        if record is not None:
+            problems += differences(saved["caller"], record)
+        if problems:
+            raise ValueError(f"{path} was made for other data or settings: " + "; ".join(problems))
+        try:
+            marginals = torch.from_numpy(z["marginals"].astype(np.float64))  # [N, L]
+            columns = [z[name] for name in RECORDS]
+            samples = z["label_samples"] if "label_samples" in z.files else None
+            sampled = z["sample_iterations"] if samples is not None else None
+        except (KeyError, *DAMAGED_FILE_ERRORS) as error:
+            raise ValueError(f"{path}: a damaged checkpoint ({error})") from None
+    if marginals.shape != (data.num_free, config.num_concepts):
+        raise ValueError(f"{path}: a damaged checkpoint (q(C) of shape {tuple(marginals.shape)})")
+    objective, used, seconds, gammas = columns
+    trajectory = Trajectory(
+        None, objective.astype(np.float64), used.astype(np.int64), seconds.astype(np.float64),
+        gammas.astype(np.float64), samples, None if sampled is None else sampled.astype(np.int64),
+        f"resumed after {len(objective)} iterations",
+    )  # fmt: skip
+    return Resumption(marginals, trajectory)
