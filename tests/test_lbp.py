@@ -24,7 +24,7 @@ from spcopyro.guides.lbp import (
     node_log_potentials,
     potts_log_message,
 )
-from spcopyro.guides.lbp_method import LBPOptions, run_lbp
+from spcopyro.guides.lbp_method import LBPOptions, resolve_lbp_backend, run_lbp
 from spcopyro.guides.run import initial_q
 from spcopyro.guides.testing import exact_log_partition, exact_marginals
 from spcopyro.guides.tiny_maps import labelled_factors, tiny_map
@@ -190,7 +190,10 @@ def test_the_registered_lbp_method_returns_beliefs_and_a_bethe_trace():
     assert np.isfinite(output.trace.objective).all()
     assert output.options == {"iterations": 8, "damping": 0.3, "passes": 3,
                               "anneal_iterations": 2, "pi_family": "dirichlet",
-                              "tolerance": 1e-7, "stopped": "ran the 8 iterations asked for "
+                              "tolerance": 1e-7, "backend": "auto", "support": 0,
+                              "threshold": 1e-4, "active_tolerance": 1e-3,
+                              "backend_used": resolve_lbp_backend(options, data, cfg),
+                              "stopped": "ran the 8 iterations asked for "
                               "(not converged within them at tolerance 1e-07)"}  # fmt: skip
     settled = method.run(data, cfg, iterations=500, generator=torch.Generator().manual_seed(0))
     stop = len(settled.trace.objective)  # issue 23: by default LBP stops by itself, and says so

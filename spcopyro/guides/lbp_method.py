@@ -9,7 +9,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, Literal, NamedTuple
 
 import torch
 
@@ -44,6 +44,15 @@ class LBPOptions:
             than ``tolerance * |objective|`` (0: run every iteration). The default 1e-7 is
             CAVI's: on the embedded house LBP settles within a few iterations and, without it,
             ran all 5000 of a plain ``spcopyro fit --method lbp`` (2 minutes).
+        backend: ``"torch"`` (the dense reference, :mod:`spcopyro.guides.lbp`), ``"numba"`` (the
+            compiled sparse messages of :mod:`spcopyro.guides.numba_lbp`) or ``"auto"`` (numba
+            where it imports and gamma D <= 300, else torch).
+        support: the numba backend keeps at most this many excess entries a message (0: all L).
+        threshold: the numba backend drops a message's excess entries below this (each such
+            entry moves the message by at most a factor 1 + threshold against the others).
+        active_tolerance: the numba backend skips a cell while twice the bound on its inputs'
+            drift plus its damping residual stays <= this (its messages then lie within a factor
+            e^(+-active_tolerance) of fresh undamped ones; 0: skip only unchanged cells).
     """
 
     damping: float = 0.5
@@ -51,6 +60,10 @@ class LBPOptions:
     anneal_iterations: int = 0
     pi_family: PiFamily = "dirichlet"
     tolerance: float = 1e-7
+    backend: Literal["auto", "torch", "numba"] = "auto"
+    support: int = 0
+    threshold: float = 1e-4
+    active_tolerance: float = 1e-3
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -60,10 +73,16 @@ class LBPOptions:
             raise bad("damping", "must lie in [0, 1)")
         if not isinstance(self.passes, int) or isinstance(self.passes, bool) or self.passes < 1:
             raise bad("passes", "must be an integer >= 1")
+        if isinstance(self.threshold, bool) or not (
+            isinstance(self.threshold, (int, float)) and 0 <= self.threshold < math.inf
+        ):
+            raise bad("threshold", "must be a finite number >= 0")
         # The shared options check the rest (and name the field).
         try:
             VariationalOptions(anneal_iterations=self.anneal_iterations,
-                               pi_family=self.pi_family, tolerance=self.tolerance)  # fmt: skip
+                               pi_family=self.pi_family, tolerance=self.tolerance,
+                               backend=self.backend, support=self.support,
+                               active_tolerance=self.active_tolerance)  # fmt: skip
         except ValueError as error:
             raise ValueError(str(error).replace("VariationalOptions", "LBPOptions")) from None
 
@@ -90,9 +109,35 @@ class LBPInfo(NamedTuple):
     """The coupling of its message passes."""
 
 
-def init(q: torch.Tensor, data: ModelData, config: SpCoConfig, options: LBPOptions) -> LBPState:
+def resolve_lbp_backend(options: LBPOptions, data: ModelData, config: SpCoConfig) -> str:
+    """``"torch"`` or ``"numba"`` for these options: ``"auto"`` is numba where it imports and
+    its products stay finite (:func:`spcopyro.guides.numba_lbp.usable`), else torch.
+
+    Raises:
+        ImportError: ``"numba"`` was asked for and numba is missing.
+        ValueError: ``"numba"`` was asked for and gamma D > 300.
+    """
+    if options.backend == "torch":
+        return "torch"
+    try:
+        import spcopyro.guides.numba_lbp as compiled
+    except ImportError:
+        if options.backend == "numba":
+            raise
+        return "torch"
+    if options.backend == "auto" and not compiled.usable(config, data):
+        return "torch"
+    return "numba"
+
+
+def init(q: torch.Tensor, data: ModelData, config: SpCoConfig, options: LBPOptions) -> Any:
     """The state at beliefs ``q`` ``[N, L]``: the globals from them; the messages start from q
-    at the first step's coupling."""
+    at the first step's coupling. With the numba backend, the compiled
+    :func:`spcopyro.guides.numba_lbp.init`'s state."""
+    if resolve_lbp_backend(options, data, config) == "numba":
+        import spcopyro.guides.numba_lbp as compiled
+
+        return compiled.init(q, data, config, options)
     bp = LoopyBP(data, config, options.damping, options.passes)
     return LBPState(bp, q, update_globals(q, data, config, options.pi_family))
 
@@ -102,7 +147,12 @@ def step(
 ) -> tuple[LBPState, LBPInfo]:
     """One outer iteration at coupling ``gamma``: ``options.passes`` message passes under the
     node potentials of the globals, the beliefs from the messages, the globals given the
-    beliefs, the Bethe objective."""
+    beliefs, the Bethe objective (the numba backend's state: its compiled step)."""
+    if not isinstance(state, LBPState):
+        import spcopyro.guides.numba_lbp as compiled
+
+        state, value, used = compiled.step(state, data, config, gamma, options)
+        return state, LBPInfo(value, used, float(gamma))
     bp = state.bp
     if bp.h is None:  # the first step: messages a cell with belief q would send
         bp.start_from(state.q, gamma)
@@ -111,6 +161,11 @@ def step(
     value = float(bethe_objective(bp, factors, data, config))
     value = value if math.isfinite(value) else float("nan")
     return LBPState(bp, q, factors), LBPInfo(value, num_used(q), float(gamma))
+
+
+def _labels(state: Any) -> torch.Tensor:
+    """[N] the argmax beliefs of either backend's state."""
+    return state.q.argmax(-1) if isinstance(state, LBPState) else state.bp.labels()
 
 
 def run_lbp(
@@ -122,20 +177,22 @@ def run_lbp(
     options: LBPOptions | None = None,
     progress: bool | None = None,
     thin: int = 0,
-) -> tuple[VariationalRun, LoopyBP]:
+) -> tuple[VariationalRun, Any]:
     """At most ``iterations`` outer iterations of :func:`step` from beliefs ``q`` ``[N, L]``
     (written with the final beliefs), stopping once the Bethe objective settles
-    (``options.tolerance``). Returns the run and the BP state (its messages). ``thin`` > 0
+    (``options.tolerance``). Returns the run and the BP state (its messages: a
+    :class:`~spcopyro.guides.lbp.LoopyBP` or, with the numba backend, a
+    :class:`~spcopyro.guides.numba_lbp.SparseLoopyBP`). ``thin`` > 0
     keeps the argmax labels every ``thin`` iterations."""
     options = LBPOptions() if options is None else options
     run = drive(
         init(q, data, config, options),
         lambda state, gamma: step(state, data, config, gamma, options), iterations,
         gamma=config.gamma, anneal=options.anneal_iterations, tolerance=options.tolerance,
-        thin=thin, labels=lambda state: state.q.argmax(-1), num_concepts=config.num_concepts,
-        progress=progress, description="LBP",
+        thin=thin, labels=_labels, num_concepts=config.num_concepts, progress=progress,
+        description="LBP",
     )  # fmt: skip
-    q.copy_(run.state.q)
+    q.copy_(run.state.q if isinstance(run.state, LBPState) else run.state.bp.beliefs())
     return VariationalRun.of(run, q, run.state.factors), run.state.bp
 
 
@@ -154,7 +211,8 @@ class LBPInference(InferenceMethod):
         q = initial_q(data, config, request.generator, request.init_labels)
         run, _ = run_lbp(data, config, request.iterations, q=q, options=options,
                          progress=request.progress, thin=request.thin)  # fmt: skip
-        record = {"iterations": request.iterations, **dataclasses.asdict(options)}
+        record = {"iterations": request.iterations, **dataclasses.asdict(options),
+                  "backend_used": resolve_lbp_backend(options, data, config)}  # fmt: skip
         output = output_from_variational(run, record)
         trace = dataclasses.replace(output.trace, objective_name=self.objective_name)
         return dataclasses.replace(output, trace=trace)

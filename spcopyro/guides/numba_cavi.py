@@ -155,6 +155,30 @@ def sparse_from_dense(
     return index, value, count
 
 
+class PriorKL:
+    r""":func:`~spcopyro.guides.factors.kl_to_prior` of factors whose E log phi = psi(a) -
+    psi(a_0) is already at hand: per modality, with the prior's b (constant, computed once),
+    :math:`\sum_l [\log\Gamma(a_{l0}) - \log\Gamma(b_0)] + \sum_{lk} [\log\Gamma(b_k)
+    - \log\Gamma(a_{lk}) + (a_{lk} - b_k) E\log\phi_{lk}]` (one lgamma per entry, no
+    digamma). Shared by the compiled CAVI and LBP backends."""
+
+    def __init__(self, data: ModelData, config: SpCoConfig, pi_family: str) -> None:
+        self.data, self.config = data, config
+        self.prior = prior_factors(data, config, pi_family)
+        self.constants = [float(torch.lgamma(b).sum() - torch.lgamma(b.sum(-1)).sum())
+                          for b in self.prior.emissions]  # fmt: skip
+
+    def __call__(self, factors: GlobalFactors, log_phi: tuple[torch.Tensor, ...]) -> float:
+        pi_only = GlobalFactors(factors.pi, (), factors.pi_family)
+        total = float(kl_to_prior(pi_only, self.data._replace(modalities=()), self.config))
+        for a, b, e, constant in zip(factors.emissions, self.prior.emissions, log_phi,
+                                     self.constants, strict=True):  # fmt: skip
+            rows = float(torch.lgamma(a.sum(-1)).sum())
+            entries = float(((a - b) * e).sum() - torch.lgamma(a).sum())
+            total += rows + entries + constant
+        return total
+
+
 class SparseMeanField:
     """The numba backend's label field: a sparse q(C) (module docstring) and its updates.
 
@@ -220,7 +244,7 @@ class SparseMeanField:
         self._constant = float(multinomial_coefficients(data, config))
         self._summary: tuple[ConceptStatistics, np.ndarray, float, float] | None = None
         self._loglik: tuple | None = None  # (factors, E log pi, loglik, E log phi)
-        self._prior: tuple[GlobalFactors, list[float]] | None = None
+        self._prior: PriorKL | None = None
 
     def _recount(self) -> None:
         """The running sums (sizes, argmax counts, entropy, pairs' term) from scratch."""
@@ -242,27 +266,12 @@ class SparseMeanField:
         return self._loglik[1], self._loglik[2]
 
     def _kl_to_prior(self, factors: GlobalFactors) -> float:
-        r""":func:`~spcopyro.guides.factors.kl_to_prior`, the q(phi) part reusing the cached
-        E log phi = psi(a) - psi(a_0): per modality, with the prior's b (constant),
-        :math:`\sum_l [\log\Gamma(a_{l0}) - \log\Gamma(b_0)] + \sum_{lk} [\log\Gamma(b_k)
-        - \log\Gamma(a_{lk}) + (a_{lk} - b_k) E\log\phi_{lk}]` (one lgamma per entry, no
-        digamma)."""
+        """:func:`~spcopyro.guides.factors.kl_to_prior` from the cached E log phi
+        (:class:`PriorKL`)."""
         self._expectations(factors)
-        log_phi = self._loglik[3]
         if self._prior is None:
-            prior = prior_factors(self.data, self.config, factors.pi_family)
-            constants = [float(torch.lgamma(b).sum() - torch.lgamma(b.sum(-1)).sum())
-                         for b in prior.emissions]  # fmt: skip
-            self._prior = (prior, constants)
-        prior, constants = self._prior
-        pi_only = GlobalFactors(factors.pi, (), factors.pi_family)
-        total = float(kl_to_prior(pi_only, self.data._replace(modalities=()), self.config))
-        for a, b, e, constant in zip(factors.emissions, prior.emissions, log_phi, constants,
-                                     strict=True):  # fmt: skip
-            rows = float(torch.lgamma(a.sum(-1)).sum())
-            entries = float(((a - b) * e).sum() - torch.lgamma(a).sum())
-            total += rows + entries + constant
-        return total
+            self._prior = PriorKL(self.data, self.config, factors.pi_family)
+        return self._prior(factors, self._loglik[3])
 
     def update(self, factors: GlobalFactors, gamma: float) -> None:
         """One pass over every cell, colour block by colour block, at coupling ``gamma``."""
