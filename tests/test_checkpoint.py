@@ -373,24 +373,30 @@ def test_ctrl_c_in_a_cavi_fit_keeps_its_q_and_resume_gives_the_unbroken_fit(
     _same_outputs(out, tmp_path / "unbroken")
 
 
-@pytest.mark.parametrize("method", ["svi", "cavi-numba"])
+@pytest.mark.parametrize("method", ["svi", "cavi-numba", "lbp-torch", "lbp-numba"])
 def test_other_variational_fits_resume_from_the_q_reached(room, tmp_path, monkeypatch, method):
-    """SVI and CAVI's compiled backend go on from the saved q(C) (a warm start): the trace
+    """SVI, CAVI's compiled backend and LBP go on from the saved q(C) (a warm start): the trace
     continues the saved one and the fit completes its iterations."""
+    import spcopyro.guides.lbp_method
     import spcopyro.guides.run
     import spcopyro.guides.svi_method
     from spcopyro.data import load_house
     from spcopyro.fit.gibbs_chains import FitInterrupted
     from spcopyro.fit.house import fit_house_chains
+    from spcopyro.guides.lbp_method import LBPOptions
     from spcopyro.guides.options import VariationalOptions
     from spcopyro.guides.svi_method import SVIOptions
 
+    if method.endswith("numba"):
+        pytest.importorskip("numba")
     if method == "svi":
         name, module, options = "svi", spcopyro.guides.svi_method, SVIOptions(tolerance=0.0)
-    else:
-        pytest.importorskip("numba")
+    elif method == "cavi-numba":
         name, module = "cavi", spcopyro.guides.run
         options = VariationalOptions(backend="numba", tolerance=0.0)
+    else:
+        name, module = "lbp", spcopyro.guides.lbp_method
+        options = LBPOptions(backend=method.split("-")[1], tolerance=0.0)
     house = load_house(room)
     path = tmp_path / "fit.checkpoint.npz"
     kwargs = dict(method=name, options=options, sweeps=12, progress=False)

@@ -19,8 +19,8 @@ from spcopyro.guides.cavi_method import output_from_variational
 from spcopyro.guides.factors import GlobalFactors, PiFamily
 from spcopyro.guides.lbp import LoopyBP, bethe_objective, node_log_potentials
 from spcopyro.guides.options import VariationalOptions
-from spcopyro.guides.run import VariationalRun, initial_q
-from spcopyro.inference.driver import drive
+from spcopyro.guides.run import VariationalRun, initial_q, remaining, resumed
+from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
 from spcopyro.model import ModelData
 
@@ -168,6 +168,11 @@ def _labels(state: Any) -> torch.Tensor:
     return state.q.argmax(-1) if isinstance(state, LBPState) else state.bp.labels()
 
 
+def _beliefs(state: Any) -> torch.Tensor:
+    """[N, L] the beliefs of either backend's state."""
+    return state.q if isinstance(state, LBPState) else state.bp.beliefs()
+
+
 def run_lbp(
     data: ModelData,
     config: SpCoConfig,
@@ -177,22 +182,25 @@ def run_lbp(
     options: LBPOptions | None = None,
     progress: bool | None = None,
     thin: int = 0,
+    resume: Trajectory | None = None,
 ) -> tuple[VariationalRun, Any]:
     """At most ``iterations`` outer iterations of :func:`step` from beliefs ``q`` ``[N, L]``
     (written with the final beliefs), stopping once the Bethe objective settles
     (``options.tolerance``). Returns the run and the BP state (its messages: a
     :class:`~spcopyro.guides.lbp.LoopyBP` or, with the numba backend, a
     :class:`~spcopyro.guides.numba_lbp.SparseLoopyBP`). ``thin`` > 0
-    keeps the argmax labels every ``thin`` iterations."""
+    keeps the argmax labels every ``thin`` iterations. ``resume``: the record of the run the
+    beliefs ``q`` were reached by (a checkpoint's), continued here, the messages started
+    afresh from ``q``."""
     options = LBPOptions() if options is None else options
     run = drive(
         init(q, data, config, options),
         lambda state, gamma: step(state, data, config, gamma, options), iterations,
         gamma=config.gamma, anneal=options.anneal_iterations, tolerance=options.tolerance,
         thin=thin, labels=_labels, num_concepts=config.num_concepts, progress=progress,
-        description="LBP",
+        description="LBP", resume=resume, marginals=_beliefs,
     )  # fmt: skip
-    q.copy_(run.state.q if isinstance(run.state, LBPState) else run.state.bp.beliefs())
+    q.copy_(_beliefs(run.state))
     return VariationalRun.of(run, q, run.state.factors), run.state.bp
 
 
@@ -204,13 +212,18 @@ class LBPInference(InferenceMethod):
     objective_name = "Bethe ELBO"
     options_type = LBPOptions
     title = "LBP"
+    resumable = True
 
     def fit(
         self, data: ModelData, config: SpCoConfig, options: LBPOptions, request: RunArgs
     ) -> InferenceOutput:
-        q = initial_q(data, config, request.generator, request.init_labels)
-        run, _ = run_lbp(data, config, request.iterations, q=q, options=options,
-                         progress=request.progress, thin=request.thin)  # fmt: skip
+        q, before = resumed(request) or (
+            initial_q(data, config, request.generator, request.init_labels),
+            None,
+        )
+        run, _ = run_lbp(data, config, remaining(request), q=q, options=options,
+                         progress=request.progress, thin=request.thin,
+                         resume=before)  # fmt: skip
         record = {"iterations": request.iterations, **dataclasses.asdict(options),
                   "backend_used": resolve_lbp_backend(options, data, config)}  # fmt: skip
         output = output_from_variational(run, record)
