@@ -109,6 +109,9 @@ class StochasticOptions:
             ``tolerance * |ELBO|`` (0: run every pass; the passes asked for are a ceiling). The
             default 1e-7 is CAVI's.
         dtype: storage of q(C), ``"float32"`` (compact) or ``"float64"``.
+        backend: the local sweeps and the ELBO's pair and entropy sums in torch (``"torch"``),
+            compiled (``"numba"``, :mod:`spcopyro.guides.numba_memoized`; equal to rounding) or
+            ``"auto"`` (numba where it imports).
     """
 
     block_size: int = 64
@@ -119,6 +122,7 @@ class StochasticOptions:
     pi_family: PiFamily = "dirichlet"
     tolerance: float = 1e-7
     dtype: Literal["float32", "float64"] = "float32"
+    backend: Literal["auto", "torch", "numba"] = "auto"
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -141,6 +145,26 @@ class StochasticOptions:
             raise bad("tolerance", "must be a finite number >= 0")
         if self.dtype not in _DTYPES:
             raise bad("dtype", f"must be one of {sorted(_DTYPES)}")
+        if self.backend not in ("auto", "torch", "numba"):
+            raise bad("backend", "must be 'auto', 'torch' or 'numba'")
+
+
+def compiled_path(backend: str):  # noqa: ANN201
+    """The :mod:`spcopyro.guides.numba_memoized` module for ``backend`` (``"auto"``: where numba
+    imports), or None for the torch path.
+
+    Raises:
+        ImportError: ``"numba"`` was asked for and numba is missing.
+    """
+    if backend == "torch":
+        return None
+    try:
+        import spcopyro.guides.numba_memoized as compiled
+    except ImportError:
+        if backend == "numba":
+            raise
+        return None
+    return compiled
 
 
 def _is_int(value: object) -> bool:
@@ -307,8 +331,10 @@ def exact_elbo(
     data: ModelData,
     config: SpCoConfig,
     coefficients: torch.Tensor | None = None,
+    compiled: object = None,
 ) -> float:
-    """The ELBO of :func:`spcopyro.guides.elbo.elbo`, accumulated over chunks.
+    """The ELBO of :func:`spcopyro.guides.elbo.elbo`, accumulated over chunks (``compiled``: the
+    :mod:`~spcopyro.guides.numba_memoized` module, whose loop sums the pairs and entropies).
 
     ``statistics`` must be q's (the memo's sums): the label and observation terms are
     sum_l N_l E[log pi_l] + sum_mlk S_mlk E[log phi_mlk], the Potts term and the entropy are
@@ -325,14 +351,17 @@ def exact_elbo(
     ):
         if config.uses(modality.name):
             total = total + (counts * lphi).sum()
-    agreements = torch.zeros((), dtype=DTYPE)
-    for lo in range(0, data.pairs.shape[0], CHUNK):
-        pairs = data.pairs[lo : lo + CHUNK]  # [c, 2]
-        agreements += (q[pairs[:, 0]].to(DTYPE) * q[pairs[:, 1]].to(DTYPE)).sum()
-    entropy = torch.zeros((), dtype=DTYPE)
-    for lo in range(0, q.shape[0], CHUNK):
-        chunk = q[lo : lo + CHUNK].to(DTYPE)  # [c, L]
-        entropy -= torch.special.xlogy(chunk, chunk).sum()
+    if compiled is not None:
+        agreements, entropy = compiled.pair_and_entropy_sums(q, data)
+    else:
+        agreements = torch.zeros((), dtype=DTYPE)
+        for lo in range(0, data.pairs.shape[0], CHUNK):
+            pairs = data.pairs[lo : lo + CHUNK]  # [c, 2]
+            agreements += (q[pairs[:, 0]].to(DTYPE) * q[pairs[:, 1]].to(DTYPE)).sum()
+        entropy = torch.zeros((), dtype=DTYPE)
+        for lo in range(0, q.shape[0], CHUNK):
+            chunk = q[lo : lo + CHUNK].to(DTYPE)  # [c, L]
+            entropy -= torch.special.xlogy(chunk, chunk).sum()
     total = total + config.gamma * agreements + coefficients
     return float(total - kl_to_prior(factors, data, config) + entropy)
 
@@ -390,6 +419,8 @@ class StochasticState(NamedTuple):
     """[N] int64 each cell's row in the count matrices, -1 if unobserved."""
     coefficients: torch.Tensor
     """[] the observed counts' multinomial coefficients (:func:`chunked_coefficients`)."""
+    local_rows: np.ndarray | None = None
+    """[N] int64 scratch of the compiled path (all -1 between steps), None on the torch path."""
 
     def nbytes(self) -> dict[str, int]:
         """Bytes of the run's own tensors (q, the blocks' index, the memo, the row map)."""
@@ -402,6 +433,7 @@ class StochasticState(NamedTuple):
             "blocks": size(*self.blocks),
             "memo": self.memo.nbytes(),
             "rows": size(self.rows),
+            "scratch": 0 if self.local_rows is None else self.local_rows.nbytes,
         }
 
 
@@ -437,7 +469,11 @@ def start_state(
     memo = Memo(q, data, config, blocks)
     factors = update_factors(memo.statistics(), data, config, options.pi_family)
     coefficients = chunked_coefficients(data, config)
-    return StochasticState(q, blocks, memo, factors, data.observation_rows(), coefficients)
+    scratch = None
+    if compiled_path(options.backend) is not None:
+        scratch = np.full(data.num_free, -1, dtype=np.int64)
+    return StochasticState(q, blocks, memo, factors, data.observation_rows(), coefficients,
+                           scratch)  # fmt: skip
 
 
 init = start_state
@@ -461,17 +497,24 @@ def step(
     else:
         visit = list(range(num_blocks))
     factors = state.factors
+    compiled = compiled_path(options.backend) if state.local_rows is not None else None
     for lo in range(0, num_blocks, options.blocks_per_step):
         batch = visit[lo : lo + options.blocks_per_step]
-        local_step(state.q, factors, data, config, state.blocks, batch, gamma, state.rows,
-                   options.local_sweeps)  # fmt: skip
+        if compiled is not None:
+            compiled.local_step(
+                state.q, factors, data, config, state.blocks, batch, gamma,
+                state.memo.observed, state.local_rows, options.local_sweeps,
+            )  # fmt: skip
+        else:
+            local_step(state.q, factors, data, config, state.blocks, batch, gamma, state.rows,
+                       options.local_sweeps)  # fmt: skip
         for block in batch:
             state.memo.replace(state.q, block)
         factors = update_factors(state.memo.statistics(), data, config, options.pi_family)
     state.memo.resum()
     statistics = state.memo.statistics()
     factors = update_factors(statistics, data, config, options.pi_family)
-    value = exact_elbo(state.q, factors, statistics, data, config, state.coefficients)
+    value = exact_elbo(state.q, factors, statistics, data, config, state.coefficients, compiled)
     used = int(torch.unique(state.q.argmax(-1)).numel())
     return state._replace(factors=factors), StochasticInfo(value, used, float(gamma))
 
