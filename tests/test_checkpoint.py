@@ -373,17 +373,19 @@ def test_ctrl_c_in_a_cavi_fit_keeps_its_q_and_resume_gives_the_unbroken_fit(
     _same_outputs(out, tmp_path / "unbroken")
 
 
-@pytest.mark.parametrize("method", ["svi", "cavi-numba", "lbp-torch", "lbp-numba"])
+@pytest.mark.parametrize("method", ["svi", "cavi-numba", "lbp-torch", "lbp-numba", "stochastic-vi"])
 def test_other_variational_fits_resume_from_the_q_reached(room, tmp_path, monkeypatch, method):
-    """SVI, CAVI's compiled backend and LBP go on from the saved q(C) (a warm start): the trace
-    continues the saved one and the fit completes its iterations."""
+    """SVI, CAVI's compiled backend, LBP and memoized VI go on from the saved q(C) (a warm
+    start): the trace continues the saved one and the fit completes its iterations."""
     import spcopyro.guides.lbp_method
+    import spcopyro.guides.memoized
     import spcopyro.guides.run
     import spcopyro.guides.svi_method
     from spcopyro.data import load_house
     from spcopyro.fit.gibbs_chains import FitInterrupted
     from spcopyro.fit.house import fit_house_chains
     from spcopyro.guides.lbp_method import LBPOptions
+    from spcopyro.guides.memoized import StochasticOptions
     from spcopyro.guides.options import VariationalOptions
     from spcopyro.guides.svi_method import SVIOptions
 
@@ -391,6 +393,9 @@ def test_other_variational_fits_resume_from_the_q_reached(room, tmp_path, monkey
         pytest.importorskip("numba")
     if method == "svi":
         name, module, options = "svi", spcopyro.guides.svi_method, SVIOptions(tolerance=0.0)
+    elif method == "stochastic-vi":
+        name, module = method, spcopyro.guides.memoized
+        options = StochasticOptions(block_size=4, tolerance=0.0)
     elif method == "cavi-numba":
         name, module = "cavi", spcopyro.guides.run
         options = VariationalOptions(backend="numba", tolerance=0.0)

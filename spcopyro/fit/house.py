@@ -305,7 +305,8 @@ def fit_house_chains(
     Args:
         source: where the house came from, for ``config.json`` (:func:`provenance`).
         checkpoint: save the chains' state (Gibbs) or the q(C) reached (one seed of a
-            variational method that resumes, ``InferenceMethod.resumable``: cavi, lbp, svi;
+            variational method that resumes, ``InferenceMethod.resumable``: cavi, lbp,
+            stochastic-vi, svi;
             :mod:`spcopyro.guides.checkpoint`) to this file on Ctrl-C, then raise
             :class:`FitInterrupted` (a :class:`FitCheckpoint` keeps the chains for the caller).
         resume: continue the chains, or the variational fit, saved in this checkpoint

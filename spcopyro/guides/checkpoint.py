@@ -8,8 +8,8 @@ the method started at that q, its new iterations numbered on from the record
 (:class:`~spcopyro.inference.protocol.Resumption`). For CAVI's torch backend the state *is* q
 and its factors, so the continued run equals the run never stopped; the other methods go on
 from the same q with what they rebuild from it (CAVI's compiled backend its active set, LBP its
-messages, SVI its optimiser's moments): a warm start at the objective reached, not the same
-iterates.
+messages, memoized VI its memo and block order, SVI its optimiser's moments): a warm start
+at the objective reached, not the same iterates.
 
 One ``.npz`` file (written whole or not at all: :func:`spcopyro._util.outputs.replace_file`), N
 free cells, L concepts, S iterations done:

@@ -75,8 +75,8 @@ from spcopyro.guides.factors import (
     kl_to_prior,
     update_factors,
 )
-from spcopyro.guides.run import VariationalRun
-from spcopyro.inference.driver import drive
+from spcopyro.guides.run import VariationalRun, remaining, resumed
+from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.initialisation import check_labels, random_labels
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
 from spcopyro.likelihood import ConceptStatistics
@@ -532,13 +532,15 @@ def run_stochastic(
     callback: Callable[[int, StochasticState], None] | None = None,
     description: str = "memoized VI",
     thin: int = 0,
+    resume: Trajectory | None = None,
 ) -> VariationalRun:
     """At most ``passes`` passes of memoized VI (:func:`step`) from ``q`` ``[N, L]`` (updated in
     place; :func:`compact_initial_q`), run by the shared driver: annealed per
     ``options.anneal_passes``, stopped once the ELBO settles (``options.tolerance``).
     ``blocks`` overrides the tiles of ``options.block_size``; ``generator`` draws the random
     block orders. ``callback(pass, state)``, if given, is called after every pass; ``thin`` > 0
-    keeps the argmax labels every ``thin`` passes."""
+    keeps the argmax labels every ``thin`` passes. ``resume``: the record of the run ``q`` was
+    reached by (a checkpoint's), continued here with the memo summed afresh from ``q``."""
     options = StochasticOptions() if options is None else options
     if not isinstance(options, StochasticOptions):
         raise TypeError(f"options must be StochasticOptions, got {type(options).__name__}")
@@ -550,6 +552,7 @@ def run_stochastic(
         gamma=config.gamma, anneal=options.anneal_passes, tolerance=options.tolerance, thin=thin,
         labels=lambda state: state.q.argmax(-1), num_concepts=config.num_concepts,
         progress=progress, description=description, unit="pass", callback=callback,
+        resume=resume, marginals=lambda state: state.q,
     )  # fmt: skip
     return VariationalRun.of(run, run.state.q, run.state.factors)
 
@@ -567,15 +570,19 @@ class StochasticVIInference(InferenceMethod):
     objective_name = "ELBO"
     options_type = StochasticOptions
     title = "stochastic-vi"
+    resumable = True
 
     def fit(
         self, data: ModelData, config: SpCoConfig, options: StochasticOptions, request: RunArgs
     ) -> InferenceOutput:
-        q = compact_initial_q(data, config, request.generator, request.init_labels,
-                              dtype=_DTYPES[options.dtype])  # fmt: skip
+        dtype = _DTYPES[options.dtype]
+        q, before = resumed(request) or (
+            compact_initial_q(data, config, request.generator, request.init_labels, dtype=dtype),
+            None,
+        )
         run = run_stochastic(
-            data, config, request.iterations, q=q, generator=request.generator, options=options,
-            progress=request.progress, thin=request.thin,
+            data, config, remaining(request), q=q.to(dtype), generator=request.generator,
+            options=options, progress=request.progress, thin=request.thin, resume=before,
         )  # fmt: skip
         record = {"iterations": request.iterations, **dataclasses.asdict(options)}
         return output_from_variational(run, record)
