@@ -43,7 +43,7 @@ def _local_sweeps(
     L = q.shape[1]
     D = neighbours.shape[1]
     colours = starts.shape[1] - 1
-    around = np.empty(L)
+    around = np.empty(L, q.dtype)  # summed in q's dtype, as the torch path sums
     logits = np.empty(L)
     for _ in range(sweeps):
         for c in range(colours):
@@ -59,7 +59,7 @@ def _local_sweeps(
                     top = -np.inf
                     m = local_rows[i]
                     for l in range(L):
-                        logits[l] = log_pi[l] + gamma * around[l]
+                        logits[l] = log_pi[l] + gamma * np.float64(around[l])
                         if m >= 0:
                             logits[l] += loglik[m, l]
                         top = max(top, logits[l])
@@ -67,8 +67,9 @@ def _local_sweeps(
                     for l in range(L):
                         logits[l] = np.exp(logits[l] - top)
                         total += logits[l]
+                    scale = 1.0 / total
                     for l in range(L):
-                        q[i, l] = logits[l] / total
+                        q[i, l] = logits[l] * scale
 
 
 @njit(cache=True)
