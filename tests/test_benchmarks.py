@@ -173,6 +173,18 @@ def test_collapse_terms_benchmark_quick(tmp_path):
 
 
 @pytest.mark.slow
+def test_coarse_losses_benchmark_quick(tmp_path):
+    out = tmp_path / "coarse_losses.json"
+    done = run_benchmark("coarse_losses.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    rows = json.loads(out.read_text())["houses"]
+    assert {"dense 0", "sparse 0"} <= set(rows)
+    for row in rows.values():
+        assert 0.0 <= row["ceiling"] <= 1.0 and row["wrong"] <= row["free"]
+        assert math.isfinite(row["fit_minus_region_level"]["total"])
+
+
+@pytest.mark.slow
 def test_navigation_benchmark_quick(tmp_path):
     out = tmp_path / "navigation.json"
     done = run_benchmark("navigation.py", out)

@@ -1,0 +1,180 @@
+"""Where the default (preset ``coarse``) loses on the synthetic houses and the simulated maps
+(issue 21; the numbers are in docs/real_houses.md, "Where coarse still loses").
+
+    python benchmarks/coarse_losses.py [--sweeps 2000] [--seeds 3] [--fit-seeds 0]
+        [--out benchmarks/coarse_losses.json] [--quick]
+
+For the dense (:class:`HouseSpec`) and sparse (:meth:`HouseSpec.public_like`) synthetic houses,
+seeds 0..n-1, and ``simulate --map`` on room1dk6 and room1ldk5 (the dataset's maps, its default
+door width, simulation seed 0; fit seeds ``--fit-seeds``), against each house's own truth:
+
+* **ceiling**: the ARI of the truth itself taken to the model grid (each free model cell the
+  majority category of its map cells) and back (:func:`~spcopyro.maps.coarse.refine_labels`):
+  what a perfect fit on that grid scores;
+* the default fit's **ARI**, and its errors: **region-level** ARI (each truth region labelled
+  with the concept holding most of it: below 1 when two regions share a concept, i.e. merged),
+  regions **split** (a second concept holding > 10 % of a region), **specks** (concepts under
+  1 % of the cells), **wrong** cells (not in their region's majority concept) and how many of
+  them lie within 0.3 / 0.6 / 1 m of a truth border;
+* **model or sampler**: the log joint of the fitted map minus that of the region-level map on
+  the model grid (pi, theta, w integrated out, term by term as in ``collapse_terms.py``);
+  positive: the model prefers the fit's errors.
+
+Prints a markdown table and writes the rows as JSON. ``--quick``: 60 sweeps, seed 0, room1dk6
+only (a smoke run).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import logging
+import sys
+from pathlib import Path
+
+import numpy as np
+from collapse_terms import terms  # a script beside this one (its folder is on sys.path)
+from scipy import ndimage
+
+from spcopyro.config import DEFAULT_PRESET, preset
+from spcopyro.data import find_dataset_root, load_house
+from spcopyro.data.model_grid import model_house
+from spcopyro.fit.house import fit_house, prepare_model_data, preset_fit_kwargs
+from spcopyro.maps.coarse import (
+    coarsen_grid,
+    coarsening_factor,
+    model_cell_of,
+    refine_labels,
+)
+from spcopyro.metrics import adjusted_rand_index
+from spcopyro.robot.map_simulation import MapTour, simulate_on_map
+from spcopyro.synthetic import HouseSpec, make_house
+
+
+def ceiling(house, truth: np.ndarray, cell_size: float | None) -> float:
+    """ARI of the truth taken to the model grid by majority and refined back to the map."""
+    grid = house.grid
+    factor = coarsening_factor(grid.resolution, cell_size)
+    if factor == 1:
+        return 1.0
+    coarse_free = np.asarray(coarsen_grid(grid, factor).free)  # [h, w]
+    rows, cols = model_cell_of(grid, factor)
+    labelled = np.asarray(grid.free) & (truth >= 0)  # [H, W]
+    rr, cc = np.nonzero(labelled)
+    votes = np.zeros((*coarse_free.shape, int(truth.max()) + 1), dtype=np.int64)  # [h, w, K]
+    np.add.at(votes, (rows[rr], cols[cc], truth[rr, cc]), 1)
+    labels = np.where(coarse_free & votes.any(-1), votes.argmax(-1), -1)  # [h, w]
+    return adjusted_rand_index(refine_labels(labels, grid, factor), truth)
+
+
+def border_distance(truth: np.ndarray, labelled: np.ndarray) -> np.ndarray:
+    """``[H, W]`` cells to the nearest cell beside a border between two truth regions."""
+    t = np.where(labelled, truth, -1)
+    border = np.zeros(t.shape, dtype=bool)
+    for dr, dc in ((0, 1), (1, 0)):
+        a, b = t[: t.shape[0] - dr, : t.shape[1] - dc], t[dr:, dc:]
+        edge = (a >= 0) & (b >= 0) & (a != b)
+        border[: t.shape[0] - dr, : t.shape[1] - dc] |= edge
+        border[dr:, dc:] |= edge
+    return ndimage.distance_transform_edt(~border)
+
+
+def errors(labels: np.ndarray, truth: np.ndarray, house) -> dict[str, object]:
+    """Region-level ARI, split regions, specks, wrong cells and their distance to a border."""
+    ok = np.asarray(house.grid.free) & (truth >= 0) & (labels >= 0)  # [H, W]
+    table = np.zeros((int(truth.max()) + 1, int(labels.max()) + 1), dtype=np.int64)
+    np.add.at(table, (truth[ok], labels[ok]), 1)
+    majority = table.argmax(1)  # [T] concept holding most of each region
+    region_level = np.where(ok, majority[np.clip(truth, 0, None)], -1)
+    sizes = table.sum(1)
+    second = np.sort(table, axis=1)[:, -2] if table.shape[1] > 1 else np.zeros_like(sizes)
+    split = {int(r): round(float(second[r] / sizes[r]), 2)
+             for r in np.flatnonzero(sizes) if second[r] > 0.1 * sizes[r]}  # fmt: skip
+    concept_sizes = np.bincount(labels[ok])
+    wrong = ok & (labels != region_level)
+    metres = border_distance(truth, ok) * house.grid.resolution
+    return {
+        "region_level_ari": round(adjusted_rand_index(region_level, np.where(ok, truth, -1)), 3),
+        "split": split,
+        "specks": int(((concept_sizes > 0) & (concept_sizes < 0.01 * ok.sum())).sum()),
+        "wrong": int(wrong.sum()),
+        "free": int(ok.sum()),
+        "wrong_within_0.3_0.6_1m": [int((wrong & (metres <= d)).sum()) for d in (0.3, 0.6, 1.0)],
+    }
+
+
+def model_or_sampler(house, truth: np.ndarray, result, settings) -> dict[str, float]:
+    """Log joint of the fit minus that of the region-level map on the model grid, by term."""
+    model = model_house(dataclasses.replace(house, truth=truth), settings.data.cell_size)
+    _, data = prepare_model_data(model, settings)
+    free = np.asarray(model.grid.free)
+    fit = np.asarray(result.label_image())[free].astype(np.int64)  # [N]
+    regions = np.asarray(model.truth)[free]  # [N]
+    labelled = regions >= 0
+    table = np.zeros((int(regions.max()) + 1, int(fit.max()) + 1), dtype=np.int64)
+    np.add.at(table, (regions[labelled], fit[labelled]), 1)
+    region_level = np.where(labelled, table.argmax(1)[np.clip(regions, 0, None)], fit)
+    a, b = terms(fit, data, settings.model), terms(region_level, data, settings.model)
+    out = {k: round(a[k] - b[k], 1) for k in a}
+    out["total"] = round(sum(out.values()), 1)
+    return out
+
+
+def houses(seeds: int, fit_seeds: list[int], maps: tuple[str, ...]):
+    for kind, spec in (("dense", HouseSpec), ("sparse", HouseSpec.public_like)):
+        for seed in range(seeds):
+            house = make_house(seed=seed, spec=spec())
+            yield f"{kind} {seed}", house, house.truth, seed
+    root = find_dataset_root()
+    if root is None:
+        print("simulated maps skipped: no dataset", file=sys.stderr)
+        return
+    for name in maps:
+        grid = load_house(Path(root) / name).grid
+        simulated = simulate_on_map(grid, seed=0, tour=MapTour(), name=name).house
+        for fit_seed in fit_seeds:
+            yield f"sim {name} (fit seed {fit_seed})", simulated, simulated.truth, fit_seed
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sweeps", type=int, default=2000)
+    parser.add_argument("--seeds", type=int, default=3, help="synthetic seeds 0..n-1")
+    parser.add_argument("--fit-seeds", type=int, nargs="+", default=[0], help="simulated maps")
+    parser.add_argument("--out", default="benchmarks/coarse_losses.json")
+    parser.add_argument("--quick", action="store_true", help="60 sweeps, seed 0, room1dk6 only")
+    args = parser.parse_args(argv)
+    maps = ("room1dk6", "room1ldk5")
+    if args.quick:
+        args.sweeps, args.seeds, args.fit_seeds, maps = 60, 1, [0], ("room1dk6",)
+    logging.getLogger("spcopyro").setLevel(logging.ERROR)
+    settings = preset(DEFAULT_PRESET)
+    kwargs = preset_fit_kwargs(DEFAULT_PRESET)
+    print("| house | ARI | ceiling | region-level ARI | split | specks | wrong | "
+          "within 0.3 / 0.6 / 1 m | fit minus region-level (nats) |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|---|")
+    rows = {}
+    for name, house, truth, seed in houses(args.seeds, args.fit_seeds, maps):
+        result = fit_house(house, settings, sweeps=args.sweeps, seed=seed, progress=False,
+                           **kwargs)  # fmt: skip
+        factor = coarsening_factor(house.grid.resolution, settings.data.cell_size)
+        labels = refine_labels(result.label_image(), house.grid, factor)
+        e = errors(labels, truth, house)
+        joint = model_or_sampler(house, truth, result, settings)
+        ari = adjusted_rand_index(labels, truth)
+        top = ceiling(house, truth, settings.data.cell_size)
+        rows[name] = {"ari": ari, "ceiling": top, **e, "fit_minus_region_level": joint}
+        print(
+            f"| {name} | {ari:.3f} | {top:.3f} "
+            f"| {e['region_level_ari']} | {e['split'] or '-'} | {e['specks']} "
+            f"| {e['wrong']} / {e['free']} | {e['wrong_within_0.3_0.6_1m']} | {joint} |",
+            flush=True,
+        )
+    Path(args.out).write_text(json.dumps({"sweeps": args.sweeps, "houses": rows}, indent=1))
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
