@@ -193,7 +193,9 @@ def _resumable() -> list[str]:
     """The variational methods whose fit is saved on Ctrl-C (:mod:`spcopyro.guides.checkpoint`)."""
     from spcopyro.fit.registry import INFERENCE_METHODS
 
-    return [name for name, method in INFERENCE_METHODS.items() if method.resumable]
+    return [
+        name for name, method in INFERENCE_METHODS.items() if getattr(method, "resumable", False)
+    ]  # a method may implement the protocol alone
 
 
 def _keeps_checkpoint(args: argparse.Namespace) -> bool:

@@ -342,7 +342,7 @@ def fit_house_chains(
     house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
     inference = get_method(method)
     if not isinstance(inference, GibbsInference) and (checkpoint or resume):
-        if not inference.resumable:
+        if not getattr(inference, "resumable", False):  # the protocol alone: False
             raise ValueError(f"checkpoints hold Gibbs chains or a variational q(C); the "
                              f"{method!r} method keeps neither")  # fmt: skip
         if len(seeds) > 1:
@@ -376,12 +376,13 @@ def fit_house_chains(
             generator = torch.Generator().manual_seed(int(seed))
             start = initial_labels(house, counts, settings, init, int(seed), generator)
             saving = VariationalSaving(inference, options, data, settings, sweeps, seeds, init)
+            # resume= only when resuming: a method may implement the protocol's run alone
+            going_on = {} if resume is None else {"resume": saving.load(resume)}
             try:
                 output = inference.run(
                     data, settings.model, iterations=int(sweeps), generator=generator,
                     init_labels=start, options=options, progress=progress,
-                    thin=marginal_thin(int(sweeps), marginal_samples),
-                    resume=None if resume is None else saving.load(resume),
+                    thin=marginal_thin(int(sweeps), marginal_samples), **going_on,
                 )  # fmt: skip
             except DriveInterrupted as stop:  # the driver's record of how far it got
                 done = len(stop.trajectory.objective)

@@ -29,10 +29,10 @@ belief and the cavity without j are
     \beta_l (W_i(l) - 1); \qquad b_{i\setminus j}(l) \propto \beta_l W_i(l) / (1 +
     \rho_{j\to i}(l)),
 
-so a message costs O(|T_i|) plus the concepts of beta's descending order that are not in T_i and
-pass the threshold (as the sparse CAVI's background, :mod:`spcopyro.guides.numba_cavi`); no exp
-or log in the pass but log(1 + rho) of the entries written. Products stay finite while
-gamma D <= 300 (else the torch reference runs: :func:`usable`).
+so a message costs :math:`O(|T_i|)` plus the concepts of beta's descending order that are not
+in T_i and pass the threshold (as the sparse CAVI's background,
+:mod:`spcopyro.guides.numba_cavi`); no exp or log in the pass but log(1 + rho) of the entries
+written. Products stay finite while gamma D <= 300 (else the torch reference runs: :func:`usable`).
 
 **Truncation.** A new message keeps its K largest excess entries with rho >= ``threshold``: a
 dropped entry changes log m(l) by at most log(1 + threshold) against the others. ``support=0``
@@ -41,15 +41,15 @@ dropped entry changes log m(l) by at most log(1 + threshold) against the others.
 **Active set** (``active_tolerance`` = tau), as CAVI's. When a cell sends, each of its messages
 records ``moved``, half the log range over l of its change (up to a constant, which the
 normalisation removes). A cell's inputs are its base row and its incoming messages; their drift
-since its last send is bounded by the sum of the base row's half log range of change (per
-iteration, plus |Delta gamma| for the coupling) and its incoming messages' ``moved``. If the
-inputs' logs moved by at most epsilon up to a constant, the cavity's logs move by at most
-2 epsilon, and so do log(1 + s b) and the messages. Damping leaves a stored message at
-``residual`` (half log range) from its undamped update. A cell is skipped (its messages kept,
-their ``moved`` set to 0) while 2 drift + residual <= tau: its messages then lie within a factor
-e^(+-tau) of a fresh send's undamped messages. The pass visits every cell once in a fixed order,
-so a neighbour's latest ``moved`` is its change since the cell's last visit. tau = 0 skips only
-cells whose inputs did not change and whose messages are undamped fixed points.
+since its last send is bounded by the sum of the base row's half log range of change (per iteration,
+plus :math:`|\Delta\gamma|` for the coupling) and its incoming messages' ``moved``. If the inputs'
+logs moved by at most epsilon up to a constant, the cavity's logs move by at most 2 epsilon, and so
+do log(1 + s b) and the messages. Damping leaves a stored message at ``residual`` (half log range)
+from its undamped update. A cell is skipped (its messages kept, their ``moved`` set to 0) while 2
+drift + residual <= tau: its messages then lie within a factor e^(+-tau) of a fresh send's undamped
+messages. The pass visits every cell once in a fixed order, so a neighbour's latest ``moved`` is its
+change since the cell's last visit. tau = 0 skips only cells whose inputs did not change and whose
+messages are undamped fixed points.
 
 **Beliefs and the Bethe objective** are exact functions of the stored messages, computed after
 the passes in one compiled sweep (:func:`~spcopyro.guides.numba_lbp_kernels._summaries`): the
@@ -61,10 +61,10 @@ overlap :math:`\sum_l u(l) v(l)` of the two cavities and the pairwise belief's e
 dense sum over L (sum beta^2, sum beta log beta, ... once per iteration) plus corrections on
 T_a and T_b. Nothing of size N x L exists in a run; the dense beliefs are written once at the end.
 
-**Cost.** A cell that sends costs O(D |T_i|) and the summaries O(D K) a cell plus O(|T_a| +
-|T_b|) a pair, against O(D L) for the dense reference, so the backend is as fast as the
-messages are sparse, and they are sparse only where the beliefs have ordered: in a disordered
-field every concept keeps an excess of about s / L, above any useful threshold (paper-dp,
+**Cost.** A cell that sends costs :math:`O(D |T_i|)` and the summaries O(D K) a cell plus
+:math:`O(|T_a| + |T_b|)` a pair, against O(D L) for the dense reference, so the backend is as
+fast as the messages are sparse, and they are sparse only where the beliefs have ordered: in a
+disordered field every concept keeps an excess of about s / L, above any useful threshold (paper-dp,
 L = 120: 115-119 of 120 entries a message). Measured by ``benchmarks/variational.py`` (one
 thread): 2-8x faster than the reference an outer iteration, but 6-14x a CAVI iteration on the
 embedded house at L = 10 and 19-280x on room2ldk4, whose steady CAVI iterations skip nearly every
