@@ -307,3 +307,41 @@ def test_shipped_study_files_are_the_commands_grid(quick, dataset_root):
     keys = [c.key for c in cells_of(study, dataset_root)]
     assert keys == [c.key for c in cells_of(comparison_study(settings))]
     assert len(keys) == (14 if quick else 140)
+
+
+def test_a_method_that_keeps_no_label_maps_is_rerun_at_geometric_budgets(monkeypatch):
+    """The curve of a method without kept maps (a registered method that ignores ``thin``): its
+    labels re-fitted from the same seed at budgets n/2, n/4, ..., each point the score of that
+    shorter run, then the full run's labels."""
+    import dataclasses
+
+    from spcopyro.config import preset
+    from spcopyro.experiments.comparison_stats import geometric_budgets
+    from spcopyro.fit.registry import INFERENCE_METHODS
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    cavi = INFERENCE_METHODS["cavi"]
+    budgets: list[int] = []
+
+    class NoMaps:  # the protocol alone: no label maps kept
+        name, objective_name = "no-maps", "ELBO"
+
+        def default_options(self):
+            return cavi.default_options()
+
+        def run(self, data, config, *, iterations, generator, thin=0, **kwargs):
+            budgets.append(iterations)
+            output = cavi.run(data, config, iterations=iterations, generator=generator, **kwargs)
+            return dataclasses.replace(output, label_samples=None, sample_iterations=None)
+
+    monkeypatch.setitem(INFERENCE_METHODS, "no-maps", NoMaps())
+    house = make_house(0, HouseSpec(height=40, width=50, num_rooms=3))
+    settings = preset("original-code", gamma=3.0, num_concepts=6)
+    problem = comparison.Problem(house, settings, seed=0, name="tiny")
+    variant = Variant("no-maps", "no-maps", "no maps kept", 8, 2)
+    record = comparison.fit_and_score(variant, problem, 8)
+    assert record["curve_kind"] == "re-runs at geometric budgets"
+    expected = geometric_budgets(8, comparison.RERUN_POINTS)[:-1]
+    assert budgets == [8, *expected]  # the full run, then one re-run per budget
+    assert [p["iteration"] for p in record["curve"][:-1]] == list(expected)
+    assert record["curve"][-1]["iteration"] == record["iterations"]
