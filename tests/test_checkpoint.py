@@ -184,6 +184,36 @@ def test_a_checkpoint_refuses_other_data_settings_and_backend(tmp_path):
     assert data_fingerprint(data) == data_fingerprint(random_problem(seed=7)[1])
 
 
+def test_a_variational_checkpoint_refuses_a_gibbs_one_and_other_data(tmp_path):
+    """load_variational reads the record as load_chain does (one reader): a Gibbs checkpoint is
+    not a variational one, and other data are named."""
+    from spcopyro.gibbs.run import SweepInfo
+    from spcopyro.guides.checkpoint import load_variational, save_variational
+    from spcopyro.inference.driver import drive
+
+    cfg = config()
+    _, data = random_problem(seed=7)
+    chain = advance(start_chain(data, cfg, seed=1), 2, progress=False)
+    gibbs = save_chain(chain, tmp_path / "gibbs.npz")
+    kwargs = dict(method="cavi", options=None)
+    with pytest.raises(ValueError, match="not a variational checkpoint"):
+        load_variational(gibbs, data, cfg, **kwargs)
+    assert not is_variational_checkpoint(gibbs)
+    record = drive(0, lambda s, g: (s + 1, SweepInfo(-1.0, 1, g)), 2, gamma=cfg.gamma,
+                   progress=False)  # fmt: skip
+    q = torch.full((data.num_free, cfg.num_concepts), 1.0 / cfg.num_concepts)
+    path = save_variational(tmp_path / "q.npz", q, record, config=cfg, data=data, **kwargs)
+    assert is_variational_checkpoint(path)
+    _, other_data = random_problem(seed=8)
+    with pytest.raises(ValueError, match="other data or settings: the data differ"):
+        load_variational(path, other_data, cfg, **kwargs)
+    with pytest.raises(ValueError, match="method: 'cavi' in the checkpoint, 'lbp' here"):
+        load_variational(path, data, cfg, method="lbp", options=None)
+    resumed = load_variational(path, data, cfg, **kwargs)
+    assert torch.equal(resumed.marginals, q.double())
+    np.testing.assert_array_equal(resumed.trajectory.objective, record.objective)
+
+
 def test_a_file_that_is_no_checkpoint_is_refused(tmp_path):
     cfg = config()
     _, data = random_problem(seed=7)

@@ -372,10 +372,10 @@ def fit_house_chains(
                     result_of(o, house, counts, data, settings, method, record) for o in outputs
                 ]
         fits = []
+        saving = VariationalSaving(inference, options, data, settings, sweeps, seeds, init)
         for k, seed in enumerate(seeds):
             generator = torch.Generator().manual_seed(int(seed))
             start = initial_labels(house, counts, settings, init, int(seed), generator)
-            saving = VariationalSaving(inference, options, data, settings, sweeps, seeds, init)
             # resume= only when resuming: a method may implement the protocol's run alone
             going_on = {} if resume is None else {"resume": saving.load(resume)}
             try:

@@ -165,11 +165,13 @@ def _state_arrays(prefix: str, state: GibbsState) -> dict[str, np.ndarray]:
 
 def read_record(path: str | os.PathLike[str]) -> dict[str, object]:
     """The JSON record of the checkpoint ``path`` (ValueError if it is not one)."""
-    with _open(path) as z:
-        return _record(path, z)
+    with open_checkpoint(path) as z:
+        return checkpoint_record(path, z)
 
 
-def _open(path: str | os.PathLike[str]) -> np.lib.npyio.NpzFile:
+def open_checkpoint(path: str | os.PathLike[str]) -> np.lib.npyio.NpzFile:
+    """The checkpoint file ``path`` opened (FileNotFoundError if there is none, ValueError if it
+    is not an ``.npz`` file)."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: no such checkpoint file")
@@ -179,19 +181,41 @@ def _open(path: str | os.PathLike[str]) -> np.lib.npyio.NpzFile:
         raise ValueError(f"{path}: not a spcopyro checkpoint ({error})") from None
 
 
-def _record(path: str | os.PathLike[str], z: np.lib.npyio.NpzFile) -> dict[str, object]:
+def checkpoint_record(
+    path: str | os.PathLike[str],
+    z: np.lib.npyio.NpzFile,
+    *,
+    form: str = FORMAT,
+    version: int = VERSION,
+    kind: str = "spcopyro checkpoint",
+) -> dict[str, object]:
+    """The JSON record of the opened checkpoint ``z``; ValueError unless it is of format
+    ``form`` and ``version`` (``kind`` names what was expected: the Gibbs chains' by default;
+    :mod:`spcopyro.guides.checkpoint` reads a variational fit's the same way)."""
     try:
         record = json.loads(str(z["record"]))
     except (KeyError, *DAMAGED_FILE_ERRORS):
         record = None
-    if not isinstance(record, dict) or record.get("format") != FORMAT:
-        raise ValueError(f"{path}: not a spcopyro checkpoint (no {FORMAT} record)")
-    if record.get("version") != VERSION:
+    if not isinstance(record, dict) or record.get("format") != form:
+        raise ValueError(f"{path}: not a {kind} (no {form} record)")
+    if record.get("version") != version:
         raise ValueError(
             f"{path}: checkpoint version {record.get('version')!r}; this spcopyro reads "
-            f"version {VERSION}"
+            f"version {version}"
         )
     return record
+
+
+def data_differences(saved_sha256: object, data: ModelData) -> list[str]:
+    """``["the data differ (...)"]`` when the fingerprint a checkpoint saved is not ``data``'s
+    (:func:`data_fingerprint`), else ``[]``."""
+    here = data_fingerprint(data)
+    if saved_sha256 == here:
+        return []
+    return [
+        f"the data differ (model data fingerprint {str(saved_sha256)[:12]} in the checkpoint, "
+        f"{here[:12]} here)"
+    ]
 
 
 def load_chains(
@@ -210,15 +234,9 @@ def load_chains(
             (``config``), sampler options, backend, or caller's settings (``record``, compared
             with what :func:`save_chains` was given); the message names what differs.
     """
-    with _open(path) as z:
-        saved = _record(path, z)
-        problems = []
-        if saved["data_sha256"] != data_fingerprint(data):
-            problems.append(
-                "the data differ (model data fingerprint "
-                f"{str(saved['data_sha256'])[:12]} in the checkpoint, "
-                f"{data_fingerprint(data)[:12]} here)"
-            )
+    with open_checkpoint(path) as z:
+        saved = checkpoint_record(path, z)
+        problems = data_differences(saved["data_sha256"], data)
         problems += differences(saved["model"], config.to_json())  # type: ignore[arg-type]
         problems += differences(
             _options_record(GibbsOptions(**saved["options"])),  # type: ignore[arg-type]

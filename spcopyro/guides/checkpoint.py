@@ -40,9 +40,15 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from spcopyro._util.outputs import DAMAGED_FILE_ERRORS, read_npz, replace_file
+from spcopyro._util.outputs import DAMAGED_FILE_ERRORS, replace_file
 from spcopyro.config import SpCoConfig
-from spcopyro.gibbs.checkpoint import data_fingerprint, differences
+from spcopyro.gibbs.checkpoint import (
+    checkpoint_record,
+    data_differences,
+    data_fingerprint,
+    differences,
+    open_checkpoint,
+)
 from spcopyro.inference.driver import Trajectory
 from spcopyro.inference.protocol import Resumption
 from spcopyro.model import DTYPE, ModelData
@@ -109,9 +115,9 @@ def save_variational(
 def is_variational_checkpoint(path: str | os.PathLike[str]) -> bool:
     """Whether ``path`` is a readable variational checkpoint (a Gibbs one is not)."""
     try:
-        with read_npz(Path(path)) as z:
-            return json.loads(str(z["record"])).get("format") == FORMAT
-    except (OSError, KeyError, ValueError, AttributeError, *DAMAGED_FILE_ERRORS):
+        with open_checkpoint(path) as z:
+            return checkpoint_record(path, z, form=FORMAT, version=VERSION) is not None
+    except (OSError, ValueError):
         return False
 
 
@@ -133,27 +139,11 @@ def load_variational(
             the message names what differs.
     """
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no such checkpoint file")
-    try:
-        z = read_npz(path)
-    except DAMAGED_FILE_ERRORS as error:
-        raise ValueError(f"{path}: not a spcopyro checkpoint ({error})") from None
-    with z:
-        try:
-            saved = json.loads(str(z["record"]))
-        except (KeyError, *DAMAGED_FILE_ERRORS):
-            saved = None
-        if not isinstance(saved, dict) or saved.get("format") != FORMAT:
-            raise ValueError(f"{path}: not a variational checkpoint (no {FORMAT} record)")
-        if saved.get("version") != VERSION:
-            raise ValueError(f"{path}: checkpoint version {saved.get('version')!r}; this "
-                             f"spcopyro reads version {VERSION}")  # fmt: skip
+    with open_checkpoint(path) as z:
+        saved = checkpoint_record(path, z, form=FORMAT, version=VERSION,
+                                  kind="variational checkpoint")  # fmt: skip
         here = _header(method, options, config, data)
-        problems = [] if saved["data_sha256"] == here["data_sha256"] else [
-            f"the data differ (model data fingerprint {str(saved['data_sha256'])[:12]} in the "
-            f"checkpoint, {here['data_sha256'][:12]} here)"
-        ]  # fmt: skip
+        problems = data_differences(saved["data_sha256"], data)
         problems += differences({"method": saved["method"]}, {"method": method})
         problems += differences(saved["model"], here["model"])
         problems += differences(saved["options"], here["options"])
