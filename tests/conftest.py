@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import torch
 
+from spcopyro._util.threads import torch_threads
 from spcopyro.data import find_dataset_root
 from spcopyro.gibbs.backends import SweepBackend, get_backend
 
@@ -53,3 +54,30 @@ def backend(request) -> SweepBackend:
             "tested only where it is"
         )  # fmt: skip
     return get_backend(request.param)
+
+
+@pytest.fixture(scope="module")
+def one_torch_thread():
+    """One torch intra-op thread for a module of small tensors (its tests use it through
+    ``pytestmark = pytest.mark.usefixtures("one_torch_thread")``): on a loaded machine torch's
+    thread pool makes a softmax of a [5, 2] tensor 5000x slower than computing it."""
+    with torch_threads(1):
+        yield
+
+
+@pytest.fixture(scope="module")
+def memoized_house():
+    """(house, model data, model config): a small synthetic house with an open plan (~1000 free
+    cells) at L = 8, the map of the memoized-VI tests (both of its paths)."""
+    import logging
+
+    from spcopyro.config import preset
+    from spcopyro.fit.house import prepare_model_data
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    logging.disable(logging.WARNING)  # the Potts critical-coupling note
+    house = make_house(seed=1, spec=HouseSpec(height=36, width=44, num_rooms=3, num_open_plan=1))
+    settings = preset("original-code", num_concepts=8, gamma=2.1)
+    _, data = prepare_model_data(house, settings)
+    logging.disable(logging.NOTSET)
+    return house, data, settings.model

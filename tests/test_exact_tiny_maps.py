@@ -34,14 +34,7 @@ from spcopyro.model import DTYPE, Modality, spcomapping_model
 SQUARE = ("...", "...", "...")
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _one_thread():
-    """Tiny tensors: one intra-op thread (on a loaded machine torch's thread pool makes a
-    softmax of a [5, 2] tensor 5000x slower than computing it)."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")  # small tensors
 
 
 def tiny_problem(seed: int, rows=SQUARE, num_observed: int = 3):

@@ -32,14 +32,7 @@ from spcopyro.metrics import adjusted_rand_index
 from spcopyro.model import DTYPE
 from spcopyro.synthetic import HouseSpec, make_house
 
-
-@pytest.fixture(autouse=True, scope="module")
-def _one_thread():
-    """Tiny tensors: one intra-op thread (torch's pool is slow to wake on a loaded machine)."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")  # small tensors
 
 
 CORRIDOR = ("........",)

@@ -41,13 +41,7 @@ from spcopyro.gibbs.sweep import gibbs_sweep, log_joint
 from spcopyro.likelihood import concept_statistics
 from spcopyro.model import DTYPE
 
-
-@pytest.fixture(autouse=True)
-def _one_thread():
-    previous = torch.get_num_threads()
-    torch.set_num_threads(1)  # many tiny torch ops: threads only add overhead
-    yield
-    torch.set_num_threads(previous)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")  # small tensors
 
 
 def _tiny_problem():

@@ -27,12 +27,7 @@ needs_numba = pytest.mark.skipif(numba_lbp is None, reason="numba is not install
 EXACT = dict(support=0, threshold=0.0, active_tolerance=0.0)  # no truncation, no skipping
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _one_thread():
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")  # small tensors
 
 
 def small_house():

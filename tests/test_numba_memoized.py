@@ -4,15 +4,12 @@ sweeps, float32 and float64 storage), and the backend selection with and without
 
 from __future__ import annotations
 
-import logging
 import sys
 
 import numpy as np
 import pytest
 import torch
 
-from spcopyro.config import preset
-from spcopyro.fit.house import prepare_model_data
 from spcopyro.guides.memoized import (
     StochasticOptions,
     compact_initial_q,
@@ -20,24 +17,12 @@ from spcopyro.guides.memoized import (
     run_stochastic,
     start_state,
 )
-from spcopyro.synthetic import HouseSpec, make_house
 
 try:  # the compiled path is the fast extra's; the torch path's tests run without it
     from spcopyro.guides import numba_memoized
 except ImportError:
     numba_memoized = None
 needs_numba = pytest.mark.skipif(numba_memoized is None, reason="numba is not installed (.[fast])")
-
-
-@pytest.fixture(scope="module")
-def small():
-    """A small synthetic house (~1000 free cells) with L = 8 (the memoized tests' map)."""
-    logging.disable(logging.WARNING)  # the Potts critical-coupling note
-    house = make_house(seed=1, spec=HouseSpec(height=36, width=44, num_rooms=3, num_open_plan=1))
-    settings = preset("original-code", num_concepts=8, gamma=2.1)
-    _, data = prepare_model_data(house, settings)
-    logging.disable(logging.NOTSET)
-    return data, settings.model
 
 
 def run(data, config, backend: str, dtype: str, **changes):
@@ -59,8 +44,8 @@ def run(data, config, backend: str, dtype: str, **changes):
         ("float32", {"blocks_per_step": 2}, 1e-5),
     ],
 )
-def test_numba_equals_the_torch_path(small, dtype, changes, tolerance):
-    data, config = small
+def test_numba_equals_the_torch_path(memoized_house, dtype, changes, tolerance):
+    _, data, config = memoized_house
     reference = run(data, config, "torch", dtype, **changes)
     compiled = run(data, config, "numba", dtype, **changes)
     torch.testing.assert_close(compiled.q, reference.q, rtol=0, atol=tolerance)
@@ -69,8 +54,8 @@ def test_numba_equals_the_torch_path(small, dtype, changes, tolerance):
                                atol=0)  # fmt: skip
 
 
-def test_backend_selection(small, monkeypatch):
-    data, config = small
+def test_backend_selection(memoized_house, monkeypatch):
+    _, data, config = memoized_house
     q = compact_initial_q(data, config, torch.Generator().manual_seed(0))
     torch_state = start_state(data, config, q, StochasticOptions(backend="torch"))
     assert compiled_path("torch") is None and torch_state.local_rows is None

@@ -36,25 +36,7 @@ from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.metrics import adjusted_rand_index
 from spcopyro.synthetic import HouseSpec, make_house
 
-
-@pytest.fixture(autouse=True)
-def _one_thread():
-    """Small tensors: one torch thread is faster and keeps the shared machine free."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
-
-
-@pytest.fixture(scope="module")
-def small():
-    """A small synthetic house (~1000 free cells) with L = 8."""
-    logging.disable(logging.WARNING)  # the Potts critical-coupling note
-    house = make_house(seed=1, spec=HouseSpec(height=36, width=44, num_rooms=3, num_open_plan=1))
-    settings = preset("original-code", num_concepts=8, gamma=2.1)
-    _, data = prepare_model_data(house, settings)
-    logging.disable(logging.NOTSET)
-    return house, data, settings.model
+pytestmark = pytest.mark.usefixtures("one_torch_thread")  # small tensors
 
 
 def _start(data, config, dtype=torch.float64, seed=0):
@@ -76,8 +58,10 @@ def _two_rooms() -> OccupancyGrid:
 
 
 @pytest.mark.parametrize("connectivity", [4, 8])
-def test_cell_coordinates_are_the_grid_cells_up_to_a_shift_per_component(small, connectivity):
-    house = small[0]
+def test_cell_coordinates_are_the_grid_cells_up_to_a_shift_per_component(
+    memoized_house, connectivity
+):
+    house = memoized_house[0]
     for grid in (house.grid, _two_rooms()):
         found = cell_coordinates(grid.neighbour_table(connectivity))  # [N, 2]
         truth = grid.free_cells  # [N, 2]
@@ -100,8 +84,8 @@ def test_a_table_that_is_not_a_grids_is_refused():
         cell_coordinates(torch.zeros(3, 5, dtype=torch.long))
 
 
-def test_blocks_are_tiles_that_partition_the_cells_by_colour(small):
-    house, data, _ = small
+def test_blocks_are_tiles_that_partition_the_cells_by_colour(memoized_house):
+    house, data, _ = memoized_house
     blocks = grid_blocks(data, 7)
     order = blocks.order.numpy()
     assert np.array_equal(np.sort(order), np.arange(data.num_free))
@@ -119,8 +103,8 @@ def test_blocks_are_tiles_that_partition_the_cells_by_colour(small):
     assert np.array_equal(tile_ids(shifted, 7), blocks.block_of.numpy())
 
 
-def test_bad_block_ids_are_refused(small):
-    data = small[1]
+def test_bad_block_ids_are_refused(memoized_house):
+    data = memoized_house[1]
     with pytest.raises(ValueError, match="block ids must be"):
         make_blocks(data, np.zeros(data.num_free - 1, dtype=np.int64))
     ids = np.zeros(data.num_free, dtype=np.int64)
@@ -148,8 +132,10 @@ def _assert_memo_exact(memo: Memo, q: torch.Tensor, data, config) -> None:
 
 
 @pytest.mark.parametrize("dtype", [torch.float64, torch.float32])
-def test_memo_always_equals_the_full_recomputation_and_the_elbo_rises_every_step(small, dtype):
-    _, data, config = small
+def test_memo_always_equals_the_full_recomputation_and_the_elbo_rises_every_step(
+    memoized_house, dtype
+):
+    _, data, config = memoized_house
     q = _start(data, config, dtype)
     options = StochasticOptions(block_size=9)
     state = start_state(data, config, q, options)
@@ -171,8 +157,8 @@ def test_memo_always_equals_the_full_recomputation_and_the_elbo_rises_every_step
         previous = value
 
 
-def test_exact_elbo_equals_the_dense_elbo(small, monkeypatch):
-    _, data, config = small
+def test_exact_elbo_equals_the_dense_elbo(memoized_house, monkeypatch):
+    _, data, config = memoized_house
     monkeypatch.setattr(stochastic, "CHUNK", 37)  # many chunks, a ragged last one
     q = torch.softmax(torch.randn(data.num_free, config.num_concepts, dtype=torch.float64), -1)
     state = start_state(data, config, q, StochasticOptions(block_size=10))
@@ -181,8 +167,8 @@ def test_exact_elbo_equals_the_dense_elbo(small, monkeypatch):
     assert chunked == pytest.approx(dense, rel=1e-12)
 
 
-def test_the_run_keeps_the_memo_exact_after_every_pass(small):
-    _, data, config = small
+def test_the_run_keeps_the_memo_exact_after_every_pass(memoized_house):
+    _, data, config = memoized_house
     seen = []
 
     def check(sweep, state):
@@ -202,8 +188,8 @@ def test_the_run_keeps_the_memo_exact_after_every_pass(small):
 
 
 @pytest.mark.parametrize("pi_family", ["dirichlet", "stick-breaking"])
-def test_one_block_covering_the_map_is_full_batch_cavi(small, pi_family):
-    _, data, config = small
+def test_one_block_covering_the_map_is_full_batch_cavi(memoized_house, pi_family):
+    _, data, config = memoized_house
     cavi_q = initial_q(data, config, torch.Generator().manual_seed(5))
     # numba CAVI's defaults truncate (threshold 1e-4) and skip cells that moved little (active
     # set): both off here, where every cell's exact update is compared
@@ -232,8 +218,8 @@ def test_one_block_covering_the_map_is_full_batch_cavi(small, pi_family):
         StochasticOptions(block_size=8),  # float32
     ],
 )  # fmt: skip
-def test_the_elbo_never_decreases_from_pass_to_pass(small, options):
-    _, data, config = small
+def test_the_elbo_never_decreases_from_pass_to_pass(memoized_house, options):
+    _, data, config = memoized_house
     q = _start(data, config, torch.float64 if options.dtype == "float64" else torch.float32)
     run = run_stochastic(data, config, 12, q=q, generator=torch.Generator().manual_seed(2),
                          options=options, progress=False)  # fmt: skip
@@ -312,8 +298,8 @@ def test_bad_options_name_the_field(changes, field):
         StochasticOptions(**changes)
 
 
-def test_bad_arguments_give_clear_errors(small):
-    _, data, config = small
+def test_bad_arguments_give_clear_errors(memoized_house):
+    _, data, config = memoized_house
     q = _start(data, config)
     generator = torch.Generator()
     with pytest.raises(ValueError, match="passes must be an integer >= 1"):
@@ -341,8 +327,8 @@ def test_bad_arguments_give_clear_errors(small):
         )
 
 
-def test_warm_start_from_labels_and_tolerance_stop(small):
-    _, data, config = small
+def test_warm_start_from_labels_and_tolerance_stop(memoized_house):
+    _, data, config = memoized_house
     labels = torch.zeros(data.num_free, dtype=torch.long)
     q = compact_initial_q(data, config, torch.Generator(), init_labels=labels)
     assert (q[:, 0] == 1).all() and q.dtype == torch.float32
@@ -375,10 +361,10 @@ def test_the_benchmark_runs_quick(tmp_path):
     assert results["large"]["passes"] == 6 and results["large_cavi"]["iterations"] == 2
 
 
-def test_chunked_coefficients_equal_the_dense_ones(small, monkeypatch):
+def test_chunked_coefficients_equal_the_dense_ones(memoized_house, monkeypatch):
     from spcopyro.guides.elbo import multinomial_coefficients
 
-    _, data, config = small
+    _, data, config = memoized_house
     monkeypatch.setattr(stochastic, "CHUNK", 2000)  # 9 rows of 205 image classes
     chunked = stochastic.chunked_coefficients(data, config)
     assert float(chunked) == pytest.approx(float(multinomial_coefficients(data, config)), rel=1e-12)
