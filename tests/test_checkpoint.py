@@ -374,6 +374,20 @@ def test_ctrl_c_in_a_vi_gibbs_fit_says_how_far_it_got(room, tmp_path, capsys, mo
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("interrupted (vi-gibbs fit 1 of 1, 3 of ")
     assert "no checkpoint kept (the 'vi-gibbs' method)" in err and not out.exists()
+    assert main([*_variational_argv(room, out, "vi-gibbs"), "--resume", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert "one fit (--chains 1) of cavi" in err and "--method vi-gibbs keeps no checkpoint" in err
+
+
+def test_ctrl_c_in_a_variational_fit_of_several_chains_says_why_none_is_kept(
+    room, tmp_path, capsys, monkeypatch
+):
+    _interrupt_cavi_at(monkeypatch, 2)
+    out = tmp_path / "out"
+    assert main([*_variational_argv(room, out, "cavi"), "--chains", "2"]) == 130
+    err = capsys.readouterr().err
+    assert err.rstrip().endswith("no checkpoint kept (--chains 2: a cavi checkpoint holds one fit)")
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_ctrl_c_in_a_cavi_fit_keeps_its_q_and_resume_gives_the_unbroken_fit(
