@@ -9,7 +9,7 @@ import logging
 import numpy as np
 import pytest
 
-from spcopyro.config import preset
+from spcopyro.config import DEFAULT_PRESET, preset
 from spcopyro.fit.house import fit_house
 from spcopyro.results.map_checks import (
     DEGENERATE_SEPARATION,
@@ -41,7 +41,7 @@ def test_one_concept_over_words_said_apart_warns_naming_them():
     assert warning is not None
     assert "one concept (3) holds 100% of the free cells" in warning
     assert "kitchen (3), bedroom (2)" in warning  # most heard first, with counts
-    assert "--gamma" in warning and "--preset auto" in warning
+    assert "--gamma" in warning and f"--preset {DEFAULT_PRESET}" in warning
 
 
 def test_words_said_close_together_do_not_warn():

@@ -25,6 +25,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from spcopyro.config import DEFAULT_PRESET
+
 if TYPE_CHECKING:
     from spcopyro.data import House
 
@@ -104,7 +106,7 @@ def degenerate_map_warning(
         f"one concept ({concept}) holds {share:.0%} of the free cells while words said at "
         f"different places (up to {apart:.1f} m apart) lie inside it: {named}; the map does not "
         "separate the places these words name (try a lower --gamma, --merge-moves 0.2 so that "
-        "regions can split, or the default --preset auto if the fit used another)"
+        f"regions can split, or the default --preset {DEFAULT_PRESET} if the fit used another)"
     )
 
 
