@@ -157,6 +157,9 @@ GEWEKE_VARIANTS = [
     # redrawn after an accepted move and kept after a rejected one. Its exactness on the labels
     # is test_merge_move.py's enumerated-posterior test.
     pytest.param(dict(gamma=1.5), GibbsOptions(merge_moves=0.3), id="merge-0.3"),
+    # A third start with a region relabel move (spcopyro.gibbs.region_move), likewise: its
+    # exactness on the labels is test_region_move.py's detailed balance, enumerated.
+    pytest.param(dict(gamma=1.5), GibbsOptions(region_moves=0.3), id="region-0.3"),
     pytest.param(dict(connectivity=8, gamma=0.7), GibbsOptions(), id="8-neighbours"),
 ]
 """(config overrides, sampler options) of Geweke's test; the options' backend is replaced by

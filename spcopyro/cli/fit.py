@@ -223,6 +223,8 @@ def _apply_preset_inference(args: argparse.Namespace) -> None:
         args.init = recommended.get("init", "random") if gibbs else "random"
     if args.merge_moves is None and args.method == "gibbs":
         args.merge_moves = recommended.get("merge_moves")
+    if args.region_moves is None and args.method == "gibbs":
+        args.region_moves = recommended.get("region_moves")
     if args.point_estimate is None:
         usable = samples and args.marginal_samples > 0
         args.point_estimate = (
@@ -323,6 +325,7 @@ def _fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings,
             unobserved_refresh=1.0 if args.unobserved_refresh is None else args.unobserved_refresh,
             cluster_moves=0.0 if args.cluster_moves is None else args.cluster_moves,
             merge_moves=0.0 if args.merge_moves is None else args.merge_moves,
+            region_moves=0.0 if args.region_moves is None else args.region_moves,
         )  # fmt: skip
         options = with_options(options, args.method_option or [])
         try:

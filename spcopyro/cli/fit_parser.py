@@ -115,7 +115,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--merge-moves",
         type=float,
         help="share of sweeps that start with a split-merge move: two touching concepts merge "
-        "or one splits, parameters integrated out (default: 0.2 with --preset auto, else 0)",
+        "or one splits, parameters integrated out (default: 0.2 with --preset coarse or auto, "
+        "else 0)",
+    )
+    p.add_argument(
+        "--region-moves",
+        type=float,
+        help="share of sweeps that start with a region relabel move: a whole region takes a "
+        "neighbouring, new or other concept, parameters integrated out (default: the preset's "
+        "recommendation, else 0)",
     )
     p.add_argument("--point-estimate", choices=POINT_ESTIMATES, default=None,
                    help="the reported map: the highest-log-joint state visited (map-visited) "

@@ -406,7 +406,10 @@ def preset_fit_kwargs(name: str, marginal_samples: int = 50) -> dict[str, object
     recommended = preset_inference(name)
     estimate = str(recommended.get("point_estimate", "map-visited"))
     return {
-        "options": GibbsOptions(merge_moves=float(recommended.get("merge_moves", 0.0))),
+        "options": GibbsOptions(
+            merge_moves=float(recommended.get("merge_moves", 0.0)),
+            region_moves=float(recommended.get("region_moves", 0.0)),
+        ),
         "init": str(recommended.get("init", "random")),
         "marginal_samples": marginal_samples if estimate != "map-visited" else 0,
         "point_estimate": estimate,
@@ -422,8 +425,12 @@ def log_skipped_preset_inference(
     recommended = preset_inference(settings.preset) if settings.preset in PRESETS else {}
     if not recommended:
         return
-    merge = float(getattr(options, "merge_moves", 0.0) or 0.0)
-    running = {"init": init_name(init), "merge_moves": merge, "point_estimate": point_estimate}
+    running = {
+        "init": init_name(init),
+        "merge_moves": float(getattr(options, "merge_moves", 0.0) or 0.0),
+        "region_moves": float(getattr(options, "region_moves", 0.0) or 0.0),
+        "point_estimate": point_estimate,
+    }
     skipped = {k: v for k, v in recommended.items() if k in running and running[k] != v}
     if skipped:
         logger.warning(

@@ -34,6 +34,11 @@ class GibbsOptions:
             (:mod:`spcopyro.gibbs.merge`: two touching concepts merge, or one splits in two, by
             Metropolis-Hastings with pi, theta and w integrated out). 0 (default): none. Any
             value in [0, 1] leaves the posterior invariant.
+        region_moves: the probability that a sweep starts with a region relabel move
+            (:mod:`spcopyro.gibbs.region_move`: one Swendsen-Wang cluster takes another concept,
+            a neighbouring one, a new one or another in use, by Metropolis-Hastings with pi,
+            theta and w integrated out; it merges a room carried by two concepts). 0 (default):
+            none. Any value in [0, 1] leaves the posterior invariant.
         anneal_sweeps: ramp the labels' coupling gamma up over the first ``anneal_sweeps``
             sweeps of a chain (:mod:`spcopyro.gibbs.anneal`); those sweeps are burn-in.
         hyper: which hyperparameters (alpha, the concentrations, gamma) the chain samples
@@ -46,6 +51,7 @@ class GibbsOptions:
     anneal_sweeps: int = 0
     merge_moves: float = 0.0
     hyper: HyperparameterOptions = HyperparameterOptions()
+    region_moves: float = 0.0
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -62,6 +68,9 @@ class GibbsOptions:
         merges = self.merge_moves
         if not (isinstance(merges, (int, float)) and 0.0 <= merges <= 1.0):
             raise bad("merge_moves", "must be a probability in [0, 1]")
+        regions = self.region_moves
+        if not (isinstance(regions, (int, float)) and 0.0 <= regions <= 1.0):
+            raise bad("region_moves", "must be a probability in [0, 1]")
         object.__setattr__(self, "anneal_sweeps", check_anneal_sweeps(self.anneal_sweeps))
         object.__setattr__(self, "hyper", as_hyper_options(self.hyper))
 

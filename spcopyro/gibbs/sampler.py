@@ -16,9 +16,12 @@ auto``):
 3. with probability ``options.merge_moves``, a split-merge move of the labels with the
    parameters integrated out, then pi, theta, w redrawn if it was accepted
    (:mod:`spcopyro.gibbs.merge`), under gamma_s;
-4. the backend's sweep: every label from eq. (13) under gamma_s, then pi and the emission
+4. with probability ``options.region_moves``, a region relabel move (one Swendsen-Wang cluster
+   takes another concept, parameters integrated out; :mod:`spcopyro.gibbs.region_move`), then
+   pi, theta, w redrawn if it was accepted, under gamma_s;
+5. the backend's sweep: every label from eq. (13) under gamma_s, then pi and the emission
    distributions (eqs. 14-17), partially refreshed per ``options.unobserved_refresh``;
-5. when ``options.hyper`` samples hyperparameters (and the sweep is not an annealing one), their
+6. when ``options.hyper`` samples hyperparameters (and the sweep is not an annealing one), their
    updates given the new labels, each a blocked update that redraws the globals it changes
    (:mod:`spcopyro.gibbs.hyperparameters`); the chain's config then changes: :class:`StepInfo`
    carries the new one, which the caller passes to the next step.
@@ -40,6 +43,7 @@ from spcopyro.gibbs.cluster import maybe_cluster_move
 from spcopyro.gibbs.hyperparameters import AuxiliaryDraw, log_hyperprior, update_hyperparameters
 from spcopyro.gibbs.merge import maybe_merge_move
 from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.gibbs.region_move import maybe_region_move
 from spcopyro.gibbs.state import GibbsState, SweepPlan
 from spcopyro.gibbs.sweep import sample_globals
 from spcopyro.inference.initialisation import check_labels, random_labels
@@ -84,7 +88,7 @@ def step(
     plan: SweepPlan | None = None,
     aux_draw: AuxiliaryDraw | None = None,
 ) -> tuple[GibbsState, StepInfo]:
-    """One sweep of the chain (the module docstring's steps 1-5).
+    """One sweep of the chain (the module docstring's steps 1-6).
 
     Args:
         sweep: the 0-based index of this sweep in the chain (annealing reads it).
@@ -99,6 +103,8 @@ def step(
     state = maybe_cluster_move(state, data, sweep_config, generator, options.cluster_moves)
     state = maybe_merge_move(state, data, sweep_config, generator, options.merge_moves,
                              compiled=backend.name == "numba")  # fmt: skip
+    state = maybe_region_move(state, data, sweep_config, generator, options.region_moves,
+                              compiled=backend.name == "numba")  # fmt: skip
     state = backend.sweep(state, data, sweep_config, generator, plan, options.unobserved_refresh)
     annealing = sweep + 1 < options.anneal_sweeps
     if not options.hyper.active:

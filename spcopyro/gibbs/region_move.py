@@ -1,0 +1,241 @@
+r"""A region relabel move: one Swendsen-Wang cluster changes concept, parameters integrated out.
+
+A room carried by two concepts (each half its own concept, each half's words and images fitting
+its own parameters) is the sampler failure issue 21 found on simulated maps: single-site Gibbs
+undoes it only by moving the border cell by cell, over thousands of sweeps. The split-merge move
+(:mod:`spcopyro.gibbs.merge`) proposes the right merge, but its reverse -- the restricted scans
+landing on the current two halves exactly -- is improbable when the halves are hundreds of cells
+with a ragged border, so the merge is rarely accepted. The Swendsen-Wang move
+(:mod:`spcopyro.gibbs.cluster`) relabels whole regions, but given each concept's parameters,
+under which each half's data prefer its own concept.
+
+This move relabels a whole region against the collapsed posterior p(C | x) (pi, theta and w
+integrated out, as the split-merge move's target), by the Swendsen-Wang cut of Barbu & Zhu
+(2005, "Generalizing Swendsen-Wang to sampling arbitrary posterior probabilities", IEEE TPAMI
+27(8)), a Metropolis-Hastings step:
+
+1. **bonds** (as :func:`~spcopyro.gibbs.cluster.bond_clusters`): each agreeing neighbour pair
+   is bonded with probability :math:`q = 1 - e^{-\gamma}`; the clusters are the connected
+   components;
+2. **the region** :math:`V_0`: the cluster of a cell drawn uniformly, of concept b;
+3. **its new concept** a, drawn from three groups of labels, each with a fixed weight among the
+   groups that are not empty, uniformly within its group: the concepts adjacent to
+   :math:`V_0` (of a cell outside :math:`V_0` neighbouring it) other than b, weight
+   :data:`GROUP_WEIGHTS` ``[0]``; the empty labels, ``[1]`` (a region becomes a new concept);
+   the other concepts in use, ``[2]`` (two places far apart that share a concept, or not);
+4. accept :math:`C \to C'` (:math:`V_0` relabelled a) with probability min(1, r).
+
+**Acceptance.** :math:`V_0` is the seed's cluster in C with probability
+:math:`\frac{|V_0|}{N}\,\mathrm{Conn}(V_0)\, e^{-\gamma n_b}`: its inner bonds connect it
+(the same in C and C', all of :math:`V_0` agreeing in both) and none of the :math:`n_b` pairs
+from :math:`V_0` to cells of concept b outside it is bonded; in C' the cut pairs are the
+:math:`n_a` to concept a. The Potts factor changes by :math:`e^{\gamma(n_a - n_b)}`, which the
+cut's ratio :math:`e^{-\gamma (n_a - n_b)}` cancels exactly (why the bond probability is
+:math:`1 - e^{-\gamma}`), so
+
+.. math::
+
+    \log r = \sum_{l \in \{a, b\}} \big[M_l(C') - M_l(C)\big]
+        + \log g(b \mid V_0, C') - \log g(a \mid V_0, C),
+
+with :math:`M_l = \log\Gamma(a_\pi + m_l) + \sum_u \log B(a_u \mathbf{1} + n^u_l) - \log
+B(a_u \mathbf{1})` each concept's collapsed term (:func:`~spcopyro.gibbs.merge.
+concept_log_marginals`; the split-merge module's target) and g the label proposal of step 3:
+the reverse draws b for :math:`V_0` in C' -- from the adjacent group when cells of b still
+touch :math:`V_0`, from the empty labels when :math:`V_0` held all of b, else from the other
+concepts in use. The Potts coupling enters only through the bonds, so a region whose border is
+long and ragged costs nothing to relabel as a whole: what decides is the data.
+
+If accepted, pi, theta and w are redrawn from their conditionals given the new labels (eqs.
+14-17); the acceptance does not look at them, so keeping them on a rejection is exact
+(the split-merge module's argument). The tests compare the move's exact transition
+probabilities, enumerated over bonds, seeds and labels on a tiny map, with detailed balance
+against the enumerated posterior, and its draws with those probabilities.
+
+Cost: O(P) for the bonds and components (scipy), O(N) for the region's statistics: about a
+third of a compiled sweep on a public house.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import torch
+
+from spcopyro._util.random_draws import coin_flip
+from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.backends import globals_sampler
+from spcopyro.gibbs.cluster import bond_clusters
+from spcopyro.gibbs.merge import Counts, MoveInfo, concept_log_marginals
+from spcopyro.gibbs.state import GibbsState
+from spcopyro.model import DTYPE, ModelData
+
+GROUP_WEIGHTS = (0.6, 0.2, 0.2)
+"""Weights of step 3's label groups: adjacent concepts, empty labels, other concepts in use
+(renormalised over the groups that are not empty)."""
+
+
+class LabelGroups(NamedTuple):
+    """Step 3's groups for a region of concept ``current`` ([L] masks, disjoint)."""
+
+    adjacent: torch.Tensor
+    empty: torch.Tensor
+    other: torch.Tensor
+
+    def log_probability(self, label: int) -> float:
+        """log g(label): the group's renormalised weight over its size; -inf if in none."""
+        groups = (self.adjacent, self.empty, self.other)
+        sizes = [int(group.sum()) for group in groups]
+        total = sum(w for w, size in zip(GROUP_WEIGHTS, sizes, strict=True) if size > 0)
+        for weight, size, group in zip(GROUP_WEIGHTS, sizes, groups, strict=True):
+            if size > 0 and bool(group[label]):
+                return math.log(weight / total) - math.log(size)
+        return -math.inf
+
+    def draw(self, generator: torch.Generator) -> int | None:
+        """A label drawn from g, or None when every group is empty."""
+        groups = (self.adjacent, self.empty, self.other)
+        weights = torch.tensor(
+            [w if bool(g.any()) else 0.0 for w, g in zip(GROUP_WEIGHTS, groups, strict=True)],
+            dtype=DTYPE,
+        )  # [3]
+        if float(weights.sum()) == 0.0:
+            return None
+        group = groups[int(torch.multinomial(weights, 1, generator=generator))]
+        members = group.nonzero(as_tuple=True)[0]
+        return int(members[int(torch.randint(members.numel(), (), generator=generator))])
+
+
+def label_groups(
+    labels: torch.Tensor, touching: torch.Tensor, current: int, num_concepts: int
+) -> LabelGroups:
+    """Step 3's groups in the labelling ``labels`` [N] for a region of label ``current`` whose
+    outside neighbours carry the labels ``touching`` (1-D)."""
+    used = torch.bincount(labels, minlength=num_concepts) > 0  # [L]
+    adjacent = torch.zeros(num_concepts, dtype=torch.bool)  # [L]
+    adjacent[touching] = True
+    adjacent[current] = False
+    empty = ~used
+    other = used & ~adjacent
+    other[current] = False
+    return LabelGroups(adjacent, empty, other)
+
+
+def touching_labels(
+    region: torch.Tensor, labels: torch.Tensor, pairs: torch.Tensor
+) -> torch.Tensor:
+    """The labels of the cells outside ``region`` [N] (bool) that neighbour it (1-D, unique)."""
+    inside_first, inside_second = region[pairs[:, 0]], region[pairs[:, 1]]  # [P]
+    cross = inside_first ^ inside_second  # [P]
+    outside = torch.where(inside_first, pairs[:, 1], pairs[:, 0])[cross]
+    return torch.unique(labels[outside])
+
+
+def _moved_terms(
+    labels: torch.Tensor, region: torch.Tensor, data: ModelData, config: SpCoConfig, a: int, b: int
+) -> float:
+    """sum over concepts a, b of M_l(C') - M_l(C) when ``region`` moves from b to a."""
+    size = region.sum()
+    sizes = torch.bincount(labels, minlength=config.num_concepts)[[b, a]]  # [2]
+    moved_sizes = sizes + torch.stack([-size, size])  # [2]
+    observed = labels[data.obs_cells]  # [M]
+    in_region = region[data.obs_cells]  # [M]
+    before: Counts = []
+    after: Counts = []
+    for modality in data.modalities:
+        if not config.uses(modality.name):
+            continue
+        counts = modality.counts  # [M, K_u]
+        per = torch.stack([counts[observed == b].sum(0), counts[observed == a].sum(0)])  # [2, K_u]
+        shift = counts[in_region].sum(0)  # [K_u]
+        concentration = config.concentration(modality.name)
+        before.append((concentration, per))
+        after.append((concentration, per + torch.stack([-shift, shift])))
+    return float(
+        (
+            concept_log_marginals(moved_sizes, after, config)
+            - concept_log_marginals(sizes, before, config)
+        ).sum()
+    )
+
+
+def relabel_log_ratio(
+    labels: torch.Tensor,
+    region: torch.Tensor,
+    a: int,
+    touching: torch.Tensor,
+    data: ModelData,
+    config: SpCoConfig,
+) -> float:
+    """log r of relabelling ``region`` [N] (bool, one concept b) as ``a`` (module doc): the two
+    concepts' collapsed terms and the label proposal's asymmetry; ``touching``: the labels of the
+    cells outside the region that neighbour it."""
+    b = int(labels[region.nonzero()[0, 0]])
+    L = config.num_concepts
+    forward = label_groups(labels, touching, b, L)
+    reverse = label_groups(torch.where(region, a, labels), touching, a, L)
+    return _log_acceptance_ratio(
+        _moved_terms(labels, region, data, config, a, b),
+        forward.log_probability(a),
+        reverse.log_probability(b),
+    )
+
+
+def _log_acceptance_ratio(delta_log_target: float, log_forward: float, log_reverse: float) -> float:
+    """log r = log p(C')/p(C) + log g(b | C') - log g(a | C) (the cut's and Potts' cancel)."""
+    return delta_log_target + log_reverse - log_forward
+
+
+def region_relabel_labels(
+    labels: torch.Tensor, data: ModelData, config: SpCoConfig, generator: torch.Generator
+) -> tuple[torch.Tensor, MoveInfo]:
+    """One region relabel Metropolis-Hastings step on ``labels`` [N] targeting p(C | x) (module
+    doc). Returns the new labels (``labels`` itself when nothing changes) and what happened."""
+    L = config.num_concepts
+    _, cluster = bond_clusters(labels, data.pairs, config.gamma, generator)
+    seed = int(torch.randint(labels.shape[0], (), generator=generator))
+    region = cluster == cluster[seed]  # [N]
+    b = int(labels[seed])
+    touching = touching_labels(region, labels, data.pairs)
+    forward = label_groups(labels, touching, b, L)
+    a = forward.draw(generator)
+    if a is None:
+        return labels, MoveInfo("relabel", False, -math.inf)
+    log_ratio = relabel_log_ratio(labels, region, a, touching, data, config)
+    proposed = torch.where(region, a, labels)  # [N]
+    accept = log_ratio >= 0 or float(torch.rand((), dtype=DTYPE, generator=generator)) < math.exp(
+        log_ratio
+    )
+    return (proposed if accept else labels), MoveInfo("relabel", bool(accept), log_ratio)
+
+
+def region_move(
+    state: GibbsState,
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    compiled: bool = False,
+) -> tuple[GibbsState, MoveInfo]:
+    """:func:`region_relabel_labels`, then (if accepted) pi, theta and w redrawn given the labels
+    (by the compiled sampler's draws when ``compiled``)."""
+    labels, info = region_relabel_labels(state.labels, data, config, generator)
+    if not info.accepted:
+        return state, info
+    sample_globals = globals_sampler("numba" if compiled else "torch")
+    return GibbsState(labels, *sample_globals(labels, data, config, generator)), info
+
+
+def maybe_region_move(
+    state: GibbsState,
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    probability: float,
+    compiled: bool = False,
+) -> GibbsState:
+    """:func:`region_move` with probability ``probability`` (``GibbsOptions.region_moves``),
+    else ``state`` (draws nothing from ``generator`` when the probability is 0)."""
+    if not coin_flip(probability, generator):
+        return state
+    return region_move(state, data, config, generator, compiled=compiled)[0]

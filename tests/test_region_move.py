@@ -1,0 +1,211 @@
+"""The region relabel move (spcopyro.gibbs.region_move): exact, and what it is for.
+
+* Detailed balance, exactly: on a 2 x 2 map with three concepts the move's transition
+  probabilities are enumerated here -- every bond configuration with its probability
+  1 - e^-gamma per bonded agreeing pair, every seed cell, every label of the proposal's groups --
+  with the module's acceptance ratio, and p(C) K(C, C') must equal p(C') K(C', C) for every pair
+  of the 81 labelings, p being the enumerated collapsed posterior (Potts term included, checked
+  against the model in test_merge_move). Power: the ratio without the label proposal's asymmetry
+  breaks it (``test_a_broken_acceptance_ratio_is_detected``).
+* The sampler draws what was enumerated: moves from one labeling land on each labeling as often
+  as the enumerated row says (chi-square).
+* What it is for: a room carried by two concepts whose halves' data agree is merged in a few
+  moves, where the split-merge move's merge is rarely accepted.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+import torch
+from gibbs_problems import all_labelings, config, model_data, replicate_grid, state_index
+from scipy import stats
+
+import spcopyro.gibbs.region_move as region_move
+from spcopyro.gibbs.merge import collapsed_log_posterior
+from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.gibbs.region_move import (
+    GROUP_WEIGHTS,
+    maybe_region_move,
+    region_relabel_labels,
+    relabel_log_ratio,
+)
+from spcopyro.gibbs.sampler import init, step
+from spcopyro.gibbs.sweep import gibbs_sweep
+from spcopyro.model import DTYPE
+
+pytestmark = pytest.mark.usefixtures("one_torch_thread")  # small tensors
+
+
+def _square_problem():
+    cfg = config(gamma=0.8, num_concepts=3, alpha=3.0, beta=0.5, chi=0.5)
+    grid, n = replicate_grid(["..", ".."], 1)
+    images = np.array([[3.0, 0.5], [0.5, 2.0]])
+    words = np.array([[2.0, 0.0, 1.0], [0.0, 2.0, 0.5]])
+    return cfg, n, model_data(grid, np.array([0, 3]), images, words)
+
+
+def _components(num_cells: int, bonds: list[tuple[int, int]]) -> list[frozenset[int]]:
+    """The component of every cell under ``bonds`` (union-find, written out for the test)."""
+    parent = list(range(num_cells))
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            i = parent[i]
+        return i
+
+    for i, j in bonds:
+        parent[root(i)] = root(j)
+    return [frozenset(k for k in range(num_cells) if root(k) == root(i)) for i in range(num_cells)]
+
+
+def _proposal(labels: list[int], region: frozenset[int], pairs, num_concepts: int) -> dict:
+    """g(a | region, C) of the module's docstring, computed here from its statement."""
+    current = labels[next(iter(region))]
+    touching = {labels[j] for i, j in pairs if i in region and j not in region}
+    touching |= {labels[i] for i, j in pairs if j in region and i not in region}
+    used = set(labels)
+    groups = [
+        sorted(touching - {current}),
+        sorted(set(range(num_concepts)) - used),
+        sorted(used - touching - {current}),
+    ]
+    total = sum(w for w, g in zip(GROUP_WEIGHTS, groups, strict=True) if g)
+    return {a: w / total / len(g) for w, g in zip(GROUP_WEIGHTS, groups, strict=True) for a in g}
+
+
+def _exact_kernel(cfg, n, data) -> np.ndarray:
+    """[S, S] the move's transition probabilities between all labelings."""
+    L = cfg.num_concepts
+    labelings = all_labelings(n, L)
+    pairs = [tuple(int(v) for v in p) for p in data.pairs]
+    bond = -math.expm1(-cfg.gamma)
+    kernel = np.zeros((len(labelings), len(labelings)))
+    ratios: dict = {}
+    for s, row in enumerate(labelings):
+        labels = row.tolist()
+        agreeing = [p for p in pairs if labels[p[0]] == labels[p[1]]]
+        for bits in itertools.product([False, True], repeat=len(agreeing)):
+            p_bonds = math.prod(bond if bit else 1 - bond for bit in bits)
+            components = _components(n, [p for p, bit in zip(agreeing, bits, strict=True) if bit])
+            for seed in range(n):
+                region = components[seed]
+                weight = p_bonds / n
+                for a, g in _proposal(labels, region, pairs, L).items():
+                    moved = [a if k in region else labels[k] for k in range(n)]
+                    key = (s, region, a)
+                    if key not in ratios:
+                        mask = torch.tensor([k in region for k in range(n)])
+                        touching = region_move.touching_labels(mask, row, data.pairs)
+                        ratios[key] = relabel_log_ratio(row, mask, a, touching, data, cfg)
+                    accept = min(1.0, math.exp(min(ratios[key], 0.0)))
+                    target = int(state_index(torch.tensor(moved), L))
+                    kernel[s, target] += weight * g * accept
+                    kernel[s, s] += weight * g * (1 - accept)
+    return kernel
+
+
+def _posterior(cfg, n, data) -> np.ndarray:
+    log_p = np.array(
+        [collapsed_log_posterior(lab, data, cfg) for lab in all_labelings(n, cfg.num_concepts)]
+    )
+    return np.exp(log_p - log_p.max()) / np.exp(log_p - log_p.max()).sum()
+
+
+def _detailed_balance_gap(cfg, n, data) -> float:
+    kernel = _exact_kernel(cfg, n, data)
+    assert np.allclose(kernel.sum(1), 1.0, atol=1e-12)
+    flow = _posterior(cfg, n, data)[:, None] * kernel  # [S, S] p(C) K(C, C')
+    return float(np.abs(flow - flow.T).max() / flow.max())
+
+
+def test_the_move_satisfies_detailed_balance_exactly():
+    cfg, n, data = _square_problem()
+    assert _detailed_balance_gap(cfg, n, data) < 1e-10
+
+
+def test_a_broken_acceptance_ratio_is_detected(monkeypatch):
+    # The ratio without the label proposal's asymmetry (as if g were symmetric).
+    monkeypatch.setattr(region_move, "_log_acceptance_ratio", lambda delta, fwd, rev: delta)
+    cfg, n, data = _square_problem()
+    assert _detailed_balance_gap(cfg, n, data) > 1e-2
+
+
+def test_the_sampler_draws_the_enumerated_transitions():
+    cfg, n, data = _square_problem()
+    kernel = _exact_kernel(cfg, n, data)
+    start = torch.tensor([0, 0, 1, 1])
+    row = kernel[int(state_index(start, cfg.num_concepts))]
+    generator = torch.Generator().manual_seed(0)
+    draws = 3000
+    landed = [
+        int(state_index(region_relabel_labels(start, data, cfg, generator)[0], cfg.num_concepts))
+        for _ in range(draws)
+    ]
+    observed = np.bincount(landed, minlength=row.shape[0]).astype(float)
+    expected = row * draws
+    big = expected >= 5
+    assert observed[~big].sum() <= max(15.0, 3 * expected[~big].sum())
+    obs, exp = observed[big], expected[big]
+    if expected[~big].sum() > 0:
+        obs, exp = np.append(obs, observed[~big].sum()), np.append(exp, expected[~big].sum())
+    assert stats.chisquare(obs, exp * obs.sum() / exp.sum()).pvalue > 1e-3
+
+
+def _split_room_problem():
+    """A 6 x 12 room whose words and images are the same everywhere, labelled as two concepts
+    (left half 0, right half 1)."""
+    grid, n = replicate_grid(["." * 12] * 6, 1)
+    cells = np.arange(0, n, 7)
+    images = np.tile([[2.0, 1.0]], (cells.shape[0], 1))
+    words = np.tile([[3.0, 0.0, 0.0]], (cells.shape[0], 1))
+    data = model_data(grid, cells, images, words)
+    labels = torch.tensor([0 if (k % 12) < 6 else 1 for k in range(n)])
+    return data, labels
+
+
+def test_a_room_split_between_two_concepts_is_merged():
+    data, labels = _split_room_problem()
+    cfg = config(gamma=2.0, num_concepts=6, alpha=1.0, beta=0.1, chi=1.0)
+    gain = collapsed_log_posterior(torch.zeros_like(labels), data, cfg) - collapsed_log_posterior(
+        labels, data, cfg
+    )
+    assert gain > 0  # the model prefers one concept here
+    generator = torch.Generator().manual_seed(1)
+    used = []
+    for _ in range(40):
+        labels, _ = region_relabel_labels(labels, data, cfg, generator)
+        used.append(int((torch.bincount(labels) > 0).sum()))
+    assert used[-1] == 1, used
+
+
+def test_option_and_step_composition():
+    cfg, _, data = _square_problem()
+    generator = torch.Generator().manual_seed(1)
+    state = init(data, cfg, generator)
+    before = generator.get_state()
+    assert maybe_region_move(state, data, cfg, generator, 0.0) is state  # no draw at 0
+    assert torch.equal(generator.get_state(), before)
+    accepted = None
+    for seed in range(30):  # an accepted move redraws the globals; a rejected one keeps them
+        moved, info = region_move.region_move(state, data, cfg, torch.Generator().manual_seed(seed))
+        assert info.kind == "relabel"
+        if info.accepted:
+            accepted = moved
+            assert moved.log_pi is not state.log_pi
+        else:
+            assert moved is state
+    assert accepted is not None
+    options = GibbsOptions(backend="torch", region_moves=1.0)
+    stepped, _ = step(state, data, cfg, torch.Generator().manual_seed(2), options=options)
+    by_hand_generator = torch.Generator().manual_seed(2)
+    by_hand = maybe_region_move(state, data, cfg, by_hand_generator, 1.0)
+    by_hand = gibbs_sweep(by_hand, data, cfg, by_hand_generator)
+    assert torch.equal(stepped.labels, by_hand.labels)
+    assert torch.equal(stepped.log_w, by_hand.log_w)
+    assert stepped.log_pi.dtype == DTYPE
+    with pytest.raises(ValueError, match="region_moves"):
+        GibbsOptions(region_moves=-0.1)
