@@ -28,11 +28,13 @@ from spcopyro.gibbs.batched import (
     sample_labels_batched,
     sample_log_gamma_batched,
     stack_states,
+    trace_batched,
 )
 from spcopyro.gibbs.sampler import init
 from spcopyro.gibbs.sweep import label_log_conditionals
 from spcopyro.guides.testing import all_labellings, labelling_log_evidence
 from spcopyro.guides.tiny_maps import tiny_map
+from spcopyro.likelihood import log_joint_variable
 from spcopyro.model import DTYPE, Modality
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")  # small tensors
@@ -200,6 +202,21 @@ def test_whole_sweeps_reach_the_exact_posterior(overrides, refresh, dtype):
     assert stats.chisquare(obs_bins.numpy(), exp_bins.numpy()).pvalue > 1e-3
 
 
+@pytest.mark.parametrize("overrides", CONDITIONAL_VARIANTS)
+def test_trace_is_each_chains_log_joint(overrides):
+    """The batched trace: log_joint_variable and the concepts in use of every chain's own state
+    (one of them using only a few concepts, so the count is not L everywhere)."""
+    data, cfg = problem_for(overrides)
+    states = distinct_states(data, cfg, num_chains=3)
+    states[2] = states[2]._replace(labels=states[2].labels % 2)
+    values, concepts = trace_batched(stack_states(states), make_batched_plan(data, cfg), cfg)
+    for b, state in enumerate(states):
+        expected = log_joint_variable(state.labels, state.log_pi, state.log_emissions, data, cfg)
+        assert float(values[b]) == pytest.approx(float(expected), rel=1e-12, abs=1e-9)
+        assert int(concepts[b]) == int(torch.unique(state.labels).numel())
+    assert int(concepts[2]) == 2
+
+
 @pytest.mark.parametrize("shape", [0.01, 0.3, 1.0, 4.5])
 def test_batched_log_gamma_draws_follow_the_gamma_distribution(shape):
     generator = torch.Generator().manual_seed(2)
@@ -225,18 +242,24 @@ def test_stacked_states_come_back_as_they_went_in():
 
 
 @CUDA
-@pytest.mark.parametrize("dtype,atol", [(DTYPE, 1e-12), (torch.float32, 2e-5)])
+@pytest.mark.parametrize("dtype,atol", [(DTYPE, 1e-10), (torch.float32, 1e-4)])
 def test_runs_on_cuda(dtype, atol):
     """On the GPU: the conditionals of B different states equal the CPU reference, and sweeps
-    run with a device generator, keep every tensor on the device and valid labels."""
+    run with a device generator without a single host sync, keep every tensor on the device
+    and valid labels."""
     data, cfg = problem_for(dict(connectivity=8, gamma=1.3))
     states = distinct_states(data, cfg, 4)
     check_conditionals(states, data, cfg, "cuda", dtype, atol=atol)
     plan = make_batched_plan(data, cfg, "cuda", dtype)
     generator = torch.Generator(device="cuda").manual_seed(0)
     batch = stack_states(states, "cuda", dtype)
-    for _ in range(5):
-        batch = gibbs_sweep_batched(batch, plan, cfg, generator, 0.5)
+    torch.cuda.synchronize()
+    torch.cuda.set_sync_debug_mode("error")  # a host sync inside a sweep raises
+    try:
+        for _ in range(5):
+            batch = gibbs_sweep_batched(batch, plan, cfg, generator, 0.5)
+    finally:
+        torch.cuda.set_sync_debug_mode("default")
     assert batch.labels.is_cuda and batch.log_pi.is_cuda
     assert all(t.is_cuda and t.dtype == dtype for t in batch.log_emissions)
     labels = batch.labels.cpu()

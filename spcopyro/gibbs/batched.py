@@ -124,6 +124,8 @@ class BatchedPlan(NamedTuple):
     """Per modality, [M, K_m] counts in the state's dtype; zeros for a modality not in use."""
     concentrations: tuple[float, ...]
     """Per modality, its Dirichlet concentration a_m."""
+    pairs: torch.Tensor
+    """[P, 2] int64 every pair of neighbouring free cells once (for E(C))."""
 
 
 def make_batched_plan(
@@ -141,7 +143,8 @@ def make_batched_plan(
         for m in data.modalities
     )
     concentrations = tuple(config.concentration(m.name) for m in data.modalities)
-    return BatchedPlan(data.num_free, blocks, data.obs_cells.to(device), counts, concentrations)
+    return BatchedPlan(data.num_free, blocks, data.obs_cells.to(device), counts, concentrations,
+                       data.pairs.to(device))  # fmt: skip
 
 
 # -- labels ---------------------------------------------------------------------------------------
@@ -324,9 +327,13 @@ def concept_counts(labels: torch.Tensor, plan: BatchedPlan, num_concepts: int):
     dtype = plan.counts[0].dtype
     cells = labels.new_zeros(B, num_concepts, dtype=dtype)
     cells.scatter_add_(1, labels, torch.ones_like(labels, dtype=dtype))  # [B, L]
-    one_hot = torch.nn.functional.one_hot(labels[:, plan.obs_cells], num_concepts).to(dtype)
+    observed = labels[:, plan.obs_cells]  # [B, M]
+    M = observed.shape[1]
+    rows = (observed + num_concepts * torch.arange(B, device=labels.device)[:, None]).view(-1)
     per_modality = tuple(
-        one_hot.transpose(1, 2) @ counts  # [B, L, M] @ [M, K] -> [B, L, K]
+        counts.new_zeros(B * num_concepts, counts.shape[-1])
+        .index_add_(0, rows, counts.expand(B, M, -1).reshape(B * M, -1))  # row b L + C_i += x_i
+        .view(B, num_concepts, -1)  # [B, L, K_m]
         for counts in plan.counts
     )
     return cells, per_modality
@@ -393,3 +400,27 @@ def init_batched(
     labels = torch.randint(config.num_concepts, (num_chains, data.num_free), device=device,
                            generator=generator)  # fmt: skip
     return BatchedState(labels, *sample_globals_batched(labels, plan, config, generator))
+
+
+# -- the trace ------------------------------------------------------------------------------------
+
+
+def trace_batched(
+    state: BatchedState, plan: BatchedPlan, config: SpCoConfig
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """([B] the log joint's state-dependent part, [B] int64 concepts in use) of every chain, on
+    the device: :func:`spcopyro.likelihood.log_joint_variable` at each chain's state,
+
+    sum_l (a_pi - 1) log pi_l + sum_m sum_lk (a_m - 1) log phi_mlk + sum_i log pi_{C_i}
+    + gamma E(C) + sum_m sum_i x_i . log phi_{m, C_i},
+
+    with E(C) the number of agreeing neighbour pairs. What a run loop of batched chains records
+    each sweep (one transfer of 2B numbers to the host, not one per chain)."""
+    cells, per_modality = concept_counts(state.labels, plan, config.num_concepts)  # [B, L], ...
+    agreements = (state.labels[:, plan.pairs[:, 0]] == state.labels[:, plan.pairs[:, 1]]).sum(-1)
+    total = (config.pi_concentration - 1) * state.log_pi.sum(-1)  # [B]
+    for a, counts, log_phi in zip(plan.concentrations, per_modality, state.log_emissions,
+                                  strict=True):  # fmt: skip
+        total = total + (a - 1) * log_phi.sum((-1, -2)) + (counts * log_phi).sum((-1, -2))
+    total = total + (cells * state.log_pi).sum(-1) + config.gamma * agreements.to(total.dtype)
+    return total, (cells > 0).sum(-1)
