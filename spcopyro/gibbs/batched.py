@@ -33,11 +33,13 @@ keeps the rows of concepts holding no observed cell (as
 :func:`~spcopyro.gibbs.sweep.concepts_to_refresh`), the choice made per chain.
 
 **Memory** on the device, beyond the state (B N int64 labels and the B L (1 + sum_m K_m)
-tables): per block of N_c cells, a handful of ``[B, N_c, D]`` tensors (neighbour labels, their
-agreement counts, slot weights; D = 4 or 8), ``[B, M_c, L]`` logits of the block's observed
-cells, and ``[B, M, L]`` observation log-likelihoods and ``[B, M, L]`` one-hot labels of the
-observed cells for the counts per concept: on room2ldk4 (N = 27k cells, M = 86, L = 120) about
-B x 2.5 MB in float64, so B = 64 chains fit in a fraction of a GiB.
+tables, old and new during a sweep): per block of N_c cells, a handful of ``[B, N_c, D]``
+tensors (neighbour labels, their agreement counts, slot weights, the uniforms; D = 4 or 8) and
+one ``[B, N_c, D, D]`` comparison, ``[B, M_c, L]`` logits of the block's observed cells,
+``[B, M, L]`` observation log-likelihoods, and the globals' ``[B, L, K_m]`` gamma variates and
+their temporaries. Measured on the CPU as the peak RSS a sweep adds (float64, room2ldk4:
+N = 27 746, M = 86, L = 120, K + V = 220): about 5 MiB a chain, 311 MiB at B = 64, so B = 256
+needs about 1.2 GiB; float32 halves the float part.
 
 Not composed here: annealing, cluster and merge moves, hyperparameter updates (what
 :func:`spcopyro.gibbs.sampler.step` adds around a sweep). The random stream is the device's
