@@ -508,9 +508,10 @@ def bench_chains(
         lambda: chains_as_fits(path, name, sizes.chains, sizes.chains_fit_sweeps),
     )
     gpu = (
-        "a CUDA device is present, but the sweep has no batched GPU path yet: not measured"
+        "a CUDA device is present: benchmarks/batched_gpu.py measures the batched sweep on it"
         if torch.cuda.is_available()
-        else "no CUDA device on this machine: the batched GPU sweep was not measured"
+        else "no CUDA device on this machine: benchmarks/batched_gpu.py measures the batched "
+        "sweep on the CPU only"
     )
     return {"preset": name, "in_process": in_process, "as_fits": as_fits, "gpu": gpu}
 

@@ -216,3 +216,15 @@ def test_end_to_end_benchmark_quick(tmp_path):
     assert {"semantic_map.png", "trace.png", "house.png", "agreement.png"} <= set(fit["pngs"])
     assert fit["post_parts"]["point_estimate"] > 0.0 and fit["figures"]["semantic_map"] > 0.0
     assert record["startup"]["commands"][1]["command"] == "--help"
+
+
+@pytest.mark.slow
+def test_batched_gpu_benchmark_quick(tmp_path):
+    out = tmp_path / "batched.json"
+    done = run_benchmark("batched_gpu.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "Batched sweep of embedded" in done.stdout
+    rows = json.loads(out.read_text())["rows"]
+    engines = {row["engine"] for row in rows}
+    assert {"torch x1", "batched x1", "batched x4"} <= engines
+    assert all(row["cells_per_s"] > 0 for row in rows)

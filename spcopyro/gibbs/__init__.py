@@ -4,7 +4,9 @@ Read in this order: ``sweep.py`` (the readable PyTorch reference of eqs. 13-17: 
 ``sampler.py`` (:func:`init` and :func:`step`: a sweep with the options' moves composed around
 it), ``run.py`` (the run loop: a resumable chain, :func:`run_gibbs`), ``kernel.py``
 (:class:`SpCoGibbs`, a :class:`pyro.infer.mcmc.MCMCKernel`), ``convergence.py`` (``--sweeps
-auto``). ``numba_sweep.py`` is the compiled backend (same distribution), ``backends.py`` what a
+auto``). ``numba_sweep.py`` is the compiled backend (same distribution), ``batched.py`` the
+sweep of B chains in lock step as one batch of tensors (on a GPU when one is lent;
+``batched_run.py`` records them as :func:`run_gibbs` records one), ``backends.py`` what a
 backend supplies, ``options.py`` the sampler's options, ``cluster.py`` the Swendsen-Wang move,
 ``anneal.py`` the gamma schedule, ``hyperparameters.py`` (with ``hyper_targets.py`` and
 ``hyper_options.py``) alpha, the concentrations and gamma sampled inside the chain. The model's
