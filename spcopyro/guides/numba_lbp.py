@@ -93,6 +93,7 @@ from spcopyro.guides.factors import (
 )
 from spcopyro.guides.lbp import message_graph
 from spcopyro.guides.numba_cavi import PriorKL
+from spcopyro.guides.numba_lbp_beliefs import _bound, _recount, _refresh
 from spcopyro.guides.numba_lbp_kernels import _dense, _start, _summaries
 from spcopyro.guides.numba_lbp_pass import _message_pass
 from spcopyro.likelihood import (
@@ -103,6 +104,10 @@ from spcopyro.likelihood import (
 from spcopyro.model import DTYPE, ModelData
 
 __all__ = ["SparseLBPState", "SparseLoopyBP", "init", "step", "usable"]
+
+RECOUNT_EVERY = 50
+"""Outer iterations between re-additions of the cached beliefs' running sums (bounds their
+rounding; the cached values themselves are kept)."""
 
 MAX_GAMMA_DEGREE = 300.0
 """gamma D at most this: the pairs' products of two cavities (2 D - 2 messages) stay below e^600
@@ -163,8 +168,13 @@ class SparseLoopyBP:
         self.rows = rows
         pairs = data.pairs.numpy()
         by_a = np.argsort(pairs[:, 0], kind="stable") if len(pairs) else np.zeros(0, np.int64)
+        self.pair_a = np.ascontiguousarray(pairs[by_a, 0], dtype=np.int64)  # [P]
         self.pair_b = np.ascontiguousarray(pairs[by_a, 1], dtype=np.int64)  # [P]
         self.pair_slots = np.ascontiguousarray(graph.pair_slots.numpy()[by_a], np.int64)  # [P, 2]
+        P = len(self.pair_b)
+        self.incident = np.full((N, D), -1, dtype=np.int64)  # [N, D] the pair of each slot
+        self.incident[self.pair_a, self.pair_slots[:, 0]] = np.arange(P)
+        self.incident[self.pair_b, self.pair_slots[:, 1]] = np.arange(P)
         self.pair_starts = np.zeros(N + 1, dtype=np.int64)  # [N + 1]
         np.cumsum(np.bincount(pairs[:, 0], minlength=N), out=self.pair_starts[1:])
         self.degree = graph.degree
@@ -183,10 +193,30 @@ class SparseLoopyBP:
         self._facs = np.ones((2, D, L))
         self._flogs = np.zeros((2, D, L))
         self._tsets = np.zeros((2, L), dtype=np.int64)
-        self.sizes = np.zeros(L)  # [L] sum_i q_i
-        self.observed_q = np.zeros((M, L))  # [M, L]
+        self.sizes = np.zeros(L)  # [L] sum_i q_i (of the cached beliefs)
+        self.observed_q = np.zeros((M, L))  # [M, L] the observed cells' cached beliefs
         self._labels = np.zeros(N, dtype=np.int64)  # [N]
         self.totals = np.zeros(3)  # [3] sum (d_i - 1) H_i, sum E[delta], sum H[b_ab]
+        # the cached beliefs (module docstring): per cell, per pair, per epoch of base row M
+        self.belief_drift = np.full(N, np.inf)  # [N] inputs' drift since the cell's belief
+        self.cell_epoch = np.full(N, -1, dtype=np.int64)  # [N]
+        self.cell_invz = np.zeros(N)  # [N] 1 / Z_i
+        self.cell_node = np.zeros(N)  # [N] (d_i - 1) H_i
+        Kb = min(L, D * K)
+        self.bidx = np.zeros((N, Kb), dtype=np.int64)  # [N, Kb] excess beta (W - 1) / Z on T_i
+        self.bval = np.zeros((N, Kb))
+        self.bcnt = np.zeros(N, dtype=np.int64)  # [N]
+        self.pair_agree = np.zeros(P)  # [P] E_{b_ab}[delta]
+        self.pair_entropy = np.zeros(P)  # [P] H[b_ab]
+        self._pair_mark = np.zeros(P, dtype=np.int64)
+        self.epoch_beta = np.zeros((8, L))  # [E, L] the base rows M the beliefs were cached at
+        self.epoch_invz = np.zeros(8)  # [E] sum of 1 / Z_i of the cells cached at each
+        self.epoch_count = np.zeros(8, dtype=np.int64)  # [E]
+        self.sizes_rest = np.zeros(L)  # [L] sizes but the epochs' dense parts
+        self._degree = (self.nb >= 0).sum(1)  # [N]
+        self.refreshed_cells = 0
+        """Cells whose cached belief the last :meth:`run` recomputed."""
+        self._runs_since_recount = 0
         self.gamma: float | None = None  # the coupling of the last pass (None: not started)
         self.sent_cells = 0
         """Cells that sent in the last :meth:`run` (over its passes; the others were skipped)."""
@@ -207,6 +237,7 @@ class SparseLoopyBP:
         _start(dense, self.nb, self.rev, math.expm1(gamma), self.threshold, self.idx, self.val,
                self.lg, self.cnt, self.msum)  # fmt: skip
         self.drift[:] = np.inf
+        self.belief_drift[:] = np.inf
         self.gamma = float(gamma)
 
     def _base(self, factors: GlobalFactors) -> tuple[np.ndarray, np.ndarray]:
@@ -237,25 +268,109 @@ class SparseLoopyBP:
             change = h - before  # a constant shift of a row changes nothing: half its range
             row_drift = 0.5 * (change.max(1) - change.min(1)) + abs(gamma - before_gamma)
         self._previous = (h, float(gamma))
+        self.belief_drift += row_drift[self.rows]
         no_drift = np.zeros(M + 1)
         self.sent_cells = 0
         for p in range(self.passes):
             self.sent_cells += _message_pass(
                 self.idx, self.val, self.lg, self.cnt, self.msum, self.moved, self.drift,
-                self.residual, self.order, self.nb, self.rev, self.rows, beta, border, bsum,
-                row_drift if p == 0 else no_drift, float(gamma), self.threshold, self.damping,
-                self.active_tolerance, self._marks[0], self._marks[1], self._fmarks[0],
-                self._scratch[0], self._scratch[2], self._facs[0],
+                self.residual, self.belief_drift, self.order, self.nb, self.rev, self.rows, beta,
+                border, bsum, row_drift if p == 0 else no_drift, float(gamma), self.threshold,
+                self.damping, self.active_tolerance, self._marks[0], self._marks[1],
+                self._fmarks[0], self._scratch[0], self._scratch[2], self._facs[0],
             )  # fmt: skip
         self.gamma = float(gamma)
-        self._tables = (beta, logbeta, border, bsum)
-        self.observed_q[:] = 0.0
+        self._tables = (beta, logbeta, border, bsum, row_entropy)
+        self._refresh_cached(self.active_tolerance)
+        self._runs_since_recount += 1
+        if self._runs_since_recount >= RECOUNT_EVERY:
+            self._recount()
+        self.sizes[:] = self.sizes_rest + self.epoch_invz @ self.epoch_beta
+
+    def _recount(self) -> None:
+        """The running sums re-added from the cached values (clears their rounding)."""
+        _recount(
+            self.rows, self.cell_epoch, self.cell_invz, self.cell_node, self.bidx, self.bval,
+            self.bcnt, self.observed_q, self.pair_agree, self.pair_entropy, self.epoch_invz,
+            self.epoch_count, self.sizes_rest, self.totals,
+        )  # fmt: skip
+        self._runs_since_recount = 0
+
+    def _refresh_cached(self, tolerance: float) -> None:
+        """The cached beliefs of the cells whose inputs drifted past ``tolerance`` (and the pair
+        terms touching them) recomputed under the last pass's base rows, at its coupling."""
+        beta, logbeta, border, bsum, row_entropy = self._tables
+        M = beta.shape[0] - 1
+        epoch = self._free_epoch(beta[M])
+        background = beta[M] * beta[M]  # [L]
+        self.refreshed_cells = _refresh(
+            self.idx, self.val, self.lg, self.cnt, self.nb, self.rows, beta, logbeta, border,
+            bsum, row_entropy, float(background.sum()), float((background * logbeta[M]).sum()),
+            self.gamma, tolerance, epoch, self.pair_a, self.pair_b, self.pair_slots,
+            self.incident, self.belief_drift, self.cell_epoch, self.cell_invz, self.cell_node,
+            self.bidx, self.bval, self.bcnt, self._labels, self.observed_q, self.pair_agree,
+            self.pair_entropy, self._pair_mark, self.epoch_invz, self.epoch_count,
+            self.sizes_rest, self.totals, self._marks, self._fmarks, self._scratch, self._facs,
+            self._flogs, self._tsets,
+        )  # fmt: skip
+
+    def refresh_all(self) -> None:
+        """Every cached belief and pair term recomputed from the current messages under the
+        last pass's base rows, and the running sums re-added: the summaries become exact."""
+        self.belief_drift[:] = np.inf
+        self._refresh_cached(0.0)
+        self._recount()
+        self.sizes[:] = self.sizes_rest + self.epoch_invz @ self.epoch_beta
+
+    def _free_epoch(self, row: np.ndarray) -> int:
+        """A slot of the epoch tables no cached belief refers to, holding base row M ``row``
+        [L] (the tables doubled when every slot is taken)."""
+        free = np.flatnonzero(self.epoch_count == 0)
+        if free.size == 0:
+            E = self.epoch_count.shape[0]
+            self.epoch_beta = np.concatenate([self.epoch_beta, np.zeros_like(self.epoch_beta)])
+            self.epoch_invz = np.concatenate([self.epoch_invz, np.zeros(E)])
+            self.epoch_count = np.concatenate([self.epoch_count, np.zeros(E, dtype=np.int64)])
+            free = np.arange(E, 2 * E)
+        epoch = int(free[0])
+        self.epoch_beta[epoch] = row
+        self.epoch_invz[epoch] = 0.0
+        return epoch
+
+    def exact_summaries(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(sizes [L], observed q [M, L], labels [N], totals [3]) recomputed from all the
+        messages under the last pass's base rows (what the cached ones approximate; equal to
+        them when no belief was kept stale)."""
+        beta, logbeta, border, bsum, row_entropy = self._tables
+        sizes, observed = np.zeros_like(self.sizes), np.zeros_like(self.observed_q)
+        labels, totals = np.zeros_like(self._labels), np.zeros(3)
         _summaries(
             self.idx, self.val, self.lg, self.cnt, self.nb, self.rows, beta, logbeta, border,
-            bsum, row_entropy, self.pair_starts, self.pair_b, self.pair_slots, float(gamma),
+            bsum, row_entropy, self.pair_starts, self.pair_b, self.pair_slots, self.gamma,
             self._marks, self._fmarks, self._scratch, self._facs, self._flogs, self._tsets,
-            self.sizes, self.observed_q, self._labels, self.totals,
+            sizes, observed, labels, totals,
         )  # fmt: skip
+        return sizes, observed, labels, totals
+
+    def cache_bound(self) -> np.ndarray:
+        """[4] bounds on how far the cached sizes (L1 norm), sum (d_i - 1) H_i, sum E[delta]
+        and sum H[b_ab] lie from :meth:`exact_summaries` (module docstring)."""
+        out = np.zeros(4)
+        _bound(self.belief_drift, self.pair_a, self.pair_b, self._degree,
+               math.log(self.config.num_concepts), out)  # fmt: skip
+        return out
+
+    def cached_beliefs(self) -> np.ndarray:
+        """[N, L] the cached beliefs, dense (for tests)."""
+        M = self.observed_q.shape[0]
+        q = np.zeros((self.nb.shape[0], self.config.num_concepts))
+        background = self.rows == M
+        q[background] = self.epoch_beta[self.cell_epoch[background]] * self.cell_invz[
+            background, None]  # fmt: skip
+        for i in np.flatnonzero(background):
+            q[i, self.bidx[i, : self.bcnt[i]]] += self.bval[i, : self.bcnt[i]]
+        q[~background] = self.observed_q[self.rows[~background]]
+        return q
 
     def statistics(self) -> ConceptStatistics:
         """Expected concept sizes and per-concept counts under the beliefs (as
@@ -288,7 +403,7 @@ class SparseLoopyBP:
 
     def num_used(self) -> int:
         """How many concepts are some cell's most probable one."""
-        return int(np.unique(self._labels).size)
+        return int(np.count_nonzero(np.bincount(self._labels)))
 
     def _dense(self) -> tuple[torch.Tensor, torch.Tensor]:
         N, D = self.nb.shape
