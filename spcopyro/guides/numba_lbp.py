@@ -51,15 +51,47 @@ messages. The pass visits every cell once in a fixed order, so a neighbour's lat
 change since the cell's last visit. tau = 0 skips only cells whose inputs did not change and whose
 messages are undamped fixed points.
 
-**Beliefs and the Bethe objective** are exact functions of the stored messages, computed after
-the passes in one compiled sweep (:func:`~spcopyro.guides.numba_lbp_kernels._summaries`): the
-sizes sum_i q_i (the dense part of the cells without observations summed as beta times
-sum_i 1/Z_i), the observed cells' q ``[M, L]``, the argmax labels, and the terms of
+**Beliefs and the Bethe objective** are functions of the stored messages: the sizes
+sum_i q_i, the observed cells' q ``[M, L]``, the argmax labels, and the terms of
 :func:`spcopyro.guides.lbp.bethe_label_objective`: node entropies
 :math:`H_i = \log Z_i - Z_i^{-1} \sum_l \beta_l W_i \log(\beta_l W_i)` and, per pair, the
 overlap :math:`\sum_l u(l) v(l)` of the two cavities and the pairwise belief's entropy, each a
 dense sum over L (sum beta^2, sum beta log beta, ... once per iteration) plus corrections on
-T_a and T_b. Nothing of size N x L exists in a run; the dense beliefs are written once at the end.
+T_a and T_b. :func:`~spcopyro.guides.numba_lbp_kernels._summaries` computes them all from the
+messages (:meth:`SparseLoopyBP.exact_summaries`); a run keeps them cached instead.
+
+**Cached beliefs** (:mod:`spcopyro.guides.numba_lbp_beliefs`), with the active set's tolerance
+semantics. Each cell keeps its belief as computed at its last refresh: a cell without
+observations as 1/Z_i, the epoch e of the base row beta_e it was computed under (its dense part
+is beta_e / Z_i) and its excess :math:`\beta_{e,l}(W_i(l) - 1)/Z_i` on T_i (at most
+min(L, D K) entries); an observed cell as its row of ``observed_q``; and its label and
+:math:`(d_i - 1) H_i`. Each pair keeps E_{b_ab}[delta] and H[b_ab]. Running sums: the sizes
+(the excesses and observed rows, plus :math:`\sum_e \beta_e \sum_{i \in e} 1/Z_i` over the
+epochs still in use) and the three Bethe totals; re-added from the cached values every
+``RECOUNT_EVERY`` iterations (their rounding), and a cell's old contribution is subtracted
+when it is refreshed. Each cell carries the drift of its belief's inputs since its refresh,
+``belief_drift``: the base row's half log range of change per iteration (plus
+:math:`|\Delta\gamma|`) and the ``moved`` of every message sent into it (the pass adds it). After
+the passes, a cell is refreshed when 2 drift > tau, and then every pair touching it. Since
+log q_i is log beta_l plus the incoming log messages, normalised:
+
+* a cached belief is within a factor :math:`e^{\pm\delta_i}`, :math:`\delta_i = 2\,
+  \mathrm{drift}_i \le \tau`, of the exact belief of the current messages, concept by concept;
+  a cached pair belief (whose cavities exclude one message each, and whose coupling's change is
+  counted in both ends' drift) within :math:`e^{\pm\delta_{ab}}`, :math:`\delta_{ab} =
+  2(\mathrm{drift}_a + \mathrm{drift}_b) \le 2\tau`;
+* so (:meth:`SparseLoopyBP.cache_bound`): the sizes lie within :math:`\sum_i (e^{\delta_i} - 1)`
+  in L1 norm of the exact ones; with :math:`|H[\tilde p] - H[p]| \le \delta + (e^\delta - 1)
+  H[p]` for a pointwise log ratio within delta, the node total within :math:`\sum_i |d_i - 1|
+  (\delta_i + (e^{\delta_i} - 1)\log L)`, the agreements within :math:`\sum_{ab}
+  (e^{\delta_{ab}} - 1)`, the pairs' entropies within :math:`\sum_{ab} (\delta_{ab} +
+  (e^{\delta_{ab}} - 1)\, 2\log L)` (tested, cell by cell and pair by pair);
+* tau = 0 refreshes every cell whose inputs changed at all: the cached summaries equal
+  ``_summaries`` to rounding (tested), and so does :meth:`SparseLoopyBP.refresh_all` at any tau.
+
+The Bethe objective is assembled from them (its energy under the new globals), so its trace moves
+only with the refreshed cells. Nothing of size N x L exists in a run but at K = L the cached
+excesses (N x min(L, D K), as the messages); the dense beliefs are written once at the end.
 
 **Cost.** A cell that sends costs :math:`O(D |T_i|)` and the summaries O(D K) a cell plus
 :math:`O(|T_a| + |T_b|)` a pair, against O(D L) for the dense reference, so the backend is as
