@@ -93,15 +93,17 @@ The Bethe objective is assembled from them (its energy under the new globals), s
 only with the refreshed cells. Nothing of size N x L exists in a run but at K = L the cached
 excesses (N x min(L, D K), as the messages); the dense beliefs are written once at the end.
 
-**Cost.** A cell that sends costs :math:`O(D |T_i|)` and the summaries O(D K) a cell plus
-:math:`O(|T_a| + |T_b|)` a pair, against O(D L) for the dense reference, so the backend is as
-fast as the messages are sparse, and they are sparse only where the beliefs have ordered: in a
-disordered field every concept keeps an excess of about s / L, above any useful threshold (paper-dp,
-L = 120: 115-119 of 120 entries a message). Measured by ``benchmarks/variational.py`` (one
-thread): 2-8x faster than the reference an outer iteration, but 6-14x a CAVI iteration on the
-embedded house at L = 10 and 19-280x on room2ldk4, whose steady CAVI iterations skip nearly every
-cell (active set) while the beliefs, statistics and Bethe objective here are recomputed from all
-the messages every iteration (they depend on the globals, which change every iteration).
+**Cost.** A cell that sends costs :math:`O(D |T_i|)`; a refreshed belief O(D K) plus, for each of
+its pairs, the other end's gather and :math:`O(|T_a| + |T_b|)`; a skipped cell O(D) in each
+pass and in the refresh. Against O(D L) for the dense reference, the backend is as fast as the
+messages are sparse and as few cells move; they are sparse only where the beliefs have ordered:
+in a disordered field every concept keeps an excess of about s / L, above any useful threshold
+(paper-dp, L = 120: 115-119 of 120 entries a message). Measured by ``benchmarks/variational.py``
+(one thread, load average 4-9, ratios within a run): where no cell moves once converged
+(original-code, L = 120) an iteration now costs 0.6-2.3x a CAVI iteration (before the cached
+beliefs: 8-176x, the summaries read every message); elsewhere 6-320x on room2ldk4 and the
+embedded house (before: 8-508x), because 8-63 % of the cells still send in iterations 30-50,
+where loopy BP is still converging and CAVI has settled (``docs/variational.md``).
 
 The kernels compile on first use in a process (``cache=True`` keeps them for later processes on
 the same machine; the results do not depend on it). Importing this module raises
