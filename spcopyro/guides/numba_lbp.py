@@ -237,7 +237,7 @@ class SparseLoopyBP:
         self.cell_invz = np.zeros(N)  # [N] 1 / Z_i
         self.cell_node = np.zeros(N)  # [N] (d_i - 1) H_i
         Kb = min(L, D * K)
-        self.bidx = np.zeros((N, Kb), dtype=np.int64)  # [N, Kb] excess beta (W - 1) / Z on T_i
+        self.bidx = np.zeros((N, Kb), dtype=np.int32)  # [N, Kb] excess beta (W - 1) / Z on T_i
         self.bval = np.zeros((N, Kb))
         self.bcnt = np.zeros(N, dtype=np.int64)  # [N]
         self.pair_agree = np.zeros(P)  # [P] E_{b_ab}[delta]
