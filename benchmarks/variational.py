@@ -157,6 +157,8 @@ def time_lbp(
     if hasattr(bp, "cnt"):  # the sparse backend: mean excess entries a message, cells sent
         record["mean_message_entries"] = float(bp.cnt.mean())
         record["sent_fraction"] = bp.sent_cells / (options.passes * data.num_free)
+    if hasattr(bp, "refreshed_cells"):  # cached beliefs: the fraction recomputed
+        record["refreshed_fraction"] = bp.refreshed_cells / data.num_free
     return record
 
 
@@ -289,11 +291,13 @@ def render(results: dict[str, Any]) -> str:
             r["house"], r["preset"], str(r["L"]), ms(r, "cavi_numba"), ms(r, "lbp_numba"),
             f"{lbp['ratio_to_cavi']:.2f}", "PASS" if ok else "FAIL",
             f"{lbp.get('mean_message_entries', float('nan')):.1f}",
-            f"{lbp.get('sent_fraction', float('nan')):.2f}", ms(r, "lbp_torch", 1),
+            f"{lbp.get('sent_fraction', float('nan')):.2f}",
+            f"{lbp.get('refreshed_fraction', float('nan')):.2f}", ms(r, "lbp_torch", 1),
             f"{r['lbp_torch']['ratio_to_cavi']:.1f}" if "lbp_torch" in r else "-",
         ])  # fmt: skip
     headers = ["house", "preset", "L", "CAVI ms", "LBP ms", "LBP / CAVI", f"<= {LBP_TARGET:g}",
-               "entries a message", "cells sent", "torch LBP ms", "/ CAVI"]  # fmt: skip
+               "entries a message", "cells sent", "beliefs refreshed", "torch LBP ms",
+               "/ CAVI"]  # fmt: skip
     lines += [format_table(headers, rows_lbp), ""]
     first = results["first_calls_s"]
     lines += [f"CAVI warm-up. First call of the compiled kernels in this process (JIT or cache "

@@ -51,25 +51,59 @@ messages. The pass visits every cell once in a fixed order, so a neighbour's lat
 change since the cell's last visit. tau = 0 skips only cells whose inputs did not change and whose
 messages are undamped fixed points.
 
-**Beliefs and the Bethe objective** are exact functions of the stored messages, computed after
-the passes in one compiled sweep (:func:`~spcopyro.guides.numba_lbp_kernels._summaries`): the
-sizes sum_i q_i (the dense part of the cells without observations summed as beta times
-sum_i 1/Z_i), the observed cells' q ``[M, L]``, the argmax labels, and the terms of
+**Beliefs and the Bethe objective** are functions of the stored messages: the sizes
+sum_i q_i, the observed cells' q ``[M, L]``, the argmax labels, and the terms of
 :func:`spcopyro.guides.lbp.bethe_label_objective`: node entropies
 :math:`H_i = \log Z_i - Z_i^{-1} \sum_l \beta_l W_i \log(\beta_l W_i)` and, per pair, the
 overlap :math:`\sum_l u(l) v(l)` of the two cavities and the pairwise belief's entropy, each a
 dense sum over L (sum beta^2, sum beta log beta, ... once per iteration) plus corrections on
-T_a and T_b. Nothing of size N x L exists in a run; the dense beliefs are written once at the end.
+T_a and T_b. :func:`~spcopyro.guides.numba_lbp_kernels._summaries` computes them all from the
+messages (:meth:`SparseLoopyBP.exact_summaries`); a run keeps them cached instead.
 
-**Cost.** A cell that sends costs :math:`O(D |T_i|)` and the summaries O(D K) a cell plus
-:math:`O(|T_a| + |T_b|)` a pair, against O(D L) for the dense reference, so the backend is as
-fast as the messages are sparse, and they are sparse only where the beliefs have ordered: in a
-disordered field every concept keeps an excess of about s / L, above any useful threshold (paper-dp,
-L = 120: 115-119 of 120 entries a message). Measured by ``benchmarks/variational.py`` (one
-thread): 2-8x faster than the reference an outer iteration, but 6-14x a CAVI iteration on the
-embedded house at L = 10 and 19-280x on room2ldk4, whose steady CAVI iterations skip nearly every
-cell (active set) while the beliefs, statistics and Bethe objective here are recomputed from all
-the messages every iteration (they depend on the globals, which change every iteration).
+**Cached beliefs** (:mod:`spcopyro.guides.numba_lbp_beliefs`), with the active set's tolerance
+semantics. Each cell keeps its belief as computed at its last refresh: a cell without
+observations as 1/Z_i, the epoch e of the base row beta_e it was computed under (its dense part
+is beta_e / Z_i) and its excess :math:`\beta_{e,l}(W_i(l) - 1)/Z_i` on T_i (at most
+min(L, D K) entries); an observed cell as its row of ``observed_q``; and its label and
+:math:`(d_i - 1) H_i`. Each pair keeps E_{b_ab}[delta] and H[b_ab]. Running sums: the sizes
+(the excesses and observed rows, plus :math:`\sum_e \beta_e \sum_{i \in e} 1/Z_i` over the
+epochs still in use) and the three Bethe totals; re-added from the cached values every
+``RECOUNT_EVERY`` iterations (their rounding), and a cell's old contribution is subtracted
+when it is refreshed. Each cell carries the drift of its belief's inputs since its refresh,
+``belief_drift``: the base row's half log range of change per iteration (plus
+:math:`|\Delta\gamma|`) and the ``moved`` of every message sent into it (the pass adds it). After
+the passes, a cell is refreshed when 2 drift > tau, and then every pair touching it. Since
+log q_i is log beta_l plus the incoming log messages, normalised:
+
+* a cached belief is within a factor :math:`e^{\pm\delta_i}`, :math:`\delta_i = 2\,
+  \mathrm{drift}_i \le \tau`, of the exact belief of the current messages, concept by concept;
+  a cached pair belief (whose cavities exclude one message each, and whose coupling's change is
+  counted in both ends' drift) within :math:`e^{\pm\delta_{ab}}`, :math:`\delta_{ab} =
+  2(\mathrm{drift}_a + \mathrm{drift}_b) \le 2\tau`;
+* so (:meth:`SparseLoopyBP.cache_bound`): the sizes lie within :math:`\sum_i (e^{\delta_i} - 1)`
+  in L1 norm of the exact ones; with :math:`|H[\tilde p] - H[p]| \le \delta + (e^\delta - 1)
+  H[p]` for a pointwise log ratio within delta, the node total within :math:`\sum_i |d_i - 1|
+  (\delta_i + (e^{\delta_i} - 1)\log L)`, the agreements within :math:`\sum_{ab}
+  (e^{\delta_{ab}} - 1)`, the pairs' entropies within :math:`\sum_{ab} (\delta_{ab} +
+  (e^{\delta_{ab}} - 1)\, 2\log L)` (tested, cell by cell and pair by pair);
+* tau = 0 refreshes every cell whose inputs changed at all: the cached summaries equal
+  ``_summaries`` to rounding (tested), and so does :meth:`SparseLoopyBP.refresh_all` at any tau.
+
+The Bethe objective is assembled from them (its energy under the new globals), so its trace moves
+only with the refreshed cells. Nothing of size N x L exists in a run but at K = L the cached
+excesses (N x min(L, D K), as the messages); the dense beliefs are written once at the end.
+
+**Cost.** A cell that sends costs :math:`O(D |T_i|)`; a refreshed belief O(D K) plus, for each of
+its pairs, the other end's gather and :math:`O(|T_a| + |T_b|)`; a skipped cell O(D) in each
+pass and in the refresh. Against O(D L) for the dense reference, the backend is as fast as the
+messages are sparse and as few cells move; they are sparse only where the beliefs have ordered:
+in a disordered field every concept keeps an excess of about s / L, above any useful threshold
+(paper-dp, L = 120: 115-119 of 120 entries a message). Measured by ``benchmarks/variational.py``
+(one thread, load average 4-9, ratios within a run): where no cell moves once converged
+(original-code, L = 120) an iteration now costs 0.6-2.3x a CAVI iteration (before the cached
+beliefs: 8-176x, the summaries read every message); elsewhere 6-320x on room2ldk4 and the
+embedded house (before: 8-508x), because 8-63 % of the cells still send in iterations 30-50,
+where loopy BP is still converging and CAVI has settled (``docs/variational.md``).
 
 The kernels compile on first use in a process (``cache=True`` keeps them for later processes on
 the same machine; the results do not depend on it). Importing this module raises
@@ -93,6 +127,7 @@ from spcopyro.guides.factors import (
 )
 from spcopyro.guides.lbp import message_graph
 from spcopyro.guides.numba_cavi import PriorKL
+from spcopyro.guides.numba_lbp_beliefs import _bound, _recount, _refresh
 from spcopyro.guides.numba_lbp_kernels import _dense, _start, _summaries
 from spcopyro.guides.numba_lbp_pass import _message_pass
 from spcopyro.likelihood import (
@@ -103,6 +138,10 @@ from spcopyro.likelihood import (
 from spcopyro.model import DTYPE, ModelData
 
 __all__ = ["SparseLBPState", "SparseLoopyBP", "init", "step", "usable"]
+
+RECOUNT_EVERY = 50
+"""Outer iterations between re-additions of the cached beliefs' running sums (bounds their
+rounding; the cached values themselves are kept)."""
 
 MAX_GAMMA_DEGREE = 300.0
 """gamma D at most this: the pairs' products of two cavities (2 D - 2 messages) stay below e^600
@@ -163,8 +202,13 @@ class SparseLoopyBP:
         self.rows = rows
         pairs = data.pairs.numpy()
         by_a = np.argsort(pairs[:, 0], kind="stable") if len(pairs) else np.zeros(0, np.int64)
+        self.pair_a = np.ascontiguousarray(pairs[by_a, 0], dtype=np.int64)  # [P]
         self.pair_b = np.ascontiguousarray(pairs[by_a, 1], dtype=np.int64)  # [P]
         self.pair_slots = np.ascontiguousarray(graph.pair_slots.numpy()[by_a], np.int64)  # [P, 2]
+        P = len(self.pair_b)
+        self.incident = np.full((N, D), -1, dtype=np.int64)  # [N, D] the pair of each slot
+        self.incident[self.pair_a, self.pair_slots[:, 0]] = np.arange(P)
+        self.incident[self.pair_b, self.pair_slots[:, 1]] = np.arange(P)
         self.pair_starts = np.zeros(N + 1, dtype=np.int64)  # [N + 1]
         np.cumsum(np.bincount(pairs[:, 0], minlength=N), out=self.pair_starts[1:])
         self.degree = graph.degree
@@ -183,10 +227,30 @@ class SparseLoopyBP:
         self._facs = np.ones((2, D, L))
         self._flogs = np.zeros((2, D, L))
         self._tsets = np.zeros((2, L), dtype=np.int64)
-        self.sizes = np.zeros(L)  # [L] sum_i q_i
-        self.observed_q = np.zeros((M, L))  # [M, L]
+        self.sizes = np.zeros(L)  # [L] sum_i q_i (of the cached beliefs)
+        self.observed_q = np.zeros((M, L))  # [M, L] the observed cells' cached beliefs
         self._labels = np.zeros(N, dtype=np.int64)  # [N]
         self.totals = np.zeros(3)  # [3] sum (d_i - 1) H_i, sum E[delta], sum H[b_ab]
+        # the cached beliefs (module docstring): per cell, per pair, per epoch of base row M
+        self.belief_drift = np.full(N, np.inf)  # [N] inputs' drift since the cell's belief
+        self.cell_epoch = np.full(N, -1, dtype=np.int64)  # [N]
+        self.cell_invz = np.zeros(N)  # [N] 1 / Z_i
+        self.cell_node = np.zeros(N)  # [N] (d_i - 1) H_i
+        Kb = min(L, D * K)
+        self.bidx = np.zeros((N, Kb), dtype=np.int32)  # [N, Kb] excess beta (W - 1) / Z on T_i
+        self.bval = np.zeros((N, Kb))
+        self.bcnt = np.zeros(N, dtype=np.int64)  # [N]
+        self.pair_agree = np.zeros(P)  # [P] E_{b_ab}[delta]
+        self.pair_entropy = np.zeros(P)  # [P] H[b_ab]
+        self._pair_mark = np.zeros(P, dtype=np.int64)
+        self.epoch_beta = np.zeros((8, L))  # [E, L] the base rows M the beliefs were cached at
+        self.epoch_invz = np.zeros(8)  # [E] sum of 1 / Z_i of the cells cached at each
+        self.epoch_count = np.zeros(8, dtype=np.int64)  # [E]
+        self.sizes_rest = np.zeros(L)  # [L] sizes but the epochs' dense parts
+        self._degree = (self.nb >= 0).sum(1)  # [N]
+        self.refreshed_cells = 0
+        """Cells whose cached belief the last :meth:`run` recomputed."""
+        self._runs_since_recount = 0
         self.gamma: float | None = None  # the coupling of the last pass (None: not started)
         self.sent_cells = 0
         """Cells that sent in the last :meth:`run` (over its passes; the others were skipped)."""
@@ -207,6 +271,7 @@ class SparseLoopyBP:
         _start(dense, self.nb, self.rev, math.expm1(gamma), self.threshold, self.idx, self.val,
                self.lg, self.cnt, self.msum)  # fmt: skip
         self.drift[:] = np.inf
+        self.belief_drift[:] = np.inf
         self.gamma = float(gamma)
 
     def _base(self, factors: GlobalFactors) -> tuple[np.ndarray, np.ndarray]:
@@ -237,25 +302,109 @@ class SparseLoopyBP:
             change = h - before  # a constant shift of a row changes nothing: half its range
             row_drift = 0.5 * (change.max(1) - change.min(1)) + abs(gamma - before_gamma)
         self._previous = (h, float(gamma))
+        self.belief_drift += row_drift[self.rows]
         no_drift = np.zeros(M + 1)
         self.sent_cells = 0
         for p in range(self.passes):
             self.sent_cells += _message_pass(
                 self.idx, self.val, self.lg, self.cnt, self.msum, self.moved, self.drift,
-                self.residual, self.order, self.nb, self.rev, self.rows, beta, border, bsum,
-                row_drift if p == 0 else no_drift, float(gamma), self.threshold, self.damping,
-                self.active_tolerance, self._marks[0], self._marks[1], self._fmarks[0],
-                self._scratch[0], self._scratch[2], self._facs[0],
+                self.residual, self.belief_drift, self.order, self.nb, self.rev, self.rows, beta,
+                border, bsum, row_drift if p == 0 else no_drift, float(gamma), self.threshold,
+                self.damping, self.active_tolerance, self._marks[0], self._marks[1],
+                self._fmarks[0], self._scratch[0], self._scratch[2], self._facs[0],
             )  # fmt: skip
         self.gamma = float(gamma)
-        self._tables = (beta, logbeta, border, bsum)
-        self.observed_q[:] = 0.0
+        self._tables = (beta, logbeta, border, bsum, row_entropy)
+        self._refresh_cached(self.active_tolerance)
+        self._runs_since_recount += 1
+        if self._runs_since_recount >= RECOUNT_EVERY:
+            self._recount()
+        self.sizes[:] = self.sizes_rest + self.epoch_invz @ self.epoch_beta
+
+    def _recount(self) -> None:
+        """The running sums re-added from the cached values (clears their rounding)."""
+        _recount(
+            self.rows, self.cell_epoch, self.cell_invz, self.cell_node, self.bidx, self.bval,
+            self.bcnt, self.observed_q, self.pair_agree, self.pair_entropy, self.epoch_invz,
+            self.epoch_count, self.sizes_rest, self.totals,
+        )  # fmt: skip
+        self._runs_since_recount = 0
+
+    def _refresh_cached(self, tolerance: float) -> None:
+        """The cached beliefs of the cells whose inputs drifted past ``tolerance`` (and the pair
+        terms touching them) recomputed under the last pass's base rows, at its coupling."""
+        beta, logbeta, border, bsum, row_entropy = self._tables
+        M = beta.shape[0] - 1
+        epoch = self._free_epoch(beta[M])
+        background = beta[M] * beta[M]  # [L]
+        self.refreshed_cells = _refresh(
+            self.idx, self.val, self.lg, self.cnt, self.nb, self.rows, beta, logbeta, border,
+            bsum, row_entropy, float(background.sum()), float((background * logbeta[M]).sum()),
+            self.gamma, tolerance, epoch, self.pair_a, self.pair_b, self.pair_slots,
+            self.incident, self.belief_drift, self.cell_epoch, self.cell_invz, self.cell_node,
+            self.bidx, self.bval, self.bcnt, self._labels, self.observed_q, self.pair_agree,
+            self.pair_entropy, self._pair_mark, self.epoch_invz, self.epoch_count,
+            self.sizes_rest, self.totals, self._marks, self._fmarks, self._scratch, self._facs,
+            self._flogs, self._tsets,
+        )  # fmt: skip
+
+    def refresh_all(self) -> None:
+        """Every cached belief and pair term recomputed from the current messages under the
+        last pass's base rows, and the running sums re-added: the summaries become exact."""
+        self.belief_drift[:] = np.inf
+        self._refresh_cached(0.0)
+        self._recount()
+        self.sizes[:] = self.sizes_rest + self.epoch_invz @ self.epoch_beta
+
+    def _free_epoch(self, row: np.ndarray) -> int:
+        """A slot of the epoch tables no cached belief refers to, holding base row M ``row``
+        [L] (the tables doubled when every slot is taken)."""
+        free = np.flatnonzero(self.epoch_count == 0)
+        if free.size == 0:
+            E = self.epoch_count.shape[0]
+            self.epoch_beta = np.concatenate([self.epoch_beta, np.zeros_like(self.epoch_beta)])
+            self.epoch_invz = np.concatenate([self.epoch_invz, np.zeros(E)])
+            self.epoch_count = np.concatenate([self.epoch_count, np.zeros(E, dtype=np.int64)])
+            free = np.arange(E, 2 * E)
+        epoch = int(free[0])
+        self.epoch_beta[epoch] = row
+        self.epoch_invz[epoch] = 0.0
+        return epoch
+
+    def exact_summaries(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(sizes [L], observed q [M, L], labels [N], totals [3]) recomputed from all the
+        messages under the last pass's base rows (what the cached ones approximate; equal to
+        them when no belief was kept stale)."""
+        beta, logbeta, border, bsum, row_entropy = self._tables
+        sizes, observed = np.zeros_like(self.sizes), np.zeros_like(self.observed_q)
+        labels, totals = np.zeros_like(self._labels), np.zeros(3)
         _summaries(
             self.idx, self.val, self.lg, self.cnt, self.nb, self.rows, beta, logbeta, border,
-            bsum, row_entropy, self.pair_starts, self.pair_b, self.pair_slots, float(gamma),
+            bsum, row_entropy, self.pair_starts, self.pair_b, self.pair_slots, self.gamma,
             self._marks, self._fmarks, self._scratch, self._facs, self._flogs, self._tsets,
-            self.sizes, self.observed_q, self._labels, self.totals,
+            sizes, observed, labels, totals,
         )  # fmt: skip
+        return sizes, observed, labels, totals
+
+    def cache_bound(self) -> np.ndarray:
+        """[4] bounds on how far the cached sizes (L1 norm), sum (d_i - 1) H_i, sum E[delta]
+        and sum H[b_ab] lie from :meth:`exact_summaries` (module docstring)."""
+        out = np.zeros(4)
+        _bound(self.belief_drift, self.pair_a, self.pair_b, self._degree,
+               math.log(self.config.num_concepts), out)  # fmt: skip
+        return out
+
+    def cached_beliefs(self) -> np.ndarray:
+        """[N, L] the cached beliefs, dense (for tests)."""
+        M = self.observed_q.shape[0]
+        q = np.zeros((self.nb.shape[0], self.config.num_concepts))
+        background = self.rows == M
+        q[background] = self.epoch_beta[self.cell_epoch[background]] * self.cell_invz[
+            background, None]  # fmt: skip
+        for i in np.flatnonzero(background):
+            q[i, self.bidx[i, : self.bcnt[i]]] += self.bval[i, : self.bcnt[i]]
+        q[~background] = self.observed_q[self.rows[~background]]
+        return q
 
     def statistics(self) -> ConceptStatistics:
         """Expected concept sizes and per-concept counts under the beliefs (as
@@ -288,7 +437,7 @@ class SparseLoopyBP:
 
     def num_used(self) -> int:
         """How many concepts are some cell's most probable one."""
-        return int(np.unique(self._labels).size)
+        return int(np.count_nonzero(np.bincount(self._labels)))
 
     def _dense(self) -> tuple[torch.Tensor, torch.Tensor]:
         N, D = self.nb.shape

@@ -22,6 +22,7 @@ def _message_pass(
     moved: np.ndarray,
     drift: np.ndarray,
     residual: np.ndarray,
+    belief_drift: np.ndarray,
     order: np.ndarray,
     nb: np.ndarray,
     rev: np.ndarray,
@@ -49,7 +50,9 @@ def _message_pass(
     ``msum [N * D]`` sum of rho, ``moved [N * D]`` half the log range of the message's change at
     its sender's latest visit (0 when skipped). Per cell: ``drift [N]`` the inputs' accumulated
     drift since its last send (inf: send), ``residual [N]`` how far (half log range) its stored
-    messages lie from the undamped ones of its last send. ``rows [N]`` base row (M: none),
+    messages lie from the undamped ones of its last send, ``belief_drift [N]`` the drift of its
+    inputs since its cached belief was computed (each message sent into it adds its ``moved``).
+    ``rows [N]`` base row (M: none),
     ``border [L]`` the concepts by descending beta of row M, ``bsum [M + 1]`` each row's sum,
     ``row_drift [M + 1]`` the base rows' drift this pass (plus the coupling's). Scratch (never
     reset: stamps only grow): mark, omark [L] int64, fmark [D, L] int64, prod, oval [L],
@@ -234,6 +237,7 @@ def _message_pass(
                     ratio = 1.0 / (1.0 + old_w[k])
                     lo, hi = min(lo, ratio), max(hi, ratio)
             moved[e] = 0.5 * np.log(hi / lo)
+            belief_drift[j] += moved[e]
             cnt[e] = n
             msum[e] = total
         drift[i] = 0.0
