@@ -26,7 +26,9 @@ Presets (:func:`preset`) give both layers at once, as :class:`SpCoSettings`:
     ``auto``'s model on a model grid of 0.25 m cells (``cell_size``: the Potts border cost per
     metre and the label-count prior no longer grow with the map's resolution), each utterance
     counted 10 times (``word_scaling``) and spread over a 1 m footprint, image histograms as
-    probabilities (one observation each, not 100 draws), and ``auto``'s inference settings.
+    probabilities (one observation each, not 100 draws), and ``auto``'s inference settings
+    plus region relabel moves in a fifth of the sweeps (:mod:`spcopyro.gibbs.region_move`: a
+    room carried by two concepts merges; docs/real_houses.md, "Region relabel moves").
 ``auto``
     What the ablation of issue #14 supports (docs/defaults.md, its first section):
     the released code's emissions (beta 0.1, chi 1.0, floor(100 f): word and image tables the
@@ -88,7 +90,7 @@ DEFAULT_PRESET = "coarse"
 
 PRESET_INFERENCE: dict[str, dict[str, object]] = {
     "auto": dict(init="rooms", merge_moves=0.2, point_estimate="vi"),
-    "coarse": dict(init="rooms", merge_moves=0.2, point_estimate="vi"),
+    "coarse": dict(init="rooms", merge_moves=0.2, region_moves=0.2, point_estimate="vi"),
 }
 """The inference settings a preset recommends beside its model (names of ``fit_house`` keyword
 arguments and :class:`~spcopyro.gibbs.options.GibbsOptions` fields, as plain values so that this

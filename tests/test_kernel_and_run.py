@@ -229,6 +229,9 @@ def test_presets_and_validation():
     assert preset("paper-dp").model.gamma == 4.0 and preset("paper-dp").model.num_concepts == 120
     assert preset("paper-dp").model.beta == 500.0  # the paper's presets stay as they were
     assert preset_inference("auto") == dict(init="rooms", merge_moves=0.2, point_estimate="vi")
+    assert preset_inference("coarse") == dict(
+        init="rooms", merge_moves=0.2, region_moves=0.2, point_estimate="vi"
+    )
     assert preset_inference("paper-dp") == {}
     with pytest.raises(ValueError, match="unknown preset"):
         preset_inference("nope")
@@ -363,6 +366,8 @@ def test_a_library_fit_says_when_it_skips_its_presets_inference_settings(caplog)
     kwargs = preset_fit_kwargs("auto")  # what spcopyro fit --preset auto runs
     assert kwargs["init"] == "rooms" and kwargs["options"] == GibbsOptions(merge_moves=0.2)
     assert kwargs["point_estimate"] == "vi" and kwargs["marginal_samples"] == 50
+    coarse = preset_fit_kwargs("coarse")  # the default
+    assert coarse["options"] == GibbsOptions(merge_moves=0.2, region_moves=0.2)
     paper = preset_fit_kwargs("paper-dp")  # the paper's run
     assert paper == {"options": GibbsOptions(), "init": "random", "marginal_samples": 0,
                      "point_estimate": "map-visited"}  # fmt: skip

@@ -99,7 +99,8 @@ def test_default_fit_on_the_model_grid_scores_against_the_truth():
     from spcopyro.metrics import adjusted_rand_index
 
     house = make_house(seed=0, spec=HouseSpec())
-    result = fit_house(house, preset(), options=GibbsOptions(merge_moves=0.2), sweeps=300,
+    result = fit_house(house, preset(), options=GibbsOptions(merge_moves=0.2, region_moves=0.2),
+                       sweeps=300,
                        init="rooms", progress=False, marginal_samples=50,
                        point_estimate="vi")  # fmt: skip
     assert result.grid.resolution == pytest.approx(0.3)
