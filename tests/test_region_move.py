@@ -28,6 +28,7 @@ import spcopyro.gibbs.region_move as region_move
 from spcopyro.gibbs.merge import collapsed_log_posterior
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.region_move import (
+    BOND_SHARE,
     GROUP_WEIGHTS,
     maybe_region_move,
     region_relabel_labels,
@@ -77,12 +78,17 @@ def _proposal(labels: list[int], region: frozenset[int], pairs, num_concepts: in
     return {a: w / total / len(g) for w, g in zip(GROUP_WEIGHTS, groups, strict=True) for a in g}
 
 
-def _exact_kernel(cfg, n, data) -> np.ndarray:
-    """[S, S] the move's transition probabilities between all labelings."""
+def _exact_kernel(
+    cfg, n, data, bond_share: float = BOND_SHARE, ratio_share: float | None = None
+) -> np.ndarray:
+    """[S, S] the move's transition probabilities between all labelings (bonds with
+    ``bond_share`` of the coupling; the module's ratio told ``ratio_share``, by default the
+    same)."""
+    ratio_share = bond_share if ratio_share is None else ratio_share
     L = cfg.num_concepts
     labelings = all_labelings(n, L)
     pairs = [tuple(int(v) for v in p) for p in data.pairs]
-    bond = -math.expm1(-cfg.gamma)
+    bond = -math.expm1(-bond_share * cfg.gamma)
     kernel = np.zeros((len(labelings), len(labelings)))
     ratios: dict = {}
     for s, row in enumerate(labelings):
@@ -99,8 +105,10 @@ def _exact_kernel(cfg, n, data) -> np.ndarray:
                     key = (s, region, a)
                     if key not in ratios:
                         mask = torch.tensor([k in region for k in range(n)])
-                        touching = region_move.touching_labels(mask, row, data.pairs)
-                        ratios[key] = relabel_log_ratio(row, mask, a, touching, data, cfg)
+                        border = region_move.border_labels(mask, row, data.pairs)
+                        ratios[key] = relabel_log_ratio(
+                            row, mask, a, border, data, cfg, ratio_share
+                        )
                     accept = min(1.0, math.exp(min(ratios[key], 0.0)))
                     target = int(state_index(torch.tensor(moved), L))
                     kernel[s, target] += weight * g * accept
@@ -115,16 +123,19 @@ def _posterior(cfg, n, data) -> np.ndarray:
     return np.exp(log_p - log_p.max()) / np.exp(log_p - log_p.max()).sum()
 
 
-def _detailed_balance_gap(cfg, n, data) -> float:
-    kernel = _exact_kernel(cfg, n, data)
+def _detailed_balance_gap(cfg, n, data, bond_share: float = BOND_SHARE) -> float:
+    kernel = _exact_kernel(cfg, n, data, bond_share)
     assert np.allclose(kernel.sum(1), 1.0, atol=1e-12)
     flow = _posterior(cfg, n, data)[:, None] * kernel  # [S, S] p(C) K(C, C')
     return float(np.abs(flow - flow.T).max() / flow.max())
 
 
-def test_the_move_satisfies_detailed_balance_exactly():
+@pytest.mark.parametrize("bond_share", [BOND_SHARE, 1.0, 0.0])
+def test_the_move_satisfies_detailed_balance_exactly(bond_share):
+    """The default share of the coupling in the bonds, the pure Swendsen-Wang cut (1) and
+    single cells (0)."""
     cfg, n, data = _square_problem()
-    assert _detailed_balance_gap(cfg, n, data) < 1e-10
+    assert _detailed_balance_gap(cfg, n, data, bond_share) < 1e-10
 
 
 def test_a_broken_acceptance_ratio_is_detected(monkeypatch):
@@ -132,6 +143,14 @@ def test_a_broken_acceptance_ratio_is_detected(monkeypatch):
     monkeypatch.setattr(region_move, "_log_acceptance_ratio", lambda delta, fwd, rev: delta)
     cfg, n, data = _square_problem()
     assert _detailed_balance_gap(cfg, n, data) > 1e-2
+
+
+def test_a_potts_share_left_out_is_detected():
+    # The ratio as if the bonds carried all the coupling while they carry BOND_SHARE of it.
+    cfg, n, data = _square_problem()
+    broken = _exact_kernel(cfg, n, data, BOND_SHARE, ratio_share=1.0)
+    flow = _posterior(cfg, n, data)[:, None] * broken
+    assert np.abs(flow - flow.T).max() / flow.max() > 1e-2
 
 
 def test_the_sampler_draws_the_enumerated_transitions():

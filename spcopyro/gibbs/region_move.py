@@ -15,8 +15,9 @@ integrated out, as the split-merge move's target), by the Swendsen-Wang cut of B
 27(8)), a Metropolis-Hastings step:
 
 1. **bonds** (as :func:`~spcopyro.gibbs.cluster.bond_clusters`): each agreeing neighbour pair
-   is bonded with probability :math:`q = 1 - e^{-\gamma}`; the clusters are the connected
-   components;
+   is bonded with probability :math:`q = 1 - e^{-\lambda\gamma}`, :math:`\lambda` =
+   :data:`BOND_SHARE` (Higdon's 1998 partial decoupling: the bonds carry that share of the
+   coupling, the acceptance the rest); the clusters are the connected components;
 2. **the region** :math:`V_0`: the cluster of a cell drawn uniformly, of concept b;
 3. **its new concept** a, drawn from three groups of labels, each with a fixed weight among the
    groups that are not empty, uniformly within its group: the concepts adjacent to
@@ -26,16 +27,16 @@ integrated out, as the split-merge move's target), by the Swendsen-Wang cut of B
 4. accept :math:`C \to C'` (:math:`V_0` relabelled a) with probability min(1, r).
 
 **Acceptance.** :math:`V_0` is the seed's cluster in C with probability
-:math:`\frac{|V_0|}{N}\,\mathrm{Conn}(V_0)\, e^{-\gamma n_b}`: its inner bonds connect it
-(the same in C and C', all of :math:`V_0` agreeing in both) and none of the :math:`n_b` pairs
+:math:`\frac{|V_0|}{N}\,\mathrm{Conn}(V_0)\, e^{-\lambda\gamma n_b}`: its inner bonds connect
+it (the same in C and C', all of :math:`V_0` agreeing in both) and none of the :math:`n_b` pairs
 from :math:`V_0` to cells of concept b outside it is bonded; in C' the cut pairs are the
-:math:`n_a` to concept a. The Potts factor changes by :math:`e^{\gamma(n_a - n_b)}`, which the
-cut's ratio :math:`e^{-\gamma (n_a - n_b)}` cancels exactly (why the bond probability is
-:math:`1 - e^{-\gamma}`), so
+:math:`n_a` to concept a. The Potts factor changes by :math:`e^{\gamma(n_a - n_b)}`, of which the
+cut's ratio :math:`e^{-\lambda\gamma (n_a - n_b)}` cancels the share :math:`\lambda`, so
 
 .. math::
 
     \log r = \sum_{l \in \{a, b\}} \big[M_l(C') - M_l(C)\big]
+        + (1 - \lambda)\,\gamma\,(n_a - n_b)
         + \log g(b \mid V_0, C') - \log g(a \mid V_0, C),
 
 with :math:`M_l = \log\Gamma(a_\pi + m_l) + \sum_u \log B(a_u \mathbf{1} + n^u_l) - \log
@@ -43,8 +44,11 @@ B(a_u \mathbf{1})` each concept's collapsed term (:func:`~spcopyro.gibbs.merge.
 concept_log_marginals`; the split-merge module's target) and g the label proposal of step 3:
 the reverse draws b for :math:`V_0` in C' -- from the adjacent group when cells of b still
 touch :math:`V_0`, from the empty labels when :math:`V_0` held all of b, else from the other
-concepts in use. The Potts coupling enters only through the bonds, so a region whose border is
-long and ragged costs nothing to relabel as a whole: what decides is the data.
+concepts in use. With :math:`\lambda = 1` (Barbu & Zhu's cut) the Potts coupling enters only
+through the bonds, and a region is relabelled on its data alone: a merge the border's Potts
+agreements favour but the data do not is then as improbable as its reverse, the region cut
+out again exactly. :math:`\lambda` = 1/2 keeps the clusters whole regions above the critical
+coupling (bond probability 0.78 at gamma 3) and lets half the border's agreements count.
 
 If accepted, pi, theta and w are redrawn from their conditionals given the new labels (eqs.
 14-17); the acceptance does not look at them, so keeping them on a rejection is exact
@@ -70,6 +74,10 @@ from spcopyro.gibbs.cluster import bond_clusters
 from spcopyro.gibbs.merge import Counts, MoveInfo, concept_log_marginals
 from spcopyro.gibbs.state import GibbsState
 from spcopyro.model import DTYPE, ModelData
+
+BOND_SHARE = 0.5
+"""lambda: the share of the coupling the bonds carry (module doc); 1 is the pure Swendsen-Wang
+cut, 0 single cells."""
 
 GROUP_WEIGHTS = (0.6, 0.2, 0.2)
 """Weights of step 3's label groups: adjacent concepts, empty labels, other concepts in use
@@ -122,14 +130,11 @@ def label_groups(
     return LabelGroups(adjacent, empty, other)
 
 
-def touching_labels(
-    region: torch.Tensor, labels: torch.Tensor, pairs: torch.Tensor
-) -> torch.Tensor:
-    """The labels of the cells outside ``region`` [N] (bool) that neighbour it (1-D, unique)."""
+def border_labels(region: torch.Tensor, labels: torch.Tensor, pairs: torch.Tensor) -> torch.Tensor:
+    """[B] the label outside ``region`` [N] (bool) of every neighbour pair across its border."""
     inside_first, inside_second = region[pairs[:, 0]], region[pairs[:, 1]]  # [P]
     cross = inside_first ^ inside_second  # [P]
-    outside = torch.where(inside_first, pairs[:, 1], pairs[:, 0])[cross]
-    return torch.unique(labels[outside])
+    return labels[torch.where(inside_first, pairs[:, 1], pairs[:, 0])[cross]]
 
 
 def _moved_terms(
@@ -164,19 +169,23 @@ def relabel_log_ratio(
     labels: torch.Tensor,
     region: torch.Tensor,
     a: int,
-    touching: torch.Tensor,
+    border: torch.Tensor,
     data: ModelData,
     config: SpCoConfig,
+    bond_share: float = BOND_SHARE,
 ) -> float:
     """log r of relabelling ``region`` [N] (bool, one concept b) as ``a`` (module doc): the two
-    concepts' collapsed terms and the label proposal's asymmetry; ``touching``: the labels of the
-    cells outside the region that neighbour it."""
+    concepts' collapsed terms, the Potts share the bonds do not carry and the label proposal's
+    asymmetry; ``border``: :func:`border_labels` of the region."""
     b = int(labels[region.nonzero()[0, 0]])
     L = config.num_concepts
+    touching = torch.unique(border)
     forward = label_groups(labels, touching, b, L)
     reverse = label_groups(torch.where(region, a, labels), touching, a, L)
+    agreements = int((border == a).sum()) - int((border == b).sum())  # n_a - n_b
+    potts = (1.0 - bond_share) * config.gamma * agreements
     return _log_acceptance_ratio(
-        _moved_terms(labels, region, data, config, a, b),
+        _moved_terms(labels, region, data, config, a, b) + potts,
         forward.log_probability(a),
         reverse.log_probability(b),
     )
@@ -188,21 +197,25 @@ def _log_acceptance_ratio(delta_log_target: float, log_forward: float, log_rever
 
 
 def region_relabel_labels(
-    labels: torch.Tensor, data: ModelData, config: SpCoConfig, generator: torch.Generator
+    labels: torch.Tensor,
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    bond_share: float = BOND_SHARE,
 ) -> tuple[torch.Tensor, MoveInfo]:
     """One region relabel Metropolis-Hastings step on ``labels`` [N] targeting p(C | x) (module
     doc). Returns the new labels (``labels`` itself when nothing changes) and what happened."""
     L = config.num_concepts
-    _, cluster = bond_clusters(labels, data.pairs, config.gamma, generator)
+    _, cluster = bond_clusters(labels, data.pairs, bond_share * config.gamma, generator)
     seed = int(torch.randint(labels.shape[0], (), generator=generator))
     region = cluster == cluster[seed]  # [N]
     b = int(labels[seed])
-    touching = touching_labels(region, labels, data.pairs)
-    forward = label_groups(labels, touching, b, L)
+    border = border_labels(region, labels, data.pairs)
+    forward = label_groups(labels, torch.unique(border), b, L)
     a = forward.draw(generator)
     if a is None:
         return labels, MoveInfo("relabel", False, -math.inf)
-    log_ratio = relabel_log_ratio(labels, region, a, touching, data, config)
+    log_ratio = relabel_log_ratio(labels, region, a, border, data, config, bond_share)
     proposed = torch.where(region, a, labels)  # [N]
     accept = log_ratio >= 0 or float(torch.rand((), dtype=DTYPE, generator=generator)) < math.exp(
         log_ratio
