@@ -45,6 +45,7 @@ import numpy as np
 from spcopyro.config import SpCoSettings
 from spcopyro.data import House
 from spcopyro.data.model_grid import model_house
+from spcopyro.fit.house import fit_house
 from spcopyro.results.result import SpCoResult
 
 LOW, HIGH, TOP = 0.4, 0.6, 100.0
@@ -155,8 +156,6 @@ def fit_two_stage(
     ``feature_scaling = weight``, the second fit starting from the first's labels.
     ``fit_kwargs`` go to both :func:`~spcopyro.fit.house.fit_house` calls (``init`` to the first
     only)."""
-    from spcopyro.fit.house import fit_house  # fit.house imports the registry, which is heavy
-
     house = model_house(house, settings.data.cell_size)
     first = fit_house(house, settings, sweeps=first_sweeps, seed=seed, **fit_kwargs)
     separation = image_separation(house.observations.image_features, image_labels(first, house))
