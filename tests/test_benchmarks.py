@@ -159,6 +159,30 @@ def test_real_houses_benchmark_quick(tmp_path):
     if "public" in results:  # the dataset is there: every section ran
         assert {"heldout_top1", "methods", "simulated", "longer_chain"} <= set(results)
         assert "Held-out word top-1" in done.stdout
+        for rows in results["simulated"].values():  # --quick: fit seed 0 and the mean over seeds
+            assert list(rows) == ["fit seed 0", "mean"]
+            assert rows["mean"]["ari"] == pytest.approx(rows["fit seed 0"]["ari"])
+
+
+@pytest.mark.slow
+def test_two_stage_benchmark_quick(tmp_path):
+    """Every house kind gets the four rows, and the weight is the rule's on the explained share."""
+    from spcopyro.fit.image_weight import image_weight
+
+    out = tmp_path / "two_stage.json"
+    done = run_benchmark("two_stage.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    results = json.loads(out.read_text())
+    kinds = {"open-plan", "sparse", "dense"}
+    if "public" in results:  # the dataset is there
+        kinds |= {"public", "simulated"}
+    assert kinds <= set(results)
+    for kind in kinds:
+        for rows in results[kind].values():
+            assert {"coarse", "coarse 2x", "two-stage", "two-stage auto"} <= set(rows)
+            staged = rows["two-stage"]
+            assert staged["weight"] == pytest.approx(image_weight(staged["explained"]))
+            assert all(0.0 <= row["largest_share"] <= 1.0 for row in rows.values())
 
 
 @pytest.mark.slow
