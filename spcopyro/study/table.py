@@ -7,7 +7,7 @@ Layout of ``OUT``::
     traces/KEY.npz    its trace: objective, num_concepts, seconds per iteration (and the ARI
                       per kept iteration with the study's ari_every)
     maps/KEY.npz      its label map on the map's cells (int16) with the map and the truth
-                      (spcopyro.study.evaluate.label_map_arrays): figures need no refit
+                      (spcopyro.study.maps.label_map_arrays): figures need no refit
     results.csv       the tidy table: one row per (variant, data, method, seed) of the study
     results.parquet   the same table as Parquet, when pyarrow is installed (the parquet extra)
     report.md         mean +- sd tables drawn from results.csv (spcopyro.study.report)
