@@ -351,7 +351,7 @@ def test_cli_runs_resumes_and_redraws(in_process, tmp_path, capsys, monkeypatch)
     out = tmp_path / "cli"
     assert main(["study", str(path), "--out", str(out), "--workers", "1"]) == 0
     assert "| og3 | gibbs |" in capsys.readouterr().out
-    assert main(["study", str(path), "--out", str(out), "--workers", "1"]) == 0
+    assert main(["study", str(path), "--out", str(out), "--workers", "1", "--rerun-stale"]) == 0
     assert "nothing to run" in capsys.readouterr().out
     report = (out / "report.md").read_text()
     (out / "report.md").unlink()
@@ -408,6 +408,57 @@ def test_finished_study_restarted_does_nothing_and_says_so(in_process, tmp_path,
         assert now == (before or now)
         before = now
     assert len(read_table(out / "results.csv")) == 6
+
+
+def test_cells_other_source_computed_are_named_kept_and_rerun_when_asked(in_process, tmp_path):
+    """Each record holds the digest of the source that computed it. A restarted finished study
+    whose cells other source computed (or no digest names) still runs nothing, says how many
+    and its report says so; --rerun-stale runs exactly those again."""
+    from spcopyro.study.cells import source_digest
+
+    path, finished = in_process
+    out = tmp_path / "out"
+    shutil.copytree(finished, out)
+    rows = read_table(out / "results.csv")
+    assert {r["source_digest"] for r in rows} == {source_digest()}
+    changed = [out / "cells" / f"{row['key']}.json" for row in rows[:2]]  # of this study
+    for stored, digest in zip(changed, ("0123456789abcdef", None), strict=True):
+        record = json.loads(stored.read_text())
+        record.pop("source_digest")
+        if digest is not None:
+            record["source_digest"] = digest
+        stored.write_text(json.dumps(record))
+    lines: list[str] = []
+    run = run_study(load_study(path), out, progress=False, report=lines.append)
+    assert (run.ran, run.cached) == (0, 6)
+    assert lines[0].startswith("nothing to run: all 6 cells")
+    assert lines[1].startswith("2 of the finished cells were computed by other spcopyro source")
+    assert "--rerun-stale" in lines[1] and source_digest() in lines[1]
+    assert "**Cells of 3 versions of spcopyro's source**" in (out / "report.md").read_text()
+    again = run_study(load_study(path), out, progress=False, rerun_stale=True)
+    assert (again.ran, again.cached) == (2, 4)
+    assert {r["source_digest"] for r in read_table(out / "results.csv")} == {source_digest()}
+    assert "versions of spcopyro's source" not in (out / "report.md").read_text()
+    lines.clear()
+    run_study(load_study(path), out, progress=False, report=lines.append, rerun_stale=True)
+    assert len(lines) == 1 and lines[0].startswith("nothing to run")
+
+
+def test_package_digest_covers_python_sources_only(tmp_path):
+    from spcopyro.study.cells import package_digest
+
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "a.py").write_text("x = 1\n")
+    (tmp_path / "sub" / "b.py").write_text("y = 2\n")
+    first = package_digest(tmp_path)
+    (tmp_path / "notes.md").write_text("not code")
+    (tmp_path / "sub" / "b.pyc").write_bytes(b"compiled")
+    assert package_digest(tmp_path) == first
+    (tmp_path / "sub" / "b.py").write_text("y = 3\n")
+    assert package_digest(tmp_path) != first
+    (tmp_path / "sub" / "b.py").write_text("y = 2\n")
+    (tmp_path / "sub" / "b.py").rename(tmp_path / "b2.py")
+    assert package_digest(tmp_path) != first  # a file's path counts
 
 
 def test_cells_store_their_label_maps_and_the_report_draws_them(in_process, tmp_path):

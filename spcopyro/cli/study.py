@@ -49,7 +49,7 @@ def _study(args: argparse.Namespace) -> int:
     workers = args.workers if args.workers is not None else default_workers()
     run = run_study(
         study, out, workers=workers, scheduler=args.scheduler, retry_failed=args.retry_failed,
-        root=args.data, report=print,
+        rerun_stale=args.rerun_stale, root=args.data, report=print,
     )  # fmt: skip
     if run.ran:
         print((out / "report.md").read_text())
@@ -83,6 +83,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "$SPCOPYRO_DATA or ../shared/data/spcomapping)")  # fmt: skip
     p.add_argument("--retry-failed", action="store_true",
                    help="run again the cells stored with an error (default: keep it)")  # fmt: skip
+    p.add_argument("--rerun-stale", action="store_true",
+                   help="run again the finished cells that other spcopyro source computed "
+                        "(their source_digest is not this install's; default: keep them and "
+                        "say how many)")  # fmt: skip
     p.add_argument("--report-only", action="store_true",
                    help="redraw report.md from OUT/results.csv; fit nothing")  # fmt: skip
     p.set_defaults(func=_study)

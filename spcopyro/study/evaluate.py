@@ -25,6 +25,8 @@ Scores (every one that applies; the others are left empty in the table, :data:`S
   ``use_images = use_words = False`` (same seed): ``ari_off`` (against the truth),
   ``ari_on_off`` (between the two maps), ``concepts_1pct_off``, ``seconds_off`` and
   ``cpu_seconds_off``;
+* ``source_digest``: :func:`spcopyro.study.cells.source_digest` of the process that ran the
+  cell, the code that made its numbers;
 * ``seconds`` (wall clock) and ``cpu_seconds`` of the fit, ``iterations``, and
   ``best_objective`` (the reported state's log joint or ELBO: the best of K chains is the
   chain where it is highest);
@@ -65,7 +67,7 @@ from spcopyro.metrics import (
     heldout_word_prediction,
     matching_rate,
 )
-from spcopyro.study.cells import Cell
+from spcopyro.study.cells import Cell, source_digest
 from spcopyro.study.comparison_cell import COMPARISON, comparison_outcome
 from spcopyro.study.maps import Arrays, label_map_arrays, labels_on_map
 from spcopyro.study.sources import load_cell_data
@@ -93,7 +95,8 @@ def run_cell(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays | Non
     baseline, a failed or a comparison cell) and its label map
     (:func:`~spcopyro.study.maps.label_map_arrays`; None for a failed cell). Runs torch with
     one intra-op thread."""
-    record: dict[str, object] = {"key": cell.key, "status": "ok", "error_type": "", "error": ""}
+    record: dict[str, object] = {"key": cell.key, "status": "ok", "error_type": "", "error": "",
+                                 "source_digest": source_digest()}  # fmt: skip
     trace = label_map = None
     try:
         with torch_threads(1):

@@ -5,7 +5,8 @@ key the folder's cache holds (:class:`spcopyro.study.table.CellStore`), runs the
 stores each one the moment it finishes, then rebuilds ``results.csv`` and ``report.md`` from the
 cache -- also when interrupted, so a restarted study continues where it stopped and a finished
 one runs nothing (and says so). A cell that fails is stored with its error and not run again
-unless ``retry_failed``.
+unless ``retry_failed``; a cell that other spcopyro source computed (its record's
+``source_digest``, :mod:`spcopyro.study.cells`) is kept, and named, unless ``rerun_stale``.
 
 Where the cells run:
 
@@ -38,7 +39,7 @@ from pathlib import Path
 from spcopyro._util.progress import progress_enabled
 from spcopyro.gibbs.chains import usable_cpus
 from spcopyro.study import evaluate
-from spcopyro.study.cells import Cell, cells_of
+from spcopyro.study.cells import Cell, cells_of, source_digest
 from spcopyro.study.local_cluster import PRE_SPAWN_ENVIRON, ClusterStart
 from spcopyro.study.report import write_report
 from spcopyro.study.spec import Study
@@ -93,6 +94,7 @@ def run_study(
     workers: int = 1,
     scheduler: str | None = None,
     retry_failed: bool = False,
+    rerun_stale: bool = False,
     root: str | os.PathLike[str] | None = None,
     progress: bool | None = None,
     report: Callable[[str], None] = _say_nothing,
@@ -100,7 +102,10 @@ def run_study(
 ) -> StudyRun:
     """Run the cells of ``study`` that ``out`` does not hold yet (module docstring).
 
-    ``root``: the public dataset's folder for sources named by house (default:
+    ``rerun_stale``: also run the finished cells that other spcopyro source computed (their
+    record's ``source_digest`` is not this process's :func:`spcopyro.study.cells.source_digest`;
+    without it they are kept and counted in a line of ``report``). ``root``: the public
+    dataset's folder for sources named by house (default:
     :func:`spcopyro.data.find_dataset_root`). ``report`` receives one line per failed cell and
     a closing line. ``start_in_process``: with a LocalCluster, run cells in this process while
     its workers start (module docstring). KeyboardInterrupt stops the run after storing every
@@ -114,6 +119,9 @@ def run_study(
     store = CellStore(out)
     finished = store.finished()
     done = {k for k, r in finished.items() if not (retry_failed and r.get("status") == "error")}
+    stale = _stale(cells, finished, done)
+    if rerun_stale:
+        done -= stale
     pending = list({c.key: c for c in cells if c.key not in done}.values())  # one per key
     cached = len({c.key for c in cells} & done)
     out.mkdir(parents=True, exist_ok=True)
@@ -123,9 +131,13 @@ def run_study(
         _finish(out, study, cells, store)
         report(f"nothing to run: all {len(cells)} cells of study {study.name!r} are finished "
                f"in {out} (delete cells/ there to run them again)")  # fmt: skip
+        if stale:
+            report(_stale_line(len(stale)))
         return StudyRun(out, len(cells), cached, 0, 0, time.perf_counter() - start, where)
     report(f"study {study.name!r}: {len(pending)} of {len(cells)} cells to run ({cached} "
            f"finished before), {where}")  # fmt: skip
+    if stale and not rerun_stale:
+        report(_stale_line(len(stale)))
     ran = failed = 0
     interrupted = False
     bar = _bar(len(pending), progress)
@@ -164,6 +176,21 @@ def run_study(
     report(f"ran {ran} cells in {seconds:.1f} s ({failed} failed), {cached} finished before; "
            f"wrote {out / TABLE} and {out / 'report.md'}")  # fmt: skip
     return StudyRun(out, len(cells), cached, ran, failed, seconds, where, ran_here=ran_here)
+
+
+def _stale(cells: list[Cell], finished: dict[str, dict[str, object]], done: set[str]) -> set[str]:
+    """The keys of the study's finished cells (of ``done``) whose record other spcopyro source
+    computed (or no digest names: stored before records had one)."""
+    current = source_digest()
+    keys = {c.key for c in cells} & done
+    return {k for k in keys if finished[k].get("source_digest") != current}
+
+
+def _stale_line(count: int) -> str:
+    return (
+        f"{count} of the finished cells were computed by other spcopyro source than this "
+        f"(source_digest is not {source_digest()}): kept; --rerun-stale runs them again"
+    )
 
 
 def _where(workers: int, scheduler: str | None) -> str:
@@ -245,7 +272,7 @@ def _on_dask(
                 record, trace, label_map = future.result()
             except Exception as error:  # the worker died, or the task could not run
                 record = {"key": cell.key, "status": "error", "error_type": type(error).__name__,
-                          "error": str(error)[:2000]}  # fmt: skip
+                          "error": str(error)[:2000], "source_digest": source_digest()}  # fmt: skip
                 trace = label_map = None
             future.release()
             yield cell, record, trace, label_map
