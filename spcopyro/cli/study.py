@@ -34,7 +34,7 @@ def study_path(text: str) -> Path:
 
 def _study(args: argparse.Namespace) -> int:
     from spcopyro.study.report import write_report
-    from spcopyro.study.run import default_workers, run_study
+    from spcopyro.study.run import default_workers, plan_markdown, plan_study, run_study
     from spcopyro.study.spec import load_study
     from spcopyro.study.table import TABLE
 
@@ -45,6 +45,10 @@ def _study(args: argparse.Namespace) -> int:
         if not (out / TABLE).is_file():
             raise FileNotFoundError(f"--report-only: {out / TABLE} does not exist; run the study")
         print(f"wrote {write_report(out / TABLE, out / 'report.md', title=study.name)}")
+        return 0
+    if args.dry_run:
+        plan = plan_study(study, out, args.retry_failed, args.rerun_stale, args.data)
+        print(plan_markdown(plan, study))
         return 0
     workers = args.workers if args.workers is not None else default_workers()
     run = run_study(
@@ -87,6 +91,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="run again the finished cells that other spcopyro source computed "
                         "(their source_digest is not this install's; default: keep them and "
                         "say how many)")  # fmt: skip
+    p.add_argument("--dry-run", action="store_true",
+                   help="print the cells a run would run (per data, variant and method, with "
+                        "their iterations); fit and write nothing")  # fmt: skip
     p.add_argument("--report-only", action="store_true",
                    help="redraw report.md from OUT/results.csv; fit nothing")  # fmt: skip
     p.set_defaults(func=_study)

@@ -45,7 +45,9 @@ from spcopyro.study.report import write_report
 from spcopyro.study.spec import Study
 from spcopyro.study.table import TABLE, CellStore, table_rows, write_table
 
-__all__ = ["PRE_SPAWN_ENVIRON", "StudyRun", "default_workers", "run_study"]
+__all__ = [
+    "PRE_SPAWN_ENVIRON", "StudyRun", "default_workers", "plan_markdown", "plan_study", "run_study",
+]  # fmt: skip
 
 Outcome = tuple[Cell, dict[str, object], object, object]
 """A finished cell, its record, its trace and its label map."""
@@ -115,15 +117,8 @@ def run_study(
         raise ValueError(f"workers must be >= 1, got {workers}")
     out = Path(out)
     start = time.perf_counter()
-    cells = cells_of(study, root)
+    cells, pending, cached, stale = plan_study(study, out, retry_failed, rerun_stale, root)
     store = CellStore(out)
-    finished = store.finished()
-    done = {k for k, r in finished.items() if not (retry_failed and r.get("status") == "error")}
-    stale = _stale(cells, finished, done)
-    if rerun_stale:
-        done -= stale
-    pending = list({c.key: c for c in cells if c.key not in done}.values())  # one per key
-    cached = len({c.key for c in cells} & done)
     out.mkdir(parents=True, exist_ok=True)
     (out / "study.json").write_text(json.dumps(study.to_json(), indent=1, default=str))
     where = _where(workers, scheduler)
@@ -176,6 +171,52 @@ def run_study(
     report(f"ran {ran} cells in {seconds:.1f} s ({failed} failed), {cached} finished before; "
            f"wrote {out / TABLE} and {out / 'report.md'}")  # fmt: skip
     return StudyRun(out, len(cells), cached, ran, failed, seconds, where, ran_here=ran_here)
+
+
+@dataclass(frozen=True)
+class _Plan:
+    cells: list[Cell]
+    """Every cell of the study, in table order."""
+    pending: list[Cell]
+    """The cells to run (one per key)."""
+    cached: int
+    """Cells finished before (not run)."""
+    stale: set[str]
+    """Keys of finished cells that other spcopyro source computed."""
+
+    def __iter__(self):
+        return iter((self.cells, self.pending, self.cached, self.stale))
+
+
+def plan_study(
+    study: Study, out: str | os.PathLike[str], retry_failed: bool = False,
+    rerun_stale: bool = False, root: str | os.PathLike[str] | None = None,
+) -> _Plan:  # fmt: skip
+    """What :func:`run_study` with these arguments would run; writes nothing."""
+    cells = cells_of(study, root)
+    finished = CellStore(out).finished()
+    done = {k for k, r in finished.items() if not (retry_failed and r.get("status") == "error")}
+    stale = _stale(cells, finished, done)
+    if rerun_stale:
+        done -= stale
+    pending = list({c.key: c for c in cells if c.key not in done}.values())  # one per key
+    return _Plan(cells, pending, len({c.key for c in cells} & done), stale)
+
+
+def plan_markdown(plan: _Plan, study: Study) -> str:
+    """The cells a run would run, per data source, variant and method: how many (seeds) and
+    at how many iterations (``spcopyro study --dry-run``)."""
+    groups: dict[tuple[str, str, str, int], int] = {}
+    for cell in plan.pending:
+        group = (cell.data.name, cell.row, cell.method, cell.sweeps)
+        groups[group] = groups.get(group, 0) + 1
+    lines = [
+        f"study {study.name!r}: {len(plan.pending)} of {len(plan.cells)} cells to run "
+        f"({plan.cached} finished before, {len(plan.stale)} of them by other source)",
+        "", "| data | variant | method | iterations | cells |", "|---|---|---|---|---|",
+    ]  # fmt: skip
+    lines += [f"| {d} | {v} | {m} | {n} | {k} |" for (d, v, m, n), k in groups.items()]
+    return "\n".join(lines)
 
 
 def _stale(cells: list[Cell], finished: dict[str, dict[str, object]], done: set[str]) -> set[str]:
