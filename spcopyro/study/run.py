@@ -46,7 +46,8 @@ from spcopyro.study.spec import Study
 from spcopyro.study.table import TABLE, CellStore, table_rows, write_table
 
 __all__ = [
-    "PRE_SPAWN_ENVIRON", "StudyRun", "default_workers", "plan_markdown", "plan_study", "run_study",
+    "PRE_SPAWN_ENVIRON", "StudyPlan", "StudyRun", "default_workers", "plan_markdown", "plan_study",
+    "run_study",
 ]  # fmt: skip
 
 Outcome = tuple[Cell, dict[str, object], object, object]
@@ -174,7 +175,9 @@ def run_study(
 
 
 @dataclass(frozen=True)
-class _Plan:
+class StudyPlan:
+    """What a run of a study into a folder would run (:func:`plan_study`)."""
+
     cells: list[Cell]
     """Every cell of the study, in table order."""
     pending: list[Cell]
@@ -191,7 +194,7 @@ class _Plan:
 def plan_study(
     study: Study, out: str | os.PathLike[str], retry_failed: bool = False,
     rerun_stale: bool = False, root: str | os.PathLike[str] | None = None,
-) -> _Plan:  # fmt: skip
+) -> StudyPlan:  # fmt: skip
     """What :func:`run_study` with these arguments would run; writes nothing."""
     cells = cells_of(study, root)
     finished = CellStore(out).finished()
@@ -200,10 +203,10 @@ def plan_study(
     if rerun_stale:
         done -= stale
     pending = list({c.key: c for c in cells if c.key not in done}.values())  # one per key
-    return _Plan(cells, pending, len({c.key for c in cells} & done), stale)
+    return StudyPlan(cells, pending, len({c.key for c in cells} & done), stale)
 
 
-def plan_markdown(plan: _Plan, study: Study) -> str:
+def plan_markdown(plan: StudyPlan, study: Study) -> str:
     """The cells a run would run, per data source, variant and method: how many (seeds) and
     at how many iterations (``spcopyro study --dry-run``)."""
     groups: dict[tuple[str, str, str, int], int] = {}
