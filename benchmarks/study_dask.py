@@ -2,11 +2,15 @@
 
     python benchmarks/study_dask.py [--workers 2] [--sweeps 2000] [--out benchmarks/study_dask.json]
     python benchmarks/study_dask.py --quick      # smoke test: 4 cells, a few sweeps
+    python benchmarks/study_dask.py --also-spawned   # + the cluster as it started before
 
 The same study (2 variants x 2 synthetic houses x 5 seeds, Gibbs; :mod:`spcopyro.study`) runs
 twice into two fresh folders: first cell after cell in this process, then on a
 ``LocalCluster(n_workers=2, threads_per_worker=1, processes=True)`` (its start-up and shutdown
-included in the wall time). Prints both wall times, their ratio (cluster / in-process; the
+included in the wall time), as :func:`spcopyro.study.run.run_study` starts it: workers forked
+from a preloaded forkserver while this process runs cells (:mod:`spcopyro.study.local_cluster`).
+With ``--also-spawned``, a third run starts the cluster as before that: spawned workers, no cell
+run in this process. Prints both wall times, their ratio (cluster / in-process; the
 issue's target is <= 0.6 on a 2-core machine), whether both tables hold the same numbers, and
 the CPU the machine's other processes used meanwhile (a shared machine: read the ratio with it).
 Writes the JSON to ``--out``.
@@ -19,11 +23,13 @@ import json
 import sys
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 from machine import busy_cpu_seconds, machine_info, own_cpu_seconds, progress
 
+from spcopyro.study import local_cluster
 from spcopyro.study.run import run_study
 from spcopyro.study.spec import Study, study_from_dict
 from spcopyro.study.table import read_table
@@ -47,20 +53,35 @@ def benchmark_study(sweeps: int, seeds: int, quick: bool) -> Study:
     })  # fmt: skip
 
 
-def timed_run(study: Study, out: Path, workers: int) -> dict[str, object]:
-    """Run ``study`` into ``out``: wall seconds, and the other processes' CPU meanwhile."""
+def timed_run(study: Study, out: Path, workers: int, spawned: bool = False) -> dict[str, object]:
+    """Run ``study`` into ``out``: wall seconds, and the other processes' CPU meanwhile.
+    ``spawned``: the cluster's workers spawned, no cell run in this process meanwhile."""
     busy, own = busy_cpu_seconds(), own_cpu_seconds()
     start = time.perf_counter()
-    run = run_study(study, out, workers=workers, progress=False, report=progress)
+    with _spawned_workers(spawned):
+        run = run_study(study, out, workers=workers, progress=False, report=progress,
+                        start_in_process=not spawned)  # fmt: skip
     seconds = time.perf_counter() - start
     entry: dict[str, object] = {
-        "where": run.where, "cells": run.cells, "ran": run.ran, "failed": run.failed,
-        "seconds": seconds,
+        "where": run.where + (", spawned" if spawned else ""), "cells": run.cells,
+        "ran": run.ran, "ran_here": run.ran_here, "failed": run.failed, "seconds": seconds,
     }  # fmt: skip
     if busy is not None:
         other = (busy_cpu_seconds() - busy) - (own_cpu_seconds() - own)  # type: ignore[operator]
         entry["other_cores"] = max(0.0, other / seconds)
     return entry
+
+
+@contextmanager
+def _spawned_workers(spawned: bool) -> Iterator[None]:
+    """Inside: the study's LocalCluster spawns its workers (as where forkserver is missing)."""
+    available = local_cluster.forkserver_available
+    if spawned:
+        local_cluster.forkserver_available = lambda: False
+    try:
+        yield
+    finally:
+        local_cluster.forkserver_available = available
 
 
 def scores(out: Path) -> list[dict[str, object]]:
@@ -74,6 +95,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="smoke test: 4 cells, 10 sweeps")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--sweeps", type=int, default=None, help="default 2000 (quick: 10)")
+    parser.add_argument("--also-spawned", action="store_true",
+                        help="also run the cluster with spawned workers and no cell in this "
+                             "process (how it started before)")  # fmt: skip
     parser.add_argument("--out", default="benchmarks/study_dask.json")
     args = parser.parse_args(argv)
     sweeps = args.sweeps or (10 if args.quick else 2000)
@@ -82,15 +106,27 @@ def main(argv: Sequence[str] | None = None) -> int:
         local = timed_run(study, Path(folder) / "in_process", workers=1)
         cluster = timed_run(study, Path(folder) / "cluster", workers=args.workers)
         same = scores(Path(folder) / "in_process") == scores(Path(folder) / "cluster")
+        spawned = None
+        if args.also_spawned:
+            spawned = timed_run(study, Path(folder) / "spawned", args.workers, spawned=True)
+            same = same and scores(Path(folder) / "spawned") == scores(Path(folder) / "cluster")
     ratio = cluster["seconds"] / local["seconds"]  # type: ignore[operator]
     results = {
         "machine": machine_info(), "sweeps": sweeps, "workers": args.workers,
         "in_process": local, "local_cluster": cluster, "ratio": ratio, "same_numbers": same,
     }  # fmt: skip
-    print("| run | cells | wall s | other processes' cores |\n|---|---|---|---|")
-    for entry in (local, cluster):
+    runs = [local, cluster]
+    if spawned is not None:
+        results["spawned_cluster"] = spawned
+        results["spawned_ratio"] = spawned["seconds"] / local["seconds"]  # type: ignore[operator]
+        runs.append(spawned)
+    print("| run | cells (here) | wall s | ratio | other processes' cores |")
+    print("|---|---|---|---|---|")
+    for entry in runs:
         other = entry.get("other_cores")
-        print(f"| {entry['where']} | {entry['ran']} | {entry['seconds']:.1f} | "
+        share = entry["seconds"] / local["seconds"]  # type: ignore[operator]
+        print(f"| {entry['where']} | {entry['ran']} ({entry['ran_here']}) | "
+              f"{entry['seconds']:.1f} | {share:.2f} | "
               f"{'' if other is None else f'{other:.2f}'} |")  # fmt: skip
     print(f"ratio (cluster / in-process): {ratio:.2f} (target <= 0.6); same numbers: {same}")
     Path(args.out).write_text(json.dumps(results, indent=1, default=str))

@@ -289,10 +289,31 @@ def test_the_study_gives_the_old_loops_numbers(tmp_path, dataset_root):
         for key, records in by_variant.items():
             assert [_untimed(r) for r in new[house_type][key]] == records, (house_type, key)
     assert synthetic["failed"] == public["failed"] == 0
+    for out in (tmp_path / "s", tmp_path / "p"):
+        _assert_stored_maps_are_the_scored_ones(out)
     lines: list[str] = []
     again = run_comparison(tmp_path / "p", only_public, lines.append)
     assert any("nothing to run" in line for line in lines)
     assert again["summary"] == public["summary"]
+
+
+def _assert_stored_maps_are_the_scored_ones(out: Path) -> None:
+    """Every comparison cell stored its final label map on the map's cells with the truth it
+    was scored against (the ARI of the one against the other is the row's), and the report drew
+    them."""
+    from spcopyro.metrics import adjusted_rand_index
+    from spcopyro.study.maps import load_label_map
+    from spcopyro.study.table import read_table
+
+    rows = read_table(out / "results.csv")
+    assert rows and all(r["scoring"] == "comparison" for r in rows)
+    for row in rows:
+        stored = load_label_map(out, row)
+        assert stored is not None and stored.truth is not None, row["label_map"]
+        assert stored.labels.shape == stored.grid.shape == stored.truth.shape
+        assert adjusted_rand_index(stored.labels, stored.truth) == pytest.approx(row["ari"])
+    for data in {r["data"] for r in rows}:
+        assert (out / f"maps_{data}.png").is_file()
 
 
 @pytest.mark.parametrize("quick", [False, True])

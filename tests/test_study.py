@@ -58,6 +58,13 @@ TINY_DICT = {
     },
 }  # fmt: skip
 TIMING = {"seconds", "cpu_seconds"}
+WORKER_STATE = """(
+    __import__("os").environ.get("MALLOC_TRIM_THRESHOLD_"),
+    __import__("os").environ.get("OMP_NUM_THREADS"),
+    "spcopyro.study.evaluate" in __import__("sys").modules,
+)"""
+"""In a worker, before any cell: its MALLOC_TRIM_THRESHOLD_ and OMP_NUM_THREADS, and whether
+the cells' code is imported."""
 
 
 def _write(tmp_path: Path, text: str = TINY, name: str = "tiny.toml") -> Path:
@@ -205,24 +212,30 @@ def test_quality_time_figure_shows_every_group_and_skips_what_it_cannot_place():
     assert quality_time_figure([row("dense", "default", "gibbs", 1.0, None)]) is None
 
 
-def test_local_cluster_gives_the_same_numbers(in_process, tmp_path):
+@pytest.mark.parametrize("start_in_process", [False, True])
+def test_local_cluster_gives_the_same_numbers(in_process, tmp_path, start_in_process):
+    """On the workers only, or partly in this process while they start: the same numbers."""
     pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
     path, out = in_process
-    run = run_study(load_study(path), tmp_path / "dask", workers=2, progress=False)
+    run = run_study(load_study(path), tmp_path / "dask", workers=2, progress=False,
+                    start_in_process=start_in_process)  # fmt: skip
     assert run.where == "LocalCluster(2 workers)" and run.ran == 6 and run.failed == 0
+    assert run.ran_here <= 6 if start_in_process else run.ran_here == 0
     local = read_table(out / "results.csv")
     dask = read_table(tmp_path / "dask" / "results.csv")
     assert _scores(dask) == _scores(local)
 
 
-def test_local_cluster_workers_start_without_dasks_malloc_trim_threshold(monkeypatch):
-    """Dask's nanny sets MALLOC_TRIM_THRESHOLD_ in each worker, which turns off glibc's dynamic
-    mmap threshold: cells ran 1.5-2x slower there than in-process. The LocalCluster the study
-    starts is made with it unset (None: the nanny leaves it out of the worker's environment)."""
+@pytest.mark.parametrize("method", ["spawn", "forkserver"])
+def test_local_cluster_is_made_without_dasks_malloc_trim_threshold(monkeypatch, method):
+    """Dask's nanny sets MALLOC_TRIM_THRESHOLD_ in each spawned worker, which turns off glibc's
+    dynamic mmap threshold: cells ran 1.5-2x slower there than in-process. The LocalCluster the
+    study starts is made with it unset (None: the nanny leaves it out of the worker's
+    environment), whichever way its workers start."""
     distributed = pytest.importorskip("distributed")
     import dask
 
-    from spcopyro.study import run as study_run
+    from spcopyro.study import local_cluster
 
     seen = {}
 
@@ -230,14 +243,40 @@ def test_local_cluster_workers_start_without_dasks_malloc_trim_threshold(monkeyp
         pass
 
     def fake_cluster(*args, **kwargs):
-        seen.update(dask.config.get(study_run.PRE_SPAWN_ENVIRON))
+        seen.update(dask.config.get(local_cluster.PRE_SPAWN_ENVIRON))
+        seen["method"] = dask.config.get(local_cluster.MULTIPROCESSING_METHOD)
         raise Stop
 
     monkeypatch.setattr(distributed, "LocalCluster", fake_cluster)
+    monkeypatch.setattr(local_cluster, "start_forkserver", lambda: None)
     with pytest.raises(Stop):
-        next(study_run._on_dask([], 2, None))
+        local_cluster.local_cluster(2, method)
     assert "MALLOC_TRIM_THRESHOLD_" in seen and seen["MALLOC_TRIM_THRESHOLD_"] is None
-    assert dask.config.get(study_run.PRE_SPAWN_ENVIRON)["MALLOC_TRIM_THRESHOLD_"] is not None
+    assert seen["method"] == method
+    assert dask.config.get(local_cluster.PRE_SPAWN_ENVIRON)["MALLOC_TRIM_THRESHOLD_"] is not None
+
+
+def test_forked_workers_start_with_the_cells_code_and_one_thread(monkeypatch):
+    """The study's LocalCluster forks its workers from a server that imported the cells' code
+    with one BLAS thread and without MALLOC_TRIM_THRESHOLD_, even when this process has it
+    (Dask's nanny leaves it in the parent's environment after spawning a worker)."""
+    pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    from distributed import Client
+
+    from spcopyro.study import local_cluster
+
+    if not local_cluster.forkserver_available():
+        pytest.skip("no forkserver on this platform")
+    monkeypatch.setenv("MALLOC_TRIM_THRESHOLD_", "65536")
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    cluster = local_cluster.local_cluster(1)
+    try:
+        with Client(cluster) as client:
+            seen = client.run(eval, WORKER_STATE)  # a builtin: the worker imports nothing
+    finally:
+        cluster.close()
+    [(malloc_trim, threads, preloaded)] = seen.values()
+    assert malloc_trim is None and threads == "1" and preloaded
 
 
 def test_interrupted_study_runs_only_the_missing_cells(in_process, tmp_path, monkeypatch):
@@ -312,7 +351,7 @@ def test_cli_runs_resumes_and_redraws(in_process, tmp_path, capsys, monkeypatch)
     out = tmp_path / "cli"
     assert main(["study", str(path), "--out", str(out), "--workers", "1"]) == 0
     assert "| og3 | gibbs |" in capsys.readouterr().out
-    assert main(["study", str(path), "--out", str(out), "--workers", "1"]) == 0
+    assert main(["study", str(path), "--out", str(out), "--workers", "1", "--rerun-stale"]) == 0
     assert "nothing to run" in capsys.readouterr().out
     report = (out / "report.md").read_text()
     (out / "report.md").unlink()
@@ -369,6 +408,57 @@ def test_finished_study_restarted_does_nothing_and_says_so(in_process, tmp_path,
         assert now == (before or now)
         before = now
     assert len(read_table(out / "results.csv")) == 6
+
+
+def test_cells_other_source_computed_are_named_kept_and_rerun_when_asked(in_process, tmp_path):
+    """Each record holds the digest of the source that computed it. A restarted finished study
+    whose cells other source computed (or no digest names) still runs nothing, says how many
+    and its report says so; --rerun-stale runs exactly those again."""
+    from spcopyro.study.cells import source_digest
+
+    path, finished = in_process
+    out = tmp_path / "out"
+    shutil.copytree(finished, out)
+    rows = read_table(out / "results.csv")
+    assert {r["source_digest"] for r in rows} == {source_digest()}
+    changed = [out / "cells" / f"{row['key']}.json" for row in rows[:2]]  # of this study
+    for stored, digest in zip(changed, ("0123456789abcdef", None), strict=True):
+        record = json.loads(stored.read_text())
+        record.pop("source_digest")
+        if digest is not None:
+            record["source_digest"] = digest
+        stored.write_text(json.dumps(record))
+    lines: list[str] = []
+    run = run_study(load_study(path), out, progress=False, report=lines.append)
+    assert (run.ran, run.cached) == (0, 6)
+    assert lines[0].startswith("nothing to run: all 6 cells")
+    assert lines[1].startswith("2 of the finished cells were computed by other spcopyro source")
+    assert "--rerun-stale" in lines[1] and source_digest() in lines[1]
+    assert "**Cells of 3 versions of spcopyro's source**" in (out / "report.md").read_text()
+    again = run_study(load_study(path), out, progress=False, rerun_stale=True)
+    assert (again.ran, again.cached) == (2, 4)
+    assert {r["source_digest"] for r in read_table(out / "results.csv")} == {source_digest()}
+    assert "versions of spcopyro's source" not in (out / "report.md").read_text()
+    lines.clear()
+    run_study(load_study(path), out, progress=False, report=lines.append, rerun_stale=True)
+    assert len(lines) == 1 and lines[0].startswith("nothing to run")
+
+
+def test_package_digest_covers_python_sources_only(tmp_path):
+    from spcopyro.study.cells import package_digest
+
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "a.py").write_text("x = 1\n")
+    (tmp_path / "sub" / "b.py").write_text("y = 2\n")
+    first = package_digest(tmp_path)
+    (tmp_path / "notes.md").write_text("not code")
+    (tmp_path / "sub" / "b.pyc").write_bytes(b"compiled")
+    assert package_digest(tmp_path) == first
+    (tmp_path / "sub" / "b.py").write_text("y = 3\n")
+    assert package_digest(tmp_path) != first
+    (tmp_path / "sub" / "b.py").write_text("y = 2\n")
+    (tmp_path / "sub" / "b.py").rename(tmp_path / "b2.py")
+    assert package_digest(tmp_path) != first  # a file's path counts
 
 
 def test_cells_store_their_label_maps_and_the_report_draws_them(in_process, tmp_path):

@@ -34,7 +34,7 @@ def study_path(text: str) -> Path:
 
 def _study(args: argparse.Namespace) -> int:
     from spcopyro.study.report import write_report
-    from spcopyro.study.run import default_workers, run_study
+    from spcopyro.study.run import default_workers, plan_markdown, plan_study, run_study
     from spcopyro.study.spec import load_study
     from spcopyro.study.table import TABLE
 
@@ -46,10 +46,14 @@ def _study(args: argparse.Namespace) -> int:
             raise FileNotFoundError(f"--report-only: {out / TABLE} does not exist; run the study")
         print(f"wrote {write_report(out / TABLE, out / 'report.md', title=study.name)}")
         return 0
+    if args.dry_run:
+        plan = plan_study(study, out, args.retry_failed, args.rerun_stale, args.data)
+        print(plan_markdown(plan, study))
+        return 0
     workers = args.workers if args.workers is not None else default_workers()
     run = run_study(
         study, out, workers=workers, scheduler=args.scheduler, retry_failed=args.retry_failed,
-        root=args.data, report=print,
+        rerun_stale=args.rerun_stale, root=args.data, report=print,
     )  # fmt: skip
     if run.ran:
         print((out / "report.md").read_text())
@@ -83,6 +87,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "$SPCOPYRO_DATA or ../shared/data/spcomapping)")  # fmt: skip
     p.add_argument("--retry-failed", action="store_true",
                    help="run again the cells stored with an error (default: keep it)")  # fmt: skip
+    p.add_argument("--rerun-stale", action="store_true",
+                   help="run again the finished cells that other spcopyro source computed "
+                        "(their source_digest is not this install's; default: keep them and "
+                        "say how many)")  # fmt: skip
+    p.add_argument("--dry-run", action="store_true",
+                   help="print the cells a run would run (per data, variant and method, with "
+                        "their iterations); fit and write nothing")  # fmt: skip
     p.add_argument("--report-only", action="store_true",
                    help="redraw report.md from OUT/results.csv; fit nothing")  # fmt: skip
     p.set_defaults(func=_study)

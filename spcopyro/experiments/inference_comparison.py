@@ -266,6 +266,14 @@ def _output_of_labels(labels: np.ndarray, data: ModelData, config) -> InferenceO
 
 def fit_and_score(variant: Variant, problem: Problem, iterations: int) -> dict[str, object]:
     """Fit ``variant`` to the problem and score it along the run (see the module docstring)."""
+    return fit_and_score_with_result(variant, problem, iterations)[0]
+
+
+def fit_and_score_with_result(
+    variant: Variant, problem: Problem, iterations: int
+) -> tuple[dict[str, object], SpCoResult]:
+    """:func:`fit_and_score`'s record, and the fit's final result (the state its final scores
+    are of: a study keeps its label map)."""
     method = INFERENCE_METHODS[variant.method]
     options = variant_options(variant)
     counts, data = prepare_model_data(problem.house, problem.settings)
@@ -356,7 +364,7 @@ def fit_and_score(variant: Variant, problem: Problem, iterations: int) -> dict[s
             inside = truth >= 0
             wrong = stats.wrong_cells(labels[inside], truth[inside])
             record["overconfidence"] = stats.overconfidence(confidence[inside], wrong)
-    return record
+    return record, final_result
 
 
 def _confidence(output: InferenceOutput) -> np.ndarray | None:

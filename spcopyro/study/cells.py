@@ -6,11 +6,19 @@ resolved options, the fit's keyword arguments, the iterations, the seed and the 
 -- and not of its names: renaming a variant or a data source reruns nothing, changing any value
 that reaches the fit reruns exactly the cells it reaches. The cache
 (:mod:`spcopyro.study.run`) stores each finished cell's scores under that key.
+
+The code is in the key only through ``__version__``. What else of the code made a cell is in its
+record: :func:`source_digest`, a digest of every ``spcopyro/**/*.py`` file of the process that
+ran the cell (a worker's own, on a cluster). Keeping it out of the key keeps a study's hours of
+cells when a comment or an unrelated module changes; :func:`spcopyro.study.run.run_study` names
+the finished cells another source computed and runs them again only when asked
+(``rerun_stale``, ``--rerun-stale``).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 from dataclasses import dataclass
@@ -21,7 +29,7 @@ from spcopyro.experiments.ablation_variants import Variant
 from spcopyro.study.sources import data_digest, resolve_source
 from spcopyro.study.spec import DataSource, Study
 
-__all__ = ["BASELINE_METHOD", "Cell", "cells_of"]
+__all__ = ["BASELINE_METHOD", "Cell", "cells_of", "package_digest", "source_digest"]
 
 BASELINE_METHOD = "baseline"
 """The method column of a baseline row."""
@@ -68,6 +76,23 @@ class Cell:
             "overrides": variant.describe().partition(":")[2] if variant else "",
             "version": __version__,
         }
+
+
+@functools.cache
+def source_digest() -> str:
+    """The digest of this process's spcopyro source (:func:`package_digest` of the package's
+    folder), computed once per process: about 200 files, a few tens of milliseconds."""
+    return package_digest(Path(__file__).resolve().parents[1])
+
+
+def package_digest(package: Path) -> str:
+    """The first 16 hex digits of the sha256 over every ``*.py`` file under ``package``, by
+    path relative to it and content, in path order."""
+    digest = hashlib.sha256()
+    for path in sorted(package.rglob("*.py")):
+        digest.update(path.relative_to(package).as_posix().encode() + b"\0")
+        digest.update(path.read_bytes() + b"\0")
+    return digest.hexdigest()[:16]
 
 
 def _settings_json(variant: Variant) -> dict[str, object]:

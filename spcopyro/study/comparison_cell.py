@@ -16,7 +16,10 @@ The cell's record holds the final scores in the table's columns (``ari``, ``matc
 ``top1``, ``top3``, ``mean_rank``, ``distance_m``, ``concepts``, ``iterations``, ``seconds``:
 the inference's own time) and the whole comparison record (the curve, time to 95 %, ESS,
 over-confidence, top words) as JSON text in ``details``, from which
-:mod:`spcopyro.study.comparison` draws ``comparison.md`` and its figures. Threads: as the
+:mod:`spcopyro.study.comparison` draws ``comparison.md`` and its figures. Its label map is the
+fit's final state on the map's cells (refined from the model's grid), with the map and the
+truth it was scored against (:func:`spcopyro.study.maps.label_map_arrays`), stored as every
+cell's is (``maps/KEY.npz``) so reports draw it. Threads: as the
 comparison, the method runs with :func:`spcopyro._util.threads.policy_threads` of the map.
 """
 
@@ -25,15 +28,16 @@ from __future__ import annotations
 import dataclasses
 import json
 
-from spcopyro.data import load_house
+from spcopyro.data import House, load_house
 from spcopyro.data.model_grid import model_house
 from spcopyro.experiments import inference_comparison as comparison
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import heldout_folds, json_default
 from spcopyro.study.cells import Cell
+from spcopyro.study.maps import Arrays, label_map_arrays, labels_on_map
 from spcopyro.synthetic import make_house
 
-__all__ = ["COMPARISON", "comparison_scores", "comparison_variant", "problem_of"]
+__all__ = ["COMPARISON", "comparison_outcome", "comparison_variant", "problem_of"]
 
 COMPARISON = "comparison"
 """The ``scoring`` of a study whose cells are scored as ``compare-inference`` scores a fit."""
@@ -55,14 +59,20 @@ def comparison_variant(cell: Cell) -> comparison.Variant:
 
 def problem_of(cell: Cell) -> comparison.Problem:
     """The comparison's problem for the cell (module docstring)."""
+    return _problem_and_map(cell)[0]
+
+
+def _problem_and_map(cell: Cell) -> tuple[comparison.Problem, House]:
+    """The comparison's problem for the cell (module docstring), and its house on the map's own
+    cells with the truth the problem is scored against."""
     assert cell.variant is not None
     data = cell.data
     seed = cell.seed if data.house_seed is None else data.house_seed
     if data.kind == "synthetic":
         house = make_house(seed=seed, spec=data.house_spec())
         settings = cell.variant.spco_settings(len(house.category_names or ()) or None)
-        house = model_house(house, settings.data.cell_size)
-        return comparison.Problem(house, settings, cell.seed, name=f"seed {seed}")
+        on_model = model_house(house, settings.data.cell_size)
+        return comparison.Problem(on_model, settings, cell.seed, name=f"seed {seed}"), house
     if data.kind != "public":
         raise ValueError(f"data source {data.name!r}: comparison scoring takes synthetic and "
                          f"public houses, not {data.kind}")  # fmt: skip
@@ -70,26 +80,27 @@ def problem_of(cell: Cell) -> comparison.Problem:
     truth = public_truth(house)  # scored on the project's region truth too
     house = dataclasses.replace(house, truth=truth.labels, category_names=truth.categories)
     settings = cell.variant.spco_settings(None)
-    house = model_house(house, settings.data.cell_size)
-    folds = list(heldout_folds(house))
+    folds = list(heldout_folds(model_house(house, settings.data.cell_size)))
     fold, held, train, test = folds[cell.seed % len(folds)]
     name = f"{data.name} (held-out trial {held})"
-    return comparison.Problem(train, settings, fold, test, name)
+    return comparison.Problem(train, settings, fold, test, name), house
 
 
-def comparison_scores(cell: Cell) -> dict[str, object]:
-    """Fit and score the cell as the comparison does; its record's columns (module docstring)."""
+def comparison_outcome(cell: Cell) -> tuple[dict[str, object], Arrays]:
+    """Fit and score the cell as the comparison does: its record's columns (module docstring)
+    and its label map (:func:`spcopyro.study.maps.label_map_arrays`)."""
     variant = comparison_variant(cell)
     if cell.variant is not None and cell.variant.fit:
         raise ValueError(f"variant {cell.row!r}: comparison scoring runs the method directly; "
                          f"it takes no fit_house arguments ({dict(cell.variant.fit)})")  # fmt: skip
-    problem = problem_of(cell)
+    problem, house = _problem_and_map(cell)
     comparison.warm_up(variant, problem)
-    record = comparison.fit_and_score(variant, problem, cell.sweeps)
+    record, result = comparison.fit_and_score_with_result(variant, problem, cell.sweeps)
     final = record["final"]
     scores: dict[str, object] = {s: final[s] for s in FINAL_SCORES if s in final}  # type: ignore[index]
     scores.update(
         concepts=record["concepts"], iterations=record["iterations"], seconds=record["seconds"],
         details=json.dumps(record, default=json_default),
     )  # fmt: skip
-    return scores
+    labels = labels_on_map(result, house, problem.settings)  # [H, W]
+    return scores, label_map_arrays(labels, house, house.truth)

@@ -25,6 +25,8 @@ Scores (every one that applies; the others are left empty in the table, :data:`S
   ``use_images = use_words = False`` (same seed): ``ari_off`` (against the truth),
   ``ari_on_off`` (between the two maps), ``concepts_1pct_off``, ``seconds_off`` and
   ``cpu_seconds_off``;
+* ``source_digest``: :func:`spcopyro.study.cells.source_digest` of the process that ran the
+  cell, the code that made its numbers;
 * ``seconds`` (wall clock) and ``cpu_seconds`` of the fit, ``iterations``, and
   ``best_objective`` (the reported state's log joint or ELBO: the best of K chains is the
   chain where it is highest);
@@ -35,8 +37,9 @@ Scores (every one that applies; the others are left empty in the table, :data:`S
 * the trace (objective, concepts in use and seconds per iteration; with the study's
   ``ari_every``, also ``ari`` against the truth at ``ari_iterations``, paper Fig. 5), returned
   beside the record and saved by the caller as ``traces/KEY.npz``;
-* the cell's label map on the map's cells with the map itself (:func:`label_map_arrays`: int16
-  labels, int8 occupancy, resolution, origin and the truth when there is one), returned beside
+* the cell's label map on the map's cells with the map itself
+  (:func:`~spcopyro.study.maps.label_map_arrays`: int16 labels, int8 occupancy, resolution,
+  origin and the truth when there is one; comparison cells too), returned beside
   the record and saved by the caller as ``maps/KEY.npz``: the report's per-house maps are drawn
   from it, with no refit;
 * ``details``: a study with ``scoring = "comparison"`` scores its cells as ``compare-inference``
@@ -57,7 +60,6 @@ from spcopyro.data.model_grid import model_house
 from spcopyro.experiments.ablation import concepts_over, top_words
 from spcopyro.experiments.methods import RunSettings, fit_method, fit_spco
 from spcopyro.fit.house import fit_house
-from spcopyro.maps.coarse import coarsening_factor, refine_labels
 from spcopyro.metrics import (
     SpCoSemanticMap,
     adjusted_rand_index,
@@ -65,8 +67,9 @@ from spcopyro.metrics import (
     heldout_word_prediction,
     matching_rate,
 )
-from spcopyro.study.cells import Cell
-from spcopyro.study.comparison_cell import COMPARISON, comparison_scores
+from spcopyro.study.cells import Cell, source_digest
+from spcopyro.study.comparison_cell import COMPARISON, comparison_outcome
+from spcopyro.study.maps import Arrays, label_map_arrays, labels_on_map
 from spcopyro.study.sources import load_cell_data
 from spcopyro.synthetic import FILLER_WORDS
 
@@ -86,20 +89,19 @@ STATUS_COLUMNS = ("status", "error_type", "error")
 SENTENCE_MIN_CELLS = 50
 """A concept counts in ``filler_top_share`` when it labels at least this many cells."""
 
-Arrays = dict[str, np.ndarray]
-"""Named arrays saved as one ``.npz`` (a trace, a label map)."""
-
 
 def run_cell(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays | None]:
     """The cell's record (status and scores, keyed by ``cell.key``), its trace (None for a
-    baseline or a failed cell) and its label map (:func:`label_map_arrays`; None for a failed
-    or a comparison cell). Runs torch with one intra-op thread."""
-    record: dict[str, object] = {"key": cell.key, "status": "ok", "error_type": "", "error": ""}
+    baseline, a failed or a comparison cell) and its label map
+    (:func:`~spcopyro.study.maps.label_map_arrays`; None for a failed cell). Runs torch with
+    one intra-op thread."""
+    record: dict[str, object] = {"key": cell.key, "status": "ok", "error_type": "", "error": "",
+                                 "source_digest": source_digest()}  # fmt: skip
     trace = label_map = None
     try:
         with torch_threads(1):
             if cell.scoring == COMPARISON:
-                scores = comparison_scores(cell)
+                scores, label_map = comparison_outcome(cell)
             else:
                 scores, trace, label_map = _fit_and_score(cell)
         record.update(scores)
@@ -107,22 +109,6 @@ def run_cell(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays | Non
         record.update(status="error", error_type=type(error).__name__, error=str(error)[:2000])
         trace = label_map = None
     return record, trace, label_map
-
-
-def label_map_arrays(labels: np.ndarray, house, truth: np.ndarray | None) -> Arrays:
-    """A cell's ``[H, W]`` label map on the map's cells as stored (``maps/KEY.npz``): ``labels``
-    int16 (-1: not a free cell), the map's ``occupancy`` int8, ``resolution`` and ``origin``,
-    and ``truth`` int16 when the source has one -- all a figure needs to draw the map."""
-    grid = house.grid
-    arrays: Arrays = {
-        "labels": np.asarray(labels, dtype=np.int16),
-        "occupancy": np.asarray(grid.occupancy, dtype=np.int8),
-        "resolution": np.float64(grid.resolution),
-        "origin": np.asarray(grid.origin, dtype=np.float64),
-    }
-    if truth is not None:
-        arrays["truth"] = np.asarray(truth, dtype=np.int16)
-    return arrays
 
 
 def _fit_and_score(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays]:
@@ -141,7 +127,7 @@ def _fit_and_score(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays
         settings = cell.variant.spco_settings(loaded.num_categories)
         result, ari_trace = _fit(cell, house, settings, loaded.truth)
         model = SpCoSemanticMap(result)
-        labels = _on_map(result, house, settings)
+        labels = labels_on_map(result, house, settings)
         scored_house = model_house(loaded.full, settings.data.cell_size)  # the model's grid
     scores: dict[str, object] = {
         "seconds": time.perf_counter() - start,
@@ -208,15 +194,6 @@ def _fit(cell: Cell, house, settings, truth: np.ndarray | None = None):
     return result, None
 
 
-def _on_map(result, house, settings) -> np.ndarray:
-    """``[H, W]`` the fit's labels on the map's cells (refined from a coarser model grid)."""
-    labels = result.label_image()  # [h, w] on the model's grid
-    if labels.shape != house.grid.shape:
-        factor = coarsening_factor(house.grid.resolution, settings.data.cell_size)
-        labels = refine_labels(labels, house.grid, factor)
-    return labels
-
-
 def _observations_off(cell: Cell, loaded, labels: np.ndarray) -> dict[str, object]:
     """The same fit with images and words off: what the map is from the MRF alone, and how
     much the data moved it (``labels`` ``[H, W]``: the fit's map on the map's cells)."""
@@ -224,7 +201,7 @@ def _observations_off(cell: Cell, loaded, labels: np.ndarray) -> dict[str, objec
     house = loaded.house
     settings = cell.variant.spco_settings(loaded.num_categories, use_images=False, use_words=False)
     start, cpu = time.perf_counter(), time.process_time()
-    off = _on_map(_fit(cell, house, settings)[0], house, settings)
+    off = labels_on_map(_fit(cell, house, settings)[0], house, settings)
     scores: dict[str, object] = {
         "seconds_off": time.perf_counter() - start,
         "cpu_seconds_off": time.process_time() - cpu,

@@ -1,7 +1,7 @@
 """Per-house maps drawn from a study's stored label maps (issue 26 item 2): nothing is refitted.
 
 Every finished cell stores its label map on the map's cells with the map itself and the truth
-(``OUT/maps/KEY.npz``, :func:`spcopyro.study.evaluate.label_map_arrays`; the table's
+(``OUT/maps/KEY.npz``, :func:`label_map_arrays`; the table's
 ``label_map`` column names the file). :func:`write_house_maps` draws, per data source, one
 figure of every row's map (variant or baseline, with its method) at the source's first seed,
 beside the truth when it is known -- from ``results.csv`` and those files alone, so
@@ -22,11 +22,43 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro.maps import OccupancyGrid
+from spcopyro.maps.coarse import coarsening_factor, refine_labels
 
-__all__ = ["MAPS_PREFIX", "StoredMap", "load_label_map", "plot_label_maps", "write_house_maps"]
+__all__ = [
+    "MAPS_PREFIX", "Arrays", "StoredMap", "label_map_arrays", "labels_on_map", "load_label_map",
+    "plot_label_maps", "write_house_maps",
+]  # fmt: skip
 
+Arrays = dict[str, np.ndarray]
+"""Named arrays saved as one ``.npz`` (a trace, a label map)."""
 MAPS_PREFIX = "maps_"
 """A source's figure is ``OUT/maps_<data>.png``."""
+
+
+def labels_on_map(result, house, settings) -> np.ndarray:
+    """``[H, W]`` a fit's labels on the map's cells of ``house`` (refined from a coarser model
+    grid of ``settings.data.cell_size``, :func:`spcopyro.maps.coarse.refine_labels`)."""
+    labels = result.label_image()  # [h, w] on the model's grid
+    if labels.shape != house.grid.shape:
+        factor = coarsening_factor(house.grid.resolution, settings.data.cell_size)
+        labels = refine_labels(labels, house.grid, factor)
+    return labels
+
+
+def label_map_arrays(labels: np.ndarray, house, truth: np.ndarray | None) -> Arrays:
+    """A cell's ``[H, W]`` label map on the map's cells as stored (``maps/KEY.npz``): ``labels``
+    int16 (-1: not a free cell), the map's ``occupancy`` int8, ``resolution`` and ``origin``,
+    and ``truth`` int16 when the source has one -- all a figure needs to draw the map."""
+    grid = house.grid
+    arrays: Arrays = {
+        "labels": np.asarray(labels, dtype=np.int16),
+        "occupancy": np.asarray(grid.occupancy, dtype=np.int8),
+        "resolution": np.float64(grid.resolution),
+        "origin": np.asarray(grid.origin, dtype=np.float64),
+    }
+    if truth is not None:
+        arrays["truth"] = np.asarray(truth, dtype=np.int16)
+    return arrays
 
 
 @dataclass(frozen=True)
@@ -41,7 +73,7 @@ class StoredMap:
 
 def load_label_map(folder: str | os.PathLike[str], row: dict[str, object]) -> StoredMap | None:
     """The stored label map of a table row (its ``label_map`` file under ``folder``); None when
-    the row has none (a failed or comparison cell, or one stored before label maps were)."""
+    the row has none (a failed cell, or one stored before its kind of cell kept label maps)."""
     name = row.get("label_map")
     if not name or row.get("status") != "ok":
         return None

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections import Counter
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -64,9 +65,16 @@ def report_markdown(
     rows: Sequence[dict[str, object]], title: str = "study", scores: Sequence[str] = REPORT_SCORES
 ) -> str:
     """Markdown: per data source, a table of mean +- sd over seeds per (variant, method);
-    then the failed cells with their errors."""
+    then the failed cells with their errors. A table whose cells other spcopyro source computed
+    (more than one ``source_digest``) says so first."""
     summary = summary_rows(rows, scores)
     lines = [f"# {title}", "", f"{len(rows)} cells in the table; mean +- sample sd over seeds.", ""]
+    digests = Counter(str(r.get("source_digest") or "none") for r in rows)
+    if len(digests) > 1:
+        counts = ", ".join(f"`{d}` {n}" for d, n in digests.most_common())
+        lines += [f"**Cells of {len(digests)} versions of spcopyro's source** (column "
+                  f"`source_digest`: {counts}); `--rerun-stale` runs again those that other "
+                  "source than the running spcopyro's computed.", ""]  # fmt: skip
     for data in dict.fromkeys(str(e["data"]) for e in summary):
         entries = [e for e in summary if e["data"] == data]
         shown = [s for s in scores if any(s in e for e in entries)]

@@ -5,13 +5,17 @@ key the folder's cache holds (:class:`spcopyro.study.table.CellStore`), runs the
 stores each one the moment it finishes, then rebuilds ``results.csv`` and ``report.md`` from the
 cache -- also when interrupted, so a restarted study continues where it stopped and a finished
 one runs nothing (and says so). A cell that fails is stored with its error and not run again
-unless ``retry_failed``.
+unless ``retry_failed``; a cell that other spcopyro source computed (its record's
+``source_digest``, :mod:`spcopyro.study.cells`) is kept, and named, unless ``rerun_stale``.
 
 Where the cells run:
 
 * ``workers <= 1`` and no ``scheduler``: one after another in this process;
 * ``workers > 1``: a ``dask.distributed.LocalCluster`` of that many worker processes, one
-  thread each;
+  thread each, forked from a server that imported the cells' code once
+  (:mod:`spcopyro.study.local_cluster`). The cluster starts on a thread while this process runs
+  cells one after another; the moment the workers are up they take every cell not started yet,
+  and the cluster closes while the table is written;
 * ``scheduler="tcp://HOST:PORT"``: the Dask cluster already running there (e.g. one that
   ``dask-jobqueue`` started on Slurm or PBS; docs/studies.md). Its workers need spcopyro and
   the data at the same paths.
@@ -24,9 +28,10 @@ cell gives the same numbers wherever it runs. Dask is an optional dependency
 from __future__ import annotations
 
 import json
-import logging
 import os
+import threading
 import time
+from collections import deque
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,15 +39,16 @@ from pathlib import Path
 from spcopyro._util.progress import progress_enabled
 from spcopyro.gibbs.chains import usable_cpus
 from spcopyro.study import evaluate
-from spcopyro.study.cells import Cell, cells_of
+from spcopyro.study.cells import Cell, cells_of, source_digest
+from spcopyro.study.local_cluster import PRE_SPAWN_ENVIRON, ClusterStart
 from spcopyro.study.report import write_report
 from spcopyro.study.spec import Study
 from spcopyro.study.table import TABLE, CellStore, table_rows, write_table
 
-__all__ = ["StudyRun", "default_workers", "run_study"]
-
-PRE_SPAWN_ENVIRON = "distributed.nanny.pre-spawn-environ"
-"""Dask's config of the environment its nanny gives each worker process."""
+__all__ = [
+    "PRE_SPAWN_ENVIRON", "StudyPlan", "StudyRun", "default_workers", "plan_markdown", "plan_study",
+    "run_study",
+]  # fmt: skip
 
 Outcome = tuple[Cell, dict[str, object], object, object]
 """A finished cell, its record, its trace and its label map."""
@@ -65,6 +71,9 @@ class StudyRun:
     where: str
     """``in-process``, ``LocalCluster(N workers)`` or the scheduler's address."""
     interrupted: bool = False
+    ran_here: int = 0
+    """Of ``ran``, the cells a LocalCluster run ran in this process while its workers started
+    (all of them for an in-process run: ``ran``)."""
 
     @property
     def table(self) -> Path:
@@ -88,27 +97,29 @@ def run_study(
     workers: int = 1,
     scheduler: str | None = None,
     retry_failed: bool = False,
+    rerun_stale: bool = False,
     root: str | os.PathLike[str] | None = None,
     progress: bool | None = None,
     report: Callable[[str], None] = _say_nothing,
+    start_in_process: bool = True,
 ) -> StudyRun:
     """Run the cells of ``study`` that ``out`` does not hold yet (module docstring).
 
-    ``root``: the public dataset's folder for sources named by house (default:
+    ``rerun_stale``: also run the finished cells that other spcopyro source computed (their
+    record's ``source_digest`` is not this process's :func:`spcopyro.study.cells.source_digest`;
+    without it they are kept and counted in a line of ``report``). ``root``: the public
+    dataset's folder for sources named by house (default:
     :func:`spcopyro.data.find_dataset_root`). ``report`` receives one line per failed cell and
-    a closing line. KeyboardInterrupt stops the run after storing every finished cell and
-    rewriting the table, then propagates.
+    a closing line. ``start_in_process``: with a LocalCluster, run cells in this process while
+    its workers start (module docstring). KeyboardInterrupt stops the run after storing every
+    finished cell and rewriting the table, then propagates.
     """
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     out = Path(out)
     start = time.perf_counter()
-    cells = cells_of(study, root)
+    cells, pending, cached, stale = plan_study(study, out, retry_failed, rerun_stale, root)
     store = CellStore(out)
-    finished = store.finished()
-    done = {k for k, r in finished.items() if not (retry_failed and r.get("status") == "error")}
-    pending = list({c.key: c for c in cells if c.key not in done}.values())  # one per key
-    cached = len({c.key for c in cells} & done)
     out.mkdir(parents=True, exist_ok=True)
     (out / "study.json").write_text(json.dumps(study.to_json(), indent=1, default=str))
     where = _where(workers, scheduler)
@@ -116,17 +127,23 @@ def run_study(
         _finish(out, study, cells, store)
         report(f"nothing to run: all {len(cells)} cells of study {study.name!r} are finished "
                f"in {out} (delete cells/ there to run them again)")  # fmt: skip
+        if stale:
+            report(_stale_line(len(stale)))
         return StudyRun(out, len(cells), cached, 0, 0, time.perf_counter() - start, where)
     report(f"study {study.name!r}: {len(pending)} of {len(cells)} cells to run ({cached} "
            f"finished before), {where}")  # fmt: skip
+    if stale and not rerun_stale:
+        report(_stale_line(len(stale)))
     ran = failed = 0
     interrupted = False
     bar = _bar(len(pending), progress)
+    in_process = scheduler is None and workers <= 1
+    background = _Background()
     try:
         outcomes = (
             _in_process(pending)
-            if scheduler is None and workers <= 1
-            else _on_dask(pending, workers, scheduler)
+            if in_process
+            else _on_dask(pending, workers, scheduler, background, start_in_process)
         )
         for cell, record, trace, label_map in outcomes:
             store.put(record, trace, label_map)  # type: ignore[arg-type]
@@ -144,13 +161,80 @@ def run_study(
         if bar is not None:
             bar.close()
         _finish(out, study, cells, store)
+        background.join()  # the LocalCluster's close, left running while the table was written
         seconds = time.perf_counter() - start
         if interrupted:
             report(f"interrupted after {ran} cells: {len(pending) - ran} left; run the same "
                    "command again to continue")  # fmt: skip
+    ran_here = ran if in_process else background.ran_here
+    if not in_process and ran_here:
+        report(f"{ran_here} of them ran in this process while the LocalCluster started")
     report(f"ran {ran} cells in {seconds:.1f} s ({failed} failed), {cached} finished before; "
            f"wrote {out / TABLE} and {out / 'report.md'}")  # fmt: skip
-    return StudyRun(out, len(cells), cached, ran, failed, seconds, where)
+    return StudyRun(out, len(cells), cached, ran, failed, seconds, where, ran_here=ran_here)
+
+
+@dataclass(frozen=True)
+class StudyPlan:
+    """What a run of a study into a folder would run (:func:`plan_study`)."""
+
+    cells: list[Cell]
+    """Every cell of the study, in table order."""
+    pending: list[Cell]
+    """The cells to run (one per key)."""
+    cached: int
+    """Cells finished before (not run)."""
+    stale: set[str]
+    """Keys of finished cells that other spcopyro source computed."""
+
+    def __iter__(self):
+        return iter((self.cells, self.pending, self.cached, self.stale))
+
+
+def plan_study(
+    study: Study, out: str | os.PathLike[str], retry_failed: bool = False,
+    rerun_stale: bool = False, root: str | os.PathLike[str] | None = None,
+) -> StudyPlan:  # fmt: skip
+    """What :func:`run_study` with these arguments would run; writes nothing."""
+    cells = cells_of(study, root)
+    finished = CellStore(out).finished()
+    done = {k for k, r in finished.items() if not (retry_failed and r.get("status") == "error")}
+    stale = _stale(cells, finished, done)
+    if rerun_stale:
+        done -= stale
+    pending = list({c.key: c for c in cells if c.key not in done}.values())  # one per key
+    return StudyPlan(cells, pending, len({c.key for c in cells} & done), stale)
+
+
+def plan_markdown(plan: StudyPlan, study: Study) -> str:
+    """The cells a run would run, per data source, variant and method: how many (seeds) and
+    at how many iterations (``spcopyro study --dry-run``)."""
+    groups: dict[tuple[str, str, str, int], int] = {}
+    for cell in plan.pending:
+        group = (cell.data.name, cell.row, cell.method, cell.sweeps)
+        groups[group] = groups.get(group, 0) + 1
+    lines = [
+        f"study {study.name!r}: {len(plan.pending)} of {len(plan.cells)} cells to run "
+        f"({plan.cached} finished before, {len(plan.stale)} of them by other source)",
+        "", "| data | variant | method | iterations | cells |", "|---|---|---|---|---|",
+    ]  # fmt: skip
+    lines += [f"| {d} | {v} | {m} | {n} | {k} |" for (d, v, m, n), k in groups.items()]
+    return "\n".join(lines)
+
+
+def _stale(cells: list[Cell], finished: dict[str, dict[str, object]], done: set[str]) -> set[str]:
+    """The keys of the study's finished cells (of ``done``) whose record other spcopyro source
+    computed (or no digest names: stored before records had one)."""
+    current = source_digest()
+    keys = {c.key for c in cells} & done
+    return {k for k in keys if finished[k].get("source_digest") != current}
+
+
+def _stale_line(count: int) -> str:
+    return (
+        f"{count} of the finished cells were computed by other spcopyro source than this "
+        f"(source_digest is not {source_digest()}): kept; --rerun-stale runs them again"
+    )
 
 
 def _where(workers: int, scheduler: str | None) -> str:
@@ -179,49 +263,82 @@ def _in_process(cells: list[Cell]) -> Iterator[Outcome]:
         yield cell, record, trace, label_map
 
 
-def _on_dask(cells: list[Cell], workers: int, scheduler: str | None) -> Iterator[Outcome]:
+def _on_dask(
+    cells: list[Cell], workers: int, scheduler: str | None, background: _Background,
+    start_in_process: bool = True,
+) -> Iterator[Outcome]:  # fmt: skip
     """Each cell a task; outcomes as they finish (``as_completed``). A task lost with its
-    worker (or any error outside the cell) is recorded as that cell's error."""
+    worker (or any error outside the cell) is recorded as that cell's error.
+
+    A LocalCluster starts on a background thread (:class:`spcopyro.study.local_cluster.
+    ClusterStart`); with ``start_in_process`` this process runs cells meanwhile, one after
+    another, and the cluster takes every cell not started yet the moment it is up. Its close
+    is left running in ``background`` (the caller writes the table meanwhile)."""
     try:
-        from distributed import Client, LocalCluster, as_completed
+        from distributed import Client, as_completed
     except ModuleNotFoundError:
         raise ModuleNotFoundError(
             "running a study on Dask needs dask.distributed: pip install 'spcopyro[study]' "
             "(or run in-process with --workers 1)"
         ) from None
-    cluster = None
-    if scheduler is None:
-        import dask
+    waiting = deque(cells)
+    lock = threading.Lock()
+    futures: dict[object, Cell] = {}
 
-        # Dask's nanny sets MALLOC_TRIM_THRESHOLD_ in every worker (any value turns off
-        # glibc's dynamic mmap threshold), so each array over 128 KiB is a fresh mmap whose
-        # pages fault in on first touch: a cell's sweeps ran 1.5-2x slower in a worker than
-        # in-process (measured, thread CPU time). Unset there, they run as fast.
-        with dask.config.set({f"{PRE_SPAWN_ENVIRON}.MALLOC_TRIM_THRESHOLD_": None}):
-            cluster = LocalCluster(
-                n_workers=workers, threads_per_worker=1, processes=True,
-                dashboard_address=":0", silence_logs=logging.ERROR,
-                env={"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"},
+    def submit_waiting(client) -> None:
+        with lock:
+            futures.update(
+                (client.submit(evaluate.run_cell, cell, key=f"spcopyro-cell-{cell.key}"), cell)
+                for cell in waiting
             )  # fmt: skip
-        client = Client(cluster)
-    else:
+            waiting.clear()
+
+    if scheduler is not None:
+        start = None
         client = Client(scheduler)
+        submit_waiting(client)
+    else:
+        start = ClusterStart(workers, on_ready=submit_waiting)
     try:
-        futures = {
-            client.submit(evaluate.run_cell, cell, key=f"spcopyro-cell-{cell.key}"): cell
-            for cell in cells
-        }
-        for future in as_completed(futures):
+        while start is not None and start_in_process:
+            with lock:
+                cell = waiting.popleft() if waiting else None
+            if cell is None:  # all run here, or the cluster took the rest
+                break
+            record, trace, label_map = evaluate.run_cell(cell)
+            background.ran_here += 1
+            yield cell, record, trace, label_map
+        if start is not None:
+            start.wait()
+        for future in as_completed(list(futures)):
             cell = futures[future]
             try:
                 record, trace, label_map = future.result()
             except Exception as error:  # the worker died, or the task could not run
                 record = {"key": cell.key, "status": "error", "error_type": type(error).__name__,
-                          "error": str(error)[:2000]}  # fmt: skip
+                          "error": str(error)[:2000], "source_digest": source_digest()}  # fmt: skip
                 trace = label_map = None
             future.release()
             yield cell, record, trace, label_map
     finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        if start is None:
+            client.close()
+        else:
+            background.close_later(start.close)
+
+
+@dataclass
+class _Background:
+    """What a Dask run left behind: the cells it ran in this process while its LocalCluster
+    started, and the cluster's close, running on a thread until :meth:`join`."""
+
+    ran_here: int = 0
+    closing: threading.Thread | None = None
+
+    def close_later(self, close: Callable[[], None]) -> None:
+        self.closing = threading.Thread(target=close, name="spcopyro-cluster-close")
+        self.closing.start()
+
+    def join(self) -> None:
+        if self.closing is not None:
+            self.closing.join()

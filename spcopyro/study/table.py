@@ -7,7 +7,7 @@ Layout of ``OUT``::
     traces/KEY.npz    its trace: objective, num_concepts, seconds per iteration (and the ARI
                       per kept iteration with the study's ari_every)
     maps/KEY.npz      its label map on the map's cells (int16) with the map and the truth
-                      (spcopyro.study.evaluate.label_map_arrays): figures need no refit
+                      (spcopyro.study.maps.label_map_arrays): figures need no refit
     results.csv       the tidy table: one row per (variant, data, method, seed) of the study
     results.parquet   the same table as Parquet, when pyarrow is installed (the parquet extra)
     report.md         mean +- sd tables drawn from results.csv (spcopyro.study.report)
@@ -42,8 +42,9 @@ INPUT_COLUMNS = (
     "sweeps", "observations_off", "scoring", "preset", "overrides", "version", "key",
 )  # fmt: skip
 """What made a row (:meth:`Cell.inputs`)."""
-COLUMNS = (*INPUT_COLUMNS, *STATUS_COLUMNS, *SCORES, "trace", "label_map")
-"""Every column of ``results.csv``, in order."""
+COLUMNS = (*INPUT_COLUMNS, "source_digest", *STATUS_COLUMNS, *SCORES, "trace", "label_map")
+"""Every column of ``results.csv``, in order (``source_digest``: of the code that ran the cell,
+:func:`spcopyro.study.cells.source_digest`)."""
 TABLE = "results.csv"
 PARQUET = "results.parquet"
 """The table as Parquet, written beside ``results.csv`` when pyarrow can be imported."""
@@ -182,7 +183,7 @@ def _cell_text(value: object) -> object:
 
 TEXT_COLUMNS = frozenset(
     ("variant", "data", "method", "data_kind", "data_source", "preset", "overrides", "version",
-     "key", "status", "error_type", "error", "trace", "top_words", "details",
+     "key", "source_digest", "status", "error_type", "error", "trace", "top_words", "details",
      "scoring", "label_map", "concept_words")
 )  # fmt: skip
 """Columns read back as text, even when they look like a number."""

@@ -1,0 +1,149 @@
+"""A study's Dask ``LocalCluster``, started in the background while cells run in this process.
+
+A worker process has to import torch and spcopyro before its first cell (about 3-4 CPU
+seconds). Spawned the usual way, every worker does that itself, all at once: on a 2-core
+machine both cores spend the cluster's start-up importing while the study's process waits.
+:class:`ClusterStart` does two things instead (issue 26):
+
+* the workers are forked from a ``forkserver`` that imports the cells' code once
+  (:data:`WORKER_PRELOAD`) with one BLAS/OpenMP thread (:data:`ONE_THREAD`), so a worker starts
+  with everything imported and the import costs one core once, not every core;
+* the cluster starts on a background thread, and the caller runs cells in this process until
+  the workers are up (:mod:`spcopyro.study.run`): the core the start-up leaves free fits cells.
+
+A forked worker's environment is the forkserver's, so Dask's ``pre-spawn-environ`` cannot reach
+it: ``MALLOC_TRIM_THRESHOLD_``, which turns off glibc's dynamic mmap threshold and made cells
+1.5-2x slower in workers (docs/studies.md), is left out of the forkserver's environment, and
+:data:`PRE_SPAWN_ENVIRON`'s entry is unset too for a cluster that spawns.
+
+Where ``forkserver`` is not available (not POSIX), the workers are spawned as Dask does.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import os
+import threading
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
+
+__all__ = ["ONE_THREAD", "PRE_SPAWN_ENVIRON", "WORKER_PRELOAD", "ClusterStart", "local_cluster"]
+
+PRE_SPAWN_ENVIRON = "distributed.nanny.pre-spawn-environ"
+"""Dask's config of the environment its nanny gives each spawned worker process."""
+MULTIPROCESSING_METHOD = "distributed.worker.multiprocessing-method"
+WORKER_PRELOAD = ("distributed", "spcopyro.study.evaluate")
+"""What the forkserver imports before it forks a worker: dask's worker and a cell's code."""
+ONE_THREAD = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+"""The workers' environment: one BLAS / OpenMP thread (a worker runs one cell on one core)."""
+MALLOC_TRIM = "MALLOC_TRIM_THRESHOLD_"
+
+
+@contextmanager
+def _environ(values: Mapping[str, str | None]) -> Iterator[None]:
+    """``os.environ`` with ``values`` (None: unset) inside the block, restored after."""
+    saved = {name: os.environ.get(name) for name in values}
+    try:
+        for name, value in values.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+        yield
+    finally:
+        for name, value in saved.items():
+            if value is None:
+                os.environ.pop(name, None)
+            else:
+                os.environ[name] = value
+
+
+def forkserver_available() -> bool:
+    """Whether this platform has multiprocessing's ``forkserver`` start method."""
+    return "forkserver" in multiprocessing.get_all_start_methods()
+
+
+def start_forkserver() -> None:
+    """Start (if not running yet) multiprocessing's forkserver with :data:`WORKER_PRELOAD` and
+    the workers' environment (module docstring). Returns at once: the server imports in its own
+    process, and a worker's fork waits for it. A forkserver already running (an earlier study in
+    this process) is kept as it is."""
+    import multiprocessing.forkserver as forkserver
+
+    import dask
+    from distributed.utils import get_mp_context
+
+    with dask.config.set({MULTIPROCESSING_METHOD: "forkserver"}):
+        get_mp_context()  # dask sets its own preload list once per process: before ours
+    forkserver.set_forkserver_preload(list(WORKER_PRELOAD))
+    with _environ({**ONE_THREAD, MALLOC_TRIM: None}):
+        forkserver.ensure_running()
+
+
+def local_cluster(workers: int, method: str | None = None):
+    """A ``LocalCluster`` of ``workers`` processes with one thread each, their processes
+    started by ``method`` (``forkserver``, ``spawn``; None: forkserver where available)."""
+    import dask
+    from distributed import LocalCluster
+
+    if method is None:
+        method = "forkserver" if forkserver_available() else "spawn"
+    if method == "forkserver":
+        start_forkserver()
+    config = {f"{PRE_SPAWN_ENVIRON}.{MALLOC_TRIM}": None, MULTIPROCESSING_METHOD: method}
+    with dask.config.set(config):
+        return LocalCluster(
+            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
+            silence_logs=logging.ERROR, env=dict(ONE_THREAD),
+        )  # fmt: skip
+
+
+class ClusterStart:
+    """A ``LocalCluster`` and its ``Client``, started on a background thread.
+
+    ``on_ready(client)`` runs on that thread as soon as the client is connected (the caller
+    submits its remaining cells there, so no worker waits for this process's cell to end).
+    :meth:`wait` joins the thread and returns the client (or raises the start's error);
+    :meth:`close` closes whatever was started.
+    """
+
+    def __init__(self, workers: int, on_ready: Callable[[object], None] | None = None) -> None:
+        self.cluster = None
+        self.client = None
+        self.error: BaseException | None = None
+        self._on_ready = on_ready
+        self._thread = threading.Thread(
+            target=self._start, args=(workers,), name="spcopyro-cluster-start", daemon=True
+        )
+        self._thread.start()
+
+    def _start(self, workers: int) -> None:
+        try:
+            from distributed import Client
+
+            self.cluster = local_cluster(workers)
+            self.client = Client(self.cluster)
+            if self._on_ready is not None:
+                self._on_ready(self.client)
+        except BaseException as error:  # handed to wait()
+            self.error = error
+
+    def ready(self) -> bool:
+        """Whether the start has ended (the client is up, or the start failed)."""
+        return not self._thread.is_alive()
+
+    def wait(self):
+        """The client, once started; raises the start's error."""
+        self._thread.join()
+        if self.error is not None:
+            raise self.error
+        return self.client
+
+    def close(self) -> None:
+        """Wait for the start to end, then close the client and the cluster."""
+        self._thread.join()
+        if self.client is not None:
+            self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
