@@ -8,8 +8,11 @@ pairs, E epochs (the background rows the cached beliefs were computed under); th
 ``beta [M + 1, L]`` as in :mod:`spcopyro.guides.numba_lbp_kernels`.
 
 Unlike the pass, these helpers are functions: the refresh runs on the few cells that drifted,
-where the calls' reference counting does not matter, and the from-scratch
-:func:`~spcopyro.guides.numba_lbp_kernels._summaries` stays the independent reference.
+where the calls' reference counting does not matter. The from-scratch
+:func:`~spcopyro.guides.numba_lbp_kernels._summaries` calls the same :func:`_pair_terms`, so a
+pair's Bethe terms have one implementation; what checks that formula is the torch reference
+(equal to it without truncation), and what the cache tests check is which cells and pairs are
+refreshed.
 """
 
 from __future__ import annotations

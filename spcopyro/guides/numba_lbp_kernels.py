@@ -2,7 +2,8 @@
 docstring states the math) other than the pass (:mod:`spcopyro.guides.numba_lbp_pass`): the
 beliefs' summaries (statistics, labels, Bethe terms), the warm start and the conversions to
 dense tensors. Private to that module; helpers are written out in the loops (see the pass's
-module for why).
+module for why), but for a pair's Bethe terms, shared with the cached summaries
+(:func:`spcopyro.guides.numba_lbp_beliefs._pair_terms`).
 
 Shapes: N cells, D neighbour slots, L concepts, K kept entries a message, M observed cells; the
 base table ``beta [M + 1, L]`` holds exp(h - max h) of every observed cell's row and, in row M,
@@ -15,6 +16,7 @@ import numpy as np
 from numba import njit
 
 from spcopyro.guides.numba_cavi_kernels import _select
+from spcopyro.guides.numba_lbp_beliefs import _pair_terms
 
 
 @njit(cache=True)
@@ -55,7 +57,6 @@ def _summaries(
     N, D = nb.shape
     L = beta.shape[1]
     M = beta.shape[0] - 1
-    s = np.expm1(gamma)
     tick = max(marks.max(), fmarks.max()) + 1
     mark_a, mark_b, fmark_a, fmark_b = marks[0], marks[1], fmarks[0], fmarks[1]
     prod_a, logprod_a, prod_b, logprod_b = scratch[0], scratch[1], scratch[2], scratch[3]
@@ -153,72 +154,15 @@ def _summaries(
                     fmark_b[d, l] = sb
                     fac_b[d, l] = f
                     flog_b[d, l] = lg[e, k]
-            # one loop over the concepts where u or v differ from the base row's: T_a and T_b
-            # when both ends have no observation (the dense sums over beta come precomputed),
-            # else all L (raw sums: zu = sum beta_a X, s_uv = sum beta_a X beta_b Y, ...)
-            both = ra == M and rb == M
-            nu = 0
-            if both:
-                for t in range(na):
-                    ulist[nu] = tset_a[t]
-                    nu += 1
-                for t in range(nbb):
-                    if mark_a[tset_b[t]] != sa:
-                        ulist[nu] = tset_b[t]
-                        nu += 1
-                zu, zv, s_uv = bsum[M], bsum[M], b2
-                s1u, s1v, s2u, s2v = row_entropy[M], row_entropy[M], a2, a2
-            else:
-                for l in range(L):
-                    ulist[l] = l
-                nu = L
-                zu, zv, s_uv, s1u, s1v, s2u, s2v = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-            for t in range(nu):
-                l = ulist[t]
-                if mark_a[l] != sa:
-                    x, lx = 1.0, 0.0
-                elif fmark_a[da, l] == sa:
-                    x, lx = prod_a[l] / fac_a[da, l], logprod_a[l] - flog_a[da, l]
-                else:
-                    x, lx = prod_a[l], logprod_a[l]
-                if mark_b[l] != sb:
-                    y, ly = 1.0, 0.0
-                elif fmark_b[db, l] == sb:
-                    y, ly = prod_b[l] / fac_b[db, l], logprod_b[l] - flog_b[db, l]
-                else:
-                    y, ly = prod_b[l], logprod_b[l]
-                ba, bb = beta[ra, l], beta[rb, l]
-                la, lb = logbeta[ra, l], logbeta[rb, l]
-                if both:  # corrections to the dense sums
-                    bab = ba * bb * (x * y - 1.0)
-                    zu += ba * (x - 1.0)
-                    zv += bb * (y - 1.0)
-                    s_uv += bab
-                    s1u += ba * (x - 1.0) * la + ba * x * lx
-                    s1v += bb * (y - 1.0) * lb + bb * y * ly
-                    s2u += bab * la + ba * bb * x * y * lx
-                    s2v += bab * lb + ba * bb * x * y * ly
-                else:
-                    uv = ba * x * bb * y
-                    zu += ba * x
-                    zv += bb * y
-                    s_uv += uv
-                    s1u += ba * x * (la + lx)
-                    s1v += bb * y * (lb + ly)
-                    s2u += uv * (la + lx)
-                    s2v += uv * (lb + ly)
-            log_zu, log_zv = np.log(zu), np.log(zv)
-            overlap = s_uv / (zu * zv)
-            s1u = s1u / zu - log_zu
-            s1v = s1v / zv - log_zv
-            s2u = s2u / (zu * zv) - overlap * log_zu
-            s2v = s2v / (zu * zv) - overlap * log_zv
-            zp = 1.0 + s * overlap
-            agreement = (1.0 + s) * overlap / zp
-            e_log_u = (s1u + s * s2u) / zp
-            e_log_v = (s1v + s * s2v) / zp
+            # E[delta] and H of the pair's belief: one loop over the concepts where u or v differ
+            # from the base row's (numba_lbp_beliefs._pair_terms, which the cached summaries use)
+            agreement, entropy = _pair_terms(
+                ra, rb, da, db, beta, logbeta, bsum, row_entropy, b2, a2, gamma,
+                sa, mark_a, prod_a, logprod_a, tset_a, na, fmark_a, fac_a, flog_a,
+                sb, mark_b, prod_b, logprod_b, tset_b, nbb, fmark_b, fac_b, flog_b, ulist,
+            )  # fmt: skip
             agree += agreement
-            pair_entropy += -e_log_u - e_log_v - gamma * agreement + np.log(zp)
+            pair_entropy += entropy
     for l in range(L):
         sizes[l] += beta[M, l] * invz
     totals[0] = node
