@@ -410,10 +410,26 @@ def merge_move(
     """:func:`split_merge_labels`, then (if accepted) pi, theta and w redrawn given the labels
     (by the compiled sampler's draws when ``compiled``)."""
     labels, info = split_merge_labels(state.labels, data, config, generator, scans, compiled)
+    return with_globals_redrawn(state, labels, info, data, config, generator, compiled), info
+
+
+def with_globals_redrawn(
+    state: GibbsState,
+    labels: torch.Tensor,
+    info: MoveInfo,
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    compiled: bool,
+) -> GibbsState:
+    """After a move on the labels with pi, theta and w integrated out: ``state`` when it was
+    rejected (keeping them is exact: the acceptance does not look at them), else ``labels``
+    with pi, theta and w drawn from their conditionals (eqs. 14-17; by the compiled sampler's
+    draws when ``compiled``)."""
     if not info.accepted:
-        return state, info
+        return state
     sample_globals = globals_sampler("numba" if compiled else "torch")
-    return GibbsState(labels, *sample_globals(labels, data, config, generator)), info
+    return GibbsState(labels, *sample_globals(labels, data, config, generator))
 
 
 def maybe_merge_move(

@@ -69,9 +69,8 @@ import torch
 
 from spcopyro._util.random_draws import coin_flip
 from spcopyro.config import SpCoConfig
-from spcopyro.gibbs.backends import globals_sampler
 from spcopyro.gibbs.cluster import bond_clusters
-from spcopyro.gibbs.merge import Counts, MoveInfo, concept_log_marginals
+from spcopyro.gibbs.merge import Counts, MoveInfo, concept_log_marginals, with_globals_redrawn
 from spcopyro.gibbs.state import GibbsState
 from spcopyro.model import DTYPE, ModelData
 
@@ -233,10 +232,7 @@ def region_move(
     """:func:`region_relabel_labels`, then (if accepted) pi, theta and w redrawn given the labels
     (by the compiled sampler's draws when ``compiled``)."""
     labels, info = region_relabel_labels(state.labels, data, config, generator)
-    if not info.accepted:
-        return state, info
-    sample_globals = globals_sampler("numba" if compiled else "torch")
-    return GibbsState(labels, *sample_globals(labels, data, config, generator)), info
+    return with_globals_redrawn(state, labels, info, data, config, generator, compiled), info
 
 
 def maybe_region_move(
