@@ -1,0 +1,345 @@
+r"""The compiled draw of pi, theta and w given the labels (eqs. 14-17), its prior part ahead.
+
+Each global is a table of Dirichlet rows, row r drawn as normalised gamma variates
+
+.. math::
+
+    G_{rc} \sim \mathrm{Gamma}(b + s_{rc}, 1), \qquad
+    \log \phi_{rc} = \log G_{rc} - \log \textstyle\sum_{c'} G_{rc'},
+
+b the table's symmetric concentration (alpha / L or alpha for pi, chi for theta, beta for w) and
+s its statistics given the labels (cells per concept; image and word counts of the cells of each
+concept). Wherever s_rc = 0 (every concept without observed cells, every word none of a
+concept's cells heard; three quarters of the 26.4k variates of a public house at L = 120) the
+shape is b: it does not depend on the labels. A sweep therefore draws its globals in two parts:
+
+1. **Ahead** (:func:`start_prior_draws`): every entry of every table gets a Gamma(b) variate,
+   from streams of their own (one per chunk of rows, seeded from a seed the sweep draws from its
+   torch generator before the labels), independent of the state. On a machine with a spare CPU
+   a worker thread draws them while the label loop runs (:func:`prior_thread`); the calling
+   thread draws whatever chunks the worker has not claimed when it needs them. The numbers are
+   the same whichever thread draws a chunk, and with the worker off.
+2. **After the labels** (:func:`finish_globals`): every entry with s_rc != 0 is drawn afresh
+   from Gamma(b + s_rc) with the sweep's stream, the others keep their prior variate; rows are
+   normalised in linear space where every shape is >= 1, by log-sum-exp where one is below 1
+   (log G(a) = log G(a + 1) + log(U) / a, :mod:`~spcopyro.gibbs.numba_random`).
+
+**Exact.** Given the labels, the kept prior variates are independent Gamma(b) variates (drawn
+from streams nothing else reads, and never reused by a later sweep), independent of the fresh
+ones; which entries keep theirs depends on the labels alone. Each row is then a vector of
+independent Gamma(b + s_rc) variates, and normalised it is a Dir(b + s_r) draw. (Keeping the
+*previous* sweep's rows of the concepts whose counts did not change would not be exact: that
+event is correlated with the old theta.)
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import queue
+import threading
+from collections.abc import Sequence
+
+import numpy as np
+from numba import njit
+
+from spcopyro.gibbs.numba_random import bits_to_uniform, marsaglia_tsang, next_bits, rng_state
+
+__all__ = [
+    "PriorDraws",
+    "abandon_prior_draws",
+    "finish_globals",
+    "prior_thread",
+    "start_prior_draws",
+]
+
+CHUNK_ENTRIES = 4096
+"""About this many variates per chunk of the prior draw (one stream and one claim each)."""
+_GOLDEN = 0x9E3779B97F4A7C15
+_MASK64 = (1 << 64) - 1
+
+
+# ------------------------------------------------------------------------------------ kernels
+
+
+@njit(cache=True, inline="always")
+def _gamma_draw(
+    a: float, s0: np.uint64, s1: np.uint64, s2: np.uint64, s3: np.uint64, state: np.ndarray
+) -> tuple[float, float, np.uint64, np.uint64, np.uint64, np.uint64]:
+    """(G, log G, next RNG state) for G ~ Gamma(a), a finite and positive; for a < 1, G is
+    Gamma(a + 1)'s variate (only its log carries the boost log(U) / a)."""
+    extra = 0.0
+    if a < 1.0:
+        bits, s0, s1, s2, s3 = next_bits(s0, s1, s2, s3)
+        extra = math.log(1.0 - bits_to_uniform(bits)) / a  # 1 - U lies in (0, 1]
+        a += 1.0
+    if a == 1.0:  # Gamma(1) is Exp(1): -log(1 - U), exactly
+        draw = 0.0
+        while draw == 0.0:  # U = 0 exactly (p = 2^-53): log G would be -inf
+            bits, s0, s1, s2, s3 = next_bits(s0, s1, s2, s3)
+            draw = -math.log(1.0 - bits_to_uniform(bits))
+    else:
+        d = a - 1.0 / 3.0
+        draw, s0, s1, s2, s3 = marsaglia_tsang(d, 1.0 / math.sqrt(9.0 * d), s0, s1, s2, s3, state)
+    return draw, math.log(draw) + extra, s0, s1, s2, s3
+
+
+@njit(cache=True, nogil=True)
+def _prior_chunk(
+    base: float,
+    linear: np.ndarray,
+    log_g: np.ndarray,
+    row_sums: np.ndarray,
+    start: int,
+    stop: int,
+    state: np.ndarray,
+) -> None:
+    """Rows start:stop of a table [R, C]: linear = G ~ Gamma(base) (Gamma(base + 1) for base <
+    1), log_g = log G (boosted for base < 1), row_sums [R] = sum_c linear. ``base`` is finite
+    and positive."""
+    s0, s1, s2, s3 = state[0], state[1], state[2], state[3]
+    a, boosted = base, base < 1.0
+    if boosted:
+        a = base + 1.0
+    d = a - 1.0 / 3.0
+    scale = 1.0 / math.sqrt(9.0 * d) if a > 1.0 else 0.0
+    for r in range(start, stop):
+        total = 0.0
+        for c in range(linear.shape[1]):
+            extra = 0.0
+            if boosted:
+                bits, s0, s1, s2, s3 = next_bits(s0, s1, s2, s3)
+                extra = math.log(1.0 - bits_to_uniform(bits)) / base
+            if a == 1.0:
+                draw = 0.0
+                while draw == 0.0:
+                    bits, s0, s1, s2, s3 = next_bits(s0, s1, s2, s3)
+                    draw = -math.log(1.0 - bits_to_uniform(bits))
+            else:
+                draw, s0, s1, s2, s3 = marsaglia_tsang(d, scale, s0, s1, s2, s3, state)
+            linear[r, c] = draw
+            log_g[r, c] = math.log(draw) + extra
+            total += draw
+        row_sums[r] = total
+    state[0], state[1], state[2], state[3] = s0, s1, s2, s3
+
+
+@njit(cache=True, nogil=True)
+def _posterior_rows(
+    base: float,
+    statistics: np.ndarray,
+    linear: np.ndarray,
+    log_g: np.ndarray,
+    row_sums: np.ndarray,
+    state: np.ndarray,
+) -> int:
+    """Complete the prior draw of a table [R, C] to R Dirichlet(base + statistics[r]) rows, in
+    place in ``log_g`` (module doc): entries with a nonzero statistic drawn afresh with
+    ``state``, then every row normalised. Returns -1, or the flat index of the first shape that
+    is not finite and positive (then ``log_g`` is garbage)."""
+    R, C = statistics.shape
+    s0, s1, s2, s3 = state[0], state[1], state[2], state[3]
+    boosted = np.zeros(R, dtype=np.bool_)  # [R] rows with a shape below 1
+    for r in range(R):
+        touched = False
+        boosted[r] = base < 1.0
+        for c in range(C):
+            s = statistics[r, c]
+            if s == 0.0:
+                continue
+            a = base + s
+            if not 0.0 < a < np.inf:  # NaN too
+                state[0], state[1], state[2], state[3] = s0, s1, s2, s3
+                return r * C + c
+            if a < 1.0:
+                boosted[r] = True
+            linear[r, c], log_g[r, c], s0, s1, s2, s3 = _gamma_draw(a, s0, s1, s2, s3, state)
+            touched = True
+        if touched and not boosted[r]:
+            total = 0.0
+            for c in range(C):
+                total += linear[r, c]
+            row_sums[r] = total
+    state[0], state[1], state[2], state[3] = s0, s1, s2, s3
+    for r in range(R):
+        if boosted[r]:  # log-sum-exp: G(a) underflows in linear space for small a
+            top = -np.inf
+            for c in range(C):
+                top = max(top, log_g[r, c])
+            total = 0.0
+            for c in range(C):
+                total += math.exp(log_g[r, c] - top)
+            shift = top + math.log(total)
+        else:  # every shape >= 1: the linear sum is safe
+            shift = math.log(row_sums[r])
+        for c in range(C):
+            log_g[r, c] -= shift
+    return -1
+
+
+# ------------------------------------------------------------------------------ the prior part
+
+
+def _mix64(value: int) -> int:
+    """SplitMix64's output function: a 64-bit hash (chunk seeds from one sweep seed)."""
+    z = value & _MASK64
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _MASK64
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK64
+    return z ^ (z >> 31)
+
+
+class PriorDraws:
+    """One sweep's Gamma(b) variates for every entry of every table, drawn in chunks of rows by
+    whichever thread claims them first (the worker of :func:`prior_thread`, or the caller of
+    :meth:`tables`). Chunk k's stream is seeded from (seed, k) alone, so the numbers do not
+    depend on who draws them."""
+
+    def __init__(self, bases: Sequence[float], shapes: Sequence[tuple[int, int]], seed: int):
+        self.bases = [float(b) for b in bases]
+        self.linear = [np.empty(shape) for shape in shapes]  # [R, C] each
+        self.log_g = [np.empty(shape) for shape in shapes]  # [R, C] each
+        self.row_sums = [np.empty(shape[0]) for shape in shapes]  # [R] each
+        self._chunks = []  # (table, start row, stop row)
+        for index, (rows, columns) in enumerate(shapes):
+            step = max(1, CHUNK_ENTRIES // max(columns, 1))
+            self._chunks += [(index, r, min(r + step, rows)) for r in range(0, rows, step)]
+        self._seed = int(seed)
+        self._lock = threading.Lock()
+        self._claimed = 0
+        self._done = 0
+        self._finished = threading.Event()
+        self._error: BaseException | None = None
+        self.released = False  # no longer counted as an active sweep (abandon_prior_draws)
+        if not self._chunks:
+            self._finished.set()
+
+    def _claim(self) -> int:
+        with self._lock:
+            if self._claimed == len(self._chunks):
+                return -1
+            self._claimed += 1
+            return self._claimed - 1
+
+    def draw(self) -> None:
+        """Draw chunks until none is left unclaimed (a worker's job, and the caller's help)."""
+        while (k := self._claim()) >= 0:
+            try:
+                index, start, stop = self._chunks[k]
+                state = rng_state(_mix64(self._seed + (k + 1) * _GOLDEN))
+                _prior_chunk(
+                    self.bases[index], self.linear[index], self.log_g[index],
+                    self.row_sums[index], start, stop, state,
+                )  # fmt: skip
+            except BaseException as error:  # re-raised by tables(); never a silent hang
+                self._error = error
+            finally:
+                with self._lock:
+                    self._done += 1
+                    if self._done == len(self._chunks):
+                        self._finished.set()
+
+    def tables(self) -> list[tuple[float, np.ndarray, np.ndarray, np.ndarray]]:
+        """(base, linear, log_g, row_sums) per table once every chunk is drawn: the caller draws
+        the unclaimed ones, then waits for those in flight on the worker."""
+        self.draw()
+        self._finished.wait()
+        if self._error is not None:
+            raise self._error
+        return list(zip(self.bases, self.linear, self.log_g, self.row_sums, strict=True))
+
+
+# ------------------------------------------------------------------------------- the worker
+
+_MODES = ("auto", "on", "off")
+_mode = os.environ.get("SPCOPYRO_PRIOR_THREAD", "auto")
+_jobs: queue.SimpleQueue[PriorDraws] = queue.SimpleQueue()
+_worker: threading.Thread | None = None
+_worker_lock = threading.Lock()
+_active = 0  # sweeps drawing their globals in this process right now (chains run in threads)
+
+
+def prior_thread(mode: str | None = None) -> str:
+    """The worker-thread mode of the prior draw, set to ``mode`` when given: ``"auto"`` (the
+    default; environment variable ``SPCOPYRO_PRIOR_THREAD``) uses the worker while fewer sweeps
+    run in this process than it may use CPUs, ``"on"`` always, ``"off"`` never. The draws are the
+    same in every mode: only who computes them changes."""
+    global _mode
+    if mode is not None:
+        if mode not in _MODES:
+            raise ValueError(f"prior_thread mode must be one of {_MODES}, got {mode!r}")
+        _mode = mode
+    return _mode
+
+
+def _usable_cpus() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def _use_worker() -> bool:
+    if _mode == "off" or _mode not in _MODES:
+        return False
+    return _mode == "on" or 2 * _active <= _usable_cpus()
+
+
+def _serve() -> None:
+    while True:
+        _jobs.get().draw()
+
+
+def _submit(job: PriorDraws) -> None:
+    global _worker
+    with _worker_lock:
+        if _worker is None or not _worker.is_alive():
+            _worker = threading.Thread(target=_serve, name="spcopyro-prior-draws", daemon=True)
+            _worker.start()
+    _jobs.put(job)
+
+
+def _count_active(change: int) -> None:
+    global _active
+    with _worker_lock:
+        _active += change
+
+
+def start_prior_draws(
+    bases: Sequence[float], shapes: Sequence[tuple[int, int]], seed: int
+) -> PriorDraws:
+    """Start one sweep's prior draw (tables of ``shapes`` [R, C] with concentrations ``bases``,
+    every base finite and positive) from ``seed``, on the worker when :func:`prior_thread` says
+    so; then :func:`finish_globals` (or :func:`abandon_prior_draws` if the sweep fails)."""
+    _count_active(1)
+    job = PriorDraws(bases, shapes, seed)
+    if _use_worker():
+        _submit(job)
+    return job
+
+
+def abandon_prior_draws(job: PriorDraws) -> None:
+    """Give up a started prior draw (the sweep failed): it no longer counts as active."""
+    if not job.released:
+        job.released = True
+        _count_active(-1)
+
+
+def finish_globals(
+    job: PriorDraws, statistics: Sequence[np.ndarray], state: np.ndarray
+) -> tuple[list[np.ndarray], int, int]:
+    """([R, C] log Dirichlet rows per table, -1, -1) given each table's statistics (float64,
+    C-contiguous, the shapes of :func:`start_prior_draws`), drawn with the RNG ``state``; or
+    (partial, table index, flat index) of the first shape that is not finite and positive."""
+    try:
+        tables = job.tables()
+    finally:
+        abandon_prior_draws(job)
+    out = []
+    for index, ((base, linear, log_g, row_sums), stats) in enumerate(
+        zip(tables, statistics, strict=True)
+    ):
+        bad = _posterior_rows(base, stats, linear, log_g, row_sums, state)
+        if bad >= 0:
+            return out, index, bad
+        out.append(log_g)
+    return out, -1, -1
