@@ -47,6 +47,15 @@ BLAS kernel OpenBLAS picks for the CPU (``OPENBLAS_CORETYPE=Nehalem`` gave the o
 other kernel the other order). Words are now ranked after rounding to 1e-9, ties in item order
 (:func:`spcopyro.results.concept_words.ranked`): the same digest under every OpenBLAS kernel tried
 (Haswell, Sandybridge, Nehalem, Prescott). Only that scenario's pin was recorded again.
+
+A sixth intended change (issue 25, item 4): the compiled sweep draws the gamma variates of its
+globals whose shape does not depend on the labels ahead, from streams seeded by a second seed
+drawn from the generator each sweep (:mod:`spcopyro.gibbs.numba_globals`), so the numba
+scenarios that sweep with ``unobserved_refresh`` = 1 (``fit-numba-paper-dp``,
+``fit-numba-dirichlet-tfidf``, ``converged-numba*``, ``mcmc-numba``) were recorded again after
+the distribution tests passed; ``fit-numba-options`` (partial refresh, the one-pass draw) and
+every torch scenario are unchanged. The new pins hold with the worker thread on and off
+(``SPCOPYRO_PRIOR_THREAD``).
 """
 
 from __future__ import annotations
