@@ -14,11 +14,12 @@ concept's cells heard; three quarters of the 26.4k variates of a public house at
 shape is b: it does not depend on the labels. A sweep therefore draws its globals in two parts:
 
 1. **Ahead** (:func:`start_prior_draws`): every entry of every table gets a Gamma(b) variate,
-   from streams of their own (one per chunk of rows, seeded from a seed the sweep draws from its
-   torch generator before the labels), independent of the state. On a machine with a spare CPU
-   a worker thread draws them while the label loop runs (:func:`prior_thread`); the calling
-   thread draws whatever chunks the worker has not claimed when it needs them. The numbers are
-   the same whichever thread draws a chunk, and with the worker off.
+   from streams of their own (one per row, seeded from the row and a seed the sweep draws from
+   its torch generator before the labels), independent of the state. On a machine with a spare
+   CPU a worker thread draws them while the label loop runs (:func:`prior_thread`); the calling
+   thread draws whatever chunks of rows the worker has not claimed when it needs them, leaving
+   out the rows it will redraw whole. The numbers are the same whichever thread draws a row,
+   and with the worker off.
 2. **After the labels** (:func:`finish_globals`): every entry with s_rc != 0 is drawn afresh
    from Gamma(b + s_rc) with the sweep's stream, the others keep their prior variate; rows are
    normalised in linear space where every shape is >= 1, by log-sum-exp where one is below 1
@@ -43,7 +44,7 @@ from collections.abc import Sequence
 import numpy as np
 from numba import njit
 
-from spcopyro.gibbs.numba_random import bits_to_uniform, marsaglia_tsang, next_bits, rng_state
+from spcopyro.gibbs.numba_random import bits_to_uniform, marsaglia_tsang, next_bits
 
 __all__ = [
     "PriorDraws",
@@ -54,9 +55,11 @@ __all__ = [
 ]
 
 CHUNK_ENTRIES = 4096
-"""About this many variates per chunk of the prior draw (one stream and one claim each)."""
-_GOLDEN = 0x9E3779B97F4A7C15
-_MASK64 = (1 << 64) - 1
+"""About this many variates per chunk of rows of the prior draw (one claim each)."""
+_U_GOLDEN, _U_MIX1, _U_MIX2 = (
+    np.uint64(k) for k in (0x9E3779B97F4A7C15, 0xBF58476D1CE4E5B9, 0x94D049BB133111EB)
+)
+_U27, _U30, _U31 = np.uint64(27), np.uint64(30), np.uint64(31)
 
 
 # ------------------------------------------------------------------------------------ kernels
@@ -84,6 +87,29 @@ def _gamma_draw(
     return draw, math.log(draw) + extra, s0, s1, s2, s3
 
 
+@njit(cache=True, inline="always")
+def _splitmix(x: np.uint64) -> tuple[np.uint64, np.uint64]:
+    """(the next SplitMix64 output, the advanced counter) from counter ``x``."""
+    x = x + _U_GOLDEN
+    z = (x ^ (x >> _U30)) * _U_MIX1
+    z = (z ^ (z >> _U27)) * _U_MIX2
+    return z ^ (z >> _U31), x
+
+
+@njit(cache=True, inline="always")
+def _row_stream(
+    seed: np.uint64, row: np.int64
+) -> tuple[np.uint64, np.uint64, np.uint64, np.uint64]:
+    """The xoshiro256++ state of global row ``row``'s own stream: SplitMix64 from the hash of
+    (seed, row)."""
+    key, _ = _splitmix(seed + np.uint64(row + 1) * _U_GOLDEN)
+    s0, x = _splitmix(key)
+    s1, x = _splitmix(x)
+    s2, x = _splitmix(x)
+    s3, x = _splitmix(x)
+    return s0, s1, s2, s3
+
+
 @njit(cache=True, nogil=True)
 def _prior_chunk(
     base: float,
@@ -92,18 +118,24 @@ def _prior_chunk(
     row_sums: np.ndarray,
     start: int,
     stop: int,
-    state: np.ndarray,
+    seed: np.uint64,
+    first_row: int,
+    skip: np.ndarray,
 ) -> None:
-    """Rows start:stop of a table [R, C]: linear = G ~ Gamma(base) (Gamma(base + 1) for base <
-    1), log_g = log G (boosted for base < 1), row_sums [R] = sum_c linear. ``base`` is finite
-    and positive."""
-    s0, s1, s2, s3 = state[0], state[1], state[2], state[3]
+    """Rows start:stop of a table [R, C], each from its own stream (:func:`_row_stream` of row
+    first_row + r): linear = G ~ Gamma(base) (Gamma(base + 1) for base < 1), log_g = log G
+    (boosted for base < 1), row_sums [R] = sum_c linear. Rows where ``skip`` [R] is set are
+    left alone (every entry of theirs will be drawn afresh). ``base`` is finite and positive."""
+    state = np.empty(4, dtype=np.uint64)  # the ziggurat's slow-path scratch
     a, boosted = base, base < 1.0
     if boosted:
         a = base + 1.0
     d = a - 1.0 / 3.0
     scale = 1.0 / math.sqrt(9.0 * d) if a > 1.0 else 0.0
     for r in range(start, stop):
+        if skip[r]:
+            continue
+        s0, s1, s2, s3 = _row_stream(seed, first_row + r)
         total = 0.0
         for c in range(linear.shape[1]):
             extra = 0.0
@@ -121,7 +153,6 @@ def _prior_chunk(
             log_g[r, c] = math.log(draw) + extra
             total += draw
         row_sums[r] = total
-    state[0], state[1], state[2], state[3] = s0, s1, s2, s3
 
 
 @njit(cache=True, nogil=True)
@@ -180,19 +211,12 @@ def _posterior_rows(
 # ------------------------------------------------------------------------------ the prior part
 
 
-def _mix64(value: int) -> int:
-    """SplitMix64's output function: a 64-bit hash (chunk seeds from one sweep seed)."""
-    z = value & _MASK64
-    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _MASK64
-    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK64
-    return z ^ (z >> 31)
-
-
 class PriorDraws:
     """One sweep's Gamma(b) variates for every entry of every table, drawn in chunks of rows by
     whichever thread claims them first (the worker of :func:`prior_thread`, or the caller of
-    :meth:`tables`). Chunk k's stream is seeded from (seed, k) alone, so the numbers do not
-    depend on who draws them."""
+    :meth:`tables`). Each row has its own stream, seeded from (seed, row) alone, so the numbers
+    do not depend on who draws them; the caller skips the rows all of whose entries it will
+    draw afresh (the worker, drawing before the labels, cannot know them)."""
 
     def __init__(self, bases: Sequence[float], shapes: Sequence[tuple[int, int]], seed: int):
         self.bases = [float(b) for b in bases]
@@ -200,10 +224,15 @@ class PriorDraws:
         self.log_g = [np.empty(shape) for shape in shapes]  # [R, C] each
         self.row_sums = [np.empty(shape[0]) for shape in shapes]  # [R] each
         self._chunks = []  # (table, start row, stop row)
+        self._first_rows = []  # each table's first global row (its rows' streams follow)
+        first = 0
         for index, (rows, columns) in enumerate(shapes):
             step = max(1, CHUNK_ENTRIES // max(columns, 1))
             self._chunks += [(index, r, min(r + step, rows)) for r in range(0, rows, step)]
-        self._seed = int(seed)
+            self._first_rows.append(first)
+            first += rows
+        self._no_skip = [np.zeros(shape[0], dtype=np.bool_) for shape in shapes]
+        self._seed = np.uint64(int(seed) & ((1 << 64) - 1))
         self._lock = threading.Lock()
         self._claimed = 0
         self._done = 0
@@ -220,15 +249,17 @@ class PriorDraws:
             self._claimed += 1
             return self._claimed - 1
 
-    def draw(self) -> None:
-        """Draw chunks until none is left unclaimed (a worker's job, and the caller's help)."""
+    def draw(self, skip: Sequence[np.ndarray] | None = None) -> None:
+        """Draw chunks until none is left unclaimed (a worker's job, and the caller's help),
+        leaving out the rows where ``skip`` (one [R] bool mask per table) is set."""
+        skip = self._no_skip if skip is None else skip
         while (k := self._claim()) >= 0:
             try:
                 index, start, stop = self._chunks[k]
-                state = rng_state(_mix64(self._seed + (k + 1) * _GOLDEN))
                 _prior_chunk(
                     self.bases[index], self.linear[index], self.log_g[index],
-                    self.row_sums[index], start, stop, state,
+                    self.row_sums[index], start, stop, self._seed, self._first_rows[index],
+                    skip[index],
                 )  # fmt: skip
             except BaseException as error:  # re-raised by tables(); never a silent hang
                 self._error = error
@@ -238,10 +269,13 @@ class PriorDraws:
                     if self._done == len(self._chunks):
                         self._finished.set()
 
-    def tables(self) -> list[tuple[float, np.ndarray, np.ndarray, np.ndarray]]:
+    def tables(
+        self, skip: Sequence[np.ndarray] | None = None
+    ) -> list[tuple[float, np.ndarray, np.ndarray, np.ndarray]]:
         """(base, linear, log_g, row_sums) per table once every chunk is drawn: the caller draws
-        the unclaimed ones, then waits for those in flight on the worker."""
-        self.draw()
+        the unclaimed ones (without the rows ``skip`` marks), then waits for those in flight on
+        the worker."""
+        self.draw(skip)
         self._finished.wait()
         if self._error is not None:
             raise self._error
@@ -331,7 +365,9 @@ def finish_globals(
     C-contiguous, the shapes of :func:`start_prior_draws`), drawn with the RNG ``state``; or
     (partial, table index, flat index) of the first shape that is not finite and positive."""
     try:
-        tables = job.tables()
+        # rows whose every entry has a statistic are drawn afresh whole: their prior variates
+        # are not needed (the worker may have drawn them anyway; the numbers are the same)
+        tables = job.tables([(stats != 0.0).all(axis=1) for stats in statistics])
     finally:
         abandon_prior_draws(job)
     out = []
