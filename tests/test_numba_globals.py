@@ -88,6 +88,31 @@ def test_the_draw_does_not_depend_on_which_thread_draws(thread_mode):
         np.testing.assert_array_equal(mine, theirs)
 
 
+@pytest.mark.parametrize("guess", ["right", "wrong", "failing"])
+def test_the_workers_guess_changes_no_number(guess):
+    """The worker leaves out the rows its hint guesses will be redrawn whole; a wrong guess (or
+    a hint that raises) only costs time."""
+    statistics = [np.zeros((1, 6)), np.zeros((12, 5))]
+    statistics[1][[2, 7]] = 1.0  # rows 2 and 7 redrawn whole
+    statistics[1][4, 0] = 3.0  # row 4 only in part
+    masks = [(s != 0).all(axis=1) for s in statistics]
+
+    def hint():
+        if guess == "failing":
+            raise RuntimeError("no guess")
+        return masks if guess == "right" else [~m for m in masks]
+
+    shapes = [s.shape for s in statistics]
+    plain, _, _ = finish_globals(start_prior_draws([0.5, 2.0], shapes, 9), statistics,
+                                 rng_state(1))  # fmt: skip
+    job = PriorDraws([0.5, 2.0], shapes, 9, hint)
+    job.draw()  # the worker's part: every chunk, with its guess
+    numba_globals._count_active(1)  # as start_prior_draws does
+    hinted, _, _ = finish_globals(job, statistics, rng_state(1))
+    for mine, theirs in zip(plain, hinted, strict=True):
+        np.testing.assert_array_equal(mine, theirs)
+
+
 def test_chunks_draw_independent_streams():
     """Two chunks of one table must not repeat each other's variates."""
     job = PriorDraws([2.0], [(2 * numba_globals.CHUNK_ENTRIES // 4, 4)], seed=3)

@@ -39,7 +39,7 @@ import math
 import os
 import queue
 import threading
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from numba import njit
@@ -218,7 +218,13 @@ class PriorDraws:
     do not depend on who draws them; the caller skips the rows all of whose entries it will
     draw afresh (the worker, drawing before the labels, cannot know them)."""
 
-    def __init__(self, bases: Sequence[float], shapes: Sequence[tuple[int, int]], seed: int):
+    def __init__(
+        self,
+        bases: Sequence[float],
+        shapes: Sequence[tuple[int, int]],
+        seed: int,
+        hint: Callable[[], Sequence[np.ndarray]] | None = None,
+    ):
         self.bases = [float(b) for b in bases]
         self.linear = [np.empty(shape) for shape in shapes]  # [R, C] each
         self.log_g = [np.empty(shape) for shape in shapes]  # [R, C] each
@@ -232,6 +238,8 @@ class PriorDraws:
             self._first_rows.append(first)
             first += rows
         self._no_skip = [np.zeros(shape[0], dtype=np.bool_) for shape in shapes]
+        self.drawn = [np.zeros(shape[0], dtype=np.bool_) for shape in shapes]  # [R] each
+        self._hint = hint
         self._seed = np.uint64(int(seed) & ((1 << 64) - 1))
         self._lock = threading.Lock()
         self._claimed = 0
@@ -251,8 +259,14 @@ class PriorDraws:
 
     def draw(self, skip: Sequence[np.ndarray] | None = None) -> None:
         """Draw chunks until none is left unclaimed (a worker's job, and the caller's help),
-        leaving out the rows where ``skip`` (one [R] bool mask per table) is set."""
-        skip = self._no_skip if skip is None else skip
+        leaving out the rows where ``skip`` (one [R] bool mask per table) is set; without it
+        (the worker) the rows the hint guesses will be redrawn whole. Which rows are drawn does
+        not change any number: :meth:`tables` draws the missing ones from their own streams."""
+        if skip is None:
+            try:
+                skip = self._no_skip if self._hint is None else self._hint()
+            except Exception:  # only a guess: without it every row is drawn
+                skip = self._no_skip
         while (k := self._claim()) >= 0:
             try:
                 index, start, stop = self._chunks[k]
@@ -261,6 +275,7 @@ class PriorDraws:
                     self.row_sums[index], start, stop, self._seed, self._first_rows[index],
                     skip[index],
                 )  # fmt: skip
+                self.drawn[index][start:stop] = ~skip[index][start:stop]
             except BaseException as error:  # re-raised by tables(); never a silent hang
                 self._error = error
             finally:
@@ -272,13 +287,23 @@ class PriorDraws:
     def tables(
         self, skip: Sequence[np.ndarray] | None = None
     ) -> list[tuple[float, np.ndarray, np.ndarray, np.ndarray]]:
-        """(base, linear, log_g, row_sums) per table once every chunk is drawn: the caller draws
-        the unclaimed ones (without the rows ``skip`` marks), then waits for those in flight on
-        the worker."""
+        """(base, linear, log_g, row_sums) per table once every row outside ``skip`` is drawn:
+        the caller draws the unclaimed chunks, waits for those in flight on the worker, then
+        draws the rows the worker's hint left out wrongly."""
         self.draw(skip)
         self._finished.wait()
         if self._error is not None:
             raise self._error
+        skip = self._no_skip if skip is None else skip
+        for index, (drawn, left) in enumerate(zip(self.drawn, skip, strict=True)):
+            done = drawn | left  # [R] rows drawn, or not needed
+            if not done.all():
+                _prior_chunk(
+                    self.bases[index], self.linear[index], self.log_g[index],
+                    self.row_sums[index], 0, done.shape[0], self._seed,
+                    self._first_rows[index], done,
+                )  # fmt: skip
+                drawn |= ~done
         return list(zip(self.bases, self.linear, self.log_g, self.row_sums, strict=True))
 
 
@@ -339,13 +364,19 @@ def _count_active(change: int) -> None:
 
 
 def start_prior_draws(
-    bases: Sequence[float], shapes: Sequence[tuple[int, int]], seed: int
+    bases: Sequence[float],
+    shapes: Sequence[tuple[int, int]],
+    seed: int,
+    hint: Callable[[], Sequence[np.ndarray]] | None = None,
 ) -> PriorDraws:
     """Start one sweep's prior draw (tables of ``shapes`` [R, C] with concentrations ``bases``,
     every base finite and positive) from ``seed``, on the worker when :func:`prior_thread` says
-    so; then :func:`finish_globals` (or :func:`abandon_prior_draws` if the sweep fails)."""
+    so; then :func:`finish_globals` (or :func:`abandon_prior_draws` if the sweep fails).
+    ``hint()``, called on the worker, guesses the rows that will be redrawn whole (one [R] bool
+    mask per table; e.g. from the labels before the sweep): the worker leaves them out. A wrong
+    guess costs time, never a different number."""
     _count_active(1)
-    job = PriorDraws(bases, shapes, seed)
+    job = PriorDraws(bases, shapes, seed, hint)
     if _use_worker():
         _submit(job)
     return job

@@ -338,18 +338,37 @@ def _sample_globals_arrays(
 
 
 def _start_globals(
-    data: ModelData, config: SpCoConfig, generator: torch.Generator
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    labels: torch.Tensor | None = None,
 ) -> PriorDraws | None:
     """Start the prior part of the globals' draw (:mod:`~spcopyro.gibbs.numba_globals`: pi
     [1, L], then each modality's [L, K_m]) from a seed drawn from ``generator``; None (nothing
-    drawn) where a concentration is not finite and positive (the one-pass draw then names it)."""
+    drawn) where a concentration is not finite and positive (the one-pass draw then names it).
+    ``labels`` [N] (the labels before the sweep, left unchanged by it) give the worker its guess
+    of the rows the sweep will redraw whole: those whose every statistic is nonzero now."""
     L = config.num_concepts
     bases = [float(config.pi_concentration)]
     bases += [float(config.concentration(modality.name)) for modality in data.modalities]
     if not all(0.0 < base < np.inf for base in bases):
         return None
     shapes = [(1, L)] + [(L, modality.counts.shape[1]) for modality in data.modalities]
-    return start_prior_draws(bases, shapes, draw_seed(generator))
+    hint = None
+    if labels is not None:
+
+        def hint() -> list[np.ndarray]:
+            current = _as_array(labels, np.int64)  # [N]
+            _check_data(data)  # the compiled statistics index without bounds checks
+            if current.shape != (data.num_free,) or (
+                current.size and (current.min() < 0 or current.max() >= L)
+            ):
+                return [np.zeros(shape[0], dtype=np.bool_) for shape in shapes]  # no guess
+            cells, statistics = _statistics(current, _as_array(data.obs_cells, np.int64), data,
+                                            config)  # fmt: skip
+            return [(table != 0.0).all(axis=1) for table in (cells, *statistics)]
+
+    return start_prior_draws(bases, shapes, draw_seed(generator), hint)
 
 
 def _finish_globals_arrays(
@@ -450,7 +469,9 @@ def gibbs_sweep_numba(
     """
     rng = rng_state(draw_seed(generator))
     counts = np.empty(config.num_concepts)  # [L]
-    started = _start_globals(data, config, generator) if unobserved_refresh >= 1.0 else None
+    started = None
+    if unobserved_refresh >= 1.0:
+        started = _start_globals(data, config, generator, state.labels)
     if started is None:
         compact, agreements = _sample_labels_array(state, data, config, plan, rng)  # [N + D]
         log_pi, log_emissions = _sample_globals_arrays(
