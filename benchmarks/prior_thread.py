@@ -8,7 +8,7 @@ labels ahead, on a worker thread while the label loop runs where a CPU is spare
 (``gibbs_sweep_numba`` in a loop, paper-dp, L = 120) on room2ldk4 (a synthetic stand-in without
 the dataset) in three settings:
 
-* ``one-pass``: the draw before issue 25 (labels, then every variate on the calling thread);
+* ``one-pass``: the default draw (labels, then every variate on the calling thread);
 * ``worker off``: the two-part draw on the calling thread (what ``auto`` does when no CPU is
   spare: many chains in threads, or one usable CPU);
 * ``worker on``: the two-part draw with the worker thread (``auto`` for one chain on >= 2 CPUs);
@@ -38,7 +38,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 from bench_setup import load_headline_house, make_problem
 from machine import format_table, machine_info, progress
@@ -47,32 +46,15 @@ from threads import busy_neighbour, other_load
 from spcopyro.config import preset
 from spcopyro.data import find_dataset_root
 from spcopyro.gibbs import GibbsOptions, GibbsState
-from spcopyro.gibbs import numba_sweep as compiled
 from spcopyro.gibbs.numba_globals import prior_thread
-from spcopyro.gibbs.numba_log_joint import remember_sweep
-from spcopyro.gibbs.numba_random import draw_seed, rng_state
+from spcopyro.gibbs.numba_sweep import gibbs_sweep_numba
 from spcopyro.gibbs.run import advance, start_chain
 from spcopyro.gibbs.state import make_sweep_plan
 
 SCRIPT_DIR = Path(__file__).resolve().parent
 SETTINGS = ("one-pass", "worker off", "worker on")
-
-
-def one_pass_sweep(state, data, config, generator, plan):
-    """The compiled sweep as it was before issue 25 item 4: labels, then every gamma variate of
-    the globals on the calling thread (the sweep's private parts, assembled as it did)."""
-    rng = rng_state(draw_seed(generator))
-    labels, agreements = compiled._sample_labels_array(state, data, config, plan, rng)
-    counts = np.empty(config.num_concepts)  # [L]
-    log_pi, log_emissions = compiled._sample_globals_arrays(
-        labels, data, config, rng, state.log_emissions, 1.0, counts
-    )
-    new = GibbsState(torch.from_numpy(labels[: data.num_free].astype(np.int64)), log_pi,
-                     log_emissions)  # fmt: skip
-    obs_cells = compiled._as_array(data.obs_cells, np.int64)
-    counts_m = tuple(compiled._as_array(m.counts, np.float64) for m in data.modalities)
-    remember_sweep(new, data, config, agreements, counts, obs_cells, counts_m, labels)
-    return new
+MODES = {"one-pass": "one-pass", "worker off": "off", "worker on": "on"}
+"""The :func:`~spcopyro.gibbs.numba_globals.prior_thread` mode of each setting."""
 
 
 def time_condition(problem, start: GibbsState, blocks: int, block: int) -> dict[str, Any]:
@@ -82,18 +64,17 @@ def time_condition(problem, start: GibbsState, blocks: int, block: int) -> dict[
     states = dict.fromkeys(SETTINGS, start)
     generators = {name: torch.Generator().manual_seed(1) for name in SETTINGS}
     per_block: dict[str, list[float]] = {name: [] for name in SETTINGS}
+    before = prior_thread()
     for _ in range(blocks):
         for name in SETTINGS:
-            sweep = one_pass_sweep if name == "one-pass" else compiled.gibbs_sweep_numba
-            if name != "one-pass":
-                prior_thread("on" if name == "worker on" else "off")
+            prior_thread(MODES[name])
             state, generator = states[name], generators[name]
             began = time.perf_counter()
             for _ in range(block):
-                state = sweep(state, data, config, generator, plan)
+                state = gibbs_sweep_numba(state, data, config, generator, plan)
             per_block[name].append(1e3 * (time.perf_counter() - began) / block)
             states[name] = state
-    prior_thread("auto")
+    prior_thread(before)
     on, off = states["worker on"], states["worker off"]
     same = torch.equal(on.labels, off.labels) and all(
         torch.equal(a, b) for a, b in zip(on.log_emissions, off.log_emissions, strict=True)

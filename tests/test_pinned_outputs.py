@@ -48,14 +48,11 @@ other kernel the other order). Words are now ranked after rounding to 1e-9, ties
 (:func:`spcopyro.results.concept_words.ranked`): the same digest under every OpenBLAS kernel tried
 (Haswell, Sandybridge, Nehalem, Prescott). Only that scenario's pin was recorded again.
 
-A sixth intended change (issue 25, item 4): the compiled sweep draws the gamma variates of its
-globals whose shape does not depend on the labels ahead, from streams seeded by a second seed
-drawn from the generator each sweep (:mod:`spcopyro.gibbs.numba_globals`), so the numba
-scenarios that sweep with ``unobserved_refresh`` = 1 (``fit-numba-paper-dp``,
-``fit-numba-dirichlet-tfidf``, ``converged-numba*``, ``mcmc-numba``) were recorded again after
-the distribution tests passed; ``fit-numba-options`` (partial refresh, the one-pass draw) and
-every torch scenario are unchanged. The new pins hold with the worker thread on and off
-(``SPCOPYRO_PRIOR_THREAD``).
+Not a change (issue 25, item 4): the compiled sweep can draw its globals' label-free gamma
+variates ahead, on a worker thread (:mod:`spcopyro.gibbs.numba_globals`, ``SPCOPYRO_PRIOR_THREAD``
+= auto, on or off), which consumes other random numbers; it is opt-in, so every pin holds under
+the default one-pass draw. (With the two-part draw the five numba scenarios that sweep with
+``unobserved_refresh`` = 1 give other digests, the same with the worker on and off.)
 """
 
 from __future__ import annotations

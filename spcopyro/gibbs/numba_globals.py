@@ -11,7 +11,10 @@ b the table's symmetric concentration (alpha / L or alpha for pi, chi for theta,
 s its statistics given the labels (cells per concept; image and word counts of the cells of each
 concept). Wherever s_rc = 0 (every concept without observed cells, every word none of a
 concept's cells heard; three quarters of the 26.4k variates of a public house at L = 120) the
-shape is b: it does not depend on the labels. A sweep therefore draws its globals in two parts:
+shape is b: it does not depend on the labels. A sweep can therefore draw its globals in two
+parts (opt-in, :func:`prior_thread`; the default is the one-pass draw of
+:mod:`~spcopyro.gibbs.numba_sweep`: on the project's shared 2-core machine the worker's ratio to
+the one-pass sweep ranged 0.62-1.37 from run to run, ``benchmarks/prior_thread.py``):
 
 1. **Ahead** (:func:`start_prior_draws`): every entry of every table gets a Gamma(b) variate,
    from streams of their own (one per row, seeded from the row and a seed the sweep draws from
@@ -52,6 +55,7 @@ __all__ = [
     "finish_globals",
     "prior_thread",
     "start_prior_draws",
+    "two_part",
 ]
 
 CHUNK_ENTRIES = 4096
@@ -309,8 +313,8 @@ class PriorDraws:
 
 # ------------------------------------------------------------------------------- the worker
 
-_MODES = ("auto", "on", "off")
-_mode = os.environ.get("SPCOPYRO_PRIOR_THREAD", "auto")
+_MODES = ("one-pass", "auto", "on", "off")
+_mode = os.environ.get("SPCOPYRO_PRIOR_THREAD", "one-pass")
 _jobs: queue.SimpleQueue[PriorDraws] = queue.SimpleQueue()
 _worker: threading.Thread | None = None
 _worker_lock = threading.Lock()
@@ -318,10 +322,13 @@ _active = 0  # sweeps drawing their globals in this process right now (chains ru
 
 
 def prior_thread(mode: str | None = None) -> str:
-    """The worker-thread mode of the prior draw, set to ``mode`` when given: ``"auto"`` (the
-    default; environment variable ``SPCOPYRO_PRIOR_THREAD``) uses the worker while fewer sweeps
-    run in this process than it may use CPUs, ``"on"`` always, ``"off"`` never. The draws are the
-    same in every mode: only who computes them changes."""
+    """How the compiled sweep draws its globals, set to ``mode`` when given (environment
+    variable ``SPCOPYRO_PRIOR_THREAD``): ``"one-pass"`` (the default) every variate after the
+    labels on the calling thread, without this module (the two-part draw did not pay reliably on
+    the project's shared 2-core machine: module doc); the
+    two-part draw with ``"auto"`` (the worker while at most half the usable CPUs run sweeps in
+    this process), ``"on"`` (always) or ``"off"`` (never). The two-part modes draw the same
+    numbers as each other, which differ from the one-pass draw's (same distribution)."""
     global _mode
     if mode is not None:
         if mode not in _MODES:
@@ -337,8 +344,13 @@ def _usable_cpus() -> int:
         return os.cpu_count() or 1
 
 
+def two_part() -> bool:
+    """Whether the compiled sweep draws its globals in two parts (:func:`prior_thread`)."""
+    return _mode in _MODES and _mode != "one-pass"
+
+
 def _use_worker() -> bool:
-    if _mode == "off" or _mode not in _MODES:
+    if _mode in ("off", "one-pass") or _mode not in _MODES:
         return False
     return _mode == "on" or 2 * _active <= _usable_cpus()
 

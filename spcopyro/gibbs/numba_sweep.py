@@ -41,15 +41,16 @@ variates (:func:`~spcopyro.gibbs.numba_random.dirichlet_log_rows`: Marsaglia & T
 linearly and logged in one vectorised pass; log G(a) = log G(a + 1) + log(U) / a for a < 1, in
 log space, so concentrations far below 1 (alpha / L) never underflow). A switched-off modality
 contributes zero statistics (its distributions are drawn from the prior), as in the reference.
-The sweep draws them in two parts (:mod:`spcopyro.gibbs.numba_globals`): the Gamma(b) variates
-of every entry, whose shape does not depend on the labels, from streams of their own started
-before the label loop (on a worker thread while the loop runs, where a CPU is spare), then the
-entries with nonzero statistics after it; exact, and the same numbers whichever thread draws.
-With ``unobserved_refresh`` < 1 the one-pass draw above is used.
+Optionally (:func:`~spcopyro.gibbs.numba_globals.prior_thread`, ``SPCOPYRO_PRIOR_THREAD``; off
+by default: it did not pay reliably on a shared 2-core machine) the sweep draws them in two parts
+(:mod:`spcopyro.gibbs.numba_globals`): the Gamma(b) variates of every entry, whose shape does
+not depend on the labels, from streams of their own started before the label loop (on a worker
+thread while the loop runs), then the entries with nonzero statistics after it; exact, and the
+same numbers whichever thread draws. With ``unobserved_refresh`` < 1 the one-pass draw is used.
 
 **Randomness** (:mod:`spcopyro.gibbs.numba_random`): each call draws one seed from the given
 :class:`torch.Generator` and runs its own xoshiro256++ stream from it (and a second seed for
-the prior part of the globals). A seeded run is
+the prior part of the globals in the two-part modes). A seeded run is
 reproducible bit for bit, but its numbers differ from the torch backend's: only the
 distributions agree (what the tests check). The sweep plan is flattened and checked once per
 plan (:mod:`spcopyro.gibbs.numba_plan`).
@@ -74,6 +75,7 @@ from spcopyro.gibbs.numba_globals import (
     abandon_prior_draws,
     finish_globals,
     start_prior_draws,
+    two_part,
 )
 from spcopyro.gibbs.numba_labels import (
     compact_label_dtype,
@@ -345,9 +347,12 @@ def _start_globals(
 ) -> PriorDraws | None:
     """Start the prior part of the globals' draw (:mod:`~spcopyro.gibbs.numba_globals`: pi
     [1, L], then each modality's [L, K_m]) from a seed drawn from ``generator``; None (nothing
-    drawn) where a concentration is not finite and positive (the one-pass draw then names it).
+    drawn) in the one-pass mode (:func:`~spcopyro.gibbs.numba_globals.prior_thread`, the
+    default) or where a concentration is not finite and positive (the one-pass draw names it).
     ``labels`` [N] (the labels before the sweep, left unchanged by it) give the worker its guess
     of the rows the sweep will redraw whole: those whose every statistic is nonzero now."""
+    if not two_part():
+        return None
     L = config.num_concepts
     bases = [float(config.pi_concentration)]
     bases += [float(config.concentration(modality.name)) for modality in data.modalities]
@@ -428,8 +433,8 @@ def sample_globals_numba(
     """(log pi [L], per-modality log distributions [L, K_m]) from their conjugate conditionals
     (eqs. 14-17).
 
-    Same distribution as :func:`~spcopyro.gibbs.sweep.sample_globals`; draws two seeds from
-    ``generator`` (the second for the prior part, :mod:`~spcopyro.gibbs.numba_globals`).
+    Same distribution as :func:`~spcopyro.gibbs.sweep.sample_globals`; draws one seed from
+    ``generator`` (two in the two-part modes of :mod:`~spcopyro.gibbs.numba_globals`).
 
     Raises:
         ValueError: ``labels`` is not [N] or holds a label outside [0, L), or ``data`` is
@@ -457,9 +462,10 @@ def gibbs_sweep_numba(
     """One iteration of Algorithm 1, compiled: every cell label, then pi and the emission
     distributions.
 
-    A drop-in for :func:`~spcopyro.gibbs.sweep.gibbs_sweep` with the same distribution. Draws two
-    seeds from ``generator`` per call (one with ``unobserved_refresh`` < 1), so a seeded run is
-    reproducible bit for bit, with or without the prior draw's worker thread. The sweep
+    A drop-in for :func:`~spcopyro.gibbs.sweep.gibbs_sweep` with the same distribution. Draws one
+    seed from ``generator`` per call (two in the two-part modes of
+    :mod:`~spcopyro.gibbs.numba_globals`), so a seeded run is reproducible bit for bit, with or
+    without the prior draw's worker thread. The sweep
     remembers E(C) and the concept sizes of the labels it returns (:func:`potts_agreements_numba`
     and :func:`label_counts_numba` then cost nothing).
 
