@@ -67,6 +67,17 @@ def test_threads_benchmark_quick(tmp_path):
 
 
 @pytest.mark.slow
+def test_prior_thread_benchmark_quick(tmp_path):
+    pytest.importorskip("numba")
+    out = tmp_path / "prior_thread.json"
+    done = run_benchmark("prior_thread.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    results = json.loads(out.read_text())
+    assert set(results["conditions"]) == {"as is", "busy neighbour"}
+    assert all(c["same_draws_on_and_off"] for c in results["conditions"].values())
+
+
+@pytest.mark.slow
 def test_variational_benchmark_quick(tmp_path):
     out = tmp_path / "variational.json"
     done = run_benchmark("variational.py", out)

@@ -47,6 +47,12 @@ BLAS kernel OpenBLAS picks for the CPU (``OPENBLAS_CORETYPE=Nehalem`` gave the o
 other kernel the other order). Words are now ranked after rounding to 1e-9, ties in item order
 (:func:`spcopyro.results.concept_words.ranked`): the same digest under every OpenBLAS kernel tried
 (Haswell, Sandybridge, Nehalem, Prescott). Only that scenario's pin was recorded again.
+
+Not a change (issue 25, item 4): the compiled sweep can draw its globals' label-free gamma
+variates ahead, on a worker thread (:mod:`spcopyro.gibbs.numba_globals`, ``SPCOPYRO_PRIOR_THREAD``
+= auto, on or off), which consumes other random numbers; it is opt-in, so every pin holds under
+the default one-pass draw. (With the two-part draw the five numba scenarios that sweep with
+``unobserved_refresh`` = 1 give other digests, the same with the worker on and off.)
 """
 
 from __future__ import annotations

@@ -136,6 +136,43 @@ def _normal(state: np.ndarray) -> float:
             return x
 
 
+@njit(cache=True, inline="always")
+def marsaglia_tsang(
+    d: float,
+    scale: float,
+    s0: np.uint64,
+    s1: np.uint64,
+    s2: np.uint64,
+    s3: np.uint64,
+    state: np.ndarray,
+) -> tuple[float, np.uint64, np.uint64, np.uint64, np.uint64]:
+    """(G ~ Gamma(a, 1) for a > 1, the next RNG state) by Marsaglia & Tsang (2000) with its
+    squeeze, d = a - 1/3 and scale = 1 / sqrt(9 d) given. The RNG state travels in four
+    registers (:func:`next_bits`); ``state`` [4] is only the scratch of the ziggurat's slow path
+    (~1% of normals), whose fast path is inlined here."""
+    while True:
+        bits, s0, s1, s2, s3 = next_bits(s0, s1, s2, s3)
+        layer = np.int64(bits & _U127)
+        z = 2.0 * (float(bits >> _U11) * _TWO_TO_MINUS_53) - 1.0
+        if abs(z) < _ZIG_RATIO[layer]:
+            x = z * _ZIG_X[layer]  # the ziggurat's rectangle (~99%)
+        else:
+            state[0], state[1], state[2], state[3] = s0, s1, s2, s3
+            x = _normal_slow_path(bits, state)
+            s0, s1, s2, s3 = state[0], state[1], state[2], state[3]
+            if math.isnan(x):  # the wedge rejected: a fresh normal
+                continue
+        t = 1.0 + scale * x
+        if t <= 0.0:
+            continue
+        v = t * t * t
+        bits, s0, s1, s2, s3 = next_bits(s0, s1, s2, s3)
+        u = 1.0 - bits_to_uniform(bits)
+        x2 = x * x
+        if u < 1.0 - 0.0331 * x2 * x2 or math.log(u) < 0.5 * x2 + d * (1.0 - v + math.log(v)):
+            return d * v, s0, s1, s2, s3
+
+
 @njit(cache=True, nogil=True)
 def _fill_normal(out: np.ndarray, state: np.ndarray) -> None:
     """out [n] = standard normals."""
@@ -189,31 +226,9 @@ def _fill_gamma_linear(
             if a != shape:  # most concepts hold no observations: their shapes repeat
                 shape, d = a, a - 1.0 / 3.0
                 scale = 1.0 / math.sqrt(9.0 * d)
-            while True:
-                bits, s0, s1, s2, s3 = next_bits(s0, s1, s2, s3)
-                layer = np.int64(bits & _U127)
-                z = 2.0 * (float(bits >> _U11) * _TWO_TO_MINUS_53) - 1.0
-                if abs(z) < _ZIG_RATIO[layer]:
-                    x = z * _ZIG_X[layer]  # the ziggurat's rectangle (~99%)
-                else:
-                    state[0], state[1], state[2], state[3] = s0, s1, s2, s3
-                    x = _normal_slow_path(bits, state)
-                    s0, s1, s2, s3 = state[0], state[1], state[2], state[3]
-                    if math.isnan(x):  # the wedge rejected: a fresh normal
-                        continue
-                t = 1.0 + scale * x
-                if t <= 0.0:
-                    continue
-                v = t * t * t
-                bits, s0, s1, s2, s3 = next_bits(s0, s1, s2, s3)
-                u = 1.0 - bits_to_uniform(bits)
-                x2 = x * x
-                if u < 1.0 - 0.0331 * x2 * x2 or math.log(u) < 0.5 * x2 + d * (
-                    1.0 - v + math.log(v)
-                ):
-                    out[r, c] = d * v
-                    total += d * v
-                    break
+            draw, s0, s1, s2, s3 = marsaglia_tsang(d, scale, s0, s1, s2, s3, state)
+            out[r, c] = draw
+            total += draw
         row_sums[r] = total
     state[0], state[1], state[2], state[3] = s0, s1, s2, s3
     return -1

@@ -41,9 +41,16 @@ variates (:func:`~spcopyro.gibbs.numba_random.dirichlet_log_rows`: Marsaglia & T
 linearly and logged in one vectorised pass; log G(a) = log G(a + 1) + log(U) / a for a < 1, in
 log space, so concentrations far below 1 (alpha / L) never underflow). A switched-off modality
 contributes zero statistics (its distributions are drawn from the prior), as in the reference.
+Optionally (:func:`~spcopyro.gibbs.numba_globals.prior_thread`, ``SPCOPYRO_PRIOR_THREAD``; off
+by default: it did not pay reliably on a shared 2-core machine) the sweep draws them in two parts
+(:mod:`spcopyro.gibbs.numba_globals`): the Gamma(b) variates of every entry, whose shape does
+not depend on the labels, from streams of their own started before the label loop (on a worker
+thread while the loop runs), then the entries with nonzero statistics after it; exact, and the
+same numbers whichever thread draws. With ``unobserved_refresh`` < 1 the one-pass draw is used.
 
 **Randomness** (:mod:`spcopyro.gibbs.numba_random`): each call draws one seed from the given
-:class:`torch.Generator` and runs its own xoshiro256++ stream from it. A seeded run is
+:class:`torch.Generator` and runs its own xoshiro256++ stream from it (and a second seed for
+the prior part of the globals in the two-part modes). A seeded run is
 reproducible bit for bit, but its numbers differ from the torch backend's: only the
 distributions agree (what the tests check). The sweep plan is flattened and checked once per
 plan (:mod:`spcopyro.gibbs.numba_plan`).
@@ -63,6 +70,13 @@ import torch
 from numba import njit
 
 from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.numba_globals import (
+    PriorDraws,
+    abandon_prior_draws,
+    finish_globals,
+    start_prior_draws,
+    two_part,
+)
 from spcopyro.gibbs.numba_labels import (
     compact_label_dtype,
     compact_labels,
@@ -325,6 +339,74 @@ def _sample_globals_arrays(
     return log_pi_t, tuple(log_emissions)
 
 
+def _start_globals(
+    data: ModelData,
+    config: SpCoConfig,
+    generator: torch.Generator,
+    labels: torch.Tensor | None = None,
+) -> PriorDraws | None:
+    """Start the prior part of the globals' draw (:mod:`~spcopyro.gibbs.numba_globals`: pi
+    [1, L], then each modality's [L, K_m]) from a seed drawn from ``generator``; None (nothing
+    drawn) in the one-pass mode (:func:`~spcopyro.gibbs.numba_globals.prior_thread`, the
+    default) or where a concentration is not finite and positive (the one-pass draw names it).
+    ``labels`` [N] (the labels before the sweep, left unchanged by it) give the worker its guess
+    of the rows the sweep will redraw whole: those whose every statistic is nonzero now."""
+    if not two_part():
+        return None
+    L = config.num_concepts
+    bases = [float(config.pi_concentration)]
+    bases += [float(config.concentration(modality.name)) for modality in data.modalities]
+    if not all(0.0 < base < np.inf for base in bases):
+        return None
+    shapes = [(1, L)] + [(L, modality.counts.shape[1]) for modality in data.modalities]
+    hint = None
+    if labels is not None:
+
+        def hint() -> list[np.ndarray]:
+            current = _as_array(labels, np.int64)  # [N]
+            _check_data(data)  # the compiled statistics index without bounds checks
+            if current.shape != (data.num_free,) or (
+                current.size and (current.min() < 0 or current.max() >= L)
+            ):
+                return [np.zeros(shape[0], dtype=np.bool_) for shape in shapes]  # no guess
+            cells, statistics = _statistics(current, _as_array(data.obs_cells, np.int64), data,
+                                            config)  # fmt: skip
+            return [(table != 0.0).all(axis=1) for table in (cells, *statistics)]
+
+    return start_prior_draws(bases, shapes, draw_seed(generator), hint)
+
+
+def _finish_globals_arrays(
+    started: PriorDraws,
+    labels: np.ndarray,
+    data: ModelData,
+    config: SpCoConfig,
+    rng: np.ndarray,
+    cell_counts: np.ndarray | None = None,
+) -> tuple[torch.Tensor, tuple[torch.Tensor, ...]]:
+    """(log pi, per-modality log distributions) given valid labels [N] (or longer) and the
+    prior draw ``started`` (:func:`_start_globals`): the entries with nonzero statistics drawn
+    with ``rng`` (:func:`~spcopyro.gibbs.numba_globals.finish_globals`). ``cell_counts`` [L], if
+    given, receives the concept sizes."""
+    try:
+        obs_cells = _as_array(data.obs_cells, np.int64)
+        cells_per_concept, statistics = _statistics(labels, obs_cells, data, config)
+    except BaseException:
+        abandon_prior_draws(started)
+        raise
+    if cell_counts is not None:
+        cell_counts[:] = cells_per_concept[0]
+    tables, table, bad = finish_globals(started, [cells_per_concept, *statistics], rng)
+    if bad >= 0:
+        if table == 0:
+            raise _bad_concentration("pi", cells_per_concept, config.pi_concentration, bad)
+        modality = data.modalities[table - 1]
+        base = config.concentration(modality.name)
+        raise _bad_concentration(modality.parameter, statistics[table - 1], base, bad)
+    log_pi, *log_emissions = tables
+    return torch.from_numpy(log_pi[0]), tuple(torch.from_numpy(t) for t in log_emissions)
+
+
 def sample_labels_numba(
     state: GibbsState,
     data: ModelData,
@@ -352,7 +434,7 @@ def sample_globals_numba(
     (eqs. 14-17).
 
     Same distribution as :func:`~spcopyro.gibbs.sweep.sample_globals`; draws one seed from
-    ``generator``.
+    ``generator`` (two in the two-part modes of :mod:`~spcopyro.gibbs.numba_globals`).
 
     Raises:
         ValueError: ``labels`` is not [N] or holds a label outside [0, L), or ``data`` is
@@ -362,7 +444,11 @@ def sample_globals_numba(
     if tuple(labels.shape) != (data.num_free,):
         raise ValueError(f"labels have shape {tuple(labels.shape)}, expected ({data.num_free},)")
     checked = _extended_labels(labels, 0, config)
-    return _sample_globals_arrays(checked, data, config, rng_state(draw_seed(generator)))
+    rng = rng_state(draw_seed(generator))
+    started = _start_globals(data, config, generator)
+    if started is None:
+        return _sample_globals_arrays(checked, data, config, rng)
+    return _finish_globals_arrays(started, checked, data, config, rng)
 
 
 def gibbs_sweep_numba(
@@ -377,7 +463,9 @@ def gibbs_sweep_numba(
     distributions.
 
     A drop-in for :func:`~spcopyro.gibbs.sweep.gibbs_sweep` with the same distribution. Draws one
-    seed from ``generator`` per call, so a seeded run is reproducible bit for bit. The sweep
+    seed from ``generator`` per call (two in the two-part modes of
+    :mod:`~spcopyro.gibbs.numba_globals`), so a seeded run is reproducible bit for bit, with or
+    without the prior draw's worker thread. The sweep
     remembers E(C) and the concept sizes of the labels it returns (:func:`potts_agreements_numba`
     and :func:`label_counts_numba` then cost nothing).
 
@@ -386,11 +474,22 @@ def gibbs_sweep_numba(
             [0, L), ``plan`` was made for other data, or gamma * D > 700 (overflow).
     """
     rng = rng_state(draw_seed(generator))
-    compact, agreements = _sample_labels_array(state, data, config, plan, rng)  # [N + D]
     counts = np.empty(config.num_concepts)  # [L]
-    log_pi, log_emissions = _sample_globals_arrays(
-        compact, data, config, rng, state.log_emissions, unobserved_refresh, counts
-    )
+    started = None
+    if unobserved_refresh >= 1.0:
+        started = _start_globals(data, config, generator, state.labels)
+    if started is None:
+        compact, agreements = _sample_labels_array(state, data, config, plan, rng)  # [N + D]
+        log_pi, log_emissions = _sample_globals_arrays(
+            compact, data, config, rng, state.log_emissions, unobserved_refresh, counts
+        )
+    else:  # the prior part of the globals is drawn while the labels are (numba_globals)
+        try:
+            compact, agreements = _sample_labels_array(state, data, config, plan, rng)
+        except BaseException:
+            abandon_prior_draws(started)
+            raise
+        log_pi, log_emissions = _finish_globals_arrays(started, compact, data, config, rng, counts)
     labels = torch.from_numpy(compact[: data.num_free].astype(np.int64))  # [N]
     state = GibbsState(labels, log_pi, log_emissions)
     obs_cells = _as_array(data.obs_cells, np.int64)
