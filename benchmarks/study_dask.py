@@ -128,8 +128,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"| {entry['where']} | {entry['ran']} ({entry['ran_here']}) | "
               f"{entry['seconds']:.1f} | {share:.2f} | "
               f"{'' if other is None else f'{other:.2f}'} |")  # fmt: skip
-    print("(other processes' cores: workers forked from the forkserver are not this process's "
-          "children, so their own CPU is counted there, about 1.6-1.8 cores on an idle machine)")
+    print(
+        "(other processes' cores: workers forked from the forkserver are not this process's "
+        "children, so their own CPU is counted there, about 1.6-1.8 cores on an idle machine)"
+    )
     print(f"ratio (cluster / in-process): {ratio:.2f} (target <= 0.6); same numbers: {same}")
     Path(args.out).write_text(json.dumps(results, indent=1, default=str))
     print(f"wrote {args.out}")
