@@ -275,8 +275,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     print()
     for note in notes:
         print(f"note: {note}")
-    print(f"load average (1, 5, 15 min) before {load_before}, after {load_after}; other "
-          f"processes' CPU seconds meanwhile: {other if other is None else round(other, 1)}")
+    print(
+        f"load average (1, 5, 15 min) before {load_before}, after {load_after}; other "
+        f"processes' CPU seconds meanwhile: {other if other is None else round(other, 1)}"
+    )
     rows = [row for house_rows in tables.values() for row in house_rows]
     results = {"machine": machine_info(), "gpu": gpu, "preset": PRESET, "notes": notes,
                "load_before": load_before, "load_after": load_after,

@@ -265,4 +265,3 @@ def test_runs_on_cuda(dtype, atol):
     labels = batch.labels.cpu()
     assert int(labels.min()) >= 0 and int(labels.max()) < cfg.num_concepts
     assert torch.isfinite(batch.log_pi).all()
-

@@ -76,9 +76,7 @@ def _moment_kappa(spread: float, purity_deficit: float) -> float:
     return purity_deficit / spread - 1.0 if spread > 0 else math.inf
 
 
-def image_separation(
-    features: np.ndarray, labels_of_images: np.ndarray
-) -> ImageSeparation:
+def image_separation(features: np.ndarray, labels_of_images: np.ndarray) -> ImageSeparation:
     """The statistic of the module docstring for histograms ``features`` ``[T, K]`` and their
     concepts ``labels_of_images`` ``[T]`` (< 0: not labelled, left out)."""
     keep = np.asarray(labels_of_images) >= 0  # [T]
