@@ -9,6 +9,8 @@ float64 alike. The sampler therefore keeps pi, theta and w as *log* probabilitie
 
 from __future__ import annotations
 
+import math
+
 import torch
 
 _MAX_REJECTION_ROUNDS = 64
@@ -80,3 +82,11 @@ def coin_flip(probability: float, generator: torch.Generator) -> bool:
     if probability >= 1.0:
         return True
     return float(torch.rand((), dtype=torch.float64, generator=generator)) < probability
+
+
+def metropolis_accept(log_ratio: float, generator: torch.Generator) -> bool:
+    """Metropolis-Hastings: True with probability min(1, exp(``log_ratio``)), one float64 uniform
+    drawn from ``generator`` only when ``log_ratio`` < 0 (the label moves' convention)."""
+    if log_ratio >= 0:
+        return True
+    return float(torch.rand((), dtype=torch.float64, generator=generator)) < math.exp(log_ratio)

@@ -81,7 +81,7 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
-from spcopyro._util.random_draws import coin_flip
+from spcopyro._util.random_draws import coin_flip, metropolis_accept
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.backends import globals_sampler
 from spcopyro.gibbs.state import GibbsState
@@ -102,7 +102,7 @@ class MoveInfo(NamedTuple):
     of that kind, or no empty label for a split)."""
 
 
-def _used_modalities(data: ModelData, config: SpCoConfig) -> list[tuple[torch.Tensor, float]]:
+def used_modalities(data: ModelData, config: SpCoConfig) -> list[tuple[torch.Tensor, float]]:
     """(counts [M, K_u], concentration a_u) of every modality the model uses."""
     return [
         (m.counts, config.concentration(m.name)) for m in data.modalities if config.uses(m.name)
@@ -136,7 +136,7 @@ def collapsed_log_posterior(labels: torch.Tensor, data: ModelData, config: SpCoC
     L = config.num_concepts
     sizes = torch.bincount(labels, minlength=L)  # [L]
     counts = []
-    for modality_counts, concentration in _used_modalities(data, config):
+    for modality_counts, concentration in used_modalities(data, config):
         per_concept = torch.zeros(L, modality_counts.shape[-1], dtype=DTYPE)  # [L, K_u]
         per_concept.index_add_(0, labels[data.obs_cells], modality_counts)
         counts.append((concentration, per_concept))
@@ -168,7 +168,7 @@ def _restricted(
     fixed[[i, j]] = True
     blocks = tuple(local[c[mask[c] & ~fixed[c]]] for c in data.colours)
     obs_in = mask[data.obs_cells]  # [M]
-    counts = [(a, c[obs_in]) for c, a in _used_modalities(data, config)]
+    counts = [(a, c[obs_in]) for c, a in used_modalities(data, config)]
     return _Restricted(
         cells, neighbours, blocks, local[data.obs_cells[obs_in]], counts, int(local[i]),
         int(local[j]),
@@ -306,18 +306,26 @@ def _log_acceptance_ratio(delta_log_target: float, log_forward: float, log_rever
     return delta_log_target + log_reverse - log_forward
 
 
-def _pair_terms(
+def two_concepts(
     labels: torch.Tensor, data: ModelData, config: SpCoConfig, a: int, b: int
-) -> tuple[torch.Tensor, Counts, int]:
-    """Sizes [2], per-modality counts [2, K_u] of concepts a and b, and their common border."""
+) -> tuple[torch.Tensor, Counts]:
+    """Sizes [2] and per-modality counts [2, K_u] of concepts a and b (in that order)."""
     sizes = torch.stack([(labels == a).sum(), (labels == b).sum()])  # [2]
     observed = labels[data.obs_cells]  # [M]
     counts = []
-    for modality_counts, concentration in _used_modalities(data, config):
+    for modality_counts, concentration in used_modalities(data, config):
         per = torch.stack(
             [modality_counts[observed == a].sum(0), modality_counts[observed == b].sum(0)]
         )  # [2, K_u]
         counts.append((concentration, per))
+    return sizes, counts
+
+
+def _pair_terms(
+    labels: torch.Tensor, data: ModelData, config: SpCoConfig, a: int, b: int
+) -> tuple[torch.Tensor, Counts, int]:
+    """:func:`two_concepts` of a and b, and their common border."""
+    sizes, counts = two_concepts(labels, data, config, a, b)
     first, second = labels[data.pairs[:, 0]], labels[data.pairs[:, 1]]
     border = int((((first == a) & (second == b)) | ((first == b) & (second == a))).sum())
     return sizes, counts, border
@@ -392,9 +400,7 @@ def split_merge_labels(
         log_forward = -math.log(2 * num_agree) - math.log(num_empty) + log_final
         log_reverse = -math.log(2 * (num_disagree + border))
     log_ratio = _log_acceptance_ratio(delta, log_forward, log_reverse)
-    accept = log_ratio >= 0 or float(torch.rand((), dtype=DTYPE, generator=generator)) < math.exp(
-        log_ratio
-    )
+    accept = metropolis_accept(log_ratio, generator)
     kind = "merge" if merge else "split"
     return (proposed if accept else labels), MoveInfo(kind, bool(accept), log_ratio)
 

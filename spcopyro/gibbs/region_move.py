@@ -67,10 +67,17 @@ from typing import NamedTuple
 
 import torch
 
-from spcopyro._util.random_draws import coin_flip
+from spcopyro._util.random_draws import coin_flip, metropolis_accept
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.cluster import bond_clusters
-from spcopyro.gibbs.merge import Counts, MoveInfo, concept_log_marginals, with_globals_redrawn
+from spcopyro.gibbs.merge import (
+    Counts,
+    MoveInfo,
+    concept_log_marginals,
+    two_concepts,
+    used_modalities,
+    with_globals_redrawn,
+)
 from spcopyro.gibbs.state import GibbsState
 from spcopyro.model import DTYPE, ModelData
 
@@ -140,21 +147,15 @@ def _moved_terms(
     labels: torch.Tensor, region: torch.Tensor, data: ModelData, config: SpCoConfig, a: int, b: int
 ) -> float:
     """sum over concepts a, b of M_l(C') - M_l(C) when ``region`` moves from b to a."""
+    sizes, before = two_concepts(labels, data, config, b, a)  # [2]; [2, K_u] each
     size = region.sum()
-    sizes = torch.bincount(labels, minlength=config.num_concepts)[[b, a]]  # [2]
     moved_sizes = sizes + torch.stack([-size, size])  # [2]
-    observed = labels[data.obs_cells]  # [M]
     in_region = region[data.obs_cells]  # [M]
-    before: Counts = []
     after: Counts = []
-    for modality in data.modalities:
-        if not config.uses(modality.name):
-            continue
-        counts = modality.counts  # [M, K_u]
-        per = torch.stack([counts[observed == b].sum(0), counts[observed == a].sum(0)])  # [2, K_u]
-        shift = counts[in_region].sum(0)  # [K_u]
-        concentration = config.concentration(modality.name)
-        before.append((concentration, per))
+    for (concentration, per), (modality_counts, _) in zip(
+        before, used_modalities(data, config), strict=True
+    ):
+        shift = modality_counts[in_region].sum(0)  # [K_u]
         after.append((concentration, per + torch.stack([-shift, shift])))
     return float(
         (
@@ -216,9 +217,7 @@ def region_relabel_labels(
         return labels, MoveInfo("relabel", False, -math.inf)
     log_ratio = relabel_log_ratio(labels, region, a, border, data, config, bond_share)
     proposed = torch.where(region, a, labels)  # [N]
-    accept = log_ratio >= 0 or float(torch.rand((), dtype=DTYPE, generator=generator)) < math.exp(
-        log_ratio
-    )
+    accept = metropolis_accept(log_ratio, generator)
     return (proposed if accept else labels), MoveInfo("relabel", bool(accept), log_ratio)
 
 
