@@ -187,11 +187,12 @@ def test_a_full_disk_is_said_in_words():
         ("--cell-size", "-0.25", "--cell-size '-0.25': give a positive number of metres or 'map'"),
         ("--cell-size", "big", "--cell-size 'big': give a positive number of metres or 'map'"),
         ("--word-scaling", "0", "DataPreparation.word_scaling=0.0: must be a positive finite"),
+        ("--region-moves", "1.5", "GibbsOptions.region_moves=1.5: must be a probability in [0, 1]"),
     ],
 )
 def test_bad_model_grid_options_name_themselves(tmp_path, capsys, option, value, message):
-    """Issue 21's new options: a bad --cell-size or --word-scaling is one clear error (exit 2),
-    nothing written."""
+    """Issue 21's new options: a bad --cell-size, --word-scaling or --region-moves is one clear
+    error (exit 2), nothing written."""
     out = tmp_path / "out"
     assert main(["fit", "--out", str(out), "--sweeps", "2", option, value]) == 2
     assert message in capsys.readouterr().err
