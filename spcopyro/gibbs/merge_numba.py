@@ -73,21 +73,56 @@ def launch_sides(neighbours: np.ndarray, first: int, second: int, state: np.ndar
 
 
 @njit(cache=True, nogil=True)
-def _predictive(
-    concentration: float, totals: np.ndarray, total: float, x: np.ndarray, remove: float
-) -> float:
-    """log B(a + n + x) - log B(a + n) with n = totals - remove * x (one side's counts; ``total``
-    = sum(totals)). Classes the cell has no count of cancel, so only its nonzero x_c cost a
-    log-gamma pair (most of a floor(100 f) histogram's 205 classes are 0)."""
-    value = 0.0
+def _side_terms(
+    concentration: float, totals: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The per-block caches of :func:`_predictive_sides` for both sides' ``totals`` [2, K]:
+    lgamma(a + totals) [2, K], the sums S [2] and lgamma(K a + S) [2]."""
+    K = totals.shape[1]
+    log_gammas = np.empty_like(totals)  # [2, K]
+    sums = np.empty(2)  # [2]
+    log_gamma_sums = np.empty(2)  # [2]
+    for s in range(2):
+        acc = 0.0
+        for c in range(K):
+            log_gammas[s, c] = math.lgamma(concentration + totals[s, c])
+            acc += totals[s, c]
+        sums[s] = acc
+        log_gamma_sums[s] = math.lgamma(K * concentration + acc)
+    return log_gammas, sums, log_gamma_sums
+
+
+@njit(cache=True, nogil=True)
+def _predictive_sides(
+    concentration: float,
+    totals: np.ndarray,
+    log_gammas: np.ndarray,
+    sums: np.ndarray,
+    log_gamma_sums: np.ndarray,
+    x: np.ndarray,
+    own: int,
+) -> tuple[float, float]:
+    """(log B(a + n_0 + x) - log B(a + n_0), the same for side 1) of a cell on side ``own``:
+    n_s = totals[s] - x on its own side (the totals without the cell), totals[s] on the other.
+    Classes the cell has no count of cancel, so only its nonzero x_c cost anything, and the
+    log-gammas of the totals come from :func:`_side_terms` (once a block): one log-gamma per
+    nonzero class and side."""
+    other = 1 - own
+    value_own = 0.0
+    value_other = 0.0
     total_x = 0.0
     for c in range(x.shape[0]):
-        if x[c] != 0.0:
-            n = totals[c] - remove * x[c]
-            value += math.lgamma(concentration + n + x[c]) - math.lgamma(concentration + n)
-            total_x += x[c]
-    base = x.shape[0] * concentration + total - remove * total_x
-    return value - (math.lgamma(base + total_x) - math.lgamma(base))
+        xc = x[c]
+        if xc != 0.0:
+            value_own += log_gammas[own, c] - math.lgamma(concentration + totals[own, c] - xc)
+            value_other += math.lgamma(concentration + totals[other, c] + xc) - log_gammas[other, c]
+            total_x += xc
+    K = x.shape[0]
+    value_own -= log_gamma_sums[own] - math.lgamma(K * concentration + sums[own] - total_x)
+    value_other -= math.lgamma(K * concentration + sums[other] + total_x) - log_gamma_sums[other]
+    if own == 0:
+        return value_own, value_other
+    return value_other, value_own
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -147,6 +182,8 @@ def restricted_scan(
             sizes[side[k]] += 1.0
         totals = [np.zeros((2, 0))]  # per modality [2, K_u] of each side at the block's start
         totals.clear()
+        caches = [_side_terms(1.0, np.zeros((2, 1)))]  # per modality: _side_terms of totals
+        caches.clear()
         for u in range(num_used):
             per = np.zeros((2, counts[u].shape[1]))
             for r in range(observed.shape[0]):
@@ -154,6 +191,7 @@ def restricted_scan(
                 for c in range(counts[u].shape[1]):
                     per[s, c] += counts[u][r, c]
             totals.append(per)
+            caches.append(_side_terms(concentrations[u], per))
         new = np.empty(stop - start, np.int64)
         # Without observations the two logits differ by gamma (n_1 - n_0) + c_1 - c_0, with
         # c_s = log(a_pi + m_s - [own = s]): 2 (2D + 1) values, tabulated once a block.
@@ -186,11 +224,13 @@ def restricted_scan(
                 logit0 = gamma * field0 + math.log(a_pi + sizes[0] - (own == 0))
                 logit1 = gamma * field1 + math.log(a_pi + sizes[1] - (own == 1))
                 for u in range(num_used):
-                    x = counts[u][r]
-                    a = concentrations[u]
-                    per = totals[u]
-                    logit0 += _predictive(a, per[0], per[0].sum(), x, 1.0 if own == 0 else 0.0)
-                    logit1 += _predictive(a, per[1], per[1].sum(), x, 1.0 if own == 1 else 0.0)
+                    log_gammas, sums, log_gamma_sums = caches[u]
+                    term0, term1 = _predictive_sides(
+                        concentrations[u], totals[u], log_gammas, sums, log_gamma_sums,
+                        counts[u][r], own,
+                    )  # fmt: skip
+                    logit0 += term0
+                    logit1 += term1
                 log_p0, log_p1 = _log_sides(logit0, logit1)
                 p0 = math.exp(log_p0)
             if use_forced:
