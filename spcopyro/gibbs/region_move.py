@@ -56,8 +56,9 @@ If accepted, pi, theta and w are redrawn from their conditionals given the new l
 probabilities, enumerated over bonds, seeds and labels on a tiny map, with detailed balance
 against the enumerated posterior, and its draws with those probabilities.
 
-Cost: O(P) for the bonds and components (scipy), O(N) for the region's statistics: about a
-third of a compiled sweep on a public house.
+Cost: the numba backend grows the seed's cluster alone (:mod:`spcopyro.gibbs.region_numba`,
+O(region)); the torch reference draws every pair's bond and takes the components (O(P), scipy).
+Then O(N) for the two concepts' statistics.
 """
 
 from __future__ import annotations
@@ -65,6 +66,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import numpy as np
 import torch
 
 from spcopyro._util.random_draws import coin_flip, metropolis_accept
@@ -173,14 +175,17 @@ def relabel_log_ratio(
     data: ModelData,
     config: SpCoConfig,
     bond_share: float = BOND_SHARE,
+    forward: LabelGroups | None = None,
 ) -> float:
     """log r of relabelling ``region`` [N] (bool, one concept b) as ``a`` (module doc): the two
     concepts' collapsed terms, the Potts share the bonds do not carry and the label proposal's
-    asymmetry; ``border``: :func:`border_labels` of the region."""
+    asymmetry; ``border``: :func:`border_labels` of the region; ``forward``: the region's
+    :func:`label_groups` in ``labels`` where the caller has them (else built here)."""
     b = int(labels[region.nonzero()[0, 0]])
     L = config.num_concepts
     touching = torch.unique(border)
-    forward = label_groups(labels, touching, b, L)
+    if forward is None:
+        forward = label_groups(labels, touching, b, L)
     reverse = label_groups(torch.where(region, a, labels), touching, a, L)
     agreements = int((border == a).sum()) - int((border == b).sum())  # n_a - n_b
     potts = (1.0 - bond_share) * config.gamma * agreements
@@ -196,26 +201,55 @@ def _log_acceptance_ratio(delta_log_target: float, log_forward: float, log_rever
     return delta_log_target + log_reverse - log_forward
 
 
+def _grown_region(
+    labels: torch.Tensor, data: ModelData, coupling: float, generator: torch.Generator
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """(region [N] bool, its :func:`border_labels`) of steps 1-2 with bonds of probability
+    1 - exp(-coupling), grown from the seed by :func:`~spcopyro.gibbs.region_numba.grow_region`
+    from one seed drawn from ``generator``."""
+    from spcopyro.gibbs.numba_random import draw_seed, rng_state
+    from spcopyro.gibbs.region_numba import grow_region
+
+    rng = rng_state(draw_seed(generator))
+    region, border = grow_region(
+        np.ascontiguousarray(labels.numpy()), _neighbour_array(data), -math.expm1(-coupling), rng
+    )
+    return torch.from_numpy(region), torch.from_numpy(border)
+
+
+def _neighbour_array(data: ModelData) -> np.ndarray:
+    """``data.neighbours`` [N, D] as a contiguous int64 array (a view where it already is one)."""
+    return np.ascontiguousarray(data.neighbours.numpy(), dtype=np.int64)
+
+
 def region_relabel_labels(
     labels: torch.Tensor,
     data: ModelData,
     config: SpCoConfig,
     generator: torch.Generator,
     bond_share: float = BOND_SHARE,
+    compiled: bool = False,
 ) -> tuple[torch.Tensor, MoveInfo]:
     """One region relabel Metropolis-Hastings step on ``labels`` [N] targeting p(C | x) (module
-    doc). Returns the new labels (``labels`` itself when nothing changes) and what happened."""
+    doc). Returns the new labels (``labels`` itself when nothing changes) and what happened.
+
+    ``compiled``: steps 1-2 by :func:`spcopyro.gibbs.region_numba.grow_region` (the seed's
+    cluster grown alone, from the compiled sampler's stream: the same distribution, other
+    draws; the numba backend's chains use it), else every pair's bond and the components."""
     L = config.num_concepts
-    _, cluster = bond_clusters(labels, data.pairs, bond_share * config.gamma, generator)
-    seed = int(torch.randint(labels.shape[0], (), generator=generator))
-    region = cluster == cluster[seed]  # [N]
-    b = int(labels[seed])
-    border = border_labels(region, labels, data.pairs)
+    if compiled:
+        region, border = _grown_region(labels, data, bond_share * config.gamma, generator)
+    else:
+        _, cluster = bond_clusters(labels, data.pairs, bond_share * config.gamma, generator)
+        seed = int(torch.randint(labels.shape[0], (), generator=generator))
+        region = cluster == cluster[seed]  # [N]
+        border = border_labels(region, labels, data.pairs)
+    b = int(labels[region.nonzero()[0, 0]])
     forward = label_groups(labels, torch.unique(border), b, L)
     a = forward.draw(generator)
     if a is None:
         return labels, MoveInfo("relabel", False, -math.inf)
-    log_ratio = relabel_log_ratio(labels, region, a, border, data, config, bond_share)
+    log_ratio = relabel_log_ratio(labels, region, a, border, data, config, bond_share, forward)
     proposed = torch.where(region, a, labels)  # [N]
     accept = metropolis_accept(log_ratio, generator)
     return (proposed if accept else labels), MoveInfo("relabel", bool(accept), log_ratio)
@@ -230,7 +264,7 @@ def region_move(
 ) -> tuple[GibbsState, MoveInfo]:
     """:func:`region_relabel_labels`, then (if accepted) pi, theta and w redrawn given the labels
     (by the compiled sampler's draws when ``compiled``)."""
-    labels, info = region_relabel_labels(state.labels, data, config, generator)
+    labels, info = region_relabel_labels(state.labels, data, config, generator, compiled=compiled)
     return with_globals_redrawn(state, labels, info, data, config, generator, compiled), info
 
 
