@@ -1,6 +1,6 @@
 """Real houses and houses the default was not tuned on (issue 21): one run, one table.
 
-    python benchmarks/real_houses.py [--sweeps 2000] [--seeds 3] [--fit-seeds 0 1 2]
+    python benchmarks/real_houses.py [--sweeps 5000] [--seeds 3] [--fit-seeds 0 1 2]
         [--out benchmarks/real_houses.json]
 
 For each public house (``$SPCOPYRO_DATA`` or ``../shared/data/spcomapping``; skipped with the
@@ -24,6 +24,9 @@ inference method's default on the public houses (``--method-iterations`` iterati
 simulated tour on each public map (``simulate --map`` with its default door width, read from the
 map) scored against the simulation's own truth, one row per fit seed (``--fit-seeds``, default
 0 1 2) and their mean, and the default fit run four times as long.
+
+Every Gibbs fit runs ``--sweeps`` sweeps, by default the 5000 of ``spcopyro fit`` (the default
+fit; 2000 until 2026-12-03), and the four-times-as-long section 4 x that.
 
 Prints markdown tables and writes the JSON (per house and method, and the means).
 """
@@ -239,7 +242,9 @@ def extras(root: Path, args: argparse.Namespace, report: dict, names: dict) -> l
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sweeps", type=int, default=2000)
+    parser.add_argument(
+        "--sweeps", type=int, default=5000, help="sweeps of every Gibbs fit (spcopyro fit's 5000)"
+    )
     parser.add_argument("--seeds", type=int, default=3, help="synthetic seeds 0..n-1")
     parser.add_argument("--out", default="benchmarks/real_houses.json")
     parser.add_argument("--no-synthetic", action="store_true")
