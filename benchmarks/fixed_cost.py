@@ -141,6 +141,7 @@ def fit_once(
         "exit": wall - startup - record["total"],
         "pngs": pngs,
         "imported": record.get("imported", []),  # of spcopyro._util.timings.OPTIONAL_HEAVY
+        "seconds_parts": dict(record.get("parts", {})),  # the fit's inner phases (all chains)
     }
     row["fit_outside_sweeps"] = row["fit"] - row["sweep_seconds"]
     row["wall_outside_sweeps"] = wall - row["sweep_seconds"]

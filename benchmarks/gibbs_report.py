@@ -422,5 +422,15 @@ def render_issue15(results: dict[str, Any]) -> list[str]:
                 f"{fits_['chains']} single fits {fits_['single_fits_s']:.1f} s "
                 f"(ratio {fits_['ratio']:.2f}; {fits_['sweeps']} sweeps each)"
             )
+            if fits_.get("pair_s") is not None:
+                alone = fits_["single_fit_sweeps_s"][:2]
+                out.append(
+                    f"two single fits at once in two processes: {fits_['pair_s']:.1f} s, their "
+                    f"sweeps {' / '.join(f'{s:.1f}' for s in fits_['pair_sweeps_s'])} s against "
+                    f"{' / '.join(f'{s:.1f}' for s in alone)} s alone; the {fits_['chains']} "
+                    f"chains' sweeps in one fit {fits_['chains_fit_sweeps_s'] or float('nan'):.1f}"
+                    f" s against {sum(fits_['single_fit_sweeps_s']):.1f} s for the single fits' "
+                    "(threads sharing the GIL against processes sharing nothing)"
+                )
         out.append(f"GPU: {chains.get('gpu')}")
     return out

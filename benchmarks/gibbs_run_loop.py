@@ -20,6 +20,7 @@ chains at once.
 from __future__ import annotations
 
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -135,12 +136,22 @@ def chains_as_fits(house: Path | None, preset: str, chains: int, sweeps: int) ->
     together = fit_once(house, preset, sweeps, False, extra=["--chains", str(chains)])
     singles = [fit_once(house, preset, sweeps, False, seed=k) for k in range(chains)]
     single_s = sum(r["wall"] for r in singles)
+    # The same single fits two at a time, in two processes: what the CPUs give two chains that
+    # share no GIL (its sweeps' seconds against the same fits' alone).
+    start = time.perf_counter()
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        pair = list(pool.map(lambda k: fit_once(house, preset, sweeps, False, seed=k), (0, 1)))
+    pair_s = time.perf_counter() - start
     return {
         "preset": preset,
         "chains": chains,
         "sweeps": sweeps,
         "chains_fit_s": together["wall"],
+        "chains_fit_sweeps_s": together["seconds_parts"].get("sweeps"),
         "single_fits_s": single_s,
         "single_fit_each_s": [r["wall"] for r in singles],
+        "single_fit_sweeps_s": [r["sweep_seconds"] for r in singles],
         "ratio": together["wall"] / single_s,
+        "pair_s": pair_s,
+        "pair_sweeps_s": [r["sweep_seconds"] for r in pair],
     }

@@ -45,6 +45,8 @@ def test_gibbs_benchmark_quick(tmp_path):
     assert all(e["ratio"] > 0 for e in results["run_loop"])
     assert all("error" not in e and e["ms_per_sweep"] > 0 for e in results["fits"])
     assert results["chains"]["as_fits"]["ratio"] > 0
+    assert len(results["chains"]["as_fits"]["pair_sweeps_s"]) == 2  # the processes' reference
+    assert "two single fits at once in two processes" in done.stdout
 
 
 @pytest.mark.slow
