@@ -90,6 +90,13 @@ def scores(out: Path) -> list[dict[str, object]]:
     ]
 
 
+def cell_seconds(out: Path) -> dict[str, float]:
+    """The sums of the cells' own wall and CPU seconds (their fits, data loading excluded) in the
+    study's table at ``out``."""
+    rows = read_table(out / "results.csv")
+    return {key: float(sum(float(r[key]) for r in rows)) for key in TIMING}
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="smoke test: 4 cells, 10 sweeps")
@@ -106,6 +113,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         local = timed_run(study, Path(folder) / "in_process", workers=1)
         cluster = timed_run(study, Path(folder) / "cluster", workers=args.workers)
         same = scores(Path(folder) / "in_process") == scores(Path(folder) / "cluster")
+        in_process_cells = cell_seconds(Path(folder) / "in_process")
+        cluster_cells = cell_seconds(Path(folder) / "cluster")
         spawned = None
         if args.also_spawned:
             spawned = timed_run(study, Path(folder) / "spawned", args.workers, spawned=True)
@@ -114,6 +123,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     results = {
         "machine": machine_info(), "sweeps": sweeps, "workers": args.workers,
         "in_process": local, "local_cluster": cluster, "ratio": ratio, "same_numbers": same,
+        "cells_in_process": in_process_cells, "cells_in_cluster": cluster_cells,
     }  # fmt: skip
     runs = [local, cluster]
     if spawned is not None:
@@ -133,6 +143,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         "children, so their own CPU is counted there, about 1.6-1.8 cores on an idle machine)"
     )
     print(f"ratio (cluster / in-process): {ratio:.2f} (target <= 0.6); same numbers: {same}")
+    slower, costlier = (
+        cluster_cells[key] / in_process_cells[key] for key in ("seconds", "cpu_seconds")
+    )
+    print(
+        f"the cells themselves: {in_process_cells['seconds']:.1f} s together in-process, "
+        f"{cluster_cells['seconds']:.1f} s in the workers (x{slower:.2f}; their CPU seconds "
+        f"x{costlier:.2f}): a cell run beside another on the second core takes that much longer, "
+        f"so two workers reach at best {0.5 * slower:.2f} here before any start-up"
+    )
     Path(args.out).write_text(json.dumps(results, indent=1, default=str))
     print(f"wrote {args.out}")
     return 0 if same else 1

@@ -390,6 +390,8 @@ def test_dask_benchmark_quick(tmp_path):
     results = json.loads(out.read_text())
     assert results["in_process"]["seconds"] > 0 and results["local_cluster"]["seconds"] > 0
     assert results["same_numbers"] is True
+    assert results["cells_in_cluster"]["seconds"] > 0  # the cells' own seconds, both runs
+    assert "the cells themselves" in done.stdout
 
 
 def test_finished_study_restarted_does_nothing_and_says_so(in_process, tmp_path, monkeypatch):
