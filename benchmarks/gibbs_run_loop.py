@@ -133,14 +133,18 @@ def chains_in_process(
 def chains_as_fits(house: Path | None, preset: str, chains: int, sweeps: int) -> dict[str, Any]:
     """``spcopyro fit --chains K`` against K single fits (seeds 0..K-1), each a fresh process,
     figures off (they are the same for both)."""
+
+    def single(seed: int) -> dict[str, Any]:
+        return fit_once(house, preset, sweeps, False, seed=seed)
+
     together = fit_once(house, preset, sweeps, False, extra=["--chains", str(chains)])
-    singles = [fit_once(house, preset, sweeps, False, seed=k) for k in range(chains)]
+    singles = [single(k) for k in range(chains)]
     single_s = sum(r["wall"] for r in singles)
-    # The same single fits two at a time, in two processes: what the CPUs give two chains that
-    # share no GIL (its sweeps' seconds against the same fits' alone).
+    # Seeds 0 and 1's single fits again, two at a time in two processes: what the CPUs give two
+    # chains that share no GIL (their sweeps' seconds against the same fits' alone).
     start = time.perf_counter()
     with ThreadPoolExecutor(max_workers=2) as pool:
-        pair = list(pool.map(lambda k: fit_once(house, preset, sweeps, False, seed=k), (0, 1)))
+        pair = list(pool.map(single, (0, 1)))
     pair_s = time.perf_counter() - start
     return {
         "preset": preset,

@@ -143,14 +143,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         "children, so their own CPU is counted there, about 1.6-1.8 cores on an idle machine)"
     )
     print(f"ratio (cluster / in-process): {ratio:.2f} (target <= 0.6); same numbers: {same}")
-    slower, costlier = (
-        cluster_cells[key] / in_process_cells[key] for key in ("seconds", "cpu_seconds")
-    )
+    slower, costlier = (cluster_cells[key] / in_process_cells[key] for key in TIMING)
     print(
         f"the cells themselves: {in_process_cells['seconds']:.1f} s together in-process, "
-        f"{cluster_cells['seconds']:.1f} s in the workers (x{slower:.2f}; their CPU seconds "
-        f"x{costlier:.2f}): a cell run beside another on the second core takes that much longer, "
-        f"so two workers reach at best {0.5 * slower:.2f} here before any start-up"
+        f"{cluster_cells['seconds']:.1f} s in the cluster run (x{slower:.2f}; their CPU seconds "
+        f"x{costlier:.2f}; cells run two or three at a time on two cores, the start's included), "
+        f"so two workers reach at best {0.5 * slower:.2f} here before the start-up and the tail"
     )
     Path(args.out).write_text(json.dumps(results, indent=1, default=str))
     print(f"wrote {args.out}")
