@@ -3,6 +3,7 @@
     python benchmarks/study_dask.py [--workers 2] [--sweeps 2000] [--out benchmarks/study_dask.json]
     python benchmarks/study_dask.py --quick      # smoke test: 4 cells, a few sweeps
     python benchmarks/study_dask.py --also-spawned   # + the cluster as it started before
+    python benchmarks/study_dask.py --also-dask-loops   # + the cluster with Dask's default loops
 
 The same study (2 variants x 2 synthetic houses x 5 seeds, Gibbs; :mod:`spcopyro.study`) runs
 twice into two fresh folders: first cell after cell in this process, then on a
@@ -10,7 +11,9 @@ twice into two fresh folders: first cell after cell in this process, then on a
 included in the wall time), as :func:`spcopyro.study.run.run_study` starts it: workers forked
 from a preloaded forkserver while this process runs cells (:mod:`spcopyro.study.local_cluster`).
 With ``--also-spawned``, a third run starts the cluster as before that: spawned workers, no cell
-run in this process. Prints both wall times, their ratio (cluster / in-process; the
+run in this process. With ``--also-dask-loops``, another run starts the cluster with Dask's own
+event-loop settings instead of :data:`~spcopyro.study.local_cluster.QUIET_LOOPS` (the workers'
+profiler on). Prints both wall times, their ratio (cluster / in-process; the
 issue's target is <= 0.6 on a 2-core machine), whether both tables hold the same numbers, and
 the CPU the machine's other processes used meanwhile (a shared machine: read the ratio with it).
 Writes the JSON to ``--out``.
@@ -53,17 +56,21 @@ def benchmark_study(sweeps: int, seeds: int, quick: bool) -> Study:
     })  # fmt: skip
 
 
-def timed_run(study: Study, out: Path, workers: int, spawned: bool = False) -> dict[str, object]:
+def timed_run(
+    study: Study, out: Path, workers: int, spawned: bool = False, dask_loops: bool = False
+) -> dict[str, object]:
     """Run ``study`` into ``out``: wall seconds, and the other processes' CPU meanwhile.
-    ``spawned``: the cluster's workers spawned, no cell run in this process meanwhile."""
+    ``spawned``: the cluster's workers spawned, no cell run in this process meanwhile;
+    ``dask_loops``: the cluster with Dask's default event-loop settings."""
     busy, own = busy_cpu_seconds(), own_cpu_seconds()
     start = time.perf_counter()
-    with _spawned_workers(spawned):
+    with _spawned_workers(spawned), _dask_loops(dask_loops):
         run = run_study(study, out, workers=workers, progress=False, report=progress,
                         start_in_process=not spawned)  # fmt: skip
     seconds = time.perf_counter() - start
+    where = run.where + (", spawned" if spawned else "") + (", Dask's loops" if dask_loops else "")
     entry: dict[str, object] = {
-        "where": run.where + (", spawned" if spawned else ""), "cells": run.cells,
+        "where": where, "cells": run.cells,
         "ran": run.ran, "ran_here": run.ran_here, "failed": run.failed, "seconds": seconds,
     }  # fmt: skip
     if busy is not None:
@@ -82,6 +89,18 @@ def _spawned_workers(spawned: bool) -> Iterator[None]:
         yield
     finally:
         local_cluster.forkserver_available = available
+
+
+@contextmanager
+def _dask_loops(dask_loops: bool) -> Iterator[None]:
+    """Inside: the study's LocalCluster keeps Dask's own event-loop settings."""
+    quiet = local_cluster.QUIET_LOOPS
+    if dask_loops:
+        local_cluster.QUIET_LOOPS = {}
+    try:
+        yield
+    finally:
+        local_cluster.QUIET_LOOPS = quiet
 
 
 def scores(out: Path) -> list[dict[str, object]]:
@@ -105,6 +124,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--also-spawned", action="store_true",
                         help="also run the cluster with spawned workers and no cell in this "
                              "process (how it started before)")  # fmt: skip
+    parser.add_argument("--also-dask-loops", action="store_true",
+                        help="also run the cluster with Dask's default event-loop settings "
+                             "(profiler on; how it ran before)")  # fmt: skip
     parser.add_argument("--out", default="benchmarks/study_dask.json")
     args = parser.parse_args(argv)
     sweeps = args.sweeps or (10 if args.quick else 2000)
@@ -119,6 +141,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.also_spawned:
             spawned = timed_run(study, Path(folder) / "spawned", args.workers, spawned=True)
             same = same and scores(Path(folder) / "spawned") == scores(Path(folder) / "cluster")
+        loud = None
+        if args.also_dask_loops:
+            loud = timed_run(study, Path(folder) / "loud", args.workers, dask_loops=True)
+            same = same and scores(Path(folder) / "loud") == scores(Path(folder) / "cluster")
+            loud_cells = cell_seconds(Path(folder) / "loud")
     ratio = cluster["seconds"] / local["seconds"]  # type: ignore[operator]
     results = {
         "machine": machine_info(), "sweeps": sweeps, "workers": args.workers,
@@ -130,6 +157,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         results["spawned_cluster"] = spawned
         results["spawned_ratio"] = spawned["seconds"] / local["seconds"]  # type: ignore[operator]
         runs.append(spawned)
+    if loud is not None:
+        results["dask_loops_cluster"] = loud
+        results["dask_loops_ratio"] = loud["seconds"] / local["seconds"]  # type: ignore[operator]
+        results["cells_in_dask_loops_cluster"] = loud_cells
+        runs.append(loud)
     print("| run | cells (here) | wall s | ratio | other processes' cores |")
     print("|---|---|---|---|---|")
     for entry in runs:
@@ -150,6 +182,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"x{costlier:.2f}; cells run two or three at a time on two cores, the start's included), "
         f"so two workers reach at best {0.5 * slower:.2f} here before the start-up and the tail"
     )
+    if loud is not None:
+        loud_slower, loud_costlier = (loud_cells[key] / in_process_cells[key] for key in TIMING)
+        print(
+            f"with Dask's default event loops: the cells x{loud_slower:.2f} (CPU seconds "
+            f"x{loud_costlier:.2f}), the study {results['dask_loops_ratio']:.2f} of in-process"
+        )
     Path(args.out).write_text(json.dumps(results, indent=1, default=str))
     print(f"wrote {args.out}")
     return 0 if same else 1

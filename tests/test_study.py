@@ -62,9 +62,10 @@ WORKER_STATE = """(
     __import__("os").environ.get("MALLOC_TRIM_THRESHOLD_"),
     __import__("os").environ.get("OMP_NUM_THREADS"),
     "spcopyro.study.evaluate" in __import__("sys").modules,
+    __import__("dask").config.get("distributed.worker.profile.enabled"),
 )"""
-"""In a worker, before any cell: its MALLOC_TRIM_THRESHOLD_ and OMP_NUM_THREADS, and whether
-the cells' code is imported."""
+"""In a worker, before any cell: its MALLOC_TRIM_THRESHOLD_ and OMP_NUM_THREADS, whether the
+cells' code is imported, and whether its statistical profiler is on."""
 
 
 def _write(tmp_path: Path, text: str = TINY, name: str = "tiny.toml") -> Path:
@@ -245,6 +246,7 @@ def test_local_cluster_is_made_without_dasks_malloc_trim_threshold(monkeypatch, 
     def fake_cluster(*args, **kwargs):
         seen.update(dask.config.get(local_cluster.PRE_SPAWN_ENVIRON))
         seen["method"] = dask.config.get(local_cluster.MULTIPROCESSING_METHOD)
+        seen["loops"] = {key: dask.config.get(key) for key in local_cluster.QUIET_LOOPS}
         raise Stop
 
     monkeypatch.setattr(distributed, "LocalCluster", fake_cluster)
@@ -253,7 +255,9 @@ def test_local_cluster_is_made_without_dasks_malloc_trim_threshold(monkeypatch, 
         local_cluster.local_cluster(2, method)
     assert "MALLOC_TRIM_THRESHOLD_" in seen and seen["MALLOC_TRIM_THRESHOLD_"] is None
     assert seen["method"] == method
+    assert seen["loops"] == local_cluster.QUIET_LOOPS  # the workers' profiler off, and so on
     assert dask.config.get(local_cluster.PRE_SPAWN_ENVIRON)["MALLOC_TRIM_THRESHOLD_"] is not None
+    assert dask.config.get("distributed.worker.profile.enabled") is True  # only for the cluster
 
 
 def test_forked_workers_start_with_the_cells_code_and_one_thread(monkeypatch):
@@ -275,8 +279,9 @@ def test_forked_workers_start_with_the_cells_code_and_one_thread(monkeypatch):
             seen = client.run(eval, WORKER_STATE)  # a builtin: the worker imports nothing
     finally:
         cluster.close()
-    [(malloc_trim, threads, preloaded)] = seen.values()
+    [(malloc_trim, threads, preloaded, profiled)] = seen.values()
     assert malloc_trim is None and threads == "1" and preloaded
+    assert profiled is False  # QUIET_LOOPS reached the worker, not only this process
 
 
 def test_interrupted_study_runs_only_the_missing_cells(in_process, tmp_path, monkeypatch):
