@@ -14,11 +14,12 @@ Where the cells run:
 * ``workers > 1``: a ``dask.distributed.LocalCluster`` of that many worker processes, one
   thread each, forked from a server that imported the cells' code once
   (:mod:`spcopyro.study.local_cluster`). The cluster starts on a thread while this process runs
-  cells one after another; the moment the workers are up they take every cell not started yet,
-  and the cluster closes while the table is written;
+  cells one after another, shortest first; the moment the workers are up they take every cell
+  not started yet, longest first (:mod:`spcopyro.study.order`), and the cluster closes while
+  the table is written;
 * ``scheduler="tcp://HOST:PORT"``: the Dask cluster already running there (e.g. one that
-  ``dask-jobqueue`` started on Slurm or PBS; docs/studies.md). Its workers need spcopyro and
-  the data at the same paths.
+  ``dask-jobqueue`` started on Slurm or PBS; docs/studies.md), cells longest first. Its workers
+  need spcopyro and the data at the same paths.
 
 Every cell runs torch with one intra-op thread (:func:`spcopyro.study.evaluate.run_cell`), so a
 cell gives the same numbers wherever it runs. Dask is an optional dependency
@@ -41,6 +42,7 @@ from spcopyro.gibbs.chains import usable_cpus
 from spcopyro.study import evaluate
 from spcopyro.study.cells import Cell, cells_of, source_digest
 from spcopyro.study.local_cluster import PRE_SPAWN_ENVIRON, ClusterStart
+from spcopyro.study.order import longest_first
 from spcopyro.study.report import write_report
 from spcopyro.study.spec import Study
 from spcopyro.study.table import TABLE, CellStore, table_rows, write_table
@@ -138,12 +140,13 @@ def run_study(
     interrupted = False
     bar = _bar(len(pending), progress)
     in_process = scheduler is None and workers <= 1
+    started_in_order = [] if in_process else longest_first(pending, cells, store.finished())
     background = _Background()
     try:
         outcomes = (
             _in_process(pending)
             if in_process
-            else _on_dask(pending, workers, scheduler, background, start_in_process)
+            else _on_dask(started_in_order, workers, scheduler, background, start_in_process)
         )
         for cell, record, trace, label_map in outcomes:
             store.put(record, trace, label_map)  # type: ignore[arg-type]
@@ -268,12 +271,14 @@ def _on_dask(
     start_in_process: bool = True,
 ) -> Iterator[Outcome]:  # fmt: skip
     """Each cell a task; outcomes as they finish (``as_completed``). A task lost with its
-    worker (or any error outside the cell) is recorded as that cell's error.
+    worker (or any error outside the cell) is recorded as that cell's error. ``cells`` in the
+    order the workers should start them (the first first).
 
     A LocalCluster starts on a background thread (:class:`spcopyro.study.local_cluster.
     ClusterStart`); with ``start_in_process`` this process runs cells meanwhile, one after
-    another, and the cluster takes every cell not started yet the moment it is up. Its close
-    is left running in ``background`` (the caller writes the table meanwhile)."""
+    another from the end of ``cells`` (so that the cell still running here when the workers are
+    up ends soon), and the cluster takes every cell not started yet the moment it is up. Its
+    close is left running in ``background`` (the caller writes the table meanwhile)."""
     try:
         from distributed import Client, as_completed
     except ModuleNotFoundError:
@@ -288,8 +293,9 @@ def _on_dask(
     def submit_waiting(client) -> None:
         with lock:
             futures.update(
-                (client.submit(evaluate.run_cell, cell, key=f"spcopyro-cell-{cell.key}"), cell)
-                for cell in waiting
+                (client.submit(evaluate.run_cell, cell, key=f"spcopyro-cell-{cell.key}",
+                               priority=len(waiting) - rank), cell)
+                for rank, cell in enumerate(waiting)
             )  # fmt: skip
             waiting.clear()
 
@@ -302,7 +308,7 @@ def _on_dask(
     try:
         while start is not None and start_in_process:
             with lock:
-                cell = waiting.popleft() if waiting else None
+                cell = waiting.pop() if waiting else None
             if cell is None:  # all run here, or the cluster took the rest
                 break
             record, trace, label_map = evaluate.run_cell(cell)

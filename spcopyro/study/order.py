@@ -1,0 +1,109 @@
+"""The order a study's cells start in on a cluster: longest first.
+
+Workers take cells in the order they were submitted. A study mixes cells whose cost differs by
+two orders of magnitude (an SVI fit of a public house: 5-12 min; 100 CAVI iterations on a
+synthetic one: half a second), and whichever cell starts last decides how long the cluster
+runs after the others are done: in the table's order (variants, data, methods, seeds) the
+slowest method's cells tend to come together at the end. Started longest first (the "longest
+processing time" rule), the short cells fill the workers' gaps at the end instead; its
+makespan is at most 4/3 of the best possible (Graham 1969).
+
+A cell's cost is predicted, in seconds on the 2-core machine the defaults were measured on (only
+the order matters), as its iterations times a time per iteration:
+
+* from the study's own finished cells where it has some: the median seconds per iteration of
+  the finished cells of the same variant (or baseline), data source and method (a study that is
+  resumed or gains seeds), else of the same method on the same kind of data;
+* otherwise :data:`SECONDS_PER_ITERATION`, the medians of the full-budget Gibbs-versus-VI study
+  (docs/studies.md) by method and kind of data, a synthetic house's scaled by its map's area
+  against the default house's.
+"""
+
+from __future__ import annotations
+
+import statistics
+from collections.abc import Iterable, Mapping
+
+from spcopyro.study.cells import BASELINE_METHOD, Cell
+from spcopyro.study.spec import SYNTHETIC_FACTORIES
+
+__all__ = ["SECONDS_PER_ITERATION", "longest_first", "predicted_seconds"]
+
+SECONDS_PER_ITERATION: dict[str, tuple[float, float]] = {
+    "gibbs": (0.83e-3, 0.96e-3),
+    "vi-gibbs": (1.22e-3, 1.38e-3),
+    "cavi": (4.34e-3, 24.0e-3),
+    "stochastic-vi": (8.96e-3, 57.6e-3),
+    "svi": (19.8e-3, 167.4e-3),
+    "lbp": (23.2e-3, 475.4e-3),
+    BASELINE_METHOD: (0.83e-3, 0.96e-3),
+}
+"""Seconds per iteration (synthetic house, public house or simulated map) of each method at
+the study's budgets: medians of the full-budget Gibbs-versus-VI study, 2026-12-03, 2 cores.
+A method missing here costs what Gibbs does."""
+
+
+def _group(cell: Cell) -> tuple[str, str, str]:
+    return cell.row, cell.data.name, cell.method
+
+
+def _kind(cell: Cell) -> tuple[str, str]:
+    return cell.method, "synthetic" if cell.data.kind == "synthetic" else "measured"
+
+
+def _per_iteration(
+    cells: Iterable[Cell], finished: Mapping[str, Mapping[str, object]]
+) -> tuple[dict[tuple[str, str, str], float], dict[tuple[str, str], float]]:
+    """Median seconds per iteration of the finished cells among ``cells``, by group and kind."""
+    by_group: dict[tuple[str, str, str], list[float]] = {}
+    by_kind: dict[tuple[str, str], list[float]] = {}
+    for cell in {c.key: c for c in cells}.values():
+        record = finished.get(cell.key)
+        if record is None or record.get("status") != "ok":
+            continue
+        seconds = record.get("seconds")
+        if not isinstance(seconds, (int, float)) or seconds <= 0:
+            continue
+        rate = float(seconds) / max(cell.sweeps, 1)
+        by_group.setdefault(_group(cell), []).append(rate)
+        by_kind.setdefault(_kind(cell), []).append(rate)
+    return (
+        {k: statistics.median(v) for k, v in by_group.items()},
+        {k: statistics.median(v) for k, v in by_kind.items()},
+    )
+
+
+def _static_rate(cell: Cell) -> float:
+    synthetic, measured = SECONDS_PER_ITERATION.get(cell.method, SECONDS_PER_ITERATION["gibbs"])
+    if cell.data.kind != "synthetic":
+        return measured
+    spec, default = cell.data.house_spec(), SYNTHETIC_FACTORIES["default"]()
+    return synthetic * (spec.height * spec.width) / (default.height * default.width)
+
+
+def predicted_seconds(
+    cells: Iterable[Cell],
+    history: Iterable[Cell] = (),
+    finished: Mapping[str, Mapping[str, object]] | None = None,
+) -> dict[str, float]:
+    """Each cell's predicted seconds, by key (module docstring). ``history``: the cells whose
+    records ``finished`` (by key, as :meth:`spcopyro.study.table.CellStore.finished` gives
+    them) may hold."""
+    by_group, by_kind = _per_iteration(history, finished or {})
+    predicted = {}
+    for cell in cells:
+        rate = by_group.get(_group(cell)) or by_kind.get(_kind(cell)) or _static_rate(cell)
+        predicted[cell.key] = rate * max(cell.sweeps, 1)
+    return predicted
+
+
+def longest_first(
+    cells: Iterable[Cell],
+    history: Iterable[Cell] = (),
+    finished: Mapping[str, Mapping[str, object]] | None = None,
+) -> list[Cell]:
+    """``cells`` by predicted seconds, longest first (:func:`predicted_seconds`); cells
+    predicted alike keep their order."""
+    cells = list(cells)
+    predicted = predicted_seconds(cells, history, finished)
+    return sorted(cells, key=lambda cell: -predicted[cell.key])

@@ -1,0 +1,162 @@
+"""The order a study's cells start in on a cluster (spcopyro.study.order): longest first."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from spcopyro.study import run as study_run
+from spcopyro.study.cells import cells_of
+from spcopyro.study.order import longest_first, predicted_seconds
+from spcopyro.study.run import run_study
+from spcopyro.study.spec import study_from_dict
+
+SMALL = {"synthetic": "default", "height": 24, "width": 30, "num_rooms": 2, "num_trials": 2,
+         "min_room_size": 8}  # fmt: skip
+
+
+def _methods_study(**data):
+    return study_from_dict({
+        "study": {"name": "order", "seeds": 2, "methods": ["cavi", "gibbs", "svi"],
+                  "sweeps": {"gibbs": 2000, "cavi": 100, "svi": 300}},
+        "variants": {"dp": {"preset": "paper-dp"}},
+        "data": data or {"small": SMALL},
+    })  # fmt: skip
+
+
+def test_without_history_slow_methods_and_big_houses_start_first():
+    """On one house, 300 SVI steps before 2000 Gibbs sweeps before 100 CAVI iterations (the
+    full-budget study's times per iteration); of one method, the bigger house first; the seeds
+    of a group, predicted alike, keep their order."""
+    big = {**SMALL, "synthetic": "scaled", "height": 48, "width": 60}
+    cells = cells_of(_methods_study(small=SMALL, big=big))
+    order = [(c.method, c.data.name, c.seed) for c in longest_first(cells)]
+    for data in ("small", "big"):
+        methods = [m for m, d, _ in order if d == data]
+        assert methods == ["svi"] * 2 + ["gibbs"] * 2 + ["cavi"] * 2
+    for method in ("svi", "gibbs", "cavi"):
+        assert [(d, s) for m, d, s in order if m == method] == [
+            ("big", 0), ("big", 1), ("small", 0), ("small", 1)
+        ]  # fmt: skip
+
+
+def test_finished_cells_predict_their_group_then_their_kind():
+    """A resumed study that has seen its Gibbs cells take a minute each starts the missing
+    Gibbs cell first; its cells of the same method on other synthetic data follow that rate."""
+    study = _methods_study(small=SMALL, other={**SMALL, "num_trials": 3})
+    cells = cells_of(study)
+    done = [c for c in cells if c.method == "gibbs" and c.data.name == "small" and c.seed == 0]
+    finished = {c.key: {"status": "ok", "seconds": 60.0} for c in done}
+    finished["not-a-cell"] = {"status": "ok", "seconds": 1e9}  # another study's: ignored
+    pending = [c for c in cells if c.key not in finished]
+    predicted = predicted_seconds(pending, cells, finished)
+    by_cell = {(c.method, c.data.name, c.seed): predicted[c.key] for c in pending}
+    assert by_cell[("gibbs", "small", 1)] == pytest.approx(60.0)
+    assert by_cell[("gibbs", "other", 0)] == pytest.approx(60.0)  # same method and kind
+    assert by_cell[("svi", "small", 0)] < 60.0
+    assert longest_first(pending, cells, finished)[0].method == "gibbs"
+    failed = {c.key: {"status": "error", "seconds": 60.0} for c in done}
+    assert predicted_seconds(pending, cells, failed) == predicted_seconds(pending)
+
+
+class _FakeFuture:
+    def __init__(self, cell):
+        self.cell = cell
+
+    def result(self):
+        return REAL_RUN_CELL(self.cell)
+
+    def release(self):
+        pass
+
+
+class _FakeClient:
+    def __init__(self):
+        self.submitted = []
+
+    def submit(self, function, cell, key, priority):
+        self.submitted.append((cell, priority))
+        return _FakeFuture(cell)
+
+
+REAL_RUN_CELL = study_run.evaluate.run_cell
+
+
+def _run_on_fake_cluster(tmp_path, monkeypatch, ready_at_once: bool):
+    """The two-sweep-length study through run_study's Dask path, with a cluster that is up at
+    once (every cell submitted) or never (every cell run here): the cells as they were
+    submitted with their priorities, the cells run here, and the study's cells."""
+    distributed = pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    client = _FakeClient()
+    ran_here = []
+
+    class FakeStart:
+        def __init__(self, workers, on_ready=None):
+            if ready_at_once:
+                on_ready(client)
+
+        def wait(self):
+            return client
+
+        def close(self):
+            pass
+
+    def run_cell(cell):  # in this process (the fake workers call REAL_RUN_CELL)
+        ran_here.append(cell)
+        return REAL_RUN_CELL(cell)
+
+    monkeypatch.setattr(study_run, "ClusterStart", FakeStart)
+    monkeypatch.setattr(distributed, "as_completed", iter)
+    monkeypatch.setattr(study_run.evaluate, "run_cell", run_cell)
+    study = study_from_dict({
+        "study": {"name": "lengths", "seeds": 2, "sweeps": {"short": 2, "long": 6}},
+        "variants": {"short": {"preset": "paper-dp"}, "long": {"preset": "paper-dp"}},
+        "data": {"small": SMALL},
+    })  # fmt: skip
+    run = run_study(study, tmp_path / "out", workers=2, progress=False)
+    assert run.ran == 4 and run.failed == 0
+    return client.submitted, ran_here, cells_of(study)
+
+
+def test_cluster_gets_the_longest_cells_first_with_falling_priority(tmp_path, monkeypatch):
+    submitted, ran_here, cells = _run_on_fake_cluster(tmp_path, monkeypatch, ready_at_once=True)
+    assert ran_here == []  # every cell went to the (fake) workers
+    assert [(c.row, c.seed) for c, _ in submitted] == [
+        ("long", 0), ("long", 1), ("short", 0), ("short", 1)
+    ]  # fmt: skip
+    priorities = [priority for _, priority in submitted]
+    assert priorities == sorted(priorities, reverse=True) and len(set(priorities)) == 4
+
+
+def test_this_process_runs_the_shortest_cells_while_the_cluster_starts(tmp_path, monkeypatch):
+    submitted, ran_here, _ = _run_on_fake_cluster(tmp_path, monkeypatch, ready_at_once=False)
+    assert submitted == []
+    assert [(c.row, c.seed) for c in ran_here] == [
+        ("short", 1), ("short", 0), ("long", 1), ("long", 0)
+    ]  # fmt: skip
+
+
+@pytest.mark.slow
+def test_order_benchmark_quick(tmp_path):
+    """benchmarks/study_order.py --quick runs both orders on a LocalCluster, same numbers."""
+    pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    root = Path(__file__).resolve().parents[1]
+    out = tmp_path / "study_order.json"
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")]),
+    }
+    done = subprocess.run(
+        [sys.executable, str(root / "benchmarks" / "study_order.py"), "--quick", "--repeats", "1",
+         "--out", str(out)],
+        capture_output=True, text=True, timeout=600, env=env,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    results = json.loads(out.read_text())
+    assert [run["order"] for run in results["runs"]] == ["table", "longest first"]
+    assert results["same_numbers"] is True and "mean wall" in done.stdout
