@@ -3,10 +3,10 @@
 Workers take cells in the order they were submitted. A study mixes cells whose cost differs by
 two orders of magnitude (an SVI fit of a public house: 5-12 min; 100 CAVI iterations on a
 synthetic one: half a second), and whichever cell starts last decides how long the cluster
-runs after the others are done: in the table's order (variants, data, methods, seeds) the
-slowest method's cells tend to come together at the end. Started longest first (the "longest
-processing time" rule), the short cells fill the workers' gaps at the end instead; its
-makespan is at most 4/3 of the best possible (Graham 1969).
+runs after the others are done: in the table's order (data, seed, variant, method) a slow cell
+near the end runs alone while the other workers wait. Started longest first (the "longest
+processing time" rule), the short cells fill the workers' gaps at the end instead; with the
+cells' costs known, its makespan is at most 4/3 of the best possible (Graham 1969).
 
 A cell's cost is predicted, in seconds on the 2-core machine the defaults were measured on (only
 the order matters), as its iterations times a time per iteration:
