@@ -52,7 +52,7 @@ def _table_order(table: bool) -> Iterator[None]:
     """Inside: the study's cells start in table order (``table``), not longest first."""
     ordered = study_run.longest_first
     if table:
-        study_run.longest_first = lambda pending, cells, finished: list(pending)
+        study_run.longest_first = lambda pending, predicted: list(pending)
     try:
         yield
     finally:

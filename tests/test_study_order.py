@@ -12,7 +12,7 @@ import pytest
 
 from spcopyro.study import run as study_run
 from spcopyro.study.cells import cells_of
-from spcopyro.study.order import longest_first, predicted_seconds
+from spcopyro.study.order import duration, longest_first, predicted_seconds
 from spcopyro.study.run import run_study
 from spcopyro.study.spec import study_from_dict
 
@@ -35,7 +35,9 @@ def test_without_history_slow_methods_and_big_houses_start_first():
     of a group, predicted alike, keep their order."""
     big = {**SMALL, "synthetic": "scaled", "height": 48, "width": 60}
     cells = cells_of(_methods_study(small=SMALL, big=big))
-    order = [(c.method, c.data.name, c.seed) for c in longest_first(cells)]
+    order = [
+        (c.method, c.data.name, c.seed) for c in longest_first(cells, predicted_seconds(cells))
+    ]
     for data in ("small", "big"):
         methods = [m for m, d, _ in order if d == data]
         assert methods == ["svi"] * 2 + ["gibbs"] * 2 + ["cavi"] * 2
@@ -59,7 +61,7 @@ def test_finished_cells_predict_their_group_then_their_kind():
     assert by_cell[("gibbs", "small", 1)] == pytest.approx(60.0)
     assert by_cell[("gibbs", "other", 0)] == pytest.approx(60.0)  # same method and kind
     assert by_cell[("svi", "small", 0)] < 60.0
-    assert longest_first(pending, cells, finished)[0].method == "gibbs"
+    assert longest_first(pending, predicted)[0].method == "gibbs"
     failed = {c.key: {"status": "error", "seconds": 60.0} for c in done}
     assert predicted_seconds(pending, cells, failed) == predicted_seconds(pending)
 
@@ -160,3 +162,38 @@ def test_order_benchmark_quick(tmp_path):
     results = json.loads(out.read_text())
     assert [run["order"] for run in results["runs"]] == ["table", "longest first"]
     assert results["same_numbers"] is True and "mean wall" in done.stdout
+
+
+def test_dry_run_predicts_each_group_and_the_whole_run(tmp_path, capsys, monkeypatch):
+    """``--dry-run`` gives each group's predicted time and the run's, on the workers asked for:
+    SVI's 300 steps on the small house cost more than Gibbs' 2000 sweeps, as the full-budget
+    study measured."""
+    from spcopyro.cli.main import main
+    from spcopyro.study.run import plan_study
+
+    study = _methods_study()
+    plan = plan_study(study, tmp_path / "none")
+    by_method = {c.method: plan.predicted[c.key] for c in plan.pending}
+    assert by_method["svi"] > by_method["gibbs"] > by_method["cavi"] > 0
+    path = tmp_path / "order.toml"
+    path.write_text(
+        '[study]\nname = "order"\nseeds = 2\nmethods = ["gibbs", "svi"]\n'
+        "sweeps = { gibbs = 2000, svi = 300 }\n"
+        '[variants.dp]\npreset = "paper-dp"\n'
+        '[data.small]\nsynthetic = "default"\nheight = 24\nwidth = 30\nnum_rooms = 2\n'
+        "num_trials = 2\nmin_room_size = 8\n"
+    )
+    assert main(["study", str(path), "--out", str(tmp_path / "dry"), "--dry-run",
+                 "--workers", "2"]) == 0  # fmt: skip
+    planned = capsys.readouterr().out
+    assert "| iterations | cells | predicted |" in planned
+    assert "| small | dp | svi | 300 | 2 |" in planned
+    assert "of fits one after another; on 2 workers at least" in planned
+    assert not (tmp_path / "dry").exists()
+
+
+@pytest.mark.parametrize(
+    "seconds, text", [(0.4, "0 s"), (42, "42 s"), (600, "10 min"), (7380, "2.0 h")]
+)
+def test_duration_reads_as_a_person_would(seconds, text):
+    assert duration(seconds) == text

@@ -46,11 +46,11 @@ def _study(args: argparse.Namespace) -> int:
             raise FileNotFoundError(f"--report-only: {out / TABLE} does not exist; run the study")
         print(f"wrote {write_report(out / TABLE, out / 'report.md', title=study.name)}")
         return 0
+    workers = args.workers if args.workers is not None else default_workers()
     if args.dry_run:
         plan = plan_study(study, out, args.retry_failed, args.rerun_stale, args.data)
-        print(plan_markdown(plan, study))
+        print(plan_markdown(plan, study, 1 if args.scheduler else workers))
         return 0
-    workers = args.workers if args.workers is not None else default_workers()
     run = run_study(
         study, out, workers=workers, scheduler=args.scheduler, retry_failed=args.retry_failed,
         rerun_stale=args.rerun_stale, root=args.data, report=print,

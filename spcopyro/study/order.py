@@ -16,7 +16,7 @@ the order matters), as its iterations times a time per iteration:
   resumed or gains seeds), else of the same method on the same kind of data;
 * otherwise :data:`SECONDS_PER_ITERATION`, the medians of the full-budget Gibbs-versus-VI study
   (docs/studies.md) by method and kind of data, a synthetic house's scaled by its map's area
-  against the default house's.
+  against the default house's (a baseline's cell: :data:`BASELINE_SECONDS`).
 """
 
 from __future__ import annotations
@@ -27,7 +27,9 @@ from collections.abc import Iterable, Mapping
 from spcopyro.study.cells import BASELINE_METHOD, Cell
 from spcopyro.study.spec import SYNTHETIC_FACTORIES
 
-__all__ = ["SECONDS_PER_ITERATION", "longest_first", "predicted_seconds"]
+__all__ = [
+    "BASELINE_SECONDS", "SECONDS_PER_ITERATION", "duration", "longest_first", "predicted_seconds",
+]  # fmt: skip
 
 SECONDS_PER_ITERATION: dict[str, tuple[float, float]] = {
     "gibbs": (0.83e-3, 0.96e-3),
@@ -36,11 +38,12 @@ SECONDS_PER_ITERATION: dict[str, tuple[float, float]] = {
     "stochastic-vi": (8.96e-3, 57.6e-3),
     "svi": (19.8e-3, 167.4e-3),
     "lbp": (23.2e-3, 475.4e-3),
-    BASELINE_METHOD: (0.83e-3, 0.96e-3),
 }
 """Seconds per iteration (synthetic house, public house or simulated map) of each method at
 the study's budgets: medians of the full-budget Gibbs-versus-VI study, 2026-12-03, 2 cores.
 A method missing here costs what Gibbs does."""
+BASELINE_SECONDS = 1.0
+"""A baseline row's cell (nearest utterance, geometry, ...: no sweeps), without history."""
 
 
 def _group(cell: Cell) -> tuple[str, str, str]:
@@ -74,6 +77,8 @@ def _per_iteration(
 
 
 def _static_rate(cell: Cell) -> float:
+    if cell.method == BASELINE_METHOD:
+        return BASELINE_SECONDS / max(cell.sweeps, 1)
     synthetic, measured = SECONDS_PER_ITERATION.get(cell.method, SECONDS_PER_ITERATION["gibbs"])
     if cell.data.kind != "synthetic":
         return measured
@@ -97,13 +102,16 @@ def predicted_seconds(
     return predicted
 
 
-def longest_first(
-    cells: Iterable[Cell],
-    history: Iterable[Cell] = (),
-    finished: Mapping[str, Mapping[str, object]] | None = None,
-) -> list[Cell]:
-    """``cells`` by predicted seconds, longest first (:func:`predicted_seconds`); cells
-    predicted alike keep their order."""
-    cells = list(cells)
-    predicted = predicted_seconds(cells, history, finished)
+def longest_first(cells: Iterable[Cell], predicted: Mapping[str, float]) -> list[Cell]:
+    """``cells`` by ``predicted`` seconds (by key, :func:`predicted_seconds`), longest first;
+    cells predicted alike keep their order."""
     return sorted(cells, key=lambda cell: -predicted[cell.key])
+
+
+def duration(seconds: float) -> str:
+    """``seconds`` as a person reads a prediction: 40 s, 12 min, 2.3 h."""
+    if seconds < 90:
+        return f"{seconds:.0f} s"
+    if seconds < 90 * 60:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"

@@ -34,7 +34,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from spcopyro._util.progress import progress_enabled
@@ -42,7 +42,7 @@ from spcopyro.gibbs.chains import usable_cpus
 from spcopyro.study import evaluate
 from spcopyro.study.cells import Cell, cells_of, source_digest
 from spcopyro.study.local_cluster import PRE_SPAWN_ENVIRON, ClusterStart
-from spcopyro.study.order import longest_first
+from spcopyro.study.order import duration, longest_first, predicted_seconds
 from spcopyro.study.report import write_report
 from spcopyro.study.spec import Study
 from spcopyro.study.table import TABLE, CellStore, table_rows, write_table
@@ -120,7 +120,8 @@ def run_study(
         raise ValueError(f"workers must be >= 1, got {workers}")
     out = Path(out)
     start = time.perf_counter()
-    cells, pending, cached, stale = plan_study(study, out, retry_failed, rerun_stale, root)
+    plan = plan_study(study, out, retry_failed, rerun_stale, root)
+    cells, pending, cached, stale = plan
     store = CellStore(out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "study.json").write_text(json.dumps(study.to_json(), indent=1, default=str))
@@ -140,7 +141,7 @@ def run_study(
     interrupted = False
     bar = _bar(len(pending), progress)
     in_process = scheduler is None and workers <= 1
-    started_in_order = [] if in_process else longest_first(pending, cells, store.finished())
+    started_in_order = [] if in_process else longest_first(pending, plan.predicted)
     background = _Background()
     try:
         outcomes = (
@@ -189,6 +190,8 @@ class StudyPlan:
     """Cells finished before (not run)."""
     stale: set[str]
     """Keys of finished cells that other spcopyro source computed."""
+    predicted: dict[str, float] = field(default_factory=dict)
+    """Each pending cell's predicted seconds, by key (:mod:`spcopyro.study.order`)."""
 
     def __iter__(self):
         return iter((self.cells, self.pending, self.cached, self.stale))
@@ -206,22 +209,37 @@ def plan_study(
     if rerun_stale:
         done -= stale
     pending = list({c.key: c for c in cells if c.key not in done}.values())  # one per key
-    return StudyPlan(cells, pending, len({c.key for c in cells} & done), stale)
+    predicted = predicted_seconds(pending, cells, finished)
+    return StudyPlan(cells, pending, len({c.key for c in cells} & done), stale, predicted)
 
 
-def plan_markdown(plan: StudyPlan, study: Study) -> str:
-    """The cells a run would run, per data source, variant and method: how many (seeds) and
-    at how many iterations (``spcopyro study --dry-run``)."""
-    groups: dict[tuple[str, str, str, int], int] = {}
+def plan_markdown(plan: StudyPlan, study: Study, workers: int = 1) -> str:
+    """The cells a run would run, per data source, variant and method: how many (seeds), at
+    how many iterations and their predicted time (``spcopyro study --dry-run``); the whole
+    run's predicted time one after another and on ``workers``."""
+    groups: dict[tuple[str, str, str, int], list[float]] = {}
     for cell in plan.pending:
         group = (cell.data.name, cell.row, cell.method, cell.sweeps)
-        groups[group] = groups.get(group, 0) + 1
+        groups.setdefault(group, []).append(plan.predicted.get(cell.key, 0.0))
     lines = [
         f"study {study.name!r}: {len(plan.pending)} of {len(plan.cells)} cells to run "
         f"({plan.cached} finished before, {len(plan.stale)} of them by other source)",
-        "", "| data | variant | method | iterations | cells |", "|---|---|---|---|---|",
+        "", "| data | variant | method | iterations | cells | predicted |",
+        "|---|---|---|---|---|---|",
     ]  # fmt: skip
-    lines += [f"| {d} | {v} | {m} | {n} | {k} |" for (d, v, m, n), k in groups.items()]
+    lines += [
+        f"| {d} | {v} | {m} | {n} | {len(times)} | {duration(sum(times))} |"
+        for (d, v, m, n), times in groups.items()
+    ]
+    total = sum(plan.predicted.get(cell.key, 0.0) for cell in plan.pending)
+    if plan.pending:
+        longest = max(plan.predicted.get(cell.key, 0.0) for cell in plan.pending)
+        spread = f"; on {workers} workers at least {duration(max(total / workers, longest))}"
+        lines += ["", (
+            f"predicted: {duration(total)} of fits one after another"
+            f"{spread if workers > 1 else ''} (times per iteration of this study's finished "
+            "cells where it has some, else of a 2-core machine in 2026: a guide, not a promise)"
+        )]  # fmt: skip
     return "\n".join(lines)
 
 
