@@ -46,6 +46,7 @@ from spcopyro.baselines.geometry import geometry_semantic_map
 from spcopyro.baselines.nearest import nearest_word_map
 from spcopyro.config import DEFAULT_PRESET, preset
 from spcopyro.data import find_dataset_root, load_house
+from spcopyro.experiments.ablation import concepts_over, largest_share
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
 from spcopyro.fit.house import fit_house, preset_fit_kwargs
@@ -89,13 +90,11 @@ def fit_preset(house, name: str, sweeps: int, seed: int) -> tuple[np.ndarray, fl
 
 
 def scores(labels: np.ndarray, truth: np.ndarray, free: np.ndarray) -> dict[str, float]:
-    on_free = labels[free]
-    sizes = np.bincount(on_free[on_free >= 0])
-    sizes = sizes[sizes > 0]
+    on_free = labels[free]  # [N]
     return {
         "ari": adjusted_rand_index(labels, truth),
-        "largest_share": float(sizes.max() / sizes.sum()),
-        "concepts_1pct": int((sizes >= 0.01 * sizes.sum()).sum()),
+        "largest_share": largest_share(on_free),
+        "concepts_1pct": concepts_over(on_free),
     }
 
 

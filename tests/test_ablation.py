@@ -17,6 +17,7 @@ from spcopyro.experiments.ablation import (
     SYNTHETIC_HOUSES,
     AblationSettings,
     concepts_over,
+    largest_share,
 )
 from spcopyro.experiments.ablation_report import JSON_KEYS, targets
 from spcopyro.experiments.ablation_variants import (
@@ -271,6 +272,12 @@ def test_concepts_over_counts_labels_with_one_percent():
     labels = np.repeat(np.arange(4), [500, 480, 15, 5])  # 1000 cells
     assert concepts_over(labels) == 3  # 15 >= 10, 5 < 10
     assert concepts_over(labels, share=0.02) == 2
+
+
+def test_largest_share_counts_labelled_cells_only():
+    labels = np.repeat(np.arange(-1, 3), [500, 300, 150, 50])  # 500 unlabelled
+    assert largest_share(labels) == pytest.approx(0.6)
+    assert np.isnan(largest_share(np.full(4, -1)))
 
 
 def test_targets_are_checked_against_the_baselines():

@@ -3,7 +3,7 @@ synthetic houses and on the public houses, beside the baselines (C) SpCoA and (F
 
 This module holds what the ablation *is*: its synthetic settings (:data:`SYNTHETIC_HOUSES`),
 default rows, options (:class:`AblationSettings`) and the scorers only it uses
-(:func:`concepts_over`, :func:`top_words`). It runs as a study (issue 26):
+(:func:`concepts_over`, :func:`largest_share`, :func:`top_words`). It runs as a study (issue 26):
 :func:`spcopyro.study.ablation.run_ablation` fits each row x house x seed as a cell of the
 study engine (shipped as ``spcopyro/study/studies/ablation.toml``), scored by
 :func:`spcopyro.study.evaluate.run_cell`:
@@ -48,6 +48,7 @@ __all__ = [
     "TABLE2_CATEGORIES",
     "AblationSettings",
     "concepts_over",
+    "largest_share",
     "settings_json",
     "top_words",
 ]
@@ -136,6 +137,13 @@ def concepts_over(labels: np.ndarray, share: float = MIN_SHARE) -> int:
     """The number of labels holding at least ``share`` of the cells ``labels`` ([N])."""
     sizes = np.bincount(labels[labels >= 0])
     return int((sizes >= share * labels.size).sum())
+
+
+def largest_share(labels: np.ndarray) -> float:
+    """The largest label's share of the labelled cells of ``labels`` ([N], -1: none); nan
+    when no cell is labelled."""
+    sizes = np.bincount(labels[labels >= 0])
+    return float(sizes.max() / sizes.sum()) if sizes.sum() else float("nan")
 
 
 def _place_words(house: House) -> frozenset[str]:

@@ -57,7 +57,7 @@ import numpy as np
 
 from spcopyro._util.threads import torch_threads
 from spcopyro.data.model_grid import model_house
-from spcopyro.experiments.ablation import concepts_over, top_words
+from spcopyro.experiments.ablation import concepts_over, largest_share, top_words
 from spcopyro.experiments.methods import RunSettings, fit_method, fit_spco
 from spcopyro.fit.house import fit_house
 from spcopyro.metrics import (
@@ -226,11 +226,10 @@ def _sentence_scores(result) -> dict[str, object]:
 def _map_scores(labels: np.ndarray, free: np.ndarray, truth: np.ndarray | None) -> dict:
     """Scores of an ``[H, W]`` label map on the map's cells (``free`` ``[H, W]``)."""
     on_free = labels[free]  # [N]
-    sizes = np.bincount(on_free[on_free >= 0])
     scores: dict[str, object] = {
         "free_cells": int(free.sum()),
         "concepts_1pct": concepts_over(on_free),
-        "largest_share": float(sizes.max() / sizes.sum()) if sizes.sum() else float("nan"),
+        "largest_share": largest_share(on_free),
     }
     if truth is not None:
         scores["ari"] = adjusted_rand_index(labels, truth)
