@@ -197,3 +197,18 @@ def test_dry_run_predicts_each_group_and_the_whole_run(tmp_path, capsys, monkeyp
 )
 def test_duration_reads_as_a_person_would(seconds, text):
     assert duration(seconds) == text
+
+
+def test_progress_bar_advances_by_predicted_seconds_and_counts_cells(tmp_path, capsys):
+    """The bar's share is of the cells' predicted seconds (so its remaining time holds for
+    cells of different lengths), with the count of cells beside it."""
+    study = _methods_study()
+    plan = study_run.plan_study(study, tmp_path / "none")
+    bar = study_run._bar(plan.pending, plan.predicted, progress=True)
+    svi = next(c for c in plan.pending if c.method == "svi")
+    bar.advance(svi)
+    bar.close()
+    shown = capsys.readouterr().err
+    share = plan.predicted[svi.key] / sum(plan.predicted.values())
+    assert f"{100 * share:3.0f}%" in shown and "cells 1/6:" in shown
+    assert study_run._bar(plan.pending, plan.predicted, progress=False) is None

@@ -139,7 +139,7 @@ def run_study(
         report(_stale_line(len(stale)))
     ran = failed = 0
     interrupted = False
-    bar = _bar(len(pending), progress)
+    bar = _bar(pending, plan.predicted, progress)
     in_process = scheduler is None and workers <= 1
     started_in_order = [] if in_process else longest_first(pending, plan.predicted)
     background = _Background()
@@ -157,7 +157,7 @@ def run_study(
                 report(f"cell {cell.row} / {cell.data.name} / {cell.method} / seed {cell.seed} "
                        f"failed: {record['error_type']}: {record['error']}")  # fmt: skip
             if bar is not None:
-                bar.update()
+                bar.advance(cell)
     except KeyboardInterrupt:
         interrupted = True
         raise
@@ -264,12 +264,34 @@ def _where(workers: int, scheduler: str | None) -> str:
     return "in-process" if workers <= 1 else f"LocalCluster({workers} workers)"
 
 
-def _bar(total: int, progress: bool | None):
+class _CellBar:
+    """A progress bar over the cells, advanced by each finished cell's predicted seconds, so
+    that its remaining time holds when the cells differ in length (and the cluster starts the
+    longest first); the count of cells is in its description."""
+
+    def __init__(self, cells: list[Cell], predicted: dict[str, float]) -> None:
+        from tqdm.auto import tqdm
+
+        self._weight = {c.key: max(predicted.get(c.key, 1.0), 1e-3) for c in cells}
+        self._cells, self._done = len(cells), 0
+        self._bar = tqdm(
+            total=sum(self._weight.values()), desc=f"cells 0/{self._cells}",
+            bar_format="{desc}: {percentage:3.0f}%|{bar}| [{elapsed}<{remaining}]",
+        )  # fmt: skip
+
+    def advance(self, cell: Cell) -> None:
+        self._done += 1
+        self._bar.set_description_str(f"cells {self._done}/{self._cells}", refresh=False)
+        self._bar.update(self._weight.get(cell.key, 0.0))
+
+    def close(self) -> None:
+        self._bar.close()
+
+
+def _bar(cells: list[Cell], predicted: dict[str, float], progress: bool | None) -> _CellBar | None:
     if not progress_enabled(progress):
         return None
-    from tqdm.auto import tqdm
-
-    return tqdm(total=total, desc="cells", unit="cell")
+    return _CellBar(cells, predicted)
 
 
 def _finish(out: Path, study: Study, cells: list[Cell], store: CellStore) -> None:
