@@ -3,6 +3,7 @@ of known concentration, the rule, the images' concepts and the two-stage fit's w
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 
@@ -97,9 +98,32 @@ def test_images_take_the_concept_of_their_model_cell(two_stage_fit):
     image = fit.first.label_image()
     for t in range(0, labels.size, 7):
         row, col = cells[t]
-        inside = 0 <= row < image.shape[0] and 0 <= col < image.shape[1]
-        assert labels[t] == (image[row, col] if inside else -1)
+        if fit.first.grid.free[row, col]:  # on free space: that cell's concept
+            assert labels[t] == image[row, col]
     assert (labels >= 0).mean() > 0.9  # images are taken on free space
+
+
+def test_an_image_just_off_free_space_takes_the_concept_the_fit_snapped_it_to(two_stage_fit):
+    """As the fit places it (eq. 11 with the snap distance), not -1 for the wall cell: every
+    image moved onto a wall cell with one free 4-neighbour takes that neighbour's concept."""
+    house, fit = two_stage_fit
+    grid = fit.first.grid  # 0.3 m cells, the fit's snap distance 0.25 m: as if it were 0.5 m
+    first = dataclasses.replace(
+        fit.first, preparation=dataclasses.replace(fit.first.preparation, snap_distance=0.5)
+    )
+    free = np.pad(grid.free, 1)  # [h + 2, w + 2]
+    neighbours = free[:-2, 1:-1] + free[2:, 1:-1] + free[1:-1, :-2] + free[1:-1, 2:]  # [h, w]
+    row, col = np.argwhere(~grid.free & (neighbours == 1))[0]
+    steps = [(-1, 0), (1, 0), (0, -1), (0, 1)]
+    ((dr, dc),) = [(dr, dc) for dr, dc in steps if free[row + 1 + dr, col + 1 + dc]]
+    xy = grid.cell_to_world(np.array([[row, col]]))  # [1, 2] the wall cell's centre
+    observations = dataclasses.replace(
+        house.observations, image_xy=np.repeat(xy, house.observations.num_images, axis=0)
+    )
+    moved = dataclasses.replace(house, observations=observations)
+    labels = image_labels(first, moved)
+    assert (labels == fit.first.label_image()[row + dr, col + dc]).all() and labels[0] >= 0
+    assert (image_labels(fit.first, moved) == -1).all()  # 0.3 m away: unplaced at 0.25 m
 
 
 def test_two_stage_refits_with_the_rule_s_weight_from_the_first_fit(two_stage_fit):

@@ -45,6 +45,7 @@ import numpy as np
 from spcopyro.config import SpCoSettings
 from spcopyro.data import House
 from spcopyro.data.model_grid import model_house
+from spcopyro.data.placement import place_observations
 from spcopyro.fit.house import fit_house
 from spcopyro.results.result import SpCoResult
 
@@ -106,15 +107,15 @@ def image_separation(features: np.ndarray, labels_of_images: np.ndarray) -> Imag
 
 
 def image_labels(result: SpCoResult, house: House) -> np.ndarray:
-    """``[T]`` the concept of the model-grid cell each image of ``house`` was taken in (-1: the
-    cell is off the map, a wall or unlabelled). ``result`` is a fit of ``house`` (on its model
-    grid)."""
-    grid = result.grid
-    cells = grid.world_to_cell(house.observations.image_xy)  # [T, 2]
-    inside = grid.in_bounds(cells)  # [T]
-    labels = np.full(cells.shape[0], -1, dtype=np.int64)  # [T]
-    image = np.asarray(result.label_image())  # [h, w], -1 off free
-    labels[inside] = image[cells[inside, 0], cells[inside, 1]]
+    """``[T]`` the concept of the model-grid cell each image of ``house`` was placed in, as the
+    fit placed it (eq. 11, an image just off free space snapped to the nearest free cell within
+    the fit's snap distance; -1: unplaced or unlabelled). ``result`` is a fit of ``house`` (on
+    its model grid)."""
+    free_index, _, unplaced = place_observations(
+        result.grid, house.observations.image_xy, result.preparation.snap_distance
+    )  # [T], [T]
+    labels = np.full(free_index.shape[0], -1, dtype=np.int64)  # [T]
+    labels[~unplaced] = np.asarray(result.labels)[free_index[~unplaced]]  # labels: [N free]
     return labels
 
 
