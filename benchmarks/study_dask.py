@@ -4,6 +4,7 @@
     python benchmarks/study_dask.py --quick      # smoke test: 4 cells, a few sweeps
     python benchmarks/study_dask.py --also-spawned   # + the cluster as it started before
     python benchmarks/study_dask.py --also-dask-loops   # + the cluster with Dask's default loops
+    python benchmarks/study_dask.py --pairs 5     # 5 (in-process, cluster) pairs: median ratio
 
 The same study (2 variants x 2 synthetic houses x 5 seeds, Gibbs; :mod:`spcopyro.study`) runs
 twice into two fresh folders: first cell after cell in this process, then on a
@@ -13,7 +14,10 @@ from a preloaded forkserver while this process runs cells (:mod:`spcopyro.study.
 With ``--also-spawned``, a third run starts the cluster as before that: spawned workers, no cell
 run in this process. With ``--also-dask-loops``, another run starts the cluster with Dask's own
 event-loop settings instead of :data:`~spcopyro.study.local_cluster.QUIET_LOOPS` (the workers'
-profiler on). Prints both wall times, their ratio (cluster / in-process; the
+profiler on). With ``--pairs N``, N - 1 more pairs of runs (in-process, then cluster) follow,
+each into fresh folders, and the median of the pairs' ratios is printed beside each one (the
+machine's speed drifts by up to 20 % within a minute: one pair is one draw). Prints both wall
+times, their ratio (cluster / in-process; the
 issue's target is <= 0.6 on a 2-core machine), whether both tables hold the same numbers, and
 the CPU the machine's other processes used meanwhile (a shared machine: read the ratio with it).
 Writes the JSON to ``--out``.
@@ -23,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import statistics
 import sys
 import tempfile
 import time
@@ -127,6 +132,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--also-dask-loops", action="store_true",
                         help="also run the cluster with Dask's default event-loop settings "
                              "(profiler on; how it ran before)")  # fmt: skip
+    parser.add_argument("--pairs", type=int, default=1,
+                        help="(in-process, cluster) pairs of runs, alternated; the median "
+                             "ratio is printed (default 1)")  # fmt: skip
     parser.add_argument("--out", default="benchmarks/study_dask.json")
     args = parser.parse_args(argv)
     sweeps = args.sweeps or (10 if args.quick else 2000)
@@ -146,11 +154,24 @@ def main(argv: Sequence[str] | None = None) -> int:
             loud = timed_run(study, Path(folder) / "loud", args.workers, dask_loops=True)
             same = same and scores(Path(folder) / "loud") == scores(Path(folder) / "cluster")
             loud_cells = cell_seconds(Path(folder) / "loud")
+        pairs = [(local["seconds"], cluster["seconds"])]
+        for pair in range(1, args.pairs):
+            again = [
+                timed_run(study, Path(folder) / f"{name}_{pair}", workers)["seconds"]
+                for name, workers in (("in_process", 1), ("cluster", args.workers))
+            ]
+            same = same and scores(Path(folder) / f"in_process_{pair}") == scores(
+                Path(folder) / "cluster"
+            ) == scores(Path(folder) / f"cluster_{pair}")
+            pairs.append((again[0], again[1]))
     ratio = cluster["seconds"] / local["seconds"]  # type: ignore[operator]
+    ratios = [c / i for i, c in pairs]  # type: ignore[operator]
     results = {
         "machine": machine_info(), "sweeps": sweeps, "workers": args.workers,
         "in_process": local, "local_cluster": cluster, "ratio": ratio, "same_numbers": same,
         "cells_in_process": in_process_cells, "cells_in_cluster": cluster_cells,
+        "pairs": [{"in_process": i, "local_cluster": c} for i, c in pairs],
+        "pair_ratios": ratios, "median_ratio": statistics.median(ratios),
     }  # fmt: skip
     runs = [local, cluster]
     if spawned is not None:
@@ -175,6 +196,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         "children, so their own CPU is counted there, about 1.6-1.8 cores on an idle machine)"
     )
     print(f"ratio (cluster / in-process): {ratio:.2f} (target <= 0.6); same numbers: {same}")
+    if len(pairs) > 1:
+        listed = ", ".join(f"{c / i:.2f} ({c:.1f} / {i:.1f} s)" for i, c in pairs)
+        print(f"pairs, alternated: {listed}; median ratio {statistics.median(ratios):.2f}")
     slower, costlier = (cluster_cells[key] / in_process_cells[key] for key in TIMING)
     print(
         f"the cells themselves: {in_process_cells['seconds']:.1f} s together in-process, "

@@ -388,7 +388,8 @@ def test_dask_benchmark_quick(tmp_path):
         "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
     }
     done = subprocess.run(
-        [sys.executable, str(ROOT / "benchmarks" / "study_dask.py"), "--quick", "--out", str(out)],
+        [sys.executable, str(ROOT / "benchmarks" / "study_dask.py"), "--quick", "--pairs", "2",
+         "--out", str(out)],
         capture_output=True, text=True, timeout=600, env=env,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr[-3000:]
@@ -397,6 +398,7 @@ def test_dask_benchmark_quick(tmp_path):
     assert results["same_numbers"] is True
     assert results["cells_in_cluster"]["seconds"] > 0  # the cells' own seconds, both runs
     assert "the cells themselves" in done.stdout
+    assert len(results["pair_ratios"]) == 2 and "median ratio" in done.stdout
 
 
 def test_finished_study_restarted_does_nothing_and_says_so(in_process, tmp_path, monkeypatch):
