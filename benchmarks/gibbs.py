@@ -144,6 +144,7 @@ class BenchSizes:
     chains: int  # chains of the many-chains section
     chains_sweeps: int  # their sweeps in process
     chains_fit_sweeps: int  # their sweeps as `fit --chains K` against K single fits
+    chains_fit_repeats: int  # that comparison's alternated repeats (the median ratio is judged)
 
 
 FULL = BenchSizes(
@@ -163,6 +164,7 @@ FULL = BenchSizes(
     chains=4,
     chains_sweeps=1000,
     chains_fit_sweeps=5000,
+    chains_fit_repeats=3,
 )
 QUICK = BenchSizes(
     house_warmup=2,
@@ -181,6 +183,7 @@ QUICK = BenchSizes(
     chains=2,
     chains_sweeps=5,
     chains_fit_sweeps=2,
+    chains_fit_repeats=1,
 )
 
 
@@ -505,7 +508,9 @@ def bench_chains(
     progress(f"[chains] fit --chains {sizes.chains} against {sizes.chains} single fits")
     as_fits = _try(
         "chains as fits",
-        lambda: chains_as_fits(path, name, sizes.chains, sizes.chains_fit_sweeps),
+        lambda: chains_as_fits(
+            path, name, sizes.chains, sizes.chains_fit_sweeps, sizes.chains_fit_repeats
+        ),
     )
     gpu = (
         "a CUDA device is present: benchmarks/batched_gpu.py measures the batched sweep on it"

@@ -19,6 +19,7 @@ chains at once.
 
 from __future__ import annotations
 
+import statistics
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -130,16 +131,24 @@ def chains_in_process(
     }
 
 
-def chains_as_fits(house: Path | None, preset: str, chains: int, sweeps: int) -> dict[str, Any]:
+def chains_as_fits(
+    house: Path | None, preset: str, chains: int, sweeps: int, repeats: int = 1
+) -> dict[str, Any]:
     """``spcopyro fit --chains K`` against K single fits (seeds 0..K-1), each a fresh process,
-    figures off (they are the same for both)."""
+    figures off (they are the same for both). ``repeats`` times, alternated (the fit, then the
+    single fits): ``ratio`` is the median of the repeats' ratios, since the machine's speed
+    drifts within a minute; the other fields are the first repeat's."""
 
     def single(seed: int) -> dict[str, Any]:
         return fit_once(house, preset, sweeps, False, seed=seed)
 
-    together = fit_once(house, preset, sweeps, False, extra=["--chains", str(chains)])
-    singles = [single(k) for k in range(chains)]
+    rounds = []
+    for _ in range(repeats):
+        together = fit_once(house, preset, sweeps, False, extra=["--chains", str(chains)])
+        rounds.append((together, [single(k) for k in range(chains)]))
+    together, singles = rounds[0]
     single_s = sum(r["wall"] for r in singles)
+    ratios = [t["wall"] / sum(r["wall"] for r in s) for t, s in rounds]
     # Seeds 0 and 1's single fits again, two at a time in two processes: what the CPUs give two
     # chains that share no GIL (their sweeps' seconds against the same fits' alone).
     start = time.perf_counter()
@@ -155,7 +164,8 @@ def chains_as_fits(house: Path | None, preset: str, chains: int, sweeps: int) ->
         "single_fits_s": single_s,
         "single_fit_each_s": [r["wall"] for r in singles],
         "single_fit_sweeps_s": [r["sweep_seconds"] for r in singles],
-        "ratio": together["wall"] / single_s,
+        "ratio": statistics.median(ratios),
+        "ratios": ratios,
         "pair_s": pair_s,
         "pair_sweeps_s": [r["sweep_seconds"] for r in pair],
     }
