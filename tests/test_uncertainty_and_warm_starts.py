@@ -48,6 +48,37 @@ def test_label_frequencies_count_each_cells_labels():
     )
     with pytest.raises(ValueError, match=r"\[S >= 1, N\]"):
         label_frequencies(np.zeros((0, 3), dtype=int), 3)
+    with pytest.raises(ValueError, match=r"labels must lie in \[0, 3\), got -1\.\.1"):
+        label_frequencies(samples - 1, 3)  # a bincount would count -1 in the previous cell
+    with pytest.raises(ValueError, match=r"labels must lie in \[0, 2\)"):
+        align_samples(samples, samples[0], 2)
+
+
+def test_counting_and_renaming_equal_their_loops_on_random_samples():
+    """The vectorised counts (one bincount of cell * L + label; a sample's contingency table
+    as one bincount) give what a loop over samples and cells gives, to the bit."""
+    from scipy.optimize import linear_sum_assignment
+
+    rng = np.random.default_rng(7)
+    S, N, L = 6, 200, 9
+    reference = rng.integers(0, 4, N) * 2  # [N] ids 0, 2, 4, 6
+    samples = np.where(rng.random((S, N)) < 0.7, reference, rng.integers(0, L, (S, N)))
+    counts = np.zeros((N, L), dtype=np.float32)
+    for labels in samples:
+        counts[np.arange(N), labels] += 1.0
+    np.testing.assert_array_equal(label_frequencies(samples, L), counts / S)
+    ref_ids = np.unique(reference)
+    free_ids = np.setdiff1d(np.arange(L), ref_ids)
+    aligned = align_samples(samples, reference, L)
+    for labels, renamed in zip(samples, aligned, strict=True):
+        ids = np.unique(labels)
+        overlap = np.array([[np.sum((labels == a) & (reference == b)) for b in ref_ids]
+                            for a in ids])  # fmt: skip
+        rows, cols = linear_sum_assignment(overlap, maximize=True)
+        rename = dict(zip(ids[rows], ref_ids[cols], strict=True))
+        spare = iter(free_ids)
+        rename.update({a: next(spare) for a in ids if a not in rename})
+        np.testing.assert_array_equal(renamed, [rename[a] for a in labels])
 
 
 def test_samples_are_renamed_to_the_reported_maps_concepts():

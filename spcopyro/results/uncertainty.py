@@ -38,10 +38,19 @@ def label_frequencies(samples: np.ndarray, num_concepts: int) -> np.ndarray:
     samples = np.asarray(samples)
     if samples.ndim != 2 or samples.shape[0] == 0:
         raise ValueError(f"samples must be [S >= 1, N], got shape {samples.shape}")
+    _check_labels(samples, num_concepts)
     S, N = samples.shape
-    counts = np.zeros((N, num_concepts), dtype=np.float32)  # [N, L]
-    np.add.at(counts, (np.broadcast_to(np.arange(N), (S, N)), samples), 1.0)
-    return counts / S
+    flat = np.arange(N, dtype=np.int64) * num_concepts + samples  # [S, N] cell * L + label
+    counts = np.bincount(flat.ravel(), minlength=N * num_concepts)  # [N * L]
+    return counts.reshape(N, num_concepts).astype(np.float32) / S  # [N, L]
+
+
+def _check_labels(samples: np.ndarray, num_concepts: int) -> None:
+    """ValueError unless every label of ``samples`` is a concept id in [0, num_concepts)."""
+    if samples.size and (samples.min() < 0 or samples.max() >= num_concepts):
+        raise ValueError(
+            f"labels must lie in [0, {num_concepts}), got {samples.min()}..{samples.max()}"
+        )
 
 
 def align_samples(samples: np.ndarray, reference: np.ndarray, num_concepts: int) -> np.ndarray:
@@ -60,19 +69,24 @@ def align_samples(samples: np.ndarray, reference: np.ndarray, num_concepts: int)
 
     samples = np.asarray(samples)
     reference = np.asarray(reference)
+    _check_labels(samples, num_concepts)
     ref_ids, ref_codes = np.unique(reference, return_inverse=True)  # [K_r], [N]
     free_ids = np.setdiff1d(np.arange(num_concepts), ref_ids)  # ids the reference leaves free
     aligned = np.empty_like(samples)
+    rename_all = np.empty(num_concepts, dtype=np.int64)  # [L] a sample's id -> reported id
     for s, labels in enumerate(samples):
-        ids, codes = np.unique(labels, return_inverse=True)  # [K_s], [N]
-        overlap = np.zeros((ids.size, ref_ids.size), dtype=np.int64)  # [K_s, K_r]
-        np.add.at(overlap, (codes, ref_codes), 1)
+        pairs = labels.astype(np.int64) * ref_ids.size + ref_codes  # [N] (label, ref) pair
+        table = np.bincount(pairs, minlength=num_concepts * ref_ids.size)  # [L * K_r]
+        table = table.reshape(num_concepts, ref_ids.size)  # [L, K_r]
+        ids = np.flatnonzero(table.any(axis=1))  # [K_s] the ids it uses, ascending
+        overlap = table[ids]  # [K_s, K_r]
         rows, cols = linear_sum_assignment(overlap, maximize=True)
         rename = np.full(ids.size, -1, dtype=np.int64)
         rename[rows] = ref_ids[cols]
         unmatched = np.flatnonzero(rename < 0)
         rename[unmatched] = free_ids[: unmatched.size]
-        aligned[s] = rename[codes]
+        rename_all[ids] = rename
+        aligned[s] = rename_all[labels]
     return aligned
 
 
