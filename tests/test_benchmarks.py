@@ -265,3 +265,15 @@ def test_batched_gpu_benchmark_quick(tmp_path):
     engines = {row["engine"] for row in rows}
     assert {"torch x1", "batched x1", "batched x4"} <= engines
     assert all(row["cells_per_s"] > 0 for row in rows)
+
+
+@pytest.mark.slow
+def test_study_order_benchmark_quick(tmp_path):
+    """Both orders on a LocalCluster, alternated, the same numbers (benchmarks/study_order.py)."""
+    pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    out = tmp_path / "study_order.json"
+    done = run_benchmark("study_order.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    results = json.loads(out.read_text())
+    assert [run["order"] for run in results["runs"]][:2] == ["table", "longest first"]
+    assert results["same_numbers"] is True and "mean wall" in done.stdout

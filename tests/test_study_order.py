@@ -2,12 +2,6 @@
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
-from pathlib import Path
-
 import pytest
 
 from spcopyro.study import run as study_run
@@ -141,27 +135,6 @@ def test_this_process_runs_the_shortest_cells_while_the_cluster_starts(tmp_path,
     assert [(c.row, c.seed) for c in ran_here] == [
         ("short", 1), ("short", 0), ("long", 1), ("long", 0)
     ]  # fmt: skip
-
-
-@pytest.mark.slow
-def test_order_benchmark_quick(tmp_path):
-    """benchmarks/study_order.py --quick runs both orders on a LocalCluster, same numbers."""
-    pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
-    root = Path(__file__).resolve().parents[1]
-    out = tmp_path / "study_order.json"
-    env = {
-        **os.environ,
-        "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")]),
-    }
-    done = subprocess.run(
-        [sys.executable, str(root / "benchmarks" / "study_order.py"), "--quick", "--repeats", "1",
-         "--out", str(out)],
-        capture_output=True, text=True, timeout=600, env=env,
-    )  # fmt: skip
-    assert done.returncode == 0, done.stderr[-3000:]
-    results = json.loads(out.read_text())
-    assert [run["order"] for run in results["runs"]] == ["table", "longest first"]
-    assert results["same_numbers"] is True and "mean wall" in done.stdout
 
 
 def test_dry_run_predicts_each_group_and_the_whole_run(tmp_path, capsys, monkeypatch):
