@@ -31,9 +31,10 @@ import statistics
 import sys
 import tempfile
 import time
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
+from contextlib import nullcontext
 from pathlib import Path
+from unittest.mock import patch
 
 from machine import busy_cpu_seconds, machine_info, own_cpu_seconds, progress
 
@@ -69,7 +70,10 @@ def timed_run(
     ``dask_loops``: the cluster with Dask's default event-loop settings."""
     busy, own = busy_cpu_seconds(), own_cpu_seconds()
     start = time.perf_counter()
-    with _spawned_workers(spawned), _dask_loops(dask_loops):
+    with (
+        _patched(local_cluster, "forkserver_available", lambda: False, spawned),
+        _patched(local_cluster, "QUIET_LOOPS", {}, dask_loops),
+    ):
         run = run_study(study, out, workers=workers, progress=False, report=progress,
                         start_in_process=not spawned)  # fmt: skip
     seconds = time.perf_counter() - start
@@ -84,28 +88,11 @@ def timed_run(
     return entry
 
 
-@contextmanager
-def _spawned_workers(spawned: bool) -> Iterator[None]:
-    """Inside: the study's LocalCluster spawns its workers (as where forkserver is missing)."""
-    available = local_cluster.forkserver_available
-    if spawned:
-        local_cluster.forkserver_available = lambda: False
-    try:
-        yield
-    finally:
-        local_cluster.forkserver_available = available
-
-
-@contextmanager
-def _dask_loops(dask_loops: bool) -> Iterator[None]:
-    """Inside: the study's LocalCluster keeps Dask's own event-loop settings."""
-    quiet = local_cluster.QUIET_LOOPS
-    if dask_loops:
-        local_cluster.QUIET_LOOPS = {}
-    try:
-        yield
-    finally:
-        local_cluster.QUIET_LOOPS = quiet
+def _patched(owner: object, name: str, value: object, on: bool):
+    """``owner.name`` set to ``value`` inside the block when ``on``: the study's LocalCluster
+    spawning its workers (``forkserver_available``), or keeping Dask's own event-loop settings
+    (``QUIET_LOOPS``)."""
+    return patch.object(owner, name, value) if on else nullcontext()
 
 
 def scores(out: Path) -> list[dict[str, object]]:

@@ -4,8 +4,8 @@
     python benchmarks/study_order.py --quick     # smoke test: a few sweeps
 
 One study whose cells differ in length the way a Gibbs-versus-VI study's do (the default
-synthetic house, seeds 0-3, Gibbs 1500 sweeps, CAVI 60 iterations, SVI 150 steps: about 1.2,
-0.3 and 3 s a cell here), run on ``LocalCluster(2 workers)`` into fresh folders, alternately
+synthetic house, seeds 0-2, Gibbs 1500 sweeps, CAVI 60 iterations, SVI 60 steps: about 1.2,
+0.3 and 4-8 s a cell here), run on ``LocalCluster(2 workers)`` into fresh folders, alternately
 with the cells started in the table's order (data, seed, variant, method) and longest first as
 :func:`spcopyro.study.run.run_study` starts them (:mod:`spcopyro.study.order`), ``--repeats``
 times each. Prints each run's wall time (the cluster's start-up and close included), the
@@ -20,22 +20,22 @@ import json
 import sys
 import tempfile
 import time
-from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Sequence
+from contextlib import nullcontext
 from pathlib import Path
+from unittest.mock import patch
 
 from machine import machine_info, progress
+from study_dask import scores
 
 from spcopyro.study import run as study_run
 from spcopyro.study.run import run_study
 from spcopyro.study.spec import Study, study_from_dict
 from spcopyro.study.table import read_table
 
-TIMING = ("seconds", "cpu_seconds")
-
 
 def mixed_study(quick: bool) -> Study:
-    """Gibbs, CAVI and SVI cells on the default synthetic house, seeds 0-3."""
+    """Gibbs, CAVI and SVI cells on the default synthetic house, seeds 0-2 (quick: 0-1)."""
     sweeps = {"gibbs": 20, "cavi": 3, "svi": 5} if quick else {"gibbs": 1500, "cavi": 60,
                                                                  "svi": 60}  # fmt: skip
     size = {"height": 40, "width": 50, "num_rooms": 2} if quick else {}
@@ -47,21 +47,10 @@ def mixed_study(quick: bool) -> Study:
     })  # fmt: skip
 
 
-@contextmanager
-def _table_order(table: bool) -> Iterator[None]:
-    """Inside: the study's cells start in table order (``table``), not longest first."""
-    ordered = study_run.longest_first
-    if table:
-        study_run.longest_first = lambda pending, predicted: list(pending)
-    try:
-        yield
-    finally:
-        study_run.longest_first = ordered
-
-
 def timed_run(study: Study, out: Path, workers: int, table: bool) -> dict[str, object]:
     start = time.perf_counter()
-    with _table_order(table):
+    in_table_order = patch.object(study_run, "longest_first", lambda pending, predicted: pending)
+    with in_table_order if table else nullcontext():
         run = run_study(study, out, workers=workers, progress=False, report=progress)
     seconds = time.perf_counter() - start
     rows = read_table(out / "results.csv")
@@ -70,12 +59,6 @@ def timed_run(study: Study, out: Path, workers: int, table: bool) -> dict[str, o
             "cells_seconds": cells, "best": cells / workers, "ran": run.ran,
             "ran_here": run.ran_here, "failed": run.failed,
             "longest_cell": max(float(r["seconds"]) for r in rows)}  # fmt: skip
-
-
-def scores(out: Path) -> list[dict[str, object]]:
-    return [
-        {k: v for k, v in r.items() if k not in TIMING} for r in read_table(out / "results.csv")
-    ]
 
 
 def main(argv: Sequence[str] | None = None) -> int:
