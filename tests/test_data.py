@@ -197,26 +197,48 @@ def test_place_observations_snaps_and_reports(grid):
         [-0.5, 0.5],  # (3, -1) just off the map next to F4: snapped
         [10.0, 10.0],  # (-7, 10) far off the map: unplaced
         [5.5, 1.5],  # (2, 5) unknown, 3 cells from F3: unplaced at 1 m
-        [0.5, 3.5],  # (0, 0) wall, sqrt(2) = 1.41 cells from F0: unplaced at 1 m
+        [0.5, 3.5],  # (0, 0) wall, 0.71 m from F0's square (its centre 1.41 m away)
+        [0.05, 3.95],  # (0, 0) too, 1.34 m from F0's square: unplaced at 1 m
     ]
     index, snapped, unplaced = place_observations(grid, xy, snap_distance=1.0)
-    np.testing.assert_array_equal(index, [0, 3, 1, -1, 4, -1, -1, -1])
-    np.testing.assert_array_equal(snapped, [0, 0, 1, 0, 1, 0, 0, 0])
-    np.testing.assert_array_equal(unplaced, [0, 0, 0, 1, 0, 1, 1, 1])
+    np.testing.assert_array_equal(index, [0, 3, 1, -1, 4, -1, -1, 0, -1])
+    np.testing.assert_array_equal(snapped, [0, 0, 1, 0, 1, 0, 0, 1, 0])
+    np.testing.assert_array_equal(unplaced, [0, 0, 0, 1, 0, 1, 1, 0, 1])
 
-    # Euclidean distance: the diagonal (0, 0) -> F0 is 1.41 cells, within 1.5 m.
+    # The distance is from the point to the free cell's square, not between centres.
+    index, snapped, unplaced = place_observations(grid, xy, snap_distance=0.7)
+    np.testing.assert_array_equal(index, [0, 3, 1, -1, 4, -1, -1, -1, -1])
     index, snapped, unplaced = place_observations(grid, xy, snap_distance=1.5)
-    np.testing.assert_array_equal(index, [0, 3, 1, -1, 4, -1, -1, 0])
-    # 3 m reaches (1, 4) -> F1 (2 cells; F3 is sqrt 5) and (2, 5) -> F3 (3 cells).
+    np.testing.assert_array_equal(index, [0, 3, 1, 1, 4, -1, -1, 0, 0])
+    # 3 m reaches (1, 4) -> F1 (1.5 m to its square; F3's is 1.58 m) and (2, 5) -> F3 (2.5 m).
     index, snapped, unplaced = place_observations(grid, xy, snap_distance=3.0)
-    np.testing.assert_array_equal(index, [0, 3, 1, 1, 4, -1, 3, 0])
-    np.testing.assert_array_equal(unplaced, [0, 0, 0, 0, 0, 1, 0, 0])
+    np.testing.assert_array_equal(index, [0, 3, 1, 1, 4, -1, 3, 0, 0])
+    np.testing.assert_array_equal(unplaced, [0, 0, 0, 0, 0, 1, 0, 0, 0])
     # No snapping.
     index, snapped, unplaced = place_observations(grid, xy, snap_distance=0.0)
-    np.testing.assert_array_equal(index, [0, 3, -1, -1, -1, -1, -1, -1])
+    np.testing.assert_array_equal(index, [0, 3, -1, -1, -1, -1, -1, -1, -1])
     assert not snapped.any()
     with pytest.raises(ValueError, match="snap_distance"):
         place_observations(grid, xy, snap_distance=-1.0)
+
+
+def test_a_point_just_inside_a_thick_wall_cell_snaps_to_its_own_side():
+    # A model grid coarser than the map: 0.3 m cells, the middle one a wall (it holds a thin
+    # wall and free map cells on both sides). A position 2 cm into it belongs to the room it
+    # was taken in, whatever the cell size; between centres both rooms are 0.3 m away, beyond
+    # the default 0.25 m.
+    row = OccupancyGrid(np.array([[F, O, F]], dtype=np.int8), 0.3, (0.0, 0.0, 0.0))
+    xy = [[0.32, 0.15], [0.58, 0.15], [0.45, 0.6]]  # left side, right side, 0.34 m off both
+    index, snapped, unplaced = place_observations(row, xy, snap_distance=DEFAULT_SNAP_DISTANCE)
+    np.testing.assert_array_equal(index, [0, 1, -1])
+    np.testing.assert_array_equal(snapped, [True, True, False])
+    obs = Observations(
+        image_features=np.eye(3), image_xy=xy, image_trial=[0, 0, 0],
+        utterances=[("kitchen",)], word_xy=[[0.32, 0.15]], word_trial=[0],
+    )  # fmt: skip
+    report = cell_counts(row, obs, snap_distance=DEFAULT_SNAP_DISTANCE).placement
+    assert (report.images_snapped, report.images_unplaced) == (2, 1)
+    assert report.words_snapped == 1
 
 
 def test_snap_limit_is_inclusive_despite_rounding():

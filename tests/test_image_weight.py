@@ -107,10 +107,7 @@ def test_an_image_just_off_free_space_takes_the_concept_the_fit_snapped_it_to(tw
     """As the fit places it (eq. 11 with the snap distance), not -1 for the wall cell: every
     image moved onto a wall cell with one free 4-neighbour takes that neighbour's concept."""
     house, fit = two_stage_fit
-    grid = fit.first.grid  # 0.3 m cells, the fit's snap distance 0.25 m: as if it were 0.5 m
-    first = dataclasses.replace(
-        fit.first, preparation=dataclasses.replace(fit.first.preparation, snap_distance=0.5)
-    )
+    grid = fit.first.grid  # 0.3 m cells, the fit's snap distance 0.25 m
     free = np.pad(grid.free, 1)  # [h + 2, w + 2]
     neighbours = free[:-2, 1:-1] + free[2:, 1:-1] + free[1:-1, :-2] + free[1:-1, 2:]  # [h, w]
     row, col = np.argwhere(~grid.free & (neighbours == 1))[0]
@@ -121,9 +118,12 @@ def test_an_image_just_off_free_space_takes_the_concept_the_fit_snapped_it_to(tw
         house.observations, image_xy=np.repeat(xy, house.observations.num_images, axis=0)
     )
     moved = dataclasses.replace(house, observations=observations)
-    labels = image_labels(first, moved)
+    labels = image_labels(fit.first, moved)  # 0.15 m from the free neighbour's square
     assert (labels == fit.first.label_image()[row + dr, col + dc]).all() and labels[0] >= 0
-    assert (image_labels(fit.first, moved) == -1).all()  # 0.3 m away: unplaced at 0.25 m
+    near = dataclasses.replace(
+        fit.first, preparation=dataclasses.replace(fit.first.preparation, snap_distance=0.1)
+    )
+    assert (image_labels(near, moved) == -1).all()  # 0.15 m away: unplaced at 0.1 m
 
 
 def test_two_stage_refits_with_the_rule_s_weight_from_the_first_fit(two_stage_fit):

@@ -61,11 +61,47 @@ def _nearest_free(
     return target, distance
 
 
+def _square_distance(grid: OccupancyGrid, xy: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """``[N]`` metres from each world point ``[N, 2]`` to the square of its cell ``[N, 2]``
+    (row, col): 0 inside it."""
+    centre = grid.cell_to_world(cells)  # [N, 2]
+    gap = np.maximum(np.abs(xy - centre) - 0.5 * grid.resolution, 0.0)  # [N, 2]
+    return np.hypot(gap[:, 0], gap[:, 1])
+
+
+def _nearest_square(
+    grid: OccupancyGrid, xy: np.ndarray, cells: np.ndarray, free_mask: np.ndarray, reach: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """For points ``[N, 2]`` in cells ``[N, 2]`` (on the map or off it): the free cell
+    ``[N, 2]`` within ``reach`` cells (per axis) whose square is nearest the point, and that
+    distance in metres ``[N]`` (inf and -1 where none is). Ties go to the nearer centre, then
+    the first offset in row-major order."""
+    n = cells.shape[0]
+    height, width = free_mask.shape
+    steps = np.arange(-reach, reach + 1)
+    offsets = np.stack(np.meshgrid(steps, steps, indexing="ij"), axis=-1).reshape(-1, 2)  # [S, 2]
+    candidates = cells[:, None, :] + offsets[None, :, :]  # [N, S, 2]
+    rows, cols = candidates[..., 0], candidates[..., 1]
+    inside = (rows >= 0) & (rows < height) & (cols >= 0) & (cols < width)  # [N, S]
+    free = np.zeros(inside.shape, dtype=bool)  # [N, S]
+    free[inside] = free_mask[rows[inside], cols[inside]]
+    flat = candidates.reshape(-1, 2)  # [N * S, 2]
+    points = np.repeat(xy, offsets.shape[0], axis=0)  # [N * S, 2]
+    square = _square_distance(grid, points, flat).reshape(free.shape)  # [N, S]
+    centre = np.hypot(*(points - grid.cell_to_world(flat)).T).reshape(free.shape)  # [N, S]
+    square = np.where(free, square, np.inf)
+    # lexicographic (square, centre): the centre only breaks exact ties of the square distance
+    order = np.lexsort((np.where(free, centre, np.inf), square), axis=1)[:, 0]  # [N]
+    best = square[np.arange(n), order]  # [N]
+    target = np.where(np.isfinite(best)[:, None], candidates[np.arange(n), order], -1)
+    return target, best
+
+
 def _place(
     grid: OccupancyGrid, xy: np.ndarray, snap_distance: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`place_observations` plus each snapped or unplaced point's distance in metres to
-    the nearest free cell (0 on free cells, inf when the map has no free cell)."""
+    the nearest free cell's square (0 on free cells, inf when the map has no free cell)."""
     if not (isinstance(snap_distance, (int, float)) and math.isfinite(snap_distance)):
         raise ValueError(f"snap_distance={snap_distance!r}: must be a finite number of metres")
     if snap_distance < 0:
@@ -83,14 +119,28 @@ def _place(
     placed = np.full(n, -1, dtype=np.int64)  # [N] free index or -1
     placed[on_free] = free_index[rows[on_free], cols[on_free]]
     distance = np.zeros(n)  # [N] metres
-    off = ~on_free
-    target, cell_distance = _nearest_free(grid, cells[off], free_mask)
-    distance[off] = cell_distance * grid.resolution
-    within = cell_distance <= snap_distance / grid.resolution + _SNAP_EPS  # [n_off] bool
+    off = np.flatnonzero(~on_free)  # [n_off]
+    # The nearest free cell by centres (EDT / k-d tree), then, within reach of the limit, the
+    # free cell whose square is nearest the point itself.
+    target, cell_distance = _nearest_free(grid, cells[off], free_mask)  # [n_off, 2], [n_off]
+    square = np.full(off.size, np.inf)  # [n_off] metres
+    found = np.isfinite(cell_distance)
+    square[found] = _square_distance(grid, xy[off[found]], target[found])
+    reach = int(math.ceil(snap_distance / grid.resolution - _SNAP_EPS)) + 1  # cells
+    near = cell_distance <= reach * math.sqrt(2.0) + 1.0  # [n_off] bool: may be within reach
+    if near.any() and snap_distance > 0:
+        local, local_distance = _nearest_square(grid, xy[off[near]], cells[off[near]], free_mask,
+                                                reach)  # fmt: skip
+        better = local_distance < square[near]
+        chosen = np.flatnonzero(near)[better]
+        target[chosen] = local[better]
+        square[chosen] = local_distance[better]
+    distance[off] = square
+    within = square <= snap_distance + _SNAP_EPS * grid.resolution  # [n_off] bool
     snapped = np.zeros(n, dtype=bool)  # [N]
-    snapped[off] = within
-    placed[snapped] = free_index[target[within, 0], target[within, 1]]
-    unplaced = off & ~snapped  # [N] bool
+    snapped[off[within]] = True
+    placed[off[within]] = free_index[target[within, 0], target[within, 1]]
+    unplaced = ~on_free & ~snapped  # [N] bool
     return placed, snapped, unplaced, distance
 
 
@@ -100,14 +150,19 @@ def place_observations(
     """Free cell of each world position (paper eq. 11), snapping points just off free space.
 
     A point whose cell ``grid.world_to_cell(xy)`` is free stays there. A point off free space
-    (on an occupied or unknown cell, or outside the map) moves to the nearest free cell --
-    Euclidean distance between cell centres, in cells, times the resolution -- when that
-    distance is <= ``snap_distance`` metres; otherwise it is unplaced. Inside the map the nearest
-    free cell comes from ``scipy.ndimage.distance_transform_edt`` on the non-free mask; outside
-    the map it is the exact nearest free cell (a k-d tree over free cell indices, as if the map
-    extended with non-free cells), so a point off the map by more than ``snap_distance`` is
-    always unplaced. Ties between equally near free cells are broken by the EDT / k-d tree.
-    ``snap_distance = 0`` disables snapping.
+    (on an occupied or unknown cell, or outside the map) moves to the free cell nearest to it
+    -- the Euclidean distance from the point to the cell's square, in metres -- when that
+    distance is <= ``snap_distance``; otherwise it is unplaced. So a point 2 cm into a wall
+    snaps whatever the cell size: on a model grid coarser than the map (:mod:`spcopyro.maps.
+    coarse`), whose walls thicken to whole model cells, a position on the map's free space
+    inside such a cell still finds the room it was taken in, where a distance between cell
+    centres (one model cell, 0.3 m, above the default 0.25 m) would leave it out. (Before
+    2026-12-03 the distance was between cell centres; a limit that was met then is met now.)
+    Within ``snap_distance`` the free cells are compared exactly (ties to the nearer centre);
+    beyond it, for the report, the distance is to the free cell of nearest centre
+    (``scipy.ndimage.distance_transform_edt`` inside the map, a k-d tree over the free cells
+    outside it, as if the map extended with non-free cells), so a point off the map by more
+    than ``snap_distance`` is always unplaced. ``snap_distance = 0`` disables snapping.
 
     Args:
         grid: the occupancy grid.
