@@ -131,6 +131,26 @@ def test_free_space_is_one_component(seed, spec):
     assert count == 1
 
 
+@pytest.mark.parametrize("seed", range(5))
+def test_the_embedded_house_has_doorways_a_robot_and_the_model_grid_keep_open(seed):
+    """HouseSpec.embedded (the commands' default house): HouseSpec()'s rooms, categories and
+    observations, with 0.7-0.9 m doorways that stay open on the default preset's 0.3 m model
+    grid, where HouseSpec()'s 0.2-0.4 m ones close (issue 21's closing notes)."""
+    from spcopyro.maps.coarse import coarsen_grid
+
+    sealed, embedded = make_house(seed=seed), make_house(seed=seed, spec=HouseSpec.embedded())
+    assert HouseSpec.embedded() == HouseSpec(doorway_width=(7, 9))
+    assert embedded.category_names == sealed.category_names
+    np.testing.assert_array_equal(np.unique(embedded.truth), np.unique(sealed.truth))
+    assert embedded.observations.utterances == sealed.observations.utterances
+    assert embedded.observations.num_images == sealed.observations.num_images
+    _, on_map = ndimage.label(embedded.grid.free)
+    _, on_model_grid = ndimage.label(coarsen_grid(embedded.grid, 3).free)
+    _, sealed_on_model_grid = ndimage.label(coarsen_grid(sealed.grid, 3).free)
+    assert on_map == on_model_grid == 1
+    assert sealed_on_model_grid > 1  # what HouseSpec.embedded is for
+
+
 def test_truth_is_defined_on_exactly_the_free_cells(house, sentence_house):
     for h in (house, sentence_house):
         assert h.truth.shape == h.grid.shape

@@ -17,9 +17,9 @@ from spcopyro.data import House, cell_counts, load_house
 
 def _load(data: str | None, seed: int = 0) -> House:
     if data is None:
-        from spcopyro.synthetic import make_house
+        from spcopyro.synthetic import HouseSpec, make_house
 
-        return make_house(seed=seed)
+        return make_house(seed=seed, spec=HouseSpec.embedded())
     return load_house(Path(data))
 
 

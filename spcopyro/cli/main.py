@@ -53,11 +53,16 @@ def _simulate(args: argparse.Namespace) -> int:
         factory = HouseSpec.public_like if args.density == "sparse" else HouseSpec.open_plan
         spec = factory(**changes)
     else:
-        spec = HouseSpec.scaled(*args.size, sentence_fraction=args.sentences) if args.size else None
-        if spec is None and (args.sentences or args.rooms is not None):
-            spec = HouseSpec(sentence_fraction=args.sentences)
+        # The embedded default house (HouseSpec.embedded: doorways a robot fits through), or
+        # one of its size; `spcopyro fit` without DATA fits the same house as this seed's.
+        doors = HouseSpec.embedded().doorway_width
+        spec = (
+            HouseSpec.scaled(*args.size, sentence_fraction=args.sentences, doorway_width=doors)
+            if args.size
+            else HouseSpec.embedded(sentence_fraction=args.sentences)
+        )
         if args.rooms is not None:
-            spec = dataclasses.replace(spec, num_rooms=args.rooms)  # type: ignore[arg-type]
+            spec = dataclasses.replace(spec, num_rooms=args.rooms)
     try:
         room = write_synthetic(args.out, seed=args.seed, spec=spec, name=args.name,
                                overwrite=args.overwrite)  # fmt: skip
@@ -215,7 +220,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="map size in cells; the number of rooms grows with the area "
                         "(default: 60 x 80 cells, 5 rooms)")  # fmt: skip
     p.add_argument("--density", choices=("dense", "sparse", "open-plan"), default="dense",
-                   help="dense: the default house (4.9%% of the free cells observed); sparse: as "
+                   help="dense: the embedded default house (HouseSpec.embedded: 4.9%% of the free "
+                        "cells observed, doorways 0.7-0.9 m); sparse: as "
                         "sparse as the public houses (HouseSpec.public_like: 0.05 m cells, "
                         "~23,500 free, ~70 observed, 0.3%%); open-plan: as sparse, 65%% of it "
                         "one walled space holding living, dining and kitchen with no wall "

@@ -256,6 +256,25 @@ class HouseSpec:
         return cls(**fields)  # type: ignore[arg-type]
 
     @classmethod
+    def embedded(cls, **changes: object) -> HouseSpec:
+        """The embedded default of the commands (``spcopyro fit`` with no DATA, ``show``,
+        ``simulate``, ``simulate-bag``, ``navigate``'s examples): :class:`HouseSpec`'s defaults
+        with doorways of 0.7-0.9 m (:data:`EMBEDDED_DOORWAY_WIDTH` cells at 0.1 m).
+
+        The plain defaults' doorways are 0.2-0.4 m, narrower than a robot (0.2 m radius: no
+        path into any room) and closed on the default preset's 0.3 m model grid, whose walls
+        thicken to one model cell (:mod:`spcopyro.maps.coarse`): every room an island. They stay
+        as they are because the synthetic benchmarks' "dense" houses (issues 14 and 21), the
+        pinned seeded outputs and the studies' stored numbers are measured on them. The same
+        seed draws the same rooms, categories, tour and words here; only the doorways' widths
+        and places (and so the images' and words' positions near them) differ.
+        ``changes`` override any field.
+        """
+        fields: dict[str, object] = dict(doorway_width=EMBEDDED_DOORWAY_WIDTH)
+        fields.update(changes)
+        return cls(**fields)  # type: ignore[arg-type]
+
+    @classmethod
     def public_like(cls, **changes: object) -> HouseSpec:
         """A house as sparse as the five public SpCoMapping houses (issue #14 item 5).
 
@@ -327,6 +346,10 @@ OPEN_PLAN_FIELDS: dict[str, object] = dict(
     ),
 )
 """The fields of :meth:`HouseSpec.open_plan` on top of :data:`PUBLIC_LIKE_FIELDS`."""
+
+
+EMBEDDED_DOORWAY_WIDTH: tuple[int, int] = (7, 9)
+"""Doorway widths, in cells, of :meth:`HouseSpec.embedded` (0.7-0.9 m at 0.1 m)."""
 
 
 PUBLIC_LIKE_FIELDS: dict[str, object] = dict(

@@ -315,9 +315,9 @@ def write_synthetic_bags(
     Raises FileExistsError when a bag or the map already exists.
     """
     if house is None:
-        from spcopyro.synthetic import make_house
+        from spcopyro.synthetic import HouseSpec, make_house
 
-        house = make_house(seed=seed)
+        house = make_house(seed=seed, spec=HouseSpec.embedded())
     out = Path(out)
     obs = house.observations
     chosen = sorted(set(obs.trials if trials is None else trials))
