@@ -300,3 +300,33 @@ def test_a_coarse_fit_plans_on_the_map_its_data_came_with(result, tmp_path, caps
     fine = result.save(tmp_path / "fine")
     assert main(["navigate", str(fine), "go to the kitchen", start]) == 0
     assert "planning on" not in capsys.readouterr().out
+
+
+def test_a_coarse_fit_plans_on_the_robots_map_it_keeps(result, tmp_path, capsys):
+    """`fit` writes a coarse fit's source map as robot_map.yaml; navigate plans on it first."""
+    import dataclasses
+
+    from spcopyro.config import DataPreparation
+    from spcopyro.maps import save_map
+
+    coarse = dataclasses.replace(result, preparation=DataPreparation(cell_size=0.2))
+    fit = coarse.save(tmp_path / "coarse")
+    save_map(house_grid(), fit / "robot_map.yaml")
+    start = f"--start={START_A[0]},{START_A[1]}"
+    assert main(["navigate", str(fit), "go to the kitchen", start]) == 0
+    assert f"planning on {fit / 'robot_map.yaml'}" in capsys.readouterr().out
+
+
+def test_the_embedded_house_fitted_by_the_readme_command_can_be_driven_through(tmp_path, capsys):
+    """The README's first command's house: a coarse fit keeps the robot's map, whose doorways a
+    robot of the default 0.2 m radius passes, so the kitchen is reached from the entrance."""
+    out = tmp_path / "demo"
+    assert main(["fit", "--out", str(out), "--sweeps", "30", "--no-figures"]) == 0
+    assert (out / "robot_map.yaml").is_file() and (out / "robot_map.pgm").is_file()
+    capsys.readouterr()
+    plan = tmp_path / "plan"
+    argv = ["navigate", str(out), "go to the kitchen", "--start=-3,0", "--out", str(plan)]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert f"planning on {out / 'robot_map.yaml'}" in printed
+    assert "kitchen: goal" in printed and (plan / "path.yaml").is_file()

@@ -63,13 +63,18 @@ def read_npz(path: Path) -> np.lib.npyio.NpzFile:
     return np.load(io.BytesIO(Path(path).read_bytes()), allow_pickle=False)
 
 
+ROBOT_MAP_FILE = "robot_map.yaml"
+"""The map a coarse fit's grid was coarsened from (``--cell-size``), written beside the fit's own
+``map.yaml`` by ``spcopyro fit``: ``navigate`` plans on it, since coarsening thickens walls and can
+close a doorway the robot drives through."""
+
 MANIFEST = "outputs.json"
 """The list of the files a fit wrote into its folder (``{"files": [...]}``): ``--overwrite``
 replaces those and keeps everything else (issue 22 item 3)."""
 FIT_FILES = frozenset(
     "agreement.npy agreement.png chains.json concepts.json config.json convergence.json "
-    "house.png labels.npy map.yaml map.pgm result.npz scores.json semantic_map.png trace.csv "
-    "trace.png truth.npy uncertainty.npy uncertainty.png".split()
+    "house.png labels.npy map.yaml map.pgm result.npz robot_map.yaml robot_map.pgm scores.json "
+    "semantic_map.png trace.csv trace.png truth.npy uncertainty.npy uncertainty.png".split()
 )
 """The files ``spcopyro fit`` writes: what a folder without a manifest (a fit of an older
 version) is taken to hold of the fit's own; ``where --out`` never replaces one."""

@@ -47,15 +47,22 @@ def _radius(text: str) -> float:
     return value
 
 
-def _source_map(result: object) -> str | None:
-    """The map_server yaml a coarse fit's grid was coarsened from, when the fit's data folder
-    still sits in the dataset layout (``DATA/../map/HOUSE.yaml``): coarsening thickens walls
-    and can close doorways, so a path is planned on the robot's own map. None for a fit on the
-    map's own cells or when the file is gone."""
+def _source_map(result: object, folder: str) -> str | None:
+    """The map_server yaml a coarse fit's grid was coarsened from: the fit's own copy
+    (``robot_map.yaml`` in its folder, :data:`~spcopyro._util.outputs.ROBOT_MAP_FILE`), else,
+    for a fit written before that copy, the data folder's map when it still sits in the dataset
+    layout (``DATA/../map/HOUSE.yaml``): coarsening thickens walls and can close doorways, so a
+    path is planned on the robot's own map. None for a fit on the map's own cells or when
+    neither file is there."""
     from pathlib import Path
+
+    from spcopyro._util.outputs import ROBOT_MAP_FILE
 
     if getattr(result.preparation, "cell_size", None) is None:  # type: ignore[attr-defined]
         return None
+    own = Path(folder) / ROBOT_MAP_FILE
+    if own.is_file():
+        return str(own)
     source = (result.provenance or {}).get("source") or {}  # type: ignore[attr-defined]
     if not source.get("data") or not source.get("house"):
         return None
@@ -72,7 +79,7 @@ def _navigate(args: argparse.Namespace) -> int:
     check_frame(args.frame)
     result = SpCoResult.load(args.result)
     grid = None
-    map_yaml = args.map or _source_map(result)
+    map_yaml = args.map or _source_map(result, args.result)
     if map_yaml:
         from spcopyro.maps import load_map
 
@@ -190,8 +197,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--map", metavar="MAP.yaml",
                    help="plan on this map_server map (the robot's map in the fit's frame, e.g. "
                         "the one a coarse fit was made from, whose doorways coarsening narrows) "
-                        "(default: for a coarse fit, the map of its data folder when it is still "
-                        "there, DATA/../map/HOUSE.yaml; else the fit's own grid)")  # fmt: skip
+                        "(default: for a coarse fit, the map it was coarsened from: its "
+                        "robot_map.yaml, or for an older fit DATA/../map/HOUSE.yaml when it is "
+                        "still there; else the fit's own grid)")  # fmt: skip
     p.add_argument("--strict", action="store_true",
                    help="an ambiguous word (two separate regions of near-equal probability) is "
                         "an error instead of taking the nearer")  # fmt: skip
