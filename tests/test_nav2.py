@@ -20,6 +20,7 @@ from spcopyro.maps import (
     load_filter_mask,
     load_map,
     save_filter_mask,
+    save_map,
 )
 from spcopyro.results.result import EmissionTable, SpCoResult, Trace
 from spcopyro.results.uncertainty import where_probability
@@ -366,3 +367,18 @@ def test_topics_follow_the_robots_namespace(fit, tmp_path):
         from spcopyro.robot.nav2 import check_namespace
 
         check_namespace("robot 1")
+
+
+def test_a_coarse_fits_main_map_is_the_robots_map_it_was_coarsened_from(fit, tmp_path, capsys):
+    """`fit` keeps a coarse fit's source map as robot_map.yaml; `export` writes it as Nav2's main
+    map (the fit's thickened walls can close doorways) and keeps the masks on the fit's cells."""
+    fine = OccupancyGrid(np.full((2 * H, 2 * W), FREE, dtype=np.int8), 0.025, (1.5, -2.0, 0.0))
+    save_map(fine, fit / "robot_map.yaml")
+    out = tmp_path / "nav2"
+    assert main(["export", str(fit), "--nav2", str(out), "--word", "kitchen"]) == 0
+    assert "the main map is" in capsys.readouterr().out
+    assert load_map(out / "map.yaml") == fine
+    mask = load_filter_mask(out / "keepout_kitchen.yaml")
+    assert (mask.resolution, mask.values.shape) == (0.05, (H, W))
+    record = _read_yaml(out / "nav2_export.json")
+    assert record["map"]["resolution"] == 0.025 and record["masks_grid"]["resolution"] == 0.05

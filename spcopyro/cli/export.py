@@ -46,6 +46,9 @@ def _min_speed(value: str) -> float:
 
 
 def _export(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from spcopyro._util.outputs import ROBOT_MAP_FILE
     from spcopyro.results.result import SpCoResult, UnknownWordError
     from spcopyro.robot.nav2 import export_nav2
 
@@ -57,17 +60,28 @@ def _export(args: argparse.Namespace) -> int:
               file=sys.stderr)  # fmt: skip
         return 2
     result = SpCoResult.load(args.result)
+    robot_map = None
+    robot_map_yaml = Path(args.result) / ROBOT_MAP_FILE  # a coarse fit's map (spcopyro fit)
+    if robot_map_yaml.is_file():
+        from spcopyro.maps import load_map
+
+        robot_map = load_map(robot_map_yaml)
     try:
         export = export_nav2(
             result, args.nav2, args.word or (), mode=args.mode, prior=args.prior,
             threshold=args.threshold, min_speed=args.min_speed, max_speed=args.max_speed,
             overwrite=args.overwrite, source=args.result, namespace=args.namespace,
+            robot_map=robot_map,
         )  # fmt: skip
     except UnknownWordError as error:
         print(f"error: {error.args[0]}", file=sys.stderr)
         return 2
     free = result.grid.num_free
     print(f"wrote {export.map_yaml} and {export.semantic_map_yaml}")
+    if robot_map is not None:
+        print(f"the main map is {robot_map_yaml}, the robot's map the fit's "
+              f"{result.grid.resolution:g} m cells were coarsened from; the semantic map and "
+              "the masks are on the fit's cells")  # fmt: skip
     for mask in export.masks:
         how = f"concept {mask.concept}" if mask.concept is not None else "per-cell probability"
         print(f"{mask.mode} mask for {mask.word!r} ({how}): {mask.cells} of {free} free cells "

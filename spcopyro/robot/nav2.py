@@ -35,7 +35,8 @@ what the speed mask needs, and for the keepout mask (values 0 and 100 only) it r
 Every mask has the fitted map's resolution and origin (yaw 0) and its size, the image's first row
 being the map's top.
 
-The export folder holds ``map.yaml``/``map.pgm`` (the occupancy map the fit used),
+The export folder holds ``map.yaml``/``map.pgm`` (the occupancy map the fit used, or for a
+coarse fit the robot's map it was coarsened from, ``robot_map``),
 ``semantic_map.yaml``/``.pgm``/``.labels.json`` (the concept labels, ``mode: raw``),
 ``MODE_WORD.yaml``/``.pgm`` (a mask), ``MODE_WORD_params.yaml`` (the ``ros__parameters`` of
 the mask server ``MODE_WORD_mask_server`` and of ``MODE_WORD_filter_info_server``),
@@ -316,6 +317,7 @@ def export_nav2(
     overwrite: bool = False,
     source: str | os.PathLike[str] | None = None,
     namespace: str | None = None,
+    robot_map: OccupancyGrid | None = None,
 ) -> Nav2Export:
     """Write ``result``'s map, semantic map and one ``mode`` mask per word into ``out`` (module
     docstring), whole or not at all (a staging folder beside ``out``, renamed when done).
@@ -333,6 +335,11 @@ def export_nav2(
         source: the fit's folder (recorded in ``nav2_export.json``).
         namespace: the robot's ROS namespace: the masks', filter infos' and speed limit's
             topics are put in it (``/NS/speed_kitchen_filter_mask``); None: absolute topics.
+        robot_map: the map a coarse fit's grid was coarsened from (its ``robot_map.yaml``),
+            written as Nav2's main ``map.yaml`` in place of the fit's grid, whose thickened
+            walls can close doorways; the semantic map and the masks stay on the fit's grid
+            (a costmap filter mask is a map of its own: Nav2 reads it at its resolution).
+            None: the fit's grid is the main map.
 
     Raises:
         UnknownWordError: a word outside the vocabulary (with the closest known words); nothing
@@ -363,7 +370,7 @@ def export_nav2(
     with staged:
         folder, final = staged.path, staged.out
         grid = result.grid
-        map_yaml = save_map(grid, folder / "map.yaml")
+        map_yaml = save_map(grid if robot_map is None else robot_map, folder / "map.yaml")
         semantic_yaml = save_label_map_server(result.label_image(), grid,
                                               folder / "semantic_map.yaml")  # fmt: skip
         masks: list[ExportedMask] = []
@@ -414,7 +421,8 @@ def export_nav2(
             "min_speed": min_speed if mode == "speed" else None,
             "max_speed": max_speed if mode == "speed" else None,
             "namespace": namespace,
-            "map": grid_record(grid),
+            "map": grid_record(grid if robot_map is None else robot_map),
+            "masks_grid": grid_record(grid),
             "masks": records,
         }
         (folder / EXPORT_MARKER).write_text(json.dumps(summary, indent=2) + "\n")
