@@ -50,6 +50,51 @@ def test_coarse_grid_keeps_walls_origin_and_world_positions():
     )
 
 
+def test_observations_go_on_the_model_grid_as_the_map_places_them():
+    """A position on the map's free space inside a block that a wall thickened over takes the
+    free block its map cell reaches through the map's free cells -- the room it was taken in,
+    never across the wall, and never lost -- where the model grid's own snapping would take the
+    nearer block across the wall, or none within a small snap distance."""
+    from spcopyro.data import place_observations
+    from spcopyro.maps.coarse import free_block_of_map_cells
+
+    occ = np.full((3, 9), FREE, dtype=np.int8)  # 0.1 m cells; blocks of 3: cols 0-2, 3-5, 6-8
+    occ[:, 5] = OCCUPIED  # a thin wall in the middle block, 0.1 m right of centre
+    grid = OccupancyGrid(occ, 0.1, (0.0, 0.0, 0.0))
+    coarse = coarsen_grid(grid, 3)
+    np.testing.assert_array_equal(coarse.free[0], [True, False, True])
+    assert coarse.coarsened_from is grid
+    assert coarse == OccupancyGrid(coarse.occupancy, 0.3, (0.0, 0.0, 0.0))  # not in equality
+    np.testing.assert_array_equal(free_block_of_map_cells(coarse)[1], [0, 0, 0, 0, 0, -1, 1, 1, 1])
+    xy = [[0.48, 0.15], [0.62, 0.15], [0.55, 0.15], [0.15, 0.15]]  # left of the wall (in the
+    # wall's block), right of it (in a free block), on the wall (0.05 m from free map cells on
+    # both sides), in a free block
+    index, snapped, unplaced = place_observations(coarse, xy, snap_distance=0.25)
+    np.testing.assert_array_equal(index[[0, 1, 3]], [0, 1, 0])
+    assert index[2] in (0, 1)  # on the wall: a tie between the map cells on its two sides
+    np.testing.assert_array_equal(snapped, [True, False, True, False])
+    # The model grid alone: the first point's nearest free square is across the wall (0.12 m
+    # against 0.18 m), and at 0.1 m of snap none is near enough.
+    alone = OccupancyGrid(coarse.occupancy, 0.3, (0.0, 0.0, 0.0))
+    assert place_observations(alone, xy[:1], 0.25)[0][0] == 1
+    assert place_observations(alone, xy[:1], 0.1)[2][0]
+    index, _, unplaced = place_observations(coarse, xy[:2], snap_distance=0.1)
+    np.testing.assert_array_equal(index, [0, 1])
+    assert not unplaced.any()
+
+
+@pytest.mark.dataset
+def test_the_public_houses_model_grids_keep_what_their_maps_place(dataset_root):
+    """Before placement went through the map, room1dk5's 0.25 m model grid lost 6 images and
+    room1ldk4's 3 images and a word that the map places; now only room1ldk4's 2 images and 1
+    word remain out: the map snaps them into a pocket of 40 free cells inside a wall band, which
+    reaches no free model cell."""
+    for name, lost in (("room1dk5", (0, 0)), ("room1ldk4", (2, 1)), ("room2ldk4", (0, 0))):
+        house = load_house(dataset_root / name)
+        report = cell_counts(model_house(house, 0.25).grid, house.observations).placement
+        assert (report.images_unplaced, report.words_unplaced) == lost, name
+
+
 def test_refine_labels_gives_every_free_map_cell_a_label():
     grid = _two_rooms()
     coarse = coarsen_grid(grid, 2)

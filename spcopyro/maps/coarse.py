@@ -18,9 +18,13 @@ multiple of f, and cut into f x f blocks. A block is
 * UNKNOWN otherwise.
 
 A map cell (row r, col c) lies in model cell ``((r + pad) // f, c // f)`` with ``pad`` the
-padding rows (:func:`model_cell_of`). :func:`refine_labels` takes a model label image back to the
-map: every free map cell takes its block's label, or, where its block is not free (next to a
-wall), the label of the nearest free block.
+padding rows (:func:`model_cell_of`). The coarse grid keeps the map (``coarsened_from``), so
+observations are placed as the map places them: a position on the map's free space (or
+snapped to it) whose block a wall thickened over goes to the free block reached first through
+the map's free cells (:func:`free_block_of_map_cells`), never through a wall.
+:func:`refine_labels` takes a model label image back to the map: every free map cell takes its
+block's label, or, where its block is not free (next to a wall), the label of the nearest free
+block.
 """
 
 from __future__ import annotations
@@ -31,7 +35,14 @@ import numpy as np
 
 from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 
-__all__ = ["coarsen_grid", "coarsening_factor", "grow_labels", "model_cell_of", "refine_labels"]
+__all__ = [
+    "coarsen_grid",
+    "coarsening_factor",
+    "free_block_of_map_cells",
+    "grow_labels",
+    "model_cell_of",
+    "refine_labels",
+]
 
 
 def coarsening_factor(resolution: float, cell_size: float | None) -> int:
@@ -66,7 +77,7 @@ def coarsen_grid(grid: OccupancyGrid, factor: int) -> OccupancyGrid:
     coarse[free] = FREE
     coarse[occupied] = OCCUPIED
     resolution = round(grid.resolution * factor, 12)  # 0.1 * 3 -> 0.3, not 0.30000000000000004
-    return OccupancyGrid(coarse, resolution, grid.origin, source=grid.source)
+    return OccupancyGrid(coarse, resolution, grid.origin, source=grid.source, coarsened_from=grid)
 
 
 def model_cell_of(grid: OccupancyGrid, factor: int) -> tuple[np.ndarray, np.ndarray]:
@@ -74,6 +85,23 @@ def model_cell_of(grid: OccupancyGrid, factor: int) -> tuple[np.ndarray, np.ndar
     column under :func:`coarsen_grid` with ``factor``."""
     pad_rows, _ = _padding(grid, factor)
     return (np.arange(grid.height) + pad_rows) // factor, np.arange(grid.width) // factor
+
+
+def free_block_of_map_cells(grid: OccupancyGrid) -> np.ndarray:
+    """``[H, W]`` of the map ``grid.coarsened_from``: for each free map cell, the free index
+    (``grid.free_index``) of the free model cell it belongs to, or, where its block is not free
+    (a wall thickened over it), of the free block reached first by growing through the map's
+    free cells (:func:`grow_labels`: 4-neighbourhood, never through a wall); -1 off free space
+    and where no free block is reached. Raises ValueError for a grid not made by
+    :func:`coarsen_grid`."""
+    fine = grid.coarsened_from
+    if fine is None:
+        raise ValueError("the grid was not coarsened from a map (grid.coarsened_from is None)")
+    factor = int(round(grid.resolution / fine.resolution))
+    rows, cols = model_cell_of(fine, factor)
+    index = np.asarray(grid.free_index)[rows[:, None], cols[None, :]]  # [H, W] block's index
+    free = np.asarray(fine.free)  # [H, W]
+    return grow_labels(np.where(free, index, -1), free)
 
 
 def grow_labels(labels: np.ndarray, mask: np.ndarray) -> np.ndarray:

@@ -73,6 +73,10 @@ class OccupancyGrid:
         resolution: metres per cell, > 0.
         origin: world pose ``(x, y, yaw)`` of the lower-left cell's lower-left corner (yaw 0).
         source: the yaml the grid was loaded from, if any (not part of equality).
+        coarsened_from: the map this grid was coarsened from
+            (:func:`spcopyro.maps.coarse.coarsen_grid`), if any: observations are placed on the
+            map first and then on its blocks (:func:`spcopyro.data.place_observations`). Not
+            part of equality, not saved with the grid.
 
     Two grids are equal when their cells, resolution and origin are equal.
     """
@@ -81,6 +85,7 @@ class OccupancyGrid:
     resolution: float
     origin: tuple[float, float, float]
     source: Path | None = None
+    coarsened_from: OccupancyGrid | None = None
 
     def __post_init__(self) -> None:
         occ = np.asarray(self.occupancy)
