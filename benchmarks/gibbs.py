@@ -498,13 +498,18 @@ def bench_chains(
     name = FIT_PRESETS[0]
     problem = make_problem(house, _preset_settings(name))
     progress(f"[chains] {sizes.chains} chains x {sizes.chains_sweeps} sweeps in process")
+    path = None if dataset is None else dataset / HEADLINE_HOUSE
     in_process = _try(
         "chains in process",
         lambda: chains_in_process(
-            problem.data, problem.config, sizes.chains, sizes.chains_sweeps, backend=backend
+            problem.data,
+            problem.config,
+            sizes.chains,
+            sizes.chains_sweeps,
+            backend=backend,
+            processes_of=("-" if dataset is None else str(dataset), name),
         ),
     )
-    path = None if dataset is None else dataset / HEADLINE_HOUSE
     progress(f"[chains] fit --chains {sizes.chains} against {sizes.chains} single fits")
     as_fits = _try(
         "chains as fits",

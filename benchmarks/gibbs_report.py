@@ -413,8 +413,16 @@ def render_issue15(results: dict[str, Any]) -> list[str]:
                 f"{inside['workers']} threads {inside['together_s']:.2f} s; one after another "
                 f"{inside['sequential_s']:.2f} s; one chain {inside['one_chain_s']:.2f} s "
                 f"(together / one chain = {inside['together_over_one']:.2f}, "
-                f"{inside['usable_cpus']} usable CPUs)"
+                f"{inside['usable_cpus']} usable CPUs, torch at "
+                f"{inside.get('torch_threads', '?')} thread)"
             )
+            procs = inside.get("processes")
+            if procs:
+                out.append(
+                    f"in {procs['processes']} processes (no GIL shared): the same chains "
+                    f"{procs['wall_s']:.2f} s, {inside['processes_over_sequential']:.2f} of one "
+                    f"after another, against {inside['together_over_sequential']:.2f} on threads"
+                )
         if _ok(fits_):
             out.append(
                 f"as fits: spcopyro fit --chains {fits_['chains']} {fits_['chains_fit_s']:.1f} s; "

@@ -105,30 +105,127 @@ def whole_fit(
 
 
 def chains_in_process(
-    data: ModelData, config: SpCoConfig, chains: int, sweeps: int, *, backend: str = "numba"
+    data: ModelData,
+    config: SpCoConfig,
+    chains: int,
+    sweeps: int,
+    *,
+    backend: str = "numba",
+    processes_of: tuple[str, str] | None = None,
 ) -> dict[str, Any]:
     """``chains`` chains of ``sweeps`` sweeps advanced together (one worker per usable CPU) and
-    one after another (one worker): seconds of each, and a single chain's."""
+    one after another (one worker): seconds of each, and a single chain's, with torch at one
+    intra-op thread (what ``spcopyro fit``'s thread policy sets for maps of this size; two
+    threads' pools would fight the chains' workers for the CPUs).
+
+    With ``processes_of`` = (the dataset's folder or ``"-"`` for none, preset), the same chains
+    (on :func:`bench_setup.load_headline_house`'s house) are also
+    advanced in one fresh process per worker (:func:`chains_in_processes`), each running its
+    share one after another: processes share no GIL, so the two "together" rows tell what the
+    GIL costs the threads."""
     options = GibbsOptions(backend=backend)
-    run_gibbs(data, config, 2, options=options, seed=0, progress=False)  # kernels loaded
-    seconds = {}
-    for name, workers in (("one_chain", 1), ("sequential", 1), ("together", "auto")):
-        count = 1 if name == "one_chain" else chains
-        runs = [start_chain(data, config, options=options, seed=k) for k in range(count)]
-        start = time.perf_counter()
-        advance_chains([(chain, sweeps) for chain in runs], workers=workers, progress=False)
-        seconds[name] = time.perf_counter() - start
-    return {
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        run_gibbs(data, config, 2, options=options, seed=0, progress=False)  # kernels loaded
+        seconds = {}
+        for name, workers in (("one_chain", 1), ("sequential", 1), ("together", "auto")):
+            count = 1 if name == "one_chain" else chains
+            runs = [start_chain(data, config, options=options, seed=k) for k in range(count)]
+            start = time.perf_counter()
+            advance_chains([(chain, sweeps) for chain in runs], workers=workers, progress=False)
+            seconds[name] = time.perf_counter() - start
+    finally:
+        torch.set_num_threads(threads)
+    record: dict[str, Any] = {
         "chains": chains,
         "sweeps": sweeps,
         "workers": resolve_workers("auto", chains),
         "usable_cpus": usable_cpus(),
+        "torch_threads": 1,
         "one_chain_s": seconds["one_chain"],
         "sequential_s": seconds["sequential"],
         "together_s": seconds["together"],
         "together_over_one": seconds["together"] / seconds["one_chain"],
         "together_over_sequential": seconds["together"] / seconds["sequential"],
     }
+    if processes_of is not None:
+        processes = chains_in_processes(*processes_of, chains, sweeps, backend=backend)
+        record["processes"] = processes
+        record["processes_over_sequential"] = processes["wall_s"] / seconds["sequential"]
+    return record
+
+
+_PROCESS_CHAINS = """
+import sys, time
+import torch
+torch.set_num_threads(1)
+from pathlib import Path
+from bench_setup import load_headline_house, make_problem
+from spcopyro.config import preset
+from spcopyro.gibbs import GibbsOptions, run_gibbs
+from spcopyro.gibbs.chains import advance_chains
+from spcopyro.gibbs.run import start_chain
+dataset, name, backend, sweeps, *seeds = sys.argv[1:]
+house = load_headline_house(None if dataset == "-" else Path(dataset))
+problem = make_problem(house, preset(name))
+options = GibbsOptions(backend=backend)
+run_gibbs(problem.data, problem.config, 2, options=options, seed=0, progress=False)
+runs = [start_chain(problem.data, problem.config, options=options, seed=int(k)) for k in seeds]
+print("ready", flush=True)
+sys.stdin.readline()
+start = time.perf_counter()
+advance_chains([(chain, int(sweeps)) for chain in runs], workers=1, progress=False)
+print(time.perf_counter() - start, flush=True)
+"""
+
+
+def chains_in_processes(
+    dataset: str, preset: str, chains: int, sweeps: int, *, backend: str = "numba"
+) -> dict[str, Any]:
+    """Chains 0..K-1 of ``sweeps`` sweeps in one fresh process per usable CPU (at most one per
+    chain; chain k in process k mod P), each advancing its chains one after another with torch
+    at one thread. The wall runs from the moment every process is ready (imports, data, kernels
+    loaded, its chains started) until the last one is done: the sweeps alone, as in
+    :func:`chains_in_process`."""
+    import os
+    import subprocess
+    import sys
+
+    workers = resolve_workers("auto", chains)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")])}  # fmt: skip
+    shares = [[str(k) for k in range(chains) if k % workers == w] for w in range(workers)]
+    command = [sys.executable, "-c", _PROCESS_CHAINS, dataset, preset, backend, str(sweeps)]
+    procs = [
+        subprocess.Popen(
+            [*command, *share],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            text=True,
+            env=env,
+        )  # fmt: skip
+        for share in shares
+    ]
+    try:
+        for proc in procs:
+            if proc.stdout.readline().strip() != "ready":  # type: ignore[union-attr]
+                raise RuntimeError("a chains process failed before its sweeps")
+        start = time.perf_counter()
+        for proc in procs:
+            proc.stdin.write("go\n")  # type: ignore[union-attr]
+            proc.stdin.flush()  # type: ignore[union-attr]
+        own = [float(proc.stdout.readline()) for proc in procs]  # type: ignore[union-attr]
+        wall = time.perf_counter() - start
+    except BaseException:
+        for proc in procs:
+            proc.kill()
+        raise
+    finally:
+        for proc in procs:
+            proc.wait()
+    return {"processes": workers, "wall_s": wall, "per_process_s": own}
 
 
 def chains_as_fits(

@@ -47,6 +47,10 @@ def test_gibbs_benchmark_quick(tmp_path):
     assert results["chains"]["as_fits"]["ratio"] > 0
     assert len(results["chains"]["as_fits"]["pair_sweeps_s"]) == 2  # the processes' reference
     assert "two single fits at once in two processes" in done.stdout
+    inside = results["chains"]["in_process"]  # threads against processes, the same chains
+    assert inside["torch_threads"] == 1 and inside["processes"]["wall_s"] > 0
+    assert len(inside["processes"]["per_process_s"]) == inside["processes"]["processes"]
+    assert "processes (no GIL shared)" in done.stdout
 
 
 @pytest.mark.slow
