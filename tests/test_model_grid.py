@@ -81,6 +81,12 @@ def test_observations_go_on_the_model_grid_as_the_map_places_them():
     index, _, unplaced = place_observations(coarse, xy[:2], snap_distance=0.1)
     np.testing.assert_array_equal(index, [0, 1])
     assert not unplaced.any()
+    # A grid whose cells were replaced no longer matches the map it keeps: a named error.
+    import dataclasses
+
+    replaced = dataclasses.replace(coarse, occupancy=np.full((2, 2), FREE, dtype=np.int8))
+    with pytest.raises(ValueError, match="not a coarsening of its coarsened_from"):
+        place_observations(replaced, [[0.65, 0.15]], snap_distance=0.25)  # off its cells
 
 
 @pytest.mark.dataset

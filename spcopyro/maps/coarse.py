@@ -99,6 +99,16 @@ def free_block_of_map_cells(grid: OccupancyGrid) -> np.ndarray:
         raise ValueError("the grid was not coarsened from a map (grid.coarsened_from is None)")
     factor = int(round(grid.resolution / fine.resolution))
     rows, cols = model_cell_of(fine, factor)
+    if (
+        factor < 1
+        or not math.isclose(grid.resolution, factor * fine.resolution, rel_tol=1e-9)
+        or grid.origin != fine.origin
+        or (int(rows[-1]) + 1, int(cols[-1]) + 1) != grid.shape
+    ):
+        raise ValueError(
+            f"grid ({grid.shape} cells of {grid.resolution} m) is not a coarsening of its "
+            f"coarsened_from ({fine.shape} cells of {fine.resolution} m): was it replaced?"
+        )
     index = np.asarray(grid.free_index)[rows[:, None], cols[None, :]]  # [H, W] block's index
     free = np.asarray(fine.free)  # [H, W]
     return grow_labels(np.where(free, index, -1), free)
