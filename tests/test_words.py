@@ -175,6 +175,10 @@ def test_semantic_map_figure_writes_words_on_their_regions_and_marks_utterances(
         word_xy=np.array([[0.55, 0.55], [2.25, 0.35]]), word_trial=np.zeros(2, dtype=int),
     )  # fmt: skip
     np.testing.assert_array_equal(utterance_concepts(result, observations.word_xy), [0, 1])
+    # Heard on the wall (x 1.5-1.6 m), 2 cm from either room: the concept of the cell the fit
+    # counted it in, as the fit snaps it; far off the map: left out (-1, drawn grey).
+    off_free = [[1.52, 0.55], [1.58, 0.55], [5.0, 5.0]]
+    np.testing.assert_array_equal(utterance_concepts(result, off_free), [0, 1, -1])
     figure = semantic_map_figure(result, observations=observations, min_region_fraction=0.0)
     ax = figure.axes[0]
     texts = {t.get_text(): t.get_position() for t in ax.texts}

@@ -96,28 +96,26 @@ def concept_handles(
 
 
 def utterance_concepts(result: SpCoResult, xy: np.ndarray) -> np.ndarray:
-    """[U] the concept of the cell under each world point ``[U, 2]`` (-1 off the map or off
-    free space)."""
+    """[U] the concept of the cell each world point ``[U, 2]`` is placed in as the fit placed
+    its observations (:func:`~spcopyro.data.place_observations` with the fit's snap distance:
+    a word heard just off free space, e.g. in a doorway that a coarse grid's thickened wall
+    covers, takes the cell it was counted in); -1 where it was left out."""
+    from spcopyro.data import place_observations
+
     xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
     if len(xy) == 0:
         return np.zeros(0, dtype=np.int64)
-    grid = result.grid
-    cells = grid.world_to_cell(xy)  # [U, 2] (row, col)
-    inside = (
-        (cells[:, 0] >= 0) & (cells[:, 0] < grid.height)
-        & (cells[:, 1] >= 0) & (cells[:, 1] < grid.width)
-    )  # fmt: skip
-    image = result.label_image()  # [H, W]
-    concepts = np.full(len(xy), -1, dtype=np.int64)
-    concepts[inside] = image[cells[inside, 0], cells[inside, 1]]
-    return concepts
+    cells, _, _ = place_observations(result.grid, xy, result.preparation.snap_distance)  # [U]
+    labels = np.asarray(result.labels)  # [N] concept of each free cell
+    return np.where(cells >= 0, labels[np.maximum(cells, 0)], -1).astype(np.int64)
 
 
 def draw_utterances(
     ax: Axes, result: SpCoResult, observations: Observations, colours: np.ndarray
 ) -> Line2D | None:
-    """Mark where each utterance was heard (Fig. 10F): a circle in the colour of the concept
-    under it (grey off free space) with a black rim. Returns a legend handle (None when the
+    """Mark where each utterance was heard (Fig. 10F): a circle in the colour of the concept of
+    the cell it was counted in (:func:`utterance_concepts`; grey where it was left out) with a
+    black rim. Returns a legend handle (None when the
     observations hold no utterance)."""
     xy = np.asarray(observations.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
     if len(xy) == 0:
