@@ -322,14 +322,19 @@ def cell_counts(
         ),
     )
     where = f" on map {grid.source}" if getattr(grid, "source", None) else ""
+    farther = f"farther than {snap_distance:g} m from free space{where}"
+    if getattr(grid, "coarsened_from", None) is not None:  # placed through the map
+        farther += (
+            f", or on the map only in free space that reaches no free {grid.resolution:g} m "
+            "model cell"
+        )
     if warn and (report.images_unplaced or report.words_unplaced):
         logger.warning(
-            "%d image(s) and %d utterance(s) are farther than %g m from free space%s and were "
-            "left out of the cell counts (image indices %s, utterance indices %s)",
+            "%d image(s) and %d utterance(s) are %s and were left out of the cell counts "
+            "(image indices %s, utterance indices %s)",
             report.images_unplaced,
             report.words_unplaced,
-            snap_distance,
-            where,
+            farther,
             report.unplaced_images.tolist()[:20],
             report.unplaced_words.tolist()[:20],
         )
@@ -346,12 +351,11 @@ def cell_counts(
     for placed in report.modalities:
         if warn and placed.unplaced:
             logger.warning(
-                "%d observation(s) of modality %r are farther than %g m from free space%s and "
-                "were left out of the cell counts (indices %s)",
+                "%d observation(s) of modality %r are %s and were left out of the cell counts "
+                "(indices %s)",
                 placed.unplaced,
                 placed.name,
-                snap_distance,
-                where,
+                farther,
                 placed.unplaced_indices.tolist()[:20],
             )
         if placed.snapped:
