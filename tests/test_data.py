@@ -214,9 +214,10 @@ def test_place_observations_snaps_and_reports(grid):
     index, snapped, unplaced = place_observations(grid, xy, snap_distance=3.0)
     np.testing.assert_array_equal(index, [0, 3, 1, 1, 4, -1, 3, 0, 0])
     np.testing.assert_array_equal(unplaced, [0, 0, 0, 0, 0, 1, 0, 0, 0])
-    # No snapping.
+    # No snapping, not even of a point on a wall cell's edge with a free cell (0 m from it).
     index, snapped, unplaced = place_observations(grid, xy, snap_distance=0.0)
     np.testing.assert_array_equal(index, [0, 3, -1, -1, -1, -1, -1, -1, -1])
+    assert place_observations(grid, [[3.0, 2.5]], snap_distance=0.0)[2].all()  # (1, 3) | F1
     assert not snapped.any()
     with pytest.raises(ValueError, match="snap_distance"):
         place_observations(grid, xy, snap_distance=-1.0)

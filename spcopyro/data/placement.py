@@ -139,7 +139,7 @@ def _place(
         target[chosen] = local[better]
         square[chosen] = local_distance[better]
     distance[off] = square
-    within = square <= snap_distance + _SNAP_EPS * grid.resolution  # [n_off] bool
+    within = (square <= snap_distance + _SNAP_EPS * grid.resolution) & (snap_distance > 0)
     if through_map is not None:  # as the map places it; else (a pocket) the model grid's own
         reached = through_map >= 0
         target[reached] = np.asarray(grid.free_cells)[through_map[reached]]
