@@ -42,7 +42,7 @@ from spcopyro.config import (
 )
 from spcopyro.data import House
 from spcopyro.data.model_grid import model_house
-from spcopyro.maps import OccupancyGrid, save_map
+from spcopyro.maps import save_map
 from spcopyro.results.concept_words import MIN_LIFT, format_concept_words, format_words_heard
 
 if TYPE_CHECKING:
@@ -68,9 +68,6 @@ class FitJob:
     staged: StagedOutput
     keeper: FitCheckpoint | None
     """Keeps the Gibbs chains for a checkpoint beside OUT (None where none is kept)."""
-    robot_map: OccupancyGrid | None = None
-    """The map the model's grid was coarsened from (None: the model fits on the map's cells);
-    written as :data:`~spcopyro._util.outputs.ROBOT_MAP_FILE`."""
     sampled: bool = False
     """Set once the fit is done: a Ctrl-C while writing then keeps the finished chains."""
 
@@ -160,7 +157,6 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
     house = _load(args.data)
     args.phases.mark("load")
     settings, options = _fit_settings(args, house)
-    robot_map = house.grid
     house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
     staged = stage_output(
         args.out, overwrite=args.overwrite, resume=args.resume,
@@ -168,8 +164,7 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
     )  # fmt: skip
     args.phases.mark("settings")
     keeper = FitCheckpoint(checkpoint_path(staged.out)) if checkpointed else None
-    robot_map = None if house.grid is robot_map else robot_map
-    job = FitJob(args, house, settings, options, staged, keeper, robot_map)
+    job = FitJob(args, house, settings, options, staged, keeper)
     try:
         return _fit_staged(job)
     except KeyboardInterrupt as stop:
@@ -451,8 +446,9 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     command = shlex.join(["spcopyro", *_command(args)])
     result = dataclasses.replace(result, provenance={**result.provenance, "command": command})
     out = result.save(staged.path)
-    if job.robot_map is not None:  # a coarse fit: navigate plans on the robot's own map
-        save_map(job.robot_map, out / ROBOT_MAP_FILE)
+    robot_map = house.grid.coarsened_from  # a coarse fit's map: navigate plans on it
+    if robot_map is not None:
+        save_map(robot_map, out / ROBOT_MAP_FILE)
     phases.mark("save")
     if chain_results is not None and chains > 1:
         best_values = [r.best_objective for r in chain_results]

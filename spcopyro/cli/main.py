@@ -36,6 +36,7 @@ logger = logging.getLogger("spcopyro")
 
 def _simulate(args: argparse.Namespace) -> int:
     from spcopyro.synthetic import HouseSpec, write_synthetic
+    from spcopyro.synthetic.spec import EMBEDDED_DOORWAY_WIDTH
 
     if args.map is not None:
         if args.density != "dense" or args.rooms is not None:
@@ -55,9 +56,10 @@ def _simulate(args: argparse.Namespace) -> int:
     else:
         # The embedded default house (HouseSpec.embedded: doorways a robot fits through), or
         # one of its size; `spcopyro fit` without DATA fits the same house as this seed's.
-        doors = HouseSpec.embedded().doorway_width
         spec = (
-            HouseSpec.scaled(*args.size, sentence_fraction=args.sentences, doorway_width=doors)
+            HouseSpec.scaled(
+                *args.size, sentence_fraction=args.sentences, doorway_width=EMBEDDED_DOORWAY_WIDTH
+            )  # fmt: skip
             if args.size
             else HouseSpec.embedded(sentence_fraction=args.sentences)
         )

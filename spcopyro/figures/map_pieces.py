@@ -115,8 +115,7 @@ def draw_utterances(
 ) -> Line2D | None:
     """Mark where each utterance was heard (Fig. 10F): a circle in the colour of the concept of
     the cell it was counted in (:func:`utterance_concepts`; grey where it was left out) with a
-    black rim. Returns a legend handle (None when the
-    observations hold no utterance)."""
+    black rim. Returns a legend handle (None when the observations hold no utterance)."""
     xy = np.asarray(observations.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
     if len(xy) == 0:
         return None

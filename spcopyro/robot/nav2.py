@@ -370,7 +370,8 @@ def export_nav2(
     with staged:
         folder, final = staged.path, staged.out
         grid = result.grid
-        map_yaml = save_map(grid if robot_map is None else robot_map, folder / "map.yaml")
+        main_map = grid if robot_map is None else robot_map
+        map_yaml = save_map(main_map, folder / "map.yaml")
         semantic_yaml = save_label_map_server(result.label_image(), grid,
                                               folder / "semantic_map.yaml")  # fmt: skip
         masks: list[ExportedMask] = []
@@ -421,7 +422,7 @@ def export_nav2(
             "min_speed": min_speed if mode == "speed" else None,
             "max_speed": max_speed if mode == "speed" else None,
             "namespace": namespace,
-            "map": grid_record(grid if robot_map is None else robot_map),
+            "map": grid_record(main_map),
             "masks_grid": grid_record(grid),
             "masks": records,
         }
