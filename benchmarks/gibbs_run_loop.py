@@ -202,7 +202,7 @@ def chains_in_processes(
             [*command, *share],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
-            stderr=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,  # a few warning lines at most: read on failure
             text=True,
             env=env,
         )  # fmt: skip
@@ -211,7 +211,9 @@ def chains_in_processes(
     try:
         for proc in procs:
             if proc.stdout.readline().strip() != "ready":  # type: ignore[union-attr]
-                raise RuntimeError("a chains process failed before its sweeps")
+                proc.wait()
+                tail = proc.stderr.read()[-2000:]  # type: ignore[union-attr]
+                raise RuntimeError(f"a chains process failed before its sweeps:\n{tail}")
         start = time.perf_counter()
         for proc in procs:
             proc.stdin.write("go\n")  # type: ignore[union-attr]
