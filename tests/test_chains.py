@@ -4,6 +4,10 @@ continuing gives the uninterrupted chain."""
 
 from __future__ import annotations
 
+import os
+import signal
+import time
+
 import numpy as np
 import pytest
 import torch
@@ -94,6 +98,62 @@ def test_ctrl_c_leaves_every_chain_at_a_completed_sweep_and_continuing_is_exact(
     advance_chains([(c, 10 - c.sweeps_done) for c in chains], workers=workers, progress=False)
     for a, b in zip(reference, chains, strict=True):
         _same(a, b)
+
+
+class _SlowBackend:
+    """Sleeps before each sweep; at its ``signal_at``-th sends SIGINT to the process, as a
+    Ctrl-C at the keyboard does (Python raises it in the main thread, not in the chain's)."""
+
+    def __init__(self, inner, delay: float, signal_at: int | None = None) -> None:
+        self.inner, self.delay, self.signal_at, self.calls = inner, delay, signal_at, 0
+        self.name = inner.name
+
+    def sweep(self, *args):
+        self.calls += 1
+        time.sleep(self.delay)
+        if self.calls == self.signal_at:
+            os.kill(os.getpid(), signal.SIGINT)
+        return self.inner.sweep(*args)
+
+    def __getattr__(self, name):
+        return getattr(self.inner, name)
+
+
+def test_ctrl_c_at_the_keyboard_keeps_every_chains_completed_sweeps():
+    """The chains on worker threads stop at their next completed sweep *with its record*: the
+    records (log joint, concepts) match the sweeps done, and continuing is exact."""
+    cfg = config(num_concepts=5, gamma=1.0)
+    _, data = random_problem(seed=13, copies=4)
+    seeds, sweeps = [7, 8], 40
+    reference = _chains(data, cfg, "torch", seeds)
+    for chain in reference:
+        advance(chain, sweeps, progress=False)
+    chains = _chains(data, cfg, "torch", seeds)
+    chains[0].backend = _SlowBackend(chains[0].backend, delay=0.02, signal_at=4)
+    chains[1].backend = _SlowBackend(chains[1].backend, delay=0.02)
+    with pytest.raises(KeyboardInterrupt):
+        advance_chains([(chain, sweeps) for chain in chains], workers=2, progress=False)
+    for chain in chains:
+        assert 3 <= chain.sweeps_done < sweeps
+        assert len(chain.log_joint) == len(chain.num_concepts) == chain.sweeps_done
+        chain.backend = chain.backend.inner
+    advance_chains([(c, sweeps - c.sweeps_done) for c in chains], workers=2, progress=False)
+    for a, b in zip(reference, chains, strict=True):
+        _same(a, b)
+
+
+def test_a_failing_chain_stops_the_others_at_once():
+    """A chain's error is raised as soon as it happens: the chains before it in the list do not
+    run to their end first."""
+    cfg = config(num_concepts=5, gamma=1.0)
+    _, data = random_problem(seed=13, copies=4)
+    chains = _chains(data, cfg, "torch", [7, 8])
+    chains[0].backend = _SlowBackend(chains[0].backend, delay=0.02)
+    chains[1].backend = _InterruptingBackend(chains[1].backend, at=4)
+    with pytest.raises(KeyboardInterrupt):
+        advance_chains([(chain, 200) for chain in chains], workers=2, progress=False)
+    assert chains[0].sweeps_done < 200
+    assert len(chains[0].log_joint) == chains[0].sweeps_done
 
 
 def test_workers_resolve_to_at_most_one_per_chain():

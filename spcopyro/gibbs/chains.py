@@ -22,7 +22,7 @@ from __future__ import annotations
 import os
 import threading
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
 
 from tqdm.auto import tqdm
 
@@ -32,8 +32,10 @@ from spcopyro.gibbs.run import GibbsChain, advance
 AUTO = "auto"
 
 
-class _Stopped(Exception):
-    """Raised by a chain's callback after a sweep, once Ctrl-C asked every chain to stop."""
+class _Stopped(KeyboardInterrupt):
+    """Raised by a chain's callback after a sweep, once Ctrl-C (or another chain's error) asked
+    every chain to stop. A :class:`KeyboardInterrupt`, so that the driver keeps the sweeps the
+    chain completed (:class:`~spcopyro.inference.driver.DriveInterrupted`) as for a Ctrl-C."""
 
 
 def usable_cpus() -> int:
@@ -95,8 +97,9 @@ def advance_chains(
     def run_one(chain: GibbsChain, num_sweeps: int) -> None:
         try:
             advance(chain, num_sweeps, thin=thin, progress=False, callback=after_sweep)
-        except _Stopped:
-            pass
+        except KeyboardInterrupt:  # _Stopped, as the driver raises it again
+            if not stop.is_set():
+                raise
 
     try:
         if count == 1:
@@ -106,7 +109,9 @@ def advance_chains(
         with ThreadPoolExecutor(max_workers=count, thread_name_prefix="gibbs-chain") as pool:
             futures = [pool.submit(run_one, chain, n) for chain, n in runs]
             try:
-                for future in futures:
+                # the first chain to fail stops the others now, not when those before it end
+                finished, _ = wait(futures, return_when=FIRST_EXCEPTION)
+                for future in [*finished, *futures]:
                     future.result()
             except BaseException:  # Ctrl-C here, or a chain's error
                 stop.set()  # every running chain stops after its sweep; queued ones never start
