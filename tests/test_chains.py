@@ -1,11 +1,14 @@
-"""Chains advancing side by side on threads (spcopyro.gibbs.chains): each is, bit for bit, the
-chain its seed gives alone; an interruption leaves every chain at a completed sweep, from which
-continuing gives the uninterrupted chain."""
+"""Chains advancing side by side, on threads or in forked processes (spcopyro.gibbs.chains,
+spcopyro.gibbs.chain_processes): each is, bit for bit, the chain its seed gives alone; an
+interruption leaves every chain at a completed sweep with its records, from which continuing
+gives the uninterrupted chain; an error in one chain stops the others and is raised."""
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import signal
+import threading
 import time
 
 import numpy as np
@@ -13,7 +16,16 @@ import pytest
 import torch
 from gibbs_problems import config, random_problem
 
-from spcopyro.gibbs.chains import advance_chains, resolve_workers
+from spcopyro._util.threads import torch_threads
+from spcopyro.gibbs.chain_processes import ChainProcessError, processes_usable
+from spcopyro.gibbs.chains import (
+    PROCESSES_ENV,
+    advance_chains,
+    chain_processes,
+    resolve_workers,
+    uses_processes,
+    when_chains_start,
+)
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import advance, start_chain
 
@@ -33,6 +45,14 @@ def _same(a, b) -> None:
         np.testing.assert_array_equal(ra.label_samples, rb.label_samples)
 
 
+@pytest.fixture(params=["off", "on"], ids=["threads", "processes"])
+def mode(request):
+    """How the chains run: on threads (``off``) or in forked processes (``on``, which needs one
+    torch thread)."""
+    with torch_threads(1 if request.param == "on" else None):
+        yield request.param
+
+
 def _backend(name: str) -> str:
     if name == "numba":
         pytest.importorskip("numba")
@@ -40,7 +60,7 @@ def _backend(name: str) -> str:
 
 
 @pytest.mark.parametrize("backend", ["torch", "numba"])
-def test_parallel_chains_equal_the_chains_run_alone(backend):
+def test_parallel_chains_equal_the_chains_run_alone(backend, mode):
     backend = _backend(backend)
     cfg = config(num_concepts=6, gamma=1.5)
     _, data = random_problem(seed=11, copies=6)
@@ -49,17 +69,22 @@ def test_parallel_chains_equal_the_chains_run_alone(backend):
     for chain in alone:
         advance(chain, 12, thin=4, progress=False)
     together = _chains(data, cfg, backend, seeds)
-    advance_chains([(chain, 12) for chain in together], workers=2, thin=4, progress=False)
+    advance_chains(
+        [(chain, 12) for chain in together], workers=2, thin=4, progress=False, processes=mode
+    )
     for a, b in zip(alone, together, strict=True):
         _same(a, b)
+        assert torch.equal(a.generator.get_state(), b.generator.get_state())
+        assert a.best_value == b.best_value and a.sample_sweeps == b.sample_sweeps
 
 
-def test_chains_with_different_sweeps_left_each_get_theirs():
+def test_chains_with_different_sweeps_left_each_get_theirs(mode):
     cfg = config(num_concepts=4)
     _, data = random_problem(seed=12, copies=2)
     chains = _chains(data, cfg, "torch", [0, 1, 2])
     advance(chains[1], 3, progress=False)
-    advance_chains([(chains[0], 5), (chains[1], 2), (chains[2], 0)], workers=3, progress=False)
+    runs = [(chains[0], 5), (chains[1], 2), (chains[2], 0)]
+    advance_chains(runs, workers=3, progress=False, processes=mode)
     assert [c.sweeps_done for c in chains] == [5, 5, 0]
 
 
@@ -80,7 +105,7 @@ class _InterruptingBackend:
 
 
 @pytest.mark.parametrize("workers", [1, 2])
-def test_ctrl_c_leaves_every_chain_at_a_completed_sweep_and_continuing_is_exact(workers):
+def test_ctrl_c_leaves_every_chain_at_a_completed_sweep_and_continuing_is_exact(workers, mode):
     cfg = config(num_concepts=5, gamma=1.0)
     _, data = random_problem(seed=13, copies=4)
     seeds = [7, 8]
@@ -90,36 +115,44 @@ def test_ctrl_c_leaves_every_chain_at_a_completed_sweep_and_continuing_is_exact(
     chains = _chains(data, cfg, "torch", seeds)
     chains[1].backend = _InterruptingBackend(chains[1].backend, at=4)
     with pytest.raises(KeyboardInterrupt):
-        advance_chains([(chain, 10) for chain in chains], workers=workers, progress=False)
+        advance_chains(
+            [(chain, 10) for chain in chains], workers=workers, progress=False, processes=mode
+        )
     assert chains[1].sweeps_done == 3  # the fourth sweep was undone
     for chain in chains:
         assert len(chain.log_joint) == chain.sweeps_done <= 10
     chains[1].backend = chains[1].backend.inner
-    advance_chains([(c, 10 - c.sweeps_done) for c in chains], workers=workers, progress=False)
+    runs = [(c, 10 - c.sweeps_done) for c in chains]
+    advance_chains(runs, workers=workers, progress=False, processes=mode)
     for a, b in zip(reference, chains, strict=True):
         _same(a, b)
 
 
 class _SlowBackend:
-    """Sleeps before each sweep; at its ``signal_at``-th sends SIGINT to the process, as a
-    Ctrl-C at the keyboard does (Python raises it in the main thread, not in the chain's)."""
+    """Sleeps before each sweep; at its ``signal_at``-th sends SIGINT to the process that made
+    it, as a Ctrl-C at the keyboard does (Python raises it in that process's main thread, not in
+    the chain's thread or process); at its ``fail_at``-th raises ``error``."""
 
-    def __init__(self, inner, delay: float, signal_at: int | None = None) -> None:
+    def __init__(self, inner, delay: float, signal_at=None, fail_at=None, error=None) -> None:
         self.inner, self.delay, self.signal_at, self.calls = inner, delay, signal_at, 0
-        self.name = inner.name
+        self.fail_at, self.error, self.name, self.pid = fail_at, error, inner.name, os.getpid()
 
     def sweep(self, *args):
         self.calls += 1
         time.sleep(self.delay)
         if self.calls == self.signal_at:
-            os.kill(os.getpid(), signal.SIGINT)
+            os.kill(self.pid, signal.SIGINT)
+        if self.calls == self.fail_at:
+            if self.error is None:
+                os._exit(3)  # the worker process dies
+            raise self.error
         return self.inner.sweep(*args)
 
     def __getattr__(self, name):
         return getattr(self.inner, name)
 
 
-def test_ctrl_c_at_the_keyboard_keeps_every_chains_completed_sweeps():
+def test_ctrl_c_at_the_keyboard_keeps_every_chains_completed_sweeps(mode):
     """The chains on worker threads stop at their next completed sweep *with its record*: the
     records (log joint, concepts) match the sweeps done, and continuing is exact."""
     cfg = config(num_concepts=5, gamma=1.0)
@@ -132,17 +165,20 @@ def test_ctrl_c_at_the_keyboard_keeps_every_chains_completed_sweeps():
     chains[0].backend = _SlowBackend(chains[0].backend, delay=0.02, signal_at=4)
     chains[1].backend = _SlowBackend(chains[1].backend, delay=0.02)
     with pytest.raises(KeyboardInterrupt):
-        advance_chains([(chain, sweeps) for chain in chains], workers=2, progress=False)
+        advance_chains(
+            [(chain, sweeps) for chain in chains], workers=2, progress=False, processes=mode
+        )
     for chain in chains:
         assert 3 <= chain.sweeps_done < sweeps
         assert len(chain.log_joint) == len(chain.num_concepts) == chain.sweeps_done
         chain.backend = chain.backend.inner
-    advance_chains([(c, sweeps - c.sweeps_done) for c in chains], workers=2, progress=False)
+    runs = [(c, sweeps - c.sweeps_done) for c in chains]
+    advance_chains(runs, workers=2, progress=False, processes=mode)
     for a, b in zip(reference, chains, strict=True):
         _same(a, b)
 
 
-def test_a_failing_chain_stops_the_others_at_once():
+def test_a_failing_chain_stops_the_others_at_once(mode):
     """A chain's error is raised as soon as it happens: the chains before it in the list do not
     run to their end first."""
     cfg = config(num_concepts=5, gamma=1.0)
@@ -151,9 +187,94 @@ def test_a_failing_chain_stops_the_others_at_once():
     chains[0].backend = _SlowBackend(chains[0].backend, delay=0.02)
     chains[1].backend = _InterruptingBackend(chains[1].backend, at=4)
     with pytest.raises(KeyboardInterrupt):
-        advance_chains([(chain, 200) for chain in chains], workers=2, progress=False)
+        advance_chains([(chain, 200) for chain in chains], workers=2, progress=False,
+                       processes=mode)  # fmt: skip
     assert chains[0].sweeps_done < 200
     assert len(chains[0].log_joint) == chains[0].sweeps_done
+
+
+def test_a_chains_error_is_raised_once_the_others_stopped(mode):
+    cfg = config(num_concepts=5, gamma=1.0)
+    _, data = random_problem(seed=13, copies=4)
+    chains = _chains(data, cfg, "torch", [7, 8, 9])
+    chains[0].backend = _SlowBackend(chains[0].backend, delay=0.02)
+    chains[1].backend = _SlowBackend(chains[1].backend, delay=0.0, fail_at=3,
+                                     error=ValueError("sweep 3 went wrong"))  # fmt: skip
+    with pytest.raises(ValueError, match="sweep 3 went wrong") as raised:
+        advance_chains([(chain, 200) for chain in chains], workers=2, progress=False,
+                       processes=mode)  # fmt: skip
+    assert chains[0].sweeps_done < 200 and chains[2].sweeps_done < 200
+    if mode == "on":  # chain 2 waits for chain 0 on its worker, and never starts
+        assert chains[2].sweeps_done == 0
+    for chain in (chains[0], chains[2]):
+        assert len(chain.log_joint) == chain.sweeps_done
+    if mode == "on":  # the worker's traceback comes with it
+        assert any("in the chain's worker process" in note for note in raised.value.__notes__)
+
+
+def test_a_worker_process_that_dies_is_an_error_naming_its_chains():
+    cfg = config(num_concepts=5, gamma=1.0)
+    _, data = random_problem(seed=13, copies=4)
+    chains = _chains(data, cfg, "torch", [7, 8, 9, 10])
+    chains[1].backend = _SlowBackend(chains[1].backend, delay=0.0, fail_at=2)  # os._exit
+    with torch_threads(1), pytest.raises(ChainProcessError) as raised:
+        advance_chains([(chain, 30) for chain in chains], workers=2, progress=False,
+                       processes="on")  # fmt: skip
+    assert "chains [1, 3]" in str(raised.value) and "exit code 3" in str(raised.value)
+    assert chains[1].sweeps_done == chains[3].sweeps_done == 0  # where they were
+    for chain in (chains[0], chains[2]):  # the other worker's: stopped with their records
+        assert len(chain.log_joint) == chain.sweeps_done
+
+
+def test_every_sweep_is_reported_and_the_start_action_runs_once_the_workers_are_forked(mode):
+    cfg = config(num_concepts=4)
+    _, data = random_problem(seed=12, copies=2)
+    chains = _chains(data, cfg, "torch", [0, 1, 2])
+    reported: list[int] = []
+    started: list[int] = []
+
+    def action() -> None:  # in processes, the workers exist by now
+        started.append(len(multiprocessing.active_children()))
+
+    with when_chains_start(action):
+        advance_chains([(c, 7) for c in chains], workers=2, progress=False, processes=mode,
+                       on_sweep=lambda: reported.append(1))  # fmt: skip
+        advance_chains([(c, 2) for c in chains], workers=2, progress=False, processes=mode)
+    assert len(reported) == 21
+    assert started == ([2] if mode == "on" else [0])  # once, for the first advance
+    with when_chains_start(action):
+        advance_chains([(chains[0], 0)], workers=2, progress=False)  # no sweep: not called
+    assert len(started) == 1
+
+
+def test_processes_are_used_only_where_forking_is_safe(monkeypatch):
+    monkeypatch.delenv(PROCESSES_ENV, raising=False)
+    with torch_threads(1):
+        assert processes_usable() is None  # the suite's process runs no other thread
+        assert uses_processes(2) and uses_processes(2, "on")
+        assert not uses_processes(1) and not uses_processes(2, "off")
+        monkeypatch.setenv(PROCESSES_ENV, "off")
+        assert not uses_processes(2)
+        monkeypatch.setenv(PROCESSES_ENV, "sometimes")
+        with pytest.raises(ValueError, match=r"\$SPCOPYRO_CHAIN_PROCESSES must be one of auto"):
+            chain_processes()
+        monkeypatch.delenv(PROCESSES_ENV)
+        with pytest.raises(ValueError, match="processes must be one of"):
+            uses_processes(2, "yes")
+        release = threading.Event()
+        other = threading.Thread(target=release.wait, name="someone-else", daemon=True)
+        other.start()
+        try:
+            assert not uses_processes(2)
+            with pytest.raises(ValueError, match=r"other threads are running \(someone-else\)"):
+                uses_processes(2, "on")
+        finally:
+            release.set()
+            other.join()
+    with torch_threads(2):
+        assert not uses_processes(2)
+        with pytest.raises(ValueError, match="torch runs 2 intra-op threads"):
+            uses_processes(2, "on")
 
 
 def test_workers_resolve_to_at_most_one_per_chain():
@@ -165,7 +286,7 @@ def test_workers_resolve_to_at_most_one_per_chain():
             resolve_workers(bad, 2)
 
 
-def test_fit_with_parallel_chains_gives_the_sequential_fit():
+def test_fit_with_parallel_chains_gives_the_sequential_fit(monkeypatch):
     from spcopyro.config import preset
     from spcopyro.fit.house import fit_house_chains
     from spcopyro.synthetic import HouseSpec, make_house
@@ -174,10 +295,12 @@ def test_fit_with_parallel_chains_gives_the_sequential_fit():
     settings = preset("paper-dp", num_concepts=8)
     kwargs = dict(sweeps=6, seeds=[0, 1, 2], progress=False)
     one = fit_house_chains(house, settings, chain_workers=1, **kwargs)
-    two = fit_house_chains(house, settings, chain_workers=2, **kwargs)
-    for a, b in zip(one, two, strict=True):
-        np.testing.assert_array_equal(a.labels, b.labels)
-        np.testing.assert_array_equal(a.trace.objective, b.trace.objective)
+    for mode in ("off", "on"):  # two workers: threads, processes (one torch thread: the policy)
+        monkeypatch.setenv(PROCESSES_ENV, mode)
+        two = fit_house_chains(house, settings, chain_workers=2, **kwargs)
+        for a, b in zip(one, two, strict=True):
+            np.testing.assert_array_equal(a.labels, b.labels)
+            np.testing.assert_array_equal(a.trace.objective, b.trace.objective)
 
 
 def test_fit_command_line_chain_workers_option(capsys):

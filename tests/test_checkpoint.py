@@ -20,6 +20,7 @@ from gibbs_problems import config, random_problem
 
 import spcopyro.fit.house
 import spcopyro.gibbs.chains
+import spcopyro.gibbs.run
 import spcopyro.inference.driver as driver_module
 from spcopyro._util.outputs import checkpoint_path
 from spcopyro.cli.main import main
@@ -328,6 +329,43 @@ def test_ctrl_c_keeps_a_checkpoint_and_resume_gives_the_unbroken_fit(
     _same_outputs(out, tmp_path / "unbroken")
 
 
+def test_ctrl_c_at_the_keyboard_with_chains_in_processes_resumes_to_the_unbroken_fit(
+    room, tmp_path, capsys, monkeypatch
+):
+    """``fit --chains 2`` with its chains in forked processes: a SIGINT to the command (what a
+    Ctrl-C at the keyboard sends; the workers ignore theirs) stops both chains after their
+    sweep, saves them with their records, and ``--resume`` gives the unbroken fit."""
+    monkeypatch.setenv(spcopyro.gibbs.chains.PROCESSES_ENV, "on")
+    command, sweep = os.getpid(), spcopyro.gibbs.run._sweep
+
+    def slow_sweep(chain):  # looked up at each sweep, so the forked workers run it too
+        time.sleep(0.05)
+        info = sweep(chain)
+        if chain.generator.initial_seed() == 0 and chain.sweeps_done == 5:
+            os.kill(command, signal.SIGINT)
+        return info
+
+    out = tmp_path / "out"
+    argv = ["fit", str(room), "--out", str(out), *FIT, "--chains", "2", "--chain-workers", "2"]
+    with monkeypatch.context() as patch:
+        patch.setattr(spcopyro.gibbs.run, "_sweep", slow_sweep)
+        assert main(argv) == 130
+    err = capsys.readouterr().err
+    assert err.startswith("interrupted (") and err.count("\n") == 1
+    checkpoint = checkpoint_path(out)
+    done = [chain["sweeps_done"] for chain in read_record(checkpoint)["chains"]]
+    assert 5 <= done[0] < 12 and 1 <= done[1] < 12
+    with np.load(checkpoint) as saved:  # each chain's records match its sweeps
+        for k in range(2):
+            assert len(saved[f"chain{k}.log_joint"]) == len(saved[f"chain{k}.num_concepts"])
+            assert len(saved[f"chain{k}.log_joint"]) == done[k]
+    again = shlex.split(err.split("continue with: ")[1])
+    assert main(again[1:]) == 0
+    assert main(["fit", str(room), "--out", str(tmp_path / "unbroken"), *FIT, "--chains", "2",
+                 "--chain-workers", "1"]) == 0  # fmt: skip
+    _same_outputs(out, tmp_path / "unbroken")
+
+
 def test_the_printed_resume_command_works_for_a_default_fit(room, tmp_path, capsys, monkeypatch):
     """Issue 22 item 6: the default preset starts from the rooms; --resume used to force a
     random start and fail ("init: 'rooms' in the checkpoint, 'random' here")."""
@@ -575,6 +613,48 @@ def test_a_real_ctrl_c_in_a_fit_process(room, tmp_path, sent):
     assert last.startswith("interrupted (chain 1 of 1, ") and "continue with: spcopyro" in last
     record = read_record(checkpoint_path(out))
     assert 0 < record["chains"][0]["sweeps_done"] < 1000000 and not out.exists()
+
+
+@pytest.mark.slow  # a fresh process: ~5 s of imports
+@pytest.mark.parametrize("sent", [signal.SIGINT, signal.SIGTERM])
+def test_a_real_ctrl_c_in_a_fit_whose_chains_run_in_processes(room, tmp_path, sent):
+    """SIGINT to the whole process group (a Ctrl-C at the terminal: the chains' worker
+    processes get it too, and ignore it) or SIGTERM to the command alone, during ``fit --chains
+    2`` with its chains in forked processes: exit 130, no traceback, every chain saved with the
+    records of its sweeps, no worker left running."""
+    out = tmp_path / "out"
+    env = {k: v for k, v in os.environ.items() if k != "CI"}  # the progress bar shows sweeping
+    env["PYTHONPATH"] = str(Path(spcopyro.fit.house.__file__).parents[1])
+    env[spcopyro.gibbs.chains.PROCESSES_ENV] = "on"
+    argv = ["fit", str(room), "--out", str(out), "--sweeps", "1000000", "--concepts", "8",
+            "--chains", "2", "--chain-workers", "2"]  # fmt: skip
+    process = subprocess.Popen([sys.executable, "-m", "spcopyro", *argv], env=env,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                               preexec_fn=_default_sigint, process_group=0)  # fmt: skip
+    seen = b""
+    while not re.search(rb"Gibbs sweeps: .*?\b[1-9][0-9]*/2000000 \[", seen):  # swept some
+        chunk = os.read(process.stderr.fileno(), 4096)
+        if not chunk:
+            break
+        seen += chunk
+    if sent == signal.SIGINT:
+        os.killpg(process.pid, sent)
+    else:
+        process.send_signal(sent)
+    _, rest = process.communicate(timeout=120)
+    err = (seen + rest).decode()
+    assert process.returncode == 130, err
+    assert "Traceback" not in err
+    last = err.strip().splitlines()[-1].split("\r")[-1]
+    assert last.startswith("interrupted (") and "continue with: spcopyro" in last
+    checkpoint = checkpoint_path(out)
+    done = [chain["sweeps_done"] for chain in read_record(checkpoint)["chains"]]
+    assert all(0 < d < 1000000 for d in done) and not out.exists()
+    with np.load(checkpoint) as saved:
+        assert [len(saved[f"chain{k}.log_joint"]) for k in range(2)] == done
+    time.sleep(0.5)
+    stray = subprocess.run(["pgrep", "-g", str(process.pid)], capture_output=True, text=True)
+    assert stray.stdout.strip() == ""  # the workers ended with the command
 
 
 def test_a_killed_runs_staging_folder_is_removed_by_the_next_run_into_out(room, tmp_path):

@@ -42,6 +42,7 @@ from spcopyro.config import (
 )
 from spcopyro.data import House
 from spcopyro.data.model_grid import model_house
+from spcopyro.gibbs.chains import when_chains_start
 from spcopyro.maps import save_map
 from spcopyro.results.concept_words import MIN_LIFT, format_concept_words, format_words_heard
 
@@ -373,10 +374,16 @@ def _fit_staged(job: FitJob) -> int:
         init = SpCoResult.load(args.init_from)
         print(f"starting from     the {init.method} fit in {args.init_from}")
     args.phases.mark("summary")
-    # house.png and the figures' imports, drawn on a thread of their own while the chains run
-    prefetch = None if args.no_figures else FigurePrefetch(house, job.staged.path)
+    # house.png and the figures' imports, drawn on a thread of their own while the chains run;
+    # with several Gibbs chains, started once they run: a thread alive when they would be forked
+    # into processes keeps them on threads (spcopyro.gibbs.chain_processes)
+    several = args.method == "gibbs" and (args.chains or (4 if args.sweeps == "auto" else 1)) > 1
+    prefetch = None
+    if not args.no_figures:
+        prefetch = FigurePrefetch(house, job.staged.path, start=not several)
     try:
-        fitted = _fit(job, init, saved)
+        with contextlib.nullcontext() if prefetch is None else when_chains_start(prefetch.start):
+            fitted = _fit(job, init, saved)
         job.sampled = True
         return _write(job, fitted, prefetch)
     finally:

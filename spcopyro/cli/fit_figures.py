@@ -30,17 +30,29 @@ is 0.005, a sweep's length on a public house)."""
 
 
 class FigurePrefetch:
-    """Import the figures' modules and draw ``house.png`` into ``out`` on a daemon thread,
-    started at once. :meth:`join` waits for it; an error there is not raised but left to the
-    figures drawn after the fit (which draw ``house.png`` again)."""
+    """Import the figures' modules and draw ``house.png`` into ``out`` on a daemon thread, started
+    at once, or by :meth:`start` when ``start`` is False (a fit whose chains run in forked
+    processes starts it once they are forked: :func:`spcopyro.gibbs.chains.when_chains_start`).
+    :meth:`join` waits for it; an error there is not raised but left to the figures drawn after
+    the fit (which draw ``house.png`` again, as they do if it never started)."""
 
-    def __init__(self, house: House, out: Path) -> None:
+    def __init__(self, house: House, out: Path, start: bool = True) -> None:
         self.house_drawn = False
         self._previous = sys.getswitchinterval()
-        sys.setswitchinterval(min(self._previous, PREFETCH_SWITCH_INTERVAL))
         self._thread = threading.Thread(
             target=self._run, args=(house, Path(out)), name="spcopyro-figures", daemon=True
         )
+        self._started = False
+        if start:
+            self.start()
+
+    def start(self) -> None:
+        """Start the thread (once; later calls do nothing)."""
+        if self._started:
+            return
+        self._started = True
+        self._previous = sys.getswitchinterval()
+        sys.setswitchinterval(min(self._previous, PREFETCH_SWITCH_INTERVAL))
         self._thread.start()
 
     def _run(self, house: House, out: Path) -> None:
@@ -59,7 +71,7 @@ class FigurePrefetch:
 
     def join(self) -> bool:
         """Wait for the thread; whether ``house.png`` was drawn."""
-        if self._thread.is_alive():
+        if self._started and self._thread.is_alive():
             with timed("prefetch wait"):
                 self._thread.join()
         return self.house_drawn

@@ -21,8 +21,9 @@ from __future__ import annotations
 
 import os
 import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
+from contextlib import contextmanager
 
 from tqdm.auto import tqdm
 
@@ -62,6 +63,68 @@ def resolve_workers(workers: int | str | None, num_chains: int) -> int:
     return max(1, min(count, num_chains))
 
 
+PROCESSES_ENV = "SPCOPYRO_CHAIN_PROCESSES"
+"""Environment variable: ``auto`` (default), ``on`` or ``off``, the default of
+:func:`advance_chains`' ``processes``."""
+
+_PROCESS_MODES = (AUTO, "on", "off")
+
+
+def chain_processes(mode: str | None = None) -> str:
+    """The mode of running chains in processes: ``mode``, else ``$SPCOPYRO_CHAIN_PROCESSES``,
+    else ``"auto"``.
+
+    Raises:
+        ValueError: a mode other than auto / on / off.
+    """
+    source = "processes" if mode is not None else f"${PROCESSES_ENV}"
+    value = mode if mode is not None else os.environ.get(PROCESSES_ENV, AUTO)
+    if value not in _PROCESS_MODES:
+        raise ValueError(f"{source} must be one of {', '.join(_PROCESS_MODES)}, got {value!r}")
+    return value
+
+
+def uses_processes(workers: int, mode: str | None = None) -> bool:
+    """Whether :func:`advance_chains` with ``workers`` (resolved) runs its chains in forked
+    processes (:mod:`spcopyro.gibbs.chain_processes`): with more than one worker, under mode
+    ``"auto"`` where forking is safe, under ``"on"`` always (ValueError where it is not safe).
+    """
+    mode = chain_processes(mode)
+    if workers < 2 or mode == "off":
+        return False
+    from spcopyro.gibbs.chain_processes import processes_usable
+
+    reason = processes_usable()
+    if reason is not None and mode == "on":
+        raise ValueError(f"chains cannot run in processes here: {reason}")
+    return reason is None
+
+
+_when_started: list[Callable[[], None]] = []
+
+
+@contextmanager
+def when_chains_start(action: Callable[[], None]) -> Iterator[None]:
+    """Within the block, call ``action`` once, when the first :func:`advance_chains` has its
+    chains running: after their worker processes were forked, or as it starts them on threads.
+
+    For work that a thread should do while the chains run (``spcopyro fit``'s figure
+    prefetch): a thread running at the fork would keep the chains on threads
+    (:func:`uses_processes`). Not called if no chains run in the block.
+    """
+    _when_started.append(action)
+    try:
+        yield
+    finally:
+        if action in _when_started:
+            _when_started.remove(action)
+
+
+def _chains_started() -> None:
+    while _when_started:
+        _when_started.pop(0)()
+
+
 def advance_chains(
     runs: Sequence[tuple[GibbsChain, int]],
     *,
@@ -69,19 +132,48 @@ def advance_chains(
     thin: int = 0,
     progress: bool | None = None,
     on_sweep: Callable[[], None] | None = None,
+    processes: str | None = None,
 ) -> None:
     """Advance each ``(chain, num_sweeps)`` of ``runs`` by its number of sweeps, up to
     ``workers`` chains at a time (:func:`resolve_workers`), in place.
 
-    One progress bar counts the sweeps of all chains; ``on_sweep`` is called (under a lock)
-    after every sweep of any chain. With one worker the chains run one after another in this
-    thread (what :func:`~spcopyro.gibbs.run.advance` in a loop did).
+    One progress bar counts the sweeps of all chains; ``on_sweep`` is called after every sweep
+    of any chain (under a lock; in processes, by this thread when it reads the counts). With one
+    worker the chains run one after another in this thread (what
+    :func:`~spcopyro.gibbs.run.advance` in a loop did); with more, on threads or, where
+    :func:`uses_processes` says so (``processes``: auto / on / off, default
+    ``$SPCOPYRO_CHAIN_PROCESSES`` or auto), in forked processes. The chains are the same either
+    way.
     """
     runs = [(chain, int(n)) for chain, n in runs if int(n) > 0]
     if not runs:
         return
     count = resolve_workers(workers, len(runs))
     total = sum(n for _, n in runs)
+    if uses_processes(count, processes):
+        from spcopyro.gibbs.chain_processes import advance_in_processes
+
+        bars: list[tqdm] = []
+
+        def started() -> None:  # the workers are forked: threads may start now
+            bars.append(tqdm(total=total, desc="Gibbs sweeps",
+                             disable=not progress_enabled(progress)))  # fmt: skip
+            _chains_started()
+
+        def on_sweeps(done: int) -> None:
+            for bar in bars:
+                bar.update(done)
+            for _ in range(done if on_sweep is not None else 0):
+                on_sweep()
+
+        try:
+            advance_in_processes(runs, count, thin=thin, on_sweeps=on_sweeps, on_started=started,
+                                 advance_chain=advance)  # fmt: skip
+        finally:
+            for bar in bars:
+                bar.close()
+        return
+    _chains_started()
     stop = threading.Event()
     bar = tqdm(total=total, desc="Gibbs sweeps", disable=not progress_enabled(progress))
     lock = threading.Lock()

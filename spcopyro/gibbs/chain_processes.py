@@ -1,0 +1,272 @@
+"""Many Gibbs chains at once in forked processes: :func:`advance_in_processes`.
+
+Threads (:mod:`spcopyro.gibbs.chains`) share one interpreter: the compiled kernels and torch's
+operations release the GIL, but each sweep's Python part (the calls, numpy's small steps, the
+records) holds it, and on a 2-core machine four chains on two threads took 0.60-0.85 of their
+time one after another where two processes took 0.53-0.68 (``benchmarks/gibbs.py``, the chains
+rows; docs/speed.md). Here each worker is a child process *forked* from this one after the chains
+were started, so it has the house, the model data, the chains and the compiled kernels without
+importing or compiling anything, and runs its chains one after another (chain i on worker
+i mod W). When a chain ends (or stops), its worker sends back what the chain changed -- its
+state, generator, records, best visited state, kept label maps -- and this process writes it
+into the chain object the caller holds, so afterwards the chains are exactly those that
+:func:`~spcopyro.gibbs.run.advance` gives in this process (tested bit for bit).
+
+Progress: each worker counts its chains' sweeps in shared memory; this process reads the counts
+a few times a second for the progress bar. Ctrl-C: the workers ignore SIGINT and SIGTERM (and
+end if this process is killed); this process, on its :class:`KeyboardInterrupt` (which
+``spcopyro fit`` raises on SIGTERM too), raises a shared stop flag, and every chain stops after
+the sweep it is in (the one in progress finishes and is kept), as the threads do. The chains'
+records then come back and the interrupt is raised again; a second Ctrl-C while waiting for them
+ends the workers at once and leaves the chains that had not come back where they started (a
+consistent state, if an earlier one). A chain's error (e.g. a non-finite log joint) stops the
+others the same way and is raised here, with the worker's traceback in its notes.
+
+Only where forking is safe (:func:`processes_usable`): Linux, torch at one intra-op thread (an
+OpenMP team is not usable after a fork), and no other Python thread running (a thread could hold
+a lock that the child would inherit held).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import pickle
+import signal
+import sys
+import threading
+import traceback
+from collections.abc import Callable, Sequence
+from dataclasses import fields
+from multiprocessing.connection import Connection, wait
+
+from spcopyro.gibbs.run import GibbsChain, advance
+
+POLL_SECONDS = 0.1
+"""How often the progress counts are read while the workers run."""
+
+_FIXED_FIELDS = ("data", "config", "options", "backend", "plan")
+"""The fields of a :class:`~spcopyro.gibbs.run.GibbsChain` that a sweep never changes: not sent
+back. Every other field is (the generator as its state)."""
+
+
+class _Stopped(KeyboardInterrupt):
+    """Raised in a worker by a chain's callback once the stop flag is up: the driver keeps the
+    sweeps completed, as for a Ctrl-C."""
+
+
+class ChainProcessError(RuntimeError):
+    """A chain's worker process ended without sending its chain back (killed, or out of
+    memory)."""
+
+
+def _other_threads() -> list[str]:
+    """Names of the live Python threads other than this one and tqdm's monitor (which every bar
+    starts, even a disabled one; the lock it takes is replaced in the workers)."""
+    current = threading.current_thread()
+    return [
+        thread.name for thread in threading.enumerate()
+        if thread is not current and type(thread).__name__ != "TMonitor"
+    ]  # fmt: skip
+
+
+def _fresh_tqdm_lock() -> None:
+    """Give this (forked) process's progress bars a lock of their own: tqdm's monitor thread
+    may have held the parent's at the fork, and every bar, even a disabled one, takes it."""
+    import tqdm.auto
+    import tqdm.std
+
+    for cls in {tqdm.std.tqdm, tqdm.auto.tqdm}:
+        cls.set_lock(threading.RLock())
+
+
+def processes_usable() -> str | None:
+    """None if chains may run in forked processes here, else the reason they may not."""
+    if not sys.platform.startswith("linux"):
+        return f"forking is not used on {sys.platform}"
+    import torch
+
+    if torch.get_num_threads() != 1:
+        return f"torch runs {torch.get_num_threads()} intra-op threads (an OpenMP team)"
+    if others := _other_threads():
+        return f"other threads are running ({', '.join(others)})"
+    return None
+
+
+def chain_changes(chain: GibbsChain) -> dict[str, object]:
+    """What a sweep changes in ``chain``: every field but :data:`_FIXED_FIELDS`, the generator
+    as its state."""
+    changes = {f.name: getattr(chain, f.name) for f in fields(chain) if f.name not in _FIXED_FIELDS}
+    changes["generator"] = chain.generator.get_state()
+    return changes
+
+
+def apply_changes(chain: GibbsChain, changes: dict[str, object]) -> None:
+    """Write :func:`chain_changes` of a chain (advanced elsewhere) into ``chain``."""
+    for name, value in changes.items():
+        if name == "generator":
+            chain.generator.set_state(value)
+        else:
+            setattr(chain, name, value)
+
+
+def _send(connection: Connection, message: tuple[str, int, object]) -> None:
+    # plain pickle, not multiprocessing's: torch registers reductions there that move tensors
+    # into shared memory; the records are sent once, by value
+    connection.send_bytes(pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL))
+
+
+def _portable_error(error: BaseException) -> BaseException:
+    """``error`` with the worker's traceback as a note, or a RuntimeError with its text where the
+    error does not survive pickling."""
+    text = "".join(traceback.format_exception(error))
+    try:
+        error.add_note(f"in the chain's worker process:\n{text}")
+        pickle.loads(pickle.dumps(error))
+        return error
+    except Exception:  # noqa: BLE001  (any error of pickling)
+        return RuntimeError(f"a chain failed in its worker process:\n{text}")
+
+
+def _worker(runs, indices, thin, advance_chain, connection, sweeps_done, stop) -> None:  # noqa: ANN001
+    """A worker's life: its chains one after another, each sent back when it ends or stops."""
+    # the parent decides when the chains stop (its Ctrl-C, or `spcopyro fit`'s SIGTERM)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    parent = os.getppid()
+    _fresh_tqdm_lock()
+
+    def after_sweep(index: int) -> Callable[..., None]:
+        def callback(*_: object) -> None:
+            sweeps_done[index] += 1
+            if stop.value:
+                raise _Stopped
+            if os.getppid() != parent:  # the parent was killed: nobody waits for the chains
+                os._exit(1)
+
+        return callback
+
+    try:
+        for index in indices:
+            if stop.value:
+                break
+            chain, num_sweeps = runs[index]
+            try:
+                advance_chain(chain, num_sweeps, thin=thin, progress=False,
+                              callback=after_sweep(index))  # fmt: skip
+            except KeyboardInterrupt:  # the chain holds its completed sweeps
+                _send(connection, ("chain", index, chain_changes(chain)))
+                if stop.value:  # _Stopped
+                    continue
+                # raised by the chain itself (never SIGINT, ignored here): as on a thread
+                _send(connection, ("error", index, KeyboardInterrupt()))
+                break
+            except BaseException as error:  # noqa: BLE001  (sent to the parent, raised there)
+                _send(connection, ("error", index, _portable_error(error)))
+                break
+            _send(connection, ("chain", index, chain_changes(chain)))
+        _send(connection, ("end", -1, None))
+    finally:
+        connection.close()
+
+
+def advance_in_processes(
+    runs: Sequence[tuple[GibbsChain, int]],
+    workers: int,
+    *,
+    thin: int = 0,
+    on_sweeps: Callable[[int], None] | None = None,
+    on_started: Callable[[], None] | None = None,
+    advance_chain: Callable[..., object] = advance,
+) -> None:
+    """Advance each ``(chain, num_sweeps)`` of ``runs`` in ``workers`` forked processes, in
+    place (see the module docstring). ``on_sweeps(n)``: called in this process with the number
+    of sweeps completed since its last call, a few times a second; ``on_started()``: called
+    once every worker is forked (threads may start from then on); ``advance_chain``: what
+    advances a chain in a worker (:func:`~spcopyro.gibbs.run.advance`, or a caller's wrapper).
+
+    Raises:
+        KeyboardInterrupt: Ctrl-C; every chain holds its completed sweeps.
+        ChainProcessError: a worker ended without sending its chains back.
+        Whatever a chain raised, after the others stopped.
+    """
+    context = multiprocessing.get_context("fork")
+    sweeps_done = context.RawArray("q", len(runs))  # [chains] written by the chain's worker
+    stop = context.RawValue("b", 0)
+    receivers: dict[Connection, tuple[multiprocessing.process.BaseProcess, list[int]]] = {}
+    returned: set[int] = set()
+    errors: list[BaseException] = []
+    reported = 0
+
+    def report() -> None:
+        nonlocal reported
+        total = sum(sweeps_done)
+        if total > reported and on_sweeps is not None:
+            on_sweeps(total - reported)
+        reported = total
+
+    def lost(receive: Connection) -> None:  # the worker ended without its "end"
+        process, indices = receivers.pop(receive)
+        process.join()
+        missing = [i for i in indices if i not in returned]
+        errors.append(ChainProcessError(
+            f"the worker process of chains {missing} ended (exit code {process.exitcode}) "
+            "without sending them back"
+        ))  # fmt: skip
+        stop.value = 1
+
+    def collect() -> None:
+        while receivers:
+            for receive in wait(list(receivers), timeout=POLL_SECONDS):
+                try:
+                    kind, index, body = _receive(receive)
+                except EOFError:
+                    lost(receive)
+                    continue
+                if kind == "chain":
+                    apply_changes(runs[index][0], body)
+                    returned.add(index)
+                elif kind == "error":
+                    errors.append(body)
+                    stop.value = 1
+                else:  # "end"
+                    process, _ = receivers.pop(receive)
+                    process.join()
+            report()
+
+    try:
+        try:
+            for w in range(workers):
+                indices = list(range(w, len(runs), workers))
+                receive, send = context.Pipe(duplex=False)
+                process = context.Process(
+                    target=_worker,
+                    args=(runs, indices, thin, advance_chain, send, sweeps_done, stop),
+                    name=f"spcopyro-chains-{w}", daemon=True,
+                )  # fmt: skip
+                process.start()
+                send.close()
+                receivers[receive] = (process, indices)
+            if on_started is not None:
+                on_started()
+            collect()
+        except KeyboardInterrupt:
+            stop.value = 1
+            collect()  # every chain ends its sweep and comes back
+            raise
+    finally:
+        for process, _ in receivers.values():  # a second Ctrl-C, or an error in this process
+            process.kill()
+            process.join()
+        report()
+    if errors:
+        raise errors[0]
+
+
+def _receive(connection: Connection) -> tuple[str, int, object]:
+    """One message of a worker, read whole: a Ctrl-C meanwhile is raised after it."""
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        return pickle.loads(connection.recv_bytes())
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
