@@ -409,13 +409,20 @@ def render_issue15(results: dict[str, Any]) -> list[str]:
         out += ["", f"== Many chains ({chains.get('preset')}) =="]
         if _ok(inside):
             out.append(
-                f"in process: {inside['chains']} chains x {inside['sweeps']} sweeps together on "
+                f"in one process: {inside['chains']} chains x {inside['sweeps']} sweeps together "
+                f"on "
                 f"{inside['workers']} threads {inside['together_s']:.2f} s; one after another "
                 f"{inside['sequential_s']:.2f} s; one chain {inside['one_chain_s']:.2f} s "
                 f"(together / one chain = {inside['together_over_one']:.2f}, "
                 f"{inside['usable_cpus']} usable CPUs, torch at "
                 f"{inside.get('torch_threads', '?')} thread)"
             )
+            if inside.get("forked_s") is not None:
+                out.append(
+                    f"in processes forked from it (what fit --chains does on Linux): "
+                    f"{inside['forked_s']:.2f} s, {inside['forked_over_sequential']:.2f} of one "
+                    f"after another, against {inside['together_over_sequential']:.2f} on threads"
+                )
             procs = inside.get("processes")
             if procs:
                 out.append(

@@ -31,6 +31,7 @@ from fixed_cost import fit_once
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs import GibbsOptions, run_gibbs
 from spcopyro.gibbs.backends import get_backend
+from spcopyro.gibbs.chain_processes import processes_usable
 from spcopyro.gibbs.chains import advance_chains, resolve_workers, usable_cpus
 from spcopyro.gibbs.run import advance, start_chain
 from spcopyro.gibbs.state import make_sweep_plan
@@ -129,11 +130,15 @@ def chains_in_process(
     try:
         run_gibbs(data, config, 2, options=options, seed=0, progress=False)  # kernels loaded
         seconds = {}
-        for name, workers in (("one_chain", 1), ("sequential", 1), ("together", "auto")):
+        ways = [("one_chain", 1, "off"), ("sequential", 1, "off"), ("together", "auto", "off")]
+        if processes_usable() is None:  # else no row (not Linux, another thread running)
+            ways.append(("forked", "auto", "on"))
+        for name, workers, mode in ways:
             count = 1 if name == "one_chain" else chains
             runs = [start_chain(data, config, options=options, seed=k) for k in range(count)]
             start = time.perf_counter()
-            advance_chains([(chain, sweeps) for chain in runs], workers=workers, progress=False)
+            advance_chains([(chain, sweeps) for chain in runs], workers=workers, progress=False,
+                           processes=mode)  # fmt: skip
             seconds[name] = time.perf_counter() - start
     finally:
         torch.set_num_threads(threads)
@@ -149,6 +154,9 @@ def chains_in_process(
         "together_over_one": seconds["together"] / seconds["one_chain"],
         "together_over_sequential": seconds["together"] / seconds["sequential"],
     }
+    if "forked" in seconds:  # what `fit --chains` does where it can
+        record["forked_s"] = seconds["forked"]
+        record["forked_over_sequential"] = seconds["forked"] / seconds["sequential"]
     if processes_of is not None:
         processes = chains_in_processes(*processes_of, chains, sweeps, backend=backend)
         record["processes"] = processes

@@ -72,9 +72,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    help="run this many chains (seeds --seed, --seed + 1, ...) and keep the one of "
                         "highest log joint (default 1; 4 with --sweeps auto)")  # fmt: skip
     p.add_argument("--chain-workers", type=_chain_workers, default=AUTO,
-                   help="Gibbs chains advancing at once, one thread each: auto (default: one per "
-                        "usable CPU) or N (1: one after another); results do not depend on "
-                        "it")  # fmt: skip
+                   help="Gibbs chains advancing at once, each in a process forked from the "
+                        "fit on Linux (else on a thread; SPCOPYRO_CHAIN_PROCESSES=off: threads): "
+                        "auto (default: one per usable CPU) or N (1: one after another); "
+                        "results do not depend on it")  # fmt: skip
     p.add_argument("--anneal-sweeps", type=_non_negative_int, default=0,
                    help="ramp gamma up from gamma/N to gamma over the first N sweeps (burn-in; "
                         "default 0)")  # fmt: skip

@@ -321,10 +321,10 @@ def fit_house_chains(
         point_estimate: a sampler: the map to report, ``"map-visited"`` (the state of highest
             log joint) or the partition minimising the expected ``"binder"`` or ``"vi"`` loss
             over those label maps (:mod:`spcopyro.results.point_estimate`; needs marginal_samples).
-        chain_workers: Gibbs only: how many chains advance at once, each on its own thread
-            (:func:`~spcopyro.gibbs.chains.advance_chains`; results identical to one after
-            another): ``"auto"`` (one per usable CPU) or a count. With more than one, ``threads``
-            ``"auto"`` means one torch thread per chain.
+        chain_workers: Gibbs only: how many chains advance at once, each in a forked process
+            or on a thread (:func:`~spcopyro.gibbs.chains.advance_chains`; results identical
+            to one after another): ``"auto"`` (one per usable CPU) or a count. With more than
+            one, ``threads`` ``"auto"`` means one torch thread per chain.
     """
     if check_point_estimate(point_estimate) != "map-visited" and (
         method not in SAMPLERS or not marginal_samples
