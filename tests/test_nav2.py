@@ -382,3 +382,27 @@ def test_a_coarse_fits_main_map_is_the_robots_map_it_was_coarsened_from(fit, tmp
     assert (mask.resolution, mask.values.shape) == (0.05, (H, W))
     record = _read_yaml(out / "nav2_export.json")
     assert record["map"]["resolution"] == 0.025 and record["masks_grid"]["resolution"] == 0.05
+
+
+def test_an_older_coarse_fits_main_map_is_the_map_its_data_came_with(fit, tmp_path, capsys):
+    """A coarse fit written before `fit` kept robot_map.yaml: `export` finds the robot's map as
+    `navigate` does, at DATA/../map/HOUSE.yaml from the fit's provenance; without it, the fit's
+    own grid is the main map."""
+    import dataclasses
+
+    from spcopyro.config import DataPreparation
+
+    result = SpCoResult.load(fit)
+    fine = OccupancyGrid(np.full((2 * H, 2 * W), FREE, dtype=np.int8), 0.025, (1.5, -2.0, 0.0))
+    save_map(fine, tmp_path / "data" / "map" / "flat.yaml")
+    source = {"data": str(tmp_path / "data" / "flat"), "house": "flat"}
+    older = dataclasses.replace(result, preparation=DataPreparation(cell_size=0.05),
+                                provenance={"source": source})  # fmt: skip
+    folder = older.save(tmp_path / "older")
+    assert main(["export", str(folder), "--nav2", str(tmp_path / "a"), "--word", "kitchen"]) == 0
+    assert f"the main map is {tmp_path / 'data' / 'map' / 'flat.yaml'}" in capsys.readouterr().out
+    assert load_map(tmp_path / "a" / "map.yaml") == fine
+    (tmp_path / "data" / "map" / "flat.yaml").unlink()
+    assert main(["export", str(folder), "--nav2", str(tmp_path / "b"), "--word", "kitchen"]) == 0
+    assert "the main map is" not in capsys.readouterr().out
+    assert load_map(tmp_path / "b" / "map.yaml") == result.grid

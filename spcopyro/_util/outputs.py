@@ -68,6 +68,26 @@ ROBOT_MAP_FILE = "robot_map.yaml"
 ``map.yaml`` by ``spcopyro fit``: ``navigate`` plans on it, since coarsening thickens walls and can
 close a doorway the robot drives through."""
 
+
+def robot_map_of(result: object, folder: str | os.PathLike[str]) -> Path | None:
+    """The map_server yaml a coarse fit's grid was coarsened from, for ``navigate`` (which plans
+    on it) and ``export --nav2`` (Nav2's main map): the fit's own copy (:data:`ROBOT_MAP_FILE`
+    in ``folder``, which only a coarse fit writes), else, for a coarse fit written before that
+    copy, the data folder's map when it still sits in the dataset layout
+    (``DATA/../map/HOUSE.yaml``, from the result's provenance). None for a fit on the map's own
+    cells or when neither file is there. ``result``: a
+    :class:`~spcopyro.results.result.SpCoResult` (its ``preparation`` and ``provenance``)."""
+    own = Path(folder) / ROBOT_MAP_FILE
+    if own.is_file():
+        return own
+    if getattr(result.preparation, "cell_size", None) is None:  # type: ignore[attr-defined]
+        return None
+    source = (result.provenance or {}).get("source") or {}  # type: ignore[attr-defined]
+    if not source.get("data") or not source.get("house"):
+        return None
+    path = Path(source["data"]).parent / "map" / f"{source['house']}.yaml"
+    return path if path.is_file() else None
+
 MANIFEST = "outputs.json"
 """The list of the files a fit wrote into its folder (``{"files": [...]}``): ``--overwrite``
 replaces those and keeps everything else (issue 22 item 3)."""

@@ -46,9 +46,8 @@ def _min_speed(value: str) -> float:
 
 
 def _export(args: argparse.Namespace) -> int:
-    from pathlib import Path
 
-    from spcopyro._util.outputs import ROBOT_MAP_FILE
+    from spcopyro._util.outputs import robot_map_of
     from spcopyro.results.result import SpCoResult, UnknownWordError
     from spcopyro.robot.nav2 import export_nav2
 
@@ -61,8 +60,8 @@ def _export(args: argparse.Namespace) -> int:
         return 2
     result = SpCoResult.load(args.result)
     robot_map = None
-    robot_map_yaml = Path(args.result) / ROBOT_MAP_FILE  # a coarse fit's map (spcopyro fit)
-    if robot_map_yaml.is_file():
+    robot_map_yaml = robot_map_of(result, args.result)  # a coarse fit's map
+    if robot_map_yaml is not None:
         from spcopyro.maps import load_map
 
         robot_map = load_map(robot_map_yaml)

@@ -47,30 +47,8 @@ def _radius(text: str) -> float:
     return value
 
 
-def _source_map(result: object, folder: str) -> str | None:
-    """The map_server yaml a coarse fit's grid was coarsened from: the fit's own copy
-    (``robot_map.yaml`` in its folder, :data:`~spcopyro._util.outputs.ROBOT_MAP_FILE`), else,
-    for a fit written before that copy, the data folder's map when it still sits in the dataset
-    layout (``DATA/../map/HOUSE.yaml``): coarsening thickens walls and can close doorways, so a
-    path is planned on the robot's own map. None for a fit on the map's own cells or when
-    neither file is there."""
-    from pathlib import Path
-
-    from spcopyro._util.outputs import ROBOT_MAP_FILE
-
-    if getattr(result.preparation, "cell_size", None) is None:  # type: ignore[attr-defined]
-        return None
-    own = Path(folder) / ROBOT_MAP_FILE
-    if own.is_file():
-        return str(own)
-    source = (result.provenance or {}).get("source") or {}  # type: ignore[attr-defined]
-    if not source.get("data") or not source.get("house"):
-        return None
-    path = Path(source["data"]).parent / "map" / f"{source['house']}.yaml"
-    return str(path) if path.is_file() else None
-
-
 def _navigate(args: argparse.Namespace) -> int:
+    from spcopyro._util.outputs import robot_map_of
     from spcopyro.results.result import SpCoResult
     from spcopyro.robot.navigation import navigate
     from spcopyro.robot.navigation.goals import UnreachableGoalError
@@ -79,7 +57,7 @@ def _navigate(args: argparse.Namespace) -> int:
     check_frame(args.frame)
     result = SpCoResult.load(args.result)
     grid = None
-    map_yaml = args.map or _source_map(result, args.result)
+    map_yaml = args.map or robot_map_of(result, args.result)
     if map_yaml:
         from spcopyro.maps import load_map
 
