@@ -141,7 +141,10 @@ class _SlowBackend:
         self.calls += 1
         time.sleep(self.delay)
         if self.calls == self.signal_at:
-            os.kill(self.pid, signal.SIGINT)
+            for _ in range(getattr(self, "signals", 1)):
+                os.kill(self.pid, signal.SIGINT)
+                time.sleep(0.05)
+            time.sleep(getattr(self, "after_signals", 0.0))
         if self.calls == self.fail_at:
             if self.error is None:
                 os._exit(3)  # the worker process dies
@@ -176,6 +179,25 @@ def test_ctrl_c_at_the_keyboard_keeps_every_chains_completed_sweeps(mode):
     advance_chains(runs, workers=2, progress=False, processes=mode)
     for a, b in zip(reference, chains, strict=True):
         _same(a, b)
+
+
+def test_a_second_ctrl_c_stops_waiting_for_the_chains_in_processes():
+    """Two SIGINTs: the command stops waiting, ends the workers, and the chains not yet back
+    stay where they were (consistent, with no sweep of this call)."""
+    cfg = config(num_concepts=5, gamma=1.0)
+    _, data = random_problem(seed=13, copies=4)
+    chains = _chains(data, cfg, "torch", [7, 8])
+    chains[0].backend = _SlowBackend(chains[0].backend, delay=0.0, signal_at=2)
+    chains[0].backend.signals, chains[0].backend.after_signals = 2, 10.0  # then hangs
+    chains[1].backend = _SlowBackend(chains[1].backend, delay=1.0)
+    start = time.perf_counter()
+    with torch_threads(1), pytest.raises(KeyboardInterrupt):
+        advance_chains([(chain, 40) for chain in chains], workers=2, progress=False,
+                       processes="on")  # fmt: skip
+    assert time.perf_counter() - start < 5  # not the 10 s that chain 0 hangs
+    assert [chain.sweeps_done for chain in chains] == [0, 0]
+    assert all(not chain.log_joint for chain in chains)
+    assert multiprocessing.active_children() == []
 
 
 def test_a_failing_chain_stops_the_others_at_once(mode):

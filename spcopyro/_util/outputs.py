@@ -88,6 +88,7 @@ def robot_map_of(result: object, folder: str | os.PathLike[str]) -> Path | None:
     path = Path(source["data"]).parent / "map" / f"{source['house']}.yaml"
     return path if path.is_file() else None
 
+
 MANIFEST = "outputs.json"
 """The list of the files a fit wrote into its folder (``{"files": [...]}``): ``--overwrite``
 replaces those and keeps everything else (issue 22 item 3)."""

@@ -14,13 +14,14 @@ into the chain object the caller holds, so afterwards the chains are exactly tho
 
 Progress: each worker counts its chains' sweeps in shared memory; this process reads the counts
 a few times a second for the progress bar. Ctrl-C: the workers ignore SIGINT and SIGTERM (and
-end if this process is killed); this process, on its :class:`KeyboardInterrupt` (which
-``spcopyro fit`` raises on SIGTERM too), raises a shared stop flag, and every chain stops after
-the sweep it is in (the one in progress finishes and is kept), as the threads do. The chains'
-records then come back and the interrupt is raised again; a second Ctrl-C while waiting for them
-ends the workers at once and leaves the chains that had not come back where they started (a
-consistent state, if an earlier one). A chain's error (e.g. a non-finite log joint) stops the
-others the same way and is raised here, with the worker's traceback in its notes.
+end if this process is killed); this process, on SIGINT (or SIGTERM, where a handler turns it
+into an interrupt, as ``spcopyro fit``'s does), raises a shared stop flag, and every chain stops
+after the sweep it is in (the one in progress finishes and is kept), as the threads do. The
+chains' records come back, each read and written whole, and then :class:`KeyboardInterrupt` is
+raised; a second Ctrl-C while waiting for them ends the workers at once and leaves the chains
+that had not come back where they started (a consistent state, if an earlier one). A chain's
+error (e.g. a non-finite log joint) stops the others the same way and is raised here, with the
+worker's traceback in its notes.
 
 Only where forking is safe (:func:`processes_usable`): Linux, torch at one intra-op thread (an
 OpenMP team is not usable after a fork), and no other Python thread running (a thread could hold
@@ -36,7 +37,8 @@ import signal
 import sys
 import threading
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import fields
 from multiprocessing.connection import Connection, wait
 
@@ -215,26 +217,40 @@ def advance_in_processes(
         ))  # fmt: skip
         stop.value = 1
 
+    def handle(receive: Connection) -> None:
+        try:
+            kind, index, body = pickle.loads(receive.recv_bytes())
+        except EOFError:
+            lost(receive)
+            return
+        if kind == "chain":
+            apply_changes(runs[index][0], body)
+            returned.add(index)
+        elif kind == "error":
+            errors.append(body)
+            stop.value = 1
+        else:  # "end"
+            process, _ = receivers.pop(receive)
+            process.join()
+
+    signals = 0  # Ctrl-C (or SIGTERM) received while the workers run
+
+    def on_signal(signum: int, frame: object) -> None:
+        nonlocal signals
+        signals += 1
+        stop.value = 1  # every chain ends its sweep and comes back
+
     def collect() -> None:
         while receivers:
             for receive in wait(list(receivers), timeout=POLL_SECONDS):
-                try:
-                    kind, index, body = _receive(receive)
-                except EOFError:
-                    lost(receive)
-                    continue
-                if kind == "chain":
-                    apply_changes(runs[index][0], body)
-                    returned.add(index)
-                elif kind == "error":
-                    errors.append(body)
-                    stop.value = 1
-                else:  # "end"
-                    process, _ = receivers.pop(receive)
-                    process.join()
+                handle(receive)  # read and applied whole: no signal raises in here
+                if signals > 1:
+                    break
             report()
+            if signals > 1:  # a second Ctrl-C: stop waiting for the chains
+                raise KeyboardInterrupt
 
-    try:
+    with _signals_deferred(on_signal):
         try:
             for w in range(workers):
                 indices = list(range(w, len(runs), workers))
@@ -250,23 +266,36 @@ def advance_in_processes(
             if on_started is not None:
                 on_started()
             collect()
-        except KeyboardInterrupt:
-            stop.value = 1
-            collect()  # every chain ends its sweep and comes back
-            raise
-    finally:
-        for process, _ in receivers.values():  # a second Ctrl-C, or an error in this process
-            process.kill()
-            process.join()
-        report()
+        finally:
+            for process, _ in receivers.values():  # a second Ctrl-C, or an error here
+                process.kill()
+                process.join()
+            report()
+    if signals:
+        raise KeyboardInterrupt
     if errors:
         raise errors[0]
 
 
-def _receive(connection: Connection) -> tuple[str, int, object]:
-    """One message of a worker, read whole: a Ctrl-C meanwhile is raised after it."""
-    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+@contextmanager
+def _signals_deferred(handler: Callable[[int, object], None]) -> Iterator[None]:
+    """In the block, SIGINT and SIGTERM, where Python handlers turn them into an interrupt (the
+    default one for SIGINT; ``spcopyro fit``'s for SIGTERM), call ``handler`` instead of raising
+    :class:`KeyboardInterrupt` wherever this thread is: a message from a worker is then read and
+    applied whole (an interrupt inside it would cut the pipe's stream or half-update a chain). A
+    signal ignored or left to the OS stays so. The previous handlers come back after. Only the
+    main thread can set handlers; elsewhere no signal is raised in this thread anyway."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {
+        number: signal.getsignal(number) for number in (signal.SIGINT, signal.SIGTERM)
+        if callable(signal.getsignal(number))
+    }  # fmt: skip
+    for number in previous:
+        signal.signal(number, handler)
     try:
-        return pickle.loads(connection.recv_bytes())
+        yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+        for number, old in previous.items():
+            signal.signal(number, old)
