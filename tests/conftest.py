@@ -3,6 +3,7 @@ Gibbs sweep backends (each test taking ``backend`` runs once per backend)."""
 
 from __future__ import annotations
 
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +38,16 @@ def _fixed_seed():
     torch.manual_seed(0)
     np.random.seed(0)  # noqa: NPY002 - legacy global state, reset for code that uses it
     yield
+
+
+@pytest.fixture
+def ctrl_c_raises():
+    """SIGINT raises KeyboardInterrupt in the test, as in an interactive Python, even where the
+    test runner was started with SIGINT ignored (a background job of a shell without job
+    control, ``nohup``: the ignore is inherited); the previous handler comes back after."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)
 
 
 @pytest.fixture

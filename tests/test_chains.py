@@ -155,7 +155,7 @@ class _SlowBackend:
         return getattr(self.inner, name)
 
 
-def test_ctrl_c_at_the_keyboard_keeps_every_chains_completed_sweeps(mode):
+def test_ctrl_c_at_the_keyboard_keeps_every_chains_completed_sweeps(mode, ctrl_c_raises):
     """The chains on worker threads stop at their next completed sweep *with its record*: the
     records (log joint, concepts) match the sweeps done, and continuing is exact."""
     cfg = config(num_concepts=5, gamma=1.0)
@@ -181,7 +181,7 @@ def test_ctrl_c_at_the_keyboard_keeps_every_chains_completed_sweeps(mode):
         _same(a, b)
 
 
-def test_a_second_ctrl_c_stops_waiting_for_the_chains_in_processes():
+def test_a_second_ctrl_c_stops_waiting_for_the_chains_in_processes(ctrl_c_raises):
     """Two SIGINTs: the command stops waiting, ends the workers, and the chains not yet back
     stay where they were (consistent, with no sweep of this call)."""
     cfg = config(num_concepts=5, gamma=1.0)

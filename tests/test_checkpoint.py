@@ -330,7 +330,7 @@ def test_ctrl_c_keeps_a_checkpoint_and_resume_gives_the_unbroken_fit(
 
 
 def test_ctrl_c_at_the_keyboard_with_chains_in_processes_resumes_to_the_unbroken_fit(
-    room, tmp_path, capsys, monkeypatch
+    room, tmp_path, capsys, monkeypatch, ctrl_c_raises
 ):
     """``fit --chains 2`` with its chains in forked processes: a SIGINT to the command (what a
     Ctrl-C at the keyboard sends; the workers ignore theirs) stops both chains after their
