@@ -8,6 +8,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
+import sys
 import threading
 import time
 
@@ -45,10 +46,17 @@ def _same(a, b) -> None:
         np.testing.assert_array_equal(ra.label_samples, rb.label_samples)
 
 
+FORKS = sys.platform.startswith("linux")
+"""Whether chains may run in forked processes here (Linux only)."""
+linux_only = pytest.mark.skipif(not FORKS, reason="chains run in forked processes on Linux only")
+
+
 @pytest.fixture(params=["off", "on"], ids=["threads", "processes"])
 def mode(request):
     """How the chains run: on threads (``off``) or in forked processes (``on``, which needs one
-    torch thread)."""
+    torch thread; Linux only)."""
+    if request.param == "on" and not FORKS:
+        pytest.skip("chains run in forked processes on Linux only")
     with torch_threads(1 if request.param == "on" else None):
         yield request.param
 
@@ -181,6 +189,7 @@ def test_ctrl_c_at_the_keyboard_keeps_every_chains_completed_sweeps(mode, ctrl_c
         _same(a, b)
 
 
+@linux_only
 def test_a_second_ctrl_c_stops_waiting_for_the_chains_in_processes(ctrl_c_raises):
     """Two SIGINTs: the command stops waiting, ends the workers, and the chains not yet back
     stay where they were (consistent, with no sweep of this call)."""
@@ -234,6 +243,7 @@ def test_a_chains_error_is_raised_once_the_others_stopped(mode):
         assert any("in the chain's worker process" in note for note in raised.value.__notes__)
 
 
+@linux_only
 def test_a_worker_process_that_dies_is_an_error_naming_its_chains():
     cfg = config(num_concepts=5, gamma=1.0)
     _, data = random_problem(seed=13, copies=4)
@@ -271,6 +281,9 @@ def test_every_sweep_is_reported_and_the_start_action_runs_once_the_workers_are_
 
 def test_processes_are_used_only_where_forking_is_safe(monkeypatch):
     monkeypatch.delenv(PROCESSES_ENV, raising=False)
+    if not FORKS:
+        assert "forking is not used" in processes_usable() and not uses_processes(2)
+        return
     with torch_threads(1):
         assert processes_usable() is None  # the suite's process runs no other thread
         assert uses_processes(2) and uses_processes(2, "on")
@@ -317,7 +330,7 @@ def test_fit_with_parallel_chains_gives_the_sequential_fit(monkeypatch):
     settings = preset("paper-dp", num_concepts=8)
     kwargs = dict(sweeps=6, seeds=[0, 1, 2], progress=False)
     one = fit_house_chains(house, settings, chain_workers=1, **kwargs)
-    for mode in ("off", "on"):  # two workers: threads, processes (one torch thread: the policy)
+    for mode in ("off", "on") if FORKS else ("off",):  # threads, processes (one torch thread)
         monkeypatch.setenv(PROCESSES_ENV, mode)
         two = fit_house_chains(house, settings, chain_workers=2, **kwargs)
         for a, b in zip(one, two, strict=True):

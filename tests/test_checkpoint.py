@@ -329,6 +329,7 @@ def test_ctrl_c_keeps_a_checkpoint_and_resume_gives_the_unbroken_fit(
     _same_outputs(out, tmp_path / "unbroken")
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="forked chains: Linux only")
 def test_ctrl_c_at_the_keyboard_with_chains_in_processes_resumes_to_the_unbroken_fit(
     room, tmp_path, capsys, monkeypatch, ctrl_c_raises
 ):
@@ -616,6 +617,7 @@ def test_a_real_ctrl_c_in_a_fit_process(room, tmp_path, sent):
 
 
 @pytest.mark.slow  # a fresh process: ~5 s of imports
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="forked chains: Linux only")
 @pytest.mark.parametrize("sent", [signal.SIGINT, signal.SIGTERM])
 def test_a_real_ctrl_c_in_a_fit_whose_chains_run_in_processes(room, tmp_path, sent):
     """SIGINT to the whole process group (a Ctrl-C at the terminal: the chains' worker
