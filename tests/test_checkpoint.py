@@ -586,6 +586,32 @@ def _default_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
+def _interrupted_fit_process(out: Path, room: Path, chains: int, send) -> tuple[str, int]:
+    """Run ``python -m spcopyro fit`` of ``chains`` chains of a million sweeps on ``room``
+    (in a process group of its own), ``send(process)`` once it has swept some, and return its
+    stderr and process group after asserting exit 130 and no traceback."""
+    env = {k: v for k, v in os.environ.items() if k != "CI"}  # the progress bar shows sweeping
+    env["PYTHONPATH"] = str(Path(spcopyro.fit.house.__file__).parents[1])
+    env[spcopyro.gibbs.chains.PROCESSES_ENV] = "on" if chains > 1 else "auto"
+    argv = ["fit", str(room), "--out", str(out), "--sweeps", "1000000", "--concepts", "8",
+            "--chains", str(chains), "--chain-workers", str(chains)]  # fmt: skip
+    process = subprocess.Popen([sys.executable, "-m", "spcopyro", *argv], env=env,
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                               preexec_fn=_default_sigint, process_group=0)  # fmt: skip
+    seen, total = b"", str(chains * 1000000).encode()
+    while not re.search(rb"Gibbs sweeps.*?: .*?\b[1-9][0-9]*/" + total + rb" \[", seen):
+        chunk = os.read(process.stderr.fileno(), 4096)  # swept some
+        if not chunk:
+            break
+        seen += chunk
+    send(process)
+    _, rest = process.communicate(timeout=120)
+    err = (seen + rest).decode()
+    assert process.returncode == 130, err
+    assert "Traceback" not in err
+    return err, process.pid
+
+
 @pytest.mark.slow  # a fresh process: ~5 s of imports
 @pytest.mark.parametrize("sent", [signal.SIGINT, signal.SIGTERM])
 def test_a_real_ctrl_c_in_a_fit_process(room, tmp_path, sent):
@@ -593,23 +619,7 @@ def test_a_real_ctrl_c_in_a_fit_process(room, tmp_path, sent):
     ``python -m spcopyro fit`` process once it has done some sweeps: exit 130, no traceback,
     the last line says where the checkpoint is, which holds the sweeps done."""
     out = tmp_path / "out"
-    env = {k: v for k, v in os.environ.items() if k != "CI"}  # the progress bar shows sweeping
-    env["PYTHONPATH"] = str(Path(spcopyro.fit.house.__file__).parents[1])
-    argv = ["fit", str(room), "--out", str(out), "--sweeps", "1000000", "--concepts", "8"]
-    process = subprocess.Popen([sys.executable, "-m", "spcopyro", *argv], env=env,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                               preexec_fn=_default_sigint)  # fmt: skip
-    seen = b""
-    while not re.search(rb"Gibbs sweeps: .*?\b[1-9][0-9]*/1000000 \[", seen):  # swept some
-        chunk = os.read(process.stderr.fileno(), 4096)
-        if not chunk:
-            break
-        seen += chunk
-    process.send_signal(sent)
-    _, rest = process.communicate(timeout=120)
-    err = (seen + rest).decode()
-    assert process.returncode == 130, err
-    assert "Traceback" not in err
+    err, _ = _interrupted_fit_process(out, room, 1, lambda process: process.send_signal(sent))
     last = err.strip().splitlines()[-1].split("\r")[-1]
     assert last.startswith("interrupted (chain 1 of 1, ") and "continue with: spcopyro" in last
     record = read_record(checkpoint_path(out))
@@ -625,28 +635,14 @@ def test_a_real_ctrl_c_in_a_fit_whose_chains_run_in_processes(room, tmp_path, se
     2`` with its chains in forked processes: exit 130, no traceback, every chain saved with the
     records of its sweeps, no worker left running."""
     out = tmp_path / "out"
-    env = {k: v for k, v in os.environ.items() if k != "CI"}  # the progress bar shows sweeping
-    env["PYTHONPATH"] = str(Path(spcopyro.fit.house.__file__).parents[1])
-    env[spcopyro.gibbs.chains.PROCESSES_ENV] = "on"
-    argv = ["fit", str(room), "--out", str(out), "--sweeps", "1000000", "--concepts", "8",
-            "--chains", "2", "--chain-workers", "2"]  # fmt: skip
-    process = subprocess.Popen([sys.executable, "-m", "spcopyro", *argv], env=env,
-                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                               preexec_fn=_default_sigint, process_group=0)  # fmt: skip
-    seen = b""
-    while not re.search(rb"Gibbs sweeps: .*?\b[1-9][0-9]*/2000000 \[", seen):  # swept some
-        chunk = os.read(process.stderr.fileno(), 4096)
-        if not chunk:
-            break
-        seen += chunk
-    if sent == signal.SIGINT:
-        os.killpg(process.pid, sent)
-    else:
-        process.send_signal(sent)
-    _, rest = process.communicate(timeout=120)
-    err = (seen + rest).decode()
-    assert process.returncode == 130, err
-    assert "Traceback" not in err
+
+    def send(process: subprocess.Popen) -> None:
+        if sent == signal.SIGINT:
+            os.killpg(process.pid, sent)
+        else:
+            process.send_signal(sent)
+
+    err, group = _interrupted_fit_process(out, room, 2, send)
     last = err.strip().splitlines()[-1].split("\r")[-1]
     assert last.startswith("interrupted (") and "continue with: spcopyro" in last
     checkpoint = checkpoint_path(out)
@@ -655,8 +651,20 @@ def test_a_real_ctrl_c_in_a_fit_whose_chains_run_in_processes(room, tmp_path, se
     with np.load(checkpoint) as saved:
         assert [len(saved[f"chain{k}.log_joint"]) for k in range(2)] == done
     time.sleep(0.5)
-    stray = subprocess.run(["pgrep", "-g", str(process.pid)], capture_output=True, text=True)
-    assert stray.stdout.strip() == ""  # the workers ended with the command
+    assert _processes_in_group(group) == []  # the workers ended with the command
+
+
+def _processes_in_group(group: int) -> list[int]:
+    """The pids of the live processes of process group ``group`` (Linux's /proc)."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            state, _, pgrp = stat.read_text().rsplit(")", 1)[1].split()[:3]
+        except (OSError, IndexError, ValueError):  # gone meanwhile
+            continue
+        if int(pgrp) == group and state != "Z":
+            found.append(int(stat.parent.name))
+    return found
 
 
 def test_a_killed_runs_staging_folder_is_removed_by_the_next_run_into_out(room, tmp_path):
