@@ -86,6 +86,30 @@ def test_parallel_chains_equal_the_chains_run_alone(backend, mode):
         assert a.best_value == b.best_value and a.sample_sweeps == b.sample_sweeps
 
 
+def test_chains_with_moves_and_sampled_hyperparameters_come_back_whole(mode):
+    """Everything a sweep changes comes back from a worker: the moves' draws, the sampled
+    hyperparameters' trace, the model config they leave and the log joint's constant."""
+    from spcopyro.gibbs.hyper_options import HyperparameterOptions
+
+    cfg = config(num_concepts=6, gamma=1.5)
+    _, data = random_problem(seed=11, copies=6)
+    hyper = HyperparameterOptions(alpha=True, concentrations=True, gamma="exchange")
+    options = GibbsOptions(backend="torch", merge_moves=0.3, region_moves=0.3,
+                           cluster_moves=0.2, hyper=hyper)  # fmt: skip
+    alone = [start_chain(data, cfg, options=options, seed=seed) for seed in (3, 4, 5)]
+    for chain in alone:
+        advance(chain, 10, thin=5, progress=False)
+    together = [start_chain(data, cfg, options=options, seed=seed) for seed in (3, 4, 5)]
+    advance_chains([(chain, 10) for chain in together], workers=2, thin=5, progress=False,
+                   processes=mode)  # fmt: skip
+    for a, b in zip(alone, together, strict=True):
+        _same(a, b)
+        ra, rb = a.to_run(), b.to_run()
+        for name, values in ra.hyperparameters.items():
+            np.testing.assert_array_equal(values, rb.hyperparameters[name])
+        assert ra.final_config == rb.final_config and a.constant == b.constant
+
+
 def test_chains_with_different_sweeps_left_each_get_theirs(mode):
     cfg = config(num_concepts=4)
     _, data = random_problem(seed=12, copies=2)
