@@ -37,6 +37,7 @@ import signal
 import sys
 import threading
 import traceback
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import fields
@@ -260,7 +261,13 @@ def advance_in_processes(
                     args=(runs, indices, thin, advance_chain, send, sweeps_done, stop),
                     name=f"spcopyro-chains-{w}", daemon=True,
                 )  # fmt: skip
-                process.start()
+                with warnings.catch_warnings():
+                    # Python >= 3.12 warns at any fork of a process with OS threads: torch
+                    # keeps native helper threads (two after `import torch`) that a child at
+                    # one intra-op thread never uses; no Python thread runs (processes_usable)
+                    warnings.filterwarnings("ignore", r"This process .* is multi-threaded",
+                                            DeprecationWarning)  # fmt: skip
+                    process.start()
                 send.close()
                 receivers[receive] = (process, indices)
             if on_started is not None:
