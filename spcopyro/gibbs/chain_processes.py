@@ -262,9 +262,10 @@ def advance_in_processes(
                     name=f"spcopyro-chains-{w}", daemon=True,
                 )  # fmt: skip
                 with warnings.catch_warnings():
-                    # Python >= 3.12 warns at any fork of a process with OS threads: torch
-                    # keeps native helper threads (two after `import torch`) that a child at
-                    # one intra-op thread never uses; no Python thread runs (processes_usable)
+                    # Python >= 3.12 documents a warning at a fork of a process with OS
+                    # threads (not seen with 3.12.1 / 3.13.0 here): torch keeps native helper
+                    # threads that a child at one intra-op thread never uses, and no Python
+                    # thread runs (processes_usable); a precaution for warnings-as-errors
                     warnings.filterwarnings("ignore", r"This process .* is multi-threaded",
                                             DeprecationWarning)  # fmt: skip
                     process.start()
