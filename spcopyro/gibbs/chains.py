@@ -1,9 +1,11 @@
-"""Many Gibbs chains at once, in one process: :func:`advance_chains`.
+"""Many Gibbs chains at once: :func:`advance_chains`.
 
 ``--chains K`` used to run its chains one after another. Here they share what a process sets up
 once (the imports, the house, the model data, the sweep plan, the compiled kernels) and advance
-side by side on up to ``workers`` threads: the compiled sweep releases the GIL (its kernels are
-``nogil``; torch's operations release it too), so on a 2-core machine two chains run at once.
+side by side, up to ``workers`` at a time: in processes forked from this one where that is safe
+(:mod:`spcopyro.gibbs.chain_processes`: no GIL shared; :func:`uses_processes`), else on threads
+(the compiled sweep releases the GIL -- its kernels are ``nogil``, torch's operations release it
+too -- but each sweep's Python part holds it), so on a 2-core machine two chains run at once.
 
 Each chain keeps its own generator and advances exactly as :func:`~spcopyro.gibbs.run.advance`
 would advance it alone, so chain k of a parallel run is the chain of seed k run by itself, bit for
