@@ -119,3 +119,52 @@ def test_adjusted_rand_score_equals_scikit_learns(rng):
     for first, second in cases:
         expected = sklearn_metrics.adjusted_rand_score(np.asarray(first), np.asarray(second))
         assert adjusted_rand_score(np.asarray(first), np.asarray(second)) == expected
+
+
+def _fitted_house(tmp_path):
+    """A short default fit of the embedded house (with marginals: every figure has data)."""
+    from spcopyro.config import preset
+    from spcopyro.fit.house import fit_house, preset_fit_kwargs
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    house = make_house(seed=0, spec=HouseSpec.embedded())
+    kwargs = preset_fit_kwargs("coarse", marginal_samples=4)
+    result = fit_house(house, preset("coarse"), sweeps=8, seed=0, progress=False, **kwargs)
+    return result, house
+
+
+def test_figures_drawn_in_a_forked_child_are_the_files_drawn_here(tmp_path, monkeypatch):
+    """write_figures hands the house, uncertainty and agreement maps to a forked child where
+    forking is safe: the PNGs are byte for byte those drawn in one process; a child that dies
+    leaves its figures to the parent, which draws them."""
+    import pytest
+
+    from spcopyro.cli import fit_figures
+    from spcopyro.cli.fit_figures import write_figures
+
+    if not sys.platform.startswith("linux"):
+        pytest.skip("figures are drawn in a forked child on Linux only")
+    result, house = _fitted_house(tmp_path)
+    assert result.agreement is not None
+    folders = {name: tmp_path / name for name in ("here", "forked", "child died")}
+    for folder in folders.values():
+        folder.mkdir()
+    write_figures(result, house, folders["here"], uncertainty=True, fork=False)
+    children: list[object] = []
+    start = fit_figures._draw_in_child
+
+    def recorded(figures):
+        children.append(start(figures))
+        return children[-1]
+
+    monkeypatch.setattr(fit_figures, "_draw_in_child", recorded)
+    write_figures(result, house, folders["forked"], uncertainty=True)
+    assert len(children) == 1 and children[0].exitcode == 0  # drawn there
+    monkeypatch.setattr(fit_figures, "_child_draws", lambda figures: os._exit(3))
+    write_figures(result, house, folders["child died"], uncertainty=True)
+    assert children[-1].exitcode == 3
+    names = {"semantic_map.png", "trace.png", "house.png", "uncertainty.png", "agreement.png"}
+    for name in names:
+        expected = (folders["here"] / name).read_bytes()
+        for folder in ("forked", "child died"):
+            assert (folders[folder] / name).read_bytes() == expected, (folder, name)

@@ -34,7 +34,6 @@ import multiprocessing
 import os
 import pickle
 import signal
-import sys
 import threading
 import traceback
 import warnings
@@ -43,6 +42,7 @@ from contextlib import contextmanager
 from dataclasses import fields
 from multiprocessing.connection import Connection, wait
 
+from spcopyro._util.forking import fork_refusal, fresh_tqdm_lock
 from spcopyro.gibbs.run import GibbsChain, advance
 
 POLL_SECONDS = 0.1
@@ -63,37 +63,10 @@ class ChainProcessError(RuntimeError):
     memory)."""
 
 
-def _other_threads() -> list[str]:
-    """Names of the live Python threads other than this one and tqdm's monitor (which every bar
-    starts, even a disabled one; the lock it takes is replaced in the workers)."""
-    current = threading.current_thread()
-    return [
-        thread.name for thread in threading.enumerate()
-        if thread is not current and type(thread).__name__ != "TMonitor"
-    ]  # fmt: skip
-
-
-def _fresh_tqdm_lock() -> None:
-    """Give this (forked) process's progress bars a lock of their own: tqdm's monitor thread
-    may have held the parent's at the fork, and every bar, even a disabled one, takes it."""
-    import tqdm.auto
-    import tqdm.std
-
-    for cls in {tqdm.std.tqdm, tqdm.auto.tqdm}:
-        cls.set_lock(threading.RLock())
-
-
 def processes_usable() -> str | None:
-    """None if chains may run in forked processes here, else the reason they may not."""
-    if not sys.platform.startswith("linux"):
-        return f"forking is not used on {sys.platform}"
-    import torch
-
-    if torch.get_num_threads() != 1:
-        return f"torch runs {torch.get_num_threads()} intra-op threads (an OpenMP team)"
-    if others := _other_threads():
-        return f"other threads are running ({', '.join(others)})"
-    return None
+    """None if chains may run in forked processes here, else the reason they may not
+    (:func:`spcopyro._util.forking.fork_refusal`: Linux, one torch thread, no other thread)."""
+    return fork_refusal(uses_torch=True)
 
 
 def chain_changes(chain: GibbsChain) -> dict[str, object]:
@@ -137,7 +110,7 @@ def _worker(runs, indices, thin, advance_chain, connection, sweeps_done, stop) -
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     parent = os.getppid()
-    _fresh_tqdm_lock()
+    fresh_tqdm_lock()
 
     def after_sweep(index: int) -> Callable[..., None]:
         def callback(*_: object) -> None:
