@@ -150,10 +150,12 @@ def _draw_in_child(figures: list[tuple[str, Callable[[], None]]]) -> BaseProcess
     started; it exits with 0 once they are written, 1 if one failed."""
     import multiprocessing
 
+    from spcopyro._util.forking import start_forked
+
     process = multiprocessing.get_context("fork").Process(
         target=_child_draws, args=(figures,), name="spcopyro-figures", daemon=True
     )
-    process.start()
+    start_forked(process)
     return process
 
 

@@ -36,13 +36,12 @@ import pickle
 import signal
 import threading
 import traceback
-import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import fields
 from multiprocessing.connection import Connection, wait
 
-from spcopyro._util.forking import fork_refusal, fresh_tqdm_lock
+from spcopyro._util.forking import fork_refusal, fresh_tqdm_lock, start_forked
 from spcopyro.gibbs.run import GibbsChain, advance
 
 POLL_SECONDS = 0.1
@@ -234,14 +233,7 @@ def advance_in_processes(
                     args=(runs, indices, thin, advance_chain, send, sweeps_done, stop),
                     name=f"spcopyro-chains-{w}", daemon=True,
                 )  # fmt: skip
-                with warnings.catch_warnings():
-                    # Python >= 3.12 documents a warning at a fork of a process with OS
-                    # threads (not seen with 3.12.1 / 3.13.0 here): torch keeps native helper
-                    # threads that a child at one intra-op thread never uses, and no Python
-                    # thread runs (processes_usable); a precaution for warnings-as-errors
-                    warnings.filterwarnings("ignore", r"This process .* is multi-threaded",
-                                            DeprecationWarning)  # fmt: skip
-                    process.start()
+                start_forked(process)
                 send.close()
                 receivers[receive] = (process, indices)
             if on_started is not None:
