@@ -46,7 +46,6 @@ def _min_speed(value: str) -> float:
 
 
 def _export(args: argparse.Namespace) -> int:
-
     from spcopyro._util.outputs import robot_map_of
     from spcopyro.results.result import SpCoResult, UnknownWordError
     from spcopyro.robot.nav2 import export_nav2

@@ -377,7 +377,7 @@ def _fit_staged(job: FitJob) -> int:
     # house.png and the figures' imports, drawn on a thread of their own while the chains run;
     # with several Gibbs chains, started once they run: a thread alive when they would be forked
     # into processes keeps them on threads (spcopyro.gibbs.chain_processes)
-    several = args.method == "gibbs" and (args.chains or (4 if args.sweeps == "auto" else 1)) > 1
+    several = args.method == "gibbs" and _chain_count(args) > 1
     prefetch = None
     if not args.no_figures:
         prefetch = FigurePrefetch(house, job.staged.path, start=not several)
@@ -389,6 +389,14 @@ def _fit_staged(job: FitJob) -> int:
     finally:
         if prefetch is not None:  # nothing written into the staging folder after this
             prefetch.join()
+
+
+def _chain_count(args: argparse.Namespace) -> int:
+    """How many chains (or fits) ``--chains`` asks for: 4 by default with ``--sweeps auto``,
+    else 1."""
+    if args.chains is not None:
+        return int(args.chains)
+    return 4 if args.sweeps == "auto" else 1
 
 
 def _fit(job: FitJob, init: object, saved: SpCoResult | None) -> Fitted:
@@ -403,7 +411,7 @@ def _fit(job: FitJob, init: object, saved: SpCoResult | None) -> Fitted:
     if args.sweeps == "auto":
         from spcopyro.fit.house import fit_house_converged
 
-        chains = 4 if args.chains is None else args.chains
+        chains = _chain_count(args)
         result, diagnostics = fit_house_converged(
             house, settings, options=options, chains=chains, max_sweeps=args.max_sweeps,
             seed=args.seed, init=init, source=source, threads=args.threads,
@@ -412,7 +420,7 @@ def _fit(job: FitJob, init: object, saved: SpCoResult | None) -> Fitted:
     elif saved is not None:
         from spcopyro.robot.online import fit_update
 
-        chains = 1 if args.chains is None else args.chains
+        chains = _chain_count(args)
         chain_results = fit_update(
             saved, house, settings, method=args.method, options=options, sweeps=args.sweeps,
             seeds=[args.seed + k for k in range(chains)], source=source, threads=args.threads,
@@ -424,7 +432,7 @@ def _fit(job: FitJob, init: object, saved: SpCoResult | None) -> Fitted:
         kept = best_chain(chain_results)
         result = chain_results[kept]
     else:
-        chains = 1 if args.chains is None else args.chains
+        chains = _chain_count(args)
         chain_results = fit_house_chains(
             house, settings, method=args.method, options=options, sweeps=args.sweeps,
             seeds=[args.seed + k for k in range(chains)], init=init, source=source,

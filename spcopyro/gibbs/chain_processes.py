@@ -42,6 +42,7 @@ from dataclasses import fields
 from multiprocessing.connection import Connection, wait
 
 from spcopyro._util.forking import fork_refusal, fresh_tqdm_lock, start_forked
+from spcopyro.gibbs.chains import ChainsStopped
 from spcopyro.gibbs.run import GibbsChain, advance
 
 POLL_SECONDS = 0.1
@@ -50,11 +51,6 @@ POLL_SECONDS = 0.1
 _FIXED_FIELDS = ("data", "config", "options", "backend", "plan")
 """The fields of a :class:`~spcopyro.gibbs.run.GibbsChain` that a sweep never changes: not sent
 back. Every other field is (the generator as its state)."""
-
-
-class _Stopped(KeyboardInterrupt):
-    """Raised in a worker by a chain's callback once the stop flag is up: the driver keeps the
-    sweeps completed, as for a Ctrl-C."""
 
 
 class ChainProcessError(RuntimeError):
@@ -115,7 +111,7 @@ def _worker(runs, indices, thin, advance_chain, connection, sweeps_done, stop) -
         def callback(*_: object) -> None:
             sweeps_done[index] += 1
             if stop.value:
-                raise _Stopped
+                raise ChainsStopped
             if os.getppid() != parent:  # the parent was killed: nobody waits for the chains
                 os._exit(1)
 
@@ -131,7 +127,7 @@ def _worker(runs, indices, thin, advance_chain, connection, sweeps_done, stop) -
                               callback=after_sweep(index))  # fmt: skip
             except KeyboardInterrupt:  # the chain holds its completed sweeps
                 _send(connection, ("chain", index, chain_changes(chain)))
-                if stop.value:  # _Stopped
+                if stop.value:  # ChainsStopped
                     continue
                 # raised by the chain itself (never SIGINT, ignored here): as on a thread
                 _send(connection, ("error", index, KeyboardInterrupt()))

@@ -35,10 +35,11 @@ from spcopyro.gibbs.run import GibbsChain, advance
 AUTO = "auto"
 
 
-class _Stopped(KeyboardInterrupt):
+class ChainsStopped(KeyboardInterrupt):
     """Raised by a chain's callback after a sweep, once Ctrl-C (or another chain's error) asked
     every chain to stop. A :class:`KeyboardInterrupt`, so that the driver keeps the sweeps the
-    chain completed (:class:`~spcopyro.inference.driver.DriveInterrupted`) as for a Ctrl-C."""
+    chain completed (:class:`~spcopyro.inference.driver.DriveInterrupted`) as for a Ctrl-C. Raised
+    in a chain's thread, or in its worker process (:mod:`spcopyro.gibbs.chain_processes`)."""
 
 
 def usable_cpus() -> int:
@@ -186,12 +187,12 @@ def advance_chains(
             if on_sweep is not None:
                 on_sweep()
         if stop.is_set():
-            raise _Stopped
+            raise ChainsStopped
 
     def run_one(chain: GibbsChain, num_sweeps: int) -> None:
         try:
             advance(chain, num_sweeps, thin=thin, progress=False, callback=after_sweep)
-        except KeyboardInterrupt:  # _Stopped, as the driver raises it again
+        except KeyboardInterrupt:  # ChainsStopped, as the driver raises it again
             if not stop.is_set():
                 raise
 
