@@ -42,8 +42,7 @@ from dataclasses import fields
 from multiprocessing.connection import Connection, wait
 
 from spcopyro._util.forking import fork_refusal, fresh_tqdm_lock, start_forked
-from spcopyro.gibbs.chains import ChainsStopped
-from spcopyro.gibbs.run import GibbsChain, advance
+from spcopyro.gibbs.run import ChainsStopped, GibbsChain, advance
 
 POLL_SECONDS = 0.1
 """How often the progress counts are read while the workers run."""

@@ -30,16 +30,9 @@ from contextlib import contextmanager
 from tqdm.auto import tqdm
 
 from spcopyro._util.progress import progress_enabled
-from spcopyro.gibbs.run import GibbsChain, advance
+from spcopyro.gibbs.run import ChainsStopped, GibbsChain, advance
 
 AUTO = "auto"
-
-
-class ChainsStopped(KeyboardInterrupt):
-    """Raised by a chain's callback after a sweep, once Ctrl-C (or another chain's error) asked
-    every chain to stop. A :class:`KeyboardInterrupt`, so that the driver keeps the sweeps the
-    chain completed (:class:`~spcopyro.inference.driver.DriveInterrupted`) as for a Ctrl-C. Raised
-    in a chain's thread, or in its worker process (:mod:`spcopyro.gibbs.chain_processes`)."""
 
 
 def usable_cpus() -> int:

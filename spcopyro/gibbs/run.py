@@ -50,6 +50,14 @@ def label_dtype(num_concepts: int) -> torch.dtype:
     return LABEL_DTYPE if num_concepts <= torch.iinfo(LABEL_DTYPE).max + 1 else torch.int32
 
 
+class ChainsStopped(KeyboardInterrupt):
+    """Raised by a chain's callback after a sweep, once Ctrl-C (or another chain's error) asked
+    every chain to stop. A :class:`KeyboardInterrupt`, so that the driver keeps the sweeps the
+    chain completed (:class:`~spcopyro.inference.driver.DriveInterrupted`) as for a Ctrl-C. Raised
+    in a chain's thread (:mod:`spcopyro.gibbs.chains`) or its worker process
+    (:mod:`spcopyro.gibbs.chain_processes`)."""
+
+
 class NonFiniteLogJointError(FloatingPointError, ValueError):
     """A sweep's log joint is NaN or infinite: counts or hyperparameters beyond what float64
     carries (see :func:`spcopyro.fit.house.config_warnings`). A ValueError, so the command line
