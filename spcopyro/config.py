@@ -90,7 +90,9 @@ DEFAULT_PRESET = "coarse"
 
 PRESET_INFERENCE: dict[str, dict[str, object]] = {
     "auto": dict(init="rooms", merge_moves=0.2, point_estimate="vi"),
-    "coarse": dict(init="rooms", merge_moves=0.2, region_moves=0.2, point_estimate="vi"),
+    "coarse": dict(
+        init="rooms", merge_moves=0.2, region_moves=0.2, point_estimate="vi", refine="auto"
+    ),
 }
 """The inference settings a preset recommends beside its model (names of ``fit_house`` keyword
 arguments and :class:`~spcopyro.gibbs.options.GibbsOptions` fields, as plain values so that this

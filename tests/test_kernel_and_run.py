@@ -230,7 +230,7 @@ def test_presets_and_validation():
     assert preset("paper-dp").model.beta == 500.0  # the paper's presets stay as they were
     assert preset_inference("auto") == dict(init="rooms", merge_moves=0.2, point_estimate="vi")
     assert preset_inference("coarse") == dict(
-        init="rooms", merge_moves=0.2, region_moves=0.2, point_estimate="vi"
+        init="rooms", merge_moves=0.2, region_moves=0.2, point_estimate="vi", refine="auto"
     )
     assert preset_inference("paper-dp") == {}
     with pytest.raises(ValueError, match="unknown preset"):
@@ -368,9 +368,16 @@ def test_a_library_fit_says_when_it_skips_its_presets_inference_settings(caplog)
     assert kwargs["point_estimate"] == "vi" and kwargs["marginal_samples"] == 50
     coarse = preset_fit_kwargs("coarse")  # the default
     assert coarse["options"] == GibbsOptions(merge_moves=0.2, region_moves=0.2)
+    assert coarse["refine"] == "auto"
     paper = preset_fit_kwargs("paper-dp")  # the paper's run
     assert paper == {"options": GibbsOptions(), "init": "random", "marginal_samples": 0,
-                     "point_estimate": "map-visited"}  # fmt: skip
+                     "point_estimate": "map-visited", "refine": "never"}  # fmt: skip
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):  # the refinement left out
+        unrefined = {**preset_fit_kwargs("coarse", marginal_samples=2), "refine": "never"}
+        fit_house(house, preset("coarse"), sweeps=4, progress=False, **unrefined)
+    skipped = [r.getMessage() for r in caplog.records if "recommends" in r.getMessage()]
+    assert len(skipped) == 1 and "refine='auto'" in skipped[0]
 
 
 def test_predictive_after_mcmc_keeps_the_chains_labels():

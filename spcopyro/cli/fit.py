@@ -69,6 +69,10 @@ class FitJob:
     staged: StagedOutput
     keeper: FitCheckpoint | None
     """Keeps the Gibbs chains for a checkpoint beside OUT (None where none is kept)."""
+    map_house: House | None = None
+    """The house on its map's own cells, as loaded: ``--refine`` refits there, and sets
+    ``refined`` and ``house = map_house`` when it does."""
+    refined: bool = False
     sampled: bool = False
     """Set once the fit is done: a Ctrl-C while writing then keeps the finished chains."""
 
@@ -155,17 +159,17 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
         )
     if args.resume is not None and not Path(args.resume).is_file():
         raise FileNotFoundError(f"--resume {args.resume}: no such checkpoint file")
-    house = _load(args.data)
+    loaded = _load(args.data)
     args.phases.mark("load")
-    settings, options = _fit_settings(args, house)
-    house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
+    settings, options = _fit_settings(args, loaded)
+    house = model_house(loaded, settings.data.cell_size)  # the model's grid (cell_size)
     staged = stage_output(
         args.out, overwrite=args.overwrite, resume=args.resume,
         inputs=(house.source, house.grid.source, args.update),
     )  # fmt: skip
     args.phases.mark("settings")
     keeper = FitCheckpoint(checkpoint_path(staged.out)) if checkpointed else None
-    job = FitJob(args, house, settings, options, staged, keeper)
+    job = FitJob(args, house, settings, options, staged, keeper, map_house=loaded)
     try:
         return _fit_staged(job)
     except KeyboardInterrupt as stop:
@@ -227,6 +231,14 @@ def _apply_preset_inference(args: argparse.Namespace) -> None:
         args.merge_moves = recommended.get("merge_moves")
     if args.region_moves is None and args.method == "gibbs":
         args.region_moves = recommended.get("region_moves")
+    refinable = args.method == "gibbs" and args.sweeps != "auto" and args.update is None
+    if args.refine is None:
+        args.refine = recommended.get("refine", "never") if refinable else "never"
+    elif args.refine != "never" and not refinable:
+        raise ValueError(
+            f"--refine {args.refine} refines a Gibbs fit of a number of --sweeps (not --sweeps "
+            "auto, --update or another --method): leave it out or pass --refine never"
+        )
     if args.point_estimate is None:
         usable = samples and args.marginal_samples > 0
         args.point_estimate = (
@@ -442,6 +454,16 @@ def _fit(job: FitJob, init: object, saved: SpCoResult | None) -> Fitted:
         )  # fmt: skip
         kept = best_chain(chain_results)
         result = chain_results[kept]
+        if args.refine != "never":
+            from spcopyro.cli.fit_refine import refine
+
+            refined = refine(args, result, chains, model=house, on_map=job.map_house,
+                             settings=settings, options=options, keeper=job.keeper)  # fmt: skip
+            if refined is not None:
+                chain_results = refined
+                job.house, job.refined = job.map_house, True
+            kept = best_chain(chain_results)
+            result = chain_results[kept]
     return Fitted(result, chain_results, chains, kept, diagnostics, _clock() - start)
 
 
@@ -489,7 +511,10 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
             np.save(out / "agreement.npy", free_cells_image(result, result.agreement))
     phases.mark("save")
     if prefetch is not None:  # matplotlib is imported only for the figures
-        write_figures(result, house, out, uncertainty=entropy is not None, prefetch=prefetch)
+        if job.refined:  # the prefetch drew the model grid's house.png: drawn again, the map's
+            prefetch.join()
+        write_figures(result, house, out, uncertainty=entropy is not None,
+                      prefetch=None if job.refined else prefetch)  # fmt: skip
     phases.mark("figures")
     if result.agreement is not None:
         print(f"point estimate   {args.point_estimate} (expected loss "

@@ -126,6 +126,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "neighbouring, new or other concept, parameters integrated out (default: the preset's "
         "recommendation, else 0)",
     )
+    p.add_argument(
+        "--refine",
+        choices=("auto", "never", "always"),
+        default=None,
+        help="after a Gibbs fit on model cells coarser than the map: refit on the map's own "
+        "cells (images as 100 draws, words at their cell, alpha scaled with the cells) from its "
+        "map; auto: where the fit's concepts explain at least half of the images' variance "
+        "(default: the preset's recommendation, auto with coarse, else never)",
+    )
     p.add_argument("--point-estimate", choices=POINT_ESTIMATES, default=None,
                    help="the reported map: the highest-log-joint state visited (map-visited) "
                         "or the partition minimising the expected binder or vi loss over the "

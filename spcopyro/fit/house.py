@@ -413,11 +413,16 @@ def preset_fit_kwargs(name: str, marginal_samples: int = 50) -> dict[str, object
         "init": str(recommended.get("init", "random")),
         "marginal_samples": marginal_samples if estimate != "map-visited" else 0,
         "point_estimate": estimate,
+        "refine": str(recommended.get("refine", "never")),
     }
 
 
 def log_skipped_preset_inference(
-    settings: SpCoSettings, init: Init, options: object | None, point_estimate: str
+    settings: SpCoSettings,
+    init: Init,
+    options: object | None,
+    point_estimate: str,
+    refine: str = "never",
 ) -> None:
     """Warn (logger ``"spcopyro"``) when a Gibbs fit from a preset's settings runs without the
     inference settings that preset recommends (:func:`~spcopyro.config.preset_inference`), which
@@ -430,6 +435,7 @@ def log_skipped_preset_inference(
         "merge_moves": float(getattr(options, "merge_moves", 0.0) or 0.0),
         "region_moves": float(getattr(options, "region_moves", 0.0) or 0.0),
         "point_estimate": point_estimate,
+        "refine": refine,
     }
     skipped = {k: v for k, v in recommended.items() if k in running and running[k] != v}
     if skipped:
@@ -458,6 +464,7 @@ def fit_house(
     marginal_samples: int = 0,
     point_estimate: str = "map-visited",
     chain_workers: int | str | None = AUTO,
+    refine: str = "never",
 ) -> SpCoResult:
     """Fit SpCoMapping to a house. A degenerate reported map (one concept over most of the
     map while words said at different places lie inside it) is logged as a warning
@@ -482,11 +489,22 @@ def fit_house(
         (one thread unless the map is large), 0 or None (torch's own setting), or a count. The
             previous setting is restored afterwards; labels do not depend on it.
         marginal_samples, point_estimate, chain_workers: see :func:`fit_house_chains`.
+        refine: Gibbs with a number of sweeps: ``"auto"`` refits on the map's own cells, from
+            the fit's map, where its concepts tell the images apart, ``"always"``, or
+            ``"never"`` (:mod:`spcopyro.fit.refine`; preset ``coarse`` recommends ``"auto"``).
+            The decision is logged at INFO level and kept in ``result.inference["refine"]``.
     """
+    from spcopyro.fit.refine import check_refine, map_house, refine_chains, with_decision
+
     settings = preset() if settings is None else settings
-    house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
+    given, house = house, model_house(house, settings.data.cell_size)  # the model's grid
     if method == DEFAULT_METHOD:
-        log_skipped_preset_inference(settings, init, options, point_estimate)
+        log_skipped_preset_inference(settings, init, options, point_estimate, refine)
+    if check_refine(refine) != "never" and (method != "gibbs" or sweeps == "auto"):
+        raise ValueError(
+            f"refine={refine!r} refines a Gibbs fit of a number of sweeps, not method="
+            f"{method!r} with sweeps={sweeps!r}: pass refine='never'"
+        )
     if not isinstance(chains, int) or chains < 1:
         raise ValueError(f"chains must be a positive integer, got {chains!r}")
     if sweeps == "auto":
@@ -508,6 +526,19 @@ def fit_house(
         chain_workers=chain_workers,
     )  # fmt: skip
     kept = best_chain(results)
+    if refine != "never":
+        decision, refined = refine_chains(
+            results[kept], given, settings, refine, fit_house_chains, method=method,
+            options=options, sweeps=sweeps, seeds=[seed + k for k in range(chains)],
+            progress=progress, threads=threads, marginal_samples=marginal_samples,
+            point_estimate=point_estimate, chain_workers=chain_workers,
+        )  # fmt: skip
+        logger.info("refine: %s", decision.reason)
+        if refined is not None:
+            results, kept = refined, best_chain(refined)
+            house = map_house(given)
+        else:
+            results[kept] = with_decision(results[kept], decision)
     if chains > 1:
         logger.info(
             "best of %d chains: kept chain %d (seed %d); best objectives %s", chains, kept,

@@ -7,12 +7,15 @@ SpCoA fit's Gaussians, one concept per geometric room, or a previous fit's label
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import torch
 
 from spcopyro.config import SpCoConfig, SpCoSettings
 from spcopyro.data import CellCounts, House
 from spcopyro.inference.initialisation import INITS, kmeans_gaussians, labels_from_gaussians
+from spcopyro.maps import OccupancyGrid
 from spcopyro.model import DTYPE
 from spcopyro.results.result import SpCoResult
 
@@ -59,11 +62,28 @@ def init_name(init: Init) -> str:
     return init if isinstance(init, str) else f"result of {init.method}"
 
 
+def _same_map(a: OccupancyGrid, b: OccupancyGrid) -> bool:
+    return a.shape == b.shape and a.num_free == b.num_free
+
+
 def result_labels(result: SpCoResult, house: House, config: SpCoConfig) -> torch.Tensor:
     """[N] a previous fit's point labels as the start of a new one (a warm start: a Gibbs fit
-    starting variational inference, or the other way round); ValueError if it was made on
+    starting variational inference, or the other way round). A fit on a coarsening of this
+    house's map (``--cell-size``; its grid's ``coarsened_from`` is this map) starts it with its
+    labels refined to the map's cells (:func:`~spcopyro.maps.coarse.refine_labels`: each free
+    map cell takes its model cell's label, or the nearest one's). ValueError if it was made on
     another map or with more concepts than ``config`` has."""
-    if result.grid.num_free != house.grid.num_free or result.grid.shape != house.grid.shape:
+    coarse_of = result.grid.coarsened_from
+    if coarse_of is not None and _same_map(coarse_of, house.grid):
+        from spcopyro.maps.coarse import refine_labels
+
+        factor = round(result.grid.resolution / house.grid.resolution)
+        image = refine_labels(result.label_image(), house.grid, factor)  # [H, W]
+        cells = np.asarray(house.grid.free_cells)  # [N, 2]
+        result = dataclasses.replace(
+            result, grid=house.grid, labels=image[cells[:, 0], cells[:, 1]].astype(np.int64)
+        )
+    if not _same_map(result.grid, house.grid):
         raise ValueError(
             f"the starting result was fitted on a {result.grid.shape} map with "
             f"{result.grid.num_free} free cells; this house's map is {house.grid.shape} with "

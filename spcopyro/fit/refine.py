@@ -1,0 +1,190 @@
+r"""Refining a coarse fit on the map's own cells where the images tell the places apart
+(issue 21; the numbers in docs/real_houses.md, "Refinement on the map's cells").
+
+The default preset ``coarse`` fits on 0.25 m model cells, counts an image histogram as one
+observation and spreads each utterance over a 1 m footprint: right for houses whose images
+follow the camera's view rather than the place (the public houses), and the reason its borders
+blur by up to a footprint's radius where the images would have placed them (the dense synthetic
+houses, rooms meeting in wide openings). Whether the images tell places apart needs the places;
+the coarse fit's concepts stand in for them (never a truth):
+
+1. **Decide** (:func:`refine_decision`): the share of the images' variance the coarse fit's
+   concepts explain (:func:`~spcopyro.fit.image_separation.image_separation`, ``explained``).
+   ``refine="auto"`` refines when it is at least :data:`SEPARATES` = 0.5: the midpoint between
+   the truth regions' 0.15-0.31 on the public houses and 0.72-0.80 on houses whose images are
+   drawn per place (measured before any fit was scored).
+2. **Refine** (:func:`refine_chains`): the same model on the map's own cells with preset
+   ``auto``'s data preparation -- each histogram as 100 draws (``floor100``), each utterance
+   once at its cell, no footprint (:func:`refined_settings`) -- started from the coarse map
+   refined to the map's cells (:func:`~spcopyro.fit.starts.result_labels`), with the same
+   sampler options, sweeps and seeds.
+
+**Why alpha is scaled.** With pi integrated out, the label counts' term of the log joint is the
+Dirichlet-multinomial :math:`\log DM(N_1..N_L \mid \alpha/L)`; a partition of the ``N`` cells
+into shares :math:`s_l` gains about :math:`N^2 (1 - \sum_l s_l^2) / (2\alpha/L)` nats by
+collapsing (docs/real_houses.md, "Why the posterior preferred one concept"). On ``k^2`` times as
+many cells the same partition would gain ``k^4`` times as much, which at the public maps' 0.05 m
+is what made ``auto`` put whole houses in one concept. The refinement therefore takes
+
+.. math::  \alpha_\text{map} = \alpha \, (N_\text{map} / N_\text{model})^2,
+
+which keeps that term what it was on the model grid: the prior over how the map is shared out
+does not change with the cell size. (Measured on the open-plan synthetic houses, where the
+images alone do not hold the categories of one open space apart: alpha 1e7 on the map's cells
+0.534, 1e8 0.626, 1e9 0.645, 1e10 0.653, against the coarse fit's 0.656.)
+
+The refined result is on the map's cells (its ``grid`` is the map, not a coarsening) and records
+the decision and the coarse stage in ``result.inference["refine"]``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from collections.abc import Callable
+from typing import Any, Literal
+
+from spcopyro.config import SpCoSettings
+from spcopyro.data import House
+from spcopyro.data.model_grid import model_house
+from spcopyro.fit.image_separation import ImageSeparation, image_labels, image_separation
+from spcopyro.results.result import SpCoResult
+
+__all__ = [
+    "REFINE_MODES",
+    "SEPARATES",
+    "RefineDecision",
+    "map_house",
+    "refine_chains",
+    "refine_decision",
+    "refined_settings",
+    "with_decision",
+]
+
+logger = logging.getLogger("spcopyro")
+
+Refine = Literal["auto", "never", "always"]
+REFINE_MODES: tuple[str, ...] = ("auto", "never", "always")
+"""``auto``: refine where the coarse fit's concepts explain the images; ``never``; ``always``."""
+
+SEPARATES = 0.5
+"""``refine="auto"`` refines when the coarse fit's concepts explain at least this share of the
+images' variance (module docstring)."""
+
+
+def check_refine(refine: str) -> str:
+    if refine not in REFINE_MODES:
+        raise ValueError(f"refine must be one of {REFINE_MODES}, got {refine!r}")
+    return refine
+
+
+def map_house(house: House) -> House:
+    """The house on its map's own cells: ``house`` itself, or the map a coarsened house's grid
+    was made from (``grid.coarsened_from``; its truth, kept per model cell, is dropped)."""
+    if house.grid.coarsened_from is None:
+        return house
+    return dataclasses.replace(house, grid=house.grid.coarsened_from, truth=None)
+
+
+def refined_settings(settings: SpCoSettings, model_cells: int, map_cells: int) -> SpCoSettings:
+    """``settings``' model on the map's own cells with preset ``auto``'s data preparation
+    (images as 100 draws, words once at their cell, no footprint) and alpha scaled by
+    ``(map_cells / model_cells)^2`` (module docstring). The snap distance and the words'
+    weighting stay as they were."""
+    scale = (map_cells / model_cells) ** 2 if model_cells > 0 else 1.0
+    return settings.replace(
+        alpha=settings.model.alpha * scale, feature_scaling="floor100", word_scaling=1.0,
+        footprint_radius=0.0, footprint_fov=None, cell_size=None,
+    )  # fmt: skip
+
+
+@dataclasses.dataclass(frozen=True)
+class RefineDecision:
+    """Whether a fit is refined on the map's cells, and why.
+
+    Attributes:
+        mode: ``"auto"``, ``"never"`` or ``"always"``.
+        separation: the coarse fit's image separation (None when not measured: ``never``, or a
+            fit without images).
+        refine: whether the refinement runs.
+        reason: one line saying why.
+    """
+
+    mode: str
+    separation: ImageSeparation | None
+    refine: bool
+    reason: str
+
+    def to_json(self) -> dict[str, Any]:
+        separation = None if self.separation is None else dataclasses.asdict(self.separation)
+        return {"mode": self.mode, "refine": self.refine, "reason": self.reason,
+                "separation": separation, "threshold": SEPARATES}  # fmt: skip
+
+
+def refine_decision(result: SpCoResult, house: House, refine: str = "auto") -> RefineDecision:
+    """Whether to refine ``result``, a fit of ``house`` on its model grid (module docstring)."""
+    check_refine(refine)
+    if refine == "never":
+        return RefineDecision(refine, None, False, "refine='never'")
+    images = house.observations.image_features
+    if images is None or images.shape[0] == 0 or not result.config.use_images:
+        separation = None
+        share = "no images to measure"
+    else:
+        separation = image_separation(images, image_labels(result, house))
+        share = (f"the concepts explain {separation.explained:.0%} of the images' variance "
+                 f"({separation.images} images in {separation.concepts} concepts)")  # fmt: skip
+    if refine == "always":
+        return RefineDecision(refine, separation, True, f"refine='always'; {share}")
+    separates = separation is not None and separation.explained >= SEPARATES
+    verdict = (f">= {SEPARATES:.0%}: the images tell the places apart" if separates else
+               f"< {SEPARATES:.0%}: the images do not tell the places apart")  # fmt: skip
+    if separation is None:
+        verdict = "so the fit stays on its model grid"
+    return RefineDecision(refine, separation, separates, f"{share} {verdict}")
+
+
+def with_decision(result: SpCoResult, decision: RefineDecision) -> SpCoResult:
+    """``result`` recording a decision not to refine it (``inference["refine"]``, written to
+    ``config.json``), so that a saved fit says why it stayed on its model grid."""
+    return dataclasses.replace(result, inference={**result.inference, "refine": decision.to_json()})
+
+
+def refine_chains(
+    first: SpCoResult,
+    house: House,
+    settings: SpCoSettings,
+    refine: str,
+    fit_chains: Callable[..., list[SpCoResult]],
+    decision: RefineDecision | None = None,
+    **chain_kwargs: Any,
+) -> tuple[RefineDecision, list[SpCoResult] | None]:
+    """The decision for ``first`` (the kept chain of a fit of ``house`` under ``settings``, on
+    its model grid) and, where it refines, the chains of the refinement: ``fit_chains``
+    (:func:`~spcopyro.fit.house.fit_house_chains`) on the map's own cells under
+    :func:`refined_settings`, every chain started from ``first`` refined to the map's cells,
+    with ``chain_kwargs`` (sweeps, seeds, options, ...). Each refined result records the
+    decision and the coarse stage in ``inference["refine"]``. ``decision``: one already made
+    by :func:`refine_decision` for ``first`` (else made here)."""
+    model = model_house(house, settings.data.cell_size)
+    if decision is None:
+        decision = refine_decision(first, model, refine)
+    if not decision.refine:
+        return decision, None
+    on_map = map_house(house)
+    refined = refined_settings(settings, model.grid.num_free, on_map.grid.num_free)
+    logger.info("refining on the map's %d cells: %s", on_map.grid.num_free, decision.reason)
+    results = fit_chains(on_map, refined, init=first, **chain_kwargs)
+    record = {
+        **decision.to_json(),
+        "coarse": {
+            "cell_size": float(model.grid.resolution), "free_cells": int(model.grid.num_free),
+            "alpha": float(settings.model.alpha), "preparation": dataclasses.asdict(settings.data),
+            "best_log_joint": float(first.best_objective),
+            "concepts": len(first.concepts_in_use()),
+        },
+        "alpha": float(refined.model.alpha),
+    }  # fmt: skip
+    return decision, [
+        dataclasses.replace(r, inference={**r.inference, "refine": record}) for r in results
+    ]

@@ -1,0 +1,210 @@
+"""The refinement on the map's own cells (spcopyro.fit.refine): the decision, the refined
+settings, the start from a coarse map, the library's and the command's wiring, Ctrl-C."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import shlex
+
+import numpy as np
+import pytest
+
+import spcopyro.gibbs.chains
+from spcopyro._util.outputs import checkpoint_path
+from spcopyro.cli.main import main
+from spcopyro.config import preset
+from spcopyro.data.model_grid import model_house
+from spcopyro.fit.house import fit_house, preset_fit_kwargs
+from spcopyro.fit.refine import (
+    SEPARATES,
+    map_house,
+    refine_decision,
+    refined_settings,
+)
+from spcopyro.fit.starts import result_labels
+from spcopyro.gibbs.run import advance
+from spcopyro.maps.coarse import model_cell_of
+from spcopyro.synthetic import HouseSpec, make_house, write_synthetic
+
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
+
+SWEEPS = 30
+
+
+@pytest.fixture(scope="module")
+def house():
+    return make_house(seed=0, spec=HouseSpec(height=36, width=44, num_rooms=3))
+
+
+def _shuffled_images(house):
+    """The house with its image histograms permuted among the images: the same histograms,
+    no longer following the places."""
+    obs = house.observations
+    order = np.random.default_rng(0).permutation(obs.image_features.shape[0])
+    return dataclasses.replace(
+        house, observations=dataclasses.replace(obs, image_features=obs.image_features[order])
+    )
+
+
+@pytest.fixture(scope="module")
+def coarse_fit(house):
+    kwargs = {**preset_fit_kwargs("coarse"), "refine": "never"}
+    return fit_house(house, preset("coarse"), sweeps=SWEEPS, seed=0, progress=False, **kwargs)
+
+
+def test_refined_settings_are_auto_s_preparation_with_alpha_scaled_by_the_cells_squared():
+    coarse = preset("coarse", gamma=3.5)
+    refined = refined_settings(coarse, model_cells=100, map_cells=900)
+    assert refined.model == coarse.model.replace(alpha=coarse.model.alpha * 81)  # gamma kept
+    auto = preset("auto").data
+    assert refined.data == dataclasses.replace(auto, snap_distance=coarse.data.snap_distance)
+    assert refined.data.cell_size is None and refined.data.footprint_radius == 0.0
+
+
+def test_the_decision_follows_the_images_not_the_labels(house, coarse_fit):
+    """The same coarse map: images drawn per place separate its concepts, the same images
+    shuffled among the positions do not; never and always do as they say."""
+    model = model_house(house, preset("coarse").data.cell_size)
+    follows = refine_decision(coarse_fit, model, "auto")
+    assert follows.separation.explained >= SEPARATES and follows.refine
+    assert "tell the places apart" in follows.reason
+    shuffled = refine_decision(coarse_fit, _shuffled_images(model), "auto")
+    assert shuffled.separation.explained < 0.2 and not shuffled.refine
+    assert "do not tell" in shuffled.reason
+    assert refine_decision(coarse_fit, _shuffled_images(model), "always").refine
+    never = refine_decision(coarse_fit, model, "never")
+    assert not never.refine and never.separation is None
+    with pytest.raises(ValueError, match="refine must be one of"):
+        refine_decision(coarse_fit, model, "sometimes")
+
+
+def test_a_coarse_result_starts_a_fit_on_the_map_s_cells_block_by_block(house, coarse_fit):
+    config = preset("auto").model
+    start = result_labels(coarse_fit, house, config).numpy()  # [N map]
+    assert start.shape == (house.grid.num_free,)
+    factor = round(coarse_fit.grid.resolution / house.grid.resolution)
+    rows, cols = model_cell_of(house.grid, factor)
+    coarse = coarse_fit.label_image()  # [h, w], -1 off free
+    cells = np.asarray(house.grid.free_cells)
+    block = coarse[rows[cells[:, 0]], cols[cells[:, 1]]]  # the model cell of each map cell
+    inside = block >= 0
+    assert inside.mean() > 0.5  # the others lie in blocks that hold a wall
+    np.testing.assert_array_equal(start[inside], block[inside])
+    assert set(np.unique(start)) <= set(np.unique(coarse_fit.labels))
+    other = make_house(seed=1, spec=HouseSpec(height=40, width=40, num_rooms=2))
+    with pytest.raises(ValueError, match="fitted on a"):
+        result_labels(coarse_fit, other, config)
+
+
+def test_fit_house_refines_where_the_images_separate_and_records_why(house, coarse_fit):
+    kwargs = preset_fit_kwargs("coarse")
+    assert kwargs["refine"] == "auto"  # what spcopyro fit runs by default
+    result = fit_house(house, preset("coarse"), sweeps=SWEEPS, seed=0, progress=False, **kwargs)
+    assert result.grid.shape == house.grid.shape  # the map's own cells
+    record = result.inference["refine"]
+    assert record["refine"] and record["coarse"]["free_cells"] == coarse_fit.grid.num_free
+    ratio = house.grid.num_free / coarse_fit.grid.num_free
+    assert record["alpha"] == pytest.approx(preset("coarse").model.alpha * ratio**2)
+    assert result.preparation.feature_scaling == "floor100"
+    assert result.config.alpha == pytest.approx(record["alpha"])
+    kept = fit_house(_shuffled_images(house), preset("coarse"), sweeps=SWEEPS, seed=0,
+                     progress=False, **kwargs)  # fmt: skip
+    assert kept.grid.shape == coarse_fit.grid.shape  # not refined: the model grid
+    assert kept.inference["refine"]["refine"] is False  # why, in config.json
+    assert kept.inference["refine"]["separation"]["explained"] < SEPARATES
+
+
+def test_refine_needs_a_gibbs_fit_of_a_number_of_sweeps(house):
+    with pytest.raises(ValueError, match="refines a Gibbs fit"):
+        fit_house(house, preset("coarse"), method="cavi", sweeps=3, refine="auto")
+    with pytest.raises(ValueError, match="refines a Gibbs fit"):
+        fit_house(house, preset("coarse"), sweeps="auto", refine="always")
+
+
+def test_map_house_undoes_the_coarsening(house):
+    model = model_house(house, 0.25)
+    assert model.grid.coarsened_from is house.grid
+    assert map_house(model).grid is house.grid and map_house(house) is house
+
+
+# --- the command -------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def room(tmp_path_factory):
+    root = tmp_path_factory.mktemp("data")
+    return write_synthetic(root, seed=2, spec=HouseSpec(height=36, width=44, num_rooms=3))
+
+
+@pytest.fixture(autouse=True)
+def _no_progress_bars(monkeypatch):
+    monkeypatch.setenv("CI", "1")  # stderr holds only what the command says
+
+
+def test_fit_refines_by_default_and_writes_the_map_s_cells(room, tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main(["fit", str(room), "--out", str(out), "--sweeps", "60", "--no-figures"]) == 0
+    printed = capsys.readouterr().out
+    assert "refining         the concepts explain" in printed
+    labels = np.load(out / "labels.npy")
+    with (out / "truth.npy").open("rb") as f:
+        assert labels.shape == np.load(f).shape  # the truth of the map's cells
+    config = json.loads((out / "config.json").read_text())
+    assert "refine" in json.dumps(config)
+    assert not (out / "robot_map.yaml").exists()  # the result is on the robot's own map
+    never = tmp_path / "never"
+    argv = ["fit", str(room), "--out", str(never), "--sweeps", "60", "--no-figures"]
+    assert main([*argv, "--refine", "never"]) == 0
+    printed = capsys.readouterr().out
+    assert "refining " not in printed and "not refined " not in printed
+    assert np.load(never / "labels.npy").shape != labels.shape  # the 0.25 m model grid
+
+
+def test_refine_is_refused_where_it_does_not_apply(room, tmp_path, capsys):
+    argv = ["fit", str(room), "--out", str(tmp_path / "o"), "--no-figures"]
+    assert main([*argv, "--sweeps", "auto", "--refine", "always"]) == 2
+    assert "--refine always refines a Gibbs fit" in capsys.readouterr().err
+    assert main([*argv, "--method", "cavi", "--sweeps", "3", "--refine", "auto"]) == 2
+
+
+def _interrupt_advance(monkeypatch, call: int, sweep: int) -> None:
+    """KeyboardInterrupt after ``sweep`` of the ``call``-th chain advanced (0: the first)."""
+    calls: list[int] = []
+
+    def interrupting(gibbs_chain, num_sweeps, callback=None, **kwargs):
+        calls.append(1)
+        index = len(calls) - 1
+
+        def stop(s, state):
+            if callback is not None:
+                callback(s, state)
+            if index == call and s == sweep:
+                raise KeyboardInterrupt
+
+        return advance(gibbs_chain, num_sweeps, callback=stop, **kwargs)
+
+    monkeypatch.setattr(spcopyro.gibbs.chains, "advance", interrupting)
+
+
+def test_ctrl_c_while_refining_keeps_the_first_stage_and_resume_refines_again(
+    room, tmp_path, capsys, monkeypatch
+):
+    out = tmp_path / "out"
+    argv = ["fit", str(room), "--out", str(out), "--sweeps", "12", "--no-figures",
+            "--refine", "always", "--chain-workers", "1"]  # fmt: skip
+    with monkeypatch.context() as patch:
+        _interrupt_advance(patch, call=1, sweep=4)  # the refinement's chain
+        assert main(argv) == 130
+    err = capsys.readouterr().err
+    assert err.startswith("interrupted (while refining on the map's own cells)")
+    checkpoint = checkpoint_path(out)
+    assert f"saved in {checkpoint}" in err
+    again = shlex.split(err.split("continue with: ")[1])
+    assert main(again[1:]) == 0
+    assert main([*argv[:3], str(tmp_path / "unbroken"), *argv[4:]]) == 0
+    with np.load(out / "result.npz") as a, np.load(tmp_path / "unbroken" / "result.npz") as b:
+        for name in a.files:
+            if name != "seconds":
+                np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+    assert not checkpoint.exists()
