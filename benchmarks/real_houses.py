@@ -12,7 +12,10 @@ reason when absent), scored against the project's region truth
 * the share of the free cells in the largest concept,
 * the concepts holding >= 1 % of the free cells, beside the paper's Table 2 counts,
 
-for the default preset (with its inference settings), the previous default ``auto``,
+for the default preset (with its inference settings: since 2026-12-03 its refinement on the
+map's cells where the images separate its concepts, :mod:`spcopyro.fit.refine`; the row
+``coarse, --refine never`` is the same chain stopped at the model grid), the previous default
+``auto``,
 ``paper-dp`` (the paper's Algorithm 1: random start, the best visited state), and the baselines
 (E) nearest utterance and (F) geometry at 1 m and 2 m door widths. Then the same for synthetic
 houses (seeds 0..n-1; their own truth): ``open-plan`` (several categories in one walled space),
@@ -57,6 +60,8 @@ from spcopyro.robot.map_simulation import MapTour, simulate_on_map
 from spcopyro.synthetic import HouseSpec, make_house
 
 PRESETS = (DEFAULT_PRESET, "auto", "paper-dp")
+UNREFINED = f"{DEFAULT_PRESET}, --refine never"
+"""The default fit stopped at its model grid (its row: the same chain where it was not refined)."""
 SYNTHETIC = {
     "open-plan": HouseSpec.open_plan,
     "sparse": HouseSpec.public_like,
@@ -69,8 +74,13 @@ METHODS = ("cavi", "lbp", "svi", "stochastic-vi", "vi-gibbs")
 
 def fit_result(house, name: str, sweeps: int, seed: int, method: str = "gibbs"):
     """The preset's default fit (its recommended inference settings for Gibbs; a variational
-    method with its default options) and its seconds."""
+    method with its default options) and its seconds. :data:`UNREFINED`: the default preset's
+    fit without its refinement on the map's cells (``--refine never``)."""
+    unrefined = name == UNREFINED
+    name = DEFAULT_PRESET if unrefined else name
     kwargs = preset_fit_kwargs(name) if method == "gibbs" else {}  # else fit_house's defaults
+    if unrefined:
+        kwargs["refine"] = "never"
     start = time.perf_counter()
     result = fit_house(house, preset(name), method=method, sweeps=sweeps, seed=seed,
                        progress=False, **kwargs)  # fmt: skip
@@ -78,9 +88,13 @@ def fit_result(house, name: str, sweeps: int, seed: int, method: str = "gibbs"):
 
 
 def on_map(result, house, name: str) -> np.ndarray:
-    """``[H, W]`` the result's labels on the house's own map cells."""
+    """``[H, W]`` the result's labels on the house's own map cells (a fit the default refined
+    on the map's cells is there already; ``name``'s cell size is the model grid's otherwise)."""
+    labels = result.label_image()
+    if labels.shape == house.grid.shape:
+        return refine_labels(labels, house.grid, 1)
     factor = coarsening_factor(house.grid.resolution, preset(name).data.cell_size)
-    return refine_labels(result.label_image(), house.grid, factor)
+    return refine_labels(labels, house.grid, factor)
 
 
 def fit_preset(house, name: str, sweeps: int, seed: int) -> tuple[np.ndarray, float]:
@@ -102,9 +116,19 @@ def score_house(house, truth: np.ndarray, sweeps: int, seed: int) -> dict[str, d
     free = house.grid.free
     rows: dict[str, dict] = {}
     for name in PRESETS:
-        labels, seconds = fit_preset(house, name, sweeps, seed)
-        rows[name] = {**scores(labels, truth, free), "seconds": seconds}
+        result, seconds = fit_result(house, name, sweeps, seed)
+        rows[name] = {**scores(on_map(result, house, name), truth, free), "seconds": seconds}
         print(f"  {house.name} {name}: ARI {rows[name]['ari']:.3f}", file=sys.stderr, flush=True)
+        if name == DEFAULT_PRESET:  # and the same chain without the refinement
+            rows[UNREFINED] = rows[name]
+            record = result.inference.get("refine", {})
+            explained = (record.get("separation") or {}).get("explained")
+            refined = bool(record.get("refine"))
+            rows[name] = {**rows[name], "refined": refined, "explained": explained}
+            if rows[name]["refined"]:
+                result, seconds = fit_result(house, UNREFINED, sweeps, seed)
+                labels = on_map(result, house, DEFAULT_PRESET)
+                rows[UNREFINED] = {**scores(labels, truth, free), "seconds": seconds}
     obs = house.observations
     rows["E nearest"] = scores(nearest_word_map(house.grid, obs).labels, truth, free)
     for door in (1.0, 2.0):
