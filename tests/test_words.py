@@ -3,6 +3,7 @@ concept, "no words heard here", the new keys of concepts.json, and the words on 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -143,8 +144,17 @@ def test_a_concept_where_no_word_was_heard_says_so(capsys):
     assert region_text(result, 0).splitlines()[1] == "kitchen 0.60 x1.7"
     print_concepts(result)
     lines = capsys.readouterr().out.splitlines()
-    assert any(line.strip().startswith("concept   2:") and NO_WORDS in line for line in lines)
+    # concept 2 holds under 0.5 % of the cells: a speck, listed on the specks' line
+    assert not any(line.strip().startswith("concept   2:") for line in lines)
+    assert any(line.strip().startswith("+ 1 speck of") and "no word was heard (concepts 2;"
+               in line for line in lines)  # fmt: skip
     assert any("concept   1:" in line and "distinctive: bed x1.5" in line for line in lines)
+    silent_room = dataclasses.replace(
+        result, concept_totals=np.array([[3.0, 3.0, 5.0], [2.0, 2.0, 0.0], [0.0, 0.0, 0.0]])
+    )  # concept 1 (149 cells) heard nothing: a region, listed, saying so
+    print_concepts(silent_room)
+    lines = capsys.readouterr().out.splitlines()
+    assert any(line.strip().startswith("concept   1:") and NO_WORDS in line for line in lines)
 
 
 def test_concepts_json_keeps_the_old_keys_and_adds_the_new(tmp_path):

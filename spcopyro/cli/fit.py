@@ -34,6 +34,7 @@ from spcopyro.cli.common import (
     _load,
     _summary,
 )
+from spcopyro.cli.concept_listing import print_concepts
 from spcopyro.cli.fit_figures import FigurePrefetch, write_figures
 from spcopyro.config import (
     SpCoSettings,
@@ -44,7 +45,6 @@ from spcopyro.data import House
 from spcopyro.data.model_grid import model_house
 from spcopyro.gibbs.chains import when_chains_start
 from spcopyro.maps import save_map
-from spcopyro.results.concept_words import MIN_LIFT, format_concept_words, format_words_heard
 
 if TYPE_CHECKING:
     from spcopyro.fit.gibbs_chains import FitCheckpoint
@@ -570,30 +570,3 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
                  first_sweep_seconds=float(result.trace.seconds[0]), chains=chains,
                  figures=not args.no_figures)  # fmt: skip
     return 0
-
-
-def print_concepts(result: SpCoResult, limit: int = 10) -> None:
-    """The ``limit`` largest concepts, one line each: cells, words heard there, the top words
-    (posterior means) and the distinctive ones with their lifts
-    (:mod:`spcopyro.results.concept_words`), or that no word was heard there."""
-    parameters = result.inference.get("parameters", "words as the method estimates them")
-    print(f"concepts (words: {parameters}; distinctive: lift = p(word | concept) / p(word) > "
-          f"{MIN_LIFT:g}, p(word) the area-weighted mix):")  # fmt: skip
-    further = [t.name for t in result.emissions if t.name not in ("images", "words")]
-    concepts = result.concepts()
-    for concept in concepts[:limit]:
-        heard = concept["words_heard"]
-        words = format_concept_words(
-            [(w, p) for w, p in concept["top_words"]],
-            [(w, r, p) for w, r, p in concept["distinctive_words"]],
-            heard,
-        )
-        for name in further:
-            top = concept[f"top_{name}"][:2]
-            words += f"; {name}: " + ", ".join(f"{item} ({p:.2f})" for item, p in top)
-        count = "" if heard is None else f"{format_words_heard(heard):>4} words  "
-        print(f"  concept {concept['concept']:>3}: {concept['cells']:>6} cells {count}{words}")
-    if len(concepts) > limit:
-        print(f"  ... {len(concepts) - limit} smaller concepts in concepts.json")
-    if not any(c["distinctive_words"] for c in concepts):
-        print(f"  no concept has a distinctive word (every lift <= {MIN_LIFT:g})")

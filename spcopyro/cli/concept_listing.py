@@ -1,0 +1,58 @@
+"""The concepts ``fit`` prints: the largest with their words, the specks on one line."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from spcopyro.results.concept_words import MIN_LIFT, format_concept_words, format_words_heard
+
+if TYPE_CHECKING:
+    from spcopyro.results.result import SpCoResult
+
+__all__ = ["SPECK_SHARE", "print_concepts"]
+
+SPECK_SHARE = 0.005
+"""A concept where no word was heard, on fewer than this share of the free cells, is a speck
+(the semantic map's figure labels regions from the same 0.5 %)."""
+
+
+def print_concepts(result: SpCoResult, limit: int = 10) -> None:
+    """The ``limit`` largest concepts, one line each: cells, words heard there, the top words
+    (posterior means) and the distinctive ones with their lifts
+    (:mod:`spcopyro.results.concept_words`), or that no word was heard there. Specks (concepts
+    under :data:`SPECK_SHARE` of the free cells where no word was heard: a doorway or corner
+    cell the Potts field holds weakly, docs/real_houses.md) share one line at the end."""
+    parameters = result.inference.get("parameters", "words as the method estimates them")
+    print(f"concepts (words: {parameters}; distinctive: lift = p(word | concept) / p(word) > "
+          f"{MIN_LIFT:g}, p(word) the area-weighted mix):")  # fmt: skip
+    further = [t.name for t in result.emissions if t.name not in ("images", "words")]
+    concepts = result.concepts()
+    specks = [c for c in concepts if _is_speck(c, result.grid.num_free)]
+    listed = [c for c in concepts if not _is_speck(c, result.grid.num_free)]
+    for concept in listed[:limit]:
+        heard = concept["words_heard"]
+        words = format_concept_words(
+            [(w, p) for w, p in concept["top_words"]],
+            [(w, r, p) for w, r, p in concept["distinctive_words"]],
+            heard,
+        )
+        for name in further:
+            top = concept[f"top_{name}"][:2]
+            words += f"; {name}: " + ", ".join(f"{item} ({p:.2f})" for item, p in top)
+        count = "" if heard is None else f"{format_words_heard(heard):>4} words  "
+        print(f"  concept {concept['concept']:>3}: {concept['cells']:>6} cells {count}{words}")
+    if len(listed) > limit:
+        print(f"  ... {len(listed) - limit} smaller concepts in concepts.json")
+    if specks:
+        cells = sorted(int(c["cells"]) for c in specks)
+        size = f"{cells[0]}" if cells[0] == cells[-1] else f"{cells[0]}-{cells[-1]}"
+        print(f"  + {len(specks)} speck{'s' if len(specks) > 1 else ''} of {size} cell"
+              f"{'' if cells[-1] == 1 else 's'} where no word was heard (concepts "
+              f"{', '.join(str(c['concept']) for c in specks[:8])}"
+              f"{', ...' if len(specks) > 8 else ''}; concepts.json lists them)")  # fmt: skip
+    if not any(c["distinctive_words"] for c in concepts):
+        print(f"  no concept has a distinctive word (every lift <= {MIN_LIFT:g})")
+
+
+def _is_speck(concept: dict[str, object], num_free: int) -> bool:
+    return concept["words_heard"] == 0 and int(concept["cells"]) < SPECK_SHARE * num_free
