@@ -226,6 +226,21 @@ def test_rank_of_truth_ties_at_expected_position():
     np.testing.assert_allclose(top3, [0.75, 1.0])
 
 
+def test_rank_of_truth_counts_scores_a_few_last_bits_apart_as_ties():
+    """Scores equal in exact arithmetic come out of a vectorised sum a few ulps apart, in a
+    way that depends on the CPU; ranked exactly, a held-out score differed between machines."""
+    p = 0.2
+    above, below = p * (1 + 4e-16), p * (1 - 4e-16)  # a few last bits either side
+    rows = np.array([[p, above, 0.6], [p, below, 0.6], [p, p * 1.01, 0.6]])
+    ranks, (top1,) = rank_of_truth(rows, np.array([0, 0, 0]), ks=(1,))
+    # rows 0 and 1: the 0.2s tie behind 0.6 -> rank 2.5 on any CPU; row 2: 1 % apart, third
+    np.testing.assert_allclose(ranks, [2.5, 2.5, 3.0])
+    np.testing.assert_allclose(top1, [0.0, 0.0, 0.0])
+    ranks, (top1,) = rank_of_truth(rows[:2, :2], np.array([0, 0]), ks=(1,))
+    np.testing.assert_allclose(ranks, [1.5, 1.5])  # tied with the other, whichever is larger
+    np.testing.assert_allclose(top1, [0.5, 0.5])
+
+
 def test_heldout_word_prediction_by_hand():
     model = FixedModel()
     held_out = observations(

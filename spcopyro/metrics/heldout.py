@@ -25,6 +25,7 @@ from spcopyro.data import DEFAULT_SNAP_DISTANCE, Observations, place_observation
 from spcopyro.results.semantic_map import SemanticMapModel, SpCoResultLike, as_semantic_map
 
 __all__ = [
+    "TIE_RTOL",
     "LocalisationScores",
     "WordPredictionScores",
     "heldout_localisation",
@@ -122,13 +123,20 @@ class WordPredictionScores:
         )
 
 
+TIE_RTOL = 1e-9
+"""Scores within this relative difference rank as ties (:func:`rank_of_truth`)."""
+
+
 def rank_of_truth(
     probabilities: np.ndarray, truth: np.ndarray, ks: Sequence[int] = (1, 3)
 ) -> tuple[np.ndarray, list[np.ndarray]]:
     r"""Expected rank of the true class and top-k hit probabilities under random tie breaking.
 
     With g the number of classes more probable than the true one and t the number of other
-    classes exactly as probable, the true class is equally likely at positions g+1 .. g+t+1:
+    classes as probable (equal to a relative :data:`TIE_RTOL`: classes equal in exact
+    arithmetic, e.g. words heard nowhere, come out of a vectorised sum a few last bits apart in
+    a way that depends on the CPU, so exact comparison made a held-out score differ between
+    machines), the true class is equally likely at positions g+1 .. g+t+1:
 
     .. math::
 
@@ -144,8 +152,9 @@ def rank_of_truth(
     p = np.asarray(probabilities, dtype=np.float64)  # [n, V]
     t_idx = np.asarray(truth, dtype=np.int64)  # [n]
     true_p = p[np.arange(p.shape[0]), t_idx][:, None]  # [n, 1]
-    greater = (p > true_p).sum(axis=1)  # [n] g
-    ties = (p == true_p).sum(axis=1) - 1  # [n] t
+    close = np.isclose(p, true_p, rtol=TIE_RTOL, atol=0.0)  # [n, V]
+    greater = ((p > true_p) & ~close).sum(axis=1)  # [n] g
+    ties = close.sum(axis=1) - 1  # [n] t
     rank = greater + 1 + ties / 2.0
     hits = [np.clip((k - greater) / (ties + 1.0), 0.0, 1.0) for k in ks]
     return rank.astype(np.float64), hits
