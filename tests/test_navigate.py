@@ -317,16 +317,22 @@ def test_a_coarse_fit_plans_on_the_robots_map_it_keeps(result, tmp_path, capsys)
     assert f"planning on {fit / 'robot_map.yaml'}" in capsys.readouterr().out
 
 
-def test_the_embedded_house_fitted_by_the_readme_command_can_be_driven_through(tmp_path, capsys):
-    """The README's first command's house: a coarse fit keeps the robot's map, whose doorways a
-    robot of the default 0.2 m radius passes, so the kitchen is reached from the entrance."""
+@pytest.mark.parametrize("refine", ["auto", "never"])
+def test_the_embedded_house_fitted_by_the_readme_command_can_be_driven_through(
+    tmp_path, capsys, refine
+):
+    """The README's first command's house: refined, the fit is on the robot's own map; a coarse
+    fit (--refine never) keeps the robot's map beside it. Either way a robot of the default
+    0.2 m radius passes the doorways, so the kitchen is reached from the entrance."""
     out = tmp_path / "demo"
-    assert main(["fit", "--out", str(out), "--sweeps", "30", "--no-figures"]) == 0
-    assert (out / "robot_map.yaml").is_file() and (out / "robot_map.pgm").is_file()
-    capsys.readouterr()
+    argv = ["fit", "--out", str(out), "--sweeps", "30", "--no-figures", "--refine", refine]
+    assert main(argv) == 0
+    refined = "refining " in capsys.readouterr().out
+    assert refined == (refine == "auto")  # the embedded house's images separate its places
+    assert (out / "robot_map.yaml").is_file() == (not refined)
     plan = tmp_path / "plan"
     argv = ["navigate", str(out), "go to the kitchen", "--start=-3,0", "--out", str(plan)]
     assert main(argv) == 0
     printed = capsys.readouterr().out
-    assert f"planning on {out / 'robot_map.yaml'}" in printed
+    assert (f"planning on {out / 'robot_map.yaml'}" in printed) == (not refined)
     assert "kitchen: goal" in printed and (plan / "path.yaml").is_file()

@@ -232,7 +232,9 @@ def _apply_preset_inference(args: argparse.Namespace) -> None:
     if args.region_moves is None and args.method == "gibbs":
         args.region_moves = recommended.get("region_moves")
     refinable = args.method == "gibbs" and args.sweeps != "auto" and args.update is None
-    if args.refine is None:
+    if args.refine is None:  # a preparation given on the command line is kept, not refined away
+        prepared = any(getattr(args, name, None) is not None for name in _REFINED_AWAY)
+        refinable = refinable and not prepared
         args.refine = recommended.get("refine", "never") if refinable else "never"
     elif args.refine != "never" and not refinable:
         raise ValueError(
@@ -244,6 +246,11 @@ def _apply_preset_inference(args: argparse.Namespace) -> None:
         args.point_estimate = (
             recommended.get("point_estimate", "map-visited") if usable else "map-visited"
         )
+
+
+_REFINED_AWAY = ("cell_size", "feature_scaling", "word_scaling", "footprint",
+                 "footprint_kernel", "footprint_fov")  # fmt: skip
+"""The options of the data preparation the refinement replaces (:mod:`spcopyro.fit.refine`)."""
 
 
 def _check_update_args(args: argparse.Namespace) -> None:

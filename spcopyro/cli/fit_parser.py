@@ -133,7 +133,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="after a Gibbs fit on model cells coarser than the map: refit on the map's own "
         "cells (images as 100 draws, words at their cell, alpha scaled with the cells) from its "
         "map; auto: where the fit's concepts explain at least half of the images' variance "
-        "(default: the preset's recommendation, auto with coarse, else never)",
+        "(default: the preset's recommendation, auto with coarse unless --cell-size, "
+        "--feature-scaling, --word-scaling or --footprint* is given, else never)",
     )
     p.add_argument("--point-estimate", choices=POINT_ESTIMATES, default=None,
                    help="the reported map: the highest-log-joint state visited (map-visited) "
