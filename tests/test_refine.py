@@ -161,6 +161,15 @@ def test_fit_refines_by_default_and_writes_the_map_s_cells(room, tmp_path, capsy
     assert np.load(never / "labels.npy").shape != labels.shape  # the 0.25 m model grid
 
 
+def test_a_preparation_given_on_the_command_line_is_not_refined_away(room, tmp_path, capsys):
+    argv = ["fit", str(room), "--sweeps", "60", "--no-figures", "--word-scaling", "10"]
+    assert main([*argv, "--out", str(tmp_path / "kept")]) == 0
+    printed = capsys.readouterr().out
+    assert "refining " not in printed and "not refined " not in printed
+    assert main([*argv, "--out", str(tmp_path / "asked"), "--refine", "always"]) == 0
+    assert "refining " in capsys.readouterr().out  # unless asked for
+
+
 def test_refine_is_refused_where_it_does_not_apply(room, tmp_path, capsys):
     argv = ["fit", str(room), "--out", str(tmp_path / "o"), "--no-figures"]
     assert main([*argv, "--sweeps", "auto", "--refine", "always"]) == 2
