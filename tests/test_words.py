@@ -201,8 +201,14 @@ def test_semantic_map_figure_writes_words_on_their_regions_and_marks_utterances(
     markers = [c for c in ax.collections if isinstance(c, PathCollection)]
     assert len(markers) == 1 and len(markers[0].get_offsets()) == 2
     legend = [t.get_text() for t in ax.get_legend().get_texts()]
-    assert any(NO_WORDS in t for t in legend) and any("where a word was heard" in t for t in legend)
+    assert any("where a word was heard" in t for t in legend)
+    assert "1 speck of 1 cell, no words heard: [2]" in legend  # a speck: one line for them all
+    assert not any(t.startswith("[2]") for t in legend)
     assert any("distinctive: kitchen x1.7" in t for t in legend)
+    totals = np.array([[3.0, 3.0, 5.0], [2.0, 2.0, 0.0], [0.0, 0.0, 0.0]])  # room 1 heard none
+    silent_room = dataclasses.replace(result, concept_totals=totals)
+    legend = semantic_map_figure(silent_room, min_region_fraction=0.0).axes[0].get_legend()
+    assert f"[1] 149 cells, 0 words heard: {NO_WORDS}" in [t.get_text() for t in legend.get_texts()]
 
 
 def test_where_figure_draws_the_answer_over_the_grey_map():

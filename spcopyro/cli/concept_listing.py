@@ -4,16 +4,17 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from spcopyro.results.concept_words import MIN_LIFT, format_concept_words, format_words_heard
+from spcopyro.results.concept_words import (
+    MIN_LIFT,
+    format_concept_words,
+    format_words_heard,
+    is_speck,
+)
 
 if TYPE_CHECKING:
     from spcopyro.results.result import SpCoResult
 
-__all__ = ["SPECK_SHARE", "print_concepts"]
-
-SPECK_SHARE = 0.005
-"""A concept where no word was heard, on fewer than this share of the free cells, is a speck
-(the semantic map's figure labels regions from the same 0.5 %)."""
+__all__ = ["print_concepts"]
 
 
 def print_concepts(result: SpCoResult, limit: int = 10) -> None:
@@ -55,4 +56,4 @@ def print_concepts(result: SpCoResult, limit: int = 10) -> None:
 
 
 def _is_speck(concept: dict[str, object], num_free: int) -> bool:
-    return concept["words_heard"] == 0 and int(concept["cells"]) < SPECK_SHARE * num_free
+    return is_speck(int(concept["cells"]), concept["words_heard"], num_free)

@@ -21,7 +21,7 @@ from matplotlib.patches import Patch
 
 from spcopyro.data import Observations
 from spcopyro.maps import OccupancyGrid
-from spcopyro.results.concept_words import MIN_LIFT, NO_WORDS, format_words_heard
+from spcopyro.results.concept_words import MIN_LIFT, NO_WORDS, format_words_heard, is_speck
 from spcopyro.results.result import SpCoResult
 
 __all__ = [
@@ -72,11 +72,15 @@ def concept_handles(
     the words heard there, its top words and its distinctive words with their lifts
     (``colours``: ``[L, 3]`` uint8, :func:`spcopyro.figures.plotting.semantic_colours`)."""
     handles = []
-    used = result.concepts_in_use()
+    sizes = result.concept_sizes()
+    all_used = result.concepts_in_use()
+    specks = [int(c) for c in all_used
+              if is_speck(int(sizes[c]), result.heard(int(c)), result.grid.num_free)]  # fmt: skip
+    used = np.array([c for c in all_used if int(c) not in specks], dtype=np.int64)
     for concept in used[:limit]:
         c = int(concept)
         heard = result.heard(c)
-        cells = int(result.concept_sizes()[c])
+        cells = int(sizes[c])
         if heard == 0:
             words = NO_WORDS
         else:
@@ -92,6 +96,13 @@ def concept_handles(
         )
     if len(used) > limit:
         handles.append(Patch(color="white", label=f"... {len(used) - limit} smaller concepts"))
+    if specks:
+        cells = sorted(int(sizes[c]) for c in specks)
+        size = f"{cells[0]}" if cells[0] == cells[-1] else f"{cells[0]}-{cells[-1]}"
+        names = ", ".join(f"[{c}]" for c in specks[:6]) + (", ..." if len(specks) > 6 else "")
+        plural, cell = "s" if len(specks) > 1 else "", "cell" if cells[-1] == 1 else "cells"
+        label = f"{len(specks)} speck{plural} of {size} {cell}, no words heard: {names}"
+        handles.append(Patch(color="white", label=label))
     return handles
 
 

@@ -32,6 +32,8 @@ import numpy as np
 __all__ = [
     "MIN_LIFT",
     "NO_WORDS",
+    "SPECK_SHARE",
+    "is_speck",
     "distinctive_items",
     "format_concept_words",
     "format_words_heard",
@@ -119,3 +121,16 @@ def format_concept_words(
     if distinctive:
         text += " | distinctive: " + ", ".join(f"{w} x{r:.1f}" for w, r, _ in distinctive)
     return text
+
+
+SPECK_SHARE = 0.005
+"""A concept where no word was heard, on fewer than this share of the free cells, is a speck:
+a doorway or convex-corner cell the Potts field holds weakly (docs/real_houses.md, "What is
+still open"). ``fit``'s listing and the semantic map's legend put the specks on one line; the
+figure labels regions from the same 0.5 %."""
+
+
+def is_speck(cells: int, heard: float | None, num_free: int) -> bool:
+    """Whether a concept of ``cells`` cells where ``heard`` words were heard is a speck
+    (:data:`SPECK_SHARE`); a result that does not know its counts (``heard`` None) has none."""
+    return heard == 0 and cells < SPECK_SHARE * num_free
