@@ -9,7 +9,9 @@ into
 * **data**: loading the house, the settings, the summary, the model data and the chain's start
   (``load``, ``settings``, ``summary``, and the ``fit`` phase less its sweeps and its
   post-processing);
-* **sweeps**: the wall of the chain's sweeps (``advance_chains``, the run loop included);
+* **sweeps**: the wall of the chain's sweeps (``advance_chains``, the run loop included; for a
+  fit the default refines on the map's cells, :mod:`spcopyro.fit.refine`, both stages' sweeps,
+  and ``S`` below counts both);
 * **post-processing** (what issue 25 item 1 holds to the time of 500 sweeps): the point
   estimate over the kept label maps, the agreement map, the label frequencies, the posterior
   means and the result (``result``), the uncertainty and agreement maps written, and the

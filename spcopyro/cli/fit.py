@@ -573,7 +573,9 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     else:
         print(f"wrote {out}/: labels.npy semantic_map.png concepts.json trace.csv trace.png ...")
     phases.mark("commit")
-    phases.write(sweeps=sweeps_run, sweep_seconds=float(result.trace.seconds[-1]),
+    refined = result.inference.get("refine", {}).get("coarse", {})  # and the coarse stage's
+    phases.write(sweeps=sweeps_run + refined.get("sweeps", 0),
+                 sweep_seconds=float(result.trace.seconds[-1]),
                  first_sweep_seconds=float(result.trace.seconds[0]), chains=chains,
                  figures=not args.no_figures)  # fmt: skip
     return 0

@@ -182,6 +182,7 @@ def refine_chains(
             "alpha": float(settings.model.alpha), "preparation": dataclasses.asdict(settings.data),
             "best_log_joint": float(first.best_objective),
             "concepts": len(first.concepts_in_use()),
+            "sweeps": len(first.trace.objective),
         },
         "alpha": float(refined.model.alpha),
     }  # fmt: skip
