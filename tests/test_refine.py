@@ -170,6 +170,19 @@ def test_a_preparation_given_on_the_command_line_is_not_refined_away(room, tmp_p
     assert "refining " in capsys.readouterr().out  # unless asked for
 
 
+def test_several_chains_are_refined_from_the_best_coarse_chain(room, tmp_path, capsys):
+    out = tmp_path / "out"
+    argv = ["fit", str(room), "--out", str(out), "--sweeps", "20", "--no-figures",
+            "--refine", "always", "--chains", "2"]  # fmt: skip
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "refining " in printed and "the 2 x 20 sweeps" in printed
+    chains = json.loads((out / "chains.json").read_text())
+    assert chains["seeds"] == [0, 1] and len(chains["best_log_joint"]) == 2
+    config = json.loads((out / "config.json").read_text())
+    assert config["inference"]["refine"]["coarse"]["sweeps"] == 20
+
+
 def test_refine_is_refused_where_it_does_not_apply(room, tmp_path, capsys):
     argv = ["fit", str(room), "--out", str(tmp_path / "o"), "--no-figures"]
     assert main([*argv, "--sweeps", "auto", "--refine", "always"]) == 2
