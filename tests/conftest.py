@@ -92,3 +92,13 @@ def memoized_house():
     _, data = prepare_model_data(house, settings)
     logging.disable(logging.NOTSET)
     return house, data, settings.model
+
+
+@pytest.fixture(scope="module")
+def home(tmp_path_factory) -> Path:
+    """A small synthetic house of three rooms (seed 2, 36 x 44 cells) written in the dataset
+    layout once per module: its room folder (for the ``fit`` command's tests)."""
+    from spcopyro.synthetic import HouseSpec, write_synthetic
+
+    root = tmp_path_factory.mktemp("data")
+    return write_synthetic(root, seed=2, spec=HouseSpec(height=36, width=44, num_rooms=3))

@@ -35,7 +35,6 @@ from spcopyro.gibbs.checkpoint import (
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsRun, advance, run_gibbs, start_chain
 from spcopyro.guides.checkpoint import is_variational_checkpoint
-from spcopyro.synthetic import HouseSpec, write_synthetic
 
 FIT = ["--sweeps", "12", "--preset", "original-code", "--gamma", "3", "--concepts", "8",
        "--anneal-sweeps", "3", "--cluster-moves", "0.3"]  # fmt: skip
@@ -245,12 +244,6 @@ def test_chains_not_started_are_saved_as_such(tmp_path):
 # -- spcopyro fit: Ctrl-C and --resume -----------------------------------------------------------
 
 
-@pytest.fixture(scope="module")
-def room(tmp_path_factory):
-    root = tmp_path_factory.mktemp("data")
-    return write_synthetic(root, seed=2, spec=HouseSpec(height=36, width=44, num_rooms=3))
-
-
 @pytest.fixture(autouse=True)
 def _no_progress_bars(monkeypatch):
     monkeypatch.setenv("CI", "1")  # stderr holds only what the command says
@@ -287,12 +280,12 @@ def _same_outputs(mine, theirs) -> None:
 
 @pytest.mark.parametrize(("chains", "chain", "sweep"), [(1, 0, 6), (2, 0, 4), (2, 1, 8)])
 def test_ctrl_c_keeps_a_checkpoint_and_resume_gives_the_unbroken_fit(
-    room, tmp_path, capsys, monkeypatch, chains, chain, sweep
+    home, tmp_path, capsys, monkeypatch, chains, chain, sweep
 ):
     out = tmp_path / "out"
     # One chain after another, so that chain k's interruption leaves those after it unstarted
     # (test_chains.py interrupts chains advancing side by side).
-    argv = ["fit", str(room), "--out", str(out), *FIT, "--chains", str(chains),
+    argv = ["fit", str(home), "--out", str(out), *FIT, "--chains", str(chains),
             "--chain-workers", "1"]  # fmt: skip
     with monkeypatch.context() as patch:
         _interrupt_fit_at(patch, chain, sweep)
@@ -324,14 +317,14 @@ def test_ctrl_c_keeps_a_checkpoint_and_resume_gives_the_unbroken_fit(
     assert asked[1:] == ([(0, 12)] if chains == 2 and chain == 0 else [])  # then any not begun
     assert f"removed {checkpoint}" in capsys.readouterr().out
     assert not checkpoint.exists()
-    assert main(["fit", str(room), "--out", str(tmp_path / "unbroken"), *FIT, "--chains",
+    assert main(["fit", str(home), "--out", str(tmp_path / "unbroken"), *FIT, "--chains",
                  str(chains)]) == 0  # fmt: skip
     _same_outputs(out, tmp_path / "unbroken")
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="forked chains: Linux only")
 def test_ctrl_c_at_the_keyboard_with_chains_in_processes_resumes_to_the_unbroken_fit(
-    room, tmp_path, capsys, monkeypatch, ctrl_c_raises
+    home, tmp_path, capsys, monkeypatch, ctrl_c_raises
 ):
     """``fit --chains 2`` with its chains in forked processes: a SIGINT to the command (what a
     Ctrl-C at the keyboard sends; the workers ignore theirs) stops both chains after their
@@ -347,7 +340,7 @@ def test_ctrl_c_at_the_keyboard_with_chains_in_processes_resumes_to_the_unbroken
         return info
 
     out = tmp_path / "out"
-    argv = ["fit", str(room), "--out", str(out), *FIT, "--chains", "2", "--chain-workers", "2"]
+    argv = ["fit", str(home), "--out", str(out), *FIT, "--chains", "2", "--chain-workers", "2"]
     with monkeypatch.context() as patch:
         patch.setattr(spcopyro.gibbs.run, "_sweep", slow_sweep)
         assert main(argv) == 130
@@ -362,16 +355,16 @@ def test_ctrl_c_at_the_keyboard_with_chains_in_processes_resumes_to_the_unbroken
             assert len(saved[f"chain{k}.log_joint"]) == done[k]
     again = shlex.split(err.split("continue with: ")[1])
     assert main(again[1:]) == 0
-    assert main(["fit", str(room), "--out", str(tmp_path / "unbroken"), *FIT, "--chains", "2",
+    assert main(["fit", str(home), "--out", str(tmp_path / "unbroken"), *FIT, "--chains", "2",
                  "--chain-workers", "1"]) == 0  # fmt: skip
     _same_outputs(out, tmp_path / "unbroken")
 
 
-def test_the_printed_resume_command_works_for_a_default_fit(room, tmp_path, capsys, monkeypatch):
+def test_the_printed_resume_command_works_for_a_default_fit(home, tmp_path, capsys, monkeypatch):
     """Issue 22 item 6: the default preset starts from the rooms; --resume used to force a
     random start and fail ("init: 'rooms' in the checkpoint, 'random' here")."""
     out = tmp_path / "out"
-    argv = ["fit", str(room), "--out", str(out), "--sweeps", "12", "--no-figures"]
+    argv = ["fit", str(home), "--out", str(out), "--sweeps", "12", "--no-figures"]
     with monkeypatch.context() as patch:
         _interrupt_fit_at(patch, 0, 5)
         assert main(argv) == 130
@@ -398,45 +391,45 @@ def _interrupt_cavi_at(monkeypatch, call: int) -> None:
     monkeypatch.setattr(cavi, "step", interrupting)
 
 
-def _variational_argv(room, out, method: str) -> list[str]:
+def _variational_argv(home, out, method: str) -> list[str]:
     prefix = "" if method == "cavi" else "variational."
-    return ["fit", str(room), "--out", str(out), *FIT, "--method", method, "--method-option",
+    return ["fit", str(home), "--out", str(out), *FIT, "--method", method, "--method-option",
             f"{prefix}backend=torch", "--method-option", f"{prefix}tolerance=0"]  # fmt: skip
 
 
-def test_ctrl_c_in_a_vi_gibbs_fit_says_how_far_it_got(room, tmp_path, capsys, monkeypatch):
+def test_ctrl_c_in_a_vi_gibbs_fit_says_how_far_it_got(home, tmp_path, capsys, monkeypatch):
     """The driver's record of an interrupted run reaches the command's one line: which fit,
     how many iterations were done (vi-gibbs: its VI stage, through the same driver)."""
     _interrupt_cavi_at(monkeypatch, 4)
     out = tmp_path / "out"
-    assert main(_variational_argv(room, out, "vi-gibbs")) == 130
+    assert main(_variational_argv(home, out, "vi-gibbs")) == 130
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("interrupted (vi-gibbs fit 1 of 1, 3 of ")
     assert "no checkpoint kept (the 'vi-gibbs' method)" in err and not out.exists()
-    assert main([*_variational_argv(room, out, "vi-gibbs"), "--resume", str(tmp_path)]) == 2
+    assert main([*_variational_argv(home, out, "vi-gibbs"), "--resume", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert "one fit (--chains 1) of cavi" in err and "--method vi-gibbs keeps no checkpoint" in err
 
 
 def test_ctrl_c_in_a_variational_fit_of_several_chains_says_why_none_is_kept(
-    room, tmp_path, capsys, monkeypatch
+    home, tmp_path, capsys, monkeypatch
 ):
     _interrupt_cavi_at(monkeypatch, 2)
     out = tmp_path / "out"
-    assert main([*_variational_argv(room, out, "cavi"), "--chains", "2"]) == 130
+    assert main([*_variational_argv(home, out, "cavi"), "--chains", "2"]) == 130
     err = capsys.readouterr().err
     assert err.rstrip().endswith("no checkpoint kept (--chains 2: a cavi checkpoint holds one fit)")
     assert list(tmp_path.iterdir()) == []
 
 
 def test_ctrl_c_in_a_cavi_fit_keeps_its_q_and_resume_gives_the_unbroken_fit(
-    room, tmp_path, capsys, monkeypatch
+    home, tmp_path, capsys, monkeypatch
 ):
     """A variational fit interrupted after 3 iterations is saved (its q(C) and record); the
     printed command goes on from there, and with CAVI's torch backend the result is the fit that
     never stopped, trace and kept maps included (issue 23 item 1)."""
     out = tmp_path / "out"
-    argv = _variational_argv(room, out, "cavi")
+    argv = _variational_argv(home, out, "cavi")
     with monkeypatch.context() as patch:
         _interrupt_cavi_at(patch, 4)
         assert main(argv) == 130
@@ -444,7 +437,7 @@ def test_ctrl_c_in_a_cavi_fit_keeps_its_q_and_resume_gives_the_unbroken_fit(
     assert err.count("\n") == 1 and err.startswith("interrupted (cavi fit 1 of 1, 3 of 12 ")
     checkpoint = checkpoint_path(out)
     assert f"saved in {checkpoint}" in err and not out.exists()
-    assert is_variational_checkpoint(checkpoint) and not is_variational_checkpoint(room / "x")
+    assert is_variational_checkpoint(checkpoint) and not is_variational_checkpoint(home / "x")
     again = shlex.split(err.split("continue with: ")[1])
     assert again[-2:] == ["--resume", str(checkpoint)]
     assert main([*again[1:], "--gamma", "4"]) == 2  # other settings: refused, naming them
@@ -457,7 +450,7 @@ def test_ctrl_c_in_a_cavi_fit_keeps_its_q_and_resume_gives_the_unbroken_fit(
 
 
 @pytest.mark.parametrize("method", ["svi", "cavi-numba", "lbp-torch", "lbp-numba", "stochastic-vi"])
-def test_other_variational_fits_resume_from_the_q_reached(room, tmp_path, monkeypatch, method):
+def test_other_variational_fits_resume_from_the_q_reached(home, tmp_path, monkeypatch, method):
     """SVI, CAVI's compiled backend, LBP and memoized VI go on from the saved q(C) (a warm
     start): the trace continues the saved one and the fit completes its iterations."""
     import spcopyro.guides.lbp_method
@@ -485,7 +478,7 @@ def test_other_variational_fits_resume_from_the_q_reached(room, tmp_path, monkey
     else:
         name, module = "lbp", spcopyro.guides.lbp_method
         options = LBPOptions(backend=method.split("-")[1], tolerance=0.0)
-    house = load_house(room)
+    house = load_house(home)
     path = tmp_path / "fit.checkpoint.npz"
     kwargs = dict(method=name, options=options, sweeps=12, progress=False)
     real = driver_module.drive
@@ -515,10 +508,10 @@ def test_other_variational_fits_resume_from_the_q_reached(room, tmp_path, monkey
 
 
 def test_a_fit_into_out_with_a_checkpoint_must_resume_or_overwrite(
-    room, tmp_path, capsys, monkeypatch
+    home, tmp_path, capsys, monkeypatch
 ):
     out = tmp_path / "out"
-    argv = ["fit", str(room), "--out", str(out), *FIT]
+    argv = ["fit", str(home), "--out", str(out), *FIT]
     with monkeypatch.context() as patch:
         _interrupt_fit_at(patch, 0, 2)
         assert main(argv) == 130
@@ -537,11 +530,11 @@ def test_a_fit_into_out_with_a_checkpoint_must_resume_or_overwrite(
     assert not checkpoint.exists() and (out / "result.npz").is_file()
 
 
-def test_ctrl_c_while_writing_keeps_the_finished_chains(room, tmp_path, capsys, monkeypatch):
+def test_ctrl_c_while_writing_keeps_the_finished_chains(home, tmp_path, capsys, monkeypatch):
     import spcopyro.figures.plotting
 
     out = tmp_path / "out"
-    argv = ["fit", str(room), "--out", str(out), *FIT]
+    argv = ["fit", str(home), "--out", str(out), *FIT]
 
     def interrupted_drawing(*args, **kwargs):
         raise KeyboardInterrupt
@@ -559,17 +552,17 @@ def test_ctrl_c_while_writing_keeps_the_finished_chains(room, tmp_path, capsys, 
     with monkeypatch.context() as patch:
         patch.setattr(spcopyro.gibbs.chains, "advance", no_sampling)
         assert main([*argv, "--resume", str(checkpoint_path(out))]) == 0
-    assert main(["fit", str(room), "--out", str(tmp_path / "unbroken"), *FIT]) == 0
+    assert main(["fit", str(home), "--out", str(tmp_path / "unbroken"), *FIT]) == 0
     _same_outputs(out, tmp_path / "unbroken")
 
 
-def test_ctrl_c_under_sweeps_auto_stops_cleanly(room, tmp_path, capsys, monkeypatch):
+def test_ctrl_c_under_sweeps_auto_stops_cleanly(home, tmp_path, capsys, monkeypatch):
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(spcopyro.gibbs.chains, "advance", interrupted)
     out = tmp_path / "out"
-    argv = ["fit", str(room), "--out", str(out), "--sweeps", "auto", "--chains", "2",
+    argv = ["fit", str(home), "--out", str(out), "--sweeps", "auto", "--chains", "2",
             "--max-sweeps", "10", "--concepts", "4"]  # fmt: skip
     assert main(argv) == 130
     err = capsys.readouterr().err
@@ -586,14 +579,14 @@ def _default_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
-def _interrupted_fit_process(out: Path, room: Path, chains: int, send) -> tuple[str, int]:
-    """Run ``python -m spcopyro fit`` of ``chains`` chains of a million sweeps on ``room``
+def _interrupted_fit_process(out: Path, home: Path, chains: int, send) -> tuple[str, int]:
+    """Run ``python -m spcopyro fit`` of ``chains`` chains of a million sweeps on ``home``
     (in a process group of its own), ``send(process)`` once it has swept some, and return its
     stderr and process group after asserting exit 130 and no traceback."""
     env = {k: v for k, v in os.environ.items() if k != "CI"}  # the progress bar shows sweeping
     env["PYTHONPATH"] = str(Path(spcopyro.fit.house.__file__).parents[1])
     env[spcopyro.gibbs.chains.PROCESSES_ENV] = "on" if chains > 1 else "auto"
-    argv = ["fit", str(room), "--out", str(out), "--sweeps", "1000000", "--concepts", "8",
+    argv = ["fit", str(home), "--out", str(out), "--sweeps", "1000000", "--concepts", "8",
             "--chains", str(chains), "--chain-workers", str(chains)]  # fmt: skip
     process = subprocess.Popen([sys.executable, "-m", "spcopyro", *argv], env=env,
                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
@@ -614,12 +607,12 @@ def _interrupted_fit_process(out: Path, room: Path, chains: int, send) -> tuple[
 
 @pytest.mark.slow  # a fresh process: ~5 s of imports
 @pytest.mark.parametrize("sent", [signal.SIGINT, signal.SIGTERM])
-def test_a_real_ctrl_c_in_a_fit_process(room, tmp_path, sent):
+def test_a_real_ctrl_c_in_a_fit_process(home, tmp_path, sent):
     """SIGINT (Ctrl-C) or SIGTERM (timeout, systemd, docker, Slurm: issue 22 item 7) to a
     ``python -m spcopyro fit`` process once it has done some sweeps: exit 130, no traceback,
     the last line says where the checkpoint is, which holds the sweeps done."""
     out = tmp_path / "out"
-    err, _ = _interrupted_fit_process(out, room, 1, lambda process: process.send_signal(sent))
+    err, _ = _interrupted_fit_process(out, home, 1, lambda process: process.send_signal(sent))
     last = err.strip().splitlines()[-1].split("\r")[-1]
     assert last.startswith("interrupted (chain 1 of 1, ") and "continue with: spcopyro" in last
     record = read_record(checkpoint_path(out))
@@ -629,7 +622,7 @@ def test_a_real_ctrl_c_in_a_fit_process(room, tmp_path, sent):
 @pytest.mark.slow  # a fresh process: ~5 s of imports
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="forked chains: Linux only")
 @pytest.mark.parametrize("sent", [signal.SIGINT, signal.SIGTERM])
-def test_a_real_ctrl_c_in_a_fit_whose_chains_run_in_processes(room, tmp_path, sent):
+def test_a_real_ctrl_c_in_a_fit_whose_chains_run_in_processes(home, tmp_path, sent):
     """SIGINT to the whole process group (a Ctrl-C at the terminal: the chains' worker
     processes get it too, and ignore it) or SIGTERM to the command alone, during ``fit --chains
     2`` with its chains in forked processes: exit 130, no traceback, every chain saved with the
@@ -642,7 +635,7 @@ def test_a_real_ctrl_c_in_a_fit_whose_chains_run_in_processes(room, tmp_path, se
         else:
             process.send_signal(sent)
 
-    err, group = _interrupted_fit_process(out, room, 2, send)
+    err, group = _interrupted_fit_process(out, home, 2, send)
     last = err.strip().splitlines()[-1].split("\r")[-1]
     assert last.startswith("interrupted (") and "continue with: spcopyro" in last
     checkpoint = checkpoint_path(out)
@@ -667,7 +660,7 @@ def _processes_in_group(group: int) -> list[int]:
     return found
 
 
-def test_a_killed_runs_staging_folder_is_removed_by_the_next_run_into_out(room, tmp_path):
+def test_a_killed_runs_staging_folder_is_removed_by_the_next_run_into_out(home, tmp_path):
     """Issue 22 item 7: ``kill -9`` leaves ``OUT.partial-PID-*``; the next fit into the same
     OUT removes it (its process is gone) and leaves a live process's staging alone."""
     from spcopyro._util.outputs import remove_stale_stagings, staging_prefix
@@ -682,6 +675,6 @@ def test_a_killed_runs_staging_folder_is_removed_by_the_next_run_into_out(room, 
     live.mkdir()
     other = tmp_path / "out.partial-oldstyle"  # no pid: not ours to judge
     other.mkdir()
-    assert main(["fit", str(room), "--out", str(out), *FIT]) == 0
+    assert main(["fit", str(home), "--out", str(out), *FIT]) == 0
     assert not stale.exists() and live.exists() and other.exists()
     assert remove_stale_stagings(out) == []

@@ -25,7 +25,7 @@ from spcopyro.fit.refine import (
 from spcopyro.fit.starts import result_labels
 from spcopyro.gibbs.run import advance
 from spcopyro.maps.coarse import model_cell_of
-from spcopyro.synthetic import HouseSpec, make_house, write_synthetic
+from spcopyro.synthetic import HouseSpec, make_house
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
@@ -131,20 +131,14 @@ def test_map_house_undoes_the_coarsening(house):
 # --- the command -------------------------------------------------------------------------------
 
 
-@pytest.fixture(scope="module")
-def room(tmp_path_factory):
-    root = tmp_path_factory.mktemp("data")
-    return write_synthetic(root, seed=2, spec=HouseSpec(height=36, width=44, num_rooms=3))
-
-
 @pytest.fixture(autouse=True)
 def _no_progress_bars(monkeypatch):
     monkeypatch.setenv("CI", "1")  # stderr holds only what the command says
 
 
-def test_fit_refines_by_default_and_writes_the_map_s_cells(room, tmp_path, capsys):
+def test_fit_refines_by_default_and_writes_the_map_s_cells(home, tmp_path, capsys):
     out = tmp_path / "out"
-    assert main(["fit", str(room), "--out", str(out), "--sweeps", "60", "--no-figures"]) == 0
+    assert main(["fit", str(home), "--out", str(out), "--sweeps", "60", "--no-figures"]) == 0
     printed = capsys.readouterr().out
     assert "refining         the concepts explain" in printed
     labels = np.load(out / "labels.npy")
@@ -154,15 +148,15 @@ def test_fit_refines_by_default_and_writes_the_map_s_cells(room, tmp_path, capsy
     assert "refine" in json.dumps(config)
     assert not (out / "robot_map.yaml").exists()  # the result is on the robot's own map
     never = tmp_path / "never"
-    argv = ["fit", str(room), "--out", str(never), "--sweeps", "60", "--no-figures"]
+    argv = ["fit", str(home), "--out", str(never), "--sweeps", "60", "--no-figures"]
     assert main([*argv, "--refine", "never"]) == 0
     printed = capsys.readouterr().out
     assert "refining " not in printed and "not refined " not in printed
     assert np.load(never / "labels.npy").shape != labels.shape  # the 0.25 m model grid
 
 
-def test_a_preparation_given_on_the_command_line_is_not_refined_away(room, tmp_path, capsys):
-    argv = ["fit", str(room), "--sweeps", "60", "--no-figures", "--word-scaling", "10"]
+def test_a_preparation_given_on_the_command_line_is_not_refined_away(home, tmp_path, capsys):
+    argv = ["fit", str(home), "--sweeps", "60", "--no-figures", "--word-scaling", "10"]
     assert main([*argv, "--out", str(tmp_path / "kept")]) == 0
     printed = capsys.readouterr().out
     assert "refining " not in printed and "not refined " not in printed
@@ -170,9 +164,9 @@ def test_a_preparation_given_on_the_command_line_is_not_refined_away(room, tmp_p
     assert "refining " in capsys.readouterr().out  # unless asked for
 
 
-def test_several_chains_are_refined_from_the_best_coarse_chain(room, tmp_path, capsys):
+def test_several_chains_are_refined_from_the_best_coarse_chain(home, tmp_path, capsys):
     out = tmp_path / "out"
-    argv = ["fit", str(room), "--out", str(out), "--sweeps", "20", "--no-figures",
+    argv = ["fit", str(home), "--out", str(out), "--sweeps", "20", "--no-figures",
             "--refine", "always", "--chains", "2"]  # fmt: skip
     assert main(argv) == 0
     printed = capsys.readouterr().out
@@ -183,8 +177,8 @@ def test_several_chains_are_refined_from_the_best_coarse_chain(room, tmp_path, c
     assert config["inference"]["refine"]["coarse"]["sweeps"] == 20
 
 
-def test_refine_is_refused_where_it_does_not_apply(room, tmp_path, capsys):
-    argv = ["fit", str(room), "--out", str(tmp_path / "o"), "--no-figures"]
+def test_refine_is_refused_where_it_does_not_apply(home, tmp_path, capsys):
+    argv = ["fit", str(home), "--out", str(tmp_path / "o"), "--no-figures"]
     assert main([*argv, "--sweeps", "auto", "--refine", "always"]) == 2
     assert "--refine always refines a Gibbs fit" in capsys.readouterr().err
     assert main([*argv, "--method", "cavi", "--sweeps", "3", "--refine", "auto"]) == 2
@@ -210,10 +204,10 @@ def _interrupt_advance(monkeypatch, call: int, sweep: int) -> None:
 
 
 def test_ctrl_c_while_refining_keeps_the_first_stage_and_resume_refines_again(
-    room, tmp_path, capsys, monkeypatch
+    home, tmp_path, capsys, monkeypatch
 ):
     out = tmp_path / "out"
-    argv = ["fit", str(room), "--out", str(out), "--sweeps", "12", "--no-figures",
+    argv = ["fit", str(home), "--out", str(out), "--sweeps", "12", "--no-figures",
             "--refine", "always", "--chain-workers", "1"]  # fmt: skip
     with monkeypatch.context() as patch:
         _interrupt_advance(patch, call=1, sweep=4)  # the refinement's chain
