@@ -171,6 +171,7 @@ def test_several_chains_are_refined_from_the_best_coarse_chain(home, tmp_path, c
     assert main(argv) == 0
     printed = capsys.readouterr().out
     assert "refining " in printed and "the 2 x 20 sweeps" in printed
+    assert "fitted 2 chains x 20 sweeps on 0.3 m cells, then 20 on the map's 0.1 m cells" in printed
     chains = json.loads((out / "chains.json").read_text())
     assert chains["seeds"] == [0, 1] and len(chains["best_log_joint"]) == 2
     config = json.loads((out / "config.json").read_text())

@@ -529,8 +529,12 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
               f"{result.inference['best_sample_loss']:.4g})"
               f"{'' if args.no_figures else '; agreement.png'}")  # fmt: skip
     unit = "sweep" if result.trace.objective_name == "log joint" else "iteration"
-    runs = f"{chains} chains x " if chains > 1 else ""
-    runs += f"{sweeps_run} {unit}s"
+    several = f"{chains} chains x " if chains > 1 else ""
+    runs = f"{several}{sweeps_run} {unit}s"
+    if job.refined:  # the coarse stage's sweeps, then the refinement's
+        coarse = result.inference["refine"]["coarse"]
+        runs = (f"{several}{coarse['sweeps']} sweeps on {coarse['cell_size']:g} m cells, then "
+                f"{sweeps_run} on the map's {result.grid.resolution:g} m cells")  # fmt: skip
     print(f"fitted {runs} in {wall:.1f} s wall clock "
           f"({1e3 * result.trace.seconds[-1] / sweeps_run:.2f} ms per {unit}); "
           f"{len(result.concepts_in_use())} concepts in use")  # fmt: skip
