@@ -303,6 +303,17 @@ def test_every_sweep_is_reported_and_the_start_action_runs_once_the_workers_are_
     assert len(started) == 1
 
 
+def test_fit_names_a_bad_chain_processes_mode_before_it_prints_anything(
+    monkeypatch, tmp_path, capsys
+):
+    from spcopyro.cli.main import main
+
+    monkeypatch.setenv(PROCESSES_ENV, "sometimes")
+    assert main(["fit", "--out", str(tmp_path / "out"), "--sweeps", "2", "--no-figures"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and "$SPCOPYRO_CHAIN_PROCESSES must be one of" in captured.err
+
+
 def test_processes_are_used_only_where_forking_is_safe(monkeypatch):
     monkeypatch.delenv(PROCESSES_ENV, raising=False)
     if not FORKS:

@@ -43,7 +43,7 @@ from spcopyro.config import (
 )
 from spcopyro.data import House
 from spcopyro.data.model_grid import model_house
-from spcopyro.gibbs.chains import when_chains_start
+from spcopyro.gibbs.chains import chain_processes, when_chains_start
 from spcopyro.maps import save_map
 
 if TYPE_CHECKING:
@@ -353,6 +353,7 @@ def _fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings,
             get_backend(options.backend)
         except ImportError as error:  # --backend numba without numba: before anything is written
             raise ValueError(str(error)) from None
+        chain_processes()  # a bad $SPCOPYRO_CHAIN_PROCESSES: before anything is printed
     return settings, options
 
 
