@@ -250,7 +250,8 @@ def test_end_to_end_benchmark_quick(tmp_path):
     record = json.loads(out.read_text())
     (house,) = record["houses"]
     fit = house["fit"]
-    assert house["house"] == "embedded" and fit["sweep_count"] == 200
+    # the embedded house is refined on its map's cells: 200 sweeps on the model grid, then 200
+    assert house["house"] == "embedded" and fit["sweep_count"] == 400
     parts = ("startup", "data", "sweeps", "post", "outputs")
     assert all(fit[name] > 0.0 for name in parts)
     assert math.isclose(sum(fit[name] for name in parts), fit["wall"], rel_tol=1e-6)

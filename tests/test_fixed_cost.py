@@ -37,7 +37,9 @@ def test_fit_no_figures_writes_outputs_but_no_png(tmp_path, capsys, monkeypatch)
         assert (out / name).is_file(), name
     assert json.loads((out / "concepts.json").read_text())
     record = json.loads(timings.read_text())
-    assert record["figures"] is False and record["sweeps"] == 4
+    refine = json.loads((out / "config.json").read_text())["inference"]["refine"]
+    coarse_sweeps = refine["coarse"]["sweeps"] if refine["refine"] else 0  # both stages count
+    assert record["figures"] is False and record["sweeps"] == 4 + coarse_sweeps
     assert set(record["seconds"]) >= {"load", "fit", "save", "figures", "report", "commit"}
 
 
