@@ -465,11 +465,12 @@ def _fit(job: FitJob, init: object, saved: SpCoResult | None) -> Fitted:
         if args.refine != "never":
             from spcopyro.cli.fit_refine import refine
 
-            refined = refine(args, result, chains, model=house, on_map=job.map_house,
-                             settings=settings, options=options, keeper=job.keeper)  # fmt: skip
-            if refined is not None:
-                chain_results = refined
-                job.house, job.refined = job.map_house, True
+            job.refined, chain_results = refine(
+                args, chain_results, kept, model=house, on_map=job.map_house,
+                settings=settings, options=options, keeper=job.keeper,
+            )  # fmt: skip
+            if job.refined:
+                job.house = job.map_house
             kept = best_chain(chain_results)
             result = chain_results[kept]
     return Fitted(result, chain_results, chains, kept, diagnostics, _clock() - start)

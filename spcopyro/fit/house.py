@@ -494,7 +494,7 @@ def fit_house(
             ``"never"`` (:mod:`spcopyro.fit.refine`; preset ``coarse`` recommends ``"auto"``).
             The decision is logged at INFO level and kept in ``result.inference["refine"]``.
     """
-    from spcopyro.fit.refine import check_refine, map_house, refine_chains, with_decision
+    from spcopyro.fit.refine import check_refine, map_house, refine_chains
 
     settings = preset() if settings is None else settings
     given, house = house, model_house(house, settings.data.cell_size)  # the model's grid
@@ -527,18 +527,15 @@ def fit_house(
     )  # fmt: skip
     kept = best_chain(results)
     if refine != "never":
-        decision, refined = refine_chains(
-            results[kept], given, settings, refine, fit_house_chains, method=method,
+        decision, results = refine_chains(
+            results, kept, given, settings, refine, fit_house_chains, method=method,
             options=options, sweeps=sweeps, seeds=[seed + k for k in range(chains)],
             progress=progress, threads=threads, marginal_samples=marginal_samples,
             point_estimate=point_estimate, chain_workers=chain_workers,
         )  # fmt: skip
         logger.info("refine: %s", decision.reason)
-        if refined is not None:
-            results, kept = refined, best_chain(refined)
-            house = map_house(given)
-        else:
-            results[kept] = with_decision(results[kept], decision)
+        if decision.refine:
+            kept, house = best_chain(results), map_house(given)
     if chains > 1:
         logger.info(
             "best of %d chains: kept chain %d (seed %d); best objectives %s", chains, kept,

@@ -42,7 +42,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 from collections.abc import Callable
-from typing import Any, Literal
+from typing import Any
 
 from spcopyro.config import SpCoSettings
 from spcopyro.data import House
@@ -63,7 +63,6 @@ __all__ = [
 
 logger = logging.getLogger("spcopyro")
 
-Refine = Literal["auto", "never", "always"]
 REFINE_MODES: tuple[str, ...] = ("auto", "never", "always")
 """``auto``: refine where the coarse fit's concepts explain the images; ``never``; ``always``."""
 
@@ -151,30 +150,34 @@ def with_decision(result: SpCoResult, decision: RefineDecision) -> SpCoResult:
 
 
 def refine_chains(
-    first: SpCoResult,
+    results: list[SpCoResult],
+    kept: int,
     house: House,
     settings: SpCoSettings,
     refine: str,
     fit_chains: Callable[..., list[SpCoResult]],
     decision: RefineDecision | None = None,
     **chain_kwargs: Any,
-) -> tuple[RefineDecision, list[SpCoResult] | None]:
-    """The decision for ``first`` (the kept chain of a fit of ``house`` under ``settings``, on
-    its model grid) and, where it refines, the chains of the refinement: ``fit_chains``
-    (:func:`~spcopyro.fit.house.fit_house_chains`) on the map's own cells under
-    :func:`refined_settings`, every chain started from ``first`` refined to the map's cells,
-    with ``chain_kwargs`` (sweeps, seeds, options, ...). Each refined result records the
-    decision and the coarse stage in ``inference["refine"]``. ``decision``: one already made
-    by :func:`refine_decision` for ``first`` (else made here)."""
+) -> tuple[RefineDecision, list[SpCoResult]]:
+    """The decision for ``results[kept]`` (the kept chain of a fit of ``house`` under
+    ``settings``, on its model grid) and the chains to report: where it refines, the chains of
+    the refinement -- ``fit_chains`` (:func:`~spcopyro.fit.house.fit_house_chains`) on the map's
+    own cells under :func:`refined_settings`, every chain started from the kept one refined to
+    the map's cells, with ``chain_kwargs`` (sweeps, seeds, options, ...), each recording the
+    decision and the coarse stage in ``inference["refine"]``; else ``results``, the kept chain
+    recording the decision (:func:`with_decision`). ``decision``: one already made by
+    :func:`refine_decision` for the kept chain (else made here)."""
+    first = results[kept]
     model = model_house(house, settings.data.cell_size)
     if decision is None:
         decision = refine_decision(first, model, refine)
     if not decision.refine:
-        return decision, None
+        return decision, [with_decision(r, decision) if k == kept else r
+                          for k, r in enumerate(results)]  # fmt: skip
     on_map = map_house(house)
     refined = refined_settings(settings, model.grid.num_free, on_map.grid.num_free)
     logger.info("refining on the map's %d cells: %s", on_map.grid.num_free, decision.reason)
-    results = fit_chains(on_map, refined, init=first, **chain_kwargs)
+    refits = fit_chains(on_map, refined, init=first, **chain_kwargs)
     record = {
         **decision.to_json(),
         "coarse": {
@@ -187,5 +190,5 @@ def refine_chains(
         "alpha": float(refined.model.alpha),
     }  # fmt: skip
     return decision, [
-        dataclasses.replace(r, inference={**r.inference, "refine": record}) for r in results
+        dataclasses.replace(r, inference={**r.inference, "refine": record}) for r in refits
     ]
