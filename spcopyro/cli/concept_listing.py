@@ -9,6 +9,7 @@ from spcopyro.results.concept_words import (
     format_concept_words,
     format_words_heard,
     is_speck,
+    speck_summary,
 )
 
 if TYPE_CHECKING:
@@ -45,10 +46,8 @@ def print_concepts(result: SpCoResult, limit: int = 10) -> None:
     if len(listed) > limit:
         print(f"  ... {len(listed) - limit} smaller concepts in concepts.json")
     if specks:
-        cells = sorted(int(c["cells"]) for c in specks)
-        size = f"{cells[0]}" if cells[0] == cells[-1] else f"{cells[0]}-{cells[-1]}"
-        print(f"  + {len(specks)} speck{'s' if len(specks) > 1 else ''} of {size} cell"
-              f"{'' if cells[-1] == 1 else 's'} where no word was heard (concepts "
+        summary = speck_summary([int(c["cells"]) for c in specks])
+        print(f"  + {summary} where no word was heard (concepts "
               f"{', '.join(str(c['concept']) for c in specks[:8])}"
               f"{', ...' if len(specks) > 8 else ''}; concepts.json lists them)")  # fmt: skip
     if not any(c["distinctive_words"] for c in concepts):

@@ -21,7 +21,13 @@ from matplotlib.patches import Patch
 
 from spcopyro.data import Observations
 from spcopyro.maps import OccupancyGrid
-from spcopyro.results.concept_words import MIN_LIFT, NO_WORDS, format_words_heard, is_speck
+from spcopyro.results.concept_words import (
+    MIN_LIFT,
+    NO_WORDS,
+    format_words_heard,
+    is_speck,
+    speck_summary,
+)
 from spcopyro.results.result import SpCoResult
 
 __all__ = [
@@ -97,12 +103,9 @@ def concept_handles(
     if len(used) > limit:
         handles.append(Patch(color="white", label=f"... {len(used) - limit} smaller concepts"))
     if specks:
-        cells = sorted(int(sizes[c]) for c in specks)
-        size = f"{cells[0]}" if cells[0] == cells[-1] else f"{cells[0]}-{cells[-1]}"
         names = ", ".join(f"[{c}]" for c in specks[:6]) + (", ..." if len(specks) > 6 else "")
-        plural, cell = "s" if len(specks) > 1 else "", "cell" if cells[-1] == 1 else "cells"
-        label = f"{len(specks)} speck{plural} of {size} {cell}, no words heard: {names}"
-        handles.append(Patch(color="white", label=label))
+        summary = speck_summary([int(sizes[c]) for c in specks])
+        handles.append(Patch(color="white", label=f"{summary}, no words heard: {names}"))
     return handles
 
 

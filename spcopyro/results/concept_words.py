@@ -34,6 +34,7 @@ __all__ = [
     "NO_WORDS",
     "SPECK_SHARE",
     "is_speck",
+    "speck_summary",
     "distinctive_items",
     "format_concept_words",
     "format_words_heard",
@@ -134,3 +135,11 @@ def is_speck(cells: int, heard: float | None, num_free: int) -> bool:
     """Whether a concept of ``cells`` cells where ``heard`` words were heard is a speck
     (:data:`SPECK_SHARE`); a result that does not know its counts (``heard`` None) has none."""
     return heard == 0 and cells < SPECK_SHARE * num_free
+
+
+def speck_summary(sizes: Sequence[int]) -> str:
+    """``"4 specks of 1 cell"``, ``"2 specks of 1-3 cells"``: specks of these cell counts."""
+    low, high = min(sizes), max(sizes)
+    size = f"{low}" if low == high else f"{low}-{high}"
+    specks, cells = "speck" if len(sizes) == 1 else "specks", "cell" if high == 1 else "cells"
+    return f"{len(sizes)} {specks} of {size} {cells}"
