@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from fit_interrupts import interrupt_fit_at
 from gibbs_problems import config, random_problem
 
 import spcopyro.fit.house
@@ -249,25 +250,6 @@ def _no_progress_bars(monkeypatch):
     monkeypatch.setenv("CI", "1")  # stderr holds only what the command says
 
 
-def _interrupt_fit_at(monkeypatch, chain: int, sweep: int) -> None:
-    """Make ``fit``'s run loop raise KeyboardInterrupt (through its callback) after ``sweep`` of
-    the ``chain``-th chain advanced."""
-    calls: list[int] = []
-
-    def interrupting_advance(gibbs_chain, num_sweeps, callback=None, **kwargs):
-        calls.append(1)
-
-        def stop(s, state):
-            if callback is not None:
-                callback(s, state)
-            if len(calls) - 1 == chain and s == sweep:
-                raise KeyboardInterrupt
-
-        return advance(gibbs_chain, num_sweeps, callback=stop, **kwargs)
-
-    monkeypatch.setattr(spcopyro.gibbs.chains, "advance", interrupting_advance)
-
-
 def _same_outputs(mine, theirs) -> None:
     """Two fit folders hold the same result (wall-clock seconds aside)."""
     with np.load(mine / "result.npz") as a, np.load(theirs / "result.npz") as b:  # closed
@@ -288,7 +270,7 @@ def test_ctrl_c_keeps_a_checkpoint_and_resume_gives_the_unbroken_fit(
     argv = ["fit", str(home), "--out", str(out), *FIT, "--chains", str(chains),
             "--chain-workers", "1"]  # fmt: skip
     with monkeypatch.context() as patch:
-        _interrupt_fit_at(patch, chain, sweep)
+        interrupt_fit_at(patch, chain, sweep)
         assert main(argv) == 130
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("interrupted (")  # one line, no traceback
@@ -366,7 +348,7 @@ def test_the_printed_resume_command_works_for_a_default_fit(home, tmp_path, caps
     out = tmp_path / "out"
     argv = ["fit", str(home), "--out", str(out), "--sweeps", "12", "--no-figures"]
     with monkeypatch.context() as patch:
-        _interrupt_fit_at(patch, 0, 5)
+        interrupt_fit_at(patch, 0, 5)
         assert main(argv) == 130
     err = capsys.readouterr().err
     again = shlex.split(err.split("continue with: ")[1])
@@ -513,7 +495,7 @@ def test_a_fit_into_out_with_a_checkpoint_must_resume_or_overwrite(
     out = tmp_path / "out"
     argv = ["fit", str(home), "--out", str(out), *FIT]
     with monkeypatch.context() as patch:
-        _interrupt_fit_at(patch, 0, 2)
+        interrupt_fit_at(patch, 0, 2)
         assert main(argv) == 130
     checkpoint = checkpoint_path(out)
     capsys.readouterr()

@@ -9,8 +9,8 @@ import shlex
 
 import numpy as np
 import pytest
+from fit_interrupts import interrupt_fit_at
 
-import spcopyro.gibbs.chains
 from spcopyro._util.outputs import checkpoint_path
 from spcopyro.cli.main import main
 from spcopyro.config import preset
@@ -23,7 +23,6 @@ from spcopyro.fit.refine import (
     refined_settings,
 )
 from spcopyro.fit.starts import result_labels
-from spcopyro.gibbs.run import advance
 from spcopyro.maps.coarse import model_cell_of
 from spcopyro.synthetic import HouseSpec, make_house
 
@@ -185,25 +184,6 @@ def test_refine_is_refused_where_it_does_not_apply(home, tmp_path, capsys):
     assert main([*argv, "--method", "cavi", "--sweeps", "3", "--refine", "auto"]) == 2
 
 
-def _interrupt_advance(monkeypatch, call: int, sweep: int) -> None:
-    """KeyboardInterrupt after ``sweep`` of the ``call``-th chain advanced (0: the first)."""
-    calls: list[int] = []
-
-    def interrupting(gibbs_chain, num_sweeps, callback=None, **kwargs):
-        calls.append(1)
-        index = len(calls) - 1
-
-        def stop(s, state):
-            if callback is not None:
-                callback(s, state)
-            if index == call and s == sweep:
-                raise KeyboardInterrupt
-
-        return advance(gibbs_chain, num_sweeps, callback=stop, **kwargs)
-
-    monkeypatch.setattr(spcopyro.gibbs.chains, "advance", interrupting)
-
-
 def test_ctrl_c_while_refining_keeps_the_first_stage_and_resume_refines_again(
     home, tmp_path, capsys, monkeypatch
 ):
@@ -211,7 +191,7 @@ def test_ctrl_c_while_refining_keeps_the_first_stage_and_resume_refines_again(
     argv = ["fit", str(home), "--out", str(out), "--sweeps", "12", "--no-figures",
             "--refine", "always", "--chain-workers", "1"]  # fmt: skip
     with monkeypatch.context() as patch:
-        _interrupt_advance(patch, call=1, sweep=4)  # the refinement's chain
+        interrupt_fit_at(patch, 1, 4)  # the refinement's chain, after the coarse one
         assert main(argv) == 130
     err = capsys.readouterr().err
     assert err.startswith("interrupted (while refining on the map's own cells)")
