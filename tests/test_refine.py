@@ -15,10 +15,11 @@ from spcopyro._util.outputs import checkpoint_path
 from spcopyro.cli.main import main
 from spcopyro.config import preset
 from spcopyro.data.model_grid import model_house
-from spcopyro.fit.house import fit_house, preset_fit_kwargs
+from spcopyro.fit.house import fit_house, fit_house_converged, preset_fit_kwargs
 from spcopyro.fit.refine import (
     SEPARATES,
     map_house,
+    refine_converged,
     refine_decision,
     refined_settings,
 )
@@ -114,11 +115,30 @@ def test_fit_house_refines_where_the_images_separate_and_records_why(house, coar
     assert kept.inference["refine"]["separation"]["explained"] < SEPARATES
 
 
-def test_refine_needs_a_gibbs_fit_of_a_number_of_sweeps(house):
+def test_refine_needs_a_gibbs_fit(house):
     with pytest.raises(ValueError, match="refines a Gibbs fit"):
         fit_house(house, preset("coarse"), method="cavi", sweeps=3, refine="auto")
-    with pytest.raises(ValueError, match="refines a Gibbs fit"):
-        fit_house(house, preset("coarse"), sweeps="auto", refine="always")
+
+
+def test_a_fit_run_until_it_converges_is_refined_until_its_refinement_converges(house):
+    converged = {"options": preset_fit_kwargs("coarse")["options"], "chains": 2, "block": 10,
+                 "max_sweeps": 20, "seed": 0, "progress": False}  # fmt: skip
+    first, coarse = fit_house_converged(house, preset("coarse"), init="rooms", **converged)
+    decision, result, diagnostics = refine_converged(
+        first, coarse, house, preset("coarse"), "always", fit_house_converged, **converged
+    )
+    assert decision.refine and result.grid.shape == house.grid.shape  # the map's own cells
+    assert diagnostics is not coarse and list(diagnostics.seeds) == list(coarse.seeds) == [0, 1]
+    assert len(result.trace.objective) == diagnostics.checks[-1].sweeps  # the refinement's
+    record = result.inference["refine"]
+    assert record["coarse"]["convergence"] == coarse.to_json()  # the coarse stage's, kept
+    assert record["coarse"]["sweeps"] == len(first.trace.objective)
+    assert result.inference["sweeps"] == "auto"
+    decision, kept, same = refine_converged(
+        first, coarse, house, preset("coarse"), "never", fit_house_converged, **converged
+    )
+    assert not decision.refine and same is coarse and kept.grid is first.grid
+    assert kept.inference["refine"]["refine"] is False
 
 
 def test_map_house_undoes_the_coarsening(house):
@@ -179,9 +199,28 @@ def test_several_chains_are_refined_from_the_best_coarse_chain(home, tmp_path, c
 
 def test_refine_is_refused_where_it_does_not_apply(home, tmp_path, capsys):
     argv = ["fit", str(home), "--out", str(tmp_path / "o"), "--no-figures"]
-    assert main([*argv, "--sweeps", "auto", "--refine", "always"]) == 2
-    assert "--refine always refines a Gibbs fit" in capsys.readouterr().err
     assert main([*argv, "--method", "cavi", "--sweeps", "3", "--refine", "auto"]) == 2
+    assert "--refine auto refines a Gibbs fit" in capsys.readouterr().err
+
+
+def test_sweeps_auto_refines_until_the_refinement_converges(home, tmp_path, capsys):
+    argv = ["fit", str(home), "--no-figures", "--sweeps", "auto", "--max-sweeps", "20",
+            "--chains", "2"]  # fmt: skip
+    assert main([*argv, "--out", str(tmp_path / "default")]) == 0
+    printed = capsys.readouterr().out  # decided by default, as without --sweeps auto
+    assert "refining         the concepts explain" in printed or "not refined      the" in printed
+    out = tmp_path / "out"
+    assert main([*argv, "--out", str(out), "--refine", "always"]) == 0
+    printed = capsys.readouterr().out
+    assert "refining         refine='always'" in printed and "the 2 x 20 sweeps" in printed
+    assert "--sweeps auto: 2 chains on the map's cells " in printed
+    assert "fitted 2 chains x 20 sweeps on 0.3 m cells, then 20 on the map's 0.1 m cells" in printed
+    assert np.load(out / "labels.npy").shape == np.load(out / "truth.npy").shape  # map's cells
+    config = json.loads((out / "config.json").read_text())
+    coarse = config["inference"]["refine"]["coarse"]
+    assert coarse["sweeps"] == 20 and coarse["convergence"]["seeds"] == [0, 1]
+    refined = json.loads((out / "convergence.json").read_text())
+    assert refined["checks"][-1]["sweeps"] == 20  # the refinement's own
 
 
 def test_ctrl_c_while_refining_keeps_the_first_stage_and_resume_refines_again(

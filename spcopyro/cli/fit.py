@@ -231,15 +231,15 @@ def _apply_preset_inference(args: argparse.Namespace) -> None:
         args.merge_moves = recommended.get("merge_moves")
     if args.region_moves is None and args.method == "gibbs":
         args.region_moves = recommended.get("region_moves")
-    refinable = args.method == "gibbs" and args.sweeps != "auto" and args.update is None
+    refinable = args.method == "gibbs" and args.update is None
     if args.refine is None:  # a preparation given on the command line is kept, not refined away
         prepared = any(getattr(args, name, None) is not None for name in _REFINED_AWAY)
         refinable = refinable and not prepared
         args.refine = recommended.get("refine", "never") if refinable else "never"
     elif args.refine != "never" and not refinable:
         raise ValueError(
-            f"--refine {args.refine} refines a Gibbs fit of a number of --sweeps (not --sweeps "
-            "auto, --update or another --method): leave it out or pass --refine never"
+            f"--refine {args.refine} refines a Gibbs fit (not --update or another --method): "
+            "leave it out or pass --refine never"
         )
     if args.point_estimate is None:
         usable = samples and args.marginal_samples > 0
@@ -437,6 +437,14 @@ def _fit(job: FitJob, init: object, saved: SpCoResult | None) -> Fitted:
             seed=args.seed, init=init, source=source, threads=args.threads,
         )  # fmt: skip
         chain_results, kept = None, 0
+        if args.refine != "never":
+            from spcopyro.cli.fit_refine import refine_converged
+
+            job.refined, result, diagnostics = refine_converged(
+                args, result, diagnostics, model=house, on_map=job.map_house,
+                settings=settings, options=options, chains=chains,
+            )  # fmt: skip
+            job.house = job.map_house if job.refined else house
     elif saved is not None:
         from spcopyro.robot.online import fit_update
 
@@ -508,7 +516,8 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
         (out / "convergence.json").write_text(json.dumps(diagnostics.to_json(), indent=1) + "\n")
         last = diagnostics.checks[-1]
         state = "converged" if diagnostics.converged else "NOT converged (hit --max-sweeps)"
-        print(f"--sweeps auto: {chains} chains {state} after {sweeps_run} sweeps each "
+        where = " on the map's cells" if job.refined else ""
+        print(f"--sweeps auto: {chains} chains{where} {state} after {sweeps_run} sweeps each "
               f"(split R-hat: log joint {last.rhat_log_joint:.3f}, concepts "
               f"{last.rhat_num_concepts:.3f}); kept chain {diagnostics.best_chain} "
               f"(seed {diagnostics.seeds[diagnostics.best_chain]}), highest log joint")  # fmt: skip

@@ -12,9 +12,11 @@ if TYPE_CHECKING:
     from spcopyro.config import SpCoSettings
     from spcopyro.data import House
     from spcopyro.fit.gibbs_chains import FitCheckpoint
+    from spcopyro.fit.refine import RefineDecision
+    from spcopyro.gibbs.convergence import ConvergenceDiagnostics
     from spcopyro.results.result import SpCoResult
 
-__all__ = ["refine"]
+__all__ = ["refine", "refine_converged"]
 
 
 def refine(
@@ -35,19 +37,9 @@ def refine(
     finished first stage's checkpoint (``keeper``): resuming it runs the refinement again."""
     from spcopyro.fit.gibbs_chains import FitInterrupted
     from spcopyro.fit.house import fit_house_chains
-    from spcopyro.fit.refine import refine_chains, refine_decision, refined_settings
+    from spcopyro.fit.refine import refine_chains
 
-    first = results[kept]
-    decision = refine_decision(first, model, args.refine)
-    if decision.refine:
-        alpha = refined_settings(settings, model.grid.num_free, on_map.grid.num_free).model.alpha
-        print(f"refining         {decision.reason}: the {len(results)} x "
-              f"{len(first.trace.objective)} sweeps on {first.grid.resolution:g} m cells (best log "
-              f"joint {first.best_objective:.1f}) go on on the map's own "
-              f"{on_map.grid.resolution:g} m cells, images as 100 draws, words at their cell, "
-              f"alpha {alpha:.3g}")  # fmt: skip
-    else:  # config.json says why too
-        print(f"not refined      {decision.reason}")
+    decision = _decide(args, results[kept], len(results), model, on_map, settings)
     try:
         _, results = refine_chains(
             results, kept, on_map, settings, args.refine, fit_house_chains, decision=decision,
@@ -60,3 +52,55 @@ def refine(
         saved = keeper.save() if keeper is not None else None
         raise FitInterrupted("while refining on the map's own cells", saved) from None
     return decision.refine, results
+
+
+def refine_converged(
+    args: argparse.Namespace,
+    result: SpCoResult,
+    diagnostics: ConvergenceDiagnostics,
+    *,
+    model: House,
+    on_map: House,
+    settings: SpCoSettings,
+    options: object | None,
+    chains: int,
+) -> tuple[bool, SpCoResult, ConvergenceDiagnostics]:
+    """``--refine`` after ``--sweeps auto``: the decision for ``result`` (the kept chain of
+    ``chains`` run until they converged on ``model``'s grid) printed; whether it refined, the
+    result and the diagnostics to report (the refinement's own chains, run until they converge,
+    when it refines: :func:`spcopyro.fit.refine.refine_converged`)."""
+    from spcopyro.fit import refine as refinement
+    from spcopyro.fit.house import fit_house_converged
+
+    decision = _decide(args, result, chains, model, on_map, settings)
+    _, result, diagnostics = refinement.refine_converged(
+        result, diagnostics, on_map, settings, args.refine, fit_house_converged,
+        decision=decision, options=options, chains=chains, max_sweeps=args.max_sweeps,
+        seed=args.seed, threads=args.threads,
+    )  # fmt: skip
+    return decision.refine, result, diagnostics
+
+
+def _decide(
+    args: argparse.Namespace,
+    first: SpCoResult,
+    chains: int,
+    model: House,
+    on_map: House,
+    settings: SpCoSettings,
+) -> RefineDecision:
+    """The decision for ``first`` (the kept one of ``chains`` chains on ``model``'s grid),
+    printed: ``refining ...`` with what the refit changes, or ``not refined ...`` and why."""
+    from spcopyro.fit.refine import refine_decision, refined_settings
+
+    decision = refine_decision(first, model, args.refine)
+    if decision.refine:
+        alpha = refined_settings(settings, model.grid.num_free, on_map.grid.num_free).model.alpha
+        print(f"refining         {decision.reason}: the {chains} x "
+              f"{len(first.trace.objective)} sweeps on {first.grid.resolution:g} m cells (best log "
+              f"joint {first.best_objective:.1f}) go on on the map's own "
+              f"{on_map.grid.resolution:g} m cells, images as 100 draws, words at their cell, "
+              f"alpha {alpha:.3g}")  # fmt: skip
+    else:  # config.json says why too
+        print(f"not refined      {decision.reason}")
+    return decision

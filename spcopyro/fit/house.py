@@ -489,21 +489,21 @@ def fit_house(
         (one thread unless the map is large), 0 or None (torch's own setting), or a count. The
             previous setting is restored afterwards; labels do not depend on it.
         marginal_samples, point_estimate, chain_workers: see :func:`fit_house_chains`.
-        refine: Gibbs with a number of sweeps: ``"auto"`` refits on the map's own cells, from
-            the fit's map, where its concepts tell the images apart, ``"always"``, or
-            ``"never"`` (:mod:`spcopyro.fit.refine`; preset ``coarse`` recommends ``"auto"``).
+        refine: Gibbs: ``"auto"`` refits on the map's own cells, from the fit's map, where its
+            concepts tell the images apart, ``"always"``, or ``"never"``
+            (:mod:`spcopyro.fit.refine`; preset ``coarse`` recommends ``"auto"``); with
+            ``sweeps="auto"`` the refit runs until its own chains converge.
             The decision is logged at INFO level and kept in ``result.inference["refine"]``.
     """
-    from spcopyro.fit.refine import check_refine, map_house, refine_chains
+    from spcopyro.fit.refine import check_refine, map_house, refine_chains, refine_converged
 
     settings = preset() if settings is None else settings
     given, house = house, model_house(house, settings.data.cell_size)  # the model's grid
     if method == DEFAULT_METHOD:
         log_skipped_preset_inference(settings, init, options, point_estimate, refine)
-    if check_refine(refine) != "never" and (method != "gibbs" or sweeps == "auto"):
+    if check_refine(refine) != "never" and method != "gibbs":
         raise ValueError(
-            f"refine={refine!r} refines a Gibbs fit of a number of sweeps, not method="
-            f"{method!r} with sweeps={sweeps!r}: pass refine='never'"
+            f"refine={refine!r} refines a Gibbs fit, not method={method!r}: pass refine='never'"
         )
     if not isinstance(chains, int) or chains < 1:
         raise ValueError(f"chains must be a positive integer, got {chains!r}")
@@ -512,10 +512,15 @@ def fit_house(
             raise ValueError("sweeps='auto' reports the best visited state only")
         if method != "gibbs":
             raise ValueError(f"sweeps='auto' is Gibbs' convergence rule, not {method!r}'s")
-        result, diagnostics = fit_house_converged(
-            house, settings, options=options, chains=chains if chains > 1 else DEFAULT_CHAINS,
-            seed=seed, init=init, progress=progress, threads=threads,
-        )  # fmt: skip
+        converged = dict(options=options, chains=chains if chains > 1 else DEFAULT_CHAINS,
+                         seed=seed, progress=progress, threads=threads)  # fmt: skip
+        result, diagnostics = fit_house_converged(house, settings, init=init, **converged)
+        if refine != "never":
+            decision, result, diagnostics = refine_converged(
+                result, diagnostics, given, settings, refine, fit_house_converged, **converged
+            )
+            logger.info("refine: %s", decision.reason)
+            house = map_house(given) if decision.refine else house
         logger.info("--sweeps auto: %s", diagnostics.to_json())
         log_degenerate_map(result, house)
         return result
