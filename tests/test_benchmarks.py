@@ -175,7 +175,11 @@ def test_real_houses_benchmark_quick(tmp_path):
     assert {"open-plan", "sparse", "dense"} <= set(results)
     if "public" in results:  # the dataset is there: every section ran
         assert {"heldout_top1", "methods", "simulated", "longer_chain"} <= set(results)
-        assert "Held-out word top-1" in done.stdout
+        assert "Held-out word top-1 (each trial held out in turn)" in done.stdout
+        for rows in results["heldout_top1"].values():  # every fold's words pooled, and fold 0
+            for row in rows.values():
+                assert 0.0 <= row["trial 1"] <= 1.0 and 0.0 <= row["all folds"] <= 1.0
+                assert row["words"] > 0
         for rows in results["simulated"].values():  # --quick: fit seed 0 and the mean over seeds
             assert list(rows) == ["fit seed 0", "mean"]
             assert rows["mean"]["ari"] == pytest.approx(rows["fit seed 0"]["ari"])
