@@ -244,3 +244,22 @@ def test_ctrl_c_while_refining_keeps_the_first_stage_and_resume_refines_again(
             if name != "seconds":
                 np.testing.assert_array_equal(a[name], b[name], err_msg=name)
     assert not checkpoint.exists()
+
+
+def test_a_refined_fit_is_updated_on_the_map_s_cells_as_refined(home, tmp_path, capsys):
+    first, second, third = (tmp_path / name for name in ("first", "second", "third"))
+    argv = ["fit", str(home), "--no-figures", "--sweeps", "12"]
+    assert main([*argv, "--out", str(first), "--refine", "always"]) == 0
+    saved = json.loads((first / "config.json").read_text())
+    assert main([*argv, "--out", str(second), "--update", str(first)]) == 0  # was an error
+    assert main([*argv, "--out", str(third), "--update", str(second)]) == 0  # and again
+    capsys.readouterr()
+    for out in (second, third):
+        config = json.loads((out / "config.json").read_text())
+        assert config["model"] == saved["model"] and config["data"] == saved["data"]
+        assert config["inference"]["refine"] == saved["inference"]["refine"]  # kept for the next
+        assert np.load(out / "labels.npy").shape == np.load(first / "labels.npy").shape
+    # a preparation of its own on the command line is checked against the saved fit's
+    assert main([*argv, "--out", str(tmp_path / "x"), "--update", str(first),
+                 "--word-scaling", "10"]) == 2  # fmt: skip
+    assert "cannot update" in capsys.readouterr().err

@@ -36,6 +36,7 @@ from spcopyro.cli.common import (
 )
 from spcopyro.cli.concept_listing import print_concepts
 from spcopyro.cli.fit_figures import FigurePrefetch, write_figures
+from spcopyro.cli.fit_refine import REFINED_AWAY, update_settings
 from spcopyro.config import (
     SpCoSettings,
     preset,
@@ -162,6 +163,8 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
     loaded = _load(args.data)
     args.phases.mark("load")
     settings, options = _fit_settings(args, loaded)
+    if args.update is not None:  # a refined fit goes on on the map's cells, as refined
+        settings = update_settings(args, settings, loaded.grid.num_free)
     house = model_house(loaded, settings.data.cell_size)  # the model's grid (cell_size)
     staged = stage_output(
         args.out, overwrite=args.overwrite, resume=args.resume,
@@ -233,7 +236,7 @@ def _apply_preset_inference(args: argparse.Namespace) -> None:
         args.region_moves = recommended.get("region_moves")
     refinable = args.method == "gibbs" and args.update is None
     if args.refine is None:  # a preparation given on the command line is kept, not refined away
-        prepared = any(getattr(args, name, None) is not None for name in _REFINED_AWAY)
+        prepared = any(getattr(args, name, None) is not None for name in REFINED_AWAY)
         refinable = refinable and not prepared
         args.refine = recommended.get("refine", "never") if refinable else "never"
     elif args.refine != "never" and not refinable:
@@ -246,11 +249,6 @@ def _apply_preset_inference(args: argparse.Namespace) -> None:
         args.point_estimate = (
             recommended.get("point_estimate", "map-visited") if usable else "map-visited"
         )
-
-
-_REFINED_AWAY = ("cell_size", "feature_scaling", "word_scaling", "footprint",
-                 "footprint_kernel", "footprint_fov")  # fmt: skip
-"""The options of the data preparation the refinement replaces (:mod:`spcopyro.fit.refine`)."""
 
 
 def _check_update_args(args: argparse.Namespace) -> None:
@@ -588,7 +586,7 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     else:
         print(f"wrote {out}/: labels.npy semantic_map.png concepts.json trace.csv trace.png ...")
     phases.mark("commit")
-    refined = result.inference.get("refine", {}).get("coarse", {})  # and the coarse stage's
+    refined = result.inference["refine"]["coarse"] if job.refined else {}  # and the coarse's
     phases.write(sweeps=sweeps_run + refined.get("sweeps", 0),
                  sweep_seconds=float(result.trace.seconds[-1]),
                  first_sweep_seconds=float(result.trace.seconds[0]), chains=chains,

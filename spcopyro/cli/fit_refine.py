@@ -4,6 +4,8 @@ holds the method."""
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
@@ -16,7 +18,12 @@ if TYPE_CHECKING:
     from spcopyro.gibbs.convergence import ConvergenceDiagnostics
     from spcopyro.results.result import SpCoResult
 
-__all__ = ["refine", "refine_converged"]
+__all__ = ["REFINED_AWAY", "refine", "refine_converged", "update_settings"]
+
+REFINED_AWAY = ("cell_size", "feature_scaling", "word_scaling", "footprint",
+                "footprint_kernel", "footprint_fov")  # fmt: skip
+"""The options of the data preparation the refinement replaces (:mod:`spcopyro.fit.refine`):
+given on the command line, the recommended refinement is not run."""
 
 
 def refine(
@@ -104,3 +111,25 @@ def _decide(
     else:  # config.json says why too
         print(f"not refined      {decision.reason}")
     return decision
+
+
+def update_settings(
+    args: argparse.Namespace, settings: SpCoSettings, map_cells: int
+) -> SpCoSettings:
+    """``--update OUT``'s settings: where OUT is a refined fit (its ``config.json`` records
+    ``inference.refine.refine``), ``settings`` refined as that fit was
+    (:func:`spcopyro.fit.refine.refined_settings`, alpha scaled from the coarse stage's free
+    cells to the ``map_cells`` of this run's map), so that the update goes on on the map's cells
+    with the refinement's preparation; else, or when this command line gives a data preparation
+    of its own (:data:`REFINED_AWAY`), ``settings`` (the update checks them against OUT's)."""
+    from spcopyro.fit.refine import refined_settings
+
+    config = Path(args.update) / "config.json"
+    try:
+        record = json.loads(config.read_text()).get("inference", {}).get("refine") or {}
+    except (OSError, ValueError):  # the saved fit's own loading names what is wrong
+        return settings
+    prepared = any(getattr(args, name, None) is not None for name in REFINED_AWAY)
+    if not record.get("refine") or prepared:
+        return settings
+    return refined_settings(settings, int(record["coarse"]["free_cells"]), map_cells)

@@ -383,6 +383,8 @@ def fit_update(
                 seed=int(seed), init=f"update of {where}",
                 update_of=update_record(saved, start.merge, where),
             )  # fmt: skip
+            if saved.inference.get("refine"):  # a refined fit's update is one: updated again
+                output.options["refine"] = saved.inference["refine"]  # as refined (config.json)
             record = provenance(house, start.data, source)
             results.append(
                 result_of(output, house, start.counts, start.data, start.settings, method, record)
