@@ -14,7 +14,7 @@ import pytest
 import yaml
 from hand_results import one_word_per_concept
 
-from spcopyro.cli.main import main
+from spcopyro.cli.main import attach_negative_coordinates, main
 from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
 from spcopyro.results.result import SpCoResult
 from spcopyro.robot.navigation import (
@@ -336,3 +336,15 @@ def test_the_embedded_house_fitted_by_the_readme_command_can_be_driven_through(
     printed = capsys.readouterr().out
     assert (f"planning on {out / 'robot_map.yaml'}" in printed) == (not refined)
     assert "kitchen: goal" in printed and (plan / "path.yaml").is_file()
+
+
+def test_a_negative_start_needs_no_equals_sign(fit, capsys):
+    code = main(["navigate", str(fit), "kitchen", "--start", "-50,1"])  # was "expected one
+    assert code == 2  # argument"; now the point itself is judged
+    assert "off the map" in capsys.readouterr().err
+    assert attach_negative_coordinates(["--start", "-0.5,-1", "--radius", "0.1"]) == [
+        "--start=-0.5,-1",
+        "--radius",
+        "0.1",
+    ]
+    assert attach_negative_coordinates(["--start", "--radius"]) == ["--start", "--radius"]

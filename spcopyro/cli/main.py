@@ -343,8 +343,29 @@ def _error_line(error: BaseException) -> str:
     return str(error)
 
 
+COORDINATE_OPTIONS = ("--start",)
+"""Options whose value is a point ``X,Y``, which may start with a minus sign."""
+
+
+def attach_negative_coordinates(argv: list[str]) -> list[str]:
+    """``--start -0.5,-1`` as ``--start=-0.5,-1``: argparse reads a value that starts with a
+    minus sign and is not a plain number as an option, and answered "expected one argument"."""
+    joined: list[str] = []
+    k = 0
+    while k < len(argv):
+        value = argv[k + 1] if k + 1 < len(argv) else ""
+        if argv[k] in COORDINATE_OPTIONS and value[:1] == "-" and value[1:2] in set("0123456789."):
+            joined.append(f"{argv[k]}={value}")
+            k += 2
+        else:
+            joined.append(argv[k])
+            k += 1
+    return joined
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    given = sys.argv[1:] if argv is None else argv
+    args = build_parser().parse_args(attach_negative_coordinates(list(given)))
     if argv is not None:
         args.argv = list(argv)
     _configure_logging(logging.INFO if args.verbose else logging.WARNING)
