@@ -179,6 +179,7 @@ def test_real_houses_benchmark_quick(tmp_path):
         for rows in results["heldout_top1"].values():  # every fold's words pooled, and fold 0
             for row in rows.values():
                 assert 0.0 <= row["trial 1"] <= 1.0 and 0.0 <= row["all folds"] <= 1.0
+                assert row["all folds"] <= row["top 3"] <= 1.0 and row["mean rank"] >= 1.0
                 assert row["words"] > 0
         for rows in results["simulated"].values():  # --quick: fit seed 0 and the mean over seeds
             assert list(rows) == ["fit seed 0", "mean"]
