@@ -203,8 +203,9 @@ def test_ctrl_c_at_the_keyboard_keeps_every_chains_completed_sweeps(mode, ctrl_c
         advance_chains(
             [(chain, sweeps) for chain in chains], workers=2, progress=False, processes=mode
         )
-    for chain in chains:
-        assert 3 <= chain.sweeps_done < sweeps
+    assert chains[0].sweeps_done >= 3  # the chain whose 4th sweep sent the Ctrl-C
+    for chain in chains:  # how far the other got is the scheduler's: 2 on a busy machine once
+        assert chain.sweeps_done < sweeps
         assert len(chain.log_joint) == len(chain.num_concepts) == chain.sweeps_done
         chain.backend = chain.backend.inner
     runs = [(c, sweeps - c.sweeps_done) for c in chains]
