@@ -36,7 +36,7 @@ from spcopyro.cli.common import (
 )
 from spcopyro.cli.concept_listing import print_concepts
 from spcopyro.cli.fit_figures import FigurePrefetch, write_figures
-from spcopyro.cli.fit_refine import REFINED_AWAY, update_settings
+from spcopyro.cli.fit_refine import REFINED_AWAY, refine, update_settings
 from spcopyro.config import (
     SpCoSettings,
     preset,
@@ -435,14 +435,16 @@ def _fit(job: FitJob, init: object, saved: SpCoResult | None) -> Fitted:
             seed=args.seed, init=init, source=source, threads=args.threads,
         )  # fmt: skip
         chain_results, kept = None, 0
-        if args.refine != "never":
-            from spcopyro.cli.fit_refine import refine_converged
-
-            job.refined, result, diagnostics = refine_converged(
-                args, result, diagnostics, model=house, on_map=job.map_house,
-                settings=settings, options=options, chains=chains,
+        if args.refine != "never":  # as many sweeps as the chains needed, the preset's estimate
+            estimate = preset_inference(args.preset).get("point_estimate", "map-visited")
+            job.refined, refits = refine(
+                args, [result], 0, model=house, on_map=job.map_house, settings=settings,
+                options=options, keeper=None, chains=chains, sweeps=diagnostics.sweeps,
+                point_estimate=estimate if args.marginal_samples > 0 else "map-visited",
             )  # fmt: skip
-            job.house = job.map_house if job.refined else house
+            if job.refined:
+                job.house, chain_results = job.map_house, refits
+                result = refits[best_chain(refits)]
     elif saved is not None:
         from spcopyro.robot.online import fit_update
 
@@ -469,8 +471,6 @@ def _fit(job: FitJob, init: object, saved: SpCoResult | None) -> Fitted:
         kept = best_chain(chain_results)
         result = chain_results[kept]
         if args.refine != "never":
-            from spcopyro.cli.fit_refine import refine
-
             job.refined, chain_results = refine(
                 args, chain_results, kept, model=house, on_map=job.map_house,
                 settings=settings, options=options, keeper=job.keeper,
@@ -514,8 +514,7 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
         (out / "convergence.json").write_text(json.dumps(diagnostics.to_json(), indent=1) + "\n")
         last = diagnostics.checks[-1]
         state = "converged" if diagnostics.converged else "NOT converged (hit --max-sweeps)"
-        where = " on the map's cells" if job.refined else ""
-        print(f"--sweeps auto: {chains} chains{where} {state} after {sweeps_run} sweeps each "
+        print(f"--sweeps auto: {chains} chains {state} after {diagnostics.sweeps} sweeps each "
               f"(split R-hat: log joint {last.rhat_log_joint:.3f}, concepts "
               f"{last.rhat_num_concepts:.3f}); kept chain {diagnostics.best_chain} "
               f"(seed {diagnostics.seeds[diagnostics.best_chain]}), highest log joint")  # fmt: skip
@@ -533,7 +532,8 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
                       prefetch=None if job.refined else prefetch)  # fmt: skip
     phases.mark("figures")
     if result.agreement is not None:
-        print(f"point estimate   {args.point_estimate} (expected loss "
+        estimate = result.inference.get("point_estimate", args.point_estimate)  # a refit's own
+        print(f"point estimate   {estimate} (expected loss "
               f"{result.inference['expected_loss']:.4g}, best single sample "
               f"{result.inference['best_sample_loss']:.4g})"
               f"{'' if args.no_figures else '; agreement.png'}")  # fmt: skip

@@ -15,10 +15,9 @@ if TYPE_CHECKING:
     from spcopyro.data import House
     from spcopyro.fit.gibbs_chains import FitCheckpoint
     from spcopyro.fit.refine import RefineDecision
-    from spcopyro.gibbs.convergence import ConvergenceDiagnostics
     from spcopyro.results.result import SpCoResult
 
-__all__ = ["REFINED_AWAY", "refine", "refine_converged", "update_settings"]
+__all__ = ["REFINED_AWAY", "refine", "update_settings"]
 
 REFINED_AWAY = ("cell_size", "feature_scaling", "word_scaling", "footprint",
                 "footprint_kernel", "footprint_fov")  # fmt: skip
@@ -36,56 +35,36 @@ def refine(
     settings: SpCoSettings,
     options: object | None,
     keeper: FitCheckpoint | None,
+    chains: int | None = None,
+    sweeps: int | None = None,
+    point_estimate: str | None = None,
 ) -> tuple[bool, list[SpCoResult]]:
     """``--refine``: the decision for ``results[kept]`` (the kept chain of the fit of ``model``,
     the house on its model grid) printed; whether it refined, and the chains to report: the
     chains refitted on the map's own cells (``on_map``) from it, or ``results``, the kept chain
     recording the decision (:func:`spcopyro.fit.refine.refine_chains`). Ctrl-C there keeps the
-    finished first stage's checkpoint (``keeper``): resuming it runs the refinement again."""
+    finished first stage's checkpoint (``keeper``): resuming it runs the refinement again.
+    ``chains``, ``sweeps`` and ``point_estimate`` of the refinement: by default ``results``'
+    count, ``--sweeps`` and ``--point-estimate`` (after ``--sweeps auto``: the chains run, the
+    sweeps they needed to converge, and the preset's point estimate)."""
     from spcopyro.fit.gibbs_chains import FitInterrupted
     from spcopyro.fit.house import fit_house_chains
     from spcopyro.fit.refine import refine_chains
 
-    decision = _decide(args, results[kept], len(results), model, on_map, settings)
+    chains = len(results) if chains is None else chains
+    decision = _decide(args, results[kept], chains, model, on_map, settings)
     try:
         _, results = refine_chains(
             results, kept, on_map, settings, args.refine, fit_house_chains, decision=decision,
-            method="gibbs", options=options, sweeps=args.sweeps,
-            seeds=[args.seed + k for k in range(len(results))], threads=args.threads,
-            marginal_samples=args.marginal_samples, point_estimate=args.point_estimate,
-            chain_workers=args.chain_workers,
+            method="gibbs", options=options, sweeps=sweeps or args.sweeps,
+            seeds=[args.seed + k for k in range(chains)], threads=args.threads,
+            marginal_samples=args.marginal_samples,
+            point_estimate=point_estimate or args.point_estimate, chain_workers=args.chain_workers,
         )  # fmt: skip
     except KeyboardInterrupt:
         saved = keeper.save() if keeper is not None else None
         raise FitInterrupted("while refining on the map's own cells", saved) from None
     return decision.refine, results
-
-
-def refine_converged(
-    args: argparse.Namespace,
-    result: SpCoResult,
-    diagnostics: ConvergenceDiagnostics,
-    *,
-    model: House,
-    on_map: House,
-    settings: SpCoSettings,
-    options: object | None,
-    chains: int,
-) -> tuple[bool, SpCoResult, ConvergenceDiagnostics]:
-    """``--refine`` after ``--sweeps auto``: the decision for ``result`` (the kept chain of
-    ``chains`` run until they converged on ``model``'s grid) printed; whether it refined, the
-    result and the diagnostics to report (the refinement's own chains, run until they converge,
-    when it refines: :func:`spcopyro.fit.refine.refine_converged`)."""
-    from spcopyro.fit import refine as refinement
-    from spcopyro.fit.house import fit_house_converged
-
-    decision = _decide(args, result, chains, model, on_map, settings)
-    _, result, diagnostics = refinement.refine_converged(
-        result, diagnostics, on_map, settings, args.refine, fit_house_converged,
-        decision=decision, options=options, chains=chains, max_sweeps=args.max_sweeps,
-        seed=args.seed, threads=args.threads,
-    )  # fmt: skip
-    return decision.refine, result, diagnostics
 
 
 def _decide(

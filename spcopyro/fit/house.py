@@ -29,7 +29,7 @@ import torch
 from spcopyro import __version__
 from spcopyro._util.threads import AUTO, describe_threads, resolve_threads, torch_threads
 from spcopyro._util.timings import timed
-from spcopyro.config import PRESETS, WORDS, SpCoConfig, SpCoSettings, preset, preset_inference
+from spcopyro.config import WORDS, SpCoConfig, SpCoSettings, preset
 from spcopyro.data import CellCounts, House, cell_counts
 from spcopyro.data.model_grid import model_house
 from spcopyro.fit.gibbs_chains import (
@@ -39,6 +39,8 @@ from spcopyro.fit.gibbs_chains import (
     marginal_thin,
     with_sample_marginals,
 )
+from spcopyro.fit.preset_fits import log_skipped_preset_inference
+from spcopyro.fit.preset_fits import preset_fit_kwargs as preset_fit_kwargs  # re-exported
 from spcopyro.fit.registry import DEFAULT_METHOD, get_method
 from spcopyro.fit.starts import Init, init_name, initial_labels
 from spcopyro.fit.variational_checkpoint import VariationalSaving
@@ -398,57 +400,6 @@ def fit_house_chains(
     return fits
 
 
-def preset_fit_kwargs(name: str, marginal_samples: int = 50) -> dict[str, object]:
-    """The :func:`fit_house` keywords of a Gibbs fit that runs preset ``name`` as ``spcopyro fit
-    --preset name`` does: its recommended start, merge moves and point estimate
-    (:func:`~spcopyro.config.preset_inference`), with ``marginal_samples`` label maps kept when
-    that point estimate needs them. Empty recommendations give the paper's run."""
-    recommended = preset_inference(name)
-    estimate = str(recommended.get("point_estimate", "map-visited"))
-    return {
-        "options": GibbsOptions(
-            merge_moves=float(recommended.get("merge_moves", 0.0)),
-            region_moves=float(recommended.get("region_moves", 0.0)),
-        ),
-        "init": str(recommended.get("init", "random")),
-        "marginal_samples": marginal_samples if estimate != "map-visited" else 0,
-        "point_estimate": estimate,
-        "refine": str(recommended.get("refine", "never")),
-    }
-
-
-def log_skipped_preset_inference(
-    settings: SpCoSettings,
-    init: Init,
-    options: object | None,
-    point_estimate: str,
-    refine: str = "never",
-) -> None:
-    """Warn (logger ``"spcopyro"``) when a Gibbs fit from a preset's settings runs without the
-    inference settings that preset recommends (:func:`~spcopyro.config.preset_inference`), which
-    ``spcopyro fit`` applies: the library and the command would give different maps."""
-    recommended = preset_inference(settings.preset) if settings.preset in PRESETS else {}
-    if not recommended:
-        return
-    running = {
-        "init": init_name(init),
-        "merge_moves": float(getattr(options, "merge_moves", 0.0) or 0.0),
-        "region_moves": float(getattr(options, "region_moves", 0.0) or 0.0),
-        "point_estimate": point_estimate,
-        "refine": refine,
-    }
-    skipped = {k: v for k, v in recommended.items() if k in running and running[k] != v}
-    if skipped:
-        logger.warning(
-            "preset %r recommends %s (what spcopyro fit runs); this fit runs %s, so its map can "
-            "differ from the command's: pass them (spcopyro.fit.house.preset_fit_kwargs(%r))",
-            settings.preset,
-            ", ".join(f"{k}={v!r}" for k, v in skipped.items()),
-            ", ".join(f"{k}={running[k]!r}" for k in skipped),
-            settings.preset,
-        )
-
-
 def fit_house(
     house: House,
     settings: SpCoSettings | None = None,
@@ -491,11 +442,12 @@ def fit_house(
         marginal_samples, point_estimate, chain_workers: see :func:`fit_house_chains`.
         refine: Gibbs: ``"auto"`` refits on the map's own cells, from the fit's map, where its
             concepts tell the images apart, ``"always"``, or ``"never"``
-            (:mod:`spcopyro.fit.refine`; preset ``coarse`` recommends ``"auto"``); with
-            ``sweeps="auto"`` the refit runs until its own chains converge.
+            (:mod:`spcopyro.fit.refine`; preset ``coarse`` recommends ``"auto"``); after
+            ``sweeps="auto"`` the refit runs as many sweeps as the coarse chains needed, with
+            ``point_estimate`` (which ``sweeps="auto"`` allows only for the refit).
             The decision is logged at INFO level and kept in ``result.inference["refine"]``.
     """
-    from spcopyro.fit.refine import check_refine, map_house, refine_chains, refine_converged
+    from spcopyro.fit.refine import check_refine, map_house, refine_chains
 
     settings = preset() if settings is None else settings
     given, house = house, model_house(house, settings.data.cell_size)  # the model's grid
@@ -508,20 +460,27 @@ def fit_house(
     if not isinstance(chains, int) or chains < 1:
         raise ValueError(f"chains must be a positive integer, got {chains!r}")
     if sweeps == "auto":
-        if point_estimate != "map-visited":
-            raise ValueError("sweeps='auto' reports the best visited state only")
+        if point_estimate != "map-visited" and refine == "never":
+            raise ValueError("sweeps='auto' reports the best visited state (a point estimate is "
+                             "for its refinement, refine='auto' or 'always')")  # fmt: skip
         if method != "gibbs":
             raise ValueError(f"sweeps='auto' is Gibbs' convergence rule, not {method!r}'s")
-        converged = dict(options=options, chains=chains if chains > 1 else DEFAULT_CHAINS,
-                         seed=seed, progress=progress, threads=threads)  # fmt: skip
-        result, diagnostics = fit_house_converged(house, settings, init=init, **converged)
-        if refine != "never":
-            decision, result, diagnostics = refine_converged(
-                result, diagnostics, given, settings, refine, fit_house_converged, **converged
-            )
-            logger.info("refine: %s", decision.reason)
-            house = map_house(given) if decision.refine else house
+        chains = chains if chains > 1 else DEFAULT_CHAINS
+        result, diagnostics = fit_house_converged(
+            house, settings, options=options, chains=chains, seed=seed, init=init,
+            progress=progress, threads=threads,
+        )  # fmt: skip
         logger.info("--sweeps auto: %s", diagnostics.to_json())
+        if refine != "never":  # as many sweeps as the coarse chains needed (spcopyro.fit.refine)
+            decision, results = refine_chains(
+                [result], 0, given, settings, refine, fit_house_chains, method=method,
+                options=options, sweeps=diagnostics.sweeps, progress=progress, threads=threads,
+                seeds=[seed + k for k in range(chains)], marginal_samples=marginal_samples,
+                point_estimate=point_estimate, chain_workers=chain_workers,
+            )  # fmt: skip
+            logger.info("refine: %s", decision.reason)
+            result = results[best_chain(results)]
+            house = map_house(given) if decision.refine else house
         log_degenerate_map(result, house)
         return result
     results = fit_house_chains(

@@ -17,10 +17,12 @@ the coarse fit's concepts stand in for them (never a truth):
    ``auto``'s data preparation -- each histogram as 100 draws (``floor100``), each utterance
    once at its cell, no footprint (:func:`refined_settings`) -- started from the coarse map
    refined to the map's cells (:func:`~spcopyro.fit.starts.result_labels`), with the same
-   sampler options, sweeps and seeds. Under ``--sweeps auto`` (:func:`refine_converged`) the
-   refinement runs until its own chains converge, every chain started from the kept coarse
-   one: its R-hat checks the refinement's drift and mixing, the coarse stage's checked the
-   starts.
+   sampler options, sweeps and seeds. After ``--sweeps auto`` (``sweeps="auto"``) the
+   refinement runs as many sweeps as the coarse chains needed to converge, with the point
+   estimate asked for, as a fit of that many sweeps would be refined: its chains all start
+   from the kept coarse one, so an R-hat of theirs would not check what the coarse stage's
+   dispersed starts did, and a single visited state on the map's cells keeps about 1 % of
+   them as one-cell concepts, which the VI point estimate over the samples does not.
 
 **Why alpha is scaled.** With pi integrated out, the label counts' term of the log joint is the
 Dirichlet-multinomial :math:`\log DM(N_1..N_L \mid \alpha/L)`; a partition of the ``N`` cells
@@ -59,7 +61,6 @@ __all__ = [
     "RefineDecision",
     "map_house",
     "refine_chains",
-    "refine_converged",
     "refine_decision",
     "refined_settings",
     "with_decision",
@@ -196,40 +197,3 @@ def refine_chains(
     return decision, [
         dataclasses.replace(r, inference={**r.inference, "refine": record}) for r in refits
     ]
-
-
-def refine_converged(
-    result: SpCoResult,
-    diagnostics: object,
-    house: House,
-    settings: SpCoSettings,
-    refine: str,
-    fit_converged: Callable[..., tuple[SpCoResult, Any]],
-    decision: RefineDecision | None = None,
-    **converged_kwargs: Any,
-) -> tuple[RefineDecision, SpCoResult, Any]:
-    """:func:`refine_chains` for a fit run until it converged (``sweeps="auto"``): ``result``
-    and ``diagnostics`` are the kept chain of
-    :func:`~spcopyro.fit.house.fit_house_converged` (``fit_converged``) on the model grid and
-    its convergence. Returns the decision, the result to report and the diagnostics to report:
-    where it refines, ``fit_converged`` on the map's own cells from ``result`` with
-    ``converged_kwargs`` (chains, max_sweeps, seed, ...), its result recording the coarse
-    stage's convergence in ``inference["refine"]["coarse"]["convergence"]``; else ``result``
-    recording the decision and ``diagnostics``."""
-    refined_diagnostics: list[Any] = []
-
-    def fit_chains(on_map: House, refined: SpCoSettings, **kwargs: Any) -> list[SpCoResult]:
-        refit, refit_diagnostics = fit_converged(on_map, refined, **kwargs, **converged_kwargs)
-        refined_diagnostics.append(refit_diagnostics)
-        return [refit]
-
-    decision, (reported,) = refine_chains(
-        [result], 0, house, settings, refine, fit_chains, decision=decision
-    )
-    if not refined_diagnostics:
-        return decision, reported, diagnostics
-    record = dict(reported.inference["refine"])
-    convergence = diagnostics.to_json() if hasattr(diagnostics, "to_json") else diagnostics
-    record["coarse"] = {**record["coarse"], "convergence": convergence}
-    reported = dataclasses.replace(reported, inference={**reported.inference, "refine": record})
-    return decision, reported, refined_diagnostics[0]

@@ -1,0 +1,67 @@
+"""What ``spcopyro fit --preset NAME`` runs beyond the preset's model and data settings, for
+library fits: :func:`preset_fit_kwargs` gives :func:`~spcopyro.fit.house.fit_house` the
+preset's recommended inference settings (:func:`~spcopyro.config.preset_inference`), and
+:func:`log_skipped_preset_inference` warns when a fit runs without them."""
+
+from __future__ import annotations
+
+import logging
+
+from spcopyro.config import PRESETS, SpCoSettings, preset_inference
+from spcopyro.fit.starts import Init, init_name
+from spcopyro.gibbs.options import GibbsOptions
+
+__all__ = ["log_skipped_preset_inference", "preset_fit_kwargs"]
+
+logger = logging.getLogger("spcopyro")
+
+
+def preset_fit_kwargs(name: str, marginal_samples: int = 50) -> dict[str, object]:
+    """The :func:`fit_house` keywords of a Gibbs fit that runs preset ``name`` as ``spcopyro fit
+    --preset name`` does: its recommended start, merge moves and point estimate
+    (:func:`~spcopyro.config.preset_inference`), with ``marginal_samples`` label maps kept when
+    that point estimate needs them. Empty recommendations give the paper's run."""
+    recommended = preset_inference(name)
+    estimate = str(recommended.get("point_estimate", "map-visited"))
+    return {
+        "options": GibbsOptions(
+            merge_moves=float(recommended.get("merge_moves", 0.0)),
+            region_moves=float(recommended.get("region_moves", 0.0)),
+        ),
+        "init": str(recommended.get("init", "random")),
+        "marginal_samples": marginal_samples if estimate != "map-visited" else 0,
+        "point_estimate": estimate,
+        "refine": str(recommended.get("refine", "never")),
+    }
+
+
+def log_skipped_preset_inference(
+    settings: SpCoSettings,
+    init: Init,
+    options: object | None,
+    point_estimate: str,
+    refine: str = "never",
+) -> None:
+    """Warn (logger ``"spcopyro"``) when a Gibbs fit from a preset's settings runs without the
+    inference settings that preset recommends (:func:`~spcopyro.config.preset_inference`), which
+    ``spcopyro fit`` applies: the library and the command would give different maps."""
+    recommended = preset_inference(settings.preset) if settings.preset in PRESETS else {}
+    if not recommended:
+        return
+    running = {
+        "init": init_name(init),
+        "merge_moves": float(getattr(options, "merge_moves", 0.0) or 0.0),
+        "region_moves": float(getattr(options, "region_moves", 0.0) or 0.0),
+        "point_estimate": point_estimate,
+        "refine": refine,
+    }
+    skipped = {k: v for k, v in recommended.items() if k in running and running[k] != v}
+    if skipped:
+        logger.warning(
+            "preset %r recommends %s (what spcopyro fit runs); this fit runs %s, so its map can "
+            "differ from the command's: pass them (spcopyro.fit.house.preset_fit_kwargs(%r))",
+            settings.preset,
+            ", ".join(f"{k}={v!r}" for k, v in skipped.items()),
+            ", ".join(f"{k}={running[k]!r}" for k in skipped),
+            settings.preset,
+        )
