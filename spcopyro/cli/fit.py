@@ -517,7 +517,8 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
         print(f"--sweeps auto: {chains} chains {state} after {diagnostics.sweeps} sweeps each "
               f"(split R-hat: log joint {last.rhat_log_joint:.3f}, concepts "
               f"{last.rhat_num_concepts:.3f}); kept chain {diagnostics.best_chain} "
-              f"(seed {diagnostics.seeds[diagnostics.best_chain]}), highest log joint")  # fmt: skip
+              f"(seed {diagnostics.seeds[diagnostics.best_chain]}), highest log joint"
+              f"{', the refinement started from it' if job.refined else ''}")  # fmt: skip
     with timed("uncertainty"):
         entropy = cell_entropy(result)
         if entropy is not None:
