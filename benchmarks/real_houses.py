@@ -1,6 +1,7 @@
 """Real houses and houses the default was not tuned on (issue 21): one run, one table.
 
-    python benchmarks/real_houses.py [--sweeps 5000] [--seeds 3] [--fit-seeds 0 1 2]
+    python benchmarks/real_houses.py [--sweeps 5000] [--seeds 3] [--open-plan-seeds 10]
+        [--fit-seeds 0 1 2]
         [--out benchmarks/real_houses.json]
 
 For each public house (``$SPCOPYRO_DATA`` or ``../shared/data/spcomapping``; skipped with the
@@ -18,7 +19,8 @@ map's cells where the images separate its concepts, :mod:`spcopyro.fit.refine`; 
 ``auto``,
 ``paper-dp`` (the paper's Algorithm 1: random start, the best visited state), and the baselines
 (E) nearest utterance and (F) geometry at 1 m and 2 m door widths. Then the same for synthetic
-houses (seeds 0..n-1; their own truth): ``open-plan`` (several categories in one walled space),
+houses (seeds 0..n-1, ``--seeds``; their own truth): ``open-plan`` (several categories in one
+walled space; ``--open-plan-seeds``, 10 since 2026-12-03),
 ``sparse`` (``HouseSpec.public_like``) and ``dense`` (the embedded default house).
 
 Further sections (each from the same run): held-out word top-1 on the public houses (fit on two
@@ -295,6 +297,11 @@ def main(argv: list[str] | None = None) -> int:
         "--sweeps", type=int, default=5000, help="sweeps of every Gibbs fit (spcopyro fit's 5000)"
     )
     parser.add_argument("--seeds", type=int, default=3, help="synthetic seeds 0..n-1")
+    parser.add_argument(
+        "--open-plan-seeds", type=int, default=10,
+        help="open-plan seeds 0..n-1 (their borders in unobserved space vary by about 0.1 ARI "
+        "from house to house: three seeds judged chain luck)",
+    )  # fmt: skip
     parser.add_argument("--out", default="benchmarks/real_houses.json")
     parser.add_argument("--no-synthetic", action="store_true")
     parser.add_argument(
@@ -324,6 +331,7 @@ def main(argv: list[str] | None = None) -> int:
     houses = dict(PUBLIC_CATEGORIES)
     if args.quick:
         args.sweeps, args.seeds, args.method_iterations, args.fit_seeds = 60, 1, 5, [0]
+        args.open_plan_seeds = 1
         houses = dict(list(houses.items())[:1])
     logging.getLogger("spcopyro").setLevel(logging.ERROR)
     report: dict[str, object] = {"default_preset": DEFAULT_PRESET, "sweeps": args.sweeps}
@@ -345,7 +353,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.no_synthetic:
         for kind, spec in SYNTHETIC.items():
             per_seed = {}
-            for seed in range(args.seeds):
+            for seed in range(args.open_plan_seeds if kind == "open-plan" else args.seeds):
                 house = make_house(seed=seed, spec=spec())
                 per_seed[f"seed {seed}"] = score_house(house, house.truth, args.sweeps, seed)
             report[kind] = per_seed
