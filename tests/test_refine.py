@@ -198,6 +198,8 @@ def test_sweeps_auto_refines_for_as_many_sweeps_as_the_chains_needed(home, tmp_p
     assert main([*argv, "--out", str(tmp_path / "default")]) == 0
     printed = capsys.readouterr().out  # decided by default, as without --sweeps auto
     assert "refining         the concepts explain" in printed or "not refined      the" in printed
+    decided = json.loads((tmp_path / "default" / "config.json").read_text())["inference"]
+    assert decided["refine"]["mode"] == "auto"  # config.json says why, refined or not
     out = tmp_path / "out"
     assert main([*argv, "--out", str(out), "--refine", "always"]) == 0
     printed = capsys.readouterr().out

@@ -36,7 +36,7 @@ from spcopyro.cli.common import (
 )
 from spcopyro.cli.concept_listing import print_concepts
 from spcopyro.cli.fit_figures import FigurePrefetch, write_figures
-from spcopyro.cli.fit_refine import REFINED_AWAY, refine, update_settings
+from spcopyro.cli.fit_refine import prepares_data, refine, update_settings
 from spcopyro.config import (
     SpCoSettings,
     preset,
@@ -236,8 +236,7 @@ def _apply_preset_inference(args: argparse.Namespace) -> None:
         args.region_moves = recommended.get("region_moves")
     refinable = args.method == "gibbs" and args.update is None
     if args.refine is None:  # a preparation given on the command line is kept, not refined away
-        prepared = any(getattr(args, name, None) is not None for name in REFINED_AWAY)
-        refinable = refinable and not prepared
+        refinable = refinable and not prepares_data(args)
         args.refine = recommended.get("refine", "never") if refinable else "never"
     elif args.refine != "never" and not refinable:
         raise ValueError(
@@ -424,7 +423,7 @@ def _fit(job: FitJob, init: object, saved: SpCoResult | None) -> Fitted:
 
     args, house, settings, options = job.args, job.house, job.settings, job.options
     source = "embedded synthetic house, seed 0" if args.data is None else None
-    diagnostics = None
+    diagnostics, refine_sweeps, estimate = None, args.sweeps, None
     start = _clock()
     if args.sweeps == "auto":
         from spcopyro.fit.house import fit_house_converged
@@ -435,16 +434,10 @@ def _fit(job: FitJob, init: object, saved: SpCoResult | None) -> Fitted:
             seed=args.seed, init=init, source=source, threads=args.threads,
         )  # fmt: skip
         chain_results, kept = None, 0
-        if args.refine != "never":  # as many sweeps as the chains needed, the preset's estimate
-            estimate = preset_inference(args.preset).get("point_estimate", "map-visited")
-            job.refined, refits = refine(
-                args, [result], 0, model=house, on_map=job.map_house, settings=settings,
-                options=options, keeper=None, chains=chains, sweeps=diagnostics.sweeps,
-                point_estimate=estimate if args.marginal_samples > 0 else "map-visited",
-            )  # fmt: skip
-            if job.refined:
-                job.house, chain_results = job.map_house, refits
-                result = refits[best_chain(refits)]
+        # a refinement runs as many sweeps as the chains needed, with the preset's estimate
+        refine_sweeps = diagnostics.sweeps
+        estimate = preset_inference(args.preset).get("point_estimate", "map-visited")
+        estimate = estimate if args.marginal_samples > 0 else "map-visited"
     elif saved is not None:
         from spcopyro.robot.online import fit_update
 
@@ -470,15 +463,18 @@ def _fit(job: FitJob, init: object, saved: SpCoResult | None) -> Fitted:
         )  # fmt: skip
         kept = best_chain(chain_results)
         result = chain_results[kept]
-        if args.refine != "never":
-            job.refined, chain_results = refine(
-                args, chain_results, kept, model=house, on_map=job.map_house,
-                settings=settings, options=options, keeper=job.keeper,
-            )  # fmt: skip
-            if job.refined:
-                job.house = job.map_house
-            kept = best_chain(chain_results)
-            result = chain_results[kept]
+    if args.refine != "never":
+        job.refined, refits = refine(
+            args, chain_results or [result], kept, model=house, on_map=job.map_house,
+            settings=settings, options=options, keeper=job.keeper, chains=chains,
+            sweeps=refine_sweeps, point_estimate=estimate,
+        )  # fmt: skip
+        if job.refined:
+            job.house = job.map_house
+        if job.refined or chain_results is not None:  # --sweeps auto's stay one result
+            chain_results = refits
+        kept = best_chain(refits)
+        result = refits[kept]
     return Fitted(result, chain_results, chains, kept, diagnostics, _clock() - start)
 
 

@@ -17,12 +17,17 @@ if TYPE_CHECKING:
     from spcopyro.fit.refine import RefineDecision
     from spcopyro.results.result import SpCoResult
 
-__all__ = ["REFINED_AWAY", "refine", "update_settings"]
+__all__ = ["REFINED_AWAY", "prepares_data", "refine", "update_settings"]
 
 REFINED_AWAY = ("cell_size", "feature_scaling", "word_scaling", "footprint",
                 "footprint_kernel", "footprint_fov")  # fmt: skip
 """The options of the data preparation the refinement replaces (:mod:`spcopyro.fit.refine`):
 given on the command line, the recommended refinement is not run."""
+
+
+def prepares_data(args: argparse.Namespace) -> bool:
+    """Whether the command line gives a data preparation of its own (:data:`REFINED_AWAY`)."""
+    return any(getattr(args, name, None) is not None for name in REFINED_AWAY)
 
 
 def refine(
@@ -108,7 +113,6 @@ def update_settings(
         record = json.loads(config.read_text()).get("inference", {}).get("refine") or {}
     except (OSError, ValueError):  # the saved fit's own loading names what is wrong
         return settings
-    prepared = any(getattr(args, name, None) is not None for name in REFINED_AWAY)
-    if not record.get("refine") or prepared:
+    if not record.get("refine") or prepares_data(args):
         return settings
     return refined_settings(settings, int(record["coarse"]["free_cells"]), map_cells)

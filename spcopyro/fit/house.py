@@ -471,36 +471,26 @@ def fit_house(
             progress=progress, threads=threads,
         )  # fmt: skip
         logger.info("--sweeps auto: %s", diagnostics.to_json())
-        if refine != "never":  # as many sweeps as the coarse chains needed (spcopyro.fit.refine)
-            decision, results = refine_chains(
-                [result], 0, given, settings, refine, fit_house_chains, method=method,
-                options=options, sweeps=diagnostics.sweeps, progress=progress, threads=threads,
-                seeds=[seed + k for k in range(chains)], marginal_samples=marginal_samples,
-                point_estimate=point_estimate, chain_workers=chain_workers,
-            )  # fmt: skip
-            logger.info("refine: %s", decision.reason)
-            result = results[best_chain(results)]
-            house = map_house(given) if decision.refine else house
-        log_degenerate_map(result, house)
-        return result
-    results = fit_house_chains(
-        house, settings, method=method, options=options, sweeps=sweeps,
-        seeds=[seed + k for k in range(chains)], init=init, progress=progress, threads=threads,
-        marginal_samples=marginal_samples, point_estimate=point_estimate,
-        chain_workers=chain_workers,
-    )  # fmt: skip
-    kept = best_chain(results)
-    if refine != "never":
+        results, kept, refine_sweeps = [result], 0, diagnostics.sweeps
+    else:
+        results = fit_house_chains(
+            house, settings, method=method, options=options, sweeps=sweeps,
+            seeds=[seed + k for k in range(chains)], init=init, progress=progress,
+            threads=threads, marginal_samples=marginal_samples, point_estimate=point_estimate,
+            chain_workers=chain_workers,
+        )  # fmt: skip
+        kept, refine_sweeps = best_chain(results), sweeps
+    if refine != "never":  # after sweeps="auto": as many sweeps as its chains needed
         decision, results = refine_chains(
             results, kept, given, settings, refine, fit_house_chains, method=method,
-            options=options, sweeps=sweeps, seeds=[seed + k for k in range(chains)],
+            options=options, sweeps=refine_sweeps, seeds=[seed + k for k in range(chains)],
             progress=progress, threads=threads, marginal_samples=marginal_samples,
             point_estimate=point_estimate, chain_workers=chain_workers,
         )  # fmt: skip
         logger.info("refine: %s", decision.reason)
         if decision.refine:
             kept, house = best_chain(results), map_house(given)
-    if chains > 1:
+    if len(results) > 1:
         logger.info(
             "best of %d chains: kept chain %d (seed %d); best objectives %s", chains, kept,
             seed + kept, [round(r.best_objective, 1) for r in results],
