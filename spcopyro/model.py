@@ -20,6 +20,7 @@ from spcopyro.distributions import MultinomialCounts
 
 if TYPE_CHECKING:  # pragma: no cover
     from spcopyro.data import CellCounts
+    from spcopyro.data.footprint import SpreadSources
     from spcopyro.maps import OccupancyGrid
 
 DTYPE = torch.float64  # Dirichlet draws with concentrations from 1e-3 to 1e8 need float64
@@ -45,6 +46,26 @@ class Modality(NamedTuple):
     """The site of the per-concept distributions ``[L, K_m]`` (``"theta"``, ``"w"``, ...)."""
     counts: torch.Tensor
     """[M, K_m] float64: the modality's counts summed per observed cell (may be real-valued)."""
+    spread: FactoredCounts | None = None
+    """With a footprint, ``counts`` in factored form (:meth:`factored`); None otherwise."""
+
+    def factored(self) -> SpreadSources | None:
+        """``counts`` as a product of the footprints' weights and counts
+        (:class:`~spcopyro.data.footprint.SpreadSources`), for kernels whose products pay less
+        with it; None without one, and once ``counts`` is not the tensor it was made for
+        (replaced by ``_replace`` or changed in place), so a stale product is never used."""
+        spread = self.spread
+        if spread is None or spread.of is not self.counts or spread.version != self.counts._version:
+            return None
+        return spread.sources
+
+
+class FactoredCounts(NamedTuple):
+    """A :class:`~spcopyro.data.footprint.SpreadSources` bound to the counts tensor it equals."""
+
+    sources: SpreadSources
+    of: torch.Tensor  # the Modality.counts tensor, by identity
+    version: int  # of._version when bound: an in-place change unbinds it
 
 
 def parameter_site(modality: str) -> str:
@@ -84,7 +105,8 @@ class ModelData(NamedTuple):
         self.modality(name)  # raises for an unknown name
         return self._replace(
             modalities=tuple(
-                m._replace(counts=counts) if m.name == name else m for m in self.modalities
+                m._replace(counts=counts, spread=None) if m.name == name else m
+                for m in self.modalities
             )
         )
 
@@ -130,16 +152,23 @@ def make_model_data(grid: OccupancyGrid, counts: CellCounts, connectivity: int =
     names = [name for name, _ in named]
     if len(set(names)) != len(names):
         raise ValueError(f"modality names must be distinct, got {names}")
+    spread = getattr(counts, "spread", {})
+
+    def modality(name: str, values: np.ndarray) -> Modality:
+        tensor = torch.as_tensor(values, dtype=DTYPE)
+        factored = spread.get(name)
+        if factored is None or factored.shape != tuple(tensor.shape):
+            return Modality(name, parameter_site(name), tensor)
+        bound = FactoredCounts(factored, tensor, tensor._version)
+        return Modality(name, parameter_site(name), tensor, bound)
+
     return ModelData(
         num_free=int(grid.num_free),
         neighbours=as_long(grid.neighbour_table(connectivity)),
         pairs=as_long(grid.neighbour_pairs(connectivity)),
         colours=tuple(as_long(c) for c in grid.colour_classes(connectivity)),
         obs_cells=as_long(counts.cells),
-        modalities=tuple(
-            Modality(name, parameter_site(name), torch.as_tensor(values, dtype=DTYPE))
-            for name, values in named
-        ),
+        modalities=tuple(modality(name, values) for name, values in named),
     )
 
 

@@ -26,7 +26,13 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro.config import IMAGES, WORDS, FeatureScaling, FootprintKernel
-from spcopyro.data.footprint import footprint_weights, free_cell_graph, spread_counts
+from spcopyro.data.footprint import (
+    SpreadSources,
+    footprint_weights,
+    free_cell_graph,
+    spread_counts,
+    spread_sources,
+)
 from spcopyro.data.observations import DataFormatError, Observations
 from spcopyro.data.placement import (
     DEFAULT_SNAP_DISTANCE,
@@ -184,6 +190,10 @@ class CellCounts:
     num_free: int
     placement: PlacementReport = field(repr=False)
     modalities: tuple[CellModalityCounts, ...] = ()  # further modalities, in the obs' order
+    spread: dict[str, SpreadSources] = field(default_factory=dict, repr=False)
+    """With a footprint: each modality's counts in factored form (by modality name; equal to
+    its count matrix to rounding), which a sampler's products may use
+    (:class:`~spcopyro.data.footprint.SpreadSources`). Empty without a footprint."""
 
 
 def cell_counts(
@@ -406,6 +416,9 @@ def _with_footprint(
     further_w = [footprint_weights(grid, c, radius, kernel, graph=graph) for c in further_cells]
     reached = [np.unique(w.indices) for w in (image_w, word_w, *further_w)]
     cells = np.unique(np.concatenate(reached)).astype(np.int64)  # [M]
+    rows = {IMAGES: (image_w, features), WORDS: (word_w, words)}
+    for m, w in zip(plain.modalities, further_w, strict=True):
+        rows[m.name] = (w, obs.modality(m.name).counts)
     modalities = tuple(
         CellModalityCounts(m.name, m.items, spread_counts(w, obs.modality(m.name).counts, cells))
         for m, w in zip(plain.modalities, further_w, strict=True)
@@ -418,4 +431,5 @@ def _with_footprint(
         num_free=plain.num_free,
         placement=plain.placement,
         modalities=modalities,
+        spread={name: spread_sources(w, x, cells) for name, (w, x) in rows.items()},
     )

@@ -212,7 +212,7 @@ def prior_map(data: ModelData) -> tuple[ModelData, SweepPlan]:
         return _PRIOR_MAP[0].prior_data, _PRIOR_MAP[0].plan
     prior_data = data._replace(
         obs_cells=data.obs_cells[:0],
-        modalities=tuple(m._replace(counts=m.counts[:0]) for m in data.modalities),
+        modalities=tuple(m._replace(counts=m.counts[:0], spread=None) for m in data.modalities),
     )
     plan = make_sweep_plan(prior_data)
     _PRIOR_MAP[:] = [_PriorMap(data, prior_data, plan)]

@@ -15,8 +15,9 @@ order, each drawn from
 
 B(i) being the cell's *background*: pi for a cell without observations, and for observed cell m
 the row :math:`B_{ml} = \exp(\log\pi_l + \mathrm{loglik}_{ml} - \max_{l'}(\cdot))` of one
-[M + 1, L] table computed per sweep (the loglik [M, L] of
-:func:`~spcopyro.gibbs.sweep.observation_log_likelihood` is one matrix product; row M holds pi).
+[M + 1, L] table computed per sweep (:mod:`spcopyro.gibbs.numba_background`: the loglik [M, L]
+of :func:`~spcopyro.gibbs.sweep.observation_log_likelihood` as one matrix product per modality,
+through the footprints' factored counts where they have one; row M holds pi).
 No cell of a colour block neighbours another cell of the same block, so updating the labels in
 place while looping over a block draws each cell of the block from its conditional given the
 other blocks: exactly the reference's block update. Every cell then uses the reference's
@@ -70,6 +71,7 @@ import torch
 from numba import njit
 
 from spcopyro.config import SpCoConfig
+from spcopyro.gibbs.numba_background import background_table
 from spcopyro.gibbs.numba_globals import (
     PriorDraws,
     abandon_prior_draws,
@@ -203,45 +205,6 @@ def _tilt(gamma: float, num_neighbours: int) -> np.ndarray:
     return tilt
 
 
-def _background_table(state: GibbsState, data: ModelData, config: SpCoConfig) -> np.ndarray:
-    """[M + 1, L + D] the per-cell backgrounds B (module doc), the D last columns 0.
-
-    Row m < M: exp(log pi + loglik[m] - max), loglik [M, L] = f_m . log theta_l + S_m . log w_l
-    (+ any further modality; eqs. 5, 6; :func:`spcopyro.likelihood.observation_log_likelihood`);
-    row M: exp(log pi - max).
-    The zero columns are the sentinel labels of missing neighbours.
-    """
-    L, D, M = config.num_concepts, data.neighbours.shape[1], data.obs_cells.shape[0]
-    # The products run in torch (MKL): numpy's OpenBLAS threads fight torch's OpenMP threads.
-    logits_t = torch.zeros(M + 1, L, dtype=torch.float64)  # [M + 1, L]
-    for index, (modality, table) in enumerate(
-        zip(data.modalities, state.log_emissions, strict=True)
-    ):
-        if not config.uses(modality.name):
-            continue
-        log_phi = table.detach().to(torch.float64)  # [L, K_m]
-        counts = modality.counts.to(torch.float64)  # [M, K_m]
-        if index == 0:
-            torch.matmul(counts, log_phi.T, out=logits_t[:M])  # [M, K] @ [K, L]
-        else:
-            logits_t[:M].addmm_(counts, log_phi.T)  # [M, K_m] @ [K_m, L]
-    logits = logits_t.numpy()
-    logits[M] = 0.0
-    logits += _as_array(state.log_pi, np.float64)
-    top = logits.max(axis=1, keepdims=True)  # [M + 1, 1]; NaN or +inf anywhere shows here
-    if not np.isfinite(top).all():
-        row = int(np.flatnonzero(~np.isfinite(top[:, 0]))[0])
-        where = f"the observed cell in row {row} of data.obs_cells" if row < M else "pi"
-        raise ValueError(
-            f"log pi + observation log-likelihood is not finite for {where}: NaN or infinite "
-            "values in GibbsState.log_pi / log_emissions or in the data's counts"
-        )
-    logits -= top
-    table = np.zeros((M + 1, L + D))  # [M + 1, L + D]
-    np.exp(logits, out=table[:, :L])
-    return table
-
-
 def _sample_labels_array(
     state: GibbsState,
     data: ModelData,
@@ -256,7 +219,7 @@ def _sample_labels_array(
     layout = label_plan(plan, data)
     tilt = _neighbour_tilt(config, D)
     labels = _extended_labels(state.labels, D, config)
-    background = _background_table(state, data, config)
+    background = background_table(state, data, config)
     agreements = label_sweep_kernel(D)(
         labels, layout.order, layout.neighbours, layout.rows, layout.segments, layout.modes,
         layout.earlier,
