@@ -84,6 +84,18 @@ def test_prior_thread_benchmark_quick(tmp_path):
 
 
 @pytest.mark.slow
+def test_background_table_benchmark_quick(tmp_path):
+    pytest.importorskip("numba")
+    out = tmp_path / "background_table.json"
+    done = run_benchmark("background_table.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    rows = json.loads(out.read_text())["houses"]
+    assert rows[0]["house"] == "synthetic"
+    assert all(r["dense_ms"] > 0 and r["factored_ms"] > 0 for r in rows)
+    assert all(r["max_relative_difference"] < 1e-9 for r in rows)  # the same table
+
+
+@pytest.mark.slow
 def test_variational_benchmark_quick(tmp_path):
     out = tmp_path / "variational.json"
     done = run_benchmark("variational.py", out)

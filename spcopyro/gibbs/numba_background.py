@@ -56,7 +56,7 @@ def _as_array(tensor: torch.Tensor) -> np.ndarray:
     return np.ascontiguousarray(tensor.detach().cpu().numpy(), dtype=np.float64)
 
 
-def observation_log_likelihood(
+def write_log_likelihood(
     state: GibbsState, data: ModelData, config: SpCoConfig, out: torch.Tensor
 ) -> None:
     """Write loglik [M, L] (module docstring) into ``out`` [M, L] (float64, contiguous), the
@@ -91,7 +91,7 @@ def background_table(state: GibbsState, data: ModelData, config: SpCoConfig) -> 
     L, D, M = config.num_concepts, data.neighbours.shape[1], data.obs_cells.shape[0]
     # The products run in torch (MKL): numpy's OpenBLAS threads fight torch's OpenMP threads.
     logits_t = torch.empty(M + 1, L, dtype=torch.float64)  # [M + 1, L]
-    observation_log_likelihood(state, data, config, logits_t[:M])
+    write_log_likelihood(state, data, config, logits_t[:M])
     logits = logits_t.numpy()
     logits[M] = 0.0
     logits += _as_array(state.log_pi)
