@@ -55,6 +55,34 @@ def test_fit_with_figures_writes_the_pngs_and_times_them(tmp_path, capsys, monke
     assert record["figures"] is True and record["seconds"]["figures"] > 0.0
 
 
+def test_a_refined_fit_draws_the_maps_house_while_the_refinement_runs(tmp_path, monkeypatch):
+    """--refine: house.png is the map's own house (not the model grid's the prefetch drew while
+    the first stage ran), drawn again on the prefetch thread while the refinement's chains run,
+    so that no figure drawn after the fit is the house."""
+    from spcopyro.cli import fit_figures
+    from spcopyro.figures.plotting import plot_house
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    drawn_after: list[str] = []
+
+    def recording(draw):
+        def draws(figures, *claims):
+            figures = list(figures)
+            drawn_after.extend(name for name, _ in figures)
+            return draw(figures, *claims)
+
+        return draws
+
+    monkeypatch.setattr(fit_figures, "_draw", recording(fit_figures._draw))
+    monkeypatch.setattr(fit_figures, "_draw_in_child", recording(fit_figures._draw_in_child))
+    out = tmp_path / "fit"
+    assert main(["fit", "--sweeps", "4", "--refine", "always", "--out", str(out)]) == 0
+    assert json.loads((out / "config.json").read_text())["inference"]["refine"]["refine"]
+    assert "house" not in drawn_after and "semantic_map" in drawn_after
+    plot_house(make_house(seed=0, spec=HouseSpec.embedded()), tmp_path / "expected.png")
+    assert (out / "house.png").read_bytes() == (tmp_path / "expected.png").read_bytes()
+
+
 def test_no_timings_file_unless_asked(tmp_path, monkeypatch):
     monkeypatch.delenv(TIMINGS_ENV, raising=False)
     clock = Phases()
@@ -135,10 +163,37 @@ def _fitted_house(tmp_path):
     return result, house
 
 
+def test_figures_shared_with_a_forked_child_are_each_taken_once():
+    """_Claims: a parent and its forked child taking figures as they go take every index once."""
+    import multiprocessing
+
+    import pytest
+
+    from spcopyro.cli.fit_figures import _Claims
+
+    if not sys.platform.startswith("linux"):
+        pytest.skip("figures are drawn in a forked child on Linux only")
+    context = multiprocessing.get_context("fork")
+    claims, taken_there = _Claims(200), context.Queue()
+
+    def take_all() -> None:
+        taken_there.put([index for index in iter(claims.take, None)])
+
+    child = context.Process(target=take_all)
+    child.start()
+    taken_here = [index for index in iter(claims.take, None)]
+    there = taken_there.get(timeout=60)
+    child.join(timeout=60)
+    claims.close()
+    assert sorted(taken_here + there) == list(range(200))
+    with pytest.raises(ValueError, match="at most 255"):
+        _Claims(256)
+
+
 def test_figures_drawn_in_a_forked_child_are_the_files_drawn_here(tmp_path, monkeypatch):
-    """write_figures hands the house, uncertainty and agreement maps to a forked child where
-    forking is safe: the PNGs are byte for byte those drawn in one process; a child that dies
-    leaves its figures to the parent, which draws them."""
+    """write_figures shares the trace, house, uncertainty and agreement maps with a forked child
+    where forking is safe: the PNGs are byte for byte those drawn in one process; a child that
+    dies leaves its figures to the parent, which draws them."""
     import pytest
 
     from spcopyro.cli import fit_figures
@@ -155,14 +210,14 @@ def test_figures_drawn_in_a_forked_child_are_the_files_drawn_here(tmp_path, monk
     children: list[object] = []
     start = fit_figures._draw_in_child
 
-    def recorded(figures):
-        children.append(start(figures))
+    def recorded(figures, claims):
+        children.append(start(figures, claims))
         return children[-1]
 
     monkeypatch.setattr(fit_figures, "_draw_in_child", recorded)
     write_figures(result, house, folders["forked"], uncertainty=True)
     assert len(children) == 1 and children[0].exitcode == 0  # drawn there
-    monkeypatch.setattr(fit_figures, "_child_draws", lambda figures: os._exit(3))
+    monkeypatch.setattr(fit_figures, "_child_draws", lambda figures, claims: os._exit(3))
     write_figures(result, house, folders["child died"], uncertainty=True)
     assert children[-1].exitcode == 3
     names = {"semantic_map.png", "trace.png", "house.png", "uncertainty.png", "agreement.png"}

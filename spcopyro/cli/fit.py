@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
+import functools
 import json
 import math
 import shlex
@@ -400,7 +401,7 @@ def _fit_staged(job: FitJob) -> int:
         prefetch = FigurePrefetch(house, job.staged.path, start=not several)
     try:
         with contextlib.nullcontext() if prefetch is None else when_chains_start(prefetch.start):
-            fitted = _fit(job, init, saved)
+            fitted = _fit(job, init, saved, prefetch)
         job.sampled = True
         return _write(job, fitted, prefetch)
     finally:
@@ -416,7 +417,9 @@ def _chain_count(args: argparse.Namespace) -> int:
     return 4 if args.sweeps == "auto" else 1
 
 
-def _fit(job: FitJob, init: object, saved: SpCoResult | None) -> Fitted:
+def _fit(
+    job: FitJob, init: object, saved: SpCoResult | None, prefetch: FigurePrefetch | None = None
+) -> Fitted:
     """The fit itself: ``--sweeps auto``'s chains, ``--update``'s, or ``--chains`` chains from
     ``init`` (:func:`_fit_staged`)."""
     from spcopyro.fit.house import best_chain, fit_house_chains
@@ -464,11 +467,15 @@ def _fit(job: FitJob, init: object, saved: SpCoResult | None) -> Fitted:
         kept = best_chain(chain_results)
         result = chain_results[kept]
     if args.refine != "never":
-        job.refined, refits = refine(
-            args, chain_results or [result], kept, model=house, on_map=job.map_house,
-            settings=settings, options=options, keeper=job.keeper, chains=chains,
-            sweeps=refine_sweeps, point_estimate=estimate,
-        )  # fmt: skip
+        # once the refinement's chains run (it refines): house.png of the map's cells meanwhile
+        redraw = contextlib.nullcontext() if prefetch is None else when_chains_start(
+            functools.partial(prefetch.redraw, job.map_house))  # fmt: skip
+        with redraw:
+            job.refined, refits = refine(
+                args, chain_results or [result], kept, model=house, on_map=job.map_house,
+                settings=settings, options=options, keeper=job.keeper, chains=chains,
+                sweeps=refine_sweeps, point_estimate=estimate,
+            )  # fmt: skip
         if job.refined:
             job.house = job.map_house
         if job.refined or chain_results is not None:  # --sweeps auto's stay one result
@@ -523,10 +530,7 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
             np.save(out / "agreement.npy", free_cells_image(result, result.agreement))
     phases.mark("save")
     if prefetch is not None:  # matplotlib is imported only for the figures
-        if job.refined:  # the prefetch drew the model grid's house.png: drawn again, the map's
-            prefetch.join()
-        write_figures(result, house, out, uncertainty=entropy is not None,
-                      prefetch=None if job.refined else prefetch)  # fmt: skip
+        write_figures(result, house, out, uncertainty=entropy is not None, prefetch=prefetch)
     phases.mark("figures")
     if result.agreement is not None:
         estimate = result.inference.get("point_estimate", args.point_estimate)  # a refit's own

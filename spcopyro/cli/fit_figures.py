@@ -3,7 +3,8 @@
 A default fit's sweeps run in compiled kernels that release the GIL, one chain on one core.
 :class:`FigurePrefetch` uses that time: on a thread of its own it imports what the figures and
 the point estimate import (matplotlib, scipy's image and assignment modules: about a second of a
-fresh process) and draws ``house.png``, which needs the house only. After the fit,
+fresh process) and draws ``house.png``, which needs the house only (again, of the map's own
+cells, while a refinement's chains run: :meth:`FigurePrefetch.redraw`). After the fit,
 :func:`write_figures` draws the figures that need the result, some of them in a child forked
 for them where forking is safe (two CPUs draw them in about half the time). While the thread
 works the interpreter's switch interval is shortened, so a sweep that ends waits at most that
@@ -12,9 +13,11 @@ long for the GIL. The figures are those drawn without either, file for file (iss
 
 from __future__ import annotations
 
+import itertools
+import os
 import sys
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -43,12 +46,26 @@ class FigurePrefetch:
     def __init__(self, house: House, out: Path, start: bool = True) -> None:
         self.house_drawn = False
         self._previous = sys.getswitchinterval()
-        self._thread = threading.Thread(
-            target=self._run, args=(house, Path(out)), name="spcopyro-figures", daemon=True
-        )
+        self._out = Path(out)
+        self._thread = self._new_thread(house)
         self._started = False
         if start:
             self.start()
+
+    def _new_thread(self, house: House) -> threading.Thread:
+        return threading.Thread(
+            target=self._run, args=(house, self._out), name="spcopyro-figures", daemon=True
+        )
+
+    def redraw(self, house: House) -> None:
+        """Draw ``house.png`` again, of ``house``, on a new thread started now: the fit went on
+        on another grid (``--refine``: the map's own cells), whose chains run meanwhile. What
+        the first thread drew is replaced; :meth:`join` then tells of this drawing."""
+        self.join()
+        self.house_drawn = False
+        self._thread = self._new_thread(house)
+        self._started = False
+        self.start()
 
     def start(self) -> None:
         """Start the thread (once; later calls do nothing)."""
@@ -94,10 +111,11 @@ def write_figures(
     matplotlib's Agg canvas).
 
     ``fork`` (None: where :func:`~spcopyro._util.forking.fork_refusal` allows it, without torch):
-    the house, uncertainty and agreement maps are drawn by a child forked from this process
-    while this one draws the semantic map and the trace (on two CPUs about half the time; the
-    same files, byte for byte). A child that fails leaves its figures to this process, which
-    then draws them (and raises their error, if any)."""
+    a child forked from this process draws the others while this one draws the semantic map,
+    the largest (0.3-0.6 s against 0.1-0.3 s each), and both then take what is left, one figure
+    at a time (:class:`_Claims`), so the two CPUs share the work however the figures' sizes
+    fall; the same files, byte for byte. The figures a failed child took are drawn here again
+    (their error, if any, raised)."""
     house_drawn = prefetch is not None and prefetch.join()
     with timed("figure imports"):
         from spcopyro.figures.plotting import (
@@ -109,25 +127,68 @@ def write_figures(
         )
 
     observations = house.observations
-    here: list[tuple[str, Callable[[], None]]] = [
-        ("semantic_map",
-         lambda: plot_semantic_map(result, out / "semantic_map.png", observations=observations)),
-        ("trace", lambda: plot_trace(result, out / "trace.png")),
-    ]  # fmt: skip
-    there: list[tuple[str, Callable[[], None]]] = []
+    first: Figure = (
+        "semantic_map",
+        lambda: plot_semantic_map(result, out / "semantic_map.png", observations=observations),
+    )
+    shared: list[Figure] = [("trace", lambda: plot_trace(result, out / "trace.png"))]
     if not house_drawn:
-        there.append(("house", lambda: plot_house(house, out / "house.png")))
+        shared.append(("house", lambda: plot_house(house, out / "house.png")))
     if uncertainty:
-        there.append(("uncertainty", lambda: plot_uncertainty(result, out / "uncertainty.png")))
+        shared.append(("uncertainty", lambda: plot_uncertainty(result, out / "uncertainty.png")))
     if result.agreement is not None:
-        there.append(("agreement", lambda: plot_agreement(result, out / "agreement.png")))
-    child = _draw_in_child(there) if there and _may_fork(fork) else None
-    _draw(here if child is not None else here + there)
-    if child is not None:
+        shared.append(("agreement", lambda: plot_agreement(result, out / "agreement.png")))
+    if not _may_fork(fork):
+        _draw([first, *shared])
+        return
+    claims = _Claims(len(shared))
+    try:
+        child = _draw_in_child(shared, claims)
+        mine: list[int] = []  # the shared figures drawn here
+        _draw(itertools.chain([first], claims.figures(shared, mine)))
         with timed("figure child wait"):
             child.join()
-        if child.exitcode != 0:  # drawn here, so that no figure is lost
-            _draw(there)
+    finally:
+        claims.close()
+    if child.exitcode != 0:  # the child's figures drawn here, so that none is lost
+        _draw([figure for k, figure in enumerate(shared) if k not in mine])
+
+
+Figure = tuple[str, Callable[[], None]]
+"""A figure to draw: its name (for the timings) and the call that writes its PNG."""
+
+
+class _Claims:
+    """Which of n figures shared by this process and its forked child are taken: n one-byte
+    tokens in a pipe both hold, each read by exactly one (a pipe's read of one byte is atomic;
+    no lock that a dying child could keep)."""
+
+    def __init__(self, count: int) -> None:
+        if count > 255:
+            raise ValueError(f"{count} figures to share: at most 255")
+        read, write = os.pipe()
+        os.write(write, bytes(range(count)))
+        os.close(write)
+        os.set_blocking(read, False)
+        self._read = read
+
+    def take(self) -> int | None:
+        """The index of a figure nobody has taken, now taken; None when all are."""
+        try:
+            token = os.read(self._read, 1)
+        except BlockingIOError:
+            return None
+        return token[0] if token else None
+
+    def figures(self, shared: Sequence[Figure], taken: list[int]) -> Iterator[Figure]:
+        """The figures of ``shared`` this process takes, one at a time as it asks for the next;
+        their indices appended to ``taken``."""
+        while (index := self.take()) is not None:
+            taken.append(index)
+            yield shared[index]
+
+    def close(self) -> None:
+        os.close(self._read)
 
 
 def _may_fork(fork: bool | None) -> bool:
@@ -136,7 +197,7 @@ def _may_fork(fork: bool | None) -> bool:
     return fork is not False and fork_refusal(uses_torch=False) is None
 
 
-def _draw(figures: list[tuple[str, Callable[[], None]]]) -> None:
+def _draw(figures: Iterable[Figure]) -> None:
     from spcopyro.figures.png import background_writes
 
     with background_writes():  # each PNG compressed on a thread while the next is drawn
@@ -145,27 +206,27 @@ def _draw(figures: list[tuple[str, Callable[[], None]]]) -> None:
                 draw()
 
 
-def _draw_in_child(figures: list[tuple[str, Callable[[], None]]]) -> BaseProcess:
-    """A child forked to draw ``figures`` (no torch there: the plots are numpy and matplotlib),
-    started; it exits with 0 once they are written, 1 if one failed."""
+def _draw_in_child(figures: list[Figure], claims: _Claims) -> BaseProcess:
+    """A child forked to draw the ``figures`` it takes from ``claims`` (no torch there: the
+    plots are numpy and matplotlib), started; it exits with 0 once they are written, 1 if one
+    failed."""
     import multiprocessing
 
     from spcopyro._util.forking import start_forked
 
     process = multiprocessing.get_context("fork").Process(
-        target=_child_draws, args=(figures,), name="spcopyro-figures", daemon=True
+        target=_child_draws, args=(figures, claims), name="spcopyro-figures", daemon=True
     )
     start_forked(process)
     return process
 
 
-def _child_draws(figures: list[tuple[str, Callable[[], None]]]) -> None:
-    import os
+def _child_draws(figures: list[Figure], claims: _Claims) -> None:
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides (and redraws on failure)
     try:
-        for _, draw in figures:
+        for _, draw in claims.figures(figures, []):
             draw()
     except BaseException:  # noqa: BLE001  (the parent draws them again and reports the error)
         os._exit(1)
