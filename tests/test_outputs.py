@@ -21,6 +21,7 @@ from spcopyro._util.outputs import (
     check_output,
     checkpoint_path,
     replace_file,
+    stage_marked_folder,
     stage_output,
 )
 from spcopyro.cli.main import main
@@ -132,7 +133,7 @@ def test_an_unwritable_place_is_reported_before_sampling(room, tmp_path, capsys,
         raise PermissionError(13, "Permission denied")
 
     with monkeypatch.context() as patch:  # what a read-only parent does (also when run as root)
-        patch.setattr(spcopyro._util.outputs.tempfile, "mkdtemp", refused)
+        patch.setattr(spcopyro._util.outputs, "_new_folder", refused)
         assert _fit(room, tmp_path / "out") == 2
     err = capsys.readouterr().err
     assert f"cannot write in {tmp_path} (Permission denied)" in err
@@ -312,6 +313,27 @@ def test_replace_file_leaves_the_old_file_when_writing_fails(tmp_path):
     with pytest.raises(KeyboardInterrupt):
         replace_file(path, half)
     assert path.read_bytes() == b"old" and _entries(tmp_path) == {"f.bin"}
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o077])
+def test_outputs_get_the_permissions_of_the_users_umask(tmp_path, umask):
+    """A committed output folder (a fit's, a Nav2 export's) and a replaced file have the mode a
+    plain mkdir / open gives under the umask: 0755 / 0644 under 022 (tempfile's 0700 / 0600 kept
+    a map server running as another user from reading an export)."""
+    previous = os.umask(umask)
+    try:
+        with stage_output(tmp_path / "fit") as staged:
+            (staged.path / "labels.npy").write_bytes(b"x")
+            out = staged.commit()
+        export = stage_marked_folder(tmp_path / "nav2", False, option="--nav2",
+                                     marker="nav2.json", writer="export")  # fmt: skip
+        exported = export.commit()
+        file = replace_file(tmp_path / "checkpoint.npz", lambda f: f.write(b"x"))
+    finally:
+        os.umask(previous)
+    assert (out.stat().st_mode & 0o777) == 0o777 & ~umask
+    assert (exported.stat().st_mode & 0o777) == 0o777 & ~umask
+    assert (file.stat().st_mode & 0o777) == 0o666 & ~umask
 
 
 # -- the record of a run -----------------------------------------------------------------------

@@ -17,6 +17,9 @@ Ctrl-C, or a second fit into the same folder never leaves a mixture of two runs'
   folder (named in the message: nothing is deleted).
 * An interrupted fit's checkpoint lives beside OUT as ``OUT.checkpoint.npz``
   (:func:`checkpoint_path`), never inside it, so it cannot be mistaken for a result.
+* Staging folders and replaced files get the permissions a plain ``mkdir`` or ``open`` gives
+  under the user's umask (``tempfile``'s 0700 / 0600 would keep a Nav2 export or a fit from
+  a map server or a colleague running as another user).
 
 This module imports nothing of the package.
 """
@@ -30,7 +33,6 @@ import os
 import re
 import secrets
 import shutil
-import tempfile
 import zipfile
 import zlib
 from collections.abc import Callable, Iterator, Sequence
@@ -342,7 +344,7 @@ def stage_output(
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         remove_stale_stagings(path)
-        staging = tempfile.mkdtemp(prefix=staging_prefix(path), dir=path.parent)
+        staging = _new_folder(path.parent, staging_prefix(path))
     except OSError as error:
         raise OutputError(
             f"--out {out}: cannot write in {path.parent} ({error.strerror or error})"
@@ -377,17 +379,42 @@ def stage_marked_folder(
     seen = (path.lstat().st_dev, path.lstat().st_ino) if path.exists() else None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        staging = tempfile.mkdtemp(prefix=f"{path.name}{STAGING_INFIX}", dir=path.parent)
+        staging = _new_folder(path.parent, f"{path.name}{STAGING_INFIX}")
     except OSError as error:
         raise OutputError(f"{option} {out}: cannot write in {path.parent} ({error})") from None
     return StagedOutput(out=path, path=Path(staging), overwrite=overwrite, seen=seen)
+
+
+def _new_folder(parent: Path, prefix: str) -> Path:
+    """A new folder ``parent / (prefix + random)``, made as ``mkdir`` makes one (its mode from
+    the umask, unlike :func:`tempfile.mkdtemp`'s 0700)."""
+    for _ in range(100):
+        path = parent / f"{prefix}{secrets.token_hex(4)}"
+        try:
+            path.mkdir()
+        except FileExistsError:
+            continue
+        return path
+    raise FileExistsError(f"no free name {prefix}... in {parent}")
+
+
+def _new_file(parent: Path, prefix: str) -> tuple[int, Path]:
+    """(descriptor, path) of a new file ``parent / (prefix + random)`` opened for writing, made
+    as ``open`` makes one (its mode from the umask, unlike :func:`tempfile.mkstemp`'s 0600)."""
+    for _ in range(100):
+        path = parent / f"{prefix}{secrets.token_hex(4)}"
+        try:
+            return os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666), path
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"no free name {prefix}... in {parent}")
 
 
 def replace_file(path: str | os.PathLike[str], write: Callable[[BinaryIO], None]) -> Path:
     """Write a file through ``write(file)`` into a temporary file beside ``path``, then rename it
     over ``path``: readers see the old file or the new one, never a half-written one."""
     path = _absolute(path)
-    descriptor, partial = tempfile.mkstemp(prefix=f"{path.name}{STAGING_INFIX}", dir=path.parent)
+    descriptor, partial = _new_file(path.parent, f"{path.name}{STAGING_INFIX}")
     try:
         with os.fdopen(descriptor, "wb") as file:
             write(file)
