@@ -5,7 +5,10 @@ the wall time of the whole fit."""
 from __future__ import annotations
 
 import argparse
+import os
 import re
+import subprocess
+import sys
 
 import pytest
 from gibbs_problems import config as small_config
@@ -58,6 +61,23 @@ def test_version(capsys):
         main(["--version"])
     assert done.value.code == 0
     assert capsys.readouterr().out == f"spcopyro {__version__}\n"
+
+
+def test_a_closed_output_pipe_ends_the_command_quietly(tmp_path):
+    """`spcopyro show ... | head -1`: the reader leaves before the command prints; it exits with
+    141 (128 + SIGPIPE, as a shell reports it) and says nothing (it printed 'error: [Errno 32]
+    Broken pipe' and exited 2)."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    path = os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH")) if p)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "spcopyro", "show", "--out", str(tmp_path / "house.png")],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, env={**os.environ, "PYTHONPATH": path},
+    )  # fmt: skip
+    process.stdout.close()  # before the command has written anything
+    error = process.stderr.read()
+    process.stderr.close()
+    assert process.wait(timeout=120) == 141
+    assert error == b""
 
 
 def test_simulate_into_an_existing_folder_names_the_flag(tmp_path, capsys):

@@ -441,8 +441,9 @@ def test_loader_missing_required_file(tmp_path, grid, file):
 def test_loader_missing_map_and_unpaired_trial_files(tmp_path, grid):
     room = write_room(tmp_path, grid)
     (room / "word_1.csv").unlink()
-    with pytest.raises(DataFormatError, match="word_1.csv"):
+    with pytest.raises(DataFormatError, match="word_1.csv") as error:
         load_house(room)
+    assert "trial 1 has a pose file but no word file" in str(error.value)  # not every trial
     (tmp_path / "map" / "room.yaml").unlink()
     with pytest.raises(FileNotFoundError, match="room.yaml"):
         load_house(room)

@@ -21,6 +21,7 @@ import errno
 import gc
 import logging
 import math
+import os
 import sys
 from pathlib import Path
 from typing import NoReturn
@@ -363,6 +364,22 @@ def attach_negative_coordinates(argv: list[str]) -> list[str]:
     return joined
 
 
+BROKEN_PIPE = 141
+"""Exit status when the command's output pipe closed early: 128 + SIGPIPE, what a shell reports
+for a program that a closed pipe ends (``head`` read what it wanted)."""
+
+
+def _silence_stdout() -> None:
+    """Point standard output at /dev/null, so that the interpreter's flush at exit does not
+    fail again on the closed pipe (Python's documentation on SIGPIPE)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):  # stdout without a file descriptor (a test's capture)
+        pass
+
+
 def main(argv: list[str] | None = None) -> int:
     given = sys.argv[1:] if argv is None else argv
     args = build_parser().parse_args(attach_negative_coordinates(list(given)))
@@ -371,6 +388,9 @@ def main(argv: list[str] | None = None) -> int:
     _configure_logging(logging.INFO if args.verbose else logging.WARNING)
     try:
         return args.func(args)
+    except BrokenPipeError:  # `spcopyro where OUT kitchen | head -1`: the reader has left
+        _silence_stdout()
+        return BROKEN_PIPE
     except (OSError, ValueError) as error:  # bad input: one clear line, no traceback
         print(f"error: {_error_line(error)}", file=sys.stderr)
         return 2

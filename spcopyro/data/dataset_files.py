@@ -197,8 +197,9 @@ def _read_trials(
         if missing:
             raise DataFormatError(
                 room / f"{kind}_{missing[0]}.csv",
-                f"missing: trials {sorted(have)} have {'pose' if kind == 'word' else 'word'} "
-                f"files but not {kind} files",
+                f"missing: trial{'s' if len(missing) > 1 else ''} "
+                f"{', '.join(map(str, missing))} ha{'ve' if len(missing) > 1 else 's'} a "
+                f"{'pose' if kind == 'word' else 'word'} file but no {kind} file",
             )
     trials = list(poses)
     pose_rows = [_read_matrix(poses[k], columns=4) for k in trials]  # [n_k, 4] each
