@@ -276,6 +276,28 @@ def test_a_finer_map_takes_the_fits_probabilities(result):
     assert planning_grid(fine, 0.1).num_allowed < fine.num_free
 
 
+def test_a_map_that_is_not_the_fits_is_refused(result, fit, tmp_path, capsys):
+    """--map of another house (or another origin) in the fit's frame: the fit's places would lie
+    across its walls, so the plan is refused with both maps' extents; the fit's own map (and a
+    finer copy of it) is taken."""
+    from spcopyro.maps import save_map
+    from spcopyro.robot.navigation.graph import map_coverage
+
+    grid = result.grid
+    shifted = OccupancyGrid(grid.occupancy, RES, (grid.origin[0] + 2.0, *grid.origin[1:]))
+    assert map_coverage(grid, grid) == 1.0 and map_coverage(grid, shifted) < 0.8
+    save_map(shifted, tmp_path / "other.yaml")
+    start = f"--start={START_A[0]},{START_A[1]}"
+    argv = ["navigate", str(fit), "go to the kitchen", start, "--map", str(tmp_path / "other.yaml")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "other.yaml is not the fit's map" in err and "pass the map the fit was made on" in err
+    with pytest.raises(ValueError, match="not the fit's map"):
+        navigate(result, "kitchen", START_A, grid=shifted, radius=0.1)
+    save_map(grid, tmp_path / "own.yaml")
+    assert main([*argv[:-1], str(tmp_path / "own.yaml")]) == 0
+
+
 def test_a_coarse_fit_plans_on_the_map_its_data_came_with(result, tmp_path, capsys):
     """A coarse fit's grid thickens walls and can close doorways: without --map, navigate plans
     on DATA/../map/HOUSE.yaml when the fit's provenance names a data folder that still has it,

@@ -177,7 +177,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "the one a coarse fit was made from, whose doorways coarsening narrows) "
                         "(default: for a coarse fit, the map it was coarsened from: its "
                         "robot_map.yaml, or for an older fit DATA/../map/HOUSE.yaml when it is "
-                        "still there; else the fit's own grid)")  # fmt: skip
+                        "still there; else the fit's own grid); refused if its free space "
+                        "covers less than 80%% of the fit's free cells: not the fit's "
+                        "map")  # fmt: skip
     p.add_argument("--strict", action="store_true",
                    help="an ambiguous word (two separate regions of near-equal probability) is "
                         "an error instead of taking the nearer")  # fmt: skip

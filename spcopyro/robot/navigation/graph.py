@@ -109,6 +109,45 @@ def trace_path(predecessors: np.ndarray, target: int) -> np.ndarray:
     return np.array(path[::-1], dtype=np.int64)
 
 
+MAP_COVERAGE = 0.8
+"""The least share of a fit's free cells that a map given for planning must cover
+(:func:`check_same_map`): its own map covers all of them (the coarse cells are made of its
+cells), another house's map in the same frame about 0.6 (room1dk5's of a room2ldk4 fit)."""
+
+
+def map_coverage(fit_grid: OccupancyGrid, grid: OccupancyGrid) -> float:
+    """The share of ``fit_grid``'s free cells that hold the centre of a free cell of ``grid``."""
+    cells = fit_grid.world_to_cell(grid.cell_to_world(grid.free_cells))  # [N_map, 2]
+    inside = np.asarray(fit_grid.in_bounds(cells), dtype=bool)  # [N_map]
+    covered = np.zeros(fit_grid.free.shape, dtype=bool)  # [H, W]
+    covered[cells[inside, 0], cells[inside, 1]] = True
+    return float((covered & fit_grid.free).sum() / max(fit_grid.num_free, 1))
+
+
+def check_same_map(fit_grid: OccupancyGrid, grid: OccupancyGrid) -> None:
+    """Refuse a planning map that is not the fit's: one whose free cells cover less than
+    :data:`MAP_COVERAGE` of the fit's free cells (another house, another origin or resolution):
+    the fit's places carried onto it would lie across its walls.
+
+    Raises:
+        ValueError: naming the map and both maps' extents.
+    """
+    coverage = map_coverage(fit_grid, grid)
+    if coverage >= MAP_COVERAGE:
+        return
+
+    def extent(g: OccupancyGrid) -> str:
+        (x0, y0), (x1, y1) = g.cell_to_world(np.array([[g.height - 1, 0], [0, g.width - 1]]))
+        return f"x {x0:.2f}..{x1:.2f}, y {y0:.2f}..{y1:.2f} m at {g.resolution:g} m"
+
+    raise ValueError(
+        f"map {grid.source or '(given)'} is not the fit's map: its free space covers "
+        f"{coverage:.0%} of the fit's {fit_grid.num_free} free cells (at least "
+        f"{MAP_COVERAGE:.0%} expected; the map spans {extent(grid)}, the fit {extent(fit_grid)}): "
+        "pass the map the fit was made on, in the same frame"
+    )
+
+
 def fit_cells_on(fit_grid: OccupancyGrid, grid: OccupancyGrid) -> np.ndarray:
     """``[N]`` for every free cell of ``grid`` (a map in the same frame, e.g. the finer map a
     coarse fit was made from), the free index in ``fit_grid`` of the fit cell holding its centre,

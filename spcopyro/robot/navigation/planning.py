@@ -35,6 +35,7 @@ from spcopyro.robot.navigation.goals import (
 )
 from spcopyro.robot.navigation.graph import (
     PlanningGrid,
+    check_same_map,
     fit_cells_on,
     planning_grid,
     shortest_paths,
@@ -216,13 +217,16 @@ def navigate(
 
     Raises:
         ValueError: a misspelt word or none naming a place (the close known words named), an
-            unknown planner.
+            unknown planner, a ``grid`` that is not the fit's map
+            (:func:`~spcopyro.robot.navigation.graph.check_same_map`).
         NavigationError: a bad start; UnreachableGoalError, AmbiguousGoalError (``strict``).
     """
     if planner not in (HIERARCHICAL, GRID):
         raise ValueError(f"planner {planner!r}: {HIERARCHICAL} or {GRID}")
     parsed = parse_instruction(instruction, result.vocabulary)
     grid = result.grid if grid is None else grid
+    if grid is not result.grid:
+        check_same_map(result.grid, grid)
     planning = planning_grid(grid, radius) if planning is None else planning
     carry = None if grid is result.grid else fit_cells_on(result.grid, grid)  # [N_map]
     places = place_graph(result) if places is None else places
