@@ -156,6 +156,10 @@ def test_show_graph_writes_png_and_json_and_imports_no_torch(result, tmp_path):
     graph = json.loads((png.parent / "graph.json").read_text())
     assert len(graph["places"]) == 5 and len(graph["passages"]) == 3
     assert "5 places, 3 passages (3 doorways)" in printed
+    other = tmp_path / "figs" / "other.png"  # a second graph in the folder keeps the first's
+    heavy_imports(["show", str(fit), "--graph", "--min-area", "100", "--out", str(other)])
+    assert json.loads((png.parent / "graph.json").read_text()) == graph
+    assert json.loads((png.parent / "other.json").read_text())["places"] == []
 
 
 def test_show_graph_needs_a_fit_folder(tmp_path):

@@ -258,7 +258,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="PNG file to write")
     p.add_argument("--graph", action="store_true", help="DATA is a fit's output folder: draw "
                    "its place graph (regions as nodes, shared borders and doorways as edges) "
-                   "and write graph.json beside the PNG")  # fmt: skip
+                   "and write it as JSON beside the PNG (X.json for --out X.png)")  # fmt: skip
     p.add_argument("--min-area", type=float, default=0.25, metavar="M2",
                    help="with --graph: smaller regions are not places")  # fmt: skip
     p.set_defaults(func=_show)

@@ -129,7 +129,7 @@ def _print_planner(plan: NavigationPlan) -> None:
 
 def show_graph(args: argparse.Namespace) -> int:
     """``spcopyro show OUT --graph --out graph.png``: the fit's place graph drawn over its map,
-    and ``graph.json`` beside the PNG."""
+    and the graph as JSON beside the PNG, named after it (``graph.json``)."""
     import json
 
     from spcopyro.results.result import SpCoResult
@@ -141,7 +141,7 @@ def show_graph(args: argparse.Namespace) -> int:
     result = SpCoResult.load(args.data)
     graph = place_graph(result, min_area=args.min_area)
     png = plot_place_graph(result, graph, args.out)
-    written = png.with_name("graph.json")
+    written = png.with_suffix(".json")  # X.png -> X.json: two graphs in one folder keep both
     written.write_text(json.dumps(graph.to_json(), indent=2) + "\n")
     doors = sum(e.doorway for e in graph.passages)
     print(f"{len(graph.places)} places, {len(graph.passages)} passages ({doors} doorways); "
