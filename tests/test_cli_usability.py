@@ -163,6 +163,21 @@ def test_fit_reports_the_wall_time_of_the_whole_fit(
     assert f"fitted {reported} in 42.5 s wall clock (" in capsys.readouterr().out
 
 
+def test_a_refined_fit_reports_each_stages_pace(small_house, tmp_path, capsys, monkeypatch):
+    """A refined fit's line names both stages, their chains and each one's ms a sweep (it gave
+    the refinement's pace as the whole fit's, and the refinement's chains not at all)."""
+    clock = iter([100.0, 142.5])
+    monkeypatch.setattr("spcopyro.cli.fit._clock", lambda: next(clock))
+    argv = ["fit", str(small_house), "--out", str(tmp_path / "fit"), "--sweeps", "4",
+            "--chains", "2", "--refine", "always"]  # fmt: skip
+    assert main(argv) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("fitted "))
+    pattern = (r"fitted 2 chains x 4 sweeps on 0\.\d+ m cells \(\d+\.\d\d ms per sweep\), then "
+               r"2 chains x 4 on the map's 0\.1 m cells \(\d+\.\d\d ms per sweep\) in 42\.5 s "
+               r"wall clock; \d+ concepts in use")  # fmt: skip
+    assert re.fullmatch(pattern, line), line
+
+
 def test_a_seed_beyond_64_bits_names_the_option(capsys):
     """Issue 22 item 10: --seed 99999999999999999999 used to fail inside torch with "Overflow
     when unpacking long long", without naming --seed."""

@@ -32,10 +32,15 @@ def _summary(house: House, warn: bool = True, feature_scaling: object = "probabi
     )  # fmt: skip
     p = counts.placement
     obs = house.observations
+    grid, source = house.grid, house.grid.coarsened_from
+    of_map = "" if source is None else (
+        f" (the model's cells, of the map's {source.height} x {source.width} cells at "
+        f"{source.resolution:g} m, {source.num_free} free)"
+    )  # fmt: skip
     lines = [
         f"house            {house.name}",
-        f"map              {house.grid.height} x {house.grid.width} cells at "
-        f"{house.grid.resolution} m, {house.grid.num_free} free",
+        f"map              {grid.height} x {grid.width} cells at {grid.resolution:g} m, "
+        f"{grid.num_free} free{of_map}",
         f"images           {obs.num_images} ({obs.num_feature_classes} feature classes) in "
         f"{len(obs.trials)} trial(s)",
         f"utterances       {obs.num_utterances}, vocabulary of {len(counts.vocabulary)} words",

@@ -540,14 +540,16 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
               f"{'' if args.no_figures else '; agreement.png'}")  # fmt: skip
     unit = "sweep" if result.trace.objective_name == "log joint" else "iteration"
     several = f"{chains} chains x " if chains > 1 else ""
-    runs = f"{several}{sweeps_run} {unit}s"
-    if job.refined:  # the coarse stage's sweeps, then the refinement's
+    pace = f"{1e3 * result.trace.seconds[-1] / sweeps_run:.2f} ms per {unit}"
+    runs = f"{several}{sweeps_run} {unit}s in {wall:.1f} s wall clock ({pace})"
+    if job.refined:  # the coarse stage's sweeps, then the refinement's, each at its own pace
         coarse = result.inference["refine"]["coarse"]
-        runs = (f"{several}{coarse['sweeps']} sweeps on {coarse['cell_size']:g} m cells, then "
-                f"{sweeps_run} on the map's {result.grid.resolution:g} m cells")  # fmt: skip
-    print(f"fitted {runs} in {wall:.1f} s wall clock "
-          f"({1e3 * result.trace.seconds[-1] / sweeps_run:.2f} ms per {unit}); "
-          f"{len(result.concepts_in_use())} concepts in use")  # fmt: skip
+        coarse_pace = 1e3 * coarse.get("seconds", math.nan) / max(coarse["sweeps"], 1)
+        runs = (f"{several}{coarse['sweeps']} sweeps on {coarse['cell_size']:g} m cells "
+                f"({coarse_pace:.2f} ms per sweep), then {several}{sweeps_run} on the map's "
+                f"{result.grid.resolution:g} m cells ({pace}) in {wall:.1f} s "
+                "wall clock")  # fmt: skip
+    print(f"fitted {runs}; {len(result.concepts_in_use())} concepts in use")
     if result.inference.get("stopped"):  # a variational method: converged, or --sweeps reached
         print(f"stopped          {result.inference['stopped']}")
     if result.inference.get("hyperparameters"):

@@ -191,6 +191,7 @@ def refine_chains(
             "best_log_joint": float(first.best_objective),
             "concepts": len(first.concepts_in_use()),
             "sweeps": len(first.trace.objective),
+            "seconds": float(first.trace.seconds[-1]) if len(first.trace.seconds) else 0.0,
         },
         "alpha": float(refined.model.alpha),
     }  # fmt: skip
