@@ -134,7 +134,8 @@ def test_a_fallback_to_the_grid_path_is_reported():
     # closed, and the leg falls back to the shortest grid path (through T)
     result = third_room_result(bc_door=(25, 27))
     plan = navigate(result, "go to the kitchen", START, radius=0.1)
-    assert plan.route_words == ("bedroom", "corridor", "kitchen")
+    # the route names the places the robot drives through (T, "living"), not the closed route
+    assert plan.route_words == ("bedroom", "living", "kitchen") and plan.route_from == "path"
     assert plan.planned == "grid"
     assert len(plan.fallbacks) == 1 and "do not join" in plan.fallbacks[0]
     assert "bedroom -> corridor -> kitchen" in plan.fallbacks[0]
@@ -187,7 +188,11 @@ def test_navigate_prints_and_writes_the_planner(tmp_path, capsys):
     assert written["planner"]["asked"] == "hierarchical"
     assert written["planner"]["used"] == "grid"
     assert "do not join" in written["planner"]["legs"][0]["fallback"]
-    assert written["planner"]["legs"][0]["route"] == written["route"]["places"]
+    # the leg's closed route over the graph is kept; the plan's route is the path's places
+    assert written["route"]["from"] == "path"
+    assert written["route"]["words"] == ["bedroom", "living", "kitchen"]
+    assert written["planner"]["legs"][0]["route"] != written["route"]["places"]
+    assert "(the places the path crosses)" in printed.out
 
     fit = third_room_result().save(tmp_path / "fit2")
     assert main(["navigate", str(fit), "go to the kitchen", start, "--radius", "0.1"]) == 0

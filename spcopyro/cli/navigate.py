@@ -96,8 +96,7 @@ def _navigate(args: argparse.Namespace) -> int:
         for note in choice.notes:
             print(f"warning: {note}", file=sys.stderr)
     if plan.route:
-        how = "" if plan.route_from == "graph" else " (the places the path crosses: no route "
-        how = how and how + "over the place graph)"
+        how = "" if plan.route_from == "graph" else " (the places the path crosses)"
         print(f"route: {' -> '.join(plan.route_words)}{how}")
     _print_planner(plan)
     print(f"path: {len(plan.path_xy)} poses, {plan.length:.2f} m, clearance {plan.radius:g} m "

@@ -96,9 +96,13 @@ class NavigationPlan:
     route: tuple[int, ...] = ()
     """Place ids from the start's place through every stop's place: the legs' routes over the
     place graph joined (each leg's shortest route, :mod:`~spcopyro.robot.navigation.hierarchy`).
-    Where a leg has no route over the graph (regions under its ``min_area`` dropped), the places
-    its path crosses, in order; ``route_from`` says which (``graph`` or ``path``)."""
+    Where a leg's path is not kept to a route over the graph (it has none, or it fell back to the
+    grid path, or the grid planner was asked for), the places its path crosses, in order, so
+    that the route names the places the robot drives through; ``route_from`` says which
+    (``graph``: every leg's route; ``path``: some leg's crossed places)."""
     route_from: str = "graph"
+    stop_places: tuple[int, ...] = ()
+    """The place each leg ends in on :attr:`route` (the stops' places), in order."""
     planner: str = HIERARCHICAL
     """The planner asked for (``hierarchical`` or ``grid``)."""
     legs: tuple[Leg, ...] = ()
@@ -132,8 +136,7 @@ class NavigationPlan:
         probable word may be "sink"), every other place as its top word."""
         if not self.places:
             return ()
-        legs = zip(self.legs, self.stops, strict=False)
-        said = {leg.places[-1]: stop.word for leg, stop in legs if leg.places}
+        said = dict(zip(self.stop_places, (stop.word for stop in self.stops), strict=False))
         return tuple(said.get(i, self.places.places[i].name) for i in self.route)
 
     @property
@@ -256,7 +259,7 @@ def navigate(
         arrive = float(yaw[index - 1]) if index > 0 else float(yaw[index])
         stops.append(Stop(word, via, choice, (float(xy[index, 0]), float(xy[index, 1])), arrive,
                           index, probability))  # fmt: skip
-    route, route_from = _route(result, places, legs, planning)
+    route, route_from, stop_places = _route(result, places, legs, planning)
     return NavigationPlan(
         instruction=parsed,
         start=(float(start[0]), float(start[1])),
@@ -270,6 +273,7 @@ def navigate(
         places=places,
         route=route,
         route_from=route_from,
+        stop_places=stop_places,
         planner=planner,
         legs=tuple(legs),
         margin=margin,
@@ -278,17 +282,20 @@ def navigate(
 
 def _route(
     result: SpCoResult, places: PlaceGraph, legs: list[Leg], planning: PlanningGrid
-) -> tuple[tuple[int, ...], str]:
-    """:attr:`NavigationPlan.route`: the legs' routes joined, and where it came from (``graph``,
-    or ``path`` where a leg had no route and the places its path crosses stand in)."""
+) -> tuple[tuple[int, ...], str, tuple[int, ...]]:
+    """:attr:`NavigationPlan.route`: the legs' routes joined; where it came from (``graph``, or
+    ``path`` where a leg's path was not kept to its route and the places it crosses stand in);
+    and the place each leg ends in (:attr:`NavigationPlan.stop_places`)."""
     route: list[int] = []
+    ends: list[int] = []
     source = "graph"
     for leg in legs:
-        if leg.places:
+        if leg.places and leg.planner == HIERARCHICAL:
             part = list(leg.places)
         else:
             source = "path"
             xy = planning.grid.cell_to_world(planning.cells(leg.nodes))  # [k, 2]
             part = list(places_along(places, result.grid.world_to_cell(xy)))
         route += part[1:] if route and part and part[0] == route[-1] else part
-    return tuple(route), source
+        ends.append(part[-1] if part else -1)  # -1: in no place
+    return tuple(route), source, tuple(ends)
