@@ -438,6 +438,14 @@ def test_loader_missing_required_file(tmp_path, grid, file):
         load_house(room)
 
 
+def test_loader_given_a_file_names_it_as_a_file(tmp_path, grid):
+    room = write_room(tmp_path, grid)
+    with pytest.raises(NotADirectoryError, match="Ft.csv is a file, not a room folder"):
+        load_house(room / "Ft.csv")
+    with pytest.raises(FileNotFoundError, match="does not exist"):
+        load_house(room / "nothing")
+
+
 def test_loader_missing_map_and_unpaired_trial_files(tmp_path, grid):
     room = write_room(tmp_path, grid)
     (room / "word_1.csv").unlink()

@@ -210,7 +210,9 @@ def test_outputs_load_into_the_fields_of_nav2_messages(fit, tmp_path, capsys):
     argv = ["navigate", str(fit), "kitchen", f"--start={START_A[0]},{START_A[1]}", "--out",
             str(out), "--no-figure"]  # fmt: skip
     assert main(argv) == 2
-    assert "--overwrite" in capsys.readouterr().err
+    refused = capsys.readouterr()
+    assert "--overwrite" in refused.err
+    assert "goal x=" not in refused.out  # refused before a plan is printed
     assert main([*argv, "--overwrite"]) == 0
     assert not (out / "navigate.png").exists()
     assert main([*argv[:4], "--out", str(fit), "--overwrite"]) == 2

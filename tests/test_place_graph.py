@@ -164,3 +164,10 @@ def test_show_graph_writes_png_and_json_and_imports_no_torch(result, tmp_path):
 
 def test_show_graph_needs_a_fit_folder(tmp_path):
     assert main(["show", "--graph", "--out", str(tmp_path / "g.png")]) == 2
+
+
+def test_show_of_a_fit_folder_without_graph_points_to_it(result, tmp_path, capsys):
+    fit = result.save(tmp_path / "fit")
+    assert main(["show", str(fit), "--out", str(tmp_path / "house.png")]) == 2
+    assert "is the output folder of `spcopyro fit`" in capsys.readouterr().err
+    assert not (tmp_path / "house.png").exists()

@@ -419,9 +419,11 @@ def test_cli_simulate_import_features_fit(tmp_path, capsys):
     from spcopyro.features.extract import extract_to_csv
     from spcopyro.fit.house import fit_house
 
-    code = main(["simulate-bag", "--out", str(tmp_path / "bags"), "--ros", "1",
-                 "--image-size", "16", "20", "--trials", "0"])  # fmt: skip
-    assert code == 0
+    simulate = ["simulate-bag", "--out", str(tmp_path / "bags"), "--ros", "1",
+                "--image-size", "16", "20", "--trials", "0"]  # fmt: skip
+    assert main(simulate) == 0
+    assert main(simulate) == 2  # never over a recording, and says what to do
+    assert "write the bags into another --out folder" in capsys.readouterr().err
     bags = sorted(str(p) for p in (tmp_path / "bags").glob("trial_*.bag"))
     assert len(bags) == 1
     out = tmp_path / "data" / "house"

@@ -17,6 +17,8 @@ from typing import TYPE_CHECKING
 from spcopyro.cli.common import _HelpFormatter
 
 if TYPE_CHECKING:
+    from spcopyro._util.outputs import StagedOutput
+    from spcopyro.results.result import SpCoResult
     from spcopyro.robot.navigation.planning import NavigationPlan
 
 __all__ = ["add_parser"]
@@ -48,14 +50,31 @@ def _radius(text: str) -> float:
 
 
 def _navigate(args: argparse.Namespace) -> int:
-    from spcopyro._util.outputs import robot_map_of
     from spcopyro.results.result import SpCoResult
-    from spcopyro.robot.navigation import navigate
-    from spcopyro.robot.navigation.goals import UnreachableGoalError
     from spcopyro.robot.navigation.outputs import check_frame
 
     check_frame(args.frame)
     result = SpCoResult.load(args.result)
+    staged = None
+    if args.out:  # refused (an existing folder without --overwrite) before a plan is printed
+        from spcopyro.robot.navigation.outputs import stage_plan_folder
+
+        staged = stage_plan_folder(args.out, args.overwrite)
+    try:
+        return _plan_and_print(args, result, staged)
+    finally:
+        if staged is not None:
+            staged.discard()  # nothing once committed
+
+
+def _plan_and_print(
+    args: argparse.Namespace, result: SpCoResult, staged: StagedOutput | None
+) -> int:
+    """Plan ``args.instruction`` on ``result``, print it, and write it into ``staged``."""
+    from spcopyro._util.outputs import robot_map_of
+    from spcopyro.robot.navigation import navigate
+    from spcopyro.robot.navigation.goals import UnreachableGoalError
+
     grid = None
     map_yaml = args.map or robot_map_of(result, args.result)
     if map_yaml:
@@ -105,7 +124,8 @@ def _navigate(args: argparse.Namespace) -> int:
         from spcopyro.robot.navigation.outputs import write_plan
 
         written = write_plan(plan, args.out, frame=args.frame, overwrite=args.overwrite,
-                             source=args.result, figure=not args.no_figure)  # fmt: skip
+                             source=args.result, figure=not args.no_figure,
+                             staged=staged)  # fmt: skip
         print(f"wrote {', '.join(p.name for p in written.values())} to "
               f"{next(iter(written.values())).parent}")  # fmt: skip
     return 0

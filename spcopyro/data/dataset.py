@@ -196,6 +196,11 @@ def load_house(
             or digits of other scripts do not read).
     """
     room = Path(room_dir)
+    if room.exists() and not room.is_dir():
+        raise NotADirectoryError(
+            f"{room} is a file, not a room folder: give the folder that holds Ft.csv, St.csv, "
+            "Xtx.csv, ... (its map in ../map/NAME.yaml)"
+        )
     if not room.is_dir():
         raise FileNotFoundError(f"room folder {room} does not exist")
     name = room.resolve().name

@@ -123,7 +123,6 @@ def _read_column(path: Path, expected: int, data_file: Path) -> np.ndarray:
         raise DataFormatError(
             path,
             f"holds {values.shape[0]} values but {data_file.name} holds {expected} entries",
-            value=values.shape[0],
         )
     return values
 

@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
-from spcopyro._util.outputs import stage_marked_folder
+from spcopyro._util.outputs import StagedOutput, stage_marked_folder
 from spcopyro.robot.nav2 import grid_record, write_commented_yaml
 from spcopyro.robot.navigation.planning import NavigationPlan
 
@@ -152,6 +152,14 @@ def summary(plan: NavigationPlan, frame: str, source: str | None) -> dict[str, o
     }
 
 
+def stage_plan_folder(out: str | os.PathLike[str], overwrite: bool = False) -> StagedOutput:
+    """The staging folder of a plan written to ``out``: an existing ``out`` needs ``overwrite``
+    and must be an earlier plan (:func:`~spcopyro._util.outputs.stage_marked_folder`)."""
+    return stage_marked_folder(
+        out, overwrite, option="--out", marker=PLAN_MARKER, writer="navigate"
+    )
+
+
 def write_plan(
     plan: NavigationPlan,
     out: str | os.PathLike[str],
@@ -160,12 +168,13 @@ def write_plan(
     overwrite: bool = False,
     source: str | os.PathLike[str] | None = None,
     figure: bool = True,
+    staged: StagedOutput | None = None,
 ) -> dict[str, Path]:
-    """Write the plan's files into ``out`` (module docstring); their final paths by name."""
+    """Write the plan's files into ``out`` (module docstring); their final paths by name.
+    ``staged``: :func:`stage_plan_folder` of ``out``, made before planning (so that a folder
+    that cannot be written is refused before any plan is printed); made here if None."""
     frame = check_frame(frame)
-    staged = stage_marked_folder(
-        out, overwrite, option="--out", marker=PLAN_MARKER, writer="navigate"
-    )
+    staged = stage_plan_folder(out, overwrite) if staged is None else staged
     names = {}
     with staged:
         folder = staged.path

@@ -328,7 +328,10 @@ def write_synthetic_bags(
     map_yaml = out / "map.yaml"
     for path in (*names, map_yaml):
         if path.exists():
-            raise FileExistsError(f"{path} already exists")
+            raise FileExistsError(
+                f"{path} already exists: write the bags into another --out folder, or remove "
+                "the earlier ones (simulate-bag never overwrites a recording)"
+            )
     out.mkdir(parents=True, exist_ok=True)
     save_map(house.grid, map_yaml)
     rng = np.random.default_rng(seed)
