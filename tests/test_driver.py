@@ -244,6 +244,26 @@ def test_every_variational_method_stops_by_itself_records_it_and_thins(problem, 
     assert output.label_samples.shape == (S // 2, data.num_free)
 
 
+@pytest.mark.parametrize("name", VARIATIONAL)
+def test_a_run_shorter_than_its_annealing_is_warned_about(problem, name, caplog):
+    """Every variational method says when it stops before its annealing ends (gamma never
+    reaches the model's value: `fit --method svi --sweeps 30` annealed over SVI's default 100
+    steps without a word), and says nothing when the run is long enough."""
+    data, cfg = problem
+    field = "anneal_passes" if name == "stochastic-vi" else "anneal_iterations"
+    method = get_method(name)
+    said = {}
+    for anneal in (8, 5):
+        options = dataclasses.replace(OPTIONS[name], tolerance=0.0, **{field: anneal})
+        caplog.clear()
+        method.run(data, cfg, iterations=5, generator=torch.Generator().manual_seed(0),
+                   options=options, progress=False)  # fmt: skip
+        said[anneal] = [r.getMessage() for r in caplog.records if "annealed over" in r.getMessage()]
+    assert said[5] == []
+    assert len(said[8]) == 1
+    assert f"({field}) but the run has 5: it ends at 62% of the model's gamma" in said[8][0]
+
+
 def test_the_help_states_each_default_tolerance(capsys):
     with pytest.raises(SystemExit):
         main(["fit", "--help"])

@@ -251,6 +251,8 @@ def test_fit_writes_the_uncertainty_map_and_where_its_probability_map(tmp_path, 
     assert main(["where", str(cavi), word, "--out", str(tmp_path / "w.png")]) == 0
     assert (tmp_path / "w_probability.png").is_file()
     assert "probability of being the place exceeds 0.5" in capsys.readouterr().out
+    assert main(["where", str(cavi), word, "--out", str(tmp_path / "w.jpg")]) == 0
+    assert (tmp_path / "w_probability.jpg").read_bytes()[:2] == b"\xff\xd8"  # a JPEG, as asked
 
 
 def test_vi_then_gibbs_fits_carry_label_frequencies_too(house):

@@ -141,6 +141,12 @@ def _show(args: argparse.Namespace) -> int:
     return 0
 
 
+def probability_figure(out: Path) -> Path:
+    """``where --out NAME.EXT``'s second figure, the per-cell probability of the word's place:
+    ``NAME_probability.EXT`` (the same format; ``.png`` without a suffix)."""
+    return out.with_name(f"{out.stem}_probability{out.suffix or '.png'}")
+
+
 def _check_where_out(result_dir: str, out: str) -> None:
     """``where --out``: refuse a figure (or its ``_probability`` sibling) that would replace
     one of the fit's own files (its manifest, :func:`spcopyro._util.outputs.fit_written`)."""
@@ -150,7 +156,7 @@ def _check_where_out(result_dir: str, out: str) -> None:
     own = fit_written(folder)
     path = Path(out).resolve()
     figure = path if path.suffix else path.with_suffix(".png")  # matplotlib adds .png
-    for target in (figure, path.with_name(f"{path.stem}_probability.png")):
+    for target in (figure, probability_figure(path)):
         if target.parent == folder and target.name in own:
             raise ValueError(
                 f"--out {out}: {target.name} is a file of the fit in {result_dir}, which the "
@@ -202,8 +208,7 @@ def _where(args: argparse.Namespace) -> int:
         from spcopyro.figures.plotting import plot_where, plot_where_probability
 
         print(f"wrote {plot_where(result, answer, args.out)}")
-        out = Path(args.out)
-        probability_png = out.with_name(f"{out.stem}_probability.png")
+        probability_png = probability_figure(Path(args.out))
         print(f"wrote {plot_where_probability(result, args.word, probability_png, args.prior)}")
     return 0
 
@@ -276,7 +281,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("word", help="the word to look up")
     p.add_argument("--out", help="also draw the answer over the semantic map into this PNG, "
                    "and the per-cell probability of the word's place into "
-                   "<name>_probability.png (default: no PNG)")  # fmt: skip
+                   "<name>_probability with the same suffix (default: no PNG)")  # fmt: skip
     p.add_argument(
         "--prior",
         choices=("area", "pi"),

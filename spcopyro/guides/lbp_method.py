@@ -22,6 +22,7 @@ from spcopyro.guides.options import VariationalOptions
 from spcopyro.guides.run import VariationalRun, initial_q, remaining, resumed
 from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
+from spcopyro.inference.schedule import warn_unfinished_annealing
 from spcopyro.model import ModelData
 
 
@@ -193,6 +194,9 @@ def run_lbp(
     beliefs ``q`` were reached by (a checkpoint's), continued here, the messages started
     afresh from ``q``."""
     options = LBPOptions() if options is None else options
+    done = 0 if resume is None else len(resume.objective)
+    warn_unfinished_annealing(options.anneal_iterations, done + iterations,
+                              "anneal_iterations", "iteration")  # fmt: skip
     run = drive(
         init(q, data, config, options),
         lambda state, gamma: step(state, data, config, gamma, options), iterations,

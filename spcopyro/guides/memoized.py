@@ -79,6 +79,7 @@ from spcopyro.guides.run import VariationalRun, remaining, resumed
 from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.initialisation import check_labels, random_labels
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
+from spcopyro.inference.schedule import warn_unfinished_annealing
 from spcopyro.likelihood import ConceptStatistics
 from spcopyro.model import DTYPE, ModelData
 
@@ -546,6 +547,8 @@ def run_stochastic(
         raise TypeError(f"options must be StochasticOptions, got {type(options).__name__}")
     if not _is_int(passes) or passes < 1:
         raise ValueError(f"passes must be an integer >= 1, got {passes!r}")
+    done = 0 if resume is None else len(resume.objective)
+    warn_unfinished_annealing(options.anneal_passes, done + passes, "anneal_passes", "pass")
     run = drive(
         start_state(data, config, q, options, blocks),
         lambda state, gamma: step(state, data, config, gamma, options, generator), passes,

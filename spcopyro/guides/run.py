@@ -23,6 +23,7 @@ from spcopyro.guides.options import VariationalOptions
 from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.initialisation import check_labels, random_labels
 from spcopyro.inference.protocol import RunArgs
+from spcopyro.inference.schedule import warn_unfinished_annealing
 from spcopyro.model import DTYPE, ModelData
 
 
@@ -165,6 +166,9 @@ def run_variational(
             return state.q
 
     state = backend.init(q, data, config, options)
+    done = 0 if resume is None else len(resume.objective)
+    warn_unfinished_annealing(options.anneal_iterations, done + iterations,
+                              "anneal_iterations", "iteration")  # fmt: skip
     run = drive(
         state, lambda state, gamma: backend.step(state, data, config, gamma, options), iterations,
         gamma=config.gamma, anneal=options.anneal_iterations, tolerance=options.tolerance,

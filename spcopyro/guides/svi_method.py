@@ -32,6 +32,7 @@ from spcopyro.guides.mean_field import MeanFieldGuide
 from spcopyro.guides.run import VariationalRun, initial_q, remaining, resumed
 from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
+from spcopyro.inference.schedule import warn_unfinished_annealing
 from spcopyro.model import ModelData, spcomapping_model
 
 
@@ -198,6 +199,8 @@ def fit_svi(
     options = SVIOptions() if options is None else options
     if steps < 1:
         raise ValueError(f"steps must be >= 1, got {steps}")
+    done = 0 if resume is None else len(resume.objective)
+    warn_unfinished_annealing(options.anneal_iterations, done + steps, "anneal_iterations", "step")
     seed = int(torch.randint(0, 2**62, (), generator=generator))
     with torch.random.fork_rng(devices=[]), pyro.get_param_store().scope():
         torch.manual_seed(seed)

@@ -24,9 +24,12 @@ the means of the objective over the last window and the one before. ``tol = 0`` 
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 
 import numpy as np
+
+logger = logging.getLogger("spcopyro")
 
 
 def check_anneal_steps(anneal_steps: int, name: str = "anneal_sweeps") -> int:
@@ -35,6 +38,21 @@ def check_anneal_steps(anneal_steps: int, name: str = "anneal_sweeps") -> int:
     if isinstance(anneal_steps, bool) or int(anneal_steps) != anneal_steps or anneal_steps < 0:
         raise ValueError(f"{name} must be a non-negative integer, got {anneal_steps!r}")
     return int(anneal_steps)
+
+
+def warn_unfinished_annealing(anneal: int, iterations: int, option: str, unit: str) -> bool:
+    """Warn (logger ``"spcopyro"``) when a run of ``iterations`` (resumed ones included) stops
+    before its annealing (``anneal`` iterations, the option ``option``) ends: gamma never
+    reaches the model's value, so the fit is of a weaker coupling. Returns whether it warned."""
+    if anneal <= iterations:
+        return False
+    logger.warning(
+        "gamma is annealed over %d %ss (%s) but the run has %d: it ends at %.0f%% of the "
+        "model's gamma; run at least %d %ss, or set %s=%d or less",
+        anneal, unit, option, iterations, 100.0 * iterations / anneal, anneal, unit, option,
+        iterations,
+    )  # fmt: skip
+    return True
 
 
 def annealed_gamma(gamma: float, step: int, anneal_steps: int) -> float:
