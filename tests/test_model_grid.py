@@ -129,6 +129,24 @@ def test_model_house_is_idempotent_and_coarsens_the_truth():
     assert coarse.observations is house.observations
 
 
+def test_a_map_too_thin_for_model_cells_keeps_its_own_cells_and_says_so_once(caplog):
+    """A corridor one map cell wide leaves no free 0.3 m cell: the house keeps the map's own
+    cells, with one warning however often a fit asks for its model grid (it was printed twice,
+    once by the command and once by the refinement's check)."""
+    import dataclasses
+
+    house = make_house(seed=0, spec=HouseSpec())
+    occupancy = np.full(house.grid.shape, OCCUPIED, dtype=house.grid.occupancy.dtype)
+    occupancy[5, 2:40] = FREE  # [H, W] one row of free cells
+    thin = dataclasses.replace(house, name="thin", truth=None,
+                               grid=OccupancyGrid(occupancy, house.grid.resolution,
+                                                  house.grid.origin))  # fmt: skip
+    for _ in range(3):
+        assert model_house(thin, 0.25) is thin
+    said = [r for r in caplog.records if "leave no free cell" in r.getMessage()]
+    assert len(said) == 1
+
+
 def test_word_scaling_multiplies_word_counts_only():
     house = make_house(seed=1, spec=HouseSpec())
     plain = cell_counts(house.grid, house.observations)

@@ -12,6 +12,9 @@ from spcopyro.maps.coarse import coarsen_grid, coarsening_factor, model_cell_of
 
 __all__ = ["model_house"]
 
+_TOLD: set[tuple[object, ...]] = set()
+"""The maps whose 'no free model cell' warning was given (name, map file, shape, cell size)."""
+
 
 def _coarsen_truth(house: House, factor: int, coarse_free: np.ndarray) -> np.ndarray:
     """``[h, w]`` truth: each free model cell's most frequent category among its map cells'
@@ -38,6 +41,10 @@ def model_house(house: House, cell_size: float | None) -> House:
         return house
     grid = coarsen_grid(house.grid, factor)
     if grid.num_free == 0:  # thin free space only (or an inverted map): the map's own cells
+        told = (house.name, str(house.grid.source), house.grid.shape, grid.resolution)
+        if told in _TOLD:  # once per map and cell size: a fit asks for its model grid again
+            return house
+        _TOLD.add(told)
         logging.getLogger("spcopyro").warning(
             "house %r: cells of %g m leave no free cell of map %s (%d free cells of %g m); "
             "fitting on the map's own cells",
