@@ -6,7 +6,9 @@ behind a wall (row 4), a bedroom A (rows 5-14, cols 1-9), a tall living room T (
 cols 11-19) and a kitchen C (rows 5-14, cols 21-29). Doors 0.5 m wide: A-B (row 4, cols 3-7),
 B-C (row 4, cols 23-27), A-T (col 10, rows 8-12) and T-C (col 20, rows 8-12); T and B do not
 touch. Through T is the shortest way from A to C on the grid; over the place graph (centroid
-distances: A-T-C 2 x 1.64 m, A-B-C 2 x 1.25 m by hand) the route is A-B-C.
+distances: A-T-C 2 x 1.64 m, A-B-C 2 x 1.25 m by hand) the route is A-B-C. Variants: the B-C
+door narrowed to 0.2 m (a passage the robot cannot take), the corridor B pinched to 0.2 m
+between its doors (a route whose places do not join), the A-B door walled up.
 """
 
 from __future__ import annotations
@@ -36,14 +38,21 @@ ROOMS = {  # rows [start, stop), cols [start, stop), concept
 }
 
 
-def third_room_result(bc_door: tuple[int, int] = (23, 28), ab_door: bool = True) -> SpCoResult:
+def third_room_result(
+    bc_door: tuple[int, int] = (23, 28), ab_door: bool = True, b_pinch: bool = False
+) -> SpCoResult:
     """The third-room house (module docstring); ``bc_door``: the B-C door's columns [a, b);
-    ``ab_door=False``: the A-B door walled up (as a coarse fit's thickened walls close one)."""
+    ``ab_door=False``: the A-B door walled up (as a coarse fit's thickened walls close one);
+    ``b_pinch``: the corridor B narrowed to 0.2 m (rows 1-2) over columns 14-16, between its
+    two doors."""
     occupancy = np.full((42, 31), OCCUPIED, dtype=np.int8)  # [H, W]
     image = np.full(occupancy.shape, -1)
     for (r0, r1), (c0, c1), concept in ROOMS.values():
         occupancy[r0:r1, c0:c1] = FREE
         image[r0:r1, c0:c1] = concept
+    if b_pinch:
+        occupancy[3, 14:17] = OCCUPIED
+        image[3, 14:17] = -1
     doors = [((4, 5), bc_door, 1), ((8, 13), (10, 11), 3), ((8, 13), (20, 21), 3)]
     doors += [((4, 5), (3, 8), 1)] if ab_door else []
     for (r0, r1), (c0, c1), concept in doors:
@@ -129,16 +138,35 @@ def test_the_corridor_is_the_routes_places_and_their_shared_borders():
     assert (extra[:, 0] <= 6).all()  # only by the wall under the corridor, not T's middle
 
 
-def test_a_fallback_to_the_grid_path_is_reported():
-    # the B-C door 0.2 m wide: a robot of radius 0.1 m cannot pass it, the route A-B-C is
-    # closed, and the leg falls back to the shortest grid path (through T)
+def test_a_passage_narrower_than_the_robot_is_left_out_of_the_route():
+    # the B-C door 0.2 m wide: a robot of radius 0.1 m cannot pass it, so the passage B-C is
+    # not passable and the route goes A-T-C, the path kept to it (before, the route A-B-C was
+    # planned, did not join, and the leg fell back to the grid path through T)
     result = third_room_result(bc_door=(25, 27))
     plan = navigate(result, "go to the kitchen", START, radius=0.1)
-    # the route names the places the robot drives through (T, "living"), not the closed route
-    assert plan.route_words == ("bedroom", "living", "kitchen") and plan.route_from == "path"
+    names = {frozenset({plan.places.places[e.a].name, plan.places.places[e.b].name}): e
+             for e in plan.places.passages}  # fmt: skip
+    assert not names[frozenset({"corridor", "kitchen"})].passable
+    assert names[frozenset({"bedroom", "corridor"})].passable
+    assert plan.route_words == ("bedroom", "living", "kitchen") and plan.route_from == "graph"
+    assert plan.planned == "hierarchical" and plan.fallbacks == ()
+    assert plan.length == pytest.approx(plan.grid_length)  # through T is the way anyway
+    assert [e["passable"] for e in plan.places.to_json()["passages"]].count(False) == 1
+    # a robot that fits through the door takes the route A-B-C again
+    small = navigate(result, "go to the kitchen", START, radius=0.0)
+    assert small.route_words == ("bedroom", "corridor", "kitchen")
+
+
+def test_a_fallback_to_the_grid_path_is_reported():
+    # the corridor B pinched to 0.2 m between its doors: both doors are passable, but a robot
+    # of radius 0.1 m cannot go along B, so the route A-B-C's places do not join start and goal
+    # and the leg falls back to the shortest grid path (through T), which the route then names
+    result = third_room_result(b_pinch=True)
+    plan = navigate(result, "go to the kitchen", START, radius=0.1)
     assert plan.planned == "grid"
     assert len(plan.fallbacks) == 1 and "do not join" in plan.fallbacks[0]
     assert "bedroom -> corridor -> kitchen" in plan.fallbacks[0]
+    assert plan.route_words == ("bedroom", "living", "kitchen") and plan.route_from == "path"
     assert 3 in concepts_on(result, plan.path_xy)
     assert plan.length == pytest.approx(plan.grid_length)
     # no route over the graph at all: reported, the path's places stand in for the route
@@ -176,7 +204,7 @@ def test_an_unknown_planner_is_refused():
 
 
 def test_navigate_prints_and_writes_the_planner(tmp_path, capsys):
-    fit = third_room_result(bc_door=(25, 27)).save(tmp_path / "fit")
+    fit = third_room_result(b_pinch=True).save(tmp_path / "fit")
     start = f"--start={START[0]},{START[1]}"
     out = tmp_path / "plan"
     assert main(["navigate", str(fit), "go to the kitchen", start, "--radius", "0.1",

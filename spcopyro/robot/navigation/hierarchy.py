@@ -13,7 +13,9 @@ For every leg of a plan (from where the robot is to the next stop's goal cell):
    coarse fit was made from), the graph first gains a passage for every two places whose cells
    the robot fits on touch on that map but not on the fit's grid (:func:`with_map_passages`):
    coarsening thickens walls and closes doorways, so a coarse fit's regions often do not touch
-   where the robot can pass.
+   where the robot can pass. A passage the robot cannot take -- its two places' corridor
+   (below) does not join them: a one-cell contact of two regions, a doorway narrower than the
+   robot -- is left out of the route (:func:`with_passability`).
 3. **Corridor** (:func:`corridor`). The cells the leg may use: the allowed cells (the robot's
    clearance kept: :mod:`~spcopyro.robot.navigation.graph`) of the route's places, plus the
    shared border of every two consecutive places of the route: the allowed cells within
@@ -52,6 +54,7 @@ __all__ = [
     "node_places",
     "plan_leg",
     "with_map_passages",
+    "with_passability",
 ]
 
 HIERARCHICAL = "hierarchical"
@@ -151,6 +154,29 @@ def with_map_passages(
         added.append(Passage(int(a), int(b), border, bool(border <= DOORWAY_WIDTH + 1e-9), gap,
                              on_map=True))  # fmt: skip
     return replace(places, passages=places.passages + tuple(added)) if added else places
+
+
+def with_passability(
+    places: PlaceGraph, planning: PlanningGrid, node_place: np.ndarray, margin: float
+) -> PlaceGraph:
+    """``places`` with every passage marked :attr:`~spcopyro.robot.navigation.places.Passage.
+    passable` or not: whether the :func:`corridor` of its two places joins a cell of one to a
+    cell of the other (8-connected, over the cells the robot fits on). A region boundary one
+    fit cell long, or a doorway narrower than the robot, is a passage of the fit's labels that
+    the robot cannot take: a route through it would fall back to the grid path (module
+    docstring) while naming places the path does not cross."""
+    from dataclasses import replace
+
+    from scipy.sparse.csgraph import connected_components
+
+    marked = []
+    for passage in places.passages:
+        inside = np.flatnonzero(corridor(planning, node_place, (passage.a, passage.b), margin))
+        _, component = connected_components(planning.graph[inside][:, inside], directed=False)
+        own = node_place[inside]  # [m]
+        joined = np.intersect1d(component[own == passage.a], component[own == passage.b]).size
+        marked.append(replace(passage, passable=bool(joined)))
+    return replace(places, passages=tuple(marked))
 
 
 def corridor(

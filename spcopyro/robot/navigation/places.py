@@ -75,6 +75,11 @@ class Passage:
     """Found on the robot's planning map, not on the fit's grid: the two places' cells touch
     there where the fit's coarser cells put a wall between them
     (:func:`~spcopyro.robot.navigation.hierarchy.with_map_passages`)."""
+    passable: bool = True
+    """The robot, its clearance kept, can cross from one place to the other within their cells
+    and shared border (:func:`~spcopyro.robot.navigation.hierarchy.with_passability`; a place
+    graph made without a robot counts every passage); :meth:`PlaceGraph.route` takes only
+    these."""
 
 
 @dataclass(frozen=True)
@@ -106,14 +111,15 @@ class PlaceGraph:
         return int(self.regions[rows[row, col], cols[row, col]])
 
     def route(self, start: int, goal: int) -> list[int] | None:
-        """Place ids from ``start`` to ``goal`` along the shortest route over the passages
-        (centroid distances); None when no route joins them."""
+        """Place ids from ``start`` to ``goal`` along the shortest route over the passable
+        passages (centroid distances); None when no route joins them."""
         if start == goal:
             return [start]
         n = len(self.places)
-        a = np.array([p.a for p in self.passages], dtype=np.int64)
-        b = np.array([p.b for p in self.passages], dtype=np.int64)
-        w = np.array([p.distance for p in self.passages])
+        usable = [p for p in self.passages if p.passable]
+        a = np.array([p.a for p in usable], dtype=np.int64)
+        b = np.array([p.b for p in usable], dtype=np.int64)
+        w = np.array([p.distance for p in usable])
         # a tiny floor keeps a zero-length edge (coincident centroids) an edge in the sparse graph
         matrix = coo_matrix((np.maximum(w, 1e-9), (a, b)), shape=(n, n)).tocsr()
         distance, predecessors = shortest_path(
@@ -136,7 +142,7 @@ class PlaceGraph:
             ],
             "passages": [
                 {"a": e.a, "b": e.b, "border_m": e.border, "doorway": e.doorway,
-                 "distance_m": e.distance, "on_map": e.on_map}
+                 "distance_m": e.distance, "on_map": e.on_map, "passable": e.passable}
                 for e in self.passages
             ],
             "min_area_m2": self.min_area,

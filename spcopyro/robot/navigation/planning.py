@@ -48,6 +48,7 @@ from spcopyro.robot.navigation.hierarchy import (
     node_places,
     plan_leg,
     with_map_passages,
+    with_passability,
 )
 from spcopyro.robot.navigation.places import PlaceGraph, place_graph, places_along
 
@@ -237,6 +238,7 @@ def navigate(
     if carry is not None:  # another map: passages its doorways open (hierarchy, 2.)
         places = with_map_passages(places, planning, node_place)
     margin = max(float(margin), result.grid.resolution)
+    places = with_passability(places, planning, node_place, margin)  # the robot's passages
     current = start_node(planning, start)
     legs: list[Leg] = []
     stops_info = []
