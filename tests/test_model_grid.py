@@ -147,6 +147,16 @@ def test_a_map_too_thin_for_model_cells_keeps_its_own_cells_and_says_so_once(cap
     assert len(said) == 1
 
 
+def test_cells_finer_than_the_map_are_the_maps_own_and_said_so(caplog):
+    house = make_house(seed=0, spec=HouseSpec())
+    assert model_house(house, 0.01) is house and model_house(house, 0.01) is house
+    said = [r.getMessage() for r in caplog.records if "are finer than map" in r.getMessage()]
+    assert len(said) == 1 and "cells of 0.01 m" in said[0]
+    caplog.clear()
+    assert model_house(house, 0.12) is house  # rounds to the map's 0.1 m: nothing to say
+    assert not [r for r in caplog.records if "finer than map" in r.getMessage()]
+
+
 def test_word_scaling_multiplies_word_counts_only():
     house = make_house(seed=1, spec=HouseSpec())
     plain = cell_counts(house.grid, house.observations)

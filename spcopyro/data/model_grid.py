@@ -13,7 +13,7 @@ from spcopyro.maps.coarse import coarsen_grid, coarsening_factor, model_cell_of
 __all__ = ["model_house"]
 
 _TOLD: set[tuple[object, ...]] = set()
-"""The maps whose 'no free model cell' warning was given (name, map file, shape, cell size)."""
+"""The warnings given, by (house, map file, shape, cell size): :func:`_tell_once`."""
 
 
 def _coarsen_truth(house: House, factor: int, coarse_free: np.ndarray) -> np.ndarray:
@@ -30,6 +30,15 @@ def _coarsen_truth(house: House, factor: int, coarse_free: np.ndarray) -> np.nda
     return np.where(coarse_free, best, -1).astype(np.int64)
 
 
+def _tell_once(key: tuple[object, ...], message: str, *args: object) -> None:
+    """Warn (logger ``"spcopyro"``) once per ``key`` (a map and a cell size): a fit asks for its
+    model grid more than once (the command, the refinement's check)."""
+    if key in _TOLD:
+        return
+    _TOLD.add(key)
+    logging.getLogger("spcopyro").warning(message, *args)
+
+
 def model_house(house: House, cell_size: float | None) -> House:
     """The house with its map coarsened to the model's cells of about ``cell_size`` metres
     (:func:`~spcopyro.maps.coarse.coarsen_grid`; the observations are world positions and stay
@@ -38,14 +47,18 @@ def model_house(house: House, cell_size: float | None) -> House:
     so does a map whose free space is too thin to leave a free model cell (with a warning)."""
     factor = coarsening_factor(house.grid.resolution, cell_size)
     if factor == 1:
+        if cell_size is not None and cell_size < house.grid.resolution / 2:
+            _tell_once(
+                (house.name, str(house.grid.source), house.grid.shape, cell_size),
+                "house %r: cells of %g m are finer than map %s's own %g m cells, which the "
+                "model uses (a model cell is made of whole map cells)",
+                house.name, cell_size, house.grid.source or "", house.grid.resolution,
+            )  # fmt: skip
         return house
     grid = coarsen_grid(house.grid, factor)
     if grid.num_free == 0:  # thin free space only (or an inverted map): the map's own cells
-        told = (house.name, str(house.grid.source), house.grid.shape, grid.resolution)
-        if told in _TOLD:  # once per map and cell size: a fit asks for its model grid again
-            return house
-        _TOLD.add(told)
-        logging.getLogger("spcopyro").warning(
+        _tell_once(
+            (house.name, str(house.grid.source), house.grid.shape, grid.resolution),
             "house %r: cells of %g m leave no free cell of map %s (%d free cells of %g m); "
             "fitting on the map's own cells",
             house.name,
