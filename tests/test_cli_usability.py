@@ -232,3 +232,21 @@ def test_bad_model_grid_options_name_themselves(tmp_path, capsys, option, value,
     assert main(["fit", "--out", str(out), "--sweeps", "2", option, value]) == 2
     assert message in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["experiment", "--quick", "--sweeps", "0"],
+        ["ablation", "--quick", "--seeds", "0"],
+        ["compare-inference", "--quick", "--workers", "0"],
+    ],
+)
+def test_a_study_command_refuses_zero_counts_before_running(argv, tmp_path, capsys):
+    """`experiment --sweeps 0` ran every cell into a failure, `ablation --seeds 0` an empty
+    study that exited 0: both are usage errors naming the option now."""
+    with pytest.raises(SystemExit) as stop:
+        main([*argv, "--out", str(tmp_path / "out")])
+    assert stop.value.code == 2
+    assert f"argument {argv[-2]}: must be an integer >= 1, got '0'" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()

@@ -26,7 +26,7 @@ from spcopyro.guides.run import initial_q, resolve_backend, run_variational
 from spcopyro.guides.svi_method import SVIOptions
 from spcopyro.guides.vi_gibbs import VIGibbsOptions
 from spcopyro.inference.driver import DriveInterrupted, drive
-from spcopyro.inference.schedule import annealed_gamma, converged
+from spcopyro.inference.schedule import annealed_gamma, converged, short_runs_meant
 
 VARIATIONAL = ("cavi", "lbp", "stochastic-vi", "svi")
 
@@ -262,6 +262,13 @@ def test_a_run_shorter_than_its_annealing_is_warned_about(problem, name, caplog)
     assert said[5] == []
     assert len(said[8]) == 1
     assert f"({field}) but the run has 5: it ends at 62% of the model's gamma" in said[8][0]
+    unit = {"stochastic-vi": "passes", "svi": "steps"}.get(name, "iterations")
+    assert f"annealed over 8 {unit} (" in said[8][0]
+    caplog.clear()  # runs cut short on purpose (the comparison's curve) say nothing
+    with short_runs_meant():
+        method.run(data, cfg, iterations=5, generator=torch.Generator().manual_seed(0),
+                   options=dataclasses.replace(options, **{field: 8}), progress=False)  # fmt: skip
+    assert not [r for r in caplog.records if "annealed over" in r.getMessage()]
 
 
 def test_the_help_states_each_default_tolerance(capsys):

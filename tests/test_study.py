@@ -343,8 +343,15 @@ def test_failing_cell_is_recorded_and_the_study_goes_on(tmp_path):
     assert all(r["status"] == "ok" for r in rows if r["variant"] != "broken")
     assert any("failed: ValueError" in line for line in lines)
     assert "Failed cells" in (tmp_path / "out" / "report.md").read_text()
-    again = run_study(load_study(_write(tmp_path, text)), tmp_path / "out", progress=False)
-    assert again.ran == 0  # a failure is kept ...
+    lines.clear()
+    again = run_study(load_study(_write(tmp_path, text)), tmp_path / "out", progress=False,
+                      report=lines.append)  # fmt: skip
+    assert again.ran == 0  # a failure is kept, and said to be (not "all finished" alone) ...
+    assert again.failed_before == 2
+    assert any("2 cell(s) failed in an earlier run" in line and "--retry-failed" in line
+               for line in lines)  # fmt: skip
+    path = _write(tmp_path, text)
+    assert main(["study", str(path), "--out", str(tmp_path / "out"), "--workers", "1"]) == 1
     retried = run_study(load_study(_write(tmp_path, text)), tmp_path / "out", progress=False,
                         retry_failed=True)  # fmt: skip
     assert (retried.ran, retried.failed) == (2, 2)  # ... until asked to retry

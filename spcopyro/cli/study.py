@@ -57,7 +57,7 @@ def _study(args: argparse.Namespace) -> int:
     )  # fmt: skip
     if run.ran:
         print((out / "report.md").read_text())
-    return 1 if run.failed else 0
+    return 1 if run.failed or run.failed_before else 0  # a study with failed cells is not done
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

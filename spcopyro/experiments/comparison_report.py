@@ -106,7 +106,9 @@ def summarise(
                 for by_variant in records.values()
                 for key in by_variant
             },
-            "options": {key: VARIANTS[key].options for key in settings.variants},
+            "options": {
+                key: VARIANTS[key].options_for(settings.quick) for key in settings.variants
+            },
         },  # fmt: skip
         "methods": {
             key: VARIANTS[key].label for by_variant in records.values() for key in by_variant

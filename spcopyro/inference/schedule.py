@@ -24,8 +24,10 @@ the means of the objective over the last window and the one before. ``tol = 0`` 
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import logging
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 import numpy as np
 
@@ -40,16 +42,35 @@ def check_anneal_steps(anneal_steps: int, name: str = "anneal_sweeps") -> int:
     return int(anneal_steps)
 
 
+_SHORT_RUNS_MEANT: contextvars.ContextVar[bool] = contextvars.ContextVar(
+    "short_runs_meant", default=False
+)
+
+
+@contextlib.contextmanager
+def short_runs_meant() -> Iterator[None]:
+    """Within the block, :func:`warn_unfinished_annealing` says nothing: for runs cut short on
+    purpose (the inference comparison's re-runs at n/2, n/4, ... of a budget that does cover
+    the annealing)."""
+    token = _SHORT_RUNS_MEANT.set(True)
+    try:
+        yield
+    finally:
+        _SHORT_RUNS_MEANT.reset(token)
+
+
 def warn_unfinished_annealing(anneal: int, iterations: int, option: str, unit: str) -> bool:
     """Warn (logger ``"spcopyro"``) when a run of ``iterations`` (resumed ones included) stops
     before its annealing (``anneal`` iterations, the option ``option``) ends: gamma never
-    reaches the model's value, so the fit is of a weaker coupling. Returns whether it warned."""
-    if anneal <= iterations:
+    reaches the model's value, so the fit is of a weaker coupling. Returns whether it warned
+    (never inside :func:`short_runs_meant`)."""
+    if anneal <= iterations or _SHORT_RUNS_MEANT.get():
         return False
+    units = f"{unit}es" if unit.endswith("s") else f"{unit}s"
     logger.warning(
-        "gamma is annealed over %d %ss (%s) but the run has %d: it ends at %.0f%% of the "
-        "model's gamma; run at least %d %ss, or set %s=%d or less",
-        anneal, unit, option, iterations, 100.0 * iterations / anneal, anneal, unit, option,
+        "gamma is annealed over %d %s (%s) but the run has %d: it ends at %.0f%% of the "
+        "model's gamma; run at least %d %s, or set %s=%d or less",
+        anneal, units, option, iterations, 100.0 * iterations / anneal, anneal, units, option,
         iterations,
     )  # fmt: skip
     return True

@@ -25,6 +25,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from spcopyro.cli.common import _integer_at_least
 from spcopyro.config import PRESETS
 
 __all__ = ["add_parser"]
@@ -188,16 +189,21 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="smoke run (the study experiment_quick): small synthetic house, 2 seeds, 20 "
         "sweeps, one public house",
     )
-    p.add_argument("--seeds", type=int, help="synthetic houses (default 5)")
-    p.add_argument("--sweeps", type=int, help="SpCoMapping Gibbs sweeps (default 5000)")
-    p.add_argument("--spcoa-iterations", type=int, help="SpCoA iterations (default 200)")
+    p.add_argument("--seeds", type=_integer_at_least(1), help="synthetic houses (default 5)")
+    p.add_argument(
+        "--sweeps", type=_integer_at_least(1), help="SpCoMapping Gibbs sweeps (default 5000)"
+    )
+    p.add_argument(
+        "--spcoa-iterations", type=_integer_at_least(1), help="SpCoA iterations (default 200)"
+    )
     p.add_argument("--data", help="public dataset folder (default: found automatically)")
     p.add_argument("--no-public", action="store_true", help="synthetic houses only")
     p.add_argument("--houses", nargs="+", help="public houses to score (default: the five of "
                    "the public dataset)")  # fmt: skip
     p.add_argument("--methods", nargs="+", help="rows to run (default: all: A-dp A-orig-g3 "
                    "B-dirichlet C-spcoa D-cnn E-nearest F-geometry)")  # fmt: skip
-    p.add_argument("--workers", type=int, default=1, help="1: in this process; N > 1: a Dask "
+    p.add_argument("--workers", type=_integer_at_least(1), default=1,
+                   help="1: in this process; N > 1: a Dask "
                    "LocalCluster of N processes, one torch thread each")  # fmt: skip
     p.add_argument("--retry-failed", action="store_true",
                    help="run again the cells stored with an error in --out")  # fmt: skip
@@ -231,7 +237,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="which house types",
     )
     p.add_argument(
-        "--seeds", type=int, help="synthetic houses, seeds 0..n-1 (default: 5; 1 with --quick)"
+        "--seeds",
+        type=_integer_at_least(1),
+        help="synthetic houses, seeds 0..n-1 (default: 5; 1 with --quick)",
     )
     p.add_argument(
         "--methods",
@@ -254,14 +262,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--data", help="public dataset folder (default: found automatically)")
     p.add_argument("--public-houses", nargs="+", help="public houses (default: all)")
-    p.add_argument("--folds", type=int, help="held-out trials per public house (default: all)")
+    p.add_argument(
+        "--folds", type=_integer_at_least(1), help="held-out trials per public house (default: all)"
+    )
     p.add_argument(
         "--preset", default="original-code", choices=sorted(PRESETS), help="model settings"
     )
     p.add_argument(
         "--gamma", type=float, default=3.0, help="the Potts coupling, replacing the preset's"
     )
-    p.add_argument("--workers", type=int, default=1, help="1: in this process, one fit at a "
+    p.add_argument("--workers", type=_integer_at_least(1), default=1,
+                   help="1: in this process, one fit at a "
                    "time (comparable times); N > 1: a Dask LocalCluster of N")  # fmt: skip
     p.add_argument("--retry-failed", action="store_true",
                    help="run again the cells stored with an error in --out")  # fmt: skip
@@ -292,13 +303,20 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         nargs="+",
         help="synthetic settings (default: dense sparse dense-large sparse-small open-plan)",
     )
-    p.add_argument("--seeds", type=int, help="synthetic seeds 0..n-1 (default 10)")
-    p.add_argument("--public-seeds", type=int, help="seeds per public house (default 3)")
+    p.add_argument("--seeds", type=_integer_at_least(1), help="synthetic seeds 0..n-1 (default 10)")
+    p.add_argument(
+        "--public-seeds", type=_integer_at_least(0), help="seeds per public house (default 3)"
+    )
     p.add_argument("--public-houses", nargs="+", help="public houses (default: the five of the "
                    "public dataset)")  # fmt: skip
-    p.add_argument("--sweeps", type=int, help="Gibbs sweeps per fit (default 1000)")
-    p.add_argument("--spcoa-iterations", type=int, help="SpCoA iterations (default 100)")
-    p.add_argument("--workers", type=int, default=1, help="1: in this process; N > 1: a Dask "
+    p.add_argument(
+        "--sweeps", type=_integer_at_least(1), help="Gibbs sweeps per fit (default 1000)"
+    )
+    p.add_argument(
+        "--spcoa-iterations", type=_integer_at_least(1), help="SpCoA iterations (default 100)"
+    )
+    p.add_argument("--workers", type=_integer_at_least(1), default=1,
+                   help="1: in this process; N > 1: a Dask "
                    "LocalCluster of N processes, one torch thread each")  # fmt: skip
     p.add_argument("--no-off", action="store_true", help="skip the fits without observations")
     p.add_argument("--data", help="public dataset folder (default: found automatically)")

@@ -64,7 +64,7 @@ def comparison_study(
     for key in keys:
         line = VARIANTS[key]
         overrides = {"preset": settings.preset, **settings.overrides, "method": line.method}
-        variants.append(make_variant(key, {**overrides, **line.options}))
+        variants.append(make_variant(key, {**overrides, **line.options_for(settings.quick)}))
     data = []
     if SYNTHETIC in settings.house_types and settings.seeds >= 1:
         spec = settings.synthetic_spec or (QUICK_SPEC if settings.quick else HouseSpec())

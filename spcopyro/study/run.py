@@ -76,6 +76,9 @@ class StudyRun:
     ran_here: int = 0
     """Of ``ran``, the cells a LocalCluster run ran in this process while its workers started
     (all of them for an in-process run: ``ran``)."""
+    failed_before: int = 0
+    """Of ``cached``, the cells that failed in an earlier run and were not run again (without
+    ``retry_failed``): the study is not complete while there are any."""
 
     @property
     def table(self) -> Path:
@@ -132,7 +135,10 @@ def run_study(
                f"in {out} (delete cells/ there to run them again)")  # fmt: skip
         if stale:
             report(_stale_line(len(stale)))
-        return StudyRun(out, len(cells), cached, 0, 0, time.perf_counter() - start, where)
+        if plan.failed_before:
+            report(_failed_before_line(plan.failed_before, out))
+        return StudyRun(out, len(cells), cached, 0, 0, time.perf_counter() - start, where,
+                        failed_before=plan.failed_before)  # fmt: skip
     report(f"study {study.name!r}: {len(pending)} of {len(cells)} cells to run ({cached} "
            f"finished before), {where}")  # fmt: skip
     if stale and not rerun_stale:
@@ -175,7 +181,15 @@ def run_study(
         report(f"{ran_here} of them ran in this process while the LocalCluster started")
     report(f"ran {ran} cells in {seconds:.1f} s ({failed} failed), {cached} finished before; "
            f"wrote {out / TABLE} and {out / 'report.md'}")  # fmt: skip
-    return StudyRun(out, len(cells), cached, ran, failed, seconds, where, ran_here=ran_here)
+    if plan.failed_before:
+        report(_failed_before_line(plan.failed_before, out))
+    return StudyRun(out, len(cells), cached, ran, failed, seconds, where, ran_here=ran_here,
+                    failed_before=plan.failed_before)  # fmt: skip
+
+
+def _failed_before_line(count: int, out: Path) -> str:
+    return (f"{count} cell(s) failed in an earlier run and were not run again (their errors are "
+            f"in {out / 'report.md'}); --retry-failed runs them")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -192,6 +206,8 @@ class StudyPlan:
     """Keys of finished cells that other spcopyro source computed."""
     predicted: dict[str, float] = field(default_factory=dict)
     """Each pending cell's predicted seconds, by key (:mod:`spcopyro.study.order`)."""
+    failed_before: int = 0
+    """Of ``cached``, the cells whose stored record is a failure (kept: no ``retry_failed``)."""
 
     def __iter__(self):
         return iter((self.cells, self.pending, self.cached, self.stale))
@@ -210,7 +226,9 @@ def plan_study(
         done -= stale
     pending = list({c.key: c for c in cells if c.key not in done}.values())  # one per key
     predicted = predicted_seconds(pending, cells, finished)
-    return StudyPlan(cells, pending, len({c.key for c in cells} & done), stale, predicted)
+    kept = {c.key for c in cells} & done
+    failed = sum(1 for k in kept if finished[k].get("status") == "error")
+    return StudyPlan(cells, pending, len(kept), stale, predicted, failed)
 
 
 def plan_markdown(plan: StudyPlan, study: Study, workers: int = 1) -> str:
