@@ -250,3 +250,14 @@ def test_a_study_command_refuses_zero_counts_before_running(argv, tmp_path, caps
     assert stop.value.code == 2
     assert f"argument {argv[-2]}: must be an integer >= 1, got '0'" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_several_variational_fits_report_their_objective(small_house, tmp_path, capsys):
+    """`--chains 2` of a variational method compares ELBOs, and says so (it called them log
+    joints)."""
+    argv = ["fit", str(small_house), "--out", str(tmp_path / "fit"), "--method", "cavi",
+            "--chains", "2", "--sweeps", "3", "--no-figures"]  # fmt: skip
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "best of 2 fits: kept fit " in printed and " best ELBOs " in printed
+    assert "log joint" not in printed.split("best of 2 fits")[1].splitlines()[0]

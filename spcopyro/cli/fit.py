@@ -507,11 +507,13 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     phases.mark("save")
     if chain_results is not None and chains > 1:
         best_values = [r.best_objective for r in chain_results]
+        objective = result.trace.objective_name  # "log joint", or a variational objective
         report = {"seeds": [args.seed + k for k in range(chains)], "best_chain": kept,
-                  "best_log_joint": best_values}  # fmt: skip
+                  "best_log_joint": best_values, "objective": objective}  # fmt: skip
         (out / "chains.json").write_text(json.dumps(report, indent=1) + "\n")
-        print(f"best of {chains} chains: kept chain {kept} (seed {args.seed + kept}), best log "
-              f"joints {', '.join(f'{v:.1f}' for v in best_values)}")  # fmt: skip
+        unit = "chain" if args.method == "gibbs" else "fit"
+        print(f"best of {chains} {unit}s: kept {unit} {kept} (seed {args.seed + kept}), best "
+              f"{objective}s {', '.join(f'{v:.1f}' for v in best_values)}")  # fmt: skip
     sweeps_run = len(result.trace.objective)
     if diagnostics is not None:
         (out / "convergence.json").write_text(json.dumps(diagnostics.to_json(), indent=1) + "\n")
