@@ -8,9 +8,9 @@ default (``spcopyro COMMAND --help``).
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
 from pathlib import Path
 
+from spcopyro._util.arguments import integer_at_least as _integer_at_least
 from spcopyro._util.threads import AUTO
 from spcopyro.data import House, cell_counts, load_house
 
@@ -54,19 +54,6 @@ def _summary(house: House, warn: bool = True, feature_scaling: object = "probabi
         lines.append(f"ground truth     {len(house.category_names)} categories: "
                      + ", ".join(house.category_names))  # fmt: skip
     return "\n".join(lines)
-
-
-def _integer_at_least(minimum: int) -> Callable[[str], int]:
-    def parse(value: str) -> int:
-        try:
-            number = int(value)
-        except ValueError:
-            number = minimum - 1
-        if number < minimum:
-            raise argparse.ArgumentTypeError(f"must be an integer >= {minimum}, got {value!r}")
-        return number
-
-    return parse
 
 
 _positive_int = _integer_at_least(1)

@@ -25,7 +25,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from spcopyro.cli.common import _integer_at_least
+from spcopyro._util.arguments import integer_at_least as _integer_at_least
 from spcopyro.config import PRESETS
 
 __all__ = ["add_parser"]
