@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import logging
 import math
 from pathlib import Path
 
@@ -340,7 +341,7 @@ def test_train_head_rejects_bad_targets(model):
         train_head(model, inputs, torch.zeros(2, dtype=torch.int64), mode="labels", tune_layers=3)
 
 
-def test_head_file_round_trip_with_a_tuned_layer(model, pristine, tmp_path, checkpoint):
+def test_head_file_round_trip_with_a_tuned_layer(model, pristine, tmp_path, checkpoint, caplog):
     paths, names = _red_blue(tmp_path)
     classes, labels = encode_labels(names)
     model.replace_head(len(classes), classes)
@@ -363,6 +364,16 @@ def test_head_file_round_trip_with_a_tuned_layer(model, pristine, tmp_path, chec
     )
     with pytest.raises(CheckpointError, match="alexnet-random.pth: not an spcopyro place-head"):
         load_head(fresh, checkpoint[0])
+    # a head put on another backbone than it was trained on is loaded, with a warning
+    other = PlaceClassifier.load(checkpoint[0])
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        load_head(fresh, head_path)  # its own backbone: nothing to say
+        assert not [r for r in caplog.records if "was trained on the backbone" in r.getMessage()]
+        load_head(other, head_path)
+    said = [
+        r.getMessage() for r in caplog.records if "was trained on the backbone" in r.getMessage()
+    ]
+    assert len(said) == 1 and "NOT pretrained" in said[0] and "alexnet-random.pth" in said[0]
     with pytest.raises(FileNotFoundError, match="none.pt: head file not found"):
         load_head(fresh, tmp_path / "none.pt")
 

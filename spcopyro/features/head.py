@@ -31,6 +31,7 @@ and strings, readable with ``weights_only=True``), with the tuned backbone layer
 
 from __future__ import annotations
 
+import logging
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -348,6 +349,9 @@ def save_head(
 def load_head(model: PlaceClassifier, path: str | os.PathLike[str]) -> HeadFile:
     """Put the head saved in ``path`` (:func:`save_head`) onto ``model``'s backbone.
 
+    Warns (logger ``"spcopyro"``) when the head was trained on another backbone than
+    ``model``'s (as each describes it): its classes would read features it never saw.
+
     Raises:
         FileNotFoundError: no such file.
         CheckpointError: not a head file (wrong format tag or version, bad shapes); the
@@ -412,6 +416,14 @@ def load_head(model: PlaceClassifier, path: str | os.PathLike[str]) -> HeadFile:
     model.network.load_state_dict(state, strict=False)
     model.network.to(device)
     model.tune_layers = tune_layers
+    trained_on, backbone = str(payload.get("backbone", "")), model.weights.describe()
+    if trained_on and trained_on != backbone:
+        logging.getLogger("spcopyro").warning(
+            "head file %s was trained on the backbone %s; this model's is %s: unless they "
+            "are the same weights, its place classes read features it was not trained on "
+            "(pass the head's backbone with --weights)",
+            path, trained_on, backbone,
+        )  # fmt: skip
     return HeadFile(
         path=path,
         class_names=names,
