@@ -368,6 +368,7 @@ def test_cli_runs_resumes_and_redraws(in_process, tmp_path, capsys, monkeypatch)
     assert main(["study", str(path), "--out", str(tmp_path / "dry"), "--dry-run"]) == 0
     planned = capsys.readouterr().out
     assert "6 of 6 cells to run" in planned and "| small | og3 | gibbs | 8 | 2 |" in planned
+    assert "| small | F-geometry | baseline | 0 | 2 |" in planned  # no iterations: not 8
     assert not (tmp_path / "dry").exists()
     assert main(["study", str(path), "--out", str(out), "--dry-run"]) == 0
     assert "0 of 6 cells to run (6 finished before" in capsys.readouterr().out

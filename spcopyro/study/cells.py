@@ -144,8 +144,9 @@ def cells_of(study: Study, root: str | Path | None = None) -> list[Cell]:
                     planned.append(Cell(changed, variant.name, data, method, seed, sweeps,
                                         study.spcoa_iterations, study.observations_off,
                                         study.scoring, study.ari_every))  # fmt: skip
-            for baseline in study.baselines:
-                planned.append(Cell(None, baseline, data, BASELINE_METHOD, seed,
-                                    study.sweeps_for("gibbs"), study.spcoa_iterations))  # fmt: skip
+            for baseline in study.baselines:  # iterations: SpCoA's; the others have none
+                iterations = study.spcoa_iterations if baseline == "C-spcoa" else 0
+                planned.append(Cell(None, baseline, data, BASELINE_METHOD, seed, iterations,
+                                    study.spcoa_iterations))  # fmt: skip
             cells += [dataclasses.replace(c, key=cell_key(c, digest)) for c in planned]
     return cells
