@@ -375,3 +375,12 @@ def test_public_only_run_with_no_synthetic_seed(tmp_path, dataset_root):
     report = run_ablation(tmp_path, settings)
     assert [s["name"] for s in report["statistics"]] == ["room1ldk4"]
     assert (tmp_path / "ablation.md").is_file()
+
+
+def test_a_single_value_is_shown_without_a_standard_deviation():
+    """ablation.md printed '0.23 ± 0.00' for one seed: the sample sd of one value is undefined."""
+    from spcopyro.experiments.ablation_report import _fmt, _spread
+
+    assert _fmt(_spread([0.23])) == "0.230"
+    assert _fmt(_spread([0.2, 0.4])) == "0.300 ± 0.141"
+    assert _fmt(_spread([])) == "—"

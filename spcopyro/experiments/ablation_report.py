@@ -106,6 +106,8 @@ def targets(summary: dict, settings: AblationSettings) -> list[str]:
 def _fmt(spread: dict | None, digits: int = 3) -> str:
     if spread is None or not math.isfinite(spread["mean"]):
         return "—"
+    if spread.get("n", 2) < 2:  # one value: no sample sd to show (its JSON keeps 0)
+        return f"{spread['mean']:.{digits}f}"
     return f"{spread['mean']:.{digits}f} ± {spread['sd']:.{digits}f}"
 
 
@@ -145,7 +147,8 @@ def markdown(report: dict, settings: AblationSettings) -> str:
         f"{settings.sweeps} Gibbs sweeps per fit (SpCoA: {settings.spcoa_iterations} "
         f"iterations); synthetic seeds 0-{settings.seeds - 1} (house and fit); public houses: "
         f"{settings.public_seeds} seed(s), seed s holding out trial s mod 3. Mean ± sd over "
-        f"seeds. Whole run: {report['seconds']:.0f} s with {settings.workers} worker(s).",
+        f"seeds (the mean alone for one seed). Whole run: {report['seconds']:.0f} s with "
+        f"{settings.workers} worker(s).",
         "",
         "Variants:",
         "",
