@@ -38,7 +38,7 @@ import zlib
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import BinaryIO
+from typing import BinaryIO, TypeVar
 
 import numpy as np
 
@@ -47,10 +47,17 @@ try:  # POSIX: serialise commits into one parent folder
 except ImportError:  # pragma: no cover - Windows: commits are not serialised
     fcntl = None  # type: ignore[assignment]
 
+T = TypeVar("T")
+
 CHECKPOINT_SUFFIX = ".checkpoint.npz"
 STAGING_INFIX = ".partial-"
 RESULT_MARKERS = ("result.npz", "config.json")
 """A folder holding both was written by ``spcopyro fit``: the only kind ``overwrite`` replaces."""
+
+
+def missing_fit_markers(path: Path) -> list[str]:
+    """The :data:`RESULT_MARKERS` that folder ``path`` lacks (none: ``spcopyro fit`` wrote it)."""
+    return [name for name in RESULT_MARKERS if not (path / name).is_file()]
 
 
 DAMAGED_FILE_ERRORS = (
@@ -283,7 +290,7 @@ def check_output(
                 f"--out {out}: {path} exists and is not empty; pass --overwrite to replace it "
                 "(its files are then deleted), or choose another --out"
             )
-        missing = [name for name in RESULT_MARKERS if not (path / name).is_file()]
+        missing = missing_fit_markers(path)
         if missing:
             raise OutputError(
                 f"--out {out}: {path} holds files that no fit wrote (no {' or '.join(missing)}); "
@@ -385,29 +392,31 @@ def stage_marked_folder(
     return StagedOutput(out=path, path=Path(staging), overwrite=overwrite, seen=seen)
 
 
-def _new_folder(parent: Path, prefix: str) -> Path:
-    """A new folder ``parent / (prefix + random)``, made as ``mkdir`` makes one (its mode from
-    the umask, unlike :func:`tempfile.mkdtemp`'s 0700)."""
+def _new_name(parent: Path, prefix: str, make: Callable[[Path], T]) -> tuple[Path, T]:
+    """(path, ``make(path)``) for the first ``parent / (prefix + random)`` not taken yet
+    (``make`` raises FileExistsError for a taken one)."""
     for _ in range(100):
         path = parent / f"{prefix}{secrets.token_hex(4)}"
         try:
-            path.mkdir()
+            return path, make(path)
         except FileExistsError:
             continue
-        return path
     raise FileExistsError(f"no free name {prefix}... in {parent}")
+
+
+def _new_folder(parent: Path, prefix: str) -> Path:
+    """A new folder ``parent / (prefix + random)``, made as ``mkdir`` makes one (its mode from
+    the umask, unlike :func:`tempfile.mkdtemp`'s 0700)."""
+    return _new_name(parent, prefix, Path.mkdir)[0]
 
 
 def _new_file(parent: Path, prefix: str) -> tuple[int, Path]:
     """(descriptor, path) of a new file ``parent / (prefix + random)`` opened for writing, made
     as ``open`` makes one (its mode from the umask, unlike :func:`tempfile.mkstemp`'s 0600)."""
-    for _ in range(100):
-        path = parent / f"{prefix}{secrets.token_hex(4)}"
-        try:
-            return os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666), path
-        except FileExistsError:
-            continue
-    raise FileExistsError(f"no free name {prefix}... in {parent}")
+    path, descriptor = _new_name(
+        parent, prefix, lambda path: os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+    )
+    return descriptor, path
 
 
 def replace_file(path: str | os.PathLike[str], write: Callable[[BinaryIO], None]) -> Path:

@@ -511,8 +511,8 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
         report = {"seeds": [args.seed + k for k in range(chains)], "best_chain": kept,
                   "best_log_joint": best_values, "objective": objective}  # fmt: skip
         (out / "chains.json").write_text(json.dumps(report, indent=1) + "\n")
-        unit = "chain" if args.method == "gibbs" else "fit"
-        print(f"best of {chains} {unit}s: kept {unit} {kept} (seed {args.seed + kept}), best "
+        run = "chain" if args.method == "gibbs" else "fit"
+        print(f"best of {chains} {run}s: kept {run} {kept} (seed {args.seed + kept}), best "
               f"{objective}s {', '.join(f'{v:.1f}' for v in best_values)}")  # fmt: skip
     sweeps_run = len(result.trace.objective)
     if diagnostics is not None:

@@ -127,10 +127,10 @@ def _show(args: argparse.Namespace) -> int:
         from spcopyro.cli.navigate import show_graph
 
         return show_graph(args)
-    from spcopyro._util.outputs import RESULT_MARKERS
+    from spcopyro._util.outputs import missing_fit_markers
     from spcopyro.figures.plotting import plot_house
 
-    if args.data and all((Path(args.data) / name).is_file() for name in RESULT_MARKERS):
+    if args.data and not missing_fit_markers(Path(args.data)):
         raise ValueError(
             f"{args.data} is the output folder of `spcopyro fit`, not a house folder: its "
             "figures are in it already; to draw its place graph pass --graph"

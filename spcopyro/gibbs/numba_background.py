@@ -51,11 +51,6 @@ def _add_weighted_rows(
                 out[m, column] += weight * rows[source, column]
 
 
-def _as_array(tensor: torch.Tensor) -> np.ndarray:
-    """A C-contiguous float64 numpy view of a CPU tensor (a copy only if dtype or layout differ)."""
-    return np.ascontiguousarray(tensor.detach().cpu().numpy(), dtype=np.float64)
-
-
 def write_log_likelihood(
     state: GibbsState, data: ModelData, config: SpCoConfig, out: torch.Tensor
 ) -> None:
@@ -94,7 +89,7 @@ def background_table(state: GibbsState, data: ModelData, config: SpCoConfig) -> 
     write_log_likelihood(state, data, config, logits_t[:M])
     logits = logits_t.numpy()
     logits[M] = 0.0
-    logits += _as_array(state.log_pi)
+    logits += state.log_pi.detach().cpu().numpy()  # [L], broadcast over the rows
     top = logits.max(axis=1, keepdims=True)  # [M + 1, 1]; NaN or +inf anywhere shows here
     if not np.isfinite(top).all():
         row = int(np.flatnonzero(~np.isfinite(top[:, 0]))[0])

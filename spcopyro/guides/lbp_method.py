@@ -194,9 +194,8 @@ def run_lbp(
     beliefs ``q`` were reached by (a checkpoint's), continued here, the messages started
     afresh from ``q``."""
     options = LBPOptions() if options is None else options
-    done = 0 if resume is None else len(resume.objective)
-    warn_unfinished_annealing(options.anneal_iterations, done + iterations,
-                              "anneal_iterations", "iteration")  # fmt: skip
+    warn_unfinished_annealing(options.anneal_iterations, iterations, "anneal_iterations",
+                              "iteration", resume)  # fmt: skip
     run = drive(
         init(q, data, config, options),
         lambda state, gamma: step(state, data, config, gamma, options), iterations,

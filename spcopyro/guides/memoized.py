@@ -547,8 +547,7 @@ def run_stochastic(
         raise TypeError(f"options must be StochasticOptions, got {type(options).__name__}")
     if not _is_int(passes) or passes < 1:
         raise ValueError(f"passes must be an integer >= 1, got {passes!r}")
-    done = 0 if resume is None else len(resume.objective)
-    warn_unfinished_annealing(options.anneal_passes, done + passes, "anneal_passes", "pass")
+    warn_unfinished_annealing(options.anneal_passes, passes, "anneal_passes", "pass", resume)
     run = drive(
         start_state(data, config, q, options, blocks),
         lambda state, gamma: step(state, data, config, gamma, options, generator), passes,

@@ -166,9 +166,8 @@ def run_variational(
             return state.q
 
     state = backend.init(q, data, config, options)
-    done = 0 if resume is None else len(resume.objective)
-    warn_unfinished_annealing(options.anneal_iterations, done + iterations,
-                              "anneal_iterations", "iteration")  # fmt: skip
+    warn_unfinished_annealing(options.anneal_iterations, iterations, "anneal_iterations",
+                              "iteration", resume)  # fmt: skip
     run = drive(
         state, lambda state, gamma: backend.step(state, data, config, gamma, options), iterations,
         gamma=config.gamma, anneal=options.anneal_iterations, tolerance=options.tolerance,

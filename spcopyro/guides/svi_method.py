@@ -199,8 +199,7 @@ def fit_svi(
     options = SVIOptions() if options is None else options
     if steps < 1:
         raise ValueError(f"steps must be >= 1, got {steps}")
-    done = 0 if resume is None else len(resume.objective)
-    warn_unfinished_annealing(options.anneal_iterations, done + steps, "anneal_iterations", "step")
+    warn_unfinished_annealing(options.anneal_iterations, steps, "anneal_iterations", "step", resume)
     seed = int(torch.randint(0, 2**62, (), generator=generator))
     with torch.random.fork_rng(devices=[]), pyro.get_param_store().scope():
         torch.manual_seed(seed)

@@ -59,11 +59,15 @@ def short_runs_meant() -> Iterator[None]:
         _SHORT_RUNS_MEANT.reset(token)
 
 
-def warn_unfinished_annealing(anneal: int, iterations: int, option: str, unit: str) -> bool:
-    """Warn (logger ``"spcopyro"``) when a run of ``iterations`` (resumed ones included) stops
-    before its annealing (``anneal`` iterations, the option ``option``) ends: gamma never
-    reaches the model's value, so the fit is of a weaker coupling. Returns whether it warned
-    (never inside :func:`short_runs_meant`)."""
+def warn_unfinished_annealing(
+    anneal: int, iterations: int, option: str, unit: str, resume: object | None = None
+) -> bool:
+    """Warn (logger ``"spcopyro"``) when a run of ``iterations`` more iterations (after those of
+    ``resume``, the record a resumed run continues: its ``objective``) stops before its
+    annealing (``anneal`` iterations, the option ``option``) ends: gamma never reaches the
+    model's value, so the fit is of a weaker coupling. Returns whether it warned (never inside
+    :func:`short_runs_meant`)."""
+    iterations += 0 if resume is None else len(resume.objective)  # type: ignore[attr-defined]
     if anneal <= iterations or _SHORT_RUNS_MEANT.get():
         return False
     units = f"{unit}es" if unit.endswith("s") else f"{unit}s"

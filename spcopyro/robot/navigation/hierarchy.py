@@ -162,10 +162,10 @@ def with_passability(
     """``places`` with every passage marked passable or not
     (:attr:`~spcopyro.robot.navigation.places.Passage.passable`): whether the :func:`corridor`
     of its two places joins a cell of one to a cell of the other (8-connected, over the cells
-    the robot fits on). A region boundary one
-    fit cell long, or a doorway narrower than the robot, is a passage of the fit's labels that
-    the robot cannot take: a route through it would fall back to the grid path (module
-    docstring) while naming places the path does not cross."""
+    the robot fits on). A region boundary one fit cell long, or a doorway narrower than the
+    robot, is a passage of the fit's labels that the robot cannot take: a route through it
+    would fall back to the grid path (module docstring) while naming places the path does not
+    cross."""
     from dataclasses import replace
 
     from scipy.sparse.csgraph import connected_components
