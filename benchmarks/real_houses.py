@@ -21,7 +21,10 @@ map's cells where the images separate its concepts, :mod:`spcopyro.fit.refine`; 
 (E) nearest utterance and (F) geometry at 1 m and 2 m door widths. Then the same for synthetic
 houses (seeds 0..n-1, ``--seeds``; their own truth): ``open-plan`` (several categories in one
 walled space; ``--open-plan-seeds``, 10 since 2026-12-03),
-``sparse`` (``HouseSpec.public_like``) and ``dense`` (the embedded default house).
+``sparse`` (``HouseSpec.public_like``) and ``dense`` (the embedded default house), each with
+a reference row that is no method: the observations' own truth regions, every free cell taking
+that of the nearest observation within its walls (``observation_oracle``): how much of the
+truth the observations' places decide, where nothing observed lies between them.
 
 Further sections (each from the same run): held-out word top-1 on the public houses (fit on two
 trials, predict the third's words from where they were said; each trial held out in turn, the
@@ -53,6 +56,7 @@ from spcopyro.baselines.nearest import nearest_word_map
 from spcopyro.config import DEFAULT_PRESET, preset
 from spcopyro.data import find_dataset_root, load_house
 from spcopyro.experiments.ablation import concepts_over, largest_share
+from spcopyro.experiments.open_plan import observation_oracle
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
 from spcopyro.fit.house import fit_house, preset_fit_kwargs
@@ -72,6 +76,9 @@ SYNTHETIC = {
 }
 
 
+ORACLE = "oracle: truth at the observations, Voronoi cut"
+"""The synthetic houses' reference row (:func:`~spcopyro.experiments.open_plan.observation_oracle`):
+every observation's own region, each border half-way between the places' observations."""
 METHODS = ("cavi", "lbp", "svi", "stochastic-vi", "vi-gibbs")
 
 
@@ -115,7 +122,9 @@ def scores(labels: np.ndarray, truth: np.ndarray, free: np.ndarray) -> dict[str,
     }
 
 
-def score_house(house, truth: np.ndarray, sweeps: int, seed: int) -> dict[str, dict]:
+def score_house(
+    house, truth: np.ndarray, sweeps: int, seed: int, oracle: bool = False
+) -> dict[str, dict]:
     free = house.grid.free
     rows: dict[str, dict] = {}
     for name in PRESETS:
@@ -137,6 +146,8 @@ def score_house(house, truth: np.ndarray, sweeps: int, seed: int) -> dict[str, d
     for door in (1.0, 2.0):
         labels = geometry_semantic_map(house.grid, obs, door_width=door).labels
         rows[f"F geometry {door:g} m"] = scores(labels, truth, free)
+    if oracle:  # a reference, not a method: it reads the truth at the observations
+        rows[ORACLE] = scores(observation_oracle(house.grid, obs, truth), truth, free)
     return rows
 
 
@@ -355,7 +366,9 @@ def main(argv: list[str] | None = None) -> int:
             per_seed = {}
             for seed in range(args.open_plan_seeds if kind == "open-plan" else args.seeds):
                 house = make_house(seed=seed, spec=spec())
-                per_seed[f"seed {seed}"] = score_house(house, house.truth, args.sweeps, seed)
+                per_seed[f"seed {seed}"] = score_house(
+                    house, house.truth, args.sweeps, seed, oracle=True
+                )
             report[kind] = per_seed
             text.append(table(f"Synthetic {kind} houses (own truth)", per_seed, None))
     print("\n".join(text))

@@ -11,7 +11,11 @@ from spcopyro.baselines.nearest import nearest_word_map
 from spcopyro.cli.main import main
 from spcopyro.data import load_house
 from spcopyro.experiments.ablation import SYNTHETIC_HOUSES, AblationSettings
-from spcopyro.experiments.open_plan import categories_in_segments, open_plan_scores
+from spcopyro.experiments.open_plan import (
+    categories_in_segments,
+    observation_oracle,
+    open_plan_scores,
+)
 from spcopyro.metrics import adjusted_rand_index
 from spcopyro.study.ablation import ablation_study, spec_options
 from spcopyro.synthetic import HouseSpec, HouseSpecError, make_house
@@ -112,6 +116,27 @@ def test_cutting_at_doors_scores_at_most_half(house):
     assert scores.geometry <= 0.5 and scores.geometry_wide <= 0.5
     assert scores.geometry_open == pytest.approx(0.0, abs=1e-9)  # one segment, 3 categories
     assert scores.nearest_open > 0.1
+    assert scores.geometry + 0.2 < scores.oracle < 1.0
+
+
+def test_the_observation_oracle_cuts_half_way_between_the_places(house):
+    grid, obs, truth = house.grid, house.observations, house.truth
+    oracle = observation_oracle(grid, obs, truth)  # [H, W]
+    assert ((oracle >= 0) == grid.free).all()
+    cells = np.concatenate([grid.world_to_cell(obs.image_xy), grid.world_to_cell(obs.word_xy)])
+    on_free = cells[grid.free[cells[:, 0], cells[:, 1]]]
+    # Every observation's cell keeps its own truth region.
+    np.testing.assert_array_equal(
+        oracle[on_free[:, 0], on_free[:, 1]], truth[on_free[:, 0], on_free[:, 1]]
+    )
+    # A walled room of one region is that region; the open plan's borders lie between spots,
+    # not where the truth draws them (its parts are not in the data): the score is below 1.
+    segments = room_segments(grid)
+    for s in range(int(segments.max()) + 1):
+        regions = np.unique(truth[segments == s])
+        if regions.size == 1:
+            assert (oracle[segments == s] == regions[0]).all()
+    assert adjusted_rand_index(oracle, truth) == pytest.approx(0.835, abs=0.005)
 
 
 def test_studies_and_the_cli_name_the_house(tmp_path, capsys):
