@@ -116,6 +116,11 @@ def test_gibbs_results_convert_and_an_optimisers_trace_is_refused():
     cavi = fit_house_chains(house, settings, seeds=[0], sweeps=3, method="cavi", progress=False)
     with pytest.raises(ValueError, match="'cavi' result's trace is an optimiser's objective"):
         to_inference_data(cavi)
+    # vi-gibbs' trace is the sampler's log joint per sweep: a Markov chain (it was refused)
+    warm = fit_house_chains(house, settings, seeds=[0, 1], sweeps=6, method="vi-gibbs",
+                            progress=False)  # fmt: skip
+    np.testing.assert_array_equal(to_inference_data(warm).posterior["log_joint"].values[1],
+                                  warm[1].trace.objective[3:])  # fmt: skip
 
 
 def test_arvizs_own_pyro_converter_takes_a_run_without_labels(problem):

@@ -91,8 +91,9 @@ def test_a_chain_advanced_in_parts_is_the_run_in_one_go(backend):
     np.testing.assert_array_equal(parts.sample_sweeps, whole.sample_sweeps)
     assert parts.best_sweep == whole.best_sweep
     assert parts.seconds.shape == (25,) and np.all(np.diff(parts.seconds) >= 0)
-    with pytest.raises(ValueError, match="num_sweeps must be >= 1"):
-        advance(chain, 0)
+    for bad in (0, 2.5, "3", True):  # 2.5 named the driver's iterations, "3" a TypeError
+        with pytest.raises(ValueError, match="num_sweeps must be >= 1"):
+            advance(chain, bad)
 
 
 def test_a_run_becomes_a_result_through_the_gibbs_method():

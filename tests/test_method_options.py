@@ -47,3 +47,14 @@ def test_fit_runs_a_method_with_the_options_given(tmp_path, capsys):
     assert json.loads((out / "config.json").read_text())["inference"]["damping"] == 0.3
     assert main([*args[:-1], "dampin=0.3", "--overwrite"]) == 2
     assert "has no field 'dampin'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("field", ["variational", "gibbs"])
+def test_vi_gibbs_refuses_a_wrong_options_object_by_name(field):
+    """Each part's options are checked: a wrong one failed inside the fit as an AttributeError
+    (``'GibbsOptions' object has no attribute 'init'``) naming neither field."""
+    wrong = GibbsOptions() if field == "variational" else VariationalOptions()
+    with pytest.raises(ValueError, match=f"VIGibbsOptions.{field} must be a"):
+        VIGibbsOptions(**{field: wrong})
+    with pytest.raises(ValueError, match=f"VIGibbsOptions.{field} must be a"):
+        with_options(VIGibbsOptions(), [f"{field}=3"])

@@ -196,3 +196,16 @@ def test_the_point_estimate_shows_its_progress(capsys, monkeypatch):
     assert "point estimate (vi)" in capsys.readouterr().err
     point_estimate(samples, "vi", progress=False)
     assert "point estimate" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("count", [-1, 2.5, True])
+def test_a_bad_marginal_samples_is_refused_by_name(count):
+    """-1 kept every sweep's label map (thin 1) and 2.5 failed naming ``thin``."""
+    from spcopyro.fit.house import fit_house
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    house = make_house(seed=1, spec=HouseSpec(height=30, width=30, num_rooms=2, num_open_plan=0,
+                                              min_room_size=10))  # fmt: skip
+    for method in ("gibbs", "cavi"):
+        with pytest.raises(ValueError, match=r"marginal_samples must be an integer >= 0, got"):
+            fit_house(house, sweeps=4, method=method, progress=False, marginal_samples=count)

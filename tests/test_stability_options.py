@@ -37,7 +37,7 @@ def test_schedule_by_hand():
     assert annealed_config(cfg, 0, 2).gamma == 1.0
     assert annealed_config(cfg, 1, 2) is cfg  # the target from sweep A - 1 on
     assert check_anneal_sweeps(3) == 3
-    for bad in (-1, 1.5, True):
+    for bad in (-1, 1.5, True, float("inf"), float("nan"), None, "3"):  # inf: OverflowError
         with pytest.raises(ValueError, match="non-negative integer"):
             check_anneal_sweeps(bad)
 

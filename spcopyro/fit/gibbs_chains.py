@@ -142,6 +142,12 @@ def preparation_record(settings: SpCoSettings) -> dict[str, object]:
 def marginal_thin(sweeps: int, marginal_samples: int) -> int:
     """Every how many iterations to keep a label map so that about ``marginal_samples`` fall in
     the second half of ``sweeps`` (0: keep none)."""
+    # A negative count made thin 1 (every sweep kept); 2.5 failed naming thin, not this.
+    integer = isinstance(marginal_samples, int | np.integer) and not isinstance(
+        marginal_samples, bool
+    )
+    if not integer or marginal_samples < 0:
+        raise ValueError(f"marginal_samples must be an integer >= 0, got {marginal_samples!r}")
     return max(1, sweeps // (2 * marginal_samples)) if marginal_samples else 0
 
 

@@ -328,6 +328,7 @@ def fit_house_chains(
             to one after another): ``"auto"`` (one per usable CPU) or a count. With more than
             one, ``threads`` ``"auto"`` means one torch thread per chain.
     """
+    marginal_thin(1, marginal_samples)  # ValueError naming a bad marginal_samples
     if check_point_estimate(point_estimate) != "map-visited" and (
         method not in SAMPLERS or not marginal_samples
     ):

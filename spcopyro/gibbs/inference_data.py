@@ -79,10 +79,10 @@ def _per_sweep_traces(source: object) -> tuple[np.ndarray, np.ndarray]:
             "to_inference_data takes a pyro.infer.MCMC run, a GibbsRun, an SpCoResult or a "
             f"sequence of them (chains), got {type(source).__name__}"
         )
-    if method != "gibbs":
+    if getattr(trace, "objective_name", "log joint") != "log joint":  # vi-gibbs samples too
         raise ValueError(
             f"a {method!r} result's trace is an optimiser's objective, not a Markov chain: "
-            "only Gibbs chains go to ArviZ"
+            "only Gibbs chains (gibbs, vi-gibbs) go to ArviZ"
         )
     return np.asarray(trace.objective), np.asarray(trace.num_concepts)
 
@@ -173,8 +173,8 @@ def to_inference_data(
     Args:
         source: a ``pyro.infer.MCMC`` run of :class:`~spcopyro.gibbs.kernel.SpCoGibbs` (one
             chain or several), or one chain's :class:`~spcopyro.gibbs.run.GibbsRun` /
-            Gibbs :class:`~spcopyro.results.result.SpCoResult`, or a sequence of them (several
-            chains of the same number of sweeps, e.g. from
+            Gibbs (or vi-gibbs) :class:`~spcopyro.results.result.SpCoResult`, or a sequence
+            of them (several chains of the same number of sweeps, e.g. from
             :func:`~spcopyro.fit.house.fit_house_chains`).
         warmup: per-sweep traces only: how many first sweeps are warm-up (default: half).
         include_labels: put the saved ``labels`` ``[C, D, N]`` in the posterior too (large,

@@ -280,6 +280,14 @@ def _sweep(chain: GibbsChain) -> SweepInfo:
     return SweepInfo(value, concepts, info.gamma)
 
 
+def _check_sweeps(num_sweeps: int) -> None:
+    """ValueError naming ``num_sweeps`` unless it is an integer >= 1 (2.5 was refused as the
+    driver's "iterations", "3" by a TypeError)."""
+    integer = isinstance(num_sweeps, int | np.integer) and not isinstance(num_sweeps, bool)
+    if not integer or num_sweeps < 1:
+        raise ValueError(f"num_sweeps must be >= 1 (an integer), got {num_sweeps!r}")
+
+
 def advance(
     chain: GibbsChain,
     num_sweeps: int,
@@ -302,8 +310,7 @@ def advance(
         progress: tqdm bar (default: on unless ``$CI`` is set).
         callback: called as ``callback(sweep, state)`` after every sweep (0-based in the chain).
     """
-    if num_sweeps < 1:
-        raise ValueError(f"num_sweeps must be >= 1, got {num_sweeps}")
+    _check_sweeps(num_sweeps)
     if thin < 0:
         raise ValueError(f"thin must be >= 0, got {thin}")
     first = chain.sweeps_done
@@ -353,8 +360,7 @@ def run_gibbs(
     (:mod:`spcopyro.gibbs.anneal`); they are burn-in, so the best state is taken from sweep
     A - 1 on. The trace's log joint is always the target model's.
     """
-    if num_sweeps < 1:
-        raise ValueError(f"num_sweeps must be >= 1, got {num_sweeps}")
+    _check_sweeps(num_sweeps)
     if options.anneal_sweeps > num_sweeps:
         raise ValueError(
             f"anneal_sweeps ({options.anneal_sweeps}) must not exceed num_sweeps ({num_sweeps})"

@@ -37,6 +37,13 @@ class VIGibbsOptions:
             raise ValueError(
                 f"VIGibbsOptions.vi_iterations={self.vi_iterations!r}: must be an integer >= 1"
             )
+        # A wrong type failed later, in the fit, as an AttributeError naming neither field.
+        for name, kind in (("variational", VariationalOptions), ("gibbs", GibbsOptions)):
+            value = getattr(self, name)
+            if not isinstance(value, kind):  # ValueError, as every options class's check
+                raise ValueError(
+                    f"VIGibbsOptions.{name} must be a {kind.__name__}, got {type(value).__name__}"
+                )
 
 
 class VIGibbsInference(InferenceMethod):

@@ -37,9 +37,14 @@ logger = logging.getLogger("spcopyro")
 def check_anneal_steps(anneal_steps: int, name: str = "anneal_sweeps") -> int:
     """``anneal_steps`` as an int, or ValueError (naming ``name``) if it is not a non-negative
     integer."""
-    if isinstance(anneal_steps, bool) or int(anneal_steps) != anneal_steps or anneal_steps < 0:
-        raise ValueError(f"{name} must be a non-negative integer, got {anneal_steps!r}")
-    return int(anneal_steps)
+    bad = ValueError(f"{name} must be a non-negative integer, got {anneal_steps!r}")
+    try:  # int() of inf, nan, None or a string raised an error that named neither
+        whole = int(anneal_steps)
+    except (TypeError, ValueError, OverflowError):
+        raise bad from None
+    if isinstance(anneal_steps, bool) or whole != anneal_steps or anneal_steps < 0:
+        raise bad
+    return whole
 
 
 _SHORT_RUNS_MEANT: contextvars.ContextVar[bool] = contextvars.ContextVar(
