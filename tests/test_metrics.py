@@ -82,8 +82,17 @@ def test_adjusted_rand_index_by_hand():
     labels = np.array([[5, 5, 7, 9], [7, 2, 2, 9]])
     assert adjusted_rand_index(labels, truth) == pytest.approx(8 / 33)
     assert adjusted_rand_index(truth * 3 + 1, truth) == pytest.approx(1.0)
-    with pytest.raises(ValueError, match="differ in shape"):
+    with pytest.raises(ValueError, match=r"differ in shape$"):
         adjusted_rand_index(labels[:, :3], truth)
+
+
+def test_labels_of_a_coarser_model_grid_are_refused_with_the_way_to_score_them():
+    truth = np.zeros((4, 6), dtype=np.int64)  # a map of 4 x 6 cells
+    coarse = np.zeros((2, 3), dtype=np.int64)  # a fit on cells twice as large
+    with pytest.raises(ValueError, match="coarser model grid.*model_house.*refine_labels"):
+        adjusted_rand_index(coarse, truth)
+    with pytest.raises(ValueError, match="coarser model grid"):
+        matching_rate(lambda word: np.zeros((2, 3), dtype=bool), truth, ["a"])
 
 
 # ---------------------------------------------------------------------------- matching rate

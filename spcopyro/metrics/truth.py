@@ -26,13 +26,33 @@ __all__ = ["MATCHING_KINDS", "MatchingRate", "adjusted_rand_index", "matching_ra
 MATCHING_KINDS = ("precision", "recall", "iou")
 
 
+def _grid_hint(shape: tuple[int, ...], truth_shape: tuple[int, ...]) -> str:
+    """What to do when a fit's labels are on a coarser grid than the truth (the default preset
+    fits on 0.25 m model cells): nothing when the shapes do not look like that."""
+    if (
+        len(shape) != 2
+        or len(truth_shape) != 2
+        or not all(0 < s < t for s, t in zip(shape, truth_shape, strict=True))
+    ):
+        return ""
+    return (
+        ": the labels look like a fit on a coarser model grid (the default preset's 0.25 m "
+        "cells); score them against spcopyro.data.model_grid.model_house(house, "
+        "cell_size).truth, or take them to the map's cells with "
+        "spcopyro.maps.coarse.refine_labels(labels, house.grid, factor)"
+    )
+
+
 def adjusted_rand_index(labels: np.ndarray, truth: np.ndarray) -> float:
     """ARI between two [H, W] label images over the cells where the truth is defined (>= 0).
 
     Invariant to how the concepts are numbered (scikit-learn's implementation).
     """
     if labels.shape != truth.shape:
-        raise ValueError(f"label image {labels.shape} and truth {truth.shape} differ in shape")
+        raise ValueError(
+            f"label image {labels.shape} and truth {truth.shape} differ in shape"
+            + _grid_hint(labels.shape, truth.shape)
+        )
     mask = truth >= 0
     return float(adjusted_rand_score(truth[mask], labels[mask]))
 
@@ -145,7 +165,10 @@ def matching_rate(
             per_word[word] = (c, 0.0, 0.0, 0.0)
             continue
         if region.shape != truth.shape:
-            raise ValueError(f"region of {word!r} has shape {region.shape}, truth {truth.shape}")
+            raise ValueError(
+                f"region of {word!r} has shape {region.shape}, truth {truth.shape}"
+                + _grid_hint(region.shape, truth.shape)
+            )
         region = region & defined
         hit = int(np.count_nonzero(region & target))
         size = int(np.count_nonzero(region))
