@@ -157,6 +157,15 @@ def test_a_concept_where_no_word_was_heard_says_so(capsys):
     assert any(line.strip().startswith("concept   1:") and NO_WORDS in line for line in lines)
 
 
+def test_a_concept_outside_0_to_L_is_refused_by_name():
+    result = _silent_speck()  # L = 3
+    assert result.top_words(2) == result.top_words(np.int64(2))
+    for bad in (-1, 3, 1.0, True):  # -1 read the last concept's row
+        for ask in (result.top_words, result.heard, result.distinctive_words):
+            with pytest.raises(ValueError, match=r"concept must be an integer in 0\.\.2"):
+                ask(bad)
+
+
 def test_concepts_json_keeps_the_old_keys_and_adds_the_new(tmp_path):
     result = _silent_speck()
     result.save(tmp_path)

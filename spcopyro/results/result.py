@@ -204,6 +204,7 @@ class SpCoResult:
     def top_items(self, modality: str, concept: int, n: int = 3) -> list[tuple[str, float]]:
         """The ``n`` most probable items of a concept under a modality, with probabilities."""
         table = self.emission(modality)
+        concept = self._concept(concept)
         if not table.items:
             return []
         row = table.probabilities[concept]
@@ -214,10 +215,19 @@ class SpCoResult:
         """The ``n`` most probable words of a concept under w_concept, with their probabilities."""
         return self.top_items(WORDS, concept, n)
 
+    def _concept(self, concept: int) -> int:
+        """``concept`` as an index 0..L-1, or ValueError (-1 read the last concept's row)."""
+        count = self.config.num_concepts
+        integer = isinstance(concept, int | np.integer) and not isinstance(concept, bool)
+        if not integer or not 0 <= concept < count:
+            raise ValueError(f"concept must be an integer in 0..{count - 1}, got {concept!r}")
+        return int(concept)
+
     def heard(self, concept: int, modality: str = WORDS) -> float | None:
         """The total count of ``modality`` observed in the concept's region (words: how many
         were heard there, tf-idf weighted if so prepared, in utterances: the model's counts
         divided by ``word_scaling``); None when the result does not know."""
+        concept = self._concept(concept)
         if self.concept_totals is None:
             return None
         names = [t.name for t in self.emissions]
@@ -233,6 +243,7 @@ class SpCoResult:
     def distinctive_words(self, concept: int, n: int = 3) -> list[tuple[str, float, float]]:
         """The ``n`` words of largest lift above 1 for a concept, as ``(word, lift, p)``
         (:mod:`spcopyro.results.concept_words`); empty when no word was heard in its region."""
+        concept = self._concept(concept)
         if self.heard(concept) == 0:
             return []
         table = self.emission(WORDS)
