@@ -94,6 +94,8 @@ def test_a_chain_advanced_in_parts_is_the_run_in_one_go(backend):
     for bad in (0, 2.5, "3", True):  # 2.5 named the driver's iterations, "3" a TypeError
         with pytest.raises(ValueError, match="num_sweeps must be >= 1"):
             advance(chain, bad)
+    with pytest.raises(ValueError, match="a generator or a seed, not both"):  # seed was dropped
+        start_chain(data, cfg, options=options, seed=4, generator=torch.Generator())
 
 
 def test_a_run_becomes_a_result_through_the_gibbs_method():

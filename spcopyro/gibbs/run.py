@@ -239,6 +239,8 @@ def start_chain(
     ``generator`` / ``seed``: randomness; give one (``seed`` makes a fresh generator). A seeded
     chain reproduces bit for bit (on one backend: the backends' random streams differ).
     """
+    if generator is not None and seed is not None:  # the seed was dropped silently
+        raise ValueError(f"give a generator or a seed, not both (seed {seed!r})")
     if generator is None:
         generator = torch.Generator().manual_seed(0 if seed is None else int(seed))
     backend = get_backend(options.backend)
