@@ -170,6 +170,11 @@ def test_kernel_runs_under_pyro_mcmc_with_integer_labels(num_chains, parallel, m
     assert set(diagnostics["num_concepts"]) >= {"n_eff", "r_hat"}
     if num_chains == 2:  # chains are seeded differently
         assert not torch.equal(samples["labels"][0], samples["labels"][1])
+    else:  # split R-hat's minimum, said (Pyro's check is a bare AssertionError)
+        short = MCMC(kernel, num_samples=3, warmup_steps=1, disable_progbar=True)
+        short.run(data, cfg)
+        with pytest.raises(ValueError, match="at least 4 samples a chain.*got 3"):
+            mcmc_diagnostics(short)
 
 
 def test_kernel_rejects_a_model_without_its_sites():

@@ -211,6 +211,15 @@ class SpCoGibbs(MCMCKernel):
 
 
 def mcmc_diagnostics(mcmc: MCMC) -> dict[str, dict[str, torch.Tensor]]:
-    """Pyro's per-site diagnostics (``n_eff``, ``r_hat``) of the floating-point sites only."""
+    """Pyro's per-site diagnostics (``n_eff``, ``r_hat``) of the floating-point sites only.
+
+    Split R-hat needs at least 4 samples a chain; fewer raise ValueError saying so (Pyro's own
+    check is a bare AssertionError)."""
     samples = mcmc.get_samples(group_by_chain=True)
+    kept = min((v.shape[1] for v in samples.values()), default=0)  # [chains, samples, ...]
+    if kept < 4:
+        raise ValueError(
+            f"diagnostics need at least 4 samples a chain (split R-hat), got {kept}: "
+            "run MCMC with more num_samples"
+        )
     return pyro_diagnostics({k: v for k, v in samples.items() if torch.is_floating_point(v)})
