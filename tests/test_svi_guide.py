@@ -223,6 +223,11 @@ def test_bad_input_is_a_clear_error(small):
                            options=VariationalOptions())  # fmt: skip
     with pytest.raises(ValueError, match=r"q must be \[340, 5\]"):
         MeanFieldGuide(data, config, q=torch.ones(3, 5, dtype=DTYPE) / 5)
+    for value, row in ((-0.2, 7), (0.3, 7), (float("nan"), 7)):  # negative rows gave NaN logits
+        q = torch.ones(340, 5, dtype=DTYPE) / 5
+        q[row, 0] = value
+        with pytest.raises(ValueError, match="a distribution over the 5 concepts.*row 7"):
+            MeanFieldGuide(data, config, q=q)
     guide = soft_guide(data, config)
     with pytest.raises(ValueError, match="L=6"):
         guide(data, config.replace(num_concepts=6))

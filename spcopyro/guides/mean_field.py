@@ -118,6 +118,17 @@ class MeanFieldGuide(PyroModule):
             q = initial_q(data, config, generator or torch.default_generator)
         if tuple(q.shape) != (N, L):
             raise ValueError(f"q must be [{N}, {L}], got {tuple(q.shape)}")
+        # A negative or unnormalised row gave NaN logits.
+        rows = q.to(DTYPE)  # [N, L]
+        wrong = (
+            ~torch.isfinite(rows).all(-1) | (rows < 0).any(-1) | ((rows.sum(-1) - 1).abs() > 1e-4)
+        )
+        if wrong.any():
+            bad = int(torch.nonzero(wrong)[0])
+            raise ValueError(
+                f"q must hold a distribution over the {L} concepts in every row (finite, >= 0, "
+                f"summing to 1); row {bad} does not: {q[bad].tolist()[:6]}"
+            )
         if not 0 < label_smoothing < 1:
             raise ValueError(f"label_smoothing must lie in (0, 1), got {label_smoothing}")
         if bound not in ("prior", "zero"):
