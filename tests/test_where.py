@@ -83,6 +83,9 @@ def test_an_unknown_word_lists_the_closest_known_words():
         result.where("kitchn")
     with pytest.raises(UnknownWordError, match="known words: bed, kitchen, sofa$"):
         result.where("garage")
+    # Case and surrounding spaces (a pasted word) do not matter; spaces alone made it unknown.
+    answer = result.where(" Kitchen\n")
+    assert answer.word == "kitchen" and answer.concept == result.where("kitchen").concept
 
 
 def test_where_prints_the_answer_its_warnings_and_draws_them(tmp_path, capsys):

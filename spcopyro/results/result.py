@@ -313,7 +313,7 @@ class SpCoResult:
         concept = int(order[0])
         runner_up = int(order[1]) if (sizes > 0).sum() > 1 else None
         return WhereAnswer(
-            word=word.lower(),
+            word=word.strip().lower(),
             concept=concept,
             probability=float(posterior[concept]),
             region=self.label_image() == concept,
@@ -322,7 +322,7 @@ class SpCoResult:
             runner_up_probability=0.0 if runner_up is None else float(posterior[runner_up]),
             evidence=bayes_factor(float(posterior[concept]), float(weights[concept])),
             warnings=answer_warnings(
-                posterior, weights, sizes, word=word.lower(), prior_name=prior,
+                posterior, weights, sizes, word=word.strip().lower(), prior_name=prior,
                 cell_area=self.grid.resolution**2,
             ),
         )  # fmt: skip

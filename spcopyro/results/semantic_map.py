@@ -66,12 +66,12 @@ class UnknownWordError(KeyError):
 
 
 def word_index(vocabulary: tuple[str, ...], word: str) -> int:
-    """The column of ``word`` (lower-cased) in ``vocabulary``; :class:`UnknownWordError` with
-    the closest known words when it is not there."""
+    """The column of ``word`` (lower-cased, surrounding spaces dropped) in ``vocabulary``;
+    :class:`UnknownWordError` with the closest known words when it is not there."""
     try:
-        return vocabulary.index(word.lower())
+        return vocabulary.index(word.strip().lower())
     except ValueError:
-        close = difflib.get_close_matches(word.lower(), vocabulary, n=3)
+        close = difflib.get_close_matches(word.strip().lower(), vocabulary, n=3)
         hint = f"; did you mean {', '.join(close)}?" if close else ""
         if not close and vocabulary:  # nothing close: say which words there are
             known = sorted(vocabulary)
