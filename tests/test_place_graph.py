@@ -15,12 +15,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from test_cli_startup import heavy_imports
-from test_navigate import START_A, house_result
+from test_navigate import CONCEPT, START_A, house_result
 
 from spcopyro.cli.main import main
 from spcopyro.robot.navigation import navigate
 from spcopyro.robot.navigation.places import place_graph, places_along
 
+CONCEPT_D = CONCEPT["D"]
 ROOM_CELLS = {"D": 312, "B": 172, "C": 167, "A": 162, "E": 162}  # largest first = place ids
 
 
@@ -55,6 +56,18 @@ def test_nodes_have_the_hand_counted_areas_words_and_centroids(result):
     assert rooms["A"].centroid == pytest.approx((0.55, 1.9))
     assert graph.dropped == 0 and graph.dropped_area == 0
     assert (graph.regions >= 0).sum() == sum(ROOM_CELLS.values())
+
+
+def test_a_place_where_no_word_was_heard_is_named_by_its_concept(result):
+    """Its top words are the prior's (ties, a fit printed 'restroom' for one-cell specks), so it
+    has none and is called ``concept N``, as the fit's listing says "no words heard"."""
+    names = [t.name for t in result.emissions]
+    totals = np.ones((result.config.num_concepts, 1 + len(names)))
+    totals[CONCEPT_D, 1 + names.index("words")] = 0.0  # closet D: no word heard
+    graph = place_graph(replace(result, concept_totals=totals))
+    rooms = _by_room(graph)
+    assert rooms["D"].words == () and rooms["D"].name == f"concept {CONCEPT_D}"
+    assert rooms["C"].name == "kitchen"  # words heard: named as before
 
 
 def test_edges_are_the_doorways_with_their_border_lengths(result):
@@ -160,6 +173,15 @@ def test_show_graph_writes_png_and_json_and_imports_no_torch(result, tmp_path):
     heavy_imports(["show", str(fit), "--graph", "--min-area", "100", "--out", str(other)])
     assert json.loads((png.parent / "graph.json").read_text()) == graph
     assert json.loads((png.parent / "other.json").read_text())["places"] == []
+
+
+def test_show_graph_refuses_a_negative_min_area(result, tmp_path, capsys):
+    fit = result.save(tmp_path / "fit")
+    with pytest.raises(SystemExit) as error:
+        main(["show", str(fit), "--graph", "--min-area", "-1", "--out", str(tmp_path / "g.png")])
+    assert error.value.code == 2
+    assert "--min-area: '-1': the area is square metres >= 0" in capsys.readouterr().err
+    assert not (tmp_path / "g.png").exists()
 
 
 def test_show_graph_needs_a_fit_folder(tmp_path):

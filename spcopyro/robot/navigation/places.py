@@ -2,7 +2,8 @@
 
 Nodes: the connected regions of one concept on the fit's grid (4-connected components of
 :meth:`~spcopyro.results.result.SpCoResult.label_image`), each with its area, centroid and the
-concept's top words; regions smaller than ``min_area`` square metres are dropped (and counted).
+concept's top words (none where no word was heard); regions smaller than ``min_area`` square
+metres are dropped (and counted).
 Edges: two regions whose cells touch (4-neighbours), with the length of the shared border
 (number of touching cell pairs x the cell size) and whether it is a doorway (a border of at most
 :data:`DOORWAY_WIDTH` metres). :meth:`PlaceGraph.route` is the shortest route over the edges,
@@ -55,7 +56,7 @@ class Place:
 
     @property
     def name(self) -> str:
-        """Its top word, or ``concept N`` for a concept without words."""
+        """Its top word, or ``concept N`` for a concept where no word was heard."""
         return self.words[0] if self.words else f"concept {self.concept}"
 
 
@@ -183,8 +184,10 @@ def place_graph(result: object, min_area: float = DEFAULT_MIN_AREA) -> PlaceGrap
     places = []
     for node, region in enumerate(order):
         concept = int(concept_of[region])
-        if concept not in words:
-            words[concept] = tuple(w for w, _ in result.top_words(concept, 3))  # type: ignore[attr-defined]
+        if concept not in words:  # none where no word was heard: its top words are the prior's
+            heard = getattr(result, "heard", lambda _: None)(concept)
+            top = result.top_words(concept, 3) if heard != 0 else []  # type: ignore[attr-defined]
+            words[concept] = tuple(w for w, _ in top)
         places.append(Place(node, concept, int(cells[node]), float(cells[node] * cell_area),
                             (float(centroid[node, 0]), float(centroid[node, 1])),
                             words[concept]))  # fmt: skip
