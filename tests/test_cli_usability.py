@@ -171,7 +171,10 @@ def test_a_refined_fit_reports_each_stages_pace(small_house, tmp_path, capsys, m
     argv = ["fit", str(small_house), "--out", str(tmp_path / "fit"), "--sweeps", "4",
             "--chains", "2", "--refine", "always"]  # fmt: skip
     assert main(argv) == 0
-    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("fitted "))
+    printed = capsys.readouterr().out.splitlines()
+    # the kept chain of the refinement, not of the coarse stage ('--sweeps auto' names that one)
+    assert any(x.startswith("best of 2 refined chains: kept refined chain ") for x in printed)
+    line = next(x for x in printed if x.startswith("fitted "))
     pattern = (r"fitted 2 chains x 4 sweeps on 0\.\d+ m cells \(\d+\.\d\d ms per sweep\), then "
                r"2 chains x 4 on the map's 0\.1 m cells \(\d+\.\d\d ms per sweep\) in 42\.5 s "
                r"wall clock; \d+ concepts in use")  # fmt: skip
@@ -261,3 +264,25 @@ def test_several_variational_fits_report_their_objective(small_house, tmp_path, 
     printed = capsys.readouterr().out
     assert "best of 2 fits: kept fit " in printed and " best ELBOs " in printed
     assert "log joint" not in printed.split("best of 2 fits")[1].splitlines()[0]
+
+
+def test_a_dataset_root_given_as_the_house_names_its_houses(small_house, tmp_path, capsys):
+    """``fit DATASET`` for ``fit DATASET/HOUSE`` said only that map/DATASET.yaml was missing."""
+    root = small_house.parent
+    assert main(["fit", str(root), "--out", str(tmp_path / "out"), "--sweeps", "2"]) == 2
+    err = capsys.readouterr().err
+    assert f"map of house {root.name!r} not found" in err
+    assert f"{root} holds house folders ({small_house.name}): give one of them" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_simulate_names_its_flags_when_the_rooms_do_not_fit(tmp_path, capsys):
+    """--density sparse keeps its 6 rooms at any --size; the error named HouseSpec's fields."""
+    assert main(["simulate", "--out", str(tmp_path), "--size", "60", "80", "--density",
+                 "sparse"]) == 2  # fmt: skip
+    err = capsys.readouterr().err
+    assert "HouseSpec.num_rooms 6" in err and err.rstrip().endswith(
+        "lower --rooms or enlarge --size"
+    )
+    assert "min_room_size" not in err.split("fit at most")[1]
+    assert not any(tmp_path.iterdir())

@@ -378,6 +378,17 @@ def test_auto_backend_is_resolved_and_the_embedded_house_named(tmp_path, capsys)
     assert settings["source"]["data"] == "embedded synthetic house, seed 0"
 
 
+def test_a_refined_fit_of_the_embedded_house_still_names_it(tmp_path):
+    """The refinement's refit recorded "in-memory house 'synthetic' (not read from a folder)"
+    as config.json's source for ``spcopyro fit`` with no DATA (the default preset refines)."""
+    out = tmp_path / "out"
+    assert main(["fit", "--out", str(out), "--sweeps", "2", "--refine", "always",
+                 "--no-figures"]) == 0  # fmt: skip
+    settings = json.loads((out / "config.json").read_text())
+    assert settings["inference"]["refine"]["refine"] is True
+    assert settings["source"]["data"] == "embedded synthetic house, seed 0"
+
+
 def test_sweeps_auto_records_the_backend_used(room, tmp_path):
     out = tmp_path / "out"
     argv = ["fit", str(room), "--out", str(out), "--sweeps", "auto", "--chains", "2",

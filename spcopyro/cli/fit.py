@@ -474,7 +474,7 @@ def _fit(
             job.refined, refits = refine(
                 args, chain_results or [result], kept, model=house, on_map=job.map_house,
                 settings=settings, options=options, keeper=job.keeper, chains=chains,
-                sweeps=refine_sweeps, point_estimate=estimate,
+                sweeps=refine_sweeps, point_estimate=estimate, source=source,
             )  # fmt: skip
         if job.refined:
             job.house = job.map_house
@@ -511,7 +511,7 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
         report = {"seeds": [args.seed + k for k in range(chains)], "best_chain": kept,
                   "best_log_joint": best_values, "objective": objective}  # fmt: skip
         (out / "chains.json").write_text(json.dumps(report, indent=1) + "\n")
-        run = "chain" if args.method == "gibbs" else "fit"
+        run = ("refined " if job.refined else "") + ("chain" if args.method == "gibbs" else "fit")
         print(f"best of {chains} {run}s: kept {run} {kept} (seed {args.seed + kept}), best "
               f"{objective}s {', '.join(f'{v:.1f}' for v in best_values)}")  # fmt: skip
     sweeps_run = len(result.trace.objective)

@@ -43,6 +43,7 @@ def refine(
     chains: int | None = None,
     sweeps: int | None = None,
     point_estimate: str | None = None,
+    source: str | None = None,
 ) -> tuple[bool, list[SpCoResult]]:
     """``--refine``: the decision for ``results[kept]`` (the kept chain of the fit of ``model``,
     the house on its model grid) printed; whether it refined, and the chains to report: the
@@ -51,7 +52,8 @@ def refine(
     finished first stage's checkpoint (``keeper``): resuming it runs the refinement again.
     ``chains``, ``sweeps`` and ``point_estimate`` of the refinement: by default ``results``'
     count, ``--sweeps`` and ``--point-estimate`` (after ``--sweeps auto``: the chains run, the
-    sweeps they needed to converge, and the preset's point estimate)."""
+    sweeps they needed to converge, and the preset's point estimate). ``source``: the data's
+    origin for ``config.json`` (:func:`spcopyro.fit.house.provenance`)."""
     from spcopyro.fit.gibbs_chains import FitInterrupted
     from spcopyro.fit.house import fit_house_chains
     from spcopyro.fit.refine import refine_chains
@@ -65,6 +67,7 @@ def refine(
             seeds=[args.seed + k for k in range(chains)], threads=args.threads,
             marginal_samples=args.marginal_samples,
             point_estimate=point_estimate or args.point_estimate, chain_workers=args.chain_workers,
+            source=source,
         )  # fmt: skip
     except KeyboardInterrupt:
         saved = keeper.save() if keeper is not None else None

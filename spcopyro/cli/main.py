@@ -36,9 +36,6 @@ logger = logging.getLogger("spcopyro")
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    from spcopyro.synthetic import HouseSpec, write_synthetic
-    from spcopyro.synthetic.spec import EMBEDDED_DOORWAY_WIDTH
-
     if args.map is not None:
         if args.density != "dense" or args.rooms is not None:
             raise ValueError("--density and --rooms draw a synthetic house; --map tours a map")
@@ -46,6 +43,18 @@ def _simulate(args: argparse.Namespace) -> int:
     if args.categories is not None:
         raise ValueError("--categories needs --map (the synthetic house draws its own rooms)")
     args.name = args.name or "synthetic"
+    try:
+        return _simulate_house(args)
+    except ValueError as error:  # the library names its fields, the command its flags
+        message = str(error).replace("lower num_rooms or min_room_size, or enlarge the map",
+                                     "lower --rooms or enlarge --size")  # fmt: skip
+        raise ValueError(message) from None
+
+
+def _simulate_house(args: argparse.Namespace) -> int:
+    from spcopyro.synthetic import HouseSpec, write_synthetic
+    from spcopyro.synthetic.spec import EMBEDDED_DOORWAY_WIDTH
+
     if args.density in ("sparse", "open-plan"):  # HouseSpec.public_like / HouseSpec.open_plan
         changes: dict[str, object] = dict(sentence_fraction=args.sentences)
         if args.size:
@@ -88,6 +97,17 @@ def _door_width(text: str) -> float | str:
         raise argparse.ArgumentTypeError(f"{text!r} is neither auto nor metres") from None
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"{text!r}: a door width must be > 0 metres")
+    return value
+
+
+def _min_area(text: str) -> float:
+    """``show --min-area``: square metres >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not (math.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: the area is square metres >= 0")
     return value
 
 
@@ -232,6 +252,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "--map file's name)")  # fmt: skip
     p.add_argument("--size", type=int, nargs=2, metavar=("H", "W"),
                    help="map size in cells; the number of rooms grows with the area "
+                        "(dense; sparse and open-plan keep theirs: --rooms) "
                         "(default: 60 x 80 cells, 5 rooms)")  # fmt: skip
     p.add_argument("--density", choices=("dense", "sparse", "open-plan"), default="dense",
                    help="dense: the embedded default house (HouseSpec.embedded: 4.9%% of the free "
@@ -270,7 +291,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--graph", action="store_true", help="DATA is a fit's output folder: draw "
                    "its place graph (regions as nodes, shared borders and doorways as edges) "
                    "and write it as JSON beside the PNG (X.json for --out X.png)")  # fmt: skip
-    p.add_argument("--min-area", type=float, default=0.25, metavar="M2",
+    p.add_argument("--min-area", type=_min_area, default=0.25, metavar="M2",
                    help="with --graph: smaller regions are not places")  # fmt: skip
     p.set_defaults(func=_show)
 

@@ -206,7 +206,18 @@ def load_house(
     name = room.resolve().name
     yaml_path = Path(map_yaml) if map_yaml is not None else room.parent / "map" / f"{name}.yaml"
     if not yaml_path.is_file():
-        raise FileNotFoundError(f"{yaml_path}: map of house {name!r} not found")
+        houses = sorted(
+            p.name
+            for p in room.iterdir()
+            if p.is_dir() and any((p / f).is_file() for f in ("Ft.csv", "St.csv"))
+        )  # a dataset's root given for one of its houses
+        hint = (
+            f"; {room} holds house folders ({', '.join(houses)}): give one of them, e.g. "
+            f"{room / houses[0]}"
+            if houses and map_yaml is None
+            else ""
+        )
+        raise FileNotFoundError(f"{yaml_path}: map of house {name!r} not found{hint}")
     grid = load_map(yaml_path)
 
     files = {key: room / f"{key}.csv" for key in ("Ft", "Xtx", "Xty", "St", "StXtx", "StXty")}
