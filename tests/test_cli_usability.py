@@ -17,6 +17,7 @@ from gibbs_problems import random_problem
 import spcopyro.gibbs.convergence
 import spcopyro.inference.driver
 from spcopyro import __version__
+from spcopyro._util.arguments import figure_path
 from spcopyro.cli.main import build_parser, main
 from spcopyro.gibbs.convergence import run_until_converged
 from spcopyro.gibbs.options import GibbsOptions
@@ -286,3 +287,21 @@ def test_simulate_names_its_flags_when_the_rooms_do_not_fit(tmp_path, capsys):
     )
     assert "min_room_size" not in err.split("fit at most")[1]
     assert not any(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["where", "FIT", "kitchen", "--out", "k.txt"],
+        ["show", "--out", "h.TXT"],
+        ["show", "FIT", "--graph", "--out", "g.docx"],
+    ],  # fmt: skip
+)
+def test_a_figure_format_matplotlib_cannot_write_is_refused_first(argv, capsys):
+    """The answer was printed, then matplotlib's "Format 'txt' is not supported" (no --out)."""
+    with pytest.raises(SystemExit) as error:
+        main(argv)  # FIT does not exist: the option is refused before anything is read
+    assert error.value.code == 2
+    err = capsys.readouterr().err
+    assert "argument --out" in err and "matplotlib cannot write" in err and "png" in err
+    assert figure_path("map") == "map" and figure_path("dir.v2/k.JPG") == "dir.v2/k.JPG"

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable
 
-__all__ = ["integer_at_least"]
+__all__ = ["figure_path", "integer_at_least"]
 
 
 def integer_at_least(minimum: int) -> Callable[[str], int]:
@@ -23,3 +23,20 @@ def integer_at_least(minimum: int) -> Callable[[str], int]:
         return number
 
     return parse
+
+
+def figure_path(value: str) -> str:
+    """An argparse ``type`` for a figure's ``--out``: a name whose suffix matplotlib can write
+    (none: ``.png``), else a usage error listing the formats, before anything is computed or
+    printed (matplotlib's own error came after the answer and did not name the option)."""
+    suffix = value.rsplit(".", 1)[-1].lower() if "." in value.rsplit("/", 1)[-1] else ""
+    if suffix:
+        from matplotlib.backend_bases import FigureCanvasBase  # only when a suffix is given
+
+        formats = sorted(FigureCanvasBase.get_supported_filetypes())
+        if suffix not in formats:
+            raise argparse.ArgumentTypeError(
+                f"{value!r}: matplotlib cannot write .{suffix} figures; use one of "
+                f"{', '.join(formats)}"
+            )
+    return value

@@ -29,6 +29,7 @@ from typing import NoReturn
 import numpy as np
 
 from spcopyro import __version__
+from spcopyro._util.arguments import figure_path
 from spcopyro.cli.common import _HelpFormatter, _load, _seed, _summary
 from spcopyro.cli.fit_parser import add_parser as add_fit_parser
 
@@ -287,7 +288,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("show", help="draw a house and its observations; print a summary")
     p.add_argument("data", nargs="?", help="house folder (default: the synthetic house)")
-    p.add_argument("--out", required=True, help="PNG file to write")
+    p.add_argument("--out", required=True, type=figure_path, help="PNG file to write")
     p.add_argument("--graph", action="store_true", help="DATA is a fit's output folder: draw "
                    "its place graph (regions as nodes, shared borders and doorways as edges) "
                    "and write it as JSON beside the PNG (X.json for --out X.png)")  # fmt: skip
@@ -300,7 +301,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("where", help='answer "where is WORD?" from a fitted result')
     p.add_argument("result", help="output folder of `spcopyro fit`")
     p.add_argument("word", help="the word to look up")
-    p.add_argument("--out", help="also draw the answer over the semantic map into this PNG, "
+    p.add_argument("--out", type=figure_path,
+                   help="also draw the answer over the semantic map into this PNG, "
                    "and the per-cell probability of the word's place into "
                    "<name>_probability with the same suffix (default: no PNG)")  # fmt: skip
     p.add_argument(
