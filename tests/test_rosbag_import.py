@@ -339,6 +339,11 @@ def test_not_a_bag(tmp_path, map_yaml):
         import_bags([tmp_path / "maps"], map_yaml, tmp_path / "d" / "h")
     with pytest.raises(FileNotFoundError, match="bag not found"):
         import_bags([tmp_path / "nothing.bag"], map_yaml, tmp_path / "d" / "h")
+    taken = tmp_path / "taken"  # an OUT in use: the missing bag is still what is said
+    (taken / "h").mkdir(parents=True)
+    (taken / "h" / "x.csv").write_text("1\n")
+    with pytest.raises(FileNotFoundError, match=r"nothing\.bag: bag not found"):
+        import_bags([tmp_path / "nothing.bag"], map_yaml, taken / "h")
 
 
 def test_existing_output_and_overwrite(tmp_path, map_yaml):

@@ -411,6 +411,9 @@ def import_bags(
         raise ValueError("import_bags: no bag given")
     if int(first_trial) != first_trial or first_trial < 0:
         raise ValueError(f"first_trial must be an integer >= 0, got {first_trial!r}")
+    for bag in bags:  # before OUT: a mistyped bag was reported as "OUT already exists"
+        if not Path(bag).exists():
+            raise FileNotFoundError(f"{bag}: bag not found")
     out = Path(os.path.abspath(out))
     _check_out(out, overwrite)
     grid = load_map(map_yaml)
