@@ -64,6 +64,8 @@ def test_an_mcmc_run_loads_with_the_models_sites_and_the_observations(mcmc, prob
         assert idata.observed_data[m.name].dims == ("observation", f"{m.name}_item")
     with_labels = to_inference_data(mcmc, include_labels=True)
     np.testing.assert_array_equal(with_labels.posterior["labels"].values, samples["labels"])
+    with pytest.raises(ValueError, match="warmup applies to per-sweep traces only"):
+        to_inference_data(mcmc, warmup=2)  # was ignored silently
 
 
 def test_arviz_diagnostics_agree_with_the_projects(mcmc):

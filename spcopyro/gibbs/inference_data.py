@@ -176,7 +176,8 @@ def to_inference_data(
             Gibbs (or vi-gibbs) :class:`~spcopyro.results.result.SpCoResult`, or a sequence
             of them (several chains of the same number of sweeps, e.g. from
             :func:`~spcopyro.fit.house.fit_house_chains`).
-        warmup: per-sweep traces only: how many first sweeps are warm-up (default: half).
+        warmup: per-sweep traces only: how many first sweeps are warm-up (default: half);
+            ValueError for an MCMC run, whose warm-up is MCMC's ``warmup_steps``.
         include_labels: put the saved ``labels`` ``[C, D, N]`` in the posterior too (large,
             and their R-hat is meaningless under label switching).
         coords: ArviZ coordinates to add, e.g. ``{"words_item": vocabulary}``.
@@ -184,6 +185,11 @@ def to_inference_data(
     az = _arviz()
     mcmc = source if isinstance(source, MCMC) else None
     if mcmc is not None:
+        if warmup is not None:  # it was ignored silently
+            raise ValueError(
+                "warmup applies to per-sweep traces only: an MCMC run keeps no warm-up "
+                "samples (set MCMC's warmup_steps instead)"
+            )
         groups = _from_mcmc(mcmc, include_labels)
     else:
         chains = list(source) if isinstance(source, (list, tuple)) else [source]
