@@ -20,6 +20,7 @@ from spcopyro.guides.cavi import update_globals, update_labels
 from spcopyro.guides.cavi_method import CAVIInference
 from spcopyro.guides.elbo import elbo
 from spcopyro.guides.factors import GlobalFactors, update_factors
+from spcopyro.guides.lbp_method import LBPOptions, run_lbp
 from spcopyro.guides.options import VariationalOptions
 from spcopyro.guides.run import initial_q, run_variational
 from spcopyro.likelihood import concept_statistics
@@ -296,6 +297,20 @@ def test_thin_keeps_argmax_labels():
     assert none.label_samples is None and none.sample_iterations is None
     with pytest.raises(ValueError, match="thin"):
         run_variational(data, cfg, 2, q=initial_q(data, cfg, generator), thin=-1)
+
+
+def test_the_torch_backend_says_it_ignores_the_numba_only_options(caplog):
+    data, cfg, _ = problem("dp")
+    q = initial_q(data, cfg, torch.Generator().manual_seed(0))
+    run_variational(data, cfg, 1, options=VariationalOptions(backend="torch"), q=q)
+    assert "ignores" not in caplog.text  # defaults: nothing to say
+    options = VariationalOptions(backend="torch", support=5, threshold=0.0)
+    run_variational(data, cfg, 1, options=options, q=q)
+    assert "CAVI runs on the torch backend, which ignores support=5, threshold=0.0" in caplog.text
+    caplog.clear()
+    lbp = LBPOptions(backend="torch", active_tolerance=0.0)
+    run_lbp(data, cfg, 1, q=q, options=lbp, progress=False)
+    assert "loopy BP runs on the torch backend, which ignores active_tolerance=0.0" in caplog.text
 
 
 def test_bad_options_and_inputs_are_refused():

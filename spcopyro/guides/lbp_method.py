@@ -18,7 +18,7 @@ from spcopyro.guides.cavi import num_used, update_globals
 from spcopyro.guides.cavi_method import output_from_variational
 from spcopyro.guides.factors import GlobalFactors, PiFamily
 from spcopyro.guides.lbp import LoopyBP, bethe_objective, node_log_potentials
-from spcopyro.guides.options import VariationalOptions
+from spcopyro.guides.options import VariationalOptions, warn_numba_only_options
 from spcopyro.guides.run import VariationalRun, initial_q, remaining, resumed
 from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
@@ -139,6 +139,7 @@ def init(q: torch.Tensor, data: ModelData, config: SpCoConfig, options: LBPOptio
         import spcopyro.guides.numba_lbp as compiled
 
         return compiled.init(q, data, config, options)
+    warn_numba_only_options(options, "loopy BP")
     bp = LoopyBP(data, config, options.damping, options.passes)
     return LBPState(bp, q, update_globals(q, data, config, options.pi_family))
 

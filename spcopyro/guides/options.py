@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 from typing import Literal
@@ -87,3 +88,23 @@ class VariationalOptions:
             and self.active_tolerance >= 0
         ):
             raise bad("active_tolerance", "must be a finite number >= 0")
+
+
+NUMBA_ONLY = ("support", "threshold", "active_tolerance")
+"""The options only the compiled sparse backends read (CAVI's and loopy BP's)."""
+
+
+def warn_numba_only_options(options: object, method: str) -> None:
+    """Warn (logger ``"spcopyro"``) that the torch backend ignores the :data:`NUMBA_ONLY`
+    options of ``options`` (a :class:`VariationalOptions` or ``LBPOptions``) set away from their
+    defaults: on a machine without numba, or LBP's ``"auto"`` at a large gamma D, they had no
+    effect and nothing said so."""
+    defaults = type(options)()
+    changed = [f"{name}={getattr(options, name)!r}" for name in NUMBA_ONLY
+               if getattr(options, name) != getattr(defaults, name)]  # fmt: skip
+    if changed:
+        logging.getLogger("spcopyro").warning(
+            "%s runs on the torch backend, which ignores %s (the numba backend's options)",
+            method,
+            ", ".join(changed),
+        )

@@ -19,7 +19,7 @@ import spcopyro.guides.cavi as cavi
 from spcopyro.config import SpCoConfig
 from spcopyro.guides.cavi import one_hot
 from spcopyro.guides.factors import GlobalFactors
-from spcopyro.guides.options import VariationalOptions
+from spcopyro.guides.options import VariationalOptions, warn_numba_only_options
 from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.initialisation import check_labels, random_labels
 from spcopyro.inference.protocol import RunArgs
@@ -158,6 +158,7 @@ def run_variational(
             return state.field.dense()
     else:
         backend = cavi  # type: ignore[assignment]
+        warn_numba_only_options(options, description)
 
         def labels(state: cavi.CAVIState) -> torch.Tensor:  # type: ignore[misc]
             return state.q.argmax(-1)
