@@ -130,6 +130,19 @@ def test_bad_maps_and_options_are_clear_errors(tmp_path, capsys):
         simulate_on_map(tiny)
 
 
+def test_a_map_saved_as_map_yaml_asks_for_a_name(tmp_path, capsys):
+    """Nav2's map_saver writes map.yaml by default; its name would be the house folder ``map``,
+    which holds the maps: before, a bare ``House.name='map'`` error that did not say what to do."""
+    _, grid = three_rooms(tmp_path)
+    yaml_path = save_map(grid, tmp_path / "nav2" / "map.yaml")
+    out = tmp_path / "out"
+    assert main(["simulate", "--map", str(yaml_path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert str(yaml_path) in err and "--name NAME" in err and not out.exists()
+    assert main(["simulate", "--map", str(yaml_path), "--out", str(out), "--name", "home"]) == 0
+    assert load_house(out / "home").grid == grid
+
+
 def test_the_door_width_is_read_from_the_map(tmp_path, capsys, caplog):
     """Issue 21: a fixed 1 m found one room on every public house (a one-category truth, on
     which ARI says nothing) and 2 m one room on room1dk6. ``auto`` takes the narrowest width

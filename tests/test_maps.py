@@ -403,6 +403,33 @@ def test_sixteen_bit_image_is_rejected(tmp_path: Path) -> None:
         load_map(path)
 
 
+@pytest.mark.parametrize("header", [b"P5\n3 1\n100\n", b"P5 # by hand\n3 1 # size\n100\n"])
+def test_pgm_maxval_other_than_255_is_an_error_not_misread(tmp_path: Path, header: bytes) -> None:
+    """map_server scales a pgm's pixels by its maxval (100 is white under maxval 100); OpenCV
+    does not, so the white pixel read as 100/255 (unknown) and 80 (free) as occupied."""
+    (tmp_path / "map.pgm").write_bytes(header + bytes([100, 0, 80]))
+    path = write_yaml(tmp_path / "m.yaml")
+    with pytest.raises(MapFormatError) as info:
+        load_map(path)
+    assert all(s in str(info.value) for s in (str(path), "map.pgm", "maxval 100"))
+    write_pgm(tmp_path / "map.pgm", np.array([[254, 0, 205]], dtype=np.uint8))  # maxval 255
+    np.testing.assert_array_equal(load_map(path).occupancy, [[FREE, OCCUPIED, UNKNOWN]])
+
+
+def test_numbers_in_exponent_notation_read_as_map_server_reads_them(tmp_path: Path) -> None:
+    """yaml-cpp (map_server) reads ``5e-1`` as a number; PyYAML's YAML 1.1 rules want a dot and
+    read it as a string, so a map map_server loads was refused ("got '5e-1'")."""
+    write_pgm(tmp_path / "map.pgm", np.array([[254, 0]], dtype=np.uint8))
+    path = tmp_path / "m.yaml"
+    path.write_text(
+        "image: map.pgm\nresolution: 5e-1\norigin: [-1E1, 2e0, 0]\nnegate: 0\n"
+        "occupied_thresh: 0.65e0\nfree_thresh: 1.96e-1\n"
+    )
+    grid = load_map(path)
+    assert grid.resolution == 0.5 and grid.origin == (-10.0, 2.0, 0.0)
+    np.testing.assert_array_equal(grid.occupancy, [[FREE, OCCUPIED]])
+
+
 # ---------------------------------------------------------------------- writing
 def test_save_map_round_trip(tmp_path: Path, rng: np.random.Generator) -> None:
     grid = OccupancyGrid(random_grid(rng, (13, 17)).occupancy, 0.07, (-3.25, 1.5, 0.0))

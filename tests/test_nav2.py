@@ -207,6 +207,27 @@ def test_load_filter_mask_decodes_like_nav2_map_server(tmp_path):
         assert mask.values.tolist() == [cells], (mode, negate)
 
 
+def test_load_filter_mask_averages_alpha_in_trinary_like_map_server_and_load_map(tmp_path):
+    """map_io.cpp pushes ``MaxRGB - alphaQuantum()`` (GraphicsMagick's opacity: 0 = opaque), i.e.
+    the alpha value itself, 255 for an opaque pixel: an opaque white RGBA pixel is free, a
+    transparent one (mean 190.5, occ 0.25) unknown. Before the fix it averaged ``255 - alpha`` in,
+    so every opaque white pixel read as unknown, unlike map_server and ``load_map``."""
+    import cv2
+
+    bgra = np.array([[[254] * 3 + [255], [254] * 3 + [0], [0, 0, 0, 255]]], dtype=np.uint8)
+    cv2.imwrite(str(tmp_path / "a.png"), bgra)
+    grid = OccupancyGrid(np.zeros((1, 3), dtype=np.int8), 0.1, (0.0, 0.0, 0.0))
+    save_filter_mask(np.zeros((1, 3), dtype=int), grid, tmp_path / "a.yaml")
+    text = (tmp_path / "a.yaml").read_text().replace("a.pgm", "a.png")
+    (tmp_path / "a.yaml").write_text(
+        text.replace("mode: scale", "mode: trinary")
+        .replace("occupied_thresh: 1.0", "occupied_thresh: 0.65")
+        .replace("free_thresh: 0.0", "free_thresh: 0.196")
+    )
+    assert load_filter_mask(tmp_path / "a.yaml").values.tolist() == [[0, -1, 100]]
+    assert load_map(tmp_path / "a.yaml").occupancy.tolist() == [[0, -1, 100]]
+
+
 @pytest.mark.parametrize(
     "options",
     [

@@ -9,7 +9,9 @@ depends on the yaml's ``mode`` (nav2_map_server ``map_io.cpp``, ``loadMapFromFil
 (``negate: 0``) or ``occ = shade`` (``negate: 1``),
 
 * ``trinary``: ``occ > occupied_thresh`` -> 100, ``occ < free_thresh`` -> 0, else -1 (unknown;
-  the alpha channel, if any, is averaged in as ``255 - alpha``);
+  the alpha channel, if any, is averaged in as it is, 255 opaque: map_io pushes
+  ``MaxRGB - alphaQuantum()``, GraphicsMagick's opacity, and :func:`~spcopyro.maps.load_map` does
+  the same);
 * ``scale``: a transparent pixel -> -1; ``occ > occupied_thresh`` -> 100, ``occ < free_thresh``
   -> 0, else ``rint((occ - free_thresh) / (occupied_thresh - free_thresh) * 100)``;
 * ``raw``: ``v = round(shade * 255)``; ``v`` if ``0 <= v <= 100``, else -1.
@@ -116,7 +118,7 @@ def load_filter_mask(yaml_path: str | os.PathLike[str]) -> FilterMask:
         colour = img[..., : img.shape[2] - 1 if has_alpha else img.shape[2]].astype(np.float64)
     alpha = img[..., -1] if has_alpha else np.full(img.shape[:2], 255, dtype=np.uint8)  # [H, W]
     if spec.mode == "trinary" and has_alpha:
-        colour = np.concatenate([colour, 255.0 - alpha[..., None].astype(np.float64)], axis=2)
+        colour = np.concatenate([colour, alpha[..., None].astype(np.float64)], axis=2)
     shade = colour.mean(axis=2) / 255.0  # [H, W]
     occ = shade if spec.negate else 1.0 - shade  # [H, W]
     values = np.empty(shade.shape, dtype=np.int8)  # [H, W]

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -57,6 +58,18 @@ class MapFileNotFoundError(MapFormatError, FileNotFoundError):
 
 
 # ---------------------------------------------------------------------- yaml parsing
+class _MapYamlLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, also reading ``5e-2`` and ``1E3`` as floats (YAML 1.2, yaml-cpp and
+    so map_server do; YAML 1.1 wants a dot, so PyYAML reads them as strings)."""
+
+
+_MapYamlLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."),
+)
+
+
 @dataclass(frozen=True)
 class _MapYaml:
     path: Path
@@ -83,8 +96,8 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
     except (OSError, UnicodeDecodeError) as err:
         raise MapFormatError(f"{path}: cannot read map yaml: {err}") from err
     try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
-        doc = yaml.safe_load(text)
+        root = yaml.compose(text, Loader=_MapYamlLoader)
+        doc = yaml.load(text, Loader=_MapYamlLoader)  # a SafeLoader
     except yaml.YAMLError as err:
         raise MapFormatError(f"{path}: invalid yaml: {err}") from err
     if not isinstance(doc, dict) or not isinstance(root, yaml.MappingNode):
@@ -169,6 +182,15 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
     )
 
 
+def _pnm_maxval(head: bytes) -> int | None:
+    """The maxval of a grey or colour netpbm image (P2, P3, P5, P6) from its first bytes, or None
+    (another format, or a header that does not parse)."""
+    if head[:2] not in (b"P2", b"P3", b"P5", b"P6"):
+        return None
+    tokens = re.sub(rb"#[^\n\r]*", b" ", head[2:]).split()  # width, height, maxval
+    return int(tokens[2]) if len(tokens) > 2 and tokens[2].isdigit() else None
+
+
 def _read_image(spec: _MapYaml) -> np.ndarray:
     """The map image as uint8 ``[H, W]`` (grey) or ``[H, W, C]`` (colour, OpenCV channel order)."""
     if not spec.image.is_file():
@@ -185,6 +207,13 @@ def _read_image(spec: _MapYaml) -> np.ndarray:
     if img is None:
         raise MapFormatError(
             f"{spec.path}: key 'image': {str(spec.image)!r} is not a readable image"
+        )
+    maxval = _pnm_maxval(data[:4096].tobytes())
+    if img.dtype == np.uint8 and maxval not in (None, 255):
+        raise MapFormatError(
+            f"{spec.path}: key 'image': {str(spec.image)!r} has maxval {maxval}; only 255 is "
+            "supported (map_server scales the pixels by maxval, OpenCV does not: "
+            "save the image with maxval 255)"
         )
     if img.dtype != np.uint8:
         raise MapFormatError(
@@ -204,9 +233,11 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
     Keys (all required, as in map_server): ``image`` (relative to the yaml's folder, or
     absolute), ``resolution``, ``origin`` ``[x, y, yaw]`` (yaw must be 0), ``negate`` (0/1),
     ``occupied_thresh``, ``free_thresh`` (in [0, 1], free < occupied); optional ``mode`` must be
-    ``trinary`` (the default). Unknown keys are ignored, as map_server does.
+    ``trinary`` (the default). Unknown keys are ignored, as map_server does. Numbers may be
+    written ``5e-2`` (YAML 1.2, as map_server's yaml-cpp reads them).
 
-    Cells: ``v`` = pixel value, averaged over all channels for colour images;
+    Cells (8-bit images only; a pgm's maxval must be 255): ``v`` = pixel value, averaged over
+    all channels for colour images;
     ``p = (255 - v) / 255`` if ``negate == 0`` else ``v / 255``; ``p > occupied_thresh`` ->
     OCCUPIED, ``p < free_thresh`` -> FREE, otherwise UNKNOWN.
 

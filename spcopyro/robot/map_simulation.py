@@ -199,7 +199,13 @@ def write_simulated_map(
     :class:`~spcopyro.maps.MapFormatError` naming the file), simulate on it and write
     ``root/map/NAME.{yaml,pgm}`` and ``root/NAME/`` (:func:`spcopyro.data.save_house`, with
     ``truth.npy`` and ``categories.json``) plus ``rooms.npy`` and ``rooms.json``. ``name``
-    defaults to the map's file name. Returns the room folder and the simulation."""
+    defaults to the map's file name (ValueError for ``map.yaml``, Nav2's default: ``map`` is
+    the maps' folder). Returns the room folder and the simulation."""
+    if not name and Path(map_yaml).stem == "map":  # Nav2's map_saver default: map.yaml
+        raise ValueError(
+            f"{map_yaml}: the map's file name 'map' cannot name the house (ROOT/map/ holds the "
+            "maps): give the house a name (--name NAME)"
+        )
     grid = load_map(map_yaml)
     name = name or Path(map_yaml).stem
     simulated = simulate_on_map(grid, seed=seed, tour=tour, name=name)
