@@ -92,6 +92,46 @@ def test_drive_stops_at_the_tolerance_or_the_ceiling_and_says_why():
     assert run.gammas == pytest.approx([0.2, 0.4, 0.6, 0.8, 1.0, 1.0], rel=1e-15)
 
 
+def test_a_first_note_stays_on_the_bar_until_the_first_iteration(capsys, monkeypatch):
+    """The first compiled sweep compiles numba's code (seconds): the bar says so until it ends."""
+    import spcopyro.inference.driver as driver
+
+    seen: list[str] = []
+
+    def step(state, gamma):
+        seen.append(bar_text())
+        return state + 1, _Info(-1.0, 1, gamma)
+
+    bars = []
+    real = driver.tqdm
+
+    def recording(*args, **kwargs):
+        bars.append(real(*args, **kwargs))
+        return bars[-1]
+
+    def bar_text() -> str:
+        return bars[-1].desc
+
+    monkeypatch.setattr(driver, "tqdm", recording)
+    drive(0, step, 3, gamma=1.0, progress=True, description="Gibbs sweeps",
+          first_note="compiling")  # fmt: skip
+    drive(0, step, 2, gamma=1.0, progress=True, description="CAVI")
+    assert seen == ["Gibbs sweeps (compiling)", "Gibbs sweeps", "Gibbs sweeps", "CAVI", "CAVI"]
+    capsys.readouterr()
+
+
+def test_a_compiled_run_leaves_nothing_to_compile_for_the_next():
+    """numba_compile_pending: the hint is False once the compiled sweep has run (its cache
+    written; True only before a checkout's first compiled run)."""
+    pytest.importorskip("numba")
+    from spcopyro.gibbs.backends import numba_compile_pending
+    from spcopyro.gibbs.run import run_gibbs
+
+    data, cfg = random_problem(seed=2)[1], config()
+    run_gibbs(data, cfg, 2, options=GibbsOptions(backend="numba"), seed=0, progress=False)
+    assert numba_compile_pending() is False
+
+
 def test_drive_thins_and_checks_its_arguments():
     labels = lambda state: torch.full((3,), state)  # noqa: E731
     run = drive(0, _counting_step([0.0] * 9), 9, gamma=1.0, thin=4, labels=labels,

@@ -3,6 +3,7 @@ compiled numba one. Both sample the same distribution (tested) from different ra
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from typing import Protocol
 
@@ -131,3 +132,15 @@ def get_backend(backend: str = "auto") -> SweepBackend:
                 "backend 'numba' needs the numba package: pip install 'spcopyro[fast]'"
             ) from None
         return TorchBackend()
+
+
+def numba_compile_pending() -> bool:
+    """Whether the compiled sweep's code is not in numba's cache yet (the first run after
+    installing compiles it, which takes seconds before the first sweep ends). False when numba
+    is missing or its cache cannot be inspected (an internal of numba's, so never an error)."""
+    try:
+        from spcopyro.gibbs.numba_labels import compact_labels
+
+        return not os.path.exists(compact_labels._cache._cache_file._index_path)
+    except Exception:  # noqa: BLE001 - a hint for the progress bar, nothing depends on it
+        return False

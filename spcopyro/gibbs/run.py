@@ -32,8 +32,9 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
+from spcopyro._util.progress import progress_enabled
 from spcopyro.config import SpCoConfig
-from spcopyro.gibbs.backends import SweepBackend, get_backend
+from spcopyro.gibbs.backends import SweepBackend, get_backend, numba_compile_pending
 from spcopyro.gibbs.hyperparameters import hyperparameter_names, hyperparameter_values
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.sampler import init, step, trace_point
@@ -282,6 +283,10 @@ def _sweep(chain: GibbsChain) -> SweepInfo:
     return SweepInfo(value, concepts, info.gamma)
 
 
+COMPILING = "compiling the numba code: first run only"
+"""The progress bar's note while the first sweep compiles (:func:`numba_compile_pending`)."""
+
+
 def _check_sweeps(num_sweeps: int) -> None:
     """ValueError naming ``num_sweeps`` unless it is an integer >= 1 (2.5 was refused as the
     driver's "iterations", "3" by a TypeError)."""
@@ -325,12 +330,15 @@ def advance(
         info = _sweep(chain)  # chain.state is the new one only after it
         return chain.state, info
 
+    compiling = chain.backend.name == "numba" and numba_compile_pending()
+    note = COMPILING if compiling and progress_enabled(progress) else None
     try:
         run = drive(
             chain.state, one_sweep, num_sweeps, gamma=chain.config.gamma,
             anneal=chain.options.anneal_sweeps, first=first, thin=thin,
             labels=lambda state: state.labels, num_concepts=chain.state.log_pi.shape[-1],
             progress=progress, description="Gibbs sweeps", unit="sweep", callback=callback,
+            first_note=note,
         )  # fmt: skip
     except DriveInterrupted as stop:
         completed = first + len(stop.trajectory.objective)

@@ -110,6 +110,7 @@ def drive(
     callback: Callable[[int, StateT], None] | None = None,
     resume: Trajectory | None = None,
     marginals: Callable[[StateT], torch.Tensor] | None = None,
+    first_note: str | None = None,
 ) -> Trajectory[StateT]:
     """Run ``step`` from ``state`` for at most ``iterations`` iterations (module docstring).
 
@@ -128,6 +129,9 @@ def drive(
             checkpoint's): its iterations come first in the returned record, the new ones are
             numbered on from them (``first``), their seconds added to its last, and the stopping
             rule sees both.
+        first_note: shown beside ``description`` on the progress bar until the first iteration
+            is done (e.g. that it compiles code first, so its time and the bar's first estimate
+            are not the run's pace).
         marginals: ``marginals(state)`` ``[N, L]``, the q(C) a Ctrl-C hands back in
             :class:`DriveInterrupted` (None: none).
     """
@@ -168,8 +172,8 @@ def drive(
         return converged([r[0] for r in last], [r[2] for r in last], gamma, tolerance, window)
 
     start = time.perf_counter()
-    bar = tqdm(total=iterations, desc=description, unit=unit,
-               disable=not progress_enabled(progress))  # fmt: skip
+    bar = tqdm(total=iterations, unit=unit, disable=not progress_enabled(progress),
+               desc=f"{description} ({first_note})" if first_note else description)  # fmt: skip
     with bar:
         try:
             for iteration in range(first, first + iterations):
@@ -184,6 +188,8 @@ def drive(
                 if callback is not None:
                     callback(iteration, state)
                 bar.set_postfix(objective=f"{row[0]:.6g}", concepts=row[1], refresh=False)
+                if first_note and len(rows) == 1:
+                    bar.set_description_str(description, refresh=False)
                 bar.update()
                 if converged_now := settled():
                     break
