@@ -30,7 +30,7 @@ from contextlib import contextmanager
 from tqdm.auto import tqdm
 
 from spcopyro._util.progress import progress_enabled
-from spcopyro.gibbs.run import ChainsStopped, GibbsChain, advance
+from spcopyro.gibbs.run import ChainsStopped, GibbsChain, advance, compile_note
 
 AUTO = "auto"
 
@@ -146,19 +146,27 @@ def advance_chains(
         return
     count = resolve_workers(workers, len(runs))
     total = sum(n for _, n in runs)
+    note = compile_note([chain for chain, _ in runs]) if progress_enabled(progress) else None
+    description = f"Gibbs sweeps ({note})" if note else "Gibbs sweeps"
+
+    def update(bar: tqdm, done: int = 1) -> None:  # the note stays until a sweep is done
+        if note and bar.n == 0:
+            bar.set_description_str("Gibbs sweeps", refresh=False)
+        bar.update(done)
+
     if uses_processes(count, processes):
         from spcopyro.gibbs.chain_processes import advance_in_processes
 
         bars: list[tqdm] = []
 
         def started() -> None:  # the workers are forked: threads may start now
-            bars.append(tqdm(total=total, desc="Gibbs sweeps",
+            bars.append(tqdm(total=total, desc=description,
                              disable=not progress_enabled(progress)))  # fmt: skip
             _chains_started()
 
         def on_sweeps(done: int) -> None:
             for bar in bars:
-                bar.update(done)
+                update(bar, done)
             for _ in range(done if on_sweep is not None else 0):
                 on_sweep()
 
@@ -171,12 +179,12 @@ def advance_chains(
         return
     _chains_started()
     stop = threading.Event()
-    bar = tqdm(total=total, desc="Gibbs sweeps", disable=not progress_enabled(progress))
+    bar = tqdm(total=total, desc=description, disable=not progress_enabled(progress))
     lock = threading.Lock()
 
     def after_sweep(*_: object) -> None:
         with lock:
-            bar.update()
+            update(bar)
             if on_sweep is not None:
                 on_sweep()
         if stop.is_set():

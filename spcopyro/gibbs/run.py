@@ -287,6 +287,13 @@ COMPILING = "compiling the numba code: first run only"
 """The progress bar's note while the first sweep compiles (:func:`numba_compile_pending`)."""
 
 
+def compile_note(chains: list[GibbsChain]) -> str | None:
+    """:data:`COMPILING` when a chain runs the compiled sweep and its code is not in numba's
+    cache yet (:func:`~spcopyro.gibbs.backends.numba_compile_pending`), else None."""
+    compiled = any(chain.backend.name == "numba" for chain in chains)
+    return COMPILING if compiled and numba_compile_pending() else None
+
+
 def _check_sweeps(num_sweeps: int) -> None:
     """ValueError naming ``num_sweeps`` unless it is an integer >= 1 (2.5 was refused as the
     driver's "iterations", "3" by a TypeError)."""
@@ -330,8 +337,7 @@ def advance(
         info = _sweep(chain)  # chain.state is the new one only after it
         return chain.state, info
 
-    compiling = chain.backend.name == "numba" and numba_compile_pending()
-    note = COMPILING if compiling and progress_enabled(progress) else None
+    note = compile_note([chain]) if progress_enabled(progress) else None
     try:
         run = drive(
             chain.state, one_sweep, num_sweeps, gamma=chain.config.gamma,
