@@ -120,6 +120,33 @@ def test_chains_with_different_sweeps_left_each_get_theirs(mode):
     assert [c.sweeps_done for c in chains] == [5, 5, 0]
 
 
+def test_the_chains_bar_says_the_first_sweep_compiles(mode, monkeypatch, capsys):
+    """While numba's code is not cached yet, the bar names that until a sweep is done."""
+    import spcopyro.gibbs.chains as chains_module
+
+    cfg = config(num_concepts=4)
+    _, data = random_problem(seed=12, copies=2)
+    chains = _chains(data, cfg, "torch", [0, 1])
+    descriptions: list[list[str]] = []
+    real = chains_module.tqdm
+
+    class Recording(real):  # type: ignore[misc, valid-type]
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            descriptions.append([self.desc])
+
+        def update(self, n=1):
+            descriptions[-1].append(self.desc)
+            return super().update(n)
+
+    monkeypatch.setattr(chains_module, "tqdm", Recording)
+    monkeypatch.setattr(chains_module, "compile_note", lambda chains: "compiling")
+    advance_chains([(c, 3) for c in chains], workers=2, progress=True, processes=mode)
+    (seen,) = descriptions
+    assert seen[0] == "Gibbs sweeps (compiling)" and set(seen[1:]) == {"Gibbs sweeps"}
+    capsys.readouterr()
+
+
 class _InterruptingBackend:
     """Raises KeyboardInterrupt at the ``at``-th sweep of the chain it belongs to."""
 
