@@ -57,6 +57,20 @@ def test_fit_help_shows_the_defaults_of_seed_and_backend(capsys):
     assert "--sweeps SWEEPS Gibbs iterations" in text and "(default: 5000)" in text
 
 
+def test_fit_help_names_the_default_presets_inference_and_footprint():
+    """`--point-estimate` said 'vi with --preset auto, else map-visited' and `--footprint`
+    'default 0' while the default preset coarse reports vi and spreads over 1 m."""
+    from spcopyro.config import DEFAULT_PRESET, PRESETS, preset_inference
+
+    fit = _subcommands(build_parser())["fit"]
+    helps = {a.dest: " ".join(a.help.split()) for a in fit._actions if a.help}
+    if preset_inference(DEFAULT_PRESET).get("point_estimate") == "vi":
+        assert f"vi with --preset {DEFAULT_PRESET}" in helps["point_estimate"]
+    if PRESETS[DEFAULT_PRESET].get("footprint_radius"):
+        assert "default 0" not in helps["footprint"]
+        assert "--preset's value" in helps["footprint"]
+
+
 def test_version(capsys):
     with pytest.raises(SystemExit) as done:
         main(["--version"])
@@ -242,7 +256,6 @@ def test_bad_model_grid_options_name_themselves(tmp_path, capsys, option, value,
     "argv",
     [
         ["experiment", "--quick", "--sweeps", "0"],
-        ["ablation", "--quick", "--seeds", "0"],
         ["compare-inference", "--quick", "--workers", "0"],
     ],
 )
@@ -254,6 +267,25 @@ def test_a_study_command_refuses_zero_counts_before_running(argv, tmp_path, caps
     assert stop.value.code == 2
     assert f"argument {argv[-2]}: must be an integer >= 1, got '0'" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_an_ablation_with_no_cell_is_refused_and_seeds_0_keeps_the_public_houses(
+    tmp_path, capsys, monkeypatch
+):
+    """`ablation --seeds 0` ran an empty study and exited 0 when no public house was left; with
+    public houses it is the public-houses-only ablation (docs/ablation/ablation_c.md)."""
+    out = tmp_path / "out"
+    assert main(["ablation", "--quick", "--seeds", "0", "--no-public", "--out", str(out)]) == 2
+    assert "the ablation would run no cell" in capsys.readouterr().err
+    assert not out.exists()
+    import spcopyro.study.ablation as ablation
+
+    ran = []
+    monkeypatch.setattr(ablation, "run_ablation", lambda out, settings, **_: ran.append(settings))
+    monkeypatch.setattr("spcopyro.data.find_dataset_root", lambda data=None: tmp_path)
+    main(["ablation", "--quick", "--seeds", "0", "--out", str(out)])  # the stub writes nothing
+    assert ran and ran[0].seeds == 0 and ran[0].public_seeds == 1
+    assert ran[0].dataset_root == tmp_path
 
 
 def test_several_variational_fits_report_their_objective(small_house, tmp_path, capsys):

@@ -42,7 +42,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     ``--method`` lists come from :mod:`spcopyro.inference.names` (a method registered at run time
     is checked against the registry when the fit starts)."""
     p = subparsers.add_parser(
-        "fit", help="fit SpCoMapping (Gibbs sampling) and write the semantic map"
+        "fit", help="fit SpCoMapping (Gibbs sampling, or --method) and write the semantic map"
     )
     p.add_argument("data", nargs="?", help="house folder (default: the synthetic house)")
     p.add_argument("--out", required=True,
@@ -140,7 +140,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    help="the reported map: the highest-log-joint state visited (map-visited) "
                         "or the partition minimising the expected binder or vi loss over the "
                         "--marginal-samples maps; writes agreement.png (default: vi with --preset "
-                        "auto, else map-visited)")  # fmt: skip
+                        "coarse or auto for gibbs or vi-gibbs with a number of --sweeps, else "
+                        "map-visited)")  # fmt: skip
     p.add_argument("--feature-scaling",
                    help="image features as probability, floor100 or a number s (s * f) "
                         f"{_PRESET_DEFAULT}")  # fmt: skip
@@ -186,7 +187,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--footprint", type=float, default=None, metavar="RADIUS",
                    help="observation footprint: spread each observation over the free cells "
                         "within RADIUS metres (geodesic, never through walls), weights summing "
-                        "to one observation (default 0: its own cell, the paper)")  # fmt: skip
+                        "to one observation; 0: its own cell, the paper "
+                        f"{_PRESET_DEFAULT}")  # fmt: skip
     p.add_argument(
         "--footprint-kernel",
         choices=("uniform", "gaussian"),

@@ -72,8 +72,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         formatter_class=_HelpFormatter,
     )
     p.add_argument("study", help="study file (TOML; docs/studies.md), or the name of a shipped "
-                   "one: experiment, ablation, compare_inference, modality, sentences, "
-                   "stability, sensitivity, their _quick versions, ablation_small")  # fmt: skip
+                   "one: experiment, ablation, compare_inference (each also as NAME_quick), "
+                   "modality, sentences, stability, sensitivity, ablation_small")  # fmt: skip
     p.add_argument("--out", required=True, help="results folder: cells/ (the cache), traces/, "
                    "results.csv, report.md; finished cells there are not run again")  # fmt: skip
     p.add_argument("--workers", type=_positive_int, default=None,

@@ -115,6 +115,12 @@ def _ablation(args: argparse.Namespace) -> int:
         if missing:
             raise ValueError(f"unknown --houses {missing}; choose from {list(settings.houses)}")
         settings = ablation_settings(study, root, **changes, synthetic=tuple(args.houses))
+    public = settings.dataset_root is not None and settings.public_seeds > 0
+    if not (settings.seeds > 0 and settings.synthetic) and not public:  # an empty study exited 0
+        raise ValueError(
+            "the ablation would run no cell: --seeds 0 (or no --houses) leaves no synthetic "
+            "house, and there is no public house (--no-public, --public-seeds 0 or no dataset)"
+        )
     summary = run_ablation(args.out, settings, report=print, retry_failed=args.retry_failed,
                            name=study.name)  # fmt: skip
     out = Path(args.out)
@@ -210,12 +216,12 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--studies",
         action="store_true",
-        help="also the modality ablation and the sentence (tf-idf) study (studies.md)",
+        help="also the modality ablation and the sentence (tf-idf) study (OUT/studies.md)",
     )
     p.add_argument(
         "--robustness",
         action="store_true",
-        help="also the stability (seeds, chains, init) and sensitivity studies (robustness.md)",
+        help="also the stability (seeds, chains, init) and sensitivity studies (OUT/robustness.md)",
     )
     p.set_defaults(func=_experiment, argv=None)
 
@@ -303,7 +309,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         nargs="+",
         help="synthetic settings (default: dense sparse dense-large sparse-small open-plan)",
     )
-    p.add_argument("--seeds", type=_integer_at_least(1), help="synthetic seeds 0..n-1 (default 10)")
+    p.add_argument("--seeds", type=_integer_at_least(0),
+                   help="synthetic seeds 0..n-1 (default 10; 0: public houses only)")  # fmt: skip
     p.add_argument(
         "--public-seeds", type=_integer_at_least(0), help="seeds per public house (default 3)"
     )
