@@ -1,7 +1,7 @@
 """Output folders that appear whole or not at all, and files replaced atomically.
 
 ``spcopyro fit --out OUT`` writes every file of a run (result files, figures, scores, chains,
-convergence record) into a *staging* folder beside OUT -- ``OUT.partial-XXXXXXXX``, in OUT's
+convergence record) into a *staging* folder beside OUT -- ``OUT.partial-PID-XXXXXXXX``, in OUT's
 parent, so that moving it into place is a ``rename`` on one file system, which is atomic -- and
 moves it to OUT only when everything is written (:meth:`StagedOutput.commit`). So a crash, a
 Ctrl-C, or a second fit into the same folder never leaves a mixture of two runs' files:
