@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import csv
 import math
+import re
 
 import numpy as np
 import pytest
@@ -360,6 +361,8 @@ def test_the_embedded_house_fitted_by_the_readme_command_can_be_driven_through(
     printed = capsys.readouterr().out
     assert (f"planning on {out / 'robot_map.yaml'}" in printed) == (not refined)
     assert "kitchen: goal" in printed and (plan / "path.yaml").is_file()
+    # the area is the part the robot fits in, which reads as a contradiction of `where` unsaid
+    assert re.search(r"kitchen: goal .* m\^2 of the place the robot fits in\)", printed)
 
 
 def test_a_negative_start_needs_no_equals_sign(fit, capsys):

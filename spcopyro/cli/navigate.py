@@ -100,7 +100,8 @@ def _plan_and_print(
         choice = stop.choice
         print(
             f"{stop.word}: goal x={stop.xy[0]:.2f} y={stop.xy[1]:.2f} yaw={stop.yaw:.2f} "
-            f"(p = {choice.candidate.probability:.3f}, region {choice.candidate.area:.1f} m^2)"
+            f"(p = {choice.candidate.probability:.3f}, {choice.candidate.area:.1f} m^2 of the "
+            "place the robot fits in)"
         )
         if choice.ambiguous:
             print(

@@ -159,7 +159,8 @@ class Candidate:
     probability: float
     """p at its best cell."""
     area: float
-    """Square metres."""
+    """Square metres of its allowed cells (those with the robot's clearance): less than the
+    place's whole area that ``where`` reports, by the band along its walls."""
     distance: float
     """Path length from where the robot is, metres (inf: unreachable)."""
 
