@@ -384,3 +384,19 @@ def test_a_single_value_is_shown_without_a_standard_deviation():
     assert _fmt(_spread([0.23])) == "0.230"
     assert _fmt(_spread([0.2, 0.4])) == "0.300 ± 0.141"
     assert _fmt(_spread([])) == "—"
+
+
+def test_times_under_a_tenth_of_a_second_keep_their_digits():
+    """A geometry cell of 3 ms read "0.0" s per fit, the same as no time at all (ablation.md,
+    table.md, comparison.md)."""
+    from spcopyro._util.messages import seconds_text
+    from spcopyro.experiments.ablation_report import _seconds
+    from spcopyro.experiments.comparison_report import _seconds as comparison_seconds
+
+    assert [seconds_text(x) for x in (0.0031, 0.05, 0.1, 12.34)] == ["0.0031", "0.05", "0.1",
+                                                                     "12.3"]  # fmt: skip
+    assert _seconds({"seconds": {"mean": 0.003}, "cpu_seconds": {"mean": 0.0029}}) == (
+        "0.003 / 0.0029"
+    )
+    assert comparison_seconds({"mean": 0.004, "n": 2}) == "0.004"
+    assert comparison_seconds(None) == "—"

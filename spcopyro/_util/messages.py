@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Sized
 
-__all__ = ["ECHO_LIMIT", "echo"]
+__all__ = ["ECHO_LIMIT", "echo", "seconds_text"]
 
 ECHO_LIMIT = 80
 """Characters of a value that an error message shows."""
@@ -35,3 +35,11 @@ def echo(value: object, limit: int = ECHO_LIMIT) -> str:
         return text
     count = f"{len(value)} entries, " if isinstance(value, Sized) else ""
     return f"{text[:limit]}... ({count}{len(text)} characters)"
+
+
+def seconds_text(value: float) -> str:
+    """Seconds as the reports' tables print them: one decimal from 0.1 s on, two significant
+    digits below (a baseline fitted in 3 ms read "0.0", the same as no time at all)."""
+    if value != value or abs(value) >= 0.095:  # NaN, or where one decimal says enough
+        return f"{value:.1f}"
+    return f"{value:.2g}"

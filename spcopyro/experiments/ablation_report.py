@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from spcopyro._util.messages import seconds_text
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, json_default
 from spcopyro.synthetic.statistics import public_and_synthetic_statistics, statistics_table
 
@@ -115,7 +116,7 @@ def _seconds(scores: dict) -> str:
     wall, cpu = scores.get("seconds"), scores.get("cpu_seconds")
     if wall is None:
         return "—"
-    return f"{wall['mean']:.1f}" + ("" if cpu is None else f" / {cpu['mean']:.1f}")
+    return seconds_text(wall["mean"]) + ("" if cpu is None else f" / {seconds_text(cpu['mean'])}")
 
 
 def _top_words(records: list[dict[str, object]]) -> dict[str, dict[str, list]]:

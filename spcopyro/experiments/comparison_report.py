@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from spcopyro._util.messages import seconds_text
 from spcopyro.experiments.comparison_stats import CONFIDENT
 from spcopyro.experiments.inference_comparison import (
     LOWER_IS_BETTER,
@@ -164,7 +165,8 @@ def findings(summary: dict[str, dict[str, dict]]) -> list[str]:
                 f"95% of its own final {SCORE_NAMES[primary]} after "
                 f"{_m(s, 'time_to_95', primary):.2f} s vs {_m(ref, 'time_to_95', primary):.2f} s "
                 f"({_ratio(_m(s, 'time_to_95', primary), _m(ref, 'time_to_95', primary))})",
-                f"whole run {_m(s, 'seconds'):.1f} s vs {_m(ref, 'seconds'):.1f} s",
+                f"whole run {seconds_text(_m(s, 'seconds'))} s vs "
+                f"{seconds_text(_m(ref, 'seconds'))} s",
                 f"concepts {_m(s, 'concepts'):.1f} vs {_m(ref, 'concepts'):.1f}",
             ]
             if house_type == SYNTHETIC:
@@ -214,6 +216,13 @@ def _fmt(entry: dict | None, digits: int = 3, sd: bool = True) -> str:
     if sd and entry.get("n", 0) > 1:
         text += f" ± {entry['sd']:.{digits}f}"
     return text
+
+
+def _seconds(entry: dict | None) -> str:
+    """A mean time in a table cell (:func:`~spcopyro._util.messages.seconds_text`)."""
+    if not entry or not math.isfinite(entry.get("mean", math.nan)):
+        return "—"
+    return seconds_text(entry["mean"])
 
 
 def _t95(entry: dict | None, runs: int) -> str:
@@ -275,7 +284,7 @@ def table_markdown(summary: dict[str, object]) -> str:
             runs = len(records[key])
             ess = s.get("ess_per_second", {})
             common_tail = (
-                f"| {_fmt(s['seconds'], 1, False)} | {_fmt(ess.get('log_joint'), 1, False)} "
+                f"| {_seconds(s['seconds'])} | {_fmt(ess.get('log_joint'), 1, False)} "
                 f"| {_fmt(ess.get('agreement'), 1, False)} "
             )
             if house_type == SYNTHETIC:

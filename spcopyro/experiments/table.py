@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from spcopyro._util.messages import seconds_text
 from spcopyro.data import House, Observations
 from spcopyro.experiments.methods import SPCO_METHODS
 
@@ -110,7 +111,7 @@ def table_markdown(summary: dict[str, object]) -> str:
 
     for method, label in methods.items():
         s = synthetic.get(method, {})
-        seconds = f"{s['seconds']['mean']:.1f}" if "seconds" in s else "—"
+        seconds = seconds_text(s["seconds"]["mean"]) if "seconds" in s else "—"
         lines.append(
             f"| {label} | {mean_sd(s, 'ari')} | {mean_sd(s, 'matching_rate')} "
             f"| {mean_sd(s, 'matching_rate_area')} | {mean_sd(s, 'concepts', 1)} | {seconds} |"
