@@ -344,20 +344,23 @@ def test_fit_from_gaussian_initialisations(init):
         fit_house(house, cfg, sweeps=1, init="kmeans", progress=False)
 
 
-def test_a_library_fit_says_when_it_skips_its_presets_inference_settings(caplog):
+def test_a_library_fit_says_when_it_skips_its_presets_inference_settings(caplog, monkeypatch):
     """Issue 22 item 5: fit_house(house, preset("auto")) ran a random start without merge moves
     and reported the best visited state, while spcopyro fit ran what the preset recommends, and
     nothing said so. Now the library says which settings it skips."""
     import logging
 
+    import spcopyro.fit.preset_fits as preset_fits
     from spcopyro.fit.house import fit_house, preset_fit_kwargs
     from spcopyro.gibbs import GibbsOptions
     from spcopyro.synthetic import HouseSpec, make_house
 
+    monkeypatch.setattr(preset_fits, "WARNED", set())  # as in a fresh process
     house = make_house(seed=0, spec=HouseSpec(height=30, width=36, num_rooms=2))
     assert preset("auto").preset == "auto" and preset("auto").replace(gamma=2.9).preset == "auto"
     with caplog.at_level(logging.WARNING, logger="spcopyro"):
         fit_house(house, preset("auto"), sweeps=4, progress=False)
+        fit_house(house, preset("auto"), sweeps=4, progress=False, seed=1)  # said once
     skipped = [r.getMessage() for r in caplog.records if "recommends" in r.getMessage()]
     assert len(skipped) == 1
     assert "init='rooms'" in skipped[0] and "merge_moves=0.2" in skipped[0]

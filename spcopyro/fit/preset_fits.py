@@ -35,6 +35,11 @@ def preset_fit_kwargs(name: str, marginal_samples: int = 50) -> dict[str, object
     }
 
 
+WARNED: set[tuple[object, ...]] = set()
+"""The (preset, skipped settings) :func:`log_skipped_preset_inference` warned about: each once a
+process, as Python's warnings are."""
+
+
 def log_skipped_preset_inference(
     settings: SpCoSettings,
     init: Init,
@@ -44,7 +49,8 @@ def log_skipped_preset_inference(
 ) -> None:
     """Warn (logger ``"spcopyro"``) when a Gibbs fit from a preset's settings runs without the
     inference settings that preset recommends (:func:`~spcopyro.config.preset_inference`), which
-    ``spcopyro fit`` applies: the library and the command would give different maps."""
+    ``spcopyro fit`` applies: the library and the command would give different maps. Once a
+    process for each preset and settings run (:data:`WARNED`)."""
     recommended = preset_inference(settings.preset) if settings.preset in PRESETS else {}
     if not recommended:
         return
@@ -56,7 +62,9 @@ def log_skipped_preset_inference(
         "refine": refine,
     }
     skipped = {k: v for k, v in recommended.items() if k in running and running[k] != v}
-    if skipped:
+    key = (settings.preset, tuple((k, running[k]) for k in skipped))
+    if skipped and key not in WARNED:  # once: a study's cells ran it hundreds of times
+        WARNED.add(key)
         logger.warning(
             "preset %r recommends %s (what spcopyro fit runs); this fit runs %s, so its map can "
             "differ from the command's: pass them (spcopyro.fit.house.preset_fit_kwargs(%r))",
