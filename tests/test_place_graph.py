@@ -168,6 +168,8 @@ def test_show_graph_writes_png_and_json_and_imports_no_torch(result, tmp_path):
     assert png.is_file() and png.stat().st_size > 1000
     graph = json.loads((png.parent / "graph.json").read_text())
     assert len(graph["places"]) == 5 and len(graph["passages"]) == 3
+    # no robot here: whether it can pass is unknown, not "true" for every passage
+    assert {p["passable"] for p in graph["passages"]} == {None}
     assert "5 places, 3 passages (3 doorways)" in printed
     other = tmp_path / "figs" / "other.png"  # a second graph in the folder keeps the first's
     heavy_imports(["show", str(fit), "--graph", "--min-area", "100", "--out", str(other)])

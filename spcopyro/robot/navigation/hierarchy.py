@@ -177,7 +177,7 @@ def with_passability(
         own = node_place[inside]  # [m]
         joined = np.intersect1d(component[own == passage.a], component[own == passage.b]).size
         marked.append(replace(passage, passable=bool(joined)))
-    return replace(places, passages=tuple(marked))
+    return replace(places, passages=tuple(marked), robot_checked=True)
 
 
 def corridor(

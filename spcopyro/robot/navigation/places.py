@@ -97,6 +97,10 @@ class PlaceGraph:
     """How many regions were smaller than ``min_area``."""
     dropped_area: float
     """Their total area, square metres."""
+    robot_checked: bool = False
+    """Whether a robot's passability was checked
+    (:func:`~spcopyro.robot.navigation.hierarchy.with_passability`); without it every passage
+    counts and ``graph.json`` says ``"passable": null`` (unknown)."""
 
     def place_of(self, cell: np.ndarray) -> int:
         """The place of a grid cell ``(row, col)``: the region it lies in, else the nearest one
@@ -143,7 +147,8 @@ class PlaceGraph:
             ],
             "passages": [
                 {"a": e.a, "b": e.b, "border_m": e.border, "doorway": e.doorway,
-                 "distance_m": e.distance, "on_map": e.on_map, "passable": e.passable}
+                 "distance_m": e.distance, "on_map": e.on_map,
+                 "passable": e.passable if self.robot_checked else None}
                 for e in self.passages
             ],
             "min_area_m2": self.min_area,
