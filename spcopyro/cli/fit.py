@@ -14,16 +14,14 @@ import functools
 import json
 import math
 import shlex
-import signal
 import sys
-import threading
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from spcopyro._util.interrupts import interrupts_raised, sigterm_as_interrupt
 from spcopyro._util.outputs import ROBOT_MAP_FILE, StagedOutput
 from spcopyro._util.threads import describe_threads
 from spcopyro._util.timings import Phases, timed
@@ -94,30 +92,11 @@ class Fitted:
     """Seconds of wall clock the fit took (all chains)."""
 
 
-@contextlib.contextmanager
-def _sigterm_as_interrupt() -> Iterator[None]:
-    """SIGTERM (what ``timeout``, systemd, docker and Slurm send) stops a fit as Ctrl-C does:
-    a KeyboardInterrupt in the main thread, so the chains stop at a completed sweep and the
-    checkpoint and the command to continue are kept. The previous handler comes back after."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def interrupt(signum: int, frame: object) -> None:
-        raise KeyboardInterrupt(f"signal {signum}")
-
-    previous = signal.signal(signal.SIGTERM, interrupt)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
 def run_fit(args: argparse.Namespace) -> int:
     """Check the arguments and OUT, then fit into a staging folder moved to OUT at the end
     (:mod:`spcopyro._util.outputs`); Ctrl-C or SIGTERM keeps a checkpoint beside OUT and exits with
     130."""
-    with _sigterm_as_interrupt():
+    with sigterm_as_interrupt():
         return _fit_interruptible(args)
 
 
@@ -175,7 +154,8 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
     keeper = FitCheckpoint(checkpoint_path(staged.out)) if checkpointed else None
     job = FitJob(args, house, settings, options, staged, keeper, map_house=loaded)
     try:
-        return _fit_staged(job)
+        with interrupts_raised():  # one a compiled call reported as a SystemError
+            return _fit_staged(job)
     except KeyboardInterrupt as stop:
         if staged.committed:
             print(f"interrupted after {staged.out} was written", file=sys.stderr)
@@ -543,14 +523,16 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     unit = "sweep" if result.trace.objective_name == "log joint" else "iteration"
     several = f"{chains} chains x " if chains > 1 else ""
     pace = f"{1e3 * result.trace.seconds[-1] / sweeps_run:.2f} ms per {unit}"
-    runs = f"{several}{sweeps_run} {unit}s in {wall:.1f} s wall clock ({pace})"
+    clock = f"{wall:.1f} s wall clock"
+    if args.resume is not None:  # the trace's seconds (the paces) go on from the checkpoint's
+        clock += f" this run (resumed: the paces include the {unit}s run before the interruption)"
+    runs = f"{several}{sweeps_run} {unit}s in {clock} ({pace})"
     if job.refined:  # the coarse stage's sweeps, then the refinement's, each at its own pace
         coarse = result.inference["refine"]["coarse"]
         coarse_pace = 1e3 * coarse.get("seconds", math.nan) / max(coarse["sweeps"], 1)
         runs = (f"{several}{coarse['sweeps']} sweeps on {coarse['cell_size']:g} m cells "
                 f"({coarse_pace:.2f} ms per sweep), then {several}{sweeps_run} on the map's "
-                f"{result.grid.resolution:g} m cells ({pace}) in {wall:.1f} s "
-                "wall clock")  # fmt: skip
+                f"{result.grid.resolution:g} m cells ({pace}) in {clock}")  # fmt: skip
     print(f"fitted {runs}; {len(result.concepts_in_use())} concepts in use")
     if result.inference.get("stopped"):  # a variational method: converged, or --sweeps reached
         print(f"stopped          {result.inference['stopped']}")

@@ -30,6 +30,7 @@ import numpy as np
 
 from spcopyro import __version__
 from spcopyro._util.arguments import figure_path
+from spcopyro._util.interrupts import caused_by_interrupt
 from spcopyro.cli.common import _HelpFormatter, _load, _seed, _summary
 from spcopyro.cli.fit_parser import add_parser as add_fit_parser
 
@@ -429,6 +430,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {_error_line(error)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:  # Ctrl-C: one line, no traceback (fit says more itself)
+        print("interrupted", file=sys.stderr)
+        return 130
+    except SystemError as error:  # Ctrl-C inside a numba call (spcopyro._util.interrupts)
+        if not caused_by_interrupt(error):
+            raise
         print("interrupted", file=sys.stderr)
         return 130
 

@@ -18,7 +18,9 @@ method:
 * Ctrl-C: a :class:`KeyboardInterrupt` during an iteration or its callback is raised again as
   :class:`DriveInterrupted` (still a KeyboardInterrupt, so code unaware of it stops) carrying
   the :class:`Trajectory` of the iterations completed before it (an interrupt in a callback
-  comes after its iteration was recorded, which is kept). Its ``state`` is the last completed
+  comes after its iteration was recorded, which is kept), as is the ``SystemError`` a numba
+  call ends with when the interrupt lands inside it
+  (:func:`spcopyro._util.interrupts.caused_by_interrupt`). Its ``state`` is the last completed
   iteration's; a method that updates its state in place (the compiled CAVI backend, memoized
   VI, SVI's parameters) hands back the object the interrupted iteration was changing, a valid q
   part-way through that iteration, and the Gibbs chain undoes its cut-short sweep itself.
@@ -35,6 +37,7 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
+from spcopyro._util.interrupts import caused_by_interrupt
 from spcopyro._util.progress import progress_enabled
 from spcopyro.inference.schedule import annealed_gamma, converged
 
@@ -193,7 +196,9 @@ def drive(
                 bar.update()
                 if converged_now := settled():
                     break
-        except KeyboardInterrupt:
+        except (KeyboardInterrupt, SystemError) as error:
+            if not caused_by_interrupt(error):  # a SystemError of its own
+                raise
             reason = f"interrupted (Ctrl-C) after {len(rows)} iterations"
             held = None if marginals is None else marginals(recorded)
             raise DriveInterrupted(trajectory(reason), held) from None

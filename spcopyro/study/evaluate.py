@@ -55,6 +55,7 @@ import time
 
 import numpy as np
 
+from spcopyro._util.interrupts import caused_by_interrupt
 from spcopyro._util.threads import torch_threads
 from spcopyro.data.model_grid import model_house
 from spcopyro.experiments.ablation import concepts_over, largest_share, top_words
@@ -106,6 +107,8 @@ def run_cell(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays | Non
                 scores, trace, label_map = _fit_and_score(cell)
         record.update(scores)
     except Exception as error:  # recorded; the study goes on
+        if caused_by_interrupt(error):  # Ctrl-C inside a numba call: not the cell's failure
+            raise KeyboardInterrupt("interrupted inside compiled code") from error
         record.update(status="error", error_type=type(error).__name__, error=str(error)[:2000])
         trace = label_map = None
     return record, trace, label_map
