@@ -9,7 +9,13 @@ from spcopyro.config import DataPreparation, preset
 from spcopyro.data import cell_counts, find_dataset_root, load_house
 from spcopyro.data.model_grid import model_house
 from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
-from spcopyro.maps.coarse import coarsen_grid, coarsening_factor, model_cell_of, refine_labels
+from spcopyro.maps.coarse import (
+    coarsen_grid,
+    coarsen_labels,
+    coarsening_factor,
+    model_cell_of,
+    refine_labels,
+)
 from spcopyro.synthetic import HouseSpec, make_house
 
 
@@ -115,6 +121,45 @@ def test_refine_labels_gives_every_free_map_cell_a_label():
     block = labels[rows[:, None], cols[None, :]]
     keep = grid.free & (block >= 0)
     assert np.array_equal(fine[keep], block[keep])  # a free block's cells keep its label
+
+
+def test_coarsen_labels_takes_each_model_cells_majority_and_refine_labels_inverts_it():
+    grid = _two_rooms()  # 9 x 10 -> 5 x 5 model cells (one padding row on top)
+    labels = np.where(grid.free, 0, -1)
+    labels[:, 5:] = np.where(grid.free[:, 5:], 1, -1)  # the right room
+    labels[8, 0] = 2  # one map cell of a block of four: outvoted
+    coarse = coarsen_labels(labels, grid, 2)
+    free = coarsen_grid(grid, 2).free
+    assert np.all(coarse[~free] == -1) and np.all(coarse[free] >= 0)
+    assert 2 not in coarse
+    np.testing.assert_array_equal(refine_labels(coarse, grid, 2)[grid.free & (labels != 2)],
+                                  labels[grid.free & (labels != 2)])  # fmt: skip
+    # Unlabelled map cells: filled from the nearest labelled model cell through free model
+    # cells (the left room here; the right one, behind the wall, is reached by none), or -1
+    # without fill.
+    some = np.where(np.arange(10)[None, :] < 2, labels, -1)
+    left = free & (np.arange(5)[None, :] < 2)
+    filled = coarsen_labels(some, grid, 2)
+    assert np.all(filled[left] >= 0) and np.all(filled[free & ~left] == -1)
+    assert (coarsen_labels(some, grid, 2, fill=False)[left] == -1).any()
+
+
+def test_a_fit_on_the_maps_cells_starts_a_fit_on_the_model_grid():
+    """`fit --init-from OUT` of a refined fit (the default on the embedded house: the map's
+    0.1 m cells) into a fit on the 0.3 m model grid was refused as another map."""
+    from spcopyro.fit.house import fit_house
+    from spcopyro.fit.starts import result_labels
+
+    house = make_house(seed=0, spec=HouseSpec(height=30, width=36, num_rooms=2))
+    fine = fit_house(house, preset("coarse").replace(cell_size=None), sweeps=3,
+                     progress=False)  # fmt: skip
+    assert fine.grid.shape == house.grid.shape
+    coarse_house = model_house(house, 0.25)
+    start = result_labels(fine, coarse_house, preset("coarse").model)  # [n]
+    expected = coarsen_labels(fine.label_image(), house.grid, 3)
+    cells = np.asarray(coarse_house.grid.free_cells)
+    np.testing.assert_array_equal(start.numpy(), expected[cells[:, 0], cells[:, 1]])
+    fit_house(house, preset("coarse"), init=fine, sweeps=2, progress=False, refine="never")
 
 
 def test_model_house_is_idempotent_and_coarsens_the_truth():

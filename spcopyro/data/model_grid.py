@@ -5,29 +5,13 @@ from __future__ import annotations
 import dataclasses
 import logging
 
-import numpy as np
-
 from spcopyro.data.dataset import House
-from spcopyro.maps.coarse import coarsen_grid, coarsening_factor, model_cell_of
+from spcopyro.maps.coarse import coarsen_grid, coarsen_labels, coarsening_factor
 
 __all__ = ["model_house"]
 
 _TOLD: set[tuple[object, ...]] = set()
 """The warnings given, by (house, map file, shape, cell size): :func:`_tell_once`."""
-
-
-def _coarsen_truth(house: House, factor: int, coarse_free: np.ndarray) -> np.ndarray:
-    """``[h, w]`` truth: each free model cell's most frequent category among its map cells'
-    (the smallest on ties), -1 where none is labelled or off free."""
-    truth = np.asarray(house.truth)  # [H, W]
-    rows, cols = model_cell_of(house.grid, factor)
-    labelled = truth >= 0
-    block = rows[:, None] * coarse_free.shape[1] + cols[None, :]  # [H, W] model cell id
-    num_categories = int(truth.max()) + 1 if labelled.any() else 1
-    votes = np.zeros((coarse_free.size, num_categories), dtype=np.int64)  # [h*w, K]
-    np.add.at(votes, (block[labelled], truth[labelled]), 1)
-    best = np.where(votes.any(axis=1), votes.argmax(axis=1), -1).reshape(coarse_free.shape)
-    return np.where(coarse_free, best, -1).astype(np.int64)
 
 
 def _tell_once(key: tuple[object, ...], message: str, *args: object) -> None:
@@ -68,5 +52,7 @@ def model_house(house: House, cell_size: float | None) -> House:
             house.grid.resolution,
         )
         return house
-    truth = None if house.truth is None else _coarsen_truth(house, factor, grid.free)
+    # The truth by majority; a model cell its map cells leave unnamed stays -1 (not scored).
+    truth = None if house.truth is None else coarsen_labels(house.truth, house.grid, factor,
+                                                             fill=False)  # fmt: skip
     return dataclasses.replace(house, grid=grid, truth=truth)

@@ -71,14 +71,27 @@ def result_labels(result: SpCoResult, house: House, config: SpCoConfig) -> torch
     starting variational inference, or the other way round). A fit on a coarsening of this
     house's map (``--cell-size``; its grid's ``coarsened_from`` is this map) starts it with its
     labels refined to the map's cells (:func:`~spcopyro.maps.coarse.refine_labels`: each free
-    map cell takes its model cell's label, or the nearest one's). ValueError if it was made on
-    another map or with more concepts than ``config`` has."""
+    map cell takes its model cell's label, or the nearest one's); a fit on this house's map
+    starts a fit on its coarsening with each model cell's most frequent label
+    (:func:`~spcopyro.maps.coarse.coarsen_labels`; e.g. a refined fit, on the map's cells,
+    starting a default fit on the model grid). ValueError if it was made on another map or with
+    more concepts than ``config`` has."""
     coarse_of = result.grid.coarsened_from
     if coarse_of is not None and _same_map(coarse_of, house.grid):
         from spcopyro.maps.coarse import refine_labels
 
         factor = round(result.grid.resolution / house.grid.resolution)
         image = refine_labels(result.label_image(), house.grid, factor)  # [H, W]
+        cells = np.asarray(house.grid.free_cells)  # [N, 2]
+        result = dataclasses.replace(
+            result, grid=house.grid, labels=image[cells[:, 0], cells[:, 1]].astype(np.int64)
+        )
+    fine_of = house.grid.coarsened_from  # this fit on a coarsening of the result's map
+    if fine_of is not None and _same_map(fine_of, result.grid) and coarse_of is None:
+        from spcopyro.maps.coarse import coarsen_labels
+
+        factor = round(house.grid.resolution / result.grid.resolution)
+        image = coarsen_labels(result.label_image(), result.grid, factor)  # [h, w]
         cells = np.asarray(house.grid.free_cells)  # [N, 2]
         result = dataclasses.replace(
             result, grid=house.grid, labels=image[cells[:, 0], cells[:, 1]].astype(np.int64)

@@ -160,3 +160,24 @@ def refine_labels(labels: np.ndarray, grid: OccupancyGrid, factor: int) -> np.nd
     )  # [2, h, w]
     filled = labels[nearest[0], nearest[1]][rows[:, None], cols[None, :]]  # [H, W]
     return np.where(unreached, filled, fine).astype(np.int64)
+
+
+def coarsen_labels(
+    labels: np.ndarray, grid: OccupancyGrid, factor: int, *, fill: bool = True
+) -> np.ndarray:
+    """``[h, w]`` labels on :func:`coarsen_grid` ``(grid, factor)`` from ``[H, W]`` labels on the
+    map ``grid`` (-1: none): each free model cell's most frequent label among its map cells'
+    (the smallest on ties); -1 off free. A free model cell none of whose map cells is labelled
+    takes the nearest labelled one's (:func:`grow_labels`) with ``fill``, else stays -1 (a
+    truth's unnamed cells). The inverse direction of :func:`refine_labels`."""
+    labels = np.asarray(labels, dtype=np.int64)  # [H, W]
+    coarse_free = np.asarray(coarsen_grid(grid, factor).free)  # [h, w]
+    rows, cols = model_cell_of(grid, factor)
+    labelled = labels >= 0
+    block = rows[:, None] * coarse_free.shape[1] + cols[None, :]  # [H, W] model cell id
+    count = int(labels.max()) + 1 if labelled.any() else 1
+    votes = np.zeros((coarse_free.size, count), dtype=np.int64)  # [h*w, K]
+    np.add.at(votes, (block[labelled], labels[labelled]), 1)
+    best = np.where(votes.any(axis=1), votes.argmax(axis=1), -1).reshape(coarse_free.shape)
+    best = np.where(coarse_free, best, -1).astype(np.int64)
+    return grow_labels(best, coarse_free) if fill else best
