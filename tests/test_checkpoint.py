@@ -660,3 +660,19 @@ def test_a_killed_runs_staging_folder_is_removed_by_the_next_run_into_out(home, 
     assert main(["fit", str(home), "--out", str(out), *FIT]) == 0
     assert not stale.exists() and live.exists() and other.exists()
     assert remove_stale_stagings(out) == []
+
+
+def test_chains_stopped_side_by_side_say_how_far_each_got():
+    """`--chains 2` interrupted said "chain 1 of 2, 45 of 200 sweeps done" while the second
+    chain, advancing beside it, had 46."""
+    from types import SimpleNamespace
+
+    from spcopyro.fit.gibbs_chains import _where_stopped
+
+    def at(*done):
+        return [SimpleNamespace(sweeps_done=d) for d in done]
+
+    assert _where_stopped(at(45, 46), 200) == "2 chains at 45, 46 of 200 sweeps done"
+    assert _where_stopped(at(200, 9), 200) == "chain 2 of 2, 9 of 200 sweeps done"  # in turn
+    assert _where_stopped([*at(7), None], 12) == "chain 1 of 2, 7 of 12 sweeps done"
+    assert _where_stopped(at(12, 12), 12) == "all 2 chain(s) done (12 sweeps each)"

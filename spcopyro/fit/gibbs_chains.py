@@ -192,7 +192,12 @@ def with_sample_marginals(
 
 
 def _where_stopped(chains: Sequence[GibbsChain | None], sweeps: int) -> str:
-    """``"chain k of K, s of S sweeps done"`` for the first chain not finished."""
+    """``"chain k of K, s of S sweeps done"`` for the first chain not finished, or, for chains
+    that advanced side by side, ``"K chains at s1, s2, ... of S sweeps done"`` (the first one's
+    count alone hid the others')."""
+    done = [0 if chain is None else chain.sweeps_done for chain in chains]
+    if sum(0 < d < sweeps for d in done) > 1:
+        return f"{len(chains)} chains at {', '.join(map(str, done))} of {sweeps} sweeps done"
     for k, chain in enumerate(chains):
         done = 0 if chain is None else chain.sweeps_done
         if done < sweeps:
