@@ -548,7 +548,10 @@ def test_ctrl_c_under_sweeps_auto_stops_cleanly(home, tmp_path, capsys, monkeypa
             "--max-sweeps", "10", "--concepts", "4"]  # fmt: skip
     assert main(argv) == 130
     err = capsys.readouterr().err
-    assert err == f"interrupted: nothing written to {out}; no checkpoint kept (--sweeps auto)\n"
+    assert err == (  # how far it got, as every fit's interruption says (it said nothing)
+        "interrupted (2 chains at 0, 0 of at most 10 sweeps, not yet converged after 0 "
+        f"check(s)): nothing written to {out}; no checkpoint kept (--sweeps auto)\n"
+    )
     assert list(tmp_path.iterdir()) == []
     assert main([*argv, "--resume", str(tmp_path / "x.npz")]) == 2
     assert "--resume continues Gibbs chains" in capsys.readouterr().err

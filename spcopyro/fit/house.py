@@ -52,6 +52,7 @@ from spcopyro.gibbs.convergence import (
     DEFAULT_MAX_SWEEPS,
     DEFAULT_THRESHOLD,
     ConvergenceDiagnostics,
+    ConvergenceInterrupted,
     run_until_converged,
 )
 from spcopyro.gibbs.hyperparameters import config_at_posterior_mean
@@ -534,11 +535,14 @@ def fit_house_converged(
         for k in range(chains):
             generator = torch.Generator().manual_seed(int(seed + k))
             starts.append(initial_labels(house, counts, settings, init, seed + k, generator))
-        run, diagnostics = run_until_converged(
-            data, settings.model, options=options, chains=chains, block=block,
-            max_sweeps=max_sweeps, threshold=threshold, seed=seed, init_labels=starts,
-            progress=progress,
-        )  # fmt: skip
+        try:
+            run, diagnostics = run_until_converged(
+                data, settings.model, options=options, chains=chains, block=block,
+                max_sweeps=max_sweeps, threshold=threshold, seed=seed, init_labels=starts,
+                progress=progress,
+            )  # fmt: skip
+        except ConvergenceInterrupted as stop:  # said as every fit's interruption is
+            raise FitInterrupted(stop.where) from None
     record = {
         "sweeps": "auto", "chains": chains, "seed": seed, "init": init_name(init),
         **dataclasses.asdict(options), "backend_used": run.backend,

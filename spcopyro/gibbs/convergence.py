@@ -148,6 +148,15 @@ class ConvergenceDiagnostics:
         }
 
 
+class ConvergenceInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped :func:`run_until_converged` (a :class:`KeyboardInterrupt`); ``where``: how
+    far the chains had got."""
+
+    def __init__(self, where: str) -> None:
+        super().__init__(where)
+        self.where = where
+
+
 def run_until_converged(
     data: ModelData,
     config: SpCoConfig,
@@ -199,21 +208,29 @@ def run_until_converged(
         unit="sweep",
         disable=not progress_enabled(progress),
     )
-    while done < max_sweeps and not converged:
-        sweeps = min(block, max_sweeps - done)
-        anneal = anneal_sweeps if done == 0 else 0
-        advance_chains([(chain, anneal + sweeps) for chain in runs], workers=workers,
-                       progress=False, on_sweep=bar.update)  # fmt: skip
-        done += sweeps
-        log_joint = np.array([chain.log_joint for chain in runs])  # [K, S]
-        concepts = np.array([chain.num_concepts for chain in runs], dtype=np.float64)  # [K, S]
-        converged, check = check_convergence(
-            log_joint[:, anneal_sweeps:], concepts[:, anneal_sweeps:], threshold
-        )
-        checks.append(check)
-        bar.set_postfix(rhat_log_joint=f"{check.rhat_log_joint:.3f}",
-                        rhat_concepts=f"{check.rhat_num_concepts:.3f}")  # fmt: skip
-    bar.close()
+    try:
+        while done < max_sweeps and not converged:
+            sweeps = min(block, max_sweeps - done)
+            anneal = anneal_sweeps if done == 0 else 0
+            advance_chains([(chain, anneal + sweeps) for chain in runs], workers=workers,
+                           progress=False, on_sweep=bar.update)  # fmt: skip
+            done += sweeps
+            log_joint = np.array([chain.log_joint for chain in runs])  # [K, S]
+            concepts = np.array([chain.num_concepts for chain in runs], dtype=np.float64)
+            converged, check = check_convergence(
+                log_joint[:, anneal_sweeps:], concepts[:, anneal_sweeps:], threshold
+            )
+            checks.append(check)
+            bar.set_postfix(rhat_log_joint=f"{check.rhat_log_joint:.3f}",
+                            rhat_concepts=f"{check.rhat_num_concepts:.3f}")  # fmt: skip
+    except KeyboardInterrupt:
+        at = ", ".join(str(chain.sweeps_done) for chain in runs)
+        raise ConvergenceInterrupted(
+            f"{chains} chains at {at} of at most {anneal_sweeps + max_sweeps} sweeps, "
+            f"not yet converged after {len(checks)} check(s)"
+        ) from None
+    finally:
+        bar.close()  # else its last line came again after the interruption's message
 
     merged = [chain.to_run() for chain in runs]
     best_values = np.array([run.log_joint[run.best_sweep] for run in merged])  # [K]
