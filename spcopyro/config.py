@@ -190,7 +190,9 @@ class SpCoConfig:
 
     @property
     def critical_gamma(self) -> float:
-        """The Potts model's critical coupling ln(1 + sqrt(L)) on the square lattice."""
+        """The Potts model's critical coupling ln(1 + sqrt(L)) on the square lattice, i.e. for
+        ``connectivity=4`` whatever :attr:`connectivity` is (the 8-neighbourhood's is lower and
+        has no closed form; the low-gamma warning of a fit is given for 4 only)."""
         return math.log1p(math.sqrt(self.num_concepts))
 
     def concentration(self, modality: str) -> float:
