@@ -4,9 +4,10 @@ package, so a parser at any layer may use them)."""
 from __future__ import annotations
 
 import argparse
+import math
 from collections.abc import Callable
 
-__all__ = ["figure_path", "integer_at_least"]
+__all__ = ["figure_path", "integer_at_least", "non_negative_number"]
 
 
 def integer_at_least(minimum: int) -> Callable[[str], int]:
@@ -21,6 +22,22 @@ def integer_at_least(minimum: int) -> Callable[[str], int]:
         if number < minimum:
             raise argparse.ArgumentTypeError(f"must be an integer >= {minimum}, got {value!r}")
         return number
+
+    return parse
+
+
+def non_negative_number(what: str) -> Callable[[str], float]:
+    """An argparse ``type``: the text as a finite float >= 0, else a usage error naming the
+    value and ``what`` it is ("'-1': the area is square metres >= 0")."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = -1.0
+        if not (math.isfinite(value) and value >= 0):
+            raise argparse.ArgumentTypeError(f"{text!r}: the {what} >= 0")
+        return value
 
     return parse
 

@@ -29,7 +29,7 @@ from typing import NoReturn
 import numpy as np
 
 from spcopyro import __version__
-from spcopyro._util.arguments import figure_path
+from spcopyro._util.arguments import figure_path, non_negative_number
 from spcopyro._util.interrupts import caused_by_interrupt
 from spcopyro.cli.common import _HelpFormatter, _load, _seed, _summary
 from spcopyro.cli.fit_parser import add_parser as add_fit_parser
@@ -99,17 +99,6 @@ def _door_width(text: str) -> float | str:
         raise argparse.ArgumentTypeError(f"{text!r} is neither auto nor metres") from None
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"{text!r}: a door width must be > 0 metres")
-    return value
-
-
-def _min_area(text: str) -> float:
-    """``show --min-area``: square metres >= 0."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = -1.0
-    if not (math.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"{text!r}: the area is square metres >= 0")
     return value
 
 
@@ -293,8 +282,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--graph", action="store_true", help="DATA is a fit's output folder: draw "
                    "its place graph (regions as nodes, shared borders and doorways as edges) "
                    "and write it as JSON beside the PNG (X.json for --out X.png)")  # fmt: skip
-    p.add_argument("--min-area", type=_min_area, default=0.25, metavar="M2",
-                   help="with --graph: smaller regions are not places")  # fmt: skip
+    p.add_argument("--min-area", type=non_negative_number("area is square metres"), default=0.25,
+                   metavar="M2", help="with --graph: smaller regions are not places")  # fmt: skip
     p.set_defaults(func=_show)
 
     add_fit_parser(sub)  # fit

@@ -14,6 +14,7 @@ import math
 import sys
 from typing import TYPE_CHECKING
 
+from spcopyro._util.arguments import non_negative_number
 from spcopyro.cli.common import _HelpFormatter
 
 if TYPE_CHECKING:
@@ -37,16 +38,6 @@ def _point(text: str) -> tuple[float, float]:
     if not (math.isfinite(x) and math.isfinite(y)):
         raise argparse.ArgumentTypeError(f"{text!r}: X and Y must be finite")
     return x, y
-
-
-def _radius(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        value = -1.0
-    if not (math.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"{text!r}: the radius is metres >= 0")
-    return value
 
 
 def _navigate(args: argparse.Namespace) -> int:
@@ -189,9 +180,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    "a place after 'via' before the destination said before it")  # fmt: skip
     p.add_argument("--start", type=_point, required=True, metavar="X,Y",
                    help="the robot's position in the map frame, metres")  # fmt: skip
-    p.add_argument("--radius", type=_radius, default=0.2, metavar="M",
-                   help="the robot's radius: cells closer than this to a wall or unknown space "
-                        "are never entered")  # fmt: skip
+    p.add_argument("--radius", type=non_negative_number("radius is metres"), default=0.2,
+                   metavar="M", help="the robot's radius: cells closer than this to a wall or "
+                   "unknown space are never entered")  # fmt: skip
     p.add_argument("--map", metavar="MAP.yaml",
                    help="plan on this map_server map (the robot's map in the fit's frame, e.g. "
                         "the one a coarse fit was made from, whose doorways coarsening narrows) "
