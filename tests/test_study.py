@@ -300,6 +300,8 @@ def test_interrupted_study_runs_only_the_missing_cells(in_process, tmp_path, mon
     with pytest.raises(KeyboardInterrupt):
         run_study(study, tmp_path / "out", progress=False)
     assert len(read_table(tmp_path / "out" / "results.csv")) == 2  # the finished cells, kept
+    report = (tmp_path / "out" / "report.md").read_text()  # it read as the whole study
+    assert "2 cells in the table of the study's 6: 4 not run yet" in report
     first = list(calls)
 
     def counts(cell):
@@ -314,6 +316,7 @@ def test_interrupted_study_runs_only_the_missing_cells(in_process, tmp_path, mon
     again = run_study(study, tmp_path / "out", progress=False, report=lines.append)
     assert again.ran == 0 and again.cached == 6 and len(calls) == 6
     assert lines and lines[0].startswith("nothing to run: all 6 cells")
+    assert "not run yet" not in (tmp_path / "out" / "report.md").read_text()
 
 
 def test_added_seed_runs_only_new_cells_and_names_do_not_count(in_process, tmp_path):

@@ -62,13 +62,21 @@ def _mean_sd(value: object) -> str:
 
 
 def report_markdown(
-    rows: Sequence[dict[str, object]], title: str = "study", scores: Sequence[str] = REPORT_SCORES
+    rows: Sequence[dict[str, object]],
+    title: str = "study",
+    scores: Sequence[str] = REPORT_SCORES,
+    expected: int | None = None,
 ) -> str:
     """Markdown: per data source, a table of mean +- sd over seeds per (variant, method);
     then the failed cells with their errors. A table whose cells other spcopyro source computed
-    (more than one ``source_digest``) says so first."""
+    (more than one ``source_digest``) says so first, and one with fewer rows than the study's
+    ``expected`` cells (an interrupted run) says how many are not run yet."""
     summary = summary_rows(rows, scores)
-    lines = [f"# {title}", "", f"{len(rows)} cells in the table; mean +- sample sd over seeds.", ""]
+    count = f"{len(rows)} cells in the table"
+    if expected is not None and len(rows) < expected:  # an interrupted run read as whole
+        count += (f" of the study's {expected}: {expected - len(rows)} not run yet (an "
+                  "interrupted run: run the same command again)")  # fmt: skip
+    lines = [f"# {title}", "", f"{count}; mean +- sample sd over seeds.", ""]
     digests = Counter(str(r.get("source_digest") or "none") for r in rows)
     if len(digests) > 1:
         counts = ", ".join(f"`{d}` {n}" for d, n in digests.most_common())
@@ -99,18 +107,22 @@ def report_markdown(
 
 
 def write_report(
-    table: str | os.PathLike[str], out: str | os.PathLike[str], title: str = "study"
+    table: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    title: str = "study",
+    expected: int | None = None,
 ) -> Path:
     """Read ``results.csv`` and write its report to ``out``, with the quality-against-time figure
     (:mod:`spcopyro.study.figures`) beside it when rows have an ARI and a time, and each data
-    source's maps (:mod:`spcopyro.study.maps`, from the stored label maps beside the table)."""
+    source's maps (:mod:`spcopyro.study.maps`, from the stored label maps beside the table).
+    ``expected``: the study's number of cells (:func:`report_markdown`)."""
     from spcopyro.study.figures import QUALITY_TIME_FILE, write_quality_time
     from spcopyro.study.maps import write_house_maps
     from spcopyro.study.table import read_table
 
     path = Path(out)
     rows = read_table(table)
-    text = report_markdown(rows, title)
+    text = report_markdown(rows, title, expected=expected)
     if write_quality_time(rows, path.parent / QUALITY_TIME_FILE) is not None:
         text += f"\n![ARI against wall time per fit]({QUALITY_TIME_FILE})\n"
     maps = write_house_maps(rows, Path(table).parent)

@@ -315,7 +315,7 @@ def _bar(cells: list[Cell], predicted: dict[str, float], progress: bool | None) 
 def _finish(out: Path, study: Study, cells: list[Cell], store: CellStore) -> None:
     rows = table_rows(cells, store.finished())
     write_table(out / TABLE, rows)
-    write_report(out / TABLE, out / "report.md", title=study.name)
+    write_report(out / TABLE, out / "report.md", title=study.name, expected=len(cells))
 
 
 def _in_process(cells: list[Cell]) -> Iterator[Outcome]:
