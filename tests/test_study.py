@@ -319,6 +319,27 @@ def test_interrupted_study_runs_only_the_missing_cells(in_process, tmp_path, mon
     assert "not run yet" not in (tmp_path / "out" / "report.md").read_text()
 
 
+def test_an_interrupted_study_command_says_so_once(in_process, tmp_path, monkeypatch, capsys):
+    """`spcopyro study` printed "interrupted after 2 cells: ..." and then "interrupted" again."""
+    monkeypatch.setenv("CI", "1")  # no progress bar
+    path, _ = in_process
+    real, calls = evaluate.run_cell, []
+
+    def stops_at_the_third(cell):
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        calls.append(cell.key)
+        return real(cell)
+
+    monkeypatch.setattr(evaluate, "run_cell", stops_at_the_third)
+    assert main(["study", str(path), "--out", str(tmp_path / "out"), "--workers", "1"]) == 130
+    captured = capsys.readouterr()
+    said = (captured.out + captured.err).splitlines()
+    assert [line for line in said if "interrupted" in line] == [
+        "interrupted after 2 cells: 4 left; run the same command again to continue"
+    ]
+
+
 def test_added_seed_runs_only_new_cells_and_names_do_not_count(in_process, tmp_path):
     path, out = in_process
     renamed = TINY.replace("[variants.og3]", "[variants.gamma3]").replace("seeds = 2", "seeds = 3")

@@ -418,8 +418,9 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, ValueError) as error:  # bad input: one clear line, no traceback
         print(f"error: {_error_line(error)}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:  # Ctrl-C: one line, no traceback (fit says more itself)
-        print("interrupted", file=sys.stderr)
+    except KeyboardInterrupt as stop:  # Ctrl-C: one line, no traceback (fit says more itself)
+        if not getattr(stop, "said", False):  # a study has said how far it got
+            print("interrupted", file=sys.stderr)
         return 130
     except SystemError as error:  # Ctrl-C inside a numba call (spcopyro._util.interrupts)
         if not caused_by_interrupt(error):

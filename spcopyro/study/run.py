@@ -164,8 +164,9 @@ def run_study(
                        f"failed: {record['error_type']}: {record['error']}")  # fmt: skip
             if bar is not None:
                 bar.advance(cell)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as stop:
         interrupted = True
+        stop.said = report is not _say_nothing  # type: ignore[attr-defined]  # the line below
         raise
     finally:
         if bar is not None:
