@@ -341,7 +341,7 @@ def bad_case(tmp_path: Path, **overrides: object) -> Path:
         ({"free_thresh": -0.1}, ["'free_thresh'", "-0.1"]),
         ({"free_thresh": 0.7}, ["'free_thresh'", "0.7", "0.65"]),
         ({"mode": "scale"}, ["'mode'", "'scale'", "not supported"]),
-        ({"mode": "raw"}, ["'mode'", "'raw'", "load_label_map_server"]),
+        ({"mode": "raw"}, ["'mode'", "'raw'", "load_filter_mask", "load_label_map_server"]),
         ({"mode": "fancy"}, ["'mode'", "'fancy'"]),
         ({"image": 3}, ["'image'", "got 3"]),
     ],

@@ -250,7 +250,8 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
     if spec.mode != "trinary":
         raise MapFormatError(
             f"{spec.path}: key 'mode': {echo(spec.mode)} is not supported by load_map (only "
-            "'trinary'); semantic maps saved by save_label_map_server are read with "
+            "'trinary', an occupancy map); a Nav2 costmap filter mask (scale or raw) is read "
+            "with load_filter_mask, a semantic map saved by save_label_map_server with "
             "load_label_map_server"
         )
     img = _read_image(spec)
