@@ -416,6 +416,8 @@ BAD_FILES = [
     ("pose_1.csv", "3.5,2.5,0,0\n", ["pose_1.csv", "line 1", "quaternion", "0.0"]),
     ("word_1.csv", "sofa\n", ["word_1.csv", "line 1", "St.csv utterance 3", "'sofa'"]),
     ("word_1.csv", "", ["St.csv", "word_0.csv: 2", "word_1.csv: 0"]),
+    # an empty first word file: the counts, not word_1.csv line 1 "differs from utterance 1"
+    ("word_0.csv", "", ["St.csv", "word_0.csv: 0", "word_1.csv: 1"]),
 ]
 
 

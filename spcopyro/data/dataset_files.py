@@ -242,24 +242,17 @@ def _read_trials(
         )
     yaw = 2.0 * np.arctan2(pose[:, 2], pose[:, 3])  # [T] planar rotation about z
 
-    word_counts = []
-    position = 0
+    said: dict[int, list[tuple[str, list[str]]]] = {}  # trial -> its lines and their tokens
     for k in trials:
-        lines = _read_lines(words[k])
-        for number, line in enumerate(lines, start=1):
+        said[k] = []
+        for number, line in enumerate(_read_lines(words[k]), start=1):
             tokens = tokenize(line)
             if not tokens:
                 raise DataFormatError(words[k], "utterance holds no words", line=number, value=line)
-            if position < num_utterances and tokens != utterances[position]:
-                raise DataFormatError(
-                    words[k],
-                    f"differs from {files['St'].name} utterance {position + 1} "
-                    f"({echo(' '.join(utterances[position]))})",
-                    line=number,
-                    value=line,
-                )
-            position += 1
-        word_counts.append(len(lines))
+            said[k].append((line, tokens))
+    word_counts = [len(said[k]) for k in trials]
+    # The counts first: an empty or short word file was reported as the first line after it
+    # that no longer matched St.csv.
     if sum(word_counts) != num_utterances:
         raise DataFormatError(
             files["St"],
@@ -268,6 +261,18 @@ def _read_trials(
             + ")",
             value=num_utterances,
         )
+    position = 0
+    for k in trials:
+        for number, (line, tokens) in enumerate(said[k], start=1):
+            if tokens != utterances[position]:
+                raise DataFormatError(
+                    words[k],
+                    f"differs from {files['St'].name} utterance {position + 1} "
+                    f"({echo(' '.join(utterances[position]))})",
+                    line=number,
+                    value=line,
+                )
+            position += 1
     trial_ids = np.array(trials, dtype=np.int64)  # [n_trials]
     return (
         np.repeat(trial_ids, image_counts),
