@@ -18,6 +18,7 @@ from spcopyro.maps import (
     MapFormatError,
     OccupancyGrid,
     label_colours,
+    load_filter_mask,
     load_label_map_server,
     load_map,
     render_labels,
@@ -396,21 +397,29 @@ def test_unreadable_image(tmp_path: Path, content: bytes) -> None:
     assert all(s in str(info.value) for s in (str(path), "'image'", "map.pgm", "not a readable"))
 
 
-def test_sixteen_bit_image_is_rejected(tmp_path: Path) -> None:
-    write_pgm(tmp_path / "map.pgm", np.array([[65000, 0]], dtype=np.uint16), maxval=65535)
+def test_sixteen_bit_images_are_scaled_by_their_full_scale_as_map_server_does(
+    tmp_path: Path,
+) -> None:
+    """A 16-bit pgm or png was refused; map_server reads it over its full scale (65535)."""
+    write_pgm(tmp_path / "map.pgm", np.array([[65000, 0, 52000]], dtype=np.uint16), maxval=65535)
     path = write_yaml(tmp_path / "m.yaml")
-    with pytest.raises(MapFormatError, match="uint16.*8-bit"):
-        load_map(path)
+    np.testing.assert_array_equal(load_map(path).occupancy, [[FREE, OCCUPIED, UNKNOWN]])
+    cv2.imwrite(str(tmp_path / "deep.png"), np.array([[65000, 0, 52000]], dtype=np.uint16))
+    deep = write_yaml(tmp_path / "deep.yaml", image="deep.png")
+    np.testing.assert_array_equal(load_map(deep).occupancy, [[FREE, OCCUPIED, UNKNOWN]])
+    with pytest.raises(MapFormatError, match="uint16.*only 8-bit images are supported here"):
+        load_filter_mask(deep)  # a mask's values are 8-bit codes
 
 
 @pytest.mark.parametrize("header", [b"P5\n3 1\n100\n", b"P5 # by hand\n3 1 # size\n100\n"])
-def test_pgm_maxval_other_than_255_is_an_error_not_misread(tmp_path: Path, header: bytes) -> None:
+def test_a_pgms_maxval_scales_its_pixels_as_map_server_does(tmp_path: Path, header: bytes) -> None:
     """map_server scales a pgm's pixels by its maxval (100 is white under maxval 100); OpenCV
     does not, so the white pixel read as 100/255 (unknown) and 80 (free) as occupied."""
     (tmp_path / "map.pgm").write_bytes(header + bytes([100, 0, 80]))
     path = write_yaml(tmp_path / "m.yaml")
-    with pytest.raises(MapFormatError) as info:
-        load_map(path)
+    np.testing.assert_array_equal(load_map(path).occupancy, [[FREE, OCCUPIED, UNKNOWN]])
+    with pytest.raises(MapFormatError) as info:  # a mask's 8-bit codes: refused, not misread
+        load_filter_mask(path)
     assert all(s in str(info.value) for s in (str(path), "map.pgm", "maxval 100"))
     write_pgm(tmp_path / "map.pgm", np.array([[254, 0, 205]], dtype=np.uint8))  # maxval 255
     np.testing.assert_array_equal(load_map(path).occupancy, [[FREE, OCCUPIED, UNKNOWN]])

@@ -191,8 +191,9 @@ def _pnm_maxval(head: bytes) -> int | None:
     return int(tokens[2]) if len(tokens) > 2 and tokens[2].isdigit() else None
 
 
-def _read_image(spec: _MapYaml) -> np.ndarray:
-    """The map image as uint8 ``[H, W]`` (grey) or ``[H, W, C]`` (colour, OpenCV channel order)."""
+def _decode(spec: _MapYaml) -> tuple[np.ndarray, int | None]:
+    """The map image as OpenCV decodes it (any depth, OpenCV channel order) and, for a netpbm
+    image, the maxval its header gives (None for other formats)."""
     if not spec.image.is_file():
         raise MapFileNotFoundError(
             f"{spec.path}: key 'image': image file {str(spec.image)!r} not found"
@@ -208,23 +209,48 @@ def _read_image(spec: _MapYaml) -> np.ndarray:
         raise MapFormatError(
             f"{spec.path}: key 'image': {str(spec.image)!r} is not a readable image"
         )
-    maxval = _pnm_maxval(data[:4096].tobytes())
+    if img.ndim not in (2, 3) or img.shape[0] == 0 or img.shape[1] == 0:
+        raise MapFormatError(
+            f"{spec.path}: key 'image': {str(spec.image)!r} has unsupported shape {img.shape}"
+        )
+    return img, _pnm_maxval(data[:4096].tobytes())
+
+
+def _read_image(spec: _MapYaml) -> np.ndarray:
+    """The map image as uint8 ``[H, W]`` (grey) or ``[H, W, C]`` (colour, OpenCV channel order):
+    the readers of masks and semantic maps, whose values are 8-bit codes."""
+    img, maxval = _decode(spec)
     if img.dtype == np.uint8 and maxval not in (None, 255):
         raise MapFormatError(
             f"{spec.path}: key 'image': {str(spec.image)!r} has maxval {maxval}; only 255 is "
-            "supported (map_server scales the pixels by maxval, OpenCV does not: "
+            "supported here (map_server scales the pixels by maxval, OpenCV does not: "
             "save the image with maxval 255)"
         )
     if img.dtype != np.uint8:
         raise MapFormatError(
             f"{spec.path}: key 'image': {str(spec.image)!r} has {img.dtype} pixels; only 8-bit "
-            "images are supported"
-        )
-    if img.ndim not in (2, 3) or img.shape[0] == 0 or img.shape[1] == 0:
-        raise MapFormatError(
-            f"{spec.path}: key 'image': {str(spec.image)!r} has unsupported shape {img.shape}"
+            "images are supported here"
         )
     return img
+
+
+def _read_levels(spec: _MapYaml) -> tuple[np.ndarray, float]:
+    """The map image's pixels (``[H, W]`` or ``[H, W, C]`` float64) and the full scale map_server
+    divides them by: a netpbm image's maxval (any, 8 or 16 bits), else 255 for 8-bit and 65535
+    for 16-bit images (a 16-bit png); other depths are refused."""
+    img, maxval = _decode(spec)
+    if img.dtype not in (np.uint8, np.uint16):
+        raise MapFormatError(
+            f"{spec.path}: key 'image': {str(spec.image)!r} has {img.dtype} pixels; only 8- and "
+            "16-bit images are supported"
+        )
+    full = maxval if maxval is not None else 255 if img.dtype == np.uint8 else 65535
+    if not 0 < full <= np.iinfo(img.dtype).max:
+        raise MapFormatError(
+            f"{spec.path}: key 'image': {str(spec.image)!r} has maxval {full}, which its "
+            f"{img.dtype} pixels cannot hold"
+        )
+    return img.astype(np.float64), float(full)
 
 
 def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
@@ -236,10 +262,11 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
     ``trinary`` (the default). Unknown keys are ignored, as map_server does. Numbers may be
     written ``5e-2`` (YAML 1.2, as map_server's yaml-cpp reads them).
 
-    Cells (8-bit images only; a pgm's maxval must be 255): ``v`` = pixel value, averaged over
-    all channels for colour images;
-    ``p = (255 - v) / 255`` if ``negate == 0`` else ``v / 255``; ``p > occupied_thresh`` ->
-    OCCUPIED, ``p < free_thresh`` -> FREE, otherwise UNKNOWN.
+    Cells: ``v`` = pixel value over the image's full scale (a pgm's maxval; else 255, or 65535
+    for a 16-bit png: map_server scales by it), averaged over all channels for colour images;
+    ``p = 1 - v`` if ``negate == 0`` else ``v`` (computed as ``(full - pixel) / full``, exactly
+    as for 8 bits before); ``p > occupied_thresh`` -> OCCUPIED, ``p < free_thresh`` -> FREE,
+    otherwise UNKNOWN.
 
     Raises:
         MapFileNotFoundError: the yaml or its image does not exist.
@@ -254,9 +281,9 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
             "with load_filter_mask, a semantic map saved by save_label_map_server with "
             "load_label_map_server"
         )
-    img = _read_image(spec)
-    value = img.astype(np.float64) if img.ndim == 2 else img.mean(axis=2, dtype=np.float64)
-    p = value / 255.0 if spec.negate else (255.0 - value) / 255.0  # [H, W] occupancy probability
+    levels, full = _read_levels(spec)  # [H, W] or [H, W, C]
+    value = levels if levels.ndim == 2 else levels.mean(axis=2)  # [H, W]
+    p = value / full if spec.negate else (full - value) / full  # [H, W] occupancy probability
     occupancy = np.full(p.shape, UNKNOWN, dtype=np.int8)  # [H, W]
     occupancy[p > spec.occupied_thresh] = OCCUPIED
     occupancy[p < spec.free_thresh] = FREE
