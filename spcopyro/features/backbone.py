@@ -9,9 +9,12 @@ its weights come from one of three sources (:func:`parse_weights`):
   (``$TORCH_HOME`` defaults to ``~/.cache/torch``; :func:`torchvision_cache_file`). It is read from
   there; it is downloaded (233 MB) only with ``download=True`` on a machine with internet. Without
   the file and without ``download`` a :class:`WeightsNotFoundError` says how to get it.
-* a path: a local checkpoint holding an AlexNet state dict (for example a Places205 AlexNet
-  converted from Caffe, whose final layer has 205 outputs, or a state dict saved with
+* a path: a local checkpoint holding a state dict of torchvision's AlexNet (for example the
+  Places365 project's ``alexnet_places365.pth.tar``, 365 classes, or a state dict saved with
   ``torch.save(model.state_dict(), path)``). The number of classes is read from the final layer.
+  The original Caffe AlexNet (the paper's Places205 model: 96 conv1 filters, grouped
+  convolutions) is another architecture and does not fit; nor does its BGR, mean-only
+  preprocessing.
 * ``"random"``: torchvision's random initialisation from a seed. For tests, timing and plumbing
   only: features from random weights carry no information about places.
 
@@ -119,7 +122,9 @@ def load_state_dict_file(path: str | os.PathLike[str]) -> dict[str, torch.Tensor
     """Read a checkpoint file into a state dict (on the CPU, ``weights_only``: no code runs).
 
     Accepts a plain state dict, or a dict holding one under ``"state_dict"`` or ``"model"``;
-    a ``"module."`` prefix on every key (left by ``nn.DataParallel``) is removed.
+    every ``module`` part of a key (left by ``nn.DataParallel``: ``module.features.0.weight``,
+    or ``features.module.0.weight`` from PyTorch's ImageNet example and the Places365 models,
+    which wrap only ``features``) is removed.
 
     Raises:
         WeightsNotFoundError: no such file.
@@ -148,8 +153,8 @@ def load_state_dict_file(path: str | os.PathLike[str]) -> dict[str, torch.Tensor
     if bad:
         raise CheckpointError(f"{path}: entry {bad[0]!r} is not a named tensor")
     state = dict(raw)
-    if all(k.startswith("module.") for k in state):
-        state = {k.removeprefix("module."): v for k, v in state.items()}
+    if any("module" in k.split(".") for k in state):
+        state = {".".join(p for p in k.split(".") if p != "module"): v for k, v in state.items()}
     return state
 
 
@@ -172,11 +177,35 @@ def _alexnet_from_state_dict(state: Mapping[str, torch.Tensor], path: Path) -> A
         )
     for key, tensor in expected.items():
         if state[key].shape != tensor.shape:
+            caffe = key == "features.0.weight" and state[key].shape[0] == 96
             raise CheckpointError(
                 f"{path}: {key} has shape {tuple(state[key].shape)}, AlexNet needs "
                 f"{tuple(tensor.shape)}"
+                + (
+                    " (96 conv1 filters: the original Caffe AlexNet, another architecture "
+                    "than torchvision's)"
+                    if caffe
+                    else ""
+                )
             )
     model.load_state_dict(state)
+    return model
+
+
+def _load_cached_imagenet(cache_file: Path) -> AlexNet:
+    """torchvision's cached ImageNet file (torchvision itself would raise a bare unpickling
+    error for a damaged one); CheckpointError naming it, and how to replace it."""
+    try:
+        model = _alexnet_from_state_dict(load_state_dict_file(cache_file), cache_file)
+        if final_layer(model).out_features != 1000:
+            raise CheckpointError(
+                f"{cache_file}: {final_layer(model).out_features} classes, not 1000"
+            )
+    except CheckpointError as error:
+        raise CheckpointError(
+            f"{error} (the cached ImageNet weights are damaged: delete the file and get it "
+            f"again from {IMAGENET_WEIGHTS.url})"
+        ) from None
     return model
 
 
@@ -197,14 +226,18 @@ def load_alexnet(
     Raises:
         WeightsNotFoundError: the ImageNet file is not cached (and no ``download``), or the
             checkpoint path does not exist; the message says how to get the weights.
-        CheckpointError: a checkpoint that is unreadable or does not fit AlexNet.
+        CheckpointError: a checkpoint (or the cached ImageNet file) that is unreadable or does
+            not fit AlexNet.
     """
     source = parse_weights(weights, seed=seed)
     if source.kind == "imagenet":
         cache_file = torchvision_cache_file()
-        if not cache_file.is_file() and not download:
+        if cache_file.is_file():  # read as torchvision would, with errors naming the file
+            model = _load_cached_imagenet(cache_file)
+        elif not download:
             raise WeightsNotFoundError(_missing_imagenet_message(cache_file))
-        model = alexnet(weights=IMAGENET_WEIGHTS, progress=False)
+        else:
+            model = alexnet(weights=IMAGENET_WEIGHTS, progress=False)
     elif source.kind == "random":
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(source.seed)

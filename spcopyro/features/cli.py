@@ -15,8 +15,8 @@ __all__ = ["add_parser"]
 WEIGHTS_HELP = (
     "backbone weights: 'imagenet' (torchvision's AlexNet_Weights.IMAGENET1K_V1, read from "
     "$TORCH_HOME/hub/checkpoints; see --download), 'random' (no pretrained weights: features "
-    "mean nothing), or the path of an AlexNet state-dict checkpoint (e.g. a converted Places205 "
-    "AlexNet). Default: imagenet"
+    "mean nothing), or the path of a state-dict checkpoint of torchvision's AlexNet (e.g. "
+    "alexnet_places365.pth.tar; the original Caffe AlexNet does not fit). Default: imagenet"
 )
 
 

@@ -190,7 +190,7 @@ def extract_to_csv(
     (:func:`~spcopyro.features.images.list_images`), run the network, write Ft.csv.
 
     Without ``head`` the rows are the backbone's own final layer: 1000 ImageNet classes for
-    ``"imagenet"``, 205 for a converted Places205 checkpoint. ``model`` (already built) replaces
+    ``"imagenet"``, 365 for the Places365 AlexNet checkpoint. ``model`` (already built) replaces
     ``weights`` / ``head`` / ``download``.
     """
     paths = list_images(images)

@@ -77,8 +77,8 @@ class PlaceClassifier(nn.Module):
     """AlexNet with its final layer as a head over K classes: ``[N, 3, 224, 224] -> [N, K]``.
 
     Built from an AlexNet (:func:`~spcopyro.features.backbone.load_alexnet`); the head is its
-    own final layer (fc8: 1000 ImageNet classes, or the 205 Places205 classes of a converted
-    checkpoint) until :meth:`replace_head` or :func:`load_head` puts a place head there.
+    own final layer (fc8: 1000 ImageNet classes, or a checkpoint's own, such as the 365 of
+    Places365) until :meth:`replace_head` or :func:`load_head` puts a place head there.
 
     Attributes:
         network: the AlexNet; ``network.classifier[6]`` is the head.

@@ -40,6 +40,9 @@ __all__ = [
 
 RESIZE_SIZE = 256  # shorter side after resizing
 CROP_SIZE = 224  # side of the central crop the network sees
+OTHER_IMAGE_SUFFIXES = (".bmp", ".dib", ".gif", ".jp2", ".jpe", ".pbm", ".pgm", ".pnm", ".ppm",
+                        ".tif", ".tiff", ".webp", ".avif", ".heic")  # fmt: skip
+"""Image files not read (not :data:`spcopyro.data.IMAGE_SUFFIXES`): an error, not a silent skip."""
 IMAGENET_MEAN = (0.485, 0.456, 0.406)  # RGB
 IMAGENET_STD = (0.229, 0.224, 0.225)  # RGB
 
@@ -67,7 +70,8 @@ class UnreadableImagesError(ValueError):
 
 
 def read_image(path: str | os.PathLike[str]) -> np.ndarray:
-    """Decode an image file into ``[H, W, 3]`` uint8 **RGB** (grey and alpha images converted).
+    """Decode an image file into ``[H, W, 3]`` uint8 **RGB** (grey and alpha images converted;
+    an EXIF orientation is applied, as OpenCV does, unlike PIL and torchvision's decoders).
 
     The bytes are read with Python and decoded with ``cv2.imdecode``, which rejects a truncated
     JPEG (``cv2.imread`` would silently return it with its missing part grey).
@@ -120,7 +124,8 @@ def list_images(directory: str | os.PathLike[str]) -> list[Path]:
 
     Raises:
         FileNotFoundError: ``directory`` does not exist, or holds no images.
-        ValueError: it holds both images and ``img_K/`` folders (which order is meant?).
+        ValueError: it holds both images and ``img_K/`` folders (which order is meant?), or
+            image files of another type (``.bmp``, ``.webp``, ...), which would be left out.
     """
     directory = Path(directory)
     if not directory.is_dir():
@@ -138,8 +143,11 @@ def list_images(directory: str | os.PathLike[str]) -> list[Path]:
             f"{directory}: holds both images ({flat[0].name}, ...) and img_K folders "
             f"({trial_folders[0][1].name}, ...); give one of them"
         )
+    if not trial_folders:  # a house folder's own files (a map.pgm, say) are not its images
+        _check_other_images(directory)
     paths = list(flat)
     for trial, folder in trial_folders:
+        _check_other_images(folder)
         images = sorted(
             q for q in folder.iterdir() if q.is_file() and q.suffix.lower() in IMAGE_SUFFIXES
         )
@@ -151,6 +159,20 @@ def list_images(directory: str | os.PathLike[str]) -> list[Path]:
             "in img_K/ folders)"
         )
     return paths
+
+
+def _check_other_images(folder: Path) -> None:
+    """ValueError naming the image files of ``folder`` that are not read (their suffix is not
+    one of IMAGE_SUFFIXES): left out, they would silently drop rows from Ft.csv."""
+    others = sorted(
+        p.name for p in folder.iterdir() if p.is_file() and p.suffix.lower() in OTHER_IMAGE_SUFFIXES
+    )
+    if others:
+        raise ValueError(
+            f"{folder}: {len(others)} image file(s) of a type not read ({', '.join(others[:5])}"
+            f"{', ...' if len(others) > 5 else ''}): only {', '.join(IMAGE_SUFFIXES)} files are "
+            "images here (as for load_house); convert them or move them out"
+        )
 
 
 def _check_against_poses(directory: Path, trial: int, folder: Path, images: list[Path]) -> None:
