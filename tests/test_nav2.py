@@ -427,3 +427,13 @@ def test_an_older_coarse_fits_main_map_is_the_map_its_data_came_with(fit, tmp_pa
     assert main(["export", str(folder), "--nav2", str(tmp_path / "b"), "--word", "kitchen"]) == 0
     assert "the main map is" not in capsys.readouterr().out
     assert load_map(tmp_path / "b" / "map.yaml") == result.grid
+
+
+def test_several_speed_words_warn_that_their_filters_share_one_topic(fit, tmp_path, capsys):
+    out = tmp_path / "speed2"
+    assert main(["export", str(fit), "--nav2", str(out), "--word", "kitchen", "bed",
+                 "--mode", "speed"]) == 0  # fmt: skip
+    assert "2 speed filters publish on one speed_limit topic" in capsys.readouterr().err
+    assert main(["export", str(fit), "--nav2", str(tmp_path / "one"), "--word", "kitchen",
+                 "--mode", "speed"]) == 0  # fmt: skip
+    assert "speed_limit topic" not in capsys.readouterr().err

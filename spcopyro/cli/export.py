@@ -88,6 +88,11 @@ def _export(args: argparse.Namespace) -> int:
             print(f"warning: {mask.word!r}: {warning}", file=sys.stderr)
     if not export.masks:
         print("no --word given: wrote the map and the semantic map only")
+    if args.mode == "speed" and len(export.masks) > 1:
+        print(f"warning: {len(export.masks)} speed filters publish on one speed_limit topic: "
+              "each publishes only when its own limit changes, so the limit in force is "
+              "whichever changed last; run one speed word per export (or give each filter "
+              "its own speed_limit_topic)", file=sys.stderr)  # fmt: skip
     print(f"costmap plugin entries for nav2_params.yaml: {export.costmap_filters_yaml}")
     return 0
 
