@@ -571,6 +571,7 @@ def _interrupted_fit_process(out: Path, home: Path, chains: int, send) -> tuple[
     env = {k: v for k, v in os.environ.items() if k != "CI"}  # the progress bar shows sweeping
     env["PYTHONPATH"] = str(Path(spcopyro.fit.house.__file__).parents[1])
     env[spcopyro.gibbs.chains.PROCESSES_ENV] = "on" if chains > 1 else "auto"
+    env["PYTHONFAULTHANDLER"] = "1"  # SIGABRT prints the stacks of a hung fit
     argv = ["fit", str(home), "--out", str(out), "--sweeps", "1000000", "--concepts", "8",
             "--chains", str(chains), "--chain-workers", str(chains)]  # fmt: skip
     process = subprocess.Popen([sys.executable, "-m", "spcopyro", *argv], env=env,
@@ -583,7 +584,12 @@ def _interrupted_fit_process(out: Path, home: Path, chains: int, send) -> tuple[
             break
         seen += chunk
     send(process)
-    _, rest = process.communicate(timeout=120)
+    try:
+        _, rest = process.communicate(timeout=120)
+    except subprocess.TimeoutExpired:  # a hang: every thread's stack (faulthandler), then fail
+        os.killpg(process.pid, signal.SIGABRT)
+        _, rest = process.communicate(timeout=30)
+        pytest.fail(f"no exit 120 s after the signal:\n{(seen + rest).decode()[-8000:]}")
     err = (seen + rest).decode()
     assert process.returncode == 130, err
     assert "Traceback" not in err

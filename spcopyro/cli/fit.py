@@ -384,6 +384,10 @@ def _fit_staged(job: FitJob) -> int:
             fitted = _fit(job, init, saved, prefetch)
         job.sampled = True
         return _write(job, fitted, prefetch)
+    except BaseException:  # stopped: never wait on the thread without bound (abandon's doc)
+        if prefetch is not None:
+            prefetch.abandon()
+        raise
     finally:
         if prefetch is not None:  # nothing written into the staging folder after this
             prefetch.join()

@@ -34,6 +34,8 @@ __all__ = ["FigurePrefetch", "write_figures"]
 PREFETCH_SWITCH_INTERVAL = 0.0005
 """Seconds: :func:`sys.setswitchinterval` while :class:`FigurePrefetch` works (Python's default
 is 0.005, a sweep's length on a public house)."""
+ABANDON_TIMEOUT = 10.0
+"""Seconds a stopped fit waits for :class:`FigurePrefetch`'s thread (its ``abandon``)."""
 
 
 class FigurePrefetch:
@@ -41,10 +43,12 @@ class FigurePrefetch:
     at once, or by :meth:`start` when ``start`` is False (a fit whose chains run in forked
     processes starts it once they are forked: :func:`spcopyro.gibbs.chains.when_chains_start`).
     :meth:`join` waits for it; an error there is not raised but left to the figures drawn after
-    the fit (which draw ``house.png`` again, as they do if it never started)."""
+    the fit (which draw ``house.png`` again, as they do if it never started). A fit that stops
+    (Ctrl-C, SIGTERM, an error) calls :meth:`abandon` instead."""
 
     def __init__(self, house: House, out: Path, start: bool = True) -> None:
         self.house_drawn = False
+        self._abandoned = threading.Event()
         self._previous = sys.getswitchinterval()
         self._out = Path(out)
         self._thread = self._new_thread(house)
@@ -82,6 +86,8 @@ class FigurePrefetch:
                 import scipy.optimize  # noqa: F401  (the point estimate's matching)
 
                 from spcopyro.figures.plotting import plot_house
+            if self._abandoned.is_set():  # the fit stopped: nothing more into its folder
+                return
             with timed("prefetch house"):
                 plot_house(house, out / "house.png")
             self.house_drawn = True
@@ -91,11 +97,26 @@ class FigurePrefetch:
             sys.setswitchinterval(self._previous)
 
     def join(self) -> bool:
-        """Wait for the thread; whether ``house.png`` was drawn."""
-        if self._started and self._thread.is_alive():
+        """Wait for the thread (not once abandoned); whether ``house.png`` was drawn."""
+        if self._started and self._thread.is_alive() and not self._abandoned.is_set():
             with timed("prefetch wait"):
                 self._thread.join()
         return self.house_drawn
+
+    def abandon(self, timeout: float | None = None) -> bool:
+        """The fit stopped: tell the thread to draw nothing more and wait at most ``timeout``
+        seconds (None: :data:`ABANDON_TIMEOUT`) for it; whether it ended.
+
+        Not an unbounded :meth:`join`: an interrupt raised in the main thread while it took an
+        import's module lock (Python's import machinery is Python code, where a signal handler
+        can raise between the lock's acquisition and the ``with`` that would release it) leaves
+        that lock held for good, and this thread, importing the same module, would wait for it
+        forever, and the fit with it. The thread is a daemon: one still running does not keep
+        the process from exiting."""
+        self._abandoned.set()
+        if self._started and self._thread.is_alive():
+            self._thread.join(ABANDON_TIMEOUT if timeout is None else timeout)
+        return not self._thread.is_alive()
 
 
 def write_figures(
