@@ -439,6 +439,24 @@ def test_numbers_in_exponent_notation_read_as_map_server_reads_them(tmp_path: Pa
     np.testing.assert_array_equal(grid.occupancy, [[FREE, OCCUPIED]])
 
 
+def test_quoted_numbers_read_as_map_server_reads_them(tmp_path: Path) -> None:
+    """map_server reads values with yaml-cpp's ``as<double>()``, which converts a quoted scalar
+    too (``resolution: "0.05"``); such a map was refused ("got '0.05'"). Quoted text that is
+    no number is still refused."""
+    write_pgm(tmp_path / "map.pgm", np.array([[254, 0]], dtype=np.uint8))
+    path = tmp_path / "m.yaml"
+    path.write_text(
+        "image: map.pgm\nresolution: '0.5'\norigin: [\"-1.5\", '2', 0]\nnegate: \"0\"\n"
+        "occupied_thresh: '0.65'\nfree_thresh: \"1.96e-1\"\n"
+    )
+    grid = load_map(path)
+    assert grid.resolution == 0.5 and grid.origin == (-1.5, 2.0, 0.0)
+    np.testing.assert_array_equal(grid.occupancy, [[FREE, OCCUPIED]])
+    path.write_text(path.read_text().replace("'0.5'", "'0.5 m'"))
+    with pytest.raises(MapFormatError, match=r"m\.yaml:2: key 'resolution' .*'0\.5 m'"):
+        load_map(path)
+
+
 # ---------------------------------------------------------------------- writing
 def test_save_map_round_trip(tmp_path: Path, rng: np.random.Generator) -> None:
     grid = OccupancyGrid(random_grid(rng, (13, 17)).occupancy, 0.07, (-3.25, 1.5, 0.0))

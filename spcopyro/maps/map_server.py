@@ -86,6 +86,19 @@ def _is_number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
+_QUOTED_NUMBER = re.compile(r"^[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?$")
+
+
+def _unquoted(value: Any) -> Any:
+    """A quoted number (``resolution: "0.05"``) as the number: map_server reads values with
+    yaml-cpp's ``as<double>()`` / ``as<int>()``, which convert a scalar's text whether or not it
+    was quoted. Anything else unchanged (and refused by the checks that follow)."""
+    if isinstance(value, str) and _QUOTED_NUMBER.match(value):
+        number = float(value)
+        return int(number) if re.fullmatch(r"[-+]?[0-9]+", value) else number
+    return value
+
+
 def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
     """Parse and validate a map_server yaml; errors name the file, line, key and value."""
     path = Path(yaml_path)
@@ -124,6 +137,11 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
     for key in _REQUIRED_KEYS:
         if key not in doc:
             raise MapFormatError(f"{path}: missing required key {key!r}")
+
+    for key in ("resolution", "negate", "occupied_thresh", "free_thresh"):
+        doc[key] = _unquoted(doc[key])
+    if isinstance(doc["origin"], list):
+        doc["origin"] = [_unquoted(v) for v in doc["origin"]]
 
     def bad(key: str, expected: str) -> MapFormatError:
         return MapFormatError(f"{where(key)}: key {key!r} must be {expected}, got {echo(doc[key])}")
