@@ -304,6 +304,23 @@ def test_cell_counts_exact(grid, scaling, weighting, caplog):
     assert "1 image(s) and 1 utterance(s)" in warnings[0].getMessage()
 
 
+def test_observations_left_out_are_named_by_file_and_line(tmp_path, grid, caplog):
+    """The warning named left-out observations by index only ("image indices [3]"); read from
+    a house folder it names the position files' lines, with positions and words."""
+    house = make_house(tmp_path, grid)
+    room = save_house(house, tmp_path / "data")
+    loaded = load_house(room, map_yaml=room.parent / "map" / "house1.yaml")
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        cell_counts(loaded.grid, loaded.observations, snap_distance=1.0, source=loaded.source)
+        cell_counts(loaded.grid, loaded.observations, snap_distance=1.0)
+    named, unnamed = (m for r in caplog.records if "left out of the cell" in (m := r.getMessage()))
+    assert (room / "Xtx.csv").read_text().splitlines()[3] == "10.0"  # image 3 on line 4
+    assert (room / "StXtx.csv").read_text().splitlines()[2] == "4.5"  # 'tv' on line 3
+    assert f"images at line(s) 4 (x 10.00, y 10.00) of {room.resolve() / 'Xtx.csv'} and " in named
+    assert f"utterances at line(s) 3 ('tv' at x 4.50, y 2.50) of {room.resolve()}" in named
+    assert "images of index 3 (x 10.00, y 10.00); utterances of index 2 ('tv' at" in unnamed
+
+
 def test_cell_counts_nothing_vanishes(grid, caplog):
     obs = make_obs()
     for snap in (0.0, 1.0, 1.5, 3.0, DEFAULT_SNAP_DISTANCE):

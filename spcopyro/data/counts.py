@@ -105,6 +105,29 @@ def _location(modality: str, index: int, source: Path | None) -> tuple[Path | No
     return file, index + 2, f"observation {index} of modality {modality!r}"
 
 
+def _left_out(
+    xy: np.ndarray,
+    indices: np.ndarray,
+    files: str | None,
+    what: str,
+    tokens: Sequence[Sequence[str]] | None = None,
+    first_line: int = 1,
+) -> str:
+    """The observations ``indices`` (of positions ``xy`` ``[N, 2]``) left out, named by the
+    lines of ``files`` (the files in the house folder that give their positions, observation i
+    on line i + ``first_line``) or, without a house folder, by index; the first five, with
+    their position (and words)."""
+    shown = []
+    for i in indices.tolist()[:5]:
+        said = f"{' '.join(tokens[i])!r} at " if tokens is not None else ""
+        number = i + first_line if files else i
+        shown.append(f"{number} ({said}x {xy[i, 0]:.2f}, y {xy[i, 1]:.2f})")
+    more = f", ... ({indices.size} in all)" if indices.size > 5 else ""
+    if files:
+        return f"{what} at line(s) {', '.join(shown)}{more} of {files}"
+    return f"{what} of index {', '.join(shown)}{more}"
+
+
 def check_count_totals(
     counts: np.ndarray,
     modality: str,
@@ -338,15 +361,23 @@ def cell_counts(
             f", or on the map only in free space that reaches no free {grid.resolution:g} m "
             "model cell"
         )
+    folder = Path(source) if source is not None else None
     if warn and (report.images_unplaced or report.words_unplaced):
+        named = []
+        if report.images_unplaced:
+            files = folder and f"{folder / 'Xtx.csv'} and Xty.csv"
+            named.append(_left_out(obs.image_xy, report.unplaced_images, files, "images"))
+        if report.words_unplaced:
+            files = folder and f"{folder / 'StXtx.csv'} and StXty.csv"
+            named.append(
+                _left_out(obs.word_xy, report.unplaced_words, files, "utterances", obs.utterances)
+            )
         logger.warning(
-            "%d image(s) and %d utterance(s) are %s and were left out of the cell counts "
-            "(image indices %s, utterance indices %s)",
+            "%d image(s) and %d utterance(s) are %s and were left out of the cell counts: %s",
             report.images_unplaced,
             report.words_unplaced,
             farther,
-            report.unplaced_images.tolist()[:20],
-            report.unplaced_words.tolist()[:20],
+            "; ".join(named),
         )
     off_free = report.off_free_warning(where)
     if warn and off_free:
@@ -360,13 +391,19 @@ def cell_counts(
         )
     for placed in report.modalities:
         if warn and placed.unplaced:
+            file = folder / f"modality_{placed.name}.csv" if folder else None
             logger.warning(
-                "%d observation(s) of modality %r are %s and were left out of the cell counts "
-                "(indices %s)",
+                "%d observation(s) of modality %r are %s and were left out of the cell counts: %s",
                 placed.unplaced,
                 placed.name,
                 farther,
-                placed.unplaced_indices.tolist()[:20],
+                _left_out(
+                    next(m for m in obs.modalities if m.name == placed.name).positions,
+                    placed.unplaced_indices,
+                    file and str(file),
+                    "observations",
+                    first_line=2,
+                ),
             )
         if placed.snapped:
             logger.info(
