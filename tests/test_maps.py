@@ -548,10 +548,17 @@ def test_label_map_server_round_trip(tmp_path: Path) -> None:
         load_map(path)
 
 
-def test_label_map_server_grey_values_skip_occupied_code(tmp_path: Path) -> None:
+def test_label_map_server_grey_values_skip_occupied_code(tmp_path: Path, caplog) -> None:
     grid = OccupancyGrid(np.zeros((1, 253), np.int8), 0.05, (0.0, 0.0, 0.0))
     labels = np.arange(253)[None, :] * 2  # 253 distinct concepts: exactly the capacity
-    path = save_label_map_server(labels, grid, tmp_path / "full.yaml")
+    with caplog.at_level("WARNING", logger="spcopyro"):
+        few = np.where(labels < 2 * 99, labels, 0)  # 99 distinct concepts: grey 1..99
+        save_label_map_server(few, grid, tmp_path / "fits.yaml")
+        assert not caplog.records
+        path = save_label_map_server(labels, grid, tmp_path / "full.yaml")
+    (warning,) = caplog.records  # Nav2's map_server: a raw value above 100 is unknown (-1)
+    assert "253 distinct concepts" in warning.getMessage()
+    assert "first 99 (concepts 198, ...) are above 100" in warning.getMessage()
     pixels = cv2.imread(str(tmp_path / "full.pgm"), cv2.IMREAD_UNCHANGED)[0]
     assert pixels[98] == 99 and pixels[99] == 101 and pixels[252] == 254
     assert 100 not in pixels.tolist()

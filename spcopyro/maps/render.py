@@ -10,6 +10,7 @@ a json sidecar naming the concept of each grey value).
 from __future__ import annotations
 
 import json
+import logging
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -27,6 +28,8 @@ from spcopyro.maps.map_server import (
     _write_map_yaml,
     _yaml_target,
 )
+
+logger = logging.getLogger(__name__)
 
 __all__ = [
     "RAW_CONCEPT_VALUES",
@@ -181,7 +184,9 @@ def save_label_map_server(labels: Any, grid: OccupancyGrid, yaml_path: str | os.
     Files: ``NAME.pgm``, ``NAME.yaml`` (same resolution/origin, ``negate: 0``, ``mode: raw`` so
     ROS takes each byte as the cell value) and ``NAME.labels.json``. Pixel values: OCCUPIED 100,
     UNKNOWN 255 (int8 -1 in ROS), free unlabelled 0, and the distinct concept ids present, in
-    ascending order, get the grey values 1, 2, ..., 99, 101, ..., 254 (253 available). The json
+    ascending order, get the grey values 1, 2, ..., 99, 101, ..., 254 (253 available; Nav2's
+    map_server publishes a raw value above 100 as unknown, so a ROS node sees only the first 99
+    concepts, and a warning says so when there are more). The json
     holds ``{"image": NAME.pgm, "grey_to_concept": {"1": id, ...}, "free_unlabelled": 0,
     "occupied": 100, "unknown": 255}``. Returns the yaml path; read back with
     :func:`load_label_map_server`.
@@ -196,6 +201,13 @@ def save_label_map_server(labels: Any, grid: OccupancyGrid, yaml_path: str | os.
             f"{concepts.size} distinct concepts do not fit in a raw map_server image: only "
             f"{RAW_CONCEPT_VALUES.size} grey values (1..254 except 100) are available"
         )
+    if concepts.size > RAW_OCCUPIED - 1:
+        logger.warning(
+            "%s: %d distinct concepts; the grey values of all but the first %d (concepts %s, "
+            "...) are above 100, which Nav2's map_server (mode: raw) publishes as unknown (-1): "
+            "load_label_map_server reads them back, a ROS node subscribing to the map does not",
+            yaml_path, concepts.size, RAW_OCCUPIED - 1, concepts[RAW_OCCUPIED - 1],
+        )  # fmt: skip
     path = _yaml_target(yaml_path)
     image = path.with_suffix(".pgm")
     grey = RAW_CONCEPT_VALUES[: concepts.size]  # [K] uint8
