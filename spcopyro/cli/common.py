@@ -23,6 +23,22 @@ def _load(data: str | None, seed: int = 0) -> House:
     return load_house(Path(data))
 
 
+def refuse_fit_files(result_dir: str, out: str, targets: list[Path]) -> None:
+    """ValueError when one of ``targets`` (the files ``--out OUT`` writes, resolved) is one of
+    the fit's own files in ``result_dir`` (its manifest,
+    :func:`spcopyro._util.outputs.fit_written`), which it would replace."""
+    from spcopyro._util.outputs import fit_written
+
+    folder = Path(result_dir).resolve()
+    own = fit_written(folder)
+    for target in targets:
+        if target.parent == folder and target.name in own:
+            raise ValueError(
+                f"--out {out}: {target.name}, which it would write, is a file of the fit in "
+                f"{result_dir}; choose another name"
+            )
+
+
 def _summary(house: House, warn: bool = True, feature_scaling: object = "probability") -> str:
     """The house's summary lines; ``warn=False`` when the fit will count (and warn) again,
     ``feature_scaling`` the run's (so a bad count is told under the scaling it has there)."""

@@ -35,7 +35,7 @@ from spcopyro.cli.common import (
 )
 from spcopyro.cli.concept_listing import print_concepts
 from spcopyro.cli.fit_figures import FigurePrefetch, write_figures
-from spcopyro.cli.fit_refine import prepares_data, refine, update_settings
+from spcopyro.cli.fit_refine import prepares_data, refine, report_update, update_settings
 from spcopyro.config import (
     SpCoSettings,
     preset,
@@ -435,8 +435,7 @@ def _fit(
             marginal_samples=args.marginal_samples, point_estimate=args.point_estimate,
             where=args.update,
         )  # fmt: skip
-        words = chain_results[0].inference["update_of"]["new_words"]
-        print(f"new words        {len(words)}: {', '.join(words[:20]) or '-'}")
+        report_update(chain_results[0].inference["update_of"], args.update)
         kept = best_chain(chain_results)
         result = chain_results[kept]
     else:

@@ -5,6 +5,7 @@ holds the method."""
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -17,7 +18,7 @@ if TYPE_CHECKING:
     from spcopyro.fit.refine import RefineDecision
     from spcopyro.results.result import SpCoResult
 
-__all__ = ["REFINED_AWAY", "prepares_data", "refine", "update_settings"]
+__all__ = ["REFINED_AWAY", "prepares_data", "refine", "report_update", "update_settings"]
 
 REFINED_AWAY = ("cell_size", "feature_scaling", "word_scaling", "footprint",
                 "footprint_kernel", "footprint_fov")  # fmt: skip
@@ -119,3 +120,18 @@ def update_settings(
     if not record.get("refine") or prepares_data(args):
         return settings
     return refined_settings(settings, int(record["coarse"]["free_cells"]), map_cells)
+
+
+def report_update(record: dict[str, object], where: str) -> None:
+    """Print what ``--update`` changed in the vocabulary (``record``: ``inference.update_of``),
+    and warn (stderr) when saved words are missing from DATA: an update fits DATA alone, so a
+    folder holding only the new trial drops the old trials' observations (their words, without
+    counts, are the visible sign; robot.md)."""
+    new, unheard = list(record["new_words"]), list(record["unheard_words"])
+    print(f"new words        {len(new)}: {', '.join(new[:20]) or '-'}")
+    if unheard:
+        more = f", ... ({len(unheard) - 20} more)" if len(unheard) > 20 else ""
+        print(f"warning: {len(unheard)} word(s) of the fit in {where} are not in this run's "
+              f"data: {', '.join(unheard[:20])}{more}; an update is fitted on DATA alone, so "
+              "DATA must hold the old trials' observations as well as the new ones (their "
+              "words keep their columns, without counts)", file=sys.stderr)  # fmt: skip

@@ -31,7 +31,7 @@ import numpy as np
 from spcopyro import __version__
 from spcopyro._util.arguments import figure_path, non_negative_number
 from spcopyro._util.interrupts import caused_by_interrupt
-from spcopyro.cli.common import _HelpFormatter, _load, _seed, _summary
+from spcopyro.cli.common import _HelpFormatter, _load, _seed, _summary, refuse_fit_files
 from spcopyro.cli.fit_parser import add_parser as add_fit_parser
 
 logger = logging.getLogger("spcopyro")
@@ -142,9 +142,12 @@ def _show(args: argparse.Namespace) -> int:
     from spcopyro.figures.plotting import plot_house
 
     if args.data and not missing_fit_markers(Path(args.data)):
+        figures = "its figures are in it already"
+        if not (Path(args.data) / "semantic_map.png").is_file():
+            figures = "it was fitted with --no-figures (fit again without it to draw them)"
         raise ValueError(
-            f"{args.data} is the output folder of `spcopyro fit`, not a house folder: its "
-            "figures are in it already; to draw its place graph pass --graph"
+            f"{args.data} is the output folder of `spcopyro fit`, not a house folder: "
+            f"{figures}; to draw its place graph pass --graph"
         )
     house = _load(args.data)
     print(_summary(house))
@@ -161,18 +164,9 @@ def probability_figure(out: Path) -> Path:
 def _check_where_out(result_dir: str, out: str) -> None:
     """``where --out``: refuse a figure (or its ``_probability`` sibling) that would replace
     one of the fit's own files (its manifest, :func:`spcopyro._util.outputs.fit_written`)."""
-    from spcopyro._util.outputs import fit_written
-
-    folder = Path(result_dir).resolve()
-    own = fit_written(folder)
     path = Path(out).resolve()
     figure = path if path.suffix else path.with_suffix(".png")  # matplotlib adds .png
-    for target in (figure, probability_figure(path)):
-        if target.parent == folder and target.name in own:
-            raise ValueError(
-                f"--out {out}: {target.name} is a file of the fit in {result_dir}, which the "
-                "figure would replace; choose another name"
-            )
+    refuse_fit_files(result_dir, out, [figure, probability_figure(path)])
 
 
 def _where(args: argparse.Namespace) -> int:
@@ -211,7 +205,7 @@ def _where(args: argparse.Namespace) -> int:
         print(f"warning: {warning}", file=sys.stderr)
     from spcopyro.results.uncertainty import where_probability
 
-    probability = where_probability(result, args.word, args.prior)  # [N]
+    probability = where_probability(result, answer.word, args.prior)  # [N]
     source = "marginals" if result.marginals is not None else "point estimate"
     print(f"cells whose probability of being the place exceeds 0.5: "
           f"{int((probability > 0.5).sum())} ({source})")  # fmt: skip
@@ -220,7 +214,7 @@ def _where(args: argparse.Namespace) -> int:
 
         print(f"wrote {plot_where(result, answer, args.out)}")
         probability_png = probability_figure(Path(args.out))
-        print(f"wrote {plot_where_probability(result, args.word, probability_png, args.prior)}")
+        print(f"wrote {plot_where_probability(result, answer.word, probability_png, args.prior)}")
     return 0
 
 

@@ -12,10 +12,11 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from spcopyro._util.arguments import non_negative_number
-from spcopyro.cli.common import _HelpFormatter
+from spcopyro.cli.common import _HelpFormatter, refuse_fit_files
 
 if TYPE_CHECKING:
     from spcopyro._util.outputs import StagedOutput
@@ -149,6 +150,10 @@ def show_graph(args: argparse.Namespace) -> int:
 
     if not args.data:
         raise ValueError("show --graph: give the output folder of `spcopyro fit`")
+    path = Path(args.out).resolve()
+    figure = path if path.suffix else path.with_suffix(".png")  # matplotlib adds .png
+    # the figure and its JSON never replace the fit's files (--out OUT/config.png: config.json)
+    refuse_fit_files(args.data, args.out, [figure, figure.with_suffix(".json")])
     result = SpCoResult.load(args.data)
     graph = place_graph(result, min_area=args.min_area)
     png = plot_place_graph(result, graph, args.out)

@@ -11,6 +11,8 @@ probability, and the lift p(word | concept) / p(word) next to the words that are
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from matplotlib import patheffects
 from matplotlib.axes import Axes
@@ -180,7 +182,9 @@ def place_labels(
     for x, y, text, style in labels:
         artist = ax.text(x, y, text, ha="center", va="center", path_effects=OUTLINE, zorder=4,
                          **style)  # fmt: skip
-        box = artist.get_window_extent(renderer=renderer).expanded(1.15, 1.25)
+        with warnings.catch_warnings():  # told once, in words, when saved (plotting._save)
+            warnings.filterwarnings("ignore", message="Glyph .* missing from font")
+            box = artist.get_window_extent(renderer=renderer).expanded(1.15, 1.25)
         if any(box.overlaps(other) for other in boxes):
             artist.remove()
             skipped += 1

@@ -32,6 +32,7 @@ from matplotlib.ticker import FuncFormatter, MaxNLocator
 from scipy import ndimage
 
 from spcopyro.data import House, Observations
+from spcopyro.data.text import tokenize
 from spcopyro.figures.map_pieces import (
     concept_handles,
     draw_outline,
@@ -135,7 +136,8 @@ def _check_glyphs(artists: list[Text], families: list[str]) -> None:
     if not missing:
         return
     _warned_glyphs.update(missing)
-    words = sorted({w for text in texts for w in text.split() if set(w) & set(missing)})[:5]
+    # the words as the data holds them: not "'台所'?" of the title "where is '台所'?"
+    words = sorted({w for text in texts for w in tokenize(text) if set(w) & set(missing)})[:5]
     logging.getLogger("spcopyro").warning(
         "the figures' fonts have no glyphs for %s (in %s): they are drawn as boxes; install a "
         "font that has them (e.g. Debian's fonts-noto-cjk for Japanese) and the figures use it",

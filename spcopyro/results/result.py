@@ -29,7 +29,7 @@ from spcopyro.config import IMAGES, WORDS, DataPreparation, SpCoConfig
 from spcopyro.inference.protocol import InferenceOutput, Trace
 from spcopyro.maps import OccupancyGrid, load_map, save_map
 from spcopyro.results.concept_words import NO_WORDS, distinctive_items, lift, ranked
-from spcopyro.results.semantic_map import UnknownWordError, word_index
+from spcopyro.results.semantic_map import UnknownWordError, word_index, word_key
 from spcopyro.results.where import (
     DEFAULT_WHERE_PRIOR,
     WHERE_PRIORS,
@@ -312,8 +312,9 @@ class SpCoResult:
         order = np.argsort(-posterior, kind="stable")
         concept = int(order[0])
         runner_up = int(order[1]) if (sizes > 0).sum() > 1 else None
+        key = word_key(self.vocabulary, word)  # as looked up: 'Kitchen?' is 'kitchen'
         return WhereAnswer(
-            word=word.strip().lower(),
+            word=key,
             concept=concept,
             probability=float(posterior[concept]),
             region=self.label_image() == concept,
@@ -322,7 +323,7 @@ class SpCoResult:
             runner_up_probability=0.0 if runner_up is None else float(posterior[runner_up]),
             evidence=bayes_factor(float(posterior[concept]), float(weights[concept])),
             warnings=answer_warnings(
-                posterior, weights, sizes, word=word.strip().lower(), prior_name=prior,
+                posterior, weights, sizes, word=key, prior_name=prior,
                 cell_area=self.grid.resolution**2,
             ),
         )  # fmt: skip

@@ -30,9 +30,9 @@ Two implementations live here:
   :class:`SpCoResultLike`) seen through the protocol.
   :func:`as_semantic_map` wraps such a result and passes a semantic map through unchanged.
 
-Also here: :func:`word_index` and :class:`UnknownWordError`, how a word is looked up in a
-fitted vocabulary. This module imports neither the samplers nor the result module, so a
-baseline or a score can depend on it without pulling in inference.
+Also here: :func:`word_index`, :func:`word_key` and :class:`UnknownWordError`, how a word is
+looked up in a fitted vocabulary. This module imports neither the samplers nor the result
+module, so a baseline or a score can depend on it without pulling in inference.
 """
 
 from __future__ import annotations
@@ -45,6 +45,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from spcopyro.data import CellCounts
+from spcopyro.data.text import tokenize
 from spcopyro.maps import OccupancyGrid
 
 __all__ = [
@@ -55,6 +56,7 @@ __all__ = [
     "UnknownWordError",
     "as_semantic_map",
     "word_index",
+    "word_key",
 ]
 
 
@@ -65,13 +67,26 @@ class UnknownWordError(KeyError):
         return str(self.args[0])
 
 
+def word_key(vocabulary: Sequence[str], word: str) -> str:
+    """How ``word`` is looked up in ``vocabulary``: lower-cased, surrounding spaces dropped,
+    and, when that is not a known word, the one token :func:`~spcopyro.data.text.tokenize` makes
+    of it (punctuation stripped from its ends, as from every word the data's utterances hold:
+    ``"Kitchen?"`` and ``"台所。"`` are ``"kitchen"`` and ``"台所"``)."""
+    key = word.strip().lower()
+    if key in vocabulary:
+        return key
+    tokens = tokenize(word)
+    return tokens[0] if len(tokens) == 1 else key
+
+
 def word_index(vocabulary: tuple[str, ...], word: str) -> int:
-    """The column of ``word`` (lower-cased, surrounding spaces dropped) in ``vocabulary``;
+    """The column of ``word`` (as :func:`word_key` reads it) in ``vocabulary``;
     :class:`UnknownWordError` with the closest known words when it is not there."""
+    key = word_key(vocabulary, word)
     try:
-        return vocabulary.index(word.strip().lower())
+        return vocabulary.index(key)
     except ValueError:
-        close = difflib.get_close_matches(word.strip().lower(), vocabulary, n=3)
+        close = difflib.get_close_matches(key, vocabulary, n=3)
         hint = f"; did you mean {', '.join(close)}?" if close else ""
         if not close and vocabulary:  # nothing close: say which words there are
             known = sorted(vocabulary)

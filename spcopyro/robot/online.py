@@ -56,12 +56,13 @@ from spcopyro._util.random_draws import sample_log_dirichlet
 from spcopyro._util.threads import AUTO, resolve_threads, torch_threads
 from spcopyro.config import IMAGES, WORDS, SpCoSettings
 from spcopyro.data import CellCounts, House
-from spcopyro.fit.gibbs_chains import marginal_thin, with_sample_marginals
+from spcopyro.fit.gibbs_chains import FitInterrupted, marginal_thin, with_sample_marginals
 from spcopyro.fit.house import prepare_model_data, provenance, result_of
 from spcopyro.fit.registry import DEFAULT_METHOD, get_method
 from spcopyro.gibbs.method import GibbsInference, gibbs_record, output_from_run
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsChain, advance, start_chain
+from spcopyro.inference.driver import DriveInterrupted
 from spcopyro.inference.protocol import method_options
 from spcopyro.model import DTYPE, ModelData
 from spcopyro.results.result import SpCoResult
@@ -349,6 +350,10 @@ def fit_update(
         where: the saved fit's folder, for messages and ``config.json``.
         Others (``marginal_samples``, ``point_estimate``, ...): as for
             :func:`spcopyro.fit.house.fit_house_chains`.
+
+    Raises:
+        FitInterrupted: Ctrl-C stopped the sweeps or iterations; its ``where`` says how far
+            (e.g. ``"chain 1 of 2, 120 of 300 sweeps done"``), and nothing is kept.
     """
     if isinstance(sweeps, bool) or not isinstance(sweeps, int | np.integer) or sweeps < 1:
         raise ValueError(f"sweeps must be a positive integer, got {sweeps!r}")
@@ -359,23 +364,33 @@ def fit_update(
     thin = marginal_thin(int(sweeps), marginal_samples)
     results = []
     with torch_threads(resolve_threads(threads, house.grid.num_free)):
-        for seed in seeds:
-            if isinstance(inference, GibbsInference):
-                gibbs_options = method_options(options, GibbsOptions, "Gibbs sampling")
-                chain, start = start_update_chain(
-                    saved, house, settings, options=gibbs_options, seed=int(seed), where=where
+        for k, seed in enumerate(seeds):
+            try:
+                if isinstance(inference, GibbsInference):
+                    gibbs_options = method_options(options, GibbsOptions, "Gibbs sampling")
+                    chain, start = start_update_chain(
+                        saved, house, settings, options=gibbs_options, seed=int(seed),
+                        where=where,
+                    )  # fmt: skip
+                    advance(chain, int(sweeps), thin=thin, progress=progress)
+                    entry = gibbs_record(gibbs_options, int(sweeps), chain.backend.name)
+                    output = output_from_run(chain.to_run(), entry)
+                else:
+                    generator = torch.Generator().manual_seed(int(seed))
+                    start = start_update(saved, house, settings, where=where)
+                    output = inference.run(
+                        start.data, start.settings.model, iterations=int(sweeps),
+                        generator=generator, init_labels=start.labels, options=options,
+                        progress=progress, thin=thin,
+                    )  # fmt: skip
+            except DriveInterrupted as stop:  # said as every fit's interruption is: how far
+                done, count = len(stop.trajectory.objective), f"{k + 1} of {len(seeds)}"
+                where_stopped = (
+                    f"chain {count}, {done} of {sweeps} sweeps done"
+                    if isinstance(inference, GibbsInference)
+                    else f"{method} fit {count}, {done} of {sweeps} iterations done"
                 )
-                advance(chain, int(sweeps), thin=thin, progress=progress)
-                entry = gibbs_record(gibbs_options, int(sweeps), chain.backend.name)
-                output = output_from_run(chain.to_run(), entry)
-            else:
-                generator = torch.Generator().manual_seed(int(seed))
-                start = start_update(saved, house, settings, where=where)
-                output = inference.run(
-                    start.data, start.settings.model, iterations=int(sweeps),
-                    generator=generator, init_labels=start.labels, options=options,
-                    progress=progress, thin=thin,
-                )  # fmt: skip
+                raise FitInterrupted(where_stopped) from None
             output = with_sample_marginals(
                 output, int(sweeps), start.data, start.settings.model, point_estimate
             )

@@ -1,0 +1,195 @@
+"""``fit --update`` and ``where`` as a user meets them: an interrupted update says how far it got,
+an update whose DATA lacks the saved fit's words warns that the old trials are missing, and
+``where`` reads a word as the data's tokenizer does (punctuation at its ends stripped)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from hand_results import two_rooms
+
+import spcopyro.robot.online
+from spcopyro.cli.main import main
+from spcopyro.config import preset
+from spcopyro.data import save_house
+from spcopyro.fit.gibbs_chains import FitInterrupted
+from spcopyro.fit.house import fit_house
+from spcopyro.fit.registry import get_method
+from spcopyro.gibbs.run import advance
+from spcopyro.inference.driver import DriveInterrupted, Trajectory
+from spcopyro.robot.online import fit_update
+from spcopyro.synthetic import make_house
+
+FLAGS = ["--preset", "original-code", "--gamma", "3", "--no-figures"]
+SETTINGS = preset("original-code", gamma=3.0)
+
+
+def _trials(house, trials):
+    return dataclasses.replace(house, observations=house.observations.select_trials(trials))
+
+
+@pytest.fixture(scope="module")
+def house():
+    return make_house(0)
+
+
+@pytest.fixture(scope="module")
+def first(tmp_path_factory, house):
+    """Trials 0-1 of the synthetic house fitted by ``spcopyro fit`` (40 sweeps), the house's
+    folders with trials 0-1, trial 2 alone and all three."""
+    root = tmp_path_factory.mktemp("update")
+    for name, trials in (("old", [0, 1]), ("new", [2]), ("all", [0, 1, 2])):
+        save_house(_trials(house, trials), root / name)
+    assert main(["fit", str(root / "old" / "synthetic"), "--out", str(root / "first"),
+                 "--sweeps", "40", *FLAGS]) == 0  # fmt: skip
+    return root
+
+
+def test_an_interrupted_update_says_how_far_it_got(first, monkeypatch, capsys):
+    """Ctrl-C during an update's sweeps: exit 130 and, as for every fit, how far it got (it said
+    only 'interrupted: nothing written ...')."""
+
+    def interrupted_advance(chain, num_sweeps, callback=None, **kwargs):
+        def stop(sweep, state):
+            if sweep == 3:  # after the 4th sweep, recorded
+                raise KeyboardInterrupt
+
+        return advance(chain, num_sweeps, callback=stop, **kwargs)
+
+    monkeypatch.setattr(spcopyro.robot.online, "advance", interrupted_advance)
+    out = first / "interrupted"
+    capsys.readouterr()
+    assert main(["fit", str(first / "all" / "synthetic"), "--update", str(first / "first"),
+                 "--out", str(out), "--sweeps", "10", *FLAGS]) == 130  # fmt: skip
+    err = capsys.readouterr().err
+    assert f"interrupted (chain 1 of 1, 4 of 10 sweeps done): nothing written to {out}" in err
+    assert "no checkpoint kept (--update)" in err
+    assert not out.exists()
+
+
+def test_an_interrupted_variational_update_names_its_method_and_iterations(house, monkeypatch):
+    saved = fit_house(_trials(house, [0, 1]), SETTINGS, sweeps=5, progress=False)
+    stopped = Trajectory(
+        state=None, objective=np.zeros(7), num_concepts=np.ones(7, dtype=np.int64),
+        seconds=np.zeros(7), gammas=np.ones(7), label_samples=None, sample_iterations=None,
+        stop_reason="interrupted",
+    )  # fmt: skip
+
+    def interrupted_run(*args, **kwargs):
+        raise DriveInterrupted(stopped)
+
+    monkeypatch.setattr(get_method("cavi"), "run", interrupted_run)
+    with pytest.raises(FitInterrupted) as stop:
+        fit_update(saved, house, SETTINGS, method="cavi", sweeps=20, seeds=(0, 1), progress=False)
+    assert stop.value.where == "cavi fit 1 of 2, 7 of 20 iterations done"
+
+
+def test_an_update_whose_data_lacks_the_saved_words_warns(first, capsys):
+    """DATA holding only the new trial fits the update on it alone: the old trials'
+    observations are gone, which only config.json's unheard_words recorded."""
+    capsys.readouterr()
+    assert main(["fit", str(first / "new" / "synthetic"), "--update", str(first / "first"),
+                 "--out", str(first / "only_new"), "--sweeps", "5", *FLAGS]) == 0  # fmt: skip
+    captured = capsys.readouterr()
+    assert "new words        2: kitchen, sofa" in captured.out
+    warning = next(line for line in captured.err.splitlines() if "are not in this run's" in line)
+    assert warning.startswith(f"warning: 6 word(s) of the fit in {first / 'first'} are not")
+    assert "DATA must hold the old trials' observations" in warning
+    # all the trials: nothing missing, no warning
+    assert main(["fit", str(first / "all" / "synthetic"), "--update", str(first / "first"),
+                 "--out", str(first / "all_trials"), "--sweeps", "5", *FLAGS]) == 0  # fmt: skip
+    assert "are not in this run's data" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("asked", ["kitchen?", "Kitchen.", "'kitchen'", " KITCHEN!\n"])
+def test_where_strips_punctuation_as_the_data_does(asked):
+    """The data's words are tokens with their edge punctuation stripped ("Here is the
+    kitchen." holds 'kitchen'), so "where is kitchen?" finds it (it was unknown, with the
+    confusing hint "did you mean kitchen?")."""
+    result = two_rooms()
+    answer = result.where(asked)
+    assert answer.word == "kitchen" and answer.concept == result.where("kitchen").concept
+    np.testing.assert_array_equal(
+        result.concept_given_word(asked), result.concept_given_word("kitchen")
+    )
+
+
+def test_where_command_with_punctuation_and_japanese(tmp_path, capsys):
+    out = two_rooms().save(tmp_path / "fit")
+    assert main(["where", str(out), "Kitchen?", "--out", str(tmp_path / "k.png")]) == 0
+    assert "'kitchen' is concept 0" in capsys.readouterr().out
+    assert main(["where", str(out), "the kitchen"]) == 2  # two words: not one of the vocabulary
+    assert "'the kitchen' is not in the vocabulary" in capsys.readouterr().err
+    result = two_rooms()
+    words = dataclasses.replace(result.emission("words"), items=("台所", "寝室", "リビング"))
+    japanese = dataclasses.replace(result, emissions=(result.emissions[0], words))
+    assert japanese.where("台所。").word == "台所"  # a full stop of Japanese text
+    assert japanese.where("台所。").concept == result.where("kitchen").concept
+
+
+@pytest.mark.parametrize("name", ["config.png", "config", "concepts.svg", "semantic_map.png"])
+def test_show_graph_never_replaces_the_fits_files(tmp_path, capsys, name):
+    """``show OUT --graph --out OUT/config.png`` wrote the graph's JSON over the fit's
+    config.json (the fit no longer loaded: "do not form a spcopyro result"); ``where --out``
+    refused such names already."""
+    out = two_rooms().save(tmp_path / "fit")
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert main(["show", str(out), "--graph", "--out", str(out / name)]) == 2
+    assert "is a file of the fit" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert main(["show", str(out), "--graph", "--out", str(out / "graph.png")]) == 0
+    assert (out / "graph.png").is_file() and (out / "graph.json").is_file()
+
+
+def test_show_of_a_fit_without_figures_says_so(tmp_path, capsys):
+    """``show OUT`` of a ``--no-figures`` fit said "its figures are in it already"."""
+    out = two_rooms().save(tmp_path / "fit")  # result files only, as after --no-figures
+    assert main(["show", str(out), "--out", str(tmp_path / "h.png")]) == 2
+    err = capsys.readouterr().err
+    assert "it was fitted with --no-figures" in err and "already" not in err
+    (out / "semantic_map.png").write_bytes(b"")
+    assert main(["show", str(out), "--out", str(tmp_path / "h.png")]) == 2
+    assert "its figures are in it already" in capsys.readouterr().err
+
+
+def test_a_semantic_map_of_japanese_words_keeps_matplotlibs_glyph_warnings_quiet(
+    tmp_path, monkeypatch
+):
+    """The labels' boxes, measured before the figure is saved, let matplotlib's per-glyph
+    warnings through ("UserWarning: Glyph 23460 ... missing from font(s) DejaVu Sans" in the
+    output of ``fit``), beside the one warning in words that the figures give."""
+    import warnings
+
+    import spcopyro.figures.plotting as plotting
+
+    monkeypatch.setattr(plotting, "CJK_FONTS", ())  # as on a machine without such a font
+    result = two_rooms()
+    words = dataclasses.replace(result.emission("words"), items=("台所", "寝室", "リビング"))
+    japanese = dataclasses.replace(result, emissions=(result.emissions[0], words))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        plotting.plot_semantic_map(japanese, tmp_path / "map.png")
+    assert not [w for w in caught if "missing from font" in str(w.message)]
+
+
+def test_the_missing_glyphs_warning_names_the_words_without_punctuation(
+    tmp_path, monkeypatch, caplog
+):
+    """``where --out`` of a Japanese word said "no glyphs for ... (in '台所'), '台所'?, 台所)":
+    the words as the title and legend split on spaces, quotes and brackets kept."""
+    import logging
+
+    import spcopyro.figures.plotting as plotting
+
+    monkeypatch.setattr(plotting, "CJK_FONTS", ())
+    monkeypatch.setattr(plotting, "_warned_glyphs", set())
+    result = two_rooms()
+    words = dataclasses.replace(result.emission("words"), items=("台所", "寝室", "リビング"))
+    japanese = dataclasses.replace(result, emissions=(result.emissions[0], words))
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        plotting.plot_where(japanese, japanese.where("台所"), tmp_path / "where.png")
+    (told,) = [r.getMessage() for r in caplog.records if "no glyphs" in r.getMessage()]
+    listed = told.split(" (in ")[1].split("): ")[0]
+    assert "台所" in listed.split(", ") and not set(listed) & set("'?()")
