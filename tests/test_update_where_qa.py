@@ -121,7 +121,7 @@ def test_where_command_with_punctuation_and_japanese(tmp_path, capsys):
     assert main(["where", str(out), "Kitchen?", "--out", str(tmp_path / "k.png")]) == 0
     assert "'kitchen' is concept 0" in capsys.readouterr().out
     assert main(["where", str(out), "the kitchen"]) == 2  # two words: not one of the vocabulary
-    assert "'the kitchen' is not in the vocabulary" in capsys.readouterr().err
+    assert "'the kitchen' holds 2 words; give one word" in capsys.readouterr().err
     result = two_rooms()
     words = dataclasses.replace(result.emission("words"), items=("台所", "寝室", "リビング"))
     japanese = dataclasses.replace(result, emissions=(result.emissions[0], words))
@@ -193,3 +193,16 @@ def test_the_missing_glyphs_warning_names_the_words_without_punctuation(
     (told,) = [r.getMessage() for r in caplog.records if "no glyphs" in r.getMessage()]
     listed = told.split(" (in ")[1].split("): ")[0]
     assert "台所" in listed.split(", ") and not set(listed) & set("'?()")
+
+
+def test_where_of_a_phrase_asks_for_one_word():
+    """'the kitchen' said only "not in the vocabulary; did you mean kitchen?"."""
+    from spcopyro.results.semantic_map import UnknownWordError, word_index
+
+    vocabulary = ("kitchen", "sink", "bed")
+    with pytest.raises(UnknownWordError, match=r"'the kitchen' holds 2 words; give one word .*"
+                       r"\(of these, kitchen is known\)"):  # fmt: skip
+        word_index(vocabulary, "the kitchen")
+    with pytest.raises(UnknownWordError, match=r"kitchen, sink are known"):
+        word_index(vocabulary, "Kitchen sink")
+    assert word_index(vocabulary, " Sink? ") == 1

@@ -161,7 +161,8 @@ def show_graph(args: argparse.Namespace) -> int:
     written.write_text(json.dumps(graph.to_json(), indent=2) + "\n")
     doors = sum(e.doorway for e in graph.passages)
     print(f"{len(graph.places)} places, {len(graph.passages)} passages ({doors} doorways); "
-          f"{graph.dropped} regions under {graph.min_area:g} m^2 left out "
+          f"{graph.dropped} region{'' if graph.dropped == 1 else 's'} under "
+          f"{graph.min_area:g} m^2 left out "
           f"({graph.dropped_area:.2f} m^2)")  # fmt: skip
     for place in graph.places:
         near = [e.b if e.a == place.id else e.a for e in graph.passages

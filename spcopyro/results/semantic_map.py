@@ -86,6 +86,17 @@ def word_index(vocabulary: tuple[str, ...], word: str) -> int:
     try:
         return vocabulary.index(key)
     except ValueError:
+        tokens = tokenize(word)
+        if len(tokens) > 1:  # "the kitchen": one word is looked up, not a phrase
+            known = [t for t in tokens if t in vocabulary]
+            example = (
+                f" (of these, {', '.join(known)} {'is' if len(known) == 1 else 'are'} known)"
+                if known
+                else ""
+            )
+            raise UnknownWordError(
+                f"{word!r} holds {len(tokens)} words; give one word of the vocabulary{example}"
+            ) from None
         close = difflib.get_close_matches(key, vocabulary, n=3)
         hint = f"; did you mean {', '.join(close)}?" if close else ""
         if not close and vocabulary:  # nothing close: say which words there are

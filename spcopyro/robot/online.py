@@ -135,8 +135,13 @@ def settings_of(saved: SpCoResult) -> SpCoSettings:
 
 
 def _differences(saved: dict[str, object], new: dict[str, object]) -> list[str]:
+    def said(name: str, value: object) -> str:  # cell_size None: no model grid
+        return (
+            "None (the map's own cells)" if name == "cell_size" and value is None else repr(value)
+        )
+
     return [
-        f"{name}: saved fit {saved[name]!r}, this run {new[name]!r}"
+        f"{name}: saved fit {said(name, saved[name])}, this run {said(name, new.get(name))}"
         for name in saved
         if saved[name] != new.get(name)
     ]

@@ -87,7 +87,8 @@ def plot_place_graph(result: SpCoResult, graph: PlaceGraph, path: str | os.PathL
     ax.legend(fontsize=8, loc="best")
     dropped = ""
     if graph.dropped:
-        dropped = f"; {graph.dropped} regions under {graph.min_area:g} m² left out"
+        regions = "region" if graph.dropped == 1 else "regions"
+        dropped = f"; {graph.dropped} {regions} under {graph.min_area:g} m² left out"
     ax.set_title(f"place graph: {len(graph.places)} places, {len(graph.passages)} "
                  f"passages{dropped}")  # fmt: skip
     return _save(fig, path)
