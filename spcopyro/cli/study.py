@@ -11,6 +11,7 @@ it runs.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from spcopyro.cli.common import _HelpFormatter, _positive_int
@@ -33,8 +34,17 @@ def study_path(text: str) -> Path:
 
 
 def _study(args: argparse.Namespace) -> int:
+    from spcopyro._util.interrupts import sigterm_as_interrupt
+    from spcopyro.study.cells import cells_of
     from spcopyro.study.report import write_report
-    from spcopyro.study.run import default_workers, plan_markdown, plan_study, run_study
+    from spcopyro.study.run import (
+        DASK_MISSING,
+        dask_installed,
+        default_workers,
+        plan_markdown,
+        plan_study,
+        run_study,
+    )
     from spcopyro.study.spec import load_study
     from spcopyro.study.table import TABLE
 
@@ -44,17 +54,32 @@ def _study(args: argparse.Namespace) -> int:
     if args.report_only:
         if not (out / TABLE).is_file():
             raise FileNotFoundError(f"--report-only: {out / TABLE} does not exist; run the study")
-        print(f"wrote {write_report(out / TABLE, out / 'report.md', title=study.name)}")
+        try:  # the study's cells: an interrupted run's report still says how many are missing
+            expected: int | None = len(cells_of(study, args.data))
+        except OSError:  # a source no longer found (a moved dataset): the report without it
+            expected = None
+        report = write_report(out / TABLE, out / "report.md", title=study.name, expected=expected)
+        print(f"wrote {report}")
         return 0
     workers = args.workers if args.workers is not None else default_workers()
+    if (args.scheduler is not None or workers > 1) and not args.dry_run and not dask_installed():
+        if args.workers is not None or args.scheduler is not None:  # asked for: before any write
+            raise ValueError(f"--{'workers' if args.scheduler is None else 'scheduler'}: "
+                             f"{DASK_MISSING}")  # fmt: skip
+        print(f"note: dask.distributed is not installed (pip install 'spcopyro[study]'): "
+              f"running the cells in this process, not on {workers} workers",
+              file=sys.stderr)  # fmt: skip
+        workers = 1
     if args.dry_run:
         plan = plan_study(study, out, args.retry_failed, args.rerun_stale, args.data)
         print(plan_markdown(plan, study, 1 if args.scheduler else workers))
         return 0
-    run = run_study(
-        study, out, workers=workers, scheduler=args.scheduler, retry_failed=args.retry_failed,
-        rerun_stale=args.rerun_stale, root=args.data, report=print,
-    )  # fmt: skip
+    with sigterm_as_interrupt():  # `timeout`, Slurm: the finished cells' table and report kept
+        run = run_study(
+            study, out, workers=workers, scheduler=args.scheduler,
+            retry_failed=args.retry_failed, rerun_stale=args.rerun_stale, root=args.data,
+            report=print,
+        )  # fmt: skip
     if run.ran:
         print((out / "report.md").read_text())
     return 1 if run.failed or run.failed_before else 0  # a study with failed cells is not done
@@ -79,7 +104,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--workers", type=_positive_int, default=None,
                    help="1: run the cells one after another in this process; N > 1: a Dask "
                         "LocalCluster of N processes, one thread each (default: the machine's "
-                        "usable cores)")  # fmt: skip
+                        "usable cores; 1, with a note, where dask.distributed is not "
+                        "installed)")  # fmt: skip
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run on the Dask cluster whose scheduler is at ADDRESS "
                         "(tcp://host:8786); --workers is then ignored (default: none)")  # fmt: skip

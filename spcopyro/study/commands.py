@@ -22,13 +22,30 @@ missing cells run. :func:`add_parser` registers it; nothing heavy is imported be
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 from spcopyro._util.arguments import integer_at_least as _integer_at_least
 from spcopyro.config import PRESETS
 
 __all__ = ["add_parser"]
+
+
+def _stoppable(command: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
+    """``command`` with SIGTERM (``timeout``, Slurm) stopping it as Ctrl-C does: the study
+    engine then rewrites the finished cells' table and report before the exit (130), as
+    ``spcopyro study`` does; without it the process ended at once, the table unwritten."""
+
+    @functools.wraps(command)
+    def run(args: argparse.Namespace) -> int:
+        from spcopyro._util.interrupts import sigterm_as_interrupt
+
+        with sigterm_as_interrupt():
+            return command(args)
+
+    return run
 
 
 def _experiment(args: argparse.Namespace) -> int:
@@ -223,7 +240,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="also the stability (seeds, chains, init) and sensitivity studies (OUT/robustness.md)",
     )
-    p.set_defaults(func=_experiment, argv=None)
+    p.set_defaults(func=_stoppable(_experiment), argv=None)
 
     p = subparsers.add_parser(
         "compare-inference",
@@ -282,7 +299,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    "time (comparable times); N > 1: a Dask LocalCluster of N")  # fmt: skip
     p.add_argument("--retry-failed", action="store_true",
                    help="run again the cells stored with an error in --out")  # fmt: skip
-    p.set_defaults(func=_compare_inference, argv=None)
+    p.set_defaults(func=_stoppable(_compare_inference), argv=None)
 
     p = subparsers.add_parser(
         "ablation",
@@ -336,4 +353,4 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="smoke run (the study ablation_quick): two small houses, 2 seeds, 30 sweeps, one "
         "public house and seed",
     )
-    p.set_defaults(func=_ablation, argv=None)
+    p.set_defaults(func=_stoppable(_ablation), argv=None)

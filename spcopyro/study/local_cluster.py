@@ -8,6 +8,13 @@ machine both cores spend the cluster's start-up importing while the study's proc
 * the workers are forked from a ``forkserver`` that imports the cells' code once
   (:data:`WORKER_PRELOAD`) with one BLAS/OpenMP thread (:data:`ONE_THREAD`), so a worker starts
   with everything imported and the import costs one core once, not every core;
+* the forkserver, and so every worker, starts with SIGINT blocked (:func:`_sigint_blocked`): a
+  terminal's Ctrl-C reaches the whole foreground process group, and a worker (or the forkserver
+  still importing) that took it died with Dask's tracebacks (``distributed.worker - ERROR``,
+  ``KeyboardInterrupt``, ``CancelledError``, ``Failed to start process``) over the study's own
+  "interrupted after N cells" line. The study's process decides when the cells stop: it stores
+  the finished ones and closes the cluster, whose nannies stop the workers with SIGTERM, as
+  Dask always does (and a worker ends when its parent dies);
 * the cluster starts on a background thread, and the caller runs cells in this process until
   the workers are up (:mod:`spcopyro.study.run`): the core the start-up leaves free fits cells.
 
@@ -75,17 +82,35 @@ def _environ(values: Mapping[str, str | None]) -> Iterator[None]:
                 os.environ[name] = value
 
 
+@contextmanager
+def _sigint_blocked() -> Iterator[None]:
+    """SIGINT blocked in this thread inside the block: a process started meanwhile (the
+    forkserver) inherits the mask across fork and exec, and so do its children (module
+    docstring). Python leaves an inherited mask as it is; Dask never unblocks it."""
+    import signal
+
+    if not hasattr(signal, "pthread_sigmask"):  # not POSIX: no forkserver either
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
 def forkserver_available() -> bool:
     """Whether this platform has multiprocessing's ``forkserver`` start method."""
     return "forkserver" in multiprocessing.get_all_start_methods()
 
 
 def start_forkserver() -> None:
-    """Start (if not running yet) multiprocessing's forkserver with :data:`WORKER_PRELOAD` and
-    the workers' environment (module docstring). Returns at once: the server imports in its own
-    process, and a worker's fork waits for it. A forkserver already running (an earlier study in
-    this process) is kept as it is."""
+    """Start (if not running yet) multiprocessing's forkserver with :data:`WORKER_PRELOAD`, the
+    workers' environment and SIGINT blocked (module docstring). Returns at once: the server
+    imports in its own process, and a worker's fork waits for it. A forkserver already running
+    (an earlier study in this process) is kept as it is."""
     import multiprocessing.forkserver as forkserver
+    from multiprocessing import resource_tracker
 
     import dask
     from distributed.utils import get_mp_context
@@ -93,7 +118,8 @@ def start_forkserver() -> None:
     with dask.config.set({MULTIPROCESSING_METHOD: "forkserver"}):
         get_mp_context()  # dask sets its own preload list once per process: before ours
     forkserver.set_forkserver_preload(list(WORKER_PRELOAD))
-    with _environ({**ONE_THREAD, MALLOC_TRIM: None}):
+    resource_tracker.ensure_running()  # first: starting it unblocks SIGINT in this thread
+    with _environ({**ONE_THREAD, MALLOC_TRIM: None}), _sigint_blocked():
         forkserver.ensure_running()
 
 

@@ -48,8 +48,8 @@ from spcopyro.study.spec import Study
 from spcopyro.study.table import TABLE, CellStore, table_rows, write_table
 
 __all__ = [
-    "PRE_SPAWN_ENVIRON", "StudyPlan", "StudyRun", "default_workers", "plan_markdown", "plan_study",
-    "run_study",
+    "DASK_MISSING", "PRE_SPAWN_ENVIRON", "StudyPlan", "StudyRun", "dask_installed",
+    "default_workers", "plan_markdown", "plan_study", "run_study",
 ]  # fmt: skip
 
 Outcome = tuple[Cell, dict[str, object], object, object]
@@ -91,6 +91,22 @@ def default_workers() -> int:
     return usable_cpus()
 
 
+DASK_MISSING = (
+    "running a study on Dask needs dask.distributed: pip install 'spcopyro[study]' (or run "
+    "in-process with --workers 1)"
+)
+
+
+def dask_installed() -> bool:
+    """Whether ``dask.distributed`` can be imported (the ``study`` extra: ``workers > 1`` and
+    ``scheduler`` need it)."""
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
 def _say_nothing(message: str) -> None:
     del message
 
@@ -117,10 +133,13 @@ def run_study(
     :func:`spcopyro.data.find_dataset_root`). ``report`` receives one line per failed cell and
     a closing line. ``start_in_process``: with a LocalCluster, run cells in this process while
     its workers start (module docstring). KeyboardInterrupt stops the run after storing every
-    finished cell and rewriting the table, then propagates.
+    finished cell and rewriting the table, then propagates. ``workers > 1`` or ``scheduler``
+    without dask.distributed raise :class:`ModuleNotFoundError` before anything is written.
     """
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
+    if (scheduler is not None or workers > 1) and not dask_installed():
+        raise ModuleNotFoundError(DASK_MISSING)  # before anything is written (not a stopped run)
     out = Path(out)
     start = time.perf_counter()
     plan = plan_study(study, out, retry_failed, rerun_stale, root)
@@ -341,10 +360,7 @@ def _on_dask(
     try:
         from distributed import Client, as_completed
     except ModuleNotFoundError:
-        raise ModuleNotFoundError(
-            "running a study on Dask needs dask.distributed: pip install 'spcopyro[study]' "
-            "(or run in-process with --workers 1)"
-        ) from None
+        raise ModuleNotFoundError(DASK_MISSING) from None
     waiting = deque(cells)
     lock = threading.Lock()
     futures: dict[object, Cell] = {}

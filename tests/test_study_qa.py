@@ -1,0 +1,186 @@
+"""`spcopyro study` as a user meets it: stopping it (Ctrl-C in a terminal, SIGTERM), redrawing
+the report of a stopped run, and a machine without the ``study`` extra (dask.distributed).
+
+The tiny study of tests/test_study.py (6 cells of 8 sweeps); numbers are never checked here.
+"""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from test_study import _write
+
+from spcopyro.cli.main import main
+from spcopyro.study import evaluate, run
+from spcopyro.study.table import read_table
+
+STOPPED = "2 cells in the table of the study's 6: 4 not run yet"
+"""The report's line after a run stopped at its third cell."""
+
+FORKSERVER_MASK = """
+import os
+import signal
+import threading
+import multiprocessing.forkserver as forkserver
+
+from spcopyro.study.local_cluster import start_forkserver
+
+thread = threading.Thread(target=start_forkserver)  # as ClusterStart does: not the main thread
+thread.start()
+thread.join()
+pid = forkserver._forkserver._forkserver_pid
+with open(f"/proc/{pid}/status") as status:
+    print(next(line.split()[1] for line in status if line.startswith("SigBlk:")))
+os.kill(pid, signal.SIGTERM)  # it is still importing the cells' code: not needed here
+"""
+"""In a fresh process (no resource tracker yet): the study's forkserver's blocked signals (hex)."""
+
+WORKER_BLOCKS_SIGINT = (
+    '__import__("signal").SIGINT in __import__("signal").pthread_sigmask('
+    '__import__("signal").SIG_BLOCK, ())'
+)
+
+
+class Terminated(Exception):
+    """What SIGTERM raises in these tests outside the study command (not the process's end)."""
+
+
+def _stop_at_the_third_cell(monkeypatch, stop) -> None:
+    """``evaluate.run_cell`` calls ``stop()`` instead of running the third cell."""
+    real, calls = evaluate.run_cell, []
+
+    def stops(cell):
+        if len(calls) == 2:
+            stop()
+        calls.append(cell.key)
+        return real(cell)
+
+    monkeypatch.setattr(evaluate, "run_cell", stops)
+
+
+def _sigterm_to_self() -> None:
+    signal.raise_signal(signal.SIGTERM)
+
+
+def _terminate(signum: int, frame: object) -> None:
+    raise Terminated(f"signal {signum}")
+
+
+def test_sigterm_stops_the_study_command_as_ctrl_c_does(tmp_path, monkeypatch, capsys):
+    """`timeout 1h spcopyro study ...` (or Slurm's SIGTERM) ended the process at once: the
+    finished cells were kept in cells/, but results.csv and report.md were not rewritten and
+    nothing was said. It now stops as Ctrl-C does (exit 130)."""
+    monkeypatch.setenv("CI", "1")  # no progress bar
+    path = _write(tmp_path)
+    _stop_at_the_third_cell(monkeypatch, _sigterm_to_self)
+    previous = signal.signal(signal.SIGTERM, _terminate)  # without the command's own: Terminated
+    try:
+        code = main(["study", str(path), "--out", str(tmp_path / "out"), "--workers", "1"])
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert code == 130
+    said = capsys.readouterr().out
+    assert "interrupted after 2 cells: 4 left; run the same command again" in said
+    assert len(read_table(tmp_path / "out" / "results.csv")) == 2
+    assert STOPPED in (tmp_path / "out" / "report.md").read_text()
+    assert signal.getsignal(signal.SIGTERM) is previous
+
+
+@pytest.mark.parametrize(
+    ("command", "module", "runner"),
+    [
+        (["experiment", "--no-public", "--seeds", "1"], "experiment", "run_experiment"),
+        (["ablation", "--no-public", "--seeds", "1"], "ablation", "run_ablation"),
+        (["compare-inference", "--houses", "synthetic"], "comparison", "run_comparison"),
+    ],
+)  # fmt: skip
+def test_sigterm_stops_the_shipped_study_commands_as_ctrl_c_does(
+    tmp_path, monkeypatch, command, module, runner
+):  # fmt: skip
+    """`spcopyro experiment / ablation / compare-inference` run the study engine too: SIGTERM
+    ended them at once (no table), as it did `spcopyro study`."""
+    import importlib
+
+    def terminated(*args, **kwargs):
+        _sigterm_to_self()
+        raise AssertionError("SIGTERM did not stop the run")
+
+    monkeypatch.setattr(importlib.import_module(f"spcopyro.study.{module}"), runner, terminated)
+    previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        assert main([*command, "--out", str(tmp_path / "out")]) == 130
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def test_report_only_of_a_stopped_run_says_how_many_cells_are_not_run_yet(
+    tmp_path, monkeypatch, capsys
+):  # fmt: skip
+    """`--report-only` redrew the report of a stopped study as if its 2 cells were all of it:
+    the run's "4 not run yet" was gone."""
+    monkeypatch.setenv("CI", "1")
+    path, out = _write(tmp_path), tmp_path / "out"
+
+    def ctrl_c() -> None:
+        raise KeyboardInterrupt
+
+    _stop_at_the_third_cell(monkeypatch, ctrl_c)
+    assert main(["study", str(path), "--out", str(out), "--workers", "1"]) == 130
+    drawn = (out / "report.md").read_text()
+    assert STOPPED in drawn
+    (out / "report.md").unlink()
+    assert main(["study", str(path), "--out", str(out), "--report-only"]) == 0
+    assert (out / "report.md").read_text() == drawn
+
+
+def test_without_dask_the_default_runs_here_and_workers_asked_for_are_an_error(
+    tmp_path, monkeypatch, capsys
+):  # fmt: skip
+    """Without dask.distributed, `spcopyro study STUDY --out OUT` (default: --workers = the
+    machine's cores) ended in a ModuleNotFoundError traceback, after writing a report that
+    called the study an interrupted run. Now the default runs in this process with a note, and
+    an explicit --workers N > 1 (or --scheduler) is one error line before anything is
+    written."""
+    monkeypatch.setenv("CI", "1")
+    monkeypatch.setitem(sys.modules, "distributed", None)  # `import distributed` fails
+    monkeypatch.setattr(run, "default_workers", lambda: 2)
+    path = _write(tmp_path)
+    for option in (["--workers", "2"], ["--scheduler", "tcp://127.0.0.1:1"]):
+        assert main(["study", str(path), "--out", str(tmp_path / "asked"), *option]) == 2
+        error = capsys.readouterr().err
+        assert error.startswith(f"error: {option[0]}: ") and "spcopyro[study]" in error
+        assert not (tmp_path / "asked").exists()
+    assert main(["study", str(path), "--out", str(tmp_path / "default")]) == 0
+    captured = capsys.readouterr()
+    assert "note: dask.distributed is not installed" in captured.err
+    assert "in-process" in captured.out
+    assert len(read_table(tmp_path / "default" / "results.csv")) == 6
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").is_file(), reason="reads /proc (Linux)")
+def test_the_local_clusters_forkserver_and_workers_block_sigint():
+    """A terminal's Ctrl-C reaches the whole process group. The LocalCluster's workers (and the
+    forkserver, still importing while the study's first cells ran here) took it too and died
+    with pages of Dask tracebacks (``distributed.worker - ERROR``, ``Failed to start process``)
+    over the study's own "interrupted after N cells" line. They start with SIGINT blocked now,
+    also when the cluster starts on a thread (starting multiprocessing's resource tracker
+    unblocks SIGINT in the thread that starts it)."""
+    pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    from spcopyro.study import local_cluster
+
+    if not local_cluster.forkserver_available():
+        pytest.skip("no forkserver on this platform")
+    done = subprocess.run([sys.executable, "-c", FORKSERVER_MASK], capture_output=True,
+                          text=True, timeout=300, check=True)  # fmt: skip
+    assert int(done.stdout.strip(), 16) & (1 << (signal.SIGINT - 1)), done.stdout
+    start = local_cluster.ClusterStart(1)  # on a thread, as a study starts it
+    try:
+        blocked = start.wait().run(eval, WORKER_BLOCKS_SIGINT)
+    finally:
+        start.close()
+    assert list(blocked.values()) == [True]
+    assert signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, ())  # not in this one
