@@ -159,6 +159,10 @@ def test_without_dask_the_default_runs_here_and_workers_asked_for_are_an_error(
     assert "note: dask.distributed is not installed" in captured.err
     assert "in-process" in captured.out
     assert len(read_table(tmp_path / "default" / "results.csv")) == 6
+    for command in ("experiment", "ablation", "compare-inference"):  # a traceback before
+        assert main([command, "--out", str(tmp_path / command), "--workers", "2"]) == 2
+        assert "error: --workers 2: running a study on Dask needs" in capsys.readouterr().err
+        assert not (tmp_path / command).exists()
 
 
 @pytest.mark.skipif(not Path("/proc/self/status").is_file(), reason="reads /proc (Linux)")
@@ -184,3 +188,24 @@ def test_the_local_clusters_forkserver_and_workers_block_sigint():
         start.close()
     assert list(blocked.values()) == [True]
     assert signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, ())  # not in this one
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        ({"init": "bogus"}, r"init='bogus': fit_house's init must be one of \['random'"),
+        ({"refine": "sometimes"}, r"fit_house's refine must be one of \['auto', 'never'"),
+        ({"point_estimate": "median"}, r"point_estimate must be one of \['map-visited'"),
+        ({"marginal_samples": -1}, r"marginal_samples must be an integer >= 0"),
+    ],
+)
+def test_a_variants_fit_values_are_checked_when_read(overrides, message):
+    """``init = "bogus"`` passed the study's checks and failed every cell at run time ("the
+    docs' 'Everything is checked when the file is read' is not true for fit_house values")."""
+    from spcopyro.experiments.ablation_variants import VariantError, make_variant
+
+    with pytest.raises(VariantError, match=message):
+        make_variant("v", overrides)
+    assert make_variant("v", {"init": "rooms", "marginal_samples": "20"}).fit_kwargs() == {
+        "init": "rooms", "marginal_samples": 20,
+    }  # fmt: skip

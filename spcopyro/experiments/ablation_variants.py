@@ -57,6 +57,25 @@ class VariantError(ValueError):
     """A variant that cannot be made: an unknown or ambiguous key, or a bad value."""
 
 
+def _fit_value_problem(key: str, value: object) -> str | None:
+    """Why ``value`` is not one fit_house accepts for ``key`` (None: it is, or fit_house checks
+    it itself): the named choices and counts, checked when a study is read rather than in every
+    cell at run time."""
+    from spcopyro.fit.refine import REFINE_MODES
+    from spcopyro.inference.names import INITS
+    from spcopyro.results.point_estimate import POINT_ESTIMATES
+
+    choices = {"init": INITS, "refine": REFINE_MODES, "point_estimate": POINT_ESTIMATES}
+    if key in choices and value not in choices[key]:
+        return f"must be one of {list(choices[key])}"
+    counts = {"marginal_samples": 0, "chains": 1}
+    if key in counts:
+        integer = isinstance(value, int) and not isinstance(value, bool)
+        if not integer or value < counts[key]:
+            return f"must be an integer >= {counts[key]}"
+    return None
+
+
 def _fit_parameters() -> dict[str, inspect.Parameter]:
     """fit_house's keyword arguments a variant may set (read at call time: new ones count)."""
     parameters = inspect.signature(fit_house).parameters
@@ -286,6 +305,9 @@ def make_variant(name: str, overrides: Mapping[str, object] | None = None) -> Va
                 default = None
             if isinstance(value, str) and not isinstance(default, str):
                 value = _parse_text(value, default, where)
+            problem = _fit_value_problem(key, value)
+            if problem:
+                raise VariantError(f"{where}: fit_house's {key} {problem}")
             fit[key] = value
     variant = Variant(
         name, preset_name, method, tuple(settings.items()), tuple(options.items()),

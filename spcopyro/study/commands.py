@@ -36,12 +36,16 @@ __all__ = ["add_parser"]
 def _stoppable(command: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
     """``command`` with SIGTERM (``timeout``, Slurm) stopping it as Ctrl-C does: the study
     engine then rewrites the finished cells' table and report before the exit (130), as
-    ``spcopyro study`` does; without it the process ended at once, the table unwritten."""
+    ``spcopyro study`` does; without it the process ended at once, the table unwritten. Its
+    ``--workers N > 1`` without dask.distributed is one line (ValueError), not a traceback."""
 
     @functools.wraps(command)
     def run(args: argparse.Namespace) -> int:
         from spcopyro._util.interrupts import sigterm_as_interrupt
+        from spcopyro.study.run import DASK_MISSING, dask_installed
 
+        if args.workers > 1 and not dask_installed():
+            raise ValueError(f"--workers {args.workers}: {DASK_MISSING}")
         with sigterm_as_interrupt():
             return command(args)
 
