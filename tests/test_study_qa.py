@@ -39,10 +39,22 @@ os.kill(pid, signal.SIGTERM)  # it is still importing the cells' code: not neede
 """
 """In a fresh process (no resource tracker yet): the study's forkserver's blocked signals (hex)."""
 
-WORKER_BLOCKS_SIGINT = (
-    '__import__("signal").SIGINT in __import__("signal").pthread_sigmask('
-    '__import__("signal").SIG_BLOCK, ())'
-)
+WORKER_MASK = """
+import signal
+
+from spcopyro.study.local_cluster import ClusterStart
+
+start = ClusterStart(1)  # on a thread, as a study starts it
+try:
+    blocked = start.wait().run(eval, 'signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, ())'
+                               .replace("signal.", "__import__('signal')."))
+finally:
+    start.close()
+print(list(blocked.values()), signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, ()))
+"""
+"""In a fresh process (Dask's threads stay behind in the process that starts a cluster, and
+forbid forking chain workers there): whether its worker, and whether the process itself, block
+SIGINT."""
 
 
 class Terminated(Exception):
@@ -181,13 +193,9 @@ def test_the_local_clusters_forkserver_and_workers_block_sigint():
     done = subprocess.run([sys.executable, "-c", FORKSERVER_MASK], capture_output=True,
                           text=True, timeout=300, check=True)  # fmt: skip
     assert int(done.stdout.strip(), 16) & (1 << (signal.SIGINT - 1)), done.stdout
-    start = local_cluster.ClusterStart(1)  # on a thread, as a study starts it
-    try:
-        blocked = start.wait().run(eval, WORKER_BLOCKS_SIGINT)
-    finally:
-        start.close()
-    assert list(blocked.values()) == [True]
-    assert signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, ())  # not in this one
+    done = subprocess.run([sys.executable, "-c", WORKER_MASK], capture_output=True, text=True,
+                          timeout=300, check=True)  # fmt: skip
+    assert done.stdout.split("\n")[-2] == "[True] False", done.stdout  # the worker, not this one
 
 
 @pytest.mark.parametrize(
@@ -209,3 +217,23 @@ def test_a_variants_fit_values_are_checked_when_read(overrides, message):
     assert make_variant("v", {"init": "rooms", "marginal_samples": "20"}).fit_kwargs() == {
         "init": "rooms", "marginal_samples": 20,
     }  # fmt: skip
+
+
+def test_a_ctrl_c_while_the_table_is_written_waits_for_it(tmp_path, monkeypatch, capsys):
+    """A Ctrl-C landing while the study wrote its table and report (after the last cell, or a
+    second one) cut the write: report.md missing or the last run's, "interrupted" alone said.
+    The write now ends whole, then the run stops as any interrupted run does."""
+    monkeypatch.setenv("CI", "1")
+    path = _write(tmp_path)
+    write_report = run.write_report
+
+    def interrupted_write(*args, **kwargs):
+        signal.raise_signal(signal.SIGINT)  # Ctrl-C, while the table is written
+        return write_report(*args, **kwargs)
+
+    monkeypatch.setattr(run, "write_report", interrupted_write)
+    assert main(["study", str(path), "--out", str(tmp_path / "out"), "--workers", "1"]) == 130
+    assert "interrupted after 6 cells: 0 left" in capsys.readouterr().out
+    assert len(read_table(tmp_path / "out" / "results.csv")) == 6
+    assert "# " in (tmp_path / "out" / "report.md").read_text()  # written whole
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

@@ -15,9 +15,9 @@ from __future__ import annotations
 import contextlib
 import signal
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
-__all__ = ["caused_by_interrupt", "interrupts_raised", "sigterm_as_interrupt"]
+__all__ = ["caused_by_interrupt", "interrupts_raised", "sigterm_as_interrupt", "signals_deferred"]
 
 
 def caused_by_interrupt(error: BaseException | None) -> bool:
@@ -58,3 +58,28 @@ def sigterm_as_interrupt() -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+@contextlib.contextmanager
+def signals_deferred(handler: Callable[[int, object], None]) -> Iterator[None]:
+    """In the block, SIGINT and SIGTERM, where Python handlers turn them into an interrupt (the
+    default one for SIGINT; ``spcopyro fit``'s for SIGTERM), call ``handler`` instead of raising
+    :class:`KeyboardInterrupt` wherever this thread is, so that what the block does is done
+    whole (a chain worker's message read and applied: :mod:`spcopyro.gibbs.chain_processes`; a
+    study's table and report written: :mod:`spcopyro.study.run`). A signal ignored or left to
+    the OS stays so. The previous handlers come back after. Only the main thread can set
+    handlers; elsewhere no signal is raised in this thread anyway."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {
+        number: signal.getsignal(number) for number in (signal.SIGINT, signal.SIGTERM)
+        if callable(signal.getsignal(number))
+    }  # fmt: skip
+    for number in previous:
+        signal.signal(number, handler)
+    try:
+        yield
+    finally:
+        for number, old in previous.items():
+            signal.signal(number, old)

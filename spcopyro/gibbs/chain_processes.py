@@ -34,14 +34,13 @@ import multiprocessing
 import os
 import pickle
 import signal
-import threading
 import traceback
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Sequence
 from dataclasses import fields
 from multiprocessing.connection import Connection, wait
 
 from spcopyro._util.forking import fork_refusal, fresh_tqdm_lock, start_forked
+from spcopyro._util.interrupts import signals_deferred
 from spcopyro.gibbs.run import ChainsStopped, GibbsChain, advance
 
 POLL_SECONDS = 0.1
@@ -218,7 +217,7 @@ def advance_in_processes(
             if signals > 1:  # a second Ctrl-C: stop waiting for the chains
                 raise KeyboardInterrupt
 
-    with _signals_deferred(on_signal):
+    with signals_deferred(on_signal):
         try:
             for w in range(workers):
                 indices = list(range(w, len(runs), workers))
@@ -243,27 +242,3 @@ def advance_in_processes(
         raise KeyboardInterrupt
     if errors:
         raise errors[0]
-
-
-@contextmanager
-def _signals_deferred(handler: Callable[[int, object], None]) -> Iterator[None]:
-    """In the block, SIGINT and SIGTERM, where Python handlers turn them into an interrupt (the
-    default one for SIGINT; ``spcopyro fit``'s for SIGTERM), call ``handler`` instead of raising
-    :class:`KeyboardInterrupt` wherever this thread is: a message from a worker is then read and
-    applied whole (an interrupt inside it would cut the pipe's stream or half-update a chain). A
-    signal ignored or left to the OS stays so. The previous handlers come back after. Only the
-    main thread can set handlers; elsewhere no signal is raised in this thread anyway."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = {
-        number: signal.getsignal(number) for number in (signal.SIGINT, signal.SIGTERM)
-        if callable(signal.getsignal(number))
-    }  # fmt: skip
-    for number in previous:
-        signal.signal(number, handler)
-    try:
-        yield
-    finally:
-        for number, old in previous.items():
-            signal.signal(number, old)

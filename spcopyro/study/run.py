@@ -37,6 +37,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from spcopyro._util.interrupts import signals_deferred
 from spcopyro._util.progress import progress_enabled
 from spcopyro.gibbs.chains import usable_cpus
 from spcopyro.study import evaluate
@@ -190,12 +191,18 @@ def run_study(
     finally:
         if bar is not None:
             bar.close()
-        _finish(out, study, cells, store)
+        signalled: list[int] = []  # a Ctrl-C (or another) while the table is written: after it
+        with signals_deferred(lambda signum, frame: signalled.append(signum)):
+            _finish(out, study, cells, store)
         background.join()  # the LocalCluster's close, left running while the table was written
         seconds = time.perf_counter() - start
-        if interrupted:
+        if interrupted or signalled:
             report(f"interrupted after {ran} cells: {len(pending) - ran} left; run the same "
                    "command again to continue")  # fmt: skip
+    if signalled:  # the run ended whole, its table and report written: stopped all the same
+        stop = KeyboardInterrupt(f"signal {signalled[0]}")
+        stop.said = report is not _say_nothing  # type: ignore[attr-defined]
+        raise stop
     ran_here = ran if in_process else background.ran_here
     if not in_process and ran_here:
         report(f"{ran_here} of them ran in this process while the LocalCluster started")
