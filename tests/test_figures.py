@@ -187,3 +187,25 @@ def test_background_writes_give_the_files_savefig_gives(tmp_path):
         plot_where(result, answer, tmp_path / "where.png")
     assert (tmp_path / "threaded.png").read_bytes() == (tmp_path / "plain.png").read_bytes()
     assert (tmp_path / "where.png").stat().st_size > 0
+
+
+def test_a_legend_outside_the_axes_is_inside_the_png(tmp_path):
+    """The crop box was measured at the figure's 100 dpi and the PNG drawn at 150, where text
+    is wider: a semantic map's legend reached 0.2 inch past the box and its longest line was
+    cut ("refrigerator 0.0"). The PNG now spans the figure's artists as drawn at its dpi."""
+    import cv2
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from spcopyro.figures.plotting import DPI, PAD_INCHES, _save
+
+    fig = Figure(figsize=(4, 3))
+    ax = fig.subplots()
+    ax.plot([0, 1], [0, 1], label="entrance 0.74, bedroom 0.19, refrigerator 0.04 " * 2)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
+    _save(fig, tmp_path / "legend.png")
+    fig.set_dpi(DPI)
+    legend = ax.get_legend().get_window_extent(FigureCanvasAgg(fig).get_renderer())  # pixels
+    tight = fig.get_tightbbox(FigureCanvasAgg(fig).get_renderer())  # inches
+    width = cv2.imread(str(tmp_path / "legend.png")).shape[1]
+    assert legend.x1 / DPI <= tight.x1 and abs(width - (tight.width + 2 * PAD_INCHES) * DPI) <= 2

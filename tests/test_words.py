@@ -146,8 +146,8 @@ def test_a_concept_where_no_word_was_heard_says_so(capsys):
     lines = capsys.readouterr().out.splitlines()
     # concept 2 holds under 0.5 % of the cells: a speck, listed on the specks' line
     assert not any(line.strip().startswith("concept   2:") for line in lines)
-    assert any(line.strip().startswith("+ 1 speck of") and "no word was heard (concepts 2;"
-               in line for line in lines)  # fmt: skip
+    assert any(line.strip().startswith("+ 1 speck of") and "no word was heard (concept 2; "
+               "concepts.json lists it)" in line for line in lines)  # fmt: skip
     assert any("concept   1:" in line and "distinctive: bed x1.5" in line for line in lines)
     silent_room = dataclasses.replace(
         result, concept_totals=np.array([[3.0, 3.0, 5.0], [2.0, 2.0, 0.0], [0.0, 0.0, 0.0]])

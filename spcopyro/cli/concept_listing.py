@@ -47,9 +47,11 @@ def print_concepts(result: SpCoResult, limit: int = 10) -> None:
         print(f"  ... {len(listed) - limit} smaller concepts in concepts.json")
     if specks:
         summary = speck_summary([int(c["cells"]) for c in specks])
-        print(f"  + {summary} where no word was heard (concepts "
+        which = "concept" if len(specks) == 1 else "concepts"
+        print(f"  + {summary} where no word was heard ({which} "
               f"{', '.join(str(c['concept']) for c in specks[:8])}"
-              f"{', ...' if len(specks) > 8 else ''}; concepts.json lists them)")  # fmt: skip
+              f"{', ...' if len(specks) > 8 else ''}; concepts.json lists "
+              f"{'it' if len(specks) == 1 else 'them'})")  # fmt: skip
     if not any(c["distinctive_words"] for c in concepts):
         print(f"  no concept has a distinctive word (every lift <= {MIN_LIFT:g})")
 
