@@ -261,7 +261,10 @@ def test_cell_counts_places_and_sums_modalities(grid, caplog):
     assert "; wifi: 3 on free cells, 1 snapped, 1 unplaced" in summary
     assert "; objects: 2 on free cells, 0 snapped, 0 unplaced (snap distance 1 m)" in summary
     warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
-    assert any("1 observation(s) of modality 'wifi'" in m and "observations of index 4 (" in m for m in warnings)
+    assert any(
+        "1 observation(s) of modality 'wifi'" in m and "observations of index 4 (" in m
+        for m in warnings
+    )
     infos = [r.getMessage() for r in caplog.records if r.levelno == logging.INFO]
     assert any("1 observation(s) of modality 'wifi' snapped" in m for m in infos)
 
