@@ -172,6 +172,35 @@ def make_model_data(grid: OccupancyGrid, counts: CellCounts, connectivity: int =
     )
 
 
+def check_model_data(data: ModelData) -> None:
+    """Refuse counts that every inference method would turn into NaN or a bare shape error
+    deep inside (a NaN count gave a NaN ELBO under CAVI and "gamma concentration must be finite
+    and positive" under Gibbs): ``obs_cells`` ``[M]`` free indices in ``[0, N)``, and each
+    modality's counts an ``[M, K_m]`` float64 tensor, finite and >= 0 (a multinomial's counts,
+    possibly real-valued: :class:`~spcopyro.distributions.MultinomialCounts`). Raises
+    ValueError naming the modality, the entry and its value."""
+    N, cells = data.num_free, data.obs_cells
+    if cells.dim() != 1 or (cells.numel() and not 0 <= int(cells.min()) <= int(cells.max()) < N):
+        raise ValueError(f"ModelData.obs_cells must be [M] free indices in [0, {N})")
+    M = cells.shape[0]
+    for modality in data.modalities:
+        counts, name = modality.counts, modality.name
+        if counts.dim() != 2 or counts.shape[0] != M:
+            raise ValueError(
+                f"the counts of modality {name!r} have shape {tuple(counts.shape)}, expected "
+                f"({M}, K): one row per observed cell of ModelData.obs_cells"
+            )
+        if counts.dtype != DTYPE:
+            raise ValueError(f"the counts of modality {name!r} must be {DTYPE}, got {counts.dtype}")
+        wrong = ~torch.isfinite(counts) | (counts < 0)  # [M, K_m]
+        if wrong.any():
+            row, column = (int(i) for i in torch.nonzero(wrong)[0])
+            raise ValueError(
+                f"the counts of modality {name!r} must be finite and >= 0; row {row} (free "
+                f"cell {int(cells[row])}), column {column} is {float(counts[row, column])}"
+            )
+
+
 def potts_agreements(labels: torch.Tensor, pairs: torch.Tensor) -> torch.Tensor:
     """E(C) = sum over neighbour pairs (a, b) of delta(C_a, C_b), the Potts MRF's statistic.
 

@@ -11,9 +11,24 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import torch
 
 _MAX_REJECTION_ROUNDS = 64
+
+MAX_SEED = 2**63 - 1
+"""The largest seed: :meth:`torch.Generator.manual_seed` takes a signed 64-bit integer."""
+
+
+def check_seed(seed: object, name: str = "seed") -> int:
+    """``seed`` as an int in 0 .. :data:`MAX_SEED`, else a ValueError naming ``name`` and the
+    value: a float (1.5 seeded as 1), a bool, a string, None or a :class:`torch.Generator` (pass
+    it as the ``generator``) is refused rather than truncated or failing deep inside."""
+    integer = isinstance(seed, int | np.integer) and not isinstance(seed, bool)
+    if not integer or not 0 <= seed <= MAX_SEED:  # type: ignore[operator]
+        hint = ": pass a generator as the generator" if isinstance(seed, torch.Generator) else ""
+        raise ValueError(f"{name} must be an integer in 0..2**63 - 1, got {seed!r}{hint}")
+    return int(seed)
 
 
 def sample_log_gamma(concentration: torch.Tensor, generator: torch.Generator) -> torch.Tensor:

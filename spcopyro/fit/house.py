@@ -27,6 +27,7 @@ import numpy as np
 import torch
 
 from spcopyro import __version__
+from spcopyro._util.random_draws import check_seed
 from spcopyro._util.threads import AUTO, describe_threads, resolve_threads, torch_threads
 from spcopyro._util.timings import timed
 from spcopyro.config import WORDS, SpCoConfig, SpCoSettings, preset
@@ -283,6 +284,19 @@ def best_chain(results: Sequence[SpCoResult]) -> int:
     return int(np.argmax([r.best_objective for r in results]))
 
 
+def _settings(settings: SpCoSettings | None) -> SpCoSettings:
+    """``settings``, or :func:`preset`'s when None; TypeError for anything else (an
+    ``SpCoConfig`` is its ``.model`` part only)."""
+    if settings is None:
+        return preset()
+    if not isinstance(settings, SpCoSettings):
+        raise TypeError(
+            f"settings must be an SpCoSettings (spcopyro.config.preset(...): .model and .data), "
+            f"got {type(settings).__name__}"
+        )
+    return settings
+
+
 def fit_house_chains(
     house: House,
     settings: SpCoSettings | None = None,
@@ -340,9 +354,10 @@ def fit_house_chains(
         )
     if isinstance(sweeps, bool) or not isinstance(sweeps, int | np.integer) or sweeps < 1:
         raise ValueError(f"sweeps must be a positive integer or 'auto', got {sweeps!r}")
-    if len(seeds) == 0:
-        raise ValueError("seeds must name at least one chain")
-    settings = preset() if settings is None else settings
+    if isinstance(seeds, str) or len(seeds) == 0:
+        raise ValueError(f"seeds must name at least one chain, got {seeds!r}")
+    seeds = [check_seed(s, "each of seeds") for s in seeds]
+    settings = _settings(settings)
     house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
     inference = get_method(method)
     if not isinstance(inference, GibbsInference) and (checkpoint or resume):
@@ -451,7 +466,7 @@ def fit_house(
     """
     from spcopyro.fit.refine import check_refine, map_house, refine_chains
 
-    settings = preset() if settings is None else settings
+    settings = _settings(settings)
     given, house = house, model_house(house, settings.data.cell_size)  # the model's grid
     if method == DEFAULT_METHOD:
         log_skipped_preset_inference(settings, init, options, point_estimate, refine)
@@ -459,8 +474,10 @@ def fit_house(
         raise ValueError(
             f"refine={refine!r} refines a Gibbs fit, not method={method!r}: pass refine='never'"
         )
-    if not isinstance(chains, int) or chains < 1:
+    if not isinstance(chains, int) or isinstance(chains, bool) or chains < 1:
         raise ValueError(f"chains must be a positive integer, got {chains!r}")
+    check_seed(seed)
+    check_seed(seed + chains - 1, f"seed + chains - 1 (seed {seed}, chains {chains})")
     if sweeps == "auto":
         if point_estimate != "map-visited" and refine == "never":
             raise ValueError("sweeps='auto' reports the best visited state (a point estimate is "
@@ -524,7 +541,7 @@ def fit_house_converged(
     ``source``: where the house came from, for ``config.json`` (:func:`provenance`).
     ``threads``: as for :func:`fit_house`.
     """
-    settings = preset() if settings is None else settings
+    settings = _settings(settings)
     house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
     options = GibbsOptions() if options is None else options
     count = resolve_threads(threads, house.grid.num_free)

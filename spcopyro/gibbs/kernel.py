@@ -41,7 +41,13 @@ from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.sampler import init, step, trace_point
 from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
 from spcopyro.likelihood import log_joint_constant, num_concepts_in_use
-from spcopyro.model import SITE_LABELS, SITE_PI, ModelData, spcomapping_model
+from spcopyro.model import (
+    SITE_LABELS,
+    SITE_PI,
+    ModelData,
+    check_model_data,
+    spcomapping_model,
+)
 
 DEFAULT_SAVE_PARAMS = ("log_joint", "num_concepts", "pi")
 """The small sites: what to save for long runs on large maps (the default saves every site)."""
@@ -71,7 +77,8 @@ class SpCoGibbs(MCMCKernel):
             of the model and ``Predictive(model, posterior_samples=mcmc.get_samples())`` draws
             from the posterior predictive (with a site missing, Predictive would draw it from
             its prior: issue 24 item 4). Labels cost N values a sample: pass the small sites
-            only (:data:`DEFAULT_SAVE_PARAMS`) for long runs on large maps.
+            only (:data:`DEFAULT_SAVE_PARAMS`) for long runs on large maps. A string is one
+            site's name.
         options: the sampler's options (:class:`~spcopyro.gibbs.options.GibbsOptions`: backend,
             cluster moves, partial refresh); its ``anneal_sweeps`` must be 0 -- use ``anneal``.
         anneal: ramp the labels' coupling gamma up over MCMC's ``warmup_steps``
@@ -96,6 +103,8 @@ class SpCoGibbs(MCMCKernel):
         self._backend = get_backend(options.backend)
         self.init_labels = init_labels
         self.anneal = bool(anneal)
+        if isinstance(save_params, str):  # one site's name, not its letters
+            save_params = (save_params,)
         self._requested_params = None if save_params is None else tuple(save_params)
         self.save_params = sorted(save_params) if save_params is not None else []
         self.transforms = {"labels": _ToInteger(torch.long)}
@@ -108,6 +117,7 @@ class SpCoGibbs(MCMCKernel):
     def setup(self, warmup_steps: int, data: ModelData, config: SpCoConfig) -> None:
         self._data, self._config = data, config
         self._warmup_steps, self._steps = warmup_steps, 0
+        check_model_data(data)  # before tracing the model on them (its errors name no count)
         self._check_model_sites()
         requested = self._requested_params
         self.save_params = sorted(self._all_params() if requested is None else requested)

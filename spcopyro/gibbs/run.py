@@ -33,6 +33,7 @@ import numpy as np
 import torch
 
 from spcopyro._util.progress import progress_enabled
+from spcopyro._util.random_draws import check_seed
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.backends import SweepBackend, get_backend, numba_compile_pending
 from spcopyro.gibbs.hyperparameters import hyperparameter_names, hyperparameter_values
@@ -243,7 +244,7 @@ def start_chain(
     if generator is not None and seed is not None:  # the seed was dropped silently
         raise ValueError(f"give a generator or a seed, not both (seed {seed!r})")
     if generator is None:
-        generator = torch.Generator().manual_seed(0 if seed is None else int(seed))
+        generator = torch.Generator().manual_seed(0 if seed is None else check_seed(seed))
     backend = get_backend(options.backend)
     state = init(data, config, generator, init_labels)
     constant = float(log_joint_constant(data, config))

@@ -47,7 +47,7 @@ from spcopyro.gibbs.region_move import maybe_region_move
 from spcopyro.gibbs.state import GibbsState, SweepPlan
 from spcopyro.gibbs.sweep import sample_globals
 from spcopyro.inference.initialisation import check_labels, random_labels
-from spcopyro.model import ModelData
+from spcopyro.model import ModelData, check_model_data
 
 
 class StepInfo(NamedTuple):
@@ -69,7 +69,14 @@ def init(
     labels: torch.Tensor | None = None,
 ) -> GibbsState:
     """A state from initial labels (uniformly random if None), with pi and the emission
-    distributions drawn from their conditionals given those labels (eqs. 14-17)."""
+    distributions drawn from their conditionals given those labels (eqs. 14-17). ValueError
+    for counts that are not finite and >= 0 (:func:`~spcopyro.model.check_model_data`)."""
+    check_model_data(data)
+    if not isinstance(generator, torch.Generator):
+        raise TypeError(
+            f"generator must be a torch.Generator (torch.Generator().manual_seed(seed)), "
+            f"got {type(generator).__name__}"
+        )
     if labels is None:
         labels = random_labels(data.num_free, config, generator)
     labels = check_labels(labels, data.num_free, config).clone()

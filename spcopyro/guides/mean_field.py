@@ -46,7 +46,7 @@ from spcopyro.guides.cavi import update_globals
 from spcopyro.guides.factors import GlobalFactors, prior_factors
 from spcopyro.guides.loss import MeanFieldELBO
 from spcopyro.guides.run import initial_q
-from spcopyro.model import DTYPE, SITE_LABELS, SITE_PI, ModelData
+from spcopyro.model import DTYPE, SITE_LABELS, SITE_PI, ModelData, check_model_data
 
 _MARGIN = 1e-3
 """Start of every concentration above its prior's under ``bound="prior"`` (expected counts)."""
@@ -110,6 +110,7 @@ class MeanFieldGuide(PyroModule):
                 f"MeanFieldGuide(data, config) takes the model's ModelData first, got "
                 f"{type(data).__name__} (see spcopyro.fit.house.prepare_model_data)"
             )
+        check_model_data(data)
         super().__init__(name=name)
         N, L = data.num_free, config.num_concepts
         if label_smoothing is None:
@@ -138,6 +139,7 @@ class MeanFieldGuide(PyroModule):
         prior = prior_factors(data, config)
         self.num_free, self.num_concepts = N, L
         self.parameter_sites = tuple(m.parameter for m in data.modalities)
+        self.num_items = tuple(m.counts.shape[-1] for m in data.modalities)  # K_m per modality
         starts = (factors.pi, *factors.emissions)  # [L], [L, K_m] ...
         lows = (prior.pi, *prior.emissions) if bound == "prior" else (0.0,) * len(starts)
         setattr(self, self._attribute(SITE_LABELS), PyroParam(smoothed.log()))  # [N, L]
@@ -162,6 +164,12 @@ class MeanFieldGuide(PyroModule):
         sites = tuple(m.parameter for m in data.modalities)
         if sites != self.parameter_sites:
             raise ValueError(f"this guide has sites {self.parameter_sites}, the data {sites}")
+        items = tuple(m.counts.shape[-1] for m in data.modalities)
+        if items != self.num_items:
+            raise ValueError(
+                f"this guide was made for modalities {self.parameter_sites} of "
+                f"{self.num_items} items, called with {items}"
+            )
         loss = _calling_elbo()
         if loss is not None and not isinstance(loss, MeanFieldELBO):
             raise WrongLossError(
@@ -181,14 +189,22 @@ class MeanFieldGuide(PyroModule):
         """The param store's name of the labels' logits."""
         return self._full_name(SITE_LABELS)
 
+    def _param(self, attribute: str) -> torch.Tensor:
+        """A parameter as the param store holds it: read in the module's Pyro context, which
+        outside ``forward`` too syncs the module with the store (a store loaded by
+        ``pyro.get_param_store().load``; a plain attribute read returned the module's stale
+        copy until the next call) or creates the entry with its start value."""
+        with self._pyro_context:
+            return getattr(self, attribute)
+
     def concentration(self, site: str) -> torch.Tensor:
         """The current Dirichlet concentration of ``pi`` ``[L]`` or of a modality's site
         ``[L, K_m]`` (from the param store: created with its start value on first use)."""
-        return getattr(self, self._attribute(site))
+        return self._param(self._attribute(site))
 
     def logits(self) -> torch.Tensor:
-        """[N, L] the current logits of q(C_i)."""
-        return getattr(self, self._attribute(SITE_LABELS))
+        """[N, L] the current logits of q(C_i) (from the param store, as :meth:`concentration`)."""
+        return self._param(self._attribute(SITE_LABELS))
 
     def marginals(self) -> torch.Tensor:
         """[N, L] q(C_i = l), detached."""
