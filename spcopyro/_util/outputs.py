@@ -288,7 +288,8 @@ def check_output(
         if not overwrite:
             raise OutputError(
                 f"--out {out}: {path} exists and is not empty; pass --overwrite to replace it "
-                "(its files are then deleted), or choose another --out"
+                "(the files the earlier fit wrote are then deleted, others kept), or choose "
+                "another --out"
             )
         missing = missing_fit_markers(path)
         if missing:

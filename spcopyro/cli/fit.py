@@ -109,9 +109,9 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
     args.phases = Phases()  # seconds per phase, written to $SPCOPYRO_TIMINGS if set
     if args.sweeps is None:  # the parser's default: fewer sweeps continue a fit than start one
         args.sweeps = UPDATE_SWEEPS if args.update is not None else FIT_SWEEPS
-    _apply_preset_inference(args)
-    if args.update is not None:
+    if args.update is not None:  # before the preset fills --init: an explicit one is refused
         _check_update_args(args)
+    _apply_preset_inference(args)
     if args.sweeps == "auto" and args.method != "gibbs":
         raise ValueError(f"--sweeps auto is Gibbs' convergence rule, not {args.method!r}'s")
     checkpointed = _keeps_checkpoint(args)
@@ -233,7 +233,7 @@ def _apply_preset_inference(args: argparse.Namespace) -> None:
 
 def _check_update_args(args: argparse.Namespace) -> None:
     """``--update OUT``: a finished fit's folder, and no option that chooses another start."""
-    if args.resume is not None or args.init_from is not None or args.init != "random":
+    if args.resume is not None or args.init_from is not None or args.init is not None:
         given = "--resume" if args.resume is not None else (
             "--init-from" if args.init_from is not None else "--init"
         )  # fmt: skip

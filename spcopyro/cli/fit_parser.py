@@ -48,7 +48,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True,
                    help="output folder (written whole at the end; new or empty)")  # fmt: skip
     p.add_argument("--overwrite", action="store_true",
-                   help="replace the --out folder of an earlier fit (all its files)")  # fmt: skip
+                   help="replace the files an earlier fit wrote in --out (others are "
+                   "kept)")  # fmt: skip
     p.add_argument("--resume", metavar="CHECKPOINT",
                    help="continue the interrupted fit saved in CHECKPOINT (OUT.checkpoint.npz; "
                         "Ctrl-C writes it), with the same data and settings (default: a new "
