@@ -102,3 +102,17 @@ def home(tmp_path_factory) -> Path:
 
     root = tmp_path_factory.mktemp("data")
     return write_synthetic(root, seed=2, spec=HouseSpec(height=36, width=44, num_rooms=3))
+
+
+@pytest.fixture
+def no_download(monkeypatch, tmp_path):
+    """An empty torch cache of the test's own (``$TORCH_HOME``), and any download attempt fails
+    loudly: the features' tests use it (``pytestmark``)."""
+    import torch
+
+    monkeypatch.setenv("TORCH_HOME", str(tmp_path / "torch_home"))
+
+    def refuse(url, *args, **kwargs):
+        raise AssertionError(f"a test tried to download {url}")
+
+    monkeypatch.setattr(torch.hub, "download_url_to_file", refuse)

@@ -56,15 +56,7 @@ from spcopyro.features.images import (
 CACHE_NAME = "alexnet-owt-7be5be79.pth"  # torchvision's file for AlexNet_Weights.IMAGENET1K_V1
 
 
-@pytest.fixture(autouse=True)
-def _no_download(monkeypatch, tmp_path):
-    """Each test has its own empty torch cache, and any download attempt fails loudly."""
-    monkeypatch.setenv("TORCH_HOME", str(tmp_path / "torch_home"))
-
-    def refuse(url, *args, **kwargs):
-        raise AssertionError(f"a test tried to download {url}")
-
-    monkeypatch.setattr(torch.hub, "download_url_to_file", refuse)
+pytestmark = pytest.mark.usefixtures("no_download")  # conftest: own torch cache, no download
 
 
 @pytest.fixture(scope="module")

@@ -19,15 +19,7 @@ from spcopyro.features.backbone import (
 )
 from spcopyro.features.images import list_images
 
-
-@pytest.fixture(autouse=True)
-def _no_download(monkeypatch, tmp_path):
-    monkeypatch.setenv("TORCH_HOME", str(tmp_path / "torch_home"))
-
-    def refuse(url, *args, **kwargs):
-        raise AssertionError(f"a test tried to download {url}")
-
-    monkeypatch.setattr(torch.hub, "download_url_to_file", refuse)
+pytestmark = pytest.mark.usefixtures("no_download")  # conftest: own torch cache, no download
 
 
 def test_checkpoint_with_data_parallel_features_loads(tmp_path):

@@ -9,10 +9,10 @@ import dataclasses
 import numpy as np
 import pytest
 from hand_results import two_rooms
+from test_online_update import SETTINGS, _trials
 
 import spcopyro.robot.online
 from spcopyro.cli.main import main
-from spcopyro.config import preset
 from spcopyro.data import save_house
 from spcopyro.fit.gibbs_chains import FitInterrupted
 from spcopyro.fit.house import fit_house
@@ -23,11 +23,6 @@ from spcopyro.robot.online import fit_update
 from spcopyro.synthetic import make_house
 
 FLAGS = ["--preset", "original-code", "--gamma", "3", "--no-figures"]
-SETTINGS = preset("original-code", gamma=3.0)
-
-
-def _trials(house, trials):
-    return dataclasses.replace(house, observations=house.observations.select_trials(trials))
 
 
 @pytest.fixture(scope="module")
