@@ -23,6 +23,13 @@ def _load(data: str | None, seed: int = 0) -> House:
     return load_house(Path(data))
 
 
+def figure_file(out: str) -> Path:
+    """The file a figure saved as ``out`` is written to, resolved: ``out`` itself, or with
+    ``.png`` when it has no suffix (matplotlib adds it)."""
+    path = Path(out).resolve()
+    return path if path.suffix else path.with_suffix(".png")
+
+
 def refuse_fit_files(result_dir: str, out: str, targets: list[Path]) -> None:
     """ValueError when one of ``targets`` (the files ``--out OUT`` writes, resolved) is one of
     the fit's own files in ``result_dir`` (its manifest,

@@ -31,7 +31,14 @@ import numpy as np
 from spcopyro import __version__
 from spcopyro._util.arguments import figure_path, non_negative_number
 from spcopyro._util.interrupts import caused_by_interrupt
-from spcopyro.cli.common import _HelpFormatter, _load, _seed, _summary, refuse_fit_files
+from spcopyro.cli.common import (
+    _HelpFormatter,
+    _load,
+    _seed,
+    _summary,
+    figure_file,
+    refuse_fit_files,
+)
 from spcopyro.cli.fit_parser import add_parser as add_fit_parser
 
 logger = logging.getLogger("spcopyro")
@@ -164,9 +171,7 @@ def probability_figure(out: Path) -> Path:
 def _check_where_out(result_dir: str, out: str) -> None:
     """``where --out``: refuse a figure (or its ``_probability`` sibling) that would replace
     one of the fit's own files (its manifest, :func:`spcopyro._util.outputs.fit_written`)."""
-    path = Path(out).resolve()
-    figure = path if path.suffix else path.with_suffix(".png")  # matplotlib adds .png
-    refuse_fit_files(result_dir, out, [figure, probability_figure(path)])
+    refuse_fit_files(result_dir, out, [figure_file(out), probability_figure(Path(out).resolve())])
 
 
 def _where(args: argparse.Namespace) -> int:

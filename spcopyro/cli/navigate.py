@@ -12,11 +12,10 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from spcopyro._util.arguments import non_negative_number
-from spcopyro.cli.common import _HelpFormatter, refuse_fit_files
+from spcopyro.cli.common import _HelpFormatter, figure_file, refuse_fit_files
 
 if TYPE_CHECKING:
     from spcopyro._util.outputs import StagedOutput
@@ -150,8 +149,7 @@ def show_graph(args: argparse.Namespace) -> int:
 
     if not args.data:
         raise ValueError("show --graph: give the output folder of `spcopyro fit`")
-    path = Path(args.out).resolve()
-    figure = path if path.suffix else path.with_suffix(".png")  # matplotlib adds .png
+    figure = figure_file(args.out)
     # the figure and its JSON never replace the fit's files (--out OUT/config.png: config.json)
     refuse_fit_files(args.data, args.out, [figure, figure.with_suffix(".json")])
     result = SpCoResult.load(args.data)
