@@ -209,6 +209,10 @@ def test_the_cli_loads_a_third_modality_and_needs_its_concentration(
     assert f"; {OBJECTS}: " in capsys.readouterr().out
     assert main([*args, "--concentration", "objects"]) == 2
     assert "NAME=NUMBER" in capsys.readouterr().err
+    # a concentration for a modality the house lacks (a typo) is refused, naming what it has
+    assert main([*args, "--concentration", "objects=0.5", "--concentration", "object=1"]) == 2
+    err = capsys.readouterr().err
+    assert "no modality 'object'" in err and "further modalities: objects" in err
 
 
 def test_mcmc_saves_the_third_modality_site():

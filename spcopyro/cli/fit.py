@@ -311,6 +311,18 @@ def _fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings,
         cell_size=_cell_size(args.cell_size), word_scaling=args.word_scaling,
         footprint_kernel=args.footprint_kernel, footprint_fov=args.footprint_fov,
     )  # fmt: skip
+    further = {m.name for m in house.observations.modalities}
+    for name in overrides["concentrations"] or {}:
+        if name not in further:
+            has = (
+                f"its further modalities: {', '.join(sorted(further))}"
+                if further
+                else "it has no further modality"
+            )
+            raise ValueError(
+                f"--concentration {name}=...: the house {house.name!r} has no modality {name!r} "
+                f"(no modality_{name}.csv; {has})"
+            )
     if args.preset == "paper-dirichlet" and args.concepts is None and house.category_names:
         overrides["num_concepts"] = len(house.category_names)
     settings = preset(args.preset, **overrides)
