@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pyro
 import pytest
 import torch
 from gibbs_problems import config, random_problem
@@ -417,3 +418,28 @@ def test_predictive_after_mcmc_keeps_the_chains_labels():
     assert images.shape[0] == 20
     with pytest.raises(ValueError, match="parallel=False"):
         Predictive(spcomapping_model, posterior_samples=samples, parallel=True)(data, cfg)
+
+
+def test_mcmc_initial_params_start_from_the_given_labels_and_refuse_what_would_be_lost():
+    """MCMC(initial_params=...) starts the kernel from those labels; floats with whole values
+    (Pyro's unconstrained space) are accepted, fractional ones and the drawn sites are refused
+    (they used to be truncated and ignored)."""
+    cfg = config()
+    _, data = random_problem(seed=3)
+    start = torch.arange(data.num_free) % cfg.num_concepts  # [N]
+
+    def first_sample(kernel: SpCoGibbs, **kwargs) -> torch.Tensor:
+        pyro.set_rng_seed(5)
+        mcmc = MCMC(kernel, num_samples=1, warmup_steps=0, disable_progbar=True, **kwargs)
+        mcmc.run(data, cfg)
+        return mcmc.get_samples()["labels"][0]  # [N]
+
+    given = first_sample(SpCoGibbs(init_labels=start, options=TORCH, save_params="labels"))
+    kernel = SpCoGibbs(options=TORCH, save_params="labels")
+    as_floats = first_sample(kernel, initial_params={"labels": start.to(torch.float64)})
+    torch.testing.assert_close(as_floats, given)
+    torch.testing.assert_close(kernel.init_labels, start)
+    with pytest.raises(ValueError, match=r"whole numbers, got 1\.5 at index 2"):
+        kernel.initial_params = {"labels": torch.tensor([0.0, 1.0, 1.5])}
+    with pytest.raises(ValueError, match=r"labels only.*\['pi'\]"):
+        kernel.initial_params = {"labels": start, "pi": torch.ones(cfg.num_concepts)}

@@ -184,8 +184,30 @@ class SpCoGibbs(MCMCKernel):
 
     @initial_params.setter
     def initial_params(self, params: dict[str, torch.Tensor]) -> None:
-        if "labels" in params:
-            self.init_labels = params["labels"].to(torch.long)
+        """Start from ``params["labels"]`` (``MCMC(initial_params=...)``): integer labels, or
+        floats with integer values (Pyro's unconstrained space); pi and the emission tables
+        are drawn from their full conditionals given those labels (eqs. 14-17), so a value
+        given for them would be lost: ValueError."""
+        others = sorted(set(params) - {"labels"})
+        if others:
+            raise ValueError(
+                f"SpCoGibbs starts from labels only: pi and the emission tables are drawn "
+                f"given them, so initial values of {others} would not be used; pass "
+                "initial_params={'labels': ...}"
+            )
+        if "labels" not in params:
+            return
+        labels = torch.as_tensor(params["labels"])
+        if torch.is_floating_point(labels):
+            fractional = labels != labels.round()
+            if bool(fractional.any()):
+                index = int(fractional.flatten().nonzero()[0])
+                raise ValueError(
+                    "initial_params['labels'] must hold whole numbers, got "
+                    f"{float(labels.flatten()[index])!r} at index {index}"
+                )
+            labels = labels.to(torch.long)
+        self.init_labels = labels
 
     def sample(self, params: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
         assert self._state is not None and self._generator is not None, "setup() not called"
