@@ -4,6 +4,8 @@ Gibbs sweep backends (each test taking ``backend`` runs once per backend)."""
 from __future__ import annotations
 
 import signal
+import sys
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +40,23 @@ def _fixed_seed():
     torch.manual_seed(0)
     np.random.seed(0)  # noqa: NPY002 - legacy global state, reset for code that uses it
     yield
+
+
+@pytest.fixture(autouse=True)
+def _no_dask_offload_thread_left():
+    """A test that ran a LocalCluster in this process leaves dask.distributed's offload thread
+    running (a module-level ThreadPoolExecutor): any later test that forks chain processes is
+    then refused them (spcopyro._util.forking: no other thread may run at a fork), so the
+    suite's result depended on the order of its tests. After such a test the executor is shut
+    down and replaced by a fresh one, which starts its thread only when next used."""
+    yield
+    utils = sys.modules.get("distributed.utils")
+    executor = getattr(utils, "_offload_executor", None)
+    if executor is not None and getattr(executor, "_threads", None):
+        executor.shutdown(wait=True)
+        utils._offload_executor = ThreadPoolExecutor(
+            max_workers=1, thread_name_prefix="Dask-Offload"
+        )
 
 
 @pytest.fixture
