@@ -180,7 +180,7 @@ def test_several_chains_are_refined_from_the_best_coarse_chain(home, tmp_path, c
     printed = capsys.readouterr().out
     assert "refining " in printed and "the 2 x 20 sweeps" in printed
     assert "fitted 2 chains x 20 sweeps on 0.3 m cells (" in printed
-    assert "ms per sweep), then 2 chains x 20 on the map's 0.1 m cells (" in printed
+    assert "), then 2 chains x 20 on the map's 0.1 m cells (" in printed
     chains = json.loads((out / "chains.json").read_text())
     assert chains["seeds"] == [0, 1] and len(chains["best_log_joint"]) == 2
     config = json.loads((out / "config.json").read_text())
@@ -208,7 +208,7 @@ def test_sweeps_auto_refines_for_as_many_sweeps_as_the_chains_needed(home, tmp_p
     assert "--sweeps auto: 2 chains " in printed and " after 20 sweeps each" in printed
     assert "highest log joint, the refinement started from it" in printed
     assert "fitted 2 chains x 20 sweeps on 0.3 m cells (" in printed
-    assert "ms per sweep), then 2 chains x 20 on the map's 0.1 m cells (" in printed
+    assert "), then 2 chains x 20 on the map's 0.1 m cells (" in printed
     assert "point estimate   vi" in printed  # the preset's, over the refinement's samples
     assert np.load(out / "labels.npy").shape == np.load(out / "truth.npy").shape  # map's cells
     config = json.loads((out / "config.json").read_text())

@@ -86,6 +86,22 @@ UPDATE_SWEEPS = 300  # --sweeps of --update (spcopyro.robot.online.DEFAULT_UPDAT
 MAX_SEED = 2**63 - 1  # torch.Generator.manual_seed takes a signed 64-bit integer
 
 
+FIRST_SWEEP_OUTLIER = 10.0
+"""A first sweep slower than this many times the others' pace (and over half a second) is
+reported apart: numba compiling its code on a first run, not the sampler's pace."""
+
+
+def pace(first_seconds: float, total_seconds: float, count: int, unit: str = "sweep") -> str:
+    """``"1.62 ms per sweep"`` over ``count`` sweeps that took ``total_seconds``; when the first
+    of them (``first_seconds``) took much longer than the rest (:data:`FIRST_SWEEP_OUTLIER`),
+    the pace of the rest and the first apart: ``"1.62 ms per sweep after a first of 5.1 s"``."""
+    if count > 1:
+        rest = (total_seconds - first_seconds) / (count - 1)
+        if first_seconds > max(FIRST_SWEEP_OUTLIER * rest, 0.5):
+            return f"{1e3 * rest:.2f} ms per {unit} after a first of {first_seconds:.1f} s"
+    return f"{1e3 * total_seconds / max(count, 1):.2f} ms per {unit}"
+
+
 def _seed(value: str) -> int:
     """``--seed``: an integer in 0 .. 2**63 - 1 (argparse names the option on an error)."""
     number = _non_negative_int(value)

@@ -32,6 +32,7 @@ from spcopyro.cli.common import (
     _feature_scaling,
     _load,
     _summary,
+    pace,
 )
 from spcopyro.cli.concept_listing import print_concepts
 from spcopyro.cli.fit_figures import FigurePrefetch, write_figures
@@ -537,17 +538,19 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
               f"{'' if args.no_figures else '; agreement.png'}")  # fmt: skip
     unit = "sweep" if result.trace.objective_name == "log joint" else "iteration"
     several = f"{chains} chains x " if chains > 1 else ""
-    pace = f"{1e3 * result.trace.seconds[-1] / sweeps_run:.2f} ms per {unit}"
+    seconds = result.trace.seconds  # [sweeps] cumulative
+    rate = pace(seconds[0], seconds[-1], sweeps_run, unit) if len(seconds) else "no sweeps"
     clock = f"{wall:.1f} s wall clock"
     if args.resume is not None:  # the trace's seconds (the paces) go on from the checkpoint's
         clock += f" this run (resumed: the paces include the {unit}s run before the interruption)"
-    runs = f"{several}{sweeps_run} {unit}s in {clock} ({pace})"
+    runs = f"{several}{sweeps_run} {unit}s in {clock} ({rate})"
     if job.refined:  # the coarse stage's sweeps, then the refinement's, each at its own pace
         coarse = result.inference["refine"]["coarse"]
-        coarse_pace = 1e3 * coarse.get("seconds", math.nan) / max(coarse["sweeps"], 1)
+        total = coarse.get("seconds", math.nan)
+        coarse_rate = pace(coarse.get("first_seconds", 0.0), total, coarse["sweeps"])
         runs = (f"{several}{coarse['sweeps']} sweeps on {coarse['cell_size']:g} m cells "
-                f"({coarse_pace:.2f} ms per sweep), then {several}{sweeps_run} on the map's "
-                f"{result.grid.resolution:g} m cells ({pace}) in {clock}")  # fmt: skip
+                f"({coarse_rate}), then {several}{sweeps_run} on the map's "
+                f"{result.grid.resolution:g} m cells ({rate}) in {clock}")  # fmt: skip
     print(f"fitted {runs}; {len(result.concepts_in_use())} concepts in use")
     if result.inference.get("stopped"):  # a variational method: converged, or --sweeps reached
         print(f"stopped          {result.inference['stopped']}")

@@ -192,6 +192,7 @@ def refine_chains(
             "concepts": len(first.concepts_in_use()),
             "sweeps": len(first.trace.objective),
             "seconds": float(first.trace.seconds[-1]) if len(first.trace.seconds) else 0.0,
+            "first_seconds": float(first.trace.seconds[0]) if len(first.trace.seconds) else 0.0,
         },
         "alpha": float(refined.model.alpha),
     }  # fmt: skip
