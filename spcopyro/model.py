@@ -172,13 +172,31 @@ def make_model_data(grid: OccupancyGrid, counts: CellCounts, connectivity: int =
     )
 
 
-def check_model_data(data: ModelData) -> None:
+def check_model_data(data: ModelData, config: SpCoConfig | None = None) -> None:
     """Refuse counts that every inference method would turn into NaN or a bare shape error
     deep inside (a NaN count gave a NaN ELBO under CAVI and "gamma concentration must be finite
     and positive" under Gibbs): ``obs_cells`` ``[M]`` free indices in ``[0, N)``, and each
     modality's counts an ``[M, K_m]`` float64 tensor, finite and >= 0 (a multinomial's counts,
     possibly real-valued: :class:`~spcopyro.distributions.MultinomialCounts`). Raises
-    ValueError naming the modality, the entry and its value."""
+    ValueError naming the modality, the entry and its value.
+
+    With ``config``: TypeError unless it is an :class:`~spcopyro.config.SpCoConfig` (an
+    ``SpCoSettings`` gave "has no attribute 'num_concepts'"), and ValueError unless its
+    ``connectivity`` is the one ``data``'s neighbour table was made with (data made for 4
+    neighbours under an 8-neighbour config were fitted with 4, silently)."""
+    if not isinstance(data, ModelData):
+        raise TypeError(
+            f"data must be a ModelData (spcopyro.model.make_model_data, or "
+            f"spcopyro.fit.house.prepare_model_data), got {type(data).__name__}"
+        )
+    if config is not None:
+        check_config(config)
+        if data.neighbours.dim() == 2 and data.neighbours.shape[1] != config.connectivity:
+            raise ValueError(
+                f"the data's neighbour table has {data.neighbours.shape[1]} neighbours a cell "
+                f"but config.connectivity is {config.connectivity}: make the data with "
+                f"make_model_data(grid, counts, connectivity={config.connectivity})"
+            )
     N, cells = data.num_free, data.obs_cells
     if cells.dim() != 1 or (cells.numel() and not 0 <= int(cells.min()) <= int(cells.max()) < N):
         raise ValueError(f"ModelData.obs_cells must be [M] free indices in [0, {N})")
@@ -201,6 +219,15 @@ def check_model_data(data: ModelData) -> None:
             )
 
 
+def check_config(config: object) -> None:
+    """TypeError unless ``config`` is an :class:`~spcopyro.config.SpCoConfig` (an
+    ``SpCoSettings``' model part is ``settings.model``)."""
+    if isinstance(config, SpCoConfig):
+        return
+    hint = " (pass settings.model)" if hasattr(config, "model") and hasattr(config, "data") else ""
+    raise TypeError(f"config must be an SpCoConfig{hint}, got {type(config).__name__}")
+
+
 def potts_agreements(labels: torch.Tensor, pairs: torch.Tensor) -> torch.Tensor:
     """E(C) = sum over neighbour pairs (a, b) of delta(C_a, C_b), the Potts MRF's statistic.
 
@@ -208,6 +235,17 @@ def potts_agreements(labels: torch.Tensor, pairs: torch.Tensor) -> torch.Tensor:
     """
     same = labels[..., pairs[:, 0]] == labels[..., pairs[:, 1]]  # [..., P]
     return same.sum(-1).to(DTYPE)
+
+
+def _check_site_shape(site: str, value: torch.Tensor, expected: tuple[int, ...]) -> None:
+    """ValueError unless a drawn or given (``Predictive``'s posterior samples, a guide's) value
+    of ``site`` has the model's shape: samples of another L or vocabulary were used silently."""
+    if tuple(value.shape[-len(expected) :]) != expected:
+        raise ValueError(
+            f"the value of site {site!r} has shape {tuple(value.shape)}, but these data and "
+            f"config make it {expected} (L = num_concepts, then the modality's classes): were "
+            "the samples drawn for other data or another num_concepts?"
+        )
 
 
 def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
@@ -267,11 +305,13 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
     on Spatial Concepts for Grounding Words Related to Places in Daily Environments", Frontiers in
     Robotics and AI 6:31, 2019.
     """
+    check_model_data(data, config)
     L = config.num_concepts
 
     pi = pyro.sample(
         SITE_PI, dist.Dirichlet(torch.full((L,), config.pi_concentration, dtype=DTYPE))
     )
+    _check_site_shape(SITE_PI, pi, (L,))
     if pi.shape[:-1].numel() > 1:  # Predictive(parallel=True) hands a batch (a guide: [1, L])
         raise ValueError(
             f"spcomapping_model takes one sample of pi at a time, got a batch of shape "
@@ -292,6 +332,8 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
             )
             for modality in data.modalities
         ]  # theta: [L, K], w: [L, V], ...: [L, K_m]
+    for modality, probs in zip(data.modalities, parameters, strict=True):
+        _check_site_shape(modality.parameter, probs, (L, modality.counts.shape[-1]))
 
     with pyro.plate("cells", data.num_free, dim=-1):
         labels = pyro.sample(SITE_LABELS, dist.Categorical(pi))  # [N]

@@ -79,6 +79,73 @@ def test_gibbs_init_the_kernel_and_the_guide_refuse_bad_counts():
             MeanFieldGuide(bad, cfg)
 
 
+def test_the_model_itself_refuses_bad_counts_and_a_config_of_another_type():
+    """The model, traced or run by Predictive directly, checks its data as the kernel and the
+    guide do: a 1-D count gave a log density, negative counts NaN, a missing row a broadcast
+    error deep in torch, and SpCoSettings "has no attribute 'num_concepts'"."""
+    cfg = config()
+    _, data = random_problem(seed=3)
+    trace = lambda d, c: pyro.poutine.trace(spcomapping_model).get_trace(d, c)  # noqa: E731
+    for message, bad in _bad_counts(data):
+        with pytest.raises(ValueError, match=message):
+            trace(bad, cfg)
+    settings = preset("original-code", num_concepts=3)
+    for call in (
+        lambda: trace(data, settings),
+        lambda: MCMC(SpCoGibbs(), num_samples=1, disable_progbar=True).run(data, settings),
+        lambda: MeanFieldGuide(data, settings),
+        lambda: init(data, settings, torch.Generator().manual_seed(0)),
+    ):
+        with pytest.raises(
+            TypeError, match=r"SpCoConfig \(pass settings.model\), got SpCoSettings"
+        ):
+            call()
+    with pytest.raises(TypeError, match="data must be a ModelData"):
+        trace(settings, cfg)
+
+
+def test_data_made_for_one_connectivity_are_refused_under_another():
+    """Data whose neighbour table has 4 neighbours a cell, fitted under connectivity 8, ran
+    silently as the 4-neighbour model (the same log joint)."""
+    _, data = random_problem(seed=3, connectivity=4)
+    eight = config(connectivity=8)
+    match = "4 neighbours a cell but config.connectivity is 8"
+    with pytest.raises(ValueError, match=match):
+        start_chain(data, eight, seed=0)
+    with pytest.raises(ValueError, match=match):
+        pyro.poutine.trace(spcomapping_model).get_trace(data, eight)
+    with pytest.raises(ValueError, match=match):
+        get_method("cavi").run(
+            data, eight, iterations=2, generator=torch.Generator().manual_seed(0)
+        )
+
+
+def test_predictive_refuses_samples_drawn_for_other_data_or_another_l():
+    """Posterior samples of w over 4 words, replayed on data with 5 words (or on another
+    num_concepts), were used silently or failed in a reshape deep inside Pyro."""
+    cfg = config()
+    _, data = random_problem(seed=3, V=4)
+    mcmc = MCMC(SpCoGibbs(save_params=("pi", "theta", "w", "labels")), num_samples=2,
+                warmup_steps=1, disable_progbar=True)  # fmt: skip
+    mcmc.run(data, cfg)
+    samples = mcmc.get_samples()
+    _, wider = random_problem(seed=3, V=5)
+    predictive = pyro.infer.Predictive(spcomapping_model, posterior_samples=samples,
+                                       return_sites=("words",))  # fmt: skip
+    with pytest.raises(ValueError, match=r"site 'w' has shape \(3, 4\).*\(3, 5\)"):
+        predictive(wider, cfg)
+    with pytest.raises(ValueError, match=r"site 'pi' has shape \(3,\).*\(4,\)"):
+        predictive(data, config(num_concepts=4))
+    assert predictive(data, cfg)["words"].shape[0] == 2
+
+
+def test_the_kernel_names_options_of_the_wrong_type():
+    with pytest.raises(TypeError, match="options must be a GibbsOptions .*got dict"):
+        SpCoGibbs(options={"cluster_moves": 0.1})
+    with pytest.raises(TypeError, match="anneal must be True or False, got 'yes'"):
+        SpCoGibbs(anneal="yes")
+
+
 def test_the_guide_reads_a_loaded_param_store_without_a_call_first(tmp_path):
     # marginals() and concentration() read the module's own copy: after
     # pyro.get_param_store().load(...) they returned the start values until the guide ran.

@@ -93,6 +93,13 @@ class SpCoGibbs(MCMCKernel):
         options: GibbsOptions = GibbsOptions(),
         anneal: bool = False,
     ) -> None:
+        if not isinstance(options, GibbsOptions):
+            raise TypeError(
+                f"options must be a GibbsOptions (spcopyro.gibbs.options), got "
+                f"{type(options).__name__}: e.g. GibbsOptions(cluster_moves=0.1)"
+            )
+        if not isinstance(anneal, bool):
+            raise TypeError(f"anneal must be True or False, got {anneal!r}")
         if options.anneal_sweeps:
             raise ValueError(
                 "SpCoGibbs anneals over MCMC's warmup steps: pass anneal=True, not "
@@ -117,7 +124,7 @@ class SpCoGibbs(MCMCKernel):
     def setup(self, warmup_steps: int, data: ModelData, config: SpCoConfig) -> None:
         self._data, self._config = data, config
         self._warmup_steps, self._steps = warmup_steps, 0
-        check_model_data(data)  # before tracing the model on them (its errors name no count)
+        check_model_data(data, config)  # before tracing the model (its errors name no count)
         self._check_model_sites()
         requested = self._requested_params
         self.save_params = sorted(self._all_params() if requested is None else requested)

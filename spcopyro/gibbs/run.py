@@ -238,8 +238,10 @@ def start_chain(
 ) -> GibbsChain:
     """A new chain at :func:`~spcopyro.gibbs.sampler.init` from ``init_labels`` (random if None).
 
-    ``generator`` / ``seed``: randomness; give one (``seed`` makes a fresh generator). A seeded
-    chain reproduces bit for bit (on one backend: the backends' random streams differ).
+    ``generator`` / ``seed``: randomness, at most one of them (``seed`` makes a fresh
+    generator; neither: seed 0, so a run reproduces unless told otherwise -- pass
+    ``seed=random.randrange(2**63)`` for a fresh one). A seeded chain reproduces bit for bit
+    (on one backend: the backends' random streams differ).
     """
     if generator is not None and seed is not None:  # the seed was dropped silently
         raise ValueError(f"give a generator or a seed, not both (seed {seed!r})")

@@ -71,7 +71,7 @@ def init(
     """A state from initial labels (uniformly random if None), with pi and the emission
     distributions drawn from their conditionals given those labels (eqs. 14-17). ValueError
     for counts that are not finite and >= 0 (:func:`~spcopyro.model.check_model_data`)."""
-    check_model_data(data)
+    check_model_data(data, config)
     if not isinstance(generator, torch.Generator):
         raise TypeError(
             f"generator must be a torch.Generator (torch.Generator().manual_seed(seed)), "

@@ -110,7 +110,7 @@ class MeanFieldGuide(PyroModule):
                 f"MeanFieldGuide(data, config) takes the model's ModelData first, got "
                 f"{type(data).__name__} (see spcopyro.fit.house.prepare_model_data)"
             )
-        check_model_data(data)
+        check_model_data(data, config)
         super().__init__(name=name)
         N, L = data.num_free, config.num_concepts
         if label_smoothing is None:

@@ -161,7 +161,7 @@ class InferenceMethod(Protocol):
         from spcopyro.model import check_model_data
 
         options = method_options(options, self.options_type, self.title or self.name)
-        check_model_data(data)
+        check_model_data(data, config)
         # before a resumed run's count ("nothing left of the 0 asked for") or a draw names them
         integer = isinstance(iterations, int | np.integer) and not isinstance(iterations, bool)
         if not integer or iterations < 1:
