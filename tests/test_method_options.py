@@ -58,3 +58,19 @@ def test_vi_gibbs_refuses_a_wrong_options_object_by_name(field):
         VIGibbsOptions(**{field: wrong})
     with pytest.raises(ValueError, match=f"VIGibbsOptions.{field} must be a"):
         with_options(VIGibbsOptions(), [f"{field}=3"])
+
+
+def test_every_example_in_the_help_is_an_option_of_its_method():
+    """The help's examples are set on their methods' options as a user would copy them (it gave
+    lr=0.05 for svi, whose field is learning_rate)."""
+    import re
+
+    from spcopyro.cli.main import build_parser
+    from spcopyro.fit.registry import INFERENCE_METHODS
+
+    fit = build_parser()._subparsers._group_actions[0].choices["fit"]
+    [action] = [a for a in fit._actions if "--method-option" in a.option_strings]
+    examples = re.findall(r"([\w.]+=[\w.]+) \(([\w-]+)\)", " ".join(action.help.split()))
+    assert {method for _, method in examples} == {"cavi", "lbp", "svi", "stochastic-vi", "vi-gibbs"}
+    for assignment, method in examples:
+        with_options(INFERENCE_METHODS[method].default_options(), [assignment])

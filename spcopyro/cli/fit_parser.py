@@ -169,8 +169,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "Algorithm 1)")  # fmt: skip
     p.add_argument("--method-option", action="append", metavar="NAME=VALUE",
                    help="set a field of the method's options, e.g. anneal_iterations=30 (cavi), "
-                        "damping=0.5 (lbp), lr=0.05 (svi), block_size=32 (stochastic-vi), "
-                        "variational.anneal_iterations=30 (vi-gibbs); repeat for several "
+                        "damping=0.5 (lbp), learning_rate=0.05 (svi), block_size=32 "
+                        "(stochastic-vi), variational.anneal_iterations=30 (vi-gibbs); repeat "
+                        "for several "
                         "(default: the method's defaults, printed by the fit)")  # fmt: skip
     p.add_argument("--backend", choices=BACKENDS, default="auto",
                    help="Gibbs sweep implementation: torch (reference), numba (compiled) or "
