@@ -23,6 +23,7 @@ from spcopyro.data import House, Observations, find_dataset_root, load_house
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
 from spcopyro.maps import load_map
+from spcopyro.maps.map_server import MapFormatError, _read_map_yaml
 from spcopyro.robot.map_simulation import simulate_on_map
 from spcopyro.study.spec import DataSource
 from spcopyro.synthetic import make_house
@@ -52,11 +53,22 @@ def resolve_source(data: DataSource, root: str | Path | None = None) -> DataSour
     return dataclasses.replace(data, target=str(target.resolve()))
 
 
+def _map_files(yaml_path: Path) -> list[Path]:
+    """A map's yaml and the image its ``image:`` names (relative to the yaml's folder, as
+    map_server reads it), whatever its name and extension; the yaml alone when it does not
+    parse or its image is missing (the cell then fails, naming the problem)."""
+    try:
+        image = _read_map_yaml(yaml_path).image
+    except MapFormatError:
+        return [yaml_path]
+    return [yaml_path, image] if image.is_file() else [yaml_path]
+
+
 def _files_of(data: DataSource) -> list[Path]:
     """The files a public house or a map is read from."""
     target = Path(data.target)
     if data.kind == "map":
-        return [target, *sorted(target.parent.glob(f"{target.stem}.p*m"))]
+        return _map_files(target)
     files = sorted(p for p in target.iterdir() if p.is_file())
     files += sorted(target.parent.glob(f"map/{target.name}.*"))
     return files
