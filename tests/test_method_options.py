@@ -74,3 +74,24 @@ def test_every_example_in_the_help_is_an_option_of_its_method():
     assert {method for _, method in examples} == {"cavi", "lbp", "svi", "stochastic-vi", "vi-gibbs"}
     for assignment, method in examples:
         with_options(INFERENCE_METHODS[method].default_options(), [assignment])
+
+
+def test_gibbs_flags_reach_vi_gibbs_and_are_refused_by_methods_without_a_sampler(tmp_path, capsys):
+    """--backend, --anneal-sweeps and the move rates were ignored silently under --method
+    cavi (and under vi-gibbs, whose second stage is the sampler they set)."""
+    base = ["fit", "--sweeps", "4", "--no-figures", "--concepts", "6"]
+    out = tmp_path / "vg"
+    argv = [*base, "--out", str(out), "--method", "vi-gibbs", "--backend", "torch",
+            "--cluster-moves", "0.5", "--anneal-sweeps", "2",
+            "--method-option", "vi_iterations=3"]  # fmt: skip
+    assert main(argv) == 0
+    inference = json.loads((out / "config.json").read_text())["inference"]  # the Gibbs stage's
+    assert inference["vi_iterations"] == 3 and inference["backend_used"] == "torch"
+    assert inference["cluster_moves"] == 0.5 and inference["anneal_sweeps"] == 2
+    capsys.readouterr()
+    for flags in (["--backend", "torch"], ["--merge-moves", "0.2", "--anneal-sweeps", "10"]):
+        argv = [*base, "--out", str(tmp_path / "cavi"), "--method", "cavi", *flags]
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert f"{flags[0]} {flags[1]}" in err and "--method cavi does not run" in err
+    assert not (tmp_path / "cavi").exists()

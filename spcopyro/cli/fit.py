@@ -36,6 +36,7 @@ from spcopyro.cli.common import (
 )
 from spcopyro.cli.concept_listing import print_concepts
 from spcopyro.cli.fit_figures import FigurePrefetch, write_figures
+from spcopyro.cli.fit_options import method_options
 from spcopyro.cli.fit_refine import prepares_data, refine, report_update, update_settings
 from spcopyro.config import (
     SpCoSettings,
@@ -131,7 +132,8 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
             f"--point-estimate {args.point_estimate} is made over the label maps of "
             "--marginal-samples (> 0) of a gibbs or vi-gibbs fit with a number of --sweeps"
         )
-    if args.sweeps != "auto" and args.anneal_sweeps > args.sweeps:
+    sampler = args.method in ("gibbs", "vi-gibbs")  # another refuses it (cli.fit_options)
+    if sampler and args.sweeps != "auto" and args.anneal_sweeps > args.sweeps:
         raise ValueError(f"anneal_sweeps ({args.anneal_sweeps}) must not exceed num_sweeps "
                          f"({args.sweeps})")  # fmt: skip
     if args.resume is not None and (Path(args.resume) / "result.npz").is_file():
@@ -297,11 +299,6 @@ def _cell_size(value: str | None) -> float | None | str:
 
 def _fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings, object | None]:
     """The model and data settings and the method's options (None: its defaults) of ``fit``."""
-    from spcopyro.fit.registry import INFERENCE_METHODS
-    from spcopyro.gibbs.backends import get_backend
-    from spcopyro.gibbs.options import GibbsOptions
-    from spcopyro.inference.protocol import with_options
-
     overrides = dict(
         prior=args.prior, num_concepts=args.concepts, gamma=args.gamma, alpha=args.alpha,
         beta=args.beta, chi=args.chi, connectivity=args.connectivity,
@@ -327,23 +324,8 @@ def _fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings,
     if args.preset == "paper-dirichlet" and args.concepts is None and house.category_names:
         overrides["num_concepts"] = len(house.category_names)
     settings = preset(args.preset, **overrides)
-    options = None  # a method other than Gibbs runs with its defaults and --method-option
-    if args.method_option:
-        default = INFERENCE_METHODS[args.method].default_options()
-        options = with_options(default, args.method_option)
+    options = method_options(args)
     if args.method == "gibbs":
-        options = GibbsOptions(
-            backend=args.backend, anneal_sweeps=args.anneal_sweeps,
-            unobserved_refresh=1.0 if args.unobserved_refresh is None else args.unobserved_refresh,
-            cluster_moves=0.0 if args.cluster_moves is None else args.cluster_moves,
-            merge_moves=0.0 if args.merge_moves is None else args.merge_moves,
-            region_moves=0.0 if args.region_moves is None else args.region_moves,
-        )  # fmt: skip
-        options = with_options(options, args.method_option or [])
-        try:
-            get_backend(options.backend)
-        except ImportError as error:  # --backend numba without numba: before anything is written
-            raise ValueError(str(error)) from None
         chain_processes()  # a bad $SPCOPYRO_CHAIN_PROCESSES: before anything is printed
     return settings, options
 

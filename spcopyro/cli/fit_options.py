@@ -1,0 +1,70 @@
+"""``spcopyro fit``'s inference options from its command line: ``--method-option NAME=VALUE``
+for any method, and the Gibbs sampler's own flags (``--backend``, ``--anneal-sweeps``, the move
+rates) for the methods that run the sampler: ``gibbs``, and ``vi-gibbs`` after its CAVI. Under
+another method those flags are refused, naming them (they were ignored silently)."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+
+__all__ = ["method_options"]
+
+_SAMPLERS = ("gibbs", "vi-gibbs")
+
+
+def _given_gibbs_flags(args: argparse.Namespace) -> dict[str, tuple[str, object]]:
+    """The Gibbs flags the command line set: GibbsOptions field -> (flag, value)."""
+    given = {
+        "backend": ("--backend", args.backend, "auto"),
+        "anneal_sweeps": ("--anneal-sweeps", args.anneal_sweeps, 0),
+        "unobserved_refresh": ("--unobserved-refresh", args.unobserved_refresh, None),
+        "cluster_moves": ("--cluster-moves", args.cluster_moves, None),
+        "merge_moves": ("--merge-moves", args.merge_moves, None),
+        "region_moves": ("--region-moves", args.region_moves, None),
+    }
+    return {name: (flag, value) for name, (flag, value, unset) in given.items() if value != unset}
+
+
+def method_options(args: argparse.Namespace) -> object | None:
+    """The options ``fit`` runs ``args.method`` with (None: the method's defaults).
+
+    ``gibbs``: :class:`~spcopyro.gibbs.options.GibbsOptions` from the flags (a move rate left
+    unset is 0; ``_apply_preset_inference`` filled the preset's first), then
+    ``--method-option``. ``vi-gibbs``: its options from ``--method-option``, with the Gibbs
+    flags given set on its ``gibbs`` part. Any other method: ValueError if a Gibbs flag was
+    given. ValueError for ``--backend numba`` without numba, before anything is written."""
+    from spcopyro.fit.registry import INFERENCE_METHODS
+    from spcopyro.gibbs.backends import get_backend
+    from spcopyro.gibbs.options import GibbsOptions
+    from spcopyro.inference.protocol import with_options
+
+    given = _given_gibbs_flags(args)
+    if given and args.method not in _SAMPLERS:
+        flags = ", ".join(f"{flag} {value}" for flag, value in given.values())
+        raise ValueError(
+            f"{flags}: options of the Gibbs sampler, which --method {args.method} does not run "
+            "(gibbs and vi-gibbs do); leave them out"
+        )
+    options = None
+    if args.method_option:
+        default = INFERENCE_METHODS[args.method].default_options()
+        options = with_options(default, args.method_option)
+    if args.method == "gibbs":
+        unset_moves = {"unobserved_refresh": 1.0, "cluster_moves": 0.0, "merge_moves": 0.0,
+                       "region_moves": 0.0}  # fmt: skip
+        fields = {**unset_moves, **{name: value for name, (_, value) in given.items()}}
+        options = with_options(GibbsOptions(**fields), args.method_option or [])
+        sampler = options
+    elif args.method == "vi-gibbs":
+        base = options if options is not None else INFERENCE_METHODS[args.method].default_options()
+        fields = {name: value for name, (_, value) in given.items()}
+        options = dataclasses.replace(base, gibbs=dataclasses.replace(base.gibbs, **fields))
+        sampler = options.gibbs
+    else:
+        return options
+    try:
+        get_backend(sampler.backend)
+    except ImportError as error:  # --backend numba without numba
+        raise ValueError(str(error)) from None
+    return options
