@@ -185,3 +185,18 @@ def test_the_public_maps_door_widths(dataset_root):
                                        min_room_area=1.0)  # fmt: skip
     assert widths == {"room1dk5": (2.0, 3), "room1dk6": (2.25, 3), "room1ldk4": (1.5, 2),
                       "room1ldk5": (1.5, 2), "room2ldk4": (1.75, 3)}  # fmt: skip
+
+
+def test_overwriting_a_simulated_map_with_a_drawn_house_removes_its_rooms(tmp_path, capsys):
+    """QA: ``simulate --overwrite`` of a drawn house kept the rooms.npy / rooms.json of an
+    earlier ``simulate --map`` of the same name, which then described another house."""
+    yaml_path, _ = three_rooms(tmp_path)
+    out = tmp_path / "data"
+    assert main(["simulate", "--map", str(yaml_path), "--out", str(out), "--name", "h"]) == 0
+    assert (out / "h" / "rooms.npy").is_file() and (out / "h" / "rooms.json").is_file()
+    (out / "h" / "notes.txt").write_text("mine")
+    assert main(["simulate", "--out", str(out), "--name", "h", "--overwrite"]) == 0
+    capsys.readouterr()
+    assert not (out / "h" / "rooms.npy").exists() and not (out / "h" / "rooms.json").exists()
+    assert (out / "h" / "notes.txt").read_text() == "mine"  # not the house's: kept
+    load_house(out / "h")

@@ -332,6 +332,8 @@ _MANAGED_FILES = (
     "StXty.csv",
     "truth.npy",
     "categories.json",
+    "rooms.npy",  # simulate --map's rooms (spcopyro.robot.map_simulation): another house's
+    "rooms.json",  # rooms once a house of the same name is written over them
 )
 
 
@@ -354,7 +356,8 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
             (a comma, whitespace, upper case or edge punctuation).
         FileExistsError: ``root/NAME`` is not empty or the map exists, and ``overwrite`` is
             False. With ``overwrite`` the files this function writes (and stale pose_K, word_K,
-            img_K, modality_<name>) are replaced; other files are left alone.
+            img_K, modality_<name>, and the rooms.npy and rooms.json that ``simulate --map``
+            writes beside them) are replaced; other files are left alone.
 
     Returns:
         The room folder ``root/NAME``.
