@@ -151,12 +151,23 @@ class SVIInfo(NamedTuple):
     """The step's coupling."""
 
 
-def init(q: torch.Tensor, data: ModelData, config: SpCoConfig, options: SVIOptions) -> SVIState:
-    """The guide started at ``q`` ``[N, L]`` (smoothed per ``options.label_smoothing``), its loss
-    and optimiser. Call inside the param-store scope the run uses (:func:`fit_svi`)."""
-    guide = MeanFieldGuide(
-        data, config, q=q, label_smoothing=options.label_smoothing, bound=options.bound
-    )
+RESUMED_SMOOTHING = 1e-9
+"""The label smoothing of a resumed run's q: the q reached, kept (only a zero is lifted)."""
+
+
+def init(
+    q: torch.Tensor,
+    data: ModelData,
+    config: SpCoConfig,
+    options: SVIOptions,
+    resumed: bool = False,
+) -> SVIState:
+    """The guide started at ``q`` ``[N, L]`` (smoothed per ``options.label_smoothing``; a
+    ``resumed`` run's q, the one an interrupted run reached, by :data:`RESUMED_SMOOTHING`
+    only: smoothed as a start it went most of the way back to uniform, and the ELBO with it),
+    its loss and optimiser. Call inside the param-store scope the run uses (:func:`fit_svi`)."""
+    smoothing = RESUMED_SMOOTHING if resumed else options.label_smoothing
+    guide = MeanFieldGuide(data, config, q=q, label_smoothing=smoothing, bound=options.bound)
     loss = MeanFieldELBO(num_particles=options.num_particles)
     svi = pyro.infer.SVI(spcomapping_model, guide, options.optimiser_for(guide), loss)
     return SVIState(svi, guide, {config.gamma: config})
@@ -204,7 +215,7 @@ def fit_svi(
     with torch.random.fork_rng(devices=[]), pyro.get_param_store().scope():
         torch.manual_seed(seed)
         run = drive(
-            init(q, data, config, options),
+            init(q, data, config, options, resumed=resume is not None),
             lambda state, gamma: step(state, data, config, gamma), steps, gamma=config.gamma,
             anneal=options.anneal_iterations, tolerance=options.tolerance,
             window=options.window, thin=thin,
