@@ -6,15 +6,23 @@ Nothing here fits more than a geometry baseline on a tiny house; most tests stop
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from spcopyro.cli.main import main
 from spcopyro.maps import OccupancyGrid
 from spcopyro.maps.map_server import save_map
+from spcopyro.study.cells import cells_of
 from spcopyro.study.sources import data_digest, resolve_source
-from spcopyro.study.spec import DataSource
+from spcopyro.study.spec import DataSource, StudyError, study_from_dict
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib  # type: ignore[no-redef]
 
 
 def _map_with_image(folder: Path, image: str) -> Path:
@@ -44,3 +52,132 @@ def test_a_maps_digest_covers_the_image_its_yaml_names(tmp_path, image):
     picture = tmp_path / image
     picture.write_bytes(picture.read_bytes() + b"\0")  # the image edited
     assert data_digest(data, 0) != before
+
+
+TWICE = """
+[study]
+seeds = 2
+sweeps = 20
+methods = ["gibbs", "cavi"]
+baselines = ["F-geometry"]
+
+[variants.a]
+preset = "original-code"
+
+[data.small]
+synthetic = "default"
+height = 24
+width = 30
+num_rooms = 2
+min_room_size = 8
+"""
+
+
+@pytest.mark.parametrize(
+    "old, new, words",
+    [
+        ('["gibbs", "cavi"]', '["gibbs", "gibbs"]', ["[study] methods", "'gibbs' is given twice"]),
+        ('["F-geometry"]', '["F-geometry", "F-geometry"]',
+         ["[study] baselines", "'F-geometry' is given twice"]),
+    ],
+)  # fmt: skip
+def test_a_study_file_refuses_a_method_or_baseline_given_twice(old, new, words):
+    with pytest.raises(StudyError) as caught:
+        study_from_dict(tomllib.loads(TWICE.replace(old, new)), source="twice.toml")
+    for word in ["twice.toml", *words]:
+        assert word in str(caught.value)
+
+
+def test_a_study_built_in_python_refuses_a_cell_given_twice():
+    study = study_from_dict(tomllib.loads(TWICE))
+    doubled = dataclasses.replace(study, data=study.data * 2)
+    with pytest.raises(ValueError, match="a / small / gibbs / seed 0 is given twice"):
+        cells_of(doubled)
+    assert len(cells_of(study)) == 2 * (2 + 1)
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["experiment", "--quick", "--houses", "room1dk5", "room1dk5"],
+         ["--houses: room1dk5 is given twice"]),
+        (["experiment", "--quick", "--no-public", "--methods", "F-geometry", "F-geometry"],
+         ["--methods: F-geometry is given twice"]),
+        (["ablation", "--quick", "--no-public", "--houses", "dense", "dense"],
+         ["--houses: dense is given twice"]),
+        (["ablation", "--quick", "--no-public", "--baselines", "F-geometry", "F-geometry"],
+         ["--baselines: F-geometry is given twice"]),
+        (["ablation", "--quick", "--public-houses", "room1dk5", "room1dk5"],
+         ["--public-houses: room1dk5 is given twice"]),
+        (["ablation", "--quick", "--no-public", "--variant", "a:preset=original-code",
+          "--variant", "a:preset=paper-dp"], ["--variant names must differ"]),
+        (["compare-inference", "--quick", "--methods", "cavi", "cavi"],
+         ["--methods: cavi is given twice"]),
+        (["compare-inference", "--quick", "--public-houses", "room1dk5", "room1dk5"],
+         ["--public-houses: room1dk5 is given twice"]),
+    ],
+)  # fmt: skip
+def test_the_commands_refuse_a_name_given_twice(tmp_path, capsys, argv, words):
+    out = tmp_path / "out"
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    for word in words:
+        assert word in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["experiment", "--houses", "room1dk5", "--no-public"],
+         ["--houses room1dk5 and --no-public contradict"]),
+        (["experiment", "--no-public", "--data", "/nowhere"],
+         ["--data /nowhere and --no-public contradict"]),
+        (["ablation", "--public-houses", "room1dk5", "--no-public"],
+         ["--public-houses room1dk5 and --no-public contradict"]),
+        (["ablation", "--public-seeds", "2", "--no-public"],
+         ["--public-seeds 2 and --no-public contradict"]),
+        (["ablation", "--public-houses", "room1dk5", "--public-seeds", "0"],
+         ["--public-houses room1dk5 and --public-seeds 0 contradict"]),
+        (["ablation", "--houses", "dense", "--seeds", "0"],
+         ["--houses dense and --seeds 0 contradict"]),
+        (["compare-inference", "--houses", "synthetic", "--public-houses", "room1dk5"],
+         ["--public-houses room1dk5 and --houses synthetic contradict"]),
+        (["compare-inference", "--houses", "synthetic", "--folds", "2"],
+         ["--folds 2 and --houses synthetic contradict"]),
+        (["compare-inference", "--houses", "public", "--seeds", "3"],
+         ["--seeds 3 and --houses public contradict"]),
+        (["compare-inference", "--iterations", "gibbs=3", "--methods", "cavi"],
+         ["--iterations gibbs=3: gibbs is not compared (--methods cavi)"]),
+        (["compare-inference", "--iterations", "cavi=3", "cavi=5", "--methods", "cavi"],
+         ["--iterations: cavi is given twice (cavi=3, cavi=5)"]),
+    ],
+)  # fmt: skip
+def test_contradictory_options_are_refused_not_ignored(tmp_path, capsys, argv, words):
+    out = tmp_path / "out"
+    assert main([*argv, "--quick", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    for word in words:
+        assert word in err, err
+    assert not out.exists()
+
+
+def test_more_folds_than_a_house_has_trials_are_refused(tmp_path, capsys, dataset_root):
+    out = tmp_path / "out"
+    argv = [
+        "compare-inference",
+        "--quick",
+        "--folds",
+        "9",
+        "--houses",
+        "public",
+        "--public-houses",
+        "room1dk5",
+        "--methods",
+        "cavi",
+        "--data",
+        str(dataset_root),
+    ]
+    assert main([*argv, "--out", str(out)]) == 2  # fmt: skip
+    assert "--folds 9: public house room1dk5 has 3 trials" in capsys.readouterr().err
+    assert not out.exists()

@@ -27,7 +27,7 @@ from pathlib import Path
 from spcopyro import __version__
 from spcopyro.experiments.ablation_variants import Variant
 from spcopyro.study.sources import data_digest, resolve_source
-from spcopyro.study.spec import DataSource, Study
+from spcopyro.study.spec import DataSource, Study, given_twice
 
 __all__ = ["BASELINE_METHOD", "Cell", "cells_of", "package_digest", "source_digest"]
 
@@ -149,4 +149,11 @@ def cells_of(study: Study, root: str | Path | None = None) -> list[Cell]:
                 planned.append(Cell(None, baseline, data, BASELINE_METHOD, seed, iterations,
                                     study.spcoa_iterations))  # fmt: skip
             cells += [dataclasses.replace(c, key=cell_key(c, digest)) for c in planned]
+    rows = [(c.row, c.data.name, c.method, c.seed) for c in cells]
+    twice = given_twice(rows)
+    if twice is not None:  # its rows would be run and counted twice
+        row, data, method, seed = twice  # type: ignore[misc]
+        raise ValueError(f"study {study.name!r}: the cell {row} / {data} / {method} / seed "
+                         f"{seed} is given twice (a variant, baseline, method, data source or "
+                         "seed named twice)")  # fmt: skip
     return cells

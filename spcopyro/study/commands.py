@@ -33,6 +33,21 @@ from spcopyro.config import PRESETS
 __all__ = ["add_parser"]
 
 
+def _flag(name: str) -> str:
+    """``public_houses`` -> ``--public-houses``."""
+    return "--" + name.replace("_", "-")
+
+
+def _contradicts(given: str, **options: object) -> None:
+    """ValueError when an option of ``options`` (None: not given) is given beside ``given``,
+    which leaves it nothing to do (it was ignored)."""
+    for name, value in options.items():
+        if value is not None:
+            shown = " ".join(map(str, value)) if isinstance(value, list | tuple) else value
+            raise ValueError(f"{_flag(name)} {shown} and {given} contradict each other: "
+                             f"{given} leaves {_flag(name)} nothing to do")  # fmt: skip
+
+
 def _stoppable(command: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
     """``command`` with SIGTERM (``timeout``, Slurm) stopping it as Ctrl-C does: the study
     engine then rewrites the finished cells' table and report before the exit (130), as
@@ -60,8 +75,12 @@ def _experiment(args: argparse.Namespace) -> int:
         experiment_study,
         run_experiment,
     )
-    from spcopyro.study.spec import load_study
+    from spcopyro.study.spec import check_once, load_study
 
+    check_once("--houses", args.houses)
+    check_once("--methods", args.methods)
+    if args.no_public:
+        _contradicts("--no-public", houses=args.houses, data=args.data)
     study = load_study(EXPERIMENT_QUICK if args.quick else EXPERIMENT)
     root = None if args.no_public else find_dataset_root(args.data)
     if args.data is None and root is None and not args.no_public:
@@ -103,8 +122,17 @@ def _ablation(args: argparse.Namespace) -> int:
     from spcopyro.data import find_dataset_root
     from spcopyro.experiments.ablation_variants import parse_variant
     from spcopyro.study.ablation import ABLATION, ABLATION_QUICK, ablation_settings, run_ablation
-    from spcopyro.study.spec import BASELINES, load_study
+    from spcopyro.study.spec import BASELINES, check_once, load_study
 
+    for option in ("houses", "baselines", "public_houses"):
+        check_once(_flag(option), getattr(args, option))
+    if args.no_public:
+        _contradicts("--no-public", public_houses=args.public_houses, data=args.data,
+                     public_seeds=args.public_seeds or None)  # fmt: skip
+    if args.public_seeds == 0:
+        _contradicts("--public-seeds 0", public_houses=args.public_houses)
+    if args.seeds == 0:
+        _contradicts("--seeds 0", houses=args.houses)
     study = load_study(ABLATION_QUICK if args.quick else ABLATION)
     root = None if args.no_public else find_dataset_root(args.data)
     if root is None and not args.no_public:
@@ -160,14 +188,28 @@ def _compare_inference(args: argparse.Namespace) -> int:
         check_variants,
     )
     from spcopyro.study.comparison import run_comparison
+    from spcopyro.study.spec import check_once
 
+    check_once("--methods", args.methods)
+    check_once("--public-houses", args.public_houses)
+    if args.houses == "synthetic":
+        _contradicts("--houses synthetic", public_houses=args.public_houses, folds=args.folds,
+                     data=args.data)  # fmt: skip
+    elif args.houses == "public":
+        _contradicts("--houses public", seeds=args.seeds)
     variants = check_variants(args.methods) if args.methods else tuple(VARIANTS)
-    iterations = {}
+    iterations: dict[str, int] = {}
     for item in args.iterations or ():
         key, _, value = item.partition("=")
         if key not in VARIANTS or not value.isdigit() or int(value) < 1:
             raise ValueError(f"--iterations takes METHOD=N (N >= 1, METHOD one of "
                              f"{list(VARIANTS)}), got {item!r}")  # fmt: skip
+        if key in iterations:
+            raise ValueError(f"--iterations: {key} is given twice ({key}={iterations[key]}, "
+                             f"{item})")  # fmt: skip
+        if key not in variants:
+            raise ValueError(f"--iterations {item}: {key} is not compared (--methods "
+                             f"{' '.join(variants)})")  # fmt: skip
         iterations[key] = int(value)
     house_types = HOUSE_TYPES if args.houses == "both" else (args.houses,)
     root = find_dataset_root(args.data) if "public" in house_types else None

@@ -51,7 +51,10 @@ def _folds(root: Path, house: str, folds: int | None) -> int:
     count = len(load_house(root / house).observations.trials)
     if count < 2:
         list(heldout_folds(load_house(root / house)))  # raises, naming the house
-    return count if folds is None else min(folds, count)
+    if folds is not None and folds > count:  # it was cut to count without a word
+        raise ValueError(f"--folds {folds}: public house {house} has {count} trials, so at most "
+                         f"{count} held-out folds")  # fmt: skip
+    return count if folds is None else folds
 
 
 def comparison_study(

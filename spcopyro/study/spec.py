@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from collections.abc import Mapping
+from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -49,7 +49,10 @@ from spcopyro.fit.registry import INFERENCE_METHODS
 from spcopyro.robot.map_simulation import MapTour
 from spcopyro.synthetic import HouseSpec
 
-__all__ = ["DataSource", "Study", "StudyError", "load_study", "study_from_dict"]
+__all__ = [
+    "DataSource", "Study", "StudyError", "check_once", "given_twice", "load_study",
+    "study_from_dict",
+]  # fmt: skip
 
 SYNTHETIC_FACTORIES = {
     "default": HouseSpec,
@@ -224,12 +227,33 @@ def _sweeps(
     return (("*", _positive_int(source, "[study] sweeps", value)),)
 
 
+def given_twice(values: Sequence[Hashable]) -> Hashable | None:
+    """The first value of ``values`` given a second time, or None."""
+    seen: set[Hashable] = set()
+    for value in values:
+        if value in seen:
+            return value
+        seen.add(value)
+    return None
+
+
+def check_once(option: str, values: Sequence[Hashable] | None) -> None:
+    """ValueError naming ``option`` and the value when ``values`` holds one twice (a house,
+    method, baseline or variant given twice would run and count its cells twice)."""
+    twice = given_twice(values or ())
+    if twice is not None:
+        raise ValueError(f"{option}: {twice} is given twice")
+
+
 def _names(source: str, where: str, value: object, known: tuple[str, ...]) -> tuple[str, ...]:
     if not isinstance(value, list | tuple) or not all(isinstance(v, str) for v in value):
         raise _fail(source, where, value, "expected a list of names")
     unknown = [v for v in value if v not in known]
     if unknown:
         raise _fail(source, where, value, f"unknown {unknown}; choose from {list(known)}")
+    twice = given_twice(value)
+    if twice is not None:
+        raise _fail(source, where, value, f"{twice!r} is given twice")
     return tuple(value)
 
 
