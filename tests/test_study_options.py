@@ -181,3 +181,15 @@ def test_more_folds_than_a_house_has_trials_are_refused(tmp_path, capsys, datase
     assert main([*argv, "--out", str(out)]) == 2  # fmt: skip
     assert "--folds 9: public house room1dk5 has 3 trials" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_sweeps_table_without_a_star_says_which_methods_run_1000(tmp_path, capsys):
+    path = tmp_path / "partial.toml"
+    path.write_text(TWICE.replace("sweeps = 20", "sweeps = {cavi = 5}"))
+    assert study_from_dict(tomllib.loads(path.read_text())).sweeps_defaulted() == ["gibbs"]
+    assert main(["study", str(path), "--out", str(tmp_path / "out"), "--dry-run"]) == 0
+    err = capsys.readouterr().err
+    assert "[study] sweeps names neither gibbs nor '*': they run 1000 iterations" in err
+    path.write_text(TWICE.replace("sweeps = 20", 'sweeps = {cavi = 5, "*" = 7}'))
+    assert main(["study", str(path), "--out", str(tmp_path / "out"), "--dry-run"]) == 0
+    assert "1000" not in capsys.readouterr().err

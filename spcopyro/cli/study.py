@@ -51,6 +51,10 @@ def _study(args: argparse.Namespace) -> int:
     path = study_path(args.study)
     study = load_study(path)
     out = Path(args.out)
+    defaulted = study.sweeps_defaulted()
+    if defaulted:
+        print(f"note: {path}: [study] sweeps names neither {', '.join(defaulted)} nor '*': "
+              "they run 1000 iterations (add \"*\" = N to the table)", file=sys.stderr)  # fmt: skip
     if args.report_only:
         if not (out / TABLE).is_file():
             raise FileNotFoundError(f"--report-only: {out / TABLE} does not exist; run the study")

@@ -152,6 +152,21 @@ class Study:
             return int(table[variant])
         return int(table.get(method, table.get("*", 1000)))
 
+    def sweeps_defaulted(self) -> list[str]:
+        """The methods some variant runs at the built-in 1000 iterations because ``sweeps``
+        is a table naming neither them, the variant nor ``"*"``."""
+        table = dict(self.sweeps)
+        if "*" in table:
+            return []
+        methods = {
+            method
+            for variant in self.variants
+            if variant.name not in table
+            for method in (self.methods or (variant.method,))
+            if method not in table
+        }
+        return sorted(methods)
+
     def to_json(self) -> dict[str, object]:
         """The study as JSON values (written beside its results)."""
         return {
