@@ -193,3 +193,15 @@ def test_a_sweeps_table_without_a_star_says_which_methods_run_1000(tmp_path, cap
     path.write_text(TWICE.replace("sweeps = 20", 'sweeps = {cavi = 5, "*" = 7}'))
     assert main(["study", str(path), "--out", str(tmp_path / "out"), "--dry-run"]) == 0
     assert "1000" not in capsys.readouterr().err
+
+
+def test_report_only_with_dry_run_is_refused(tmp_path, capsys):
+    path = tmp_path / "tiny.toml"
+    path.write_text(TWICE)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "results.csv").write_text("key,variant\n")
+    argv = ["study", str(path), "--out", str(out), "--report-only", "--dry-run"]
+    assert main(argv) == 2
+    assert "--report-only and --dry-run contradict each other" in capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == ["results.csv"]

@@ -48,6 +48,9 @@ def _study(args: argparse.Namespace) -> int:
     from spcopyro.study.spec import load_study
     from spcopyro.study.table import TABLE
 
+    if args.report_only and args.dry_run:  # --report-only writes report.md: not a dry run
+        raise ValueError("--report-only and --dry-run contradict each other: --report-only "
+                         "writes report.md, --dry-run writes nothing")  # fmt: skip
     path = study_path(args.study)
     study = load_study(path)
     out = Path(args.out)
