@@ -200,3 +200,50 @@ def test_overwriting_a_simulated_map_with_a_drawn_house_removes_its_rooms(tmp_pa
     assert not (out / "h" / "rooms.npy").exists() and not (out / "h" / "rooms.json").exists()
     assert (out / "h" / "notes.txt").read_text() == "mine"  # not the house's: kept
     load_house(out / "h")
+
+
+def test_options_of_map_and_of_the_drawn_house_are_checked(tmp_path, capsys):
+    """QA: --door-width and --min-room-area without --map were ignored (--categories was
+    refused); an empty --categories entry was dropped; --size -5 5 and --rooms 0 were reported
+    as HouseSpec fields; --size 1000000 1000000 ran for minutes."""
+    out = str(tmp_path / "out")
+    for extra, message in (
+        (["--door-width", "1"], "--door-width needs --map"),
+        (["--min-room-area", "5"], "--min-room-area needs --map"),
+        (["--size", "1001", "1000"], "1,001,000 cells is over the limit of 1,000,000"),
+    ):
+        assert main(["simulate", "--out", out, *extra]) == 2, extra
+        assert message in capsys.readouterr().err, extra
+    for extra, message in (
+        (["--size", "-5", "5"], "argument --size: must be an integer >= 1, got '-5'"),
+        (["--rooms", "0"], "argument --rooms: must be an integer >= 1, got '0'"),
+    ):
+        with pytest.raises(SystemExit):
+            main(["simulate", "--out", out, *extra])
+        assert message in capsys.readouterr().err, extra
+    yaml_path, _ = three_rooms(tmp_path)
+    assert main(["simulate", "--map", str(yaml_path), "--out", out,
+                 "--categories", "kitchen,,bedroom"]) == 2  # fmt: skip
+    assert "--categories 'kitchen,,bedroom': an empty name" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_one_room_is_warned_of_at_a_given_width_and_says_why(tmp_path, caplog):
+    """QA: a --door-width that left one room gave no warning (only auto warned), and with a
+    large --min-room-area auto's warning said the map was one room at every width."""
+    open_space = OccupancyGrid(np.zeros((20, 30), dtype=np.int8), 0.1, (0.0, 0.0, 0.0))
+    with caplog.at_level("WARNING", logger="spcopyro"):
+        simulate_on_map(open_space, seed=0, tour=MapTour(door_width=1.0))
+    assert "one room at door width 1 m" in caplog.text and "ARI" in caplog.text
+    caplog.clear()
+    _, grid = three_rooms(tmp_path)  # three rooms of 7 m^2 at 0.75 m
+    with caplog.at_level("WARNING", logger="spcopyro"):
+        assert simulate_on_map(grid, seed=0).room_category.size == 3
+        assert not caplog.text
+        one = simulate_on_map(grid, seed=0, tour=MapTour(min_room_area=10.0))
+    assert one.room_category.size == 1
+    assert "one room at every door width" not in caplog.text
+    assert "no two rooms of at least 10 m^2 (--min-room-area) at any door width up to 3 m" in (
+        caplog.text
+    )
+    assert "with the default 1 m^2 it has 3 rooms at 0.75 m" in caplog.text

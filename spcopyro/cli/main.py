@@ -44,13 +44,28 @@ from spcopyro.cli.fit_parser import add_parser as add_fit_parser
 logger = logging.getLogger("spcopyro")
 
 
+MAX_SIMULATED_CELLS = 1_000_000
+"""``simulate --size H W``: the largest drawn house, in cells (1000 x 1000). The dense setting
+draws one that size in about 12 s on a shared 2-core machine (sparse and open-plan in about 1 s);
+time and memory grow faster than the area beyond it (a million by a million ran for minutes
+without a word)."""
+
+
 def _simulate(args: argparse.Namespace) -> int:
     if args.map is not None:
         if args.density != "dense" or args.rooms is not None:
             raise ValueError("--density and --rooms draw a synthetic house; --map tours a map")
         return _simulate_on_map(args)
-    if args.categories is not None:
-        raise ValueError("--categories needs --map (the synthetic house draws its own rooms)")
+    for option, value in (("--categories", args.categories), ("--door-width", args.door_width),
+                          ("--min-room-area", args.min_room_area)):  # fmt: skip
+        if value is not None:
+            raise ValueError(f"{option} needs --map (the synthetic house draws its own rooms)")
+    if args.size and args.size[0] * args.size[1] > MAX_SIMULATED_CELLS:
+        height, width = args.size
+        raise ValueError(
+            f"--size {height} {width}: {height * width:,} cells is over the limit of "
+            f"{MAX_SIMULATED_CELLS:,} (e.g. 1000 x 1000); draw a smaller house"
+        )
     args.name = args.name or "synthetic"
     try:
         return _simulate_house(args)
@@ -109,15 +124,34 @@ def _door_width(text: str) -> float | str:
     return value
 
 
+def _positive_int(text: str) -> int:
+    """``--size`` and ``--rooms``: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}")
+    return value
+
+
 def _simulate_on_map(args: argparse.Namespace) -> int:
     from spcopyro.robot.map_simulation import MapTour, write_simulated_map
 
     if args.size:
         raise ValueError("--size and --map exclude each other: the map gives the size")
-    tour = MapTour(door_width=args.door_width, min_room_area=args.min_room_area,
-                   sentence_fraction=args.sentences)  # fmt: skip
+    tour = MapTour(sentence_fraction=args.sentences)
+    if args.door_width is not None:
+        tour = dataclasses.replace(tour, door_width=args.door_width)
+    if args.min_room_area is not None:
+        tour = dataclasses.replace(tour, min_room_area=args.min_room_area)
     if args.categories is not None:
-        names = tuple(c.strip() for c in args.categories.split(",") if c.strip())
+        names = tuple(c.strip() for c in args.categories.split(","))
+        if not all(names):
+            raise ValueError(
+                f"--categories {args.categories!r}: an empty name (two commas in a row, or one "
+                "at an end); give one name per comma"
+            )
         tour = dataclasses.replace(tour, categories=names)
     try:
         room, simulated = write_simulated_map(args.map, args.out, seed=args.seed, tour=tour,
@@ -130,7 +164,7 @@ def _simulate_on_map(args: argparse.Namespace) -> int:
     print(f"wrote a simulated tour of {args.map} (seed {args.seed}) to {room}: "
           f"{int(simulated.room_category.size)} rooms, {house.observations.num_images} images, "
           f"{house.observations.num_utterances} utterances")  # fmt: skip
-    how = "read from the map" if args.door_width == "auto" else "given"
+    how = "given" if isinstance(tour.door_width, float) else "read from the map"
     print(f"  rooms cut at doorways up to {simulated.door_width:g} m wide ({how})")
     names = house.category_names or ()
     for r, c in enumerate(simulated.room_category.tolist()):
@@ -240,9 +274,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=_seed, default=0, help="seed of the house's random draws")
     p.add_argument("--name", help="the house's folder name (NAME; default: synthetic, or the "
                    "--map file's name)")  # fmt: skip
-    p.add_argument("--size", type=int, nargs=2, metavar=("H", "W"),
-                   help="map size in cells; the number of rooms grows with the area "
-                        "(dense; sparse and open-plan keep theirs: --rooms) "
+    p.add_argument("--size", type=_positive_int, nargs=2, metavar=("H", "W"),
+                   help="map size in cells, at most 1,000,000 in all; the number of rooms grows "
+                        "with the area (dense; sparse and open-plan keep theirs: --rooms) "
                         "(default: 60 x 80 cells, 5 rooms)")  # fmt: skip
     p.add_argument("--density", choices=("dense", "sparse", "open-plan"), default="dense",
                    help="dense: the embedded default house (HouseSpec.embedded: 4.9%% of the free "
@@ -252,7 +286,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "one walled space holding living, dining and kitchen with no wall "
                         "between them, plus 3 small walled rooms "
                         "(HouseSpec.open_plan)")  # fmt: skip
-    p.add_argument("--rooms", type=int, help="walled rooms (default: the setting's own; "
+    p.add_argument("--rooms", type=_positive_int, help="walled rooms (default: the setting's own; "
                    "open-plan: 4, one of them the open plan)")  # fmt: skip
     p.add_argument("--sentences", type=float, default=0.0,
                    help="share of utterances given as sentences (tf-idf setting)")  # fmt: skip
@@ -265,14 +299,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--categories", metavar="A,B,...",
                    help="with --map: the rooms' categories, one per room, cycled (default: "
                         "kitchen,living,bedroom,bathroom,toilet,entrance,...)")  # fmt: skip
-    p.add_argument("--door-width", type=_door_width, default="auto",
+    p.add_argument("--door-width", type=_door_width,
                    help="with --map: metres; doorways up to about this wide separate rooms, or "
                         "auto: read from the map, the narrowest of 0.75, 1, ..., 3 m that "
                         "separates two rooms (1.5 to 2.25 m on the public dataset's houses) "
                         "(default: auto)")  # fmt: skip
-    p.add_argument("--min-room-area", type=float, default=1.0,
+    p.add_argument("--min-room-area", type=float,
                    help="with --map: square metres; smaller free segments are not visited and "
-                        "have no ground truth")  # fmt: skip
+                        "have no ground truth (default: 1)")  # fmt: skip
     p.set_defaults(func=_simulate)
 
     p = sub.add_parser("show", help="draw a house and its observations; print a summary")

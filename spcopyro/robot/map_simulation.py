@@ -10,8 +10,9 @@ public dataset's layout (so ``spcopyro fit`` reads it) together with the ground 
    (:func:`spcopyro.baselines.geometry.room_segments`: a distance-transform watershed that cuts
    at doorways narrower than ``door_width``). ``door_width="auto"`` (the default) reads it from
    the map (:func:`~spcopyro.baselines.geometry.auto_door_width`: the narrowest of 0.75, 1.0,
-   ..., 3 m that separates two rooms); a map that stays one room at every width is simulated as
-   one room, with a warning (its truth has one category, so ARI against it says nothing).
+   ..., 3 m that separates two rooms); a map that stays one room (at the width given, or at
+   every width ``auto`` tries) is simulated as one room, with a warning (its truth has one
+   category, so ARI against it says nothing).
    Segments smaller than ``min_room_area`` (nooks, scan noise, free specks outside the walls)
    are not rooms: the robot does not visit them and their ground truth is -1 (undefined), as
    for unlabelled cells of any house.
@@ -125,6 +126,46 @@ def _house_spec(grid: OccupancyGrid, tour: MapTour) -> HouseSpec:
         raise ValueError(message.replace("HouseSpec.", "")) from None
 
 
+def _one_room_warning(grid: OccupancyGrid, tour: MapTour, door_width: float) -> str:
+    """What a tour of one room says: at which width(s) the free space stayed one room, what
+    ``min_room_area`` did to smaller segments, and (for a larger ``min_room_area`` than the
+    default) how many rooms the default finds."""
+    where = (
+        f"at every door width up to {door_width:g} m"
+        if tour.door_width == "auto"
+        else f"at door width {door_width:g} m"
+    )
+    message = f"{grid.source or 'map'}: the free space is one room {where}"
+    if tour.min_room_area > DEFAULT_MIN_ROOM_AREA:
+        message = (
+            f"{grid.source or 'map'}: the free space has no two rooms of at least "
+            f"{tour.min_room_area:g} m^2 (--min-room-area) {where.replace('every', 'any')}: "
+            "smaller segments were merged into a neighbour or left unvisited"
+        )
+        width, found = (
+            auto_door_width(grid, min_room_area=DEFAULT_MIN_ROOM_AREA)
+            if tour.door_width == "auto"
+            else (door_width, _count_rooms(grid, door_width, DEFAULT_MIN_ROOM_AREA))
+        )
+        if found >= 2:
+            message += (
+                f"; with the default {DEFAULT_MIN_ROOM_AREA:g} m^2 it has {found} rooms at "
+                f"{width:g} m"
+            )
+    elif tour.door_width != "auto":
+        message += " (--door-width auto reads from the map the narrowest width that separates two)"
+    return (
+        message + ": the simulated truth has one category, so a fit's ARI against it says nothing"
+    )
+
+
+def _count_rooms(grid: OccupancyGrid, door_width: float, min_room_area: float) -> int:
+    """Segments of at least ``min_room_area`` square metres at ``door_width``."""
+    segments = room_segments(grid, door_width=door_width, min_room_area=min_room_area)
+    sizes = np.bincount(segments[segments >= 0])
+    return int((sizes * grid.resolution**2 >= min_room_area).sum())
+
+
 def simulate_on_map(
     grid: OccupancyGrid, *, seed: int = 0, tour: MapTour | None = None, name: str = "simulated"
 ) -> SimulatedMap:
@@ -141,13 +182,7 @@ def simulate_on_map(
 
     door_width = tour.door_width
     if door_width == "auto":
-        door_width, found = auto_door_width(grid, min_room_area=tour.min_room_area)
-        if found < 2:
-            logger.warning(
-                "%s: the free space is one room at every door width up to %g m: the simulated "
-                "truth has one category, so a fit's ARI against it says nothing",
-                grid.source or "map", door_width,
-            )  # fmt: skip
+        door_width, _ = auto_door_width(grid, min_room_area=tour.min_room_area)
     elif not (isinstance(door_width, int | float) and math.isfinite(door_width) and door_width > 0):
         raise ValueError(f"door width must be 'auto' or metres > 0, got {door_width!r}")
     segments = room_segments(grid, door_width=door_width, min_room_area=tour.min_room_area)
@@ -162,6 +197,8 @@ def simulate_on_map(
     room_of_segment[large] = np.arange(large.size)
     rooms = np.where(segments >= 0, room_of_segment[np.maximum(segments, 0)], -1)  # [H, W]
     num_rooms = int(large.size)
+    if num_rooms < 2:
+        logger.warning("%s", _one_room_warning(grid, tour, float(door_width)))
 
     num_categories = min(num_rooms, len(spec.category_names))
     room_category = rng.permutation(np.arange(num_rooms) % len(spec.category_names))  # [R]
