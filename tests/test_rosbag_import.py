@@ -633,3 +633,51 @@ def test_poses_in_a_frame_tf_does_not_reach_are_an_error(tmp_path, map_yaml):
     )
     with pytest.raises(BagContentError, match=expected):
         import_bags([bag], map_yaml, tmp_path / "h", ImportOptions())
+
+
+def test_simulate_bag_checks_its_options_before_writing(tmp_path, capsys):
+    """QA: --image-size 0 0 gave a cv2 traceback and -4 10 "negative dimensions are not
+    allowed"; --ros 1 --storage mcap ignored --storage."""
+    out = tmp_path / "sb"
+    for size in (["0", "0"], ["-4", "10"]):
+        with pytest.raises(SystemExit):
+            main(["simulate-bag", "--out", str(out), "--image-size", *size])
+        assert f"argument --image-size: must be an integer >= 1, got '{size[0]}'" in (
+            capsys.readouterr().err
+        )
+    assert main(["simulate-bag", "--out", str(out), "--ros", "1", "--storage", "mcap"]) == 2
+    assert "--storage mcap applies to ROS 2 bags only" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="image_size must be two integers >= 1"):
+        write_synthetic_bags(out, image_size=(0, 64))
+    assert not out.exists()
+
+
+def test_a_failed_simulate_bag_leaves_nothing_in_a_retrys_way(tmp_path, monkeypatch):
+    """QA: a failed simulate-bag left map.yaml behind, so a retry said "map.yaml already
+    exists ... never overwrites a recording". The map is written last, and a failure removes
+    the bags, the map and the folders the run made."""
+    import spcopyro.robot.rosbag.synthetic as synthetic
+
+    calls = []
+    render = synthetic.render_category_image
+
+    def failing(*args, **kwargs):  # fails in the second trial's bag
+        calls.append(1)
+        if len(calls) > 70:  # trial 0 has 60 images
+            raise RuntimeError("camera unplugged")
+        return render(*args, **kwargs)
+
+    monkeypatch.setattr(synthetic, "render_category_image", failing)
+    out = tmp_path / "new" / "bags"
+    with pytest.raises(RuntimeError, match="camera unplugged"):
+        write_synthetic_bags(out, image_size=(8, 8), trials=[0, 1])
+    assert not (tmp_path / "new").exists()
+    (tmp_path / "kept").mkdir()
+    (tmp_path / "kept" / "notes.txt").write_text("mine")
+    calls.clear()
+    with pytest.raises(RuntimeError):
+        write_synthetic_bags(tmp_path / "kept", image_size=(8, 8), trials=[0, 1])
+    assert [p.name for p in (tmp_path / "kept").iterdir()] == ["notes.txt"]
+    monkeypatch.setattr(synthetic, "render_category_image", render)
+    bags = write_synthetic_bags(out, image_size=(8, 8), trials=[0, 1])
+    assert bags.map_yaml.is_file() and all(p.exists() for p in bags.bags)

@@ -27,6 +27,16 @@ def _non_negative(value: str) -> float:
     return number
 
 
+def _positive_int(value: str) -> int:
+    try:
+        number = int(value)
+    except ValueError:
+        number = 0
+    if number < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {value!r}")
+    return number
+
+
 def _import_bag(args: argparse.Namespace) -> int:
     from spcopyro.robot.rosbag.bag import RosbagsMissingError
     from spcopyro.robot.rosbag.importer import ImportOptions, import_bags
@@ -79,12 +89,17 @@ def _simulate_bag(args: argparse.Namespace) -> int:
     from spcopyro.robot.rosbag.bag import RosbagsMissingError
     from spcopyro.robot.rosbag.synthetic import write_synthetic_bags
 
+    if args.ros == 1 and args.storage is not None:
+        raise ValueError(
+            f"--storage {args.storage} applies to ROS 2 bags only (a ROS 1 bag is one .bag "
+            "file): leave it out, or pass --ros 2"
+        )
     try:
         result = write_synthetic_bags(
             args.out,
             seed=args.seed,
             ros=args.ros,
-            storage=args.storage,
+            storage=args.storage or "sqlite3",
             image_format=args.image_format,
             image_size=tuple(args.image_size),
             trials=args.trials,
@@ -181,12 +196,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="folder for the bags and map.yaml")
     p.add_argument("--seed", type=int, default=0, help="seed of the synthetic house")
     p.add_argument("--ros", type=int, choices=(1, 2), default=2, help="ROS version (default 2)")
-    p.add_argument("--storage", choices=("sqlite3", "mcap"), default="sqlite3",
-                   help="ROS 2 storage (default sqlite3)")  # fmt: skip
+    p.add_argument("--storage", choices=("sqlite3", "mcap"),
+                   help="ROS 2 storage (default sqlite3; not for --ros 1)")  # fmt: skip
     p.add_argument("--image-format", choices=("raw", "jpeg", "png"), default="jpeg",
                    help="raw: sensor_msgs/Image on /camera/image; jpeg, png: CompressedImage on "
                         "/camera/image/compressed (default jpeg)")  # fmt: skip
-    p.add_argument("--image-size", type=int, nargs=2, default=(48, 64), metavar=("H", "W"),
+    p.add_argument("--image-size", type=_positive_int, nargs=2, default=(48, 64),
+                   metavar=("H", "W"),
                    help="image height and width in pixels (default 48 64)")  # fmt: skip
     p.add_argument("--trials", type=int, nargs="+", metavar="K",
                    help="record only these trials of the house (default: all)")  # fmt: skip

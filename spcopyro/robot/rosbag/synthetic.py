@@ -26,8 +26,10 @@ interpolates them back exactly to the house's positions.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -37,7 +39,7 @@ import numpy as np
 
 from spcopyro.data.dataset import House
 from spcopyro.maps.map_server import save_map
-from spcopyro.robot.rosbag.bag import INSTALL_HINT, RosbagsMissingError
+from spcopyro.robot.rosbag.bag import INSTALL_HINT, RosbagsMissingError, _rosbags
 from spcopyro.robot.rosbag.poses import PoseTrack, compose, yaw_quaternion
 
 __all__ = [
@@ -312,8 +314,22 @@ def write_synthetic_bags(
     ``out/map.yaml`` + ``.pgm`` and one bag per trial, ``out/trial_K.bag`` (ROS 1) or the folder
     ``out/trial_K`` (ROS 2). See the module docstring for the topics.
 
-    Raises FileExistsError when a bag or the map already exists.
+    Nothing is written before the arguments are checked, the map is written last, and a run
+    that fails removes what it wrote (so a retry finds no bag or map of it in the way).
+
+    Raises FileExistsError when a bag or the map already exists; ValueError for a bad ``ros``,
+    ``storage``, ``image_format`` or ``image_size``.
     """
+    if ros not in (1, 2):
+        raise ValueError(f"ros must be 1 or 2, got {ros!r}")
+    if storage not in ("sqlite3", "mcap"):
+        raise ValueError(f"storage must be 'sqlite3' or 'mcap', got {storage!r}")
+    if image_format not in ("raw", "jpeg", "png"):
+        raise ValueError(f"image_format must be raw, jpeg or png, got {image_format!r}")
+    size = tuple(image_size)
+    if len(size) != 2 or not all(isinstance(v, int | np.integer) and v >= 1 for v in size):
+        raise ValueError(f"image_size must be two integers >= 1 (H, W), got {image_size!r}")
+    _rosbags()  # a missing rosbags is said before anything is written
     if house is None:
         from spcopyro.synthetic import HouseSpec, make_house
 
@@ -332,8 +348,42 @@ def write_synthetic_bags(
                 f"{path} already exists: write the bags into another --out folder, or remove "
                 "the earlier ones (simulate-bag never overwrites a recording)"
             )
+    # What a failed run removes again: the bags, the map and the folders it created.
+    written = [*names, map_yaml, *[p for p in [map_yaml.with_suffix(".pgm")] if not p.exists()]]
+    created = [p for p in (out, *out.parents) if not p.exists()]  # deepest first
     out.mkdir(parents=True, exist_ok=True)
-    save_map(house.grid, map_yaml)
+    try:
+        image_topic = _record(house, names, chosen, seed, ros, storage, image_format, size,
+                              speed, dwell, rate)  # fmt: skip
+        save_map(house.grid, map_yaml)  # last: a failed run leaves no map in a retry's way
+    except BaseException:
+        for path in written:
+            if path.is_dir():
+                shutil.rmtree(path, ignore_errors=True)
+            elif path.exists():
+                path.unlink()
+        for folder in created:  # only if nothing else was put there meanwhile
+            with contextlib.suppress(OSError):
+                folder.rmdir()
+        raise
+    return SyntheticBags(tuple(names), map_yaml, image_topic, "/speech", house)
+
+
+def _record(
+    house: House,
+    names: list[Path],
+    chosen: list[int],
+    seed: int,
+    ros: int,
+    storage: str,
+    image_format: str,
+    image_size: tuple[int, int],
+    speed: float,
+    dwell: float,
+    rate: float,
+) -> str:
+    """Write one bag per trial of ``chosen`` to ``names``; returns the image topic."""
+    obs = house.observations
     rng = np.random.default_rng(seed)
     yaw_all = obs.image_yaw if obs.image_yaw is not None else np.zeros(obs.num_images)
     cells = house.grid.world_to_cell(obs.image_xy)  # [T, 2] (row, col)
@@ -371,4 +421,4 @@ def write_synthetic_bags(
                 said_at[j] = said_at.get(j, 0) + 1
                 writer.text("/speech", float(shot[j]) + 0.1 * said_at[j],
                             " ".join(obs.utterances[u]))  # fmt: skip
-    return SyntheticBags(tuple(names), map_yaml, image_topic, "/speech", house)
+    return image_topic
