@@ -205,3 +205,47 @@ def test_report_only_with_dry_run_is_refused(tmp_path, capsys):
     assert main(argv) == 2
     assert "--report-only and --dry-run contradict each other" in capsys.readouterr().err
     assert sorted(p.name for p in out.iterdir()) == ["results.csv"]
+
+
+def _stale(out: Path, *names: str) -> list[Path]:
+    """Figures an earlier run left in ``out`` (empty files)."""
+    paths = [out / name for name in names]
+    for path in paths:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(b"")
+    return paths
+
+
+def test_a_rerun_without_a_house_deletes_its_figures_and_keeps_others(tmp_path, capsys):
+    out = tmp_path / "e1"
+    stale = _stale(
+        out, "maps_room1dk5.png", "figures/room1dk5_maps.png", "figures/synthetic_traces.png"
+    )  # fmt: skip  (no SpCoMapping row: no traces)
+    kept = _stale(out, "figures/stability.png", "notes.png", "figures/room1dk5.png")
+    argv = ["experiment", "--out", str(out), "--quick", "--no-public", "--methods", "F-geometry",
+            "--seeds", "1", "--sweeps", "2"]  # fmt: skip
+    assert main(argv) == 0
+    assert not any(path.exists() for path in stale), capsys.readouterr().out
+    assert all(path.exists() for path in kept)
+    for name in ("maps_synthetic.png", "figures/synthetic_maps.png", "quality_time.png"):
+        assert (out / name).stat().st_size > 1000, name
+
+
+def test_a_comparison_without_public_houses_deletes_their_figure(tmp_path):
+    out = tmp_path / "c1"
+    (stale,) = _stale(out, "comparison_public.png")
+    argv = ["compare-inference", "--out", str(out), "--quick", "--houses", "synthetic",
+            "--methods", "cavi", "--iterations", "cavi=2"]  # fmt: skip
+    assert main(argv) == 0
+    assert not stale.exists() and (out / "comparison_synthetic.png").is_file()
+
+
+def test_a_report_of_a_table_without_them_deletes_earlier_maps_and_quality_figure(tmp_path):
+    from spcopyro.study.report import write_report
+    from spcopyro.study.table import write_table
+
+    stale = _stale(tmp_path, "maps_room1dk5.png", "quality_time.png")
+    (kept,) = _stale(tmp_path, "maps.png")  # not a name the report draws
+    write_table(tmp_path / "results.csv", [])
+    write_report(tmp_path / "results.csv", tmp_path / "report.md")
+    assert not any(path.exists() for path in stale) and kept.exists()

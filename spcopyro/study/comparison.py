@@ -39,6 +39,7 @@ from spcopyro.experiments.inference_comparison import (
 from spcopyro.experiments.table import heldout_folds, report_nothing
 from spcopyro.study.ablation import spec_options
 from spcopyro.study.comparison_cell import COMPARISON
+from spcopyro.study.maps import remove_stale
 from spcopyro.study.run import run_study
 from spcopyro.study.spec import DataSource, Study
 from spcopyro.study.table import TABLE, read_table
@@ -130,6 +131,7 @@ def run_comparison(
         records[house_type] = {key: by_variant.get(key, []) for key in keys}
     summary = summarise(records, settings, notes, run.seconds)
     summary["load_average_at_end"] = list(os.getloadavg())
-    write_report(out, summary)
+    figures = [p for p in write_report(out, summary) if p.suffix == ".png"]
+    remove_stale(out, [f"comparison_{kind}.png" for kind in (SYNTHETIC, PUBLIC)], figures)
     summary["failed"] = sum(1 for r in rows if r.get("status") != "ok")
     return summary

@@ -33,7 +33,7 @@ from spcopyro.experiments.table import (
     table_markdown,
 )
 from spcopyro.study import STUDIES
-from spcopyro.study.maps import plot_label_maps, source_panels
+from spcopyro.study.maps import plot_label_maps, remove_stale, source_panels
 from spcopyro.study.run import run_study
 from spcopyro.study.spec import DataSource, Study
 from spcopyro.study.table import TABLE, read_table
@@ -200,7 +200,8 @@ def write_figures(out: str | os.PathLike[str], rows: Sequence[dict[str, object]]
     traces and label maps: per source, every row's map at its first seed beside the truth
     (Fig. 7: ``synthetic_maps.png`` for a synthetic house, ``HOUSE_maps.png`` for a public one,
     whose truth is the project's region truth), and the synthetic house's ARI and concepts
-    per sweep (``synthetic_traces.png``)."""
+    per sweep (``synthetic_traces.png``; when it has SpCoMapping rows). Those figures of an
+    earlier run that this one does not draw (a house no longer in the table) are deleted."""
     out = Path(out)
     folder = out / "figures"
     label = lambda row: METHOD_LABELS.get(str(row["variant"]), str(row["variant"]))  # noqa: E731
@@ -219,10 +220,12 @@ def write_figures(out: str | os.PathLike[str], rows: Sequence[dict[str, object]]
             name, what = "synthetic_maps.png", f"seed {seed}"
         title = f"{data} {what}: every method's map"
         paths.append(plot_label_maps(grid, panels, folder / name, title))
-        if not public:
-            spco = [r for r in mine if r["seed"] == seed and r["variant"] in SPCO_METHODS]
+        spco = [r for r in mine if r["seed"] == seed and r["variant"] in SPCO_METHODS]
+        if not public and spco:  # baselines alone have no traces (an empty legend warned)
             title = f"{data} seed {seed}: ARI and concepts per sweep"
             paths.append(plot_traces(spco, out, folder / "synthetic_traces.png", title))
+    if folder.is_dir():  # an earlier run's figures of sources the table no longer has
+        remove_stale(folder, ["*_maps.png", "synthetic_traces.png"], paths)
     return paths
 
 

@@ -26,7 +26,7 @@ from spcopyro.maps.coarse import coarsening_factor, refine_labels
 
 __all__ = [
     "MAPS_PREFIX", "Arrays", "StoredMap", "label_map_arrays", "labels_on_map", "load_label_map",
-    "plot_label_maps", "write_house_maps",
+    "plot_label_maps", "remove_stale", "write_house_maps",
 ]  # fmt: skip
 
 Arrays = dict[str, np.ndarray]
@@ -161,11 +161,26 @@ def source_panels(
     return grid, panels, seed
 
 
+def remove_stale(folder: Path, patterns: Sequence[str], kept: Sequence[Path]) -> list[Path]:
+    """Delete the files of ``folder`` matching one of ``patterns`` (a run's own figure names)
+    that are not ``kept``: an earlier run's figures of sources the table no longer has, which
+    were left beside the new ones. Returns what was deleted."""
+    keep = {Path(p).resolve() for p in kept}
+    removed = []
+    for pattern in patterns:
+        for path in sorted(folder.glob(pattern)):
+            if path.is_file() and path.resolve() not in keep:
+                path.unlink()
+                removed.append(path)
+    return removed
+
+
 def write_house_maps(
     rows: Sequence[dict[str, object]], folder: str | os.PathLike[str]
 ) -> list[Path]:
     """One figure per data source (``folder/maps_<data>.png``): every row's stored map at the
-    source's first seed, beside the truth when known (module docstring). Returns the paths."""
+    source's first seed, beside the truth when known (module docstring). Returns the paths; an
+    earlier ``maps_*.png`` of a source without one now is deleted (:func:`remove_stale`)."""
     folder = Path(folder)
     paths = []
     for data in dict.fromkeys(str(r["data"]) for r in rows):
@@ -175,4 +190,5 @@ def write_house_maps(
         grid, panels, seed = found
         title = f"{data}, seed {seed}: every row's map"
         paths.append(plot_label_maps(grid, panels, folder / _file_name(data), title))
+    remove_stale(folder, [f"{MAPS_PREFIX}*.png"], paths)
     return paths

@@ -117,7 +117,7 @@ def write_report(
     source's maps (:mod:`spcopyro.study.maps`, from the stored label maps beside the table).
     ``expected``: the study's number of cells (:func:`report_markdown`)."""
     from spcopyro.study.figures import QUALITY_TIME_FILE, write_quality_time
-    from spcopyro.study.maps import write_house_maps
+    from spcopyro.study.maps import remove_stale, write_house_maps
     from spcopyro.study.table import read_table
 
     path = Path(out)
@@ -125,6 +125,8 @@ def write_report(
     text = report_markdown(rows, title, expected=expected)
     if write_quality_time(rows, path.parent / QUALITY_TIME_FILE) is not None:
         text += f"\n![ARI against wall time per fit]({QUALITY_TIME_FILE})\n"
+    else:  # an earlier run's figure would stand beside a report without it
+        remove_stale(path.parent, [QUALITY_TIME_FILE], [])
     maps = write_house_maps(rows, Path(table).parent)
     if maps:
         text += "\n## Maps (each source's first seed)\n\n"
