@@ -49,6 +49,10 @@ def sample_prior_world(
     """A world drawn from the model: (globals and labels, data with freshly drawn counts).
 
     ``data`` gives the map and which cells hold how many observations (their totals).
+    ``generator`` decides the whole draw: the counts, drawn by the Pyro model with torch's
+    global RNG (:func:`sample_observations`), are drawn under a seed taken from it, and the
+    global RNG is left as it was (it used to draw them from the global RNG's state, so two calls
+    with equally seeded generators gave the same labels and other counts).
     """
     L = config.num_concepts
     log_pi = sample_log_dirichlet(torch.full((L,), config.pi_concentration, dtype=DTYPE), generator)
@@ -71,4 +75,7 @@ def sample_prior_world(
         label_state = state._replace(log_emissions=state.log_emissions[:2])
         labels = sample_labels(label_state, label_data, prior_only, generator, plan)
         state = state._replace(labels=labels)
-    return state, sample_observations(state, data, config)
+    seed = int(torch.randint(2**62, (), generator=generator))
+    with torch.random.fork_rng(devices=[]):
+        torch.manual_seed(seed)
+        return state, sample_observations(state, data, config)

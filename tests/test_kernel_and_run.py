@@ -205,6 +205,14 @@ def test_prior_world_has_regions_above_the_critical_coupling():
     # The data keep their totals and are integers.
     torch.testing.assert_close(world.image_counts.sum(-1), data.image_counts.sum(-1))
     assert torch.equal(world.word_counts, world.word_counts.round())
+    # The generator decides the whole draw, counts included, and leaves the global RNG alone.
+    torch.manual_seed(123)
+    before = torch.get_rng_state()
+    again_state, again = sample_prior_world(data, cfg, torch.Generator().manual_seed(0), sweeps=100)
+    assert torch.equal(torch.get_rng_state(), before)
+    assert torch.equal(again_state.labels, state.labels)
+    assert torch.equal(again.word_counts, world.word_counts)
+    assert torch.equal(again.image_counts, world.image_counts)
 
 
 def test_gaussian_initialisation_follows_eqs_21_22():

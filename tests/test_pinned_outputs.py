@@ -48,6 +48,15 @@ other kernel the other order). Words are now ranked after rounding to 1e-9, ties
 (:func:`spcopyro.results.concept_words.ranked`): the same digest under every OpenBLAS kernel tried
 (Haswell, Sandybridge, Nehalem, Prescott). Only that scenario's pin was recorded again.
 
+A sixth intended change (2026-12-04): :func:`spcopyro.simulate.sample_prior_world` draws the
+counts under a seed taken from its generator instead of from torch's global RNG (two calls with
+equally seeded generators gave the same labels and other counts; notebook 1 did not reproduce
+its stored outputs). The ``prior-world`` scenario's labels, pi and w are unchanged (its digest
+too); its drawn image and word counts were recorded again. They are drawn by the same model
+call as before (:func:`spcopyro.simulate.sample_observations`), from another stream;
+``test_prior_world_has_regions_above_the_critical_coupling`` checks their totals and that the
+generator alone decides them.
+
 Not a change (issue 25, item 4): the compiled sweep can draw its globals' label-free gamma
 variates ahead, on a worker thread (:mod:`spcopyro.gibbs.numba_globals`, ``SPCOPYRO_PRIOR_THREAD``
 = auto, on or off), which consumes other random numbers; it is opt-in, so every pin holds under
