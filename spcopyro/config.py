@@ -41,8 +41,10 @@ Presets (:func:`preset`) give both layers at once, as :class:`SpCoSettings`:
 A note on gamma. The Potts prior over L labels on a square lattice has its critical coupling at
 ``ln(1 + sqrt(L))`` (2.48 for L = 120). Below it the MRF alone does not form regions: measured with
 a port of the released code, ``original-code`` (gamma 2.1) keeps all 120 labels in patches of about
-one cell after 1000 sweeps, while gamma 3.0 grows regions that stop at walls. Above it, regions
-appear by *coarsening*, slowly, over thousands of sweeps -- which is why sweep speed matters.
+one cell after 1000 sweeps, while gamma 3.0 grows regions, slowed at walls and doorways. Above it,
+regions appear by *coarsening*, slowly, over thousands of sweeps -- which is why sweep speed
+matters -- toward the prior's equilibrium of one concept over the connected map, which the data
+keep it from.
 """
 
 from __future__ import annotations
