@@ -157,7 +157,7 @@ def test_observations_properties_and_validation():
         make_obs(image_features=[[0, -1.0, 0]] * 4)
     with pytest.raises(ValueError, match="not finite"):
         make_obs(image_features=[[0, np.nan, 0]] * 4)
-    with pytest.raises(ValueError, match="image_xy has 3 rows, expected 4"):
+    with pytest.raises(ValueError, match="image_xy has 3 rows but image_features has 4"):
         make_obs(image_xy=[[0, 0]] * 3)
     with pytest.raises(ValueError, match="word_trial"):
         make_obs(word_trial=[0, 0])

@@ -155,7 +155,7 @@ def test_modality_observations_converts_and_counts():
         (dict(counts=np.ones(5)), ValueError, r"counts must have shape \[T, 3\]"),
         (dict(counts=[[1, 0, 2]] * 4 + [[1, -0.5, 0]]), ValueError, r"counts\[4, 1\] is negative"),
         (dict(counts=[[1, 0, 2]] * 4 + [[1, 0, np.inf]]), ValueError, r"counts\[4, 2\] is not fin"),
-        (dict(positions=[[0, 0]] * 4), ValueError, "positions has 4 rows, expected 5"),
+        (dict(positions=[[0, 0]] * 4), ValueError, "positions has 4 rows but counts has 5"),
         (dict(positions=[[0, 0, 0]] * 5), ValueError, r"positions must have shape \[N, 2\]"),
         (dict(positions=[[0, 0]] * 4 + [[np.nan, 0]]), ValueError, "positions row 4 is not fin"),
         (dict(trials=[0, 0, 1]), ValueError, r"trials must have shape \[5\]"),

@@ -68,14 +68,20 @@ class DataFormatError(ValueError):
 # ---------------------------------------------------------------------------------------------
 
 
-def _as_xy(values: object, name: str, count: int | None = None) -> np.ndarray:
+def _as_xy(
+    values: object, name: str, count: int | None = None, counted: str = "observations"
+) -> np.ndarray:
+    """``[N, 2]`` finite positions; with ``count``, one per row of ``counted`` (which of the two
+    is wrong is the caller's to judge: the message names both)."""
     xy = np.array(values, dtype=np.float64)  # [N, 2]
     if xy.size == 0:
         xy = xy.reshape(0, 2)
     if xy.ndim != 2 or xy.shape[1] != 2:
         raise ValueError(f"{name} must have shape [N, 2], got {xy.shape}")
     if count is not None and xy.shape[0] != count:
-        raise ValueError(f"{name} has {xy.shape[0]} rows, expected {count}")
+        raise ValueError(
+            f"{name} has {xy.shape[0]} rows but {counted} has {count}: one position per observation"
+        )
     bad = np.flatnonzero(~np.isfinite(xy).all(axis=1))
     if bad.size:
         raise ValueError(f"{name} row {bad[0]} is not finite: {xy[bad[0]].tolist()}")
@@ -176,7 +182,7 @@ class ModalityObservations:
         num = counts.shape[0]
         set_ = object.__setattr__
         set_(self, "items", items)
-        set_(self, "positions", _as_xy(self.positions, f"{what}: positions", num))
+        set_(self, "positions", _as_xy(self.positions, f"{what}: positions", num, "counts"))
         set_(self, "trials", _as_trial(self.trials, f"{what}: trials", num))
         set_(self, "counts", counts)
 
@@ -253,10 +259,10 @@ class Observations:
         num_utterances = len(utterances)
         set_ = object.__setattr__
         set_(self, "image_features", features)
-        set_(self, "image_xy", _as_xy(self.image_xy, "image_xy", num_images))
+        set_(self, "image_xy", _as_xy(self.image_xy, "image_xy", num_images, "image_features"))
         set_(self, "image_trial", _as_trial(self.image_trial, "image_trial", num_images))
         set_(self, "utterances", utterances)
-        set_(self, "word_xy", _as_xy(self.word_xy, "word_xy", num_utterances))
+        set_(self, "word_xy", _as_xy(self.word_xy, "word_xy", num_utterances, "utterances"))
         set_(self, "word_trial", _as_trial(self.word_trial, "word_trial", num_utterances))
         if self.image_yaw is not None:
             yaw = np.array(self.image_yaw, dtype=np.float64)  # [T]

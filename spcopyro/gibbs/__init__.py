@@ -14,7 +14,7 @@ per-cell math is shared with every other inference method in :mod:`spcopyro.like
 """
 
 from spcopyro.gibbs.hyper_options import HyperparameterOptions
-from spcopyro.gibbs.kernel import SpCoGibbs, mcmc_diagnostics
+from spcopyro.gibbs.kernel import DEFAULT_SAVE_PARAMS, SpCoGibbs, mcmc_diagnostics
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsChain, GibbsRun, advance, run_gibbs, start_chain
 from spcopyro.gibbs.sampler import StepInfo, init, step
@@ -22,6 +22,7 @@ from spcopyro.gibbs.state import GibbsState
 from spcopyro.gibbs.sweep import gibbs_sweep, label_log_conditionals, log_joint
 
 __all__ = [
+    "DEFAULT_SAVE_PARAMS",
     "GibbsChain",
     "GibbsOptions",
     "GibbsRun",
