@@ -681,3 +681,75 @@ def test_a_failed_simulate_bag_leaves_nothing_in_a_retrys_way(tmp_path, monkeypa
     monkeypatch.setattr(synthetic, "render_category_image", render)
     bags = write_synthetic_bags(out, image_size=(8, 8), trials=[0, 1])
     assert bags.map_yaml.is_file() and all(p.exists() for p in bags.bags)
+
+
+def test_nothing_left_prints_the_skipped_observations_and_leaves_no_folder(
+    tmp_path, map_yaml, capsys
+):
+    """QA: the error said "see the 78 skipped observations above" but none were printed (the
+    import raised before the command printed them) and no skipped.csv remained; and the parent
+    folders of OUT, created before the import could fail, were left empty."""
+    bag = _bag_path(tmp_path, 2)
+    _write_basic(bag, 2, "sqlite3")
+    out = tmp_path / "new" / "deeper" / "house"
+    code = main(["import-bag", str(bag), "--map", str(map_yaml), "--pose-tolerance", "0.1",
+                 "--out", str(out)])  # fmt: skip
+    assert code == 2
+    err = capsys.readouterr().err
+    listing, error = err.split("error: ")
+    assert "skipped 7 observation(s) (nothing was written: the import failed):" in listing
+    assert "trial 0 image at 1600000009.000000 s on /camera/image: no pose of /amcl_pose " in (
+        listing
+    )
+    assert "no image left to write from /camera/image (7 observation(s) skipped, the first: " in (
+        error
+    )
+    assert not (tmp_path / "new").exists()  # nor deeper/, map/ or a staging folder
+    with pytest.raises(BagContentError, match="no image left") as caught:
+        import_bags([bag], map_yaml, out, ImportOptions(pose_tolerance=0.1))
+    assert len(caught.value.skipped) == 7 and not (tmp_path / "new").exists()
+
+
+def test_content_errors_name_the_bag_of_several(tmp_path, map_yaml):
+    """QA: with several bags, the off-map pose and the stamps-going-back errors did not say
+    which bag (the missing-topic errors did)."""
+    good = _bag_path(tmp_path, 2, "good")
+    _write_basic(good, 2, "sqlite3")
+    off = _bag_path(tmp_path, 2, "off")
+    with BagWriter(off, ros=2) as w:
+        for t in T0 + np.arange(3.0):
+            w.pose("/amcl_pose", t, 5.0 * (t - T0), 0.0, 0.0)  # x 0, 5, 10: the map ends at 3
+        w.image("/camera/image", T0 + 1.0, _image(1))
+        w.text("/speech", T0, "hall")
+    with pytest.raises(PoseOutsideMapError, match=rf"^{off}: image on /camera/image at "):
+        import_bags([good, off], map_yaml, tmp_path / "d" / "h")
+    back = _bag_path(tmp_path, 2, "back")
+    with BagWriter(back, ros=2) as w:
+        for t in T0 + np.arange(3.0):
+            w.pose("/amcl_pose", t, 0.0, 0.0, 0.0)
+        w.image("/camera/image", T0 + 1.5, _image(0), log_time=T0 + 1.0)
+        w.image("/camera/image", T0 + 1.25, _image(1), log_time=T0 + 2.0)  # stamp goes back
+        w.text("/speech", T0, "hall")
+    with pytest.raises(BagContentError, match=rf"^{back}: topic /camera/image: timestamps go"):
+        import_bags([good, back], map_yaml, tmp_path / "d" / "h")
+
+
+def test_overwrite_keeps_what_the_import_did_not_write(tmp_path, map_yaml, capsys):
+    """QA: import-bag --overwrite deleted files added since (Ft.csv of spcopyro features)
+    without a word; as fit --overwrite, it replaces what an import writes, keeps the rest and
+    says so."""
+    bag = _bag_path(tmp_path, 2)
+    _write_basic(bag, 2, "sqlite3")
+    out = tmp_path / "data" / "house"
+    import_bags([bag, bag], map_yaml, out)  # trials 0 and 1
+    (out / "Ft.csv").write_text("0.5,0.5\n")
+    (out / "notes").mkdir()
+    argv = ["import-bag", str(bag), "--map", str(map_yaml), "--out", str(out), "--overwrite"]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert f"warning: --overwrite kept Ft.csv, notes in {out}, which import-bag did not write" in (
+        err
+    )
+    assert (out / "Ft.csv").read_text() == "0.5,0.5\n" and (out / "notes").is_dir()
+    assert not (out / "pose_1.csv").exists() and not (out / "img_1").exists()  # the old import's
+    assert (out / "pose_0.csv").is_file() and not list(out.parent.glob(".house.*"))

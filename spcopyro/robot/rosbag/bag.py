@@ -213,13 +213,14 @@ def _message_time(msg: Any, log_ns: int) -> float:
     return log_ns * 1e-9
 
 
-def _check_order(topic: str, times: list[float], what: str = "") -> None:
+def _check_order(reader: Any, topic: str, times: list[float], what: str = "") -> None:
+    """BagContentError naming the bag, the topic and the two stamps where ``times`` go back."""
     steps = np.diff(np.asarray(times, dtype=np.float64))
     if (steps < 0).any():
         k = int(np.flatnonzero(steps < 0)[0])
         raise BagContentError(
-            f"topic {topic}{what}: timestamps go backwards: message {k + 2} is stamped "
-            f"{times[k + 1]:.9f} s after message {k + 1} at {times[k]:.9f} s"
+            f"{reader.paths[0]}: topic {topic}{what}: timestamps go backwards: message "
+            f"{k + 2} is stamped {times[k + 1]:.9f} s after message {k + 1} at {times[k]:.9f} s"
         )
 
 
@@ -263,7 +264,7 @@ def read_pose_topic(reader: Any, topic: str) -> PoseTrack:
         frames.add(_frame(msg.header.frame_id))
     if not times:
         raise BagContentError(f"{reader.paths[0]}: pose topic {topic} holds no messages")
-    _check_order(topic, times)
+    _check_order(reader, topic, times)
     named = sorted(f for f in frames if f)
     if len(named) > 1:
         raise BagContentError(
@@ -332,7 +333,7 @@ def _tf_tracks(reader: Any) -> dict[tuple[str, str], PoseTrack] | None:
             poses.append(pose)
     tracks: dict[tuple[str, str], PoseTrack] = {}
     for edge, (times, poses) in samples.items():
-        _check_order("/tf", times, f" (edge {edge[0]} -> {edge[1]})")
+        _check_order(reader, "/tf", times, f" (edge {edge[0]} -> {edge[1]})")
         tracks[edge] = _track(f"tf {edge[0]} -> {edge[1]}", times, poses)
     for edge, pose in static.items():
         tracks[edge] = PoseTrack(
@@ -413,7 +414,7 @@ def read_stamps(reader: Any, topic: str) -> TopicData:
     times = []
     for connection, log_ns, raw in reader.messages(connections=connections):
         times.append(_message_time(reader.deserialize(raw, connection.msgtype), log_ns))
-    _check_order(topic, times)
+    _check_order(reader, topic, times)
     return TopicData(topic, connections[0].msgtype, np.asarray(times, dtype=np.float64))
 
 
@@ -425,7 +426,7 @@ def read_texts(reader: Any, topic: str) -> TopicData:
         msg = reader.deserialize(raw, connection.msgtype)
         times.append(_message_time(msg, log_ns))
         texts.append(str(msg.data))
-    _check_order(topic, times)
+    _check_order(reader, topic, times)
     return TopicData(topic, connections[0].msgtype, np.asarray(times, dtype=np.float64), texts)
 
 

@@ -37,9 +37,19 @@ def _positive_int(value: str) -> int:
     return number
 
 
+def _print_skipped(skipped, where: str) -> None:
+    """The skipped observations on stderr: how many, ``where`` they are listed, the first
+    :data:`PRINTED_SKIPS` with their stamps and reasons."""
+    print(f"skipped {len(skipped)} observation(s) ({where}):", file=sys.stderr)
+    for observation in skipped[:PRINTED_SKIPS]:
+        print(f"  {observation.line()}", file=sys.stderr)
+    if len(skipped) > PRINTED_SKIPS:
+        print(f"  ... and {len(skipped) - PRINTED_SKIPS} more", file=sys.stderr)
+
+
 def _import_bag(args: argparse.Namespace) -> int:
     from spcopyro.robot.rosbag.bag import RosbagsMissingError
-    from spcopyro.robot.rosbag.importer import ImportOptions, import_bags
+    from spcopyro.robot.rosbag.importer import ImportOptions, NothingLeftError, import_bags
 
     options = ImportOptions(
         pose_topic=args.pose_topic,
@@ -64,6 +74,10 @@ def _import_bag(args: argparse.Namespace) -> int:
     except RosbagsMissingError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
+    except NothingLeftError as error:  # the skipped observations are the reason: shown first
+        if error.skipped:
+            _print_skipped(error.skipped, "nothing was written: the import failed")
+        raise
     print(f"pose from        {options.pose_source} (tolerance {options.pose_tolerance:g} s)")
     print(f"ROS 2 types      {options.ros_distro} (for bags that store no message definitions)")
     frames = sorted({str(t.get("pose_frame") or "(none given)") for t in report.trials})
@@ -73,13 +87,13 @@ def _import_bag(args: argparse.Namespace) -> int:
         print(f"pose frame -> map through tf {', '.join(via)}")
     print(report.text())
     if report.skipped:
-        print(f"skipped {len(report.skipped)} observation(s) (all listed in "
-              f"{report.out / 'skipped.csv'}):", file=sys.stderr)  # fmt: skip
-        for skipped in report.skipped[:PRINTED_SKIPS]:
-            print(f"  {skipped.line()}", file=sys.stderr)
-        if len(report.skipped) > PRINTED_SKIPS:
-            print(f"  ... and {len(report.skipped) - PRINTED_SKIPS} more", file=sys.stderr)
+        _print_skipped(report.skipped, f"all listed in {report.out / 'skipped.csv'}")
     print(f"wrote {report.out} (map: {report.map_yaml})")
+    if report.kept:
+        print(f"warning: --overwrite kept {', '.join(report.kept)} in {report.out}, which "
+              "import-bag did not write; what was made from the replaced import's images "
+              "(Ft.csv of spcopyro features) does not describe these: write it again",
+              file=sys.stderr)  # fmt: skip
     print(f"  next: spcopyro features {report.out} --out {report.out / 'Ft.csv'}")
     print(f"  then: spcopyro fit {report.out} --out {report.out.parent / 'fit'}")
     return 0
@@ -181,7 +195,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "none (Foxy, Galactic and Humble sqlite3 bags; a bag's own definitions "
                         f"win) (default {DEFAULT_ROS_DISTRO})")  # fmt: skip
     p.add_argument("--overwrite", action="store_true",
-                   help="replace OUT (only a folder import-bag wrote) and its map")  # fmt: skip
+                   help="replace OUT (only a folder import-bag wrote) and its map; files in OUT "
+                        "that import-bag does not write (Ft.csv, notes) are kept, and "
+                        "named")  # fmt: skip
     p.set_defaults(func=_import_bag)
 
     p = subparsers.add_parser(

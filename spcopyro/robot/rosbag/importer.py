@@ -34,13 +34,19 @@ image features:
   for it (an existing different map there is refused unless ``overwrite``).
 
 The folder is written in a staging folder beside OUT and renamed into place when whole; an
-existing non-empty OUT is refused unless ``overwrite`` (which replaces only a folder an earlier
-import wrote). A pose of a kept observation outside the map's bounds stops the import
-(:class:`PoseOutsideMapError`: a wrong map, or a pose in another frame).
+existing non-empty OUT is refused unless ``overwrite``, which replaces only a folder an earlier
+import wrote, and of it only what an import writes (:func:`imported_entry`): the rest (``Ft.csv``
+of ``spcopyro features``, a user's notes) is kept in the new OUT and named in the report's
+``kept``, as ``fit --overwrite`` keeps what a fit did not write. A failed import leaves no OUT,
+no staging folder, and none of the folders it created for them. A pose of a kept observation
+outside the map's bounds stops the import (:class:`PoseOutsideMapError`: a wrong map, or a pose
+in another frame), as does no image or no utterance left (:class:`NothingLeftError`, which holds
+the skipped observations). Errors about a bag's content name the bag.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -77,6 +83,7 @@ __all__ = [
     "MARKER",
     "BagImportReport",
     "ImportOptions",
+    "NothingLeftError",
     "PoseOutsideMapError",
     "SkippedObservation",
     "import_bags",
@@ -88,6 +95,15 @@ MARKER = "bag_import.json"
 
 class PoseOutsideMapError(BagContentError):
     """An observation's pose lies outside the map (a wrong map, or poses in another frame)."""
+
+
+class NothingLeftError(BagContentError):
+    """No image or no utterance is left to write; ``skipped`` lists every observation skipped
+    (the command prints them before the error: they are never dropped silently)."""
+
+    def __init__(self, message: str, skipped: Sequence[SkippedObservation]) -> None:
+        super().__init__(message)
+        self.skipped = tuple(skipped)
 
 
 @dataclass(frozen=True)
@@ -167,6 +183,9 @@ class BagImportReport:
     map_yaml: Path
     trials: tuple[dict[str, object], ...]
     skipped: tuple[SkippedObservation, ...]
+    kept: tuple[str, ...] = ()
+    """With ``overwrite``: the entries of the replaced folder that no import writes (``Ft.csv``
+    of ``spcopyro features``, notes), carried into the new one."""
 
     def text(self) -> str:
         lines = []
@@ -267,7 +286,7 @@ def _import_one(
             skip(images.topic, "image", images.times[i], reasons[i] or "no pose")
         candidates = np.flatnonzero(ok)
         kept = _thin(images.times, image_xy, candidates, options.min_interval, options.min_distance)
-        _check_inside(grid, image_xy[kept], images.times[kept], f"image on {images.topic}")
+        _check_inside(grid, image_xy[kept], images.times[kept], f"{bag}: image on {images.topic}")
         folder = staging / f"img_{trial}"
         folder.mkdir()
         written: dict[int, str] = {}
@@ -307,7 +326,7 @@ def _import_one(
             sentences.append(" ".join(tokens))
             word_rows.append(u)
         rows = np.asarray(word_rows, dtype=np.int64)
-        _check_inside(grid, word_xy[rows], words.times[rows], f"utterance on {words.topic}")
+        _check_inside(grid, word_xy[rows], words.times[rows], f"{bag}: utterance on {words.topic}")
     counts = {
         "pose_frame": pose_frame,  # the frame the poses came in (None: no frame_id)
         "pose_frame_via_tf": via_tf,  # "map -> odom": the tf chain that placed them on the map
@@ -398,11 +417,13 @@ def import_bags(
     Raises:
         FileNotFoundError: a bag or the map is missing.
         FileExistsError: ``out`` (or a different map at ``out/../map/NAME.yaml``) exists and
-            ``overwrite`` is not given.
+            ``overwrite`` is not given. With ``overwrite``, the entries of ``out`` that no
+            import writes are kept (the report's ``kept``).
         BagFormatError: a path that is not a bag.
         BagContentError: a missing topic (the message lists the bag's topics and types), a
-            topic of a type the import does not read, timestamps that go backwards (topic and
-            the two stamps), no image or no utterance left to write.
+            topic of a type the import does not read, timestamps that go backwards (the bag,
+            topic and the two stamps); :class:`NothingLeftError`: no image or no utterance left
+            to write (its ``skipped`` lists the skipped observations).
         PoseOutsideMapError: a kept observation's pose outside the map.
         RosbagsMissingError: rosbags is not installed.
     """
@@ -422,10 +443,14 @@ def import_bags(
         raise FileExistsError(
             f"{map_target} exists and differs from {map_yaml}; pass --overwrite to replace it"
         )
+    # What a failed import removes again: the folders it created, and a map it wrote.
+    created = [p for p in (map_target.parent, out.parent, *out.parent.parents) if not p.exists()]
+    new_map = [p for p in (map_target, map_target.with_suffix(".pgm")) if not p.exists()]
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = out.parent / f".{out.name}.partial-{secrets.token_hex(4)}"
     staging.mkdir()
     skipped: list[SkippedObservation] = []
+    done = False
     try:
         trials = [
             _import_one(Path(bag), first_trial + k, options, grid, staging, skipped, progress)
@@ -434,9 +459,15 @@ def import_bags(
         for what, key in (("image", "images_kept"), ("utterance", "utterances_kept")):
             if not sum(t.counts[key] for t in trials):
                 topic = options.image_topic if what == "image" else options.words_topic
-                raise BagContentError(
-                    f"no {what} left to write from {topic} (see the {len(skipped)} skipped "
-                    "observations above); a house needs at least one image and one utterance"
+                why = (
+                    f"{len(skipped)} observation(s) skipped, the first: {skipped[0].line()}"
+                    if skipped
+                    else "the bags hold none"
+                )
+                raise NothingLeftError(
+                    f"no {what} left to write from {topic} ({why}); a house needs at least one "
+                    "image and one utterance",
+                    skipped,
                 )
         _write_house(staging, trials)
         _write_skipped(staging / "skipped.csv", skipped)
@@ -450,15 +481,57 @@ def import_bags(
         }
         (staging / MARKER).write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
         save_map(grid, map_target)
-        if out.exists():
-            shutil.rmtree(out)
-        os.replace(staging, out)
+        kept = _replace(out, staging)
+        done = True
     finally:
         if staging.exists():
             shutil.rmtree(staging)
+        if not done:
+            for path in new_map:
+                path.unlink(missing_ok=True)
+            for folder in created:  # deepest first; only if nothing else was put there
+                with contextlib.suppress(OSError):
+                    folder.rmdir()
     return BagImportReport(
         out=out,
         map_yaml=map_target,
         trials=tuple({"trial": t.trial, "bag": t.bag, **t.counts} for t in trials),
         skipped=tuple(skipped),
+        kept=kept,
     )
+
+
+IMPORT_FILES = frozenset(
+    ["Xtx.csv", "Xty.csv", "St.csv", "StXtx.csv", "StXty.csv", "skipped.csv", MARKER]
+)
+"""The files every import writes (with ``img_K/``, ``pose_K.csv`` and ``word_K.csv``)."""
+_TRIAL_ENTRY = re.compile(r"img_[0-9]+|(pose|word)_[0-9]+\.csv")
+
+
+def imported_entry(name: str) -> bool:
+    """Whether an import writes an entry of this name into its folder (``overwrite`` replaces
+    those and keeps the others)."""
+    return name in IMPORT_FILES or _TRIAL_ENTRY.fullmatch(name) is not None
+
+
+def _replace(out: Path, staging: Path) -> tuple[str, ...]:
+    """Move ``staging`` to ``out``. An earlier import in ``out`` is set aside, and what no
+    import writes (``Ft.csv`` of ``spcopyro features``, a user's notes) carried into the new
+    ``out``, as ``fit --overwrite`` does; returns the names carried."""
+    if not out.exists():
+        os.replace(staging, out)
+        return ()
+    old = out.parent / f".{out.name}.replaced-{secrets.token_hex(4)}"
+    os.rename(out, old)
+    try:
+        os.rename(staging, out)
+    except OSError:
+        os.rename(old, out)
+        raise
+    kept = []
+    for entry in sorted(old.iterdir()):
+        if not imported_entry(entry.name) and not (out / entry.name).exists():
+            os.rename(entry, out / entry.name)
+            kept.append(entry.name)
+    shutil.rmtree(old, ignore_errors=True)
+    return tuple(kept)
