@@ -437,3 +437,31 @@ def test_several_speed_words_warn_that_their_filters_share_one_topic(fit, tmp_pa
     assert main(["export", str(fit), "--nav2", str(tmp_path / "one"), "--word", "kitchen",
                  "--mode", "speed"]) == 0  # fmt: skip
     assert "speed_limit topic" not in capsys.readouterr().err
+
+
+def test_keepout_refuses_speed_options_and_warns_of_an_empty_mask(fit, tmp_path, capsys):
+    """QA: --mode keepout --min-speed 10 was accepted and ignored (--threshold with --mode
+    speed is an error), and a --threshold no cell reaches wrote a mask of 0 cells, exit 0,
+    without a word."""
+    out = tmp_path / "n"
+    for extra, said in (
+        (["--min-speed", "10"], "error: --min-speed applies to --mode speed only"),
+        (["--max-speed", "90"], "error: --max-speed applies to --mode speed only"),
+        (["--min-speed", "10", "--max-speed", "90"],
+         "error: --min-speed and --max-speed apply to --mode speed only"),
+    ):  # fmt: skip
+        assert main(["export", str(fit), "--nav2", str(out), "--word", "kitchen", *extra]) == 2
+        assert said in capsys.readouterr().err, extra
+    assert not out.exists()
+    highest = where_probability(SpCoResult.load(fit), "kitchen", "area").max()
+    assert main(["export", str(fit), "--nav2", str(out), "--word", "kitchen",
+                 "--threshold", "0.99999"]) == 0  # fmt: skip
+    printed = capsys.readouterr()
+    assert "keepout mask for 'kitchen' (per-cell probability): 0 of" in printed.out
+    assert (
+        "warning: 'kitchen': the mask keeps out no cell: no free cell's probability of being "
+        f"the place reaches --threshold 0.99999 (the highest is {highest:.4g}); lower --threshold"
+    ) in printed.err
+    assert main(["export", str(fit), "--nav2", str(out), "--word", "kitchen", "--overwrite",
+                 "--threshold", str(highest * 0.99)]) == 0  # fmt: skip
+    assert "keeps out no cell" not in capsys.readouterr().err

@@ -45,14 +45,34 @@ def _min_speed(value: str) -> float:
     return number
 
 
+def _keeps_out_nothing(result, word: str, args: argparse.Namespace) -> str:
+    """Why a keepout mask of ``word`` holds no cell, and what to do."""
+    if args.threshold is None:
+        return "the mask keeps out no cell: the where-answer's region is empty"
+    from spcopyro.results.uncertainty import where_probability
+
+    highest = float(where_probability(result, word, args.prior).max(initial=0.0))
+    return (
+        f"the mask keeps out no cell: no free cell's probability of being the place reaches "
+        f"--threshold {args.threshold:g} (the highest is {highest:.4g}); lower --threshold"
+    )
+
+
 def _export(args: argparse.Namespace) -> int:
     from spcopyro._util.outputs import robot_map_of
     from spcopyro.results.result import SpCoResult, UnknownWordError
-    from spcopyro.robot.nav2 import export_nav2
+    from spcopyro.robot.nav2 import DEFAULT_MAX_SPEED, DEFAULT_MIN_SPEED, export_nav2
 
     if args.threshold is not None and args.mode != "keepout":
         print("error: --threshold applies to --mode keepout only", file=sys.stderr)
         return 2
+    speeds = [f"--{n}-speed" for n in ("min", "max") if getattr(args, f"{n}_speed") is not None]
+    if speeds and args.mode != "speed":
+        print(f"error: {' and '.join(speeds)} {'apply' if len(speeds) > 1 else 'applies'} to "
+              "--mode speed only", file=sys.stderr)  # fmt: skip
+        return 2
+    args.min_speed = DEFAULT_MIN_SPEED if args.min_speed is None else args.min_speed
+    args.max_speed = DEFAULT_MAX_SPEED if args.max_speed is None else args.max_speed
     if args.min_speed > args.max_speed:
         print(f"error: --min-speed {args.min_speed:g} exceeds --max-speed {args.max_speed:g}",
               file=sys.stderr)  # fmt: skip
@@ -86,6 +106,9 @@ def _export(args: argparse.Namespace) -> int:
               f"-> {mask.mask_yaml}, params {mask.params_yaml}")  # fmt: skip
         for warning in mask.warnings:
             print(f"warning: {mask.word!r}: {warning}", file=sys.stderr)
+        if mask.mode == "keepout" and mask.cells == 0:
+            print(f"warning: {mask.word!r}: {_keeps_out_nothing(result, mask.word, args)}",
+                  file=sys.stderr)  # fmt: skip
     if not export.masks:
         print("no --word given: wrote the map and the semantic map only")
     if args.mode == "speed" and len(export.masks) > 1:
@@ -141,15 +164,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--min-speed",
         type=_min_speed,
-        default=30.0,
         help="speed: limit in percent of the maximum speed where the probability is 1; at "
-        "least 1 (Nav2 reads a 0 %% limit as no limit)",
+        "least 1 (Nav2 reads a 0 %% limit as no limit) (default: 30)",
     )
     p.add_argument(
         "--max-speed",
         type=_percent,
-        default=100.0,
-        help="speed: limit in percent where the probability is 0 (100: no limit)",
+        help="speed: limit in percent where the probability is 0 (100: no limit) (default: 100)",
     )
     p.add_argument("--namespace", metavar="NS",
                    help="the robot's ROS namespace: the masks', filter infos' and speed limit's "
