@@ -183,6 +183,31 @@ def test_more_folds_than_a_house_has_trials_are_refused(tmp_path, capsys, datase
     assert not out.exists()
 
 
+@pytest.mark.parametrize(
+    "argv, named",
+    [
+        (["experiment", "--quick", "--houses", "room1dk5"], "--houses room1dk5"),
+        (["ablation", "--quick", "--public-houses", "room1dk5"], "--public-houses room1dk5"),
+        (["compare-inference", "--quick", "--houses", "public"], "--houses public"),
+        (["compare-inference", "--quick", "--public-houses", "room1dk5"],
+         "--public-houses room1dk5"),
+    ],
+)  # fmt: skip
+def test_public_houses_asked_for_by_name_need_the_dataset(
+    tmp_path, capsys, monkeypatch, argv, named
+):
+    """Without the dataset, a run asked for public houses by name skipped them with a note
+    and exited 0, its table holding none of them; without such an option it still does."""
+    import spcopyro.data
+
+    monkeypatch.setattr(spcopyro.data, "find_dataset_root", lambda data=None: None)
+    out = tmp_path / "out"
+    assert main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert f"{named} asks for public houses, but the public dataset was not found" in err
+    assert not out.exists()
+
+
 def test_a_sweeps_table_without_a_star_says_which_methods_run_1000(tmp_path, capsys):
     path = tmp_path / "partial.toml"
     path.write_text(TWICE.replace("sweeps = 20", "sweeps = {cavi = 5}"))

@@ -48,6 +48,19 @@ def _contradicts(given: str, **options: object) -> None:
                              f"{given} leaves {_flag(name)} nothing to do")  # fmt: skip
 
 
+def _needs_dataset(**options: object) -> None:
+    """ValueError when an option of ``options`` (None: not given) names public houses but the
+    dataset was not found: the run skipped them with a note and exited 0, its table holding
+    none of the houses asked for."""
+    for name, value in options.items():
+        if value is not None:
+            shown = " ".join(map(str, value)) if isinstance(value, list | tuple) else value
+            raise ValueError(
+                f"{_flag(name)} {shown} asks for public houses, but the public dataset was not "
+                "found ($SPCOPYRO_DATA, ../shared/data/spcomapping): give --data DIR"
+            )
+
+
 def _stoppable(command: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
     """``command`` with SIGTERM (``timeout``, Slurm) stopping it as Ctrl-C does: the study
     engine then rewrites the finished cells' table and report before the exit (130), as
@@ -84,6 +97,7 @@ def _experiment(args: argparse.Namespace) -> int:
     study = load_study(EXPERIMENT_QUICK if args.quick else EXPERIMENT)
     root = None if args.no_public else find_dataset_root(args.data)
     if args.data is None and root is None and not args.no_public:
+        _needs_dataset(houses=args.houses)
         print("note: public dataset not found ($SPCOPYRO_DATA, ../shared/data/spcomapping); "
               "skipping the public houses", file=sys.stderr)  # fmt: skip
     command = "spcopyro " + " ".join(sys.argv[1:] if args.argv is None else args.argv)
@@ -136,6 +150,7 @@ def _ablation(args: argparse.Namespace) -> int:
     study = load_study(ABLATION_QUICK if args.quick else ABLATION)
     root = None if args.no_public else find_dataset_root(args.data)
     if root is None and not args.no_public:
+        _needs_dataset(public_houses=args.public_houses)
         print("note: public dataset not found ($SPCOPYRO_DATA, ../shared/data/spcomapping); "
               "skipping the public houses", file=sys.stderr)  # fmt: skip
     command = "spcopyro " + " ".join(sys.argv[1:] if args.argv is None else args.argv)
@@ -214,6 +229,8 @@ def _compare_inference(args: argparse.Namespace) -> int:
     house_types = HOUSE_TYPES if args.houses == "both" else (args.houses,)
     root = find_dataset_root(args.data) if "public" in house_types else None
     if "public" in house_types and root is None:
+        _needs_dataset(public_houses=args.public_houses,
+                       houses=args.houses if args.houses == "public" else None)  # fmt: skip
         print("note: public dataset not found ($SPCOPYRO_DATA, ../shared/data/spcomapping); "
               "skipping the public houses", file=sys.stderr)  # fmt: skip
     public_houses = tuple(args.public_houses) if args.public_houses else None
