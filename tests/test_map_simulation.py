@@ -217,6 +217,10 @@ def test_options_of_map_and_of_the_drawn_house_are_checked(tmp_path, capsys):
     for extra, message in (
         (["--size", "-5", "5"], "argument --size: must be an integer >= 1, got '-5'"),
         (["--rooms", "0"], "argument --rooms: must be an integer >= 1, got '0'"),
+        (
+            ["--min-room-area", "-1"],
+            "argument --min-room-area: '-1': the area is square metres > 0",
+        ),
     ):
         with pytest.raises(SystemExit):
             main(["simulate", "--out", out, *extra])

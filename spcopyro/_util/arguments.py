@@ -42,6 +42,22 @@ def non_negative_number(what: str) -> Callable[[str], float]:
     return parse
 
 
+def positive_number(what: str) -> Callable[[str], float]:
+    """An argparse ``type``: the text as a finite float > 0, else a usage error naming the
+    value and ``what`` it is ("'-1': the area is square metres > 0")."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = -1.0
+        if not (math.isfinite(value) and value > 0):
+            raise argparse.ArgumentTypeError(f"{text!r}: the {what} > 0")
+        return value
+
+    return parse
+
+
 def figure_path(value: str) -> str:
     """An argparse ``type`` for a figure's ``--out``: a name whose suffix matplotlib can write
     (none: ``.png``), else a usage error listing the formats, before anything is computed or

@@ -29,7 +29,7 @@ from typing import NoReturn
 import numpy as np
 
 from spcopyro import __version__
-from spcopyro._util.arguments import figure_path, non_negative_number
+from spcopyro._util.arguments import figure_path, non_negative_number, positive_number
 from spcopyro._util.interrupts import caused_by_interrupt
 from spcopyro.cli.common import (
     _HelpFormatter,
@@ -162,7 +162,8 @@ def _simulate_on_map(args: argparse.Namespace) -> int:
         ) from None
     house = simulated.house
     print(f"wrote a simulated tour of {args.map} (seed {args.seed}) to {room}: "
-          f"{int(simulated.room_category.size)} rooms, {house.observations.num_images} images, "
+          f"{_count(int(simulated.room_category.size), 'room')}, "
+          f"{house.observations.num_images} images, "
           f"{house.observations.num_utterances} utterances")  # fmt: skip
     how = "given" if isinstance(tour.door_width, float) else "read from the map"
     print(f"  rooms cut at doorways up to {simulated.door_width:g} m wide ({how})")
@@ -257,6 +258,11 @@ def _where(args: argparse.Namespace) -> int:
     return 0
 
 
+def _count(number: int, noun: str) -> str:
+    """``"1 room"``, ``"3 rooms"``."""
+    return f"{number} {noun}{'' if number == 1 else 's'}"
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``spcopyro`` parser, every command with its options. Building it imports neither
     torch, pyro nor numba (``spcopyro --help``, ``where``, ``show`` and ``export`` run without
@@ -304,7 +310,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "auto: read from the map, the narrowest of 0.75, 1, ..., 3 m that "
                         "separates two rooms (1.5 to 2.25 m on the public dataset's houses) "
                         "(default: auto)")  # fmt: skip
-    p.add_argument("--min-room-area", type=float,
+    p.add_argument("--min-room-area", type=positive_number("area is square metres"),
                    help="with --map: square metres; smaller free segments are not visited and "
                         "have no ground truth (default: 1)")  # fmt: skip
     p.set_defaults(func=_simulate)
