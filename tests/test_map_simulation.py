@@ -211,6 +211,7 @@ def test_options_of_map_and_of_the_drawn_house_are_checked(tmp_path, capsys):
         (["--door-width", "1"], "--door-width needs --map"),
         (["--min-room-area", "5"], "--min-room-area needs --map"),
         (["--size", "1001", "1000"], "1,001,000 cells is over the limit of 1,000,000"),
+        (["--size", "5", "5"], "--size 5 5: too small: 5 x 5 leaves a -3 x -3 inside"),
     ):
         assert main(["simulate", "--out", out, *extra]) == 2, extra
         assert message in capsys.readouterr().err, extra

@@ -72,6 +72,9 @@ def _simulate(args: argparse.Namespace) -> int:
     except ValueError as error:  # the library names its fields, the command its flags
         message = str(error).replace("lower num_rooms or min_room_size, or enlarge the map",
                                      "lower --rooms or enlarge --size")  # fmt: skip
+        if message.startswith("HouseSpec height x width") and args.size:
+            message = (f"--size {args.size[0]} {args.size[1]}: too small: "
+                       + message.removeprefix("HouseSpec height x width "))  # fmt: skip
         raise ValueError(message) from None
 
 
