@@ -97,6 +97,10 @@ def test_pose_track_interpolation_and_composition():
     xy, yaw, ok, reasons = compose([track, track.inverse()], np.array([0.25, 2.5, 10.0]), 1.0)
     assert np.allclose(xy, 0.0, atol=1e-12) and np.allclose(wrap_angle(yaw), 0.0, atol=1e-12)
     assert ok.tolist() == [True, True, False] and "no pose of p within 1 s" in reasons[2]
+    assert "(nearest 7.000 s away)" in reasons[2]
+    # with a tolerance of 0, a gap below a millisecond is shown (it read "0.000 s away")
+    _, _, ok, reasons = compose([track], np.array([1.0002, 3.0]), 0.0)
+    assert ok.tolist() == [False, True] and "within 0 s (nearest 0.0002 s away)" in reasons[0]
     with pytest.raises(ValueError, match="not strictly increasing"):
         PoseTrack("q", [0.0, 0.0], [[0, 0], [1, 1]], [0, 0])
 

@@ -130,6 +130,12 @@ def _invert(xy: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.stack([-(c * x + s * y), s * x - c * y], axis=1), wrap_angle(-yaw)
 
 
+def _seconds(gap: float) -> str:
+    """A pose gap for a message: milliseconds' precision, or two significant digits below a
+    millisecond (with a tolerance of 0, '0.000 s away' hid the gap that was too long)."""
+    return f"{gap:.3f}" if gap >= 1e-3 else f"{gap:.2g}"
+
+
 def compose(
     chain: list[PoseTrack], t: np.ndarray, tolerance: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str | None]]:
@@ -149,7 +155,8 @@ def compose(
         missing = ok & (gap > tolerance)  # [M]
         for m in np.flatnonzero(missing).tolist():
             reasons[m] = (
-                f"no pose of {track.name} within {tolerance:g} s (nearest {gap[m]:.3f} s away)"
+                f"no pose of {track.name} within {tolerance:g} s (nearest "
+                f"{_seconds(float(gap[m]))} s away)"
             )
         ok &= ~missing
         step_xy, step_yaw = track.at(t)  # [M, 2], [M]
