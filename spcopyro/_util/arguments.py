@@ -7,7 +7,7 @@ import argparse
 import math
 from collections.abc import Callable
 
-__all__ = ["figure_path", "integer_at_least", "non_negative_number"]
+__all__ = ["figure_path", "integer_at_least", "non_negative_number", "positive_number"]
 
 
 def integer_at_least(minimum: int) -> Callable[[str], int]:
@@ -26,36 +26,31 @@ def integer_at_least(minimum: int) -> Callable[[str], int]:
     return parse
 
 
-def non_negative_number(what: str) -> Callable[[str], float]:
-    """An argparse ``type``: the text as a finite float >= 0, else a usage error naming the
-    value and ``what`` it is ("'-1': the area is square metres >= 0")."""
+def _finite_number(what: str, positive: bool) -> Callable[[str], float]:
+    """An argparse ``type``: a finite float >= 0 (> 0 if ``positive``), else a usage error
+    naming the value and ``what`` it is ("'-1': the area is square metres > 0")."""
+    bound = "> 0" if positive else ">= 0"
 
     def parse(text: str) -> float:
         try:
             value = float(text)
         except ValueError:
             value = -1.0
-        if not (math.isfinite(value) and value >= 0):
-            raise argparse.ArgumentTypeError(f"{text!r}: the {what} >= 0")
+        if not (math.isfinite(value) and (value > 0 if positive else value >= 0)):
+            raise argparse.ArgumentTypeError(f"{text!r}: the {what} {bound}")
         return value
 
     return parse
+
+
+def non_negative_number(what: str) -> Callable[[str], float]:
+    """A finite float >= 0 (:func:`_finite_number`)."""
+    return _finite_number(what, positive=False)
 
 
 def positive_number(what: str) -> Callable[[str], float]:
-    """An argparse ``type``: the text as a finite float > 0, else a usage error naming the
-    value and ``what`` it is ("'-1': the area is square metres > 0")."""
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            value = -1.0
-        if not (math.isfinite(value) and value > 0):
-            raise argparse.ArgumentTypeError(f"{text!r}: the {what} > 0")
-        return value
-
-    return parse
+    """A finite float > 0 (:func:`_finite_number`)."""
+    return _finite_number(what, positive=True)
 
 
 def figure_path(value: str) -> str:

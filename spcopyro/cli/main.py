@@ -29,7 +29,12 @@ from typing import NoReturn
 import numpy as np
 
 from spcopyro import __version__
-from spcopyro._util.arguments import figure_path, non_negative_number, positive_number
+from spcopyro._util.arguments import (
+    figure_path,
+    integer_at_least,
+    non_negative_number,
+    positive_number,
+)
 from spcopyro._util.interrupts import caused_by_interrupt
 from spcopyro.cli.common import (
     _HelpFormatter,
@@ -42,6 +47,7 @@ from spcopyro.cli.common import (
 from spcopyro.cli.fit_parser import add_parser as add_fit_parser
 
 logger = logging.getLogger("spcopyro")
+_positive_int = integer_at_least(1)  # --size and --rooms
 
 
 MAX_SIMULATED_CELLS = 1_000_000
@@ -124,17 +130,6 @@ def _door_width(text: str) -> float | str:
         raise argparse.ArgumentTypeError(f"{text!r} is neither auto nor metres") from None
     if not (math.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"{text!r}: a door width must be > 0 metres")
-    return value
-
-
-def _positive_int(text: str) -> int:
-    """``--size`` and ``--rooms``: an integer >= 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}")
     return value
 
 

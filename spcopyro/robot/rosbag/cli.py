@@ -10,6 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from spcopyro._util.arguments import integer_at_least
 from spcopyro.robot.rosbag.bag import DEFAULT_ROS_DISTRO, ROS_DISTROS
 
 __all__ = ["add_parser"]
@@ -24,16 +25,6 @@ def _non_negative(value: str) -> float:
         number = -1.0
     if not number >= 0 or number == float("inf"):
         raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {value!r}")
-    return number
-
-
-def _positive_int(value: str) -> int:
-    try:
-        number = int(value)
-    except ValueError:
-        number = 0
-    if number < 1:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {value!r}")
     return number
 
 
@@ -217,7 +208,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--image-format", choices=("raw", "jpeg", "png"), default="jpeg",
                    help="raw: sensor_msgs/Image on /camera/image; jpeg, png: CompressedImage on "
                         "/camera/image/compressed (default jpeg)")  # fmt: skip
-    p.add_argument("--image-size", type=_positive_int, nargs=2, default=(48, 64),
+    p.add_argument("--image-size", type=integer_at_least(1), nargs=2, default=(48, 64),
                    metavar=("H", "W"),
                    help="image height and width in pixels (default 48 64)")  # fmt: skip
     p.add_argument("--trials", type=int, nargs="+", metavar="K",
