@@ -35,10 +35,11 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from bench_cli import dataset_root
 from machine import format_table, machine_info, progress
 
 from spcopyro.config import DEFAULT_PRESET, preset
-from spcopyro.data import find_dataset_root, load_house
+from spcopyro.data import load_house
 from spcopyro.data.model_grid import model_house
 from spcopyro.fit.house import prepare_model_data
 from spcopyro.gibbs.numba_background import background_table
@@ -52,9 +53,8 @@ PUBLIC = ("room1dk5", "room1dk6", "room1ldk4", "room1ldk5", "room2ldk4")
 def houses(quick: bool) -> list:
     """The embedded house, then the public houses where the dataset is found."""
     out = [make_house(seed=0, spec=HouseSpec.embedded())]
-    root = find_dataset_root()
+    root = dataset_root(without="embedded house only")
     if root is None:
-        progress("no public dataset found ($SPCOPYRO_DATA or ../shared): embedded house only")
         return out
     for name in PUBLIC[-1:] if quick else PUBLIC:
         out.append(load_house(root / name))

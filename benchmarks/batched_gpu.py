@@ -45,11 +45,12 @@ from pathlib import Path
 from typing import Any
 
 import torch
+from bench_cli import dataset_root
 from machine import busy_cpu_seconds, format_table, machine_info, own_cpu_seconds, progress
 
 from spcopyro._util.threads import resolve_threads, torch_threads
 from spcopyro.config import SpCoConfig, preset
-from spcopyro.data import find_dataset_root, load_house
+from spcopyro.data import load_house
 from spcopyro.fit.house import prepare_model_data
 from spcopyro.gibbs import GibbsOptions, start_chain
 from spcopyro.gibbs.batched import gibbs_sweep_batched, init_batched, make_batched_plan
@@ -166,14 +167,9 @@ def problems(args: argparse.Namespace) -> tuple[list[tuple[str, ModelData, SpCoC
     if args.quick or args.no_dataset:
         notes.append("room2ldk4 not measured (--quick / --no-dataset)")
     else:
-        try:
-            root = find_dataset_root(args.dataset)
-        except FileNotFoundError as error:
-            root, reason = None, str(error)
-        else:
-            reason = "public dataset not found (set SPCOPYRO_DATA)"
+        root = dataset_root(args.dataset, without="room2ldk4 is not measured")
         if root is None:
-            notes.append(f"room2ldk4 not measured: {reason}")
+            notes.append("room2ldk4 not measured: public dataset not found (set SPCOPYRO_DATA)")
         else:
             _, data = prepare_model_data(load_house(root / "room2ldk4"), settings)
             out.append(("room2ldk4", data, settings.model))

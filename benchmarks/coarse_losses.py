@@ -37,11 +37,12 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from bench_cli import dataset_root
 from collapse_terms import terms  # a script beside this one (its folder is on sys.path)
 from scipy import ndimage
 
 from spcopyro.config import DEFAULT_PRESET, preset
-from spcopyro.data import find_dataset_root, load_house
+from spcopyro.data import load_house
 from spcopyro.data.model_grid import model_house
 from spcopyro.fit.house import fit_house, prepare_model_data, preset_fit_kwargs
 from spcopyro.fit.image_weight import fit_two_stage
@@ -130,9 +131,8 @@ def houses(seeds: int, fit_seeds: list[int], maps: tuple[str, ...]):
         for seed in range(seeds):
             house = make_house(seed=seed, spec=spec())
             yield f"{kind} {seed}", house, house.truth, seed
-    root = find_dataset_root()
+    root = dataset_root(without="the simulated maps are skipped")
     if root is None:
-        print("simulated maps skipped: no dataset", file=sys.stderr)
         return
     for name in maps:
         grid = load_house(Path(root) / name).grid

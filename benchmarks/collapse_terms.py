@@ -34,10 +34,11 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from bench_cli import dataset_root
 from scipy.special import gammaln
 
 from spcopyro.config import preset
-from spcopyro.data import find_dataset_root, load_house
+from spcopyro.data import load_house
 from spcopyro.data.model_grid import model_house
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.fit.house import prepare_model_data
@@ -121,12 +122,10 @@ def main(argv: list[str] | None = None) -> int:
     logging.getLogger("spcopyro").setLevel(logging.ERROR)
     torch.set_num_threads(1)
     houses = {}
-    root = find_dataset_root()
+    root = dataset_root(without="the public house room1dk5 is skipped")
     if root is not None:
         house = load_house(Path(root) / "room1dk5")
         houses["room1dk5 (public)"] = (house, public_truth(house).labels)
-    else:
-        print("public house skipped: no dataset at $SPCOPYRO_DATA or ../shared/data/spcomapping")
     synthetic = make_house(seed=0, spec=HouseSpec.open_plan())
     houses["open-plan seed 0 (synthetic)"] = (synthetic, synthetic.truth)
     report = {}

@@ -57,9 +57,9 @@ from typing import Any
 SCRIPT_DIR = Path(__file__).resolve().parent
 sys.path.insert(0, str(SCRIPT_DIR))
 
-from fixed_cost import (  # noqa: E402  (a script beside this one)
+from bench_cli import dataset_root  # noqa: E402  (scripts beside this one)
+from fixed_cost import (  # noqa: E402
     _table,
-    dataset_or_note,
     measure_startup,
     render_startup,
     run_fit_process,
@@ -197,7 +197,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
-    root = dataset_or_note(args.dataset, without="the public houses are skipped")
+    root = dataset_root(args.dataset, without="the public houses are skipped")
     houses = [h.strip() for h in args.houses.split(",") if h.strip()]
     sweeps, repeats, startup_repeats = args.sweeps, max(args.repeats, 1), args.startup_repeats
     if args.quick:

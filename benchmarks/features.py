@@ -47,8 +47,9 @@ import cv2
 import numpy as np
 import torch
 import torchvision
+from bench_cli import dataset_root
 
-from spcopyro.data import find_dataset_root, load_house
+from spcopyro.data import load_house
 from spcopyro.features.backbone import torchvision_cache_file
 from spcopyro.features.distill import distillation_report
 from spcopyro.features.extract import extract_features
@@ -267,7 +268,8 @@ def main(argv: list[str] | None = None) -> int:
         int(b) for b in (args.batch_sizes or ("1,8" if args.quick else "1,8,32")).split(",")
     ]
     weights = args.weights or default_weights()
-    dataset = None if args.no_dataset else find_dataset_root(args.dataset)
+    without = "synthetic images are used and the distillation is skipped"
+    dataset = None if args.no_dataset else dataset_root(args.dataset, without=without)
     num_images = 16 if args.quick else 64
     min_seconds = 0.3 if args.quick else 2.0
     repeats = 1 if args.quick else 3

@@ -68,6 +68,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from bench_cli import dataset_root
+
 SCRIPT_DIR = Path(__file__).resolve().parent
 ROOT = SCRIPT_DIR.parent
 TARGET_SECONDS = 2.0  # issue #15 item 2: under 2 s outside the sweeps (room2ldk4)
@@ -372,24 +374,9 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
-def dataset_or_note(
-    path: Path | None, without: str = "using the synthetic default house"
-) -> Path | None:
-    """The public dataset's root (``--dataset``, ``$SPCOPYRO_DATA`` or ../shared), or None with a
-    note saying what the benchmark does ``without`` it."""
-    sys.path.insert(0, str(ROOT))
-    from spcopyro.data.dataset import find_dataset_root
-
-    try:
-        return find_dataset_root(path)
-    except FileNotFoundError as error:
-        print(f"note: {error}; {without}", file=sys.stderr)
-        return None
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
-    dataset = dataset_or_note(args.dataset)
+    dataset = dataset_root(args.dataset, without="using the synthetic default house")
     if args.quick:
         presets, sweeps, figures, repeats = ["paper-dp"], (1, 3), [False], 1
     else:

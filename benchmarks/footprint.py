@@ -28,10 +28,11 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from bench_cli import dataset_root
 from machine import format_table, machine_info, progress
 
 from spcopyro.config import preset
-from spcopyro.data import find_dataset_root, load_house
+from spcopyro.data import load_house
 from spcopyro.experiments.methods import fit_spco
 from spcopyro.fit.house import prepare_model_data
 from spcopyro.metrics import adjusted_rand_index
@@ -63,11 +64,7 @@ def _settings(preset_name: str, **changes: object):
 
 def run(args: argparse.Namespace) -> dict[str, object]:
     torch.set_num_threads(1)
-    root = None
-    try:
-        root = find_dataset_root()
-    except (FileNotFoundError, ValueError):
-        progress("public dataset not found: synthetic houses only")
+    root = dataset_root(without="synthetic houses only")
     rows = []
     for preset_name in args.presets:
         for house_name in args.houses:

@@ -63,6 +63,7 @@ from typing import Any
 
 import numpy as np
 import torch
+from bench_cli import dataset_root
 from bench_setup import (
     HEADLINE_HOUSE,
     SEED,
@@ -98,7 +99,7 @@ from machine import (
 )
 
 from spcopyro.config import SpCoSettings, preset
-from spcopyro.data import House, find_dataset_root, list_houses, load_house
+from spcopyro.data import House, list_houses, load_house
 from spcopyro.gibbs import GibbsOptions, GibbsState, run_gibbs
 from spcopyro.synthetic import make_house
 
@@ -610,7 +611,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.no_dataset:
         dataset = None
     else:
-        dataset = find_dataset_root(args.dataset)
+        dataset = dataset_root(args.dataset, without="per-house timings skipped")
     if args.child_run is not None:
         print(json.dumps(child_run(dataset, args.child_run, args.child_sweeps)))
         return 0
@@ -623,8 +624,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         progress(f"backend {name}: {note}")
     if not backends:
         raise SystemExit(f"none of the backends {args.backend_list} can be loaded: {notes}")
-    if dataset is None:
-        progress("public dataset not found: per-house timings skipped, synthetic maps only")
 
     results: dict[str, Any] = {
         "quick": args.quick,

@@ -32,10 +32,11 @@ from typing import Any
 
 import numpy as np
 import torch
+from bench_cli import dataset_root
 from machine import available_backends, format_table, machine_info, progress
 
 from spcopyro.config import preset
-from spcopyro.data import find_dataset_root, load_house
+from spcopyro.data import load_house
 from spcopyro.fit.house import prepare_model_data
 from spcopyro.gibbs import GibbsOptions, run_gibbs
 from spcopyro.gibbs.hyper_options import HyperparameterOptions
@@ -93,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
     backend = "numba" if "numba" in available_backends(["numba"])[0] else "torch"
     houses = [("synthetic", make_house(), sweeps)]
     if public_sweeps:
-        root = find_dataset_root()
+        root = dataset_root(without=f"{PUBLIC_HOUSE} is left out")
         if root is None or not (root / PUBLIC_HOUSE).is_dir():
             progress(f"note: the public dataset is absent: {PUBLIC_HOUSE} left out")
         else:

@@ -34,10 +34,11 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from bench_cli import dataset_root
 from machine import format_table, machine_info
 
 from spcopyro.config import preset
-from spcopyro.data import House, find_dataset_root, load_house
+from spcopyro.data import House, load_house
 from spcopyro.fit.house import prepare_model_data
 from spcopyro.gibbs import GibbsOptions
 from spcopyro.gibbs.backends import get_backend
@@ -145,7 +146,8 @@ def main(argv: list[str] | None = None) -> int:
     sweeps = 12 if args.quick else args.sweeps
     houses = [make_house(seed=0)]
     notes = []
-    root = None if args.quick or not args.public else find_dataset_root()
+    without = "the public house is skipped"
+    root = None if args.quick or not args.public else dataset_root(without=without)
     if root is not None:
         houses.append(load_house(root / args.public))
     elif args.public and not args.quick:

@@ -44,9 +44,10 @@ import time
 from pathlib import Path
 
 import numpy as np
+from bench_cli import dataset_root
 
 from spcopyro.config import DEFAULT_PRESET, preset
-from spcopyro.data import find_dataset_root, load_house, place_observations
+from spcopyro.data import load_house, place_observations
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
 from spcopyro.fit.house import fit_house, preset_fit_kwargs
@@ -199,9 +200,9 @@ def main(argv: list[str] | None = None) -> int:
                                  "radius": args.radius, "planner": args.planner}  # fmt: skip
     text = [f"# navigate on held-out place words (maps of {', '.join(PRESETS)}; {args.sweeps} "
             f"sweeps, fold 0; {args.planner} planner)", ""]  # fmt: skip
-    root = find_dataset_root()
+    root = dataset_root(without="the public houses are skipped")
     if root is None:
-        text.append("public houses skipped: no dataset at $SPCOPYRO_DATA")
+        text.append("public houses skipped: no dataset")
     elif not args.no_public:
         public = {}
         for name in houses:

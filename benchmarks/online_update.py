@@ -49,10 +49,11 @@ from typing import Any
 
 import numpy as np
 import torch
+from bench_cli import dataset_root
 from machine import format_table, machine_info, progress
 
 from spcopyro.config import preset
-from spcopyro.data import House, find_dataset_root, load_house
+from spcopyro.data import House, load_house
 from spcopyro.fit.house import fit_house, result_of
 from spcopyro.gibbs.method import output_from_run
 from spcopyro.gibbs.run import advance
@@ -236,10 +237,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.quick:
         names, args.seeds, args.sweeps, checkpoints = ["synthetic"], 2, 40, (0, 5, 10)
     settings = preset(args.preset, gamma=args.gamma)
-    try:
-        root = find_dataset_root()
-    except FileNotFoundError:
-        root = None
+    root = dataset_root(without="the public houses are skipped")
     records = []
     for house in houses(names, root):
         records.append(run_house(house, settings, args.sweeps, list(range(args.seeds)),

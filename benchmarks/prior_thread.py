@@ -39,12 +39,12 @@ from pathlib import Path
 from typing import Any
 
 import torch
+from bench_cli import dataset_root
 from bench_setup import load_headline_house, make_problem
 from machine import format_table, machine_info, progress
 from threads import busy_neighbour, other_load
 
 from spcopyro.config import preset
-from spcopyro.data import find_dataset_root
 from spcopyro.gibbs import GibbsOptions, GibbsState
 from spcopyro.gibbs.numba_globals import prior_thread
 from spcopyro.gibbs.numba_sweep import gibbs_sweep_numba
@@ -97,7 +97,7 @@ def main() -> None:
     args = parser.parse_args()
     blocks, block = (2, 3) if args.quick else (15, 40)
     torch.set_num_threads(1)
-    dataset = find_dataset_root()
+    dataset = dataset_root(without="a synthetic stand-in for room2ldk4 is used")
     house = load_headline_house(dataset)
     problem = make_problem(house, preset("paper-dp"))
     chain = start_chain(problem.data, problem.config, options=GibbsOptions(backend="numba"),

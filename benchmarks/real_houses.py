@@ -50,11 +50,12 @@ import time
 from pathlib import Path
 
 import numpy as np
+from bench_cli import dataset_root
 
 from spcopyro.baselines.geometry import geometry_semantic_map
 from spcopyro.baselines.nearest import nearest_word_map
 from spcopyro.config import DEFAULT_PRESET, preset
-from spcopyro.data import find_dataset_root, load_house
+from spcopyro.data import load_house
 from spcopyro.experiments.ablation import concepts_over, largest_share
 from spcopyro.experiments.open_plan import observation_oracle
 from spcopyro.experiments.public_truth import public_truth
@@ -347,11 +348,9 @@ def main(argv: list[str] | None = None) -> int:
     logging.getLogger("spcopyro").setLevel(logging.ERROR)
     report: dict[str, object] = {"default_preset": DEFAULT_PRESET, "sweeps": args.sweeps}
     text = [f"# Real houses (default preset {DEFAULT_PRESET!r}, {args.sweeps} sweeps, seed 0)", ""]
-    root = find_dataset_root()
+    root = dataset_root(without="the public houses are skipped")
     if root is None:
-        text.append(
-            "public houses skipped: no dataset at $SPCOPYRO_DATA or ../shared/data/spcomapping"
-        )
+        text.append("public houses skipped: no dataset")
     else:
         public = {}
         for name in houses:

@@ -48,6 +48,7 @@ from pathlib import Path
 from typing import Any
 
 import torch
+from bench_cli import dataset_root
 from machine import (
     available_backends,
     busy_cpu_seconds,
@@ -60,7 +61,7 @@ from machine import (
 
 from spcopyro._util.threads import MIN_CELLS_FOR_MORE_THREADS, resolve_threads, torch_threads
 from spcopyro.config import preset
-from spcopyro.data import House, find_dataset_root, load_house
+from spcopyro.data import House, load_house
 from spcopyro.fit.house import prepare_model_data
 from spcopyro.gibbs import GibbsOptions, run_gibbs
 from spcopyro.model import ModelData
@@ -431,7 +432,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     notes += [f"backend {name} skipped: {why}" for name, why in skipped.items()]
     if not backends:
         raise SystemExit(f"no backend to measure: {skipped}")
-    dataset = None if args.no_dataset else find_dataset_root(args.dataset)
+    without = f"{PUBLIC_HOUSE} is not measured"
+    dataset = None if args.no_dataset else dataset_root(args.dataset, without=without)
     results: dict[str, Any] = {
         "machine": machine_info(), "sizes": {**sizes.__dict__, "synthetic_spec": None
                                              if sizes.synthetic_spec is None else "quick"},

@@ -34,11 +34,12 @@ import time
 from pathlib import Path
 
 import numpy as np
+from bench_cli import dataset_root
 from real_houses import on_map, scores  # a script beside this one (its folder is on sys.path)
 
 from spcopyro.baselines.geometry import geometry_semantic_map
 from spcopyro.config import DEFAULT_PRESET, preset
-from spcopyro.data import find_dataset_root, load_house
+from spcopyro.data import load_house
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
 from spcopyro.fit.house import fit_house, preset_fit_kwargs
@@ -136,9 +137,9 @@ def main(argv: list[str] | None = None) -> int:
     logging.getLogger("spcopyro").setLevel(logging.ERROR)
     report: dict[str, object] = {"sweeps": args.sweeps}
     text = [f"# Two-stage image weight against {DEFAULT_PRESET!r} ({args.sweeps} sweeps a stage)"]
-    root = find_dataset_root()
+    root = dataset_root(without="the public houses are skipped")
     if root is None:
-        text.append("public houses skipped: no dataset at $SPCOPYRO_DATA")
+        text.append("public houses skipped: no dataset")
     else:
         houses = {name: load_house(Path(root) / name) for name in names}
         public = {n: compare(h, public_truth(h).labels, args.sweeps, 0) for n, h in houses.items()}

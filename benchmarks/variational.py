@@ -41,10 +41,11 @@ from typing import Any
 
 import numpy as np
 import torch
+from bench_cli import dataset_root
 from machine import format_table, machine_info, progress, wait_until_idle
 
 from spcopyro.config import SpCoSettings, preset
-from spcopyro.data import find_dataset_root, load_house
+from spcopyro.data import load_house
 from spcopyro.fit.house import prepare_model_data
 from spcopyro.gibbs import init
 from spcopyro.gibbs.backends import get_backend
@@ -385,13 +386,12 @@ def main(argv: list[str] | None = None) -> int:
         "variational_quick.json" if args.quick else "variational_results.json"
     )
     started = time.perf_counter()
-    dataset = None if args.no_dataset else find_dataset_root(args.dataset)
+    without = "the synthetic house only"
+    dataset = None if args.no_dataset else dataset_root(args.dataset, without=without)
     synthetic = make_house(seed=SEED)
     houses: dict[str, Any] = {}
     if dataset is not None and not args.quick:
         houses["room2ldk4"] = load_house(dataset / "room2ldk4")
-    elif dataset is None:
-        progress("public dataset not found: the synthetic house only")
     houses["synthetic"] = synthetic
     waited = wait_until_idle(args.wait_idle)
     results: dict[str, Any] = {

@@ -6,9 +6,11 @@ PYTHONPATH), whichever copy the environment has installed.
 
 from __future__ import annotations
 
+import importlib
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -299,3 +301,43 @@ def test_study_order_benchmark_quick(tmp_path):
     results = json.loads(out.read_text())
     assert [run["order"] for run in results["runs"]][:2] == ["table", "longest first"]
     assert results["same_numbers"] is True and "mean wall" in done.stdout
+
+
+# ---------------------------------------------------------------------------------------------
+# The scripts' command lines, checked without running a benchmark: the scripts are imported
+# from benchmarks/ (their folder on sys.path, as when they run) and parse their arguments.
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.fixture
+def script(monkeypatch):
+    """Import a benchmark script by name (``script("gibbs")``)."""
+    monkeypatch.syspath_prepend(str(BENCHMARKS))
+    return importlib.import_module
+
+
+def test_dataset_root_note_or_one_line_error(script, tmp_path, monkeypatch, capsys):
+    """An empty $SPCOPYRO_DATA: a note and None where the script can go on without the dataset,
+    a one-line error (exit 2) where it cannot or where --dataset names a folder that is none."""
+    bench_cli = script("bench_cli")
+    monkeypatch.setenv("SPCOPYRO_DATA", str(tmp_path))
+    assert bench_cli.dataset_root(without="the public houses are skipped") is None
+    assert "holds no map/ folder; the public houses are skipped" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as stop:
+        bench_cli.dataset_root()
+    assert stop.value.code == 2 and "error: dataset folder" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as stop:
+        bench_cli.dataset_root(tmp_path / "none", without="skipped")
+    assert stop.value.code == 2
+
+
+def test_scripts_find_the_dataset_through_bench_cli():
+    """find_dataset_root raises on an empty $SPCOPYRO_DATA: every script goes through
+    bench_cli.dataset_root, which turns that into a note or a one-line error."""
+    call = re.compile(r"(=|else|return)\s+find_dataset_root\(")
+    calls = [
+        path.name
+        for path in BENCHMARKS.glob("*.py")
+        if path.name != "bench_cli.py" and call.search(path.read_text())
+    ]
+    assert calls == []

@@ -1,0 +1,122 @@
+"""The command-line plumbing every benchmark script shares: the dataset, houses asked for by
+name, what ``--quick`` sets, one-line errors and Ctrl-C.
+
+Imports nothing of the package at module level (``fixed_cost.py`` times fits as fresh
+processes and keeps its own imports light); the scripts import it from their own folder, which
+is on ``sys.path`` when they run.
+
+* :func:`dataset_root`: the public dataset, or a one-line note and None (scripts that skip the
+  public houses or use a synthetic stand-in), or a one-line error and exit 2 (scripts that need
+  it, and a ``--dataset`` that is not one).
+* :func:`house_folder`: a house asked for by name, or a one-line error naming the houses there.
+* :func:`quick_or`: the rule for ``--quick``: it only changes the defaults; an option given
+  explicitly wins over ``--quick``'s value (options whose default depends on ``--quick`` default
+  to None in the parser).
+* :func:`run_main`: runs ``main``; Ctrl-C ends it with one line and exit status 130.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import NoReturn, TypeVar
+
+T = TypeVar("T")
+
+SCRIPT_DIR = Path(__file__).resolve().parent
+ROOT = SCRIPT_DIR.parent
+
+# JSON files a script writes as it goes (its partial results), named in the Ctrl-C line.
+WRITTEN: list[Path] = []
+
+
+def fail(message: str) -> NoReturn:
+    """Print ``SCRIPT: error: message`` on stderr and exit 2 (argparse's usage-error status)."""
+    print(f"{Path(sys.argv[0]).name}: error: {message}", file=sys.stderr)
+    raise SystemExit(2)
+
+
+def quick_or(value: T | None, quick: bool, quick_value: T, full_value: T) -> T:
+    """An option's value: as given (not None) wins; else ``quick_value`` under ``--quick``,
+    ``full_value`` otherwise."""
+    if value is not None:
+        return value
+    return quick_value if quick else full_value
+
+
+def dataset_root(
+    path: str | os.PathLike[str] | None = None, without: str | None = None
+) -> Path | None:
+    """The public dataset's root (``path``, i.e. ``--dataset``, else ``$SPCOPYRO_DATA``, else
+    ../shared/data/spcomapping; :func:`spcopyro.data.find_dataset_root`).
+
+    Not found (or ``$SPCOPYRO_DATA`` names a folder that is not one): with ``without`` (what the
+    script does instead, e.g. "the public houses are skipped") a one-line note on stderr and
+    None; with ``without`` None (the script needs the dataset) a one-line error and exit 2. A
+    ``path`` given explicitly that is not a dataset is always an error."""
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    from spcopyro.data.dataset import find_dataset_root
+
+    try:
+        root = find_dataset_root(path)
+    except FileNotFoundError as error:
+        if path is not None or without is None:
+            fail(str(error))
+        print(f"note: {error}; {without}", file=sys.stderr)
+        return None
+    if root is None:
+        where = "no public dataset found ($SPCOPYRO_DATA, ../shared/data/spcomapping, --dataset)"
+        if without is None:
+            fail(where)
+        print(f"note: {where}; {without}", file=sys.stderr)
+    return root
+
+
+def available_houses(root: Path) -> list[str]:
+    """The houses of the dataset at ``root`` (:func:`spcopyro.data.list_houses`)."""
+    from spcopyro.data.dataset import list_houses
+
+    return list_houses(root)
+
+
+def house_folder(root: Path | None, name: str, option: str = "--houses") -> Path:
+    """The folder of the public house ``name`` asked for by ``option``: a one-line error (exit
+    2) naming the house and the houses there when the dataset lacks it or was not found."""
+    if root is None:
+        fail(f"{option} {name}: the public dataset was not found ($SPCOPYRO_DATA, "
+             "../shared/data/spcomapping, --dataset)")  # fmt: skip
+    houses = available_houses(root)
+    if name not in houses:
+        fail(f"{option}: no house {name!r} in {root}; houses: {', '.join(houses) or 'none'}")
+    return Path(root) / name
+
+
+def check_houses(root: Path | None, names: Sequence[str], option: str = "--houses",
+                 synthetic: Sequence[str] = ()) -> None:  # fmt: skip
+    """:func:`house_folder` for every name of ``names`` not in ``synthetic`` (the script's own
+    synthetic houses); an unknown name without the dataset is named with the choices."""
+    for name in names:
+        if name in synthetic:
+            continue
+        if root is None and synthetic:
+            fail(f"{option} {name}: not one of {', '.join(synthetic)}, and the public "
+                 "dataset was not found ($SPCOPYRO_DATA, ../shared/data/spcomapping, "
+                 "--dataset)")  # fmt: skip
+        house_folder(root, name, option)
+
+
+def run_main(main: Callable[[], int | None]) -> NoReturn:
+    """``sys.exit(main())``, except that Ctrl-C (KeyboardInterrupt) ends the script with one
+    line (what was written so far, :data:`WRITTEN`, or "no JSON written") and status 130
+    instead of a traceback."""
+    try:
+        code = main()
+    except KeyboardInterrupt:
+        written = [str(p) for p in WRITTEN if p.is_file()]
+        what = f"{', '.join(written)} holds the results so far" if written else "no JSON written"
+        print(f"\ninterrupted: {what}", file=sys.stderr)
+        raise SystemExit(130) from None
+    raise SystemExit(code or 0)
