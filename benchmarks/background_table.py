@@ -29,13 +29,12 @@ import argparse
 import json
 import logging
 import statistics
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import torch
-from bench_cli import dataset_root
+from bench_cli import dataset_root, run_main
 from machine import format_table, machine_info, progress
 
 from spcopyro.config import DEFAULT_PRESET, preset
@@ -128,4 +127,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main(main)

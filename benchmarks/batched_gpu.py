@@ -45,7 +45,7 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from bench_cli import dataset_root
+from bench_cli import dataset_root, run_main
 from machine import busy_cpu_seconds, format_table, machine_info, own_cpu_seconds, progress
 
 from spcopyro._util.threads import resolve_threads, torch_threads
@@ -285,4 +285,4 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    run_main(main)

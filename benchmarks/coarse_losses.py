@@ -33,11 +33,10 @@ import argparse
 import dataclasses
 import json
 import logging
-import sys
 from pathlib import Path
 
 import numpy as np
-from bench_cli import dataset_root
+from bench_cli import dataset_root, run_main
 from collapse_terms import terms  # a script beside this one (its folder is on sys.path)
 from scipy import ndimage
 
@@ -192,4 +191,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main(main)

@@ -57,7 +57,7 @@ from typing import Any
 SCRIPT_DIR = Path(__file__).resolve().parent
 sys.path.insert(0, str(SCRIPT_DIR))
 
-from bench_cli import dataset_root  # noqa: E402  (scripts beside this one)
+from bench_cli import dataset_root, run_main  # noqa: E402  (scripts beside this one)
 from fixed_cost import (  # noqa: E402
     _table,
     measure_startup,
@@ -250,4 +250,4 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main(main)

@@ -47,7 +47,7 @@ import cv2
 import numpy as np
 import torch
 import torchvision
-from bench_cli import dataset_root
+from bench_cli import dataset_root, run_main
 
 from spcopyro.data import load_house
 from spcopyro.features.backbone import torchvision_cache_file
@@ -341,4 +341,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main(main)

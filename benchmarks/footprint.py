@@ -22,13 +22,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import torch
-from bench_cli import dataset_root
+from bench_cli import WRITTEN, dataset_root, run_main
 from machine import format_table, machine_info, progress
 
 from spcopyro.config import preset
@@ -60,6 +59,12 @@ def _house(name: str, seed: int, root: Path | None):
 def _settings(preset_name: str, **changes: object):
     base = "original-code" if preset_name.startswith("original-code") else preset_name
     return preset(base, **PRESETS[preset_name], **changes)
+
+
+def partial_path(out: Path) -> Path:
+    """Where the rows done so far are kept while ``out`` is being computed (removed when
+    ``out`` is written)."""
+    return out.with_suffix(".partial.json")
 
 
 def run(args: argparse.Namespace) -> dict[str, object]:
@@ -104,7 +109,9 @@ def run(args: argparse.Namespace) -> dict[str, object]:
                     rows.append(row)
                     if args.out is not None:  # partial results survive an interrupted run
                         partial = [{k: v for k, v in r.items() if k != "_image"} for r in rows]
-                        args.out.with_suffix(".partial.json").write_text(json.dumps(partial))
+                        partial_path(args.out).write_text(json.dumps(partial))
+                        if partial_path(args.out) not in WRITTEN:
+                            WRITTEN.append(partial_path(args.out))  # named if interrupted
                     progress(
                         f"{preset_name} {house_name} seed {seed} {label}: ARI truth "
                         f"{row['ari_truth']}, vs no obs {row['ari_vs_no_observations']:.3f}, "
@@ -190,9 +197,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"Footprint: {args.sweeps} sweeps, seeds {args.seeds}")
     print(summary_table(results))
     out.write_text(json.dumps(results, indent=1))
+    partial_path(out).unlink(missing_ok=True)
     print(f"wrote {out}")
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main(main)

@@ -63,7 +63,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from bench_cli import dataset_root
+from bench_cli import dataset_root, run_main
 from bench_setup import (
     HEADLINE_HOUSE,
     SEED,
@@ -693,4 +693,4 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main(main)

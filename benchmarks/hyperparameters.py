@@ -26,13 +26,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
-from bench_cli import dataset_root
+from bench_cli import dataset_root, run_main
 from machine import available_backends, format_table, machine_info, progress
 
 from spcopyro.config import preset
@@ -129,4 +128,4 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     np.set_printoptions(precision=3)
-    sys.exit(main())
+    run_main(main)

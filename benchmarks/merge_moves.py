@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from bench_cli import dataset_root
+from bench_cli import dataset_root, run_main
 from machine import format_table, machine_info
 
 from spcopyro.config import preset
@@ -188,4 +188,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main(main)

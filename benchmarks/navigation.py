@@ -44,7 +44,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_cli import dataset_root
+from bench_cli import dataset_root, run_main
 
 from spcopyro.config import DEFAULT_PRESET, preset
 from spcopyro.data import load_house, place_observations
@@ -236,4 +236,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main(main)

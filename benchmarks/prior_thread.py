@@ -39,7 +39,7 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from bench_cli import dataset_root
+from bench_cli import dataset_root, run_main
 from bench_setup import load_headline_house, make_problem
 from machine import format_table, machine_info, progress
 from threads import busy_neighbour, other_load
@@ -143,4 +143,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    run_main(main)

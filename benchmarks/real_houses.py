@@ -50,7 +50,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_cli import dataset_root
+from bench_cli import dataset_root, run_main
 
 from spcopyro.baselines.geometry import geometry_semantic_map
 from spcopyro.baselines.nearest import nearest_word_map
@@ -377,4 +377,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main(main)

@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 import torch
+from bench_cli import run_main
 from machine import busy_cpu_seconds, format_table, machine_info, own_cpu_seconds, progress
 
 SCRIPT_DIR = Path(__file__).resolve().parent
@@ -427,4 +428,4 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main(main)

@@ -28,7 +28,6 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
-import sys
 import tempfile
 import time
 from collections.abc import Sequence
@@ -36,6 +35,7 @@ from contextlib import nullcontext
 from pathlib import Path
 from unittest.mock import patch
 
+from bench_cli import run_main
 from machine import busy_cpu_seconds, machine_info, own_cpu_seconds, progress
 
 from spcopyro.study import local_cluster
@@ -209,4 +209,4 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main(main)

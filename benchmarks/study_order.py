@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import tempfile
 import time
 from collections.abc import Sequence
@@ -25,6 +24,7 @@ from contextlib import nullcontext
 from pathlib import Path
 from unittest.mock import patch
 
+from bench_cli import run_main
 from machine import machine_info, progress
 from study_dask import scores
 
@@ -97,4 +97,4 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main(main)

@@ -48,7 +48,7 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from bench_cli import dataset_root
+from bench_cli import dataset_root, run_main
 from machine import (
     available_backends,
     busy_cpu_seconds,
@@ -456,4 +456,4 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main(main)

@@ -34,7 +34,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_cli import dataset_root
+from bench_cli import dataset_root, run_main
 from real_houses import on_map, scores  # a script beside this one (its folder is on sys.path)
 
 from spcopyro.baselines.geometry import geometry_semantic_map
@@ -184,4 +184,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main(main)

@@ -34,14 +34,13 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
-from bench_cli import dataset_root
+from bench_cli import dataset_root, run_main
 from machine import format_table, machine_info, progress, wait_until_idle
 
 from spcopyro.config import SpCoSettings, preset
@@ -414,4 +413,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_main(main)

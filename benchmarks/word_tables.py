@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from bench_cli import run_main
 
 from spcopyro.config import preset
 from spcopyro.fit.gibbs_chains import with_sample_marginals
@@ -145,4 +146,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    run_main(main)

@@ -341,3 +341,41 @@ def test_scripts_find_the_dataset_through_bench_cli():
         if path.name != "bench_cli.py" and call.search(path.read_text())
     ]
     assert calls == []
+
+
+def test_run_main_interrupted_one_line_and_130(script, tmp_path, capsys):
+    """Ctrl-C: no traceback, one line saying what was (not) written, exit status 130."""
+    bench_cli = script("bench_cli")
+
+    def interrupted() -> int:
+        raise KeyboardInterrupt
+
+    with pytest.raises(SystemExit) as stop:
+        bench_cli.run_main(interrupted)
+    assert stop.value.code == 130
+    assert capsys.readouterr().err.strip() == "interrupted: no JSON written"
+    partial = tmp_path / "x.partial.json"
+    partial.write_text("[]")
+    bench_cli.WRITTEN.append(partial)
+    try:
+        with pytest.raises(SystemExit):
+            bench_cli.run_main(interrupted)
+    finally:
+        bench_cli.WRITTEN.remove(partial)
+    assert f"interrupted: {partial} holds the results so far" in capsys.readouterr().err
+
+
+def test_every_script_runs_main_through_run_main():
+    """Each runnable script ends in bench_cli.run_main(main), not sys.exit(main())."""
+    runnable = [p for p in BENCHMARKS.glob("*.py") if '__name__ == "__main__"' in p.read_text()]
+    assert len(runnable) >= 20
+    assert [p.name for p in runnable if "    run_main(main)\n" not in p.read_text()] == []
+
+
+@pytest.mark.slow
+def test_footprint_quick_leaves_no_partial_file(tmp_path):
+    out = tmp_path / "footprint.json"
+    done = run_benchmark("footprint.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert json.loads(out.read_text())["rows"]
+    assert not (tmp_path / "footprint.partial.json").exists()
