@@ -36,7 +36,7 @@ import logging
 from pathlib import Path
 
 import numpy as np
-from bench_cli import dataset_root, run_main
+from bench_cli import SCRIPT_DIR, dataset_root, run_main
 from collapse_terms import terms  # a script beside this one (its folder is on sys.path)
 from scipy import ndimage
 
@@ -145,7 +145,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sweeps", type=int, default=2000)
     parser.add_argument("--seeds", type=int, default=3, help="synthetic seeds 0..n-1")
     parser.add_argument("--fit-seeds", type=int, nargs="+", default=[0], help="simulated maps")
-    parser.add_argument("--out", default="benchmarks/coarse_losses.json")
+    parser.add_argument(
+        "--out",
+        default=str(SCRIPT_DIR / "coarse_losses.json"),
+        help="JSON output (default benchmarks/coarse_losses.json)",
+    )
     parser.add_argument("--quick", action="store_true", help="60 sweeps, seed 0, room1dk6 only")
     parser.add_argument("--two-stage", action="store_true",
                         help="take apart the two-stage fit (spcopyro.fit.image_weight: --sweeps "

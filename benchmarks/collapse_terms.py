@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from bench_cli import dataset_root, run_main
+from bench_cli import SCRIPT_DIR, dataset_root, run_main
 from scipy.special import gammaln
 
 from spcopyro.config import preset
@@ -115,7 +115,11 @@ def compare(house, truth: np.ndarray) -> dict[str, dict[str, float]]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default="benchmarks/collapse_terms.json")
+    parser.add_argument(
+        "--out",
+        default=str(SCRIPT_DIR / "collapse_terms.json"),
+        help="JSON output (default benchmarks/collapse_terms.json)",
+    )
     parser.add_argument("--quick", action="store_true", help="accepted for the smoke tests")
     args = parser.parse_args(argv)
     logging.getLogger("spcopyro").setLevel(logging.ERROR)

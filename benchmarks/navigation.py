@@ -44,7 +44,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_cli import dataset_root, run_main
+from bench_cli import SCRIPT_DIR, dataset_root, run_main
 
 from spcopyro.config import DEFAULT_PRESET, preset
 from spcopyro.data import load_house, place_observations
@@ -184,7 +184,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sweeps", type=int, default=2000)
     parser.add_argument("--seeds", type=int, default=3, help="synthetic seeds 0..n-1")
     parser.add_argument("--radius", type=float, default=0.2, help="the robot's, metres")
-    parser.add_argument("--out", default="benchmarks/navigation.json")
+    parser.add_argument(
+        "--out",
+        default=str(SCRIPT_DIR / "navigation.json"),
+        help="JSON output (default benchmarks/navigation.json)",
+    )
     parser.add_argument("--no-synthetic", action="store_true")
     parser.add_argument("--no-public", action="store_true")
     parser.add_argument("--planner", choices=("hierarchical", "grid"), default="hierarchical")

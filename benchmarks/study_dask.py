@@ -35,7 +35,7 @@ from contextlib import nullcontext
 from pathlib import Path
 from unittest.mock import patch
 
-from bench_cli import run_main
+from bench_cli import SCRIPT_DIR, run_main
 from machine import busy_cpu_seconds, machine_info, own_cpu_seconds, progress
 
 from spcopyro.study import local_cluster
@@ -122,7 +122,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--pairs", type=int, default=None,
                         help="(in-process, cluster) pairs of runs, alternated; the median "
                              "ratio is the verdict (default 5; quick: 1)")  # fmt: skip
-    parser.add_argument("--out", default="benchmarks/study_dask.json")
+    parser.add_argument(
+        "--out",
+        default=str(SCRIPT_DIR / "study_dask.json"),
+        help="JSON output (default benchmarks/study_dask.json)",
+    )
     args = parser.parse_args(argv)
     sweeps = args.sweeps or (10 if args.quick else 2000)
     args.pairs = args.pairs or (1 if args.quick else 5)

@@ -24,7 +24,7 @@ from contextlib import nullcontext
 from pathlib import Path
 from unittest.mock import patch
 
-from bench_cli import run_main
+from bench_cli import SCRIPT_DIR, run_main
 from machine import machine_info, progress
 from study_dask import scores
 
@@ -66,7 +66,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="smoke test: a few sweeps")
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=2)
-    parser.add_argument("--out", default="benchmarks/study_order.json")
+    parser.add_argument(
+        "--out",
+        default=str(SCRIPT_DIR / "study_order.json"),
+        help="JSON output (default benchmarks/study_order.json)",
+    )
     args = parser.parse_args(argv)
     study = mixed_study(args.quick)
     runs, tables = [], []

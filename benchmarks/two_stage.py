@@ -34,7 +34,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_cli import dataset_root, run_main
+from bench_cli import SCRIPT_DIR, dataset_root, run_main
 from real_houses import on_map, scores  # a script beside this one (its folder is on sys.path)
 
 from spcopyro.baselines.geometry import geometry_semantic_map
@@ -127,7 +127,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, default=3, help="synthetic seeds 0..n-1")
     parser.add_argument("--fit-seeds", type=int, nargs="+", default=[0, 1, 2],
                         help="fit seeds of the simulated public maps")  # fmt: skip
-    parser.add_argument("--out", default="benchmarks/two_stage.json")
+    parser.add_argument(
+        "--out",
+        default=str(SCRIPT_DIR / "two_stage.json"),
+        help="JSON output (default benchmarks/two_stage.json)",
+    )
     parser.add_argument("--quick", action="store_true",
                         help="a smoke run: 40 sweeps, one house of each kind")  # fmt: skip
     args = parser.parse_args(argv)

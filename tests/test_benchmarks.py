@@ -6,6 +6,7 @@ PYTHONPATH), whichever copy the environment has installed.
 
 from __future__ import annotations
 
+import argparse
 import importlib
 import json
 import math
@@ -316,6 +317,29 @@ def script(monkeypatch):
     return importlib.import_module
 
 
+class _Parsed(Exception):
+    """Raised with a script's parsed arguments, before it measures anything."""
+
+
+@pytest.fixture
+def parse(script, monkeypatch):
+    """``parse("gibbs", [...])``: the namespace the script's main() parses from the argv (the
+    parser's own usage errors are SystemExit(2), as on the command line)."""
+    original = argparse.ArgumentParser.parse_args
+
+    def capture(self, args=None, namespace=None):
+        raise _Parsed(original(self, args, namespace))
+
+    monkeypatch.setattr(argparse.ArgumentParser, "parse_args", capture)
+
+    def parsed(name: str, argv: list[str]) -> argparse.Namespace:
+        with pytest.raises(_Parsed) as got:
+            script(name).main(argv)
+        return got.value.args[0]
+
+    return parsed
+
+
 def test_dataset_root_note_or_one_line_error(script, tmp_path, monkeypatch, capsys):
     """An empty $SPCOPYRO_DATA: a note and None where the script can go on without the dataset,
     a one-line error (exit 2) where it cannot or where --dataset names a folder that is none."""
@@ -379,3 +403,12 @@ def test_footprint_quick_leaves_no_partial_file(tmp_path):
     assert done.returncode == 0, done.stderr[-3000:]
     assert json.loads(out.read_text())["rows"]
     assert not (tmp_path / "footprint.partial.json").exists()
+
+
+@pytest.mark.parametrize("name", ["coarse_losses", "collapse_terms", "navigation", "real_houses",
+                                  "study_dask", "study_order", "two_stage"])  # fmt: skip
+def test_default_out_is_beside_the_script(parse, name, tmp_path, monkeypatch):
+    """The default --out is benchmarks/NAME.json wherever the script is run from (it was
+    relative to the current folder: the run failed at the end, writing the JSON)."""
+    monkeypatch.chdir(tmp_path)
+    assert Path(parse(name, []).out) == BENCHMARKS / f"{name}.json"
