@@ -45,7 +45,7 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from bench_cli import dataset_root, run_main
+from bench_cli import COUNT, SECONDS, dataset_root, quick_or, run_main
 from machine import busy_cpu_seconds, format_table, machine_info, own_cpu_seconds, progress
 
 from spcopyro._util.threads import resolve_threads, torch_threads
@@ -233,7 +233,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="smoke test: embedded house, B 1, 4")
     parser.add_argument("--out", type=Path, default=None, help="JSON output path")
-    parser.add_argument("--seconds", type=float, default=2.0, help="timing budget per point")
+    parser.add_argument("--seconds", type=SECONDS, default=None,
+                        help="timing budget per point (default 2; --quick: 0.2)")  # fmt: skip
     parser.add_argument("--dataset", type=Path, default=None,
                         help="dataset root (default: find_dataset_root())")  # fmt: skip
     parser.add_argument("--no-dataset", action="store_true", help="the embedded house only")
@@ -242,10 +243,14 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
                         "policy for B x free cells) or a count")  # fmt: skip
     args = parser.parse_args(argv)
     if args.torch_threads != "auto":
-        args.torch_threads = int(args.torch_threads)
+        try:
+            args.torch_threads = COUNT(args.torch_threads)
+        except argparse.ArgumentTypeError as error:
+            parser.error(f"argument --torch-threads: 'auto' or a count: {error}")
+    args.seconds = quick_or(args.seconds, args.quick, 0.2, 2.0)
     args.cpu_chains, args.gpu_chains = CPU_CHAINS, GPU_CHAINS
     if args.quick:
-        args.seconds, args.cpu_chains, args.gpu_chains = 0.2, (1, 4), (1, 4)
+        args.cpu_chains, args.gpu_chains = (1, 4), (1, 4)
     if args.out is None:
         args.out = HERE / ("batched_gpu_quick.json" if args.quick else "batched_gpu.json")
     return args

@@ -17,16 +17,53 @@ is on ``sys.path`` when they run.
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NoReturn, TypeVar
 
-T = TypeVar("T")
-
 SCRIPT_DIR = Path(__file__).resolve().parent
 ROOT = SCRIPT_DIR.parent
+if str(ROOT) not in sys.path:  # the checkout's package when it is not installed
+    sys.path.append(str(ROOT))
+
+from spcopyro._util.arguments import (  # noqa: E402  (light: imports nothing of the package)
+    integer_at_least,
+    non_negative_number,
+    positive_number,
+)
+
+T = TypeVar("T")
+
+COUNT = integer_at_least(1)
+"""argparse type of a count of sweeps, seeds, repeats, threads...: an int >= 1."""
+INDEX = integer_at_least(0)
+"""argparse type of a seed or a count that may be 0: an int >= 0."""
+SECONDS = positive_number("time budget is seconds")
+"""argparse type of a time budget: a finite float > 0."""
+METRES = non_negative_number("radius is metres")
+"""argparse type of a radius: a finite float >= 0."""
+WAIT = non_negative_number("wait is seconds")
+"""argparse type of --wait-idle: a finite float >= 0 (0: do not wait)."""
+
+
+def fraction(text: str) -> float:
+    """argparse type of a share: a float in [0, 1]."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"{text!r}: a share is a number in [0, 1]")
+    return value
+
+
+def counts(text: str) -> list[int]:
+    """argparse type of comma-separated counts ("1,8,32"): each an int >= 1."""
+    return [COUNT(part.strip()) for part in text.split(",")]
+
 
 # JSON files a script writes as it goes (its partial results), named in the Ctrl-C line.
 WRITTEN: list[Path] = []
@@ -47,7 +84,9 @@ def quick_or(value: T | None, quick: bool, quick_value: T, full_value: T) -> T:
 
 
 def dataset_root(
-    path: str | os.PathLike[str] | None = None, without: str | None = None
+    path: str | os.PathLike[str] | None = None,
+    without: str | None = None,
+    needed_by: str | None = None,
 ) -> Path | None:
     """The public dataset's root (``path``, i.e. ``--dataset``, else ``$SPCOPYRO_DATA``, else
     ../shared/data/spcomapping; :func:`spcopyro.data.find_dataset_root`).
@@ -55,22 +94,22 @@ def dataset_root(
     Not found (or ``$SPCOPYRO_DATA`` names a folder that is not one): with ``without`` (what the
     script does instead, e.g. "the public houses are skipped") a one-line note on stderr and
     None; with ``without`` None (the script needs the dataset) a one-line error and exit 2. A
-    ``path`` given explicitly that is not a dataset is always an error."""
-    if str(ROOT) not in sys.path:
-        sys.path.insert(0, str(ROOT))
+    ``path`` given explicitly that is not a dataset is always an error. ``needed_by`` (e.g.
+    "--houses room1dk5"), when given, starts the error line."""
+    lead = f"{needed_by}: " if needed_by else ""
     from spcopyro.data.dataset import find_dataset_root
 
     try:
         root = find_dataset_root(path)
     except FileNotFoundError as error:
         if path is not None or without is None:
-            fail(str(error))
+            fail(f"{lead}{error}")
         print(f"note: {error}; {without}", file=sys.stderr)
         return None
     if root is None:
         where = "no public dataset found ($SPCOPYRO_DATA, ../shared/data/spcomapping, --dataset)"
         if without is None:
-            fail(where)
+            fail(f"{lead}{where}")
         print(f"note: {where}; {without}", file=sys.stderr)
     return root
 

@@ -36,7 +36,7 @@ import logging
 from pathlib import Path
 
 import numpy as np
-from bench_cli import SCRIPT_DIR, dataset_root, run_main
+from bench_cli import COUNT, INDEX, SCRIPT_DIR, dataset_root, quick_or, run_main
 from collapse_terms import terms  # a script beside this one (its folder is on sys.path)
 from scipy import ndimage
 
@@ -142,9 +142,9 @@ def houses(seeds: int, fit_seeds: list[int], maps: tuple[str, ...]):
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sweeps", type=int, default=2000)
-    parser.add_argument("--seeds", type=int, default=3, help="synthetic seeds 0..n-1")
-    parser.add_argument("--fit-seeds", type=int, nargs="+", default=[0], help="simulated maps")
+    parser.add_argument("--sweeps", type=COUNT, help="default 2000 (--quick: 60)")
+    parser.add_argument("--seeds", type=COUNT, help="synthetic seeds 0..n-1 (default 3; quick: 1)")
+    parser.add_argument("--fit-seeds", type=INDEX, nargs="+", default=[0], help="simulated maps")
     parser.add_argument(
         "--out",
         default=str(SCRIPT_DIR / "coarse_losses.json"),
@@ -155,9 +155,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="take apart the two-stage fit (spcopyro.fit.image_weight: --sweeps "
                         "a stage) instead of the default's")  # fmt: skip
     args = parser.parse_args(argv)
-    maps = ("room1dk6", "room1ldk5")
-    if args.quick:
-        args.sweeps, args.seeds, args.fit_seeds, maps = 60, 1, [0], ("room1dk6",)
+    maps = ("room1dk6",) if args.quick else ("room1dk6", "room1ldk5")
+    args.sweeps = quick_or(args.sweeps, args.quick, 60, 2000)
+    args.seeds = quick_or(args.seeds, args.quick, 1, 3)
     logging.getLogger("spcopyro").setLevel(logging.ERROR)
     settings = preset(DEFAULT_PRESET)
     # the coarse fit itself, on its model grid: what the refinement starts from

@@ -57,7 +57,7 @@ from typing import Any
 SCRIPT_DIR = Path(__file__).resolve().parent
 sys.path.insert(0, str(SCRIPT_DIR))
 
-from bench_cli import dataset_root, run_main  # noqa: E402  (scripts beside this one)
+from bench_cli import COUNT, check_houses, dataset_root, quick_or, run_main  # noqa: E402  (scripts beside this one)
 from fixed_cost import (  # noqa: E402
     _table,
     measure_startup,
@@ -178,15 +178,20 @@ def render(rows: Sequence[dict[str, Any]]) -> str:
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description="The whole default fit, end to end.")
-    parser.add_argument("--houses", default=",".join((EMBEDDED, *PUBLIC)),
-                        help="comma-separated: 'embedded' and public house names")  # fmt: skip
+    parser.add_argument("--houses",
+                        help="comma-separated: 'embedded' and public house names (default: "
+                             "embedded and the five, public ones skipped with a note without the "
+                             "dataset; --quick: embedded)")  # fmt: skip
     parser.add_argument("--dataset", type=Path, default=None,
                         help="dataset root (default: find_dataset_root())")  # fmt: skip
-    parser.add_argument("--sweeps", type=int, default=None,
-                        help="sweeps of each fit (default: the fit's own default)")  # fmt: skip
-    parser.add_argument("--repeats", type=int, default=1, help="fits per house (least post kept)")
-    parser.add_argument("--startup-repeats", type=int, default=3,
-                        help="runs of each start-up command (fastest kept)")  # fmt: skip
+    parser.add_argument("--sweeps", type=COUNT, default=None,
+                        help="sweeps of each fit (default: the fit's own default; --quick: "
+                             "200)")  # fmt: skip
+    parser.add_argument("--repeats", type=COUNT, default=1,
+                        help="fits per house (least post kept)")  # fmt: skip
+    parser.add_argument("--startup-repeats", type=COUNT, default=None,
+                        help="runs of each start-up command (fastest kept; default 3, --quick: "
+                             "1)")  # fmt: skip
     parser.add_argument("--no-startup", action="store_true", help="skip the start-up table")
     parser.add_argument("--quick", action="store_true",
                         help="smoke test: the embedded house, 200 sweeps, 1 run")  # fmt: skip
@@ -197,11 +202,16 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
-    root = dataset_root(args.dataset, without="the public houses are skipped")
-    houses = [h.strip() for h in args.houses.split(",") if h.strip()]
-    sweeps, repeats, startup_repeats = args.sweeps, max(args.repeats, 1), args.startup_repeats
-    if args.quick:
-        houses, sweeps, repeats, startup_repeats = [EMBEDDED], sweeps or 200, 1, 1
+    every = ",".join((EMBEDDED, *PUBLIC))
+    houses = [h.strip() for h in quick_or(args.houses, args.quick, EMBEDDED, every).split(",")]
+    houses = [h for h in houses if h]
+    named = args.houses is not None and set(houses) != {EMBEDDED}  # there, or an error
+    root = dataset_root(args.dataset, without=None if named else "the public houses are skipped",
+                        needed_by=f"--houses {','.join(houses)}")  # fmt: skip
+    if named:
+        check_houses(root, houses, synthetic=(EMBEDDED,))
+    sweeps = quick_or(args.sweeps, args.quick, 200, None)
+    repeats, startup_repeats = args.repeats, quick_or(args.startup_repeats, args.quick, 1, 3)
     if root is None:
         skipped = [h for h in houses if h != EMBEDDED]
         houses = [h for h in houses if h == EMBEDDED]

@@ -47,7 +47,7 @@ import cv2
 import numpy as np
 import torch
 import torchvision
-from bench_cli import dataset_root, run_main
+from bench_cli import COUNT, counts, dataset_root, quick_or, run_main
 
 from spcopyro.data import load_house
 from spcopyro.features.backbone import torchvision_cache_file
@@ -248,13 +248,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="smoke test: few images, short runs")
     parser.add_argument("--out", type=Path, help="JSON file (default benchmarks/features_*.json)")
     parser.add_argument("--devices", help="comma separated: cpu,cuda (default: cpu, + cuda if any)")
-    parser.add_argument("--batch-sizes", help="comma separated (default 1,8,32; quick: 1,8)")
+    parser.add_argument("--batch-sizes", type=counts,
+                        help="comma separated (default 1,8,32; quick: 1,8)")  # fmt: skip
     parser.add_argument("--weights", help="imagenet, random or a checkpoint (default: what's here)")
     parser.add_argument("--dataset", type=Path, help="dataset root (default: find_dataset_root())")
     parser.add_argument("--no-dataset", action="store_true", help="synthetic images only")
     parser.add_argument("--distill", action="store_true", help="run the distillation section")
     parser.add_argument("--no-distill", action="store_true", help="skip the distillation section")
-    parser.add_argument("--torch-threads", type=int, help="torch.set_num_threads")
+    parser.add_argument("--torch-threads", type=COUNT, help="torch.set_num_threads")
     args = parser.parse_args(argv)
 
     if args.torch_threads:
@@ -264,9 +265,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.devices
         else ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
     )
-    batch_sizes = [
-        int(b) for b in (args.batch_sizes or ("1,8" if args.quick else "1,8,32")).split(",")
-    ]
+    batch_sizes = quick_or(args.batch_sizes, args.quick, [1, 8], [1, 8, 32])
     weights = args.weights or default_weights()
     without = "synthetic images are used and the distillation is skipped"
     dataset = None if args.no_dataset else dataset_root(args.dataset, without=without)

@@ -68,7 +68,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from bench_cli import dataset_root, run_main
+from bench_cli import COUNT, dataset_root, house_folder, quick_or, run_main
 
 SCRIPT_DIR = Path(__file__).resolve().parent
 ROOT = SCRIPT_DIR.parent
@@ -360,36 +360,50 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
                         help="smoke test: paper-dp, 1 and 3 sweeps, no figures, 1 run")  # fmt: skip
     parser.add_argument("--dataset", type=Path, default=None,
                         help="dataset root (default: find_dataset_root())")  # fmt: skip
-    parser.add_argument("--house", default="room2ldk4", help="house of the dataset")
-    parser.add_argument("--presets", default="paper-dp,auto", help="comma-separated presets")
-    parser.add_argument("--sweeps", type=int, nargs=2, default=SWEEPS, metavar=("S1", "S2"),
-                        help="the two run lengths the fixed cost is extrapolated from")  # fmt: skip
-    parser.add_argument("--repeats", type=int, default=3, help="runs per configuration")
+    parser.add_argument("--house",
+                        help="house of the dataset (default room2ldk4; without the dataset the "
+                             "embedded synthetic default house)")  # fmt: skip
+    parser.add_argument("--presets", default=None,
+                        help="comma-separated presets (default paper-dp,auto; --quick: "
+                             "paper-dp)")  # fmt: skip
+    parser.add_argument("--sweeps", type=COUNT, nargs=2, default=None, metavar=("S1", "S2"),
+                        help="the two run lengths the fixed cost is extrapolated from, S1 < S2 "
+                             f"(default {SWEEPS[0]} {SWEEPS[1]}; --quick: 1 3)")  # fmt: skip
+    parser.add_argument("--repeats", type=COUNT, default=None,
+                        help="runs per configuration (default 3; --quick: 1)")  # fmt: skip
     parser.add_argument("--out", type=Path, default=None,
                         help="JSON output (default benchmarks/fixed_cost.json, fixed_cost_quick."
                              "json with --quick, startup.json with --startup-only)")  # fmt: skip
     parser.add_argument("--startup-only", action="store_true",
                         help="only the start-up of --help, where, export and show (no fits "
                              "timed)")  # fmt: skip
-    return parser.parse_args(argv)
+    args = parser.parse_args(argv)
+    args.presets = quick_or(args.presets, args.quick, "paper-dp", "paper-dp,auto")
+    args.sweeps = tuple(quick_or(args.sweeps, args.quick, (1, 3), SWEEPS))
+    if not args.sweeps[0] < args.sweeps[1]:
+        parser.error(f"argument --sweeps: S1 < S2, got {args.sweeps[0]} {args.sweeps[1]}")
+    args.repeats = quick_or(args.repeats, args.quick, 1, 3)
+    return args
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
-    dataset = dataset_root(args.dataset, without="using the synthetic default house")
-    if args.quick:
-        presets, sweeps, figures, repeats = ["paper-dp"], (1, 3), [False], 1
-    else:
-        presets = [p.strip() for p in args.presets.split(",") if p.strip()]
-        sweeps, figures, repeats = tuple(args.sweeps), [True, False], args.repeats
+    without = None if args.house else "the embedded synthetic default house is fitted"
+    dataset = dataset_root(args.dataset, without=without, needed_by=f"--house {args.house}")
+    if args.house:  # asked for by name: there, or an error
+        house_folder(dataset, args.house, "--house")
+    house = args.house or "room2ldk4"
+    presets = [p.strip() for p in args.presets.split(",") if p.strip()]
+    sweeps, repeats = args.sweeps, args.repeats
+    figures = [False] if args.quick else [True, False]
     results = []
     for preset in [] if args.startup_only else presets:
         for with_figures in figures:
-            print(f"fitting {args.house} ({preset}, figures {with_figures}) ...", file=sys.stderr)
-            results.append(measure_fixed_cost(dataset, args.house, preset, sweeps,
+            print(f"fitting {house} ({preset}, figures {with_figures}) ...", file=sys.stderr)
+            results.append(measure_fixed_cost(dataset, house, preset, sweeps,
                                               with_figures, repeats))  # fmt: skip
-    print(f"start-up of the questions on {args.house} ...", file=sys.stderr)
-    startup = measure_startup(_house_folder(dataset, args.house), repeats)
+    print(f"start-up of the questions on {house} ...", file=sys.stderr)
+    startup = measure_startup(_house_folder(dataset, house), repeats)
     imports = {} if args.quick or args.startup_only else import_seconds()
     if results:
         print(render(results) + "\n")
@@ -397,7 +411,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if imports:
         print("\nimport alone, fresh interpreter (s): "
               + ", ".join(f"{m} {s:.2f}" for m, s in imports.items()))  # fmt: skip
-    if _house_folder(dataset, args.house) is None:
+    if _house_folder(dataset, house) is None:
         print("note: the public dataset was not found: the synthetic default house was fitted")
     record = {
         "machine": {

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from bench_cli import WRITTEN, dataset_root, run_main
+from bench_cli import COUNT, INDEX, METRES, WRITTEN, check_houses, dataset_root, quick_or, run_main
 from machine import format_table, machine_info, progress
 
 from spcopyro.config import preset
@@ -38,6 +38,7 @@ from spcopyro.metrics import adjusted_rand_index
 from spcopyro.synthetic import HouseSpec, make_house
 
 SCRIPT_DIR = Path(__file__).resolve().parent
+SYNTHETIC = ("synthetic", "synthetic-sparse")
 PUBLIC = ("room1dk5", "room1dk6", "room1ldk4", "room1ldk5", "room2ldk4")
 SPARSE_SPEC = dict(images_per_room_per_trial=1, utterances_per_room_per_trial=1)
 PRESETS = {
@@ -180,16 +181,27 @@ def summary_table(results: dict[str, object]) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="a smoke run (seconds)")
-    parser.add_argument("--sweeps", type=int, default=1000)
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    parser.add_argument("--radii", type=float, nargs="+", default=[0.0, 0.5, 1.0, 2.0])
-    parser.add_argument("--houses", nargs="+", default=["synthetic", "synthetic-sparse", *PUBLIC])
-    parser.add_argument("--presets", nargs="+", default=list(PRESETS), choices=list(PRESETS))
+    parser.add_argument("--sweeps", type=COUNT, help="default 1000 (--quick: 20)")
+    parser.add_argument("--seeds", type=INDEX, nargs="+", help="default 0 1 2 (--quick: 0)")
+    parser.add_argument("--radii", type=METRES, nargs="+",
+                        help="footprint radii, metres (default 0 0.5 1 2; --quick: "
+                             "0 0.5)")  # fmt: skip
+    parser.add_argument("--houses", nargs="+",
+                        help=f"{', '.join(SYNTHETIC)} and public houses (default: all; --quick: "
+                             "synthetic-sparse)")  # fmt: skip
+    parser.add_argument("--presets", nargs="+", choices=list(PRESETS),
+                        help="default: all (--quick: original-code-g3)")  # fmt: skip
     parser.add_argument("--out", type=Path, default=None)
     args = parser.parse_args(argv)
-    if args.quick:
-        args.sweeps, args.seeds, args.radii = 20, [0], [0.0, 0.5]
-        args.houses, args.presets = ["synthetic-sparse"], ["original-code-g3"]
+    named = args.houses is not None
+    args.sweeps = quick_or(args.sweeps, args.quick, 20, 1000)
+    args.seeds = quick_or(args.seeds, args.quick, [0], [0, 1, 2])
+    args.radii = quick_or(args.radii, args.quick, [0.0, 0.5], [0.0, 0.5, 1.0, 2.0])
+    args.houses = quick_or(args.houses, args.quick, ["synthetic-sparse"], [*SYNTHETIC, *PUBLIC])
+    args.presets = quick_or(args.presets, args.quick, ["original-code-g3"], list(PRESETS))
+    if named and set(args.houses) - set(SYNTHETIC):  # asked for by name: there, or an error
+        root = dataset_root(needed_by=f"--houses {' '.join(args.houses)}")
+        check_houses(root, args.houses, synthetic=SYNTHETIC)
     out = args.out or SCRIPT_DIR / (
         "footprint_quick.json" if args.quick else "footprint_results.json"
     )

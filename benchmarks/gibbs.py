@@ -63,7 +63,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from bench_cli import dataset_root, run_main
+from bench_cli import COUNT, WAIT, dataset_root, run_main
 from bench_setup import (
     HEADLINE_HOUSE,
     SEED,
@@ -579,13 +579,13 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--no-dataset", action="store_true", help="synthetic maps only")
     parser.add_argument(
         "--torch-threads",
-        type=int,
+        type=COUNT,
         default=None,
         help="torch.set_num_threads for this run and the headline subprocess (default: torch's)",
     )
     parser.add_argument(
         "--wait-idle",
-        type=float,
+        type=WAIT,
         default=0.0,
         metavar="SECONDS",
         help="before each section wait up to this long for other processes to leave the CPUs "
@@ -605,8 +605,6 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
     if args.torch_threads is not None:
-        if args.torch_threads < 1:
-            raise SystemExit(f"--torch-threads must be >= 1, got {args.torch_threads}")
         torch.set_num_threads(args.torch_threads)
     if args.no_dataset:
         dataset = None

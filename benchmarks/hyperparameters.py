@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from bench_cli import dataset_root, run_main
+from bench_cli import COUNT, INDEX, dataset_root, quick_or, run_main
 from machine import available_backends, format_table, machine_info, progress
 
 from spcopyro.config import preset
@@ -84,12 +84,15 @@ def run_variant(house, name: str, hyper: HyperparameterOptions, sweeps: int, bac
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sweeps", type=int, default=1000)
-    parser.add_argument("--public-sweeps", type=int, default=500)
+    parser.add_argument("--sweeps", type=COUNT, help="default 1000 (--quick: 12)")
+    parser.add_argument("--public-sweeps", type=INDEX,
+                        help=f"sweeps on {PUBLIC_HOUSE}, 0 for none (default 500; --quick: "
+                             "0)")  # fmt: skip
     parser.add_argument("--quick", action="store_true", help="smoke test: few sweeps")
     parser.add_argument("--out", type=Path, default=SCRIPT_DIR / "hyperparameters_results.json")
     args = parser.parse_args(argv)
-    sweeps, public_sweeps = (12, 0) if args.quick else (args.sweeps, args.public_sweeps)
+    sweeps = quick_or(args.sweeps, args.quick, 12, 1000)
+    public_sweeps = quick_or(args.public_sweeps, args.quick, 0, 500)
     backend = "numba" if "numba" in available_backends(["numba"])[0] else "torch"
     houses = [("synthetic", make_house(), sweeps)]
     if public_sweeps:

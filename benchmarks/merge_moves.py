@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from bench_cli import dataset_root, run_main
+from bench_cli import COUNT, INDEX, dataset_root, fraction, house_folder, quick_or, run_main
 from machine import format_table, machine_info
 
 from spcopyro.config import preset
@@ -134,24 +134,30 @@ def run_chain(
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="smoke test: a few sweeps")
-    parser.add_argument("--sweeps", type=int, default=1000)
-    parser.add_argument("--merge-moves", type=float, default=0.2, help="share with moves")
+    parser.add_argument("--sweeps", type=COUNT, help="default 1000 (--quick: 12)")
+    parser.add_argument("--merge-moves", type=fraction, default=0.2,
+                        help="share with moves, in [0, 1] (default 0.2)")  # fmt: skip
     parser.add_argument("--preset", default="paper-dp")
     parser.add_argument("--gamma", type=float, help="override the preset's gamma")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
-    parser.add_argument("--public", default=PUBLIC_HOUSE, help="public house ('' for none)")
+    parser.add_argument("--seeds", type=INDEX, nargs="+", default=[0])
+    parser.add_argument("--public", help=f"public house ('' for none; default {PUBLIC_HOUSE}, "
+                        "skipped with a note without the dataset; --quick: none)")  # fmt: skip
     parser.add_argument("--out", type=Path)
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
-    sweeps = 12 if args.quick else args.sweeps
+    sweeps = quick_or(args.sweeps, args.quick, 12, 1000)
+    public = quick_or(args.public, args.quick, "", PUBLIC_HOUSE)
     houses = [make_house(seed=0)]
     notes = []
-    without = "the public house is skipped"
-    root = None if args.quick or not args.public else dataset_root(without=without)
-    if root is not None:
-        houses.append(load_house(root / args.public))
-    elif args.public and not args.quick:
-        notes.append("public dataset not found: the public house is skipped")
+    if public and args.public is not None:  # asked for by name: there, or an error
+        root = dataset_root(needed_by=f"--public {public}")
+        houses.append(load_house(house_folder(root, public, "--public")))
+    elif public:
+        root = dataset_root(without="the public house is skipped")
+        if root is not None:
+            houses.append(load_house(house_folder(root, public, "--public")))
+        else:
+            notes.append("public dataset not found: the public house is skipped")
     rows = []
     for house in houses:
         for seed in args.seeds:

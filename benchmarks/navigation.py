@@ -44,7 +44,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_cli import SCRIPT_DIR, dataset_root, run_main
+from bench_cli import COUNT, METRES, SCRIPT_DIR, check_houses, dataset_root, quick_or, run_main
 
 from spcopyro.config import DEFAULT_PRESET, preset
 from spcopyro.data import load_house, place_observations
@@ -181,9 +181,9 @@ def table(title: str, rows: dict[str, dict], presets=PRESETS) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sweeps", type=int, default=2000)
-    parser.add_argument("--seeds", type=int, default=3, help="synthetic seeds 0..n-1")
-    parser.add_argument("--radius", type=float, default=0.2, help="the robot's, metres")
+    parser.add_argument("--sweeps", type=COUNT, help="default 2000 (--quick: 30)")
+    parser.add_argument("--seeds", type=COUNT, help="synthetic seeds 0..n-1 (default 3; quick: 1)")
+    parser.add_argument("--radius", type=METRES, default=0.2, help="the robot's, metres")
     parser.add_argument(
         "--out",
         default=str(SCRIPT_DIR / "navigation.json"),
@@ -192,19 +192,26 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-synthetic", action="store_true")
     parser.add_argument("--no-public", action="store_true")
     parser.add_argument("--planner", choices=("hierarchical", "grid"), default="hierarchical")
-    parser.add_argument("--houses", nargs="*", help="public houses (default: all five)")
+    parser.add_argument("--houses", nargs="+",
+                        help="public houses (default: all five; --quick: the first)")  # fmt: skip
     parser.add_argument("--quick", action="store_true",
                         help="a smoke run: 30 sweeps, one public house, one seed")  # fmt: skip
     args = parser.parse_args(argv)
-    houses = args.houses or list(PUBLIC_CATEGORIES)
-    if args.quick:
-        args.sweeps, args.seeds, houses = 30, 1, houses[:1]
+    houses = quick_or(args.houses, args.quick, list(PUBLIC_CATEGORIES)[:1], list(PUBLIC_CATEGORIES))
+    args.sweeps = quick_or(args.sweeps, args.quick, 30, 2000)
+    args.seeds = quick_or(args.seeds, args.quick, 1, 3)
     logging.getLogger("spcopyro").setLevel(logging.ERROR)
     report: dict[str, object] = {"presets": list(PRESETS), "sweeps": args.sweeps,
                                  "radius": args.radius, "planner": args.planner}  # fmt: skip
     text = [f"# navigate on held-out place words (maps of {', '.join(PRESETS)}; {args.sweeps} "
             f"sweeps, fold 0; {args.planner} planner)", ""]  # fmt: skip
-    root = dataset_root(without="the public houses are skipped")
+    named = args.houses is not None and not args.no_public  # there, or an error
+    root = dataset_root(
+        without=None if named else "the public houses are skipped",
+        needed_by=f"--houses {' '.join(houses)}",
+    )
+    if named:
+        check_houses(root, houses)
     if root is None:
         text.append("public houses skipped: no dataset")
     elif not args.no_public:

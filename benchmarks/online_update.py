@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from bench_cli import dataset_root, run_main
+from bench_cli import COUNT, check_houses, dataset_root, quick_or, run_main
 from machine import format_table, machine_info, progress
 
 from spcopyro.config import preset
@@ -224,20 +224,30 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="smoke test: synthetic, few sweeps")
     parser.add_argument("--out", type=Path, help="JSON file to write")
-    parser.add_argument("--houses", default=",".join((*PUBLIC, "synthetic")))
-    parser.add_argument("--seeds", type=int, default=3)
-    parser.add_argument("--sweeps", type=int, default=5000, help="sweeps of old and scratch fits")
+    parser.add_argument("--houses", help="comma-separated public houses and 'synthetic' (default: "
+                        "the five and synthetic; --quick: synthetic)")  # fmt: skip
+    parser.add_argument("--seeds", type=COUNT, help="seeds 0..n-1 (default 3; --quick: 2)")
+    parser.add_argument("--sweeps", type=COUNT,
+                        help="sweeps of old and scratch fits (default 5000; --quick: "
+                             "40)")  # fmt: skip
     parser.add_argument("--preset", default="paper-dp")
     parser.add_argument("--gamma", type=float)
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     os.environ.setdefault("CI", "1")  # no progress bars
-    checkpoints = CHECKPOINTS
-    names = args.houses.split(",")
-    if args.quick:
-        names, args.seeds, args.sweeps, checkpoints = ["synthetic"], 2, 40, (0, 5, 10)
+    checkpoints = (0, 5, 10) if args.quick else CHECKPOINTS
+    every = ",".join((*PUBLIC, "synthetic"))
+    names = [n.strip() for n in quick_or(args.houses, args.quick, "synthetic", every).split(",")]
+    args.seeds = quick_or(args.seeds, args.quick, 2, 3)
+    args.sweeps = quick_or(args.sweeps, args.quick, 40, 5000)
+    named = args.houses is not None and set(names) != {"synthetic"}  # there, or an error
+    root = dataset_root(
+        without=None if named else "the public houses are skipped",
+        needed_by=f"--houses {','.join(names)}",
+    )
+    if named:
+        check_houses(root, names, synthetic=("synthetic",))
     settings = preset(args.preset, gamma=args.gamma)
-    root = dataset_root(without="the public houses are skipped")
     records = []
     for house in houses(names, root):
         records.append(run_house(house, settings, args.sweeps, list(range(args.seeds)),

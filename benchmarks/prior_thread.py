@@ -39,7 +39,7 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from bench_cli import dataset_root, run_main
+from bench_cli import COUNT, dataset_root, run_main
 from bench_setup import load_headline_house, make_problem
 from machine import format_table, machine_info, progress
 from threads import busy_neighbour, other_load
@@ -89,12 +89,12 @@ def time_condition(problem, start: GibbsState, blocks: int, block: int) -> dict[
     }
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="smoke test")
-    parser.add_argument("--busy-cores", type=int, default=1, help="spinning neighbours")
+    parser.add_argument("--busy-cores", type=COUNT, default=1, help="spinning neighbours (>= 1)")
     parser.add_argument("--out", type=Path, default=None)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     blocks, block = (2, 3) if args.quick else (15, 40)
     torch.set_num_threads(1)
     dataset = dataset_root(without="a synthetic stand-in for room2ldk4 is used")
@@ -140,6 +140,7 @@ def main() -> None:
     out = args.out or SCRIPT_DIR / name
     out.write_text(json.dumps(results, indent=2))
     progress(f"wrote {out}")
+    return 0
 
 
 if __name__ == "__main__":

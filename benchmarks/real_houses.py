@@ -50,7 +50,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_cli import SCRIPT_DIR, dataset_root, run_main
+from bench_cli import COUNT, INDEX, SCRIPT_DIR, dataset_root, quick_or, run_main
 
 from spcopyro.baselines.geometry import geometry_semantic_map
 from spcopyro.baselines.nearest import nearest_word_map
@@ -306,11 +306,11 @@ def extras(root: Path, args: argparse.Namespace, report: dict, names: dict) -> l
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
-        "--sweeps", type=int, default=5000, help="sweeps of every Gibbs fit (spcopyro fit's 5000)"
+        "--sweeps", type=COUNT, help="sweeps of every Gibbs fit (default: spcopyro fit's 5000)"
     )
-    parser.add_argument("--seeds", type=int, default=3, help="synthetic seeds 0..n-1")
+    parser.add_argument("--seeds", type=COUNT, help="synthetic seeds 0..n-1 (default 3)")
     parser.add_argument(
-        "--open-plan-seeds", type=int, default=10,
+        "--open-plan-seeds", type=COUNT,
         help="open-plan seeds 0..n-1 (their borders in unobserved space vary by about 0.1 ARI "
         "from house to house: three seeds judged chain luck)",
     )  # fmt: skip
@@ -322,15 +322,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-synthetic", action="store_true")
     parser.add_argument(
         "--method-iterations",
-        type=int,
-        default=200,
+        type=COUNT,
         help="iterations of each variational method (and vi-gibbs' sweeps)",
     )
     parser.add_argument(
         "--fit-seeds",
-        type=int,
+        type=INDEX,
         nargs="+",
-        default=[0, 1, 2],
         help="fit seeds of the default fit on each simulated public map (a row each, and the mean)",
     )
     parser.add_argument(
@@ -345,9 +343,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     houses = dict(PUBLIC_CATEGORIES)
+    args.sweeps = quick_or(args.sweeps, args.quick, 60, 5000)
+    args.seeds = quick_or(args.seeds, args.quick, 1, 3)
+    args.open_plan_seeds = quick_or(args.open_plan_seeds, args.quick, 1, 10)
+    args.method_iterations = quick_or(args.method_iterations, args.quick, 5, 200)
+    args.fit_seeds = quick_or(args.fit_seeds, args.quick, [0], [0, 1, 2])
     if args.quick:
-        args.sweeps, args.seeds, args.method_iterations, args.fit_seeds = 60, 1, 5, [0]
-        args.open_plan_seeds = 1
         houses = dict(list(houses.items())[:1])
     logging.getLogger("spcopyro").setLevel(logging.ERROR)
     report: dict[str, object] = {"default_preset": DEFAULT_PRESET, "sweeps": args.sweeps}

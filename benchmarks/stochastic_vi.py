@@ -46,7 +46,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from bench_cli import run_main
+from bench_cli import COUNT, INDEX, quick_or, run_main
 from machine import busy_cpu_seconds, format_table, machine_info, own_cpu_seconds, progress
 
 SCRIPT_DIR = Path(__file__).resolve().parent
@@ -374,14 +374,16 @@ def _s(value: float | None) -> str:
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[1] if __doc__ else None)
     p.add_argument("--quick", action="store_true", help="a ~1e4-cell smoke test")
-    p.add_argument("--side", type=int, default=1050, help="large map side (1050: ~1e6 cells)")
-    p.add_argument("--passes", type=int, default=60, help="passes on the large map")
-    p.add_argument("--anneal", type=int, default=10, help="annealing passes (all runs)")
-    p.add_argument("--block-size", type=int, default=64)
-    p.add_argument("--blocks-per-step", type=int, default=4)
-    p.add_argument("--small-passes", type=int, default=40)
-    p.add_argument("--cavi-iterations", type=int, default=3, help="0 skips the CAVI baseline")
-    p.add_argument("--torch-threads", type=int, default=1)
+    p.add_argument("--side", type=COUNT,
+                   help="large map side (default 1050: ~1e6 cells; --quick: 110)")  # fmt: skip
+    p.add_argument("--passes", type=COUNT, help="passes on the large map (default 60; quick: 6)")
+    p.add_argument("--anneal", type=INDEX, help="annealing passes, all runs (default 10; quick: 2)")
+    p.add_argument("--block-size", type=COUNT, default=64)
+    p.add_argument("--blocks-per-step", type=COUNT, default=4)
+    p.add_argument("--small-passes", type=COUNT, help="default 40 (--quick: 6)")
+    p.add_argument("--cavi-iterations", type=INDEX,
+                   help="0 skips the CAVI baseline (default 3; --quick: 2)")  # fmt: skip
+    p.add_argument("--torch-threads", type=COUNT, default=1)
     p.add_argument("--out", type=Path, help="JSON output")
     p.add_argument("--child", choices=["stochastic", "cavi"], help=argparse.SUPPRESS)
     return p.parse_args(argv)
@@ -390,9 +392,11 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
     torch.set_num_threads(args.torch_threads)
-    if args.quick:
-        args.side, args.passes, args.anneal, args.small_passes = 110, 6, 2, 6
-        args.cavi_iterations = min(args.cavi_iterations, 2)
+    args.side = quick_or(args.side, args.quick, 110, 1050)
+    args.passes = quick_or(args.passes, args.quick, 6, 60)
+    args.anneal = quick_or(args.anneal, args.quick, 2, 10)
+    args.small_passes = quick_or(args.small_passes, args.quick, 6, 40)
+    args.cavi_iterations = quick_or(args.cavi_iterations, args.quick, 2, 3)
     if args.child == "stochastic":
         print(json.dumps(child_stochastic(args.side, args.passes, args.anneal, args.block_size,
                                           args.blocks_per_step)))  # fmt: skip

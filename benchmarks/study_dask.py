@@ -35,7 +35,7 @@ from contextlib import nullcontext
 from pathlib import Path
 from unittest.mock import patch
 
-from bench_cli import SCRIPT_DIR, run_main
+from bench_cli import COUNT, SCRIPT_DIR, quick_or, run_main
 from machine import busy_cpu_seconds, machine_info, own_cpu_seconds, progress
 
 from spcopyro.study import local_cluster
@@ -111,15 +111,15 @@ def cell_seconds(out: Path) -> dict[str, float]:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="smoke test: 4 cells, 10 sweeps")
-    parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--sweeps", type=int, default=None, help="default 2000 (quick: 10)")
+    parser.add_argument("--workers", type=COUNT, default=2)
+    parser.add_argument("--sweeps", type=COUNT, default=None, help="default 2000 (quick: 10)")
     parser.add_argument("--also-spawned", action="store_true",
                         help="also run the cluster with spawned workers and no cell in this "
                              "process (how it started before)")  # fmt: skip
     parser.add_argument("--also-dask-loops", action="store_true",
                         help="also run the cluster with Dask's default event-loop settings "
                              "(profiler on; how it ran before)")  # fmt: skip
-    parser.add_argument("--pairs", type=int, default=None,
+    parser.add_argument("--pairs", type=COUNT, default=None,
                         help="(in-process, cluster) pairs of runs, alternated; the median "
                              "ratio is the verdict (default 5; quick: 1)")  # fmt: skip
     parser.add_argument(
@@ -128,8 +128,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="JSON output (default benchmarks/study_dask.json)",
     )
     args = parser.parse_args(argv)
-    sweeps = args.sweeps or (10 if args.quick else 2000)
-    args.pairs = args.pairs or (1 if args.quick else 5)
+    sweeps = quick_or(args.sweeps, args.quick, 10, 2000)
+    args.pairs = quick_or(args.pairs, args.quick, 1, 5)
     study = benchmark_study(sweeps, seeds=1 if args.quick else 5, quick=args.quick)
     with tempfile.TemporaryDirectory() as folder:
         local = timed_run(study, Path(folder) / "in_process", workers=1)

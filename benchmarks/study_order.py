@@ -24,7 +24,7 @@ from contextlib import nullcontext
 from pathlib import Path
 from unittest.mock import patch
 
-from bench_cli import SCRIPT_DIR, run_main
+from bench_cli import COUNT, SCRIPT_DIR, run_main
 from machine import machine_info, progress
 from study_dask import scores
 
@@ -64,8 +64,8 @@ def timed_run(study: Study, out: Path, workers: int, table: bool) -> dict[str, o
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="smoke test: a few sweeps")
-    parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument("--workers", type=COUNT, default=2)
+    parser.add_argument("--repeats", type=COUNT, default=2, help="runs of each order")
     parser.add_argument(
         "--out",
         default=str(SCRIPT_DIR / "study_order.json"),

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from bench_cli import run_main
+from bench_cli import COUNT, quick_or, run_main
 from machine import format_table, machine_info, progress
 
 from spcopyro.config import preset
@@ -41,15 +41,15 @@ from spcopyro.synthetic import HouseSpec, make_house
 SCRIPT_DIR = Path(__file__).resolve().parent
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--steps", type=int, default=300, help="SVI steps (default 300)")
-    parser.add_argument("--starts", type=int, default=4, help="start seeds (default 4)")
+    parser.add_argument("--steps", type=COUNT, help="SVI steps (default 300; --quick: 10)")
+    parser.add_argument("--starts", type=COUNT, help="start seeds (default 4; --quick: 1)")
     parser.add_argument("--quick", action="store_true", help="smoke run: 10 steps, one start")
     parser.add_argument("--out", default=str(SCRIPT_DIR / "svi_vs_cavi_results.json"))
-    args = parser.parse_args()
-    if args.quick:
-        args.steps, args.starts = 10, 1
+    args = parser.parse_args(argv)
+    args.steps = quick_or(args.steps, args.quick, 10, 300)
+    args.starts = quick_or(args.starts, args.quick, 1, 4)
     torch.set_num_threads(1)
     house = make_house(seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3, num_trials=3))
     settings = preset("original-code", gamma=3.0, num_concepts=8)
@@ -89,6 +89,7 @@ def main() -> None:
     record = {"machine": machine_info(), "steps": args.steps, "rows": rows}
     Path(args.out).write_text(json.dumps(record, indent=1) + "\n")
     progress(f"wrote {args.out}")
+    return 0
 
 
 if __name__ == "__main__":

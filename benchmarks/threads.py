@@ -48,7 +48,7 @@ from pathlib import Path
 from typing import Any
 
 import torch
-from bench_cli import dataset_root, run_main
+from bench_cli import COUNT, WAIT, dataset_root, run_main
 from machine import (
     available_backends,
     busy_cpu_seconds,
@@ -385,31 +385,26 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--quick", action="store_true", help="smoke test: tiny sizes")
     parser.add_argument("--out", type=Path, help="JSON file to write")
     parser.add_argument("--backends", default="torch,numba", help="comma-separated")
-    parser.add_argument("--sweeps", type=int, help="run_gibbs sweeps per timed run")
-    parser.add_argument("--repeats", type=int, help="timed runs per setting (median)")
+    parser.add_argument("--sweeps", type=COUNT, help="run_gibbs sweeps per timed run")
+    parser.add_argument("--repeats", type=COUNT, help="timed runs per setting (median)")
     parser.add_argument(
         "--busy-cores",
-        type=int,
+        type=COUNT,
         default=1,
         help="spinning neighbour processes in the busy condition (default 1)",
     )
-    parser.add_argument("--sides", type=int, nargs="+", help="threshold map sides (cells)")
+    parser.add_argument("--sides", type=COUNT, nargs="+", help="threshold map sides (cells)")
     parser.add_argument("--skip-threshold", action="store_true")
     parser.add_argument(
         "--wait-idle",
-        type=float,
+        type=WAIT,
         default=0.0,
         help="before the idle condition and each threshold point, wait up to this many seconds "
         "for the other processes to leave the CPUs (default 0: measure at once)",
     )
     parser.add_argument("--dataset", help="public dataset root (default: found automatically)")
     parser.add_argument("--no-dataset", action="store_true", help="synthetic houses only")
-    args = parser.parse_args(argv)
-    for name in ("sweeps", "repeats", "busy_cores"):
-        value = getattr(args, name)
-        if value is not None and value < 1:
-            parser.error(f"--{name.replace('_', '-')} must be >= 1, got {value}")
-    return args
+    return parser.parse_args(argv)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -34,7 +34,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_cli import SCRIPT_DIR, dataset_root, run_main
+from bench_cli import COUNT, INDEX, SCRIPT_DIR, dataset_root, quick_or, run_main
 from real_houses import on_map, scores  # a script beside this one (its folder is on sys.path)
 
 from spcopyro.baselines.geometry import geometry_semantic_map
@@ -123,10 +123,11 @@ def table(title: str, group: dict[str, dict[str, dict]]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--sweeps", type=int, default=2000)
-    parser.add_argument("--seeds", type=int, default=3, help="synthetic seeds 0..n-1")
-    parser.add_argument("--fit-seeds", type=int, nargs="+", default=[0, 1, 2],
-                        help="fit seeds of the simulated public maps")  # fmt: skip
+    parser.add_argument("--sweeps", type=COUNT, help="default 2000 (--quick: 40)")
+    parser.add_argument("--seeds", type=COUNT, help="synthetic seeds 0..n-1 (default 3; quick: 1)")
+    parser.add_argument("--fit-seeds", type=INDEX, nargs="+",
+                        help="fit seeds of the simulated public maps (default 0 1 2; --quick: "
+                             "0)")  # fmt: skip
     parser.add_argument(
         "--out",
         default=str(SCRIPT_DIR / "two_stage.json"),
@@ -135,9 +136,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true",
                         help="a smoke run: 40 sweeps, one house of each kind")  # fmt: skip
     args = parser.parse_args(argv)
-    names = list(PUBLIC_CATEGORIES)
-    if args.quick:
-        args.sweeps, args.seeds, args.fit_seeds, names = 40, 1, [0], names[:1]
+    names = list(PUBLIC_CATEGORIES)[:1] if args.quick else list(PUBLIC_CATEGORIES)
+    args.sweeps = quick_or(args.sweeps, args.quick, 40, 2000)
+    args.seeds = quick_or(args.seeds, args.quick, 1, 3)
+    args.fit_seeds = quick_or(args.fit_seeds, args.quick, [0], [0, 1, 2])
     logging.getLogger("spcopyro").setLevel(logging.ERROR)
     report: dict[str, object] = {"sweeps": args.sweeps}
     text = [f"# Two-stage image weight against {DEFAULT_PRESET!r} ({args.sweeps} sweeps a stage)"]

@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from bench_cli import dataset_root, run_main
+from bench_cli import COUNT, WAIT, dataset_root, run_main
 from machine import format_table, machine_info, progress, wait_until_idle
 
 from spcopyro.config import SpCoSettings, preset
@@ -366,11 +366,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--dataset", type=Path, default=None, help="dataset root")
     parser.add_argument("--no-dataset", action="store_true", help="synthetic house only")
     parser.add_argument(
-        "--wait-idle", type=float, default=0.0, metavar="SECONDS",
+        "--wait-idle", type=WAIT, default=0.0, metavar="SECONDS",
         help="wait up to this long for other processes to leave the CPUs",
     )  # fmt: skip
     parser.add_argument(
-        "--torch-threads", type=int, default=1,
+        "--torch-threads", type=COUNT, default=1,
         help="torch.set_num_threads for the whole run (default 1, as fit uses on these maps)",
     )  # fmt: skip
     parser.add_argument("--no-ordering", action="store_true", help="skip the ordering table")

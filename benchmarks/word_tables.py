@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from bench_cli import run_main
+from bench_cli import COUNT, quick_or, run_main
 
 from spcopyro.config import preset
 from spcopyro.fit.gibbs_chains import with_sample_marginals
@@ -125,15 +125,16 @@ def table(records) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=3)
-    parser.add_argument("--sweeps", type=int, default=1000)
+    parser.add_argument("--seeds", type=COUNT, help="seeds 0..n-1 (default 3; --quick: 1)")
+    parser.add_argument("--sweeps", type=COUNT, help="default 1000 (--quick: 60)")
     parser.add_argument("--quick", action="store_true", help="1 seed, 60 sweeps, a small house")
     parser.add_argument("--out", default=str(Path(__file__).with_name("word_tables_results.json")))
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     spec = None
+    args.seeds = quick_or(args.seeds, args.quick, 1, 3)
+    args.sweeps = quick_or(args.sweeps, args.quick, 60, 1000)
     if args.quick:
-        args.seeds, args.sweeps = 1, 60
         spec = HouseSpec(height=40, width=50, num_rooms=3, num_trials=2)
     records = run(args.seeds, args.sweeps, spec, lambda m: print(m, file=sys.stderr))
     text = table(records)

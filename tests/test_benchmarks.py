@@ -412,3 +412,80 @@ def test_default_out_is_beside_the_script(parse, name, tmp_path, monkeypatch):
     relative to the current folder: the run failed at the end, writing the JSON)."""
     monkeypatch.chdir(tmp_path)
     assert Path(parse(name, []).out) == BENCHMARKS / f"{name}.json"
+
+
+@pytest.fixture
+def keep_torch_threads():
+    """Some scripts set torch's thread count before they check their houses: restore it."""
+    import torch
+
+    threads = torch.get_num_threads()
+    yield
+    torch.set_num_threads(threads)
+
+
+BAD_VALUES = [
+    ("study_order", ["--quick", "--repeats", "0"], "--repeats"),
+    ("merge_moves", ["--sweeps", "-5"], "--sweeps"),
+    ("merge_moves", ["--quick", "--merge-moves", "-1"], "--merge-moves"),
+    ("hyperparameters", ["--sweeps", "-1"], "--sweeps"),
+    ("features", ["--quick", "--batch-sizes", "-1", "--no-dataset"], "--batch-sizes"),
+    ("variational", ["--quick", "--torch-threads", "0"], "--torch-threads"),
+    ("end_to_end", ["--quick", "--sweeps", "-5", "--no-startup"], "--sweeps"),
+    ("prior_thread", ["--quick", "--busy-cores", "-1"], "--busy-cores"),
+    ("study_dask", ["--quick", "--pairs", "0"], "--pairs"),
+    ("fixed_cost", ["--repeats", "-1"], "--repeats"),
+    ("fixed_cost", ["--sweeps", "3", "1"], "--sweeps"),
+    ("batched_gpu", ["--seconds", "-1"], "--seconds"),
+    ("batched_gpu", ["--torch-threads", "0"], "--torch-threads"),
+    ("word_tables", ["--quick", "--seeds", "-1"], "--seeds"),
+    ("svi_vs_cavi", ["--quick", "--steps", "-1"], "--steps"),
+    ("real_houses", ["--quick", "--sweeps", "-1"], "--sweeps"),
+    ("footprint", ["--quick", "--radii", "-1"], "--radii"),
+    ("gibbs", ["--quick", "--wait-idle", "-1"], "--wait-idle"),
+]
+
+
+@pytest.mark.parametrize(("name", "argv", "option"), BAD_VALUES)
+def test_bad_values_are_usage_errors_naming_the_option(script, capsys, name, argv, option):
+    """A count below 1 (or a share outside [0, 1], a negative time) is an argparse usage error
+    naming the option (exit 2), also under --quick: no traceback, nothing run, no silent -1."""
+    with pytest.raises(SystemExit) as stop:
+        script(name).main(argv)
+    assert stop.value.code == 2
+    assert f"argument {option}" in capsys.readouterr().err
+
+
+def test_an_option_given_explicitly_wins_over_quick(script):
+    """The rule of every script (benchmarks/README.md): --quick only changes the defaults."""
+    fixed_cost, batched_gpu = script("fixed_cost"), script("batched_gpu")
+    assert fixed_cost.parse_args(["--quick"]).repeats == 1
+    assert fixed_cost.parse_args(["--quick", "--repeats", "2"]).repeats == 2
+    assert fixed_cost.parse_args(["--quick", "--sweeps", "2", "5"]).sweeps == (2, 5)
+    assert fixed_cost.parse_args([]).sweeps == fixed_cost.SWEEPS
+    assert batched_gpu.parse_args(["--quick"]).seconds == 0.2
+    assert batched_gpu.parse_args(["--quick", "--seconds", "1"]).seconds == 1.0
+    assert script("bench_cli").quick_or(None, True, 1, 2) == 1
+
+
+UNKNOWN_HOUSES = [
+    ("end_to_end", ["--houses", "bogus", "--sweeps", "5", "--no-startup"]),
+    ("merge_moves", ["--public", "bogus", "--sweeps", "4"]),
+    ("navigation", ["--quick", "--houses", "bogus"]),
+    ("footprint", ["--houses", "bogus", "--presets", "paper-dp", "--seeds", "0", "--sweeps", "5"]),
+    ("fixed_cost", ["--quick", "--house", "bogus"]),
+    ("online_update", ["--quick", "--houses", "bogus"]),
+]
+
+
+@pytest.mark.parametrize(("name", "argv"), UNKNOWN_HOUSES)
+def test_an_unknown_house_is_a_one_line_error(script, capsys, keep_torch_threads, name, argv):
+    """A house asked for by name that the dataset lacks: one line naming it and the houses
+    there, exit 2 (fixed_cost fitted the synthetic house instead and exited 0)."""
+    with pytest.raises(SystemExit) as stop:
+        script(name).main(argv)
+    assert stop.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert "error: --house" in err or "error: --public" in err, err
+    assert "bogus" in err, err
+    assert len(err.splitlines()) == 1, err
