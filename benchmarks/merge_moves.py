@@ -75,6 +75,7 @@ def run_chain(
     seed: int,
     samples: int,
     gamma: float | None = None,
+    quiet: bool = False,
 ) -> dict[str, object]:
     settings = preset(preset_name) if gamma is None else preset(preset_name, gamma=gamma)
     _, data = prepare_model_data(house, settings)
@@ -103,7 +104,7 @@ def run_chain(
             best, best_labels = value, state.labels.numpy().copy()
         if sweep >= sweeps // 2 and (sweep + 1) % thin == 0:
             kept.append(state.labels.numpy().astype(np.int64))
-        if sweep % max(1, sweeps // 10) == 0:
+        if not quiet and sweep % max(1, sweeps // 10) == 0:
             print(f"  sweep {sweep}: log joint {value:.1f}", file=sys.stderr)
     seconds = time.perf_counter() - start
     samples_array = np.stack(kept)
@@ -129,6 +130,17 @@ def run_chain(
         "seconds_per_merge_move": merge_seconds / proposed if proposed else None,
         "moves": {k: {"proposed": v[0], "accepted": v[1]} for k, v in moves.items()},
     }
+
+
+WARMUP_SWEEPS = 3
+
+
+def warm_up(house: House, preset_name: str, merge_share: float, gamma: float | None) -> None:
+    """A short untimed chain of each setting (with moves: a move every sweep), so that the
+    first timed chain -- the baseline -- is not charged numba's compilation or cache load."""
+    print(f"{house.name}: warm-up, {WARMUP_SWEEPS} sweeps of each setting", file=sys.stderr)
+    for share in (0.0, 1.0) if merge_share > 0 else (0.0,):
+        run_chain(house, preset_name, share, WARMUP_SWEEPS, 0, 1, gamma, quiet=True)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -160,6 +172,7 @@ def main(argv: list[str] | None = None) -> int:
             notes.append("public dataset not found: the public house is skipped")
     rows = []
     for house in houses:
+        warm_up(house, args.preset, args.merge_moves, args.gamma)
         for seed in args.seeds:
             for share in (0.0, args.merge_moves):
                 print(f"{house.name} merge_moves={share} seed={seed}", file=sys.stderr)
