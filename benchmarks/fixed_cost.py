@@ -71,6 +71,7 @@ from typing import Any
 from bench_cli import COUNT, dataset_root, house_folder, quick_or, run_main
 
 SCRIPT_DIR = Path(__file__).resolve().parent
+EMBEDDED_LABEL = "embedded synthetic default house"  # what is fitted without a house folder
 ROOT = SCRIPT_DIR.parent
 TARGET_SECONDS = 2.0  # issue #15 item 2: under 2 s outside the sweeps (room2ldk4)
 SWEEPS = (1, 201)
@@ -183,7 +184,7 @@ def measure_fixed_cost(
     per_sweep = (runs[1]["wall"] - runs[0]["wall"]) / (high - low)
     fixed = runs[0]["wall"] - low * per_sweep
     return {
-        "house": house if data is not None else "synthetic default house (dataset absent)",
+        "house": house if data is not None else EMBEDDED_LABEL,
         "data": None if data is None else str(data),
         "preset": preset,
         "figures": figures,
@@ -303,7 +304,7 @@ def measure_startup(data: Path | None, repeats: int = 3) -> dict[str, Any]:
                 "meets_target": min(walls) < STARTUP_TARGET_SECONDS if judged else None,
             })  # fmt: skip
     return {
-        "house": str(data) if data is not None else "synthetic default house (dataset absent)",
+        "house": str(data) if data is not None else EMBEDDED_LABEL,
         "word": word,
         "fit_sweeps": STARTUP_FIT_SWEEPS,
         "repeats": max(repeats, 1),
@@ -393,16 +394,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.house:  # asked for by name: there, or an error
         house_folder(dataset, args.house, "--house")
     house = args.house or "room2ldk4"
+    label = house if _house_folder(dataset, house) is not None else f"the {EMBEDDED_LABEL}"
     presets = [p.strip() for p in args.presets.split(",") if p.strip()]
     sweeps, repeats = args.sweeps, args.repeats
     figures = [False] if args.quick else [True, False]
     results = []
     for preset in [] if args.startup_only else presets:
         for with_figures in figures:
-            print(f"fitting {house} ({preset}, figures {with_figures}) ...", file=sys.stderr)
+            print(f"fitting {label} ({preset}, figures {with_figures}) ...", file=sys.stderr)
             results.append(measure_fixed_cost(dataset, house, preset, sweeps,
                                               with_figures, repeats))  # fmt: skip
-    print(f"start-up of the questions on {house} ...", file=sys.stderr)
+    print(f"start-up of the questions on {label} ...", file=sys.stderr)
     startup = measure_startup(_house_folder(dataset, house), repeats)
     imports = {} if args.quick or args.startup_only else import_seconds()
     if results:
@@ -412,7 +414,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("\nimport alone, fresh interpreter (s): "
               + ", ".join(f"{m} {s:.2f}" for m, s in imports.items()))  # fmt: skip
     if _house_folder(dataset, house) is None:
-        print("note: the public dataset was not found: the synthetic default house was fitted")
+        print(f"note: the public dataset was not found: the {EMBEDDED_LABEL} was fitted")
     record = {
         "machine": {
             "python": sys.version.split()[0],

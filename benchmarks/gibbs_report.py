@@ -282,7 +282,7 @@ def render(results: dict[str, Any]) -> str:
 
     for kind, title in (
         ("cells", "Scaling in cells (L=120)"),
-        ("num_concepts", "Scaling in L (synthetic, ~1e5 cells)"),
+        ("num_concepts", "Scaling in L (synthetic {map}, {free_cells} free cells)"),
         ("num_concepts_house", f"Scaling in L ({HEADLINE_HOUSE})"),
         (
             "num_concepts_house_refresh",
@@ -293,7 +293,7 @@ def render(results: dict[str, Any]) -> str:
         if not entries:
             continue
         out.append("")
-        out.append(f"== {title} ==")
+        out.append(f"== {title.format(**entries[0])} ==")  # the map actually timed
         headers = ["map", "free cells", "obs cells", "L"]
         headers += [h for b in backends for h in (f"{b} ms/sweep", f"{b} ns/cell")]
         rows = []

@@ -278,6 +278,9 @@ def test_end_to_end_benchmark_quick(tmp_path):
     assert {"semantic_map.png", "trace.png", "house.png", "agreement.png"} <= set(fit["pngs"])
     assert fit["post_parts"]["point_estimate"] > 0.0 and fit["figures"]["semantic_map"] > 0.0
     assert record["startup"]["commands"][1]["command"] == "--help"
+    # the start-up table names the house it used: the embedded one, whether the dataset is there
+    assert record["startup"]["house"] == "embedded synthetic default house"
+    assert "dataset absent" not in done.stdout
 
 
 @pytest.mark.slow
