@@ -43,7 +43,7 @@ from spcopyro.study.run import run_study
 from spcopyro.study.spec import Study, study_from_dict
 from spcopyro.study.table import read_table
 
-TIMING = ("seconds", "cpu_seconds")
+TIMING = ("seconds", "cpu_seconds", "seconds_off", "cpu_seconds_off")
 
 
 def benchmark_study(sweeps: int, seeds: int, quick: bool) -> Study:
@@ -99,6 +99,21 @@ def scores(out: Path) -> list[dict[str, object]]:
     return [
         {k: v for k, v in r.items() if k not in TIMING} for r in read_table(out / "results.csv")
     ]
+
+
+def differences(first: list[dict[str, object]], other: list[dict[str, object]]) -> list[str]:
+    """``"KEY COLUMN: A != B"`` for every cell and column where two :func:`scores` tables differ
+    (a ``source_digest`` difference: the package's code changed during the benchmark)."""
+    by_key = {row["key"]: row for row in other}
+    found = []
+    for row in first:
+        twin = by_key.get(row["key"])
+        if twin is None:
+            found.append(f"{row['key']}: missing from the other table")
+            continue
+        found += [f"{row['key'][:12]} {k}: {v!r} != {twin.get(k)!r}" for k, v in row.items()
+                  if twin.get(k) != v]  # fmt: skip
+    return found
 
 
 def cell_seconds(out: Path) -> dict[str, float]:

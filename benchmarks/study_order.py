@@ -26,7 +26,7 @@ from unittest.mock import patch
 
 from bench_cli import COUNT, SCRIPT_DIR, run_main
 from machine import machine_info, progress
-from study_dask import scores
+from study_dask import differences, scores
 
 from spcopyro.study import run as study_run
 from spcopyro.study.run import run_study
@@ -80,7 +80,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 out = Path(folder) / f"{'table' if table else 'longest'}-{repeat}"
                 runs.append(timed_run(study, out, args.workers, table))
                 tables.append(scores(out))
-    same = all(t == tables[0] for t in tables)
+    found = [line for t in tables[1:] for line in differences(tables[0], t)]
+    same = not found
     print("| run | order | wall s | cells' seconds / workers | longest cell s | ran here |")
     print("|---|---|---|---|---|---|")
     for number, entry in enumerate(runs):
@@ -93,8 +94,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     ratio = means["longest first"] / means["table"]
     print(f"mean wall: table order {means['table']:.1f} s, longest first "
           f"{means['longest first']:.1f} s (x{ratio:.2f}); same numbers: {same}")  # fmt: skip
+    for line in found[:10]:  # which cells differ, against the first run
+        print(f"  differs: {line}")
     results = {"machine": machine_info(), "workers": args.workers, "runs": runs,
-               "mean_seconds": means, "ratio": ratio, "same_numbers": same}  # fmt: skip
+               "mean_seconds": means, "ratio": ratio, "same_numbers": same,
+               "differences": found}  # fmt: skip
     Path(args.out).write_text(json.dumps(results, indent=1, default=str))
     print(f"wrote {args.out}")
     return 0 if same else 1

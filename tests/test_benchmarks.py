@@ -510,3 +510,15 @@ def test_merge_moves_warms_up_before_the_timed_chains(script, tmp_path, keep_tor
         assert merge_moves.main(["--quick", "--out", str(tmp_path / "m.json")]) == 0
     warm = merge_moves.WARMUP_SWEEPS
     assert calls == [(0.0, warm), (1.0, warm), (0.0, 12), (0.2, 12)]
+
+
+def test_study_tables_name_the_cells_and_columns_that_differ(script):
+    """study_order.py judged 'same numbers' by the whole tables and once said False with no
+    word of where; the timing columns of observations-off runs were compared too."""
+    study_dask = script("study_dask")
+    row = {"key": "a" * 20, "ari": 0.5, "source_digest": "x"}
+    assert study_dask.differences([row], [dict(row)]) == []
+    found = study_dask.differences([row], [{**row, "source_digest": "y"}])
+    assert found == ["aaaaaaaaaaaa source_digest: 'x' != 'y'"]
+    assert study_dask.differences([row], []) == [f"{'a' * 20}: missing from the other table"]
+    assert {"seconds_off", "cpu_seconds_off"} <= set(study_dask.TIMING)
