@@ -375,7 +375,8 @@ def _interrupt_cavi_at(monkeypatch, call: int) -> None:
 
 def _variational_argv(home, out, method: str) -> list[str]:
     prefix = "" if method == "cavi" else "variational."
-    return ["fit", str(home), "--out", str(out), *FIT, "--method", method, "--method-option",
+    sampler = FIT if method == "vi-gibbs" else FIT[:8]  # cavi refuses the Gibbs flags
+    return ["fit", str(home), "--out", str(out), *sampler, "--method", method, "--method-option",
             f"{prefix}backend=torch", "--method-option", f"{prefix}tolerance=0"]  # fmt: skip
 
 
