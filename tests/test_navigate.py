@@ -159,6 +159,30 @@ def test_an_ambiguous_word_takes_the_nearer_unless_strict(result, fit, capsys):
     assert "--strict takes none" in capsys.readouterr().err
 
 
+def test_an_answer_where_calls_a_guess_is_warned_of_and_refused_when_strict(result, capsys):
+    """'kitchen' nearly as probable under the corridor's concept as under the kitchen's:
+    `where` warns that its answer is close to a guess, and navigate drove there without a word
+    (its own ambiguity is two regions of near-equal p, a laxer rule)."""
+    import dataclasses
+
+    from spcopyro.results.result import EmissionTable
+
+    w = result.emission("words").probabilities.copy()  # [L, V]
+    w[1, WORDS.index("kitchen")] = w[2, WORDS.index("kitchen")] * 0.7
+    w /= w.sum(1, keepdims=True)
+    emissions = tuple(
+        EmissionTable("words", WORDS, w) if e.name == "words" else e for e in result.emissions
+    )
+    guessed = dataclasses.replace(result, emissions=emissions)
+    assert any("close to a guess" in x for x in guessed.where("kitchen").warnings)
+    plan = navigate(guessed, "go to the kitchen", START_A)
+    assert any(n.startswith("where 'kitchen': ") and "close to a guess" in n
+               for n in plan.goal.choice.notes)  # fmt: skip
+    with pytest.raises(AmbiguousGoalError, match="'kitchen' is ambiguous: .*close to a guess"):
+        navigate(guessed, "go to the kitchen", START_A, strict=True)
+    assert not navigate(result, "go to the kitchen", START_A).goal.choice.notes  # a clear answer
+
+
 def test_the_goal_lies_in_the_middle_of_a_region_of_equal_probability(result):
     goal = navigate(result, "kitchen", START_A).goal
     row, col = result.grid.world_to_cell(np.array(goal.xy))

@@ -196,8 +196,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "covers less than 80%% of the fit's free cells: not the fit's "
                         "map")  # fmt: skip
     p.add_argument("--strict", action="store_true",
-                   help="an ambiguous word (two separate regions of near-equal probability) is "
-                        "an error instead of taking the nearer")  # fmt: skip
+                   help="an ambiguous word (two separate regions of near-equal probability, "
+                        "or an answer `spcopyro where` calls close to a guess between two "
+                        "concepts) is an error instead of taking the nearer or "
+                        "likelier")  # fmt: skip
     p.add_argument("--planner", choices=("hierarchical", "grid"), default="hierarchical",
                    help="hierarchical: the route over the place graph first, then the grid path "
                         "kept to the route's places (the shortest grid path, with the reason, "

@@ -17,6 +17,7 @@ Orientation: every pose of the path faces the next one; the last faces along the
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -27,6 +28,7 @@ from spcopyro.results.result import SpCoResult
 from spcopyro.results.uncertainty import where_probability
 from spcopyro.results.where import DEFAULT_WHERE_PRIOR
 from spcopyro.robot.navigation.goals import (
+    AmbiguousGoalError,
     GoalChoice,
     Instruction,
     NavigationError,
@@ -248,6 +250,7 @@ def navigate(
             probability = probability[carry]  # [N] on the planning map's cells
         distance, predecessors = shortest_paths(planning, current)
         choice = choose_goal(planning, word, probability, distance, strict=strict)
+        choice = _with_where_warnings(choice, result, word, prior, strict)
         legs.append(plan_leg(planning, places, node_place, current, choice.node, distance,
                              predecessors, planner=planner, margin=margin))  # fmt: skip
         stops_info.append((word, via, choice, probability, sum(len(g.nodes) - 1 for g in legs)))
@@ -280,6 +283,22 @@ def navigate(
         legs=tuple(legs),
         margin=margin,
     )
+
+
+def _with_where_warnings(
+    choice: GoalChoice, result: SpCoResult, word: str, prior: str, strict: bool
+) -> GoalChoice:
+    """``choice`` with the warnings ``spcopyro where`` gives for ``word`` among its notes (an
+    answer close to a guess between two concepts, a word that says little, a speck): the robot
+    drove to an answer ``where`` calls a guess without a word. ``strict``: an answer close to a
+    guess (odds below :data:`~spcopyro.results.where.ODDS_WARNING`) is an
+    :class:`AmbiguousGoalError`, as two regions of near-equal probability are."""
+    warnings = result.where(word, prior).warnings
+    guess = [w for w in warnings if "close to a guess" in w]
+    if strict and guess:
+        raise AmbiguousGoalError(f"{word!r} is ambiguous: {guess[0]} (--strict)")
+    notes = tuple(f"where {word!r}: {w}" for w in warnings)
+    return dataclasses.replace(choice, notes=choice.notes + notes) if notes else choice
 
 
 def _route(
