@@ -116,3 +116,17 @@ def test_where_prints_the_answer_its_warnings_and_draws_them(tmp_path, capsys):
         assert "is a file of the fit" in capsys.readouterr().err
         assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == before
     assert main(["where", str(out), "kitchen", "--out", str(out / "kitchen.png")]) == 0
+
+
+def test_where_given_a_house_folder_says_it_is_data_not_a_fit(tmp_path, capsys):
+    """QA: `where DATASET/room1dk5 kitchen` told the user to `fit DATA --out` the house's own
+    folder (which fit refuses: it holds data)."""
+    from spcopyro.cli.main import main
+
+    house = tmp_path / "room1dk5"
+    house.mkdir()
+    (house / "St.csv").write_text("kitchen\n")
+    assert main(["where", str(house), "kitchen"]) == 2
+    err = capsys.readouterr().err
+    assert f"{house} is a house folder (data), not a fitted result" in err
+    assert f"`spcopyro fit {house} --out OUT`, and give OUT here" in err
