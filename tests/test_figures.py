@@ -209,3 +209,38 @@ def test_a_legend_outside_the_axes_is_inside_the_png(tmp_path):
     tight = fig.get_tightbbox(FigureCanvasAgg(fig).get_renderer())  # inches
     width = cv2.imread(str(tmp_path / "legend.png")).shape[1]
     assert legend.x1 / DPI <= tight.x1 and abs(width - (tight.width + 2 * PAD_INCHES) * DPI) <= 2
+
+
+def _side_by_side_rooms():
+    """A tall map (8 m x 1.4 m): concepts 0 and 1 share a band half-way up, side by side, their
+    label centres 0.6 m apart; concept 2 fills the rest."""
+    from hand_results import one_word_per_concept
+
+    from spcopyro.maps import FREE, OccupancyGrid
+
+    occupancy = np.full((80, 14), FREE, dtype=np.int8)
+    grid = OccupancyGrid(occupancy=occupancy, resolution=0.1, origin=(0.0, 0.0, 0.0))
+    image = np.full(grid.shape, 2)
+    image[34:46, :7] = 0
+    image[34:46, 7:] = 1
+    return one_word_per_concept(grid, image[grid.free], ("bedroom", "entrance", "living"), 3)
+
+
+def test_labels_of_neighbouring_regions_do_not_overlap():
+    """room1ldk4's labels of concepts 27 and 3 ran into each other ("table 0.41 x15entrance 0.40
+    x7.0"): the boxes were measured before the axes took the map's equal aspect, on a wider
+    axes than drawn. Now no two labels' boxes overlap as drawn, and the title counts the one
+    left out."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from spcopyro.figures.plotting import DPI, semantic_map_figure
+
+    fig = semantic_map_figure(_side_by_side_rooms())
+    fig.set_dpi(DPI)
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    fig.draw(renderer)
+    (ax,) = fig.axes
+    boxes = [t.get_window_extent(renderer) for t in ax.texts]
+    assert len(boxes) == 3  # concept 2 above and below, one of the two side by side
+    assert not any(a.overlaps(b) for k, a in enumerate(boxes) for b in boxes[k + 1 :])
+    assert "3 labelled regions, 1 left unlabelled (legend)" in ax.get_title()

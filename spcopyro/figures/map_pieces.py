@@ -173,10 +173,14 @@ def place_labels(
     """Write each ``(x, y, text, style)`` label centred at (x, y) with the white halo
     :data:`OUTLINE`, in the given order, leaving out any label whose box would overlap one
     already written. Returns (written, left out). The boxes are measured by rendering the
-    figure on an Agg canvas (no backend is selected for anything else)."""
+    figure on an Agg canvas (no backend is selected for anything else), after the axes took
+    the shape of an equal-aspect map: measured on the axes as made (the whole subplot), a
+    tall map was drawn narrower than measured and two labels side by side ran into each other
+    ("table 0.41 x15entrance 0.40 x7.0" on room1ldk4)."""
     if fig.canvas is None or not hasattr(fig.canvas, "get_renderer"):
         FigureCanvasAgg(fig)
     renderer = fig.canvas.get_renderer()
+    ax.apply_aspect()  # the axes' box as drawn (matplotlib applies the aspect only at draw)
     boxes = []
     skipped = 0
     for x, y, text, style in labels:

@@ -65,6 +65,11 @@ RUNNER_UP_RGB = (0, 70, 200)  # the runner-up's region in plot_where
 GREY_FREE_RGB = (225, 225, 225)  # plot_where draws the free cells of the map in this grey
 
 
+def _count(n: int, noun: str) -> str:
+    """``"1 cell"``, ``"2 cells"``: ``n`` and ``noun``, plural but for one."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 def known_bounds(grid: OccupancyGrid, margin: int = 3) -> tuple[slice, slice]:
     """Row and column slices of the map's known (not UNKNOWN) cells, plus a margin."""
     rows, cols = np.nonzero(grid.occupancy != UNKNOWN)
@@ -269,8 +274,9 @@ def semantic_map_figure(
 
     Every connected region holding at least ``min_region_fraction`` of the free cells gets a
     label at its most interior cell (:func:`region_label_points`), in black with a white halo
-    (a label that would overlap the label of a larger region is left out and counted in the
-    title, :func:`~spcopyro.figures.map_pieces.place_labels`):
+    (a label whose box would overlap the label of a larger region is left out and counted in
+    the title, "6 labelled regions, 1 left unlabelled (legend)",
+    :func:`~spcopyro.figures.map_pieces.place_labels`):
     ``[concept]`` and its ``n_words`` most probable words with their probabilities (and the
     lift of the distinctive ones, ``x4.2``) on the concept's largest region, ``[concept]`` and
     its best word on each further one, "no words heard here" for a concept whose region holds
@@ -307,9 +313,10 @@ def semantic_map_figure(
               frameon=False, title="concepts, largest first: words (posterior mean p; "
               "x lift = p(word | concept) / p(word))", title_fontsize=7)  # fmt: skip
     used = len(result.concepts_in_use())
-    crowded = f"; {skipped} more left unlabelled where labels would overlap" if skipped else ""
-    ax.set_title(f"{result.name or 'semantic map'}: {used} concepts in use, {regions} labelled "
-                 f"regions (>= {min_region_fraction:.1%} of the free cells{crowded})")  # fmt: skip
+    crowded = f", {skipped} left unlabelled (legend)" if skipped else ""
+    ax.set_title(f"{result.name or 'semantic map'}: {_count(used, 'concept')} in use, "
+                 f"{_count(regions, 'labelled region')}{crowded} (regions >= "
+                 f"{min_region_fraction:.1%} of the free cells)")  # fmt: skip
     return fig
 
 
