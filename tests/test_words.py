@@ -140,6 +140,9 @@ def test_a_concept_where_no_word_was_heard_says_so(capsys):
     assert summaries[2]["top_words"] == [] and summaries[2]["distinctive_words"] == []
     assert summaries[0]["words_note"] is None and summaries[0]["top_words"][0][0] == "kitchen"
     assert format_concept_words([], [], 0.0) == f"({NO_WORDS})"
+    # a top word at 0.00 is left out ("bedroom 0.56, bed 0.42, entrance 0.00"), the first kept
+    assert format_concept_words([("bed", 0.56), ("door", 0.004)], [], 3.0) == "bed 0.56"
+    assert format_concept_words([("bed", 0.004)], [], 3.0) == "bed 0.00"
     assert region_text(result, 2) == f"[2]\n{NO_WORDS}"
     assert region_text(result, 0).splitlines()[1] == "kitchen 0.60 x1.7"
     print_concepts(result)

@@ -29,6 +29,11 @@ def print_concepts(result: SpCoResult, limit: int = 10) -> None:
           f"{MIN_LIFT:g}, p(word) the area-weighted mix):")  # fmt: skip
     further = [t.name for t in result.emissions if t.name not in ("images", "words")]
     concepts = result.concepts()
+    heard_counts = [c["words_heard"] for c in concepts if c["words_heard"] is not None]
+    if any(round(h, 1) != round(h) for h in heard_counts):
+        print("  (N words: the utterances heard in the concept's cells; the observation "
+              "footprint spreads each over the cells around it, so N may be "
+              "fractional)")  # fmt: skip
     specks = [c for c in concepts if _is_speck(c, result.grid.num_free)]
     listed = [c for c in concepts if not _is_speck(c, result.grid.num_free)]
     for concept in listed[:limit]:

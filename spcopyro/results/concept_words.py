@@ -115,10 +115,12 @@ def format_concept_words(
 ) -> str:
     """One line for a concept: ``NO_WORDS`` when ``heard`` is 0, else its top words with their
     probabilities and its distinctive words (if any) with their lifts, e.g.
-    ``"kitchen 0.31, the 0.12 | distinctive: kitchen x4.2, fridge x3.1"``."""
+    ``"kitchen 0.31, the 0.12 | distinctive: kitchen x4.2, fridge x3.1"``. A top word whose
+    probability rounds to 0.00 is left out (the first is always shown)."""
     if heard is not None and heard <= 0:
         return f"({NO_WORDS})"
-    text = ", ".join(f"{w} {p:.2f}" for w, p in top)
+    shown = [(w, p) for w, p in top if round(p, 2) > 0] or list(top[:1])  # no "entrance 0.00"
+    text = ", ".join(f"{w} {p:.2f}" for w, p in shown)
     if distinctive:
         text += " | distinctive: " + ", ".join(f"{w} x{r:.1f}" for w, r, _ in distinctive)
     return text
