@@ -318,9 +318,14 @@ def test_a_dataset_root_given_as_the_house_names_its_houses(small_house, tmp_pat
     root = small_house.parent
     assert main(["fit", str(root), "--out", str(tmp_path / "out"), "--sweeps", "2"]) == 2
     err = capsys.readouterr().err
-    assert f"map of house {root.name!r} not found" in err
-    assert f"{root} holds house folders ({small_house.name}): give one of them" in err
+    assert "map of house" not in err  # a path the user never gave, read first (QA)
+    assert f"{root} is not a house folder but holds house folders ({small_house.name}): " in err
     assert not (tmp_path / "out").exists()
+    # a folder with neither houses nor observations (the dataset's map/, say) is named as such
+    maps = tmp_path / "map"
+    maps.mkdir()
+    assert main(["fit", str(maps), "--out", str(tmp_path / "out"), "--sweeps", "2"]) == 2
+    assert f"{maps} is not a house folder: it holds no Ft.csv or St.csv" in capsys.readouterr().err
 
 
 def test_simulate_names_its_flags_when_the_rooms_do_not_fit(tmp_path, capsys):

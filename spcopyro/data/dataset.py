@@ -211,13 +211,17 @@ def load_house(
             for p in room.iterdir()
             if p.is_dir() and any((p / f).is_file() for f in ("Ft.csv", "St.csv"))
         )  # a dataset's root given for one of its houses
-        hint = (
-            f"; {room} holds house folders ({', '.join(houses)}): give one of them, e.g. "
-            f"{room / houses[0]}"
-            if houses and map_yaml is None
-            else ""
-        )
-        raise FileNotFoundError(f"{yaml_path}: map of house {name!r} not found{hint}")
+        if houses and map_yaml is None:  # the user gave a dataset's root: say that first
+            raise FileNotFoundError(
+                f"{room} is not a house folder but holds house folders ({', '.join(houses)}): "
+                f"give one of them, e.g. {room / houses[0]}"
+            )
+        if map_yaml is None and not any((room / f).is_file() for f in ("Ft.csv", "St.csv")):
+            raise FileNotFoundError(
+                f"{room} is not a house folder: it holds no Ft.csv or St.csv (a house folder "
+                "holds its observations, its map in ../map/NAME.yaml)"
+            )
+        raise FileNotFoundError(f"{yaml_path}: map of house {name!r} not found")
     grid = load_map(yaml_path)
 
     files = {key: room / f"{key}.csv" for key in ("Ft", "Xtx", "Xty", "St", "StXtx", "StXty")}
