@@ -244,3 +244,50 @@ def test_labels_of_neighbouring_regions_do_not_overlap():
     assert len(boxes) == 3  # concept 2 above and below, one of the two side by side
     assert not any(a.overlaps(b) for k, a in enumerate(boxes) for b in boxes[k + 1 :])
     assert "3 labelled regions, 1 left unlabelled (legend)" in ax.get_title()
+
+
+def _crowded_house():
+    """The synthetic house with its first 12 utterances heard at two spots, words of three
+    kinds at each (room1dk5: 'bedroom' hidden under 'shelf' and 'other words')."""
+    import dataclasses
+
+    from spcopyro.synthetic import make_house
+
+    house = make_house(seed=0)
+    obs = house.observations
+    xy = np.array(obs.word_xy, dtype=np.float64)
+    xy[:6] = xy[0]
+    xy[6:12] = xy[6]
+    words = ("bedroom", "shelf", "bed") * 4 + tuple(u[-1:] for u in obs.utterances[12:])
+    words = tuple((w,) if isinstance(w, str) else w for w in words)
+    return dataclasses.replace(
+        house, observations=dataclasses.replace(obs, word_xy=xy, utterances=words)
+    )
+
+
+def test_every_word_in_the_house_legend_shows_in_its_own_colour():
+    """room1dk5's house.png: 'bedroom' was in the legend but all its markers lay under others,
+    and tv/kitchen, chair/entrance had near-twin colours. Markers at one spot are now spread
+    apart (no centre within half a marker of one drawn over it) and the colours differ."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from spcopyro.figures.plotting import house_figure
+
+    fig = house_figure(_crowded_house())
+    FigureCanvasAgg(fig).draw()
+    (ax,) = fig.axes
+    words = [c for c in ax.collections if c.get_label() not in ("", "_nolegend_")][1:]
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert {"bedroom", "shelf", "bed", "other words"} <= set(legend)
+    assert {c.get_label() for c in words} == set(legend[1:])  # but the images
+    diameter = np.sqrt(28.0) * fig.dpi / 72.0
+    drawn = sorted(words, key=lambda c: c.get_zorder())  # stable: later ones drawn over
+    for k, mine in enumerate(drawn):
+        centres = ax.transData.transform(mine.get_offsets())  # [n, 2]
+        above = [ax.transData.transform(c.get_offsets()) for c in drawn[k + 1 :]]
+        above += [np.empty((0, 2))]
+        gaps = np.linalg.norm(centres[:, None] - np.concatenate(above)[None], axis=-1)
+        visible = (gaps >= 0.5 * diameter).all(axis=1) if gaps.shape[1] else [True]
+        assert np.any(visible), mine.get_label()
+    named = np.array([c.get_facecolor()[0, :3] for c in words if c.get_label() != "other words"])
+    assert smallest_difference(np.round(named * 255).astype(np.uint8)) >= 30

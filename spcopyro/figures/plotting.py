@@ -39,6 +39,7 @@ from spcopyro.figures.map_pieces import (
     draw_utterances,
     place_labels,
     region_text,
+    spread_markers,
 )
 from spcopyro.figures.png import save_png
 from spcopyro.maps import (
@@ -49,7 +50,7 @@ from spcopyro.maps import (
     OccupancyGrid,
     concept_colours,
     concept_regions,
-    label_colours,
+    distinct_colours,
     render_labels,
 )
 from spcopyro.results.concept_words import NO_WORDS
@@ -179,26 +180,50 @@ def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
 
 
 def plot_house(house: House, path: str | os.PathLike[str], title: str | None = None) -> Path:
-    """The map (free white, walls black, unknown grey), image positions and words by colour."""
+    """Write :func:`house_figure` to ``path``."""
+    return _save(house_figure(house, title), path)
+
+
+def house_figure(house: House, title: str | None = None) -> Figure:
+    """The map (free white, walls black, unknown grey), image positions and words by colour.
+
+    Each utterance is marked by its last word (the place's name in a sentence such as "this is
+    the kitchen"); the ``MAX_WORD_COLOURS`` most frequent words each take a colour of
+    :func:`~spcopyro.maps.palette.distinct_colours` (near-twins such as tv/kitchen came from
+    ``label_colours``), the rest are "other words" in grey. Markers at one spot are spread
+    apart (:func:`~spcopyro.figures.map_pieces.spread_markers`): every word in the legend shows.
+    """
     grid, obs = house.grid, house.observations
     fig = Figure(figsize=(8, 8))
     ax = fig.subplots()
     _show_image(ax, grid, render_labels(np.full(grid.shape, -1), grid))
     ax.scatter(*obs.image_xy.T, s=6, c="0.45", marker="s", label=f"images ({obs.num_images})")
-    first_words = [u[-1] if u else "" for u in obs.utterances]  # a sentence's last word
-    frequent = [w for w, _ in Counter(first_words).most_common(MAX_WORD_COLOURS)]
-    colours = label_colours(len(frequent) + 1) / 255.0
-    for k, word in enumerate(frequent):
-        mask = np.array([w == word for w in first_words])
-        ax.scatter(*obs.word_xy[mask].T, s=28, color=colours[k], edgecolors="k", linewidths=0.4,
-                   label=word)  # fmt: skip
-    rest = np.array([w not in frequent for w in first_words])
+    last_words = [u[-1] if u else "" for u in obs.utterances]  # a sentence's last word
+    frequent = [w for w, _ in Counter(last_words).most_common(MAX_WORD_COLOURS)]
+    colours = distinct_colours(len(frequent)) / 255.0  # [F, 3]
+    rank = {w: k for k, w in enumerate(frequent)}
+    kind = np.array([rank.get(w, len(frequent)) for w in last_words], dtype=np.int64)  # [U]
+    order = np.argsort(kind, kind="stable")  # named words keep their places first
+    size = 28.0
+    xy = np.asarray(obs.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
+    shown = np.empty_like(xy)
+    shown[order] = spread_markers(ax, xy[order], size)
+    rest = kind == len(frequent)
     if rest.any():
-        ax.scatter(*obs.word_xy[rest].T, s=28, color=colours[-1], edgecolors="k",
-                   linewidths=0.4, label="other words")  # fmt: skip
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, frameon=False)
+        ax.scatter(*shown[rest].T, s=size, color="0.8", edgecolors="k", linewidths=0.4,
+                   zorder=2, label="other words")  # fmt: skip
+    for k, word in enumerate(frequent):
+        ax.scatter(*shown[kind == k].T, s=size, color=colours[k], edgecolors="k",
+                   linewidths=0.4, zorder=3, label=word)  # fmt: skip
+    handles, labels = ax.get_legend_handles_labels()
+    if rest.any():  # "other words" last in the legend, drawn first (under the named words)
+        handles.append(handles.pop(1))
+        labels.append(labels.pop(1))
+    ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8,
+              frameon=False, title="words heard (last word of each utterance;\nmarkers at one "
+              "spot spread apart)", title_fontsize=8)  # fmt: skip
     ax.set_title(title or f"{house.name}: {grid.num_free} free cells")
-    return _save(fig, path)
+    return fig
 
 
 def semantic_colours(result: SpCoResult) -> np.ndarray:
