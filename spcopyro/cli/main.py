@@ -221,7 +221,9 @@ def _where(args: argparse.Namespace) -> int:
     grid = result.grid
     cells = np.argwhere(answer.region)  # [n, 2] (row, col)
     xy = grid.cell_to_world(cells)
-    words = ", ".join(f"{w} ({p:.2f})" for w, p in result.top_words(answer.concept, 3))
+    top = result.top_words(answer.concept, 3)
+    top = [(w, p) for w, p in top if round(p, 2) > 0] or top[:1]  # no "door (0.00)"
+    words = ", ".join(f"{w} ({p:.2f})" for w, p in top)
     distinctive = result.distinctive_words(answer.concept, 3)
     if result.heard(answer.concept) == 0:
         words = "none, no words heard here"
@@ -234,7 +236,8 @@ def _where(args: argparse.Namespace) -> int:
               f"Bayes factor of the word for concept {answer.concept}: "
               f"{answer.evidence:.2f}")  # fmt: skip
     if len(cells):
-        (x0, y0), (x1, y1) = xy.min(0), xy.max(0)
+        half = grid.resolution / 2  # xy are cell centres: the region's edges lie half out
+        (x0, y0), (x1, y1) = xy.min(0) - half, xy.max(0) + half
         cx, cy = xy.mean(0)
         print(f"region: {len(cells)} cells ({len(cells) * grid.resolution**2:.2f} m^2), "
               f"centre x={cx:.2f} y={cy:.2f}, spanning x {x0:.2f}..{x1:.2f}, "
