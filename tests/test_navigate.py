@@ -399,3 +399,31 @@ def test_a_negative_start_needs_no_equals_sign(fit, capsys):
         "0.1",
     ]
     assert attach_negative_coordinates(["--start", "--radius"]) == ["--start", "--radius"]
+
+
+def test_the_figure_draws_the_destination_apart_from_the_walls_and_as_its_legend_says(result):
+    """navigate.png drew room1dk5's bedroom dark slate grey (a 25% orange overlay of the route's
+    places on the darkest blue), near the walls' black, and the legend's swatch was tan. The
+    probability's darkest colour is now a mid blue far from black, and the route's places are
+    an orange outline drawn as the legend shows it."""
+    from matplotlib.colors import to_rgb
+    from matplotlib.contour import ContourSet
+
+    from spcopyro.maps.palette import delta_e
+    from spcopyro.robot.navigation.figure import ROUTE_RGB, plan_figure
+
+    plan = navigate(result, "go to the kitchen via the corridor", START_A)
+    fig = plan_figure(plan)
+    ax = fig.axes[0]
+    probability = [im for im in ax.images if im.get_array().ndim == 2]
+    assert len(probability) == 1 and len(ax.images) == 2  # the map and the probability only
+    darkest = np.array(probability[0].cmap(1.0)[:3]) * 255
+    assert delta_e(darkest, [0, 0, 0]) >= 50
+    handles, labels = ax.get_legend_handles_labels()
+    if any(leg.corridor is not None for leg in plan.legs):
+        route = handles[labels.index("route's places (outline)")]
+        outlines = [c for c in ax.collections if isinstance(c, ContourSet)]
+        assert len(outlines) == 1
+        np.testing.assert_allclose(outlines[0].get_edgecolor()[0][:3], ROUTE_RGB)
+        np.testing.assert_allclose(to_rgb(route.get_color()), ROUTE_RGB)
+        assert route.get_alpha() in (None, 1.0) and route.get_linewidth() == 2.0

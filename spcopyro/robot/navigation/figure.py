@@ -8,19 +8,34 @@ import os
 from pathlib import Path
 
 import numpy as np
+from matplotlib import colormaps
+from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 
+from spcopyro.figures.map_pieces import draw_outline
 from spcopyro.figures.plotting import _extent, _save, _show_image, semantic_colours
 from spcopyro.maps.render import render_labels
 from spcopyro.results.result import SpCoResult
 from spcopyro.robot.navigation.places import DOORWAY_WIDTH, PlaceGraph
 from spcopyro.robot.navigation.planning import NavigationPlan
 
-__all__ = ["plot_place_graph", "plot_plan"]
+__all__ = ["PROBABILITY_CMAP", "ROUTE_RGB", "plan_figure", "plot_place_graph", "plot_plan"]
+
+PROBABILITY_CMAP = ListedColormap(colormaps["Blues"](np.linspace(0.0, 0.7, 256)), "Blues_0_70")
+"""The destination's probability: matplotlib's Blues up to 70%, its darkest a mid blue that
+walls (black) do not pass for (the full Blues under a 25% orange overlay drew the destination
+dark slate grey)."""
+ROUTE_RGB = (1.0, 0.6, 0.0)
+"""The outline of the route's places (drawn over the probability, not blended with it)."""
 
 
 def plot_plan(plan: NavigationPlan, path: str | os.PathLike[str]) -> Path:
-    """Draw ``plan`` (module docstring) into the PNG ``path``."""
+    """Draw ``plan`` (module docstring) into the PNG ``path``: :func:`plan_figure`."""
+    return _save(plan_figure(plan), path)
+
+
+def plan_figure(plan: NavigationPlan) -> Figure:
+    """``plan`` (module docstring) as a figure."""
     grid = plan.planning.grid
     fig = Figure(figsize=(9, 8))
     ax = fig.subplots()
@@ -29,17 +44,17 @@ def plot_plan(plan: NavigationPlan, path: str | os.PathLike[str]) -> Path:
     goal = plan.goal
     image = np.full(grid.shape, np.nan)  # [H, W]
     image[grid.free] = goal.probability
-    shown = ax.imshow(image[rows, cols], extent=_extent(grid, rows, cols), origin="upper",
-                      cmap="Blues", vmin=0.0, vmax=1.0, interpolation="nearest")  # fmt: skip
+    extent = _extent(grid, rows, cols)
+    shown = ax.imshow(image[rows, cols], extent=extent, origin="upper", cmap=PROBABILITY_CMAP,
+                      vmin=0.0, vmax=1.0, interpolation="nearest")  # fmt: skip
     fig.colorbar(shown, ax=ax, label=f"p(cell in the place of '{goal.word}')", shrink=0.8)
     kept = [leg.corridor for leg in plan.legs if leg.corridor is not None]
-    if kept:  # the cells a hierarchical plan was kept to: its routes' places
+    if kept:  # the cells a hierarchical plan was kept to: its routes' places, outlined
         cells = plan.planning.cells(np.flatnonzero(np.logical_or.reduce(kept)))
-        overlay = np.zeros((*grid.shape, 4))  # [H, W, RGBA]
-        overlay[cells[:, 0], cells[:, 1]] = (1.0, 0.6, 0.0, 0.25)
-        ax.imshow(overlay[rows, cols], extent=_extent(grid, rows, cols), origin="upper",
-                  interpolation="nearest")  # fmt: skip
-        ax.plot([], [], color=(1.0, 0.6, 0.0), lw=6, alpha=0.4, label="route's places")
+        region = np.zeros(grid.shape, dtype=bool)  # [H, W]
+        region[cells[:, 0], cells[:, 1]] = True
+        draw_outline(ax, grid, region, rows, cols, extent, colors=[ROUTE_RGB], linewidths=2.0)
+        ax.plot([], [], color=ROUTE_RGB, lw=2.0, label="route's places (outline)")
     ax.plot(plan.path_xy[:, 0], plan.path_xy[:, 1], color="C3", lw=2, label="path")
     ax.plot(*plan.start, marker="o", color="C2", ms=9, ls="", label="start")
     for stop in plan.stops[:-1]:
@@ -56,7 +71,7 @@ def plot_plan(plan: NavigationPlan, path: str | os.PathLike[str]) -> Path:
     ax.legend(fontsize=8, loc="best")
     ax.set_title(f"navigate: {plan.instruction.text!r}\n{plan.length:.2f} m, "
                  f"radius {plan.radius:g} m")  # fmt: skip
-    return _save(fig, path)
+    return fig
 
 
 def plot_place_graph(result: SpCoResult, graph: PlaceGraph, path: str | os.PathLike[str]) -> Path:
@@ -89,6 +104,7 @@ def plot_place_graph(result: SpCoResult, graph: PlaceGraph, path: str | os.PathL
     if graph.dropped:
         regions = "region" if graph.dropped == 1 else "regions"
         dropped = f"; {graph.dropped} {regions} under {graph.min_area:g} m² left out"
-    ax.set_title(f"place graph: {len(graph.places)} places, {len(graph.passages)} "
-                 f"passages{dropped}")  # fmt: skip
+    places = f"{len(graph.places)} place{'' if len(graph.places) == 1 else 's'}"
+    passages = f"{len(graph.passages)} passage{'' if len(graph.passages) == 1 else 's'}"
+    ax.set_title(f"place graph: {places}, {passages}{dropped}")
     return _save(fig, path)
