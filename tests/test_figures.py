@@ -291,3 +291,36 @@ def test_every_word_in_the_house_legend_shows_in_its_own_colour():
         assert np.any(visible), mine.get_label()
     named = np.array([c.get_facecolor()[0, :3] for c in words if c.get_label() != "other words"])
     assert smallest_difference(np.round(named * 255).astype(np.uint8)) >= 30
+
+
+def test_the_trace_names_its_marked_sweep_and_the_reported_map():
+    """The dashed line was labelled "point estimate" but marks the sweep of the highest log
+    joint; a fit reporting the point estimate over its samples says that map is not that
+    state, and the concept count is said to be the chain's per sweep."""
+    import dataclasses
+
+    from spcopyro.figures.plotting import trace_figure
+
+    result = dataclasses.replace(two_rooms(), method="gibbs")
+    top, bottom = trace_figure(result).axes
+    assert [t.get_text() for t in top.get_legend().get_texts()] == [
+        f"highest {result.trace.objective_name} (sweep 1)"
+    ]
+    assert "per sweep" in bottom.get_ylabel() and "specks included" in bottom.get_ylabel()
+    assert "point estimate" not in trace_figure(result).texts[0].get_text()
+    sampled = dataclasses.replace(result, agreement=np.ones(result.grid.num_free))
+    title = trace_figure(sampled).texts[0].get_text()
+    assert "point estimate over the kept samples, not the state of sweep 1" in title
+
+
+def test_counts_of_one_are_singular(tmp_path, monkeypatch):
+    import dataclasses
+
+    import spcopyro.figures.plotting as plotting
+
+    titles = []
+    monkeypatch.setattr(plotting, "_plot_cell_values", lambda *a, **k: titles.append(k["title"]))
+    agreement = np.ones(two_rooms().grid.num_free)
+    agreement[0] = 0.2
+    plotting.plot_agreement(dataclasses.replace(two_rooms(), agreement=agreement), tmp_path)
+    assert "1 cell below 0.5" in titles[0]

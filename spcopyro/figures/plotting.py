@@ -495,7 +495,7 @@ def plot_agreement(result: SpCoResult, path: str | os.PathLike[str]) -> Path | N
     kind = result.inference.get("point_estimate", "point estimate")
     title = (
         f"{result.name or 'agreement'}: p(sample agrees with the {kind} estimate)\n"
-        f"mean {agreement.mean():.3f}, {int((agreement < 0.5).sum())} cells below 0.5"
+        f"mean {agreement.mean():.3f}, {_count(int((agreement < 0.5).sum()), 'cell')} below 0.5"
     )
     return _plot_cell_values(result, agreement, path, title=title, label="probability",
                              vmax=1.0, cmap="Greens")  # fmt: skip
@@ -510,7 +510,7 @@ def plot_where_probability(
     kind = "marginals" if result.marginals is not None else "point estimate"
     title = (
         f"where is '{word.lower()}'? p(cell in its place), {kind}, {prior} prior\n"
-        f"{int((probability > 0.5).sum())} cells above 0.5"
+        f"{_count(int((probability > 0.5).sum()), 'cell')} above 0.5"
     )
     return _plot_cell_values(result, probability, path, title=title, label="probability",
                              vmax=1.0, cmap="Blues")  # fmt: skip
@@ -522,24 +522,41 @@ def _plain_number(value: float, position: int | None = None) -> str:
 
 
 def plot_trace(result: SpCoResult, path: str | os.PathLike[str]) -> Path:
+    """Write :func:`trace_figure` to ``path``."""
+    return _save(trace_figure(result), path)
+
+
+def trace_figure(result: SpCoResult) -> Figure:
     """The objective (log joint or ELBO) and the number of concepts per iteration (paper
-    Figs. 5-6), the point estimate's iteration marked."""
+    Figs. 5-6), the iteration of the highest objective marked. When the reported map is a
+    point estimate over the kept samples (``result.agreement``), the figure says so: that map
+    is not the marked sweep's state. The concept count is of the chain's state at each sweep
+    (every label it uses, specks included), not the fit's "concepts in use"."""
     trace = result.trace
     sweeps = np.arange(1, len(trace.objective) + 1)
+    step = "sweep" if result.method == "gibbs" else "iteration"
     fig = Figure(figsize=(7, 5))
     top, bottom = fig.subplots(2, 1, sharex=True)
     top.plot(sweeps, trace.objective, lw=0.8)
-    top.axvline(result.best_iteration + 1, color="C3", lw=0.6, ls="--", label="point estimate")
+    best = result.best_iteration + 1
+    top.axvline(best, color="C3", lw=0.6, ls="--",
+                label=f"highest {trace.objective_name} ({step} {best})")  # fmt: skip
     top.set_ylabel(trace.objective_name)
     top.legend(fontsize=8)
     bottom.plot(sweeps, trace.num_concepts, lw=0.8, color="C1")
-    bottom.set_ylabel("concepts in use")
+    bottom.set_ylabel(f"labels in use per {step}\n(the chain's state, specks included)",
+                      fontsize=8)  # fmt: skip
     bottom.yaxis.set_major_locator(MaxNLocator(integer=True))  # a count: no 12.5 concepts
-    bottom.set_xlabel("sweep" if result.method == "gibbs" else "iteration")
+    bottom.set_xlabel(step)
     for ax in (top, bottom):
         ax.set_xscale("log")
         ax.minorticks_off()  # a Tick is some 20 artists: 60 of them were most of the figure
     # sweeps as plain numbers (1, 10, 100, 1000), not 10^k in mathtext (its parser's start-up)
     bottom.xaxis.set_major_formatter(FuncFormatter(_plain_number))
-    fig.suptitle(f"{result.name or 'trace'} ({result.method})")
-    return _save(fig, path)
+    title = f"{result.name or 'trace'} ({result.method})"
+    if result.agreement is not None:
+        kind = result.inference.get("point_estimate", "point")
+        title += (f"\nthe reported map: the {kind} point estimate over the kept samples, "
+                  f"not the state of {step} {best}")  # fmt: skip
+    fig.suptitle(title, fontsize=10)
+    return fig
