@@ -290,3 +290,21 @@ def test_word_ranks_ignore_last_bit_noise_between_ties():
         "a",
         "b",
     ]  # the tie in item order; 1.1 + 1e-15 is 1.1
+
+
+def test_labels_and_counts_read_as_written():
+    """A map label left out words at 0.00 ("entrance 0.00" under "bedroom 0.56, bed 0.42"),
+    and counts of one are singular ("1 doorways", "1 rooms")."""
+    from hand_results import two_rooms
+
+    from spcopyro.cli.common import plural
+    from spcopyro.results.result import EmissionTable
+
+    result = two_rooms()
+    w = np.array([[0.6, 0.398, 0.002], [0.1, 0.6, 0.3], [0.7, 0.15, 0.15]])  # [L, V]
+    emissions = tuple(EmissionTable("words", WORDS, w) if e.name == "words" else e
+                      for e in result.emissions)  # fmt: skip
+    result = dataclasses.replace(result, emissions=emissions)
+    assert region_text(result, 0) == "[0]\nkitchen 0.60 x1.7\nbed 0.40"  # no "sofa 0.00"
+    assert plural(1, "doorway") == "1 doorway" and plural(3, "room") == "3 rooms"
+    assert plural(0, "place") == "0 places"

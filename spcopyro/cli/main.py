@@ -42,6 +42,7 @@ from spcopyro.cli.common import (
     _seed,
     _summary,
     figure_file,
+    plural,
     refuse_fit_files,
 )
 from spcopyro.cli.fit_parser import add_parser as add_fit_parser
@@ -160,7 +161,7 @@ def _simulate_on_map(args: argparse.Namespace) -> int:
         ) from None
     house = simulated.house
     print(f"wrote a simulated tour of {args.map} (seed {args.seed}) to {room}: "
-          f"{_count(int(simulated.room_category.size), 'room')}, "
+          f"{plural(int(simulated.room_category.size), 'room')}, "
           f"{house.observations.num_images} images, "
           f"{house.observations.num_utterances} utterances")  # fmt: skip
     how = "given" if isinstance(tour.door_width, float) else "read from the map"
@@ -257,11 +258,6 @@ def _where(args: argparse.Namespace) -> int:
         probability_png = probability_figure(Path(args.out))
         print(f"wrote {plot_where_probability(result, answer.word, probability_png, args.prior)}")
     return 0
-
-
-def _count(number: int, noun: str) -> str:
-    """``"1 room"``, ``"3 rooms"``."""
-    return f"{number} {noun}{'' if number == 1 else 's'}"
 
 
 def build_parser() -> argparse.ArgumentParser:

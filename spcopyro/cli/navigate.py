@@ -15,7 +15,7 @@ import sys
 from typing import TYPE_CHECKING
 
 from spcopyro._util.arguments import non_negative_number
-from spcopyro.cli.common import _HelpFormatter, figure_file, refuse_fit_files
+from spcopyro.cli.common import _HelpFormatter, figure_file, plural, refuse_fit_files
 
 if TYPE_CHECKING:
     from spcopyro._util.outputs import StagedOutput
@@ -158,7 +158,8 @@ def show_graph(args: argparse.Namespace) -> int:
     written = png.with_suffix(".json")  # X.png -> X.json: two graphs in one folder keep both
     written.write_text(json.dumps(graph.to_json(), indent=2) + "\n")
     doors = sum(e.doorway for e in graph.passages)
-    print(f"{len(graph.places)} places, {len(graph.passages)} passages ({doors} doorways); "
+    print(f"{plural(len(graph.places), 'place')}, {plural(len(graph.passages), 'passage')} "
+          f"({plural(doors, 'doorway')}); "
           f"{graph.dropped} region{'' if graph.dropped == 1 else 's'} under "
           f"{graph.min_area:g} m^2 left out "
           f"({graph.dropped_area:.2f} m^2)")  # fmt: skip
