@@ -3,6 +3,7 @@ Gibbs sweep backends (each test taking ``backend`` runs once per backend)."""
 
 from __future__ import annotations
 
+import logging
 import signal
 import sys
 from concurrent.futures import ThreadPoolExecutor
@@ -40,6 +41,18 @@ def _fixed_seed():
     torch.manual_seed(0)
     np.random.seed(0)  # noqa: NPY002 - legacy global state, reset for code that uses it
     yield
+
+
+@pytest.fixture(autouse=True)
+def _logging_restored():
+    """The "spcopyro" logger's level and logging's global disable as they were before the test:
+    a benchmark script's main() (tests/test_benchmarks.py) quiets them for its tables, and a
+    later test's caplog then caught nothing (the suite's result depended on its order)."""
+    logger = logging.getLogger("spcopyro")
+    level, disabled = logger.level, logging.root.manager.disable
+    yield
+    logger.setLevel(level)
+    logging.disable(disabled)
 
 
 @pytest.fixture(autouse=True)
