@@ -43,7 +43,10 @@ from spcopyro.study.run import run_study
 from spcopyro.study.spec import Study, study_from_dict
 from spcopyro.study.table import read_table
 
-TIMING = ("seconds", "cpu_seconds", "seconds_off", "cpu_seconds_off")
+CELL_SECONDS = ("seconds", "cpu_seconds")
+"""A cell's wall and CPU seconds, summed by :func:`cell_seconds`."""
+TIMING = (*CELL_SECONDS, "seconds_off", "cpu_seconds_off")
+"""Columns :func:`scores` leaves out: timings (the observations-off runs' too), not numbers."""
 
 
 def benchmark_study(sweeps: int, seeds: int, quick: bool) -> Study:
@@ -120,7 +123,7 @@ def cell_seconds(out: Path) -> dict[str, float]:
     """The sums of the cells' own wall and CPU seconds (their fits, data loading excluded) in the
     study's table at ``out``."""
     rows = read_table(out / "results.csv")
-    return {key: float(sum(float(r[key]) for r in rows)) for key in TIMING}
+    return {key: float(sum(float(r[key]) for r in rows)) for key in CELL_SECONDS}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -209,7 +212,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         verdict = "PASS" if median <= 0.6 else "FAIL"
         print(f"pairs, alternated (cluster / in-process s): {listed}")
         print(f"median ratio {median:.2f} (target <= 0.6): {verdict}")
-    slower, costlier = (cluster_cells[key] / in_process_cells[key] for key in TIMING)
+    slower, costlier = (cluster_cells[key] / in_process_cells[key] for key in CELL_SECONDS)
     print(
         f"the cells themselves: {in_process_cells['seconds']:.1f} s together in-process, "
         f"{cluster_cells['seconds']:.1f} s in the cluster run (x{slower:.2f}; their CPU seconds "
@@ -217,7 +220,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"so two workers reach at best {0.5 * slower:.2f} here before the start-up and the tail"
     )
     if loud is not None:
-        loud_slower, loud_costlier = (loud_cells[key] / in_process_cells[key] for key in TIMING)
+        loud_slower, loud_costlier = (
+            loud_cells[key] / in_process_cells[key] for key in CELL_SECONDS
+        )
         print(
             f"with Dask's default event loops: the cells x{loud_slower:.2f} (CPU seconds "
             f"x{loud_costlier:.2f}), the study {results['dask_loops_ratio']:.2f} of in-process"
