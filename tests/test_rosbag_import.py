@@ -33,6 +33,7 @@ from spcopyro.robot.rosbag import (  # noqa: E402
     BagFormatError,
     BagWriter,
     ImportOptions,
+    NothingLeftError,
     PoseOutsideMapError,
     RosbagsMissingError,
     import_bags,
@@ -709,9 +710,10 @@ def test_nothing_left_prints_the_skipped_observations_and_leaves_no_folder(
         error
     )
     assert not (tmp_path / "new").exists()  # nor deeper/, map/ or a staging folder
-    with pytest.raises(BagContentError, match="no image left") as caught:
+    with pytest.raises(NothingLeftError, match="no image left") as caught:  # a BagContentError
         import_bags([bag], map_yaml, out, ImportOptions(pose_tolerance=0.1))
-    assert len(caught.value.skipped) == 7 and not (tmp_path / "new").exists()
+    assert isinstance(caught.value, BagContentError) and len(caught.value.skipped) == 7
+    assert not (tmp_path / "new").exists()
 
 
 def test_content_errors_name_the_bag_of_several(tmp_path, map_yaml):

@@ -18,6 +18,7 @@ from spcopyro.robot.rosbag.bag import BagContentError, BagFormatError, RosbagsMi
 from spcopyro.robot.rosbag.importer import (
     BagImportReport,
     ImportOptions,
+    NothingLeftError,
     PoseOutsideMapError,
     SkippedObservation,
     import_bags,
@@ -30,6 +31,7 @@ __all__ = [
     "BagImportReport",
     "BagWriter",
     "ImportOptions",
+    "NothingLeftError",
     "PoseOutsideMapError",
     "RosbagsMissingError",
     "SkippedObservation",
