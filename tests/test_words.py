@@ -297,7 +297,7 @@ def test_labels_and_counts_read_as_written():
     and counts of one are singular ("1 doorways", "1 rooms")."""
     from hand_results import two_rooms
 
-    from spcopyro.cli.common import plural
+    from spcopyro._util.messages import plural
     from spcopyro.results.result import EmissionTable
 
     result = two_rooms()

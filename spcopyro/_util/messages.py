@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Sized
 
-__all__ = ["ECHO_LIMIT", "echo", "seconds_text"]
+__all__ = ["ECHO_LIMIT", "echo", "plural", "seconds_text"]
 
 ECHO_LIMIT = 80
 """Characters of a value that an error message shows."""
@@ -35,6 +35,11 @@ def echo(value: object, limit: int = ECHO_LIMIT) -> str:
         return text
     count = f"{len(value)} entries, " if isinstance(value, Sized) else ""
     return f"{text[:limit]}... ({count}{len(text)} characters)"
+
+
+def plural(number: int, noun: str) -> str:
+    """``"1 room"``, ``"3 rooms"``: ``number`` and ``noun``, plural but for one."""
+    return f"{number} {noun}{'' if number == 1 else 's'}"
 
 
 def seconds_text(value: float) -> str:

@@ -49,6 +49,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from numbers import Integral
 
+from spcopyro._util.messages import plural
+
 AUTO = "auto"
 """``threads`` value that applies :func:`policy_threads`."""
 
@@ -101,7 +103,7 @@ def describe_threads(threads: int | str | None, num_cells: int) -> str:
     else:
         why = "as asked"
     used = current if count is None else count
-    return f"{used} torch intra-op thread{'s' if used != 1 else ''} ({why})"
+    return f"{plural(used, 'torch intra-op thread')} ({why})"
 
 
 @contextmanager

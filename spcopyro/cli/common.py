@@ -86,11 +86,6 @@ UPDATE_SWEEPS = 300  # --sweeps of --update (spcopyro.robot.online.DEFAULT_UPDAT
 MAX_SEED = 2**63 - 1  # torch.Generator.manual_seed takes a signed 64-bit integer
 
 
-def plural(number: int, noun: str) -> str:
-    """``"1 room"``, ``"3 rooms"``."""
-    return f"{number} {noun}{'' if number == 1 else 's'}"
-
-
 FIRST_SWEEP_OUTLIER = 10.0
 """A first sweep slower than this many times the others' pace (and over half a second) is
 reported apart: numba compiling its code on a first run, not the sampler's pace."""

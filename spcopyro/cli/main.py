@@ -36,13 +36,13 @@ from spcopyro._util.arguments import (
     positive_number,
 )
 from spcopyro._util.interrupts import caused_by_interrupt
+from spcopyro._util.messages import plural
 from spcopyro.cli.common import (
     _HelpFormatter,
     _load,
     _seed,
     _summary,
     figure_file,
-    plural,
     refuse_fit_files,
 )
 from spcopyro.cli.fit_parser import add_parser as add_fit_parser

@@ -15,7 +15,8 @@ import sys
 from typing import TYPE_CHECKING
 
 from spcopyro._util.arguments import non_negative_number
-from spcopyro.cli.common import _HelpFormatter, figure_file, plural, refuse_fit_files
+from spcopyro._util.messages import plural
+from spcopyro.cli.common import _HelpFormatter, figure_file, refuse_fit_files
 
 if TYPE_CHECKING:
     from spcopyro._util.outputs import StagedOutput
@@ -160,7 +161,7 @@ def show_graph(args: argparse.Namespace) -> int:
     doors = sum(e.doorway for e in graph.passages)
     print(f"{plural(len(graph.places), 'place')}, {plural(len(graph.passages), 'passage')} "
           f"({plural(doors, 'doorway')}); "
-          f"{graph.dropped} region{'' if graph.dropped == 1 else 's'} under "
+          f"{plural(graph.dropped, 'region')} under "
           f"{graph.min_area:g} m^2 left out "
           f"({graph.dropped_area:.2f} m^2)")  # fmt: skip
     for place in graph.places:

@@ -31,6 +31,7 @@ from matplotlib.text import Text
 from matplotlib.ticker import FuncFormatter, MaxNLocator
 from scipy import ndimage
 
+from spcopyro._util.messages import plural
 from spcopyro.data import House, Observations
 from spcopyro.data.text import tokenize
 from spcopyro.figures.map_pieces import (
@@ -64,11 +65,6 @@ MAX_WORD_COLOURS = 12  # words beyond the most frequent ones are drawn as "other
 ANSWER_RGB = (214, 0, 0)  # the answer's region in plot_where
 RUNNER_UP_RGB = (0, 70, 200)  # the runner-up's region in plot_where
 GREY_FREE_RGB = (225, 225, 225)  # plot_where draws the free cells of the map in this grey
-
-
-def _count(n: int, noun: str) -> str:
-    """``"1 cell"``, ``"2 cells"``: ``n`` and ``noun``, plural but for one."""
-    return f"{n} {noun}{'' if n == 1 else 's'}"
 
 
 def known_bounds(grid: OccupancyGrid, margin: int = 3) -> tuple[slice, slice]:
@@ -339,8 +335,8 @@ def semantic_map_figure(
               "x lift = p(word | concept) / p(word))", title_fontsize=7)  # fmt: skip
     used = len(result.concepts_in_use())
     crowded = f", {skipped} left unlabelled (legend)" if skipped else ""
-    ax.set_title(f"{result.name or 'semantic map'}: {_count(used, 'concept')} in use, "
-                 f"{_count(regions, 'labelled region')}{crowded} (regions >= "
+    ax.set_title(f"{result.name or 'semantic map'}: {plural(used, 'concept')} in use, "
+                 f"{plural(regions, 'labelled region')}{crowded} (regions >= "
                  f"{min_region_fraction:.1%} of the free cells)")  # fmt: skip
     return fig
 
@@ -410,7 +406,7 @@ def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
                    linewidths=1.5, zorder=3)  # fmt: skip
     answer_handle.set_label(
         f"answer: concept {answer.concept}, p = {answer.probability:.3f} "
-        f"({cells} cell{'s' if cells != 1 else ''}, {cells * area:.2f} m^2)"
+        f"({plural(cells, 'cell')}, {cells * area:.2f} m^2)"
     )
     handles.append(answer_handle)
     if runner is not None:
@@ -495,7 +491,7 @@ def plot_agreement(result: SpCoResult, path: str | os.PathLike[str]) -> Path | N
     kind = result.inference.get("point_estimate", "point estimate")
     title = (
         f"{result.name or 'agreement'}: p(sample agrees with the {kind} estimate)\n"
-        f"mean {agreement.mean():.3f}, {_count(int((agreement < 0.5).sum()), 'cell')} below 0.5"
+        f"mean {agreement.mean():.3f}, {plural(int((agreement < 0.5).sum()), 'cell')} below 0.5"
     )
     return _plot_cell_values(result, agreement, path, title=title, label="probability",
                              vmax=1.0, cmap="Greens")  # fmt: skip
@@ -510,7 +506,7 @@ def plot_where_probability(
     kind = "marginals" if result.marginals is not None else "point estimate"
     title = (
         f"where is '{word.lower()}'? p(cell in its place), {kind}, {prior} prior\n"
-        f"{_count(int((probability > 0.5).sum()), 'cell')} above 0.5"
+        f"{plural(int((probability > 0.5).sum()), 'cell')} above 0.5"
     )
     return _plot_cell_values(result, probability, path, title=title, label="probability",
                              vmax=1.0, cmap="Blues")  # fmt: skip

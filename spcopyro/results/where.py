@@ -45,6 +45,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from spcopyro._util.messages import plural
+
 __all__ = [
     "DEFAULT_WHERE_PRIOR",
     "EVIDENCE_WARNING",
@@ -165,7 +167,7 @@ def answer_warnings(
             else ""
         )
         warnings.append(
-            f"the region is {cells} cell{'s' if cells != 1 else ''} "
+            f"the region is {plural(cells, 'cell')} "
             f"({cells * cell_area:.2f} m^2, {cells / num_free:.2%} of the free cells, under "
             f"{SMALL_REGION_FRACTION:.1%}): a speck, not a place{hint}"
         )

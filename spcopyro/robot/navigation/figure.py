@@ -12,6 +12,7 @@ from matplotlib import colormaps
 from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 
+from spcopyro._util.messages import plural
 from spcopyro.figures.map_pieces import draw_outline
 from spcopyro.figures.plotting import _extent, _save, _show_image, semantic_colours
 from spcopyro.maps.render import render_labels
@@ -102,9 +103,7 @@ def plot_place_graph(result: SpCoResult, graph: PlaceGraph, path: str | os.PathL
     ax.legend(fontsize=8, loc="best")
     dropped = ""
     if graph.dropped:
-        regions = "region" if graph.dropped == 1 else "regions"
-        dropped = f"; {graph.dropped} {regions} under {graph.min_area:g} m² left out"
-    places = f"{len(graph.places)} place{'' if len(graph.places) == 1 else 's'}"
-    passages = f"{len(graph.passages)} passage{'' if len(graph.passages) == 1 else 's'}"
+        dropped = f"; {plural(graph.dropped, 'region')} under {graph.min_area:g} m² left out"
+    places, passages = plural(len(graph.places), "place"), plural(len(graph.passages), "passage")
     ax.set_title(f"place graph: {places}, {passages}{dropped}")
     return _save(fig, path)
