@@ -209,6 +209,7 @@ def _check_where_out(result_dir: str, out: str) -> None:
 
 
 def _where(args: argparse.Namespace) -> int:
+    from spcopyro.results.concept_words import shown_words
     from spcopyro.results.result import SpCoResult, UnknownWordError
 
     if args.out:
@@ -222,8 +223,7 @@ def _where(args: argparse.Namespace) -> int:
     grid = result.grid
     cells = np.argwhere(answer.region)  # [n, 2] (row, col)
     xy = grid.cell_to_world(cells)
-    top = result.top_words(answer.concept, 3)
-    top = [(w, p) for w, p in top if round(p, 2) > 0] or top[:1]  # no "door (0.00)"
+    top = shown_words(result.top_words(answer.concept, 3))
     words = ", ".join(f"{w} ({p:.2f})" for w, p in top)
     distinctive = result.distinctive_words(answer.concept, 3)
     if result.heard(answer.concept) == 0:

@@ -28,6 +28,7 @@ from spcopyro.results.concept_words import (
     NO_WORDS,
     format_words_heard,
     is_speck,
+    shown_words,
     speck_summary,
 )
 from spcopyro.results.result import SpCoResult
@@ -69,7 +70,7 @@ def region_text(result: SpCoResult, concept: int, n_words: int = 3, largest: boo
     lifts = result.lift()[concept]  # [V]
     index = {w: k for k, w in enumerate(result.vocabulary)}
     words = result.top_words(concept, n_words if largest else 1)
-    words = [(w, p) for w, p in words if round(p, 2) > 0] or words[:1]  # no "entrance 0.00"
+    words = shown_words(words)
     if not largest:
         return " ".join([f"[{concept}]"] + [w for w, _ in words])
     return "\n".join([f"[{concept}]"] + [_word_line(w, p, lifts[index[w]]) for w, p in words])

@@ -41,6 +41,7 @@ __all__ = [
     "item_marginal",
     "lift",
     "ranked",
+    "shown_words",
 ]
 
 NO_WORDS = "no words heard here"
@@ -108,6 +109,13 @@ def distinctive_items(
     return [(items[k], float(lift_row[k]), float(row[k])) for k in chosen]
 
 
+def shown_words(top: Sequence[tuple[str, float]]) -> list[tuple[str, float]]:
+    """The ``(word, p)`` of ``top`` worth printing at two decimals: those whose probability does
+    not round to 0.00 ("bedroom 0.56, bed 0.42, entrance 0.00" read as a third word of the
+    place), the first always (the listing, the map's labels and ``where`` use it)."""
+    return [(w, p) for w, p in top if round(p, 2) > 0] or list(top[:1])
+
+
 def format_concept_words(
     top: Sequence[tuple[str, float]],
     distinctive: Sequence[tuple[str, float, float]],
@@ -119,8 +127,7 @@ def format_concept_words(
     probability rounds to 0.00 is left out (the first is always shown)."""
     if heard is not None and heard <= 0:
         return f"({NO_WORDS})"
-    shown = [(w, p) for w, p in top if round(p, 2) > 0] or list(top[:1])  # no "entrance 0.00"
-    text = ", ".join(f"{w} {p:.2f}" for w, p in shown)
+    text = ", ".join(f"{w} {p:.2f}" for w, p in shown_words(top))
     if distinctive:
         text += " | distinctive: " + ", ".join(f"{w} x{r:.1f}" for w, r, _ in distinctive)
     return text
