@@ -39,7 +39,14 @@ from spcopyro.data.text import tokenize
 from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.maps.map_server import load_map, save_map
 
-__all__ = ["House", "find_dataset_root", "list_houses", "load_house", "save_house"]
+__all__ = [
+    "House",
+    "find_dataset_root",
+    "is_house_folder",
+    "list_houses",
+    "load_house",
+    "save_house",
+]
 
 
 def find_dataset_root(path: str | os.PathLike[str] | None = None) -> Path | None:
@@ -67,6 +74,12 @@ def find_dataset_root(path: str | os.PathLike[str] | None = None) -> Path | None
         if (root / "map").is_dir():
             return root.resolve()
     return None
+
+
+def is_house_folder(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` holds a house's observations (``Ft.csv`` or ``St.csv``): what tells a
+    house folder from a dataset's root, its ``map/`` or a fit's output folder in messages."""
+    return any((Path(path) / name).is_file() for name in ("Ft.csv", "St.csv"))
 
 
 def list_houses(root: str | os.PathLike[str]) -> list[str]:
@@ -207,16 +220,14 @@ def load_house(
     yaml_path = Path(map_yaml) if map_yaml is not None else room.parent / "map" / f"{name}.yaml"
     if not yaml_path.is_file():
         houses = sorted(
-            p.name
-            for p in room.iterdir()
-            if p.is_dir() and any((p / f).is_file() for f in ("Ft.csv", "St.csv"))
+            p.name for p in room.iterdir() if p.is_dir() and is_house_folder(p)
         )  # a dataset's root given for one of its houses
         if houses and map_yaml is None:  # the user gave a dataset's root: say that first
             raise FileNotFoundError(
                 f"{room} is not a house folder but holds house folders ({', '.join(houses)}): "
                 f"give one of them, e.g. {room / houses[0]}"
             )
-        if map_yaml is None and not any((room / f).is_file() for f in ("Ft.csv", "St.csv")):
+        if map_yaml is None and not is_house_folder(room):
             raise FileNotFoundError(
                 f"{room} is not a house folder: it holds no Ft.csv or St.csv (a house folder "
                 "holds its observations, its map in ../map/NAME.yaml)"

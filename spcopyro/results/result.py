@@ -409,7 +409,9 @@ class SpCoResult:
         out = Path(out_dir)
         path = out / RESULT_FILE
         if not path.is_file():
-            if any((out / name).is_file() for name in ("Ft.csv", "St.csv")):  # data, not a fit
+            from spcopyro.data.dataset import is_house_folder  # only on this error's path
+
+            if is_house_folder(out):  # data, not a fit
                 raise FileNotFoundError(
                     f"{out} is a house folder (data), not a fitted result: fit it first, "
                     f"`spcopyro fit {out} --out OUT`, and give OUT here"
