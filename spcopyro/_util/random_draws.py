@@ -31,6 +31,16 @@ def check_seed(seed: object, name: str = "seed") -> int:
     return int(seed)
 
 
+def check_generator(generator: object) -> None:
+    """TypeError unless ``generator`` is a :class:`torch.Generator` (a seed given in its place
+    failed deep inside a draw)."""
+    if not isinstance(generator, torch.Generator):
+        raise TypeError(
+            f"generator must be a torch.Generator (torch.Generator().manual_seed(seed)), "
+            f"got {type(generator).__name__}"
+        )
+
+
 def sample_log_gamma(concentration: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
     """log G with G ~ Gamma(concentration, 1), elementwise, for any positive concentration.
 

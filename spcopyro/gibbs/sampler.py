@@ -36,6 +36,7 @@ from typing import NamedTuple
 
 import torch
 
+from spcopyro._util.random_draws import check_generator
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.anneal import annealed_config
 from spcopyro.gibbs.backends import SweepBackend, get_backend
@@ -72,11 +73,7 @@ def init(
     distributions drawn from their conditionals given those labels (eqs. 14-17). ValueError
     for counts that are not finite and >= 0 (:func:`~spcopyro.model.check_model_data`)."""
     check_model_data(data, config)
-    if not isinstance(generator, torch.Generator):
-        raise TypeError(
-            f"generator must be a torch.Generator (torch.Generator().manual_seed(seed)), "
-            f"got {type(generator).__name__}"
-        )
+    check_generator(generator)
     if labels is None:
         labels = random_labels(data.num_free, config, generator)
     labels = check_labels(labels, data.num_free, config).clone()

@@ -156,8 +156,7 @@ class InferenceMethod(Protocol):
         reproducible); ``thin`` > 0 keeps a label map every ``thin`` iterations where the method
         has such maps. ``resume``: a variational method (:attr:`resumable`) goes on from an
         interrupted run's q(C) and record instead of starting at ``init_labels``."""
-        import torch  # not at import (module docstring)
-
+        from spcopyro._util.random_draws import check_generator  # torch: not at import
         from spcopyro.model import check_model_data
 
         options = method_options(options, self.options_type, self.title or self.name)
@@ -166,11 +165,7 @@ class InferenceMethod(Protocol):
         integer = isinstance(iterations, int | np.integer) and not isinstance(iterations, bool)
         if not integer or iterations < 1:
             raise ValueError(f"iterations must be an integer >= 1, got {iterations!r}")
-        if not isinstance(generator, torch.Generator):
-            raise TypeError(
-                f"generator must be a torch.Generator (torch.Generator().manual_seed(seed)), "
-                f"got {type(generator).__name__}"
-            )
+        check_generator(generator)
         if resume is not None and not self.resumable:
             raise ValueError(f"{self.title or self.name} does not resume from a checkpoint")
         request = RunArgs(iterations, generator, init_labels, progress, thin, resume)
