@@ -17,7 +17,6 @@ is on ``sys.path`` when they run.
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 from collections.abc import Callable, Sequence
@@ -32,6 +31,7 @@ if str(ROOT) not in sys.path:  # the checkout's package when it is not installed
 from spcopyro._util.arguments import (  # noqa: E402  (light: imports nothing of the package)
     integer_at_least,
     non_negative_number,
+    number_type,
     positive_number,
 )
 
@@ -49,15 +49,8 @@ WAIT = non_negative_number("wait is seconds")
 """argparse type of --wait-idle: a finite float >= 0 (0: do not wait)."""
 
 
-def fraction(text: str) -> float:
-    """argparse type of a share: a float in [0, 1]."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = -1.0
-    if not 0.0 <= value <= 1.0:
-        raise argparse.ArgumentTypeError(f"{text!r}: a share is a number in [0, 1]")
-    return value
+fraction = number_type(lambda v: 0.0 <= v <= 1.0, lambda t: f"{t!r}: a share is a number in [0, 1]")
+"""argparse type of a share: a float in [0, 1]."""
 
 
 def counts(text: str) -> list[int]:

@@ -7,7 +7,13 @@ import argparse
 import math
 from collections.abc import Callable
 
-__all__ = ["figure_path", "integer_at_least", "non_negative_number", "positive_number"]
+__all__ = [
+    "figure_path",
+    "integer_at_least",
+    "non_negative_number",
+    "number_type",
+    "positive_number",
+]
 
 
 def integer_at_least(minimum: int) -> Callable[[str], int]:
@@ -26,21 +32,33 @@ def integer_at_least(minimum: int) -> Callable[[str], int]:
     return parse
 
 
-def _finite_number(what: str, positive: bool) -> Callable[[str], float]:
-    """An argparse ``type``: a finite float >= 0 (> 0 if ``positive``), else a usage error
-    naming the value and ``what`` it is ("'-1': the area is square metres > 0")."""
-    bound = "> 0" if positive else ">= 0"
+def number_type(
+    accept: Callable[[float], bool], message: Callable[[str], str]
+) -> Callable[[str], float]:
+    """An argparse ``type``: the text as a float that ``accept`` takes, else a usage error with
+    ``message(text)`` (text that is no number is refused the same way: NaN is accepted by no
+    range check)."""
 
     def parse(text: str) -> float:
         try:
             value = float(text)
         except ValueError:
-            value = -1.0
-        if not (math.isfinite(value) and (value > 0 if positive else value >= 0)):
-            raise argparse.ArgumentTypeError(f"{text!r}: the {what} {bound}")
+            value = math.nan
+        if not accept(value):
+            raise argparse.ArgumentTypeError(message(text))
         return value
 
     return parse
+
+
+def _finite_number(what: str, positive: bool) -> Callable[[str], float]:
+    """An argparse ``type``: a finite float >= 0 (> 0 if ``positive``), else a usage error
+    naming the value and ``what`` it is ("'-1': the area is square metres > 0")."""
+    bound = "> 0" if positive else ">= 0"
+    return number_type(
+        lambda v: math.isfinite(v) and (v > 0 if positive else v >= 0),
+        lambda text: f"{text!r}: the {what} {bound}",
+    )
 
 
 def non_negative_number(what: str) -> Callable[[str], float]:

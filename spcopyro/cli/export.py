@@ -10,29 +10,18 @@ from __future__ import annotations
 import argparse
 import sys
 
+from spcopyro._util.arguments import number_type
 from spcopyro.cli.common import _HelpFormatter
 
 __all__ = ["add_parser"]
 
 
-def _probability(value: str) -> float:
-    try:
-        number = float(value)
-    except ValueError:
-        number = -1.0
-    if not 0.0 < number <= 1.0:
-        raise argparse.ArgumentTypeError(f"must be a probability in (0, 1], got {value!r}")
-    return number
-
-
-def _percent(value: str) -> float:
-    try:
-        number = float(value)
-    except ValueError:
-        number = -1.0
-    if not 0.0 <= number <= 100.0:
-        raise argparse.ArgumentTypeError(f"must be a percentage in [0, 100], got {value!r}")
-    return number
+_probability = number_type(
+    lambda v: 0.0 < v <= 1.0, lambda text: f"must be a probability in (0, 1], got {text!r}"
+)
+_percent = number_type(
+    lambda v: 0.0 <= v <= 100.0, lambda text: f"must be a percentage in [0, 100], got {text!r}"
+)
 
 
 def _min_speed(value: str) -> float:

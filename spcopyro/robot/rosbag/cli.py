@@ -7,10 +7,11 @@ one of them runs (a clear error naming ``pip install "spcopyro[ros]"`` when it i
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
-from spcopyro._util.arguments import integer_at_least
+from spcopyro._util.arguments import integer_at_least, number_type
 from spcopyro.robot.rosbag.bag import DEFAULT_ROS_DISTRO, ROS_DISTROS
 
 __all__ = ["add_parser"]
@@ -18,14 +19,10 @@ __all__ = ["add_parser"]
 PRINTED_SKIPS = 50  # skipped observations printed (all are in skipped.csv)
 
 
-def _non_negative(value: str) -> float:
-    try:
-        number = float(value)
-    except ValueError:
-        number = -1.0
-    if not number >= 0 or number == float("inf"):
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {value!r}")
-    return number
+_non_negative = number_type(
+    lambda v: math.isfinite(v) and v >= 0,
+    lambda text: f"must be a finite number >= 0, got {text!r}",
+)
 
 
 def _print_skipped(skipped, where: str) -> None:
