@@ -46,23 +46,21 @@ def method_options(args: argparse.Namespace) -> object | None:
             f"{flags}: options of the Gibbs sampler, which --method {args.method} does not run "
             "(gibbs and vi-gibbs do); leave them out"
         )
-    options = None
-    if args.method_option:
-        default = INFERENCE_METHODS[args.method].default_options()
-        options = with_options(default, args.method_option)
     if args.method == "gibbs":
         unset_moves = {"unobserved_refresh": 1.0, "cluster_moves": 0.0, "merge_moves": 0.0,
                        "region_moves": 0.0}  # fmt: skip
         fields = {**unset_moves, **{name: value for name, (_, value) in given.items()}}
         options = with_options(GibbsOptions(**fields), args.method_option or [])
         sampler = options
-    elif args.method == "vi-gibbs":
-        base = options if options is not None else INFERENCE_METHODS[args.method].default_options()
+    else:
+        default = INFERENCE_METHODS[args.method].default_options()
+        options = with_options(default, args.method_option) if args.method_option else None
+        if args.method != "vi-gibbs":
+            return options
+        base = default if options is None else options
         fields = {name: value for name, (_, value) in given.items()}
         options = dataclasses.replace(base, gibbs=dataclasses.replace(base.gibbs, **fields))
         sampler = options.gibbs
-    else:
-        return options
     try:
         get_backend(sampler.backend)
     except ImportError as error:  # --backend numba without numba
