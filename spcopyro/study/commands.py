@@ -38,27 +38,35 @@ def _flag(name: str) -> str:
     return "--" + name.replace("_", "-")
 
 
-def _contradicts(given: str, **options: object) -> None:
-    """ValueError when an option of ``options`` (None: not given) is given beside ``given``,
-    which leaves it nothing to do (it was ignored)."""
+def _first_given(**options: object) -> tuple[str, str] | None:
+    """``(--flag, "--flag value")`` of the first option of ``options`` given (not None)."""
     for name, value in options.items():
         if value is not None:
             shown = " ".join(map(str, value)) if isinstance(value, list | tuple) else value
-            raise ValueError(f"{_flag(name)} {shown} and {given} contradict each other: "
-                             f"{given} leaves {_flag(name)} nothing to do")  # fmt: skip
+            return _flag(name), f"{_flag(name)} {shown}"
+    return None
+
+
+def _contradicts(given: str, **options: object) -> None:
+    """ValueError when an option of ``options`` (None: not given) is given beside ``given``,
+    which leaves it nothing to do (it was ignored)."""
+    other = _first_given(**options)
+    if other is not None:
+        flag, shown = other
+        raise ValueError(f"{shown} and {given} contradict each other: {given} leaves {flag} "
+                         "nothing to do")  # fmt: skip
 
 
 def _needs_dataset(**options: object) -> None:
     """ValueError when an option of ``options`` (None: not given) names public houses but the
     dataset was not found: the run skipped them with a note and exited 0, its table holding
     none of the houses asked for."""
-    for name, value in options.items():
-        if value is not None:
-            shown = " ".join(map(str, value)) if isinstance(value, list | tuple) else value
-            raise ValueError(
-                f"{_flag(name)} {shown} asks for public houses, but the public dataset was not "
-                "found ($SPCOPYRO_DATA, ../shared/data/spcomapping): give --data DIR"
-            )
+    asked = _first_given(**options)
+    if asked is not None:
+        raise ValueError(
+            f"{asked[1]} asks for public houses, but the public dataset was not found "
+            "($SPCOPYRO_DATA, ../shared/data/spcomapping): give --data DIR"
+        )
 
 
 def _stoppable(command: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
