@@ -57,16 +57,18 @@ def _contradicts(given: str, **options: object) -> None:
                          "nothing to do")  # fmt: skip
 
 
-def _needs_dataset(**options: object) -> None:
-    """ValueError when an option of ``options`` (None: not given) names public houses but the
-    dataset was not found: the run skipped them with a note and exited 0, its table holding
-    none of the houses asked for."""
+def _without_dataset(**options: object) -> None:
+    """The public dataset was not found: ValueError when an option of ``options`` (None: not
+    given) names public houses (the run skipped them and exited 0, its table holding none of
+    the houses asked for), else a note that the public houses are skipped."""
     asked = _first_given(**options)
     if asked is not None:
         raise ValueError(
             f"{asked[1]} asks for public houses, but the public dataset was not found "
             "($SPCOPYRO_DATA, ../shared/data/spcomapping): give --data DIR"
         )
+    print("note: public dataset not found ($SPCOPYRO_DATA, ../shared/data/spcomapping); "
+          "skipping the public houses", file=sys.stderr)  # fmt: skip
 
 
 def _stoppable(command: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
@@ -105,9 +107,7 @@ def _experiment(args: argparse.Namespace) -> int:
     study = load_study(EXPERIMENT_QUICK if args.quick else EXPERIMENT)
     root = None if args.no_public else find_dataset_root(args.data)
     if args.data is None and root is None and not args.no_public:
-        _needs_dataset(houses=args.houses)
-        print("note: public dataset not found ($SPCOPYRO_DATA, ../shared/data/spcomapping); "
-              "skipping the public houses", file=sys.stderr)  # fmt: skip
+        _without_dataset(houses=args.houses)
     command = "spcopyro " + " ".join(sys.argv[1:] if args.argv is None else args.argv)
     study = experiment_study(
         study, public=root is not None, houses=args.houses, methods=args.methods,
@@ -158,9 +158,7 @@ def _ablation(args: argparse.Namespace) -> int:
     study = load_study(ABLATION_QUICK if args.quick else ABLATION)
     root = None if args.no_public else find_dataset_root(args.data)
     if root is None and not args.no_public:
-        _needs_dataset(public_houses=args.public_houses)
-        print("note: public dataset not found ($SPCOPYRO_DATA, ../shared/data/spcomapping); "
-              "skipping the public houses", file=sys.stderr)  # fmt: skip
+        _without_dataset(public_houses=args.public_houses)
     command = "spcopyro " + " ".join(sys.argv[1:] if args.argv is None else args.argv)
     changes: dict[str, object] = dict(command=command, workers=args.workers)
     if args.no_off:
@@ -237,10 +235,8 @@ def _compare_inference(args: argparse.Namespace) -> int:
     house_types = HOUSE_TYPES if args.houses == "both" else (args.houses,)
     root = find_dataset_root(args.data) if "public" in house_types else None
     if "public" in house_types and root is None:
-        _needs_dataset(public_houses=args.public_houses,
+        _without_dataset(public_houses=args.public_houses,
                        houses=args.houses if args.houses == "public" else None)  # fmt: skip
-        print("note: public dataset not found ($SPCOPYRO_DATA, ../shared/data/spcomapping); "
-              "skipping the public houses", file=sys.stderr)  # fmt: skip
     public_houses = tuple(args.public_houses) if args.public_houses else None
     folds = args.folds
     if args.quick and root is not None:
