@@ -8,12 +8,18 @@ import math
 from collections.abc import Callable
 
 __all__ = [
+    "MAX_SEED",
     "figure_path",
     "integer_at_least",
     "non_negative_number",
     "number_type",
     "positive_number",
 ]
+
+
+MAX_SEED = 2**63 - 1
+"""The largest seed: :meth:`torch.Generator.manual_seed` takes a signed 64-bit integer (here,
+not beside the seed checks that import torch, so that ``--seed``'s parser imports none)."""
 
 
 def integer_at_least(minimum: int) -> Callable[[str], int]:

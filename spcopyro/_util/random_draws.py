@@ -14,10 +14,9 @@ import math
 import numpy as np
 import torch
 
-_MAX_REJECTION_ROUNDS = 64
+from spcopyro._util.arguments import MAX_SEED
 
-MAX_SEED = 2**63 - 1
-"""The largest seed: :meth:`torch.Generator.manual_seed` takes a signed 64-bit integer."""
+_MAX_REJECTION_ROUNDS = 64
 
 
 def check_seed(seed: object, name: str = "seed") -> int:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from spcopyro._util.arguments import MAX_SEED
 from spcopyro._util.arguments import integer_at_least as _integer_at_least
 from spcopyro._util.threads import AUTO
 from spcopyro.data import House, cell_counts, load_house
@@ -83,7 +84,6 @@ _positive_int = _integer_at_least(1)
 _non_negative_int = _integer_at_least(0)
 FIT_SWEEPS = 5000  # --sweeps of a fit from scratch (the paper's)
 UPDATE_SWEEPS = 300  # --sweeps of --update (spcopyro.robot.online.DEFAULT_UPDATE_SWEEPS)
-MAX_SEED = 2**63 - 1  # torch.Generator.manual_seed takes a signed 64-bit integer
 
 
 FIRST_SWEEP_OUTLIER = 10.0
