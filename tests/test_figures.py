@@ -313,6 +313,19 @@ def test_the_trace_names_its_marked_sweep_and_the_reported_map():
     assert "point estimate over the kept samples, not the state of sweep 1" in title
 
 
+def test_a_variational_trace_does_not_call_q_a_chain():
+    """CAVI, LBP and SVI count each cell's most probable concept under q per iteration; the
+    axis said "the chain's state" for them too."""
+    import dataclasses
+
+    from spcopyro.figures.plotting import trace_figure
+
+    result = dataclasses.replace(two_rooms(), method="cavi")
+    _, bottom = trace_figure(result).axes
+    assert "per iteration" in bottom.get_ylabel() and "argmax of q" in bottom.get_ylabel()
+    assert "chain" not in bottom.get_ylabel()
+
+
 def test_counts_of_one_are_singular(tmp_path, monkeypatch):
     import dataclasses
 

@@ -527,7 +527,8 @@ def trace_figure(result: SpCoResult) -> Figure:
     Figs. 5-6), the iteration of the highest objective marked. When the reported map is a
     point estimate over the kept samples (``result.agreement``), the figure says so: that map
     is not the marked sweep's state. The concept count is of the chain's state at each sweep
-    (every label it uses, specks included), not the fit's "concepts in use"."""
+    (every label it uses, specks included) or, for variational methods, of each cell's most
+    probable concept under q at each iteration; not the fit's "concepts in use"."""
     trace = result.trace
     sweeps = np.arange(1, len(trace.objective) + 1)
     step = "sweep" if result.method == "gibbs" else "iteration"
@@ -540,8 +541,11 @@ def trace_figure(result: SpCoResult) -> Figure:
     top.set_ylabel(trace.objective_name)
     top.legend(fontsize=8)
     bottom.plot(sweeps, trace.num_concepts, lw=0.8, color="C1")
-    bottom.set_ylabel(f"labels in use per {step}\n(the chain's state, specks included)",
-                      fontsize=8)  # fmt: skip
+    if result.method == "gibbs":
+        counted = "(the chain's state, specks included)"
+    else:  # a q(C), not a state: a concept counts where it is some cell's most probable one
+        counted = "(argmax of q per cell, specks included)"
+    bottom.set_ylabel(f"labels in use per {step}\n{counted}", fontsize=8)
     bottom.yaxis.set_major_locator(MaxNLocator(integer=True))  # a count: no 12.5 concepts
     bottom.set_xlabel(step)
     for ax in (top, bottom):
