@@ -159,7 +159,9 @@ def test_an_ambiguous_word_takes_the_nearer_unless_strict(result, fit, capsys):
     assert "--strict takes none" in capsys.readouterr().err
 
 
-def test_an_answer_where_calls_a_guess_is_warned_of_and_refused_when_strict(result, capsys):
+def test_an_answer_where_calls_a_guess_is_warned_of_and_refused_when_strict(
+    result, capsys, monkeypatch
+):
     """'kitchen' nearly as probable under the corridor's concept as under the kitchen's:
     `where` warns that its answer is close to a guess, and navigate drove there without a word
     (its own ambiguity is two regions of near-equal p, a laxer rule)."""
@@ -180,7 +182,23 @@ def test_an_answer_where_calls_a_guess_is_warned_of_and_refused_when_strict(resu
                for n in plan.goal.choice.notes)  # fmt: skip
     with pytest.raises(AmbiguousGoalError, match="'kitchen' is ambiguous: .*close to a guess"):
         navigate(guessed, "go to the kitchen", START_A, strict=True)
+    from spcopyro.robot.navigation.outputs import summary
+
+    (stop,) = summary(plan, "map", None)["stops"]
+    assert stop["close_to_guess"] and stop["where_odds"] < 3  # a robot reads a number, not text
+    (clear,) = summary(navigate(result, "kitchen", START_A), "map", None)["stops"]
+    assert not clear["close_to_guess"] and clear["where_odds"] > 3
     assert not navigate(result, "go to the kitchen", START_A).goal.choice.notes  # a clear answer
+    # --strict reads the answer's odds, not its warning's wording
+    answer = guessed.where("kitchen")
+    assert answer.close_to_guess
+    assert answer.odds == pytest.approx(answer.probability / answer.runner_up_probability)
+    assert answer.odds < 3
+    assert not result.where("kitchen").close_to_guess
+    worded = dataclasses.replace(answer, warnings=("reworded",))
+    monkeypatch.setattr(type(guessed), "where", lambda self, word, prior="area": worded)
+    with pytest.raises(AmbiguousGoalError, match=f"odds {answer.odds:.2f} < 3"):
+        navigate(guessed, "go to the kitchen", START_A, strict=True)
 
 
 def test_the_goal_lies_in_the_middle_of_a_region_of_equal_probability(result):

@@ -104,6 +104,18 @@ class WhereAnswer:
     warnings: tuple[str, ...] = ()
     """Why the answer is close to a guess, one sentence each (empty for a clear answer)."""
 
+    @property
+    def odds(self) -> float:
+        """Posterior odds of ``concept`` over the runner-up (inf without one)."""
+        if self.runner_up is None or self.runner_up_probability <= 0:
+            return float("inf")
+        return self.probability / self.runner_up_probability
+
+    @property
+    def close_to_guess(self) -> bool:
+        """The odds over the runner-up are below :data:`ODDS_WARNING` (a warning says so)."""
+        return self.odds < ODDS_WARNING
+
 
 def answer_warnings(
     posterior: np.ndarray,

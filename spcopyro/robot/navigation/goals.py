@@ -179,6 +179,9 @@ class GoalChoice:
     candidates: tuple[Candidate, ...]
     """Every candidate region, best p first."""
     notes: tuple[str, ...] = field(default_factory=tuple)
+    where_odds: float = float("inf")
+    """``where``'s posterior odds of the word's concept over the runner-up (inf: none); below
+    :data:`~spcopyro.results.where.ODDS_WARNING` ``where`` calls its answer close to a guess."""
 
     @property
     def ambiguous(self) -> bool:

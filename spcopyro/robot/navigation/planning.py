@@ -26,7 +26,7 @@ import numpy as np
 from spcopyro.maps import OccupancyGrid
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.uncertainty import where_probability
-from spcopyro.results.where import DEFAULT_WHERE_PRIOR
+from spcopyro.results.where import DEFAULT_WHERE_PRIOR, ODDS_WARNING
 from spcopyro.robot.navigation.goals import (
     AmbiguousGoalError,
     GoalChoice,
@@ -293,12 +293,16 @@ def _with_where_warnings(
     drove to an answer ``where`` calls a guess without a word. ``strict``: an answer close to a
     guess (odds below :data:`~spcopyro.results.where.ODDS_WARNING`) is an
     :class:`AmbiguousGoalError`, as two regions of near-equal probability are."""
-    warnings = result.where(word, prior).warnings
-    guess = [w for w in warnings if "close to a guess" in w]
-    if strict and guess:
-        raise AmbiguousGoalError(f"{word!r} is ambiguous: {guess[0]} (--strict)")
-    notes = tuple(f"where {word!r}: {w}" for w in warnings)
-    return dataclasses.replace(choice, notes=choice.notes + notes) if notes else choice
+    answer = result.where(word, prior)
+    if strict and answer.close_to_guess:
+        raise AmbiguousGoalError(
+            f"{word!r} is ambiguous: concept {answer.concept} is barely more probable than "
+            f"concept {answer.runner_up} (p = {answer.probability:.3f} against "
+            f"{answer.runner_up_probability:.3f}, odds {answer.odds:.2f} < {ODDS_WARNING:g}): "
+            "the answer is close to a guess between them (--strict)"
+        )
+    notes = tuple(f"where {word!r}: {w}" for w in answer.warnings)
+    return dataclasses.replace(choice, notes=choice.notes + notes, where_odds=answer.odds)
 
 
 def _route(
