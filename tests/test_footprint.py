@@ -227,6 +227,22 @@ def test_counts_are_the_weighted_sums_of_the_observations(problem, fov):
     assert objects[columns <= 5].sum() == 0 and objects[columns > 5].sum() == pytest.approx(3.0)
 
 
+def test_warn_false_is_quiet_with_a_footprint_too(problem, caplog):
+    """The footprint's counts recounted the plain ones with warnings on, so ``warn=False`` (a
+    caller that counts the same observations twice) still warned of an observation off the map."""
+    grid, obs = problem
+    far = Observations(obs.image_features, obs.image_xy, obs.image_trial, obs.utterances,
+                       [obs.word_xy[0], [55.0, 0.2]], obs.word_trial)  # fmt: skip
+    for radius in (0.0, 0.2):
+        caplog.clear()
+        with caplog.at_level("WARNING", logger="spcopyro"):
+            cell_counts(grid, far, footprint_radius=radius, warn=False)
+        assert not caplog.records, radius
+        with caplog.at_level("WARNING", logger="spcopyro"):
+            cell_counts(grid, far, footprint_radius=radius)
+        assert any("free space" in r.getMessage() for r in caplog.records), radius
+
+
 def test_fov_without_yaw_is_a_clear_error(rng):
     grid = tiny_grid(ROWS)
     with pytest.raises(ValueError, match="yaw"):

@@ -314,7 +314,7 @@ def cell_counts(
         return _with_footprint(
             cell_counts(grid, obs, feature_scaling=feature_scaling, word_weighting=word_weighting,
                         snap_distance=snap_distance, vocabulary=vocab, source=source,
-                        word_scaling=word_scaling),
+                        word_scaling=word_scaling, warn=warn),
             grid, obs, features, words, (image_cell, word_cell, [cell for cell, _, _ in further]),
             footprint_radius, footprint_kernel, footprint_fov,
         )  # fmt: skip
