@@ -197,6 +197,28 @@ def test_a_refined_fit_reports_each_stages_pace(small_house, tmp_path, capsys, m
     assert re.fullmatch(pattern, line), line
 
 
+def test_the_observed_cells_printed_are_those_concepts_json_counts(small_house, tmp_path, capsys):
+    """With the default's 1 m footprint, fit printed the cells where observations were placed
+    while concepts.json's observed_cells counted the cells the footprints reach (many more):
+    both are printed now, and the second adds up to concepts.json's."""
+    import json
+
+    out = tmp_path / "fit"
+    argv = ["fit", str(small_house), "--out", str(out), "--sweeps", "4", "--refine", "never",
+            "--no-figures"]  # fmt: skip
+    assert main(argv) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("observed cells"))
+    match = re.fullmatch(
+        r"observed cells +(\d+) \(where observations were placed\); (\d+) within their 1 m "
+        r"footprints",
+        line,
+    )
+    assert match, line
+    placed, spread = map(int, match.groups())
+    concepts = json.loads((out / "concepts.json").read_text())  # one entry a concept in use
+    assert sum(c["observed_cells"] for c in concepts) == spread > placed
+
+
 def test_the_pace_leaves_out_a_first_sweep_that_compiled():
     """The first sweep of a first run compiles numba's code (seconds): the pace printed is the
     other sweeps', with the first apart (it made the embedded house's first stage look twice as

@@ -9,11 +9,15 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from spcopyro._util.arguments import MAX_SEED
 from spcopyro._util.arguments import integer_at_least as _integer_at_least
 from spcopyro._util.threads import AUTO
 from spcopyro.data import House, cell_counts, load_house
+
+if TYPE_CHECKING:
+    from spcopyro.config import DataPreparation
 
 
 def _load(data: str | None, seed: int = 0) -> House:
@@ -47,13 +51,30 @@ def refuse_fit_files(result_dir: str, out: str, targets: list[Path]) -> None:
             )
 
 
-def _summary(house: House, warn: bool = True, feature_scaling: object = "probability") -> str:
+def _summary(
+    house: House,
+    warn: bool = True,
+    feature_scaling: object = "probability",
+    preparation: DataPreparation | None = None,
+) -> str:
     """The house's summary lines; ``warn=False`` when the fit will count (and warn) again,
-    ``feature_scaling`` the run's (so a bad count is told under the scaling it has there)."""
+    ``feature_scaling`` the run's (so a bad count is told under the scaling it has there),
+    ``preparation`` the run's: with a footprint radius, the cells the footprints reach (the
+    fit's observed cells, as ``concepts.json`` counts them) are given beside the cells where
+    observations were placed."""
     counts = cell_counts(
         house.grid, house.observations, source=house.source, warn=warn,
         feature_scaling=feature_scaling,
     )  # fmt: skip
+    observed = f"{len(counts.cells)} (where observations were placed)"
+    if preparation is not None and preparation.footprint_radius > 0:
+        spread = cell_counts(
+            house.grid, house.observations, source=house.source, warn=False,
+            feature_scaling=feature_scaling, footprint_radius=preparation.footprint_radius,
+            footprint_kernel=preparation.footprint_kernel, footprint_fov=preparation.footprint_fov,
+        )  # fmt: skip
+        observed += (f"; {len(spread.cells)} within their {preparation.footprint_radius:g} m "
+                     "footprints")  # fmt: skip
     p = counts.placement
     obs = house.observations
     grid, source = house.grid, house.grid.coarsened_from
@@ -68,7 +89,7 @@ def _summary(house: House, warn: bool = True, feature_scaling: object = "probabi
         f"images           {obs.num_images} ({obs.num_feature_classes} feature classes) in "
         f"{len(obs.trials)} trial(s)",
         f"utterances       {obs.num_utterances}, vocabulary of {len(counts.vocabulary)} words",
-        f"observed cells   {len(counts.cells)}",
+        f"observed cells   {observed}",
         f"placement        images: {p.images_on_free} on free cells, {p.images_snapped} snapped, "
         f"{p.images_unplaced} unplaced; words: {p.words_on_free} on free cells, "
         f"{p.words_snapped} snapped, {p.words_unplaced} unplaced "

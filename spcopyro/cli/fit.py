@@ -342,7 +342,8 @@ def _fit_staged(job: FitJob) -> int:
     # The config's warnings (gamma, extreme concentrations) are logged by prepare_model_data,
     # which the fit runs; main's logging handler prints them once, as "warning: ...".
     # The fit's own counts say what is left out (once), under the run's feature scaling.
-    print(_summary(house, warn=False, feature_scaling=settings.data.feature_scaling))
+    print(_summary(house, warn=False, feature_scaling=settings.data.feature_scaling,
+                   preparation=settings.data))  # fmt: skip
     print(f"model            {config}")
     print(f"data             {settings.data}")
     default = INFERENCE_METHODS[args.method].default_options()
