@@ -298,6 +298,7 @@ def test_every_word_in_the_house_legend_shows_in_its_own_colour():
     words = [c for c in ax.collections if c.get_label() not in ("", "_nolegend_")][1:]
     legend = [t.get_text() for t in ax.get_legend().get_texts()]
     assert {"bedroom", "shelf", "bed", "other words"} <= set(legend)
+    assert legend[0].startswith("images") and legend[-1] == "other words"
     assert {c.get_label() for c in words} == set(legend[1:])  # but the images
     diameter = np.sqrt(28.0) * fig.dpi / 72.0
     drawn = sorted(words, key=lambda c: c.get_zorder())  # stable: later ones drawn over

@@ -205,16 +205,18 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     shown = np.empty_like(xy)
     shown[order] = spread_markers(ax, xy[order], size)
     rest = kind == len(frequent)
-    if rest.any():
-        ax.scatter(*shown[rest].T, s=size, color="0.8", edgecolors="k", linewidths=0.4,
-                   zorder=2, label="other words")  # fmt: skip
+    others = None
+    if rest.any():  # drawn first (under the named words), listed last in the legend
+        others = ax.scatter(*shown[rest].T, s=size, color="0.8", edgecolors="k",
+                            linewidths=0.4, zorder=2, label="other words")  # fmt: skip
     for k, word in enumerate(frequent):
         ax.scatter(*shown[kind == k].T, s=size, color=colours[k], edgecolors="k",
                    linewidths=0.4, zorder=3, label=word)  # fmt: skip
     handles, labels = ax.get_legend_handles_labels()
-    if rest.any():  # "other words" last in the legend, drawn first (under the named words)
-        handles.append(handles.pop(1))
-        labels.append(labels.pop(1))
+    if others is not None:
+        k = handles.index(others)
+        handles.append(handles.pop(k))
+        labels.append(labels.pop(k))
     ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8,
               frameon=False, title="words heard (last word of each utterance;\nmarkers at one "
               "spot spread apart)", title_fontsize=8)  # fmt: skip
