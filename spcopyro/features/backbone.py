@@ -188,6 +188,12 @@ def _alexnet_from_state_dict(state: Mapping[str, torch.Tensor], path: Path) -> A
                     else ""
                 )
             )
+        if tensor.is_floating_point() and not torch.isfinite(state[key]).all():
+            bad = int((~torch.isfinite(state[key])).sum())
+            raise CheckpointError(
+                f"{path}: {key} holds {bad} non-finite value(s) (NaN or inf) of "
+                f"{state[key].numel()}: the weights are damaged (a diverged training run?)"
+            )
     model.load_state_dict(state)
     return model
 

@@ -100,7 +100,8 @@ def extract_features(
     Raises:
         UnreadableImagesError: listing every image that could not be read (missing, not an
             image, truncated), with its path.
-        ValueError: no paths, a bad device or batch size.
+        ValueError: no paths, a bad device or batch size, or an output that is not finite
+            (naming the image; damaged weights).
     """
     paths = [Path(p) for p in paths]
     probabilities = _map_batches(
@@ -112,6 +113,14 @@ def extract_features(
         progress=progress,
         desc="image features",
     )  # [T, K] float32
+    finite = torch.isfinite(probabilities).all(dim=1)  # [T] bool
+    if not finite.all():
+        first = int((~finite).nonzero()[0])
+        raise ValueError(
+            f"{paths[first]}: the network's output is not finite (NaN or inf) for this image "
+            f"and {int((~finite).sum()) - 1} other(s): the backbone weights or the head are "
+            "damaged (nothing was written)"
+        )
     return probabilities.double().numpy()
 
 

@@ -404,6 +404,11 @@ def load_head(model: PlaceClassifier, path: str | os.PathLike[str]) -> HeadFile:
                 f"{path}: {key} {tuple(tensor.shape)} does not fit AlexNet "
                 f"({tuple(current[key].shape) if key in current else 'no such layer'})"
             )
+        if not torch.isfinite(tensor).all():
+            raise CheckpointError(
+                f"{path}: {key} holds non-finite values (NaN or inf): the head's training "
+                "diverged (retrain it with a smaller --lr)"
+            )
     tuned = {k for k in state if not k.startswith("classifier.6.")}
     wanted = {
         k for k in expected if any(k.startswith(f"{n}.") for n in _TUNED_LAYER_NAMES[tune_layers])

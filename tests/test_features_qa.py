@@ -1,0 +1,61 @@
+"""``spcopyro features`` / ``features-head`` as a user runs them: damaged weights and heads,
+the backbone a head was trained on, the options' checks, what the commands print.
+
+Nothing is downloaded: TORCH_HOME points into tmp_path and torch.hub's downloader fails."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import torch
+
+from spcopyro.features.backbone import CheckpointError, load_alexnet
+from spcopyro.features.extract import extract_features
+from spcopyro.features.head import PlaceClassifier, load_head, save_head
+from spcopyro.features.images import list_images
+
+pytestmark = pytest.mark.usefixtures("no_download")  # conftest: own torch cache, no download
+
+
+@pytest.fixture(scope="module")
+def pristine() -> PlaceClassifier:
+    return PlaceClassifier.load("random", seed=0)
+
+
+@pytest.fixture
+def model(pristine) -> PlaceClassifier:
+    return copy.deepcopy(pristine)
+
+
+@pytest.fixture
+def images_dir(tmp_path) -> Path:
+    """Three small random images."""
+    folder = tmp_path / "images"
+    folder.mkdir()
+    rng = np.random.default_rng(0)
+    for i in range(3):
+        image = rng.integers(0, 256, size=(20 + i, 24, 3), dtype=np.uint8)
+        assert cv2.imwrite(str(folder / f"{i:05d}.png"), image)
+    return folder
+
+
+def test_non_finite_weights_are_named_not_blamed_on_the_output_csv(model, images_dir, tmp_path):
+    # A checkpoint with NaN weights ran the whole folder and then failed with "Ft.csv: feature
+    # [0, 0] is not finite or negative", naming the output file instead of the weights.
+    state = load_alexnet("random", seed=1).state_dict()
+    state["features.3.weight"][0, 0, 0, 0] = float("nan")
+    path = tmp_path / "diverged.pth"
+    torch.save(state, path)
+    with pytest.raises(CheckpointError, match=r"diverged.pth: features.3.weight holds 1 non-fin"):
+        load_alexnet(path)
+    model.replace_head(2)
+    model.head.bias.data[0] = float("inf")
+    head = save_head(model, tmp_path / "head.pt")
+    with pytest.raises(CheckpointError, match=r"head.pt: classifier.6.bias holds non-finite"):
+        load_head(copy.deepcopy(model), head)
+    with pytest.raises(ValueError, match=r"00000.png: the network's output is not finite"):
+        extract_features(model, list_images(images_dir), progress=False)
