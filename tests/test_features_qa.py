@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import torch
 
-from spcopyro.features.backbone import CheckpointError, load_alexnet
+from spcopyro.features.backbone import CheckpointError, load_alexnet, parse_weights
 from spcopyro.features.extract import extract_features
 from spcopyro.features.head import PlaceClassifier, load_head, save_head
 from spcopyro.features.images import list_images
@@ -59,3 +59,21 @@ def test_non_finite_weights_are_named_not_blamed_on_the_output_csv(model, images
         load_head(copy.deepcopy(model), head)
     with pytest.raises(ValueError, match=r"00000.png: the network's output is not finite"):
         extract_features(model, list_images(images_dir), progress=False)
+
+
+def test_unreadable_checkpoints_say_what_the_file_is_without_torchs_advice(tmp_path):
+    # torch's own message (kilobytes, with "Re-running torch.load with weights_only set to False
+    # will likely succeed", which no option here does) was passed on whole.
+    whole = tmp_path / "whole_model.pth"
+    torch.save(torch.nn.Linear(2, 2), whole)  # a pickled module, not a state dict
+    garbage = tmp_path / "garbage.pth"
+    garbage.write_bytes(b"not a checkpoint at all")
+    for path, what in ((whole, "pickled Python object .*Linear.*state_dict"), (garbage, "no pick")):
+        with pytest.raises(CheckpointError, match=f"{path.name}: not a readable torch .*{what}"):
+            load_alexnet(path)
+        with pytest.raises(CheckpointError) as info:
+            load_head(
+                PlaceClassifier(load_alexnet("random"), weights=parse_weights("random")), path
+            )
+        assert f"{path.name}: not a readable head file" in str(info.value)
+        assert "weights_only" not in str(info.value) and len(str(info.value)) < 400

@@ -25,6 +25,8 @@ is called, because that API would otherwise try to download it.
 from __future__ import annotations
 
 import os
+import pickle
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +35,8 @@ from typing import Literal
 import torch
 from torch import nn
 from torchvision.models import AlexNet, AlexNet_Weights, alexnet
+
+from spcopyro._util.messages import ECHO_LIMIT
 
 __all__ = [
     "FEATURE_DIM",
@@ -118,6 +122,32 @@ def _missing_imagenet_message(cache_file: Path) -> str:
     )
 
 
+def torch_load(path: Path, what: str) -> object:
+    """``torch.load(path, weights_only=True)`` on the CPU; CheckpointError naming ``path`` when
+    it fails. torch's own message advises ``weights_only=False`` ("will likely succeed"), which
+    no option here sets; instead the message says what the file holds: a pickled object (a
+    whole model saved with ``torch.save(model)``) or no torch file at all."""
+    try:
+        return torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as error:  # torch raises many types for a bad file
+        text = str(error)
+        pickled = re.search(r"Unsupported global: GLOBAL ([\w.]+)", text)
+        if pickled:
+            reason = (
+                f"it holds a pickled Python object ({pickled.group(1)}), not only tensors (a "
+                "whole model saved with torch.save(model)?); files are read without running "
+                "their code: where you trust it, load it and save its state dict, "
+                "torch.save(model.state_dict(), path)"
+            )
+        elif isinstance(error, pickle.UnpicklingError):
+            reason = "not a torch file: its bytes are no pickled tensors"
+        else:
+            first = next((line.strip() for line in text.splitlines() if line.strip()), "")
+            cut = first if len(first) <= ECHO_LIMIT else f"{first[:ECHO_LIMIT]}..."
+            reason = f"{type(error).__name__}: {cut}"
+        raise CheckpointError(f"{path}: not a readable {what} ({reason})") from None
+
+
 def load_state_dict_file(path: str | os.PathLike[str]) -> dict[str, torch.Tensor]:
     """Read a checkpoint file into a state dict (on the CPU, ``weights_only``: no code runs).
 
@@ -133,12 +163,7 @@ def load_state_dict_file(path: str | os.PathLike[str]) -> dict[str, torch.Tensor
     path = Path(path)
     if not path.is_file():
         raise WeightsNotFoundError(f"{path}: checkpoint file not found")
-    try:
-        raw = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as error:  # torch raises many types for a bad file
-        raise CheckpointError(
-            f"{path}: not a readable torch checkpoint ({type(error).__name__}: {error})"
-        ) from None
+    raw = torch_load(path, "torch checkpoint")
     if isinstance(raw, Mapping):
         for key in ("state_dict", "model"):
             if isinstance(raw.get(key), Mapping):

@@ -50,6 +50,7 @@ from spcopyro.features.backbone import (
     final_layer,
     load_alexnet,
     parse_weights,
+    torch_load,
 )
 
 __all__ = [
@@ -360,12 +361,7 @@ def load_head(model: PlaceClassifier, path: str | os.PathLike[str]) -> HeadFile:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{path}: head file not found")
-    try:
-        payload = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as error:  # torch raises many types for a bad file
-        raise CheckpointError(
-            f"{path}: not a readable head file ({type(error).__name__}: {error})"
-        ) from None
+    payload = torch_load(path, "head file")
     if not isinstance(payload, dict) or payload.get("format") != HEAD_FORMAT:
         raise CheckpointError(
             f"{path}: not an spcopyro place-head file (written by save_head / "
