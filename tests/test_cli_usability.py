@@ -217,6 +217,14 @@ def test_the_observed_cells_printed_are_those_concepts_json_counts(small_house, 
     placed, spread = map(int, match.groups())
     concepts = json.loads((out / "concepts.json").read_text())  # one entry a concept in use
     assert sum(c["observed_cells"] for c in concepts) == spread > placed
+    # refined: concepts.json counts on the map's own cells, which the refining line gives
+    argv = [*argv[:3], str(tmp_path / "refined"), "--sweeps", "4", "--refine", "always",
+            "--no-figures"]  # fmt: skip
+    assert main(argv) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("refining"))
+    observed = int(re.search(r"m cells \((\d+) observed\)", line).group(1))
+    concepts = json.loads((tmp_path / "refined" / "concepts.json").read_text())
+    assert sum(c["observed_cells"] for c in concepts) == observed
 
 
 def test_the_pace_leaves_out_a_first_sweep_that_compiled():

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     import argparse
 
-    from spcopyro.config import SpCoSettings
+    from spcopyro.config import DataPreparation, SpCoSettings
     from spcopyro.data import House
     from spcopyro.fit.gibbs_chains import FitCheckpoint
     from spcopyro.fit.refine import RefineDecision
@@ -90,15 +90,31 @@ def _decide(
 
     decision = refine_decision(first, model, args.refine)
     if decision.refine:
-        alpha = refined_settings(settings, model.grid.num_free, on_map.grid.num_free).model.alpha
+        refined = refined_settings(settings, model.grid.num_free, on_map.grid.num_free)
+        observed = _observed_cells(on_map, refined.data)
         print(f"refining         {decision.reason}: the {chains} x "
               f"{len(first.trace.objective)} sweeps on {first.grid.resolution:g} m cells (best log "
               f"joint {first.best_objective:.1f}) go on on the map's own "
-              f"{on_map.grid.resolution:g} m cells, images as 100 draws, words at their cell, "
-              f"alpha {alpha:.3g}")  # fmt: skip
+              f"{on_map.grid.resolution:g} m cells ({observed} observed), images as 100 draws, "
+              f"words at their cell, alpha {refined.model.alpha:.3g}")  # fmt: skip
     else:  # config.json says why too
         print(f"not refined      {decision.reason}")
     return decision
+
+
+def _observed_cells(house: House, data: DataPreparation) -> int:
+    """How many of ``house``'s free cells hold counts under ``data`` (``concepts.json``'s
+    ``observed_cells`` of a refined fit add up to it)."""
+    from spcopyro.data import cell_counts
+
+    counts = cell_counts(
+        house.grid, house.observations, source=house.source, warn=False,
+        feature_scaling=data.feature_scaling, word_weighting=data.word_weighting,
+        snap_distance=data.snap_distance, footprint_radius=data.footprint_radius,
+        footprint_kernel=data.footprint_kernel, footprint_fov=data.footprint_fov,
+        word_scaling=data.word_scaling,
+    )  # fmt: skip
+    return len(counts.cells)
 
 
 def update_settings(
