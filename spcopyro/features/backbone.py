@@ -24,6 +24,7 @@ is called, because that API would otherwise try to download it.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import pickle
 import re
@@ -77,6 +78,22 @@ class WeightsSource:
     def pretrained(self) -> bool:
         """False for random weights: their features mean nothing about places."""
         return self.kind != "random"
+
+    def fingerprint(self) -> str:
+        """What identifies these weights wherever the file lies: ``"imagenet"``, ``"random
+        seed S"``, or for a checkpoint the SHA-256 of its bytes (the same file under another
+        path, relative or absolute, is the same backbone; another file at the same path is not).
+        """
+        if self.kind == "imagenet":
+            return "imagenet"
+        if self.kind == "random":
+            return f"random seed {self.seed}"
+        assert self.path is not None
+        digest = hashlib.sha256()
+        with open(self.path, "rb") as file:
+            for block in iter(lambda: file.read(1 << 20), b""):
+                digest.update(block)
+        return f"sha256 {digest.hexdigest()}"
 
     def describe(self) -> str:
         if self.kind == "imagenet":

@@ -338,6 +338,7 @@ def save_head(
         "class_names": list(model.names),
         "tune_layers": model.tune_layers,
         "backbone": model.weights.describe(),
+        "backbone_fingerprint": model.weights.fingerprint(),
         "mode": mode,
         "note": note,
         "state_dict": tensors,
@@ -351,7 +352,8 @@ def load_head(model: PlaceClassifier, path: str | os.PathLike[str]) -> HeadFile:
     """Put the head saved in ``path`` (:func:`save_head`) onto ``model``'s backbone.
 
     Warns (logger ``"spcopyro"``) when the head was trained on another backbone than
-    ``model``'s (as each describes it): its classes would read features it never saw.
+    ``model``'s (:meth:`~spcopyro.features.backbone.WeightsSource.fingerprint`: a checkpoint's
+    bytes, not its path): its classes would read features it never saw.
 
     Raises:
         FileNotFoundError: no such file.
@@ -418,12 +420,18 @@ def load_head(model: PlaceClassifier, path: str | os.PathLike[str]) -> HeadFile:
     model.network.to(device)
     model.tune_layers = tune_layers
     trained_on, backbone = str(payload.get("backbone", "")), model.weights.describe()
-    if trained_on and trained_on != backbone:
+    fingerprint = payload.get("backbone_fingerprint")  # absent from older head files
+    if fingerprint is None:  # compare the descriptions, paths as given
+        other = bool(trained_on) and trained_on != backbone
+    else:
+        other = fingerprint != model.weights.fingerprint()
+    if other:
+        same_name = " (same name, other contents)" if trained_on == backbone else ""
         logging.getLogger("spcopyro").warning(
-            "head file %s was trained on the backbone %s; this model's is %s: unless they "
+            "head file %s was trained on the backbone %s; this model's is %s%s: unless they "
             "are the same weights, its place classes read features it was not trained on "
             "(pass the head's backbone with --weights)",
-            path, trained_on, backbone,
+            path, trained_on, backbone, same_name,
         )  # fmt: skip
     return HeadFile(
         path=path,
