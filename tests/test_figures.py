@@ -333,6 +333,24 @@ def test_the_trace_names_its_marked_sweep_and_the_reported_map():
     assert "point estimate over the kept samples, not the state of sweep 1" in title
 
 
+def test_a_refined_fits_trace_says_it_shows_the_refinement():
+    """A refined fit's trace is its second stage's: its sweeps started at 1 again with no word
+    of the coarse stage before them."""
+    import dataclasses
+
+    from spcopyro.figures.plotting import trace_figure
+
+    result = two_rooms()
+    refine = {"refine": True, "coarse": {"sweeps": 5000, "cell_size": 0.3}}
+    refined = dataclasses.replace(result, inference={**result.inference, "refine": refine})
+    title = trace_figure(refined).texts[0].get_text()
+    assert f"the refinement on the map's {result.grid.resolution:g} m cells" in title
+    assert "after 5000 sweeps on 0.3 m cells (not shown)" in title
+    not_refined = {"refine": False, "reason": "..."}
+    kept = dataclasses.replace(result, inference={**result.inference, "refine": not_refined})
+    assert "refinement" not in trace_figure(kept).texts[0].get_text()
+
+
 def test_a_variational_trace_does_not_call_q_a_chain():
     """CAVI, LBP and SVI count each cell's most probable concept under q per iteration; the
     axis said "the chain's state" for them too."""

@@ -556,9 +556,17 @@ def trace_figure(result: SpCoResult) -> Figure:
     # sweeps as plain numbers (1, 10, 100, 1000), not 10^k in mathtext (its parser's start-up)
     bottom.xaxis.set_major_formatter(FuncFormatter(_plain_number))
     title = f"{result.name or 'trace'} ({result.method})"
+    refine = result.inference.get("refine")
+    if isinstance(refine, dict) and refine.get("refine") and isinstance(refine.get("coarse"), dict):
+        coarse = refine["coarse"]
+        title += (
+            f"\nthe refinement on the map's {result.grid.resolution:g} m cells, after "
+            f"{coarse['sweeps']} sweeps on {coarse['cell_size']:g} m cells (not shown)"
+        )
     if result.agreement is not None:
         kind = result.inference.get("point_estimate", "point")
         title += (f"\nthe reported map: the {kind} point estimate over the kept samples, "
                   f"not the state of {step} {best}")  # fmt: skip
     fig.suptitle(title, fontsize=10)
+    fig.subplots_adjust(top=0.95 - 0.035 * (title.count("\n") + 1))  # room for every line
     return fig
