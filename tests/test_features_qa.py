@@ -6,6 +6,7 @@ Nothing is downloaded: TORCH_HOME points into tmp_path and torch.hub's downloade
 from __future__ import annotations
 
 import copy
+import shlex
 from pathlib import Path
 
 import cv2
@@ -97,3 +98,36 @@ def test_head_backbone_check_compares_the_weights_not_the_path(tmp_path, monkeyp
     load_head(PlaceClassifier.load("alex.pth"), head)
     assert "trained on the backbone checkpoint alex.pth" in caplog.text
     assert "(same name, other contents)" in caplog.text
+
+
+def test_features_head_says_how_to_run_the_head_on_its_own_backbone(tmp_path, capsys):
+    # It printed "spcopyro features IMAGES --out Ft.csv --head HEAD" whatever --weights it was
+    # trained on: run as printed, the head read ImageNet features; and `features` had no --seed,
+    # so a head trained on `--weights random --seed 3` could not be run on its backbone at all.
+    import argparse
+
+    from spcopyro.features.cli import add_parser
+
+    parser = argparse.ArgumentParser()
+    add_parser(parser.add_subparsers(dest="command", required=True))
+    rng = np.random.default_rng(1)
+    for i in range(2):
+        assert cv2.imwrite(str(tmp_path / f"{i}.png"), rng.integers(0, 256, (9, 9, 3), np.uint8))
+    (tmp_path / "labels.csv").write_text("0.png,kitchen\n1.png,bedroom\n")
+    head = tmp_path / "my head.pt"
+    argv = ["features-head", tmp_path / "labels.csv", "--out", head, "--weights", "random"]
+    args = parser.parse_args([str(a) for a in [*argv, "--seed", 3, "--epochs", 1]])
+    assert args.func(args) == 0
+    hint = capsys.readouterr().out.rsplit("use it with: ", 1)[1].rstrip(")\n")
+    assert (
+        hint == f"spcopyro features IMAGES --out Ft.csv --head '{head}' --weights random --seed 3"
+    )
+    out = tmp_path / "Ft.csv"
+    words = shlex.split(hint)[1:]  # as printed, IMAGES and Ft.csv filled in
+    words[words.index("IMAGES")], words[words.index("Ft.csv")] = str(tmp_path), str(out)
+    args = parser.parse_args(words)
+    assert args.seed == 3 and args.func(args) == 0
+    trained = PlaceClassifier.load("random", seed=3)
+    load_head(trained, head)
+    expected = extract_features(trained, list_images(tmp_path), progress=False)
+    assert np.array_equal(np.loadtxt(out, delimiter=",", ndmin=2), expected)

@@ -7,6 +7,7 @@ imported only when one of them runs, so other commands start as fast as before.
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 from pathlib import Path
 
@@ -53,6 +54,7 @@ def _features(args: argparse.Namespace) -> int:
         device=args.device,
         download=args.download,
         overwrite=args.overwrite,
+        seed=args.seed,
     )
     rows, classes = result.features.shape
     print(f"backbone         {result.weights.describe()}")
@@ -116,8 +118,19 @@ def _features_head(args: argparse.Namespace) -> int:
               f"({', '.join(class_names)}); cross-entropy {result.initial_loss:.4f} -> "
               f"{result.final_loss:.4f}")  # fmt: skip
         save_head(model, out, mode="labels", note=f"labels from {source}")
-    print(f"wrote {out} (use it with: spcopyro features IMAGES --out Ft.csv --head {out})")
+    print(f"wrote {out} (use it with: {_features_command(out, args)})")
     return 0
+
+
+def _features_command(head: Path, args: argparse.Namespace) -> str:
+    """The ``spcopyro features`` command line that runs ``head`` on the backbone it was trained
+    on: ``--weights`` (and ``--seed`` for random weights) as given to ``features-head``."""
+    words = ["spcopyro", "features", "IMAGES", "--out", "Ft.csv", "--head", str(head)]
+    if args.weights != "imagenet":
+        words += ["--weights", str(args.weights)]
+    if args.weights == "random" and args.seed != 0:
+        words += ["--seed", str(args.seed)]
+    return shlex.join(words)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -137,6 +150,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--head", help="a place head file from `spcopyro features-head` (default: "
                    "none, the backbone's own classes)")  # fmt: skip
     p.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
+    p.add_argument("--seed", type=int, default=0, help="seed of --weights random (a head "
+                   "trained on random weights needs the seed it was trained with)")  # fmt: skip
     _common(p)
     p.set_defaults(func=_features)
 

@@ -194,13 +194,14 @@ def extract_to_csv(
     overwrite: bool = False,
     progress: bool | None = None,
     model: PlaceClassifier | None = None,
+    seed: int = 0,
 ) -> ExtractionResult:
     """What ``spcopyro features IMAGES --out Ft.csv`` does: list the images of a folder
     (:func:`~spcopyro.features.images.list_images`), run the network, write Ft.csv.
 
     Without ``head`` the rows are the backbone's own final layer: 1000 ImageNet classes for
-    ``"imagenet"``, 365 for the Places365 AlexNet checkpoint. ``model`` (already built) replaces
-    ``weights`` / ``head`` / ``download``.
+    ``"imagenet"``, 365 for the Places365 AlexNet checkpoint. ``seed``: that of ``"random"``
+    weights. ``model`` (already built) replaces ``weights`` / ``head`` / ``download`` / ``seed``.
     """
     paths = list_images(images)
     resolve_device(device)  # a bad device fails before the weights are loaded
@@ -208,7 +209,7 @@ def extract_to_csv(
     if out.exists() and not overwrite:  # fail before the work, not after
         raise FileExistsError(f"{out} already exists; pass overwrite (--overwrite) to replace it")
     if model is None:
-        model = PlaceClassifier.load(weights, head, download=download)
+        model = PlaceClassifier.load(weights, head, download=download, seed=seed)
     features = extract_features(
         model, paths, batch_size=batch_size, device=device, progress=progress
     )
