@@ -131,3 +131,18 @@ def test_features_head_says_how_to_run_the_head_on_its_own_backbone(tmp_path, ca
     load_head(trained, head)
     expected = extract_features(trained, list_images(tmp_path), progress=False)
     assert np.array_equal(np.loadtxt(out, delimiter=",", ndmin=2), expected)
+
+
+def test_training_a_head_shows_a_progress_bar(model, capsys):
+    # features-head trained for minutes (fc6 tuned: about 4 s an epoch on 132 images) after the
+    # activations' bar had finished, with nothing on the screen.
+    from spcopyro.features.head import train_head
+
+    model.replace_head(2)
+    inputs = torch.randn(4, 4096, generator=torch.Generator().manual_seed(0))
+    labels = torch.tensor([0, 1, 0, 1])
+    train_head(model, inputs, labels, mode="labels", epochs=3, progress=True)
+    err = capsys.readouterr().err
+    assert "training head" in err and "3/3" in err
+    train_head(model, inputs, labels, mode="labels", epochs=3, progress=False)
+    assert "training head" not in capsys.readouterr().err

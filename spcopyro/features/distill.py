@@ -202,6 +202,7 @@ def distillation_report(
         lr=lr,
         batch_size=batch_size,
         seed=seed,
+        progress=progress,
     )
     model.eval()
     with torch.no_grad():

@@ -42,7 +42,9 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 from torchvision.models import AlexNet
+from tqdm.auto import tqdm
 
+from spcopyro._util.progress import progress_enabled
 from spcopyro.features.backbone import (
     FEATURE_DIM,
     CheckpointError,
@@ -244,6 +246,7 @@ def train_head(
     batch_size: int = 32,
     weight_decay: float = 0.0,
     seed: int = 0,
+    progress: bool | None = None,
 ) -> TrainingResult:
     """Fine-tune the head (and ``tune_layers`` last fc layers) on the frozen part's outputs.
 
@@ -255,6 +258,8 @@ def train_head(
             "distill"; each row is normalised to sum 1).
         epochs, lr, batch_size, weight_decay: Adam, minibatches reshuffled every epoch from
             ``seed`` (the global RNG is left untouched).
+        progress: a progress bar over the epochs (default: on unless ``$CI`` is set); with
+            fc6 tuned (``tune_layers`` 2) training takes minutes on a CPU.
 
     The model is left in eval mode; ``model.tune_layers`` records ``tune_layers``.
     """
@@ -283,7 +288,10 @@ def train_head(
     optimizer = torch.optim.Adam(params, lr=lr, weight_decay=weight_decay)
     generator = torch.Generator().manual_seed(int(seed))
     epoch_losses = []
-    with torch.random.fork_rng(devices=[device] if device.type == "cuda" else []):
+    bar = tqdm(
+        total=epochs, desc="training head", unit="epoch", disable=not progress_enabled(progress)
+    )
+    with bar, torch.random.fork_rng(devices=[device] if device.type == "cuda" else []):
         torch.manual_seed(int(seed))  # dropout masks of the tunable layers
         for _ in range(epochs):
             model.train()
@@ -297,6 +305,8 @@ def train_head(
                 optimizer.step()
                 total += float(loss.detach()) * len(batch)
             epoch_losses.append(total / n)
+            bar.set_postfix(loss=f"{total / n:.4f}", refresh=False)
+            bar.update()
     for p in model.parameters():
         p.requires_grad_(False)
     model.tune_layers = tune_layers
