@@ -146,3 +146,32 @@ def test_training_a_head_shows_a_progress_bar(model, capsys):
     assert "training head" in err and "3/3" in err
     train_head(model, inputs, labels, mode="labels", epochs=3, progress=False)
     assert "training head" not in capsys.readouterr().err
+
+
+def test_options_are_checked_when_parsed(capsys):
+    # --max-images-per-trial -2 silently trained on all but the last two images of each trial
+    # (a negative slice); --lr -1, --batch 0, --seed -1 failed later with messages naming no
+    # option ("Invalid learning rate: -1.0", "batch_size must be >= 1").
+    import argparse
+
+    from spcopyro.features.cli import add_parser
+    from spcopyro.features.distill import distillation_report
+
+    parser = argparse.ArgumentParser()
+    add_parser(parser.add_subparsers(dest="command", required=True))
+    for command, option, value in (
+        ("features-head", "--max-images-per-trial", "-2"),
+        ("features-head", "--max-images-per-trial", "0"),
+        ("features-head", "--lr", "-1"),
+        ("features-head", "--lr", "nan"),
+        ("features-head", "--epochs", "-1"),
+        ("features-head", "--seed", "-1"),
+        ("features-head", "--batch", "0"),
+        ("features", "--batch", "0"),
+        ("features", "--seed", str(2**63)),
+    ):
+        with pytest.raises(SystemExit):
+            parser.parse_args([command, "source", "--out", "x", option, value])
+        assert f"argument {option}:" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="max_images_per_trial must be >= 1"):
+        distillation_report(None, max_images_per_trial=-2)  # type: ignore[arg-type]

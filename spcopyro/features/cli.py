@@ -11,6 +11,8 @@ import shlex
 import sys
 from pathlib import Path
 
+from spcopyro._util.arguments import MAX_SEED, integer_at_least, positive_number
+
 __all__ = ["add_parser"]
 
 WEIGHTS_HELP = (
@@ -21,9 +23,19 @@ WEIGHTS_HELP = (
 )
 
 
+def _seed(value: str) -> int:
+    """``--seed``: an integer in 0 .. 2**63 - 1, as every command's ``--seed``."""
+    number = integer_at_least(0)(value)
+    if number > MAX_SEED:
+        raise argparse.ArgumentTypeError(f"must be at most 2**63 - 1 = {MAX_SEED}, got {value!r}")
+    return number
+
+
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--weights", default="imagenet", help=WEIGHTS_HELP)
-    p.add_argument("--batch", type=int, default=32, help="images per batch (default 32)")
+    p.add_argument(
+        "--batch", type=integer_at_least(1), default=32, help="images per batch (default 32)"
+    )
     p.add_argument("--device", default="cpu", help="cpu or cuda (default cpu)")
     p.add_argument(
         "--download",
@@ -150,7 +162,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--head", help="a place head file from `spcopyro features-head` (default: "
                    "none, the backbone's own classes)")  # fmt: skip
     p.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
-    p.add_argument("--seed", type=int, default=0, help="seed of --weights random (a head "
+    p.add_argument("--seed", type=_seed, default=0, help="seed of --weights random (a head "
                    "trained on random weights needs the seed it was trained with)")  # fmt: skip
     _common(p)
     p.set_defaults(func=_features)
@@ -174,13 +186,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=0,
         help="also fine-tune fc7 (1) or fc6 and fc7 (2); default: head only",
     )
-    p.add_argument("--epochs", type=int, default=100, help="training epochs")
-    p.add_argument("--lr", type=float, default=1e-3, help="Adam learning rate")
-    p.add_argument("--seed", type=int, default=0,
+    p.add_argument("--epochs", type=integer_at_least(0), default=100, help="training epochs")
+    p.add_argument("--lr", type=positive_number("learning rate is"), default=1e-3,
+                   help="Adam learning rate")  # fmt: skip
+    p.add_argument("--seed", type=_seed, default=0,
                    help="seed of random weights, batch order and dropout")  # fmt: skip
     p.add_argument("--held-out-trial", type=int, help="distillation: default the last trial")
     p.add_argument("--train-trials", type=int, nargs="+", help="distillation: default the rest")
-    p.add_argument("--max-images-per-trial", type=int,
+    p.add_argument("--max-images-per-trial", type=integer_at_least(1),
                    help="distillation: a quick run (default: all images)")  # fmt: skip
     _common(p)
     p.set_defaults(func=_features_head)

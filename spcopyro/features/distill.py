@@ -157,9 +157,12 @@ def distillation_report(
         max_images_per_trial: use only the first images of each trial (a quick run).
 
     Raises:
-        ValueError: the house has no image paths, or fewer than two trials / bad trial ids.
+        ValueError: the house has no image paths, or fewer than two trials / bad trial ids, or
+            ``max_images_per_trial`` < 1.
         UnreadableImagesError, WeightsNotFoundError: as in extraction.
     """
+    if max_images_per_trial is not None and max_images_per_trial < 1:  # -2 dropped the last 2
+        raise ValueError(f"max_images_per_trial must be >= 1 (or None), got {max_images_per_trial}")
     obs = house.observations
     if obs.image_paths is None:
         raise ValueError(
