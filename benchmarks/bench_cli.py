@@ -12,7 +12,8 @@ is on ``sys.path`` when they run.
 * :func:`quick_or`: the rule for ``--quick``: it only changes the defaults; an option given
   explicitly wins over ``--quick``'s value (options whose default depends on ``--quick`` default
   to None in the parser).
-* :func:`run_main`: runs ``main``; Ctrl-C ends it with one line and exit status 130.
+* :func:`run_main`: makes an ``--out``'s folder, runs ``main``; Ctrl-C ends it with one line
+  and exit status 130.
 """
 
 from __future__ import annotations
@@ -140,10 +141,28 @@ def check_houses(root: Path | None, names: Sequence[str], option: str = "--house
         house_folder(root, name, option)
 
 
+def prepare_out_folder(argv: Sequence[str]) -> None:
+    """Create the folder of an ``--out`` given in ``argv`` (``--out PATH`` or ``--out=PATH``)
+    before the script runs: a folder that did not exist used to fail the script after its
+    measurements, when it wrote the JSON (four scripts created it, the others did not). A
+    folder that cannot be made is a one-line error (exit 2) before anything runs."""
+    values = [b for a, b in zip(argv, argv[1:], strict=False) if a == "--out"]
+    values += [a.split("=", 1)[1] for a in argv if a.startswith("--out=")]
+    for value in values:
+        folder = Path(value).parent
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            fail(f"--out {value}: cannot make its folder {folder}: {error.strerror or error}")
+
+
 def run_main(main: Callable[[], int | None]) -> NoReturn:
     """``sys.exit(main())``, except that Ctrl-C (KeyboardInterrupt) ends the script with one
     line (what was written so far, :data:`WRITTEN`, or "no JSON written") and status 130
-    instead of a traceback."""
+    instead of a traceback. An ``--out`` on the command line gets its folder first
+    (:func:`prepare_out_folder`)."""
+    if "-h" not in sys.argv[1:] and "--help" not in sys.argv[1:]:
+        prepare_out_folder(sys.argv[1:])
     try:
         code = main()
     except KeyboardInterrupt:

@@ -370,6 +370,20 @@ def test_scripts_find_the_dataset_through_bench_cli():
     assert calls == []
 
 
+def test_an_out_in_a_missing_folder_gets_its_folder_before_the_run(script, tmp_path, capsys):
+    """A script whose --out named a folder that did not exist ran its measurements, then
+    failed with a traceback when it wrote the JSON."""
+    bench_cli = script("bench_cli")
+    bench_cli.prepare_out_folder(["--quick", "--out", str(tmp_path / "a" / "b" / "r.json")])
+    bench_cli.prepare_out_folder([f"--out={tmp_path / 'c' / 'r.json'}"])
+    assert (tmp_path / "a" / "b").is_dir() and (tmp_path / "c").is_dir()
+    (tmp_path / "file").write_text("")
+    with pytest.raises(SystemExit) as stop:
+        bench_cli.prepare_out_folder(["--out", str(tmp_path / "file" / "r.json")])
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and "cannot make its folder" in err and "Traceback" not in err
+
+
 def test_run_main_interrupted_one_line_and_130(script, tmp_path, capsys):
     """Ctrl-C: no traceback, one line saying what was (not) written, exit status 130."""
     bench_cli = script("bench_cli")
