@@ -175,3 +175,20 @@ def test_options_are_checked_when_parsed(capsys):
         assert f"argument {option}:" in capsys.readouterr().err
     with pytest.raises(ValueError, match="max_images_per_trial must be >= 1"):
         distillation_report(None, max_images_per_trial=-2)  # type: ignore[arg-type]
+
+
+def test_frames_numbered_without_zero_padding_are_named_in_a_warning(tmp_path, caplog):
+    # frame_1, frame_2, frame_10 gave rows in the order 1, 10, 2 without a word: row 2 held
+    # frame 10's features, misaligned with the poses listed in capture order.
+    for i in (1, 2, 10):
+        assert cv2.imwrite(str(tmp_path / f"frame_{i}.png"), np.zeros((4, 4, 3), np.uint8))
+    caplog.set_level("WARNING", logger="spcopyro")
+    paths = list_images(tmp_path)
+    assert [p.name for p in paths] == ["frame_1.png", "frame_10.png", "frame_2.png"]
+    assert "without zero padding" in caplog.text and "row 2 is frame_10.png" in caplog.text
+    caplog.clear()
+    for i in (1, 2, 10):
+        (tmp_path / f"frame_{i}.png").rename(tmp_path / f"frame_{i:05d}.png")
+    assert cv2.imwrite(str(tmp_path / "Z.png"), np.zeros((4, 4, 3), np.uint8))
+    list_images(tmp_path)
+    assert caplog.text == ""

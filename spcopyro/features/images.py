@@ -9,6 +9,7 @@ deviation (0.229, 0.224, 0.225), channels in RGB order.
 
 from __future__ import annotations
 
+import logging
 import os
 import re
 from collections.abc import Callable, Iterator, Sequence
@@ -145,6 +146,7 @@ def list_images(directory: str | os.PathLike[str]) -> list[Path]:
         )
     if not trial_folders:  # a house folder's own files (a map.pgm, say) are not its images
         _check_other_images(directory)
+        _warn_unpadded_numbers(directory, flat)
     paths = list(flat)
     for trial, folder in trial_folders:
         _check_other_images(folder)
@@ -152,6 +154,7 @@ def list_images(directory: str | os.PathLike[str]) -> list[Path]:
             q for q in folder.iterdir() if q.is_file() and q.suffix.lower() in IMAGE_SUFFIXES
         )
         _check_against_poses(directory, trial, folder, images)
+        _warn_unpadded_numbers(folder, images)
         paths += images
     if not paths:
         raise FileNotFoundError(
@@ -159,6 +162,29 @@ def list_images(directory: str | os.PathLike[str]) -> list[Path]:
             "in img_K/ folders)"
         )
     return paths
+
+
+def _warn_unpadded_numbers(folder: Path, images: list[Path]) -> None:
+    """Warn (logger ``"spcopyro"``) when name order is not number order: frames numbered
+    without zero padding (``frame_10.jpg`` sorts before ``frame_2.jpg``), whose rows would then
+    not follow the order the images were taken in (the order of their poses)."""
+
+    def numbers_first(path: Path) -> list[object]:
+        return [
+            (0, int(p), "") if p.isdigit() else (1, 0, p) for p in re.split(r"(\d+)", path.name)
+        ]
+
+    by_number = sorted(images, key=numbers_first)
+    if by_number == images:
+        return
+    first = next(i for i, (a, b) in enumerate(zip(images, by_number, strict=True)) if a != b)
+    logging.getLogger("spcopyro").warning(
+        "%s: image names number their frames without zero padding: rows follow name order "
+        "(row %d is %s, not %s), not the numbers' order; if the numbers give the order the "
+        "images were taken in (that of their poses), rename them with zero padding "
+        "(00001.jpg, ...)",
+        folder, first + 1, images[first].name, by_number[first].name,
+    )  # fmt: skip
 
 
 def _check_other_images(folder: Path) -> None:
