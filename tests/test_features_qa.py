@@ -192,3 +192,19 @@ def test_frames_numbered_without_zero_padding_are_named_in_a_warning(tmp_path, c
     assert cv2.imwrite(str(tmp_path / "Z.png"), np.zeros((4, 4, 3), np.uint8))
     list_images(tmp_path)
     assert caplog.text == ""
+
+
+def test_a_broken_link_is_an_unreadable_image_not_a_silently_missing_row(tmp_path):
+    # list_images kept only is_file() entries: a dangling 00001.jpg link was left out of a flat
+    # folder without a word (one row fewer), while load_house counts it among a trial's images.
+    assert cv2.imwrite(str(tmp_path / "00000.png"), np.zeros((4, 4, 3), np.uint8))
+    (tmp_path / "00001.jpg").symlink_to(tmp_path / "gone.jpg")
+    (tmp_path / "folder.jpg").mkdir()  # a folder is no image
+    paths = list_images(tmp_path)
+    assert [p.name for p in paths] == ["00000.png", "00001.jpg"]
+    from spcopyro.features.images import UnreadableImagesError
+
+    with pytest.raises(UnreadableImagesError, match=r"00001.jpg: a link to .*gone.jpg"):
+        extract_features(PlaceClassifier.load("random"), paths, progress=False)
+    with pytest.raises(NotADirectoryError, match=r"00000.png: a file, not a folder"):
+        list_images(tmp_path / "00000.png")

@@ -83,6 +83,8 @@ def read_image(path: str | os.PathLike[str]) -> np.ndarray:
     """
     path = Path(path)
     if not path.is_file():
+        if path.is_symlink():
+            raise FileNotFoundError(f"{path}: a link to {os.readlink(path)}, which is no file")
         raise FileNotFoundError(f"{path}: image file not found")
     data = np.fromfile(path, dtype=np.uint8)  # [bytes]
     if data.size == 0:
@@ -123,16 +125,24 @@ def list_images(directory: str | os.PathLike[str]) -> list[Path]:
     by name, exactly as :func:`spcopyro.data.load_house` pairs them with Ft.csv rows. Images are
     the files ending in one of :data:`spcopyro.data.IMAGE_SUFFIXES` (any case).
 
+    Image entries that are no files (a broken link) are listed too, so that reading them fails
+    with their names instead of their rows silently missing.
+
     Raises:
         FileNotFoundError: ``directory`` does not exist, or holds no images.
+        NotADirectoryError: ``directory`` is a file.
         ValueError: it holds both images and ``img_K/`` folders (which order is meant?), or
             image files of another type (``.bmp``, ``.webp``, ...), which would be left out.
     """
     directory = Path(directory)
+    if directory.is_file():
+        raise NotADirectoryError(
+            f"{directory}: a file, not a folder: give the folder that holds the images"
+        )
     if not directory.is_dir():
         raise FileNotFoundError(f"{directory}: image folder not found")
     flat = sorted(
-        p for p in directory.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES
+        p for p in directory.iterdir() if not p.is_dir() and p.suffix.lower() in IMAGE_SUFFIXES
     )
     trial_folders = sorted(
         (int(m.group(1)), p)
@@ -151,7 +161,7 @@ def list_images(directory: str | os.PathLike[str]) -> list[Path]:
     for trial, folder in trial_folders:
         _check_other_images(folder)
         images = sorted(
-            q for q in folder.iterdir() if q.is_file() and q.suffix.lower() in IMAGE_SUFFIXES
+            q for q in folder.iterdir() if not q.is_dir() and q.suffix.lower() in IMAGE_SUFFIXES
         )
         _check_against_poses(directory, trial, folder, images)
         _warn_unpadded_numbers(folder, images)
