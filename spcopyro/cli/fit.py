@@ -165,9 +165,10 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
             return 130
         if isinstance(stop, FitInterrupted):  # while sampling
             where, kept = f" ({stop.where})", stop.checkpoint
-        else:  # while reading the data, or writing the outputs
-            where = " while writing the outputs" if job.sampled else ""
-            kept = keeper.save() if keeper and job.sampled else None
+        else:  # reading the data, after the sweeps (their point estimate), or writing
+            kept = keeper.save() if keeper else None  # None: no chain had started
+            where = " after the sweeps" if kept else ""
+            where = " while writing the outputs" if job.sampled else where
         print(_interrupted(args, where, kept, staged.out), file=sys.stderr)
         return 130
     except Exception:

@@ -19,7 +19,7 @@ import torch
 from spcopyro._util.timings import timed
 from spcopyro.config import SpCoConfig, SpCoSettings
 from spcopyro.gibbs.chains import advance_chains
-from spcopyro.gibbs.checkpoint import load_chains, save_chains
+from spcopyro.gibbs.checkpoint import load_chains, read_record, save_chains
 from spcopyro.gibbs.hyperparameters import config_at_posterior_mean
 from spcopyro.gibbs.method import gibbs_record, output_from_run
 from spcopyro.gibbs.options import GibbsOptions
@@ -92,11 +92,17 @@ def gibbs_outputs(
         raise ValueError(
             f"anneal_sweeps ({options.anneal_sweeps}) must not exceed num_sweeps ({sweeps})"
         )
+    # marginal_samples sets which sweeps keep a label map: a chain resumed with another count
+    # would mix two spacings (the samples of no fit that never stopped)
     record = {"method": "gibbs", "sweeps": sweeps, "seeds": seeds, "init": init,
-              "data_preparation": preparation_record(settings)}  # fmt: skip
+              "data_preparation": preparation_record(settings),
+              "marginal_samples": marginal_samples}  # fmt: skip
     chains: list[GibbsChain | None] = [None] * len(seeds)
     if resume is not None:
-        chains = load_chains(resume, data, settings.model, options, record=record)
+        checked = dict(record)
+        if "marginal_samples" not in read_record(resume).get("caller", {}):  # type: ignore[operator]
+            del checked["marginal_samples"]  # a checkpoint made before it was recorded
+        chains = load_chains(resume, data, settings.model, options, record=checked)
     if checkpoint is not None:
         checkpoint.chains, checkpoint.record = chains, record
     try:

@@ -327,7 +327,8 @@ def fit_house_chains(
             :mod:`spcopyro.guides.checkpoint`) to this file on Ctrl-C, then raise
             :class:`FitInterrupted` (a :class:`FitCheckpoint` keeps the chains for the caller).
         resume: continue the chains, or the variational fit, saved in this checkpoint
-            (ValueError if it was made for other data or settings, seeds, sweeps or init);
+            (ValueError if it was made for other data or settings, seeds, sweeps, init or, for
+            Gibbs, marginal_samples);
             chains it does not hold start afresh. Gibbs' results equal those of a fit that
             never stopped, as do CAVI's with the torch backend; the other variational methods
             go on from the q(C) reached (a warm start: see the checkpoint module).

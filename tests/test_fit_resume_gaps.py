@@ -1,0 +1,63 @@
+"""``spcopyro fit``'s checkpoint between the sweeps and the outputs, and what a resume must
+match: a Ctrl-C after the chains finished (while their point estimate is made) keeps them, and
+``--resume`` with another ``--marginal-samples`` is refused (it would mix two spacings of the
+kept label maps)."""
+
+from __future__ import annotations
+
+import numpy as np
+from fit_interrupts import interrupt_fit_at
+
+import spcopyro.fit.gibbs_chains
+import spcopyro.gibbs.chains
+from spcopyro._util.outputs import checkpoint_path
+from spcopyro.cli.main import main
+from spcopyro.gibbs.checkpoint import read_record
+
+FIT = ["--sweeps", "12", "--preset", "original-code", "--gamma", "3", "--concepts", "8",
+       "--no-figures"]  # fmt: skip
+
+
+def test_ctrl_c_after_the_sweeps_keeps_the_finished_chains(home, tmp_path, capsys, monkeypatch):
+    out = tmp_path / "out"
+    argv = ["fit", str(home), "--out", str(out), *FIT]
+    marginals = spcopyro.fit.gibbs_chains.with_sample_marginals
+
+    def interrupted(*args, **kwargs):  # Ctrl-C while the point estimate is made
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as patch:
+        patch.setattr(spcopyro.fit.gibbs_chains, "with_sample_marginals", interrupted)
+        assert main(argv) == 130
+    err = capsys.readouterr().err.splitlines()[-1]  # after the progress bars
+    checkpoint = checkpoint_path(out)
+    assert err.startswith("interrupted after the sweeps: nothing written to")
+    assert "no sweep was done" not in err and f"saved in {checkpoint}" in err
+    assert [c["sweeps_done"] for c in read_record(checkpoint)["chains"]] == [12]
+
+    def no_sampling(*args, **kwargs):
+        raise AssertionError("the finished chains were sampled again")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(spcopyro.gibbs.chains, "advance", no_sampling)
+        patch.setattr(spcopyro.fit.gibbs_chains, "with_sample_marginals", marginals)
+        assert main([*argv, "--resume", str(checkpoint)]) == 0
+    assert main(["fit", str(home), "--out", str(tmp_path / "unbroken"), *FIT]) == 0
+    np.testing.assert_array_equal(
+        np.load(out / "labels.npy"), np.load(tmp_path / "unbroken" / "labels.npy")
+    )
+
+
+def test_resume_with_other_marginal_samples_is_refused(home, tmp_path, capsys, monkeypatch):
+    out = tmp_path / "out"
+    argv = ["fit", str(home), "--out", str(out), *FIT]
+    with monkeypatch.context() as patch:
+        interrupt_fit_at(patch, 0, 8)  # past the middle: label maps kept every sweep
+        assert main(argv) == 130
+    capsys.readouterr()
+    checkpoint = checkpoint_path(out)
+    assert main([*argv, "--marginal-samples", "2", "--resume", str(checkpoint)]) == 2
+    err = capsys.readouterr().err
+    assert "marginal_samples: 50 in the checkpoint, 2 here" in err
+    assert not out.exists() and checkpoint.is_file()
+    assert main([*argv, "--resume", str(checkpoint)]) == 0
