@@ -61,3 +61,44 @@ def test_resume_with_other_marginal_samples_is_refused(home, tmp_path, capsys, m
     assert "marginal_samples: 50 in the checkpoint, 2 here" in err
     assert not out.exists() and checkpoint.is_file()
     assert main([*argv, "--resume", str(checkpoint)]) == 0
+
+
+def test_a_checkpoint_resumed_with_another_method_names_the_method(
+    home, tmp_path, capsys, monkeypatch
+):
+    """A Gibbs checkpoint given to --method cavi (or the reverse, or another variational
+    method) names the method it was made with, not only its file format or every option."""
+    import spcopyro.guides.cavi as cavi
+
+    gibbs_out, cavi_out = tmp_path / "gibbs", tmp_path / "cavi"
+    with monkeypatch.context() as patch:
+        interrupt_fit_at(patch, 0, 4)
+        assert main(["fit", str(home), "--out", str(gibbs_out), *FIT]) == 130
+    real, calls = cavi.step, []
+
+    def interrupting(*args, **kwargs):  # CAVI's torch step: Ctrl-C at its third call
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    cavi_argv = ["fit", str(home), "--out", str(cavi_out), *FIT, "--method", "cavi",
+                 "--method-option", "backend=torch"]  # fmt: skip
+    with monkeypatch.context() as patch:
+        patch.setattr(cavi, "step", interrupting)
+        assert main(cavi_argv) == 130
+    capsys.readouterr()
+    gibbs_checkpoint, cavi_checkpoint = checkpoint_path(gibbs_out), checkpoint_path(cavi_out)
+    assert gibbs_checkpoint.is_file() and cavi_checkpoint.is_file()
+    out = str(tmp_path / "other")
+    assert main(["fit", str(home), "--out", out, *FIT, "--resume", str(cavi_checkpoint)]) == 2
+    assert "interrupted 'cavi' fit" in capsys.readouterr().err
+    assert main([*cavi_argv[:3], out, *cavi_argv[4:], "--resume", str(gibbs_checkpoint)]) == 2
+    assert "interrupted 'gibbs' fit, which this method cannot continue: resume it with " \
+        "--method gibbs" in capsys.readouterr().err  # fmt: skip
+    lbp = [*cavi_argv[:3], out, *FIT, "--method", "lbp", "--resume", str(cavi_checkpoint)]
+    assert main(lbp) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.endswith(
+        "method: 'cavi' in the checkpoint, 'lbp' here: resume it with --method cavi"
+    )

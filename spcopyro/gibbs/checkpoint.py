@@ -197,6 +197,12 @@ def checkpoint_record(
     except (KeyError, *DAMAGED_FILE_ERRORS):
         record = None
     if not isinstance(record, dict) or record.get("format") != form:
+        made_by = _method_of(record)
+        if made_by is not None:  # the other kind of spcopyro checkpoint: name its method
+            raise ValueError(
+                f"{path}: the checkpoint of an interrupted {made_by!r} fit, which this method "
+                f"cannot continue: resume it with --method {made_by}"
+            )
         raise ValueError(f"{path}: not a {kind} (no {form} record)")
     if record.get("version") != version:
         raise ValueError(
@@ -204,6 +210,18 @@ def checkpoint_record(
             f"version {version}"
         )
     return record
+
+
+def _method_of(record: object) -> str | None:
+    """The method whose interrupted fit a spcopyro checkpoint's ``record`` holds (a variational
+    one's ``method``, Gibbs chains' caller's), or None if it is no spcopyro checkpoint."""
+    if not isinstance(record, dict) or not str(record.get("format", "")).startswith("spcopyro-"):
+        return None
+    caller = record.get("caller")
+    method = record.get("method") or (caller.get("method") if isinstance(caller, dict) else None)
+    if method is None and record.get("format") == FORMAT:
+        method = "gibbs"  # chains saved without a caller's record
+    return method if isinstance(method, str) else None
 
 
 def data_differences(saved_sha256: object, data: ModelData) -> list[str]:

@@ -143,8 +143,12 @@ def load_variational(
         saved = checkpoint_record(path, z, form=FORMAT, version=VERSION,
                                   kind="variational checkpoint")  # fmt: skip
         here = _header(method, options, config, data)
+        if saved["method"] != method:  # its options and record are another method's too
+            raise ValueError(
+                f"{path} was made for other data or settings: method: {saved['method']!r} in the "
+                f"checkpoint, {method!r} here: resume it with --method {saved['method']}"
+            )
         problems = data_differences(saved["data_sha256"], data)
-        problems += differences({"method": saved["method"]}, {"method": method})
         problems += differences(saved["model"], here["model"])
         problems += differences(saved["options"], here["options"])
         if record is not None:
