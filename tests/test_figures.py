@@ -364,6 +364,20 @@ def test_a_variational_trace_does_not_call_q_a_chain():
     assert "chain" not in bottom.get_ylabel()
 
 
+def test_a_vi_gibbs_trace_is_of_its_gibbs_sweeps():
+    """vi-gibbs traces the log joint of its Gibbs chain's sweeps (after the CAVI start): its
+    axes said "per iteration (argmax of q per cell)" and its legend "iteration"."""
+    import dataclasses
+
+    from spcopyro.figures.plotting import trace_figure
+
+    result = dataclasses.replace(two_rooms(), method="vi-gibbs")
+    top, bottom = trace_figure(result).axes
+    assert "per sweep" in bottom.get_ylabel() and "the chain's state" in bottom.get_ylabel()
+    assert "argmax of q" not in bottom.get_ylabel() and bottom.get_xlabel() == "sweep"
+    assert "(sweep " in top.get_legend().get_texts()[0].get_text()
+
+
 def test_counts_of_one_are_singular(tmp_path, monkeypatch):
     import dataclasses
 

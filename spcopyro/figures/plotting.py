@@ -529,11 +529,13 @@ def trace_figure(result: SpCoResult) -> Figure:
     Figs. 5-6), the iteration of the highest objective marked. When the reported map is a
     point estimate over the kept samples (``result.agreement``), the figure says so: that map
     is not the marked sweep's state. The concept count is of the chain's state at each sweep
-    (every label it uses, specks included) or, for variational methods, of each cell's most
+    (every label it uses, specks included; vi-gibbs's are its Gibbs sweeps after the CAVI
+    start) or, for variational methods, of each cell's most
     probable concept under q at each iteration; not the fit's "concepts in use"."""
     trace = result.trace
     sweeps = np.arange(1, len(trace.objective) + 1)
-    step = "sweep" if result.method == "gibbs" else "iteration"
+    chain = result.method in ("gibbs", "vi-gibbs")  # vi-gibbs traces its Gibbs sweeps
+    step = "sweep" if chain else "iteration"
     fig = Figure(figsize=(7, 5))
     top, bottom = fig.subplots(2, 1, sharex=True)
     top.plot(sweeps, trace.objective, lw=0.8)
@@ -543,7 +545,7 @@ def trace_figure(result: SpCoResult) -> Figure:
     top.set_ylabel(trace.objective_name)
     top.legend(fontsize=8)
     bottom.plot(sweeps, trace.num_concepts, lw=0.8, color="C1")
-    if result.method == "gibbs":
+    if chain:
         counted = "(the chain's state, specks included)"
     else:  # a q(C), not a state: a concept counts where it is some cell's most probable one
         counted = "(argmax of q per cell, specks included)"
