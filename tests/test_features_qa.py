@@ -208,3 +208,22 @@ def test_a_broken_link_is_an_unreadable_image_not_a_silently_missing_row(tmp_pat
         extract_features(PlaceClassifier.load("random"), paths, progress=False)
     with pytest.raises(NotADirectoryError, match=r"00000.png: a file, not a folder"):
         list_images(tmp_path / "00000.png")
+
+
+def test_img_folders_and_pose_files_of_a_house_must_name_the_same_trials(tmp_path):
+    # An img_7/ with no pose_7.csv added its images as rows (Ft.csv then one trial longer than
+    # Xtx.csv, found only by fit); a pose_2.csv without img_2/ left that trial's rows out.
+    for k in (0, 1):
+        (tmp_path / f"img_{k}").mkdir()
+        assert cv2.imwrite(str(tmp_path / f"img_{k}" / "00001.png"), np.zeros((4, 4, 3), np.uint8))
+        (tmp_path / f"pose_{k}.csv").write_text("0,0,0,1\n")
+    assert len(list_images(tmp_path)) == 2
+    (tmp_path / "img_7").mkdir()
+    assert cv2.imwrite(str(tmp_path / "img_7" / "00001.png"), np.zeros((4, 4, 3), np.uint8))
+    with pytest.raises(ValueError, match=r"img_7/ has no pose_7.csv \(the trials are 0, 1,"):
+        list_images(tmp_path)
+    (tmp_path / "img_7" / "00001.png").unlink()
+    (tmp_path / "img_7").rmdir()
+    (tmp_path / "pose_2.csv").write_text("0,0,0,1\n1,0,0,1\n")
+    with pytest.raises(ValueError, match=r"pose_2.csv lists 2 poses but there is no img_2/"):
+        list_images(tmp_path)

@@ -157,6 +157,7 @@ def list_images(directory: str | os.PathLike[str]) -> list[Path]:
     if not trial_folders:  # a house folder's own files (a map.pgm, say) are not its images
         _check_other_images(directory)
         _warn_unpadded_numbers(directory, flat)
+    _check_trials(directory, [trial for trial, _ in trial_folders])
     paths = list(flat)
     for trial, folder in trial_folders:
         _check_other_images(folder)
@@ -208,6 +209,37 @@ def _check_other_images(folder: Path) -> None:
             f"{folder}: {len(others)} image file(s) of a type not read ({', '.join(others[:5])}"
             f"{', ...' if len(others) > 5 else ''}): only {', '.join(IMAGE_SUFFIXES)} files are "
             "images here (as for load_house); convert them or move them out"
+        )
+
+
+def _pose_lines(poses: Path) -> int:
+    return sum(1 for line in poses.read_text(errors="replace").splitlines() if line.strip())
+
+
+def _check_trials(directory: Path, trials: list[int]) -> None:
+    """A house folder's trials are those of its ``pose_K.csv`` files (as for load_house): an
+    ``img_K/`` without one would add rows with no pose, a pose file without its ``img_K/`` leave
+    its trial's rows out; either shifts Ft.csv against Xtx.csv. ValueError naming them."""
+    poses = {
+        int(m.group(1)): p
+        for p in directory.glob("pose_*.csv")
+        if (m := re.fullmatch(r"pose_(\d+)\.csv", p.name))
+    }
+    if not trials or not poses:
+        return
+    extra = sorted(set(trials) - set(poses))
+    if extra:
+        raise ValueError(
+            f"{directory}: img_{extra[0]}/ has no pose_{extra[0]}.csv (the trials are "
+            f"{', '.join(map(str, sorted(poses)))}, from the pose files): its images would be "
+            "Ft.csv rows without a pose; move the folder out"
+        )
+    missing = [k for k in sorted(set(poses) - set(trials)) if _pose_lines(poses[k])]
+    if missing:
+        raise ValueError(
+            f"{directory}: {poses[missing[0]].name} lists {_pose_lines(poses[missing[0]])} "
+            f"poses but there is no img_{missing[0]}/ folder: Ft.csv would lack that trial's "
+            "rows"
         )
 
 
