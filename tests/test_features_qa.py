@@ -227,3 +227,21 @@ def test_img_folders_and_pose_files_of_a_house_must_name_the_same_trials(tmp_pat
     (tmp_path / "pose_2.csv").write_text("0,0,0,1\n1,0,0,1\n")
     with pytest.raises(ValueError, match=r"pose_2.csv lists 2 poses but there is no img_2/"):
         list_images(tmp_path)
+
+
+def test_distillation_without_paired_images_says_which_image_is_missing(tmp_path):
+    # load_house only logs why it paired no images with Ft.csv's rows; the error then said
+    # "no camera images (img_K/ folders)" of a house that has them, one image short.
+    from types import SimpleNamespace
+
+    from spcopyro.features.distill import distillation_report
+
+    (tmp_path / "img_0").mkdir()
+    for name in ("00001.png", "00003.png"):
+        assert cv2.imwrite(str(tmp_path / "img_0" / name), np.zeros((4, 4, 3), np.uint8))
+    (tmp_path / "pose_0.csv").write_text("0,0,0,1\n" * 3)
+    house = SimpleNamespace(
+        name="h", source=tmp_path, observations=SimpleNamespace(image_paths=None)
+    )
+    with pytest.raises(ValueError, match=r"img_0: 2 images but pose_0.csv has 3 .*00002.png"):
+        distillation_report(house)  # type: ignore[arg-type]

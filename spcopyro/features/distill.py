@@ -26,6 +26,7 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -34,6 +35,7 @@ from spcopyro.data import House
 from spcopyro.features.backbone import WeightsSource
 from spcopyro.features.extract import DEFAULT_BATCH_SIZE, frozen_inputs
 from spcopyro.features.head import PlaceClassifier, TrainingResult, train_head
+from spcopyro.features.images import list_images
 
 __all__ = ["DistillationReport", "distillation_report", "kl_divergence", "top1_agreement"]
 
@@ -125,6 +127,18 @@ def _first_per_trial(trial: np.ndarray, wanted: Sequence[int], limit: int | None
     return np.concatenate(picked) if picked else np.zeros(0, dtype=np.int64)
 
 
+def _why_no_images(house: House) -> str:
+    """Why load_house paired no images with the rows (it only logs it): list_images' error
+    on the house folder names the folder and the image or trial that does not fit."""
+    if house.source is None or not Path(house.source).is_dir():
+        return "the house was not loaded from a folder with img_K/ folders"
+    try:
+        list_images(house.source)
+    except (OSError, ValueError) as error:
+        return str(error)
+    return "its img_K/ folders do not hold one image per Ft.csv row of their trial"
+
+
 def distillation_report(
     house: House,
     *,
@@ -166,7 +180,8 @@ def distillation_report(
     obs = house.observations
     if obs.image_paths is None:
         raise ValueError(
-            f"house {house.name!r} ({house.source}): no camera images (img_K/ folders) to distil"
+            f"house {house.name!r} ({house.source}): no camera images paired with its Ft.csv "
+            f"rows to distil: {_why_no_images(house)}"
         )
     trials = sorted({int(t) for t in obs.image_trial})
     held_out = trials[-1] if held_out_trial is None else int(held_out_trial)
