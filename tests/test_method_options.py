@@ -95,3 +95,25 @@ def test_gibbs_flags_reach_vi_gibbs_and_are_refused_by_methods_without_a_sampler
         err = capsys.readouterr().err
         assert f"{flags[0]} {flags[1]}" in err and "--method cavi does not run" in err
     assert not (tmp_path / "cavi").exists()
+
+
+def test_cavi_records_its_q_start_beside_the_start_labels(tmp_path, capsys):
+    """config.json's inference.init is the labels' start of every method; CAVI's own ``init``
+    (q's random start) was overwritten by it: a soft start read 'random'. And soft with start
+    labels, which replace it, was ignored silently."""
+    out = tmp_path / "soft"
+    args = ["fit", "--out", str(out), "--method", "cavi", "--sweeps", "2", "--preset",
+            "original-code", "--concepts", "6", "--no-figures"]  # fmt: skip
+    assert main([*args, "--method-option", "init=soft"]) == 0
+    inference = json.loads((out / "config.json").read_text())["inference"]
+    assert inference["init"] == "random" and inference["q_init"] == "soft"
+    assert main([*args, "--overwrite", "--init", "gaussian"]) == 0
+    inference = json.loads((out / "config.json").read_text())["inference"]
+    assert inference["init"] == "gaussian" and inference["q_init"] == "one-hot start labels"
+    capsys.readouterr()
+    soft = ["--method-option", "init=soft", "--overwrite"]
+    assert main([*args, *soft, "--init", "gaussian"]) == 2
+    assert "init=soft draws q(C) at random, but --init gaussian" in capsys.readouterr().err
+    vi_gibbs = [*args[:4], "vi-gibbs", *args[5:], "--init", "rooms", "--overwrite"]
+    assert main([*vi_gibbs, "--method-option", "variational.init=soft"]) == 2
+    assert "variational.init=soft draws q(C) at random" in capsys.readouterr().err

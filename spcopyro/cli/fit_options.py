@@ -26,6 +26,22 @@ def _given_gibbs_flags(args: argparse.Namespace) -> dict[str, tuple[str, object]
     return {name: (flag, value) for name, (flag, value, unset) in given.items() if value != unset}
 
 
+def _check_q_start(args: argparse.Namespace, options: object | None) -> None:
+    """ValueError for ``--method-option init=soft`` (``variational.init=soft``), q's random
+    start, with start labels (``--init`` other than random, ``--init-from``), which replace it:
+    soft was ignored silently."""
+    variational = getattr(options, "variational", options)
+    start = f"--init-from {args.init_from}" if args.init_from is not None else None
+    if getattr(args, "init", None) not in (None, "random"):
+        start = f"--init {args.init}"
+    if getattr(variational, "init", None) == "soft" and start is not None:
+        name = "variational.init" if variational is not options else "init"
+        raise ValueError(
+            f"--method-option {name}=soft draws q(C) at random, but {start} starts from labels "
+            "(q one-hot on them): pass one of the two"
+        )
+
+
 def method_options(args: argparse.Namespace) -> object | None:
     """The options ``fit`` runs ``args.method`` with (None: the method's defaults).
 
@@ -55,6 +71,7 @@ def method_options(args: argparse.Namespace) -> object | None:
     else:
         default = INFERENCE_METHODS[args.method].default_options()
         options = with_options(default, args.method_option) if args.method_option else None
+        _check_q_start(args, options)
         if args.method != "vi-gibbs":
             return options
         base = default if options is None else options

@@ -66,4 +66,8 @@ class CAVIInference(InferenceMethod):
             **dataclasses.asdict(options),
             "backend_used": resolve_backend(options.backend),
         }
+        # options.init, q's random start, as q_init: "init" names the start labels (fit_house
+        # writes it for every method, which overwrote this one); given labels replace it
+        q_init = record.pop("init")
+        record["q_init"] = q_init if request.init_labels is None else "one-hot start labels"
         return output_from_variational(run, record)
