@@ -102,3 +102,27 @@ def test_a_checkpoint_resumed_with_another_method_names_the_method(
     assert err.endswith(
         "method: 'cavi' in the checkpoint, 'lbp' here: resume it with --method cavi"
     )
+
+
+def test_sweeps_auto_with_anneal_sweeps_is_refined(home, tmp_path, capsys):
+    """--sweeps auto runs its --anneal-sweeps before the checked blocks; the refinement, which
+    runs the same options (and anneals again), runs as many sweeps as the chains did, anneal
+    included: it stopped after all the sampling with 'anneal_sweeps (10) must not exceed
+    num_sweeps (5)', a number the user never gave."""
+    from spcopyro.data import load_house
+    from spcopyro.fit.house import fit_house
+    from spcopyro.gibbs.options import GibbsOptions
+
+    out = tmp_path / "out"
+    argv = ["fit", str(home), "--out", str(out), "--no-figures", "--sweeps", "auto",
+            "--max-sweeps", "5", "--chains", "2", "--anneal-sweeps", "10", "--refine", "always",
+            "--marginal-samples", "0"]  # fmt: skip
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "fitted 2 chains x 15 sweeps on 0.3 m cells (" in printed
+    assert "), then 2 chains x 15 on the map's 0.1 m cells (" in printed
+    result = fit_house(load_house(home), sweeps="auto", chains=2, refine="always",
+                       options=GibbsOptions(anneal_sweeps=10), progress=False,
+                       marginal_samples=0)  # fmt: skip
+    assert len(result.trace.objective) >= 10 + 250  # the library's block: 250 sweeps
+    assert result.inference["refine"]["refine"]

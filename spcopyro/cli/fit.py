@@ -418,8 +418,9 @@ def _fit(
             seed=args.seed, init=init, source=source, threads=args.threads,
         )  # fmt: skip
         chain_results, kept = None, 0
-        # a refinement runs as many sweeps as the chains needed, with the preset's estimate
-        refine_sweeps = diagnostics.sweeps
+        # a refinement runs as many sweeps as the chains needed (their --anneal-sweeps too: it
+        # anneals again), with the preset's estimate
+        refine_sweeps = len(result.trace.objective)
         estimate = preset_inference(args.preset).get("point_estimate", "map-visited")
         estimate = estimate if args.marginal_samples > 0 else "map-visited"
     elif saved is not None:

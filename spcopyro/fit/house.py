@@ -491,7 +491,8 @@ def fit_house(
             progress=progress, threads=threads,
         )  # fmt: skip
         logger.info("--sweeps auto: %s", diagnostics.to_json())
-        results, kept, refine_sweeps = [result], 0, diagnostics.sweeps
+        # its anneal_sweeps too, which the refinement's chains run again
+        results, kept, refine_sweeps = [result], 0, len(result.trace.objective)
     else:
         results = fit_house_chains(
             house, settings, method=method, options=options, sweeps=sweeps,
