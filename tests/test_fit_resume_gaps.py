@@ -126,3 +126,14 @@ def test_sweeps_auto_with_anneal_sweeps_is_refined(home, tmp_path, capsys):
                        marginal_samples=0)  # fmt: skip
     assert len(result.trace.objective) >= 10 + 250  # the library's block: 250 sweeps
     assert result.inference["refine"]["refine"]
+
+
+def test_max_sweeps_without_sweeps_auto_is_refused(home, tmp_path, capsys):
+    """--max-sweeps caps --sweeps auto alone: with a number of --sweeps (or none) it was ignored
+    silently, a fit of 5000 sweeps for one asked to stop at 300."""
+    out = tmp_path / "out"
+    assert main(["fit", str(home), "--out", str(out), "--max-sweeps", "300"]) == 2
+    assert "--max-sweeps caps --sweeps auto, not --sweeps 5000" in capsys.readouterr().err
+    assert main(["fit", str(home), "--out", str(out), "--sweeps", "9", "--max-sweeps", "9"]) == 2
+    assert "not --sweeps 9: leave it out" in capsys.readouterr().err
+    assert not out.exists()

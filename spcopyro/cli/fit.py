@@ -116,6 +116,9 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
     _apply_preset_inference(args)
     if args.sweeps == "auto" and args.method != "gibbs":
         raise ValueError(f"--sweeps auto is Gibbs' convergence rule, not {args.method!r}'s")
+    if args.max_sweeps is not None and args.sweeps != "auto":  # it was ignored silently
+        raise ValueError(f"--max-sweeps caps --sweeps auto, not --sweeps {args.sweeps}: leave "
+                         "it out")  # fmt: skip
     checkpointed = _keeps_checkpoint(args)
     if args.resume is not None and not checkpointed:
         raise ValueError(
@@ -414,8 +417,8 @@ def _fit(
 
         chains = _chain_count(args)
         result, diagnostics = fit_house_converged(
-            house, settings, options=options, chains=chains, max_sweeps=args.max_sweeps,
-            seed=args.seed, init=init, source=source, threads=args.threads,
+            house, settings, options=options, chains=chains, seed=args.seed, init=init,
+            max_sweeps=args.max_sweeps or FIT_SWEEPS, source=source, threads=args.threads,
         )  # fmt: skip
         chain_results, kept = None, 0
         # a refinement runs as many sweeps as the chains needed (their --anneal-sweeps too: it

@@ -80,8 +80,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--anneal-sweeps", type=_non_negative_int, default=0,
                    help="ramp gamma up from gamma/N to gamma over the first N sweeps (burn-in; "
                         "default 0)")  # fmt: skip
-    p.add_argument("--max-sweeps", type=int, default=5000,
-                   help="cap per chain for --sweeps auto (default 5000)")  # fmt: skip
+    p.add_argument("--max-sweeps", type=_positive_int, default=None,
+                   help=f"cap per chain for --sweeps auto (default {FIT_SWEEPS})")  # fmt: skip
     p.add_argument("--preset", choices=sorted(PRESETS), default=DEFAULT_PRESET,
                    help="the model's hyperparameters and data preparation; the options below "
                         "override its values")  # fmt: skip
