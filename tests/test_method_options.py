@@ -117,3 +117,15 @@ def test_cavi_records_its_q_start_beside_the_start_labels(tmp_path, capsys):
     vi_gibbs = [*args[:4], "vi-gibbs", *args[5:], "--init", "rooms", "--overwrite"]
     assert main([*vi_gibbs, "--method-option", "variational.init=soft"]) == 2
     assert "variational.init=soft draws q(C) at random" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("method", ["cavi", "lbp", "svi", "stochastic-vi"])
+def test_marginal_samples_is_refused_by_methods_that_do_not_sample(tmp_path, capsys, method):
+    """--marginal-samples counts a sampler's kept label maps; a variational fit ignored it
+    silently (its uncertainty map is q(C_i)). Its default is still 50 for the samplers."""
+    from spcopyro.cli.fit_parser import MARGINAL_SAMPLES, given
+
+    args = ["fit", "--out", str(tmp_path / "x"), "--method", method, "--sweeps", "2"]
+    assert main([*args, "--marginal-samples", "10"]) == 2
+    assert "--marginal-samples 10: label maps of a sampler's sweeps" in capsys.readouterr().err
+    assert MARGINAL_SAMPLES == 50 and not given(MARGINAL_SAMPLES) and given(50)

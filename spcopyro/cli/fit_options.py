@@ -8,6 +8,8 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
+from spcopyro.cli.fit_parser import given as given_flag
+
 __all__ = ["method_options"]
 
 _SAMPLERS = ("gibbs", "vi-gibbs")
@@ -48,8 +50,9 @@ def method_options(args: argparse.Namespace) -> object | None:
     ``gibbs``: :class:`~spcopyro.gibbs.options.GibbsOptions` from the flags (a move rate left
     unset is 0; ``_apply_preset_inference`` filled the preset's first), then
     ``--method-option``. ``vi-gibbs``: its options from ``--method-option``, with the Gibbs
-    flags given set on its ``gibbs`` part. Any other method: ValueError if a Gibbs flag was
-    given. ValueError for ``--backend numba`` without numba, before anything is written."""
+    flags given set on its ``gibbs`` part. Any other method: ValueError if a Gibbs flag or
+    ``--marginal-samples`` was given. ValueError for ``--backend numba`` without numba, before
+    anything is written."""
     from spcopyro.fit.registry import INFERENCE_METHODS
     from spcopyro.gibbs.backends import get_backend
     from spcopyro.gibbs.options import GibbsOptions
@@ -61,6 +64,12 @@ def method_options(args: argparse.Namespace) -> object | None:
         raise ValueError(
             f"{flags}: options of the Gibbs sampler, which --method {args.method} does not run "
             "(gibbs and vi-gibbs do); leave them out"
+        )
+    if given_flag(args.marginal_samples) and args.method not in _SAMPLERS:
+        raise ValueError(
+            f"--marginal-samples {args.marginal_samples}: label maps of a sampler's sweeps "
+            f"(gibbs and vi-gibbs); --method {args.method} gives q(C_i), which uncertainty.png "
+            "shows: leave it out"
         )
     if args.method == "gibbs":
         unset_moves = {"unobserved_refresh": 1.0, "cluster_moves": 0.0, "merge_moves": 0.0,
