@@ -245,3 +245,34 @@ def test_distillation_without_paired_images_says_which_image_is_missing(tmp_path
     )
     with pytest.raises(ValueError, match=r"img_0: 2 images but pose_0.csv has 3 .*00002.png"):
         distillation_report(house)  # type: ignore[arg-type]
+
+
+def test_an_out_that_cannot_be_written_is_refused_before_any_work(images_dir, tmp_path):
+    # --out FOLDER said "already exists; pass --overwrite", and with --overwrite ran every image
+    # and then failed with "[Errno 21] Is a directory"; features-head trained first, then
+    # crashed in torch.save with a traceback. The ImageNet weights are missing here: the
+    # errors below come before they are looked for.
+    import argparse
+
+    from spcopyro.features.cli import add_parser
+    from spcopyro.features.extract import extract_to_csv, write_features_csv
+
+    (tmp_path / "a_file").write_text("")
+    for out, error in (
+        (tmp_path, r"a folder, not a file"),
+        (tmp_path / "a_file" / "Ft.csv", r"a_file is a file, not a folder"),
+    ):
+        with pytest.raises(OSError, match=error):
+            extract_to_csv(images_dir, out, overwrite=True)
+        with pytest.raises(OSError, match=error):
+            write_features_csv(out, np.ones((1, 2)), overwrite=True)
+    parser = argparse.ArgumentParser()
+    add_parser(parser.add_subparsers(dest="command", required=True))
+    (tmp_path / "labels.csv").write_text("no_such.png,kitchen\n")
+    args = parser.parse_args(
+        ["features-head", str(tmp_path / "labels.csv"), "--out", str(tmp_path), "--overwrite"]
+    )
+    with pytest.raises(IsADirectoryError, match="a folder, not a file"):
+        args.func(args)
+    out = write_features_csv(tmp_path / "new" / "Ft.csv", np.ones((1, 2)))
+    assert out.read_text() == "1.0,1.0\n" and [p.name for p in out.parent.iterdir()] == ["Ft.csv"]

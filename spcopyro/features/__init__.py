@@ -50,6 +50,7 @@ _EXPORTS = {
     ),
     "extract": (
         "ExtractionResult",
+        "check_out_file",
         "extract_features",
         "extract_to_csv",
         "frozen_inputs",

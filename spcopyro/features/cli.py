@@ -79,9 +79,9 @@ def _features_head(args: argparse.Namespace) -> int:
     from spcopyro.features.head import PlaceClassifier, encode_labels, save_head, train_head
 
     _random_warning(args.weights)
-    out = Path(args.out)
-    if out.exists() and not args.overwrite:
-        raise FileExistsError(f"{out} already exists; pass --overwrite to replace it")
+    from spcopyro.features.extract import check_out_file
+
+    out = check_out_file(args.out, overwrite=args.overwrite)  # before the training, not after
     source = Path(args.source)
     if source.is_dir():
         from spcopyro.data import load_house

@@ -23,6 +23,7 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
+from spcopyro._util.outputs import replace_file
 from spcopyro._util.progress import progress_enabled
 from spcopyro.features.backbone import WeightsSource
 from spcopyro.features.head import PlaceClassifier
@@ -30,6 +31,7 @@ from spcopyro.features.images import UnreadableImagesError, iter_image_batches, 
 
 __all__ = [
     "ExtractionResult",
+    "check_out_file",
     "extract_features",
     "extract_to_csv",
     "frozen_inputs",
@@ -147,13 +149,39 @@ def frozen_inputs(
     )
 
 
+def check_out_file(path: str | os.PathLike[str], *, overwrite: bool = False) -> Path:
+    """Check, before any work, that a file may be written at ``path``; writes nothing.
+
+    Raises:
+        IsADirectoryError: ``path`` is a folder (the file to write goes inside it).
+        NotADirectoryError: a part of ``path``'s folder is a file.
+        PermissionError: the folder (or its nearest existing parent) is not writable.
+        FileExistsError: ``path`` exists and ``overwrite`` is False.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise IsADirectoryError(f"{path}: a folder, not a file: give the file to write in it")
+    existing = path.parent
+    while not existing.exists() and existing.parent != existing:
+        existing = existing.parent  # the nearest part of the path that exists
+    if not existing.is_dir():
+        raise NotADirectoryError(f"{path}: {existing} is a file, not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise PermissionError(f"{path}: cannot write in {existing}")
+    if path.exists() and not overwrite:
+        raise FileExistsError(f"{path} already exists; pass overwrite (--overwrite) to replace it")
+    return path
+
+
 def write_features_csv(
     path: str | os.PathLike[str], features: np.ndarray, *, overwrite: bool = False
 ) -> Path:
     """Write ``[T, K]`` features as Ft.csv: one comma-separated row per image, ``repr`` floats.
 
+    The file is written whole or not at all (an interrupted write leaves the old file).
+
     Raises:
-        FileExistsError: ``path`` exists and ``overwrite`` is False.
+        FileExistsError, IsADirectoryError, ...: as :func:`check_out_file`.
         ValueError: not a non-empty 2-d array of finite values >= 0.
     """
     path = Path(path)
@@ -163,11 +191,10 @@ def write_features_csv(
     if not np.isfinite(features).all() or (features < 0).any():
         row, col = np.argwhere(~np.isfinite(features) | (features < 0))[0]
         raise ValueError(f"{path}: feature [{row}, {col}] is not finite or negative")
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"{path} already exists; pass overwrite (--overwrite) to replace it")
+    check_out_file(path, overwrite=overwrite)
     path.parent.mkdir(parents=True, exist_ok=True)
     text = "\n".join(",".join(map(repr, row)) for row in features.tolist()) + "\n"
-    path.write_text(text, encoding="utf-8")
+    replace_file(path, lambda file: file.write(text.encode("utf-8")))  # whole or not at all
     return path
 
 
@@ -205,9 +232,7 @@ def extract_to_csv(
     """
     paths = list_images(images)
     resolve_device(device)  # a bad device fails before the weights are loaded
-    out = Path(out)
-    if out.exists() and not overwrite:  # fail before the work, not after
-        raise FileExistsError(f"{out} already exists; pass overwrite (--overwrite) to replace it")
+    out = check_out_file(out, overwrite=overwrite)  # fail before the work, not after
     if model is None:
         model = PlaceClassifier.load(weights, head, download=download, seed=seed)
     features = extract_features(

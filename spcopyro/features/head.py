@@ -44,6 +44,7 @@ from torch import nn
 from torchvision.models import AlexNet
 from tqdm.auto import tqdm
 
+from spcopyro._util.outputs import replace_file
 from spcopyro._util.progress import progress_enabled
 from spcopyro.features.backbone import (
     FEATURE_DIM,
@@ -354,7 +355,7 @@ def save_head(
         "state_dict": tensors,
     }
     path.parent.mkdir(parents=True, exist_ok=True)
-    torch.save(payload, path)
+    replace_file(path, lambda file: torch.save(payload, file))  # whole or not at all
     return path
 
 
