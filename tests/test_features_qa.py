@@ -276,3 +276,27 @@ def test_an_out_that_cannot_be_written_is_refused_before_any_work(images_dir, tm
         args.func(args)
     out = write_features_csv(tmp_path / "new" / "Ft.csv", np.ones((1, 2)))
     assert out.read_text() == "1.0,1.0\n" and [p.name for p in out.parent.iterdir()] == ["Ft.csv"]
+
+
+def test_a_labels_file_names_its_missing_images_and_needs_two_places(tmp_path, images_dir):
+    # A missing image was reported as "a_color.jpg: image file not found", with no word of the
+    # labels file, its line, or that IMAGE is relative to the labels file's folder; labels of
+    # one place trained a 1-class head whose every feature is 1.0.
+    import argparse
+
+    from spcopyro.features.cli import add_parser
+    from spcopyro.features.images import read_labelled_images
+
+    labels = tmp_path / "labels.csv"
+    labels.write_text("images/00000.png,kitchen\n# note\nimages/gone.png,bedroom\n")
+    with pytest.raises(FileNotFoundError) as info:
+        read_labelled_images(labels)
+    message = str(info.value)
+    assert "labels.csv: 1 of 2 image(s) not found (line 3: " in message
+    assert f"relative to the labels file's folder, {tmp_path.resolve()}" in message
+    labels.write_text("images/00000.png,kitchen\nimages/00001.png,kitchen\n")
+    parser = argparse.ArgumentParser()
+    add_parser(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(["features-head", str(labels), "--out", str(tmp_path / "h.pt")])
+    with pytest.raises(ValueError, match="every image is labelled 'kitchen'"):
+        args.func(args)

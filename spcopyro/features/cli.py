@@ -109,6 +109,11 @@ def _features_head(args: argparse.Namespace) -> int:
 
         paths, names = read_labelled_images(source)
         class_names, labels = encode_labels(names)
+        if len(class_names) < 2:
+            raise ValueError(
+                f"{source}: every image is labelled {class_names[0]!r}: a head over one place "
+                "gives every image the feature 1.0; label images of at least two places"
+            )
         model = PlaceClassifier.load(args.weights, download=args.download, seed=args.seed)
         model.replace_head(len(class_names), class_names)
         inputs = frozen_inputs(

@@ -316,7 +316,8 @@ def read_labelled_images(path: str | os.PathLike[str]) -> tuple[list[Path], list
     or absolute; blank lines and lines starting with ``#`` skipped) -> (paths, place names).
 
     Raises:
-        FileNotFoundError: no such file.
+        FileNotFoundError: no such file, or images it names that do not exist (with their
+            lines, and the folder relative paths start from).
         ValueError: a line without exactly one comma, or with an empty field (the message
             names the file, the 1-based line and the line, shortened when long), no labelled
             images at all, or a file that is not UTF-8 text.
@@ -328,7 +329,7 @@ def read_labelled_images(path: str | os.PathLike[str]) -> tuple[list[Path], list
         text = path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError as error:
         raise ValueError(f"{path}: not UTF-8 text ({error.reason})") from None
-    paths, names = [], []
+    paths, names, lines = [], [], []
     for number, line in enumerate(text.splitlines(), start=1):
         if not line.strip() or line.lstrip().startswith("#"):
             continue
@@ -338,6 +339,16 @@ def read_labelled_images(path: str | os.PathLike[str]) -> tuple[list[Path], list
         image = Path(fields[0])
         paths.append(image if image.is_absolute() else path.parent / image)
         names.append(fields[1])
+        lines.append(number)
     if not paths:
         raise ValueError(f"{path}: holds no labelled images")
+    missing = [(n, p) for n, p in zip(lines, paths, strict=True) if not p.exists()]
+    if missing:
+        listed = "; ".join(f"line {n}: {p}" for n, p in missing[:5])
+        more = f"; ... and {len(missing) - 5} more" if len(missing) > 5 else ""
+        raise FileNotFoundError(
+            f"{path}: {len(missing)} of {len(paths)} image(s) not found ({listed}{more}); an "
+            f"IMAGE that is not absolute is relative to the labels file's folder, "
+            f"{path.parent.resolve()}"
+        )
     return paths, names
