@@ -70,9 +70,14 @@ def refine(
             point_estimate=point_estimate or args.point_estimate, chain_workers=args.chain_workers,
             source=source,
         )  # fmt: skip
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as stop:  # the refinement's own sweeps are not kept
         saved = keeper.save() if keeper is not None else None
-        raise FitInterrupted("while refining on the map's own cells", saved) from None
+        where = "while refining on the map's own cells"
+        if isinstance(stop, FitInterrupted):  # how far the refinement's chains got
+            where += f": {stop.where}"
+        if saved is not None:
+            where += "; the first stage is kept and resuming refines again"
+        raise FitInterrupted(where, saved) from None
     return decision.refine, results
 
 
