@@ -300,3 +300,31 @@ def test_a_labels_file_names_its_missing_images_and_needs_two_places(tmp_path, i
     args = parser.parse_args(["features-head", str(labels), "--out", str(tmp_path / "h.pt")])
     with pytest.raises(ValueError, match="every image is labelled 'kitchen'"):
         args.func(args)
+
+
+def test_distillation_leaves_out_all_zero_rows_and_says_which(tmp_path, pristine, caplog):
+    # An all-zero Ft.csv row (load_house warns of it) stopped the distillation after all the
+    # activations with "target histogram 14 sums to 0", an index into the training subset.
+    from types import SimpleNamespace
+
+    from spcopyro.features.distill import distillation_report
+
+    paths = []
+    for i in range(4):
+        paths.append(tmp_path / f"{i}.png")
+        assert cv2.imwrite(str(paths[-1]), np.full((8, 8, 3), 60 * i, np.uint8))
+    features = np.array([[0.5, 0.5], [0.0, 0.0], [0.9, 0.1], [0.2, 0.8]])
+    obs = SimpleNamespace(
+        image_paths=tuple(paths),
+        image_trial=np.array([0, 0, 1, 1]),
+        image_features=features,
+        num_feature_classes=2,
+    )
+    house = SimpleNamespace(name="h", source=tmp_path, observations=obs)
+    caplog.set_level("WARNING", logger="spcopyro")
+    report = distillation_report(house, model=copy.deepcopy(pristine), epochs=1, progress=False)
+    assert "1 image(s) left out of the distillation" in caplog.text and "(lines 2)" in caplog.text
+    assert (report.num_train, report.num_test) == (1, 2)
+    obs.image_features = np.array([[0.0, 0.0], [0.0, 0.0], [0.9, 0.1], [0.2, 0.8]])
+    with pytest.raises(ValueError, match="every training image's Ft.csv row is all zero"):
+        distillation_report(house, model=copy.deepcopy(pristine), epochs=1, progress=False)

@@ -23,6 +23,7 @@ fc7 activations; only a converted Places205 AlexNet can reproduce the paper's fe
 
 from __future__ import annotations
 
+import logging
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -196,6 +197,22 @@ def distillation_report(
     test_rows = _first_per_trial(obs.image_trial, [held_out], max_images_per_trial)  # [N_test]
     targets = obs.image_features  # [T, K] float64
     paths = obs.image_paths
+    empty = targets.sum(axis=1) <= 0  # [T] bool: rows with no histogram to imitate
+    picked = np.concatenate([train_rows, test_rows])  # [N_train + N_test]
+    left_out = picked[empty[picked]]
+    if left_out.size:  # train_head refused them after all the activations, by a subset index
+        logging.getLogger("spcopyro").warning(
+            "house %r: %d image(s) left out of the distillation: their Ft.csv rows are all zero "
+            "(lines %s), no histogram to imitate",
+            house.name, left_out.size,
+            ", ".join(str(i + 1) for i in left_out[:5]) + (", ..." if left_out.size > 5 else ""),
+        )  # fmt: skip
+        train_rows, test_rows = train_rows[~empty[train_rows]], test_rows[~empty[test_rows]]
+        if not train_rows.size or not test_rows.size:
+            raise ValueError(
+                f"house {house.name!r}: every {'training' if not train_rows.size else 'held-out'} "
+                "image's Ft.csv row is all zero: nothing to distil"
+            )
 
     if model is None:
         model = PlaceClassifier.load(weights, download=download, seed=seed)
