@@ -378,6 +378,25 @@ def test_a_vi_gibbs_trace_is_of_its_gibbs_sweeps():
     assert "(sweep " in top.get_legend().get_texts()[0].get_text()
 
 
+@pytest.mark.parametrize(
+    "method, source",
+    [("gibbs", "Gibbs label frequencies\n"), ("vi-gibbs", "Gibbs label frequencies (vi-gibbs)"),
+     ("cavi", "q(C) of cavi")],
+)  # fmt: skip
+def test_the_uncertainty_map_names_where_its_marginals_come_from(monkeypatch, method, source):
+    """vi-gibbs's marginals are its Gibbs stage's label frequencies; the title said q(C)."""
+    import dataclasses
+
+    from spcopyro.figures import plotting
+
+    marginals = np.full((two_rooms().labels.size, 3), 1 / 3)
+    result = dataclasses.replace(two_rooms(), method=method, marginals=marginals)
+    titles = []
+    monkeypatch.setattr(plotting, "_plot_cell_values", lambda *a, title, **k: titles.append(title))
+    plotting.plot_uncertainty(result, "unused.png")
+    assert source in titles[0]
+
+
 def test_counts_of_one_are_singular(tmp_path, monkeypatch):
     import dataclasses
 

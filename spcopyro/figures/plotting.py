@@ -466,6 +466,10 @@ def _plot_cell_values(
     return _save(fig, path)
 
 
+_CHAINS = ("gibbs", "vi-gibbs")
+"""The methods whose trace and marginals are a Gibbs chain's (vi-gibbs: after its CAVI start)."""
+
+
 def plot_uncertainty(result: SpCoResult, path: str | os.PathLike[str]) -> Path | None:
     """The uncertainty map: each free cell's entropy of p(C_i) in nats
     (:func:`~spcopyro.results.uncertainty.cell_entropy`); None (nothing drawn) for a result without
@@ -473,7 +477,9 @@ def plot_uncertainty(result: SpCoResult, path: str | os.PathLike[str]) -> Path |
     entropy = cell_entropy(result)
     if entropy is None:
         return None
-    source = f"q(C) of {result.method}" if result.method != "gibbs" else "Gibbs label frequencies"
+    source = f"q(C) of {result.method}"
+    if result.method in _CHAINS:  # vi-gibbs: the samples of its Gibbs stage
+        source = "Gibbs label frequencies" + ("" if result.method == "gibbs" else " (vi-gibbs)")
     title = (
         f"{result.name or 'uncertainty'}: entropy of p(C_i), {source}\nmean "
         f"{entropy.mean():.3f} nats (at most log L = {np.log(len(result.pi)):.2f})"
@@ -534,7 +540,7 @@ def trace_figure(result: SpCoResult) -> Figure:
     probable concept under q at each iteration; not the fit's "concepts in use"."""
     trace = result.trace
     sweeps = np.arange(1, len(trace.objective) + 1)
-    chain = result.method in ("gibbs", "vi-gibbs")  # vi-gibbs traces its Gibbs sweeps
+    chain = result.method in _CHAINS  # vi-gibbs traces its Gibbs sweeps
     step = "sweep" if chain else "iteration"
     fig = Figure(figsize=(7, 5))
     top, bottom = fig.subplots(2, 1, sharex=True)
