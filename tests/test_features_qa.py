@@ -328,3 +328,27 @@ def test_distillation_leaves_out_all_zero_rows_and_says_which(tmp_path, pristine
     obs.image_features = np.array([[0.0, 0.0], [0.0, 0.0], [0.9, 0.1], [0.2, 0.8]])
     with pytest.raises(ValueError, match="every training image's Ft.csv row is all zero"):
         distillation_report(house, model=copy.deepcopy(pristine), epochs=1, progress=False)
+
+
+def test_a_failed_download_names_the_url_and_what_else_to_do(monkeypatch, capsys):
+    # --download without internet ended with "error: <urlopen error [Errno -2] Name or service
+    # not known>", naming neither the file nor another way to get it; and the 233 MB download
+    # had its progress bar switched off.
+    import urllib.error
+
+    from spcopyro.features.backbone import WeightsNotFoundError, torchvision_cache_file
+
+    seen = {}
+
+    def offline(url, dst, hash_prefix=None, progress=True):
+        seen["progress"] = progress
+        raise urllib.error.URLError("[Errno -2] Name or service not known")
+
+    monkeypatch.setattr(torch.hub, "download_url_to_file", offline)
+    monkeypatch.delenv("CI", raising=False)
+    with pytest.raises(WeightsNotFoundError) as info:
+        load_alexnet("imagenet", download=True)
+    message = str(info.value)
+    assert message.startswith("downloading https://download.pytorch.org/models/alexnet-owt")
+    assert str(torchvision_cache_file()) in message and "--weights PATH" in message
+    assert seen["progress"] is True

@@ -38,6 +38,7 @@ from torch import nn
 from torchvision.models import AlexNet, AlexNet_Weights, alexnet
 
 from spcopyro._util.messages import ECHO_LIMIT
+from spcopyro._util.progress import progress_enabled
 
 __all__ = [
     "FEATURE_DIM",
@@ -284,8 +285,15 @@ def load_alexnet(
             model = _load_cached_imagenet(cache_file)
         elif not download:
             raise WeightsNotFoundError(_missing_imagenet_message(cache_file))
-        else:
-            model = alexnet(weights=IMAGENET_WEIGHTS, progress=False)
+        else:  # 233 MB: torch.hub's progress bar
+            try:
+                model = alexnet(weights=IMAGENET_WEIGHTS, progress=progress_enabled(None))
+            except OSError as error:  # URLError: "<urlopen error [Errno -2] Name or service..."
+                raise WeightsNotFoundError(
+                    f"downloading {IMAGENET_WEIGHTS.url} into {cache_file} failed ({error}); "
+                    "is there internet here? Otherwise download it elsewhere and put it there, "
+                    "or give a local state-dict checkpoint with --weights PATH"
+                ) from None
     elif source.kind == "random":
         with torch.random.fork_rng(devices=[]):
             torch.manual_seed(source.seed)
