@@ -129,3 +129,15 @@ def test_marginal_samples_is_refused_by_methods_that_do_not_sample(tmp_path, cap
     assert main([*args, "--marginal-samples", "10"]) == 2
     assert "--marginal-samples 10: label maps of a sampler's sweeps" in capsys.readouterr().err
     assert MARGINAL_SAMPLES == 50 and not given(MARGINAL_SAMPLES) and given(50)
+
+
+def test_a_field_that_may_be_none_takes_its_declared_type_and_none():
+    """svi's global_learning_rate (default None) took the text as it was: '0.01' was refused as
+    'must be None or a finite number > 0'."""
+    from spcopyro.guides.svi_method import SVIOptions
+
+    options = with_options(SVIOptions(), ["global_learning_rate=0.01"])
+    assert options.global_learning_rate == 0.01
+    assert with_options(options, ["global_learning_rate=none"]).global_learning_rate is None
+    with pytest.raises(ValueError, match="expected a number, got 'fast'"):
+        with_options(SVIOptions(), ["global_learning_rate=fast"])

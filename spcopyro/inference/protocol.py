@@ -17,7 +17,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, NamedTuple, Protocol, TypeVar
+from typing import TYPE_CHECKING, NamedTuple, Protocol, TypeVar, get_args, get_type_hints
 
 import numpy as np
 
@@ -221,6 +221,23 @@ def _assign(options: object, path: list[str], text: str, assignment: str) -> obj
     current = getattr(options, path[0])
     if len(path) > 1:
         value = _assign(current, path[1:], text, assignment)
-    else:
-        value = _parse_value(text, current, f"method option {assignment!r}")
+    else:  # a field that may be None (svi's global_learning_rate): parsed as its declared type
+        kind, optional = _declared(options, path[0])
+        if optional and text.lower() in ("none", "null"):
+            value = None
+        else:
+            like = kind() if current is None and kind is not None else current
+            value = _parse_value(text, like, f"method option {assignment!r}")
     return dataclasses.replace(options, **{path[0]: value})
+
+
+def _declared(options: object, name: str) -> tuple[type | None, bool]:
+    """The scalar type (bool, int, float or str) a field of ``options`` is declared with (None:
+    none of those) and whether it may be None."""
+    try:
+        hint = get_type_hints(type(options))[name]
+    except Exception:  # an annotation that does not resolve: the current value's type decides
+        return None, False
+    kinds = get_args(hint) or (hint,)
+    scalars = [kind for kind in kinds if kind in (bool, int, float, str)]
+    return (scalars[0] if scalars else None), type(None) in kinds
