@@ -352,3 +352,13 @@ def test_a_failed_download_names_the_url_and_what_else_to_do(monkeypatch, capsys
     assert message.startswith("downloading https://download.pytorch.org/models/alexnet-owt")
     assert str(torchvision_cache_file()) in message and "--weights PATH" in message
     assert seen["progress"] is True
+
+
+def test_trial_folders_are_named_with_ascii_digits_as_load_house_reads_them(tmp_path):
+    # r"img_(\d+)" also took "img_٣" (Arabic-Indic three) as trial 3, which load_house (r"[0-9]")
+    # does not: its images became rows that no pose or Xtx.csv line belongs to.
+    (tmp_path / "img_0").mkdir()
+    (tmp_path / "img_\u0663").mkdir()
+    for folder in ("img_0", "img_\u0663"):
+        assert cv2.imwrite(str(tmp_path / folder / "00001.png"), np.zeros((4, 4, 3), np.uint8))
+    assert [p.parent.name for p in list_images(tmp_path)] == ["img_0"]

@@ -147,7 +147,7 @@ def list_images(directory: str | os.PathLike[str]) -> list[Path]:
     trial_folders = sorted(
         (int(m.group(1)), p)
         for p in directory.iterdir()
-        if p.is_dir() and (m := re.fullmatch(r"img_(\d+)", p.name))
+        if p.is_dir() and (m := re.fullmatch(r"img_([0-9]+)", p.name))
     )
     if flat and trial_folders:
         raise ValueError(
@@ -182,7 +182,7 @@ def _warn_unpadded_numbers(folder: Path, images: list[Path]) -> None:
 
     def numbers_first(path: Path) -> list[object]:
         return [
-            (0, int(p), "") if p.isdigit() else (1, 0, p) for p in re.split(r"(\d+)", path.name)
+            (0, int(p), "") if p.isdigit() else (1, 0, p) for p in re.split(r"([0-9]+)", path.name)
         ]
 
     by_number = sorted(images, key=numbers_first)
@@ -223,7 +223,7 @@ def _check_trials(directory: Path, trials: list[int]) -> None:
     poses = {
         int(m.group(1)): p
         for p in directory.glob("pose_*.csv")
-        if (m := re.fullmatch(r"pose_(\d+)\.csv", p.name))
+        if (m := re.fullmatch(r"pose_([0-9]+)\.csv", p.name))
     }
     if not trials or not poses:
         return
