@@ -362,3 +362,12 @@ def test_trial_folders_are_named_with_ascii_digits_as_load_house_reads_them(tmp_
     for folder in ("img_0", "img_\u0663"):
         assert cv2.imwrite(str(tmp_path / folder / "00001.png"), np.zeros((4, 4, 3), np.uint8))
     assert [p.parent.name for p in list_images(tmp_path)] == ["img_0"]
+
+
+def test_two_folders_of_one_trial_are_refused(tmp_path):
+    # img_1/ and img_01/ both went in as trial 1 (rows twice), where load_house refuses them.
+    for folder in ("img_1", "img_01"):
+        (tmp_path / folder).mkdir()
+        assert cv2.imwrite(str(tmp_path / folder / "00001.png"), np.zeros((4, 4, 3), np.uint8))
+    with pytest.raises(ValueError, match=r"img_01/ and img_1/ are both trial 1"):
+        list_images(tmp_path)

@@ -157,6 +157,11 @@ def list_images(directory: str | os.PathLike[str]) -> list[Path]:
     if not trial_folders:  # a house folder's own files (a map.pgm, say) are not its images
         _check_other_images(directory)
         _warn_unpadded_numbers(directory, flat)
+    for (trial, first), (again, second) in zip(trial_folders, trial_folders[1:], strict=False):
+        if trial == again:  # img_1/ and img_01/: load_house refuses to pair either
+            raise ValueError(
+                f"{directory}: {first.name}/ and {second.name}/ are both trial {trial}"
+            )
     _check_trials(directory, [trial for trial, _ in trial_folders])
     paths = list(flat)
     for trial, folder in trial_folders:
