@@ -378,6 +378,21 @@ def test_a_vi_gibbs_trace_is_of_its_gibbs_sweeps():
     assert "(sweep " in top.get_legend().get_texts()[0].get_text()
 
 
+def test_a_variational_trace_marks_its_final_iteration_as_final_not_highest():
+    """A variational fit reports its final q; LBP's Bethe objective and SVI's noisy estimate can
+    peak earlier, and the legend called the final iteration the highest."""
+    import dataclasses
+
+    from spcopyro.figures.plotting import trace_figure
+    from spcopyro.inference.protocol import Trace
+
+    trace = Trace(np.array([1.0, 3.0, 2.0]), np.array([3, 3, 3]), np.zeros(3), "Bethe ELBO")
+    result = dataclasses.replace(two_rooms(), method="lbp", trace=trace, best_iteration=2)
+    top, _ = trace_figure(result).axes
+    label = top.get_legend().get_texts()[0].get_text()
+    assert label == "final Bethe ELBO (iteration 3): the reported q"
+
+
 @pytest.mark.parametrize(
     "method, source",
     [("gibbs", "Gibbs label frequencies\n"), ("vi-gibbs", "Gibbs label frequencies (vi-gibbs)"),

@@ -532,12 +532,13 @@ def plot_trace(result: SpCoResult, path: str | os.PathLike[str]) -> Path:
 
 def trace_figure(result: SpCoResult) -> Figure:
     """The objective (log joint or ELBO) and the number of concepts per iteration (paper
-    Figs. 5-6), the iteration of the highest objective marked. When the reported map is a
-    point estimate over the kept samples (``result.agreement``), the figure says so: that map
-    is not the marked sweep's state. The concept count is of the chain's state at each sweep
-    (every label it uses, specks included; vi-gibbs's are its Gibbs sweeps after the CAVI
-    start) or, for variational methods, of each cell's most
-    probable concept under q at each iteration; not the fit's "concepts in use"."""
+    Figs. 5-6), the sweep of the highest log joint marked (a variational method's final
+    iteration, whose q is reported: LBP's and SVI's objectives need not peak there). When the
+    reported map is a point estimate over the kept samples (``result.agreement``), the figure
+    says so: that map is not the marked sweep's state. The concept count is of the chain's
+    state at each sweep (every label it uses, specks included; vi-gibbs's are its Gibbs sweeps
+    after the CAVI start) or, for variational methods, of each cell's most probable concept
+    under q at each iteration; not the fit's "concepts in use"."""
     trace = result.trace
     sweeps = np.arange(1, len(trace.objective) + 1)
     chain = result.method in _CHAINS  # vi-gibbs traces its Gibbs sweeps
@@ -547,7 +548,8 @@ def trace_figure(result: SpCoResult) -> Figure:
     top.plot(sweeps, trace.objective, lw=0.8)
     best = result.best_iteration + 1
     top.axvline(best, color="C3", lw=0.6, ls="--",
-                label=f"highest {trace.objective_name} ({step} {best})")  # fmt: skip
+                label=f"highest {trace.objective_name} ({step} {best})" if chain else
+                f"final {trace.objective_name} ({step} {best}): the reported q")  # fmt: skip
     top.set_ylabel(trace.objective_name)
     top.legend(fontsize=8)
     bottom.plot(sweeps, trace.num_concepts, lw=0.8, color="C1")
