@@ -29,6 +29,20 @@ from spcopyro.results.point_estimate import POINT_ESTIMATES
 __all__ = ["add_parser"]
 
 
+class _Unset(int):
+    """A default that behaves as its int and tells itself apart from the same value given on
+    the command line (argparse keeps a default that is not a string as it is)."""
+
+
+MARGINAL_SAMPLES = _Unset(50)
+"""``--marginal-samples``'s default: 50 label maps, for the methods that sample."""
+
+
+def given(value: object) -> bool:
+    """Whether an option whose default is an :class:`_Unset` was given."""
+    return not isinstance(value, _Unset)
+
+
 def _run_fit(args: argparse.Namespace) -> int:
     from spcopyro.cli.fit import run_fit
 
@@ -158,7 +172,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    help="start from the labels of an earlier fit's output folder on the same map "
                         "(a warm start from any method to any method, e.g. a cavi fit starting "
                         "gibbs); replaces --init (default: none)")  # fmt: skip
-    p.add_argument("--marginal-samples", type=_non_negative_int, default=50,
+    p.add_argument("--marginal-samples", type=_non_negative_int, default=MARGINAL_SAMPLES,
                    help="gibbs, vi-gibbs: label maps kept over the second half of the sweeps for "
                         "the per-cell probabilities of uncertainty.png (0: none)")  # fmt: skip
     p.add_argument("--seed", type=_seed, default=0,
