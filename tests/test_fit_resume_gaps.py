@@ -137,3 +137,31 @@ def test_max_sweeps_without_sweeps_auto_is_refused(home, tmp_path, capsys):
     assert main(["fit", str(home), "--out", str(out), "--sweeps", "9", "--max-sweeps", "9"]) == 2
     assert "not --sweeps 9: leave it out" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_refused_resume_names_the_field_that_differs_within_a_group(
+    home, tmp_path, capsys, monkeypatch
+):
+    """--cell-size or a hyperparameter-sampling option differing: the message names that field
+    (it printed the checkpoint's and this run's whole data preparation, or sampler options)."""
+    from spcopyro.gibbs.checkpoint import differences
+
+    saved = {"sweeps": 12, "data_preparation": {"cell_size": 0.25, "word_scaling": 10.0}}
+    here = {"sweeps": 12, "data_preparation": {"cell_size": 0.5, "word_scaling": 10.0}}
+    assert differences(saved, here) == [
+        "data_preparation.cell_size: 0.25 in the checkpoint, 0.5 here"
+    ]
+    assert differences({"a": {"b": 1}}, {"a": 2}) == ["a: {'b': 1} in the checkpoint, 2 here"]
+    out = tmp_path / "out"
+    argv = ["fit", str(home), "--out", str(out), *FIT]
+    with monkeypatch.context() as patch:
+        interrupt_fit_at(patch, 0, 1)
+        assert main(argv) == 130
+    capsys.readouterr()
+    other = [*argv, "--cell-size", "0.5", "--method-option", "hyper.gamma=exchange",
+             "--resume", str(checkpoint_path(out))]  # fmt: skip
+    assert main(other) == 2
+    err = capsys.readouterr().err
+    assert "data_preparation.cell_size: None in the checkpoint, 0.5 here" in err
+    assert "hyper.gamma: 'fixed' in the checkpoint, 'exchange' here" in err
+    assert "{" not in err  # no whole group printed

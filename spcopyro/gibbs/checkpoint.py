@@ -89,15 +89,22 @@ def _options_record(options: GibbsOptions) -> dict[str, object]:
     return values
 
 
-def differences(saved: Mapping[str, object], current: Mapping[str, object]) -> list[str]:
-    """``"NAME: A in the checkpoint, B here"`` for every key whose values differ."""
+def differences(
+    saved: Mapping[str, object], current: Mapping[str, object], prefix: str = ""
+) -> list[str]:
+    """``"NAME: A in the checkpoint, B here"`` for every key whose values differ; within two
+    mappings, for each of their keys that differ (``"data_preparation.cell_size: ..."``: the
+    two whole mappings left the reader to find the difference)."""
     old: dict[str, object] = json.loads(json.dumps(dict(saved)))
     new: dict[str, object] = json.loads(json.dumps(dict(current)))
-    return [
-        f"{key}: {old.get(key)!r} in the checkpoint, {new.get(key)!r} here"
-        for key in sorted(set(old) | set(new))
-        if old.get(key) != new.get(key)
-    ]
+    found = []
+    for key in sorted(set(old) | set(new)):
+        a, b = old.get(key), new.get(key)
+        if isinstance(a, dict) and isinstance(b, dict):
+            found += differences(a, b, f"{prefix}{key}.")
+        elif a != b:
+            found.append(f"{prefix}{key}: {a!r} in the checkpoint, {b!r} here")
+    return found
 
 
 def save_chains(
