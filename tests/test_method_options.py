@@ -141,3 +141,22 @@ def test_a_field_that_may_be_none_takes_its_declared_type_and_none():
     assert with_options(options, ["global_learning_rate=none"]).global_learning_rate is None
     with pytest.raises(ValueError, match="expected a number, got 'fast'"):
         with_options(SVIOptions(), ["global_learning_rate=fast"])
+
+
+def test_the_help_names_the_hyperparameter_options_of_gibbs():
+    """Sampling alpha, the concentrations or gamma is only a --method-option; fit --help did
+    not say so anywhere (nor that --merge-moves' and --region-moves' preset defaults are
+    gibbs's alone: vi-gibbs runs with 0)."""
+    import re
+
+    from spcopyro.cli.main import build_parser
+
+    fit = build_parser()._subparsers._group_actions[0].choices["fit"]
+    helps = {a.dest: " ".join(a.help.split()) for a in fit._actions if a.help}
+    found = re.findall(r"(?<![\w.])(hyper\.\w+=\w+)", helps["method_option"])
+    assert {a.split("=")[0] for a in found} == {"hyper.alpha", "hyper.concentrations",
+                                               "hyper.gamma"}  # fmt: skip
+    for assignment in found:
+        assert with_options(GibbsOptions(), [assignment]).hyper.active
+    assert with_options(VIGibbsOptions(), ["gibbs.hyper.alpha=true"]).gibbs.hyper.alpha
+    assert "for gibbs" in helps["merge_moves"] and "for gibbs" in helps["region_moves"]

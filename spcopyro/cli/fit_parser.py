@@ -131,15 +131,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--merge-moves",
         type=float,
         help="share of sweeps that start with a split-merge move: two touching concepts merge "
-        "or one splits, parameters integrated out (default: 0.2 with --preset coarse or auto, "
-        "else 0)",
+        "or one splits, parameters integrated out (default: 0.2 for gibbs with --preset coarse "
+        "or auto, else 0)",
     )
     p.add_argument(
         "--region-moves",
         type=float,
         help="share of sweeps that start with a region relabel move: a whole region takes a "
         "neighbouring, new or other concept, parameters integrated out (default: the preset's "
-        "recommendation, else 0)",
+        "recommendation for gibbs, else 0)",
     )
     p.add_argument(
         "--refine",
@@ -184,8 +184,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--method-option", action="append", metavar="NAME=VALUE",
                    help="set a field of the method's options, e.g. anneal_iterations=30 (cavi), "
                         "damping=0.5 (lbp), learning_rate=0.05 (svi), block_size=32 "
-                        "(stochastic-vi), variational.anneal_iterations=30 (vi-gibbs); repeat "
-                        "for several "
+                        "(stochastic-vi), variational.anneal_iterations=30 (vi-gibbs); "
+                        "hyper.alpha=true, hyper.concentrations=true, hyper.gamma=exchange: gibbs "
+                        "samples those hyperparameters (gibbs.hyper.alpha=true etc. under "
+                        "vi-gibbs); repeat for several "
                         "(default: the method's defaults, printed by the fit)")  # fmt: skip
     p.add_argument("--backend", choices=BACKENDS, default="auto",
                    help="Gibbs sweep implementation: torch (reference), numba (compiled) or "
