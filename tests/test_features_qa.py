@@ -80,22 +80,32 @@ def test_unreadable_checkpoints_say_what_the_file_is_without_torchs_advice(tmp_p
         assert "weights_only" not in str(info.value) and len(str(info.value)) < 400
 
 
-def test_head_backbone_check_compares_the_weights_not_the_path(tmp_path, monkeypatch, caplog):
+def test_head_backbone_check_compares_the_weights_not_the_path(
+    tmp_path, monkeypatch, caplog, pristine
+):
     # The check compared "checkpoint alex.pth" with "checkpoint /abs/alex.pth": the same file
-    # by another path warned, another file at the same relative path did not.
+    # by another path warned, another file at the same relative path did not. (The files'
+    # bytes are all that identifies a checkpoint; the network here is the random one.)
+    from spcopyro.features.backbone import WeightsSource
+
+    def on(path: Path | str) -> PlaceClassifier:
+        return PlaceClassifier(
+            copy.deepcopy(pristine.network), weights=WeightsSource("file", Path(path))
+        )
+
     (tmp_path / "a").mkdir()
     (tmp_path / "b").mkdir()
-    torch.save(load_alexnet("random", seed=1).state_dict(), tmp_path / "a" / "alex.pth")
-    torch.save(load_alexnet("random", seed=2).state_dict(), tmp_path / "b" / "alex.pth")
+    (tmp_path / "a" / "alex.pth").write_bytes(b"the weights trained on")
+    (tmp_path / "b" / "alex.pth").write_bytes(b"other weights")
     monkeypatch.chdir(tmp_path / "a")
-    trained = PlaceClassifier.load("alex.pth")
+    trained = on("alex.pth")
     trained.replace_head(2)
     head = save_head(trained, tmp_path / "head.pt")
     caplog.set_level("WARNING", logger="spcopyro")
-    load_head(PlaceClassifier.load(tmp_path / "a" / "alex.pth"), head)
+    load_head(on(tmp_path / "a" / "alex.pth"), head)
     assert "trained on the backbone" not in caplog.text
     monkeypatch.chdir(tmp_path / "b")
-    load_head(PlaceClassifier.load("alex.pth"), head)
+    load_head(on("alex.pth"), head)
     assert "trained on the backbone checkpoint alex.pth" in caplog.text
     assert "(same name, other contents)" in caplog.text
 
