@@ -381,3 +381,20 @@ def test_two_folders_of_one_trial_are_refused(tmp_path):
         assert cv2.imwrite(str(tmp_path / folder / "00001.png"), np.zeros((4, 4, 3), np.uint8))
     with pytest.raises(ValueError, match=r"img_01/ and img_1/ are both trial 1"):
         list_images(tmp_path)
+
+
+def test_distillation_options_with_a_labels_file_are_refused(tmp_path):
+    # --held-out-trial 1 with a labels file was silently ignored: no trial was held out.
+    import argparse
+
+    from spcopyro.features.cli import add_parser
+
+    parser = argparse.ArgumentParser()
+    add_parser(parser.add_subparsers(dest="command", required=True))
+    (tmp_path / "labels.csv").write_text("a.png,kitchen\nb.png,bedroom\n")
+    args = parser.parse_args(
+        ["features-head", str(tmp_path / "labels.csv"), "--out", str(tmp_path / "h.pt")]
+        + ["--held-out-trial", "1", "--max-images-per-trial", "3"]
+    )
+    with pytest.raises(ValueError, match="--held-out-trial, --max-images-per-trial choose"):
+        args.func(args)

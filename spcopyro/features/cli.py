@@ -107,6 +107,20 @@ def _features_head(args: argparse.Namespace) -> int:
         from spcopyro.features.extract import frozen_inputs
         from spcopyro.features.images import read_labelled_images
 
+        given = [
+            option
+            for option, value in (
+                ("--held-out-trial", args.held_out_trial),
+                ("--train-trials", args.train_trials),
+                ("--max-images-per-trial", args.max_images_per_trial),
+            )
+            if value is not None
+        ]
+        if given:  # they were silently ignored
+            raise ValueError(
+                f"{source}: {', '.join(given)} choose(s) the images of a house folder's trials "
+                "(distillation); a labels file trains on all the images it lists"
+            )
         paths, names = read_labelled_images(source)
         class_names, labels = encode_labels(names)
         if len(class_names) < 2:
