@@ -398,3 +398,11 @@ def test_distillation_options_with_a_labels_file_are_refused(tmp_path):
     )
     with pytest.raises(ValueError, match="--held-out-trial, --max-images-per-trial choose"):
         args.func(args)
+
+
+def test_a_missing_source_is_not_only_called_a_labels_file(tmp_path):
+    # features-head room1dkX (a typo in a house's name) said "room1dkX: labels file not found".
+    from spcopyro.features.images import read_labelled_images
+
+    with pytest.raises(FileNotFoundError, match="room1dkX: no such labels file .nor house folder"):
+        read_labelled_images(tmp_path / "room1dkX")

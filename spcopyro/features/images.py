@@ -329,7 +329,7 @@ def read_labelled_images(path: str | os.PathLike[str]) -> tuple[list[Path], list
     """
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"{path}: labels file not found")
+        raise FileNotFoundError(f"{path}: no such labels file (nor house folder)")
     try:
         text = path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError as error:
