@@ -165,3 +165,33 @@ def test_a_refused_resume_names_the_field_that_differs_within_a_group(
     assert "data_preparation.cell_size: None in the checkpoint, 0.5 here" in err
     assert "hyper.gamma: 'fixed' in the checkpoint, 'exchange' here" in err
     assert "{" not in err  # no whole group printed
+
+
+def test_ctrl_c_before_a_resumed_fit_loads_its_chains_says_the_checkpoint_still_holds(
+    home, tmp_path, capsys, monkeypatch
+):
+    """A resumed fit stopped before its chains are loaded (here while it prints what it fits):
+    the checkpoint it resumes is left as it was, and the line says so (it said 'no checkpoint
+    kept (no sweep was done)')."""
+    import spcopyro.cli.fit
+
+    out = tmp_path / "out"
+    argv = ["fit", str(home), "--out", str(out), *FIT]
+    with monkeypatch.context() as patch:
+        interrupt_fit_at(patch, 0, 5)
+        assert main(argv) == 130
+    capsys.readouterr()
+    checkpoint = checkpoint_path(out)
+    before = checkpoint.read_bytes()
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as patch:
+        patch.setattr(spcopyro.cli.fit, "_summary", interrupted)
+        assert main([*argv, "--resume", str(checkpoint)]) == 130
+    err = capsys.readouterr().err
+    assert "no checkpoint kept" not in err and f"saved in {checkpoint}" in err
+    assert err.rstrip().endswith(f"--resume {checkpoint}")
+    assert checkpoint.read_bytes() == before
+    assert main([*argv, "--resume", str(checkpoint)]) == 0

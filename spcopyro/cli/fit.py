@@ -172,6 +172,8 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
             kept = keeper.save() if keeper else None  # None: no chain had started
             where = " after the sweeps" if kept else ""
             where = " while writing the outputs" if job.sampled else where
+        if kept is None and args.resume is not None and Path(args.resume).is_file():
+            kept = Path(args.resume)  # stopped before this run saved anything: it still holds
         print(_interrupted(args, where, kept, staged.out), file=sys.stderr)
         return 130
     except Exception:
