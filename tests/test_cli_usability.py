@@ -334,13 +334,15 @@ def test_an_ablation_with_no_cell_is_refused_and_seeds_0_keeps_the_public_houses
 
 def test_several_variational_fits_report_their_objective(small_house, tmp_path, capsys):
     """`--chains 2` of a variational method compares ELBOs, and says so (it called them log
-    joints)."""
+    joints); their final ones, the reported q's (it said best), and the fits are not chains of
+    one length ('fitted 2 chains x 3 iterations')."""
     argv = ["fit", str(small_house), "--out", str(tmp_path / "fit"), "--method", "cavi",
             "--chains", "2", "--sweeps", "3", "--no-figures"]  # fmt: skip
     assert main(argv) == 0
     printed = capsys.readouterr().out
-    assert "best of 2 fits: kept fit " in printed and " best ELBOs " in printed
+    assert "best of 2 fits: kept fit " in printed and " final ELBOs " in printed
     assert "log joint" not in printed.split("best of 2 fits")[1].splitlines()[0]
+    assert "fitted 2 fits, the kept one 3 iterations, in " in printed and "chains" not in printed
 
 
 def test_a_dataset_root_given_as_the_house_names_its_houses(small_house, tmp_path, capsys):

@@ -498,7 +498,8 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
                   "best_log_joint": best_values, "objective": objective}  # fmt: skip
         (out / "chains.json").write_text(json.dumps(report, indent=1) + "\n")
         run = ("refined " if job.refined else "") + ("chain" if args.method == "gibbs" else "fit")
-        print(f"best of {chains} {run}s: kept {run} {kept} (seed {args.seed + kept}), best "
+        value = "best" if objective == "log joint" else "final"  # a variational fit reports q
+        print(f"best of {chains} {run}s: kept {run} {kept} (seed {args.seed + kept}), {value} "
               f"{objective}s {', '.join(f'{v:.1f}' for v in best_values)}")  # fmt: skip
     sweeps_run = len(result.trace.objective)
     if diagnostics is not None:
@@ -534,6 +535,8 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     if args.resume is not None:  # the trace's seconds (the paces) go on from the checkpoint's
         clock += f" this run (resumed: the paces include the {unit}s run before the interruption)"
     runs = f"{several}{sweeps_run} {unit}s in {clock} ({rate})"
+    if chains > 1 and unit != "sweep":  # variational fits: each stops when it converges
+        runs = f"{chains} fits, the kept one {sweeps_run} {unit}s, in {clock} ({rate})"
     if job.refined:  # the coarse stage's sweeps, then the refinement's, each at its own pace
         coarse = result.inference["refine"]["coarse"]
         total = coarse.get("seconds", math.nan)
