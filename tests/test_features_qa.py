@@ -406,3 +406,15 @@ def test_a_missing_source_is_not_only_called_a_labels_file(tmp_path):
 
     with pytest.raises(FileNotFoundError, match="room1dkX: no such labels file .nor house folder"):
         read_labelled_images(tmp_path / "room1dkX")
+
+
+def test_features_seed_without_random_weights_is_refused(tmp_path):
+    import argparse
+
+    from spcopyro.features.cli import add_parser
+
+    parser = argparse.ArgumentParser()
+    add_parser(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(["features", str(tmp_path), "--out", "x.csv", "--seed", "3"])
+    with pytest.raises(ValueError, match="--seed 3: the seed of --weights random, not of imagenet"):
+        args.func(args)

@@ -56,6 +56,8 @@ def _random_warning(weights: str) -> None:
 def _features(args: argparse.Namespace) -> int:
     from spcopyro.features.extract import extract_to_csv
 
+    if args.seed != 0 and args.weights != "random":  # nothing else draws from it
+        raise ValueError(f"--seed {args.seed}: the seed of --weights random, not of {args.weights}")
     _random_warning(args.weights)
     result = extract_to_csv(
         args.images,
