@@ -195,3 +195,27 @@ def test_ctrl_c_before_a_resumed_fit_loads_its_chains_says_the_checkpoint_still_
     assert err.rstrip().endswith(f"--resume {checkpoint}")
     assert checkpoint.read_bytes() == before
     assert main([*argv, "--resume", str(checkpoint)]) == 0
+
+
+def test_ctrl_c_while_writing_a_refined_fit_says_the_refinement_runs_again(
+    home, tmp_path, capsys, monkeypatch
+):
+    """The checkpoint keeps the first stage's chains, not the refinement's: the line says so
+    (it said only that the state reached is saved)."""
+    import spcopyro.cli.fit
+
+    out = tmp_path / "out"
+    argv = ["fit", str(home), "--out", str(out), "--sweeps", "6", "--no-figures",
+            "--refine", "always", "--chain-workers", "1"]  # fmt: skip
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as patch:
+        patch.setattr(spcopyro.cli.fit, "print_concepts", interrupted)
+        assert main(argv) == 130
+    err = capsys.readouterr().err.splitlines()[-1]
+    assert err.startswith("interrupted while writing the outputs (only the first stage is "
+                          "kept: resuming refines again): nothing written to")  # fmt: skip
+    assert main([*argv, "--resume", str(checkpoint_path(out))]) == 0
+    assert "refining         refine='always'" in capsys.readouterr().out

@@ -171,7 +171,8 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
         else:  # reading the data, after the sweeps (their point estimate), or writing
             kept = keeper.save() if keeper else None  # None: no chain had started
             where = " after the sweeps" if kept else ""
-            where = " while writing the outputs" if job.sampled else where
+            again = " (only the first stage is kept: resuming refines again)" if job.refined else ""
+            where = f" while writing the outputs{again}" if job.sampled else where
         if kept is None and args.resume is not None and Path(args.resume).is_file():
             kept = Path(args.resume)  # stopped before this run saved anything: it still holds
         print(_interrupted(args, where, kept, staged.out), file=sys.stderr)
