@@ -160,3 +160,17 @@ def test_the_help_names_the_hyperparameter_options_of_gibbs():
         assert with_options(GibbsOptions(), [assignment]).hyper.active
     assert with_options(VIGibbsOptions(), ["gibbs.hyper.alpha=true"]).gibbs.hyper.alpha
     assert "for gibbs" in helps["merge_moves"] and "for gibbs" in helps["region_moves"]
+
+
+def test_a_gibbs_flag_and_a_method_option_on_the_same_field_are_refused(tmp_path, capsys):
+    """gibbs took --method-option's value and vi-gibbs the flag's, silently; a move rate the
+    preset filled in (coarse: merge_moves 0.2) is still overridden by the option."""
+    base = ["fit", "--sweeps", "2", "--no-figures", "--refine", "never"]
+    for method, name in (("gibbs", "cluster_moves"), ("vi-gibbs", "gibbs.cluster_moves")):
+        argv = [*base, "--out", str(tmp_path / method), "--method", method,
+                "--cluster-moves", "0.1", "--method-option", f"{name}=0.3"]  # fmt: skip
+        assert main(argv) == 2
+        assert f"--cluster-moves 0.1 and --method-option {name}=0.3" in capsys.readouterr().err
+    out = tmp_path / "preset"
+    assert main([*base, "--out", str(out), "--method-option", "merge_moves=0"]) == 0
+    assert json.loads((out / "config.json").read_text())["inference"]["merge_moves"] == 0.0

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 
 from spcopyro.cli.fit_parser import given as given_flag
 
@@ -44,6 +45,27 @@ def _check_q_start(args: argparse.Namespace, options: object | None) -> None:
         )
 
 
+def _check_twice_set(args: argparse.Namespace, given: dict[str, tuple[str, object]]) -> None:
+    """ValueError for a Gibbs flag and a ``--method-option`` setting the same field (gibbs's
+    ``cluster_moves``, vi-gibbs's ``gibbs.cluster_moves``): gibbs took the option's value,
+    vi-gibbs the flag's, silently. A move rate the preset filled in is not the user's: the
+    option overrides it."""
+    if args.method not in _SAMPLERS:
+        return  # the flags are refused there
+    prefix = "gibbs." if args.method == "vi-gibbs" else ""
+    typed = getattr(args, "argv", None) or sys.argv[1:]
+    for assignment in args.method_option or []:
+        name = assignment.partition("=")[0].strip()
+        field = name[len(prefix) :] if name.startswith(prefix) else None
+        if field not in given:
+            continue
+        flag, value = given[field]
+        if any(str(word).startswith(flag) for word in typed):
+            raise ValueError(
+                f"{flag} {value} and --method-option {assignment} set the same option: pass one"
+            )
+
+
 def method_options(args: argparse.Namespace) -> object | None:
     """The options ``fit`` runs ``args.method`` with (None: the method's defaults).
 
@@ -65,6 +87,7 @@ def method_options(args: argparse.Namespace) -> object | None:
             f"{flags}: options of the Gibbs sampler, which --method {args.method} does not run "
             "(gibbs and vi-gibbs do); leave them out"
         )
+    _check_twice_set(args, given)
     if given_flag(args.marginal_samples) and args.method not in _SAMPLERS:
         raise ValueError(
             f"--marginal-samples {args.marginal_samples}: label maps of a sampler's sweeps "
