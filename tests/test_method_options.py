@@ -174,3 +174,14 @@ def test_a_gibbs_flag_and_a_method_option_on_the_same_field_are_refused(tmp_path
     out = tmp_path / "preset"
     assert main([*base, "--out", str(out), "--method-option", "merge_moves=0"]) == 0
     assert json.loads((out / "config.json").read_text())["inference"]["merge_moves"] == 0.0
+
+
+@pytest.mark.parametrize("method, noted", [("svi", False), ("cavi", False), ("vi-gibbs", True)])
+def test_the_gibbs_random_streams_note_is_written_for_the_samplers_only(tmp_path, method, noted):
+    """config.json of an svi or stochastic-vi fit said the torch and numba Gibbs backends draw
+    different streams and pointed at an inference.backend_used it does not have."""
+    out = tmp_path / method
+    argv = ["fit", "--out", str(out), "--method", method, "--sweeps", "2", "--preset",
+            "original-code", "--concepts", "6", "--no-figures"]  # fmt: skip
+    assert main(argv) == 0
+    assert ("reproducibility" in json.loads((out / "config.json").read_text())) == noted

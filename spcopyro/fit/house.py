@@ -376,6 +376,8 @@ def fit_house_chains(
     with timed("model_data"):
         counts, data = prepare_model_data(house, settings)
         record = provenance(house, data, source)
+    if method not in SAMPLERS:  # the note is on the Gibbs backends' streams (backend_used)
+        record = {key: value for key, value in record.items() if key != "reproducibility"}
     logger.info("threads: %s", describe_threads(threads, house.grid.num_free))
     if checkpoint is not None and not isinstance(checkpoint, FitCheckpoint):
         checkpoint = FitCheckpoint(checkpoint)
