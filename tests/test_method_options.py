@@ -185,3 +185,21 @@ def test_the_gibbs_random_streams_note_is_written_for_the_samplers_only(tmp_path
             "original-code", "--concepts", "6", "--no-figures"]  # fmt: skip
     assert main(argv) == 0
     assert ("reproducibility" in json.loads((out / "config.json").read_text())) == noted
+
+
+def test_vi_gibbs_sweeps_are_its_gibbs_sweeps_as_the_help_says(tmp_path):
+    """The help put vi-gibbs's CAVI among the methods --sweeps caps; --sweeps counts its Gibbs
+    sweeps, run in full, and vi_iterations caps the CAVI start."""
+    from spcopyro.cli.main import build_parser
+
+    fit = build_parser()._subparsers._group_actions[0].choices["fit"]
+    [action] = [a for a in fit._actions if "--sweeps" in a.option_strings]
+    assert "for vi-gibbs its Gibbs sweeps, run in full" in " ".join(action.help.split())
+    assert "vi-gibbs's CAVI" not in action.help
+    out = tmp_path / "vg"
+    argv = ["fit", "--out", str(out), "--method", "vi-gibbs", "--sweeps", "3", "--concepts", "6",
+            "--method-option", "vi_iterations=4", "--no-figures"]  # fmt: skip
+    assert main(argv) == 0
+    inference = json.loads((out / "config.json").read_text())["inference"]
+    assert inference["sweeps"] == 3 and inference["vi_iterations_run"] <= 4
+    assert len((out / "trace.csv").read_text().splitlines()) == 1 + 3

@@ -80,9 +80,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         f"1.05 (at most --max-sweeps); {UPDATE_SWEEPS} with --update; for "
                         "the variational methods a ceiling: they stop once the objective "
                         "settles, changing by less than tolerance x |objective| (cavi, lbp, "
-                        "stochastic-vi and vi-gibbs's CAVI: tolerance 1e-7 per iteration; svi: "
-                        "1e-4 between the means of windows of 50 steps; --method-option "
-                        f"tolerance=0 runs them all) (default: {FIT_SWEEPS})")  # fmt: skip
+                        "stochastic-vi: tolerance 1e-7 per iteration; svi: 1e-4 between the "
+                        "means of windows of 50 steps; --method-option tolerance=0 runs them "
+                        "all); for vi-gibbs its Gibbs sweeps, run in full after its CAVI start "
+                        "(at most vi_iterations=100, stopping at tolerance 1e-7) "
+                        f"(default: {FIT_SWEEPS})")  # fmt: skip
     p.add_argument("--chains", type=_positive_int,
                    help="run this many chains (seeds --seed, --seed + 1, ...) and keep the one of "
                         "highest log joint (default 1; 4 with --sweeps auto)")  # fmt: skip
