@@ -219,3 +219,29 @@ def test_ctrl_c_while_writing_a_refined_fit_says_the_refinement_runs_again(
                           "kept: resuming refines again): nothing written to")  # fmt: skip
     assert main([*argv, "--resume", str(checkpoint_path(out))]) == 0
     assert "refining         refine='always'" in capsys.readouterr().out
+
+
+def test_a_second_ctrl_c_while_saving_the_chains_still_keeps_them(
+    home, tmp_path, capsys, monkeypatch
+):
+    """A second Ctrl-C while the first one's checkpoint is written: the command saves the
+    chains again, and does not claim they had finished their sweeps."""
+    out = tmp_path / "out"
+    argv = ["fit", str(home), "--out", str(out), *FIT]
+    save = spcopyro.fit.gibbs_chains.save_chains
+    calls = []
+
+    def interrupted_once(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 1:
+            raise KeyboardInterrupt
+        return save(*args, **kwargs)
+
+    with monkeypatch.context() as patch:
+        interrupt_fit_at(patch, 0, 4)
+        patch.setattr(spcopyro.fit.gibbs_chains, "save_chains", interrupted_once)
+        assert main(argv) == 130
+    err = capsys.readouterr().err.splitlines()[-1]
+    checkpoint = checkpoint_path(out)
+    assert err.startswith(f"interrupted: nothing written to {out}; the state reached is saved in")
+    assert [c["sweeps_done"] for c in read_record(checkpoint)["chains"]] == [5]

@@ -170,7 +170,7 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
             where, kept = f" ({stop.where})", stop.checkpoint
         else:  # reading the data, after the sweeps (their point estimate), or writing
             kept = keeper.save() if keeper else None  # None: no chain had started
-            where = " after the sweeps" if kept else ""
+            where = " after the sweeps" if kept and keeper and keeper.finished() else ""
             again = " (only the first stage is kept: resuming refines again)" if job.refined else ""
             where = f" while writing the outputs{again}" if job.sampled else where
         if kept is None and args.resume is not None and Path(args.resume).is_file():

@@ -64,6 +64,13 @@ class FitCheckpoint:
             return None
         return save_chains(self.chains, self.path, record=self.record)
 
+    def finished(self) -> bool:
+        """Whether every chain has run the sweeps its fit asked for."""
+        sweeps = self.record.get("sweeps")
+        return bool(self.chains) and all(
+            chain is not None and chain.sweeps_done == sweeps for chain in self.chains
+        )
+
 
 def gibbs_outputs(
     data: ModelData,
