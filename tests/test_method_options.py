@@ -203,3 +203,14 @@ def test_vi_gibbs_sweeps_are_its_gibbs_sweeps_as_the_help_says(tmp_path):
     inference = json.loads((out / "config.json").read_text())["inference"]
     assert inference["sweeps"] == 3 and inference["vi_iterations_run"] <= 4
     assert len((out / "trace.csv").read_text().splitlines()) == 1 + 3
+
+
+@pytest.mark.parametrize("method", ["cavi", "vi-gibbs"])
+def test_chain_workers_is_refused_by_methods_whose_fits_run_one_after_another(
+    tmp_path, capsys, method
+):
+    """fit_house_chains runs only Gibbs chains side by side; --chain-workers 2 was ignored
+    silently under the other methods."""
+    args = ["fit", "--out", str(tmp_path / "x"), "--method", method, "--chains", "2"]
+    assert main([*args, "--chain-workers", "2"]) == 2
+    assert "--chain-workers 2: Gibbs chains advancing at once" in capsys.readouterr().err

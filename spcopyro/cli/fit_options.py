@@ -88,6 +88,11 @@ def method_options(args: argparse.Namespace) -> object | None:
             "(gibbs and vi-gibbs do); leave them out"
         )
     _check_twice_set(args, given)
+    if getattr(args, "chain_workers", "auto") != "auto" and args.method != "gibbs":
+        raise ValueError(
+            f"--chain-workers {args.chain_workers}: Gibbs chains advancing at once; --method "
+            f"{args.method}'s fits run one after another: leave it out"
+        )
     if given_flag(args.marginal_samples) and args.method not in _SAMPLERS:
         raise ValueError(
             f"--marginal-samples {args.marginal_samples}: label maps of a sampler's sweeps "
