@@ -6,6 +6,7 @@ kept label maps)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from fit_interrupts import interrupt_fit_at
 
 import spcopyro.fit.gibbs_chains
@@ -245,3 +246,23 @@ def test_a_second_ctrl_c_while_saving_the_chains_still_keeps_them(
     checkpoint = checkpoint_path(out)
     assert err.startswith(f"interrupted: nothing written to {out}; the state reached is saved in")
     assert [c["sweeps_done"] for c in read_record(checkpoint)["chains"]] == [5]
+
+
+def test_an_error_after_the_sweeps_keeps_the_finished_chains(home, tmp_path, capsys, monkeypatch):
+    """An error in the point estimate (after every sweep was run) keeps the chains, as one while
+    the outputs are written does: they were lost."""
+    out = tmp_path / "out"
+    argv = ["fit", str(home), "--out", str(out), *FIT]
+
+    def failing(*args, **kwargs):
+        raise MemoryError("the point estimate")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(spcopyro.fit.gibbs_chains, "with_sample_marginals", failing)
+        with pytest.raises(MemoryError):  # main shows an unexpected error's traceback
+            main(argv)
+    err = capsys.readouterr().err
+    checkpoint = checkpoint_path(out)
+    assert f"the finished chains are saved in {checkpoint}" in err
+    assert [c["sweeps_done"] for c in read_record(checkpoint)["chains"]] == [12]
+    assert main([*argv, "--resume", str(checkpoint)]) == 0

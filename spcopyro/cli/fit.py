@@ -178,7 +178,9 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
         print(_interrupted(args, where, kept, staged.out), file=sys.stderr)
         return 130
     except Exception:
-        writing = job.sampled and not (staged.committed or staged.kept)
+        # an error after the sweeps (their point estimate) or while writing keeps the chains
+        writing = job.sampled or bool(keeper and keeper.finished())
+        writing = writing and not (staged.committed or staged.kept)
         kept = keeper.save() if keeper and writing else None
         if kept is not None:  # an error while writing: the sampling is not lost
             print(f"note: nothing written to {staged.out}; the finished chains are saved in "
