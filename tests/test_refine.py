@@ -260,3 +260,19 @@ def test_a_refined_fit_is_updated_on_the_map_s_cells_as_refined(home, tmp_path, 
     assert main([*argv, "--out", str(tmp_path / "x"), "--update", str(first),
                  "--word-scaling", "10"]) == 2  # fmt: skip
     assert "cannot update" in capsys.readouterr().err
+
+
+def test_the_coarse_stage_s_sampled_hyperparameters_are_kept_and_the_printed_ones_named(
+    tmp_path, capsys
+):
+    """With hyper.* the refinement samples its own hyperparameters from the preset's values:
+    the coarse stage's posterior was dropped, and the printed line did not say whose it was."""
+    out = tmp_path / "out"
+    argv = ["fit", "--out", str(out), "--sweeps", "6", "--refine", "always", "--no-figures",
+            "--method-option", "hyper.gamma=pseudolikelihood"]  # fmt: skip
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "second half, of the refinement on the map's cells)" in printed
+    inference = json.loads((out / "config.json").read_text())["inference"]
+    assert set(inference["refine"]["coarse"]["hyperparameters"]) == {"gamma"}
+    assert set(inference["hyperparameters"]) == {"gamma"}

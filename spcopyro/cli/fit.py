@@ -552,7 +552,8 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
         print(f"stopped          {result.inference['stopped']}")
     if result.inference.get("hyperparameters"):
         line = describe_hyperparameters(result.inference["hyperparameters"])  # type: ignore[arg-type]
-        print(f"hyperparameters  {line} (posterior mean +- sd over the second half)")
+        stage = ", of the refinement on the map's cells" if job.refined else ""
+        print(f"hyperparameters  {line} (posterior mean +- sd over the second half{stage})")
     if house.truth is not None:
         from spcopyro.metrics import adjusted_rand_index
 

@@ -193,6 +193,9 @@ def refine_chains(
             "sweeps": len(first.trace.objective),
             "seconds": float(first.trace.seconds[-1]) if len(first.trace.seconds) else 0.0,
             "first_seconds": float(first.trace.seconds[0]) if len(first.trace.seconds) else 0.0,
+            # sampled hyperparameters (hyper.*): the refinement samples its own from the preset's
+            **({"hyperparameters": first.inference["hyperparameters"]}
+               if first.inference.get("hyperparameters") else {}),
         },
         "alpha": float(refined.model.alpha),
     }  # fmt: skip
