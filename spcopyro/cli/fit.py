@@ -115,7 +115,8 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
         _check_update_args(args)
     _apply_preset_inference(args)
     if args.sweeps == "auto" and args.method != "gibbs":
-        raise ValueError(f"--sweeps auto is Gibbs' convergence rule, not {args.method!r}'s")
+        raise ValueError(f"--sweeps auto is Gibbs' convergence rule, not one of --method "
+                         f"{args.method}: give a number of --sweeps")  # fmt: skip
     if args.max_sweeps is not None and args.sweeps != "auto":  # it was ignored silently
         raise ValueError(f"--max-sweeps caps --sweeps auto, not --sweeps {args.sweeps}: leave "
                          "it out")  # fmt: skip

@@ -486,7 +486,8 @@ def fit_house(
             raise ValueError("sweeps='auto' reports the best visited state (a point estimate is "
                              "for its refinement, refine='auto' or 'always')")  # fmt: skip
         if method != "gibbs":
-            raise ValueError(f"sweeps='auto' is Gibbs' convergence rule, not {method!r}'s")
+            raise ValueError(f"sweeps='auto' is Gibbs' convergence rule, not one of method "
+                             f"{method!r}: give a number of sweeps")  # fmt: skip
         chains = chains if chains > 1 else DEFAULT_CHAINS
         result, diagnostics = fit_house_converged(
             house, settings, options=options, chains=chains, seed=seed, init=init,
