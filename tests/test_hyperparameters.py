@@ -546,6 +546,28 @@ def test_pyro_kernel_carries_sampled_hyperparameters():
     assert float(mcmc.get_samples()["log_joint"][-1]) == pytest.approx(expected, rel=1e-10)
 
 
+def test_pyro_kernel_saves_the_sampled_hyperparameters_as_sites():
+    """MCMC's samples held no alpha or gamma: the kernel sampled them and never reported a
+    draw. Each sampled one is a site (saved by default), its last draw the chain's config."""
+    from pyro.infer import MCMC
+
+    from spcopyro.gibbs.kernel import SpCoGibbs
+
+    cfg = config(alpha=2.0, gamma=0.8)
+    _, data = random_problem(17)
+    hyper = HyperparameterOptions(alpha=True, gamma="pseudolikelihood")
+    kernel = SpCoGibbs(options=GibbsOptions(backend="torch", hyper=hyper))
+    mcmc = MCMC(kernel, num_samples=6, warmup_steps=2, disable_progbar=True)
+    mcmc.run(data, cfg)
+    samples = mcmc.get_samples()
+    assert {"alpha", "gamma"} <= set(samples) and not {"chi", "beta"} & set(samples)
+    assert samples["alpha"].shape == (6,) and float(samples["alpha"][-1]) == kernel._config.alpha
+    assert float(samples["gamma"][-1]) == kernel._config.gamma
+    fixed = SpCoGibbs(options=GibbsOptions(backend="torch"))
+    fixed.setup(0, data, cfg)
+    assert not {"alpha", "gamma"} & set(fixed.save_params)
+
+
 def test_fit_command_reports_the_inferred_hyperparameters(tmp_path, capsys):
     """``fit --method-option hyper.NAME=VALUE``: the summary line and config.json's record."""
     import json

@@ -37,6 +37,7 @@ from pyro.infer.mcmc.util import diagnostics as pyro_diagnostics
 
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.backends import get_backend
+from spcopyro.gibbs.hyperparameters import hyperparameter_names, hyperparameter_values
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.sampler import init, step, trace_point
 from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
@@ -81,6 +82,8 @@ class SpCoGibbs(MCMCKernel):
             site's name.
         options: the sampler's options (:class:`~spcopyro.gibbs.options.GibbsOptions`: backend,
             cluster moves, partial refresh); its ``anneal_sweeps`` must be 0 -- use ``anneal``.
+            With ``options.hyper`` sampling hyperparameters, each sampled one (``alpha``,
+            ``gamma``, ``chi``, ``beta``, a further modality's name) is saved as a site too.
         anneal: ramp the labels' coupling gamma up over MCMC's ``warmup_steps``
             (:mod:`spcopyro.gibbs.anneal`); the saved samples are all from the target model.
     """
@@ -143,7 +146,16 @@ class SpCoGibbs(MCMCKernel):
 
     def _all_params(self) -> tuple[str, ...]:
         parameters = tuple(m.parameter for m in self._data.modalities)
-        return tuple(sorted(set(ALL_PARAMS) | set(parameters)))
+        return tuple(sorted(set(ALL_PARAMS) | set(parameters) | set(self._sampled_hyper())))
+
+    def _sampled_hyper(self) -> tuple[str, ...]:
+        """The hyperparameters ``options.hyper`` samples (``alpha``, ``gamma``, ``chi``,
+        ``beta``, ...): sites of their own, so that MCMC keeps their draws (they were sampled
+        but never reported)."""
+        hyper = self.options.hyper
+        sampled = {"alpha": hyper.alpha, "gamma": hyper.gamma != "fixed"}
+        names = hyperparameter_names(self._data)
+        return tuple(name for name in names if sampled.get(name, hyper.concentrations))
 
     def _check_model_sites(self) -> None:
         trace = poutine.trace(self.model).get_trace(self._data, self._config)
@@ -181,6 +193,9 @@ class SpCoGibbs(MCMCKernel):
         }
         for modality, table in zip(self._data.modalities, state.log_emissions, strict=True):
             values[modality.parameter] = lambda table=table: table.exp()
+        names = hyperparameter_names(self._data)
+        for name, value in zip(names, hyperparameter_values(self._data, self._config), strict=True):
+            values[name] = lambda value=value: torch.tensor(value, dtype=torch.float64)
         return {name: values[name]() for name in self.save_params}
 
     @property
