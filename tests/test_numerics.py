@@ -162,6 +162,7 @@ def test_extreme_hyperparameters_are_warned_about_with_the_reason():
     assert config_warnings(SpCoConfig(gamma=FREEZING_GAMMA - 0.01)) == []
     (frozen,) = config_warnings(SpCoConfig(gamma=FREEZING_GAMMA))
     assert "freezes" in frozen and "117 of 120" in frozen
+    assert "the Gibbs sampler freezes" in frozen and "not the variational methods" in frozen
     for name in ("alpha", "beta", "chi"):
         assert config_warnings(SpCoConfig(**{name: 1e12})) == []
         assert config_warnings(SpCoConfig(**{name: 1e-3})) == []
