@@ -311,6 +311,19 @@ def test_a_run_shorter_than_its_annealing_is_warned_about(problem, name, caplog)
     assert not [r for r in caplog.records if "annealed over" in r.getMessage()]
 
 
+def test_vi_gibbs_warns_of_its_cavi_annealing_in_its_own_options(problem, caplog):
+    """vi-gibbs's CAVI runs vi_iterations, not --sweeps: its warning named anneal_iterations and
+    said 'run at least N iterations', which --sweeps (its Gibbs sweeps) does not change."""
+    data, cfg = problem
+    variational = VariationalOptions(anneal_iterations=8, tolerance=0.0)
+    options = VIGibbsOptions(vi_iterations=5, variational=variational)
+    get_method("vi-gibbs").run(data, cfg, iterations=2, generator=torch.Generator().manual_seed(0),
+                               options=options, progress=False)  # fmt: skip
+    said = [r.getMessage() for r in caplog.records if "annealed over" in r.getMessage()]
+    assert len(said) == 1 and "(variational.anneal_iterations) but the run has 5" in said[0]
+    assert "set vi_iterations=8 or more, or set variational.anneal_iterations=5" in said[0]
+
+
 def test_the_help_states_each_default_tolerance(capsys):
     with pytest.raises(SystemExit):
         main(["fit", "--help"])

@@ -20,6 +20,7 @@ from spcopyro.gibbs.run import run_gibbs
 from spcopyro.guides.options import VariationalOptions
 from spcopyro.guides.run import initial_q, run_variational
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
+from spcopyro.inference.schedule import short_runs_meant, warn_unfinished_annealing
 from spcopyro.model import ModelData
 
 
@@ -64,8 +65,12 @@ class VIGibbsInference(InferenceMethod):
     ) -> InferenceOutput:
         generator, progress = request.generator, request.progress
         q = initial_q(data, config, generator, request.init_labels, init=options.variational.init)
-        vi = run_variational(data, config, options.vi_iterations, options=options.variational,
-                             q=q, progress=progress)  # fmt: skip
+        warn_unfinished_annealing(options.variational.anneal_iterations, options.vi_iterations,
+                                  "variational.anneal_iterations", "iteration",
+                                  length="vi_iterations")  # fmt: skip
+        with short_runs_meant():  # warned above in vi-gibbs's names (--sweeps is Gibbs's)
+            vi = run_variational(data, config, options.vi_iterations,
+                                 options=options.variational, q=q, progress=progress)  # fmt: skip
         run = run_gibbs(
             data, config, request.iterations, options=options.gibbs, generator=generator,
             init_labels=vi.labels, progress=progress, thin=request.thin,

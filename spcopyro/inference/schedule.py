@@ -65,21 +65,28 @@ def short_runs_meant() -> Iterator[None]:
 
 
 def warn_unfinished_annealing(
-    anneal: int, iterations: int, option: str, unit: str, resume: object | None = None
+    anneal: int,
+    iterations: int,
+    option: str,
+    unit: str,
+    resume: object | None = None,
+    length: str | None = None,
 ) -> bool:
     """Warn (logger ``"spcopyro"``) when a run of ``iterations`` more iterations (after those of
     ``resume``, the record a resumed run continues: its ``objective``) stops before its
     annealing (``anneal`` iterations, the option ``option``) ends: gamma never reaches the
-    model's value, so the fit is of a weaker coupling. Returns whether it warned (never inside
-    :func:`short_runs_meant`)."""
+    model's value, so the fit is of a weaker coupling. ``length``: the option that sets the run's
+    length, where it is not --sweeps (vi-gibbs's ``vi_iterations``). Returns whether it warned
+    (never inside :func:`short_runs_meant`)."""
     iterations += 0 if resume is None else len(resume.objective)  # type: ignore[attr-defined]
     if anneal <= iterations or _SHORT_RUNS_MEANT.get():
         return False
     units = f"{unit}es" if unit.endswith("s") else f"{unit}s"
+    longer = f"set {length}={anneal} or more" if length else f"run at least {anneal} {units}"
     logger.warning(
         "gamma is annealed over %d %s (%s) but the run has %d: it ends at %.0f%% of the "
-        "model's gamma; run at least %d %s, or set %s=%d or less",
-        anneal, units, option, iterations, 100.0 * iterations / anneal, anneal, units, option,
+        "model's gamma; %s, or set %s=%d or less",
+        anneal, units, option, iterations, 100.0 * iterations / anneal, longer, option,
         iterations,
     )  # fmt: skip
     return True
