@@ -266,3 +266,32 @@ def test_an_error_after_the_sweeps_keeps_the_finished_chains(home, tmp_path, cap
     assert f"the finished chains are saved in {checkpoint}" in err
     assert [c["sweeps_done"] for c in read_record(checkpoint)["chains"]] == [12]
     assert main([*argv, "--resume", str(checkpoint)]) == 0
+
+
+def test_ctrl_c_after_a_variational_fit_s_iterations_says_so(home, tmp_path, capsys, monkeypatch):
+    """Ctrl-C once CAVI's iterations are done, while their result is made: the line says the
+    iterations were done (it said 'no checkpoint kept (no iteration was done)')."""
+    import spcopyro.fit.house
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    out = tmp_path / "out"
+    argv = ["fit", str(home), "--out", str(out), *FIT, "--method", "cavi"]
+    with monkeypatch.context() as patch:
+        patch.setattr(spcopyro.fit.house, "result_of", interrupted)
+        assert main(argv) == 130
+    err = capsys.readouterr().err.splitlines()[-1]
+    assert err.startswith("interrupted (cavi fit 1 of 1, after its ")
+    assert err.endswith("no checkpoint kept (it stopped after the iterations, while their "
+                        "result was made)")  # fmt: skip
+    assert "no iteration was done" not in err and not out.exists()
+    import spcopyro.guides.cavi_method  # inside the method, once its driver has returned
+
+    with monkeypatch.context() as patch:
+        patch.setattr(spcopyro.guides.cavi_method, "output_from_variational", interrupted)
+        assert main(argv) == 130
+    err = capsys.readouterr().err.splitlines()[-1]
+    assert err.startswith("interrupted (cavi fit 1 of 1): nothing written")
+    assert err.endswith("(it stopped outside the iterations: while the method set up or made "
+                        "their result)")  # fmt: skip

@@ -176,11 +176,11 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
             where = f" while writing the outputs{again}" if job.sampled else where
         if kept is None and args.resume is not None and Path(args.resume).is_file():
             kept = Path(args.resume)  # stopped before this run saved anything: it still holds
-        print(_interrupted(args, where, kept, staged.out), file=sys.stderr)
+        print(_interrupted(args, where, kept, staged.out, getattr(stop, "why", None)),
+              file=sys.stderr)  # fmt: skip
         return 130
     except Exception:
-        # an error after the sweeps (their point estimate) or while writing keeps the chains
-        writing = job.sampled or bool(keeper and keeper.finished())
+        writing = job.sampled or bool(keeper and keeper.finished())  # or after the sweeps
         writing = writing and not (staged.committed or staged.kept)
         kept = keeper.save() if keeper and writing else None
         if kept is not None:  # an error while writing: the sampling is not lost
@@ -260,17 +260,19 @@ def _check_update_args(args: argparse.Namespace) -> None:
         )
 
 
-def _interrupted(args: argparse.Namespace, where: str, kept: Path | None, out: Path) -> str:
-    """The one line ``fit`` prints when Ctrl-C stops it (``kept``: the checkpoint, if any)."""
+def _interrupted(args: argparse.Namespace, where: str, kept: Path | None, out: Path,
+                 why: str | None = None) -> str:  # fmt: skip
+    """The line ``fit`` prints when Ctrl-C stops it (``kept``: its checkpoint; ``why``: none's)."""
     line = f"interrupted{where}: nothing written to {out}"
     if kept is None:
-        why = "--sweeps auto" if args.sweeps == "auto" else f"the {args.method!r} method"
-        if args.sweeps != "auto" and args.update is not None:
-            why = "--update"
-        elif _keeps_checkpoint(args):
-            why = "no sweep was done" if args.method == "gibbs" else "no iteration was done"
-        elif args.method in _resumable():
-            why = f"--chains {args.chains}: a {args.method} checkpoint holds one fit"
+        if why is None:
+            why = "--sweeps auto" if args.sweeps == "auto" else f"the {args.method!r} method"
+            if args.sweeps != "auto" and args.update is not None:
+                why = "--update"
+            elif _keeps_checkpoint(args):
+                why = "no sweep was done" if args.method == "gibbs" else "no iteration was done"
+            elif args.method in _resumable():
+                why = f"--chains {args.chains}: a {args.method} checkpoint holds one fit"
         return f"{line}; no checkpoint kept ({why})"
     command = _resume_command(args, kept)
     return f"{line}; the state reached is saved in {kept} -- continue with: {command}"

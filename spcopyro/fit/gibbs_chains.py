@@ -35,12 +35,13 @@ class FitInterrupted(KeyboardInterrupt):
     """Ctrl-C stopped a fit (a :class:`KeyboardInterrupt`, so code unaware of it still stops).
 
     ``checkpoint``: the file holding the chains' state (None where none was kept);
-    ``where``: how far the fit had got, e.g. ``"chain 1 of 2, 120 of 5000 sweeps done"``.
+    ``where``: how far the fit had got, e.g. ``"chain 1 of 2, 120 of 5000 sweeps done"``;
+    ``why``: why no checkpoint was kept, where the fit knows (None: the caller says).
     """
 
-    def __init__(self, where: str, checkpoint: Path | None = None) -> None:
+    def __init__(self, where: str, checkpoint: Path | None = None, why: str | None = None) -> None:
         super().__init__(where)
-        self.where, self.checkpoint = where, checkpoint
+        self.where, self.checkpoint, self.why = where, checkpoint, why
 
 
 class FitCheckpoint:

@@ -412,12 +412,26 @@ def fit_house_chains(
                 where = f"{method} fit {k + 1} of {len(seeds)}, {done} of {sweeps} iterations done"
                 path = None if checkpoint is None else saving.save(checkpoint.path, stop)
                 raise FitInterrupted(where, path) from None
-            output.options.update(seed=int(seed), init=init_name(init))
-            if output.marginals is None:  # a sampler (vi-gibbs): its label frequencies
-                output = with_sample_marginals(
-                    output, int(sweeps), data, settings.model, point_estimate, progress=progress
-                )
-            fits.append(result_of(output, house, counts, data, settings, method, record))
+            except KeyboardInterrupt:  # in the method's setup or once its driver had returned
+                raise FitInterrupted(
+                    f"{method} fit {k + 1} of {len(seeds)}", None,
+                    why="it stopped outside the iterations: while the method set up or made "
+                    "their result",
+                ) from None  # fmt: skip
+            try:
+                output.options.update(seed=int(seed), init=init_name(init))
+                if output.marginals is None:  # a sampler (vi-gibbs): its label frequencies
+                    output = with_sample_marginals(
+                        output, int(sweeps), data, settings.model, point_estimate,
+                        progress=progress,
+                    )  # fmt: skip
+                fits.append(result_of(output, house, counts, data, settings, method, record))
+            except KeyboardInterrupt:  # the run is whole, its q not kept: "no iteration" was false
+                done = len(output.trace.objective)
+                raise FitInterrupted(
+                    f"{method} fit {k + 1} of {len(seeds)}, after its {done} iterations", None,
+                    why="it stopped after the iterations, while their result was made",
+                ) from None  # fmt: skip
     return fits
 
 
