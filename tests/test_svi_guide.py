@@ -287,3 +287,15 @@ def test_a_resumed_run_goes_on_from_the_elbo_reached(small):
                       options=options, progress=False, resume=record)  # fmt: skip
     assert len(resumed.objective) == 65
     assert abs(resumed.objective[60] - reached) < 0.2 * (reached - start)
+
+
+def test_a_step_size_that_diverges_is_one_clear_error(small):
+    """learning_rate 10 took the guide's concentrations out of their support and ended with
+    torch's 'Expected parameter ... to satisfy the constraint' and some 30 lines of tensor and
+    trace shapes; it says what diverged and which option to lower."""
+    data, config = small
+    q = initial_q(data, config, torch.Generator().manual_seed(0))
+    said = r"SVI diverged: .*learning_rate=1000\).*lower learning_rate"
+    with pytest.raises(ValueError, match=said):
+        fit_svi(data, config, 30, q=q, generator=torch.Generator().manual_seed(0), progress=False,
+                options=SVIOptions(learning_rate=1000.0, anneal_iterations=0))  # fmt: skip
