@@ -214,3 +214,15 @@ def test_chain_workers_is_refused_by_methods_whose_fits_run_one_after_another(
     args = ["fit", "--out", str(tmp_path / "x"), "--method", method, "--chains", "2"]
     assert main([*args, "--chain-workers", "2"]) == 2
     assert "--chain-workers 2: Gibbs chains advancing at once" in capsys.readouterr().err
+
+
+def test_svi_clip_norm_without_the_clipping_optimiser_is_refused(tmp_path, capsys):
+    """clip_norm is ClippedAdam's; with the default adam it changed nothing, silently."""
+    out = tmp_path / "svi"
+    args = ["fit", "--out", str(out), "--method", "svi", "--sweeps", "2", "--concepts", "6",
+            "--no-figures", "--method-option", "clip_norm=1"]  # fmt: skip
+    assert main(args) == 2
+    assert "clip_norm clips the gradients of optimiser=clipped-adam" in capsys.readouterr().err
+    assert main([*args, "--method-option", "optimiser=clipped-adam"]) == 0
+    inference = json.loads((out / "config.json").read_text())["inference"]
+    assert inference["clip_norm"] == 1 and inference["optimiser"] == "clipped-adam"

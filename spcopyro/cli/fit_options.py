@@ -45,6 +45,17 @@ def _check_q_start(args: argparse.Namespace, options: object | None) -> None:
         )
 
 
+def _check_clip_norm(args: argparse.Namespace, options: object | None) -> None:
+    """ValueError for svi's ``clip_norm`` set with an optimiser that does not clip (``adam``,
+    the default): it was ignored silently."""
+    names = {a.partition("=")[0].strip() for a in args.method_option or []}
+    if "clip_norm" in names and getattr(options, "optimiser", None) == "adam":
+        raise ValueError(
+            "--method-option clip_norm clips the gradients of optimiser=clipped-adam; with adam "
+            "(the default) it does nothing: add --method-option optimiser=clipped-adam"
+        )
+
+
 def _check_twice_set(args: argparse.Namespace, given: dict[str, tuple[str, object]]) -> None:
     """ValueError for a Gibbs flag and a ``--method-option`` setting the same field (gibbs's
     ``cluster_moves``, vi-gibbs's ``gibbs.cluster_moves``): gibbs took the option's value,
@@ -109,6 +120,7 @@ def method_options(args: argparse.Namespace) -> object | None:
         default = INFERENCE_METHODS[args.method].default_options()
         options = with_options(default, args.method_option) if args.method_option else None
         _check_q_start(args, options)
+        _check_clip_norm(args, options)
         if args.method != "vi-gibbs":
             return options
         base = default if options is None else options
