@@ -226,3 +226,19 @@ def test_svi_clip_norm_without_the_clipping_optimiser_is_refused(tmp_path, capsy
     assert main([*args, "--method-option", "optimiser=clipped-adam"]) == 0
     inference = json.loads((out / "config.json").read_text())["inference"]
     assert inference["clip_norm"] == 1 and inference["optimiser"] == "clipped-adam"
+
+
+def test_a_hyper_tuning_option_of_an_unsampled_hyperparameter_is_refused(tmp_path, capsys):
+    """hyper.log_gamma_sd=2 alone sampled nothing and said nothing (a prior's width of a gamma
+    the chain keeps fixed); with hyper.gamma set it runs."""
+    from spcopyro.gibbs.hyper_options import HyperparameterOptions
+
+    assert "log_gamma_sd" in HyperparameterOptions().unused()
+    assert "log_gamma_sd" not in HyperparameterOptions(gamma="pseudolikelihood").unused()
+    assert "aux_sweeps" in HyperparameterOptions(gamma="pseudolikelihood").unused()
+    assert "aux_sweeps" not in HyperparameterOptions(alpha=True).unused()
+    base = ["fit", "--out", str(tmp_path / "g"), "--sweeps", "2", "--no-figures", "--refine",
+            "never", "--method-option", "hyper.log_gamma_sd=2"]  # fmt: skip
+    assert main(base) == 2
+    assert "hyper.log_gamma_sd=2: no hyperparameter the chain samples" in capsys.readouterr().err
+    assert main([*base, "--method-option", "hyper.gamma=pseudolikelihood"]) == 0

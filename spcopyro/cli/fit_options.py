@@ -56,6 +56,21 @@ def _check_clip_norm(args: argparse.Namespace, options: object | None) -> None:
         )
 
 
+def _check_hyper_tuning(args: argparse.Namespace, sampler: object) -> None:
+    """ValueError for a ``hyper.*`` tuning option of a hyperparameter the chain does not
+    sample (``hyper.log_gamma_sd=2`` without ``hyper.gamma``): it was ignored silently."""
+    prefix = "gibbs.hyper." if args.method == "vi-gibbs" else "hyper."
+    unused = set(sampler.hyper.unused())  # type: ignore[attr-defined]
+    for assignment in args.method_option or []:
+        name = assignment.partition("=")[0].strip()
+        if name.startswith(prefix) and name[len(prefix) :] in unused:
+            raise ValueError(
+                f"--method-option {assignment}: no hyperparameter the chain samples reads "
+                f"{name[len(prefix) :]} ({prefix}alpha, {prefix}concentrations and "
+                f"{prefix}gamma choose them): set the one it tunes, or leave it out"
+            )
+
+
 def _check_twice_set(args: argparse.Namespace, given: dict[str, tuple[str, object]]) -> None:
     """ValueError for a Gibbs flag and a ``--method-option`` setting the same field (gibbs's
     ``cluster_moves``, vi-gibbs's ``gibbs.cluster_moves``): gibbs took the option's value,
@@ -127,6 +142,7 @@ def method_options(args: argparse.Namespace) -> object | None:
         fields = {name: value for name, (_, value) in given.items()}
         options = dataclasses.replace(base, gibbs=dataclasses.replace(base.gibbs, **fields))
         sampler = options.gibbs
+    _check_hyper_tuning(args, sampler)
     try:
         get_backend(sampler.backend)
     except ImportError as error:  # --backend numba without numba

@@ -114,6 +114,23 @@ class HyperparameterOptions:
         """Whether any hyperparameter is sampled."""
         return self.alpha or self.concentrations or self.gamma != "fixed"
 
+    def unused(self) -> list[str]:
+        """The tuning fields no sampled hyperparameter reads (setting them changes nothing): a
+        prior or step of alpha, the concentrations or gamma while it is not sampled, and the
+        exchange updates' (``aux_*``, ``exchange_probability``) without alpha or gamma by
+        exchange."""
+        exchange = self.alpha or self.gamma == "exchange"
+        gamma = self.gamma != "fixed"
+        reads = {"log_alpha_mean": self.alpha, "log_alpha_sd": self.alpha,
+                 "alpha_step": self.alpha, "log_concentration_mean": self.concentrations,
+                 "log_concentration_sd": self.concentrations,
+                 "concentration_step": self.concentrations,
+                 "concentration_moves": self.concentrations or self.gamma == "pseudolikelihood",
+                 "log_gamma_mean": gamma, "log_gamma_sd": gamma, "gamma_step": gamma,
+                 "aux_sweeps": exchange, "aux_cluster_moves": exchange,
+                 "exchange_probability": exchange}  # fmt: skip
+        return [name for name, read in reads.items() if not read]
+
     def replace(self, **changes: object) -> HyperparameterOptions:
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
