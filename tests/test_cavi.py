@@ -481,3 +481,21 @@ def test_dirichlet_kl_equals_torch_distributions():
         float(kl_divergence(Dirichlet(a[0]), Dirichlet(b))), rel=1e-12
     )
     assert float(dirichlet_kl(b.expand(3, 5), b)) == 0.0
+
+
+def test_a_degenerate_stick_breaking_prior_is_warned_about_once(caplog):
+    """pi_family='stick-breaking' at the presets' weak-limit alpha (1e7) gave one concept over
+    the whole map without a word on why: the truncation's last stick holds ~all of pi's mass."""
+    from spcopyro.config import SpCoConfig
+    from spcopyro.guides import factors
+
+    assert factors.stick_breaking_warning(SpCoConfig(alpha=1.0)) is None
+    assert "100% of pi's mass on the last concept" in factors.stick_breaking_warning(
+        SpCoConfig(alpha=1e7)
+    )
+    cfg = SpCoConfig(alpha=123456789.0, num_concepts=7)
+    _, data = random_problem(seed=0)
+    for _ in range(3):
+        factors.prior_factors(data, cfg, "stick-breaking")
+    said = [r for r in caplog.records if "pi_family='stick-breaking'" in r.getMessage()]
+    assert len(said) == 1
