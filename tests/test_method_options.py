@@ -123,7 +123,7 @@ def test_cavi_records_its_q_start_beside_the_start_labels(tmp_path, capsys):
 def test_marginal_samples_is_refused_by_methods_that_do_not_sample(tmp_path, capsys, method):
     """--marginal-samples counts a sampler's kept label maps; a variational fit ignored it
     silently (its uncertainty map is q(C_i)). Its default is still 50 for the samplers."""
-    from spcopyro.cli.fit_parser import MARGINAL_SAMPLES, given
+    from spcopyro.cli.common import MARGINAL_SAMPLES, given
 
     args = ["fit", "--out", str(tmp_path / "x"), "--method", method, "--sweeps", "2"]
     assert main([*args, "--marginal-samples", "10"]) == 2

@@ -107,6 +107,20 @@ FIT_SWEEPS = 5000  # --sweeps of a fit from scratch (the paper's)
 UPDATE_SWEEPS = 300  # --sweeps of --update (spcopyro.robot.online.DEFAULT_UPDATE_SWEEPS)
 
 
+class _Unset(int):
+    """A default that behaves as its int and tells itself apart from the same value given on
+    the command line (argparse keeps a default that is not a string as it is)."""
+
+
+MARGINAL_SAMPLES = _Unset(50)
+"""``fit --marginal-samples``'s default: 50 label maps, for the methods that sample."""
+
+
+def given(value: object) -> bool:
+    """Whether an option whose default is an :class:`_Unset` was given."""
+    return not isinstance(value, _Unset)
+
+
 FIRST_SWEEP_OUTLIER = 10.0
 """A first sweep slower than this many times the others' pace (and over half a second) is
 reported apart: numba compiling its code on a first run, not the sampler's pace."""

@@ -9,7 +9,7 @@ import argparse
 import dataclasses
 import sys
 
-from spcopyro.cli.fit_parser import given as given_flag
+from spcopyro.cli.common import given as given_flag
 
 __all__ = ["method_options"]
 

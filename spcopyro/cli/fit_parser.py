@@ -14,6 +14,7 @@ from spcopyro._util.threads import AUTO, MIN_CELLS_FOR_MORE_THREADS
 from spcopyro.cli.common import (
     _PRESET_DEFAULT,
     FIT_SWEEPS,
+    MARGINAL_SAMPLES,
     UPDATE_SWEEPS,
     _chain_workers,
     _non_negative_int,
@@ -27,20 +28,6 @@ from spcopyro.inference.names import BACKENDS, DEFAULT_METHOD, INFERENCE_METHOD_
 from spcopyro.results.point_estimate import POINT_ESTIMATES
 
 __all__ = ["add_parser"]
-
-
-class _Unset(int):
-    """A default that behaves as its int and tells itself apart from the same value given on
-    the command line (argparse keeps a default that is not a string as it is)."""
-
-
-MARGINAL_SAMPLES = _Unset(50)
-"""``--marginal-samples``'s default: 50 label maps, for the methods that sample."""
-
-
-def given(value: object) -> bool:
-    """Whether an option whose default is an :class:`_Unset` was given."""
-    return not isinstance(value, _Unset)
 
 
 def _run_fit(args: argparse.Namespace) -> int:
