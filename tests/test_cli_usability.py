@@ -227,6 +227,14 @@ def test_the_observed_cells_printed_are_those_concepts_json_counts(small_house, 
     assert sum(c["observed_cells"] for c in concepts) == observed
 
 
+def test_one_sweep_is_singular(small_house, tmp_path, capsys):
+    argv = ["fit", str(small_house), "--out", str(tmp_path / "fit"), "--sweeps", "1",
+            "--refine", "never", "--no-figures"]  # fmt: skip
+    assert main(argv) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("fitted "))
+    assert line.startswith("fitted 1 sweep in "), line  # it read "fitted 1 sweeps"
+
+
 def test_the_pace_leaves_out_a_first_sweep_that_compiled():
     """The first sweep of a first run compiles numba's code (seconds): the pace printed is the
     other sweeps', with the first apart (it made the embedded house's first stage look twice as

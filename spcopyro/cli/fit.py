@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from spcopyro._util.interrupts import interrupts_raised, sigterm_as_interrupt
+from spcopyro._util.messages import plural
 from spcopyro._util.outputs import ROBOT_MAP_FILE, StagedOutput
 from spcopyro._util.threads import describe_threads
 from spcopyro._util.timings import Phases, timed
@@ -351,9 +352,8 @@ def _fit_staged(job: FitJob) -> int:
 
     args, house, settings, options = job.args, job.house, job.settings, job.options
     config = settings.model
-    # The config's warnings (gamma, extreme concentrations) are logged by prepare_model_data,
-    # which the fit runs; main's logging handler prints them once, as "warning: ...".
-    # The fit's own counts say what is left out (once), under the run's feature scaling.
+    # The config's warnings are logged by prepare_model_data (main prints them once); the
+    # fit's own counts say what is left out (once), under the run's feature scaling.
     print(_summary(house, warn=False, feature_scaling=settings.data.feature_scaling,
                    preparation=settings.data))  # fmt: skip
     print(f"model            {config}")
@@ -540,9 +540,9 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     clock = f"{wall:.1f} s wall clock"
     if args.resume is not None:  # the trace's seconds (the paces) go on from the checkpoint's
         clock += f" this run (resumed: the paces include the {unit}s run before the interruption)"
-    runs = f"{several}{sweeps_run} {unit}s in {clock} ({rate})"
+    runs = f"{several}{plural(sweeps_run, unit)} in {clock} ({rate})"
     if chains > 1 and unit != "sweep":  # variational fits: each stops when it converges
-        runs = f"{chains} fits, the kept one {sweeps_run} {unit}s, in {clock} ({rate})"
+        runs = f"{chains} fits, the kept one {plural(sweeps_run, unit)}, in {clock} ({rate})"
     if job.refined:  # the coarse stage's sweeps, then the refinement's, each at its own pace
         coarse = result.inference["refine"]["coarse"]
         total = coarse.get("seconds", math.nan)
@@ -550,7 +550,7 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
         runs = (f"{several}{coarse['sweeps']} sweeps on {coarse['cell_size']:g} m cells "
                 f"({coarse_rate}), then {several}{sweeps_run} on the map's "
                 f"{result.grid.resolution:g} m cells ({rate}) in {clock}")  # fmt: skip
-    print(f"fitted {runs}; {len(result.concepts_in_use())} concepts in use")
+    print(f"fitted {runs}; {plural(len(result.concepts_in_use()), 'concept')} in use")
     if result.inference.get("stopped"):  # a variational method: converged, or --sweeps reached
         print(f"stopped          {result.inference['stopped']}")
     if result.inference.get("hyperparameters"):
