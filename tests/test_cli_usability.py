@@ -227,6 +227,15 @@ def test_the_observed_cells_printed_are_those_concepts_json_counts(small_house, 
     assert sum(c["observed_cells"] for c in concepts) == observed
 
 
+def test_sweeps_auto_with_one_chain_names_chains(tmp_path, capsys):
+    """It failed in the library with "chains must be >= 2 to compare chains, got 1"."""
+    assert main(["fit", "--sweeps", "auto", "--chains", "1", "--out", str(tmp_path / "f")]) == 2
+    assert "--sweeps auto compares chains (split R-hat): --chains 1 cannot" in (
+        capsys.readouterr().err
+    )
+    assert not (tmp_path / "f").exists()
+
+
 def test_one_sweep_is_singular(small_house, tmp_path, capsys):
     argv = ["fit", str(small_house), "--out", str(tmp_path / "fit"), "--sweeps", "1",
             "--refine", "never", "--no-figures"]  # fmt: skip

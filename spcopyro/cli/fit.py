@@ -37,7 +37,7 @@ from spcopyro.cli.common import (
 )
 from spcopyro.cli.concept_listing import print_concepts
 from spcopyro.cli.fit_figures import FigurePrefetch, write_figures
-from spcopyro.cli.fit_options import method_options
+from spcopyro.cli.fit_options import check_sweeps, method_options
 from spcopyro.cli.fit_refine import prepares_data, refine, report_update, update_settings
 from spcopyro.config import (
     SpCoSettings,
@@ -115,12 +115,7 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
     if args.update is not None:  # before the preset fills --init: an explicit one is refused
         _check_update_args(args)
     _apply_preset_inference(args)
-    if args.sweeps == "auto" and args.method != "gibbs":
-        raise ValueError(f"--sweeps auto is Gibbs' convergence rule, not one of --method "
-                         f"{args.method}: give a number of --sweeps")  # fmt: skip
-    if args.max_sweeps is not None and args.sweeps != "auto":  # it was ignored silently
-        raise ValueError(f"--max-sweeps caps --sweeps auto, not --sweeps {args.sweeps}: leave "
-                         "it out")  # fmt: skip
+    check_sweeps(args)
     checkpointed = _keeps_checkpoint(args)
     if args.resume is not None and not checkpointed:
         raise ValueError(

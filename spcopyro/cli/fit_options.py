@@ -92,6 +92,20 @@ def _check_twice_set(args: argparse.Namespace, given: dict[str, tuple[str, objec
             )
 
 
+def check_sweeps(args: argparse.Namespace) -> None:
+    """ValueError for ``--sweeps``, ``--max-sweeps`` and ``--chains`` that contradict each
+    other or ``--method`` (each was ignored silently or failed deep in the library)."""
+    if args.sweeps == "auto" and args.method != "gibbs":
+        raise ValueError(f"--sweeps auto is Gibbs' convergence rule, not one of --method "
+                         f"{args.method}: give a number of --sweeps")  # fmt: skip
+    if args.sweeps == "auto" and args.chains is not None and args.chains < 2:
+        raise ValueError(f"--sweeps auto compares chains (split R-hat): --chains {args.chains} "
+                         "cannot; give 2 or more, or a number of --sweeps")  # fmt: skip
+    if args.max_sweeps is not None and args.sweeps != "auto":  # it was ignored silently
+        raise ValueError(f"--max-sweeps caps --sweeps auto, not --sweeps {args.sweeps}: leave "
+                         "it out")  # fmt: skip
+
+
 def method_options(args: argparse.Namespace) -> object | None:
     """The options ``fit`` runs ``args.method`` with (None: the method's defaults).
 
