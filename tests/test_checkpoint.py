@@ -315,7 +315,9 @@ def test_ctrl_c_at_the_keyboard_with_chains_in_processes_resumes_to_the_unbroken
     command, sweep = os.getpid(), spcopyro.gibbs.run._sweep
 
     def slow_sweep(chain):  # looked up at each sweep, so the forked workers run it too
-        time.sleep(0.05)
+        # 0.5 s a sweep once the SIGINT is sent: 0.05 s left the command 0.35 s to pass the stop
+        # on before chain 0 ran its 12 sweeps, which a busy machine (the whole suite) exceeded
+        time.sleep(0.05 if chain.sweeps_done < 5 else 0.5)
         info = sweep(chain)
         if chain.generator.initial_seed() == 0 and chain.sweeps_done == 5:
             os.kill(command, signal.SIGINT)
