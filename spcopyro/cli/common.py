@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 from spcopyro._util.arguments import MAX_SEED
 from spcopyro._util.arguments import integer_at_least as _integer_at_least
 from spcopyro._util.threads import AUTO
-from spcopyro.data import House, cell_counts, load_house
+from spcopyro.data import House, cell_counts, load_house, prepared_cell_counts
 
 if TYPE_CHECKING:
     from spcopyro.config import DataPreparation
@@ -68,11 +68,8 @@ def _summary(
     )  # fmt: skip
     observed = f"{len(counts.cells)} (where observations were placed)"
     if preparation is not None and preparation.footprint_radius > 0:
-        spread = cell_counts(
-            house.grid, house.observations, source=house.source, warn=False,
-            feature_scaling=feature_scaling, footprint_radius=preparation.footprint_radius,
-            footprint_kernel=preparation.footprint_kernel, footprint_fov=preparation.footprint_fov,
-        )  # fmt: skip
+        spread = prepared_cell_counts(house.grid, house.observations, preparation,
+                                      source=house.source, warn=False)  # fmt: skip
         observed += (f"; {len(spread.cells)} within their {preparation.footprint_radius:g} m "
                      "footprints")  # fmt: skip
     p = counts.placement

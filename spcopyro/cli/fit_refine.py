@@ -110,15 +110,10 @@ def _decide(
 def _observed_cells(house: House, data: DataPreparation) -> int:
     """How many of ``house``'s free cells hold counts under ``data`` (``concepts.json``'s
     ``observed_cells`` of a refined fit add up to it)."""
-    from spcopyro.data import cell_counts
+    from spcopyro.data import prepared_cell_counts
 
-    counts = cell_counts(
-        house.grid, house.observations, source=house.source, warn=False,
-        feature_scaling=data.feature_scaling, word_weighting=data.word_weighting,
-        snap_distance=data.snap_distance, footprint_radius=data.footprint_radius,
-        footprint_kernel=data.footprint_kernel, footprint_fov=data.footprint_fov,
-        word_scaling=data.word_scaling,
-    )  # fmt: skip
+    counts = prepared_cell_counts(house.grid, house.observations, data, source=house.source,
+                                  warn=False)  # fmt: skip
     return len(counts.cells)
 
 

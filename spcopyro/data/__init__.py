@@ -42,6 +42,7 @@ from spcopyro.data.counts import (
     FeatureScaling,
     cell_counts,
     check_count_totals,
+    prepared_cell_counts,
     scale_features,
 )
 from spcopyro.data.dataset import House, find_dataset_root, list_houses, load_house, save_house
@@ -76,6 +77,7 @@ __all__ = [
     "PlacementReport",
     "WordWeighting",
     "cell_counts",
+    "prepared_cell_counts",
     "check_count_totals",
     "find_dataset_root",
     "list_houses",

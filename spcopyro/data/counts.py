@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from spcopyro.config import IMAGES, WORDS, FeatureScaling, FootprintKernel
+from spcopyro.config import IMAGES, WORDS, DataPreparation, FeatureScaling, FootprintKernel
 from spcopyro.data.footprint import (
     SpreadSources,
     footprint_weights,
@@ -50,6 +50,7 @@ __all__ = [
     "FeatureScaling",
     "cell_counts",
     "check_count_totals",
+    "prepared_cell_counts",
     "scale_features",
 ]
 
@@ -421,6 +422,28 @@ def cell_counts(
         placement=report,
         modalities=tuple(modality_counts),
     )
+
+
+def prepared_cell_counts(
+    grid: OccupancyGrid,
+    obs: Observations,
+    preparation: DataPreparation,
+    *,
+    vocabulary: Sequence[str] | None = None,
+    source: str | os.PathLike[str] | None = None,
+    warn: bool = True,
+) -> CellCounts:
+    """:func:`cell_counts` under a :class:`~spcopyro.config.DataPreparation` (its feature
+    scaling, word weighting and scaling, snap distance and footprint): the counts a fit with
+    that preparation reads (its model grid is ``grid``; ``cell_size`` is applied to the map
+    before, not here)."""
+    return cell_counts(
+        grid, obs, feature_scaling=preparation.feature_scaling,
+        word_weighting=preparation.word_weighting, snap_distance=preparation.snap_distance,
+        vocabulary=vocabulary, source=source, footprint_radius=preparation.footprint_radius,
+        footprint_kernel=preparation.footprint_kernel, footprint_fov=preparation.footprint_fov,
+        word_scaling=preparation.word_scaling, warn=warn,
+    )  # fmt: skip
 
 
 def _with_footprint(

@@ -31,7 +31,7 @@ from spcopyro._util.random_draws import check_seed
 from spcopyro._util.threads import AUTO, describe_threads, resolve_threads, torch_threads
 from spcopyro._util.timings import timed
 from spcopyro.config import WORDS, SpCoConfig, SpCoSettings, preset
-from spcopyro.data import CellCounts, House, cell_counts
+from spcopyro.data import CellCounts, House, prepared_cell_counts
 from spcopyro.data.model_grid import model_house
 from spcopyro.fit.gibbs_chains import (
     FitCheckpoint,
@@ -216,18 +216,8 @@ def prepare_model_data(
             f"house {house.name!r}: the map {grid.source or ''} has no free cell, nothing to "
             "label (check the map image and its yaml's negate flag and free/occupied thresholds)"
         )
-    counts = cell_counts(
-        grid,
-        house.observations,
-        feature_scaling=settings.data.feature_scaling,
-        word_weighting=settings.data.word_weighting,
-        snap_distance=settings.data.snap_distance,
-        vocabulary=vocabulary,
-        source=house.source,
-        footprint_radius=settings.data.footprint_radius,
-        footprint_kernel=settings.data.footprint_kernel,
-        footprint_fov=settings.data.footprint_fov,
-        word_scaling=settings.data.word_scaling,
+    counts = prepared_cell_counts(
+        grid, house.observations, settings.data, vocabulary=vocabulary, source=house.source
     )
     counts.placement.check_on_free(where)
     coverage = coverage_warning(house)
