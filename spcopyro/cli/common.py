@@ -8,6 +8,7 @@ default (``spcopyro COMMAND --help``).
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -116,6 +117,12 @@ MARGINAL_SAMPLES = _Unset(50)
 def given(value: object) -> bool:
     """Whether an option whose default is an :class:`_Unset` was given."""
     return not isinstance(value, _Unset)
+
+
+def command_line(args: argparse.Namespace) -> list[str]:
+    """The command line this run was started with, without the program's name (``main(argv)``
+    keeps its ``argv`` in ``args.argv``; else ``sys.argv``)."""
+    return list(args.argv if getattr(args, "argv", None) else sys.argv[1:])
 
 
 FIRST_SWEEP_OUTLIER = 10.0

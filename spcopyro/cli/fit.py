@@ -33,6 +33,7 @@ from spcopyro.cli.common import (
     _feature_scaling,
     _load,
     _summary,
+    command_line,
     pace,
 )
 from spcopyro.cli.concept_listing import print_concepts
@@ -274,14 +275,9 @@ def _interrupted(args: argparse.Namespace, where: str, kept: Path | None, out: P
     return f"{line}; the state reached is saved in {kept} -- continue with: {command}"
 
 
-def _command(args: argparse.Namespace) -> list[str]:
-    """The command line this run was started with (without the program's name)."""
-    return list(args.argv if getattr(args, "argv", None) else sys.argv[1:])
-
-
 def _resume_command(args: argparse.Namespace, checkpoint: Path) -> str:
     """This run's command line with ``--resume CHECKPOINT`` (in place of an earlier one)."""
-    argv = _command(args)
+    argv = command_line(args)
     for k in range(len(argv) - 1, -1, -1):
         if argv[k] == "--resume":
             del argv[k : k + 2]
@@ -485,7 +481,7 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     kept, diagnostics, wall = fitted.kept, fitted.diagnostics, fitted.wall
     phases = args.phases
     phases.mark("fit")
-    command = shlex.join(["spcopyro", *_command(args)])
+    command = shlex.join(["spcopyro", *command_line(args)])
     result = dataclasses.replace(result, provenance={**result.provenance, "command": command})
     out = result.save(staged.path)
     robot_map = house.grid.coarsened_from  # a coarse fit's map: navigate plans on it

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import sys
 
+from spcopyro.cli.common import command_line
 from spcopyro.cli.common import given as given_flag
 
 __all__ = ["method_options"]
@@ -79,7 +79,7 @@ def _check_twice_set(args: argparse.Namespace, given: dict[str, tuple[str, objec
     if args.method not in _SAMPLERS:
         return  # the flags are refused there
     prefix = "gibbs." if args.method == "vi-gibbs" else ""
-    typed = getattr(args, "argv", None) or sys.argv[1:]
+    typed = command_line(args)
     for assignment in args.method_option or []:
         name = assignment.partition("=")[0].strip()
         field = name[len(prefix) :] if name.startswith(prefix) else None
