@@ -56,6 +56,7 @@ __all__ = [
     "WhereAnswer",
     "answer_warnings",
     "bayes_factor",
+    "close_to_guess",
 ]
 
 WHERE_PRIORS = ("area", "pi")
@@ -69,6 +70,14 @@ which odds are "not worth more than a bare mention". Measured (original-code, ga
 sweeps): the six category words of the synthetic house of seed 0 have odds 4-85 with the area
 prior, 1.02-1.39 with pi (which picks one-cell specks); under paper-dp's near-uniform words every
 answer has odds near 1."""
+
+
+def close_to_guess(odds: float) -> bool:
+    """Whether posterior odds of the best concept over the runner-up are below
+    :data:`ODDS_WARNING` (:attr:`WhereAnswer.close_to_guess`, :func:`answer_warnings`, and
+    ``navigate``'s goals)."""
+    return odds < ODDS_WARNING
+
 
 EVIDENCE_WARNING = 3.0
 """Bayes factor of the word for the best concept against the others, below which the answer is
@@ -114,7 +123,7 @@ class WhereAnswer:
     @property
     def close_to_guess(self) -> bool:
         """The odds over the runner-up are below :data:`ODDS_WARNING` (a warning says so)."""
-        return self.odds < ODDS_WARNING
+        return close_to_guess(self.odds)
 
 
 def answer_warnings(
@@ -156,7 +165,7 @@ def answer_warnings(
     if used < 2:
         return (f"one concept labels the whole map: every word points to concept {concept}",)
     best, second = float(posterior[concept]), float(posterior[order[1]])
-    if second > 0 and best / second < ODDS_WARNING:
+    if second > 0 and close_to_guess(best / second):
         warnings.append(
             f"concept {concept} is barely more probable than concept {int(order[1])} "
             f"(p = {best:.3f} against {second:.3f}, odds {best / second:.2f} < "

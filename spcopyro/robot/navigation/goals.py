@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from spcopyro.results.where import close_to_guess
 from spcopyro.robot.navigation.graph import PlanningGrid
 
 __all__ = [
@@ -186,6 +187,11 @@ class GoalChoice:
     @property
     def ambiguous(self) -> bool:
         return sum(c.reachable for c in self.candidates) > 1
+
+    @property
+    def close_to_guess(self) -> bool:
+        """``where`` calls the word's answer close to a guess (:attr:`where_odds`)."""
+        return close_to_guess(self.where_odds)
 
 
 def _components(mask: np.ndarray) -> tuple[np.ndarray, int]:

@@ -37,7 +37,6 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro._util.outputs import StagedOutput, stage_marked_folder
-from spcopyro.results.where import ODDS_WARNING
 from spcopyro.robot.nav2 import grid_record, write_commented_yaml
 from spcopyro.robot.navigation.planning import NavigationPlan
 
@@ -124,7 +123,7 @@ def summary(plan: NavigationPlan, frame: str, source: str | None) -> dict[str, o
             "ambiguous": stop.choice.ambiguous,
             # where's odds over the runner-up concept; null: one concept, no runner-up
             "where_odds": stop.choice.where_odds if math.isfinite(stop.choice.where_odds) else None,
-            "close_to_guess": stop.choice.where_odds < ODDS_WARNING,
+            "close_to_guess": stop.choice.close_to_guess,
             "candidates": [
                 {"x": c.xy[0], "y": c.xy[1], "probability": c.probability, "area_m2": c.area,
                  "distance_m": c.distance if c.reachable else None, "reachable": c.reachable}
