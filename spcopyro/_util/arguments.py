@@ -14,6 +14,7 @@ __all__ = [
     "non_negative_number",
     "number_type",
     "positive_number",
+    "seed",
 ]
 
 
@@ -36,6 +37,15 @@ def integer_at_least(minimum: int) -> Callable[[str], int]:
         return number
 
     return parse
+
+
+def seed(value: str) -> int:
+    """An argparse ``type`` for ``--seed``: an integer in 0 .. :data:`MAX_SEED` (argparse names
+    the option on an error)."""
+    number = integer_at_least(0)(value)
+    if number > MAX_SEED:
+        raise argparse.ArgumentTypeError(f"must be at most 2**63 - 1 = {MAX_SEED}, got {value!r}")
+    return number
 
 
 def number_type(

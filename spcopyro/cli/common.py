@@ -12,7 +12,6 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from spcopyro._util.arguments import MAX_SEED
 from spcopyro._util.arguments import integer_at_least as _integer_at_least
 from spcopyro._util.threads import AUTO
 from spcopyro.data import House, cell_counts, load_house, prepared_cell_counts
@@ -139,14 +138,6 @@ def pace(first_seconds: float, total_seconds: float, count: int, unit: str = "sw
         if first_seconds > max(FIRST_SWEEP_OUTLIER * rest, 0.5):
             return f"{1e3 * rest:.2f} ms per {unit} after a first of {first_seconds:.1f} s"
     return f"{1e3 * total_seconds / max(count, 1):.2f} ms per {unit}"
-
-
-def _seed(value: str) -> int:
-    """``--seed``: an integer in 0 .. 2**63 - 1 (argparse names the option on an error)."""
-    number = _non_negative_int(value)
-    if number > MAX_SEED:
-        raise argparse.ArgumentTypeError(f"must be at most 2**63 - 1 = {MAX_SEED}, got {value!r}")
-    return number
 
 
 def _sweeps(value: str) -> int | str:

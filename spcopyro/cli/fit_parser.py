@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 
+from spcopyro._util.arguments import seed
 from spcopyro._util.threads import AUTO, MIN_CELLS_FOR_MORE_THREADS
 from spcopyro.cli.common import (
     _PRESET_DEFAULT,
@@ -19,7 +20,6 @@ from spcopyro.cli.common import (
     _chain_workers,
     _non_negative_int,
     _positive_int,
-    _seed,
     _sweeps,
     _threads,
 )
@@ -164,7 +164,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--marginal-samples", type=_non_negative_int, default=MARGINAL_SAMPLES,
                    help="gibbs, vi-gibbs: label maps kept over the second half of the sweeps for "
                         "the per-cell probabilities of uncertainty.png (0: none)")  # fmt: skip
-    p.add_argument("--seed", type=_seed, default=0,
+    p.add_argument("--seed", type=seed, default=0,
                    help="seed of the sampler (chain k of --chains gets seed + k)")  # fmt: skip
     p.add_argument("--method", metavar="METHOD", default=DEFAULT_METHOD,
                    help=f"inference method: {', '.join(INFERENCE_METHOD_NAMES)}, or one a program "

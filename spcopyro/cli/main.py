@@ -34,13 +34,13 @@ from spcopyro._util.arguments import (
     integer_at_least,
     non_negative_number,
     positive_number,
+    seed,
 )
 from spcopyro._util.interrupts import caused_by_interrupt
 from spcopyro._util.messages import plural
 from spcopyro.cli.common import (
     _HelpFormatter,
     _load,
-    _seed,
     _summary,
     figure_file,
     refuse_fit_files,
@@ -274,7 +274,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("simulate", help="write a synthetic house in the public dataset's layout")
     p.add_argument("--out", required=True, help="root folder (gets map/ and NAME/)")
-    p.add_argument("--seed", type=_seed, default=0, help="seed of the house's random draws")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the house's random draws")
     p.add_argument("--name", help="the house's folder name (NAME; default: synthetic, or the "
                    "--map file's name)")  # fmt: skip
     p.add_argument("--size", type=_positive_int, nargs=2, metavar=("H", "W"),

@@ -11,7 +11,7 @@ import shlex
 import sys
 from pathlib import Path
 
-from spcopyro._util.arguments import MAX_SEED, integer_at_least, positive_number
+from spcopyro._util.arguments import integer_at_least, positive_number, seed
 
 __all__ = ["add_parser"]
 
@@ -21,14 +21,6 @@ WEIGHTS_HELP = (
     "mean nothing), or the path of a state-dict checkpoint of torchvision's AlexNet (e.g. "
     "alexnet_places365.pth.tar; the original Caffe AlexNet does not fit). Default: imagenet"
 )
-
-
-def _seed(value: str) -> int:
-    """``--seed``: an integer in 0 .. 2**63 - 1, as every command's ``--seed``."""
-    number = integer_at_least(0)(value)
-    if number > MAX_SEED:
-        raise argparse.ArgumentTypeError(f"must be at most 2**63 - 1 = {MAX_SEED}, got {value!r}")
-    return number
 
 
 def _common(p: argparse.ArgumentParser) -> None:
@@ -183,7 +175,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--head", help="a place head file from `spcopyro features-head` (default: "
                    "none, the backbone's own classes)")  # fmt: skip
     p.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
-    p.add_argument("--seed", type=_seed, default=0, help="seed of --weights random (a head "
+    p.add_argument("--seed", type=seed, default=0, help="seed of --weights random (a head "
                    "trained on random weights needs the seed it was trained with)")  # fmt: skip
     _common(p)
     p.set_defaults(func=_features)
@@ -210,7 +202,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--epochs", type=integer_at_least(0), default=100, help="training epochs")
     p.add_argument("--lr", type=positive_number("learning rate is"), default=1e-3,
                    help="Adam learning rate")  # fmt: skip
-    p.add_argument("--seed", type=_seed, default=0,
+    p.add_argument("--seed", type=seed, default=0,
                    help="seed of random weights, batch order and dropout")  # fmt: skip
     p.add_argument("--held-out-trial", type=int, help="distillation: default the last trial")
     p.add_argument("--train-trials", type=int, nargs="+", help="distillation: default the rest")
