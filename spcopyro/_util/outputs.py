@@ -254,6 +254,13 @@ class StagedOutput:
             self.discard()
 
 
+def nearest_existing(path: Path) -> Path:
+    """``path`` or the nearest of its parents that exists (where an output would be made)."""
+    while not path.exists() and path.parent != path:
+        path = path.parent
+    return path
+
+
 def check_output(
     out: str | os.PathLike[str],
     *,
@@ -279,9 +286,7 @@ def check_output(
                 f"--out {out}: {path} holds the input {read}, which replacing the folder would "
                 "delete; choose an --out outside the data"
             )
-    existing = path
-    while not existing.exists() and existing.parent != existing:
-        existing = existing.parent  # the nearest part of the path that exists
+    existing = nearest_existing(path)
     if not existing.is_dir():
         raise OutputError(f"--out {out}: {existing} is a file, not a folder")
     if path.is_dir() and not _is_empty_folder(path):
