@@ -4,6 +4,7 @@ beside OUT, exits with 130, and ``--resume`` gives what a fit that never stopped
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import shlex
@@ -302,6 +303,11 @@ def test_ctrl_c_keeps_a_checkpoint_and_resume_gives_the_unbroken_fit(
     assert main(["fit", str(home), "--out", str(tmp_path / "unbroken"), *FIT, "--chains",
                  str(chains)]) == 0  # fmt: skip
     _same_outputs(out, tmp_path / "unbroken")
+    # config.json's command runs the fit again: not with the checkpoint, removed once written
+    config = json.loads((out / "config.json").read_text())
+    assert config["command"] == shlex.join(["spcopyro", *argv])
+    assert config["resumed_from"] == str(checkpoint)
+    assert "resumed_from" not in json.loads((tmp_path / "unbroken" / "config.json").read_text())
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="forked chains: Linux only")

@@ -277,13 +277,19 @@ def _interrupted(args: argparse.Namespace, where: str, kept: Path | None, out: P
 
 def _resume_command(args: argparse.Namespace, checkpoint: Path) -> str:
     """This run's command line with ``--resume CHECKPOINT`` (in place of an earlier one)."""
+    return shlex.join(["spcopyro", *_without_resume(args), "--resume", str(checkpoint)])
+
+
+def _without_resume(args: argparse.Namespace) -> list[str]:
+    """This run's command line without its ``--resume CHECKPOINT``: the fit it finishes, which
+    the checkpoint (removed once the fit is written) is not needed to run again."""
     argv = command_line(args)
     for k in range(len(argv) - 1, -1, -1):
         if argv[k] == "--resume":
             del argv[k : k + 2]
         elif argv[k].startswith("--resume="):
             del argv[k]
-    return shlex.join(["spcopyro", *argv, "--resume", str(checkpoint)])
+    return argv
 
 
 def _cell_size(value: str | None) -> float | None | str:
@@ -481,8 +487,10 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     kept, diagnostics, wall = fitted.kept, fitted.diagnostics, fitted.wall
     phases = args.phases
     phases.mark("fit")
-    command = shlex.join(["spcopyro", *command_line(args)])
-    result = dataclasses.replace(result, provenance={**result.provenance, "command": command})
+    command = shlex.join(["spcopyro", *_without_resume(args)])  # runs again without the checkpoint
+    resumed = {} if args.resume is None else {"resumed_from": str(args.resume)}
+    provenance = {**result.provenance, "command": command, **resumed}
+    result = dataclasses.replace(result, provenance=provenance)
     out = result.save(staged.path)
     robot_map = house.grid.coarsened_from  # a coarse fit's map: navigate plans on it
     if robot_map is not None:
