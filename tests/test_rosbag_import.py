@@ -759,3 +759,30 @@ def test_overwrite_keeps_what_the_import_did_not_write(tmp_path, map_yaml, capsy
     assert (out / "Ft.csv").read_text() == "0.5,0.5\n" and (out / "notes").is_dir()
     assert not (out / "pose_1.csv").exists() and not (out / "img_1").exists()  # the old import's
     assert (out / "pose_0.csv").is_file() and not list(out.parent.glob(".house.*"))
+
+
+def test_bag_commands_share_the_argument_types(tmp_path, capsys):
+    """QA: import-bag's --min-distance/--min-interval/--pose-tolerance had their own type, whose
+    message differed from every other command's ("must be a finite number >= 0"); simulate-bag's
+    --seed was a plain int (a seed above 2**63 - 1 was taken, -1 failed after parsing) and
+    import-bag's --first-trial -1 failed after parsing, not as a usage error."""
+    cases = [
+        (["import-bag", "b", "--map", "m", "--out", "o", "--min-distance", "-1"],
+         "argument --min-distance: '-1': the distance is metres >= 0"),
+        (["import-bag", "b", "--map", "m", "--out", "o", "--min-interval", "nan"],
+         "argument --min-interval: 'nan': the interval is seconds >= 0"),
+        (["import-bag", "b", "--map", "m", "--out", "o", "--pose-tolerance", "inf"],
+         "argument --pose-tolerance: 'inf': the tolerance is seconds >= 0"),
+        (["import-bag", "b", "--map", "m", "--out", "o", "--first-trial", "-1"],
+         "argument --first-trial: must be an integer >= 0, got '-1'"),
+        (["simulate-bag", "--out", str(tmp_path / "s"), "--seed", "-1"],
+         "argument --seed: must be an integer >= 0, got '-1'"),
+        (["simulate-bag", "--out", str(tmp_path / "s"), "--seed", str(2**63)],
+         f"argument --seed: must be at most 2**63 - 1 = {2**63 - 1}, got '{2**63}'"),
+    ]  # fmt: skip
+    for argv, message in cases:
+        with pytest.raises(SystemExit) as exited:
+            main(argv)
+        assert exited.value.code == 2
+        assert message in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()

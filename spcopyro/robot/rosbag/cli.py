@@ -7,22 +7,15 @@ one of them runs (a clear error naming ``pip install "spcopyro[ros]"`` when it i
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
 
-from spcopyro._util.arguments import integer_at_least, number_type
+from spcopyro._util.arguments import integer_at_least, non_negative_number, seed
 from spcopyro.robot.rosbag.bag import DEFAULT_ROS_DISTRO, ROS_DISTROS
 
 __all__ = ["add_parser"]
 
 PRINTED_SKIPS = 50  # skipped observations printed (all are in skipped.csv)
-
-
-_non_negative = number_type(
-    lambda v: math.isfinite(v) and v >= 0,
-    lambda text: f"must be a finite number >= 0, got {text!r}",
-)
 
 
 def _print_skipped(skipped, where: str) -> None:
@@ -155,21 +148,25 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--min-distance",
-        type=_non_negative,
+        type=non_negative_number("distance is metres"),
         default=0.0,
         help="keep an image only this many metres from the last kept one (default 0)",
     )
     p.add_argument(
         "--min-interval",
-        type=_non_negative,
+        type=non_negative_number("interval is seconds"),
         default=0.0,
         help="keep an image only this many seconds after the last kept one (default 0)",
     )
-    p.add_argument("--pose-tolerance", type=_non_negative, default=0.5,
+    p.add_argument("--pose-tolerance", type=non_negative_number("tolerance is seconds"),
+                   default=0.5,
                    help="seconds from an observation to the nearest pose sample; farther ones "
                         "are skipped and reported (default 0.5)")  # fmt: skip
     p.add_argument(
-        "--first-trial", type=int, default=0, help="trial id of the first bag (default 0)"
+        "--first-trial",
+        type=integer_at_least(0),
+        default=0,
+        help="trial id of the first bag (default 0)",
     )
     p.add_argument(
         "--map-frame",
@@ -198,7 +195,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         ),
     )
     p.add_argument("--out", required=True, help="folder for the bags and map.yaml")
-    p.add_argument("--seed", type=int, default=0, help="seed of the synthetic house")
+    p.add_argument("--seed", type=seed, default=0, help="seed of the synthetic house (default 0)")
     p.add_argument("--ros", type=int, choices=(1, 2), default=2, help="ROS version (default 2)")
     p.add_argument("--storage", choices=("sqlite3", "mcap"),
                    help="ROS 2 storage (default sqlite3; not for --ros 1)")  # fmt: skip
