@@ -229,6 +229,25 @@ def test_a_file_that_is_no_checkpoint_is_refused(tmp_path):
         load_chain(tmp_path / "missing.npz", data, cfg)
 
 
+def test_resume_of_out_or_a_folder_names_the_checkpoint_beside_it(home, tmp_path, capsys):
+    out = tmp_path / "out"
+    checkpoint = checkpoint_path(out)
+
+    def refusal() -> str:
+        assert main(["fit", str(home), "--out", str(out), *FIT, "--resume", str(out)]) == 2
+        return capsys.readouterr().err
+
+    assert "no such checkpoint file: a fit stopped by Ctrl-C keeps its state in" in refusal()
+    checkpoint.write_bytes(b"")  # an interrupted fit into OUT leaves only OUT.checkpoint.npz
+    kept = f"the fit interrupted into it kept its state in {checkpoint}"
+    assert f"no such checkpoint file: {kept}; --resume {checkpoint}" in refusal()
+    out.mkdir()
+    assert f"is a folder, not a checkpoint file: {kept}" in refusal()
+    (out / "result.npz").write_bytes(b"")
+    finished = "is a finished fit, not a checkpoint: to continue it with new observations use"
+    assert f"{finished} --update {out}" in refusal()
+
+
 def test_chains_not_started_are_saved_as_such(tmp_path):
     cfg = config()
     _, data = random_problem(seed=7)

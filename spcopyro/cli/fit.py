@@ -38,7 +38,7 @@ from spcopyro.cli.common import (
 )
 from spcopyro.cli.concept_listing import print_concepts
 from spcopyro.cli.fit_figures import FigurePrefetch, write_figures
-from spcopyro.cli.fit_options import check_sweeps, method_options
+from spcopyro.cli.fit_options import check_resume_file, check_sweeps, method_options
 from spcopyro.cli.fit_refine import prepares_data, refine, report_update, update_settings
 from spcopyro.config import (
     SpCoSettings,
@@ -137,13 +137,8 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
     if sampler and args.sweeps != "auto" and args.anneal_sweeps > args.sweeps:
         raise ValueError(f"anneal_sweeps ({args.anneal_sweeps}) must not exceed num_sweeps "
                          f"({args.sweeps})")  # fmt: skip
-    if args.resume is not None and (Path(args.resume) / "result.npz").is_file():
-        raise ValueError(
-            f"--resume {args.resume} is a finished fit, not a checkpoint: to continue it with "
-            f"new observations use --update {args.resume}"
-        )
-    if args.resume is not None and not Path(args.resume).is_file():
-        raise FileNotFoundError(f"--resume {args.resume}: no such checkpoint file")
+    if args.resume is not None:
+        check_resume_file(args.resume)
     loaded = _load(args.data)
     args.phases.mark("load")
     settings, options = _fit_settings(args, loaded)
