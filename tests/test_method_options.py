@@ -187,7 +187,7 @@ def test_the_gibbs_random_streams_note_is_written_for_the_samplers_only(tmp_path
     assert ("reproducibility" in json.loads((out / "config.json").read_text())) == noted
 
 
-def test_vi_gibbs_sweeps_are_its_gibbs_sweeps_as_the_help_says(tmp_path):
+def test_vi_gibbs_sweeps_are_its_gibbs_sweeps_as_the_help_says(tmp_path, capsys):
     """The help put vi-gibbs's CAVI among the methods --sweeps caps; --sweeps counts its Gibbs
     sweeps, run in full, and vi_iterations caps the CAVI start."""
     from spcopyro.cli.main import build_parser
@@ -199,9 +199,14 @@ def test_vi_gibbs_sweeps_are_its_gibbs_sweeps_as_the_help_says(tmp_path):
     out = tmp_path / "vg"
     argv = ["fit", "--out", str(out), "--method", "vi-gibbs", "--sweeps", "3", "--concepts", "6",
             "--method-option", "vi_iterations=4", "--no-figures"]  # fmt: skip
+    capsys.readouterr()
     assert main(argv) == 0
     inference = json.loads((out / "config.json").read_text())["inference"]
     assert inference["sweeps"] == 3 and inference["vi_iterations_run"] <= 4
+    # how the CAVI stage ended is printed, as a cavi fit's "stopped" line is
+    assert (
+        f"CAVI start       {inference['vi_stopped']}; the sweeps began" in capsys.readouterr().out
+    )
     assert len((out / "trace.csv").read_text().splitlines()) == 1 + 3
 
 

@@ -547,6 +547,8 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     print(f"fitted {runs}; {plural(len(result.concepts_in_use()), 'concept')} in use")
     if result.inference.get("stopped"):  # a variational method: converged, or --sweeps reached
         print(f"stopped          {result.inference['stopped']}")
+    if result.inference.get("vi_stopped"):  # vi-gibbs: the CAVI whose labels start the sweeps
+        print(f"CAVI start       {result.inference['vi_stopped']}; the sweeps began at its labels")
     if result.inference.get("hyperparameters"):
         line = describe_hyperparameters(result.inference["hyperparameters"])  # type: ignore[arg-type]
         stage = ", of the refinement on the map's cells" if job.refined else ""
