@@ -170,6 +170,8 @@ def test_extreme_hyperparameters_are_warned_about_with_the_reason():
         assert high.startswith(f"{name} = 1e+300 is above 1e+12") and "rounding noise" in high
         (low,) = config_warnings(SpCoConfig(**{name: 1e-300}))
         assert low.startswith(f"{name} = 1e-300 is below 0.001") and "mean" in low
+        # the trace they spoil is the sampler's: a variational method's objective is its ELBO
+        assert "the Gibbs sampler's log joint" in high and "the Gibbs sampler's log joint" in low
     (further,) = config_warnings(SpCoConfig(concentrations={"wifi": 1e13}))
     assert further.startswith("concentration 'wifi' = 1e+13")
 

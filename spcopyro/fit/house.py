@@ -151,7 +151,9 @@ def config_warnings(config: SpCoConfig) -> list[str]:
       terms; the log joint then follows those draws, not the map (measured: it swung between
       sweeps by 2e4-5e4 nats at 3e-3 against 400 at 0.1-10, and was 1e302 at 1e-300).
 
-    In both concentration cases the trace and the choice of the best sweep mean nothing.
+    In both concentration cases the Gibbs sampler's trace and its choice of the best sweep mean
+    nothing (the warnings say so by name: a variational method's objective holds no drawn
+    parameters).
     """
     warnings = [w for w in (gamma_warning(config),) if w]
     if config.gamma >= FREEZING_GAMMA:
@@ -170,15 +172,15 @@ def config_warnings(config: SpCoConfig) -> list[str]:
         if value > high:
             warnings.append(
                 f"{name} = {value:g} is above {high:g}: the log joint's prior term (a - 1) "
-                "sum log phi grows beyond what float64 resolves to 1 nat, so the log joint per "
-                "sweep and the choice of the best sweep become rounding noise"
+                "sum log phi grows beyond what float64 resolves to 1 nat, so the Gibbs sampler's "
+                "log joint per sweep and its choice of the best sweep become rounding noise"
             )
         elif value < low:
             warnings.append(
                 f"{name} = {value:g} is below {low:g}: concepts without data draw parameters "
-                f"with log values of order -1/{name} and the log joint follows those draws, "
-                "not the map; the log joint per sweep and the choice of the best sweep mean "
-                "nothing"
+                f"with log values of order -1/{name} and the Gibbs sampler's log joint follows "
+                "those draws, not the map; its log joint per sweep and choice of the best sweep "
+                "mean nothing"
             )
     return warnings
 
