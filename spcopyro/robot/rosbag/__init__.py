@@ -4,6 +4,7 @@
 * :mod:`~spcopyro.robot.rosbag.bag`: reading a ROS 1 or ROS 2 bag (rosbags' AnyReader): topics,
   poses, the tf chain, image stamps, utterances; clear errors for what is missing or malformed.
 * :mod:`~spcopyro.robot.rosbag.images`: the file to store for an image message.
+* :mod:`~spcopyro.robot.rosbag.house_folder`: the house folder and what ``--overwrite`` may replace.
 * :mod:`~spcopyro.robot.rosbag.importer`: :func:`import_bags`, bags -> a house folder of the dataset
   layout (``fit`` reads it once ``features`` has written Ft.csv).
 * :mod:`~spcopyro.robot.rosbag.synthetic`: :class:`BagWriter` and :func:`write_synthetic_bags` (the

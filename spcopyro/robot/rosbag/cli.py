@@ -75,6 +75,9 @@ def _import_bag(args: argparse.Namespace) -> int:
               "import-bag did not write; what was made from the replaced import's images "
               "(Ft.csv of spcopyro features) does not describe these: write it again",
               file=sys.stderr)  # fmt: skip
+    if report.map_replaced:
+        print(f"warning: --overwrite replaced the map {report.map_yaml} of the earlier import "
+              f"in {report.out}, which differed from {args.map}", file=sys.stderr)  # fmt: skip
     print(f"  next: spcopyro features {report.out} --out {report.out / 'Ft.csv'}")
     print(f"  then: spcopyro fit {report.out} --out {report.out.parent / 'fit'}")
     return 0
@@ -180,8 +183,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "none (Foxy, Galactic and Humble sqlite3 bags; a bag's own definitions "
                         f"win) (default {DEFAULT_ROS_DISTRO})")  # fmt: skip
     p.add_argument("--overwrite", action="store_true",
-                   help="replace OUT (only a folder import-bag wrote) and its map; files in OUT "
-                        "that import-bag does not write (Ft.csv, notes) are kept, and "
+                   help="replace OUT (only a folder import-bag wrote) and its map; what in OUT "
+                        "that import did not write (Ft.csv, notes) is kept, and "
                         "named")  # fmt: skip
     p.set_defaults(func=_import_bag)
 

@@ -35,9 +35,11 @@ image features:
 
 The folder is written in a staging folder beside OUT and renamed into place when whole; an
 existing non-empty OUT is refused unless ``overwrite``, which replaces only a folder an earlier
-import wrote, and of it only what an import writes (:func:`imported_entry`): the rest (``Ft.csv``
-of ``spcopyro features``, a user's notes) is kept in the new OUT and named in the report's
-``kept``, as ``fit --overwrite`` keeps what a fit did not write. A failed import leaves no OUT,
+import wrote, and of it only what that import wrote (its ``bag_import.json`` names its trials:
+:mod:`spcopyro.robot.rosbag.house_folder`): the rest (``Ft.csv`` of ``spcopyro features``, a
+user's notes) is kept in the new OUT and named in the report's ``kept``, as ``fit --overwrite``
+keeps what a fit did not write; a different map is replaced only beside an earlier import
+(the report's ``map_replaced``). A failed import leaves no OUT,
 no staging folder, and none of the folders it created for them. A pose of a kept observation
 outside the map's bounds stops the import (:class:`PoseOutsideMapError`: a wrong map, or a pose
 in another frame), as does no image or no utterance left (:class:`NothingLeftError`, which holds
@@ -50,7 +52,6 @@ import contextlib
 import json
 import math
 import os
-import re
 import secrets
 import shutil
 from collections.abc import Sequence
@@ -76,6 +77,7 @@ from spcopyro.robot.rosbag.bag import (
     read_texts,
     read_tf_chain,
 )
+from spcopyro.robot.rosbag.house_folder import MARKER, check_map, check_out, replace_out
 from spcopyro.robot.rosbag.images import ImageDecodeError, encoded_image
 from spcopyro.robot.rosbag.poses import PoseTrack, compose
 
@@ -88,9 +90,6 @@ __all__ = [
     "SkippedObservation",
     "import_bags",
 ]
-
-MARKER = "bag_import.json"
-"""Marks a folder written by :func:`import_bags` (``overwrite`` replaces only those)."""
 
 
 class PoseOutsideMapError(BagContentError):
@@ -184,8 +183,10 @@ class BagImportReport:
     trials: tuple[dict[str, object], ...]
     skipped: tuple[SkippedObservation, ...]
     kept: tuple[str, ...] = ()
-    """With ``overwrite``: the entries of the replaced folder that no import writes (``Ft.csv``
-    of ``spcopyro features``, notes), carried into the new one."""
+    """With ``overwrite``: the entries of the replaced folder that its import did not write
+    (``Ft.csv`` of ``spcopyro features``, notes), carried into the new one."""
+    map_replaced: bool = False
+    """With ``overwrite``: ``map_yaml`` held the replaced import's different map."""
 
     def text(self) -> str:
         lines = []
@@ -385,21 +386,6 @@ def _write_skipped(path: Path, skipped: Sequence[SkippedObservation]) -> None:
             writer.writerow([s.trial, s.bag, s.topic, s.kind, f"{s.stamp:.9f}", s.reason])
 
 
-def _check_out(out: Path, overwrite: bool) -> None:
-    name = out.name
-    if not name or name in (".", "..", "map") or re.search(r"[/\\,]", name):
-        raise ValueError(f"{out}: its folder name {name!r} cannot name a house")
-    if out.exists() and not out.is_dir():
-        raise FileExistsError(f"{out} exists and is not a folder")
-    if out.is_dir() and any(out.iterdir()):
-        if not overwrite:
-            raise FileExistsError(f"{out} already exists and is not empty; pass --overwrite")
-        if not (out / MARKER).is_file():
-            raise FileExistsError(
-                f"{out} was not written by import-bag (no {MARKER}); not replacing it"
-            )
-
-
 def import_bags(
     bags: Sequence[str | os.PathLike[str]],
     map_yaml: str | os.PathLike[str],
@@ -417,8 +403,10 @@ def import_bags(
     Raises:
         FileNotFoundError: a bag or the map is missing.
         FileExistsError: ``out`` (or a different map at ``out/../map/NAME.yaml``) exists and
-            ``overwrite`` is not given. With ``overwrite``, the entries of ``out`` that no
-            import writes are kept (the report's ``kept``).
+            ``overwrite`` is not given; with it, ``out`` is not an earlier import's (nor the map
+            beside one), or holds an entry that import did not write and this one would
+            (:func:`~spcopyro.robot.rosbag.house_folder.check_out`). With ``overwrite``, the
+            entries of ``out`` its import did not write are kept (the report's ``kept``).
         BagFormatError: a path that is not a bag.
         BagContentError: a missing topic (the message lists the bag's topics and types), a
             topic of a type the import does not read, timestamps that go backwards (the bag,
@@ -436,13 +424,10 @@ def import_bags(
         if not Path(bag).exists():
             raise FileNotFoundError(f"{bag}: bag not found")
     out = Path(os.path.abspath(out))
-    _check_out(out, overwrite)
+    earlier = check_out(out, overwrite, range(first_trial, first_trial + len(bags)))
     grid = load_map(map_yaml)
     map_target = out.parent / "map" / f"{out.name}.yaml"
-    if map_target.exists() and not overwrite and load_map(map_target) != grid:
-        raise FileExistsError(
-            f"{map_target} exists and differs from {map_yaml}; pass --overwrite to replace it"
-        )
+    map_replaced = check_map(map_target, grid, map_yaml, overwrite, out, earlier)
     # What a failed import removes again: the folders it created, and a map it wrote.
     created = [p for p in (map_target.parent, out.parent, *out.parent.parents) if not p.exists()]
     new_map = [p for p in (map_target, map_target.with_suffix(".pgm")) if not p.exists()]
@@ -481,7 +466,7 @@ def import_bags(
         }
         (staging / MARKER).write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
         save_map(grid, map_target)
-        kept = _replace(out, staging)
+        kept = replace_out(out, staging, earlier)
         done = True
     finally:
         if staging.exists():
@@ -498,40 +483,5 @@ def import_bags(
         trials=tuple({"trial": t.trial, "bag": t.bag, **t.counts} for t in trials),
         skipped=tuple(skipped),
         kept=kept,
+        map_replaced=map_replaced,
     )
-
-
-IMPORT_FILES = frozenset(
-    ["Xtx.csv", "Xty.csv", "St.csv", "StXtx.csv", "StXty.csv", "skipped.csv", MARKER]
-)
-"""The files every import writes (with ``img_K/``, ``pose_K.csv`` and ``word_K.csv``)."""
-_TRIAL_ENTRY = re.compile(r"img_[0-9]+|(pose|word)_[0-9]+\.csv")
-
-
-def imported_entry(name: str) -> bool:
-    """Whether an import writes an entry of this name into its folder (``overwrite`` replaces
-    those and keeps the others)."""
-    return name in IMPORT_FILES or _TRIAL_ENTRY.fullmatch(name) is not None
-
-
-def _replace(out: Path, staging: Path) -> tuple[str, ...]:
-    """Move ``staging`` to ``out``. An earlier import in ``out`` is set aside, and what no
-    import writes (``Ft.csv`` of ``spcopyro features``, a user's notes) carried into the new
-    ``out``, as ``fit --overwrite`` does; returns the names carried."""
-    if not out.exists():
-        os.replace(staging, out)
-        return ()
-    old = out.parent / f".{out.name}.replaced-{secrets.token_hex(4)}"
-    os.rename(out, old)
-    try:
-        os.rename(staging, out)
-    except OSError:
-        os.rename(old, out)
-        raise
-    kept = []
-    for entry in sorted(old.iterdir()):
-        if not imported_entry(entry.name) and not (out / entry.name).exists():
-            os.rename(entry, out / entry.name)
-            kept.append(entry.name)
-    shutil.rmtree(old, ignore_errors=True)
-    return tuple(kept)

@@ -1,0 +1,154 @@
+"""The house folder ``import-bag`` writes, and what its ``--overwrite`` may replace.
+
+An existing non-empty OUT is replaced only when it holds an earlier import: a readable
+:data:`MARKER` (``bag_import.json``) that names the trials it wrote. Of that folder only the
+entries the earlier import wrote (:func:`written_by`: the fixed files and, for *its* trials,
+``img_K/``, ``pose_K.csv``, ``word_K.csv``) are replaced; everything else (``Ft.csv`` of
+``spcopyro features``, notes, a trial folder added by hand) is carried into the new OUT and named.
+An entry the earlier import did not write but the new one would (a hand-made ``img_2`` and a
+third bag) is refused before anything is read, so nothing of the user's is replaced unsaid.
+
+The map at ``OUT/../map/NAME.yaml`` belongs to the house named NAME: a different map there is
+replaced (with ``overwrite``) only when OUT holds an earlier import, whose map it is; a map beside
+no import (another tool's, a house folder removed by hand) is refused even with ``overwrite``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import secrets
+import shutil
+from collections.abc import Iterable
+from pathlib import Path
+
+from spcopyro.maps.grid import OccupancyGrid
+from spcopyro.maps.map_server import load_map
+
+__all__ = ["IMPORT_FILES", "MARKER", "check_map", "check_out", "replace_out", "written_by"]
+
+MARKER = "bag_import.json"
+"""Marks a folder written by ``import_bags`` (``overwrite`` replaces only those)."""
+
+IMPORT_FILES = frozenset(
+    ["Xtx.csv", "Xty.csv", "St.csv", "StXtx.csv", "StXty.csv", "skipped.csv", MARKER]
+)
+"""The files every import writes (with ``img_K/``, ``pose_K.csv`` and ``word_K.csv``)."""
+
+
+def written_by(trials: Iterable[int]) -> frozenset[str]:
+    """The entries an import of these trial ids writes into its folder."""
+    names = set(IMPORT_FILES)
+    for k in trials:
+        names.update((f"img_{k}", f"pose_{k}.csv", f"word_{k}.csv"))
+    return frozenset(names)
+
+
+def _earlier_trials(out: Path) -> list[int]:
+    """The trial ids the import in ``out`` wrote, from its :data:`MARKER`; a FileExistsError
+    when there is none or it is not an import's record."""
+    marker = out / MARKER
+    if not marker.is_file():
+        raise FileExistsError(
+            f"{out} was not written by import-bag (no {MARKER}); not replacing it: choose "
+            "another --out"
+        )
+    try:
+        record = json.loads(marker.read_text(encoding="utf-8"))
+        trials = [t["trial"] for t in record["trials"]]
+        if not trials or not all(type(k) is int and k >= 0 for k in trials):
+            raise ValueError("its trials are not integers >= 0")
+    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError) as error:
+        raise FileExistsError(
+            f"{marker} is not a record import-bag wrote ({type(error).__name__}: {error}); "
+            f"not replacing {out}: choose another --out"
+        ) from None
+    return trials
+
+
+def check_out(out: Path, overwrite: bool, trials: Iterable[int]) -> frozenset[str] | None:
+    """Check the house folder ``out`` before an import of ``trials`` into it: the entries of the
+    earlier import there that ``overwrite`` replaces, or None when ``out`` is missing or empty.
+
+    Raises:
+        ValueError: ``out``'s name cannot name a house.
+        FileExistsError: ``out`` is a file or a symbolic link; a non-empty ``out`` without
+            ``overwrite``, or not an earlier import's; an entry the earlier import did not write
+            that this one would.
+    """
+    name = out.name
+    if not name or name in (".", "..", "map") or re.search(r"[/\\,]", name):
+        raise ValueError(f"{out}: its folder name {name!r} cannot name a house")
+    if out.is_symlink():  # renaming it would move the link, not the folder
+        raise FileExistsError(
+            f"{out} is a symbolic link (to {os.readlink(out)}); give a folder as --out"
+        )
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"{out} exists and is not a folder")
+    if not out.is_dir() or not any(out.iterdir()):
+        return None
+    if not overwrite:
+        raise FileExistsError(f"{out} already exists and is not empty; pass --overwrite")
+    earlier = written_by(_earlier_trials(out))
+    clash = sorted(
+        entry.name
+        for entry in out.iterdir()
+        if entry.name in written_by(trials) and entry.name not in earlier
+    )
+    if clash:
+        raise FileExistsError(
+            f"{out} holds {', '.join(clash)}, which the import there did not write (its "
+            f"{MARKER} names other trials) and this one would: move them away first, or "
+            "choose other trial ids with --first-trial"
+        )
+    return earlier
+
+
+def check_map(
+    target: Path, grid: OccupancyGrid, source: str | os.PathLike[str], overwrite: bool, out: Path,
+    earlier: frozenset[str] | None,
+) -> bool:  # fmt: skip
+    """Whether the import replaces a different map at ``target`` (the map of house ``out``);
+    a FileExistsError when it may not (no ``overwrite``, or no earlier import in ``out`` whose
+    map it would be)."""
+    if not target.exists() or load_map(target) == grid:
+        return False
+    if not overwrite:
+        raise FileExistsError(
+            f"{target} exists and differs from {source}; pass --overwrite to replace it"
+        )
+    if earlier is None:
+        raise FileExistsError(
+            f"{target} exists and differs from {source}, and {out} holds no earlier import "
+            f"(no {MARKER}) whose map it would be: not replacing it, even with --overwrite; "
+            "move it away, or choose another --out name"
+        )
+    return True
+
+
+def replace_out(out: Path, staging: Path, earlier: frozenset[str] | None) -> tuple[str, ...]:
+    """Move ``staging`` to ``out``. An earlier import in ``out`` is set aside, and what it did
+    not write (``earlier``: ``Ft.csv`` of ``spcopyro features``, a user's notes) carried into the
+    new ``out``, as ``fit --overwrite`` does; returns the names carried."""
+    if not out.exists():
+        os.replace(staging, out)
+        return ()
+    if earlier is None:  # an empty folder
+        out.rmdir()
+        os.replace(staging, out)
+        return ()
+    old = out.parent / f".{out.name}.replaced-{secrets.token_hex(4)}"
+    os.rename(out, old)
+    try:
+        os.rename(staging, out)
+    except OSError:
+        os.rename(old, out)
+        raise
+    kept = []
+    for entry in sorted(old.iterdir()):
+        if entry.name not in earlier and not (out / entry.name).exists():
+            os.rename(entry, out / entry.name)
+            kept.append(entry.name)
+    shutil.rmtree(old, ignore_errors=True)
+    return tuple(kept)

@@ -1,0 +1,121 @@
+"""``spcopyro import-bag --overwrite`` (spcopyro/robot/rosbag/house_folder.py): what it may
+replace is decided by the earlier import's record (bag_import.json: the trials it wrote), not by
+names alone, and the map beside OUT is replaced only when it is an earlier import's."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip install .[ros])")
+
+from spcopyro.cli.main import main  # noqa: E402
+from spcopyro.maps.grid import FREE, OCCUPIED, OccupancyGrid  # noqa: E402
+from spcopyro.maps.map_server import load_map, save_map  # noqa: E402
+from spcopyro.robot.rosbag import BagWriter, import_bags  # noqa: E402
+
+T0 = 1_600_000_000.0
+
+
+def _grid(wall: bool = False) -> OccupancyGrid:
+    cells = np.full((60, 60), FREE, dtype=np.int8)
+    if wall:
+        cells[0, :] = OCCUPIED
+    return OccupancyGrid(cells, 0.1, (-3.0, -3.0, 0.0))
+
+
+@pytest.fixture
+def bag(tmp_path: Path) -> Path:
+    path = tmp_path / "rec"
+    with BagWriter(path, ros=2) as w:
+        for t in T0 + np.arange(4.0):
+            w.pose("/amcl_pose", t, 0.5 * (t - T0), 0.0, 0.0)
+        for k, t in enumerate(T0 + np.array([0.5, 1.5, 2.5])):
+            w.image("/camera/image", t, np.full((6, 8, 3), 40 * k, dtype=np.uint8))
+        w.text("/speech", T0 + 1.0, "kitchen")
+    return path
+
+
+@pytest.fixture
+def map_yaml(tmp_path: Path) -> Path:
+    return save_map(_grid(), tmp_path / "maps" / "floor.yaml")
+
+
+def test_a_different_map_beside_no_import_is_not_replaced(tmp_path, bag, map_yaml, capsys):
+    """QA: with --overwrite, a different map at OUT/../map/NAME.yaml was replaced whenever OUT
+    was missing or empty, though no import had written it (another tool's map, a house folder
+    removed by hand): only the house folder's name tied it to the import."""
+    other = save_map(_grid(wall=True), tmp_path / "data" / "map" / "house.yaml")
+    before = other.read_bytes(), other.with_suffix(".pgm").read_bytes()
+    out = tmp_path / "data" / "house"
+    argv = ["import-bag", str(bag), "--map", str(map_yaml), "--out", str(out), "--overwrite"]
+    assert main(argv) == 2
+    assert "holds no earlier import (no bag_import.json) whose map it would be" in (
+        capsys.readouterr().err
+    )
+    assert (other.read_bytes(), other.with_suffix(".pgm").read_bytes()) == before
+    assert not out.exists()
+    out.mkdir()  # an empty folder is no earlier import either
+    with pytest.raises(FileExistsError, match="not replacing it, even with --overwrite"):
+        import_bags([bag], map_yaml, out, overwrite=True)
+    assert load_map(other) == _grid(wall=True)
+
+
+def test_the_earlier_imports_map_is_replaced_and_said(tmp_path, bag, map_yaml, capsys):
+    out = tmp_path / "data" / "house"
+    walled = save_map(_grid(wall=True), tmp_path / "maps" / "walled.yaml")
+    assert not import_bags([bag], walled, out).map_replaced
+    argv = ["import-bag", str(bag), "--map", str(map_yaml), "--out", str(out), "--overwrite"]
+    assert main(argv) == 0
+    target = tmp_path / "data" / "map" / "house.yaml"
+    assert f"warning: --overwrite replaced the map {target} of the earlier import" in (
+        capsys.readouterr().err
+    )
+    assert load_map(target) == _grid()
+    assert not import_bags([bag], map_yaml, out, overwrite=True).map_replaced  # the same map
+
+
+def test_overwrite_keeps_the_trials_the_earlier_import_did_not_write(tmp_path, bag, map_yaml):
+    """QA: --overwrite replaced every img_K/pose_K.csv/word_K.csv by name, so a trial added by
+    hand beside an import (img_5, pose_5.csv, word_5.csv) was deleted without a word; now what
+    the earlier import wrote is read from its bag_import.json, and the rest kept and named."""
+    out = tmp_path / "data" / "house"
+    import_bags([bag, bag], map_yaml, out)  # trials 0 and 1
+    (out / "img_5").mkdir()
+    (out / "img_5" / "00000.png").write_bytes(b"mine")
+    (out / "pose_5.csv").write_text("0,0,0,1\n")
+    report = import_bags([bag], map_yaml, out, overwrite=True)  # trial 0 only
+    assert report.kept == ("img_5", "pose_5.csv")
+    assert (out / "img_5" / "00000.png").read_bytes() == b"mine"
+    assert not (out / "img_1").exists() and not (out / "pose_1.csv").exists()  # the import's
+
+
+def test_overwrite_refuses_an_entry_it_would_write_that_the_import_did_not(tmp_path, bag, map_yaml):
+    out = tmp_path / "data" / "house"
+    import_bags([bag], map_yaml, out)  # trial 0
+    (out / "pose_1.csv").write_text("mine\n")
+    with pytest.raises(FileExistsError, match=r"holds pose_1\.csv, which the import there did"):
+        import_bags([bag, bag], map_yaml, out, overwrite=True)  # would write trials 0 and 1
+    assert (out / "pose_1.csv").read_text() == "mine\n"
+    import_bags([bag], map_yaml, out, overwrite=True, first_trial=0)  # trial 0 only: fine
+    assert (out / "pose_1.csv").read_text() == "mine\n"
+
+
+def test_overwrite_needs_an_import_record_and_a_real_folder(tmp_path, bag, map_yaml):
+    out = tmp_path / "data" / "house"
+    import_bags([bag], map_yaml, out)
+    marker = out / "bag_import.json"
+    for text in ("{not json", json.dumps({"bags": []}), json.dumps({"trials": [{"trial": -1}]})):
+        marker.write_text(text)
+        with pytest.raises(FileExistsError, match=r"bag_import\.json is not a record import-bag"):
+            import_bags([bag], map_yaml, out, overwrite=True)
+        assert (out / "pose_0.csv").is_file()
+    link = tmp_path / "data" / "link"
+    os.symlink(out, link)
+    with pytest.raises(FileExistsError, match="is a symbolic link"):
+        import_bags([bag], map_yaml, link, overwrite=True)
+    assert (out / "pose_0.csv").is_file() and link.is_symlink()
