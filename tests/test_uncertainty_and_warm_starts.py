@@ -233,7 +233,17 @@ def test_fit_writes_the_uncertainty_map_and_where_its_probability_map(tmp_path, 
     assert main(["fit", "--out", str(cavi), "--method", "cavi", "--sweeps", "5",
                  "--init-from", str(gibbs), *common]) == 0  # fmt: skip
     printed = capsys.readouterr().out
-    assert "starting from     the gibbs fit" in printed and "5 iterations" in printed
+    assert f"starting from    the gibbs fit in {gibbs}\n" in printed and "5 iterations" in printed
+    # svi smooths its start toward uniform (label_smoothing): how much of the fit it keeps
+    svi = ["fit", "--method", "svi", "--sweeps", "2", "--init-from", str(gibbs), *common]
+    assert main([*svi, "--out", str(tmp_path / "svi"), "--no-figures"]) == 0
+    assert (
+        f"gibbs fit in {gibbs} (10% of its labels in q's start: label_smoothing 0.9,"
+        in capsys.readouterr().out
+    )
+    smoothing = ["--method-option", "label_smoothing=0.05", "--no-figures"]
+    assert main([*svi, "--out", str(tmp_path / "svi95"), *smoothing]) == 0
+    assert "(95% of its labels in q's start: label_smoothing 0.05," in capsys.readouterr().out
     assert json.loads((cavi / "config.json").read_text())["inference"]["init"] == "result of gibbs"
     assert (cavi / "uncertainty.png").is_file()
 

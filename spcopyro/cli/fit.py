@@ -33,13 +33,20 @@ from spcopyro.cli.common import (
     _feature_scaling,
     _load,
     _summary,
-    command_line,
     pace,
 )
 from spcopyro.cli.concept_listing import print_concepts
 from spcopyro.cli.fit_figures import FigurePrefetch, write_figures
-from spcopyro.cli.fit_options import check_resume_file, check_sweeps, method_options
+from spcopyro.cli.fit_options import check_sweeps, method_options, warm_start_kept
 from spcopyro.cli.fit_refine import prepares_data, refine, report_update, update_settings
+from spcopyro.cli.fit_resume import (
+    check_resume_file,
+    interrupted_message,
+    keeps_checkpoint,
+    resumable_methods,
+    resume_command,
+    without_resume,
+)
 from spcopyro.config import (
     SpCoSettings,
     preset,
@@ -117,11 +124,11 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
         _check_update_args(args)
     _apply_preset_inference(args)
     check_sweeps(args)
-    checkpointed = _keeps_checkpoint(args)
+    checkpointed = keeps_checkpoint(args)
     if args.resume is not None and not checkpointed:
         raise ValueError(
             "--resume continues Gibbs chains run for a number of --sweeps, or one fit "
-            f"(--chains 1) of {', '.join(_resumable())}; --sweeps {args.sweeps} --method "
+            f"(--chains 1) of {', '.join(resumable_methods())}; --sweeps {args.sweeps} --method "
             f"{args.method} keeps no checkpoint"
         )
     if args.point_estimate != "map-visited" and (
@@ -168,7 +175,7 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
             where = f" while writing the outputs{again}" if job.sampled else where
         if kept is None and args.resume is not None and Path(args.resume).is_file():
             kept = Path(args.resume)  # stopped before this run saved anything: it still holds
-        print(_interrupted(args, where, kept, staged.out, getattr(stop, "why", None)),
+        print(interrupted_message(args, where, kept, staged.out, getattr(stop, "why", None)),
               file=sys.stderr)  # fmt: skip
         return 130
     except Exception:
@@ -177,28 +184,11 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
         kept = keeper.save() if keeper and writing else None
         if kept is not None:  # an error while writing: the sampling is not lost
             print(f"note: nothing written to {staged.out}; the finished chains are saved in "
-                  f"{kept} -- once fixed, continue with: {_resume_command(args, kept)}",
+                  f"{kept} -- once fixed, continue with: {resume_command(args, kept)}",
                   file=sys.stderr)  # fmt: skip
         raise
     finally:
         staged.discard()  # nothing once committed; else the run's partial outputs
-
-
-def _resumable() -> list[str]:
-    """The variational methods whose fit is saved on Ctrl-C (:mod:`spcopyro.guides.checkpoint`)."""
-    from spcopyro.fit.registry import INFERENCE_METHODS
-
-    return [
-        name for name, method in INFERENCE_METHODS.items() if getattr(method, "resumable", False)
-    ]  # a method may implement the protocol alone
-
-
-def _keeps_checkpoint(args: argparse.Namespace) -> bool:
-    """Whether Ctrl-C keeps a checkpoint of this fit: Gibbs chains run for a number of
-    ``--sweeps``, or one fit of a variational method that resumes; never an ``--update``."""
-    if args.sweeps == "auto" or args.update is not None:
-        return False
-    return args.method == "gibbs" or (args.method in _resumable() and args.chains in (None, 1))
 
 
 def _apply_preset_inference(args: argparse.Namespace) -> None:
@@ -250,41 +240,6 @@ def _check_update_args(args: argparse.Namespace) -> None:
             f"--update {args.update}: no finished fit there (a folder written by spcopyro fit "
             "--out, holding result.npz)"
         )
-
-
-def _interrupted(args: argparse.Namespace, where: str, kept: Path | None, out: Path,
-                 why: str | None = None) -> str:  # fmt: skip
-    """The line ``fit`` prints when Ctrl-C stops it (``kept``: its checkpoint; ``why``: none's)."""
-    line = f"interrupted{where}: nothing written to {out}"
-    if kept is None:
-        if why is None:
-            why = "--sweeps auto" if args.sweeps == "auto" else f"the {args.method!r} method"
-            if args.sweeps != "auto" and args.update is not None:
-                why = "--update"
-            elif _keeps_checkpoint(args):
-                why = "no sweep was done" if args.method == "gibbs" else "no iteration was done"
-            elif args.method in _resumable():
-                why = f"--chains {args.chains}: a {args.method} checkpoint holds one fit"
-        return f"{line}; no checkpoint kept ({why})"
-    command = _resume_command(args, kept)
-    return f"{line}; the state reached is saved in {kept} -- continue with: {command}"
-
-
-def _resume_command(args: argparse.Namespace, checkpoint: Path) -> str:
-    """This run's command line with ``--resume CHECKPOINT`` (in place of an earlier one)."""
-    return shlex.join(["spcopyro", *_without_resume(args), "--resume", str(checkpoint)])
-
-
-def _without_resume(args: argparse.Namespace) -> list[str]:
-    """This run's command line without its ``--resume CHECKPOINT``: the fit it finishes, which
-    the checkpoint (removed once the fit is written) is not needed to run again."""
-    argv = command_line(args)
-    for k in range(len(argv) - 1, -1, -1):
-        if argv[k] == "--resume":
-            del argv[k : k + 2]
-        elif argv[k].startswith("--resume="):
-            del argv[k]
-    return argv
 
 
 def _cell_size(value: str | None) -> float | None | str:
@@ -370,7 +325,8 @@ def _fit_staged(job: FitJob) -> int:
         from spcopyro.results.result import SpCoResult
 
         init = SpCoResult.load(args.init_from)
-        print(f"starting from     the {init.method} fit in {args.init_from}")
+        kept = warm_start_kept(options or default)  # svi smooths it toward uniform
+        print(f"starting from    the {init.method} fit in {args.init_from}{kept}")
     args.phases.mark("summary")
     # house.png and the figures' imports, drawn on a thread of their own while the chains run;
     # with several Gibbs chains, started once they run: a thread alive when they would be forked
@@ -482,7 +438,7 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     kept, diagnostics, wall = fitted.kept, fitted.diagnostics, fitted.wall
     phases = args.phases
     phases.mark("fit")
-    command = shlex.join(["spcopyro", *_without_resume(args)])  # runs again without the checkpoint
+    command = shlex.join(["spcopyro", *without_resume(args)])  # runs again without the checkpoint
     resumed = {} if args.resume is None else {"resumed_from": str(args.resume)}
     provenance = {**result.provenance, "command": command, **resumed}
     result = dataclasses.replace(result, provenance=provenance)

@@ -7,12 +7,11 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-from pathlib import Path
 
 from spcopyro.cli.common import command_line
 from spcopyro.cli.common import given as given_flag
 
-__all__ = ["check_resume_file", "check_sweeps", "method_options"]
+__all__ = ["check_sweeps", "method_options", "warm_start_kept"]
 
 _SAMPLERS = ("gibbs", "vi-gibbs")
 
@@ -107,25 +106,15 @@ def check_sweeps(args: argparse.Namespace) -> None:
                          "it out")  # fmt: skip
 
 
-def check_resume_file(resume: str) -> None:
-    """An error for a ``--resume`` that names no checkpoint file: a finished fit (``--update``
-    continues it), OUT itself (Ctrl-C keeps ``OUT.checkpoint.npz`` beside OUT, named when it is
-    there), another folder, or nothing."""
-    from spcopyro._util.outputs import checkpoint_path
-
-    path = Path(resume)
-    if (path / "result.npz").is_file():
-        raise ValueError(f"--resume {resume} is a finished fit, not a checkpoint: to continue it "
-                         f"with new observations use --update {resume}")  # fmt: skip
-    if path.is_file():
-        return
-    beside = checkpoint_path(path)
-    hint = (f": the fit interrupted into it kept its state in {beside}; --resume {beside}"
-            if beside.is_file() else ": a fit stopped by Ctrl-C keeps its state in "
-            "OUT.checkpoint.npz, beside OUT, and prints the command that resumes it")  # fmt: skip
-    if path.is_dir():
-        raise ValueError(f"--resume {resume} is a folder, not a checkpoint file{hint}")
-    raise FileNotFoundError(f"--resume {resume}: no such checkpoint file{hint}")
+def warm_start_kept(options: object) -> str:
+    """What of a warm start's labels (``--init-from``) a method keeps, for the "starting from"
+    line: svi smooths them toward uniform by ``label_smoothing`` (0.9 by default, which keeps
+    10 %, silently until this note); "" for a method that starts at them."""
+    smoothing = getattr(options, "label_smoothing", None)
+    if smoothing is None:
+        return ""
+    return (f" ({1 - smoothing:.0%} of its labels in q's start: label_smoothing {smoothing:g}, "
+            "which --method-option label_smoothing=0.05 sets to keep 95%)")  # fmt: skip
 
 
 def method_options(args: argparse.Namespace) -> object | None:

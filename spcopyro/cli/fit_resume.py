@@ -1,0 +1,96 @@
+"""``spcopyro fit``'s checkpoints on the command line: which fits keep one on Ctrl-C
+(:func:`keeps_checkpoint`), what ``--resume`` may name (:func:`check_resume_file`), the line
+printed when Ctrl-C stops a fit (:func:`interrupted_message`) and the command lines that resume
+it or, once written, run it again (:func:`resume_command`, :func:`without_resume`)."""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+from pathlib import Path
+
+from spcopyro.cli.common import command_line
+
+__all__ = [
+    "check_resume_file",
+    "interrupted_message",
+    "keeps_checkpoint",
+    "resumable_methods",
+    "resume_command",
+    "without_resume",
+]
+
+
+def resumable_methods() -> list[str]:
+    """The variational methods whose fit is saved on Ctrl-C (:mod:`spcopyro.guides.checkpoint`)."""
+    from spcopyro.fit.registry import INFERENCE_METHODS
+
+    return [
+        name for name, method in INFERENCE_METHODS.items() if getattr(method, "resumable", False)
+    ]  # a method may implement the protocol alone
+
+
+def keeps_checkpoint(args: argparse.Namespace) -> bool:
+    """Whether Ctrl-C keeps a checkpoint of this fit: Gibbs chains run for a number of
+    ``--sweeps``, or one fit of a variational method that resumes; never an ``--update``."""
+    if args.sweeps == "auto" or args.update is not None:
+        return False
+    return args.method == "gibbs" or (
+        args.method in resumable_methods() and args.chains in (None, 1)
+    )
+
+
+def check_resume_file(resume: str) -> None:
+    """An error for a ``--resume`` that names no checkpoint file: a finished fit (``--update``
+    continues it), OUT itself (Ctrl-C keeps ``OUT.checkpoint.npz`` beside OUT, named when it is
+    there), another folder, or nothing."""
+    from spcopyro._util.outputs import checkpoint_path
+
+    path = Path(resume)
+    if (path / "result.npz").is_file():
+        raise ValueError(f"--resume {resume} is a finished fit, not a checkpoint: to continue it "
+                         f"with new observations use --update {resume}")  # fmt: skip
+    if path.is_file():
+        return
+    beside = checkpoint_path(path)
+    hint = (f": the fit interrupted into it kept its state in {beside}; --resume {beside}"
+            if beside.is_file() else ": a fit stopped by Ctrl-C keeps its state in "
+            "OUT.checkpoint.npz, beside OUT, and prints the command that resumes it")  # fmt: skip
+    if path.is_dir():
+        raise ValueError(f"--resume {resume} is a folder, not a checkpoint file{hint}")
+    raise FileNotFoundError(f"--resume {resume}: no such checkpoint file{hint}")
+
+
+def interrupted_message(args: argparse.Namespace, where: str, kept: Path | None, out: Path,
+                 why: str | None = None) -> str:  # fmt: skip
+    """The line ``fit`` prints when Ctrl-C stops it (``kept``: its checkpoint; ``why``: none's)."""
+    line = f"interrupted{where}: nothing written to {out}"
+    if kept is None:
+        if why is None:
+            why = "--sweeps auto" if args.sweeps == "auto" else f"the {args.method!r} method"
+            if args.sweeps != "auto" and args.update is not None:
+                why = "--update"
+            elif keeps_checkpoint(args):
+                why = "no sweep was done" if args.method == "gibbs" else "no iteration was done"
+            elif args.method in resumable_methods():
+                why = f"--chains {args.chains}: a {args.method} checkpoint holds one fit"
+        return f"{line}; no checkpoint kept ({why})"
+    command = resume_command(args, kept)
+    return f"{line}; the state reached is saved in {kept} -- continue with: {command}"
+
+
+def resume_command(args: argparse.Namespace, checkpoint: Path) -> str:
+    """This run's command line with ``--resume CHECKPOINT`` (in place of an earlier one)."""
+    return shlex.join(["spcopyro", *without_resume(args), "--resume", str(checkpoint)])
+
+
+def without_resume(args: argparse.Namespace) -> list[str]:
+    """This run's command line without its ``--resume CHECKPOINT``: the fit it finishes, which
+    the checkpoint (removed once the fit is written) is not needed to run again."""
+    argv = command_line(args)
+    for k in range(len(argv) - 1, -1, -1):
+        if argv[k] == "--resume":
+            del argv[k : k + 2]
+        elif argv[k].startswith("--resume="):
+            del argv[k]
+    return argv
