@@ -17,6 +17,7 @@ from spcopyro.figures.plotting import (
     region_label_points,
     semantic_colours,
     semantic_map_image,
+    where_figure,
     where_image,
 )
 from spcopyro.maps import (
@@ -137,6 +138,21 @@ def test_figures_are_written(tmp_path):
     assert plot_semantic_map(result, tmp_path / "map.png").stat().st_size > 0
     answer = result.where("kitchen", prior="pi")
     assert plot_where(result, answer, tmp_path / "where.png").stat().st_size > 0
+
+
+def test_the_where_legend_counts_a_one_cell_runner_up_as_one_cell():
+    """The legend said "runner-up: concept 2, p = ... (1 cells)" for a speck (the answer's
+    entry said "1 cell"): both entries count their cells in the singular for one."""
+    import dataclasses
+
+    result = two_rooms()
+    answer = dataclasses.replace(result.where("kitchen"), runner_up=2)  # the 1-cell speck
+    for marginals in (None, np.full((result.grid.num_free, 3), 1 / 3)):
+        shown = dataclasses.replace(result, marginals=marginals)
+        legend = where_figure(shown, answer).axes[0].get_legend()
+        texts = [t.get_text() for t in legend.get_texts()]
+        runner = next(t for t in texts if t.startswith("runner-up"))
+        assert runner.endswith("(1 cell)"), texts
 
 
 def test_render_labels_takes_colours():

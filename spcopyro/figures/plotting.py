@@ -414,7 +414,7 @@ def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
     if runner is not None:
         runner_handle.set_label(
             f"runner-up: concept {answer.runner_up}, p = {answer.runner_up_probability:.3f} "
-            f"({int(runner.sum())} cells)"
+            f"({plural(int(runner.sum()), 'cell')})"
         )
         handles.append(runner_handle)
     handles += [
