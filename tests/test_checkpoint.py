@@ -24,7 +24,7 @@ import spcopyro.fit.house
 import spcopyro.gibbs.chains
 import spcopyro.gibbs.run
 import spcopyro.inference.driver as driver_module
-from spcopyro._util.outputs import checkpoint_path
+from spcopyro._util.outputs import StagedOutput, checkpoint_path
 from spcopyro.cli.main import main
 from spcopyro.gibbs.checkpoint import (
     data_fingerprint,
@@ -538,6 +538,31 @@ def test_a_fit_into_out_with_a_checkpoint_must_resume_or_overwrite(
     assert not out.exists() and checkpoint.is_file()
     assert main([*argv, "--overwrite"]) == 0  # starts afresh; the old checkpoint goes
     assert not checkpoint.exists() and (out / "result.npz").is_file()
+
+
+def test_ctrl_c_right_after_out_is_written_leaves_no_stale_checkpoint(
+    home, tmp_path, capsys, monkeypatch
+):
+    """Ctrl-C between moving the resumed fit into OUT and removing its checkpoint left the
+    checkpoint of a finished fit beside it."""
+    out = tmp_path / "out"
+    argv = ["fit", str(home), "--out", str(out), *FIT, "--no-figures"]
+    with monkeypatch.context() as patch:
+        interrupt_fit_at(patch, 0, 4)
+        assert main(argv) == 130
+    checkpoint = checkpoint_path(out)
+    assert checkpoint.is_file()
+    commit = StagedOutput.commit
+
+    def commit_then_ctrl_c(self):
+        commit(self)
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(StagedOutput, "commit", commit_then_ctrl_c)
+    capsys.readouterr()
+    assert main([*argv, "--resume", str(checkpoint)]) == 130
+    assert f"interrupted after {out} was written" in capsys.readouterr().err
+    assert (out / "result.npz").is_file() and not checkpoint.exists()
 
 
 def test_ctrl_c_while_writing_keeps_the_finished_chains(home, tmp_path, capsys, monkeypatch):

@@ -163,7 +163,8 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
         with interrupts_raised():  # one a compiled call reported as a SystemError
             return _fit_staged(job)
     except KeyboardInterrupt as stop:
-        if staged.committed:
+        if staged.committed:  # the fit a checkpoint of OUT held is complete or replaced
+            checkpoint_path(staged.out).unlink(missing_ok=True)  # Ctrl-C before _write did it
             print(f"interrupted after {staged.out} was written", file=sys.stderr)
             return 130
         if isinstance(stop, FitInterrupted):  # while sampling
