@@ -4,6 +4,8 @@ result whose answers are worked out by hand."""
 
 from __future__ import annotations
 
+import unicodedata
+
 import numpy as np
 import pytest
 from hand_results import two_rooms
@@ -86,6 +88,36 @@ def test_an_unknown_word_lists_the_closest_known_words():
     # Case and surrounding spaces (a pasted word) do not matter; spaces alone made it unknown.
     answer = result.where(" Kitchen\n")
     assert answer.word == "kitchen" and answer.concept == result.where("kitchen").concept
+
+
+DINING = "ダイニング"  # composed (NFC), as keyboards type it
+DINING_NFD = unicodedata.normalize("NFD", DINING)  # decomposed dakuten, as macOS file names
+
+
+@pytest.mark.parametrize(
+    ("vocabulary", "asked", "found"),
+    [
+        (("tv", "sofa", "bed"), "ＴＶ", "tv"),  # full-width letters (a Japanese keyboard)
+        (("tv", "sofa", "bed"), "ＴＶ？", "tv"),  # and a full-width question mark
+        ((DINING, "寝室", "台所"), DINING_NFD, DINING),  # typed decomposed
+        ((DINING, "寝室", "台所"), "ﾀﾞｲﾆﾝｸﾞ", DINING),  # half-width katakana
+        ((DINING_NFD, "寝室", "台所"), DINING, DINING_NFD),  # a vocabulary read decomposed
+        (("straße", "sofa", "bed"), "STRASSE", "straße"),  # case folding
+    ],
+)
+def test_a_word_in_another_unicode_form_is_the_same_word(vocabulary, asked, found):
+    """ "where is ＴＶ?" said 'not in the vocabulary' of a map that knows 'tv', and a word typed
+    in one Unicode form (composed, as keyboards type) missed the same word read from a file in
+    another (decomposed, as macOS writes file names): the lookup compares NFKC, case-folded."""
+    import dataclasses
+
+    result = two_rooms()
+    words = dataclasses.replace(result.emission("words"), items=vocabulary)
+    result = dataclasses.replace(result, emissions=(result.emissions[0], words))
+    answer = result.where(asked)
+    assert answer.word == found
+    assert answer.concept == result.where(found).concept
+    assert result.vocabulary.index(found) == result.vocabulary.index(answer.word)
 
 
 def test_where_prints_the_answer_its_warnings_and_draws_them(tmp_path, capsys):

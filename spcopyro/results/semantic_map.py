@@ -38,6 +38,7 @@ module, so a baseline or a score can depend on it without pulling in inference.
 from __future__ import annotations
 
 import difflib
+import unicodedata
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
@@ -67,16 +68,29 @@ class UnknownWordError(KeyError):
         return str(self.args[0])
 
 
+def _folded(word: str) -> str:
+    """``word`` in Unicode's compatibility composition (NFKC), case-folded: one spelling for
+    the ways a keyboard or a file may encode the same word (a decomposed ``"ダ"``, full-width
+    ``"ＴＶ"``, ``"STRASSE"`` for ``"straße"``)."""
+    return unicodedata.normalize("NFKC", word).casefold()
+
+
 def word_key(vocabulary: Sequence[str], word: str) -> str:
     """How ``word`` is looked up in ``vocabulary``: lower-cased, surrounding spaces dropped,
     and, when that is not a known word, the one token :func:`~spcopyro.data.text.tokenize` makes
     of it (punctuation stripped from its ends, as from every word the data's utterances hold:
-    ``"Kitchen?"`` and ``"台所。"`` are ``"kitchen"`` and ``"台所"``)."""
+    ``"Kitchen?"`` and ``"台所。"`` are ``"kitchen"`` and ``"台所"``); when that is not known
+    either, the vocabulary's word that is the same text in another Unicode form (NFKC,
+    case-folded: ``"ＴＶ"`` is ``"tv"``, a decomposed ``"ダイニング"`` the composed one)."""
     key = word.strip().lower()
     if key in vocabulary:
         return key
     tokens = tokenize(word)
-    return tokens[0] if len(tokens) == 1 else key
+    key = tokens[0] if len(tokens) == 1 else key
+    if key not in vocabulary:
+        folded = _folded(key)
+        key = next((known for known in vocabulary if _folded(known) == folded), key)
+    return key
 
 
 def word_index(vocabulary: tuple[str, ...], word: str) -> int:
