@@ -172,6 +172,8 @@ def test_variant_prefixes_and_nested_options():
         ("x:cluster_moves.inner=1", "unknown key"),
         ("x:options.cluster_moves.inner=1", "has no field"),
         (":gamma=3", "must be non-empty"),
+        ("x:hyper.log_gamma_sd=2", "no hyperparameter the chain samples reads log_gamma_sd"),
+        ("x:method=vi-gibbs,gibbs.hyper.alpha_step=1", "reads alpha_step"),
     ],
 )
 def test_variant_errors_name_the_problem(text, message):

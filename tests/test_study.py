@@ -113,6 +113,17 @@ def test_spec_from_toml_equals_spec_from_python(tmp_path):
         ("seeds = 2", "seeds = [", ["not valid TOML"]),
         ("heldout = true", "heldout = true\nseeds = 0", ["[data.small] seeds", "0"]),
         ("seeds = 2", "seeds = 2\nobservations_off = 1", ["[study] observations_off", "1"]),
+        # a prior of a hyperparameter the chain does not sample changed nothing, silently
+        (
+            "gamma = 3.0",
+            "gamma = 3.0\nhyper = { log_gamma_sd = 2.0 }",
+            ["[variants.og3]", "hyper.log_gamma_sd=2.0", "no hyperparameter the chain samples"],
+        ),
+        (
+            "gamma = 3.0",
+            'gamma = 3.0\nhyper.alpha = true\n"hyper.gamma_step" = 1.0',
+            ["[variants.og3]", "hyper.gamma_step=1.0", "no hyperparameter the chain samples"],
+        ),
     ],
 )
 def test_bad_spec_names_file_key_and_value(tmp_path, old, new, words):
@@ -123,6 +134,20 @@ def test_bad_spec_names_file_key_and_value(tmp_path, old, new, words):
     assert str(path) in message
     for word in words:
         assert word in message, message
+
+
+def test_hyper_options_of_a_study_reach_its_cells(tmp_path):
+    """``hyper.*`` of a variant (nested or dotted) set the Gibbs chain's hyperparameter
+    sampling of its cells, and are in their keys."""
+    text = TINY.replace("gamma = 3.0", 'gamma = 3.0\nhyper.gamma = "exchange"\n'
+                        '"hyper.log_gamma_sd" = 2.0\nhyper.alpha = true')  # fmt: skip
+    study = load_study(_write(tmp_path, text, name="hyper.toml"))
+    cells = {c.row: c for c in cells_of(study) if c.seed == 0}
+    hyper = cells["og3"].variant.method_options().hyper
+    assert (hyper.gamma, hyper.log_gamma_sd, hyper.alpha) == ("exchange", 2.0, True)
+    assert not cells["dp"].variant.method_options().hyper.active
+    plain = {c.row: c for c in cells_of(load_study(_write(tmp_path))) if c.seed == 0}
+    assert cells["og3"].key != plain["og3"].key and cells["dp"].key == plain["dp"].key
 
 
 def test_python_spec_errors_and_method_grid():

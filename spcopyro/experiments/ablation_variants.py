@@ -165,6 +165,26 @@ def _replace_path(options: object, path: list[str], value: object, variant: str)
         raise VariantError(f"variant {variant!r}: option {path[0]}={value!r}: {error}") from None
 
 
+def _check_tuning_read(variant: Variant) -> None:
+    """VariantError for an option the run would not read: a ``hyper.*`` tuning field (a prior,
+    a step) of a hyperparameter the chain does not sample (``hyper.log_gamma_sd`` without
+    ``hyper.gamma``), which changed nothing, silently, as ``fit --method-option`` refuses."""
+    options = variant.method_options()  # raises VariantError itself
+    for key, value in variant.options:
+        *parents, last = key.split(".")
+        owner = options
+        for part in parents:
+            owner = getattr(owner, part)
+        unused = getattr(owner, "unused", None)
+        if callable(unused) and last in unused():
+            prefix = ".".join(parents)
+            raise VariantError(
+                f"variant {variant.name!r}: {key}={value!r}: no hyperparameter the chain samples "
+                f"reads {last} ({prefix}.alpha, {prefix}.concentrations and {prefix}.gamma choose "
+                "them): set the one it tunes, or leave it out"
+            )
+
+
 def _parse_text(text: str, current: object, where: str) -> object:
     """``text`` as a value of ``current``'s type; untyped (None) defaults read as a number,
     true/false, none, or else the text."""
@@ -317,7 +337,7 @@ def make_variant(name: str, overrides: Mapping[str, object] | None = None) -> Va
         variant.spco_settings(num_categories=6)
     except (TypeError, ValueError) as error:
         raise VariantError(f"variant {name!r}: settings {settings}: {error}") from None
-    variant.method_options()  # raises VariantError itself
+    _check_tuning_read(variant)  # raises VariantError itself
     try:
         inspect.signature(fit_house).bind_partial(**fit)
     except TypeError as error:
