@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from spcopyro._util.arguments import integer_at_least as _integer_at_least
+from spcopyro._util.messages import plural
 from spcopyro._util.threads import AUTO
 from spcopyro.data import House, cell_counts, load_house, prepared_cell_counts
 
@@ -84,8 +85,9 @@ def _summary(
         f"map              {grid.height} x {grid.width} cells at {grid.resolution:g} m, "
         f"{grid.num_free} free{of_map}",
         f"images           {obs.num_images} ({obs.num_feature_classes} feature classes) in "
-        f"{len(obs.trials)} trial(s)",
-        f"utterances       {obs.num_utterances}, vocabulary of {len(counts.vocabulary)} words",
+        f"{plural(len(obs.trials), 'trial')}",
+        f"utterances       {obs.num_utterances}, vocabulary of "
+        f"{plural(len(counts.vocabulary), 'word')}",
         f"observed cells   {observed}",
         f"placement        images: {p.images_on_free} on free cells, {p.images_snapped} snapped, "
         f"{p.images_unplaced} unplaced; words: {p.words_on_free} on free cells, "
@@ -93,7 +95,8 @@ def _summary(
         f"(snap distance {p.snap_distance} m)",
     ]
     if house.category_names:
-        lines.append(f"ground truth     {len(house.category_names)} categories: "
+        n = len(house.category_names)
+        lines.append(f"ground truth     {n} categor{'y' if n == 1 else 'ies'}: "
                      + ", ".join(house.category_names))  # fmt: skip
     return "\n".join(lines)
 
