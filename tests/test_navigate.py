@@ -7,6 +7,7 @@ its place can never be reached."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import re
 
@@ -140,6 +141,28 @@ def test_via_orders_are_kept(result):
     assert tuple(plan.path_xy[corridor.path_index]) == pytest.approx(corridor.xy)
     direct = navigate(result, "go to the kitchen", start_e)
     assert plan.length > direct.length + 2.0  # the detour through the corridor is driven
+
+
+def test_the_route_names_every_stop_in_a_place(result, tmp_path, capsys):
+    """QA: "go to the kitchen via the sink" with both words in one place printed "route:
+    bedroom -> corridor -> kitchen": the via stop's word vanished from the route (a place's
+    word was the last stop's of all that ended there)."""
+    images, words = result.emissions
+    w = np.full((4, 5), 0.02)  # the vocabulary WORDS, "the" renamed "sink": kitchen's too
+    w[[0, 1, 3], [0, 1, 3]] = 0.9
+    w[2, [2, 4]] = 0.45
+    words = dataclasses.replace(words, items=WORDS[:4] + ("sink",),
+                                probabilities=w / w.sum(1, keepdims=True))  # fmt: skip
+    result = dataclasses.replace(result, emissions=(images, words))
+    plan = navigate(result, "go to the kitchen via the sink", START_A)
+    assert plan.stop_places[0] == plan.stop_places[1]
+    assert plan.route_words == ("bedroom", "corridor", "sink/kitchen")
+    plan = navigate(result, "the sink, then the corridor, then the kitchen", START_A)
+    assert plan.route_words == ("bedroom", "corridor", "sink", "corridor", "kitchen")
+    fit = result.save(tmp_path / "fit")
+    assert main(["navigate", str(fit), "go to the kitchen via the sink", "--start",
+                 f"{START_A[0]},{START_A[1]}"]) == 0  # fmt: skip
+    assert "route: bedroom -> corridor -> sink/kitchen\n" in capsys.readouterr().out
 
 
 def test_an_ambiguous_word_takes_the_nearer_unless_strict(result, fit, capsys):

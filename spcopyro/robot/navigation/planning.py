@@ -136,11 +136,25 @@ class NavigationPlan:
     def route_words(self) -> tuple[str, ...]:
         """A word for every place of :attr:`route`: a stop's place reads as the instruction's word
         for it (the robot sent to the kitchen reads "kitchen" there, though the place's most
-        probable word may be "sink"), every other place as its top word."""
+        probable word may be "sink"), every other place as its top word. A place where several
+        stops lie in a row reads as their words joined by ``/`` ("go to the kitchen via the
+        sink", both in one place: ``sink/kitchen``; only the last was named before)."""
         if not self.places:
             return ()
-        said = dict(zip(self.stop_places, (stop.word for stop in self.stops), strict=False))
-        return tuple(said.get(i, self.places.places[i].name) for i in self.route)
+        said: dict[int, list[str]] = {}  # route position -> the words of the stops there
+        position = 0
+        for place, stop in zip(self.stop_places, self.stops, strict=False):
+            if place < 0:  # a leg that ends in no place
+                continue
+            # each leg ends at its stop's place, at or after where the last leg ended
+            ahead = [k for k in range(position, len(self.route)) if self.route[k] == place]
+            if ahead:
+                position = ahead[0]
+                words = said.setdefault(position, [])
+                if stop.word not in words:
+                    words.append(stop.word)
+        return tuple("/".join(said[k]) if k in said else self.places.places[i].name
+                     for k, i in enumerate(self.route))  # fmt: skip
 
     @property
     def goal(self) -> Stop:
