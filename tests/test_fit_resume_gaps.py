@@ -5,6 +5,8 @@ kept label maps)."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from fit_interrupts import interrupt_fit_at
@@ -107,8 +109,8 @@ def test_a_checkpoint_resumed_with_another_method_names_the_method(
 
 def test_sweeps_auto_with_anneal_sweeps_is_refined(home, tmp_path, capsys):
     """--sweeps auto runs its --anneal-sweeps before the checked blocks; the refinement, which
-    runs the same options (and anneals again), runs as many sweeps as the chains did, anneal
-    included: it stopped after all the sampling with 'anneal_sweeps (10) must not exceed
+    runs the same options (but does not anneal again), runs as many sweeps as the chains did,
+    anneal included: it stopped after all the sampling with 'anneal_sweeps (10) must not exceed
     num_sweeps (5)', a number the user never gave."""
     from spcopyro.data import load_house
     from spcopyro.fit.house import fit_house
@@ -122,6 +124,9 @@ def test_sweeps_auto_with_anneal_sweeps_is_refined(home, tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "fitted 2 chains x 15 sweeps on 0.3 m cells (" in printed
     assert "), then 2 chains x 15 on the map's 0.1 m cells (" in printed
+    # only the coarse stage anneals: the refinement starts from its map
+    inference = json.loads((out / "config.json").read_text())["inference"]
+    assert inference["anneal_sweeps"] == 0 and inference["refine"]["coarse"]["anneal_sweeps"] == 10
     result = fit_house(load_house(home), sweeps="auto", chains=2, refine="always",
                        options=GibbsOptions(anneal_sweeps=10), progress=False,
                        marginal_samples=0)  # fmt: skip

@@ -378,8 +378,8 @@ def _fit(
             max_sweeps=args.max_sweeps or FIT_SWEEPS, source=source, threads=args.threads,
         )  # fmt: skip
         chain_results, kept = None, 0
-        # a refinement runs as many sweeps as the chains needed (their --anneal-sweeps too: it
-        # anneals again), with the preset's estimate
+        # a refinement runs as many sweeps as the chains needed (their --anneal-sweeps too,
+        # though it does not anneal: spcopyro.fit.refine), with the preset's estimate
         refine_sweeps = len(result.trace.objective)
         estimate = preset_inference(args.preset).get("point_estimate", "map-visited")
         estimate = estimate if args.marginal_samples > 0 else "map-visited"

@@ -17,7 +17,8 @@ the coarse fit's concepts stand in for them (never a truth):
    ``auto``'s data preparation -- each histogram as 100 draws (``floor100``), each utterance
    once at its cell, no footprint (:func:`refined_settings`) -- started from the coarse map
    refined to the map's cells (:func:`~spcopyro.fit.starts.result_labels`), with the same
-   sampler options, sweeps and seeds. After ``--sweeps auto`` (``sweeps="auto"``) the
+   sampler options (but no ``anneal_sweeps``: annealing is for a start that is not yet a map),
+   sweeps and seeds. After ``--sweeps auto`` (``sweeps="auto"``) the
    refinement runs as many sweeps as the coarse chains needed to converge, with the point
    estimate asked for, as a fit of that many sweeps would be refined: its chains all start
    from the kept coarse one, so an R-hat of theirs would not check what the coarse stage's
@@ -182,6 +183,10 @@ def refine_chains(
     on_map = map_house(house)
     refined = refined_settings(settings, model.grid.num_free, on_map.grid.num_free)
     logger.info("refining on the map's %d cells: %s", on_map.grid.num_free, decision.reason)
+    options = chain_kwargs.get("options")
+    if getattr(options, "anneal_sweeps", 0):  # its start is the fitted map, not noise: only
+        # the coarse stage anneals (annealed again: 0.984 against 0.990, docs/commands.md)
+        chain_kwargs["options"] = dataclasses.replace(options, anneal_sweeps=0)
     refits = fit_chains(on_map, refined, init=first, **chain_kwargs)
     record = {
         **decision.to_json(),
@@ -191,6 +196,7 @@ def refine_chains(
             "best_log_joint": float(first.best_objective),
             "concepts": len(first.concepts_in_use()),
             "sweeps": len(first.trace.objective),
+            "anneal_sweeps": int(getattr(options, "anneal_sweeps", 0)),  # the refinement's: 0
             "seconds": float(first.trace.seconds[-1]) if len(first.trace.seconds) else 0.0,
             "first_seconds": float(first.trace.seconds[0]) if len(first.trace.seconds) else 0.0,
             # sampled hyperparameters (hyper.*): the refinement samples its own from the preset's
