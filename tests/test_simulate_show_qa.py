@@ -3,6 +3,8 @@ found by running the commands on small and hand-drawn houses)."""
 
 from __future__ import annotations
 
+import pytest
+
 from spcopyro.cli.main import main
 from spcopyro.synthetic import HouseSpec, write_synthetic
 
@@ -17,3 +19,20 @@ def test_show_counts_one_category_trial_and_word_in_the_singular(tmp_path, capsy
     assert "ground truth     1 category: kitchen" in out
     assert "in 3 trials" in out and "trial(s)" not in out
     assert "vocabulary of 3 words" in out
+
+
+def test_simulate_names_its_flags_not_the_librarys_fields(tmp_path, capsys):
+    """``--sentences 1.5`` was refused as "HouseSpec.sentence_fraction must lie in [0, 1]" and
+    ``--density open-plan --rooms 1`` as "HouseSpec.open_plan_share needs 1 <= num_open_plan <
+    num_rooms": the user gave neither field. Each message now names the flag and its value."""
+    out = str(tmp_path / "data")
+    for value in ("1.5", "-0.1", "nan"):
+        with pytest.raises(SystemExit) as stop:
+            main(["simulate", "--out", out, "--sentences", value])
+        assert stop.value.code == 2
+        err = capsys.readouterr().err
+        assert f"argument --sentences: '{value}': a share from 0 to 1" in err, err
+    assert main(["simulate", "--out", out, "--density", "open-plan", "--rooms", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "--rooms 1: an open-plan house has at least 2 rooms" in err and "HouseSpec" not in err
+    assert not (tmp_path / "data").exists()

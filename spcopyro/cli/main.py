@@ -33,6 +33,7 @@ from spcopyro._util.arguments import (
     figure_path,
     integer_at_least,
     non_negative_number,
+    number_type,
     positive_number,
     seed,
 )
@@ -49,6 +50,7 @@ from spcopyro.cli.fit_parser import add_parser as add_fit_parser
 
 logger = logging.getLogger("spcopyro")
 _positive_int = integer_at_least(1)  # --size and --rooms
+_share = number_type(lambda v: 0 <= v <= 1, lambda text: f"{text!r}: a share from 0 to 1")
 
 
 MAX_SIMULATED_CELLS = 1_000_000
@@ -72,6 +74,11 @@ def _simulate(args: argparse.Namespace) -> int:
         raise ValueError(
             f"--size {height} {width}: {height * width:,} cells is over the limit of "
             f"{MAX_SIMULATED_CELLS:,} (e.g. 1000 x 1000); draw a smaller house"
+        )
+    if args.density == "open-plan" and args.rooms is not None and args.rooms < 2:
+        raise ValueError(
+            f"--rooms {args.rooms}: an open-plan house has at least 2 rooms, the open plan and "
+            "a walled room beside it (default 4)"
         )
     args.name = args.name or "synthetic"
     try:
@@ -291,7 +298,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "(HouseSpec.open_plan)")  # fmt: skip
     p.add_argument("--rooms", type=_positive_int, help="walled rooms (default: the setting's own; "
                    "open-plan: 4, one of them the open plan)")  # fmt: skip
-    p.add_argument("--sentences", type=float, default=0.0,
+    p.add_argument("--sentences", type=_share, default=0.0,
                    help="share of utterances given as sentences (tf-idf setting)")  # fmt: skip
     p.add_argument("--overwrite", action="store_true",
                    help="replace a house of the same name under --out")  # fmt: skip
