@@ -359,12 +359,12 @@ def test_a_library_fit_says_when_it_skips_its_presets_inference_settings(caplog,
     nothing said so. Now the library says which settings it skips."""
     import logging
 
-    import spcopyro.fit.preset_fits as preset_fits
+    import spcopyro._util.messages as messages
     from spcopyro.fit.house import fit_house, preset_fit_kwargs
     from spcopyro.gibbs import GibbsOptions
     from spcopyro.synthetic import HouseSpec, make_house
 
-    monkeypatch.setattr(preset_fits, "WARNED", set())  # as in a fresh process
+    monkeypatch.setattr(messages, "_WARNED", set())  # as in a fresh process
     house = make_house(seed=0, spec=HouseSpec(height=30, width=36, num_rooms=2))
     assert preset("auto").preset == "auto" and preset("auto").replace(gamma=2.9).preset == "auto"
     with caplog.at_level(logging.WARNING, logger="spcopyro"):

@@ -2,15 +2,17 @@
 
 A loader that rejects a line echoes it, so the reader can find it; a ragged 205-column Ft.csv
 row is about 5 KB, which buries the message. :func:`echo` gives the ``repr`` of a value when it is
-short, else the first :data:`ECHO_LIMIT` characters and how long the whole is. Imports nothing of
-the package, so every layer (maps, data, features) can use it.
+short, else the first :data:`ECHO_LIMIT` characters and how long the whole is. :func:`warn_once`
+logs a warning once a process, for what a study's hundreds of fits would repeat. Imports nothing
+of the package, so every layer (maps, data, features) can use it.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sized
+import logging
+from collections.abc import Hashable, Sized
 
-__all__ = ["ECHO_LIMIT", "echo", "plural", "seconds_text"]
+__all__ = ["ECHO_LIMIT", "echo", "plural", "seconds_text", "warn_once"]
 
 ECHO_LIMIT = 80
 """Characters of a value that an error message shows."""
@@ -48,3 +50,18 @@ def seconds_text(value: float) -> str:
     if value != value or abs(value) >= 0.095:  # NaN, or where one decimal says enough
         return f"{value:.1f}"
     return f"{value:.2g}"
+
+
+_WARNED: set[Hashable] = set()
+"""The keys :func:`warn_once` has warned about in this process."""
+
+
+def warn_once(key: Hashable, message: str) -> bool:
+    """Log ``message`` (logger ``"spcopyro"``, WARNING) the first time this process meets
+    ``key`` (name what the warning is about in it, e.g. ``("stick-breaking", alpha, L)``);
+    whether it was logged."""
+    if key in _WARNED:
+        return False
+    _WARNED.add(key)
+    logging.getLogger("spcopyro").warning(message)
+    return True

@@ -5,15 +5,12 @@ preset's recommended inference settings (:func:`~spcopyro.config.preset_inferenc
 
 from __future__ import annotations
 
-import logging
-
+from spcopyro._util.messages import warn_once
 from spcopyro.config import PRESETS, SpCoSettings, preset_inference
 from spcopyro.fit.starts import Init, init_name
 from spcopyro.gibbs.options import GibbsOptions
 
 __all__ = ["log_skipped_preset_inference", "preset_fit_kwargs"]
-
-logger = logging.getLogger("spcopyro")
 
 
 def preset_fit_kwargs(name: str, marginal_samples: int = 50) -> dict[str, object]:
@@ -35,11 +32,6 @@ def preset_fit_kwargs(name: str, marginal_samples: int = 50) -> dict[str, object
     }
 
 
-WARNED: set[tuple[object, ...]] = set()
-"""The (preset, skipped settings) :func:`log_skipped_preset_inference` warned about: each once a
-process, as Python's warnings are."""
-
-
 def log_skipped_preset_inference(
     settings: SpCoSettings,
     init: Init,
@@ -50,7 +42,7 @@ def log_skipped_preset_inference(
     """Warn (logger ``"spcopyro"``) when a Gibbs fit from a preset's settings runs without the
     inference settings that preset recommends (:func:`~spcopyro.config.preset_inference`), which
     ``spcopyro fit`` applies: the library and the command would give different maps. Once a
-    process for each preset and settings run (:data:`WARNED`)."""
+    process for each preset and settings run (:func:`~spcopyro._util.messages.warn_once`)."""
     recommended = preset_inference(settings.preset) if settings.preset in PRESETS else {}
     if not recommended:
         return
@@ -62,14 +54,10 @@ def log_skipped_preset_inference(
         "refine": refine,
     }
     skipped = {k: v for k, v in recommended.items() if k in running and running[k] != v}
-    key = (settings.preset, tuple((k, running[k]) for k in skipped))
-    if skipped and key not in WARNED:  # once: a study's cells ran it hundreds of times
-        WARNED.add(key)
-        logger.warning(
-            "preset %r recommends %s (what spcopyro fit runs); this fit runs %s, so its map can "
-            "differ from the command's: pass them (spcopyro.fit.house.preset_fit_kwargs(%r))",
-            settings.preset,
-            ", ".join(f"{k}={v!r}" for k, v in skipped.items()),
-            ", ".join(f"{k}={running[k]!r}" for k in skipped),
-            settings.preset,
-        )
+    key = ("preset inference", settings.preset, tuple((k, running[k]) for k in skipped))
+    if skipped:  # once: a study's cells ran it hundreds of times
+        recommends = ", ".join(f"{k}={v!r}" for k, v in skipped.items())
+        runs = ", ".join(f"{k}={running[k]!r}" for k in skipped)
+        warn_once(key, f"preset {settings.preset!r} recommends {recommends} (what spcopyro fit "
+                  f"runs); this fit runs {runs}, so its map can differ from the command's: pass "
+                  f"them (spcopyro.fit.house.preset_fit_kwargs({settings.preset!r}))")  # fmt: skip

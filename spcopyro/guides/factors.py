@@ -23,12 +23,12 @@ approximations, not to score the paper's model.
 
 from __future__ import annotations
 
-import logging
 from typing import Literal, NamedTuple
 
 import torch
 from torch.distributions import Beta, kl_divergence
 
+from spcopyro._util.messages import warn_once
 from spcopyro.config import SpCoConfig
 from spcopyro.likelihood import ConceptStatistics
 from spcopyro.model import DTYPE, ModelData
@@ -53,10 +53,6 @@ class GlobalFactors(NamedTuple):
 def _check_family(pi_family: str) -> None:
     if pi_family not in ("dirichlet", "stick-breaking"):
         raise ValueError(f"pi_family must be 'dirichlet' or 'stick-breaking', got {pi_family!r}")
-
-
-WARNED: set[tuple[float, int]] = set()
-"""The (alpha, L) :func:`stick_breaking_warning` was logged for: once a process each."""
 
 
 def stick_breaking_warning(config: SpCoConfig) -> str | None:
@@ -86,9 +82,8 @@ def prior_factors(
     else:
         pi = torch.tensor([1.0, config.alpha], dtype=DTYPE).expand(L - 1, 2).clone()
         warning = stick_breaking_warning(config)
-        if warning and (config.alpha, L) not in WARNED:
-            WARNED.add((config.alpha, L))
-            logging.getLogger("spcopyro").warning(warning)
+        if warning:
+            warn_once(("stick-breaking", config.alpha, L), warning)
     emissions = tuple(
         torch.full((L, m.counts.shape[-1]), config.concentration(m.name), dtype=DTYPE)
         for m in data.modalities
