@@ -274,3 +274,28 @@ def test_a_report_of_a_table_without_them_deletes_earlier_maps_and_quality_figur
     write_table(tmp_path / "results.csv", [])
     write_report(tmp_path / "results.csv", tmp_path / "report.md")
     assert not any(path.exists() for path in stale) and kept.exists()
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["study", "STUDY", "--workers", "1"],
+        ["study", "STUDY", "--dry-run"],
+        ["ablation", "--quick", "--no-public", "--seeds", "1", "--sweeps", "2", "--no-off"],
+        ["experiment", "--quick", "--no-public", "--methods", "F-geometry", "--seeds", "1"],
+    ],
+)
+@pytest.mark.parametrize("below", [False, True])
+def test_an_out_that_is_a_file_is_refused_before_any_cell(tmp_path, capsys, command, below):
+    """It failed with a bare ``[Errno 17] File exists`` (or ``[Errno 20] Not a directory``)."""
+    study = tmp_path / "tiny.toml"
+    study.write_text(TWICE)
+    blocker = tmp_path / "results"
+    blocker.write_text("not a folder")
+    out = blocker / "sub" if below else blocker
+    argv = [str(study) if word == "STUDY" else word for word in command] + ["--out", str(out)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"--out {out}: {blocker} is a file, not a folder" in err, err
+    assert blocker.read_text() == "not a folder"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["results", "tiny.toml"]

@@ -39,6 +39,7 @@ def _study(args: argparse.Namespace) -> int:
     from spcopyro.study.report import write_report
     from spcopyro.study.run import (
         DASK_MISSING,
+        check_out_folder,
         dask_installed,
         default_workers,
         plan_markdown,
@@ -53,7 +54,7 @@ def _study(args: argparse.Namespace) -> int:
                          "writes report.md, --dry-run writes nothing")  # fmt: skip
     path = study_path(args.study)
     study = load_study(path)
-    out = Path(args.out)
+    out = check_out_folder(args.out)
     defaulted = study.sweeps_defaulted()
     if defaulted:
         print(f"note: {path}: [study] sweeps names neither {', '.join(defaulted)} nor '*': "

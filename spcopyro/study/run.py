@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from spcopyro._util.interrupts import signals_deferred
+from spcopyro._util.outputs import nearest_existing
 from spcopyro._util.progress import progress_enabled
 from spcopyro.gibbs.chains import usable_cpus
 from spcopyro.study import evaluate
@@ -49,8 +50,8 @@ from spcopyro.study.spec import Study
 from spcopyro.study.table import TABLE, CellStore, table_rows, write_table
 
 __all__ = [
-    "DASK_MISSING", "PRE_SPAWN_ENVIRON", "StudyPlan", "StudyRun", "dask_installed",
-    "default_workers", "plan_markdown", "plan_study", "run_study",
+    "DASK_MISSING", "PRE_SPAWN_ENVIRON", "StudyPlan", "StudyRun", "check_out_folder",
+    "dask_installed", "default_workers", "plan_markdown", "plan_study", "run_study",
 ]  # fmt: skip
 
 Outcome = tuple[Cell, dict[str, object], object, object]
@@ -108,6 +109,18 @@ def dask_installed() -> bool:
     return True
 
 
+def check_out_folder(out: str | os.PathLike[str]) -> Path:
+    """``out`` as a Path; NotADirectoryError naming it when it, or the nearest of its parents
+    that exists, is a file (a study's results folder would fail there after its first cell, or
+    at once with a bare ``[Errno 17] File exists``)."""
+    path = Path(out)
+    existing = nearest_existing(path.absolute())
+    if not existing.is_dir():
+        raise NotADirectoryError(f"--out {out}: {existing} is a file, not a folder; choose "
+                                 "another results folder")  # fmt: skip
+    return path
+
+
 def _say_nothing(message: str) -> None:
     del message
 
@@ -141,7 +154,7 @@ def run_study(
         raise ValueError(f"workers must be >= 1, got {workers}")
     if (scheduler is not None or workers > 1) and not dask_installed():
         raise ModuleNotFoundError(DASK_MISSING)  # before anything is written (not a stopped run)
-    out = Path(out)
+    out = check_out_folder(out)
     start = time.perf_counter()
     plan = plan_study(study, out, retry_failed, rerun_stale, root)
     cells, pending, cached, stale = plan
