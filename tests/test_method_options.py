@@ -171,6 +171,10 @@ def test_a_gibbs_flag_and_a_method_option_on_the_same_field_are_refused(tmp_path
                 "--cluster-moves", "0.1", "--method-option", f"{name}=0.3"]  # fmt: skip
         assert main(argv) == 2
         assert f"--cluster-moves 0.1 and --method-option {name}=0.3" in capsys.readouterr().err
+        # argparse takes a flag's prefix: the command line was scanned for the whole flag
+        argv[argv.index("--cluster-moves")] = "--cluster-mov"
+        assert main(argv) == 2
+        assert f"--cluster-moves 0.1 and --method-option {name}=0.3" in capsys.readouterr().err
     out = tmp_path / "preset"
     assert main([*base, "--out", str(out), "--method-option", "merge_moves=0"]) == 0
     assert json.loads((out / "config.json").read_text())["inference"]["merge_moves"] == 0.0

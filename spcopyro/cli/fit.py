@@ -207,10 +207,11 @@ def _apply_preset_inference(args: argparse.Namespace) -> None:
     if args.init is None:  # the rooms start is Gibbs's: its merge (split) moves leave it
         gibbs = args.method == "gibbs" and not starts_elsewhere
         args.init = recommended.get("init", "random") if gibbs else "random"
-    if args.merge_moves is None and args.method == "gibbs":
-        args.merge_moves = recommended.get("merge_moves")
-    if args.region_moves is None and args.method == "gibbs":
-        args.region_moves = recommended.get("region_moves")
+    args.preset_filled = set()  # the move rates the preset chose, not the command line
+    for move in ("merge_moves", "region_moves"):
+        if getattr(args, move) is None and args.method == "gibbs":
+            setattr(args, move, recommended.get(move))
+            args.preset_filled |= {move} if getattr(args, move) is not None else set()
     refinable = args.method == "gibbs" and args.update is None
     if args.refine is None:  # a preparation given on the command line is kept, not refined away
         refinable = refinable and not prepares_data(args)

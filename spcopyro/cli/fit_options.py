@@ -8,7 +8,6 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
-from spcopyro.cli.common import command_line
 from spcopyro.cli.common import given as given_flag
 
 __all__ = ["check_sweeps", "method_options", "warm_start_kept"]
@@ -79,14 +78,12 @@ def _check_twice_set(args: argparse.Namespace, given: dict[str, tuple[str, objec
     if args.method not in _SAMPLERS:
         return  # the flags are refused there
     prefix = "gibbs." if args.method == "vi-gibbs" else ""
-    typed = command_line(args)
+    filled = getattr(args, "preset_filled", set())  # by _apply_preset_inference
     for assignment in args.method_option or []:
         name = assignment.partition("=")[0].strip()
         field = name[len(prefix) :] if name.startswith(prefix) else None
-        if field not in given:
-            continue
-        flag, value = given[field]
-        if any(str(word).startswith(flag) for word in typed):
+        if field in given and field not in filled:
+            flag, value = given[field]
             raise ValueError(
                 f"{flag} {value} and --method-option {assignment} set the same option: pass one"
             )
