@@ -143,6 +143,27 @@ def test_via_orders_are_kept(result):
     assert plan.length > direct.length + 2.0  # the detour through the corridor is driven
 
 
+def test_instructions_in_other_scripts_find_the_fits_words():
+    """QA: the instruction was split on ASCII letters only: "go to the café" said "word 'caf'
+    ... did you mean café?", and "go to the 台所" named no place, though the fit's words (and
+    `spcopyro where`) hold them."""
+    vocabulary = ("bedroom", "corridor", "台所", "café", "ダイニング")
+    for text, places in [
+        ("go to the 台所", ("台所",)),
+        ("Go to the CAFÉ.", ("café",)),
+        ("go to the cafe\u0301", ("café",)),  # decomposed: e + combining acute
+        ("go to the 台所 via the ダイニング", ("ダイニング", "台所")),
+        ("the corridor, then the bedroom", ("corridor", "bedroom")),
+    ]:
+        assert parse_instruction(text, vocabulary).places == places, text
+    with pytest.raises(ValueError, match="word 'cafe' of the instruction .* did you mean café"):
+        parse_instruction("go to the cafe", vocabulary)
+    grid = house_grid()
+    plan = navigate(one_word_per_concept(grid, house_result().labels, ("bedroom", "corridor",
+                    "台所", "closet")), "台所 に 行って", START_A)  # fmt: skip
+    assert [s.word for s in plan.stops] == ["台所"] and plan.instruction.ignored == ("に", "行って")
+
+
 def test_the_route_names_every_stop_in_a_place(result, tmp_path, capsys):
     """QA: "go to the kitchen via the sink" with both words in one place printed "route:
     bedroom -> corridor -> kitchen": the via stop's word vanished from the route (a place's

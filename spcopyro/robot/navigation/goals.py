@@ -1,11 +1,14 @@
 r"""From an instruction to the places it names, and from a place word to a goal cell.
 
 **Instruction** (:func:`parse_instruction`). The instruction is split into lower-case words
-(letters, digits, ``_``, ``'`` and ``-``). Connecting and filler words (:data:`STOP_WORDS`: "go",
-"to", "the", "via", "then", ...) are skipped even when the fit's vocabulary holds them (a fit on
-sentences does). Every other word of the vocabulary names a place. A word outside it with a
-close known word (``difflib``, as ``spcopyro where`` suggests) is an error that names them (a
-typo must not send the robot elsewhere); one with no close word is ignored and reported.
+(letters of any script with their marks, digits, ``_``, ``'`` and ``-``; NFC-composed), each
+read as ``spcopyro where`` reads a word (:func:`~spcopyro.results.semantic_map.word_key`:
+``"台所"``, ``"CAFÉ"`` and a decomposed ``"café"`` find the fit's ``台所`` and ``café``).
+Connecting and filler words (:data:`STOP_WORDS`: "go", "to", "the", "via", "then", ...) are
+skipped even when the fit's vocabulary holds them (a fit on sentences does). Every other word
+of the vocabulary names a place. A word outside it with a close known word (``difflib``, as
+``spcopyro where`` suggests) is an error that names them (a typo must not send the robot
+elsewhere); one with no close word is ignored and reported.
 
 The places are visited in the order the instruction gives them, except that a place after
 "via", "through" or "past" is visited *before* the destination said just before it: "go to the
@@ -33,11 +36,12 @@ over the cells the robot fits on (:mod:`spcopyro.robot.navigation.graph`).
 from __future__ import annotations
 
 import difflib
-import re
+import unicodedata
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from spcopyro.results.semantic_map import word_key
 from spcopyro.results.where import close_to_guess
 from spcopyro.robot.navigation.graph import PlanningGrid
 
@@ -101,7 +105,16 @@ class Instruction:
 
 
 def _tokens(text: str) -> list[str]:
-    return re.findall(r"[a-z0-9_'\-]+", text.lower())
+    """The words of ``text``: runs of letters, marks and digits of any script, ``_``, ``'`` and
+    ``-``, lower-cased (a non-ASCII letter split ``café`` into ``caf``, and ``台所`` vanished)."""
+    words, word = [], []
+    for char in unicodedata.normalize("NFC", text).lower() + " ":
+        if char in "_'-" or unicodedata.category(char)[0] in "LMN":
+            word.append(char)
+        elif word:
+            words.append("".join(word))
+            word = []
+    return words
 
 
 def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
@@ -114,6 +127,8 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
     ignored: list[str] = []
     mode, destination = "to", None  # destination: index of the last destination in places
     for token in _tokens(text):
+        key = word_key(vocabulary, token).lower()
+        token = key if key in known else token
         if token in VIA_WORDS:
             mode = "via"
             continue
