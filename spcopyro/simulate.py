@@ -22,14 +22,40 @@ from spcopyro.gibbs.sweep import sample_labels
 from spcopyro.model import DTYPE, SITE_LABELS, SITE_PI, ModelData, spcomapping_model
 
 
+def check_whole_totals(data: ModelData, config: SpCoConfig) -> None:
+    """ValueError naming the modality and cell when an observed cell of a modality the model
+    uses holds counts whose total is not a whole number: a multinomial draws whole counts.
+
+    Image probabilities (``feature_scaling="probability"``, the default presets' and
+    ``paper-dp``'s) and words spread over a footprint are fractions; the model scores them, but
+    cannot draw them (this was Pyro's "MultinomialCounts.sample needs non-negative integer
+    total_count" after a dump of the model's trace)."""
+    for modality in data.modalities:
+        if not config.uses(modality.name) or modality.counts.numel() == 0:
+            continue
+        totals = modality.counts.sum(-1)  # [M]
+        whole = totals == totals.round()  # [M] (as MultinomialCounts.sample checks them)
+        if not bool(whole.all()):
+            m = int(torch.nonzero(~whole)[0])
+            raise ValueError(
+                f"observed cell {m} (free cell {int(data.obs_cells[m])}) holds "
+                f"{float(totals[m]):.6g} {modality.name} counts in all, not a whole number: "
+                f"draws from the model need whole counts per cell; prepare the data with whole "
+                f"counts (e.g. preset('original-code'): images as floor(100 f), each word "
+                f"counted once at its cell)"
+            )
+
+
 def sample_observations(state: GibbsState, data: ModelData, config: SpCoConfig) -> ModelData:
     """New counts for the observed cells of ``data``, drawn from the model given the state.
 
-    Each observed cell keeps its total counts (which must be integers); the model under
+    Each observed cell keeps its total counts (which must be whole numbers:
+    :func:`check_whole_totals`); the model under
     :func:`pyro.poutine.uncondition` draws each modality's counts from its concept's
     distribution, e.g. f ~ Mult(theta_C), S ~ Mult(w_C) (eqs. 5, 6). A switched-off modality
     keeps its counts. Uses torch's global RNG (seed it with ``pyro.set_rng_seed``).
     """
+    check_whole_totals(data, config)
     values = {SITE_PI: state.log_pi.exp(), SITE_LABELS: state.labels}
     for modality, log_phi in zip(data.modalities, state.log_emissions, strict=True):
         values[modality.parameter] = log_phi.exp()
@@ -52,8 +78,10 @@ def sample_prior_world(
     ``generator`` decides the whole draw: the counts, drawn by the Pyro model with torch's
     global RNG (:func:`sample_observations`), are drawn under a seed taken from it, and the
     global RNG is left as it was (it used to draw them from the global RNG's state, so two calls
-    with equally seeded generators gave the same labels and other counts).
+    with equally seeded generators gave the same labels and other counts). Counts whose total
+    per cell is not whole are refused before any sweep (:func:`check_whole_totals`).
     """
+    check_whole_totals(data, config)  # before the sweeps, not after them
     L = config.num_concepts
     log_pi = sample_log_dirichlet(torch.full((L,), config.pi_concentration, dtype=DTYPE), generator)
     log_emissions = tuple(

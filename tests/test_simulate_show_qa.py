@@ -36,3 +36,34 @@ def test_simulate_names_its_flags_not_the_librarys_fields(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--rooms 1: an open-plan house has at least 2 rooms" in err and "HouseSpec" not in err
     assert not (tmp_path / "data").exists()
+
+
+@pytest.mark.parametrize("name", ["coarse", "paper-dp"])
+def test_a_prior_world_needs_whole_counts_and_says_so_first(name):
+    """``sample_prior_world`` on data prepared by the default preset (image probabilities,
+    words spread over a footprint) ran its label sweeps, then failed inside Pyro with
+    "MultinomialCounts.sample needs non-negative integer total_count" after a dump of the
+    model's trace; it now refuses such data first, naming the modality and the cell."""
+    import torch
+
+    from spcopyro.config import preset
+    from spcopyro.fit.house import prepare_model_data
+    from spcopyro.simulate import sample_observations, sample_prior_world
+    from spcopyro.synthetic import make_house
+
+    spec = HouseSpec(height=30, width=40, num_rooms=3, num_open_plan=0, min_room_size=8)
+    settings = preset(name)
+    _, data = prepare_model_data(make_house(seed=0, spec=spec), settings)
+    generator = torch.Generator().manual_seed(0)
+    with pytest.raises(ValueError, match=r"observed cell 0 \(free cell \d+\) holds .* images "
+                                         r"counts in all, not a whole number"):  # fmt: skip
+        sample_prior_world(data, settings.model, generator, sweeps=1)
+    assert torch.equal(generator.get_state(), torch.Generator().manual_seed(0).get_state())
+    whole = preset("original-code")
+    _, counts = prepare_model_data(make_house(seed=0, spec=spec), whole)
+    state, drawn = sample_prior_world(counts, whole.model, generator, sweeps=1)
+    assert torch.equal(
+        drawn.modality("words").counts.sum(-1), counts.modality("words").counts.sum(-1)
+    )
+    with pytest.raises(ValueError, match="not a whole number"):  # checked before the trace
+        sample_observations(state, data, whole.model)
