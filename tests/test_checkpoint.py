@@ -4,6 +4,7 @@ beside OUT, exits with 130, and ``--resume`` gives what a fit that never stopped
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import re
@@ -538,6 +539,21 @@ def test_a_fit_into_out_with_a_checkpoint_must_resume_or_overwrite(
     assert not out.exists() and checkpoint.is_file()
     assert main([*argv, "--overwrite"]) == 0  # starts afresh; the old checkpoint goes
     assert not checkpoint.exists() and (out / "result.npz").is_file()
+
+
+def test_the_command_recorded_and_printed_leaves_out_resume_however_it_was_typed():
+    from spcopyro.cli.fit_resume import RESUME_PREFIX, resume_command, without_resume
+    from spcopyro.cli.main import build_parser
+
+    fit = build_parser()._subparsers._group_actions[0].choices["fit"]
+    flags = [f for a in fit._actions for f in a.option_strings if f.startswith(RESUME_PREFIX)]
+    assert flags == ["--resume"]  # the prefix is argparse's: no other flag shares it
+    for typed in (["--resume", "A"], ["--resume=A"], ["--resu", "A"], ["--res=A"]):
+        args = argparse.Namespace(argv=["fit", "--out", "o", *typed, "--sweeps", "9"])
+        assert without_resume(args) == ["fit", "--out", "o", "--sweeps", "9"]
+        assert resume_command(args, Path("B")) == "spcopyro fit --out o --sweeps 9 --resume B"
+    kept = argparse.Namespace(argv=["fit", "--refine", "never", "--region-moves", "0"])
+    assert without_resume(kept) == kept.argv
 
 
 def test_ctrl_c_right_after_out_is_written_leaves_no_stale_checkpoint(

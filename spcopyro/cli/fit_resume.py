@@ -21,6 +21,11 @@ __all__ = [
 ]
 
 
+RESUME_PREFIX = "--res"
+"""The shortest prefix argparse reads as ``--resume`` (``--re`` is also ``--refine`` and
+``--region-moves``)."""
+
+
 def resumable_methods() -> list[str]:
     """The variational methods whose fit is saved on Ctrl-C (:mod:`spcopyro.guides.checkpoint`)."""
     from spcopyro.fit.registry import INFERENCE_METHODS
@@ -89,8 +94,7 @@ def without_resume(args: argparse.Namespace) -> list[str]:
     the checkpoint (removed once the fit is written) is not needed to run again."""
     argv = command_line(args)
     for k in range(len(argv) - 1, -1, -1):
-        if argv[k] == "--resume":
-            del argv[k : k + 2]
-        elif argv[k].startswith("--resume="):
-            del argv[k]
+        flag, equals, _ = argv[k].partition("=")
+        if len(flag) >= len(RESUME_PREFIX) and "--resume".startswith(flag):  # as argparse reads
+            del argv[k : k + (1 if equals else 2)]
     return argv
