@@ -21,6 +21,7 @@ from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
 from spcopyro.results.result import SpCoResult
 from spcopyro.robot.navigation import (
     AmbiguousGoalError,
+    NavigationError,
     UnreachableGoalError,
     navigate,
     parse_instruction,
@@ -162,6 +163,18 @@ def test_instructions_in_other_scripts_find_the_fits_words():
     plan = navigate(one_word_per_concept(grid, house_result().labels, ("bedroom", "corridor",
                     "台所", "closet")), "台所 に 行って", START_A)  # fmt: skip
     assert [s.word for s in plan.stops] == ["台所"] and plan.instruction.ignored == ("に", "行って")
+
+
+@pytest.mark.parametrize(
+    "text", ["go to the bedroom, not the kitchen", "avoid the kitchen", "Don't enter the KITCHEN"]
+)
+def test_an_instruction_that_keeps_away_from_a_place_is_refused(text, fit, capsys):
+    """QA: "go to the bathroom, not the kitchen" planned bathroom -> kitchen: the negation was
+    skipped as a filler word and the robot sent to the place it was told to keep away from."""
+    with pytest.raises(NavigationError, match="cannot keep the robot away from one"):
+        parse_instruction(text, WORDS)
+    assert main(["navigate", str(fit), text, "--start", f"{START_A[0]},{START_A[1]}"]) == 2
+    assert "--mode keepout" in capsys.readouterr().err
 
 
 def test_the_route_names_every_stop_in_a_place(result, tmp_path, capsys):

@@ -8,7 +8,9 @@ Connecting and filler words (:data:`STOP_WORDS`: "go", "to", "the", "via", "then
 skipped even when the fit's vocabulary holds them (a fit on sentences does). Every other word
 of the vocabulary names a place. A word outside it with a close known word (``difflib``, as
 ``spcopyro where`` suggests) is an error that names them (a typo must not send the robot
-elsewhere); one with no close word is ignored and reported.
+elsewhere); one with no close word is ignored and reported. An instruction with a word of
+:data:`NEGATION_WORDS` ("not the kitchen", "avoid the kitchen") is refused: the robot only visits
+places, so it would have driven to the one it was told to keep away from.
 
 The places are visited in the order the instruction gives them, except that a place after
 "via", "through" or "past" is visited *before* the destination said just before it: "go to the
@@ -48,6 +50,7 @@ from spcopyro.robot.navigation.graph import PlanningGrid
 __all__ = [
     "AMBIGUITY_RATIO",
     "MIN_CANDIDATE_AREA",
+    "NEGATION_WORDS",
     "P_TOLERANCE",
     "STOP_WORDS",
     "AmbiguousGoalError",
@@ -70,6 +73,12 @@ STOP_WORDS = frozenset(
      "into", "finally", "via", "through", "past", "thru", "out", "over", "up", "down", "just"}
 )  # fmt: skip
 """Words of an instruction that name no place (module docstring)."""
+NEGATION_WORDS = frozenset(
+    {"not", "don't", "dont", "never", "avoid", "avoiding", "without", "except", "excluding",
+     "no", "nor", "skip", "skipping"}
+)  # fmt: skip
+"""Words that would keep the robot away from a place: navigate only visits places, so an
+instruction holding one is refused ("go to the bathroom, not the kitchen" drove to both)."""
 AMBIGUITY_RATIO = 0.8
 """A region whose best p is at least this share of the map's best p is a candidate: with two or
 more, the word is ambiguous (near-equal: odds below 1.25)."""
@@ -119,14 +128,24 @@ def _tokens(text: str) -> list[str]:
 
 def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
     """The places of ``text`` (module docstring). ValueError naming the close known words for a
-    misspelt word, or when no place word is left."""
+    misspelt word, or when no place word is left; :class:`NavigationError` for a word of
+    :data:`NEGATION_WORDS`."""
     known = {word.lower() for word in vocabulary}
     candidates = sorted(known - STOP_WORDS)
     places: list[str] = []
     via: list[bool] = []
     ignored: list[str] = []
     mode, destination = "to", None  # destination: index of the last destination in places
-    for token in _tokens(text):
+    tokens = _tokens(text)
+    negation = next((token for token in tokens if token in NEGATION_WORDS), None)
+    if negation is not None:
+        raise NavigationError(
+            f"the instruction {text!r} says {negation!r}: navigate visits every place an "
+            "instruction names, in order, and cannot keep the robot away from one; name only "
+            "the places to visit (to keep it out of a place: spcopyro export --nav2 DIR --word "
+            "WORD --mode keepout)"
+        )
+    for token in tokens:
         key = word_key(vocabulary, token).lower()
         token = key if key in known else token
         if token in VIA_WORDS:
