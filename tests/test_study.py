@@ -238,6 +238,30 @@ def test_quality_time_figure_shows_every_group_and_skips_what_it_cannot_place():
     assert quality_time_figure([row("dense", "default", "gibbs", 1.0, None)]) is None
 
 
+@pytest.mark.parametrize(
+    "times", [(0.053, 0.475, 0.133), (2.0, 9.0), (100.0, 300.0), (0.4,), (1e-3, 1e3), (0.5, 40.0)]
+)
+def test_quality_time_axis_labels_do_not_overlap(times):
+    """A panel spanning under a decade had every minor tick labelled (``4x10^-2 6x10^-2 10^-1
+    2x10^-1 ...``), printed over each other."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from spcopyro.study.figures import quality_time_figure
+
+    rows = [dict(data="room1dk5", variant=f"v{i}", method="gibbs", seconds=t, ari=0.5,
+                 status="ok") for i, t in enumerate(times)]  # fmt: skip
+    fig = quality_time_figure(rows)
+    FigureCanvasAgg(fig).draw()
+    (ax,) = fig.axes
+    low, high = ax.get_xlim()
+    labels = [label for label in ax.get_xticklabels() + ax.get_xticklabels(minor=True)
+              if label.get_text() and low <= label.get_position()[0] <= high]  # fmt: skip
+    assert len(labels) >= 2, [label.get_text() for label in labels]
+    boxes = sorted((label.get_window_extent() for label in labels), key=lambda box: box.x0)
+    for left, right in zip(boxes, boxes[1:], strict=False):
+        assert left.x1 <= right.x0, [label.get_text() for label in labels]
+
+
 @pytest.mark.parametrize("start_in_process", [False, True])
 def test_local_cluster_gives_the_same_numbers(in_process, tmp_path, start_in_process):
     """On the workers only, or partly in this process while they start: the same numbers."""

@@ -19,6 +19,7 @@ import numpy as np
 from matplotlib import colormaps
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
+from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from spcopyro.study.table import is_number
 
@@ -75,6 +76,7 @@ def quality_time_figure(
         ax.set_xscale("log")
         times = [s for d, _, _, s, _ in points if d == source]
         ax.set_xlim(min(times) / 1.5, max(times) * 1.5)  # a panel of equal times is not singular
+        _label_time_axis(ax, max(times) / min(times) * 2.25)
         ax.set_title(source, fontsize=10)
         ax.set_xlabel(f"{time} per fit (log scale)")
         ax.set_ylabel(score)
@@ -85,6 +87,17 @@ def quality_time_figure(
     fig.suptitle(f"{score} against {time}: seeds (faint), mean ± sd (marked)", fontsize=11)
     fig.tight_layout(rect=(0, min(0.3, 0.06 * legend_rows + 0.03), 1, 0.95))
     return fig
+
+
+def _label_time_axis(ax, span: float) -> None:
+    """Label the log time axis at 1, 2, 5 x 10^k when it spans under ~2.5 decades (``span``: its
+    upper over its lower limit), else at the powers of ten, as plain numbers, and leave the minor
+    ticks unlabelled: matplotlib's default labelled every minor tick of a panel spanning under a
+    decade, ``4x10^-2 6x10^-2 ...``, printed over each other."""
+    subs = (1.0, 2.0, 5.0) if math.log10(span) <= 2.5 else (1.0,)
+    ax.xaxis.set_major_locator(LogLocator(base=10.0, subs=subs))
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
+    ax.xaxis.set_minor_formatter(NullFormatter())
 
 
 def write_quality_time(
