@@ -120,6 +120,16 @@ def test_a_word_in_another_unicode_form_is_the_same_word(vocabulary, asked, foun
     assert result.vocabulary.index(found) == result.vocabulary.index(answer.word)
 
 
+@pytest.mark.parametrize("asked", [None, 3, b"kitchen", ["kitchen"]])
+def test_a_word_that_is_not_a_string_is_a_type_error_saying_so(asked):
+    """``where(["kitchen"])`` failed with "'list' object has no attribute 'strip'" and
+    ``where(b"kitchen")`` with "category() argument must be a unicode character"."""
+    result = two_rooms()
+    for call in (result.where, result.concept_given_word):
+        with pytest.raises(TypeError, match=f"a word must be a str, got {type(asked).__name__}"):
+            call(asked)
+
+
 def test_where_prints_the_answer_its_warnings_and_draws_them(tmp_path, capsys):
     out = two_rooms().save(tmp_path / "fit")
     assert main(["where", str(out), "kitchen", "--out", str(tmp_path / "a.png")]) == 0

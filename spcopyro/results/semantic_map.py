@@ -81,7 +81,10 @@ def word_key(vocabulary: Sequence[str], word: str) -> str:
     of it (punctuation stripped from its ends, as from every word the data's utterances hold:
     ``"Kitchen?"`` and ``"台所。"`` are ``"kitchen"`` and ``"台所"``); when that is not known
     either, the vocabulary's word that is the same text in another Unicode form (NFKC,
-    case-folded: ``"ＴＶ"`` is ``"tv"``, a decomposed ``"ダイニング"`` the composed one)."""
+    case-folded: ``"ＴＶ"`` is ``"tv"``, a decomposed ``"ダイニング"`` the composed one).
+    TypeError for a word that is not a ``str`` (bytes, a list of words, None)."""
+    if not isinstance(word, str):
+        raise TypeError(f"a word must be a str, got {type(word).__name__} {word!r}")
     key = word.strip().lower()
     if key in vocabulary:
         return key
