@@ -786,3 +786,26 @@ def test_bag_commands_share_the_argument_types(tmp_path, capsys):
         assert exited.value.code == 2
         assert message in capsys.readouterr().err
     assert not (tmp_path / "s").exists()
+
+
+def test_a_folder_of_bags_names_what_it_holds(tmp_path, map_yaml):
+    """QA: a ROS 2 recording stopped before rosbag2 wrote metadata.yaml, a folder of ROS 1 .bag
+    files and simulate-bag's --out folder were each "not a bag" with no word of the bags inside
+    (the .db3 / .bag / bag folders import when given themselves)."""
+    bag = _bag_path(tmp_path / "rec", 2)
+    _write_basic(bag, 2, "sqlite3")
+    (bag / "metadata.yaml").unlink()
+    with pytest.raises(BagFormatError, match=r"it holds rec\.db3: give the bags as BAG"):
+        import_bags([bag], map_yaml, tmp_path / "d" / "h")
+    import_bags([bag / "rec.db3"], map_yaml, tmp_path / "d" / "h")
+    ros1 = _bag_path(tmp_path / "ros1", 1)
+    ros1.parent.mkdir()
+    _write_basic(ros1, 1, "sqlite3")
+    with pytest.raises(BagFormatError, match=r"it holds rec\.bag: give"):
+        import_bags([ros1.parent], map_yaml, tmp_path / "d" / "h2")
+    folder = _bag_path(tmp_path / "many", 2, "trial_0")
+    _write_basic(folder, 2, "sqlite3")
+    with pytest.raises(BagFormatError, match=r"it holds trial_0/: give"):
+        import_bags([folder.parent], map_yaml, tmp_path / "d" / "h2")
+    with pytest.raises(BagFormatError, match=r"metadata\.yaml; a ROS 1 bag a \.bag file\)$"):
+        import_bags([tmp_path / "maps"], map_yaml, tmp_path / "d" / "h2")  # no bag inside

@@ -153,9 +153,21 @@ def open_bag(path: str | os.PathLike[str], ros_distro: str = DEFAULT_ROS_DISTRO)
     if not path.exists():
         raise FileNotFoundError(f"{path}: bag not found")
     if path.is_dir() and not (path / "metadata.yaml").is_file():
+        inside = sorted(
+            p.name + ("/" if p.is_dir() else "")
+            for p in path.iterdir()
+            if (p.is_file() and p.suffix in (".bag", ".db3", ".mcap"))
+            or (p / "metadata.yaml").is_file()
+        )
+        hint = (  # a recording stopped before rosbag2 wrote metadata.yaml; a folder of bags
+            f"; it holds {', '.join(inside[:5])}{' ...' if len(inside) > 5 else ''}: give the "
+            "bags as BAG arguments"
+            if inside
+            else ""
+        )
         raise BagFormatError(
             f"{path}: not a bag (a ROS 2 bag is a folder with metadata.yaml; a ROS 1 bag a .bag "
-            "file)"
+            f"file){hint}"
         )
     if path.is_file() and path.suffix not in (".bag", ".db3", ".mcap"):
         raise BagFormatError(
