@@ -67,3 +67,15 @@ def test_a_prior_world_needs_whole_counts_and_says_so_first(name):
     )
     with pytest.raises(ValueError, match="not a whole number"):  # checked before the trace
         sample_observations(state, data, whole.model)
+
+
+def test_the_printed_fit_command_runs_from_a_folder_with_a_space(tmp_path, capsys):
+    """``simulate --out "my data"`` printed "fit it with: spcopyro fit my data/synthetic --out
+    my data/fit", which a shell splits into other arguments; the command is quoted now."""
+    import shlex
+
+    out = tmp_path / "my data"
+    assert main(["simulate", "--out", str(out), "--size", "30", "30", "--name", "a b"]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if "fit it with:" in x)
+    words = shlex.split(line.split("fit it with:", 1)[1])
+    assert words == ["spcopyro", "fit", str(out / "a b"), "--out", str(out / "fit")]

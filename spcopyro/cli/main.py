@@ -22,6 +22,7 @@ import gc
 import logging
 import math
 import os
+import shlex
 import sys
 from pathlib import Path
 from typing import NoReturn
@@ -124,8 +125,14 @@ def _simulate_house(args: argparse.Namespace) -> int:
             str(error).replace("pass overwrite=True", "pass --overwrite to replace it")
         ) from None
     print(f"wrote synthetic house (seed {args.seed}) to {room}")
-    print(f"  fit it with: spcopyro fit {room} --out {Path(args.out) / 'fit'}")
+    print(f"  fit it with: {_fit_command(room, args.out)}")
     return 0
+
+
+def _fit_command(room: Path, out: str) -> str:
+    """The ``fit`` command a simulated house is fitted with, quoted for a shell (a folder
+    with a space was printed as two words)."""
+    return shlex.join(["spcopyro", "fit", str(room), "--out", str(Path(out) / "fit")])
 
 
 def _door_width(text: str) -> float | str:
@@ -177,7 +184,7 @@ def _simulate_on_map(args: argparse.Namespace) -> int:
     for r, c in enumerate(simulated.room_category.tolist()):
         cells = int((simulated.rooms == r).sum())
         print(f"  room {r}: {names[c]} ({cells * house.grid.resolution**2:.1f} m^2)")
-    print(f"  fit it with: spcopyro fit {room} --out {Path(args.out) / 'fit'}")
+    print(f"  fit it with: {_fit_command(room, args.out)}")
     return 0
 
 
