@@ -119,6 +119,33 @@ def test_read_image_is_rgb_and_converts_grey_and_alpha(tmp_path):
     assert read_image(_write(tmp_path / "rgba.png", rgba))[0, 0].tolist() == [0, 200, 0]
 
 
+def test_a_16_bit_image_reads_as_opencv_reads_it_and_a_dim_one_is_warned_of(
+    tmp_path, caplog, monkeypatch
+):
+    """A 12-bit camera's frames saved as 16-bit PNG read nearly black (OpenCV keeps the high
+    byte), without a word."""
+    import spcopyro._util.messages as messages
+
+    monkeypatch.setattr(messages, "_WARNED", set())
+    rng = np.random.default_rng(0)
+    full = rng.integers(0, 65536, (6, 5, 3)).astype(np.uint16)  # [H, W, 3] BGR
+    grey = rng.integers(0, 65536, (6, 5)).astype(np.uint16)
+    for name, image in (("full.png", full), ("grey.png", grey)):
+        path = _write(tmp_path / name, image)
+        as_opencv = cv2.cvtColor(cv2.imread(str(path), cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
+        np.testing.assert_array_equal(read_image(path), as_opencv)  # the same pixels as before
+    assert not caplog.records
+    dim = tmp_path / "camera"
+    dim.mkdir()
+    twelve_bit = (full >> 4).astype(np.uint16)  # values up to 4095
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        for k in range(2):
+            assert read_image(_write(dim / f"{k}.png", twelve_bit)).max() <= 15
+    [said] = [r.getMessage() for r in caplog.records]  # once a folder
+    assert said.startswith(f"{dim / '0.png'}: a 16-bit image whose brightest value is ")
+    assert "of 65535 (a 10- or 12-bit camera's range?)" in said
+
+
 def test_read_image_errors_name_the_file(tmp_path):
     with pytest.raises(FileNotFoundError, match="nothere.jpg: image file not found"):
         read_image(tmp_path / "nothere.jpg")

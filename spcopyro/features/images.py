@@ -21,7 +21,7 @@ import numpy as np
 import torch
 from torchvision.transforms import InterpolationMode, v2
 
-from spcopyro._util.messages import echo
+from spcopyro._util.messages import echo, warn_once
 from spcopyro.data import IMAGE_SUFFIXES
 
 __all__ = [
@@ -89,10 +89,32 @@ def read_image(path: str | os.PathLike[str]) -> np.ndarray:
     data = np.fromfile(path, dtype=np.uint8)  # [bytes]
     if data.size == 0:
         raise ImageReadError(path, "empty file")
-    bgr = cv2.imdecode(data, cv2.IMREAD_COLOR)  # [H, W, 3] uint8 BGR or None
+    bgr = cv2.imdecode(data, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)  # [H, W, 3] BGR or None
+    if bgr is not None and bgr.dtype == np.uint16:
+        _warn_if_dim(path, int(bgr.max()))
+        bgr = (bgr >> 8).astype(np.uint8)  # the high byte: what IMREAD_COLOR alone gives
+    elif bgr is not None and bgr.dtype != np.uint8:  # a float image: as IMREAD_COLOR converts it
+        bgr = cv2.imdecode(data, cv2.IMREAD_COLOR)
     if bgr is None:
         raise ImageReadError(path, "OpenCV cannot decode it (not an image, or truncated)")
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+
+
+DIM_16_BIT = 4096
+"""A 16-bit image whose brightest value is below this (2^12) holds a 10- or 12-bit camera's
+range: read at 16 bits, as every 16-bit image is, it is at most 1/16 bright."""
+
+
+def _warn_if_dim(path: Path, peak: int) -> None:
+    """Warn once a folder (logger ``"spcopyro"``) when a 16-bit image's ``peak`` is below
+    :data:`DIM_16_BIT`: its features are those of a nearly black image."""
+    if peak < DIM_16_BIT:
+        warn_once(("dim 16-bit images", str(path.parent)), (
+            f"{path}: a 16-bit image whose brightest value is {peak} of 65535 (a 10- or 12-bit "
+            f"camera's range?): read at 16 bits it is at most {peak / 65535:.1%} bright, so its "
+            "features are those of a nearly black image; scale such images to the full 16-bit "
+            "range, or save them as 8-bit, first (said once a folder)"
+        ))  # fmt: skip
 
 
 def make_transform(
