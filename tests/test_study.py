@@ -113,6 +113,13 @@ def test_spec_from_toml_equals_spec_from_python(tmp_path):
         ("seeds = 2", "seeds = [", ["not valid TOML"]),
         ("heldout = true", "heldout = true\nseeds = 0", ["[data.small] seeds", "0"]),
         ("seeds = 2", "seeds = 2\nobservations_off = 1", ["[study] observations_off", "1"]),
+        # a public house is loaded, not drawn: its seed changed nothing, silently
+        (
+            'synthetic = "default"\nheight = 24\nwidth = 30\nnum_rooms = 2\nnum_trials = 2\n'
+            "min_room_size = 8",
+            'public = "room1dk5"\nseed = 1',
+            ["[data.small] seed = 1", "a public house is loaded, not drawn"],
+        ),
         # a prior of a hyperparameter the chain does not sample changed nothing, silently
         (
             "gamma = 3.0",

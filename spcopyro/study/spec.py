@@ -330,7 +330,11 @@ def _data_source(source: str, name: str, table: object) -> DataSource:
                     f"choose one of {sorted(SYNTHETIC_FACTORIES)}")  # fmt: skip
     if kind == "public" and values:
         raise _fail(source, where, sorted(values),
-                    "a public house takes only heldout, seed and seeds")  # fmt: skip
+                    "a public house takes only heldout and seeds")  # fmt: skip
+    if kind == "public" and house_seed is not None:  # it changed nothing, silently
+        raise _fail(source, f"{where} seed", house_seed,
+                    "a public house is loaded, not drawn: seed changes nothing (its cells' "
+                    "seeds choose the held-out trial: seeds = [...])")  # fmt: skip
     data = DataSource(name, kind, target, tuple(values.items()), house_seed, heldout, seeds)
     if kind != "public":
         check, known = (
