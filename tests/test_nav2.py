@@ -4,6 +4,7 @@ as nav2_map_server's map_io does)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -465,3 +466,21 @@ def test_keepout_refuses_speed_options_and_warns_of_an_empty_mask(fit, tmp_path,
     assert main(["export", str(fit), "--nav2", str(out), "--word", "kitchen", "--overwrite",
                  "--threshold", str(highest * 0.99)]) == 0  # fmt: skip
     assert "keeps out no cell" not in capsys.readouterr().err
+
+
+def test_one_word_written_in_several_ways_is_one_mask(tmp_path):
+    """QA: `--word kitchen kitchen. ＫＩＴＣＨＥＮ` (where reads all three as 'kitchen') wrote three
+    keepout masks of the one place, named keepout_kitchen, keepout_kitchen_ and keepout_word;
+    and every word without ASCII letters was named 'word', 'word_', ..."""
+    result = top_and_bottom()
+    export = export_nav2(result, tmp_path / "a", ["kitchen", "Kitchen.", "ＫＩＴＣＨＥＮ"])
+    assert [(m.word, m.name) for m in export.masks] == [("kitchen", "keepout_kitchen")]
+    filters = yaml.safe_load(export.costmap_filters_yaml.read_text())
+    assert filters["global_costmap"]["global_costmap"]["ros__parameters"]["filters"] == [
+        "keepout_kitchen_filter"
+    ]
+    words = EmissionTable("words", ("台所", "café", "sofa"), result.emissions[1].probabilities)
+    other = dataclasses.replace(result, emissions=(result.emissions[0], words))
+    export = export_nav2(other, tmp_path / "b", ["台所", "CAFÉ", "café"], mode="speed")
+    assert [(m.word, m.name) for m in export.masks] == [
+        ("台所", "speed_word0"), ("café", "speed_cafe")]  # fmt: skip

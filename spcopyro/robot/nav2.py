@@ -49,6 +49,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import unicodedata
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -202,10 +203,12 @@ class Nav2Export:
     masks: tuple[ExportedMask, ...] = field(default_factory=tuple)
 
 
-def _ros_name(word: str) -> str:
-    """A ROS-name-safe form of a word: lower case, ``[a-z0-9_]`` only."""
-    name = re.sub(r"[^a-z0-9_]", "_", word.lower()).strip("_")
-    return name or "word"
+def _ros_name(word: str, index: int) -> str:
+    """A ROS-name-safe form of the vocabulary's word ``index``: lower case, ``[a-z0-9_]`` only,
+    accents dropped (``café``: ``cafe``); ``word3`` for one with no such letter (``台所``)."""
+    ascii_word = unicodedata.normalize("NFKD", word.lower()).encode("ascii", "ignore").decode()
+    name = re.sub(r"[^a-z0-9_]", "_", ascii_word).strip("_")
+    return name or f"word{index}"
 
 
 def topic(name: str, namespace: str | None = None) -> str:
@@ -325,7 +328,8 @@ def export_nav2(
     Args:
         result: the fit (:meth:`SpCoResult.load`).
         out: the export folder; a non-empty one needs ``overwrite`` and must be an export's.
-        words: the words to export (each once; lower-cased).
+        words: the words to export, each read as ``spcopyro where`` reads it
+            (:func:`~spcopyro.results.semantic_map.word_key`) and exported once.
         mode: ``"keepout"`` or ``"speed"``.
         prior: p(C) of the where-answer (``"area"`` or ``"pi"``).
         threshold: keepout only: the place is the cells whose probability of being the word's
@@ -354,12 +358,13 @@ def export_nav2(
         _check_threshold(threshold)
     _check_speeds(min_speed, max_speed)
     namespace = check_namespace(namespace)
-    words = list(dict.fromkeys(w.lower() for w in words))
-    for word in words:  # every word known before anything is written
-        word_index(result.vocabulary, word)
+    # every word known before anything is written, and each read as `where` reads it: "Kitchen",
+    # "kitchen." and a full-width "ｋｉｔｃｈｅｎ" are one word, one mask (each got its own)
+    indices = list(dict.fromkeys(word_index(result.vocabulary, w) for w in words))
+    words = [result.vocabulary[i] for i in indices]
     names: list[str] = []
-    for word in words:
-        name = f"{mode}_{_ros_name(word)}"
+    for word, index in zip(words, indices, strict=True):
+        name = f"{mode}_{_ros_name(word, index)}"
         while name in names:
             name += "_"
         names.append(name)
