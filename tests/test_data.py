@@ -472,8 +472,25 @@ def test_loader_missing_map_and_unpaired_trial_files(tmp_path, grid):
         load_house(room)
     assert "trial 1 has a pose file but no word file" in str(error.value)  # not every trial
     (tmp_path / "map" / "room.yaml").unlink()
-    with pytest.raises(FileNotFoundError, match="room.yaml"):
+    with pytest.raises(FileNotFoundError, match="room.yaml") as error:
         load_house(room)
+    assert f"(no map in {tmp_path / 'map'})" in str(error.value)
+
+
+def test_a_copied_house_without_its_map_names_the_maps_there(tmp_path, grid):
+    import shutil
+
+    copy = tmp_path / "copy"
+    shutil.copytree(write_room(tmp_path, grid), copy)  # its map is still map/room.yaml
+    with pytest.raises(
+        FileNotFoundError,
+        match=r"map/copy.yaml: map of house 'copy' not found"
+        r".*NAME the folder's name \(the maps there: room.yaml\); a copied",
+    ):
+        load_house(copy)
+    shutil.rmtree(tmp_path / "map")
+    with pytest.raises(FileNotFoundError, match=r"\(there is no folder .*map\)"):
+        load_house(copy)
 
 
 def test_loader_truth_errors(tmp_path, grid):

@@ -167,6 +167,20 @@ MAX_COORDINATE = 1e6
 error, named with its file and line (issue 22 item 10), not a map-indexing failure later."""
 
 
+def _where_maps_are(yaml_path: Path) -> str:
+    """How a house's map is found, and the maps there are (a copied or renamed house folder
+    keeps the old name's map)."""
+    folder = yaml_path.parent
+    maps = sorted(p.name for p in folder.glob("*.yaml")) if folder.is_dir() else []
+    there = f"the maps there: {', '.join(maps)}" if maps else f"no map in {folder}"
+    if not folder.is_dir():
+        there = f"there is no folder {folder}"
+    return (
+        f": a house's map is map/NAME.yaml beside its folder, NAME the folder's name "
+        f"({there}); a copied or renamed house needs its map copied or renamed with it"
+    )
+
+
 def load_house(
     room_dir: str | os.PathLike[str], map_yaml: str | os.PathLike[str] | None = None
 ) -> House:
@@ -232,7 +246,10 @@ def load_house(
                 f"{room} is not a house folder: it holds no Ft.csv or St.csv (a house folder "
                 "holds its observations, its map in ../map/NAME.yaml)"
             )
-        raise FileNotFoundError(f"{yaml_path}: map of house {name!r} not found")
+        raise FileNotFoundError(
+            f"{yaml_path}: map of house {name!r} not found"
+            + ("" if map_yaml is not None else _where_maps_are(yaml_path))
+        )
     grid = load_map(yaml_path)
 
     files = {key: room / f"{key}.csv" for key in ("Ft", "Xtx", "Xty", "St", "StXtx", "StXty")}
