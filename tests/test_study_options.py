@@ -299,3 +299,19 @@ def test_an_out_that_is_a_file_is_refused_before_any_cell(tmp_path, capsys, comm
     assert f"--out {out}: {blocker} is a file, not a folder" in err, err
     assert blocker.read_text() == "not a folder"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["results", "tiny.toml"]
+
+
+@pytest.mark.parametrize(
+    "sweeps, methods, key",
+    [
+        ("{gibbs = 10, cavi = 5}", '["gibbs"]', "cavi"),  # a method no cell runs
+        ('{a = 10, gibbs = 5, "*" = 7}', '["gibbs"]', "gibbs"),  # the variant's own entry wins
+        ("{gibbs = 10, svi = 5}", '["gibbs", "cavi"]', "svi"),
+    ],
+)
+def test_a_sweeps_entry_no_cell_takes_is_refused(tmp_path, sweeps, methods, key):
+    """It changed nothing, silently: the cells ran the other entries' or 1000 iterations."""
+    text = TWICE.replace("sweeps = 20", f"sweeps = {sweeps}")
+    text = text.replace('methods = ["gibbs", "cavi"]', f"methods = {methods}")
+    with pytest.raises(StudyError, match=rf"\[study\] sweeps\.{key} = \d+: no cell takes it"):
+        study_from_dict(tomllib.loads(text), source="t.toml")

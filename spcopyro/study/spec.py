@@ -242,6 +242,26 @@ def _sweeps(
     return (("*", _positive_int(source, "[study] sweeps", value)),)
 
 
+def _check_sweeps_used(
+    source: str, sweeps: tuple[tuple[str, int], ...], variants: tuple[Variant, ...],
+    methods: tuple[str, ...],
+) -> None:  # fmt: skip
+    """StudyError for an entry of a ``sweeps`` table that no cell takes (a method no variant
+    runs, or one every variant running it has its own entry for): it changed nothing."""
+    table = dict(sweeps)
+    used = {
+        variant.name if variant.name in table else method if method in table else "*"
+        for variant in variants
+        for method in methods or (variant.method,)
+    }
+    for key, count in sweeps:
+        if key != "*" and key not in used:
+            runs = sorted({m for v in variants for m in methods or (v.method,)})
+            raise _fail(source, f"[study] sweeps.{key}", count,
+                        f"no cell takes it (the variants run {runs}; a variant's own entry comes "
+                        "before its method's): remove it")  # fmt: skip
+
+
 def given_twice(values: Sequence[Hashable]) -> Hashable | None:
     """The first value of ``values`` given a second time, or None."""
     seen: set[Hashable] = set()
@@ -401,6 +421,8 @@ def study_from_dict(values: Mapping[str, Any], *, source: str = "<python>") -> S
     if ari_every:
         ari_every = _positive_int(source, "[study] ari_every", ari_every)
         _check_ari_every(source, ari_every, scoring, variants)
+    sweeps = _sweeps(source, head.get("sweeps", 1000), tuple(v.name for v in variants))
+    _check_sweeps_used(source, sweeps, variants, methods)
     return Study(
         ari_every=int(ari_every),
         scoring=scoring,
@@ -408,7 +430,7 @@ def study_from_dict(values: Mapping[str, Any], *, source: str = "<python>") -> S
         variants=variants,
         data=data,
         seeds=_seeds(source, head.get("seeds", 1)),
-        sweeps=_sweeps(source, head.get("sweeps", 1000), tuple(v.name for v in variants)),
+        sweeps=sweeps,
         methods=methods,
         baselines=baselines,
         spcoa_iterations=_positive_int(
