@@ -111,8 +111,9 @@ class _Bar:
 
     made: list[_Bar] = []
 
-    def __init__(self, iterable=None, *, total=None, disable=False, **_):
+    def __init__(self, iterable=None, *, total=None, disable=False, unit="it", **_):
         self.iterable, self.total, self.disable, self.n = iterable, total, disable, 0
+        self.unit = unit
         _Bar.made.append(self)
 
     def __iter__(self):
@@ -151,6 +152,21 @@ def test_sweeps_auto_shows_one_bar_over_all_chains(monkeypatch, anneal):
     assert len(shown) == 1, [(bar.total, bar.disable) for bar in _Bar.made]
     assert shown[0].total == 3 * (anneal + 15)  # the most that may run, all chains
     assert shown[0].n == 3 * (anneal + 15)  # every sweep of every chain counted once
+
+
+def test_the_chains_bar_counts_sweeps(monkeypatch):
+    """fit's bar said '1.39it/s' while every other sampler bar says sweep/s."""
+    import spcopyro.gibbs.chains
+    from spcopyro.gibbs.chains import advance_chains
+    from spcopyro.gibbs.run import start_chain
+
+    monkeypatch.setattr(_Bar, "made", [])
+    monkeypatch.setattr(spcopyro.gibbs.chains, "tqdm", _Bar)
+    _, data = random_problem(0)
+    chains = [start_chain(data, small_config(), seed=k) for k in range(2)]
+    advance_chains([(chain, 3) for chain in chains], workers=1, progress=True, processes="off")
+    [bar] = [bar for bar in _Bar.made if not bar.disable]
+    assert bar.unit == "sweep" and bar.total == bar.n == 6
 
 
 @pytest.fixture(scope="module")

@@ -160,7 +160,7 @@ def advance_chains(
         bars: list[tqdm] = []
 
         def started() -> None:  # the workers are forked: threads may start now
-            bars.append(tqdm(total=total, desc=description,
+            bars.append(tqdm(total=total, desc=description, unit="sweep",
                              disable=not progress_enabled(progress)))  # fmt: skip
             _chains_started()
 
@@ -179,7 +179,7 @@ def advance_chains(
         return
     _chains_started()
     stop = threading.Event()
-    bar = tqdm(total=total, desc=description, disable=not progress_enabled(progress))
+    bar = tqdm(total=total, desc=description, unit="sweep", disable=not progress_enabled(progress))
     lock = threading.Lock()
 
     def after_sweep(*_: object) -> None:
