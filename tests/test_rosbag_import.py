@@ -809,3 +809,14 @@ def test_a_folder_of_bags_names_what_it_holds(tmp_path, map_yaml):
         import_bags([folder.parent], map_yaml, tmp_path / "d" / "h2")
     with pytest.raises(BagFormatError, match=r"metadata\.yaml; a ROS 1 bag a \.bag file\)$"):
         import_bags([tmp_path / "maps"], map_yaml, tmp_path / "d" / "h2")  # no bag inside
+
+
+def test_simulate_bag_into_a_file_says_so(tmp_path, capsys):
+    """QA: simulate-bag --out FILE said "[Errno 17] File exists: 'FILE'", and --out FILE/x
+    "[Errno 20] Not a directory"."""
+    taken = tmp_path / "notes.txt"
+    taken.write_text("mine")
+    for out in (taken, taken / "bags"):
+        assert main(["simulate-bag", "--out", str(out), "--trials", "0"]) == 2
+        assert f"error: --out {out}: {taken} is a file, not a folder" in capsys.readouterr().err
+    assert taken.read_text() == "mine"

@@ -119,3 +119,13 @@ def test_overwrite_needs_an_import_record_and_a_real_folder(tmp_path, bag, map_y
     with pytest.raises(FileExistsError, match="is a symbolic link"):
         import_bags([bag], map_yaml, link, overwrite=True)
     assert (out / "pose_0.csv").is_file() and link.is_symlink()
+
+
+def test_an_out_under_a_file_says_so(tmp_path, bag, map_yaml):
+    """QA: import-bag --out FILE/house said "[Errno 17] File exists: 'FILE'"."""
+    taken = tmp_path / "notes.txt"
+    taken.write_text("mine")
+    for out in (taken, taken / "house"):
+        with pytest.raises(FileExistsError, match=rf"^{taken} is a file, not a folder"):
+            import_bags([bag], map_yaml, out)
+    assert taken.read_text() == "mine"

@@ -23,6 +23,7 @@ import shutil
 from collections.abc import Iterable
 from pathlib import Path
 
+from spcopyro._util.outputs import nearest_existing
 from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.maps.map_server import load_map
 
@@ -73,9 +74,9 @@ def check_out(out: Path, overwrite: bool, trials: Iterable[int]) -> frozenset[st
 
     Raises:
         ValueError: ``out``'s name cannot name a house.
-        FileExistsError: ``out`` is a file or a symbolic link; a non-empty ``out`` without
-            ``overwrite``, or not an earlier import's; an entry the earlier import did not write
-            that this one would.
+        FileExistsError: ``out`` (or a parent) is a file, or ``out`` a symbolic link; a
+            non-empty ``out`` without ``overwrite``, or not an earlier import's; an entry the
+            earlier import did not write that this one would.
     """
     name = out.name
     if not name or name in (".", "..", "map") or re.search(r"[/\\,]", name):
@@ -84,8 +85,9 @@ def check_out(out: Path, overwrite: bool, trials: Iterable[int]) -> frozenset[st
         raise FileExistsError(
             f"{out} is a symbolic link (to {os.readlink(out)}); give a folder as --out"
         )
-    if out.exists() and not out.is_dir():
-        raise FileExistsError(f"{out} exists and is not a folder")
+    existing = nearest_existing(out)
+    if not existing.is_dir():  # a parent that is a file said "[Errno 17] File exists"
+        raise FileExistsError(f"{existing} is a file, not a folder (--out {out})")
     if not out.is_dir() or not any(out.iterdir()):
         return None
     if not overwrite:

@@ -37,6 +37,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from spcopyro._util.outputs import nearest_existing
 from spcopyro.data.dataset import House
 from spcopyro.maps.map_server import save_map
 from spcopyro.robot.rosbag.bag import INSTALL_HINT, RosbagsMissingError, _rosbags
@@ -317,8 +318,8 @@ def write_synthetic_bags(
     Nothing is written before the arguments are checked, the map is written last, and a run
     that fails removes what it wrote (so a retry finds no bag or map of it in the way).
 
-    Raises FileExistsError when a bag or the map already exists; ValueError for a bad ``ros``,
-    ``storage``, ``image_format`` or ``image_size``.
+    Raises FileExistsError when a bag or the map already exists, or ``out`` (or a parent) is a
+    file; ValueError for a bad ``ros``, ``storage``, ``image_format`` or ``image_size``.
     """
     if ros not in (1, 2):
         raise ValueError(f"ros must be 1 or 2, got {ros!r}")
@@ -335,6 +336,9 @@ def write_synthetic_bags(
 
         house = make_house(seed=seed, spec=HouseSpec.embedded())
     out = Path(out)
+    existing = nearest_existing(out)
+    if not existing.is_dir():  # it said "[Errno 17] File exists" or "[Errno 20] Not a directory"
+        raise FileExistsError(f"--out {out}: {existing} is a file, not a folder")
     obs = house.observations
     chosen = sorted(set(obs.trials if trials is None else trials))
     unknown = sorted(set(chosen) - set(np.asarray(obs.trials).tolist()))
