@@ -245,6 +245,30 @@ def test_quality_time_figure_shows_every_group_and_skips_what_it_cannot_place():
     assert quality_time_figure([row("dense", "default", "gibbs", 1.0, None)]) is None
 
 
+def test_a_report_table_of_failed_cells_only_has_as_many_cells_as_columns():
+    """A source whose cells all failed has no score column: its header had a fourth, empty
+    column the separator line lacked (``| variant | method | seeds |  |`` over ``|---|---|---|``),
+    which markdown does not draw as a table."""
+    from spcopyro.study.report import report_markdown
+
+    def row(data, status, ari):
+        return dict(variant="a", data=data, method="gibbs", seed=0, status=status, ari=ari,
+                    error_type="ValueError" if status != "ok" else "", error="no")  # fmt: skip
+
+    text = report_markdown([row("bad", "error", None), row("good", "ok", 0.5)])
+    tables = [line for line in text.splitlines() if line.startswith("|")]
+    assert tables[:3] == [
+        "| variant | method | seeds |",
+        "|---|---|---|",
+        "| a | gibbs | 0 (1 failed) |",
+    ]
+    assert tables[3:] == [
+        "| variant | method | seeds | ari |",
+        "|---|---|---|---|",
+        "| a | gibbs | 1 | 0.500 |",
+    ]
+
+
 @pytest.mark.parametrize(
     "times", [(0.053, 0.475, 0.133), (2.0, 9.0), (100.0, 300.0), (0.4,), (1e-3, 1e3), (0.5, 40.0)]
 )
