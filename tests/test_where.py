@@ -173,3 +173,16 @@ def test_where_given_a_house_folder_says_it_is_data_not_a_fit(tmp_path, capsys):
     err = capsys.readouterr().err
     assert f"{house} is a house folder (data), not a fitted result" in err
     assert f"`spcopyro fit {house} --out OUT`, and give OUT here" in err
+
+
+@pytest.mark.parametrize("n", [-1, 1.5, True, "3"])
+def test_word_lists_refuse_a_count_that_is_not_a_whole_number_from_0(n):
+    """``top_words(concept, -1)`` gave every word but the last (a slice's ``[:-1]``), quietly;
+    a count that is not an integer >= 0 is refused by every word or item list."""
+    result = two_rooms()
+    for call in (result.top_words, result.distinctive_words):
+        with pytest.raises(ValueError, match=r"n must be an integer >= 0, got"):
+            call(0, n)
+    with pytest.raises(ValueError, match=r"n must be an integer >= 0, got"):
+        result.top_items("images", 0, n)
+    assert result.top_words(0, 0) == [] and len(result.top_words(0, 10)) == 3

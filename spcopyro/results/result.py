@@ -53,6 +53,14 @@ _SETTINGS = ("model", "data", "method", "inference")
 MAP_FILE = "map.yaml"
 
 
+def _count(n: int) -> int:
+    """How many items a list asks for, an integer >= 0, or ValueError (``n=-1`` gave every
+    item but the last, a slice's reading of it)."""
+    if not isinstance(n, int | np.integer) or isinstance(n, bool) or n < 0:
+        raise ValueError(f"n must be an integer >= 0, got {n!r}")
+    return int(n)
+
+
 @dataclass(frozen=True)
 class EmissionTable:
     """One modality's per-concept distributions, with the names of what they are over."""
@@ -204,7 +212,7 @@ class SpCoResult:
     def top_items(self, modality: str, concept: int, n: int = 3) -> list[tuple[str, float]]:
         """The ``n`` most probable items of a concept under a modality, with probabilities."""
         table = self.emission(modality)
-        concept = self._concept(concept)
+        concept, n = self._concept(concept), _count(n)
         if not table.items:
             return []
         row = table.probabilities[concept]
@@ -243,7 +251,7 @@ class SpCoResult:
     def distinctive_words(self, concept: int, n: int = 3) -> list[tuple[str, float, float]]:
         """The ``n`` words of largest lift above 1 for a concept, as ``(word, lift, p)``
         (:mod:`spcopyro.results.concept_words`); empty when no word was heard in its region."""
-        concept = self._concept(concept)
+        concept, n = self._concept(concept), _count(n)
         if self.heard(concept) == 0:
             return []
         table = self.emission(WORDS)
