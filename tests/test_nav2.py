@@ -484,3 +484,18 @@ def test_one_word_written_in_several_ways_is_one_mask(tmp_path):
     export = export_nav2(other, tmp_path / "b", ["台所", "CAFÉ", "café"], mode="speed")
     assert [(m.word, m.name) for m in export.masks] == [
         ("台所", "speed_word0"), ("café", "speed_cafe")]  # fmt: skip
+
+
+def test_an_export_or_plan_under_a_file_says_so(fit, tmp_path, capsys):
+    """QA: export --nav2 FILE/x and navigate --out FILE/x said "cannot write in FILE ([Errno 17]
+    File exists: ...)"."""
+    taken = tmp_path / "notes.txt"
+    taken.write_text("mine")
+    for argv, option in [
+        (["export", str(fit), "--word", "kitchen", "--nav2"], "--nav2"),
+        (["navigate", str(fit), "kitchen", "--start", "1.6,-1.9", "--out"], "--out"),
+    ]:
+        out = taken / "x"
+        assert main([*argv, str(out)]) == 2
+        assert f"error: {option} {out}: {taken} is a file, not a folder" in capsys.readouterr().err
+    assert taken.read_text() == "mine"

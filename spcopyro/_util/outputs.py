@@ -369,13 +369,14 @@ def stage_marked_folder(
     out: str | os.PathLike[str], overwrite: bool, *, option: str, marker: str, writer: str
 ) -> StagedOutput:
     """A staging folder beside ``out`` for a command that writes one folder whole (the Nav2
-    export, a navigation plan): refuses a file at ``out``, a non-empty ``out`` without
+    export, a navigation plan): refuses a file at or above ``out``, a non-empty ``out`` without
     ``overwrite``, and with it any folder that holds no ``marker`` (so ``--overwrite`` never
     deletes a folder that ``writer`` did not write) or holds the current directory. ``option``
     names the command-line option in every message."""
     path = Path(os.path.abspath(os.fspath(out)))
-    if path.exists() and not path.is_dir():
-        raise OutputError(f"{option} {out}: {path} is a file, not a folder")
+    existing = nearest_existing(path)  # a file above it said "cannot write in ... File exists"
+    if not existing.is_dir():
+        raise OutputError(f"{option} {out}: {existing} is a file, not a folder")
     if path.is_dir() and any(path.iterdir()):
         if not overwrite:
             raise OutputError(
