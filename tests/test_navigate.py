@@ -352,6 +352,10 @@ def test_a_seeded_fit_gives_the_same_plan(tmp_path):
         (["kitchen", "--start=50,1"], "off the map, which spans x 0.00..4.10"),
         (["kitchen", "--start=0.05,1.45"], "not free (a wall or unknown space)"),
         (["kitchen", "--start=0.15,1.45", "--radius", "0.2"], "closer than the robot's radius"),
+        (
+            ["kitchen", "--start=0.15,1.45", "--radius", "0.2"],
+            "the nearest cell with that clearance is at x=0.35 y=1.45 (0.20 m away)",
+        ),
         (["kitchen", "--start=0.35,1.45", "--frame", "map frame"], "a tf frame id"),
     ],
 )

@@ -194,7 +194,11 @@ def start_node(planning: PlanningGrid, start: tuple[float, float]) -> int:
             centres = grid.cell_to_world(planning.allowed.free_cells)  # [M, 2]
             near = int(np.argmin(np.hypot(centres[:, 0] - x, centres[:, 1] - y)))
             near_x, near_y = centres[near]
-            hint = f"; the nearest cell with it is at x={near_x:.2f} y={near_y:.2f}"
+            away = float(np.hypot(near_x - x, near_y - y))
+            hint = (
+                f"; the nearest cell with that clearance is at x={near_x:.2f} y={near_y:.2f} "
+                f"({away:.2f} m away)"
+            )
         raise NavigationError(
             f"--start {x:g},{y:g} is {clearance:.2f} m from a wall or unknown space, closer than "
             f"the robot's radius {planning.radius:g} m (--radius){hint}"
