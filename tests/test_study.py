@@ -120,6 +120,13 @@ def test_spec_from_toml_equals_spec_from_python(tmp_path):
             'public = "room1dk5"\nseed = 1',
             ["[data.small] seed = 1", "a public house is loaded, not drawn"],
         ),
+        # each of their cells failed at run time
+        ("[data.small]", '[data."small/house"]', ["[data.small/house] = 'small/house'", "no '/'"]),
+        (
+            "num_trials = 2",
+            "num_trials = 1",
+            ["[data.small] heldout", "a held-out source needs num_trials >= 2, it has 1"],
+        ),
         # a prior of a hyperparameter the chain does not sample changed nothing, silently
         (
             "gamma = 3.0",
@@ -653,3 +660,13 @@ def test_ari_every_needs_fits_from_random_labels(tmp_path):
     keys = {c.key for c in cells_of(study)} & {c.key for c in cells_of(load_study(_write(
         tmp_path, TINY, "plain.toml")))}  # fmt: skip
     assert len(keys) == 2  # the variants' keys change with it; the baseline's do not
+
+
+def test_held_out_folds_of_a_one_trial_house_name_it():
+    """The message began ``None:`` for a house not read from a folder."""
+    from spcopyro.experiments.table import heldout_folds
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    spec = HouseSpec(height=24, width=30, num_rooms=2, min_room_size=8, num_trials=1)
+    with pytest.raises(ValueError, match="^house 'one': held-out folds need >= 2 trials"):
+        next(heldout_folds(make_house(seed=0, spec=spec, name="one")))

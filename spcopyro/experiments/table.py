@@ -56,7 +56,8 @@ def heldout_folds(house: House) -> Iterator[tuple[int, int, House, Observations]
     every trial of the house."""
     trials = house.observations.trials
     if len(trials) < 2:
-        raise ValueError(f"{house.source}: held-out folds need >= 2 trials, got {trials}")
+        where = house.source if house.source is not None else f"house {house.name!r}"
+        raise ValueError(f"{where}: held-out folds need >= 2 trials, got {trials}")
     for fold, held in enumerate(trials):
         train = house.observations.select_trials([t for t in trials if t != held])
         test = house.observations.select_trials([held])

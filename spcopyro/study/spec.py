@@ -356,6 +356,9 @@ def _data_source(source: str, name: str, table: object) -> DataSource:
                     "a public house is loaded, not drawn: seed changes nothing (its cells' "
                     "seeds choose the held-out trial: seeds = [...])")  # fmt: skip
     data = DataSource(name, kind, target, tuple(values.items()), house_seed, heldout, seeds)
+    if not name.strip() or name in (".", "..", "map") or any(c in name for c in "/\\"):
+        raise _fail(source, where, name, "a source's name names its house and the report's "
+                    "maps_NAME.png: not empty, '.', '..' or 'map', and no '/' or '\\'")  # fmt: skip
     if kind != "public":
         check, known = (
             (data.house_spec, HouseSpec) if kind == "synthetic" else (data.map_tour, MapTour)
@@ -366,9 +369,12 @@ def _data_source(source: str, name: str, table: object) -> DataSource:
                 why = f"{known.__name__} has no such field; it has {sorted(fields)}"
                 raise _fail(source, f"{where} {key}", value, why)
         try:
-            check()
+            trials = check().num_trials
         except (TypeError, ValueError) as error:
             raise StudyError(f"{source}: {where} {dict(values)}: {error}") from None
+        if heldout and trials < 2:  # each of its cells failed: no trial to fit on
+            raise _fail(source, f"{where} heldout", heldout,
+                        f"a held-out source needs num_trials >= 2, it has {trials}")  # fmt: skip
     return data
 
 
