@@ -820,3 +820,20 @@ def test_simulate_bag_into_a_file_says_so(tmp_path, capsys):
         assert main(["simulate-bag", "--out", str(out), "--trials", "0"]) == 2
         assert f"error: --out {out}: {taken} is a file, not a folder" in capsys.readouterr().err
     assert taken.read_text() == "mine"
+
+
+def test_a_message_that_cannot_be_read_is_an_error_not_a_traceback(tmp_path, map_yaml):
+    """QA: a bag damaged past its header (sqlite 'database disk image is malformed' on a later
+    page, an mcap record cut short, bytes that do not decompress) stopped the import with a
+    traceback of apsw / rosbags / zstd; now one line names the bag, the topic and the message.
+    Here: a bag whose metadata.yaml says its messages are zstd-compressed, which they are not."""
+    bag = _bag_path(tmp_path, 2)
+    _write_basic(bag, 2, "sqlite3")
+    metadata = bag / "metadata.yaml"
+    text = metadata.read_text()
+    text = text.replace("compression_format: ''", "compression_format: zstd")
+    metadata.write_text(text.replace("compression_mode: ''", "compression_mode: MESSAGE"))
+    with pytest.raises(BagFormatError, match=rf"^{bag}: message 1 on /amcl_pose cannot be read "
+                       r"\(.+\); the bag is damaged or cut short$"):  # fmt: skip
+        import_bags([bag], map_yaml, tmp_path / "d" / "h")
+    assert not (tmp_path / "d").exists()

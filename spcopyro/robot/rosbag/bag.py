@@ -193,6 +193,33 @@ def open_bag(path: str | os.PathLike[str], ros_distro: str = DEFAULT_ROS_DISTRO)
         reader.close()
 
 
+def _messages(
+    reader: Any, connections: list[Any], topic: str, wanted: set[int] | None = None
+) -> Iterator[tuple[int, Any, int, Any]]:
+    """``(index, connection, log time ns, message)`` of the connections' messages in bag order,
+    each deserialised (only those whose index is in ``wanted`` when given; the others' message
+    is None). A message that cannot be read or deserialised -- a damaged or cut-short bag -- is a
+    :class:`BagFormatError` naming the bag, the topic and the message, not a traceback of
+    rosbags, apsw or zstd (only their calls are in the ``try``: an error of the caller's, which
+    runs outside this generator, is not caught here)."""
+    messages = reader.messages(connections=connections)
+    index = 0
+    while True:
+        try:
+            connection, log_ns, raw = next(messages)
+            wanted_here = wanted is None or index in wanted
+            msg = reader.deserialize(raw, connection.msgtype) if wanted_here else None
+        except StopIteration:
+            return
+        except Exception as error:  # noqa: BLE001 - whatever the readers raise on bad bytes
+            raise BagFormatError(
+                f"{reader.paths[0]}: message {index + 1} on {topic} cannot be read "
+                f"({type(error).__name__}: {error}); the bag is damaged or cut short"
+            ) from None
+        yield index, connection, log_ns, msg
+        index += 1
+
+
 def _topic_listing(reader: Any) -> str:
     return ", ".join(f"{name} ({info.msgtype})" for name, info in sorted(reader.topics.items()))
 
@@ -268,8 +295,7 @@ def read_pose_topic(reader: Any, topic: str) -> PoseTrack:
     times: list[float] = []
     poses: list[tuple[float, float, float]] = []
     frames: set[str] = set()
-    for connection, log_ns, raw in reader.messages(connections=connections):
-        msg = reader.deserialize(raw, connection.msgtype)
+    for _, connection, log_ns, msg in _messages(reader, connections, topic):
         pose = msg.pose if connection.msgtype.endswith("PoseStamped") else msg.pose.pose
         times.append(_message_time(msg, log_ns))
         poses.append(_planar(pose))
@@ -330,8 +356,7 @@ def _tf_tracks(reader: Any) -> dict[tuple[str, str], PoseTrack] | None:
     connections = [c for t in topics for c in _connections(reader, t, TF_TYPES, "tf")]
     samples: dict[tuple[str, str], tuple[list[float], list[tuple[float, float, float]]]] = {}
     static: dict[tuple[str, str], tuple[float, float, float]] = {}
-    for connection, log_ns, raw in reader.messages(connections=connections):
-        msg = reader.deserialize(raw, connection.msgtype)
+    for _, connection, log_ns, msg in _messages(reader, connections, " and ".join(topics)):
         is_static = connection.topic.lstrip("/") == "tf_static"
         for transform in msg.transforms:
             edge = (_frame(transform.header.frame_id), _frame(transform.child_frame_id))
@@ -424,8 +449,8 @@ def read_stamps(reader: Any, topic: str) -> TopicData:
     """The stamps of an image topic's messages (the images are decoded later, only those kept)."""
     connections = _connections(reader, topic, IMAGE_TYPES, "image")
     times = []
-    for connection, log_ns, raw in reader.messages(connections=connections):
-        times.append(_message_time(reader.deserialize(raw, connection.msgtype), log_ns))
+    for _, _connection, log_ns, msg in _messages(reader, connections, topic):
+        times.append(_message_time(msg, log_ns))
     _check_order(reader, topic, times)
     return TopicData(topic, connections[0].msgtype, np.asarray(times, dtype=np.float64))
 
@@ -434,8 +459,7 @@ def read_texts(reader: Any, topic: str) -> TopicData:
     """The strings of a std_msgs/String topic, at the times the bag recorded them."""
     connections = _connections(reader, topic, TEXT_TYPES, "utterance")
     times, texts = [], []
-    for connection, log_ns, raw in reader.messages(connections=connections):
-        msg = reader.deserialize(raw, connection.msgtype)
+    for _, _connection, log_ns, msg in _messages(reader, connections, topic):
         times.append(_message_time(msg, log_ns))
         texts.append(str(msg.data))
     _check_order(reader, topic, times)
@@ -445,6 +469,6 @@ def read_texts(reader: Any, topic: str) -> TopicData:
 def iter_images(reader: Any, topic: str, keep: set[int]) -> Iterator[tuple[int, Any]]:
     """``(index, message)`` of the image messages whose index (bag order) is in ``keep``."""
     connections = _connections(reader, topic, IMAGE_TYPES, "image")
-    for index, (connection, _log_ns, raw) in enumerate(reader.messages(connections=connections)):
+    for index, _connection, _log_ns, msg in _messages(reader, connections, topic, keep):
         if index in keep:
-            yield index, reader.deserialize(raw, connection.msgtype)
+            yield index, msg
