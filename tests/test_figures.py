@@ -155,6 +155,25 @@ def test_the_where_legend_counts_a_one_cell_runner_up_as_one_cell():
         assert runner.endswith("(1 cell)"), texts
 
 
+def test_a_figure_path_without_a_suffix_is_written_and_told_as_png(tmp_path, capsys):
+    """``show --out fig`` and ``where --out fig`` printed "wrote fig" while matplotlib wrote
+    fig.png (and inside ``png.background_writes`` the PNG went to ``fig`` itself): the path
+    returned, printed and written is ``fig.png`` either way."""
+    from spcopyro.cli.main import main
+    from spcopyro.figures.png import background_writes
+
+    result = two_rooms()
+    assert plot_semantic_map(result, tmp_path / "plain") == tmp_path / "plain.png"
+    with background_writes():
+        assert plot_semantic_map(result, tmp_path / "threaded") == tmp_path / "threaded.png"
+    assert (tmp_path / "plain.png").is_file() and (tmp_path / "threaded.png").is_file()
+    assert not (tmp_path / "plain").exists() and not (tmp_path / "threaded").exists()
+    out = result.save(tmp_path / "fit")
+    assert main(["where", str(out), "kitchen", "--out", str(tmp_path / "kitchen")]) == 0
+    assert f"wrote {tmp_path / 'kitchen.png'}\n" in capsys.readouterr().out
+    assert (tmp_path / "kitchen.png").is_file()
+
+
 def test_render_labels_takes_colours():
     labels = np.array([[0, 1], [-1, 1]])
     colours = np.array([[10, 20, 30], [40, 50, 60]], dtype=np.uint8)

@@ -157,8 +157,13 @@ def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
     the time of a semantic map; the two boxes differ by a few pixels at most. (Measured at the
     figure's own 100 dpi, text is narrower than at 150 dpi: a semantic map's legend reached
     0.2 inch past the box and its longest line was cut.)
+    A path without a suffix gets ``.png`` (matplotlib added it, but the path returned, and so
+    ``wrote X`` of ``show`` and ``where``, did not; inside ``png.background_writes`` the file
+    was written without it).
     """
     path = Path(path)
+    if not path.suffix:
+        path = path.with_suffix(".png")
     path.parent.mkdir(parents=True, exist_ok=True)
     families = _font_families()
     artists = fig.findobj(Text)
