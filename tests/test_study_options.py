@@ -151,6 +151,15 @@ def test_the_commands_refuse_a_name_given_twice(tmp_path, capsys, argv, words):
          ["--iterations gibbs=3: gibbs is not compared (--methods cavi)"]),
         (["compare-inference", "--iterations", "cavi=3", "cavi=5", "--methods", "cavi"],
          ["--iterations: cavi is given twice (cavi=3, cavi=5)"]),
+        # an option no row chosen reads (it was ignored, the run exited 0)
+        (["ablation", "--baselines", "F-geometry", "--spcoa-iterations", "7"],
+         ["--spcoa-iterations 7 and --baselines F-geometry contradict", "no C-spcoa row"]),
+        (["ablation", "--baselines", "--spcoa-iterations", "7"],
+         ["--spcoa-iterations 7 and --baselines (none) contradict"]),
+        (["experiment", "--methods", "F-geometry", "--spcoa-iterations", "7"],
+         ["--spcoa-iterations 7 and --methods F-geometry contradict", "no C-spcoa row"]),
+        (["experiment", "--methods", "F-geometry", "E-nearest", "--sweeps", "7"],
+         ["--sweeps 7 and --methods F-geometry E-nearest contradict", "no SpCoMapping row"]),
     ],
 )  # fmt: skip
 def test_contradictory_options_are_refused_not_ignored(tmp_path, capsys, argv, words):
@@ -248,7 +257,7 @@ def test_a_rerun_without_a_house_deletes_its_figures_and_keeps_others(tmp_path, 
     )  # fmt: skip  (no SpCoMapping row: no traces)
     kept = _stale(out, "figures/stability.png", "notes.png", "figures/room1dk5.png")
     argv = ["experiment", "--out", str(out), "--quick", "--no-public", "--methods", "F-geometry",
-            "--seeds", "1", "--sweeps", "2"]  # fmt: skip
+            "--seeds", "1"]  # fmt: skip
     assert main(argv) == 0
     assert not any(path.exists() for path in stale), capsys.readouterr().out
     assert all(path.exists() for path in kept)
@@ -299,6 +308,14 @@ def test_an_out_that_is_a_file_is_refused_before_any_cell(tmp_path, capsys, comm
     assert f"--out {out}: {blocker} is a file, not a folder" in err, err
     assert blocker.read_text() == "not a folder"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["results", "tiny.toml"]
+
+
+def test_spcoa_iterations_without_a_spcoa_row_are_refused():
+    text = TWICE.replace("seeds = 2", "seeds = 2\nspcoa_iterations = 50")
+    with pytest.raises(StudyError, match=r"spcoa_iterations = 50: baselines = \['F-geometry'\]"):
+        study_from_dict(tomllib.loads(text), source="t.toml")
+    text = text.replace('["F-geometry"]', '["F-geometry", "C-spcoa"]')
+    assert study_from_dict(tomllib.loads(text)).spcoa_iterations == 50
 
 
 @pytest.mark.parametrize(

@@ -24,7 +24,7 @@ from __future__ import annotations
 import argparse
 import functools
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from spcopyro._util.arguments import integer_at_least as _integer_at_least
@@ -55,6 +55,13 @@ def _contradicts(given: str, **options: object) -> None:
         flag, shown = other
         raise ValueError(f"{shown} and {given} contradict each other: {given} leaves {flag} "
                          "nothing to do")  # fmt: skip
+
+
+def _reads_nothing(given: str, flag: str, values: Sequence[str], why: str) -> None:
+    """ValueError: ``given`` sets what no row of ``flag values`` runs (it was ignored)."""
+    shown = f"{flag} {' '.join(values)}" if values else f"{flag} (none)"
+    raise ValueError(f"{given} and {shown} contradict each other: {shown} runs {why}, so "
+                     f"{given.split()[0]} would change nothing")  # fmt: skip
 
 
 def _without_dataset(**options: object) -> None:
@@ -105,6 +112,14 @@ def _experiment(args: argparse.Namespace) -> int:
     if args.no_public:
         _contradicts("--no-public", houses=args.houses, data=args.data)
     study = load_study(EXPERIMENT_QUICK if args.quick else EXPERIMENT)
+    if args.methods is not None:  # an option no row chosen reads was ignored
+        spcomapping = {v.name for v in study.variants}
+        if args.sweeps is not None and not spcomapping & set(args.methods):
+            _reads_nothing(f"--sweeps {args.sweeps}", "--methods", args.methods,
+                           f"no SpCoMapping row ({', '.join(sorted(spcomapping))})")  # fmt: skip
+        if args.spcoa_iterations is not None and "C-spcoa" not in args.methods:
+            _reads_nothing(f"--spcoa-iterations {args.spcoa_iterations}", "--methods",
+                           args.methods, "no C-spcoa row")  # fmt: skip
     root = None if args.no_public else find_dataset_root(args.data)
     if args.data is None and root is None and not args.no_public:
         _without_dataset(houses=args.houses)
@@ -156,6 +171,10 @@ def _ablation(args: argparse.Namespace) -> int:
     if args.seeds == 0:
         _contradicts("--seeds 0", houses=args.houses)
     study = load_study(ABLATION_QUICK if args.quick else ABLATION)
+    baselines = study.baselines if args.baselines is None else args.baselines
+    if args.spcoa_iterations is not None and "C-spcoa" not in baselines:  # it was ignored
+        _reads_nothing(f"--spcoa-iterations {args.spcoa_iterations}", "--baselines", baselines,
+                       "no C-spcoa row")  # fmt: skip
     root = None if args.no_public else find_dataset_root(args.data)
     if root is None and not args.no_public:
         _without_dataset(public_houses=args.public_houses)

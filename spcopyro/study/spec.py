@@ -427,6 +427,9 @@ def study_from_dict(values: Mapping[str, Any], *, source: str = "<python>") -> S
     if ari_every:
         ari_every = _positive_int(source, "[study] ari_every", ari_every)
         _check_ari_every(source, ari_every, scoring, variants)
+    if "spcoa_iterations" in head and "C-spcoa" not in baselines:  # it changed nothing
+        raise _fail(source, "[study] spcoa_iterations", head["spcoa_iterations"],
+                    f"baselines = {list(baselines)} has no C-spcoa row to take it")  # fmt: skip
     sweeps = _sweeps(source, head.get("sweeps", 1000), tuple(v.name for v in variants))
     _check_sweeps_used(source, sweeps, variants, methods)
     return Study(
