@@ -79,3 +79,23 @@ def test_the_printed_fit_command_runs_from_a_folder_with_a_space(tmp_path, capsy
     line = next(x for x in capsys.readouterr().out.splitlines() if "fit it with:" in x)
     words = shlex.split(line.split("fit it with:", 1)[1])
     assert words == ["spcopyro", "fit", str(out / "a b"), "--out", str(out / "fit")]
+
+
+def test_a_figure_out_that_is_a_folder_or_under_a_file_is_a_usage_error(tmp_path, capsys):
+    """``show --out /tmp`` wrote ``/tmp.png`` beside the folder, ``where OUT kitchen --out OUT``
+    wrote ``OUT.png`` beside the fit, and ``--out FILE/x.png`` failed after the work with
+    "[Errno 17] File exists": each is refused up front, naming the folder or file."""
+    folder, afile = tmp_path / "figures", tmp_path / "notes.txt"
+    folder.mkdir()
+    afile.write_text("x")
+    for out, told in (
+        (str(folder), "is a folder: give the figure's file name in it"),
+        (str(tmp_path / "new") + "/", "is a folder: give the figure's file name in it"),
+        (str(afile / "x.png"), f"{str(afile)!r} is a file, not a folder"),
+        (str(afile / "a" / "x.png"), f"{str(afile)!r} is a file, not a folder"),
+    ):
+        with pytest.raises(SystemExit) as stop:
+            main(["show", "--out", out])
+        assert stop.value.code == 2
+        assert f"argument --out: {out!r}" in (err := capsys.readouterr().err) and told in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["figures", "notes.txt"]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 from collections.abc import Callable
 
 __all__ = [
@@ -90,7 +91,22 @@ def positive_number(what: str) -> Callable[[str], float]:
 def figure_path(value: str) -> str:
     """An argparse ``type`` for a figure's ``--out``: a name whose suffix matplotlib can write
     (none: ``.png``), else a usage error listing the formats, before anything is computed or
-    printed (matplotlib's own error came after the answer and did not name the option)."""
+    printed (matplotlib's own error came after the answer and did not name the option).
+    A folder is refused, and so is a file where a folder of the path would be (``--out /tmp``
+    wrote ``/tmp.png``, beside the folder; ``--out FILE/x.png`` failed with "[Errno 17] File
+    exists")."""
+    if value.endswith(("/", os.sep)) or os.path.isdir(value):
+        raise argparse.ArgumentTypeError(
+            f"{value!r} is a folder: give the figure's file name in it, e.g. "
+            f"{os.path.join(value, 'figure.png')!r}"
+        )
+    parent = os.path.dirname(os.path.abspath(value))
+    while parent and not os.path.exists(parent) and os.path.dirname(parent) != parent:
+        parent = os.path.dirname(parent)  # the nearest existing part of the path
+    if os.path.exists(parent) and not os.path.isdir(parent):
+        raise argparse.ArgumentTypeError(
+            f"{value!r}: {parent!r} is a file, not a folder the figure could be written in"
+        )
     suffix = value.rsplit(".", 1)[-1].lower() if "." in value.rsplit("/", 1)[-1] else ""
     if suffix:
         from matplotlib.backend_bases import FigureCanvasBase  # only when a suffix is given
