@@ -129,3 +129,22 @@ def test_an_out_under_a_file_says_so(tmp_path, bag, map_yaml):
         with pytest.raises(FileExistsError, match=rf"^{taken} is a file, not a folder"):
             import_bags([bag], map_yaml, out)
     assert taken.read_text() == "mine"
+
+
+def test_a_kept_ft_csv_is_called_stale_only_when_the_images_changed(
+    tmp_path, bag, map_yaml, capsys
+):
+    """QA: re-importing the very same bags (say, to fix the map) warned that the kept Ft.csv
+    "does not describe these [images]: write it again", though they were the same bytes."""
+    out = tmp_path / "data" / "house"
+    import_bags([bag], map_yaml, out)
+    (out / "Ft.csv").write_text("0.5,0.5\n")
+    argv = ["import-bag", str(bag), "--map", str(map_yaml), "--out", str(out), "--overwrite"]
+    assert main(argv) == 0
+    captured = capsys.readouterr()
+    assert "warning" not in captured.err
+    assert "the images are the replaced import's, byte for byte" in captured.out
+    report = import_bags([bag, bag], map_yaml, out, overwrite=True)  # a second trial's images
+    assert report.kept == ("Ft.csv",) and not report.images_unchanged
+    assert main([*argv, "--min-distance", "1"]) == 0  # fewer images of trial 0
+    assert "the images differ from the replaced import's" in capsys.readouterr().err

@@ -70,11 +70,14 @@ def _import_bag(args: argparse.Namespace) -> int:
     if report.skipped:
         _print_skipped(report.skipped, f"all listed in {report.out / 'skipped.csv'}")
     print(f"wrote {report.out} (map: {report.map_yaml})")
-    if report.kept:
+    if report.kept and report.images_unchanged:
+        print(f"--overwrite kept {', '.join(report.kept)} in {report.out}, which import-bag "
+              "did not write; the images are the replaced import's, byte for byte")  # fmt: skip
+    elif report.kept:
         print(f"warning: --overwrite kept {', '.join(report.kept)} in {report.out}, which "
-              "import-bag did not write; what was made from the replaced import's images "
-              "(Ft.csv of spcopyro features) does not describe these: write it again",
-              file=sys.stderr)  # fmt: skip
+              "import-bag did not write; the images differ from the replaced import's, so "
+              "what was made from those (Ft.csv of spcopyro features) does not describe these: "
+              "write it again", file=sys.stderr)  # fmt: skip
     if report.map_replaced:
         print(f"warning: --overwrite replaced the map {report.map_yaml} of the earlier import "
               f"in {report.out}, which differed from {args.map}", file=sys.stderr)  # fmt: skip

@@ -15,6 +15,7 @@ no import (another tool's, a house folder removed by hand) is refused even with 
 
 from __future__ import annotations
 
+import filecmp
 import json
 import os
 import re
@@ -27,7 +28,15 @@ from spcopyro._util.outputs import nearest_existing
 from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.maps.map_server import load_map
 
-__all__ = ["IMPORT_FILES", "MARKER", "check_map", "check_out", "replace_out", "written_by"]
+__all__ = [
+    "IMPORT_FILES",
+    "MARKER",
+    "check_map",
+    "check_out",
+    "replace_out",
+    "same_images",
+    "written_by",
+]
 
 MARKER = "bag_import.json"
 """Marks a folder written by ``import_bags`` (``overwrite`` replaces only those)."""
@@ -129,17 +138,39 @@ def check_map(
     return True
 
 
-def replace_out(out: Path, staging: Path, earlier: frozenset[str] | None) -> tuple[str, ...]:
+def _image_files(folder: Path) -> dict[str, Path]:
+    """The images of a house folder by their path in it (``img_0/00000.jpg``, ...)."""
+    return {
+        f"{trial.name}/{image.name}": image
+        for trial in folder.glob("img_*")
+        if trial.is_dir()
+        for image in trial.iterdir()
+    }
+
+
+def same_images(old: Path, new: Path) -> bool:
+    """Whether the house folders ``old`` and ``new`` hold the same image files, byte for byte
+    (then what ``spcopyro features`` made of the old ones, ``Ft.csv``, describes the new)."""
+    before, after = _image_files(old), _image_files(new)
+    return before.keys() == after.keys() and all(
+        filecmp.cmp(before[name], after[name], shallow=False) for name in before
+    )
+
+
+def replace_out(
+    out: Path, staging: Path, earlier: frozenset[str] | None
+) -> tuple[tuple[str, ...], bool]:
     """Move ``staging`` to ``out``. An earlier import in ``out`` is set aside, and what it did
     not write (``earlier``: ``Ft.csv`` of ``spcopyro features``, a user's notes) carried into the
-    new ``out``, as ``fit --overwrite`` does; returns the names carried."""
+    new ``out``, as ``fit --overwrite`` does; returns the names carried, and whether the new
+    import's images are the earlier one's (:func:`same_images`; False without one)."""
     if not out.exists():
         os.replace(staging, out)
-        return ()
+        return (), False
     if earlier is None:  # an empty folder
         out.rmdir()
         os.replace(staging, out)
-        return ()
+        return (), False
     old = out.parent / f".{out.name}.replaced-{secrets.token_hex(4)}"
     os.rename(out, old)
     try:
@@ -152,5 +183,6 @@ def replace_out(out: Path, staging: Path, earlier: frozenset[str] | None) -> tup
         if entry.name not in earlier and not (out / entry.name).exists():
             os.rename(entry, out / entry.name)
             kept.append(entry.name)
+    unchanged = same_images(old, out)
     shutil.rmtree(old, ignore_errors=True)
-    return tuple(kept)
+    return tuple(kept), unchanged

@@ -187,6 +187,9 @@ class BagImportReport:
     (``Ft.csv`` of ``spcopyro features``, notes), carried into the new one."""
     map_replaced: bool = False
     """With ``overwrite``: ``map_yaml`` held the replaced import's different map."""
+    images_unchanged: bool = False
+    """With ``overwrite``: the images are the replaced import's, byte for byte (so a kept
+    ``Ft.csv`` still describes them)."""
 
     def text(self) -> str:
         lines = []
@@ -466,7 +469,7 @@ def import_bags(
         }
         (staging / MARKER).write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
         save_map(grid, map_target)
-        kept = replace_out(out, staging, earlier)
+        kept, images_unchanged = replace_out(out, staging, earlier)
         done = True
     finally:
         if staging.exists():
@@ -484,4 +487,5 @@ def import_bags(
         skipped=tuple(skipped),
         kept=kept,
         map_replaced=map_replaced,
+        images_unchanged=images_unchanged,
     )
