@@ -186,3 +186,16 @@ def test_word_lists_refuse_a_count_that_is_not_a_whole_number_from_0(n):
     with pytest.raises(ValueError, match=r"n must be an integer >= 0, got"):
         result.top_items("images", 0, n)
     assert result.top_words(0, 0) == [] and len(result.top_words(0, 10)) == 3
+
+
+def test_where_given_a_file_names_the_folder_to_give(tmp_path, capsys):
+    """``where OUT/result.npz kitchen`` said "OUT/result.npz/result.npz: no fitted result here
+    (run `spcopyro fit DATA --out OUT/result.npz` first)": a file is not a fit's folder, and
+    result.npz's folder is named."""
+    out = two_rooms().save(tmp_path / "fit")
+    assert main(["where", str(out / "result.npz"), "kitchen"]) == 2
+    err = capsys.readouterr().err
+    assert f"{out / 'result.npz'} is a file, not the output folder of `spcopyro fit`" in err
+    assert f"(here {out})" in err and "result.npz/result.npz" not in err
+    assert main(["where", str(out / "config.json"), "kitchen"]) == 2
+    assert "config.json is a file, not the output folder" in capsys.readouterr().err

@@ -416,6 +416,13 @@ class SpCoResult:
         """Read a result written by :meth:`save`."""
         out = Path(out_dir)
         path = out / RESULT_FILE
+        if out.is_file():  # result.npz itself, or another file: not "<file>/result.npz"
+            folder = out.parent if out.name == RESULT_FILE else None
+            hint = f" (here {folder})" if folder is not None else ""
+            raise FileNotFoundError(
+                f"{out} is a file, not the output folder of `spcopyro fit`: give the folder "
+                f"that holds {RESULT_FILE}{hint}"
+            )
         if not path.is_file():
             from spcopyro.data.dataset import is_house_folder  # only on this error's path
 
