@@ -166,6 +166,33 @@ def test_instructions_in_other_scripts_find_the_fits_words():
 
 
 @pytest.mark.parametrize(
+    ("text", "places"),
+    [
+        ("go to the kitchen after the corridor", ("corridor", "kitchen")),
+        ("go to the kitchen, but first the corridor", ("corridor", "kitchen")),
+        ("after the corridor go to the kitchen", ("corridor", "kitchen")),
+        ("go to the corridor first, then the kitchen", ("corridor", "kitchen")),
+        ("go to the corridor and after that the kitchen", ("corridor", "kitchen")),
+        ("go to the corridor before the kitchen", ("corridor", "kitchen")),
+        ("go to the kitchen after the corridor, then the bedroom", ("corridor", "kitchen",
+                                                                   "bedroom")),
+    ],
+)  # fmt: skip
+def test_after_first_and_before_give_the_order_they_say(text, places):
+    """QA: "after", "first" and "before" were skipped as filler words, so "go to the kitchen
+    after the corridor" went to the kitchen first, then the corridor."""
+    parsed = parse_instruction(text, WORDS)
+    assert parsed.places == places and not any(parsed.via)
+
+
+@pytest.mark.parametrize("text", ["before the kitchen, the corridor", "go to the kitchen, but "
+                                  "before that the corridor"])  # fmt: skip
+def test_a_before_whose_order_navigate_cannot_tell_is_refused(text):
+    with pytest.raises(NavigationError, match="say them in the order to visit them"):
+        parse_instruction(text, WORDS)
+
+
+@pytest.mark.parametrize(
     "text", ["go to the bedroom, not the kitchen", "avoid the kitchen", "Don't enter the KITCHEN"]
 )
 def test_an_instruction_that_keeps_away_from_a_place_is_refused(text, fit, capsys):

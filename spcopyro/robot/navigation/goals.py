@@ -16,7 +16,12 @@ The places are visited in the order the instruction gives them, except that a pl
 "via", "through" or "past" is visited *before* the destination said just before it: "go to the
 bedroom via the corridor" visits the corridor, then the bedroom; "via the corridor to the
 bedroom" the same; "to the kitchen via the hall, then the bedroom" the hall, the kitchen, the
-bedroom. "then", "to", "and then" end a "via" phrase.
+bedroom. "then", "to", "and then" end a "via" phrase. A place after "after" or "first" is
+visited before the destination said before it too, but is a stop, not a waypoint ("go to the
+toilet after the kitchen", "go to the toilet, but first the kitchen"); "after that" and a
+"first" right after a place ("the kitchen first, then ...") read as "then". "X before Y" visits X,
+then Y; a "before" with no place before it, or "before that", is refused (the order is not
+clear from the words).
 
 **Goal** (:func:`choose_goal`). p = p(cell in the place of the word)
 (:func:`spcopyro.results.uncertainty.where_probability`: the fit's marginals, or its point estimate)
@@ -64,13 +69,19 @@ __all__ = [
 ]
 
 VIA_WORDS = frozenset({"via", "through", "past", "thru"})
-RESET_WORDS = frozenset({"then", "to", "towards", "toward", "into", "finally"})
+RESET_WORDS = frozenset({"then", "to", "towards", "toward", "into", "finally", "afterwards"})
+EARLIER_WORDS = frozenset({"after", "first"})
+"""A place said after one of these is visited before the destination said before it ("go to the
+toilet after the kitchen", "go to the toilet, but first the kitchen"); "after that" is "then",
+and so is "first" right after a place ("the kitchen first, then the bedroom")."""
+THAT_WORDS = frozenset({"that", "this", "it", "which", "wards"})
 STOP_WORDS = frozenset(
     {"go", "goto", "move", "drive", "walk", "head", "come", "take", "bring", "me", "us", "please",
      "the", "a", "an", "my", "our", "your", "this", "that", "and", "or", "of", "in", "at", "on",
      "by", "way", "room", "area", "place", "here", "there", "is", "it", "robot", "now", "first",
      "next", "after", "before", "back", "along", "from", "then", "to", "towards", "toward",
-     "into", "finally", "via", "through", "past", "thru", "out", "over", "up", "down", "just"}
+     "into", "finally", "via", "through", "past", "thru", "out", "over", "up", "down", "just",
+     "but", "afterwards"}
 )  # fmt: skip
 """Words of an instruction that name no place (module docstring)."""
 NEGATION_WORDS = frozenset(
@@ -145,13 +156,27 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
             "the places to visit (to keep it out of a place: spcopyro export --nav2 DIR --word "
             "WORD --mode keepout)"
         )
-    for token in tokens:
+    last_place = -2  # the token index of the last place word
+    for k, token in enumerate(tokens):
         key = word_key(vocabulary, token).lower()
         token = key if key in known else token
+        following = tokens[k + 1] if k + 1 < len(tokens) else ""
         if token in VIA_WORDS:
             mode = "via"
             continue
-        if token in RESET_WORDS:
+        if token in RESET_WORDS or (token == "after" and following in THAT_WORDS):
+            mode = "to"
+            continue
+        if token in EARLIER_WORDS:  # but "the kitchen first, then ...": the kitchen is first
+            mode = "to" if token == "first" and last_place == k - 1 else "earlier"
+            continue
+        if token == "before":  # "X before Y": then; "before Y, X" and "before that": refused
+            if not places or following in THAT_WORDS:
+                raise NavigationError(
+                    f"the instruction {text!r} says 'before' where navigate cannot tell the "
+                    "order of the places from it; say them in the order to visit them (go to "
+                    "the bathroom, then the kitchen)"
+                )
             mode = "to"
             continue
         if token in STOP_WORDS:
@@ -165,9 +190,10 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
                 )
             ignored.append(token)
             continue
-        if mode == "via" and destination is not None:
+        last_place = k
+        if mode in ("via", "earlier") and destination is not None:
             places.insert(destination, token)
-            via.insert(destination, True)
+            via.insert(destination, mode == "via")
             destination += 1
         else:
             places.append(token)
