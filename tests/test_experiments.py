@@ -202,11 +202,26 @@ def test_public_table_layout():
     md = table_markdown(summary)
     assert "| method | room1dk5 | room2ldk4 | mean top-1 |" in md
     synthetic_row, public_row = [line for line in md.splitlines() if line.startswith("| (E)")]
-    assert synthetic_row.endswith("| 0.100 ± 0.000 | 0.100 ± 0.000 | — | — | 0.1 |")
+    assert synthetic_row.endswith("| 0.100 | 0.100 | — | — | 0.1 |")  # one seed: no sd
     assert public_row.endswith(
         "| 0.25 / 0.50 / 0.5 / 0.50 m | 0.50 / 0.50 / 0.5 / 0.50 m | 0.375 |"
     )
     assert "## The paper's own numbers" in md and "0.0001 on room2ldk4" in md
+
+
+def test_synthetic_table_shows_a_sd_only_over_two_seeds_or_more():
+    """One seed showed ``0.100 ± 0.000``: a spread of 0 where there is no sample sd."""
+    synthetic = {m: {"ari": {"mean": 0.1, "sd": 0.0}} for m in ("A-dp", "F-geometry")}
+    summary = {
+        "command": "", "methods": {"A-dp": "A", "F-geometry": "F"}, "synthetic": synthetic,
+        "public": {}, "settings": {"sweeps": 5, "spcoa_iterations": 2, "seeds": 2},
+        "synthetic_per_seed": {"A-dp": [{"seed": 0}, {"seed": 1}], "F-geometry": [{"seed": 0}]},
+        "notes": [],
+    }  # fmt: skip
+    rows = [
+        line for line in table_markdown(summary).splitlines() if line.startswith(("| A", "| F"))
+    ]
+    assert rows == ["| A | 0.100 ± 0.000 | — | — | — | — |", "| F | 0.100 | — | — | — | — |"]
 
 
 def test_quick_experiment_cli_on_the_public_dataset(dataset_root, tmp_path, capsys):

@@ -97,7 +97,7 @@ def table_markdown(summary: dict[str, object]) -> str:
         f"## Synthetic houses ({settings['seeds']} seeds, ground truth known)",
         "",
         "ARI of the label map against the truth; matching rate (eq. 18, precision) of the "
-        "place named by each category word. Mean ± sd over seeds.",
+        "place named by each category word. Mean ± sd over seeds (the mean alone for one).",
         "",
         "Matching rate (area prior): SpCoMapping's place for a word by eq. (19) with p(C) the "
         "share of cells labelled C instead of pi (the presets' huge alpha makes pi nearly "
@@ -107,13 +107,18 @@ def table_markdown(summary: dict[str, object]) -> str:
         "|---|---|---|---|---|---|",
     ]
 
+    per_seed: dict = summary.get("synthetic_per_seed") or {}  # type: ignore[assignment]
+
     def mean_sd(s: dict, score: str, digits: int = 3) -> str:
         if score not in s:
             return "—"
+        if seeds < 2:  # one value: no sample sd to show (its JSON keeps 0)
+            return _fmt(s[score]["mean"], digits)
         return f"{_fmt(s[score]['mean'], digits)} ± {_fmt(s[score]['sd'], digits)}"
 
     for method, label in methods.items():
         s = synthetic.get(method, {})
+        seeds = len(per_seed[method]) if method in per_seed else int(settings["seeds"])
         seconds = seconds_text(s["seconds"]["mean"]) if "seconds" in s else "—"
         lines.append(
             f"| {label} | {mean_sd(s, 'ari')} | {mean_sd(s, 'matching_rate')} "
