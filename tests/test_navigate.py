@@ -193,11 +193,14 @@ def test_a_before_whose_order_navigate_cannot_tell_is_refused(text):
 
 
 @pytest.mark.parametrize(
-    "text", ["go to the bedroom, not the kitchen", "avoid the kitchen", "Don't enter the KITCHEN"]
-)
+    "text",
+    ["go to the bedroom, not the kitchen", "avoid the kitchen", "Don't enter the KITCHEN",
+     "go to the kitchen or the bedroom", "go to the kitchen instead of the bedroom"],
+)  # fmt: skip
 def test_an_instruction_that_keeps_away_from_a_place_is_refused(text, fit, capsys):
     """QA: "go to the bathroom, not the kitchen" planned bathroom -> kitchen: the negation was
-    skipped as a filler word and the robot sent to the place it was told to keep away from."""
+    skipped as a filler word and the robot sent to the place it was told to keep away from; "the
+    kitchen or the bedroom" and "the kitchen instead of the bedroom" visited both."""
     with pytest.raises(NavigationError, match="cannot keep the robot away from one"):
         parse_instruction(text, WORDS)
     assert main(["navigate", str(fit), text, "--start", f"{START_A[0]},{START_A[1]}"]) == 2

@@ -77,7 +77,7 @@ and so is "first" right after a place ("the kitchen first, then the bedroom").""
 THAT_WORDS = frozenset({"that", "this", "it", "which", "wards"})
 STOP_WORDS = frozenset(
     {"go", "goto", "move", "drive", "walk", "head", "come", "take", "bring", "me", "us", "please",
-     "the", "a", "an", "my", "our", "your", "this", "that", "and", "or", "of", "in", "at", "on",
+     "the", "a", "an", "my", "our", "your", "this", "that", "and", "of", "in", "at", "on",
      "by", "way", "room", "area", "place", "here", "there", "is", "it", "robot", "now", "first",
      "next", "after", "before", "back", "along", "from", "then", "to", "towards", "toward",
      "into", "finally", "via", "through", "past", "thru", "out", "over", "up", "down", "just",
@@ -86,10 +86,12 @@ STOP_WORDS = frozenset(
 """Words of an instruction that name no place (module docstring)."""
 NEGATION_WORDS = frozenset(
     {"not", "don't", "dont", "never", "avoid", "avoiding", "without", "except", "excluding",
-     "no", "nor", "skip", "skipping"}
+     "no", "nor", "skip", "skipping", "instead", "rather", "unless", "or", "either"}
 )  # fmt: skip
-"""Words that would keep the robot away from a place: navigate only visits places, so an
-instruction holding one is refused ("go to the bathroom, not the kitchen" drove to both)."""
+"""Words that would keep the robot away from a place, or leave one out ("the kitchen or the
+bedroom", "the kitchen instead of the bedroom"): navigate visits every place an instruction
+names, so an instruction holding one is refused ("go to the bathroom, not the kitchen" drove to
+both)."""
 AMBIGUITY_RATIO = 0.8
 """A region whose best p is at least this share of the map's best p is a candidate: with two or
 more, the word is ambiguous (near-equal: odds below 1.25)."""
@@ -152,9 +154,9 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
     if negation is not None:
         raise NavigationError(
             f"the instruction {text!r} says {negation!r}: navigate visits every place an "
-            "instruction names, in order, and cannot keep the robot away from one; name only "
-            "the places to visit (to keep it out of a place: spcopyro export --nav2 DIR --word "
-            "WORD --mode keepout)"
+            "instruction names, in order, and cannot keep the robot away from one or choose "
+            "between them; name only the places to visit (to keep it out of a place: spcopyro "
+            "export --nav2 DIR --word WORD --mode keepout)"
         )
     last_place = -2  # the token index of the last place word
     for k, token in enumerate(tokens):
