@@ -148,3 +148,15 @@ def test_a_kept_ft_csv_is_called_stale_only_when_the_images_changed(
     assert report.kept == ("Ft.csv",) and not report.images_unchanged
     assert main([*argv, "--min-distance", "1"]) == 0  # fewer images of trial 0
     assert "the images differ from the replaced import's" in capsys.readouterr().err
+
+
+def test_overwrite_refuses_the_folder_it_is_run_in(tmp_path, bag, map_yaml, monkeypatch):
+    """QA: import-bag --overwrite run inside OUT (or a folder of it) replaced OUT and deleted the
+    shell's current directory under it; fit --overwrite and export refuse that."""
+    out = tmp_path / "data" / "house"
+    import_bags([bag], map_yaml, out)
+    for here in (out, out / "img_0"):
+        monkeypatch.chdir(here)
+        with pytest.raises(FileExistsError, match="holds the current directory"):
+            import_bags([bag], map_yaml, out, overwrite=True)
+    assert (out / "img_0").is_dir() and (out / "pose_0.csv").is_file()

@@ -84,8 +84,8 @@ def check_out(out: Path, overwrite: bool, trials: Iterable[int]) -> frozenset[st
     Raises:
         ValueError: ``out``'s name cannot name a house.
         FileExistsError: ``out`` (or a parent) is a file, or ``out`` a symbolic link; a
-            non-empty ``out`` without ``overwrite``, or not an earlier import's; an entry the
-            earlier import did not write that this one would.
+            non-empty ``out`` without ``overwrite``, or not an earlier import's, or holding the
+            current directory; an entry the earlier import did not write that this one would.
     """
     name = out.name
     if not name or name in (".", "..", "map") or re.search(r"[/\\,]", name):
@@ -102,6 +102,11 @@ def check_out(out: Path, overwrite: bool, trials: Iterable[int]) -> frozenset[st
     if not overwrite:
         raise FileExistsError(f"{out} already exists and is not empty; pass --overwrite")
     earlier = written_by(_earlier_trials(out))
+    if Path.cwd().resolve().is_relative_to(out.resolve()):  # as fit --overwrite refuses it
+        raise FileExistsError(
+            f"{out} holds the current directory, which replacing it would delete; run "
+            "import-bag from outside it"
+        )
     clash = sorted(
         entry.name
         for entry in out.iterdir()
