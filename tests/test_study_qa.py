@@ -237,3 +237,14 @@ def test_a_ctrl_c_while_the_table_is_written_waits_for_it(tmp_path, monkeypatch,
     assert len(read_table(tmp_path / "out" / "results.csv")) == 6
     assert "# " in (tmp_path / "out" / "report.md").read_text()  # written whole
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_a_bad_scheduler_address_is_named(tmp_path, capsys):
+    """``error: missing port number in address 'head'`` did not say which option it was."""
+    pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    path = _write(tmp_path)
+    argv = ["study", str(path), "--out", str(tmp_path / "out"), "--scheduler", "head"]
+    assert main(argv) == 2
+    assert "error: --scheduler head: missing port number in address 'head'" in (
+        capsys.readouterr().err
+    )

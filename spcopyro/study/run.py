@@ -396,7 +396,11 @@ def _on_dask(
 
     if scheduler is not None:
         start = None
-        client = Client(scheduler)
+        try:
+            client = Client(scheduler)
+        except (OSError, ValueError) as error:  # a bad address, or no scheduler answering there
+            kind = ValueError if isinstance(error, ValueError) else OSError
+            raise kind(f"--scheduler {scheduler}: {error}") from error
         submit_waiting(client)
     else:
         start = ClusterStart(workers, on_ready=submit_waiting)
