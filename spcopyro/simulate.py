@@ -81,6 +81,8 @@ def sample_prior_world(
     with equally seeded generators gave the same labels and other counts). Counts whose total
     per cell is not whole are refused before any sweep (:func:`check_whole_totals`).
     """
+    if not isinstance(sweeps, int) or isinstance(sweeps, bool) or sweeps < 0:
+        raise ValueError(f"sweeps must be an integer >= 0, got {sweeps!r}")
     check_whole_totals(data, config)  # before the sweeps, not after them
     L = config.num_concepts
     log_pi = sample_log_dirichlet(torch.full((L,), config.pi_concentration, dtype=DTYPE), generator)

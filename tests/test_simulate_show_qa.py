@@ -99,3 +99,21 @@ def test_a_figure_out_that_is_a_folder_or_under_a_file_is_a_usage_error(tmp_path
         assert stop.value.code == 2
         assert f"argument --out: {out!r}" in (err := capsys.readouterr().err) and told in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["figures", "notes.txt"]
+
+
+@pytest.mark.parametrize("sweeps", [-5, 2.5, None])
+def test_a_prior_world_refuses_a_number_of_sweeps_that_is_no_count(sweeps):
+    """``sweeps=-5`` ran no sweep at all and returned i.i.d. labels as a draw from the Potts
+    prior; ``2.5`` failed inside ``range``."""
+    import torch
+
+    from spcopyro.config import preset
+    from spcopyro.fit.house import prepare_model_data
+    from spcopyro.simulate import sample_prior_world
+    from spcopyro.synthetic import make_house
+
+    spec = HouseSpec(height=30, width=40, num_rooms=3, num_open_plan=0, min_room_size=8)
+    settings = preset("original-code")
+    _, data = prepare_model_data(make_house(seed=0, spec=spec), settings)
+    with pytest.raises(ValueError, match=f"sweeps must be an integer >= 0, got {sweeps!r}"):
+        sample_prior_world(data, settings.model, torch.Generator().manual_seed(0), sweeps=sweeps)
