@@ -652,7 +652,7 @@ def test_simulate_bag_checks_its_options_before_writing(tmp_path, capsys):
         )
     assert main(["simulate-bag", "--out", str(out), "--ros", "1", "--storage", "mcap"]) == 2
     assert "--storage mcap applies to ROS 2 bags only" in capsys.readouterr().err
-    with pytest.raises(ValueError, match="image_size must be two integers >= 1"):
+    with pytest.raises(ValueError, match=r"image_size must be two integers in 1\.\.8192"):
         write_synthetic_bags(out, image_size=(0, 64))
     assert not out.exists()
 
@@ -837,3 +837,17 @@ def test_a_message_that_cannot_be_read_is_an_error_not_a_traceback(tmp_path, map
                        r"\(.+\); the bag is damaged or cut short$"):  # fmt: skip
         import_bags([bag], map_yaml, tmp_path / "d" / "h")
     assert not (tmp_path / "d").exists()
+
+
+def test_simulate_bag_refuses_an_image_size_no_camera_has(tmp_path, capsys):
+    """QA: --image-size 1000000 1000000 (a typo's extra zeros) stopped with a numpy traceback,
+    'Unable to allocate 14.6 TiB'; sizes are checked, up to 8192 pixels a side."""
+    out = tmp_path / "sb"
+    with pytest.raises(SystemExit):
+        main(["simulate-bag", "--out", str(out), "--image-size", "480000", "640"])
+    assert "argument --image-size: must be at most 8192 pixels, got '480000'" in (
+        capsys.readouterr().err
+    )
+    with pytest.raises(ValueError, match="two integers in 1..8192"):
+        write_synthetic_bags(out, image_size=(48, 10**6))
+    assert not out.exists()

@@ -18,6 +18,16 @@ __all__ = ["add_parser"]
 PRINTED_SKIPS = 50  # skipped observations printed (all are in skipped.csv)
 
 
+def _image_side(value: str) -> int:
+    """``--image-size``: an integer in 1 .. MAX_IMAGE_SIDE (a usage error naming the value)."""
+    from spcopyro.robot.rosbag.synthetic import MAX_IMAGE_SIDE
+
+    number = integer_at_least(1)(value)
+    if number > MAX_IMAGE_SIDE:
+        raise argparse.ArgumentTypeError(f"must be at most {MAX_IMAGE_SIDE} pixels, got {value!r}")
+    return number
+
+
 def _print_skipped(skipped, where: str) -> None:
     """The skipped observations on stderr: how many, ``where`` they are listed, the first
     :data:`PRINTED_SKIPS` with their stamps and reasons."""
@@ -208,7 +218,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--image-format", choices=("raw", "jpeg", "png"), default="jpeg",
                    help="raw: sensor_msgs/Image on /camera/image; jpeg, png: CompressedImage on "
                         "/camera/image/compressed (default jpeg)")  # fmt: skip
-    p.add_argument("--image-size", type=integer_at_least(1), nargs=2, default=(48, 64),
+    p.add_argument("--image-size", type=_image_side, nargs=2, default=(48, 64),
                    metavar=("H", "W"),
                    help="image height and width in pixels (default 48 64)")  # fmt: skip
     p.add_argument("--trials", type=int, nargs="+", metavar="K",

@@ -67,6 +67,11 @@ def _ns(t: float) -> int:
     return int(sec) * 10**9 + int(round((t - sec) * 1e9))
 
 
+MAX_IMAGE_SIDE = 8192
+"""Pixels: the largest image height or width simulate-bag renders (an 8K camera's frame is
+7680 x 4320; a mistyped --image-size 480000 640 ran out of memory with a numpy traceback)."""
+
+
 class BagWriter:
     """Write a small bag: ``ros=1`` (a ``.bag`` file) or ``ros=2`` (a folder; ``storage``
     ``"sqlite3"`` or ``"mcap"``). Messages are buffered and written sorted by their log time
@@ -328,8 +333,12 @@ def write_synthetic_bags(
     if image_format not in ("raw", "jpeg", "png"):
         raise ValueError(f"image_format must be raw, jpeg or png, got {image_format!r}")
     size = tuple(image_size)
-    if len(size) != 2 or not all(isinstance(v, int | np.integer) and v >= 1 for v in size):
-        raise ValueError(f"image_size must be two integers >= 1 (H, W), got {image_size!r}")
+    if len(size) != 2 or not all(
+        isinstance(v, int | np.integer) and 1 <= v <= MAX_IMAGE_SIDE for v in size
+    ):
+        raise ValueError(
+            f"image_size must be two integers in 1..{MAX_IMAGE_SIDE} (H, W), got {image_size!r}"
+        )
     _rosbags()  # a missing rosbags is said before anything is written
     if house is None:
         from spcopyro.synthetic import HouseSpec, make_house
