@@ -173,6 +173,8 @@ def test_variant_prefixes_and_nested_options():
         ("x:options.cluster_moves.inner=1", "has no field"),
         (":gamma=3", "must be non-empty"),
         ("x:hyper.log_gamma_sd=2", "no hyperparameter the chain samples reads log_gamma_sd"),
+        ("x:point_estimate=binder", "needs marginal_samples > 0"),
+        ("x:method=cavi,refine=auto", "refines a Gibbs fit, not method='cavi'"),
         ("x:method=vi-gibbs,gibbs.hyper.alpha_step=1", "reads alpha_step"),
     ],
 )

@@ -127,6 +127,11 @@ def test_spec_from_toml_equals_spec_from_python(tmp_path):
             "num_trials = 1",
             ["[data.small] heldout", "a held-out source needs num_trials >= 2, it has 1"],
         ),
+        (
+            "gamma = 3.0",
+            'gamma = 3.0\npoint_estimate = "binder"',
+            ["[variants.og3]", "point_estimate='binder'", "needs marginal_samples > 0"],
+        ),
         # a prior of a hyperparameter the chain does not sample changed nothing, silently
         (
             "gamma = 3.0",
@@ -148,6 +153,21 @@ def test_bad_spec_names_file_key_and_value(tmp_path, old, new, words):
     assert str(path) in message
     for word in words:
         assert word in message, message
+
+
+def test_fit_keywords_a_studys_method_or_scoring_cannot_take_are_refused_when_read():
+    """Each cell of these failed at run time (fit_house's or the comparison's own checks)."""
+    values = json.loads(json.dumps(TINY_DICT))
+    values["variants"]["og3"].update(point_estimate="binder", marginal_samples=5)
+    study_from_dict(values)  # Gibbs keeps the label maps binder needs ...
+    values["study"]["methods"] = ["gibbs", "cavi"]  # ... CAVI does not
+    with pytest.raises(StudyError, match=r"\[variants.og3\].*method 'cavi'"):
+        study_from_dict(values)
+    values = json.loads(json.dumps(TINY_DICT))
+    values["variants"]["og3"]["init"] = "rooms"
+    values["study"].update(scoring="comparison", baselines=[])
+    with pytest.raises(StudyError, match="variant 'og3' sets fit_house keywords .'init': 'rooms'"):
+        study_from_dict(values)
 
 
 def test_hyper_options_of_a_study_reach_its_cells(tmp_path):
@@ -440,8 +460,16 @@ def test_added_seed_runs_only_new_cells_and_names_do_not_count(in_process, tmp_p
     assert len(keys & before) == 2  # only the baseline's cells (it has no sweeps) are shared
 
 
-def test_failing_cell_is_recorded_and_the_study_goes_on(tmp_path):
-    text = TINY + '\n[variants.broken]\npreset = "original-code"\npoint_estimate = "binder"\n'
+def test_failing_cell_is_recorded_and_the_study_goes_on(tmp_path, monkeypatch):
+    text = TINY + '\n[variants.broken]\npreset = "original-code"\ngamma = 2.9\n'
+    fit = evaluate._fit
+
+    def failing(cell, *args, **kwargs):  # a fit that fails at run time, as one on bad data
+        if cell.row == "broken":
+            raise ValueError("this fit needs marginal_samples > 0")
+        return fit(cell, *args, **kwargs)
+
+    monkeypatch.setattr(evaluate, "_fit", failing)
     lines: list[str] = []
     run = run_study(load_study(_write(tmp_path, text)), tmp_path / "out", progress=False,
                     report=lines.append)  # fmt: skip

@@ -37,7 +37,7 @@ from typing import Any
 
 from spcopyro.config import DEFAULT_PRESET, PRESETS, DataPreparation, SpCoConfig, SpCoSettings
 from spcopyro.config import preset as make_preset
-from spcopyro.fit.house import fit_house
+from spcopyro.fit.house import SAMPLERS, fit_house
 from spcopyro.fit.registry import get_method
 
 __all__ = ["FIT_RESERVED", "Variant", "VariantError", "make_variant", "parse_variant"]
@@ -73,6 +73,22 @@ def _fit_value_problem(key: str, value: object) -> str | None:
         integer = isinstance(value, int) and not isinstance(value, bool)
         if not integer or value < counts[key]:
             return f"must be an integer >= {counts[key]}"
+    return None
+
+
+def fit_combination_problem(fit: Mapping[str, object], method: str) -> str | None:
+    """Why fit_house refuses the keywords ``fit`` together, with ``method`` (None: it does not):
+    checked when a variant is made (and for each of a study's ``methods``), not in every cell."""
+    point_estimate = fit.get("point_estimate", "map-visited")
+    if point_estimate != "map-visited" and (
+        method not in SAMPLERS or not fit.get("marginal_samples")
+    ):
+        return (f"point_estimate={point_estimate!r} is computed over the label maps a sampler "
+                f"({', '.join(SAMPLERS)}) keeps: it needs marginal_samples > 0 (method "
+                f"{method!r}, marginal_samples {fit.get('marginal_samples', 0)})")  # fmt: skip
+    refine = fit.get("refine", "never")
+    if refine != "never" and method != "gibbs":
+        return f"refine={refine!r} refines a Gibbs fit, not method={method!r}"
     return None
 
 
@@ -342,6 +358,9 @@ def make_variant(name: str, overrides: Mapping[str, object] | None = None) -> Va
         inspect.signature(fit_house).bind_partial(**fit)
     except TypeError as error:
         raise VariantError(f"variant {name!r}: fit arguments {fit}: {error}") from None
+    problem = fit_combination_problem(fit, method)
+    if problem:  # each of its cells failed at run time
+        raise VariantError(f"variant {name!r}: {problem}")
     return variant
 
 

@@ -43,7 +43,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from spcopyro.experiments.ablation_variants import Variant, VariantError, make_variant
+from spcopyro.experiments.ablation_variants import (
+    Variant,
+    VariantError,
+    fit_combination_problem,
+    make_variant,
+)
 from spcopyro.experiments.methods import REGISTRY as BASELINE_REGISTRY
 from spcopyro.fit.registry import INFERENCE_METHODS
 from spcopyro.robot.map_simulation import MapTour
@@ -306,6 +311,9 @@ def _variants(source: str, table: object, methods: tuple[str, ...]) -> tuple[Var
             variant = make_variant(name, _flatten(overrides))
             for method in methods:  # the variant's options must exist for every method
                 dataclasses.replace(variant, method=method).method_options()
+                problem = fit_combination_problem(dict(variant.fit), method)
+                if problem:
+                    raise VariantError(f"variant {name!r}: {problem}")
         except VariantError as error:
             raise StudyError(f"{source}: [variants.{name}]: {error}") from None
         variants.append(variant)
@@ -423,6 +431,11 @@ def study_from_dict(values: Mapping[str, Any], *, source: str = "<python>") -> S
         if baselines or head.get("observations_off") or kinds:
             why = "it takes no baselines or observations_off, and synthetic and public houses"
             raise _fail(source, "[study] scoring", scoring, why)
+        for variant in variants:  # each of its cells failed at run time
+            if variant.fit:
+                raise _fail(source, "[study] scoring", scoring,
+                            f"it runs the method directly: variant {variant.name!r} sets "
+                            f"fit_house keywords {dict(variant.fit)}")  # fmt: skip
     ari_every = head.get("ari_every", 0)
     if ari_every:
         ari_every = _positive_int(source, "[study] ari_every", ari_every)
