@@ -126,10 +126,14 @@ class Instruction:
     """Words neither known nor close to a known word."""
 
 
+_APOSTROPHES = str.maketrans({"\u2019": "'", "\u2018": "'", "\u02bc": "'", "\uff07": "'"})
+
+
 def _tokens(text: str) -> list[str]:
     """The words of ``text``: runs of letters, marks and digits of any script, ``_``, ``'`` and
     ``-``, lower-cased (a non-ASCII letter split ``café`` into ``caf``, and ``台所`` vanished)."""
     words, word = [], []
+    text = text.translate(_APOSTROPHES)  # "don’t", as phones and word processors type it
     for char in unicodedata.normalize("NFC", text).lower() + " ":
         if char in "_'-" or unicodedata.category(char)[0] in "LMN":
             word.append(char)
