@@ -196,6 +196,7 @@ def test_a_before_whose_order_navigate_cannot_tell_is_refused(text):
     "text",
     ["go to the bedroom, not the kitchen", "avoid the kitchen", "Don't enter the KITCHEN",
      "Don\u2019t go to the kitchen",  # a typographic apostrophe split it into 'don', 't'
+     "you shouldn't enter the kitchen",  # any n't
      "go to the kitchen or the bedroom", "go to the kitchen instead of the bedroom"],
 )  # fmt: skip
 def test_an_instruction_that_keeps_away_from_a_place_is_refused(text, fit, capsys):

@@ -88,10 +88,10 @@ NEGATION_WORDS = frozenset(
     {"not", "don't", "dont", "never", "avoid", "avoiding", "without", "except", "excluding",
      "no", "nor", "skip", "skipping", "instead", "rather", "unless", "or", "either"}
 )  # fmt: skip
-"""Words that would keep the robot away from a place, or leave one out ("the kitchen or the
-bedroom", "the kitchen instead of the bedroom"): navigate visits every place an instruction
-names, so an instruction holding one is refused ("go to the bathroom, not the kitchen" drove to
-both)."""
+"""Words (and any ending in "n't") that would keep the robot away from a place, or leave one
+out ("the kitchen or the bedroom", "the kitchen instead of the bedroom"): navigate visits every
+place an instruction names, so an instruction holding one is refused ("go to the bathroom, not
+the kitchen" drove to both)."""
 AMBIGUITY_RATIO = 0.8
 """A region whose best p is at least this share of the map's best p is a candidate: with two or
 more, the word is ambiguous (near-equal: odds below 1.25)."""
@@ -154,7 +154,8 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
     ignored: list[str] = []
     mode, destination = "to", None  # destination: index of the last destination in places
     tokens = _tokens(text)
-    negation = next((token for token in tokens if token in NEGATION_WORDS), None)
+    negation = next((token for token in tokens
+                     if token in NEGATION_WORDS or token.endswith("n't")), None)  # fmt: skip
     if negation is not None:
         raise NavigationError(
             f"the instruction {text!r} says {negation!r}: navigate visits every place an "
