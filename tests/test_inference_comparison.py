@@ -366,3 +366,18 @@ def test_a_method_that_keeps_no_label_maps_is_rerun_at_geometric_budgets(monkeyp
     assert budgets == [8, *expected]  # the full run, then one re-run per budget
     assert [p["iteration"] for p in record["curve"][:-1]] == list(expected)
     assert record["curve"][-1]["iteration"] == record["iterations"]
+
+
+def test_a_finite_prior_takes_a_public_houses_categories(dataset_root):
+    """``--preset paper-dirichlet`` fitted every public house with L = 6 (the fallback of a
+    house without categories), where a study cell, and the experiment's B-dirichlet row, take
+    the paper's Table 2 count (room1ldk4: 7)."""
+    from spcopyro.experiments.table import PUBLIC_CATEGORIES
+    from spcopyro.study.comparison_cell import problem_of
+
+    settings = ComparisonSettings(dataset_root=dataset_root, preset="paper-dirichlet",
+                                  house_types=("public",), public_houses=("room1ldk4",),
+                                  variants=("cavi",), folds=1)  # fmt: skip
+    (cell,) = cells_of(comparison_study(settings), dataset_root)
+    assert PUBLIC_CATEGORIES["room1ldk4"] == 7
+    assert problem_of(cell).settings.model.num_concepts == 7

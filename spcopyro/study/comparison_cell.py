@@ -27,12 +27,13 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from pathlib import Path
 
 from spcopyro.data import House, load_house
 from spcopyro.data.model_grid import model_house
 from spcopyro.experiments import inference_comparison as comparison
 from spcopyro.experiments.public_truth import public_truth
-from spcopyro.experiments.table import heldout_folds, json_default
+from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds, json_default
 from spcopyro.study.cells import Cell
 from spcopyro.study.maps import Arrays, label_map_arrays, labels_on_map
 from spcopyro.synthetic import make_house
@@ -79,7 +80,9 @@ def _problem_and_map(cell: Cell) -> tuple[comparison.Problem, House]:
     house = load_house(data.target)
     truth = public_truth(house)  # scored on the project's region truth too
     house = dataclasses.replace(house, truth=truth.labels, category_names=truth.categories)
-    settings = cell.variant.spco_settings(None)
+    # a finite prior's L: the house's categories in the paper's Table 2, as a study cell's
+    # (spcopyro.study.sources); it was 6 for every public house
+    settings = cell.variant.spco_settings(PUBLIC_CATEGORIES.get(Path(data.target).name))
     folds = list(heldout_folds(model_house(house, settings.data.cell_size)))
     fold, held, train, test = folds[cell.seed % len(folds)]
     name = f"{data.name} (held-out trial {held})"
