@@ -851,3 +851,20 @@ def test_simulate_bag_refuses_an_image_size_no_camera_has(tmp_path, capsys):
     with pytest.raises(ValueError, match="two integers in 1..8192"):
         write_synthetic_bags(out, image_size=(48, 10**6))
     assert not out.exists()
+
+
+def test_the_printed_next_commands_can_be_pasted_with_spaces_in_paths(tmp_path, capsys):
+    """QA: with a space in a path (`--out "my bags"`), the printed 'import with:', 'next:' and
+    'then:' commands split it into two arguments when pasted."""
+    import shlex
+
+    out = tmp_path / "my bags"
+    assert main(["simulate-bag", "--out", str(out), "--trials", "0", "--image-size", "8", "8"]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if "import with:" in x)
+    argv = shlex.split(line.split("import with: spcopyro ", 1)[1])
+    assert argv[1] == str(out / "trial_0") and argv[argv.index("--out") + 1] == str(out / "house")
+    assert main(argv) == 0
+    printed = capsys.readouterr().out.splitlines()
+    for prefix in ("  next: spcopyro ", "  then: spcopyro "):
+        command = shlex.split(next(x for x in printed if x.startswith(prefix))[len(prefix) :])
+        assert command[1] == str(out / "house")

@@ -7,6 +7,7 @@ one of them runs (a clear error naming ``pip install "spcopyro[ros]"`` when it i
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 from pathlib import Path
 
@@ -16,6 +17,11 @@ from spcopyro.robot.rosbag.bag import DEFAULT_ROS_DISTRO, ROS_DISTROS
 __all__ = ["add_parser"]
 
 PRINTED_SKIPS = 50  # skipped observations printed (all are in skipped.csv)
+
+
+def _quote(path: object) -> str:
+    """``path`` as a shell word (quoted when it holds a space or another special character)."""
+    return shlex.quote(str(path))
 
 
 def _image_side(value: str) -> int:
@@ -91,8 +97,9 @@ def _import_bag(args: argparse.Namespace) -> int:
     if report.map_replaced:
         print(f"warning: --overwrite replaced the map {report.map_yaml} of the earlier import "
               f"in {report.out}, which differed from {args.map}", file=sys.stderr)  # fmt: skip
-    print(f"  next: spcopyro features {report.out} --out {report.out / 'Ft.csv'}")
-    print(f"  then: spcopyro fit {report.out} --out {report.out.parent / 'fit'}")
+    out, q = report.out, _quote  # commands to paste: a path with spaces is quoted
+    print(f"  next: spcopyro features {q(out)} --out {q(out / 'Ft.csv')}")
+    print(f"  then: spcopyro fit {q(out)} --out {q(out.parent / 'fit')}")
     return 0
 
 
@@ -121,9 +128,10 @@ def _simulate_bag(args: argparse.Namespace) -> int:
     for bag in result.bags:
         print(f"wrote {bag}")
     print(f"wrote {result.map_yaml}")
-    bags = " ".join(str(b) for b in result.bags)
-    print(f"  import with: spcopyro import-bag {bags} --map {result.map_yaml} "
-          f"--image-topic {result.image_topic} --out {Path(args.out) / 'house'}")  # fmt: skip
+    bags = " ".join(_quote(b) for b in result.bags)
+    house = _quote(Path(args.out) / "house")
+    print(f"  import with: spcopyro import-bag {bags} --map {_quote(result.map_yaml)} "
+          f"--image-topic {result.image_topic} --out {house}")  # fmt: skip
     return 0
 
 
