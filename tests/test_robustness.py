@@ -22,6 +22,7 @@ from spcopyro.experiments.robustness import (
     STABILITY_SETTINGS,
     robustness_markdown,
     spread,
+    stability_summary,
 )
 from spcopyro.fit.house import best_chain
 from spcopyro.study.robustness import robustness_studies, write_robustness
@@ -233,3 +234,19 @@ def test_stability_figure_without_the_log_joint_panel(stability: dict, tmp_path)
 
     only = dict(stability, settings={REFERENCE_SETTING: stability["settings"][REFERENCE_SETTING]})
     assert plot_stability(only, tmp_path / "s.png").stat().st_size > 5_000
+
+
+def test_one_seed_is_not_judged_stable_or_not() -> None:
+    """With one house the sds are nan: the report said "sd ... <= nan ...: none" (no setting at
+    least as stable), a verdict no data supports, and printed "nan" in the sd columns."""
+    rows = {
+        name: {"method": method, "single": [0.5], "best_of_chains": [0.6], "chain_ari": [0.9]}
+        for name, method in ((REFERENCE_SETTING, "B-dirichlet"), ("A-dp random", "A-dp"))
+    }
+    stability = stability_summary(rows, sweeps=10, seeds=[0], chains=3)
+    sensitivity = {"base": {"preset": "original-code", "gamma": 3.0}, "critical_gamma": 2.48,
+                   "seeds": [0], "parameters": {}}  # fmt: skip
+    markdown = robustness_markdown(stability, sensitivity)
+    assert "| A-dp random | 0.500 | — | 0.500 | 0.600 | — | 0.600 | 0.900 | 0.900 |" in markdown
+    assert "<= —, that of B-dirichlet random / single): not judged: one house" in markdown
+    assert "nan" not in markdown and "): none." not in markdown

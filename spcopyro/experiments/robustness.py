@@ -125,7 +125,7 @@ def stability_summary(
 
 
 def _fmt(value: float) -> str:
-    return "nan" if math.isnan(value) else f"{value:.3f}"
+    return "—" if math.isnan(value) else f"{value:.3f}"  # nan: a sd of one seed
 
 
 def robustness_markdown(stability: dict, sensitivity: dict) -> str:
@@ -153,10 +153,14 @@ def robustness_markdown(stability: dict, sensitivity: dict) -> str:
                  pair["mean"], pair["min"]]  # fmt: skip
         lines.append(f"| {name} | " + " | ".join(_fmt(v) for v in cells) + " |")
     stable = stability["at_least_as_stable"]
+    if math.isnan(stability["reference_sd"]):  # "none" said no setting was, of an sd of nan
+        verdict = "not judged: one house has no sd of ARI over seeds; run 2 or more seeds"
+    else:
+        verdict = ", ".join(stable) if stable else "none"
     lines += [
         "",
         f"DP settings at least as stable (sd of ARI over seeds <= {_fmt(stability['reference_sd'])}"
-        f", that of {stability['reference']}): " + (", ".join(stable) if stable else "none") + ".",
+        f", that of {stability['reference']}): {verdict}.",
         "",
         f"## Sensitivity: one at a time from `{sensitivity['base']['preset']}` with gamma "
         f"{sensitivity['base']['gamma']}",
