@@ -174,6 +174,32 @@ def test_a_figure_path_without_a_suffix_is_written_and_told_as_png(tmp_path, cap
     assert (tmp_path / "kitchen.png").is_file()
 
 
+def test_where_legend_and_warnings_clear_the_x_label_of_a_wide_map():
+    """Below a wide, short map the legend sat at a fraction of the map's height under it, over
+    the x label, and the warnings over the legend; the colour bar, sized from the axes box, rose
+    above the map into the title. Each now keeps clear of the others."""
+    import dataclasses
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    result = two_rooms()  # 10 x 31 cells: three times as wide as tall
+    shown = dataclasses.replace(result, marginals=np.full((result.grid.num_free, 3), 1 / 3))
+    answer = shown.where("kitchen", prior="pi")  # a speck: three warnings
+    fig = where_figure(shown, answer)
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()  # places the labels
+    renderer = canvas.get_renderer()
+    ax = fig.axes[0]
+    bar = next(a for a in [*fig.axes, *ax.child_axes] if a is not ax)  # the colour bar
+    xlabel = ax.xaxis.label.get_window_extent(renderer)
+    legend = ax.get_legend().get_window_extent(renderer)
+    warnings = next(t for t in ax.texts if t.get_text().startswith("warning:"))
+    warned = warnings.get_window_extent(renderer)
+    assert legend.y1 < xlabel.y0 and warned.y1 < legend.y0
+    axes, colours = ax.get_window_extent(renderer), bar.get_window_extent(renderer)
+    assert colours.y1 <= axes.y1 + 1 and colours.y0 >= axes.y0 - 1
+
+
 def test_render_labels_takes_colours():
     labels = np.array([[0, 1], [-1, 1]])
     colours = np.array([[10, 20, 30], [40, 50, 60]], dtype=np.uint8)

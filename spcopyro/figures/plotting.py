@@ -29,6 +29,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.text import Text
 from matplotlib.ticker import FuncFormatter, MaxNLocator
+from matplotlib.transforms import ScaledTranslation
 from scipy import ndimage
 
 from spcopyro._util.messages import plural
@@ -366,6 +367,9 @@ def plot_where(result: SpCoResult, answer: WhereAnswer, path: str | os.PathLike[
     return _save(where_figure(result, answer), path)
 
 
+BELOW_INCHES = (0.5, 1.0)  # where_figure: the legend below the map, then the warnings below it
+
+
 def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
     """The answer to "where is WORD?" over the map drawn in grey: with per-cell marginals, each
     cell's probability of lying in the word's place
@@ -396,7 +400,7 @@ def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
         shown = np.ma.masked_less(probability[rows, cols], 0.01)  # [h, w]: grey below 1%
         scale = ax.imshow(shown, extent=extent, cmap="Reds", vmin=0.0, vmax=1.0,
                           interpolation="nearest", alpha=0.9)  # fmt: skip
-        fig.colorbar(scale, ax=ax, shrink=0.6, pad=0.02,
+        fig.colorbar(scale, cax=ax.inset_axes((1.02, 0.0, 0.025, 1.0)),  # as tall as the map
                      label=f"p(cell in the place of '{answer.word}')")  # fmt: skip
         red, blue = np.array(ANSWER_RGB) / 255.0, np.array(RUNNER_UP_RGB) / 255.0
         draw_outline(ax, grid, answer.region, rows, cols, extent, colors=[red], linewidths=2.0)
@@ -427,9 +431,15 @@ def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
         Patch(color=np.array(RGB_OCCUPIED) / 255.0, label="walls"),
         Patch(color=np.array(RGB_UNKNOWN) / 255.0, label="unknown"),
     ]
-    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0) if
-              result.marginals is None else (0.0, -0.08), fontsize=8,
-              frameon=False)  # fmt: skip
+    # Below the map, offsets in inches, not in axes fractions: under a wide, short map a
+    # fraction of its height put the legend over the x label (and the warnings over the legend).
+    below = ax.transAxes + ScaledTranslation(0.0, -BELOW_INCHES[0], fig.dpi_scale_trans)
+    if result.marginals is None:
+        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8,
+                  frameon=False)  # fmt: skip
+    else:
+        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.0, 0.0),
+                  bbox_transform=below, borderaxespad=0.0, fontsize=8, frameon=False)  # fmt: skip
     if result.heard(answer.concept) == 0:
         words = NO_WORDS
     else:
@@ -441,8 +451,10 @@ def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
                  f"its words: {words}")  # fmt: skip
     if answer.warnings:
         text = "\n".join(textwrap.fill(f"warning: {w}", 110) for w in answer.warnings)
-        ax.text(0.0, -0.1 if result.marginals is None else -0.25, text, transform=ax.transAxes,
-                fontsize=7, color="#b00000", va="top", ha="left")  # fmt: skip
+        inches = BELOW_INCHES[0] + (0.0 if result.marginals is None else BELOW_INCHES[1])
+        at = ax.transAxes + ScaledTranslation(0.0, -inches, fig.dpi_scale_trans)
+        ax.text(0.0, 0.0, text, transform=at, fontsize=7, color="#b00000", va="top",
+                ha="left")  # fmt: skip
     return fig
 
 
@@ -466,7 +478,7 @@ def _plot_cell_values(
     image = free_cells_image(result, values)[rows, cols]  # [h, w], NaN off free space
     shown = ax.imshow(image, extent=_extent(grid, rows, cols), origin="upper", cmap=cmap,
                       vmin=0.0, vmax=vmax, interpolation="nearest")  # fmt: skip
-    fig.colorbar(shown, ax=ax, label=label, shrink=0.8)
+    fig.colorbar(shown, cax=ax.inset_axes((1.03, 0.0, 0.03, 1.0)), label=label)  # map's height
     ax.set_title(title)
     return _save(fig, path)
 
