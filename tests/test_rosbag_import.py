@@ -868,3 +868,18 @@ def test_the_printed_next_commands_can_be_pasted_with_spaces_in_paths(tmp_path, 
     for prefix in ("  next: spcopyro ", "  then: spcopyro "):
         command = shlex.split(next(x for x in printed if x.startswith(prefix))[len(prefix) :])
         assert command[1] == str(out / "house")
+
+
+def test_topics_without_their_leading_slash_are_found(tmp_path, map_yaml):
+    """QA: --image-topic camera/image (as a ROS node in the root namespace resolves it to
+    /camera/image) was 'no image topic' though the bag's listing, in the same message, had it."""
+    bag = _bag_path(tmp_path, 2)
+    _write_basic(bag, 2, "sqlite3")
+    options = ImportOptions(pose_topic="amcl_pose", image_topic="camera/image",
+                            words_topic="speech")  # fmt: skip
+    report = import_bags([bag], map_yaml, tmp_path / "d" / "h", options)
+    twin = import_bags([bag], map_yaml, tmp_path / "d" / "h2")
+    assert report.trials[0]["images_kept"] == twin.trials[0]["images_kept"] == 3
+    assert (tmp_path / "d" / "h" / "pose_0.csv").read_text() == (
+        tmp_path / "d" / "h2" / "pose_0.csv"
+    ).read_text()

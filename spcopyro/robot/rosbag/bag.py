@@ -225,9 +225,10 @@ def _topic_listing(reader: Any) -> str:
 
 
 def _connections(reader: Any, topic: str, allowed: tuple[str, ...], role: str) -> list[Any]:
-    """The connections of ``topic``; BagContentError if it is absent (listing the bag's topics
-    and types) or of a type not in ``allowed``."""
-    found = [c for c in reader.connections if c.topic == topic]
+    """The connections of ``topic`` (with or without its leading ``/``: a name without one is
+    resolved in the root namespace, as a ROS node there would); BagContentError if it is absent
+    (listing the bag's topics and types) or of a type not in ``allowed``."""
+    found = [c for c in reader.connections if c.topic.lstrip("/") == topic.lstrip("/")]
     if not found:
         raise BagContentError(
             f"{reader.paths[0]}: no {role} topic {topic!r}; the bag has: "
