@@ -198,6 +198,11 @@ def test_where_legend_and_warnings_clear_the_x_label_of_a_wide_map():
     assert legend.y1 < xlabel.y0 and warned.y1 < legend.y0
     axes, colours = ax.get_window_extent(renderer), bar.get_window_extent(renderer)
     assert colours.y1 <= axes.y1 + 1 and colours.y0 >= axes.y0 - 1
+    fig = where_figure(result, result.where("kitchen", prior="pi"))  # legend beside the map
+    FigureCanvasAgg(fig).draw()
+    ax = fig.axes[0]
+    warnings = next(t for t in ax.texts if t.get_text().startswith("warning:"))
+    assert warnings.get_window_extent().y1 < ax.xaxis.label.get_window_extent().y0
 
 
 def test_render_labels_takes_colours():

@@ -367,7 +367,7 @@ def plot_where(result: SpCoResult, answer: WhereAnswer, path: str | os.PathLike[
     return _save(where_figure(result, answer), path)
 
 
-BELOW_INCHES = (0.5, 1.0)  # where_figure: the legend below the map, then the warnings below it
+BELOW_INCHES = (0.55, 1.0)  # where_figure: the legend below the map, then the warnings below it
 
 
 def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
