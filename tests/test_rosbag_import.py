@@ -883,3 +883,17 @@ def test_topics_without_their_leading_slash_are_found(tmp_path, map_yaml):
     assert (tmp_path / "d" / "h" / "pose_0.csv").read_text() == (
         tmp_path / "d" / "h2" / "pose_0.csv"
     ).read_text()
+
+
+def test_an_empty_topic_or_frame_is_refused(tmp_path, capsys):
+    """QA: --map-frame '' ran the import to an error that suggested '--pose-tf  BASE_FRAME'
+    (an empty frame), --pose-topic '' to "no pose topic ''"."""
+    for option in ("--pose-topic", "--image-topic", "--words-topic", "--map-frame"):
+        with pytest.raises(SystemExit):
+            main(["import-bag", "b", "--map", "m", "--out", str(tmp_path / "h"), option, "/"])
+        assert f"argument {option}: must name a topic or frame, got '/'" in (
+            capsys.readouterr().err
+        )
+    for options in ({"map_frame": ""}, {"pose_topic": " "}, {"pose_tf": ("map", "")}):
+        with pytest.raises(ValueError, match="must"):
+            ImportOptions(**options)

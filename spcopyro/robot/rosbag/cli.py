@@ -24,6 +24,13 @@ def _quote(path: object) -> str:
     return shlex.quote(str(path))
 
 
+def _name(value: str) -> str:
+    """A topic or frame option: not empty (nor only slashes)."""
+    if not value.strip("/ "):
+        raise argparse.ArgumentTypeError(f"must name a topic or frame, got {value!r}")
+    return value
+
+
 def _image_side(value: str) -> int:
     """``--image-size``: an integer in 1 .. MAX_IMAGE_SIDE (a usage error naming the value)."""
     from spcopyro.robot.rosbag.synthetic import MAX_IMAGE_SIDE
@@ -154,19 +161,21 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "several: trials K, K+1, ... in this order")  # fmt: skip
     p.add_argument("--map", required=True, help="map_server yaml of the map the robot used")
     p.add_argument("--out", required=True, help="house folder to write (its name names the house)")
-    p.add_argument("--pose-topic", default="/amcl_pose",
+    p.add_argument("--pose-topic", type=_name, default="/amcl_pose",
                    help="PoseWithCovarianceStamped, Odometry or PoseStamped topic in the map "
                         "frame, or one the bag's tf links to it (default /amcl_pose)")  # fmt: skip
-    p.add_argument("--pose-tf", nargs=2, metavar=("PARENT", "CHILD"),
+    p.add_argument("--pose-tf", type=_name, nargs=2, metavar=("PARENT", "CHILD"),
                    help="take the pose of frame CHILD in frame PARENT from /tf and /tf_static "
                         "instead (e.g. map base_link; default: off, the pose topic)")  # fmt: skip
     p.add_argument(
         "--image-topic",
+        type=_name,
         default="/camera/image",
         help="sensor_msgs/Image or CompressedImage topic (default /camera/image)",
     )
     p.add_argument(
         "--words-topic",
+        type=_name,
         default="/speech",
         help="std_msgs/String topic of utterances: words or sentences (default /speech)",
     )
@@ -194,6 +203,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--map-frame",
+        type=_name,
         default="map",
         help="the map's frame: a pose topic whose header names another frame (odom) is "
         "placed on the map through the bag's tf chain from this frame to it, and is an error "

@@ -127,9 +127,15 @@ class ImportOptions:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+        for name in ("pose_topic", "image_topic", "words_topic", "map_frame"):
+            if not str(getattr(self, name)).strip("/ "):  # "" gave "no pose topic ''" or a
+                # pose frame check that suggested "--pose-tf  BASE_FRAME"
+                raise ValueError(f"{name} must name a topic or frame, got {getattr(self, name)!r}")
         if self.ros_distro not in ROS_DISTROS:
             raise ValueError(f"ros_distro must be one of {ROS_DISTROS}, got {self.ros_distro!r}")
-        if self.pose_tf is not None and len(self.pose_tf) != 2:
+        if self.pose_tf is not None and (
+            len(self.pose_tf) != 2 or not all(str(f).strip("/ ") for f in self.pose_tf)
+        ):
             raise ValueError(f"pose_tf must be (parent frame, child frame), got {self.pose_tf!r}")
         if self.pose_tf is not None and _frame(self.pose_tf[0]) != _frame(self.map_frame):
             parent, child = _frame(self.pose_tf[0]), _frame(self.pose_tf[1])
