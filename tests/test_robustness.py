@@ -13,6 +13,7 @@ import math
 from pathlib import Path
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
 from spcopyro.experiments.robustness import (
@@ -250,3 +251,29 @@ def test_one_seed_is_not_judged_stable_or_not() -> None:
     assert "| A-dp random | 0.500 | — | 0.500 | 0.600 | — | 0.600 | 0.900 | 0.900 |" in markdown
     assert "<= —, that of B-dirichlet random / single): not judged: one house" in markdown
     assert "nan" not in markdown and "): none." not in markdown
+
+
+def test_the_stability_legend_hides_no_point() -> None:
+    """The left panel's legend sat in its lower left corner, over the last settings' chains at
+    a low ARI (a map of one concept, or 10 sweeps from random labels)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from spcopyro.experiments.figures import stability_figure
+
+    def row(ari: float) -> dict:  # three chains around ``ari``
+        chains = [[{"ari": ari + d, "best_log_joint": d} for d in (0.0, 0.02, 0.04)]]
+        return {"method": "B-dirichlet", "single": [ari], "best_of_chains": [ari + 0.02],
+                "chains": chains}  # fmt: skip
+
+    # as the stability study at a smoke budget: two settings near 0.9, the others near 0.05
+    aris = [0.05, 0.05, 0.05, 0.9, 0.9, 0.05, 0.05, 0.05, 0.05]
+    settings = {f"setting {k}": row(ari) for k, ari in enumerate(aris)}
+    fig = stability_figure({"settings": settings, "chains": 3, "seeds": [0], "sweeps": 10})
+    FigureCanvasAgg(fig).draw()
+    left = fig.axes[0]
+    legend = left.get_legend().get_window_extent()
+    points = np.concatenate([left.transData.transform(c.get_offsets()) for c in left.collections
+                             if len(c.get_offsets())])  # fmt: skip
+    assert len(points) == 9 * 5
+    inside = [p for p in points if legend.contains(*p)]
+    assert not inside, inside

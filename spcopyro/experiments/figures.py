@@ -15,6 +15,14 @@ from matplotlib.figure import Figure
 
 
 def plot_stability(stability: dict, path: Path, method: str = "A-dp") -> Path:
+    """Write :func:`stability_figure` to ``path`` (PNG)."""
+    fig = stability_figure(stability, method)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
+    return path
+
+
+def stability_figure(stability: dict, method: str = "A-dp") -> Figure:
     """The stability study (:func:`~spcopyro.study.robustness.stability_of_rows`) in two panels.
 
     Left: every chain's ARI against the truth per setting (grey), chain 0 (circle) and the best
@@ -41,7 +49,8 @@ def plot_stability(stability: dict, path: Path, method: str = "A-dp") -> Path:
     left.scatter([], [], s=12, color="0.75", label="every chain")
     left.scatter([], [], s=28, facecolors="none", edgecolors="C0", label="one chain (chain 0)")
     left.scatter([], [], s=28, marker="x", color="C3", label="best of K by log joint")
-    left.legend(fontsize=7, loc="lower left")
+    # below the axes: in its lower left corner it hid the last rows' points
+    left.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=3, frameon=False)
     left.set_title(f"{stability['chains']} chains x seeds {stability['seeds']}", fontsize=9)
 
     family = [name for name in names if settings[name]["method"] == method]
@@ -61,6 +70,4 @@ def plot_stability(stability: dict, path: Path, method: str = "A-dp") -> Path:
     else:
         right.set_axis_off()
     fig.suptitle(f"Stability, {stability['sweeps']} sweeps per chain")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120, bbox_inches="tight")
-    return path
+    return fig
