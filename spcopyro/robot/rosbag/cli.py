@@ -214,8 +214,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "none (Foxy, Galactic and Humble sqlite3 bags; a bag's own definitions "
                         f"win) (default {DEFAULT_ROS_DISTRO})")  # fmt: skip
     p.add_argument("--overwrite", action="store_true",
-                   help="replace OUT (only a folder import-bag wrote) and its map; what in OUT "
-                        "that import did not write (Ft.csv, notes) is kept, and "
+                   help="replace OUT (only a folder import-bag wrote) and its map; anything in "
+                        "OUT that import did not write (Ft.csv, notes) is kept and "
                         "named")  # fmt: skip
     p.set_defaults(func=_import_bag)
 
@@ -238,7 +238,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "/camera/image/compressed (default jpeg)")  # fmt: skip
     p.add_argument("--image-size", type=_image_side, nargs=2, default=(48, 64),
                    metavar=("H", "W"),
-                   help="image height and width in pixels (default 48 64)")  # fmt: skip
+                   help="image height and width in pixels, each at most 8192 "
+                        "(default 48 64)")  # fmt: skip
     p.add_argument("--trials", type=int, nargs="+", metavar="K",
                    help="record only these trials of the house (default: all)")  # fmt: skip
     p.set_defaults(func=_simulate_bag)
