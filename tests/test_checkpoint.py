@@ -217,6 +217,31 @@ def test_a_variational_checkpoint_refuses_a_gibbs_one_and_other_data(tmp_path):
     np.testing.assert_array_equal(resumed.trajectory.objective, record.objective)
 
 
+def test_a_variational_checkpoint_names_the_backend_that_ran_not_auto(tmp_path):
+    """A cavi fit run with backend auto (numba, where it imports) was refused on resume with
+    backend=numba ('backend: auto in the checkpoint, numba here'), the backend that had run."""
+    from spcopyro.gibbs.run import SweepInfo
+    from spcopyro.guides.checkpoint import load_variational, save_variational
+    from spcopyro.guides.options import VariationalOptions
+    from spcopyro.guides.run import resolve_backend
+    from spcopyro.inference.driver import drive
+
+    ran = resolve_backend("auto")  # numba where it imports, else torch
+    other = "torch" if ran == "numba" else "numba"
+    cfg = config()
+    _, data = random_problem(seed=7)
+    record = drive(0, lambda s, g: (s + 1, SweepInfo(-1.0, 1, g)), 2, gamma=cfg.gamma,
+                   progress=False)  # fmt: skip
+    q = torch.full((data.num_free, cfg.num_concepts), 1.0 / cfg.num_concepts)
+    auto = VariationalOptions(backend="auto")
+    path = save_variational(tmp_path / "q.npz", q, record, config=cfg, data=data, method="cavi",
+                            options=auto)  # fmt: skip
+    for options in (auto, VariationalOptions(backend=ran)):
+        load_variational(path, data, cfg, method="cavi", options=options)
+    with pytest.raises(ValueError, match=rf"backend: '{ran}' in the checkpoint, '{other}' here"):
+        load_variational(path, data, cfg, method="cavi", options=VariationalOptions(backend=other))
+
+
 def test_a_file_that_is_no_checkpoint_is_refused(tmp_path):
     cfg = config()
     _, data = random_problem(seed=7)

@@ -64,12 +64,26 @@ RECORDS = ("objective", "num_concepts", "seconds", "gammas")
 
 
 def _header(method: str, options: object, config: SpCoConfig, data: ModelData) -> dict:
+    fields = dataclasses.asdict(options) if dataclasses.is_dataclass(options) else {}
     return {
         "method": method,
-        "options": dataclasses.asdict(options) if dataclasses.is_dataclass(options) else {},
+        "options": _backends_resolved(fields),  # what ran: "auto" the one it chose
         "model": config.to_json(),
         "data_sha256": data_fingerprint(data),
     }
+
+
+def _backends_resolved(options: Mapping[str, object]) -> dict[str, object]:
+    """``options`` (a dataclass's fields) with each ``backend`` of ``"auto"``, at any depth,
+    the backend it runs here (:func:`~spcopyro.guides.run.resolve_backend`): a fit run with
+    ``auto`` resumes with the backend that ran named, and the other way round."""
+    from spcopyro.guides.run import resolve_backend
+
+    return {
+        key: _backends_resolved(value) if isinstance(value, Mapping)
+        else resolve_backend("auto") if key == "backend" and value == "auto" else value
+        for key, value in options.items()
+    }  # fmt: skip
 
 
 def save_variational(
@@ -150,7 +164,7 @@ def load_variational(
             )
         problems = data_differences(saved["data_sha256"], data)
         problems += differences(saved["model"], here["model"])
-        problems += differences(saved["options"], here["options"])
+        problems += differences(_backends_resolved(saved["options"]), here["options"])
         if record is not None:
             problems += differences(saved["caller"], record)
         if problems:
