@@ -199,3 +199,13 @@ def test_where_given_a_file_names_the_folder_to_give(tmp_path, capsys):
     assert f"(here {out})" in err and "result.npz/result.npz" not in err
     assert main(["where", str(out / "config.json"), "kitchen"]) == 2
     assert "config.json is a file, not the output folder" in capsys.readouterr().err
+
+
+def test_a_fraction_of_a_word_heard_is_not_printed_as_none():
+    """With a footprint a concept's cells can hold 0.04 of an utterance: its count read "0
+    words" beside its word list (a concept where no word was heard shows no list)."""
+    from spcopyro.results.concept_words import format_words_heard
+
+    assert [format_words_heard(h) for h in (0.0, 0.04, 0.05, 9.0, 8.964)] == [
+        "0", "<0.1", "0.1", "9", "9"
+    ]  # fmt: skip

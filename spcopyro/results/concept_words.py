@@ -72,7 +72,11 @@ def ranked(*keys: np.ndarray) -> np.ndarray:
 def format_words_heard(heard: float) -> str:
     """Words heard in a concept's cells, to one decimal, ``"9"`` rather than ``"9.0"``: with an
     observation footprint an utterance's weight is spread over cells that may lie in two
-    concepts, so the count is fractional (8.964 read as noise beside whole utterances)."""
+    concepts, so the count is fractional (8.964 read as noise beside whole utterances). A count
+    above 0 that rounds to 0 is ``"<0.1"``: "0 words" beside a word list read as a contradiction
+    (a concept with no word heard shows no list)."""
+    if 0 < heard < 0.05:
+        return "<0.1"
     return f"{heard:.1f}".removesuffix(".0")
 
 
