@@ -160,3 +160,21 @@ def test_overwrite_refuses_the_folder_it_is_run_in(tmp_path, bag, map_yaml, monk
         with pytest.raises(FileExistsError, match="holds the current directory"):
             import_bags([bag], map_yaml, out, overwrite=True)
     assert (out / "img_0").is_dir() and (out / "pose_0.csv").is_file()
+
+
+def test_an_unreadable_map_of_an_earlier_import_is_replaced_with_overwrite(tmp_path, bag, map_yaml):
+    """QA: a broken map at map/NAME.yaml (invalid yaml, a missing key) stopped every later
+    import, --overwrite or not, with the map loader's error, as if --map were broken."""
+    out = tmp_path / "data" / "house"
+    import_bags([bag], map_yaml, out)
+    target = tmp_path / "data" / "map" / "house.yaml"
+    target.write_text("garbage: [\n")
+    with pytest.raises(FileExistsError, match=r"cannot be read as a map .*pass --overwrite"):
+        import_bags([bag], map_yaml, out)
+    assert import_bags([bag], map_yaml, out, overwrite=True).map_replaced
+    assert load_map(target) == _grid()
+    target.write_text("garbage: [\n")  # beside no import: refused even with --overwrite
+    other = tmp_path / "data" / "other"
+    (tmp_path / "data" / "map" / "other.yaml").write_text("garbage: [\n")
+    with pytest.raises(FileExistsError, match="cannot be read as a map .* holds no earlier"):
+        import_bags([bag], map_yaml, other, overwrite=True)

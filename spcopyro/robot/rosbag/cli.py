@@ -103,7 +103,8 @@ def _import_bag(args: argparse.Namespace) -> int:
               "write it again", file=sys.stderr)  # fmt: skip
     if report.map_replaced:
         print(f"warning: --overwrite replaced the map {report.map_yaml} of the earlier import "
-              f"in {report.out}, which differed from {args.map}", file=sys.stderr)  # fmt: skip
+              f"in {report.out}: it was not {args.map}'s map (it differed, or could not be "
+              "read)", file=sys.stderr)  # fmt: skip
     out, q = report.out, _quote  # commands to paste: a path with spaces is quoted
     print(f"  next: spcopyro features {q(out)} --out {q(out / 'Ft.csv')}")
     print(f"  then: spcopyro fit {q(out)} --out {q(out.parent / 'fit')}")

@@ -26,7 +26,7 @@ from pathlib import Path
 
 from spcopyro._util.outputs import nearest_existing
 from spcopyro.maps.grid import OccupancyGrid
-from spcopyro.maps.map_server import load_map
+from spcopyro.maps.map_server import MapFormatError, load_map
 
 __all__ = [
     "IMPORT_FILES",
@@ -128,17 +128,21 @@ def check_map(
     """Whether the import replaces a different map at ``target`` (the map of house ``out``);
     a FileExistsError when it may not (no ``overwrite``, or no earlier import in ``out`` whose
     map it would be)."""
-    if not target.exists() or load_map(target) == grid:
+    if not target.exists():
         return False
+    try:
+        if load_map(target) == grid:
+            return False
+        differs = f"differs from {source}"
+    except MapFormatError as error:  # an unreadable map there blocked every later import
+        differs = f"cannot be read as a map ({error})"
     if not overwrite:
-        raise FileExistsError(
-            f"{target} exists and differs from {source}; pass --overwrite to replace it"
-        )
+        raise FileExistsError(f"{target} exists and {differs}; pass --overwrite to replace it")
     if earlier is None:
         raise FileExistsError(
-            f"{target} exists and differs from {source}, and {out} holds no earlier import "
-            f"(no {MARKER}) whose map it would be: not replacing it, even with --overwrite; "
-            "move it away, or choose another --out name"
+            f"{target} exists and {differs}, and {out} holds no earlier import (no {MARKER}) "
+            "whose map it would be: not replacing it, even with --overwrite; move it away, or "
+            "choose another --out name"
         )
     return True
 
