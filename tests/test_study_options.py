@@ -332,3 +332,18 @@ def test_a_sweeps_entry_no_cell_takes_is_refused(tmp_path, sweeps, methods, key)
     text = text.replace('methods = ["gibbs", "cavi"]', f"methods = {methods}")
     with pytest.raises(StudyError, match=rf"\[study\] sweeps\.{key} = \d+: no cell takes it"):
         study_from_dict(tomllib.loads(text), source="t.toml")
+
+
+def test_a_study_of_other_methods_than_gibbs_takes_their_options():
+    """With ``[study] methods = ["cavi"]`` a variant's CAVI option was refused (``unknown key
+    'anneal_iterations'``: the variant was checked as Gibbs'), and a variant may not name its
+    own method there: CAVI's options could not be set at all."""
+    text = TWICE.replace('methods = ["gibbs", "cavi"]', 'methods = ["cavi"]')
+    text = text.replace(
+        'preset = "original-code"', 'preset = "original-code"\nanneal_iterations = 3'
+    )
+    (cell, *_) = cells_of(study_from_dict(tomllib.loads(text)))
+    assert cell.method == "cavi" and cell.variant.method_options().anneal_iterations == 3
+    both = text.replace('methods = ["cavi"]', 'methods = ["cavi", "gibbs"]')
+    with pytest.raises(StudyError, match="no field 'anneal_iterations'.*methods' 'gibbs'"):
+        study_from_dict(tomllib.loads(both))

@@ -307,10 +307,14 @@ def _variants(source: str, table: object, methods: tuple[str, ...]) -> tuple[Var
         if methods and "method" in overrides:
             raise _fail(source, f"[variants.{name}] method", overrides["method"],
                         "[study] methods is given: it sets every variant's method")  # fmt: skip
-        try:
-            variant = make_variant(name, _flatten(overrides))
+        try:  # made for the study's first method: its options were refused as gibbs's
+            first = {"method": methods[0]} if methods else {}
+            variant = make_variant(name, {**_flatten(overrides), **first})
             for method in methods:  # the variant's options must exist for every method
-                dataclasses.replace(variant, method=method).method_options()
+                try:
+                    dataclasses.replace(variant, method=method).method_options()
+                except VariantError as error:
+                    raise VariantError(f"{error} (for [study] methods' {method!r})") from None
                 problem = fit_combination_problem(dict(variant.fit), method)
                 if problem:
                     raise VariantError(f"variant {name!r}: {problem}")
