@@ -169,12 +169,12 @@ def test_an_unreadable_map_of_an_earlier_import_is_replaced_with_overwrite(tmp_p
     import_bags([bag], map_yaml, out)
     target = tmp_path / "data" / "map" / "house.yaml"
     target.write_text("garbage: [\n")
-    with pytest.raises(FileExistsError, match=r"cannot be read as a map .*pass --overwrite"):
-        import_bags([bag], map_yaml, out)
     assert import_bags([bag], map_yaml, out, overwrite=True).map_replaced
     assert load_map(target) == _grid()
-    target.write_text("garbage: [\n")  # beside no import: refused even with --overwrite
-    other = tmp_path / "data" / "other"
+    other = tmp_path / "data" / "other"  # beside no import: refused even with --overwrite
     (tmp_path / "data" / "map" / "other.yaml").write_text("garbage: [\n")
+    with pytest.raises(FileExistsError, match=r"cannot be read as a map .*pass --overwrite"):
+        import_bags([bag], map_yaml, other)
     with pytest.raises(FileExistsError, match="cannot be read as a map .* holds no earlier"):
         import_bags([bag], map_yaml, other, overwrite=True)
+    assert not other.exists()

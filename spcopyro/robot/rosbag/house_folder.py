@@ -135,7 +135,7 @@ def check_map(
             return False
         differs = f"differs from {source}"
     except MapFormatError as error:  # an unreadable map there blocked every later import
-        differs = f"cannot be read as a map ({error})"
+        differs = f"cannot be read as a map ({' '.join(str(error).split())})"  # one line
     if not overwrite:
         raise FileExistsError(f"{target} exists and {differs}; pass --overwrite to replace it")
     if earlier is None:
