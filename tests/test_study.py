@@ -132,6 +132,8 @@ def test_spec_from_toml_equals_spec_from_python(tmp_path):
             'gamma = 3.0\npoint_estimate = "binder"',
             ["[variants.og3]", "point_estimate='binder'", "needs marginal_samples > 0"],
         ),
+        # a trace keeps no ARI in a fit shorter than ari_every (it was ignored, silently)
+        ("sweeps = 8", "sweeps = 8\nari_every = 10", ["[study] ari_every = 10", "gibbs for 8"]),
         # a prior of a hyperparameter the chain does not sample changed nothing, silently
         (
             "gamma = 3.0",

@@ -449,6 +449,15 @@ def study_from_dict(values: Mapping[str, Any], *, source: str = "<python>") -> S
                     f"baselines = {list(baselines)} has no C-spcoa row to take it")  # fmt: skip
     sweeps = _sweeps(source, head.get("sweeps", 1000), tuple(v.name for v in variants))
     _check_sweeps_used(source, sweeps, variants, methods)
+    if ari_every:  # a trace keeps the ARI every ari_every iterations: none in a shorter fit
+        table = dict(sweeps)
+        for variant in variants:
+            for method in methods or (variant.method,):
+                count = table.get(variant.name, table.get(method, table.get("*", 1000)))
+                if count < ari_every:
+                    raise _fail(source, "[study] ari_every", ari_every,
+                                f"variant {variant.name!r} runs {method} for {count} "
+                                "iterations: its trace would keep no ARI")  # fmt: skip
     return Study(
         ari_every=int(ari_every),
         scoring=scoring,
