@@ -389,6 +389,10 @@ def test_a_seeded_fit_gives_the_same_plan(tmp_path):
             "the nearest cell with that clearance is at x=0.35 y=1.45 (0.20 m away)",
         ),
         (["kitchen", "--start=0.35,1.45", "--frame", "map frame"], "a tf frame id"),
+        (
+            ["kitchen", "--start=0.35,1.45", "--frame", "/map"],  # tf2 refuses a leading /
+            "tf2 frame ids cannot start with '/' (tf2 refuses them); use 'map'",
+        ),
     ],
 )
 def test_command_line_errors_are_clear(fit, capsys, argv, message):

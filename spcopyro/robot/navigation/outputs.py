@@ -54,9 +54,15 @@ _FRAME_CHARS = set("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ01234567
 
 
 def check_frame(frame: str) -> str:
-    """A tf frame id (letters, digits, ``_``, ``/``); ValueError otherwise."""
+    """A tf frame id (letters, digits, ``_``, ``/``, not starting with ``/``); ValueError
+    otherwise."""
     if not frame or not set(frame) <= _FRAME_CHARS or frame.strip("/") == "":
         raise ValueError(f"frame {frame!r}: a tf frame id is letters, digits, _ and /")
+    if frame.startswith("/"):  # tf2 refuses such a goal's frame_id: the plan would not run
+        raise ValueError(
+            f"frame {frame!r}: tf2 frame ids cannot start with '/' (tf2 refuses them); use "
+            f"{frame.lstrip('/')!r}"
+        )
     return frame
 
 
