@@ -42,6 +42,17 @@ def _map_with_image(folder: Path, image: str) -> Path:
     return yaml
 
 
+def test_a_map_that_does_not_read_is_refused_before_any_cell(tmp_path):
+    """Its cells failed one by one at run time (MapFormatError, a missing image)."""
+    yaml = _map_with_image(tmp_path, "other.pgm")
+    (tmp_path / "other.pgm").unlink()
+    with pytest.raises(FileNotFoundError, match="mymap.yaml names the image .*other.pgm, which"):
+        resolve_source(DataSource("tour", "map", str(yaml)))
+    yaml.write_text("image: [\n")
+    with pytest.raises(ValueError, match="data source 'tour': .*mymap.yaml"):
+        resolve_source(DataSource("tour", "map", str(yaml)))
+
+
 @pytest.mark.parametrize("image", ["other.pgm", "pictures/other.png"])
 def test_a_maps_digest_covers_the_image_its_yaml_names(tmp_path, image):
     (tmp_path / "pictures").mkdir()

@@ -64,7 +64,7 @@ def _study(args: argparse.Namespace) -> int:
             raise FileNotFoundError(f"--report-only: {out / TABLE} does not exist; run the study")
         try:  # the study's cells: an interrupted run's report still says how many are missing
             expected: int | None = len(cells_of(study, args.data))
-        except OSError:  # a source no longer found (a moved dataset): the report without it
+        except (OSError, ValueError):  # a source no longer found or read: the report without it
             expected = None
         report = write_report(out / TABLE, out / "report.md", title=study.name, expected=expected)
         print(f"wrote {report}")

@@ -50,13 +50,21 @@ def resolve_source(data: DataSource, root: str | Path | None = None) -> DataSour
             target = target.with_suffix(".yaml")
     if not target.exists():
         raise FileNotFoundError(f"data source {data.name!r}: {target} does not exist")
+    if data.kind == "map":  # every cell of a map that does not read failed at run time
+        try:
+            image = _read_map_yaml(target).image
+        except MapFormatError as error:
+            raise ValueError(f"data source {data.name!r}: {error}") from None
+        if not image.is_file():
+            raise FileNotFoundError(f"data source {data.name!r}: {target} names the image "
+                                    f"{image}, which does not exist")  # fmt: skip
     return dataclasses.replace(data, target=str(target.resolve()))
 
 
 def _map_files(yaml_path: Path) -> list[Path]:
     """A map's yaml and the image its ``image:`` names (relative to the yaml's folder, as
     map_server reads it), whatever its name and extension; the yaml alone when it does not
-    parse or its image is missing (the cell then fails, naming the problem)."""
+    parse or its image is missing (:func:`resolve_source` refuses such a map first)."""
     try:
         image = _read_map_yaml(yaml_path).image
     except MapFormatError:
