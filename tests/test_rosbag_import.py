@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -897,3 +898,18 @@ def test_an_empty_topic_or_frame_is_refused(tmp_path, capsys):
     for options in ({"map_frame": ""}, {"pose_topic": " "}, {"pose_tf": ("map", "")}):
         with pytest.raises(ValueError, match="must"):
             ImportOptions(**options)
+
+
+@pytest.mark.parametrize(("ros", "storage", "hint"), [
+    (1, "sqlite3", "`rosbag reindex` repairs its index"),
+    (2, "mcap", "`mcap recover` rewrites what it holds"),
+])  # fmt: skip
+def test_a_bag_cut_short_names_its_usual_repair(tmp_path, map_yaml, ros, storage, hint):
+    """QA: a recording killed before its recorder closed it (a .bag without its index, an .mcap
+    without its footer) said only 'not a readable bag (Bag index looks damaged ...)'."""
+    bag = _bag_path(tmp_path, ros)
+    _write_basic(bag, ros, storage)
+    data = bag if ros == 1 else next(bag.glob("*.mcap"))
+    data.write_bytes(data.read_bytes()[: data.stat().st_size * 2 // 3])
+    with pytest.raises(BagFormatError, match=rf"not a readable bag .*; if .*{re.escape(hint)}$"):
+        import_bags([bag], map_yaml, tmp_path / "d" / "h")

@@ -181,6 +181,7 @@ def open_bag(path: str | os.PathLike[str], ros_distro: str = DEFAULT_ROS_DISTRO)
     except (highlevel.AnyReaderError, OSError, KeyError, ValueError, AssertionError) as error:
         raise BagFormatError(
             f"{path}: not a readable bag ({error or type(error).__name__})"
+            f"{_REPAIR.get(path.suffix or ('.mcap' if any(path.glob('*.mcap')) else ''), '')}"
         ) from None
     if reader.is2:  # types it stores no definition for (empty mcap schemas): ros_distro's
         known = reader.typestore.fielddefs
@@ -218,6 +219,13 @@ def _messages(
             ) from None
         yield index, connection, log_ns, msg
         index += 1
+
+
+_REPAIR = {
+    ".bag": "; if its recording did not end cleanly, `rosbag reindex` repairs its index",
+    ".mcap": "; if it was cut short, `mcap recover` rewrites what it holds",
+}
+"""The usual repair of a bag file that does not open (a recorder killed before it closed it)."""
 
 
 def _topic_listing(reader: Any) -> str:
