@@ -160,6 +160,16 @@ def test_a_concept_where_no_word_was_heard_says_so(capsys):
     assert any(line.strip().startswith("concept   1:") and NO_WORDS in line for line in lines)
 
 
+def test_one_cell_and_one_word_are_singular_in_the_listing(capsys):
+    """A one-cell concept where one utterance was heard printed '1 cells    1 words'."""
+    result = two_rooms()
+    totals = np.array([[3.0, 3.0, 5.0], [2.0, 2.0, 4.0], [1.0, 1.0, 1.0]])  # concept 2: 1 cell
+    print_concepts(SpCoResult(**{**result.__dict__, "concept_totals": totals}))
+    lines = capsys.readouterr().out.splitlines()
+    assert "  concept   2:      1 cell     1 word   kitchen 0.70" in lines[-1]
+    assert "  concept   1:    149 cells    4 words  bed 0.60" in lines[-2]  # the columns align
+
+
 def test_a_concept_outside_0_to_L_is_refused_by_name():
     result = _silent_speck()  # L = 3
     assert result.top_words(2) == result.top_words(np.int64(2))

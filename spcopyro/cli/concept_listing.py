@@ -46,8 +46,10 @@ def print_concepts(result: SpCoResult, limit: int = 10) -> None:
         for name in further:
             top = concept[f"top_{name}"][:2]
             words += f"; {name}: " + ", ".join(f"{item} ({p:.2f})" for item, p in top)
-        count = "" if heard is None else f"{format_words_heard(heard):>4} words  "
-        print(f"  concept {concept['concept']:>3}: {concept['cells']:>6} cells {count}{words}")
+        heard_text = None if heard is None else format_words_heard(heard)
+        count = "" if heard is None else f"{heard_text:>4} {_noun(heard_text == '1', 'word')}  "
+        cells = f"{concept['cells']:>6} {_noun(concept['cells'] == 1, 'cell')}"
+        print(f"  concept {concept['concept']:>3}: {cells} {count}{words}")
     if len(listed) > limit:
         print(f"  ... {len(listed) - limit} smaller concepts in concepts.json")
     if specks:
@@ -63,3 +65,8 @@ def print_concepts(result: SpCoResult, limit: int = 10) -> None:
 
 def _is_speck(concept: dict[str, object], num_free: int) -> bool:
     return is_speck(int(concept["cells"]), concept["words_heard"], num_free)
+
+
+def _noun(one: bool, noun: str) -> str:
+    """``noun`` for one, else its plural, padded to the plural's width (the columns align)."""
+    return f"{noun} " if one else f"{noun}s"
