@@ -381,3 +381,20 @@ def test_a_finite_prior_takes_a_public_houses_categories(dataset_root):
     (cell,) = cells_of(comparison_study(settings), dataset_root)
     assert PUBLIC_CATEGORIES["room1ldk4"] == 7
     assert problem_of(cell).settings.model.num_concepts == 7
+
+
+def test_times_to_95_percent_under_a_tenth_of_a_second_keep_their_digits():
+    """A t95 of 4.9 ms read "0.00 s" beside "(37.0x slower)" (and "0.00" in the table)."""
+    from spcopyro.experiments.comparison_report import _t95, findings
+
+    assert _t95({"mean": 0.0049, "n": 1}, 1) == "0.0049"
+    assert _t95({"mean": 0.18, "n": 1}, 2) == "0.2 (1/2 reached)"
+
+    def line(t95: float) -> dict:
+        return {"final_given_labels": {"top1": {"mean": 0.2}},
+                "time_to_95": {"top1": {"mean": t95}}, "seconds": {"mean": 1.0},
+                "concepts": {"mean": 10.0}}  # fmt: skip
+
+    (text,) = [n for n in findings({"public": {"gibbs": line(0.0049), "cavi": line(0.18)}})
+               if n.startswith("public, cavi")]  # fmt: skip
+    assert "after 0.2 s vs 0.0049 s (36.7x slower)" in text, text

@@ -163,7 +163,8 @@ def findings(summary: dict[str, dict[str, dict]]) -> list[str]:
                 f"given them) {q:.3f} vs "
                 f"{q_ref:.3f} ({verdict})",
                 f"95% of its own final {SCORE_NAMES[primary]} after "
-                f"{_m(s, 'time_to_95', primary):.2f} s vs {_m(ref, 'time_to_95', primary):.2f} s "
+                f"{seconds_text(_m(s, 'time_to_95', primary))} s vs "
+                f"{seconds_text(_m(ref, 'time_to_95', primary))} s "
                 f"({_ratio(_m(s, 'time_to_95', primary), _m(ref, 'time_to_95', primary))})",
                 f"whole run {seconds_text(_m(s, 'seconds'))} s vs "
                 f"{seconds_text(_m(ref, 'seconds'))} s",
@@ -228,7 +229,7 @@ def _seconds(entry: dict | None) -> str:
 def _t95(entry: dict | None, runs: int) -> str:
     if not entry or entry.get("n", 0) == 0:
         return "never"
-    text = f"{entry['mean']:.2f}"
+    text = seconds_text(entry["mean"])  # 0.0049 s read "0.00", beside "37.0x slower"
     return text if entry["n"] == runs else f"{text} ({entry['n']}/{runs} reached)"
 
 
