@@ -94,6 +94,21 @@ def test_fit_says_when_the_word_prior_swamps_the_words(small_house, tmp_path, ca
     assert "close to uniform" not in capsys.readouterr().err
 
 
+def test_fit_says_when_the_vocabulary_holds_one_word(small_house, tmp_path, capsys):
+    """With one word every w is uniform, and the note blamed beta or stopwords."""
+    import re
+    import shutil
+
+    house = shutil.copytree(small_house.parent, tmp_path / "copy") / small_house.name
+    for words in [house / "St.csv", *house.glob("word_*.csv")]:
+        words.write_text(re.sub(r"[^,\s]+", "kitchen", words.read_text()))
+    argv = ["fit", str(house), "--out", str(tmp_path / "f"), "--sweeps", "3", "--concepts", "10"]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert "note: the vocabulary holds one word ('kitchen'): the words cannot tell" in err
+    assert "close to uniform" not in err
+
+
 def test_bad_input_is_one_clear_line(tmp_path, capsys):
     assert main(["show", str(tmp_path / "nowhere"), "--out", str(tmp_path / "x.png")]) == 2
     err = capsys.readouterr().err

@@ -522,7 +522,11 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     log_degenerate_map(result, house)  # printed once, as "warning: ..."
     vocabulary_size = len(result.vocabulary)
     used = result.concepts_in_use()
-    if vocabulary_size and result.w[used].max() < 2.0 / vocabulary_size:
+    if vocabulary_size == 1:  # "close to uniform" always, and for no reason below
+        print(f"note: the vocabulary holds one word ({result.vocabulary[0]!r}): the words cannot "
+              "tell places apart, so the map follows the images and the coupling alone",
+              file=sys.stderr)  # fmt: skip
+    elif vocabulary_size and result.w[used].max() < 2.0 / vocabulary_size:
         if config.beta > 0.1:
             why = (f"beta = {config.beta:g} outweighs the {house.observations.num_utterances} "
                    "utterances (each list still follows the counts heard there); for sharper "
