@@ -186,6 +186,19 @@ def test_hyper_options_of_a_study_reach_its_cells(tmp_path):
     assert cells["og3"].key != plain["og3"].key and cells["dp"].key == plain["dp"].key
 
 
+def test_sampled_hyperparameters_are_in_the_table(tmp_path):
+    """A variant's ``hyper.*`` ran, but where the chain took alpha and gamma was nowhere in
+    ``results.csv``: a study of hyperparameter sampling could not read its own result."""
+    text = TINY.replace("gamma = 3.0", 'gamma = 3.0\nhyper.alpha = true\nhyper.gamma = "exchange"')
+    study = load_study(_write(tmp_path, text.replace("seeds = 2", "seeds = 1")))
+    run_study(study, tmp_path / "out", progress=False)
+    rows = {r["variant"]: r for r in read_table(tmp_path / "out" / "results.csv")}
+    sampled = json.loads(rows["og3"]["hyperparameters"])
+    assert sorted(sampled) == ["alpha", "gamma"]
+    assert sampled["gamma"]["initial"] == 3.0 and sampled["gamma"]["posterior_mean"] > 0
+    assert not rows["dp"]["hyperparameters"] and not rows["F-geometry"]["hyperparameters"]
+
+
 def test_python_spec_errors_and_method_grid():
     with pytest.raises(StudyError, match="<python>: \\[data\\]"):
         study_from_dict({"variants": {"a": {}}})

@@ -42,6 +42,9 @@ Scores (every one that applies; the others are left empty in the table, :data:`S
   origin and the truth when there is one; comparison cells too), returned beside
   the record and saved by the caller as ``maps/KEY.npz``: the report's per-house maps are drawn
   from it, with no refit;
+* ``hyperparameters`` (JSON text): with a variant's ``hyper.*`` (the Gibbs chain samples
+  alpha, gamma or the concentrations), each sampled one's initial, final and posterior mean
+  and sd (:func:`spcopyro.gibbs.hyperparameters.hyperparameter_summary`);
 * ``details``: a study with ``scoring = "comparison"`` scores its cells as ``compare-inference``
   does (:mod:`spcopyro.study.comparison_cell`): the final scores in the columns above, the
   comparison's whole record (curve, time to 95 %, ESS, over-confidence) as JSON text here.
@@ -82,7 +85,7 @@ SCORES = (
     "concepts_1pct", "largest_share", "free_cells", "held_out_trial", "place_top_share",
     "top_words", "ari_off", "ari_on_off", "concepts_1pct_off", "seconds", "cpu_seconds",
     "seconds_off", "cpu_seconds_off", "iterations", "best_objective", "filler_top_share",
-    "concept_words", "details",
+    "concept_words", "hyperparameters", "details",
 )  # fmt: skip
 """The score columns of the table, in order."""
 STATUS_COLUMNS = ("status", "error_type", "error")
@@ -146,6 +149,9 @@ def _fit_and_score(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays
             ).value
     if result is not None:
         scores["best_objective"] = float(result.best_objective)
+        sampled = result.inference.get("hyperparameters")
+        if sampled:  # a variant's hyper.*: where the chain took them
+            scores["hyperparameters"] = json.dumps(sampled)
         if cell.data.kind == "synthetic" and cell.data.house_spec().sentence_fraction > 0:
             scores.update(_sentence_scores(result))
         words, scores["place_top_share"] = top_words(

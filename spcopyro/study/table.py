@@ -184,7 +184,7 @@ def _cell_text(value: object) -> object:
 TEXT_COLUMNS = frozenset(
     ("variant", "data", "method", "data_kind", "data_source", "preset", "overrides", "version",
      "key", "source_digest", "status", "error_type", "error", "trace", "top_words", "details",
-     "scoring", "label_map", "concept_words")
+     "scoring", "label_map", "concept_words", "hyperparameters")
 )  # fmt: skip
 """Columns read back as text, even when they look like a number."""
 
