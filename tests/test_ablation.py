@@ -404,3 +404,28 @@ def test_times_under_a_tenth_of_a_second_keep_their_digits():
     )
     assert comparison_seconds({"mean": 0.004, "n": 2}) == "0.004"
     assert comparison_seconds(None) == "—"
+
+
+def test_a_single_seed_gets_no_error_bar(tmp_path, monkeypatch):
+    """ablation.png drew a zero-height error bar (sd 0) over a bar of one seed, as if its
+    seeds agreed; the sd of one value is not 0 but undefined."""
+    from matplotlib.axes import Axes
+
+    from spcopyro.experiments.ablation import AblationSettings
+    from spcopyro.experiments.ablation_report import figure
+
+    errors = []
+    bar = Axes.bar
+
+    def recorded(self, *args, yerr=None, **kwargs):
+        errors.append(list(yerr))
+        return bar(self, *args, yerr=yerr, **kwargs)
+
+    monkeypatch.setattr(Axes, "bar", recorded)
+    settings = AblationSettings(variants=(parse_variant("a"),), baselines=(), synthetic=("dense",))
+    one, two = {"mean": 0.5, "sd": 0.0, "n": 1}, {"mean": 0.5, "sd": 0.1, "n": 2}
+    report = {"summary": {"a": {"dense": {"ari": one}}}, "records": []}
+    figure(report, settings, tmp_path / "one.png")
+    report = {"summary": {"a": {"dense": {"ari": two}}}, "records": []}
+    figure(report, settings, tmp_path / "two.png")
+    assert np.isnan(errors[0][0]) and errors[1] == [0.1]

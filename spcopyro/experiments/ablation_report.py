@@ -257,7 +257,8 @@ def figure(report: dict, settings: AblationSettings, path: Path) -> Path:
         for k, row in enumerate(rows):
             stats = [summary.get(row, {}).get(h, {}).get(score) for h in houses]
             mean = [s["mean"] if s else np.nan for s in stats]
-            sd = [s["sd"] if s else 0.0 for s in stats]
+            # one seed: no sd, no error bar (its JSON keeps 0; a bar of 0 said "no spread")
+            sd = [s["sd"] if s and s.get("n", 2) > 1 else np.nan for s in stats]
             pos = x - 0.4 + width * (k + 0.5)
             ax.bar(pos, mean, width, yerr=sd, label=row, color=colours(k % 10), capsize=2)
             if off:
