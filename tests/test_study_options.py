@@ -240,6 +240,15 @@ def test_a_sweeps_table_without_a_star_says_which_methods_run_1000(tmp_path, cap
     assert "1000" not in capsys.readouterr().err
 
 
+def test_data_for_a_study_of_synthetic_houses_only_is_refused(tmp_path, capsys):
+    """``--data DIR`` was ignored: no source of the study is looked up there."""
+    path = tmp_path / "tiny.toml"
+    path.write_text(TWICE)
+    argv = ["study", str(path), "--out", str(tmp_path / "out"), "--data", "/nowhere", "--dry-run"]
+    assert main(argv) == 2
+    assert "--data /nowhere: study" in capsys.readouterr().err
+
+
 def test_report_only_with_dry_run_is_refused(tmp_path, capsys):
     path = tmp_path / "tiny.toml"
     path.write_text(TWICE)

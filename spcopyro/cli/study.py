@@ -55,6 +55,9 @@ def _study(args: argparse.Namespace) -> int:
     path = study_path(args.study)
     study = load_study(path)
     out = check_out_folder(args.out)
+    if args.data is not None and all(d.kind == "synthetic" for d in study.data):  # was ignored
+        raise ValueError(f"--data {args.data}: study {path} has no public house or map to find "
+                         "there (its sources are synthetic houses)")  # fmt: skip
     defaulted = study.sweeps_defaulted()
     if defaulted:
         print(f"note: {path}: [study] sweeps names neither {', '.join(defaulted)} nor '*': "
