@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -22,6 +23,11 @@ from spcopyro.study.cells import cells_of
 from spcopyro.study.run import run_study
 from spcopyro.study.spec import StudyError, load_study, study_from_dict
 from spcopyro.study.table import COLUMNS, read_table
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib  # type: ignore[no-redef]
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -197,6 +203,25 @@ def test_sampled_hyperparameters_are_in_the_table(tmp_path):
     assert sorted(sampled) == ["alpha", "gamma"]
     assert sampled["gamma"]["initial"] == 3.0 and sampled["gamma"]["posterior_mean"] > 0
     assert not rows["dp"]["hyperparameters"] and not rows["F-geometry"]["hyperparameters"]
+
+
+@pytest.mark.parametrize(
+    "line, words",
+    [
+        ('categories = "kitchen"', "categories = 'kitchen': expected a list of category names"),
+        ('door_width = "wide"', "door_width = 'wide': expected 'auto' or metres > 0"),
+        ("num_trials = 0", "num_trials = 0: expected an integer >= 1"),
+        ("sentence_fraction = 2.0", "sentence_fraction = 2.0: expected a share in [0, 1]"),
+    ],
+)
+def test_a_map_tours_values_are_checked_when_read(line, words):
+    """MapTour checks none of its values: each cell failed at run time, or (``categories =
+    "kitchen"``) simulated a house of the categories k, i, t, c, h, e, n."""
+    text = f'[variants.a]\n[data.tour]\nmap = "room1dk5"\n{line}\n'
+    with pytest.raises(StudyError, match=re.escape(f"t.toml: [data.tour] {words}")):
+        study_from_dict(tomllib.loads(text), source="t.toml")
+    fine = study_from_dict(tomllib.loads(text.replace(line, 'categories = ["kitchen", "bath"]')))
+    assert fine.data[0].map_tour().categories == ("kitchen", "bath")
 
 
 def test_python_spec_errors_and_method_grid():

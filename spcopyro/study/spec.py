@@ -380,6 +380,9 @@ def _data_source(source: str, name: str, table: object) -> DataSource:
             if key not in fields:
                 why = f"{known.__name__} has no such field; it has {sorted(fields)}"
                 raise _fail(source, f"{where} {key}", value, why)
+        problem = _map_tour_problem(values) if kind == "map" else None
+        if problem is not None:
+            raise _fail(source, f"{where} {problem[0]}", values[problem[0]], problem[1])
         try:
             trials = check().num_trials
         except (TypeError, ValueError) as error:
@@ -388,6 +391,36 @@ def _data_source(source: str, name: str, table: object) -> DataSource:
             raise _fail(source, f"{where} heldout", heldout,
                         f"a held-out source needs num_trials >= 2, it has {trials}")  # fmt: skip
     return data
+
+
+def _map_tour_problem(values: Mapping[str, Any]) -> tuple[str, str] | None:
+    """(field, why) for a MapTour value ``simulate_on_map`` refuses or misreads (MapTour checks
+    none itself: each cell failed at run time, and ``categories = "kitchen"`` became the letters
+    k, i, t, ...), as HouseSpec checks its own; None when all are fine."""
+
+    def integer(value: object, low: int) -> bool:
+        return isinstance(value, int) and not isinstance(value, bool) and value >= low
+
+    def number(value: object) -> bool:
+        return isinstance(value, int | float) and not isinstance(value, bool) and value == value
+
+    checks = {
+        "categories": (lambda v: isinstance(v, list | tuple) and len(v) > 0
+                       and all(isinstance(c, str) and c.strip() for c in v),
+                       "expected a list of category names"),
+        "door_width": (lambda v: v == "auto" or (number(v) and v > 0),
+                       "expected 'auto' or metres > 0"),
+        "min_room_area": (lambda v: number(v) and v > 0, "expected square metres > 0"),
+        "num_trials": (lambda v: integer(v, 1), "expected an integer >= 1"),
+        "images_per_room": (lambda v: integer(v, 1), "expected an integer >= 1"),
+        "utterances_per_room": (lambda v: integer(v, 0), "expected an integer >= 0"),
+        "sentence_fraction": (lambda v: number(v) and 0 <= v <= 1, "expected a share in [0, 1]"),
+    }  # fmt: skip
+    for name, value in values.items():
+        check, why = checks.get(name, (lambda v: True, ""))
+        if not check(value):
+            return name, why
+    return None
 
 
 def _check_ari_every(source: str, every: int, scoring: str, variants: tuple[Variant, ...]) -> None:
