@@ -3,6 +3,8 @@ found by running the commands on small and hand-drawn houses)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from spcopyro.cli.main import main
@@ -89,6 +91,7 @@ def test_a_figure_out_that_is_a_folder_or_under_a_file_is_a_usage_error(tmp_path
     folder.mkdir()
     afile.write_text("x")
     for out, told in (
+        ("", "an empty file name"),  # show: "PosixPath('.') has an empty name" after the work
         (str(folder), "is a folder: give the figure's file name in it"),
         (str(tmp_path / "new") + "/", "is a folder: give the figure's file name in it"),
         (str(afile / "x.png"), f"{str(afile)!r} is a file, not a folder"),
@@ -99,6 +102,10 @@ def test_a_figure_out_that_is_a_folder_or_under_a_file_is_a_usage_error(tmp_path
         assert stop.value.code == 2
         assert f"argument --out: {out!r}" in (err := capsys.readouterr().err) and told in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["figures", "notes.txt"]
+    out = two_rooms_fit(tmp_path)  # where --out "" drew nothing, silently
+    with pytest.raises(SystemExit):
+        main(["where", str(out), "kitchen", "--out", ""])
+    assert "argument --out: '': an empty file name" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("sweeps", [-5, 2.5, None])
@@ -117,3 +124,10 @@ def test_a_prior_world_refuses_a_number_of_sweeps_that_is_no_count(sweeps):
     _, data = prepare_model_data(make_house(seed=0, spec=spec), settings)
     with pytest.raises(ValueError, match=f"sweeps must be an integer >= 0, got {sweeps!r}"):
         sample_prior_world(data, settings.model, torch.Generator().manual_seed(0), sweeps=sweeps)
+
+
+def two_rooms_fit(tmp_path) -> Path:
+    """A saved hand-made result (tests/hand_results.py's two rooms) to ask ``where``."""
+    from hand_results import two_rooms
+
+    return two_rooms().save(tmp_path / "fit")

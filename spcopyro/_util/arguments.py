@@ -95,6 +95,8 @@ def figure_path(value: str) -> str:
     A folder is refused, and so is a file where a folder of the path would be (``--out /tmp``
     wrote ``/tmp.png``, beside the folder; ``--out FILE/x.png`` failed with "[Errno 17] File
     exists")."""
+    if not value.strip():
+        raise argparse.ArgumentTypeError(f"{value!r}: an empty file name; give the figure's")
     if value.endswith(("/", os.sep)) or os.path.isdir(value):
         raise argparse.ArgumentTypeError(
             f"{value!r} is a folder: give the figure's file name in it, e.g. "
