@@ -131,3 +131,19 @@ def two_rooms_fit(tmp_path) -> Path:
     from hand_results import two_rooms
 
     return two_rooms().save(tmp_path / "fit")
+
+
+def test_simulate_out_that_is_or_lies_under_a_file_is_refused_first(tmp_path, capsys):
+    """``simulate --out FILE`` (or ``FILE/x``, with ``--map`` too) drew the house, then failed
+    with "[Errno 20] Not a directory: 'FILE/synthetic'"; an empty ``--out`` wrote into the
+    current folder. Each is refused before the draw, naming the file."""
+    afile = tmp_path / "notes.txt"
+    afile.write_text("x")
+    plan = tmp_path / "plan.yaml"  # any map: the check comes first
+    for extra in ([], ["--map", str(plan)]):
+        for out in (afile, afile / "x"):
+            assert main(["simulate", "--out", str(out), *extra]) == 2
+            assert f"--out {out}: {afile} is a file, not a folder" in capsys.readouterr().err
+    assert main(["simulate", "--out", ""]) == 2
+    assert "--out '': an empty folder name" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
