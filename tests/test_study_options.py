@@ -162,6 +162,8 @@ def test_the_commands_refuse_a_name_given_twice(tmp_path, capsys, argv, words):
          ["--iterations gibbs=3: gibbs is not compared (--methods cavi)"]),
         (["compare-inference", "--iterations", "cavi=3", "cavi=5", "--methods", "cavi"],
          ["--iterations: cavi is given twice (cavi=3, cavi=5)"]),
+        # a bad value names its option (it was "variant 'gibbs': settings {'gamma': -1.0}: ...")
+        (["compare-inference", "--gamma", "-1"], ["error: --gamma -1: SpCoConfig.gamma=-1.0"]),
         # an option no row chosen reads (it was ignored, the run exited 0)
         (["ablation", "--baselines", "F-geometry", "--spcoa-iterations", "7"],
          ["--spcoa-iterations 7 and --baselines F-geometry contradict", "no C-spcoa row"]),

@@ -251,6 +251,14 @@ def _compare_inference(args: argparse.Namespace) -> int:
             raise ValueError(f"--iterations {item}: {key} is not compared (--methods "
                              f"{' '.join(variants)})")  # fmt: skip
         iterations[key] = int(value)
+    if args.gamma is not None:  # named here: it failed as "variant 'gibbs': settings ..."
+        from spcopyro.config import preset
+
+        try:
+            preset(args.preset, gamma=args.gamma, num_concepts=PRESETS[args.preset].get(
+                "num_concepts") or 6)  # fmt: skip
+        except ValueError as error:
+            raise ValueError(f"--gamma {args.gamma:g}: {error}") from None
     house_types = HOUSE_TYPES if args.houses == "both" else (args.houses,)
     root = find_dataset_root(args.data) if "public" in house_types else None
     if "public" in house_types and root is None:
