@@ -126,6 +126,12 @@ def test_spec_from_toml_equals_spec_from_python(tmp_path):
             'public = "room1dk5"\nseed = 1',
             ["[data.small] seed = 1", "a public house is loaded, not drawn"],
         ),
+        # one source's maps figure was drawn over the other's
+        (
+            "[data.small]",
+            '[data."big house"]\nsynthetic = "default"\n[data.big_house]',
+            ["[data.big_house] = 'big_house'", "maps_big_house.png is also [data.big house]'s"],
+        ),
         # each of their cells failed at run time
         ("[data.small]", '[data."small/house"]', ["[data.small/house] = 'small/house'", "no '/'"]),
         (

@@ -26,7 +26,7 @@ from spcopyro.maps.coarse import coarsening_factor, refine_labels
 
 __all__ = [
     "MAPS_PREFIX", "Arrays", "StoredMap", "label_map_arrays", "labels_on_map", "load_label_map",
-    "plot_label_maps", "remove_stale", "write_house_maps",
+    "maps_file_name", "plot_label_maps", "remove_stale", "write_house_maps",
 ]  # fmt: skip
 
 Arrays = dict[str, np.ndarray]
@@ -130,7 +130,9 @@ def plot_label_maps(
     return path
 
 
-def _file_name(data: str) -> str:
+def maps_file_name(data: str) -> str:
+    """The report's figure of data source ``data``: ``maps_NAME.png``, every character of NAME
+    but letters, digits, ``.``, ``-`` and ``_`` written ``_``."""
     return MAPS_PREFIX + re.sub(r"[^\w.-]", "_", data) + ".png"
 
 
@@ -189,6 +191,6 @@ def write_house_maps(
             continue
         grid, panels, seed = found
         title = f"{data}, seed {seed}: every row's map"
-        paths.append(plot_label_maps(grid, panels, folder / _file_name(data), title))
+        paths.append(plot_label_maps(grid, panels, folder / maps_file_name(data), title))
     remove_stale(folder, [f"{MAPS_PREFIX}*.png"], paths)
     return paths

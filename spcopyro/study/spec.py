@@ -52,6 +52,7 @@ from spcopyro.experiments.ablation_variants import (
 from spcopyro.experiments.methods import REGISTRY as BASELINE_REGISTRY
 from spcopyro.fit.registry import INFERENCE_METHODS
 from spcopyro.robot.map_simulation import MapTour
+from spcopyro.study.maps import maps_file_name
 from spcopyro.synthetic import HouseSpec
 
 __all__ = [
@@ -460,6 +461,12 @@ def study_from_dict(values: Mapping[str, Any], *, source: str = "<python>") -> S
     if not isinstance(data_table, Mapping) or not data_table:
         raise _fail(source, "[data]", data_table, "expected at least one [data.NAME] table")
     data = tuple(_data_source(source, str(k), v) for k, v in data_table.items())
+    figures: dict[str, str] = {}
+    for d in data:  # one's maps figure was drawn over the other's
+        other = figures.setdefault(maps_file_name(d.name), d.name)
+        if other != d.name:
+            why = f"its report figure {maps_file_name(d.name)} is also [data.{other}]'s: rename one"
+            raise _fail(source, f"[data.{d.name}]", d.name, why)
     scoring = head.get("scoring", "study")
     if scoring not in SCORINGS:
         raise _fail(source, "[study] scoring", scoring, f"choose one of {list(SCORINGS)}")
