@@ -369,3 +369,16 @@ def test_a_study_of_other_methods_than_gibbs_takes_their_options():
     both = text.replace('methods = ["cavi"]', 'methods = ["cavi", "gibbs"]')
     with pytest.raises(StudyError, match="no field 'anneal_iterations'.*methods' 'gibbs'"):
         study_from_dict(tomllib.loads(both))
+
+
+def test_a_study_path_that_is_a_folder_or_not_text_is_named(tmp_path, capsys):
+    """A folder was "does not exist"; a file not in UTF-8 "'utf-8' codec can't decode byte
+    0xff ...", naming no file."""
+    argv = ["study", str(tmp_path), "--out", str(tmp_path / "out"), "--dry-run"]
+    assert main(argv) == 2
+    assert f"study file {tmp_path} is a folder" in capsys.readouterr().err
+    binary = tmp_path / "latin1.toml"
+    binary.write_bytes('[study]\nname = "caf\xe9"\n'.encode("latin-1"))
+    argv[1] = str(binary)
+    assert main(argv) == 2
+    assert f"{binary}: not UTF-8 text" in capsys.readouterr().err

@@ -29,6 +29,8 @@ def study_path(text: str) -> Path:
     shipped = STUDIES / (text if text.endswith(".toml") else f"{text}.toml")
     if len(path.parts) == 1 and shipped.is_file():
         return shipped
+    if path.is_dir():  # it said the folder does not exist
+        raise IsADirectoryError(f"study file {text} is a folder: give a STUDY.toml")
     names = sorted(p.stem for p in STUDIES.glob("*.toml"))
     raise FileNotFoundError(f"study file {text} does not exist (shipped studies: {names})")
 

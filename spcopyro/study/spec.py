@@ -200,6 +200,8 @@ def load_study(path: str | os.PathLike[str]) -> Study:
             values = tomllib.load(file)
     except tomllib.TOMLDecodeError as error:
         raise StudyError(f"{source}: not valid TOML: {error}") from None
+    except UnicodeDecodeError as error:  # it said only "'utf-8' codec can't decode byte ..."
+        raise StudyError(f"{source}: not UTF-8 text, as TOML is: {error}") from None
     return study_from_dict(values, source=source)
 
 
