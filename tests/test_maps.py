@@ -388,6 +388,14 @@ def test_missing_files(tmp_path: Path) -> None:
     assert all(s in str(info.value) for s in (str(path), "'image'", "gone.pgm", "not found"))
 
 
+def test_the_maps_image_given_for_its_yaml_says_so(tmp_path: Path) -> None:
+    """load_map(X.pgm) said "cannot read map yaml: 'utf-8' codec can't decode byte ..."."""
+    image = tmp_path / "map.pgm"
+    image.write_bytes(b"P5\n2 2\n255\n\xff\xfe\x00\x01")
+    with pytest.raises(MapFormatError, match=r"map\.pgm: the map's image; give its yaml"):
+        load_map(image)
+
+
 @pytest.mark.parametrize("content", [b"", b"this is not an image\n", b"P5\n2 2\n255\n"])
 def test_unreadable_image(tmp_path: Path, content: bytes) -> None:
     (tmp_path / "map.pgm").write_bytes(content)

@@ -104,6 +104,9 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
     path = Path(yaml_path)
     if not path.is_file():
         raise MapFileNotFoundError(f"{path}: map yaml not found")
+    if path.suffix.lower() in (".pgm", ".png", ".bmp", ".jpg", ".jpeg", ".tif", ".tiff"):
+        raise MapFormatError(f"{path}: the map's image; give its yaml (the file that names "
+                             "this image, its resolution and origin)")  # fmt: skip
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as err:
