@@ -116,13 +116,18 @@ def _read_matrix(path: Path, columns: int | None = None) -> np.ndarray:
     return np.array(rows, dtype=np.float64).reshape(len(rows), width or 0)
 
 
+_FT_HINT = (" (Ft.csv has a row per image: after new images, e.g. a re-import, make it again "
+            "with spcopyro features HOUSE --out HOUSE/Ft.csv --overwrite)")  # fmt: skip
+
+
 def _read_column(path: Path, expected: int, data_file: Path) -> np.ndarray:
     """One number per line -> ``[R]``; R must equal ``expected`` (the rows of ``data_file``)."""
     values = _read_matrix(path, columns=1)[:, 0]  # [R]
     if values.shape[0] != expected:
         raise DataFormatError(
             path,
-            f"holds {values.shape[0]} values but {data_file.name} holds {expected} entries",
+            f"holds {values.shape[0]} values but {data_file.name} holds {expected} entries"
+            + (_FT_HINT if data_file.name == "Ft.csv" else ""),
         )
     return values
 
