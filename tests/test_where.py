@@ -85,6 +85,15 @@ def test_an_unknown_word_lists_the_closest_known_words():
         result.where("kitchn")
     with pytest.raises(UnknownWordError, match="known words: bed, kitchen, sofa$"):
         result.where("garage")
+    # a home's vocabulary is listed whole (it stopped at 10: room1ldk4's 14 hid washroom)
+    from spcopyro.results.semantic_map import word_index
+
+    home = tuple(f"word{k:02d}" for k in range(14))
+    with pytest.raises(UnknownWordError, match=r"known words: word00, .*, word12, word13$"):
+        word_index(home, "garage")
+    many = tuple(f"word{k:02d}" for k in range(40))
+    with pytest.raises(UnknownWordError, match=r", word29, \.\.\. \(10 more\)$"):
+        word_index(many, "garage")
     # Case and surrounding spaces (a pasted word) do not matter; spaces alone made it unknown.
     answer = result.where(" Kitchen\n")
     assert answer.word == "kitchen" and answer.concept == result.where("kitchen").concept

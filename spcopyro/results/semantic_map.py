@@ -96,6 +96,11 @@ def word_key(vocabulary: Sequence[str], word: str) -> str:
     return key
 
 
+KNOWN_WORDS_SHOWN = 30
+"""Known words an unknown word's error lists when none is close (a home's vocabulary, 14-17
+words in the public houses, whole: the list stopped at 10)."""
+
+
 def word_index(vocabulary: tuple[str, ...], word: str) -> int:
     """The column of ``word`` (as :func:`word_key` reads it) in ``vocabulary``;
     :class:`UnknownWordError` with the closest known words when it is not there."""
@@ -118,8 +123,9 @@ def word_index(vocabulary: tuple[str, ...], word: str) -> int:
         hint = f"; did you mean {', '.join(close)}?" if close else ""
         if not close and vocabulary:  # nothing close: say which words there are
             known = sorted(vocabulary)
-            more = f", ... ({len(known) - 10} more)" if len(known) > 10 else ""
-            hint = f"; known words: {', '.join(known[:10])}{more}"
+            shown = KNOWN_WORDS_SHOWN
+            more = f", ... ({len(known) - shown} more)" if len(known) > shown else ""
+            hint = f"; known words: {', '.join(known[:shown])}{more}"
         raise UnknownWordError(
             f"word {word!r} is not in the vocabulary of {len(vocabulary)} words{hint}"
         ) from None
