@@ -186,6 +186,20 @@ def test_show_graph_refuses_a_negative_min_area(result, tmp_path, capsys):
     assert not (tmp_path / "g.png").exists()
 
 
+def test_show_min_area_without_graph_is_refused(tmp_path, capsys, monkeypatch):
+    """--min-area without --graph was ignored silently; with --graph its default is the
+    library's."""
+    from spcopyro.robot.navigation.places import DEFAULT_MIN_AREA
+
+    assert main(["show", "--min-area", "3", "--out", str(tmp_path / "h.png")]) == 2
+    assert "--min-area 3 sizes the places of --graph: add --graph" in capsys.readouterr().err
+    assert not (tmp_path / "h.png").exists()
+    seen = []
+    monkeypatch.setattr("spcopyro.cli.navigate.show_graph", lambda a: seen.append(a.min_area) or 0)
+    assert main(["show", "x", "--graph", "--out", str(tmp_path / "g.png")]) == 0
+    assert seen == [DEFAULT_MIN_AREA]
+
+
 def test_show_graph_needs_a_fit_folder(tmp_path):
     assert main(["show", "--graph", "--out", str(tmp_path / "g.png")]) == 2
 

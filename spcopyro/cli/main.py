@@ -199,7 +199,11 @@ def _show(args: argparse.Namespace) -> int:
     if args.graph:
         from spcopyro.cli.navigate import show_graph
 
+        args.min_area = 0.25 if args.min_area is None else args.min_area  # DEFAULT_MIN_AREA
         return show_graph(args)
+    if args.min_area is not None:  # it was ignored silently
+        raise ValueError(f"--min-area {args.min_area:g} sizes the places of --graph: add "
+                         "--graph (DATA a fit's folder) or leave it out")  # fmt: skip
     from spcopyro._util.outputs import missing_fit_markers
     from spcopyro.figures.plotting import plot_house
 
@@ -339,8 +343,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--graph", action="store_true", help="DATA is a fit's output folder: draw "
                    "its place graph (regions as nodes, shared borders and doorways as edges) "
                    "and write it as JSON beside the PNG (X.json for --out X.png)")  # fmt: skip
-    p.add_argument("--min-area", type=non_negative_number("area is square metres"), default=0.25,
-                   metavar="M2", help="with --graph: smaller regions are not places")  # fmt: skip
+    p.add_argument("--min-area", type=non_negative_number("area is square metres"), default=None,
+                   metavar="M2", help="with --graph: smaller regions are not places "
+                   "(default: 0.25)")  # fmt: skip
     p.set_defaults(func=_show)
 
     add_fit_parser(sub)  # fit
