@@ -416,3 +416,17 @@ def test_overwrite_refuses_an_out_that_holds_the_input_data(tmp_path, capsys):
     with pytest.raises(OutputError, match="holds the input"):
         check_output(proj, overwrite=False, inputs=(data / "Ft.csv",))
     assert check_output(tmp_path / "elsewhere", inputs=(data,)) == tmp_path / "elsewhere"
+
+
+def test_check_folder_path_is_the_one_file_in_the_way_error(tmp_path):
+    """Seven commands checked for a file in the way of their output folder, each in its own
+    words and exception; one function now (an OutputError and a NotADirectoryError)."""
+    from spcopyro._util.outputs import NotAFolderError, check_folder_path
+
+    taken = tmp_path / "notes.txt"
+    taken.write_text("mine")
+    assert check_folder_path(tmp_path / "a" / "b", "--out X") == tmp_path
+    for path in (taken, taken / "a" / "b"):
+        with pytest.raises(NotAFolderError, match=rf"^--out X: {taken} is a file, not a folder$"):
+            check_folder_path(path, "--out X")
+    assert issubclass(NotAFolderError, OutputError) and issubclass(NotAFolderError, OSError)

@@ -126,8 +126,8 @@ def test_an_out_under_a_file_says_so(tmp_path, bag, map_yaml):
     taken = tmp_path / "notes.txt"
     taken.write_text("mine")
     for out in (taken, taken / "house"):
-        with pytest.raises(FileExistsError, match=rf"^{taken} is a file, not a folder"):
-            import_bags([bag], map_yaml, out)
+        with pytest.raises(NotADirectoryError, match=rf"^--out {out}: {taken} is a file, not a "):
+            import_bags([bag], map_yaml, out)  # the one message (_util.outputs.check_folder_path)
     assert taken.read_text() == "mine"
 
 

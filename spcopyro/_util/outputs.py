@@ -261,6 +261,23 @@ def nearest_existing(path: Path) -> Path:
     return path
 
 
+class NotAFolderError(OutputError, NotADirectoryError):
+    """An output folder (or the folder of an output file) that is, or lies under, a file: an
+    :class:`OutputError` and a :class:`NotADirectoryError`."""
+
+
+def check_folder_path(path: str | os.PathLike[str], label: str) -> Path:
+    """``path``'s nearest existing part (:func:`nearest_existing`, of its absolute form), once it
+    is a folder: a folder could be made at ``path``. :class:`NotAFolderError` ``"LABEL: FILE is
+    a file, not a folder"`` otherwise (``label``: how the user gave it, e.g. ``"--out OUT"``),
+    before any work: making it failed after the work with a bare ``[Errno 17] File exists`` or
+    ``[Errno 20] Not a directory``."""
+    existing = nearest_existing(_absolute(path))
+    if not existing.is_dir():
+        raise NotAFolderError(f"{label}: {existing} is a file, not a folder")
+    return existing
+
+
 def check_output(
     out: str | os.PathLike[str],
     *,
@@ -286,9 +303,7 @@ def check_output(
                 f"--out {out}: {path} holds the input {read}, which replacing the folder would "
                 "delete; choose an --out outside the data"
             )
-    existing = nearest_existing(path)
-    if not existing.is_dir():
-        raise OutputError(f"--out {out}: {existing} is a file, not a folder")
+    check_folder_path(path, f"--out {out}")
     if path.is_dir() and not _is_empty_folder(path):
         if not overwrite:
             raise OutputError(
@@ -374,9 +389,7 @@ def stage_marked_folder(
     deletes a folder that ``writer`` did not write) or holds the current directory. ``option``
     names the command-line option in every message."""
     path = Path(os.path.abspath(os.fspath(out)))
-    existing = nearest_existing(path)  # a file above it said "cannot write in ... File exists"
-    if not existing.is_dir():
-        raise OutputError(f"{option} {out}: {existing} is a file, not a folder")
+    check_folder_path(path, f"{option} {out}")  # a file above it said "... File exists"
     if path.is_dir() and any(path.iterdir()):
         if not overwrite:
             raise OutputError(

@@ -62,13 +62,11 @@ without a word)."""
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    from spcopyro._util.outputs import nearest_existing
+    from spcopyro._util.outputs import check_folder_path
 
     if not args.out.strip():
         raise ValueError("--out '': an empty folder name (give . for this folder)")
-    existing = nearest_existing(Path(args.out).absolute())
-    if not existing.is_dir():  # it failed with "[Errno 20] Not a directory" after the draw
-        raise ValueError(f"--out {args.out}: {existing} is a file, not a folder")
+    check_folder_path(args.out, f"--out {args.out}")  # it failed after the draw
     if args.map is not None:
         if args.density != "dense" or args.rooms is not None:
             raise ValueError("--density and --rooms draw a synthetic house; --map tours a map")

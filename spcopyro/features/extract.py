@@ -23,7 +23,7 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
-from spcopyro._util.outputs import nearest_existing, replace_file
+from spcopyro._util.outputs import check_folder_path, replace_file
 from spcopyro._util.progress import progress_enabled
 from spcopyro.features.backbone import WeightsSource
 from spcopyro.features.head import PlaceClassifier
@@ -161,9 +161,7 @@ def check_out_file(path: str | os.PathLike[str], *, overwrite: bool = False) -> 
     path = Path(path)
     if path.is_dir():
         raise IsADirectoryError(f"{path}: a folder, not a file: give the file to write in it")
-    existing = nearest_existing(path.parent)
-    if not existing.is_dir():
-        raise NotADirectoryError(f"{path}: {existing} is a file, not a folder")
+    existing = check_folder_path(path.parent, str(path))
     if not os.access(existing, os.W_OK | os.X_OK):
         raise PermissionError(f"{path}: cannot write in {existing}")
     if path.exists() and not overwrite:

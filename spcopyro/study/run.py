@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from spcopyro._util.interrupts import signals_deferred
-from spcopyro._util.outputs import nearest_existing
+from spcopyro._util.outputs import check_folder_path
 from spcopyro._util.progress import progress_enabled
 from spcopyro.gibbs.chains import usable_cpus
 from spcopyro.study import evaluate
@@ -114,10 +114,7 @@ def check_out_folder(out: str | os.PathLike[str]) -> Path:
     that exists, is a file (a study's results folder would fail there after its first cell, or
     at once with a bare ``[Errno 17] File exists``)."""
     path = Path(out)
-    existing = nearest_existing(path.absolute())
-    if not existing.is_dir():
-        raise NotADirectoryError(f"--out {out}: {existing} is a file, not a folder; choose "
-                                 "another results folder")  # fmt: skip
+    check_folder_path(path, f"--out {out}")
     return path
 
 

@@ -24,7 +24,7 @@ import shutil
 from collections.abc import Iterable
 from pathlib import Path
 
-from spcopyro._util.outputs import nearest_existing
+from spcopyro._util.outputs import check_folder_path
 from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.maps.map_server import MapFormatError, load_map
 
@@ -94,9 +94,7 @@ def check_out(out: Path, overwrite: bool, trials: Iterable[int]) -> frozenset[st
         raise FileExistsError(
             f"{out} is a symbolic link (to {os.readlink(out)}); give a folder as --out"
         )
-    existing = nearest_existing(out)
-    if not existing.is_dir():  # a parent that is a file said "[Errno 17] File exists"
-        raise FileExistsError(f"{existing} is a file, not a folder (--out {out})")
+    check_folder_path(out, f"--out {out}")  # a parent that is a file said "[Errno 17] ..."
     if not out.is_dir() or not any(out.iterdir()):
         return None
     if not overwrite:

@@ -37,7 +37,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from spcopyro._util.outputs import nearest_existing
+from spcopyro._util.outputs import check_folder_path
 from spcopyro.data.dataset import House
 from spcopyro.maps.map_server import save_map
 from spcopyro.robot.rosbag.bag import INSTALL_HINT, RosbagsMissingError, _rosbags
@@ -345,9 +345,7 @@ def write_synthetic_bags(
 
         house = make_house(seed=seed, spec=HouseSpec.embedded())
     out = Path(out)
-    existing = nearest_existing(out)
-    if not existing.is_dir():  # it said "[Errno 17] File exists" or "[Errno 20] Not a directory"
-        raise FileExistsError(f"--out {out}: {existing} is a file, not a folder")
+    check_folder_path(out, f"--out {out}")
     obs = house.observations
     chosen = sorted(set(obs.trials if trials is None else trials))
     unknown = sorted(set(chosen) - set(np.asarray(obs.trials).tolist()))
