@@ -340,6 +340,8 @@ def test_a_report_table_of_failed_cells_only_has_as_many_cells_as_columns():
         "|---|---|---|---|",
         "| a | gibbs | 1 | 0.500 |",
     ]
+    assert "2 cells in the table" in text
+    assert "1 cell in the table;" in report_markdown([row("good", "ok", 0.5)])  # not "1 cells"
 
 
 @pytest.mark.parametrize(

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from spcopyro._util.messages import plural
 from spcopyro.experiments.methods import METHOD_LABELS, SPCO_METHODS
 from spcopyro.experiments.table import (
     PUBLIC_SCORES,
@@ -253,7 +254,8 @@ def run_experiment(
         notes.append("Public houses skipped: the dataset was not found (set $SPCOPYRO_DATA or "
                      "pass --data), or --no-public.")  # fmt: skip
     notes += findings(summary)
-    notes.append(f"Wall-clock time of this run: {run.seconds:.0f} s ({run.ran} cells run, "
+    ran = plural(run.ran, "cell")
+    notes.append(f"Wall-clock time of this run: {run.seconds:.0f} s ({ran} run, "
                  f"{run.cached} finished before).")  # fmt: skip
     summary["notes"] = notes
     summary["figures"] = [str(p.relative_to(out)) for p in write_figures(out, rows)]

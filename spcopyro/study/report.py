@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from spcopyro._util.messages import plural
 from spcopyro.study.evaluate import SCORES
 from spcopyro.study.table import is_number
 
@@ -72,7 +73,7 @@ def report_markdown(
     (more than one ``source_digest``) says so first, and one with fewer rows than the study's
     ``expected`` cells (an interrupted run) says how many are not run yet."""
     summary = summary_rows(rows, scores)
-    count = f"{len(rows)} cells in the table"
+    count = f"{plural(len(rows), 'cell')} in the table"
     if expected is not None and len(rows) < expected:  # an interrupted run read as whole
         count += (f" of the study's {expected}: {expected - len(rows)} not run yet (an "
                   "interrupted run: run the same command again)")  # fmt: skip

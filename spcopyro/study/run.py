@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from spcopyro._util.interrupts import signals_deferred
+from spcopyro._util.messages import plural
 from spcopyro._util.outputs import check_folder_path
 from spcopyro._util.progress import progress_enabled
 from spcopyro.gibbs.chains import usable_cpus
@@ -207,8 +208,8 @@ def run_study(
         background.join()  # the LocalCluster's close, left running while the table was written
         seconds = time.perf_counter() - start
         if interrupted or signalled:
-            report(f"interrupted after {ran} cells: {len(pending) - ran} left; run the same "
-                   "command again to continue")  # fmt: skip
+            report(f"interrupted after {plural(ran, 'cell')}: {len(pending) - ran} left; run "
+                   "the same command again to continue")  # fmt: skip
     if signalled:  # the run ended whole, its table and report written: stopped all the same
         stop = KeyboardInterrupt(f"signal {signalled[0]}")
         stop.said = report is not _say_nothing  # type: ignore[attr-defined]
@@ -216,8 +217,8 @@ def run_study(
     ran_here = ran if in_process else background.ran_here
     if not in_process and ran_here:
         report(f"{ran_here} of them ran in this process while the LocalCluster started")
-    report(f"ran {ran} cells in {seconds:.1f} s ({failed} failed), {cached} finished before; "
-           f"wrote {out / TABLE} and {out / 'report.md'}")  # fmt: skip
+    report(f"ran {plural(ran, 'cell')} in {seconds:.1f} s ({failed} failed), {cached} finished "
+           f"before; wrote {out / TABLE} and {out / 'report.md'}")  # fmt: skip
     if plan.failed_before:
         report(_failed_before_line(plan.failed_before, out))
     return StudyRun(out, len(cells), cached, ran, failed, seconds, where, ran_here=ran_here,
