@@ -116,7 +116,10 @@ def test_bad_maps_and_options_are_clear_errors(tmp_path, capsys):
 
     for extra, message in (
         (["--min-room-area", "100"], "no room of at least 100 m^2"),
-        (["--categories", "Kitchen,bed"], "categories entries must be single lower-case tokens"),
+        (
+            ["--categories", "living room,bed"],
+            "categories entries must each be one lower-case word",
+        ),
         (["--size", "40", "50"], "--size and --map exclude each other"),
     ):
         assert main(["simulate", "--map", str(yaml_path), "--out", out, *extra]) == 2
@@ -128,6 +131,25 @@ def test_bad_maps_and_options_are_clear_errors(tmp_path, capsys):
     tiny = OccupancyGrid(np.zeros((4, 4), dtype=np.int8), 0.1, (0.0, 0.0, 0.0))
     with pytest.raises(ValueError, match="too small"):
         simulate_on_map(tiny)
+
+
+def test_categories_are_read_as_where_reads_words(tmp_path, capsys):
+    """--categories Kitchen,台所 was refused ([a-z0-9_]+ only), though where, navigate and
+    export read words in any case and script."""
+    import json
+
+    yaml_path, _ = three_rooms(tmp_path)
+    out = tmp_path / "out"
+    argv = ["simulate", "--map", str(yaml_path), "--out", str(out), "--categories"]
+    assert main([*argv, "Kitchen,台所,ＢＥＤＲＯＯＭ"]) == 0
+    house = next(p for p in out.iterdir() if (p / "categories.json").is_file())
+    assert set(json.loads((house / "categories.json").read_text())) <= {
+        "kitchen",
+        "台所",
+        "bedroom",
+    }
+    words = (house / "St.csv").read_text()
+    assert "台所" in words and "Kitchen" not in words
 
 
 def test_a_map_saved_as_map_yaml_asks_for_a_name(tmp_path, capsys):

@@ -24,6 +24,7 @@ import math
 import os
 import shlex
 import sys
+import unicodedata
 from pathlib import Path
 from typing import NoReturn
 
@@ -164,7 +165,9 @@ def _simulate_on_map(args: argparse.Namespace) -> int:
     if args.min_room_area is not None:
         tour = dataclasses.replace(tour, min_room_area=args.min_room_area)
     if args.categories is not None:
-        names = tuple(c.strip() for c in args.categories.split(","))
+        # read as where reads words (Kitchen, a full-width ＫＩＴＣＨＥＮ: kitchen)
+        names = tuple(unicodedata.normalize("NFKC", c.strip()).casefold()
+                      for c in args.categories.split(","))  # fmt: skip
         if not all(names):
             raise ValueError(
                 f"--categories {args.categories!r}: an empty name (two commas in a row, or one "

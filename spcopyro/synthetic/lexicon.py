@@ -7,8 +7,10 @@ categories), as a single word or inside a sentence with filler words (:data:`FIL
 
 from __future__ import annotations
 
-import re
+import unicodedata
 from dataclasses import dataclass
+
+from spcopyro.data.text import tokenize
 
 __all__ = [
     "CATEGORY_LEXICON",
@@ -86,7 +88,15 @@ FILLER_WORDS: frozenset[str] = frozenset(
 OPEN_PLAN_CATEGORIES: tuple[str, ...] = ("living", "kitchen", "dining", "entrance", "corridor")
 """Categories that open-plan rooms prefer, best first (an LDK: living + kitchen + dining)."""
 
-_TOKEN = re.compile(r"[a-z0-9_]+")
+
+def is_category_token(name: object) -> bool:
+    """Whether ``name`` can be a category's word: one token as :func:`spcopyro.data.tokenize`
+    reads it (lower case, no space, no punctuation at its ends), in NFKC form as ``where`` reads
+    words, and without a comma (St.csv's separator). ``kitchen``, ``living-room`` and ``台所``
+    are; ``Kitchen`` and ``two words`` are not."""
+    if not isinstance(name, str) or "," in name:
+        return False
+    return tokenize(name) == (name,) and unicodedata.normalize("NFKC", name).casefold() == name
 
 
 def lexicon_for(name: str) -> CategoryLexicon:

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from spcopyro.synthetic.lexicon import _TOKEN, DEFAULT_CATEGORY_NAMES
+from spcopyro.synthetic.lexicon import DEFAULT_CATEGORY_NAMES, is_category_token
 
 __all__ = ["HouseSpec", "HouseSpecError"]
 
@@ -170,10 +170,10 @@ class HouseSpec:
         if not names:
             raise HouseSpecError("HouseSpec.category_names must not be empty")
         for name in names:
-            if not isinstance(name, str) or _TOKEN.fullmatch(name) is None:
+            if not is_category_token(name):
                 raise HouseSpecError(
-                    "HouseSpec.category_names entries must be single lower-case tokens "
-                    f"([a-z0-9_]+), got {name!r}"
+                    "HouseSpec.category_names entries must each be one lower-case word (no "
+                    f"space or comma, no punctuation at its ends), got {name!r}"
                 )
         if len(set(names)) != len(names):
             raise HouseSpecError(f"HouseSpec.category_names has duplicates: {names!r}")
