@@ -398,7 +398,7 @@ def test_simulate_names_its_flags_when_the_rooms_do_not_fit(tmp_path, capsys):
     assert main(["simulate", "--out", str(tmp_path), "--size", "60", "80", "--density",
                  "sparse"]) == 2  # fmt: skip
     err = capsys.readouterr().err
-    assert "HouseSpec.num_rooms 6" in err and err.rstrip().endswith(
+    assert "--density sparse draws 6 rooms:" in err and err.rstrip().endswith(
         "lower --rooms or enlarge --size"
     )
     assert "min_room_size" not in err.split("fit at most")[1]

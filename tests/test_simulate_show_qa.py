@@ -37,6 +37,14 @@ def test_simulate_names_its_flags_not_the_librarys_fields(tmp_path, capsys):
     assert main(["simulate", "--out", out, "--density", "open-plan", "--rooms", "1"]) == 2
     err = capsys.readouterr().err
     assert "--rooms 1: an open-plan house has at least 2 rooms" in err and "HouseSpec" not in err
+    small = ["simulate", "--out", out, "--density", "sparse", "--size", "50", "50"]
+    assert main(small) == 2  # its 6 rooms were "HouseSpec.num_rooms 6", a field never given
+    err = capsys.readouterr().err
+    assert (
+        "error: --density sparse draws 6 rooms: rooms of at least" in err and "HouseSpec" not in err
+    )
+    assert main([*small, "--rooms", "4"]) == 2
+    assert "error: --rooms 4: rooms of at least" in capsys.readouterr().err
     assert not (tmp_path / "data").exists()
 
 

@@ -22,6 +22,7 @@ import gc
 import logging
 import math
 import os
+import re
 import shlex
 import sys
 import unicodedata
@@ -96,6 +97,9 @@ def _simulate(args: argparse.Namespace) -> int:
         if message.startswith("HouseSpec height x width") and args.size:
             message = (f"--size {args.size[0]} {args.size[1]}: too small: "
                        + message.removeprefix("HouseSpec height x width "))  # fmt: skip
+        drawn = f"--density {args.density} draws \\1 rooms:"  # a field the user never gave
+        message = re.sub(r"^HouseSpec\.num_rooms (\d+):",
+                         "--rooms \\1:" if args.rooms is not None else drawn, message)  # fmt: skip
         raise ValueError(message) from None
 
 
