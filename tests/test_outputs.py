@@ -430,3 +430,17 @@ def test_check_folder_path_is_the_one_file_in_the_way_error(tmp_path):
         with pytest.raises(NotAFolderError, match=rf"^--out X: {taken} is a file, not a folder$"):
             check_folder_path(path, "--out X")
     assert issubclass(NotAFolderError, OutputError) and issubclass(NotAFolderError, OSError)
+
+
+def test_an_empty_out_the_shell_stands_in_is_refused(tmp_path, monkeypatch):
+    """fit --out . (and export --nav2 ., navigate --out .) in an empty folder moved the finished
+    folder onto it: the shell was left in a deleted folder that listed nothing."""
+    here = tmp_path / "here"
+    here.mkdir()
+    monkeypatch.chdir(here)
+    with pytest.raises(OutputError, match=rf"--out \.: {here} holds the current directory"):
+        check_output(".")
+    with pytest.raises(OutputError, match=r"--nav2 \.: .* holds the current directory"):
+        stage_marked_folder(".", False, option="--nav2", marker="m", writer="export")
+    monkeypatch.chdir(tmp_path)
+    assert check_output(here) == here  # from outside it: written as before

@@ -11,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from spcopyro._util.outputs import OutputError
+
 pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip install .[ros])")
 
 from spcopyro.cli.main import main  # noqa: E402
@@ -157,9 +159,15 @@ def test_overwrite_refuses_the_folder_it_is_run_in(tmp_path, bag, map_yaml, monk
     import_bags([bag], map_yaml, out)
     for here in (out, out / "img_0"):
         monkeypatch.chdir(here)
-        with pytest.raises(FileExistsError, match="holds the current directory"):
+        with pytest.raises(OutputError, match="holds the current directory"):
             import_bags([bag], map_yaml, out, overwrite=True)
     assert (out / "img_0").is_dir() and (out / "pose_0.csv").is_file()
+    empty = tmp_path / "empty"  # an empty OUT run in was replaced too: the shell's folder gone
+    empty.mkdir()
+    monkeypatch.chdir(empty)
+    with pytest.raises(OutputError, match=r"holds the current directory.*--out empty\)"):
+        import_bags([bag], map_yaml, empty)
+    assert not any(empty.iterdir())
 
 
 def test_an_unreadable_map_of_an_earlier_import_is_replaced_with_overwrite(tmp_path, bag, map_yaml):

@@ -266,6 +266,19 @@ class NotAFolderError(OutputError, NotADirectoryError):
     :class:`OutputError` and a :class:`NotADirectoryError`."""
 
 
+def check_not_holding_cwd(path: str | os.PathLike[str], label: str) -> None:
+    """:class:`OutputError` when the folder ``path`` is or holds the current directory: an
+    output moved into place there (a rename onto it, even empty) deletes the folder the shell
+    stands in, which then lists nothing (``cd .`` finds it again)."""
+    folder = _absolute(path)
+    if folder.is_dir() and Path.cwd().resolve().is_relative_to(folder.resolve()):
+        raise OutputError(
+            f"{label}: {folder} holds the current directory, which putting the finished folder "
+            f"in its place would delete under the shell; run from outside it (from its parent: "
+            f"--out {folder.name})"
+        )
+
+
 def check_folder_path(path: str | os.PathLike[str], label: str) -> Path:
     """``path``'s nearest existing part (:func:`nearest_existing`, of its absolute form), once it
     is a folder: a folder could be made at ``path``. :class:`NotAFolderError` ``"LABEL: FILE is
@@ -290,7 +303,8 @@ def check_output(
     Raises :class:`OutputError` when ``out`` is a file, when it is or holds one of ``inputs``
     (the data the fit reads: replacing ``out`` would delete it), when it is a non-empty folder
     and ``overwrite`` is not given, when ``overwrite`` would replace a folder that no fit wrote
-    (no ``result.npz`` and ``config.json``) or one holding the current directory, and when
+    (no ``result.npz`` and ``config.json``), when it holds the current directory (even empty:
+    :func:`check_not_holding_cwd`), and when
     ``OUT.checkpoint.npz`` holds an interrupted fit that this one neither resumes (``resume``)
     nor replaces (``overwrite``).
     """
@@ -304,6 +318,7 @@ def check_output(
                 "delete; choose an --out outside the data"
             )
     check_folder_path(path, f"--out {out}")
+    check_not_holding_cwd(path, f"--out {out}")
     if path.is_dir() and not _is_empty_folder(path):
         if not overwrite:
             raise OutputError(
@@ -317,8 +332,6 @@ def check_output(
                 f"--out {out}: {path} holds files that no fit wrote (no {' or '.join(missing)}); "
                 "--overwrite replaces only a fit's output folder: choose another --out"
             )
-        if Path.cwd().resolve().is_relative_to(path.resolve()):
-            raise OutputError(f"--out {out}: {path} holds the current directory; not replacing it")
     checkpoint = checkpoint_path(path)
     resuming = resume is not None and _absolute(resume) == checkpoint
     if checkpoint.exists() and not (resuming or overwrite):
@@ -390,6 +403,7 @@ def stage_marked_folder(
     names the command-line option in every message."""
     path = Path(os.path.abspath(os.fspath(out)))
     check_folder_path(path, f"{option} {out}")  # a file above it said "... File exists"
+    check_not_holding_cwd(path, f"{option} {out}")
     if path.is_dir() and any(path.iterdir()):
         if not overwrite:
             raise OutputError(
@@ -401,8 +415,6 @@ def stage_marked_folder(
                 f"{option} {out}: {path} holds files that no {writer} wrote (no {marker}); "
                 f"--overwrite replaces only a folder that {writer} wrote"
             )
-        if Path.cwd().resolve().is_relative_to(path.resolve()):
-            raise OutputError(f"{option} {out}: {path} holds the current directory")
     seen = (path.lstat().st_dev, path.lstat().st_ino) if path.exists() else None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)

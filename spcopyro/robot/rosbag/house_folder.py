@@ -24,7 +24,7 @@ import shutil
 from collections.abc import Iterable
 from pathlib import Path
 
-from spcopyro._util.outputs import check_folder_path
+from spcopyro._util.outputs import check_folder_path, check_not_holding_cwd
 from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.maps.map_server import MapFormatError, load_map
 
@@ -95,16 +95,12 @@ def check_out(out: Path, overwrite: bool, trials: Iterable[int]) -> frozenset[st
             f"{out} is a symbolic link (to {os.readlink(out)}); give a folder as --out"
         )
     check_folder_path(out, f"--out {out}")  # a parent that is a file said "[Errno 17] ..."
+    check_not_holding_cwd(out, f"--out {out}")  # as fit and export refuse it
     if not out.is_dir() or not any(out.iterdir()):
         return None
     if not overwrite:
         raise FileExistsError(f"{out} already exists and is not empty; pass --overwrite")
     earlier = written_by(_earlier_trials(out))
-    if Path.cwd().resolve().is_relative_to(out.resolve()):  # as fit --overwrite refuses it
-        raise FileExistsError(
-            f"{out} holds the current directory, which replacing it would delete; run "
-            "import-bag from outside it"
-        )
     clash = sorted(
         entry.name
         for entry in out.iterdir()
