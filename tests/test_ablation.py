@@ -388,6 +388,8 @@ def test_a_single_value_is_shown_without_a_standard_deviation():
     assert _fmt(_spread([0.23])) == "0.230"
     assert _fmt(_spread([0.2, 0.4])) == "0.300 ± 0.141"
     assert _fmt(_spread([])) == "—"
+    assert _fmt(_spread([-1e-4])) == "0.000"  # an ARI of chance, not "-0.000"
+    assert _fmt(_spread([-0.1, 0.1 - 2e-4])) == "0.000 ± 0.141"
 
 
 def test_times_under_a_tenth_of_a_second_keep_their_digits():

@@ -342,6 +342,7 @@ def test_a_report_table_of_failed_cells_only_has_as_many_cells_as_columns():
     ]
     assert "2 cells in the table" in text
     assert "1 cell in the table;" in report_markdown([row("good", "ok", 0.5)])  # not "1 cells"
+    assert "| a | gibbs | 1 | 0.000 |" in report_markdown([row("good", "ok", -1e-4)])  # not -0.000
 
 
 @pytest.mark.parametrize(

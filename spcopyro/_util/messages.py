@@ -12,7 +12,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Hashable, Sized
 
-__all__ = ["ECHO_LIMIT", "echo", "plural", "seconds_text", "warn_once"]
+__all__ = ["ECHO_LIMIT", "echo", "fixed", "plural", "seconds_text", "warn_once"]
 
 ECHO_LIMIT = 80
 """Characters of a value that an error message shows."""
@@ -42,6 +42,12 @@ def echo(value: object, limit: int = ECHO_LIMIT) -> str:
 def plural(number: int, noun: str) -> str:
     """``"1 room"``, ``"3 rooms"``: ``number`` and ``noun``, plural but for one."""
     return f"{number} {noun}{'' if number == 1 else 's'}"
+
+
+def fixed(value: float, digits: int = 3) -> str:
+    """``value`` with ``digits`` decimals and never a negative zero: an ARI of -0.0001 (chance)
+    printed "-0.000" in the study and experiment tables."""
+    return f"{round(value, digits) + 0.0:.{digits}f}"
 
 
 def seconds_text(value: float) -> str:

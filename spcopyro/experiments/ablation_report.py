@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from spcopyro._util.messages import seconds_text
+from spcopyro._util.messages import fixed, seconds_text
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, json_default
 from spcopyro.synthetic.statistics import public_and_synthetic_statistics, statistics_table
 
@@ -108,8 +108,8 @@ def _fmt(spread: dict | None, digits: int = 3) -> str:
     if spread is None or not math.isfinite(spread["mean"]):
         return "—"
     if spread.get("n", 2) < 2:  # one value: no sample sd to show (its JSON keeps 0)
-        return f"{spread['mean']:.{digits}f}"
-    return f"{spread['mean']:.{digits}f} ± {spread['sd']:.{digits}f}"
+        return fixed(spread["mean"], digits)
+    return f"{fixed(spread['mean'], digits)} ± {spread['sd']:.{digits}f}"
 
 
 def _seconds(scores: dict) -> str:

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from spcopyro._util.messages import seconds_text
+from spcopyro._util.messages import fixed, seconds_text
 from spcopyro.data import House, Observations
 from spcopyro.experiments.methods import SPCO_METHODS
 
@@ -78,7 +78,7 @@ PAPER_NUMBERS_NOTE = (
 
 
 def _fmt(value: float, digits: int = 3) -> str:
-    return "n/a" if not math.isfinite(value) else f"{value:.{digits}f}"
+    return "n/a" if not math.isfinite(value) else fixed(value, digits)
 
 
 def table_markdown(summary: dict[str, object]) -> str:

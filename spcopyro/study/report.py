@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from spcopyro._util.messages import plural
+from spcopyro._util.messages import fixed, plural
 from spcopyro.study.evaluate import SCORES
 from spcopyro.study.table import is_number
 
@@ -59,7 +59,8 @@ def _mean_sd(value: object) -> str:
         return ""
     mean, sd, _ = value
     digits = 1 if abs(mean) >= 100 else 3
-    return f"{mean:.{digits}f}" if math.isnan(sd) else f"{mean:.{digits}f} +- {sd:.{digits}f}"
+    shown = fixed(mean, digits)
+    return shown if math.isnan(sd) else f"{shown} +- {sd:.{digits}f}"
 
 
 def report_markdown(
