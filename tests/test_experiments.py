@@ -222,6 +222,12 @@ def test_synthetic_table_shows_a_sd_only_over_two_seeds_or_more():
         line for line in table_markdown(summary).splitlines() if line.startswith(("| A", "| F"))
     ]
     assert rows == ["| A | 0.100 ± 0.000 | — | — | — | — |", "| F | 0.100 | — | — | — | — |"]
+    # the settings line names what ran: no SpCoA iterations without a C-spcoa row
+    assert "SpCoMapping: 5 Gibbs sweeps" in table_markdown(summary)
+    assert "SpCoA" not in table_markdown(summary)
+    summary["methods"] = {"F-geometry": "F", "C-spcoa": "C"}
+    md = table_markdown(summary)
+    assert "SpCoA: 2 iterations." in md and "SpCoMapping: 5" not in md
 
 
 def test_quick_experiment_cli_on_the_public_dataset(dataset_root, tmp_path, capsys):

@@ -90,10 +90,12 @@ def table_markdown(summary: dict[str, object]) -> str:
     lines = ["# SpCoMapping and the comparison methods (paper Table 4, in form)", ""]
     if summary["command"]:
         lines += [f"Made by: `{summary['command']}`", ""]
+    ran = [f"SpCoMapping: {settings['sweeps']} Gibbs sweeps from random labels, the MAP-visited "
+           "state"] if any(m in methods for m in SPCO_METHODS) else []  # fmt: skip
+    if "C-spcoa" in methods:  # named only where a row ran it
+        ran.append(f"SpCoA: {settings['spcoa_iterations']} iterations")
     lines += [
-        f"SpCoMapping: {settings['sweeps']} Gibbs sweeps from random labels, the MAP-visited "
-        f"state; SpCoA: {settings['spcoa_iterations']} iterations.",
-        "",
+        *([f"{'; '.join(ran)}.", ""] if ran else []),
         f"## Synthetic houses ({settings['seeds']} seeds, ground truth known)",
         "",
         "ARI of the label map against the truth; matching rate (eq. 18, precision) of the "
