@@ -7,6 +7,7 @@ import argparse
 import math
 import os
 from collections.abc import Callable
+from pathlib import Path
 
 __all__ = [
     "MAX_SEED",
@@ -102,12 +103,12 @@ def figure_path(value: str) -> str:
             f"{value!r} is a folder: give the figure's file name in it, e.g. "
             f"{os.path.join(value, 'figure.png')!r}"
         )
-    parent = os.path.dirname(os.path.abspath(value))
-    while parent and not os.path.exists(parent) and os.path.dirname(parent) != parent:
-        parent = os.path.dirname(parent)  # the nearest existing part of the path
-    if os.path.exists(parent) and not os.path.isdir(parent):
+    from spcopyro._util.outputs import nearest_existing  # not at start-up: --help needs none
+
+    parent = nearest_existing(Path(os.path.abspath(value)).parent)
+    if parent.exists() and not parent.is_dir():
         raise argparse.ArgumentTypeError(
-            f"{value!r}: {parent!r} is a file, not a folder the figure could be written in"
+            f"{value!r}: {str(parent)!r} is a file, not a folder the figure could be written in"
         )
     suffix = value.rsplit(".", 1)[-1].lower() if "." in value.rsplit("/", 1)[-1] else ""
     if suffix:

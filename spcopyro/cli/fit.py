@@ -209,9 +209,10 @@ def _apply_preset_inference(args: argparse.Namespace) -> None:
         args.init = recommended.get("init", "random") if gibbs else "random"
     args.preset_filled = set()  # the move rates the preset chose, not the command line
     for move in ("merge_moves", "region_moves"):
-        if getattr(args, move) is None and args.method == "gibbs":
-            setattr(args, move, recommended.get(move))
-            args.preset_filled |= {move} if getattr(args, move) is not None else set()
+        rate = recommended.get(move)
+        if getattr(args, move) is None and args.method == "gibbs" and rate is not None:
+            setattr(args, move, rate)
+            args.preset_filled.add(move)
     refinable = args.method == "gibbs" and args.update is None
     if args.refine is None:  # a preparation given on the command line is kept, not refined away
         refinable = refinable and not prepares_data(args)

@@ -66,8 +66,9 @@ def check_resume_file(resume: str) -> None:
     raise FileNotFoundError(f"--resume {resume}: no such checkpoint file{hint}")
 
 
-def interrupted_message(args: argparse.Namespace, where: str, kept: Path | None, out: Path,
-                 why: str | None = None) -> str:  # fmt: skip
+def interrupted_message(
+    args: argparse.Namespace, where: str, kept: Path | None, out: Path, why: str | None = None
+) -> str:
     """The line ``fit`` prints when Ctrl-C stops it (``kept``: its checkpoint; ``why``: none's)."""
     line = f"interrupted{where}: nothing written to {out}"
     if kept is None:
