@@ -35,7 +35,7 @@ import secrets
 import shutil
 import zipfile
 import zlib
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Container, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO, TypeVar
@@ -227,19 +227,9 @@ class StagedOutput:
     def _replace(self) -> None:
         """Old OUT aside, the staged folder in its place, then what the old fit did not write
         (not in its manifest: a user's notes, ``where`` figures) carried into the new OUT, and
-        the rest of the old one removed."""
-        old = self.out.parent / f"{self.out.name}.replaced-{secrets.token_hex(4)}"
-        os.rename(self.out, old)
-        try:
-            os.rename(self.path, self.out)
-        except OSError:
-            os.rename(old, self.out)
-            raise
-        written = fit_written(old)
-        for entry in old.iterdir():
-            if entry.name not in written and not (self.out / entry.name).exists():
-                os.rename(entry, self.out / entry.name)
-        shutil.rmtree(old, ignore_errors=True)
+        the rest of the old one removed (:func:`swapped_in`, :func:`carry_over`)."""
+        with swapped_in(self.out, self.path) as old:
+            carry_over(old, self.out, fit_written(old))
 
     def discard(self) -> None:
         """Remove the staging folder (nothing of this run is kept), unless committed or kept."""
@@ -252,6 +242,35 @@ class StagedOutput:
     def __exit__(self, kind: type[BaseException] | None, *_: object) -> None:
         if kind is not None:
             self.discard()
+
+
+@contextlib.contextmanager
+def swapped_in(out: Path, staging: Path, hidden: bool = False) -> Iterator[Path]:
+    """The folder ``out`` set aside (yielded: ``OUT.replaced-XXXXXXXX`` beside it, with a
+    leading dot if ``hidden``) and ``staging`` renamed into its place (the old one put back if
+    that fails); the old folder removed once the block ends without an error (kept after one,
+    with whatever the block had not yet carried out of it)."""
+    old = out.parent / f"{'.' if hidden else ''}{out.name}.replaced-{secrets.token_hex(4)}"
+    os.rename(out, old)
+    try:
+        os.rename(staging, out)
+    except OSError:
+        os.rename(old, out)
+        raise
+    yield old
+    shutil.rmtree(old, ignore_errors=True)
+
+
+def carry_over(old: Path, out: Path, written: Container[str]) -> tuple[str, ...]:
+    """Move the entries of the replaced folder ``old`` that its writer did not write (not in
+    ``written``: ``Ft.csv`` of ``spcopyro features``, a user's notes) into the new ``out``,
+    unless ``out`` holds one of that name; their names, sorted."""
+    kept = []
+    for entry in sorted(old.iterdir()):
+        if entry.name not in written and not (out / entry.name).exists():
+            os.rename(entry, out / entry.name)
+            kept.append(entry.name)
+    return tuple(kept)
 
 
 def nearest_existing(path: Path) -> Path:

@@ -19,12 +19,15 @@ import filecmp
 import json
 import os
 import re
-import secrets
-import shutil
 from collections.abc import Iterable
 from pathlib import Path
 
-from spcopyro._util.outputs import check_folder_path, check_not_holding_cwd
+from spcopyro._util.outputs import (
+    carry_over,
+    check_folder_path,
+    check_not_holding_cwd,
+    swapped_in,
+)
 from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.maps.map_server import MapFormatError, load_map
 
@@ -174,18 +177,6 @@ def replace_out(
         out.rmdir()
         os.replace(staging, out)
         return (), False
-    old = out.parent / f".{out.name}.replaced-{secrets.token_hex(4)}"
-    os.rename(out, old)
-    try:
-        os.rename(staging, out)
-    except OSError:
-        os.rename(old, out)
-        raise
-    kept = []
-    for entry in sorted(old.iterdir()):
-        if entry.name not in earlier and not (out / entry.name).exists():
-            os.rename(entry, out / entry.name)
-            kept.append(entry.name)
-    unchanged = same_images(old, out)
-    shutil.rmtree(old, ignore_errors=True)
-    return tuple(kept), unchanged
+    with swapped_in(out, staging, hidden=True) as old:
+        kept = carry_over(old, out, earlier)
+        return kept, same_images(old, out)
