@@ -25,7 +25,6 @@ import os
 import re
 import shlex
 import sys
-import unicodedata
 from pathlib import Path
 from typing import NoReturn
 
@@ -50,6 +49,7 @@ from spcopyro.cli.common import (
     refuse_fit_files,
 )
 from spcopyro.cli.fit_parser import add_parser as add_fit_parser
+from spcopyro.data.text import fold_word
 
 logger = logging.getLogger("spcopyro")
 _positive_int = integer_at_least(1)  # --size and --rooms
@@ -170,8 +170,7 @@ def _simulate_on_map(args: argparse.Namespace) -> int:
         tour = dataclasses.replace(tour, min_room_area=args.min_room_area)
     if args.categories is not None:
         # read as where reads words (Kitchen, a full-width ＫＩＴＣＨＥＮ: kitchen)
-        names = tuple(unicodedata.normalize("NFKC", c.strip()).casefold()
-                      for c in args.categories.split(","))  # fmt: skip
+        names = tuple(fold_word(c.strip()) for c in args.categories.split(","))
         if not all(names):
             raise ValueError(
                 f"--categories {args.categories!r}: an empty name (two commas in a row, or one "

@@ -16,10 +16,17 @@ import numpy as np
 
 from spcopyro.config import WordWeighting
 
-__all__ = ["WordWeighting", "tfidf_weights", "tokenize", "word_matrix"]
+__all__ = ["WordWeighting", "fold_word", "tfidf_weights", "tokenize", "word_matrix"]
 
 
 _PUNCTUATION = set(string.punctuation)
+
+
+def fold_word(word: str) -> str:
+    """``word`` in Unicode's compatibility composition (NFKC), case-folded: one spelling for
+    the ways a keyboard or a file may encode the same word (a decomposed ``"ダ"``, full-width
+    ``"ＴＶ"``, ``"STRASSE"`` for ``"straße"``), as ``where`` compares words."""
+    return unicodedata.normalize("NFKC", word).casefold()
 
 
 def _is_punctuation(char: str) -> bool:

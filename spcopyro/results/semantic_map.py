@@ -38,7 +38,6 @@ module, so a baseline or a score can depend on it without pulling in inference.
 from __future__ import annotations
 
 import difflib
-import unicodedata
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
@@ -46,7 +45,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from spcopyro.data import CellCounts
-from spcopyro.data.text import tokenize
+from spcopyro.data.text import fold_word, tokenize
 from spcopyro.maps import OccupancyGrid
 
 __all__ = [
@@ -68,13 +67,6 @@ class UnknownWordError(KeyError):
         return str(self.args[0])
 
 
-def _folded(word: str) -> str:
-    """``word`` in Unicode's compatibility composition (NFKC), case-folded: one spelling for
-    the ways a keyboard or a file may encode the same word (a decomposed ``"ダ"``, full-width
-    ``"ＴＶ"``, ``"STRASSE"`` for ``"straße"``)."""
-    return unicodedata.normalize("NFKC", word).casefold()
-
-
 def word_key(vocabulary: Sequence[str], word: str) -> str:
     """How ``word`` is looked up in ``vocabulary``: lower-cased, surrounding spaces dropped,
     and, when that is not a known word, the one token :func:`~spcopyro.data.text.tokenize` makes
@@ -91,8 +83,8 @@ def word_key(vocabulary: Sequence[str], word: str) -> str:
     tokens = tokenize(word)
     key = tokens[0] if len(tokens) == 1 else key
     if key not in vocabulary:
-        folded = _folded(key)
-        key = next((known for known in vocabulary if _folded(known) == folded), key)
+        folded = fold_word(key)
+        key = next((known for known in vocabulary if fold_word(known) == folded), key)
     return key
 
 

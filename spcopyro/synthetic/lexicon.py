@@ -7,10 +7,9 @@ categories), as a single word or inside a sentence with filler words (:data:`FIL
 
 from __future__ import annotations
 
-import unicodedata
 from dataclasses import dataclass
 
-from spcopyro.data.text import tokenize
+from spcopyro.data.text import fold_word, tokenize
 
 __all__ = [
     "CATEGORY_LEXICON",
@@ -96,7 +95,7 @@ def is_category_token(name: object) -> bool:
     are; ``Kitchen`` and ``two words`` are not."""
     if not isinstance(name, str) or "," in name:
         return False
-    return tokenize(name) == (name,) and unicodedata.normalize("NFKC", name).casefold() == name
+    return tokenize(name) == (name,) and fold_word(name) == name
 
 
 def lexicon_for(name: str) -> CategoryLexicon:
