@@ -489,3 +489,44 @@ def test_counts_of_one_are_singular(tmp_path, monkeypatch):
     agreement[0] = 0.2
     plotting.plot_agreement(dataclasses.replace(two_rooms(), agreement=agreement), tmp_path)
     assert "1 cell below 0.5" in titles[0]
+
+
+def _legend_side(fig) -> str:
+    """'below' or 'beside' the map, from the drawn boxes of the axes and its legend."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    ax = fig.axes[0]
+    axes, legend = ax.get_window_extent(renderer), ax.get_legend().get_window_extent(renderer)
+    xlabel = ax.xaxis.label.get_window_extent(renderer)
+    if legend.y1 < xlabel.y0:
+        return "below"
+    assert legend.x0 > axes.x1, (legend, axes)
+    return "beside"
+
+
+def test_a_wide_maps_legend_goes_below_it_in_columns():
+    """On a map five times as wide as high the house figure's legend, beside the map, was
+    taller than the map: most of the PNG blank, the map a strip. A map wider than
+    WIDE_ASPECT times its height now has its legends (house, semantic map) below it, in
+    columns; a squarer map keeps them beside it."""
+    from spcopyro.figures.plotting import house_figure, semantic_map_figure
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    wide = make_house(seed=1, spec=HouseSpec(height=30, width=200))
+    fig = house_figure(wide)
+    assert _legend_side(fig) == "below"
+    texts = fig.axes[0].get_legend().get_texts()
+    assert len({round(t.get_window_extent().x0) for t in texts}) == 4  # columns
+    assert _legend_side(semantic_map_figure(two_rooms())) == "below"  # 10 x 31 cells
+    assert _legend_side(house_figure(make_house(seed=0))) == "beside"  # 60 x 80 cells
+    import dataclasses
+
+    square = two_rooms()
+    occupancy = np.repeat(square.grid.occupancy, 2, axis=0)  # 20 x 31 cells
+    grid = type(square.grid)(occupancy=occupancy, resolution=0.1, origin=(0.0, 0.0, 0.0))
+    image = np.repeat(square.label_image(), 2, axis=0)
+    taller = dataclasses.replace(square, grid=grid, labels=image[grid.free])
+    assert _legend_side(semantic_map_figure(taller)) == "beside"

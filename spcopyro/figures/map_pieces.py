@@ -18,8 +18,10 @@ from matplotlib import patheffects
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.legend import Legend
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
+from matplotlib.transforms import ScaledTranslation
 
 from spcopyro.data import Observations
 from spcopyro.maps import OccupancyGrid
@@ -39,6 +41,8 @@ __all__ = [
     "concept_handles",
     "draw_outline",
     "draw_utterances",
+    "is_wide",
+    "map_legend",
     "place_labels",
     "region_text",
     "spread_markers",
@@ -50,6 +54,12 @@ OUTLINE = [patheffects.withStroke(linewidth=2.5, foreground="white")]
 concept colour or wall."""
 OFF_MAP_RGB = (0.5, 0.5, 0.5)
 """Marker colour of an utterance heard off free space (no concept there)."""
+WIDE_ASPECT = 2.5
+"""A map shown more than this many times as wide as it is high gets its legend below it, in
+columns (:func:`map_legend`): beside it, a legend taller than the map left most of the figure
+blank and the map a strip."""
+LEGEND_BELOW_INCHES = 0.55
+"""Gap between the axes and a legend below them: clears the x tick labels and the x label."""
 MAX_LEGEND_CONCEPTS = 12
 """The legend lists this many of the largest concepts (the rest are counted in one line)."""
 
@@ -74,6 +84,36 @@ def region_text(result: SpCoResult, concept: int, n_words: int = 3, largest: boo
     if not largest:
         return " ".join([f"[{concept}]"] + [w for w, _ in words])
     return "\n".join([f"[{concept}]"] + [_word_line(w, p, lifts[index[w]]) for w, p in words])
+
+
+def is_wide(rows: slice, cols: slice) -> bool:
+    """Whether the shown part of a map (``rows`` x ``cols`` cells) is wider than
+    :data:`WIDE_ASPECT` times its height."""
+    return (cols.stop - cols.start) > WIDE_ASPECT * (rows.stop - rows.start)
+
+
+def map_legend(
+    ax: Axes,
+    handles: list,
+    labels: list[str] | None = None,
+    *,
+    below: bool,
+    columns: int = 1,
+    below_inches: float = LEGEND_BELOW_INCHES,
+    **kwargs,
+) -> Legend:
+    """The legend of a map figure: beside the map (upper left of the space to its right), or
+    ``below`` it in ``columns`` columns, ``below_inches`` under the axes whatever the map's
+    height (a fraction of a short map's height put it over the x label). Below suits a wide map
+    (:func:`is_wide`) and a map with a colour bar beside it. ``kwargs`` go to
+    :meth:`~matplotlib.axes.Axes.legend` (fontsize, title, ...)."""
+    args = () if labels is None else (handles, labels)  # one positional argument means labels
+    kwargs = kwargs if labels is not None else {**kwargs, "handles": handles}
+    if not below:
+        return ax.legend(*args, loc="upper left", bbox_to_anchor=(1.01, 1.0), **kwargs)
+    offset = ax.transAxes + ScaledTranslation(0.0, -below_inches, ax.figure.dpi_scale_trans)
+    return ax.legend(*args, loc="upper left", bbox_to_anchor=(0.0, 0.0), bbox_transform=offset,
+                     borderaxespad=0.0, ncol=columns, **kwargs)  # fmt: skip
 
 
 def concept_handles(

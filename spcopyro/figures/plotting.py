@@ -39,6 +39,8 @@ from spcopyro.figures.map_pieces import (
     concept_handles,
     draw_outline,
     draw_utterances,
+    is_wide,
+    map_legend,
     place_labels,
     region_text,
     spread_markers,
@@ -198,7 +200,7 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     grid, obs = house.grid, house.observations
     fig = Figure(figsize=(8, 8))
     ax = fig.subplots()
-    _show_image(ax, grid, render_labels(np.full(grid.shape, -1), grid))
+    wide = is_wide(*_show_image(ax, grid, render_labels(np.full(grid.shape, -1), grid)))
     ax.scatter(*obs.image_xy.T, s=6, c="0.45", marker="s", label=f"images ({obs.num_images})")
     last_words = [u[-1] if u else "" for u in obs.utterances]  # a sentence's last word
     frequent = [w for w, _ in Counter(last_words).most_common(MAX_WORD_COLOURS)]
@@ -223,9 +225,9 @@ def house_figure(house: House, title: str | None = None) -> Figure:
         k = handles.index(others)
         handles.append(handles.pop(k))
         labels.append(labels.pop(k))
-    ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8,
-              frameon=False, title="words heard (last word of each utterance;\nmarkers at one "
-              "spot spread apart)", title_fontsize=8)  # fmt: skip
+    map_legend(ax, handles, labels, below=wide, columns=4, fontsize=8, frameon=False,
+               title="words heard (last word of each utterance;\nmarkers at one spot spread "
+               "apart)", title_fontsize=8)  # fmt: skip
     ax.set_title(title or f"{house.name}: {grid.num_free} free cells")
     return fig
 
@@ -319,7 +321,7 @@ def semantic_map_figure(
     ax = fig.subplots()
     image = result.label_image()
     colours = semantic_colours(result)  # [L, 3]
-    _show_image(ax, grid, render_labels(image, grid, colours))
+    wide = is_wide(*_show_image(ax, grid, render_labels(image, grid, colours)))
     labelled = set(result.concepts_in_use()[:max_labelled].tolist())
     points = region_label_points(image, min_region_fraction * grid.num_free)
     points = [p for p in points if p[0] in labelled]
@@ -338,9 +340,9 @@ def semantic_map_figure(
         handles += [marker] if marker is not None else []
     handles += [Patch(color=np.array(RGB_OCCUPIED) / 255.0, label="walls"),
                 Patch(color=np.array(RGB_UNKNOWN) / 255.0, label="unknown")]  # fmt: skip
-    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7,
-              frameon=False, title="concepts, largest first: words (posterior mean p; "
-              "x lift = p(word | concept) / p(word))", title_fontsize=7)  # fmt: skip
+    map_legend(ax, handles, below=wide, columns=2, fontsize=7, frameon=False,
+               title="concepts, largest first: words (posterior mean p; x lift = "
+               "p(word | concept) / p(word))", title_fontsize=7)  # fmt: skip
     used = len(result.concepts_in_use())
     crowded = f", {skipped} left unlabelled (legend)" if skipped else ""
     ax.set_title(f"{result.name or 'semantic map'}: {plural(used, 'concept')} in use, "
@@ -431,15 +433,9 @@ def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
         Patch(color=np.array(RGB_OCCUPIED) / 255.0, label="walls"),
         Patch(color=np.array(RGB_UNKNOWN) / 255.0, label="unknown"),
     ]
-    # Below the map, offsets in inches, not in axes fractions: under a wide, short map a
-    # fraction of its height put the legend over the x label (and the warnings over the legend).
-    below = ax.transAxes + ScaledTranslation(0.0, -BELOW_INCHES[0], fig.dpi_scale_trans)
-    if result.marginals is None:
-        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8,
-                  frameon=False)  # fmt: skip
-    else:
-        ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.0, 0.0),
-                  bbox_transform=below, borderaxespad=0.0, fontsize=8, frameon=False)  # fmt: skip
+    # Below the map when the colour bar stands beside it (the warnings go below the legend).
+    map_legend(ax, handles, below=result.marginals is not None, below_inches=BELOW_INCHES[0],
+               fontsize=8, frameon=False)  # fmt: skip
     if result.heard(answer.concept) == 0:
         words = NO_WORDS
     else:
