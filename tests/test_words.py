@@ -318,3 +318,25 @@ def test_labels_and_counts_read_as_written():
     assert region_text(result, 0) == "[0]\nkitchen 0.60 x1.7\nbed 0.40"  # no "sofa 0.00"
     assert plural(1, "doorway") == "1 doorway" and plural(3, "room") == "3 rooms"
     assert plural(0, "place") == "0 places"
+
+
+def test_one_concept_says_why_no_word_is_distinctive_and_few_words_are_not_near_uniform(capsys):
+    """A one-room fit printed "no concept has a distinctive word (every lift <= 1.1)" (the lift
+    against the concept's own mix is 1) and called (0.67, 0.22, 0.11) over three words "close to
+    uniform" (the bound was twice uniform alone)."""
+    from spcopyro.results.concept_words import near_uniform
+
+    result = two_rooms()
+    one = dataclasses.replace(
+        result, labels=np.zeros_like(result.labels), concept_totals=np.array([[5.0, 5.0, 9.0]])
+    )
+    print_concepts(one)
+    out = capsys.readouterr().out
+    assert "one concept in use: no word can be distinctive" in out
+    assert "no concept has a distinctive word" not in out
+    assert not near_uniform(np.array([[0.666, 0.222, 0.112]]))
+    assert near_uniform(np.array([[0.4, 0.3, 0.3]]))
+    assert near_uniform(np.full((2, 50), 0.02)) and not near_uniform(
+        np.array([[0.05] + [0.95 / 49] * 49])
+    )
+    assert not near_uniform(np.empty((0, 3)))

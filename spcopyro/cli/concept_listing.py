@@ -59,7 +59,9 @@ def print_concepts(result: SpCoResult, limit: int = 10) -> None:
               f"{', '.join(str(c['concept']) for c in specks[:8])}"
               f"{', ...' if len(specks) > 8 else ''}; concepts.json lists "
               f"{'it' if len(specks) == 1 else 'them'})")  # fmt: skip
-    if not any(c["distinctive_words"] for c in concepts):
+    if len(concepts) == 1:  # p(word) is then the concept's own: every lift is 1
+        print("  one concept in use: no word can be distinctive (a lift compares concepts)")
+    elif not any(c["distinctive_words"] for c in concepts):
         print(f"  no concept has a distinctive word (every lift <= {MIN_LIFT:g})")
 
 

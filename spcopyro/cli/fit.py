@@ -434,6 +434,7 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     from spcopyro._util.outputs import checkpoint_path
     from spcopyro.fit.house import log_degenerate_map
     from spcopyro.gibbs.hyperparameters import describe_hyperparameters
+    from spcopyro.results.concept_words import near_uniform
     from spcopyro.results.uncertainty import cell_entropy, free_cells_image
 
     args, house, staged, config = job.args, job.house, job.staged, job.settings.model
@@ -527,7 +528,7 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
         print(f"note: the vocabulary holds one word ({result.vocabulary[0]!r}): the words cannot "
               "tell places apart, so the map follows the images and the coupling alone",
               file=sys.stderr)  # fmt: skip
-    elif vocabulary_size and result.w[used].max() < 2.0 / vocabulary_size:
+    elif near_uniform(result.w[used]):
         if config.beta > 0.1:
             why = (f"beta = {config.beta:g} outweighs the {house.observations.num_utterances} "
                    "utterances (each list still follows the counts heard there); for sharper "

@@ -40,6 +40,7 @@ __all__ = [
     "format_words_heard",
     "item_marginal",
     "lift",
+    "near_uniform",
     "ranked",
     "shown_words",
 ]
@@ -142,6 +143,18 @@ SPECK_SHARE = 0.005
 a doorway or convex-corner cell the Potts field holds weakly (docs/real_houses.md, "What is
 still open"). ``fit``'s listing and the semantic map's legend put the specks on one line; the
 figure labels regions from the same 0.5 %."""
+
+
+def near_uniform(rows: np.ndarray) -> bool:
+    """Whether every row of ``rows`` ``[L, V]`` (word distributions of the concepts in use) is
+    close to uniform: no word above ``min(2 / V, 1 / V + 0.25)``. Twice uniform alone called
+    (0.66, 0.22, 0.11) over three words close to uniform; the second bound keeps small
+    vocabularies to what a reader would call flat."""
+    rows = np.asarray(rows, dtype=np.float64)
+    size = rows.shape[-1]
+    if rows.size == 0 or size == 0:
+        return False
+    return bool(rows.max() < min(2.0 / size, 1.0 / size + 0.25))
 
 
 def is_speck(cells: int, heard: float | None, num_free: int) -> bool:
