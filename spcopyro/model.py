@@ -8,6 +8,7 @@ Every free cell is one element of the ``cells`` plate, indexed in the grid's ``f
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -312,7 +313,7 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
         SITE_PI, dist.Dirichlet(torch.full((L,), config.pi_concentration, dtype=DTYPE))
     )
     _check_site_shape(SITE_PI, pi, (L,))
-    if pi.shape[:-1].numel() > 1:  # Predictive(parallel=True) hands a batch (a guide: [1, L])
+    if math.prod(pi.shape[:-1]) > 1:  # Predictive(parallel=True) hands a batch (a guide: [1, L])
         raise ValueError(
             f"spcomapping_model takes one sample of pi at a time, got a batch of shape "
             f"{tuple(pi.shape)} (its labels are indexed per cell and its Potts factor is not "
