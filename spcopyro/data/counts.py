@@ -94,6 +94,33 @@ def scale_features(features: np.ndarray, scaling: FeatureScaling) -> np.ndarray:
     )
 
 
+def _warn_scaled_away(
+    raw: np.ndarray,
+    scaled: np.ndarray,
+    scaling: FeatureScaling,
+    source: str | os.PathLike[str] | None,
+) -> None:
+    """Warn (logger ``"spcopyro"``) about the images whose histogram ``raw`` ``[T, K]`` holds
+    something but whose ``scaled`` row is all zero: ``floor100`` of a histogram over many
+    classes (1000 ImageNet classes, every probability below 0.01) leaves nothing of it, and the
+    image would be lost silently."""
+    lost = np.flatnonzero((scaled.sum(axis=1) == 0) & (raw.sum(axis=1) > 0))  # [n]
+    if not lost.size:
+        return
+    first = 1 if source is not None else 0  # Ft.csv's lines count from 1, indices from 0
+    listed = ", ".join(str(i + first) for i in lost[:5].tolist()) + (
+        ", ..." if lost.size > 5 else ""
+    )
+    where = f"lines {listed} of {Path(source) / 'Ft.csv'}" if source else f"images {listed}"
+    logger.warning(
+        "%d of %d image(s) carry no information under feature_scaling=%r, left out of the "
+        "counts: every feature of their row is below 0.01, which floor(100 f) makes 0 (%s); a "
+        "histogram over many classes (the 1000 ImageNet classes of spcopyro features) needs "
+        "feature_scaling 'probability' or a number (fit --feature-scaling)",
+        lost.size, raw.shape[0], scaling, where,
+    )  # fmt: skip
+
+
 def _location(modality: str, index: int, source: Path | None) -> tuple[Path | None, int, str]:
     """(file, 1-based line, words) naming observation ``index`` of a modality as load_house
     reads it from the house folder ``source``: Ft.csv row i is line i + 1, St.csv holds all
@@ -319,6 +346,8 @@ def cell_counts(
             grid, obs, features, words, (image_cell, word_cell, [cell for cell, _, _ in further]),
             footprint_radius, footprint_kernel, footprint_fov,
         )  # fmt: skip
+    if warn:
+        _warn_scaled_away(obs.image_features, features, feature_scaling, source)
     image_ok = image_cell >= 0  # [T] bool
     word_ok = word_cell >= 0  # [U] bool
     further_cells = [cell[cell >= 0] for cell, _, _ in further]  # [T_j] each

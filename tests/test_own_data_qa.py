@@ -1,0 +1,57 @@
+"""A roboticist's own house (not the public dataset's): what goes wrong between their images,
+``spcopyro features`` and a fit, and between their words and ``where``.
+
+The grid is a 2 x 3 room of free cells at 1 m (origin (0, 0)), walled by nothing: every
+observation inside it lands on a free cell.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from spcopyro.data import Observations, cell_counts
+from spcopyro.maps import FREE, OccupancyGrid
+
+
+def _grid() -> OccupancyGrid:
+    return OccupancyGrid(
+        occupancy=np.full((2, 3), FREE, dtype=np.int8), resolution=1.0, origin=(0.0, 0.0, 0.0)
+    )
+
+
+def _observations(features: np.ndarray, utterances: list[tuple[str, ...]]) -> Observations:
+    num_images, num_words = features.shape[0], len(utterances)
+    return Observations(
+        image_features=features,
+        image_xy=np.full((num_images, 2), 0.5),
+        image_trial=np.zeros(num_images, dtype=np.int64),
+        utterances=utterances,
+        word_xy=np.full((num_words, 2), 1.5),
+        word_trial=np.zeros(num_words, dtype=np.int64),
+    )
+
+
+def test_floor100_of_a_1000_class_histogram_is_not_lost_silently(tmp_path, caplog):
+    """``spcopyro features`` writes 1000 ImageNet classes; a flat histogram's probabilities are
+    all below 0.01, and ``floor100`` (the paper presets, the refinement's 100 draws) made every
+    such row 0: the images vanished from the counts without a word."""
+    flat = np.full((3, 1000), 1e-3)  # [3, 1000] each row sums to 1, every entry < 0.01
+    peaked = np.zeros((1, 1000))
+    peaked[0, 7] = 1.0
+    obs = _observations(np.concatenate([flat, peaked]), [("kitchen",)])
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        counts = cell_counts(_grid(), obs, feature_scaling="floor100")
+    assert counts.image_counts.sum() == 100.0  # only the peaked image is left
+    lost = [r.getMessage() for r in caplog.records if "carry no information" in r.getMessage()]
+    assert len(lost) == 1, caplog.text
+    assert "3 of 4 image(s)" in lost[0] and "images 0, 1, 2" in lost[0]
+    assert "'probability'" in lost[0]
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        cell_counts(_grid(), obs, feature_scaling="probability")
+        cell_counts(_grid(), obs, feature_scaling="floor100", footprint_radius=1.0, source=tmp_path)
+    said = [r.getMessage() for r in caplog.records if "carry no information" in r.getMessage()]
+    assert len(said) == 1  # not with probabilities; once with a footprint
+    assert f"lines 1, 2, 3 of {tmp_path / 'Ft.csv'}" in said[0]  # a house folder's file
