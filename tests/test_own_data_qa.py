@@ -8,10 +8,11 @@ observation inside it lands on a free cell.
 from __future__ import annotations
 
 import logging
+import unicodedata
 
 import numpy as np
 
-from spcopyro.data import Observations, cell_counts
+from spcopyro.data import Observations, cell_counts, tokenize
 from spcopyro.maps import FREE, OccupancyGrid
 
 
@@ -55,3 +56,17 @@ def test_floor100_of_a_1000_class_histogram_is_not_lost_silently(tmp_path, caplo
     said = [r.getMessage() for r in caplog.records if "carry no information" in r.getMessage()]
     assert len(said) == 1  # not with probabilities; once with a footprint
     assert f"lines 1, 2, 3 of {tmp_path / 'Ft.csv'}" in said[0]  # a house folder's file
+
+
+def test_one_word_in_two_unicode_forms_is_one_vocabulary_word():
+    """A Japanese IME types full-width ``ＴＶ``, another recogniser ``TV``; text from macOS holds
+    decomposed kana. ``where`` read them as one word, but the data's tokenizer only lower-cased,
+    so the fit counted two words (``tv``, ``ｔｖ``) and ``where tv`` found only the first."""
+    decomposed = unicodedata.normalize("NFD", "ダイニング")
+    texts = ("TV", "ＴＶ", "ダイニング", decomposed, "STRASSE", "Straße")
+    utterances = [tokenize(text) for text in texts]
+    assert utterances == [("tv",)] * 2 + [("ダイニング",)] * 2 + [("strasse",)] * 2
+    obs = _observations(np.full((1, 3), 1 / 3), utterances)
+    assert obs.vocabulary == ("tv", "ダイニング", "strasse")
+    counts = cell_counts(_grid(), obs)
+    assert counts.word_counts.sum(axis=0).tolist() == [2.0, 2.0, 2.0]

@@ -1,6 +1,6 @@
 """Words: tokenisation, the utterance-by-token count matrix and tf-idf weights (paper eq. 20).
 
-Utterances are tokenised by :func:`tokenize` (lower case, edge punctuation stripped);
+Utterances are tokenised by :func:`tokenize` (case-folded, NFKC, edge punctuation stripped);
 :func:`word_matrix` counts each vocabulary token in each utterance and :func:`tfidf_weights`
 weights them by tf-idf, the two word weightings (:data:`WordWeighting`) of
 :func:`spcopyro.data.cell_counts`.
@@ -25,7 +25,8 @@ _PUNCTUATION = set(string.punctuation)
 def fold_word(word: str) -> str:
     """``word`` in Unicode's compatibility composition (NFKC), case-folded: one spelling for
     the ways a keyboard or a file may encode the same word (a decomposed ``"ダ"``, full-width
-    ``"ＴＶ"``, ``"STRASSE"`` for ``"straße"``), as ``where`` compares words."""
+    ``"ＴＶ"``, ``"STRASSE"`` for ``"straße"``), as ``where`` compares words and
+    :func:`tokenize` reads the data's."""
     return unicodedata.normalize("NFKC", word).casefold()
 
 
@@ -34,13 +35,15 @@ def _is_punctuation(char: str) -> bool:
 
 
 def tokenize(utterance: str) -> tuple[str, ...]:
-    """Tokens of an utterance: lower-cased, split on whitespace, punctuation stripped from both
-    ends of each token (inner punctuation, as in ``living-room``, stays); empty tokens vanish.
+    """Tokens of an utterance: folded (:func:`fold_word`: case-folded, NFKC), split on
+    whitespace, punctuation stripped from both ends of each token (inner punctuation, as in
+    ``living-room``, stays); empty tokens vanish.
 
-    ``tokenize("Here is the kitchen.") == ("here", "is", "the", "kitchen")``.
+    ``tokenize("Here is the kitchen.") == ("here", "is", "the", "kitchen")``; ``"ＴＶ"`` (full
+    width) and ``"TV"`` are one word, ``"tv"``, as are a decomposed and a composed ``"ダ"``.
     """
     tokens = []
-    for raw in utterance.lower().split():
+    for raw in fold_word(utterance).split():
         start, end = 0, len(raw)
         while start < end and _is_punctuation(raw[start]):
             start += 1
