@@ -15,10 +15,12 @@ PyYAML); :mod:`spcopyro.maps.render` writes its semantic maps through the helper
 
 from __future__ import annotations
 
+import difflib
+import logging
 import math
 import os
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +31,10 @@ import yaml
 from spcopyro._util.messages import echo
 from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 
+logger = logging.getLogger(__name__)
+
 __all__ = [
+    "MAX_MAP_COORDINATE",
     "PGM_FREE",
     "PGM_OCCUPIED",
     "PGM_UNKNOWN",
@@ -47,6 +52,13 @@ SAVE_OCCUPIED_THRESH = 0.65
 SAVE_FREE_THRESH = 0.196
 
 _REQUIRED_KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
+_KNOWN_KEYS = (*_REQUIRED_KEYS, "mode")
+
+MAX_MAP_COORDINATE = 1e6
+"""Metres: :func:`load_map` refuses a map that lies wholly farther than this from its frame's
+origin along x or y, since the data loader refuses every position there
+(``spcopyro.data.dataset.MAX_COORDINATE``, a guard against unit errors): a house simulated or
+recorded on such a map (an origin in UTM coordinates) could not be fitted."""
 
 
 class MapFormatError(ValueError):
@@ -80,6 +92,19 @@ class _MapYaml:
     occupied_thresh: float
     free_thresh: float
     mode: str
+    lines: dict[str, int] = field(default_factory=dict, compare=False)
+    """Line of each key in the yaml (1-based)."""
+
+    def where(self, key: str) -> str:
+        """``YAML:LINE`` of ``key``, or the yaml alone where the key is absent."""
+        return f"{self.path}:{self.lines[key]}" if key in self.lines else str(self.path)
+
+
+def _close_key(key: Any) -> str | None:
+    """The map_server key that ``key``, not one of them, looks like a misspelling of
+    (``mdoe``, ``Mode``, ``occupied_tresh``), or None."""
+    close = difflib.get_close_matches(str(key).lower(), _KNOWN_KEYS, n=1, cutoff=0.75)
+    return close[0] if close else None
 
 
 def _is_number(value: Any) -> bool:
@@ -137,9 +162,21 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
     def where(key: str) -> str:
         return f"{path}:{lines[key]}" if key in lines else str(path)
 
+    misspelt = {
+        key: close
+        for key in doc
+        if key not in _KNOWN_KEYS and (close := _close_key(key)) is not None
+    }
     for key in _REQUIRED_KEYS:
         if key not in doc:
-            raise MapFormatError(f"{path}: missing required key {key!r}")
+            typo = [f"{where(k)} has {echo(k)}" for k, close in misspelt.items() if close == key]
+            hint = f" ({', '.join(typo)}: misspelt?)" if typo else ""
+            raise MapFormatError(f"{path}: missing required key {key!r}{hint}")
+    for key, close in misspelt.items():
+        logger.warning(
+            "%s: unknown key %s ignored, as map_server ignores it: did you mean %r?",
+            where(key), echo(key), close,
+        )  # fmt: skip
 
     for key in ("resolution", "negate", "occupied_thresh", "free_thresh"):
         doc[key] = _unquoted(doc[key])
@@ -200,6 +237,7 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
         occupied_thresh=float(doc["occupied_thresh"]),
         free_thresh=float(doc["free_thresh"]),
         mode=mode,
+        lines=dict(lines),
     )
 
 
@@ -289,16 +327,22 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
     as for 8 bits before); ``p > occupied_thresh`` -> OCCUPIED, ``p < free_thresh`` -> FREE,
     otherwise UNKNOWN.
 
+    Warns (logger ``spcopyro.maps.map_server``, naming the yaml's line): an unknown key that
+    looks like a misspelt map_server key (ignored, as map_server does), and cells of map_saver's
+    unknown grey 205 read as FREE (a ``free_thresh`` above 0.196, as Nav2's map_saver writes it,
+    or an alpha channel averaged in).
+
     Raises:
         MapFileNotFoundError: the yaml or its image does not exist.
         MapFormatError: anything malformed; the message names the yaml (with the line where the
-            key is), the key and the offending value.
+            key is), the key and the offending value; also a map lying wholly beyond
+            :data:`MAX_MAP_COORDINATE` of its frame's origin.
     """
     spec = _read_map_yaml(yaml_path)
     if spec.mode != "trinary":
         raise MapFormatError(
-            f"{spec.path}: key 'mode': {echo(spec.mode)} is not supported by load_map (only "
-            "'trinary', an occupancy map); a Nav2 costmap filter mask (scale or raw) is read "
+            f"{spec.where('mode')}: key 'mode': {echo(spec.mode)} is not supported by load_map "
+            "(only 'trinary', an occupancy map); a Nav2 costmap filter mask (scale or raw) is read "
             "with load_filter_mask, a semantic map saved by save_label_map_server with "
             "load_label_map_server"
         )
@@ -308,7 +352,52 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
     occupancy = np.full(p.shape, UNKNOWN, dtype=np.int8)  # [H, W]
     occupancy[p > spec.occupied_thresh] = OCCUPIED
     occupancy[p < spec.free_thresh] = FREE
-    return OccupancyGrid(occupancy, spec.resolution, spec.origin, source=spec.path)
+    grid = OccupancyGrid(occupancy, spec.resolution, spec.origin, source=spec.path)
+    _check_extent(spec, grid)
+    if not spec.negate and full == 255:
+        alpha = levels.ndim == 3 and levels.shape[2] in (2, 4)
+        grey = levels[..., :-1].mean(axis=2) if alpha else value  # [H, W] alpha left out
+        _warn_unknown_read_as_free(spec, int(np.count_nonzero((grey == PGM_UNKNOWN) & grid.free)),
+                                   alpha)  # fmt: skip
+    return grid
+
+
+def _check_extent(spec: _MapYaml, grid: OccupancyGrid) -> None:
+    """Refuse a map lying wholly beyond :data:`MAX_MAP_COORDINATE` along x or y."""
+    ox, oy, _ = grid.origin
+    spans = ((ox, ox + grid.width * grid.resolution), (oy, oy + grid.height * grid.resolution))
+    nearest = [0.0 if lo <= 0.0 <= hi else min(abs(lo), abs(hi)) for lo, hi in spans]
+    if max(nearest) > MAX_MAP_COORDINATE:
+        (x0, x1), (y0, y1) = spans
+        raise MapFormatError(
+            f"{spec.where('origin')}: key 'origin' {echo(list(spec.origin))}: the map spans "
+            f"x {x0:.2f}..{x1:.2f}, y {y0:.2f}..{y1:.2f} m, wholly farther than "
+            f"{MAX_MAP_COORDINATE:g} m from its frame's origin, where spcopyro refuses "
+            "positions (a guard against unit errors): give the map and the positions in a "
+            "local frame (subtract an offset, e.g. of UTM coordinates)"
+        )
+
+
+def _warn_unknown_read_as_free(spec: _MapYaml, count: int, alpha: bool) -> None:
+    """Warn that ``count`` pixels of map_saver's unknown grey (205) read as FREE: an alpha
+    channel (map_server's trinary mode averages it in, so an opaque 205 reads as 217.5), or a
+    ``free_thresh`` above 50/255 (Nav2's map_saver writes 0.25 by default, so a map it saved
+    reloads with its unexplored space free, in map_server as here)."""
+    if not count:
+        return
+    why = (
+        "the image has an alpha channel, which map_server's trinary mode averages in: save "
+        "it without alpha"
+        if alpha
+        else f"free_thresh {echo(spec.free_thresh)} is above (255 - {PGM_UNKNOWN}) / 255 = "
+        f"{(255 - PGM_UNKNOWN) / 255:.4f}, as Nav2's map_saver writes it (0.25): set "
+        f"free_thresh: {SAVE_FREE_THRESH}"
+    )
+    logger.warning(
+        "%s: %d cells of grey %d, map_saver's unknown, read as free space, as map_server reads "
+        "them; if they are unexplored: %s",
+        spec.where("image" if alpha else "free_thresh"), count, PGM_UNKNOWN, why,
+    )  # fmt: skip
 
 
 # ---------------------------------------------------------------------- writing

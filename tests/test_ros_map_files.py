@@ -1,0 +1,128 @@
+"""Maps as ROS users write them (map_saver, Nav2's map_saver_cli, image editors): what load_map
+warns about and refuses, naming the yaml, the line, the key and the value."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from spcopyro.cli.main import main
+from spcopyro.data import dataset
+from spcopyro.maps import FREE, UNKNOWN, MapFormatError, load_map
+from spcopyro.maps.map_server import MAX_MAP_COORDINATE
+
+# a walled room (row 0 = top) with unexplored space (map_saver's grey 205) around it
+PIXELS = np.full((12, 16), 205, dtype=np.uint8)
+PIXELS[2:10, 2:14] = 0
+PIXELS[3:9, 3:13] = 254
+KEYS = {
+    "image": "room.pgm",
+    "resolution": "0.05",
+    "origin": "[-2.5, -1.25, 0.0]",
+    "negate": "0",
+    "occupied_thresh": "0.65",
+    "free_thresh": "0.196",
+}
+
+
+def write_map(tmp_path: Path, pixels: np.ndarray = PIXELS, **keys: str | None) -> Path:
+    """``room.yaml`` (one ``key: value`` a line, in KEYS' order, then new keys; a None drops a
+    key) beside ``room.pgm`` (or the image ``keys['image']`` names, written by OpenCV)."""
+    lines = {**KEYS, **keys}
+    cv2.imwrite(str(tmp_path / str(lines["image"])), pixels)
+    text = "".join(f"{key}: {value}\n" for key, value in lines.items() if value is not None)
+    (tmp_path / "room.yaml").write_text(text)
+    return tmp_path / "room.yaml"
+
+
+def warnings_of(caplog: pytest.LogCaptureFixture) -> list[str]:
+    return [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+
+
+def test_a_map_as_map_saver_writes_it_loads_without_a_warning(tmp_path, caplog):
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        grid = load_map(write_map(tmp_path))
+    assert warnings_of(caplog) == []
+    assert (grid.occupancy[PIXELS == 205] == UNKNOWN).all()
+
+
+def test_unknown_grey_read_as_free_under_nav2s_free_thresh_is_warned(tmp_path, caplog):
+    """Nav2's map_saver writes unexplored space as 205 and ``free_thresh: 0.25``: map_server
+    (and load_map) read those cells as free, which was said nowhere."""
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        grid = load_map(write_map(tmp_path, free_thresh="0.25"))
+    assert (grid.occupancy[PIXELS == 205] == FREE).all()  # as map_server reads them
+    (message,) = warnings_of(caplog)
+    count = int((PIXELS == 205).sum())
+    assert message.startswith(f"{tmp_path / 'room.yaml'}:6: {count} cells of grey 205")
+    assert "free_thresh 0.25" in message and "set free_thresh: 0.196" in message
+
+
+def test_unknown_grey_read_as_free_through_an_alpha_channel_is_warned(tmp_path, caplog):
+    """map_server's trinary mode averages the alpha channel in: an opaque 205 reads as 217.5."""
+    rgba = np.dstack([PIXELS, PIXELS, PIXELS, np.full_like(PIXELS, 255)])
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        grid = load_map(write_map(tmp_path, rgba, image="room.png"))
+    assert (grid.occupancy[PIXELS == 205] == FREE).all()
+    (message,) = warnings_of(caplog)
+    assert message.startswith(f"{tmp_path / 'room.yaml'}:1: ") and "alpha channel" in message
+
+
+@pytest.mark.parametrize(
+    ("keys", "line", "typo", "meant"),
+    [
+        ({"mdoe": "scale"}, 7, "mdoe", "mode"),
+        ({"Mode": "trinary"}, 7, "Mode", "mode"),
+        ({"occupied_tresh": "0.5"}, 7, "occupied_tresh", "occupied_thresh"),
+    ],
+)
+def test_a_misspelt_key_is_warned_not_dropped_silently(tmp_path, caplog, keys, line, typo, meant):
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        load_map(write_map(tmp_path, **keys))
+    (message,) = warnings_of(caplog)
+    assert message == (
+        f"{tmp_path / 'room.yaml'}:{line}: unknown key {typo!r} ignored, as map_server ignores "
+        f"it: did you mean {meant!r}?"
+    )
+
+
+def test_other_unknown_keys_are_ignored_quietly(tmp_path, caplog):
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        load_map(write_map(tmp_path, map_name="kitchen_floor", frame_id="map"))
+    assert warnings_of(caplog) == []
+
+
+def test_a_required_key_missing_names_its_misspelling(tmp_path):
+    path = write_map(tmp_path, resolution=None, resoluton="0.05")
+    with pytest.raises(MapFormatError) as err:
+        load_map(path)
+    assert str(err.value) == (
+        f"{path}: missing required key 'resolution' ({path}:6 has 'resoluton': misspelt?)"
+    )
+
+
+def test_a_mode_load_map_does_not_read_names_its_line(tmp_path):
+    path = write_map(tmp_path, mode="scale")
+    with pytest.raises(MapFormatError, match=rf"^{path}:7: key 'mode': 'scale' is not supported"):
+        load_map(path)
+
+
+def test_a_map_beyond_the_datas_coordinate_limit_is_refused_at_load(tmp_path, capsys):
+    """A map whose origin is in UTM coordinates loaded, and `simulate --map` wrote a house on
+    it that `fit` then refused ("a unit or parsing error?") without naming the map."""
+    assert MAX_MAP_COORDINATE == dataset.MAX_COORDINATE
+    path = write_map(tmp_path, origin="[500000.0, 4100000.0, 0.0]")
+    with pytest.raises(MapFormatError, match=rf"^{path}:3: key 'origin' \[500000.0, 4100000.0"):
+        load_map(path)
+    out = tmp_path / "out"
+    assert main(["simulate", "--map", str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"error: {path}:3: key 'origin'") and "Traceback" not in err
+    assert not out.exists()
+    # a map reaching into the limit, or lying across the frame's origin, loads
+    load_map(write_map(tmp_path, origin="[999999.5, -0.3, 0.0]"))
+    load_map(write_map(tmp_path, origin="[-2.5, -1000000.3, 0.0]"))
