@@ -11,8 +11,9 @@ import logging
 import unicodedata
 
 import numpy as np
+import pytest
 
-from spcopyro.data import Observations, cell_counts, tokenize
+from spcopyro.data import DataFormatError, Observations, cell_counts, tokenize
 from spcopyro.maps import FREE, OccupancyGrid
 
 
@@ -70,3 +71,24 @@ def test_one_word_in_two_unicode_forms_is_one_vocabulary_word():
     assert obs.vocabulary == ("tv", "ダイニング", "strasse")
     counts = cell_counts(_grid(), obs)
     assert counts.word_counts.sum(axis=0).tolist() == [2.0, 2.0, 2.0]
+
+
+def test_features_reads_a_pose_file_with_a_header_as_load_house_does(tmp_path):
+    """``spcopyro features HOUSE`` counted a pose file's non-blank lines: a header line
+    ``x,y,qz,qw`` was one more pose, reported as a missing image ("missing: 00002.png") that the
+    user then looked for; it is the header, named with its line as load_house names it."""
+    cv2 = pytest.importorskip("cv2")
+    from spcopyro.features.images import list_images
+
+    (tmp_path / "img_0").mkdir()
+    for number in range(2):
+        cv2.imwrite(str(tmp_path / "img_0" / f"{number:05d}.png"), np.zeros((8, 8, 3), np.uint8))
+    poses = tmp_path / "pose_0.csv"
+    poses.write_text("x,y,qz,qw\n0.5,0.5,0,1\n1.5,0.5,0,1\n")
+    with pytest.raises(DataFormatError, match=r"pose_0\.csv, line 1, column 1: not a number: 'x'"):
+        list_images(tmp_path)
+    poses.write_text("0.5,0.5,0\n1.5,0.5,0\n")  # x, y, yaw: a pose of another form
+    with pytest.raises(DataFormatError, match=r"expected 4 \(x, y, qz, qw\)"):
+        list_images(tmp_path)
+    poses.write_text("0.5,0.5,0,1\r\n1.5,0.5,0,1\r\n")
+    assert [p.name for p in list_images(tmp_path)] == ["00000.png", "00001.png"]

@@ -86,8 +86,9 @@ _ROW = re.compile(rf"(?:{_NUMBER.pattern})(?:,(?:{_NUMBER.pattern}))*", re.IGNOR
 """A line of comma-separated :data:`_NUMBER` s (one match a line, not one a number)."""
 
 
-def _read_matrix(path: Path, columns: int | None = None) -> np.ndarray:
-    """Comma-separated numbers, one row per line; every row the same length -> ``[R, C]``.
+def _read_matrix(path: Path, columns: int | None = None, names: str = "") -> np.ndarray:
+    """Comma-separated numbers, one row per line; every row the same length -> ``[R, C]``
+    (``names``: what the ``columns`` are, for the message about a row of another length).
 
     A well-formed file is checked a line at a time and converted at once (the public houses'
     Ft.csv: 45,000 numbers); any other goes through the number-by-number reading, which names
@@ -110,10 +111,20 @@ def _read_matrix(path: Path, columns: int | None = None) -> np.ndarray:
             width = len(fields)
         if len(fields) != width:
             raise DataFormatError(
-                path, f"row has {len(fields)} values, expected {width}", line=number, value=line
+                path,
+                f"row has {len(fields)} values, expected {width}{names}",
+                line=number,
+                value=line,
             )
         rows.append([_parse_number(path, text, number, c) for c, text in enumerate(fields, 1)])
     return np.array(rows, dtype=np.float64).reshape(len(rows), width or 0)
+
+
+def read_pose_file(path: Path) -> np.ndarray:
+    """A trial's ``pose_K.csv``: ``[n, 4]`` rows ``x, y, qz, qw``, one per image of the trial;
+    DataFormatError naming the line and value of a header, a number that does not read or a
+    row of another length. ``spcopyro features`` reads it as :func:`load_house` does."""
+    return _read_matrix(path, columns=4, names=" (x, y, qz, qw)")
 
 
 _FT_HINT = (" (Ft.csv has a row per image: after new images, e.g. a re-import, make it again "
@@ -206,7 +217,7 @@ def _read_trials(
                 f"{'pose' if kind == 'word' else 'word'} file but no {kind} file",
             )
     trials = list(poses)
-    pose_rows = [_read_matrix(poses[k], columns=4) for k in trials]  # [n_k, 4] each
+    pose_rows = [read_pose_file(poses[k]) for k in trials]  # [n_k, 4] each
     image_counts = [p.shape[0] for p in pose_rows]
     if sum(image_counts) != num_images:
         raise DataFormatError(

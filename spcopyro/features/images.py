@@ -23,6 +23,7 @@ from torchvision.transforms import InterpolationMode, v2
 
 from spcopyro._util.messages import echo, warn_once
 from spcopyro.data import IMAGE_SUFFIXES
+from spcopyro.data.dataset_files import read_pose_file
 
 __all__ = [
     "CROP_SIZE",
@@ -240,7 +241,10 @@ def _check_other_images(folder: Path) -> None:
 
 
 def _pose_lines(poses: Path) -> int:
-    return sum(1 for line in poses.read_text(errors="replace").splitlines() if line.strip())
+    """The poses ``poses`` lists, read as load_house reads them: a header line, a bad number
+    or row is an error naming its line (a header was counted as one more pose, and reported as
+    a missing image)."""
+    return read_pose_file(poses).shape[0]
 
 
 def _check_trials(directory: Path, trials: list[int]) -> None:
@@ -280,7 +284,7 @@ def _check_against_poses(directory: Path, trial: int, folder: Path, images: list
     )
     if poses is None:
         return
-    lines = [line for line in poses.read_text(errors="replace").splitlines() if line.strip()]
+    lines = range(_pose_lines(poses))  # one per pose
     if len(lines) == len(images):
         return
     missing = ""
