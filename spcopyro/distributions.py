@@ -70,8 +70,15 @@ class MultinomialCounts(TorchDistribution):
     def sample(self, sample_shape: torch.Size = _EMPTY) -> torch.Tensor:
         """Integer counts: each batch element draws ``total_count`` categorical trials."""
         totals = self.total_count
-        if not torch.equal(totals, totals.round()) or (totals < 0).any():
-            raise ValueError("MultinomialCounts.sample needs non-negative integer total_count")
+        wrong = (totals != totals.round()) | (totals < 0)
+        if wrong.any():
+            index = tuple(int(i) for i in torch.nonzero(wrong)[0])
+            raise ValueError(
+                f"MultinomialCounts.sample needs non-negative whole total_count, got "
+                f"{float(totals[index])!r} at batch index {index}: real-valued counts "
+                "(probabilities, tf-idf weights) can be scored but not drawn; whole counts "
+                "come from e.g. preset('original-code')"
+            )
         shape = torch.Size(sample_shape) + self.batch_shape
         probs = self.probs.expand(shape + self.event_shape).reshape(-1, self.event_shape[0])
         n = totals.expand(shape).reshape(-1).long()  # [B]

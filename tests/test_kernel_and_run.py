@@ -422,7 +422,7 @@ def test_predictive_after_mcmc_keeps_the_chains_labels():
     )
     drawn = potts_agreements(predictive["labels"], data.pairs) / data.pairs.shape[0]
     assert abs(float(drawn.mean() - chain.mean())) < 0.02
-    images = predictive["images"]  # [S, M, K]: posterior predictive emissions
+    images = predictive["images"]  # [S, M, K]: the data's (Predictive keeps observed sites)
     assert images.shape[0] == 20
     with pytest.raises(ValueError, match="parallel=False"):
         Predictive(spcomapping_model, posterior_samples=samples, parallel=True)(data, cfg)

@@ -4,8 +4,12 @@ would (issues found by running them so: Pyro's model inspection, ...)."""
 from __future__ import annotations
 
 import pytest
+import torch
+from pyro import poutine
+from pyro.infer import MCMC, Predictive
 from pyro.infer.inspect import get_model_relations
 
+from spcopyro.gibbs import SpCoGibbs
 from spcopyro.model import spcomapping_model
 from tests.gibbs_problems import config, random_problem
 
@@ -20,3 +24,33 @@ def test_pyro_inspects_the_model():
     assert relations["sample_sample"]["labels"] == ["pi"]
     assert sorted(relations["sample_sample"]["words"]) == ["labels", "w"]
     assert relations["plate_sample"]["cells"] == ["labels"]
+
+
+def test_predictive_draws_the_observations_under_uncondition_and_says_which_it_cannot():
+    # docs/library.md called Predictive(spcomapping_model, ...)'s images "posterior predictive"
+    # draws: Pyro keeps observed sites at the data, so they were the data's counts in every
+    # sample. Under poutine.uncondition they are drawn; real-valued counts cannot be, and the
+    # error said only "needs non-negative integer total_count"
+    _, data = random_problem(seed=0)
+    cfg = config()
+    whole = data.with_counts("images", data.image_counts.round() + 1)
+    mcmc = MCMC(SpCoGibbs(), num_samples=4, warmup_steps=2, disable_progbar=True)
+    mcmc.run(whole, cfg)
+    samples = mcmc.get_samples()
+    sites = ("labels", "images", "words")
+    kept = Predictive(spcomapping_model, posterior_samples=samples, return_sites=sites)
+    assert (kept(whole, cfg)["images"] == whole.image_counts).all()
+    drawn = Predictive(
+        poutine.uncondition(spcomapping_model), posterior_samples=samples, return_sites=sites
+    )
+    with pytest.raises(ValueError, match=r"whole total_count, got \d+\.\d+ at batch index \(0,\)"):
+        drawn(whole, cfg)  # the words' counts are real-valued
+    whole = whole.with_counts("words", whole.word_counts.round())
+    mcmc.run(whole, cfg)
+    samples = mcmc.get_samples()
+    draws = Predictive(
+        poutine.uncondition(spcomapping_model), posterior_samples=samples, return_sites=sites
+    )(whole, cfg)
+    assert torch.equal(draws["labels"], samples["labels"])
+    assert not (draws["images"] == whole.image_counts).all()
+    assert torch.equal(draws["images"].sum(-1), whole.image_counts.sum(-1).expand(4, -1))

@@ -13,9 +13,10 @@ Pyro's MCMC driver and works around its habits:
 
 * MCMC concatenates every saved param into one float tensor per sample, so integer sites would come
   back as floats: the kernel's ``transforms`` map ``labels`` back to int64. Pyro 1.9's
-  ``mcmc.diagnostics()`` then crashes on that integer site (it fills NaN into an int tensor), so
-  use :func:`mcmc_diagnostics`, which gives ESS and split R-hat of the float sites (a label's
-  R-hat means nothing under label switching anyway; ``num_concepts`` stays float for this).
+  ``mcmc.diagnostics()`` and ``mcmc.summary()`` then crash on that integer site (they fill NaN
+  into an int tensor, take its mean), so use :func:`mcmc_diagnostics`, which gives ESS and split
+  R-hat of the float sites (a label's R-hat means nothing under label switching anyway;
+  ``num_concepts`` stays float for this), or save no labels (``save_params`` below).
 * MCMC keeps every saved param of every sample in memory: by default every site of the model
   (``labels`` -- N values a sample --, ``pi``, ``theta``, ``w``) and the diagnostics ``log_joint``
   and ``num_concepts`` are saved, so that Pyro's :class:`~pyro.infer.Predictive` conditions on the
@@ -75,11 +76,13 @@ class SpCoGibbs(MCMCKernel):
         save_params: which of ``labels``, ``log_joint``, ``num_concepts``, ``pi``, ``theta``, ``w``
             (and the parameter site of any further modality) MCMC keeps for every sample; None
             (the default): all of them, so that ``mcmc.get_samples()`` holds every latent site
-            of the model and ``Predictive(model, posterior_samples=mcmc.get_samples())`` draws
-            from the posterior predictive (with a site missing, Predictive would draw it from
-            its prior: issue 24 item 4). Labels cost N values a sample: pass the small sites
-            only (:data:`DEFAULT_SAVE_PARAMS`) for long runs on large maps. A string is one
-            site's name.
+            of the model and ``Predictive(model, posterior_samples=mcmc.get_samples())``
+            conditions on the posterior (with a site missing, Predictive would draw it from
+            its prior: issue 24 item 4); to draw the observations too, give it
+            ``pyro.poutine.uncondition(model)`` (Predictive keeps observed sites at the data).
+            Labels cost N values a sample: pass the small sites only
+            (:data:`DEFAULT_SAVE_PARAMS`) for long runs on large maps. A string is one site's
+            name.
         options: the sampler's options (:class:`~spcopyro.gibbs.options.GibbsOptions`: backend,
             cluster moves, partial refresh); its ``anneal_sweeps`` must be 0 -- use ``anneal``.
             With ``options.hyper`` sampling hyperparameters, each sampled one (``alpha``,
