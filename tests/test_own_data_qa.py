@@ -92,3 +92,26 @@ def test_features_reads_a_pose_file_with_a_header_as_load_house_does(tmp_path):
         list_images(tmp_path)
     poses.write_text("0.5,0.5,0,1\r\n1.5,0.5,0,1\r\n")
     assert [p.name for p in list_images(tmp_path)] == ["00000.png", "00001.png"]
+
+
+def test_a_labels_file_that_spells_one_place_two_ways_is_refused(tmp_path):
+    """``features-head labels.csv`` trained ``Kitchen`` and ``kitchen`` (or ``living room`` and
+    ``living  room``) as two places: the head split the kitchen's images between two classes,
+    with no word of it."""
+    pytest.importorskip("torch")
+    from spcopyro.features.head import encode_labels
+    from spcopyro.features.images import read_labelled_images
+
+    for number in range(4):
+        (tmp_path / f"{number}.jpg").write_bytes(b"")
+    labels = tmp_path / "labels.csv"
+    labels.write_text("0.jpg,kitchen\n1.jpg,living room\n# a comment\n2.jpg,Kitchen\n3.jpg,bed\n")
+    with pytest.raises(ValueError, match=r"labels\.csv, line 4: place 'Kitchen' is written "
+                       r"'kitchen' on line 1: they differ only in case"):  # fmt: skip
+        read_labelled_images(labels)
+    with pytest.raises(ValueError, match=r"'living room' \(image 0\) and 'living  room' \(image"):
+        encode_labels(["living room", "bed", "living  room"])
+    with pytest.raises(ValueError, match=r"'ＴＶ' \(image 0\) and 'TV' \(image 1\)"):
+        encode_labels(["ＴＶ", "TV"])
+    classes, _ = encode_labels(["kitchen", "bed", "kitchen"])
+    assert classes == ("bed", "kitchen")

@@ -55,6 +55,7 @@ from spcopyro.features.backbone import (
     parse_weights,
     torch_load,
 )
+from spcopyro.features.images import SPELT_TWICE, spelt_twice
 
 __all__ = [
     "HEAD_FORMAT",
@@ -178,12 +179,25 @@ class PlaceClassifier(nn.Module):
 
 
 def encode_labels(place_names: Sequence[str]) -> tuple[tuple[str, ...], torch.Tensor]:
-    """Place names -> (class names sorted, ``[N]`` int64 class index of each image)."""
+    """Place names -> (class names sorted, ``[N]`` int64 class index of each image).
+
+    ValueError for an empty name, and for two spellings of one name (``Kitchen`` and
+    ``kitchen``, ``living room`` and ``living  room``, full-width ``ＴＶ`` and ``TV``: equal
+    under :func:`~spcopyro.data.text.fold_word` with their spaces collapsed), which would split
+    one place into two classes.
+    """
     names = [str(n).strip() for n in place_names]
     empty = [i for i, n in enumerate(names) if not n]
     if empty:
         raise ValueError(f"place name of image {empty[0]} is empty")
     classes = tuple(sorted(set(names)))
+    twice = spelt_twice(names)
+    if twice is not None:
+        i, j = twice
+        raise ValueError(
+            f"one place written {names[i]!r} (image {i}) and {names[j]!r} (image {j}): "
+            f"{SPELT_TWICE}"
+        )
     index = {c: k for k, c in enumerate(classes)}
     return classes, torch.tensor([index[n] for n in names], dtype=torch.int64)
 

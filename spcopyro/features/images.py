@@ -24,6 +24,7 @@ from torchvision.transforms import InterpolationMode, v2
 from spcopyro._util.messages import echo, warn_once
 from spcopyro.data import IMAGE_SUFFIXES
 from spcopyro.data.dataset_files import read_pose_file
+from spcopyro.data.text import fold_word
 
 __all__ = [
     "CROP_SIZE",
@@ -38,6 +39,7 @@ __all__ = [
     "make_transform",
     "read_image",
     "read_labelled_images",
+    "spelt_twice",
 ]
 
 RESIZE_SIZE = 256  # shorter side after resizing
@@ -342,6 +344,26 @@ def iter_image_batches(
         yield ImageBatch(start=start, paths=chunk, pixels=pixels, failures=tuple(failures))
 
 
+SPELT_TWICE = (
+    "they differ only in case, Unicode form or spaces, and would be two classes; write every "
+    "image's place the same way"
+)
+
+
+def spelt_twice(names: Sequence[str]) -> tuple[int, int] | None:
+    """The first two of ``names`` that are one place written two ways (``Kitchen`` and
+    ``kitchen``, ``living room`` and ``living  room``, full-width ``ＴＶ`` and ``TV``: equal under
+    :func:`~spcopyro.data.text.fold_word` with their spaces collapsed, yet not equal), as their
+    indices ``(i, j)``, ``i < j``; None when there are none. A head would learn them as two
+    classes, splitting the place's images between them."""
+    first: dict[str, int] = {}
+    for j, name in enumerate(names):
+        i = first.setdefault(" ".join(fold_word(name).split()), j)
+        if names[i] != name:
+            return i, j
+    return None
+
+
 def read_labelled_images(path: str | os.PathLike[str]) -> tuple[list[Path], list[str]]:
     """A labels file: one ``IMAGE,PLACE`` line per image (IMAGE relative to the file's folder,
     or absolute; blank lines and lines starting with ``#`` skipped) -> (paths, place names).
@@ -351,7 +373,8 @@ def read_labelled_images(path: str | os.PathLike[str]) -> tuple[list[Path], list
             lines, and the folder relative paths start from).
         ValueError: a line without exactly one comma, or with an empty field (the message
             names the file, the 1-based line and the line, shortened when long), no labelled
-            images at all, or a file that is not UTF-8 text.
+            images at all, one place written two ways (:func:`spelt_twice`, naming both lines),
+            or a file that is not UTF-8 text.
     """
     path = Path(path)
     if not path.is_file():
@@ -373,6 +396,13 @@ def read_labelled_images(path: str | os.PathLike[str]) -> tuple[list[Path], list
         lines.append(number)
     if not paths:
         raise ValueError(f"{path}: holds no labelled images")
+    twice = spelt_twice(names)
+    if twice is not None:
+        i, j = twice
+        raise ValueError(
+            f"{path}, line {lines[j]}: place {names[j]!r} is written {names[i]!r} on line "
+            f"{lines[i]}: {SPELT_TWICE}"
+        )
     missing = [(n, p) for n, p in zip(lines, paths, strict=True) if not p.exists()]
     if missing:
         listed = "; ".join(f"line {n}: {p}" for n, p in missing[:5])
