@@ -449,7 +449,10 @@ def test_a_coarse_fit_plans_on_the_map_its_data_came_with(result, tmp_path, caps
     from spcopyro.config import DataPreparation
     from spcopyro.maps import save_map
 
-    save_map(house_grid(), tmp_path / "data" / "map" / "flat.yaml")
+    grid = house_grid()  # the fit's grid; the robot's map: the same at half its cell size
+    fine = np.repeat(np.repeat(grid.occupancy, 2, axis=0), 2, axis=1)
+    save_map(OccupancyGrid(fine, grid.resolution / 2, grid.origin),
+             tmp_path / "data" / "map" / "flat.yaml")  # fmt: skip
     source = {"data": str(tmp_path / "data" / "flat"), "house": "flat"}
     coarse = dataclasses.replace(result, preparation=DataPreparation(cell_size=0.2),
                                  provenance={"source": source})  # fmt: skip

@@ -126,3 +126,31 @@ def test_a_map_beyond_the_datas_coordinate_limit_is_refused_at_load(tmp_path, ca
     # a map reaching into the limit, or lying across the frame's origin, loads
     load_map(write_map(tmp_path, origin="[999999.5, -0.3, 0.0]"))
     load_map(write_map(tmp_path, origin="[-2.5, -1000000.3, 0.0]"))
+
+
+def test_a_fit_on_its_maps_own_cells_is_exported_and_planned_on_its_own_grid(tmp_path, capsys):
+    """A fit of a map whose cells are not finer than --cell-size (0.2 m cells: coarsening factor
+    1) writes no robot_map.yaml; `export` and `navigate` took its data folder's map (the
+    fallback for fits older than robot_map.yaml) as "the map the fit's cells were coarsened
+    from", and exported that file, edited since the fit, as Nav2's main map."""
+    import dataclasses
+
+    from test_nav2 import top_and_bottom
+
+    from spcopyro.config import DataPreparation
+    from spcopyro.maps import OCCUPIED, save_map
+
+    result = top_and_bottom()
+    source = {"data": str(tmp_path / "data" / "flat"), "house": "flat"}
+    fit = dataclasses.replace(result, preparation=DataPreparation(cell_size=0.25),
+                              provenance={"source": source}).save(tmp_path / "fit")  # fmt: skip
+    edited = np.array(result.grid.occupancy)
+    edited[2, 1:] = OCCUPIED  # the data folder's map, edited since the fit
+    save_map(result.grid.with_occupancy(edited), tmp_path / "data" / "map" / "flat.yaml")
+
+    assert main(["export", str(fit), "--nav2", str(tmp_path / "nav2"), "--word", "kitchen"]) == 0
+    assert "coarsened from" not in capsys.readouterr().out
+    assert load_map(tmp_path / "nav2" / "map.yaml") == result.grid
+    assert main(["navigate", str(fit), "go to the kitchen", "--start=2.0,-1.5", "--radius", "0",
+                 "--no-figure"]) == 0  # fmt: skip
+    assert "coarsened from" not in capsys.readouterr().out

@@ -19,6 +19,8 @@ from spcopyro.data import House, cell_counts, load_house, prepared_cell_counts
 
 if TYPE_CHECKING:
     from spcopyro.config import DataPreparation
+    from spcopyro.maps import OccupancyGrid
+    from spcopyro.results.result import SpCoResult
 
 
 def _load(data: str | None, seed: int = 0) -> House:
@@ -34,6 +36,24 @@ def figure_file(out: str) -> Path:
     ``.png`` when it has no suffix (matplotlib adds it)."""
     path = Path(out).resolve()
     return path if path.suffix else path.with_suffix(".png")
+
+
+def load_robot_map(result: SpCoResult, folder: str) -> tuple[Path, OccupancyGrid] | None:
+    """The yaml and grid of the map a coarse fit's grid was coarsened from
+    (:func:`~spcopyro._util.outputs.robot_map_of`), for ``navigate`` and ``export --nav2``; None
+    for a fit on the map's own cells. A data folder's map (the fallback for a fit older than
+    ``robot_map.yaml``) that is not finer than the fit's grid is not one it was coarsened from:
+    a fit of a map with cells of 0.2 m (or more) runs on them, and planned and exported on that
+    map, named as "the map the fit's cells were coarsened from", one edited since the fit."""
+    from spcopyro._util.outputs import ROBOT_MAP_FILE, robot_map_of
+    from spcopyro.maps import load_map
+
+    path = robot_map_of(result, folder)
+    if path is None:
+        return None
+    grid = load_map(path)
+    fallback = path != Path(folder) / ROBOT_MAP_FILE  # not the copy a coarse fit writes
+    return None if fallback and grid.resolution >= result.grid.resolution else (path, grid)
 
 
 def refuse_fit_files(result_dir: str, out: str, targets: list[Path]) -> None:

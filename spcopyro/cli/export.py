@@ -48,7 +48,7 @@ def _keeps_out_nothing(result, word: str, args: argparse.Namespace) -> str:
 
 
 def _export(args: argparse.Namespace) -> int:
-    from spcopyro._util.outputs import robot_map_of
+    from spcopyro.cli.common import load_robot_map
     from spcopyro.results.result import SpCoResult, UnknownWordError
     from spcopyro.robot.nav2 import DEFAULT_MAX_SPEED, DEFAULT_MIN_SPEED, export_nav2
 
@@ -67,12 +67,7 @@ def _export(args: argparse.Namespace) -> int:
               file=sys.stderr)  # fmt: skip
         return 2
     result = SpCoResult.load(args.result)
-    robot_map = None
-    robot_map_yaml = robot_map_of(result, args.result)  # a coarse fit's map
-    if robot_map_yaml is not None:
-        from spcopyro.maps import load_map
-
-        robot_map = load_map(robot_map_yaml)
+    robot_map_yaml, robot_map = load_robot_map(result, args.result) or (None, None)
     try:
         export = export_nav2(
             result, args.nav2, args.word or (), mode=args.mode, prior=args.prior,

@@ -63,19 +63,19 @@ def _plan_and_print(
     args: argparse.Namespace, result: SpCoResult, staged: StagedOutput | None
 ) -> int:
     """Plan ``args.instruction`` on ``result``, print it, and write it into ``staged``."""
-    from spcopyro._util.outputs import robot_map_of
+    from spcopyro.cli.common import load_robot_map
     from spcopyro.robot.navigation import navigate
     from spcopyro.robot.navigation.goals import UnreachableGoalError
 
     grid = None
-    map_yaml = args.map or robot_map_of(result, args.result)
-    if map_yaml:
+    if args.map:
         from spcopyro.maps import load_map
 
-        grid = load_map(map_yaml)
-        if not args.map:
-            print(f"planning on {map_yaml}, the map the fit's {result.grid.resolution:g} m "
-                  "cells were coarsened from (--map to choose another)")  # fmt: skip
+        grid = load_map(args.map)
+    elif (robot_map := load_robot_map(result, args.result)) is not None:
+        map_yaml, grid = robot_map
+        print(f"planning on {map_yaml}, the map the fit's {result.grid.resolution:g} m "
+              "cells were coarsened from (--map to choose another)")  # fmt: skip
     try:
         plan = navigate(result, args.instruction, args.start, radius=args.radius,
                         strict=args.strict, prior=args.prior, grid=grid,
