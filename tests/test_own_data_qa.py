@@ -13,7 +13,15 @@ import unicodedata
 import numpy as np
 import pytest
 
-from spcopyro.data import DataFormatError, Observations, cell_counts, tokenize
+from spcopyro.data import (
+    DataFormatError,
+    House,
+    Observations,
+    cell_counts,
+    load_house,
+    save_house,
+    tokenize,
+)
 from spcopyro.maps import FREE, OccupancyGrid
 
 
@@ -115,3 +123,52 @@ def test_a_labels_file_that_spells_one_place_two_ways_is_refused(tmp_path):
         encode_labels(["ＴＶ", "TV"])
     classes, _ = encode_labels(["kitchen", "bed", "kitchen"])
     assert classes == ("bed", "kitchen")
+
+
+def _saved_house(root):
+    """A two-image, three-utterance house written in the dataset layout; its room folder."""
+    obs = Observations(
+        image_features=[[0.5, 0.5], [0.25, 0.75]],
+        image_xy=[[0.5, 0.5], [2.5, 1.5]],
+        image_trial=[0, 1],
+        utterances=[("here", "is", "the", "kitchen"), ("bed",), ("kitchen",)],
+        word_xy=[[0.5, 0.5], [2.5, 1.5], [1.5, 0.5]],
+        word_trial=[0, 1, 1],
+    )
+    return save_house(House(name="home", grid=_grid(), observations=obs), root)
+
+
+def test_old_mac_line_ends_read_as_lines(tmp_path):
+    """Excel's "CSV (Macintosh)" ends lines with CR alone: Xtx.csv was one line,
+    '0.5\\r2.5', refused as not a number, and a word file was one utterance."""
+    room = _saved_house(tmp_path)
+    expected = load_house(room).observations
+    for name in ("Xtx.csv", "Ft.csv", "pose_1.csv", "word_1.csv", "StXtx.csv"):
+        path = room / name
+        path.write_bytes(path.read_bytes().replace(b"\n", b"\r"))
+    loaded = load_house(room).observations
+    np.testing.assert_array_equal(loaded.image_xy, expected.image_xy)
+    np.testing.assert_array_equal(loaded.image_features, expected.image_features)
+    assert loaded.utterances == expected.utterances
+    np.testing.assert_array_equal(loaded.word_trial, expected.word_trial)
+
+
+def test_utf16_and_a_comma_in_a_word_file_say_what_is_wrong(tmp_path):
+    """Excel's "Unicode text" is UTF-16 (was: 'not UTF-8 text (invalid start byte): b"\\xff"');
+    a comma in a word file's sentence splits St.csv's entry in two (was: only the counts)."""
+    room = _saved_house(tmp_path)
+    (room / "St.csv").write_bytes("here is the kitchen,bed,kitchen".encode("utf-16"))
+    with pytest.raises(DataFormatError, match=r"St\.csv: UTF-16 text .* save it as UTF-8"):
+        load_house(room)
+    (room / "St.csv").write_text("Here, the kitchen,bed,kitchen")
+    with pytest.raises(DataFormatError, match=r"StXtx\.csv: holds 3 values but St\.csv holds 4 "
+                       r"entries \(St\.csv separates utterances with commas"):  # fmt: skip
+        load_house(room)
+    for name in ("StXtx.csv", "StXty.csv"):  # the positions made for St.csv's entries
+        (room / name).write_text((room / name).read_text() + "0.5\n")
+    (room / "word_0.csv").write_text("Here, the kitchen\n")
+    with pytest.raises(
+        DataFormatError,
+        match=r"holds 4 utterances but the word files hold 3 .*; word_0\.csv line 1 holds a comma",
+    ):
+        load_house(room)

@@ -40,6 +40,10 @@ def _read_text(path: Path) -> str:
     """The file's text (UTF-8, a byte-order mark dropped); DataFormatError naming the line and
     the bytes where it is not UTF-8."""
     content = path.read_bytes()
+    if content[:2] in (b"\xff\xfe", b"\xfe\xff"):  # Excel's "Unicode text", Notepad's "Unicode"
+        raise DataFormatError(
+            path, "UTF-16 text (its byte-order mark), not UTF-8: save it as UTF-8"
+        )
     try:
         return content.decode("utf-8-sig")
     except UnicodeDecodeError as error:
@@ -53,10 +57,12 @@ def _read_text(path: Path) -> str:
 
 
 def _read_lines(path: Path) -> list[str]:
-    """The file's lines (no line ends); blank lines at the end are dropped."""
+    """The file's lines (no line ends: LF, CRLF, or CR alone in a file without LF, as the old
+    Mac line ends of Excel's "CSV (Macintosh)"); blank lines at the end are dropped."""
     if not path.is_file():
         raise FileNotFoundError(f"{path}: required file not found")
-    lines = [line.rstrip("\r") for line in _read_text(path).split("\n")]
+    text = _read_text(path)
+    lines = [line.rstrip("\r") for line in text.split("\n" if "\n" in text else "\r")]
     while lines and not lines[-1].strip():
         lines.pop()
     return lines
@@ -131,6 +137,10 @@ _FT_HINT = (" (Ft.csv has a row per image: after new images, e.g. a re-import, m
             "with spcopyro features HOUSE --out HOUSE/Ft.csv --overwrite)")  # fmt: skip
 
 
+_ST_HINT = (" (St.csv separates utterances with commas: a sentence with a comma in it is two "
+            "entries)")  # fmt: skip
+
+
 def _read_column(path: Path, expected: int, data_file: Path) -> np.ndarray:
     """One number per line -> ``[R]``; R must equal ``expected`` (the rows of ``data_file``)."""
     values = _read_matrix(path, columns=1)[:, 0]  # [R]
@@ -138,7 +148,8 @@ def _read_column(path: Path, expected: int, data_file: Path) -> np.ndarray:
         raise DataFormatError(
             path,
             f"holds {values.shape[0]} values but {data_file.name} holds {expected} entries"
-            + (_FT_HINT if data_file.name == "Ft.csv" else ""),
+            + (_FT_HINT if data_file.name == "Ft.csv" else "")
+            + (_ST_HINT if data_file.name == "St.csv" and values.shape[0] < expected else ""),
         )
     return values
 
@@ -270,11 +281,17 @@ def _read_trials(
     # The counts first: an empty or short word file was reported as the first line after it
     # that no longer matched St.csv.
     if sum(word_counts) != num_utterances:
+        comma = next(
+            (f"; {words[k].name} line {n} holds a comma, which St.csv reads as the end of an "
+             f"utterance (write it without): {echo(line)}"
+             for k in trials for n, (line, _) in enumerate(said[k], start=1) if "," in line),
+            "",
+        )  # fmt: skip
         raise DataFormatError(
             files["St"],
             f"holds {num_utterances} utterances but the word files hold {sum(word_counts)} ("
             + ", ".join(f"{words[k].name}: {n}" for k, n in zip(trials, word_counts, strict=True))
-            + ")",
+            + f"){comma}",
             value=num_utterances,
         )
     position = 0
