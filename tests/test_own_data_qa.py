@@ -172,3 +172,21 @@ def test_utf16_and_a_comma_in_a_word_file_say_what_is_wrong(tmp_path):
         match=r"holds 4 utterances but the word files hold 3 .*; word_0\.csv line 1 holds a comma",
     ):
         load_house(room)
+
+
+def test_a_house_without_ft_csv_says_how_to_make_it(tmp_path):
+    """A house of camera images and words whose Ft.csv is not made yet (fit before features),
+    or one with words only: "Ft.csv: required file not found" said neither what it holds nor
+    how to make it."""
+    room = _saved_house(tmp_path)
+    (room / "Ft.csv").unlink()
+    with pytest.raises(FileNotFoundError, match=r"a house needs images .* as well as words"):
+        load_house(room)
+    (room / "img_0").mkdir()
+    (room / "img_0" / "00000.jpg").write_bytes(b"")
+    with pytest.raises(FileNotFoundError, match=rf"spcopyro features {room} --out {room}/Ft"):
+        load_house(room)
+    (room / "St.csv").unlink()
+    (room / "Ft.csv").write_text("0.5,0.5\n0.25,0.75\n")
+    with pytest.raises(FileNotFoundError, match=r"St\.csv: .* a house needs words as well as"):
+        load_house(room)

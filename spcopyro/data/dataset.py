@@ -181,6 +181,34 @@ def _where_maps_are(yaml_path: Path) -> str:
     )
 
 
+def _check_both_modalities(room: Path, files: dict[str, Path]) -> None:
+    """FileNotFoundError saying what a missing Ft.csv or St.csv holds, and how to make Ft.csv
+    from camera images in ``img_K/`` (was: only "required file not found")."""
+    if not files["Ft"].is_file():
+        images = any(
+            p.suffix.lower() in IMAGE_SUFFIXES
+            for folder in room.glob("img_*")
+            if folder.is_dir()
+            for p in folder.iterdir()
+        )
+        how = (
+            f"make it from the camera images in its img_K/ folders: spcopyro features {room} "
+            f"--out {files['Ft']}"
+            if images
+            else "a house needs images (Ft.csv, Xtx.csv, Xty.csv) as well as words: "
+            "spcopyro features IMAGES --out Ft.csv makes Ft.csv from a folder of images"
+        )
+        raise FileNotFoundError(
+            f"{files['Ft']}: required file not found (the image features; {how})"
+        )
+    if not files["St"].is_file():
+        raise FileNotFoundError(
+            f"{files['St']}: required file not found (the words heard, one line of "
+            "comma-separated utterances, their positions in StXtx.csv and StXty.csv: a house "
+            "needs words as well as images)"
+        )
+
+
 def load_house(
     room_dir: str | os.PathLike[str], map_yaml: str | os.PathLike[str] | None = None
 ) -> House:
@@ -253,6 +281,7 @@ def load_house(
     grid = load_map(yaml_path)
 
     files = {key: room / f"{key}.csv" for key in ("Ft", "Xtx", "Xty", "St", "StXtx", "StXty")}
+    _check_both_modalities(room, files)
     features = _read_matrix(files["Ft"])  # [T, K]
     if features.shape[0] == 0:
         raise DataFormatError(files["Ft"], "holds no image features (empty file)")
