@@ -154,3 +154,25 @@ def test_a_fit_on_its_maps_own_cells_is_exported_and_planned_on_its_own_grid(tmp
     assert main(["navigate", str(fit), "go to the kitchen", "--start=2.0,-1.5", "--radius", "0",
                  "--no-figure"]) == 0  # fmt: skip
     assert "coarsened from" not in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("image", ["/home/robot/maps/room.pgm", "maps/room.pgm"])
+def test_an_image_path_map_saver_wrote_names_the_image_beside_the_yaml(tmp_path, image):
+    """map_saver writes the path it was given (ROS 1 `-f /abs/path`, Nav2 `map_url:
+    maps/room`, Nav2 issue #3078): moved, or saved into a folder, the map's image is beside its
+    yaml under another path; the error said only 'not found'."""
+    from spcopyro.maps import MapFileNotFoundError
+
+    path = write_map(tmp_path)
+    path.write_text(path.read_text().replace("image: room.pgm", f"image: {image}"))
+    with pytest.raises(MapFileNotFoundError) as err:
+        load_map(path)
+    message = str(err.value)
+    assert message.startswith(f"{path}:1: key 'image': image file ")
+    assert message.endswith(f"{str(tmp_path / 'room.pgm')!r}, beside the yaml, has its name: "
+                            "map_saver writes the path it was given (-f, map_url), which breaks "
+                            "when the map moves or that path has a folder (map_server fails "
+                            "too): write image: room.pgm")  # fmt: skip
+    (tmp_path / "room.pgm").unlink()
+    with pytest.raises(MapFileNotFoundError, match=r"not found$"):
+        load_map(path)

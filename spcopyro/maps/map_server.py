@@ -253,9 +253,17 @@ def _pnm_maxval(head: bytes) -> int | None:
 def _decode(spec: _MapYaml) -> tuple[np.ndarray, int | None]:
     """The map image as OpenCV decodes it (any depth, OpenCV channel order) and, for a netpbm
     image, the maxval its header gives (None for other formats)."""
-    if not spec.image.is_file():
+    if not spec.image.is_file():  # a hint where map_saver's path is wrong but the image is here
+        beside = spec.path.parent / spec.image.name
+        hint = (
+            f"; {str(beside)!r}, beside the yaml, has its name: map_saver writes the path it "
+            "was given (-f, map_url), which breaks when the map moves or that path has a "
+            f"folder (map_server fails too): write image: {spec.image.name}"
+            if beside.is_file()
+            else ""
+        )
         raise MapFileNotFoundError(
-            f"{spec.path}: key 'image': image file {str(spec.image)!r} not found"
+            f"{spec.where('image')}: key 'image': image file {str(spec.image)!r} not found{hint}"
         )
     data = np.fromfile(spec.image, dtype=np.uint8)
     level = cv2.utils.logging.getLogLevel()
