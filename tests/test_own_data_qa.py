@@ -190,3 +190,17 @@ def test_a_house_without_ft_csv_says_how_to_make_it(tmp_path):
     (room / "Ft.csv").write_text("0.5,0.5\n0.25,0.75\n")
     with pytest.raises(FileNotFoundError, match=r"St\.csv: .* a house needs words as well as"):
         load_house(room)
+
+
+def test_a_one_column_ft_csv_is_said_to_carry_nothing(tmp_path, caplog):
+    """A class id per image written as Ft.csv (``3``, ``1``, ...) loaded and fitted without a
+    word: over one class every image's histogram is the same, so the images said nothing."""
+    room = _saved_house(tmp_path)
+    (room / "Ft.csv").write_text("3\n1\n")
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        assert load_house(room).observations.num_feature_classes == 1
+    assert "Ft.csv: one column" in caplog.text and "carry no information" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        load_house(_saved_house(tmp_path / "two"))
+    assert "one column" not in caplog.text

@@ -308,6 +308,14 @@ def load_house(
             if every
             else "those images carry no information",
         )
+    if features.shape[1] == 1:  # a class id or a score per image, not a histogram
+        logging.getLogger("spcopyro").warning(
+            "%s: one column: a row is a histogram over image classes, one column per class "
+            "(spcopyro features writes them), and over a single class every image says the "
+            "same: the images carry no information (a class id per image? write it as a row "
+            "with 1 in that class's column)",
+            files["Ft"],
+        )
     num_images = features.shape[0]
     image_xy = np.stack(
         [
