@@ -350,9 +350,15 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
     if spec.mode != "trinary":
         raise MapFormatError(
             f"{spec.where('mode')}: key 'mode': {echo(spec.mode)} is not supported by load_map "
-            "(only 'trinary', an occupancy map); a Nav2 costmap filter mask (scale or raw) is read "
-            "with load_filter_mask, a semantic map saved by save_label_map_server with "
-            "load_label_map_server"
+            "(only 'trinary', an occupancy map)"
+            + (
+                ": a robot's map saved in that mode (map_saver --mode scale, a SLAM's graded "
+                "map) reads as one with 'mode: trinary', each pixel against the thresholds"
+                if spec.mode == "scale"
+                else ""
+            )
+            + "; a Nav2 costmap filter mask (scale or raw) is read with load_filter_mask, a "
+            "semantic map saved by save_label_map_server with load_label_map_server"
         )
     levels, full = _read_levels(spec)  # [H, W] or [H, W, C]
     value = levels if levels.ndim == 2 else levels.mean(axis=2)  # [H, W]
