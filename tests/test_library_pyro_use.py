@@ -3,6 +3,7 @@ would (issues found by running them so: Pyro's model inspection, ...)."""
 
 from __future__ import annotations
 
+import pyro
 import pytest
 import torch
 from pyro import poutine
@@ -54,3 +55,26 @@ def test_predictive_draws_the_observations_under_uncondition_and_says_which_it_c
     assert torch.equal(draws["labels"], samples["labels"])
     assert not (draws["images"] == whole.image_counts).all()
     assert torch.equal(draws["images"].sum(-1), whole.image_counts.sum(-1).expand(4, -1))
+
+
+def test_the_kernel_refuses_a_model_whose_density_it_does_not_sample():
+    # SpCoGibbs(model) checked the model's site names and shapes only: a variant with the same
+    # sites (here twice the coupling) was sampled as spcomapping_model, silently
+    _, data = random_problem(seed=0)
+    cfg = config()
+
+    def stronger_coupling(data, config):
+        spcomapping_model(data, config.replace(gamma=2 * config.gamma))
+
+    def wrapped(data, config):
+        spcomapping_model(data, config)
+
+    mcmc = MCMC(SpCoGibbs(wrapped), num_samples=2, warmup_steps=1, disable_progbar=True)
+    mcmc.run(data, cfg)  # the same density: accepted
+    mcmc = MCMC(SpCoGibbs(stronger_coupling), num_samples=2, disable_progbar=True)
+    with pytest.raises(ValueError, match="cannot sample another model"):
+        mcmc.run(data, cfg)
+    tiny = config(alpha=1e-3, beta=1e-3, chi=1e-3, num_concepts=10)  # draws underflow to 0
+    for seed in range(5):
+        pyro.set_rng_seed(seed)
+        MCMC(SpCoGibbs(), num_samples=1, warmup_steps=0, disable_progbar=True).run(data, tiny)

@@ -28,6 +28,7 @@ Pyro's MCMC driver and works around its habits:
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 
 import pyro.poutine as poutine
@@ -42,8 +43,9 @@ from spcopyro.gibbs.hyperparameters import hyperparameter_names, hyperparameter_
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.sampler import init, step, trace_point
 from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
-from spcopyro.likelihood import log_joint_constant, num_concepts_in_use
+from spcopyro.likelihood import log_joint_constant, log_joint_variable, num_concepts_in_use
 from spcopyro.model import (
+    DTYPE,
     SITE_LABELS,
     SITE_PI,
     ModelData,
@@ -70,8 +72,12 @@ class SpCoGibbs(MCMCKernel):
     """Enumerated-Gibbs kernel for :func:`~spcopyro.model.spcomapping_model`.
 
     Args:
-        model: the Pyro model (its site names and shapes are checked against the kernel's state
-            in :meth:`setup`, so model and kernel cannot drift apart).
+        model: the Pyro model. The kernel samples
+            :func:`~spcopyro.model.spcomapping_model`'s conditionals whatever model it is given
+            (variants go through ``SpCoConfig`` and ``ModelData.modalities``): :meth:`setup`
+            checks the model's site names and shapes against the kernel's state and its log
+            density against the kernel's log joint at one point (ValueError for another model),
+            so model and kernel cannot drift apart.
         init_labels: [N] starting labels (random if None).
         save_params: which of ``labels``, ``log_joint``, ``num_concepts``, ``pi``, ``theta``, ``w``
             (and the parameter site of any further modality) MCMC keeps for every sample; None
@@ -144,6 +150,7 @@ class SpCoGibbs(MCMCKernel):
         self._plan = make_sweep_plan(data)
         self._state = init(data, config, self._generator, self.init_labels)
         self._log_joint_constant = float(log_joint_constant(data, config))
+        self._check_model_density()
         anneal_sweeps = warmup_steps if self.anneal else 0
         self._step_options = self.options.replace(anneal_sweeps=anneal_sweeps)
 
@@ -174,6 +181,37 @@ class SpCoGibbs(MCMCKernel):
                 raise ValueError(
                     f"model site {name!r} has shape {actual}, SpCoGibbs expects {shape}"
                 )
+
+    def _check_model_density(self) -> None:
+        """ValueError unless the model's log density is the one the kernel's conditionals
+        sample (:func:`~spcopyro.model.spcomapping_model`'s), compared at one point: every
+        cell in concept 0 (all pairs agree, so the coupling counts) with uniform pi and
+        emission tables (finite wherever the state's draws may underflow to 0). A model of the
+        right sites but another density (a changed prior, coupling or likelihood, a further
+        latent site) was sampled as if it were spcomapping_model, silently."""
+        data, config = self._data, self._config
+        L = config.num_concepts
+        labels = torch.zeros(data.num_free, dtype=torch.long)
+        log_pi = torch.full((L,), -math.log(L), dtype=DTYPE)
+        log_tables = [
+            torch.full((L, m.counts.shape[-1]), -math.log(max(1, m.counts.shape[-1])), dtype=DTYPE)
+            for m in data.modalities
+        ]
+        values = {SITE_PI: log_pi.exp(), SITE_LABELS: labels}
+        for modality, table in zip(data.modalities, log_tables, strict=True):
+            values[modality.parameter] = table.exp()
+        conditioned = poutine.condition(self.model, data=values)
+        model = float(poutine.trace(conditioned).get_trace(data, config).log_prob_sum())
+        variable = log_joint_variable(labels, log_pi, log_tables, data, config)
+        kernel = self._log_joint_constant + float(variable)
+        scale = abs(kernel) + abs(self._log_joint_constant)  # rounding: ~1e-16 of the terms
+        if not abs(model - kernel) <= 1e-11 * scale + 1e-9:
+            raise ValueError(
+                f"the model's log density is {model!r} where spcomapping_model's, whose "
+                f"conditionals SpCoGibbs samples, is {kernel!r} (every cell in concept 0, "
+                "uniform pi and emissions): the kernel cannot sample another model (change "
+                "the model through SpCoConfig and ModelData.modalities, which it reads)"
+            )
 
     def _params(self, state: GibbsState) -> dict[str, torch.Tensor]:
         values = {
