@@ -204,3 +204,13 @@ def test_a_one_column_ft_csv_is_said_to_carry_nothing(tmp_path, caplog):
     with caplog.at_level(logging.WARNING, logger="spcopyro"):
         load_house(_saved_house(tmp_path / "two"))
     assert "one column" not in caplog.text
+
+
+def test_invisible_characters_at_a_word_s_ends_are_not_part_of_it():
+    """St.csv joined from files that each began with a byte-order mark, or text pasted with a
+    zero-width space: ``\\ufeffkitchen`` was a word of its own beside ``kitchen``, and
+    ``where kitchen`` found only one of them."""
+    texts = ("kitchen", "\ufeffkitchen", "kitchen\u200b", "\u200bthe kitchen\u200d.")
+    assert [tokenize(t) for t in texts] == [("kitchen",)] * 3 + [("the", "kitchen")]
+    assert tokenize("living\u200broom") == ("living\u200broom",)  # inside a word: kept
+    assert tokenize("\u200b \ufeff") == ()

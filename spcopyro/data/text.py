@@ -31,13 +31,20 @@ def fold_word(word: str) -> str:
 
 
 def _is_punctuation(char: str) -> bool:
-    return char in _PUNCTUATION or unicodedata.category(char).startswith("P")
+    """Punctuation, or an invisible format or control character (a zero-width space, a
+    byte-order mark left where two files were joined): what a token's ends lose."""
+    category = unicodedata.category(char)
+    return char in _PUNCTUATION or category[0] == "P" or category in _EDGE_CATEGORIES
+
+
+_EDGE_CATEGORIES = ("Cf", "Cc")  # format (U+200B, U+FEFF, ...) and control characters
 
 
 def tokenize(utterance: str) -> tuple[str, ...]:
     """Tokens of an utterance: folded (:func:`fold_word`: case-folded, NFKC), split on
     whitespace, punctuation stripped from both ends of each token (inner punctuation, as in
-    ``living-room``, stays); empty tokens vanish.
+    ``living-room``, stays), and invisible characters (a zero-width space, a byte-order mark)
+    too; empty tokens vanish.
 
     ``tokenize("Here is the kitchen.") == ("here", "is", "the", "kitchen")``; ``"ＴＶ"`` (full
     width) and ``"TV"`` are one word, ``"tv"``, as are a decomposed and a composed ``"ダ"``.
