@@ -88,18 +88,18 @@ def test_keepout_mask_is_the_where_answer_in_nav2_conventions(fit, tmp_path, cap
         "resolution": 0.05,
         "origin": [1.5, -2.0, 0.0],
         "negate": 0,
-        "occupied_thresh": 1.0,
-        "free_thresh": 0.0,
-        "mode": "scale",
+        "occupied_thresh": 0.65,
+        "free_thresh": 0.196,
+        "mode": "trinary",
     }
     mask = load_filter_mask(out / "keepout_kitchen.yaml")
-    assert mask.mode == "scale" and mask.values.shape == (H, W)
+    assert mask.mode == "trinary" and mask.values.shape == (H, W)
     assert (mask.resolution, mask.origin) == (result.grid.resolution, result.grid.origin)
-    assert set(np.unique(mask.values)) == {0, 100}
+    assert set(np.unique(mask.values)) == {-1, 100}  # -1: no information, the costmap's stays
     # The occupied (lethal) cells are exactly the where-answer's region, the TOP room: the
     # image's first row is the map's top (largest world y).
     assert np.array_equal(mask.values == 100, result.where("kitchen").region)
-    assert (mask.values[:6, 1:] == 100).all() and (mask.values[6:] == 0).all()
+    assert (mask.values[:6, 1:] == 100).all() and (mask.values[6:] == -1).all()
     top_row, _ = result.grid.world_to_cell(np.array([[1.5 + 0.3, -2.0 + 12.5 * 0.05]]))[0]
     assert top_row == 0 and mask.values[top_row, 5] == 100
     bed = load_filter_mask(out / "keepout_bed.yaml").values
@@ -131,7 +131,7 @@ def test_keepout_with_a_probability_threshold(fit, tmp_path):
     values = load_filter_mask(export.masks[0].mask_yaml).values
     probability = where_probability(result, "kitchen")  # [N]
     assert np.array_equal(values[result.grid.free] == 100, probability >= 0.6)
-    assert (values[~result.grid.free] == 0).all()
+    assert (values[~result.grid.free] == -1).all()
     assert 0 < export.masks[0].cells < 114  # part of the top room only
 
 
@@ -268,15 +268,18 @@ def test_every_exported_mask_reads_back_as_intended_by_nav2s_rules(fit, tmp_path
         mask = load_filter_mask(exported.mask_yaml)
         info = _read_yaml(exported.params_yaml)[f"{exported.name}_filter_info_server"]
         base, multiplier = info["ros__parameters"]["base"], info["ros__parameters"]["multiplier"]
-        assert mask.values.shape == result.grid.shape and (mask.values >= 0).all()
+        assert mask.values.shape == result.grid.shape
         filter_value = base + multiplier * mask.values.astype(float)  # [H, W]
         if mode == "keepout":
             place = word_place(result, exported.word, **rest)  # [H, W] bool
             assert np.array_equal(mask.values, keepout_values(place)), exported.word
             assert np.array_equal(filter_value == 100, place)  # lethal: exactly the place
-            assert (filter_value[~place] == 0).all()  # free everywhere else
+            # no information everywhere else: the KeepoutFilter leaves those costmap cells as
+            # they are (a 0 made the map's unknown cells free: keepout_filter.cpp)
+            assert (mask.values[~place] == -1).all()
             assert exported.cells == int(place[free].sum())
         else:
+            assert (mask.values >= 0).all()
             intended, probability = speed_values(result, exported.word, **rest)  # [H, W], [N]
             assert np.array_equal(mask.values, intended), exported.word
             # SpeedFilter: mask value 0 = no limit; otherwise the limit in percent.

@@ -182,3 +182,35 @@ def test_an_image_path_map_saver_wrote_names_the_image_beside_the_yaml(tmp_path,
     (tmp_path / "room.pgm").unlink()
     with pytest.raises(MapFileNotFoundError, match=r"not found$"):
         load_map(path)
+
+
+NO_INFORMATION, LETHAL_OBSTACLE = 255, 254  # nav2_costmap_2d cost values
+
+
+def _costmap_of(values: np.ndarray) -> np.ndarray:
+    """[H, W] costs of an OccupancyGrid's data as nav2_costmap_2d's Costmap2D(msg) makes them:
+    -1 -> NO_INFORMATION, else round(v * 254 / 100)."""
+    costs = np.rint(values.astype(float) * LETHAL_OBSTACLE / 100.0)
+    return np.where(values == -1, NO_INFORMATION, costs).astype(np.int64)
+
+
+def test_a_keepout_mask_leaves_the_costmaps_unknown_cells_unknown(tmp_path):
+    """Nav2's KeepoutFilter (keepout_filter.cpp) skips a mask cell with no information and
+    otherwise writes it where ``data > old_data || old_data == NO_INFORMATION``: the mask's 0
+    around the place turned every unknown cell of the map into free space."""
+    from test_nav2 import top_and_bottom
+
+    from spcopyro.maps import load_filter_mask
+    from spcopyro.robot.nav2 import export_nav2
+
+    result = top_and_bottom()  # column 0 unknown; the kitchen the top room
+    export = export_nav2(result, tmp_path / "nav2", ["kitchen"])
+    master = _costmap_of(load_map(export.map_yaml).occupancy)  # the static layer
+    data = _costmap_of(load_filter_mask(export.masks[0].mask_yaml).values)
+    write = (data != NO_INFORMATION) & ((data > master) | (master == NO_INFORMATION))
+    filtered = np.where(write, data, master)  # [H, W] the costmap after the filter
+    unknown = result.grid.occupancy == UNKNOWN
+    assert unknown.any() and (filtered[unknown] == NO_INFORMATION).all()
+    place = result.where("kitchen").region
+    assert (filtered[place] == LETHAL_OBSTACLE).all()
+    assert np.array_equal(filtered[~place], master[~place])  # nothing else changed

@@ -20,9 +20,14 @@ depends on the yaml's ``mode`` (nav2_map_server ``map_io.cpp``, ``loadMapFromFil
 ``occupied_thresh: 1.0`` (the Nav2 speed-filter tutorial's choice: the whole lightness range maps
 linearly onto 0..100, so darker is a higher value), the pixel of value ``m`` being
 ``round(255 (100 - m) / 100)``; this reads back exactly as ``m`` (the rounding moves ``occ``
-by at most 0.5/255, 0.2 of a step). :func:`load_filter_mask` reads any mask the way map_server
-does, in all three modes. The image's first row is the map's top (largest world y), as for
-every map of the package (:mod:`spcopyro.maps.grid`).
+by at most 0.5/255, 0.2 of a step). Scale has no pixel for -1 (no information: a costmap filter
+leaves such a cell alone), which a keepout mask needs (Nav2's KeepoutFilter writes a mask's 0
+into a costmap cell that has no information, making unknown space free), so with
+``mode="trinary"`` it writes the values 100, 0 and -1 as map_saver writes a map (pixels 0, 254, 205;
+thresholds 0.65 / 0.196), as the Nav2 keepout tutorial's mask, a copy of the map, has them.
+:func:`load_filter_mask` reads any mask the way map_server does, in all three modes. The
+image's first row is the map's top (largest world y), as for every map of the package
+(:mod:`spcopyro.maps.grid`).
 """
 
 from __future__ import annotations
@@ -33,8 +38,13 @@ from pathlib import Path
 
 import numpy as np
 
-from spcopyro.maps.grid import OccupancyGrid
+from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from spcopyro.maps.map_server import (
+    PGM_FREE,
+    PGM_OCCUPIED,
+    PGM_UNKNOWN,
+    SAVE_FREE_THRESH,
+    SAVE_OCCUPIED_THRESH,
     _read_image,
     _read_map_yaml,
     _write_image,
@@ -83,22 +93,40 @@ def mask_pixels(values: np.ndarray) -> np.ndarray:
     return np.rint(255.0 * (100.0 - m.astype(np.float64)) / 100.0).astype(np.uint8)
 
 
+def _trinary_pixels(values: np.ndarray) -> np.ndarray:
+    """[H, W] uint8 map_saver pixels (254, 0, 205) of ``values`` in {0, 100, -1}."""
+    bad = ~np.isin(values, (FREE, OCCUPIED, UNKNOWN))
+    if bad.any():
+        raise ValueError(f"a trinary mask holds 0, 100 and -1 only, got {int(values[bad].flat[0])}")
+    pixels = np.full(values.shape, PGM_UNKNOWN, dtype=np.uint8)  # [H, W]
+    pixels[values == FREE] = PGM_FREE
+    pixels[values == OCCUPIED] = PGM_OCCUPIED
+    return pixels
+
+
 def save_filter_mask(
-    values: np.ndarray, grid: OccupancyGrid, yaml_path: str | os.PathLike[str]
+    values: np.ndarray,
+    grid: OccupancyGrid,
+    yaml_path: str | os.PathLike[str],
+    mode: str = "scale",
 ) -> Path:
-    """Write ``values`` ([H, W] integers in 0..100, image row order) as ``NAME.pgm`` +
-    ``NAME.yaml`` with ``grid``'s resolution and origin, ``mode: scale``, ``negate: 0``,
-    ``free_thresh: 0.0``, ``occupied_thresh: 1.0``; returns the yaml path."""
+    """Write ``values`` ([H, W] integers, image row order) as ``NAME.pgm`` + ``NAME.yaml`` with
+    ``grid``'s resolution and origin and ``negate: 0``: ``mode`` ``"scale"`` (values 0..100,
+    ``free_thresh: 0.0``, ``occupied_thresh: 1.0``) or ``"trinary"`` (values 0, 100 and -1, no
+    information; map_saver's pixels and thresholds: module docstring); returns the yaml path."""
     values = np.asarray(values)
     if values.shape != tuple(grid.shape):
         raise ValueError(f"mask of shape {values.shape} for a map of shape {tuple(grid.shape)}")
-    pixels = mask_pixels(values)  # [H, W] uint8
+    if mode == "scale":
+        pixels, thresholds = mask_pixels(values), (MASK_FREE_THRESH, MASK_OCCUPIED_THRESH)
+    elif mode == "trinary":
+        pixels, thresholds = _trinary_pixels(values), (SAVE_FREE_THRESH, SAVE_OCCUPIED_THRESH)
+    else:
+        raise ValueError(f"mode must be 'scale' or 'trinary', got {mode!r}")
     path = _yaml_target(yaml_path)
     image = path.with_suffix(".pgm")
     _write_image(image, pixels)
-    _write_map_yaml(
-        path, image, grid, mode="scale", thresholds=(MASK_FREE_THRESH, MASK_OCCUPIED_THRESH)
-    )
+    _write_map_yaml(path, image, grid, mode=mode, thresholds=thresholds)
     return path
 
 

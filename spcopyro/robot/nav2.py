@@ -13,7 +13,9 @@ lethal, 0 = free). The word's place -- by default the region of the where-answer
 (:meth:`SpCoResult.where <spcopyro.results.result.SpCoResult.where>`, eq. 19 with the area prior),
 or, with ``threshold``, the free cells whose probability of belonging to the word's place
 (:func:`~spcopyro.results.uncertainty.where_probability`) is at least ``threshold`` -- gets 100,
-every other cell 0.
+every other cell -1, no information: the KeepoutFilter leaves such a costmap cell alone, while
+it writes a mask's 0 into a cell that has no information (``keepout_filter.cpp``: ``data >
+old_data || old_data == NO_INFORMATION``), which made the map's unknown space free.
 
 **Speed** (``type: 1``: the filter value is a speed limit in percent of the robot's maximum;
 ``base: 100.0``, ``multiplier: -1.0``, as in Nav2's speed-filter tutorial, so the limit is
@@ -28,10 +30,10 @@ non-increasing in p; its mask value is ``100 - s(p)``. A value of 0 means *no li
 SpeedFilter, which is also what ``s = 100%`` means, so the encoding has no gap. Non-free cells
 get 0.
 
-Both masks are written in ``mode: scale`` with ``free_thresh: 0.0``, ``occupied_thresh: 1.0``
-(:func:`spcopyro.maps.save_filter_mask`): pixel lightness maps linearly onto 0..100, which is
-what the speed mask needs, and for the keepout mask (values 0 and 100 only) it reads exactly as
-``trinary`` would with map_saver's thresholds, while leaving room for graded keepout costs.
+The speed mask is written in ``mode: scale`` with ``free_thresh: 0.0``, ``occupied_thresh: 1.0``
+(:func:`spcopyro.maps.save_filter_mask`): pixel lightness maps linearly onto 0..100. The keepout
+mask, which needs -1, is written in ``mode: trinary`` as map_saver writes a map (pixels 0, 254,
+205; thresholds 0.65, 0.196): the Nav2 keepout tutorial's mask is a copy of the map.
 Every mask has the fitted map's resolution and origin (yaw 0) and its size, the image's first row
 being the map's top.
 
@@ -81,6 +83,8 @@ __all__ = [
 MODES = ("keepout", "speed")
 FILTER_TYPES = {"keepout": 0, "speed": 1}
 """``CostmapFilterInfo.type``: 0 keepout zones / preferred lanes, 1 speed limit in percent."""
+MASK_MODES = {"keepout": "trinary", "speed": "scale"}
+"""The map_server ``mode`` each filter's mask is written in (module docstring)."""
 BASE_MULTIPLIER = {"keepout": (0.0, 1.0), "speed": (100.0, -1.0)}
 """(base, multiplier) of ``filter_value = base + multiplier * mask_value`` per mode."""
 DEFAULT_MIN_SPEED, DEFAULT_MAX_SPEED = 30.0, 100.0
@@ -117,8 +121,9 @@ def word_place(
 
 
 def keepout_values(place: np.ndarray) -> np.ndarray:
-    """[H, W] int8 keepout mask values: 100 (lethal) on ``place`` ([H, W] bool), 0 elsewhere."""
-    return np.where(np.asarray(place, dtype=bool), 100, 0).astype(np.int8)
+    """[H, W] int8 keepout mask values: 100 (lethal) on ``place`` ([H, W] bool), -1 (no
+    information: the costmap's own cell stays) elsewhere (module docstring)."""
+    return np.where(np.asarray(place, dtype=bool), 100, -1).astype(np.int8)
 
 
 def speed_percent(
@@ -186,7 +191,7 @@ class ExportedMask:
     mask_yaml: Path
     params_yaml: Path
     cells: int
-    """Free cells with a non-zero mask value (kept out of, or slowed down in)."""
+    """Free cells with a positive mask value (kept out of, or slowed down in)."""
     concept: int | None = None
     """The where-answer's concept (keepout without a threshold)."""
     warnings: tuple[str, ...] = ()
@@ -392,7 +397,8 @@ def export_nav2(
             else:
                 values, _ = speed_values(result, word, prior=prior, min_speed=min_speed,
                                          max_speed=max_speed)  # fmt: skip
-            mask_yaml = save_filter_mask(values, grid, folder / f"{name}.yaml")
+            mask_yaml = save_filter_mask(values, grid, folder / f"{name}.yaml",
+                                         MASK_MODES[mode])  # fmt: skip
             params_yaml = folder / f"{name}_params.yaml"
             write_commented_yaml(
                 params_yaml,
@@ -400,7 +406,7 @@ def export_nav2(
                 f"Nav2 {mode} filter for {word!r} (spcopyro export): params of its mask server "
                 "and costmap filter info server",
             )
-            cells = int((values[grid.free] != 0).sum())
+            cells = int((values[grid.free] > 0).sum())
             masks.append(ExportedMask(word, mode, name, final / mask_yaml.name,
                                       final / params_yaml.name, cells, concept,
                                       tuple(warnings)))  # fmt: skip
