@@ -214,3 +214,24 @@ def test_invisible_characters_at_a_word_s_ends_are_not_part_of_it():
     assert [tokenize(t) for t in texts] == [("kitchen",)] * 3 + [("the", "kitchen")]
     assert tokenize("living\u200broom") == ("living\u200broom",)  # inside a word: kept
     assert tokenize("\u200b \ufeff") == ()
+
+
+@pytest.mark.parametrize(
+    ("line", "said"),
+    [
+        ("5.0e-01 2.5e-01", "numbers separated by spaces"),  # np.savetxt's default delimiter
+        ("0.5\t0.25", "numbers separated by tabs"),
+        ("0.5;0.25", "numbers separated by semicolons"),
+        ("0,5;0,25", "semicolons and decimal commas"),
+    ],
+)
+def test_numbers_separated_otherwise_than_by_commas_say_so(tmp_path, line, said):
+    """np.savetxt writes spaces unless told otherwise, spreadsheets tabs or semicolons (and
+    decimal commas): the error named the line as 'not a number' or 'row has 1 values'."""
+    room = _saved_house(tmp_path)
+    (room / "Ft.csv").write_text(f"{line}\n0.25,0.75\n")
+    with pytest.raises(DataFormatError, match=rf"Ft\.csv, line 1: .*\({said}"):
+        load_house(room)
+    (room / "Ft.csv").write_text("0.5,0.25\n0.5,x\n")
+    with pytest.raises(DataFormatError, match=r"line 2, column 2: not a number: 'x'$"):
+        load_house(room)

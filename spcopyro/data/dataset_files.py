@@ -115,15 +115,45 @@ def _read_matrix(path: Path, columns: int | None = None, names: str = "") -> np.
         fields = line.split(",")
         if width is None:
             width = len(fields)
+        hint = _separator_hint(line)
         if len(fields) != width:
             raise DataFormatError(
                 path,
-                f"row has {len(fields)} values, expected {width}{names}",
+                f"row has {len(fields)} values, expected {width}{names}{hint}",
                 line=number,
                 value=line,
             )
-        rows.append([_parse_number(path, text, number, c) for c, text in enumerate(fields, 1)])
+        try:
+            row = [_parse_number(path, text, number, c) for c, text in enumerate(fields, 1)]
+        except DataFormatError:
+            if not hint:
+                raise
+            raise DataFormatError(path, f"not a number{hint}", line=number, value=line) from None
+        rows.append(row)
     return np.array(rows, dtype=np.float64).reshape(len(rows), width or 0)
+
+
+_SEPARATORS = {" ": "spaces", "\t": "tabs", ";": "semicolons"}
+
+
+def _separator_hint(line: str) -> str:
+    """A hint for a line of numbers separated by something other than commas (np.savetxt's
+    spaces, a spreadsheet's tabs or semicolons), else ``""``."""
+    if ";" in line and "," in line:  # a spreadsheet's decimal commas: 0,5;1,25
+        return (
+            " (semicolons and decimal commas, as a spreadsheet in some languages writes them: "
+            "these files separate numbers with commas and write decimals with a point)"
+        )
+    if "," in line:
+        return ""
+    for separator, name in _SEPARATORS.items():
+        parts = line.strip().split(separator)
+        if len(parts) > 1 and all(_NUMBER.fullmatch(part) for part in parts if part.strip()):
+            return (
+                f" (numbers separated by {name}: these files separate them with commas, as "
+                "np.savetxt(path, values, delimiter=',') writes them)"
+            )
+    return ""
 
 
 def read_pose_file(path: Path) -> np.ndarray:
