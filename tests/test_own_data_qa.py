@@ -235,3 +235,22 @@ def test_numbers_separated_otherwise_than_by_commas_say_so(tmp_path, line, said)
     (room / "Ft.csv").write_text("0.5,0.25\n0.5,x\n")
     with pytest.raises(DataFormatError, match=r"line 2, column 2: not a number: 'x'$"):
         load_house(room)
+
+
+def test_macos_metadata_files_beside_the_images_are_named(tmp_path):
+    """A folder copied from a Mac to a USB stick holds ``._00000.jpg`` beside ``00000.jpg``:
+    features said "OpenCV cannot decode it", and in a house folder "every image after a
+    missing one" for images that were extra, not missing."""
+    cv2 = pytest.importorskip("cv2")
+    from spcopyro.features.images import ImageReadError, list_images, read_image
+
+    (tmp_path / "img_0").mkdir()
+    for number in range(2):
+        cv2.imwrite(str(tmp_path / "img_0" / f"{number:05d}.png"), np.zeros((8, 8, 3), np.uint8))
+        (tmp_path / "img_0" / f"._{number:05d}.png").write_bytes(b"\x00\x05\x16\x07Mac OS X")
+    with pytest.raises(ImageReadError, match=r"macOS metadata file \(AppleDouble, for 00000"):
+        read_image(tmp_path / "img_0" / "._00000.png")
+    (tmp_path / "pose_0.csv").write_text("0.5,0.5,0,1\n1.5,0.5,0,1\n")
+    with pytest.raises(ValueError, match=r"4 images but pose_0\.csv has 2 poses: every image "
+                       r"after an extra one .*2 are macOS metadata files"):  # fmt: skip
+        list_images(tmp_path)

@@ -98,6 +98,12 @@ def read_image(path: str | os.PathLike[str]) -> np.ndarray:
         bgr = (bgr >> 8).astype(np.uint8)  # the high byte: what IMREAD_COLOR alone gives
     elif bgr is not None and bgr.dtype != np.uint8:  # a float image: as IMREAD_COLOR converts it
         bgr = cv2.imdecode(data, cv2.IMREAD_COLOR)
+    if bgr is None and path.name.startswith("._"):  # macOS writes them beside each file it
+        raise ImageReadError(  # copies to a FAT or exFAT disk (a USB stick)
+            path,
+            f"a macOS metadata file (AppleDouble, for {path.name[2:]}), not an image: delete "
+            "the ._* files (dot_clean FOLDER on the Mac)",
+        )
     if bgr is None:
         raise ImageReadError(path, "OpenCV cannot decode it (not an image, or truncated)")
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
@@ -298,6 +304,18 @@ def _check_against_poses(directory: Path, trial: int, folder: Path, images: list
         gaps = sorted(set(expected) - set(numbered))[:5]
         if gaps:
             missing = "; missing: " + ", ".join(f"{g:0{width}d}{suffix}" for g in gaps)
+    if len(images) > len(lines):  # an extra image shifts every later one as a missing one does
+        apple = [p.name for p in images if p.name.startswith("._")]
+        stray = (
+            f"; {len(apple)} are macOS metadata files (AppleDouble: {', '.join(apple[:3])}"
+            f"{', ...' if len(apple) > 3 else ''}), not images: delete the ._* files"
+            if apple
+            else ""
+        )
+        raise ValueError(
+            f"{folder}: {len(images)} images but {poses.name} has {len(lines)} poses: every "
+            f"image after an extra one would get the wrong pose's features{stray}"
+        )
     raise ValueError(
         f"{folder}: {len(images)} images but {poses.name} has {len(lines)} poses: every image "
         f"after a missing one would get the wrong pose's features{missing}"
