@@ -3,14 +3,17 @@ would (issues found by running them so: Pyro's model inspection, ...)."""
 
 from __future__ import annotations
 
+import math
+
 import pyro
 import pytest
 import torch
 from pyro import poutine
-from pyro.infer import MCMC, Predictive
+from pyro.infer import MCMC, SVI, Predictive
 from pyro.infer.inspect import get_model_relations
 
 from spcopyro.gibbs import SpCoGibbs
+from spcopyro.guides import MeanFieldELBO, MeanFieldGuide
 from spcopyro.model import spcomapping_model
 from tests.gibbs_problems import config, random_problem
 
@@ -78,3 +81,23 @@ def test_the_kernel_refuses_a_model_whose_density_it_does_not_sample():
     for seed in range(5):
         pyro.set_rng_seed(seed)
         MCMC(SpCoGibbs(), num_samples=1, warmup_steps=0, disable_progbar=True).run(data, tiny)
+
+
+def test_the_svi_loss_refuses_a_model_whose_label_terms_it_does_not_take():
+    # MeanFieldELBO reads the globals' densities from the model's trace but takes the labels,
+    # Potts and observation terms from spcopyro.likelihood: a variant with other such terms
+    # (here twice the coupling) was fitted as spcomapping_model, silently
+    _, data = random_problem(seed=0)
+    cfg = config()
+
+    def stronger_coupling(data, config):
+        spcomapping_model(data, config.replace(gamma=2 * config.gamma))
+
+    with pyro.get_param_store().scope():
+        guide = MeanFieldGuide(data, cfg, generator=torch.Generator().manual_seed(0))
+        adam = pyro.optim.Adam({"lr": 0.05})
+        loss = SVI(spcomapping_model, guide, adam, MeanFieldELBO()).step(data, cfg)
+        assert math.isfinite(loss)
+        svi = SVI(stronger_coupling, guide, adam, MeanFieldELBO())
+        with pytest.raises(ValueError, match="cannot fit another model"):
+            svi.step(data, cfg)

@@ -33,13 +33,15 @@ ELBO and its gradient (reparameterisation for the concentrations, exact differen
 H for the logits at the drawn globals). Its **variance comes from the globals only**: the N
 labels never are sampled. The first four terms are read from the model's and the guide's own
 traces (``poutine.trace`` of the guide, ``poutine.replay`` of the model on it: the Dirichlet log
-densities of ``pi`` and every modality's site), so loss and model cannot drift apart; F reuses
+densities of ``pi`` and every modality's site); F reuses
 :mod:`spcopyro.likelihood` (:func:`~spcopyro.likelihood.expected_agreements`,
 :func:`~spcopyro.likelihood.observation_log_likelihood`), and H is the guide's ``labels``
-distribution's entropy. Taking :math:`\log p - \log q` of the same draw (rather than a
-closed-form KL) makes the globals' terms cancel where q(phi_ml) is still its prior (an unused
-concept), where a closed-form entropy plus a sampled log p would add noise of order
-:math:`K_m \psi'(a)`.
+distribution's entropy. So that loss and model cannot drift apart, the model's log density at
+the first draw for a model is compared with spcomapping_model's (ValueError for another
+model: its label terms would be replaced by these, silently). Taking :math:`\log p - \log q`
+of the same draw (rather than a closed-form KL) makes the globals' terms cancel where
+q(phi_ml) is still its prior (an unused concept), where a closed-form entropy plus a sampled
+log p would add noise of order :math:`K_m \psi'(a)`.
 
 **Why not Pyro's estimators.** :class:`pyro.infer.TraceEnum_ELBO` would sum the labels out
 exactly, but the Potts factor couples every cell, so its cost grows as L to the power of the
@@ -65,6 +67,7 @@ ICLR 2017. M. Figurnov, S. Mohamed, A. Mnih, "Implicit reparameterization gradie
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import pyro
@@ -75,6 +78,8 @@ from pyro.infer import ELBO
 from spcopyro.config import SpCoConfig
 from spcopyro.likelihood import (
     expected_agreements,
+    log_joint_constant,
+    log_joint_variable,
     multinomial_coefficients,
     observation_log_likelihood,
 )
@@ -117,11 +122,46 @@ def traces(
     return model_trace, guide_trace
 
 
+def _check_model(model_trace: poutine.Trace, data: ModelData, config: SpCoConfig) -> bool:
+    """ValueError unless the model's log density at the trace's draw (globals from the guide,
+    labels drawn from q(C)) is :func:`~spcopyro.model.spcomapping_model`'s there: the label
+    terms F are taken in closed form from :mod:`spcopyro.likelihood`, whatever model SVI is
+    given. True once compared; False where the model's value is not finite (a drawn label
+    whose pi underflowed to 0: nothing to compare)."""
+    with torch.no_grad():
+        model = float(model_trace.log_prob_sum())
+        if not math.isfinite(model):
+            return False
+        labels = model_trace.nodes[SITE_LABELS]["value"]  # [N]
+        log_pi = model_trace.nodes[SITE_PI]["value"].log()  # [L]
+        log_parameters = [model_trace.nodes[m.parameter]["value"].log() for m in data.modalities]
+        constant = float(log_joint_constant(data, config))
+        own = constant + float(log_joint_variable(labels, log_pi, log_parameters, data, config))
+    if not abs(model - own) <= 1e-11 * (abs(own) + abs(constant)) + 1e-9:  # rounding only
+        raise ValueError(
+            f"the model's log density at a draw of the guide is {model!r} where "
+            f"spcomapping_model's, whose label terms MeanFieldELBO takes in closed form, is "
+            f"{own!r}: it cannot fit another model (change the model through SpCoConfig and "
+            "ModelData.modalities, which it reads)"
+        )
+    return True
+
+
 def elbo_particle(
     model: Program, guide: Program, data: ModelData, config: SpCoConfig
 ) -> torch.Tensor:
-    """One draw of the ELBO estimate (module docstring), differentiable in the guide's params."""
+    """One draw of the ELBO estimate (module docstring), differentiable in the guide's params;
+    ValueError for a model whose density is not the one it takes in closed form
+    (:func:`_check_model`)."""
     model_trace, guide_trace = traces(model, guide, data, config)
+    _check_model(model_trace, data, config)
+    return particle_estimate(model_trace, guide_trace, data, config)
+
+
+def particle_estimate(
+    model_trace: poutine.Trace, guide_trace: poutine.Trace, data: ModelData, config: SpCoConfig
+) -> torch.Tensor:
+    """The ELBO estimate of one draw's (model trace, guide trace) (:func:`traces`)."""
     sites = (SITE_PI, *(m.parameter for m in data.modalities))
     for name in (*sites, SITE_LABELS):
         for trace, who in ((guide_trace, "guide"), (model_trace, "model")):
@@ -151,10 +191,16 @@ class MeanFieldELBO(ELBO):
     def differentiable_loss(
         self, model: Program, guide: Program, data: ModelData, config: SpCoConfig
     ) -> torch.Tensor:
-        """Minus the ELBO estimate, with the autograd graph to the guide's params."""
+        """Minus the ELBO estimate, with the autograd graph to the guide's params. The first
+        draw for a model is checked against the label terms taken in closed form
+        (:func:`_check_model`: ValueError for another model), once per model."""
         total = torch.zeros((), dtype=DTYPE)
         for _ in range(self.num_particles):
-            total = total + elbo_particle(model, guide, data, config)
+            model_trace, guide_trace = traces(model, guide, data, config)
+            if getattr(self, "_checked_model", None) != model:
+                if _check_model(model_trace, data, config):
+                    self._checked_model = model
+            total = total + particle_estimate(model_trace, guide_trace, data, config)
         return -total / self.num_particles
 
     def loss(self, model: Program, guide: Program, data: ModelData, config: SpCoConfig) -> float:
