@@ -1,7 +1,8 @@
 """The inference methods of spcopyro, by name: ``spcopyro fit --method NAME``,
 :func:`spcopyro.fit.house.fit_house(method=NAME) <spcopyro.fit.house.fit_house>` and the
 experiments read this table. A new method is one module implementing
-:class:`~spcopyro.inference.protocol.InferenceMethod` and one entry here.
+:class:`~spcopyro.inference.protocol.InferenceMethod` and one entry here, its name also in
+:data:`spcopyro.inference.names.INFERENCE_METHOD_NAMES` (checked on import).
 """
 
 from __future__ import annotations
