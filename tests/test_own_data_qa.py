@@ -254,3 +254,27 @@ def test_macos_metadata_files_beside_the_images_are_named(tmp_path):
     with pytest.raises(ValueError, match=r"4 images but pose_0\.csv has 2 poses: every image "
                        r"after an extra one .*2 are macOS metadata files"):  # fmt: skip
         list_images(tmp_path)
+
+
+def test_distilling_a_one_trial_house_says_why_it_cannot(tmp_path):
+    """A house recorded in one trial: features-head said "held-out trial 0 and training trials
+    [] must be distinct trials among [0]", which asks for options, not for a second trial."""
+    cv2 = pytest.importorskip("cv2")
+    from spcopyro.features.distill import distillation_report
+
+    images = []
+    for number in range(2):
+        images.append(tmp_path / f"{number}.png")
+        cv2.imwrite(str(images[-1]), np.zeros((8, 8, 3), np.uint8))
+    obs = Observations(
+        image_features=[[0.5, 0.5], [0.25, 0.75]],
+        image_xy=[[0.5, 0.5], [2.5, 1.5]],
+        image_trial=[0, 0],
+        utterances=[("kitchen",)],
+        word_xy=[[0.5, 0.5]],
+        word_trial=[0],
+        image_paths=tuple(images),
+    )
+    room = save_house(House(name="home", grid=_grid(), observations=obs), tmp_path / "data")
+    with pytest.raises(ValueError, match=r"one trial \(0\), and distillation trains on some"):
+        distillation_report(load_house(room), weights="random")

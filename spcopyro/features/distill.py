@@ -185,6 +185,13 @@ def distillation_report(
             f"rows to distil: {_why_no_images(house)}"
         )
     trials = sorted({int(t) for t in obs.image_trial})
+    if len(trials) < 2 and held_out_trial is None and train_trials is None:
+        raise ValueError(
+            f"house {house.name!r}: its images are one trial ({trials[0]}), and distillation "
+            "trains on some trials and holds out another to report on: record two trials (a "
+            "pose_K.csv, word_K.csv and img_K/ each), or train a head on IMAGE,PLACE labels "
+            "(spcopyro features-head labels.csv)"
+        )
     held_out = trials[-1] if held_out_trial is None else int(held_out_trial)
     train = [t for t in trials if t != held_out] if train_trials is None else list(train_trials)
     unknown = sorted(({held_out} | set(train)) - set(trials))
