@@ -278,3 +278,13 @@ def test_distilling_a_one_trial_house_says_why_it_cannot(tmp_path):
     room = save_house(House(name="home", grid=_grid(), observations=obs), tmp_path / "data")
     with pytest.raises(ValueError, match=r"one trial \(0\), and distillation trains on some"):
         distillation_report(load_house(room), weights="random")
+
+
+def test_logits_in_ft_csv_are_named_as_such(tmp_path):
+    """A network's logits (or log-probabilities) written as Ft.csv: "negative image feature"
+    did not say what a row must hold instead."""
+    room = _saved_house(tmp_path)
+    (room / "Ft.csv").write_text("2.5,-1.25\n0.25,0.75\n")
+    with pytest.raises(DataFormatError, match=r"line 1, column 2: negative image feature \(a "
+                       r"row is a histogram .* need a softmax or exp first\): -1\.25"):  # fmt: skip
+        load_house(room)

@@ -289,7 +289,8 @@ def load_house(
         row, col = np.argwhere(features < 0)[0]
         raise DataFormatError(
             files["Ft"],
-            "negative image feature",
+            "negative image feature (a row is a histogram of class probabilities, each >= 0: "
+            "logits or log-probabilities need a softmax or exp first)",
             line=int(row) + 1,
             column=int(col) + 1,
             value=float(features[row, col]),
