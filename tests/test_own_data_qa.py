@@ -288,3 +288,20 @@ def test_logits_in_ft_csv_are_named_as_such(tmp_path):
     with pytest.raises(DataFormatError, match=r"line 1, column 2: negative image feature \(a "
                        r"row is a histogram .* need a softmax or exp first\): -1\.25"):  # fmt: skip
         load_house(room)
+
+
+def test_utterances_given_as_strings_are_refused(tmp_path):
+    """Building Observations from one's own data, ``utterances=["kitchen", "bed room"]`` (a
+    string per utterance, not its tokens) made each letter a word, the space one too: the
+    vocabulary was ('k', 'i', 't', 'c', 'h', 'e', 'n', 'b', 'd', ' ', ...), without a word."""
+    common = dict(image_features=[[1.0]], image_xy=[[0.5, 0.5]], image_trial=[0])
+    two = dict(word_xy=[[0.5, 0.5]] * 2, word_trial=[0, 0])
+    with pytest.raises(ValueError, match=r"utterance 1 is a string, 'bed room': give its "
+                       r"tokens, \('bed', 'room'\)"):  # fmt: skip
+        Observations(**common, **two, utterances=[("kitchen",), "bed room"])
+    with pytest.raises(ValueError, match=r"got the string 'ab'"):
+        Observations(**common, **two, utterances="ab")
+    with pytest.raises(ValueError, match=r"utterance 0 holds an invalid token: ' '"):
+        Observations(**common, **two, utterances=[("kitchen", " "), ("bed",)])
+    obs = Observations(**common, **two, utterances=[["kitchen"], ("bed", "room")])
+    assert obs.vocabulary == ("kitchen", "bed", "room")

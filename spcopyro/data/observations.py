@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro._util.messages import echo
+from spcopyro.data.text import tokenize
 
 __all__ = ["RESERVED_MODALITY_NAMES", "DataFormatError", "ModalityObservations", "Observations"]
 
@@ -249,12 +250,23 @@ class Observations:
             row, col = np.argwhere(features < 0)[0]
             raise ValueError(f"image_features[{row}, {col}] is negative: {features[row, col]}")
         num_images = features.shape[0]
+        if isinstance(self.utterances, str):
+            raise ValueError(
+                f"utterances must be a sequence of utterances, each its tokens, got the string "
+                f"{echo(self.utterances)} (its characters would be utterances)"
+            )
+        for u, given in enumerate(self.utterances):
+            if isinstance(given, str):  # tuple("kitchen") is its letters, each a word
+                raise ValueError(
+                    f"utterance {u} is a string, {echo(given)}: give its tokens, "
+                    f"{tokenize(given)!r} (spcopyro.data.tokenize), not its characters"
+                )
         utterances = tuple(tuple(u) for u in self.utterances)
         for u, tokens in enumerate(utterances):
             if not tokens:
                 raise ValueError(f"utterance {u} holds no tokens")
             for token in tokens:
-                if not isinstance(token, str) or not token:
+                if not isinstance(token, str) or not token.strip():
                     raise ValueError(f"utterance {u} holds an invalid token: {token!r}")
         num_utterances = len(utterances)
         set_ = object.__setattr__
