@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pyro
 import pytest
 import torch
@@ -12,9 +13,12 @@ from pyro import poutine
 from pyro.infer import MCMC, SVI, Predictive
 from pyro.infer.inspect import get_model_relations
 
+from spcopyro.config import preset
+from spcopyro.fit.house import fit_house
 from spcopyro.gibbs import SpCoGibbs
 from spcopyro.guides import MeanFieldELBO, MeanFieldGuide
 from spcopyro.model import spcomapping_model
+from spcopyro.synthetic import HouseSpec, make_house
 from tests.gibbs_problems import config, random_problem
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
@@ -101,3 +105,13 @@ def test_the_svi_loss_refuses_a_model_whose_label_terms_it_does_not_take():
         svi = SVI(stronger_coupling, guide, adam, MeanFieldELBO())
         with pytest.raises(ValueError, match="cannot fit another model"):
             svi.step(data, cfg)
+
+
+def test_fit_house_names_a_start_it_does_not_take():
+    # labels of one's own (e.g. an MCMC sample) as a NumPy array failed with NumPy's "The truth
+    # value of an array with more than one element is ambiguous"
+    house = make_house(seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3))
+    labels = np.zeros(house.grid.num_free, dtype=np.int64)
+    for init in (labels, torch.as_tensor(labels), "bogus"):
+        with pytest.raises(ValueError, match=r"init must be one of .* SpCoResult .* got "):
+            fit_house(house, preset("original-code"), sweeps=2, init=init, progress=False)

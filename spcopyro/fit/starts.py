@@ -57,8 +57,21 @@ Init = str | SpCoResult
 """A start: a name of :data:`INITS`, or a previous fit's :class:`SpCoResult` (a warm start)."""
 
 
+def check_init(init: object) -> None:
+    """ValueError unless ``init`` is one of :data:`INITS` or an :class:`SpCoResult`."""
+    if isinstance(init, SpCoResult) or (isinstance(init, str) and init in INITS):
+        return
+    got = repr(init) if isinstance(init, str) else f"a {type(init).__name__}"
+    raise ValueError(
+        f"init must be one of {INITS} or a previous fit's SpCoResult on the same map, got "
+        f"{got} (labels of your own start run_gibbs or an inference method's run through "
+        "init_labels)"
+    )
+
+
 def init_name(init: Init) -> str:
     """``init`` as ``config.json`` records it: the name, or ``"result of METHOD"``."""
+    check_init(init)
     return init if isinstance(init, str) else f"result of {init.method}"
 
 
@@ -146,8 +159,7 @@ def initial_labels(
     :class:`SpCoResult`'s labels (:func:`result_labels`)."""
     if isinstance(init, SpCoResult):
         return result_labels(init, house, settings.model)
-    if init not in INITS:
-        raise ValueError(f"init must be one of {INITS}, got {init!r}")
+    check_init(init)
     if init == "gaussian":
         return gaussian_initial_labels(house, counts, settings.model, generator)
     if init == "spcoa":
