@@ -214,3 +214,20 @@ def test_a_keepout_mask_leaves_the_costmaps_unknown_cells_unknown(tmp_path):
     place = result.where("kitchen").region
     assert (filtered[place] == LETHAL_OBSTACLE).all()
     assert np.array_equal(filtered[~place], master[~place])  # nothing else changed
+
+
+@pytest.mark.parametrize("yaw", ["-nan", "nan", ".NaN"])
+def test_a_nan_yaw_says_where_it_comes_from(tmp_path, yaw):
+    """ROS 1's map_saver writes `origin: [x, y, -nan]` for a map published with a zero
+    quaternion (ros-planning/navigation#993): refused, as map_server does, saying what to do."""
+    path = write_map(tmp_path, origin=f"[-15.400000, -30.900000, {yaw}]")
+    with pytest.raises(MapFormatError) as err:
+        load_map(path)
+    message = str(err.value)
+    assert message.startswith(f"{path}:3: key 'origin' must be a list of 3 finite numbers")
+    assert message.endswith(
+        "invalid (zero) orientation quaternion, as some mapping packages "
+        "do; map_server refuses it too: the map is not rotated, write 0"
+    )
+    with pytest.raises(MapFormatError, match=r"got \[0, 0\]$"):  # no hint without a nan yaw
+        load_map(write_map(tmp_path, origin="[0, 0]"))

@@ -111,6 +111,13 @@ def _is_number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
+def _is_nan(value: Any) -> bool:
+    """``nan``, ``-nan``, ``.nan`` (any case) as yaml reads them: a float nan or the text."""
+    if isinstance(value, float):
+        return math.isnan(value)
+    return isinstance(value, str) and value.strip().lstrip("+-").lower() in ("nan", ".nan")
+
+
 _QUOTED_NUMBER = re.compile(r"^[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?$")
 
 
@@ -196,7 +203,14 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
         or len(origin) != 3
         or not all(_is_number(v) and math.isfinite(v) for v in origin)
     ):
-        raise bad("origin", "a list of 3 finite numbers [x, y, yaw]")
+        error = bad("origin", "a list of 3 finite numbers [x, y, yaw]")
+        if isinstance(origin, list) and len(origin) == 3 and _is_nan(origin[2]):
+            error = MapFormatError(
+                f"{error}: ROS 1's map_saver writes a yaw of nan for a map published with an "
+                "invalid (zero) orientation quaternion, as some mapping packages do; "
+                "map_server refuses it too: the map is not rotated, write 0"
+            )
+        raise error
     if origin[2] != 0:
         raise MapFormatError(
             f"{where('origin')}: key 'origin' has yaw {echo(origin[2])}; rotated maps are not "
