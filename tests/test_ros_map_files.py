@@ -231,3 +231,19 @@ def test_a_nan_yaw_says_where_it_comes_from(tmp_path, yaw):
     )
     with pytest.raises(MapFormatError, match=r"got \[0, 0\]$"):  # no hint without a nan yaw
         load_map(write_map(tmp_path, origin="[0, 0]"))
+
+
+def test_tabs_between_a_key_and_its_value_read_as_map_server_reads_them(tmp_path):
+    """yaml-cpp (map_server) reads a tab after `key:` as a space; PyYAML refused the file
+    ("found character '\\t' that cannot start any token")."""
+    path = write_map(tmp_path)
+    tabbed = (
+        "image:\troom.pgm\nresolution:\t\t0.05\norigin:\t[-2.5,\t-1.25, 0.0]\t# lower left\n"
+        "negate: 0\t\noccupied_thresh:\t0.65\nfree_thresh: \t0.196\n"
+    )
+    expected = load_map(path)
+    path.write_text(tabbed)
+    assert load_map(path) == expected
+    path.write_text(tabbed.replace("negate: 0", "\tnegate: 0"))  # a tab that indents: refused
+    with pytest.raises(MapFormatError, match=rf"^{path}: invalid yaml: "):
+        load_map(path)

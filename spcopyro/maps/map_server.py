@@ -131,6 +131,16 @@ def _unquoted(value: Any) -> Any:
     return value
 
 
+_SEPARATING_TABS = re.compile(r"(?<=[:,\[\]])[ \t]*\t[ \t]*|[ \t]*\t[ \t]*(?=#|$)", re.MULTILINE)
+"""Runs of blanks holding a tab after a key's or a flow list's separator, or before a comment or
+a line's end: white space to yaml-cpp, an error to PyYAML (tabs that indent are not YAML)."""
+
+
+def _parse_yaml(text: str) -> tuple[Any, Any]:
+    """(the root node, the document) of a map yaml; yaml.YAMLError if it does not parse."""
+    return yaml.compose(text, Loader=_MapYamlLoader), yaml.load(text, Loader=_MapYamlLoader)
+
+
 def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
     """Parse and validate a map_server yaml; errors name the file, line, key and value."""
     path = Path(yaml_path)
@@ -144,10 +154,13 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
     except (OSError, UnicodeDecodeError) as err:
         raise MapFormatError(f"{path}: cannot read map yaml: {err}") from err
     try:
-        root = yaml.compose(text, Loader=_MapYamlLoader)
-        doc = yaml.load(text, Loader=_MapYamlLoader)  # a SafeLoader
+        root, doc = _parse_yaml(text)
     except yaml.YAMLError as err:
-        raise MapFormatError(f"{path}: invalid yaml: {err}") from err
+        untabbed = _SEPARATING_TABS.sub(lambda m: m.group().replace("\t", " "), text)
+        try:  # PyYAML refuses a tab after "key:", which yaml-cpp (map_server) reads as a space
+            root, doc = _parse_yaml(untabbed)
+        except yaml.YAMLError:
+            raise MapFormatError(f"{path}: invalid yaml: {err}") from err
     if not isinstance(doc, dict) or not isinstance(root, yaml.MappingNode):
         raise MapFormatError(
             f"{path}: map yaml must be a mapping of keys to values, got {type(doc).__name__}"
