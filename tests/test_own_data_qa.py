@@ -305,3 +305,20 @@ def test_utterances_given_as_strings_are_refused(tmp_path):
         Observations(**common, **two, utterances=[("kitchen", " "), ("bed",)])
     obs = Observations(**common, **two, utterances=[["kitchen"], ("bed", "room")])
     assert obs.vocabulary == ("kitchen", "bed", "room")
+
+
+def test_a_labels_file_that_gives_one_image_two_places_is_refused(tmp_path):
+    """``a.jpg,kitchen`` and, further down, ``./a.jpg,bedroom``: the head was trained on both
+    labels for the same pixels, without a word."""
+    pytest.importorskip("torch")
+    from spcopyro.features.images import read_labelled_images
+
+    for name in ("a.jpg", "b.jpg"):
+        (tmp_path / name).write_bytes(b"")
+    labels = tmp_path / "labels.csv"
+    labels.write_text("a.jpg,kitchen\nb.jpg,bed\n./a.jpg,bed\n")
+    with pytest.raises(ValueError, match=r"labels\.csv, line 3: image .*a\.jpg is labelled 'bed' "
+                       r"here but 'kitchen' on line 1: one place per image"):  # fmt: skip
+        read_labelled_images(labels)
+    labels.write_text("a.jpg,kitchen\nb.jpg,bed\na.jpg,kitchen\n")  # the same label again: fine
+    assert read_labelled_images(labels)[1] == ["kitchen", "bed", "kitchen"]

@@ -414,6 +414,14 @@ def read_labelled_images(path: str | os.PathLike[str]) -> tuple[list[Path], list
         lines.append(number)
     if not paths:
         raise ValueError(f"{path}: holds no labelled images")
+    seen: dict[Path, int] = {}  # image -> index of its first line
+    for k, image in enumerate(paths):
+        first = seen.setdefault(Path(os.path.normpath(image)), k)
+        if names[first] != names[k]:
+            raise ValueError(
+                f"{path}, line {lines[k]}: image {image} is labelled {names[k]!r} here "
+                f"but {names[first]!r} on line {lines[first]}: one place per image"
+            )
     twice = spelt_twice(names)
     if twice is not None:
         i, j = twice
