@@ -247,3 +247,23 @@ def test_tabs_between_a_key_and_its_value_read_as_map_server_reads_them(tmp_path
     path.write_text(tabbed.replace("negate: 0", "\tnegate: 0"))  # a tab that indents: refused
     with pytest.raises(MapFormatError, match=rf"^{path}: invalid yaml: "):
         load_map(path)
+
+
+def test_a_coarser_copy_of_the_fits_map_is_the_fits_map():
+    """navigate --map: a map of the fit's house at twice its cell size covered "25 %" of the
+    fit's free cells (one fit cell in four holds a map cell's centre) and was refused as "not
+    the fit's map"; shifted, it still is refused."""
+    from test_navigate import house_result
+
+    from spcopyro.maps import OccupancyGrid
+    from spcopyro.maps.coarse import coarsen_grid
+    from spcopyro.robot.navigation.graph import check_same_map, map_coverage
+
+    grid = house_result().grid
+    coarse = coarsen_grid(grid, 2)
+    coarse = OccupancyGrid(coarse.occupancy, coarse.resolution, coarse.origin)  # a map of its own
+    assert map_coverage(grid, coarse) >= 0.8
+    check_same_map(grid, coarse)
+    shifted = OccupancyGrid(coarse.occupancy, coarse.resolution, (grid.origin[0] + 2.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match="not the fit's map"):
+        check_same_map(grid, shifted)

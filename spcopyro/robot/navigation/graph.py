@@ -116,11 +116,15 @@ cells), another house's map in the same frame about 0.6 (room1dk5's of a room2ld
 
 
 def map_coverage(fit_grid: OccupancyGrid, grid: OccupancyGrid) -> float:
-    """The share of ``fit_grid``'s free cells that hold the centre of a free cell of ``grid``."""
+    """The share of ``fit_grid``'s free cells that hold the centre of a free cell of ``grid`` (a
+    finer map) or whose centre lies on one (a coarser map: it was counted as a quarter of a map
+    twice as coarse, and refused as another house)."""
     cells = fit_grid.world_to_cell(grid.cell_to_world(grid.free_cells))  # [N_map, 2]
     inside = np.asarray(fit_grid.in_bounds(cells), dtype=bool)  # [N_map]
     covered = np.zeros(fit_grid.free.shape, dtype=bool)  # [H, W]
     covered[cells[inside, 0], cells[inside, 1]] = True
+    on_map = grid.world_to_cell(fit_grid.cell_to_world(fit_grid.free_cells))  # [N, 2]
+    covered[fit_grid.free] |= np.asarray(grid.is_free(on_map), dtype=bool)
     return float((covered & fit_grid.free).sum() / max(fit_grid.num_free, 1))
 
 
