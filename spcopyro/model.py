@@ -338,6 +338,14 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
 
     with pyro.plate("cells", data.num_free, dim=-1):
         labels = pyro.sample(SITE_LABELS, dist.Categorical(pi))  # [N]
+    if tuple(labels.shape) != (data.num_free,):  # NUTS / TraceEnum_ELBO enumerate: [L, 1]
+        raise ValueError(
+            f"the labels have shape {tuple(labels.shape)}, not ({data.num_free},) (N free "
+            "cells): spcomapping_model's labels cannot be enumerated or batched (the Potts "
+            "factor couples every cell; NUTS, HMC, TraceEnum_ELBO and infer_discrete "
+            "enumerate them): sample them with spcopyro.gibbs.SpCoGibbs under MCMC, or fit "
+            "spcopyro.guides.MeanFieldGuide with MeanFieldELBO under SVI"
+        )
     pyro.factor(SITE_POTTS, config.gamma * potts_agreements(labels, data.pairs))
 
     observed_labels = labels[data.obs_cells]  # [M]

@@ -10,7 +10,7 @@ import pyro
 import pytest
 import torch
 from pyro import poutine
-from pyro.infer import MCMC, SVI, Predictive
+from pyro.infer import MCMC, NUTS, SVI, Predictive
 from pyro.infer.inspect import get_model_relations
 
 from spcopyro.config import preset
@@ -115,3 +115,12 @@ def test_fit_house_names_a_start_it_does_not_take():
     for init in (labels, torch.as_tensor(labels), "bogus"):
         with pytest.raises(ValueError, match=r"init must be one of .* SpCoResult .* got "):
             fit_house(house, preset("original-code"), sweeps=2, init=init, progress=False)
+
+
+def test_nuts_on_the_model_says_its_labels_cannot_be_enumerated():
+    # NUTS enumerates the discrete labels ([L, 1]); the model then failed inside its Potts
+    # factor with "IndexError: index 1 is out of bounds for dimension 0 with size 1"
+    _, data = random_problem(seed=0)
+    mcmc = MCMC(NUTS(spcomapping_model), num_samples=1, warmup_steps=1, disable_progbar=True)
+    with pytest.raises(ValueError, match=r"labels have shape \(3, 1\).* cannot be enumerated"):
+        mcmc.run(data, config())
