@@ -92,6 +92,10 @@ class MeanFieldGuide(PyroModule):
             presets' pi concentration of ~1e6, a step of 0.01 in log a moves a by ~1e4, more than
             all the cells' counts, while a step in log(a - a_prior) moves the counts by 1 %.
         name: the module's name, the start of every parameter's name in the param store.
+            As for any Pyro module, the param store wins: where it already holds this name's
+            parameters (an earlier guide of the same name, a loaded store), those are used and
+            this guide's start (``q``, ``generator``, ``label_smoothing``) is not; call
+            ``pyro.clear_param_store()`` or give another ``name`` to start afresh.
     """
 
     def __init__(
