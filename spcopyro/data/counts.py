@@ -116,7 +116,8 @@ def _warn_scaled_away(
         "%d of %d image(s) carry no information under feature_scaling=%r, left out of the "
         "counts: every feature of their row is below 0.01, which floor(100 f) makes 0 (%s); a "
         "histogram over many classes (the 1000 ImageNet classes of spcopyro features) needs "
-        "feature_scaling 'probability' or a number (fit --feature-scaling)",
+        "feature_scaling 'probability' or a number (fit --feature-scaling; the refinement of "
+        "preset coarse counts images so too: --refine never)",
         lost.size, raw.shape[0], scaling, where,
     )  # fmt: skip
 
