@@ -104,7 +104,7 @@ class DistillationReport:
         tuned = {0: "", 1: " (fc7 tuned too)", 2: " (fc6 and fc7 tuned too)"}[self.tune_layers]
         note = RANDOM_WEIGHTS_NOTE if not self.pretrained else PRETRAINED_NOTE.format(tuned=tuned)
         lines = [
-            f"distillation of the paper's {self.num_classes}-class features, house {self.house}",
+            f"distillation of house {self.house}'s Ft.csv ({self.num_classes} classes)",
             f"backbone         {self.weights}",
             f"training         trials {list(self.train_trials)}: {self.num_train} images; "
             f"loss {self.training.initial_loss:.4f} -> {self.training.final_loss:.4f} "
