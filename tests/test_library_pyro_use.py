@@ -15,7 +15,8 @@ from pyro.infer.inspect import get_model_relations
 
 from spcopyro.config import preset
 from spcopyro.fit.house import fit_house
-from spcopyro.gibbs import SpCoGibbs
+from spcopyro.gibbs import DEFAULT_SAVE_PARAMS, SpCoGibbs, run_gibbs
+from spcopyro.gibbs.inference_data import to_inference_data
 from spcopyro.guides import MeanFieldELBO, MeanFieldGuide
 from spcopyro.model import spcomapping_model
 from spcopyro.synthetic import HouseSpec, make_house
@@ -124,3 +125,21 @@ def test_nuts_on_the_model_says_its_labels_cannot_be_enumerated():
     mcmc = MCMC(NUTS(spcomapping_model), num_samples=1, warmup_steps=1, disable_progbar=True)
     with pytest.raises(ValueError, match=r"labels have shape \(3, 1\).* cannot be enumerated"):
         mcmc.run(data, config())
+
+
+def test_to_inference_data_says_when_it_has_no_labels_to_include():
+    # include_labels=True was ignored silently where the run saved no labels, and for
+    # per-sweep traces, which hold none
+    pytest.importorskip("arviz")
+    _, data = random_problem(seed=0)
+    mcmc = MCMC(SpCoGibbs(save_params=DEFAULT_SAVE_PARAMS), num_samples=4, disable_progbar=True)
+    mcmc.run(data, config())
+    with pytest.raises(ValueError, match="saved no labels"):
+        to_inference_data(mcmc, include_labels=True)
+    assert "labels" not in to_inference_data(mcmc).posterior
+    run = run_gibbs(data, config(), 6, seed=0, progress=False)
+    with pytest.raises(ValueError, match="include_labels applies to an MCMC run"):
+        to_inference_data([run], include_labels=True)
+    mcmc = MCMC(SpCoGibbs(), num_samples=4, disable_progbar=True)
+    mcmc.run(data, config())
+    assert to_inference_data(mcmc, include_labels=True).posterior["labels"].shape == (1, 4, 27)

@@ -129,6 +129,11 @@ def _from_mcmc(mcmc: MCMC, include_labels: bool) -> dict[str, Any]:
             f"the MCMC run saved no {sorted(missing)}: run SpCoGibbs with them in save_params "
             "(DEFAULT_SAVE_PARAMS has them)"
         )
+    if include_labels and SITE_LABELS not in samples:  # it was ignored silently
+        raise ValueError(
+            "include_labels: the MCMC run saved no labels (SpCoGibbs' save_params "
+            f"{sorted(samples)}); run it with 'labels' in save_params (the default saves them)"
+        )
     posterior: dict[str, np.ndarray] = {}
     for name, values in samples.items():
         if name == SITE_LABELS and not include_labels:
@@ -192,6 +197,11 @@ def to_inference_data(
             )
         groups = _from_mcmc(mcmc, include_labels)
     else:
+        if include_labels:  # it was ignored silently
+            raise ValueError(
+                "include_labels applies to an MCMC run's saved labels: per-sweep traces "
+                "(run_gibbs chains, fit results) go to ArviZ without them"
+            )
         chains = list(source) if isinstance(source, (list, tuple)) else [source]
         if not chains:
             raise ValueError("to_inference_data got no chains")
