@@ -132,7 +132,8 @@ def gamma_warning(config: SpCoConfig) -> str | None:
     return (
         f"gamma = {config.gamma:g} is below the Potts critical coupling ln(1 + sqrt(L)) = "
         f"{config.critical_gamma:.3f} for L = {config.num_concepts}: the MRF will not form "
-        "regions (labels stay in patches of a few cells); raise --gamma or lower --concepts"
+        "regions (labels stay in patches of a few cells); raise gamma or lower num_concepts "
+        "(fit's --gamma, --concepts)"
     )
 
 
