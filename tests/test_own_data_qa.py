@@ -322,3 +322,21 @@ def test_a_labels_file_that_gives_one_image_two_places_is_refused(tmp_path):
         read_labelled_images(labels)
     labels.write_text("a.jpg,kitchen\nb.jpg,bed\na.jpg,kitchen\n")  # the same label again: fine
     assert read_labelled_images(labels)[1] == ["kitchen", "bed", "kitchen"]
+
+
+def test_a_trailing_comma_is_named(tmp_path):
+    """A writer that ends each row with a comma: 'row has 5 values, expected 4' or 'not a
+    number: ''' at a column past the last, without saying why."""
+    room = _saved_house(tmp_path)
+    pose = (room / "pose_0.csv").read_text()
+    (room / "pose_0.csv").write_text(pose.replace("\n", ",\n"))
+    with pytest.raises(DataFormatError, match=r"pose_0\.csv, line 1: row has 5 values, expected 4 "
+                       r"\(x, y, qz, qw\) \(the line ends with a comma"):  # fmt: skip
+        load_house(room)
+    (room / "pose_0.csv").write_text(pose)
+    (room / "Ft.csv").write_text("0.5,0.5,\n0.25,0.75,\n")
+    with pytest.raises(DataFormatError, match=r"Ft\.csv, line 1: not a number \(the line ends"):
+        load_house(room)
+    (room / "Ft.csv").write_text("0.5,x,\n0.25,0.75,\n")  # the value that is wrong comes first
+    with pytest.raises(DataFormatError, match=r"Ft\.csv, line 1, column 2: not a number: 'x'$"):
+        load_house(room)

@@ -125,8 +125,9 @@ def _read_matrix(path: Path, columns: int | None = None, names: str = "") -> np.
             )
         try:
             row = [_parse_number(path, text, number, c) for c, text in enumerate(fields, 1)]
-        except DataFormatError:
-            if not hint:
+        except DataFormatError as error:
+            trailing = line.rstrip().endswith(",")  # the hint holds for the last, empty value
+            if not hint or (trailing and error.column != len(fields)):
                 raise
             raise DataFormatError(path, f"not a number{hint}", line=number, value=line) from None
         rows.append(row)
@@ -138,12 +139,14 @@ _SEPARATORS = {" ": "spaces", "\t": "tabs", ";": "semicolons"}
 
 def _separator_hint(line: str) -> str:
     """A hint for a line of numbers separated by something other than commas (np.savetxt's
-    spaces, a spreadsheet's tabs or semicolons), else ``""``."""
+    spaces, a spreadsheet's tabs or semicolons) or ending with a comma, else ``""``."""
     if ";" in line and "," in line:  # a spreadsheet's decimal commas: 0,5;1,25
         return (
             " (semicolons and decimal commas, as a spreadsheet in some languages writes them: "
             "these files separate numbers with commas and write decimals with a point)"
         )
+    if line.rstrip().endswith(","):
+        return " (the line ends with a comma: these files end a row with its last number)"
     if "," in line:
         return ""
     for separator, name in _SEPARATORS.items():
