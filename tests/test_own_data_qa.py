@@ -340,3 +340,25 @@ def test_a_trailing_comma_is_named(tmp_path):
     (room / "Ft.csv").write_text("0.5,x,\n0.25,0.75,\n")  # the value that is wrong comes first
     with pytest.raises(DataFormatError, match=r"Ft\.csv, line 1, column 2: not a number: 'x'$"):
         load_house(room)
+
+
+def test_timestamped_frames_in_time_order_are_not_called_unpadded(tmp_path, caplog):
+    """Frames named by their time stamp, ``1699999999.123.jpg`` then ``1699999999.5.jpg``: name
+    order is time order, yet the warning read the fractions as whole numbers (5 < 123) and told
+    the user to rename them; an integer part of another width is still warned about."""
+    cv2 = pytest.importorskip("cv2")
+    from spcopyro.features.images import list_images
+
+    for folder, names in (
+        ("stamps", ("1699999999.123.jpg", "1699999999.5.jpg", "1700000000.05.jpg")),
+        ("wider", ("999.5.jpg", "1000.25.jpg")),
+    ):
+        (tmp_path / folder).mkdir()
+        for name in names:
+            cv2.imwrite(str(tmp_path / folder / name), np.zeros((8, 8, 3), np.uint8))
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        list_images(tmp_path / "stamps")
+    assert "zero padding" not in caplog.text
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        list_images(tmp_path / "wider")
+    assert "row 1 is 1000.25.jpg, not 999.5.jpg" in caplog.text

@@ -14,6 +14,7 @@ import os
 import re
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
+from decimal import Decimal
 from pathlib import Path
 
 import cv2
@@ -217,9 +218,8 @@ def _warn_unpadded_numbers(folder: Path, images: list[Path]) -> None:
     not follow the order the images were taken in (the order of their poses)."""
 
     def numbers_first(path: Path) -> list[object]:
-        return [
-            (0, int(p), "") if p.isdigit() else (1, 0, p) for p in re.split(r"([0-9]+)", path.name)
-        ]
+        parts = re.split(r"([0-9]+(?:\.[0-9]+)?)", path.name)  # a timestamp's fraction with it
+        return [(0, Decimal(p), "") if p[:1].isdigit() else (1, 0, p) for p in parts]
 
     by_number = sorted(images, key=numbers_first)
     if by_number == images:
