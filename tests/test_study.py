@@ -345,6 +345,25 @@ def test_a_report_table_of_failed_cells_only_has_as_many_cells_as_columns():
     assert "| a | gibbs | 1 | 0.000 |" in report_markdown([row("good", "ok", -1e-4)])  # not -0.000
 
 
+def test_a_report_gives_counts_one_decimal_in_every_row():
+    """ablation_small's report: concepts "90.000 +- 1.414" above "117.5 +- 2.1" (decimals chosen
+    per value). Counts now have one decimal in every row; other scores keep three below 100."""
+    from spcopyro.study.report import report_markdown
+
+    def row(variant, seed, concepts, seconds):
+        return dict(variant=variant, data="dense", method="gibbs", seed=seed, status="ok",
+                    ari=0.5, concepts=concepts, seconds=seconds)  # fmt: skip
+
+    rows = [row("a", 0, 89, 0.1), row("a", 1, 91, 0.11), row("b", 0, 116, 99.0),
+            row("b", 1, 119, 150.0)]  # fmt: skip
+    lines = [line for line in report_markdown(rows).splitlines() if line.startswith("| a")]
+    lines += [line for line in report_markdown(rows).splitlines() if line.startswith("| b")]
+    assert lines == [
+        "| a | gibbs | 2 | 0.500 +- 0.000 | 90.0 +- 1.4 | 0.105 +- 0.007 |",
+        "| b | gibbs | 2 | 0.500 +- 0.000 | 117.5 +- 2.1 | 124.5 +- 36.1 |",
+    ]
+
+
 @pytest.mark.parametrize(
     "times", [(0.053, 0.475, 0.133), (2.0, 9.0), (100.0, 300.0), (0.4,), (1e-3, 1e3), (0.5, 40.0)]
 )
