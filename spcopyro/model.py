@@ -346,6 +346,11 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
             "enumerate them): sample them with spcopyro.gibbs.SpCoGibbs under MCMC, or fit "
             "spcopyro.guides.MeanFieldGuide with MeanFieldELBO under SVI"
         )
+    if labels.dtype.is_floating_point or labels.dtype.is_complex:  # conditioned on floats
+        raise ValueError(
+            f"the labels must be integer concept ids (torch.long), got {labels.dtype}: "
+            "condition the model on labels.long()"
+        )
     pyro.factor(SITE_POTTS, config.gamma * potts_agreements(labels, data.pairs))
 
     observed_labels = labels[data.obs_cells]  # [M]

@@ -143,3 +143,15 @@ def test_to_inference_data_says_when_it_has_no_labels_to_include():
     mcmc = MCMC(SpCoGibbs(), num_samples=4, disable_progbar=True)
     mcmc.run(data, config())
     assert to_inference_data(mcmc, include_labels=True).posterior["labels"].shape == (1, 4, 27)
+
+
+def test_the_model_names_labels_given_as_floats():
+    # poutine.condition(model, {"labels": float labels}) failed in the observation sites with
+    # "IndexError: tensors used as indices must be long, int, byte or bool tensors"
+    _, data = random_problem(seed=0)
+    labels = (torch.arange(data.num_free) % 3).double()
+    conditioned = poutine.condition(spcomapping_model, {"labels": labels})
+    with pytest.raises(ValueError, match=r"integer concept ids \(torch.long\), got torch.float64"):
+        poutine.trace(conditioned).get_trace(data, config())
+    conditioned = poutine.condition(spcomapping_model, {"labels": labels.long()})
+    assert torch.isfinite(poutine.trace(conditioned).get_trace(data, config()).log_prob_sum())
