@@ -353,6 +353,8 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
         )
     pyro.factor(SITE_POTTS, config.gamma * potts_agreements(labels, data.pairs))
 
+    if data.obs_cells.shape[0] == 0:  # a map with no observations yet: the prior alone
+        return  # (Pyro refuses a plate of size 0)
     observed_labels = labels[data.obs_cells]  # [M]
     with pyro.plate("observed_cells", data.obs_cells.shape[0], dim=-1):
         for modality, probs in zip(data.modalities, parameters, strict=True):

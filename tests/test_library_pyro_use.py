@@ -20,7 +20,7 @@ from spcopyro.gibbs.inference_data import to_inference_data
 from spcopyro.guides import MeanFieldELBO, MeanFieldGuide
 from spcopyro.model import spcomapping_model
 from spcopyro.synthetic import HouseSpec, make_house
-from tests.gibbs_problems import config, random_problem
+from tests.gibbs_problems import PROBLEM_ROWS, config, model_data, random_problem, tiny_grid
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
@@ -155,3 +155,19 @@ def test_the_model_names_labels_given_as_floats():
         poutine.trace(conditioned).get_trace(data, config())
     conditioned = poutine.condition(spcomapping_model, {"labels": labels.long()})
     assert torch.isfinite(poutine.trace(conditioned).get_trace(data, config()).log_prob_sum())
+
+
+def test_the_pyro_model_kernel_and_guide_take_a_map_with_no_observations():
+    # Gibbs, CAVI, LBP and memoized VI fitted such a map (the prior alone); the Pyro model
+    # failed in Pyro's plate with "ZeroDivisionError: size cannot be zero", and with it MCMC
+    # with SpCoGibbs and SVI with the mean-field guide
+    grid = tiny_grid(PROBLEM_ROWS)
+    data = model_data(grid, np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 4)))
+    cfg = config()
+    mcmc = MCMC(SpCoGibbs(), num_samples=2, warmup_steps=1, disable_progbar=True)
+    mcmc.run(data, cfg)
+    assert mcmc.get_samples()["labels"].shape == (2, data.num_free)
+    with pyro.get_param_store().scope():
+        guide = MeanFieldGuide(data, cfg, generator=torch.Generator().manual_seed(0))
+        svi = SVI(spcomapping_model, guide, pyro.optim.Adam({"lr": 0.1}), MeanFieldELBO())
+        assert math.isfinite(svi.step(data, cfg))
