@@ -18,6 +18,7 @@ is on ``sys.path`` when they run.
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 from collections.abc import Callable, Sequence
@@ -52,6 +53,34 @@ WAIT = non_negative_number("wait is seconds")
 
 fraction = number_type(lambda v: 0.0 <= v <= 1.0, lambda t: f"{t!r}: a share is a number in [0, 1]")
 """argparse type of a share: a float in [0, 1]."""
+
+
+GAMMA = non_negative_number("Potts coupling gamma is a number")
+"""argparse type of ``--gamma``: a finite float >= 0 (:class:`spcopyro.config.SpCoConfig`'s
+rule, checked before anything runs instead of as a traceback from the first fit)."""
+
+
+def preset_name(text: str) -> str:
+    """argparse type of a preset's name: one of :data:`spcopyro.config.PRESETS`, else a usage
+    error listing them (not a ``ValueError`` traceback from the first fit)."""
+    from spcopyro.config import PRESETS  # standard library only
+
+    if text not in PRESETS:
+        raise argparse.ArgumentTypeError(
+            f"unknown preset {text!r}; choose from {', '.join(sorted(PRESETS))}"
+        )
+    return text
+
+
+def preset_names(text: str) -> str:
+    """argparse type of comma-separated presets ("paper-dp,auto"): each non-empty part, spaces
+    stripped, a :func:`preset_name`, and at least one; the text is returned as given."""
+    parts = [part.strip() for part in text.split(",") if part.strip()]
+    if not parts:
+        raise argparse.ArgumentTypeError(f"{text!r}: no preset named")
+    for part in parts:
+        preset_name(part)
+    return text
 
 
 def counts(text: str) -> list[int]:

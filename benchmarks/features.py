@@ -47,10 +47,15 @@ import cv2
 import numpy as np
 import torch
 import torchvision
-from bench_cli import COUNT, counts, dataset_root, quick_or, run_main
+from bench_cli import COUNT, counts, dataset_root, fail, quick_or, run_main
 
 from spcopyro.data import load_house
-from spcopyro.features.backbone import torchvision_cache_file
+from spcopyro.features.backbone import (
+    CheckpointError,
+    WeightsNotFoundError,
+    parse_weights,
+    torchvision_cache_file,
+)
 from spcopyro.features.distill import distillation_report
 from spcopyro.features.extract import extract_features
 from spcopyro.features.head import PlaceClassifier
@@ -261,12 +266,23 @@ def main(argv: list[str] | None = None) -> int:
     if args.torch_threads:
         torch.set_num_threads(args.torch_threads)
     devices = (
-        args.devices.split(",")
+        [d.strip() for d in args.devices.split(",") if d.strip()]
         if args.devices
         else ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
     )
+    for device in devices:  # a usage error, not torch's traceback after the model is loaded
+        if device not in ("cpu", "cuda"):
+            fail(f"--devices {args.devices}: {device!r} is not one of cpu, cuda")
+        if device == "cuda" and not torch.cuda.is_available():
+            fail(f"--devices {args.devices}: no CUDA device on this machine")
+    if not devices:
+        fail(f"--devices {args.devices!r}: no device named")
     batch_sizes = quick_or(args.batch_sizes, args.quick, [1, 8], [1, 8, 32])
     weights = args.weights or default_weights()
+    try:
+        parse_weights(weights)  # a missing checkpoint: one line, before anything is measured
+    except WeightsNotFoundError as error:
+        fail(f"--weights: {error}")
     without = "synthetic images are used and the distillation is skipped"
     dataset = None if args.no_dataset else dataset_root(args.dataset, without=without)
     num_images = 16 if args.quick else 64
@@ -275,7 +291,10 @@ def main(argv: list[str] | None = None) -> int:
     name = "features_quick.json" if args.quick else "features_results.json"
     out = args.out or SCRIPT_DIR / name
 
-    model = PlaceClassifier.load(weights)
+    try:
+        model = PlaceClassifier.load(weights)
+    except (WeightsNotFoundError, CheckpointError) as error:  # e.g. imagenet not cached
+        fail(f"--weights {weights}: {error}")
     result: dict[str, Any] = {
         "weights": model.weights.describe(),
         "pretrained": model.weights.pretrained,

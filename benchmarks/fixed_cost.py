@@ -68,7 +68,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from bench_cli import COUNT, dataset_root, house_folder, quick_or, run_main
+from bench_cli import COUNT, dataset_root, house_folder, preset_names, quick_or, run_main
 
 SCRIPT_DIR = Path(__file__).resolve().parent
 EMBEDDED_LABEL = "embedded synthetic default house"  # what is fitted without a house folder
@@ -364,7 +364,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--house",
                         help="house of the dataset (default room2ldk4; without the dataset the "
                              "embedded synthetic default house)")  # fmt: skip
-    parser.add_argument("--presets", default=None,
+    parser.add_argument("--presets", type=preset_names, default=None,
                         help="comma-separated presets (default paper-dp,auto; --quick: "
                              "paper-dp)")  # fmt: skip
     parser.add_argument("--sweeps", type=COUNT, nargs=2, default=None, metavar=("S1", "S2"),

@@ -34,7 +34,17 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from bench_cli import COUNT, INDEX, dataset_root, fraction, house_folder, quick_or, run_main
+from bench_cli import (
+    COUNT,
+    GAMMA,
+    INDEX,
+    dataset_root,
+    fraction,
+    house_folder,
+    preset_name,
+    quick_or,
+    run_main,
+)
 from machine import format_table, machine_info
 
 from spcopyro.config import preset
@@ -149,8 +159,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sweeps", type=COUNT, help="default 1000 (--quick: 12)")
     parser.add_argument("--merge-moves", type=fraction, default=0.2,
                         help="share with moves, in [0, 1] (default 0.2)")  # fmt: skip
-    parser.add_argument("--preset", default="paper-dp")
-    parser.add_argument("--gamma", type=float, help="override the preset's gamma")
+    parser.add_argument("--preset", type=preset_name, default="paper-dp")
+    parser.add_argument("--gamma", type=GAMMA, help="override the preset's gamma")
     parser.add_argument("--seeds", type=INDEX, nargs="+", default=[0])
     parser.add_argument("--public", help=f"public house ('' for none; default {PUBLIC_HOUSE}, "
                         "skipped with a note without the dataset; --quick: none)")  # fmt: skip

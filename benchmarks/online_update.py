@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from bench_cli import COUNT, check_houses, dataset_root, quick_or, run_main
+from bench_cli import COUNT, GAMMA, check_houses, dataset_root, preset_name, quick_or, run_main
 from machine import format_table, machine_info, progress
 
 from spcopyro.config import preset
@@ -230,8 +230,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sweeps", type=COUNT,
                         help="sweeps of old and scratch fits (default 5000; --quick: "
                              "40)")  # fmt: skip
-    parser.add_argument("--preset", default="paper-dp")
-    parser.add_argument("--gamma", type=float)
+    parser.add_argument("--preset", type=preset_name, default="paper-dp")
+    parser.add_argument("--gamma", type=GAMMA)
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     os.environ.setdefault("CI", "1")  # no progress bars

@@ -404,7 +404,12 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     )
     parser.add_argument("--dataset", help="public dataset root (default: found automatically)")
     parser.add_argument("--no-dataset", action="store_true", help="synthetic houses only")
-    return parser.parse_args(argv)
+    args = parser.parse_args(argv)
+    names = [b.strip() for b in args.backends.split(",") if b.strip()]
+    if not names or any(b not in ("torch", "numba") for b in names):  # a typo: not a note
+        parser.error(f"--backends {args.backends!r}: choose from torch, numba")
+    args.backend_list = list(dict.fromkeys(names))
+    return args
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -423,7 +428,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         default_threads = 2
         notes.append("torch's default is 1 thread here (one CPU, or OMP_NUM_THREADS=1): the "
                      "'default' setting uses 2 threads instead")  # fmt: skip
-    backends, skipped = available_backends(args.backends.split(","))
+    backends, skipped = available_backends(args.backend_list)
     notes += [f"backend {name} skipped: {why}" for name, why in skipped.items()]
     if not backends:
         raise SystemExit(f"no backend to measure: {skipped}")

@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from bench_cli import COUNT, WAIT, dataset_root, run_main
+from bench_cli import COUNT, WAIT, dataset_root, preset_names, run_main
 from machine import format_table, machine_info, progress, wait_until_idle
 
 from spcopyro.config import SpCoSettings, preset
@@ -376,7 +376,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-ordering", action="store_true", help="skip the ordering table")
     parser.add_argument("--no-torch", action="store_true", help="skip the torch reference")
     parser.add_argument(
-        "--presets", default=",".join(TIMED_PRESETS), help="comma-separated presets to time"
+        "--presets",
+        type=preset_names,
+        default=",".join(TIMED_PRESETS),
+        help="comma-separated presets to time",
     )
     args = parser.parse_args(argv)
     torch.set_num_threads(args.torch_threads)
@@ -398,7 +401,7 @@ def main(argv: list[str] | None = None) -> int:
         "waited_for_idle_s": waited, "sizes": dataclasses.asdict(sizes),
         "dataset": None if dataset is None else str(dataset),
     }  # fmt: skip
-    presets = tuple(args.presets.split(","))
+    presets = tuple(p.strip() for p in args.presets.split(",") if p.strip())
     results["first_calls_s"] = first_calls(synthetic)
     probe_data, probe_config = problem(synthetic, 4)
     results["lbp_backend"] = resolve_lbp_backend(LBPOptions(), probe_data, probe_config)

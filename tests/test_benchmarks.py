@@ -460,6 +460,13 @@ BAD_VALUES = [
     ("real_houses", ["--quick", "--sweeps", "-1"], "--sweeps"),
     ("footprint", ["--quick", "--radii", "-1"], "--radii"),
     ("gibbs", ["--quick", "--wait-idle", "-1"], "--wait-idle"),
+    # A preset or gamma the model refuses: a usage error, not its ValueError after the setup.
+    ("merge_moves", ["--quick", "--preset", "bogus"], "--preset"),
+    ("merge_moves", ["--quick", "--gamma", "-1"], "--gamma"),
+    ("online_update", ["--quick", "--preset", "bogus"], "--preset"),
+    ("online_update", ["--quick", "--gamma", "nan"], "--gamma"),
+    ("variational", ["--quick", "--presets", "paper-dp,bogus"], "--presets"),
+    ("fixed_cost", ["--quick", "--presets", "bogus"], "--presets"),
 ]
 
 
@@ -471,6 +478,26 @@ def test_bad_values_are_usage_errors_naming_the_option(script, capsys, name, arg
         script(name).main(argv)
     assert stop.value.code == 2
     assert f"argument {option}" in capsys.readouterr().err
+
+
+BAD_NAMES = [
+    ("threads", ["--quick", "--backends", "torch,bogus"], "--backends"),
+    ("features", ["--quick", "--no-dataset", "--devices", "bogus"], "--devices"),
+    ("features", ["--quick", "--no-dataset", "--weights", "/nonexistent/alexnet.pt"], "--weights"),
+]
+
+
+@pytest.mark.parametrize(("name", "argv", "option"), BAD_NAMES)
+def test_bad_names_are_one_line_errors(script, capsys, name, argv, option):
+    """A backend, device or weights file that is not there: a one-line error naming the option
+    (exit 2) before anything is measured; threads.py measured the other backend with a note,
+    features.py failed with torch's (or the loader's) traceback after loading the model."""
+    with pytest.raises(SystemExit) as stop:
+        script(name).main(argv)
+    assert stop.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert f"error: {option}" in err.splitlines()[-1], err
+    assert "Traceback" not in err, err
 
 
 def test_an_option_given_explicitly_wins_over_quick(script):
