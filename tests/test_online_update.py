@@ -15,6 +15,7 @@ from spcopyro.cli.main import main
 from spcopyro.config import preset
 from spcopyro.data import Observations, save_house
 from spcopyro.fit.house import fit_house
+from spcopyro.guides.options import VariationalOptions
 from spcopyro.results.result import SpCoResult
 from spcopyro.robot.online import (
     check_compatible,
@@ -163,3 +164,17 @@ def test_fit_update_command_end_to_end(tmp_path, house, capsys):
     assert f"use --update {first}" in capsys.readouterr().err
     assert main(["fit", "--out", str(again), "--update", str(tmp_path)]) == 2
     assert "no finished fit there" in capsys.readouterr().err
+
+
+def test_a_variational_update_keeps_its_q_as_the_marginals(house, saved):
+    """An update by CAVI reports q(C) as its marginals (the uncertainty map), as a fit does: the
+    label frequencies of its argmax maps, kept every few iterations, replaced them (entropy near
+    0, ``marginal_samples`` in its record), when the update made them a sampler's."""
+    (cavi,) = fit_update(
+        saved, house, SETTINGS, method="cavi", sweeps=20, progress=False, marginal_samples=5,
+        options=VariationalOptions(tolerance=0.0),
+    )  # fmt: skip
+    assert "marginal_samples" not in cavi.inference
+    multiples = np.asarray(cavi.marginals) * 5  # label frequencies over 5 maps: k / 5
+    assert not np.allclose(multiples, np.round(multiples))
+    assert np.allclose(np.asarray(cavi.marginals).sum(axis=1), 1.0)

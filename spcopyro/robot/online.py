@@ -396,9 +396,10 @@ def fit_update(
                     else f"{method} fit {count}, {done} of {sweeps} iterations done"
                 )
                 raise FitInterrupted(where_stopped) from None
-            output = with_sample_marginals(
-                output, int(sweeps), start.data, start.settings.model, point_estimate
-            )
+            if output.marginals is None:  # a sampler: its label frequencies; a variational
+                output = with_sample_marginals(  # method's marginals are its q(C)
+                    output, int(sweeps), start.data, start.settings.model, point_estimate
+                )
             output.options.update(
                 seed=int(seed), init=f"update of {where}",
                 update_of=update_record(saved, start.merge, where),
