@@ -563,3 +563,18 @@ def test_study_tables_name_the_cells_and_columns_that_differ(script):
     assert found == ["aaaaaaaaaaaa source_digest: 'x' != 'y'"]
     assert study_dask.differences([row], []) == [f"{'a' * 20}: missing from the other table"]
     assert {"seconds_off", "cpu_seconds_off"} <= set(study_dask.TIMING)
+
+
+def test_coarse_losses_table_cells_are_text_not_python_reprs(script):
+    """coarse_losses.py printed its split regions, wrong cells by distance and log-joint terms
+    as Python reprs ("{1: 0.47}", "[7, 7, 7]", "{'labels': 0.0, ...}") in a markdown table."""
+    coarse_losses = script("coarse_losses")
+    errors = {"region_level_ari": 0.876, "split": {1: 0.47, 3: 0.2}, "specks": 0, "wrong": 7,
+              "free": 3600, "wrong_within_0.3_0.6_1m": [5, 6, 7]}  # fmt: skip
+    joint = {"labels": -0.5, "potts": -42.0, "images": 1.25, "words": 3.0, "total": -38.25}
+    row = coarse_losses.table_row("dense 0", 0.8731, 0.995, errors, joint)
+    assert len(row) == len(coarse_losses.HEADERS)
+    assert row[4:] == ["1: 47 %, 3: 20 %", "0", "7 of 3600", "5 / 6 / 7",
+                       "-38.2 (-0.5, -42.0, +1.2, +3.0)"]  # fmt: skip
+    empty = coarse_losses.table_row("d", 1.0, 1.0, {**errors, "split": {}}, joint)
+    assert empty[4] == "-"
