@@ -119,6 +119,22 @@ def test_cavi_records_its_q_start_beside_the_start_labels(tmp_path, capsys):
     assert "variational.init=soft draws q(C) at random" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("method, name", [("cavi", "init"), ("vi-gibbs", "variational.init")])
+def test_a_soft_q_start_is_refused_by_an_update(tmp_path, capsys, method, name):
+    """An update starts from the saved fit's labels, which replace q's soft start: ``--update
+    OUT --method-option init=soft`` fitted from the saved labels and said nothing."""
+    saved = tmp_path / "saved"
+    args = ["fit", "--sweeps", "2", "--preset", "original-code", "--concepts", "6",
+            "--no-figures"]  # fmt: skip
+    assert main([*args, "--out", str(saved), "--method", "cavi"]) == 0
+    capsys.readouterr()
+    update = [*args, "--out", str(tmp_path / "updated"), "--method", method, "--update",
+              str(saved), "--method-option", f"{name}=soft"]  # fmt: skip
+    assert main(update) == 2
+    assert f"{name}=soft draws q(C) at random, but --update {saved}" in capsys.readouterr().err
+    assert not (tmp_path / "updated").exists()
+
+
 @pytest.mark.parametrize("method", ["cavi", "lbp", "svi", "stochastic-vi"])
 def test_marginal_samples_is_refused_by_methods_that_do_not_sample(tmp_path, capsys, method):
     """--marginal-samples counts a sampler's kept label maps; a variational fit ignored it

@@ -30,10 +30,12 @@ def _given_gibbs_flags(args: argparse.Namespace) -> dict[str, tuple[str, object]
 
 def _check_q_start(args: argparse.Namespace, options: object | None) -> None:
     """ValueError for ``--method-option init=soft`` (``variational.init=soft``), q's random
-    start, with start labels (``--init`` other than random, ``--init-from``), which replace it:
-    soft was ignored silently."""
+    start, with start labels (``--init`` other than random, ``--init-from``, ``--update``'s
+    saved labels), which replace it: soft was ignored silently."""
     variational = getattr(options, "variational", options)
     start = f"--init-from {args.init_from}" if args.init_from is not None else None
+    if getattr(args, "update", None) is not None:
+        start = f"--update {args.update}"
     if getattr(args, "init", None) not in (None, "random"):
         start = f"--init {args.init}"
     if getattr(variational, "init", None) == "soft" and start is not None:
