@@ -234,6 +234,28 @@ def test_no_observation_on_free_space_stops_before_sampling(room, tmp_path, caps
     assert "negate" in err and "origin" in err
 
 
+@pytest.mark.parametrize(
+    ("scale", "said"),
+    [(1000.0, "divided by 1000 land on free space: are they in millimetres?"),
+     (100.0, "divided by 100 land on free space: are they in centimetres?"),
+     (1.0, None)],
+)  # fmt: skip
+def test_positions_in_millimetres_are_named_as_such(scale, said):
+    """A robot's own files in millimetres ended in 'no observation lands on free space ... the
+    map or its origin is wrong', blaming the map. (The house is centred on its origin, so
+    millimetres divided by 100 land on free space too, squeezed into its middle.)"""
+    house = make_house(seed=0)  # 6 x 8 m, centred on its origin
+    obs = house.observations
+    moved = dataclasses.replace(obs, image_xy=obs.image_xy * scale, word_xy=obs.word_xy * scale)
+    placed = cell_counts(house.grid, moved)
+    if said is None:  # where they are: no hint
+        assert placed.placement.hint == ""
+        return
+    with pytest.raises(ValueError, match="no observation lands on free space") as error:
+        placed.placement.check_on_free()
+    assert said in str(error.value)
+
+
 def _observations(cells, grid):
     """One image and one utterance at each (row, col) of ``cells``."""
     xy = grid.cell_to_world(np.array(cells))  # [T, 2]

@@ -39,6 +39,7 @@ from spcopyro.data.placement import (
     ModalityPlacement,
     PlacementReport,
     place_observations,
+    position_hint,
 )
 from spcopyro.data.text import WordWeighting, tfidf_weights, word_matrix
 from spcopyro.maps.grid import OccupancyGrid
@@ -374,6 +375,9 @@ def cell_counts(
         unplaced_images=np.flatnonzero(image_unplaced).astype(np.int64),
         unplaced_words=np.flatnonzero(word_unplaced).astype(np.int64),
         snap_distance=float(snap_distance),
+        hint=position_hint(grid, np.concatenate([obs.image_xy, obs.word_xy]))  # [T + U, 2]
+        if (image_unplaced | image_snapped).any() or (word_unplaced | word_snapped).any()
+        else "",
         modalities=tuple(
             ModalityPlacement(
                 name=modality.name,

@@ -17,7 +17,13 @@ from spcopyro.config import DEFAULT_SNAP_DISTANCE
 from spcopyro.data.observations import _as_xy
 from spcopyro.maps.grid import OccupancyGrid
 
-__all__ = ["DEFAULT_SNAP_DISTANCE", "ModalityPlacement", "PlacementReport", "place_observations"]
+__all__ = [
+    "DEFAULT_SNAP_DISTANCE",
+    "ModalityPlacement",
+    "PlacementReport",
+    "place_observations",
+    "position_hint",
+]
 
 # Positions in the public data were recorded by the robot and rounded onto the 5 cm grid; some
 # land on wall or unknown pixels (README "Quirks"). In the five public houses 27 images and 8
@@ -228,6 +234,43 @@ class ModalityPlacement:
     unplaced_indices: np.ndarray  # [*] int64 indices into the modality's observations
 
 
+def _share_on_free(grid: OccupancyGrid, xy: np.ndarray) -> float:
+    """Share of the points ``[n, 2]`` whose cell is free."""
+    cells = grid.world_to_cell(xy)  # [n, 2] (row, col)
+    inside = grid.in_bounds(cells)  # [n] bool
+    on_free = np.zeros(len(xy), dtype=bool)
+    on_free[inside] = grid.free[cells[inside, 0], cells[inside, 1]]
+    return float(on_free.mean())
+
+
+def position_hint(grid: OccupancyGrid, xy: np.ndarray) -> str:
+    """When most positions ``[n, 2]`` (metres, the dataset's unit) miss the map's free space but
+    would cover it in millimetres or centimetres, a sentence that says so (with a leading
+    "; "); else "". "Cover": most of them on free cells, spread over at least
+    ``MIN_SPREAD`` of the free space's extent (a wrong scale that squeezes them into the middle
+    of a map centred on its origin lands on free space too). A robot's own files in
+    millimetres ended in "no observation lands on free space", blaming the map."""
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    xy = xy[np.isfinite(xy).all(axis=1)]
+    if len(xy) < 2 or grid.num_free == 0 or _share_on_free(grid, xy) >= 0.5:
+        return ""
+    if np.abs(xy).max() >= 2.0**40 * grid.resolution:  # world_to_cell would refuse them
+        return ""
+    free_spread = grid.cell_to_world(grid.free_cells).std(axis=0).max()  # metres
+    for scale, unit in ((1e-3, "millimetres"), (1e-2, "centimetres")):
+        scaled = xy * scale  # [n, 2]
+        spread = scaled.std(axis=0).max()
+        if _share_on_free(grid, scaled) >= 0.5 and spread >= MIN_SPREAD * free_spread:
+            return (f"; the positions divided by {round(1 / scale)} land on free space: are "
+                    f"they in {unit}? Positions are metres in the map's frame")  # fmt: skip
+    return ""
+
+
+MIN_SPREAD = 0.3
+""":func:`position_hint`: a rescaled tour must spread over this share of the free space's
+extent (standard deviations along the wider axis)."""
+
+
 @dataclass(frozen=True, eq=False)
 class PlacementReport:
     """Where observations went: nothing is dropped silently.
@@ -246,6 +289,9 @@ class PlacementReport:
     unplaced_words: np.ndarray  # [*] int64 indices into Observations utterances
     snap_distance: float  # metres
     modalities: tuple[ModalityPlacement, ...] = ()
+    hint: str = ""
+    """:func:`position_hint`'s sentence, ending both messages about observations off free
+    space."""
 
     @property
     def num_observations(self) -> int:
@@ -273,6 +319,7 @@ class PlacementReport:
             f"{off} of {self.num_observations} observations are not on a free cell{where} "
             f"(but on occupied or unknown cells or outside the map; {self.num_snapped} snapped "
             f"to free space within {self.snap_distance:g} m, {self.num_unplaced} left out)"
+            f"{self.hint}"
         )
 
     def off_free_warning(self, where: str = "") -> str | None:
