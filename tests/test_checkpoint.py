@@ -440,11 +440,36 @@ def test_ctrl_c_in_a_vi_gibbs_fit_says_how_far_it_got(home, tmp_path, capsys, mo
     out = tmp_path / "out"
     assert main(_variational_argv(home, out, "vi-gibbs")) == 130
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("interrupted (vi-gibbs fit 1 of 1, 3 of ")
+    assert err.count("\n") == 1 and err.startswith(
+        "interrupted (vi-gibbs fit 1 of 1, in its CAVI start, 3 of at most 100 iterations done)"
+    )
     assert "no checkpoint kept (the 'vi-gibbs' method)" in err and not out.exists()
     assert main([*_variational_argv(home, out, "vi-gibbs"), "--resume", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert "one fit (--chains 1) of cavi" in err and "--method vi-gibbs keeps no checkpoint" in err
+
+
+def test_ctrl_c_in_vi_gibbs_names_the_stage_it_stopped_in(home, tmp_path, capsys, monkeypatch):
+    """vi-gibbs runs CAVI, then Gibbs sweeps: Ctrl-C said "k of S iterations done" with S its
+    --sweeps in either stage, k CAVI's iterations in the first (of at most vi_iterations)."""
+    import spcopyro.gibbs.run as gibbs_run
+
+    real = gibbs_run.advance
+
+    def interrupting(chain, num_sweeps, callback=None, **kwargs):
+        def stop(s, state):
+            if s == 4:
+                raise KeyboardInterrupt
+
+        return real(chain, num_sweeps, callback=stop, **kwargs)
+
+    monkeypatch.setattr(gibbs_run, "advance", interrupting)
+    out = tmp_path / "out"
+    argv = _variational_argv(home, out, "vi-gibbs")
+    assert main([*argv, "--method-option", "vi_iterations=3"]) == 130
+    err = capsys.readouterr().err
+    assert "(vi-gibbs fit 1 of 1, 5 of 12 Gibbs sweeps done after its CAVI start)" in err
+    assert not out.exists()
 
 
 def test_ctrl_c_in_a_variational_fit_of_several_chains_says_why_none_is_kept(

@@ -401,8 +401,10 @@ def fit_house_chains(
                     thin=marginal_thin(int(sweeps), marginal_samples), **going_on,
                 )  # fmt: skip
             except DriveInterrupted as stop:  # the driver's record of how far it got
-                done = len(stop.trajectory.objective)
-                where = f"{method} fit {k + 1} of {len(seeds)}, {done} of {sweeps} iterations done"
+                done = stop.progress or (
+                    f"{len(stop.trajectory.objective)} of {sweeps} iterations done"
+                )
+                where = f"{method} fit {k + 1} of {len(seeds)}, {done}"
                 path = None if checkpoint is None else saving.save(checkpoint.path, stop)
                 raise FitInterrupted(where, path) from None
             except KeyboardInterrupt:  # in the method's setup or once its driver had returned

@@ -19,6 +19,7 @@ from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import run_gibbs
 from spcopyro.guides.options import VariationalOptions
 from spcopyro.guides.run import initial_q, run_variational
+from spcopyro.inference.driver import DriveInterrupted
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
 from spcopyro.inference.schedule import short_runs_meant, warn_unfinished_annealing
 from spcopyro.model import ModelData
@@ -68,13 +69,25 @@ class VIGibbsInference(InferenceMethod):
         warn_unfinished_annealing(options.variational.anneal_iterations, options.vi_iterations,
                                   "variational.anneal_iterations", "iteration",
                                   length="vi_iterations")  # fmt: skip
-        with short_runs_meant():  # warned above in vi-gibbs's names (--sweeps is Gibbs's)
-            vi = run_variational(data, config, options.vi_iterations,
-                                 options=options.variational, q=q, progress=progress)  # fmt: skip
-        run = run_gibbs(
-            data, config, request.iterations, options=options.gibbs, generator=generator,
-            init_labels=vi.labels, progress=progress, thin=request.thin,
-        )  # fmt: skip
+        try:
+            with short_runs_meant():  # warned above in vi-gibbs's names (--sweeps is Gibbs's)
+                vi = run_variational(
+                    data, config, options.vi_iterations, options=options.variational, q=q,
+                    progress=progress,
+                )  # fmt: skip
+        except DriveInterrupted as stop:  # its count is CAVI's, not of the sweeps asked for
+            stop.progress = (f"in its CAVI start, {len(stop.trajectory.objective)} of at most "
+                             f"{options.vi_iterations} iterations done")  # fmt: skip
+            raise
+        try:
+            run = run_gibbs(
+                data, config, request.iterations, options=options.gibbs, generator=generator,
+                init_labels=vi.labels, progress=progress, thin=request.thin,
+            )  # fmt: skip
+        except DriveInterrupted as stop:
+            stop.progress = (f"{len(stop.trajectory.objective)} of {request.iterations} Gibbs "
+                             f"sweeps done after its CAVI start")  # fmt: skip
+            raise
         offset = float(vi.seconds[-1])
         run = dataclasses.replace(run, seconds=np.asarray(run.seconds) + offset)
         record = {

@@ -82,11 +82,15 @@ class Trajectory(Generic[StateT]):
 class DriveInterrupted(KeyboardInterrupt):
     """Ctrl-C stopped :func:`drive`; ``trajectory`` holds the iterations completed before it
     (and those of the run it resumed), ``marginals`` the ``[N, L]`` q(C) its state holds where
-    the method hands one to :func:`drive` (what a variational checkpoint keeps), else None."""
+    the method hands one to :func:`drive` (what a variational checkpoint keeps), else None.
+    ``progress``: how far the fit got, in words, where a method of several runs says it better
+    than "k of n iterations" of the fit's own count (vi-gibbs: its CAVI start, then its sweeps);
+    None by default."""
 
     def __init__(self, trajectory: Trajectory, marginals: torch.Tensor | None = None) -> None:
         super().__init__(trajectory.stop_reason)
         self.trajectory, self.marginals = trajectory, marginals
+        self.progress: str | None = None
 
 
 def label_storage(num_concepts: int) -> type:

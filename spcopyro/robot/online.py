@@ -393,7 +393,8 @@ def fit_update(
                 where_stopped = (
                     f"chain {count}, {done} of {sweeps} sweeps done"
                     if isinstance(inference, GibbsInference)
-                    else f"{method} fit {count}, {done} of {sweeps} iterations done"
+                    else f"{method} fit {count}, "
+                    + (stop.progress or f"{done} of {sweeps} iterations done")
                 )
                 raise FitInterrupted(where_stopped) from None
             if output.marginals is None:  # a sampler: its label frequencies; a variational
