@@ -449,6 +449,15 @@ def test_ctrl_c_in_a_vi_gibbs_fit_says_how_far_it_got(home, tmp_path, capsys, mo
     assert "one fit (--chains 1) of cavi" in err and "--method vi-gibbs keeps no checkpoint" in err
 
 
+def test_resume_with_several_variational_fits_names_chains(home, tmp_path, capsys):
+    """--resume with --chains 2 of a method that resumes one fit: the refusal named "--sweeps N
+    --method cavi" as what keeps no checkpoint, which does keep one; the --chains is why."""
+    argv = _variational_argv(home, tmp_path / "out", "cavi")
+    assert main([*argv, "--chains", "2", "--resume", str(tmp_path / "x.npz")]) == 2
+    err = capsys.readouterr().err
+    assert "; --method cavi --chains 2 keeps no checkpoint" in err
+
+
 def test_ctrl_c_in_vi_gibbs_names_the_stage_it_stopped_in(home, tmp_path, capsys, monkeypatch):
     """vi-gibbs runs CAVI, then Gibbs sweeps: Ctrl-C said "k of S iterations done" with S its
     --sweeps in either stage, k CAVI's iterations in the first (of at most vi_iterations)."""

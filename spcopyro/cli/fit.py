@@ -43,6 +43,7 @@ from spcopyro.cli.fit_resume import (
     check_resume_file,
     interrupted_message,
     keeps_checkpoint,
+    no_checkpoint_flags,
     resumable_methods,
     resume_command,
     without_resume,
@@ -128,8 +129,8 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
     if args.resume is not None and not checkpointed:
         raise ValueError(
             "--resume continues Gibbs chains run for a number of --sweeps, or one fit "
-            f"(--chains 1) of {', '.join(resumable_methods())}; --sweeps {args.sweeps} --method "
-            f"{args.method} keeps no checkpoint"
+            f"(--chains 1) of {', '.join(resumable_methods())}; {no_checkpoint_flags(args)} "
+            "keeps no checkpoint"
         )
     if args.point_estimate != "map-visited" and (
         args.sweeps == "auto"

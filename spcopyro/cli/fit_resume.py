@@ -15,6 +15,7 @@ __all__ = [
     "check_resume_file",
     "interrupted_message",
     "keeps_checkpoint",
+    "no_checkpoint_flags",
     "resumable_methods",
     "resume_command",
     "without_resume",
@@ -43,6 +44,16 @@ def keeps_checkpoint(args: argparse.Namespace) -> bool:
     return args.method == "gibbs" or (
         args.method in resumable_methods() and args.chains in (None, 1)
     )
+
+
+def no_checkpoint_flags(args: argparse.Namespace) -> str:
+    """The flags for which this fit keeps no checkpoint, as ``--resume``'s refusal names them:
+    ``--chains K`` for several fits of a method that resumes one (``--sweeps N --method cavi``
+    alone was named, which does keep one), else ``--sweeps`` and ``--method``."""
+    several = args.chains not in (None, 1) and args.method in resumable_methods()
+    if several and args.sweeps != "auto" and args.update is None:
+        return f"--method {args.method} --chains {args.chains}"
+    return f"--sweeps {args.sweeps} --method {args.method}"
 
 
 def check_resume_file(resume: str) -> None:
