@@ -20,7 +20,9 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
+import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import NoReturn, TypeVar
@@ -192,11 +194,30 @@ def run_main(main: Callable[[], int | None]) -> NoReturn:
     (:func:`prepare_out_folder`)."""
     if "-h" not in sys.argv[1:] and "--help" not in sys.argv[1:]:
         prepare_out_folder(sys.argv[1:])
+    script = getattr(main, "__module__", None) == "__main__"  # not a test calling run_main
     try:
         code = main()
     except KeyboardInterrupt:
         written = [str(p) for p in WRITTEN if p.is_file()]
         what = f"{', '.join(written)} holds the results so far" if written else "no JSON written"
         print(f"\ninterrupted: {what}", file=sys.stderr)
+        if script:
+            _quiet_ctrl_c_at_exit(130)
         raise SystemExit(130) from None
+    if script:
+        _quiet_ctrl_c_at_exit(code or 0)
     raise SystemExit(code or 0)
+
+
+def _quiet_ctrl_c_at_exit(status: int) -> None:
+    """Once ``main`` is done (its JSON written, or the interrupt reported), a Ctrl-C during the
+    interpreter's shutdown (torch's and numba's exit callbacks) ends the process at once with
+    ``status``: it printed "Exception ignored in atexit callback" and a KeyboardInterrupt
+    traceback after "wrote ...", or died of SIGINT (status -2) with no line at all."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):
+            pass
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, lambda *_: os._exit(status))

@@ -406,6 +406,47 @@ def test_run_main_interrupted_one_line_and_130(script, tmp_path, capsys):
     assert f"interrupted: {partial} holds the results so far" in capsys.readouterr().err
 
 
+CTRL_C_AT_EXIT = """
+import atexit, os, signal, sys, time
+sys.path.insert(0, sys.argv[1])
+from bench_cli import run_main
+
+
+def ctrl_c_during_shutdown():  # a Ctrl-C while torch's exit callbacks run, after "wrote ..."
+    os.kill(os.getpid(), signal.SIGINT)
+    time.sleep(5)
+
+
+def main():
+    atexit.register(ctrl_c_during_shutdown)
+    print("wrote results.json", file=sys.stderr)
+    return {code}
+
+
+run_main(main)
+"""
+
+
+@pytest.mark.parametrize("code", [0, "KeyboardInterrupt()"])
+def test_ctrl_c_during_the_exit_is_no_traceback(tmp_path, code):
+    """A Ctrl-C once main is done (its JSON written, or the interrupt reported), while the
+    interpreter shuts down: the script ends quietly with main's status; it printed a
+    KeyboardInterrupt traceback from an atexit callback after "wrote ..."."""
+    source = CTRL_C_AT_EXIT.format(code=code)
+    if code != 0:
+        source = source.replace("    return KeyboardInterrupt()", "    raise KeyboardInterrupt")
+    script = tmp_path / "ctrl_c_at_exit.py"
+    script.write_text(source)
+    done = subprocess.run([sys.executable, str(script), str(BENCHMARKS)], capture_output=True,
+                          text=True, timeout=60)  # fmt: skip
+    assert "Traceback" not in done.stderr and "KeyboardInterrupt" not in done.stderr, done.stderr
+    if code == 0:
+        assert (done.returncode, done.stderr) == (0, "wrote results.json\n")
+    else:
+        assert done.returncode == 130
+        assert done.stderr.strip().endswith("interrupted: no JSON written")
+
+
 def test_every_script_runs_main_through_run_main():
     """Each runnable script ends in bench_cli.run_main(main), not sys.exit(main())."""
     runnable = [p for p in BENCHMARKS.glob("*.py") if '__name__ == "__main__"' in p.read_text()]
