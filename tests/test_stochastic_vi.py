@@ -271,6 +271,12 @@ def test_fit_house_and_the_cli_run_stochastic_vi(tmp_path):
     saved = json.loads((out / "config.json").read_text())
     assert saved["method"] == "stochastic-vi" and saved["inference"]["iterations"] == 3
     assert saved["inference"]["block_size"] == StochasticOptions().block_size
+    # config.json names the backend that ran, as CAVI's and LBP's do (auto resolved)
+    expected = "torch" if stochastic.compiled_path("auto") is None else "numba"
+    assert saved["inference"]["backend_used"] == expected
+    torch_only = fit_house(house, settings, method="stochastic-vi", sweeps=2, progress=False,
+                           options=StochasticOptions(backend="torch"))  # fmt: skip
+    assert torch_only.inference["backend_used"] == "torch"
 
 
 # --------------------------------------------------------------------------------------------

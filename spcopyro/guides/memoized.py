@@ -586,5 +586,10 @@ class StochasticVIInference(InferenceMethod):
             data, config, remaining(request), q=q.to(dtype), generator=request.generator,
             options=options, progress=request.progress, thin=request.thin, resume=before,
         )  # fmt: skip
-        record = {"iterations": request.iterations, **dataclasses.asdict(options)}
+        used = "torch" if compiled_path(options.backend) is None else "numba"  # auto resolved
+        record = {
+            "iterations": request.iterations,
+            **dataclasses.asdict(options),
+            "backend_used": used,
+        }
         return output_from_variational(run, record)
