@@ -64,6 +64,12 @@ def load_headline_house(dataset: Path | None) -> House:
     return synthetic_house(HEADLINE_SIDE)
 
 
+def embedded_default_house(seed: int = 0) -> House:
+    """The house ``spcopyro fit`` fits when given no house folder (``--seed`` 0): what a whole
+    fit without the dataset is compared with, not the headline house's stand-in."""
+    return make_house(seed=seed, spec=HouseSpec.embedded())
+
+
 # ---------------------------------------------------------------------------------------------
 # The per-cell baseline
 # ---------------------------------------------------------------------------------------------
