@@ -176,10 +176,15 @@ def prepare_out_folder(argv: Sequence[str]) -> None:
     """Create the folder of an ``--out`` given in ``argv`` (``--out PATH`` or ``--out=PATH``)
     before the script runs: a folder that did not exist used to fail the script after its
     measurements, when it wrote the JSON (four scripts created it, the others did not). A
-    folder that cannot be made is a one-line error (exit 2) before anything runs."""
+    folder that cannot be made, or an ``--out`` that is a folder (the run failed at its end,
+    writing the JSON, with IsADirectoryError), is a one-line error (exit 2) before anything
+    runs."""
     values = [b for a, b in zip(argv, argv[1:], strict=False) if a == "--out"]
     values += [a.split("=", 1)[1] for a in argv if a.startswith("--out=")]
     for value in values:
+        if value.endswith(("/", os.sep)) or Path(value).is_dir():  # the JSON: written at the end
+            fail(f"--out {value}: is a folder; give the JSON file's name, e.g. "
+                 f"{os.path.join(value, Path(sys.argv[0]).stem + '.json')}")  # fmt: skip
         folder = Path(value).parent
         try:
             folder.mkdir(parents=True, exist_ok=True)

@@ -384,6 +384,20 @@ def test_an_out_in_a_missing_folder_gets_its_folder_before_the_run(script, tmp_p
     assert stop.value.code == 2 and "cannot make its folder" in err and "Traceback" not in err
 
 
+@pytest.mark.parametrize("how", ["existing", "slash"])
+def test_an_out_that_is_a_folder_is_an_error_before_the_run(script, tmp_path, capsys, how):
+    """``--out /tmp`` ran the whole benchmark, then failed writing the JSON with an
+    IsADirectoryError traceback (and ``--out new/`` made the folder to fail the same way)."""
+    bench_cli = script("bench_cli")
+    value = str(tmp_path) if how == "existing" else f"{tmp_path / 'new'}/"
+    with pytest.raises(SystemExit) as stop:
+        bench_cli.prepare_out_folder(["--out", value])
+    err = capsys.readouterr().err.strip()
+    assert stop.value.code == 2 and len(err.splitlines()) == 1, err
+    assert f"error: --out {value}: is a folder" in err
+    assert not (tmp_path / "new").exists()
+
+
 def test_run_main_interrupted_one_line_and_130(script, tmp_path, capsys):
     """Ctrl-C: no traceback, one line saying what was (not) written, exit status 130."""
     bench_cli = script("bench_cli")
