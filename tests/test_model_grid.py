@@ -269,3 +269,19 @@ def test_gibbs_conditionals_on_the_model_grid_equal_the_pyro_models_density_diff
     rng = np.random.default_rng(0)
     cells = np.sort(rng.choice(data.obs_cells.numpy(), 6, replace=False))
     assert_conditionals_match_model(state, data, settings.model, torch.as_tensor(cells))
+
+
+def test_fit_init_from_a_coarse_fits_folder_starts_a_fit_on_the_maps_cells(tmp_path, capsys):
+    """`fit --init-from OUT` of a coarse fit (the default: the 0.3 m model grid) into a fit on
+    the map's own cells: the loaded result's grid did not know the map it was coarsened from
+    (robot_map.yaml), so its labels were refused as another map's instead of refined."""
+    from spcopyro.cli.main import main
+
+    coarse, fine = tmp_path / "coarse", tmp_path / "fine"
+    args = ["fit", "--sweeps", "2", "--no-figures", "--method", "cavi"]
+    assert main([*args, "--out", str(coarse)]) == 0
+    capsys.readouterr()
+    assert main([*args, "--out", str(fine), "--cell-size", "map", "--init-from", str(coarse)]) == 0
+    assert "starting from    the cavi fit" in capsys.readouterr().out
+    assert np.load(coarse / "labels.npy").shape == (20, 27)  # the 0.3 m model grid
+    assert np.load(fine / "labels.npy").shape == (60, 80)  # the map's 0.1 m cells

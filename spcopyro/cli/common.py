@@ -56,6 +56,24 @@ def load_robot_map(result: SpCoResult, folder: str) -> tuple[Path, OccupancyGrid
     return None if fallback and grid.resolution >= result.grid.resolution else (path, grid)
 
 
+def load_start(folder: str) -> SpCoResult:
+    """The fit in ``folder`` as the start of another (``fit --init-from``): a coarse fit's grid
+    knows the map it was coarsened from again (its ``robot_map.yaml``), so that it starts a fit
+    on the map's own cells with its labels refined to them
+    (:func:`spcopyro.fit.starts.result_labels`); ``SpCoResult.load`` alone reads a grid of its
+    own, which was refused there as another map."""
+    import dataclasses
+
+    from spcopyro.results.result import SpCoResult
+
+    result = SpCoResult.load(folder)
+    robot_map = None if result.grid.coarsened_from is not None else load_robot_map(result, folder)
+    if robot_map is None:
+        return result
+    grid = dataclasses.replace(result.grid, coarsened_from=robot_map[1])
+    return dataclasses.replace(result, grid=grid)
+
+
 def refuse_fit_files(result_dir: str, out: str, targets: list[Path]) -> None:
     """ValueError when one of ``targets`` (the files ``--out OUT`` writes, resolved) is one of
     the fit's own files in ``result_dir`` (its manifest,

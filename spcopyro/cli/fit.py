@@ -33,6 +33,7 @@ from spcopyro.cli.common import (
     _feature_scaling,
     _load,
     _summary,
+    load_start,
     pace,
 )
 from spcopyro.cli.concept_listing import print_concepts
@@ -326,9 +327,7 @@ def _fit_staged(job: FitJob) -> int:
         print(f"updating         the {saved.method} fit in {args.update} "
               f"({len(saved.trace.objective)} iterations) with all of this data")  # fmt: skip
     if args.init_from is not None:
-        from spcopyro.results.result import SpCoResult
-
-        init = SpCoResult.load(args.init_from)
+        init = load_start(args.init_from)  # a coarse fit with the map it coarsened
         kept = warm_start_kept(options or default)  # svi smooths it toward uniform
         print(f"starting from    the {init.method} fit in {args.init_from}{kept}")
     args.phases.mark("summary")
