@@ -244,6 +244,13 @@ def test_fit_writes_the_uncertainty_map_and_where_its_probability_map(tmp_path, 
     smoothing = ["--method-option", "label_smoothing=0.05", "--no-figures"]
     assert main([*svi, "--out", str(tmp_path / "svi95"), *smoothing]) == 0
     assert "(95% of its labels in q's start: label_smoothing 0.05," in capsys.readouterr().out
+    # an update by svi starts from the saved labels smoothed the same way: it said nothing
+    update = ["fit", "--method", "svi", "--sweeps", "2", "--update", str(gibbs), *common]
+    assert main([*update, "--out", str(tmp_path / "svi_update"), "--no-figures"]) == 0
+    assert (
+        "with all of this data (10% of its labels in q's start: label_smoothing 0.9,"
+        in capsys.readouterr().out
+    )
     assert json.loads((cavi / "config.json").read_text())["inference"]["init"] == "result of gibbs"
     assert (cavi / "uncertainty.png").is_file()
 

@@ -325,7 +325,8 @@ def _fit_staged(job: FitJob) -> int:
 
         saved = SpCoResult.load(args.update)
         print(f"updating         the {saved.method} fit in {args.update} "
-              f"({len(saved.trace.objective)} iterations) with all of this data")  # fmt: skip
+              f"({len(saved.trace.objective)} iterations) with all of this data"
+              f"{warm_start_kept(options or default)}")  # fmt: skip
     if args.init_from is not None:
         init = load_start(args.init_from)  # a coarse fit with the map it coarsened
         kept = warm_start_kept(options or default)  # svi smooths it toward uniform
