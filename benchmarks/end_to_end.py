@@ -57,7 +57,7 @@ from typing import Any
 SCRIPT_DIR = Path(__file__).resolve().parent
 sys.path.insert(0, str(SCRIPT_DIR))
 
-from bench_cli import COUNT, check_houses, dataset_root, quick_or, run_main  # noqa: E402  (scripts beside this one)
+from bench_cli import COUNT, check_houses, dataset_root, fail, quick_or, run_main  # noqa: E402  (scripts beside this one)
 from fixed_cost import (  # noqa: E402
     _table,
     measure_startup,
@@ -205,6 +205,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     every = ",".join((EMBEDDED, *PUBLIC))
     houses = [h.strip() for h in quick_or(args.houses, args.quick, EMBEDDED, every).split(",")]
     houses = [h for h in houses if h]
+    if not houses:  # not a PASS "on every house" of none
+        fail(f"--houses {args.houses!r}: no house named")
     named = args.houses is not None and set(houses) != {EMBEDDED}  # there, or an error
     root = dataset_root(args.dataset, without=None if named else "the public houses are skipped",
                         needed_by=f"--houses {','.join(houses)}")  # fmt: skip

@@ -49,10 +49,13 @@ import torch
 from bench_cli import COUNT, INDEX, quick_or, run_main
 from machine import busy_cpu_seconds, format_table, machine_info, own_cpu_seconds, progress
 
+from spcopyro._util.arguments import integer_at_least
+
 SCRIPT_DIR = Path(__file__).resolve().parent
 SEED = 0
 PRESET = "original-code"  # chi = 1, beta = 0.1: the observations are informative
 GAMMA = 2.1
+MIN_SIDE = 20  # HouseSpec.scaled's smallest: a 12-cell room inside the 3-cell margin and wall
 STABLE_ELBO = 1e-4  # relative ELBO rise of a pass below which the ELBO counts as stable
 STABLE_ARI = 0.01  # the ARI counts as stable once it stays within this of its final value
 
@@ -374,7 +377,7 @@ def _s(value: float | None) -> str:
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[1] if __doc__ else None)
     p.add_argument("--quick", action="store_true", help="a ~1e4-cell smoke test")
-    p.add_argument("--side", type=COUNT,
+    p.add_argument("--side", type=integer_at_least(MIN_SIDE),
                    help="large map side (default 1050: ~1e6 cells; --quick: 110)")  # fmt: skip
     p.add_argument("--passes", type=COUNT, help="passes on the large map (default 60; quick: 6)")
     p.add_argument("--anneal", type=INDEX, help="annealing passes, all runs (default 10; quick: 2)")
