@@ -656,3 +656,9 @@ def test_gibbs_whole_fit_speedup_is_against_the_house_the_fit_fitted(script, mon
     assert [f["house"] for f in fits] == [None] * len(gibbs.FIT_PRESETS)
     assert {name for name, _ in timed} == {embedded.name} != {"stand-in"}
     assert {cells for _, cells in timed} == {int(embedded.grid.num_free)}
+
+
+def test_variational_targets_line_counts_the_rows_that_pass(script):
+    """variational.py's verdict line read "FAIL (2 of 4 rows)" for 2 rows passing of 4."""
+    line = script("variational").targets_line([False, False, True, True])
+    assert line.endswith(": FAIL (2 of 4 rows pass)"), line
