@@ -184,7 +184,7 @@ def main(argv: list[str] | None = None) -> int:
     for house in houses:
         warm_up(house, args.preset, args.merge_moves, args.gamma)
         for seed in args.seeds:
-            for share in (0.0, args.merge_moves):
+            for share in dict.fromkeys((0.0, args.merge_moves)):  # 0: the baseline once
                 print(f"{house.name} merge_moves={share} seed={seed}", file=sys.stderr)
                 rows.append(run_chain(house, args.preset, share, sweeps, seed, 50, args.gamma))
                 print(json.dumps(rows[-1]), file=sys.stderr)  # each row as soon as it is done

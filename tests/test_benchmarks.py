@@ -610,6 +610,13 @@ def test_merge_moves_warms_up_before_the_timed_chains(script, tmp_path, keep_tor
         assert merge_moves.main(["--quick", "--out", str(tmp_path / "m.json")]) == 0
     warm = merge_moves.WARMUP_SWEEPS
     assert calls == [(0.0, warm), (1.0, warm), (0.0, 12), (0.2, 12)]
+    # --merge-moves 0: the baseline alone, once (it ran and printed two identical rows).
+    calls.clear()
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(merge_moves, "run_chain", recording)
+        argv = ["--quick", "--merge-moves", "0", "--out", str(tmp_path / "m0.json")]
+        assert merge_moves.main(argv) == 0
+    assert calls == [(0.0, warm), (0.0, 12)]
 
 
 def test_study_tables_name_the_cells_and_columns_that_differ(script):
