@@ -242,6 +242,29 @@ def test_a_variational_checkpoint_names_the_backend_that_ran_not_auto(tmp_path):
         load_variational(path, data, cfg, method="cavi", options=VariationalOptions(backend=other))
 
 
+def test_an_lbp_checkpoint_names_the_backend_auto_ran_at_a_large_coupling(tmp_path):
+    """LBP's auto runs torch where gamma D > 300 (numba's products would overflow); its
+    checkpoint named numba (CAVI's auto), so resuming with backend=torch, the backend that ran,
+    was refused ('numba' in the checkpoint, 'torch' here) and backend=numba accepted."""
+    from spcopyro.gibbs.run import SweepInfo
+    from spcopyro.guides.checkpoint import load_variational, save_variational
+    from spcopyro.guides.lbp_method import LBPOptions, resolve_lbp_backend
+    from spcopyro.inference.driver import drive
+
+    cfg = config(gamma=100.0)
+    _, data = random_problem(seed=7)
+    assert resolve_lbp_backend(LBPOptions(), data, cfg) == "torch"
+    record = drive(0, lambda s, g: (s + 1, SweepInfo(-1.0, 1, g)), 2, gamma=cfg.gamma,
+                   progress=False)  # fmt: skip
+    q = torch.full((data.num_free, cfg.num_concepts), 1.0 / cfg.num_concepts)
+    path = save_variational(tmp_path / "q.npz", q, record, config=cfg, data=data, method="lbp",
+                            options=LBPOptions())  # fmt: skip
+    for options in (LBPOptions(), LBPOptions(backend="torch")):
+        load_variational(path, data, cfg, method="lbp", options=options)
+    with pytest.raises(ValueError, match="backend: 'torch' in the checkpoint, 'numba' here"):
+        load_variational(path, data, cfg, method="lbp", options=LBPOptions(backend="numba"))
+
+
 def test_a_file_that_is_no_checkpoint_is_refused(tmp_path):
     cfg = config()
     _, data = random_problem(seed=7)

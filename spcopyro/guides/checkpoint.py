@@ -64,7 +64,11 @@ RECORDS = ("objective", "num_concepts", "seconds", "gammas")
 
 
 def _header(method: str, options: object, config: SpCoConfig, data: ModelData) -> dict:
+    from spcopyro.guides.lbp_method import LBPOptions, resolve_lbp_backend
+
     fields = dataclasses.asdict(options) if dataclasses.is_dataclass(options) else {}
+    if isinstance(options, LBPOptions) and options.backend == "auto":  # torch at gamma D > 300
+        fields["backend"] = resolve_lbp_backend(options, data, config)
     return {
         "method": method,
         "options": _backends_resolved(fields),  # what ran: "auto" the one it chose
