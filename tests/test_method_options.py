@@ -267,3 +267,19 @@ def test_a_hyper_tuning_option_of_an_unsampled_hyperparameter_is_refused(tmp_pat
     assert main(base) == 2
     assert "hyper.log_gamma_sd=2: no hyperparameter the chain samples" in capsys.readouterr().err
     assert main([*base, "--method-option", "hyper.gamma=pseudolikelihood"]) == 0
+
+
+@pytest.mark.parametrize(
+    "method, extra",
+    [("cavi", []), ("lbp", []), ("lbp", ["--gamma", "80"]), ("stochastic-vi", [])],
+)
+def test_a_variational_fit_prints_the_backend_it_ran(tmp_path, capsys, method, extra):
+    """`fit` printed "backend used" for Gibbs fits only, though config.json's
+    inference.backend_used is said to be printed too; it is the same name (lbp's auto: torch
+    where gamma D > 300)."""
+    out = tmp_path / "fit"
+    args = ["fit", "--out", str(out), "--method", method, "--sweeps", "2", "--no-figures",
+            "--preset", "original-code", "--concepts", "6", *extra]  # fmt: skip
+    assert main(args) == 0
+    used = json.loads((out / "config.json").read_text())["inference"]["backend_used"]
+    assert f"backend used     {used}\n" in capsys.readouterr().out

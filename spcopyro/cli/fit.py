@@ -38,7 +38,12 @@ from spcopyro.cli.common import (
 )
 from spcopyro.cli.concept_listing import print_concepts
 from spcopyro.cli.fit_figures import FigurePrefetch, write_figures
-from spcopyro.cli.fit_options import check_sweeps, method_options, warm_start_kept
+from spcopyro.cli.fit_options import (
+    backend_used,
+    check_sweeps,
+    method_options,
+    warm_start_kept,
+)
 from spcopyro.cli.fit_refine import prepares_data, refine, report_update, update_settings
 from spcopyro.cli.fit_resume import (
     check_resume_file,
@@ -299,8 +304,6 @@ def _fit_staged(job: FitJob) -> int:
     """Print what is fitted, fit, write every output into ``staged.path``, then move it to
     OUT."""
     from spcopyro.fit.registry import INFERENCE_METHODS
-    from spcopyro.gibbs.backends import get_backend
-    from spcopyro.gibbs.options import GibbsOptions
 
     args, house, settings, options = job.args, job.house, job.settings, job.options
     config = settings.model
@@ -313,8 +316,8 @@ def _fit_staged(job: FitJob) -> int:
     default = INFERENCE_METHODS[args.method].default_options()
     print(f"inference        {args.method}: {options if options is not None else default}")
     print(f"threads          {describe_threads(args.threads, house.grid.num_free)}")
-    if isinstance(options, GibbsOptions):
-        print(f"backend used     {get_backend(options.backend).name}")
+    if (used := backend_used(options or default, config)) is not None:
+        print(f"backend used     {used}")
     if args.resume is not None:
         saved_fit = "chains" if args.method == "gibbs" else "fit"
         print(f"resuming         the {saved_fit} saved in {args.resume}")

@@ -105,6 +105,39 @@ def check_sweeps(args: argparse.Namespace) -> None:
                          "it out")  # fmt: skip
 
 
+def backend_used(options: object, config: object) -> str | None:
+    """The backend a fit with ``options`` runs (``auto`` resolved), for the "backend used"
+    line: Gibbs's, CAVI's, loopy BP's (torch where gamma D > 300), memoized VI's, vi-gibbs's
+    two; None for a method without one (svi). Only Gibbs fits printed it, though config.json's
+    ``inference.backend_used`` is said to be printed too."""
+    from spcopyro.gibbs.backends import get_backend
+    from spcopyro.gibbs.options import GibbsOptions
+    from spcopyro.guides.lbp_method import LBPOptions
+    from spcopyro.guides.memoized import StochasticOptions, compiled_path
+    from spcopyro.guides.options import VariationalOptions
+    from spcopyro.guides.run import resolve_backend
+    from spcopyro.guides.vi_gibbs import VIGibbsOptions
+
+    if isinstance(options, GibbsOptions):
+        return get_backend(options.backend).name
+    if isinstance(options, VariationalOptions):
+        return resolve_backend(options.backend)
+    if isinstance(options, VIGibbsOptions):
+        cavi = resolve_backend(options.variational.backend)
+        return f"{cavi} (CAVI), {get_backend(options.gibbs.backend).name} (Gibbs)"
+    if isinstance(options, StochasticOptions):
+        return "torch" if compiled_path(options.backend) is None else "numba"
+    if isinstance(options, LBPOptions):
+        ran = resolve_backend(options.backend)  # where numba imports; auto: not at a large gamma D
+        if ran == "numba" and options.backend == "auto":
+            from spcopyro.guides.numba_lbp import MAX_GAMMA_DEGREE
+
+            degree = config.gamma * config.connectivity  # type: ignore[attr-defined]
+            return "torch" if degree > MAX_GAMMA_DEGREE else ran
+        return ran
+    return None
+
+
 def warm_start_kept(options: object) -> str:
     """What of a warm start's labels (``--init-from``) a method keeps, for the "starting from"
     line: svi smooths them toward uniform by ``label_smoothing`` (0.9 by default, which keeps
