@@ -86,6 +86,8 @@ def test_drive_stops_at_the_tolerance_or_the_ceiling_and_says_why():
     run = drive(0, _counting_step(values), 6, gamma=1.0, tolerance=0.0, progress=False)
     assert run.state == 6 and not run.converged
     assert run.stop_reason == "ran the 6 iterations asked for (not converged within them)"
+    run = drive(0, _counting_step(values), 1, gamma=1.0, tolerance=0.0, progress=False)
+    assert run.stop_reason == "ran the 1 iteration asked for (not converged within it)"
     run = drive(0, _counting_step(values), 6, gamma=1.0, anneal=5, tolerance=1e-7,
                 progress=False)  # fmt: skip
     assert run.state == 6  # iterations 0-3 annealed: no stop before two at full gamma

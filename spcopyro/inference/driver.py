@@ -38,6 +38,7 @@ import torch
 from tqdm.auto import tqdm
 
 from spcopyro._util.interrupts import caused_by_interrupt
+from spcopyro._util.messages import plural
 from spcopyro._util.progress import progress_enabled
 from spcopyro.inference.schedule import annealed_gamma, converged
 
@@ -203,15 +204,16 @@ def drive(
         except (KeyboardInterrupt, SystemError) as error:
             if not caused_by_interrupt(error):  # a SystemError of its own
                 raise
-            reason = f"interrupted (Ctrl-C) after {len(rows)} iterations"
+            reason = f"interrupted (Ctrl-C) after {plural(len(rows), 'iteration')}"
             held = None if marginals is None else marginals(recorded)
             raise DriveInterrupted(trajectory(reason), held) from None
     if converged_now:
         return trajectory(
-            f"converged after {len(rows)} iterations: the objective changed by less than "
+            f"converged after {plural(len(rows), 'iteration')}: the objective changed by less than "
             f"tolerance {tolerance:g} x |objective|",
             done=True,
         )
-    reason = f"ran the {len(rows)} iterations asked for (not converged within them"
+    asked = "the 1 iteration" if len(rows) == 1 else f"the {len(rows)} iterations"
+    reason = f"ran {asked} asked for (not converged within " + ("it" if len(rows) == 1 else "them")
     reason += f" at tolerance {tolerance:g})" if tolerance else ")"
     return trajectory(reason)
