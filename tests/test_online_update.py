@@ -145,6 +145,7 @@ def test_fit_update_command_end_to_end(tmp_path, house, capsys):
                  "--update", str(first), "--sweeps", "20", *flags]) == 0  # fmt: skip
     out = capsys.readouterr().out
     assert "new words        2: kitchen, sofa" in out
+    assert f"updating         the gibbs fit in {first} (40 sweeps) with all of this data" in out
     saved, result = SpCoResult.load(first), SpCoResult.load(updated)
     assert result.vocabulary == saved.vocabulary + ("kitchen", "sofa")
     assert len(result.trace.objective) == 20

@@ -327,8 +327,10 @@ def _fit_staged(job: FitJob) -> int:
         from spcopyro.results.result import SpCoResult
 
         saved = SpCoResult.load(args.update)
-        print(f"updating         the {saved.method} fit in {args.update} "
-              f"({len(saved.trace.objective)} iterations) with all of this data"
+        steps = plural(len(saved.trace.objective), "sweep" if saved.method == "gibbs" else
+                       "iteration")  # fmt: skip
+        print(f"updating         the {saved.method} fit in {args.update} ({steps}) with all "
+              "of this data"
               f"{warm_start_kept(options or default)}")  # fmt: skip
     if args.init_from is not None:
         init = load_start(args.init_from)  # a coarse fit with the map it coarsened
