@@ -376,6 +376,12 @@ def test_several_variational_fits_report_their_objective(small_house, tmp_path, 
     assert "best of 2 fits: kept fit " in printed and " final ELBOs " in printed
     assert "log joint" not in printed.split("best of 2 fits")[1].splitlines()[0]
     assert "fitted 2 fits, the kept one 3 iterations, in " in printed and "chains" not in printed
+    argv[argv.index("cavi")] = "vi-gibbs"  # CAVI starts, then Gibbs chains: chains
+    argv[argv.index(str(tmp_path / "fit"))] = str(tmp_path / "vi-gibbs")
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "best of 2 chains: kept chain " in printed and " best log joints " in printed
+    assert "fitted 2 chains x 3 sweeps in " in printed and "2 fits" not in printed
 
 
 def test_a_dataset_root_given_as_the_house_names_its_houses(small_house, tmp_path, capsys):

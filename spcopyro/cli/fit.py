@@ -463,8 +463,9 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
         report = {"seeds": [args.seed + k for k in range(chains)], "best_chain": kept,
                   "best_log_joint": best_values, "objective": objective}  # fmt: skip
         (out / "chains.json").write_text(json.dumps(report, indent=1) + "\n")
-        run = ("refined " if job.refined else "") + ("chain" if args.method == "gibbs" else "fit")
-        value = "best" if objective == "log joint" else "final"  # a variational fit reports q
+        sampled = objective == "log joint"  # Gibbs chains, vi-gibbs's too; else q's objective
+        run = ("refined " if job.refined else "") + ("chain" if sampled else "fit")
+        value = "best" if sampled else "final"  # a variational fit reports q
         print(f"best of {chains} {run}s: kept {run} {kept} (seed {args.seed + kept}), {value} "
               f"{objective}s {', '.join(f'{v:.1f}' for v in best_values)}")  # fmt: skip
     sweeps_run = len(result.trace.objective)
