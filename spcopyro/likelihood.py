@@ -203,6 +203,36 @@ def log_joint_variable(
     return total
 
 
+def check_model_density(
+    model_log_density: float,
+    labels: torch.Tensor,
+    log_pi: torch.Tensor,
+    log_parameters: Sequence[torch.Tensor],
+    data: ModelData,
+    config: SpCoConfig,
+    *,
+    at: str,
+    why: str,
+    refusal: str,
+) -> None:
+    """ValueError unless ``model_log_density`` (a model's ``log_prob_sum`` at these labels and
+    parameters) is :func:`~spcopyro.model.spcomapping_model`'s log joint there
+    (:func:`log_joint_constant` + :func:`log_joint_variable`), to rounding (1e-11 of the
+    terms' size). An inference method that takes that model's terms from here (the Gibbs
+    kernel's conditionals, MeanFieldELBO's closed-form label terms) would otherwise treat
+    another model (a changed prior, coupling or likelihood) as this one, silently. ``at``
+    names the point compared, ``why`` what the caller takes from this model, ``refusal`` what
+    it cannot do."""
+    constant = float(log_joint_constant(data, config))
+    own = constant + float(log_joint_variable(labels, log_pi, log_parameters, data, config))
+    if not abs(model_log_density - own) <= 1e-11 * (abs(own) + abs(constant)) + 1e-9:
+        raise ValueError(
+            f"the model's log density {at} is {model_log_density!r} where spcomapping_model's, "
+            f"{why}, is {own!r}: {refusal} (change the model through "
+            "SpCoConfig and ModelData.modalities, which it reads)"
+        )
+
+
 def log_joint_terms(
     labels: torch.Tensor,
     log_pi: torch.Tensor,

@@ -43,7 +43,7 @@ from spcopyro.gibbs.hyperparameters import hyperparameter_names, hyperparameter_
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.sampler import init, step, trace_point
 from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
-from spcopyro.likelihood import log_joint_constant, log_joint_variable, num_concepts_in_use
+from spcopyro.likelihood import check_model_density, log_joint_constant, num_concepts_in_use
 from spcopyro.model import (
     DTYPE,
     SITE_LABELS,
@@ -184,7 +184,7 @@ class SpCoGibbs(MCMCKernel):
 
     def _check_model_density(self) -> None:
         """ValueError unless the model's log density is the one the kernel's conditionals
-        sample (:func:`~spcopyro.model.spcomapping_model`'s), compared at one point: every
+        sample (:func:`~spcopyro.likelihood.check_model_density`), compared at one point: every
         cell in concept 0 (all pairs agree, so the coupling counts) with uniform pi and
         emission tables (finite wherever the state's draws may underflow to 0). A model of the
         right sites but another density (a changed prior, coupling or likelihood, a further
@@ -202,16 +202,12 @@ class SpCoGibbs(MCMCKernel):
             values[modality.parameter] = table.exp()
         conditioned = poutine.condition(self.model, data=values)
         model = float(poutine.trace(conditioned).get_trace(data, config).log_prob_sum())
-        variable = log_joint_variable(labels, log_pi, log_tables, data, config)
-        kernel = self._log_joint_constant + float(variable)
-        scale = abs(kernel) + abs(self._log_joint_constant)  # rounding: ~1e-16 of the terms
-        if not abs(model - kernel) <= 1e-11 * scale + 1e-9:
-            raise ValueError(
-                f"the model's log density is {model!r} where spcomapping_model's, whose "
-                f"conditionals SpCoGibbs samples, is {kernel!r} (every cell in concept 0, "
-                "uniform pi and emissions): the kernel cannot sample another model (change "
-                "the model through SpCoConfig and ModelData.modalities, which it reads)"
-            )
+        check_model_density(
+            model, labels, log_pi, log_tables, data, config,
+            at="with every cell in concept 0, uniform pi and emissions",
+            why="whose conditionals SpCoGibbs samples",
+            refusal="the kernel cannot sample another model",
+        )  # fmt: skip
 
     def _params(self, state: GibbsState) -> dict[str, torch.Tensor]:
         values = {

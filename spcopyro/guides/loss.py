@@ -77,9 +77,8 @@ from pyro.infer import ELBO
 
 from spcopyro.config import SpCoConfig
 from spcopyro.likelihood import (
+    check_model_density,
     expected_agreements,
-    log_joint_constant,
-    log_joint_variable,
     multinomial_coefficients,
     observation_log_likelihood,
 )
@@ -124,10 +123,11 @@ def traces(
 
 def _check_model(model_trace: poutine.Trace, data: ModelData, config: SpCoConfig) -> bool:
     """ValueError unless the model's log density at the trace's draw (globals from the guide,
-    labels drawn from q(C)) is :func:`~spcopyro.model.spcomapping_model`'s there: the label
-    terms F are taken in closed form from :mod:`spcopyro.likelihood`, whatever model SVI is
-    given. True once compared; False where the model's value is not finite (a drawn label
-    whose pi underflowed to 0: nothing to compare)."""
+    labels drawn from q(C)) is :func:`~spcopyro.model.spcomapping_model`'s there
+    (:func:`~spcopyro.likelihood.check_model_density`): the label terms F are taken in closed
+    form from :mod:`spcopyro.likelihood`, whatever model SVI is given. True once compared;
+    False where the model's value is not finite (a drawn label whose pi underflowed to 0:
+    nothing to compare)."""
     with torch.no_grad():
         model = float(model_trace.log_prob_sum())
         if not math.isfinite(model):
@@ -135,15 +135,12 @@ def _check_model(model_trace: poutine.Trace, data: ModelData, config: SpCoConfig
         labels = model_trace.nodes[SITE_LABELS]["value"]  # [N]
         log_pi = model_trace.nodes[SITE_PI]["value"].log()  # [L]
         log_parameters = [model_trace.nodes[m.parameter]["value"].log() for m in data.modalities]
-        constant = float(log_joint_constant(data, config))
-        own = constant + float(log_joint_variable(labels, log_pi, log_parameters, data, config))
-    if not abs(model - own) <= 1e-11 * (abs(own) + abs(constant)) + 1e-9:  # rounding only
-        raise ValueError(
-            f"the model's log density at a draw of the guide is {model!r} where "
-            f"spcomapping_model's, whose label terms MeanFieldELBO takes in closed form, is "
-            f"{own!r}: it cannot fit another model (change the model through SpCoConfig and "
-            "ModelData.modalities, which it reads)"
-        )
+        check_model_density(
+            model, labels, log_pi, log_parameters, data, config,
+            at="at a draw of the guide",
+            why="whose label terms MeanFieldELBO takes in closed form",
+            refusal="it cannot fit another model",
+        )  # fmt: skip
     return True
 
 
