@@ -236,11 +236,7 @@ class ModalityPlacement:
 
 def _share_on_free(grid: OccupancyGrid, xy: np.ndarray) -> float:
     """Share of the points ``[n, 2]`` whose cell is free."""
-    cells = grid.world_to_cell(xy)  # [n, 2] (row, col)
-    inside = grid.in_bounds(cells)  # [n] bool
-    on_free = np.zeros(len(xy), dtype=bool)
-    on_free[inside] = grid.free[cells[inside, 0], cells[inside, 1]]
-    return float(on_free.mean())
+    return float(grid.is_free(grid.world_to_cell(xy)).mean())  # [n] bool -> share
 
 
 def position_hint(grid: OccupancyGrid, xy: np.ndarray) -> str:
