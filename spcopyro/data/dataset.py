@@ -37,7 +37,7 @@ from spcopyro.data.dataset_files import (
 from spcopyro.data.observations import _MISSING, DataFormatError, Observations
 from spcopyro.data.text import tokenize
 from spcopyro.maps.grid import OccupancyGrid
-from spcopyro.maps.map_server import load_map, save_map
+from spcopyro.maps.map_server import MAX_MAP_COORDINATE, load_map, save_map
 
 __all__ = [
     "House",
@@ -162,9 +162,10 @@ def _check_truth(
     return labels
 
 
-MAX_COORDINATE = 1e6
+MAX_COORDINATE = MAX_MAP_COORDINATE
 """Metres: a world position farther than this from the map's frame origin (1000 km) is a data
-error, named with its file and line (issue 22 item 10), not a map-indexing failure later."""
+error, named with its file and line (issue 22 item 10), not a map-indexing failure later.
+:func:`~spcopyro.maps.load_map` refuses a map lying wholly beyond the same bound."""
 
 
 def _where_maps_are(yaml_path: Path) -> str:
