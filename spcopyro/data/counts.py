@@ -375,9 +375,7 @@ def cell_counts(
         unplaced_images=np.flatnonzero(image_unplaced).astype(np.int64),
         unplaced_words=np.flatnonzero(word_unplaced).astype(np.int64),
         snap_distance=float(snap_distance),
-        hint=position_hint(grid, np.concatenate([obs.image_xy, obs.word_xy]))  # [T + U, 2]
-        if (image_unplaced | image_snapped).any() or (word_unplaced | word_snapped).any()
-        else "",
+        hint=position_hint(grid, np.concatenate([obs.image_xy, obs.word_xy])),  # [T + U, 2]
         modalities=tuple(
             ModalityPlacement(
                 name=modality.name,
