@@ -292,19 +292,19 @@ def _check_against_poses(directory: Path, trial: int, folder: Path, images: list
     )
     if poses is None:
         return
-    lines = range(_pose_lines(poses))  # one per pose
-    if len(lines) == len(images):
+    num_poses = _pose_lines(poses)
+    if num_poses == len(images):
         return
     missing = ""
     numbered = [int(p.stem) for p in images if p.stem.isdigit()]
-    if len(numbered) == len(images) and len(images) < len(lines):
+    if len(numbered) == len(images) and len(images) < num_poses:
         width = len(images[0].stem) if images else 5
         suffix = images[0].suffix if images else ".jpg"
-        expected = range(min(numbered, default=0), min(numbered, default=0) + len(lines))
+        expected = range(min(numbered, default=0), min(numbered, default=0) + num_poses)
         gaps = sorted(set(expected) - set(numbered))[:5]
         if gaps:
             missing = "; missing: " + ", ".join(f"{g:0{width}d}{suffix}" for g in gaps)
-    if len(images) > len(lines):  # an extra image shifts every later one as a missing one does
+    if len(images) > num_poses:  # an extra image shifts every later one as a missing one does
         apple = [p.name for p in images if p.name.startswith("._")]
         stray = (
             f"; {len(apple)} are macOS metadata files (AppleDouble: {', '.join(apple[:3])}"
@@ -313,11 +313,11 @@ def _check_against_poses(directory: Path, trial: int, folder: Path, images: list
             else ""
         )
         raise ValueError(
-            f"{folder}: {len(images)} images but {poses.name} has {len(lines)} poses: every "
+            f"{folder}: {len(images)} images but {poses.name} has {num_poses} poses: every "
             f"image after an extra one would get the wrong pose's features{stray}"
         )
     raise ValueError(
-        f"{folder}: {len(images)} images but {poses.name} has {len(lines)} poses: every image "
+        f"{folder}: {len(images)} images but {poses.name} has {num_poses} poses: every image "
         f"after a missing one would get the wrong pose's features{missing}"
     )
 
