@@ -40,9 +40,6 @@ import numpy as np
 
 from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from spcopyro.maps.map_server import (
-    PGM_FREE,
-    PGM_OCCUPIED,
-    PGM_UNKNOWN,
     SAVE_FREE_THRESH,
     SAVE_OCCUPIED_THRESH,
     _read_image,
@@ -50,6 +47,7 @@ from spcopyro.maps.map_server import (
     _write_image,
     _write_map_yaml,
     _yaml_target,
+    trinary_pixels,
 )
 
 __all__ = [
@@ -98,10 +96,7 @@ def _trinary_pixels(values: np.ndarray) -> np.ndarray:
     bad = ~np.isin(values, (FREE, OCCUPIED, UNKNOWN))
     if bad.any():
         raise ValueError(f"a trinary mask holds 0, 100 and -1 only, got {int(values[bad].flat[0])}")
-    pixels = np.full(values.shape, PGM_UNKNOWN, dtype=np.uint8)  # [H, W]
-    pixels[values == FREE] = PGM_FREE
-    pixels[values == OCCUPIED] = PGM_OCCUPIED
-    return pixels
+    return trinary_pixels(values)
 
 
 def save_filter_mask(

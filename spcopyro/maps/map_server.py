@@ -44,6 +44,7 @@ __all__ = [
     "MapFormatError",
     "load_map",
     "save_map",
+    "trinary_pixels",
 ]
 
 # Pixel values written by save_map (those of map_server's map_saver).
@@ -478,6 +479,15 @@ def _write_map_yaml(
     path.write_text(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None), encoding="utf-8")
 
 
+def trinary_pixels(values: np.ndarray) -> np.ndarray:
+    """``[H, W]`` uint8 map_saver pixels of occupancy ``values`` ``[H, W]``: :data:`PGM_FREE`
+    where FREE (0), :data:`PGM_OCCUPIED` where OCCUPIED (100), :data:`PGM_UNKNOWN` elsewhere."""
+    pixels = np.full(values.shape, PGM_UNKNOWN, dtype=np.uint8)  # [H, W]
+    pixels[values == FREE] = PGM_FREE
+    pixels[values == OCCUPIED] = PGM_OCCUPIED
+    return pixels
+
+
 def save_map(grid: OccupancyGrid, yaml_path: str | os.PathLike) -> Path:
     """Write ``grid`` as ``NAME.pgm`` (P5; 254 free, 0 occupied, 205 unknown) + ``NAME.yaml``.
 
@@ -487,9 +497,6 @@ def save_map(grid: OccupancyGrid, yaml_path: str | os.PathLike) -> Path:
     """
     path = _yaml_target(yaml_path)
     image = path.with_suffix(".pgm")
-    pgm = np.full(grid.shape, PGM_UNKNOWN, dtype=np.uint8)  # [H, W]
-    pgm[grid.occupancy == FREE] = PGM_FREE
-    pgm[grid.occupancy == OCCUPIED] = PGM_OCCUPIED
-    _write_image(image, pgm)
+    _write_image(image, trinary_pixels(grid.occupancy))
     _write_map_yaml(path, image, grid, mode=None)
     return path
