@@ -130,10 +130,10 @@ def backend_used(options: object, config: object) -> str | None:
     if isinstance(options, LBPOptions):
         ran = resolve_backend(options.backend)  # where numba imports; auto: not at a large gamma D
         if ran == "numba" and options.backend == "auto":
-            from spcopyro.guides.numba_lbp import MAX_GAMMA_DEGREE
+            from spcopyro.guides.numba_lbp import usable_at
 
-            degree = config.gamma * config.connectivity  # type: ignore[attr-defined]
-            return "torch" if degree > MAX_GAMMA_DEGREE else ran
+            gamma, degree = config.gamma, config.connectivity  # type: ignore[attr-defined]
+            return ran if usable_at(gamma, degree) else "torch"
         return ran
     return None
 

@@ -137,7 +137,7 @@ from spcopyro.likelihood import (
 )
 from spcopyro.model import DTYPE, ModelData
 
-__all__ = ["SparseLBPState", "SparseLoopyBP", "init", "step", "usable"]
+__all__ = ["SparseLBPState", "SparseLoopyBP", "init", "step", "usable", "usable_at"]
 
 RECOUNT_EVERY = 50
 """Outer iterations between re-additions of the cached beliefs' running sums (bounds their
@@ -150,7 +150,13 @@ MAX_GAMMA_DEGREE = 300.0
 
 def usable(config: SpCoConfig, data: ModelData) -> bool:
     """Whether the compiled backend's products stay finite: gamma D <= 300."""
-    return config.gamma * data.neighbours.shape[1] <= MAX_GAMMA_DEGREE
+    return usable_at(config.gamma, data.neighbours.shape[1])
+
+
+def usable_at(gamma: float, degree: int) -> bool:
+    """:func:`usable` for a coupling ``gamma`` and ``degree`` neighbours a cell (before the
+    model data exist: ``fit`` names the backend it will run)."""
+    return gamma * degree <= MAX_GAMMA_DEGREE
 
 
 class SparseLoopyBP:
