@@ -202,8 +202,9 @@ def _simulate_on_map(args: argparse.Namespace) -> int:
 def _show(args: argparse.Namespace) -> int:
     if args.graph:
         from spcopyro.cli.navigate import show_graph
+        from spcopyro.robot.navigation.places import DEFAULT_MIN_AREA
 
-        args.min_area = 0.25 if args.min_area is None else args.min_area  # DEFAULT_MIN_AREA
+        args.min_area = DEFAULT_MIN_AREA if args.min_area is None else args.min_area
         return show_graph(args)
     if args.min_area is not None:  # it was ignored silently
         raise ValueError(f"--min-area {args.min_area:g} sizes the places of --graph: add "
