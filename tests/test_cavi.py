@@ -499,3 +499,19 @@ def test_a_degenerate_stick_breaking_prior_is_warned_about_once(caplog):
         factors.prior_factors(data, cfg, "stick-breaking")
     said = [r for r in caplog.records if "pi_family='stick-breaking'" in r.getMessage()]
     assert len(said) == 1
+
+
+def test_soft_start_with_start_labels_is_refused():
+    """``init="soft"`` asks for a random q; start labels would replace it. The library refused
+    nothing before: the labels won and soft was ignored silently."""
+    data, cfg, _ = problem("dp")
+    labels = torch.zeros(data.num_free, dtype=torch.long)
+    with pytest.raises(ValueError, match="init='soft'.*init_labels"):
+        initial_q(data, cfg, torch.Generator().manual_seed(0), labels, init="soft")
+    with pytest.raises(ValueError, match="init='soft'"):
+        CAVIInference().run(
+            data, cfg, iterations=2, generator=torch.Generator().manual_seed(0),
+            options=VariationalOptions(backend="torch", init="soft"), init_labels=labels,
+        )  # fmt: skip
+    q = initial_q(data, cfg, torch.Generator().manual_seed(0), labels)  # one-hot: still fine
+    assert torch.equal(q.argmax(-1), labels)

@@ -73,8 +73,18 @@ def initial_q(
 ) -> torch.Tensor:
     """[N, L] the starting q(C): ``init_q`` as given (checked), one-hot ``init_labels`` (a Gibbs
     state's labels: the warm start from a sampler), or else by ``init``: one-hot uniformly
-    random labels (``"one-hot"``) or a Dir(1) draw per cell (``"soft"``)."""
+    random labels (``"one-hot"``) or a Dir(1) draw per cell (``"soft"``).
+
+    Raises:
+        ValueError: ``init="soft"`` with ``init_labels``: the labels would replace the random
+            draw, so one of the two asked for would be ignored.
+    """
     N, L = data.num_free, config.num_concepts
+    if init == "soft" and init_labels is not None:
+        raise ValueError(
+            "init='soft' draws q(C) at random, but init_labels were given (q one-hot on them): "
+            "pass one of the two"
+        )
     if init_q is not None:
         if init_q.shape != (N, L):
             raise ValueError(f"init_q must be [{N}, {L}], got {tuple(init_q.shape)}")
