@@ -123,6 +123,15 @@ def test_kernel_anneals_over_warmup_only():
     assert gammas == [3.0] * 5
 
 
+def test_kernel_refuses_annealing_without_warmup():
+    """anneal=True with warmup_steps=0 annealed over nothing: it ran at the full gamma silently."""
+    cfg = config(gamma=3.0)
+    _, data = random_problem(seed=13)
+    kernel = SpCoGibbs(options=GibbsOptions(backend="torch"), anneal=True)
+    with pytest.raises(ValueError, match="warmup_steps=0"):
+        MCMC(kernel, num_samples=2, warmup_steps=0, disable_progbar=True).run(data, cfg)
+
+
 def test_options_are_validated():
     assert GibbsOptions() == GibbsOptions("auto", 1.0, 0.0, 0)
     for bad, field in (

@@ -95,6 +95,7 @@ class SpCoGibbs(MCMCKernel):
             ``gamma``, ``chi``, ``beta``, a further modality's name) is saved as a site too.
         anneal: ramp the labels' coupling gamma up over MCMC's ``warmup_steps``
             (:mod:`spcopyro.gibbs.anneal`); the saved samples are all from the target model.
+            ``warmup_steps=0`` with it is refused (ValueError at ``MCMC.run``).
     """
 
     def __init__(
@@ -136,6 +137,11 @@ class SpCoGibbs(MCMCKernel):
     def setup(self, warmup_steps: int, data: ModelData, config: SpCoConfig) -> None:
         self._data, self._config = data, config
         self._warmup_steps, self._steps = warmup_steps, 0
+        if self.anneal and warmup_steps == 0:
+            raise ValueError(
+                "SpCoGibbs(anneal=True) ramps gamma up over MCMC's warmup steps, but "
+                "warmup_steps=0: pass warmup_steps > 0 or anneal=False"
+            )
         check_model_data(data, config)  # before tracing the model (its errors name no count)
         self._check_model_sites()
         requested = self._requested_params
