@@ -261,14 +261,19 @@ def _message_time(msg: Any, log_ns: int) -> float:
     return log_ns * 1e-9
 
 
-def _check_order(reader: Any, topic: str, times: list[float], what: str = "") -> None:
-    """BagContentError naming the bag, the topic and the two stamps where ``times`` go back."""
+def _check_order(
+    reader: Any, topic: str, times: list[float], what: str = "", numbers: list[int] | None = None
+) -> None:
+    """BagContentError naming the bag, the topic and the two stamps where ``times`` go back,
+    and the messages' numbers on the topic (1-based, bag order: ``numbers`` when ``times`` are
+    a subset of the topic's messages, as a tf edge's are)."""
     steps = np.diff(np.asarray(times, dtype=np.float64))
     if (steps < 0).any():
         k = int(np.flatnonzero(steps < 0)[0])
+        first, second = (k + 1, k + 2) if numbers is None else (numbers[k], numbers[k + 1])
         raise BagContentError(
             f"{reader.paths[0]}: topic {topic}{what}: timestamps go backwards: message "
-            f"{k + 2} is stamped {times[k + 1]:.9f} s after message {k + 1} at {times[k]:.9f} s"
+            f"{second} is stamped {times[k + 1]:.9f} s after message {first} at {times[k]:.9f} s"
         )
 
 
@@ -364,9 +369,12 @@ def _tf_tracks(reader: Any) -> dict[tuple[str, str], PoseTrack] | None:
         return None
     connections = [c for t in topics for c in _connections(reader, t, TF_TYPES, "tf")]
     samples: dict[tuple[str, str], tuple[list[float], list[tuple[float, float, float]]]] = {}
+    numbers: dict[tuple[str, str], list[int]] = {}  # each sample's message number on /tf
     static: dict[tuple[str, str], tuple[float, float, float]] = {}
+    counted = {"tf": 0, "tf_static": 0}
     for _, connection, log_ns, msg in _messages(reader, connections, " and ".join(topics)):
         is_static = connection.topic.lstrip("/") == "tf_static"
+        counted[connection.topic.lstrip("/")] += 1
         for transform in msg.transforms:
             edge = (_frame(transform.header.frame_id), _frame(transform.child_frame_id))
             tr, q = transform.transform.translation, transform.transform.rotation
@@ -377,9 +385,10 @@ def _tf_tracks(reader: Any) -> dict[tuple[str, str], PoseTrack] | None:
             times, poses = samples.setdefault(edge, ([], []))
             times.append(_message_time(transform, log_ns))
             poses.append(pose)
+            numbers.setdefault(edge, []).append(counted["tf"])
     tracks: dict[tuple[str, str], PoseTrack] = {}
     for edge, (times, poses) in samples.items():
-        _check_order(reader, "/tf", times, f" (edge {edge[0]} -> {edge[1]})")
+        _check_order(reader, "/tf", times, f" (edge {edge[0]} -> {edge[1]})", numbers[edge])
         tracks[edge] = _track(f"tf {edge[0]} -> {edge[1]}", times, poses)
     for edge, pose in static.items():
         tracks[edge] = PoseTrack(
