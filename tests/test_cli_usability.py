@@ -5,6 +5,7 @@ the wall time of the whole fit."""
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import re
 import subprocess
@@ -376,12 +377,17 @@ def test_several_variational_fits_report_their_objective(small_house, tmp_path, 
     assert "best of 2 fits: kept fit " in printed and " final ELBOs " in printed
     assert "log joint" not in printed.split("best of 2 fits")[1].splitlines()[0]
     assert "fitted 2 fits, the kept one 3 iterations, in " in printed and "chains" not in printed
+    report = json.loads((tmp_path / "fit" / "chains.json").read_text())  # ELBOs not log joints
+    assert report["objective"] == "ELBO" and "best_log_joint" not in report
+    assert len(report["final_elbo"]) == 2
     argv[argv.index("cavi")] = "vi-gibbs"  # CAVI starts, then Gibbs chains: chains
     argv[argv.index(str(tmp_path / "fit"))] = str(tmp_path / "vi-gibbs")
     assert main(argv) == 0
     printed = capsys.readouterr().out
     assert "best of 2 chains: kept chain " in printed and " best log joints " in printed
     assert "fitted 2 chains x 3 sweeps in " in printed and "2 fits" not in printed
+    sampled = json.loads((tmp_path / "vi-gibbs" / "chains.json").read_text())
+    assert len(sampled["best_log_joint"]) == 2
 
 
 def test_a_dataset_root_given_as_the_house_names_its_houses(small_house, tmp_path, capsys):

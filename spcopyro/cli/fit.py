@@ -460,10 +460,12 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     if chain_results is not None and chains > 1:
         best_values = [r.best_objective for r in chain_results]
         objective = result.trace.objective_name  # "log joint", or a variational objective
-        report = {"seeds": [args.seed + k for k in range(chains)], "best_chain": kept,
-                  "best_log_joint": best_values, "objective": objective}  # fmt: skip
-        (out / "chains.json").write_text(json.dumps(report, indent=1) + "\n")
         sampled = objective == "log joint"  # Gibbs chains, vi-gibbs's too; else q's objective
+        # "best_log_joint" of sampled chains; a variational fit's "final_elbo" (its q's)
+        values_key = "best_log_joint" if sampled else "final_" + objective.lower().replace(" ", "_")
+        report = {"seeds": [args.seed + k for k in range(chains)], "best_chain": kept,
+                  values_key: best_values, "objective": objective}  # fmt: skip
+        (out / "chains.json").write_text(json.dumps(report, indent=1) + "\n")
         run = ("refined " if job.refined else "") + ("chain" if sampled else "fit")
         value = "best" if sampled else "final"  # a variational fit reports q
         print(f"best of {chains} {run}s: kept {run} {kept} (seed {args.seed + kept}), {value} "
