@@ -52,6 +52,7 @@ from spcopyro.experiments.ablation_variants import (
 from spcopyro.experiments.methods import REGISTRY as BASELINE_REGISTRY
 from spcopyro.fit.registry import INFERENCE_METHODS
 from spcopyro.robot.map_simulation import MapTour
+from spcopyro.study.lines import key_line, where_path
 from spcopyro.study.maps import maps_file_name
 from spcopyro.synthetic import HouseSpec
 
@@ -81,7 +82,13 @@ _KINDS = ("synthetic", "public", "map")
 
 
 class StudyError(ValueError):
-    """A study that cannot be read: the message names the file, the key and the value."""
+    """A study that cannot be read: the message names the file, the key and the value (and,
+    read from a file, the key's line: ``study.toml:12: [data.small] num_roms = 2: ...``).
+    ``where``: the table and key, e.g. ``[data.small] num_roms``."""
+
+    def __init__(self, message: str, where: str | None = None) -> None:
+        super().__init__(message)
+        self.where = where
 
 
 @dataclass(frozen=True)
@@ -197,16 +204,36 @@ def load_study(path: str | os.PathLike[str]) -> Study:
     source = str(path)
     try:
         with open(path, "rb") as file:
-            values = tomllib.load(file)
+            content = file.read()
+        text = content.decode("utf-8")
+        values = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise StudyError(f"{source}: not valid TOML: {error}") from None
     except UnicodeDecodeError as error:  # it said only "'utf-8' codec can't decode byte ..."
         raise StudyError(f"{source}: not UTF-8 text, as TOML is: {error}") from None
-    return study_from_dict(values, source=source)
+    try:
+        return study_from_dict(values, source=source)
+    except StudyError as error:  # the key's line, for the editor: study.toml:12: ...
+        line = key_line(text, where_path(error.where)) if error.where else None
+        message = str(error)
+        if line is None or not message.startswith(f"{source}: "):
+            raise
+        raise StudyError(f"{source}:{line}: {message[len(source) + 2 :]}", error.where) from None
 
 
 def _fail(source: str, where: str, value: object, why: str) -> StudyError:
-    return StudyError(f"{source}: {where} = {value!r}: {why}")
+    return StudyError(f"{source}: {where} = {value!r}: {why}", where)
+
+
+def _named_key(message: str, keys: Sequence[str]) -> str | None:
+    """The first of ``keys`` an error's ``message`` names (``gama=3``, ``'gamma'``,
+    ``HouseSpec.num_rooms``), or None: the line its error points at."""
+    for name in (lambda key: key, lambda key: key.rpartition(".")[2]):  # hyper.alpha: alpha=
+        for key in keys:
+            if any(form in message for form in (f"{name(key)}=", f"'{name(key)}'",
+                                                f".{name(key)} ", f".{name(key)}=")):  # fmt: skip
+                return key
+    return None
 
 
 def _seeds(source: str, value: object, where: str = "[study] seeds") -> tuple[int, ...]:
@@ -322,7 +349,9 @@ def _variants(source: str, table: object, methods: tuple[str, ...]) -> tuple[Var
                 if problem:
                     raise VariantError(f"variant {name!r}: {problem}")
         except VariantError as error:
-            raise StudyError(f"{source}: [variants.{name}]: {error}") from None
+            key = _named_key(str(error), list(_flatten(overrides)))
+            where = f"[variants.{name}]" + (f" {key}" if key else "")
+            raise StudyError(f"{source}: [variants.{name}]: {error}", where) from None
         variants.append(variant)
     return tuple(variants)
 
@@ -389,7 +418,9 @@ def _data_source(source: str, name: str, table: object) -> DataSource:
         try:
             trials = check().num_trials
         except (TypeError, ValueError) as error:
-            raise StudyError(f"{source}: {where} {dict(values)}: {error}") from None
+            key = _named_key(str(error), list(values))
+            raise StudyError(f"{source}: {where} {dict(values)}: {error}",
+                             where + (f" {key}" if key else "")) from None  # fmt: skip
         if heldout and trials < 2:  # each of its cells failed: no trial to fit on
             raise _fail(source, f"{where} heldout", heldout,
                         f"a held-out source needs num_trials >= 2, it has {trials}")  # fmt: skip
