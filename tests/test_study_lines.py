@@ -37,7 +37,7 @@ num_rooms = 2
         ("gibbs = 5", "gibs = 5", 5, "[study] sweeps.gibs = 5: unknown method"),
         ("seeds = 1", "seeds = [1, 1]", 4, "[study] seeds = [1, 1]: a seed is given twice"),
         ("cluster_moves = 0.2", "cluster_moves = 2", 12, "cluster_moves=2"),
-        ("preset = \"paper-dp\"\ncluster", "preset = \"paperdp\"\ncluster", 11, "'paperdp'"),
+        ('preset = "paper-dp"\ncluster', 'preset = "paperdp"\ncluster', 11, "'paperdp'"),
         ("hyper = { alpha = true }", "hyper = { alpha = 3 }", 13, "alpha=3"),
         ("hyper = { alpha = true }", "hyper.alpha = 3", 13, "alpha=3"),
         ("num_rooms = 2", "num_roms = 2", 19, "[data.d] num_roms = 2: HouseSpec has no such"),
