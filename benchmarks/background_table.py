@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from bench_cli import dataset_root, run_main
+from bench_cli import dataset_root, results_path, run_main
 from machine import format_table, machine_info, progress
 
 from spcopyro.config import DEFAULT_PRESET, preset
@@ -102,8 +102,15 @@ def measure(house, blocks: int, calls: int) -> dict[str, object]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="smoke run: two houses, few calls")
-    parser.add_argument("--out", type=Path, default=SCRIPT_DIR / "background_table.json")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="JSON output (default benchmarks/background_table.json, "
+        "background_table_quick.json with --quick)",
+    )
     args = parser.parse_args(argv)
+    args.out = results_path(args.out, "background_table", args.quick)
     logging.disable(logging.WARNING)  # the houses' placement notes are not this table's
     torch.set_num_threads(1)  # as `spcopyro fit` runs these maps (spcopyro._util.threads)
     blocks, calls = (3, 5) if args.quick else (9, 100)

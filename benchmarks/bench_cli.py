@@ -12,6 +12,8 @@ is on ``sys.path`` when they run.
 * :func:`quick_or`: the rule for ``--quick``: it only changes the defaults; an option given
   explicitly wins over ``--quick``'s value (options whose default depends on ``--quick`` default
   to None in the parser).
+* :func:`results_path`: the JSON's path: ``--out``, else ``NAME.json`` (``NAME_quick.json``
+  under ``--quick``).
 * :func:`run_main`: makes an ``--out``'s folder, runs ``main``; Ctrl-C ends it with one line
   and exit status 130.
 """
@@ -106,6 +108,15 @@ def quick_or(value: T | None, quick: bool, quick_value: T, full_value: T) -> T:
     if value is not None:
         return value
     return quick_value if quick else full_value
+
+
+def results_path(out: str | os.PathLike[str] | None, name: str, quick: bool) -> Path:
+    """Where a script writes its JSON: ``out`` (``--out``) as given, else
+    ``benchmarks/NAME.json``, or ``benchmarks/NAME_quick.json`` under ``--quick``: a smoke run
+    never overwrites the full run's results (which can take an hour)."""
+    if out is not None:
+        return Path(out)
+    return SCRIPT_DIR / (f"{name}_quick.json" if quick else f"{name}.json")
 
 
 def dataset_root(

@@ -36,7 +36,7 @@ import logging
 from pathlib import Path
 
 import numpy as np
-from bench_cli import COUNT, INDEX, SCRIPT_DIR, dataset_root, quick_or, run_main
+from bench_cli import COUNT, INDEX, dataset_root, quick_or, results_path, run_main
 from collapse_terms import terms  # a script beside this one (its folder is on sys.path)
 from scipy import ndimage
 
@@ -170,14 +170,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--fit-seeds", type=INDEX, nargs="+", default=[0], help="simulated maps")
     parser.add_argument(
         "--out",
-        default=str(SCRIPT_DIR / "coarse_losses.json"),
-        help="JSON output (default benchmarks/coarse_losses.json)",
+        default=None,
+        help="JSON output (default benchmarks/coarse_losses.json, "
+        "coarse_losses_quick.json with --quick)",
     )
     parser.add_argument("--quick", action="store_true", help="60 sweeps, seed 0, room1dk6 only")
     parser.add_argument("--two-stage", action="store_true",
                         help="take apart the two-stage fit (spcopyro.fit.image_weight: --sweeps "
                         "a stage) instead of the default's")  # fmt: skip
     args = parser.parse_args(argv)
+    args.out = results_path(args.out, "coarse_losses", args.quick)
     maps = ("room1dk6",) if args.quick else ("room1dk6", "room1ldk5")
     args.sweeps = quick_or(args.sweeps, args.quick, 60, 2000)
     args.seeds = quick_or(args.seeds, args.quick, 1, 3)

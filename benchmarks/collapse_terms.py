@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from bench_cli import SCRIPT_DIR, dataset_root, run_main
+from bench_cli import dataset_root, results_path, run_main
 from scipy.special import gammaln
 
 from spcopyro.config import preset
@@ -117,11 +117,13 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
         "--out",
-        default=str(SCRIPT_DIR / "collapse_terms.json"),
-        help="JSON output (default benchmarks/collapse_terms.json)",
+        default=None,
+        help="JSON output (default benchmarks/collapse_terms.json, "
+        "collapse_terms_quick.json with --quick)",
     )
     parser.add_argument("--quick", action="store_true", help="accepted for the smoke tests")
     args = parser.parse_args(argv)
+    args.out = results_path(args.out, "collapse_terms", args.quick)
     logging.getLogger("spcopyro").setLevel(logging.ERROR)
     torch.set_num_threads(1)
     houses = {}

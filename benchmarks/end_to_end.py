@@ -57,7 +57,7 @@ from typing import Any
 SCRIPT_DIR = Path(__file__).resolve().parent
 sys.path.insert(0, str(SCRIPT_DIR))
 
-from bench_cli import COUNT, check_houses, dataset_root, fail, quick_or, run_main  # noqa: E402  (scripts beside this one)
+from bench_cli import COUNT, check_houses, dataset_root, fail, quick_or, results_path, run_main  # noqa: E402  (scripts beside this one)
 from fixed_cost import (  # noqa: E402
     _table,
     measure_startup,
@@ -196,7 +196,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--quick", action="store_true",
                         help="smoke test: the embedded house, 200 sweeps, 1 run")  # fmt: skip
     parser.add_argument("--out", type=Path, default=None,
-                        help="JSON output (default benchmarks/end_to_end.json)")  # fmt: skip
+                        help="JSON output (default benchmarks/end_to_end.json, "
+                        "end_to_end_quick.json with --quick)")  # fmt: skip
     return parser.parse_args(argv)
 
 
@@ -255,7 +256,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "post_meets_target": verdict,
         "startup": startup,
     }
-    out = args.out or SCRIPT_DIR / "end_to_end.json"
+    out = results_path(args.out, "end_to_end", args.quick)
     out.write_text(json.dumps(record, indent=1) + "\n")
     print(f"wrote {out}")
     return 0

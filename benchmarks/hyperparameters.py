@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from bench_cli import COUNT, INDEX, dataset_root, quick_or, run_main
+from bench_cli import COUNT, INDEX, dataset_root, quick_or, results_path, run_main
 from machine import available_backends, format_table, machine_info, progress
 
 from spcopyro.config import preset
@@ -89,8 +89,15 @@ def main(argv: list[str] | None = None) -> int:
                         help=f"sweeps on {PUBLIC_HOUSE}, 0 for none (default 500; --quick: "
                              "0)")  # fmt: skip
     parser.add_argument("--quick", action="store_true", help="smoke test: few sweeps")
-    parser.add_argument("--out", type=Path, default=SCRIPT_DIR / "hyperparameters_results.json")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="JSON output (default benchmarks/hyperparameters_results.json, "
+        "hyperparameters_results_quick.json with --quick)",
+    )
     args = parser.parse_args(argv)
+    args.out = results_path(args.out, "hyperparameters_results", args.quick)
     sweeps = quick_or(args.sweeps, args.quick, 12, 1000)
     public_sweeps = quick_or(args.public_sweeps, args.quick, 0, 500)
     backend = "numba" if "numba" in available_backends(["numba"])[0] else "torch"

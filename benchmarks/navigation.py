@@ -44,7 +44,15 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_cli import COUNT, METRES, SCRIPT_DIR, check_houses, dataset_root, quick_or, run_main
+from bench_cli import (
+    COUNT,
+    METRES,
+    check_houses,
+    dataset_root,
+    quick_or,
+    results_path,
+    run_main,
+)
 
 from spcopyro.config import DEFAULT_PRESET, preset
 from spcopyro.data import load_house, place_observations
@@ -186,8 +194,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--radius", type=METRES, default=0.2, help="the robot's, metres")
     parser.add_argument(
         "--out",
-        default=str(SCRIPT_DIR / "navigation.json"),
-        help="JSON output (default benchmarks/navigation.json)",
+        default=None,
+        help="JSON output (default benchmarks/navigation.json, navigation_quick.json with --quick)",
     )
     parser.add_argument("--no-synthetic", action="store_true")
     parser.add_argument("--no-public", action="store_true")
@@ -197,6 +205,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true",
                         help="a smoke run: 30 sweeps, one public house, one seed")  # fmt: skip
     args = parser.parse_args(argv)
+    args.out = results_path(args.out, "navigation", args.quick)
     houses = quick_or(args.houses, args.quick, list(PUBLIC_CATEGORIES)[:1], list(PUBLIC_CATEGORIES))
     args.sweeps = quick_or(args.sweeps, args.quick, 30, 2000)
     args.seeds = quick_or(args.seeds, args.quick, 1, 3)

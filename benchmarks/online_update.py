@@ -32,7 +32,8 @@ Usage::
     python benchmarks/online_update.py --preset original-code --gamma 3 --houses synthetic
 
 It prints a table to stdout (progress to stderr) and writes every number with machine
-information to a JSON file (``benchmarks/online_update_results.json`` unless ``--out``).
+information to a JSON file (``benchmarks/online_update_results.json``,
+``online_update_results_quick.json`` with ``--quick``, unless ``--out``).
 """
 
 from __future__ import annotations
@@ -49,7 +50,16 @@ from typing import Any
 
 import numpy as np
 import torch
-from bench_cli import COUNT, GAMMA, check_houses, dataset_root, preset_name, quick_or, run_main
+from bench_cli import (
+    COUNT,
+    GAMMA,
+    check_houses,
+    dataset_root,
+    preset_name,
+    quick_or,
+    results_path,
+    run_main,
+)
 from machine import format_table, machine_info, progress
 
 from spcopyro.config import preset
@@ -223,7 +233,12 @@ def table(records: list[dict], sweeps: int) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="smoke test: synthetic, few sweeps")
-    parser.add_argument("--out", type=Path, help="JSON file to write")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        help="JSON file to write (default benchmarks/online_update_results.json, "
+        "online_update_results_quick.json with --quick)",
+    )
     parser.add_argument("--houses", help="comma-separated public houses and 'synthetic' (default: "
                         "the five and synthetic; --quick: synthetic)")  # fmt: skip
     parser.add_argument("--seeds", type=COUNT, help="seeds 0..n-1 (default 3; --quick: 2)")
@@ -266,7 +281,7 @@ def main(argv: list[str] | None = None) -> int:
         "the first update length whose best (typical) log joint is at least the scratch fit's "
         "('-': not within the last)."
     )
-    out = args.out or Path(__file__).with_name("online_update_results.json")
+    out = results_path(args.out, "online_update_results", args.quick)
     record = {"machine": machine_info(), "preset": args.preset,
               "settings": settings.model.to_json(), "sweeps": args.sweeps, "seeds": args.seeds,
               "checkpoints": list(checkpoints), "houses": records}  # fmt: skip

@@ -50,7 +50,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_cli import COUNT, INDEX, SCRIPT_DIR, dataset_root, quick_or, run_main
+from bench_cli import COUNT, INDEX, dataset_root, quick_or, results_path, run_main
 
 from spcopyro.baselines.geometry import geometry_semantic_map
 from spcopyro.baselines.nearest import nearest_word_map
@@ -316,8 +316,9 @@ def main(argv: list[str] | None = None) -> int:
     )  # fmt: skip
     parser.add_argument(
         "--out",
-        default=str(SCRIPT_DIR / "real_houses.json"),
-        help="JSON output (default benchmarks/real_houses.json)",
+        default=None,
+        help="JSON output (default benchmarks/real_houses.json, "
+        "real_houses_quick.json with --quick)",
     )
     parser.add_argument("--no-synthetic", action="store_true")
     parser.add_argument(
@@ -342,6 +343,7 @@ def main(argv: list[str] | None = None) -> int:
         help="a smoke run: 60 sweeps, one public house, one seed, 5 iterations",
     )
     args = parser.parse_args(argv)
+    args.out = results_path(args.out, "real_houses", args.quick)
     houses = dict(PUBLIC_CATEGORIES)
     args.sweeps = quick_or(args.sweeps, args.quick, 60, 5000)
     args.seeds = quick_or(args.seeds, args.quick, 1, 3)

@@ -35,7 +35,7 @@ from contextlib import nullcontext
 from pathlib import Path
 from unittest.mock import patch
 
-from bench_cli import COUNT, SCRIPT_DIR, quick_or, run_main
+from bench_cli import COUNT, quick_or, results_path, run_main
 from machine import busy_cpu_seconds, machine_info, own_cpu_seconds, progress
 
 from spcopyro.study import local_cluster
@@ -142,10 +142,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                              "ratio is the verdict (default 5; quick: 1)")  # fmt: skip
     parser.add_argument(
         "--out",
-        default=str(SCRIPT_DIR / "study_dask.json"),
-        help="JSON output (default benchmarks/study_dask.json)",
+        default=None,
+        help="JSON output (default benchmarks/study_dask.json, study_dask_quick.json with --quick)",
     )
     args = parser.parse_args(argv)
+    args.out = results_path(args.out, "study_dask", args.quick)
     sweeps = quick_or(args.sweeps, args.quick, 10, 2000)
     args.pairs = quick_or(args.pairs, args.quick, 1, 5)
     study = benchmark_study(sweeps, seeds=1 if args.quick else 5, quick=args.quick)

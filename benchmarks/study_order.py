@@ -24,7 +24,7 @@ from contextlib import nullcontext
 from pathlib import Path
 from unittest.mock import patch
 
-from bench_cli import COUNT, SCRIPT_DIR, run_main
+from bench_cli import COUNT, results_path, run_main
 from machine import machine_info, progress
 from study_dask import differences, scores
 
@@ -68,10 +68,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--repeats", type=COUNT, default=2, help="runs of each order")
     parser.add_argument(
         "--out",
-        default=str(SCRIPT_DIR / "study_order.json"),
-        help="JSON output (default benchmarks/study_order.json)",
+        default=None,
+        help="JSON output (default benchmarks/study_order.json, "
+        "study_order_quick.json with --quick)",
     )
     args = parser.parse_args(argv)
+    args.out = results_path(args.out, "study_order", args.quick)
     study = mixed_study(args.quick)
     runs, tables = [], []
     with tempfile.TemporaryDirectory() as folder:

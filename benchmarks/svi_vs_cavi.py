@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from bench_cli import COUNT, quick_or, run_main
+from bench_cli import COUNT, quick_or, results_path, run_main
 from machine import format_table, machine_info, progress
 
 from spcopyro.config import preset
@@ -46,8 +46,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--steps", type=COUNT, help="SVI steps (default 300; --quick: 10)")
     parser.add_argument("--starts", type=COUNT, help="start seeds (default 4; --quick: 1)")
     parser.add_argument("--quick", action="store_true", help="smoke run: 10 steps, one start")
-    parser.add_argument("--out", default=str(SCRIPT_DIR / "svi_vs_cavi_results.json"))
+    parser.add_argument(
+        "--out",
+        default=None,
+        help="JSON output (default benchmarks/svi_vs_cavi_results.json, "
+        "svi_vs_cavi_results_quick.json with --quick)",
+    )
     args = parser.parse_args(argv)
+    args.out = results_path(args.out, "svi_vs_cavi_results", args.quick)
     args.steps = quick_or(args.steps, args.quick, 10, 300)
     args.starts = quick_or(args.starts, args.quick, 1, 4)
     torch.set_num_threads(1)

@@ -34,7 +34,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_cli import COUNT, INDEX, SCRIPT_DIR, dataset_root, quick_or, run_main
+from bench_cli import COUNT, INDEX, dataset_root, quick_or, results_path, run_main
 from real_houses import on_map, scores  # a script beside this one (its folder is on sys.path)
 
 from spcopyro.baselines.geometry import geometry_semantic_map
@@ -130,12 +130,13 @@ def main(argv: list[str] | None = None) -> int:
                              "0)")  # fmt: skip
     parser.add_argument(
         "--out",
-        default=str(SCRIPT_DIR / "two_stage.json"),
-        help="JSON output (default benchmarks/two_stage.json)",
+        default=None,
+        help="JSON output (default benchmarks/two_stage.json, two_stage_quick.json with --quick)",
     )
     parser.add_argument("--quick", action="store_true",
                         help="a smoke run: 40 sweeps, one house of each kind")  # fmt: skip
     args = parser.parse_args(argv)
+    args.out = results_path(args.out, "two_stage", args.quick)
     names = list(PUBLIC_CATEGORIES)[:1] if args.quick else list(PUBLIC_CATEGORIES)
     args.sweeps = quick_or(args.sweeps, args.quick, 40, 2000)
     args.seeds = quick_or(args.seeds, args.quick, 1, 3)

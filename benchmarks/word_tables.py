@@ -36,7 +36,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from bench_cli import COUNT, quick_or, run_main
+from bench_cli import COUNT, quick_or, results_path, run_main
 
 from spcopyro.config import preset
 from spcopyro.fit.gibbs_chains import with_sample_marginals
@@ -128,8 +128,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=COUNT, help="seeds 0..n-1 (default 3; --quick: 1)")
     parser.add_argument("--sweeps", type=COUNT, help="default 1000 (--quick: 60)")
     parser.add_argument("--quick", action="store_true", help="1 seed, 60 sweeps, a small house")
-    parser.add_argument("--out", default=str(Path(__file__).with_name("word_tables_results.json")))
+    parser.add_argument(
+        "--out",
+        default=None,
+        help="JSON output (default benchmarks/word_tables_results.json, "
+        "word_tables_results_quick.json with --quick)",
+    )
     args = parser.parse_args(argv)
+    args.out = results_path(args.out, "word_tables_results", args.quick)
     torch.set_num_threads(1)
     spec = None
     args.seeds = quick_or(args.seeds, args.quick, 1, 3)

@@ -358,6 +358,25 @@ def test_dataset_root_note_or_one_line_error(script, tmp_path, monkeypatch, caps
     assert stop.value.code == 2
 
 
+def test_a_quick_run_never_overwrites_the_full_runs_json(script, tmp_path):
+    """--quick wrote its smoke numbers over benchmarks/NAME.json, the full run's results (an
+    hour's work on some scripts): every script with --quick writes NAME_quick.json instead,
+    through bench_cli.results_path (or names its _quick.json itself); --out still wins."""
+    bench_cli = script("bench_cli")
+    assert bench_cli.results_path(None, "x", quick=True) == BENCHMARKS / "x_quick.json"
+    assert bench_cli.results_path(None, "x", quick=False) == BENCHMARKS / "x.json"
+    assert bench_cli.results_path(tmp_path / "o.json", "x", quick=True) == tmp_path / "o.json"
+    overwriting = [
+        path.name
+        for path in sorted(BENCHMARKS.glob("*.py"))
+        if '"--quick"' in (text := path.read_text())
+        and "results_path(" not in text
+        and "_quick.json" not in text
+        and path.name != "bench_cli.py"
+    ]
+    assert overwriting == []
+
+
 def test_scripts_find_the_dataset_through_bench_cli():
     """find_dataset_root raises on an empty $SPCOPYRO_DATA: every script goes through
     bench_cli.dataset_root, which turns that into a note or a one-line error."""
@@ -479,11 +498,15 @@ def test_footprint_quick_leaves_no_partial_file(tmp_path):
 
 @pytest.mark.parametrize("name", ["coarse_losses", "collapse_terms", "navigation", "real_houses",
                                   "study_dask", "study_order", "two_stage"])  # fmt: skip
-def test_default_out_is_beside_the_script(parse, name, tmp_path, monkeypatch):
+def test_default_out_is_beside_the_script(parse, script, name, tmp_path, monkeypatch):
     """The default --out is benchmarks/NAME.json wherever the script is run from (it was
     relative to the current folder: the run failed at the end, writing the JSON)."""
     monkeypatch.chdir(tmp_path)
-    assert Path(parse(name, []).out) == BENCHMARKS / f"{name}.json"
+    args = parse(name, [])
+    assert args.out is None  # bench_cli.results_path's: NAME.json, or NAME_quick.json
+    assert script("bench_cli").results_path(args.out, name, args.quick) == (
+        BENCHMARKS / f"{name}.json"
+    )
 
 
 @pytest.fixture
