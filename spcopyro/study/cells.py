@@ -26,7 +26,8 @@ from pathlib import Path
 
 from spcopyro import __version__
 from spcopyro.experiments.ablation_variants import Variant
-from spcopyro.study.sources import data_digest, resolve_source
+from spcopyro.study.lines import file_line
+from spcopyro.study.sources import data_digest, files_hash, resolve_source
 from spcopyro.study.spec import DataSource, Study, given_twice
 
 __all__ = ["BASELINE_METHOD", "Cell", "cells_of", "package_digest", "source_digest"]
@@ -126,15 +127,33 @@ def cell_key(cell: Cell, digest: str) -> str:
     return hashlib.sha256(text.encode()).hexdigest()
 
 
+def _resolved(study: Study, data: DataSource, root: str | Path | None) -> DataSource:
+    """:func:`resolve_source`, its error naming the study file, the line and the value (it
+    named the source only); a relative path missing from the current folder but found beside
+    the study file says so."""
+    try:
+        return resolve_source(data, root)
+    except (OSError, ValueError) as error:
+        where = f"[data.{data.name}] {data.kind}"
+        message = f"{file_line(study.source, where)}: {where} = {data.target!r}: {error}"
+        target = Path(data.target).expanduser()
+        beside = Path(study.source).parent / target
+        if not target.is_absolute() and not target.exists() and beside.exists():
+            message += (f" (a relative path is read from the current folder {Path.cwd()}, not "
+                        f"the study file's: give {beside.resolve()})")  # fmt: skip
+        raise type(error)(message) from None
+
+
 def cells_of(study: Study, root: str | Path | None = None) -> list[Cell]:
     """Every cell of ``study`` with its key, in table order: data, seed, variant, method, then
     the baselines. Public houses and maps are found (under ``root`` or the dataset root) and
     digested here, once per source and seed."""
-    sources = [resolve_source(data, root) for data in study.data]
+    sources = [_resolved(study, data, root) for data in study.data]
     cells = []
     for data in sources:
+        files = files_hash(data)  # once per source, not per seed
         for seed in study.seeds if data.seeds is None else data.seeds:
-            digest = data_digest(data, seed)
+            digest = data_digest(data, seed, files)
             planned: list[Cell] = []
             for variant in study.variants:
                 methods = study.methods or (variant.method,)

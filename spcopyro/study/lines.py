@@ -11,13 +11,25 @@ longest beginning of the wanted path: the key's own line, else the inline table 
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
-__all__ = ["key_line", "where_path"]
+__all__ = ["file_line", "key_line", "where_path"]
 
 _PART = r'(?:"(?:[^"\\]|\\.)*"|\'[^\']*\'|[A-Za-z0-9_-]+)'
 _PATH = rf"{_PART}(?:\s*\.\s*{_PART})*"
 _HEADER = re.compile(rf"^\s*\[\s*({_PATH})\s*\]")
 _KEY = re.compile(rf"^\s*({_PATH})\s*=")
+
+
+def file_line(source: str, where: str) -> str:
+    """``FILE:LINE`` of ``where`` in the study file ``source``, or ``source`` alone when it is no
+    file (``<python>``) or names no such key."""
+    try:
+        text = Path(source).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError):
+        return source
+    line = key_line(text, where_path(where))
+    return source if line is None else f"{source}:{line}"
 
 
 def _parts(path: str) -> tuple[str, ...]:

@@ -28,7 +28,7 @@ from spcopyro.robot.map_simulation import simulate_on_map
 from spcopyro.study.spec import DataSource
 from spcopyro.synthetic import make_house
 
-__all__ = ["CellData", "data_digest", "load_cell_data", "resolve_source"]
+__all__ = ["CellData", "data_digest", "files_hash", "load_cell_data", "resolve_source"]
 
 
 def resolve_source(data: DataSource, root: str | Path | None = None) -> DataSource:
@@ -82,19 +82,28 @@ def _files_of(data: DataSource) -> list[Path]:
     return files
 
 
-def data_digest(data: DataSource, seed: int) -> str:
-    """sha256 (hex) of a cell's data (module docstring); ``data`` resolved."""
+def files_hash(data: DataSource) -> hashlib._Hash:
+    """sha256 fed with the files of a public house or a map (nothing for a synthetic house):
+    what :func:`data_digest` starts from; ``data`` resolved. Made once per source, it spares
+    reading a house's files again for each of its seeds (a study of many seeds)."""
     digest = hashlib.sha256()
+    if data.kind != "synthetic":
+        for path in _files_of(data):
+            digest.update(f"{path.name}:{path.stat().st_size};".encode())
+            digest.update(path.read_bytes())
+    return digest
+
+
+def data_digest(data: DataSource, seed: int, files: hashlib._Hash | None = None) -> str:
+    """sha256 (hex) of a cell's data (module docstring); ``data`` resolved. ``files``: its
+    :func:`files_hash`, when made already (left unchanged)."""
+    digest = (files_hash(data) if files is None else files).copy()
     house_seed = seed if data.house_seed is None else data.house_seed
     inputs: dict[str, object] = {"kind": data.kind, "heldout": data.heldout}
     if data.kind == "synthetic":
         inputs.update(spec=dataclasses.asdict(data.house_spec()), seed=house_seed)
-    else:
-        if data.kind == "map":
-            inputs.update(tour=dataclasses.asdict(data.map_tour()), seed=house_seed)
-        for path in _files_of(data):
-            digest.update(f"{path.name}:{path.stat().st_size};".encode())
-            digest.update(path.read_bytes())
+    elif data.kind == "map":
+        inputs.update(tour=dataclasses.asdict(data.map_tour()), seed=house_seed)
     if data.heldout:
         inputs["fold_seed"] = seed  # the held-out trial is seed mod trials
     digest.update(json.dumps(inputs, sort_keys=True, default=str).encode())
