@@ -589,6 +589,30 @@ def test_label_map_server_rejects_unknown_grey(tmp_path: Path) -> None:
         load_label_map_server(path)
 
 
+def test_a_semantic_maps_yaml_errors_name_the_line(tmp_path: Path) -> None:
+    """The mode / negate refusal and the image's errors named the yaml but not the line of
+    the key (map_server's own key errors do)."""
+    grid, labels = label_fixture()
+    path = save_label_map_server(labels, grid, tmp_path / "sem.yaml")
+    text = path.read_text()
+    line = {
+        key: n
+        for n, row in enumerate(text.splitlines(), 1)
+        for key in ("mode", "negate", "image")
+        if row.startswith(f"{key}:")
+    }
+    path.write_text(text.replace("mode: raw", "mode: trinary"))
+    with pytest.raises(MapFormatError, match=rf"sem\.yaml:{line['mode']}: a semantic map needs"):
+        load_label_map_server(path)
+    path.write_text(text.replace("negate: 0", "negate: 1"))
+    with pytest.raises(MapFormatError, match=rf"sem\.yaml:{line['negate']}: a semantic map"):
+        load_label_map_server(path)
+    path.write_text(text)
+    (tmp_path / "sem.pgm").write_bytes(b"P5\n8 6\n255\n\x01")
+    with pytest.raises(MapFormatError, match=rf"sem\.yaml:{line['image']}: key 'image'"):
+        load_label_map_server(path)
+
+
 # ---------------------------------------------------------------------- the public dataset
 @pytest.mark.dataset
 @pytest.mark.parametrize("room", sorted(PAPER_FREE_PIXELS))

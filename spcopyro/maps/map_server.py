@@ -302,11 +302,12 @@ def _decode(spec: _MapYaml) -> tuple[np.ndarray, int | None]:
         cv2.utils.logging.setLogLevel(level)
     if img is None:
         raise MapFormatError(
-            f"{spec.path}: key 'image': {str(spec.image)!r} is not a readable image"
+            f"{spec.where('image')}: key 'image': {str(spec.image)!r} is not a readable image"
         )
     if img.ndim not in (2, 3) or img.shape[0] == 0 or img.shape[1] == 0:
         raise MapFormatError(
-            f"{spec.path}: key 'image': {str(spec.image)!r} has unsupported shape {img.shape}"
+            f"{spec.where('image')}: key 'image': "
+            f"{str(spec.image)!r} has unsupported shape {img.shape}"
         )
     return img, _pnm_maxval(data[:4096].tobytes())
 
@@ -317,13 +318,15 @@ def _read_image(spec: _MapYaml) -> np.ndarray:
     img, maxval = _decode(spec)
     if img.dtype == np.uint8 and maxval not in (None, 255):
         raise MapFormatError(
-            f"{spec.path}: key 'image': {str(spec.image)!r} has maxval {maxval}; only 255 is "
+            f"{spec.where('image')}: key 'image': "
+            f"{str(spec.image)!r} has maxval {maxval}; only 255 is "
             "supported here (map_server scales the pixels by maxval, OpenCV does not: "
             "save the image with maxval 255)"
         )
     if img.dtype != np.uint8:
         raise MapFormatError(
-            f"{spec.path}: key 'image': {str(spec.image)!r} has {img.dtype} pixels; only 8-bit "
+            f"{spec.where('image')}: key 'image': "
+            f"{str(spec.image)!r} has {img.dtype} pixels; only 8-bit "
             "images are supported here"
         )
     return img
@@ -336,13 +339,15 @@ def _read_levels(spec: _MapYaml) -> tuple[np.ndarray, float]:
     img, maxval = _decode(spec)
     if img.dtype not in (np.uint8, np.uint16):
         raise MapFormatError(
-            f"{spec.path}: key 'image': {str(spec.image)!r} has {img.dtype} pixels; only 8- and "
+            f"{spec.where('image')}: key 'image': "
+            f"{str(spec.image)!r} has {img.dtype} pixels; only 8- and "
             "16-bit images are supported"
         )
     full = maxval if maxval is not None else 255 if img.dtype == np.uint8 else 65535
     if not 0 < full <= np.iinfo(img.dtype).max:
         raise MapFormatError(
-            f"{spec.path}: key 'image': {str(spec.image)!r} has maxval {full}, which its "
+            f"{spec.where('image')}: key 'image': "
+            f"{str(spec.image)!r} has maxval {full}, which its "
             f"{img.dtype} pixels cannot hold"
         )
     return img.astype(np.float64), float(full)

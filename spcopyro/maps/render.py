@@ -242,7 +242,8 @@ def load_label_map_server(yaml_path: str | os.PathLike) -> tuple[np.ndarray, Occ
     spec = _read_map_yaml(yaml_path)
     if spec.mode != "raw" or spec.negate:
         raise MapFormatError(
-            f"{spec.path}: a semantic map needs 'mode: raw' and 'negate: 0', got mode "
+            f"{spec.where('mode' if spec.mode != 'raw' else 'negate')}: a semantic map needs "
+            f"'mode: raw' and 'negate: 0', got mode "
             f"{spec.mode!r}, negate {int(spec.negate)}"
         )
     sidecar_path = _sidecar_path(spec.path)
@@ -265,7 +266,8 @@ def load_label_map_server(yaml_path: str | os.PathLike) -> tuple[np.ndarray, Occ
     img = _read_image(spec)
     if img.ndim != 2:
         raise MapFormatError(
-            f"{spec.path}: key 'image': {str(spec.image)!r} must be single-channel, got shape "
+            f"{spec.where('image')}: key 'image': "
+            f"{str(spec.image)!r} must be single-channel, got shape "
             f"{img.shape}"
         )
     lut_label = np.full(256, -1, dtype=np.int64)  # pixel value -> concept id
