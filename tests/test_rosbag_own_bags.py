@@ -5,6 +5,7 @@ a ROS 2 bag whose metadata.yaml and storage file disagree. Small bags written wi
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -55,3 +56,88 @@ def test_a_tf_edge_going_backwards_names_its_messages_on_tf(tmp_path, map_yaml, 
         "topic /tf (edge odom -> base_link): timestamps go backwards: message 13 is stamped "
         "1600000002.500000000 s after message 12 at 1600000005.000000000 s" in str(error.value)
     )
+
+
+@pytest.mark.parametrize("pose_tf", [False, True], ids=["amcl_pose", "pose-tf"])
+def test_utterances_of_a_simulator_recording_are_placed_on_its_clock(
+    tmp_path, map_yaml, capsys, pose_tf
+):
+    """A simulator's recording (use_sim_time; the bag recorder on the wall clock): the poses and
+    images are stamped from 10 s, at half real time, while an utterance (std_msgs/String, no
+    header) has only its record time, 1.6e9 s later. It was skipped ('nearest 1599999997 s
+    away') and the import stopped with no utterance left. Its record time is now mapped onto
+    the stamps' clock through the pose messages' record times (following the drift), and the
+    mapping is printed and recorded."""
+    from spcopyro.cli.main import main
+
+    bag = tmp_path / "sim"
+    with BagWriter(bag, ros=2) as w:
+        for k in range(21):  # stamp 10 + 0.5 k, recorded at T0 + k: half real time
+            stamp, record = 10.0 + 0.5 * k, T0 + k
+            if pose_tf:
+                w.tf(stamp, [("map", "odom", 0.0, 0.0, 0.0)], log_time=record)
+                w.tf(stamp, [("odom", "base_link", 0.2 * (stamp - 10.0), 0.0, 0.0)],
+                     log_time=record)  # fmt: skip
+            else:
+                w.pose("/amcl_pose", stamp, 0.2 * (stamp - 10.0), 0.0, 0.0, log_time=record)
+        w.image("/camera/image", 12.0, _image(), log_time=T0 + 4.0)  # x 0.4
+        w.text("/speech", T0 + 7.0, "kitchen")  # stamp clock 13.5: x 0.7
+    out = tmp_path / "d" / "h"
+    argv = ["import-bag", str(bag), "--map", str(map_yaml), "--out", str(out)]
+    if pose_tf:
+        argv += ["--pose-tf", "map", "base_link"]
+    assert main(argv) == 0
+    assert np.loadtxt(out / "Xtx.csv") == pytest.approx(0.4)
+    assert np.loadtxt(out / "StXtx.csv") == pytest.approx(0.7)
+    printed = capsys.readouterr().out
+    assert "the pose stamps are 1599999995.000 s behind the bag's record times" in printed
+    assert "utterances and images without a stamp (1) were placed on the stamps' clock" in printed
+    (trial,) = json.loads((out / "bag_import.json").read_text())["trials"]
+    assert trial["record_clock_offset"] == pytest.approx(T0 - 5.0)  # the median k = 10
+
+
+def test_a_recording_on_one_clock_keeps_the_record_times(tmp_path, map_yaml):
+    """Poses stamped 0.3 s before they were recorded (a slow localiser): the clocks agree, so an
+    utterance stays at its record time and nothing is said about clocks."""
+    bag = tmp_path / "rec"
+    with BagWriter(bag, ros=2) as w:
+        for k in range(6):
+            w.pose("/amcl_pose", T0 + k, 0.5 * k, 0.0, 0.0, log_time=T0 + k + 0.3)
+        w.image("/camera/image", T0 + 1.0, _image())
+        w.text("/speech", T0 + 2.5, "hall")
+    report = import_bags([bag], map_yaml, tmp_path / "d" / "h", progress=False)
+    assert np.loadtxt(report.out / "StXtx.csv") == pytest.approx(1.25)
+    assert report.trials[0]["record_clock_offset"] is None
+    assert "record times" not in report.text()
+
+
+def test_samples_merged_on_a_tf_edge_walked_backwards_are_counted(tmp_path, map_yaml):
+    """tf holds base_link -> odom (the chain map -> base_link walks it backwards, inverted);
+    two of its samples share a stamp. The inverted track lost the merged count: the summary said
+    nothing was merged."""
+    bag = tmp_path / "rec"
+    with BagWriter(bag, ros=2) as w:
+        for k in range(5):
+            t = T0 + k
+            w.tf(t, [("map", "odom", 0.0, 0.0, 0.0), ("base_link", "odom", -0.5 * k, 0.0, 0.0)])
+        w.tf(T0 + 2.0, [("base_link", "odom", -1.0, 0.0, 0.0)], log_time=T0 + 2.01)  # again
+        w.image("/camera/image", T0 + 1.0, _image())
+        w.text("/speech", T0 + 3.0, "hall")
+    options = ImportOptions(pose_tf=("map", "base_link"))
+    report = import_bags([bag], map_yaml, tmp_path / "d" / "h", options, progress=False)
+    assert report.trials[0]["poses_merged"] == 1
+    assert "1 pose sample(s) repeated the previous one's stamp" in report.text()
+    assert np.loadtxt(report.out / "StXtx.csv") == pytest.approx(1.5)
+
+
+def test_pose_stamps_ahead_of_the_record_times_are_said_to_be_ahead(tmp_path, map_yaml):
+    """A robot whose clock is 30 s ahead of the recording laptop's."""
+    bag = tmp_path / "rec"
+    with BagWriter(bag, ros=2) as w:
+        for k in range(6):
+            w.pose("/amcl_pose", T0 + 30.0 + k, 0.5 * k, 0.0, 0.0, log_time=T0 + k)
+        w.image("/camera/image", T0 + 31.0, _image(), log_time=T0 + 1.0)
+        w.text("/speech", T0 + 2.5, "hall")
+    report = import_bags([bag], map_yaml, tmp_path / "d" / "h", progress=False)
+    assert np.loadtxt(report.out / "StXtx.csv") == pytest.approx(1.25)
+    assert "the pose stamps are 30.000 s ahead of the bag's record times" in report.text()

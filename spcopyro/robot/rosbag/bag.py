@@ -7,16 +7,18 @@ only here, when a bag is opened, and a clear :class:`RosbagsMissingError` names
 (``geometry_msgs/msg/PoseWithCovarianceStamped``) for both ROS versions.
 
 Timestamps: a message with a ``header`` is placed at its header stamp (when the sensor saw it);
-one without (``std_msgs/String``) or with a zero stamp at the time the bag recorded it. The stamps
-of one topic (of one tf edge) must not go backwards: :class:`BagContentError` names the topic and
-the two stamps. Equal consecutive pose stamps keep the first pose.
+one without (``std_msgs/String``) or with a zero stamp at the time the bag recorded it, mapped on
+the stamps' clock when the pose messages' stamps are on another (a simulator's:
+:func:`header_clock`). The stamps of one topic (of one tf edge) must not go backwards:
+:class:`BagContentError` names the topic, the two messages and their stamps. Equal consecutive
+pose stamps keep the first pose.
 """
 
 from __future__ import annotations
 
 import os
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,6 +40,7 @@ __all__ = [
     "BagFormatError",
     "RosbagsMissingError",
     "TopicData",
+    "header_clock",
     "open_bag",
     "read_pose_in_map",
     "read_pose_topic",
@@ -252,13 +255,41 @@ def _connections(reader: Any, topic: str, allowed: tuple[str, ...], role: str) -
     return found
 
 
-def _message_time(msg: Any, log_ns: int) -> float:
+def _stamp(msg: Any, log_ns: int) -> tuple[float, bool]:
+    """The message's time (its header stamp, else the bag's record time) and whether it is
+    the header stamp."""
     header = getattr(msg, "header", None)
     if header is not None:
         t = stamp_seconds(header.stamp)
         if t > 0:
-            return t
-    return log_ns * 1e-9
+            return t, True
+    return log_ns * 1e-9, False
+
+
+CLOCKS_DIFFER = 1.0
+"""Seconds: a pose source whose header stamps lie further than this (median) from the bag's
+record times stamps on another clock than the recorder's -- a simulator's (``use_sim_time``:
+stamps from 0 s) or another machine's -- and messages without a stamp (std_msgs/String) are
+placed on the stamps' clock (:func:`header_clock`). No transport delay of a pose is that long."""
+
+
+def header_clock(
+    chain: list[PoseTrack],
+) -> tuple[float | None, Callable[[np.ndarray], np.ndarray] | None]:
+    """The median of record time minus header stamp over the pose messages of ``chain``, and,
+    when it exceeds :data:`CLOCKS_DIFFER`, the map from record times to the stamps' clock
+    (the offset interpolated in record time, so a clock that drifts -- a simulator not at real
+    time -- is followed); (median, None) when the clocks agree, (None, None) without samples."""
+    pairs = [track.clock for track in chain if track.clock is not None and len(track.clock)]
+    if not pairs:
+        return None, None
+    clock = np.concatenate(pairs)  # [K, 2]
+    clock = clock[np.argsort(clock[:, 0], kind="stable")]
+    record, offset = clock[:, 0], clock[:, 0] - clock[:, 1]  # [K] each
+    median = float(np.median(offset))
+    if abs(median) <= CLOCKS_DIFFER:
+        return median, None
+    return median, lambda times: times - np.interp(times, record, offset)
 
 
 def _check_order(
@@ -282,15 +313,18 @@ def _track(
     times: list[float],
     poses: list[tuple[float, float, float]],
     frame: str | None = None,
+    clock: list[tuple[float, float]] | None = None,
 ) -> PoseTrack:
     """A pose track from samples in order; a repeated stamp keeps the first sample (how many
-    were dropped is the track's ``merged``, reported by the import)."""
+    were dropped is the track's ``merged``, reported by the import). ``clock``: (record time,
+    header stamp) of the samples that have a stamp (:func:`header_clock`)."""
     t = np.asarray(times, dtype=np.float64)  # [P]
     keep = np.ones(t.size, dtype=bool)
     keep[1:] = np.diff(t) > 0
     p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)[keep]  # [P', 3]
     merged = int((~keep).sum())
-    return PoseTrack(name, t[keep], p[:, :2], p[:, 2], merged=merged, frame=frame)
+    pairs = np.asarray(clock or [], dtype=np.float64).reshape(-1, 2)  # [K, 2]
+    return PoseTrack(name, t[keep], p[:, :2], p[:, 2], merged=merged, frame=frame, clock=pairs)
 
 
 def _planar(pose: Any) -> tuple[float, float, float]:
@@ -308,10 +342,14 @@ def read_pose_topic(reader: Any, topic: str) -> PoseTrack:
     connections = _connections(reader, topic, POSE_TYPES, "pose")
     times: list[float] = []
     poses: list[tuple[float, float, float]] = []
+    clock: list[tuple[float, float]] = []
     frames: set[str] = set()
     for _, connection, log_ns, msg in _messages(reader, connections, topic):
         pose = msg.pose if connection.msgtype.endswith("PoseStamped") else msg.pose.pose
-        times.append(_message_time(msg, log_ns))
+        t, stamped = _stamp(msg, log_ns)
+        times.append(t)
+        if stamped:
+            clock.append((log_ns * 1e-9, t))
         poses.append(_planar(pose))
         frames.add(_frame(msg.header.frame_id))
     if not times:
@@ -323,7 +361,7 @@ def read_pose_topic(reader: Any, topic: str) -> PoseTrack:
             f"{reader.paths[0]}: pose topic {topic} gives poses in several frames "
             f"({', '.join(repr(f) for f in named)}); the import reads one frame per topic"
         )
-    return _track(topic, times, poses, frame=named[0] if named else None)
+    return _track(topic, times, poses, frame=named[0] if named else None, clock=clock)
 
 
 def read_pose_in_map(reader: Any, topic: str, map_frame: str) -> tuple[list[PoseTrack], str | None]:
@@ -370,6 +408,7 @@ def _tf_tracks(reader: Any) -> dict[tuple[str, str], PoseTrack] | None:
     connections = [c for t in topics for c in _connections(reader, t, TF_TYPES, "tf")]
     samples: dict[tuple[str, str], tuple[list[float], list[tuple[float, float, float]]]] = {}
     numbers: dict[tuple[str, str], list[int]] = {}  # each sample's message number on /tf
+    clocks: dict[tuple[str, str], list[tuple[float, float]]] = {}
     static: dict[tuple[str, str], tuple[float, float, float]] = {}
     counted = {"tf": 0, "tf_static": 0}
     for _, connection, log_ns, msg in _messages(reader, connections, " and ".join(topics)):
@@ -383,13 +422,16 @@ def _tf_tracks(reader: Any) -> dict[tuple[str, str], PoseTrack] | None:
                 static[edge] = pose
                 continue
             times, poses = samples.setdefault(edge, ([], []))
-            times.append(_message_time(transform, log_ns))
+            t, stamped = _stamp(transform, log_ns)
+            times.append(t)
             poses.append(pose)
+            if stamped:
+                clocks.setdefault(edge, []).append((log_ns * 1e-9, t))
             numbers.setdefault(edge, []).append(counted["tf"])
     tracks: dict[tuple[str, str], PoseTrack] = {}
     for edge, (times, poses) in samples.items():
         _check_order(reader, "/tf", times, f" (edge {edge[0]} -> {edge[1]})", numbers[edge])
-        tracks[edge] = _track(f"tf {edge[0]} -> {edge[1]}", times, poses)
+        tracks[edge] = _track(f"tf {edge[0]} -> {edge[1]}", times, poses, None, clocks.get(edge))
     for edge, pose in static.items():
         tracks[edge] = PoseTrack(
             f"tf_static {edge[0]} -> {edge[1]}", [0.0], [pose[:2]], [pose[2]], static=True
@@ -455,22 +497,31 @@ def read_tf_chain(reader: Any, parent: str, child: str) -> list[PoseTrack]:
 @dataclass
 class TopicData:
     """What the first pass keeps of an image or text topic: per message (in bag order) its
-    stamp ``times`` [M] seconds, and for text the strings."""
+    stamp ``times`` [M] seconds, whether it is the header's (``stamped`` [M]; else the record
+    time), and for text the strings."""
 
     topic: str
     msgtype: str
     times: np.ndarray  # [M] float64 s
+    stamped: np.ndarray  # [M] bool
     texts: list[str] = field(default_factory=list)
 
 
 def read_stamps(reader: Any, topic: str) -> TopicData:
     """The stamps of an image topic's messages (the images are decoded later, only those kept)."""
     connections = _connections(reader, topic, IMAGE_TYPES, "image")
-    times = []
+    times, stamped = [], []
     for _, _connection, log_ns, msg in _messages(reader, connections, topic):
-        times.append(_message_time(msg, log_ns))
+        t, has_stamp = _stamp(msg, log_ns)
+        times.append(t)
+        stamped.append(has_stamp)
     _check_order(reader, topic, times)
-    return TopicData(topic, connections[0].msgtype, np.asarray(times, dtype=np.float64))
+    return TopicData(
+        topic,
+        connections[0].msgtype,
+        np.asarray(times, dtype=np.float64),
+        np.asarray(stamped, bool),
+    )
 
 
 def read_texts(reader: Any, topic: str) -> TopicData:
@@ -478,10 +529,13 @@ def read_texts(reader: Any, topic: str) -> TopicData:
     connections = _connections(reader, topic, TEXT_TYPES, "utterance")
     times, texts = [], []
     for _, _connection, log_ns, msg in _messages(reader, connections, topic):
-        times.append(_message_time(msg, log_ns))
+        times.append(_stamp(msg, log_ns)[0])
         texts.append(str(msg.data))
     _check_order(reader, topic, times)
-    return TopicData(topic, connections[0].msgtype, np.asarray(times, dtype=np.float64), texts)
+    stamped = np.zeros(len(times), dtype=bool)  # std_msgs/String has no header
+    return TopicData(
+        topic, connections[0].msgtype, np.asarray(times, dtype=np.float64), stamped, texts
+    )
 
 
 def iter_images(reader: Any, topic: str, keep: set[int]) -> Iterator[tuple[int, Any]]:

@@ -9,7 +9,9 @@ bag the import reads:
   SE(2): :mod:`spcopyro.robot.rosbag.poses`). A pose topic in another frame than the map's
   (``odom``) is placed on the map through the bag's tf chain ``map -> ... -> odom``, and is an
   error without one; the report and ``bag_import.json`` name the frame (``pose_frame``) and
-  the chain (``pose_frame_via_tf``);
+  the chain (``pose_frame_via_tf``). Pose stamps on another clock than the bag's record times (a
+  simulator's, ``use_sim_time``) put the messages without a stamp (utterances) on theirs
+  (:func:`~spcopyro.robot.rosbag.bag.header_clock`; the report's ``record_clock_offset``);
 * camera images (``sensor_msgs/Image`` or ``CompressedImage``) and utterances
   (``std_msgs/String``: a word or a whole sentence).
 
@@ -70,6 +72,7 @@ from spcopyro.robot.rosbag.bag import (
     BagContentError,
     _frame,
     _rosbags,
+    header_clock,
     iter_images,
     open_bag,
     read_pose_in_map,
@@ -206,6 +209,14 @@ class BagImportReport:
                     "repeated the previous one's stamp and were merged into it (the first "
                     "kept): the bag's stamps are coarser than its pose rate"
                 )
+            if (offset := t.get("record_clock_offset")) is not None:
+                lines.append(
+                    f"trial {t['trial']} ({t['bag']}): the pose stamps are "
+                    f"{abs(offset):.3f} s {'behind' if offset > 0 else 'ahead of'} the bag's "
+                    "record times (another clock: simulated time?); the utterances and images "
+                    "without a stamp "
+                    f"({t['unstamped_moved_to_stamp_clock']}) were placed on the stamps' clock"
+                )
             if t.get("pose_frame_via_tf"):
                 lines.append(
                     f"trial {t['trial']} ({t['bag']}): poses in frame {t['pose_frame']} placed "
@@ -286,6 +297,12 @@ def _import_one(
             pose_frame = chain[-1].frame
         images = read_stamps(reader, options.image_topic)
         words = read_texts(reader, options.words_topic)
+        # Poses stamped on another clock than the recorder's (use_sim_time): the record times
+        # of the messages without a stamp (utterances) are mapped onto the stamps' clock.
+        clock_offset, to_stamp = header_clock(chain)
+        if to_stamp is not None:
+            for data in (images, words):
+                data.times[~data.stamped] = to_stamp(data.times[~data.stamped])
 
         def skip(topic: str, kind: str, stamp: float, reason: str) -> None:
             skipped.append(SkippedObservation(trial, str(bag), topic, kind, float(stamp), reason))
@@ -341,6 +358,12 @@ def _import_one(
         "pose_frame": pose_frame,  # the frame the poses came in (None: no frame_id)
         "pose_frame_via_tf": via_tf,  # "map -> odom": the tf chain that placed them on the map
         "poses_merged": int(sum(track.merged for track in chain)),
+        # record time - pose stamp (median, s) where the stamps are on another clock and the
+        # observations without a stamp were placed on it; None where the clocks agree
+        "record_clock_offset": clock_offset if to_stamp is not None else None,
+        "unstamped_moved_to_stamp_clock": int((~images.stamped).sum() + (~words.stamped).sum())
+        if to_stamp is not None
+        else 0,
         "images_in_bag": int(images.times.size),
         "images_no_pose": int((~ok).sum()),
         "images_thinned": int(candidates.size - kept.size),

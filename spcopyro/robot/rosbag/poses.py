@@ -67,6 +67,7 @@ class PoseTrack:
     inverted: bool = False  # the parent in the child frame: interpolated, then inverted
     merged: int = 0  # samples dropped because they repeated the previous sample's stamp
     frame: str | None = None  # the frame the poses are given in (a pose topic's header)
+    clock: np.ndarray | None = None  # [K, 2] (record time, header stamp) of its messages, s
 
     def __post_init__(self) -> None:
         times = np.asarray(self.times, dtype=np.float64).reshape(-1)  # [P]
@@ -120,7 +121,10 @@ class PoseTrack:
     def inverse(self) -> PoseTrack:
         """The track of the parent frame in the child frame (each interpolated pose inverted)."""
         name = self.name[len("inverse of ") :] if self.inverted else f"inverse of {self.name}"
-        return PoseTrack(name, self.times, self.xy, self.yaw, self.static, not self.inverted)
+        return PoseTrack(
+            name, self.times, self.xy, self.yaw, self.static, not self.inverted, self.merged,
+            clock=self.clock,
+        )  # fmt: skip
 
 
 def _invert(xy: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
