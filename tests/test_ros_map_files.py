@@ -233,6 +233,16 @@ def test_a_nan_yaw_says_where_it_comes_from(tmp_path, yaw):
         load_map(write_map(tmp_path, origin="[0, 0]"))
 
 
+@pytest.mark.parametrize("yaw", ["8.881784197001252e-16", "-1e-9", "-0.0"])
+def test_a_yaw_of_float_noise_reads_as_zero(tmp_path, yaw):
+    """A yaw of a quaternion's float noise was refused as a rotated map ("yaw must be 0"):
+    within MAX_YAW_NOISE it turns nothing by a cell, and reads as 0; a real yaw is refused."""
+    grid = load_map(write_map(tmp_path, origin=f"[-15.4, -30.9, {yaw}]"))
+    assert grid.origin == (-15.4, -30.9, 0.0)
+    with pytest.raises(MapFormatError, match="rotated maps are not supported"):
+        load_map(write_map(tmp_path, origin="[-15.4, -30.9, 1e-3]"))
+
+
 def test_tabs_between_a_key_and_its_value_read_as_map_server_reads_them(tmp_path):
     """yaml-cpp (map_server) reads a tab after `key:` as a space; PyYAML refused the file
     ("found character '\\t' that cannot start any token")."""

@@ -55,6 +55,11 @@ SAVE_FREE_THRESH = 0.196
 _REQUIRED_KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
 _KNOWN_KEYS = (*_REQUIRED_KEYS, "mode")
 
+MAX_YAW_NOISE = 1e-6
+"""Radians: an origin yaw this small is read as 0 (a quaternion's float noise, as a mapping
+package may save it): it turns a cell 1 km from the origin by 1 mm. A larger yaw is refused
+(rotated maps are not supported)."""
+
 MAX_MAP_COORDINATE = 1e6
 """Metres: :func:`load_map` refuses a map that lies wholly farther than this from its frame's
 origin along x or y, since the data loader refuses every position there
@@ -225,7 +230,7 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
                 "map_server refuses it too: the map is not rotated, write 0"
             )
         raise error
-    if origin[2] != 0:
+    if abs(origin[2]) > MAX_YAW_NOISE:
         raise MapFormatError(
             f"{where('origin')}: key 'origin' has yaw {echo(origin[2])}; rotated maps are not "
             "supported (yaw must be 0)"
@@ -260,7 +265,7 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
         path=path,
         image=image_path,
         resolution=float(resolution),
-        origin=(float(origin[0]), float(origin[1]), float(origin[2])),
+        origin=(float(origin[0]), float(origin[1]), 0.0),  # yaw: 0 or noise (MAX_YAW_NOISE)
         negate=bool(negate),
         occupied_thresh=float(doc["occupied_thresh"]),
         free_thresh=float(doc["free_thresh"]),
@@ -357,10 +362,11 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
     """Load a ROS map_server map (yaml + image) as an :class:`OccupancyGrid`.
 
     Keys (all required, as in map_server): ``image`` (relative to the yaml's folder, or
-    absolute), ``resolution``, ``origin`` ``[x, y, yaw]`` (yaw must be 0), ``negate`` (0/1),
-    ``occupied_thresh``, ``free_thresh`` (in [0, 1], free < occupied); optional ``mode`` must be
-    ``trinary`` (the default). Unknown keys are ignored, as map_server does. Numbers may be
-    written ``5e-2`` (YAML 1.2, as map_server's yaml-cpp reads them).
+    absolute), ``resolution``, ``origin`` ``[x, y, yaw]`` (yaw must be 0; one within
+    :data:`MAX_YAW_NOISE` reads as 0), ``negate`` (0/1), ``occupied_thresh``, ``free_thresh`` (in
+    [0, 1], free < occupied); optional ``mode`` must be ``trinary`` (the default). Unknown keys
+    are ignored, as map_server does. Numbers may be written ``5e-2`` (YAML 1.2, as map_server's
+    yaml-cpp reads them).
 
     Cells: ``v`` = pixel value over the image's full scale (a pgm's maxval; else 255, or 65535
     for a 16-bit png: map_server scales by it), averaged over all channels for colour images;
