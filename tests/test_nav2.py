@@ -502,3 +502,21 @@ def test_an_export_or_plan_under_a_file_says_so(fit, tmp_path, capsys):
         assert main([*argv, str(out)]) == 2
         assert f"error: {option} {out}: {taken} is a file, not a folder" in capsys.readouterr().err
     assert taken.read_text() == "mine"
+
+
+def test_words_of_one_place_are_warned_their_masks_are_the_same(tmp_path, capsys):
+    """Two words whose where-answer is one concept got two identical keepout masks and nothing
+    said: each mask now warns, naming the other word (the library's warnings and the CLI's)."""
+    result = top_and_bottom()
+    w = np.array([[0.5, 0.1, 0.4], [0.1, 0.7, 0.2]])  # [L, V]: sofa now the kitchen's concept
+    result = dataclasses.replace(
+        result, emissions=(result.emissions[0], EmissionTable("words", WORDS, w))
+    )
+    export = export_nav2(result, tmp_path / "nav2", ["kitchen", "sofa", "bed"])
+    kitchen, sofa, bed = export.masks
+    assert kitchen.concept == sofa.concept == 0 and bed.concept == 1
+    assert any("the same place as 'sofa' (concept 0)" in x for x in kitchen.warnings)
+    assert any("the same place as 'kitchen' (concept 0)" in x for x in sofa.warnings)
+    assert not any("same place" in x for x in bed.warnings)
+    record = json.loads((tmp_path / "nav2" / "nav2_export.json").read_text())["masks"][1]
+    assert any("the same place as 'kitchen'" in x for x in record["warnings"])

@@ -52,7 +52,7 @@ import json
 import os
 import re
 import unicodedata
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -312,6 +312,32 @@ def write_commented_yaml(path: Path, document: dict[str, object], comment: str) 
     path.write_text(header + text, encoding="utf-8")
 
 
+def _warn_of_shared_places(
+    masks: list[ExportedMask], records: list[dict[str, object]]
+) -> tuple[list[ExportedMask], list[dict[str, object]]]:
+    """Each keepout mask whose where-answer's concept another word's shares, with a warning
+    naming them: the map does not tell those places apart, so their masks are the same cells
+    (two identical masks came back with nothing said)."""
+    words_of: dict[int, list[str]] = {}
+    for mask in masks:
+        if mask.concept is not None:
+            words_of.setdefault(mask.concept, []).append(mask.word)
+    shared_masks, shared_records = [], []
+    for mask, record in zip(masks, records, strict=True):
+        sharing = [] if mask.concept is None else words_of[mask.concept]
+        others = [w for w in sharing if w != mask.word]
+        if others:
+            warning = (
+                f"the same place as {', '.join(map(repr, others))} (concept {mask.concept}): "
+                "the semantic map does not tell them apart, so their masks are the same cells"
+            )
+            mask = replace(mask, warnings=(*mask.warnings, warning))
+            record = {**record, "warnings": [*record["warnings"], warning]}  # type: ignore[misc]
+        shared_masks.append(mask)
+        shared_records.append(record)
+    return shared_masks, shared_records
+
+
 def export_nav2(
     result: SpCoResult,
     out: str | os.PathLike[str],
@@ -413,6 +439,7 @@ def export_nav2(
             records.append({"word": word, "name": name, "mask": mask_yaml.name,
                             "params": params_yaml.name, "cells": cells, "concept": concept,
                             "warnings": list(warnings)})  # fmt: skip
+        masks, records = _warn_of_shared_places(masks, records)
         filters_yaml = folder / "costmap_filters.yaml"
         write_commented_yaml(
             filters_yaml,
