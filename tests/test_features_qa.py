@@ -418,3 +418,18 @@ def test_features_seed_without_random_weights_is_refused(tmp_path):
     args = parser.parse_args(["features", str(tmp_path), "--out", "x.csv", "--seed", "3"])
     with pytest.raises(ValueError, match="--seed 3: the seed of --weights random, not of imagenet"):
         args.func(args)
+
+
+def test_a_labels_file_written_on_windows_finds_its_images(tmp_path, images_dir):
+    """`images\\00000.png` (a labels file written on Windows) was one file name on Linux: every
+    image 'not found'. A backslash reads as a slash where only that names a file."""
+    from spcopyro.features.images import read_labelled_images
+
+    labels = tmp_path / "labels.csv"
+    labels.write_text("images\\00000.png,kitchen\nimages\\00001.png,bedroom\n")
+    paths, names = read_labelled_images(labels)
+    assert paths == [tmp_path / "images" / "00000.png", tmp_path / "images" / "00001.png"]
+    assert names == ["kitchen", "bedroom"]
+    labels.write_text("images\\gone.png,kitchen\nimages\\00001.png,bedroom\n")
+    with pytest.raises(FileNotFoundError, match="1 of 2 image"):
+        read_labelled_images(labels)

@@ -382,9 +382,17 @@ def spelt_twice(names: Sequence[str]) -> tuple[int, int] | None:
     return None
 
 
+def _beside(labels_file: Path, image: str) -> Path:
+    """A labels file's IMAGE: absolute, or relative to the file's folder."""
+    path = Path(image)
+    return path if path.is_absolute() else labels_file.parent / path
+
+
 def read_labelled_images(path: str | os.PathLike[str]) -> tuple[list[Path], list[str]]:
     """A labels file: one ``IMAGE,PLACE`` line per image (IMAGE relative to the file's folder,
-    or absolute; blank lines and lines starting with ``#`` skipped) -> (paths, place names).
+    or absolute; a Windows path's backslashes, ``img_0\\1.jpg``, read as slashes where only
+    that names a file; blank lines and lines starting with ``#`` skipped) -> (paths, place
+    names).
 
     Raises:
         FileNotFoundError: no such file, or images it names that do not exist (with their
@@ -408,8 +416,10 @@ def read_labelled_images(path: str | os.PathLike[str]) -> tuple[list[Path], list
         fields = [f.strip() for f in line.split(",")]
         if len(fields) != 2 or not all(fields):
             raise ValueError(f"{path}, line {number}: expected IMAGE,PLACE: {echo(line)}")
-        image = Path(fields[0])
-        paths.append(image if image.is_absolute() else path.parent / image)
+        image = _beside(path, fields[0])
+        if "\\" in fields[0] and os.sep == "/" and not image.exists():
+            image = _beside(path, fields[0].replace("\\", "/"))  # written on Windows: img_0\1.jpg
+        paths.append(image)
         names.append(fields[1])
         lines.append(number)
     if not paths:
