@@ -141,3 +141,66 @@ def test_pose_stamps_ahead_of_the_record_times_are_said_to_be_ahead(tmp_path, ma
     report = import_bags([bag], map_yaml, tmp_path / "d" / "h", progress=False)
     assert np.loadtxt(report.out / "StXtx.csv") == pytest.approx(1.25)
     assert "the pose stamps are 30.000 s ahead of the bag's record times" in report.text()
+
+
+QOS = (  # one offered QoS profile as rosbag2 (Foxy .. Humble) writes it: a YAML string
+    "- history: 1\n  depth: 10\n  reliability: 1\n  durability: 2\n  deadline:\n    sec: 0\n"
+    "    nsec: 0\n  lifespan:\n    sec: 0\n    nsec: 0\n  liveliness: 1\n"
+    "  liveliness_lease_duration:\n    sec: 0\n    nsec: 0\n"
+    "  avoid_ros_namespace_conventions: false"
+)
+
+
+def _edit_metadata(bag: Path, topic: str, **changes: object) -> None:
+    """Change ``topic``'s entry of a ROS 2 bag's metadata.yaml (``message_count``, or a
+    ``topic_metadata`` key such as ``offered_qos_profiles``)."""
+    import yaml
+
+    path = bag / "metadata.yaml"
+    metadata = yaml.safe_load(path.read_text())
+    for entry in metadata["rosbag2_bagfile_information"]["topics_with_message_count"]:
+        if entry["topic_metadata"]["name"] == topic:
+            for key, value in changes.items():
+                (entry if key == "message_count" else entry["topic_metadata"])[key] = value
+    path.write_text(yaml.safe_dump(metadata))
+
+
+def _write_plain(bag: Path, storage: str = "sqlite3") -> None:
+    with BagWriter(bag, ros=2, storage=storage) as w:
+        for k in range(5):
+            w.pose("/amcl_pose", T0 + k, 0.5 * k, 0.0, 0.0)
+        for t in (0.5, 1.5, 2.5):
+            w.image("/camera/image", T0 + t, _image())
+        w.text("/speech", T0 + 1.0, "kitchen")
+
+
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_a_topic_metadata_yaml_and_storage_disagree_on_is_an_error(tmp_path, map_yaml, storage):
+    """rosbags reads a bag folder's messages only of the topics whose offered QoS (and type) in
+    metadata.yaml match the storage file's, and returned none of the others: the image topic
+    read as empty, 'images 0 kept of 0', and the import went on (or stopped at 'the bags hold
+    none'). The storage file given itself reads them all."""
+    bag = tmp_path / "rec"
+    _write_plain(bag, storage)
+    _edit_metadata(bag, "/camera/image", offered_qos_profiles=QOS)
+    with pytest.raises(BagContentError) as error:
+        import_bags([bag], map_yaml, tmp_path / "d" / "h", progress=False)
+    message = str(error.value)
+    assert f"{bag}: topic /camera/image: the bag's index counts 3 message(s), but none" in message
+    assert "metadata.yaml and its storage file disagree" in message
+    assert "`ros2 bag reindex`" in message
+    (storage_file,) = bag.glob("*.db3" if storage == "sqlite3" else "*.mcap")
+    report = import_bags([storage_file], map_yaml, tmp_path / "e" / "h", progress=False)
+    assert report.trials[0]["images_kept"] == 3
+
+
+def test_messages_metadata_yaml_counts_but_the_storage_lacks_are_reported(tmp_path, map_yaml):
+    bag = tmp_path / "rec"
+    _write_plain(bag)
+    _edit_metadata(bag, "/camera/image", message_count=5)
+    _edit_metadata(bag, "/speech", message_count=2)
+    report = import_bags([bag], map_yaml, tmp_path / "d" / "h", progress=False)
+    trial = report.trials[0]
+    assert (trial["images_unread"], trial["utterances_unread"]) == (2, 1)
+    assert "the bag's index counts 5 image message(s), 3 could be read: 2 are" in report.text()
+    assert "counts 2 utterance message(s), 1 could be read" in report.text()

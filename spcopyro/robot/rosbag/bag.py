@@ -205,7 +205,8 @@ def _messages(
     is None). A message that cannot be read or deserialised -- a damaged or cut-short bag -- is a
     :class:`BagFormatError` naming the bag, the topic and the message, not a traceback of
     rosbags, apsw or zstd (only their calls are in the ``try``: an error of the caller's, which
-    runs outside this generator, is not caught here)."""
+    runs outside this generator, is not caught here). A topic the bag's index counts messages
+    of but of which none can be read is a :class:`BagContentError` (:func:`_none_read`)."""
     messages = reader.messages(connections=connections)
     index = 0
     while True:
@@ -214,6 +215,8 @@ def _messages(
             wanted_here = wanted is None or index in wanted
             msg = reader.deserialize(raw, connection.msgtype) if wanted_here else None
         except StopIteration:
+            if not index and (indexed := _indexed(connections)):
+                raise _none_read(reader, topic, indexed) from None
             return
         except Exception as error:  # noqa: BLE001 - whatever the readers raise on bad bytes
             raise BagFormatError(
@@ -222,6 +225,30 @@ def _messages(
             ) from None
         yield index, connection, log_ns, msg
         index += 1
+
+
+def _indexed(connections: list[Any]) -> int:
+    """How many messages the bag's index (a ROS 2 bag's metadata.yaml, a ROS 1 bag's or an
+    mcap file's index) counts on ``connections``."""
+    return int(sum(int(getattr(c, "msgcount", 0) or 0) for c in connections))
+
+
+def _none_read(reader: Any, topic: str, indexed: int) -> BagContentError:
+    """The error for a topic of ``indexed`` messages none of which could be read: rosbags reads
+    a ROS 2 bag folder's messages only of the topics whose type and offered QoS in its
+    metadata.yaml match the storage file's, and skipped the rest without a word."""
+    path = Path(reader.paths[0])
+    fix = (
+        "its metadata.yaml and its storage file disagree about the topic (its type or offered "
+        "QoS profiles): give the .db3 / .mcap file itself as BAG, or rewrite metadata.yaml with "
+        "`ros2 bag reindex`"
+        if (path / "metadata.yaml").is_file()
+        else "the bag's index and its messages disagree"
+    )
+    return BagContentError(
+        f"{path}: topic {topic}: the bag's index counts {indexed} message(s), but none could "
+        f"be read; {fix}"
+    )
 
 
 _REPAIR = {
@@ -498,13 +525,15 @@ def read_tf_chain(reader: Any, parent: str, child: str) -> list[PoseTrack]:
 class TopicData:
     """What the first pass keeps of an image or text topic: per message (in bag order) its
     stamp ``times`` [M] seconds, whether it is the header's (``stamped`` [M]; else the record
-    time), and for text the strings."""
+    time), for text the strings, and how many messages the bag's index counts (``indexed``;
+    more than M where a ROS 2 bag's metadata.yaml counts messages its storage does not hold)."""
 
     topic: str
     msgtype: str
     times: np.ndarray  # [M] float64 s
     stamped: np.ndarray  # [M] bool
     texts: list[str] = field(default_factory=list)
+    indexed: int = 0
 
 
 def read_stamps(reader: Any, topic: str) -> TopicData:
@@ -516,11 +545,13 @@ def read_stamps(reader: Any, topic: str) -> TopicData:
         times.append(t)
         stamped.append(has_stamp)
     _check_order(reader, topic, times)
+    times_s = np.asarray(times, dtype=np.float64)
     return TopicData(
         topic,
         connections[0].msgtype,
-        np.asarray(times, dtype=np.float64),
+        times_s,
         np.asarray(stamped, bool),
+        indexed=_indexed(connections),
     )
 
 
@@ -533,9 +564,8 @@ def read_texts(reader: Any, topic: str) -> TopicData:
         texts.append(str(msg.data))
     _check_order(reader, topic, times)
     stamped = np.zeros(len(times), dtype=bool)  # std_msgs/String has no header
-    return TopicData(
-        topic, connections[0].msgtype, np.asarray(times, dtype=np.float64), stamped, texts
-    )
+    times_s = np.asarray(times, dtype=np.float64)
+    return TopicData(topic, connections[0].msgtype, times_s, stamped, texts, _indexed(connections))
 
 
 def iter_images(reader: Any, topic: str, keep: set[int]) -> Iterator[tuple[int, Any]]:

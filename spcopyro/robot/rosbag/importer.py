@@ -217,6 +217,15 @@ class BagImportReport:
                     "without a stamp "
                     f"({t['unstamped_moved_to_stamp_clock']}) were placed on the stamps' clock"
                 )
+            for kind in ("images", "utterances"):
+                if unread := t.get(f"{kind}_unread"):
+                    read = t[f"{kind}_in_bag"]
+                    lines.append(
+                        f"trial {t['trial']} ({t['bag']}): the bag's index counts "
+                        f"{read + unread} {kind[:-1]} message(s), {read} could be read: "
+                        f"{unread} are counted in its metadata.yaml only (not written when "
+                        "recorded?)"
+                    )
             if t.get("pose_frame_via_tf"):
                 lines.append(
                     f"trial {t['trial']} ({t['bag']}): poses in frame {t['pose_frame']} placed "
@@ -365,6 +374,9 @@ def _import_one(
         if to_stamp is not None
         else 0,
         "images_in_bag": int(images.times.size),
+        # the bag's index (a ROS 2 bag's metadata.yaml) counts more than could be read
+        "images_unread": max(images.indexed - int(images.times.size), 0),
+        "utterances_unread": max(words.indexed - len(words.texts), 0),
         "images_no_pose": int((~ok).sum()),
         "images_thinned": int(candidates.size - kept.size),
         "images_undecodable": undecodable,
