@@ -209,6 +209,28 @@ def test_an_instruction_that_keeps_away_from_a_place_is_refused(text, fit, capsy
     assert "--mode keepout" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    "text, said",
+    [("leave the kitchen", "leave"), ("stay away from the kitchen", "away"),
+     ("get out of the kitchen", "out of"), ("steer clear of the kitchen", "clear of"),
+     ("go anywhere but the kitchen", "anywhere"), ("exit the kitchen", "exit"),
+     ("bypass the kitchen on the way to the bedroom", "bypass")],
+)  # fmt: skip
+def test_an_instruction_that_sends_the_robot_out_of_a_place_is_refused(text, said, fit, capsys):
+    """QA: "leave the kitchen", "stay away from the kitchen", "get out of the kitchen" drove
+    into the kitchen: "leave", "away", "get" were ignored as words the fit does not know."""
+    with pytest.raises(NavigationError, match=f"says '{said}': .*cannot keep the robot away"):
+        parse_instruction(text, WORDS)
+    assert main(["navigate", str(fit), text, "--start", f"{START_A[0]},{START_A[1]}"]) == 2
+    assert "--mode keepout" in capsys.readouterr().err
+
+
+def test_a_place_word_the_fit_knows_is_not_a_leave_word():
+    """A house whose exit is a place: "go to the exit" goes there; "out" alone is no "out of"."""
+    assert parse_instruction("go to the exit", (*WORDS, "exit")).places == ("exit",)
+    assert parse_instruction("go out to the kitchen", WORDS).places == ("kitchen",)
+
+
 def test_the_route_names_every_stop_in_a_place(result, tmp_path, capsys):
     """QA: "go to the kitchen via the sink" with both words in one place printed "route:
     bedroom -> corridor -> kitchen": the via stop's word vanished from the route (a place's
@@ -382,6 +404,7 @@ def test_a_seeded_fit_gives_the_same_plan(tmp_path):
         (["go to the kitchn", "--start=0.35,1.45"], "did you mean kitchen"),
         (["go there now", "--start=0.35,1.45"], "names no place the fit knows"),
         (["kitchen", "--start=50,1"], "off the map, which spans x 0.00..4.10"),
+        (["kitchen", "--start=1e308,1"], "off the map, which spans x 0.00..4.10"),  # overflowed
         (["kitchen", "--start=0.05,1.45"], "not free (a wall or unknown space)"),
         (["kitchen", "--start=0.15,1.45", "--radius", "0.2"], "closer than the robot's radius"),
         (

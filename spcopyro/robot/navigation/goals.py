@@ -9,8 +9,9 @@ skipped even when the fit's vocabulary holds them (a fit on sentences does). Eve
 of the vocabulary names a place. A word outside it with a close known word (``difflib``, as
 ``spcopyro where`` suggests) is an error that names them (a typo must not send the robot
 elsewhere); one with no close word is ignored and reported. An instruction with a word of
-:data:`NEGATION_WORDS` ("not the kitchen", "avoid the kitchen") is refused: the robot only visits
-places, so it would have driven to the one it was told to keep away from.
+:data:`NEGATION_WORDS` ("not the kitchen", "avoid the kitchen") or of :data:`LEAVE_WORDS`
+("leave the kitchen", "stay away from the kitchen", "get out of the kitchen") is refused: the
+robot only visits places, so it would have driven to the one it was told to keep away from.
 
 The places are visited in the order the instruction gives them, except that a place after
 "via", "through" or "past" is visited *before* the destination said just before it: "go to the
@@ -55,6 +56,7 @@ from spcopyro.robot.navigation.graph import PlanningGrid
 __all__ = [
     "AMBIGUITY_RATIO",
     "MIN_CANDIDATE_AREA",
+    "LEAVE_WORDS",
     "NEGATION_WORDS",
     "P_TOLERANCE",
     "STOP_WORDS",
@@ -92,6 +94,16 @@ NEGATION_WORDS = frozenset(
 out ("the kitchen or the bedroom", "the kitchen instead of the bedroom"): navigate visits every
 place an instruction names, so an instruction holding one is refused ("go to the bathroom, not
 the kitchen" drove to both)."""
+LEAVE_WORDS = frozenset(
+    {"away", "leave", "leaves", "leaving", "exit", "exiting", "bypass", "bypassing",
+     "circumvent", "circumventing", "anywhere", "everywhere", "elsewhere", "outside"}
+)  # fmt: skip
+"""Words that send the robot out of, around or away from the place they name ("leave the
+kitchen", "stay away from the kitchen", "anywhere but the kitchen"): refused as
+:data:`NEGATION_WORDS` are, unless the fit knows the word (a house whose exit is a place);
+so are "out of" and "clear of" ("get out of the kitchen", "steer clear of the kitchen"). Each
+was ignored as a word the fit does not know, and the robot drove into the kitchen."""
+_LEAVE_PAIRS = frozenset({("out", "of"), ("clear", "of")})
 AMBIGUITY_RATIO = 0.8
 """A region whose best p is at least this share of the map's best p is a candidate: with two or
 more, the word is ambiguous (near-equal: odds below 1.25)."""
@@ -155,7 +167,10 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
     mode, destination = "to", None  # destination: index of the last destination in places
     tokens = _tokens(text)
     negation = next((token for token in tokens
-                     if token in NEGATION_WORDS or token.endswith("n't")), None)  # fmt: skip
+                     if token in NEGATION_WORDS or token.endswith("n't")
+                     or (token in LEAVE_WORDS and token not in known)), None)  # fmt: skip
+    negation = negation or next((f"{a} {b}" for a, b in zip(tokens, tokens[1:], strict=False)
+                                 if (a, b) in _LEAVE_PAIRS), None)  # fmt: skip
     if negation is not None:
         raise NavigationError(
             f"the instruction {text!r} says {negation!r}: navigate visits every place an "

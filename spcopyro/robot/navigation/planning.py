@@ -172,8 +172,12 @@ def start_node(planning: PlanningGrid, start: tuple[float, float]) -> int:
     x, y = float(start[0]), float(start[1])
     if not (math.isfinite(x) and math.isfinite(y)):
         raise NavigationError(f"--start {x},{y}: not a finite point")
-    cell = grid.world_to_cell(np.array([x, y]))
-    if not bool(grid.in_bounds(cell)):
+    try:  # a point as far as 1e308 overflowed and said only "xy is too far from the map origin"
+        with np.errstate(over="ignore", invalid="ignore"):
+            cell = grid.world_to_cell(np.array([x, y]))
+    except ValueError:
+        cell = None
+    if cell is None or not bool(grid.in_bounds(cell)):
         corners = np.array([[grid.height - 1, 0], [0, grid.width - 1]])  # lower left, upper right
         (x0, y0), (x1, y1) = grid.cell_to_world(corners)
         half = grid.resolution / 2
