@@ -207,6 +207,8 @@ def test_public_table_layout():
         "| 0.25 / 0.50 / 0.5 / 0.50 m | 0.50 / 0.50 / 0.5 / 0.50 m | 0.375 |"
     )
     assert "## The paper's own numbers" in md and "0.0001 on room2ldk4" in md
+    # the paper's Table 4 has two parts, (a) ARI and (b) matching rate; the note said only (b)
+    assert "by ARI (4a) and matching rate (eq. 18, 4b)" in md
 
 
 def test_synthetic_table_shows_a_sd_only_over_two_seeds_or_more():

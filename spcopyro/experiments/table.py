@@ -67,12 +67,12 @@ def heldout_folds(house: House) -> Iterator[tuple[int, int, House, Observations]
 
 
 PAPER_NUMBERS_NOTE = (
-    "The paper's Table 4 scores the public houses by matching rate (eq. 18) against region "
-    "ground truth drawn by people, which the public dataset does not include; no cell of the "
-    "tables above measures the same thing (synthetic houses: ours; public houses: held-out "
-    "trials), so the paper's numbers are not set beside them. The one value of that table this "
-    "project holds (quoted in issue #4) shows what the stability study is about: SpCoMapping "
-    "(DP) reached a matching rate of 0.0001 on room2ldk4."
+    "The paper's Table 4 scores the public houses by ARI (4a) and matching rate (eq. 18, 4b) "
+    "against region ground truth drawn by a participant, which the public dataset does not "
+    "include; no cell of the tables above measures the same thing (synthetic houses: ours; "
+    "public houses: held-out trials), so the paper's numbers are not set beside them. The one "
+    "value of that table this project holds (quoted in issue #4) shows what the stability "
+    "study is about: SpCoMapping (DP) reached a matching rate of 0.0001 on room2ldk4."
 )
 """Why the paper's own Table 4 values are not printed as a column (see ``table.md``)."""
 
