@@ -138,3 +138,18 @@ def test_a_sources_files_are_read_once_for_all_its_seeds(tmp_path, monkeypatch):
         cells_of(dataclasses.replace(study, seeds=(seed,)))[0].key for seed in range(4)
     ]
     assert data_digest(data, 2) == data_digest(data, 2, sources.files_hash(data))
+
+
+def test_a_public_source_that_is_no_house_folder_is_refused_before_any_fit(tmp_path):
+    """A file passed (a map's yaml) raised "[Errno 20] Not a directory" while digesting; a
+    folder with no observations planned its cells, each of which failed at run time."""
+    (tmp_path / "maps").mkdir()
+    yaml = _tiny_map(tmp_path / "maps")
+    for target, what in [(yaml, "is a file, not a house folder"),
+                         (yaml.parent, "is a folder without Ft.csv or St.csv")]:  # fmt: skip
+        path = tmp_path / "study.toml"
+        path.write_text(f'[study]\nsweeps = 5\n[variants.a]\n[data.p]\npublic = "{target}"\n')
+        with pytest.raises(FileNotFoundError) as caught:
+            cells_of(load_study(path))
+        assert str(caught.value).startswith(f"{path}:5: [data.p] public = "), caught.value
+        assert what in str(caught.value), caught.value

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro.data import House, Observations, find_dataset_root, load_house
+from spcopyro.data.dataset import is_house_folder
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
 from spcopyro.maps import load_map
@@ -50,6 +51,11 @@ def resolve_source(data: DataSource, root: str | Path | None = None) -> DataSour
             target = target.with_suffix(".yaml")
     if not target.exists():
         raise FileNotFoundError(f"data source {data.name!r}: {target} does not exist")
+    if data.kind == "public" and not is_house_folder(target):  # each cell failed at run time
+        what = "a file" if target.is_file() else "a folder without Ft.csv or St.csv"
+        raise FileNotFoundError(f"data source {data.name!r}: {target} is {what}, not a house "
+                                "folder (a house folder holds its observations, Ft.csv and "
+                                "St.csv, its map in ../map/NAME.yaml)")  # fmt: skip
     if data.kind == "map":  # every cell of a map that does not read failed at run time
         try:
             image = _read_map_yaml(target).image
