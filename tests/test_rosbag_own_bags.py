@@ -6,6 +6,7 @@ a ROS 2 bag whose metadata.yaml and storage file disagree. Small bags written wi
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,7 @@ from spcopyro.maps.grid import FREE, OccupancyGrid  # noqa: E402
 from spcopyro.maps.map_server import save_map  # noqa: E402
 from spcopyro.robot.rosbag import (  # noqa: E402
     BagContentError,
+    BagFormatError,
     BagWriter,
     ImportOptions,
     import_bags,
@@ -204,3 +206,51 @@ def test_messages_metadata_yaml_counts_but_the_storage_lacks_are_reported(tmp_pa
     assert (trial["images_unread"], trial["utterances_unread"]) == (2, 1)
     assert "the bag's index counts 5 image message(s), 3 could be read: 2 are" in report.text()
     assert "counts 2 utterance message(s), 1 could be read" in report.text()
+
+
+@pytest.mark.parametrize(
+    ("case", "reason"),
+    [
+        ("newer", r"Rosbag2 version 10 not supported"),
+        ("bad yaml", r"Could not load YAML from .*metadata\.yaml: while parsing"),
+        ("renamed", r"Some database files are missing"),
+    ],
+)
+def test_a_bag_folder_whose_metadata_fails_points_to_its_storage_file(
+    tmp_path, map_yaml, case, reason
+):
+    """A bag folder whose metadata.yaml rosbags cannot read -- a newer rosbag2's version, a
+    broken YAML, a storage file renamed -- said 'not a readable bag (...)' and, for an mcap
+    bag, suggested `mcap recover`, which does not apply; a YAML error spanned several lines.
+    The storage file itself reads."""
+    bag = tmp_path / "rec"
+    _write_plain(bag, "mcap")
+    metadata = bag / "metadata.yaml"
+    (storage,) = bag.glob("*.mcap")
+    if case == "newer":
+        metadata.write_text(metadata.read_text().replace("  version: 9", "  version: 10"))
+    elif case == "bad yaml":
+        metadata.write_text(metadata.read_text() + "  : [\n")
+    else:
+        storage = storage.rename(bag / "renamed.mcap")
+    with pytest.raises(BagFormatError) as error:
+        import_bags([bag], map_yaml, tmp_path / "d" / "h", progress=False)
+    message = str(error.value)
+    assert "\n" not in message
+    assert re.search(rf"{re.escape(str(bag))}: not a readable bag \({reason}", message)
+    assert message.endswith(
+        f"; it is its metadata.yaml that fails: give its storage file ({storage}) as BAG, or "
+        "rewrite it with `ros2 bag reindex`"
+    )
+    assert "mcap recover" not in message
+    report = import_bags([storage], map_yaml, tmp_path / "e" / "h", progress=False)
+    assert report.trials[0]["images_kept"] == 3
+
+
+def test_a_cut_short_mcap_in_its_folder_still_names_mcap_recover(tmp_path, map_yaml):
+    bag = tmp_path / "rec"
+    _write_plain(bag, "mcap")
+    (storage,) = bag.glob("*.mcap")
+    storage.write_bytes(storage.read_bytes()[:200])
+    with pytest.raises(BagFormatError, match="`mcap recover` rewrites what it holds"):
+        import_bags([bag], map_yaml, tmp_path / "d" / "h", progress=False)

@@ -182,10 +182,8 @@ def open_bag(path: str | os.PathLike[str], ros_distro: str = DEFAULT_ROS_DISTRO)
         with _schemas_without_data_as_none():
             reader.open()
     except (highlevel.AnyReaderError, OSError, KeyError, ValueError, AssertionError) as error:
-        raise BagFormatError(
-            f"{path}: not a readable bag ({error or type(error).__name__})"
-            f"{_REPAIR.get(path.suffix or ('.mcap' if any(path.glob('*.mcap')) else ''), '')}"
-        ) from None
+        why = " ".join(str(error).split()) or type(error).__name__  # one line (yaml's span lines)
+        raise BagFormatError(f"{path}: not a readable bag ({why}){_repair(path, why)}") from None
     if reader.is2:  # types it stores no definition for (empty mcap schemas): ros_distro's
         known = reader.typestore.fielddefs
         reader.typestore.register({k: v for k, v in store.fielddefs.items() if k not in known})
@@ -249,6 +247,23 @@ def _none_read(reader: Any, topic: str, indexed: int) -> BagContentError:
         f"{path}: topic {topic}: the bag's index counts {indexed} message(s), but none could "
         f"be read; {fix}"
     )
+
+
+def _repair(path: Path, why: str) -> str:
+    """The usual repair of a bag that does not open: a bag folder whose metadata.yaml fails (a
+    newer version than rosbags reads, broken YAML, a missing key) is read from its storage
+    file; a ROS 1 or mcap file cut short has its tool (:data:`_REPAIR`)."""
+    storage = sorted(p.name for p in path.glob("*") if p.suffix in (".db3", ".mcap"))
+    if (
+        path.is_dir()
+        and storage
+        and any(w in why for w in ("metadata", "version", "YAML", "files are missing"))
+    ):
+        given = (  # a split recording's files would be one trial each
+            f"give its storage file ({path / storage[0]}) as BAG, or " if len(storage) == 1 else ""
+        )
+        return f"; it is its metadata.yaml that fails: {given}rewrite it with `ros2 bag reindex`"
+    return _REPAIR.get(path.suffix or (".mcap" if any(path.glob("*.mcap")) else ""), "")
 
 
 _REPAIR = {
