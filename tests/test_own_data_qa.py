@@ -180,7 +180,8 @@ def test_a_house_without_ft_csv_says_how_to_make_it(tmp_path):
     how to make it."""
     room = _saved_house(tmp_path)
     (room / "Ft.csv").unlink()
-    with pytest.raises(FileNotFoundError, match=r"a house needs images .* as well as words"):
+    with pytest.raises(FileNotFoundError, match=r"Xtx\.csv, Xty\.csv, pose_0\.csv, pose_1\.csv "
+                       "give image positions but no features: spcopyro features"):  # fmt: skip
         load_house(room)
     (room / "img_0").mkdir()
     (room / "img_0" / "00000.jpg").write_bytes(b"")
@@ -190,6 +191,36 @@ def test_a_house_without_ft_csv_says_how_to_make_it(tmp_path):
     (room / "Ft.csv").write_text("0.5,0.5\n0.25,0.75\n")
     with pytest.raises(FileNotFoundError, match=r"St\.csv: .* a house needs words as well as"):
         load_house(room)
+
+
+def test_a_house_of_words_only_loads_saves_and_fits(tmp_path, caplog, capsys):
+    """A robot without a camera: no Ft.csv, Xtx.csv, Xty.csv, pose_K.csv. It was refused ("a
+    house needs images as well as words"), though the words alone place the concepts; now its
+    images are [0, 1], warned of, its trials are the word files', and it saves and fits."""
+    from spcopyro.cli.main import main
+    from spcopyro.synthetic import HouseSpec, write_synthetic
+
+    room = _saved_house(tmp_path / "a")
+    for name in ("Ft.csv", "Xtx.csv", "Xty.csv", "pose_0.csv", "pose_1.csv"):
+        (room / name).unlink()
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        house = load_house(room)
+    assert "no images (no Ft.csv" in caplog.text and "fitted on its words alone" in caplog.text
+    obs = house.observations
+    assert obs.num_images == 0 and obs.image_features.shape == (0, 1) and obs.image_yaw is None
+    assert obs.trials == (0, 1) and obs.word_trial.tolist() == [0, 1, 1]
+    again = save_house(house, tmp_path / "b")
+    assert not (again / "Ft.csv").exists() and not (again / "pose_0.csv").exists()
+    assert load_house(again).observations.word_trial.tolist() == [0, 1, 1]
+
+    data = write_synthetic(tmp_path / "c", seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3))
+    for path in [*data.glob("pose_*.csv"), data / "Ft.csv", data / "Xtx.csv", data / "Xty.csv"]:
+        path.unlink()
+    out = tmp_path / "fit"
+    assert main(["fit", str(data), "--out", str(out), "--sweeps", "30", "--no-figures"]) == 0
+    printed = capsys.readouterr().out
+    assert "images           none (a house of words only) in 3 trials" in printed
+    assert (out / "labels.npy").is_file()
 
 
 def test_a_one_column_ft_csv_is_said_to_carry_nothing(tmp_path, caplog):

@@ -123,7 +123,9 @@ def _summary(
         f"map              {grid.height} x {grid.width} cells at {grid.resolution:g} m, "
         f"{grid.num_free} free{of_map}",
         f"images           {obs.num_images} ({obs.num_feature_classes} feature classes) in "
-        f"{plural(len(obs.trials), 'trial')}",
+        f"{plural(len(obs.trials), 'trial')}"
+        if obs.num_images
+        else f"images           none (a house of words only) in {plural(len(obs.trials), 'trial')}",
         f"utterances       {obs.num_utterances}, vocabulary of "
         f"{plural(len(counts.vocabulary), 'word')}",
         f"observed cells   {observed}",

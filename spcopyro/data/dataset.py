@@ -182,9 +182,11 @@ def _where_maps_are(yaml_path: Path) -> str:
     )
 
 
-def _check_both_modalities(room: Path, files: dict[str, Path]) -> None:
-    """FileNotFoundError saying what a missing Ft.csv or St.csv holds, and how to make Ft.csv
-    from camera images in ``img_K/`` (was: only "required file not found")."""
+def _check_both_modalities(room: Path, files: dict[str, Path]) -> bool:
+    """Whether the house has images: False for a house of words only (none of Ft.csv, Xtx.csv,
+    Xty.csv, pose_K.csv, no camera image in ``img_K/``: a robot without a camera). Else
+    FileNotFoundError saying what a missing Ft.csv or St.csv holds, and how to make Ft.csv from
+    camera images in ``img_K/`` (was: only "required file not found")."""
     if not files["Ft"].is_file():
         images = any(
             p.suffix.lower() in IMAGE_SUFFIXES
@@ -192,12 +194,16 @@ def _check_both_modalities(room: Path, files: dict[str, Path]) -> None:
             if folder.is_dir()
             for p in folder.iterdir()
         )
+        image_files = [files[k].name for k in ("Xtx", "Xty") if files[k].is_file()]
+        image_files += sorted(p.name for p in room.glob("pose_*.csv"))
+        if not images and not image_files and files["St"].is_file():
+            return False
         how = (
             f"make it from the camera images in its img_K/ folders: spcopyro features {room} "
             f"--out {files['Ft']}"
             if images
-            else "a house needs images (Ft.csv, Xtx.csv, Xty.csv) as well as words: "
-            "spcopyro features IMAGES --out Ft.csv makes Ft.csv from a folder of images"
+            else f"{', '.join(image_files)} give image positions but no features: spcopyro "
+            "features IMAGES --out Ft.csv makes Ft.csv from a folder of images"
         )
         raise FileNotFoundError(
             f"{files['Ft']}: required file not found (the image features; {how})"
@@ -208,6 +214,48 @@ def _check_both_modalities(room: Path, files: dict[str, Path]) -> None:
             "comma-separated utterances, their positions in StXtx.csv and StXty.csv: a house "
             "needs words as well as images)"
         )
+    return True
+
+
+def _read_features(path: Path) -> np.ndarray:
+    """``[T, K]`` Ft.csv's image features, checked: DataFormatError for an empty file or a
+    negative feature; warnings (logger ``spcopyro``) for all-zero rows and a single column."""
+    features = _read_matrix(path)  # [T, K]
+    if features.shape[0] == 0:
+        raise DataFormatError(path, "holds no image features (empty file)")
+    if (features < 0).any():
+        row, col = np.argwhere(features < 0)[0]
+        raise DataFormatError(
+            path,
+            "negative image feature (a row is a histogram of class probabilities, each >= 0: "
+            "logits or log-probabilities need a softmax or exp first)",
+            line=int(row) + 1,
+            column=int(col) + 1,
+            value=float(features[row, col]),
+        )
+    zero_rows = np.flatnonzero(features.sum(axis=1) == 0)  # [z]
+    if zero_rows.size:  # issue 22 item 4: an all-zero Ft.csv used to fit without a word
+        every = zero_rows.size == features.shape[0]
+        logging.getLogger("spcopyro").warning(
+            "%s: %s image feature rows are all zero (%s): %s",
+            path,
+            "all" if every else f"{zero_rows.size} of {features.shape[0]}",
+            "lines "
+            + ", ".join(str(r + 1) for r in zero_rows[:5])
+            + (", ..." if zero_rows.size > 5 else ""),
+            "the images carry no information (was the feature extraction run?)"
+            if every
+            else "those images carry no information",
+        )
+    if features.shape[1] == 1:  # a class id or a score per image, not a histogram
+        logging.getLogger("spcopyro").warning(
+            "%s: one column: a row is a histogram over image classes, one column per class "
+            "(spcopyro features writes them), and over a single class every image says the "
+            "same: the images carry no information (a class id per image? write it as a row "
+            "with 1 in that class's column)",
+            path,
+        )
+    return features
 
 
 def load_house(
@@ -220,6 +268,8 @@ def load_house(
 
     * ``Ft.csv`` (required): one image per row, K comma-separated features >= 0, K the same in
       every row; ``Xtx.csv``, ``Xty.csv`` (required): world x / y of each row, one per line.
+      A house of words only (a robot without a camera) has none of them, no ``pose_K.csv`` and
+      no image in ``img_K/``: its images are ``[0, 1]`` (warned), its trials the word files'.
     * ``St.csv`` (required): one line of comma-separated utterances (trailing newline optional),
       each tokenised with :func:`tokenize` (an entry may be a sentence); ``StXtx.csv``,
       ``StXty.csv`` (required): world x / y of each utterance, one per line.
@@ -282,50 +332,23 @@ def load_house(
     grid = load_map(yaml_path)
 
     files = {key: room / f"{key}.csv" for key in ("Ft", "Xtx", "Xty", "St", "StXtx", "StXty")}
-    _check_both_modalities(room, files)
-    features = _read_matrix(files["Ft"])  # [T, K]
-    if features.shape[0] == 0:
-        raise DataFormatError(files["Ft"], "holds no image features (empty file)")
-    if (features < 0).any():
-        row, col = np.argwhere(features < 0)[0]
-        raise DataFormatError(
-            files["Ft"],
-            "negative image feature (a row is a histogram of class probabilities, each >= 0: "
-            "logits or log-probabilities need a softmax or exp first)",
-            line=int(row) + 1,
-            column=int(col) + 1,
-            value=float(features[row, col]),
-        )
-    zero_rows = np.flatnonzero(features.sum(axis=1) == 0)  # [z]
-    if zero_rows.size:  # issue 22 item 4: an all-zero Ft.csv used to fit without a word
-        every = zero_rows.size == features.shape[0]
+    if _check_both_modalities(room, files):
+        features = _read_features(files["Ft"])  # [T, K]
+        num_images = features.shape[0]
+        image_xy = np.stack(
+            [
+                _read_column(files["Xtx"], num_images, files["Ft"]),
+                _read_column(files["Xty"], num_images, files["Ft"]),
+            ],
+            axis=1,
+        )  # [T, 2]
+    else:  # a robot without a camera: the words alone place the concepts
         logging.getLogger("spcopyro").warning(
-            "%s: %s image feature rows are all zero (%s): %s",
-            files["Ft"],
-            "all" if every else f"{zero_rows.size} of {features.shape[0]}",
-            "lines "
-            + ", ".join(str(r + 1) for r in zero_rows[:5])
-            + (", ..." if zero_rows.size > 5 else ""),
-            "the images carry no information (was the feature extraction run?)"
-            if every
-            else "those images carry no information",
+            "%s: no images (no Ft.csv, Xtx.csv, Xty.csv, pose_K.csv or img_K/): the house is "
+            "fitted on its words alone",
+            room,
         )
-    if features.shape[1] == 1:  # a class id or a score per image, not a histogram
-        logging.getLogger("spcopyro").warning(
-            "%s: one column: a row is a histogram over image classes, one column per class "
-            "(spcopyro features writes them), and over a single class every image says the "
-            "same: the images carry no information (a class id per image? write it as a row "
-            "with 1 in that class's column)",
-            files["Ft"],
-        )
-    num_images = features.shape[0]
-    image_xy = np.stack(
-        [
-            _read_column(files["Xtx"], num_images, files["Ft"]),
-            _read_column(files["Xty"], num_images, files["Ft"]),
-        ],
-        axis=1,
-    )  # [T, 2]
+        features, image_xy = np.zeros((0, 1)), np.zeros((0, 2))  # [0, K = 1], [0, 2]
     utterances = _read_utterances_line(files["St"])
     word_xy = np.stack(
         [
@@ -412,9 +435,10 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
     """Write ``house`` in the dataset layout under ``root``; the inverse of :func:`load_house`.
 
     Writes ``root/map/NAME.{pgm,yaml}`` (:func:`spcopyro.maps.save_map`) and ``root/NAME/`` with
-    Ft.csv, Xtx.csv, Xty.csv, St.csv (tokens joined by single spaces, utterances comma separated,
-    no trailing newline, like the original), StXtx.csv, StXty.csv, one ``pose_K.csv``
-    (``x, y, qz, qw``; yaw 0 when unknown) and ``word_K.csv`` per trial K of the images and
+    Ft.csv, Xtx.csv, Xty.csv (none for a house without images), St.csv (tokens joined by single
+    spaces, utterances comma separated, no trailing newline, like the original), StXtx.csv,
+    StXty.csv, one ``pose_K.csv`` (``x, y, qz, qw``; yaw 0 when unknown; none without images)
+    and ``word_K.csv`` per trial K of the images and
     utterances, copies of the camera images as ``img_K/NNNNN.ext`` when ``image_paths`` is
     known, truth.npy + categories.json when present, and one ``modality_<name>.csv`` per further
     modality (see :func:`load_house`). Floats are written with ``repr`` (they read back
@@ -422,7 +446,7 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
     (-pi, pi].
 
     Raises:
-        ValueError: no images or no utterances (load_house would reject the files); observations
+        ValueError: no utterances (load_house would reject the files); observations
             not grouped by trial in ascending order; a token that would not read back as itself
             (a comma, whitespace, upper case or edge punctuation).
         FileExistsError: ``root/NAME`` is not empty or the map exists, and ``overwrite`` is
@@ -434,8 +458,9 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
         The room folder ``root/NAME``.
     """
     obs = house.observations
-    if obs.num_images == 0 or obs.num_feature_classes == 0:
-        raise ValueError(f"save_house({house.name!r}): no images (Ft.csv would be empty)")
+    if obs.num_feature_classes == 0:
+        raise ValueError(f"save_house({house.name!r}): no image feature classes (K = 0)")
+    with_images = obs.num_images > 0  # else a house of words only: no Ft.csv, no pose_K.csv
     if obs.num_utterances == 0:
         raise ValueError(f"save_house({house.name!r}): no utterances (St.csv would be empty)")
     for name, trial in (("image_trial", obs.image_trial), ("word_trial", obs.word_trial)):
@@ -488,9 +513,11 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
     save_map(house.grid, map_yaml)
 
     fmt = _format_float
-    _write_lines(room / "Ft.csv", (",".join(map(fmt, row)) for row in obs.image_features.tolist()))
-    _write_lines(room / "Xtx.csv", map(fmt, obs.image_xy[:, 0].tolist()))
-    _write_lines(room / "Xty.csv", map(fmt, obs.image_xy[:, 1].tolist()))
+    if with_images:
+        features = obs.image_features.tolist()
+        _write_lines(room / "Ft.csv", (",".join(map(fmt, row)) for row in features))
+        _write_lines(room / "Xtx.csv", map(fmt, obs.image_xy[:, 0].tolist()))
+        _write_lines(room / "Xty.csv", map(fmt, obs.image_xy[:, 1].tolist()))
     sentences = [" ".join(tokens) for tokens in obs.utterances]
     _write_lines(room / "St.csv", [",".join(sentences)], trailing_newline=False)
     _write_lines(room / "StXtx.csv", map(fmt, obs.word_xy[:, 0].tolist()))
@@ -502,9 +529,9 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
     )  # [T, 4]
     for k in np.union1d(obs.image_trial, obs.word_trial).tolist():  # trials of images, words
         in_trial = np.flatnonzero(obs.image_trial == k)  # [n_k]
-        _write_lines(
-            room / f"pose_{k}.csv", (",".join(map(fmt, row)) for row in pose[in_trial].tolist())
-        )
+        if with_images:
+            rows = pose[in_trial].tolist()
+            _write_lines(room / f"pose_{k}.csv", (",".join(map(fmt, row)) for row in rows))
         _write_lines(
             room / f"word_{k}.csv",
             (s for s, t in zip(sentences, obs.word_trial, strict=True) if t == k),

@@ -251,17 +251,18 @@ def _read_trials(
             [0],
             [num_images],
         )
+    without_images = num_images == 0 and not poses  # a house of words only: trials by word files
     for have, other, kind in ((poses, words, "word"), (words, poses, "pose")):
         missing = sorted(set(have) - set(other))
-        if missing:
+        if missing and not without_images:
             raise DataFormatError(
                 room / f"{kind}_{missing[0]}.csv",
                 f"missing: trial{'s' if len(missing) > 1 else ''} "
                 f"{', '.join(map(str, missing))} ha{'ve' if len(missing) > 1 else 's'} a "
                 f"{'pose' if kind == 'word' else 'word'} file but no {kind} file",
             )
-    trials = list(poses)
-    pose_rows = [read_pose_file(poses[k]) for k in trials]  # [n_k, 4] each
+    trials = list(words if without_images else poses)
+    pose_rows = [np.zeros((0, 4)) if without_images else read_pose_file(poses[k]) for k in trials]
     image_counts = [p.shape[0] for p in pose_rows]
     if sum(image_counts) != num_images:
         raise DataFormatError(
@@ -300,7 +301,7 @@ def _read_trials(
             line=line,
             value=pose[i].tolist(),
         )
-    yaw = 2.0 * np.arctan2(pose[:, 2], pose[:, 3])  # [T] planar rotation about z
+    yaw = None if without_images else 2.0 * np.arctan2(pose[:, 2], pose[:, 3])  # [T] about z
 
     said: dict[int, list[tuple[str, list[str]]]] = {}  # trial -> its lines and their tokens
     for k in trials:
