@@ -254,3 +254,50 @@ def test_a_cut_short_mcap_in_its_folder_still_names_mcap_recover(tmp_path, map_y
     storage.write_bytes(storage.read_bytes()[:200])
     with pytest.raises(BagFormatError, match="`mcap recover` rewrites what it holds"):
         import_bags([bag], map_yaml, tmp_path / "d" / "h", progress=False)
+
+
+def _write_compressed(bag: Path, mode: str, monkeypatch) -> None:
+    """A bag written as ``ros2 bag record --compression-mode MODE --compression-format zstd``
+    would (rosbags' writer with compression set before it opens)."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
+
+    original = Writer.open
+
+    def open_compressed(self):
+        self.set_compression(CompressionMode[mode.upper()], CompressionFormat.ZSTD)
+        return original(self)
+
+    with monkeypatch.context() as patch:
+        patch.setattr(Writer, "open", open_compressed)
+        _write_plain(bag)
+
+
+def test_compressed_bags_read_from_their_folder_and_their_files_say_how(
+    tmp_path, map_yaml, monkeypatch
+):
+    """Both rosbag2 compression modes read from the bag folder. Given itself, a .db3 whose
+    messages are compressed one by one failed as 'the bag is damaged or cut short', and a
+    .db3.zstd was 'not a bag (... got suffix '.zstd')'; each now says what it is and what to
+    give instead."""
+    for mode in ("file", "message"):
+        bag = tmp_path / mode
+        _write_compressed(bag, mode, monkeypatch)
+        report = import_bags([bag], map_yaml, tmp_path / f"{mode}_house", progress=False)
+        assert report.trials[0]["images_kept"] == 3
+    (db3,) = (tmp_path / "message").glob("*.db3")
+    with pytest.raises(BagFormatError) as error:
+        import_bags([db3], map_yaml, tmp_path / "d" / "h", progress=False)
+    assert str(error.value).startswith(f"{db3}: message 1 on /amcl_pose cannot be read (")
+    assert str(error.value).endswith(
+        "its messages are compressed (compression_mode: message in the metadata.yaml beside it): "
+        f"give the bag folder {tmp_path / 'message'}"
+    )
+    (whole,) = (tmp_path / "file").glob("*.zstd")
+    with pytest.raises(BagFormatError) as error:
+        import_bags([whole], map_yaml, tmp_path / "d" / "h", progress=False)
+    assert str(error.value) == (
+        f"{whole}: a storage file compressed whole (rosbag2's --compression-mode file): give the "
+        "bag folder it was recorded in (with its metadata.yaml), or decompress it with `zstd -d` "
+        "and give the .db3 file"
+    )

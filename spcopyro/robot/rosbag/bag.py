@@ -17,6 +17,7 @@ pose stamps keep the first pose.
 from __future__ import annotations
 
 import os
+import re
 from collections import deque
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -172,6 +173,12 @@ def open_bag(path: str | os.PathLike[str], ros_distro: str = DEFAULT_ROS_DISTRO)
             f"{path}: not a bag (a ROS 2 bag is a folder with metadata.yaml; a ROS 1 bag a .bag "
             f"file){hint}"
         )
+    if path.is_file() and path.suffix == ".zstd" and Path(path.stem).suffix in (".db3", ".mcap"):
+        raise BagFormatError(
+            f"{path}: a storage file compressed whole (rosbag2's --compression-mode file): give "
+            "the bag folder it was recorded in (with its metadata.yaml), or decompress it with "
+            f"`zstd -d` and give the {Path(path.stem).suffix} file"
+        )
     if path.is_file() and path.suffix not in (".bag", ".db3", ".mcap"):
         raise BagFormatError(
             f"{path}: not a bag (expected a ROS 1 .bag file, or a ROS 2 bag folder, .db3 or "
@@ -217,12 +224,28 @@ def _messages(
                 raise _none_read(reader, topic, indexed) from None
             return
         except Exception as error:  # noqa: BLE001 - whatever the readers raise on bad bytes
+            path = Path(reader.paths[0])
+            why = (  # its messages compressed one by one: rosbags reads them from the folder
+                "its messages are compressed (compression_mode: message in the metadata.yaml "
+                f"beside it): give the bag folder {path.parent}"
+                if path.is_file() and _compressed_messages(path.parent / "metadata.yaml")
+                else "the bag is damaged or cut short"
+            )
             raise BagFormatError(
-                f"{reader.paths[0]}: message {index + 1} on {topic} cannot be read "
-                f"({type(error).__name__}: {error}); the bag is damaged or cut short"
+                f"{path}: message {index + 1} on {topic} cannot be read "
+                f"({type(error).__name__}: {error}); {why}"
             ) from None
         yield index, connection, log_ns, msg
         index += 1
+
+
+def _compressed_messages(metadata: Path) -> bool:
+    """Whether a ROS 2 bag's metadata.yaml says its messages are compressed one by one."""
+    try:
+        text = metadata.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return False
+    return re.search(r"compression_mode:\s*['\"]?message", text, re.IGNORECASE) is not None
 
 
 def _indexed(connections: list[Any]) -> int:
