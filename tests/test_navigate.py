@@ -225,6 +225,13 @@ def test_an_instruction_that_sends_the_robot_out_of_a_place_is_refused(text, sai
     assert "--mode keepout" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("vocabulary", [(), ("the", "go")])
+def test_a_fit_without_place_words_says_so(vocabulary):
+    """It said "known words: " with nothing after."""
+    with pytest.raises(ValueError, match="known words: none: the fit has no word that can name"):
+        parse_instruction("go to the kitchen", vocabulary)
+
+
 def test_a_place_word_the_fit_knows_is_not_a_leave_word():
     """A house whose exit is a place: "go to the exit" goes there; "out" alone is no "out of"."""
     assert parse_instruction("go to the exit", (*WORDS, "exit")).places == ("exit",)

@@ -225,6 +225,9 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
     if not places:
         shown = ", ".join(candidates[:12]) + (f", ... ({len(candidates) - 12} more)"
                                                 if len(candidates) > 12 else "")  # fmt: skip
+        if not candidates:  # it ended "known words: " with nothing after
+            shown = ("none: the fit has no word that can name a place (fitted without words, "
+                     "or only connecting words such as 'the' heard)")  # fmt: skip
         extra = f" (ignored: {', '.join(ignored)})" if ignored else ""
         raise ValueError(
             f"the instruction {text!r} names no place the fit knows{extra}; known words: {shown}"
