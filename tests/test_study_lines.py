@@ -52,6 +52,7 @@ num_rooms = 2
         ("num_rooms = 2", "num_roms = 2", 19, "[data.d] num_roms = 2: HouseSpec has no such"),
         ("num_rooms = 2", "num_rooms = 9", 19, "HouseSpec.num_rooms 9"),
         ('synthetic = "scaled"', 'synthetic = "scaledd"', 16, "synthetic = 'scaledd'"),
+        ('name = "lines"', "description = 3", 3, "[study] description = 3: expected text"),
     ],
 )
 def test_an_error_names_the_line_of_its_key(tmp_path, old, new, line, words):

@@ -483,6 +483,9 @@ def study_from_dict(values: Mapping[str, Any], *, source: str = "<python>") -> S
     if extra:
         raise _fail(source, f"[study] {extra[0]}", head[extra[0]],
                     f"unknown key; known: {sorted(_STUDY_KEYS)}")  # fmt: skip
+    description = head.get("description", "")
+    if not isinstance(description, str):  # description = 3 was kept as the text "3"
+        raise _fail(source, "[study] description", description, "expected text (in quotes)")
     name = head.get("name", Path(source).stem if source != "<python>" else "study")
     if not isinstance(name, str) or not name.strip():
         raise _fail(source, "[study] name", name, "expected non-empty text")
@@ -547,6 +550,6 @@ def study_from_dict(values: Mapping[str, Any], *, source: str = "<python>") -> S
         observations_off=_bool(
             source, "[study] observations_off", head.get("observations_off", False)
         ),  # fmt: skip
-        description=str(head.get("description", "")),
+        description=description,
         source=source,
     )
