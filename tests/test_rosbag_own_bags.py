@@ -301,3 +301,22 @@ def test_compressed_bags_read_from_their_folder_and_their_files_say_how(
         "bag folder it was recorded in (with its metadata.yaml), or decompress it with `zstd -d` "
         "and give the .db3 file"
     )
+
+
+def test_a_future_dated_map_to_odom_is_not_taken_for_another_clock(tmp_path, map_yaml):
+    """Nav2's amcl stamps map -> odom transform_tolerance ahead of the scan (here 1.5 s, at
+    20 Hz) while odometry's odom -> base_link (5 Hz) is on time: the clocks agree, so the
+    utterance stays at its record time. Pooled over the chain, the median offset (-1.5 s, the
+    future-dated edge outnumbering) moved the utterance 1.5 s along the path."""
+    bag = tmp_path / "rec"
+    with BagWriter(bag, ros=2) as w:
+        for t in (T0 + np.arange(0.0, 8.0, 0.05)).tolist():
+            w.tf(t + 1.5, [("map", "odom", 0.0, 0.0, 0.0)], log_time=t)
+        for t in (T0 + np.arange(0.0, 8.0, 0.2)).tolist():
+            w.tf(t, [("odom", "base_link", 0.25 * (t - T0), 0.0, 0.0)])
+        w.image("/camera/image", T0 + 4.0, _image())
+        w.text("/speech", T0 + 5.1, "hall")
+    options = ImportOptions(pose_tf=("map", "base_link"))
+    report = import_bags([bag], map_yaml, tmp_path / "d" / "h", options, progress=False)
+    assert report.trials[0]["record_clock_offset"] is None
+    assert np.loadtxt(report.out / "StXtx.csv") == pytest.approx(1.275)

@@ -341,20 +341,23 @@ placed on the stamps' clock (:func:`header_clock`). No transport delay of a pose
 def header_clock(
     chain: list[PoseTrack],
 ) -> tuple[float | None, Callable[[np.ndarray], np.ndarray] | None]:
-    """The median of record time minus header stamp over the pose messages of ``chain``, and,
-    when it exceeds :data:`CLOCKS_DIFFER`, the map from record times to the stamps' clock
-    (the offset interpolated in record time, so a clock that drifts -- a simulator not at real
-    time -- is followed); (median, None) when the clocks agree, (None, None) without samples."""
-    pairs = [track.clock for track in chain if track.clock is not None and len(track.clock)]
-    if not pairs:
+    """The median of record time minus header stamp over the messages of the robot's own pose
+    track (the chain's last with stamped messages: the pose topic, or the tf edge to the
+    robot's frame), and, when every track of the chain is off by more than
+    :data:`CLOCKS_DIFFER` (median), the map from record times to the stamps' clock through that
+    track (its offset interpolated in record time, so a clock that drifts -- a simulator not at
+    real time -- is followed); (median, None) when the clocks agree, (None, None) without
+    stamped samples. One edge alone off (Nav2's amcl stamps ``map -> odom``
+    ``transform_tolerance`` ahead) is no other clock."""
+    clocks = [track.clock for track in chain if track.clock is not None and len(track.clock)]
+    if not clocks:
         return None, None
-    clock = np.concatenate(pairs)  # [K, 2]
-    clock = clock[np.argsort(clock[:, 0], kind="stable")]
+    medians = [float(np.median(c[:, 0] - c[:, 1])) for c in clocks]
+    clock = clocks[-1][np.argsort(clocks[-1][:, 0], kind="stable")]  # [K, 2]
     record, offset = clock[:, 0], clock[:, 0] - clock[:, 1]  # [K] each
-    median = float(np.median(offset))
-    if abs(median) <= CLOCKS_DIFFER:
-        return median, None
-    return median, lambda times: times - np.interp(times, record, offset)
+    if min(abs(m) for m in medians) <= CLOCKS_DIFFER:
+        return medians[-1], None
+    return medians[-1], lambda times: times - np.interp(times, record, offset)
 
 
 def _check_order(
