@@ -218,3 +218,38 @@ def test_a_fraction_of_a_word_heard_is_not_printed_as_none():
     assert [format_words_heard(h) for h in (0.0, 0.04, 0.05, 9.0, 8.964)] == [
         "0", "<0.1", "0.1", "9", "9"
     ]  # fmt: skip
+
+
+def test_a_word_heard_only_off_the_map_is_said_to_say_nothing(tmp_path, capsys):
+    """A word whose every utterance lay off the map's free space is in the vocabulary with no
+    count on the map: `where` answered it with the concept whose few words left most room for
+    an unheard one, and warned only 'close to a guess' (if that). It now says the word was
+    never heard on the map; the counts are saved with the result."""
+    import dataclasses
+
+    from spcopyro.results.result import SpCoResult
+    from spcopyro.synthetic import HouseSpec, write_synthetic
+
+    result = dataclasses.replace(two_rooms(), word_totals=np.array([3.0, 2.0, 0.0]))
+    unheard, heard = result.vocabulary[2], result.vocabulary[0]
+    assert "was never heard on the map's free space" in result.where(unheard).warnings[0]
+    assert not any("never heard" in w for w in result.where(heard).warnings)
+    result.save(tmp_path / "hand")
+    np.testing.assert_array_equal(SpCoResult.load(tmp_path / "hand").word_totals, [3, 2, 0])
+
+    room = write_synthetic(tmp_path / "d", seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3))
+    words = (room / "St.csv").read_text().split(",")
+    moved = words[0]  # every utterance of it 5 m beyond the map's corner
+    for name in ("StXtx.csv", "StXty.csv"):
+        values = (room / name).read_text().split()
+        values = ["-5.0" if w == moved else v for w, v in zip(words, values, strict=True)]
+        (room / name).write_text("\n".join(values) + "\n")
+    out = tmp_path / "fit"
+    assert main(["fit", str(room), "--out", str(out), "--sweeps", "20", "--no-figures"]) == 0
+    fitted = SpCoResult.load(out)
+    assert "was never heard on the map's free space" in fitted.where(moved).warnings[0]
+    kept = next(w for w in words if w != moved)
+    assert not any("never heard" in w for w in fitted.where(kept).warnings)
+    capsys.readouterr()
+    assert main(["where", str(out), moved]) == 0
+    assert f"warning: {moved!r} was never heard on the map's free space" in capsys.readouterr().err

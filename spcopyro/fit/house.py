@@ -263,6 +263,7 @@ def result_of(
         modalities=tuple(m.name for m in data.modalities), method=method,
         preparation=settings.data, name=house.name, provenance=record,
         concept_totals=concept_totals(output.labels, data, settings.model),
+        word_totals=data.modality(WORDS).counts.sum(0).numpy(),  # [V] over the observed cells
     )  # fmt: skip
 
 

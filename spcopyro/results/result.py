@@ -102,6 +102,10 @@ class SpCoResult:
     concept_totals: np.ndarray | None = None
     """[L, 1 + n_modalities] per concept under ``labels``: its observed cells, then each
     modality's total count there (emissions' order); None when unknown (an old result)."""
+    word_totals: np.ndarray | None = None
+    """[V] each vocabulary word's total count over the map's observed cells (the model's
+    counts): 0 for a word heard only off the map's free space, whose where-answer is the prior's
+    alone (:meth:`where` warns); None when unknown (an old result)."""
 
     @classmethod
     def from_output(
@@ -117,6 +121,7 @@ class SpCoResult:
         name: str = "",
         provenance: dict[str, object] | None = None,
         concept_totals: np.ndarray | None = None,
+        word_totals: np.ndarray | None = None,
     ) -> SpCoResult:
         """The result of ``output`` on ``grid``. ``modalities``: the names of the model data's
         modalities in order; ``items``: the item names of each (class numbers are used for a
@@ -147,6 +152,7 @@ class SpCoResult:
             name=name,
             provenance=dict(provenance or {}),
             concept_totals=concept_totals,
+            word_totals=word_totals,
         )
 
     # -- the parts --------------------------------------------------------------------------------
@@ -321,6 +327,18 @@ class SpCoResult:
         concept = int(order[0])
         runner_up = int(order[1]) if (sizes > 0).sum() > 1 else None
         key = word_key(self.vocabulary, word)  # as looked up: 'Kitchen?' is 'kitchen'
+        warnings = answer_warnings(
+            posterior, weights, sizes, word=key, prior_name=prior,
+            cell_area=self.grid.resolution**2,
+        )  # fmt: skip
+        if self.word_totals is not None and self.word_totals[word_index(self.vocabulary, key)] == 0:
+            warnings = (
+                f"{key!r} was never heard on the map's free space (fit warned of its "
+                "utterances off the map): no observation ties it to a place, so this answer "
+                "(the concept whose few words leave most room for an unheard one) says nothing "
+                "about where it is",
+                *warnings,
+            )
         return WhereAnswer(
             word=key,
             concept=concept,
@@ -330,10 +348,7 @@ class SpCoResult:
             runner_up=runner_up,
             runner_up_probability=0.0 if runner_up is None else float(posterior[runner_up]),
             evidence=bayes_factor(float(posterior[concept]), float(weights[concept])),
-            warnings=answer_warnings(
-                posterior, weights, sizes, word=key, prior_name=prior,
-                cell_area=self.grid.resolution**2,
-            ),
+            warnings=warnings,
         )  # fmt: skip
 
     # -- saving and loading ----------------------------------------------------------------------
@@ -406,6 +421,8 @@ class SpCoResult:
             arrays["labels_final"] = self.labels_final
         if self.concept_totals is not None:
             arrays["concept_totals"] = self.concept_totals
+        if self.word_totals is not None:
+            arrays["word_totals"] = self.word_totals
         if self.agreement is not None:
             arrays["agreement"] = self.agreement
         np.savez_compressed(out / RESULT_FILE, **arrays)
@@ -504,4 +521,5 @@ class SpCoResult:
             name=str(arrays["name"]),
             provenance={k: v for k, v in settings.items() if k not in _SETTINGS},
             concept_totals=arrays.get("concept_totals"),
+            word_totals=arrays.get("word_totals"),
         )
