@@ -154,3 +154,31 @@ def test_a_public_source_that_is_no_house_folder_is_refused_before_any_fit(tmp_p
             cells_of(load_study(path))
         assert str(caught.value).startswith(f"{path}:5: [data.p] public = "), caught.value
         assert what in str(caught.value), caught.value
+
+
+def test_a_large_grid_is_planned_without_redoing_each_cells_settings(monkeypatch):
+    """Every cell resolved its variant's settings and drew its source's HouseSpec again to be
+    planned: a dry run of 100000 cells took 40 s (19 s now; keys unchanged)."""
+    from spcopyro.study import cells as cells_module
+    from spcopyro.study import order
+    from spcopyro.study.cells import cell_key
+    from spcopyro.study.spec import study_from_dict
+
+    study = study_from_dict({
+        "study": {"seeds": 5, "sweeps": 5, "methods": ["gibbs", "cavi"],
+                  "baselines": ["F-geometry"]},
+        "variants": {"a": {"preset": "paper-dp"}, "b": {"gamma": 2.0}},
+        "data": {"d": {"synthetic": "scaled", "height": 30, "width": 40, "num_rooms": 2}},
+    })  # fmt: skip
+    made, rates = [], []
+    settings_json, static_rate = cells_module._settings_json, order._static_rate
+    monkeypatch.setattr(cells_module, "_settings_json",
+                        lambda variant: made.append(variant) or settings_json(variant))  # fmt: skip
+    monkeypatch.setattr(order, "_static_rate", lambda cell: rates.append(cell) or static_rate(cell))
+    cells = cells_of(study)
+    assert len(cells) == 25 and len(made) == 4  # 2 variants x 2 methods, not x 5 seeds
+    predicted = order.predicted_seconds(cells)
+    assert len(rates) == 3  # gibbs, cavi, the baseline: once for the source
+    monkeypatch.undo()
+    assert predicted == order.predicted_seconds(cells)
+    assert all(cell_key(c, data_digest(c.data, c.seed)) == c.key for c in cells)

@@ -108,14 +108,17 @@ def _settings_json(variant: Variant) -> dict[str, object]:
     }
 
 
-def cell_key(cell: Cell, digest: str) -> str:
-    """sha256 (hex) of the cell's full input (module docstring)."""
+def cell_key(cell: Cell, digest: str, settings: dict[str, object] | None = None) -> str:
+    """sha256 (hex) of the cell's full input (module docstring). ``settings``: the variant's
+    :func:`_settings_json`, when made already (the same for all of a variant's seeds)."""
     if cell.variant is None:
         inputs: dict[str, object] = {"baseline": cell.row}
         if cell.row == "C-spcoa":  # the only baseline that iterates
             inputs["spcoa_iterations"] = cell.spcoa_iterations
     else:
-        inputs = {"settings": _settings_json(cell.variant), "sweeps": cell.sweeps}
+        if settings is None:
+            settings = _settings_json(cell.variant)
+        inputs = {"settings": settings, "sweeps": cell.sweeps}
         if cell.observations_off:  # only when asked: earlier cells keep their keys
             inputs["observations_off"] = True
         if cell.scoring != "study":
@@ -150,6 +153,7 @@ def cells_of(study: Study, root: str | Path | None = None) -> list[Cell]:
     digested here, once per source and seed."""
     sources = [_resolved(study, data, root) for data in study.data]
     cells = []
+    settings: dict[tuple[str, str], dict[str, object]] = {}  # per variant and method: once
     for data in sources:
         files = files_hash(data)  # once per source, not per seed
         for seed in study.seeds if data.seeds is None else data.seeds:
@@ -167,7 +171,13 @@ def cells_of(study: Study, root: str | Path | None = None) -> list[Cell]:
                 iterations = study.spcoa_iterations if baseline == "C-spcoa" else 0
                 planned.append(Cell(None, baseline, data, BASELINE_METHOD, seed, iterations,
                                     study.spcoa_iterations))  # fmt: skip
-            cells += [dataclasses.replace(c, key=cell_key(c, digest)) for c in planned]
+            for c in planned:
+                if c.variant is not None and (c.row, c.method) not in settings:
+                    settings[c.row, c.method] = _settings_json(c.variant)
+            cells += [
+                dataclasses.replace(c, key=cell_key(c, digest, settings.get((c.row, c.method))))
+                for c in planned
+            ]
     rows = [(c.row, c.data.name, c.method, c.seed) for c in cells]
     twice = given_twice(rows)
     if twice is not None:  # its rows would be run and counted twice

@@ -96,8 +96,15 @@ def predicted_seconds(
     them) may hold."""
     by_group, by_kind = _per_iteration(history, finished or {})
     predicted = {}
+    static: dict[tuple[int, str, int], float] = {}  # by source and method: made once, not per seed
     for cell in cells:
-        rate = by_group.get(_group(cell)) or by_kind.get(_kind(cell)) or _static_rate(cell)
+        rate = by_group.get(_group(cell)) or by_kind.get(_kind(cell))
+        if not rate:
+            known = (id(cell.data), cell.method, cell.sweeps if cell.method == BASELINE_METHOD
+                     else 0)  # fmt: skip
+            if known not in static:
+                static[known] = _static_rate(cell)
+            rate = static[known]
         predicted[cell.key] = rate * max(cell.sweeps, 1)
     return predicted
 
