@@ -9,9 +9,9 @@ only here, when a bag is opened, and a clear :class:`RosbagsMissingError` names
 Timestamps: a message with a ``header`` is placed at its header stamp (when the sensor saw it);
 one without (``std_msgs/String``) or with a zero stamp at the time the bag recorded it, mapped on
 the stamps' clock when the pose messages' stamps are on another (a simulator's:
-:func:`header_clock`). The stamps of one topic (of one tf edge) must not go backwards:
-:class:`BagContentError` names the topic, the two messages and their stamps. Equal consecutive
-pose stamps keep the first pose.
+:func:`~spcopyro.robot.rosbag.poses.header_clock`). The stamps of one topic (of one tf edge)
+must not go backwards: :class:`BagContentError` names the topic, the two messages and their
+stamps. Equal consecutive pose stamps keep the first pose.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from __future__ import annotations
 import os
 import re
 from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,7 +41,6 @@ __all__ = [
     "BagFormatError",
     "RosbagsMissingError",
     "TopicData",
-    "header_clock",
     "open_bag",
     "read_pose_in_map",
     "read_pose_topic",
@@ -331,35 +330,6 @@ def _stamp(msg: Any, log_ns: int) -> tuple[float, bool]:
     return log_ns * 1e-9, False
 
 
-CLOCKS_DIFFER = 1.0
-"""Seconds: a pose source whose header stamps lie further than this (median) from the bag's
-record times stamps on another clock than the recorder's -- a simulator's (``use_sim_time``:
-stamps from 0 s) or another machine's -- and messages without a stamp (std_msgs/String) are
-placed on the stamps' clock (:func:`header_clock`). No transport delay of a pose is that long."""
-
-
-def header_clock(
-    chain: list[PoseTrack],
-) -> tuple[float | None, Callable[[np.ndarray], np.ndarray] | None]:
-    """The median of record time minus header stamp over the messages of the robot's own pose
-    track (the chain's last with stamped messages: the pose topic, or the tf edge to the
-    robot's frame), and, when every track of the chain is off by more than
-    :data:`CLOCKS_DIFFER` (median), the map from record times to the stamps' clock through that
-    track (its offset interpolated in record time, so a clock that drifts -- a simulator not at
-    real time -- is followed); (median, None) when the clocks agree, (None, None) without
-    stamped samples. One edge alone off (Nav2's amcl stamps ``map -> odom``
-    ``transform_tolerance`` ahead) is no other clock."""
-    clocks = [track.clock for track in chain if track.clock is not None and len(track.clock)]
-    if not clocks:
-        return None, None
-    medians = [float(np.median(c[:, 0] - c[:, 1])) for c in clocks]
-    clock = clocks[-1][np.argsort(clocks[-1][:, 0], kind="stable")]  # [K, 2]
-    record, offset = clock[:, 0], clock[:, 0] - clock[:, 1]  # [K] each
-    if min(abs(m) for m in medians) <= CLOCKS_DIFFER:
-        return medians[-1], None
-    return medians[-1], lambda times: times - np.interp(times, record, offset)
-
-
 def _check_order(
     reader: Any, topic: str, times: list[float], what: str = "", numbers: list[int] | None = None
 ) -> None:
@@ -385,7 +355,8 @@ def _track(
 ) -> PoseTrack:
     """A pose track from samples in order; a repeated stamp keeps the first sample (how many
     were dropped is the track's ``merged``, reported by the import). ``clock``: (record time,
-    header stamp) of the samples that have a stamp (:func:`header_clock`)."""
+    header stamp) of the samples that have a stamp
+    (:func:`~spcopyro.robot.rosbag.poses.header_clock`)."""
     t = np.asarray(times, dtype=np.float64)  # [P]
     keep = np.ones(t.size, dtype=bool)
     keep[1:] = np.diff(t) > 0

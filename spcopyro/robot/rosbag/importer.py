@@ -11,7 +11,7 @@ bag the import reads:
   error without one; the report and ``bag_import.json`` name the frame (``pose_frame``) and
   the chain (``pose_frame_via_tf``). Pose stamps on another clock than the bag's record times (a
   simulator's, ``use_sim_time``) put the messages without a stamp (utterances) on theirs
-  (:func:`~spcopyro.robot.rosbag.bag.header_clock`; the report's ``record_clock_offset``);
+  (:func:`~spcopyro.robot.rosbag.poses.header_clock`; the report's ``record_clock_offset``);
 * camera images (``sensor_msgs/Image`` or ``CompressedImage``) and utterances
   (``std_msgs/String``: a word or a whole sentence).
 
@@ -72,7 +72,6 @@ from spcopyro.robot.rosbag.bag import (
     BagContentError,
     _frame,
     _rosbags,
-    header_clock,
     iter_images,
     open_bag,
     read_pose_in_map,
@@ -82,7 +81,7 @@ from spcopyro.robot.rosbag.bag import (
 )
 from spcopyro.robot.rosbag.house_folder import MARKER, check_map, check_out, replace_out
 from spcopyro.robot.rosbag.images import ImageDecodeError, encoded_image
-from spcopyro.robot.rosbag.poses import PoseTrack, compose
+from spcopyro.robot.rosbag.poses import PoseTrack, compose, header_clock
 
 __all__ = [
     "MARKER",

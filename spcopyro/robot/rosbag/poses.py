@@ -20,15 +20,28 @@ frame A is the transform ``T_AB``; ``T_AC = T_AB T_BC`` and the inverse of (x, y
 yaw about z is kept), which is exact for a robot base moving on a floor.
 
 Times are float64 seconds (ROS stamps: ``sec + nanosec * 1e-9``).
+
+A track also keeps its messages' (record time, header stamp) pairs (``clock``): where every track
+of a chain stamps on another clock than the bag's record times (a simulator's),
+:func:`header_clock` maps the record times of messages without a stamp onto it.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["PoseTrack", "compose", "quaternion_yaw", "wrap_angle", "yaw_quaternion"]
+__all__ = [
+    "CLOCKS_DIFFER",
+    "PoseTrack",
+    "compose",
+    "header_clock",
+    "quaternion_yaw",
+    "wrap_angle",
+    "yaw_quaternion",
+]
 
 
 def wrap_angle(angle: np.ndarray | float) -> np.ndarray:
@@ -169,3 +182,32 @@ def compose(
                             s * step_xy[:, 0] + c * step_xy[:, 1]], axis=1)  # fmt: skip
         yaw = wrap_angle(yaw + step_yaw)
     return xy, yaw, ok, reasons
+
+
+CLOCKS_DIFFER = 1.0
+"""Seconds: a pose source whose header stamps lie further than this (median) from the bag's
+record times stamps on another clock than the recorder's -- a simulator's (``use_sim_time``:
+stamps from 0 s) or another machine's -- and messages without a stamp (std_msgs/String) are
+placed on the stamps' clock (:func:`header_clock`). No transport delay of a pose is that long."""
+
+
+def header_clock(
+    chain: list[PoseTrack],
+) -> tuple[float | None, Callable[[np.ndarray], np.ndarray] | None]:
+    """The median of record time minus header stamp over the messages of the robot's own pose
+    track (the chain's last with stamped messages: the pose topic, or the tf edge to the
+    robot's frame), and, when every track of the chain is off by more than
+    :data:`CLOCKS_DIFFER` (median), the map from record times to the stamps' clock through that
+    track (its offset interpolated in record time, so a clock that drifts -- a simulator not at
+    real time -- is followed); (median, None) when the clocks agree, (None, None) without
+    stamped samples. One edge alone off (Nav2's amcl stamps ``map -> odom``
+    ``transform_tolerance`` ahead) is no other clock."""
+    clocks = [track.clock for track in chain if track.clock is not None and len(track.clock)]
+    if not clocks:
+        return None, None
+    medians = [float(np.median(c[:, 0] - c[:, 1])) for c in clocks]
+    clock = clocks[-1][np.argsort(clocks[-1][:, 0], kind="stable")]  # [K, 2]
+    record, offset = clock[:, 0], clock[:, 0] - clock[:, 1]  # [K] each
+    if min(abs(m) for m in medians) <= CLOCKS_DIFFER:
+        return medians[-1], None
+    return medians[-1], lambda times: times - np.interp(times, record, offset)
