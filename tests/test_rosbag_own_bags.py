@@ -320,3 +320,27 @@ def test_a_future_dated_map_to_odom_is_not_taken_for_another_clock(tmp_path, map
     report = import_bags([bag], map_yaml, tmp_path / "d" / "h", options, progress=False)
     assert report.trials[0]["record_clock_offset"] is None
     assert np.loadtxt(report.out / "StXtx.csv") == pytest.approx(1.275)
+
+
+def test_a_missing_topic_names_the_one_topic_of_its_type(tmp_path, map_yaml):
+    """A camera publishing only /camera/color/image_raw/compressed: the default /camera/image is
+    missing, and the one image topic there is named with its option (with two, none is)."""
+    bag = tmp_path / "rec"
+    with BagWriter(bag, ros=2) as w:
+        w.pose("/amcl_pose", T0, 0.0, 0.0, 0.0)
+        w.image("/camera/color/image_raw/compressed", T0, _image(), "jpeg")
+        w.text("/speech", T0, "hall")
+    with pytest.raises(BagContentError) as error:
+        import_bags([bag], map_yaml, tmp_path / "d" / "h", progress=False)
+    assert (
+        f"{bag}: no image topic '/camera/image' (pass --image-topic "
+        "/camera/color/image_raw/compressed?); the bag has: /amcl_pose" in str(error.value)
+    )
+    second = tmp_path / "two"
+    with BagWriter(second, ros=2) as w:
+        w.pose("/amcl_pose", T0, 0.0, 0.0, 0.0)
+        w.image("/left/image", T0, _image())
+        w.image("/right/image", T0, _image())
+        w.text("/speech", T0, "hall")
+    with pytest.raises(BagContentError, match=r"no image topic '/camera/image'; the bag has"):
+        import_bags([second], map_yaml, tmp_path / "d" / "h", progress=False)

@@ -305,8 +305,11 @@ def _connections(reader: Any, topic: str, allowed: tuple[str, ...], role: str) -
     (listing the bag's topics and types) or of a type not in ``allowed``."""
     found = [c for c in reader.connections if c.topic.lstrip("/") == topic.lstrip("/")]
     if not found:
+        fits = sorted({c.topic for c in reader.connections if c.msgtype in allowed})
+        option = {"pose": "--pose-topic", "image": "--image-topic", "utterance": "--words-topic"}
+        hint = f" (pass {option[role]} {fits[0]}?)" if len(fits) == 1 and role in option else ""
         raise BagContentError(
-            f"{reader.paths[0]}: no {role} topic {topic!r}; the bag has: "
+            f"{reader.paths[0]}: no {role} topic {topic!r}{hint}; the bag has: "
             f"{_topic_listing(reader) or 'no topics'}"
         )
     for connection in found:
