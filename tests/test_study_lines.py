@@ -4,6 +4,7 @@ a researcher's editor jumps to it: they named the table and key only."""
 from __future__ import annotations
 
 import dataclasses
+import re
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,11 @@ from spcopyro.study import sources
 from spcopyro.study.cells import cells_of
 from spcopyro.study.lines import key_line, where_path
 from spcopyro.study.sources import data_digest, resolve_source
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib  # type: ignore[no-redef]
 from spcopyro.study.spec import StudyError, load_study
 
 STUDY = """\
@@ -182,3 +188,20 @@ def test_a_large_grid_is_planned_without_redoing_each_cells_settings(monkeypatch
     monkeypatch.undo()
     assert predicted == order.predicted_seconds(cells)
     assert all(cell_key(c, data_digest(c.data, c.seed)) == c.key for c in cells)
+
+
+def test_the_documented_study_files_load():
+    """docs/studies.md's study file was refused (its og3+sw's cluster_moves under methods =
+    ["gibbs", "cavi"], ari_every beside init, spcoa_iterations without C-spcoa), and spec.py's
+    docstring's house (5 rooms in 24 x 30 cells) could not be drawn: a researcher copying
+    either got an error first."""
+    from spcopyro.study import spec
+    from spcopyro.study.spec import study_from_dict
+
+    docs = Path(__file__).parents[1] / "docs" / "studies.md"
+    block = re.search(r"```toml\n(.*?)```", docs.read_text(encoding="utf-8"), re.S)
+    study = study_from_dict(tomllib.loads(block.group(1)), source="studies.md")
+    assert [v.name for v in study.variants] == ["og3", "og3+sw"] and len(study.data) == 3
+    lines = [line[4:] for line in spec.__doc__.splitlines() if line.startswith("    ")]
+    study = study_from_dict(tomllib.loads("\n".join(lines)), source="spec.py")
+    assert [d.house_spec().num_rooms for d in study.data if d.kind == "synthetic"] == [2]

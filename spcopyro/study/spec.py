@@ -19,9 +19,10 @@ data x seeds). It is written as a TOML file (:func:`load_study`) or built in Pyt
     gamma = 3.0
 
     [data.small]                   # synthetic: HouseSpec (factory default | public_like |
-    synthetic = "default"          # open_plan | scaled) and any HouseSpec field
-    height = 24
-    width = 30
+    synthetic = "scaled"           # open_plan | scaled) and any HouseSpec field
+    height = 30
+    width = 40
+    num_rooms = 2
 
     [data.room1dk5]                # a public house under the dataset root ($SPCOPYRO_DATA)
     public = "room1dk5"            # held out: trial (seed mod trials) unless heldout = false
