@@ -205,3 +205,16 @@ def test_the_documented_study_files_load():
     lines = [line[4:] for line in spec.__doc__.splitlines() if line.startswith("    ")]
     study = study_from_dict(tomllib.loads("\n".join(lines)), source="spec.py")
     assert [d.house_spec().num_rooms for d in study.data if d.kind == "synthetic"] == [2]
+
+
+def test_a_study_named_without_its_suffix_points_at_the_file(tmp_path, monkeypatch):
+    """``spcopyro study my_study`` beside my_study.toml listed only the shipped studies."""
+    from spcopyro.cli.study import study_path
+
+    (tmp_path / "my_study.toml").write_text("")
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(FileNotFoundError, match="my_study does not exist; did you mean my_st"):
+        study_path("my_study")
+    assert study_path("my_study.toml") == Path("my_study.toml")
+    with pytest.raises(FileNotFoundError, match=r"^study file other does not exist \(shipped"):
+        study_path("other")

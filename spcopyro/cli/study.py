@@ -32,6 +32,12 @@ def study_path(text: str) -> Path:
     if path.is_dir():  # it said the folder does not exist
         raise IsADirectoryError(f"study file {text} is a folder: give a STUDY.toml")
     names = sorted(p.stem for p in STUDIES.glob("*.toml"))
+    with_suffix = path.with_name(f"{path.name}.toml")
+    if path.suffix != ".toml" and with_suffix.is_file():  # "my_study" for my_study.toml
+        raise FileNotFoundError(
+            f"study file {text} does not exist; did you mean {with_suffix}? "
+            f"(a name without .toml is one of the shipped studies: {names})"
+        )
     raise FileNotFoundError(f"study file {text} does not exist (shipped studies: {names})")
 
 
