@@ -344,3 +344,16 @@ def test_a_missing_topic_names_the_one_topic_of_its_type(tmp_path, map_yaml):
         w.text("/speech", T0, "hall")
     with pytest.raises(BagContentError, match=r"no image topic '/camera/image'; the bag has"):
         import_bags([second], map_yaml, tmp_path / "d" / "h", progress=False)
+
+
+def test_an_unfinished_ros1_recording_names_rosbag_reindex(tmp_path, map_yaml):
+    """rosbag record killed leaves NAME.bag.active: it was 'not a bag (... got suffix
+    '.active')'."""
+    active = tmp_path / "rec.bag.active"
+    active.write_bytes(b"#ROSBAG V2.0\n" + bytes(100))
+    with pytest.raises(BagFormatError) as error:
+        import_bags([active], map_yaml, tmp_path / "d" / "h", progress=False)
+    assert str(error.value) == (
+        f"{active}: an unfinished ROS 1 recording (rosbag record stopped before it closed the "
+        "bag): `rosbag reindex rec.bag.active` repairs it; then give it as rec.bag"
+    )

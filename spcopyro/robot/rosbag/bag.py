@@ -17,7 +17,6 @@ stamps. Equal consecutive pose stamps keep the first pose.
 from __future__ import annotations
 
 import os
-import re
 from collections import deque
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -28,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from spcopyro.robot.rosbag.poses import PoseTrack, quaternion_yaw
+from spcopyro.robot.rosbag.repairs import compressed_messages, none_read_fix, packed_file, repair
 
 __all__ = [
     "DEFAULT_ROS_DISTRO",
@@ -172,12 +172,8 @@ def open_bag(path: str | os.PathLike[str], ros_distro: str = DEFAULT_ROS_DISTRO)
             f"{path}: not a bag (a ROS 2 bag is a folder with metadata.yaml; a ROS 1 bag a .bag "
             f"file){hint}"
         )
-    if path.is_file() and path.suffix == ".zstd" and Path(path.stem).suffix in (".db3", ".mcap"):
-        raise BagFormatError(
-            f"{path}: a storage file compressed whole (rosbag2's --compression-mode file): give "
-            "the bag folder it was recorded in (with its metadata.yaml), or decompress it with "
-            f"`zstd -d` and give the {Path(path.stem).suffix} file"
-        )
+    if path.is_file() and (packed := packed_file(path)):
+        raise BagFormatError(f"{path}: {packed}")
     if path.is_file() and path.suffix not in (".bag", ".db3", ".mcap"):
         raise BagFormatError(
             f"{path}: not a bag (expected a ROS 1 .bag file, or a ROS 2 bag folder, .db3 or "
@@ -189,7 +185,7 @@ def open_bag(path: str | os.PathLike[str], ros_distro: str = DEFAULT_ROS_DISTRO)
             reader.open()
     except (highlevel.AnyReaderError, OSError, KeyError, ValueError, AssertionError) as error:
         why = " ".join(str(error).split()) or type(error).__name__  # one line (yaml's span lines)
-        raise BagFormatError(f"{path}: not a readable bag ({why}){_repair(path, why)}") from None
+        raise BagFormatError(f"{path}: not a readable bag ({why}){repair(path, why)}") from None
     if reader.is2:  # types it stores no definition for (empty mcap schemas): ros_distro's
         known = reader.typestore.fielddefs
         reader.typestore.register({k: v for k, v in store.fielddefs.items() if k not in known})
@@ -227,7 +223,7 @@ def _messages(
             why = (  # its messages compressed one by one: rosbags reads them from the folder
                 "its messages are compressed (compression_mode: message in the metadata.yaml "
                 f"beside it): give the bag folder {path.parent}"
-                if path.is_file() and _compressed_messages(path.parent / "metadata.yaml")
+                if path.is_file() and compressed_messages(path.parent / "metadata.yaml")
                 else "the bag is damaged or cut short"
             )
             raise BagFormatError(
@@ -236,15 +232,6 @@ def _messages(
             ) from None
         yield index, connection, log_ns, msg
         index += 1
-
-
-def _compressed_messages(metadata: Path) -> bool:
-    """Whether a ROS 2 bag's metadata.yaml says its messages are compressed one by one."""
-    try:
-        text = metadata.read_text(encoding="utf-8", errors="replace")
-    except OSError:
-        return False
-    return re.search(r"compression_mode:\s*['\"]?message", text, re.IGNORECASE) is not None
 
 
 def _indexed(connections: list[Any]) -> int:
@@ -258,41 +245,10 @@ def _none_read(reader: Any, topic: str, indexed: int) -> BagContentError:
     a ROS 2 bag folder's messages only of the topics whose type and offered QoS in its
     metadata.yaml match the storage file's, and skipped the rest without a word."""
     path = Path(reader.paths[0])
-    fix = (
-        "its metadata.yaml and its storage file disagree about the topic (its type or offered "
-        "QoS profiles): give the .db3 / .mcap file itself as BAG, or rewrite metadata.yaml with "
-        "`ros2 bag reindex`"
-        if (path / "metadata.yaml").is_file()
-        else "the bag's index and its messages disagree"
-    )
     return BagContentError(
         f"{path}: topic {topic}: the bag's index counts {indexed} message(s), but none could "
-        f"be read; {fix}"
+        f"be read; {none_read_fix(path)}"
     )
-
-
-def _repair(path: Path, why: str) -> str:
-    """The usual repair of a bag that does not open: a bag folder whose metadata.yaml fails (a
-    newer version than rosbags reads, broken YAML, a missing key) is read from its storage
-    file; a ROS 1 or mcap file cut short has its tool (:data:`_REPAIR`)."""
-    storage = sorted(p.name for p in path.glob("*") if p.suffix in (".db3", ".mcap"))
-    if (
-        path.is_dir()
-        and storage
-        and any(w in why for w in ("metadata", "version", "YAML", "files are missing"))
-    ):
-        given = (  # a split recording's files would be one trial each
-            f"give its storage file ({path / storage[0]}) as BAG, or " if len(storage) == 1 else ""
-        )
-        return f"; it is its metadata.yaml that fails: {given}rewrite it with `ros2 bag reindex`"
-    return _REPAIR.get(path.suffix or (".mcap" if any(path.glob("*.mcap")) else ""), "")
-
-
-_REPAIR = {
-    ".bag": "; if its recording did not end cleanly, `rosbag reindex` repairs its index",
-    ".mcap": "; if it was cut short, `mcap recover` rewrites what it holds",
-}
-"""The usual repair of a bag file that does not open (a recorder killed before it closed it)."""
 
 
 def _topic_listing(reader: Any) -> str:

@@ -1,0 +1,81 @@
+"""What to do with a bag that does not open, or whose messages do not read: the usual repair,
+named in the error (:mod:`spcopyro.robot.rosbag.bag` raises it).
+
+* a ROS 1 ``.bag`` that did not end cleanly: ``rosbag reindex``; an unfinished recording
+  (``.bag.active``, ``rosbag record`` killed): ``rosbag reindex`` it, then give the ``.bag``;
+* an ``.mcap`` cut short: ``mcap recover``;
+* a ROS 2 bag folder whose metadata.yaml fails (a newer version than rosbags reads, broken
+  YAML, a storage file renamed): its storage file given itself, or ``ros2 bag reindex``;
+* a storage file compressed whole (``.db3.zstd``, ``--compression-mode file``) or one whose
+  messages are compressed (``--compression-mode message``) given without its folder: the folder.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+__all__ = ["REPAIR", "compressed_messages", "none_read_fix", "packed_file", "repair"]
+
+REPAIR = {
+    ".bag": "; if its recording did not end cleanly, `rosbag reindex` repairs its index",
+    ".mcap": "; if it was cut short, `mcap recover` rewrites what it holds",
+}
+"""The usual repair of a bag file that does not open (a recorder killed before it closed it)."""
+
+
+def packed_file(path: Path) -> str | None:
+    """Why the file ``path`` is no bag to read as it is, and what to give instead (None: try
+    it): a storage file compressed whole, or a ROS 1 recording never closed."""
+    inner = Path(path.stem).suffix
+    if path.suffix == ".zstd" and inner in (".db3", ".mcap"):
+        return (
+            "a storage file compressed whole (rosbag2's --compression-mode file): give the bag "
+            "folder it was recorded in (with its metadata.yaml), or decompress it with "
+            f"`zstd -d` and give the {inner} file"
+        )
+    if path.suffix == ".active" and inner == ".bag":
+        return (
+            "an unfinished ROS 1 recording (rosbag record stopped before it closed the bag): "
+            f"`rosbag reindex {path.name}` repairs it; then give it as {path.stem}"
+        )
+    return None
+
+
+def compressed_messages(metadata: Path) -> bool:
+    """Whether a ROS 2 bag's metadata.yaml says its messages are compressed one by one."""
+    try:
+        text = metadata.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return False
+    return re.search(r"compression_mode:\s*['\"]?message", text, re.IGNORECASE) is not None
+
+
+def none_read_fix(path: Path) -> str:
+    """What to do about a topic the bag's index counts messages of, none of which read:
+    rosbags reads a ROS 2 bag folder's messages only of the topics whose type and offered QoS
+    in its metadata.yaml match the storage file's, and skips the rest without a word."""
+    if (path / "metadata.yaml").is_file():
+        return (
+            "its metadata.yaml and its storage file disagree about the topic (its type or offered "
+            "QoS profiles): give the .db3 / .mcap file itself as BAG, or rewrite metadata.yaml "
+            "with `ros2 bag reindex`"
+        )
+    return "the bag's index and its messages disagree"
+
+
+def repair(path: Path, why: str) -> str:
+    """The usual repair of a bag ``path`` that does not open with the error ``why``: a bag
+    folder whose metadata.yaml fails is read from its storage file; a ROS 1 or mcap file cut
+    short has its tool (:data:`REPAIR`)."""
+    storage = sorted(p.name for p in path.glob("*") if p.suffix in (".db3", ".mcap"))
+    if (
+        path.is_dir()
+        and storage
+        and any(w in why for w in ("metadata", "version", "YAML", "files are missing"))
+    ):
+        given = (  # a split recording's files would be one trial each
+            f"give its storage file ({path / storage[0]}) as BAG, or " if len(storage) == 1 else ""
+        )
+        return f"; it is its metadata.yaml that fails: {given}rewrite it with `ros2 bag reindex`"
+    return REPAIR.get(path.suffix or (".mcap" if any(path.glob("*.mcap")) else ""), "")
