@@ -218,3 +218,29 @@ def test_a_study_named_without_its_suffix_points_at_the_file(tmp_path, monkeypat
     assert study_path("my_study.toml") == Path("my_study.toml")
     with pytest.raises(FileNotFoundError, match=r"^study file other does not exist \(shipped"):
         study_path("other")
+
+
+def test_a_name_with_a_bar_keeps_the_reports_columns():
+    """``[variants."a|b"]`` wrote the row ``| a|b | gibbs | ...``: one column more than the
+    header's, so the markdown table shifted every score of the row."""
+    from spcopyro.study.report import report_markdown
+
+    row = {"variant": "a|b", "data": "d|1", "method": "gibbs", "seed": 0, "status": "ok",
+           "ari": 0.5, "source_digest": "x"}  # fmt: skip
+    lines = report_markdown([row], scores=("ari",)).splitlines()
+    (line,) = [line for line in lines if "gibbs" in line]
+    header = lines[lines.index(line) - 2]
+    assert line.replace("\\|", "").count("|") == header.count("|") == 5, (header, line)
+
+
+def test_a_name_with_a_bar_keeps_the_dry_runs_columns(tmp_path):
+    from spcopyro.study.run import plan_markdown, plan_study
+    from spcopyro.study.spec import study_from_dict
+
+    study = study_from_dict({
+        "study": {"sweeps": 5}, "variants": {"a|b": {}},
+        "data": {"d|1": {"synthetic": "scaled", "height": 30, "width": 40, "num_rooms": 2}},
+    })  # fmt: skip
+    text = plan_markdown(plan_study(study, tmp_path / "out"), study)
+    (line,) = [line for line in text.splitlines() if "gibbs" in line]
+    assert line.startswith("| d\\|1 | a\\|b | gibbs |") and line.count("|") == 9, line

@@ -21,7 +21,7 @@ from spcopyro._util.messages import fixed, plural
 from spcopyro.study.evaluate import SCORES
 from spcopyro.study.table import is_number
 
-__all__ = ["REPORT_SCORES", "report_markdown", "summary_rows", "write_report"]
+__all__ = ["REPORT_SCORES", "report_markdown", "summary_rows", "table_cell", "write_report"]
 
 REPORT_SCORES = (
     "ari", "matching_rate", "top1", "top3", "mean_rank", "distance_m", "concepts",
@@ -68,6 +68,12 @@ def _mean_sd(value: object, score: str) -> str:
     return shown if math.isnan(sd) else f"{shown} +- {sd:.{digits}f}"
 
 
+def table_cell(text: object) -> str:
+    """``text`` as one cell of a markdown table: a ``|`` in a variant's or source's name
+    (``[variants."a|b"]``) split its row into one column more than the header's."""
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
 def report_markdown(
     rows: Sequence[dict[str, object]],
     title: str = "study",
@@ -99,7 +105,8 @@ def report_markdown(
         for e in entries:
             seeds = f"{e['n']}" + (f" ({e['failed']} failed)" if e["failed"] else "")
             cells = "".join(f" {_mean_sd(e.get(s), s)} |" for s in shown)
-            lines.append(f"| {e['variant']} | {e['method']} | {seeds} |{cells}")
+            lines.append(f"| {table_cell(e['variant'])} | {table_cell(e['method'])} | "
+                         f"{seeds} |{cells}")  # fmt: skip
         lines.append("")
     failed = [r for r in rows if r.get("status") != "ok"]
     if failed:

@@ -46,7 +46,7 @@ from spcopyro.study import evaluate
 from spcopyro.study.cells import Cell, cells_of, source_digest
 from spcopyro.study.local_cluster import PRE_SPAWN_ENVIRON, ClusterStart
 from spcopyro.study.order import duration, longest_first, predicted_seconds
-from spcopyro.study.report import write_report
+from spcopyro.study.report import table_cell, write_report
 from spcopyro.study.spec import Study
 from spcopyro.study.table import TABLE, CellStore, table_rows, write_table
 
@@ -284,7 +284,7 @@ def plan_markdown(plan: StudyPlan, study: Study, workers: int = 1) -> str:
         "|---|---|---|---|---|---|",
     ]  # fmt: skip
     lines += [
-        f"| {d} | {v} | {m} | {n} | {len(times)} | {duration(sum(times))} |"
+        f"| {table_cell(d)} | {table_cell(v)} | {m} | {n} | {len(times)} | {duration(sum(times))} |"
         for (d, v, m, n), times in groups.items()
     ]
     total = sum(plan.predicted.get(cell.key, 0.0) for cell in plan.pending)
