@@ -144,6 +144,26 @@ def test_via_orders_are_kept(result):
     assert plan.length > direct.length + 2.0  # the detour through the corridor is driven
 
 
+@pytest.mark.parametrize(
+    ("text", "places", "via"),
+    [
+        ("go to the kitchen, then via the corridor to the bedroom",
+         ("kitchen", "corridor", "bedroom"), (False, True, False)),
+        ("go to the kitchen and after that through the corridor to the bedroom",
+         ("kitchen", "corridor", "bedroom"), (False, True, False)),
+        ("via the corridor to the kitchen, then via the closet to the bedroom",
+         ("corridor", "kitchen", "closet", "bedroom"), (True, False, True, False)),
+        ("go to the bedroom via the corridor, then the kitchen",
+         ("corridor", "bedroom", "kitchen"), (True, False, False)),
+    ],
+)  # fmt: skip
+def test_a_via_after_then_leads_to_the_next_destination(text, places, via):
+    """QA: "go to the kitchen, then via the corridor to the bedroom" visited the corridor
+    first: the "via" place went before the destination said before "then"."""
+    parsed = parse_instruction(text, WORDS)
+    assert (parsed.places, parsed.via) == (places, via)
+
+
 def test_instructions_in_other_scripts_find_the_fits_words():
     """QA: the instruction was split on ASCII letters only: "go to the café" said "word 'caf'
     ... did you mean café?", and "go to the 台所" named no place, though the fit's words (and

@@ -17,7 +17,9 @@ The places are visited in the order the instruction gives them, except that a pl
 "via", "through" or "past" is visited *before* the destination said just before it: "go to the
 bedroom via the corridor" visits the corridor, then the bedroom; "via the corridor to the
 bedroom" the same; "to the kitchen via the hall, then the bedroom" the hall, the kitchen, the
-bedroom. "then", "to", "and then" end a "via" phrase. A place after "after" or "first" is
+bedroom. "then", "to", "and then" end a "via" phrase, and one after them leads to the next
+destination: "the kitchen, then via the hall to the bedroom" visits the kitchen, the hall, the
+bedroom. A place after "after" or "first" is
 visited before the destination said before it too, but is a stop, not a waypoint ("go to the
 toilet after the kitchen", "go to the toilet, but first the kitchen"); "after that" and a
 "first" right after a place ("the kitchen first, then ...") read as "then". "X before Y" visits X,
@@ -187,7 +189,8 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
             mode = "via"
             continue
         if token in RESET_WORDS or (token == "after" and following in THAT_WORDS):
-            mode = "to"
+            mode = "to"  # a later "via" leads to the next destination, not back before the
+            destination = None  # last ("the kitchen, then via the hall to the bedroom")
             continue
         if token in EARLIER_WORDS:  # but "the kitchen first, then ...": the kitchen is first
             mode = "to" if token == "first" and last_place == k - 1 else "earlier"
