@@ -450,6 +450,13 @@ def test_command_line_errors_are_clear(fit, capsys, argv, message):
     assert message in capsys.readouterr().err
 
 
+def test_a_start_at_the_goal_is_a_path_of_one_pose(result, fit, capsys):
+    """It printed "path: 1 poses"."""
+    goal = navigate(result, "kitchen", START_A).goal.xy
+    assert main(["navigate", str(fit), "kitchen", f"--start={goal[0]},{goal[1]}"]) == 0
+    assert "path: 1 pose, 0.00 m" in capsys.readouterr().out
+
+
 def test_a_bad_start_value_is_a_usage_error(fit, capsys):
     with pytest.raises(SystemExit):
         main(["navigate", str(fit), "kitchen", "--start", "one,two"])

@@ -111,8 +111,8 @@ def _plan_and_print(
         how = "" if plan.route_from == "graph" else " (the places the path crosses)"
         print(f"route: {' -> '.join(plan.route_words)}{how}")
     _print_planner(plan)
-    print(f"path: {len(plan.path_xy)} poses, {plan.length:.2f} m, clearance {plan.radius:g} m "
-          f"from walls (frame {args.frame})")  # fmt: skip
+    print(f"path: {plural(len(plan.path_xy), 'pose')}, {plan.length:.2f} m, clearance "
+          f"{plan.radius:g} m from walls (frame {args.frame})")  # fmt: skip
     if args.out:
         from spcopyro.robot.navigation.outputs import write_plan
 
