@@ -59,6 +59,12 @@ num_rooms = 2
         ("num_rooms = 2", "num_rooms = 9", 19, "HouseSpec.num_rooms 9"),
         ('synthetic = "scaled"', 'synthetic = "scaledd"', 16, "synthetic = 'scaledd'"),
         ('name = "lines"', "description = 3", 3, "[study] description = 3: expected text"),
+        (
+            "width = 40",
+            "",
+            16,
+            "synthetic = 'scaled': a scaled house needs height and width (cells); width not given",
+        ),
     ],
 )
 def test_an_error_names_the_line_of_its_key(tmp_path, old, new, line, words):

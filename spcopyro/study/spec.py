@@ -393,6 +393,11 @@ def _data_source(source: str, name: str, table: object) -> DataSource:
     if kind == "synthetic" and target not in SYNTHETIC_FACTORIES:
         raise _fail(source, f"{where} synthetic", target,
                     f"choose one of {sorted(SYNTHETIC_FACTORIES)}")  # fmt: skip
+    missing = [k for k in ("height", "width") if k not in values]
+    if kind == "synthetic" and target == "scaled" and missing:  # a TypeError's words before
+        raise _fail(source, f"{where} synthetic", target,
+                    f"a scaled house needs height and width (cells); {' and '.join(missing)} "
+                    "not given")  # fmt: skip
     if kind == "public" and values:
         raise _fail(source, where, sorted(values),
                     "a public house takes only heldout and seeds")  # fmt: skip
