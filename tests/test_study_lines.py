@@ -250,3 +250,14 @@ def test_a_name_with_a_bar_keeps_the_dry_runs_columns(tmp_path):
     text = plan_markdown(plan_study(study, tmp_path / "out"), study)
     (line,) = [line for line in text.splitlines() if "gibbs" in line]
     assert line.startswith("| d\\|1 | a\\|b | gibbs |") and line.count("|") == 9, line
+
+
+def test_a_study_file_saved_with_a_byte_order_mark_loads(tmp_path):
+    """Notepad's UTF-8 starts with a BOM: it was "not valid TOML: Invalid statement (at line 1,
+    column 1)"; the lines of later errors still count from the first."""
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + STUDY.encode())
+    assert load_study(path).name == "lines"
+    path.write_bytes(b"\xef\xbb\xbf" + STUDY.replace("num_rooms", "num_roms").encode())
+    with pytest.raises(StudyError, match=r"bom.toml:19: \[data.d\] num_roms = 2"):
+        load_study(path)

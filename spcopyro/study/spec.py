@@ -206,7 +206,7 @@ def load_study(path: str | os.PathLike[str]) -> Study:
     try:
         with open(path, "rb") as file:
             content = file.read()
-        text = content.decode("utf-8")
+        text = content.decode("utf-8-sig")  # a BOM (Windows editors) was "Invalid statement"
         values = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:
         raise StudyError(f"{source}: not valid TOML: {error}") from None
