@@ -261,3 +261,16 @@ def test_a_study_file_saved_with_a_byte_order_mark_loads(tmp_path):
     path.write_bytes(b"\xef\xbb\xbf" + STUDY.replace("num_rooms", "num_roms").encode())
     with pytest.raises(StudyError, match=r"bom.toml:19: \[data.d\] num_roms = 2"):
         load_study(path)
+
+
+def test_sources_whose_figures_differ_only_in_case_are_refused(tmp_path):
+    """[data.Small] and [data.small] drew maps_Small.png and maps_small.png: one file on macOS's
+    and Windows' file systems, so one source's maps were drawn over the other's."""
+    house = 'synthetic = "scaled"\nheight = 30\nwidth = 40\nnum_rooms = 2\n'
+    path = tmp_path / "study.toml"
+    path.write_text(f"[variants.a]\n[data.Small]\n{house}[data.small]\n{house}")
+    with pytest.raises(StudyError) as caught:
+        load_study(path)
+    message = str(caught.value)
+    assert message.startswith(f"{path}:7: [data.small] = 'small': its report figure "), message
+    assert "maps_small.png is also [data.Small]'s (maps_Small.png" in message, message

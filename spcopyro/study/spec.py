@@ -504,10 +504,13 @@ def study_from_dict(values: Mapping[str, Any], *, source: str = "<python>") -> S
         raise _fail(source, "[data]", data_table, "expected at least one [data.NAME] table")
     data = tuple(_data_source(source, str(k), v) for k, v in data_table.items())
     figures: dict[str, str] = {}
-    for d in data:  # one's maps figure was drawn over the other's
-        other = figures.setdefault(maps_file_name(d.name), d.name)
+    for d in data:  # one's maps figure was drawn over the other's (Small, small: on macOS)
+        other = figures.setdefault(maps_file_name(d.name).casefold(), d.name)
         if other != d.name:
-            why = f"its report figure {maps_file_name(d.name)} is also [data.{other}]'s: rename one"
+            why = (
+                f"its report figure {maps_file_name(d.name)} is also [data.{other}]'s "
+                f"({maps_file_name(other)}, one file where names ignore case): rename one"
+            )
             raise _fail(source, f"[data.{d.name}]", d.name, why)
     scoring = head.get("scoring", "study")
     if scoring not in SCORINGS:
