@@ -188,6 +188,52 @@ def test_shipped_studies_are_the_former_grids() -> None:
     assert len(sensitivity.data) == 6 and sensitivity.seeds == (0, 1, 2)
 
 
+def test_sensitivity_scores_the_public_houses_asked_for() -> None:
+    """``public_houses`` replaces the file's five, each with its three held-out folds (the
+    sensitivity ran all five under ``spcopyro experiment --houses room1dk5 --robustness``)."""
+    _, five = robustness_studies(sweeps=1000)
+    assert [d.name for d in five.data if d.kind == "public"] == [
+        "room1dk5", "room1dk6", "room1ldk4", "room1ldk5", "room2ldk4"
+    ]  # fmt: skip
+    _, same = robustness_studies(sweeps=1000, public_houses=[d.name for d in five.data[1:]])
+    assert same.data == five.data  # the same cells: a cached run is not run again
+    _, one = robustness_studies(sweeps=1000, public_houses=["room1dk5"])
+    assert [(d.name, d.kind, d.heldout, d.seeds) for d in one.data] == [
+        ("dense", "synthetic", False, None), ("room1dk5", "public", True, (0, 1, 2))
+    ]  # fmt: skip
+    _, none = robustness_studies(sweeps=1000, public=False, public_houses=["room1dk5"])
+    assert [d.kind for d in none.data] == ["synthetic"]
+
+
+def test_experiment_robustness_gets_the_tables_public_houses(tmp_path, monkeypatch) -> None:
+    """``spcopyro experiment --houses H --robustness`` runs the sensitivity on H (the table's
+    public houses), not on all five."""
+    import spcopyro.study.experiment as experiment
+    import spcopyro.study.robustness as robustness
+    from spcopyro.cli.main import main
+
+    asked = {}
+
+    def run_experiment(out, study, **kwargs):  # the table, not run: its houses are asked
+        Path(out).mkdir(parents=True)
+        (Path(out) / "table.md").write_text("table\n")
+        return {"figures": [], "settings": {"seeds": 2}, "failed": 0}
+
+    def write(out, **kwargs):
+        asked.update(kwargs)
+        return "robustness"
+
+    monkeypatch.setattr(experiment, "run_experiment", run_experiment)
+    monkeypatch.setattr(robustness, "write_robustness", write)
+    root = tmp_path / "data"
+    (root / "map").mkdir(parents=True)
+    code = main(["experiment", "--out", str(tmp_path / "out"), "--data", str(root), "--houses",
+                 "room1dk5", "room2ldk4", "--robustness"])  # fmt: skip
+    assert code == 0
+    assert asked["public_houses"] == ["room1dk5", "room2ldk4"]
+    assert asked["dataset_root"] is not None and asked["seeds"] == (0, 1)
+
+
 def _same(old: object, new: object, where: str = "") -> None:
     """Equal JSON values, NaN equal to NaN, floats to a relative 1e-9: the compiled log joint
     sums with fastmath, so its last bits follow the CPU (test_pinned_outputs' fourth change;

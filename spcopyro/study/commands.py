@@ -149,7 +149,9 @@ def _experiment(args: argparse.Namespace) -> int:
 
         print(write_robustness(out, sweeps=min(sweeps, 1000),
                                seeds=tuple(range(min(count, 3))), chains=3,
-                               dataset_root=root, workers=args.workers,
+                               dataset_root=root,
+                               public_houses=[d.target for d in study.data if d.kind == "public"],
+                               workers=args.workers,
                                report=print))  # fmt: skip
         print(f"wrote {out / 'robustness.md'} and {out / 'robustness.json'}")
     return 1 if summary["failed"] else 0
@@ -315,8 +317,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--data", help="public dataset folder (default: found automatically)")
     p.add_argument("--no-public", action="store_true", help="synthetic houses only")
-    p.add_argument("--houses", nargs="+", help="public houses to score (default: the five of "
-                   "the public dataset)")  # fmt: skip
+    p.add_argument("--houses", nargs="+", help="public houses to score, in the table and in "
+                   "--robustness's sensitivity (default: the five of the public dataset; "
+                   "--quick: room1dk5)")  # fmt: skip
     p.add_argument("--methods", nargs="+", help="rows to run (default: all: A-dp A-orig-g3 "
                    "B-dirichlet C-spcoa D-cnn E-nearest F-geometry)")  # fmt: skip
     p.add_argument("--workers", type=_integer_at_least(1), default=1,

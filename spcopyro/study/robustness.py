@@ -69,11 +69,13 @@ def robustness_studies(
     chains: int = 3,
     public: bool = True,
     spec: HouseSpec | None = None,
+    public_houses: Sequence[str] | None = None,
 ) -> tuple[Study, Study]:
     """The stability and sensitivity studies at these budgets (module docstring): houses of
     ``seeds`` (``spec``: their HouseSpec; None: the default house), ``chains`` chains per house
     and setting, ``sweeps`` a fit; ``public`` False: the sensitivity without the public
-    houses."""
+    houses; ``public_houses``: the public houses it scores (None: the file's five), each with the
+    file's held-out folds, as ``spcopyro experiment --houses`` gives the table's."""
     check_runs(sweeps, tuple(seeds), chains)
     stability, sensitivity = load_study(STABILITY), load_study(SENSITIVITY)
     ramp = int(ANNEAL_FRACTION * sweeps)
@@ -90,14 +92,18 @@ def robustness_studies(
         for s, mine in zip(seeds, chain_seeds, strict=True)
     )
     budget = (("*", int(sweeps)),)
-    data = tuple(
-        dataclasses.replace(d, options=options) if d.kind == "synthetic" else d
-        for d in sensitivity.data
-        if public or d.kind != "public"
-    )
+    data = [dataclasses.replace(d, options=options) if d.kind == "synthetic" else d
+            for d in sensitivity.data if d.kind != "public"]  # fmt: skip
+    public_sources = [d for d in sensitivity.data if d.kind == "public"]
+    if public_houses is not None:
+        folds = public_sources[0].seeds if public_sources else (0, 1, 2)
+        public_sources = [DataSource(h, "public", h, heldout=True, seeds=folds)
+                          for h in public_houses]  # fmt: skip
+    if public:
+        data += public_sources
     return (
         dataclasses.replace(stability, variants=variants, data=houses, sweeps=budget),
-        dataclasses.replace(sensitivity, data=data, seeds=tuple(seeds), sweeps=budget),
+        dataclasses.replace(sensitivity, data=tuple(data), seeds=tuple(seeds), sweeps=budget),
     )
 
 
@@ -185,17 +191,20 @@ def write_robustness(
     chains: int = 3,
     spec: HouseSpec | None = None,
     dataset_root: str | os.PathLike[str] | None = None,
+    public_houses: Sequence[str] | None = None,
     workers: int = 1,
     report: Callable[[str], None] = lambda message: None,
 ) -> str:
-    """Run both studies (:func:`robustness_studies`; the public houses under ``dataset_root``,
-    none without it) into ``out/robustness/``; write ``robustness.md``, ``robustness.json`` and
-    ``figures/stability.png`` into ``out`` from their tables; return the markdown."""
+    """Run both studies (:func:`robustness_studies`; the public houses under ``dataset_root``:
+    ``public_houses`` or the file's five, none without it) into ``out/robustness/``; write
+    ``robustness.md``, ``robustness.json`` and ``figures/stability.png`` into ``out`` from their
+    tables; return the markdown."""
     out = Path(out)
     public = dataset_root is not None
     stability_study, sensitivity_study = robustness_studies(
-        sweeps=sweeps, seeds=seeds, chains=chains, public=public, spec=spec
-    )
+        sweeps=sweeps, seeds=seeds, chains=chains, public=public, spec=spec,
+        public_houses=public_houses,
+    )  # fmt: skip
     tables = {}
     for study in (stability_study, sensitivity_study):
         folder = out / "robustness" / study.name
