@@ -117,3 +117,38 @@ def test_plotting_leaves_the_matplotlib_backend_alone():
     completed = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True,
                                text=True, timeout=120)  # fmt: skip
     assert completed.returncode == 0, completed.stderr[-2000:]
+
+
+@pytest.mark.slow
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")
+def test_real_house_notebook_refuses_a_house_the_dataset_lacks(tmp_path):
+    """A reader who sets notebook 4's HOUSE to a house the dataset does not hold (a typo) gets an
+    error naming it and the houses there. The notebook used to fall back to the synthetic house,
+    print that the dataset was not found, and then score that house against a region truth built
+    as for a public house, since the dataset had been found."""
+    from nbclient.exceptions import CellExecutionError
+
+    from spcopyro.data import find_dataset_root
+
+    root = find_dataset_root()
+    if root is None or not (root / "room1dk5").is_dir():
+        pytest.skip("the public dataset (room1dk5) is not here")
+    notebook = nbformat.read(ROOT / "notebooks" / "04_a_real_house.ipynb", as_version=4)
+    setup = [cell for cell in notebook.cells if 'HOUSE = "room1dk5"' in cell.source]
+    assert len(setup) == 1, "notebook 4 no longer sets HOUSE = 'room1dk5' in one cell"
+    setup[0].source = setup[0].source.replace('HOUSE = "room1dk5"', 'HOUSE = "room1dk"')
+    first = notebook.cells.index(setup[0])
+    client = NotebookClient(notebook, timeout=600, kernel_name="python3",
+                            resources={"metadata": {"path": str(tmp_path)}})  # fmt: skip
+    pythonpath = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
+    env = {**os.environ, "PYTHONPATH": pythonpath, SIZE_ENV: "small", "SPCOPYRO_DATA": str(root)}
+    with client.setup_kernel(env=env):
+        for index, cell in enumerate(notebook.cells[:first]):
+            client.execute_cell(cell, index)
+        with pytest.raises(CellExecutionError) as error:
+            client.execute_cell(setup[0], first)
+    message = str(error.value)
+    assert "FileNotFoundError" in message and "'room1dk'" in message, message[-2000:]
+    assert "room1dk5" in message, message[-2000:]  # the houses it holds
+    printed = "".join(o.get("text", "") for o in setup[0].outputs if o.output_type == "stream")
+    assert "NOT FOUND" not in printed, printed
