@@ -164,6 +164,35 @@ def test_a_via_after_then_leads_to_the_next_destination(text, places, via):
     assert (parsed.places, parsed.via) == (places, via)
 
 
+@pytest.mark.parametrize(
+    ("text", "stop"),
+    [("go to the kitchen via the hall", "via the hall"),
+     ("go to the parlor and then the kitchen", "to the parlor"),
+     ("go to the kitchen, then back to the start", "to the start"),
+     ("go to the parlor and the kitchen", "to the parlor")],
+)  # fmt: skip
+def test_a_stop_the_fit_does_not_know_is_refused_not_skipped(text, stop, fit, capsys):
+    """QA: "go to the washroom via the corridor" on a fit that never heard "corridor" drove
+    straight to the washroom (the waypoint ignored, with a warning); "then back to the start"
+    ended in the kitchen."""
+    with pytest.raises(ValueError, match=f"names a stop \\('{stop}'\\) that is not in the fit"):
+        parse_instruction(text, WORDS)
+    assert main(["navigate", str(fit), text, "--start", f"{START_A[0]},{START_A[1]}"]) == 2
+    assert "navigate would skip it and drive to" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("text", "places"),
+    [("go to the big kitchen", ("kitchen",)), ("go quickly to the kitchen", ("kitchen",)),
+     ("then quickly go to the kitchen", ("kitchen",)),
+     ("go to the kitchen via the wide corridor", ("corridor", "kitchen")),
+     ("go to the bedroom at the end of the hall", ("bedroom",))],
+)  # fmt: skip
+def test_unknown_words_that_name_no_stop_are_still_ignored(text, places):
+    parsed = parse_instruction(text, WORDS)
+    assert parsed.places == places and parsed.ignored
+
+
 def test_instructions_in_other_scripts_find_the_fits_words():
     """QA: the instruction was split on ASCII letters only: "go to the café" said "word 'caf'
     ... did you mean café?", and "go to the 台所" named no place, though the fit's words (and

@@ -8,7 +8,9 @@ Connecting and filler words (:data:`STOP_WORDS`: "go", "to", "the", "via", "then
 skipped even when the fit's vocabulary holds them (a fit on sentences does). Every other word
 of the vocabulary names a place. A word outside it with a close known word (``difflib``, as
 ``spcopyro where`` suggests) is an error that names them (a typo must not send the robot
-elsewhere); one with no close word is ignored and reported. An instruction with a word of
+elsewhere); one with no close word is ignored and reported, unless it names a stop (right
+after a connecting word and an article, "via the hall", with no known place in its phrase),
+which is an error: the robot would skip that stop. An instruction with a word of
 :data:`NEGATION_WORDS` ("not the kitchen", "avoid the kitchen") or of :data:`LEAVE_WORDS`
 ("leave the kitchen", "stay away from the kitchen", "get out of the kitchen") is refused: the
 robot only visits places, so it would have driven to the one it was told to keep away from.
@@ -225,6 +227,14 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
             via.append(mode == "via")
             if mode == "to":
                 destination = len(places) - 1
+    skipped = _unknown_stop(tokens, known, vocabulary) if places else None
+    if skipped is not None:  # "via the corridor": the robot drove past no corridor
+        raise ValueError(
+            f"word {skipped[1]!r} of the instruction names a stop ({skipped[0]!r}) that is not "
+            f"in the fit's vocabulary: navigate would skip it and drive to "
+            f"{', '.join(places)} only; name the places the fit knows (its words: "
+            f"{', '.join(candidates[:12])}{', ...' if len(candidates) > 12 else ''})"
+        )
     if not places:
         shown = ", ".join(candidates[:12]) + (f", ... ({len(candidates) - 12} more)"
                                                 if len(candidates) > 12 else "")  # fmt: skip
@@ -236,6 +246,34 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
             f"the instruction {text!r} names no place the fit knows{extra}; known words: {shown}"
         )
     return Instruction(text, tuple(places), tuple(via), tuple(ignored))
+
+
+_PLACE_ARTICLES = frozenset({"the", "a", "an", "my", "our", "your"})
+_PHRASE_ENDS = VIA_WORDS | RESET_WORDS | EARLIER_WORDS | {"before", "and"}
+
+
+def _unknown_stop(
+    tokens: list[str], known: set[str], vocabulary: tuple[str, ...]
+) -> tuple[str, str] | None:
+    """(the words, the unknown word) of the first stop named by a word the fit does not know:
+    one right after a connecting word and an article ("via the corridor", "then to the
+    start", "to the parlor and ...") whose phrase, up to the next connecting word, holds no
+    known place ("to the big kitchen" does); None when every stop is known."""
+
+    def is_known(token: str) -> bool:
+        return word_key(vocabulary, token).lower() in known and token not in STOP_WORDS
+
+    for k in range(2, len(tokens)):
+        connector, article, word = tokens[k - 2], tokens[k - 1], tokens[k]
+        if connector not in _PHRASE_ENDS or article not in _PLACE_ARTICLES:
+            continue
+        if word in STOP_WORDS or is_known(word):
+            continue
+        rest = tokens[k + 1 :]
+        end = next((i for i, t in enumerate(rest) if t in _PHRASE_ENDS), len(rest))
+        if not any(is_known(t) for t in rest[:end]):
+            return f"{connector} {article} {word}", word
+    return None
 
 
 @dataclass(frozen=True)
