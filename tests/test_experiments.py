@@ -145,6 +145,23 @@ def test_experiment_options_change_the_shipped_study():
         assert variant.spco_settings(6) == spco_settings(method, 6)
 
 
+def test_experiment_names_an_unknown_house_as_the_users(tmp_path, capsys):
+    """--houses room9: the error named the shipped study file and a [data.room9] table it
+    does not hold; it names the option and the dataset's houses, before anything is run."""
+    root = tmp_path / "data"
+    (root / "room1" / "img_0").mkdir(parents=True)
+    (root / "map").mkdir()
+    (root / "map" / "room1.yaml").write_text("image: room1.pgm\n")
+    out = tmp_path / "out"
+    code = main(["experiment", "--out", str(out), "--quick", "--data", str(root),
+                 "--houses", "room1", "room9"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "--houses room9: not a house of" in err and "its houses: room1" in err
+    assert ".toml" not in err
+    assert not out.exists()
+
+
 def test_fit_spco_gives_fit_houses_labels():
     """A study with ari_every fits its variants with fit_spco (to keep label maps along the
     run); the labels are fit_house's."""

@@ -98,7 +98,7 @@ def _stoppable(command: Callable[[argparse.Namespace], int]) -> Callable[[argpar
 
 
 def _experiment(args: argparse.Namespace) -> int:
-    from spcopyro.data import find_dataset_root
+    from spcopyro.data import find_dataset_root, list_houses
     from spcopyro.study.experiment import (
         EXPERIMENT,
         EXPERIMENT_QUICK,
@@ -123,6 +123,13 @@ def _experiment(args: argparse.Namespace) -> int:
     root = None if args.no_public else find_dataset_root(args.data)
     if args.data is None and root is None and not args.no_public:
         _without_dataset(houses=args.houses)
+    if root is not None and args.houses is not None:  # named as the user's, not the study file's
+        known = list_houses(root)
+        unknown = [h for h in args.houses if h not in known]
+        if unknown:
+            listed = ", ".join(known) or "none"
+            raise ValueError(f"--houses {' '.join(unknown)}: not a house of {root} (a folder "
+                             f"with map/NAME.yaml); its houses: {listed}")  # fmt: skip
     command = "spcopyro " + " ".join(sys.argv[1:] if args.argv is None else args.argv)
     study = experiment_study(
         study, public=root is not None, houses=args.houses, methods=args.methods,
