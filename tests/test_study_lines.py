@@ -274,3 +274,15 @@ def test_sources_whose_figures_differ_only_in_case_are_refused(tmp_path):
     message = str(caught.value)
     assert message.startswith(f"{path}:7: [data.small] = 'small': its report figure "), message
     assert "maps_small.png is also [data.Small]'s (maps_Small.png" in message, message
+
+
+def test_the_line_is_the_refused_keys_not_one_its_message_mentions(tmp_path):
+    """``hyper.log_gamma_sd=2.0: ... (hyper.alpha, hyper.concentrations and hyper.gamma choose
+    them)`` pointed at ``gamma = 3.0``: its ``.gamma `` was read as that key."""
+    path = tmp_path / "study.toml"
+    path.write_text(STUDY.replace("cluster_moves = 0.2", "gamma = 3.0").replace(
+        "hyper = { alpha = true }", "hyper = { log_gamma_sd = 2.0 }"))  # fmt: skip
+    with pytest.raises(StudyError) as caught:
+        load_study(path)
+    assert str(caught.value).startswith(f"{path}:13: [variants.b+sw]: "), caught.value
+    assert "hyper.log_gamma_sd=2.0" in str(caught.value)

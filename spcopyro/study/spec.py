@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import re
 from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -227,12 +228,19 @@ def _fail(source: str, where: str, value: object, why: str) -> StudyError:
 
 
 def _named_key(message: str, keys: Sequence[str]) -> str | None:
-    """The first of ``keys`` an error's ``message`` names (``gama=3``, ``'gamma'``,
-    ``HouseSpec.num_rooms``), or None: the line its error points at."""
-    for name in (lambda key: key, lambda key: key.rpartition(".")[2]):  # hyper.alpha: alpha=
+    """The first of ``keys`` an error's ``message`` names, or None: the line its error points
+    at. The forms are tried in turn over all keys, the surest first: ``gama=3`` (a whole key
+    set), ``'gamma'``, ``HouseSpec.num_rooms 9``, then a nested key's last name (``alpha=3``
+    for ``hyper.alpha``); so ``hyper.log_gamma_sd=2.0 ... (hyper.gamma ...)`` is not ``gamma``."""
+    forms = (
+        lambda key: rf"(?<![\w.]){re.escape(key)}=",
+        lambda key: rf"'{re.escape(key)}'",
+        lambda key: rf"\.{re.escape(key)}[ =]",
+        lambda key: rf"(?<![\w.]){re.escape(key.rpartition('.')[2])}=",
+    )
+    for form in forms:
         for key in keys:
-            if any(form in message for form in (f"{name(key)}=", f"'{name(key)}'",
-                                                f".{name(key)} ", f".{name(key)}=")):  # fmt: skip
+            if re.search(form(key), message):
                 return key
     return None
 
