@@ -11,9 +11,10 @@ longest beginning of the wanted path: the key's own line, else the inline table 
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from pathlib import Path
 
-__all__ = ["file_line", "key_line", "where_path"]
+__all__ = ["file_line", "key_line", "named_key", "where_path"]
 
 _PART = r'(?:"(?:[^"\\]|\\.)*"|\'[^\']*\'|[A-Za-z0-9_-]+)'
 _PATH = rf"{_PART}(?:\s*\.\s*{_PART})*"
@@ -87,3 +88,21 @@ def _joined_prefix(full: tuple[str, ...], path: tuple[str, ...]) -> bool:
         return True
     joined, wanted = ".".join(full), ".".join(path)
     return wanted == joined or wanted.startswith(joined + ".")
+
+
+def named_key(message: str, keys: Sequence[str]) -> str | None:
+    """The first of ``keys`` an error's ``message`` names, or None: the line its error points
+    at. The forms are tried in turn over all keys, the surest first: ``gama=3`` (a whole key
+    set), ``'gamma'``, ``HouseSpec.num_rooms 9``, then a nested key's last name (``alpha=3``
+    for ``hyper.alpha``); so ``hyper.log_gamma_sd=2.0 ... (hyper.gamma ...)`` is not ``gamma``."""
+    forms = (
+        lambda key: rf"(?<![\w.]){re.escape(key)}=",
+        lambda key: rf"'{re.escape(key)}'",
+        lambda key: rf"\.{re.escape(key)}[ =]",
+        lambda key: rf"(?<![\w.]){re.escape(key.rpartition('.')[2])}=",
+    )
+    for form in forms:
+        for key in keys:
+            if re.search(form(key), message):
+                return key
+    return None

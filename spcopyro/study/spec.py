@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import re
 from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -54,7 +53,7 @@ from spcopyro.experiments.ablation_variants import (
 from spcopyro.experiments.methods import REGISTRY as BASELINE_REGISTRY
 from spcopyro.fit.registry import INFERENCE_METHODS
 from spcopyro.robot.map_simulation import MapTour
-from spcopyro.study.lines import key_line, where_path
+from spcopyro.study.lines import key_line, named_key, where_path
 from spcopyro.study.maps import maps_file_name
 from spcopyro.synthetic import HouseSpec
 
@@ -227,24 +226,6 @@ def _fail(source: str, where: str, value: object, why: str) -> StudyError:
     return StudyError(f"{source}: {where} = {value!r}: {why}", where)
 
 
-def _named_key(message: str, keys: Sequence[str]) -> str | None:
-    """The first of ``keys`` an error's ``message`` names, or None: the line its error points
-    at. The forms are tried in turn over all keys, the surest first: ``gama=3`` (a whole key
-    set), ``'gamma'``, ``HouseSpec.num_rooms 9``, then a nested key's last name (``alpha=3``
-    for ``hyper.alpha``); so ``hyper.log_gamma_sd=2.0 ... (hyper.gamma ...)`` is not ``gamma``."""
-    forms = (
-        lambda key: rf"(?<![\w.]){re.escape(key)}=",
-        lambda key: rf"'{re.escape(key)}'",
-        lambda key: rf"\.{re.escape(key)}[ =]",
-        lambda key: rf"(?<![\w.]){re.escape(key.rpartition('.')[2])}=",
-    )
-    for form in forms:
-        for key in keys:
-            if re.search(form(key), message):
-                return key
-    return None
-
-
 def _seeds(source: str, value: object, where: str = "[study] seeds") -> tuple[int, ...]:
     if isinstance(value, int) and not isinstance(value, bool):
         if value < 1:
@@ -358,7 +339,7 @@ def _variants(source: str, table: object, methods: tuple[str, ...]) -> tuple[Var
                 if problem:
                     raise VariantError(f"variant {name!r}: {problem}")
         except VariantError as error:
-            key = _named_key(str(error), list(_flatten(overrides)))
+            key = named_key(str(error), list(_flatten(overrides)))
             where = f"[variants.{name}]" + (f" {key}" if key else "")
             raise StudyError(f"{source}: [variants.{name}]: {error}", where) from None
         variants.append(variant)
@@ -432,7 +413,7 @@ def _data_source(source: str, name: str, table: object) -> DataSource:
         try:
             trials = check().num_trials
         except (TypeError, ValueError) as error:
-            key = _named_key(str(error), list(values))
+            key = named_key(str(error), list(values))
             raise StudyError(f"{source}: {where} {dict(values)}: {error}",
                              where + (f" {key}" if key else "")) from None  # fmt: skip
         if heldout and trials < 2:  # each of its cells failed: no trial to fit on
