@@ -90,3 +90,16 @@ def test_a_damaged_checkpoint_is_one_clear_error(fitted, tmp_path, capsys):
                      "--resume", str(damaged)])  # fmt: skip
         assert code == 2, (case, capsys.readouterr().err)
         assert str(damaged) in capsys.readouterr().err
+
+
+def test_a_fit_folder_without_its_config_says_so(fitted, tmp_path, capsys):
+    """A result.npz copied without its config.json was a bare '[Errno 2] No such file or
+    directory' (a helper's QA)."""
+    out, _ = fitted
+    copy = tmp_path / "copied"
+    shutil.copytree(out, copy)
+    (copy / "config.json").unlink()
+    with pytest.raises(FileNotFoundError, match=r"config\.json: missing beside result\.npz"):
+        SpCoResult.load(copy)
+    assert main(["where", str(copy), "kitchen"]) == 2
+    assert "config.json: missing beside result.npz" in capsys.readouterr().err

@@ -469,6 +469,11 @@ class SpCoResult:
             ) from None
         except UnicodeDecodeError as error:
             raise ValueError(f"{config_path}: not UTF-8 text ({error.reason})") from None
+        except FileNotFoundError:
+            raise FileNotFoundError(
+                f"{config_path}: missing beside {RESULT_FILE} (the fit's settings, which `fit` "
+                "writes with it; copied without it? copy the whole folder, or fit again)"
+            ) from None
         try:
             return cls._from_saved(out, path, arrays, settings)
         except (KeyError, TypeError, ValueError, AttributeError, IndexError) as error:
