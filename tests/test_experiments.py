@@ -301,3 +301,14 @@ def test_side_studies_give_the_old_loops_numbers(tmp_path):
     lines: list[str] = []
     assert write_studies(tmp_path, sweeps=20, seeds=(0, 1), report=lines.append) == markdown
     assert len(lines) == 2 and all(line.startswith("nothing to run") for line in lines)
+
+
+def test_studies_markdown_says_the_sentence_study_is_one_house():
+    """The header named seeds [0, 1, 2] for both side studies; the sentence study runs on the
+    first seed's house alone (side_studies)."""
+    from spcopyro.experiments.studies import SentenceScores, studies_markdown
+
+    scores = SentenceScores({"count": 0.5}, {"count": [["the", "kitchen"]]})
+    markdown = studies_markdown({"MRF only": [0.1, 0.2]}, scores, sweeps=10, seeds=(3, 4))
+    assert "| setting | seed 3 | seed 4 | mean |" in markdown
+    assert "the house of seed 3 alone" in markdown

@@ -59,7 +59,8 @@ def studies_markdown(
         lines.append(f"| {name} | {cells} | {np.mean(scores):.3f} |")
     lines += [
         "",
-        "## Sentences (half the utterances are sentences with filler words)",
+        "## Sentences (half the utterances are sentences with filler words; the house of "
+        f"seed {seeds[0]} alone)",
         "",
         "| word weighting | share of concepts whose top word is a filler | top words of the "
         "largest concepts |",
