@@ -25,12 +25,14 @@ read per concept. It is the default of :meth:`~spcopyro.results.result.SpCoResul
 On the default synthetic house fitted with ``paper-dp`` (5000 sweeps, seed 0) eq. (19) with pi
 answers "kitchen" with a concept of one cell in a doorway (p = 0.134, every concept between 0.12
 and 0.134), while the area prior answers with the 992-cell region that holds all 510 kitchen
-cells (and the living room). With the released code's values and gamma 3 the area prior's
-matching rate over five synthetic houses is 0.995 against 0.428 for pi (the experiments' table,
-which keeps both columns: ``SpCoSemanticMap`` still defaults to pi). Under ``paper-dp`` neither
-is good (0.181 area, 0.286 pi): beta = 500 leaves every concept's words near uniform, so the area
-prior answers every word with the largest region and pi with whichever concept's few words lean
-its way -- the warnings below say so. ``prior="pi"`` remains the paper's eq. (19).
+cells (and the living room). The experiments' table keeps both columns (``SpCoSemanticMap``
+still defaults to pi); re-measured on 2026-12-05 with word tables that are posterior means
+(docs/evaluation.md, five synthetic houses): with the released code's values and gamma 3 both
+match 0.995 (with one drawn w, as results reported before, pi matched 0.428); under ``paper-dp``
+pi matches 0.785 and the area prior 0.167: beta = 500 leaves every concept's words near
+uniform, so the area prior answers every word with the largest region, while pi's near-equal
+weights let the word's small lean decide -- the warnings below say the area prior's answer
+follows the prior there. ``prior="pi"`` remains the paper's eq. (19).
 
 Answers close to a guess carry warnings (:attr:`WhereAnswer.warnings`): the best concept's
 posterior odds over the runner-up below :data:`ODDS_WARNING`, the word's Bayes factor for the
