@@ -187,6 +187,9 @@ def test_fit_prints_and_logs_every_config_warning(room, tmp_path, capsys, caplog
     logged = [r.getMessage() for r in caplog.records]  # prepare_model_data's
     assert any(m.startswith("gamma = 20 is at or above") for m in logged)
     assert any(m.startswith("chi = 1e-300 is below") for m in logged)
+    # a refined fit prepares its data twice (coarse cells, then the map's): warned once
+    assert main([*argv, "--refine", "always", "--out", str(tmp_path / "r")]) == 0
+    assert capsys.readouterr().err.count("warning: gamma = 20 is at or above 10") == 1
 
 
 # -- 4. maps without free space, observations off it ---------------------------------------------

@@ -210,8 +210,12 @@ def prepare_model_data(
             counts that are not finite or too large (:func:`~spcopyro.data.check_count_totals`,
             naming the file and line of a loaded house).
     """
+    from spcopyro.fit.refine import WARNED_BY_COARSE_STAGE  # refine imports this module
+
+    said = WARNED_BY_COARSE_STAGE.get()  # a refinement's: its coarse stage's warnings
     for warning in config_warnings(settings.model):
-        logger.warning(warning)
+        if warning not in said:
+            logger.warning(warning)
     grid = house.grid
     where = f" on map {grid.source}" if getattr(grid, "source", None) else ""
     if grid.num_free == 0:

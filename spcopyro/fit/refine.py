@@ -48,6 +48,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 from collections.abc import Callable
+from contextvars import ContextVar
 from typing import Any
 
 from spcopyro.config import SpCoSettings
@@ -68,6 +69,12 @@ __all__ = [
 ]
 
 logger = logging.getLogger("spcopyro")
+
+WARNED_BY_COARSE_STAGE: ContextVar[frozenset[str]] = ContextVar(
+    "spcopyro_warned_by_coarse_stage", default=frozenset()
+)
+"""The settings warnings the coarse stage of a refined fit logged: the refinement's
+``prepare_model_data`` does not log them again (a warning about gamma came twice)."""
 
 REFINE_MODES: tuple[str, ...] = ("auto", "never", "always")
 """``auto``: refine where the coarse fit's concepts explain the images; ``never``; ``always``."""
@@ -187,7 +194,13 @@ def refine_chains(
     if getattr(options, "anneal_sweeps", 0):  # its start is the fitted map, not noise: only
         # the coarse stage anneals (annealed again: 0.984 against 0.990, docs/commands.md)
         chain_kwargs["options"] = dataclasses.replace(options, anneal_sweeps=0)
-    refits = fit_chains(on_map, refined, init=first, **chain_kwargs)
+    from spcopyro.fit.house import config_warnings  # house imports this module
+
+    token = WARNED_BY_COARSE_STAGE.set(frozenset(config_warnings(settings.model)))
+    try:
+        refits = fit_chains(on_map, refined, init=first, **chain_kwargs)
+    finally:
+        WARNED_BY_COARSE_STAGE.reset(token)
     record = {
         **decision.to_json(),
         "coarse": {
