@@ -13,7 +13,9 @@ of 40 from 6.8 to 15.2.
 
 * :func:`distinct_colours` -- ``n`` colours by farthest-point sampling in CIE94 from a grid of
   candidate RGB colours, none close to black (walls), white (unlabelled free space), the unknown
-  grey, nor so dark or so light (L* outside 40-90) that they pass for walls or free space. Each
+  grey, nor so dark or so light (L* outside 40-90) that they pass for walls or free space, nor
+  grey or near-grey (chroma C* under 15): a concept drawn in (120, 120, 120) or (165, 165, 165),
+  which palettes of 40 colours and more held, read as unexplored space or wall. Each
   new colour maximises its smallest Delta E to the ones chosen before (and to those reserved
   colours), so the first colours are the most different and every colour is distinct from
   every other.
@@ -48,6 +50,7 @@ __all__ = [
 _RESERVED = np.array([[0, 0, 0], [255, 255, 255], [205, 205, 205]], dtype=np.uint8)
 """Black walls, white unlabelled free space, unknown grey (render.RGB_*)."""
 _MIN_LIGHTNESS, _MAX_LIGHTNESS = 40.0, 90.0  # CIELAB L*: not near-black, not near-white
+_MIN_CHROMA = 15.0  # CIELAB C*: no grey, which reads as unknown space or a wall
 _LEVELS = 18  # candidate grid: 18 levels per channel (5832 colours)
 
 
@@ -119,11 +122,12 @@ def delta_e94(a: Any, b: Any) -> np.ndarray:
 
 def _candidates() -> tuple[np.ndarray, np.ndarray]:
     """The candidate colours ``[M, 3]`` uint8 and their CIELAB ``[M, 3]``: an 18-level grid per
-    channel, lightness within [_MIN_LIGHTNESS, _MAX_LIGHTNESS]."""
+    channel, lightness within [_MIN_LIGHTNESS, _MAX_LIGHTNESS], chroma at least _MIN_CHROMA."""
     levels = np.round(np.linspace(0, 255, _LEVELS)).astype(np.uint8)
     grid = np.stack(np.meshgrid(levels, levels, levels, indexing="ij"), axis=-1).reshape(-1, 3)
     lab = srgb_to_lab(grid)  # [M, 3]
     keep = (lab[:, 0] >= _MIN_LIGHTNESS) & (lab[:, 0] <= _MAX_LIGHTNESS)
+    keep &= np.hypot(lab[:, 1], lab[:, 2]) >= _MIN_CHROMA  # no grey
     return grid[keep], lab[keep]
 
 
@@ -136,8 +140,9 @@ def distinct_colours(n: int) -> np.ndarray:
     CIE94) from the earlier ones and from black, white and the unknown grey as the candidates
     allow.
 
-    The smallest pairwise Delta E CIE94 falls as ``n`` grows (29 for 10 colours, 15 for 40, 9.5
-    for 120); ``n`` is limited to the candidates (18 levels per channel, lightness L* 40-90).
+    The smallest pairwise Delta E CIE94 falls as ``n`` grows (29 for 10 colours, 15 for 40, 9.3
+    for 120); ``n`` is limited to the candidates (18 levels per channel, lightness L* 40-90,
+    chroma C* at least 15).
     """
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
         raise ValueError(f"n must be a non-negative integer, got {n!r}")

@@ -1,0 +1,26 @@
+"""What a reader of the figures sees: no concept in a colour that passes for the unknown grey or a
+wall, ... (properties of the artists and colours, not pixels)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from spcopyro.maps.palette import concept_colours, delta_e94, distinct_colours, srgb_to_lab
+
+
+def _chroma(colours: np.ndarray) -> np.ndarray:
+    lab = srgb_to_lab(colours)  # [K, 3]
+    return np.hypot(lab[:, 1], lab[:, 2])
+
+
+def test_no_concept_is_drawn_in_grey():
+    # palettes of 40 colours and more held (120, 120, 120) and (165, 165, 165): a concept in
+    # them read as unexplored space (the unknown grey is (205, 205, 205)) or a wall
+    for n in (40, 120, 240):
+        colours = distinct_colours(n)  # [n, 3]
+        assert _chroma(colours).min() >= 15.0, n
+        assert delta_e94(colours, [205, 205, 205]).min() > 15.0, n
+    labels = np.arange(144).reshape(12, 12)  # 144 touching concepts (original-code fits: 120)
+    colours = concept_colours(labels, np.arange(144))  # [144, 3]
+    assert _chroma(colours).min() >= 15.0
+    assert not (colours.max(axis=1) - colours.min(axis=1) < 8).any()  # no r = g = b grey
