@@ -24,3 +24,26 @@ def test_no_concept_is_drawn_in_grey():
     colours = concept_colours(labels, np.arange(144))  # [144, 3]
     assert _chroma(colours).min() >= 15.0
     assert not (colours.max(axis=1) - colours.min(axis=1) < 8).any()  # no r = g = b grey
+
+
+def _legend_texts(fig) -> list[str]:
+    return [t.get_text() for ax in fig.axes if ax.get_legend() for t in ax.get_legend().get_texts()]
+
+
+def test_a_house_of_sentences_is_marked_by_the_places_named():
+    from spcopyro.figures.map_pieces import utterance_marks
+    from spcopyro.figures.plotting import house_figure
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    marks = utterance_marks(
+        [["here", "is", "the", "kitchen"], ["the", "stove", "is", "here"], ["kitchen"],
+         ["we", "are", "in", "the", "living", "room"], ["this", "is", "the", "room"], []]
+    )  # fmt: skip
+    assert marks == ["kitchen", "stove", "kitchen", "living", "room", ""]
+    # every utterance a sentence: their last words were "here", "room", "kitchen", ...
+    house = make_house(1, HouseSpec.embedded(sentence_fraction=1.0))
+    words = make_house(1, HouseSpec.embedded())  # the same house, one word each
+    texts = _legend_texts(house_figure(house))
+    assert "here" not in texts and "the" not in texts
+    assert {"bedroom", "living", "kitchen"} <= set(texts), texts
+    assert set(texts[1:]) - {"other words"} <= {w for u in words.observations.utterances for w in u}

@@ -12,6 +12,7 @@ probability, and the lift p(word | concept) / p(word) next to the words that are
 from __future__ import annotations
 
 import warnings
+from collections import Counter
 
 import numpy as np
 from matplotlib import patheffects
@@ -47,6 +48,7 @@ __all__ = [
     "region_text",
     "spread_markers",
     "utterance_concepts",
+    "utterance_marks",
 ]
 
 OUTLINE = [patheffects.withStroke(linewidth=2.5, foreground="white")]
@@ -152,6 +154,23 @@ def concept_handles(
         summary = speck_summary([int(sizes[c]) for c in specks])
         handles.append(Patch(color="white", label=f"{summary}, no words heard: {names}"))
     return handles
+
+
+def utterance_marks(utterances: list[list[str]]) -> list[str]:
+    """The word each utterance is marked by on a map of the words heard: its rarest word (in
+    the fewest utterances) that is not a filler of a sentence ("here", "is", "the", "place",
+    ...: :data:`~spcopyro.synthetic.lexicon.FILLER_WORDS`), the last of equally rare ones;
+    ``""`` for an empty utterance. A one-word utterance is its word; "kitchen" marks "here is
+    the kitchen", "living" marks "we are in the living room". The last word, marked before, was
+    "here" in "the stove is here" and "room" in "this is the living room": on a house of
+    sentences "here" took the first colour and "living" never showed."""
+    from spcopyro.synthetic.lexicon import FILLER_WORDS
+
+    counts = Counter(w for u in utterances for w in set(u))  # utterances holding each word
+    return [
+        min(reversed(u), key=lambda w: (w in FILLER_WORDS, counts[w])) if u else ""
+        for u in utterances
+    ]
 
 
 def utterance_concepts(result: SpCoResult, xy: np.ndarray) -> np.ndarray:

@@ -44,6 +44,7 @@ from spcopyro.figures.map_pieces import (
     place_labels,
     region_text,
     spread_markers,
+    utterance_marks,
 )
 from spcopyro.figures.png import save_png
 from spcopyro.maps import (
@@ -191,8 +192,9 @@ def plot_house(house: House, path: str | os.PathLike[str], title: str | None = N
 def house_figure(house: House, title: str | None = None) -> Figure:
     """The map (free white, walls black, unknown grey), image positions and words by colour.
 
-    Each utterance is marked by its last word (the place's name in a sentence such as "this is
-    the kitchen"); the ``MAX_WORD_COLOURS`` most frequent words each take a colour of
+    Each utterance is marked by its rarest word (the place's name in a sentence such as "here
+    is the kitchen": :func:`~spcopyro.figures.map_pieces.utterance_marks`); the
+    ``MAX_WORD_COLOURS`` most frequent words each take a colour of
     :func:`~spcopyro.maps.palette.distinct_colours` (near-twins such as tv/kitchen came from
     ``label_colours``), the rest are "other words" in grey. Markers at one spot are spread
     apart (:func:`~spcopyro.figures.map_pieces.spread_markers`): every word in the legend shows.
@@ -202,11 +204,11 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     ax = fig.subplots()
     wide = is_wide(*_show_image(ax, grid, render_labels(np.full(grid.shape, -1), grid)))
     ax.scatter(*obs.image_xy.T, s=6, c="0.45", marker="s", label=f"images ({obs.num_images})")
-    last_words = [u[-1] if u else "" for u in obs.utterances]  # a sentence's last word
-    frequent = [w for w, _ in Counter(last_words).most_common(MAX_WORD_COLOURS)]
+    marks = utterance_marks(obs.utterances)  # [U] a sentence's rarest word: the place named
+    frequent = [w for w, _ in Counter(marks).most_common(MAX_WORD_COLOURS)]
     colours = distinct_colours(len(frequent)) / 255.0  # [F, 3]
     rank = {w: k for k, w in enumerate(frequent)}
-    kind = np.array([rank.get(w, len(frequent)) for w in last_words], dtype=np.int64)  # [U]
+    kind = np.array([rank.get(w, len(frequent)) for w in marks], dtype=np.int64)  # [U]
     order = np.argsort(kind, kind="stable")  # named words keep their places first
     size = 28.0
     xy = np.asarray(obs.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
@@ -226,7 +228,7 @@ def house_figure(house: House, title: str | None = None) -> Figure:
         handles.append(handles.pop(k))
         labels.append(labels.pop(k))
     map_legend(ax, handles, labels, below=wide, columns=4, fontsize=8, frameon=False,
-               title="words heard (last word of each utterance;\nmarkers at one spot spread "
+               title="words heard (rarest word of each utterance;\nmarkers at one spot spread "
                "apart)", title_fontsize=8)  # fmt: skip
     ax.set_title(title or f"{house.name}: {grid.num_free} free cells")
     return fig
