@@ -47,3 +47,19 @@ def test_a_house_of_sentences_is_marked_by_the_places_named():
     assert "here" not in texts and "the" not in texts
     assert {"bedroom", "living", "kitchen"} <= set(texts), texts
     assert set(texts[1:]) - {"other words"} <= {w for u in words.observations.utterances for w in u}
+
+
+def test_a_house_of_words_only_draws_no_images_entry(tmp_path):
+    # its house.png listed "images (0)" beside the words
+    from spcopyro.data import load_house
+    from spcopyro.figures.plotting import house_figure
+    from spcopyro.synthetic import HouseSpec, write_synthetic
+
+    data = write_synthetic(tmp_path, seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3))
+    texts = _legend_texts(house_figure(load_house(data)))
+    assert texts[0].startswith("images (") and texts[0] != "images (0)"
+    for path in [*data.glob("pose_*.csv"), data / "Ft.csv", data / "Xtx.csv", data / "Xty.csv"]:
+        path.unlink()
+    texts = _legend_texts(house_figure(load_house(data)))
+    assert not any(t.startswith("images") for t in texts), texts
+    assert len(texts) > 1  # the words still show

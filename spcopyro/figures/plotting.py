@@ -203,7 +203,8 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     fig = Figure(figsize=(8, 8))
     ax = fig.subplots()
     wide = is_wide(*_show_image(ax, grid, render_labels(np.full(grid.shape, -1), grid)))
-    ax.scatter(*obs.image_xy.T, s=6, c="0.45", marker="s", label=f"images ({obs.num_images})")
+    if obs.num_images:  # a house of words only has none: no "images (0)" in the legend
+        ax.scatter(*obs.image_xy.T, s=6, c="0.45", marker="s", label=f"images ({obs.num_images})")
     marks = utterance_marks(obs.utterances)  # [U] a sentence's rarest word: the place named
     frequent = [w for w, _ in Counter(marks).most_common(MAX_WORD_COLOURS)]
     colours = distinct_colours(len(frequent)) / 255.0  # [F, 3]
