@@ -364,9 +364,59 @@ def test_cli_runs_and_rejects_bad_variants(tmp_path, capsys):
                  "--sweeps", "3", "--houses", "sparse", "--baselines",
                  "--variant", "sw:cluster_moves=0.5"]) == 0  # fmt: skip
     assert "nothing to run: all 1 cells" in capsys.readouterr().out
+    text = (out / "ablation.md").read_text()  # the default preset, left out of its text, is said
+    assert "- `sw:options.cluster_moves=0.5` (preset `coarse`, the default)" in text
     assert main(["ablation", "--out", str(tmp_path / "x"), "--quick", "--variant", "x:gama=3"]) == 2
     assert "unknown key 'gama'" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
+
+
+def test_a_resumed_ablation_says_which_cells_it_ran_and_reruns_stale_ones(tmp_path, capsys):
+    """A run that found cells finished said "Whole run: 0 s", as if the ablation had taken no
+    time; the note on cells of other source said "--rerun-stale runs them again", an option
+    ablation did not have; and a synthetic-only run described public houses and SpCoA."""
+    out = tmp_path / "abl"
+    command = ["ablation", "--out", str(out), "--quick", "--no-public", "--seeds", "1",
+               "--sweeps", "2", "--houses", "dense", "--baselines", "--no-off",
+               "--variant", "g3:preset=original-code,gamma=3"]  # fmt: skip
+    assert main(command) == 0
+    capsys.readouterr()
+    text = (out / "ablation.md").read_text()
+    assert "2 Gibbs sweeps per fit; synthetic seeds 0 (house and fit). Mean" in text
+    assert "public houses:" not in text and "SpCoA" not in text
+    assert "Workers: 1. Whole command: " in text
+    assert "- `g3:preset=original-code,settings.gamma=3.0`\n" in text
+    (stored,) = (out / "cells").glob("*.json")
+    record = json.loads(stored.read_text())
+    record["source_digest"] = "0123456789abcdef"
+    stored.write_text(json.dumps(record))
+    assert main(command) == 0
+    printed = capsys.readouterr().out
+    assert "nothing to run" in printed and "--rerun-stale runs them again" in printed
+    text = (out / "ablation.md").read_text()
+    assert "Whole command" not in text
+    assert "This command: " in text and "1 cell of the table was finished before it" in text
+    assert json.loads((out / "ablation.json").read_text())["cells_finished_before"] == 1
+    assert main([*command, "--rerun-stale"]) == 0
+    assert "1 of 1 cells to run (0 finished before)" in capsys.readouterr().out
+    assert json.loads(stored.read_text())["source_digest"] != "0123456789abcdef"
+
+
+def test_an_unknown_public_house_is_named_as_the_option(tmp_path, capsys):
+    """--public-houses room9: the error named "<python>: [data.room9] public = ...", a study
+    table the user never wrote; it names the option and the dataset's houses."""
+    root = tmp_path / "data"
+    (root / "room1" / "img_0").mkdir(parents=True)
+    (root / "map").mkdir()
+    (root / "map" / "room1.yaml").write_text("image: room1.pgm\n")
+    out = tmp_path / "out"
+    code = main(["ablation", "--out", str(out), "--quick", "--data", str(root),
+                 "--public-houses", "room9"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "--public-houses room9: not a house of" in err and "its houses: room1" in err
+    assert "[data." not in err
+    assert not out.exists()
 
 
 def test_public_only_run_with_no_synthetic_seed(tmp_path, dataset_root):
@@ -378,7 +428,15 @@ def test_public_only_run_with_no_synthetic_seed(tmp_path, dataset_root):
     )  # fmt: skip
     report = run_ablation(tmp_path, settings)
     assert [s["name"] for s in report["statistics"]] == ["room1ldk4"]
-    assert (tmp_path / "ablation.md").is_file()
+    text = (tmp_path / "ablation.md").read_text()
+    # it wrote "synthetic seeds 0--1" and a header-only table per synthetic setting, and drew
+    # an empty synthetic panel beside the public one
+    assert "## Synthetic" not in text and "synthetic seeds" not in text and "0--1" not in text
+    assert "public houses: 1 seed, seed s holding out" in text and "SpCoA" not in text
+    from PIL import Image
+
+    with Image.open(tmp_path / "ablation.png") as image:
+        assert image.size[0] == 11 * 110  # one panel (two: 16 inches wide)
 
 
 def test_a_single_value_is_shown_without_a_standard_deviation():

@@ -251,6 +251,54 @@ def test_quick_command_writes_table_json_and_figure(tmp_path, capsys, monkeypatc
     assert (out / "results.csv").is_file()  # the comparison is a study: cached in --out
 
 
+def _fake_dataset(root: Path) -> Path:
+    """A dataset folder holding one house, room1 (a folder and its map/room1.yaml)."""
+    (root / "room1" / "img_0").mkdir(parents=True)
+    (root / "map").mkdir()
+    (root / "map" / "room1.yaml").write_text("image: room1.pgm\n")
+    return root
+
+
+def test_an_unknown_public_house_is_named_as_the_option(tmp_path, capsys):
+    """--public-houses room9: the error was "room folder .../room9 does not exist"; it names the
+    option and the dataset's houses, before anything runs."""
+    root = _fake_dataset(tmp_path / "data")
+    out = tmp_path / "out"
+    code = main(["compare-inference", "--out", str(out), "--quick", "--houses", "public",
+                 "--data", str(root), "--public-houses", "room9"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "--public-houses room9: not a house of" in err and "its houses: room1" in err
+    assert not out.exists()
+
+
+def test_a_resumed_comparison_says_which_cells_it_ran_and_reruns_stale_ones(tmp_path, capsys):
+    """A run that found cells finished said "Whole command: 0 s wall-clock", as if the whole
+    comparison had taken no time; and the note on cells of other source said "--rerun-stale
+    runs them again", an option compare-inference did not have."""
+    out = tmp_path / "cmp"
+    command = ["compare-inference", "--out", str(out), "--quick", "--houses", "synthetic",
+               "--methods", "gibbs", "--iterations", "gibbs=5"]  # fmt: skip
+    assert main(command) == 0
+    capsys.readouterr()
+    assert "Whole command: " in (out / "comparison.md").read_text()
+    assert json.loads((out / "comparison.json").read_text())["cells_finished_before"] == 0
+    (stored,) = (out / "cells").glob("*.json")
+    record = json.loads(stored.read_text())
+    record["source_digest"] = "0123456789abcdef"
+    stored.write_text(json.dumps(record))
+    assert main(command) == 0
+    printed = capsys.readouterr().out
+    assert "nothing to run" in printed and "--rerun-stale runs them again" in printed
+    text = (out / "comparison.md").read_text()
+    assert "Whole command" not in text
+    assert "This command: " in text and "1 cell of the table was finished before it" in text
+    assert json.loads((out / "comparison.json").read_text())["cells_finished_before"] == 1
+    assert main([*command, "--rerun-stale"]) == 0
+    assert "1 of 1 cells to run (0 finished before)" in capsys.readouterr().out
+    assert json.loads(stored.read_text())["source_digest"] != "0123456789abcdef"
+
+
 # -- the comparison as a study (issue 26) --------------------------------------------------------
 
 OLD_RECORDS = Path(__file__).with_name("comparison_old_records.json")

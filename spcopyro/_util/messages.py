@@ -58,6 +58,19 @@ def seconds_text(value: float) -> str:
     return f"{value:.2g}"
 
 
+def command_time(seconds: float, cached: int) -> str:
+    """The wall-clock sentence of a report drawn by a study command: ``cached`` cells found
+    finished are not in ``seconds`` (a resumed or repeated run read "Whole command: 0 s", as if
+    the whole study had taken no time)."""
+    if not cached:
+        return f"Whole command: {seconds:.0f} s wall-clock."
+    were = "was" if cached == 1 else "were"
+    return (
+        f"This command: {seconds:.0f} s wall-clock; {plural(cached, 'cell')} of the table "
+        f"{were} finished before it (read from the cache, their fits not in that time)."
+    )
+
+
 _WARNED: set[Hashable] = set()
 """The keys :func:`warn_once` has warned about in this process."""
 

@@ -5,7 +5,8 @@
 ``ablation.json`` holds ``settings``, ``statistics`` (the houses' sparsity, public and
 synthetic), ``summary`` (row -> house -> score -> {mean, sd, n}), ``top_words`` (row -> house ->
 the top words of the largest concepts holding an utterance, seed 0), ``targets`` (the issue's
-targets, checked), ``records`` (one per job) and ``seconds`` (the whole run).
+targets, checked), ``records`` (one per job), ``seconds`` (this command's wall-clock time) and
+``cells_finished_before`` (the cells it found finished, whose fits are not in ``seconds``).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from spcopyro._util.messages import fixed, seconds_text
+from spcopyro._util.messages import command_time, fixed, plural, seconds_text
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, json_default
 from spcopyro.synthetic.statistics import public_and_synthetic_statistics, statistics_table
 
@@ -38,7 +39,8 @@ SCORES = (
 )  # fmt: skip
 """Every score a record may hold (a record holds those that apply to its row and house)."""
 
-JSON_KEYS = ("settings", "statistics", "summary", "top_words", "targets", "records", "seconds")
+JSON_KEYS = ("settings", "statistics", "summary", "top_words", "targets", "records", "seconds",
+             "cells_finished_before")  # fmt: skip
 
 
 def _spread(values: list[float]) -> dict[str, float]:
@@ -112,6 +114,24 @@ def _fmt(spread: dict | None, digits: int = 3) -> str:
     return f"{fixed(spread['mean'], digits)} ± {spread['sd']:.{digits}f}"
 
 
+def _variant_line(variant: Any) -> str:
+    """A variant's line under "Variants:": its text, and its preset where the text leaves it
+    out (the default preset; ``--variant x:gamma=3`` read "`x:settings.gamma=3.0`", its preset
+    unsaid)."""
+    from spcopyro.config import DEFAULT_PRESET
+
+    line = f"- `{variant.describe()}`"
+    if variant.preset == DEFAULT_PRESET:
+        line += f" (preset `{DEFAULT_PRESET}`, the default)"
+    return line
+
+
+def _synthetic_houses(settings: AblationSettings) -> list[str]:
+    """The synthetic houses the run fits: none with ``--seeds 0`` (their tables and the figure's
+    panel were drawn empty)."""
+    return list(settings.synthetic) if settings.seeds > 0 else []
+
+
 def _seconds(scores: dict) -> str:
     wall, cpu = scores.get("seconds"), scores.get("cpu_seconds")
     if wall is None:
@@ -144,19 +164,28 @@ def markdown(report: dict, settings: AblationSettings) -> str:
     lines = ["# Ablation (issue #14)", ""]
     if settings.command:
         lines += [f"Made by: `{settings.command}`", ""]
+    spcoa = "C-spcoa" in settings.baselines
+    parts = [f"{settings.sweeps} Gibbs sweeps per fit"
+             + (f" (SpCoA: {settings.spcoa_iterations} iterations)" if spcoa else "")]  # fmt: skip
+    synthetic = _synthetic_houses(settings)
+    if synthetic:  # --seeds 0 read "synthetic seeds 0--1"
+        seeds = "0" if settings.seeds == 1 else f"0-{settings.seeds - 1}"
+        parts.append(f"synthetic seeds {seeds} (house and fit)")
+    if settings.dataset_root is not None and settings.public_seeds > 0:  # not with --no-public
+        parts.append(f"public houses: {plural(settings.public_seeds, 'seed')}, seed s holding "
+                     "out trial s mod 3")  # fmt: skip
     lines += [
-        f"{settings.sweeps} Gibbs sweeps per fit (SpCoA: {settings.spcoa_iterations} "
-        f"iterations); synthetic seeds 0-{settings.seeds - 1} (house and fit); public houses: "
-        f"{settings.public_seeds} seed(s), seed s holding out trial s mod 3. Mean ± sd over "
-        f"seeds (the mean alone for one seed). Whole run: {report['seconds']:.0f} s with "
-        f"{settings.workers} worker(s).",
+        "; ".join(parts)
+        + ". Mean ± sd over seeds (the mean alone for one seed). "
+        + f"Workers: {settings.workers}. "
+        + command_time(report["seconds"], report.get("cells_finished_before", 0)),
         "",
         "Variants:",
         "",
     ]
-    lines += [f"- `{v.describe()}`" for v in settings.variants]
+    lines += [_variant_line(v) for v in settings.variants]
     lines += ["", "## The houses", "", report["statistics_md"], ""]
-    for house in settings.synthetic:
+    for house in synthetic:
         spec = settings.houses[house]
         lines += [
             f"## Synthetic: {house} ({spec.height} x {spec.width} cells at {spec.resolution} m, "
@@ -247,7 +276,8 @@ def figure(report: dict, settings: AblationSettings, path: Path) -> Path:
     summary: dict = report["summary"]
     rows = [v.name for v in settings.variants] + list(settings.baselines)
     public = _public_houses(report["records"])
-    panels = 2 if public else 1
+    synthetic = _synthetic_houses(settings)
+    panels = int(bool(synthetic)) + int(bool(public)) or 1
     fig, axes = plt.subplots(1, panels, figsize=(6 + 5 * panels, 4.5), squeeze=False)
     width = 0.8 / max(len(rows), 1)
     colours = plt.get_cmap("tab10")
@@ -267,14 +297,17 @@ def figure(report: dict, settings: AblationSettings, path: Path) -> Path:
                         mec="black", ms=5)  # fmt: skip
         ax.set_xticks(x, houses)
 
-    ax = axes[0, 0]
-    bars(ax, list(settings.synthetic), "ari", "ari_off")
-    ax.set_ylabel("ARI against the truth (circles: observations off)")
-    ax.set_title("synthetic houses")
-    ax.legend(fontsize=7, loc="best")
+    if synthetic:  # --seeds 0: no synthetic panel (it was drawn empty)
+        ax = axes[0, 0]
+        bars(ax, synthetic, "ari", "ari_off")
+        ax.set_ylabel("ARI against the truth (circles: observations off)")
+        ax.set_title("synthetic houses")
+        ax.legend(fontsize=7, loc="best")
     if public:
-        ax = axes[0, 1]
+        ax = axes[0, panels - 1]
         bars(ax, public, "concepts_1pct", None)
+        if not synthetic:
+            ax.legend(fontsize=7, loc="best")
         counts = [TABLE2_CATEGORIES.get(h, np.nan) for h in public]
         x = np.arange(len(public))
         ax.hlines(counts, x - 0.45, x + 0.45, colors="black", linewidth=2, label="Table 2")
@@ -287,9 +320,11 @@ def figure(report: dict, settings: AblationSettings, path: Path) -> Path:
 
 
 def write_report(
-    out: Path, settings: AblationSettings, records: list[dict[str, object]], seconds: float
-) -> dict[str, object]:
-    """Write ``ablation.md``, ``ablation.json`` and ``ablation.png`` into ``out``."""
+    out: Path, settings: AblationSettings, records: list[dict[str, object]], seconds: float,
+    cached: int = 0,
+) -> dict[str, object]:  # fmt: skip
+    """Write ``ablation.md``, ``ablation.json`` and ``ablation.png`` into ``out``. ``seconds``:
+    this command's wall-clock time; ``cached``: the cells it found finished (not in it)."""
     from spcopyro.data import load_house
 
     out.mkdir(parents=True, exist_ok=True)
@@ -310,6 +345,7 @@ def write_report(
         "targets": targets(summary, settings),
         "records": records,
         "seconds": seconds,
+        "cells_finished_before": cached,
     }
     report["statistics_md"] = statistics_table(stats)
     text = markdown(report, settings)

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from spcopyro._util.messages import seconds_text
+from spcopyro._util.messages import command_time, seconds_text
 from spcopyro.experiments.comparison_stats import CONFIDENT
 from spcopyro.experiments.inference_comparison import (
     LOWER_IS_BETTER,
@@ -88,9 +88,11 @@ def summarise(
     settings: ComparisonSettings,
     notes: list[str],
     seconds: float,
+    cached: int = 0,
 ) -> dict[str, object]:
     """The JSON of the comparison: settings, per house type and variant the means (and sd) of
-    every score, and every fit's record with its curve."""
+    every score, and every fit's record with its curve. ``seconds``: this command's wall-clock
+    time; ``cached``: the cells it found finished (their fits are not in ``seconds``)."""
     summary: dict[str, object] = {
         "command": settings.command,
         "settings": {
@@ -120,6 +122,7 @@ def summarise(
         },
         "records": records,
         "seconds": seconds,
+        "cells_finished_before": cached,
     }
     summary["notes"] = [*notes, *findings(summary["summary"])]  # type: ignore[arg-type]
     return summary
@@ -246,7 +249,7 @@ def table_markdown(summary: dict[str, object]) -> str:
         f"Preset `{settings['preset']}`" + (f" ({overrides})" if overrides else "")
         + ", random initial labels. Iterations: "
         + ", ".join(f"{k} {v}" for k, v in settings["iterations"].items())
-        + f". Whole command: {summary['seconds']:.0f} s wall-clock.",
+        + f". {command_time(summary['seconds'], summary.get('cells_finished_before', 0))}",
         "",
         "Times are wall-clock seconds of the inference alone, mean over fits. t95: time to reach "
         "95% of the method's own final quality along its run. ESS/s: effective sample size per "

@@ -156,19 +156,21 @@ def run_ablation(
     report: Callable[[str], None] = lambda message: None,
     *,
     retry_failed: bool = False,
+    rerun_stale: bool = False,
     name: str = "ablation",
 ) -> dict[str, object]:
     """Run the cells of :func:`ablation_study` that ``out`` does not hold yet (``settings.workers``
     > 1: on a Dask LocalCluster), then write ``ablation.md``, ``ablation.json`` and
     ``ablation.png`` from ``out/results.csv``; returns the summary written to ``ablation.json``.
     A failed cell is reported and left out of the summary (``failed`` in the returned dict);
-    ``name``: the study's (in ``report.md``)."""
+    ``name``: the study's (in ``report.md``); ``rerun_stale``: also run the finished cells other
+    spcopyro source computed."""
     study = ablation_study(settings, name)
     run = run_study(
-        study, out, workers=settings.workers, retry_failed=retry_failed, report=report,
-        root=settings.dataset_root,
+        study, out, workers=settings.workers, retry_failed=retry_failed,
+        rerun_stale=rerun_stale, report=report, root=settings.dataset_root,
     )  # fmt: skip
     rows = read_table(Path(out) / TABLE)
-    summary = write_report(Path(out), settings, records_of_rows(rows), run.seconds)
+    summary = write_report(Path(out), settings, records_of_rows(rows), run.seconds, run.cached)
     summary["failed"] = sum(1 for r in rows if r.get("status") != "ok")
     return summary

@@ -78,6 +78,22 @@ def _without_dataset(**options: object) -> None:
           "skipping the public houses", file=sys.stderr)  # fmt: skip
 
 
+def _known_houses(flag: str, houses: Sequence[str] | None, root: object) -> None:
+    """ValueError naming ``flag``, the houses of ``houses`` that the dataset ``root`` lacks and
+    the houses it has (the error named the study file's ``[data.HOUSE]`` table or the missing
+    folder, not the option); nothing when ``houses`` or ``root`` is None."""
+    if root is None or houses is None:
+        return
+    from spcopyro.data import list_houses
+
+    known = list_houses(root)  # type: ignore[arg-type]
+    unknown = [h for h in houses if h not in known]
+    if unknown:
+        listed = ", ".join(known) or "none"
+        raise ValueError(f"{flag} {' '.join(unknown)}: not a house of {root} (a folder with "
+                         f"map/NAME.yaml); its houses: {listed}")  # fmt: skip
+
+
 def _stoppable(command: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
     """``command`` with SIGTERM (``timeout``, Slurm) stopping it as Ctrl-C does: the study
     engine then rewrites the finished cells' table and report before the exit (130), as
@@ -98,7 +114,7 @@ def _stoppable(command: Callable[[argparse.Namespace], int]) -> Callable[[argpar
 
 
 def _experiment(args: argparse.Namespace) -> int:
-    from spcopyro.data import find_dataset_root, list_houses
+    from spcopyro.data import find_dataset_root
     from spcopyro.study.experiment import (
         EXPERIMENT,
         EXPERIMENT_QUICK,
@@ -123,13 +139,7 @@ def _experiment(args: argparse.Namespace) -> int:
     root = None if args.no_public else find_dataset_root(args.data)
     if args.data is None and root is None and not args.no_public:
         _without_dataset(houses=args.houses)
-    if root is not None and args.houses is not None:  # named as the user's, not the study file's
-        known = list_houses(root)
-        unknown = [h for h in args.houses if h not in known]
-        if unknown:
-            listed = ", ".join(known) or "none"
-            raise ValueError(f"--houses {' '.join(unknown)}: not a house of {root} (a folder "
-                             f"with map/NAME.yaml); its houses: {listed}")  # fmt: skip
+    _known_houses("--houses", args.houses, root)
     command = "spcopyro " + " ".join(sys.argv[1:] if args.argv is None else args.argv)
     study = experiment_study(
         study, public=root is not None, houses=args.houses, methods=args.methods,
@@ -187,6 +197,7 @@ def _ablation(args: argparse.Namespace) -> int:
     root = None if args.no_public else find_dataset_root(args.data)
     if root is None and not args.no_public:
         _without_dataset(public_houses=args.public_houses)
+    _known_houses("--public-houses", args.public_houses, root)
     command = "spcopyro " + " ".join(sys.argv[1:] if args.argv is None else args.argv)
     changes: dict[str, object] = dict(command=command, workers=args.workers)
     if args.no_off:
@@ -220,7 +231,7 @@ def _ablation(args: argparse.Namespace) -> int:
             "house, and there is no public house (--no-public, --public-seeds 0 or no dataset)"
         )
     summary = run_ablation(args.out, settings, report=print, retry_failed=args.retry_failed,
-                           name=study.name)  # fmt: skip
+                           rerun_stale=args.rerun_stale, name=study.name)  # fmt: skip
     out = Path(args.out)
     print((out / "ablation.md").read_text())
     print(f"wrote {out / 'ablation.md'}, {out / 'ablation.json'} and {out / 'ablation.png'} "
@@ -273,6 +284,7 @@ def _compare_inference(args: argparse.Namespace) -> int:
     if "public" in house_types and root is None:
         _without_dataset(public_houses=args.public_houses,
                        houses=args.houses if args.houses == "public" else None)  # fmt: skip
+    _known_houses("--public-houses", args.public_houses, root)
     public_houses = tuple(args.public_houses) if args.public_houses else None
     folds = args.folds
     if args.quick and root is not None:
@@ -288,7 +300,8 @@ def _compare_inference(args: argparse.Namespace) -> int:
         iterations=iterations, quick=args.quick, command=command,
     )  # fmt: skip
     summary = run_comparison(args.out, settings, report=print, workers=args.workers,
-                             retry_failed=args.retry_failed)  # fmt: skip
+                             retry_failed=args.retry_failed,
+                             rerun_stale=args.rerun_stale)  # fmt: skip
     out = Path(args.out)
     print((out / "comparison.md").read_text())
     print(f"wrote {out / 'comparison.md'}, {out / 'comparison.json'} and "
@@ -403,6 +416,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    "time (comparable times); N > 1: a Dask LocalCluster of N")  # fmt: skip
     p.add_argument("--retry-failed", action="store_true",
                    help="run again the cells stored with an error in --out")  # fmt: skip
+    p.add_argument("--rerun-stale", action="store_true",
+                   help="run again the finished cells in --out that other spcopyro source "
+                   "computed (default: keep them and say how many)")  # fmt: skip
     p.set_defaults(func=_stoppable(_compare_inference), argv=None)
 
     p = subparsers.add_parser(
@@ -457,4 +473,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="smoke run (the study ablation_quick): two small houses, 2 seeds, 30 sweeps, one "
         "public house and seed",
     )
+    p.add_argument("--rerun-stale", action="store_true",
+                   help="run again the finished cells in --out that other spcopyro source "
+                   "computed (default: keep them and say how many)")  # fmt: skip
     p.set_defaults(func=_stoppable(_ablation), argv=None)

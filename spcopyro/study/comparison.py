@@ -107,12 +107,14 @@ def run_comparison(
     *,
     workers: int = 1,
     retry_failed: bool = False,
+    rerun_stale: bool = False,
 ) -> dict[str, object]:
     """Run the cells of :func:`comparison_study` that ``out`` does not hold yet (``workers``
     > 1: on a Dask LocalCluster; times are then measured beside other fits), then write
     ``comparison.json``, ``comparison.md`` and one figure per house type
     (``comparison_{synthetic,public}.png``) from ``out/results.csv``. Returns the summary
-    written to the JSON, with ``failed``: the cells that failed (left out of it)."""
+    written to the JSON, with ``failed``: the cells that failed (left out of it).
+    ``rerun_stale``: also run the finished cells other spcopyro source computed."""
     out = Path(out)
     keys, notes = available_variants(settings.variants, report)
     study = comparison_study(settings, keys)
@@ -122,14 +124,14 @@ def run_comparison(
     if PUBLIC in settings.house_types and "public" not in kinds:
         notes.append(f"{PUBLIC} houses skipped: the public dataset was not found")
     run = run_study(
-        study, out, workers=workers, retry_failed=retry_failed, report=report,
-        root=settings.dataset_root,
+        study, out, workers=workers, retry_failed=retry_failed, rerun_stale=rerun_stale,
+        report=report, root=settings.dataset_root,
     )  # fmt: skip
     rows = read_table(out / TABLE)
     records = records_of_rows(rows)
     for house_type, by_variant in records.items():  # every available variant, as before
         records[house_type] = {key: by_variant.get(key, []) for key in keys}
-    summary = summarise(records, settings, notes, run.seconds)
+    summary = summarise(records, settings, notes, run.seconds, run.cached)
     summary["load_average_at_end"] = list(os.getloadavg())
     figures = [p for p in write_report(out, summary) if p.suffix == ".png"]
     remove_stale(out, [f"comparison_{kind}.png" for kind in (SYNTHETIC, PUBLIC)], figures)
