@@ -210,9 +210,10 @@ def prepare_model_data(
             counts that are not finite or too large (:func:`~spcopyro.data.check_count_totals`,
             naming the file and line of a loaded house).
     """
-    from spcopyro.fit.refine import WARNED_BY_COARSE_STAGE  # refine imports this module
+    from spcopyro.fit.refine import COARSE_STAGE_MODEL
 
-    said = WARNED_BY_COARSE_STAGE.get()  # a refinement's: its coarse stage's warnings
+    coarse = COARSE_STAGE_MODEL.get()  # a refinement's: its coarse stage logged its warnings
+    said = set() if coarse is None else set(config_warnings(coarse))
     for warning in config_warnings(settings.model):
         if warning not in said:
             logger.warning(warning)

@@ -51,7 +51,7 @@ from collections.abc import Callable
 from contextvars import ContextVar
 from typing import Any
 
-from spcopyro.config import SpCoSettings
+from spcopyro.config import SpCoConfig, SpCoSettings
 from spcopyro.data import House
 from spcopyro.data.model_grid import model_house
 from spcopyro.fit.image_separation import ImageSeparation, image_labels, image_separation
@@ -70,11 +70,12 @@ __all__ = [
 
 logger = logging.getLogger("spcopyro")
 
-WARNED_BY_COARSE_STAGE: ContextVar[frozenset[str]] = ContextVar(
-    "spcopyro_warned_by_coarse_stage", default=frozenset()
+COARSE_STAGE_MODEL: ContextVar[SpCoConfig | None] = ContextVar(
+    "spcopyro_coarse_stage_model", default=None
 )
-"""The settings warnings the coarse stage of a refined fit logged: the refinement's
-``prepare_model_data`` does not log them again (a warning about gamma came twice)."""
+"""While a refinement runs, the model settings of its coarse stage, whose warnings that stage
+logged: the refinement's ``prepare_model_data`` does not log them again (a warning about gamma
+came twice)."""
 
 REFINE_MODES: tuple[str, ...] = ("auto", "never", "always")
 """``auto``: refine where the coarse fit's concepts explain the images; ``never``; ``always``."""
@@ -194,13 +195,11 @@ def refine_chains(
     if getattr(options, "anneal_sweeps", 0):  # its start is the fitted map, not noise: only
         # the coarse stage anneals (annealed again: 0.984 against 0.990, docs/commands.md)
         chain_kwargs["options"] = dataclasses.replace(options, anneal_sweeps=0)
-    from spcopyro.fit.house import config_warnings  # house imports this module
-
-    token = WARNED_BY_COARSE_STAGE.set(frozenset(config_warnings(settings.model)))
+    token = COARSE_STAGE_MODEL.set(settings.model)
     try:
         refits = fit_chains(on_map, refined, init=first, **chain_kwargs)
     finally:
-        WARNED_BY_COARSE_STAGE.reset(token)
+        COARSE_STAGE_MODEL.reset(token)
     record = {
         **decision.to_json(),
         "coarse": {
