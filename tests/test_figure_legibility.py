@@ -3,6 +3,8 @@ wall, ... (properties of the artists and colours, not pixels)."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
 from spcopyro.maps.palette import concept_colours, delta_e94, distinct_colours, srgb_to_lab
@@ -63,3 +65,31 @@ def test_a_house_of_words_only_draws_no_images_entry(tmp_path):
     texts = _legend_texts(house_figure(load_house(data)))
     assert not any(t.startswith("images") for t in texts), texts
     assert len(texts) > 1  # the words still show
+
+
+def test_the_trace_of_one_of_several_chains_says_which(tmp_path, monkeypatch):
+    """`fit --chains K` drew the kept chain's trace with no word that the K - 1 others exist."""
+    import dataclasses
+
+    from hand_results import two_rooms
+
+    from spcopyro.figures.plotting import trace_figure
+
+    result = dataclasses.replace(two_rooms(), method="gibbs")
+    title = trace_figure(result, (2, 3)).texts[0].get_text()
+    assert "chain 2 of 3 (the one kept; chains.json), the others not shown" in title
+    for alone in (None, (0, 1)):
+        assert " of " not in trace_figure(result, alone).texts[0].get_text()
+
+    import spcopyro.cli.fit as fit_cli  # the CLI hands the kept chain to the figures
+    from spcopyro.cli.main import main
+    from spcopyro.synthetic import HouseSpec, write_synthetic
+
+    seen = {}
+    monkeypatch.setattr(fit_cli, "write_figures", lambda *a, **k: seen.update(k))
+    data = write_synthetic(tmp_path, seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3))
+    argv = ["fit", str(data), "--out", str(tmp_path / "f"), "--sweeps", "5", "--chains", "2",
+            "--refine", "never"]  # fmt: skip
+    assert main(argv) == 0
+    kept = json.loads((tmp_path / "f" / "chains.json").read_text())["best_chain"]
+    assert seen["kept"] == (kept, 2)

@@ -488,7 +488,10 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
             np.save(out / "agreement.npy", free_cells_image(result, result.agreement))
     phases.mark("save")
     if prefetch is not None:  # matplotlib is imported only for the figures
-        write_figures(result, house, out, uncertainty=entropy is not None, prefetch=prefetch)
+        # trace.png draws the kept chain's trace only (--sweeps auto's: the best of its chains)
+        shown = kept if chain_results is not None or diagnostics is None else diagnostics.best_chain
+        write_figures(result, house, out, uncertainty=entropy is not None, prefetch=prefetch,
+                      kept=(shown, chains))  # fmt: skip
     phases.mark("figures")
     if result.agreement is not None:
         estimate = result.inference.get("point_estimate", args.point_estimate)  # a refit's own

@@ -126,6 +126,7 @@ def write_figures(
     uncertainty: bool,
     prefetch: FigurePrefetch | None = None,
     fork: bool | None = None,
+    kept: tuple[int, int] | None = None,
 ) -> None:
     """The fit's PNGs: semantic map, trace, house (unless ``prefetch`` drew it), and the
     uncertainty and agreement maps of a result that has them (:mod:`spcopyro.figures.plotting`,
@@ -136,7 +137,8 @@ def write_figures(
     the largest (0.3-0.6 s against 0.1-0.3 s each), and both then take what is left, one figure
     at a time (:class:`_Claims`), so the two CPUs share the work however the figures' sizes
     fall; the same files, byte for byte. The figures a failed child took are drawn here again
-    (their error, if any, raised)."""
+    (their error, if any, raised). ``kept`` = (k, K): ``result`` is chain k of K, the one kept
+    (``trace.png`` says so: it draws that chain's trace only)."""
     house_drawn = prefetch is not None and prefetch.join()
     with timed("figure imports"):
         from spcopyro.figures.plotting import (
@@ -152,7 +154,7 @@ def write_figures(
         "semantic_map",
         lambda: plot_semantic_map(result, out / "semantic_map.png", observations=observations),
     )
-    shared: list[Figure] = [("trace", lambda: plot_trace(result, out / "trace.png"))]
+    shared: list[Figure] = [("trace", lambda: plot_trace(result, out / "trace.png", kept))]
     if not house_drawn:
         shared.append(("house", lambda: plot_house(house, out / "house.png")))
     if uncertainty:

@@ -536,17 +536,14 @@ def plot_where_probability(
                              vmax=1.0, cmap="Blues")  # fmt: skip
 
 
-def _plain_number(value: float, position: int | None = None) -> str:
-    """A tick label: ``value`` as a plain number (``1000``, ``0.1``)."""
-    return f"{value:g}"
-
-
-def plot_trace(result: SpCoResult, path: str | os.PathLike[str]) -> Path:
+def plot_trace(
+    result: SpCoResult, path: str | os.PathLike[str], kept: tuple[int, int] | None = None
+) -> Path:
     """Write :func:`trace_figure` to ``path``."""
-    return _save(trace_figure(result), path)
+    return _save(trace_figure(result, kept), path)
 
 
-def trace_figure(result: SpCoResult) -> Figure:
+def trace_figure(result: SpCoResult, kept: tuple[int, int] | None = None) -> Figure:
     """The objective (log joint or ELBO) and the number of concepts per iteration (paper
     Figs. 5-6), the sweep of the highest log joint marked (a variational method's final
     iteration, whose q is reported: LBP's and SVI's objectives need not peak there). When the
@@ -554,7 +551,8 @@ def trace_figure(result: SpCoResult) -> Figure:
     says so: that map is not the marked sweep's state. The concept count is of the chain's
     state at each sweep (every label it uses, specks included; vi-gibbs's are its Gibbs sweeps
     after the CAVI start) or, for variational methods, of each cell's most probable concept
-    under q at each iteration; not the fit's "concepts in use"."""
+    under q at each iteration; not the fit's "concepts in use". ``kept`` = (k, K): the result is
+    chain k of the K run (``fit --chains K``), the one kept; the title says so."""
     trace = result.trace
     sweeps = np.arange(1, len(trace.objective) + 1)
     chain = result.method in _CHAINS  # vi-gibbs traces its Gibbs sweeps
@@ -580,8 +578,11 @@ def trace_figure(result: SpCoResult) -> Figure:
         ax.set_xscale("log")
         ax.minorticks_off()  # a Tick is some 20 artists: 60 of them were most of the figure
     # sweeps as plain numbers (1, 10, 100, 1000), not 10^k in mathtext (its parser's start-up)
-    bottom.xaxis.set_major_formatter(FuncFormatter(_plain_number))
+    bottom.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
     title = f"{result.name or 'trace'} ({result.method})"
+    if kept is not None and kept[1] > 1:  # the other chains' traces are not drawn
+        run = "chain" if chain else "fit"
+        title += f"\n{run} {kept[0]} of {kept[1]} (the one kept; chains.json), the others not shown"
     refine = result.inference.get("refine")
     if isinstance(refine, dict) and refine.get("refine") and isinstance(refine.get("coarse"), dict):
         coarse = refine["coarse"]
