@@ -406,8 +406,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--folds", type=_integer_at_least(1), help="held-out trials per public house (default: all)"
     )
     p.add_argument(
-        "--preset", default="original-code", choices=sorted(PRESETS), help="model settings"
-    )
+        "--preset", default="original-code", choices=sorted(PRESETS),
+        help="the model's and data's settings of a preset (not fit's start, moves, point "
+        "estimate or refinement: every line starts from random labels, so auto fits as "
+        "original-code with gamma 3)",
+    )  # fmt: skip
     p.add_argument(
         "--gamma", type=float, default=3.0, help="the Potts coupling, replacing the preset's"
     )
