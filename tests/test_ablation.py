@@ -386,6 +386,7 @@ def test_a_resumed_ablation_says_which_cells_it_ran_and_reruns_stale_ones(tmp_pa
     assert "public houses:" not in text and "SpCoA" not in text
     assert "Workers: 1. Whole command: " in text
     assert "- `g3:preset=original-code,settings.gamma=3.0`\n" in text
+    assert "| dense (mean of 1 seed) |" in text  # "1 seeds"
     (stored,) = (out / "cells").glob("*.json")
     record = json.loads(stored.read_text())
     record["source_digest"] = "0123456789abcdef"

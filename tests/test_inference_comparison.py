@@ -282,6 +282,7 @@ def test_a_resumed_comparison_says_which_cells_it_ran_and_reruns_stale_ones(tmp_
     assert main(command) == 0
     capsys.readouterr()
     assert "Whole command: " in (out / "comparison.md").read_text()
+    assert "## Synthetic houses (1 seed, ground truth)" in (out / "comparison.md").read_text()
     assert json.loads((out / "comparison.json").read_text())["cells_finished_before"] == 0
     (stored,) = (out / "cells").glob("*.json")
     record = json.loads(stored.read_text())

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from spcopyro._util.messages import command_time, seconds_text
+from spcopyro._util.messages import command_time, plural, seconds_text
 from spcopyro.experiments.comparison_stats import CONFIDENT
 from spcopyro.experiments.inference_comparison import (
     LOWER_IS_BETTER,
@@ -267,7 +267,7 @@ def table_markdown(summary: dict[str, object]) -> str:
         records = summary["records"][house_type]  # type: ignore[index]
         if house_type == SYNTHETIC:
             lines += [
-                f"## Synthetic houses ({settings['seeds']} seeds, ground truth)",
+                f"## Synthetic houses ({plural(settings['seeds'], 'seed')}, ground truth)",
                 "",
                 "Matching rate (means | labels): the same label map scored with pi and phi set "
                 "to their posterior means given it, instead of the method's own estimates (a "

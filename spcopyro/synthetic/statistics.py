@@ -20,6 +20,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from spcopyro._util.messages import plural
 from spcopyro.config import DEFAULT_SNAP_DISTANCE
 from spcopyro.data import House, place_observations
 from spcopyro.synthetic.house import make_house
@@ -132,7 +133,7 @@ def public_and_synthetic_statistics(
         }  # fmt: skip
         rows.append(
             HouseStatistics(
-                name=f"{name} (mean of {len(seeds)} seeds)",
+                name=f"{name} (mean of {plural(len(seeds), 'seed')})",
                 resolution=stats[0].resolution,
                 categories=stats[0].categories,
                 tour_m=mean.pop("tour_m"),
