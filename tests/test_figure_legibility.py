@@ -93,3 +93,29 @@ def test_the_trace_of_one_of_several_chains_says_which(tmp_path, monkeypatch):
     assert main(argv) == 0
     kept = json.loads((tmp_path / "f" / "chains.json").read_text())["best_chain"]
     assert seen["kept"] == (kept, 2)
+
+
+def test_words_left_out_of_the_fit_are_said_to_be_grey():
+    """A word heard off the free space ('unplaced' in fit's summary) was drawn grey on the
+    semantic map while its legend said only "fill: the concept there"."""
+    import dataclasses
+
+    from hand_results import two_rooms
+
+    from spcopyro.figures.plotting import semantic_map_figure
+    from spcopyro.synthetic import make_house
+
+    obs = make_house(seed=0).observations
+    xy = np.tile([[0.55, 0.45]], (len(obs.utterances), 1))  # [U, 2] in the left room
+    on_map = dataclasses.replace(obs, word_xy=xy)
+    xy = xy.copy()
+    xy[:2] = [[9.0, 9.0], [-5.0, 0.5]]  # far off the 3.1 x 1 m map
+    off_map = dataclasses.replace(obs, word_xy=xy)
+
+    def word_entry(observations) -> str:
+        fig = semantic_map_figure(two_rooms(), observations=observations)
+        (text,) = [t for t in _legend_texts(fig) if t.startswith("where a word was heard")]
+        return text
+
+    assert "left out" not in word_entry(on_map)
+    assert "mid grey: 2 left out, off the free space" in word_entry(off_map)

@@ -192,8 +192,9 @@ def draw_utterances(
     ax: Axes, result: SpCoResult, observations: Observations, colours: np.ndarray
 ) -> Line2D | None:
     """Mark where each utterance was heard (Fig. 10F): a circle in the colour of the concept of
-    the cell it was counted in (:func:`utterance_concepts`; grey where it was left out) with a
-    black rim. Returns a legend handle (None when the observations hold no utterance)."""
+    the cell it was counted in (:func:`utterance_concepts`; grey where it was left out, as the
+    legend says) with a black rim. Returns a legend handle (None when the observations hold no
+    utterance)."""
     xy = np.asarray(observations.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
     if len(xy) == 0:
         return None
@@ -202,9 +203,11 @@ def draw_utterances(
         concepts[:, None] >= 0, colours[np.maximum(concepts, 0)] / 255.0, OFF_MAP_RGB
     )  # [U, 3]
     ax.scatter(*xy.T, s=22, c=rgb, edgecolors="black", linewidths=0.7, zorder=3)
+    left_out = int((concepts < 0).sum())  # the fit printed them as "unplaced"
+    grey = f", mid grey: {left_out} left out, off the free space" if left_out else ""
     return Line2D(
         [], [], marker="o", ls="", markerfacecolor="0.8", markeredgecolor="black",
-        label=f"where a word was heard ({len(xy)} utterances; fill: the concept there)",
+        label=f"where a word was heard ({len(xy)} utterances; fill: the concept there{grey})",
     )  # fmt: skip
 
 
