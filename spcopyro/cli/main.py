@@ -134,6 +134,12 @@ def _simulate_house(args: argparse.Namespace) -> int:
         raise FileExistsError(
             str(error).replace("pass overwrite=True", "pass --overwrite to replace it")
         ) from None
+    if spec.num_rooms == 1:  # as simulate --map warns of a map that stays one room
+        how = "--rooms 1" if args.rooms is not None else f"--size {spec.height} {spec.width}"
+        logging.getLogger("spcopyro").warning(
+            f"{room}: one room ({how}): the simulated truth has one category, so a fit's ARI "
+            "against it says nothing; give --rooms 2 or more (and a --size that holds them)"
+        )
     print(f"wrote synthetic house (seed {args.seed}) to {room}")
     print(f"  fit it with: {_fit_command(room, args.out)}")
     return 0

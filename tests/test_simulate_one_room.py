@@ -1,0 +1,23 @@
+"""`spcopyro simulate` warns of a drawn house of one room, as `simulate --map` warns of a map
+that stays one room: its truth has one category, so ARI against it says nothing."""
+
+from __future__ import annotations
+
+import logging
+
+import pytest
+
+from spcopyro.cli.main import main
+
+
+@pytest.mark.parametrize(
+    ("argv", "how"),
+    [(["--rooms", "1"], "--rooms 1"), (["--size", "20", "20"], "--size 20 20"), ([], None)],
+)
+def test_a_house_of_one_room_is_warned_of(tmp_path, caplog, argv, how):
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        assert main(["simulate", "--out", str(tmp_path), *argv]) == 0
+    if how is None:  # the default house: 5 rooms
+        assert "one room" not in caplog.text
+    else:
+        assert f"one room ({how}): the simulated truth has one category" in caplog.text
