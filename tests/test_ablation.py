@@ -403,6 +403,21 @@ def test_a_resumed_ablation_says_which_cells_it_ran_and_reruns_stale_ones(tmp_pa
     assert json.loads(stored.read_text())["source_digest"] != "0123456789abcdef"
 
 
+def test_a_variant_named_like_a_baseline_is_refused(tmp_path, capsys):
+    """--variant C-spcoa:gamma=3 ran the variant and the baseline C-spcoa and then failed drawing
+    ablation.md (KeyError: 'matching_rate_area'), their records pooled under one row name."""
+    out = tmp_path / "abl"
+    code = main(["ablation", "--out", str(out), "--quick", "--no-public", "--seeds", "1",
+                 "--houses", "dense", "--sweeps", "2", "--no-off",
+                 "--variant", "C-spcoa:gamma=3"])  # fmt: skip
+    assert code == 2
+    assert "variant 'C-spcoa': the name of a baseline row" in capsys.readouterr().err
+    assert not out.exists()
+    with pytest.raises(ValueError, match="variant names must differ: a given twice"):
+        AblationSettings(variants=(parse_variant("a"), parse_variant("a:gamma=2")))
+    AblationSettings(variants=(parse_variant("C-spcoa"),), baselines=("F-geometry",))  # no clash
+
+
 def test_an_unknown_public_house_is_named_as_the_option(tmp_path, capsys):
     """--public-houses room9: the error named "<python>: [data.room9] public = ...", a study
     table the user never wrote; it names the option and the dataset's houses."""

@@ -122,6 +122,20 @@ class AblationSettings:
     workers: int = 1
     command: str = ""
 
+    def __post_init__(self) -> None:
+        """Every row's name is its own: a variant named like a baseline of the run (``--variant
+        C-spcoa:gamma=3``) ran both and then failed drawing the tables (KeyError), the two
+        rows' records pooled under one name."""
+        names = [v.name for v in self.variants]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            raise ValueError(f"variant names must differ: {', '.join(twice)} given twice")
+        clash = [n for n in names if n in self.baselines]
+        if clash:
+            rows = ", ".join(self.baselines)
+            raise ValueError(f"variant {clash[0]!r}: the name of a baseline row of the run "
+                             f"({rows}); give the variant another name")  # fmt: skip
+
     @classmethod
     def quick(cls, **changes: object) -> AblationSettings:
         """A smoke run: two small houses, 2 seeds, 30 sweeps, 1 public house and seed."""
