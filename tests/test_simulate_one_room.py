@@ -21,3 +21,19 @@ def test_a_house_of_one_room_is_warned_of(tmp_path, caplog, argv, how):
         assert "one room" not in caplog.text
     else:
         assert f"one room ({how}): the simulated truth has one category" in caplog.text
+
+
+def test_rooms_of_one_category_given_are_warned_of(tmp_path, caplog):
+    """simulate --map --categories kitchen: every room a kitchen, said nothing of."""
+    from test_map_simulation import three_rooms
+
+    from spcopyro.robot.map_simulation import MapTour, simulate_on_map
+
+    _, grid = three_rooms(tmp_path)
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        two = simulate_on_map(grid, seed=0, tour=MapTour(categories=("kitchen", "living")))
+    assert len(set(two.room_category.tolist())) == 2 and not caplog.text
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        one = simulate_on_map(grid, seed=0, tour=MapTour(categories=("kitchen",)))
+    assert set(one.room_category.tolist()) == {0}
+    assert "3 rooms, all kitchen (one category given): the simulated truth has one" in caplog.text

@@ -18,7 +18,8 @@ public dataset's layout (so ``spcopyro fit`` reads it) together with the ground 
    for unlabelled cells of any house.
 2. **Categories.** With R rooms and n names (``categories``), the multiset of categories is
    ``i mod n`` for ``i < R`` (balanced; the first min(R, n) names are used), assigned to the rooms
-   in a random order.
+   in a random order. One name for several rooms is warned of, as one room is: the truth then
+   has one category.
 3. **Tour, images, utterances** as in a synthetic house: in each of ``num_trials`` trials the
    robot visits every room once in a random order and takes ``images_per_room`` images at free
    cells of the room, preferring cells more than :data:`CLEARANCE` metres from any non-free
@@ -199,6 +200,12 @@ def simulate_on_map(
     num_rooms = int(large.size)
     if num_rooms < 2:
         logger.warning("%s", _one_room_warning(grid, tour, float(door_width)))
+    elif len(spec.category_names) == 1:  # every room the same category: one in the truth
+        logger.warning(
+            "%s: %d rooms, all %s (one category given): the simulated truth has one category, "
+            "so a fit's ARI against it says nothing; give --categories two or more names",
+            grid.source or "map", num_rooms, spec.category_names[0],
+        )  # fmt: skip
 
     num_categories = min(num_rooms, len(spec.category_names))
     room_category = rng.permutation(np.arange(num_rooms) % len(spec.category_names))  # [R]
