@@ -172,6 +172,7 @@ def test_variant_prefixes_and_nested_options():
         ("x:cluster_moves.inner=1", "unknown key"),
         ("x:options.cluster_moves.inner=1", "has no field"),
         (":gamma=3", "must be non-empty"),
+        ("x|y:gamma=3", "without ':', ',', '=' or '[|]'"),  # it split ablation.md's table rows
         ("x:hyper.log_gamma_sd=2", "no hyperparameter the chain samples reads log_gamma_sd"),
         ("x:point_estimate=binder", "needs marginal_samples > 0"),
         ("x:method=cavi,refine=auto", "refines a Gibbs fit, not method='cavi'"),
