@@ -119,3 +119,24 @@ def test_words_left_out_of_the_fit_are_said_to_be_grey():
 
     assert "left out" not in word_entry(on_map)
     assert "mid grey: 2 left out, off the free space" in word_entry(off_map)
+
+
+def test_the_legend_leaves_out_words_at_p_0_00_as_fit_prints():
+    """A CAVI fit's legend read "[6] ...: bathroom 0.63, bathtub 0.35, shoes 0.00" where fit
+    printed "bathroom 0.63, bathtub 0.35"."""
+    import dataclasses
+
+    from hand_results import two_rooms
+
+    from spcopyro.figures.plotting import semantic_map_figure
+    from spcopyro.results.result import EmissionTable
+
+    result = two_rooms()
+    images, words = result.emissions
+    w = np.array(words.probabilities, dtype=np.float64)
+    w[0] = [0.6, 0.398, 0.002]  # kitchen, bed, sofa
+    result = dataclasses.replace(
+        result, emissions=(images, EmissionTable(words.name, words.items, w))
+    )
+    (entry,) = [t for t in _legend_texts(semantic_map_figure(result)) if t.startswith("[0]")]
+    assert "kitchen 0.60, bed 0.40" in entry and "sofa" not in entry

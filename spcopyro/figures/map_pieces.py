@@ -137,7 +137,8 @@ def concept_handles(
         if heard == 0:
             words = NO_WORDS
         else:
-            words = ", ".join(f"{w} {p:.2f}" for w, p in result.top_words(c, n_words))
+            top = shown_words(result.top_words(c, n_words))  # no "shoes 0.00", as fit prints
+            words = ", ".join(f"{w} {p:.2f}" for w, p in top)
             distinctive = result.distinctive_words(c, n_words)
             if distinctive:
                 words += "\n      distinctive: " + ", ".join(
