@@ -298,6 +298,12 @@ def test_targets_are_checked_against_the_baselines():
     assert "beats C-spcoa" in lines[0] and "sd <= theirs" in lines[0]
     assert "does NOT beat F-geometry" in lines[0] and "sd > theirs" in lines[0]
     assert "within 2" in lines[1] and "NOT" not in lines[1]
+    # one seed: its sd is undefined (0 in the JSON), so the spread is not compared; it read
+    # "sd <= theirs (0.000 vs 0.000)", a target met by a single fit
+    one = lambda m: {"mean": m, "sd": 0.0, "n": 1}  # noqa: E731
+    summary = {"v": {"dense": {"ari": one(0.9)}}, "C-spcoa": {"dense": {"ari": one(0.8)}}}
+    (line,) = targets(summary, settings)
+    assert line == "v on dense: ARI beats C-spcoa (0.900 vs 0.800), sd not compared (one seed)"
 
 
 def _check_outputs(out, rows, houses, seeds):

@@ -87,12 +87,15 @@ def targets(summary: dict, settings: AblationSettings) -> list[str]:
                 if theirs is None:
                     continue
                 beats = mine["mean"] > theirs["mean"]
-                steady = mine["sd"] <= theirs["sd"]
-                verdicts.append(
-                    f"{'beats' if beats else 'does NOT beat'} {base} "
-                    f"({mine['mean']:.3f} vs {theirs['mean']:.3f}), sd "
-                    f"{'<=' if steady else '>'} theirs ({mine['sd']:.3f} vs {theirs['sd']:.3f})"
-                )
+                verdict = (f"{'beats' if beats else 'does NOT beat'} {base} "
+                           f"({mine['mean']:.3f} vs {theirs['mean']:.3f}), ")  # fmt: skip
+                if min(mine.get("n", 2), theirs.get("n", 2)) < 2:  # one seed: no sd (it read
+                    verdict += "sd not compared (one seed)"  # "sd <= theirs (0.000 vs 0.000)")
+                else:
+                    steady = mine["sd"] <= theirs["sd"]
+                    verdict += (f"sd {'<=' if steady else '>'} theirs ({mine['sd']:.3f} vs "
+                                f"{theirs['sd']:.3f})")  # fmt: skip
+                verdicts.append(verdict)
             if verdicts:
                 lines.append(f"{variant.name} on {house}: ARI " + "; ".join(verdicts))
         for house, count in TABLE2_CATEGORIES.items():
