@@ -425,6 +425,16 @@ def test_a_variant_named_like_a_baseline_is_refused(tmp_path, capsys):
     AblationSettings(variants=(parse_variant("C-spcoa"),), baselines=("F-geometry",))  # no clash
 
 
+def test_a_house_the_quick_study_lacks_says_why(tmp_path, capsys):
+    """--quick --houses open-plan (a documented default setting) read "unknown --houses
+    ['open-plan']; choose from ['dense', 'sparse']", not saying that --quick keeps two."""
+    out = tmp_path / "abl"
+    assert main(["ablation", "--out", str(out), "--quick", "--houses", "open-plan"]) == 2
+    err = capsys.readouterr().err
+    assert "--houses open-plan: not a synthetic setting of --quick's study" in err
+    assert "choose from dense, sparse" in err and not out.exists()
+
+
 def test_an_unknown_public_house_is_named_as_the_option(tmp_path, capsys):
     """--public-houses room9: the error named "<python>: [data.room9] public = ...", a study
     table the user never wrote; it names the option and the dataset's houses."""

@@ -222,7 +222,9 @@ def _ablation(args: argparse.Namespace) -> int:
     if args.houses:
         missing = sorted(set(args.houses) - set(settings.houses))
         if missing:
-            raise ValueError(f"unknown --houses {missing}; choose from {list(settings.houses)}")
+            which = "--quick's" if args.quick else "the ablation's"  # --quick has two of five
+            raise ValueError(f"--houses {' '.join(missing)}: not a synthetic setting of "
+                             f"{which} study; choose from {', '.join(settings.houses)}")  # fmt: skip
         settings = ablation_settings(study, root, **changes, synthetic=tuple(args.houses))
     public = settings.dataset_root is not None and settings.public_seeds > 0
     if not (settings.seeds > 0 and settings.synthetic) and not public:  # an empty study exited 0
