@@ -140,3 +140,21 @@ def test_the_legend_leaves_out_words_at_p_0_00_as_fit_prints():
     )
     (entry,) = [t for t in _legend_texts(semantic_map_figure(result)) if t.startswith("[0]")]
     assert "kitchen 0.60, bed 0.40" in entry and "sofa" not in entry
+
+
+def test_the_where_title_leaves_out_words_at_p_0_00():
+    import dataclasses
+
+    from hand_results import two_rooms
+
+    from spcopyro.figures.plotting import where_figure
+    from spcopyro.results.result import EmissionTable
+
+    result = two_rooms()
+    images, words = result.emissions
+    w = np.array([[0.6, 0.398, 0.002], [0.398, 0.6, 0.002], [0.7, 0.298, 0.002]])  # [L, V]
+    result = dataclasses.replace(
+        result, emissions=(images, EmissionTable(words.name, words.items, w))
+    )
+    (ax,) = [a for a in where_figure(result, result.where("kitchen")).axes if a.get_title()]
+    assert "its words: kitchen" in ax.get_title() and "sofa" not in ax.get_title()

@@ -58,7 +58,7 @@ from spcopyro.maps import (
     distinct_colours,
     render_labels,
 )
-from spcopyro.results.concept_words import NO_WORDS
+from spcopyro.results.concept_words import NO_WORDS, shown_words
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.uncertainty import cell_entropy, free_cells_image, where_probability
 from spcopyro.results.where import SMALL_REGION_FRACTION, WhereAnswer
@@ -442,7 +442,8 @@ def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
     if result.heard(answer.concept) == 0:
         words = NO_WORDS
     else:
-        words = ", ".join(f"{w} {p:.2f}" for w, p in result.top_words(answer.concept, 3))
+        top = shown_words(result.top_words(answer.concept, 3))  # no "sofa 0.00"
+        words = ", ".join(f"{w} {p:.2f}" for w, p in top)
     kind = "per-cell probability from the marginals" if result.marginals is not None else (
         "point estimate")  # fmt: skip
     ax.set_title(f"where is '{answer.word}'? concept {answer.concept}, "
