@@ -223,8 +223,9 @@ def _ablation(args: argparse.Namespace) -> int:
         missing = sorted(set(args.houses) - set(settings.houses))
         if missing:
             which = "--quick's" if args.quick else "the ablation's"  # --quick has two of five
+            offered = ", ".join(settings.houses)
             raise ValueError(f"--houses {' '.join(missing)}: not a synthetic setting of "
-                             f"{which} study; choose from {', '.join(settings.houses)}")  # fmt: skip
+                             f"{which} study; choose from {offered}")  # fmt: skip
         settings = ablation_settings(study, root, **changes, synthetic=tuple(args.houses))
     public = settings.dataset_root is not None and settings.public_seeds > 0
     if not (settings.seeds > 0 and settings.synthetic) and not public:  # an empty study exited 0
