@@ -272,6 +272,22 @@ def test_an_unknown_public_house_is_named_as_the_option(tmp_path, capsys):
     assert not out.exists()
 
 
+def test_the_public_table_names_its_houses_and_trials():
+    """comparison.md's public table named no house: a --quick (room1dk5, one trial) or
+    --public-houses table read as the five houses' three trials."""
+    from spcopyro.experiments.comparison_report import _public_fits
+
+    records = {
+        "gibbs": [{"house": f"room1dk5 (held-out trial {t})"} for t in (2, 0)]
+        + [{"house": "room2ldk4 (held-out trial 1)"}],
+        "cavi": [{"house": "room1dk5 (held-out trial 0)"}],
+    }
+    assert _public_fits(records) == (
+        "room1dk5 (held-out trials 0, 2); room2ldk4 (held-out trial 1)"
+    )
+    assert _public_fits({"gibbs": []}) == "none"
+
+
 def test_a_resumed_comparison_says_which_cells_it_ran_and_reruns_stale_ones(tmp_path, capsys):
     """A run that found cells finished said "Whole command: 0 s wall-clock", as if the whole
     comparison had taken no time; and the note on cells of other source said "--rerun-stale

@@ -242,6 +242,22 @@ def _t95(entry: dict | None, runs: int) -> str:
     return text if entry["n"] == runs else f"{text} ({entry['n']}/{runs} reached)"
 
 
+def _public_fits(records: dict[str, list[dict]]) -> str:
+    """The public houses and held-out trials the table's fits are of, ``room1dk5 (trials 0, 1,
+    2)``: comparison.md named none, so a --quick or --public-houses table read as all five."""
+    trials: dict[str, set[str]] = {}
+    for recs in records.values():
+        for record in recs:
+            house, _, trial = str(record["house"]).partition(" (held-out trial ")
+            trials.setdefault(house, set()).add(trial.rstrip(")"))
+    parts = []
+    for house, held in trials.items():
+        numbers = sorted(held, key=lambda t: (len(t), t))
+        noun = "trial" if len(numbers) == 1 else "trials"
+        parts.append(f"{house} (held-out {noun} {', '.join(numbers)})")
+    return "; ".join(parts) or "none"
+
+
 def table_markdown(summary: dict[str, object]) -> str:
     """``comparison.md``: one table per house type, the settings and the findings."""
     settings: dict = summary["settings"]  # type: ignore[assignment]
@@ -282,8 +298,9 @@ def table_markdown(summary: dict[str, object]) -> str:
             lines += [
                 "## Public houses (held-out trials: one fit per trial, scored on it)",
                 "",
-                "Top-1 (means \\| labels): the same label map scored with pi and phi set to "
-                "their posterior means given it. t95 is measured on that score along the run.",
+                f"Fits: {_public_fits(records)}. Top-1 (means \\| labels): the same label map "
+                "scored with pi and phi set to their posterior means given it. t95 is measured "
+                "on that score along the run.",
                 "",
                 "| method | ARI (region truth) | top-1 | top-1 (means \\| labels) | top-3 "
                 "| mean rank | distance (m) | concepts | t95 top-1 (s) | s per fit "
