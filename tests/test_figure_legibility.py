@@ -158,3 +158,24 @@ def test_the_where_title_leaves_out_words_at_p_0_00():
     )
     (ax,) = [a for a in where_figure(result, result.where("kitchen")).axes if a.get_title()]
     assert "its words: kitchen" in ax.get_title() and "sofa" not in ax.get_title()
+
+
+def test_legend_counts_of_words_heard_read_as_english(monkeypatch):
+    """'[63] 199 cells, 1 words heard: ...' and '[11] 204 cells, 0 words heard: no words heard
+    here' (an original-code fit's legend)."""
+    from hand_results import two_rooms
+
+    from spcopyro.figures.map_pieces import concept_handles
+    from spcopyro.figures.plotting import semantic_colours
+    from spcopyro.results.result import SpCoResult
+
+    result = two_rooms()
+    colours = semantic_colours(result)
+    labels = {}
+    for heard in (0.0, 1.0, 1.04, 2.5):
+        monkeypatch.setattr(SpCoResult, "heard", lambda self, concept, heard=heard: heard)
+        labels[heard] = concept_handles(result, colours)[0].get_label()
+    assert labels[0.0] == "[0] 150 cells: no words heard here"
+    assert labels[1.0].startswith("[0] 150 cells, 1 word heard: kitchen 0.60")
+    assert labels[1.04].startswith("[0] 150 cells, 1 word heard: ")
+    assert labels[2.5].startswith("[0] 150 cells, 2.5 words heard: ")

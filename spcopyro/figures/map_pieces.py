@@ -144,7 +144,9 @@ def concept_handles(
                 words += "\n      distinctive: " + ", ".join(
                     f"{w} x{r:.1f}" for w, r, _ in distinctive
                 )
-        count = "" if heard is None else f", {format_words_heard(heard)} words heard"
+        heard_text = "" if heard is None else format_words_heard(heard)
+        noun = "word" if heard_text == "1" else "words"  # not "1 words heard"
+        count = "" if heard is None or heard == 0 else f", {heard_text} {noun} heard"
         handles.append(
             Patch(color=colours[c] / 255.0, label=f"[{c}] {cells} cells{count}: {words}")
         )
