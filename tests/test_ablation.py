@@ -19,7 +19,7 @@ from spcopyro.experiments.ablation import (
     concepts_over,
     largest_share,
 )
-from spcopyro.experiments.ablation_report import JSON_KEYS, targets
+from spcopyro.experiments.ablation_report import JSON_KEYS, markdown, targets
 from spcopyro.experiments.ablation_variants import (
     Variant,
     VariantError,
@@ -394,6 +394,12 @@ def test_a_resumed_ablation_says_which_cells_it_ran_and_reruns_stale_ones(tmp_pa
     assert "Workers: 1. Whole command: " in text
     assert "- `g3:preset=original-code,settings.gamma=3.0`\n" in text
     assert "| dense (mean of 1 seed) |" in text  # "1 seeds"
+    settings = AblationSettings.quick(
+        variants=(parse_variant("g"), parse_variant("c:method=cavi")), baselines=()
+    )
+    report = {"seconds": 1.0, "summary": {}, "records": [], "statistics_md": "", "targets": []}
+    header = markdown(report, settings).splitlines()[2]  # it said "30 Gibbs sweeps per fit"
+    assert header.startswith("30 iterations per fit (Gibbs sweeps; c: cavi); synthetic"), header
     (stored,) = (out / "cells").glob("*.json")
     record = json.loads(stored.read_text())
     record["source_digest"] = "0123456789abcdef"

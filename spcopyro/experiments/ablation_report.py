@@ -168,8 +168,12 @@ def markdown(report: dict, settings: AblationSettings) -> str:
     if settings.command:
         lines += [f"Made by: `{settings.command}`", ""]
     spcoa = "C-spcoa" in settings.baselines
-    parts = [f"{settings.sweeps} Gibbs sweeps per fit"
-             + (f" (SpCoA: {settings.spcoa_iterations} iterations)" if spcoa else "")]  # fmt: skip
+    # a variant of another method ran as many of its iterations (this said "Gibbs sweeps")
+    others = ", ".join(f"{v.name}: {v.method}" for v in settings.variants if v.method != "gibbs")
+    budget = f"{settings.sweeps} Gibbs sweeps per fit"
+    if others:
+        budget = f"{settings.sweeps} iterations per fit (Gibbs sweeps; {others})"
+    parts = [budget + (f" (SpCoA: {settings.spcoa_iterations} iterations)" if spcoa else "")]
     synthetic = _synthetic_houses(settings)
     if synthetic:  # --seeds 0 read "synthetic seeds 0--1"
         seeds = "0" if settings.seeds == 1 else f"0-{settings.seeds - 1}"
