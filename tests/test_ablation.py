@@ -400,6 +400,9 @@ def test_a_resumed_ablation_says_which_cells_it_ran_and_reruns_stale_ones(tmp_pa
     report = {"seconds": 1.0, "summary": {}, "records": [], "statistics_md": "", "targets": []}
     header = markdown(report, settings).splitlines()[2]  # it said "30 Gibbs sweeps per fit"
     assert header.startswith("30 iterations per fit (Gibbs sweeps; c: cavi); synthetic"), header
+    assert "## Targets\n\nNone checked: no synthetic house with a baseline" in markdown(
+        report, settings
+    )  # the section was empty
     (stored,) = (out / "cells").glob("*.json")
     record = json.loads(stored.read_text())
     record["source_digest"] = "0123456789abcdef"
