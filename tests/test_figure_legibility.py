@@ -179,3 +179,24 @@ def test_legend_counts_of_words_heard_read_as_english(monkeypatch):
     assert labels[1.0].startswith("[0] 150 cells, 1 word heard: kitchen 0.60")
     assert labels[1.04].startswith("[0] 150 cells, 1 word heard: ")
     assert labels[2.5].startswith("[0] 150 cells, 2.5 words heard: ")
+
+
+def test_a_word_heard_on_a_wall_has_a_white_rim():
+    """room1dk5's coarse walls cover two words heard by a door: with a black rim on the black
+    wall they read as specks of paint."""
+    import dataclasses
+
+    from hand_results import two_rooms
+    from matplotlib.collections import PathCollection
+
+    from spcopyro.figures.plotting import semantic_map_figure
+    from spcopyro.synthetic import make_house
+
+    obs = make_house(seed=0).observations
+    xy = np.tile([[0.55, 0.45]], (len(obs.utterances), 1))  # [U, 2] in the left room
+    xy[0] = [1.55, 0.45]  # on the wall (column 15: x 1.5..1.6)
+    fig = semantic_map_figure(two_rooms(), observations=dataclasses.replace(obs, word_xy=xy))
+    (markers,) = [c for c in fig.axes[0].collections if isinstance(c, PathCollection)]
+    edges = markers.get_edgecolors()[:, :3]  # [U, 3]
+    np.testing.assert_array_equal(edges[0], [1.0, 1.0, 1.0])
+    np.testing.assert_array_equal(edges[1:], np.zeros((len(xy) - 1, 3)))

@@ -25,7 +25,7 @@ from matplotlib.patches import Patch
 from matplotlib.transforms import ScaledTranslation
 
 from spcopyro.data import Observations
-from spcopyro.maps import OccupancyGrid
+from spcopyro.maps import OCCUPIED, OccupancyGrid
 from spcopyro.results.concept_words import (
     MIN_LIFT,
     NO_WORDS,
@@ -191,13 +191,23 @@ def utterance_concepts(result: SpCoResult, xy: np.ndarray) -> np.ndarray:
     return np.where(cells >= 0, labels[np.maximum(cells, 0)], -1).astype(np.int64)
 
 
+def _on_walls(grid: OccupancyGrid, xy: np.ndarray) -> np.ndarray:
+    """[U] bool: the world point ``[U, 2]`` lies on an occupied cell (a black wall)."""
+    cells = grid.world_to_cell(xy)  # [U, 2]
+    inside = grid.in_bounds(cells)  # [U]
+    walls = np.zeros(len(xy), dtype=bool)
+    walls[inside] = grid.occupancy[cells[inside, 0], cells[inside, 1]] == OCCUPIED
+    return walls
+
+
 def draw_utterances(
     ax: Axes, result: SpCoResult, observations: Observations, colours: np.ndarray
 ) -> Line2D | None:
     """Mark where each utterance was heard (Fig. 10F): a circle in the colour of the concept of
     the cell it was counted in (:func:`utterance_concepts`; grey where it was left out, as the
-    legend says) with a black rim. Returns a legend handle (None when the observations hold no
-    utterance)."""
+    legend says) with a black rim, white on a wall (room1dk5's coarse walls cover two words
+    heard by a door: their black rims vanished and they read as specks of paint). Returns a
+    legend handle (None when the observations hold no utterance)."""
     xy = np.asarray(observations.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
     if len(xy) == 0:
         return None
@@ -205,7 +215,9 @@ def draw_utterances(
     rgb = np.where(
         concepts[:, None] >= 0, colours[np.maximum(concepts, 0)] / 255.0, OFF_MAP_RGB
     )  # [U, 3]
-    ax.scatter(*xy.T, s=22, c=rgb, edgecolors="black", linewidths=0.7, zorder=3)
+    edges = np.where(_on_walls(result.grid, xy)[:, None], 1.0, 0.0)  # [U, 1]: white on a wall
+    ax.scatter(*xy.T, s=22, c=rgb, edgecolors=np.repeat(edges, 3, axis=1), linewidths=0.7,
+               zorder=3)  # fmt: skip
     left_out = int((concepts < 0).sum())  # the fit printed them as "unplaced"
     grey = f", mid grey: {left_out} left out, off the free space" if left_out else ""
     return Line2D(
