@@ -227,6 +227,9 @@ def test_experiment_robustness_gets_the_tables_public_houses(tmp_path, monkeypat
     monkeypatch.setattr(robustness, "write_robustness", write)
     root = tmp_path / "data"
     (root / "map").mkdir(parents=True)
+    for house in ("room1dk5", "room2ldk4"):  # --houses names houses the dataset holds
+        (root / "map" / f"{house}.yaml").write_text("")
+        (root / house).mkdir()
     code = main(["experiment", "--out", str(tmp_path / "out"), "--data", str(root), "--houses",
                  "room1dk5", "room2ldk4", "--robustness"])  # fmt: skip
     assert code == 0
