@@ -4,6 +4,7 @@ study (issue 26) against numbers recorded from its former loop."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -270,6 +271,21 @@ def test_an_unknown_public_house_is_named_as_the_option(tmp_path, capsys):
     assert code == 2
     assert "--public-houses room9: not a house of" in err and "its houses: room1" in err
     assert not out.exists()
+
+
+def test_findings_without_gibbs_say_why_there_are_none(tmp_path):
+    """--methods cavi lbp: comparison.md's "## Findings" section was left empty (every finding
+    compares a method with Gibbs)."""
+    settings = ComparisonSettings(variants=("cavi",), seeds=1, house_types=("synthetic",),
+                                  quick=True, iterations={"cavi": 2})  # fmt: skip
+    run_comparison(tmp_path, settings)
+    text = (tmp_path / "comparison.md").read_text()
+    none = "## Findings (from the numbers above)\n\nNone: the findings compare each method with"
+    assert none in text
+    settings = dataclasses.replace(settings, variants=("gibbs",), iterations={"gibbs": 2})
+    run_comparison(tmp_path / "gibbs", settings)
+    text = (tmp_path / "gibbs" / "comparison.md").read_text()
+    assert "\n\nNone: Gibbs (Algorithm 1) is the only method compared." in text
 
 
 def test_the_public_table_names_its_houses_and_trials():

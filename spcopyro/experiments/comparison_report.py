@@ -345,7 +345,13 @@ def table_markdown(summary: dict[str, object]) -> str:
             words = "; ".join(s["top_words_first_fit"])
             lines.append(f"- {house_type}, {key}: {words}")
     lines += ["", "## Findings (from the numbers above)", ""]
-    lines += [f"- {note}" for note in summary["notes"]]  # type: ignore[union-attr]
+    none = (  # the section was left empty
+        "None: Gibbs (Algorithm 1) is the only method compared."
+        if "gibbs" in methods
+        else "None: the findings compare each method with Gibbs (Algorithm 1), which --methods "
+        "left out."
+    )
+    lines += [f"- {note}" for note in summary["notes"]] or [none]  # type: ignore[union-attr]
     return "\n".join(lines) + "\n"
 
 
