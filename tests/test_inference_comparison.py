@@ -288,6 +288,21 @@ def test_findings_without_gibbs_say_why_there_are_none(tmp_path):
     assert "\n\nNone: Gibbs (Algorithm 1) is the only method compared." in text
 
 
+def test_a_score_of_minus_zero_prints_as_zero():
+    """SVI's ARI at chance (-1e-5) read "-0.000" in comparison.md's table."""
+    from spcopyro.experiments.comparison_report import _fmt, findings
+
+    assert _fmt({"mean": -1e-5, "sd": 0.0, "n": 1}) == "0.000"
+    assert _fmt({"mean": -2e-5, "sd": 1e-5, "n": 2}) == "0.000 ± 0.000"
+    assert _fmt({"mean": 0.51, "sd": 0.0, "n": 1}, 1, False) == "0.5"
+
+    def line(ari: float) -> dict:
+        return {"final_given_labels": {"ari": {"mean": ari}}, "seconds": {"mean": 1.0}}
+
+    (text,) = findings({"synthetic": {"gibbs": line(0.5), "svi": line(-1e-5)}})
+    assert "final ARI (labels, means given them) 0.000 vs 0.500" in text, text
+
+
 def test_the_public_table_names_its_houses_and_trials():
     """comparison.md's public table named no house: a --quick (room1dk5, one trial) or
     --public-houses table read as the five houses' three trials."""

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from spcopyro._util.messages import command_time, plural, seconds_text
+from spcopyro._util.messages import command_time, fixed, plural, seconds_text
 from spcopyro.experiments.comparison_stats import CONFIDENT
 from spcopyro.experiments.inference_comparison import (
     LOWER_IS_BETTER,
@@ -169,8 +169,8 @@ def findings(summary: dict[str, dict[str, dict]]) -> list[str]:
                 verdict = f"{'better' if better else 'worse'} by {abs(diff):.3f}"
             parts = [
                 f"{house_type}, {key} against gibbs: final {SCORE_NAMES[primary]} (labels, means "
-                f"given them) {q:.3f} vs "
-                f"{q_ref:.3f} ({verdict})",
+                f"given them) {fixed(q)} vs "
+                f"{fixed(q_ref)} ({verdict})",
                 f"95% of its own final {SCORE_NAMES[primary]} after "
                 f"{_finding_seconds(_m(s, 'time_to_95', primary))} s vs "
                 f"{_finding_seconds(_m(ref, 'time_to_95', primary))} s "
@@ -190,14 +190,14 @@ def findings(summary: dict[str, dict[str, dict]]) -> list[str]:
                 means = _m(s, "final_given_labels", "matching_rate")
                 means_ref = _m(ref, "final_given_labels", "matching_rate")
                 parts.append(
-                    f"matching rate of its own output {own:.3f} vs gibbs {own_ref:.3f}, with the "
-                    f"means given the labels {means:.3f} vs {means_ref:.3f}"
+                    f"matching rate of its own output {fixed(own)} vs gibbs {fixed(own_ref)}, "
+                    f"with the means given the labels {fixed(means)} vs {fixed(means_ref)}"
                 )
             else:
                 own, own_ref = _m(s, "final", "top1"), _m(ref, "final", "top1")
                 dist, dist_ref = _m(s, "final", "distance_m"), _m(ref, "final", "distance_m")
                 parts.append(
-                    f"top-1 of its own output {own:.3f} vs gibbs {own_ref:.3f}; localisation "
+                    f"top-1 of its own output {fixed(own)} vs gibbs {fixed(own_ref)}; localisation "
                     f"distance {dist:.2f} m vs {dist_ref:.2f} m"
                 )
             if oc and oc_ref:
@@ -222,9 +222,9 @@ def findings(summary: dict[str, dict[str, dict]]) -> list[str]:
 def _fmt(entry: dict | None, digits: int = 3, sd: bool = True) -> str:
     if not entry or not math.isfinite(entry.get("mean", math.nan)):
         return "—"
-    text = f"{entry['mean']:.{digits}f}"
+    text = fixed(entry["mean"], digits)  # an SVI ARI of -1e-5 read "-0.000"
     if sd and entry.get("n", 0) > 1:
-        text += f" ± {entry['sd']:.{digits}f}"
+        text += f" ± {fixed(entry['sd'], digits)}"
     return text
 
 
