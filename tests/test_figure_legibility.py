@@ -200,3 +200,21 @@ def test_a_word_heard_on_a_wall_has_a_white_rim():
     edges = markers.get_edgecolors()[:, :3]  # [U, 3]
     np.testing.assert_array_equal(edges[0], [1.0, 1.0, 1.0])
     np.testing.assert_array_equal(edges[1:], np.zeros((len(xy) - 1, 3)))
+
+
+def test_the_house_figure_of_a_coarse_fit_names_both_grids():
+    """fit's house.png of room1dk5 said "700 free cells" (the model's 0.25 m cells) where show
+    said "18622 free cells" (the map's 0.05 m ones), with no word of the cell sizes."""
+    import dataclasses
+
+    from spcopyro.figures.plotting import house_figure
+    from spcopyro.maps.coarse import coarsen_grid
+    from spcopyro.synthetic import make_house
+
+    house = make_house(seed=0)  # 0.1 m cells
+    coarse = dataclasses.replace(house, grid=coarsen_grid(house.grid, 3), truth=None)
+    title = house_figure(house).axes[0].get_title()
+    assert title == f"synthetic: {house.grid.num_free} free cells of 0.1 m"
+    title = house_figure(coarse).axes[0].get_title()
+    assert title.startswith(f"synthetic: {coarse.grid.num_free} free cells of 0.3 m\n")
+    assert f"(the model's cells; the map's: {house.grid.num_free} free of 0.1 m)" in title

@@ -24,7 +24,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.transforms import ScaledTranslation
 
-from spcopyro.data import Observations
+from spcopyro.data import House, Observations
 from spcopyro.maps import OCCUPIED, OccupancyGrid
 from spcopyro.results.concept_words import (
     MIN_LIFT,
@@ -42,6 +42,7 @@ __all__ = [
     "concept_handles",
     "draw_outline",
     "draw_utterances",
+    "house_title",
     "is_wide",
     "map_legend",
     "place_labels",
@@ -86,6 +87,20 @@ def region_text(result: SpCoResult, concept: int, n_words: int = 3, largest: boo
     if not largest:
         return " ".join([f"[{concept}]"] + [w for w, _ in words])
     return "\n".join([f"[{concept}]"] + [_word_line(w, p, lifts[index[w]]) for w, p in words])
+
+
+def house_title(house: House) -> str:
+    """The title of a house's figure: its name and free cells at their size, and for a grid a
+    fit coarsened (``fit``'s house.png) the map's own cells too, as ``fit`` prints them:
+    "room1dk5: 700 free cells" beside ``show``'s "18622 free cells" of the same house read as
+    a contradiction."""
+    grid = house.grid
+    title = f"{house.name}: {grid.num_free} free cells of {grid.resolution:g} m"
+    source = grid.coarsened_from
+    if source is not None:
+        title += (f"\n(the model's cells; the map's: {source.num_free} free of "
+                  f"{source.resolution:g} m)")  # fmt: skip
+    return title
 
 
 def is_wide(rows: slice, cols: slice) -> bool:

@@ -39,6 +39,7 @@ from spcopyro.figures.map_pieces import (
     concept_handles,
     draw_outline,
     draw_utterances,
+    house_title,
     is_wide,
     map_legend,
     place_labels,
@@ -231,7 +232,7 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     map_legend(ax, handles, labels, below=wide, columns=4, fontsize=8, frameon=False,
                title="words heard (rarest word of each utterance;\nmarkers at one spot spread "
                "apart)", title_fontsize=8)  # fmt: skip
-    ax.set_title(title or f"{house.name}: {grid.num_free} free cells")
+    ax.set_title(title or house_title(house))
     return fig
 
 
@@ -578,8 +579,7 @@ def trace_figure(result: SpCoResult, kept: tuple[int, int] | None = None) -> Fig
     for ax in (top, bottom):
         ax.set_xscale("log")
         ax.minorticks_off()  # a Tick is some 20 artists: 60 of them were most of the figure
-    # sweeps as plain numbers (1, 10, 100, 1000), not 10^k in mathtext (its parser's start-up)
-    bottom.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    bottom.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))  # 10, not mathtext
     title = f"{result.name or 'trace'} ({result.method})"
     if kept is not None and kept[1] > 1:  # the other chains' traces are not drawn
         run = "chain" if chain else "fit"
