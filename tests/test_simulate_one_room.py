@@ -37,3 +37,14 @@ def test_rooms_of_one_category_given_are_warned_of(tmp_path, caplog):
         one = simulate_on_map(grid, seed=0, tour=MapTour(categories=("kitchen",)))
     assert set(one.room_category.tolist()) == {0}
     assert "3 rooms, all kitchen (one category given): the simulated truth has one" in caplog.text
+
+
+def test_an_open_plan_too_small_for_its_size_names_the_option(tmp_path, capsys):
+    """--density open-plan --size 60 60 failed with "HouseSpec.open_plan_share 0.65 cuts ...
+    min_room_size (24)": fields the user never gave."""
+    out = str(tmp_path / "out")
+    assert main(["simulate", "--out", out, "--density", "open-plan", "--size", "60", "60"])
+    error = capsys.readouterr().err
+    assert "--size 60 60: too small for --density open-plan" in error
+    assert "HouseSpec" not in error and "min_room_size" not in error
+    assert "enlarge --size" in error

@@ -97,6 +97,13 @@ def _simulate(args: argparse.Namespace) -> int:
         if message.startswith("HouseSpec height x width") and args.size:
             message = (f"--size {args.size[0]} {args.size[1]}: too small: "
                        + message.removeprefix("HouseSpec height x width "))  # fmt: skip
+        share = re.match(r"^HouseSpec\.open_plan_share ([\d.]+) cuts (.*) min_room_size \((\d+)\)$",
+                         message)  # fmt: skip
+        if share and args.size:  # --size too small for the open plan's share of the house
+            message = (f"--size {args.size[0]} {args.size[1]}: too small for --density "
+                       f"open-plan: its open plan's share {share[1]} of the house cuts "
+                       f"{share[2]} {share[3]} cells (a room's least side); "
+                       "enlarge --size")  # fmt: skip
         drawn = f"--density {args.density} draws \\1 rooms:"  # a field the user never gave
         message = re.sub(r"^HouseSpec\.num_rooms (\d+):",
                          "--rooms \\1:" if args.rooms is not None else drawn, message)  # fmt: skip
