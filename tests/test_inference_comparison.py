@@ -276,8 +276,8 @@ def test_an_unknown_public_house_is_named_as_the_option(tmp_path, capsys):
 def test_findings_without_gibbs_say_why_there_are_none(tmp_path):
     """--methods cavi lbp: comparison.md's "## Findings" section was left empty (every finding
     compares a method with Gibbs)."""
-    settings = ComparisonSettings(variants=("cavi",), seeds=1, house_types=("synthetic",),
-                                  quick=True, iterations={"cavi": 2})  # fmt: skip
+    settings = ComparisonSettings(variants=("lbp",), seeds=1, house_types=("synthetic",),
+                                  quick=True, iterations={"lbp": 2})  # fmt: skip
     run_comparison(tmp_path, settings)
     text = (tmp_path / "comparison.md").read_text()
     none = "## Findings (from the numbers above)\n\nNone: the findings compare each method with"
@@ -301,6 +301,21 @@ def test_a_score_of_minus_zero_prints_as_zero():
 
     (text,) = findings({"synthetic": {"gibbs": line(0.5), "svi": line(-1e-5)}})
     assert "final ARI (labels, means given them) 0.000 vs 0.500" in text, text
+
+
+def test_a_budget_shorter_than_the_annealing_is_noted(tmp_path):
+    """--iterations cavi=5 fitted CAVI at a quarter of gamma (its annealing runs 20 iterations);
+    the method's warning went to the terminal only and the table's label still said "gamma
+    annealed over 20 it.". comparison.md and the JSON's notes say so."""
+    settings = ComparisonSettings(variants=("cavi", "lbp"), seeds=1, house_types=("synthetic",),
+                                  quick=True, iterations={"cavi": 5, "lbp": 2})  # fmt: skip
+    summary = run_comparison(tmp_path, settings)
+    note = ("cavi: 5 iterations end before its annealing (anneal_iterations = 20): gamma "
+            "reaches only 25% of the model's")  # fmt: skip
+    assert [n for n in summary["notes"] if "annealing" in n] == [
+        note + ", so its fits are of a weaker coupling"
+    ]  # lbp anneals over none
+    assert f"- {note}" in (tmp_path / "comparison.md").read_text()
 
 
 def test_the_public_table_names_its_houses_and_trials():

@@ -124,8 +124,32 @@ def summarise(
         "seconds": seconds,
         "cells_finished_before": cached,
     }
-    summary["notes"] = [*notes, *findings(summary["summary"])]  # type: ignore[arg-type]
+    iterations = summary["settings"]["iterations"]  # type: ignore[index]
+    shorter = unfinished_annealing(iterations, settings)
+    summary["notes"] = [*notes, *shorter, *findings(summary["summary"])]  # type: ignore[arg-type]
     return summary
+
+
+def unfinished_annealing(iterations: dict[str, int], settings: ComparisonSettings) -> list[str]:
+    """A note per line whose budget (``--iterations``) ends before its gamma annealing does:
+    its fits are of a weaker coupling than the others' (the method's warning went to the
+    terminal only, and the line's label still read "gamma annealed over 20 it.")."""
+    from spcopyro.fit.registry import INFERENCE_METHODS
+
+    notes = []
+    for key, n in iterations.items():
+        method = INFERENCE_METHODS.get(VARIANTS[key].method)
+        defaults = None if method is None else method.default_options()
+        if defaults is None or not dataclasses.is_dataclass(defaults):
+            continue
+        options = VARIANTS[key].options_for(settings.quick)
+        for name in ("anneal_iterations", "anneal_passes"):
+            anneal = options.get(name, getattr(defaults, name, 0))
+            if isinstance(anneal, int) and anneal > n:
+                notes.append(f"{key}: {n} iterations end before its annealing ({name} = "
+                             f"{anneal}): gamma reaches only {100 * n / anneal:.0f}% of the "
+                             "model's, so its fits are of a weaker coupling")  # fmt: skip
+    return notes
 
 
 def _m(entry: dict, *keys: str) -> float:
