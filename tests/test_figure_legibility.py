@@ -218,3 +218,29 @@ def test_the_house_figure_of_a_coarse_fit_names_both_grids():
     title = house_figure(coarse).axes[0].get_title()
     assert title.startswith(f"synthetic: {coarse.grid.num_free} free cells of 0.3 m\n")
     assert f"(the model's cells; the map's: {house.grid.num_free} free of 0.1 m)" in title
+
+
+def test_place_graph_labels_do_not_overlap_and_the_legend_leaves_the_map():
+    """show --graph on a corridor of small places: two labels ran into one ("concept 34
+    (0.8 m²).9 m²)") and the legend (loc="best") covered a room."""
+    from hand_results import one_word_per_concept
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from spcopyro.maps import FREE, OccupancyGrid
+    from spcopyro.robot.navigation.figure import place_graph_figure
+    from spcopyro.robot.navigation.places import place_graph
+
+    grid = OccupancyGrid(np.full((6, 60), FREE, dtype=np.int8), 0.1, (0.0, 0.0, 0.0))
+    labels = (np.arange(60) // 6)[None, :].repeat(6, axis=0)[grid.free]  # [N]: 10 places
+    words = tuple(f"place{k}" for k in range(10))
+    result = one_word_per_concept(grid, labels, words, num_concepts=10)
+    fig = place_graph_figure(result, place_graph(result, min_area=0.1))
+    FigureCanvasAgg(fig).draw()
+    renderer = fig.canvas.get_renderer()
+    (ax,) = fig.axes
+    boxes = [t.get_window_extent(renderer) for t in ax.texts]
+    assert len(boxes) == 10
+    for i, box in enumerate(boxes):
+        assert not any(box.overlaps(other) for other in boxes[i + 1 :]), ax.texts[i].get_text()
+    legend = ax.get_legend().get_window_extent(renderer)
+    assert not legend.overlaps(ax.get_window_extent(renderer))
