@@ -419,6 +419,28 @@ def test_a_resumed_ablation_says_which_cells_it_ran_and_reruns_stale_ones(tmp_pa
     assert json.loads(stored.read_text())["source_digest"] != "0123456789abcdef"
 
 
+def test_a_failed_cell_is_named_in_ablation_md(tmp_path, monkeypatch, capsys):
+    """A failing cell was left out of ablation.md without a word there (the command exited
+    1); a "Failed cells" section and the JSON's failed_cells name it and its error."""
+    from spcopyro.fit.registry import INFERENCE_METHODS
+
+    def failing(self, *args, **kwargs):
+        raise RuntimeError("no convergence")
+
+    monkeypatch.setattr(type(INFERENCE_METHODS["cavi"]), "run", failing)
+    out = tmp_path / "abl"
+    code = main(["ablation", "--out", str(out), "--quick", "--no-public", "--seeds", "1",
+                 "--houses", "dense", "--sweeps", "2", "--no-off", "--baselines",
+                 "--variant", "g:preset=original-code", "--variant", "c:method=cavi"])  # fmt: skip
+    assert code == 1
+    capsys.readouterr()
+    text = (out / "ablation.md").read_text()
+    line = "c on dense, seed 0, failed (RuntimeError: no convergence); left out of the tables"
+    assert f"## Failed cells\n\n- {line}" in text
+    (failed,) = json.loads((out / "ablation.json").read_text())["failed_cells"]
+    assert failed.startswith(line)
+
+
 def test_a_variant_named_like_a_baseline_is_refused(tmp_path, capsys):
     """--variant C-spcoa:gamma=3 ran the variant and the baseline C-spcoa and then failed drawing
     ablation.md (KeyError: 'matching_rate_area'), their records pooled under one row name."""

@@ -318,6 +318,31 @@ def test_a_budget_shorter_than_the_annealing_is_noted(tmp_path):
     assert f"- {note}" in (tmp_path / "comparison.md").read_text()
 
 
+def test_a_failed_fit_is_named_in_the_comparison(tmp_path, monkeypatch, capsys):
+    """A failing fit was left out of comparison.md without a word there (the command exited
+    1); its notes name it and its error."""
+    from spcopyro.fit.registry import INFERENCE_METHODS
+
+    cavi = INFERENCE_METHODS["cavi"]
+    run = type(cavi).run
+
+    def failing(self, *args, iterations, **kwargs):
+        if iterations > 2:  # the warm-up runs 2
+            raise RuntimeError("no convergence")
+        return run(self, *args, iterations=iterations, **kwargs)
+
+    monkeypatch.setattr(type(cavi), "run", failing)
+    out = tmp_path / "cmp"
+    code = main(["compare-inference", "--out", str(out), "--quick", "--houses", "synthetic",
+                 "--methods", "gibbs", "cavi", "--iterations", "gibbs=3", "cavi=20"])  # fmt: skip
+    assert code == 1
+    capsys.readouterr()
+    line = "cavi on synthetic, seed 0, failed (RuntimeError: no convergence); left out"
+    assert f"- {line}" in (out / "comparison.md").read_text()
+    notes = json.loads((out / "comparison.json").read_text())["notes"]
+    assert any(note.startswith(line) for note in notes)
+
+
 def test_the_public_table_names_its_houses_and_trials():
     """comparison.md's public table named no house: a --quick (room1dk5, one trial) or
     --public-houses table read as the five houses' three trials."""

@@ -6,7 +6,8 @@
 synthetic), ``summary`` (row -> house -> score -> {mean, sd, n}), ``top_words`` (row -> house ->
 the top words of the largest concepts holding an utterance, seed 0), ``targets`` (the issue's
 targets, checked), ``records`` (one per job), ``seconds`` (this command's wall-clock time) and
-``cells_finished_before`` (the cells it found finished, whose fits are not in ``seconds``).
+``cells_finished_before`` (the cells it found finished, whose fits are not in ``seconds``) and
+``failed_cells`` (a line per failed cell, left out of the tables).
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ SCORES = (
 """Every score a record may hold (a record holds those that apply to its row and house)."""
 
 JSON_KEYS = ("settings", "statistics", "summary", "top_words", "targets", "records", "seconds",
-             "cells_finished_before")  # fmt: skip
+             "cells_finished_before", "failed_cells")  # fmt: skip
 
 
 def _spread(values: list[float]) -> dict[str, float]:
@@ -267,6 +268,8 @@ def markdown(report: dict, settings: AblationSettings) -> str:
         "None checked: no synthetic house with a baseline row (C-spcoa, F-geometry) and no "
         "public house of the paper's Table 2."
     ]
+    if report.get("failed_cells"):  # ablation.md named no failed cell
+        lines += ["## Failed cells", "", *(f"- {line}" for line in report["failed_cells"]), ""]
     lines += ["## Targets", "", *checked]
     lines += ["", "Figure: `ablation.png`.", ""]
     return "\n".join(lines)
@@ -332,10 +335,11 @@ def figure(report: dict, settings: AblationSettings, path: Path) -> Path:
 
 def write_report(
     out: Path, settings: AblationSettings, records: list[dict[str, object]], seconds: float,
-    cached: int = 0,
+    cached: int = 0, failed: tuple[str, ...] | list[str] = (),
 ) -> dict[str, object]:  # fmt: skip
     """Write ``ablation.md``, ``ablation.json`` and ``ablation.png`` into ``out``. ``seconds``:
-    this command's wall-clock time; ``cached``: the cells it found finished (not in it)."""
+    this command's wall-clock time; ``cached``: the cells it found finished (not in it);
+    ``failed``: a line per failed cell (left out of the tables, listed under "Failed cells")."""
     from spcopyro.data import load_house
 
     out.mkdir(parents=True, exist_ok=True)
@@ -357,6 +361,7 @@ def write_report(
         "records": records,
         "seconds": seconds,
         "cells_finished_before": cached,
+        "failed_cells": list(failed),
     }
     report["statistics_md"] = statistics_table(stats)
     text = markdown(report, settings)

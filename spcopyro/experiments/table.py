@@ -188,6 +188,20 @@ def findings(summary: dict[str, object]) -> list[str]:
     return notes
 
 
+def failed_cells(rows: list[dict[str, object]]) -> list[str]:
+    """One line per failed cell of a study's table rows: which row, house and seed, and its
+    error, for the tables that leave it out (comparison.md, ablation.md named none)."""
+    lines = []
+    for row in rows:
+        if row.get("status") == "ok":
+            continue
+        error = f"{row.get('error_type') or 'error'}: {row.get('error') or '?'}"
+        lines.append(f"{row.get('variant')} on {row.get('data')}, seed {row.get('seed')}, "
+                     f"failed ({error}); left out of the tables (--retry-failed runs it "
+                     "again)")  # fmt: skip
+    return lines
+
+
 def json_default(value: object) -> object:
     """``json.dumps``' ``default``: numpy scalars as Python numbers, tuples and paths as text."""
     if isinstance(value, np.generic):

@@ -27,6 +27,7 @@ from pathlib import Path
 from spcopyro.data import list_houses
 from spcopyro.experiments.ablation import AblationSettings
 from spcopyro.experiments.ablation_report import SCORES, write_report
+from spcopyro.experiments.table import failed_cells
 from spcopyro.study import STUDIES
 from spcopyro.study.run import run_study
 from spcopyro.study.spec import DataSource, Study
@@ -171,6 +172,7 @@ def run_ablation(
         rerun_stale=rerun_stale, report=report, root=settings.dataset_root,
     )  # fmt: skip
     rows = read_table(Path(out) / TABLE)
-    summary = write_report(Path(out), settings, records_of_rows(rows), run.seconds, run.cached)
+    summary = write_report(Path(out), settings, records_of_rows(rows), run.seconds, run.cached,
+                           failed_cells(rows))  # fmt: skip
     summary["failed"] = sum(1 for r in rows if r.get("status") != "ok")
     return summary

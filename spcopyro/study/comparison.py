@@ -36,7 +36,7 @@ from spcopyro.experiments.inference_comparison import (
     available_variants,
     budget,
 )
-from spcopyro.experiments.table import heldout_folds, report_nothing
+from spcopyro.experiments.table import failed_cells, heldout_folds, report_nothing
 from spcopyro.study.ablation import spec_options
 from spcopyro.study.comparison_cell import COMPARISON
 from spcopyro.study.maps import remove_stale
@@ -131,6 +131,7 @@ def run_comparison(
     records = records_of_rows(rows)
     for house_type, by_variant in records.items():  # every available variant, as before
         records[house_type] = {key: by_variant.get(key, []) for key in keys}
+    notes += failed_cells(rows)  # comparison.md named no failed fit
     summary = summarise(records, settings, notes, run.seconds, run.cached)
     summary["load_average_at_end"] = list(os.getloadavg())
     figures = [p for p in write_report(out, summary) if p.suffix == ".png"]
