@@ -346,7 +346,11 @@ def test_a_failed_fit_is_named_in_the_comparison(tmp_path, monkeypatch, capsys):
 def test_the_public_table_names_its_houses_and_trials():
     """comparison.md's public table named no house: a --quick (room1dk5, one trial) or
     --public-houses table read as the five houses' three trials."""
-    from spcopyro.experiments.comparison_report import _public_fits
+    from spcopyro.experiments.comparison_report import _concurrent, _public_fits
+
+    # --workers N > 1: comparison.md did not say its times were measured beside other fits
+    assert _concurrent(1) == ""
+    assert _concurrent(2).startswith(" Run with --workers 2: fits may have run beside each other")
 
     records = {
         "gibbs": [{"house": f"room1dk5 (held-out trial {t})"} for t in (2, 0)]
@@ -371,6 +375,7 @@ def test_a_resumed_comparison_says_which_cells_it_ran_and_reruns_stale_ones(tmp_
     assert "Whole command: " in (out / "comparison.md").read_text()
     assert "## Synthetic houses (1 seed, ground truth)" in (out / "comparison.md").read_text()
     assert json.loads((out / "comparison.json").read_text())["cells_finished_before"] == 0
+    assert json.loads((out / "comparison.json").read_text())["workers"] == 1
     (stored,) = (out / "cells").glob("*.json")
     record = json.loads(stored.read_text())
     record["source_digest"] = "0123456789abcdef"

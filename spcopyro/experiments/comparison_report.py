@@ -266,6 +266,14 @@ def _t95(entry: dict | None, runs: int) -> str:
     return text if entry["n"] == runs else f"{text} ({entry['n']}/{runs} reached)"
 
 
+def _concurrent(workers: object) -> str:
+    """What ``--workers N > 1`` does to the times (the table read as if each fit ran alone)."""
+    if not isinstance(workers, int) or workers <= 1:
+        return ""
+    return (f" Run with --workers {workers}: fits may have run beside each other, so their "
+            "times compare less well than with --workers 1.")  # fmt: skip
+
+
 def _public_fits(records: dict[str, list[dict]]) -> str:
     """The public houses and held-out trials the table's fits are of, ``room1dk5 (trials 0, 1,
     2)``: comparison.md named none, so a --quick or --public-houses table read as all five."""
@@ -295,7 +303,8 @@ def table_markdown(summary: dict[str, object]) -> str:
         f"Preset `{settings['preset']}`" + (f" ({overrides})" if overrides else "")
         + ", random initial labels. Iterations: "
         + ", ".join(f"{k} {v}" for k, v in settings["iterations"].items())
-        + f". {command_time(summary['seconds'], summary.get('cells_finished_before', 0))}",
+        + f". {command_time(summary['seconds'], summary.get('cells_finished_before', 0))}"
+        + _concurrent(summary.get("workers", 1)),
         "",
         "Times are wall-clock seconds of the inference alone, mean over fits. t95: time to reach "
         "95% of the method's own final quality along its run. ESS/s: effective sample size per "

@@ -133,6 +133,7 @@ def run_comparison(
         records[house_type] = {key: by_variant.get(key, []) for key in keys}
     notes += failed_cells(rows)  # comparison.md named no failed fit
     summary = summarise(records, settings, notes, run.seconds, run.cached)
+    summary["workers"] = workers
     summary["load_average_at_end"] = list(os.getloadavg())
     figures = [p for p in write_report(out, summary) if p.suffix == ".png"]
     remove_stale(out, [f"comparison_{kind}.png" for kind in (SYNTHETIC, PUBLIC)], figures)
