@@ -28,7 +28,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from spcopyro._util.arguments import integer_at_least as _integer_at_least
-from spcopyro.config import PRESETS
+from spcopyro.config import DEFAULT_PRESET, PRESETS
 
 __all__ = ["add_parser"]
 
@@ -441,8 +441,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         metavar="NAME:KEY=VALUE,...",
         help="a row: a preset, SpCoConfig/DataPreparation fields, GibbsOptions fields (nested "
         "as a.b) and fit_house arguments, e.g. 'sw:preset=paper-dp,cluster_moves=0.2'; "
-        "repeat for more rows (default: the study file's: paper-dp, original-code gamma 3, "
-        "paper-dp + cluster moves)",
+        f"repeat for more rows; without preset=, the default preset {DEFAULT_PRESET} (default: "
+        "the study file's: paper-dp, original-code gamma 3, paper-dp + cluster moves)",
     )
     p.add_argument(
         "--baselines", nargs="*", help="baseline rows (default: C-spcoa F-geometry; none: no value)"
