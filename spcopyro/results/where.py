@@ -36,8 +36,12 @@ follows the prior there. ``prior="pi"`` remains the paper's eq. (19). Under the 
 (5000 sweeps, seed 0, measured 2026-12-05) the two priors answered alike on the five synthetic
 houses (matching rate 0.991-1.000) and on three of the five public houses (against the region
 truth of docs/real_houses.md); on room1ldk4 and room2ldk4 pi matched more (0.553 and 0.487
-against 0.492 and 0.449; mean over the five 0.576 against 0.556). One seed, so the area prior
-stays the default; pi's edge there is a question for a study over seeds.
+against 0.492 and 0.449; mean over the five 0.576 against 0.556; seeds 1 and 2 the same to
+0.002). That matching rate is eq. (18)'s precision, which rewards a small region inside the
+right room; pi picks smaller regions there, and by recall (0.595 / 0.868 against 0.614 / 0.888)
+and IoU (0.420 / 0.395 against 0.406 / 0.403) the two priors are even. So the area prior stays
+the default, and ``prior="pi"`` is the choice for a goal inside the place rather than its
+extent.
 
 Answers close to a guess carry warnings (:attr:`WhereAnswer.warnings`): the best concept's
 posterior odds over the runner-up below :data:`ODDS_WARNING`, the word's Bayes factor for the
