@@ -456,6 +456,18 @@ def test_a_variant_named_like_a_baseline_is_refused(tmp_path, capsys):
     AblationSettings(variants=(parse_variant("C-spcoa"),), baselines=("F-geometry",))  # no clash
 
 
+def test_made_by_is_a_command_that_runs_when_pasted(tmp_path, capsys):
+    """ablation.md's "Made by:" joined the arguments with spaces: an --out with a space read
+    as two words. It quotes them as the shell needs."""
+    out = tmp_path / "my run"
+    assert main(["ablation", "--out", str(out), "--quick", "--no-public", "--seeds", "1",
+                 "--houses", "dense", "--sweeps", "2", "--no-off", "--baselines",
+                 "--variant", "g:preset=original-code"]) == 0  # fmt: skip
+    capsys.readouterr()
+    made_by = f"Made by: `spcopyro ablation --out '{out}' --quick --no-public"
+    assert made_by in (out / "ablation.md").read_text()
+
+
 def test_a_house_the_quick_study_lacks_says_why(tmp_path, capsys):
     """--quick --houses open-plan (a documented default setting) read "unknown --houses
     ['open-plan']; choose from ['dense', 'sparse']", not saying that --quick keeps two."""

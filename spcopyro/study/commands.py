@@ -94,6 +94,14 @@ def _known_houses(flag: str, houses: Sequence[str] | None, root: object) -> None
                          f"map/NAME.yaml); its houses: {listed}")  # fmt: skip
 
 
+def _command_line(args: argparse.Namespace) -> str:
+    """The command as typed, quoted where the shell needs it ("Made by:" of the reports; an
+    --out with a space read as two words, and the line did not run when pasted)."""
+    import shlex
+
+    return shlex.join(["spcopyro", *(sys.argv[1:] if args.argv is None else args.argv)])
+
+
 def _stoppable(command: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
     """``command`` with SIGTERM (``timeout``, Slurm) stopping it as Ctrl-C does: the study
     engine then rewrites the finished cells' table and report before the exit (130), as
@@ -140,7 +148,7 @@ def _experiment(args: argparse.Namespace) -> int:
     if args.data is None and root is None and not args.no_public:
         _without_dataset(houses=args.houses)
     _known_houses("--houses", args.houses, root)
-    command = "spcopyro " + " ".join(sys.argv[1:] if args.argv is None else args.argv)
+    command = _command_line(args)
     study = experiment_study(
         study, public=root is not None, houses=args.houses, methods=args.methods,
         seeds=args.seeds, sweeps=args.sweeps, spcoa_iterations=args.spcoa_iterations,
@@ -198,7 +206,7 @@ def _ablation(args: argparse.Namespace) -> int:
     if root is None and not args.no_public:
         _without_dataset(public_houses=args.public_houses)
     _known_houses("--public-houses", args.public_houses, root)
-    command = "spcopyro " + " ".join(sys.argv[1:] if args.argv is None else args.argv)
+    command = _command_line(args)
     changes: dict[str, object] = dict(command=command, workers=args.workers)
     if args.no_off:
         changes["observations_off"] = False
@@ -295,7 +303,7 @@ def _compare_inference(args: argparse.Namespace) -> int:
 
         public_houses = public_houses or tuple(list_houses(root)[:1])
         folds = 1 if folds is None else folds
-    command = "spcopyro " + " ".join(sys.argv[1:] if args.argv is None else args.argv)
+    command = _command_line(args)
     settings = ComparisonSettings(
         variants=variants, seeds=args.seeds if args.seeds is not None else (1 if args.quick else 5),
         house_types=house_types, dataset_root=root, public_houses=public_houses, folds=folds,
