@@ -118,6 +118,12 @@ def _fmt(spread: dict | None, digits: int = 3) -> str:
     return f"{fixed(spread['mean'], digits)} ± {spread['sd']:.{digits}f}"
 
 
+def _cell(text: object) -> str:
+    """A row's name as one cell of a markdown table: a '|' in it (``--variant 'x|y:...'``)
+    split the row into one column more than the header's, as the study report escapes it."""
+    return str(text).replace("|", "\\|").replace("\n", " ")
+
+
 def _variant_line(variant: Any) -> str:
     """A variant's line under "Variants:": its text, and its preset where the text leaves it
     out (the default preset; ``--variant x:gamma=3`` read "`x:settings.gamma=3.0`", its preset
@@ -209,7 +215,7 @@ def markdown(report: dict, settings: AblationSettings) -> str:
             if s is None:
                 continue
             lines.append(
-                f"| {row} | {_fmt(s.get('ari'))} | {_fmt(s.get('ari_off'))} "
+                f"| {_cell(row)} | {_fmt(s.get('ari'))} | {_fmt(s.get('ari_off'))} "
                 f"| {_fmt(s.get('ari_on_off'))} | {_fmt(s.get('matching_rate'))} "
                 f"| {_fmt(s.get('matching_rate_area'))} | {_fmt(s.get('concepts_1pct'), 1)} "
                 f"| {_fmt(s.get('place_top_share'), 2)} | {_seconds(s)} |"
@@ -228,7 +234,7 @@ def markdown(report: dict, settings: AblationSettings) -> str:
         ]
         for row in rows:
             cells = [_fmt(summary.get(row, {}).get(h, {}).get("concepts_1pct"), 1) for h in public]
-            lines.append(f"| {row} | " + " | ".join(cells) + " |")
+            lines.append(f"| {_cell(row)} | " + " | ".join(cells) + " |")
         lines += [
             "",
             "## Public houses: held-out trial",
@@ -248,7 +254,7 @@ def markdown(report: dict, settings: AblationSettings) -> str:
                     f"{_fmt(s.get('top1'), 2)} / {_fmt(s.get('distance_m'), 2)} m / "
                     f"{_fmt(s.get('ari_on_off'), 2)}"
                 )
-            lines.append(f"| {row} | " + " | ".join(cells) + " |")
+            lines.append(f"| {_cell(row)} | " + " | ".join(cells) + " |")
         lines += [
             "",
             "## Public houses: top words of the largest concepts that hold an utterance (seed 0)",
@@ -262,7 +268,8 @@ def markdown(report: dict, settings: AblationSettings) -> str:
                 if words is None:
                     continue
                 share = summary[row][h].get("place_top_share")
-                lines.append(f"| {row} | {h} | {_words_text(words)} | {_fmt(share, 2)} |")
+                lines.append(f"| {_cell(row)} | {_cell(h)} | {_words_text(words)} "
+                             f"| {_fmt(share, 2)} |")  # fmt: skip
         lines.append("")
     checked = [f"- {t}" for t in report["targets"]] or [  # the section was left empty
         "None checked: no synthetic house with a baseline row (C-spcoa, F-geometry) and no "

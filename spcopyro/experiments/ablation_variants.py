@@ -265,10 +265,8 @@ def make_variant(name: str, overrides: Mapping[str, object] | None = None) -> Va
     Raises :class:`VariantError` for an empty or malformed name, an unknown or ambiguous key, a
     value of the wrong type, or settings / options / fit arguments that do not validate.
     """
-    if not isinstance(name, str) or not name.strip() or any(c in name for c in ":,=|\n"):
-        # '|' split the row of every markdown table it names (ablation.md, report.md)
-        raise VariantError(f"variant name {name!r}: must be non-empty text on one line without "
-                           "':', ',', '=' or '|'")  # fmt: skip
+    if not isinstance(name, str) or not name.strip() or any(c in name for c in ":,="):
+        raise VariantError(f"variant name {name!r}: must be non-empty text without ':', ',' or '='")
     name = name.strip()
     overrides = dict(overrides or {})
     preset_name = str(overrides.pop("preset", DEFAULT_PRESET))
