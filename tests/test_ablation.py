@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from stale_cells import check_stale_kept_then_rerun
 
 from spcopyro.cli.main import main
 from spcopyro.data import load_house
@@ -402,20 +403,7 @@ def test_a_resumed_ablation_says_which_cells_it_ran_and_reruns_stale_ones(tmp_pa
     assert "## Targets\n\nNone checked: no synthetic house with a baseline" in markdown(
         report, settings
     )  # the section was empty
-    (stored,) = (out / "cells").glob("*.json")
-    record = json.loads(stored.read_text())
-    record["source_digest"] = "0123456789abcdef"
-    stored.write_text(json.dumps(record))
-    assert main(command) == 0
-    printed = capsys.readouterr().out
-    assert "nothing to run" in printed and "--rerun-stale runs them again" in printed
-    text = (out / "ablation.md").read_text()
-    assert "Whole command" not in text
-    assert "This command: " in text and "1 cell of the table was finished before it" in text
-    assert json.loads((out / "ablation.json").read_text())["cells_finished_before"] == 1
-    assert main([*command, "--rerun-stale"]) == 0
-    assert "1 of 1 cells to run (0 finished before)" in capsys.readouterr().out
-    assert json.loads(stored.read_text())["source_digest"] != "0123456789abcdef"
+    check_stale_kept_then_rerun(main, command, out, "ablation", capsys)
 
 
 def test_a_failed_cell_is_named_in_ablation_md(tmp_path, monkeypatch, capsys):

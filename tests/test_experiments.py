@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from stale_cells import STALE_DIGEST, mark_stale
 
 from spcopyro.cli.main import main
 from spcopyro.experiments.methods import (
@@ -312,3 +313,19 @@ def test_studies_markdown_says_the_sentence_study_is_one_house():
     markdown = studies_markdown({"MRF only": [0.1, 0.2]}, scores, sweeps=10, seeds=(3, 4))
     assert "| setting | seed 3 | seed 4 | mean |" in markdown
     assert "the house of seed 3 alone" in markdown
+
+
+def test_experiment_reruns_stale_cells_when_asked(tmp_path, capsys):
+    """Cells stored by another spcopyro source are kept with "--rerun-stale runs them again",
+    an option experiment did not have (compare-inference and ablation got it)."""
+    out = tmp_path / "exp"
+    command = ["experiment", "--out", str(out), "--no-public", "--seeds", "1",
+               "--methods", "F-geometry"]  # fmt: skip
+    assert main(command) == 0
+    stored = mark_stale(out)
+    capsys.readouterr()
+    assert main(command) == 0
+    assert "--rerun-stale runs them again" in capsys.readouterr().out
+    assert json.loads(stored.read_text())["source_digest"] == STALE_DIGEST
+    assert main([*command, "--rerun-stale"]) == 0
+    assert json.loads(stored.read_text())["source_digest"] != STALE_DIGEST

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import torch
 from scipy.signal import lfilter
+from stale_cells import check_stale_kept_then_rerun
 
 from spcopyro.cli.main import main
 from spcopyro.experiments import inference_comparison as comparison
@@ -376,20 +377,7 @@ def test_a_resumed_comparison_says_which_cells_it_ran_and_reruns_stale_ones(tmp_
     assert "## Synthetic houses (1 seed, ground truth)" in (out / "comparison.md").read_text()
     assert json.loads((out / "comparison.json").read_text())["cells_finished_before"] == 0
     assert json.loads((out / "comparison.json").read_text())["workers"] == 1
-    (stored,) = (out / "cells").glob("*.json")
-    record = json.loads(stored.read_text())
-    record["source_digest"] = "0123456789abcdef"
-    stored.write_text(json.dumps(record))
-    assert main(command) == 0
-    printed = capsys.readouterr().out
-    assert "nothing to run" in printed and "--rerun-stale runs them again" in printed
-    text = (out / "comparison.md").read_text()
-    assert "Whole command" not in text
-    assert "This command: " in text and "1 cell of the table was finished before it" in text
-    assert json.loads((out / "comparison.json").read_text())["cells_finished_before"] == 1
-    assert main([*command, "--rerun-stale"]) == 0
-    assert "1 of 1 cells to run (0 finished before)" in capsys.readouterr().out
-    assert json.loads(stored.read_text())["source_digest"] != "0123456789abcdef"
+    check_stale_kept_then_rerun(main, command, out, "comparison", capsys)
 
 
 # -- the comparison as a study (issue 26) --------------------------------------------------------

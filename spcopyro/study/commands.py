@@ -155,7 +155,8 @@ def _experiment(args: argparse.Namespace) -> int:
         command=command,
     )  # fmt: skip
     summary = run_experiment(args.out, study, root=root, workers=args.workers,
-                             retry_failed=args.retry_failed, report=print)  # fmt: skip
+                             retry_failed=args.retry_failed, rerun_stale=args.rerun_stale,
+                             report=print)  # fmt: skip
     out = Path(args.out)
     print((out / "table.md").read_text())
     print(f"wrote {out / 'table.md'}, {out / 'table.json'} and {len(summary['figures'])} "
@@ -167,7 +168,8 @@ def _experiment(args: argparse.Namespace) -> int:
         from spcopyro.study.side_studies import write_studies
 
         print(write_studies(out, sweeps=min(sweeps, 1000), seeds=tuple(range(min(count, 3))),
-                            workers=args.workers, report=print))  # fmt: skip
+                            workers=args.workers, rerun_stale=args.rerun_stale,
+                            report=print))  # fmt: skip
         print(f"wrote {out / 'studies.md'} and {out / 'studies.json'}")
     if args.robustness:
         from spcopyro.study.robustness import write_robustness
@@ -176,7 +178,7 @@ def _experiment(args: argparse.Namespace) -> int:
                                seeds=tuple(range(min(count, 3))), chains=3,
                                dataset_root=root,
                                public_houses=[d.target for d in study.data if d.kind == "public"],
-                               workers=args.workers,
+                               workers=args.workers, rerun_stale=args.rerun_stale,
                                report=print))  # fmt: skip
         print(f"wrote {out / 'robustness.md'} and {out / 'robustness.json'}")
     return 1 if summary["failed"] else 0
@@ -358,6 +360,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    "LocalCluster of N processes, one torch thread each")  # fmt: skip
     p.add_argument("--retry-failed", action="store_true",
                    help="run again the cells stored with an error in --out")  # fmt: skip
+    p.add_argument("--rerun-stale", action="store_true",
+                   help="run again the finished cells in --out that other spcopyro source "
+                   "computed (default: keep them and say how many)")  # fmt: skip
     p.add_argument(
         "--studies",
         action="store_true",

@@ -237,16 +237,18 @@ def run_experiment(
     root: str | os.PathLike[str] | None = None,
     workers: int = 1,
     retry_failed: bool = False,
+    rerun_stale: bool = False,
     report: Callable[[str], None] = lambda message: None,
 ) -> dict[str, object]:
     """Run the cells of ``study`` (:func:`experiment_study`) that ``out`` does not hold yet,
     then write ``table.json``, ``table.md`` and ``figures/`` from ``out/results.csv`` and the
     stored traces and maps; returns the summary written to ``table.json`` (with ``failed``:
     the failed cells, left out of the tables). ``root``: the public dataset (None: the study
-    must hold no public house)."""
+    must hold no public house). ``rerun_stale``: run again the finished cells another spcopyro
+    source computed (else kept, and counted)."""
     out = Path(out)
     run = run_study(study, out, workers=workers, retry_failed=retry_failed, root=root,
-                    report=report)  # fmt: skip
+                    rerun_stale=rerun_stale, report=report)  # fmt: skip
     rows = read_table(out / TABLE)
     summary = summary_of_rows(rows, study, dataset_root=None if root is None else str(root))
     notes: list[str] = []

@@ -193,6 +193,7 @@ def write_robustness(
     dataset_root: str | os.PathLike[str] | None = None,
     public_houses: Sequence[str] | None = None,
     workers: int = 1,
+    rerun_stale: bool = False,
     report: Callable[[str], None] = lambda message: None,
 ) -> str:
     """Run both studies (:func:`robustness_studies`; the public houses under ``dataset_root``:
@@ -208,7 +209,8 @@ def write_robustness(
     tables = {}
     for study in (stability_study, sensitivity_study):
         folder = out / "robustness" / study.name
-        run_study(study, folder, workers=workers, root=dataset_root, report=report)
+        run_study(study, folder, workers=workers, root=dataset_root, rerun_stale=rerun_stale,
+                  report=report)  # fmt: skip
         tables[study.name] = read_table(folder / TABLE)
     stability = stability_of_rows(
         tables[stability_study.name], stability_study, out / "robustness" / stability_study.name

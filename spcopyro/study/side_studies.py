@@ -54,6 +54,7 @@ def write_studies(
     sweeps: int,
     seeds: Sequence[int],
     workers: int = 1,
+    rerun_stale: bool = False,
     report: Callable[[str], None] = lambda message: None,
 ) -> str:
     """Run both side studies (:func:`side_studies`) into ``out/studies/``; write
@@ -64,7 +65,7 @@ def write_studies(
     tables = {}
     for study in (modality, sentences):
         folder = out / "studies" / study.name
-        run_study(study, folder, workers=workers, report=report)
+        run_study(study, folder, workers=workers, rerun_stale=rerun_stale, report=report)
         tables[study.name] = read_table(folder / TABLE)
     ablation = {
         v.name: [float(r["ari"]) for r in _ok(tables[modality.name], v.name)]  # type: ignore[arg-type]
