@@ -433,3 +433,24 @@ def test_a_figure_format_matplotlib_cannot_write_is_refused_first(argv, capsys):
     err = capsys.readouterr().err
     assert "argument --out" in err and "matplotlib cannot write" in err and "png" in err
     assert figure_path("map") == "map" and figure_path("dir.v2/k.JPG") == "dir.v2/k.JPG"
+
+
+def test_a_warning_during_a_progress_bar_gets_its_own_line(capsys):
+    """A library warning logged while a tqdm bar was shown was written after the bar on its line
+    ("cells 0/1: 0%|...]warning: gamma is annealed ..."): the handler writes through tqdm."""
+    import logging
+
+    from tqdm import tqdm
+
+    from spcopyro.cli.main import _configure_logging
+
+    _configure_logging(logging.WARNING)
+    bar = tqdm(total=10, desc="cells 0/1")
+    bar.update(1)
+    logging.getLogger("spcopyro").warning("gamma is annealed over 20 iterations")
+    bar.close()
+    err = capsys.readouterr().err
+    (line,) = [p for p in re.split(r"[\r\n]", err) if "warning:" in p]
+    assert line.startswith("warning: gamma is annealed"), repr(line)
+    logging.getLogger("spcopyro").warning("no bar now")  # the plain handler again
+    assert capsys.readouterr().err == "warning: no bar now\n"

@@ -416,7 +416,9 @@ class _LowerCaseLevel(logging.Formatter):
 
 
 class _StderrHandler(logging.StreamHandler):
-    """Writes to whatever ``sys.stderr`` is when a message comes (not when it was made)."""
+    """Writes to whatever ``sys.stderr`` is when a message comes (not when it was made); while a
+    tqdm progress bar is shown, through ``tqdm.write``, which moves the bar below the message
+    (a warning was stuck onto the bar's line: "cells 0/1: 0%|...]warning: ...")."""
 
     @property
     def stream(self):  # noqa: D102
@@ -425,6 +427,16 @@ class _StderrHandler(logging.StreamHandler):
     @stream.setter
     def stream(self, value) -> None:
         del value
+
+    def emit(self, record: logging.LogRecord) -> None:  # noqa: D102
+        bars = sys.modules.get("tqdm.std")  # never imported here: a bar imported it
+        if bars is None or not getattr(bars.tqdm, "_instances", None):
+            super().emit(record)
+            return
+        try:
+            bars.tqdm.write(self.format(record), file=sys.stderr)
+        except Exception:  # noqa: BLE001 - logging's own rule: report, never raise
+            self.handleError(record)
 
 
 def _configure_logging(level: int) -> None:
