@@ -144,6 +144,16 @@ def test_via_orders_are_kept(result):
     assert plan.length > direct.length + 2.0  # the detour through the corridor is driven
 
 
+def test_a_place_said_twice_in_a_row_is_one_stop():
+    """QA: "kitchen kitchen" planned two identical stops (a path of length 0 to the second);
+    a place named again later is visited again."""
+    assert parse_instruction("kitchen kitchen", WORDS).places == ("kitchen",)
+    parsed = parse_instruction("via the kitchen to the kitchen", WORDS)
+    assert (parsed.places, parsed.via) == (("kitchen",), (False,))
+    parsed = parse_instruction("the kitchen, then the bedroom, then the kitchen", WORDS)
+    assert parsed.places == ("kitchen", "bedroom", "kitchen")
+
+
 @pytest.mark.parametrize(
     ("text", "places", "via"),
     [

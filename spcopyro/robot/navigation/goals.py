@@ -245,7 +245,14 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
         raise ValueError(
             f"the instruction {text!r} names no place the fit knows{extra}; known words: {shown}"
         )
-    return Instruction(text, tuple(places), tuple(via), tuple(ignored))
+    stops: list[tuple[str, bool]] = []  # "kitchen kitchen" made two identical stops
+    for place, waypoint in zip(places, via, strict=True):
+        if stops and stops[-1][0] == place:  # the same place again: one stop, a destination
+            stops[-1] = (place, stops[-1][1] and waypoint)  # if either names it one
+        else:
+            stops.append((place, waypoint))
+    return Instruction(text, tuple(p for p, _ in stops), tuple(v for _, v in stops),
+                       tuple(ignored))  # fmt: skip
 
 
 _PLACE_ARTICLES = frozenset({"the", "a", "an", "my", "our", "your"})
