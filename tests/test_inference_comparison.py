@@ -530,3 +530,27 @@ def test_times_to_95_percent_under_a_tenth_of_a_second_keep_their_digits():
     # "0.2 s vs 0.0049 s (36.7x slower)", and "0.1 s vs 0.044 s (3.3x slower)" for 0.144 s)
     assert "after 0.18 s vs 0.0049 s (36.7x slower)" in text, text
     assert "whole run 1.0 s vs 1.0 s" in text, text
+
+
+def test_an_interrupted_comparison_says_its_report_is_an_earlier_runs(
+    tmp_path, capsys, monkeypatch
+):
+    """Ctrl-C left an earlier run's comparison.md beside the results.csv and report.md the
+    study engine had just rewritten, without a word (a helper's QA)."""
+    import spcopyro.study.comparison as comparison
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    out = tmp_path / "cmp"
+    out.mkdir()
+    (out / "comparison.md").write_text("an earlier run\n")
+    monkeypatch.setattr(comparison, "run_comparison", interrupted)
+    command = ["compare-inference", "--out", str(out), "--quick", "--houses", "synthetic",
+               "--methods", "gibbs", "--iterations", "gibbs=5"]  # fmt: skip
+    assert main(command) == 130
+    err = capsys.readouterr().err
+    assert f"{out / 'comparison.md'}: an earlier run's, not rewritten" in err
+    (out / "comparison.md").unlink()
+    assert main(command) == 130
+    assert "earlier run" not in capsys.readouterr().err

@@ -22,9 +22,10 @@ missing cells run. :func:`add_parser` registers it; nothing heavy is imported be
 from __future__ import annotations
 
 import argparse
+import contextlib
 import functools
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 from spcopyro._util.arguments import integer_at_least as _integer_at_least
@@ -121,6 +122,23 @@ def _stoppable(command: Callable[[argparse.Namespace], int]) -> Callable[[argpar
     return run
 
 
+@contextlib.contextmanager
+def _reports_of_an_earlier_run(out: str, *names: str) -> Iterator[None]:
+    """On Ctrl-C or SIGTERM, name the command's own reports in ``out`` (``comparison.md``, ...)
+    that an earlier run wrote: the study engine rewrote ``results.csv`` and ``report.md`` from
+    the cells finished so far, but the command writes these only at its end, so they stayed
+    the earlier run's beside them without a word."""
+    earlier = [Path(out) / name for name in names if (Path(out) / name).is_file()]
+    try:
+        yield
+    except KeyboardInterrupt:
+        if earlier:
+            print(f"{', '.join(map(str, earlier))}: an earlier run's, not rewritten (they are "
+                  "written at the end); run the same command again to finish them",
+                  file=sys.stderr)  # fmt: skip
+        raise
+
+
 def _experiment(args: argparse.Namespace) -> int:
     from spcopyro.data import find_dataset_root
     from spcopyro.study.experiment import (
@@ -154,9 +172,10 @@ def _experiment(args: argparse.Namespace) -> int:
         seeds=args.seeds, sweeps=args.sweeps, spcoa_iterations=args.spcoa_iterations,
         command=command,
     )  # fmt: skip
-    summary = run_experiment(args.out, study, root=root, workers=args.workers,
-                             retry_failed=args.retry_failed, rerun_stale=args.rerun_stale,
-                             report=print)  # fmt: skip
+    with _reports_of_an_earlier_run(args.out, "table.md", "table.json"):
+        summary = run_experiment(args.out, study, root=root, workers=args.workers,
+                                 retry_failed=args.retry_failed, rerun_stale=args.rerun_stale,
+                                 report=print)  # fmt: skip
     out = Path(args.out)
     print((out / "table.md").read_text())
     print(f"wrote {out / 'table.md'}, {out / 'table.json'} and {len(summary['figures'])} "
@@ -243,8 +262,9 @@ def _ablation(args: argparse.Namespace) -> int:
             "the ablation would run no cell: --seeds 0 (or no --houses) leaves no synthetic "
             "house, and there is no public house (--no-public, --public-seeds 0 or no dataset)"
         )
-    summary = run_ablation(args.out, settings, report=print, retry_failed=args.retry_failed,
-                           rerun_stale=args.rerun_stale, name=study.name)  # fmt: skip
+    with _reports_of_an_earlier_run(args.out, "ablation.md", "ablation.json", "ablation.png"):
+        summary = run_ablation(args.out, settings, report=print, retry_failed=args.retry_failed,
+                               rerun_stale=args.rerun_stale, name=study.name)  # fmt: skip
     out = Path(args.out)
     print((out / "ablation.md").read_text())
     print(f"wrote {out / 'ablation.md'}, {out / 'ablation.json'} and {out / 'ablation.png'} "
@@ -312,9 +332,10 @@ def _compare_inference(args: argparse.Namespace) -> int:
         preset=args.preset, overrides={} if args.gamma is None else {"gamma": args.gamma},
         iterations=iterations, quick=args.quick, command=command,
     )  # fmt: skip
-    summary = run_comparison(args.out, settings, report=print, workers=args.workers,
-                             retry_failed=args.retry_failed,
-                             rerun_stale=args.rerun_stale)  # fmt: skip
+    with _reports_of_an_earlier_run(args.out, "comparison.md", "comparison.json"):
+        summary = run_comparison(args.out, settings, report=print, workers=args.workers,
+                                 retry_failed=args.retry_failed,
+                                 rerun_stale=args.rerun_stale)  # fmt: skip
     out = Path(args.out)
     print((out / "comparison.md").read_text())
     print(f"wrote {out / 'comparison.md'}, {out / 'comparison.json'} and "
