@@ -566,3 +566,19 @@ def test_a_single_seed_gets_no_error_bar(tmp_path, monkeypatch):
     report = {"summary": {"a": {"dense": {"ari": two}}}, "records": []}
     figure(report, settings, tmp_path / "two.png")
     assert np.isnan(errors[0][0]) and errors[1] == [0.1]
+
+
+def test_an_ablation_into_another_commands_folder_is_refused(tmp_path, capsys):
+    """`ablation --out` a compare-inference folder replaced its results.csv, report.md and
+    study.json silently (a helper's QA); a folder of the same command, quick or not, is fine."""
+    out = tmp_path / "cmp"
+    out.mkdir()
+    (out / "study.json").write_text(json.dumps({"name": "compare-inference-quick"}))
+    command = ["ablation", "--out", str(out), "--quick", "--no-public", "--seeds", "1",
+               "--sweeps", "2", "--houses", "dense", "--baselines", "--no-off"]  # fmt: skip
+    assert main(command) == 2
+    err = capsys.readouterr().err
+    assert "holds the results of `spcopyro compare-inference`" in err
+    assert json.loads((out / "study.json").read_text()) == {"name": "compare-inference-quick"}
+    (out / "study.json").write_text(json.dumps({"name": "ablation"}))  # the full run's folder
+    assert main(command) == 0

@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import functools
+import json
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
@@ -122,6 +123,29 @@ def _stoppable(command: Callable[[argparse.Namespace], int]) -> Callable[[argpar
     return run
 
 
+_COMMANDS = ("experiment", "ablation", "compare-inference")
+"""The commands that run a shipped study into their --out, each with reports of its own."""
+
+
+def _not_another_commands_folder(out: str, command: str) -> None:
+    """ValueError when ``out`` holds another of :data:`_COMMANDS`' results (its ``study.json``
+    names that command's study, quick or not): the run replaced that folder's ``results.csv``,
+    ``report.md`` and ``study.json`` silently (its cells stayed cached), leaving its own report
+    beside the new one."""
+    path = Path(out) / "study.json"
+    try:
+        name = json.loads(path.read_text(encoding="utf-8")).get("name")
+    except (OSError, ValueError, AttributeError):
+        return  # none, or not a study's: the study engine says what is wrong with it
+    family = name.removesuffix("-quick") if isinstance(name, str) else None
+    if family in _COMMANDS and family != command:
+        raise ValueError(
+            f"--out {out} holds the results of `spcopyro {family}` ({path}): give this "
+            f"{command} another folder (it would replace their results.csv, report.md and "
+            "study.json)"
+        )
+
+
 @contextlib.contextmanager
 def _reports_of_an_earlier_run(out: str, *names: str) -> Iterator[None]:
     """On Ctrl-C or SIGTERM, name the command's own reports in ``out`` (``comparison.md``, ...)
@@ -172,6 +196,7 @@ def _experiment(args: argparse.Namespace) -> int:
         seeds=args.seeds, sweeps=args.sweeps, spcoa_iterations=args.spcoa_iterations,
         command=command,
     )  # fmt: skip
+    _not_another_commands_folder(args.out, "experiment")
     with _reports_of_an_earlier_run(args.out, "table.md", "table.json"):
         summary = run_experiment(args.out, study, root=root, workers=args.workers,
                                  retry_failed=args.retry_failed, rerun_stale=args.rerun_stale,
@@ -262,6 +287,7 @@ def _ablation(args: argparse.Namespace) -> int:
             "the ablation would run no cell: --seeds 0 (or no --houses) leaves no synthetic "
             "house, and there is no public house (--no-public, --public-seeds 0 or no dataset)"
         )
+    _not_another_commands_folder(args.out, "ablation")
     with _reports_of_an_earlier_run(args.out, "ablation.md", "ablation.json", "ablation.png"):
         summary = run_ablation(args.out, settings, report=print, retry_failed=args.retry_failed,
                                rerun_stale=args.rerun_stale, name=study.name)  # fmt: skip
@@ -332,6 +358,7 @@ def _compare_inference(args: argparse.Namespace) -> int:
         preset=args.preset, overrides={} if args.gamma is None else {"gamma": args.gamma},
         iterations=iterations, quick=args.quick, command=command,
     )  # fmt: skip
+    _not_another_commands_folder(args.out, "compare-inference")
     with _reports_of_an_earlier_run(args.out, "comparison.md", "comparison.json"):
         summary = run_comparison(args.out, settings, report=print, workers=args.workers,
                                  retry_failed=args.retry_failed,
