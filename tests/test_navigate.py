@@ -615,6 +615,20 @@ def test_a_negative_start_needs_no_equals_sign(fit, capsys):
     assert attach_negative_coordinates(["--start", "--radius"]) == ["--start", "--radius"]
 
 
+def test_the_figures_legend_covers_no_part_of_the_map(result):
+    """navigate.png's legend (loc="best", which weighs the path's lines, not the map) could
+    cover a room, as the place graph's did: it stands below the map now."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from spcopyro.robot.navigation.figure import plan_figure
+
+    fig = plan_figure(navigate(result, "go to the kitchen via the corridor", START_A))
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    ax = fig.axes[0]
+    legend = ax.get_legend().get_window_extent(renderer)
+    assert not legend.overlaps(ax.get_window_extent(renderer))
+
+
 def test_the_figure_draws_the_destination_apart_from_the_walls_and_as_its_legend_says(result):
     """navigate.png drew room1dk5's bedroom dark slate grey (a 25% orange overlay of the route's
     places on the darkest blue), near the walls' black, and the legend's swatch was tan. The

@@ -79,7 +79,9 @@ def plan_figure(plan: NavigationPlan) -> Figure:
         for c in stop.choice.candidates:
             if (c.xy != stop.xy) or not c.reachable:
                 ax.plot(*c.xy, marker="x", color="C4", ms=8, ls="")
-    ax.legend(fontsize=8, loc="best")
+    # below the map (the colour bar is beside it): loc="best" weighs the lines, not the map,
+    # and put the legend over a room
+    map_legend(ax, ax.get_legend_handles_labels()[0], below=True, columns=2, fontsize=8)
     ax.set_title(f"navigate: {plan.instruction.text!r}\n{plan.length:.2f} m, "
                  f"radius {plan.radius:g} m")  # fmt: skip
     return fig
