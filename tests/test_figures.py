@@ -234,10 +234,11 @@ def test_words_no_font_can_draw_are_told_once_in_words(tmp_path, caplog, monkeyp
     their glyphs, the figures say so once (and matplotlib's per-glyph warnings stay quiet)."""
     import logging
 
+    import spcopyro.figures.fonts as fonts
     import spcopyro.figures.plotting as plotting
 
-    monkeypatch.setattr(plotting, "CJK_FONTS", ())  # as on a machine without such a font
-    monkeypatch.setattr(plotting, "_warned_glyphs", set())
+    monkeypatch.setattr(fonts, "CJK_FONTS", ())  # as on a machine without such a font
+    monkeypatch.setattr(fonts, "_warned_glyphs", set())
     house = _japanese_house()
     with caplog.at_level(logging.WARNING, logger="spcopyro"):
         plotting.plot_house(house, tmp_path / "a.png")
@@ -249,11 +250,12 @@ def test_words_no_font_can_draw_are_told_once_in_words(tmp_path, caplog, monkeyp
 def test_an_installed_japanese_font_draws_the_words(tmp_path, caplog, monkeypatch):
     import logging
 
+    import spcopyro.figures.fonts as fonts
     import spcopyro.figures.plotting as plotting
 
-    if len(plotting._font_families()) < 2:
+    if len(fonts._font_families()) < 2:
         pytest.skip("no font with Japanese glyphs installed (e.g. fonts-ipafont-gothic)")
-    monkeypatch.setattr(plotting, "_warned_glyphs", set())
+    monkeypatch.setattr(fonts, "_warned_glyphs", set())
     with caplog.at_level(logging.WARNING, logger="spcopyro"):
         plotting.plot_house(_japanese_house(), tmp_path / "a.png")
     assert not [r for r in caplog.records if "no glyphs" in r.getMessage()]
@@ -530,3 +532,28 @@ def test_a_wide_maps_legend_goes_below_it_in_columns():
     image = np.repeat(square.label_image(), 2, axis=0)
     taller = dataclasses.replace(square, grid=grid, labels=image[grid.free])
     assert _legend_side(semantic_map_figure(taller)) == "beside"
+
+
+def test_study_figures_draw_words_of_any_script_as_the_maps_do(tmp_path, caplog, monkeypatch):
+    """A study's figures (quality against time, the experiment's maps, ablation and comparison
+    plots) were saved without the fallback fonts the maps use: a Japanese source or variant
+    name was boxes, with one matplotlib warning per glyph and no word (a helper's QA)."""
+    import logging
+    import warnings
+
+    import spcopyro.figures.fonts as fonts
+    from spcopyro.study.figures import write_quality_time
+
+    monkeypatch.setattr(fonts, "CJK_FONTS", ())  # as on a machine without such a font
+    monkeypatch.setattr(fonts, "_warned_glyphs", set())
+    rows = [{"status": "ok", "data": "台所の家", "variant": "既定", "method": "gibbs",
+             "seconds": 1.5, "ari": 0.8}]  # fmt: skip
+    with (
+        caplog.at_level(logging.WARNING, logger="spcopyro"),
+        warnings.catch_warnings(record=True) as caught,
+    ):
+        warnings.simplefilter("always")
+        write_quality_time(rows, tmp_path / "q.png")
+    assert not [w for w in caught if "missing from font" in str(w.message)]
+    told = [r.getMessage() for r in caplog.records if "no glyphs" in r.getMessage()]
+    assert len(told) == 1 and "fonts-noto-cjk" in told[0]

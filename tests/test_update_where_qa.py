@@ -157,9 +157,10 @@ def test_a_semantic_map_of_japanese_words_keeps_matplotlibs_glyph_warnings_quiet
     output of ``fit``), beside the one warning in words that the figures give."""
     import warnings
 
+    import spcopyro.figures.fonts as fonts
     import spcopyro.figures.plotting as plotting
 
-    monkeypatch.setattr(plotting, "CJK_FONTS", ())  # as on a machine without such a font
+    monkeypatch.setattr(fonts, "CJK_FONTS", ())  # as on a machine without such a font
     result = two_rooms()
     words = dataclasses.replace(result.emission("words"), items=("台所", "寝室", "リビング"))
     japanese = dataclasses.replace(result, emissions=(result.emissions[0], words))
@@ -176,10 +177,11 @@ def test_the_missing_glyphs_warning_names_the_words_without_punctuation(
     the words as the title and legend split on spaces, quotes and brackets kept."""
     import logging
 
+    import spcopyro.figures.fonts as fonts
     import spcopyro.figures.plotting as plotting
 
-    monkeypatch.setattr(plotting, "CJK_FONTS", ())
-    monkeypatch.setattr(plotting, "_warned_glyphs", set())
+    monkeypatch.setattr(fonts, "CJK_FONTS", ())
+    monkeypatch.setattr(fonts, "_warned_glyphs", set())
     result = two_rooms()
     words = dataclasses.replace(result.emission("words"), items=("台所", "寝室", "リビング"))
     japanese = dataclasses.replace(result, emissions=(result.emissions[0], words))

@@ -22,6 +22,7 @@ import numpy as np
 
 from spcopyro._util.messages import command_time, fixed, plural, seconds_text
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, json_default
+from spcopyro.figures.fonts import any_script
 from spcopyro.synthetic.statistics import public_and_synthetic_statistics, statistics_table
 
 __all__ = ["SCORES", "TABLE2_CATEGORIES", "settings_json", "summarise", "targets", "write_report"]
@@ -334,8 +335,9 @@ def figure(report: dict, settings: AblationSettings, path: Path) -> Path:
         ax.hlines(counts, x - 0.45, x + 0.45, colors="black", linewidth=2, label="Table 2")
         ax.set_ylabel("concepts holding >= 1% of the free cells")
         ax.set_title("public houses (black: Table 2)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with any_script(fig):  # words of any script, not boxes
+        fig.tight_layout()
+        fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
 

@@ -33,6 +33,7 @@ from spcopyro.experiments.inference_comparison import (
     budget,
 )
 from spcopyro.experiments.table import json_default
+from spcopyro.figures.fonts import any_script
 
 SCORE_NAMES = {
     "ari": "ARI",
@@ -414,7 +415,8 @@ def plot_curves(summary: dict[str, object], house_type: str, path: Path) -> Path
         "public houses (one line per house and held-out trial)")  # fmt: skip
     fig.suptitle(f"Quality against time, {title}")
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110, bbox_inches="tight")
+    with any_script(fig):  # words of any script, not boxes
+        fig.savefig(path, dpi=110, bbox_inches="tight")
     return path
 
 

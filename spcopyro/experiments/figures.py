@@ -13,12 +13,15 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from spcopyro.figures.fonts import any_script
+
 
 def plot_stability(stability: dict, path: Path, method: str = "A-dp") -> Path:
     """Write :func:`stability_figure` to ``path`` (PNG)."""
     fig = stability_figure(stability, method)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120, bbox_inches="tight")
+    with any_script(fig):  # words of any script, not boxes
+        fig.savefig(path, dpi=120, bbox_inches="tight")
     return path
 
 

@@ -14,10 +14,8 @@ import (a notebook keeps its inline figures; headless runs need no display).
 
 from __future__ import annotations
 
-import logging
 import os
 import textwrap
-import warnings
 from collections import Counter
 from pathlib import Path
 
@@ -27,14 +25,13 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
-from matplotlib.text import Text
 from matplotlib.ticker import FuncFormatter, MaxNLocator
 from matplotlib.transforms import ScaledTranslation
 from scipy import ndimage
 
 from spcopyro._util.messages import plural
 from spcopyro.data import House, Observations
-from spcopyro.data.text import tokenize
+from spcopyro.figures.fonts import any_script
 from spcopyro.figures.map_pieces import (
     concept_handles,
     draw_outline,
@@ -101,58 +98,6 @@ def _show_image(ax: Axes, grid: OccupancyGrid, rgb: np.ndarray) -> tuple[slice, 
     return rows, cols
 
 
-CJK_FONTS = (
-    "Noto Sans CJK JP", "Noto Sans JP", "IPAexGothic", "IPAGothic", "TakaoGothic",
-    "Source Han Sans JP", "Hiragino Sans", "Yu Gothic", "MS Gothic", "Noto Sans CJK SC",
-    "WenQuanYi Zen Hei",
-)  # fmt: skip
-"""Fonts with Japanese (and Chinese) glyphs that the figures fall back to, in this order, when
-one is installed: words of any script are drawn, not as boxes (issue 22 item 10)."""
-_warned_glyphs: set[str] = set()
-
-
-def _font_families() -> list[str]:
-    """matplotlib's sans-serif font first, then every installed font of :data:`CJK_FONTS`."""
-    from matplotlib import font_manager, rcParams
-
-    installed = {font.name for font in font_manager.fontManager.ttflist}
-    return [*rcParams["font.sans-serif"][:1], *(f for f in CJK_FONTS if f in installed)]
-
-
-def _covered(families: list[str]) -> set[int]:
-    """The code points the ``families`` fonts have glyphs for."""
-    from matplotlib import font_manager
-    from matplotlib.ft2font import FT2Font
-
-    points: set[int] = set()
-    for family in families:
-        path = font_manager.findfont(family, fallback_to_default=False)
-        points |= set(FT2Font(path).get_charmap())
-    return points
-
-
-def _check_glyphs(artists: list[Text], families: list[str]) -> None:
-    """Log once (logger ``"spcopyro"``) the words of a figure's text ``artists`` that no font
-    can draw, and how to get a font that can."""
-    texts = {t.get_text() for t in artists}
-    strange = {c for text in texts for c in text if ord(c) > 0x24F and not c.isspace()}
-    if not strange:
-        return
-    covered = _covered(families)
-    missing = sorted(c for c in strange if ord(c) not in covered and c not in _warned_glyphs)
-    if not missing:
-        return
-    _warned_glyphs.update(missing)
-    # the words as the data holds them: not "'台所'?" of the title "where is '台所'?"
-    words = sorted({w for text in texts for w in tokenize(text) if set(w) & set(missing)})[:5]
-    logging.getLogger("spcopyro").warning(
-        "the figures' fonts have no glyphs for %s (in %s): they are drawn as boxes; install a "
-        "font that has them (e.g. Debian's fonts-noto-cjk for Japanese) and the figures use it",
-        "".join(missing[:10]),
-        ", ".join(words),
-    )
-
-
 def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
     """Write ``fig`` as a PNG at ``DPI``, cropped to its artists plus ``PAD_INCHES``.
 
@@ -164,20 +109,13 @@ def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
     0.2 inch past the box and its longest line was cut.)
     A path without a suffix gets ``.png`` (matplotlib added it, but the path returned, and so
     ``wrote X`` of ``show`` and ``where``, did not; inside ``png.background_writes`` the file
-    was written without it).
+    was written without it). Texts of any script: :func:`~spcopyro.figures.fonts.any_script`.
     """
     path = Path(path)
     if not path.suffix:
         path = path.with_suffix(".png")
     path.parent.mkdir(parents=True, exist_ok=True)
-    families = _font_families()
-    artists = fig.findobj(Text)
-    if len(families) > 1:  # fallback fonts installed; else every text keeps its own (the same)
-        for text in artists:
-            text.set_fontfamily(families)  # any script: the first font that has the glyph
-    _check_glyphs(artists, families)
-    with warnings.catch_warnings():  # told once, in words, by _check_glyphs
-        warnings.filterwarnings("ignore", message="Glyph .* missing from font")
+    with any_script(fig):
         fig.set_dpi(DPI)  # text is measured as it is drawn in the PNG
         renderer = FigureCanvasAgg(fig).get_renderer()
         box = fig.get_tightbbox(renderer).padded(PAD_INCHES)

@@ -33,6 +33,7 @@ from spcopyro.experiments.table import (
     json_default,
     table_markdown,
 )
+from spcopyro.figures.fonts import any_script
 from spcopyro.study import STUDIES
 from spcopyro.study.maps import plot_label_maps, remove_stale, source_panels
 from spcopyro.study.run import run_study
@@ -192,7 +193,8 @@ def plot_traces(rows: Sequence[dict[str, object]], folder: Path, path: Path, tit
     top.legend(fontsize=7)
     fig.suptitle(title)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120, bbox_inches="tight")
+    with any_script(fig):  # words of any script, not boxes
+        fig.savefig(path, dpi=120, bbox_inches="tight")
     return path
 
 

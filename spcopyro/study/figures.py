@@ -21,6 +21,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
+from spcopyro.figures.fonts import any_script, quiet_glyph_warnings
 from spcopyro.study.table import is_number
 
 __all__ = ["QUALITY_TIME_FILE", "quality_time_figure", "write_quality_time"]
@@ -105,9 +106,11 @@ def write_quality_time(
 ) -> Path | None:
     """Write :func:`quality_time_figure` as a PNG at ``path`` (None, and nothing written, when
     no row has both numbers)."""
-    fig = quality_time_figure(rows, score)
+    with quiet_glyph_warnings():  # its layout measures the texts: any_script tells them below
+        fig = quality_time_figure(rows, score)
     if fig is None:
         return None
     path = Path(path)
-    fig.savefig(path, dpi=110)
+    with any_script(fig):  # words of any script, not boxes
+        fig.savefig(path, dpi=110)
     return path

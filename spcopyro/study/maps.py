@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from spcopyro.figures.fonts import any_script
 from spcopyro.maps import OccupancyGrid
 from spcopyro.maps.coarse import coarsening_factor, refine_labels
 
@@ -126,7 +127,8 @@ def plot_label_maps(
         ax.axis("off")
     fig.suptitle(title)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120, bbox_inches="tight")
+    with any_script(fig):  # words of any script, not boxes
+        fig.savefig(path, dpi=120, bbox_inches="tight")
     return path
 
 
