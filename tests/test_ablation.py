@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from fake_dataset import fake_dataset
 from stale_cells import check_stale_kept_then_rerun
 
 from spcopyro.cli.main import main
@@ -482,10 +483,7 @@ def test_a_house_the_quick_study_lacks_says_why(tmp_path, capsys):
 def test_an_unknown_public_house_is_named_as_the_option(tmp_path, capsys):
     """--public-houses room9: the error named "<python>: [data.room9] public = ...", a study
     table the user never wrote; it names the option and the dataset's houses."""
-    root = tmp_path / "data"
-    (root / "room1" / "img_0").mkdir(parents=True)
-    (root / "map").mkdir()
-    (root / "map" / "room1.yaml").write_text("image: room1.pgm\n")
+    root = fake_dataset(tmp_path / "data")
     out = tmp_path / "out"
     code = main(["ablation", "--out", str(out), "--quick", "--data", str(root),
                  "--public-houses", "room9"])  # fmt: skip

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from fake_dataset import fake_dataset
 from stale_cells import STALE_DIGEST, mark_stale
 
 from spcopyro.cli.main import main
@@ -149,10 +150,7 @@ def test_experiment_options_change_the_shipped_study():
 def test_experiment_names_an_unknown_house_as_the_users(tmp_path, capsys):
     """--houses room9: the error named the shipped study file and a [data.room9] table it
     does not hold; it names the option and the dataset's houses, before anything is run."""
-    root = tmp_path / "data"
-    (root / "room1" / "img_0").mkdir(parents=True)
-    (root / "map").mkdir()
-    (root / "map" / "room1.yaml").write_text("image: room1.pgm\n")
+    root = fake_dataset(tmp_path / "data")
     out = tmp_path / "out"
     code = main(["experiment", "--out", str(out), "--quick", "--data", str(root),
                  "--houses", "room1", "room9"])  # fmt: skip

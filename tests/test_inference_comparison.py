@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from fake_dataset import fake_dataset
 from scipy.signal import lfilter
 from stale_cells import check_stale_kept_then_rerun
 
@@ -253,18 +254,10 @@ def test_quick_command_writes_table_json_and_figure(tmp_path, capsys, monkeypatc
     assert (out / "results.csv").is_file()  # the comparison is a study: cached in --out
 
 
-def _fake_dataset(root: Path) -> Path:
-    """A dataset folder holding one house, room1 (a folder and its map/room1.yaml)."""
-    (root / "room1" / "img_0").mkdir(parents=True)
-    (root / "map").mkdir()
-    (root / "map" / "room1.yaml").write_text("image: room1.pgm\n")
-    return root
-
-
 def test_an_unknown_public_house_is_named_as_the_option(tmp_path, capsys):
     """--public-houses room9: the error was "room folder .../room9 does not exist"; it names the
     option and the dataset's houses, before anything runs."""
-    root = _fake_dataset(tmp_path / "data")
+    root = fake_dataset(tmp_path / "data")
     out = tmp_path / "out"
     code = main(["compare-inference", "--out", str(out), "--quick", "--houses", "public",
                  "--data", str(root), "--public-houses", "room9"])  # fmt: skip

@@ -15,6 +15,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from fake_dataset import fake_dataset
 
 from spcopyro.experiments.robustness import (
     ANNEAL_FRACTION,
@@ -225,11 +226,7 @@ def test_experiment_robustness_gets_the_tables_public_houses(tmp_path, monkeypat
 
     monkeypatch.setattr(experiment, "run_experiment", run_experiment)
     monkeypatch.setattr(robustness, "write_robustness", write)
-    root = tmp_path / "data"
-    (root / "map").mkdir(parents=True)
-    for house in ("room1dk5", "room2ldk4"):  # --houses names houses the dataset holds
-        (root / "map" / f"{house}.yaml").write_text("")
-        (root / house).mkdir()
+    root = fake_dataset(tmp_path / "data", "room1dk5", "room2ldk4")  # --houses' houses
     code = main(["experiment", "--out", str(tmp_path / "out"), "--data", str(root), "--houses",
                  "room1dk5", "room2ldk4", "--robustness"])  # fmt: skip
     assert code == 0
