@@ -244,3 +244,36 @@ def test_place_graph_labels_do_not_overlap_and_the_legend_leaves_the_map():
         assert not any(box.overlaps(other) for other in boxes[i + 1 :]), ax.texts[i].get_text()
     legend = ax.get_legend().get_window_extent(renderer)
     assert not legend.overlaps(ax.get_window_extent(renderer))
+
+
+def test_the_summary_lines_of_concepts_go_larger_first(capsys):
+    """An original-code fit listed "... 103 smaller concepts" (of 1-12 cells) before "7 specks
+    of 14-18 cells": the lines said nothing of the smaller concepts' sizes, out of order."""
+    from spcopyro.cli.concept_listing import print_concepts
+    from spcopyro.config import SpCoConfig
+    from spcopyro.figures.map_pieces import concept_handles
+    from spcopyro.maps import FREE, OccupancyGrid
+    from spcopyro.results.result import EmissionTable, SpCoResult, Trace
+
+    sizes = [300] * 12 + [5] * 103 + [14, 15, 16, 18]  # 4 specks of 14-18 < 0.5 % of 3729
+    n, num = sum(sizes), len(sizes)
+    totals = np.zeros((num, 3))  # [L, 1 + M]: cells observed, images, words heard
+    totals[:115, 2] = 1.0  # a word heard in each but the last 4 (the specks)
+    result = SpCoResult(
+        grid=OccupancyGrid(np.full((1, n), FREE, dtype=np.int8), 0.1, (0.0, 0.0, 0.0)),
+        config=SpCoConfig(num_concepts=num, prior="dirichlet"),
+        labels=np.repeat(np.arange(num), sizes),  # [N]
+        pi=np.full(num, 1 / num),
+        emissions=(EmissionTable("images", ("0", "1"), np.full((num, 2), 0.5)),
+                   EmissionTable("words", ("a", "b"), np.full((num, 2), 0.5))),  # fmt: skip
+        trace=Trace(objective=np.zeros(1), num_concepts=np.array([num]), seconds=np.zeros(1)),
+        best_iteration=0,
+        concept_totals=totals,
+    )
+    labels = [h.get_label() for h in concept_handles(result, np.zeros((num, 3)))]
+    assert labels[-2].startswith("4 specks of 14-18 cells, no words heard: "), labels[-2:]
+    assert labels[-1] == "... 103 smaller concepts of 5 cells", labels[-2:]
+    print_concepts(result, limit=12)
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[-3].startswith("  + 4 specks of 14-18 cells where no word was heard"), lines
+    assert lines[-2] == "  ... 103 smaller concepts of 5 cells in concepts.json", lines

@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 
 from spcopyro.results.concept_words import (
     MIN_LIFT,
+    cells_range,
     format_concept_words,
     format_words_heard,
     is_speck,
@@ -50,15 +51,20 @@ def print_concepts(result: SpCoResult, limit: int = 10) -> None:
         count = "" if heard is None else f"{heard_text:>4} {_noun(heard_text == '1', 'word')}  "
         cells = f"{concept['cells']:>6} {_noun(concept['cells'] == 1, 'cell')}"
         print(f"  concept {concept['concept']:>3}: {cells} {count}{words}")
+    summaries = []  # (largest concept, line): the two summary lines, larger concepts first
     if len(listed) > limit:
-        print(f"  ... {len(listed) - limit} smaller concepts in concepts.json")
+        rest = [int(c["cells"]) for c in listed[limit:]]
+        summaries.append((max(rest), f"  ... {len(rest)} smaller concepts of "
+                          f"{cells_range(rest)} in concepts.json"))  # fmt: skip
     if specks:
-        summary = speck_summary([int(c["cells"]) for c in specks])
+        sizes = [int(c["cells"]) for c in specks]
         which = "concept" if len(specks) == 1 else "concepts"
-        print(f"  + {summary} where no word was heard ({which} "
-              f"{', '.join(str(c['concept']) for c in specks[:8])}"
-              f"{', ...' if len(specks) > 8 else ''}; concepts.json lists "
-              f"{'it' if len(specks) == 1 else 'them'})")  # fmt: skip
+        summaries.append((max(sizes), f"  + {speck_summary(sizes)} where no word was heard "
+                          f"({which} {', '.join(str(c['concept']) for c in specks[:8])}"
+                          f"{', ...' if len(specks) > 8 else ''}; concepts.json lists "
+                          f"{'it' if len(specks) == 1 else 'them'})"))  # fmt: skip
+    for _, line in sorted(summaries, key=lambda s: -s[0]):  # stable: equal sizes keep order
+        print(line)
     if len(concepts) == 1:  # p(word) is then the concept's own: every lift is 1
         print("  one concept in use: no word can be distinctive (a lift compares concepts)")
     elif not any(c["distinctive_words"] for c in concepts):

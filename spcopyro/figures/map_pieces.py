@@ -29,6 +29,7 @@ from spcopyro.maps import OCCUPIED, OccupancyGrid
 from spcopyro.results.concept_words import (
     MIN_LIFT,
     NO_WORDS,
+    cells_range,
     format_words_heard,
     is_speck,
     shown_words,
@@ -165,12 +166,17 @@ def concept_handles(
         handles.append(
             Patch(color=colours[c] / 255.0, label=f"[{c}] {cells} cells{count}: {words}")
         )
+    summaries = []  # (largest concept, entry): the two summary lines, larger concepts first
     if len(used) > limit:
-        handles.append(Patch(color="white", label=f"... {len(used) - limit} smaller concepts"))
+        rest = [int(sizes[c]) for c in used[limit:]]
+        summaries.append((max(rest), f"... {len(rest)} smaller concepts of {cells_range(rest)}"))
     if specks:
         names = ", ".join(f"[{c}]" for c in specks[:6]) + (", ..." if len(specks) > 6 else "")
-        summary = speck_summary([int(sizes[c]) for c in specks])
-        handles.append(Patch(color="white", label=f"{summary}, no words heard: {names}"))
+        speck_sizes = [int(sizes[c]) for c in specks]
+        summaries.append((max(speck_sizes),
+                          f"{speck_summary(speck_sizes)}, no words heard: {names}"))  # fmt: skip
+    for _, label in sorted(summaries, key=lambda s: -s[0]):  # stable: equal sizes keep order
+        handles.append(Patch(color="white", label=label))
     return handles
 
 

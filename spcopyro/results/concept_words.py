@@ -35,6 +35,7 @@ __all__ = [
     "SPECK_SHARE",
     "is_speck",
     "speck_summary",
+    "cells_range",
     "distinctive_items",
     "format_concept_words",
     "format_words_heard",
@@ -165,7 +166,12 @@ def is_speck(cells: int, heard: float | None, num_free: int) -> bool:
 
 def speck_summary(sizes: Sequence[int]) -> str:
     """``"4 specks of 1 cell"``, ``"2 specks of 1-3 cells"``: specks of these cell counts."""
+    specks = "speck" if len(sizes) == 1 else "specks"
+    return f"{len(sizes)} {specks} of {cells_range(sizes)}"
+
+
+def cells_range(sizes: Sequence[int]) -> str:
+    """``"1 cell"``, ``"5 cells"``, ``"14-18 cells"``: the range of these cell counts."""
     low, high = min(sizes), max(sizes)
     size = f"{low}" if low == high else f"{low}-{high}"
-    specks, cells = "speck" if len(sizes) == 1 else "specks", "cell" if high == 1 else "cells"
-    return f"{len(sizes)} {specks} of {size} {cells}"
+    return f"{size} {'cell' if high == 1 else 'cells'}"
