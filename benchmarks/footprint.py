@@ -174,7 +174,7 @@ def summary_table(results: dict[str, object]) -> str:
             f"{np.mean([r['seconds'] for r in group]):.1f}",
         ])  # fmt: skip
     headers = ["preset house", "fit", "ARI truth", "ARI vs no obs", "ARI seeds", "concepts>=1%",
-               "reached", "s"]  # fmt: skip
+               "share of cells reached", "s / fit"]  # fmt: skip
     return format_table(headers, table)
 
 

@@ -224,9 +224,9 @@ def table(records: list[dict], sweeps: int) -> str:
                          truth(points, "ari_truth"), truth(points, "matching_rate"),
                          f"{_median([p['concepts'] for p in points]):.0f}",
                          f"{seconds:.2f}", f"{seconds / scratch_seconds:.3f}"])  # fmt: skip
-        for key in ("reached", "reached_typical"):
+        for key, lj in (("reached", "best"), ("reached_typical", "typical")):
             shown = "/".join("-" if r[key] is None else str(r[key]) for r in runs)
-            rows.append(["", key.replace("_", " "), shown, *[""] * 8])
+            rows.append(["", f"first sweeps: {lj} LJ >= scratch", shown, *[""] * 8])
     return format_table(headers, rows)
 
 
@@ -277,9 +277,9 @@ def main(argv: list[str] | None = None) -> int:
         f"LJ: log joint; best: of the best state visited; typical: mean over the last {WINDOW} "
         "sweeps (at N = 0: the start state's, whose globals are the saved fit's posterior means "
         "where it kept them, not draws: not comparable). * scratch row: ARI between the scratch "
-        "fits of consecutive seeds (refit agreement). 'reached' ('reached typical'): per seed, "
-        "the first update length whose best (typical) log joint is at least the scratch fit's "
-        "('-': not within the last)."
+        "fits of consecutive seeds (refit agreement). 'first sweeps: best (typical) LJ >= "
+        "scratch': per seed, the first update length whose best (typical) log joint is at "
+        "least the scratch fit's ('-': not within the last)."
     )
     out = results_path(args.out, "online_update_results", args.quick)
     record = {"machine": machine_info(), "preset": args.preset,

@@ -308,7 +308,7 @@ def render(results: dict[str, Any]) -> str:
     out.append("Small houses: memoized VI against full-batch CAVI (same start, annealing)")
     out.append(format_table(
         ["house / method", "cells", "passes", "ELBO", "ARI", "concepts", "s", "s/pass",
-         "min rise"],
+         "min ELBO rise per pass at full gamma"],
         [[f"{r['house']}: {r['method']}", r["free_cells"], r["passes"], f"{r['final_elbo']:.1f}",
           f"{r['ari']:.3f}", r["concepts"], f"{r['seconds']:.2f}",
           f"{r['seconds_per_pass']:.3f}", f"{r['min_elbo_rise_at_full_gamma']:.2g}"]

@@ -692,3 +692,28 @@ def test_variational_targets_line_counts_the_rows_that_pass(script):
     """variational.py's verdict line read "FAIL (2 of 4 rows)" for 2 rows passing of 4."""
     line = script("variational").targets_line([False, False, True, True])
     assert line.endswith(": FAIL (2 of 4 rows pass)"), line
+
+
+def test_quick_tables_say_what_min_rise_and_reached_measure(script):
+    """stochastic_vi.py's 'min rise', footprint.py's 'reached' and online_update.py's
+    'reached' rows did not say of what (the ELBO per pass at full gamma; the share of free
+    cells the data reach; the first update length at the scratch fit's log joint)."""
+    small = {"house": "h", "method": "m", "free_cells": 10, "passes": 3, "final_elbo": -1.0,
+             "ari": 1.0, "concepts": 2, "seconds": 1.0, "seconds_per_pass": 0.3,
+             "min_elbo_rise_at_full_gamma": -0.5}  # fmt: skip
+    header = script("stochastic_vi").render({"small": [small]}).splitlines()[1]
+    assert header.endswith("min ELBO rise per pass at full gamma"), header
+    row = {"preset": "p", "house": "h", "fit": "f", "ari_truth": 1.0, "ari_between_seeds": None,
+           "ari_vs_no_observations": 1.0, "concepts_1pct": 2, "cells_reached": 5,
+           "free_cells": 10, "seconds": 1.0}  # fmt: skip
+    header = script("footprint").summary_table({"rows": [row]}).splitlines()[0]
+    assert "share of cells reached" in header, header
+    point = {"sweeps": 0, "best_log_joint": 0.0, "typical_log_joint": 0.0, "seconds": 1.0,
+             "ari_vs_scratch": 1.0, "concepts": 2}  # fmt: skip
+    run = {"scratch": {"wall_seconds": 1.0, "best_log_joint": 0.0, "typical_log_joint": 0.0,
+                       "concepts": 2}, "update": {"points": [point]},
+           "reached": 0, "reached_typical": None}  # fmt: skip
+    text = script("online_update").table([{"house": "h", "runs": [run],
+                                           "scratch_vs_scratch_ari": []}], 10)  # fmt: skip
+    assert "first sweeps: best LJ >= scratch" in text, text
+    assert "first sweeps: typical LJ >= scratch" in text, text
