@@ -452,7 +452,7 @@ def test_cli_simulate_import_features_fit(tmp_path, capsys):
     assert result.label_image().shape == house.grid.shape
     # A CLI error is one line and exit code 2.
     code = main(["import-bag", *bags[:1], "--map", str(tmp_path / "bags" / "map.yaml"),
-                 "--out", str(out)])  # fmt: skip
+                 "--image-topic", "/camera/image/compressed", "--out", str(out)])  # fmt: skip
     assert code == 2
     assert "already exists" in capsys.readouterr().err
 

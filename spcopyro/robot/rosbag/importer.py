@@ -68,8 +68,12 @@ from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.maps.map_server import load_map, save_map
 from spcopyro.robot.rosbag.bag import (
     DEFAULT_ROS_DISTRO,
+    IMAGE_TYPES,
+    POSE_TYPES,
     ROS_DISTROS,
+    TEXT_TYPES,
     BagContentError,
+    _connections,
     _frame,
     _rosbags,
     iter_images,
@@ -286,6 +290,16 @@ def _extent(grid: OccupancyGrid) -> tuple[tuple[float, float], tuple[float, floa
     return (ox, oy), (ox + grid.width * grid.resolution, oy + grid.height * grid.resolution)
 
 
+def _check_bag(bag: Path, options: ImportOptions) -> None:
+    """Open ``bag`` and find its topics, reading no message: FileNotFoundError,
+    BagFormatError or BagContentError (as :func:`_import_one` would raise them, later)."""
+    with open_bag(bag, options.ros_distro) as reader:
+        if not options.pose_tf:
+            _connections(reader, options.pose_topic, POSE_TYPES, "pose")
+        _connections(reader, options.image_topic, IMAGE_TYPES, "image")
+        _connections(reader, options.words_topic, TEXT_TYPES, "utterance")
+
+
 def _import_one(
     bag: Path,
     trial: int,
@@ -463,12 +477,13 @@ def import_bags(
         raise ValueError("import_bags: no bag given")
     if int(first_trial) != first_trial or first_trial < 0:
         raise ValueError(f"first_trial must be an integer >= 0, got {first_trial!r}")
-    for bag in bags:  # before OUT: a mistyped bag was reported as "OUT already exists"
-        if not Path(bag).exists():
-            raise FileNotFoundError(f"{bag}: bag not found")
+    # The inputs before OUT: a mistyped bag, map or topic was reported as "OUT already exists",
+    # and a topic missing from the last bag was found after the others had been read.
+    for bag in bags:
+        _check_bag(Path(bag), options)
+    grid = load_map(map_yaml)
     out = Path(os.path.abspath(out))
     earlier = check_out(out, overwrite, range(first_trial, first_trial + len(bags)))
-    grid = load_map(map_yaml)
     map_target = out.parent / "map" / f"{out.name}.yaml"
     map_replaced = check_map(map_target, grid, map_yaml, overwrite, out, earlier)
     # What a failed import removes again: the folders it created, and a map it wrote.
