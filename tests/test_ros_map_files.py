@@ -72,6 +72,40 @@ def test_unknown_grey_read_as_free_through_an_alpha_channel_is_warned(tmp_path, 
     assert message.startswith(f"{tmp_path / 'room.yaml'}:1: ") and "alpha channel" in message
 
 
+@pytest.mark.parametrize("image", ["room.pgm", "room.png"])
+@pytest.mark.parametrize(
+    ("grey", "free_thresh", "line"),
+    [(205 * 257, "0.25", 6), (205 * 256, "0.25", 6), (205 * 256 + 255, "0.196", 1)],
+)
+def test_unknown_grey_read_as_free_in_a_16_bit_map_is_warned(
+    tmp_path, caplog, image, grey, free_thresh, line
+):
+    """The warning about map_saver's unknown grey was given for 8-bit images only: a 16-bit
+    pgm or png (205 scaled up by 257 or by 256: 52685 or 52480; or just lighter, 52735, which
+    reads as free under map_saver's own free_thresh) read its unexplored space as free without
+    a word."""
+    pixels = PIXELS.astype(np.uint16) * 257  # [H, W]
+    pixels[PIXELS == 205] = grey
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        grid = load_map(write_map(tmp_path, pixels, image=image, free_thresh=free_thresh))
+    assert (grid.occupancy[PIXELS == 205] == FREE).all()  # as map_server reads them
+    (message,) = warnings_of(caplog)
+    count = int((PIXELS == 205).sum())
+    assert message.startswith(
+        f"{tmp_path / 'room.yaml'}:{line}: {count} cells of grey 205 read at 8 bits "
+        "(52480..52735 of 65535), map_saver's unknown, read as free space"
+    )
+    assert ("set free_thresh: 0.196" if line == 6 else "write unexplored space as 52685") in message
+
+
+def test_a_16_bit_map_as_map_saver_would_write_it_loads_without_a_warning(tmp_path, caplog):
+    pixels = PIXELS.astype(np.uint16) * 257  # [H, W]
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        grid = load_map(write_map(tmp_path, pixels))
+    assert warnings_of(caplog) == []
+    assert (grid.occupancy[PIXELS == 205] == UNKNOWN).all()
+
+
 @pytest.mark.parametrize(
     ("keys", "line", "typo", "meant"),
     [

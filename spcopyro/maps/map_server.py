@@ -377,7 +377,7 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
     Warns (logger ``spcopyro.maps.map_server``, naming the yaml's line): an unknown key that
     looks like a misspelt map_server key (ignored, as map_server does), and cells of map_saver's
     unknown grey 205 read as FREE (a ``free_thresh`` above 0.196, as Nav2's map_saver writes it,
-    or an alpha channel averaged in).
+    or an alpha channel averaged in; in a 16-bit image, the levels whose high byte is 205).
 
     Raises:
         MapFileNotFoundError: the yaml or its image does not exist.
@@ -407,12 +407,21 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
     occupancy[p < spec.free_thresh] = FREE
     grid = OccupancyGrid(occupancy, spec.resolution, spec.origin, source=spec.path)
     _check_extent(spec, grid)
-    if not spec.negate and full == 255:
+    if not spec.negate:
         alpha = levels.ndim == 3 and levels.shape[2] in (2, 4)
         grey = levels[..., :-1].mean(axis=2) if alpha else value  # [H, W] alpha left out
-        _warn_unknown_read_as_free(spec, int(np.count_nonzero((grey == PGM_UNKNOWN) & grid.free)),
-                                   alpha)  # fmt: skip
+        unknown = _unknown_grey(grey, full) & grid.free  # [H, W] bool
+        _warn_unknown_read_as_free(spec, int(np.count_nonzero(unknown)), alpha, full)
     return grid
+
+
+def _unknown_grey(grey: np.ndarray, full: float) -> np.ndarray:
+    """``[H, W]`` bool: pixels of map_saver's unknown grey :data:`PGM_UNKNOWN` -- exactly 205
+    in an 8-bit image; in another full scale (a 16-bit pgm or png), those whose level read at 8
+    bits (its high byte at 16 bits) is 205: a 205 scaled up by 257 (52685) or by 256 (52480)."""
+    if full == 255:
+        return grey == PGM_UNKNOWN
+    return np.floor(grey * 256.0 / (full + 1.0)) == PGM_UNKNOWN
 
 
 def _check_extent(spec: _MapYaml, grid: OccupancyGrid) -> None:
@@ -431,25 +440,35 @@ def _check_extent(spec: _MapYaml, grid: OccupancyGrid) -> None:
         )
 
 
-def _warn_unknown_read_as_free(spec: _MapYaml, count: int, alpha: bool) -> None:
-    """Warn that ``count`` pixels of map_saver's unknown grey (205) read as FREE: an alpha
-    channel (map_server's trinary mode averages it in, so an opaque 205 reads as 217.5), or a
-    ``free_thresh`` above 50/255 (Nav2's map_saver writes 0.25 by default, so a map it saved
-    reloads with its unexplored space free, in map_server as here)."""
+def _warn_unknown_read_as_free(spec: _MapYaml, count: int, alpha: bool, full: float) -> None:
+    """Warn that ``count`` pixels of map_saver's unknown grey (205; at another full scale
+    ``full``, :func:`_unknown_grey`) read as FREE: an alpha channel (map_server's trinary mode
+    averages it in, so an opaque 205 reads as 217.5), a ``free_thresh`` above 50/255 (Nav2's
+    map_saver writes 0.25 by default, so a map it saved reloads with its unexplored space free,
+    in map_server as here), or a 16-bit grey lighter than 205 x 257."""
     if not count:
         return
-    why = (
-        "the image has an alpha channel, which map_server's trinary mode averages in: save "
-        "it without alpha"
-        if alpha
-        else f"free_thresh {echo(spec.free_thresh)} is above (255 - {PGM_UNKNOWN}) / 255 = "
-        f"{(255 - PGM_UNKNOWN) / 255:.4f}, as Nav2's map_saver writes it (0.25): set "
-        f"free_thresh: {SAVE_FREE_THRESH}"
-    )
+    scaled = round(PGM_UNKNOWN * full / 255)  # 205 at the image's full scale
+    key = "image"
+    if alpha:
+        why = ("the image has an alpha channel, which map_server's trinary mode averages in: "
+               "save it without alpha")  # fmt: skip
+    elif spec.free_thresh > (255 - PGM_UNKNOWN) / 255:
+        key = "free_thresh"
+        why = (f"free_thresh {echo(spec.free_thresh)} is above (255 - {PGM_UNKNOWN}) / 255 = "
+               f"{(255 - PGM_UNKNOWN) / 255:.4f}, as Nav2's map_saver writes it (0.25): set "
+               f"free_thresh: {SAVE_FREE_THRESH}")  # fmt: skip
+    else:
+        why = (f"their grey is lighter than {scaled} of {full:g}, 205 of 255 at the image's "
+               f"full scale: write unexplored space as {scaled}")  # fmt: skip
+    low, high = (math.ceil(level * (full + 1) / 256) for level in (PGM_UNKNOWN, PGM_UNKNOWN + 1))
+    grey = f"grey {PGM_UNKNOWN}" if full == 255 else (
+        f"grey {PGM_UNKNOWN} read at 8 bits ({low}..{high - 1} of {full:g})"
+    )  # fmt: skip
     logger.warning(
-        "%s: %d cells of grey %d, map_saver's unknown, read as free space, as map_server reads "
+        "%s: %d cells of %s, map_saver's unknown, read as free space, as map_server reads "
         "them; if they are unexplored: %s",
-        spec.where("image" if alpha else "free_thresh"), count, PGM_UNKNOWN, why,
+        spec.where(key), count, grey, why,
     )  # fmt: skip
 
 
