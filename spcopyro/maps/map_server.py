@@ -67,6 +67,12 @@ origin along x or y, since the data loader refuses every position there
 recorded on such a map (an origin in UTM coordinates) could not be fitted."""
 
 
+PLAUSIBLE_RESOLUTION = (1e-3, 1.0)
+"""Metres: :func:`load_map` warns of a ``resolution`` outside this range, naming the yaml's line
+and the value: a cell wider than 1 m cannot tell a house's rooms apart, and a robot's map is
+usually 0.05 m a cell (one of 50 or 5 is 0.05 written in millimetres or centimetres)."""
+
+
 class MapFormatError(ValueError):
     """A map yaml or image is malformed; the message names the file (and the key and value)."""
 
@@ -215,6 +221,16 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
     resolution = doc["resolution"]
     if not _is_number(resolution) or not (math.isfinite(resolution) and resolution > 0):
         raise bad("resolution", "a positive finite number")
+    low, high = PLAUSIBLE_RESOLUTION
+    if not low <= resolution <= high:
+        logger.warning(
+            "%s: key 'resolution' %s: cells of %s m%s (a robot's map is usually 0.05 m a cell): "
+            "is it written in %s?",
+            where("resolution"), echo(resolution), f"{resolution:g}",
+            f", wider than {high:g} m, cannot tell a house's rooms apart" if resolution > high
+            else f", narrower than {low:g} m, make a house a few centimetres across",
+            "millimetres or centimetres" if resolution > high else "kilometres",
+        )  # fmt: skip
 
     origin = doc["origin"]
     if (
@@ -375,9 +391,10 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
     otherwise UNKNOWN.
 
     Warns (logger ``spcopyro.maps.map_server``, naming the yaml's line): an unknown key that
-    looks like a misspelt map_server key (ignored, as map_server does), and cells of map_saver's
-    unknown grey 205 read as FREE (a ``free_thresh`` above 0.196, as Nav2's map_saver writes it,
-    or an alpha channel averaged in; in a 16-bit image, the levels whose high byte is 205).
+    looks like a misspelt map_server key (ignored, as map_server does), a ``resolution``
+    outside :data:`PLAUSIBLE_RESOLUTION`, and cells of map_saver's unknown grey 205 read as
+    FREE (a ``free_thresh`` above 0.196, as Nav2's map_saver writes it, or an alpha channel
+    averaged in; in a 16-bit image, the levels whose high byte is 205).
 
     Raises:
         MapFileNotFoundError: the yaml or its image does not exist.
