@@ -189,8 +189,29 @@ def test_a_house_without_ft_csv_says_how_to_make_it(tmp_path):
         load_house(room)
     (room / "St.csv").unlink()
     (room / "Ft.csv").write_text("0.5,0.5\n0.25,0.75\n")
-    with pytest.raises(FileNotFoundError, match=r"St\.csv: .* a house needs words as well as"):
+    with pytest.raises(FileNotFoundError, match=r"St\.csv: required file not found \(the words "
+                       r"heard, .*; StXtx\.csv, StXty\.csv, word_0\.csv, word_1\.csv are here "
+                       "without it"):  # fmt: skip
         load_house(room)
+
+
+def test_a_house_of_images_only_is_refused_naming_its_folder(tmp_path, capsys):
+    """A house of images only (no word files at all) was refused as 'St.csv: required file not
+    found (... a house needs words as well as images)', though a house of words only fits; the
+    words name the places (where, export), so it is still refused, naming the folder and why."""
+    from spcopyro.cli.main import main
+
+    room = _saved_house(tmp_path)
+    for name in ("St.csv", "StXtx.csv", "StXty.csv", "word_0.csv", "word_1.csv"):
+        (room / name).unlink()
+    with pytest.raises(FileNotFoundError) as error:
+        load_house(room)
+    assert str(error.value).startswith(
+        f"{room}: a house of images only (no St.csv, StXtx.csv, StXty.csv or word_K.csv): "
+        "spcopyro cannot fit it, since the words heard name its places"
+    )
+    assert main(["fit", str(room), "--out", str(tmp_path / "fit"), "--sweeps", "2"]) != 0
+    assert f"{room}: a house of images only" in capsys.readouterr().err
 
 
 def test_a_house_of_words_only_loads_saves_and_fits(tmp_path, caplog, capsys):

@@ -308,8 +308,9 @@ def cell_counts(
         vocab = obs.vocabulary
         if not vocab:
             raise ValueError(
-                "cell_counts: the observations hold no words (empty vocabulary); pass "
-                "vocabulary=() to build counts without words"
+                "cell_counts: the observations hold no words (empty vocabulary): a house of "
+                "images only cannot be fitted (the words name its places); pass vocabulary=() "
+                "to build counts without words"
             )
     else:
         vocab = tuple(vocabulary)

@@ -209,10 +209,20 @@ def _check_both_modalities(room: Path, files: dict[str, Path]) -> bool:
             f"{files['Ft']}: required file not found (the image features; {how})"
         )
     if not files["St"].is_file():
+        word_files = [files[k].name for k in ("StXtx", "StXty") if files[k].is_file()]
+        word_files += sorted(p.name for p in room.glob("word_*.csv"))
+        if not word_files:  # a house of images only: none of the words' files
+            raise FileNotFoundError(
+                f"{room}: a house of images only (no St.csv, StXtx.csv, StXty.csv or "
+                "word_K.csv): spcopyro cannot fit it, since the words heard name its places "
+                "(where, navigate and export answer words; a house of words only does fit): "
+                "add St.csv, one line of the comma-separated utterances heard, and their "
+                "positions in StXtx.csv and StXty.csv"
+            )
         raise FileNotFoundError(
             f"{files['St']}: required file not found (the words heard, one line of "
-            "comma-separated utterances, their positions in StXtx.csv and StXty.csv: a house "
-            "needs words as well as images)"
+            f"comma-separated utterances; {', '.join(word_files)} "
+            f"{'is' if len(word_files) == 1 else 'are'} here without it)"
         )
     return True
 
