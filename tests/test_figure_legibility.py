@@ -264,8 +264,10 @@ def test_the_summary_lines_of_concepts_go_larger_first(capsys):
         config=SpCoConfig(num_concepts=num, prior="dirichlet"),
         labels=np.repeat(np.arange(num), sizes),  # [N]
         pi=np.full(num, 1 / num),
-        emissions=(EmissionTable("images", ("0", "1"), np.full((num, 2), 0.5)),
-                   EmissionTable("words", ("a", "b"), np.full((num, 2), 0.5))),  # fmt: skip
+        emissions=(
+            EmissionTable("images", ("0", "1"), np.full((num, 2), 0.5)),
+            EmissionTable("words", ("a", "b"), np.full((num, 2), 0.5)),
+        ),  # fmt: skip
         trace=Trace(objective=np.zeros(1), num_concepts=np.array([num]), seconds=np.zeros(1)),
         best_iteration=0,
         concept_totals=totals,
@@ -277,3 +279,23 @@ def test_the_summary_lines_of_concepts_go_larger_first(capsys):
     lines = capsys.readouterr().out.splitlines()
     assert lines[-3].startswith("  + 4 specks of 14-18 cells where no word was heard"), lines
     assert lines[-2] == "  ... 103 smaller concepts of 5 cells in concepts.json", lines
+
+
+def test_the_where_figure_tells_free_space_from_unknown():
+    """where.png drew free space in grey 225 beside the unknown grey 205: 7 delta-E apart,
+    the two read as one. Free space is white there as in house.png and navigate.png."""
+    from hand_results import two_rooms
+    from matplotlib.patches import Patch
+
+    from spcopyro.figures.plotting import where_figure, where_image
+    from spcopyro.maps import RGB_UNKNOWN
+
+    result = two_rooms()
+    answer = result.where("kitchen")
+    free = where_image(result, answer)[result.label_image() == 1][0]  # [3] a free cell's colour
+    assert delta_e94(free, RGB_UNKNOWN) > 15.0, free  # the palette keeps concepts 15 away
+    legend = where_figure(result, answer).axes[0].get_legend()
+    patches = {t.get_text(): h for t, h in zip(legend.get_texts(), legend.legend_handles,
+                                               strict=True) if isinstance(h, Patch)}  # fmt: skip
+    assert delta_e94(np.array(patches["free space"].get_facecolor()[:3]) * 255,
+                     np.array(patches["unknown"].get_facecolor()[:3]) * 255) > 15.0  # fmt: skip

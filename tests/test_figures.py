@@ -10,7 +10,7 @@ from hand_results import two_rooms
 
 from spcopyro.figures.plotting import (
     ANSWER_RGB,
-    GREY_FREE_RGB,
+    FREE_RGB,
     RUNNER_UP_RGB,
     plot_semantic_map,
     plot_where,
@@ -129,7 +129,7 @@ def test_semantic_colours_and_the_where_picture():
     others = rgb[image == 1]
     assert not (others == ANSWER_RGB).all(axis=1).any()
     assert not (others == RUNNER_UP_RGB).all(axis=1).any()
-    assert (others == GREY_FREE_RGB).all()  # the rest of the map in grey
+    assert (others == FREE_RGB).all()  # the rest of the map white
     assert (rgb[:, 15] == RGB_OCCUPIED).all()
 
 

@@ -19,7 +19,7 @@ from spcopyro.data import Observations
 from spcopyro.figures.map_pieces import region_text, utterance_concepts
 from spcopyro.figures.plotting import (
     ANSWER_RGB,
-    GREY_FREE_RGB,
+    FREE_RGB,
     RUNNER_UP_RGB,
     semantic_map_figure,
     where_figure,
@@ -241,7 +241,7 @@ def test_where_figure_draws_the_answer_over_the_grey_map():
     assert (rgb[answer.region] == ANSWER_RGB).all()
     assert (rgb[image == answer.runner_up] == RUNNER_UP_RGB).all()
     others = ~answer.region & (image >= 0) & (image != answer.runner_up)
-    assert (rgb[others] == GREY_FREE_RGB).all()
+    assert (rgb[others] == FREE_RGB).all()
     assert not where_figure(result, answer).axes[0].collections  # no outline needed
     # with marginals: the per-cell probability as a colour scale and the regions outlined
     marginals = np.eye(3)[result.labels] * 0.8 + 0.2 / 3  # [N, L]

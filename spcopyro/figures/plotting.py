@@ -66,7 +66,8 @@ PAD_INCHES = 0.1  # around the artists (matplotlib's savefig.pad_inches)
 MAX_WORD_COLOURS = 12  # words beyond the most frequent ones are drawn as "other"
 ANSWER_RGB = (214, 0, 0)  # the answer's region in plot_where
 RUNNER_UP_RGB = (0, 70, 200)  # the runner-up's region in plot_where
-GREY_FREE_RGB = (225, 225, 225)  # plot_where draws the free cells of the map in this grey
+FREE_RGB = RGB_BACKGROUND  # plot_where's free cells: white, as in house.png and navigate.png
+# (a light grey (225) was 7 delta-E from the unknown grey (205): the two read as one)
 
 
 def known_bounds(grid: OccupancyGrid, margin: int = 3) -> tuple[slice, slice]:
@@ -294,12 +295,12 @@ def semantic_map_figure(
 
 
 def where_image(result: SpCoResult, answer: WhereAnswer) -> np.ndarray:
-    """[H, W, 3] uint8 the map in grey (free cells ``GREY_FREE_RGB``, walls black, unknown
+    """[H, W, 3] uint8 the map (free cells ``FREE_RGB``, white; walls black, unknown
     grey), the answer's region in ``ANSWER_RGB`` and the runner-up's in ``RUNNER_UP_RGB``: what
     :func:`plot_where` draws for a result without marginals."""
     image = result.label_image()  # [H, W]
-    grey = np.tile(np.array(GREY_FREE_RGB, dtype=np.uint8), (result.config.num_concepts, 1))
-    rgb = render_labels(image, result.grid, grey)  # [H, W, 3]
+    free = np.tile(np.array(FREE_RGB, dtype=np.uint8), (result.config.num_concepts, 1))
+    rgb = render_labels(image, result.grid, free)  # [H, W, 3]
     if answer.runner_up is not None:
         rgb[image == answer.runner_up] = RUNNER_UP_RGB
     rgb[answer.region] = ANSWER_RGB
@@ -315,14 +316,14 @@ BELOW_INCHES = (0.55, 1.0)  # where_figure: the legend below the map, then the w
 
 
 def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
-    """The answer to "where is WORD?" over the map drawn in grey: with per-cell marginals, each
-    cell's probability of lying in the word's place
-    (:func:`~spcopyro.results.uncertainty.where_probability`) as a colour scale, the answer's region
-    outlined in red and the runner-up's in dashed blue; without them (a point estimate), the
-    answer's region filled red and the runner-up's blue (:func:`where_image`). A title with the
-    word, the concept, p, the prior and the concept's words, a legend, and the answer's
-    warnings under the map. A region smaller than ``SMALL_REGION_FRACTION`` of the free cells
-    is ringed, so a speck can be seen."""
+    """The answer to "where is WORD?" over the map (free white, walls black, unknown grey, as
+    the other map figures): with per-cell marginals, each cell's probability of lying in the
+    word's place (:func:`~spcopyro.results.uncertainty.where_probability`) as a colour scale,
+    the answer's region outlined in red and the runner-up's in dashed blue; without them (a
+    point estimate), the answer's region filled red and the runner-up's blue
+    (:func:`where_image`). A title with the word, the concept, p, the prior and the concept's
+    words, a legend, and the answer's warnings under the map. A region smaller than
+    ``SMALL_REGION_FRACTION`` of the free cells is ringed, so a speck can be seen."""
     grid = result.grid
     fig = Figure(figsize=(11, 9))
     ax = fig.subplots()
@@ -336,12 +337,12 @@ def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
         answer_handle: Patch | Line2D = Patch(color=np.array(ANSWER_RGB) / 255.0, label="")
         runner_handle: Patch | Line2D = Patch(color=np.array(RUNNER_UP_RGB) / 255.0, label="")
     else:
-        grey = np.tile(np.array(GREY_FREE_RGB, dtype=np.uint8), (result.config.num_concepts, 1))
-        rows, cols = _show_image(ax, grid, render_labels(image, grid, grey))
+        free = np.tile(np.array(FREE_RGB, dtype=np.uint8), (result.config.num_concepts, 1))
+        rows, cols = _show_image(ax, grid, render_labels(image, grid, free))
         extent = _extent(grid, rows, cols)
         probability = free_cells_image(result, where_probability(result, answer.word,
                                                                  answer.prior))  # fmt: skip
-        shown = np.ma.masked_less(probability[rows, cols], 0.01)  # [h, w]: grey below 1%
+        shown = np.ma.masked_less(probability[rows, cols], 0.01)  # [h, w]: free white below 1%
         scale = ax.imshow(shown, extent=extent, cmap="Reds", vmin=0.0, vmax=1.0,
                           interpolation="nearest", alpha=0.9)  # fmt: skip
         fig.colorbar(scale, cax=ax.inset_axes((1.02, 0.0, 0.025, 1.0)),  # as tall as the map
@@ -371,7 +372,7 @@ def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
         )
         handles.append(runner_handle)
     handles += [
-        Patch(color=np.array(GREY_FREE_RGB) / 255.0, label="free space"),
+        Patch(facecolor=np.array(FREE_RGB) / 255.0, edgecolor="0.5", lw=0.5, label="free space"),
         Patch(color=np.array(RGB_OCCUPIED) / 255.0, label="walls"),
         Patch(color=np.array(RGB_UNKNOWN) / 255.0, label="unknown"),
     ]
