@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -15,7 +16,8 @@ pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip inst
 from spcopyro.cli.main import main  # noqa: E402
 from spcopyro.maps.grid import FREE, OccupancyGrid  # noqa: E402
 from spcopyro.maps.map_server import save_map  # noqa: E402
-from spcopyro.robot.rosbag import BagWriter  # noqa: E402
+from spcopyro.robot.rosbag import BagWriter, import_bags  # noqa: E402
+from spcopyro.robot.rosbag.images import to_8_bits  # noqa: E402
 
 T0 = 1_600_000_000.0
 
@@ -63,3 +65,44 @@ def test_bad_inputs_are_named_before_out(
     assert expected in err, err
     assert "already exists" not in err, err
     assert (tmp_path / "data" / "house" / "notes.txt").read_text() == "mine\n"
+
+
+def _raw_image(w: BagWriter, t: float, pixels: np.ndarray, encoding: str) -> None:
+    """A sensor_msgs/Image of ``pixels`` [H, W(, C)] as they are (little-endian)."""
+    h, width = pixels.shape[:2]
+    data = np.ascontiguousarray(pixels).view(np.uint8).reshape(-1)
+    msg = w.types["sensor_msgs/msg/Image"](
+        header=w.header(t, "cam"), height=h, width=width, encoding=encoding, is_bigendian=0,
+        step=data.size // h, data=data)  # fmt: skip
+    w.write("/camera/image", "sensor_msgs/msg/Image", msg, log_time=t)
+
+
+def test_16_bit_images_use_the_range_their_values_span(tmp_path, map_yaml):
+    """A 12-bit camera's mono16 (0..4095) came out 0..15, nearly black: rosbags-image's bgr8
+    keeps the high byte, and the rescale after it never ran. A 16-bit image is now scaled from
+    the smallest of 8, 10, 12, 14, 16 bits that holds its values."""
+    grey12 = np.linspace(0, 4095, 48).round().astype(np.uint16).reshape(6, 8)  # [6, 8]
+    rgb16 = np.random.default_rng(0).integers(0, 65536, (6, 8, 3)).astype(np.uint16)
+    rgb16[0, 0] = 65535
+    bag = tmp_path / "rec"
+    with BagWriter(bag, ros=2) as w:
+        for t in T0 + np.arange(4.0):
+            w.pose("/amcl_pose", t, 0.0, 0.0, 0.0)
+        _raw_image(w, T0 + 1.0, grey12, "mono16")
+        _raw_image(w, T0 + 2.0, rgb16, "rgb16")
+        w.text("/speech", T0 + 1.0, "hall")
+    out = tmp_path / "data" / "house"
+    import_bags([bag], map_yaml, out, progress=False)
+    first, second = (cv2.imread(str(p)) for p in sorted((out / "img_0").iterdir()))
+    expected = np.rint(grey12 * (255 / 4095)).astype(np.uint8)
+    assert np.array_equal(first, np.repeat(expected[..., None], 3, axis=2))
+    assert first.max() == 255
+    expected = np.rint(rgb16[..., ::-1] * (255 / 65535)).astype(np.uint8)
+    assert np.array_equal(second, expected)
+
+
+def test_to_8_bits_picks_the_smallest_sensor_depth():
+    assert to_8_bits(np.array([[0, 200, 255]], np.uint16)).tolist() == [[0, 200, 255]]
+    assert to_8_bits(np.array([[0, 256, 1023]], np.uint16)).tolist() == [[0, 64, 255]]
+    assert to_8_bits(np.array([[4096, 16383]], np.uint16)).tolist() == [[64, 255]]
+    assert to_8_bits(np.zeros((2, 2), np.uint16)).tolist() == [[0, 0], [0, 0]]

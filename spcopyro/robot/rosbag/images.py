@@ -4,9 +4,10 @@ A ``CompressedImage`` holding a JPEG or PNG is stored as it is (its own bytes, `
 ``.png``: no second lossy compression), after checking that OpenCV decodes it. Any other image
 (a raw ``sensor_msgs/Image`` in any encoding rosbags-image converts -- rgb8, bgr8, mono8, mono16,
 bayer_*, ... -- rows padded to ``step`` bytes included, or another compressed format) is
-decoded to 8-bit BGR and stored as a lossless PNG. An image that cannot be decoded raises
-:class:`ImageDecodeError` with the reason; the import reports it (with its timestamp) in
-skipped.csv rather than stopping.
+decoded to 8-bit BGR and stored as a lossless PNG; a 16-bit one is scaled from the bit depth
+its values use (:func:`to_8_bits`: a 12-bit camera's 0..4095 to 0..255). An image that
+cannot be decoded raises :class:`ImageDecodeError` with the reason; the import reports it (with
+its timestamp) in skipped.csv rather than stopping.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import numpy as np
 
 from spcopyro.robot.rosbag.bag import INSTALL_HINT, RosbagsMissingError
 
-__all__ = ["ImageDecodeError", "decode_image", "encoded_image"]
+__all__ = ["SENSOR_BITS", "ImageDecodeError", "decode_image", "encoded_image", "to_8_bits"]
 
 _JPEG_MAGIC = b"\xff\xd8\xff"
 _PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -60,15 +61,25 @@ def decode_image(msg: Any) -> np.ndarray:
             rows = np.frombuffer(bytes(msg.data), np.uint8)[:expected]  # [H * step]
             data = rows.reshape(int(msg.height), int(msg.step))[:, :row_bytes].reshape(-1)
             msg = dataclasses.replace(msg, data=data, step=row_bytes)
+        if typestr == "uint16":  # rosbags-image's bgr8 keeps the high byte: 12 bits -> 0..15
+            return to_8_bits(np.asarray(message_to_cvimage(msg, "bgr16")))
         image = message_to_cvimage(msg, "bgr8")
     except Exception as error:  # noqa: BLE001 - rosbags-image raises several kinds
         raise ImageDecodeError(f"image encoding {msg.encoding!r}: {error}") from None
-    image = np.ascontiguousarray(image)
-    if image.dtype != np.uint8:  # 16-bit or float encodings: scale to 8 bits
-        image = cv2.normalize(image, None, 0, 255, cv2.NORM_MINMAX).astype(np.uint8)
-    if image.ndim == 2:
-        image = cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
-    return image
+    return np.ascontiguousarray(image)
+
+
+SENSOR_BITS = (8, 10, 12, 14, 16)
+"""The bit depths a 16-bit image's values are taken to span (:func:`to_8_bits`)."""
+
+
+def to_8_bits(image: np.ndarray) -> np.ndarray:
+    """A uint16 image as uint8: its values scaled from the smallest bit depth of
+    :data:`SENSOR_BITS` that holds its largest value (a 12-bit camera's 0..4095 to 0..255; a
+    camera's bit depth is not in the message, and the image's range is what the sensor used)."""
+    bits = next(b for b in SENSOR_BITS if int(image.max(initial=0)) < 1 << b)
+    scaled = np.rint(image.astype(np.float64) * (255.0 / ((1 << bits) - 1)))
+    return np.ascontiguousarray(scaled.astype(np.uint8))
 
 
 def encoded_image(msg: Any) -> tuple[bytes, str]:
