@@ -241,6 +241,9 @@ def test_a_house_of_words_only_loads_saves_and_fits(tmp_path, caplog, capsys):
     assert main(["fit", str(data), "--out", str(out), "--sweeps", "30", "--no-figures"]) == 0
     printed = capsys.readouterr().out
     assert "images           none (a house of words only) in 3 trials" in printed
+    (model,) = [line for line in printed.splitlines() if line.startswith("model ")]
+    assert model.endswith("use_images=True, use_words=True, concentrations=()) (use_images: no "
+                          "images here)")  # fmt: skip
     assert (out / "labels.npy").is_file()
 
 

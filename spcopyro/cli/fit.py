@@ -311,7 +311,8 @@ def _fit_staged(job: FitJob) -> int:
     # fit's own counts say what is left out (once), under the run's feature scaling.
     print(_summary(house, warn=False, feature_scaling=settings.data.feature_scaling,
                    preparation=settings.data))  # fmt: skip
-    print(f"model            {config}")
+    unused = config.use_images and not house.observations.num_images  # a house of words only
+    print(f"model            {config}" + (" (use_images: no images here)" if unused else ""))
     print(f"data             {settings.data}")
     default = INFERENCE_METHODS[args.method].default_options()
     print(f"inference        {args.method}: {options if options is not None else default}")
