@@ -86,12 +86,12 @@ def _plan_and_print(
     if plan.instruction.ignored:
         print(f"warning: ignored (not in the fit's vocabulary, nothing close): "
               f"{', '.join(plan.instruction.ignored)}", file=sys.stderr)  # fmt: skip
-    order = " -> ".join(f"{s.word}{' (via)' if s.via else ''}" for s in plan.stops)
+    order = " -> ".join(f"{s.shown}{' (via)' if s.via else ''}" for s in plan.stops)
     print(f"instruction {plan.instruction.text!r}: {order}")
     for stop in plan.stops:
         choice = stop.choice
         print(
-            f"{stop.word}: goal x={stop.xy[0]:.2f} y={stop.xy[1]:.2f} yaw={stop.yaw:.2f} "
+            f"{stop.shown}: goal x={stop.xy[0]:.2f} y={stop.xy[1]:.2f} yaw={stop.yaw:.2f} "
             f"(p = {choice.candidate.probability:.3f}, {choice.candidate.area:.1f} m^2 of the "
             "place the robot fits in)"
         )

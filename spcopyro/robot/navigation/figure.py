@@ -58,7 +58,7 @@ def plan_figure(plan: NavigationPlan) -> Figure:
     extent = _extent(grid, rows, cols)
     shown = ax.imshow(image[rows, cols], extent=extent, origin="upper", cmap=PROBABILITY_CMAP,
                       vmin=0.0, vmax=1.0, interpolation="nearest")  # fmt: skip
-    fig.colorbar(shown, ax=ax, label=f"p(cell in the place of '{goal.word}')", shrink=0.8)
+    fig.colorbar(shown, ax=ax, label=f"p(cell in the place of '{goal.shown}')", shrink=0.8)
     kept = [leg.corridor for leg in plan.legs if leg.corridor is not None]
     if kept:  # the cells a hierarchical plan was kept to: its routes' places, outlined
         cells = plan.planning.cells(np.flatnonzero(np.logical_or.reduce(kept)))
@@ -70,8 +70,8 @@ def plan_figure(plan: NavigationPlan) -> Figure:
     ax.plot(*plan.start, marker="o", color="C2", ms=9, ls="", label="start")
     for stop in plan.stops[:-1]:
         ax.plot(*stop.xy, marker="s", color="C1", ms=8, ls="")
-        ax.annotate(stop.word, stop.xy, xytext=(5, 5), textcoords="offset points", fontsize=9)
-    ax.plot(*goal.xy, marker="*", color="C3", ms=16, ls="", label=f"goal: {goal.word}")
+        ax.annotate(stop.shown, stop.xy, xytext=(5, 5), textcoords="offset points", fontsize=9)
+    ax.plot(*goal.xy, marker="*", color="C3", ms=16, ls="", label=f"goal: {goal.shown}")
     length = 0.3 * max(1.0, plan.radius * 4)
     ax.arrow(goal.xy[0], goal.xy[1], length * np.cos(goal.yaw), length * np.sin(goal.yaw),
              width=0.02, color="C3")  # fmt: skip

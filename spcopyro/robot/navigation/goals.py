@@ -14,6 +14,10 @@ which is an error: the robot would skip that stop. An instruction with a word of
 :data:`NEGATION_WORDS` ("not the kitchen", "avoid the kitchen") or of :data:`LEAVE_WORDS`
 ("leave the kitchen", "stay away from the kitchen", "get out of the kitchen") is refused: the
 robot only visits places, so it would have driven to the one it was told to keep away from.
+A "no" between two words with only spaces around it, after a known place word, is the particle
+of a romanised Japanese instruction ("daidokoro no mae"), skipped (``_particles``). Places
+keep the instruction's spelling for what is shown (:attr:`Instruction.said`: "TV", the fit's
+"tv").
 
 The places are visited in the order the instruction gives them, except that a place after
 "via", "through" or "past" is visited *before* the destination said just before it: "go to the
@@ -139,24 +143,53 @@ class Instruction:
     via: tuple[bool, ...]
     """Per place: said after "via" (a waypoint)."""
     ignored: tuple[str, ...] = ()
-    """Words neither known nor close to a known word."""
+    """Words neither known nor close to a known word (as the instruction spells them)."""
+    said: tuple[str, ...] = ()
+    """Per place: the word as the instruction spells it ("TV" for the fit's "tv"); empty:
+    :attr:`places` (an Instruction built by hand)."""
+
+    def spelling(self, index: int) -> str:
+        """Place ``index`` as the instruction spells it."""
+        return self.said[index] if len(self.said) == len(self.places) else self.places[index]
 
 
 _APOSTROPHES = str.maketrans({"\u2019": "'", "\u2018": "'", "\u02bc": "'", "\uff07": "'"})
 
 
-def _tokens(text: str) -> list[str]:
-    """The words of ``text``: runs of letters, marks and digits of any script, ``_``, ``'`` and
-    ``-``, lower-cased (a non-ASCII letter split ``café`` into ``caf``, and ``台所`` vanished)."""
-    words, word = [], []
+def _words(text: str) -> list[tuple[str, str]]:
+    """The words of ``text`` as typed (NFC-composed), each with the text between it and the
+    word before it: runs of letters, marks and digits of any script, ``_``, ``'`` and ``-`` (a
+    non-ASCII letter split ``café`` into ``caf``, and ``台所`` vanished)."""
+    words, word, gap = [], [], []
     text = text.translate(_APOSTROPHES)  # "don’t", as phones and word processors type it
-    for char in unicodedata.normalize("NFC", text).lower() + " ":
+    for char in unicodedata.normalize("NFC", text) + " ":
         if char in "_'-" or unicodedata.category(char)[0] in "LMN":
             word.append(char)
         elif word:
-            words.append("".join(word))
-            word = []
+            words.append(("".join(word), "".join(gap)))
+            word, gap = [], [char]
+        else:
+            gap.append(char)
     return words
+
+
+def _tokens(text: str) -> list[str]:
+    """The words of ``text`` (:func:`_words`), lower-cased."""
+    return [word.lower() for word, _ in _words(text)]
+
+
+def _particles(tokens: list[str], gaps: list[str], places: list[bool]) -> set[int]:
+    """The positions of "no" as the Japanese particle of a romanised instruction ("daidokoro no
+    mae", in front of the kitchen), not a negation: it stands between two words with only
+    spaces around it, after a place word the fit knows (``places``) or after the word a
+    particle led to ("rouka no saki no daidokoro"). "the kitchen, no, the bedroom", "no
+    kitchen" and "with no kitchen" are negations."""
+    found: set[int] = set()
+    for k in range(1, len(tokens) - 1):
+        if (tokens[k] == "no" and (places[k - 1] or k - 2 in found)
+                and gaps[k].isspace() and gaps[k + 1].isspace()):  # fmt: skip
+            found.add(k)
+    return found
 
 
 def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
@@ -169,9 +202,15 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
     via: list[bool] = []
     ignored: list[str] = []
     mode, destination = "to", None  # destination: index of the last destination in places
-    tokens = _tokens(text)
-    negation = next((token for token in tokens
-                     if token in NEGATION_WORDS or token.endswith("n't")
+    words = _words(text)
+    tokens = [word.lower() for word, _ in words]
+    gaps = [gap for _, gap in words]
+    keys = [word_key(vocabulary, token).lower() for token in tokens]
+    is_place = [key in known and token not in STOP_WORDS | NEGATION_WORDS | LEAVE_WORDS
+                for token, key in zip(tokens, keys, strict=True)]  # fmt: skip
+    particles = _particles(tokens, gaps, is_place)
+    negation = next((token for k, token in enumerate(tokens)
+                     if (token in NEGATION_WORDS and k not in particles) or token.endswith("n't")
                      or (token in LEAVE_WORDS and token not in known)), None)  # fmt: skip
     negation = negation or next((f"{a} {b}" for a, b in zip(tokens, tokens[1:], strict=False)
                                  if (a, b) in _LEAVE_PAIRS), None)  # fmt: skip
@@ -183,10 +222,13 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
             "export --nav2 DIR --word WORD --mode keepout)"
         )
     last_place = -2  # the token index of the last place word
+    spelled: list[str] = []  # the instruction's spelling of each place ("TV", not "tv")
     for k, token in enumerate(tokens):
-        key = word_key(vocabulary, token).lower()
+        key = keys[k]
         token = key if key in known else token
         following = tokens[k + 1] if k + 1 < len(tokens) else ""
+        if k in particles:  # "daidokoro no mae": the place's particle, neither place nor "no"
+            continue
         if token in VIA_WORDS:
             mode = "via"
             continue
@@ -215,16 +257,18 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
                     f"word {token!r} of the instruction is not in the fit's vocabulary of "
                     f"{len(vocabulary)} words; did you mean {', '.join(close)}?"
                 )
-            ignored.append(token)
+            ignored.append(words[k][0])
             continue
         last_place = k
         if mode in ("via", "earlier") and destination is not None:
             places.insert(destination, token)
             via.insert(destination, mode == "via")
+            spelled.insert(destination, words[k][0])
             destination += 1
         else:
             places.append(token)
             via.append(mode == "via")
+            spelled.append(words[k][0])
             if mode == "to":
                 destination = len(places) - 1
     skipped = _unknown_stop(tokens, known, vocabulary) if places else None
@@ -245,14 +289,14 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
         raise ValueError(
             f"the instruction {text!r} names no place the fit knows{extra}; known words: {shown}"
         )
-    stops: list[tuple[str, bool]] = []  # "kitchen kitchen" made two identical stops
-    for place, waypoint in zip(places, via, strict=True):
+    stops: list[tuple[str, bool, str]] = []  # "kitchen kitchen" made two identical stops
+    for place, waypoint, said in zip(places, via, spelled, strict=True):
         if stops and stops[-1][0] == place:  # the same place again: one stop, a destination
-            stops[-1] = (place, stops[-1][1] and waypoint)  # if either names it one
-        else:
-            stops.append((place, waypoint))
-    return Instruction(text, tuple(p for p, _ in stops), tuple(v for _, v in stops),
-                       tuple(ignored))  # fmt: skip
+            stops[-1] = (place, stops[-1][1] and waypoint, stops[-1][2])  # if either names it
+        else:  # one; said as it was said first
+            stops.append((place, waypoint, said))
+    return Instruction(text, tuple(p for p, _, _ in stops), tuple(v for _, v, _ in stops),
+                       tuple(ignored), tuple(s for _, _, s in stops))  # fmt: skip
 
 
 _PLACE_ARTICLES = frozenset({"the", "a", "an", "my", "our", "your"})

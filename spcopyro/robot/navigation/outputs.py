@@ -121,6 +121,7 @@ def summary(plan: NavigationPlan, frame: str, source: str | None) -> dict[str, o
     for stop in plan.stops:
         stops.append({
             "word": stop.word,
+            "said": stop.shown,  # as the instruction spells it ("TV")
             "via": stop.via,
             "x": stop.xy[0],
             "y": stop.xy[1],

@@ -74,6 +74,13 @@ class Stop:
     """Index of its pose in the path."""
     probability: np.ndarray
     """[N] p(cell in the word's place) over the planning map's free cells."""
+    said: str = ""
+    """The word as the instruction spells it ("TV" for the fit's "tv"); empty: :attr:`word`."""
+
+    @property
+    def shown(self) -> str:
+        """The word as printed and drawn: as the instruction spells it."""
+        return self.said or self.word
 
 
 @dataclass(frozen=True)
@@ -151,8 +158,8 @@ class NavigationPlan:
             if ahead:
                 position = ahead[0]
                 words = said.setdefault(position, [])
-                if stop.word not in words:
-                    words.append(stop.word)
+                if stop.shown not in words:
+                    words.append(stop.shown)
         return tuple("/".join(said[k]) if k in said else self.places.places[i].name
                      for k, i in enumerate(self.route))  # fmt: skip
 
@@ -266,26 +273,28 @@ def navigate(
     current = start_node(planning, start)
     legs: list[Leg] = []
     stops_info = []
-    for word, via in zip(parsed.places, parsed.via, strict=True):
+    for k, (word, via) in enumerate(zip(parsed.places, parsed.via, strict=True)):
         probability = where_probability(result, word, prior)  # [N] on the fit's cells
         if carry is not None:
             probability = probability[carry]  # [N] on the planning map's cells
         distance, predecessors = shortest_paths(planning, current)
-        choice = choose_goal(planning, word, probability, distance, strict=strict)
+        said = parsed.spelling(k)
+        choice = choose_goal(planning, said, probability, distance, strict=strict)
         choice = _with_where_warnings(choice, result, word, prior, strict)
         legs.append(plan_leg(planning, places, node_place, current, choice.node, distance,
                              predecessors, planner=planner, margin=margin))  # fmt: skip
-        stops_info.append((word, via, choice, probability, sum(len(g.nodes) - 1 for g in legs)))
+        stops_info.append((word, via, choice, probability, sum(len(g.nodes) - 1 for g in legs),
+                           said))  # fmt: skip
         current = choice.node
     nodes = np.concatenate([legs[0].nodes[:1]] + [leg.nodes[1:] for leg in legs])  # [K]
     xy = planning.grid.cell_to_world(planning.cells(nodes))  # [K, 2]
     yaw = _yaws(xy)
     steps = np.hypot(*np.diff(xy, axis=0).T) if len(xy) > 1 else np.zeros(0)
     stops = []
-    for word, via, choice, probability, index in stops_info:
+    for word, via, choice, probability, index, said in stops_info:
         arrive = float(yaw[index - 1]) if index > 0 else float(yaw[index])
         stops.append(Stop(word, via, choice, (float(xy[index, 0]), float(xy[index, 1])), arrive,
-                          index, probability))  # fmt: skip
+                          index, probability, said))  # fmt: skip
     route, route_from, stop_places = _route(result, places, legs, planning)
     return NavigationPlan(
         instruction=parsed,
