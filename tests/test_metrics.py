@@ -286,7 +286,23 @@ def test_heldout_localisation_by_hand():
     assert scores.median_distance == pytest.approx(0.5)
     assert scores.inside_rate == pytest.approx(1 / 3)
     assert (scores.unknown_tokens, scores.unknown_words) == (1, ("w",))
-    assert LocalisationScores.pooled([scores, scores]).num_scored == 6
+    # x's and y's regions are one of the four cells each, z's none
+    np.testing.assert_allclose(scores.region_shares, [0.25, 0.25, 0.0])
+    assert scores.mean_region_share == pytest.approx(1 / 6)
+    pooled = LocalisationScores.pooled([scores, scores])
+    assert pooled.num_scored == 6
+    np.testing.assert_allclose(pooled.region_shares, [0.25, 0.25, 0.0] * 2)
+
+
+def test_heldout_localisation_whole_map_region_is_read_by_its_share():
+    """A map of one region names all of it: 0 m from everywhere, read against share 1."""
+    grid = free_grid(2, 3, resolution=0.5)
+    model = TabularSemanticMap(grid, ("a", "b"), np.zeros((2, 3), dtype=int), np.eye(2))
+    scores = heldout_localisation(
+        model, observations([("a",), ("a",)], [(0.25, 0.25), (1.25, 0.75)])
+    )
+    assert scores.mean_distance == 0.0
+    assert scores.mean_region_share == pytest.approx(1.0)
 
 
 def test_heldout_localisation_diagonal_distance():

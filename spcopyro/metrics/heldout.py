@@ -218,10 +218,24 @@ class LocalisationScores:
     unknown_tokens: int
     unknown_words: tuple[str, ...]
     unplaced_utterances: int
+    # [n] float64: share of the free cells in the region each entry's word names (0 when empty);
+    # a distance is read against it, since a region of the whole map is 0 m from everywhere
+    region_shares: np.ndarray | None = None
 
     @property
     def num_scored(self) -> int:
         return int(self.distances.size)
+
+    @property
+    def mean_region_share(self) -> float:
+        """Mean share of the free cells in the named regions (nan when not recorded or none).
+
+        A small :attr:`mean_distance` says something only when this is small: a map of one
+        region names the whole map for every word, and every distance is 0 m.
+        """
+        if self.region_shares is None or not self.region_shares.size:
+            return float("nan")
+        return float(self.region_shares.mean())
 
     @property
     def empty_regions(self) -> int:
@@ -255,6 +269,11 @@ class LocalisationScores:
             unknown_tokens=sum(f.unknown_tokens for f in folds),
             unknown_words=tuple(sorted({w for f in folds for w in f.unknown_words})),
             unplaced_utterances=sum(f.unplaced_utterances for f in folds),
+            region_shares=(
+                None
+                if any(f.region_shares is None for f in folds)
+                else np.concatenate([f.region_shares for f in folds])  # type: ignore[misc]
+            ),
         )
 
 
@@ -270,6 +289,9 @@ def heldout_localisation(
     known tokens the distance is the Euclidean distance in metres from that cell's centre to the
     centre of the nearest cell of ``region(token)``: 0 when the cell lies in the region, inf
     when the region is empty. Unknown tokens and unplaced utterances are counted, not scored.
+    Each entry also records its region's share of the free cells (``region_shares``): a map of
+    one region answers every word with the whole map and scores 0 m everywhere, which is not a
+    good localisation (the geometry baseline on room1dk6 does that).
     """
     sem = as_semantic_map(model)
     _, cells, token, unknown_words, num_unknown, num_unplaced = _heldout_tokens(
@@ -278,12 +300,16 @@ def heldout_localisation(
     grid = sem.grid
     rows, cols = grid.free_cells[cells, 0], grid.free_cells[cells, 1]  # [n]
     distances = np.empty(token.size, dtype=np.float64)  # [n]
+    shares = np.zeros(token.size, dtype=np.float64)  # [n]
+    free = np.zeros(grid.shape, dtype=bool)  # [H, W]
+    free[grid.free_cells[:, 0], grid.free_cells[:, 1]] = True
     for v in np.unique(token):
         word = sem.vocabulary[int(v)]
         region = np.asarray(sem.region(word), dtype=bool)  # [H, W]
         if region.shape != grid.shape:
             raise ValueError(f"region of {word!r} has shape {region.shape}, grid {grid.shape}")
         at = token == v
+        shares[at] = (region & free).sum() / max(int(free.sum()), 1)
         if not region.any():
             distances[at] = np.inf
             continue
@@ -295,4 +321,5 @@ def heldout_localisation(
         unknown_tokens=num_unknown,
         unknown_words=unknown_words,
         unplaced_utterances=num_unplaced,
+        region_shares=shares,
     )

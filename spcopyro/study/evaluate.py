@@ -16,7 +16,9 @@ Scores (every one that applies; the others are left empty in the table, :data:`S
 * ``top1``, ``top3``, ``mean_rank``, ``distance_m``, ``inside_rate``: held-out word prediction
   and localisation when the source holds a trial out, with the words scored
   (``scored_words``), the held-out tokens the map has never heard (``unknown_tokens``) and the
-  words whose region is empty (``empty_regions``);
+  words whose region is empty (``empty_regions``) and the mean share of the free cells in the
+  regions the words name (``region_share``: a ``distance_m`` of 0 with a share of 1 is a map of
+  one region, not a good localisation);
 * ``concepts`` (in use), ``concepts_1pct`` (holding >= 1 % of the free cells),
   ``largest_share`` (the largest concept's share of the free cells), ``free_cells``;
 * ``top_words`` (JSON text: the top 3 words of the 3 largest concepts holding an utterance)
@@ -81,7 +83,7 @@ __all__ = ["SCORES", "STATUS_COLUMNS", "Arrays", "label_map_arrays", "run_cell"]
 
 SCORES = (
     "ari", "matching_rate", "matching_rate_area", "top1", "top3", "mean_rank", "distance_m",
-    "inside_rate", "scored_words", "unknown_tokens", "empty_regions", "concepts",
+    "inside_rate", "region_share", "scored_words", "unknown_tokens", "empty_regions", "concepts",
     "concepts_1pct", "largest_share", "free_cells", "held_out_trial", "place_top_share",
     "top_words", "ari_off", "ari_on_off", "concepts_1pct_off", "seconds", "cpu_seconds",
     "seconds_off", "cpu_seconds_off", "iterations", "best_objective", "filler_top_share",
@@ -167,6 +169,7 @@ def _fit_and_score(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays
                       distance_m=places.mean_distance, inside_rate=places.inside_rate,
                       scored_words=words.num_scored, unknown_tokens=words.unknown_tokens,
                       empty_regions=places.empty_regions,
+                      region_share=places.mean_region_share,
                       held_out_trial=loaded.held_out_trial)  # fmt: skip
     label_map = label_map_arrays(labels, house, loaded.truth)
     if result is None:
