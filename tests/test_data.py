@@ -524,7 +524,20 @@ def test_loader_image_folder_mismatch_warns(tmp_path, grid, caplog):
     with caplog.at_level(logging.WARNING, logger="spcopyro"):
         house = load_house(room)
     assert house.observations.image_paths is None
-    assert any("img_0" in r.getMessage() for r in caplog.records)
+    # the count is pose_0.csv's (it splits Ft.csv's rows into trials): it was 'trial 0 has 2
+    # rows in Ft.csv', of a file that holds 3 rows
+    (message,) = [r.getMessage() for r in caplog.records if "img_0" in r.getMessage()]
+    assert message.startswith(
+        f"{room / 'img_0'} holds 1 images but pose_0.csv holds 2 poses, one per image of trial 0"
+    )
+    for name in ("pose_0.csv", "pose_1.csv", "word_0.csv", "word_1.csv", "img_1/00001.jpg"):
+        (room / name).unlink()
+    (room / "img_1").rmdir()
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        load_house(room)  # without pose files, one trial: Ft.csv's rows are the count
+    (message,) = [r.getMessage() for r in caplog.records if "img_0" in r.getMessage()]
+    assert message.startswith(f"{room / 'img_0'} holds 1 images but Ft.csv holds 3 rows")
 
 
 # ------------------------------------------------------------------------------ round trip

@@ -365,6 +365,11 @@ def _image_paths(
                 return None
     if not folders:
         return None
+    poses = {
+        int(m.group(1)): entry.name
+        for entry in room.iterdir()
+        if (m := re.fullmatch(r"pose_([0-9]+)\.csv", entry.name)) and entry.is_file()
+    }  # the file that gives each trial's count of images (else Ft.csv's rows)
     paths: list[Path] = []
     for k, n in zip(trials, counts, strict=True):
         folder = folders.get(k)
@@ -375,12 +380,17 @@ def _image_paths(
             return None
         files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
         if len(files) != n:
+            counted = (
+                f"{poses[k]} holds {n} poses, one per image of trial {k}"
+                if k in poses
+                else f"Ft.csv holds {n} rows"
+            )
             logger.warning(
-                "%s holds %d images but trial %d has %d rows in Ft.csv; image_paths left None",
+                "%s holds %d images but %s: the images are not paired with Ft.csv's rows "
+                "(image_paths left None)",
                 folder,
                 len(files),
-                k,
-                n,
+                counted,
             )
             return None
         paths.extend(files)
