@@ -4,13 +4,17 @@ tests/test_navigate.py: A bedroom, B corridor, C kitchen, E bedroom, D closet)."
 from __future__ import annotations
 
 import json
+import math
 
+import numpy as np
 import pytest
 from hand_results import one_word_per_concept
 from test_navigate import START_A, house_grid, house_result
 
 from spcopyro.cli.main import main
-from spcopyro.robot.navigation import NavigationError, navigate, parse_instruction
+from spcopyro.robot.navigation import NavigationError, navigate, parse_instruction, planning_grid
+from spcopyro.robot.navigation.goals import choose_goal
+from spcopyro.robot.navigation.graph import shortest_paths
 
 ROMAJI = ("daidokoro", "rouka", "shinshitsu", "oshiire", "no")
 """A romanised Japanese vocabulary (kitchen, corridor, bedroom, closet), "no" heard in its
@@ -71,3 +75,23 @@ def test_the_words_are_shown_as_the_instruction_spells_them(tmp_path, capsys):
     ]
     # a place said twice keeps its first spelling, one stop
     assert parse_instruction("Kitchen kitchen", house_result().vocabulary).said == ("Kitchen",)
+
+
+def test_a_goal_in_a_patch_smaller_than_a_place_is_warned_of():
+    """QA: with no high-probability patch of 0.5 m^2 (a short fit: a 0.25 m^2 patch at the
+    kitchen's edge) navigate took the largest patch and said nothing; it warns that the place
+    is small or uncertain, and a patch of a place's size gives no such note."""
+    grid = house_grid()
+    planning = planning_grid(grid, 0.0)
+    p_image = np.full(grid.shape, 0.3)
+    p_image[5:8, 23:26] = 0.9  # 9 cells of 0.01 m^2 in room C: 0.09 m^2
+    probability = p_image[grid.free]  # [N]
+    start = planning.allowed.free_index[4, 3]
+    distance, _ = shortest_paths(planning, start)
+    choice = choose_goal(planning, "Kitchen", probability, distance)
+    assert math.isclose(choice.candidate.area, 0.09)
+    assert any("'Kitchen': no patch" in n and "the goal is in the largest, 0.09 m^2" in n
+               and "small, or uncertain" in n for n in choice.notes)  # fmt: skip
+    p_image[2:17, 21:30] = 0.9  # the whole room: 1.35 m^2
+    choice = choose_goal(planning, "Kitchen", p_image[grid.free], distance)
+    assert choice.candidate.area > 1 and not choice.notes

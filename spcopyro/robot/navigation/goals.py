@@ -38,8 +38,8 @@ over the cells the robot fits on (:mod:`spcopyro.robot.navigation.graph`).
 
 1. Candidate regions: the 8-connected components of the allowed cells with
    p >= :data:`AMBIGUITY_RATIO` x max p, each at least :data:`MIN_CANDIDATE_AREA` (the largest
-   is kept if none is). Two or more candidates are separate regions of near-equal probability:
-   the word is **ambiguous**.
+   is kept if none is, with a note: the place is small or uncertain). Two or more candidates
+   are separate regions of near-equal probability: the word is **ambiguous**.
 2. A candidate the robot cannot reach from where it is (another component of the planning graph)
    is reported and never returned. If none is reachable, :class:`UnreachableGoalError`.
 3. Of the reachable candidates, the nearer by path length is taken (``strict``:
@@ -417,7 +417,8 @@ def choose_goal(
     sizes = np.bincount(labels.ravel(), minlength=count + 1)[1:]  # [count]
     cell_area = grid.resolution**2
     keep = [k + 1 for k in range(count) if sizes[k] * cell_area >= MIN_CANDIDATE_AREA]
-    if not keep:
+    small = not keep  # no patch is a place's size: the largest is the goal, with a warning
+    if small:
         keep = [int(np.argmax(sizes)) + 1]
     candidates = []
     for k in keep:
@@ -458,4 +459,11 @@ def choose_goal(
             f"({listed}); --strict takes none of them (leave it out to take the nearer)"
         )
     chosen = min(reachable, key=lambda c: (c.distance, -c.probability, c.node))
+    if small:  # a speck at a room's edge was driven to without a word
+        notes.append(
+            f"{word!r}: no patch of cells the robot fits on with p >= {AMBIGUITY_RATIO:g} x "
+            f"the best ({best:.3f}) covers {MIN_CANDIDATE_AREA:g} m^2; the goal is in the "
+            f"largest, {chosen.area:.2f} m^2: the place is small, or uncertain on this fit "
+            "(`spcopyro where` shows its probability; a longer fit sharpens it)"
+        )
     return GoalChoice(word, chosen.node, chosen, tuple(candidates), tuple(notes))
