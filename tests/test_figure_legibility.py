@@ -299,3 +299,28 @@ def test_the_where_figure_tells_free_space_from_unknown():
                                                strict=True) if isinstance(h, Patch)}  # fmt: skip
     assert delta_e94(np.array(patches["free space"].get_facecolor()[:3]) * 255,
                      np.array(patches["unknown"].get_facecolor()[:3]) * 255) > 15.0  # fmt: skip
+
+
+def _overlaps_an_axes(fig, artist) -> bool:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    box = artist.get_window_extent(renderer)
+    return any(box.overlaps(ax.get_window_extent(renderer)) for ax in fig.axes)
+
+
+def test_the_comparison_legend_leaves_the_panels():
+    """comparison_public.png: the methods' legend (inside the first panel) covered the top-1
+    lines; it stands below the panels."""
+    from spcopyro.experiments.comparison_report import curves_figure
+    from spcopyro.experiments.inference_comparison import VARIANTS
+
+    curve = [{"seconds": s, "top1": 0.5, "distance_m": 1.0} for s in (0.1, 1.0, 10.0)]
+    records = {key: [{"curve": curve}] for key in VARIANTS}  # every method: seven entries
+    fig = curves_figure({"records": {"public": records},
+                         "methods": {key: v.label for key, v in VARIANTS.items()}},
+                        "public")  # fmt: skip
+    (legend,) = fig.legends
+    assert len(legend.get_texts()) == len(VARIANTS)
+    assert not _overlaps_an_axes(fig, legend)
+    assert not any(ax.get_legend() for ax in fig.axes)

@@ -390,8 +390,18 @@ def table_markdown(summary: dict[str, object]) -> str:
 
 
 def plot_curves(summary: dict[str, object], house_type: str, path: Path) -> Path:
+    """Write :func:`curves_figure` to ``path``."""
+    fig = curves_figure(summary, house_type)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with any_script(fig):  # words of any script, not boxes
+        fig.savefig(path, dpi=110, bbox_inches="tight")
+    return path
+
+
+def curves_figure(summary: dict[str, object], house_type: str) -> Figure:
     """Quality against wall-clock time (log axis) of every fit of one house type: one panel
-    per score of :data:`SCORES`, one colour per method, each fit one thin line."""
+    per score of :data:`SCORES`, one colour per method, each fit one thin line; the legend of
+    the methods below the panels."""
     records: dict = summary["records"][house_type]  # type: ignore[index]
     methods: dict = summary["methods"]  # type: ignore[assignment]
     scores = SCORES[house_type]
@@ -410,14 +420,14 @@ def plot_curves(summary: dict[str, object], house_type: str, path: Path) -> Path
         ax.set_ylabel(SCORE_NAMES[score] + (" (lower is better)" if score in LOWER_IS_BETTER
                                             else ""))  # fmt: skip
         ax.grid(alpha=0.3, which="both")
-    np.atleast_1d(axes)[0].legend(fontsize=7)
+    handles, labels = np.atleast_1d(axes)[0].get_legend_handles_labels()
+    # below the panels, never over a line (loc="best" inside the axes covered the top-1 lines)
+    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), fontsize=8,
+               ncol=min(3, max(len(labels), 1)), frameon=False)  # fmt: skip
     title = "synthetic houses (one line per seed)" if house_type == SYNTHETIC else (
         "public houses (one line per house and held-out trial)")  # fmt: skip
     fig.suptitle(f"Quality against time, {title}")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with any_script(fig):  # words of any script, not boxes
-        fig.savefig(path, dpi=110, bbox_inches="tight")
-    return path
+    return fig
 
 
 def write_report(out: Path, summary: dict[str, object]) -> list[Path]:
