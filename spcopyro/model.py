@@ -211,6 +211,8 @@ def check_model_data(data: ModelData, config: SpCoConfig | None = None) -> None:
             )
         if counts.dtype != DTYPE:
             raise ValueError(f"the counts of modality {name!r} must be {DTYPE}, got {counts.dtype}")
+        if not counts.numel() or (counts.min() >= 0 and torch.isfinite(counts.sum())):
+            continue  # two reductions: a NaN fails the min, an inf the sum (the model's every call)
         wrong = ~torch.isfinite(counts) | (counts < 0)  # [M, K_m]
         if wrong.any():
             row, column = (int(i) for i in torch.nonzero(wrong)[0])
