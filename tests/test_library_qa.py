@@ -33,7 +33,10 @@ def _bad_counts(data):
     return [
         ("must be finite and >= 0; row 1 .* column 2 is nan", data.with_counts("words", nan)),
         ("must be finite and >= 0; row 3 .* column 1 is inf", data.with_counts("words", inf)),
-        ("row 2 .* column 0 is -0.5", data.with_counts("words", one_negative)),
+        (
+            "must be finite and >= 0; row 2 .* column 0 is -0.5",
+            data.with_counts("words", one_negative),
+        ),
         ("must be finite and >= 0; row 0", data.with_counts("words", -1.0 - words)),
         (r"have shape \(4, 4\), expected \(5, K\)", data.with_counts("words", words[:-1])),
         ("must be torch.float64, got torch.float32", data.with_counts("words", words.float())),
