@@ -73,7 +73,7 @@ def _export(args: argparse.Namespace) -> int:
             result, args.nav2, args.word or (), mode=args.mode, prior=args.prior,
             threshold=args.threshold, min_speed=args.min_speed, max_speed=args.max_speed,
             overwrite=args.overwrite, source=args.result, namespace=args.namespace,
-            robot_map=robot_map,
+            robot_map=robot_map, frame=args.frame,
         )  # fmt: skip
     except UnknownWordError as error:
         print(f"error: {error.args[0]}", file=sys.stderr)
@@ -159,5 +159,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--namespace", metavar="NS",
                    help="the robot's ROS namespace: the masks', filter infos' and speed limit's "
                         "topics become /NS/... (default: none, absolute topics)")  # fmt: skip
+    p.add_argument("--frame", default="map",
+                   help="tf frame of the masks (their mask servers' frame_id): the robot's map "
+                        "frame, e.g. robot1/map for a robot whose tf frames carry a prefix; a "
+                        "costmap filter whose mask frame is not in the tf tree gets no "
+                        "mask")  # fmt: skip
     p.add_argument("--overwrite", action="store_true", help="replace an earlier export in DIR")
     p.set_defaults(func=_export)

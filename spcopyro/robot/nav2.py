@@ -236,18 +236,35 @@ def check_namespace(namespace: str | None) -> str | None:
     return clean
 
 
+_FRAME_CHARS = set("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_/")
+
+
+def check_frame(frame: str) -> str:
+    """A tf frame id (letters, digits, ``_``, ``/``, not starting with ``/``); ValueError
+    otherwise."""
+    if not frame or not set(frame) <= _FRAME_CHARS or frame.strip("/") == "":
+        raise ValueError(f"frame {frame!r}: a tf frame id is letters, digits, _ and /")
+    if frame.startswith("/"):  # tf2 refuses such a goal's frame_id: the plan would not run
+        raise ValueError(
+            f"frame {frame!r}: tf2 frame ids cannot start with '/' (tf2 refuses them); use "
+            f"{frame.lstrip('/')!r}"
+        )
+    return frame
+
+
 def mask_params(
-    mode: str, name: str, mask_yaml: Path, namespace: str | None = None
+    mode: str, name: str, mask_yaml: Path, namespace: str | None = None, frame: str = "map"
 ) -> dict[str, object]:
     """The ``ros__parameters`` of the mask's ``map_server`` and ``costmap_filter_info_server``
     nodes, as one params file (Nav2 keepout / speed-filter tutorials, step 2); their topics in
-    the robot's ``namespace`` when one is given."""
+    the robot's ``namespace`` when one is given, the mask in tf frame ``frame`` (the robot's
+    global frame, ``robot1/map`` for a robot whose frames carry a prefix)."""
     base, multiplier = BASE_MULTIPLIER[mode]
     mask_topic = topic(f"{name}_filter_mask", namespace)
     return {
         f"{name}_mask_server": {
             "ros__parameters": {
-                "frame_id": "map",
+                "frame_id": frame,
                 "topic_name": mask_topic,
                 "yaml_filename": str(mask_yaml),
             }
@@ -352,6 +369,7 @@ def export_nav2(
     source: str | os.PathLike[str] | None = None,
     namespace: str | None = None,
     robot_map: OccupancyGrid | None = None,
+    frame: str = "map",
 ) -> Nav2Export:
     """Write ``result``'s map, semantic map and one ``mode`` mask per word into ``out`` (module
     docstring), whole or not at all (a staging folder beside ``out``, renamed when done).
@@ -375,6 +393,10 @@ def export_nav2(
             walls can close doorways; the semantic map and the masks stay on the fit's grid
             (a costmap filter mask is a map of its own: Nav2 reads it at its resolution).
             None: the fit's grid is the main map.
+        frame: the tf frame of the masks (their mask servers' ``frame_id``): the map frame of
+            the robot's tf tree, ``robot1/map`` for a robot whose frames carry a prefix (a
+            costmap filter transforms its mask from this frame into the costmap's global frame,
+            so a frame missing from the tree leaves the filter without a mask).
 
     Raises:
         UnknownWordError: a word outside the vocabulary (with the closest known words); nothing
@@ -389,6 +411,7 @@ def export_nav2(
         _check_threshold(threshold)
     _check_speeds(min_speed, max_speed)
     namespace = check_namespace(namespace)
+    frame = check_frame(frame)
     # every word known before anything is written, and each read as `where` reads it: "Kitchen",
     # "kitchen." and a full-width "ｋｉｔｃｈｅｎ" are one word, one mask (each got its own)
     indices = list(dict.fromkeys(word_index(result.vocabulary, w) for w in words))
@@ -428,7 +451,7 @@ def export_nav2(
             params_yaml = folder / f"{name}_params.yaml"
             write_commented_yaml(
                 params_yaml,
-                mask_params(mode, name, final / mask_yaml.name, namespace),
+                mask_params(mode, name, final / mask_yaml.name, namespace, frame),
                 f"Nav2 {mode} filter for {word!r} (spcopyro export): params of its mask server "
                 "and costmap filter info server",
             )
@@ -460,6 +483,7 @@ def export_nav2(
             "min_speed": min_speed if mode == "speed" else None,
             "max_speed": max_speed if mode == "speed" else None,
             "namespace": namespace,
+            "frame": frame,
             "map": grid_record(main_map),
             "masks_grid": grid_record(grid),
             "masks": records,

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro._util.outputs import StagedOutput, stage_marked_folder
-from spcopyro.robot.nav2 import grid_record, write_commented_yaml
+from spcopyro.robot.nav2 import check_frame, grid_record, write_commented_yaml
 from spcopyro.robot.navigation.planning import NavigationPlan
 
 __all__ = [
@@ -50,20 +50,6 @@ __all__ = [
 
 PLAN_MARKER = "navigate.json"
 """A folder holding it was written by :func:`write_plan`: the only kind ``overwrite`` replaces."""
-_FRAME_CHARS = set("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_/")
-
-
-def check_frame(frame: str) -> str:
-    """A tf frame id (letters, digits, ``_``, ``/``, not starting with ``/``); ValueError
-    otherwise."""
-    if not frame or not set(frame) <= _FRAME_CHARS or frame.strip("/") == "":
-        raise ValueError(f"frame {frame!r}: a tf frame id is letters, digits, _ and /")
-    if frame.startswith("/"):  # tf2 refuses such a goal's frame_id: the plan would not run
-        raise ValueError(
-            f"frame {frame!r}: tf2 frame ids cannot start with '/' (tf2 refuses them); use "
-            f"{frame.lstrip('/')!r}"
-        )
-    return frame
 
 
 def pose_stamped(x: float, y: float, yaw: float, frame: str = "map") -> dict[str, object]:
