@@ -324,3 +324,27 @@ def test_the_comparison_legend_leaves_the_panels():
     assert len(legend.get_texts()) == len(VARIANTS)
     assert not _overlaps_an_axes(fig, legend)
     assert not any(ax.get_legend() for ax in fig.axes)
+
+
+def test_the_ablation_legend_names_table_2_and_leaves_the_panels():
+    """ablation.png drew Table 2's category counts as black lines that its legend (inside the
+    synthetic panel, loc="best", over the bars) did not name."""
+    from spcopyro.experiments.ablation import AblationSettings
+    from spcopyro.experiments.ablation_report import ablation_figure
+    from spcopyro.experiments.ablation_variants import parse_variant
+
+    settings = AblationSettings(variants=(parse_variant("a"), parse_variant("b")),
+                                baselines=("F-geometry",), synthetic=("dense",))  # fmt: skip
+    score = {"mean": 0.5, "sd": 0.1, "n": 2}
+    summary = {
+        row: {"dense": {"ari": score, "ari_off": score}, "room1dk5": {"concepts_1pct": score}}
+        for row in ("a", "b", "F-geometry")
+    }
+    report = {"summary": summary, "records": [{"house": "room1dk5", "public": True}]}
+    fig = ablation_figure(report, settings)
+    (legend,) = fig.legends
+    texts = [t.get_text() for t in legend.get_texts()]
+    assert texts[:3] == ["a", "b", "F-geometry"], texts
+    assert any(t.startswith("Table 2") for t in texts), texts
+    assert any(t.startswith("observations off") for t in texts), texts
+    assert not _overlaps_an_axes(fig, legend)

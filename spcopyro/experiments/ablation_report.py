@@ -19,6 +19,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib.artist import Artist
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 
 from spcopyro._util.messages import command_time, fixed, plural, seconds_text
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, json_default
@@ -288,58 +292,71 @@ def _public_houses(records: list[dict[str, object]]) -> list[str]:
 
 
 def figure(report: dict, settings: AblationSettings, path: Path) -> Path:
-    """``ablation.png``: ARI per synthetic house (bars: with observations, mean ± sd; open
-    circles: observations off) and concepts >= 1% per public house against Table 2."""
-    import matplotlib
+    """Write :func:`ablation_figure` to ``path`` (``ablation.png``)."""
+    fig = ablation_figure(report, settings)
+    with any_script(fig):  # words of any script, not boxes
+        fig.savefig(path, dpi=110, bbox_inches="tight")
+    return path
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+
+def ablation_figure(report: dict, settings: AblationSettings) -> Figure:
+    """ARI per synthetic house (bars: with observations, mean ± sd; open circles: observations
+    off) and concepts >= 1% per public house against Table 2 (black lines). One legend below
+    the panels names the rows, the circles and Table 2's line (inside a panel, loc="best", it
+    covered bars and left Table 2 out). A :class:`~matplotlib.figure.Figure`, no pyplot: the
+    caller's matplotlib backend is left alone (``matplotlib.use("Agg")`` switched a notebook's)."""
+    from matplotlib import colormaps
 
     summary: dict = report["summary"]
     rows = [v.name for v in settings.variants] + list(settings.baselines)
     public = _public_houses(report["records"])
     synthetic = _synthetic_houses(settings)
     panels = int(bool(synthetic)) + int(bool(public)) or 1
-    fig, axes = plt.subplots(1, panels, figsize=(6 + 5 * panels, 4.5), squeeze=False)
+    fig = Figure(figsize=(6 + 5 * panels, 4.5))
+    axes = fig.subplots(1, panels, squeeze=False)
     width = 0.8 / max(len(rows), 1)
-    colours = plt.get_cmap("tab10")
+    colours = colormaps["tab10"]
+    handles: list[Artist] = [Patch(color=colours(k % 10), label=row) for k, row in enumerate(rows)]
 
-    def bars(ax, houses: list[str], score: str, off: str | None) -> None:
+    def bars(ax, houses: list[str], score: str, off: str | None) -> bool:
         x = np.arange(len(houses))
+        drawn = False
         for k, row in enumerate(rows):
             stats = [summary.get(row, {}).get(h, {}).get(score) for h in houses]
             mean = [s["mean"] if s else np.nan for s in stats]
             # one seed: no sd, no error bar (its JSON keeps 0; a bar of 0 said "no spread")
             sd = [s["sd"] if s and s.get("n", 2) > 1 else np.nan for s in stats]
             pos = x - 0.4 + width * (k + 0.5)
-            ax.bar(pos, mean, width, yerr=sd, label=row, color=colours(k % 10), capsize=2)
+            ax.bar(pos, mean, width, yerr=sd, color=colours(k % 10), capsize=2)
             if off:
                 offs = [summary.get(row, {}).get(h, {}).get(off) for h in houses]
-                ax.plot(pos, [s["mean"] if s else np.nan for s in offs], "o", mfc="none",
-                        mec="black", ms=5)  # fmt: skip
+                means = [s["mean"] if s else np.nan for s in offs]
+                ax.plot(pos, means, "o", mfc="none", mec="black", ms=5)
+                drawn = drawn or bool(np.isfinite(means).any())
         ax.set_xticks(x, houses)
+        return drawn
 
     if synthetic:  # --seeds 0: no synthetic panel (it was drawn empty)
         ax = axes[0, 0]
-        bars(ax, synthetic, "ari", "ari_off")
+        if bars(ax, synthetic, "ari", "ari_off"):
+            handles.append(Line2D([], [], ls="", marker="o", mfc="none", mec="black", ms=5,
+                                  label="observations off (mean ARI)"))  # fmt: skip
         ax.set_ylabel("ARI against the truth (circles: observations off)")
         ax.set_title("synthetic houses")
-        ax.legend(fontsize=7, loc="best")
     if public:
         ax = axes[0, panels - 1]
         bars(ax, public, "concepts_1pct", None)
-        if not synthetic:
-            ax.legend(fontsize=7, loc="best")
         counts = [TABLE2_CATEGORIES.get(h, np.nan) for h in public]
         x = np.arange(len(public))
-        ax.hlines(counts, x - 0.45, x + 0.45, colors="black", linewidth=2, label="Table 2")
+        ax.hlines(counts, x - 0.45, x + 0.45, colors="black", linewidth=2)
+        handles.append(Line2D([], [], color="black", lw=2,
+                              label="Table 2: the paper's categories of the house"))  # fmt: skip
         ax.set_ylabel("concepts holding >= 1% of the free cells")
         ax.set_title("public houses (black: Table 2)")
-    with any_script(fig):  # words of any script, not boxes
-        fig.tight_layout()
-        fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    fig.tight_layout()
+    fig.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.0), fontsize=8,
+               ncol=min(4, len(handles)) or 1, frameon=False)  # fmt: skip
+    return fig
 
 
 def write_report(
