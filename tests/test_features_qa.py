@@ -433,3 +433,23 @@ def test_a_labels_file_written_on_windows_finds_its_images(tmp_path, images_dir)
     labels.write_text("images\\gone.png,kitchen\nimages\\00001.png,bedroom\n")
     with pytest.raises(FileNotFoundError, match="1 of 2 image"):
         read_labelled_images(labels)
+
+
+def test_an_image_of_one_pixel_high_is_refused_not_resized_to_gigabytes(tmp_path):
+    """A 100000 x 1 image was resized to 25.6 million x 256 pixels (20 GB) before its central
+    crop; an image more than MAX_ASPECT_RATIO times as wide as high is refused, naming its file
+    and size, beside the other unreadable images."""
+    from spcopyro.features.images import MAX_ASPECT_RATIO, UnreadableImagesError
+
+    assert cv2.imwrite(
+        str(tmp_path / "00000.png"), np.zeros((20, 20 * MAX_ASPECT_RATIO, 3), np.uint8)
+    )
+    assert cv2.imwrite(str(tmp_path / "00001.png"), np.zeros((1000, 1, 3), np.uint8))
+    assert cv2.imwrite(str(tmp_path / "00002.png"), np.zeros((1, 1000, 3), np.uint8))
+    with pytest.raises(UnreadableImagesError) as error:
+        extract_features(PlaceClassifier.load("random"), list_images(tmp_path), progress=False)
+    assert [(p.name, r.split(",")[0]) for p, r in error.value.failures] == [
+        ("00001.png", "a 1 x 1000 image (width x height)"),
+        ("00002.png", "a 1000 x 1 image (width x height)"),
+    ]
+    assert "more than 32 times as wide as high: not a camera frame" in str(error.value)

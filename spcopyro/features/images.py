@@ -83,7 +83,8 @@ def read_image(path: str | os.PathLike[str]) -> np.ndarray:
 
     Raises:
         FileNotFoundError: no such file (the message names it).
-        ImageReadError: the file is not a decodable image.
+        ImageReadError: the file is not a decodable image, or one more than
+            :data:`MAX_ASPECT_RATIO` times as wide as high (or high as wide).
     """
     path = Path(path)
     if not path.is_file():
@@ -107,7 +108,24 @@ def read_image(path: str | os.PathLike[str]) -> np.ndarray:
         )
     if bgr is None:
         raise ImageReadError(path, "OpenCV cannot decode it (not an image, or truncated)")
+    height, width = bgr.shape[:2]
+    if max(height, width) > MAX_ASPECT_RATIO * min(height, width):
+        raise ImageReadError(
+            path,
+            f"a {width} x {height} image (width x height), more than {MAX_ASPECT_RATIO} times "
+            f"as {'wide as high' if width > height else 'high as wide'}: not a camera frame "
+            f"(its shorter side resized to {RESIZE_SIZE} pixels would make it "
+            f"{RESIZE_SIZE * max(height, width) // max(min(height, width), 1)} pixels long, "
+            f"of which the network sees a central {CROP_SIZE} x {CROP_SIZE} square)",
+        )
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+
+
+MAX_ASPECT_RATIO = 32
+"""Longer side over shorter: :func:`read_image` refuses an image beyond it (a strip, one pixel
+high, say). Preprocessing resizes the shorter side to :data:`RESIZE_SIZE`, so a 100000 x 1
+image became 25.6 million pixels long (20 GB) before its central crop; at this ratio the
+resized image is at most 8192 x 256 (6 MB), of which the crop sees 224 pixels' length."""
 
 
 DIM_16_BIT = 4096
