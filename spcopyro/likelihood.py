@@ -214,6 +214,7 @@ def check_model_density(
     at: str,
     why: str,
     refusal: str,
+    constant: float | None = None,
 ) -> None:
     """ValueError unless ``model_log_density`` (a model's ``log_prob_sum`` at these labels and
     parameters) is :func:`~spcopyro.model.spcomapping_model`'s log joint there
@@ -222,8 +223,10 @@ def check_model_density(
     kernel's conditionals, MeanFieldELBO's closed-form label terms) would otherwise treat
     another model (a changed prior, coupling or likelihood) as this one, silently. ``at``
     names the point compared, ``why`` what the caller takes from this model, ``refusal`` what
-    it cannot do."""
-    constant = float(log_joint_constant(data, config))
+    it cannot do; ``constant``, when the caller has it, is ``log_joint_constant(data, config)``
+    (its multinomial coefficients cost a pass over every count)."""
+    if constant is None:
+        constant = float(log_joint_constant(data, config))
     own = constant + float(log_joint_variable(labels, log_pi, log_parameters, data, config))
     if not abs(model_log_density - own) <= 1e-11 * (abs(own) + abs(constant)) + 1e-9:
         raise ValueError(

@@ -193,6 +193,26 @@ def test_kernel_rejects_a_model_without_its_sites():
         SpCoGibbs(options=GibbsOptions(anneal_sweeps=3))
 
 
+def test_kernel_setup_computes_the_log_joint_constant_once(monkeypatch):
+    """The model-density check takes the kernel's constant: its multinomial coefficients pass
+    over every count (0.2-0.3 s on a public house), and setup computed them twice."""
+    import spcopyro.gibbs.kernel as kernel_module
+    import spcopyro.likelihood as likelihood
+
+    calls = []
+    original = likelihood.log_joint_constant
+
+    def counted(data, config):
+        calls.append(1)
+        return original(data, config)
+
+    monkeypatch.setattr(likelihood, "log_joint_constant", counted)
+    monkeypatch.setattr(kernel_module, "log_joint_constant", counted)
+    _, data = random_problem(seed=4)
+    SpCoGibbs(options=TORCH).setup(0, data, config())
+    assert len(calls) == 1
+
+
 def test_prior_world_has_regions_above_the_critical_coupling():
     cfg = config(gamma=2.0, num_concepts=3)  # ln(1 + sqrt(3)) = 1.0
     _, data = random_problem(seed=5, copies=4)

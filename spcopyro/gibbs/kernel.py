@@ -213,6 +213,7 @@ class SpCoGibbs(MCMCKernel):
             at="with every cell in concept 0, uniform pi and emissions",
             why="whose conditionals SpCoGibbs samples",
             refusal="the kernel cannot sample another model",
+            constant=self._log_joint_constant,
         )  # fmt: skip
 
     def _params(self, state: GibbsState) -> dict[str, torch.Tensor]:
