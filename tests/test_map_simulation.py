@@ -270,7 +270,30 @@ def test_one_room_is_warned_of_at_a_given_width_and_says_why(tmp_path, caplog):
         one = simulate_on_map(grid, seed=0, tour=MapTour(min_room_area=10.0))
     assert one.room_category.size == 1
     assert "one room at every door width" not in caplog.text
-    assert "no two rooms of at least 10 m^2 (--min-room-area) at any door width up to 3 m" in (
+    assert "no two rooms of at least 10 m^2 (min_room_area) at any door width up to 3 m" in (
         caplog.text
     )
     assert "with the default 1 m^2 it has 3 rooms at 0.75 m" in caplog.text
+
+
+def test_messages_name_what_the_user_can_change_where_they_are(tmp_path, caplog, capsys):
+    """QA: a study's tour (a [data.NAME] table with map = ...) failed with "lower
+    --min-room-area", an option of `simulate --map` the study has not: the library's messages
+    name the MapTour field (the study's key, min_room_area), the command its options."""
+    yaml_path, grid = three_rooms(tmp_path)
+    with pytest.raises(ValueError, match=r"no room of at least 100 m\^2 .*; lower min_room_area$"):
+        simulate_on_map(grid, tour=MapTour(min_room_area=100.0))
+    out = str(tmp_path / "out")
+    assert main(["simulate", "--map", str(yaml_path), "--out", out, "--min-room-area",
+                 "100"]) == 2  # fmt: skip
+    assert capsys.readouterr().err.rstrip().endswith("; lower --min-room-area")
+    with caplog.at_level("WARNING", logger="spcopyro"):
+        simulate_on_map(grid, seed=0, tour=MapTour(door_width=0.1))
+        simulate_on_map(grid, seed=0, tour=MapTour(categories=("kitchen",)))
+    assert "(door_width auto reads from the map" in caplog.text
+    assert "give categories two or more names" in caplog.text and "--" not in caplog.text
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="spcopyro"):
+        assert main(["simulate", "--map", str(yaml_path), "--out", out, "--categories",
+                     "kitchen", "--door-width", "0.1"]) == 0  # fmt: skip
+    assert "(--door-width auto reads from the map" in caplog.text

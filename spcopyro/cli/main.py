@@ -172,7 +172,7 @@ def _door_width(text: str) -> float | str:
 
 
 def _simulate_on_map(args: argparse.Namespace) -> int:
-    from spcopyro.robot.map_simulation import MapTour, write_simulated_map
+    from spcopyro.robot.map_simulation import COMMAND_OPTIONS, MapTour, write_simulated_map
 
     if args.size:
         raise ValueError("--size and --map exclude each other: the map gives the size")
@@ -192,7 +192,8 @@ def _simulate_on_map(args: argparse.Namespace) -> int:
         tour = dataclasses.replace(tour, categories=names)
     try:
         room, simulated = write_simulated_map(args.map, args.out, seed=args.seed, tour=tour,
-                                              name=args.name, overwrite=args.overwrite)  # fmt: skip
+                                              name=args.name, overwrite=args.overwrite,
+                                              options=COMMAND_OPTIONS)  # fmt: skip
     except FileExistsError as error:
         raise FileExistsError(
             str(error).replace("pass overwrite=True", "pass --overwrite to replace it")

@@ -42,6 +42,7 @@ import json
 import logging
 import math
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
@@ -59,6 +60,7 @@ logger = logging.getLogger("spcopyro")
 
 __all__ = [
     "CLEARANCE",
+    "COMMAND_OPTIONS",
     "DEFAULT_MIN_ROOM_AREA",
     "MapTour",
     "SimulatedMap",
@@ -70,6 +72,18 @@ DEFAULT_MIN_ROOM_AREA = 1.0
 """Square metres: smaller segments of the free space are not visited (not rooms)."""
 CLEARANCE = 0.3
 """Metres: image positions prefer cells farther than this from any non-free cell."""
+
+
+COMMAND_OPTIONS = {"min_room_area": "--min-room-area", "door_width": "--door-width",
+                   "categories": "--categories"}  # fmt: skip
+"""How ``spcopyro simulate --map`` names the :class:`MapTour` knobs its messages tell the user to
+change (``options`` of :func:`simulate_on_map`); a study file, and Python, name them by the
+fields themselves (``min_room_area``: a study's ``[data.NAME]`` key)."""
+
+
+def _option(field: str, options: Mapping[str, str] | None) -> str:
+    """What the user changes to set the MapTour ``field``: the command's option or the field."""
+    return (options or {}).get(field, field)
 
 
 @dataclass(frozen=True)
@@ -127,7 +141,9 @@ def _house_spec(grid: OccupancyGrid, tour: MapTour) -> HouseSpec:
         raise ValueError(message.replace("HouseSpec.", "")) from None
 
 
-def _one_room_warning(grid: OccupancyGrid, tour: MapTour, door_width: float) -> str:
+def _one_room_warning(
+    grid: OccupancyGrid, tour: MapTour, door_width: float, options: Mapping[str, str] | None
+) -> str:
     """What a tour of one room says: at which width(s) the free space stayed one room, what
     ``min_room_area`` did to smaller segments, and (for a larger ``min_room_area`` than the
     default) how many rooms the default finds."""
@@ -140,7 +156,8 @@ def _one_room_warning(grid: OccupancyGrid, tour: MapTour, door_width: float) -> 
     if tour.min_room_area > DEFAULT_MIN_ROOM_AREA:
         message = (
             f"{grid.source or 'map'}: the free space has no two rooms of at least "
-            f"{tour.min_room_area:g} m^2 (--min-room-area) {where.replace('every', 'any')}: "
+            f"{tour.min_room_area:g} m^2 ({_option('min_room_area', options)}) "
+            f"{where.replace('every', 'any')}: "
             "smaller segments were merged into a neighbour or left unvisited"
         )
         width, found = (
@@ -154,7 +171,8 @@ def _one_room_warning(grid: OccupancyGrid, tour: MapTour, door_width: float) -> 
                 f"{width:g} m"
             )
     elif tour.door_width != "auto":
-        message += " (--door-width auto reads from the map the narrowest width that separates two)"
+        message += (f" ({_option('door_width', options)} auto reads from the map the narrowest "
+                    "width that separates two)")  # fmt: skip
     return (
         message + ": the simulated truth has one category, so a fit's ARI against it says nothing"
     )
@@ -168,12 +186,19 @@ def _count_rooms(grid: OccupancyGrid, door_width: float, min_room_area: float) -
 
 
 def simulate_on_map(
-    grid: OccupancyGrid, *, seed: int = 0, tour: MapTour | None = None, name: str = "simulated"
+    grid: OccupancyGrid,
+    *,
+    seed: int = 0,
+    tour: MapTour | None = None,
+    name: str = "simulated",
+    options: Mapping[str, str] | None = None,
 ) -> SimulatedMap:
     """Rooms, categories, a tour and its observations on ``grid`` (module docstring).
 
     Deterministic in ``seed``. Raises ValueError when the map has no free cell, no segment of
-    at least ``min_room_area``, or a bad knob (the message names it).
+    at least ``min_room_area``, or a bad knob (the message names it). ``options``: how the
+    messages name the knobs to change (:data:`COMMAND_OPTIONS` for the command line; None: the
+    MapTour fields, as a study file's keys are).
     """
     tour = tour or MapTour()
     spec = _house_spec(grid, tour)
@@ -192,19 +217,21 @@ def simulate_on_map(
     if large.size == 0:
         raise ValueError(
             f"{grid.source or 'map'}: no room of at least {tour.min_room_area:g} m^2 in the free "
-            f"space (largest: {sizes.max() * grid.resolution**2:.2f} m^2); lower --min-room-area"
+            f"space (largest: {sizes.max() * grid.resolution**2:.2f} m^2); lower "
+            f"{_option('min_room_area', options)}"
         )
     room_of_segment = np.full(sizes.size, -1, dtype=np.int64)
     room_of_segment[large] = np.arange(large.size)
     rooms = np.where(segments >= 0, room_of_segment[np.maximum(segments, 0)], -1)  # [H, W]
     num_rooms = int(large.size)
     if num_rooms < 2:
-        logger.warning("%s", _one_room_warning(grid, tour, float(door_width)))
+        logger.warning("%s", _one_room_warning(grid, tour, float(door_width), options))
     elif len(spec.category_names) == 1:  # every room the same category: one in the truth
         logger.warning(
             "%s: %d rooms, all %s (one category given): the simulated truth has one category, "
-            "so a fit's ARI against it says nothing; give --categories two or more names",
+            "so a fit's ARI against it says nothing; give %s two or more names",
             grid.source or "map", num_rooms, spec.category_names[0],
+            _option("categories", options),
         )  # fmt: skip
 
     num_categories = min(num_rooms, len(spec.category_names))
@@ -238,13 +265,15 @@ def write_simulated_map(
     tour: MapTour | None = None,
     name: str | None = None,
     overwrite: bool = False,
+    options: Mapping[str, str] | None = None,
 ) -> tuple[Path, SimulatedMap]:
     """Load ``map_yaml`` (:func:`spcopyro.maps.load_map`: a malformed map is a
     :class:`~spcopyro.maps.MapFormatError` naming the file), simulate on it and write
     ``root/map/NAME.{yaml,pgm}`` and ``root/NAME/`` (:func:`spcopyro.data.save_house`, with
     ``truth.npy`` and ``categories.json``) plus ``rooms.npy`` and ``rooms.json``. ``name``
     defaults to the map's file name (ValueError for ``map.yaml``, Nav2's default: ``map`` is
-    the maps' folder). Returns the room folder and the simulation."""
+    the maps' folder). Returns the room folder and the simulation. ``options``: as for
+    :func:`simulate_on_map`."""
     if not name and Path(map_yaml).stem == "map":  # Nav2's map_saver default: map.yaml
         raise ValueError(
             f"{map_yaml}: the map's file name 'map' cannot name the house (ROOT/map/ holds the "
@@ -252,7 +281,7 @@ def write_simulated_map(
         )
     grid = load_map(map_yaml)
     name = name or Path(map_yaml).stem
-    simulated = simulate_on_map(grid, seed=seed, tour=tour, name=name)
+    simulated = simulate_on_map(grid, seed=seed, tour=tour, name=name, options=options)
     room = save_house(simulated.house, root, overwrite=overwrite)
     np.save(room / "rooms.npy", simulated.rooms)
     names = simulated.house.category_names or ()
