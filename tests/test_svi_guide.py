@@ -232,6 +232,10 @@ def test_bad_input_is_a_clear_error(small):
     guide = soft_guide(data, config)
     with pytest.raises(ValueError, match="L=6"):
         guide(data, config.replace(num_concepts=6))
+    # Pyro's ELBOs batch their particles under vectorize_particles; this one looped silently
+    with pytest.raises(ValueError, match="one at a time.*vectorize_particles=True"):
+        MeanFieldELBO(num_particles=4, vectorize_particles=True)
+    assert MeanFieldELBO(num_particles=4).num_particles == 4
 
 
 @pytest.mark.slow

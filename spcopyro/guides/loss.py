@@ -179,7 +179,18 @@ class MeanFieldELBO(ELBO):
     :class:`~spcopyro.guides.mean_field.MeanFieldGuide` (any guide with Dirichlet ``pi`` and
     parameter sites and a Categorical ``labels`` site works), both called as
     ``(data, config)``. ``loss`` is minus the ELBO estimate averaged over ``num_particles``
-    draws."""
+    draws, taken one after another: ``vectorize_particles=True`` is refused (the model takes
+    one draw of pi at a time; its Potts factor is not batched), where Pyro's ELBOs would batch.
+    """
+
+    def __init__(self, *args: object, **kwargs: object) -> None:
+        super().__init__(*args, **kwargs)  # type: ignore[arg-type]
+        if self.vectorize_particles:
+            raise ValueError(
+                "MeanFieldELBO draws its particles one at a time (spcomapping_model takes one "
+                "sample of pi and its Potts factor is not batched): vectorize_particles=True "
+                "would be ignored; leave it False (num_particles still averages the draws)"
+            )
 
     def _get_trace(self, model, guide, args, kwargs):
         """One (model trace, guide trace) pair, as Pyro's ELBOs return it."""
