@@ -67,14 +67,19 @@ def test_bad_inputs_are_named_before_out(
     assert (tmp_path / "data" / "house" / "notes.txt").read_text() == "mine\n"
 
 
-def _raw_image(w: BagWriter, t: float, pixels: np.ndarray, encoding: str) -> None:
-    """A sensor_msgs/Image of ``pixels`` [H, W(, C)] as they are (little-endian)."""
+def _raw_image(
+    w: BagWriter, t: float, pixels: np.ndarray, encoding: str, log_time: float | None = None
+) -> None:
+    """A sensor_msgs/Image of ``pixels`` [H, W(, C)] as they are (little-endian), stamped ``t``
+    and recorded at ``log_time`` (default ``t``)."""
     h, width = pixels.shape[:2]
     data = np.ascontiguousarray(pixels).view(np.uint8).reshape(-1)
     msg = w.types["sensor_msgs/msg/Image"](
         header=w.header(t, "cam"), height=h, width=width, encoding=encoding, is_bigendian=0,
         step=data.size // h, data=data)  # fmt: skip
-    w.write("/camera/image", "sensor_msgs/msg/Image", msg, log_time=t)
+    w.write(
+        "/camera/image", "sensor_msgs/msg/Image", msg, log_time=t if log_time is None else log_time
+    )
 
 
 def test_16_bit_images_use_the_range_their_values_span(tmp_path, map_yaml):
@@ -106,3 +111,25 @@ def test_to_8_bits_picks_the_smallest_sensor_depth():
     assert to_8_bits(np.array([[0, 256, 1023]], np.uint16)).tolist() == [[0, 64, 255]]
     assert to_8_bits(np.array([[4096, 16383]], np.uint16)).tolist() == [[64, 255]]
     assert to_8_bits(np.zeros((2, 2), np.uint16)).tolist() == [[0, 0], [0, 0]]
+
+
+def test_a_simulator_recording_with_unstamped_images(tmp_path, map_yaml):
+    """A simulator's recording (poses and images stamped from 10 s, recorded from T0) with one
+    image of zero stamp: its record time, 1.6e9 s, was checked for order among the stamps before
+    the clock fix mapped it onto their clock, and the import stopped ('timestamps go
+    backwards'). It is now placed on the stamps' clock like an utterance."""
+    bag = tmp_path / "sim"
+    with BagWriter(bag, ros=2) as w:
+        for k in range(21):  # stamp 10 + 0.5 k, recorded at T0 + k: half real time
+            stamp, record = 10.0 + 0.5 * k, T0 + k
+            w.pose("/amcl_pose", stamp, 0.1 * k, 0.0, 0.0, log_time=record)
+            if k in (2, 7, 12):
+                pixels = np.zeros((4, 4, 3), np.uint8)
+                _raw_image(w, 0.0 if k == 7 else stamp, pixels, "rgb8", log_time=record)
+        w.text("/speech", T0 + 3.0, "hall")
+    out = tmp_path / "data" / "house"
+    report = import_bags([bag], map_yaml, out, progress=False)
+    assert np.allclose(np.loadtxt(out / "Xtx.csv"), [0.2, 0.7, 1.2])  # the unstamped at k = 7
+    (counts,) = report.trials
+    assert counts["images_kept"] == 3 and counts["unstamped_moved_to_stamp_clock"] == 2
+    assert counts["images_out_of_order"] == 0

@@ -39,10 +39,10 @@ def _image() -> np.ndarray:
 
 
 @pytest.mark.parametrize("ros", [1, 2])
-def test_a_tf_edge_going_backwards_names_its_messages_on_tf(tmp_path, map_yaml, ros):
-    """The error named the edge's n-th sample ('message 7') as if it were the n-th message of
-    /tf; /tf interleaves every edge (here map -> odom and odom -> base_link), so the late
-    sample is /tf's 13th message, after its 12th."""
+def test_a_tf_sample_arriving_late_is_sorted_in(tmp_path, map_yaml, ros):
+    """A tf sample recorded after later-stamped ones (it arrived late) stopped the import
+    ('timestamps go backwards'); tf2 sorts it into its buffer, and so does the import now,
+    counting it."""
     bag = tmp_path / ("rec.bag" if ros == 1 else "rec")
     with BagWriter(bag, ros=ros) as w:
         for i, t in enumerate((T0 + np.arange(6.0)).tolist()):
@@ -50,13 +50,38 @@ def test_a_tf_edge_going_backwards_names_its_messages_on_tf(tmp_path, map_yaml, 
             w.tf(t, [("odom", "base_link", 0.1 * i, 0.0, 0.0)], log_time=t + 0.01)
         w.tf(T0 + 2.5, [("odom", "base_link", 0.0, 0.0, 0.0)], log_time=T0 + 5.5)  # late
         w.image("/camera/image", T0 + 1.0, _image())
+        w.image("/camera/image", T0 + 2.5, _image())
+        w.text("/speech", T0 + 1.0, "hall")
+    out = tmp_path / "d" / "h"
+    options = ImportOptions(pose_tf=("map", "base_link"))
+    report = import_bags([bag], map_yaml, out, options, progress=False)
+    assert np.allclose(np.loadtxt(out / "Xtx.csv"), [0.1, 0.0])  # 2.5 s: the late sample's
+    assert report.trials[0]["poses_out_of_order"] == 1
+    assert "1 pose sample(s) came after one stamped later" in report.text()
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_a_tf_edge_going_backwards_names_its_messages_on_tf(tmp_path, map_yaml, ros):
+    """The error named the edge's n-th sample ('message 7') as if it were the n-th message of
+    /tf; /tf interleaves every edge (here map -> odom and odom -> base_link), so the first
+    sample going back is /tf's 13th message, after its 12th. (A clock that went back: three
+    of the edge's nine samples go back, more than a few arriving late.)"""
+    bag = tmp_path / ("rec.bag" if ros == 1 else "rec")
+    with BagWriter(bag, ros=ros) as w:
+        for i, t in enumerate((T0 + np.arange(6.0)).tolist()):
+            w.tf(t, [("map", "odom", 0.0, 0.0, 0.0)])
+            w.tf(t, [("odom", "base_link", 0.1 * i, 0.0, 0.0)], log_time=t + 0.01)
+        for k, t in enumerate([0.5, 1.5, 2.5]):  # the edge's clock went back
+            w.tf(T0 + t, [("odom", "base_link", 0.0, 0.0, 0.0)], log_time=T0 + 5.5 + 0.1 * k)
+        w.image("/camera/image", T0 + 1.0, _image())
         w.text("/speech", T0 + 1.0, "hall")
     options = ImportOptions(pose_tf=("map", "base_link"))
     with pytest.raises(BagContentError) as error:
         import_bags([bag], map_yaml, tmp_path / "d" / "h", options, progress=False)
     assert (
         "topic /tf (edge odom -> base_link): timestamps go backwards: message 13 is stamped "
-        "1600000002.500000000 s after message 12 at 1600000005.000000000 s" in str(error.value)
+        "1600000000.500000000 s after message 12 at 1600000005.000000000 s; 3 of 9 messages"
+        in str(error.value)
     )
 
 

@@ -9,9 +9,11 @@ only here, when a bag is opened, and a clear :class:`RosbagsMissingError` names
 Timestamps: a message with a ``header`` is placed at its header stamp (when the sensor saw it);
 one without (``std_msgs/String``) or with a zero stamp at the time the bag recorded it, mapped on
 the stamps' clock when the pose messages' stamps are on another (a simulator's:
-:func:`~spcopyro.robot.rosbag.poses.header_clock`). The stamps of one topic (of one tf edge)
-must not go backwards: :class:`BagContentError` names the topic, the two messages and their
-stamps. Equal consecutive pose stamps keep the first pose.
+:func:`~spcopyro.robot.rosbag.poses.header_clock`). Images may come in any order of their
+stamps. The samples of a pose topic or tf edge are sorted by stamp: a few arriving late are
+counted (the import reports them), more than a tenth (a clock that went back) are a
+:class:`BagContentError` naming the topic, the two messages and their stamps. Equal pose stamps
+keep the first pose.
 """
 
 from __future__ import annotations
@@ -289,19 +291,29 @@ def _stamp(msg: Any, log_ns: int) -> tuple[float, bool]:
     return log_ns * 1e-9, False
 
 
+def late_count(times: np.ndarray | list[float]) -> int:
+    """How many of ``times`` (bag order) are before an earlier one: messages that arrived late."""
+    t = np.asarray(times, dtype=np.float64)  # [M]
+    return int((t[1:] < np.maximum.accumulate(t)[:-1]).sum()) if t.size else 0
+
+
 def _check_order(
     reader: Any, topic: str, times: list[float], what: str = "", numbers: list[int] | None = None
 ) -> None:
-    """BagContentError naming the bag, the topic and the two stamps where ``times`` go back,
-    and the messages' numbers on the topic (1-based, bag order: ``numbers`` when ``times`` are
-    a subset of the topic's messages, as a tf edge's are)."""
-    steps = np.diff(np.asarray(times, dtype=np.float64))
-    if (steps < 0).any():
-        k = int(np.flatnonzero(steps < 0)[0])
+    """BagContentError when more than a few of ``times`` go back (more than one, and more than
+    a tenth: a clock that went back, not samples arriving late, which :func:`_track` sorts in),
+    naming the bag, the topic, the first two stamps that go back and the messages' numbers on
+    the topic (1-based, bag order: ``numbers`` when ``times`` are a subset of the topic's
+    messages, as a tf edge's are)."""
+    late = late_count(times)
+    if late > max(1, len(times) // 10):
+        k = int(np.flatnonzero(np.diff(np.asarray(times, dtype=np.float64)) < 0)[0])
         first, second = (k + 1, k + 2) if numbers is None else (numbers[k], numbers[k + 1])
         raise BagContentError(
             f"{reader.paths[0]}: topic {topic}{what}: timestamps go backwards: message "
-            f"{second} is stamped {times[k + 1]:.9f} s after message {first} at {times[k]:.9f} s"
+            f"{second} is stamped {times[k + 1]:.9f} s after message {first} at {times[k]:.9f} "
+            f"s; {late} of {len(times)} messages are stamped before an earlier one, more than a "
+            "few late ones (which are sorted in): a clock that went back (a simulator reset?)"
         )
 
 
@@ -312,17 +324,20 @@ def _track(
     frame: str | None = None,
     clock: list[tuple[float, float]] | None = None,
 ) -> PoseTrack:
-    """A pose track from samples in order; a repeated stamp keeps the first sample (how many
-    were dropped is the track's ``merged``, reported by the import). ``clock``: (record time,
-    header stamp) of the samples that have a stamp
-    (:func:`~spcopyro.robot.rosbag.poses.header_clock`)."""
-    t = np.asarray(times, dtype=np.float64)  # [P]
+    """A pose track from samples in bag order, sorted by stamp (how many arrived late is the
+    track's ``late``); a repeated stamp keeps the first sample (how many were dropped is the
+    track's ``merged``); both are reported by the import. ``clock``: (record time, header
+    stamp) of the samples that have a stamp (:func:`~spcopyro.robot.rosbag.poses.header_clock`)."""
+    order = np.argsort(np.asarray(times, dtype=np.float64), kind="stable")  # [P]
+    t = np.asarray(times, dtype=np.float64)[order]  # [P]
     keep = np.ones(t.size, dtype=bool)
     keep[1:] = np.diff(t) > 0
-    p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)[keep]  # [P', 3]
-    merged = int((~keep).sum())
+    p = np.asarray(poses, dtype=np.float64).reshape(-1, 3)[order][keep]  # [P', 3]
+    merged, late = int((~keep).sum()), late_count(times)
     pairs = np.asarray(clock or [], dtype=np.float64).reshape(-1, 2)  # [K, 2]
-    return PoseTrack(name, t[keep], p[:, :2], p[:, 2], merged=merged, frame=frame, clock=pairs)
+    return PoseTrack(
+        name, t[keep], p[:, :2], p[:, 2], merged=merged, frame=frame, clock=pairs, late=late
+    )
 
 
 def _planar(pose: Any) -> tuple[float, float, float]:
@@ -508,14 +523,14 @@ class TopicData:
 
 
 def read_stamps(reader: Any, topic: str) -> TopicData:
-    """The stamps of an image topic's messages (the images are decoded later, only those kept)."""
+    """The stamps of an image topic's messages, in bag order, which need not be the stamps'
+    (the images are decoded later, only those kept)."""
     connections = _connections(reader, topic, IMAGE_TYPES, "image")
     times, stamped = [], []
     for _, _connection, log_ns, msg in _messages(reader, connections, topic):
         t, has_stamp = _stamp(msg, log_ns)
         times.append(t)
         stamped.append(has_stamp)
-    _check_order(reader, topic, times)
     times_s = np.asarray(times, dtype=np.float64)
     return TopicData(
         topic,

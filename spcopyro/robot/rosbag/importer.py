@@ -77,6 +77,7 @@ from spcopyro.robot.rosbag.bag import (
     _frame,
     _rosbags,
     iter_images,
+    late_count,
     open_bag,
     read_pose_in_map,
     read_stamps,
@@ -212,6 +213,12 @@ class BagImportReport:
                     "repeated the previous one's stamp and were merged into it (the first "
                     "kept): the bag's stamps are coarser than its pose rate"
                 )
+            for kind, what in (("poses", "pose sample(s)"), ("images", "image(s)")):
+                if late := t.get(f"{kind}_out_of_order"):
+                    lines.append(
+                        f"trial {t['trial']} ({t['bag']}): {late} {what} came after one "
+                        "stamped later (arrived late) and were taken in stamp order"
+                    )
             if (offset := t.get("record_clock_offset")) is not None:
                 lines.append(
                     f"trial {t['trial']} ({t['bag']}): the pose stamps are "
@@ -254,7 +261,7 @@ def _pose_at(
 def _thin(
     times: np.ndarray, xy: np.ndarray, candidates: np.ndarray, min_interval: float, min_dist: float
 ) -> np.ndarray:
-    """Indices of ``candidates`` (ascending) kept: each at least ``min_interval`` s and
+    """Indices of ``candidates`` (in stamp order) kept: each at least ``min_interval`` s and
     ``min_dist`` m after / from the last kept one (the first candidate is kept)."""
     if min_interval <= 0 and min_dist <= 0:
         return candidates
@@ -333,7 +340,8 @@ def _import_one(
         image_xy, image_yaw, ok, reasons = _pose_at(chain, images.times, tol)
         for i in np.flatnonzero(~ok).tolist():
             skip(images.topic, "image", images.times[i], reasons[i] or "no pose")
-        candidates = np.flatnonzero(ok)
+        candidates = np.flatnonzero(ok)  # thinned in stamp order, which need not be the bag's
+        candidates = candidates[np.argsort(images.times[candidates], kind="stable")]
         kept = _thin(images.times, image_xy, candidates, options.min_interval, options.min_distance)
         _check_inside(grid, image_xy[kept], images.times[kept], f"{bag}: image on {images.topic}")
         folder = staging / f"img_{trial}"
@@ -380,6 +388,9 @@ def _import_one(
         "pose_frame": pose_frame,  # the frame the poses came in (None: no frame_id)
         "pose_frame_via_tf": via_tf,  # "map -> odom": the tf chain that placed them on the map
         "poses_merged": int(sum(track.merged for track in chain)),
+        # pose / tf samples and images stamped before an earlier one (sorted into place)
+        "poses_out_of_order": int(sum(track.late for track in chain)),
+        "images_out_of_order": late_count(images.times),
         # record time - pose stamp (median, s) where the stamps are on another clock and the
         # observations without a stamp were placed on it; None where the clocks agree
         "record_clock_offset": clock_offset if to_stamp is not None else None,
@@ -466,9 +477,10 @@ def import_bags(
             entries of ``out`` its import did not write are kept (the report's ``kept``).
         BagFormatError: a path that is not a bag.
         BagContentError: a missing topic (the message lists the bag's topics and types), a
-            topic of a type the import does not read, timestamps that go backwards (the bag,
-            topic and the two stamps); :class:`NothingLeftError`: no image or no utterance left
-            to write (its ``skipped`` lists the skipped observations).
+            topic of a type the import does not read, pose or tf stamps that go backwards
+            more than a few times (the bag, topic and the two stamps);
+            :class:`NothingLeftError`: no image or no utterance left to write (its ``skipped``
+            lists the skipped observations).
         PoseOutsideMapError: a kept observation's pose outside the map.
         RosbagsMissingError: rosbags is not installed.
     """

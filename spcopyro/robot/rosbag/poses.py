@@ -81,6 +81,7 @@ class PoseTrack:
     merged: int = 0  # samples dropped because they repeated the previous sample's stamp
     frame: str | None = None  # the frame the poses are given in (a pose topic's header)
     clock: np.ndarray | None = None  # [K, 2] (record time, header stamp) of its messages, s
+    late: int = 0  # samples that came after one stamped later (sorted into place)
 
     def __post_init__(self) -> None:
         times = np.asarray(self.times, dtype=np.float64).reshape(-1)  # [P]
@@ -136,7 +137,7 @@ class PoseTrack:
         name = self.name[len("inverse of ") :] if self.inverted else f"inverse of {self.name}"
         return PoseTrack(
             name, self.times, self.xy, self.yaw, self.static, not self.inverted, self.merged,
-            clock=self.clock,
+            clock=self.clock, late=self.late,
         )  # fmt: skip
 
 
