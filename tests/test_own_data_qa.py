@@ -292,6 +292,22 @@ def test_numbers_separated_otherwise_than_by_commas_say_so(tmp_path, line, said)
         load_house(room)
 
 
+def test_a_position_written_with_a_decimal_comma_says_so(tmp_path):
+    """A one-column file saved by a spreadsheet in a language that writes decimal commas
+    (``0,5``): the error said 'row has 2 values, expected 1' and nothing of the comma."""
+    room = _saved_house(tmp_path)
+    (room / "StXtx.csv").write_text("0,5\n2,5\n1,5\n")
+    with pytest.raises(DataFormatError) as error:
+        load_house(room)
+    assert str(error.value) == (
+        f"{room / 'StXtx.csv'}, line 1: row has 2 values, expected 1 (a decimal comma, as a "
+        "spreadsheet in some languages writes it: these files write decimals with a point): '0,5'"
+    )
+    (room / "StXtx.csv").write_text("0.5\n2.5\n1.5,2\n")  # two numbers: no such hint
+    with pytest.raises(DataFormatError, match=r"line 3: row has 2 values, expected 1: '1.5,2'$"):
+        load_house(room)
+
+
 def test_macos_metadata_files_beside_the_images_are_named(tmp_path):
     """A folder copied from a Mac to a USB stick holds ``._00000.jpg`` beside ``00000.jpg``:
     features said "OpenCV cannot decode it", and in a house folder "every image after a

@@ -116,6 +116,9 @@ def _read_matrix(path: Path, columns: int | None = None, names: str = "") -> np.
         if width is None:
             width = len(fields)
         hint = _separator_hint(line)
+        if width == 1 and _DECIMAL_COMMA.fullmatch(line):  # Xtx.csv's -1,18 for -1.18
+            hint = (" (a decimal comma, as a spreadsheet in some languages writes it: these files "
+                    "write decimals with a point)")  # fmt: skip
         if len(fields) != width:
             raise DataFormatError(
                 path,
@@ -135,6 +138,7 @@ def _read_matrix(path: Path, columns: int | None = None, names: str = "") -> np.
 
 
 _SEPARATORS = {" ": "spaces", "\t": "tabs", ";": "semicolons"}
+_DECIMAL_COMMA = re.compile(r"\s*[+-]?[0-9]+,[0-9]+([eE][+-]?[0-9]+)?\s*")  # one number: -1,18
 
 
 def _separator_hint(line: str) -> str:
