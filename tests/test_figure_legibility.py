@@ -348,3 +348,35 @@ def test_the_ablation_legend_names_table_2_and_leaves_the_panels():
     assert any(t.startswith("Table 2") for t in texts), texts
     assert any(t.startswith("observations off") for t in texts), texts
     assert not _overlaps_an_axes(fig, legend)
+
+
+def test_a_long_corridor_is_drawn_in_readable_strips():
+    """show on a 100 m x 2 m map drew a strip 40 pixels high, its markers spilling over the
+    walls; it is cut into strips of at most STRIP_ASPECT, at one scale (tall maps: side by
+    side). An ordinary house stays one map."""
+    import dataclasses
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from spcopyro.figures.map_pieces import STRIP_ASPECT
+    from spcopyro.figures.plotting import house_figure
+    from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
+    from spcopyro.synthetic import make_house
+
+    house = make_house(seed=0)
+    assert len(house_figure(house).axes) == 1
+    occupancy = np.full((44, 2004), OCCUPIED, dtype=np.int8)
+    occupancy[2:-2, 2:-2] = FREE  # 100 m x 2 m inside, 0.05 m cells
+    for grid_cells in (occupancy, occupancy.T):
+        grid = OccupancyGrid(np.ascontiguousarray(grid_cells), 0.05, (0.0, 0.0, 0.0))
+        fig = house_figure(dataclasses.replace(house, grid=grid, truth=None))
+        renderer = FigureCanvasAgg(fig).get_renderer()
+        for ax in fig.axes:
+            ax.apply_aspect()
+        boxes = [ax.get_window_extent(renderer) for ax in fig.axes]
+        assert len(boxes) == 6, len(boxes)
+        sizes = {(round(b.width), round(b.height)) for b in boxes}
+        assert len(sizes) == 1, sizes  # one scale
+        ((w, h),) = sizes
+        assert max(w, h) / min(w, h) <= STRIP_ASPECT and min(w, h) >= 0.9 * fig.dpi, sizes
+        assert "(the map in 6 strips, " in fig.axes[0].get_title()

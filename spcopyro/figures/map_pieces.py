@@ -11,6 +11,7 @@ probability, and the lift p(word | concept) / p(word) next to the words that are
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections import Counter
 
@@ -46,6 +47,7 @@ __all__ = [
     "house_title",
     "is_wide",
     "map_legend",
+    "map_strips",
     "place_labels",
     "region_text",
     "spread_markers",
@@ -64,6 +66,10 @@ columns (:func:`map_legend`): beside it, a legend taller than the map left most 
 blank and the map a strip."""
 LEGEND_BELOW_INCHES = 0.55
 """Gap between the axes and a legend below them: clears the x tick labels and the x label."""
+STRIP_ASPECT = 8.0
+"""A map shown more than this many times as long as it is wide (a corridor of 100 m x 2 m) is
+drawn in strips of at most this aspect (:func:`map_strips`): whole, it was a line a few pixels
+high with its markers spilling over the walls."""
 MAX_LEGEND_CONCEPTS = 12
 """The legend lists this many of the largest concepts (the rest are counted in one line)."""
 
@@ -108,6 +114,16 @@ def is_wide(rows: slice, cols: slice) -> bool:
     """Whether the shown part of a map (``rows`` x ``cols`` cells) is wider than
     :data:`WIDE_ASPECT` times its height."""
     return (cols.stop - cols.start) > WIDE_ASPECT * (rows.stop - rows.start)
+
+
+def map_strips(rows: slice, cols: slice) -> tuple[int, bool]:
+    """How to cut the shown part of a map (``rows`` x ``cols`` cells) into strips of at most
+    :data:`STRIP_ASPECT`: ``(strips, along_x)``; 1 strip for a map no longer than that;
+    ``along_x`` for a wide map (strips stacked top to bottom), else a tall one (strips side by
+    side, left to right)."""
+    height, width = rows.stop - rows.start, cols.stop - cols.start
+    long, short = max(height, width), max(min(height, width), 1)
+    return max(1, math.ceil(long / (STRIP_ASPECT * short))), width >= height
 
 
 def map_legend(

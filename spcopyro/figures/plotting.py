@@ -39,6 +39,7 @@ from spcopyro.figures.map_pieces import (
     house_title,
     is_wide,
     map_legend,
+    map_strips,
     place_labels,
     region_text,
     spread_markers,
@@ -140,11 +141,16 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     apart (:func:`~spcopyro.figures.map_pieces.spread_markers`): every word in the legend shows.
     """
     grid, obs = house.grid, house.observations
-    fig = Figure(figsize=(8, 8))
-    ax = fig.subplots()
-    wide = is_wide(*_show_image(ax, grid, render_labels(np.full(grid.shape, -1), grid)))
-    if obs.num_images:  # a house of words only has none: no "images (0)" in the legend
-        ax.scatter(*obs.image_xy.T, s=6, c="0.45", marker="s", label=f"images ({obs.num_images})")
+    rgb = render_labels(np.full(grid.shape, -1), grid)
+    rows, cols = known_bounds(grid)
+    strips, along_x = map_strips(rows, cols)
+    if strips == 1:
+        fig = Figure(figsize=(8, 8))
+        axes = [fig.subplots()]
+        wide = is_wide(*_show_image(axes[0], grid, rgb))
+    else:
+        fig, axes = _strip_axes(grid, rgb, strips, along_x)
+        wide = along_x  # the legend below the strips of a wide map, beside a tall one's
     marks = utterance_marks(obs.utterances)  # [U] a sentence's rarest word: the place named
     frequent = [w for w, _ in Counter(marks).most_common(MAX_WORD_COLOURS)]
     colours = distinct_colours(len(frequent)) / 255.0  # [F, 3]
@@ -154,25 +160,65 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     size = 28.0
     xy = np.asarray(obs.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
     shown = np.empty_like(xy)
-    shown[order] = spread_markers(ax, xy[order], size)
+    shown[order] = spread_markers(axes[0], xy[order], size)  # every strip at one scale
     rest = kind == len(frequent)
-    others = None
-    if rest.any():  # drawn first (under the named words), listed last in the legend
-        others = ax.scatter(*shown[rest].T, s=size, color="0.8", edgecolors="k",
-                            linewidths=0.4, zorder=2, label="other words")  # fmt: skip
-    for k, word in enumerate(frequent):
-        ax.scatter(*shown[kind == k].T, s=size, color=colours[k], edgecolors="k",
-                   linewidths=0.4, zorder=3, label=word)  # fmt: skip
-    handles, labels = ax.get_legend_handles_labels()
-    if others is not None:
-        k = handles.index(others)
+    for ax in axes:
+        if obs.num_images:  # a house of words only has none: no "images (0)" in the legend
+            ax.scatter(*obs.image_xy.T, s=6, c="0.45", marker="s",
+                       label=f"images ({obs.num_images})")  # fmt: skip
+        if rest.any():  # drawn first (under the named words), listed last in the legend
+            ax.scatter(*shown[rest].T, s=size, color="0.8", edgecolors="k",
+                       linewidths=0.4, zorder=2, label="other words")  # fmt: skip
+        for k, word in enumerate(frequent):
+            ax.scatter(*shown[kind == k].T, s=size, color=colours[k], edgecolors="k",
+                       linewidths=0.4, zorder=3, label=word)  # fmt: skip
+    handles, labels = axes[0].get_legend_handles_labels()
+    if "other words" in labels:
+        k = labels.index("other words")
         handles.append(handles.pop(k))
         labels.append(labels.pop(k))
-    map_legend(ax, handles, labels, below=wide, columns=4, fontsize=8, frameon=False,
+    map_legend(axes[-1], handles, labels, below=wide, columns=4, fontsize=8, frameon=False,
                title="words heard (rarest word of each utterance;\nmarkers at one spot spread "
                "apart)", title_fontsize=8)  # fmt: skip
-    ax.set_title(title or house_title(house))
+    title = title or house_title(house)
+    if strips > 1:
+        order_text = "top to bottom" if along_x else "left to right"
+        title += f"\n(the map in {strips} strips, {order_text})"
+    axes[0].set_title(title)
     return fig
+
+
+def _strip_axes(
+    grid: OccupancyGrid, rgb: np.ndarray, strips: int, along_x: bool
+) -> tuple[Figure, list[Axes]]:
+    """A figure of ``strips`` axes, each showing the map ``rgb`` at one scale over its own
+    stretch of x (``along_x``: stacked top to bottom) or y (side by side, the top stretch on
+    the left), each stretch 3% longer at both ends so a marker on a cut shows whole, the first
+    and last moved inside the map (:func:`~spcopyro.figures.map_pieces.map_strips`)."""
+    rows, cols = known_bounds(grid)
+    left, right, bottom, top = _extent(grid, rows, cols)
+    long, short = (right - left, top - bottom) if along_x else (top - bottom, right - left)
+    length = long / strips
+    pad = 0.03 * length
+    across = 11.0 * short / (length + 2 * pad)  # inches of a strip across, 11 along
+    if along_x:
+        fig = Figure(figsize=(11.5, strips * (across + 0.7) + 0.8))
+        axes = list(fig.subplots(strips, 1))
+    else:
+        fig = Figure(figsize=(strips * (across + 0.9) + 0.8, 11.5))
+        axes = list(fig.subplots(1, strips))
+    for k, ax in enumerate(axes):
+        _show_image(ax, grid, rgb)
+        start = min(max(k * length - pad, 0.0), long - length - 2 * pad)  # inside the map
+        if along_x:
+            ax.set_xlim(left + start, left + start + length + 2 * pad)
+            if k < strips - 1:
+                ax.set_xlabel("")
+        else:
+            ax.set_ylim(top - start - length - 2 * pad, top - start)
+            if k:
+                ax.set_ylabel("")
+    return fig, axes
 
 
 def semantic_colours(result: SpCoResult) -> np.ndarray:
