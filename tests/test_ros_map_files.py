@@ -108,10 +108,10 @@ def test_a_16_bit_map_as_map_saver_would_write_it_loads_without_a_warning(tmp_pa
 
 @pytest.mark.parametrize(
     ("resolution", "hint"),
-    [("1e4", "wider than 1 m"), ("50", "millimetres or centimetres"), ("5e-5", "kilometres")],
+    [("1e4", "wider than 2 m"), ("5", "millimetres or centimetres"), ("5e-5", "kilometres")],
 )
 def test_an_absurd_resolution_is_warned_naming_its_line(tmp_path, caplog, resolution, hint):
-    """A resolution of 10 km a cell (or 50: 0.05 m written in millimetres) was read without a
+    """A resolution of 10 km a cell (or 5: 0.05 m written in centimetres) was read without a
     word; the positions then fall in one cell or off the map."""
     with caplog.at_level(logging.WARNING, logger="spcopyro"):
         load_map(write_map(tmp_path, resolution=resolution))
@@ -120,7 +120,7 @@ def test_an_absurd_resolution_is_warned_naming_its_line(tmp_path, caplog, resolu
     assert f"cells of {float(resolution):g} m" in message and hint in message
     caplog.clear()
     with caplog.at_level(logging.WARNING, logger="spcopyro"):
-        load_map(write_map(tmp_path, resolution="1.0"))  # a coarse plan's metre cells
+        load_map(write_map(tmp_path, resolution="2.0"))  # a fit's coarse cells may be 2 m
     assert warnings_of(caplog) == []
 
 

@@ -67,10 +67,11 @@ origin along x or y, since the data loader refuses every position there
 recorded on such a map (an origin in UTM coordinates) could not be fitted."""
 
 
-PLAUSIBLE_RESOLUTION = (1e-3, 1.0)
+PLAUSIBLE_RESOLUTION = (1e-3, 2.0)
 """Metres: :func:`load_map` warns of a ``resolution`` outside this range, naming the yaml's line
-and the value: a cell wider than 1 m cannot tell a house's rooms apart, and a robot's map is
-usually 0.05 m a cell (one of 50 or 5 is 0.05 written in millimetres or centimetres)."""
+and the value: a cell wider than 2 m holds a room (a fit's coarse model cells, ``--cell-size``,
+may be 1 or 2 m; its map.yaml loads without a word), and a robot's map is usually 0.05 m a cell
+(one of 50 or 5 is 0.05 written in millimetres or centimetres)."""
 
 
 class MapFormatError(ValueError):
@@ -227,7 +228,7 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
             "%s: key 'resolution' %s: cells of %s m%s (a robot's map is usually 0.05 m a cell): "
             "is it written in %s?",
             where("resolution"), echo(resolution), f"{resolution:g}",
-            f", wider than {high:g} m, cannot tell a house's rooms apart" if resolution > high
+            f", wider than {high:g} m, would hold whole rooms" if resolution > high
             else f", narrower than {low:g} m, make a house a few centimetres across",
             "millimetres or centimetres" if resolution > high else "kilometres",
         )  # fmt: skip
