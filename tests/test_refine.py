@@ -259,7 +259,16 @@ def test_a_refined_fit_is_updated_on_the_map_s_cells_as_refined(home, tmp_path, 
     # a preparation of its own on the command line is checked against the saved fit's
     assert main([*argv, "--out", str(tmp_path / "x"), "--update", str(first),
                  "--word-scaling", "10"]) == 2  # fmt: skip
-    assert "cannot update" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "cannot update" in err and "a refined fit is saved with its second stage's" in err
+    # the library: the preset's (coarse) settings against the refined fit's
+    from spcopyro.config import preset
+    from spcopyro.data import load_house
+    from spcopyro.results.result import SpCoResult
+    from spcopyro.robot.online import fit_update
+
+    with pytest.raises(ValueError, match=r"cell_size: .*\(a refined fit is saved .*settings=None"):
+        fit_update(SpCoResult.load(first), load_house(home), preset("coarse"), sweeps=1)
 
 
 def test_the_coarse_stage_s_sampled_hyperparameters_are_kept_and_the_printed_ones_named(

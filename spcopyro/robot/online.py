@@ -191,10 +191,15 @@ def check_compatible(
             problems.append(f"modality {name!r}: items differ (saved fit {list(further[name])}, "
                             f"this run {list(present[name])})")  # fmt: skip
     if problems:
-        raise ValueError(
-            f"cannot update {where} with this run: " + "; ".join(problems)
-            + " (an update needs the saved fit's map and settings: see its config.json)"
-        )  # fmt: skip
+        refined = (saved.inference.get("refine") or {}).get("refine")
+        hint = (
+            " (a refined fit is saved with its second stage's settings, on the map's own "
+            "cells, not the preset's: leave them out to continue with the saved fit's, "
+            "settings=None in fit_update, no model or data options after --update)"
+            if refined
+            else " (an update needs the saved fit's map and settings: see its config.json)"
+        )
+        raise ValueError(f"cannot update {where} with this run: " + "; ".join(problems) + hint)
 
 
 def extend_emission(
