@@ -8,6 +8,7 @@ default (``spcopyro COMMAND --help``).
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -265,3 +266,56 @@ class _HelpFormatter(argparse.HelpFormatter):
         if action.nargs == 0:  # a flag
             return f"{text} (default: {'on' if action.default else 'off'})"
         return f"{text} (default: %(default)s)"
+
+
+DASH_WORDS = {"where": ("word", "spcopyro where OUT [options] -- {}"),
+              "navigate": ("instruction", "spcopyro navigate OUT --start X,Y [options] -- {}"),
+              "export": ("word", "--word={}")}  # fmt: skip
+"""The commands that take a word or an instruction (a positional, or export's ``--word``), what
+it is called and how one that starts with '-' is given (argparse reads it as an option)."""
+_NEGATIVE_NUMBER = re.compile(r"^-\d+$|^-\d*\.\d+$")  # argparse reads these as values
+
+
+def refuse_dash_words(parser: argparse.ArgumentParser, argv: list[str]) -> None:
+    """``spcopyro where OUT -tv``: argparse read the word as an unknown option and answered
+    "the following arguments are required: word". A token after a :data:`DASH_WORDS` command
+    that starts with '-', is none of its options (nor one argparse takes as a value: a negative
+    number, text with a space) and stands where the word goes -- a positional word still
+    missing, or among export's ``--word`` values -- is a usage error saying how to give it
+    (after ``--``, or ``--word=-tv``). Only an argument list argparse refuses anyway is
+    refused."""
+    commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    start = next((k for k, token in enumerate(argv) if token in commands.choices), None)
+    if start is None or argv[start] not in DASH_WORDS:
+        return
+    command = commands.choices[argv[start]]
+    options = command._option_string_actions  # option string -> action
+    needed = sum(not a.option_strings for a in command._actions)  # positionals
+    what, how = DASH_WORDS[argv[start]]
+    positional = any(a.dest == what and not a.option_strings for a in command._actions)
+    positionals, current = 0, None  # current: the option whose values the tokens are
+    for token in argv[start + 1 :]:
+        if token == "--":
+            return
+        name = token.split("=", 1)[0]
+        option = options.get(name) or next(
+            (a for o, a in options.items() if name.startswith("--") and o.startswith(name)), None
+        )
+        if option is not None:
+            current = option if option.nargs != 0 and "=" not in token else None
+            continue
+        value = not token.startswith("-") or len(token) == 1 or " " in token
+        if value or _NEGATIVE_NUMBER.match(token):
+            if current is None:
+                positionals += 1
+            elif current.nargs in (None, 1):  # one value taken: the next are positionals
+                current = None
+            continue
+        at_word = current.dest == what if current is not None else positionals < needed
+        if at_word and (current is not None or positional):
+            command.error(
+                f"{token!r} is read as an option, and {argv[start]} has none of that name; "
+                f"{'an' if what[0] in 'aeiou' else 'a'} {what} that starts with '-' is given "
+                f"as: {how.format(token)}"
+            )
+        return  # an unknown option elsewhere: argparse says so

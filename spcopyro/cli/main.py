@@ -46,6 +46,7 @@ from spcopyro.cli.common import (
     _load,
     _summary,
     figure_file,
+    refuse_dash_words,
     refuse_fit_files,
 )
 from spcopyro.cli.fit_parser import add_parser as add_fit_parser
@@ -498,8 +499,10 @@ def _silence_stdout() -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    given = sys.argv[1:] if argv is None else argv
-    args = build_parser().parse_args(attach_negative_coordinates(list(given)))
+    given = attach_negative_coordinates(list(sys.argv[1:] if argv is None else argv))
+    parser = build_parser()
+    refuse_dash_words(parser, given)  # `where OUT -tv`: say how to give such a word
+    args = parser.parse_args(given)
     if argv is not None:
         args.argv = list(argv)
     _configure_logging(logging.INFO if args.verbose else logging.WARNING)
