@@ -16,7 +16,7 @@ pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip inst
 from spcopyro.cli.main import main  # noqa: E402
 from spcopyro.maps.grid import FREE, OccupancyGrid  # noqa: E402
 from spcopyro.maps.map_server import save_map  # noqa: E402
-from spcopyro.robot.rosbag import BagWriter, import_bags  # noqa: E402
+from spcopyro.robot.rosbag import BagWriter, ImportOptions, import_bags  # noqa: E402
 from spcopyro.robot.rosbag.images import to_8_bits  # noqa: E402
 
 T0 = 1_600_000_000.0
@@ -113,23 +113,30 @@ def test_to_8_bits_picks_the_smallest_sensor_depth():
     assert to_8_bits(np.zeros((2, 2), np.uint16)).tolist() == [[0, 0], [0, 0]]
 
 
-def test_a_simulator_recording_with_unstamped_images(tmp_path, map_yaml):
-    """A simulator's recording (poses and images stamped from 10 s, recorded from T0) with one
-    image of zero stamp: its record time, 1.6e9 s, was checked for order among the stamps before
-    the clock fix mapped it onto their clock, and the import stopped ('timestamps go
-    backwards'). It is now placed on the stamps' clock like an utterance."""
+@pytest.mark.parametrize("pose_tf", [False, True], ids=["amcl_pose", "pose-tf"])
+def test_a_simulator_recording_with_unstamped_images_and_poses(tmp_path, map_yaml, pose_tf):
+    """A simulator's recording (poses and images stamped from 10 s, recorded from T0) with an
+    image and a pose sample of zero stamp: their record times, 1.6e9 s, were checked for order
+    among the stamps before the clock fix mapped them onto their clock, and the import stopped
+    ('timestamps go backwards'). Both are now placed on the stamps' clock: the image's pose is
+    the one at its record time, and the pose sample (x = 2 m) is where it was recorded."""
     bag = tmp_path / "sim"
     with BagWriter(bag, ros=2) as w:
         for k in range(21):  # stamp 10 + 0.5 k, recorded at T0 + k: half real time
             stamp, record = 10.0 + 0.5 * k, T0 + k
-            w.pose("/amcl_pose", stamp, 0.1 * k, 0.0, 0.0, log_time=record)
-            if k in (2, 7, 12):
+            x, pose_stamp = (2.0, 0.0) if k == 9 else (0.1 * k, stamp)
+            if pose_tf:
+                w.tf(pose_stamp, [("map", "base_link", x, 0.0, 0.0)], log_time=record)
+            else:
+                w.pose("/amcl_pose", pose_stamp, x, 0.0, 0.0, log_time=record)
+            if k in (2, 7, 9, 12):
                 pixels = np.zeros((4, 4, 3), np.uint8)
                 _raw_image(w, 0.0 if k == 7 else stamp, pixels, "rgb8", log_time=record)
         w.text("/speech", T0 + 3.0, "hall")
     out = tmp_path / "data" / "house"
-    report = import_bags([bag], map_yaml, out, progress=False)
-    assert np.allclose(np.loadtxt(out / "Xtx.csv"), [0.2, 0.7, 1.2])  # the unstamped at k = 7
+    options = ImportOptions(pose_tf=("map", "base_link") if pose_tf else None)
+    report = import_bags([bag], map_yaml, out, options, progress=False)
+    assert np.allclose(np.loadtxt(out / "Xtx.csv"), [0.2, 0.7, 2.0, 1.2])
     (counts,) = report.trials
-    assert counts["images_kept"] == 3 and counts["unstamped_moved_to_stamp_clock"] == 2
-    assert counts["images_out_of_order"] == 0
+    assert counts["images_kept"] == 4 and counts["unstamped_moved_to_stamp_clock"] == 2
+    assert counts["images_out_of_order"] == 0 and counts["poses_out_of_order"] == 0

@@ -9,7 +9,8 @@ only here, when a bag is opened, and a clear :class:`RosbagsMissingError` names
 Timestamps: a message with a ``header`` is placed at its header stamp (when the sensor saw it);
 one without (``std_msgs/String``) or with a zero stamp at the time the bag recorded it, mapped on
 the stamps' clock when the pose messages' stamps are on another (a simulator's:
-:func:`~spcopyro.robot.rosbag.poses.header_clock`). Images may come in any order of their
+:func:`~spcopyro.robot.rosbag.poses.header_clock`; a pose or tf sample's through its own track's
+stamped samples: :func:`_on_stamp_clock`). Images may come in any order of their
 stamps. The samples of a pose topic or tf edge are sorted by stamp: a few arriving late are
 counted (the import reports them), more than a tenth (a clock that went back) are a
 :class:`BagContentError` naming the topic, the two messages and their stamps. Equal pose stamps
@@ -28,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from spcopyro.robot.rosbag.poses import PoseTrack, quaternion_yaw
+from spcopyro.robot.rosbag.poses import CLOCKS_DIFFER, PoseTrack, quaternion_yaw
 from spcopyro.robot.rosbag.repairs import compressed_messages, none_read_fix, packed_file, repair
 
 __all__ = [
@@ -317,6 +318,26 @@ def _check_order(
         )
 
 
+def _on_stamp_clock(
+    times: list[float], unstamped: list[int], clock: list[tuple[float, float]]
+) -> list[float]:
+    """``times`` of a pose track with those of its samples ``unstamped`` (a zero stamp: their
+    record time) moved onto the stamps' clock through the track's ``clock`` (record time,
+    stamp) pairs, when the stamps are more than :data:`CLOCKS_DIFFER` s from their record times
+    (median: a simulator's clock). One such sample, 1.6e9 s past the simulated times, was read
+    as a clock that went back."""
+    pairs = np.asarray(clock, dtype=np.float64).reshape(-1, 2)  # [K, 2]
+    if not unstamped or not pairs.size:
+        return times
+    offset = pairs[:, 0] - pairs[:, 1]  # [K]
+    if abs(float(np.median(offset))) <= CLOCKS_DIFFER:
+        return times
+    order = np.argsort(pairs[:, 0], kind="stable")
+    moved = np.asarray(times, dtype=np.float64)  # [P]
+    moved[unstamped] -= np.interp(moved[unstamped], pairs[order, 0], offset[order])
+    return moved.tolist()
+
+
 def _track(
     name: str,
     times: list[float],
@@ -356,6 +377,7 @@ def read_pose_topic(reader: Any, topic: str) -> PoseTrack:
     times: list[float] = []
     poses: list[tuple[float, float, float]] = []
     clock: list[tuple[float, float]] = []
+    unstamped: list[int] = []  # the samples of zero stamp, at their record time
     frames: set[str] = set()
     for _, connection, log_ns, msg in _messages(reader, connections, topic):
         pose = msg.pose if connection.msgtype.endswith("PoseStamped") else msg.pose.pose
@@ -363,10 +385,13 @@ def read_pose_topic(reader: Any, topic: str) -> PoseTrack:
         times.append(t)
         if stamped:
             clock.append((log_ns * 1e-9, t))
+        else:
+            unstamped.append(len(times) - 1)
         poses.append(_planar(pose))
         frames.add(_frame(msg.header.frame_id))
     if not times:
         raise BagContentError(f"{reader.paths[0]}: pose topic {topic} holds no messages")
+    times = _on_stamp_clock(times, unstamped, clock)
     _check_order(reader, topic, times)
     named = sorted(f for f in frames if f)
     if len(named) > 1:
@@ -422,6 +447,7 @@ def _tf_tracks(reader: Any) -> dict[tuple[str, str], PoseTrack] | None:
     samples: dict[tuple[str, str], tuple[list[float], list[tuple[float, float, float]]]] = {}
     numbers: dict[tuple[str, str], list[int]] = {}  # each sample's message number on /tf
     clocks: dict[tuple[str, str], list[tuple[float, float]]] = {}
+    unstamped: dict[tuple[str, str], list[int]] = {}
     static: dict[tuple[str, str], tuple[float, float, float]] = {}
     counted = {"tf": 0, "tf_static": 0}
     for _, connection, log_ns, msg in _messages(reader, connections, " and ".join(topics)):
@@ -440,9 +466,12 @@ def _tf_tracks(reader: Any) -> dict[tuple[str, str], PoseTrack] | None:
             poses.append(pose)
             if stamped:
                 clocks.setdefault(edge, []).append((log_ns * 1e-9, t))
+            else:
+                unstamped.setdefault(edge, []).append(len(times) - 1)
             numbers.setdefault(edge, []).append(counted["tf"])
     tracks: dict[tuple[str, str], PoseTrack] = {}
     for edge, (times, poses) in samples.items():
+        times = _on_stamp_clock(times, unstamped.get(edge, []), clocks.get(edge, []))
         _check_order(reader, "/tf", times, f" (edge {edge[0]} -> {edge[1]})", numbers[edge])
         tracks[edge] = _track(f"tf {edge[0]} -> {edge[1]}", times, poses, None, clocks.get(edge))
     for edge, pose in static.items():
