@@ -380,3 +380,33 @@ def test_a_long_corridor_is_drawn_in_readable_strips():
         ((w, h),) = sizes
         assert max(w, h) / min(w, h) <= STRIP_ASPECT and min(w, h) >= 0.9 * fig.dpi, sizes
         assert "(the map in 6 strips, " in fig.axes[0].get_title()
+
+
+def test_a_word_heard_on_a_wall_has_a_white_rim_in_house_png_too():
+    """house.png kept black rims on walls (a coarse grid's walls cover words heard by a door:
+    room1ldk4's 0.25 m grid covers 7 of 45), as the semantic map did before; its legend keeps
+    black rims."""
+    import dataclasses
+
+    from matplotlib.collections import PathCollection
+
+    from spcopyro.figures.plotting import house_figure
+    from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
+    from spcopyro.synthetic import make_house
+
+    occupancy = np.full((10, 31), FREE, dtype=np.int8)
+    occupancy[:, 15] = OCCUPIED  # x 1.5..1.6
+    grid = OccupancyGrid(occupancy, 0.1, (0.0, 0.0, 0.0))
+    obs = make_house(seed=0).observations
+    xy = np.tile([[0.55, 0.45]], (2, 1))
+    xy[0] = [1.55, 0.45]  # on the wall
+    obs = dataclasses.replace(obs, utterances=(("kitchen",), ("bed",)), word_xy=xy,
+                              word_trial=np.zeros(2, dtype=np.int64))  # fmt: skip
+    house = dataclasses.replace(make_house(seed=0), grid=grid, observations=obs, truth=None)
+    fig = house_figure(house)
+    markers = [c for c in fig.axes[0].collections if isinstance(c, PathCollection)]
+    rims = {c.get_label(): c.get_edgecolors()[:, :3].tolist() for c in markers}
+    del rims[f"images ({obs.num_images})"]
+    assert rims == {"kitchen": [[1.0, 1.0, 1.0]], "bed": [[0.0, 0.0, 0.0]]}, rims
+    legend = fig.axes[0].get_legend()
+    assert [h.get_markeredgecolor() for h in legend.legend_handles[1:]] == ["k", "k"]

@@ -50,6 +50,7 @@ __all__ = [
     "map_strips",
     "place_labels",
     "region_text",
+    "rim_colours",
     "spread_markers",
     "utterance_concepts",
     "utterance_marks",
@@ -237,6 +238,12 @@ def _on_walls(grid: OccupancyGrid, xy: np.ndarray) -> np.ndarray:
     return walls
 
 
+def rim_colours(grid: OccupancyGrid, xy: np.ndarray) -> np.ndarray:
+    """``[U, 3]`` the rim of a marker at each world point ``[U, 2]``: black, white on a wall
+    (a black rim on a black wall vanished and a dark marker there was hard to see)."""
+    return np.repeat(np.where(_on_walls(grid, xy)[:, None], 1.0, 0.0), 3, axis=1)
+
+
 def draw_utterances(
     ax: Axes, result: SpCoResult, observations: Observations, colours: np.ndarray
 ) -> Line2D | None:
@@ -252,8 +259,7 @@ def draw_utterances(
     rgb = np.where(
         concepts[:, None] >= 0, colours[np.maximum(concepts, 0)] / 255.0, OFF_MAP_RGB
     )  # [U, 3]
-    edges = np.where(_on_walls(result.grid, xy)[:, None], 1.0, 0.0)  # [U, 1]: white on a wall
-    ax.scatter(*xy.T, s=22, c=rgb, edgecolors=np.repeat(edges, 3, axis=1), linewidths=0.7,
+    ax.scatter(*xy.T, s=22, c=rgb, edgecolors=rim_colours(result.grid, xy), linewidths=0.7,
                zorder=3)  # fmt: skip
     left_out = int((concepts < 0).sum())  # the fit printed them as "unplaced"
     grey = f", mid grey: {left_out} left out, off the free space" if left_out else ""

@@ -42,6 +42,7 @@ from spcopyro.figures.map_pieces import (
     map_strips,
     place_labels,
     region_text,
+    rim_colours,
     spread_markers,
     utterance_marks,
 )
@@ -139,6 +140,7 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     :func:`~spcopyro.maps.palette.distinct_colours` (near-twins such as tv/kitchen came from
     ``label_colours``), the rest are "other words" in grey. Markers at one spot are spread
     apart (:func:`~spcopyro.figures.map_pieces.spread_markers`): every word in the legend shows.
+    A marker on a wall has a white rim (:func:`~spcopyro.figures.map_pieces.rim_colours`).
     """
     grid, obs = house.grid, house.observations
     rgb = render_labels(np.full(grid.shape, -1), grid)
@@ -162,17 +164,22 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     shown = np.empty_like(xy)
     shown[order] = spread_markers(axes[0], xy[order], size)  # every strip at one scale
     rest = kind == len(frequent)
+    rims = rim_colours(grid, shown)  # [U, 3] white on a wall, as on the semantic map
     for ax in axes:
         if obs.num_images:  # a house of words only has none: no "images (0)" in the legend
             ax.scatter(*obs.image_xy.T, s=6, c="0.45", marker="s",
                        label=f"images ({obs.num_images})")  # fmt: skip
         if rest.any():  # drawn first (under the named words), listed last in the legend
-            ax.scatter(*shown[rest].T, s=size, color="0.8", edgecolors="k",
+            ax.scatter(*shown[rest].T, s=size, color="0.8", edgecolors=rims[rest],
                        linewidths=0.4, zorder=2, label="other words")  # fmt: skip
         for k, word in enumerate(frequent):
-            ax.scatter(*shown[kind == k].T, s=size, color=colours[k], edgecolors="k",
+            ax.scatter(*shown[kind == k].T, s=size, color=colours[k], edgecolors=rims[kind == k],
                        linewidths=0.4, zorder=3, label=word)  # fmt: skip
     handles, labels = axes[0].get_legend_handles_labels()
+    marker = np.sqrt(size)  # the legend's word markers rimmed black, wherever their first one is
+    handles = [h if label.startswith("images (") else Line2D(
+        [], [], ls="", marker="o", ms=marker, mfc=h.get_facecolor()[0], mec="k", mew=0.4)
+        for h, label in zip(handles, labels, strict=True)]  # fmt: skip
     if "other words" in labels:
         k = labels.index("other words")
         handles.append(handles.pop(k))
