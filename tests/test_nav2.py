@@ -489,6 +489,23 @@ def test_one_word_written_in_several_ways_is_one_mask(tmp_path):
         ("台所", "speed_word0"), ("café", "speed_cafe")]  # fmt: skip
 
 
+def test_words_of_one_ros_name_get_readable_distinct_names(tmp_path):
+    """Two words of one ROS-safe form (café and cafe) were named speed_cafe and speed_cafe_,
+    whose filter was speed_cafe__filter, and rock--roll speed_rock__roll: ROS 2 names repeat
+    no underscore. Now: speed_cafe, speed_cafe_2, speed_rock_roll."""
+    result = top_and_bottom()
+    vocabulary = ("café", "cafe", "rock--roll")
+    words = EmissionTable("words", vocabulary, result.emissions[1].probabilities)
+    other = dataclasses.replace(result, emissions=(result.emissions[0], words))
+    export = export_nav2(other, tmp_path / "b", list(vocabulary), mode="speed")
+    names = [m.name for m in export.masks]
+    assert names == ["speed_cafe", "speed_cafe_2", "speed_rock_roll"]
+    written = export.costmap_filters_yaml.read_text() + "".join(
+        p.name + p.read_text() for p in (tmp_path / "b").glob("*.yaml")
+    )
+    assert "__" not in written.replace("ros__parameters", ""), written
+
+
 def test_an_export_or_plan_under_a_file_says_so(fit, tmp_path, capsys):
     """QA: export --nav2 FILE/x and navigate --out FILE/x said "cannot write in FILE ([Errno 17]
     File exists: ...)"."""

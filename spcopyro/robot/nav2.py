@@ -210,9 +210,10 @@ class Nav2Export:
 
 def _ros_name(word: str, index: int) -> str:
     """A ROS-name-safe form of the vocabulary's word ``index``: lower case, ``[a-z0-9_]`` only,
-    accents dropped (``café``: ``cafe``); ``word3`` for one with no such letter (``台所``)."""
+    accents dropped (``café``: ``cafe``), no repeated underscore (``rock--roll``: ``rock_roll``;
+    ROS 2 names must not repeat one); ``word3`` for one with no such letter (``台所``)."""
     ascii_word = unicodedata.normalize("NFKD", word.lower()).encode("ascii", "ignore").decode()
-    name = re.sub(r"[^a-z0-9_]", "_", ascii_word).strip("_")
+    name = re.sub(r"[^a-z0-9]+", "_", ascii_word).strip("_")
     return name or f"word{index}"
 
 
@@ -418,9 +419,11 @@ def export_nav2(
     words = [result.vocabulary[i] for i in indices]
     names: list[str] = []
     for word, index in zip(words, indices, strict=True):
-        name = f"{mode}_{_ros_name(word, index)}"
-        while name in names:
-            name += "_"
+        base = name = f"{mode}_{_ros_name(word, index)}"
+        k = 1
+        while name in names:  # café and cafe: cafe, cafe_2 (was cafe_, whose filter was
+            k += 1  # cafe__filter: a ROS 2 name repeats no underscore)
+            name = f"{base}_{k}"
         names.append(name)
 
     staged = stage_marked_folder(
