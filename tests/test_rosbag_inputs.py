@@ -106,6 +106,30 @@ def test_16_bit_images_use_the_range_their_values_span(tmp_path, map_yaml):
     assert np.array_equal(second, expected)
 
 
+def test_a_16_bit_png_compressed_image_is_stored_scaled(tmp_path, map_yaml):
+    """image_transport's png of a mono16 camera (a 16-bit PNG CompressedImage) was stored as
+    recorded, and read as its high byte (0..15 of a 12-bit camera) by `features`; it is now
+    stored as an 8-bit PNG scaled as a raw mono16 image is."""
+    grey12 = np.linspace(0, 4095, 48).round().astype(np.uint16).reshape(6, 8)  # [6, 8]
+    ok, png = cv2.imencode(".png", grey12)
+    assert ok and png.tobytes()[24] == 16  # a 16-bit PNG
+    bag = tmp_path / "rec"
+    with BagWriter(bag, ros=2) as w:
+        for t in T0 + np.arange(4.0):
+            w.pose("/amcl_pose", t, 0.0, 0.0, 0.0)
+        msg = w.types["sensor_msgs/msg/CompressedImage"](
+            header=w.header(T0 + 1.0, "cam"), format="mono16; png compressed",
+            data=png.reshape(-1))  # fmt: skip
+        w.write("/camera/image", "sensor_msgs/msg/CompressedImage", msg, log_time=T0 + 1.0)
+        w.text("/speech", T0 + 1.0, "hall")
+    out = tmp_path / "data" / "house"
+    import_bags([bag], map_yaml, out, progress=False)
+    (stored,) = (out / "img_0").iterdir()
+    assert stored.read_bytes()[24] == 8  # an 8-bit PNG
+    expected = np.rint(grey12 * (255 / 4095)).astype(np.uint8)
+    assert np.array_equal(cv2.imread(str(stored)), np.repeat(expected[..., None], 3, axis=2))
+
+
 def test_to_8_bits_picks_the_smallest_sensor_depth():
     assert to_8_bits(np.array([[0, 200, 255]], np.uint16)).tolist() == [[0, 200, 255]]
     assert to_8_bits(np.array([[0, 256, 1023]], np.uint16)).tolist() == [[0, 64, 255]]

@@ -1,11 +1,12 @@
 """Camera images from ROS messages: the bytes to store for one ``sensor_msgs`` image.
 
 A ``CompressedImage`` holding a JPEG or PNG is stored as it is (its own bytes, ``.jpg`` /
-``.png``: no second lossy compression), after checking that OpenCV decodes it. Any other image
-(a raw ``sensor_msgs/Image`` in any encoding rosbags-image converts -- rgb8, bgr8, mono8, mono16,
-bayer_*, ... -- rows padded to ``step`` bytes included, or another compressed format) is
-decoded to 8-bit BGR and stored as a lossless PNG; a 16-bit one is scaled from the bit depth
-its values use (:func:`to_8_bits`: a 12-bit camera's 0..4095 to 0..255). An image that
+``.png``: no second lossy compression), after checking that OpenCV decodes it; but a 16-bit PNG
+(image_transport's png of a mono16 camera) is scaled to 8 bits as a raw 16-bit image is. Any
+other image (a raw ``sensor_msgs/Image`` in any encoding rosbags-image converts -- rgb8, bgr8,
+mono8, mono16, bayer_*, ... -- rows padded to ``step`` bytes included, or another compressed
+format) is decoded to 8-bit BGR and stored as a lossless PNG; a 16-bit one is scaled from the
+bit depth its values use (:func:`to_8_bits`: a 12-bit camera's 0..4095 to 0..255). An image that
 cannot be decoded raises :class:`ImageDecodeError` with the reason; the import reports it (with
 its timestamp) in skipped.csv rather than stopping.
 """
@@ -34,12 +35,15 @@ def decode_image(msg: Any) -> np.ndarray:
     """``[H, W, 3]`` uint8 BGR of an Image or CompressedImage message."""
     if hasattr(msg, "format"):  # CompressedImage
         data = np.frombuffer(bytes(msg.data), dtype=np.uint8)  # [bytes]
-        image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
+        flags = cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH  # a 16-bit PNG (mono16, png compressed)
+        image = cv2.imdecode(data, flags) if data.size else None
         if image is None:
             raise ImageDecodeError(
                 f"compressed image (format {msg.format!r}, {data.size} bytes) does not decode"
             )
-        return image
+        if image.dtype == np.uint16:  # IMREAD_COLOR alone keeps the high byte
+            return to_8_bits(image)
+        return image if image.dtype == np.uint8 else cv2.imdecode(data, cv2.IMREAD_COLOR)
     try:
         from rosbags.image import message_to_cvimage
         from rosbags.image.image import to_cvtype
@@ -82,15 +86,20 @@ def to_8_bits(image: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(scaled.astype(np.uint8))
 
 
+def _png_16_bit(data: bytes) -> bool:
+    """Whether PNG ``data`` holds 16 bits a sample (its IHDR's bit depth, byte 24)."""
+    return data.startswith(_PNG_MAGIC) and data[24:25] == b"\x10"
+
+
 def encoded_image(msg: Any) -> tuple[bytes, str]:
     """The file content and suffix (``.jpg`` or ``.png``) to store for an image message."""
+    image = decode_image(msg)  # [H, W, 3] uint8: it decodes
     if hasattr(msg, "format"):
         data = bytes(msg.data)
         for magic, suffix in ((_JPEG_MAGIC, ".jpg"), (_PNG_MAGIC, ".png")):
-            if data.startswith(magic):
-                decode_image(msg)  # check that it decodes
+            if data.startswith(magic) and not _png_16_bit(data):  # 16 bits: stored as 8
                 return data, suffix
-    ok, png = cv2.imencode(".png", decode_image(msg))
+    ok, png = cv2.imencode(".png", image)
     if not ok:  # pragma: no cover - OpenCV encodes any uint8 BGR image
         raise ImageDecodeError("OpenCV could not encode it as PNG")
     return png.tobytes(), ".png"

@@ -27,9 +27,10 @@ Output ``OUT`` (a house folder named NAME = OUT's folder name), read by
 :func:`spcopyro.data.load_house` once ``spcopyro features OUT --out OUT/Ft.csv`` has written the
 image features:
 
-* ``img_K/NNNNN.jpg|png`` (a JPEG or PNG CompressedImage stored as recorded, anything else as a
-  lossless PNG), ``pose_K.csv`` (``x, y, qz, qw`` per image), ``word_K.csv`` (one utterance a
-  line: its tokens joined by spaces), ``Xtx.csv``, ``Xty.csv``, ``St.csv``, ``StXtx.csv``,
+* ``img_K/NNNNN.jpg|png`` (a JPEG or 8-bit PNG CompressedImage stored as recorded, anything
+  else as a lossless 8-bit PNG: :mod:`spcopyro.robot.rosbag.images`), ``pose_K.csv``
+  (``x, y, qz, qw`` per image), ``word_K.csv`` (one utterance a line: its tokens joined by
+  spaces), ``Xtx.csv``, ``Xty.csv``, ``St.csv``, ``StXtx.csv``,
   ``StXty.csv`` (all trials concatenated), ``skipped.csv`` and ``bag_import.json`` (the bags,
   topics, options and counts);
 * the map, re-saved as map_server yaml + pgm at ``OUT/../map/NAME.yaml`` where the loaders look
