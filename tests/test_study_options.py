@@ -382,3 +382,22 @@ def test_a_study_path_that_is_a_folder_or_not_text_is_named(tmp_path, capsys):
     argv[1] = str(binary)
     assert main(argv) == 2
     assert f"{binary}: not UTF-8 text" in capsys.readouterr().err
+
+
+def test_a_second_run_into_a_folder_in_use_is_refused_at_once(tmp_path, capsys):
+    """Two runs into one --out ran the same unfinished cells and rewrote one table in turn."""
+    from spcopyro._util.folder_lock import LOCK_NAME, folder_lock
+
+    path = tmp_path / "geometry.toml"
+    path.write_text(TWICE.replace('methods = ["gibbs", "cavi"]', "methods = []").replace(
+        "seeds = 2", "seeds = 1"))  # fmt: skip
+    out = tmp_path / "out"
+    argv = ["study", str(path), "--out", str(out), "--workers", "1"]
+    with folder_lock(out, "study run"):  # as a run in another process holds it
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert f"{out} is in use by another study run (process " in err
+        assert "write to another --out" in err
+        assert not (out / "cells").exists() and not (out / "results.csv").exists()
+    assert main(argv) == 0  # the lock is dropped with its holder
+    assert (out / "results.csv").is_file() and (out / LOCK_NAME).is_file()

@@ -37,6 +37,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from spcopyro._util.folder_lock import folder_lock
 from spcopyro._util.interrupts import signals_deferred
 from spcopyro._util.messages import plural
 from spcopyro._util.outputs import check_folder_path
@@ -147,12 +148,32 @@ def run_study(
     its workers start (module docstring). KeyboardInterrupt stops the run after storing every
     finished cell and rewriting the table, then propagates. ``workers > 1`` or ``scheduler``
     without dask.distributed raise :class:`ModuleNotFoundError` before anything is written.
+    Another run into ``out`` while this one lasts raises
+    :class:`~spcopyro._util.folder_lock.FolderBusyError` at once (the folder's lock).
     """
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     if (scheduler is not None or workers > 1) and not dask_installed():
         raise ModuleNotFoundError(DASK_MISSING)  # before anything is written (not a stopped run)
     out = check_out_folder(out)
+    with folder_lock(out, "study run"):  # FolderBusyError while another run writes there
+        return _run_study(study, out, workers, scheduler, retry_failed, rerun_stale, root,
+                          progress, report, start_in_process)  # fmt: skip
+
+
+def _run_study(
+    study: Study,
+    out: Path,
+    workers: int,
+    scheduler: str | None,
+    retry_failed: bool,
+    rerun_stale: bool,
+    root: str | os.PathLike[str] | None,
+    progress: bool | None,
+    report: Callable[[str], None],
+    start_in_process: bool,
+) -> StudyRun:
+    """:func:`run_study` once it holds ``out``'s lock."""
     start = time.perf_counter()
     plan = plan_study(study, out, retry_failed, rerun_stale, root)
     cells, pending, cached, stale = plan
