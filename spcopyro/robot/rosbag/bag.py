@@ -7,14 +7,14 @@ only here, when a bag is opened, and a clear :class:`RosbagsMissingError` names
 (``geometry_msgs/msg/PoseWithCovarianceStamped``) for both ROS versions.
 
 Timestamps: a message with a ``header`` is placed at its header stamp (when the sensor saw it);
-one without (``std_msgs/String``) or with a zero stamp at the time the bag recorded it, mapped on
-the stamps' clock when the pose messages' stamps are on another (a simulator's:
+one without (``std_msgs/String``) or with a zero stamp at the time the bag recorded it, mapped
+on the stamps' clock when the pose messages' stamps are on another (a simulator's:
 :func:`~spcopyro.robot.rosbag.poses.header_clock`; a pose or tf sample's through its own track's
-stamped samples: :func:`_on_stamp_clock`). Images may come in any order of their
-stamps. The samples of a pose topic or tf edge are sorted by stamp: a few arriving late are
-counted (the import reports them), more than a tenth (a clock that went back) are a
-:class:`BagContentError` naming the topic, the two messages and their stamps. Equal pose stamps
-keep the first pose.
+stamped samples: :func:`~spcopyro.robot.rosbag.poses.on_stamp_clock`). Images may come in any
+order of their stamps. The samples of a pose topic or tf edge are sorted by stamp: a few
+arriving late are counted (the import reports them), more than a tenth (a clock that went back)
+are a :class:`BagContentError` naming the topic, the two messages and their stamps. Equal pose
+stamps keep the first pose.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from spcopyro.robot.rosbag.poses import CLOCKS_DIFFER, PoseTrack, quaternion_yaw
+from spcopyro.robot.rosbag.poses import PoseTrack, late_count, on_stamp_clock, quaternion_yaw
 from spcopyro.robot.rosbag.repairs import compressed_messages, none_read_fix, packed_file, repair
 
 __all__ = [
@@ -292,12 +292,6 @@ def _stamp(msg: Any, log_ns: int) -> tuple[float, bool]:
     return log_ns * 1e-9, False
 
 
-def late_count(times: np.ndarray | list[float]) -> int:
-    """How many of ``times`` (bag order) are before an earlier one: messages that arrived late."""
-    t = np.asarray(times, dtype=np.float64)  # [M]
-    return int((t[1:] < np.maximum.accumulate(t)[:-1]).sum()) if t.size else 0
-
-
 def _check_order(
     reader: Any, topic: str, times: list[float], what: str = "", numbers: list[int] | None = None
 ) -> None:
@@ -316,26 +310,6 @@ def _check_order(
             f"s; {late} of {len(times)} messages are stamped before an earlier one, more than a "
             "few late ones (which are sorted in): a clock that went back (a simulator reset?)"
         )
-
-
-def _on_stamp_clock(
-    times: list[float], unstamped: list[int], clock: list[tuple[float, float]]
-) -> list[float]:
-    """``times`` of a pose track with those of its samples ``unstamped`` (a zero stamp: their
-    record time) moved onto the stamps' clock through the track's ``clock`` (record time,
-    stamp) pairs, when the stamps are more than :data:`CLOCKS_DIFFER` s from their record times
-    (median: a simulator's clock). One such sample, 1.6e9 s past the simulated times, was read
-    as a clock that went back."""
-    pairs = np.asarray(clock, dtype=np.float64).reshape(-1, 2)  # [K, 2]
-    if not unstamped or not pairs.size:
-        return times
-    offset = pairs[:, 0] - pairs[:, 1]  # [K]
-    if abs(float(np.median(offset))) <= CLOCKS_DIFFER:
-        return times
-    order = np.argsort(pairs[:, 0], kind="stable")
-    moved = np.asarray(times, dtype=np.float64)  # [P]
-    moved[unstamped] -= np.interp(moved[unstamped], pairs[order, 0], offset[order])
-    return moved.tolist()
 
 
 def _track(
@@ -391,7 +365,7 @@ def read_pose_topic(reader: Any, topic: str) -> PoseTrack:
         frames.add(_frame(msg.header.frame_id))
     if not times:
         raise BagContentError(f"{reader.paths[0]}: pose topic {topic} holds no messages")
-    times = _on_stamp_clock(times, unstamped, clock)
+    times = on_stamp_clock(times, unstamped, clock)
     _check_order(reader, topic, times)
     named = sorted(f for f in frames if f)
     if len(named) > 1:
@@ -471,7 +445,7 @@ def _tf_tracks(reader: Any) -> dict[tuple[str, str], PoseTrack] | None:
             numbers.setdefault(edge, []).append(counted["tf"])
     tracks: dict[tuple[str, str], PoseTrack] = {}
     for edge, (times, poses) in samples.items():
-        times = _on_stamp_clock(times, unstamped.get(edge, []), clocks.get(edge, []))
+        times = on_stamp_clock(times, unstamped.get(edge, []), clocks.get(edge, []))
         _check_order(reader, "/tf", times, f" (edge {edge[0]} -> {edge[1]})", numbers[edge])
         tracks[edge] = _track(f"tf {edge[0]} -> {edge[1]}", times, poses, None, clocks.get(edge))
     for edge, pose in static.items():

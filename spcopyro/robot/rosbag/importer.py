@@ -78,7 +78,6 @@ from spcopyro.robot.rosbag.bag import (
     _frame,
     _rosbags,
     iter_images,
-    late_count,
     open_bag,
     read_pose_in_map,
     read_stamps,
@@ -87,7 +86,7 @@ from spcopyro.robot.rosbag.bag import (
 )
 from spcopyro.robot.rosbag.house_folder import MARKER, check_map, check_out, replace_out
 from spcopyro.robot.rosbag.images import ImageDecodeError, encoded_image
-from spcopyro.robot.rosbag.poses import PoseTrack, compose, header_clock
+from spcopyro.robot.rosbag.poses import PoseTrack, compose, header_clock, late_count
 
 __all__ = [
     "MARKER",

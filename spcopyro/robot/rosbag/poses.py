@@ -38,6 +38,8 @@ __all__ = [
     "PoseTrack",
     "compose",
     "header_clock",
+    "late_count",
+    "on_stamp_clock",
     "quaternion_yaw",
     "wrap_angle",
     "yaw_quaternion",
@@ -212,3 +214,29 @@ def header_clock(
     if min(abs(m) for m in medians) <= CLOCKS_DIFFER:
         return medians[-1], None
     return medians[-1], lambda times: times - np.interp(times, record, offset)
+
+
+def late_count(times: np.ndarray | list[float]) -> int:
+    """How many of ``times`` (bag order) are before an earlier one: messages that arrived late."""
+    t = np.asarray(times, dtype=np.float64)  # [M]
+    return int((t[1:] < np.maximum.accumulate(t)[:-1]).sum()) if t.size else 0
+
+
+def on_stamp_clock(
+    times: list[float], unstamped: list[int], clock: list[tuple[float, float]]
+) -> list[float]:
+    """``times`` of a pose track with those of its samples ``unstamped`` (a zero stamp: their
+    record time) moved onto the stamps' clock through the track's ``clock`` (record time,
+    stamp) pairs, when the stamps are more than :data:`CLOCKS_DIFFER` s from their record times
+    (median: a simulator's clock). One such sample, 1.6e9 s past the simulated times, was read
+    as a clock that went back."""
+    pairs = np.asarray(clock, dtype=np.float64).reshape(-1, 2)  # [K, 2]
+    if not unstamped or not pairs.size:
+        return times
+    offset = pairs[:, 0] - pairs[:, 1]  # [K]
+    if abs(float(np.median(offset))) <= CLOCKS_DIFFER:
+        return times
+    order = np.argsort(pairs[:, 0], kind="stable")
+    moved = np.asarray(times, dtype=np.float64)  # [P]
+    moved[unstamped] -= np.interp(moved[unstamped], pairs[order, 0], offset[order])
+    return moved.tolist()
