@@ -46,8 +46,9 @@ def _basic_bag(path: Path) -> Path:
         ("rec", "nomap.yaml", [], "nomap.yaml: map yaml not found"),
         ("rec", "floor.yaml", ["--image-topic", "/cam"], "no image topic '/cam'"),
         ("rec", "floor.yaml", ["--words-topic", "/words"], "no utterance topic '/words'"),
+        ("rec", "floor.yaml", ["--pose-tf", "map", "base_link"], "no /tf or /tf_static topic"),
     ],
-    ids=["missing-bag", "not-a-bag", "missing-map", "image-topic", "words-topic"],
+    ids=["missing-bag", "not-a-bag", "missing-map", "image-topic", "words-topic", "tf"],
 )
 def test_bad_inputs_are_named_before_out(
     tmp_path, map_yaml, capsys, monkeypatch, bag, map_name, extra, expected

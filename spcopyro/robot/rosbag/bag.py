@@ -44,6 +44,7 @@ __all__ = [
     "BagFormatError",
     "RosbagsMissingError",
     "TopicData",
+    "check_tf_topics",
     "open_bag",
     "read_pose_in_map",
     "read_pose_topic",
@@ -490,17 +491,23 @@ def _tf_path(
     return chain[::-1], path[::-1]
 
 
+def check_tf_topics(reader: Any, parent: str, child: str) -> None:
+    """BagContentError when the bag has no ``/tf`` or ``/tf_static`` topic for the tf pose."""
+    if not any(t in reader.topics for t in ("/tf", "/tf_static", "tf", "tf_static")):
+        raise BagContentError(
+            f"{reader.paths[0]}: no /tf or /tf_static topic for the tf pose "
+            f"{_frame(parent)} -> {_frame(child)}; the bag has: "
+            f"{_topic_listing(reader) or 'no topics'}"
+        )
+
+
 def read_tf_chain(reader: Any, parent: str, child: str) -> list[PoseTrack]:
     """The tf edges from frame ``parent`` to frame ``child`` (``/tf`` and ``/tf_static``) as
     pose tracks whose product (:func:`spcopyro.robot.rosbag.poses.compose`) is the pose of ``child``
     in ``parent``; edges walked against their direction are inverted."""
     parent, child = _frame(parent), _frame(child)
-    tracks = _tf_tracks(reader)
-    if tracks is None:
-        raise BagContentError(
-            f"{reader.paths[0]}: no /tf or /tf_static topic for the tf pose "
-            f"{parent} -> {child}; the bag has: {_topic_listing(reader) or 'no topics'}"
-        )
+    check_tf_topics(reader, parent, child)
+    tracks = _tf_tracks(reader) or {}
     found = _tf_path(tracks, parent, child)
     if found is None:
         raise BagContentError(

@@ -77,6 +77,7 @@ from spcopyro.robot.rosbag.bag import (
     _connections,
     _frame,
     _rosbags,
+    check_tf_topics,
     iter_images,
     open_bag,
     read_pose_in_map,
@@ -301,7 +302,9 @@ def _check_bag(bag: Path, options: ImportOptions) -> None:
     """Open ``bag`` and find its topics, reading no message: FileNotFoundError,
     BagFormatError or BagContentError (as :func:`_import_one` would raise them, later)."""
     with open_bag(bag, options.ros_distro) as reader:
-        if not options.pose_tf:
+        if options.pose_tf:
+            check_tf_topics(reader, *options.pose_tf)
+        else:
             _connections(reader, options.pose_topic, POSE_TYPES, "pose")
         _connections(reader, options.image_topic, IMAGE_TYPES, "image")
         _connections(reader, options.words_topic, TEXT_TYPES, "utterance")
