@@ -410,3 +410,30 @@ def test_a_word_heard_on_a_wall_has_a_white_rim_in_house_png_too():
     assert rims == {"kitchen": [[1.0, 1.0, 1.0]], "bed": [[0.0, 0.0, 0.0]]}, rims
     legend = fig.axes[0].get_legend()
     assert [h.get_markeredgecolor() for h in legend.legend_handles[1:]] == ["k", "k"]
+
+
+def test_the_semantic_map_of_a_long_corridor_is_drawn_in_strips():
+    """semantic_map.png of a 100 m x 2 m corridor: a strip 40 pixels high under labels that
+    ran over the axis and the title; its strips carry each region's label on the strip that
+    shows the region's label point."""
+    from hand_results import one_word_per_concept
+
+    from spcopyro.figures.plotting import semantic_map_figure
+    from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
+
+    occupancy = np.full((44, 2004), OCCUPIED, dtype=np.int8)
+    occupancy[2:-2, 2:-2] = FREE
+    grid = OccupancyGrid(occupancy, 0.05, (0.0, 0.0, 0.0))
+    columns = np.nonzero(grid.free)[1]  # [N]
+    labels = np.minimum((columns - 2) // 400, 4)  # [N]: five rooms of 20 m
+    words = ("kitchen", "bed", "sofa", "bath", "door")
+    result = one_word_per_concept(grid, labels, words, num_concepts=5)
+    fig = semantic_map_figure(result)
+    assert len(fig.axes) == 6
+    title = fig.axes[0].get_title()
+    assert "5 labelled regions" in title and "(the map in 6 strips, top to bottom)" in title
+    texts = [(ax, t) for ax in fig.axes for t in ax.texts]
+    assert len(texts) == 5
+    for ax, text in texts:
+        x, _ = text.get_position()
+        assert ax.get_xlim()[0] <= x <= ax.get_xlim()[1], (text.get_text(), ax.get_xlim())

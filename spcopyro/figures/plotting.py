@@ -20,7 +20,6 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
-from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
@@ -32,14 +31,15 @@ from scipy import ndimage
 from spcopyro._util.messages import plural
 from spcopyro.data import House, Observations
 from spcopyro.figures.fonts import any_script
+from spcopyro.figures.map_axes import map_axes, shown_in
+from spcopyro.figures.map_axes import map_extent as _extent
+from spcopyro.figures.map_axes import show_map as _show_image
 from spcopyro.figures.map_pieces import (
     concept_handles,
     draw_outline,
     draw_utterances,
     house_title,
-    is_wide,
     map_legend,
-    map_strips,
     place_labels,
     region_text,
     rim_colours,
@@ -51,8 +51,6 @@ from spcopyro.maps import (
     RGB_BACKGROUND,
     RGB_OCCUPIED,
     RGB_UNKNOWN,
-    UNKNOWN,
-    OccupancyGrid,
     concept_colours,
     concept_regions,
     distinct_colours,
@@ -70,35 +68,6 @@ ANSWER_RGB = (214, 0, 0)  # the answer's region in plot_where
 RUNNER_UP_RGB = (0, 70, 200)  # the runner-up's region in plot_where
 FREE_RGB = RGB_BACKGROUND  # plot_where's free cells: white, as in house.png and navigate.png
 # (a light grey (225) was 7 delta-E from the unknown grey (205): the two read as one)
-
-
-def known_bounds(grid: OccupancyGrid, margin: int = 3) -> tuple[slice, slice]:
-    """Row and column slices of the map's known (not UNKNOWN) cells, plus a margin."""
-    rows, cols = np.nonzero(grid.occupancy != UNKNOWN)
-    if rows.size == 0:
-        return slice(0, grid.height), slice(0, grid.width)
-    return (
-        slice(max(rows.min() - margin, 0), min(rows.max() + margin + 1, grid.height)),
-        slice(max(cols.min() - margin, 0), min(cols.max() + margin + 1, grid.width)),
-    )
-
-
-def _extent(grid: OccupancyGrid, rows: slice, cols: slice) -> tuple[float, float, float, float]:
-    """imshow extent (left, right, bottom, top) in world metres of a cropped image."""
-    ox, oy, _ = grid.origin
-    res = grid.resolution
-    top = oy + (grid.height - rows.start) * res
-    bottom = oy + (grid.height - rows.stop) * res
-    return ox + cols.start * res, ox + cols.stop * res, bottom, top
-
-
-def _show_image(ax: Axes, grid: OccupancyGrid, rgb: np.ndarray) -> tuple[slice, slice]:
-    rows, cols = known_bounds(grid)
-    ax.imshow(rgb[rows, cols], extent=_extent(grid, rows, cols), interpolation="nearest")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_aspect("equal")
-    return rows, cols
 
 
 def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
@@ -144,15 +113,7 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     """
     grid, obs = house.grid, house.observations
     rgb = render_labels(np.full(grid.shape, -1), grid)
-    rows, cols = known_bounds(grid)
-    strips, along_x = map_strips(rows, cols)
-    if strips == 1:
-        fig = Figure(figsize=(8, 8))
-        axes = [fig.subplots()]
-        wide = is_wide(*_show_image(axes[0], grid, rgb))
-    else:
-        fig, axes = _strip_axes(grid, rgb, strips, along_x)
-        wide = along_x  # the legend below the strips of a wide map, beside a tall one's
+    fig, axes, wide, strips = map_axes(grid, rgb, (8, 8))
     marks = utterance_marks(obs.utterances)  # [U] a sentence's rarest word: the place named
     frequent = [w for w, _ in Counter(marks).most_common(MAX_WORD_COLOURS)]
     colours = distinct_colours(len(frequent)) / 255.0  # [F, 3]
@@ -187,45 +148,8 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     map_legend(axes[-1], handles, labels, below=wide, columns=4, fontsize=8, frameon=False,
                title="words heard (rarest word of each utterance;\nmarkers at one spot spread "
                "apart)", title_fontsize=8)  # fmt: skip
-    title = title or house_title(house)
-    if strips > 1:
-        order_text = "top to bottom" if along_x else "left to right"
-        title += f"\n(the map in {strips} strips, {order_text})"
-    axes[0].set_title(title)
+    axes[0].set_title((title or house_title(house)) + strips)
     return fig
-
-
-def _strip_axes(
-    grid: OccupancyGrid, rgb: np.ndarray, strips: int, along_x: bool
-) -> tuple[Figure, list[Axes]]:
-    """A figure of ``strips`` axes, each showing the map ``rgb`` at one scale over its own
-    stretch of x (``along_x``: stacked top to bottom) or y (side by side, the top stretch on
-    the left), each stretch 3% longer at both ends so a marker on a cut shows whole, the first
-    and last moved inside the map (:func:`~spcopyro.figures.map_pieces.map_strips`)."""
-    rows, cols = known_bounds(grid)
-    left, right, bottom, top = _extent(grid, rows, cols)
-    long, short = (right - left, top - bottom) if along_x else (top - bottom, right - left)
-    length = long / strips
-    pad = 0.03 * length
-    across = 11.0 * short / (length + 2 * pad)  # inches of a strip across, 11 along
-    if along_x:
-        fig = Figure(figsize=(11.5, strips * (across + 0.7) + 0.8))
-        axes = list(fig.subplots(strips, 1))
-    else:
-        fig = Figure(figsize=(strips * (across + 0.9) + 0.8, 11.5))
-        axes = list(fig.subplots(1, strips))
-    for k, ax in enumerate(axes):
-        _show_image(ax, grid, rgb)
-        start = min(max(k * length - pad, 0.0), long - length - 2 * pad)  # inside the map
-        if along_x:
-            ax.set_xlim(left + start, left + start + length + 2 * pad)
-            if k < strips - 1:
-                ax.set_xlabel("")
-        else:
-            ax.set_ylim(top - start - length - 2 * pad, top - start)
-            if k:
-                ax.set_ylabel("")
-    return fig, axes
 
 
 def semantic_colours(result: SpCoResult) -> np.ndarray:
@@ -313,11 +237,9 @@ def semantic_map_figure(
     that many largest concepts (default: all).
     """
     grid = result.grid
-    fig = Figure(figsize=(13, 9))
-    ax = fig.subplots()
     image = result.label_image()
     colours = semantic_colours(result)  # [L, 3]
-    wide = is_wide(*_show_image(ax, grid, render_labels(image, grid, colours)))
+    fig, axes, wide, strips = map_axes(grid, render_labels(image, grid, colours), (13, 9))
     labelled = set(result.concepts_in_use()[:max_labelled].tolist())
     points = region_label_points(image, min_region_fraction * grid.num_free)
     points = [p for p in points if p[0] in labelled]
@@ -329,21 +251,26 @@ def semantic_map_figure(
         labels.append((float(x), float(y), region_text(result, concept, n_words, largest),
                        {"fontsize": 6 if silent else 7, "style": "italic" if silent else
                         "normal", "color": "0.25" if silent else "black"}))  # fmt: skip
-    regions, skipped = place_labels(fig, ax, labels)
+    regions = skipped = 0
+    for ax in axes:  # each label on the strip that shows its point
+        mine = [label for label in labels if shown_in(axes, label[0], label[1]) is ax]
+        written, left_out = place_labels(fig, ax, mine)
+        regions, skipped = regions + written, skipped + left_out
     handles: list[Patch | Line2D] = list(concept_handles(result, colours, n_words))
     if observations is not None:
-        marker = draw_utterances(ax, result, observations, colours)
+        for ax in axes:
+            marker = draw_utterances(ax, result, observations, colours)
         handles += [marker] if marker is not None else []
     handles += [Patch(color=np.array(RGB_OCCUPIED) / 255.0, label="walls"),
                 Patch(color=np.array(RGB_UNKNOWN) / 255.0, label="unknown")]  # fmt: skip
-    map_legend(ax, handles, below=wide, columns=2, fontsize=7, frameon=False,
+    map_legend(axes[-1], handles, below=wide, columns=2, fontsize=7, frameon=False,
                title="concepts, largest first: words (posterior mean p; x lift = "
                "p(word | concept) / p(word))", title_fontsize=7)  # fmt: skip
     used = len(result.concepts_in_use())
     crowded = f", {skipped} left unlabelled (legend)" if skipped else ""
-    ax.set_title(f"{result.name or 'semantic map'}: {plural(used, 'concept')} in use, "
-                 f"{plural(regions, 'labelled region')}{crowded} (regions >= "
-                 f"{min_region_fraction:.1%} of the free cells)")  # fmt: skip
+    axes[0].set_title(f"{result.name or 'semantic map'}: {plural(used, 'concept')} in use, "
+                      f"{plural(regions, 'labelled region')}{crowded} (regions >= "
+                      f"{min_region_fraction:.1%} of the free cells){strips}")  # fmt: skip
     return fig
 
 
