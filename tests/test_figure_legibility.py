@@ -415,7 +415,7 @@ def test_a_word_heard_on_a_wall_has_a_white_rim_in_house_png_too():
 def test_the_semantic_map_of_a_long_corridor_is_drawn_in_strips():
     """semantic_map.png of a 100 m x 2 m corridor: a strip 40 pixels high under labels that
     ran over the axis and the title; its strips carry each region's label on the strip that
-    shows the region's label point."""
+    shows the region's label point. where.png likewise."""
     from hand_results import one_word_per_concept
 
     from spcopyro.figures.plotting import semantic_map_figure
@@ -437,3 +437,11 @@ def test_the_semantic_map_of_a_long_corridor_is_drawn_in_strips():
     for ax, text in texts:
         x, _ = text.get_position()
         assert ax.get_xlim()[0] <= x <= ax.get_xlim()[1], (text.get_text(), ax.get_xlim())
+
+    from spcopyro.figures.plotting import where_figure
+
+    fig = where_figure(result, result.where("bath"))  # a point estimate: no colour bar
+    assert len(fig.axes) == 6
+    assert fig.axes[0].get_title().endswith("\n(the map in 6 strips, top to bottom)")
+    legend = fig.axes[-1].get_legend()
+    assert legend is not None and not _overlaps_an_axes(fig, legend)

@@ -31,7 +31,7 @@ from scipy import ndimage
 from spcopyro._util.messages import plural
 from spcopyro.data import House, Observations
 from spcopyro.figures.fonts import any_script
-from spcopyro.figures.map_axes import map_axes, shown_in
+from spcopyro.figures.map_axes import known_bounds, map_axes, shown_in
 from spcopyro.figures.map_axes import map_extent as _extent
 from spcopyro.figures.map_axes import show_map as _show_image
 from spcopyro.figures.map_pieces import (
@@ -305,41 +305,43 @@ def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
     words, a legend, and the answer's warnings under the map. A region smaller than
     ``SMALL_REGION_FRACTION`` of the free cells is ringed, so a speck can be seen."""
     grid = result.grid
-    fig = Figure(figsize=(11, 9))
-    ax = fig.subplots()
     area = grid.resolution**2
     cells = int(answer.region.sum())
     image = result.label_image()
     runner = image == answer.runner_up if answer.runner_up is not None else None
     handles: list[Patch | Line2D] = []
     if result.marginals is None:
-        _show_image(ax, grid, where_image(result, answer))
+        fig, axes, wide, strips = map_axes(grid, where_image(result, answer), (11, 9))
         answer_handle: Patch | Line2D = Patch(color=np.array(ANSWER_RGB) / 255.0, label="")
         runner_handle: Patch | Line2D = Patch(color=np.array(RUNNER_UP_RGB) / 255.0, label="")
     else:
         free = np.tile(np.array(FREE_RGB, dtype=np.uint8), (result.config.num_concepts, 1))
-        rows, cols = _show_image(ax, grid, render_labels(image, grid, free))
+        fig, axes, wide, strips = map_axes(grid, render_labels(image, grid, free), (11, 9))
+        rows, cols = known_bounds(grid)
         extent = _extent(grid, rows, cols)
         probability = free_cells_image(result, where_probability(result, answer.word,
                                                                  answer.prior))  # fmt: skip
         shown = np.ma.masked_less(probability[rows, cols], 0.01)  # [h, w]: free white below 1%
-        scale = ax.imshow(shown, extent=extent, cmap="Reds", vmin=0.0, vmax=1.0,
-                          interpolation="nearest", alpha=0.9)  # fmt: skip
-        fig.colorbar(scale, cax=ax.inset_axes((1.02, 0.0, 0.025, 1.0)),  # as tall as the map
-                     label=f"p(cell in the place of '{answer.word}')")  # fmt: skip
         red, blue = np.array(ANSWER_RGB) / 255.0, np.array(RUNNER_UP_RGB) / 255.0
-        draw_outline(ax, grid, answer.region, rows, cols, extent, colors=[red], linewidths=2.0)
-        if runner is not None:
-            draw_outline(ax, grid, runner, rows, cols, extent, colors=[blue], linewidths=1.5,
-                         linestyles="dashed")  # fmt: skip
+        for ax in axes:  # one map, or its strips
+            scale = ax.imshow(shown, extent=extent, cmap="Reds", vmin=0.0, vmax=1.0,
+                              interpolation="nearest", alpha=0.9)  # fmt: skip
+            draw_outline(ax, grid, answer.region, rows, cols, extent, colors=[red],
+                         linewidths=2.0)  # fmt: skip
+            if runner is not None:
+                draw_outline(ax, grid, runner, rows, cols, extent, colors=[blue],
+                             linewidths=1.5, linestyles="dashed")  # fmt: skip
+        fig.colorbar(scale, cax=axes[-1].inset_axes((1.02, 0.0, 0.025, 1.0)),  # the map's height
+                     label=f"p(cell in the place of '{answer.word}')")  # fmt: skip
         answer_handle = Line2D([], [], color=red, lw=2.0, label="")
         runner_handle = Line2D([], [], color=blue, lw=1.5, ls="--", label="")
     if 0 < cells < SMALL_REGION_FRACTION * grid.num_free:
         labels, _ = ndimage.label(answer.region)
         centres = ndimage.center_of_mass(answer.region, labels, range(1, int(labels.max()) + 1))
         xy = grid.cell_to_world(np.round(np.array(centres)).astype(np.int64))  # [n, 2]
-        ax.scatter(*xy.T, s=300, facecolors="none", edgecolors=np.array(ANSWER_RGB) / 255.0,
-                   linewidths=1.5, zorder=3)  # fmt: skip
+        for ax in axes:
+            ax.scatter(*xy.T, s=300, facecolors="none", edgecolors=np.array(ANSWER_RGB) / 255.0,
+                       linewidths=1.5, zorder=3)  # fmt: skip
     answer_handle.set_label(
         f"answer: concept {answer.concept}, p = {answer.probability:.3f} "
         f"({plural(cells, 'cell')}, {cells * area:.2f} m^2)"
@@ -356,9 +358,11 @@ def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
         Patch(color=np.array(RGB_OCCUPIED) / 255.0, label="walls"),
         Patch(color=np.array(RGB_UNKNOWN) / 255.0, label="unknown"),
     ]
-    # Below the map when the colour bar stands beside it (the warnings go below the legend).
-    map_legend(ax, handles, below=result.marginals is not None, below_inches=BELOW_INCHES[0],
-               fontsize=8, frameon=False)  # fmt: skip
+    # Below the map when the colour bar stands beside it, or below a wide map's strips (the
+    # warnings go below the legend).
+    below = result.marginals is not None or bool(strips and wide)
+    map_legend(axes[-1], handles, below=below, below_inches=BELOW_INCHES[0], fontsize=8,
+               frameon=False)  # fmt: skip
     if result.heard(answer.concept) == 0:
         words = NO_WORDS
     else:
@@ -366,15 +370,15 @@ def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
         words = ", ".join(f"{w} {p:.2f}" for w, p in top)
     kind = "per-cell probability from the marginals" if result.marginals is not None else (
         "point estimate")  # fmt: skip
-    ax.set_title(f"where is '{answer.word}'? concept {answer.concept}, "
-                 f"p = {answer.probability:.3f} ({answer.prior} prior; {kind})\n"
-                 f"its words: {words}")  # fmt: skip
+    axes[0].set_title(f"where is '{answer.word}'? concept {answer.concept}, "
+                      f"p = {answer.probability:.3f} ({answer.prior} prior; {kind})\n"
+                      f"its words: {words}{strips}")  # fmt: skip
     if answer.warnings:
         text = "\n".join(textwrap.fill(f"warning: {w}", 110) for w in answer.warnings)
-        inches = BELOW_INCHES[0] + (0.0 if result.marginals is None else BELOW_INCHES[1])
-        at = ax.transAxes + ScaledTranslation(0.0, -inches, fig.dpi_scale_trans)
-        ax.text(0.0, 0.0, text, transform=at, fontsize=7, color="#b00000", va="top",
-                ha="left")  # fmt: skip
+        inches = BELOW_INCHES[0] + (BELOW_INCHES[1] if below else 0.0)
+        at = axes[-1].transAxes + ScaledTranslation(0.0, -inches, fig.dpi_scale_trans)
+        axes[-1].text(0.0, 0.0, text, transform=at, fontsize=7, color="#b00000", va="top",
+                      ha="left")  # fmt: skip
     return fig
 
 
