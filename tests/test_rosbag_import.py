@@ -15,6 +15,7 @@ from __future__ import annotations
 import csv
 import json
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -381,7 +382,8 @@ def test_existing_output_and_overwrite(tmp_path, map_yaml):
     import_bags([bag], map_yaml, out)
     with pytest.raises(FileExistsError, match="pass --overwrite"):
         import_bags([bag], map_yaml, out)
-    import_bags([bag, bag], map_yaml, out, overwrite=True, first_trial=1)  # two trials
+    copy = shutil.copytree(bag, tmp_path / "rec_copy")  # the same bag twice is refused
+    import_bags([bag, copy], map_yaml, out, overwrite=True, first_trial=1)  # two trials
     assert sorted(p.name for p in out.glob("pose_*.csv")) == ["pose_1.csv", "pose_2.csv"]
     assert json.loads((out / "bag_import.json").read_text())["first_trial"] == 1
     other = tmp_path / "data" / "mine"
@@ -769,7 +771,7 @@ def test_overwrite_keeps_what_the_import_did_not_write(tmp_path, map_yaml, capsy
     bag = _bag_path(tmp_path, 2)
     _write_basic(bag, 2, "sqlite3")
     out = tmp_path / "data" / "house"
-    import_bags([bag, bag], map_yaml, out)  # trials 0 and 1
+    import_bags([bag, shutil.copytree(bag, tmp_path / "copy")], map_yaml, out)  # trials 0, 1
     (out / "Ft.csv").write_text("0.5,0.5\n")
     (out / "notes").mkdir()
     argv = ["import-bag", str(bag), "--map", str(map_yaml), "--out", str(out), "--overwrite"]

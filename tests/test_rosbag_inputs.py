@@ -68,6 +68,21 @@ def test_bad_inputs_are_named_before_out(
     assert (tmp_path / "data" / "house" / "notes.txt").read_text() == "mine\n"
 
 
+@pytest.mark.parametrize(
+    "second", ["rec", "rec/", "./rec", "rec/rec.db3"], ids=["same", "slash", "dot", "db3"]
+)
+def test_a_bag_given_twice_is_refused(tmp_path, map_yaml, capsys, monkeypatch, second):
+    """`import-bag rec rec/` (or a bag folder and its .db3) imported one recording as two
+    trials, every image and utterance counted twice, without a word."""
+    monkeypatch.chdir(tmp_path)
+    _basic_bag(tmp_path / "rec")
+    assert (tmp_path / second).exists()
+    assert main(["import-bag", "rec", second, "--map", "maps/floor.yaml", "--out", "h"]) == 2
+    err = capsys.readouterr().err
+    assert f"{second}: the recording of rec (BAG 1 and 2)" in err, err
+    assert not (tmp_path / "h").exists()
+
+
 def _raw_image(
     w: BagWriter, t: float, pixels: np.ndarray, encoding: str, log_time: float | None = None
 ) -> None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +41,12 @@ def bag(tmp_path: Path) -> Path:
             w.image("/camera/image", t, np.full((6, 8, 3), 40 * k, dtype=np.uint8))
         w.text("/speech", T0 + 1.0, "kitchen")
     return path
+
+
+@pytest.fixture
+def bag_copy(tmp_path: Path, bag: Path) -> Path:
+    """A copy of ``bag``: a second trial (the same bag twice is refused)."""
+    return Path(shutil.copytree(bag, tmp_path / "rec_copy"))
 
 
 @pytest.fixture
@@ -81,12 +88,14 @@ def test_the_earlier_imports_map_is_replaced_and_said(tmp_path, bag, map_yaml, c
     assert not import_bags([bag], map_yaml, out, overwrite=True).map_replaced  # the same map
 
 
-def test_overwrite_keeps_the_trials_the_earlier_import_did_not_write(tmp_path, bag, map_yaml):
+def test_overwrite_keeps_the_trials_the_earlier_import_did_not_write(
+    tmp_path, bag, bag_copy, map_yaml
+):
     """QA: --overwrite replaced every img_K/pose_K.csv/word_K.csv by name, so a trial added by
     hand beside an import (img_5, pose_5.csv, word_5.csv) was deleted without a word; now what
     the earlier import wrote is read from its bag_import.json, and the rest kept and named."""
     out = tmp_path / "data" / "house"
-    import_bags([bag, bag], map_yaml, out)  # trials 0 and 1
+    import_bags([bag, bag_copy], map_yaml, out)  # trials 0 and 1
     (out / "img_5").mkdir()
     (out / "img_5" / "00000.png").write_bytes(b"mine")
     (out / "pose_5.csv").write_text("0,0,0,1\n")
@@ -96,12 +105,14 @@ def test_overwrite_keeps_the_trials_the_earlier_import_did_not_write(tmp_path, b
     assert not (out / "img_1").exists() and not (out / "pose_1.csv").exists()  # the import's
 
 
-def test_overwrite_refuses_an_entry_it_would_write_that_the_import_did_not(tmp_path, bag, map_yaml):
+def test_overwrite_refuses_an_entry_it_would_write_that_the_import_did_not(
+    tmp_path, bag, bag_copy, map_yaml
+):
     out = tmp_path / "data" / "house"
     import_bags([bag], map_yaml, out)  # trial 0
     (out / "pose_1.csv").write_text("mine\n")
     with pytest.raises(FileExistsError, match=r"holds pose_1\.csv, which the import there did"):
-        import_bags([bag, bag], map_yaml, out, overwrite=True)  # would write trials 0 and 1
+        import_bags([bag, bag_copy], map_yaml, out, overwrite=True)  # would write trials 0 and 1
     assert (out / "pose_1.csv").read_text() == "mine\n"
     import_bags([bag], map_yaml, out, overwrite=True, first_trial=0)  # trial 0 only: fine
     assert (out / "pose_1.csv").read_text() == "mine\n"
@@ -134,7 +145,7 @@ def test_an_out_under_a_file_says_so(tmp_path, bag, map_yaml):
 
 
 def test_a_kept_ft_csv_is_called_stale_only_when_the_images_changed(
-    tmp_path, bag, map_yaml, capsys
+    tmp_path, bag, bag_copy, map_yaml, capsys
 ):
     """QA: re-importing the very same bags (say, to fix the map) warned that the kept Ft.csv
     "does not describe these [images]: write it again", though they were the same bytes."""
@@ -146,7 +157,7 @@ def test_a_kept_ft_csv_is_called_stale_only_when_the_images_changed(
     captured = capsys.readouterr()
     assert "warning" not in captured.err
     assert "the images are the replaced import's, byte for byte" in captured.out
-    report = import_bags([bag, bag], map_yaml, out, overwrite=True)  # a second trial's images
+    report = import_bags([bag, bag_copy], map_yaml, out, overwrite=True)  # a second trial's images
     assert report.kept == ("Ft.csv",) and not report.images_unchanged
     assert main([*argv, "--min-distance", "1"]) == 0  # fewer images of trial 0
     assert "the images differ from the replaced import's" in capsys.readouterr().err

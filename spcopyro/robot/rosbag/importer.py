@@ -298,6 +298,19 @@ def _extent(grid: OccupancyGrid) -> tuple[tuple[float, float], tuple[float, floa
     return (ox, oy), (ox + grid.width * grid.resolution, oy + grid.height * grid.resolution)
 
 
+def _check_distinct(bags: Sequence[str | os.PathLike[str]]) -> None:
+    """ValueError for a bag given twice (the same path, or a ROS 2 bag folder and a storage file
+    in it): it was imported as two trials, every observation counted twice."""
+    paths = [Path(os.path.realpath(bag)) for bag in bags]
+    for k, path in enumerate(paths):
+        for j, other in enumerate(paths[:k]):
+            if other in (path, path.parent) or path == other.parent:
+                raise ValueError(
+                    f"{bags[k]}: the recording of {bags[j]} (BAG {j + 1} and {k + 1}); each "
+                    "BAG is one trial: give each recording once"
+                )
+
+
 def _check_bag(bag: Path, options: ImportOptions) -> None:
     """Open ``bag`` and find its topics, reading no message: FileNotFoundError,
     BagFormatError or BagContentError (as :func:`_import_one` would raise them, later)."""
@@ -472,6 +485,8 @@ def import_bags(
     progress bar over each bag's images (default: on unless ``$CI`` is set).
 
     Raises:
+        ValueError: no bag, a ``first_trial`` below 0, or one recording given twice (the same
+            path, or a ROS 2 bag folder and its storage file).
         FileNotFoundError: a bag or the map is missing.
         FileExistsError: ``out`` (or a different map at ``out/../map/NAME.yaml``) exists and
             ``overwrite`` is not given; with it, ``out`` is not an earlier import's (nor the map
@@ -494,6 +509,7 @@ def import_bags(
         raise ValueError(f"first_trial must be an integer >= 0, got {first_trial!r}")
     # The inputs before OUT: a mistyped bag, map or topic was reported as "OUT already exists",
     # and a topic missing from the last bag was found after the others had been read.
+    _check_distinct(bags)
     for bag in bags:
         _check_bag(Path(bag), options)
     grid = load_map(map_yaml)
