@@ -412,10 +412,10 @@ def test_a_word_heard_on_a_wall_has_a_white_rim_in_house_png_too():
     assert [h.get_markeredgecolor() for h in legend.legend_handles[1:]] == ["k", "k"]
 
 
-def test_the_semantic_map_of_a_long_corridor_is_drawn_in_strips():
+def test_the_semantic_map_of_a_long_corridor_is_drawn_in_strips(tmp_path):
     """semantic_map.png of a 100 m x 2 m corridor: a strip 40 pixels high under labels that
     ran over the axis and the title; its strips carry each region's label on the strip that
-    shows the region's label point. where.png likewise."""
+    shows the region's label point. where.png and the per-cell maps likewise."""
     from hand_results import one_word_per_concept
 
     from spcopyro.figures.plotting import semantic_map_figure
@@ -438,8 +438,12 @@ def test_the_semantic_map_of_a_long_corridor_is_drawn_in_strips():
         x, _ = text.get_position()
         assert ax.get_xlim()[0] <= x <= ax.get_xlim()[1], (text.get_text(), ax.get_xlim())
 
-    from spcopyro.figures.plotting import where_figure
+    from matplotlib.image import imread
 
+    from spcopyro.figures.plotting import plot_where_probability, where_figure
+
+    height, width = imread(plot_where_probability(result, "bath", tmp_path / "p.png")).shape[:2]
+    assert height > 0.5 * width, (height, width)  # whole, the map was a line: 181 x 1252
     fig = where_figure(result, result.where("bath"))  # a point estimate: no colour bar
     assert len(fig.axes) == 6
     assert fig.axes[0].get_title().endswith("\n(the map in 6 strips, top to bottom)")

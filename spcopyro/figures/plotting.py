@@ -33,7 +33,7 @@ from spcopyro.data import House, Observations
 from spcopyro.figures.fonts import any_script
 from spcopyro.figures.map_axes import known_bounds, map_axes, shown_in
 from spcopyro.figures.map_axes import map_extent as _extent
-from spcopyro.figures.map_axes import show_map as _show_image
+from spcopyro.figures.map_axes import show_map as _show_image  # noqa: F401 (navigation)
 from spcopyro.figures.map_pieces import (
     concept_handles,
     draw_outline,
@@ -395,15 +395,16 @@ def _plot_cell_values(
     """``[N]`` per-free-cell ``values`` as a colour map over the grid (walls black, unknown
     grey), with a colour bar."""
     grid = result.grid
-    fig = Figure(figsize=(9, 8))
-    ax = fig.subplots()
     rgb = render_labels(np.full(grid.shape, -1), grid, np.zeros((1, 3), dtype=np.uint8))
-    rows, cols = _show_image(ax, grid, rgb)
+    fig, axes, _, strips = map_axes(grid, rgb, (9, 8))  # a long map in strips
+    rows, cols = known_bounds(grid)
     image = free_cells_image(result, values)[rows, cols]  # [h, w], NaN off free space
-    shown = ax.imshow(image, extent=_extent(grid, rows, cols), origin="upper", cmap=cmap,
-                      vmin=0.0, vmax=vmax, interpolation="nearest")  # fmt: skip
-    fig.colorbar(shown, cax=ax.inset_axes((1.03, 0.0, 0.03, 1.0)), label=label)  # map's height
-    ax.set_title(title)
+    for ax in axes:
+        shown = ax.imshow(image, extent=_extent(grid, rows, cols), origin="upper", cmap=cmap,
+                          vmin=0.0, vmax=vmax, interpolation="nearest")  # fmt: skip
+    fig.colorbar(shown, cax=axes[-1].inset_axes((1.03, 0.0, 0.03, 1.0)),  # the map's height
+                 label=label)  # fmt: skip
+    axes[0].set_title(title + strips)
     return _save(fig, path)
 
 
