@@ -56,6 +56,30 @@ print(list(blocked.values()), signal.SIGINT in signal.pthread_sigmask(signal.SIG
 forbid forking chain workers there): whether its worker, and whether the process itself, block
 SIGINT."""
 
+STOPPED_MID_CELL = """
+import time
+
+from spcopyro.study.local_cluster import ClusterStart
+
+
+def cell(seconds):
+    from tqdm.auto import tqdm
+
+    with tqdm(total=1, disable=True):  # a cell's fit makes bars, disabled
+        time.sleep(seconds)
+
+
+start = ClusterStart(1)
+client = start.wait()
+future = client.submit(cell, 120)
+while not any(client.processing().values()):
+    time.sleep(0.1)
+time.sleep(0.5)
+start.close()  # as an interrupted study closes its cluster: its worker is stopped mid-cell
+"""
+"""In a fresh process: a LocalCluster closed while its worker runs a cell that made a progress
+bar (what a Ctrl-C'd study does)."""
+
 
 class Terminated(Exception):
     """What SIGTERM raises in these tests outside the study command (not the process's end)."""
@@ -196,6 +220,19 @@ def test_the_local_clusters_forkserver_and_workers_block_sigint():
     done = subprocess.run([sys.executable, "-c", WORKER_MASK], capture_output=True, text=True,
                           timeout=300, check=True)  # fmt: skip
     assert done.stdout.split("\n")[-2] == "[True] False", done.stdout  # the worker, not this one
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").is_file(), reason="POSIX semaphores (Linux)")
+def test_a_study_stopped_mid_cell_leaks_no_semaphore():
+    """Ctrl-C during a study on a LocalCluster ended with multiprocessing's resource tracker
+    warning "There appear to be 2 leaked semaphore objects to clean up at shutdown": a cell's
+    (disabled) progress bar made tqdm create a multiprocessing lock in the worker, which the
+    worker, killed mid-cell by the cluster's close, never released. The workers now give tqdm
+    a thread lock when they start."""
+    pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    done = subprocess.run([sys.executable, "-c", STOPPED_MID_CELL], capture_output=True,
+                          text=True, timeout=300, check=True)  # fmt: skip
+    assert "leaked semaphore" not in done.stderr, done.stderr
 
 
 @pytest.mark.parametrize(

@@ -18,6 +18,14 @@ machine both cores spend the cluster's start-up importing while the study's proc
 * the cluster starts on a background thread, and the caller runs cells in this process until
   the workers are up (:mod:`spcopyro.study.run`): the core the start-up leaves free fits cells.
 
+Each worker gives tqdm a thread lock of its own at its start (:func:`dask_setup`, a Dask
+worker preload): a cell's fit makes progress bars (disabled), and tqdm's first bar in a process
+creates a ``multiprocessing`` lock, a named semaphore that only the process's exit handlers
+release. A worker stopped mid-cell (a Ctrl-C'd study closes its cluster, whose nannies kill the
+workers still running cells) never runs them, and multiprocessing's resource tracker then
+warned at the study's exit of "leaked semaphore objects to clean up at shutdown", one per such
+worker.
+
 A forked worker's environment is the forkserver's, so Dask's ``pre-spawn-environ`` cannot reach
 it: ``MALLOC_TRIM_THRESHOLD_``, which turns off glibc's dynamic mmap threshold and made cells
 1.5-2x slower in workers (docs/studies.md), is left out of the forkserver's environment, and
@@ -39,6 +47,8 @@ import os
 import threading
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
+
+from spcopyro._util.forking import fresh_tqdm_lock
 
 __all__ = [
     "ONE_THREAD", "PRE_SPAWN_ENVIRON", "QUIET_LOOPS", "WORKER_PRELOAD", "ClusterStart",
@@ -123,6 +133,13 @@ def start_forkserver() -> None:
         forkserver.ensure_running()
 
 
+def dask_setup(worker: object) -> None:
+    """Dask's preload hook (``preload=[__name__]``), run in each worker process of the study's
+    LocalCluster as it starts: tqdm's lock a thread lock, not a semaphore (module docstring)."""
+    del worker
+    fresh_tqdm_lock()
+
+
 def local_cluster(workers: int, method: str | None = None):
     """A ``LocalCluster`` of ``workers`` processes with one thread each, their processes
     started by ``method`` (``forkserver``, ``spawn``; None: forkserver where available)."""
@@ -140,6 +157,7 @@ def local_cluster(workers: int, method: str | None = None):
         return LocalCluster(
             n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
             silence_logs=logging.ERROR, env=dict(ONE_THREAD),
+            preload=[*dask.config.get("distributed.worker.preload", []), __name__],
         )  # fmt: skip
 
 
