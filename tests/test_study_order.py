@@ -183,5 +183,10 @@ def test_progress_bar_advances_by_predicted_seconds_and_counts_cells(tmp_path, c
     bar.close()
     shown = capsys.readouterr().err
     share = plan.predicted[svi.key] / sum(plan.predicted.values())
-    assert f"{100 * share:3.0f}%" in shown and "cells 1/6:" in shown
+    assert f"cells 1/6: {100 * share:3.0f}% of the predicted time|" in shown  # not of cells
+    bar = study_run._bar(plan.pending, plan.predicted, progress=True)
+    for cell in plan.pending:
+        bar.advance(cell)
+    bar.close()
+    assert "cells 6/6: 100% of the predicted time|" in capsys.readouterr().err
     assert study_run._bar(plan.pending, plan.predicted, progress=False) is None
