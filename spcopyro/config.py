@@ -150,7 +150,10 @@ class SpCoConfig:
         def bad(name: str, why: str) -> ValueError:
             return ValueError(f"SpCoConfig.{name}={getattr(self, name)!r}: {why}")
 
-        if not isinstance(self.num_concepts, int) or self.num_concepts < 1:
+        def integer(value: object) -> bool:  # True is no number of concepts, 4.0 no count
+            return isinstance(value, int) and not isinstance(value, bool)
+
+        if not integer(self.num_concepts) or self.num_concepts < 1:
             raise bad("num_concepts", "must be a positive integer")
         if self.prior not in ("dp", "dirichlet"):
             raise bad("prior", "must be 'dp' or 'dirichlet'")
@@ -167,8 +170,11 @@ class SpCoConfig:
         if self.connectivity in (4, 8) and self.gamma * self.connectivity > 700:
             # exp(gamma * n) for n up to D neighbours must stay finite in float64.
             raise bad("gamma", f"gamma * connectivity must be <= 700, got {self.gamma}")
-        if self.connectivity not in (4, 8):
+        if not integer(self.connectivity) or self.connectivity not in (4, 8):
             raise bad("connectivity", "must be 4 or 8")
+        for name in ("use_images", "use_words"):  # "no" or "false" switched a modality on
+            if not isinstance(getattr(self, name), bool):
+                raise bad(name, "must be True or False")
         pairs = self.concentrations
         if isinstance(pairs, Mapping):
             pairs = tuple(pairs.items())

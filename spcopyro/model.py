@@ -29,6 +29,7 @@ DTYPE = torch.float64  # Dirichlet draws with concentrations from 1e-3 to 1e8 ne
 # Site names, read by the Gibbs kernel (and checked against a trace of the model).
 SITE_PI, SITE_THETA, SITE_W, SITE_LABELS = "pi", "theta", "w", "labels"
 SITE_POTTS, SITE_IMAGES, SITE_WORDS = "potts", "images", "words"
+PLATE_CONCEPTS, PLATE_CELLS, PLATE_OBSERVED = "concepts", "cells", "observed_cells"
 
 
 class Modality(NamedTuple):
@@ -198,6 +199,7 @@ def check_model_data(data: ModelData, config: SpCoConfig | None = None) -> None:
                 f"but config.connectivity is {config.connectivity}: make the data with "
                 f"make_model_data(grid, counts, connectivity={config.connectivity})"
             )
+    _check_site_names(data)
     N, cells = data.num_free, data.obs_cells
     if cells.dim() != 1 or (cells.numel() and not 0 <= int(cells.min()) <= int(cells.max()) < N):
         raise ValueError(f"ModelData.obs_cells must be [M] free indices in [0, {N})")
@@ -220,6 +222,30 @@ def check_model_data(data: ModelData, config: SpCoConfig | None = None) -> None:
                 f"the counts of modality {name!r} must be finite and >= 0; row {row} (free "
                 f"cell {int(cells[row])}), column {column} is {float(counts[row, column])}"
             )
+
+
+def _check_site_names(data: ModelData) -> None:
+    """ValueError unless every modality's observation and parameter sites have names of their
+    own: a further modality called ``labels``, ``theta``, ``cells``, ... (or whose parameter
+    site is its own name) failed in Pyro with "Multiple sample sites named ..." under every
+    Pyro tool, naming neither the modality nor the fix."""
+    taken = {name: "a site of the model" for name in (SITE_PI, SITE_LABELS, SITE_POTTS)}
+    taken.update((name, "a plate of the model") for name in (PLATE_CONCEPTS, PLATE_CELLS,
+                                                            PLATE_OBSERVED))  # fmt: skip
+    for modality in data.modalities:
+        for kind, name in (("name", modality.name), ("parameter site", modality.parameter)):
+            if name in taken:
+                fix = (
+                    "give the modality another name"
+                    if kind == "name"
+                    else f"make it Modality(name, parameter_site(name), counts): "
+                    f"{parameter_site(modality.name)!r}"
+                )
+                raise ValueError(
+                    f"modality {modality.name!r}: its {kind} {name!r} is already {taken[name]}; "
+                    f"{fix}"
+                )
+            taken[name] = f"a site of modality {modality.name!r}"
 
 
 def check_config(config: object) -> None:
@@ -321,7 +347,7 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
             f"{tuple(pi.shape)} (its labels are indexed per cell and its Potts factor is not "
             "batched): use pyro.infer.Predictive(..., parallel=False)"
         )
-    with pyro.plate("concepts", L, dim=-1):
+    with pyro.plate(PLATE_CONCEPTS, L, dim=-1):
         parameters = [
             pyro.sample(
                 modality.parameter,
@@ -338,7 +364,7 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
     for modality, probs in zip(data.modalities, parameters, strict=True):
         _check_site_shape(modality.parameter, probs, (L, modality.counts.shape[-1]))
 
-    with pyro.plate("cells", data.num_free, dim=-1):
+    with pyro.plate(PLATE_CELLS, data.num_free, dim=-1):
         labels = pyro.sample(SITE_LABELS, dist.Categorical(pi))  # [N]
     if tuple(labels.shape) != (data.num_free,):  # NUTS / TraceEnum_ELBO enumerate: [L, 1]
         raise ValueError(
@@ -358,7 +384,7 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
     if data.obs_cells.shape[0] == 0:  # a map with no observations yet: the prior alone
         return  # (Pyro refuses a plate of size 0)
     observed_labels = labels[data.obs_cells]  # [M]
-    with pyro.plate("observed_cells", data.obs_cells.shape[0], dim=-1):
+    with pyro.plate(PLATE_OBSERVED, data.obs_cells.shape[0], dim=-1):
         for modality, probs in zip(data.modalities, parameters, strict=True):
             if config.uses(modality.name):
                 pyro.sample(

@@ -31,9 +31,14 @@ __all__ = ["RESERVED_MODALITY_NAMES", "DataFormatError", "ModalityObservations",
 _MISSING = object()
 _MODALITY_NAME = re.compile(r"[a-z][a-z0-9_]*")  # also the file name modality_<name>.csv
 RESERVED_MODALITY_NAMES = ("images", "words")  # the two modalities Observations always holds
-SITE_NAMES_TAKEN = ("labels", "pi", "theta", "w", "potts", "log_joint", "num_concepts")
-"""The model's latent sites (spcopyro.model) and the Gibbs kernel's diagnostics in
-``mcmc.get_samples()``: a modality's observation site ``<name>`` must not take one of them."""
+SITE_NAMES_TAKEN = (
+    "labels", "pi", "theta", "w", "potts",  # the model's sites
+    "cells", "concepts", "observed_cells",  # its plates
+    "log_joint", "num_concepts", "alpha", "gamma", "chi", "beta",  # SpCoGibbs' saved sites
+)  # fmt: skip
+"""The model's latent sites and plates (spcopyro.model) and the Gibbs kernel's diagnostics and
+sampled hyperparameters in ``mcmc.get_samples()``: a modality's observation site ``<name>`` must
+not take one of them."""
 
 
 class DataFormatError(ValueError):
@@ -109,10 +114,12 @@ def _modality_name_problem(name: object) -> str | None:
         return "a modality name must be a lower-case identifier ([a-z][a-z0-9_]*)"
     if name in RESERVED_MODALITY_NAMES:
         return f"a modality name must not be one of {RESERVED_MODALITY_NAMES} (always present)"
-    if name in SITE_NAMES_TAKEN or name.endswith("_probs"):
+    if name in SITE_NAMES_TAKEN or name.endswith(("_probs", "_concentration")):
         return (
-            f"a modality name must not be one of {SITE_NAMES_TAKEN} or end in _probs: its "
-            "observation site would take the name of a model site or of a sampler diagnostic"
+            f"a modality name must not be one of {SITE_NAMES_TAKEN} or end in _probs or "
+            "_concentration: its "
+            "observation site would take the name of a model site or plate, or of a sampler "
+            "diagnostic or sampled hyperparameter"
         )
     return None
 

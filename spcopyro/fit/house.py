@@ -208,7 +208,9 @@ def prepare_model_data(
         ValueError: the map has no free cell, or no observation lands on a free cell (a wrong
             map, origin or negate flag: the fit would learn every concept from the prior);
             counts that are not finite or too large (:func:`~spcopyro.data.check_count_totals`,
-            naming the file and line of a loaded house).
+            naming the file and line of a loaded house); a further modality without a
+            concentration in ``settings.model.concentrations``, or a concentration for a
+            modality the house does not have.
     """
     from spcopyro.fit.refine import COARSE_STAGE_MODEL
 
@@ -234,6 +236,13 @@ def prepare_model_data(
     data = make_model_data(house.grid, counts, settings.model.connectivity)
     for modality in data.modalities:
         settings.model.concentration(modality.name)  # ValueError if a further one has none
+    further = sorted(m.name for m in data.modalities[2:])
+    unused = [name for name, _ in settings.model.concentrations if name not in further]
+    if unused:  # a misspelt name, or a house without that modality: ignored silently
+        raise ValueError(
+            f"SpCoConfig.concentrations names {unused}, but house {house.name!r} has no such "
+            f"modality (its further ones: {further or 'none'}; modality_<name>.csv adds one)"
+        )
     return counts, data
 
 

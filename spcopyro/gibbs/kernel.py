@@ -58,6 +58,14 @@ DEFAULT_SAVE_PARAMS = ("log_joint", "num_concepts", "pi")
 ALL_PARAMS = ("labels", "log_joint", "num_concepts", "pi", "theta", "w")
 
 
+def _hyper_site(name: str) -> str:
+    """The site a sampled hyperparameter is saved as: ``alpha``, ``gamma``, ``chi``, ``beta``,
+    and ``<name>_concentration`` for a further modality's concentration (saved under the
+    modality's own name it took the name of the model's observation site, and Predictive
+    conditioned the observed counts on it)."""
+    return name if name in ("alpha", "gamma", "chi", "beta") else f"{name}_concentration"
+
+
 class _ToInteger:
     """A stand-in transform: MCMC calls ``transforms[name].inv(z)`` on the collected samples."""
 
@@ -92,7 +100,8 @@ class SpCoGibbs(MCMCKernel):
         options: the sampler's options (:class:`~spcopyro.gibbs.options.GibbsOptions`: backend,
             cluster moves, partial refresh); its ``anneal_sweeps`` must be 0 -- use ``anneal``.
             With ``options.hyper`` sampling hyperparameters, each sampled one (``alpha``,
-            ``gamma``, ``chi``, ``beta``, a further modality's name) is saved as a site too.
+            ``gamma``, ``chi``, ``beta``, ``<name>_concentration`` for a further modality) is
+            saved as a site too.
         anneal: ramp the labels' coupling gamma up over MCMC's ``warmup_steps``
             (:mod:`spcopyro.gibbs.anneal`); the saved samples are all from the target model.
             ``warmup_steps=0`` with it is refused (ValueError at ``MCMC.run``).
@@ -143,6 +152,13 @@ class SpCoGibbs(MCMCKernel):
                 "warmup_steps=0: pass warmup_steps > 0 or anneal=False"
             )
         check_model_data(data, config)  # before tracing the model (its errors name no count)
+        own = {"log_joint", "num_concepts", *self._sampled_hyper()}
+        clash = sorted(own & {m.name for m in data.modalities})
+        if clash:
+            raise ValueError(
+                f"modality {clash[0]!r} has the name of a site SpCoGibbs saves ({sorted(own)}): "
+                "mcmc.get_samples() would hold both under one name; give the modality another"
+            )
         self._check_model_sites()
         requested = self._requested_params
         self.save_params = sorted(self._all_params() if requested is None else requested)
@@ -171,7 +187,7 @@ class SpCoGibbs(MCMCKernel):
         hyper = self.options.hyper
         sampled = {"alpha": hyper.alpha, "gamma": hyper.gamma != "fixed"}
         names = hyperparameter_names(self._data)
-        return tuple(name for name in names if sampled.get(name, hyper.concentrations))
+        return tuple(_hyper_site(name) for name in names if sampled.get(name, hyper.concentrations))
 
     def _check_model_sites(self) -> None:
         trace = poutine.trace(self.model).get_trace(self._data, self._config)
@@ -239,7 +255,7 @@ class SpCoGibbs(MCMCKernel):
             values[modality.parameter] = lambda table=table: table.exp()
         names = hyperparameter_names(self._data)
         for name, value in zip(names, hyperparameter_values(self._data, self._config), strict=True):
-            values[name] = lambda value=value: torch.tensor(value, dtype=torch.float64)
+            values[_hyper_site(name)] = lambda value=value: torch.tensor(value, dtype=torch.float64)
         return {name: values[name]() for name in self.save_params}
 
     @property

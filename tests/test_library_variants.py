@@ -1,0 +1,120 @@
+"""Model variants written as docs/library.md suggests (a further modality in
+``ModelData.modalities``, switches and sizes of ``SpCoConfig``), run through Pyro's MCMC and
+Predictive: the issues found doing so (a sampled hyperparameter saved under an observation
+site's name, modality names that clash with the model's sites, settings ignored silently)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+from pyro import poutine
+from pyro.infer import MCMC, Predictive
+
+from spcopyro.config import SpCoConfig, preset
+from spcopyro.data import ModalityObservations
+from spcopyro.fit.house import prepare_model_data
+from spcopyro.gibbs import GibbsOptions, SpCoGibbs
+from spcopyro.gibbs.hyper_options import HyperparameterOptions
+from spcopyro.model import Modality, parameter_site, spcomapping_model
+from spcopyro.synthetic import HouseSpec, make_house
+from tests.gibbs_problems import config, random_problem
+
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
+
+
+def _with_modality(data, name: str, parameter: str | None = None, seed: int = 1):
+    """``data`` with a further modality of whole counts [M, 4] (3 draws a cell)."""
+    M = data.obs_cells.shape[0]
+    generator = torch.Generator().manual_seed(seed)
+    items = torch.randint(0, 4, (M, 3), generator=generator)  # [M, 3]
+    counts = torch.zeros(M, 4, dtype=torch.float64).scatter_add_(
+        1, items, torch.ones(M, 3, dtype=torch.float64)
+    )
+    modality = Modality(name, parameter or parameter_site(name), counts)
+    return data._replace(modalities=(*data.modalities, modality))
+
+
+def test_a_sampled_further_concentration_is_no_observation_site():
+    # with hyper.concentrations the kernel saved the modality "objects"' concentration as the
+    # site "objects", the name of its observation site: Predictive then conditioned the observed
+    # counts on that scalar ("needs non-negative whole total_count, got 6.11...: real-valued
+    # counts ... can be scored but not drawn", of whole counts)
+    _, data = random_problem(seed=0)
+    whole = data.with_counts("images", data.image_counts.round() + 1)
+    whole = _with_modality(whole.with_counts("words", whole.word_counts.round()), "objects")
+    cfg = config().replace(concentrations={"objects": 1.0})
+    options = GibbsOptions(hyper=HyperparameterOptions(concentrations=True))
+    mcmc = MCMC(SpCoGibbs(options=options), num_samples=3, warmup_steps=1, disable_progbar=True)
+    mcmc.run(whole, cfg)
+    samples = mcmc.get_samples()
+    assert "objects" not in samples
+    assert {"chi", "beta", "objects_concentration", "objects_probs"} <= set(samples)
+    assert samples["objects_concentration"].shape == (3,)
+    draws = Predictive(
+        poutine.uncondition(spcomapping_model), posterior_samples=samples,
+        return_sites=("objects",),
+    )(whole, cfg)  # fmt: skip
+    totals = whole.modality("objects").counts.sum(-1)  # [M]
+    assert torch.equal(draws["objects"].sum(-1), totals.expand(3, -1))
+
+
+@pytest.mark.parametrize(
+    ("name", "parameter", "message"),
+    [
+        ("labels", None, "its name 'labels' is already a site of the model"),
+        ("theta", None, "its name 'theta' is already a site of modality 'images'"),
+        ("cells", None, "its name 'cells' is already a plate of the model"),
+        ("objects", "objects", r"make it Modality\(name, parameter_site\(name\), counts\)"),
+        ("words", None, "its name 'words' is already a site of modality 'words'"),
+    ],
+)
+def test_a_modality_named_as_a_site_of_the_model_is_refused(name, parameter, message):
+    # each failed in Pyro with "Multiple sample sites named ...", naming no modality
+    _, data = random_problem(seed=0)
+    clashing = _with_modality(data, name, parameter)
+    cfg = config().replace(concentrations={} if name == "words" else {name: 1.0})
+    with pytest.raises(ValueError, match=message):
+        poutine.trace(spcomapping_model).get_trace(clashing, cfg)
+    with pytest.raises(ValueError, match=message):
+        MCMC(SpCoGibbs(), num_samples=1, disable_progbar=True).run(clashing, cfg)
+
+
+def test_a_modality_named_as_a_site_the_kernel_saves_is_refused():
+    # "log_joint" is no site of the model but one of mcmc.get_samples(): the modality's
+    # observation site and the kernel's diagnostic shared one name
+    _, data = random_problem(seed=0)
+    clashing = _with_modality(data, "log_joint")
+    cfg = config().replace(concentrations={"log_joint": 1.0})
+    with pytest.raises(ValueError, match="modality 'log_joint' has the name of a site SpCoGibbs"):
+        MCMC(SpCoGibbs(), num_samples=1, disable_progbar=True).run(clashing, cfg)
+
+
+@pytest.mark.parametrize(
+    "name", ["cells", "concepts", "observed_cells", "alpha", "x_concentration"]
+)
+def test_a_dataset_modality_may_not_take_a_plate_or_a_saved_site_s_name(name):
+    # modality_cells.csv was accepted and every Pyro tool then failed on the model's plate
+    with pytest.raises(ValueError, match="must not be one of"):
+        ModalityObservations(name, ("a",), positions=[[0, 0]], trials=[0], counts=[[1]])
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [("num_concepts", True), ("connectivity", 4.0), ("use_images", "no"), ("use_words", 0)],
+)
+def test_the_config_refuses_switches_and_sizes_of_another_type(field, value):
+    # use_images="no" switched the images on (a truthy string), num_concepts=True made L = 1,
+    # connectivity 4.0 was stored as a float
+    with pytest.raises(ValueError, match=f"SpCoConfig.{field}="):
+        SpCoConfig(**{field: value})
+
+
+def test_a_concentration_for_a_modality_the_house_lacks_is_refused():
+    # a misspelt or absent modality's concentration was ignored: the fit ran without it
+    house = make_house(seed=1, spec=HouseSpec(height=30, width=40, num_rooms=2))
+    settings = preset("original-code", num_concepts=4, concentrations={"objects": 0.5})
+    with pytest.raises(ValueError, match=r"concentrations names \['objects'\], but house"):
+        prepare_model_data(house, settings)
+    counts, data = prepare_model_data(house, settings.replace(concentrations={}))
+    assert np.isfinite(counts.image_counts).all() and len(data.modalities) == 2
