@@ -6,16 +6,18 @@ site's name, modality names that clash with the model's sites, settings ignored 
 from __future__ import annotations
 
 import numpy as np
+import pyro
 import pytest
 import torch
 from pyro import poutine
-from pyro.infer import MCMC, Predictive
+from pyro.infer import MCMC, SVI, Predictive
 
 from spcopyro.config import SpCoConfig, preset
 from spcopyro.data import ModalityObservations
 from spcopyro.fit.house import prepare_model_data
 from spcopyro.gibbs import GibbsOptions, SpCoGibbs
 from spcopyro.gibbs.hyper_options import HyperparameterOptions
+from spcopyro.guides import MeanFieldELBO, MeanFieldGuide
 from spcopyro.model import Modality, parameter_site, spcomapping_model
 from spcopyro.synthetic import HouseSpec, make_house
 from tests.gibbs_problems import config, random_problem
@@ -118,3 +120,25 @@ def test_a_concentration_for_a_modality_the_house_lacks_is_refused():
         prepare_model_data(house, settings)
     counts, data = prepare_model_data(house, settings.replace(concentrations={}))
     assert np.isfinite(counts.image_counts).all() and len(data.modalities) == 2
+
+
+@pytest.mark.parametrize("site", ["pi", "labels"])
+def test_a_model_that_holds_a_latent_site_fixed_is_refused(site):
+    # poutine.condition(model, {"pi": ...}) -- a variant with pi known -- was sampled and
+    # fitted as if pi were free: SpCoGibbs drew pi anyway (its density check conditions on
+    # its own values), MeanFieldELBO scored the guide's draws at the fixed value
+    _, data = random_problem(seed=0)
+    cfg = config()
+    value = {
+        "pi": torch.tensor([0.5, 0.3, 0.2], dtype=torch.float64),
+        "labels": torch.zeros(data.num_free, dtype=torch.long),
+    }[site]
+    fixed = poutine.condition(spcomapping_model, {site: value})
+    message = f"site '{site}' is observed .* cannot hold '{site}' fixed"
+    with pytest.raises(ValueError, match=message):
+        MCMC(SpCoGibbs(fixed), num_samples=1, disable_progbar=True).run(data, cfg)
+    with pyro.get_param_store().scope():
+        guide = MeanFieldGuide(data, cfg, generator=torch.Generator().manual_seed(0))
+        svi = SVI(fixed, guide, pyro.optim.Adam({"lr": 0.1}), MeanFieldELBO())
+        with pytest.raises(ValueError, match=message):
+            svi.step(data, cfg)

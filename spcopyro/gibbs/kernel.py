@@ -198,6 +198,11 @@ class SpCoGibbs(MCMCKernel):
         for name, shape in expected.items():
             if name not in trace.nodes:
                 raise ValueError(f"model has no sample site {name!r}, which SpCoGibbs samples")
+            if trace.nodes[name]["is_observed"]:  # its draws replaced the given value silently
+                raise ValueError(
+                    f"model site {name!r} is observed (poutine.condition), but SpCoGibbs "
+                    f"samples it from its full conditional: it cannot hold {name!r} fixed"
+                )
             actual = tuple(trace.nodes[name]["value"].shape)
             if actual != shape:
                 raise ValueError(

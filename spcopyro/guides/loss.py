@@ -164,6 +164,11 @@ def particle_estimate(
         for trace, who in ((guide_trace, "guide"), (model_trace, "model")):
             if name not in trace.nodes or trace.nodes[name]["type"] != "sample":
                 raise ValueError(f"the {who} has no sample site {name!r}")
+        if model_trace.nodes[name]["is_observed"]:  # the guide's draws were scored at it
+            raise ValueError(
+                f"the model's site {name!r} is observed (poutine.condition), but "
+                f"MeanFieldELBO fits q({name}): it cannot hold {name!r} fixed"
+            )
     log_ratio = _global_log_density(model_trace, sites) - _global_log_density(guide_trace, sites)
     labels = guide_trace.nodes[SITE_LABELS]["fn"]  # Categorical, batch [N]
     q = labels.probs  # [N, L]
