@@ -165,3 +165,22 @@ def test_variational_md_does_not_offer_svi_for_a_changed_model():
         svi = SVI(variant, guide, pyro.optim.Adam({"lr": 0.1}), MeanFieldELBO())
         with pytest.raises(ValueError, match="cannot fit another model"):
             svi.step(data, cfg)
+
+
+def test_the_guide_names_a_seed_a_numpy_start_and_a_site_it_has_not():
+    # generator=0 (a seed) fell back to torch's global generator silently (0 is falsy), a
+    # NumPy q failed with "'numpy.ndarray' object has no attribute 'to'", concentration("labels")
+    # returned the labels' logits and concentration("phi") "has no attribute 'phi_concentration'"
+    _, data = random_problem(seed=0)
+    cfg = config()
+    with pyro.get_param_store().scope():
+        for seed in (0, 5):
+            with pytest.raises(TypeError, match="generator must be a torch.Generator .*got int"):
+                MeanFieldGuide(data, cfg, generator=seed)
+        q = np.full((data.num_free, cfg.num_concepts), 1 / cfg.num_concepts)
+        guide = MeanFieldGuide(data, cfg, q=q, name="numpy_start")
+        assert torch.allclose(guide.marginals(), torch.as_tensor(q))
+        for site in ("labels", "phi"):
+            with pytest.raises(ValueError, match=r"Dirichlet sites are \('pi', 'theta', 'w'\)"):
+                guide.concentration(site)
+        assert guide.concentration("w").shape == (cfg.num_concepts, data.vocabulary_size)

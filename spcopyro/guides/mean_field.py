@@ -41,6 +41,7 @@ from pyro.infer import ELBO
 from pyro.nn import PyroModule, PyroParam
 from torch.distributions import constraints
 
+from spcopyro._util.random_draws import check_generator
 from spcopyro.config import SpCoConfig
 from spcopyro.guides.cavi import update_globals
 from spcopyro.guides.factors import GlobalFactors, prior_factors
@@ -119,8 +120,11 @@ class MeanFieldGuide(PyroModule):
         N, L = data.num_free, config.num_concepts
         if label_smoothing is None:
             label_smoothing = 0.9 if q is None else 0.05
+        if generator is not None:  # a seed (0 above all) fell back to torch's generator
+            check_generator(generator)
         if q is None:
             q = initial_q(data, config, generator or torch.default_generator)
+        q = torch.as_tensor(q)  # a NumPy array: "'numpy.ndarray' object has no attribute 'to'"
         if tuple(q.shape) != (N, L):
             raise ValueError(f"q must be [{N}, {L}], got {tuple(q.shape)}")
         # A negative or unnormalised row gave NaN logits.
@@ -204,6 +208,9 @@ class MeanFieldGuide(PyroModule):
     def concentration(self, site: str) -> torch.Tensor:
         """The current Dirichlet concentration of ``pi`` ``[L]`` or of a modality's site
         ``[L, K_m]`` (from the param store: created with its start value on first use)."""
+        sites = (SITE_PI, *self.parameter_sites)
+        if site not in sites:  # "labels" gave the logits; others "has no attribute ..."
+            raise ValueError(f"the guide's Dirichlet sites are {sites}, got {site!r}")
         return self._param(self._attribute(site))
 
     def logits(self) -> torch.Tensor:
