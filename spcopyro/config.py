@@ -350,7 +350,9 @@ def preset(name: str = DEFAULT_PRESET, **overrides: object) -> SpCoSettings:
     (:class:`SpCoConfig` or :class:`DataPreparation`) has a field of that name.
 
     ``paper-dirichlet`` needs ``num_concepts`` (the known number of categories).
-    Overrides whose value is ``None`` are ignored, so CLI options can be passed straight through.
+    Overrides whose value is ``None`` are ignored, so CLI options can be passed straight through:
+    ``preset("coarse", cell_size=None)`` keeps the preset's 0.25 m; ``cell_size="map"`` (or
+    ``SpCoSettings.replace(cell_size=None)``, which sets what it is given) is the map's own cells.
     """
     if name not in PRESETS:
         raise ValueError(f"unknown preset {name!r}; choose one of {sorted(PRESETS)}")

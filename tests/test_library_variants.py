@@ -184,3 +184,15 @@ def test_the_guide_names_a_seed_a_numpy_start_and_a_site_it_has_not():
             with pytest.raises(ValueError, match=r"Dirichlet sites are \('pi', 'theta', 'w'\)"):
                 guide.concentration(site)
         assert guide.concentration("w").shape == (cfg.num_concepts, data.vocabulary_size)
+
+
+def test_library_md_says_how_preset_takes_none_and_it_holds():
+    # preset("coarse", cell_size=None) kept the preset's 0.25 m cells, silently: the guide
+    # said only that overrides are routed to their layer
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "library.md").read_text()
+    assert "override of `None` is ignored" in text and '`cell_size="map"`' in text
+    assert preset("coarse", cell_size=None).data.cell_size == 0.25
+    assert preset("coarse", cell_size="map").data.cell_size is None
+    assert preset("coarse").replace(cell_size=None).data.cell_size is None
