@@ -235,6 +235,42 @@ def test_a_study_stopped_mid_cell_leaks_no_semaphore():
     assert "leaked semaphore" not in done.stderr, done.stderr
 
 
+def test_cells_a_worker_finished_before_a_ctrl_c_are_kept(tmp_path, monkeypatch):
+    """While this process ran a cell of its own (the LocalCluster starting, or a loaded machine),
+    the cells the workers finished meanwhile waited for that cell's end to be collected; a
+    Ctrl-C then lost them with the cluster, where the docs promise that it loses only the cells
+    in flight. They are stored now."""
+    pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    import os
+    import time
+
+    from spcopyro.study.spec import load_study
+    from spcopyro.study.table import CellStore
+
+    marks, here, real, seen = tmp_path / "marks", os.getpid(), evaluate.run_cell, set()
+    marks.mkdir()
+
+    def run_cell(cell):
+        if os.getpid() != here:  # a worker: the cell, then a mark that it ended
+            outcome = real(cell)
+            (marks / cell.key).touch()
+            return outcome
+        deadline = time.monotonic() + 240  # this process: Ctrl-C once a worker's cell ended
+        while not any(marks.iterdir()) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        seen.update(path.name for path in marks.iterdir())
+        time.sleep(2.0)  # their results reached the scheduler
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(evaluate, "run_cell", run_cell)
+    out = tmp_path / "out"
+    with pytest.raises(KeyboardInterrupt):
+        run.run_study(load_study(_write(tmp_path)), out, workers=2, progress=False)
+    assert seen, "no worker ended a cell"
+    assert seen <= set(CellStore(out).finished())  # and in the table written after the stop:
+    assert len(read_table(out / "results.csv")) >= len(seen)
+
+
 @pytest.mark.parametrize(
     ("overrides", "message"),
     [

@@ -201,23 +201,31 @@ def _run_study(
     in_process = scheduler is None and workers <= 1
     started_in_order = [] if in_process else longest_first(pending, plan.predicted)
     background = _Background()
+
+    def keep(cell: Cell, record: dict[str, object], trace: object, label_map: object) -> None:
+        nonlocal ran, failed
+        store.put(record, trace, label_map)  # type: ignore[arg-type]
+        ran += 1
+        if record["status"] != "ok":
+            failed += 1
+            report(f"cell {cell.row} / {cell.data.name} / {cell.method} / seed {cell.seed} "
+                   f"failed: {record['error_type']}: {record['error']}")  # fmt: skip
+        if bar is not None:
+            bar.advance(cell)
+
+    outcomes = (
+        _in_process(pending)
+        if in_process
+        else _on_dask(started_in_order, workers, scheduler, background, start_in_process)
+    )
     try:
-        outcomes = (
-            _in_process(pending)
-            if in_process
-            else _on_dask(started_in_order, workers, scheduler, background, start_in_process)
-        )
-        for cell, record, trace, label_map in outcomes:
-            store.put(record, trace, label_map)  # type: ignore[arg-type]
-            ran += 1
-            if record["status"] != "ok":
-                failed += 1
-                report(f"cell {cell.row} / {cell.data.name} / {cell.method} / seed {cell.seed} "
-                       f"failed: {record['error_type']}: {record['error']}")  # fmt: skip
-            if bar is not None:
-                bar.advance(cell)
+        for outcome in outcomes:
+            keep(*outcome)
     except KeyboardInterrupt as stop:
         interrupted = True
+        outcomes.close()  # (if it stopped here) the Dask run's close, after it took what ended
+        for outcome in background.finished:  # ended on a worker, not collected yet: kept too
+            keep(*outcome)
         stop.said = report is not _say_nothing  # type: ignore[attr-defined]  # the line below
         raise
     finally:
@@ -437,7 +445,7 @@ def _on_dask(
         if start is not None:
             start.wait()
         for future in as_completed(list(futures)):
-            cell = futures[future]
+            cell = futures.pop(future)
             try:
                 record, trace, label_map = future.result()
             except Exception as error:  # the worker died, or the task could not run
@@ -446,6 +454,10 @@ def _on_dask(
                 trace = label_map = None
             future.release()
             yield cell, record, trace, label_map
+    except (KeyboardInterrupt, GeneratorExit):  # in this process's cell, or in the caller's
+        with lock:
+            background.finished = _finished_on_workers(futures)
+        raise
     finally:
         if start is None:
             client.close()
@@ -453,13 +465,30 @@ def _on_dask(
             background.close_later(start.close)
 
 
+def _finished_on_workers(futures: dict[object, Cell]) -> list[Outcome]:
+    """The outcomes of the tasks that ended on a worker but were not collected yet, when an
+    interrupt came first (a worker's cell ends while this process runs one of its own, whose
+    end the collection waits for): stored, not lost with the cluster. A task that failed is
+    left to the next run."""
+    outcomes = []
+    for future, cell in futures.items():
+        if future.status == "finished":  # type: ignore[attr-defined]
+            try:
+                outcomes.append((cell, *future.result(timeout=30)))  # type: ignore[attr-defined]
+            except Exception:  # noqa: S112  # e.g. the worker gone meanwhile: run next time
+                continue
+    return outcomes
+
+
 @dataclass
 class _Background:
     """What a Dask run left behind: the cells it ran in this process while its LocalCluster
-    started, and the cluster's close, running on a thread until :meth:`join`."""
+    started, the cells its workers had finished when an interrupt came (not collected yet),
+    and the cluster's close, running on a thread until :meth:`join`."""
 
     ran_here: int = 0
     closing: threading.Thread | None = None
+    finished: list[Outcome] = field(default_factory=list)
 
     def close_later(self, close: Callable[[], None]) -> None:
         self.closing = threading.Thread(target=close, name="spcopyro-cluster-close")
