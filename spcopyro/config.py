@@ -334,7 +334,8 @@ class SpCoSettings:
         if unknown:
             raise ValueError(
                 f"unknown settings {sorted(unknown)}: SpCoConfig has {sorted(model_fields)}, "
-                f"DataPreparation has {sorted(data_fields)}"
+                f"DataPreparation has {sorted(data_fields)} (an inference method's options go "
+                "to fit_house(options=...), e.g. GibbsOptions(anneal_sweeps=200))"
             )
         model = {k: v for k, v in changes.items() if k in model_fields}
         data = {k: v for k, v in changes.items() if k in data_fields}

@@ -196,3 +196,9 @@ def test_library_md_says_how_preset_takes_none_and_it_holds():
     assert preset("coarse", cell_size=None).data.cell_size == 0.25
     assert preset("coarse", cell_size="map").data.cell_size is None
     assert preset("coarse").replace(cell_size=None).data.cell_size is None
+
+
+def test_preset_points_an_inference_option_to_fit_house():
+    # preset("coarse", anneal_sweeps=200) listed the two layers' fields only
+    with pytest.raises(ValueError, match=r"unknown settings \['anneal_sweeps'\].*fit_house\("):
+        preset("coarse", anneal_sweeps=200)
