@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Literal
@@ -152,6 +153,13 @@ class SpCoConfig:
 
         def integer(value: object) -> bool:  # True is no number of concepts, 4.0 no count
             return isinstance(value, int) and not isinstance(value, bool)
+
+        for name in ("num_concepts", "connectivity", "alpha", "beta", "chi", "gamma"):
+            value = getattr(self, name)  # NumPy scalars (np.int64(5) "must be a positive integer")
+            if isinstance(value, numbers.Integral) and not isinstance(value, int):
+                object.__setattr__(self, name, int(value))
+            elif isinstance(value, numbers.Real) and not isinstance(value, int | float):
+                object.__setattr__(self, name, float(value))
 
         if not integer(self.num_concepts) or self.num_concepts < 1:
             raise bad("num_concepts", "must be a positive integer")

@@ -202,3 +202,13 @@ def test_preset_points_an_inference_option_to_fit_house():
     # preset("coarse", anneal_sweeps=200) listed the two layers' fields only
     with pytest.raises(ValueError, match=r"unknown settings \['anneal_sweeps'\].*fit_house\("):
         preset("coarse", anneal_sweeps=200)
+
+
+def test_the_config_takes_numpy_scalars_as_the_numbers_they_are():
+    # num_concepts=np.int64(5) (a count from NumPy) was refused as "must be a positive
+    # integer", alpha=np.float32(2) as "must be a finite positive number"
+    cfg = SpCoConfig(num_concepts=np.int64(5), connectivity=np.int32(8), alpha=np.float32(2))
+    assert (cfg.num_concepts, cfg.connectivity, cfg.alpha) == (5, 8, 2.0)
+    assert type(cfg.num_concepts) is int and type(cfg.alpha) is float
+    with pytest.raises(ValueError, match="num_concepts=np.True_: must be a positive integer"):
+        SpCoConfig(num_concepts=np.bool_(True))
