@@ -313,11 +313,22 @@ def test_a_ctrl_c_while_the_table_is_written_waits_for_it(tmp_path, monkeypatch,
 
 
 def test_a_bad_scheduler_address_is_named(tmp_path, capsys):
-    """``error: missing port number in address 'head'`` did not say which option it was."""
+    """``error: missing port number in address 'head'`` did not say which option it was. And
+    the run wrote an empty results.csv, report.md and study.json into --out before it tried the
+    address (after 30 s where no scheduler answers): it connects first now."""
     pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
-    path = _write(tmp_path)
-    argv = ["study", str(path), "--out", str(tmp_path / "out"), "--scheduler", "head"]
+    import dask
+
+    path, out = _write(tmp_path), tmp_path / "out"
+    argv = ["study", str(path), "--out", str(out), "--scheduler", "head"]
     assert main(argv) == 2
     assert "error: --scheduler head: missing port number in address 'head'" in (
         capsys.readouterr().err
     )
+    assert [p.name for p in out.iterdir()] == [".spcopyro-run.lock"]  # nothing written
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        assert main([*argv[:-1], "tcp://127.0.0.1:1"]) == 2  # nothing listens on port 1
+    err = capsys.readouterr().err
+    assert "error: --scheduler tcp://127.0.0.1:1: Timed out trying to connect" in err
+    assert "is a Dask scheduler running there?" in err
+    assert [p.name for p in out.iterdir()] == [".spcopyro-run.lock"]

@@ -177,6 +177,7 @@ def _run_study(
     start = time.perf_counter()
     plan = plan_study(study, out, retry_failed, rerun_stale, root)
     cells, pending, cached, stale = plan
+    client = _connect(scheduler) if scheduler is not None and pending else None  # before writing
     store = CellStore(out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "study.json").write_text(json.dumps(study.to_json(), indent=1, default=str))
@@ -216,7 +217,7 @@ def _run_study(
     outcomes = (
         _in_process(pending)
         if in_process
-        else _on_dask(started_in_order, workers, scheduler, background, start_in_process)
+        else _on_dask(started_in_order, workers, client, background, start_in_process)
     )
     try:
         for outcome in outcomes:
@@ -393,13 +394,28 @@ def _in_process(cells: list[Cell]) -> Iterator[Outcome]:
         yield cell, record, trace, label_map
 
 
+def _connect(scheduler: str):
+    """A ``Client`` of the Dask scheduler at ``scheduler`` (connected before the run writes
+    anything); ValueError (a bad address) or OSError (no scheduler answering) naming it."""
+    from distributed import Client
+
+    try:
+        return Client(scheduler)
+    except ValueError as error:
+        raise ValueError(f"--scheduler {scheduler}: {error}") from error
+    except OSError as error:
+        raise OSError(f"--scheduler {scheduler}: {error} (is a Dask scheduler running there? "
+                      "docs/studies.md; no cell was run)") from error  # fmt: skip
+
+
 def _on_dask(
-    cells: list[Cell], workers: int, scheduler: str | None, background: _Background,
+    cells: list[Cell], workers: int, client: object | None, background: _Background,
     start_in_process: bool = True,
 ) -> Iterator[Outcome]:  # fmt: skip
     """Each cell a task; outcomes as they finish (``as_completed``). A task lost with its
     worker (or any error outside the cell) is recorded as that cell's error. ``cells`` in the
-    order the workers should start them (the first first).
+    order the workers should start them (the first first). ``client``: connected to the
+    ``--scheduler`` cluster (:func:`_connect`); None: start a LocalCluster of ``workers``.
 
     A LocalCluster starts on a background thread (:class:`spcopyro.study.local_cluster.
     ClusterStart`); with ``start_in_process`` this process runs cells meanwhile, one after
@@ -407,7 +423,7 @@ def _on_dask(
     up ends soon), and the cluster takes every cell not started yet the moment it is up. Its
     close is left running in ``background`` (the caller writes the table meanwhile)."""
     try:
-        from distributed import Client, as_completed
+        from distributed import as_completed
     except ModuleNotFoundError:
         raise ModuleNotFoundError(DASK_MISSING) from None
     waiting = deque(cells)
@@ -423,13 +439,8 @@ def _on_dask(
             )  # fmt: skip
             waiting.clear()
 
-    if scheduler is not None:
+    if client is not None:
         start = None
-        try:
-            client = Client(scheduler)
-        except (OSError, ValueError) as error:  # a bad address, or no scheduler answering there
-            kind = ValueError if isinstance(error, ValueError) else OSError
-            raise kind(f"--scheduler {scheduler}: {error}") from error
         submit_waiting(client)
     else:
         start = ClusterStart(workers, on_ready=submit_waiting)
@@ -460,7 +471,7 @@ def _on_dask(
         raise
     finally:
         if start is None:
-            client.close()
+            client.close()  # type: ignore[union-attr]
         else:
             background.close_later(start.close)
 
