@@ -28,15 +28,19 @@ Presets (:func:`preset`) give both layers at once, as :class:`SpCoSettings`:
     counted 10 times (``word_scaling``) and spread over a 1 m footprint, image histograms as
     probabilities (one observation each, not 100 draws), and ``auto``'s inference settings
     plus region relabel moves in a fifth of the sweeps (:mod:`spcopyro.gibbs.region_move`: a
-    room carried by two concepts merges; docs/real_houses.md, "Region relabel moves").
+    room carried by two concepts merges; docs/real_houses.md, "Region relabel moves"). Its
+    recommended inference settings add ``refine="auto"``: where the images tell the places
+    apart, the fit goes on on the map's own cells (:mod:`spcopyro.fit.refine`; docs/real_houses.md,
+    "Refinement on the map's cells").
 ``auto``
-    What the ablation of issue #14 supports (docs/defaults.md, its first section):
-    the released code's emissions (beta 0.1, chi 1.0, floor(100 f): word and image tables the
-    data can move, where the paper's beta 500 / chi 1e4 leave every concept's words uniform),
-    gamma 3.0 (above the critical 2.48 for L = 120, so regions form), and, as recommended
-    inference settings (:data:`PRESET_INFERENCE`), a start from a geometric room segmentation,
-    split-merge moves in a fifth of the sweeps and the variation-of-information point estimate
-    over the kept label maps as the reported map. The paper's presets stay as they are.
+    What the ablation of issue #14 supports (docs/defaults.md, "The ablation, and the choice of
+    `auto`"): the released code's emissions (beta 0.1, chi 1.0, floor(100 f): word and image
+    tables the data can move, where the paper's beta 500 / chi 1e4 leave every concept's words
+    uniform), gamma 3.0 (above the critical 2.48 for L = 120, so regions form), and, as
+    recommended inference settings (:data:`PRESET_INFERENCE`), a start from a geometric room
+    segmentation, split-merge moves in a fifth of the sweeps and the variation-of-information
+    point estimate over the kept label maps as the reported map. The paper's presets stay as
+    they are.
 
 A note on gamma. The Potts prior over L labels on a square lattice has its critical coupling at
 ``ln(1 + sqrt(L))`` (2.48 for L = 120). Below it the MRF alone does not form regions: measured with
