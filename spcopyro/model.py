@@ -213,6 +213,11 @@ def check_model_data(data: ModelData, config: SpCoConfig | None = None) -> None:
             )
         if counts.dtype != DTYPE:
             raise ValueError(f"the counts of modality {name!r} must be {DTYPE}, got {counts.dtype}")
+        if counts.shape[1] == 0:  # a Dirichlet over no items: Pyro's Simplex error, unnamed
+            raise ValueError(
+                f"modality {name!r} has no items (its counts are [{M}, 0]): each concept's "
+                "distribution over them needs at least one; leave the modality out"
+            )
         if not counts.numel() or (counts.min() >= 0 and torch.isfinite(counts.sum())):
             continue  # two reductions: a NaN fails the min, an inf the sum (the model's every call)
         wrong = ~torch.isfinite(counts) | (counts < 0)  # [M, K_m]

@@ -92,6 +92,20 @@ def test_a_modality_named_as_a_site_the_kernel_saves_is_refused():
         MCMC(SpCoGibbs(), num_samples=1, disable_progbar=True).run(clashing, cfg)
 
 
+def test_a_modality_of_no_items_is_refused_naming_it():
+    # it failed in Pyro: "Expected parameter probs (Tensor of shape (5, 0)) ... Simplex()"
+    _, data = random_problem(seed=0)
+    M = data.obs_cells.shape[0]
+    empty = Modality("objects", parameter_site("objects"), torch.zeros(M, 0, dtype=torch.float64))
+    cfg = config().replace(concentrations={"objects": 1.0})
+    with pytest.raises(
+        ValueError, match=rf"modality 'objects' has no items \(its counts are \[{M}, 0\]\)"
+    ):
+        poutine.trace(spcomapping_model).get_trace(
+            data._replace(modalities=(*data.modalities, empty)), cfg
+        )
+
+
 @pytest.mark.parametrize(
     "name", ["cells", "concepts", "observed_cells", "alpha", "x_concentration"]
 )
