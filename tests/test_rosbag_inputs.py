@@ -146,11 +146,43 @@ def test_a_16_bit_png_compressed_image_is_stored_scaled(tmp_path, map_yaml):
     assert np.array_equal(cv2.imread(str(stored)), np.repeat(expected[..., None], 3, axis=2))
 
 
+def test_a_dark_frame_of_a_16_bit_camera_is_said_and_image_bits_scales_alike(
+    tmp_path, map_yaml, capsys
+):
+    """Each 16-bit image is scaled from the depth its own largest value needs: a dark frame of
+    a 12-bit camera (max 900, read as 10 bits) came out 4x brighter than the others, without
+    a word. The import now says so, and --image-bits 12 scales every frame from 12 bits."""
+    bright = np.linspace(0, 4095, 48).round().astype(np.uint16).reshape(6, 8)  # [6, 8]
+    dark = np.linspace(0, 900, 48).round().astype(np.uint16).reshape(6, 8)
+    bag = tmp_path / "rec"
+    with BagWriter(bag, ros=2) as w:
+        for t in T0 + np.arange(4.0):
+            w.pose("/amcl_pose", t, 0.0, 0.0, 0.0)
+        _raw_image(w, T0 + 1.0, bright, "mono16")
+        _raw_image(w, T0 + 2.0, dark, "mono16")
+        w.text("/speech", T0 + 1.0, "hall")
+    argv = ["import-bag", str(bag), "--map", str(map_yaml), "--out"]
+    assert main([*argv, str(tmp_path / "auto")]) == 0
+    said = capsys.readouterr().out
+    assert "its 16-bit images were scaled from 10 to 12 bits" in said
+    assert "--image-bits 12 scales them all alike" in said
+    assert main([*argv, str(tmp_path / "twelve"), "--image-bits", "12"]) == 0
+    assert "16-bit images were scaled" not in capsys.readouterr().out
+    _, stored = sorted((tmp_path / "twelve" / "img_0").iterdir())
+    expected = np.rint(dark * (255 / 4095)).astype(np.uint8)
+    assert np.array_equal(cv2.imread(str(stored)), np.repeat(expected[..., None], 3, axis=2))
+    with pytest.raises(ValueError, match="image_bits must be one of"):
+        ImportOptions(image_bits=11)
+
+
 def test_to_8_bits_picks_the_smallest_sensor_depth():
     assert to_8_bits(np.array([[0, 200, 255]], np.uint16)).tolist() == [[0, 200, 255]]
     assert to_8_bits(np.array([[0, 256, 1023]], np.uint16)).tolist() == [[0, 64, 255]]
     assert to_8_bits(np.array([[4096, 16383]], np.uint16)).tolist() == [[64, 255]]
     assert to_8_bits(np.zeros((2, 2), np.uint16)).tolist() == [[0, 0], [0, 0]]
+    seen: set[int] = set()
+    assert to_8_bits(np.array([[0, 1023, 4095]], np.uint16), 10, seen).tolist() == [[0, 255, 255]]
+    assert seen == {10}  # values above the depth given are clipped
 
 
 @pytest.mark.parametrize("pose_tf", [False, True], ids=["amcl_pose", "pose-tf"])

@@ -65,6 +65,7 @@ def _import_bag(args: argparse.Namespace) -> int:
         pose_tolerance=args.pose_tolerance,
         ros_distro=args.ros_distro,
         map_frame=args.map_frame,
+        image_bits=args.image_bits,
     )
     try:
         report = import_bags(
@@ -210,6 +211,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "placed on the map through the bag's tf chain from this frame to it, and is an error "
         "without one (default map)",
     )
+    p.add_argument("--image-bits", type=int, choices=(8, 10, 12, 14, 16), default=None,
+                   help="a 16-bit camera's bit depth: its images are scaled from it to 8 bits "
+                        "(default: each image from the depth its largest value needs, which "
+                        "brightens dark frames; the import says when depths differ)")  # fmt: skip
     p.add_argument("--ros-distro", choices=ROS_DISTROS, default=DEFAULT_ROS_DISTRO,
                    help="ROS 2 distribution whose message definitions read a bag that stores "
                         "none (Foxy, Galactic and Humble sqlite3 bags; a bag's own definitions "

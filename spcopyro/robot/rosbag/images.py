@@ -31,8 +31,9 @@ class ImageDecodeError(ValueError):
     """One image message could not be decoded (the message says why)."""
 
 
-def decode_image(msg: Any) -> np.ndarray:
-    """``[H, W, 3]`` uint8 BGR of an Image or CompressedImage message."""
+def decode_image(msg: Any, bits: int | None = None, seen: set[int] | None = None) -> np.ndarray:
+    """``[H, W, 3]`` uint8 BGR of an Image or CompressedImage message; a 16-bit one is scaled
+    by :func:`to_8_bits` (``bits``, and the depth used added to ``seen``)."""
     if hasattr(msg, "format"):  # CompressedImage
         data = np.frombuffer(bytes(msg.data), dtype=np.uint8)  # [bytes]
         flags = cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH  # a 16-bit PNG (mono16, png compressed)
@@ -42,7 +43,7 @@ def decode_image(msg: Any) -> np.ndarray:
                 f"compressed image (format {msg.format!r}, {data.size} bytes) does not decode"
             )
         if image.dtype == np.uint16:  # IMREAD_COLOR alone keeps the high byte
-            return to_8_bits(image)
+            return to_8_bits(image, bits, seen)
         return image if image.dtype == np.uint8 else cv2.imdecode(data, cv2.IMREAD_COLOR)
     try:
         from rosbags.image import message_to_cvimage
@@ -66,7 +67,7 @@ def decode_image(msg: Any) -> np.ndarray:
             data = rows.reshape(int(msg.height), int(msg.step))[:, :row_bytes].reshape(-1)
             msg = dataclasses.replace(msg, data=data, step=row_bytes)
         if typestr == "uint16":  # rosbags-image's bgr8 keeps the high byte: 12 bits -> 0..15
-            return to_8_bits(np.asarray(message_to_cvimage(msg, "bgr16")))
+            return to_8_bits(np.asarray(message_to_cvimage(msg, "bgr16")), bits, seen)
         image = message_to_cvimage(msg, "bgr8")
     except Exception as error:  # noqa: BLE001 - rosbags-image raises several kinds
         raise ImageDecodeError(f"image encoding {msg.encoding!r}: {error}") from None
@@ -77,12 +78,20 @@ SENSOR_BITS = (8, 10, 12, 14, 16)
 """The bit depths a 16-bit image's values are taken to span (:func:`to_8_bits`)."""
 
 
-def to_8_bits(image: np.ndarray) -> np.ndarray:
-    """A uint16 image as uint8: its values scaled from the smallest bit depth of
-    :data:`SENSOR_BITS` that holds its largest value (a 12-bit camera's 0..4095 to 0..255; a
-    camera's bit depth is not in the message, and the image's range is what the sensor used)."""
-    bits = next(b for b in SENSOR_BITS if int(image.max(initial=0)) < 1 << b)
-    scaled = np.rint(image.astype(np.float64) * (255.0 / ((1 << bits) - 1)))
+def to_8_bits(
+    image: np.ndarray, bits: int | None = None, seen: set[int] | None = None
+) -> np.ndarray:
+    """A uint16 image as uint8: its values scaled from ``bits`` (the camera's bit depth, values
+    above it clipped) or, with None, from the smallest bit depth of :data:`SENSOR_BITS` that
+    holds its largest value (a 12-bit camera's 0..4095 to 0..255; a camera's bit depth is not
+    in the message, so a dark frame comes out brighter than the others). The depth used is
+    added to ``seen``."""
+    if bits is None:
+        bits = next(b for b in SENSOR_BITS if int(image.max(initial=0)) < 1 << b)
+    if seen is not None:
+        seen.add(bits)
+    top = (1 << bits) - 1
+    scaled = np.rint(np.minimum(image, top).astype(np.float64) * (255.0 / top))
     return np.ascontiguousarray(scaled.astype(np.uint8))
 
 
@@ -91,9 +100,12 @@ def _png_16_bit(data: bytes) -> bool:
     return data.startswith(_PNG_MAGIC) and data[24:25] == b"\x10"
 
 
-def encoded_image(msg: Any) -> tuple[bytes, str]:
-    """The file content and suffix (``.jpg`` or ``.png``) to store for an image message."""
-    image = decode_image(msg)  # [H, W, 3] uint8: it decodes
+def encoded_image(
+    msg: Any, bits: int | None = None, seen: set[int] | None = None
+) -> tuple[bytes, str]:
+    """The file content and suffix (``.jpg`` or ``.png``) to store for an image message
+    (``bits``, ``seen``: a 16-bit image's, :func:`to_8_bits`)."""
+    image = decode_image(msg, bits, seen)  # [H, W, 3] uint8: it decodes
     if hasattr(msg, "format"):
         data = bytes(msg.data)
         for magic, suffix in ((_JPEG_MAGIC, ".jpg"), (_PNG_MAGIC, ".png")):

@@ -86,7 +86,7 @@ from spcopyro.robot.rosbag.bag import (
     read_tf_chain,
 )
 from spcopyro.robot.rosbag.house_folder import MARKER, check_map, check_out, replace_out
-from spcopyro.robot.rosbag.images import ImageDecodeError, encoded_image
+from spcopyro.robot.rosbag.images import SENSOR_BITS, ImageDecodeError, encoded_image
 from spcopyro.robot.rosbag.poses import PoseTrack, compose, header_clock, late_count
 
 __all__ = [
@@ -129,6 +129,7 @@ class ImportOptions:
     pose_tolerance: float = 0.5  # seconds to the nearest pose sample
     ros_distro: str = DEFAULT_ROS_DISTRO  # definitions for ROS 2 bags that store none
     map_frame: str = "map"  # the map's frame: a pose topic's poses are in it or linked by tf
+    image_bits: int | None = None  # a 16-bit camera's bit depth (None: from each image)
 
     def __post_init__(self) -> None:
         for name in ("min_distance", "min_interval", "pose_tolerance"):
@@ -139,6 +140,8 @@ class ImportOptions:
             if not str(getattr(self, name)).strip("/ "):  # "" gave "no pose topic ''" or a
                 # pose frame check that suggested "--pose-tf  BASE_FRAME"
                 raise ValueError(f"{name} must name a topic or frame, got {getattr(self, name)!r}")
+        if self.image_bits is not None and self.image_bits not in SENSOR_BITS:
+            raise ValueError(f"image_bits must be one of {SENSOR_BITS}, got {self.image_bits!r}")
         if self.ros_distro not in ROS_DISTROS:
             raise ValueError(f"ros_distro must be one of {ROS_DISTROS}, got {self.ros_distro!r}")
         if self.pose_tf is not None and (
@@ -220,6 +223,13 @@ class BagImportReport:
                         f"trial {t['trial']} ({t['bag']}): {late} {what} came after one "
                         "stamped later (arrived late) and were taken in stamp order"
                     )
+            if len(depths := t.get("image_bits") or []) > 1:
+                lines.append(
+                    f"trial {t['trial']} ({t['bag']}): its 16-bit images were scaled from "
+                    f"{depths[0]} to {depths[-1]} bits, each from the depth its largest value "
+                    f"needs, so darker frames came out brighter: --image-bits {depths[-1]} "
+                    "scales them all alike"
+                )
             if (offset := t.get("record_clock_offset")) is not None:
                 lines.append(
                     f"trial {t['trial']} ({t['bag']}): the pose stamps are "
@@ -364,6 +374,7 @@ def _import_one(
         folder.mkdir()
         written: dict[int, str] = {}
         undecodable = 0
+        bits_seen: set[int] = set()  # the bit depths 16-bit images were scaled from
         from tqdm.auto import tqdm  # here: `spcopyro --help` imports this module, not tqdm
 
         bar = tqdm(total=kept.size, desc=f"images of trial {trial}", unit="img",
@@ -371,7 +382,7 @@ def _import_one(
         for index, msg in iter_images(reader, images.topic, set(kept.tolist())):
             bar.update(1)
             try:
-                data, suffix = encoded_image(msg)
+                data, suffix = encoded_image(msg, options.image_bits, bits_seen)
             except ImageDecodeError as error:
                 skip(images.topic, "image", images.times[index], f"not decodable: {error}")
                 undecodable += 1
@@ -407,6 +418,7 @@ def _import_one(
         # pose / tf samples and images stamped before an earlier one (sorted into place)
         "poses_out_of_order": int(sum(track.late for track in chain)),
         "images_out_of_order": late_count(images.times),
+        "image_bits": sorted(bits_seen),  # 16-bit images: the depths scaled from (8-bit: [])
         # record time - pose stamp (median, s) where the stamps are on another clock and the
         # observations without a stamp were placed on it; None where the clocks agree
         "record_clock_offset": clock_offset if to_stamp is not None else None,
