@@ -936,3 +936,23 @@ def test_a_bag_cut_short_names_its_usual_repair(tmp_path, map_yaml, ros, storage
     data.write_bytes(data.read_bytes()[: data.stat().st_size * 2 // 3])
     with pytest.raises(BagFormatError, match=rf"not a readable bag .*; if .*{re.escape(hint)}$"):
         import_bags([bag], map_yaml, tmp_path / "d" / "h")
+
+
+def test_simulate_bag_prints_an_import_that_keeps_the_trials_numbers(tmp_path, capsys):
+    """`simulate-bag --trials 1 2` printed an import that brought them in as trials 0 and 1."""
+    import shlex
+
+    out = tmp_path / "bags"
+    argv = ["simulate-bag", "--out", str(out), "--image-size", "8", "8", "--trials", "2", "1"]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    command = printed.split("import with: ")[1].splitlines()[0]
+    assert "--first-trial 1" in command and "come in as" not in printed
+    assert main(shlex.split(command)[1:]) == 0
+    house = out / "house"
+    assert sorted(p.name for p in house.glob("img_*")) == ["img_1", "img_2"]
+    assert main(["simulate-bag", "--out", str(tmp_path / "gap"), "--image-size", "8", "8",
+                 "--trials", "0", "2"]) == 0  # fmt: skip
+    printed = capsys.readouterr().out
+    command = printed.split("import with: ")[1].splitlines()[0]
+    assert "--first-trial" not in command and "trials 0, 2 come in as 0, 1" in printed

@@ -139,8 +139,14 @@ def _simulate_bag(args: argparse.Namespace) -> int:
     print(f"wrote {result.map_yaml}")
     bags = " ".join(_quote(b) for b in result.bags)
     house = _quote(Path(args.out) / "house")
+    chosen = sorted(set(args.trials or ()))  # the bags' trials, in the order written
+    first = f" --first-trial {chosen[0]}" if chosen and chosen[0] else ""
     print(f"  import with: spcopyro import-bag {bags} --map {_quote(result.map_yaml)} "
-          f"--image-topic {result.image_topic} --out {house}")  # fmt: skip
+          f"--image-topic {result.image_topic}{first} --out {house}")  # fmt: skip
+    if chosen and chosen != list(range(chosen[0], chosen[0] + len(chosen))):
+        print(f"  (import-bag numbers its bags' trials one after another from --first-trial: "
+              f"trials {', '.join(map(str, chosen))} come in as "
+              f"{', '.join(str(chosen[0] + k) for k in range(len(chosen)))})")  # fmt: skip
     return 0
 
 
