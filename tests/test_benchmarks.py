@@ -717,3 +717,28 @@ def test_quick_tables_say_what_min_rise_and_reached_measure(script):
                                            "scratch_vs_scratch_ari": []}], 10)  # fmt: skip
     assert "first sweeps: best LJ >= scratch" in text, text
     assert "first sweeps: typical LJ >= scratch" in text, text
+
+
+def test_prior_thread_warms_every_setting_before_timing(script, monkeypatch):
+    """The warm-up chain ran the default setting (one-pass) only: the first timed block of
+    'worker off' loaded the two-part draw's kernels, and a --quick run printed it at 765 ms a
+    sweep (105x one-pass) against 9 ms next to a busy neighbour. One untimed sweep of each
+    setting now comes first."""
+    import torch
+
+    from spcopyro.gibbs import numba_globals
+
+    prior_thread = script("prior_thread")
+    modes = []
+    monkeypatch.setattr(prior_thread, "make_sweep_plan", lambda data: None)
+
+    def sweep(state, *_):
+        modes.append(numba_globals.prior_thread())
+        return state
+
+    monkeypatch.setattr(prior_thread, "gibbs_sweep_numba", sweep)
+    state = argparse.Namespace(labels=torch.zeros(3), log_emissions=(torch.zeros(2),))
+    problem = argparse.Namespace(data=argparse.Namespace(num_free=3), config=None)
+    record = prior_thread.time_condition(problem, state, blocks=2, block=3)
+    assert modes[:3] == ["one-pass", "off", "on"], modes[:3]
+    assert len(modes) == 3 + 2 * 3 * 3 and record["same_draws_on_and_off"]
