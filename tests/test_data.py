@@ -540,6 +540,23 @@ def test_loader_image_folder_mismatch_warns(tmp_path, grid, caplog):
     assert message.startswith(f"{room / 'img_0'} holds 1 images but Ft.csv holds 3 rows")
 
 
+def test_an_image_folder_of_no_trial_names_the_trials_and_the_missing_pose_file(
+    tmp_path, grid, caplog
+):
+    """'img_5 has no trial' said neither which trials the house has nor what was missing."""
+    room = write_room(tmp_path, grid)
+    for k, n in ((0, 2), (1, 1), (5, 1)):
+        (room / f"img_{k}").mkdir()
+        for i in range(n):
+            (room / f"img_{k}" / f"{i + 1:05d}.jpg").write_bytes(b"jpg")
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        assert load_house(room).observations.image_paths is None
+    (message,) = [r.getMessage() for r in caplog.records if "img_5" in r.getMessage()]
+    assert "img_5 belongs to no trial of the house (its trials: 0, 1; there is no pose_5.csv)" in (
+        message
+    )
+
+
 # ------------------------------------------------------------------------------ round trip
 
 

@@ -183,6 +183,12 @@ def test_a_house_without_ft_csv_says_how_to_make_it(tmp_path):
     with pytest.raises(FileNotFoundError, match=r"Xtx\.csv, Xty\.csv, pose_0\.csv, pose_1\.csv "
                        "give image positions but no features: spcopyro features"):  # fmt: skip
         load_house(room)
+    for name in ("Xty.csv", "pose_0.csv", "pose_1.csv"):
+        (room / name).rename(tmp_path / name)
+    with pytest.raises(FileNotFoundError, match=r"\(the image features; Xtx\.csv gives image "):
+        load_house(room)  # one file: 'gives'
+    for name in ("Xty.csv", "pose_0.csv", "pose_1.csv"):
+        (tmp_path / name).rename(room / name)
     (room / "img_0").mkdir()
     (room / "img_0" / "00000.jpg").write_bytes(b"")
     with pytest.raises(FileNotFoundError, match=rf"spcopyro features {room} --out {room}/Ft"):

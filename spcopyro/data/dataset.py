@@ -202,7 +202,8 @@ def _check_both_modalities(room: Path, files: dict[str, Path]) -> bool:
             f"make it from the camera images in its img_K/ folders: spcopyro features {room} "
             f"--out {files['Ft']}"
             if images
-            else f"{', '.join(image_files)} give image positions but no features: spcopyro "
+            else f"{', '.join(image_files)} {'give' if len(image_files) > 1 else 'gives'} "
+            "image positions but no features: spcopyro "
             "features IMAGES --out Ft.csv makes Ft.csv from a folder of images"
         )
         raise FileNotFoundError(

@@ -400,7 +400,11 @@ def _image_paths(
         paths.extend(files)
     extra = sorted(set(folders) - set(trials))
     if extra:
-        logger.warning("%s: img_%d has no trial; image_paths left None", room, extra[0])
+        missing = f"; there is no pose_{extra[0]}.csv" if poses else ""
+        logger.warning(
+            "%s: img_%d belongs to no trial of the house (its trials: %s%s); image_paths left "
+            "None", room, extra[0], ", ".join(map(str, trials)), missing,
+        )  # fmt: skip
         return None
     return tuple(paths)
 
