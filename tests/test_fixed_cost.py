@@ -225,3 +225,55 @@ def test_figures_drawn_in_a_forked_child_are_the_files_drawn_here(tmp_path, monk
         expected = (folders["here"] / name).read_bytes()
         for folder in ("forked", "child died"):
             assert (folders[folder] / name).read_bytes() == expected, (folder, name)
+
+
+_IMPORT_FROZEN = """
+import gc, json, sys
+collections = []  # those once torch's import began (it is in sys.modules from its start)
+gc.callbacks.append(lambda phase, info: phase == "start" and "torch" in sys.modules
+                    and collections.append(info["generation"]))
+from spcopyro._util.collector import import_frozen
+import_frozen("spcopyro.cli.fit")
+count = len(collections)  # allocates no tracked object: cannot start a collection
+during = collections[:count]
+again = import_frozen("spcopyro.cli.fit")  # imported: nothing frozen again
+print(json.dumps({"during": during, "enabled": gc.isenabled(), "frozen": gc.get_freeze_count(),
+                  "torch": "torch" in sys.modules, "run_fit": hasattr(again, "run_fit")}))
+"""
+
+
+def test_the_fits_imports_run_without_the_collector_and_are_frozen():
+    """torch's and pyro's objects: no collection while they are imported (the plain import ran
+    three full ones), and frozen after, so that later collections skip them."""
+    done = subprocess.run([sys.executable, "-c", _IMPORT_FROZEN], capture_output=True,
+                          text=True, env=_env(), timeout=300, check=True)  # fmt: skip
+    record = json.loads(done.stdout.strip().splitlines()[-1])
+    assert record["torch"] and record["run_fit"]
+    assert record["during"] == []
+    assert record["enabled"]
+    assert record["frozen"] > 100_000
+
+
+def test_import_frozen_leaves_a_paused_collector_paused():
+    code = (
+        "import gc; gc.disable(); from spcopyro._util.collector import import_frozen; "
+        "import_frozen('json'); import_frozen('spcopyro.maps'); print(gc.isenabled())"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          env=_env(), timeout=300, check=True)  # fmt: skip
+    assert done.stdout.strip() == "False"
+
+
+def test_the_fit_command_imports_the_fit_frozen(monkeypatch):
+    """``spcopyro fit`` imports :mod:`spcopyro.cli.fit` through
+    :func:`~spcopyro._util.collector.import_frozen`."""
+    import types
+
+    from spcopyro._util import collector
+    from spcopyro.cli import fit_parser
+
+    asked = []
+    fit = types.SimpleNamespace(run_fit=lambda args: 17)
+    monkeypatch.setattr(collector, "import_frozen", lambda name: asked.append(name) or fit)
+    assert fit_parser._run_fit(object()) == 17  # type: ignore[arg-type]
+    assert asked == ["spcopyro.cli.fit"]

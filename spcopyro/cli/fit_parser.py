@@ -31,9 +31,10 @@ __all__ = ["add_parser"]
 
 
 def _run_fit(args: argparse.Namespace) -> int:
-    from spcopyro.cli.fit import run_fit
+    from spcopyro._util.collector import import_frozen
 
-    return run_fit(args)
+    # torch's and pyro's objects, frozen: the collector does not scan them again (the module)
+    return import_frozen("spcopyro.cli.fit").run_fit(args)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
