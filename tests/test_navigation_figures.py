@@ -1,0 +1,150 @@
+"""What a reader of navigate.png and show --graph's graph.png sees (properties of the artists,
+not pixels): a long corridor in readable strips with the path running on across them."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("matplotlib")
+
+
+def _corridor(tall: bool = False):
+    """A 100 m x 2 m corridor (0.05 m cells) of five 20 m rooms joined by 0.8 m doorways, each
+    room's concept naming it: ``one_word_per_concept``'s result."""
+    from hand_results import one_word_per_concept
+
+    from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
+
+    occupancy = np.full((44, 2004), OCCUPIED, dtype=np.int8)
+    occupancy[2:-2, 2:-2] = FREE
+    for x in range(402, 2000, 400):
+        occupancy[:, x : x + 2] = OCCUPIED
+        occupancy[14:30, x : x + 2] = FREE
+    if tall:
+        occupancy = np.ascontiguousarray(occupancy.T[::-1])  # x along the map's rows
+    grid = OccupancyGrid(occupancy, 0.05, (0.0, 0.0, 0.0))
+    along = np.nonzero(grid.free)[0 if tall else 1]  # [N]
+    if tall:
+        along = grid.height - 1 - along
+    labels = np.minimum((along - 2) // 400, 4)  # [N]: five rooms
+    words = ("kitchen", "bed", "sofa", "bath", "door")
+    return one_word_per_concept(grid, labels, words, num_concepts=5)
+
+
+def _boxes(fig):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    for ax in fig.axes:
+        ax.apply_aspect()
+    return renderer, [ax.get_window_extent(renderer) for ax in fig.axes]
+
+
+def _holds(ax, x: float, y: float) -> bool:
+    (x0, x1), (y0, y1) = sorted(ax.get_xlim()), sorted(ax.get_ylim())
+    return x0 <= x <= x1 and y0 <= y <= y1
+
+
+@pytest.mark.parametrize("tall", [False, True])
+def test_navigate_png_of_a_long_corridor_is_drawn_in_strips(tall):
+    """navigate.png of a 100 m x 2 m corridor was one strip 40 pixels high under a square colour
+    bar, the stop's name over the title; it is cut into strips at one scale, the path drawn in
+    every strip (clipped to it: it runs on from one strip into the next), start, stops and goal
+    where they fall, the colour bar beside the last strip."""
+    from spcopyro.figures.map_pieces import STRIP_ASPECT
+    from spcopyro.robot.navigation import navigate
+    from spcopyro.robot.navigation.figure import plan_figure
+
+    result = _corridor(tall)
+    start = (1.0, 2.0) if tall else (2.0, 1.0)
+    plan = navigate(result, "go to the door via the sofa", start)
+    fig = plan_figure(plan)
+    renderer, boxes = _boxes(fig)
+    assert len(boxes) == 6, len(boxes)
+    sizes = {(round(b.width), round(b.height)) for b in boxes}
+    assert len(sizes) == 1, sizes  # one scale
+    ((w, h),) = sizes
+    # at most STRIP_ASPECT, and each stretch 3% longer at both ends (strip_axes)
+    assert max(w, h) / min(w, h) <= 1.06 * STRIP_ASPECT and min(w, h) >= 0.9 * fig.dpi, sizes
+    order = "left to right" if tall else "top to bottom"
+    assert fig.axes[0].get_title().endswith(f"(the map in 6 strips, {order})")
+    along = plan.path_xy[:, 1 if tall else 0]  # [P]
+    holding = []  # the strips showing a part of the path
+    for k, ax in enumerate(fig.axes):
+        (path,) = [line for line in ax.get_lines() if line.get_label() == "path"]
+        assert np.array_equal(path.get_xydata(), plan.path_xy)  # the whole path, clipped
+        assert path.get_clip_on()
+        if any(_holds(ax, x, y) for x, y in plan.path_xy):
+            holding.append(k)
+        stars = [ln for ln in ax.get_lines() if ln.get_marker() == "*"]
+        assert len(stars) == 1 and tuple(stars[0].get_xydata()[0]) == tuple(plan.goal.xy)
+        assert len(ax.images) == 2  # the map and the destination's probability
+    # 79 m: from the start's strip into the goal's, 4 strips on, through every strip between
+    assert np.ptp(along) > 70 and holding == list(range(holding[0], holding[0] + 5)), holding
+    (stop,) = plan.stops[:-1]
+    texts = [(ax, t) for ax in fig.axes for t in ax.texts]
+    assert [t.get_text() for _, t in texts] == [stop.shown]
+    assert _holds(texts[0][0], *stop.xy)
+    assert any(_holds(ax, *plan.start) for ax in fig.axes)
+    legend = fig.axes[-1].get_legend()
+    assert legend is not None
+    box = legend.get_window_extent(renderer)
+    assert not any(box.overlaps(b) for b in boxes)
+    assert [t.get_text() for t in legend.get_texts()][:2] == ["route's places (outline)", "path"]
+    bars = [child for child in fig.axes[-1].child_axes if child.get_ylabel().startswith("p(")]
+    assert len(bars) == 1  # the colour bar, beside the last strip
+
+
+@pytest.mark.parametrize("tall", [False, True])
+def test_the_place_graph_of_a_long_corridor_is_drawn_in_strips(tall):
+    """show --graph on a 100 m x 2 m corridor drew one thin strip, its labels over the title;
+    its strips carry the passages and markers, each label on a strip showing its place, inside
+    that strip's axes and overlapping no other."""
+    from matplotlib.collections import PathCollection
+
+    from spcopyro.robot.navigation.figure import place_graph_figure
+    from spcopyro.robot.navigation.places import place_graph
+
+    result = _corridor(tall)
+    graph = place_graph(result)
+    assert len(graph.places) == 5
+    fig = place_graph_figure(result, graph)
+    renderer, boxes = _boxes(fig)
+    assert len(boxes) == 6 and len({(round(b.width), round(b.height)) for b in boxes}) == 1
+    assert "(the map in 6 strips, " in fig.axes[0].get_title()
+    texts = [(ax, box, t) for ax, box in zip(fig.axes, boxes, strict=True) for t in ax.texts]
+    assert len(texts) == 5
+    extents = [t.get_window_extent(renderer) for _, _, t in texts]
+    for (ax, box, text), extent in zip(texts, extents, strict=True):
+        place = next(p for p in graph.places if text.get_text().startswith(p.name + " "))
+        assert _holds(ax, *place.centroid), text.get_text()
+        assert box.x0 <= extent.x0 and extent.x1 <= box.x1, text.get_text()
+        assert box.y0 <= extent.y0 and extent.y1 <= box.y1, text.get_text()
+    for i, extent in enumerate(extents):
+        assert not any(extent.overlaps(other) for other in extents[i + 1 :])
+    for ax in fig.axes:
+        assert len([c for c in ax.collections if isinstance(c, PathCollection)]) == 1
+        assert len([ln for ln in ax.get_lines() if len(ln.get_xydata())]) == len(graph.passages)
+    legend = [ax.get_legend() for ax in fig.axes if ax.get_legend()]
+    assert len(legend) == 1
+    box = legend[0].get_window_extent(renderer)
+    assert not any(box.overlaps(b) for b in boxes)
+
+
+def test_a_label_by_a_cut_goes_on_the_strip_showing_its_marker_whole():
+    """A place's centroid 0.16 m before a strip's end (in the next strip's overlap too) was
+    labelled on the first strip, beside half a marker."""
+    from matplotlib.figure import Figure
+
+    from spcopyro.robot.navigation.figure import _showing
+
+    fig = Figure()
+    first, second = fig.subplots(2, 1)
+    first.set_xlim(0.0, 10.0)
+    second.set_xlim(9.5, 19.5)
+    for ax in (first, second):
+        ax.set_ylim(0.0, 2.0)
+    assert _showing([first, second], 9.8, 1.0) is second
+    assert _showing([first, second], 9.4, 1.0) is first
+    assert _showing([first, second], 30.0, 1.0) is first  # shown nowhere: the first
