@@ -742,3 +742,20 @@ def test_prior_thread_warms_every_setting_before_timing(script, monkeypatch):
     record = prior_thread.time_condition(problem, state, blocks=2, block=3)
     assert modes[:3] == ["one-pass", "off", "on"], modes[:3]
     assert len(modes) == 3 + 2 * 3 * 3 and record["same_draws_on_and_off"]
+
+
+def test_readme_names_the_json_each_quick_run_writes():
+    """benchmarks/README.md said svi_vs_cavi.py, word_tables.py and hyperparameters.py write
+    their NAME.json "also with --quick": they write NAME_quick.json (bench_cli.results_path),
+    as their --help says. Every NAME_quick.json the README names is one a script writes."""
+    readme = (BENCHMARKS / "README.md").read_text()
+    assert "also with `--quick`" not in readme
+    written = {"NAME_quick.json"}
+    for path in BENCHMARKS.glob("*.py"):
+        source = path.read_text()
+        written |= {
+            f"{n}_quick.json" for n in re.findall(r'results_path\(\s*[\w.]+, "(\w+)"', source)
+        }
+        written |= set(re.findall(r'"(\w+_quick\.json)"', source))
+    named = set(re.findall(r"(?<![/\w])(\w+_quick\.json)", readme))  # not an --out /tmp/... example
+    assert named and named <= written, sorted(named - written)
