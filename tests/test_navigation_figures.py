@@ -148,3 +148,32 @@ def test_a_label_by_a_cut_goes_on_the_strip_showing_its_marker_whole():
     assert _showing([first, second], 9.8, 1.0) is second
     assert _showing([first, second], 9.4, 1.0) is first
     assert _showing([first, second], 30.0, 1.0) is first  # shown nowhere: the first
+
+
+def test_navigate_png_explains_its_stops_and_other_candidates_in_the_legend():
+    """navigate.png drew each 'via' stop as an orange square (C1, near the route's orange
+    outline it often sits on) and the candidate goals not taken (the other bedroom) as small
+    purple crosses, neither in the legend: a reader could not tell what they were."""
+    from matplotlib.colors import to_rgb
+    from test_navigate import START_A, house_result
+
+    from spcopyro.maps.palette import delta_e
+    from spcopyro.robot.navigation import navigate
+    from spcopyro.robot.navigation.figure import ROUTE_RGB, plan_figure
+
+    plan = navigate(house_result(), "go to the bedroom via the kitchen", START_A)
+    assert len(plan.goal.choice.candidates) == 2  # the bedroom: rooms A and E
+    ax = plan_figure(plan).axes[0]  # the map (the colour bar's axes follow)
+    handles, labels = ax.get_legend_handles_labels()
+    texts = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert texts == labels
+    assert "stop ('via' place)" in labels and "other candidate goal (not taken)" in labels
+    stop = handles[labels.index("stop ('via' place)")]
+    squares = [ln for ln in ax.get_lines() if ln.get_marker() == "s"]
+    assert len(squares) == 1 and tuple(squares[0].get_xydata()[0]) == tuple(plan.stops[0].xy)
+    face = np.array(to_rgb(stop.get_markerfacecolor())) * 255
+    edge = np.array(to_rgb(stop.get_markeredgecolor())) * 255
+    route = np.array(ROUTE_RGB) * 255
+    assert max(delta_e(face, route), delta_e(edge, route)) >= 50  # apart from the outline
+    crosses = [ln for ln in ax.get_lines() if ln.get_marker() == "x"]
+    assert len(crosses) == 1  # the other bedroom, once in the legend

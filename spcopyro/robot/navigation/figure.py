@@ -96,15 +96,17 @@ def plan_figure(plan: NavigationPlan) -> Figure:
             ax.plot([], [], color=ROUTE_RGB, lw=2.0, label="route's places (outline)")
         ax.plot(plan.path_xy[:, 0], plan.path_xy[:, 1], color="C3", lw=2, label="path")
         ax.plot(*plan.start, marker="o", color="C2", ms=9, ls="", label="start")
-        for stop in plan.stops[:-1]:
-            ax.plot(*stop.xy, marker="s", color="C1", ms=8, ls="")
+        for k, stop in enumerate(plan.stops[:-1]):  # white, black-rimmed: not the route's orange
+            ax.plot(*stop.xy, marker="s", ms=8, ls="", markerfacecolor="w", markeredgecolor="k",
+                    markeredgewidth=1.5, label="" if k else "stop ('via' place)")  # fmt: skip
         ax.plot(*goal.xy, marker="*", color="C3", ms=16, ls="", label=f"goal: {goal.shown}")
         ax.arrow(goal.xy[0], goal.xy[1], length * np.cos(goal.yaw), length * np.sin(goal.yaw),
                  width=0.02, color="C3")  # fmt: skip
-        for stop in plan.stops:
-            for c in stop.choice.candidates:
-                if (c.xy != stop.xy) or not c.reachable:
-                    ax.plot(*c.xy, marker="x", color="C4", ms=8, ls="")
+        others = [c.xy for stop in plan.stops for c in stop.choice.candidates
+                  if (c.xy != stop.xy) or not c.reachable]  # fmt: skip
+        for k, xy in enumerate(others):
+            ax.plot(*xy, marker="x", color="C4", ms=9, mew=2.0, ls="",
+                    label="" if k else "other candidate goal (not taken)")  # fmt: skip
     for stop in plan.stops[:-1]:  # its name once, on the strip showing it (_showing)
         _showing(axes, *stop.xy).annotate(stop.shown, stop.xy, xytext=(5, 5),
                                           textcoords="offset points", fontsize=9)  # fmt: skip
