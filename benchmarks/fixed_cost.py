@@ -68,7 +68,15 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from bench_cli import COUNT, dataset_root, house_folder, preset_names, quick_or, run_main
+from bench_cli import (
+    COUNT,
+    dataset_root,
+    house_folder,
+    preset_names,
+    quick_or,
+    results_path,
+    run_main,
+)
 
 SCRIPT_DIR = Path(__file__).resolve().parent
 EMBEDDED_LABEL = "embedded synthetic default house"  # what is fitted without a house folder
@@ -374,7 +382,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
                         help="runs per configuration (default 3; --quick: 1)")  # fmt: skip
     parser.add_argument("--out", type=Path, default=None,
                         help="JSON output (default benchmarks/fixed_cost.json, fixed_cost_quick."
-                             "json with --quick, startup.json with --startup-only)")  # fmt: skip
+                             "json with --quick, startup.json with --startup-only, "
+                             "startup_quick.json with both)")  # fmt: skip
     parser.add_argument("--startup-only", action="store_true",
                         help="only the start-up of --help, where, export and show (no fits "
                              "timed)")  # fmt: skip
@@ -385,6 +394,13 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         parser.error(f"argument --sweeps: S1 < S2, got {args.sweeps[0]} {args.sweeps[1]}")
     args.repeats = quick_or(args.repeats, args.quick, 1, 3)
     return args
+
+
+def results_file(args: argparse.Namespace) -> Path:
+    """``--out``, else benchmarks/fixed_cost.json, or startup.json with ``--startup-only``;
+    NAME_quick.json under ``--quick`` (a quick --startup-only run wrote its one repeat over the
+    full run's startup.json)."""
+    return results_path(args.out, "startup" if args.startup_only else "fixed_cost", args.quick)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -425,8 +441,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "startup": startup,
         "import_seconds": imports,
     }
-    default = "fixed_cost_quick.json" if args.quick else "fixed_cost.json"
-    out = args.out or SCRIPT_DIR / ("startup.json" if args.startup_only else default)
+    out = results_file(args)
     out.write_text(json.dumps(record, indent=1) + "\n")
     print(f"wrote {out}")
     return 0

@@ -753,9 +753,8 @@ def test_readme_names_the_json_each_quick_run_writes():
     written = {"NAME_quick.json"}
     for path in BENCHMARKS.glob("*.py"):
         source = path.read_text()
-        written |= {
-            f"{n}_quick.json" for n in re.findall(r'results_path\(\s*[\w.]+, "(\w+)"', source)
-        }
+        calls = [line for line in source.splitlines() if "results_path(" in line]
+        written |= {f"{n}_quick.json" for line in calls for n in re.findall(r'"(\w+)"', line)}
         written |= set(re.findall(r'"(\w+_quick\.json)"', source))
     named = set(re.findall(r"(?<![/\w])(\w+_quick\.json)", readme))  # not an --out /tmp/... example
     assert named and named <= written, sorted(named - written)
@@ -809,3 +808,19 @@ def test_stochastic_vi_warms_every_variant_before_the_timed_runs(script, monkeyp
     warm = getattr(stochastic_vi, "WARMUP_PASSES", 2)
     assert calls[:6] == [("cavi", warm)] + [("memoized", warm)] * 5, calls[:6]
     assert calls[6:] == ([("cavi", 6)] + [("memoized", 6)] * 5) * 2 and len(rows) == 12
+
+
+def test_fixed_cost_quick_startup_only_keeps_the_full_runs_startup_json(script, tmp_path):
+    """fixed_cost.py --quick --startup-only wrote its one repeat over benchmarks/startup.json,
+    the full --startup-only run's results."""
+    fixed_cost = script("fixed_cost")
+
+    def out(*argv):
+        return fixed_cost.results_file(fixed_cost.parse_args(list(argv)))
+
+    assert out("--quick", "--startup-only") == BENCHMARKS / "startup_quick.json"
+    assert out("--startup-only") == BENCHMARKS / "startup.json"
+    assert out("--quick") == BENCHMARKS / "fixed_cost_quick.json"
+    assert out() == BENCHMARKS / "fixed_cost.json"
+    given = tmp_path / "s.json"
+    assert out("--quick", "--startup-only", "--out", str(given)) == given
