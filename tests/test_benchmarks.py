@@ -824,3 +824,13 @@ def test_fixed_cost_quick_startup_only_keeps_the_full_runs_startup_json(script, 
     assert out() == BENCHMARKS / "fixed_cost.json"
     given = tmp_path / "s.json"
     assert out("--quick", "--startup-only", "--out", str(given)) == given
+
+
+def test_study_dask_judges_one_pair_too(script):
+    """study_dask.py --quick (and --pairs 1, a README command line) printed the ratio and
+    'target <= 0.6' but no PASS/FAIL: the verdict came only with two pairs or more."""
+    study_dask = script("study_dask")
+    one = study_dask.verdict_lines(2.8, True, [(1.3, 3.6)])
+    assert one[-1].startswith("one pair, ratio 2.77 (target <= 0.6): FAIL"), one
+    many = study_dask.verdict_lines(0.5, True, [(10.0, 5.0), (10.0, 7.0), (10.0, 5.5)])
+    assert many[-1] == "median ratio 0.55 (target <= 0.6): PASS", many
