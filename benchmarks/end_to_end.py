@@ -209,17 +209,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not houses:  # not a PASS "on every house" of none
         fail(f"--houses {args.houses!r}: no house named")
     named = args.houses is not None and set(houses) != {EMBEDDED}  # there, or an error
-    root = dataset_root(args.dataset, without=None if named else "the public houses are skipped",
+    public = ", ".join(h for h in houses if h != EMBEDDED)
+    without = None if named else (f"skipped {public}" if public else "the embedded house only")
+    root = dataset_root(args.dataset, without=without,
                         needed_by=f"--houses {','.join(houses)}")  # fmt: skip
     if named:
         check_houses(root, houses, synthetic=(EMBEDDED,))
     sweeps = quick_or(args.sweeps, args.quick, 200, None)
     repeats, startup_repeats = args.repeats, quick_or(args.startup_repeats, args.quick, 1, 3)
-    if root is None:
-        skipped = [h for h in houses if h != EMBEDDED]
+    if root is None:  # dataset_root's note named the houses skipped: one line, not two
         houses = [h for h in houses if h == EMBEDDED]
-        if skipped:
-            print(f"note: no public dataset: skipped {', '.join(skipped)}", file=sys.stderr)
     rows = []
     for house in houses:
         data = house_path(root, house)

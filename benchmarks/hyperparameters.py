@@ -104,10 +104,10 @@ def main(argv: list[str] | None = None) -> int:
     houses = [("synthetic", make_house(), sweeps)]
     if public_sweeps:
         root = dataset_root(without=f"{PUBLIC_HOUSE} is left out")
-        if root is None or not (root / PUBLIC_HOUSE).is_dir():
-            progress(f"note: the public dataset is absent: {PUBLIC_HOUSE} left out")
-        else:
+        if root is not None and (root / PUBLIC_HOUSE).is_dir():
             houses.append((PUBLIC_HOUSE, load_house(root / PUBLIC_HOUSE), public_sweeps))
+        elif root is not None:  # no dataset: dataset_root's one note line said so
+            progress(f"note: no {PUBLIC_HOUSE} in the dataset at {root}: it is left out")
     run_variant(houses[0][1], "warm-up", VARIANTS["all"], 3, backend)  # compile numba first
     rows = []
     for house_name, house, count in houses:

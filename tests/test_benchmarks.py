@@ -834,3 +834,27 @@ def test_study_dask_judges_one_pair_too(script):
     assert one[-1].startswith("one pair, ratio 2.77 (target <= 0.6): FAIL"), one
     many = study_dask.verdict_lines(0.5, True, [(10.0, 5.0), (10.0, 7.0), (10.0, 5.5)])
     assert many[-1] == "median ratio 0.55 (target <= 0.6): PASS", many
+
+
+class _Measuring(Exception):
+    """Raised where a script would start measuring."""
+
+
+@pytest.mark.parametrize(("name", "argv", "first_measure"), [
+    ("end_to_end", ["--sweeps", "2", "--no-startup"], "fit_default"),
+    ("hyperparameters", ["--sweeps", "2", "--public-sweeps", "2"], "run_variant"),
+])  # fmt: skip
+def test_no_dataset_is_one_note_line(script, monkeypatch, capsys, name, argv, first_measure):
+    """Without the dataset (benchmarks/README.md: one `note: ...` line on stderr and the run
+    goes on), end_to_end.py and hyperparameters.py printed a second note saying it again."""
+    module = script(name)
+    monkeypatch.setenv("SPCOPYRO_DATA", "/nonexistent")
+
+    def measuring(*args, **kwargs):
+        raise _Measuring
+
+    monkeypatch.setattr(module, first_measure, measuring)
+    with pytest.raises(_Measuring):
+        module.main(argv)
+    notes = [line for line in capsys.readouterr().err.splitlines() if line.startswith("note:")]
+    assert len(notes) == 1 and "/nonexistent" in notes[0], notes
