@@ -858,3 +858,15 @@ def test_no_dataset_is_one_note_line(script, monkeypatch, capsys, name, argv, fi
         module.main(argv)
     notes = [line for line in capsys.readouterr().err.splitlines() if line.startswith("note:")]
     assert len(notes) == 1 and "/nonexistent" in notes[0], notes
+
+
+def test_gibbs_memory_target_names_its_run(script):
+    """gibbs.py's memory target read "peak memory of that run < 1 GiB"; under --quick the line
+    before it is the per-cell speed-up, not the 5000-sweep run it meant."""
+    report = script("gibbs_report")
+    headline = {"sweeps": 20, "synthetic_stand_in": False, "wall_s": 1.0, "backend": "numba",
+                "peak_rss_bytes": 700 << 20}  # fmt: skip
+    targets = report.evaluate_targets({"houses": [], "headline": headline, "backends": []})
+    memory = [t for t in targets if "GiB" in t["target"]]
+    assert len(memory) == 1 and memory[0]["ok"], targets
+    assert memory[0]["target"].startswith("peak memory of the headline run_gibbs (20 sweeps, ")
