@@ -35,7 +35,7 @@ thread.join()
 pid = forkserver._forkserver._forkserver_pid
 with open(f"/proc/{pid}/status") as status:
     print(next(line.split()[1] for line in status if line.startswith("SigBlk:")))
-os.kill(pid, signal.SIGTERM)  # it is still importing the cells' code: not needed here
+os.kill(pid, signal.SIGKILL)  # it is still importing the cells' code: not needed here
 """
 """In a fresh process (no resource tracker yet): the study's forkserver's blocked signals (hex)."""
 
@@ -46,11 +46,13 @@ from spcopyro.study.local_cluster import ClusterStart
 
 start = ClusterStart(1)  # on a thread, as a study starts it
 try:
-    blocked = start.wait().run(eval, 'signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, ())'
+    blocked = start.wait().run(eval, '{signal.SIGINT, signal.SIGTERM} <= '
+                               'signal.pthread_sigmask(signal.SIG_BLOCK, ())'
                                .replace("signal.", "__import__('signal')."))
 finally:
     start.close()
-print(list(blocked.values()), signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, ()))
+mask = signal.pthread_sigmask(signal.SIG_BLOCK, ())
+print(list(blocked.values()), signal.SIGINT in mask or signal.SIGTERM in mask)
 """
 """In a fresh process (Dask's threads stay behind in the process that starts a cluster, and
 forbid forking chain workers there): whether its worker, and whether the process itself, block
@@ -202,13 +204,16 @@ def test_without_dask_the_default_runs_here_and_workers_asked_for_are_an_error(
 
 
 @pytest.mark.skipif(not Path("/proc/self/status").is_file(), reason="reads /proc (Linux)")
-def test_the_local_clusters_forkserver_and_workers_block_sigint():
+def test_the_local_clusters_forkserver_and_workers_block_sigint_and_sigterm():
     """A terminal's Ctrl-C reaches the whole process group. The LocalCluster's workers (and the
     forkserver, still importing while the study's first cells ran here) took it too and died
     with pages of Dask tracebacks (``distributed.worker - ERROR``, ``Failed to start process``)
     over the study's own "interrupted after N cells" line. They start with SIGINT blocked now,
     also when the cluster starts on a thread (starting multiprocessing's resource tracker
-    unblocks SIGINT in the thread that starts it)."""
+    unblocks SIGINT in the thread that starts it). So does the SIGTERM that ``timeout`` sends
+    to its process group (and Slurm's scancel to the job's processes): the forkserver died of
+    it, and the nannies restarting the dead workers through it printed ``Failed to start
+    process ... EOFError`` tracebacks; SIGTERM is blocked there too now."""
     pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
     from spcopyro.study import local_cluster
 
@@ -216,7 +221,8 @@ def test_the_local_clusters_forkserver_and_workers_block_sigint():
         pytest.skip("no forkserver on this platform")
     done = subprocess.run([sys.executable, "-c", FORKSERVER_MASK], capture_output=True,
                           text=True, timeout=300, check=True)  # fmt: skip
-    assert int(done.stdout.strip(), 16) & (1 << (signal.SIGINT - 1)), done.stdout
+    for blocked in (signal.SIGINT, signal.SIGTERM):  # a group's SIGTERM: timeout, scancel
+        assert int(done.stdout.strip(), 16) & (1 << (blocked - 1)), done.stdout
     done = subprocess.run([sys.executable, "-c", WORKER_MASK], capture_output=True, text=True,
                           timeout=300, check=True)  # fmt: skip
     assert done.stdout.split("\n")[-2] == "[True] False", done.stdout  # the worker, not this one

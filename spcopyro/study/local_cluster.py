@@ -8,13 +8,15 @@ machine both cores spend the cluster's start-up importing while the study's proc
 * the workers are forked from a ``forkserver`` that imports the cells' code once
   (:data:`WORKER_PRELOAD`) with one BLAS/OpenMP thread (:data:`ONE_THREAD`), so a worker starts
   with everything imported and the import costs one core once, not every core;
-* the forkserver, and so every worker, starts with SIGINT blocked (:func:`_sigint_blocked`): a
-  terminal's Ctrl-C reaches the whole foreground process group, and a worker (or the forkserver
-  still importing) that took it died with Dask's tracebacks (``distributed.worker - ERROR``,
-  ``KeyboardInterrupt``, ``CancelledError``, ``Failed to start process``) over the study's own
-  "interrupted after N cells" line. The study's process decides when the cells stop: it stores
-  the finished ones and closes the cluster, whose nannies stop the workers with SIGTERM, as
-  Dask always does (and a worker ends when its parent dies);
+* the forkserver, and so every worker, starts with SIGINT and SIGTERM blocked
+  (:func:`_stop_signals_blocked`): a terminal's Ctrl-C reaches the whole foreground process
+  group, and so does the SIGTERM of ``timeout`` or Slurm's ``scancel``; a worker (or the
+  forkserver) that took one died with Dask's tracebacks (``distributed.worker - ERROR``,
+  ``KeyboardInterrupt``, ``CancelledError``, ``Failed to start process``: the nannies restarted
+  dead workers through a dead forkserver) over the study's own "interrupted after N cells"
+  line. The study's process decides when the cells stop: it stores the finished ones and
+  closes the cluster, whose nannies ask the workers to close and kill (SIGKILL) those still in
+  a cell, as Dask always does (and a worker ends when its parent dies);
 * the cluster starts on a background thread, and the caller runs cells in this process until
   the workers are up (:mod:`spcopyro.study.run`): the core the start-up leaves free fits cells.
 
@@ -93,16 +95,18 @@ def _environ(values: Mapping[str, str | None]) -> Iterator[None]:
 
 
 @contextmanager
-def _sigint_blocked() -> Iterator[None]:
-    """SIGINT blocked in this thread inside the block: a process started meanwhile (the
-    forkserver) inherits the mask across fork and exec, and so do its children (module
-    docstring). Python leaves an inherited mask as it is; Dask never unblocks it."""
+def _stop_signals_blocked() -> Iterator[None]:
+    """SIGINT and SIGTERM blocked in this thread inside the block: a process started meanwhile
+    (the forkserver) inherits the mask across fork and exec, and so do its children (module
+    docstring). Python leaves an inherited mask as it is; Dask never unblocks it, and stops its
+    workers with SIGKILL where a stop message does not (SIGTERM first where a worker outgrows
+    its memory, SIGKILL a monitor tick later)."""
     import signal
 
     if not hasattr(signal, "pthread_sigmask"):  # not POSIX: no forkserver either
         yield
         return
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
     try:
         yield
     finally:
@@ -116,9 +120,9 @@ def forkserver_available() -> bool:
 
 def start_forkserver() -> None:
     """Start (if not running yet) multiprocessing's forkserver with :data:`WORKER_PRELOAD`, the
-    workers' environment and SIGINT blocked (module docstring). Returns at once: the server
-    imports in its own process, and a worker's fork waits for it. A forkserver already running
-    (an earlier study in this process) is kept as it is."""
+    workers' environment and SIGINT and SIGTERM blocked (module docstring). Returns at once:
+    the server imports in its own process, and a worker's fork waits for it. A forkserver
+    already running (an earlier study in this process) is kept as it is."""
     import multiprocessing.forkserver as forkserver
     from multiprocessing import resource_tracker
 
@@ -128,8 +132,8 @@ def start_forkserver() -> None:
     with dask.config.set({MULTIPROCESSING_METHOD: "forkserver"}):
         get_mp_context()  # dask sets its own preload list once per process: before ours
     forkserver.set_forkserver_preload(list(WORKER_PRELOAD))
-    resource_tracker.ensure_running()  # first: starting it unblocks SIGINT in this thread
-    with _environ({**ONE_THREAD, MALLOC_TRIM: None}), _sigint_blocked():
+    resource_tracker.ensure_running()  # first: starting it unblocks both in this thread
+    with _environ({**ONE_THREAD, MALLOC_TRIM: None}), _stop_signals_blocked():
         forkserver.ensure_running()
 
 
