@@ -870,3 +870,24 @@ def test_gibbs_memory_target_names_its_run(script):
     memory = [t for t in targets if "GiB" in t["target"]]
     assert len(memory) == 1 and memory[0]["ok"], targets
     assert memory[0]["target"].startswith("peak memory of the headline run_gibbs (20 sweeps, ")
+
+
+def test_footprint_warms_up_before_the_first_timed_fit(script, monkeypatch):
+    """footprint.py's first fit (the first house's 'no observations') paid numba's load in its
+    seconds: a --quick run printed 1.5 s a fit against 0.1 s for the fits with observations.
+    Untimed short fits, without and with observations, come first."""
+    footprint = script("footprint")
+    calls = []
+
+    def fit(house, settings, sweeps, seed):
+        calls.append((settings.model.use_images, sweeps))
+        if sweeps == 7:  # the first timed fit
+            raise _Measuring
+
+    monkeypatch.setattr(footprint, "fit_spco", fit)
+    args = argparse.Namespace(presets=["paper-dp"], houses=["synthetic"], seeds=[0], sweeps=7,
+                              radii=[0.0])  # fmt: skip
+    with pytest.raises(_Measuring):
+        footprint.run(args)
+    warm = getattr(footprint, "WARMUP_SWEEPS", 2)
+    assert calls == [(False, warm), (True, warm), (False, 7)], calls
