@@ -277,3 +277,17 @@ def test_the_fit_command_imports_the_fit_frozen(monkeypatch):
     monkeypatch.setattr(collector, "import_frozen", lambda name: asked.append(name) or fit)
     assert fit_parser._run_fit(object()) == 17  # type: ignore[arg-type]
     assert asked == ["spcopyro.cli.fit"]
+
+
+def test_the_figures_thread_imports_frozen(tmp_path, monkeypatch):
+    """The figures' prefetch thread imports matplotlib's figures and scipy.optimize as the fit
+    imports torch: through :func:`~spcopyro._util.collector.import_frozen`."""
+    from spcopyro.cli import fit_figures
+
+    asked = []
+    real = fit_figures.import_frozen
+    monkeypatch.setattr(fit_figures, "import_frozen", lambda name: asked.append(name) or real(name))
+    monkeypatch.setattr("spcopyro.figures.plotting.plot_house", lambda *a: None)
+    prefetch = fit_figures.FigurePrefetch(house=object(), out=tmp_path)  # type: ignore[arg-type]
+    assert prefetch.join()
+    assert asked == ["scipy.optimize", "spcopyro.figures.plotting"]

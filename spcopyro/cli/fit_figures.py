@@ -21,6 +21,7 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from spcopyro._util.collector import import_frozen
 from spcopyro._util.timings import timed
 
 if TYPE_CHECKING:
@@ -82,10 +83,9 @@ class FigurePrefetch:
 
     def _run(self, house: House, out: Path) -> None:
         try:
-            with timed("prefetch imports"):
-                import scipy.optimize  # noqa: F401  (the point estimate's matching)
-
-                from spcopyro.figures.plotting import plot_house
+            with timed("prefetch imports"):  # frozen after, as the fit's (_util.collector)
+                import_frozen("scipy.optimize")  # the point estimate's matching
+                plot_house = import_frozen("spcopyro.figures.plotting").plot_house
             if self._abandoned.is_set():  # the fit stopped: nothing more into its folder
                 return
             with timed("prefetch house"):
