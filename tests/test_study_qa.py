@@ -277,6 +277,30 @@ def test_cells_a_worker_finished_before_a_ctrl_c_are_kept(tmp_path, monkeypatch)
     assert len(read_table(out / "results.csv")) >= len(seen)
 
 
+def test_a_scheduler_without_workers_says_the_cells_wait(tmp_path):
+    """A --scheduler cluster whose workers have not started (dask-jobqueue's jobs still queued)
+    showed a bar at 0 % and nothing else, for as long as the queue took."""
+    distributed = pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    import os
+    import threading
+
+    from spcopyro.study.spec import load_study
+
+    lines: list[str] = []
+    with distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as cluster:
+        ctrl_c = threading.Timer(5, os.kill, (os.getpid(), signal.SIGINT))
+        ctrl_c.start()
+        try:
+            with pytest.raises(KeyboardInterrupt):
+                run.run_study(load_study(_write(tmp_path)), tmp_path / "out", progress=False,
+                              scheduler=cluster.scheduler_address, report=lines.append)  # fmt: skip
+        finally:
+            ctrl_c.cancel()
+    note = f"note: the Dask scheduler {cluster.scheduler_address} has no workers yet"
+    assert any(line.startswith(note) for line in lines), lines
+    assert "interrupted after 0 cells: 6 left" in lines[-1]
+
+
 @pytest.mark.parametrize(
     ("overrides", "message"),
     [

@@ -194,6 +194,9 @@ def _run_study(
                         failed_before=plan.failed_before)  # fmt: skip
     report(f"study {study.name!r}: {len(pending)} of {len(cells)} cells to run ({cached} "
            f"finished before), {where}")  # fmt: skip
+    if client is not None and not client.nthreads():  # type: ignore[attr-defined]
+        report(f"note: the Dask scheduler {scheduler} has no workers yet: the cells wait for "
+               "them (start workers, or wait for the cluster's jobs to start)")  # fmt: skip
     if stale and not rerun_stale:
         report(_stale_line(len(stale)))
     ran = failed = 0
