@@ -306,13 +306,16 @@ def extras(root: Path, args: argparse.Namespace, report: dict, names: dict) -> l
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument(
-        "--sweeps", type=COUNT, help="sweeps of every Gibbs fit (default: spcopyro fit's 5000)"
+        "--sweeps", type=COUNT,
+        help="sweeps of every Gibbs fit (default: spcopyro fit's 5000; --quick: 60)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--seeds", type=COUNT, help="synthetic seeds 0..n-1 (default 3; --quick: 1)"
     )
-    parser.add_argument("--seeds", type=COUNT, help="synthetic seeds 0..n-1 (default 3)")
     parser.add_argument(
         "--open-plan-seeds", type=COUNT,
         help="open-plan seeds 0..n-1 (their borders in unobserved space vary by about 0.1 ARI "
-        "from house to house: three seeds judged chain luck)",
+        "from house to house: three seeds judged chain luck; default 10, --quick: 1)",
     )  # fmt: skip
     parser.add_argument(
         "--out",
@@ -324,13 +327,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--method-iterations",
         type=COUNT,
-        help="iterations of each variational method (and vi-gibbs' sweeps)",
+        help="iterations of each variational method (and vi-gibbs' sweeps; default 200, "
+        "--quick: 5)",
     )
     parser.add_argument(
         "--fit-seeds",
         type=INDEX,
         nargs="+",
-        help="fit seeds of the default fit on each simulated public map (a row each, and the mean)",
+        help="fit seeds of the default fit on each simulated public map (a row each, and the "
+        "mean; default 0 1 2, --quick: 0)",
     )
     parser.add_argument(
         "--no-extras",

@@ -912,3 +912,29 @@ def test_stochastic_vi_cavi_baseline_leaves_out_the_kernels_load(script, monkeyp
     record = stochastic_vi.child_cavi(stochastic_vi.MIN_SIDE, 3)
     assert record["seconds_per_iteration"] == 1.25, record
     assert record["first_iteration_s"] == 5.0 and record["backend"] in ("numba", "torch")
+
+
+def test_every_option_quick_changes_says_both_defaults_in_its_help(script, monkeypatch):
+    """benchmarks/README.md: each option's --help gives both defaults. real_houses.py's
+    --sweeps, --seeds, --open-plan-seeds, --method-iterations and --fit-seeds gave neither
+    --quick's value (60, 1, 1, 5, 0) nor, for three of them, the full run's."""
+    parsers = {}
+
+    def capture(self, args=None, namespace=None):
+        raise _Parsed(self)
+
+    monkeypatch.setattr(argparse.ArgumentParser, "parse_args", capture)
+    silent = []
+    for path in sorted(BENCHMARKS.glob("*.py")):
+        source = path.read_text()
+        if "    run_main(main)\n" not in source or path.name == "bench_cli.py":
+            continue
+        with pytest.raises(_Parsed) as got:
+            script(path.stem).main([])
+        parsers[path.name] = parser = got.value.args[0]
+        quick = set(re.findall(r"quick_or\(\s*args\.(\w+)", source))
+        for action in parser._actions:
+            words = set(re.findall(r"\w+", action.help or ""))
+            if action.dest in quick and not {"default", "quick"} <= words:
+                silent.append(f"{path.name} {action.option_strings[0]}")
+    assert len(parsers) >= 20 and silent == [], silent
