@@ -383,17 +383,22 @@ def render(results: dict[str, Any]) -> str:
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="smoke test: tiny sizes")
-    parser.add_argument("--out", type=Path, help="JSON file to write")
+    parser.add_argument("--out", type=Path, help="JSON file to write (default benchmarks/"
+                        "threads_results.json, threads_quick.json with --quick)")  # fmt: skip
     parser.add_argument("--backends", default="torch,numba", help="comma-separated")
-    parser.add_argument("--sweeps", type=COUNT, help="run_gibbs sweeps per timed run")
-    parser.add_argument("--repeats", type=COUNT, help="timed runs per setting (median)")
+    parser.add_argument("--sweeps", type=COUNT, help="run_gibbs sweeps per timed run (default "
+                        f"{FULL.sweeps}; --quick: {QUICK.sweeps})")  # fmt: skip
+    parser.add_argument("--repeats", type=COUNT, help="timed runs per setting, the median kept "
+                        f"(default {FULL.repeats}; --quick: {QUICK.repeats})")  # fmt: skip
     parser.add_argument(
         "--busy-cores",
         type=COUNT,
         default=1,
         help="spinning neighbour processes in the busy condition (default 1)",
     )
-    parser.add_argument("--sides", type=COUNT, nargs="+", help="threshold map sides (cells)")
+    parser.add_argument("--sides", type=COUNT, nargs="+", help="threshold map sides (cells; "
+                        f"default {' '.join(map(str, FULL.threshold_sides))}; --quick: "
+                        f"{' '.join(map(str, QUICK.threshold_sides))})")  # fmt: skip
     parser.add_argument("--skip-threshold", action="store_true")
     parser.add_argument(
         "--wait-idle",
