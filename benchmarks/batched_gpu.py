@@ -232,7 +232,9 @@ def render(rows: Sequence[dict[str, Any]]) -> str:
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="smoke test: embedded house, B 1, 4")
-    parser.add_argument("--out", type=Path, default=None, help="JSON output path")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="JSON output (default benchmarks/batched_gpu.json, "
+                             "batched_gpu_quick.json with --quick)")  # fmt: skip
     parser.add_argument("--seconds", type=SECONDS, default=None,
                         help="timing budget per point (default 2; --quick: 0.2)")  # fmt: skip
     parser.add_argument("--dataset", type=Path, default=None,

@@ -251,7 +251,9 @@ def format_table(result: dict[str, Any]) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="smoke test: few images, short runs")
-    parser.add_argument("--out", type=Path, help="JSON file (default benchmarks/features_*.json)")
+    parser.add_argument("--out", type=Path,
+                        help="JSON output (default benchmarks/features_results.json, "
+                             "features_quick.json with --quick)")  # fmt: skip
     parser.add_argument("--devices", help="comma separated: cpu,cuda (default: cpu, + cuda if any)")
     parser.add_argument("--batch-sizes", type=counts,
                         help="comma separated (default 1,8,32; quick: 1,8)")  # fmt: skip

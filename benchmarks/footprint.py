@@ -198,7 +198,10 @@ def main(argv: list[str] | None = None) -> int:
                              "synthetic-sparse)")  # fmt: skip
     parser.add_argument("--presets", nargs="+", choices=list(PRESETS),
                         help="default: all (--quick: original-code-g3)")  # fmt: skip
-    parser.add_argument("--out", type=Path, default=None)
+    parser.add_argument("--out", type=Path, default=None,
+                        help="JSON output (default benchmarks/footprint_results.json, "
+                             "footprint_quick.json with --quick; OUT.partial.json while it "
+                             "runs)")  # fmt: skip
     args = parser.parse_args(argv)
     named = args.houses is not None
     args.sweeps = quick_or(args.sweeps, args.quick, 20, 1000)

@@ -164,7 +164,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=INDEX, nargs="+", default=[0])
     parser.add_argument("--public", help=f"public house ('' for none; default {PUBLIC_HOUSE}, "
                         "skipped with a note without the dataset; --quick: none)")  # fmt: skip
-    parser.add_argument("--out", type=Path)
+    parser.add_argument("--out", type=Path,
+                        help="JSON output (default benchmarks/merge_moves_results.json, "
+                             "merge_moves_quick.json with --quick)")  # fmt: skip
     args = parser.parse_args(argv)
     torch.set_num_threads(1)
     sweeps = quick_or(args.sweeps, args.quick, 12, 1000)

@@ -98,7 +98,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="smoke test")
     parser.add_argument("--busy-cores", type=COUNT, default=1, help="spinning neighbours (>= 1)")
-    parser.add_argument("--out", type=Path, default=None)
+    parser.add_argument("--out", type=Path, default=None,
+                        help="JSON output (default benchmarks/prior_thread.json, "
+                             "prior_thread_quick.json with --quick)")  # fmt: skip
     args = parser.parse_args(argv)
     blocks, block = (2, 3) if args.quick else (15, 40)
     torch.set_num_threads(1)

@@ -412,7 +412,9 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     p.add_argument("--cavi-iterations", type=INDEX,
                    help="0 skips the CAVI baseline (default 3; --quick: 2)")  # fmt: skip
     p.add_argument("--torch-threads", type=COUNT, default=1)
-    p.add_argument("--out", type=Path, help="JSON output")
+    p.add_argument("--out", type=Path,
+                   help="JSON output (default benchmarks/stochastic_vi_results.json, "
+                        "stochastic_vi_quick.json with --quick)")  # fmt: skip
     p.add_argument("--child", choices=["stochastic", "cavi"], help=argparse.SUPPRESS)
     return p.parse_args(argv)
 

@@ -371,7 +371,9 @@ def render(results: dict[str, Any]) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Benchmark CAVI against the Gibbs sweep.")
     parser.add_argument("--quick", action="store_true", help="tiny sizes (< 60 s)")
-    parser.add_argument("--out", type=Path, default=None, help="JSON output")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="JSON output (default benchmarks/variational_results.json, "
+                             "variational_quick.json with --quick)")  # fmt: skip
     parser.add_argument("--dataset", type=Path, default=None, help="dataset root")
     parser.add_argument("--no-dataset", action="store_true", help="synthetic house only")
     parser.add_argument(

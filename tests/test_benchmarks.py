@@ -944,3 +944,32 @@ def test_every_option_quick_changes_says_both_defaults_in_its_help(script, monke
             if action.dest in quick and not {"default", "quick"} <= words:
                 silent.append(f"{path.name} {action.option_strings[0]}")
     assert len(parsers) >= 20 and silent == [], silent
+
+
+def test_every_out_help_names_the_json_files_the_script_writes(script, monkeypatch):
+    """The brief of benchmarks/README.md: a script writes its JSON where --help says. The --out
+    of batched_gpu, features ('features_*.json'), footprint, merge_moves, prior_thread,
+    stochastic_vi and variational named no default file."""
+
+    def capture(self, args=None, namespace=None):
+        raise _Parsed(self)
+
+    monkeypatch.setattr(argparse.ArgumentParser, "parse_args", capture)
+    wrong = []
+    for path in sorted(BENCHMARKS.glob("*.py")):
+        source = path.read_text()
+        if "    run_main(main)\n" not in source or path.name == "bench_cli.py":
+            continue
+        with pytest.raises(_Parsed) as got:
+            script(path.stem).main([])
+        (out,) = [a for a in got.value.args[0]._actions if a.dest == "out"]
+        named = set(re.findall(r"(?<![.\w])(\w+\.json)", out.help or ""))
+        calls = [line for line in source.splitlines() if "results_path(" in line]
+        written = set(re.findall(r'"(\w+\.json)"', source)) | {
+            f"{n}{suffix}.json" for line in calls for n in re.findall(r'"(\w+)"', line)
+            for suffix in ("", "_quick")
+        }  # fmt: skip
+        quick = {n for n in named if n.endswith("_quick.json")}
+        if not quick or not named - quick or not named <= written:
+            wrong.append(f"{path.name}: {out.help!r}")
+    assert wrong == [], wrong
