@@ -973,3 +973,21 @@ def test_every_out_help_names_the_json_files_the_script_writes(script, monkeypat
         if not quick or not named - quick or not named <= written:
             wrong.append(f"{path.name}: {out.help!r}")
     assert wrong == [], wrong
+
+
+def test_readme_lists_every_script_with_command_lines_that_parse(script, monkeypatch):
+    """Every runnable script has a `python benchmarks/NAME.py ...` line in benchmarks/README.md
+    (rendered as docs/benchmarks.md), and each such line's options parse."""
+    readme = (BENCHMARKS / "README.md").read_text()
+    lines = re.findall(r"^python benchmarks/(\w+)\.py([^#\n]*)", readme, flags=re.M)
+    runnable = {p.stem for p in BENCHMARKS.glob("*.py") if "    run_main(main)\n" in p.read_text()}
+    assert runnable - {"bench_cli"} <= {name for name, _ in lines}
+
+    def capture(self, args=None, namespace=None):
+        raise _Parsed(self.parse_known_args(args, namespace))
+
+    monkeypatch.setattr(argparse.ArgumentParser, "parse_args", capture)
+    for name, rest in lines:
+        with pytest.raises(_Parsed) as got:
+            script(name).main(rest.split())
+        assert got.value.args[0][1] == [], (name, rest)
