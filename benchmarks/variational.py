@@ -6,7 +6,7 @@
    options, and with a cap of K = 8 concepts a cell), and seconds per compiled Gibbs sweep
    (:func:`~spcopyro.gibbs.run.run_gibbs`'s sweep + log joint), on room2ldk4 (``paper-dp``) and
    the embedded synthetic house, at L = 10 and 120, all measured in the same run; the ratio
-   CAVI / Gibbs is issue 20's target (<= 2).
+   CAVI / Gibbs is issue 10's target (<= 2).
    Iterations are timed after a warm-up, so the sparse q has reached its working support.
    **LBP** (issue 25 item 3): seconds per outer iteration of loopy BP with its default options
    (the compiled sparse backend, :mod:`~spcopyro.guides.numba_lbp`; ``passes=2`` message passes
@@ -259,7 +259,7 @@ def bench_ordering(house: Any, sizes: Sizes) -> list[dict[str, Any]]:
 def targets_line(verdicts: list[bool]) -> str:
     """The verdict over the CAVI / Gibbs, LBP and warm-up rows, saying how many rows pass (it
     read "FAIL (2 of 4 rows)", the rows that passed, as if they were the ones that failed; and
-    it left out issue 20's CAVI / Gibbs target, whose column said "yes" or "no")."""
+    it left out issue 10's CAVI / Gibbs target, whose column said "yes" or "no")."""
     return (f"Targets: CAVI / Gibbs <= {TARGET_RATIO:g}, LBP / CAVI <= {LBP_TARGET:g} and "
             f"CAVI's first / steady <= "
             f"{WARMUP_TARGET:g}: {'PASS' if all(verdicts) else 'FAIL'} "
