@@ -918,25 +918,32 @@ QUICK_SIZES = {"threads.py": {"sweeps", "repeats", "sides"}}
 """Options whose default --quick changes through a sizes record, not bench_cli.quick_or."""
 
 
-def test_every_option_quick_changes_says_both_defaults_in_its_help(script, monkeypatch):
-    """benchmarks/README.md: each option's --help gives both defaults. real_houses.py's
-    --sweeps, --seeds, --open-plan-seeds, --method-iterations and --fit-seeds gave neither
-    --quick's value (60, 1, 1, 5, 0) nor, for three of them, the full run's; threads.py's
-    --sweeps, --repeats and --sides neither."""
-    parsers = {}
+def _script_parsers(script, monkeypatch):
+    """(path, source, argument parser) of every benchmark script that runs a main, its parser
+    caught as main parses its arguments."""
 
     def capture(self, args=None, namespace=None):
         raise _Parsed(self)
 
     monkeypatch.setattr(argparse.ArgumentParser, "parse_args", capture)
-    silent = []
     for path in sorted(BENCHMARKS.glob("*.py")):
         source = path.read_text()
         if "    run_main(main)\n" not in source or path.name == "bench_cli.py":
             continue
         with pytest.raises(_Parsed) as got:
             script(path.stem).main([])
-        parsers[path.name] = parser = got.value.args[0]
+        yield path, source, got.value.args[0]
+
+
+def test_every_option_quick_changes_says_both_defaults_in_its_help(script, monkeypatch):
+    """benchmarks/README.md: each option's --help gives both defaults. real_houses.py's
+    --sweeps, --seeds, --open-plan-seeds, --method-iterations and --fit-seeds gave neither
+    --quick's value (60, 1, 1, 5, 0) nor, for three of them, the full run's; threads.py's
+    --sweeps, --repeats and --sides neither."""
+    parsers = {}
+    silent = []
+    for path, source, parser in _script_parsers(script, monkeypatch):
+        parsers[path.name] = parser
         quick = set(re.findall(r"quick_or\(\s*args\.(\w+)", source))
         quick |= QUICK_SIZES.get(path.name, set())
         for action in parser._actions:
@@ -950,19 +957,9 @@ def test_every_out_help_names_the_json_files_the_script_writes(script, monkeypat
     """The brief of benchmarks/README.md: a script writes its JSON where --help says. The --out
     of batched_gpu, features ('features_*.json'), footprint, merge_moves, prior_thread,
     stochastic_vi and variational named no default file."""
-
-    def capture(self, args=None, namespace=None):
-        raise _Parsed(self)
-
-    monkeypatch.setattr(argparse.ArgumentParser, "parse_args", capture)
     wrong = []
-    for path in sorted(BENCHMARKS.glob("*.py")):
-        source = path.read_text()
-        if "    run_main(main)\n" not in source or path.name == "bench_cli.py":
-            continue
-        with pytest.raises(_Parsed) as got:
-            script(path.stem).main([])
-        (out,) = [a for a in got.value.args[0]._actions if a.dest == "out"]
+    for path, source, parser in _script_parsers(script, monkeypatch):
+        (out,) = [a for a in parser._actions if a.dest == "out"]
         named = set(re.findall(r"(?<![.\w])(\w+\.json)", out.help or ""))
         calls = [line for line in source.splitlines() if "results_path(" in line]
         written = set(re.findall(r'"(\w+\.json)"', source)) | {
