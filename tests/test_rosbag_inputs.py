@@ -98,6 +98,17 @@ def _raw_image(
     )
 
 
+def _bag_of_two_16_bit_images(bag: Path, *images: tuple[np.ndarray, str]) -> Path:
+    """A ROS 2 bag standing at the origin: raw images (pixels, encoding) at 1 s and 2 s."""
+    with BagWriter(bag, ros=2) as w:
+        for t in T0 + np.arange(4.0):
+            w.pose("/amcl_pose", t, 0.0, 0.0, 0.0)
+        for k, (pixels, encoding) in enumerate(images):
+            _raw_image(w, T0 + 1.0 + k, pixels, encoding)
+        w.text("/speech", T0 + 1.0, "hall")
+    return bag
+
+
 def test_16_bit_images_use_the_range_their_values_span(tmp_path, map_yaml):
     """A 12-bit camera's mono16 (0..4095) came out 0..15, nearly black: rosbags-image's bgr8
     keeps the high byte, and the rescale after it never ran. A 16-bit image is now scaled from
@@ -105,13 +116,7 @@ def test_16_bit_images_use_the_range_their_values_span(tmp_path, map_yaml):
     grey12 = np.linspace(0, 4095, 48).round().astype(np.uint16).reshape(6, 8)  # [6, 8]
     rgb16 = np.random.default_rng(0).integers(0, 65536, (6, 8, 3)).astype(np.uint16)
     rgb16[0, 0] = 65535
-    bag = tmp_path / "rec"
-    with BagWriter(bag, ros=2) as w:
-        for t in T0 + np.arange(4.0):
-            w.pose("/amcl_pose", t, 0.0, 0.0, 0.0)
-        _raw_image(w, T0 + 1.0, grey12, "mono16")
-        _raw_image(w, T0 + 2.0, rgb16, "rgb16")
-        w.text("/speech", T0 + 1.0, "hall")
+    bag = _bag_of_two_16_bit_images(tmp_path / "rec", (grey12, "mono16"), (rgb16, "rgb16"))
     out = tmp_path / "data" / "house"
     import_bags([bag], map_yaml, out, progress=False)
     first, second = (cv2.imread(str(p)) for p in sorted((out / "img_0").iterdir()))
@@ -154,13 +159,7 @@ def test_a_dark_frame_of_a_16_bit_camera_is_said_and_image_bits_scales_alike(
     a word. The import now says so, and --image-bits 12 scales every frame from 12 bits."""
     bright = np.linspace(0, 4095, 48).round().astype(np.uint16).reshape(6, 8)  # [6, 8]
     dark = np.linspace(0, 900, 48).round().astype(np.uint16).reshape(6, 8)
-    bag = tmp_path / "rec"
-    with BagWriter(bag, ros=2) as w:
-        for t in T0 + np.arange(4.0):
-            w.pose("/amcl_pose", t, 0.0, 0.0, 0.0)
-        _raw_image(w, T0 + 1.0, bright, "mono16")
-        _raw_image(w, T0 + 2.0, dark, "mono16")
-        w.text("/speech", T0 + 1.0, "hall")
+    bag = _bag_of_two_16_bit_images(tmp_path / "rec", (bright, "mono16"), (dark, "mono16"))
     argv = ["import-bag", str(bag), "--map", str(map_yaml), "--out"]
     assert main([*argv, str(tmp_path / "auto")]) == 0
     said = capsys.readouterr().out
