@@ -27,6 +27,8 @@ Scores (every one that applies; the others are left empty in the table, :data:`S
   ``use_images = use_words = False`` (same seed): ``ari_off`` (against the truth),
   ``ari_on_off`` (between the two maps), ``concepts_1pct_off``, ``seconds_off`` and
   ``cpu_seconds_off``;
+* ``warnings``: the distinct warnings the cell gave (JSON text; empty when none):
+  :mod:`spcopyro.study.cell_warnings`;
 * ``source_digest``: :func:`spcopyro.study.cells.source_digest` of the process that ran the
   cell, the code that made its numbers;
 * ``seconds`` (wall clock) and ``cpu_seconds`` of the fit, ``iterations``, and
@@ -73,13 +75,14 @@ from spcopyro.metrics import (
     heldout_word_prediction,
     matching_rate,
 )
+from spcopyro.study.cell_warnings import captured_warnings, warnings_text
 from spcopyro.study.cells import Cell, source_digest
 from spcopyro.study.comparison_cell import COMPARISON, comparison_outcome
 from spcopyro.study.maps import Arrays, label_map_arrays, labels_on_map
 from spcopyro.study.sources import load_cell_data
 from spcopyro.synthetic import FILLER_WORDS
 
-__all__ = ["SCORES", "STATUS_COLUMNS", "Arrays", "label_map_arrays", "run_cell"]
+__all__ = ["SCORES", "STATUS_COLUMNS", "WARNINGS", "Arrays", "label_map_arrays", "run_cell"]
 
 SCORES = (
     "ari", "matching_rate", "matching_rate_area", "top1", "top3", "mean_rank", "distance_m",
@@ -92,6 +95,9 @@ SCORES = (
 """The score columns of the table, in order."""
 STATUS_COLUMNS = ("status", "error_type", "error")
 """``ok`` or ``error``, and the error's type and message."""
+WARNINGS = "warnings"
+"""The column of the cell's warnings: JSON text of the distinct messages, empty when none
+(:func:`spcopyro.study.cell_warnings.warnings_text`)."""
 SENTENCE_MIN_CELLS = 50
 """A concept counts in ``filler_top_share`` when it labels at least this many cells."""
 
@@ -100,22 +106,26 @@ def run_cell(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays | Non
     """The cell's record (status and scores, keyed by ``cell.key``), its trace (None for a
     baseline, a failed or a comparison cell) and its label map
     (:func:`~spcopyro.study.maps.label_map_arrays`; None for a failed cell). Runs torch with
-    one intra-op thread."""
+    one intra-op thread. The warnings the cell gives (logger ``spcopyro``, :mod:`warnings`) are
+    kept in the record's ``warnings`` (:mod:`spcopyro.study.cell_warnings`), not printed."""
     record: dict[str, object] = {"key": cell.key, "status": "ok", "error_type": "", "error": "",
                                  "source_digest": source_digest()}  # fmt: skip
     trace = label_map = None
-    try:
-        with torch_threads(1):
-            if cell.scoring == COMPARISON:
-                scores, label_map = comparison_outcome(cell)
-            else:
-                scores, trace, label_map = _fit_and_score(cell)
-        record.update(scores)
-    except Exception as error:  # recorded; the study goes on
-        if caused_by_interrupt(error):  # Ctrl-C inside a numba call: not the cell's failure
-            raise KeyboardInterrupt("interrupted inside compiled code") from error
-        record.update(status="error", error_type=type(error).__name__, error=str(error)[:2000])
-        trace = label_map = None
+    with captured_warnings() as said:  # kept in the record, not printed (cell_warnings)
+        try:
+            with torch_threads(1):
+                if cell.scoring == COMPARISON:
+                    scores, label_map = comparison_outcome(cell)
+                else:
+                    scores, trace, label_map = _fit_and_score(cell)
+            record.update(scores)
+        except Exception as error:  # recorded; the study goes on
+            if caused_by_interrupt(error):  # Ctrl-C inside a numba call: not the cell's failure
+                raise KeyboardInterrupt("interrupted inside compiled code") from error
+            record.update(status="error", error_type=type(error).__name__,
+                          error=str(error)[:2000])  # fmt: skip
+            trace = label_map = None
+    record[WARNINGS] = warnings_text(said)
     return record, trace, label_map
 
 

@@ -4,7 +4,8 @@ report can be redrawn or re-cut from ``results.csv`` alone (``spcopyro study STU
 
 :func:`summary_rows` groups the table's rows by (variant, data, method) and gives each score's
 mean and sample standard deviation over the seeds that finished; :func:`report_markdown` writes
-one markdown table per data source (the scores that apply to it) and lists the failed cells.
+one markdown table per data source (the scores that apply to it) and lists the failed cells
+and the cells whose fit gave warnings.
 """
 
 from __future__ import annotations
@@ -18,10 +19,14 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro._util.messages import fixed, plural
-from spcopyro.study.evaluate import SCORES
+from spcopyro.study.cell_warnings import read_warnings
+from spcopyro.study.evaluate import SCORES, WARNINGS
 from spcopyro.study.table import is_number
 
-__all__ = ["REPORT_SCORES", "report_markdown", "summary_rows", "table_cell", "write_report"]
+__all__ = [
+    "REPORT_SCORES", "report_markdown", "summary_rows", "table_cell", "warnings_section",
+    "write_report",
+]  # fmt: skip
 
 REPORT_SCORES = (
     "ari", "matching_rate", "top1", "top3", "mean_rank", "distance_m", "concepts",
@@ -81,7 +86,8 @@ def report_markdown(
     expected: int | None = None,
 ) -> str:
     """Markdown: per data source, a table of mean +- sd over seeds per (variant, method);
-    then the failed cells with their errors. A table whose cells other spcopyro source computed
+    then the failed cells with their errors and the cells that gave warnings
+    (:func:`warnings_section`). A table whose cells other spcopyro source computed
     (more than one ``source_digest``) says so first, and one with fewer rows than the study's
     ``expected`` cells (an interrupted run) says how many are not run yet."""
     summary = summary_rows(rows, scores)
@@ -115,7 +121,44 @@ def report_markdown(
             lines.append(f"- {r['variant']} / {r['data']} / {r['method']} / seed {r['seed']}: "
                          f"{r['error_type']}: {r['error']}")  # fmt: skip
         lines.append("")
+    lines += warnings_section(rows)
     return "\n".join(lines)
+
+
+WARNING_SHOWN = 300
+"""Characters of a warning the report shows (``results.csv``'s ``warnings`` holds it whole)."""
+
+
+def warnings_section(rows: Sequence[dict[str, object]]) -> list[str]:
+    """The report's lines on the cells whose fit gave warnings (column ``warnings``,
+    :mod:`spcopyro.study.cell_warnings`): per (variant, data, method) and set of messages, the
+    seeds and each message cut to :data:`WARNING_SHOWN` characters; none without such cells."""
+    groups: dict[tuple, list[object]] = {}
+    for r in rows:
+        said = tuple(dict.fromkeys(_shortened(m) for m in read_warnings(r.get(WARNINGS))))
+        if said:
+            groups.setdefault((*(r[k] for k in GROUP), said), []).append(r["seed"])
+    if not groups:
+        return []
+    count = sum(len(seeds) for seeds in groups.values())
+    lines = ["## Cells with warnings", "",
+             f"{plural(count, 'cell')} of {len(rows)} gave warnings while fitted (column "
+             "`warnings` of results.csv holds them whole):", ""]  # fmt: skip
+    for (variant, data, method, said), seeds in groups.items():
+        seed_list = ", ".join(str(s) for s in seeds)
+        lines.append(f"- {variant} / {data} / {method} / seed{'s' if len(seeds) > 1 else ''} "
+                     f"{seed_list}:")  # fmt: skip
+        lines += [f"  - {m}" for m in said]
+    lines.append("")
+    return lines
+
+
+def _shortened(message: str) -> str:
+    text = " ".join(message.split())  # one line
+    if len(text) <= WARNING_SHOWN:
+        return text
+    cut = text[:WARNING_SHOWN].rsplit(" ", 1)[0]
+    return f"{cut} ..."
 
 
 def write_report(

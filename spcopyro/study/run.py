@@ -22,8 +22,11 @@ Where the cells run:
   need spcopyro and the data at the same paths.
 
 Every cell runs torch with one intra-op thread (:func:`spcopyro.study.evaluate.run_cell`), so a
-cell gives the same numbers wherever it runs. Dask is an optional dependency
-(``pip install 'spcopyro[study]'``); only the cluster paths import it.
+cell gives the same numbers wherever it runs, and keeps the warnings its fit gives in its record
+(:mod:`spcopyro.study.cell_warnings`): they are not printed over the progress bar, nor lost in
+a worker's log; the closing line counts the cells that gave some and ``report.md`` lists them.
+Dask is an optional dependency (``pip install 'spcopyro[study]'``); only the cluster paths
+import it.
 """
 
 from __future__ import annotations
@@ -199,7 +202,7 @@ def _run_study(
                "them (start workers, or wait for the cluster's jobs to start)")  # fmt: skip
     if stale and not rerun_stale:
         report(_stale_line(len(stale)))
-    ran = failed = 0
+    ran = failed = warned = 0
     interrupted = False
     bar = _bar(pending, plan.predicted, progress)
     in_process = scheduler is None and workers <= 1
@@ -207,9 +210,10 @@ def _run_study(
     background = _Background()
 
     def keep(cell: Cell, record: dict[str, object], trace: object, label_map: object) -> None:
-        nonlocal ran, failed
+        nonlocal ran, failed, warned
         store.put(record, trace, label_map)  # type: ignore[arg-type]
         ran += 1
+        warned += bool(record.get(evaluate.WARNINGS))  # kept in the record, said at the end
         if record["status"] != "ok":
             failed += 1
             report(f"cell {cell.row} / {cell.data.name} / {cell.method} / seed {cell.seed} "
@@ -252,6 +256,9 @@ def _run_study(
         report(f"{ran_here} of them ran in this process while the LocalCluster started")
     report(f"ran {plural(ran, 'cell')} in {seconds:.1f} s ({failed} failed), {cached} finished "
            f"before; wrote {out / TABLE} and {out / 'report.md'}")  # fmt: skip
+    if warned:
+        report(f"{warned} of them gave warnings while fitted: listed, with each cell, in "
+               f"{out / 'report.md'} (column warnings of {TABLE})")  # fmt: skip
     if plan.failed_before:
         report(_failed_before_line(plan.failed_before, out))
     return StudyRun(out, len(cells), cached, ran, failed, seconds, where, ran_here=ran_here,

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro.study.cells import Cell
-from spcopyro.study.evaluate import SCORES, STATUS_COLUMNS
+from spcopyro.study.evaluate import SCORES, STATUS_COLUMNS, WARNINGS
 
 __all__ = [
     "COLUMNS", "INPUT_COLUMNS", "PARQUET", "CellStore", "is_number", "read_parquet", "read_table",
@@ -42,9 +42,12 @@ INPUT_COLUMNS = (
     "sweeps", "observations_off", "scoring", "preset", "overrides", "version", "key",
 )  # fmt: skip
 """What made a row (:meth:`Cell.inputs`)."""
-COLUMNS = (*INPUT_COLUMNS, "source_digest", *STATUS_COLUMNS, *SCORES, "trace", "label_map")
+COLUMNS = (*INPUT_COLUMNS, "source_digest", *STATUS_COLUMNS, WARNINGS, *SCORES, "trace",
+           "label_map")  # fmt: skip
 """Every column of ``results.csv``, in order (``source_digest``: of the code that ran the cell,
-:func:`spcopyro.study.cells.source_digest`)."""
+:func:`spcopyro.study.cells.source_digest`; ``warnings``: the cell's warnings as JSON text,
+empty when none and for a cell stored before records had them,
+:mod:`spcopyro.study.cell_warnings`)."""
 TABLE = "results.csv"
 PARQUET = "results.parquet"
 """The table as Parquet, written beside ``results.csv`` when pyarrow can be imported."""
@@ -184,7 +187,7 @@ def _cell_text(value: object) -> object:
 TEXT_COLUMNS = frozenset(
     ("variant", "data", "method", "data_kind", "data_source", "preset", "overrides", "version",
      "key", "source_digest", "status", "error_type", "error", "trace", "top_words", "details",
-     "scoring", "label_map", "concept_words", "hyperparameters")
+     "scoring", "label_map", "concept_words", "hyperparameters", "warnings")
 )  # fmt: skip
 """Columns read back as text, even when they look like a number."""
 

@@ -1,0 +1,175 @@
+"""The warnings a study cell's fit gives are kept in its record (column ``warnings``), listed in
+report.md and not printed over the progress bar -- in this process and on Dask workers
+(spcopyro.study.cell_warnings)."""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+import warnings
+from pathlib import Path
+
+import pytest
+
+from spcopyro._util import messages
+from spcopyro.study import evaluate
+from spcopyro.study.cell_warnings import captured_warnings, read_warnings, warnings_text
+from spcopyro.study.cells import cells_of
+from spcopyro.study.report import report_markdown
+from spcopyro.study.run import run_study
+from spcopyro.study.spec import load_study
+from spcopyro.study.table import read_table
+
+STUDY = """
+[study]
+name = "warned"
+seeds = 2
+sweeps = 3
+
+[variants.low]
+preset = "original-code"
+gamma = 0.5
+
+[variants.fine]
+preset = "original-code"
+gamma = 3.0
+
+[data.small]
+synthetic = "default"
+height = 24
+width = 30
+num_rooms = 2
+num_trials = 1
+min_room_size = 8
+"""
+LOW_GAMMA = "gamma = 0.5 is below the Potts critical coupling"
+
+
+class _Lines(logging.Handler):
+    """The records that reach the ``spcopyro`` logger's handlers (as the CLI's stderr one)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.records: list[logging.LogRecord] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.records.append(record)
+
+
+@pytest.fixture
+def spcopyro_handler():
+    logger = logging.getLogger("spcopyro")
+    handler, level = _Lines(), logger.level
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    yield handler
+    logger.removeHandler(handler)
+    logger.setLevel(level)
+
+
+def _study(tmp_path: Path):
+    path = tmp_path / "warned.toml"
+    path.write_text(STUDY)
+    return load_study(path)
+
+
+def _warnings_by_cell(out: Path) -> dict[tuple, list[str]]:
+    rows = read_table(out / "results.csv")
+    return {(r["variant"], r["seed"]): read_warnings(r["warnings"]) for r in rows}
+
+
+@pytest.mark.filterwarnings("default:a Python warning:UserWarning")  # not an error: a warning
+def test_a_cells_warnings_are_in_the_table_and_report_not_printed(
+    tmp_path, monkeypatch, spcopyro_handler
+):
+    fit = evaluate._fit
+
+    def warning_fit(cell, *args, **kwargs):  # a child logger's warning, Python's, warn_once's
+        logging.getLogger("spcopyro.somewhere").warning("child logger says %s", "so")
+        warnings.warn("a Python warning", UserWarning, stacklevel=1)
+        messages.warn_once(("study warnings test",), "said once a process")
+        return fit(cell, *args, **kwargs)
+
+    monkeypatch.setattr(evaluate, "_fit", warning_fit)
+    lines: list[str] = []
+    run = run_study(_study(tmp_path), tmp_path / "out", progress=False, report=lines.append)
+    assert (run.ran, run.failed) == (4, 0)
+    said = _warnings_by_cell(tmp_path / "out")
+    extra = ["child logger says so", "UserWarning: a Python warning", "said once a process"]
+    for seed in (0, 1):  # warn_once's warning in every cell that gives it
+        assert said["fine", seed] == extra
+        assert said["low", seed][:3] == extra
+        assert any(m.startswith(LOW_GAMMA) for m in said["low", seed][3:]), said["low", seed]
+    assert ("study warnings test",) in messages._WARNED  # what it said is given back
+    assert not [r for r in spcopyro_handler.records if r.levelno >= logging.WARNING]
+    assert any("4 of them gave warnings" in line for line in lines), lines
+    report = (tmp_path / "out" / "report.md").read_text()
+    section = report.split("## Cells with warnings", 1)[1]
+    assert "4 cells of 4 gave warnings" in section
+    assert "- low / small / gibbs / seeds 0, 1:" in section
+    assert "- fine / small / gibbs / seeds 0, 1:" in section
+    assert section.count(LOW_GAMMA) == 1  # the same messages: one entry for both seeds
+
+
+def test_cells_without_warnings_or_stored_before_the_column_have_no_section(tmp_path):
+    out = tmp_path / "out"
+    text = STUDY.replace("gamma = 0.5", "gamma = 3.5").replace("seeds = 2", "seeds = 1")
+    path = tmp_path / "quiet.toml"
+    path.write_text(text)
+    study = load_study(path)
+    run_study(study, out, progress=False)
+    rows = read_table(out / "results.csv")
+    assert [r["warnings"] for r in rows] == ["", ""]
+    assert "Cells with warnings" not in (out / "report.md").read_text()
+    keys = {c.key for c in cells_of(study)}
+    for record_path in (out / "cells").glob("*.json"):  # as stored before records had it
+        record = json.loads(record_path.read_text())
+        del record["warnings"]
+        record_path.write_text(json.dumps(record))
+    again = run_study(study, out, progress=False)
+    assert again.ran == 0 and {c.key for c in cells_of(study)} == keys  # cached, same keys
+    assert [r["warnings"] for r in read_table(out / "results.csv")] == ["", ""]
+
+
+def test_the_report_shortens_and_groups_warnings():
+    long = "word " * 200
+    rows = [
+        {"variant": "v", "data": "d", "method": "gibbs", "seed": s, "status": "ok",
+         "warnings": warnings_text([long, long, "short"])}
+        for s in (0, 1)
+    ] + [{"variant": "v", "data": "d", "method": "gibbs", "seed": 2, "status": "ok",
+          "warnings": None}]  # fmt: skip
+    text = report_markdown(rows).split("## Cells with warnings", 1)[1]
+    assert "2 cells of 3 gave warnings" in text
+    assert text.count("- v / d / gibbs / seeds 0, 1:") == 1
+    shown = [line for line in text.splitlines() if line.startswith("  - word")]
+    assert len(shown) == 1 and len(shown[0]) < 320 and shown[0].endswith(" ...")
+    assert "  - short" in text
+
+
+def test_other_threads_and_info_records_go_where_they_went(spcopyro_handler):
+    logger = logging.getLogger("spcopyro")
+    with captured_warnings() as kept:
+        logger.info("an info line")
+        logger.warning("this cell's warning")
+        other = threading.Thread(target=logger.warning, args=("another thread's warning",))
+        other.start()
+        other.join()
+    logger.warning("after the cell")
+    assert kept == ["this cell's warning"]
+    passed = [r.getMessage() for r in spcopyro_handler.records]
+    assert passed == ["an info line", "another thread's warning", "after the cell"]
+    assert spcopyro_handler in logger.handlers and logger.propagate
+
+
+def test_warnings_of_cells_on_a_local_cluster_are_kept(tmp_path):
+    pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    run = run_study(_study(tmp_path), tmp_path / "dask", workers=2, progress=False,
+                    start_in_process=False)  # fmt: skip
+    assert run.ran == 4 and run.ran_here == 0
+    said = _warnings_by_cell(tmp_path / "dask")
+    for seed in (0, 1):
+        assert any(m.startswith(LOW_GAMMA) for m in said["low", seed]), said
+        assert not any(m.startswith("gamma =") for m in said["fine", seed]), said
+    assert "- low / small / gibbs / seeds" in (tmp_path / "dask" / "report.md").read_text()
