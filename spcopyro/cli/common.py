@@ -284,7 +284,9 @@ def refuse_dash_words(parser: argparse.ArgumentParser, argv: list[str]) -> None:
     missing, or among export's ``--word`` values -- is a usage error saying how to give it
     (after ``--``, or ``--word=-tv``). Only an argument list argparse refuses anyway is
     refused."""
-    commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    commands = next((a for a in parser._actions if isinstance(a, argparse._SubParsersAction)), None)
+    if commands is None:  # a parser of no commands (a test's stand-in)
+        return
     start = next((k for k, token in enumerate(argv) if token in commands.choices), None)
     if start is None or argv[start] not in DASH_WORDS:
         return
