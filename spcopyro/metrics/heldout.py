@@ -301,15 +301,13 @@ def heldout_localisation(
     rows, cols = grid.free_cells[cells, 0], grid.free_cells[cells, 1]  # [n]
     distances = np.empty(token.size, dtype=np.float64)  # [n]
     shares = np.zeros(token.size, dtype=np.float64)  # [n]
-    free = np.zeros(grid.shape, dtype=bool)  # [H, W]
-    free[grid.free_cells[:, 0], grid.free_cells[:, 1]] = True
     for v in np.unique(token):
         word = sem.vocabulary[int(v)]
         region = np.asarray(sem.region(word), dtype=bool)  # [H, W]
         if region.shape != grid.shape:
             raise ValueError(f"region of {word!r} has shape {region.shape}, grid {grid.shape}")
         at = token == v
-        shares[at] = (region & free).sum() / max(int(free.sum()), 1)
+        shares[at] = np.count_nonzero(region & grid.free) / max(grid.num_free, 1)
         if not region.any():
             distances[at] = np.inf
             continue
