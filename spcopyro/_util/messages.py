@@ -12,7 +12,10 @@ from __future__ import annotations
 import logging
 from collections.abc import Hashable, Sized
 
-__all__ = ["ECHO_LIMIT", "echo", "fixed", "plural", "seconds_text", "warn_once"]
+__all__ = [
+    "ECHO_LIMIT", "echo", "fixed", "forget_warned", "plural", "remember_warned", "seconds_text",
+    "warn_once",
+]  # fmt: skip
 
 ECHO_LIMIT = 80
 """Characters of a value that an error message shows."""
@@ -84,3 +87,17 @@ def warn_once(key: Hashable, message: str) -> bool:
     _WARNED.add(key)
     logging.getLogger("spcopyro").warning(message)
     return True
+
+
+def forget_warned() -> set[Hashable]:
+    """Empty :func:`warn_once`'s memory, so that what it said in this process it says again
+    (a study cell keeps the warnings its own fit gives); the keys it held, for
+    :func:`remember_warned`."""
+    said = set(_WARNED)
+    _WARNED.clear()
+    return said
+
+
+def remember_warned(keys: set[Hashable]) -> None:
+    """Give :func:`warn_once`'s memory back the ``keys`` :func:`forget_warned` returned."""
+    _WARNED.update(keys)

@@ -113,8 +113,7 @@ def captured_warnings() -> Iterator[list[str]]:
             _router = _Router(logging.getLogger(LOGGER))
             _router.install()
         _kept[ident] = kept
-        said = set(messages._WARNED)  # warn_once: said in this process, not yet by this cell
-        messages._WARNED.clear()
+        said = messages.forget_warned()  # warn_once: said in this process, not yet by this cell
         mutated = getattr(warnings, "_filters_mutated", None)
         if mutated is not None:  # a "default" warning shown in an earlier cell: shown again
             mutated()
@@ -122,7 +121,7 @@ def captured_warnings() -> Iterator[list[str]]:
         yield kept
     finally:
         with _lock:
-            messages._WARNED.update(said)
+            messages.remember_warned(said)
             del _kept[ident]
             if not _kept and _router is not None:
                 _router.uninstall()
