@@ -7,6 +7,7 @@ Nothing here fits more than a geometry baseline on a tiny house; most tests stop
 from __future__ import annotations
 
 import dataclasses
+import os
 from pathlib import Path
 
 import numpy as np
@@ -401,3 +402,27 @@ def test_a_second_run_into_a_folder_in_use_is_refused_at_once(tmp_path, capsys):
         assert not (out / "cells").exists() and not (out / "results.csv").exists()
     assert main(argv) == 0  # the lock is dropped with its holder
     assert (out / "results.csv").is_file() and (out / LOCK_NAME).is_file()
+
+
+def test_report_only_while_a_run_holds_the_folder_is_refused(tmp_path, capsys):
+    """`--report-only` read results.csv and the cells while a run in the same folder wrote
+    them (a half-written table, a report of it); it is refused, naming the running process, as
+    a second run is."""
+    from spcopyro._util.folder_lock import folder_lock
+
+    path = tmp_path / "geometry.toml"
+    path.write_text(TWICE.replace('methods = ["gibbs", "cavi"]', "methods = []").replace(
+        "seeds = 2", "seeds = 1"))  # fmt: skip
+    out = tmp_path / "out"
+    assert main(["study", str(path), "--out", str(out), "--workers", "1"]) == 0
+    (out / "report.md").unlink()
+    capsys.readouterr()
+    argv = ["study", str(path), "--out", str(out), "--report-only"]
+    with folder_lock(out, "study run"):  # as a run in another process holds it
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert f"--report-only: {out} is in use by a study run (process {os.getpid()}, " in err
+        assert "wait for it to finish" in err
+        assert not (out / "report.md").exists()
+    assert main(argv) == 0  # the lock is dropped with its holder
+    assert (out / "report.md").is_file()

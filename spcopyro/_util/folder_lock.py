@@ -29,7 +29,12 @@ LOCK_NAME = ".spcopyro-run.lock"
 
 
 class FolderBusyError(OSError):
-    """Another process holds the folder's lock."""
+    """Another process holds the folder's lock; :attr:`holder` is what it wrote there (its
+    process id and start time), or ``"another process"``."""
+
+    def __init__(self, message: str, holder: str = "another process") -> None:
+        super().__init__(message)
+        self.holder = holder
 
 
 @contextmanager
@@ -54,7 +59,8 @@ def folder_lock(folder: Path, what: str) -> Iterator[None]:
             raise FolderBusyError(
                 f"{folder} is in use by another {what} ({holder}): wait for it to finish, "
                 "or write to another --out; two runs into one folder would run the same cells "
-                "and rewrite one table"
+                "and rewrite one table",
+                holder,
             ) from None
         try:
             handle.seek(0)

@@ -42,6 +42,7 @@ def study_path(text: str) -> Path:
 
 
 def _study(args: argparse.Namespace) -> int:
+    from spcopyro._util.folder_lock import FolderBusyError, folder_lock
     from spcopyro._util.interrupts import sigterm_as_interrupt
     from spcopyro.study.cells import cells_of
     from spcopyro.study.report import write_report
@@ -77,7 +78,17 @@ def _study(args: argparse.Namespace) -> int:
             expected: int | None = len(cells_of(study, args.data))
         except (OSError, ValueError):  # a source no longer found or read: the report without it
             expected = None
-        report = write_report(out / TABLE, out / "report.md", title=study.name, expected=expected)
+        try:  # not while a run writes the cells and the table: it could read them half written
+            with folder_lock(out, "study run"):
+                report = write_report(out / TABLE, out / "report.md", title=study.name,
+                                      expected=expected)  # fmt: skip
+        except FolderBusyError as error:
+            raise FolderBusyError(
+                f"--report-only: {out} is in use by a study run ({error.holder}), which is "
+                f"writing its cells and {TABLE}: wait for it to finish (it writes "
+                f"{out / 'report.md'} itself at its end), then run --report-only again",
+                error.holder,
+            ) from None
         print(f"wrote {report}")
         return 0
     workers = args.workers if args.workers is not None else default_workers()
