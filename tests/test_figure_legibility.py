@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from spcopyro.maps.palette import concept_colours, delta_e94, distinct_colours, srgb_to_lab
 
@@ -376,12 +377,12 @@ def test_a_long_corridor_is_drawn_in_readable_strips():
         for ax in fig.axes:
             ax.apply_aspect()
         boxes = [ax.get_window_extent(renderer) for ax in fig.axes]
-        assert len(boxes) == 6, len(boxes)
+        assert len(boxes) == 7, len(boxes)
         sizes = {(round(b.width), round(b.height)) for b in boxes}
         assert len(sizes) == 1, sizes  # one scale
         ((w, h),) = sizes
         assert max(w, h) / min(w, h) <= STRIP_ASPECT and min(w, h) >= 0.9 * fig.dpi, sizes
-        assert "(the map in 6 strips, " in fig.axes[0].get_title()
+        assert "(the map in 7 strips, " in fig.axes[0].get_title()
 
 
 def test_a_word_heard_on_a_wall_has_a_white_rim_in_house_png_too():
@@ -431,9 +432,9 @@ def test_the_semantic_map_of_a_long_corridor_is_drawn_in_strips(tmp_path):
     words = ("kitchen", "bed", "sofa", "bath", "door")
     result = one_word_per_concept(grid, labels, words, num_concepts=5)
     fig = semantic_map_figure(result)
-    assert len(fig.axes) == 6
+    assert len(fig.axes) == 7
     title = fig.axes[0].get_title()
-    assert "5 labelled regions" in title and "(the map in 6 strips, top to bottom)" in title
+    assert "5 labelled regions" in title and "(the map in 7 strips, top to bottom)" in title
     texts = [(ax, t) for ax in fig.axes for t in ax.texts]
     assert len(texts) == 5
     for ax, text in texts:
@@ -447,7 +448,35 @@ def test_the_semantic_map_of_a_long_corridor_is_drawn_in_strips(tmp_path):
     height, width = imread(plot_where_probability(result, "bath", tmp_path / "p.png")).shape[:2]
     assert height > 0.5 * width, (height, width)  # whole, the map was a line: 181 x 1252
     fig = where_figure(result, result.where("bath"))  # a point estimate: no colour bar
-    assert len(fig.axes) == 6
-    assert fig.axes[0].get_title().endswith("\n(the map in 6 strips, top to bottom)")
+    assert len(fig.axes) == 7
+    assert fig.axes[0].get_title().endswith("\n(the map in 7 strips, top to bottom)")
     legend = fig.axes[-1].get_legend()
     assert legend is not None and not _overlaps_an_axes(fig, legend)
+
+
+@pytest.mark.parametrize("shape", [(44, 2004), (10, 160), (2004, 44), (160, 10), (10, 81)])
+def test_a_strip_keeps_the_aspect_bound_with_its_margins(shape):
+    """A long map's strips were counted without their 3% margins at both ends: a 100 m x 2 m
+    corridor's 6 strips were each 8.05:1, a 10 x 160 cell map's 2 strips 8.48:1. Each strip,
+    margins included, is at most STRIP_ASPECT:1 (limits and drawn box), all at one scale."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from spcopyro.figures.map_axes import map_axes
+    from spcopyro.figures.map_pieces import STRIP_ASPECT
+    from spcopyro.maps import FREE, OccupancyGrid
+
+    grid = OccupancyGrid(np.full(shape, FREE, dtype=np.int8), 0.05, (0.0, 0.0, 0.0))
+    rgb = np.full((*shape, 3), 255, dtype=np.uint8)
+    fig, axes, _, _ = map_axes(grid, rgb, (8, 8))
+    assert len(axes) > 1, shape
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    spans = set()
+    for ax in axes:
+        ax.apply_aspect()
+        (x0, x1), (y0, y1) = sorted(ax.get_xlim()), sorted(ax.get_ylim())
+        assert max(x1 - x0, y1 - y0) <= STRIP_ASPECT * min(x1 - x0, y1 - y0) * (1 + 1e-9), (
+            ax.get_xlim(), ax.get_ylim())  # fmt: skip
+        box = ax.get_window_extent(renderer)
+        assert max(box.width, box.height) <= STRIP_ASPECT * min(box.width, box.height) + 1.0
+        spans.add((round(x1 - x0, 9), round(y1 - y0, 9)))
+    assert len(spans) == 1, spans  # one scale

@@ -61,14 +61,14 @@ def test_navigate_png_of_a_long_corridor_is_drawn_in_strips(tall):
     plan = navigate(result, "go to the door via the sofa", start)
     fig = plan_figure(plan)
     renderer, boxes = _boxes(fig)
-    assert len(boxes) == 6, len(boxes)
+    assert len(boxes) == 7, len(boxes)
     sizes = {(round(b.width), round(b.height)) for b in boxes}
     assert len(sizes) == 1, sizes  # one scale
     ((w, h),) = sizes
-    # at most STRIP_ASPECT, and each stretch 3% longer at both ends (strip_axes)
-    assert max(w, h) / min(w, h) <= 1.06 * STRIP_ASPECT and min(w, h) >= 0.9 * fig.dpi, sizes
+    # at most STRIP_ASPECT, margins (3% longer at both ends, strip_axes) included
+    assert max(w, h) / min(w, h) <= STRIP_ASPECT and min(w, h) >= 0.9 * fig.dpi, sizes
     order = "left to right" if tall else "top to bottom"
-    assert fig.axes[0].get_title().endswith(f"(the map in 6 strips, {order})")
+    assert fig.axes[0].get_title().endswith(f"(the map in 7 strips, {order})")
     along = plan.path_xy[:, 1 if tall else 0]  # [P]
     holding = []  # the strips showing a part of the path
     for k, ax in enumerate(fig.axes):
@@ -80,8 +80,8 @@ def test_navigate_png_of_a_long_corridor_is_drawn_in_strips(tall):
         stars = [ln for ln in ax.get_lines() if ln.get_marker() == "*"]
         assert len(stars) == 1 and tuple(stars[0].get_xydata()[0]) == tuple(plan.goal.xy)
         assert len(ax.images) == 2  # the map and the destination's probability
-    # 79 m: from the start's strip into the goal's, 4 strips on, through every strip between
-    assert np.ptp(along) > 70 and holding == list(range(holding[0], holding[0] + 5)), holding
+    # 79 m: from the start's strip into the goal's, 5 strips on, through every strip between
+    assert np.ptp(along) > 70 and holding == list(range(holding[0], holding[0] + 6)), holding
     (stop,) = plan.stops[:-1]
     texts = [(ax, t) for ax in fig.axes for t in ax.texts]
     assert [t.get_text() for _, t in texts] == [stop.shown]
@@ -111,8 +111,8 @@ def test_the_place_graph_of_a_long_corridor_is_drawn_in_strips(tall):
     assert len(graph.places) == 5
     fig = place_graph_figure(result, graph)
     renderer, boxes = _boxes(fig)
-    assert len(boxes) == 6 and len({(round(b.width), round(b.height)) for b in boxes}) == 1
-    assert "(the map in 6 strips, " in fig.axes[0].get_title()
+    assert len(boxes) == 7 and len({(round(b.width), round(b.height)) for b in boxes}) == 1
+    assert "(the map in 7 strips, " in fig.axes[0].get_title()
     texts = [(ax, box, t) for ax, box in zip(fig.axes, boxes, strict=True) for t in ax.texts]
     assert len(texts) == 5
     extents = [t.get_window_extent(renderer) for _, _, t in texts]

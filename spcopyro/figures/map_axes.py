@@ -7,7 +7,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from spcopyro.figures.map_pieces import is_wide, map_strips
+from spcopyro.figures.map_pieces import STRIP_PAD, is_wide, map_strips
 from spcopyro.maps import UNKNOWN, OccupancyGrid
 
 __all__ = ["known_bounds", "map_axes", "map_extent", "shown_in", "show_map", "strip_axes"]
@@ -49,13 +49,15 @@ def strip_axes(
 ) -> tuple[Figure, list[Axes]]:
     """A figure of ``strips`` axes, each showing the map ``rgb`` at one scale over its own
     stretch of x (``along_x``: stacked top to bottom) or y (side by side, the top stretch on
-    the left), each stretch 3% longer at both ends so a marker on a cut shows whole, the first
-    and last moved inside the map (:func:`~spcopyro.figures.map_pieces.map_strips`)."""
+    the left), each stretch :data:`~spcopyro.figures.map_pieces.STRIP_PAD` (3%) longer at both
+    ends so a marker on a cut shows whole, the first and last moved inside the map; ``strips``
+    from :func:`~spcopyro.figures.map_pieces.map_strips` keeps each at most
+    :data:`~spcopyro.figures.map_pieces.STRIP_ASPECT`, margins included."""
     rows, cols = known_bounds(grid)
     left, right, bottom, top = map_extent(grid, rows, cols)
     long, short = (right - left, top - bottom) if along_x else (top - bottom, right - left)
     length = long / strips
-    pad = 0.03 * length
+    pad = STRIP_PAD * length
     across = 11.0 * short / (length + 2 * pad)  # inches of a strip across, 11 along
     if along_x:
         fig = Figure(figsize=(11.5, strips * (across + 0.7) + 0.8))

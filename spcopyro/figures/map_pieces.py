@@ -69,8 +69,12 @@ LEGEND_BELOW_INCHES = 0.55
 """Gap between the axes and a legend below them: clears the x tick labels and the x label."""
 STRIP_ASPECT = 8.0
 """A map shown more than this many times as long as it is wide (a corridor of 100 m x 2 m) is
-drawn in strips of at most this aspect (:func:`map_strips`): whole, it was a line a few pixels
-high with its markers spilling over the walls."""
+drawn in strips of at most this aspect (:func:`map_strips`), their margins
+(:data:`STRIP_PAD`) included: whole, it was a line a few pixels high with its markers spilling
+over the walls."""
+STRIP_PAD = 0.03
+"""Each strip of a long map shows this fraction of its stretch more at both ends, so a marker on
+a cut shows whole (:func:`~spcopyro.figures.map_axes.strip_axes`)."""
 MAX_LEGEND_CONCEPTS = 12
 """The legend lists this many of the largest concepts (the rest are counted in one line)."""
 
@@ -119,12 +123,16 @@ def is_wide(rows: slice, cols: slice) -> bool:
 
 def map_strips(rows: slice, cols: slice) -> tuple[int, bool]:
     """How to cut the shown part of a map (``rows`` x ``cols`` cells) into strips of at most
-    :data:`STRIP_ASPECT`: ``(strips, along_x)``; 1 strip for a map no longer than that;
+    :data:`STRIP_ASPECT`: ``(strips, along_x)``; 1 strip for a map no longer than that, else
+    enough that a strip's stretch with its margins (``1 + 2 * STRIP_PAD`` times it) keeps the
+    bound (counted without them, a 100 m x 2 m corridor's 6 strips were 8.05:1);
     ``along_x`` for a wide map (strips stacked top to bottom), else a tall one (strips side by
     side, left to right)."""
     height, width = rows.stop - rows.start, cols.stop - cols.start
     long, short = max(height, width), max(min(height, width), 1)
-    return max(1, math.ceil(long / (STRIP_ASPECT * short))), width >= height
+    if long <= STRIP_ASPECT * short:
+        return 1, width >= height
+    return math.ceil(long * (1 + 2 * STRIP_PAD) / (STRIP_ASPECT * short)), width >= height
 
 
 def map_legend(
