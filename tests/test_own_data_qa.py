@@ -314,6 +314,27 @@ def test_a_position_written_with_a_decimal_comma_says_so(tmp_path):
         load_house(room)
 
 
+@pytest.mark.parametrize(
+    ("text", "line", "value"),
+    [("0,25\n0,75\n", 1, "0,25"), ("1,0\n0,5\n", 2, "0,5"), ("1,0\n0,05\n", 2, "0,05")],
+)
+def test_a_one_column_ft_written_with_decimal_commas_is_refused(tmp_path, text, line, value):
+    """A one-column Ft.csv saved with decimal commas (``0,25``) read as two columns, 0 and 25:
+    a two-class histogram the file never held, fitted without a word."""
+    room = _saved_house(tmp_path)
+    (room / "Ft.csv").write_text(text)
+    with pytest.raises(DataFormatError) as error:
+        load_house(room)
+    assert str(error.value).startswith(f"{room / 'Ft.csv'}, line {line}: two whole numbers a ")
+    assert str(error.value).endswith(f"0.0,25.0 to say so: {value!r}")
+    (room / "Ft.csv").write_text("0,25\n1\n")  # then a line of one number: the row's length
+    with pytest.raises(DataFormatError, match=r"line 2: row has 1 values, expected 2 \(a decimal"):
+        load_house(room)
+    for counts in ("0,1\n1,0\n", "3,25\n0,1\n", "0.0,25.0\n0.0,75.0\n"):  # two columns
+        (room / "Ft.csv").write_text(counts)
+        assert load_house(room).observations.image_features.shape == (2, 2)
+
+
 def test_macos_metadata_files_beside_the_images_are_named(tmp_path):
     """A folder copied from a Mac to a USB stick holds ``._00000.jpg`` beside ``00000.jpg``:
     features said "OpenCV cannot decode it", and in a house folder "every image after a

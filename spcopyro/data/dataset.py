@@ -33,6 +33,7 @@ from spcopyro.data.dataset_files import (
     _read_trials,
     _read_utterances_line,
     _write_lines,
+    refuse_decimal_commas,
 )
 from spcopyro.data.observations import _MISSING, DataFormatError, Observations
 from spcopyro.data.text import tokenize
@@ -232,6 +233,8 @@ def _read_features(path: Path) -> np.ndarray:
     """``[T, K]`` Ft.csv's image features, checked: DataFormatError for an empty file or a
     negative feature; warnings (logger ``spcopyro``) for all-zero rows and a single column."""
     features = _read_matrix(path)  # [T, K]
+    if features.shape[1] == 2 and (features == np.round(features)).all():
+        refuse_decimal_commas(path)  # a one-column file's 0,25 reads as 0 and 25
     if features.shape[0] == 0:
         raise DataFormatError(path, "holds no image features (empty file)")
     if (features < 0).any():

@@ -116,7 +116,9 @@ def _read_matrix(path: Path, columns: int | None = None, names: str = "") -> np.
         if width is None:
             width = len(fields)
         hint = _separator_hint(line)
-        if width == 1 and _DECIMAL_COMMA.fullmatch(line):  # Xtx.csv's -1,18 for -1.18
+        if (width == 1 and _DECIMAL_COMMA.fullmatch(line)) or (  # Xtx.csv's -1,18 for -1.18
+            width == 2 and len(fields) == 1 and _DECIMAL_COMMA.fullmatch(lines[0])
+        ):  # a one-column Ft.csv's 0,25 then a 1
             hint = (" (a decimal comma, as a spreadsheet in some languages writes it: these files "
                     "write decimals with a point)")  # fmt: skip
         if len(fields) != width:
@@ -161,6 +163,39 @@ def _separator_hint(line: str) -> str:
                 "np.savetxt(path, values, delimiter=',') writes them)"
             )
     return ""
+
+
+_WHOLE_PAIR = re.compile(r"\s*([0-9]+),([0-9]+)\s*")  # 0,25: a decimal comma, or two counts
+
+
+def refuse_decimal_commas(path: Path) -> None:
+    """DataFormatError, naming the line and the value, for a file of one number a line written
+    with decimal commas (``0,25``, as a spreadsheet in some languages writes it), which reads as
+    two columns of whole numbers: every line two whole numbers, and the second written with a
+    leading zero (``0,05``: no count is written so), or every line a value in [0, 1] read with
+    its comma as a point (``0,25``, ``1,0``; not all 0 or 1, as two columns of counts may be)."""
+    lines = _read_lines(path)  # no blank line: _read_matrix read it
+    pairs = [_WHOLE_PAIR.fullmatch(line) for line in lines]
+    if not lines or not all(pairs):
+        return
+    fractions = [(m.group(1), m.group(2)) for m in pairs if m is not None]
+    padded = next((k for k, (_, f) in enumerate(fractions) if len(f) > 1 and f[0] == "0"), None)
+    unit = all(w == "0" or (w == "1" and not f.strip("0")) for w, f in fractions)
+    if padded is None and not (unit and any(f not in ("0", "1") for _, f in fractions)):
+        return
+    line = (
+        padded
+        if padded is not None
+        else next(k for k, (_, f) in enumerate(fractions) if f not in ("0", "1"))
+    )
+    raise DataFormatError(
+        path,
+        "two whole numbers a line, as one number a line written with decimal commas reads (a "
+        "spreadsheet in some languages writes 0.25 as 0,25): these files write decimals with a "
+        "point; two counts a line are written 0.0,25.0 to say so",
+        line=line + 1,
+        value=lines[line],
+    )
 
 
 def read_pose_file(path: Path) -> np.ndarray:
