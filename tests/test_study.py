@@ -768,3 +768,34 @@ def test_held_out_folds_of_a_one_trial_house_name_it():
     spec = HouseSpec(height=24, width=30, num_rooms=2, min_room_size=8, num_trials=1)
     with pytest.raises(ValueError, match="^house 'one': held-out folds need >= 2 trials"):
         next(heldout_folds(make_house(seed=0, spec=spec, name="one")))
+
+
+_DIGEST_AT_IMPORT = """
+import json, sys
+from pathlib import Path
+from spcopyro.study import cells
+package = Path(cells.__file__).resolve().parents[1]
+with open(package / "model.py", "a") as edited:  # an edit while the study runs
+    edited.write("# edited\\n")
+print(json.dumps({"package": str(package), "recorded": cells.source_digest(),
+                  "files_now": cells.package_digest(package)}))
+"""
+
+
+def test_the_source_digest_is_of_the_code_imported_not_of_later_edits(tmp_path):
+    """A cell's source_digest was read from disk when first asked for (after the first cell),
+    so a source file edited while a study ran changed the digest the cells recorded: it is
+    read when the study's code is imported."""
+    from spcopyro.study.cells import package_digest
+
+    package = Path(__file__).resolve().parents[1] / "spcopyro"
+    copy = tmp_path / "spcopyro"
+    shutil.copytree(package, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    before = package_digest(copy)
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    done = subprocess.run([sys.executable, "-c", _DIGEST_AT_IMPORT], capture_output=True,
+                          text=True, env=env, cwd=tmp_path, timeout=300, check=True)  # fmt: skip
+    record = json.loads(done.stdout.strip().splitlines()[-1])
+    assert record["package"] == str(copy.resolve())  # the copy ran, not the checkout
+    assert record["files_now"] != before  # the edit changed the files
+    assert record["recorded"] == before  # ... not the digest of the code that was imported

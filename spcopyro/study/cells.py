@@ -18,7 +18,6 @@ the finished cells another source computed and runs them again only when asked
 from __future__ import annotations
 
 import dataclasses
-import functools
 import hashlib
 import json
 from dataclasses import dataclass
@@ -79,13 +78,6 @@ class Cell:
         }
 
 
-@functools.cache
-def source_digest() -> str:
-    """The digest of this process's spcopyro source (:func:`package_digest` of the package's
-    folder), computed once per process: about 200 files, a few tens of milliseconds."""
-    return package_digest(Path(__file__).resolve().parents[1])
-
-
 def package_digest(package: Path) -> str:
     """The first 16 hex digits of the sha256 over every ``*.py`` file under ``package``, by
     path relative to it and content, in path order."""
@@ -94,6 +86,20 @@ def package_digest(package: Path) -> str:
         digest.update(path.relative_to(package).as_posix().encode() + b"\0")
         digest.update(path.read_bytes() + b"\0")
     return digest.hexdigest()[:16]
+
+
+_SOURCE_DIGEST = package_digest(Path(__file__).resolve().parents[1])
+"""This process's :func:`source_digest`, read when this module is imported (about 200 files,
+~20 ms): a source file edited while the study runs does not change the digest its cells
+record (it was read from disk when the first cell finished, so it described the edited files,
+not the code the process had imported)."""
+
+
+def source_digest() -> str:
+    """The digest of this process's spcopyro source (:func:`package_digest` of the package's
+    folder), read once, when the study's code was imported (a worker's when it imported it):
+    the code the process runs, not what the files hold later."""
+    return _SOURCE_DIGEST
 
 
 def _settings_json(variant: Variant) -> dict[str, object]:
