@@ -3,10 +3,14 @@ an option; the usage error says how to give it."""
 
 from __future__ import annotations
 
+import inspect
+import re
+
 import pytest
 from hand_results import two_rooms
 
-from spcopyro.cli.main import main
+from spcopyro.cli import common
+from spcopyro.cli.main import build_parser, main
 
 
 @pytest.fixture
@@ -59,3 +63,23 @@ def test_other_dashes_keep_argparses_own_error(fit, tmp_path, capsys, argv, mess
         main(argv)
     err = capsys.readouterr().err
     assert message in err and "is read as an option" not in err, err
+
+
+def test_the_parser_itself_says_how_to_give_a_dash_word(fit, capsys):
+    """The check is the parser's own usage error (CommandParser.error, no argparse internals):
+    `build_parser().parse_args` says it too, not only `main` (which ran a check of its own, on
+    argparse's private ``_actions``, before parsing)."""
+    with pytest.raises(SystemExit) as stop:
+        build_parser().parse_args(["where", fit, "-kitchen"])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err
+    assert "'-kitchen' is read as an option" in err and "-- -kitchen" in err, err
+
+
+def test_the_dash_word_check_reads_no_private_argparse_names():
+    """refuse_dash_words read argparse's private ``_actions``, ``_option_string_actions`` and
+    ``_SubParsersAction``; the parser records what it needs through the public API."""
+    source = inspect.getsource(common)
+    used = sorted(set(re.findall(r"\._(?:actions|option_string_actions|SubParsersAction|"
+                                 r"subparsers|group_actions)\b", source)))  # fmt: skip
+    assert used == [], used

@@ -11,7 +11,7 @@ import argparse
 import re
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NoReturn
 
 from spcopyro._util.arguments import integer_at_least as _integer_at_least
 from spcopyro._util.messages import plural
@@ -272,52 +272,101 @@ DASH_WORDS = {"where": ("word", "spcopyro where OUT [options] -- {}"),
               "navigate": ("instruction", "spcopyro navigate OUT --start X,Y [options] -- {}"),
               "export": ("word", "--word={}")}  # fmt: skip
 """The commands that take a word or an instruction (a positional, or export's ``--word``), what
-it is called and how one that starts with '-' is given (argparse reads it as an option)."""
+it is called and how one that starts with '-' is given (argparse reads it as an option);
+:func:`build_parser <spcopyro.cli.main.build_parser>` sets each one's
+:attr:`CommandParser.dash_word`."""
 _NEGATIVE_NUMBER = re.compile(r"^-\d+$|^-\d*\.\d+$")  # argparse reads these as values
+_REQUIRED = "the following arguments are required: "  # argparse's message
 
 
-def refuse_dash_words(parser: argparse.ArgumentParser, argv: list[str]) -> None:
-    """``spcopyro where OUT -tv``: argparse read the word as an unknown option and answered
-    "the following arguments are required: word". A token after a :data:`DASH_WORDS` command
-    that starts with '-', is none of its options (nor one argparse takes as a value: a negative
-    number, text with a space) and stands where the word goes -- a positional word still
-    missing, or among export's ``--word`` values -- is a usage error saying how to give it
-    (after ``--``, or ``--word=-tv``). Only an argument list argparse refuses anyway is
-    refused."""
-    commands = next((a for a in parser._actions if isinstance(a, argparse._SubParsersAction)), None)
-    if commands is None:  # a parser of no commands (a test's stand-in)
-        return
-    start = next((k for k, token in enumerate(argv) if token in commands.choices), None)
-    if start is None or argv[start] not in DASH_WORDS:
-        return
-    command = commands.choices[argv[start]]
-    options = command._option_string_actions  # option string -> action
-    needed = sum(not a.option_strings for a in command._actions)  # positionals
-    what, how = DASH_WORDS[argv[start]]
-    positional = any(a.dest == what and not a.option_strings for a in command._actions)
-    positionals, current = 0, None  # current: the option whose values the tokens are
-    for token in argv[start + 1 :]:
-        if token == "--":
-            return
+class CommandParser(argparse.ArgumentParser):
+    """The ``spcopyro`` parser and its commands' (``add_subparsers`` makes its commands of the
+    parser's own class): an :class:`argparse.ArgumentParser` whose usage error for a word or
+    instruction that starts with '-' (``spcopyro where OUT -tv``, which argparse reads as an
+    unknown option, answering "the following arguments are required: word") says so and how to
+    give it (after ``--``, or ``--word=-tv``), through argparse's public hooks alone: it records
+    the options :meth:`add_argument` returns and the arguments :meth:`parse_known_args` was
+    given, and :meth:`error` reads them. Only an argument list argparse refuses anyway is
+    refused; every other error is argparse's own.
+
+    ``dash_word``: ``(dest, how)`` of a command that takes one (:data:`DASH_WORDS`), else None.
+    Its options are added with :meth:`add_argument` on the parser itself (an argument group's
+    are not recorded)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        self.dash_word: tuple[str, str] | None = None
+        self.recorded_options: dict[str, argparse.Action] = {}  # option string -> action
+        self.recorded_positionals: list[argparse.Action] = []
+        self.given_arguments: list[str] = []
+        super().__init__(*args, **kwargs)  # adds -h through add_argument
+
+    def add_argument(self, *args, **kwargs) -> argparse.Action:  # noqa: D102
+        action = super().add_argument(*args, **kwargs)
+        for option in action.option_strings:
+            self.recorded_options[option] = action
+        if not action.option_strings:
+            self.recorded_positionals.append(action)
+        return action
+
+    def parse_known_args(self, args=None, namespace=None):  # noqa: D102
+        self.given_arguments = list(sys.argv[1:] if args is None else args)
+        parsed, extras = super().parse_known_args(args, namespace)
+        hint = self._dash_word_hint(None) if extras else None
+        if hint:  # `export --word bed -tv`: "-tv" among --word's values, not an option
+            self.error(hint)
+        return parsed, extras
+
+    def error(self, message: str) -> NoReturn:  # noqa: D102
+        super().error(self._dash_word_hint(message) or message)
+
+    def _option(self, token: str) -> argparse.Action | None:
+        """The recorded option ``token`` names (``--opt=value``, a unique prefix of a long
+        option as argparse takes it), else None."""
         name = token.split("=", 1)[0]
-        option = options.get(name) or next(
-            (a for o, a in options.items() if name.startswith("--") and o.startswith(name)), None
-        )
-        if option is not None:
-            current = option if option.nargs != 0 and "=" not in token else None
-            continue
-        value = not token.startswith("-") or len(token) == 1 or " " in token
-        if value or _NEGATIVE_NUMBER.match(token):
-            if current is None:
-                positionals += 1
-            elif current.nargs in (None, 1):  # one value taken: the next are positionals
-                current = None
-            continue
-        at_word = current.dest == what if current is not None else positionals < needed
-        if at_word and (current is not None or positional):
-            command.error(
-                f"{token!r} is read as an option, and {argv[start]} has none of that name; "
+        if name in self.recorded_options:
+            return self.recorded_options[name]
+        if not name.startswith("--"):
+            return None
+        matches = {a for o, a in self.recorded_options.items() if o.startswith(name)}
+        return matches.pop() if len(matches) == 1 else None
+
+    def _dash_word_hint(self, message: str | None) -> str | None:
+        """The usage error for a token that starts with '-', is none of the command's options
+        (nor a value argparse takes: a negative number, text with a space) and stands where the
+        word goes -- the positional word ``message`` says is missing, or among the values of an
+        option whose dest is the word (``message`` None: argparse left the token over) -- else
+        None (argparse's own message stands)."""
+        if self.dash_word is None:
+            return None
+        what, how = self.dash_word
+        missing = message is not None and message.startswith(_REQUIRED) and what in [
+            name.strip() for name in message[len(_REQUIRED) :].split(",")
+        ]  # fmt: skip
+        if message is not None and not missing and not message.startswith("argument --"):
+            return None
+        current = None  # the option whose values the next tokens are
+        for token in self.given_arguments:
+            if token == "--":
+                return None
+            option = self._option(token)
+            if option is not None:
+                current = option if option.nargs != 0 and "=" not in token else None
+                continue
+            if not token.startswith("-") or len(token) == 1 or " " in token:
+                is_value = True
+            else:
+                is_value = bool(_NEGATIVE_NUMBER.match(token))
+            if is_value:
+                if current is not None and current.nargs in (None, 1):
+                    current = None  # its one value taken: the next are positionals
+                continue
+            at_word = current.dest == what if current is not None else missing
+            if not at_word:
+                return None  # an unknown option elsewhere: argparse says so
+            command = self.prog.split()[-1]
+            return (
+                f"{token!r} is read as an option, and {command} has none of that name; "
                 f"{'an' if what[0] in 'aeiou' else 'a'} {what} that starts with '-' is given "
                 f"as: {how.format(token)}"
             )
-        return  # an unknown option elsewhere: argparse says so
+        return None

@@ -43,11 +43,12 @@ from spcopyro._util.interrupts import caused_by_interrupt
 from spcopyro._util.messages import plural
 from spcopyro._util.process_exit import exit_process, may_skip_teardown
 from spcopyro.cli.common import (
+    DASH_WORDS,
+    CommandParser,
     _HelpFormatter,
     _load,
     _summary,
     figure_file,
-    refuse_dash_words,
     refuse_fit_files,
 )
 from spcopyro.cli.fit_parser import add_parser as add_fit_parser
@@ -310,7 +311,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The ``spcopyro`` parser, every command with its options. Building it imports neither
     torch, pyro nor numba (``spcopyro --help``, ``where``, ``show`` and ``export`` run without
     them; the commands that need them import them when they run)."""
-    parser = argparse.ArgumentParser(
+    parser = CommandParser(  # its commands are CommandParsers too (add_subparsers' parser_class)
         prog="spcopyro",
         description="SpCoMapping: semantic maps from an occupancy grid, images and words.",
     )
@@ -408,6 +409,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_study_parser(sub)  # study
     for command in (parser, *sub.choices.values()):
         command.formatter_class = _HelpFormatter
+    for name, dash_word in DASH_WORDS.items():  # `where OUT -tv`: say how to give such a word
+        sub.choices[name].dash_word = dash_word
     return parser
 
 
@@ -502,7 +505,6 @@ def _silence_stdout() -> None:
 def main(argv: list[str] | None = None) -> int:
     given = attach_negative_coordinates(list(sys.argv[1:] if argv is None else argv))
     parser = build_parser()
-    refuse_dash_words(parser, given)  # `where OUT -tv`: say how to give such a word
     args = parser.parse_args(given)
     if argv is not None:
         args.argv = list(argv)
