@@ -9,12 +9,14 @@ Every free cell is one element of the ``cells`` plate, indexed in the grid's ``f
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import pyro
 import pyro.distributions as dist
 import torch
+from pyro.poutine.messenger import Messenger
 
 from spcopyro.config import SpCoConfig
 from spcopyro.distributions import MultinomialCounts
@@ -260,6 +262,64 @@ def check_config(config: object) -> None:
         return
     hint = " (pass settings.model)" if hasattr(config, "model") and hasattr(config, "data") else ""
     raise TypeError(f"config must be an SpCoConfig{hint}, got {type(config).__name__}")
+
+
+def refuse_observed_latents(trace: pyro.poutine.Trace, names: Sequence[str], who: str) -> None:
+    """ValueError if any latent site of ``names`` is observed in ``trace`` (a model given as
+    ``poutine.condition(model, {"pi": ...})``, a variant with pi known): SpCoGibbs and
+    MeanFieldELBO (``who``) infer every latent site of :func:`spcomapping_model` and cannot hold
+    one fixed; they would draw the site anyway (the kernel) or score the guide's draws at the
+    fixed value (the loss), silently. One message for both."""
+    for name in names:
+        if name in trace.nodes and trace.nodes[name]["is_observed"]:
+            raise ValueError(
+                f"the model's site {name!r} is observed (poutine.condition), but {who} infers "
+                f"every latent site of spcomapping_model (pi, labels, each modality's table): "
+                f"it cannot hold {name!r} fixed; pass the model without conditioning {name!r}"
+            )
+
+
+class _ObservationsObserved(Messenger):
+    """Raises :func:`require_observed` 's ValueError at the first observation site the model
+    draws instead of observing (before the draw, which fails for real-valued counts)."""
+
+    def __init__(self, data: ModelData, who: str) -> None:
+        super().__init__()
+        self.modalities = {m.name: m for m in data.modalities}
+        self.cells = data.obs_cells
+        self.who = who
+
+    def _process_message(self, msg: dict) -> None:
+        modality = self.modalities.get(msg["name"])
+        if msg["type"] != "sample" or modality is None or msg["is_observed"]:
+            return
+        counts = modality.counts
+        fractional = torch.nonzero(counts != counts.round())
+        if fractional.shape[0]:
+            row, column = (int(i) for i in fractional[0])
+            why = (
+                f"these counts are real-valued (tf-idf weights, image probabilities; row {row} "
+                f"(free cell {int(self.cells[row])}), column {column} is "
+                f"{float(counts[row, column])!r}), which no multinomial draws"
+            )
+        else:
+            why = "it would score its own draws, not the data"
+        raise ValueError(
+            f"the model draws its observation site {msg['name']!r} instead of observing the "
+            f"data's counts: poutine.uncondition(model) draws every observed site, and {why}. "
+            f"{self.who} fits the posterior given the observed counts: pass the model itself "
+            "(to draw observations from a fitted posterior, give poutine.uncondition(model) to "
+            "pyro.infer.Predictive; whole counts only)"
+        )
+
+
+def require_observed(model: Callable, data: ModelData, who: str) -> Callable:
+    """``model`` wrapped so that running it raises ValueError, naming ``who`` (the kernel or
+    the loss), as soon as it draws one of ``data``'s observation sites instead of observing it
+    (``poutine.uncondition(model)``): the draw itself failed for real-valued counts with
+    "MultinomialCounts.sample needs non-negative whole total_count", and for whole counts the
+    density check said only that the model's density differs."""
+    return _ObservationsObserved(data, who)(model)
 
 
 def potts_agreements(labels: torch.Tensor, pairs: torch.Tensor) -> torch.Tensor:

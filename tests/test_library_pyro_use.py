@@ -65,6 +65,34 @@ def test_predictive_draws_the_observations_under_uncondition_and_says_which_it_c
     assert torch.equal(draws["images"].sum(-1), whole.image_counts.sum(-1).expand(4, -1))
 
 
+@pytest.mark.parametrize("counts", ["real", "whole"])
+def test_kernel_and_loss_say_what_an_unconditioned_model_does(counts):
+    # SpCoGibbs(poutine.uncondition(model)) on real-valued counts (tf-idf words, image
+    # probabilities) failed while the kernel traced the model, with MultinomialCounts.sample's
+    # "needs non-negative whole total_count ... can be scored but not drawn": the model drew
+    # its observation sites, the data were never looked at. On whole counts the density check
+    # said only that the model's density differs (it scored its own draws). MeanFieldELBO the same.
+    _, data = random_problem(seed=0)
+    cfg = config()
+    if counts == "whole":
+        for name in ("images", "words"):
+            data = data.with_counts(name, data.modality(name).counts.round())
+        why = "it would score its own draws, not the data"
+    else:
+        why = r"these counts are real-valued .*row 0 \(free cell \d+\), column 0 is \d"
+    unconditioned = poutine.uncondition(spcomapping_model)
+    message = f"draws its observation site 'images' instead of observing .*{why}"
+    with pytest.raises(ValueError, match=f"{message}.*SpCoGibbs fits the posterior"):
+        MCMC(SpCoGibbs(unconditioned), num_samples=1, disable_progbar=True).run(data, cfg)
+    with pyro.get_param_store().scope():
+        guide = MeanFieldGuide(data, cfg, generator=torch.Generator().manual_seed(0))
+        svi = SVI(unconditioned, guide, pyro.optim.Adam({"lr": 0.1}), MeanFieldELBO())
+        with pytest.raises(ValueError, match=f"{message}.*MeanFieldELBO fits the posterior"):
+            svi.step(data, cfg)
+        svi = SVI(spcomapping_model, guide, pyro.optim.Adam({"lr": 0.1}), MeanFieldELBO())
+        assert math.isfinite(svi.step(data, cfg))  # the model itself is taken
+
+
 def test_the_kernel_refuses_a_model_whose_density_it_does_not_sample():
     # SpCoGibbs(model) checked the model's site names and shapes only: a variant with the same
     # sites (here twice the coupling) was sampled as spcomapping_model, silently

@@ -149,13 +149,16 @@ def test_a_model_that_holds_a_latent_site_fixed_is_refused(site):
     }[site]
     fixed = poutine.condition(spcomapping_model, {site: value})
     message = f"site '{site}' is observed .* cannot hold '{site}' fixed"
-    with pytest.raises(ValueError, match=message):
+    with pytest.raises(ValueError, match=message) as kernel:
         MCMC(SpCoGibbs(fixed), num_samples=1, disable_progbar=True).run(data, cfg)
     with pyro.get_param_store().scope():
         guide = MeanFieldGuide(data, cfg, generator=torch.Generator().manual_seed(0))
         svi = SVI(fixed, guide, pyro.optim.Adam({"lr": 0.1}), MeanFieldELBO())
-        with pytest.raises(ValueError, match=message):
+        with pytest.raises(ValueError, match=message) as loss:
             svi.step(data, cfg)
+    # one check, one message (spcopyro.model.refuse_observed_latents): the two had their own
+    assert str(loss.value) == str(kernel.value).replace("SpCoGibbs", "MeanFieldELBO")
+    assert "pass the model without conditioning" in str(kernel.value)
 
 
 def test_variational_md_does_not_offer_svi_for_a_changed_model():

@@ -50,6 +50,8 @@ from spcopyro.model import (
     SITE_PI,
     ModelData,
     check_model_data,
+    refuse_observed_latents,
+    require_observed,
     spcomapping_model,
 )
 
@@ -92,8 +94,10 @@ class SpCoGibbs(MCMCKernel):
             (the default): all of them, so that ``mcmc.get_samples()`` holds every latent site
             of the model and ``Predictive(model, posterior_samples=mcmc.get_samples())``
             conditions on the posterior (with a site missing, Predictive would draw it from
-            its prior: issue 24 item 4); to draw the observations too, give it
-            ``pyro.poutine.uncondition(model)`` (Predictive keeps observed sites at the data).
+            its prior: issue 24 item 4); to draw the observations too, give Predictive
+            ``pyro.poutine.uncondition(model)`` (Predictive keeps observed sites at the data;
+            the kernel itself takes the model, which observes them: given an unconditioned
+            model it raises ValueError saying so).
             Labels cost N values a sample: pass the small sites only
             (:data:`DEFAULT_SAVE_PARAMS`) for long runs on large maps. A string is one site's
             name.
@@ -190,7 +194,8 @@ class SpCoGibbs(MCMCKernel):
         return tuple(_hyper_site(name) for name in names if sampled.get(name, hyper.concentrations))
 
     def _check_model_sites(self) -> None:
-        trace = poutine.trace(self.model).get_trace(self._data, self._config)
+        model = require_observed(self.model, self._data, "SpCoGibbs")  # not uncondition(model)
+        trace = poutine.trace(model).get_trace(self._data, self._config)
         L = self._config.num_concepts
         expected = {SITE_PI: (L,), SITE_LABELS: (self._data.num_free,)}
         for modality in self._data.modalities:
@@ -198,11 +203,7 @@ class SpCoGibbs(MCMCKernel):
         for name, shape in expected.items():
             if name not in trace.nodes:
                 raise ValueError(f"model has no sample site {name!r}, which SpCoGibbs samples")
-            if trace.nodes[name]["is_observed"]:  # its draws replaced the given value silently
-                raise ValueError(
-                    f"model site {name!r} is observed (poutine.condition), but SpCoGibbs "
-                    f"samples it from its full conditional: it cannot hold {name!r} fixed"
-                )
+            refuse_observed_latents(trace, (name,), "SpCoGibbs")  # its draws replaced the value
             actual = tuple(trace.nodes[name]["value"].shape)
             if actual != shape:
                 raise ValueError(

@@ -82,7 +82,14 @@ from spcopyro.likelihood import (
     multinomial_coefficients,
     observation_log_likelihood,
 )
-from spcopyro.model import DTYPE, SITE_LABELS, SITE_PI, ModelData
+from spcopyro.model import (
+    DTYPE,
+    SITE_LABELS,
+    SITE_PI,
+    ModelData,
+    refuse_observed_latents,
+    require_observed,
+)
 
 Program = Callable[[ModelData, SpCoConfig], None]
 
@@ -117,6 +124,7 @@ def traces(
 ) -> tuple[poutine.Trace, poutine.Trace]:
     """The model's and the guide's trace of one draw: the guide run, the model replayed on it."""
     guide_trace = poutine.trace(guide).get_trace(data, config)
+    model = require_observed(model, data, "MeanFieldELBO")  # not poutine.uncondition(model)
     model_trace = poutine.trace(poutine.replay(model, trace=guide_trace)).get_trace(data, config)
     return model_trace, guide_trace
 
@@ -164,11 +172,7 @@ def particle_estimate(
         for trace, who in ((guide_trace, "guide"), (model_trace, "model")):
             if name not in trace.nodes or trace.nodes[name]["type"] != "sample":
                 raise ValueError(f"the {who} has no sample site {name!r}")
-        if model_trace.nodes[name]["is_observed"]:  # the guide's draws were scored at it
-            raise ValueError(
-                f"the model's site {name!r} is observed (poutine.condition), but "
-                f"MeanFieldELBO fits q({name}): it cannot hold {name!r} fixed"
-            )
+        refuse_observed_latents(model_trace, (name,), "MeanFieldELBO")  # q's draws scored at it
     log_ratio = _global_log_density(model_trace, sites) - _global_log_density(guide_trace, sites)
     labels = guide_trace.nodes[SITE_LABELS]["fn"]  # Categorical, batch [N]
     q = labels.probs  # [N, L]
