@@ -83,3 +83,28 @@ def test_the_dash_word_check_reads_no_private_argparse_names():
     used = sorted(set(re.findall(r"\._(?:actions|option_string_actions|SubParsersAction|"
                                  r"subparsers|group_actions)\b", source)))  # fmt: skip
     assert used == [], used
+
+
+@pytest.mark.parametrize("word", ["-kitchen", "kitchen?", "«Kitchen»"])
+def test_a_word_answered_for_another_says_which(fit, tmp_path, capsys, word):
+    """QA: `where OUT -- -tv` answered for 'tv' and said nothing of it: the word looked up is
+    not the word given (the vocabulary holds none with punctuation at its ends); it says so, in
+    where and in export, and answers as before."""
+    assert main(["where", fit, "--", word]) == 0
+    captured = capsys.readouterr()
+    assert "'kitchen' is concept" in captured.out
+    assert f"warning: {word!r} is not a word of the vocabulary: answered for 'kitchen'" in (
+        captured.err
+    ), captured.err
+    assert main(["export", fit, "--nav2", str(tmp_path / "nav2"), f"--word={word}"]) == 0
+    captured = capsys.readouterr()
+    assert "keepout mask for 'kitchen'" in captured.out
+    assert f"warning: {word!r} is not a word of the vocabulary: answered for 'kitchen'" in (
+        captured.err
+    ), captured.err
+
+
+@pytest.mark.parametrize("word", ["kitchen", "Kitchen", " KITCHEN ", "ｋｉｔｃｈｅｎ"])
+def test_the_same_word_in_another_case_or_form_is_answered_without_a_note(fit, capsys, word):
+    assert main(["where", fit, word]) == 0
+    assert "is not a word of the vocabulary" not in capsys.readouterr().err

@@ -75,6 +75,24 @@ def load_start(folder: str) -> SpCoResult:
     return dataclasses.replace(result, grid=grid)
 
 
+def other_word_note(given: str, looked_up: str) -> str | None:
+    """Why the word answered for, ``looked_up`` (the vocabulary's, as
+    :func:`~spcopyro.results.semantic_map.word_key` reads ``given``), is not the word the user
+    gave but for case, surrounding spaces and Unicode form; None when it is that word.
+    ``where OUT -- -tv`` answered for ``tv`` without a word said: the vocabulary holds no word
+    with punctuation at its ends (the data's are read without it), so that is what was looked
+    up, and the user is told."""
+    from spcopyro.data.text import fold_word
+
+    if fold_word(given.strip()) == fold_word(looked_up):
+        return None
+    return (
+        f"{given!r} is not a word of the vocabulary: answered for {looked_up!r}, the word "
+        "without the punctuation (or invisible characters) at its ends, as the data's words "
+        "are read"
+    )
+
+
 def refuse_fit_files(result_dir: str, out: str, targets: list[Path]) -> None:
     """ValueError when one of ``targets`` (the files ``--out OUT`` writes, resolved) is one of
     the fit's own files in ``result_dir`` (its manifest,

@@ -78,6 +78,13 @@ def _export(args: argparse.Namespace) -> int:
     except UnknownWordError as error:
         print(f"error: {error.args[0]}", file=sys.stderr)
         return 2
+    from spcopyro.cli.common import other_word_note
+    from spcopyro.results.semantic_map import word_key
+
+    for word in dict.fromkeys(args.word or ()):  # --word=-tv: the mask is tv's, and it says so
+        note = other_word_note(word, word_key(result.vocabulary, word))
+        if note:
+            print(f"warning: {note}", file=sys.stderr)
     free = result.grid.num_free
     print(f"wrote {export.map_yaml} and {export.semantic_map_yaml}")
     if robot_map is not None:

@@ -49,6 +49,7 @@ from spcopyro.cli.common import (
     _load,
     _summary,
     figure_file,
+    other_word_note,
     refuse_fit_files,
 )
 from spcopyro.cli.fit_parser import add_parser as add_fit_parser
@@ -267,6 +268,9 @@ def _where(args: argparse.Namespace) -> int:
     except UnknownWordError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2  # a bad argument, as every other error of the command line
+    note = other_word_note(args.word, answer.word)  # `where OUT -- -tv`: 'tv', and it says so
+    if note:
+        print(f"warning: {note}", file=sys.stderr)
     grid = result.grid
     cells = np.argwhere(answer.region)  # [n, 2] (row, col)
     xy = grid.cell_to_world(cells)
