@@ -177,3 +177,40 @@ def test_navigate_png_explains_its_stops_and_other_candidates_in_the_legend():
     assert max(delta_e(face, route), delta_e(edge, route)) >= 50  # apart from the outline
     crosses = [ln for ln in ax.get_lines() if ln.get_marker() == "x"]
     assert len(crosses) == 1  # the other bedroom, once in the legend
+
+
+def test_a_passage_is_drawn_along_free_cells_not_across_a_wall():
+    """show --graph drew each passage as a straight line between the two centroids: on a
+    U-shaped map (a wall from the top between its arms) the line from the U-shaped place's
+    centroid, itself on the wall, to the place at the top of the right arm crossed the wall.
+    The line runs over the two places' cells, from markers on their own cells."""
+    from hand_results import one_word_per_concept
+    from matplotlib.collections import PathCollection
+
+    from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
+    from spcopyro.robot.navigation.figure import place_graph_figure
+    from spcopyro.robot.navigation.places import place_graph
+
+    occupancy = np.full((12, 13), FREE, dtype=np.int8)
+    occupancy[:8, 5:8] = OCCUPIED  # the wall between the arms
+    grid = OccupancyGrid(occupancy, 0.1, (0.0, 0.0, 0.0))
+    rows, cols = np.nonzero(grid.free)  # [N] in free-index order
+    labels = ((rows < 4) & (cols >= 8)).astype(np.int64)  # [N]: 1 the top of the right arm
+    result = one_word_per_concept(grid, labels, ("bedroom", "kitchen"), num_concepts=2)
+    graph = place_graph(result, min_area=0.1)
+    assert len(graph.places) == 2 and len(graph.passages) == 1
+    bedroom = next(p for p in graph.places if p.name == "bedroom")
+    assert not grid.is_free(grid.world_to_cell(np.array(bedroom.centroid)))  # on the wall
+    fig = place_graph_figure(result, graph)
+    (ax,) = fig.axes
+    (line,) = [ln for ln in ax.get_lines() if len(ln.get_xydata())]
+    points = line.get_xydata()  # [K, 2]
+    assert len(points) > 2  # not one straight segment
+    t = np.linspace(0.0, 1.0, 101)[:, None]  # [101, 1]
+    for p, q in zip(points[:-1], points[1:], strict=True):
+        cells = grid.world_to_cell(p + t * (q - p))  # [101, 2]
+        assert grid.is_free(cells).all(), (p, q, cells[~grid.is_free(cells)])
+    (markers,) = [c for c in ax.collections if isinstance(c, PathCollection)]
+    assert grid.is_free(grid.world_to_cell(markers.get_offsets())).all()
+    (e,) = graph.passages
+    assert np.allclose(points[[0, -1]], markers.get_offsets()[[e.a, e.b]])  # marker to marker

@@ -20,6 +20,7 @@ from spcopyro.figures.map_axes import known_bounds, map_axes, shown_in
 from spcopyro.figures.map_axes import map_extent as _extent
 from spcopyro.figures.map_pieces import draw_outline, map_legend
 from spcopyro.figures.plotting import _save, semantic_colours
+from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
 from spcopyro.maps.render import render_labels
 from spcopyro.results.result import SpCoResult
 from spcopyro.robot.navigation.places import DOORWAY_WIDTH, PlaceGraph
@@ -129,11 +130,12 @@ its corners, then above and below it (centred: in a narrow strip of a tall map n
 label fits)."""
 
 
-def _label_places(fig: Figure, axes: list[Axes], graph: PlaceGraph) -> None:
-    """Each place's name and area beside its centroid, on the strip of ``axes`` showing it
-    (:func:`_showing`), largest place first, at the first of :data:`_CORNERS` where it overlaps
-    no label written before and stays inside its axes (else the first where it overlaps none,
-    else the first corner): on a corridor's strip a label above a centroid ran over the title."""
+def _label_places(fig: Figure, axes: list[Axes], graph: PlaceGraph, xy: np.ndarray) -> None:
+    """Each place's name and area beside its marker (``xy``: ``[N, 2]``), on the strip of
+    ``axes`` showing it (:func:`_showing`), largest place first, at the first of
+    :data:`_CORNERS` where it overlaps no label written before and stays inside its axes (else
+    the first where it overlaps none, else the first corner): on a corridor's strip a label
+    above a centroid ran over the title."""
     if fig.canvas is None or not hasattr(fig.canvas, "get_renderer"):
         FigureCanvasAgg(fig)
     renderer = fig.canvas.get_renderer()
@@ -142,11 +144,12 @@ def _label_places(fig: Figure, axes: list[Axes], graph: PlaceGraph) -> None:
     box = {"boxstyle": "round,pad=0.2", "fc": "white", "alpha": 0.8, "lw": 0}
     written: list[Bbox] = []
     for p in sorted(graph.places, key=lambda place: -place.area):
-        ax = _showing(axes, *p.centroid)
+        at = tuple(xy[p.id])
+        ax = _showing(axes, *at)
         frame = ax.get_window_extent(renderer=renderer)
         boxes = []
         for dx, dy, ha, va in _CORNERS:
-            label = ax.annotate(f"{p.name} ({p.area:.1f} m²)", p.centroid, xytext=(dx, dy),
+            label = ax.annotate(f"{p.name} ({p.area:.1f} m²)", at, xytext=(dx, dy),
                                 textcoords="offset points", ha=ha, va=va, fontsize=8, zorder=5,
                                 bbox=box)  # fmt: skip
             boxes.append(label.get_window_extent(renderer=renderer))
@@ -157,10 +160,65 @@ def _label_places(fig: Figure, axes: list[Axes], graph: PlaceGraph) -> None:
         order = [k for k in range(len(boxes)) if free[k] and inside[k]]
         k = (order or [k for k in range(len(boxes)) if free[k]] or [0])[0]
         dx, dy, ha, va = _CORNERS[k]
-        ax.annotate(f"{p.name} ({p.area:.1f} m²)", p.centroid, xytext=(dx, dy),
+        ax.annotate(f"{p.name} ({p.area:.1f} m²)", at, xytext=(dx, dy),
                     textcoords="offset points", ha=ha, va=va, fontsize=8, zorder=5,
                     bbox=box)  # fmt: skip
         written.append(boxes[k])
+
+
+def place_points(grid: OccupancyGrid, graph: PlaceGraph) -> tuple[np.ndarray, np.ndarray]:
+    """(``[N, 2]`` world x, y of each place's marker, ``[N, 2]`` its (row, col)): its centroid
+    when that falls on one of its cells, else the centre of its cell nearest the centroid (a
+    U-shaped place's centroid lies on the wall between its arms)."""
+    xy = np.array([p.centroid for p in graph.places], dtype=np.float64).reshape(-1, 2)
+    cells = grid.world_to_cell(xy).reshape(-1, 2)  # [N, 2]
+    for k in range(len(xy)):
+        r, c = cells[k]
+        inside = 0 <= r < grid.height and 0 <= c < grid.width
+        if inside and graph.regions[r, c] == k:
+            continue
+        own = np.argwhere(graph.regions == k)  # [M, 2]
+        if not len(own):
+            continue
+        centres = grid.cell_to_world(own)  # [M, 2]
+        cells[k] = own[np.argmin(((centres - xy[k]) ** 2).sum(axis=1))]
+        xy[k] = grid.cell_to_world(cells[k])
+    return xy, cells
+
+
+def passage_lines(
+    grid: OccupancyGrid, graph: PlaceGraph, xy: np.ndarray, cells: np.ndarray
+) -> list[np.ndarray]:
+    """``[K, 2]`` world points of each passage's line: from one place's marker (``xy``, on cell
+    ``cells``: :func:`place_points`) to the other's over the centres of a shortest chain of the
+    two places' cells (8-neighbours, no corner cut:
+    :func:`~spcopyro.data.footprint.free_cell_graph`), so it crosses no wall; straight where
+    their cells do not join on the fit's grid (a passage found on the robot's map only)."""
+    from scipy.sparse.csgraph import dijkstra
+
+    from spcopyro.data.footprint import free_cell_graph
+    from spcopyro.robot.navigation.graph import trace_path
+
+    lines = []
+    for e in graph.passages:
+        both = (graph.regions == e.a) | (graph.regions == e.b)  # [H, W]
+        rows, cols = np.nonzero(both)  # a place has a cell at least
+        corner = np.array([rows.min(), cols.min()])
+        crop = both[corner[0] : rows.max() + 1, corner[1] : cols.max() + 1]
+        pair = OccupancyGrid(np.where(crop, FREE, OCCUPIED).astype(np.int8), grid.resolution,
+                             (0.0, 0.0, 0.0))  # fmt: skip  # the two places' box
+        ends = [cells[e.a] - corner, cells[e.b] - corner]
+        source, target = (int(pair.free_index[r, c]) if pair.in_bounds(np.array([r, c]))
+                          else -1 for r, c in ends)  # fmt: skip
+        line = np.array([xy[e.a], xy[e.b]])
+        if source >= 0 and target >= 0:
+            _, predecessors = dijkstra(free_cell_graph(pair), directed=False, indices=source,
+                                       return_predecessors=True)  # fmt: skip
+            if target == source or predecessors[target] >= 0:
+                chain = pair.free_cells[trace_path(predecessors, target)] + corner  # [K, 2]
+                line = np.concatenate([xy[e.a][None], grid.cell_to_world(chain), xy[e.b][None]])
+        lines.append(line)
+    return lines
 
 
 def plot_place_graph(result: SpCoResult, graph: PlaceGraph, path: str | os.PathLike[str]) -> Path:
@@ -170,8 +228,11 @@ def plot_place_graph(result: SpCoResult, graph: PlaceGraph, path: str | os.PathL
 
 def place_graph_figure(result: SpCoResult, graph: PlaceGraph) -> Figure:
     """The semantic map (the colours of ``spcopyro fit``'s map) with every place of ``graph`` at
-    its centroid (marker area by the region's area, labelled with its top word and area) and its
-    passages as lines between them: doorways dashed, longer shared borders solid. A label that
+    its centroid (marker area by the region's area, labelled with its top word and area; a
+    concave place's centroid off its cells: on its cell nearest the centroid,
+    :func:`place_points`) and its passages as lines between them along the two places' free
+    cells (:func:`passage_lines`; straight, they crossed walls): doorways dashed, longer
+    shared borders solid. A label that
     would overlap one written before (largest places first) moves to another corner of its
     marker, and the legend stands beside the map (below a wide one): on a corridor's narrow
     places two labels ran into one ("concept 34 (0.8 m²).9 m²)") and the legend covered a room.
@@ -182,12 +243,11 @@ def place_graph_figure(result: SpCoResult, graph: PlaceGraph) -> Figure:
     colours = semantic_colours(result)  # [L, 3] uint8
     rgb = render_labels(result.label_image(), grid, colours)
     fig, axes, below, strips = map_axes(grid, rgb, (9, 8))
-    xy = np.array([p.centroid for p in graph.places]).reshape(-1, 2)  # [N, 2]
+    xy, anchors = place_points(grid, graph)  # [N, 2] markers, [N, 2] their cells
+    lines = passage_lines(grid, graph, xy, anchors)
     for ax in axes:  # one map, or its strips: every line and marker clipped to its stretch
-        for e in graph.passages:
-            (x0, y0), (x1, y1) = xy[e.a], xy[e.b]
-            ax.plot([x0, x1], [y0, y1], color="k", lw=1.5, ls="--" if e.doorway else "-",
-                    zorder=3)  # fmt: skip
+        for e, line in zip(graph.passages, lines, strict=True):
+            ax.plot(*line.T, color="k", lw=1.5, ls="--" if e.doorway else "-", zorder=3)
         if len(xy):
             area = np.array([p.area for p in graph.places])
             size = 40 + 260 * area / area.max()
@@ -197,7 +257,7 @@ def place_graph_figure(result: SpCoResult, graph: PlaceGraph) -> Figure:
     axes[0].plot([], [], color="k", ls="-", label="wider shared border")
     map_legend(axes[-1], axes[0].get_legend_handles_labels()[0], below=below, columns=2,
                fontsize=8)  # fmt: skip
-    _label_places(fig, axes, graph)
+    _label_places(fig, axes, graph, xy)
     dropped = ""
     if graph.dropped:
         dropped = f"; {plural(graph.dropped, 'region')} under {graph.min_area:g} m² left out"
