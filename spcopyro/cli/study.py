@@ -42,6 +42,10 @@ def study_path(text: str) -> Path:
 
 
 def _study(args: argparse.Namespace) -> int:
+    from spcopyro._util.collector import import_frozen
+
+    # torch's, pyro's and the study's objects, frozen: the collector does not scan them again
+    import_frozen("spcopyro.study.run")  # (spcopyro._util.collector, as `spcopyro fit` does)
     from spcopyro._util.folder_lock import FolderBusyError, folder_lock
     from spcopyro._util.interrupts import sigterm_as_interrupt
     from spcopyro.study.cells import cells_of

@@ -112,7 +112,11 @@ def _stoppable(command: Callable[[argparse.Namespace], int]) -> Callable[[argpar
 
     @functools.wraps(command)
     def run(args: argparse.Namespace) -> int:
+        from spcopyro._util.collector import import_frozen
         from spcopyro._util.interrupts import sigterm_as_interrupt
+
+        # torch's, pyro's and the study's objects, frozen, as `spcopyro fit` imports its own
+        import_frozen("spcopyro.study.run")  # (spcopyro._util.collector)
         from spcopyro.study.run import DASK_MISSING, dask_installed
 
         if args.workers > 1 and not dask_installed():

@@ -60,8 +60,9 @@ __all__ = [
 PRE_SPAWN_ENVIRON = "distributed.nanny.pre-spawn-environ"
 """Dask's config of the environment its nanny gives each spawned worker process."""
 MULTIPROCESSING_METHOD = "distributed.worker.multiprocessing-method"
-WORKER_PRELOAD = ("distributed", "spcopyro.study.evaluate")
-"""What the forkserver imports before it forks a worker: dask's worker and a cell's code."""
+WORKER_PRELOAD = ("spcopyro.study.worker_imports",)
+"""What the forkserver imports before it forks a worker: dask's worker and a cell's code, the
+cyclic collector paused and their objects frozen after (:mod:`spcopyro.study.worker_imports`)."""
 ONE_THREAD = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 """The workers' environment: one BLAS / OpenMP thread (a worker runs one cell on one core)."""
 MALLOC_TRIM = "MALLOC_TRIM_THRESHOLD_"
