@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 
 import numpy as np
 import pytest
@@ -22,6 +23,7 @@ from spcopyro.robot.online import (
     extend_emission,
     fit_update,
     merge_vocabulary,
+    renormalise_vocabulary,
     start_update,
     start_update_chain,
 )
@@ -109,6 +111,49 @@ def test_an_update_runs_on_all_the_data_with_the_merged_vocabulary(house, saved)
     assert record["iterations"] == len(saved.trace.objective) and record["new_words"]
     (cavi,) = fit_update(saved, house, SETTINGS, method="cavi", sweeps=2, progress=False)
     assert cavi.w.shape[1] == len(result.vocabulary) and cavi.method == "cavi"
+
+
+def test_renormalise_vocabulary_reads_old_words_as_the_tokenizer_does_now():
+    saved = renormalise_vocabulary(("TV", "stove.", "tv", "...", "\ufeffsink", "sink"))
+    assert saved.vocabulary == ("tv", "stove", "...", "sink")
+    assert saved.columns.tolist() == [0, 1, 0, 2, 3, 3]
+    assert saved.renamed == (("TV", "tv"), ("stove.", "stove"), ("\ufeffsink", "sink"))
+    assert saved.unmatchable == ("...",)
+    w = np.array([[0.1, 0.2, 0.3, 0.1, 0.2, 0.1]])  # [L=1, V=6]
+    np.testing.assert_allclose(saved.fold(w), [[0.4, 0.2, 0.1, 0.3]])
+    same = renormalise_vocabulary(("kitchen", "tv"))  # today's words: nothing changes
+    assert same.vocabulary == ("kitchen", "tv") and not same.renamed and not same.unmatchable
+    assert np.array_equal(same.fold(w[:, :2]), w[:, :2])
+
+
+def test_an_update_of_a_fit_with_words_the_tokenizer_no_longer_makes(house, saved, caplog):
+    """A fit saved before the tokenizer case-folded and stripped punctuation held ``TV`` and
+    ``stove.``, which the new data's ``tv`` and ``stove`` never equal: the update counted them
+    as new words from the prior and kept the saved ones unheard (what the fit learnt of them
+    lost), and said the data lacked the old trials' words."""
+    old = {"tv": "TV", "stove": "stove.", "sink": "..."}
+    tables = tuple(
+        dataclasses.replace(t, items=tuple(old.get(w, w) for w in t.items)) if t.name == "words"
+        else t for t in saved.emissions
+    )  # fmt: skip
+    older = dataclasses.replace(saved, emissions=tables)
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        start = start_update(older, house, SETTINGS, where="old/fit")
+    assert start.merge.new_words == ("sink", "kitchen", "sofa")  # in order of first appearance
+    assert start.merge.unheard_words == ("...",)
+    assert start.merge.vocabulary[: start.merge.old_size] == tuple(
+        {"TV": "tv", "stove.": "stove"}.get(w, w) for w in older.vocabulary
+    )
+    w = start.log_emissions[1].exp().numpy()  # [L, V'] the saved w, extended as before
+    reference = start_update(saved, house, SETTINGS).log_emissions[1].exp().numpy()
+    keep = [k for k, word in enumerate(saved.vocabulary) if word != "sink"]
+    np.testing.assert_allclose(w[:, keep] / w[:, keep].sum(1, keepdims=True),
+                               reference[:, keep] / reference[:, keep].sum(1, keepdims=True),
+                               rtol=1e-9, atol=1e-300)  # fmt: skip
+    said = caplog.text
+    assert "update of old/fit: 2 word(s) of its vocabulary are not words the tokenizer" in said
+    assert "'stove.' -> 'stove'" in said and "'TV' -> 'tv'" in said
+    assert "can match no word of the data (kept, without counts): '...'" in said
 
 
 def test_other_settings_map_or_image_classes_are_clear_errors(house, saved):

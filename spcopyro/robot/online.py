@@ -14,6 +14,11 @@ What carries over:
 * **Vocabulary** (:func:`merge_vocabulary`): the union. The saved words keep their columns
   0..V-1, in the saved order; words first heard in the new data get columns V..V'-1, in order of
   first appearance. A saved word the new data no longer holds keeps its column with zero counts.
+  A fit saved by an older spcopyro may hold words the tokenizer now folds or strips (``TV``,
+  ``stove.``, a byte-order mark in front), which the new data's words never equal: they are read
+  as :func:`~spcopyro.data.text.tokenize` reads them now (:func:`renormalise_vocabulary`; two that
+  become one word add their probabilities), with a warning naming them; one that is no single
+  word now (punctuation alone) keeps its column and is named as matching no word of the data.
   Image classes and the items of every further modality must be the same (ValueError otherwise).
 * **Globals** (Gibbs): pi and every modality's distributions of the saved point estimate are the
   chain's state at sweep 0, so the first label sweep (eq. 13) places the new observations under
@@ -52,10 +57,12 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from spcopyro._util.messages import echo, warn_once
 from spcopyro._util.random_draws import sample_log_dirichlet
 from spcopyro._util.threads import AUTO, resolve_threads, torch_threads
 from spcopyro.config import IMAGES, WORDS, SpCoSettings
 from spcopyro.data import CellCounts, House
+from spcopyro.data.text import tokenize
 from spcopyro.fit.gibbs_chains import FitInterrupted, marginal_thin, with_sample_marginals
 from spcopyro.fit.house import prepare_model_data, provenance, result_of
 from spcopyro.fit.registry import DEFAULT_METHOD, get_method
@@ -69,12 +76,14 @@ from spcopyro.results.result import SpCoResult
 
 __all__ = [
     "DEFAULT_UPDATE_SWEEPS",
+    "SavedVocabulary",
     "UpdateStart",
     "VocabularyMerge",
     "check_compatible",
     "extend_emission",
     "fit_update",
     "merge_vocabulary",
+    "renormalise_vocabulary",
     "settings_of",
     "start_update",
     "start_update_chain",
@@ -127,6 +136,67 @@ def merge_vocabulary(saved: Sequence[str], observed: Sequence[str]) -> Vocabular
         new_words=new,
         unheard_words=tuple(word for word in saved if word not in heard),
     )
+
+
+@dataclass(frozen=True)
+class SavedVocabulary:
+    """A saved vocabulary as the tokenizer reads words now (:func:`renormalise_vocabulary`)."""
+
+    vocabulary: tuple[str, ...]
+    """[V*] the saved words re-normalised, in order of first appearance."""
+    columns: np.ndarray
+    """[V] the column in :attr:`vocabulary` of each saved word."""
+    renamed: tuple[tuple[str, str], ...]
+    """(saved word, the word it is now) for each saved word the tokenizer writes otherwise."""
+    unmatchable: tuple[str, ...]
+    """Saved words that are no single word now (punctuation alone): kept, matching nothing."""
+
+    def fold(self, probabilities: np.ndarray) -> np.ndarray:
+        """[L, V*] each row of ``probabilities`` [L, V] over the re-normalised vocabulary (the
+        probabilities of saved words that became one word added)."""
+        folded = np.zeros((probabilities.shape[0], len(self.vocabulary)))  # [L, V*]
+        np.add.at(folded.T, self.columns, np.asarray(probabilities, dtype=np.float64).T)
+        return folded
+
+
+def renormalise_vocabulary(saved: Sequence[str]) -> SavedVocabulary:
+    """``saved`` (a saved fit's vocabulary) as :func:`~spcopyro.data.text.tokenize` reads
+    words now: a word it makes one other word of (``TV`` -> ``tv``, ``stove.`` -> ``stove``)
+    is renamed, and saved words that become one word share its column; a word it makes no word
+    or several of keeps its column unchanged (listed in ``unmatchable``). Words that the
+    tokenizer leaves as they are keep their order: a vocabulary of them is returned as it is."""
+    index: dict[str, int] = {}
+    columns, renamed, unmatchable = [], [], []
+    for word in saved:
+        tokens = tokenize(word)
+        target = tokens[0] if len(tokens) == 1 else word
+        if target != word:
+            renamed.append((word, target))
+        elif tokens != (word,):
+            unmatchable.append(word)
+        columns.append(index.setdefault(target, len(index)))
+    return SavedVocabulary(
+        tuple(index), np.asarray(columns, dtype=np.int64), tuple(renamed), tuple(unmatchable)
+    )
+
+
+def _warn_renormalised(saved: SavedVocabulary, where: str) -> None:
+    """Warn (once per saved fit and vocabulary) of what :func:`renormalise_vocabulary` changed."""
+    said = []
+    if saved.renamed:
+        pairs = ", ".join(f"{echo(old)} -> {echo(new)}" for old, new in saved.renamed[:10])
+        more = f", ... ({len(saved.renamed) - 10} more)" if len(saved.renamed) > 10 else ""
+        said.append(f"{len(saved.renamed)} word(s) of its vocabulary are not words the tokenizer "
+                    f"makes now (a fit saved by an older spcopyro), read as it reads them: "
+                    f"{pairs}{more}")  # fmt: skip
+    if saved.unmatchable:
+        names = ", ".join(echo(word) for word in saved.unmatchable[:10])
+        said.append(f"{len(saved.unmatchable)} word(s) of its vocabulary are no word the "
+                    f"tokenizer makes now and can match no word of the data (kept, without "
+                    f"counts): {names}")  # fmt: skip
+    if said:
+        warn_once(("renormalised vocabulary", where, saved.columns.tobytes(), saved.vocabulary),
+                  f"update of {where}: " + "; ".join(said))  # fmt: skip
 
 
 def settings_of(saved: SpCoResult) -> SpCoSettings:
@@ -275,7 +345,9 @@ def start_update(
     ``settings`` None: the saved fit's; ``generator`` None: new word columns at their mean."""
     settings = settings_of(saved) if settings is None else settings
     check_compatible(saved, house, settings, where)
-    merge = merge_vocabulary(saved.vocabulary, house.observations.vocabulary)
+    renormalised = renormalise_vocabulary(saved.vocabulary)
+    _warn_renormalised(renormalised, where)
+    merge = merge_vocabulary(renormalised.vocabulary, house.observations.vocabulary)
     counts, data = prepare_model_data(house, settings, vocabulary=merge.vocabulary)
     labels = torch.as_tensor(np.asarray(saved.labels), dtype=torch.long)  # [N]
     config = settings.model
@@ -283,6 +355,7 @@ def start_update(
     for modality in data.modalities:
         table = saved.emission(modality.name).probabilities  # [L, K_m]
         if modality.name == WORDS:
+            table = renormalised.fold(table)  # [L, V*]
             rows = labels[data.obs_cells]  # [M] concepts of the observed cells
             old_counts = modality.counts[:, : merge.old_size]  # [M, V]
             totals = torch.zeros(config.num_concepts, dtype=DTYPE)  # [L]
