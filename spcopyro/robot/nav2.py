@@ -208,13 +208,38 @@ class Nav2Export:
     masks: tuple[ExportedMask, ...] = field(default_factory=tuple)
 
 
+MAX_NAME_CHARS = 64
+"""The most characters of a word a mask's name keeps (a 300-letter word made a file name over
+the file system's limit of 255 bytes, and the export failed)."""
+
+
 def _ros_name(word: str, index: int) -> str:
     """A ROS-name-safe form of the vocabulary's word ``index``: lower case, ``[a-z0-9_]`` only,
     accents dropped (``café``: ``cafe``), no repeated underscore (``rock--roll``: ``rock_roll``;
-    ROS 2 names must not repeat one); ``word3`` for one with no such letter (``台所``)."""
+    ROS 2 names must not repeat one), at most :data:`MAX_NAME_CHARS` characters; ``word3`` for
+    one with no such letter (``台所``)."""
     ascii_word = unicodedata.normalize("NFKD", word.lower()).encode("ascii", "ignore").decode()
     name = re.sub(r"[^a-z0-9]+", "_", ascii_word).strip("_")
-    return name or f"word{index}"
+    return name[:MAX_NAME_CHARS].rstrip("_") or f"word{index}"
+
+
+def mask_names(mode: str, words: list[str], indices: list[int]) -> list[str]:
+    """Each word's mask name ``MODE_WORD`` (:func:`_ros_name` of the vocabulary's word
+    ``indices[k]``), its files ``NAME.yaml``, ``NAME.pgm`` and ``NAME_params.yaml``, distinct:
+    a second word of one name (``café`` beside ``cafe``) gets ``_2``, ``_3``, ... (``cafe_2``),
+    and so does a name whose files another's would replace (``x`` beside ``x params``, whose
+    mask ``MODE_x_params.yaml`` is ``x``'s params file)."""
+    taken: set[str] = set()  # the file stems of the names given so far
+    names: list[str] = []
+    for word, index in zip(words, indices, strict=True):
+        base = name = f"{mode}_{_ros_name(word, index)}"
+        k = 1
+        while name in taken or f"{name}_params" in taken:  # café and cafe: cafe, cafe_2
+            k += 1  # (was cafe_, whose filter was cafe__filter: a ROS 2 name repeats no "_")
+            name = f"{base}_{k}"
+        names.append(name)
+        taken.update((name, f"{name}_params"))
+    return names
 
 
 def topic(name: str, namespace: str | None = None) -> str:
@@ -417,14 +442,7 @@ def export_nav2(
     # "kitchen." and a full-width "ｋｉｔｃｈｅｎ" are one word, one mask (each got its own)
     indices = list(dict.fromkeys(word_index(result.vocabulary, w) for w in words))
     words = [result.vocabulary[i] for i in indices]
-    names: list[str] = []
-    for word, index in zip(words, indices, strict=True):
-        base = name = f"{mode}_{_ros_name(word, index)}"
-        k = 1
-        while name in names:  # café and cafe: cafe, cafe_2 (was cafe_, whose filter was
-            k += 1  # cafe__filter: a ROS 2 name repeats no underscore)
-            name = f"{base}_{k}"
-        names.append(name)
+    names = mask_names(mode, words, indices)
 
     staged = stage_marked_folder(
         out, overwrite, option="--nav2", marker=EXPORT_MARKER, writer="Nav2 export"
