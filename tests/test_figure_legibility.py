@@ -480,3 +480,22 @@ def test_a_strip_keeps_the_aspect_bound_with_its_margins(shape):
         assert max(box.width, box.height) <= STRIP_ASPECT * min(box.width, box.height) + 1.0
         spans.add((round(x1 - x0, 9), round(y1 - y0, 9)))
     assert len(spans) == 1, spans  # one scale
+
+
+def test_the_stability_log_joint_legend_stands_below_its_panel():
+    """stability.png's right panel (ARI against the log joint) placed its legend with
+    loc="best": inside the axes, wherever the points left room (slow on a big plot, and it
+    moved between runs). It stands below the panel, as the left one's does."""
+    from spcopyro.experiments.figures import stability_figure
+
+    def row(ari: float) -> dict:
+        chains = [[{"ari": ari + d, "best_log_joint": -100 * d} for d in (0.0, 0.1, 0.2)]]
+        return {"method": "A-dp", "single": [ari], "best_of_chains": [ari], "chains": chains}
+
+    names = ("A-dp random", "A-dp spcoa", "A-dp random anneal", "A-dp random cluster")
+    settings = {name: row(0.2 * k) for k, name in enumerate(names)}
+    fig = stability_figure({"settings": settings, "chains": 3, "seeds": [0], "sweeps": 10})
+    right = fig.axes[1]
+    legend = right.get_legend()
+    assert [t.get_text() for t in legend.get_texts()] == list(names)
+    assert not _overlaps_an_axes(fig, legend)

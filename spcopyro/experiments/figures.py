@@ -69,7 +69,9 @@ def stability_figure(stability: dict, method: str = "A-dp") -> Figure:
         right.set_xlabel("best log joint - the house's highest (nats)")
         right.set_ylabel("ARI against the truth")
         right.set_title(f"{method}: does a higher log joint mean a better map?", fontsize=9)
-        right.legend(fontsize=7)
+        # below the axes, as the left panel's (loc="best" moved between runs, over points)
+        right.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2,
+                     frameon=False)  # fmt: skip
     else:
         right.set_axis_off()
     fig.suptitle(f"Stability, {stability['sweeps']} sweeps per chain")
