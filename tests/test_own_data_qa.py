@@ -22,6 +22,7 @@ from spcopyro.data import (
     save_house,
     tokenize,
 )
+from spcopyro.data.text import unsegmented
 from spcopyro.maps import FREE, OccupancyGrid
 
 
@@ -333,6 +334,39 @@ def test_a_one_column_ft_written_with_decimal_commas_is_refused(tmp_path, text, 
     for counts in ("0,1\n1,0\n", "3,25\n0,1\n", "0.0,25.0\n0.0,75.0\n"):  # two columns
         (room / "Ft.csv").write_text(counts)
         assert load_house(room).observations.image_features.shape == (2, 2)
+
+
+def test_japanese_written_without_spaces_is_warned_of(tmp_path, caplog):
+    """Japanese as it is written, without spaces: a sentence became one word, heard nowhere else
+    and matching no query, without a word said."""
+    room = _saved_house(tmp_path)
+    (room / "St.csv").write_text("ここは台所です,ダイニングキッチン,寝室 です")
+    (room / "word_0.csv").write_text("ここは台所です\n")
+    (room / "word_1.csv").write_text("ダイニングキッチン\n寝室 です\n")
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        house = load_house(room)
+    assert house.observations.utterances[0] == ("ここは台所です",)  # read as it is, one word
+    said = [r.getMessage() for r in caplog.records if "without spaces" in r.getMessage()]
+    assert said == [
+        f"{room / 'St.csv'}, line 1: 1 utterance(s) look like sentences written without "
+        "spaces, each read as one word: utterance 1 'ここは台所です' (nothing splits such text: "
+        "write it with spaces between its words, as MeCab's mecab -Owakati does)"
+    ]
+    caplog.clear()
+    (room / "St.csv").write_text("ここ は 台所 です,ダイニングキッチン,お手洗い")  # segmented
+    (room / "word_0.csv").write_text("ここ は 台所 です\n")
+    (room / "word_1.csv").write_text("ダイニングキッチン\nお手洗い\n")
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        load_house(room)
+    assert "without spaces" not in caplog.text
+
+
+def test_unsegmented_takes_long_unspaced_words_for_sentences():
+    sentences = ("ここは台所です", "这里是卫生间", "リビングルームです", "นี่คือห้องครัวครับผม")
+    words = ("ダイニングキッチン", "お手洗い", "電子レンジ", "ห้องครัว", "台所です", "холодильник")
+    assert [unsegmented(t) for t in sentences] == [True] * 4
+    assert [unsegmented(t) for t in words] == [False] * 6
+    assert not unsegmented("kitchen") and not unsegmented("ここは台所ですkitchen")
 
 
 def test_macos_metadata_files_beside_the_images_are_named(tmp_path):

@@ -16,7 +16,14 @@ import numpy as np
 
 from spcopyro.config import WordWeighting
 
-__all__ = ["WordWeighting", "fold_word", "tfidf_weights", "tokenize", "word_matrix"]
+__all__ = [
+    "WordWeighting",
+    "fold_word",
+    "tfidf_weights",
+    "tokenize",
+    "unsegmented",
+    "word_matrix",
+]
 
 
 _PUNCTUATION = set(string.punctuation)
@@ -59,6 +66,33 @@ def tokenize(utterance: str) -> tuple[str, ...]:
         if start < end:
             tokens.append(raw[start:end])
     return tuple(tokens)
+
+
+_UNSPACED_SCRIPTS = {"CJK": 6, "HIRAGANA": 6, "KATAKANA": 6, "THAI": 10, "LAO": 10, "KHMER": 10,
+                     "MYANMAR": 10}  # fmt: skip
+"""Scripts written without spaces between words (Unicode character names' first word), and the
+letters a word of theirs may hold before :func:`unsegmented` takes it for a sentence: Japanese
+and Chinese words are short (台所, 冷蔵庫, お手洗い), Thai ones longer (ห้องครัว, 6 letters)."""
+
+
+def unsegmented(token: str) -> bool:
+    """Whether ``token`` (one of :func:`tokenize`'s) looks like a sentence of a script written
+    without spaces, read as one word: at least 6 letters of Han and kana (``ここは台所です``;
+    katakana alone is a loanword, ``ダイニングキッチン``, and not counted) or 10 of Thai, Lao,
+    Khmer or Myanmar, and no other letter. Nothing here splits it: a segmenter (MeCab's
+    ``-Owakati`` for Japanese) writes such text with spaces between its words."""
+    scripts = []
+    for char in token:
+        category = unicodedata.category(char)
+        if category == "Lo":
+            scripts.append(unicodedata.name(char, "").split(" ")[0])
+        elif category[0] == "L" and category != "Lm":  # Lm: ー, 々, of no script by name
+            return False  # a letter of a spaced script (Latin, Cyrillic, ...)
+    if not scripts or any(script not in _UNSPACED_SCRIPTS for script in scripts):
+        return False
+    if set(scripts) == {"KATAKANA"}:
+        return False
+    return len(scripts) >= min(_UNSPACED_SCRIPTS[script] for script in scripts)
 
 
 def _vocabulary_index(vocabulary: Sequence[str]) -> dict[str, int]:
