@@ -210,9 +210,21 @@ class SpCoConfig:
 
     @property
     def critical_gamma(self) -> float:
-        """The Potts model's critical coupling ln(1 + sqrt(L)) on the square lattice, i.e. for
-        ``connectivity=4`` whatever :attr:`connectivity` is (the 8-neighbourhood's is lower and
-        has no closed form; the low-gamma warning of a fit is given for 4 only)."""
+        """The L-state Potts model's critical coupling ln(1 + sqrt(L)) on the square lattice
+        with 4 neighbours (Potts 1952; Baxter 1973), ``connectivity=4``, the paper's.
+
+        ValueError for ``connectivity=8``, which the model also supports: the square lattice
+        with its diagonal neighbours (equal couplings) has no closed-form critical point (it
+        orders at a lower coupling, every cell having twice the bonds: for L = 2, Monte Carlo
+        estimates put it near 0.38 against 4 neighbours' 0.88), so the 4-neighbour value
+        returned for it (as this did) was wrong, not a bound to compare gamma with. The
+        low-gamma warning of a fit is given for 4 neighbours only."""
+        if self.connectivity != 4:
+            raise ValueError(
+                f"critical_gamma ln(1 + sqrt(L)) is the 4-neighbour square lattice's; with "
+                f"connectivity={self.connectivity} the Potts critical coupling has no closed "
+                "form (it is lower: each cell has twice the bonds), so none is given"
+            )
         return math.log1p(math.sqrt(self.num_concepts))
 
     def concentration(self, modality: str) -> float:

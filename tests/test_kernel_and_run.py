@@ -4,6 +4,7 @@ presets and the synthetic-house fit."""
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pyro
@@ -20,7 +21,7 @@ from spcopyro.config import (
     preset,
     preset_inference,
 )
-from spcopyro.fit.house import fit_house, gamma_warning
+from spcopyro.fit.house import config_warnings, fit_house, gamma_warning
 from spcopyro.fit.registry import get_method
 from spcopyro.gibbs.kernel import SpCoGibbs, mcmc_diagnostics
 from spcopyro.gibbs.method import output_from_run
@@ -301,6 +302,22 @@ def test_presets_and_validation():
     assert "below the Potts critical coupling" in gamma_warning(preset("original-code").model)
     assert gamma_warning(preset("paper-dp").model) is None
     assert gamma_warning(preset("original-code", connectivity=8).model) is None  # 4-lattice value
+
+
+def test_critical_gamma_is_the_four_neighbour_value_and_refuses_eight():
+    # the model takes connectivity 4 or 8, but critical_gamma returned the 4-neighbour square
+    # lattice's ln(1 + sqrt(L)) for 8 too (notebook 5 printed it: 1.868 for L = 30), where the
+    # lattice with diagonal bonds orders at a lower coupling with no closed form
+    for L in (2, 3, 30):
+        assert SpCoConfig(num_concepts=L).critical_gamma == pytest.approx(math.log(1 + L**0.5))
+    eight = preset("original-code", gamma=12.0, connectivity=8).model
+    with pytest.raises(ValueError, match="4-neighbour square lattice's; with connectivity=8"):
+        _ = eight.critical_gamma
+    # the fit's warnings still come for 8 neighbours, without a 4-neighbour value
+    (freezing,) = [w for w in config_warnings(eight) if "freezes" in w]
+    assert freezing.endswith("just above the critical coupling)")
+    four = config_warnings(eight.replace(connectivity=4))
+    assert any(w.endswith("just above the critical 2.48)") for w in four)
 
 
 def _pairs_across_walls(occupancy: np.ndarray, truth: np.ndarray):

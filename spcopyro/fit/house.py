@@ -127,7 +127,7 @@ def gamma_warning(config: SpCoConfig) -> str | None:
     That value is the 4-neighbour square lattice's; with 8 neighbours every cell has twice the
     bonds and regions form at a weaker coupling (the 05 notebook fits gamma 1.5 with L = 30 at
     ARI 0.97), so no warning is given there."""
-    if config.gamma >= config.critical_gamma or config.connectivity != 4:
+    if config.connectivity != 4 or config.gamma >= config.critical_gamma:
         return None
     return (
         f"gamma = {config.gamma:g} is below the Potts critical coupling ln(1 + sqrt(L)) = "
@@ -158,13 +158,14 @@ def config_warnings(config: SpCoConfig) -> list[str]:
     """
     warnings = [w for w in (gamma_warning(config),) if w]
     if config.gamma >= FREEZING_GAMMA:
+        critical = f"{config.critical_gamma:.2f}" if config.connectivity == 4 else "coupling"
         warnings.append(
             f"gamma = {config.gamma:g} is at or above {FREEZING_GAMMA:g}, where the Gibbs "
             "sampler freezes: a domain wall moves only at a cost of about exp(-gamma) per cell, "
             "so labels stay in the random start's patches (measured: gamma 12 to 30 kept 117 of "
             "120 concepts over 1000 sweeps; not the variational methods: cavi and lbp at 12 kept "
             "21 and 9 on the synthetic house); lower --gamma (regions form just above the "
-            f"critical {config.critical_gamma:.2f})"
+            f"critical {critical})"  # no closed form for 8 neighbours: SpCoConfig.critical_gamma
         )
     low, high = CONCENTRATION_RANGE
     concentrations = [("alpha", config.alpha), ("beta", config.beta), ("chi", config.chi)]
