@@ -31,7 +31,7 @@ def romaji_result():
     [
         ("daidokoro no mae", ("daidokoro",)),
         ("rouka no saki no daidokoro", ("rouka", "daidokoro")),
-        ("shinshitsu no oshiire", ("shinshitsu", "oshiire")),
+        ("shinshitsu no saki no oshiire", ("shinshitsu", "oshiire")),
     ],
 )
 def test_the_japanese_particle_no_is_not_a_negation(vocabulary, text, places):
@@ -47,6 +47,31 @@ def test_the_japanese_particle_no_is_not_a_negation(vocabulary, text, places):
 def test_no_as_a_negation_is_still_refused(text):
     with pytest.raises(NavigationError, match="says 'no'"):
         parse_instruction(text, ROMAJI)
+
+
+@pytest.mark.parametrize("vocabulary", [ROMAJI, ROMAJI[:4], ("kitchen", "bedroom", "mae")])
+@pytest.mark.parametrize(
+    "text", ["kitchen no bedroom", "go to the kitchen no bedroom", "shinshitsu no oshiire"]
+)
+def test_no_between_two_places_is_refused_as_either_reading(vocabulary, text):
+    """QA: "kitchen no bedroom" visited the kitchen, then the bedroom ("no" read as the
+    particle): as English it keeps the robot out of the bedroom. "no" between two known places
+    is refused, naming both readings; "shinshitsu no oshiire" (the bedroom's closet) too."""
+    words = text.split()
+    if not {words[-3], words[-1]} <= set(vocabulary):
+        vocabulary = (*vocabulary, words[-3], words[-1])
+    with pytest.raises(NavigationError, match="says 'no' between two places") as refused:
+        parse_instruction(text, vocabulary)
+    assert f"name only the places to visit, in order ('{words[-3]} {words[-1]}'" in str(
+        refused.value
+    ), refused.value
+
+
+def test_no_between_two_places_is_refused_by_the_command(tmp_path, capsys):
+    fit = romaji_result().save(tmp_path / "fit")
+    argv = ["navigate", str(fit), "daidokoro no rouka", f"--start={START_A[0]},{START_A[1]}"]
+    assert main(argv) == 2
+    assert "says 'no' between two places, 'daidokoro' and 'rouka'" in capsys.readouterr().err
 
 
 def test_a_romanised_instruction_with_no_is_driven(capsys):

@@ -183,7 +183,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("result", help="output folder of `spcopyro fit`")
     p.add_argument("instruction", help="the instruction; its place words are visited in order, "
-                   "a place after 'via' before the destination said before it")  # fmt: skip
+                   "a place after 'via' before the destination said before it; one that says "
+                   "to keep away from a place ('not the kitchen', 'kitchen no bedroom') is "
+                   "refused: every place named is visited")  # fmt: skip
     p.add_argument("--start", type=_point, required=True, metavar="X,Y",
                    help="the robot's position in the map frame, metres")  # fmt: skip
     p.add_argument("--radius", type=non_negative_number("radius is metres"), default=0.2,

@@ -15,7 +15,9 @@ which is an error: the robot would skip that stop. An instruction with a word of
 ("leave the kitchen", "stay away from the kitchen", "get out of the kitchen") is refused: the
 robot only visits places, so it would have driven to the one it was told to keep away from.
 A "no" between two words with only spaces around it, after a known place word, is the particle
-of a romanised Japanese instruction ("daidokoro no mae"), skipped (``_particles``). Places
+of a romanised Japanese instruction ("daidokoro no mae"), skipped (``_particles``); one with a
+known place word after it too ("kitchen no bedroom", "shinshitsu no oshiire") is refused: as
+English it keeps the robot out of the second place, as the particle it leads there. Places
 keep the instruction's spelling for what is shown (:attr:`Instruction.said`: "TV", the fit's
 "tv").
 
@@ -209,6 +211,17 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
     is_place = [key in known and token not in STOP_WORDS | NEGATION_WORDS | LEAVE_WORDS
                 for token, key in zip(tokens, keys, strict=True)]  # fmt: skip
     particles = _particles(tokens, gaps, is_place)
+    both = next((k for k in sorted(particles) if is_place[k - 1] and is_place[k + 1]), None)
+    if both is not None:  # "kitchen no bedroom": "not the bedroom", or "the kitchen's bedroom"?
+        before, after = words[both - 1][0], words[both + 1][0]
+        raise NavigationError(
+            f"the instruction {text!r} says 'no' between two places, {before!r} and {after!r}: "
+            f"as English ('{before}, no {after}') it keeps the robot out of {after!r}, as the "
+            f"particle of a romanised Japanese instruction ('{before} no {after}', the {after} "
+            f"of the {before}) it leads on to {after!r}; navigate cannot tell which, and visits "
+            f"every place an instruction names: name only the places to visit, in order ('{before} "
+            f"{after}', or '{before}' alone)"
+        )
     negation = next((token for k, token in enumerate(tokens)
                      if (token in NEGATION_WORDS and k not in particles) or token.endswith("n't")
                      or (token in LEAVE_WORDS and token not in known)), None)  # fmt: skip
