@@ -68,6 +68,9 @@ ANSWER_RGB = (214, 0, 0)  # the answer's region in plot_where
 RUNNER_UP_RGB = (0, 70, 200)  # the runner-up's region in plot_where
 FREE_RGB = RGB_BACKGROUND  # plot_where's free cells: white, as in house.png and navigate.png
 # (a light grey (225) was 7 delta-E from the unknown grey (205): the two read as one)
+ESTIMATE_NAMES = {"vi": "variation-of-information", "binder": "Binder-loss"}
+"""The point estimates' names in the figures' titles: "the vi estimate" read as variational
+inference's (compare-inference's VI methods), not the variation-of-information loss's."""
 
 
 def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
@@ -430,6 +433,13 @@ def plot_uncertainty(result: SpCoResult, path: str | os.PathLike[str]) -> Path |
                              vmax=max(float(entropy.max()), 1e-6), cmap="YlOrRd")  # fmt: skip
 
 
+def _estimate_name(result: SpCoResult) -> str:
+    """ "variation-of-information point estimate" (:data:`ESTIMATE_NAMES`), or "point
+    estimate" for a result that does not say which."""
+    kind = str(result.inference.get("point_estimate") or "")
+    return f"{ESTIMATE_NAMES.get(kind, kind)} point estimate".lstrip()
+
+
 def plot_agreement(result: SpCoResult, path: str | os.PathLike[str]) -> Path | None:
     """Each free cell's probability of agreeing with the reported point estimate (the share of
     label samples, matched to it, that give the cell its label:
@@ -438,9 +448,8 @@ def plot_agreement(result: SpCoResult, path: str | os.PathLike[str]) -> Path | N
     if result.agreement is None:
         return None
     agreement = np.asarray(result.agreement)
-    kind = result.inference.get("point_estimate", "point estimate")
     title = (
-        f"{result.name or 'agreement'}: p(sample agrees with the {kind} estimate)\n"
+        f"{result.name or 'agreement'}: p(sample agrees with the {_estimate_name(result)})\n"
         f"mean {agreement.mean():.3f}, {plural(int((agreement < 0.5).sum()), 'cell')} below 0.5"
     )
     return _plot_cell_values(result, agreement, path, title=title, label="probability",
@@ -516,8 +525,7 @@ def trace_figure(result: SpCoResult, kept: tuple[int, int] | None = None) -> Fig
             f"{coarse['sweeps']} sweeps on {coarse['cell_size']:g} m cells (not shown)"
         )
     if result.agreement is not None:
-        kind = result.inference.get("point_estimate", "point")
-        title += (f"\nthe reported map: the {kind} point estimate over the kept samples, "
+        title += (f"\nthe reported map: the {_estimate_name(result)} over the kept samples,\n"
                   f"not the state of {step} {best}")  # fmt: skip
     fig.suptitle(title, fontsize=10)
     fig.subplots_adjust(top=0.95 - 0.035 * (title.count("\n") + 1))  # room for every line
