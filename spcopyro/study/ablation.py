@@ -29,6 +29,7 @@ from spcopyro.experiments.ablation import AblationSettings
 from spcopyro.experiments.ablation_report import SCORES, write_report
 from spcopyro.experiments.table import failed_cells
 from spcopyro.study import STUDIES
+from spcopyro.study.report import with_warnings
 from spcopyro.study.run import run_study
 from spcopyro.study.spec import DataSource, Study
 from spcopyro.study.table import TABLE, read_table
@@ -175,4 +176,6 @@ def run_ablation(
     summary = write_report(Path(out), settings, records_of_rows(rows), run.seconds, run.cached,
                            failed_cells(rows))  # fmt: skip
     summary["failed"] = sum(1 for r in rows if r.get("status") != "ok")
+    markdown = Path(out) / "ablation.md"  # the cells' warnings, listed as report.md lists them
+    markdown.write_text(with_warnings(markdown.read_text(), rows))
     return summary

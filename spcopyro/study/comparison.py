@@ -40,6 +40,7 @@ from spcopyro.experiments.table import failed_cells, heldout_folds, report_nothi
 from spcopyro.study.ablation import spec_options
 from spcopyro.study.comparison_cell import COMPARISON
 from spcopyro.study.maps import remove_stale
+from spcopyro.study.report import with_warnings
 from spcopyro.study.run import run_study
 from spcopyro.study.spec import DataSource, Study
 from spcopyro.study.table import TABLE, read_table
@@ -136,6 +137,8 @@ def run_comparison(
     summary["workers"] = workers
     summary["load_average_at_end"] = list(os.getloadavg())
     figures = [p for p in write_report(out, summary) if p.suffix == ".png"]
+    markdown = out / "comparison.md"  # the cells' warnings, listed as report.md lists them
+    markdown.write_text(with_warnings(markdown.read_text(), rows))
     remove_stale(out, [f"comparison_{kind}.png" for kind in (SYNTHETIC, PUBLIC)], figures)
     summary["failed"] = sum(1 for r in rows if r.get("status") != "ok")
     return summary

@@ -36,6 +36,7 @@ from spcopyro.experiments.table import (
 from spcopyro.figures.fonts import any_script
 from spcopyro.study import STUDIES
 from spcopyro.study.maps import plot_label_maps, remove_stale, source_panels
+from spcopyro.study.report import with_warnings
 from spcopyro.study.run import run_study
 from spcopyro.study.spec import DataSource, Study
 from spcopyro.study.table import TABLE, read_table
@@ -265,5 +266,5 @@ def run_experiment(
     summary["figures"] = [str(p.relative_to(out)) for p in write_figures(out, rows)]
     summary["failed"] = sum(1 for r in rows if r.get("status") != "ok")
     (out / "table.json").write_text(json.dumps(summary, indent=1, default=json_default) + "\n")
-    (out / "table.md").write_text(table_markdown(summary))
+    (out / "table.md").write_text(with_warnings(table_markdown(summary), rows))
     return summary

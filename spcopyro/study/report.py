@@ -25,7 +25,7 @@ from spcopyro.study.table import is_number
 
 __all__ = [
     "REPORT_SCORES", "report_markdown", "summary_rows", "table_cell", "warnings_section",
-    "write_report",
+    "with_warnings", "write_report",
 ]  # fmt: skip
 
 REPORT_SCORES = (
@@ -129,10 +129,16 @@ WARNING_SHOWN = 300
 """Characters of a warning the report shows (``results.csv``'s ``warnings`` holds it whole)."""
 
 
-def warnings_section(rows: Sequence[dict[str, object]]) -> list[str]:
+def warnings_section(
+    rows: Sequence[dict[str, object]],
+    table: str = "results.csv",
+    title: str = "Cells with warnings",
+) -> list[str]:
     """The report's lines on the cells whose fit gave warnings (column ``warnings``,
     :mod:`spcopyro.study.cell_warnings`): per (variant, data, method) and set of messages, the
-    seeds and each message cut to :data:`WARNING_SHOWN` characters; none without such cells."""
+    seeds and each message cut to :data:`WARNING_SHOWN` characters; none without such cells.
+    ``table``: the table that holds them whole, as the text names it; ``title``: the
+    section's heading."""
     groups: dict[tuple, list[object]] = {}
     for r in rows:
         said = tuple(dict.fromkeys(_shortened(m) for m in read_warnings(r.get(WARNINGS))))
@@ -141,9 +147,9 @@ def warnings_section(rows: Sequence[dict[str, object]]) -> list[str]:
     if not groups:
         return []
     count = sum(len(seeds) for seeds in groups.values())
-    lines = ["## Cells with warnings", "",
+    lines = [f"## {title}", "",
              f"{plural(count, 'cell')} of {len(rows)} gave warnings while fitted (column "
-             "`warnings` of results.csv holds them whole):", ""]  # fmt: skip
+             f"`warnings` of {table} holds them whole):", ""]  # fmt: skip
     for (variant, data, method, said), seeds in groups.items():
         seed_list = ", ".join(str(s) for s in seeds)
         lines.append(f"- {variant} / {data} / {method} / seed{'s' if len(seeds) > 1 else ''} "
@@ -151,6 +157,16 @@ def warnings_section(rows: Sequence[dict[str, object]]) -> list[str]:
         lines += [f"  - {m}" for m in said]
     lines.append("")
     return lines
+
+
+def with_warnings(text: str, rows: Sequence[dict[str, object]], table: str = "results.csv",
+                  title: str = "Cells with warnings") -> str:  # fmt: skip
+    """``text`` (a command's own report: ``ablation.md``, ``comparison.md``, ...) followed by
+    :func:`warnings_section` of ``rows``; ``text`` as it is when no cell gave warnings."""
+    lines = warnings_section(rows, table, title)
+    if not lines:
+        return text
+    return text.rstrip("\n") + "\n\n" + "\n".join(lines)
 
 
 def _shortened(message: str) -> str:

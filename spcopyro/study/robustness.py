@@ -36,6 +36,7 @@ from spcopyro.experiments.robustness import (
 from spcopyro.metrics import pairwise_chain_ari
 from spcopyro.study import STUDIES
 from spcopyro.study.maps import load_label_map
+from spcopyro.study.report import with_warnings
 from spcopyro.study.run import run_study
 from spcopyro.study.spec import DataSource, Study, load_study
 from spcopyro.study.table import TABLE, read_table
@@ -226,6 +227,10 @@ def write_robustness(
 
     plot_stability(stability, out / "figures" / "stability.png")
     markdown += "\n![stability](figures/stability.png)\n"
+    for study in (stability_study, sensitivity_study):  # the cells' warnings, as report.md
+        markdown = with_warnings(markdown, tables[study.name],
+                                 f"robustness/{study.name}/{TABLE}",
+                                 f"Cells with warnings: {study.name}")  # fmt: skip
     (out / "robustness.md").write_text(markdown)
     (out / "robustness.json").write_text(json.dumps(payload, indent=1) + "\n")
     return markdown

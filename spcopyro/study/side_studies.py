@@ -19,6 +19,7 @@ from pathlib import Path
 
 from spcopyro.experiments.studies import STUDY_CONFIG, SentenceScores, studies_markdown
 from spcopyro.study import STUDIES
+from spcopyro.study.report import with_warnings
 from spcopyro.study.run import run_study
 from spcopyro.study.spec import Study, load_study
 from spcopyro.study.table import TABLE, read_table
@@ -80,6 +81,10 @@ def write_studies(
             tops[variant.name] = json.loads(str(row["concept_words"]))
     scores = SentenceScores(share, tops)
     markdown = studies_markdown(ablation, scores, sweeps=sweeps, seeds=tuple(seeds))
+    for study in (modality, sentences):  # the cells' warnings, as each study's report.md
+        markdown = with_warnings(markdown, tables[study.name],
+                                 f"studies/{study.name}/{TABLE}",
+                                 f"Cells with warnings: {study.name}")  # fmt: skip
     out.mkdir(parents=True, exist_ok=True)
     (out / "studies.md").write_text(markdown)
     payload = {

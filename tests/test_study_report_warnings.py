@@ -1,0 +1,99 @@
+"""The commands' own reports (ablation.md, comparison.md, table.md, studies.md, robustness.md)
+list the cells whose fit gave warnings, as report.md does: results.csv had them in its column
+``warnings`` and these reports said nothing of them."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+
+import pytest
+
+from spcopyro.cli.main import main
+from spcopyro.study import evaluate
+from spcopyro.study.report import with_warnings
+from spcopyro.synthetic import HouseSpec
+
+SAID = "test: every cell warns this"
+SMALL = HouseSpec(height=30, width=40, num_rooms=2, num_open_plan=0, min_room_size=10)
+
+
+@pytest.fixture
+def warning_cells(monkeypatch):
+    """Every cell run in this process gives the warning :data:`SAID` (logger ``spcopyro``)."""
+    threads = evaluate.torch_threads
+
+    @contextlib.contextmanager
+    def warning(count):
+        logging.getLogger("spcopyro.test").warning(SAID)
+        with threads(count):
+            yield
+
+    monkeypatch.setattr(evaluate, "torch_threads", warning)
+
+
+def _listed(text: str, heading: str = "## Cells with warnings", table: str = "results.csv"):
+    assert f"{heading}\n\n" in text
+    assert f"gave warnings while fitted (column `warnings` of {table} holds them whole)" in text
+    assert f"  - {SAID}" in text
+
+
+def test_ablation_md_lists_the_cells_warnings(tmp_path, warning_cells, capsys):
+    out = tmp_path / "abl"
+    code = main(["ablation", "--out", str(out), "--quick", "--no-public", "--seeds", "1",
+                 "--houses", "dense", "--sweeps", "2", "--no-off", "--baselines",
+                 "--variant", "g:preset=original-code"])  # fmt: skip
+    assert code == 0
+    text = (out / "ablation.md").read_text()
+    _listed(text)
+    assert "- g / dense / gibbs / seed 0:" in text
+    assert text == (out / "ablation.md").read_text() and text in capsys.readouterr().out
+
+
+def test_comparison_md_lists_the_cells_warnings(tmp_path, warning_cells):
+    from spcopyro.experiments.inference_comparison import ComparisonSettings
+    from spcopyro.study.comparison import run_comparison
+
+    settings = ComparisonSettings(variants=("lbp",), seeds=1, house_types=("synthetic",),
+                                  quick=True, iterations={"lbp": 2})  # fmt: skip
+    run_comparison(tmp_path, settings)
+    text = (tmp_path / "comparison.md").read_text()
+    _listed(text)
+    assert "- lbp / synthetic / lbp / seed 0:" in text
+
+
+def test_the_experiments_table_md_lists_the_cells_warnings(tmp_path, warning_cells):
+    from spcopyro.study.experiment import EXPERIMENT_QUICK, experiment_study, run_experiment
+    from spcopyro.study.spec import load_study
+
+    study = experiment_study(load_study(EXPERIMENT_QUICK), public=False, methods=["A-dp"],
+                             seeds=1, sweeps=2)  # fmt: skip
+    run_experiment(tmp_path, study)
+    text = (tmp_path / "table.md").read_text()
+    _listed(text)
+    assert "- A-dp / synthetic / gibbs / seed 0:" in text
+
+
+def test_studies_md_lists_each_side_studys_warnings(tmp_path, warning_cells):
+    from spcopyro.study.side_studies import write_studies
+
+    markdown = write_studies(tmp_path, sweeps=2, seeds=(0,))
+    assert (tmp_path / "studies.md").read_text() == markdown
+    for name in ("modality", "sentences"):
+        _listed(markdown, f"## Cells with warnings: {name}", f"studies/{name}/results.csv")
+
+
+def test_robustness_md_lists_each_studys_warnings(tmp_path, warning_cells):
+    from spcopyro.study.robustness import write_robustness
+
+    markdown = write_robustness(tmp_path, sweeps=2, seeds=(0,), chains=2, spec=SMALL)
+    assert (tmp_path / "robustness.md").read_text() == markdown
+    for name in ("stability", "sensitivity"):
+        _listed(markdown, f"## Cells with warnings: {name}", f"robustness/{name}/results.csv")
+
+
+def test_a_report_without_warned_cells_is_unchanged():
+    rows = [{"variant": "a", "data": "d", "method": "gibbs", "seed": 0, "warnings": ""}]
+    assert with_warnings("# report\n", rows) == "# report\n"
+    rows[0]["warnings"] = '["careful"]'
+    assert with_warnings("# report\n", rows).startswith("# report\n\n## Cells with warnings\n")
