@@ -65,6 +65,44 @@ def test_predictive_draws_the_observations_under_uncondition_and_says_which_it_c
     assert torch.equal(draws["images"].sum(-1), whole.image_counts.sum(-1).expand(4, -1))
 
 
+def test_mcmc_summary_gives_pyros_table_of_the_float_sites_and_the_labels_entropy(capsys):
+    # Pyro's mcmc.summary() and mcmc.diagnostics() fail on the integer labels site (Pyro 1.9:
+    # "mean(): could not infer output dtype ... Got: Long"); the documented way out was to save
+    # no labels, losing them for Predictive. mcmc_summary gives both parts.
+    from pyro.infer.mcmc.util import summary
+
+    from spcopyro.gibbs import mcmc_summary
+
+    _, data = random_problem(seed=3)
+    cfg = config()
+    mcmc = MCMC(SpCoGibbs(), num_samples=8, warmup_steps=3, disable_progbar=True)
+    mcmc.run(data, cfg)
+    with pytest.raises(RuntimeError, match="Long"):  # what the helper is for
+        mcmc.summary()
+    result = mcmc_summary(mcmc)
+    samples = mcmc.get_samples(group_by_chain=True)
+    floats = {k: v for k, v in samples.items() if k != "labels"}
+    expected = summary(floats, prob=0.9)
+    assert set(result) == {*floats, "labels"}
+    for site, stats in expected.items():
+        for name, value in stats.items():
+            torch.testing.assert_close(result[site][name], value, equal_nan=True)
+    labels = samples["labels"][0]  # [8, N], one chain
+    for cell in range(data.num_free):
+        shares = torch.bincount(labels[:, cell]).double() / 8
+        shares = shares[shares > 0]
+        entropy = float(-(shares * shares.log()).sum())
+        assert float(result["labels"]["entropy"][0, cell]) == pytest.approx(entropy, abs=1e-12)
+        assert float(result["labels"]["mode_share"][0, cell]) == float(shares.max())
+    printed = capsys.readouterr().out
+    assert "r_hat" in printed and "log_joint" in printed
+    assert f"labels: {data.num_free} cells; each cell's label entropy" in printed
+    small = MCMC(SpCoGibbs(save_params=DEFAULT_SAVE_PARAMS), num_samples=4, disable_progbar=True)
+    small.run(data, cfg)
+    assert "labels" not in mcmc_summary(small, show=False)
+    assert capsys.readouterr().out == ""
+
+
 @pytest.mark.parametrize("counts", ["real", "whole"])
 def test_kernel_and_loss_say_what_an_unconditioned_model_does(counts):
     # SpCoGibbs(poutine.uncondition(model)) on real-valued counts (tf-idf words, image

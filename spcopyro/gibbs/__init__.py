@@ -14,7 +14,13 @@ per-cell math is shared with every other inference method in :mod:`spcopyro.like
 """
 
 from spcopyro.gibbs.hyper_options import HyperparameterOptions
-from spcopyro.gibbs.kernel import DEFAULT_SAVE_PARAMS, SpCoGibbs, mcmc_diagnostics
+from spcopyro.gibbs.kernel import (
+    DEFAULT_SAVE_PARAMS,
+    SpCoGibbs,
+    label_summary,
+    mcmc_diagnostics,
+    mcmc_summary,
+)
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsChain, GibbsRun, advance, run_gibbs, start_chain
 from spcopyro.gibbs.sampler import StepInfo, init, step
@@ -34,8 +40,10 @@ __all__ = [
     "gibbs_sweep",
     "init",
     "label_log_conditionals",
+    "label_summary",
     "log_joint",
     "mcmc_diagnostics",
+    "mcmc_summary",
     "run_gibbs",
     "start_chain",
     "step",

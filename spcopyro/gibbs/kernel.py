@@ -14,9 +14,10 @@ Pyro's MCMC driver and works around its habits:
 * MCMC concatenates every saved param into one float tensor per sample, so integer sites would come
   back as floats: the kernel's ``transforms`` map ``labels`` back to int64. Pyro 1.9's
   ``mcmc.diagnostics()`` and ``mcmc.summary()`` then crash on that integer site (they fill NaN
-  into an int tensor, take its mean), so use :func:`mcmc_diagnostics`, which gives ESS and split
-  R-hat of the float sites (a label's R-hat means nothing under label switching anyway;
-  ``num_concepts`` stays float for this), or save no labels (``save_params`` below).
+  into an int tensor, take its mean), so use :func:`mcmc_summary` (Pyro's table of the float
+  sites, and per-cell label entropies) and :func:`mcmc_diagnostics` (ESS and split R-hat of the
+  float sites: a label's R-hat means nothing under label switching anyway; ``num_concepts``
+  stays float for this), or save no labels (``save_params`` below).
 * MCMC keeps every saved param of every sample in memory: by default every site of the model
   (``labels`` -- N values a sample --, ``pi``, ``theta``, ``w``) and the diagnostics ``log_joint``
   and ``num_concepts`` are saved, so that Pyro's :class:`~pyro.infer.Predictive` conditions on the
@@ -36,6 +37,8 @@ import torch
 from pyro.infer import MCMC
 from pyro.infer.mcmc.mcmc_kernel import MCMCKernel
 from pyro.infer.mcmc.util import diagnostics as pyro_diagnostics
+from pyro.infer.mcmc.util import print_summary as pyro_print_summary
+from pyro.infer.mcmc.util import summary as pyro_summary
 
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.backends import get_backend
@@ -330,11 +333,9 @@ class SpCoGibbs(MCMCKernel):
         return {"sweeps": float(self._steps), "divergences": []}
 
 
-def mcmc_diagnostics(mcmc: MCMC) -> dict[str, dict[str, torch.Tensor]]:
-    """Pyro's per-site diagnostics (``n_eff``, ``r_hat``) of the floating-point sites only.
-
-    Split R-hat needs at least 4 samples a chain; fewer raise ValueError saying so (Pyro's own
-    check is a bare AssertionError)."""
+def _samples_by_chain(mcmc: MCMC) -> dict[str, torch.Tensor]:
+    """``mcmc.get_samples(group_by_chain=True)``; ValueError for fewer than 4 samples a chain
+    (split R-hat's minimum; Pyro's own check is a bare AssertionError)."""
     samples = mcmc.get_samples(group_by_chain=True)
     kept = min((v.shape[1] for v in samples.values()), default=0)  # [chains, samples, ...]
     if kept < 4:
@@ -342,4 +343,60 @@ def mcmc_diagnostics(mcmc: MCMC) -> dict[str, dict[str, torch.Tensor]]:
             f"diagnostics need at least 4 samples a chain (split R-hat), got {kept}: "
             "run MCMC with more num_samples"
         )
+    return samples
+
+
+def mcmc_diagnostics(mcmc: MCMC) -> dict[str, dict[str, torch.Tensor]]:
+    """Pyro's per-site diagnostics (``n_eff``, ``r_hat``) of the floating-point sites only.
+
+    Split R-hat needs at least 4 samples a chain; fewer raise ValueError saying so (Pyro's own
+    check is a bare AssertionError)."""
+    samples = _samples_by_chain(mcmc)
     return pyro_diagnostics({k: v for k, v in samples.items() if torch.is_floating_point(v)})
+
+
+def label_summary(labels: torch.Tensor) -> dict[str, torch.Tensor]:
+    """Per-cell statistics of label samples ``[chains, samples, N]`` (int), each chain's own:
+    ``entropy`` ``[chains, N]``, the entropy (nats) of the cell's labels over the chain's
+    samples (0: one label throughout; log L at most), and ``mode_share`` ``[chains, N]``, the
+    share of the samples in the cell's most frequent label. Both are free of label switching
+    (they ignore which number a concept has), unlike a mean or an R-hat of the labels; compare
+    them between chains to see whether the chains settled the same cells."""
+    chains, draws, cells = labels.shape
+    width = int(labels.max()) + 1 if labels.numel() else 1
+    counts = torch.zeros(chains, cells, width, dtype=torch.float64)
+    counts.scatter_add_(2, labels.transpose(1, 2).long(), torch.ones(chains, cells, draws).double())
+    share = counts / draws  # [chains, N, L]
+    logs = torch.where(share > 0, share.log(), torch.zeros_like(share))
+    return {"entropy": -(share * logs).sum(-1), "mode_share": share.amax(-1)}
+
+
+def mcmc_summary(mcmc: MCMC, prob: float = 0.9, show: bool = True) -> dict[str, dict]:
+    """``mcmc.summary()`` for an MCMC run of :class:`SpCoGibbs`, which Pyro's cannot give (its
+    ``summary()`` and ``diagnostics()`` fail on the integer ``labels`` site: Pyro 1.9 fills NaN
+    into an int tensor).
+
+    Returns Pyro's per-site statistics (``mean``, ``std``, ``median``, the ``prob`` interval,
+    ``n_eff``, ``r_hat``: :func:`pyro.infer.mcmc.util.summary`) of the floating-point sites
+    and, where the labels were saved, :func:`label_summary` of them under ``labels``; with
+    ``show`` (the default) prints Pyro's table of the former and one line for the labels. Judge
+    R-hat by the label-invariant sites (``log_joint``, ``num_concepts``): a concept's ``pi``
+    entry may belong to another region in another chain. At least 4 samples a chain
+    (ValueError otherwise)."""
+    samples = _samples_by_chain(mcmc)
+    floats = {k: v for k, v in samples.items() if torch.is_floating_point(v)}
+    result: dict[str, dict] = pyro_summary(floats, prob=prob, group_by_chain=True)
+    if show and floats:
+        pyro_print_summary(floats, prob=prob, group_by_chain=True)
+    if SITE_LABELS in samples:
+        labels = label_summary(samples[SITE_LABELS])
+        result[SITE_LABELS] = labels
+        if show:
+            entropy, settled = labels["entropy"].mean(0), labels["mode_share"] >= 0.9
+            print(
+                f"labels: {entropy.shape[0]} cells; each cell's label entropy over the samples "
+                f"(nats, mean over {labels['entropy'].shape[0]} chain(s)): median "
+                f"{float(entropy.median()):.3f}, max {float(entropy.max()):.3f}; one label in "
+                f">= 90 % of the samples in {int(settled.all(0).sum())} cells (in every chain)"
+            )
+    return result
