@@ -499,3 +499,21 @@ def test_the_stability_log_joint_legend_stands_below_its_panel():
     legend = right.get_legend()
     assert [t.get_text() for t in legend.get_texts()] == list(names)
     assert not _overlaps_an_axes(fig, legend)
+
+
+def test_a_per_cell_map_at_its_top_is_not_as_dark_as_a_wall():
+    """agreement.png drew a default fit's free cells (agreement near 1) in Greens' darkest
+    green, L* 24, beside black walls: the map one dark mass. uncertainty.png's and where's
+    probability maps shared the colour maps' dark ends. Their top colour is as light as
+    navigate.png's (L* >= 40)."""
+    from hand_results import two_rooms
+
+    from spcopyro.figures.plotting import _cell_values_figure
+
+    result = two_rooms()
+    values = np.ones(result.grid.num_free)
+    for cmap in ("Greens", "Blues", "YlOrRd"):
+        fig = _cell_values_figure(result, values, title="t", label="p", vmax=1.0, cmap=cmap)
+        (image,) = fig.axes[0].images[1:]  # over the map's own image
+        top = np.round(np.array(image.cmap(1.0)[:3]) * 255).astype(np.uint8)
+        assert srgb_to_lab(top[None])[0, 0] >= 40, (cmap, top)

@@ -20,7 +20,9 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
+from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
@@ -395,20 +397,37 @@ def _plot_cell_values(
     vmax: float,
     cmap: str,
 ) -> Path:
+    """Write :func:`_cell_values_figure` to ``path``."""
+    return _save(_cell_values_figure(result, values, title=title, label=label, vmax=vmax,
+                                     cmap=cmap), path)  # fmt: skip
+
+
+CELL_VALUES_TOP = 0.75
+"""The per-cell maps (uncertainty.png, agreement.png, where's probability) use their colour map
+up to this fraction: its darkest colours (Greens' at 1.0 of L* 24) beside the black walls made a
+map of agreement near 1 one dark mass (as navigate.png's PROBABILITY_CMAP, Blues up to 0.7)."""
+
+
+def _cell_values_figure(
+    result: SpCoResult, values: np.ndarray, *, title: str, label: str, vmax: float, cmap: str
+) -> Figure:
     """``[N]`` per-free-cell ``values`` as a colour map over the grid (walls black, unknown
-    grey), with a colour bar."""
+    grey), with a colour bar; ``cmap`` a matplotlib colour map's name, used up to
+    :data:`CELL_VALUES_TOP`."""
+    colours = colormaps[cmap](np.linspace(0.0, CELL_VALUES_TOP, 256))  # [256, 4]
+    light = ListedColormap(colours, f"{cmap}_0_{round(100 * CELL_VALUES_TOP)}")
     grid = result.grid
     rgb = render_labels(np.full(grid.shape, -1), grid, np.zeros((1, 3), dtype=np.uint8))
     fig, axes, _, strips = map_axes(grid, rgb, (9, 8))  # a long map in strips
     rows, cols = known_bounds(grid)
     image = free_cells_image(result, values)[rows, cols]  # [h, w], NaN off free space
     for ax in axes:
-        shown = ax.imshow(image, extent=_extent(grid, rows, cols), origin="upper", cmap=cmap,
+        shown = ax.imshow(image, extent=_extent(grid, rows, cols), origin="upper", cmap=light,
                           vmin=0.0, vmax=vmax, interpolation="nearest")  # fmt: skip
     fig.colorbar(shown, cax=axes[-1].inset_axes((1.03, 0.0, 0.03, 1.0)),  # the map's height
                  label=label)  # fmt: skip
     axes[0].set_title(title + strips)
-    return _save(fig, path)
+    return fig
 
 
 _CHAINS = ("gibbs", "vi-gibbs")
