@@ -93,15 +93,32 @@ def test_a_word_answered_for_another_says_which(fit, tmp_path, capsys, word):
     assert main(["where", fit, "--", word]) == 0
     captured = capsys.readouterr()
     assert "'kitchen' is concept" in captured.out
-    assert f"warning: {word!r} is not a word of the vocabulary: answered for 'kitchen'" in (
+    assert f"warning: {word!r} is not a word of the vocabulary: read as 'kitchen'" in (
         captured.err
     ), captured.err
     assert main(["export", fit, "--nav2", str(tmp_path / "nav2"), f"--word={word}"]) == 0
     captured = capsys.readouterr()
     assert "keepout mask for 'kitchen'" in captured.out
-    assert f"warning: {word!r} is not a word of the vocabulary: answered for 'kitchen'" in (
+    assert f"warning: {word!r} is not a word of the vocabulary: read as 'kitchen'" in (
         captured.err
     ), captured.err
+
+
+def test_a_place_of_an_instruction_read_as_another_word_says_which(tmp_path, capsys):
+    """navigate shows a place as the instruction spells it ('-corridor'), and plans the fit's
+    word it is read as ('corridor'): it says so, as where and export do."""
+    from test_navigate import START_A, house_result
+
+    fit = str(house_result().save(tmp_path / "fit"))
+    start = f"--start={START_A[0]},{START_A[1]}"
+    assert main(["navigate", fit, start, "--", "go to the -corridor"]) == 0
+    captured = capsys.readouterr()
+    assert "instruction 'go to the -corridor': -corridor" in captured.out
+    assert "warning: '-corridor' is not a word of the vocabulary: read as 'corridor'" in (
+        captured.err
+    ), captured.err
+    assert main(["navigate", fit, start, "go to the Corridor"]) == 0
+    assert "is not a word of the vocabulary" not in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("word", ["kitchen", "Kitchen", " KITCHEN ", "ｋｉｔｃｈｅｎ"])

@@ -87,7 +87,7 @@ def other_word_note(given: str, looked_up: str) -> str | None:
     if fold_word(given.strip()) == fold_word(looked_up):
         return None
     return (
-        f"{given!r} is not a word of the vocabulary: answered for {looked_up!r}, the word "
+        f"{given!r} is not a word of the vocabulary: read as {looked_up!r}, the word "
         "without the punctuation (or invisible characters) at its ends, as the data's words "
         "are read"
     )

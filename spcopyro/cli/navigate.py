@@ -86,6 +86,12 @@ def _plan_and_print(
     if plan.instruction.ignored:
         print(f"warning: ignored (not in the fit's vocabulary, nothing close): "
               f"{', '.join(plan.instruction.ignored)}", file=sys.stderr)  # fmt: skip
+    from spcopyro.cli.common import other_word_note
+
+    for stop in plan.stops:  # "go to the -tv": planned for tv, and it says so
+        note = other_word_note(stop.shown, stop.word)
+        if note:
+            print(f"warning: {note}", file=sys.stderr)
     order = " -> ".join(f"{s.shown}{' (via)' if s.via else ''}" for s in plan.stops)
     print(f"instruction {plan.instruction.text!r}: {order}")
     for stop in plan.stops:
