@@ -214,3 +214,27 @@ def test_a_passage_is_drawn_along_free_cells_not_across_a_wall():
     assert grid.is_free(grid.world_to_cell(markers.get_offsets())).all()
     (e,) = graph.passages
     assert np.allclose(points[[0, -1]], markers.get_offsets()[[e.a, e.b]])  # marker to marker
+
+
+def test_navigate_png_colour_bar_is_as_tall_as_the_map():
+    """navigate.png of one map drew its colour bar at 0.8 of the figure's height: on a wide
+    house it stood well above and below the map (the strips' and the per-cell maps' colour
+    bars are as tall as the map beside them)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from test_navigate import START_A, house_result
+
+    from spcopyro.robot.navigation import navigate
+    from spcopyro.robot.navigation.figure import plan_figure
+
+    fig = plan_figure(navigate(house_result(), "go to the kitchen", START_A))
+    FigureCanvasAgg(fig).draw()
+    axes = [ax for ax in fig.axes if not ax.get_ylabel().startswith("p(")]
+    assert len(axes) == 1
+    (ax,) = axes
+    bars = [a for a in [*fig.axes, *ax.child_axes] if a.get_ylabel().startswith("p(")]
+    assert len(bars) == 1
+    renderer = fig.canvas.get_renderer()
+    map_box, bar_box = ax.get_window_extent(renderer), bars[0].get_window_extent(renderer)
+    assert abs(bar_box.y0 - map_box.y0) <= 1 and abs(bar_box.y1 - map_box.y1) <= 1, (
+        map_box, bar_box)  # fmt: skip
+    assert bar_box.x0 >= map_box.x1  # beside it

@@ -68,7 +68,8 @@ def plan_figure(plan: NavigationPlan) -> Figure:
     is drawn in strips at one scale (:func:`~spcopyro.figures.map_axes.map_axes`): the
     probability, the route's outline, the path and the markers on every strip (each clipped to
     its own stretch, so the path runs on from one strip to the next), a stop's name on the strip
-    showing it (:func:`_showing`), the colour bar beside the last strip, the legend below it."""
+    showing it (:func:`_showing`), the colour bar beside the map (the last strip) and as tall,
+    the legend below it."""
     grid = plan.planning.grid
     rgb = render_labels(np.full(grid.shape, -1), grid, np.zeros((1, 3), dtype=np.uint8))
     fig, axes, _, strips = map_axes(grid, rgb, (9, 8))
@@ -89,8 +90,6 @@ def plan_figure(plan: NavigationPlan) -> Figure:
         shown = ax.imshow(image[rows, cols], extent=extent, origin="upper",
                           cmap=PROBABILITY_CMAP, vmin=0.0, vmax=1.0,
                           interpolation="nearest")  # fmt: skip
-        if len(axes) == 1:
-            fig.colorbar(shown, ax=ax, label=label, shrink=0.8)
         if region is not None:
             draw_outline(ax, grid, region, rows, cols, extent, colors=[ROUTE_RGB],
                          linewidths=2.0)  # fmt: skip
@@ -111,8 +110,9 @@ def plan_figure(plan: NavigationPlan) -> Figure:
     for stop in plan.stops[:-1]:  # its name once, on the strip showing it (_showing)
         _showing(axes, *stop.xy).annotate(stop.shown, stop.xy, xytext=(5, 5),
                                           textcoords="offset points", fontsize=9)  # fmt: skip
-    if len(axes) > 1:  # beside the last strip, as tall as it
-        fig.colorbar(shown, cax=axes[-1].inset_axes((1.02, 0.0, 0.025, 1.0)), label=label)
+    # beside the map or the last strip, as tall as it (shrink=0.8 of the figure stood above
+    # and below a wide map)
+    fig.colorbar(shown, cax=axes[-1].inset_axes((1.02, 0.0, 0.025, 1.0)), label=label)
     # below the map (the colour bar is beside it): loc="best" weighs the lines, not the map,
     # and put the legend over a room
     map_legend(axes[-1], axes[0].get_legend_handles_labels()[0], below=True, columns=2,
