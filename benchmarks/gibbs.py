@@ -24,6 +24,8 @@ measures, in one run:
    free cells at L = 120, and L in (10, 120, 500) at ~1e5 cells: ms per sweep and ns per cell.
 4. **Quality against time**: adjusted Rand index of the label map against the ground truth of the
    default synthetic house after 10, 100, 1000, 5000 sweeps, with the cumulative seconds.
+   Sections 3 and 4 run each map under ``spcopyro fit``'s thread policy (one torch thread below
+   50,000 free cells, torch's own count above; ``--torch-threads N``: N), printed per row.
 5. **Run loop against kernel** (issue 15): per preset, 5000 sweeps of the bare compiled sweep
    against a 5000-sweep ``run_gibbs`` of the same chain (:mod:`gibbs_run_loop`).
 6. **Whole fits** (issue 15): ``spcopyro fit`` of room2ldk4 for 5000 sweeps in a fresh process
@@ -456,7 +458,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         "--torch-threads",
         type=COUNT,
         default=None,
-        help="torch.set_num_threads for this run and the headline subprocess (default: torch's)",
+        help="torch.set_num_threads for this run and the headline subprocess (default: torch's; "
+        "the scaling and quality rows: fit's thread policy unless given)",
     )
     parser.add_argument(
         "--wait-idle",
@@ -538,6 +541,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     else:
         fastest = headline_entry["fastest_backend"]
     results["fastest_backend"] = fastest
+    # The scaling and quality rows: fit's thread policy, or --torch-threads's count where given.
+    threads: int | str = "auto" if args.torch_threads is None else args.torch_threads
+    results["scaling_threads"] = threads
 
     with measure_contention(contention, "headline", args.wait_idle):
         results["headline"] = _try(
@@ -552,9 +558,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     with measure_contention(contention, "chains", args.wait_idle):
         results["chains"] = bench_chains(dataset, headline_house, compiled, sizes)
     with measure_contention(contention, "scaling", args.wait_idle):
-        results["scaling"] = bench_scaling(dataset, backends, sizes)
+        results["scaling"] = bench_scaling(dataset, backends, sizes, threads)
     with measure_contention(contention, "quality", args.wait_idle):
-        results["quality"] = bench_quality(fastest, sizes)
+        results["quality"] = bench_quality(fastest, sizes, threads)
     results["targets"] = evaluate_targets(results)
     results["total_s"] = time.perf_counter() - started
     results["out"] = str(out_path)

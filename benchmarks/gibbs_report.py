@@ -7,6 +7,8 @@ from typing import Any
 from bench_setup import HEADLINE_HOUSE
 from machine import format_table
 
+from spcopyro._util.threads import MIN_CELLS_FOR_MORE_THREADS
+
 PRESET = "paper-dp"
 
 # Issue 7's targets on a 2-core machine.
@@ -176,6 +178,16 @@ def evaluate_targets(results: dict[str, Any]) -> list[dict[str, Any]]:
     return targets
 
 
+def _threads_note(threads: int | str | None) -> str:
+    """The thread policy the scaling and quality rows ran under (``results["scaling_threads"]``)."""
+    if threads is None:
+        return "torch threads: not recorded (torch's default count)"
+    if threads == "auto":
+        return (f"torch threads: spcopyro fit's policy (1 below {MIN_CELLS_FOR_MORE_THREADS} free "
+                "cells, torch's own count above), as the whole fits")  # fmt: skip
+    return f"torch threads: {threads} (--torch-threads)"
+
+
 def render(results: dict[str, Any]) -> str:
     """The plain-text report printed to stdout."""
     info = results["machine"]
@@ -296,12 +308,13 @@ def render(results: dict[str, Any]) -> str:
             continue
         out.append("")
         out.append(f"== {title.format(**entries[0])} ==")  # the map actually timed
-        headers = ["map", "free cells", "obs cells", "L"]
+        out.append(_threads_note(results.get("scaling_threads")))
+        headers = ["map", "free cells", "obs cells", "L", "torch threads"]
         headers += [h for b in backends for h in (f"{b} ms/sweep", f"{b} ns/cell")]
         rows = []
         for e in entries:
             row = [e["map"], str(e["free_cells"]), str(e["observed_cells"])]
-            row.append(str(e["num_concepts"]))
+            row += [str(e["num_concepts"]), str(e.get("torch_threads", "?"))]
             for b in backends:
                 r = e["backends"].get(b)
                 row += [_ms(r), _ms(r, "ns_per_cell", 1)]
@@ -314,7 +327,8 @@ def render(results: dict[str, Any]) -> str:
         out.append("")
         out.append(
             f"== Quality vs time: default synthetic house ({q0['free_cells']} cells, "
-            f"{q0['true_categories']} categories), L={q0['num_concepts']}, {q0['backend']} =="
+            f"{q0['true_categories']} categories), L={q0['num_concepts']}, {q0['backend']}, "
+            f"{q0.get('torch_threads', '?')} torch thread(s) =="
         )
         rows = []
         for q in quality:

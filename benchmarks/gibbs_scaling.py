@@ -1,6 +1,12 @@
 """``benchmarks/gibbs.py``'s scaling and quality sections: ms per sweep against the number of
 free cells and against L (:func:`bench_scaling`), and the ARI of the default synthetic house
-after some sweeps (:func:`bench_quality`)."""
+after some sweeps (:func:`bench_quality`).
+
+Both run each map under the thread policy ``spcopyro fit`` uses (``threads="auto"``,
+:func:`spcopyro._util.threads.resolve_threads`: one torch thread below
+:data:`~spcopyro._util.threads.MIN_CELLS_FOR_MORE_THREADS` free cells, torch's own count above),
+as the whole fits and the chains of ``gibbs.py`` do, or under ``gibbs.py --torch-threads``'s count
+where it is given; each row records the count it ran with (``torch_threads``)."""
 
 from __future__ import annotations
 
@@ -13,6 +19,7 @@ from bench_setup import HEADLINE_HOUSE, SEED, _try, make_problem, synthetic_hous
 from gibbs_report import PRESET
 from machine import progress
 
+from spcopyro._util.threads import AUTO, resolve_threads, torch_threads
 from spcopyro.config import SpCoSettings, preset
 from spcopyro.data import House, load_house
 from spcopyro.gibbs import GibbsOptions, GibbsState, run_gibbs
@@ -25,7 +32,7 @@ __all__ = ["bench_quality", "bench_scaling"]
 
 
 def bench_scaling(
-    dataset: Path | None, backends: Sequence[str], sizes: BenchSizes
+    dataset: Path | None, backends: Sequence[str], sizes: BenchSizes, threads: int | str = AUTO
 ) -> dict[str, list[dict[str, Any]]]:
     """ms per sweep against the number of free cells (L = 120) and against L (~1e5 cells).
 
@@ -78,22 +85,26 @@ def bench_scaling(
             "num_concepts": config.num_concepts,
             "backends": {},
         }
-        for backend in backends:
-            progress(
-                f"[scaling] {map_name}, {problem.data.num_free} cells, "
-                f"L={config.num_concepts}: {backend}"
-            )
-            entry["backends"][backend] = _try(
-                f"scaling {map_name} L={config.num_concepts} {backend}",
-                lambda b=backend, p=problem: time_backend(
-                    p, b, warmup=2, budget_s=sizes.scaling_budget_s
-                ),
-            )
+        with torch_threads(resolve_threads(threads, problem.data.num_free)) as used:
+            entry["torch_threads"] = used
+            for backend in backends:
+                progress(
+                    f"[scaling] {map_name}, {problem.data.num_free} cells, "
+                    f"L={config.num_concepts}: {backend}, {used} torch thread(s)"
+                )
+                entry["backends"][backend] = _try(
+                    f"scaling {map_name} L={config.num_concepts} {backend}",
+                    lambda b=backend, p=problem: time_backend(
+                        p, b, warmup=2, budget_s=sizes.scaling_budget_s
+                    ),
+                )
         series[kind].append(entry)
     return series
 
 
-def bench_quality(backend: str, sizes: BenchSizes) -> list[dict[str, Any]]:
+def bench_quality(
+    backend: str, sizes: BenchSizes, threads: int | str = AUTO
+) -> list[dict[str, Any]]:
     """ARI against the ground truth of the default synthetic house after some sweeps."""
     from sklearn.metrics import adjusted_rand_score
 
@@ -113,15 +124,16 @@ def bench_quality(backend: str, sizes: BenchSizes) -> list[dict[str, Any]]:
                 saved[sweep + 1] = state.labels.numpy().copy()
 
         progress(f"[quality] gamma={config.gamma:g}: {checkpoints[-1]} sweeps, {backend}")
-        run = run_gibbs(
-            problem.data,
-            config,
-            checkpoints[-1],
-            options=GibbsOptions(backend=backend),
-            seed=SEED,
-            progress=False,
-            callback=keep,
-        )
+        with torch_threads(resolve_threads(threads, problem.data.num_free)) as used:
+            run = run_gibbs(
+                problem.data,
+                config,
+                checkpoints[-1],
+                options=GibbsOptions(backend=backend),
+                seed=SEED,
+                progress=False,
+                callback=keep,
+            )
         points = [
             {
                 "sweeps": sweeps,
@@ -138,6 +150,7 @@ def bench_quality(backend: str, sizes: BenchSizes) -> list[dict[str, Any]]:
                 "critical_gamma": config.critical_gamma,
                 "num_concepts": config.num_concepts,
                 "backend": backend,
+                "torch_threads": used,
                 "free_cells": problem.data.num_free,
                 "labelled_cells": int(labelled.sum()),
                 "true_categories": int(np.unique(truth[labelled]).size),

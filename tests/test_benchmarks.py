@@ -1015,3 +1015,49 @@ def test_readme_lists_every_script_with_command_lines_that_parse(script, monkeyp
         with pytest.raises(_Parsed) as got:
             script(name).main(rest.split())
         assert got.value.args[0][1] == [], (name, rest)
+
+
+def test_gibbs_scaling_and_quality_rows_run_under_fits_thread_policy(script, monkeypatch):
+    """gibbs.py's scaling and quality rows ran with torch's default thread count (one a core:
+    noisy next to other work on a 2-core machine) while its whole fits and chains ran under
+    fit's policy (one thread below 50,000 free cells); each row now runs under the policy and
+    records and prints its count."""
+    import torch
+
+    gibbs = script("gibbs")
+    scaling = script("gibbs_scaling")
+    seen = []
+
+    def timed(problem, backend, **kwargs):
+        seen.append(torch.get_num_threads())
+        return {"ms_per_iteration": 1.0, "ns_per_cell": 1.0}
+
+    def run(*args, **kwargs):
+        seen.append(torch.get_num_threads())
+        raise _Measuring
+
+    monkeypatch.setattr(scaling, "time_backend", timed)
+    monkeypatch.setattr(scaling, "run_gibbs", run)
+    previous = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        series = scaling.bench_scaling(None, ["torch"], gibbs.QUICK)
+        assert torch.get_num_threads() == 2  # restored after each map
+        with pytest.raises(_Measuring):
+            scaling.bench_quality("torch", gibbs.QUICK)
+        assert seen == [1] * (
+            len(gibbs.QUICK.scaling_sides) + len(gibbs.QUICK.scaling_num_concepts) + 1
+        ), seen
+        assert [e["torch_threads"] for e in series["cells"]] == [1, 1], series
+        assert (
+            scaling.bench_scaling(None, ["torch"], gibbs.QUICK, 2)["cells"][0]["torch_threads"] == 2
+        )
+    finally:
+        torch.set_num_threads(previous)
+    machine = {"date": "-", "cpu_model": "-", "cpus_usable": 2, "torch": "-", "torch_threads": 2,
+               "numba": "-"}  # fmt: skip
+    results = {"machine": machine, "backends": ["torch"], "backend_notes": {}, "quick": True,
+               "dataset": None, "houses": [], "scaling": series, "scaling_threads": "auto",
+               "total_s": 1.0, "out": "-"}  # fmt: skip
+    text = script("gibbs_report").render(results)
+    assert "spcopyro fit's policy" in text and "torch threads" in text, text
