@@ -153,6 +153,8 @@ def test_the_where_legend_counts_a_one_cell_runner_up_as_one_cell():
         texts = [t.get_text() for t in legend.get_texts()]
         runner = next(t for t in texts if t.startswith("runner-up"))
         assert runner.endswith("(1 cell)"), texts
+        answer_text = next(t for t in texts if t.startswith("answer"))
+        assert answer_text.endswith(" m²)"), texts  # as graph.png's areas, not "m^2"
 
 
 def test_a_figure_path_without_a_suffix_is_written_and_told_as_png(tmp_path, capsys):

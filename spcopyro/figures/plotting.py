@@ -349,7 +349,7 @@ def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
                        linewidths=1.5, zorder=3)  # fmt: skip
     answer_handle.set_label(
         f"answer: concept {answer.concept}, p = {answer.probability:.3f} "
-        f"({plural(cells, 'cell')}, {cells * area:.2f} m^2)"
+        f"({plural(cells, 'cell')}, {cells * area:.2f} m²)"
     )
     handles.append(answer_handle)
     if runner is not None:
