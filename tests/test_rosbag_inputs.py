@@ -16,7 +16,7 @@ pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip inst
 from spcopyro.cli.main import main  # noqa: E402
 from spcopyro.maps.grid import FREE, OccupancyGrid  # noqa: E402
 from spcopyro.maps.map_server import save_map  # noqa: E402
-from spcopyro.robot.rosbag import BagWriter, ImportOptions, import_bags  # noqa: E402
+from spcopyro.robot.rosbag import BagFormatError, BagWriter, ImportOptions, import_bags  # noqa: E402
 from spcopyro.robot.rosbag.images import to_8_bits  # noqa: E402
 
 T0 = 1_600_000_000.0
@@ -211,3 +211,38 @@ def test_a_simulator_recording_with_unstamped_images_and_poses(tmp_path, map_yam
     (counts,) = report.trials
     assert counts["images_kept"] == 4 and counts["unstamped_moved_to_stamp_clock"] == 2
     assert counts["images_out_of_order"] == 0 and counts["poses_out_of_order"] == 0
+
+
+def test_each_bag_is_opened_once_and_an_unreadable_message_names_its_own_bag(
+    tmp_path, map_yaml, monkeypatch
+):
+    """The import opened every bag twice, once to find its topics and again to read them; now
+    the reader that was checked is the one read. With several bags open at once, rosbags'
+    error for a message of the first bag is still said for the first bag, not the last."""
+    from rosbags.highlevel import AnyReaderError
+
+    from spcopyro.robot.rosbag import importer
+
+    bags = [_basic_bag(tmp_path / "one"), _basic_bag(tmp_path / "two")]
+    opened: list[str] = []
+    open_bag = importer.open_bag
+
+    def counting(path, *args):
+        opened.append(Path(path).name)
+        return open_bag(path, *args)
+
+    monkeypatch.setattr(importer, "open_bag", counting)
+    report = import_bags(bags, map_yaml, tmp_path / "d" / "h", progress=False)
+    assert [t["images_kept"] for t in report.trials] == [1, 1]
+    assert opened == ["one", "two"]
+    read_stamps = importer.read_stamps
+
+    def unreadable(reader, topic):
+        if Path(reader.paths[0]).name == "one":
+            raise AnyReaderError("a message of one")
+        return read_stamps(reader, topic)
+
+    monkeypatch.setattr(importer, "read_stamps", unreadable)
+    with pytest.raises(BagFormatError, match=r"one: unreadable message \(a message of one\)$"):
+        import_bags(bags, map_yaml, tmp_path / "d" / "h2", progress=False)
+    assert not (tmp_path / "d" / "h2").exists()

@@ -194,11 +194,21 @@ def open_bag(path: str | os.PathLike[str], ros_distro: str = DEFAULT_ROS_DISTRO)
         known = reader.typestore.fielddefs
         reader.typestore.register({k: v for k, v in store.fielddefs.items() if k not in known})
     try:
-        yield reader
-    except highlevel.AnyReaderError as error:  # a message that does not deserialise
-        raise BagFormatError(f"{path}: unreadable message ({error})") from None
+        with reading_errors(path):
+            yield reader
     finally:
         reader.close()
+
+
+@contextmanager
+def reading_errors(path: str | os.PathLike[str]) -> Iterator[None]:
+    """rosbags' error for a message that does not deserialise as a :class:`BagFormatError`
+    naming the bag ``path`` (:func:`open_bag` reads its bag in one; a reader of several bags
+    open at once reads each in its own, so that none is named for another's message)."""
+    try:
+        yield
+    except _rosbags().AnyReaderError as error:
+        raise BagFormatError(f"{path}: unreadable message ({error})") from None
 
 
 def _messages(
@@ -259,7 +269,7 @@ def _topic_listing(reader: Any) -> str:
     return ", ".join(f"{name} ({info.msgtype})" for name, info in sorted(reader.topics.items()))
 
 
-def _connections(reader: Any, topic: str, allowed: tuple[str, ...], role: str) -> list[Any]:
+def topic_connections(reader: Any, topic: str, allowed: tuple[str, ...], role: str) -> list[Any]:
     """The connections of ``topic`` (with or without its leading ``/``: a name without one is
     resolved in the root namespace, as a ROS node there would); BagContentError if it is absent
     (listing the bag's topics and types) or of a type not in ``allowed``."""
@@ -348,7 +358,7 @@ def read_pose_topic(reader: Any, topic: str) -> PoseTrack:
 
     A topic whose messages name two different frames is a :class:`BagContentError`: its
     samples could not be interpolated into one another."""
-    connections = _connections(reader, topic, POSE_TYPES, "pose")
+    connections = topic_connections(reader, topic, POSE_TYPES, "pose")
     times: list[float] = []
     poses: list[tuple[float, float, float]] = []
     clock: list[tuple[float, float]] = []
@@ -418,7 +428,7 @@ def _tf_tracks(reader: Any) -> dict[tuple[str, str], PoseTrack] | None:
     topics = [t for t in ("/tf", "/tf_static", "tf", "tf_static") if t in reader.topics]
     if not topics:
         return None
-    connections = [c for t in topics for c in _connections(reader, t, TF_TYPES, "tf")]
+    connections = [c for t in topics for c in topic_connections(reader, t, TF_TYPES, "tf")]
     samples: dict[tuple[str, str], tuple[list[float], list[tuple[float, float, float]]]] = {}
     numbers: dict[tuple[str, str], list[int]] = {}  # each sample's message number on /tf
     clocks: dict[tuple[str, str], list[tuple[float, float]]] = {}
@@ -535,7 +545,7 @@ class TopicData:
 def read_stamps(reader: Any, topic: str) -> TopicData:
     """The stamps of an image topic's messages, in bag order, which need not be the stamps'
     (the images are decoded later, only those kept)."""
-    connections = _connections(reader, topic, IMAGE_TYPES, "image")
+    connections = topic_connections(reader, topic, IMAGE_TYPES, "image")
     times, stamped = [], []
     for _, _connection, log_ns, msg in _messages(reader, connections, topic):
         t, has_stamp = _stamp(msg, log_ns)
@@ -553,7 +563,7 @@ def read_stamps(reader: Any, topic: str) -> TopicData:
 
 def read_texts(reader: Any, topic: str) -> TopicData:
     """The strings of a std_msgs/String topic, at the times the bag recorded them."""
-    connections = _connections(reader, topic, TEXT_TYPES, "utterance")
+    connections = topic_connections(reader, topic, TEXT_TYPES, "utterance")
     times, texts = [], []
     for _, _connection, log_ns, msg in _messages(reader, connections, topic):
         times.append(_stamp(msg, log_ns)[0])
@@ -566,7 +576,7 @@ def read_texts(reader: Any, topic: str) -> TopicData:
 
 def iter_images(reader: Any, topic: str, keep: set[int]) -> Iterator[tuple[int, Any]]:
     """``(index, message)`` of the image messages whose index (bag order) is in ``keep``."""
-    connections = _connections(reader, topic, IMAGE_TYPES, "image")
+    connections = topic_connections(reader, topic, IMAGE_TYPES, "image")
     for index, _connection, _log_ns, msg in _messages(reader, connections, topic, keep):
         if index in keep:
             yield index, msg

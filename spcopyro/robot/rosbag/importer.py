@@ -60,6 +60,7 @@ import shutil
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -74,7 +75,6 @@ from spcopyro.robot.rosbag.bag import (
     ROS_DISTROS,
     TEXT_TYPES,
     BagContentError,
-    _connections,
     _frame,
     _rosbags,
     check_tf_topics,
@@ -84,6 +84,8 @@ from spcopyro.robot.rosbag.bag import (
     read_stamps,
     read_texts,
     read_tf_chain,
+    reading_errors,
+    topic_connections,
 )
 from spcopyro.robot.rosbag.house_folder import MARKER, check_map, check_out, replace_out
 from spcopyro.robot.rosbag.images import SENSOR_BITS, ImageDecodeError, encoded_image
@@ -321,19 +323,20 @@ def _check_distinct(bags: Sequence[str | os.PathLike[str]]) -> None:
                 )
 
 
-def _check_bag(bag: Path, options: ImportOptions) -> None:
-    """Open ``bag`` and find its topics, reading no message: FileNotFoundError,
-    BagFormatError or BagContentError (as :func:`_import_one` would raise them, later)."""
-    with open_bag(bag, options.ros_distro) as reader:
-        if options.pose_tf:
-            check_tf_topics(reader, *options.pose_tf)
-        else:
-            _connections(reader, options.pose_topic, POSE_TYPES, "pose")
-        _connections(reader, options.image_topic, IMAGE_TYPES, "image")
-        _connections(reader, options.words_topic, TEXT_TYPES, "utterance")
+def _check_bag(reader: Any, options: ImportOptions) -> Any:
+    """``reader`` (an open bag) once its topics are found, reading no message; BagContentError
+    (as :func:`_import_one` would raise it, later) otherwise."""
+    if options.pose_tf:
+        check_tf_topics(reader, *options.pose_tf)
+    else:
+        topic_connections(reader, options.pose_topic, POSE_TYPES, "pose")
+    topic_connections(reader, options.image_topic, IMAGE_TYPES, "image")
+    topic_connections(reader, options.words_topic, TEXT_TYPES, "utterance")
+    return reader
 
 
 def _import_one(
+    reader: Any,
     bag: Path,
     trial: int,
     options: ImportOptions,
@@ -343,7 +346,7 @@ def _import_one(
     progress: bool | None = None,
 ) -> _Trial:
     tol = options.pose_tolerance
-    with open_bag(bag, options.ros_distro) as reader:
+    with reading_errors(bag):  # the bag stays open: import_bags closes it
         if options.pose_tf:
             chain = read_tf_chain(reader, *options.pose_tf)
             pose_frame, via_tf = _frame(options.pose_tf[0]), None  # the chain is the pose
@@ -522,62 +525,69 @@ def import_bags(
     # The inputs before OUT: a mistyped bag, map or topic was reported as "OUT already exists",
     # and a topic missing from the last bag was found after the others had been read.
     _check_distinct(bags)
-    for bag in bags:
-        _check_bag(Path(bag), options)
-    grid = load_map(map_yaml)
-    out = Path(os.path.abspath(out))
-    earlier = check_out(out, overwrite, range(first_trial, first_trial + len(bags)))
-    map_target = out.parent / "map" / f"{out.name}.yaml"
-    map_replaced = check_map(map_target, grid, map_yaml, overwrite, out, earlier)
-    # What a failed import removes again: the folders it created, and a map it wrote.
-    created = [p for p in (map_target.parent, out.parent, *out.parent.parents) if not p.exists()]
-    new_map = [p for p in (map_target, map_target.with_suffix(".pgm")) if not p.exists()]
-    out.parent.mkdir(parents=True, exist_ok=True)
-    staging = out.parent / f".{out.name}.partial-{secrets.token_hex(4)}"
-    staging.mkdir()
-    skipped: list[SkippedObservation] = []
-    done = False
-    try:
-        trials = [
-            _import_one(Path(bag), first_trial + k, options, grid, staging, skipped, progress)
-            for k, bag in enumerate(bags)
+    with contextlib.ExitStack() as open_bags:  # each bag opened once: checked, then imported
+        readers = [
+            _check_bag(open_bags.enter_context(open_bag(bag, options.ros_distro)), options)
+            for bag in bags
         ]
-        for what, key in (("image", "images_kept"), ("utterance", "utterances_kept")):
-            if not sum(t.counts[key] for t in trials):
-                topic = options.image_topic if what == "image" else options.words_topic
-                why = (
-                    f"{len(skipped)} observation(s) skipped, the first: {skipped[0].line()}"
-                    if skipped
-                    else "the bags hold none"
+        grid = load_map(map_yaml)
+        out = Path(os.path.abspath(out))
+        earlier = check_out(out, overwrite, range(first_trial, first_trial + len(bags)))
+        map_target = out.parent / "map" / f"{out.name}.yaml"
+        map_replaced = check_map(map_target, grid, map_yaml, overwrite, out, earlier)
+        # What a failed import removes again: the folders it created, and a map it wrote.
+        created = [
+            p for p in (map_target.parent, out.parent, *out.parent.parents) if not p.exists()
+        ]
+        new_map = [p for p in (map_target, map_target.with_suffix(".pgm")) if not p.exists()]
+        out.parent.mkdir(parents=True, exist_ok=True)
+        staging = out.parent / f".{out.name}.partial-{secrets.token_hex(4)}"
+        staging.mkdir()
+        skipped: list[SkippedObservation] = []
+        done = False
+        try:
+            trials = [
+                _import_one(
+                    reader, Path(bag), first_trial + k, options, grid, staging, skipped, progress
                 )
-                raise NothingLeftError(
-                    f"no {what} left to write from {topic} ({why}); a house needs at least one "
-                    "image and one utterance",
-                    skipped,
-                )
-        _write_house(staging, trials)
-        _write_skipped(staging / "skipped.csv", skipped)
-        record = {
-            "bags": [str(Path(b).resolve()) for b in bags],
-            "map": str(Path(map_yaml).resolve()),
-            "options": asdict(options),
-            "first_trial": first_trial,
-            "trials": [{"trial": t.trial, "bag": t.bag, **t.counts} for t in trials],
-            "skipped": len(skipped),
-        }
-        (staging / MARKER).write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
-        save_map(grid, map_target)
-        kept, images_unchanged = replace_out(out, staging, earlier)
-        done = True
-    finally:
-        if staging.exists():
-            shutil.rmtree(staging)
-        if not done:
-            for path in new_map:
-                path.unlink(missing_ok=True)
-            for folder in created:  # deepest first; only if nothing else was put there
-                with contextlib.suppress(OSError):
-                    folder.rmdir()
+                for k, (reader, bag) in enumerate(zip(readers, bags, strict=True))
+            ]
+            for what, key in (("image", "images_kept"), ("utterance", "utterances_kept")):
+                if not sum(t.counts[key] for t in trials):
+                    topic = options.image_topic if what == "image" else options.words_topic
+                    why = (
+                        f"{len(skipped)} observation(s) skipped, the first: {skipped[0].line()}"
+                        if skipped
+                        else "the bags hold none"
+                    )
+                    raise NothingLeftError(
+                        f"no {what} left to write from {topic} ({why}); a house needs at least one "
+                        "image and one utterance",
+                        skipped,
+                    )
+            _write_house(staging, trials)
+            _write_skipped(staging / "skipped.csv", skipped)
+            record = {
+                "bags": [str(Path(b).resolve()) for b in bags],
+                "map": str(Path(map_yaml).resolve()),
+                "options": asdict(options),
+                "first_trial": first_trial,
+                "trials": [{"trial": t.trial, "bag": t.bag, **t.counts} for t in trials],
+                "skipped": len(skipped),
+            }
+            (staging / MARKER).write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
+            save_map(grid, map_target)
+            kept, images_unchanged = replace_out(out, staging, earlier)
+            done = True
+        finally:
+            if staging.exists():
+                shutil.rmtree(staging)
+            if not done:
+                for path in new_map:
+                    path.unlink(missing_ok=True)
+                for folder in created:  # deepest first; only if nothing else was put there
+                    with contextlib.suppress(OSError):
+                        folder.rmdir()
     return BagImportReport(
         out=out,
         map_yaml=map_target,
