@@ -517,3 +517,22 @@ def test_a_per_cell_map_at_its_top_is_not_as_dark_as_a_wall():
         (image,) = fig.axes[0].images[1:]  # over the map's own image
         top = np.round(np.array(image.cmap(1.0)[:3]) * 255).astype(np.uint8)
         assert srgb_to_lab(top[None])[0, 0] >= 40, (cmap, top)
+
+
+def test_a_map_legend_under_a_wide_title_starts_at_its_left():
+    """house.png's words legend centred its entries under its two-line title: the markers
+    stood some 100 pixels in from the title's left, in a column of their own. They start at
+    the title's left (map_legend aligns left)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from spcopyro.figures.plotting import house_figure
+    from spcopyro.synthetic import make_house
+
+    fig = house_figure(make_house(seed=0))
+    FigureCanvasAgg(fig).draw()
+    renderer = fig.canvas.get_renderer()
+    legend = fig.axes[0].get_legend()
+    title = legend.get_title().get_window_extent(renderer)
+    first = legend.get_texts()[0].get_window_extent(renderer)
+    em = legend.get_texts()[0].get_fontsize() * fig.dpi / 72  # pixels
+    assert first.x0 - title.x0 < 5 * em, (title, first)  # the marker and its pad: 3.5 em

@@ -149,9 +149,12 @@ def map_legend(
     ``below`` it in ``columns`` columns, ``below_inches`` under the axes whatever the map's
     height (a fraction of a short map's height put it over the x label). Below suits a wide map
     (:func:`is_wide`) and a map with a colour bar beside it. ``kwargs`` go to
-    :meth:`~matplotlib.axes.Axes.legend` (fontsize, title, ...)."""
+    :meth:`~matplotlib.axes.Axes.legend` (fontsize, title, ...); the entries and title are
+    aligned left."""
     args = () if labels is None else (handles, labels)  # one positional argument means labels
     kwargs = kwargs if labels is not None else {**kwargs, "handles": handles}
+    # entries under a wider title start at its left, not centred beneath it (house.png's words)
+    kwargs.setdefault("alignment", "left")
     if not below:
         return ax.legend(*args, loc="upper left", bbox_to_anchor=(1.01, 1.0), **kwargs)
     offset = ax.transAxes + ScaledTranslation(0.0, -below_inches, ax.figure.dpi_scale_trans)
