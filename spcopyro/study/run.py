@@ -31,6 +31,7 @@ import it.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import threading
@@ -437,6 +438,7 @@ def _on_dask(
     except ModuleNotFoundError:
         raise ModuleNotFoundError(DASK_MISSING) from None
     waiting = deque(cells)
+    stopped = False
     lock = threading.Lock()
     futures: dict[object, Cell] = {}
 
@@ -476,12 +478,15 @@ def _on_dask(
             future.release()
             yield cell, record, trace, label_map
     except (KeyboardInterrupt, GeneratorExit):  # in this process's cell, or in the caller's
+        stopped = True
         with lock:
             background.finished = _finished_on_workers(futures)
         raise
     finally:
         if start is None:
             client.close()  # type: ignore[union-attr]
+        elif stopped:  # the cells still on the workers are not waited for: killed at once
+            background.close_later(functools.partial(start.close, now=True))
         else:
             background.close_later(start.close)
 

@@ -1,0 +1,91 @@
+"""An interrupted study on a LocalCluster ended 7-11 s after its Ctrl-C when the cluster had
+just started: the close asked every worker still in a cell (whose result nobody waited for any
+more) to close and killed it only 4 s later (Dask's ``Nanny.close(timeout=5)``). The close of an
+interrupted run kills them after :data:`spcopyro.study.local_cluster.STOP_SECONDS`."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import types
+
+import pytest
+
+from spcopyro.study import run as study_run
+from spcopyro.study.run import run_study
+from spcopyro.study.spec import study_from_dict
+
+SMALL = {"synthetic": "default", "height": 24, "width": 30, "num_rooms": 2, "num_trials": 1,
+         "min_room_size": 8}  # fmt: skip
+
+
+def test_an_interrupted_dask_run_closes_its_cluster_now(tmp_path, monkeypatch):
+    """Ctrl-C in a cell this process runs while the cluster starts: the cluster's close is
+    asked to stop the workers now; a run that ends whole closes it as before."""
+    closes: list[dict[str, object]] = []
+
+    class FakeStart:
+        def __init__(self, workers, on_ready=None):
+            pass
+
+        def wait(self):
+            return None
+
+        def close(self, **kwargs):
+            closes.append(kwargs)
+
+    def interrupted(cell):
+        raise KeyboardInterrupt
+
+    fake = types.ModuleType("distributed")
+    fake.as_completed = iter  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "distributed", fake)  # dask.distributed is optional
+    monkeypatch.setattr(study_run, "dask_installed", lambda: True)
+    monkeypatch.setattr(study_run, "ClusterStart", FakeStart)
+    monkeypatch.setattr(study_run.evaluate, "run_cell", interrupted)
+    study = study_from_dict({"study": {"name": "stop", "seeds": 2, "sweeps": 2},
+                             "variants": {"a": {"preset": "paper-dp"}},
+                             "data": {"small": SMALL}})  # fmt: skip
+    with pytest.raises(KeyboardInterrupt):
+        run_study(study, tmp_path / "out", workers=2, progress=False)
+    assert closes == [{"now": True}]
+
+
+STOPPED_NOW = """
+import json, os, time
+
+from spcopyro.study.local_cluster import ClusterStart
+
+
+def cell(seconds):
+    time.sleep(seconds)
+
+
+start = ClusterStart(1)
+client = start.wait()
+future = client.submit(cell, 120)
+while not any(client.processing().values()):
+    time.sleep(0.1)
+pids = [w.process.process.pid for w in start.cluster.workers.values()]
+begin = time.perf_counter()
+start.close(now=True)  # as an interrupted study closes its cluster: its worker is mid-cell
+seconds = time.perf_counter() - begin
+gone = []
+for pid in pids:
+    try:
+        os.kill(pid, 0)
+        gone.append(False)
+    except ProcessLookupError:
+        gone.append(True)
+print(json.dumps({"seconds": seconds, "gone": gone}))
+"""
+
+
+def test_a_cluster_closed_now_kills_a_worker_in_a_cell_at_once():
+    pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    done = subprocess.run([sys.executable, "-c", STOPPED_NOW], capture_output=True, text=True,
+                          timeout=300, check=True)  # fmt: skip
+    record = json.loads(done.stdout.strip().splitlines()[-1])
+    assert record["gone"] == [True]
+    assert record["seconds"] < 3.0, record  # Dask's own close: 4 s before the kill, and more
