@@ -504,6 +504,10 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     several = f"{chains} chains x " if chains > 1 else ""
     seconds = result.trace.seconds  # [sweeps] cumulative
     rate = pace(seconds[0], seconds[-1], sweeps_run, unit) if len(seconds) else "no sweeps"
+    # a chain's own clock: chains run side by side (forked workers) share the CPUs, so that pace
+    # is slower than one chain's alone while the wall clock is not; say whose pace it is
+    own = "the kept chain's own pace: " if several and len(seconds) else ""
+    rate = own + rate
     clock = f"{wall:.1f} s wall clock"
     if args.resume is not None:  # the trace's seconds (the paces) go on from the checkpoint's
         clock += f" this run (resumed: the paces include the {unit}s run before the interruption)"
@@ -513,7 +517,7 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     if job.refined:  # the coarse stage's sweeps, then the refinement's, each at its own pace
         coarse = result.inference["refine"]["coarse"]
         total = coarse.get("seconds", math.nan)
-        coarse_rate = pace(coarse.get("first_seconds", 0.0), total, coarse["sweeps"])
+        coarse_rate = own + pace(coarse.get("first_seconds", 0.0), total, coarse["sweeps"])
         runs = (f"{several}{coarse['sweeps']} sweeps on {coarse['cell_size']:g} m cells "
                 f"({coarse_rate}), then {several}{sweeps_run} on the map's "
                 f"{result.grid.resolution:g} m cells ({rate}) in {clock}")  # fmt: skip
