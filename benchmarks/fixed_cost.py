@@ -241,8 +241,9 @@ def measure_fixed_cost(
     }
 
 
-def render(results: Sequence[dict[str, Any]]) -> str:
-    """The table: one line per run, then the fixed cost of every configuration."""
+def render(results: Sequence[dict[str, Any]], imports: dict[str, float] | None = None) -> str:
+    """The table: one line per run, then the fixed cost of every configuration, each beside the
+    floor timed in the same run (``imports``: :func:`import_seconds`' ``pass`` and ``torch``)."""
     headers = ["preset", "figs", "sweeps", "wall", "startup", "load", "settings", "summary",
                "fit-sw", "sweeps s", "save", "figures", "report", "commit", "exit",
                "fixed"]  # fmt: skip
@@ -260,13 +261,17 @@ def render(results: Sequence[dict[str, Any]]) -> str:
              "run(s) each (fit-sw: the fit phase less its sweeps; fixed: the wall less the "
              "sweeps at their steady cost)")  # fmt: skip
     lines = [title, _table(headers, rows), ""]
+    floor = imports or {}
+    baseline = (f"same run: import torch alone {floor['torch']:.2f} s, python -c pass "
+                f"{floor['pass']:.2f} s" if "torch" in floor and "pass" in floor
+                else "import torch not timed in this run")  # fmt: skip
     for result in results:
         verdict = "PASS" if result["meets_target"] else "FAIL"
         lines.append(
             f"fixed cost {result['preset']:<9} figures {'on ' if result['figures'] else 'off'}: "
             f"{result['fixed_cost']:.2f} s direct, {result['fixed_cost_extrapolated']:.2f} s "
             f"extrapolated ({1e3 * result['seconds_per_sweep']:.2f} ms a sweep between the runs)"
-            f"  target < {result['target_seconds']:g} s: {verdict}"
+            f"  target < {result['target_seconds']:g} s: {verdict} ({baseline})"
         )
     return "\n".join(lines)
 
@@ -376,19 +381,15 @@ def render_startup(startup: dict[str, Any]) -> str:
     return "\n".join([title, _table(headers, rows)])
 
 
-def import_seconds() -> dict[str, float]:
+IMPORTS = ("pass", "numpy", "torch", "numba", "pyro", "matplotlib.figure", "spcopyro.cli.main")
+"""The modules :func:`import_seconds` times by default (``pass``: the interpreter alone)."""
+
+
+def import_seconds(modules: Sequence[str] = IMPORTS) -> dict[str, float]:
     """Wall seconds of ``python -c 'import M'`` in a fresh interpreter, for the heavy modules a
     fit may import (the floor under the fixed cost: ``torch`` alone is most of it)."""
     seconds = {}
-    for module in (
-        "pass",
-        "numpy",
-        "torch",
-        "numba",
-        "pyro",
-        "matplotlib.figure",
-        "spcopyro.cli.main",
-    ):
+    for module in modules:
         statement = module if module == "pass" else f"import {module}"
         start = time.perf_counter()
         subprocess.run([sys.executable, "-c", statement], check=True, env=_environment())
@@ -456,9 +457,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                                               with_figures, repeats))  # fmt: skip
     print(f"start-up of the questions on {label} ...", file=sys.stderr)
     startup = measure_startup(_house_folder(dataset, house), repeats)
-    imports = {} if args.quick or args.startup_only else import_seconds()
+    # the floor under the fixed cost, timed in this run (--quick: the interpreter and torch only)
+    imports = {} if args.startup_only else import_seconds(("pass", "torch") if args.quick
+                                                          else IMPORTS)  # fmt: skip
     if results:
-        print(render(results) + "\n")
+        print(render(results, imports) + "\n")
     print(render_startup(startup))
     if imports:
         print("\nimport alone, fresh interpreter (s): "

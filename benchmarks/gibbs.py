@@ -75,7 +75,7 @@ from bench_setup import (
     time_backend,
     time_per_cell,
 )
-from fixed_cost import warm_bytecode
+from fixed_cost import import_seconds, warm_bytecode
 from gibbs_report import (
     PRESET,
     TARGET_CHAINS_RATIO,
@@ -556,6 +556,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         results["run_loop"] = bench_run_loop(headline_house, compiled, sizes)
     with measure_contention(contention, "whole fits", args.wait_idle):
         results["bytecode"] = warm_bytecode()  # the fits' processes use the .pyc cache
+        results["import_floor"] = import_seconds(("pass", "torch"))  # the fixed cost's floor
         results["fits"] = bench_fits(dataset, headline_house, sizes, args.skip_baseline)
     with measure_contention(contention, "chains", args.wait_idle):
         results["chains"] = bench_chains(dataset, headline_house, compiled, sizes)

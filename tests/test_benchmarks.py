@@ -1086,3 +1086,39 @@ def test_start_up_benchmarks_time_their_processes_with_the_bytecode_cache(script
     assert record["parent_PYTHONDONTWRITEBYTECODE"] == "1" and record["compileall_ok"], record
     assert "PYTHONDONTWRITEBYTECODE=1 here, cleared" in fixed_cost.bytecode_note(record)
     assert script("end_to_end").warm_bytecode is fixed_cost.warm_bytecode
+
+
+def test_fixed_limit_targets_print_their_same_run_baseline(script):
+    """The targets that are fixed limits of the issues, not ratios (kernel ns a cell, a whole
+    fit's ms a sweep, the fixed cost, the 5000-sweep run's seconds, its peak memory) printed
+    the measured value alone: on a loaded machine nothing said whether a FAIL was the code or
+    the machine. Each now prints a baseline timed in the same run beside it."""
+    report = script("gibbs_report")
+    per_cell = {"seconds_per_iteration": 0.5}
+    results = {
+        "backends": [],
+        "houses": [{"house": "room2ldk4", "per_cell": per_cell, "speedup": {"numba": 400.0}}],
+        "run_loop": [{"preset": "paper-dp", "num_concepts": 120, "house": "room2ldk4",
+                      "sweeps": 5000, "ratio": 1.1, "run_gibbs_ms_per_sweep": 1.1,
+                      "kernel_ms_per_sweep": 1.0, "kernel_ns_per_cell": 36.0,
+                      "free_cells": 27746}],
+        "fits": [{"preset": "paper-dp", "house": "room2ldk4", "sweeps": 5000,
+                  "ms_per_sweep": 0.8, "per_cell": per_cell, "speedup_vs_per_cell": 625.0,
+                  "fixed_direct": 2.5}],
+        "headline": {"house": "room2ldk4", "free_cells": 27746, "sweeps": 5000,
+                     "synthetic_stand_in": False, "wall_s": 9.0, "backend": "numba",
+                     "peak_rss_bytes": 700 << 20, "rss_after_import_bytes": 500 << 20},
+        "import_floor": {"pass": 0.02, "torch": 1.5},
+    }  # fmt: skip
+    measured = {t["target"].split(" ")[0]: t["measured"] for t in report.evaluate_targets(results)}
+    assert "per-cell loop, same run: 18021 ns/cell" in measured["kernel"], measured
+    assert "per-cell loop, same run: 500 ms/it" in measured["whole"], measured
+    assert "import torch alone 1.50 s" in measured["fixed"], measured
+    assert "per-cell loop, same run: 2500 s projected" in measured["5000"], measured
+    assert "after the imports: 500 MiB" in measured["peak"], measured
+    fixed_cost = script("fixed_cost")
+    row = {"preset": "paper-dp", "figures": False, "fixed_cost": 2.5, "meets_target": False,
+           "fixed_cost_extrapolated": 2.6, "seconds_per_sweep": 1e-3, "target_seconds": 2.0,
+           "runs": [], "house": "room2ldk4", "repeats": 1}  # fmt: skip
+    text = fixed_cost.render([row], {"pass": 0.02, "torch": 1.5})
+    assert "FAIL (same run: import torch alone 1.50 s, python -c pass 0.02 s)" in text, text
