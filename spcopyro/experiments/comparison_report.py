@@ -321,7 +321,8 @@ def table_markdown(summary: dict[str, object]) -> str:
                 "",
                 "Matching rate (means | labels): the same label map scored with pi and phi set "
                 "to their posterior means given it, instead of the method's own estimates (a "
-                "sampler's are draws). ARI and t95 read the labels only.",
+                "variational method's means under q; a sampler's result already holds the means "
+                "given its labels, so its two agree). ARI and t95 read the labels only.",
                 "",
                 "| method | ARI | matching rate | matching rate (means \\| labels) "
                 "| concepts (truth) | t95 ARI (s) | s per fit "
