@@ -30,7 +30,7 @@ from spcopyro import __version__
 from spcopyro._util.random_draws import check_seed
 from spcopyro._util.threads import AUTO, describe_threads, resolve_threads, torch_threads
 from spcopyro._util.timings import timed
-from spcopyro.config import WORDS, SpCoConfig, SpCoSettings, preset
+from spcopyro.config import WORDS, SpCoSettings, preset
 from spcopyro.data import CellCounts, House, prepared_cell_counts
 from spcopyro.data.model_grid import model_house
 from spcopyro.fit.gibbs_chains import (
@@ -43,6 +43,12 @@ from spcopyro.fit.gibbs_chains import (
 from spcopyro.fit.preset_fits import log_skipped_preset_inference
 from spcopyro.fit.preset_fits import preset_fit_kwargs as preset_fit_kwargs  # re-exported
 from spcopyro.fit.registry import DEFAULT_METHOD, get_method
+
+# re-exported: the settings' warnings were defined here (tests and docs import them here)
+from spcopyro.fit.setting_warnings import CONCENTRATION_RANGE as CONCENTRATION_RANGE
+from spcopyro.fit.setting_warnings import FREEZING_GAMMA as FREEZING_GAMMA
+from spcopyro.fit.setting_warnings import config_warnings as config_warnings
+from spcopyro.fit.setting_warnings import gamma_warning as gamma_warning
 from spcopyro.fit.starts import Init, init_name, initial_labels
 from spcopyro.fit.variational_checkpoint import VariationalSaving
 from spcopyro.gibbs.chains import resolve_workers
@@ -108,83 +114,6 @@ def provenance(house: House, data: ModelData, source: str | None = None) -> dict
         "software": software_versions(),
         "reproducibility": RANDOM_STREAMS_NOTE,
     }
-
-
-FREEZING_GAMMA = 10.0
-"""gamma at and above which the sampler freezes: measured from random labels on the synthetic
-house of seed 0 (3600 free cells, L = 120, 1000 sweeps), gamma 4 ended with 16 concepts, 8 with
-83 (paper-dp; 54 with original-code), 10 with 111 (89), and 12 to 30 with 117 of 120, no concept
-vanishing after sweep 200 (106 with original-code): a domain wall moves only at a cost of about
-exp(-gamma) per flip, so the random start's patches stay."""
-CONCENTRATION_RANGE = (1e-3, 1e12)
-"""alpha, beta, chi and further concentrations outside this range make the log joint rounding
-noise or dominated by empty concepts' parameters (see :func:`config_warnings`)."""
-
-
-def gamma_warning(config: SpCoConfig) -> str | None:
-    """A warning when gamma is below the Potts critical coupling ln(1 + sqrt(L)), else None.
-
-    That value is the 4-neighbour square lattice's; with 8 neighbours every cell has twice the
-    bonds and regions form at a weaker coupling (the 05 notebook fits gamma 1.5 with L = 30 at
-    ARI 0.97), so no warning is given there."""
-    if config.connectivity != 4 or config.gamma >= config.critical_gamma:
-        return None
-    return (
-        f"gamma = {config.gamma:g} is below the Potts critical coupling ln(1 + sqrt(L)) = "
-        f"{config.critical_gamma:.3f} for L = {config.num_concepts}: the MRF will not form "
-        "regions (labels stay in patches of a few cells); raise gamma or lower num_concepts "
-        "(fit's --gamma, --concepts)"
-    )
-
-
-def config_warnings(config: SpCoConfig) -> list[str]:
-    """Warnings, with the reason, for legal but extreme model settings (empty if none).
-
-    * gamma below the Potts critical coupling ln(1 + sqrt(L)) (:func:`gamma_warning`): no
-      regions form;
-    * gamma >= :data:`FREEZING_GAMMA`: the sampler freezes in its starting patches;
-    * a concentration a (alpha, beta, chi or a further modality's) above 1e12: the log joint
-      holds (a - 1) sum log phi, of order a L K log K, which float64 resolves to 2^-52 of
-      itself; measured on a small house, the log joint jumped by 4e3 nats between sweeps at
-      chi = 1e15 (300 at 1e12) and was meaningless (1e19 to 1e289) from 1e20 on;
-    * a concentration below 1e-3: an empty concept's parameters are drawn from Dir(a), with
-      log phi of order -1/a, and the term (a - 1) sum log phi of order L K / a swamps the data
-      terms; the log joint then follows those draws, not the map (measured: it swung between
-      sweeps by 2e4-5e4 nats at 3e-3 against 400 at 0.1-10, and was 1e302 at 1e-300).
-
-    In both concentration cases the Gibbs sampler's trace and its choice of the best sweep mean
-    nothing (the warnings say so by name: a variational method's objective holds no drawn
-    parameters).
-    """
-    warnings = [w for w in (gamma_warning(config),) if w]
-    if config.gamma >= FREEZING_GAMMA:
-        critical = f"{config.critical_gamma:.2f}" if config.connectivity == 4 else "coupling"
-        warnings.append(
-            f"gamma = {config.gamma:g} is at or above {FREEZING_GAMMA:g}, where the Gibbs "
-            "sampler freezes: a domain wall moves only at a cost of about exp(-gamma) per cell, "
-            "so labels stay in the random start's patches (measured: gamma 12 to 30 kept 117 of "
-            "120 concepts over 1000 sweeps; not the variational methods: cavi and lbp at 12 kept "
-            "21 and 9 on the synthetic house); lower --gamma (regions form just above the "
-            f"critical {critical})"  # no closed form for 8 neighbours: SpCoConfig.critical_gamma
-        )
-    low, high = CONCENTRATION_RANGE
-    concentrations = [("alpha", config.alpha), ("beta", config.beta), ("chi", config.chi)]
-    concentrations += [(f"concentration {n!r}", v) for n, v in config.concentrations]
-    for name, value in concentrations:
-        if value > high:
-            warnings.append(
-                f"{name} = {value:g} is above {high:g}: the log joint's prior term (a - 1) "
-                "sum log phi grows beyond what float64 resolves to 1 nat, so the Gibbs sampler's "
-                "log joint per sweep and its choice of the best sweep become rounding noise"
-            )
-        elif value < low:
-            warnings.append(
-                f"{name} = {value:g} is below {low:g}: concepts without data draw parameters "
-                f"with log values of order -1/{name} and the Gibbs sampler's log joint follows "
-                "those draws, not the map; its log joint per sweep and choice of the best sweep "
-                "mean nothing"
-            )
-    return warnings
 
 
 def log_degenerate_map(result: SpCoResult, house: House) -> str | None:

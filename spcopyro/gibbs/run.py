@@ -62,8 +62,8 @@ class ChainsStopped(KeyboardInterrupt):
 
 class NonFiniteLogJointError(FloatingPointError, ValueError):
     """A sweep's log joint is NaN or infinite: counts or hyperparameters beyond what float64
-    carries (see :func:`spcopyro.fit.house.config_warnings`). A ValueError, so the command line
-    reports it as bad input."""
+    carries (see :func:`spcopyro.fit.setting_warnings.config_warnings`). A ValueError, so the
+    command line reports it as bad input."""
 
 
 def _check_log_joint(chain: GibbsChain, sweep: int, value: float) -> None:
