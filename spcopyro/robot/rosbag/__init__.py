@@ -7,6 +7,8 @@
 * :mod:`~spcopyro.robot.rosbag.house_folder`: the house folder and what ``--overwrite`` may replace.
 * :mod:`~spcopyro.robot.rosbag.importer`: :func:`import_bags`, bags -> a house folder of the dataset
   layout (``fit`` reads it once ``features`` has written Ft.csv).
+* :mod:`~spcopyro.robot.rosbag.report`: what an import reports: :class:`BagImportReport`, the
+  skipped observations and ``skipped.csv``.
 * :mod:`~spcopyro.robot.rosbag.synthetic`: :class:`BagWriter` and :func:`write_synthetic_bags` (the
   synthetic house recorded as bags).
 * :mod:`~spcopyro.robot.rosbag.cli`: the two commands.
@@ -17,13 +19,12 @@ imports them until a bag is read or written, and ``import spcopyro`` never does.
 
 from spcopyro.robot.rosbag.bag import BagContentError, BagFormatError, RosbagsMissingError
 from spcopyro.robot.rosbag.importer import (
-    BagImportReport,
     ImportOptions,
     NothingLeftError,
     PoseOutsideMapError,
-    SkippedObservation,
     import_bags,
 )
+from spcopyro.robot.rosbag.report import BagImportReport, SkippedObservation
 from spcopyro.robot.rosbag.synthetic import BagWriter, write_synthetic_bags
 
 __all__ = [

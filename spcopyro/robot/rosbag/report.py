@@ -1,0 +1,119 @@
+"""What ``spcopyro import-bag`` reports: the observations it skipped and why, and per trial
+what it read, kept and left out (:class:`BagImportReport`, whose :meth:`~BagImportReport.text`
+the command prints), and ``skipped.csv`` (:func:`write_skipped`).
+
+:func:`spcopyro.robot.rosbag.importer.import_bags` fills them: an image or utterance without a
+pose, an image that does not decode and an utterance without a word are each a
+:class:`SkippedObservation`, listed with its timestamp; images thinned by ``min_distance`` /
+``min_interval`` are counted per trial.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+__all__ = ["BagImportReport", "SkippedObservation", "write_skipped"]
+
+
+@dataclass(frozen=True)
+class SkippedObservation:
+    """An image or utterance left out, with its timestamp and why."""
+
+    trial: int
+    bag: str
+    topic: str
+    kind: str  # "image" or "utterance"
+    stamp: float  # seconds
+    reason: str
+
+    def line(self) -> str:
+        return (
+            f"trial {self.trial} {self.kind} at {self.stamp:.6f} s on {self.topic}: {self.reason}"
+        )
+
+
+@dataclass(frozen=True)
+class BagImportReport:
+    """What :func:`~spcopyro.robot.rosbag.importer.import_bags` wrote: the house folder, the
+    map, and per trial the counts."""
+
+    out: Path
+    map_yaml: Path
+    trials: tuple[dict[str, object], ...]
+    skipped: tuple[SkippedObservation, ...]
+    kept: tuple[str, ...] = ()
+    """With ``overwrite``: the entries of the replaced folder that its import did not write
+    (``Ft.csv`` of ``spcopyro features``, notes), carried into the new one."""
+    map_replaced: bool = False
+    """With ``overwrite``: ``map_yaml`` held the replaced import's different map."""
+    images_unchanged: bool = False
+    """With ``overwrite``: the images are the replaced import's, byte for byte (so a kept
+    ``Ft.csv`` still describes them)."""
+
+    def text(self) -> str:
+        lines = []
+        for t in self.trials:
+            if t.get("poses_merged"):
+                lines.append(
+                    f"trial {t['trial']} ({t['bag']}): {t['poses_merged']} pose sample(s) "
+                    "repeated the previous one's stamp and were merged into it (the first "
+                    "kept): the bag's stamps are coarser than its pose rate"
+                )
+            for kind, what in (("poses", "pose sample(s)"), ("images", "image(s)")):
+                if late := t.get(f"{kind}_out_of_order"):
+                    lines.append(
+                        f"trial {t['trial']} ({t['bag']}): {late} {what} came after one "
+                        "stamped later (arrived late) and were taken in stamp order"
+                    )
+            if len(depths := t.get("image_bits") or []) > 1:
+                lines.append(
+                    f"trial {t['trial']} ({t['bag']}): its 16-bit images were scaled from "
+                    f"{depths[0]} to {depths[-1]} bits, each from the depth its largest value "
+                    f"needs, so darker frames came out brighter: --image-bits {depths[-1]} "
+                    "scales them all alike"
+                )
+            if (offset := t.get("record_clock_offset")) is not None:
+                lines.append(
+                    f"trial {t['trial']} ({t['bag']}): the pose stamps are "
+                    f"{abs(offset):.3f} s {'behind' if offset > 0 else 'ahead of'} the bag's "
+                    "record times (another clock: simulated time?); the utterances and images "
+                    "without a stamp "
+                    f"({t['unstamped_moved_to_stamp_clock']}) were placed on the stamps' clock"
+                )
+            for kind in ("images", "utterances"):
+                if unread := t.get(f"{kind}_unread"):
+                    read = t[f"{kind}_in_bag"]
+                    lines.append(
+                        f"trial {t['trial']} ({t['bag']}): the bag's index counts "
+                        f"{read + unread} {kind[:-1]} message(s), {read} could be read: "
+                        f"{unread} are counted in its metadata.yaml only (not written when "
+                        "recorded?)"
+                    )
+            if t.get("pose_frame_via_tf"):
+                lines.append(
+                    f"trial {t['trial']} ({t['bag']}): poses in frame {t['pose_frame']} placed "
+                    f"on the map through tf {t['pose_frame_via_tf']}"
+                )
+            lines.append(
+                f"trial {t['trial']} ({t['bag']}): images {t['images_kept']} kept of "
+                f"{t['images_in_bag']} ({t['images_no_pose']} without pose, "
+                f"{t['images_thinned']} thinned by --min-distance/--min-interval, "
+                f"{t['images_undecodable']} undecodable); utterances {t['utterances_kept']} of "
+                f"{t['utterances_in_bag']} ({t['utterances_no_pose']} without pose, "
+                f"{t['utterances_empty']} without words)"
+            )
+        return "\n".join(lines)
+
+
+def write_skipped(path: Path, skipped: Sequence[SkippedObservation]) -> None:
+    """``skipped.csv``: one row per skipped observation (``trial,bag,topic,kind,stamp,reason``;
+    the stamp in seconds, to the nanosecond)."""
+    import csv
+
+    with path.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["trial", "bag", "topic", "kind", "stamp", "reason"])
+        for s in skipped:
+            writer.writerow([s.trial, s.bag, s.topic, s.kind, f"{s.stamp:.9f}", s.reason])
