@@ -24,7 +24,7 @@ measures, in one run:
    free cells at L = 120, and L in (10, 120, 500) at ~1e5 cells: ms per sweep and ns per cell.
 4. **Quality against time**: adjusted Rand index of the label map against the ground truth of the
    default synthetic house after 10, 100, 1000, 5000 sweeps, with the cumulative seconds.
-   Sections 3 and 4 run each map under ``spcopyro fit``'s thread policy (one torch thread below
+   Sections 1-4 run each map under ``spcopyro fit``'s thread policy (one torch thread below
    50,000 free cells, torch's own count above; ``--torch-threads N``: N), printed per row.
 5. **Run loop against kernel** (issue 15): per preset, 5000 sweeps of the bare compiled sweep
    against a 5000-sweep ``run_gibbs`` of the same chain (:mod:`gibbs_run_loop`).
@@ -101,6 +101,7 @@ from machine import (
     wait_until_idle,
 )
 
+from spcopyro._util.threads import resolve_threads, torch_threads
 from spcopyro.config import SpCoSettings, preset
 from spcopyro.data import House, list_houses, load_house
 from spcopyro.gibbs import GibbsOptions, run_gibbs
@@ -196,9 +197,14 @@ QUICK = BenchSizes(
 
 
 def bench_houses(
-    dataset: Path | None, backends: Sequence[str], sizes: BenchSizes, skip_baseline: bool
+    dataset: Path | None,
+    backends: Sequence[str],
+    sizes: BenchSizes,
+    skip_baseline: bool,
+    threads: int | str = "auto",
 ) -> list[dict[str, Any]]:
-    """Per-house ms per iteration of every backend, the per-cell baseline and the speed-ups."""
+    """Per-house ms per iteration of every backend (under ``threads``: fit's policy by default),
+    the per-cell baseline and the speed-ups."""
     if dataset is None:
         return []
     settings = preset(PRESET)
@@ -211,14 +217,16 @@ def bench_houses(
             "observed_cells": int(problem.data.obs_cells.shape[0]),
             "backends": {},
         }
-        for backend in backends:
-            progress(f"[houses] {name}: {backend}, {sizes.house_sweeps} sweeps")
-            entry["backends"][backend] = _try(
-                f"{name} {backend}",
-                lambda b=backend, p=problem: time_backend(
-                    p, b, warmup=sizes.house_warmup, sweeps=sizes.house_sweeps
-                ),
-            )
+        with torch_threads(resolve_threads(threads, problem.data.num_free)) as used:
+            entry["torch_threads"] = used
+            for backend in backends:
+                progress(f"[houses] {name}: {backend}, {sizes.house_sweeps} sweeps, {used} thr")
+                entry["backends"][backend] = _try(
+                    f"{name} {backend}",
+                    lambda b=backend, p=problem: time_backend(
+                        p, b, warmup=sizes.house_warmup, sweeps=sizes.house_sweeps
+                    ),
+                )
         if not skip_baseline:
             progress(f"[houses] {name}: per-cell loop, {sizes.baseline_sweeps} sweeps")
             entry["per_cell"] = time_per_cell(problem, sizes.baseline_sweeps)
@@ -255,26 +263,31 @@ def _current_rss_bytes() -> int | None:
     return None
 
 
-def child_run(dataset: Path | None, backend: str, sweeps: int) -> dict[str, Any]:
-    """The headline run, meant for a fresh process: load, run_gibbs, time and peak memory."""
+def child_run(
+    dataset: Path | None, backend: str, sweeps: int, threads: int | str = "auto"
+) -> dict[str, Any]:
+    """The headline run, meant for a fresh process: load, run_gibbs (under ``threads``: fit's
+    policy by default), time and peak memory."""
     rss_after_import = _max_rss_bytes()
     t0 = time.perf_counter()
     problem = make_problem(load_headline_house(dataset), preset(PRESET))
     setup_s = time.perf_counter() - t0
     rss_before_run, rss_now_before_run = _max_rss_bytes(), _current_rss_bytes()
-    t0 = time.perf_counter()
-    run = run_gibbs(
-        problem.data,
-        problem.config,
-        sweeps,
-        options=GibbsOptions(backend=backend),
-        seed=SEED,
-        progress=False,
-    )
-    wall_s = time.perf_counter() - t0
+    with torch_threads(resolve_threads(threads, problem.data.num_free)) as used:
+        t0 = time.perf_counter()
+        run = run_gibbs(
+            problem.data,
+            problem.config,
+            sweeps,
+            options=GibbsOptions(backend=backend),
+            seed=SEED,
+            progress=False,
+        )
+        wall_s = time.perf_counter() - t0
     rss_now_after_run = _current_rss_bytes()
     return {
         "house": problem.name,
+        "torch_threads": used,
         "free_cells": problem.data.num_free,
         "backend": backend,
         "sweeps": sweeps,
@@ -293,11 +306,14 @@ def child_run(dataset: Path | None, backend: str, sweeps: int) -> dict[str, Any]
     }
 
 
-def bench_headline(dataset: Path | None, backend: str, sweeps: int) -> dict[str, Any]:
+def bench_headline(
+    dataset: Path | None, backend: str, sweeps: int, threads: int | str = "auto"
+) -> dict[str, Any]:
     """Run :func:`child_run` in a fresh interpreter and collect its JSON line."""
     command = [sys.executable, str(Path(__file__).resolve()), "--child-run", backend]
     command += ["--child-sweeps", str(sweeps)]
-    command += ["--torch-threads", str(torch.get_num_threads())]
+    if threads != "auto":
+        command += ["--torch-threads", str(threads)]
     if dataset is None:
         command.append("--no-dataset")
     else:
@@ -459,8 +475,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         "--torch-threads",
         type=COUNT,
         default=None,
-        help="torch.set_num_threads for this run and the headline subprocess (default: torch's; "
-        "the scaling and quality rows: fit's thread policy unless given)",
+        help="torch threads of the per-house, headline, scaling and quality rows (default: "
+        "fit's thread policy, one below 50,000 free cells)",
     )
     parser.add_argument(
         "--wait-idle",
@@ -489,8 +505,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         dataset = None
     else:
         dataset = dataset_root(args.dataset, without="per-house timings skipped")
+    # The timed rows run under fit's thread policy, or --torch-threads's count where given.
+    threads: int | str = "auto" if args.torch_threads is None else args.torch_threads
     if args.child_run is not None:
-        print(json.dumps(child_run(dataset, args.child_run, args.child_sweeps)))
+        print(json.dumps(child_run(dataset, args.child_run, args.child_sweeps, threads)))
         return 0
 
     started = time.perf_counter()
@@ -524,10 +542,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             "chains_ratio": TARGET_CHAINS_RATIO,
         },
     }
+    results["scaling_threads"] = threads  # the policy of every in-process row and the headline
     contention: dict[str, dict[str, float | None]] = {}
     results["contention"] = contention
     with measure_contention(contention, "houses", args.wait_idle):
-        results["houses"] = bench_houses(dataset, backends, sizes, args.skip_baseline)
+        results["houses"] = bench_houses(dataset, backends, sizes, args.skip_baseline, threads)
 
     # The fastest backend on the headline house (or on the first scaling map without data).
     headline_entry = next((h for h in results["houses"] if h["house"] == HEADLINE_HOUSE), None)
@@ -542,13 +561,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     else:
         fastest = headline_entry["fastest_backend"]
     results["fastest_backend"] = fastest
-    # The scaling and quality rows: fit's thread policy, or --torch-threads's count where given.
-    threads: int | str = "auto" if args.torch_threads is None else args.torch_threads
-    results["scaling_threads"] = threads
 
     with measure_contention(contention, "headline", args.wait_idle):
         results["headline"] = _try(
-            "headline run", lambda: bench_headline(dataset, fastest, sizes.headline_sweeps)
+            "headline run",
+            lambda: bench_headline(dataset, fastest, sizes.headline_sweeps, threads),
         )
     headline_house = load_headline_house(dataset)
     compiled = "numba" if "numba" in backends else fastest

@@ -213,7 +213,8 @@ def evaluate_targets(results: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 def _threads_note(threads: int | str | None) -> str:
-    """The thread policy the scaling and quality rows ran under (``results["scaling_threads"]``)."""
+    """The thread policy the per-house, headline, scaling and quality rows ran under
+    (``results["scaling_threads"]``)."""
     if threads is None:
         return "torch threads: not recorded (torch's default count)"
     if threads == "auto":
@@ -248,19 +249,21 @@ def render(results: dict[str, Any]) -> str:
         )
     out.append("")
     out.append("== Per house (L=120) ==")
+    out.append(_threads_note(results.get("scaling_threads")))
     if results["dataset"] is None:
         out.append(
             "SKIPPED: no public dataset (not found, or --no-dataset; set SPCOPYRO_DATA): "
             "synthetic maps only"
         )
     else:
-        headers = ["house", "free cells", "obs cells", "per-cell s/it"]
+        headers = ["house", "free cells", "obs cells", "torch threads", "per-cell s/it"]
         headers += [f"{b} ms/it" for b in backends]
         headers += [f"{b} speed-up" for b in backends]
         headers += [f"{b} 5000 it s" for b in backends]
         rows = []
         for h in results["houses"]:
             row = [h["house"], str(h["free_cells"]), str(h["observed_cells"])]
+            row.append(str(h.get("torch_threads", "?")))
             row.append(
                 f"{h['per_cell']['seconds_per_iteration']:.3f}" if "per_cell" in h else "skipped"
             )
@@ -296,6 +299,7 @@ def render(results: dict[str, Any]) -> str:
                     "house",
                     "free cells",
                     "backend",
+                    "torch threads",
                     "sweeps",
                     "wall s",
                     "ms/it",
@@ -309,6 +313,7 @@ def render(results: dict[str, Any]) -> str:
                         where,
                         str(headline["free_cells"]),
                         headline["backend"],
+                        str(headline.get("torch_threads", "?")),
                         str(headline["sweeps"]),
                         f"{headline['wall_s']:.2f}",
                         f"{headline['ms_per_iteration']:.2f}",

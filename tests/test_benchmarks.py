@@ -1122,3 +1122,53 @@ def test_fixed_limit_targets_print_their_same_run_baseline(script):
            "runs": [], "house": "room2ldk4", "repeats": 1}  # fmt: skip
     text = fixed_cost.render([row], {"pass": 0.02, "torch": 1.5})
     assert "FAIL (same run: import torch alone 1.50 s, python -c pass 0.02 s)" in text, text
+
+
+def test_gibbs_per_house_and_headline_rows_run_under_fits_thread_policy(script, monkeypatch):
+    """The per-house rows and the headline subprocess ran with torch's default count too (the
+    parent passed its own count, two here, to the headline child); on room2ldk4 at load 3 a
+    sweep took 0.98 ms with one thread against 9-24 ms with two."""
+    import numpy as np
+    import torch
+
+    gibbs = script("gibbs")
+    seen = []
+    data = argparse.Namespace(num_free=27746, obs_cells=torch.zeros(86, 1))
+    monkeypatch.setattr(gibbs, "list_houses", lambda root: ["room2ldk4"])
+    monkeypatch.setattr(gibbs, "load_house", lambda path: None)
+    monkeypatch.setattr(gibbs, "load_headline_house", lambda root: None)
+    monkeypatch.setattr(gibbs, "make_problem", lambda house, settings: argparse.Namespace(
+        data=data, config=None, name="room2ldk4"))  # fmt: skip
+
+    def timed(problem, backend, **kwargs):
+        seen.append(torch.get_num_threads())
+        return {"ms_per_iteration": 1.0}
+
+    def run(*args, **kwargs):
+        seen.append(torch.get_num_threads())
+        return argparse.Namespace(seconds=np.array([1.0]), num_concepts=np.array([3]),
+                                  log_joint=np.array([0.0]))  # fmt: skip
+
+    monkeypatch.setattr(gibbs, "time_backend", timed)
+    monkeypatch.setattr(gibbs, "run_gibbs", run)
+    previous = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        [row] = gibbs.bench_houses(Path("/data"), ["numba"], gibbs.QUICK, skip_baseline=True)
+        record = gibbs.child_run(None, "numba", 1)
+        assert seen == [1, 1] and row["torch_threads"] == record["torch_threads"] == 1, seen
+        assert torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(previous)
+    commands = []
+
+    def child(command, **kwargs):
+        commands.append(command)
+        raise _Measuring
+
+    monkeypatch.setattr(gibbs.subprocess, "run", child)
+    for threads in ("auto", 3):
+        with pytest.raises(_Measuring):
+            gibbs.bench_headline(None, "numba", 1, threads)
+    assert "--torch-threads" not in commands[0], commands  # the child applies the policy
+    assert commands[1][-3:] == ["--torch-threads", "3", "--no-dataset"], commands
