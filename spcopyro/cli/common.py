@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     from spcopyro.config import DataPreparation
     from spcopyro.maps import OccupancyGrid
     from spcopyro.results.result import SpCoResult
+    from spcopyro.results.saved_vocabulary import SavedVocabulary
 
 
 def _load(data: str | None, seed: int = 0) -> House:
@@ -73,6 +74,21 @@ def load_start(folder: str) -> SpCoResult:
         return result
     grid = dataclasses.replace(result.grid, coarsened_from=robot_map[1])
     return dataclasses.replace(result, grid=grid)
+
+
+def load_fit(folder: str) -> tuple[SpCoResult, SavedVocabulary]:
+    """The fit in ``folder`` with its vocabulary read as the tokenizer reads words now
+    (:func:`~spcopyro.results.saved_vocabulary.renormalised_result`: a fit saved by an older
+    spcopyro held ``stove.`` and ``TV``, which ``where OUT stove`` never found), and what was
+    read so; a warning on stderr names the saved words read as others, once."""
+    from spcopyro.results.result import SpCoResult
+    from spcopyro.results.saved_vocabulary import renormalised_result
+
+    result, saved = renormalised_result(SpCoResult.load(folder))
+    note = saved.renamed_note()
+    if note:
+        print(f"warning: {folder}: {note}", file=sys.stderr)
+    return result, saved
 
 
 def other_word_note(given: str, looked_up: str) -> str | None:

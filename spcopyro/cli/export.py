@@ -48,8 +48,8 @@ def _keeps_out_nothing(result, word: str, args: argparse.Namespace) -> str:
 
 
 def _export(args: argparse.Namespace) -> int:
-    from spcopyro.cli.common import load_robot_map
-    from spcopyro.results.result import SpCoResult, UnknownWordError
+    from spcopyro.cli.common import load_fit, load_robot_map
+    from spcopyro.results.result import UnknownWordError
     from spcopyro.robot.nav2 import DEFAULT_MAX_SPEED, DEFAULT_MIN_SPEED, export_nav2
 
     if args.threshold is not None and args.mode != "keepout":
@@ -66,7 +66,7 @@ def _export(args: argparse.Namespace) -> int:
         print(f"error: --min-speed {args.min_speed:g} exceeds --max-speed {args.max_speed:g}",
               file=sys.stderr)  # fmt: skip
         return 2
-    result = SpCoResult.load(args.result)
+    result, _ = load_fit(args.result)  # an older fit's 'stove.' is 'stove', and it says so
     robot_map_yaml, robot_map = load_robot_map(result, args.result) or (None, None)
     try:
         export = export_nav2(

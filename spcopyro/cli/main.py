@@ -49,6 +49,7 @@ from spcopyro.cli.common import (
     _load,
     _summary,
     figure_file,
+    load_fit,
     other_word_note,
     refuse_fit_files,
 )
@@ -258,11 +259,11 @@ def _check_where_out(result_dir: str, out: str) -> None:
 
 def _where(args: argparse.Namespace) -> int:
     from spcopyro.results.concept_words import shown_words
-    from spcopyro.results.result import SpCoResult, UnknownWordError
+    from spcopyro.results.result import UnknownWordError
 
     if args.out:
         _check_where_out(args.result, args.out)
-    result = SpCoResult.load(args.result)
+    result, _ = load_fit(args.result)  # an older fit's 'stove.' is 'stove', and it says so
     try:
         answer = result.where(args.word, prior=args.prior)
     except UnknownWordError as error:

@@ -42,27 +42,32 @@ def _point(text: str) -> tuple[float, float]:
 
 
 def _navigate(args: argparse.Namespace) -> int:
-    from spcopyro.results.result import SpCoResult
+    from spcopyro.cli.common import load_fit
     from spcopyro.robot.navigation.outputs import check_frame
 
     check_frame(args.frame)
-    result = SpCoResult.load(args.result)
+    result, saved = load_fit(args.result)  # an older fit's 'stove.' is 'stove', and it says so
     staged = None
     if args.out:  # refused (an existing folder without --overwrite) before a plan is printed
         from spcopyro.robot.navigation.outputs import stage_plan_folder
 
         staged = stage_plan_folder(args.out, args.overwrite)
     try:
-        return _plan_and_print(args, result, staged)
+        return _plan_and_print(args, result, staged, saved.renamed)
     finally:
         if staged is not None:
             staged.discard()  # nothing once committed
 
 
 def _plan_and_print(
-    args: argparse.Namespace, result: SpCoResult, staged: StagedOutput | None
+    args: argparse.Namespace,
+    result: SpCoResult,
+    staged: StagedOutput | None,
+    saved_words: tuple[tuple[str, str], ...] = (),
 ) -> int:
-    """Plan ``args.instruction`` on ``result``, print it, and write it into ``staged``."""
+    """Plan ``args.instruction`` on ``result``, print it, and write it into ``staged``;
+    ``saved_words``: the fit's saved words read as others (:func:`~spcopyro.cli.common.load_fit`),
+    kept in navigate.json with the places read as other words."""
     from spcopyro.cli.common import load_robot_map
     from spcopyro.robot.navigation import navigate
     from spcopyro.robot.navigation.goals import UnreachableGoalError
@@ -88,9 +93,11 @@ def _plan_and_print(
               f"{', '.join(plan.instruction.ignored)}", file=sys.stderr)  # fmt: skip
     from spcopyro.cli.common import other_word_note
 
+    word_notes = {}  # per place as said: why it was read as another word (navigate.json too)
     for stop in plan.stops:  # "go to the -tv": planned for tv, and it says so
         note = other_word_note(stop.shown, stop.word)
-        if note:
+        if note and stop.shown not in word_notes:
+            word_notes[stop.shown] = note
             print(f"warning: {note}", file=sys.stderr)
     order = " -> ".join(f"{s.shown}{' (via)' if s.via else ''}" for s in plan.stops)
     print(f"instruction {plan.instruction.text!r}: {order}")
@@ -123,8 +130,8 @@ def _plan_and_print(
         from spcopyro.robot.navigation.outputs import write_plan
 
         written = write_plan(plan, args.out, frame=args.frame, overwrite=args.overwrite,
-                             source=args.result, figure=not args.no_figure,
-                             staged=staged)  # fmt: skip
+                             source=args.result, figure=not args.no_figure, staged=staged,
+                             word_notes=word_notes, saved_words=saved_words)  # fmt: skip
         print(f"wrote {', '.join(p.name for p in written.values())} to "
               f"{next(iter(written.values())).parent}")  # fmt: skip
     return 0
@@ -150,7 +157,7 @@ def show_graph(args: argparse.Namespace) -> int:
     and the graph as JSON beside the PNG, named after it (``graph.json``)."""
     import json
 
-    from spcopyro.results.result import SpCoResult
+    from spcopyro.cli.common import load_fit
     from spcopyro.robot.navigation.figure import plot_place_graph
     from spcopyro.robot.navigation.places import place_graph
 
@@ -159,7 +166,7 @@ def show_graph(args: argparse.Namespace) -> int:
     figure = figure_file(args.out)
     # the figure and its JSON never replace the fit's files (--out OUT/config.png: config.json)
     refuse_fit_files(args.data, args.out, [figure, figure.with_suffix(".json")])
-    result = SpCoResult.load(args.data)
+    result, _ = load_fit(args.data)  # places named as the tokenizer reads words now
     graph = place_graph(result, min_area=args.min_area)
     png = plot_place_graph(result, graph, args.out)
     written = png.with_suffix(".json")  # X.png -> X.json: two graphs in one folder keep both

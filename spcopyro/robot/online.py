@@ -62,7 +62,6 @@ from spcopyro._util.random_draws import sample_log_dirichlet
 from spcopyro._util.threads import AUTO, resolve_threads, torch_threads
 from spcopyro.config import IMAGES, WORDS, SpCoSettings
 from spcopyro.data import CellCounts, House
-from spcopyro.data.text import tokenize
 from spcopyro.fit.gibbs_chains import FitInterrupted, marginal_thin, with_sample_marginals
 from spcopyro.fit.house import prepare_model_data, provenance, result_of
 from spcopyro.fit.registry import DEFAULT_METHOD, get_method
@@ -73,6 +72,7 @@ from spcopyro.inference.driver import DriveInterrupted
 from spcopyro.inference.protocol import method_options
 from spcopyro.model import DTYPE, ModelData
 from spcopyro.results.result import SpCoResult
+from spcopyro.results.saved_vocabulary import SavedVocabulary, renormalise_vocabulary
 
 __all__ = [
     "DEFAULT_UPDATE_SWEEPS",
@@ -138,57 +138,9 @@ def merge_vocabulary(saved: Sequence[str], observed: Sequence[str]) -> Vocabular
     )
 
 
-@dataclass(frozen=True)
-class SavedVocabulary:
-    """A saved vocabulary as the tokenizer reads words now (:func:`renormalise_vocabulary`)."""
-
-    vocabulary: tuple[str, ...]
-    """[V*] the saved words re-normalised, in order of first appearance."""
-    columns: np.ndarray
-    """[V] the column in :attr:`vocabulary` of each saved word."""
-    renamed: tuple[tuple[str, str], ...]
-    """(saved word, the word it is now) for each saved word the tokenizer writes otherwise."""
-    unmatchable: tuple[str, ...]
-    """Saved words that are no single word now (punctuation alone): kept, matching nothing."""
-
-    def fold(self, probabilities: np.ndarray) -> np.ndarray:
-        """[L, V*] each row of ``probabilities`` [L, V] over the re-normalised vocabulary (the
-        probabilities of saved words that became one word added)."""
-        folded = np.zeros((probabilities.shape[0], len(self.vocabulary)))  # [L, V*]
-        np.add.at(folded.T, self.columns, np.asarray(probabilities, dtype=np.float64).T)
-        return folded
-
-
-def renormalise_vocabulary(saved: Sequence[str]) -> SavedVocabulary:
-    """``saved`` (a saved fit's vocabulary) as :func:`~spcopyro.data.text.tokenize` reads
-    words now: a word it makes one other word of (``TV`` -> ``tv``, ``stove.`` -> ``stove``)
-    is renamed, and saved words that become one word share its column; a word it makes no word
-    or several of keeps its column unchanged (listed in ``unmatchable``). Words that the
-    tokenizer leaves as they are keep their order: a vocabulary of them is returned as it is."""
-    index: dict[str, int] = {}
-    columns, renamed, unmatchable = [], [], []
-    for word in saved:
-        tokens = tokenize(word)
-        target = tokens[0] if len(tokens) == 1 else word
-        if target != word:
-            renamed.append((word, target))
-        elif tokens != (word,):
-            unmatchable.append(word)
-        columns.append(index.setdefault(target, len(index)))
-    return SavedVocabulary(
-        tuple(index), np.asarray(columns, dtype=np.int64), tuple(renamed), tuple(unmatchable)
-    )
-
-
 def _warn_renormalised(saved: SavedVocabulary, where: str) -> None:
     """Warn (once per saved fit and vocabulary) of what :func:`renormalise_vocabulary` changed."""
-    said = []
-    if saved.renamed:
-        pairs = ", ".join(f"{echo(old)} -> {echo(new)}" for old, new in saved.renamed[:10])
-        more = f", ... ({len(saved.renamed) - 10} more)" if len(saved.renamed) > 10 else ""
-        said.append(f"{len(saved.renamed)} word(s) of its vocabulary are not words the tokenizer "
-                    f"makes now (a fit saved by an older spcopyro), read as it reads them: "
-                    f"{pairs}{more}")  # fmt: skip
+    said = [note] if (note := saved.renamed_note()) else []
     if saved.unmatchable:
         names = ", ".join(echo(word) for word in saved.unmatchable[:10])
         said.append(f"{len(saved.unmatchable)} word(s) of its vocabulary are no word the "

@@ -15,11 +15,13 @@ a non-empty DIR needs ``overwrite`` and must hold an earlier plan, :data:`PLAN_M
   list of PoseStamped: each stop of the instruction in order ("via" places, then the
   destination), facing along the path where it reaches them.
 * ``navigate.png``: the map, the destination word's probability map, the path, start, stops.
-* ``navigate.json``: the instruction, its places, every candidate region, the lengths and
-  settings, the route over the place graph and the graph itself
-  (:mod:`~spcopyro.robot.navigation.places`), how each leg was planned (``planner``: asked,
-  used, the leg's route, the reason of a fallback to the grid path,
-  :mod:`~spcopyro.robot.navigation.hierarchy`), and the fit it came from.
+* ``navigate.json``: the instruction, its places (each as the instruction spells it and as
+  the vocabulary's word it was read as, with the reason when that is another word:
+  ``word_note``; a fit saved by an older spcopyro's words read as the tokenizer reads them
+  now: ``saved_words_read_as``), every candidate region, the lengths and settings, the route
+  over the place graph and the graph itself (:mod:`~spcopyro.robot.navigation.places`), how
+  each leg was planned (``planner``: asked, used, the leg's route, the reason of a fallback to
+  the grid path, :mod:`~spcopyro.robot.navigation.hierarchy`), and the fit it came from.
 
 Stamps are 0 (``stamp: {sec: 0, nanosec: 0}``: "latest" to tf2). ``frame_id`` is the map frame
 (``map`` unless given; a robot whose tf frames carry a prefix passes e.g. ``robot1/map``).
@@ -32,6 +34,7 @@ import csv
 import json
 import math
 import os
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -100,14 +103,26 @@ def planner_record(plan: NavigationPlan) -> dict[str, object]:
     }  # fmt: skip
 
 
-def summary(plan: NavigationPlan, frame: str, source: str | None) -> dict[str, object]:
-    """What ``navigate.json`` holds."""
+def summary(
+    plan: NavigationPlan,
+    frame: str,
+    source: str | None,
+    *,
+    word_notes: Mapping[str, str] | None = None,
+    saved_words: Sequence[tuple[str, str]] = (),
+) -> dict[str, object]:
+    """What ``navigate.json`` holds. ``word_notes``: per place as the instruction spells it,
+    why it was read as another word of the vocabulary (``-corridor``: ``corridor``; a stop's
+    ``word_note``, null when none); ``saved_words``: (saved word, the word it was read as) of a
+    fit saved by an older spcopyro (``stove.``: ``stove``; ``saved_words_read_as``)."""
+    word_notes = word_notes or {}
     grid = plan.planning.grid
     stops = []
     for stop in plan.stops:
         stops.append({
             "word": stop.word,
             "said": stop.shown,  # as the instruction spells it ("TV")
+            "word_note": word_notes.get(stop.shown),  # "-corridor" read as "corridor": why
             "via": stop.via,
             "x": stop.xy[0],
             "y": stop.xy[1],
@@ -129,6 +144,7 @@ def summary(plan: NavigationPlan, frame: str, source: str | None) -> dict[str, o
         "instruction": plan.instruction.text,
         "places": list(plan.instruction.places),
         "ignored_words": list(plan.instruction.ignored),
+        "saved_words_read_as": [{"saved": old, "word": new} for old, new in saved_words],
         "start": list(plan.start),
         "radius": plan.radius,
         "clearance": "hard: cells closer to a non-free cell than the radius are excluded",
@@ -165,10 +181,14 @@ def write_plan(
     source: str | os.PathLike[str] | None = None,
     figure: bool = True,
     staged: StagedOutput | None = None,
+    word_notes: Mapping[str, str] | None = None,
+    saved_words: Sequence[tuple[str, str]] = (),
 ) -> dict[str, Path]:
     """Write the plan's files into ``out`` (module docstring); their final paths by name.
     ``staged``: :func:`stage_plan_folder` of ``out``, made before planning (so that a folder
-    that cannot be written is refused before any plan is printed); made here if None."""
+    that cannot be written is refused before any plan is printed); made here if None.
+    ``word_notes``, ``saved_words``: how the instruction's and the fit's words were read, kept in
+    ``navigate.json`` (:func:`summary`)."""
     frame = check_frame(frame)
     staged = stage_plan_folder(out, overwrite) if staged is None else staged
     names = {}
@@ -194,10 +214,9 @@ def write_plan(
             from spcopyro.robot.navigation.figure import plot_plan
 
             plot_plan(plan, folder / "navigate.png")
-        (folder / PLAN_MARKER).write_text(
-            json.dumps(summary(plan, frame, None if source is None else str(source)), indent=2)
-            + "\n"
-        )
+        record = summary(plan, frame, None if source is None else str(source),
+                         word_notes=word_notes, saved_words=saved_words)  # fmt: skip
+        (folder / PLAN_MARKER).write_text(json.dumps(record, indent=2) + "\n")
         staged.commit()
     for name in ("goal.yaml", "path.yaml", "path.csv", "waypoints.yaml", "navigate.png",
                  PLAN_MARKER):  # fmt: skip

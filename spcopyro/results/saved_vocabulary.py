@@ -1,0 +1,109 @@
+"""A saved fit's vocabulary read as the tokenizer reads words now.
+
+A fit saved by an older spcopyro may hold words that :func:`~spcopyro.data.text.tokenize` now
+folds or strips (``TV``, ``stove.``, a byte-order mark in front): a word typed today (``stove``)
+or the data's words never equal them. :func:`renormalise_vocabulary` reads such a vocabulary as
+the tokenizer would now, and :func:`renormalised_result` gives a result whose word columns are
+read so (saved words that become one word share a column, their probabilities and counts
+added): ``fit --update`` (:mod:`spcopyro.robot.online`) and the questions on a saved fit
+(``where``, ``export --word``, ``navigate``) read a saved vocabulary this way. Imports neither
+torch nor the samplers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from spcopyro._util.messages import echo
+from spcopyro.config import WORDS
+from spcopyro.data.text import tokenize
+
+if TYPE_CHECKING:
+    from spcopyro.results.result import SpCoResult
+
+__all__ = ["SavedVocabulary", "renormalise_vocabulary", "renormalised_result"]
+
+RENAMED_SHOWN = 10
+"""Renamed words a warning names (then '... (N more)')."""
+
+
+@dataclass(frozen=True)
+class SavedVocabulary:
+    """A saved vocabulary as the tokenizer reads words now (:func:`renormalise_vocabulary`)."""
+
+    vocabulary: tuple[str, ...]
+    """[V*] the saved words re-normalised, in order of first appearance."""
+    columns: np.ndarray
+    """[V] the column in :attr:`vocabulary` of each saved word."""
+    renamed: tuple[tuple[str, str], ...]
+    """(saved word, the word it is now) for each saved word the tokenizer writes otherwise."""
+    unmatchable: tuple[str, ...]
+    """Saved words that are no single word now (punctuation alone): kept, matching nothing."""
+
+    def fold(self, probabilities: np.ndarray) -> np.ndarray:
+        """[L, V*] each row of ``probabilities`` [L, V] over the re-normalised vocabulary (the
+        probabilities of saved words that became one word added)."""
+        folded = np.zeros((probabilities.shape[0], len(self.vocabulary)))  # [L, V*]
+        np.add.at(folded.T, self.columns, np.asarray(probabilities, dtype=np.float64).T)
+        return folded
+
+    def renamed_note(self) -> str | None:
+        """The sentence that names the saved words read as other words (None: none were)."""
+        if not self.renamed:
+            return None
+        pairs = ", ".join(
+            f"{echo(old)} -> {echo(new)}" for old, new in self.renamed[:RENAMED_SHOWN]
+        )
+        more = len(self.renamed) - RENAMED_SHOWN
+        more = f", ... ({more} more)" if more > 0 else ""
+        return (f"{len(self.renamed)} word(s) of its vocabulary are not words the tokenizer "
+                f"makes now (a fit saved by an older spcopyro), read as it reads them: "
+                f"{pairs}{more}")  # fmt: skip
+
+
+def renormalise_vocabulary(saved: Sequence[str]) -> SavedVocabulary:
+    """``saved`` (a saved fit's vocabulary) as :func:`~spcopyro.data.text.tokenize` reads
+    words now: a word it makes one other word of (``TV`` -> ``tv``, ``stove.`` -> ``stove``)
+    is renamed, and saved words that become one word share its column; a word it makes no word
+    or several of keeps its column unchanged (listed in ``unmatchable``). Words that the
+    tokenizer leaves as they are keep their order: a vocabulary of them is returned as it is."""
+    index: dict[str, int] = {}
+    columns, renamed, unmatchable = [], [], []
+    for word in saved:
+        tokens = tokenize(word)
+        target = tokens[0] if len(tokens) == 1 else word
+        if target != word:
+            renamed.append((word, target))
+        elif tokens != (word,):
+            unmatchable.append(word)
+        columns.append(index.setdefault(target, len(index)))
+    return SavedVocabulary(
+        tuple(index), np.asarray(columns, dtype=np.int64), tuple(renamed), tuple(unmatchable)
+    )
+
+
+def renormalised_result(result: SpCoResult) -> tuple[SpCoResult, SavedVocabulary]:
+    """``result`` with its vocabulary read as :func:`renormalise_vocabulary` reads it: the word
+    distributions and ``word_totals`` over the re-normalised words (saved words that became one
+    word added), and what was read so. ``result`` itself when no word was renamed, or when it
+    has no words."""
+    if not any(table.name == WORDS for table in result.emissions):
+        return result, renormalise_vocabulary(())
+    saved = renormalise_vocabulary(result.vocabulary)
+    if not saved.renamed:
+        return result, saved
+    tables = tuple(
+        dataclasses.replace(table, items=saved.vocabulary,
+                            probabilities=saved.fold(table.probabilities))
+        if table.name == WORDS else table
+        for table in result.emissions
+    )  # fmt: skip
+    totals = result.word_totals
+    if totals is not None:
+        totals = saved.fold(np.asarray(totals, dtype=np.float64)[None, :])[0]  # [V*]
+    return dataclasses.replace(result, emissions=tables, word_totals=totals), saved
