@@ -202,8 +202,9 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
 def _apply_preset_inference(args: argparse.Namespace) -> None:
     """Fill the inference options the command line left unset (None) with what the preset
     recommends (:func:`spcopyro.config.preset_inference`: ``auto`` starts from the rooms, adds
-    merge moves and reports the VI point estimate), where they apply to this run, else with the
-    plain defaults (random start, no merge moves, the highest-log-joint state visited). The
+    merge moves and reports the variation-of-information point estimate), where they apply to
+    this run, else with the plain defaults (random start, no merge moves, the highest-log-joint
+    state visited). The
     start and the merge moves are Gibbs's: on the public houses the rooms start is one room, and
     a variational method started there stays one concept (it has no move that splits)."""
     recommended = preset_inference(args.preset)
@@ -496,7 +497,8 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     phases.mark("figures")
     if result.agreement is not None:
         estimate = result.inference.get("point_estimate", args.point_estimate)  # a refit's own
-        print(f"point estimate   {estimate} (expected loss "
+        loss = "variation of information" if estimate == "vi" else "loss"  # not variational
+        print(f"point estimate   {estimate} (expected {loss} "
               f"{result.inference['expected_loss']:.4g}, best single sample "
               f"{result.inference['best_sample_loss']:.4g})"
               f"{'' if args.no_figures else '; agreement.png'}")  # fmt: skip

@@ -143,10 +143,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--point-estimate", choices=POINT_ESTIMATES, default=None,
                    help="the reported map: the highest-log-joint state visited (map-visited) "
-                        "or the partition minimising the expected binder or vi loss over the "
-                        "--marginal-samples maps; writes agreement.png (default: vi with --preset "
-                        "coarse or auto for gibbs or vi-gibbs with a number of --sweeps, else "
-                        "map-visited)")  # fmt: skip
+                        "or the partition minimising the expected Binder loss (binder) or "
+                        "variation of information (vi: a distance between label maps, not "
+                        "variational inference) over the --marginal-samples maps; writes "
+                        "agreement.png (default: vi with --preset coarse or auto for gibbs or "
+                        "vi-gibbs with a number of --sweeps, else map-visited)")  # fmt: skip
     p.add_argument("--feature-scaling",
                    help="image features as probability, floor100 or a number s (s * f) "
                         f"{_PRESET_DEFAULT}")  # fmt: skip
