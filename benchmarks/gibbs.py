@@ -347,7 +347,9 @@ def _preset_settings(name: str) -> SpCoSettings:
     return preset(name, num_concepts=10) if name == "paper-dirichlet" else preset(name)
 
 
-def bench_run_loop(house: House, backend: str, sizes: BenchSizes) -> list[dict[str, Any]]:
+def bench_run_loop(
+    house: House, backend: str, sizes: BenchSizes, threads: int | str = "auto"
+) -> list[dict[str, Any]]:
     """Per preset: S bare kernel sweeps against a run_gibbs of S sweeps, the same chain."""
     results = []
     for name in RUN_LOOP_PRESETS:
@@ -357,7 +359,7 @@ def bench_run_loop(house: House, backend: str, sizes: BenchSizes) -> list[dict[s
             f"run loop {name}",
             lambda p=problem: kernel_and_run(
                 p.data, p.config, sizes.run_loop_sweeps, backend=backend,
-                block=sizes.run_loop_block,
+                block=sizes.run_loop_block, threads=threads,
             ),
         )  # fmt: skip
         results.append({"preset": name, "house": house.name, **entry})
@@ -570,7 +572,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     headline_house = load_headline_house(dataset)
     compiled = "numba" if "numba" in backends else fastest
     with measure_contention(contention, "run loop", args.wait_idle):
-        results["run_loop"] = bench_run_loop(headline_house, compiled, sizes)
+        results["run_loop"] = bench_run_loop(headline_house, compiled, sizes, threads)
     with measure_contention(contention, "whole fits", args.wait_idle):
         results["bytecode"] = warm_bytecode()  # the fits' processes use the .pyc cache
         results["import_floor"] = import_seconds(("pass", "torch"))  # the fixed cost's floor

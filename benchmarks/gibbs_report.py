@@ -417,7 +417,8 @@ def render_issue15(results: dict[str, Any]) -> list[str]:
     run_loop = [e for e in results.get("run_loop", []) if _ok(e)]
     if run_loop:
         out += ["", f"== Run loop against the bare kernel ({run_loop[0]['house']}, "
-                    f"{run_loop[0]['sweeps']} sweeps, {run_loop[0]['backend']}) =="]  # fmt: skip
+                    f"{run_loop[0]['sweeps']} sweeps, {run_loop[0]['backend']}, "
+                    f"{run_loop[0].get('torch_threads', '?')} torch thread(s)) =="]  # fmt: skip
         out.append(format_table(
             ["preset", "L", "kernel ms/sweep", "kernel ns/cell", "run_gibbs ms/sweep",
              "run / kernel"],

@@ -28,6 +28,7 @@ from typing import Any
 import torch
 from fixed_cost import fit_once
 
+from spcopyro._util.threads import AUTO, resolve_threads, torch_threads
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs import GibbsOptions, run_gibbs
 from spcopyro.gibbs.backends import get_backend
@@ -46,6 +47,17 @@ def kernel_and_run(
     backend: str = "numba",
     seed: int = 0,
     block: int = 250,
+    threads: int | str = AUTO,
+) -> dict[str, Any]:
+    """Under ``threads`` (fit's thread policy by default, :func:`_kernel_and_run`): the bare
+    kernel's and ``run_gibbs``'s seconds for the same chain, and the torch threads used."""
+    with torch_threads(resolve_threads(threads, data.num_free)) as used:
+        row = _kernel_and_run(data, config, sweeps, backend=backend, seed=seed, block=block)
+    return {**row, "torch_threads": used}
+
+
+def _kernel_and_run(
+    data: ModelData, config: SpCoConfig, sweeps: int, *, backend: str, seed: int, block: int
 ) -> dict[str, Any]:
     """The bare kernel's and ``run_gibbs``'s seconds for the same ``sweeps``-sweep chain, timed
     in alternating blocks of ``block`` sweeps (kernel block, run-loop block, ...), so that both

@@ -1172,3 +1172,29 @@ def test_gibbs_per_house_and_headline_rows_run_under_fits_thread_policy(script, 
             gibbs.bench_headline(None, "numba", 1, threads)
     assert "--torch-threads" not in commands[0], commands  # the child applies the policy
     assert commands[1][-3:] == ["--torch-threads", "3", "--no-dataset"], commands
+
+
+def test_gibbs_run_loop_rows_run_under_fits_thread_policy(script, monkeypatch):
+    """The run loop against the kernel (and the kernel's ns-a-cell target) ran with torch's
+    default count: a --quick run at load 3 timed paper-dp's kernel at 53 ms a sweep on room2ldk4
+    against ~1 ms with one thread. It now runs under fit's policy and records the count."""
+    import torch
+
+    run_loop = script("gibbs_run_loop")
+    seen = []
+
+    def timed(*args, **kwargs):
+        seen.append(torch.get_num_threads())
+        return {"ratio": 1.0}
+
+    monkeypatch.setattr(run_loop, "_kernel_and_run", timed)
+    data = argparse.Namespace(num_free=27746)
+    previous = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        row = run_loop.kernel_and_run(data, None, 10)
+        assert seen == [1] and row["torch_threads"] == 1, (seen, row)
+        assert run_loop.kernel_and_run(data, None, 10, threads=2)["torch_threads"] == 2
+        assert torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(previous)
