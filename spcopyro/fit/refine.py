@@ -23,7 +23,8 @@ the coarse fit's concepts stand in for them (never a truth):
    estimate asked for, as a fit of that many sweeps would be refined: its chains all start
    from the kept coarse one, so an R-hat of theirs would not check what the coarse stage's
    dispersed starts did, and a single visited state on the map's cells keeps about 1 % of
-   them as one-cell concepts, which the VI point estimate over the samples does not.
+   them as one-cell concepts, which the variation-of-information point
+   estimate over the samples does not.
 
 **Why alpha is scaled.** With pi integrated out, the label counts' term of the log joint is the
 Dirichlet-multinomial :math:`\log DM(N_1..N_L \mid \alpha/L)`; a partition of the ``N`` cells
