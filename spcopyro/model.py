@@ -383,11 +383,19 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
     observation spread over the cells around it with weights w_tc summing to one, so that this
     density is, up to a constant, the tempered product prod_t prod_c p(x_t | C_c)^{w_tc}.
 
-    **Running it forward.** Under :func:`pyro.poutine.uncondition` it draws pi, theta, w and
-    emissions, but its ``labels`` draw ignores the Potts term (a factor cannot be sampled). A draw
-    of the whole prior, MRF included, is :func:`spcopyro.simulate.sample_prior_world`: pi from
-    its prior, labels by label-only Gibbs sweeps of the kernel (the exact conditional of the Potts
-    prior given pi), then this model conditioned on those labels draws theta, w and the emissions.
+    **Running it forward.** The model's sites come in this order: pi (eqs. 1, 7); theta_l and
+    w_l of every concept (and each further modality's distributions) from their Dirichlets
+    (eqs. 3, 4), which do not depend on the labels; the labels, each cell independently from
+    Mult(pi) (the Mult(C | pi) term of eq. 10); the ``potts`` factor gamma E(C) (eqs. 8-10); and
+    last each observed cell's counts from its concept's theta and w (eqs. 5, 6). Under
+    :func:`pyro.poutine.uncondition` it draws them all in that order, but its ``labels`` draw
+    ignores the Potts term (a factor cannot be sampled). A draw of the whole prior, MRF included,
+    is :func:`spcopyro.simulate.sample_prior_world`, in the same order: pi from its Dirichlet
+    (eqs. 1, 7), then theta and w from theirs (eqs. 3, 4), before and independently of the
+    labels; then the labels, drawn each from Mult(pi) and moved by ``sweeps`` label-only Gibbs
+    sweeps of the kernel (eq. 13 without its emission terms: the exact conditional of the Potts
+    prior of eqs. 2, 8-10 given pi); then this model, conditioned on pi, theta, w and those
+    labels, draws only the emissions f and S (eqs. 5, 6), each observed cell keeping its totals.
 
     Complexity: one evaluation is O(N + P + (M + L) sum_m K_m).
 
