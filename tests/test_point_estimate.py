@@ -193,7 +193,11 @@ def test_the_point_estimate_shows_its_progress(capsys, monkeypatch):
     rng = np.random.default_rng(0)
     samples = rng.integers(0, 5, size=(6, 40))
     point_estimate(samples, "vi", progress=True)
-    assert "point estimate (vi)" in capsys.readouterr().err
+    said = capsys.readouterr().err
+    assert "point estimate (variation of information)" in said  # 'vi' read as variational
+    assert "point estimate (vi)" not in said
+    point_estimate(samples, "binder", progress=True)
+    assert "point estimate (Binder loss)" in capsys.readouterr().err
     point_estimate(samples, "vi", progress=False)
     assert "point estimate" not in capsys.readouterr().err
 

@@ -58,6 +58,8 @@ if TYPE_CHECKING:
 
 LOSSES = ("binder", "vi")
 """The expected losses :func:`point_estimate` minimises."""
+LOSS_LABELS = {"binder": "Binder loss", "vi": "variation of information"}
+"""What the progress bar calls each loss (its label read 'vi' as variational inference)."""
 POINT_ESTIMATES = ("map-visited", *LOSSES)
 """What a fit may report as its map: the highest-log-joint state visited, or a loss's minimiser."""
 DEFAULT_STARTS = 3
@@ -286,7 +288,7 @@ def point_estimate(
     order_count = max(1, starts)
     with tqdm(
         total=len(prepared.codes) + min(order_count, len(prepared.codes)),
-        desc=f"point estimate ({loss})",
+        desc=f"point estimate ({LOSS_LABELS[loss]})",
         unit="step",
         disable=not progress_enabled(progress),
         leave=False,
