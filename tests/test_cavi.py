@@ -490,9 +490,16 @@ def test_a_degenerate_stick_breaking_prior_is_warned_about_once(caplog):
     from spcopyro.guides import factors
 
     assert factors.stick_breaking_warning(SpCoConfig(alpha=1.0)) is None
-    assert "100% of pi's mass on the last concept" in factors.stick_breaking_warning(
+    assert "99.999% of pi's mass on the last concept" in factors.stick_breaking_warning(
         SpCoConfig(alpha=1e7)
     )
+    # 99.71% was printed "100%": near 100 the share takes the digits it needs to stay below.
+    said = factors.stick_breaking_warning(SpCoConfig(alpha=1e4, num_concepts=30))
+    assert "puts 99.7% of pi's mass" in said
+    said = factors.stick_breaking_warning(SpCoConfig(alpha=1e8, num_concepts=2))
+    assert "puts more than 99.9999% of pi's mass" in said
+    said = factors.stick_breaking_warning(SpCoConfig(alpha=1e3, num_concepts=30))
+    assert "puts 97% of pi's mass" in said
     cfg = SpCoConfig(alpha=123456789.0, num_concepts=7)
     _, data = random_problem(seed=0)
     for _ in range(3):

@@ -23,6 +23,7 @@ approximations, not to score the paper's model.
 
 from __future__ import annotations
 
+import math
 from typing import Literal, NamedTuple
 
 import torch
@@ -63,12 +64,27 @@ def stick_breaking_warning(config: SpCoConfig) -> str | None:
     last = (config.alpha / (1.0 + config.alpha)) ** (config.num_concepts - 1)
     if last <= 0.5:
         return None
+    # 1 - last without the cancellation: (1 - 1 / (1 + alpha))^(L - 1) = exp((L - 1) log1p(-..))
+    rest = -math.expm1((config.num_concepts - 1) * math.log1p(-1.0 / (1.0 + config.alpha)))
     return (
         f"pi_family='stick-breaking' with alpha = {config.alpha:g} and L = "
-        f"{config.num_concepts}: the truncated prior puts {100 * last:.0f}% of pi's mass on "
+        f"{config.num_concepts}: the truncated prior puts {_share(last, rest)} of pi's mass on "
         "the last concept (the sticks' remainder), which then takes every cell; this alpha is "
         "the weak-limit Dirichlet's: give the stick-breaking one of order 1-10 (--alpha)"
     )
+
+
+def _share(fraction: float, rest: float) -> str:
+    """``fraction`` as a percentage that never rounds up to 100% while ``rest`` (1 - fraction,
+    computed apart) is above 0: 99.7% was printed "100%". Whole percents below 99.5%, more
+    digits above, "more than 99.9999%" beyond them."""
+    if rest <= 0.0:
+        return "100%"
+    for digits in range(5):
+        shown = f"{100 * fraction:.{digits}f}"
+        if float(shown) < 100.0:
+            return f"{shown}%"
+    return "more than 99.9999%"
 
 
 def prior_factors(
