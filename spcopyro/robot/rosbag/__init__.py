@@ -2,7 +2,11 @@
 
 * :mod:`~spcopyro.robot.rosbag.poses`: planar pose tracks, interpolation at a stamp, tf composition.
 * :mod:`~spcopyro.robot.rosbag.bag`: reading a ROS 1 or ROS 2 bag (rosbags' AnyReader): topics,
-  poses, the tf chain, image stamps, utterances; clear errors for what is missing or malformed.
+  poses, image stamps, utterances; clear errors for what is missing or malformed.
+* :mod:`~spcopyro.robot.rosbag.tf_chain`: the bag's tf tree: the chain between two frames
+  (``--pose-tf``), a pose topic in another frame placed on the map through it.
+* :mod:`~spcopyro.robot.rosbag.mcap_schemas`: the one wrap of rosbags' internals (mcap schemas
+  without a definition), failing loudly on a rosbags release without it.
 * :mod:`~spcopyro.robot.rosbag.images`: the file to store for an image message.
 * :mod:`~spcopyro.robot.rosbag.house_folder`: the house folder and what ``--overwrite`` may replace.
 * :mod:`~spcopyro.robot.rosbag.importer`: :func:`import_bags`, bags -> a house folder of the dataset

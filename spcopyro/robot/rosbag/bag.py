@@ -1,4 +1,5 @@
-"""Reading a recording with ``rosbags``: topics, poses, tf, image stamps and utterances.
+"""Reading a recording with ``rosbags``: topics, poses, image stamps and utterances (the tf tree
+is read on these: :mod:`~spcopyro.robot.rosbag.tf_chain`).
 
 ``rosbags`` (pure Python; ROS 1 ``.bag`` files and ROS 2 bags in sqlite3 or mcap storage, read
 alike through :class:`rosbags.highlevel.AnyReader`) is an optional dependency: it is imported
@@ -20,7 +21,6 @@ stamps keep the first pose.
 from __future__ import annotations
 
 import os
-from collections import deque
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -29,7 +29,14 @@ from typing import Any
 
 import numpy as np
 
-from spcopyro.robot.rosbag.poses import PoseTrack, late_count, on_stamp_clock, quaternion_yaw
+from spcopyro.robot.rosbag.mcap_schemas import schemas_without_data_as_none
+from spcopyro.robot.rosbag.poses import (
+    PoseTrack,
+    frame_name,
+    late_count,
+    on_stamp_clock,
+    quaternion_yaw,
+)
 from spcopyro.robot.rosbag.repairs import compressed_messages, none_read_fix, packed_file, repair
 
 __all__ = [
@@ -44,14 +51,19 @@ __all__ = [
     "BagFormatError",
     "RosbagsMissingError",
     "TopicData",
-    "check_tf_topics",
+    "check_order",
+    "iter_images",
+    "message_time",
     "open_bag",
-    "read_pose_in_map",
+    "pose_track",
     "read_pose_topic",
-    "read_tf_chain",
     "read_stamps",
     "read_texts",
+    "reading_errors",
     "stamp_seconds",
+    "topic_connections",
+    "topic_listing",
+    "topic_messages",
 ]
 
 INSTALL_HINT = 'pip install "spcopyro[ros]"'
@@ -112,47 +124,21 @@ def typestore(distro: str) -> Any:
 
 
 @contextmanager
-def _schemas_without_data_as_none() -> Iterator[None]:
-    """While a bag opens: an mcap schema with no data is read as "no definition", whatever
-    its encoding, so that the ``--ros-distro`` typestore serves its type.
-
-    rosbag2 records a type whose definition it cannot find with ``encoding: unknown`` and empty
-    data (rosbag2_cpp ``LocalMessageDefinitionSource::get_full_text``, ``Format::UNKNOWN``);
-    rosbags 0.11 maps an mcap schema's encoding through a fixed table (``ros2msg``,
-    ``ros2idl``, ``omgidl`` and ``""`` only: ``storage_mcap.get_msgdef``) and fails on such a bag
-    with ``KeyError: 'unknown'``, or parses empty ``ros2msg`` data as a type without fields.
-    rosbags reads schemas only when a bag opens, so the module function is wrapped for that
-    call only (not thread-safe against another thread opening an mcap bag meanwhile)."""
-    try:
-        from rosbags.rosbag2 import storage_mcap
-    except ImportError:  # another rosbags layout: nothing to wrap
-        yield
-        return
-    original = storage_mcap.get_msgdef
-
-    def get_msgdef(schema: Any) -> Any:
-        return original(None if schema is not None and not schema.data else schema)
-
-    storage_mcap.get_msgdef = get_msgdef
-    try:
-        yield
-    finally:
-        storage_mcap.get_msgdef = original
-
-
-@contextmanager
 def open_bag(path: str | os.PathLike[str], ros_distro: str = DEFAULT_ROS_DISTRO) -> Iterator[Any]:
     """An open :class:`rosbags.highlevel.AnyReader` of one bag: a ROS 1 ``.bag`` file, a ROS 2
     bag folder (with ``metadata.yaml``), or a ROS 2 ``.db3`` / ``.mcap`` file. A ROS 2 bag that
     stores no message definitions (Foxy, Galactic, Humble) is read with those of ``ros_distro``
     (:data:`ROS_DISTROS`); one that stores its own is read with its own, and the types it stores
     none for (an mcap schema with empty data, as rosbag2 writes when it cannot find a
-    definition: :func:`_schemas_without_data_as_none`) with those of ``ros_distro``.
+    definition: :func:`~spcopyro.robot.rosbag.mcap_schemas.schemas_without_data_as_none`) with
+    those of ``ros_distro``.
 
     Raises:
         FileNotFoundError: no such file or folder.
         BagFormatError: anything else that is not a readable bag (the message names the path).
         RosbagsMissingError: rosbags is not installed.
+        RosbagsInternalsError: a ROS 2 bag, and a rosbags release without the internal
+            function :mod:`~spcopyro.robot.rosbag.mcap_schemas` wraps.
     """
     highlevel = _rosbags()
     store = typestore(ros_distro)
@@ -185,7 +171,7 @@ def open_bag(path: str | os.PathLike[str], ros_distro: str = DEFAULT_ROS_DISTRO)
         )
     reader = highlevel.AnyReader([path], default_typestore=store)
     try:
-        with _schemas_without_data_as_none():
+        with schemas_without_data_as_none(ros2=reader.is2):
             reader.open()
     except (highlevel.AnyReaderError, OSError, KeyError, ValueError, AssertionError) as error:
         why = " ".join(str(error).split()) or type(error).__name__  # one line (yaml's span lines)
@@ -211,7 +197,7 @@ def reading_errors(path: str | os.PathLike[str]) -> Iterator[None]:
         raise BagFormatError(f"{path}: unreadable message ({error})") from None
 
 
-def _messages(
+def topic_messages(
     reader: Any, connections: list[Any], topic: str, wanted: set[int] | None = None
 ) -> Iterator[tuple[int, Any, int, Any]]:
     """``(index, connection, log time ns, message)`` of the connections' messages in bag order,
@@ -265,7 +251,7 @@ def _none_read(reader: Any, topic: str, indexed: int) -> BagContentError:
     )
 
 
-def _topic_listing(reader: Any) -> str:
+def topic_listing(reader: Any) -> str:
     return ", ".join(f"{name} ({info.msgtype})" for name, info in sorted(reader.topics.items()))
 
 
@@ -280,7 +266,7 @@ def topic_connections(reader: Any, topic: str, allowed: tuple[str, ...], role: s
         hint = f" (pass {option[role]} {fits[0]}?)" if len(fits) == 1 and role in option else ""
         raise BagContentError(
             f"{reader.paths[0]}: no {role} topic {topic!r}{hint}; the bag has: "
-            f"{_topic_listing(reader) or 'no topics'}"
+            f"{topic_listing(reader) or 'no topics'}"
         )
     for connection in found:
         if connection.msgtype not in allowed:
@@ -292,7 +278,7 @@ def topic_connections(reader: Any, topic: str, allowed: tuple[str, ...], role: s
     return found
 
 
-def _stamp(msg: Any, log_ns: int) -> tuple[float, bool]:
+def message_time(msg: Any, log_ns: int) -> tuple[float, bool]:
     """The message's time (its header stamp, else the bag's record time) and whether it is
     the header stamp."""
     header = getattr(msg, "header", None)
@@ -303,11 +289,11 @@ def _stamp(msg: Any, log_ns: int) -> tuple[float, bool]:
     return log_ns * 1e-9, False
 
 
-def _check_order(
+def check_order(
     reader: Any, topic: str, times: list[float], what: str = "", numbers: list[int] | None = None
 ) -> None:
     """BagContentError when more than a few of ``times`` go back (more than one, and more than
-    a tenth: a clock that went back, not samples arriving late, which :func:`_track` sorts in),
+    a tenth: a clock that went back, not samples arriving late, which :func:`pose_track` sorts in),
     naming the bag, the topic, the first two stamps that go back and the messages' numbers on
     the topic (1-based, bag order: ``numbers`` when ``times`` are a subset of the topic's
     messages, as a tf edge's are)."""
@@ -323,7 +309,7 @@ def _check_order(
         )
 
 
-def _track(
+def pose_track(
     name: str,
     times: list[float],
     poses: list[tuple[float, float, float]],
@@ -364,167 +350,27 @@ def read_pose_topic(reader: Any, topic: str) -> PoseTrack:
     clock: list[tuple[float, float]] = []
     unstamped: list[int] = []  # the samples of zero stamp, at their record time
     frames: set[str] = set()
-    for _, connection, log_ns, msg in _messages(reader, connections, topic):
+    for _, connection, log_ns, msg in topic_messages(reader, connections, topic):
         pose = msg.pose if connection.msgtype.endswith("PoseStamped") else msg.pose.pose
-        t, stamped = _stamp(msg, log_ns)
+        t, stamped = message_time(msg, log_ns)
         times.append(t)
         if stamped:
             clock.append((log_ns * 1e-9, t))
         else:
             unstamped.append(len(times) - 1)
         poses.append(_planar(pose))
-        frames.add(_frame(msg.header.frame_id))
+        frames.add(frame_name(msg.header.frame_id))
     if not times:
         raise BagContentError(f"{reader.paths[0]}: pose topic {topic} holds no messages")
     times = on_stamp_clock(times, unstamped, clock)
-    _check_order(reader, topic, times)
+    check_order(reader, topic, times)
     named = sorted(f for f in frames if f)
     if len(named) > 1:
         raise BagContentError(
             f"{reader.paths[0]}: pose topic {topic} gives poses in several frames "
             f"({', '.join(repr(f) for f in named)}); the import reads one frame per topic"
         )
-    return _track(topic, times, poses, frame=named[0] if named else None, clock=clock)
-
-
-def read_pose_in_map(reader: Any, topic: str, map_frame: str) -> tuple[list[PoseTrack], str | None]:
-    """The pose topic's poses placed on the map of frame ``map_frame``: the chain to
-    :func:`~spcopyro.robot.rosbag.poses.compose` at each observation's stamp, and the tf path used
-    (``"map -> odom"``; None when the poses are in the map's frame already).
-
-    A pose topic whose ``header.frame_id`` names another frame (``odom``) is placed on the map
-    through the bag's tf: the chain is the tf edges from ``map_frame`` to that frame
-    (:func:`read_tf_chain`, each edge interpolated at the observation's stamp, as tf2's
-    ``lookupTransform`` would) followed by the pose topic's own track, so every observation
-    needs a sample of every edge within the pose tolerance (else it is skipped and reported,
-    naming the edge). Without such a chain the poses would be wrong on the map by the transform
-    between the frames: :class:`BagContentError`, saying so. An empty frame_id is taken to be
-    the map's."""
-    track = read_pose_topic(reader, topic)
-    frame, map_frame = track.frame, _frame(map_frame)
-    if frame is None or frame == map_frame:
-        return [track], None
-    tracks = _tf_tracks(reader)
-    found = None if tracks is None else _tf_path(tracks, map_frame, frame)
-    if found is None:
-        why = "the bag has no /tf or /tf_static topic" if tracks is None else _edges(tracks)
-        raise BagContentError(
-            f"{reader.paths[0]}: pose topic {topic} gives poses in frame {frame!r}, not the "
-            f"map's frame {map_frame!r}, and no tf chain links them ({why}): pass "
-            f"--map-frame {frame} if the map is in that frame, or read the pose from tf with "
-            f"--pose-tf {map_frame} BASE_FRAME"
-        )
-    chain, path = found
-    return [*chain, track], " -> ".join(path)
-
-
-def _frame(name: str) -> str:
-    return name.strip().lstrip("/")
-
-
-def _tf_tracks(reader: Any) -> dict[tuple[str, str], PoseTrack] | None:
-    """Every tf edge ``(parent, child)`` of ``/tf`` and ``/tf_static`` as a pose track of the
-    child in the parent; None when the bag has neither topic."""
-    topics = [t for t in ("/tf", "/tf_static", "tf", "tf_static") if t in reader.topics]
-    if not topics:
-        return None
-    connections = [c for t in topics for c in topic_connections(reader, t, TF_TYPES, "tf")]
-    samples: dict[tuple[str, str], tuple[list[float], list[tuple[float, float, float]]]] = {}
-    numbers: dict[tuple[str, str], list[int]] = {}  # each sample's message number on /tf
-    clocks: dict[tuple[str, str], list[tuple[float, float]]] = {}
-    unstamped: dict[tuple[str, str], list[int]] = {}
-    static: dict[tuple[str, str], tuple[float, float, float]] = {}
-    counted = {"tf": 0, "tf_static": 0}
-    for _, connection, log_ns, msg in _messages(reader, connections, " and ".join(topics)):
-        is_static = connection.topic.lstrip("/") == "tf_static"
-        counted[connection.topic.lstrip("/")] += 1
-        for transform in msg.transforms:
-            edge = (_frame(transform.header.frame_id), _frame(transform.child_frame_id))
-            tr, q = transform.transform.translation, transform.transform.rotation
-            pose = (float(tr.x), float(tr.y), quaternion_yaw(q.x, q.y, q.z, q.w))
-            if is_static:
-                static[edge] = pose
-                continue
-            times, poses = samples.setdefault(edge, ([], []))
-            t, stamped = _stamp(transform, log_ns)
-            times.append(t)
-            poses.append(pose)
-            if stamped:
-                clocks.setdefault(edge, []).append((log_ns * 1e-9, t))
-            else:
-                unstamped.setdefault(edge, []).append(len(times) - 1)
-            numbers.setdefault(edge, []).append(counted["tf"])
-    tracks: dict[tuple[str, str], PoseTrack] = {}
-    for edge, (times, poses) in samples.items():
-        times = on_stamp_clock(times, unstamped.get(edge, []), clocks.get(edge, []))
-        _check_order(reader, "/tf", times, f" (edge {edge[0]} -> {edge[1]})", numbers[edge])
-        tracks[edge] = _track(f"tf {edge[0]} -> {edge[1]}", times, poses, None, clocks.get(edge))
-    for edge, pose in static.items():
-        tracks[edge] = PoseTrack(
-            f"tf_static {edge[0]} -> {edge[1]}", [0.0], [pose[:2]], [pose[2]], static=True
-        )
-    return tracks
-
-
-def _edges(tracks: dict[tuple[str, str], PoseTrack]) -> str:
-    return "the bag's tf edges: " + (", ".join(f"{a} -> {b}" for a, b in sorted(tracks)) or "none")
-
-
-def _tf_path(
-    tracks: dict[tuple[str, str], PoseTrack], parent: str, child: str
-) -> tuple[list[PoseTrack], list[str]] | None:
-    """The chain of ``tracks`` (:func:`_tf_tracks`) from frame ``parent`` to frame ``child``
-    and the frames it walks (``[parent, ..., child]``); None when no chain links them."""
-    # Breadth-first search over the tree, edges usable both ways.
-    neighbours: dict[str, list[tuple[str, tuple[str, str], bool]]] = {}
-    for a, b in tracks:
-        neighbours.setdefault(a, []).append((b, (a, b), False))
-        neighbours.setdefault(b, []).append((a, (a, b), True))
-    previous: dict[str, tuple[str, tuple[str, str], bool] | None] = {parent: None}
-    queue = deque([parent])
-    while queue:
-        frame = queue.popleft()
-        for other, edge, inverted in neighbours.get(frame, []):
-            if other not in previous:
-                previous[other] = (frame, edge, inverted)
-                queue.append(other)
-    if child not in previous or parent not in neighbours:
-        return None
-    chain: list[PoseTrack] = []
-    path = [child]
-    frame = child
-    while (step := previous[frame]) is not None:
-        before, edge, inverted = step
-        chain.append(tracks[edge].inverse() if inverted else tracks[edge])
-        path.append(before)
-        frame = before
-    return chain[::-1], path[::-1]
-
-
-def check_tf_topics(reader: Any, parent: str, child: str) -> None:
-    """BagContentError when the bag has no ``/tf`` or ``/tf_static`` topic for the tf pose."""
-    if not any(t in reader.topics for t in ("/tf", "/tf_static", "tf", "tf_static")):
-        raise BagContentError(
-            f"{reader.paths[0]}: no /tf or /tf_static topic for the tf pose "
-            f"{_frame(parent)} -> {_frame(child)}; the bag has: "
-            f"{_topic_listing(reader) or 'no topics'}"
-        )
-
-
-def read_tf_chain(reader: Any, parent: str, child: str) -> list[PoseTrack]:
-    """The tf edges from frame ``parent`` to frame ``child`` (``/tf`` and ``/tf_static``) as
-    pose tracks whose product (:func:`spcopyro.robot.rosbag.poses.compose`) is the pose of ``child``
-    in ``parent``; edges walked against their direction are inverted."""
-    parent, child = _frame(parent), _frame(child)
-    check_tf_topics(reader, parent, child)
-    tracks = _tf_tracks(reader) or {}
-    found = _tf_path(tracks, parent, child)
-    if found is None:
-        raise BagContentError(
-            f"{reader.paths[0]}: no chain of tf transforms from frame {parent!r} to {child!r}; "
-            f"{_edges(tracks)}"
-        )
-    return found[0]
+    return pose_track(topic, times, poses, frame=named[0] if named else None, clock=clock)
 
 
 @dataclass
@@ -547,8 +393,8 @@ def read_stamps(reader: Any, topic: str) -> TopicData:
     (the images are decoded later, only those kept)."""
     connections = topic_connections(reader, topic, IMAGE_TYPES, "image")
     times, stamped = [], []
-    for _, _connection, log_ns, msg in _messages(reader, connections, topic):
-        t, has_stamp = _stamp(msg, log_ns)
+    for _, _connection, log_ns, msg in topic_messages(reader, connections, topic):
+        t, has_stamp = message_time(msg, log_ns)
         times.append(t)
         stamped.append(has_stamp)
     times_s = np.asarray(times, dtype=np.float64)
@@ -565,10 +411,10 @@ def read_texts(reader: Any, topic: str) -> TopicData:
     """The strings of a std_msgs/String topic, at the times the bag recorded them."""
     connections = topic_connections(reader, topic, TEXT_TYPES, "utterance")
     times, texts = [], []
-    for _, _connection, log_ns, msg in _messages(reader, connections, topic):
-        times.append(_stamp(msg, log_ns)[0])
+    for _, _connection, log_ns, msg in topic_messages(reader, connections, topic):
+        times.append(message_time(msg, log_ns)[0])
         texts.append(str(msg.data))
-    _check_order(reader, topic, times)
+    check_order(reader, topic, times)
     stamped = np.zeros(len(times), dtype=bool)  # std_msgs/String has no header
     times_s = np.asarray(times, dtype=np.float64)
     return TopicData(topic, connections[0].msgtype, times_s, stamped, texts, _indexed(connections))
@@ -577,6 +423,6 @@ def read_texts(reader: Any, topic: str) -> TopicData:
 def iter_images(reader: Any, topic: str, keep: set[int]) -> Iterator[tuple[int, Any]]:
     """``(index, message)`` of the image messages whose index (bag order) is in ``keep``."""
     connections = topic_connections(reader, topic, IMAGE_TYPES, "image")
-    for index, _connection, _log_ns, msg in _messages(reader, connections, topic, keep):
+    for index, _connection, _log_ns, msg in topic_messages(reader, connections, topic, keep):
         if index in keep:
             yield index, msg

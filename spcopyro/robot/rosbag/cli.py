@@ -54,6 +54,7 @@ def _print_skipped(skipped, where: str) -> None:
 def _import_bag(args: argparse.Namespace) -> int:
     from spcopyro.robot.rosbag.bag import RosbagsMissingError
     from spcopyro.robot.rosbag.importer import ImportOptions, NothingLeftError, import_bags
+    from spcopyro.robot.rosbag.mcap_schemas import RosbagsInternalsError
 
     options = ImportOptions(
         pose_topic=args.pose_topic,
@@ -76,7 +77,7 @@ def _import_bag(args: argparse.Namespace) -> int:
             first_trial=args.first_trial,
             overwrite=args.overwrite,
         )
-    except RosbagsMissingError as error:
+    except (RosbagsMissingError, RosbagsInternalsError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
     except NothingLeftError as error:  # the skipped observations are the reason: shown first

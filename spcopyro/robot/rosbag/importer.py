@@ -75,22 +75,19 @@ from spcopyro.robot.rosbag.bag import (
     ROS_DISTROS,
     TEXT_TYPES,
     BagContentError,
-    _frame,
     _rosbags,
-    check_tf_topics,
     iter_images,
     open_bag,
-    read_pose_in_map,
     read_stamps,
     read_texts,
-    read_tf_chain,
     reading_errors,
     topic_connections,
 )
 from spcopyro.robot.rosbag.house_folder import MARKER, check_map, check_out, replace_out
 from spcopyro.robot.rosbag.images import SENSOR_BITS, ImageDecodeError, encoded_image
-from spcopyro.robot.rosbag.poses import PoseTrack, compose, header_clock, late_count
+from spcopyro.robot.rosbag.poses import PoseTrack, compose, frame_name, header_clock, late_count
 from spcopyro.robot.rosbag.report import BagImportReport, SkippedObservation, write_skipped
+from spcopyro.robot.rosbag.tf_chain import check_tf_topics, read_pose_in_map, read_tf_chain
 
 __all__ = [
     "MARKER",
@@ -151,11 +148,12 @@ class ImportOptions:
             len(self.pose_tf) != 2 or not all(str(f).strip("/ ") for f in self.pose_tf)
         ):
             raise ValueError(f"pose_tf must be (parent frame, child frame), got {self.pose_tf!r}")
-        if self.pose_tf is not None and _frame(self.pose_tf[0]) != _frame(self.map_frame):
-            parent, child = _frame(self.pose_tf[0]), _frame(self.pose_tf[1])
+        if self.pose_tf is not None and frame_name(self.pose_tf[0]) != frame_name(self.map_frame):
+            parent, child = frame_name(self.pose_tf[0]), frame_name(self.pose_tf[1])
+            map_frame = frame_name(self.map_frame)
             raise ValueError(
                 f"--pose-tf {parent} {child} gives poses in frame {parent!r}, not the map's "
-                f"frame {_frame(self.map_frame)!r}: pass --pose-tf {_frame(self.map_frame)} "
+                f"frame {map_frame!r}: pass --pose-tf {map_frame} "
                 f"{child} (the tf chain is followed through {parent}), or --map-frame {parent} "
                 "if the map is in that frame"
             )
@@ -261,7 +259,7 @@ def _import_one(
     with reading_errors(bag):  # the bag stays open: import_bags closes it
         if options.pose_tf:
             chain = read_tf_chain(reader, *options.pose_tf)
-            pose_frame, via_tf = _frame(options.pose_tf[0]), None  # the chain is the pose
+            pose_frame, via_tf = frame_name(options.pose_tf[0]), None  # the chain is the pose
         else:
             chain, via_tf = read_pose_in_map(reader, options.pose_topic, options.map_frame)
             pose_frame = chain[-1].frame

@@ -37,6 +37,7 @@ __all__ = [
     "CLOCKS_DIFFER",
     "PoseTrack",
     "compose",
+    "frame_name",
     "header_clock",
     "late_count",
     "on_stamp_clock",
@@ -44,6 +45,12 @@ __all__ = [
     "wrap_angle",
     "yaw_quaternion",
 ]
+
+
+def frame_name(name: str) -> str:
+    """A frame id as the import compares them: blanks around it and a leading ``/`` (ROS 1's
+    global prefix: ``/odom`` is ``odom``) dropped."""
+    return name.strip().lstrip("/")
 
 
 def wrap_angle(angle: np.ndarray | float) -> np.ndarray:
