@@ -16,9 +16,9 @@ this module holds what its tables are made of. Two tables, written to ``table.md
   (:func:`~spcopyro.metrics.heldout_localisation`, over non-empty regions; 0 = inside). Each
   score is the mean of the three folds' scores.
 
-The paper's own Table 4 numbers are not printed: we could not verify them against the paper text
-here, and the public-house scores are a different measurement (held-out trials, not the paper's
-hand-drawn ground truth).
+The paper's own Table 4 numbers are quoted in a section of their own
+(:mod:`spcopyro.experiments.paper_table4`), not as a column beside ours: the public-house scores
+here are a different measurement (held-out trials, not the paper's hand-drawn ground truth).
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ import numpy as np
 from spcopyro._util.messages import fixed, seconds_text
 from spcopyro.data import House, Observations
 from spcopyro.experiments.methods import SPCO_METHODS
+from spcopyro.experiments.paper_table4 import paper_numbers_markdown
 
 PUBLIC_CATEGORIES = {
     "room1dk5": 6,
@@ -64,17 +65,6 @@ def heldout_folds(house: House) -> Iterator[tuple[int, int, House, Observations]
         # no source: the folder's files hold every trial, so its lines no longer name these
         # observations (cell_counts' messages), nor is the folder this fit's data (provenance)
         yield fold, held, dataclasses.replace(house, observations=train, source=None), test
-
-
-PAPER_NUMBERS_NOTE = (
-    "The paper's Table 4 scores the public houses by ARI (4a) and matching rate (eq. 18, 4b) "
-    "against region ground truth drawn by a participant, which the public dataset does not "
-    "include; no cell of the tables above measures the same thing (synthetic houses: ours; "
-    "public houses: held-out trials), so the paper's numbers are not set beside them. The one "
-    "value of that table this project holds (quoted in issue #4) shows what the stability "
-    "study is about: SpCoMapping (DP) reached a matching rate of 0.0001 on room2ldk4."
-)
-"""Why the paper's own Table 4 values are not printed as a column (see ``table.md``)."""
 
 
 def _fmt(value: float, digits: int = 3) -> str:
@@ -152,7 +142,7 @@ def table_markdown(summary: dict[str, object]) -> str:
             mean_top1 = _fmt(float(np.mean(top1))) if top1 else "—"
             lines.append(f"| {label} | " + " | ".join(cells) + f" | {mean_top1} |")
         lines.append("")
-    lines += ["## The paper's own numbers", "", PAPER_NUMBERS_NOTE, ""]
+    lines += paper_numbers_markdown(settings.get("sweeps"))  # type: ignore[arg-type]
     lines += ["## Notes", ""] + [f"- {note}" for note in summary["notes"]]  # type: ignore[operator]
     return "\n".join(lines) + "\n"
 
