@@ -143,8 +143,9 @@ def source_panels(
     seed: int | None = None, label=None,
 ) -> tuple[OccupancyGrid, list[tuple[str, np.ndarray]], int] | None:  # fmt: skip
     """The panels of source ``data`` at ``seed`` (None: its first seed with a stored map):
-    the truth when known, then each row's map in the table's order, named by ``label(row)``
-    (default ``variant / method``, or the baseline's name); None when no map is stored."""
+    the truth when known (a public house's named "region truth (this project's)"), then each
+    row's map in the table's order, named by ``label(row)`` (default ``variant / method``, or
+    the baseline's name); None when no map is stored."""
     mine = [r for r in rows if r["data"] == data and load_label_map(folder, r) is not None]
     if not mine:
         return None
@@ -154,7 +155,11 @@ def source_panels(
     if not maps:
         return None
     grid, truth = maps[0][1].grid, maps[0][1].truth  # type: ignore[union-attr]
-    panels = [] if truth is None else [("truth", truth)]
+    # a public house's truth is this project's (public_truth: from where place words were
+    # said), not the paper's drawn one: a panel titled "truth" read as the paper's
+    public = any(r.get("data_kind") == "public" for r in mine)
+    truth_name = "region truth (this project's)" if public else "truth"
+    panels = [] if truth is None else [(truth_name, truth)]
     for row, stored in maps:
         assert stored is not None
         name = label(row) if label is not None else (
