@@ -119,3 +119,32 @@ def test_navigate_json_has_no_note_for_a_word_said_as_the_vocabulary_has_it(
     assert record["saved_words_read_as"] == []
     assert [s["word_note"] for s in record["stops"]] == [None]
     assert NOTE not in capsys.readouterr().err
+
+
+def test_a_saved_word_asked_for_as_saved_is_told_once(tmp_path, capsys):
+    """QA: `where OUT stove.` on a fit that saved 'stove.' warned twice, oddly together: that
+    the saved 'stove.' was read as 'stove', then that the typed 'stove.' is not a vocabulary
+    word and was read as 'stove'. Now one warning names the saved words read as others and says
+    that the word asked for is answered for as 'stove'; `export --word` alike."""
+    fit = str(older(two_rooms(), {"kitchen": "Kitchen."}, split="sofa").save(tmp_path / "old"))
+    for word in ("Kitchen.", "kitchen."):
+        assert main(["where", fit, word]) == 0
+        captured = capsys.readouterr()
+        assert captured.out.startswith("'kitchen' is concept")
+        said = [line for line in captured.err.splitlines() if line.startswith("warning:")]
+        assert len(said) == 1, captured.err
+        assert NOTE in said[0] and f"{word!r} is answered for as 'kitchen'" in said[0]
+        assert "is not a word of the vocabulary" not in captured.err
+    assert main(["where", fit, "sofa."]) == 0  # its pair is named first
+    note = capsys.readouterr().err
+    assert "read as it reads them: 'SOFA.' -> 'sofa', 'Kitchen.' -> 'kitchen';" in note
+    assert main(["where", fit, "--", "-kitchen"]) == 0  # no saved word: the note on the typed
+    captured = capsys.readouterr()
+    assert "'-kitchen' is not a word of the vocabulary: read as 'kitchen'" in captured.err
+    assert "is answered for as" not in captured.err
+    argv = ["export", fit, "--nav2", str(tmp_path / "nav2"), "--word", "Kitchen."]
+    assert main(argv) == 0
+    captured = capsys.readouterr()
+    assert "keepout mask for 'kitchen'" in captured.out
+    assert captured.err.count("warning:") == 1, captured.err
+    assert "'Kitchen.' is answered for as 'kitchen'" in captured.err

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import re
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
@@ -76,31 +77,38 @@ def load_start(folder: str) -> SpCoResult:
     return dataclasses.replace(result, grid=grid)
 
 
-def load_fit(folder: str) -> tuple[SpCoResult, SavedVocabulary]:
+def load_fit(folder: str, asked: Sequence[str] = ()) -> tuple[SpCoResult, SavedVocabulary]:
     """The fit in ``folder`` with its vocabulary read as the tokenizer reads words now
     (:func:`~spcopyro.results.saved_vocabulary.renormalised_result`: a fit saved by an older
     spcopyro held ``stove.`` and ``TV``, which ``where OUT stove`` never found), and what was
-    read so; a warning on stderr names the saved words read as others, once."""
+    read so; a warning on stderr names the saved words read as others, once, and which of the
+    words ``asked`` about (``where OUT stove.``) are saved words answered for as others
+    (:meth:`~spcopyro.results.saved_vocabulary.SavedVocabulary.renamed_note`; pass ``saved``
+    to :func:`other_word_note`, which then says nothing more of them)."""
     from spcopyro.results.result import SpCoResult
     from spcopyro.results.saved_vocabulary import renormalised_result
 
     result, saved = renormalised_result(SpCoResult.load(folder))
-    note = saved.renamed_note()
+    note = saved.renamed_note(asked)
     if note:
         print(f"warning: {folder}: {note}", file=sys.stderr)
     return result, saved
 
 
-def other_word_note(given: str, looked_up: str) -> str | None:
+def other_word_note(given: str, looked_up: str, saved: SavedVocabulary | None = None) -> str | None:
     """Why the word answered for, ``looked_up`` (the vocabulary's, as
     :func:`~spcopyro.results.semantic_map.word_key` reads ``given``), is not the word the user
     gave but for case, surrounding spaces and Unicode form; None when it is that word.
     ``where OUT -- -tv`` answered for ``tv`` without a word said: the vocabulary holds no word
     with punctuation at its ends (the data's are read without it), so that is what was looked
-    up, and the user is told."""
+    up, and the user is told. None too when ``given`` is a word of the fit's ``saved``
+    vocabulary read as ``looked_up`` (:func:`load_fit` said so: ``where OUT stove.`` on a fit
+    that saved ``stove.`` was told that ``stove.`` is no word of the vocabulary)."""
     from spcopyro.data.text import fold_word
 
     if fold_word(given.strip()) == fold_word(looked_up):
+        return None
+    if saved is not None and saved.renamed_as(given) == looked_up:
         return None
     return (
         f"{given!r} is not a word of the vocabulary: read as {looked_up!r}, the word "

@@ -66,7 +66,7 @@ def _export(args: argparse.Namespace) -> int:
         print(f"error: --min-speed {args.min_speed:g} exceeds --max-speed {args.max_speed:g}",
               file=sys.stderr)  # fmt: skip
         return 2
-    result, _ = load_fit(args.result)  # an older fit's 'stove.' is 'stove', and it says so
+    result, saved = load_fit(args.result, args.word or ())  # a saved 'stove.' is 'stove', said
     robot_map_yaml, robot_map = load_robot_map(result, args.result) or (None, None)
     try:
         export = export_nav2(
@@ -82,7 +82,7 @@ def _export(args: argparse.Namespace) -> int:
     from spcopyro.results.semantic_map import word_key
 
     for word in dict.fromkeys(args.word or ()):  # --word=-tv: the mask is tv's, and it says so
-        note = other_word_note(word, word_key(result.vocabulary, word))
+        note = other_word_note(word, word_key(result.vocabulary, word), saved)
         if note:
             print(f"warning: {note}", file=sys.stderr)
     free = result.grid.num_free

@@ -263,13 +263,13 @@ def _where(args: argparse.Namespace) -> int:
 
     if args.out:
         _check_where_out(args.result, args.out)
-    result, _ = load_fit(args.result)  # an older fit's 'stove.' is 'stove', and it says so
+    result, saved = load_fit(args.result, [args.word])  # a saved 'stove.' is 'stove', as said
     try:
         answer = result.where(args.word, prior=args.prior)
     except UnknownWordError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2  # a bad argument, as every other error of the command line
-    note = other_word_note(args.word, answer.word)  # `where OUT -- -tv`: 'tv', and it says so
+    note = other_word_note(args.word, answer.word, saved)  # `where OUT -- -tv`: 'tv', said
     if note:
         print(f"warning: {note}", file=sys.stderr)
     grid = result.grid

@@ -21,7 +21,7 @@ import numpy as np
 
 from spcopyro._util.messages import echo
 from spcopyro.config import WORDS
-from spcopyro.data.text import tokenize
+from spcopyro.data.text import fold_word, tokenize
 
 if TYPE_CHECKING:
     from spcopyro.results.result import SpCoResult
@@ -52,18 +52,34 @@ class SavedVocabulary:
         np.add.at(folded.T, self.columns, np.asarray(probabilities, dtype=np.float64).T)
         return folded
 
-    def renamed_note(self) -> str | None:
-        """The sentence that names the saved words read as other words (None: none were)."""
+    def renamed_as(self, asked: str) -> str | None:
+        """The word a saved word that ``asked`` spells (but for case, surrounding spaces and
+        Unicode form: ``stove.`` for a saved ``stove.``) is read as now; None when ``asked``
+        spells no saved word that was renamed."""
+        key = fold_word(asked.strip())
+        return next((new for old, new in self.renamed if fold_word(old) == key), None)
+
+    def renamed_note(self, asked: Sequence[str] = ()) -> str | None:
+        """The sentence that names the saved words read as other words (None: none were).
+        ``asked``: the words a command was asked about; those that spell a renamed saved word
+        (:meth:`renamed_as`) are named first and said to be answered for as the word they are
+        now (``where OUT stove.`` on a fit that saved ``stove.`` said so in a second warning
+        that called ``stove.`` no word of the vocabulary)."""
         if not self.renamed:
             return None
-        pairs = ", ".join(
-            f"{echo(old)} -> {echo(new)}" for old, new in self.renamed[:RENAMED_SHOWN]
-        )
-        more = len(self.renamed) - RENAMED_SHOWN
+        spelt = {fold_word(word.strip()) for word in asked if self.renamed_as(word) is not None}
+        renamed = sorted(self.renamed, key=lambda pair: fold_word(pair[0]) not in spelt)
+        pairs = ", ".join(f"{echo(old)} -> {echo(new)}" for old, new in renamed[:RENAMED_SHOWN])
+        more = len(renamed) - RENAMED_SHOWN
         more = f", ... ({more} more)" if more > 0 else ""
+        answered = "".join(
+            f"; {echo(word)} is answered for as {echo(self.renamed_as(word))}"
+            for word in dict.fromkeys(asked)
+            if self.renamed_as(word) is not None
+        )
         return (f"{len(self.renamed)} word(s) of its vocabulary are not words the tokenizer "
                 f"makes now (a fit saved by an older spcopyro), read as it reads them: "
-                f"{pairs}{more}")  # fmt: skip
+                f"{pairs}{more}{answered}")  # fmt: skip
 
 
 def renormalise_vocabulary(saved: Sequence[str]) -> SavedVocabulary:
