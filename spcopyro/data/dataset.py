@@ -21,20 +21,18 @@ import numpy as np
 
 from spcopyro._util.messages import echo
 from spcopyro.data.dataset_files import (
-    _MODALITY_FILE,
     IMAGE_SUFFIXES,
     _format_float,
     _image_paths,
-    _modality_lines,
     _read_column,
     _read_matrix,
-    _read_modalities,
     _read_text,
     _read_trials,
     _read_utterances_line,
     _write_lines,
     refuse_decimal_commas,
 )
+from spcopyro.data.modality_files import MODALITY_FILE, modality_lines, read_modalities
 from spcopyro.data.observations import _MISSING, DataFormatError, Observations
 from spcopyro.data.text import tokenize
 from spcopyro.maps.grid import OccupancyGrid
@@ -398,7 +396,7 @@ def load_house(
         word_trial=word_trial,
         image_yaw=image_yaw,
         image_paths=image_paths,
-        modalities=_read_modalities(room),
+        modalities=read_modalities(room),
     )
 
     category_names = None
@@ -517,7 +515,7 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
             if (
                 entry.name in _MANAGED_FILES
                 or re.fullmatch(r"(pose|word)_[0-9]+\.csv", entry.name)
-                or _MODALITY_FILE.fullmatch(entry.name)
+                or MODALITY_FILE.fullmatch(entry.name)
             ):
                 entry.unlink()
             elif entry.is_dir() and re.fullmatch(r"img_[0-9]+", entry.name):
@@ -558,7 +556,7 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
                 shutil.copyfile(source, folder / f"{number:05d}{source.suffix.lower()}")
 
     for modality in obs.modalities:
-        _write_lines(room / f"modality_{modality.name}.csv", _modality_lines(modality))
+        _write_lines(room / f"modality_{modality.name}.csv", modality_lines(modality))
 
     if house.truth is not None:
         np.save(room / "truth.npy", np.asarray(house.truth, dtype=np.int64))

@@ -2,8 +2,8 @@
 
 The helpers behind :func:`spcopyro.data.load_house` and :func:`spcopyro.data.save_house`: numeric
 CSV files (one row per line), St.csv's line of utterances, the per-trial ``pose_K.csv`` /
-``word_K.csv`` files, the camera image folders ``img_K/`` and the files of further modalities
-``modality_<name>.csv``. A malformed file raises
+``word_K.csv`` files and the camera image folders ``img_K/`` (the files of further modalities,
+``modality_<name>.csv``: :mod:`~spcopyro.data.modality_files`). A malformed file raises
 :class:`~spcopyro.data.observations.DataFormatError` naming the file, the 1-based line and
 column and the offending value (shortened when long: :func:`spcopyro._util.messages.echo`).
 ``tests/test_loader_fuzz.py`` corrupts a house's files at random to check that nothing else
@@ -15,25 +15,19 @@ from __future__ import annotations
 import logging
 import math
 import re
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 
 import numpy as np
 
 from spcopyro._util.messages import echo
-from spcopyro.data.observations import (
-    DataFormatError,
-    ModalityObservations,
-    _modality_name_problem,
-)
+from spcopyro.data.observations import DataFormatError
 from spcopyro.data.text import tokenize, unsegmented
 
 logger = logging.getLogger("spcopyro")
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png")  # camera images looked for in ROOM/img_K/
 _POSE_XY_ATOL = 1e-6  # metres: pose_K.csv x, y must agree with Xtx.csv / Xty.csv to this
-_MODALITY_FILE = re.compile(r"modality_(.*)\.csv")  # ROOM/modality_<name>.csv, group 1: name
-_MODALITY_COLUMNS = ("trial", "x", "y")  # the columns before a modality file's items
 
 
 def _read_text(path: Path) -> str:
@@ -462,104 +456,3 @@ def _write_lines(path: Path, lines: Iterable[str], trailing_newline: bool = True
     if trailing_newline and text:
         text += "\n"
     path.write_text(text, encoding="utf-8")
-
-
-def _read_modality(path: Path, name: str) -> ModalityObservations:
-    """A further modality's file: header ``trial,x,y,<item>,...``, one observation per line."""
-    lines = _read_lines(path)
-    if not lines or not lines[0].strip():
-        raise DataFormatError(
-            path, f"no header line (expected {','.join(_MODALITY_COLUMNS)},<item>,...)", line=1
-        )
-    header = [text.strip() for text in lines[0].split(",")]
-    for column, want in enumerate(_MODALITY_COLUMNS, start=1):
-        got = header[column - 1] if column <= len(header) else ""
-        if got != want:
-            raise DataFormatError(
-                path, f"header column {column} must be {want!r}", line=1, column=column, value=got
-            )
-    if len(header) <= len(_MODALITY_COLUMNS):
-        raise DataFormatError(
-            path, "the header names no item after trial,x,y", line=1, value=lines[0]
-        )
-    items = header[len(_MODALITY_COLUMNS) :]
-    first_column: dict[str, int] = {}
-    for column, item in enumerate(items, start=len(_MODALITY_COLUMNS) + 1):
-        if not item:
-            raise DataFormatError(path, "empty item name", line=1, column=column, value=item)
-        if item in first_column:
-            raise DataFormatError(
-                path,
-                f"item named twice in the header (also column {first_column[item]})",
-                line=1,
-                column=column,
-                value=item,
-            )
-        first_column[item] = column
-    width = len(header)
-    trials: list[int] = []
-    rows: list[list[float]] = []  # x, y, counts
-    for number, line in enumerate(lines[1:], start=2):
-        if not line.strip():
-            raise DataFormatError(path, "empty line", line=number, value=line)
-        fields = line.split(",")
-        if len(fields) != width:
-            raise DataFormatError(
-                path,
-                f"row has {len(fields)} values, expected {width} (as the header)",
-                line=number,
-                value=line,
-            )
-        trial = fields[0].strip()
-        if re.fullmatch(r"[0-9]+", trial) is None or int(trial) >= 2**63:
-            raise DataFormatError(
-                path, "trial id is not a non-negative integer", line=number, column=1, value=trial
-            )
-        trials.append(int(trial))
-        row = [_parse_number(path, text, number, c) for c, text in enumerate(fields[1:], 2)]
-        for c, value in enumerate(row[2:], start=len(_MODALITY_COLUMNS) + 1):
-            if value < 0:
-                raise DataFormatError(
-                    path,
-                    f"negative count of item {items[c - 4]!r}",
-                    line=number,
-                    column=c,
-                    value=fields[c - 1].strip(),
-                )
-        rows.append(row)
-    table = np.array(rows, dtype=np.float64).reshape(len(rows), width - 1)  # [T, 2 + K]
-    try:
-        return ModalityObservations(
-            name=name,
-            items=tuple(items),
-            positions=table[:, :2],
-            trials=np.array(trials, dtype=np.int64),
-            counts=table[:, 2:],
-        )
-    except ValueError as error:  # an item name that is not a valid column name
-        raise DataFormatError(path, str(error), line=1) from None
-
-
-def _read_modalities(room: Path) -> tuple[ModalityObservations, ...]:
-    """Every ``ROOM/modality_<name>.csv``, sorted by name."""
-    files: dict[str, Path] = {}
-    for entry in room.iterdir():
-        match = _MODALITY_FILE.fullmatch(entry.name)
-        if match and entry.is_file():
-            problem = _modality_name_problem(match.group(1))
-            if problem is not None:
-                raise DataFormatError(entry, problem, value=match.group(1))
-            files[match.group(1)] = entry
-    return tuple(_read_modality(files[name], name) for name in sorted(files))
-
-
-def _modality_lines(modality: ModalityObservations) -> Iterator[str]:
-    """The lines of ``modality_<name>.csv``: the header, then one observation per line."""
-    yield ",".join((*_MODALITY_COLUMNS, *modality.items))
-    for trial, xy, counts in zip(
-        modality.trials.tolist(),
-        modality.positions.tolist(),
-        modality.counts.tolist(),
-        strict=True,
-    ):
-        yield ",".join((str(trial), *map(_format_float, xy), *map(_format_float, counts)))
