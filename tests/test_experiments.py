@@ -337,6 +337,8 @@ def test_studies_markdown_says_the_sentence_study_is_one_house():
     markdown = studies_markdown({"MRF only": [0.1, 0.2]}, scores, sweeps=10, seeds=(3, 4))
     assert "| setting | seed 3 | seed 4 | mean |" in markdown
     assert "the house of seed 3 alone" in markdown
+    # the paper's Table 5 is 20 fixed sentences in a real room: not what this study fits
+    assert "Not the paper's Table 5 setting: that is 20 fixed sentences" in markdown
 
 
 def test_experiment_reruns_stale_cells_when_asked(tmp_path, capsys):

@@ -33,6 +33,15 @@ class SentenceScores:
     top_words: dict[str, list[list[str]]]
 
 
+SENTENCES_NOT_TABLE_5 = (
+    "Not the paper's Table 5 setting: that is 20 fixed sentences in a real laboratory room "
+    '("Here is kitchen", "TV and sofa are in living space", ...), each given 5 times, fitted '
+    "with alpha 1e6, beta 0.6, chi 100, gamma 4 (Section 5.1); here the synthetic house's "
+    'template sentences ("here is the kitchen", "there is a sofa here", ...) with the values '
+    "above, and the score is how often a template's filler word tops a concept."
+)
+"""How the sentence study differs in kind from the paper's Section 5 (``studies.md``)."""
+
 STUDY_CONFIG = dict(preset="original-code", gamma=3.0)
 """The SpCoMapping variant the studies use (the table's row A': regions and sharp words)."""
 
@@ -61,6 +70,8 @@ def studies_markdown(
         "",
         "## Sentences (half the utterances are sentences with filler words; the house of "
         f"seed {seeds[0]} alone)",
+        "",
+        SENTENCES_NOT_TABLE_5,
         "",
         "| word weighting | share of concepts whose top word is a filler | top words of the "
         "largest concepts |",
