@@ -67,7 +67,11 @@ def paper_numbers_markdown(sweeps: int | None) -> list[str]:
         f"dataset does not include ((A) and (B) after {PAPER_ITERATIONS} Gibbs iterations{ran}). "
         "No cell of the tables above measures the same "
         "thing: the synthetic houses are scored against their generated truth, the public "
-        "houses by held-out words. The paper has rows (A)-(E) only; (A') and (F) are this "
+        "houses by held-out words. Our matching rate reads eq. (18) as the share of the "
+        "estimated place that lies in the named category, averaged over the category words "
+        "(`spcopyro.metrics.matching_rate`, precision); eq. (18) as printed sums matching cells "
+        "over the vocabulary and divides by the free space, so the scales differ too. The "
+        "paper has rows (A)-(E) only; (A') and (F) are this "
         "project's. The public fits' `ari` in `results.csv` is against this project's own region "
         "truth (from where the place words were said: `spcopyro.experiments.public_truth`, "
         "docs/real_houses.md), not the paper's either. Quoted as printed:",
