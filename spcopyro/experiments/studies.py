@@ -5,9 +5,10 @@ Both run as shipped studies (:mod:`spcopyro.study.side_studies`: ``modality.toml
 
 * the modality ablation: ARI against the truth of SpCoMapping with the MRF only, + words,
   + images, and both (``SpCoConfig.use_words`` / ``use_images``: :data:`ABLATIONS`), over seeds;
-* the paper's sentence setting (Section 5, Table 5) on a synthetic house whose utterances are
-  partly sentences with filler words: the share of concepts whose top word is a filler, with
-  plain counts and with tf-idf weighting (eq. 20): :class:`SentenceScores`.
+* sentences with filler words as in the paper's Section 5 (not its Table 5 setting: 20 fixed
+  sentences in a real room) on a synthetic house whose utterances are partly sentences: the
+  share of concepts whose top word is a filler, with plain counts and with tf-idf weighting
+  (eq. 20): :class:`SentenceScores`.
 """
 
 from __future__ import annotations

@@ -34,10 +34,11 @@ Scores (every one that applies; the others are left empty in the table, :data:`S
 * ``seconds`` (wall clock) and ``cpu_seconds`` of the fit, ``iterations``, and
   ``best_objective`` (the reported state's log joint or ELBO: the best of K chains is the
   chain where it is highest);
-* on a synthetic house with sentences (``sentence_fraction`` > 0, the paper's Table 5
-  setting): ``concept_words`` (JSON text: the top 3 words of each concept labelling at least
-  :data:`SENTENCE_MIN_CELLS` cells) and ``filler_top_share`` (the share of them whose top word
-  is a filler, :data:`spcopyro.synthetic.FILLER_WORDS`);
+* on a synthetic house with sentences (``sentence_fraction`` > 0: sentences as in the
+  paper's Section 5, not its Table 5 setting): ``concept_words`` (JSON text: the top 3 words
+  of each concept labelling at least :data:`SENTENCE_MIN_CELLS` cells) and
+  ``filler_top_share`` (the share of them whose top word is a filler,
+  :data:`spcopyro.synthetic.FILLER_WORDS`);
 * the trace (objective, concepts in use and seconds per iteration; with the study's
   ``ari_every``, also ``ari`` against the truth at ``ari_iterations``, paper Fig. 5), returned
   beside the record and saved by the caller as ``traces/KEY.npz``;
