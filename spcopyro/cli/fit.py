@@ -29,8 +29,6 @@ from spcopyro._util.timings import Phases, timed
 from spcopyro.cli.common import (
     FIT_SWEEPS,
     UPDATE_SWEEPS,
-    _concentrations,
-    _feature_scaling,
     _load,
     _summary,
     load_start,
@@ -41,10 +39,9 @@ from spcopyro.cli.fit_figures import FigurePrefetch, write_figures
 from spcopyro.cli.fit_options import (
     backend_used,
     check_sweeps,
-    method_options,
     warm_start_kept,
 )
-from spcopyro.cli.fit_refine import prepares_data, refine, report_update, update_settings
+from spcopyro.cli.fit_refine import refine, report_update, update_settings
 from spcopyro.cli.fit_resume import (
     check_resume_file,
     interrupted_message,
@@ -54,14 +51,11 @@ from spcopyro.cli.fit_resume import (
     resume_command,
     without_resume,
 )
-from spcopyro.config import (
-    SpCoSettings,
-    preset,
-    preset_inference,
-)
+from spcopyro.cli.fit_settings import apply_preset_inference, check_update_args, fit_settings
+from spcopyro.config import SpCoSettings, preset_inference
 from spcopyro.data import House
 from spcopyro.data.model_grid import model_house
-from spcopyro.gibbs.chains import chain_processes, when_chains_start
+from spcopyro.gibbs.chains import when_chains_start
 from spcopyro.maps import save_map
 
 if TYPE_CHECKING:
@@ -128,8 +122,8 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
     if args.sweeps is None:  # the parser's default: fewer sweeps continue a fit than start one
         args.sweeps = UPDATE_SWEEPS if args.update is not None else FIT_SWEEPS
     if args.update is not None:  # before the preset fills --init: an explicit one is refused
-        _check_update_args(args)
-    _apply_preset_inference(args)
+        check_update_args(args)
+    apply_preset_inference(args)
     check_sweeps(args)
     checkpointed = keeps_checkpoint(args)
     if args.resume is not None and not checkpointed:
@@ -155,7 +149,7 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
         check_resume_file(args.resume)
     loaded = _load(args.data)
     args.phases.mark("load")
-    settings, options = _fit_settings(args, loaded)
+    settings, options = fit_settings(args, loaded)
     if args.update is not None:  # a refined fit goes on on the map's cells, as refined
         settings = update_settings(args, settings, loaded.grid.num_free)
     house = model_house(loaded, settings.data.cell_size)  # the model's grid (cell_size)
@@ -197,108 +191,6 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
         raise
     finally:
         staged.discard()  # nothing once committed; else the run's partial outputs
-
-
-def _apply_preset_inference(args: argparse.Namespace) -> None:
-    """Fill the inference options the command line left unset (None) with what the preset
-    recommends (:func:`spcopyro.config.preset_inference`: ``auto`` starts from the rooms, adds
-    merge moves and reports the variation-of-information point estimate), where they apply to
-    this run, else with the plain defaults (random start, no merge moves, the highest-log-joint
-    state visited). The
-    start and the merge moves are Gibbs's: on the public houses the rooms start is one room, and
-    a variational method started there stays one concept (it has no move that splits)."""
-    recommended = preset_inference(args.preset)
-    # --resume continues chains that started as the preset says: their start is the preset's
-    # (the checkpoint checks it), so only --update and --init-from start elsewhere.
-    starts_elsewhere = any(x is not None for x in (args.update, args.init_from))
-    samples = args.sweeps != "auto" and args.method in ("gibbs", "vi-gibbs")
-    if args.init is None:  # the rooms start is Gibbs's: its merge (split) moves leave it
-        gibbs = args.method == "gibbs" and not starts_elsewhere
-        args.init = recommended.get("init", "random") if gibbs else "random"
-    args.preset_filled = set()  # the move rates the preset chose, not the command line
-    for move in ("merge_moves", "region_moves"):
-        rate = recommended.get(move)
-        if getattr(args, move) is None and args.method == "gibbs" and rate is not None:
-            setattr(args, move, rate)
-            args.preset_filled.add(move)
-    refinable = args.method == "gibbs" and args.update is None
-    if args.refine is None:  # a preparation given on the command line is kept, not refined away
-        refinable = refinable and not prepares_data(args)
-        args.refine = recommended.get("refine", "never") if refinable else "never"
-    elif args.refine != "never" and not refinable:
-        raise ValueError(
-            f"--refine {args.refine} refines a Gibbs fit (not --update or another --method): "
-            "leave it out or pass --refine never"
-        )
-    if args.point_estimate is None:
-        usable = samples and args.marginal_samples > 0
-        args.point_estimate = (
-            recommended.get("point_estimate", "map-visited") if usable else "map-visited"
-        )
-
-
-def _check_update_args(args: argparse.Namespace) -> None:
-    """``--update OUT``: a finished fit's folder, and no option that chooses another start."""
-    if args.resume is not None or args.init_from is not None or args.init is not None:
-        given = "--resume" if args.resume is not None else (
-            "--init-from" if args.init_from is not None else "--init"
-        )  # fmt: skip
-        raise ValueError(f"--update starts from the saved fit; {given} chooses another start")
-    if args.sweeps == "auto":
-        raise ValueError("--update runs a number of --sweeps; --sweeps auto starts from scratch")
-    if not (Path(args.update) / "result.npz").is_file():
-        raise FileNotFoundError(
-            f"--update {args.update}: no finished fit there (a folder written by spcopyro fit "
-            "--out, holding result.npz)"
-        )
-
-
-def _cell_size(value: str | None) -> float | None | str:
-    """``--cell-size``: None (unset: the preset's), 'map' (the map's own cells) or metres."""
-    if value is None:
-        return None
-    if value == "map":
-        return "map"
-    try:
-        size = float(value)
-    except ValueError:
-        size = float("nan")
-    if not (math.isfinite(size) and size > 0):
-        raise ValueError(f"--cell-size {value!r}: give a positive number of metres or 'map'")
-    return size
-
-
-def _fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings, object | None]:
-    """The model and data settings and the method's options (None: its defaults) of ``fit``."""
-    overrides = dict(
-        prior=args.prior, num_concepts=args.concepts, gamma=args.gamma, alpha=args.alpha,
-        beta=args.beta, chi=args.chi, connectivity=args.connectivity,
-        concentrations=_concentrations(args.concentration),
-        word_weighting="tfidf" if args.tfidf else None,
-        feature_scaling=_feature_scaling(args.feature_scaling),
-        snap_distance=args.snap_distance, footprint_radius=args.footprint,
-        cell_size=_cell_size(args.cell_size), word_scaling=args.word_scaling,
-        footprint_kernel=args.footprint_kernel, footprint_fov=args.footprint_fov,
-    )  # fmt: skip
-    further = {m.name for m in house.observations.modalities}
-    for name in overrides["concentrations"] or {}:
-        if name not in further:
-            has = (
-                f"its further modalities: {', '.join(sorted(further))}"
-                if further
-                else "it has no further modality"
-            )
-            raise ValueError(
-                f"--concentration {name}=...: the house {house.name!r} has no modality {name!r} "
-                f"(no modality_{name}.csv; {has})"
-            )
-    if args.preset == "paper-dirichlet" and args.concepts is None and house.category_names:
-        overrides["num_concepts"] = len(house.category_names)
-    settings = preset(args.preset, **overrides)
-    options = method_options(args)
-    if args.method == "gibbs":
-        chain_processes()  # a bad $SPCOPYRO_CHAIN_PROCESSES: before anything is printed
-    return settings, options
 
 
 def _fit_staged(job: FitJob) -> int:

@@ -80,7 +80,7 @@ def _check_twice_set(args: argparse.Namespace, given: dict[str, tuple[str, objec
     if args.method not in _SAMPLERS:
         return  # the flags are refused there
     prefix = "gibbs." if args.method == "vi-gibbs" else ""
-    filled = getattr(args, "preset_filled", set())  # by _apply_preset_inference
+    filled = getattr(args, "preset_filled", set())  # by fit_settings.apply_preset_inference
     for assignment in args.method_option or []:
         name = assignment.partition("=")[0].strip()
         field = name[len(prefix) :] if name.startswith(prefix) else None
@@ -153,7 +153,7 @@ def method_options(args: argparse.Namespace) -> object | None:
     """The options ``fit`` runs ``args.method`` with (None: the method's defaults).
 
     ``gibbs``: :class:`~spcopyro.gibbs.options.GibbsOptions` from the flags (a move rate left
-    unset is 0; ``_apply_preset_inference`` filled the preset's first), then
+    unset is 0; ``fit_settings.apply_preset_inference`` filled the preset's first), then
     ``--method-option``. ``vi-gibbs``: its options from ``--method-option``, with the Gibbs
     flags given set on its ``gibbs`` part. Any other method: ValueError if a Gibbs flag or
     ``--marginal-samples`` was given. ValueError for ``--backend numba`` without numba, before

@@ -1,0 +1,124 @@
+"""``spcopyro fit``'s command line turned into settings: the inference options the preset
+recommends where the command line left them unset (:func:`apply_preset_inference`), the checks
+of ``--update`` (:func:`check_update_args`), and the model and data settings and the method's
+options of the run (:func:`fit_settings`; ``--cell-size``: :func:`cell_size_setting`)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from spcopyro.cli.common import _concentrations, _feature_scaling
+from spcopyro.cli.fit_options import method_options
+from spcopyro.cli.fit_refine import prepares_data
+from spcopyro.config import SpCoSettings, preset, preset_inference
+from spcopyro.gibbs.chains import chain_processes
+
+if TYPE_CHECKING:
+    from spcopyro.data import House
+
+__all__ = ["apply_preset_inference", "cell_size_setting", "check_update_args", "fit_settings"]
+
+
+def apply_preset_inference(args: argparse.Namespace) -> None:
+    """Fill the inference options the command line left unset (None) with what the preset
+    recommends (:func:`spcopyro.config.preset_inference`: ``auto`` starts from the rooms, adds
+    merge moves and reports the variation-of-information point estimate), where they apply to
+    this run, else with the plain defaults (random start, no merge moves, the highest-log-joint
+    state visited). The
+    start and the merge moves are Gibbs's: on the public houses the rooms start is one room, and
+    a variational method started there stays one concept (it has no move that splits)."""
+    recommended = preset_inference(args.preset)
+    # --resume continues chains that started as the preset says: their start is the preset's
+    # (the checkpoint checks it), so only --update and --init-from start elsewhere.
+    starts_elsewhere = any(x is not None for x in (args.update, args.init_from))
+    samples = args.sweeps != "auto" and args.method in ("gibbs", "vi-gibbs")
+    if args.init is None:  # the rooms start is Gibbs's: its merge (split) moves leave it
+        gibbs = args.method == "gibbs" and not starts_elsewhere
+        args.init = recommended.get("init", "random") if gibbs else "random"
+    args.preset_filled = set()  # the move rates the preset chose, not the command line
+    for move in ("merge_moves", "region_moves"):
+        rate = recommended.get(move)
+        if getattr(args, move) is None and args.method == "gibbs" and rate is not None:
+            setattr(args, move, rate)
+            args.preset_filled.add(move)
+    refinable = args.method == "gibbs" and args.update is None
+    if args.refine is None:  # a preparation given on the command line is kept, not refined away
+        refinable = refinable and not prepares_data(args)
+        args.refine = recommended.get("refine", "never") if refinable else "never"
+    elif args.refine != "never" and not refinable:
+        raise ValueError(
+            f"--refine {args.refine} refines a Gibbs fit (not --update or another --method): "
+            "leave it out or pass --refine never"
+        )
+    if args.point_estimate is None:
+        usable = samples and args.marginal_samples > 0
+        args.point_estimate = (
+            recommended.get("point_estimate", "map-visited") if usable else "map-visited"
+        )
+
+
+def check_update_args(args: argparse.Namespace) -> None:
+    """``--update OUT``: a finished fit's folder, and no option that chooses another start."""
+    if args.resume is not None or args.init_from is not None or args.init is not None:
+        given = "--resume" if args.resume is not None else (
+            "--init-from" if args.init_from is not None else "--init"
+        )  # fmt: skip
+        raise ValueError(f"--update starts from the saved fit; {given} chooses another start")
+    if args.sweeps == "auto":
+        raise ValueError("--update runs a number of --sweeps; --sweeps auto starts from scratch")
+    if not (Path(args.update) / "result.npz").is_file():
+        raise FileNotFoundError(
+            f"--update {args.update}: no finished fit there (a folder written by spcopyro fit "
+            "--out, holding result.npz)"
+        )
+
+
+def cell_size_setting(value: str | None) -> float | None | str:
+    """``--cell-size``: None (unset: the preset's), 'map' (the map's own cells) or metres."""
+    if value is None:
+        return None
+    if value == "map":
+        return "map"
+    try:
+        size = float(value)
+    except ValueError:
+        size = float("nan")
+    if not (math.isfinite(size) and size > 0):
+        raise ValueError(f"--cell-size {value!r}: give a positive number of metres or 'map'")
+    return size
+
+
+def fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings, object | None]:
+    """The model and data settings and the method's options (None: its defaults) of ``fit``."""
+    overrides = dict(
+        prior=args.prior, num_concepts=args.concepts, gamma=args.gamma, alpha=args.alpha,
+        beta=args.beta, chi=args.chi, connectivity=args.connectivity,
+        concentrations=_concentrations(args.concentration),
+        word_weighting="tfidf" if args.tfidf else None,
+        feature_scaling=_feature_scaling(args.feature_scaling),
+        snap_distance=args.snap_distance, footprint_radius=args.footprint,
+        cell_size=cell_size_setting(args.cell_size), word_scaling=args.word_scaling,
+        footprint_kernel=args.footprint_kernel, footprint_fov=args.footprint_fov,
+    )  # fmt: skip
+    further = {m.name for m in house.observations.modalities}
+    for name in overrides["concentrations"] or {}:
+        if name not in further:
+            has = (
+                f"its further modalities: {', '.join(sorted(further))}"
+                if further
+                else "it has no further modality"
+            )
+            raise ValueError(
+                f"--concentration {name}=...: the house {house.name!r} has no modality {name!r} "
+                f"(no modality_{name}.csv; {has})"
+            )
+    if args.preset == "paper-dirichlet" and args.concepts is None and house.category_names:
+        overrides["num_concepts"] = len(house.category_names)
+    settings = preset(args.preset, **overrides)
+    options = method_options(args)
+    if args.method == "gibbs":
+        chain_processes()  # a bad $SPCOPYRO_CHAIN_PROCESSES: before anything is printed
+    return settings, options
