@@ -355,3 +355,21 @@ def test_experiment_reruns_stale_cells_when_asked(tmp_path, capsys):
     assert json.loads(stored.read_text())["source_digest"] == STALE_DIGEST
     assert main([*command, "--rerun-stale"]) == 0
     assert json.loads(stored.read_text())["source_digest"] != STALE_DIGEST
+
+
+def test_a_smoke_runs_verdicts_come_with_a_caveat():
+    """A --quick table (20 sweeps) said 'the best SpCoMapping row ... does NOT beat the best
+    baseline' with nothing to say its maps were still specks: below SMOKE_SWEEPS a fit, a line
+    before the verdicts says so; a run at the paper's budget has none."""
+    summary = {
+        "command": "", "methods": {"A-dp": "A"}, "public": {},
+        "synthetic": {"A-dp": {"ari": {"mean": 0.1, "sd": 0.0}}},
+        "settings": {"sweeps": 20, "spcoa_iterations": 2, "seeds": 1},
+        "notes": ["synthetic ari: the best SpCoMapping row (A-dp) does NOT beat ..."],
+    }  # fmt: skip
+    notes = table_markdown(summary).split("## Notes", 1)[1].strip().splitlines()
+    assert notes[0].startswith("- **20 sweeps a fit** (the paper ran 5000): a smoke run"), notes
+    assert notes[1].startswith("- synthetic ari: the best SpCoMapping row"), notes
+    summary["settings"]["sweeps"] = 5000
+    notes = table_markdown(summary).split("## Notes", 1)[1].strip().splitlines()
+    assert notes == ["- synthetic ari: the best SpCoMapping row (A-dp) does NOT beat ..."], notes
