@@ -253,3 +253,56 @@ def test_a_word_heard_only_off_the_map_is_said_to_say_nothing(tmp_path, capsys):
     capsys.readouterr()
     assert main(["where", str(out), moved]) == 0
     assert f"warning: {moved!r} was never heard on the map's free space" in capsys.readouterr().err
+
+
+def _strewn():
+    """A 20 x 20 open map: concept 0 on every fourth cell of every fourth row (25 single cells,
+    6.25% of the free cells, no speck by size), concept 1 on the rest; "kitchen" is concept 0's
+    word."""
+    from hand_results import one_word_per_concept
+
+    from spcopyro.maps import FREE, OccupancyGrid
+
+    grid = OccupancyGrid(occupancy=np.full((20, 20), FREE, dtype=np.int8), resolution=0.1,
+                         origin=(0.0, 0.0, 0.0))  # fmt: skip
+    image = np.ones(grid.shape, dtype=np.int64)
+    image[::4, ::4] = 0
+    return one_word_per_concept(grid, image[grid.free], ("kitchen", "bed"), num_concepts=2)
+
+
+def test_a_region_strewn_over_the_map_in_specks_is_flagged(tmp_path, capsys):
+    """A disordered map (room1dk5 under original-code, 1000 sweeps: 144 cells in 128 pieces over
+    the whole house) answered "where is the bedroom?" at odds 5.5 and Bayes factor 7.5 with no
+    warning: its 0.77% of the free cells is no speck, but none of its pieces is a place."""
+    answer = _strewn().where("kitchen")
+    assert answer.concept == 0 and answer.region.sum() == 25
+    strewn = [w for w in answer.warnings if "strewn" in w]
+    assert len(strewn) == 1, answer.warnings
+    assert "25 cells in 25 pieces, the largest 1 cell (0.01 m^2" in strewn[0]
+    # the same cells as one block are a place: no warning of any kind
+    block = np.zeros((20, 20), dtype=bool)
+    block[:5, :5] = True
+    assert answer_warnings(np.array([0.9, 0.1]), np.array([25 / 400, 375 / 400]),
+                           np.array([25, 375]), region=block) == ()  # fmt: skip
+    # two rooms of one concept are pieces big enough to be places: no warning either
+    two = np.zeros((20, 20), dtype=bool)
+    two[:3, :4] = two[10:13, 10:14] = True
+    assert answer_warnings(np.array([0.9, 0.1]), np.array([24 / 400, 376 / 400]),
+                           np.array([24, 376]), region=two) == ()  # fmt: skip
+    # the pieces are joined through the model's neighbourhood
+    from spcopyro.results.where import region_pieces
+
+    diagonal = np.eye(6, dtype=bool)
+    assert region_pieces(diagonal, 4) == (6, 1) and region_pieces(diagonal, 8) == (1, 6)
+    assert region_pieces(np.zeros((3, 3), dtype=bool)) == (0, 0)
+    # `spcopyro where` prints it
+    out = _strewn().save(tmp_path / "fit")
+    assert main(["where", str(out), "kitchen"]) == 0
+    assert "the region is strewn over the map: 25 cells in 25 pieces" in capsys.readouterr().err
+
+
+def test_where_prints_one_cell_in_the_singular(tmp_path, capsys):
+    """`where --prior pi` on a speck printed "region: 1 cells"."""
+    out = two_rooms().save(tmp_path / "fit")
+    assert main(["where", str(out), "kitchen", "--prior", "pi"]) == 0
+    assert "region: 1 cell (0.01 m^2)" in capsys.readouterr().out

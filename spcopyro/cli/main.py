@@ -292,7 +292,7 @@ def _where(args: argparse.Namespace) -> int:
         half = grid.resolution / 2  # xy are cell centres: the region's edges lie half out
         (x0, y0), (x1, y1) = xy.min(0) - half, xy.max(0) + half
         cx, cy = xy.mean(0)
-        print(f"region: {len(cells)} cells ({len(cells) * grid.resolution**2:.2f} m^2), "
+        print(f"region: {plural(len(cells), 'cell')} ({len(cells) * grid.resolution**2:.2f} m^2), "
               f"centre x={cx:.2f} y={cy:.2f}, spanning x {x0:.2f}..{x1:.2f}, "
               f"y {y0:.2f}..{y1:.2f} m")  # fmt: skip
     for warning in answer.warnings:

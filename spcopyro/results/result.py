@@ -327,9 +327,11 @@ class SpCoResult:
         concept = int(order[0])
         runner_up = int(order[1]) if (sizes > 0).sum() > 1 else None
         key = word_key(self.vocabulary, word)  # as looked up: 'Kitchen?' is 'kitchen'
+        region = self.label_image() == concept  # [H, W]
         warnings = answer_warnings(
             posterior, weights, sizes, word=key, prior_name=prior,
-            cell_area=self.grid.resolution**2,
+            cell_area=self.grid.resolution**2, region=region,
+            connectivity=self.config.connectivity,
         )  # fmt: skip
         if self.word_totals is not None and self.word_totals[word_index(self.vocabulary, key)] == 0:
             warnings = (
@@ -343,7 +345,7 @@ class SpCoResult:
             word=key,
             concept=concept,
             probability=float(posterior[concept]),
-            region=self.label_image() == concept,
+            region=region,
             prior=prior,
             runner_up=runner_up,
             runner_up_probability=0.0 if runner_up is None else float(posterior[runner_up]),
