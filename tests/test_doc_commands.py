@@ -4,7 +4,8 @@ that starts with one, in README.md, benchmarks/README.md and docs/*.md, is parse
 the real parser -- ``spcopyro.cli.main.build_parser`` or the benchmark's own, caught at its
 ``parse_args`` -- so a renamed or removed option, or a value the option no longer takes, breaks
 the suite. ``fit`` lines also go through the preset's inference defaults and the method's
-options (``--method``, ``--method-option``), which the parser leaves as text.
+options (``--method``, ``--method-option``), which the parser leaves as text, and ``ablation
+--variant`` and ``compare-inference --iterations`` through the commands' own checks.
 
 Placeholders: an upper-case word (OUT, HOUSE, WORD, DIR) is a string to any path or word option;
 the ones an option checks are replaced by :data:`PLACEHOLDERS`. In an inline span (often only a
@@ -214,6 +215,24 @@ def _check_fit(args: argparse.Namespace) -> None:
     method_options(args)
 
 
+def _check_study_command(args: argparse.Namespace) -> None:
+    """``ablation --variant``'s and ``compare-inference --iterations``'s values, which the
+    commands read before they run anything."""
+    if args.command == "ablation":
+        from spcopyro.experiments.ablation_variants import parse_variant
+
+        for text in args.variant or ():
+            if text != "...":
+                parse_variant(text)
+    elif args.command == "compare-inference":
+        from spcopyro.experiments.inference_comparison import VARIANTS
+
+        for item in args.iterations or ():
+            key, _, value = item.partition("=")
+            if key not in VARIANTS or not value.isdigit():
+                raise ValueError(f"--iterations {item}: not METHOD=N of {list(VARIANTS)}")
+
+
 LINES = doc_lines()
 
 
@@ -243,6 +262,8 @@ def test_the_doc_line_parses(line: DocLine, monkeypatch):
             args = _parse(parser, arguments)
             if args is not None and getattr(args, "command", None) == "fit":
                 _check_fit(args)
+            elif args is not None and getattr(args, "command", None):
+                _check_study_command(args)
         except (AssertionError, LookupError, ValueError) as error:
             raise AssertionError(f"{line}\n  {' '.join(tokens)}: {error}") from None
 
@@ -255,7 +276,12 @@ def test_the_doc_line_parses(line: DocLine, monkeypatch):
         ("spcopyro fit --sweeps 3", True),  # a block's line lacks a required option
         ("spcopyro fit --out o --method bogus", True),  # a method that does not exist
         ("spcopyro fit --out o --method lbp --method-option bogus=1", True),
-        ("spcopyro fit --swe 3", False),  # an abbreviation (argparse would take it)
+        ("spcopyro fit --swe 3", False),
+        ('spcopyro ablation --out o --variant "sw:preset=paper-dp,bogus=0.2"', True),
+        (
+            "spcopyro compare-inference --out o --iterations gibbs=2000 bogus=3",
+            True,
+        ),  # an abbreviation (argparse would take it)
         ("spcopyro where OUT WORD [--prior area|bogus]", False),  # each alternative
         ("python benchmarks/gibbs.py --no-such-option", True),
         ("python benchmarks/footprint.py --presets bogus", False),
