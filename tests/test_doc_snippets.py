@@ -1,10 +1,10 @@
 """The ```python blocks of docs/variational.md, docs/studies.md and docs/robot.md run as shown
 (tests/test_readme.py does the README's and docs/library.md's), on a small synthetic house with
 few iterations: the only edits are the exact replacements of :data:`SMALLER`. The pages' blocks
-use ``house``, ``settings``, ``data`` and ``config`` from the text around them (the library
-guide's first block); :data:`SETUP` defines them. The Slurm cluster script of studies.md needs
-dask-jobqueue and a cluster: it is only compiled. The study block runs in a child process, as a
-script (its LocalCluster's workers re-import the main module)."""
+use ``house`` and ``settings`` as the library guide's first block makes them (each says so),
+and no other name from outside: :data:`SETUP` defines those two alone. The Slurm cluster
+script of studies.md needs dask-jobqueue and a cluster: it is only compiled. The study block
+runs in a child process, as a script (its LocalCluster's workers re-import the main module)."""
 
 from __future__ import annotations
 
@@ -20,11 +20,8 @@ DOCS = Path(__file__).resolve().parents[1] / "docs"
 SETUP = """
 from spcopyro.synthetic import HouseSpec, make_house
 from spcopyro.config import preset
-from spcopyro.fit.house import fit_house, prepare_model_data
 house = make_house(seed=0, spec=HouseSpec(height=40, width=50, num_rooms=3))
 settings = preset("original-code", gamma=3.0)
-counts, data = prepare_model_data(house, settings)
-config = settings.model
 """
 SMALLER = {  # page -> {snippet text -> what the test runs instead (each must occur)}
     "variational.md": {
