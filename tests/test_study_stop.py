@@ -6,6 +6,7 @@ interrupted run kills them after :data:`spcopyro.study.local_cluster.STOP_SECOND
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import types
@@ -89,3 +90,74 @@ def test_a_cluster_closed_now_kills_a_worker_in_a_cell_at_once():
     record = json.loads(done.stdout.strip().splitlines()[-1])
     assert record["gone"] == [True]
     assert record["seconds"] < 3.0, record  # Dask's own close: 4 s before the kill, and more
+
+
+def test_a_run_whose_cells_all_ran_here_does_not_wait_for_the_cluster(tmp_path, monkeypatch):
+    """Every cell ran in this process before the cluster was up (a short study): the run did not
+    wait for the cluster's start (3-4 s of the forkserver's import, then Dask's) only to close
+    it; it closes the start, which stops it (:class:`ClusterStart`'s close)."""
+    calls: list[str] = []
+
+    class FakeStart:
+        def __init__(self, workers, on_ready=None):
+            pass
+
+        def wait(self):
+            calls.append("wait")
+            raise AssertionError("waited for a cluster no cell needs")
+
+        def close(self, **kwargs):
+            calls.append("close")
+
+    fake = types.ModuleType("distributed")
+    fake.as_completed = iter  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "distributed", fake)
+    monkeypatch.setattr(study_run, "dask_installed", lambda: True)
+    monkeypatch.setattr(study_run, "ClusterStart", FakeStart)
+    study = study_from_dict({"study": {"name": "here", "seeds": 1, "sweeps": 2},
+                             "variants": {"a": {"preset": "paper-dp"}},
+                             "data": {"small": SMALL}})  # fmt: skip
+    done = run_study(study, tmp_path / "out", workers=2, progress=False)
+    assert (done.ran, done.ran_here, done.failed) == (1, 1, 0)
+    assert calls == ["close"]
+
+
+CLOSED_AT_ONCE = """
+import glob, json, multiprocessing.forkserver as forkserver, os, tempfile, time
+
+import psutil
+
+from spcopyro.study.local_cluster import ClusterStart
+
+if __name__ == "__main__":
+    begin = time.perf_counter()
+    start = ClusterStart(1)
+    while forkserver._forkserver._forkserver_pid is None:  # the forkserver's import has begun
+        time.sleep(0.01)
+    server = forkserver._forkserver._forkserver_pid
+    start.close()  # as a run whose cells all ran in this process closes it
+    seconds = time.perf_counter() - begin
+    tracker = psutil.Process().children()  # the resource tracker alone, not the forkserver
+    print(json.dumps({
+        "seconds": seconds, "cluster": start.cluster is not None,
+        "server_left": psutil.pid_exists(server),
+        "children": sorted(" ".join(p.cmdline())[-60:] for p in tracker),
+        "ready_files": glob.glob(os.path.join(tempfile.gettempdir(), "spcopyro-forkserver-*")),
+    }))
+"""
+
+
+def test_a_cluster_closed_while_its_forkserver_imports_stops_at_once(tmp_path):
+    """ClusterStart.close() while the forkserver still imports the cells' code: the forkserver
+    is killed (it has forked no worker yet) and nothing else starts; the close waited 3-4 s
+    for the whole start (and more on a loaded machine) only to close the cluster."""
+    pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    env = {**os.environ, "TMPDIR": str(tmp_path)}  # the ready files of this run's forkserver
+    done = subprocess.run([sys.executable, "-c", CLOSED_AT_ONCE], capture_output=True, text=True,
+                          timeout=300, check=True, env=env, cwd=tmp_path)  # fmt: skip
+    record = json.loads(done.stdout.strip().splitlines()[-1])
+    assert not record["cluster"], record
+    assert not record["server_left"], record
+    assert all("resource_tracker" in c for c in record["children"]), record
+    assert record["ready_files"] == [], record
+    assert record["seconds"] < 3.0, record

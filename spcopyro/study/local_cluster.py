@@ -19,6 +19,10 @@ machine both cores spend the cluster's start-up importing while the study's proc
   a cell, as Dask always does (and a worker ends when its parent dies);
 * the cluster starts on a background thread, and the caller runs cells in this process until
   the workers are up (:mod:`spcopyro.study.run`): the core the start-up leaves free fits cells.
+  The Dask cluster itself is made once the forkserver has imported (it creates the file that
+  :data:`READY_FILE` names), so that a close before then (every cell ran here already, or a
+  Ctrl-C) stops the start at once: the forkserver, which has forked no worker, is killed
+  (:meth:`ClusterStart.close`), where the close waited for the whole start to end.
 
 Each worker gives tqdm a thread lock of its own at its start (:func:`dask_setup`, a Dask
 worker preload): a cell's fit makes progress bars (disabled), and tqdm's first bar in a process
@@ -53,8 +57,9 @@ from contextlib import contextmanager
 from spcopyro._util.forking import fresh_tqdm_lock
 
 __all__ = [
-    "ONE_THREAD", "PRE_SPAWN_ENVIRON", "QUIET_LOOPS", "STOP_SECONDS", "WORKER_PRELOAD",
-    "ClusterStart", "local_cluster", "stop_workers",
+    "ONE_THREAD", "PRE_SPAWN_ENVIRON", "QUIET_LOOPS", "READY_FILE", "STOP_SECONDS",
+    "WORKER_PRELOAD", "ClusterStart", "local_cluster", "stop_forkserver", "stop_workers",
+    "wait_for_forkserver",
 ]  # fmt: skip
 
 PRE_SPAWN_ENVIRON = "distributed.nanny.pre-spawn-environ"
@@ -119,12 +124,22 @@ def forkserver_available() -> bool:
     return "forkserver" in multiprocessing.get_all_start_methods()
 
 
+READY_FILE = "SPCOPYRO_FORKSERVER_READY"
+"""The environment variable naming the file that the forkserver creates once it has imported
+:data:`WORKER_PRELOAD` (:mod:`spcopyro.study.worker_imports`; :func:`wait_for_forkserver`)."""
+_importing: dict[int, str] = {}
+"""The forkservers this process started whose import has not been seen to end: pid -> file."""
+
+
 def start_forkserver() -> None:
     """Start (if not running yet) multiprocessing's forkserver with :data:`WORKER_PRELOAD`, the
     workers' environment and SIGINT and SIGTERM blocked (module docstring). Returns at once:
-    the server imports in its own process, and a worker's fork waits for it. A forkserver
-    already running (an earlier study in this process) is kept as it is."""
+    the server imports in its own process, and a worker's fork waits for it
+    (:func:`wait_for_forkserver`). A forkserver already running (an earlier study in this
+    process) is kept as it is."""
     import multiprocessing.forkserver as forkserver
+    import tempfile
+    import uuid
     from multiprocessing import resource_tracker
 
     import dask
@@ -134,8 +149,67 @@ def start_forkserver() -> None:
         get_mp_context()  # dask sets its own preload list once per process: before ours
     forkserver.set_forkserver_preload(list(WORKER_PRELOAD))
     resource_tracker.ensure_running()  # first: starting it unblocks both in this thread
-    with _environ({**ONE_THREAD, MALLOC_TRIM: None}), _stop_signals_blocked():
+    ready = os.path.join(tempfile.gettempdir(), f"spcopyro-forkserver-{uuid.uuid4().hex}.ready")
+    before = forkserver._forkserver._forkserver_pid
+    with _environ({**ONE_THREAD, MALLOC_TRIM: None, READY_FILE: ready}), _stop_signals_blocked():
         forkserver.ensure_running()
+    pid = forkserver._forkserver._forkserver_pid
+    if pid is not None and pid != before:  # started here: its import has begun
+        _importing[pid] = ready
+
+
+def wait_for_forkserver(cancelled: threading.Event, poll: float = 0.02) -> bool:
+    """Wait until the forkserver that :func:`start_forkserver` started has imported
+    :data:`WORKER_PRELOAD` (or has died: the cluster's start then says why); True at once for
+    one seen ready before. When ``cancelled`` is set first, the forkserver is stopped
+    (:func:`stop_forkserver`: it has forked no worker yet) and False returned: a study whose
+    cells all ran in its own process meanwhile, or an interrupted one, does not wait 3-4 s for
+    an import whose cluster nobody needs."""
+    import multiprocessing.forkserver as forkserver
+
+    pid = forkserver._forkserver._forkserver_pid
+    ready = _importing.get(pid) if pid is not None else None
+    while ready is not None and not os.path.exists(ready) and _running(pid):
+        if cancelled.wait(poll):
+            stop_forkserver()
+            return False
+    _importing.pop(pid, None)  # type: ignore[arg-type]
+    if ready is not None and os.path.exists(ready):
+        os.remove(ready)
+    return True
+
+
+def _running(pid: int) -> bool:
+    """Whether process ``pid`` runs (not ended, nor a zombie not reaped yet)."""
+    import psutil  # a dependency of dask.distributed
+
+    try:
+        return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
+    except psutil.Error:
+        return False
+
+
+def stop_forkserver() -> None:
+    """Kill (SIGKILL: it blocks SIGINT and SIGTERM) the forkserver while it imports, before it
+    forked any worker, and reap it; the next :func:`start_forkserver` starts a new one."""
+    import multiprocessing.forkserver as forkserver
+    import signal
+
+    server = forkserver._forkserver
+    pid = server._forkserver_pid
+    if pid is None:
+        return
+    ready = _importing.pop(pid, None)
+    try:
+        os.kill(pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    try:
+        server._stop()  # closes its pipe, reaps it (waitpid) and forgets it
+    except Exception:  # noqa: S110  # ensure_running finds it dead and starts another
+        pass
+    if ready is not None and os.path.exists(ready):
+        os.remove(ready)
 
 
 def dask_setup(worker: object) -> None:
@@ -145,14 +219,19 @@ def dask_setup(worker: object) -> None:
     fresh_tqdm_lock()
 
 
+def default_method() -> str:
+    """How the workers' processes start: ``forkserver`` where available, else ``spawn``."""
+    return "forkserver" if forkserver_available() else "spawn"
+
+
 def local_cluster(workers: int, method: str | None = None):
     """A ``LocalCluster`` of ``workers`` processes with one thread each, their processes
-    started by ``method`` (``forkserver``, ``spawn``; None: forkserver where available)."""
+    started by ``method`` (``forkserver``, ``spawn``; None: :func:`default_method`)."""
     import dask
     from distributed import LocalCluster
 
     if method is None:
-        method = "forkserver" if forkserver_available() else "spawn"
+        method = default_method()
     if method == "forkserver":
         start_forkserver()
     config = {
@@ -172,7 +251,7 @@ class ClusterStart:
     ``on_ready(client)`` runs on that thread as soon as the client is connected (the caller
     submits its remaining cells there, so no worker waits for this process's cell to end).
     :meth:`wait` joins the thread and returns the client (or raises the start's error);
-    :meth:`close` closes whatever was started.
+    :meth:`close` stops the start where it can and closes whatever was started.
     """
 
     def __init__(self, workers: int, on_ready: Callable[[object], None] | None = None) -> None:
@@ -180,6 +259,7 @@ class ClusterStart:
         self.client = None
         self.error: BaseException | None = None
         self._on_ready = on_ready
+        self._cancelled = threading.Event()
         self._thread = threading.Thread(
             target=self._start, args=(workers,), name="spcopyro-cluster-start", daemon=True
         )
@@ -187,9 +267,18 @@ class ClusterStart:
 
     def _start(self, workers: int) -> None:
         try:
+            method = default_method()
+            if method == "forkserver":
+                start_forkserver()  # its import runs while this process imports distributed
             from distributed import Client
 
-            self.cluster = local_cluster(workers)
+            if method == "forkserver" and not wait_for_forkserver(self._cancelled):
+                return  # closed while the forkserver imported: nothing else was started
+            if self._cancelled.is_set():
+                return
+            self.cluster = local_cluster(workers, method)
+            if self._cancelled.is_set():
+                return  # close() closes it
             self.client = Client(self.cluster)
             if self._on_ready is not None:
                 self._on_ready(self.client)
@@ -208,9 +297,13 @@ class ClusterStart:
         return self.client
 
     def close(self, now: bool = False) -> None:
-        """Wait for the start to end, then close the client and the cluster. ``now`` (an
-        interrupted study, whose finished cells are collected): a worker still in a cell is
-        killed after :data:`STOP_SECONDS`, not after Dask's 4 s (:func:`stop_workers`)."""
+        """Stop the start, then close the client and the cluster. A start still waiting for
+        the forkserver's import (3-4 s) ends at once, the forkserver killed before it forked
+        any worker; one past it (the Dask cluster's own start, the last 0.1-0.5 s) is waited
+        for. ``now`` (an interrupted study, whose finished cells are collected): a worker still
+        in a cell is killed after :data:`STOP_SECONDS`, not after Dask's 4 s
+        (:func:`stop_workers`)."""
+        self._cancelled.set()
         self._thread.join()
         if self.client is not None:
             self.client.close()

@@ -465,9 +465,11 @@ def _on_dask(
             record, trace, label_map = evaluate.run_cell(cell)
             background.ran_here += 1
             yield cell, record, trace, label_map
-        if start is not None:
+        with lock:
+            needed = bool(futures or waiting)
+        if start is not None and needed:  # else every cell ran here: the close stops the start
             start.wait()
-        for future in as_completed(list(futures)):
+        for future in as_completed(list(futures)) if needed else ():
             cell = futures.pop(future)
             try:
                 record, trace, label_map = future.result()
