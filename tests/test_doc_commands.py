@@ -1,6 +1,6 @@
 """Every command line the documentation shows parses: each ``spcopyro ...`` and
 ``python benchmarks/X.py ...`` line of a ```bash (or plain) code block and each inline code span
-that starts with one, in README.md, benchmarks/README.md and docs/*.md, is parsed (never run) by
+that starts with one, in README.md, benchmarks/README.md and docs/**/*.md, is parsed (never run) by
 the real parser -- ``spcopyro.cli.main.build_parser`` or the benchmark's own, caught at its
 ``parse_args`` -- so a renamed or removed option, or a value the option no longer takes, breaks
 the suite. ``fit`` lines also go through the preset's inference defaults and the method's
@@ -34,7 +34,7 @@ BENCHMARKS = ROOT / "benchmarks"
 DOCS = [
     ROOT / "README.md",
     ROOT / "benchmarks" / "README.md",
-    *sorted((ROOT / "docs").glob("*.md")),
+    *sorted((ROOT / "docs").rglob("*.md")),  # docs/ablation/: the reports' "Made by" lines
 ]
 PLACEHOLDERS = {  # a placeholder an option checks -> a value it takes
     "X,Y": "1.5,-2",  # navigate --start
