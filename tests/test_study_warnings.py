@@ -163,6 +163,49 @@ def test_other_threads_and_info_records_go_where_they_went(spcopyro_handler):
     assert spcopyro_handler in logger.handlers and logger.propagate
 
 
+def test_cells_on_two_threads_each_keep_a_warn_once_warning(monkeypatch, spcopyro_handler):
+    """Two cells at once in one process (a --scheduler worker with --nthreads 2): each keeps the
+    warn_once warning it meets, and a thread outside the cells does not repeat one the process
+    gave before. Emptying the process's memory for each cell lost the second cell's (the first
+    had said it meanwhile) and repeated the outside thread's."""
+    monkeypatch.setattr(messages, "_WARNED", {("said before",)})
+    step = {name: threading.Event() for name in ("b_in", "a_in", "b_said", "outside", "a_said")}
+    said: dict[str, list[str]] = {}
+
+    def cell_b() -> None:
+        with captured_warnings() as kept:
+            step["b_in"].set()
+            step["a_in"].wait(10)
+            messages.warn_once(("both cells",), "met by both cells")
+            step["b_said"].set()
+            step["a_said"].wait(10)
+        said["b"] = kept
+
+    def cell_a() -> None:
+        step["b_in"].wait(10)
+        with captured_warnings() as kept:
+            step["a_in"].set()
+            step["b_said"].wait(10)
+            messages.warn_once(("both cells",), "met by both cells")
+            step["outside"].wait(10)
+            step["a_said"].set()
+        said["a"] = kept
+
+    threads = [threading.Thread(target=cell_b), threading.Thread(target=cell_a)]
+    for thread in threads:
+        thread.start()
+    step["b_said"].wait(10)
+    outside = messages.warn_once(("said before",), "said before the cells")
+    step["outside"].set()
+    for thread in threads:
+        thread.join(10)
+    assert all(event.is_set() for event in step.values())
+    assert said == {"a": ["met by both cells"], "b": ["met by both cells"]}
+    assert outside is False
+    assert not [r.getMessage() for r in spcopyro_handler.records]
+    assert {("said before",), ("both cells",)} <= messages._WARNED
+
+
 def test_warnings_of_cells_on_a_local_cluster_are_kept(tmp_path):
     pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
     run = run_study(_study(tmp_path), tmp_path / "dask", workers=2, progress=False,

@@ -10,11 +10,12 @@ of the package, so every layer (maps, data, features) can use it.
 from __future__ import annotations
 
 import logging
-from collections.abc import Hashable, Sized
+import threading
+from collections.abc import Hashable, Iterator, Sized
+from contextlib import contextmanager
 
 __all__ = [
-    "ECHO_LIMIT", "echo", "fixed", "forget_warned", "plural", "remember_warned", "seconds_text",
-    "warn_once",
+    "ECHO_LIMIT", "echo", "fixed", "plural", "seconds_text", "warn_once", "warned_apart",
 ]  # fmt: skip
 
 ECHO_LIMIT = 80
@@ -76,28 +77,34 @@ def command_time(seconds: float, cached: int) -> str:
 
 _WARNED: set[Hashable] = set()
 """The keys :func:`warn_once` has warned about in this process."""
+_apart = threading.local()
+"""``warned``: the keys of this thread's :func:`warned_apart` block, where one is open."""
 
 
 def warn_once(key: Hashable, message: str) -> bool:
     """Log ``message`` (logger ``"spcopyro"``, WARNING) the first time this process meets
-    ``key`` (name what the warning is about in it, e.g. ``("stick-breaking", alpha, L)``);
-    whether it was logged."""
-    if key in _WARNED:
+    ``key`` (name what the warning is about in it, e.g. ``("stick-breaking", alpha, L)``), or
+    inside :func:`warned_apart` the first time its block meets it; whether it was logged."""
+    apart: set[Hashable] | None = getattr(_apart, "warned", None)
+    memory = _WARNED if apart is None else apart
+    if key in memory:
         return False
-    _WARNED.add(key)
+    memory.add(key)
+    _WARNED.add(key)  # said in this process
     logging.getLogger("spcopyro").warning(message)
     return True
 
 
-def forget_warned() -> set[Hashable]:
-    """Empty :func:`warn_once`'s memory, so that what it said in this process it says again
-    (a study cell keeps the warnings its own fit gives); the keys it held, for
-    :func:`remember_warned`."""
-    said = set(_WARNED)
-    _WARNED.clear()
-    return said
-
-
-def remember_warned(keys: set[Hashable]) -> None:
-    """Give :func:`warn_once`'s memory back the ``keys`` :func:`forget_warned` returned."""
-    _WARNED.update(keys)
+@contextmanager
+def warned_apart() -> Iterator[None]:
+    """Within: :func:`warn_once` in this thread remembers what it said in the block alone, so it
+    says again once what this process said before (a study cell keeps the warnings its own fit
+    gives). Other threads keep the process's memory, and their blocks their own: cells run on
+    several threads of one process (a Dask worker with ``--nthreads`` > 1) neither lose nor
+    repeat each other's warnings, as emptying the process's memory for each cell did."""
+    outer = getattr(_apart, "warned", None)
+    _apart.warned = set()
+    try:
+        yield
+    finally:
+        _apart.warned = outer

@@ -12,8 +12,13 @@ messages as JSON text (:func:`warnings_text`; empty when none) and ``report.md``
 that gave them (:func:`spcopyro.study.report.report_markdown`).
 
 A warning that :func:`spcopyro._util.messages.warn_once` gives once per process is kept in every
-cell that meets it: its memory of what was said is emptied for each cell, and what it held
-given back after.
+cell that meets it: the cell's thread remembers what it said apart from the process
+(:func:`spcopyro._util.messages.warned_apart`), so cells that run at once on several threads of
+one process (a ``--scheduler`` cluster's worker with more than one thread; the study's own
+LocalCluster gives each worker one) each keep it, once. Python's own registries of the
+warnings shown under the "default" and "once" actions are per module, not per thread: they are
+reset as each cell starts (a warning an earlier cell showed is shown again), but two cells that
+meet the same such warning at the same time in one process may keep it in only one of them.
 """
 
 from __future__ import annotations
@@ -113,15 +118,14 @@ def captured_warnings() -> Iterator[list[str]]:
             _router = _Router(logging.getLogger(LOGGER))
             _router.install()
         _kept[ident] = kept
-        said = messages.forget_warned()  # warn_once: said in this process, not yet by this cell
         mutated = getattr(warnings, "_filters_mutated", None)
         if mutated is not None:  # a "default" warning shown in an earlier cell: shown again
             mutated()
     try:
-        yield kept
+        with messages.warned_apart():  # warn_once: said in this process, not yet by this cell
+            yield kept
     finally:
         with _lock:
-            messages.remember_warned(said)
             del _kept[ident]
             if not _kept and _router is not None:
                 _router.uninstall()
