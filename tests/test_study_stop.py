@@ -5,10 +5,12 @@ interrupted run kills them after :data:`spcopyro.study.local_cluster.STOP_SECOND
 
 from __future__ import annotations
 
+import importlib
 import json
 import os
 import subprocess
 import sys
+import threading
 import types
 
 import pytest
@@ -161,3 +163,68 @@ def test_a_cluster_closed_while_its_forkserver_imports_stops_at_once(tmp_path):
     assert all("resource_tracker" in c for c in record["children"]), record
     assert record["ready_files"] == [], record
     assert record["seconds"] < 3.0, record
+
+
+@pytest.mark.parametrize("interrupted", [True, False])
+def test_a_ctrl_c_that_leaves_the_import_lock_held_does_not_hang_the_close(
+    tmp_path, monkeypatch, interrupted
+):
+    """A KeyboardInterrupt raised just as the main thread took Python's global import lock
+    (CPython 3.11 takes it outside a ``try``) left it held: the cluster's close, on its own
+    thread, then waited for ever in its next import, and the study with it. Where the interrupt
+    was swallowed (in importlib's weakref callback) the run went on to the same end. The run
+    releases it before the close starts."""
+    import _imp
+
+    real_run_cell = study_run.evaluate.run_cell
+
+    module = tmp_path / f"spcopyro_close_imports_this_{interrupted}.py"  # not imported yet
+    module.write_text("VALUE = 1\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    imported: list[bool] = []
+
+    class FakeStart:
+        def __init__(self, workers, on_ready=None):
+            pass
+
+        def wait(self):
+            return None
+
+        def close(self, **kwargs):  # imports on its thread, as Dask's close may
+            done = threading.Event()
+
+            def load() -> None:
+                importlib.import_module(module.stem)
+                done.set()
+
+            threading.Thread(target=load, daemon=True).start()
+            imported.append(done.wait(10))
+
+    def run_cell(cell):
+        _imp.acquire_lock()  # what the unlucky Ctrl-C leaves behind
+        if interrupted:
+            raise KeyboardInterrupt
+        return real_run_cell(cell)
+
+    fake = types.ModuleType("distributed")
+    fake.as_completed = iter  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "distributed", fake)
+    monkeypatch.setattr(study_run, "dask_installed", lambda: True)
+    monkeypatch.setattr(study_run, "ClusterStart", FakeStart)
+    monkeypatch.setattr(study_run.evaluate, "run_cell", run_cell)
+    study = study_from_dict({"study": {"name": "locked", "seeds": 1, "sweeps": 2},
+                             "variants": {"a": {"preset": "paper-dp"}},
+                             "data": {"small": SMALL}})  # fmt: skip
+    try:
+        if interrupted:
+            with pytest.raises(KeyboardInterrupt):
+                run_study(study, tmp_path / "out", workers=2, progress=False)
+        else:
+            assert run_study(study, tmp_path / "out", workers=2, progress=False).ran == 1
+    finally:
+        while True:  # whatever happened, the rest of the tests import freely
+            try:
+                _imp.release_lock()
+            except RuntimeError:
+                break
+    assert imported == [True]

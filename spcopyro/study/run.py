@@ -238,6 +238,7 @@ def _run_study(
         stop.said = report is not _say_nothing  # type: ignore[attr-defined]  # the line below
         raise
     finally:
+        _release_import_lock()
         if bar is not None:
             bar.close()
         signalled: list[int] = []  # a Ctrl-C (or another) while the table is written: after it
@@ -468,6 +469,7 @@ def _on_dask(
         with lock:
             needed = bool(futures or waiting)
         if start is not None and needed:  # else every cell ran here: the close stops the start
+            _release_import_lock()  # before waiting for a thread that imports
             start.wait()
         for future in as_completed(list(futures)) if needed else ():
             cell = futures.pop(future)
@@ -485,12 +487,31 @@ def _on_dask(
             background.finished = _finished_on_workers(futures)
         raise
     finally:
+        _release_import_lock()  # before the close's thread imports anything
         if start is None:
             client.close()  # type: ignore[union-attr]
         elif stopped:  # the cells still on the workers are not waited for: killed at once
             background.close_later(functools.partial(start.close, now=True))
         else:
             background.close_later(start.close)
+
+
+def _release_import_lock() -> None:
+    """Release Python's global import lock where this thread holds it, as a Ctrl-C can leave
+    it. A KeyboardInterrupt raised just as a thread took the lock leaves it held (CPython 3.11's
+    ``importlib._bootstrap._get_module_lock``, and the weakref callback it makes, take it
+    outside their ``try``; in the callback the interrupt is even swallowed, "Exception ignored
+    in ... cb", and the run goes on), and every other thread's next import then waits for ever:
+    a study whose cluster start or close, which it joins, imports hung for good (twice in about
+    twenty Ctrl-Cs during a LocalCluster's start). Here, in the study's own code, this thread
+    holds it for no import."""
+    import _imp
+
+    while _imp.lock_held():
+        try:
+            _imp.release_lock()
+        except RuntimeError:  # another thread's (in an import of its own): not ours to release
+            return
 
 
 def _finished_on_workers(futures: dict[object, Cell]) -> list[Outcome]:
