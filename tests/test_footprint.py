@@ -145,6 +145,55 @@ def test_footprint_does_not_squeeze_through_a_diagonal_wall():
     assert graph[index(grid, 0, 2), index(grid, 1, 3)] == 0  # the corner is not an edge
 
 
+@pytest.mark.parametrize(
+    "kernel, fov", [("uniform", None), ("gaussian", None), ("gaussian", 120.0)]
+)
+def test_footprints_of_a_long_map_run_dijkstra_on_windows_and_equal_the_whole_maps(
+    monkeypatch, kernel, fov
+):
+    """Each chunk of sources runs Dijkstra on the free cells of a window around it, not on the
+    whole map: one call over all N cells per 64 sources scanned [64, N] rows, and a 10^6-cell
+    map's footprints took minutes of a fit (with no progress shown). The weights are bit for bit
+    those of Dijkstra on the whole graph, observation by observation, walls and doorways
+    included, several observations sharing a cell too."""
+    from scipy.sparse import csgraph
+
+    rows = ["." * 120, ("." * 39 + "#") * 3, ".." + "#" * 116 + "..", "." * 120]
+    rows = ["".join(column) for column in zip(*(rows + rows[::-1]), strict=True)]
+    grid = tiny_grid(rows)  # 120 x 8 cells: walls with openings at their ends, raster order
+    rng = np.random.default_rng(3)
+    cells = rng.choice(grid.num_free, 40)  # [T], repeated cells among them
+    cells[5] = -1  # unplaced: an empty row
+    yaw = rng.uniform(-np.pi, np.pi, cells.size)
+    graph = free_cell_graph(grid)
+    sizes = []
+    dijkstra = csgraph.dijkstra
+
+    def recorded(local, *args, **kwargs):
+        sizes.append(local.shape[0])
+        return dijkstra(local, *args, **kwargs)
+
+    monkeypatch.setattr(csgraph, "dijkstra", recorded)
+    fast = footprint_weights(grid, cells, 0.35, kernel, yaw=yaw if fov else None, fov=fov)
+    assert sizes and max(sizes) < grid.num_free / 4, sizes  # windows: 0.35 m is 4 cells each side
+    centres = grid.cell_to_world(grid.free_cells)
+    for t, cell in enumerate(cells):  # the whole graph, one observation at a time
+        row = fast[t].toarray()[0]
+        if cell < 0:
+            assert not row.any()
+            continue
+        d = dijkstra(graph, directed=False, indices=[cell], limit=0.35 * (1 + 1e-9) + 1e-12)[0]
+        reach = np.isfinite(d)
+        w = np.exp(-0.5 * (d / 0.175) ** 2) if kernel == "gaussian" else np.ones(d.size)
+        if fov is not None:
+            offset = centres - centres[cell]
+            turn = np.angle(np.exp(1j * (np.arctan2(offset[:, 1], offset[:, 0]) - yaw[t])))
+            reach &= (np.abs(turn) <= math.radians(fov) / 2 + 1e-12) | (np.arange(d.size) == cell)
+        expected = np.zeros(d.size)
+        expected[reach] = w[reach] / w[reach].sum()  # summed over the reached cells only
+        np.testing.assert_array_equal(row, expected)
+
+
 def test_field_of_view_keeps_the_cells_in_front(problem):
     grid, _ = problem
     source = np.array([index(grid, 2, 2)])

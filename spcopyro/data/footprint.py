@@ -80,6 +80,7 @@ __all__ = [
 FootprintKernel = Literal["uniform", "gaussian"]
 FOOTPRINT_KERNELS = ("uniform", "gaussian")
 _CHUNK = 64  # source cells per Dijkstra call: [64, N] float64 distances at a time
+_WINDOW_SHARE = 0.5  # a chunk's Dijkstra runs on its window's cells if at most this share of N
 
 
 def free_cell_graph(grid: OccupancyGrid) -> sparse.csr_matrix:
@@ -174,20 +175,30 @@ def footprint_weights(
     graph = free_cell_graph(grid) if graph is None else graph
     centres = np.asarray(grid.cell_to_world(grid.free_cells), dtype=np.float64)  # [N, 2]
     sources = np.unique(cells[placed])  # [S]
+    # the observations at each source, in increasing t: one stable sort, not a scan of all T
+    # observations per source (quadratic in the map's size)
+    by_cell = placed[np.argsort(cells[placed], kind="stable")]  # [T']
+    bounds = np.searchsorted(cells[by_cell], sources, side="left")  # [S]
+    ends = np.searchsorted(cells[by_cell], sources, side="right")  # [S]
     out_rows, out_cols, out_vals = [], [], []
     limit = float(radius) * (1 + 1e-9) + 1e-12
-    for start in range(0, sources.size, _CHUNK):
-        chunk = sources[start : start + _CHUNK]  # [s]
-        dist = dijkstra(graph, directed=False, indices=chunk, limit=limit)  # [s, N]
+    for chunk, window in _source_windows(grid, sources, limit):
+        # Dijkstra on the free cells of a window around the chunk's sources only: a path of at
+        # most `limit` metres moves at most that far in each axis, so it stays in the window;
+        # the window keeps the free-index order, so the distances are the whole graph's
+        local = graph[window][:, window] if window is not None else graph
+        dist = dijkstra(local, directed=False, indices=_local(chunk, window), limit=limit)
         for k, source in enumerate(chunk):
-            reach = np.flatnonzero(np.isfinite(dist[k]))  # [r] includes source (d = 0)
-            d = dist[k, reach]  # [r] metres
+            found = np.flatnonzero(np.isfinite(dist[k]))  # [r] includes source (d = 0)
+            reach = found if window is None else window[found]  # [r] free indices
+            d = dist[k, found]  # [r] metres
             if kernel == "uniform" or radius == 0:
                 base = np.ones(d.size)
             else:
                 sigma = radius / 2.0
                 base = np.exp(-0.5 * (d / sigma) ** 2)  # [r]
-            for t in placed[cells[placed] == source]:
+            at = int(np.searchsorted(sources, source))
+            for t in by_cell[bounds[at] : ends[at]]:
                 w = base
                 if fov is not None:
                     offset = centres[reach] - centres[source]  # [r, 2]
@@ -205,6 +216,42 @@ def footprint_weights(
         r = c = np.zeros(0, dtype=np.int64)
         v = np.zeros(0)
     return sparse.csr_matrix((v, (r, c)), shape=(num_obs, n))
+
+
+def _source_windows(
+    grid: OccupancyGrid, sources: np.ndarray, limit: float
+) -> list[tuple[np.ndarray, np.ndarray | None]]:
+    """``sources`` [S] (sorted free indices) in chunks of at most :data:`_CHUNK`, each with the
+    sorted free indices of the window around it that holds every cell within ``limit`` metres of
+    its sources (None: the whole map, where the window would hold more than
+    :data:`_WINDOW_SHARE` of its free cells). A chunk's window is
+    its sources' bounding box grown by ``limit`` in cells; a chunk ends where its rows would span
+    more than one window's height, so a large map's Dijkstra calls stay local (one call over all
+    N cells for each 64 sources made a 10^6-cell map's footprints take minutes)."""
+    free_cells = np.asarray(grid.free_cells, dtype=np.int64)  # [N, 2] (row, col)
+    index = np.asarray(grid.free_index, dtype=np.int64)  # [H, W]
+    height, width = index.shape
+    margin = int(math.floor(limit / float(grid.resolution))) + 1  # cells each side
+    out: list[tuple[np.ndarray, np.ndarray | None]] = []
+    start = 0
+    while start < sources.size:
+        stop = min(start + _CHUNK, sources.size)
+        rows = free_cells[sources[start:stop], 0]  # [s], non-decreasing (raster order)
+        stop = start + int(np.searchsorted(rows, rows[0] + 2 * margin, side="right"))
+        chunk = sources[start:stop]
+        r, c = free_cells[chunk, 0], free_cells[chunk, 1]
+        r0, r1 = max(int(r.min()) - margin, 0), min(int(r.max()) + margin + 1, height)
+        c0, c1 = max(int(c.min()) - margin, 0), min(int(c.max()) + margin + 1, width)
+        box = index[r0:r1, c0:c1]  # [h, w]
+        window = np.sort(box[box >= 0])  # [n] free indices, increasing
+        out.append((chunk, None if window.size > _WINDOW_SHARE * grid.num_free else window))
+        start = stop
+    return out
+
+
+def _local(chunk: np.ndarray, window: np.ndarray | None) -> np.ndarray:
+    """The positions of ``chunk``'s free indices in ``window`` (the indices themselves if None)."""
+    return chunk if window is None else np.searchsorted(window, chunk)
 
 
 def spread_counts(weights: sparse.csr_matrix, counts: np.ndarray, cells: np.ndarray) -> np.ndarray:
