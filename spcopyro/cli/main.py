@@ -260,6 +260,7 @@ def _check_where_out(result_dir: str, out: str) -> None:
 def _where(args: argparse.Namespace) -> int:
     from spcopyro.results.concept_words import shown_words
     from spcopyro.results.result import UnknownWordError
+    from spcopyro.results.where import shared_answer_note
 
     if args.out:
         _check_where_out(args.result, args.out)
@@ -297,10 +298,15 @@ def _where(args: argparse.Namespace) -> int:
               f"y {y0:.2f}..{y1:.2f} m")  # fmt: skip
     for warning in answer.warnings:
         print(f"warning: {warning}", file=sys.stderr)
-    from spcopyro.results.uncertainty import where_probability
+    shared = shared_answer_note(answer)  # one concept answering 'toilet' and 'kitchen'
+    if shared:
+        print(f"note: {shared}")
+    from spcopyro.results.uncertainty import unmapped_note, where_probability
 
     probability = where_probability(result, answer.word, args.prior)  # [N]
     source = "marginals" if result.marginals is not None else "point estimate"
+    unmapped = unmapped_note(result)
+    source += f"; {unmapped}" if unmapped else ""
     print(f"cells whose probability of being the place exceeds 0.5: "
           f"{int((probability > 0.5).sum())} ({source})")  # fmt: skip
     if args.out:

@@ -60,7 +60,12 @@ from spcopyro.maps import (
 )
 from spcopyro.results.concept_words import NO_WORDS, shown_words
 from spcopyro.results.result import SpCoResult
-from spcopyro.results.uncertainty import cell_entropy, free_cells_image, where_probability
+from spcopyro.results.uncertainty import (
+    cell_entropy,
+    free_cells_image,
+    unmapped_note,
+    where_probability,
+)
 from spcopyro.results.where import SMALL_REGION_FRACTION, WhereAnswer
 
 DPI = 150  # of every PNG
@@ -303,7 +308,8 @@ BELOW_INCHES = (0.55, 1.0)  # where_figure: the legend below the map, then the w
 def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
     """The answer to "where is WORD?" over the map (free white, walls black, unknown grey, as
     the other map figures): with per-cell marginals, each cell's probability of lying in the
-    word's place (:func:`~spcopyro.results.uncertainty.where_probability`) as a colour scale,
+    word's place (:func:`~spcopyro.results.uncertainty.where_probability`, over the reported
+    map's concepts: the colour bar says so where cells hold mass on others) as a colour scale,
     the answer's region outlined in red and the runner-up's in dashed blue; without them (a
     point estimate), the answer's region filled red and the runner-up's blue
     (:func:`where_image`). A title with the word, the concept, p, the prior and the concept's
@@ -337,7 +343,8 @@ def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
                 draw_outline(ax, grid, runner, rows, cols, extent, colors=[blue],
                              linewidths=1.5, linestyles="dashed")  # fmt: skip
         fig.colorbar(scale, cax=axes[-1].inset_axes((1.02, 0.0, 0.025, 1.0)),  # the map's height
-                     label=f"p(cell in the place of '{answer.word}')")  # fmt: skip
+                     label=f"p(cell in the place of '{answer.word}')"
+                     + ("; the map's concepts only" if unmapped_note(result) else ""))  # fmt: skip
         answer_handle = Line2D([], [], color=red, lw=2.0, label="")
         runner_handle = Line2D([], [], color=blue, lw=1.5, ls="--", label="")
     if 0 < cells < SMALL_REGION_FRACTION * grid.num_free:
@@ -486,7 +493,11 @@ def plot_where_probability(
         f"where is '{word.lower()}'? p(cell in its place), {kind}, {prior} prior\n"
         f"{plural(int((probability > 0.5).sum()), 'cell')} above 0.5"
     )
-    return _plot_cell_values(result, probability, path, title=title, label="probability",
+    note = unmapped_note(result)
+    if note:
+        title += f"\n{note}"
+    label = "probability, over the map's concepts" if note else "probability"
+    return _plot_cell_values(result, probability, path, title=title, label=label,
                              vmax=1.0, cmap="Blues")  # fmt: skip
 
 

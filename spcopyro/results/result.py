@@ -36,6 +36,7 @@ from spcopyro.results.where import (
     WhereAnswer,
     answer_warnings,
     bayes_factor,
+    shared_answers,
 )
 
 __all__ = [
@@ -318,7 +319,8 @@ class SpCoResult:
 
     def where(self, word: str, prior: str = DEFAULT_WHERE_PRIOR) -> WhereAnswer:
         """The concept argmax_C p(C | word) (eq. 19), its region, the runner-up and the
-        warnings of an answer close to a guess (:func:`answer_warnings`); ``prior`` as in
+        warnings of an answer close to a guess (:func:`answer_warnings`), the other words the
+        same concept answers (:func:`~spcopyro.results.where.shared_answers`); ``prior`` as in
         :meth:`concept_given_word` (default ``"area"``; ``"pi"`` is the paper's eq. 19)."""
         posterior = self.concept_given_word(word, prior)  # [L]
         weights = self.concept_prior(prior)  # [L]
@@ -351,6 +353,9 @@ class SpCoResult:
             runner_up_probability=0.0 if runner_up is None else float(posterior[runner_up]),
             evidence=bayes_factor(float(posterior[concept]), float(weights[concept])),
             warnings=warnings,
+            shared_with=()  # one concept for the whole map: warned above, every word is its
+            if runner_up is None
+            else shared_answers(self.w, weights, concept, self.vocabulary, key),
         )  # fmt: skip
 
     # -- saving and loading ----------------------------------------------------------------------

@@ -17,6 +17,18 @@ the result's marginals by ``spcopyro fit``). From them:
   :func:`where_probability`. With a point estimate only (no marginals) it is
   :math:`p(C = C_i \mid S)`, constant over each concept's region.
 
+  p(C = l | S) is known only for the concepts that label cells of the reported map (the others
+  have no region, and no word table fitted to one), so the sum runs over those: a cell's
+  probability on other concepts (:func:`unmapped_mass`) is not counted, as if they were never
+  the word's. Such mass is real: a Gibbs chain's kept samples each hold a few extra concepts,
+  and the ones :func:`align_samples` matches with none of the map's take the ids the map leaves
+  free (in room2ldk4's default fit 25 such ids, each about one cell's worth of mass: 1.7% of a
+  cell's mass on average, 44% at most, at region borders), and a CAVI q(C_i) can hold mass on
+  concepts no cell takes as its most probable. So the value is that of the map's concepts only,
+  and a cell's probability could be higher by at most its unmapped mass; ``where`` prints that
+  mass's mean and largest value (:func:`unmapped_note`) and the figures' colour bar and title
+  say so.
+
 A mean-field q is over-confident near region borders and in regions no observation reaches
 (its entropy there is lower than the posterior's); Gibbs frequencies from a few dozen samples of
 one chain miss modes the chain never visited. Compare the two maps with that in mind.
@@ -110,11 +122,33 @@ def cell_entropy(result: SpCoResult) -> np.ndarray | None:
 
 
 def where_probability(result: SpCoResult, word: str, prior: str = "area") -> np.ndarray:
-    """[N] p(cell i belongs to the place of ``word``) (module docstring; ``prior`` as in
+    """[N] p(cell i belongs to the place of ``word``), summed over the concepts of the reported
+    map only (module docstring: the mass :func:`unmapped_mass` is not counted; ``prior`` as in
     :meth:`SpCoResult.concept_given_word
     <spcopyro.results.result.SpCoResult.concept_given_word>`)."""
     concept_given_word = result.concept_given_word(word, prior)  # [L]
     return cell_probabilities(result) @ concept_given_word  # [N, L] @ [L]
+
+
+def unmapped_mass(result: SpCoResult) -> np.ndarray | None:
+    """[N] each free cell's probability on concepts that label no cell of the reported map,
+    which :func:`where_probability` does not count (module docstring); None without marginals."""
+    if result.marginals is None:
+        return None
+    unmapped = result.concept_sizes() == 0  # [L]
+    return np.asarray(result.marginals, dtype=np.float64)[:, unmapped].sum(-1)  # [N]
+
+
+def unmapped_note(result: SpCoResult) -> str | None:
+    """``"not counted: ..."``, the cells' mass on concepts absent from the map (mean and
+    largest, :func:`unmapped_mass`), or None when there is none."""
+    mass = unmapped_mass(result)
+    if mass is None or not mass.max() > 0:
+        return None
+    return (
+        f"not counted: {mass.mean():.1%} of a cell's probability on average, up to "
+        f"{mass.max():.0%}, lies on concepts absent from the map"
+    )
 
 
 def free_cells_image(result: SpCoResult, values: np.ndarray) -> np.ndarray:

@@ -74,6 +74,9 @@ __all__ = [
     "bayes_factor",
     "close_to_guess",
     "region_pieces",
+    "SHARED_ANSWER_P",
+    "shared_answers",
+    "shared_answer_note",
 ]
 
 WHERE_PRIORS = ("area", "pi")
@@ -108,6 +111,62 @@ a region (93 cells, 0.23 m^2, in room1dk5; 18 cells in the synthetic house, whos
 holds 13%)."""
 
 
+SHARED_ANSWER_P = 0.5
+"""Another word of the vocabulary whose own answer is the same concept with p(C | word) above
+this (more probable than every other concept together) is listed in
+:attr:`WhereAnswer.shared_with`: high p says the concept is the word's, not that its region is
+the word's place alone. On room2ldk4 (default fit, seed 0) one concept holds the living room,
+shower and toilet: 'toilet' p = 0.984 with 9% of the region in the toilet, and 'living',
+'shower' and 'table' are answered with it at p 0.98-0.99."""
+
+
+def shared_answers(
+    w: np.ndarray,
+    prior: np.ndarray,
+    concept: int,
+    vocabulary: list[str] | tuple[str, ...],
+    word: str,
+    threshold: float = SHARED_ANSWER_P,
+) -> tuple[tuple[str, float], ...]:
+    """The other words whose answer is ``concept`` with p(C = concept | word') > ``threshold``,
+    as (word', p), most probable first (ties in vocabulary order).
+
+    Args:
+        w: [L, V] p(word | concept).
+        prior: [L] p(C = l) over the concepts in use (0 elsewhere), as the answer used.
+        concept: the answer's concept.
+        vocabulary: [V] the words of ``w``'s columns.
+        word: the asked word (left out).
+        threshold: :data:`SHARED_ANSWER_P` by default.
+    """
+    score = np.asarray(w, dtype=np.float64) * np.asarray(prior, dtype=np.float64)[:, None]
+    total = score.sum(0)  # [V]
+    posterior = np.divide(score, total, out=np.zeros_like(score), where=total > 0)  # [L, V]
+    best = np.argmax(posterior, axis=0)  # [V] each word's answer (first of ties, as where's)
+    p = posterior[concept]  # [V]
+    shared = [
+        (str(other), float(p[v]))
+        for v, other in enumerate(vocabulary)
+        if other != word and best[v] == concept and p[v] > threshold
+    ]
+    return tuple(sorted(shared, key=lambda item: -item[1]))
+
+
+def shared_answer_note(answer: WhereAnswer, shown: int = 3) -> str | None:
+    """One line saying which other words the answer's concept also answers
+    (:attr:`WhereAnswer.shared_with`, at most ``shown`` named), or None when none."""
+    if not answer.shared_with:
+        return None
+    named = ", ".join(f"{w!r} (p {p:.2f})" for w, p in answer.shared_with[:shown])
+    more = len(answer.shared_with) - shown
+    rest = f" and {plural(more, 'more word')}" if more > 0 else ""
+    return (
+        f"concept {answer.concept} is also the answer for {named}{rest} (p > "
+        f"{SHARED_ANSWER_P:g}): its region may hold more than one of these places, or things "
+        "found in it"
+    )
+
+
 @dataclass(frozen=True)
 class WhereAnswer:
     """The answer to "where is WORD?"."""
@@ -129,6 +188,10 @@ class WhereAnswer:
     posterior odds of ``concept`` divided by its prior odds."""
     warnings: tuple[str, ...] = ()
     """Why the answer is close to a guess, one sentence each (empty for a clear answer)."""
+    shared_with: tuple[tuple[str, float], ...] = ()
+    """The other words answered by ``concept`` too, each with p(C = concept | word) above
+    :data:`SHARED_ANSWER_P`, most probable first (:func:`shared_answers`): a concept answering
+    'kitchen' and 'toilet' at p near 1 may cover both rooms."""
 
     @property
     def odds(self) -> float:

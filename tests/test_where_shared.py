@@ -1,0 +1,87 @@
+"""``where``: other words answered by the same concept (one concept may hold two rooms), and the
+per-cell probability's mass on concepts absent from the map, on hand-made results."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from hand_results import two_rooms
+
+from spcopyro.cli.main import main
+from spcopyro.results.uncertainty import unmapped_mass, unmapped_note, where_probability
+from spcopyro.results.where import SHARED_ANSWER_P, shared_answer_note, shared_answers
+
+
+def test_a_concept_answering_two_words_lists_the_other():
+    # area prior: sizes 150, 149, 1; 'bed': 0.2*150, 0.6*149, 0.15*1 -> concept 1 at 0.748;
+    # 'sofa': 0.2*150, 0.3*149, 0.15*1 -> concept 1 at 44.7 / 74.85 = 0.597 (> 0.5)
+    result = two_rooms()
+    bed = result.where("bed")
+    assert bed.concept == 1
+    assert [w for w, _ in bed.shared_with] == ["sofa"]
+    assert bed.shared_with[0][1] == pytest.approx(44.7 / 74.85)
+    sofa = result.where("sofa")
+    assert sofa.concept == 1 and [w for w, _ in sofa.shared_with] == ["bed"]
+    kitchen = result.where("kitchen")  # concept 0 answers no other word
+    assert kitchen.concept == 0 and kitchen.shared_with == ()
+    note = shared_answer_note(bed)
+    assert note is not None and "concept 1 is also the answer for 'sofa' (p 0.60)" in note
+    assert shared_answer_note(kitchen) is None
+
+
+def test_shared_answers_keeps_only_words_above_the_threshold_and_names_a_few():
+    w = np.array([[0.5, 0.3, 0.2, 0.25, 0.25], [0.1, 0.2, 0.3, 0.2, 0.2]])  # [L, V]
+    prior = np.array([0.5, 0.5])
+    words = ("a", "b", "c", "d", "e")
+    # p(0 | word): a 0.833, b 0.6, c 0.4 (answered by concept 1), d 0.556, e 0.556
+    shared = shared_answers(w, prior, 0, words, "a")
+    assert [word for word, _ in shared] == ["b", "d", "e"]
+    assert shared_answers(w, prior, 0, words, "a", threshold=0.58) == (("b", pytest.approx(0.6)),)
+    assert SHARED_ANSWER_P == 0.5
+    answer = dataclasses.replace(two_rooms().where("kitchen"), shared_with=shared + (("f", 0.51),))
+    note = shared_answer_note(answer, shown=3)
+    assert note is not None and note.count("(p 0.") == 3 and "and 1 more word (p > 0.5)" in note
+
+
+def unmapped_result():
+    """two_rooms without its speck (its cell joins the right room), with marginals in which
+    cell 0 of the right room holds 0.4 on concept 2, which labels no cell of the map."""
+    base = two_rooms()
+    labels = np.where(base.labels == 2, 1, base.labels)  # [N]
+    marginals = np.eye(3)[labels]  # [N, 3]
+    right = int(np.flatnonzero(labels == 1)[0])
+    marginals[right] = [0.0, 0.6, 0.4]
+    return dataclasses.replace(base, labels=labels, marginals=marginals), right
+
+
+def test_where_probability_counts_the_maps_concepts_and_says_what_it_leaves_out():
+    result, cell = unmapped_result()
+    # area prior, sizes 150 / 150: p(1 | bed) = 0.6 * 150 / (0.2 * 150 + 0.6 * 150) = 0.75
+    probability = where_probability(result, "bed")
+    assert probability[cell] == pytest.approx(0.6 * 0.75)  # concept 2's 0.4 not counted
+    assert probability[cell + 1] == pytest.approx(0.75)
+    mass = unmapped_mass(result)
+    assert mass is not None and mass[cell] == pytest.approx(0.4)
+    assert mass.sum() == pytest.approx(0.4)
+    note = unmapped_note(result)
+    assert note == (
+        f"not counted: {0.4 / 300:.1%} of a cell's probability on average, up to 40%, "
+        "lies on concepts absent from the map"
+    )
+    assert unmapped_note(two_rooms()) is None  # a point estimate: nothing left out
+    assert unmapped_note(dataclasses.replace(result, marginals=np.eye(3)[result.labels])) is None
+
+
+def test_where_prints_the_shared_concept_and_the_unmapped_mass(tmp_path, capsys):
+    result, _ = unmapped_result()
+    out = result.save(tmp_path / "fit")
+    assert main(["where", str(out), "bed", "--out", str(tmp_path / "bed.png")]) == 0
+    printed = capsys.readouterr().out
+    assert "note: concept 1 is also the answer for 'sofa'" in printed
+    assert "lies on concepts absent from the map)" in printed
+    assert (tmp_path / "bed_probability.png").is_file()
+    assert main(["where", str(out), "kitchen"]) == 0
+    printed = capsys.readouterr().out
+    assert "also the answer" not in printed
