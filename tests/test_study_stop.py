@@ -11,6 +11,7 @@ import os
 import subprocess
 import sys
 import threading
+import time
 import types
 
 import pytest
@@ -116,12 +117,45 @@ def test_a_run_whose_cells_all_ran_here_does_not_wait_for_the_cluster(tmp_path, 
     monkeypatch.setitem(sys.modules, "distributed", fake)
     monkeypatch.setattr(study_run, "dask_installed", lambda: True)
     monkeypatch.setattr(study_run, "ClusterStart", FakeStart)
-    study = study_from_dict({"study": {"name": "here", "seeds": 1, "sweeps": 2},
+    study = study_from_dict({"study": {"name": "here", "seeds": 2, "sweeps": 2},
                              "variants": {"a": {"preset": "paper-dp"}},
                              "data": {"small": SMALL}})  # fmt: skip
     done = run_study(study, tmp_path / "out", workers=2, progress=False)
-    assert (done.ran, done.ran_here, done.failed) == (1, 1, 0)
+    assert (done.ran, done.ran_here, done.failed) == (2, 2, 0)
     assert calls == ["close"]
+
+
+def test_a_run_with_one_cell_left_starts_no_cluster(tmp_path, monkeypatch):
+    """One cell left to run with --workers 2: this process runs it while the cluster starts, so
+    the start (the forkserver's 3-4 CPU seconds of imports, on a core the cell needs) served
+    nothing; it is not begun, and the run's line says so instead of naming the workers."""
+    started: list[int] = []
+
+    class FakeStart:
+        def __init__(self, workers, on_ready=None):
+            started.append(workers)
+
+        def wait(self):
+            return None
+
+        def close(self, **kwargs):
+            pass
+
+    fake = types.ModuleType("distributed")
+    fake.as_completed = iter  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "distributed", fake)
+    monkeypatch.setattr(study_run, "dask_installed", lambda: True)
+    monkeypatch.setattr(study_run, "ClusterStart", FakeStart)
+    study = study_from_dict({"study": {"name": "one", "seeds": 1, "sweeps": 2},
+                             "variants": {"a": {"preset": "paper-dp"}},
+                             "data": {"small": SMALL}})  # fmt: skip
+    lines: list[str] = []
+    done = run_study(study, tmp_path / "out", workers=2, progress=False, report=lines.append)
+    assert started == []
+    assert (done.ran, done.ran_here, done.failed) == (1, 1, 0)
+    assert done.where == "in-process (a single cell: no LocalCluster of 2 workers started)"
+    assert lines[0].endswith("1 of 1 cells to run (0 finished before), " + done.where), lines
+    assert not any("while the LocalCluster started" in line for line in lines), lines
 
 
 CLOSED_AT_ONCE = """
@@ -212,7 +246,7 @@ def test_a_ctrl_c_that_leaves_the_import_lock_held_does_not_hang_the_close(
     monkeypatch.setattr(study_run, "dask_installed", lambda: True)
     monkeypatch.setattr(study_run, "ClusterStart", FakeStart)
     monkeypatch.setattr(study_run.evaluate, "run_cell", run_cell)
-    study = study_from_dict({"study": {"name": "locked", "seeds": 1, "sweeps": 2},
+    study = study_from_dict({"study": {"name": "locked", "seeds": 2, "sweeps": 2},  # a cluster
                              "variants": {"a": {"preset": "paper-dp"}},
                              "data": {"small": SMALL}})  # fmt: skip
     try:
@@ -220,7 +254,7 @@ def test_a_ctrl_c_that_leaves_the_import_lock_held_does_not_hang_the_close(
             with pytest.raises(KeyboardInterrupt):
                 run_study(study, tmp_path / "out", workers=2, progress=False)
         else:
-            assert run_study(study, tmp_path / "out", workers=2, progress=False).ran == 1
+            assert run_study(study, tmp_path / "out", workers=2, progress=False).ran == 2
     finally:
         while True:  # whatever happened, the rest of the tests import freely
             try:
@@ -228,3 +262,83 @@ def test_a_ctrl_c_that_leaves_the_import_lock_held_does_not_hang_the_close(
             except RuntimeError:
                 break
     assert imported == [True]
+
+
+def _dead_pid() -> int:
+    process = subprocess.Popen([sys.executable, "-c", "pass"])  # noqa: S603
+    process.wait()
+    return process.pid
+
+
+def test_stale_ready_files_are_removed(tmp_path):
+    """A forkserver's ready file whose study process is gone is removed; one of a running
+    process (made after its start) is kept, and so is a fresh one without a pid in its name."""
+    from spcopyro.study.local_cluster import READY_PREFIX, remove_stale_ready_files
+
+    def ready(owner: object, age: float = 0.0):
+        path = tmp_path / f"{READY_PREFIX}{owner}-{age:.0f}{'ab' * 16}.ready"
+        path.touch()
+        made = time.time() - age
+        os.utime(path, (made, made))
+        return path
+
+    dead = ready(_dead_pid())
+    mine = ready(os.getpid())
+    reused = ready(os.getpid(), age=10 * 365 * 86400)  # made before this process started
+    old = tmp_path / f"{READY_PREFIX}{'cd' * 16}.ready"  # the name before pids
+    fresh = tmp_path / f"{READY_PREFIX}{'ef' * 16}.ready"
+    for path, age in ((old, 7200.0), (fresh, 0.0)):
+        path.touch()
+        os.utime(path, (time.time() - age,) * 2)
+    other = tmp_path / "spcopyro-forkserver.txt"
+    other.touch()
+    remove_stale_ready_files(str(tmp_path))
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        p.name for p in (mine, fresh, other)
+    ), (dead, reused, old)
+
+
+KILLED_WHILE_IMPORTING = """
+import multiprocessing.forkserver as forkserver, os, signal, sys, time
+
+from spcopyro.study.local_cluster import ClusterStart
+
+if __name__ == "__main__":
+    start = ClusterStart(1)
+    while forkserver._forkserver._forkserver_pid is None:  # the forkserver's import has begun
+        time.sleep(0.01)
+    print(forkserver._forkserver._forkserver_pid, flush=True)
+    os.kill(os.getpid(), signal.SIGKILL)
+"""
+
+NEXT_START = """
+from spcopyro.study.local_cluster import start_forkserver, stop_forkserver
+
+if __name__ == "__main__":
+    start_forkserver()
+    stop_forkserver()
+"""
+
+
+def test_a_study_killed_while_its_forkserver_imports_leaves_no_ready_file_for_good(tmp_path):
+    """A study SIGKILLed while its forkserver imported left the empty ready file the server
+    creates when its import ends (after the study's death), one per kill, for good. The next
+    start removes it."""
+    pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    from spcopyro.study import local_cluster
+
+    if not local_cluster.forkserver_available():
+        pytest.skip("no forkserver on this platform")
+    env = {**os.environ, "TMPDIR": str(tmp_path)}
+    killed = subprocess.run([sys.executable, "-c", KILLED_WHILE_IMPORTING], capture_output=True,
+                            text=True, timeout=300, env=env, cwd=tmp_path)  # fmt: skip
+    assert killed.returncode == -9, killed.stderr
+    server = int(killed.stdout.split()[0])
+    deadline = time.monotonic() + 120
+    while local_cluster._running(server) and time.monotonic() < deadline:  # imports, then EOF
+        time.sleep(0.1)
+    left = sorted(tmp_path.glob(f"{local_cluster.READY_PREFIX}*.ready"))
+    assert len(left) == 1, left  # what the killed study left behind
+    subprocess.run([sys.executable, "-c", NEXT_START], capture_output=True, text=True,
+                   timeout=300, check=True, env=env, cwd=tmp_path)  # fmt: skip
+    assert not left[0].exists()

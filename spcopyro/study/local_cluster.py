@@ -22,7 +22,9 @@ machine both cores spend the cluster's start-up importing while the study's proc
   The Dask cluster itself is made once the forkserver has imported (it creates the file that
   :data:`READY_FILE` names), so that a close before then (every cell ran here already, or a
   Ctrl-C) stops the start at once: the forkserver, which has forked no worker, is killed
-  (:meth:`ClusterStart.close`), where the close waited for the whole start to end.
+  (:meth:`ClusterStart.close`), where the close waited for the whole start to end. The file
+  names the study's pid, and a start removes the ready files left by study processes that
+  were killed meanwhile (:func:`remove_stale_ready_files`).
 
 Each worker gives tqdm a thread lock of its own at its start (:func:`dask_setup`, a Dask
 worker preload): a cell's fit makes progress bars (disabled), and tqdm's first bar in a process
@@ -57,9 +59,9 @@ from contextlib import contextmanager
 from spcopyro._util.forking import fresh_tqdm_lock
 
 __all__ = [
-    "ONE_THREAD", "PRE_SPAWN_ENVIRON", "QUIET_LOOPS", "READY_FILE", "STOP_SECONDS",
-    "WORKER_PRELOAD", "ClusterStart", "local_cluster", "stop_forkserver", "stop_workers",
-    "wait_for_forkserver",
+    "ONE_THREAD", "PRE_SPAWN_ENVIRON", "QUIET_LOOPS", "READY_FILE", "READY_PREFIX",
+    "STOP_SECONDS", "WORKER_PRELOAD", "ClusterStart", "local_cluster", "remove_stale_ready_files",
+    "stop_forkserver", "stop_workers", "wait_for_forkserver",
 ]  # fmt: skip
 
 PRE_SPAWN_ENVIRON = "distributed.nanny.pre-spawn-environ"
@@ -149,13 +151,55 @@ def start_forkserver() -> None:
         get_mp_context()  # dask sets its own preload list once per process: before ours
     forkserver.set_forkserver_preload(list(WORKER_PRELOAD))
     resource_tracker.ensure_running()  # first: starting it unblocks both in this thread
-    ready = os.path.join(tempfile.gettempdir(), f"spcopyro-forkserver-{uuid.uuid4().hex}.ready")
+    folder = tempfile.gettempdir()
+    remove_stale_ready_files(folder)
+    ready = os.path.join(folder, f"{READY_PREFIX}{os.getpid()}-{uuid.uuid4().hex}.ready")
     before = forkserver._forkserver._forkserver_pid
     with _environ({**ONE_THREAD, MALLOC_TRIM: None, READY_FILE: ready}), _stop_signals_blocked():
         forkserver.ensure_running()
     pid = forkserver._forkserver._forkserver_pid
     if pid is not None and pid != before:  # started here: its import has begun
         _importing[pid] = ready
+
+
+READY_PREFIX = "spcopyro-forkserver-"
+"""A ready file's name: this prefix, the pid of the process that waits for it, a random part."""
+UNOWNED_STALE_SECONDS = 3600.0
+
+
+def remove_stale_ready_files(folder: str) -> None:
+    """Remove the forkservers' ready files in ``folder`` whose process is gone. A study's
+    process removes its own once it sees it (:func:`wait_for_forkserver`, :func:`stop_forkserver`);
+    one killed (SIGKILL, an out-of-memory kill) while its forkserver imported left it behind,
+    created by the forkserver after that process's death, and they piled up in the temp folder.
+    A file names its process's pid (:data:`READY_PREFIX`); it is stale when no process has that
+    pid, or the process that has it started after the file was made (the pid reused). A file
+    without a pid in its name (spcopyro before 2026-12-05) is removed once an hour old. Files
+    of another user, which this one may not remove, are left."""
+    import glob
+    import time
+
+    for path in glob.glob(os.path.join(glob.escape(folder), f"{READY_PREFIX}*.ready")):
+        owner = os.path.basename(path).removeprefix(READY_PREFIX).split("-", 1)[0]
+        try:
+            made = os.path.getmtime(path)
+            if (_made_by_running(int(owner), made) if owner.isdigit()
+                    else time.time() - made < UNOWNED_STALE_SECONDS):  # fmt: skip
+                continue
+            os.remove(path)
+        except OSError:  # removed meanwhile, or not this user's
+            continue
+
+
+def _made_by_running(pid: int, made: float) -> bool:
+    """Whether process ``pid`` runs and started before ``made`` (a file's mtime, seconds)."""
+    import psutil
+
+    try:
+        process = psutil.Process(pid)
+        return process.status() != psutil.STATUS_ZOMBIE and process.create_time() <= made + 1.0
+    except psutil.Error:
+        return False
 
 
 def wait_for_forkserver(cancelled: threading.Event, poll: float = 0.02) -> bool:

@@ -16,7 +16,9 @@ Where the cells run:
   (:mod:`spcopyro.study.local_cluster`). The cluster starts on a thread while this process runs
   cells one after another, shortest first; the moment the workers are up they take every cell
   not started yet, longest first (:mod:`spcopyro.study.order`), and the cluster closes while
-  the table is written;
+  the table is written. A run with one cell left to run (and ``start_in_process``) runs it in
+  this process and starts no cluster: the workers would get nothing to run, and their start
+  would take a core from that cell;
 * ``scheduler="tcp://HOST:PORT"``: the Dask cluster already running there (e.g. one that
   ``dask-jobqueue`` started on Slurm or PBS; docs/studies.md), cells longest first. Its workers
   need spcopyro and the data at the same paths.
@@ -79,7 +81,9 @@ class StudyRun:
     """Of those, how many failed (recorded with their error)."""
     seconds: float
     where: str
-    """``in-process``, ``LocalCluster(N workers)`` or the scheduler's address."""
+    """``in-process``, ``LocalCluster(N workers)`` or the scheduler's address; ``in-process (a
+    single cell: no LocalCluster of N workers started)`` where ``N > 1`` workers were asked for
+    one cell (:func:`_where`)."""
     interrupted: bool = False
     ran_here: int = 0
     """Of ``ran``, the cells a LocalCluster run ran in this process while its workers started
@@ -185,7 +189,8 @@ def _run_study(
     store = CellStore(out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "study.json").write_text(json.dumps(study.to_json(), indent=1, default=str))
-    where = _where(workers, scheduler)
+    alone = scheduler is None and workers > 1 and start_in_process and len(pending) == 1
+    where = _where(workers, scheduler, alone)
     if not pending:
         _finish(out, study, cells, store)
         report(f"nothing to run: all {len(cells)} cells of study {study.name!r} are finished "
@@ -206,7 +211,7 @@ def _run_study(
     ran = failed = warned = 0
     interrupted = False
     bar = _bar(pending, plan.predicted, progress)
-    in_process = scheduler is None and workers <= 1
+    in_process = scheduler is None and (workers <= 1 or alone)  # alone: no cluster to start
     started_in_order = [] if in_process else longest_first(pending, plan.predicted)
     background = _Background()
 
@@ -356,9 +361,15 @@ def _stale_line(count: int) -> str:
     )
 
 
-def _where(workers: int, scheduler: str | None) -> str:
+def _where(workers: int, scheduler: str | None, alone: bool = False) -> str:
+    """Where the cells run. ``alone``: one cell left to run with ``workers > 1``, run in this
+    process without starting the LocalCluster: this process would run it while the cluster
+    starts anyway (:func:`_on_dask`), and the forkserver's import (3-4 CPU seconds) only took
+    a core from that cell, for workers that got nothing to run."""
     if scheduler is not None:
         return f"Dask scheduler {scheduler}"
+    if alone:
+        return f"in-process (a single cell: no LocalCluster of {workers} workers started)"
     return "in-process" if workers <= 1 else f"LocalCluster({workers} workers)"
 
 
