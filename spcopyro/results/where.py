@@ -162,8 +162,7 @@ def shared_answer_note(answer: WhereAnswer, shown: int = 3) -> str | None:
     rest = f" and {plural(more, 'more word')}" if more > 0 else ""
     return (
         f"concept {answer.concept} is also the answer for {named}{rest} (p > "
-        f"{SHARED_ANSWER_P:g}): its region may hold more than one of these places, or things "
-        "found in it"
+        f"{SHARED_ANSWER_P:g}): if one of them names another room, this region holds both"
     )
 
 
