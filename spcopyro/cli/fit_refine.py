@@ -18,7 +18,16 @@ if TYPE_CHECKING:
     from spcopyro.fit.refine import RefineDecision
     from spcopyro.results.result import SpCoResult
 
-__all__ = ["REFINED_AWAY", "prepares_data", "refine", "report_update", "update_settings"]
+__all__ = [
+    "LARGE_REFINEMENT_CELLS", "REFINED_AWAY", "prepares_data", "refine", "report_update",
+    "update_settings",
+]  # fmt: skip
+
+LARGE_REFINEMENT_CELLS = 100_000
+"""From this many free cells of the map, the refinement's decision comes with a note that its
+sweeps take much longer than the first stage's (a 228,934-cell map: 5000 sweeps of the 0.25 m
+grid's 22,179 cells in ~4 min, then 4-7 sweeps a second on the map's own cells, 12-18 min more;
+docs/variational.md, "From spcopyro fit on a large map") and how to stop at the first stage."""
 
 REFINED_AWAY = ("cell_size", "feature_scaling", "word_scaling", "footprint",
                 "footprint_kernel", "footprint_fov")  # fmt: skip
@@ -102,6 +111,13 @@ def _decide(
               f"joint {first.best_objective:.1f}) go on on the map's own "
               f"{on_map.grid.resolution:g} m cells ({observed} observed), images as 100 draws, "
               f"words at their cell, alpha {refined.model.alpha:.3g}")  # fmt: skip
+        cells, first_cells = on_map.grid.num_free, model.grid.num_free
+        if cells >= LARGE_REFINEMENT_CELLS:  # the first stage's bar did not count this one
+            print(f"note: the refinement sweeps the map's {cells:,} free cells, "
+                  f"{cells / max(first_cells, 1):.0f}x the first stage's {first_cells:,}: it takes "
+                  "much longer than the first stage (its own progress bar gives the time); "
+                  "--refine never keeps the first stage's map, --method stochastic-vi fits large "
+                  "maps in passes", file=sys.stderr)  # fmt: skip
     else:  # config.json says why too
         print(f"not refined      {decision.reason}")
     return decision
