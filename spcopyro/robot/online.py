@@ -72,7 +72,11 @@ from spcopyro.inference.driver import DriveInterrupted
 from spcopyro.inference.protocol import method_options
 from spcopyro.model import DTYPE, ModelData
 from spcopyro.results.result import SpCoResult
-from spcopyro.results.saved_vocabulary import SavedVocabulary, renormalise_vocabulary
+from spcopyro.results.saved_vocabulary import (
+    SavedVocabulary,
+    renormalise_vocabulary,
+    renormalised_result,
+)
 
 __all__ = [
     "DEFAULT_UPDATE_SWEEPS",
@@ -297,9 +301,9 @@ def start_update(
     ``settings`` None: the saved fit's; ``generator`` None: new word columns at their mean."""
     settings = settings_of(saved) if settings is None else settings
     check_compatible(saved, house, settings, where)
-    renormalised = renormalise_vocabulary(saved.vocabulary)
+    saved, renormalised = renormalised_result(saved)  # its words as the tokenizer reads them
     _warn_renormalised(renormalised, where)
-    merge = merge_vocabulary(renormalised.vocabulary, house.observations.vocabulary)
+    merge = merge_vocabulary(saved.vocabulary, house.observations.vocabulary)
     counts, data = prepare_model_data(house, settings, vocabulary=merge.vocabulary)
     labels = torch.as_tensor(np.asarray(saved.labels), dtype=torch.long)  # [N]
     config = settings.model
@@ -307,7 +311,6 @@ def start_update(
     for modality in data.modalities:
         table = saved.emission(modality.name).probabilities  # [L, K_m]
         if modality.name == WORDS:
-            table = renormalised.fold(table)  # [L, V*]
             rows = labels[data.obs_cells]  # [M] concepts of the observed cells
             old_counts = modality.counts[:, : merge.old_size]  # [M, V]
             totals = torch.zeros(config.num_concepts, dtype=DTYPE)  # [L]
