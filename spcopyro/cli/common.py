@@ -338,7 +338,6 @@ class CommandParser(argparse.ArgumentParser):
     def __init__(self, *args, **kwargs) -> None:
         self.dash_word: tuple[str, str] | None = None
         self.recorded_options: dict[str, argparse.Action] = {}  # option string -> action
-        self.recorded_positionals: list[argparse.Action] = []
         self.given_arguments: list[str] = []
         super().__init__(*args, **kwargs)  # adds -h through add_argument
 
@@ -346,8 +345,6 @@ class CommandParser(argparse.ArgumentParser):
         action = super().add_argument(*args, **kwargs)
         for option in action.option_strings:
             self.recorded_options[option] = action
-        if not action.option_strings:
-            self.recorded_positionals.append(action)
         return action
 
     def parse_known_args(self, args=None, namespace=None):  # noqa: D102
