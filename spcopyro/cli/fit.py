@@ -389,7 +389,9 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     phases.mark("figures")
     if result.agreement is not None:
         estimate = result.inference.get("point_estimate", args.point_estimate)  # a refit's own
-        loss = "variation of information" if estimate == "vi" else "loss"  # not variational
+        from spcopyro.results.point_estimate import LOSS_LABELS
+
+        loss = LOSS_LABELS["vi"] if estimate == "vi" else "loss"  # not variational inference
         print(f"point estimate   {estimate} (expected {loss} "
               f"{result.inference['expected_loss']:.4g}, best single sample "
               f"{result.inference['best_sample_loss']:.4g})"

@@ -59,6 +59,7 @@ from spcopyro.maps import (
     render_labels,
 )
 from spcopyro.results.concept_words import NO_WORDS, shown_words
+from spcopyro.results.point_estimate import LOSS_LABELS
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.uncertainty import (
     cell_entropy,
@@ -75,9 +76,11 @@ ANSWER_RGB = (214, 0, 0)  # the answer's region in plot_where
 RUNNER_UP_RGB = (0, 70, 200)  # the runner-up's region in plot_where
 FREE_RGB = RGB_BACKGROUND  # plot_where's free cells: white, as in house.png and navigate.png
 # (a light grey (225) was 7 delta-E from the unknown grey (205): the two read as one)
-ESTIMATE_NAMES = {"vi": "variation-of-information", "binder": "Binder-loss"}
-"""The point estimates' names in the figures' titles: "the vi estimate" read as variational
-inference's (compare-inference's VI methods), not the variation-of-information loss's."""
+ESTIMATE_NAMES = {loss: label.replace(" ", "-") for loss, label in LOSS_LABELS.items()}
+"""The point estimates' names in the figures' titles, their losses' labels
+(:data:`~spcopyro.results.point_estimate.LOSS_LABELS`) as adjectives: "the vi estimate" read as
+variational inference's (compare-inference's VI methods), not the variation-of-information
+loss's."""
 
 
 def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
