@@ -21,6 +21,7 @@ from spcopyro.cli.common import _HelpFormatter, figure_file, refuse_fit_files
 if TYPE_CHECKING:
     from spcopyro._util.outputs import StagedOutput
     from spcopyro.results.result import SpCoResult
+    from spcopyro.results.saved_vocabulary import SavedVocabulary
     from spcopyro.robot.navigation.planning import NavigationPlan
 
 __all__ = ["add_parser"]
@@ -43,17 +44,20 @@ def _point(text: str) -> tuple[float, float]:
 
 def _navigate(args: argparse.Namespace) -> int:
     from spcopyro.cli.common import load_fit
+    from spcopyro.robot.navigation.goals import instruction_words
     from spcopyro.robot.navigation.outputs import check_frame
 
     check_frame(args.frame)
-    result, saved = load_fit(args.result)  # an older fit's 'stove.' is 'stove', and it says so
+    # an older fit's 'stove.' is 'stove', and it says so, naming the instruction's words that
+    # spell a saved word ('go to the -stove' on a fit that saved '-stove'), as where does
+    result, saved = load_fit(args.result, instruction_words(args.instruction))
     staged = None
     if args.out:  # refused (an existing folder without --overwrite) before a plan is printed
         from spcopyro.robot.navigation.outputs import stage_plan_folder
 
         staged = stage_plan_folder(args.out, args.overwrite)
     try:
-        return _plan_and_print(args, result, staged, saved.renamed)
+        return _plan_and_print(args, result, staged, saved)
     finally:
         if staged is not None:
             staged.discard()  # nothing once committed
@@ -63,10 +67,11 @@ def _plan_and_print(
     args: argparse.Namespace,
     result: SpCoResult,
     staged: StagedOutput | None,
-    saved_words: tuple[tuple[str, str], ...] = (),
+    saved: SavedVocabulary | None = None,
 ) -> int:
     """Plan ``args.instruction`` on ``result``, print it, and write it into ``staged``;
-    ``saved_words``: the fit's saved words read as others (:func:`~spcopyro.cli.common.load_fit`),
+    ``saved``: the fit's vocabulary as read (:func:`~spcopyro.cli.common.load_fit`): a place
+    said as a saved word is not called another word, and the saved words read as others are
     kept in navigate.json with the places read as other words."""
     from spcopyro.cli.common import load_robot_map
     from spcopyro.robot.navigation import navigate
@@ -95,7 +100,7 @@ def _plan_and_print(
 
     word_notes = {}  # per place as said: why it was read as another word (navigate.json too)
     for stop in plan.stops:  # "go to the -tv": planned for tv, and it says so
-        note = other_word_note(stop.shown, stop.word)
+        note = other_word_note(stop.shown, stop.word, saved)  # as where's: saved '-tv' is no note
         if note and stop.shown not in word_notes:
             word_notes[stop.shown] = note
             print(f"warning: {note}", file=sys.stderr)
@@ -131,7 +136,8 @@ def _plan_and_print(
 
         written = write_plan(plan, args.out, frame=args.frame, overwrite=args.overwrite,
                              source=args.result, figure=not args.no_figure, staged=staged,
-                             word_notes=word_notes, saved_words=saved_words)  # fmt: skip
+                             word_notes=word_notes,
+                             saved_words=() if saved is None else saved.renamed)  # fmt: skip
         print(f"wrote {', '.join(p.name for p in written.values())} to "
               f"{next(iter(written.values())).parent}")  # fmt: skip
     return 0

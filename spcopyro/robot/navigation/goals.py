@@ -77,6 +77,7 @@ __all__ = [
     "NavigationError",
     "UnreachableGoalError",
     "choose_goal",
+    "instruction_words",
     "parse_instruction",
 ]
 
@@ -173,6 +174,12 @@ def _words(text: str) -> list[tuple[str, str]]:
         else:
             gap.append(char)
     return words
+
+
+def instruction_words(text: str) -> list[str]:
+    """The words of ``text`` as typed (:func:`_words`; ``"-kitchen"`` in "go to the -kitchen"):
+    the spellings a stop is shown with (:attr:`Instruction.said`)."""
+    return [word for word, _ in _words(text)]
 
 
 def _tokens(text: str) -> list[str]:
