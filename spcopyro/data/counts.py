@@ -95,17 +95,22 @@ def scale_features(features: np.ndarray, scaling: FeatureScaling) -> np.ndarray:
     )
 
 
+def _scaled_away(raw: np.ndarray, scaled: np.ndarray) -> np.ndarray:
+    """[n] int64 indices of the images whose histogram ``raw`` ``[T, K]`` holds something but
+    whose ``scaled`` row ``[T, K]`` is all zero: ``floor100`` of a histogram over many classes
+    (1000 ImageNet classes, every probability below 0.01) leaves nothing of it."""
+    raw = np.asarray(raw, dtype=np.float64).reshape(scaled.shape)  # [T, K]
+    return np.flatnonzero((scaled.sum(axis=1) == 0) & (raw.sum(axis=1) > 0)).astype(np.int64)
+
+
 def _warn_scaled_away(
     raw: np.ndarray,
-    scaled: np.ndarray,
+    lost: np.ndarray,
     scaling: FeatureScaling,
     source: str | os.PathLike[str] | None,
 ) -> None:
-    """Warn (logger ``"spcopyro"``) about the images whose histogram ``raw`` ``[T, K]`` holds
-    something but whose ``scaled`` row is all zero: ``floor100`` of a histogram over many
-    classes (1000 ImageNet classes, every probability below 0.01) leaves nothing of it, and the
-    image would be lost silently."""
-    lost = np.flatnonzero((scaled.sum(axis=1) == 0) & (raw.sum(axis=1) > 0))  # [n]
+    """Warn (logger ``"spcopyro"``) about the images ``lost`` (:func:`_scaled_away` of the
+    histograms ``raw`` ``[T, K]``), which would else be lost silently."""
     if not lost.size:
         return
     first = 1 if source is not None else 0  # Ft.csv's lines count from 1, indices from 0
@@ -323,6 +328,7 @@ def cell_counts(
                 f"{obs.num_utterances} utterances"
             )
     features = scale_features(obs.image_features, feature_scaling)  # [T, K]
+    scaled_away = _scaled_away(obs.image_features, features)  # [n] images left with nothing
     if word_weighting == "count":
         words = word_matrix(obs.utterances, vocab)  # [U, V]
     else:
@@ -350,7 +356,7 @@ def cell_counts(
             footprint_radius, footprint_kernel, footprint_fov,
         )  # fmt: skip
     if warn:
-        _warn_scaled_away(obs.image_features, features, feature_scaling, source)
+        _warn_scaled_away(obs.image_features, scaled_away, feature_scaling, source)
     image_ok = image_cell >= 0  # [T] bool
     word_ok = word_cell >= 0  # [U] bool
     further_cells = [cell[cell >= 0] for cell, _, _ in further]  # [T_j] each
@@ -377,6 +383,9 @@ def cell_counts(
         unplaced_words=np.flatnonzero(word_unplaced).astype(np.int64),
         snap_distance=float(snap_distance),
         hint=position_hint(grid, np.concatenate([obs.image_xy, obs.word_xy])),  # [T + U, 2]
+        images_scaled_away=int(scaled_away.size),
+        scaled_away_images=scaled_away,
+        feature_scaling=feature_scaling,
         modalities=tuple(
             ModalityPlacement(
                 name=modality.name,

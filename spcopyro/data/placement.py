@@ -9,7 +9,7 @@ observations that cannot be placed are listed in a :class:`PlacementReport`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -288,6 +288,15 @@ class PlacementReport:
     hint: str = ""
     """:func:`position_hint`'s sentence, ending both messages about observations off free
     space."""
+    images_scaled_away: int = 0
+    """Placed or not, the images whose histogram held something but whose scaled row is all
+    zero (``floor100`` of a histogram whose every entry is below 0.01, as a 1000-class one can
+    be): they add nothing to the counts (:func:`~spcopyro.data.counts.cell_counts` warns)."""
+    scaled_away_images: np.ndarray = field(
+        default_factory=lambda: np.zeros(0, dtype=np.int64)
+    )  # [images_scaled_away] int64 indices into Observations images
+    feature_scaling: object = "probability"
+    """The feature scaling the counts were made under (named beside ``images_scaled_away``)."""
 
     @property
     def num_observations(self) -> int:
@@ -348,5 +357,16 @@ class PlacementReport:
             f"images: {self.images_on_free} on free cells, {self.images_snapped} snapped, "
             f"{self.images_unplaced} unplaced; words: {self.words_on_free} on free cells, "
             f"{self.words_snapped} snapped, {self.words_unplaced} unplaced{further} "
-            f"(snap distance {self.snap_distance:g} m)"
+            f"(snap distance {self.snap_distance:g} m){self.scaled_away_note()}"
+        )
+
+    def scaled_away_note(self) -> str:
+        """``"; N of T images left out: ..."`` when the feature scaling left images with
+        nothing (:attr:`images_scaled_away`), else ``""``: for a summary line's end."""
+        if not self.images_scaled_away:
+            return ""
+        images = self.images_on_free + self.images_snapped + self.images_unplaced
+        return (
+            f"; {self.images_scaled_away} of {images} images left out: nothing of their "
+            f"histogram is left under feature_scaling={self.feature_scaling!r}"
         )
