@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 
 import numpy as np
+import pytest
 
 from spcopyro.data import Observations, cell_counts
 from spcopyro.maps import FREE, OccupancyGrid
@@ -88,3 +89,44 @@ def test_no_image_is_counted_as_left_out_when_the_scaling_keeps_it():
     zero[1, 3] = 1.0
     counts = cell_counts(_grid(), _observations(zero), feature_scaling="floor100")
     assert counts.placement.images_scaled_away == 0
+
+
+def test_features_says_what_floor100_would_leave_of_its_rows(tmp_path, capsys):
+    """The README's walkthrough writes Ft.csv with ``spcopyro features --weights random``: 1000
+    near-flat classes (every value about 0.001). Counted as floor(100 f) (``--preset auto``,
+    ``original-code``, the default preset's refinement) every row became zero, and nothing
+    said so before the fit; now ``features`` says which rows, and what to fit with."""
+    cv2 = pytest.importorskip("cv2")
+    pytest.importorskip("torchvision")
+    from spcopyro.cli.main import main
+
+    rng = np.random.default_rng(0)
+    for number in range(2):
+        image = rng.integers(0, 255, (40, 48, 3), dtype=np.uint8)
+        cv2.imwrite(str(tmp_path / f"{number:05d}.png"), image)
+    out = tmp_path / "Ft.csv"
+    assert main(["features", str(tmp_path), "--out", str(out), "--weights", "random"]) == 0
+    said = capsys.readouterr().out
+    features = np.loadtxt(out, delimiter=",", ndmin=2)  # [2, 1000]
+    assert features.shape == (2, 1000) and features.max() < 0.01
+    note = [line for line in said.splitlines() if line.startswith("counting")]
+    assert len(note) == 1, said
+    assert f"leaves nothing of 2 of 2 rows (every value below 0.01: lines 1, 2 of {out})" in note[0]
+    assert "--feature-scaling probability" in note[0]
+
+
+def test_the_floor100_note_is_silent_where_floor100_keeps_most_of_the_rows():
+    """The public dataset's 205 Places205 classes: floor(100 f) keeps about 73-77 % of a row's
+    mass in median and empties none, so ``features`` adds no note; a peaked 1000-class row
+    neither."""
+    from spcopyro.features.cli import floor100_note
+
+    peaked = np.full((3, 1000), 0.2 / 999)
+    peaked[:, 0] = 0.8
+    assert floor100_note(peaked, "Ft.csv") is None
+    half = np.full((2, 1000), 0.6 / 998)  # 0.4 on two classes of 0.2, the rest below 0.01
+    half[:, :2] = 0.2
+    note = floor100_note(half, "Ft.csv")
+    assert note is not None and "keeps 40% of a row's mass in median" in note
+    assert "leaves nothing" not in note
+    assert floor100_note(np.zeros((0, 1000)), "Ft.csv") is None
