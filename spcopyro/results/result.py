@@ -17,8 +17,10 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import functools
 import json
 import os
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -36,6 +38,7 @@ from spcopyro.results.where import (
     WhereAnswer,
     answer_warnings,
     bayes_factor,
+    concept_given_words,
     shared_answers,
 )
 
@@ -157,6 +160,26 @@ class SpCoResult:
         )
 
     # -- the parts --------------------------------------------------------------------------------
+
+    @functools.cached_property
+    def _computed(self) -> dict[Hashable, object]:
+        """What :meth:`computed_once` kept (a new result, :func:`dataclasses.replace`'s too,
+        starts with nothing kept)."""
+        return {}
+
+    def computed_once(self, key: Hashable, compute: Callable[[], object]) -> object:
+        """``compute()``, called only the first time ``key`` is asked for on this result and
+        kept with it (the result is frozen: what is derived from it alone stays true). An array
+        is kept read-only, so that no caller changes what the next one gets. ``where --out``
+        asks for :func:`~spcopyro.results.uncertainty.unmapped_note` three times (the printed
+        line and both figures), ``navigate`` for :meth:`word_posteriors` once per place."""
+        kept = self._computed
+        if key not in kept:
+            value = compute()
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
+            kept[key] = value
+        return kept[key]
 
     def emission(self, modality: str) -> EmissionTable:
         """The :class:`EmissionTable` of ``modality`` (KeyError naming the known ones)."""
@@ -317,6 +340,17 @@ class SpCoResult:
         score = self.w[:, v] * self.concept_prior(prior)  # [L]
         return score / score.sum()
 
+    def word_posteriors(self, prior: str = DEFAULT_WHERE_PRIOR) -> np.ndarray:
+        """[L, V] p(C = l | word) of every word of the vocabulary (eq. 19,
+        :func:`~spcopyro.results.where.concept_given_words`; ``prior`` as in
+        :meth:`concept_given_word`), computed once per prior (:meth:`computed_once`) and
+        read-only: :meth:`where` reads the other words' answers from it."""
+        table = self.computed_once(
+            ("word_posteriors", prior),
+            lambda: concept_given_words(self.w, self.concept_prior(prior)),
+        )
+        return np.asarray(table)
+
     def where(self, word: str, prior: str = DEFAULT_WHERE_PRIOR) -> WhereAnswer:
         """The concept argmax_C p(C | word) (eq. 19), its region, the runner-up and the
         warnings of an answer close to a guess (:func:`answer_warnings`), the other words the
@@ -355,7 +389,8 @@ class SpCoResult:
             warnings=warnings,
             shared_with=()  # one concept for the whole map: warned above, every word is its
             if runner_up is None
-            else shared_answers(self.w, weights, concept, self.vocabulary, key),
+            else shared_answers(self.w, weights, concept, self.vocabulary, key,
+                                posterior=self.word_posteriors(prior)),
         )  # fmt: skip
 
     # -- saving and loading ----------------------------------------------------------------------

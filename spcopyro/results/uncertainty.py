@@ -132,23 +132,34 @@ def where_probability(result: SpCoResult, word: str, prior: str = "area") -> np.
 
 def unmapped_mass(result: SpCoResult) -> np.ndarray | None:
     """[N] each free cell's probability on concepts that label no cell of the reported map,
-    which :func:`where_probability` does not count (module docstring); None without marginals."""
+    which :func:`where_probability` does not count (module docstring); None without marginals.
+    Computed once per result, read-only (:meth:`SpCoResult.computed_once
+    <spcopyro.results.result.SpCoResult.computed_once>`)."""
     if result.marginals is None:
         return None
-    unmapped = result.concept_sizes() == 0  # [L]
-    return np.asarray(result.marginals, dtype=np.float64)[:, unmapped].sum(-1)  # [N]
+
+    def mass() -> np.ndarray:
+        unmapped = result.concept_sizes() == 0  # [L]
+        return np.asarray(result.marginals, dtype=np.float64)[:, unmapped].sum(-1)  # [N]
+
+    return result.computed_once("unmapped_mass", mass)  # type: ignore[return-value]
 
 
 def unmapped_note(result: SpCoResult) -> str | None:
     """``"not counted: ..."``, the cells' mass on concepts absent from the map (mean and
-    largest, :func:`unmapped_mass`), or None when there is none."""
-    mass = unmapped_mass(result)
-    if mass is None or not mass.max() > 0:
-        return None
-    return (
-        f"not counted: {mass.mean():.1%} of a cell's probability on average, up to "
-        f"{mass.max():.0%}, lies on concepts absent from the map"
-    )
+    largest, :func:`unmapped_mass`), or None when there is none. Computed once per result:
+    ``where --out`` prints it and both its figures say it."""
+
+    def note() -> str | None:
+        mass = unmapped_mass(result)
+        if mass is None or not mass.max() > 0:
+            return None
+        return (
+            f"not counted: {mass.mean():.1%} of a cell's probability on average, up to "
+            f"{mass.max():.0%}, lies on concepts absent from the map"
+        )
+
+    return result.computed_once("unmapped_note", note)  # type: ignore[return-value]
 
 
 def free_cells_image(result: SpCoResult, values: np.ndarray) -> np.ndarray:

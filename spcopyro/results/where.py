@@ -75,6 +75,7 @@ __all__ = [
     "close_to_guess",
     "region_pieces",
     "SHARED_ANSWER_P",
+    "concept_given_words",
     "shared_answers",
     "shared_answer_note",
 ]
@@ -120,6 +121,19 @@ shower and toilet: 'toilet' p = 0.984 with 9% of the region in the toilet, and '
 'shower' and 'table' are answered with it at p 0.98-0.99."""
 
 
+def concept_given_words(w: np.ndarray, prior: np.ndarray) -> np.ndarray:
+    """[L, V] p(C = l | word) of every word: w_{l,word} p(C = l) normalised over l (eq. 19), a
+    column of zeros for a word no concept with prior mass emits.
+
+    Args:
+        w: [L, V] p(word | concept).
+        prior: [L] p(C = l) over the concepts in use (0 elsewhere).
+    """
+    score = np.asarray(w, dtype=np.float64) * np.asarray(prior, dtype=np.float64)[:, None]
+    total = score.sum(0)  # [V]
+    return np.divide(score, total, out=np.zeros_like(score), where=total > 0)  # [L, V]
+
+
 def shared_answers(
     w: np.ndarray,
     prior: np.ndarray,
@@ -127,6 +141,7 @@ def shared_answers(
     vocabulary: list[str] | tuple[str, ...],
     word: str,
     threshold: float = SHARED_ANSWER_P,
+    posterior: np.ndarray | None = None,
 ) -> tuple[tuple[str, float], ...]:
     """The other words whose answer is ``concept`` with p(C = concept | word') > ``threshold``,
     as (word', p), most probable first (ties in vocabulary order).
@@ -138,10 +153,13 @@ def shared_answers(
         vocabulary: [V] the words of ``w``'s columns.
         word: the asked word (left out).
         threshold: :data:`SHARED_ANSWER_P` by default.
+        posterior: [L, V] :func:`concept_given_words` of ``w`` and ``prior`` when already
+            computed (:meth:`SpCoResult.word_posteriors
+            <spcopyro.results.result.SpCoResult.word_posteriors>` keeps it per prior); None:
+            computed here.
     """
-    score = np.asarray(w, dtype=np.float64) * np.asarray(prior, dtype=np.float64)[:, None]
-    total = score.sum(0)  # [V]
-    posterior = np.divide(score, total, out=np.zeros_like(score), where=total > 0)  # [L, V]
+    if posterior is None:
+        posterior = concept_given_words(w, prior)  # [L, V]
     best = np.argmax(posterior, axis=0)  # [V] each word's answer (first of ties, as where's)
     p = posterior[concept]  # [V]
     shared = [
