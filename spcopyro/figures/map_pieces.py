@@ -53,6 +53,7 @@ __all__ = [
     "rim_colours",
     "spread_markers",
     "utterance_concepts",
+    "utterance_markers",
     "utterance_marks",
 ]
 
@@ -77,6 +78,16 @@ STRIP_PAD = 0.03
 a cut shows whole (:func:`~spcopyro.figures.map_axes.strip_axes`)."""
 MAX_LEGEND_CONCEPTS = 12
 """The legend lists this many of the largest concepts (the rest are counted in one line)."""
+MARKER_AREA = 22.0
+"""Area (points^2, as ``scatter``'s ``s``) of the circle marking one utterance on the semantic
+map (:func:`utterance_markers`)."""
+MAX_MARKER_COVER = 0.1
+"""The semantic map's word circles cover at most about this share of the free space shown
+(:func:`utterance_markers`; 10^4 utterances, one circle each, covered the default house)."""
+MIN_MARKER_AREA = 3.0
+"""Points^2 of the smallest circle of counted utterances: a lone word still shows."""
+MAX_MARKER_AREA = 9 * MARKER_AREA
+"""Points^2 of the largest circle of counted utterances (three circles wide)."""
 
 
 def _word_line(word: str, p: float, lift: float) -> str:
@@ -255,28 +266,85 @@ def rim_colours(grid: OccupancyGrid, xy: np.ndarray) -> np.ndarray:
     return np.repeat(np.where(_on_walls(grid, xy)[:, None], 1.0, 0.0), 3, axis=1)
 
 
+def _free_area_shown(ax: Axes, grid: OccupancyGrid) -> float:
+    """Pixels^2 of the free cells whose centres ``ax`` shows, as drawn (equal aspect applied)."""
+    ax.apply_aspect()
+    xy = grid.cell_to_world(grid.free_cells)  # [N, 2]
+    (x0, x1), (y0, y1) = sorted(ax.get_xlim()), sorted(ax.get_ylim())
+    shown = (xy[:, 0] >= x0) & (xy[:, 0] <= x1) & (xy[:, 1] >= y0) & (xy[:, 1] <= y1)  # [N]
+    side = np.abs(np.diff(ax.transData.transform([[0.0, 0.0], [grid.resolution] * 2]), axis=0))
+    return float(shown.sum() * side[0, 0] * side[0, 1])
+
+
+def utterance_markers(
+    ax: Axes, grid: OccupancyGrid, xy: np.ndarray, concepts: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
+    """The circles that mark the utterances heard at world points ``xy`` ``[U, 2]`` (counted in
+    ``concepts`` ``[U]``, -1 left out) on ``ax``: ``(xy [M, 2], concepts [M], areas [M] in
+    points^2, counts [M] or None)``.
+
+    One circle of ``MARKER_AREA`` per utterance, ``counts`` None, while those circles cover at
+    most ``MAX_MARKER_COVER`` of the free space shown (up to ~1100 utterances on the default
+    house's map, ~300-400 on room2ldk4's and room1ldk4's, which hold 76 and 45). Beyond it
+    (10^4 utterances covered the default house's map) the utterances of one concept in one
+    square of a circle's width are one circle at their mean point, of area proportional to
+    their ``counts``, ``area = count * cover / U`` (``cover`` the points^2 that
+    ``MAX_MARKER_COVER`` of the free space shown makes, ``U`` the utterances in view) within
+    ``[MIN_MARKER_AREA, MAX_MARKER_AREA]``: all of them cover about that share of the map,
+    each lone word still shows."""
+    inch = ax.figure.dpi / 72.0  # pixels per point
+    cover = MAX_MARKER_COVER * _free_area_shown(ax, grid) / inch**2  # points^2 (aspect applied)
+    pixels = ax.transData.transform(xy)  # [U, 2]
+    x0, y0, x1, y1 = ax.bbox.extents  # the axes in pixels
+    in_view = (pixels[:, 0] >= x0) & (pixels[:, 0] <= x1) & (pixels[:, 1] >= y0) & (
+        pixels[:, 1] <= y1)  # fmt: skip
+    n = int(in_view.sum())
+    if n * MARKER_AREA <= cover:
+        return xy, concepts, np.full(len(xy), MARKER_AREA), None
+    width = np.sqrt(MARKER_AREA) * inch  # pixels: one circle's diameter
+    keys = np.column_stack([np.floor(pixels / width).astype(np.int64), concepts])  # [U, 3]
+    _, group, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    group = group.reshape(-1)  # [U] (numpy 2.0.x returns it [U, 1] with axis=0)
+    mean = np.stack([np.bincount(group, weights=xy[:, k]) for k in (0, 1)], 1) / counts[:, None]
+    first = np.zeros(len(counts), dtype=np.int64)  # [M] the concept of each circle
+    first[group] = concepts
+    areas = np.clip(counts * cover / n, MIN_MARKER_AREA, MAX_MARKER_AREA)  # [M]
+    return mean, first, areas, counts
+
+
 def draw_utterances(
-    ax: Axes, result: SpCoResult, observations: Observations, colours: np.ndarray
+    axes: list[Axes], result: SpCoResult, observations: Observations, colours: np.ndarray
 ) -> Line2D | None:
-    """Mark where each utterance was heard (Fig. 10F): a circle in the colour of the concept of
-    the cell it was counted in (:func:`utterance_concepts`; grey where it was left out, as the
-    legend says) with a black rim, white on a wall (room1dk5's coarse walls cover two words
-    heard by a door: their black rims vanished and they read as specks of paint). Returns a
-    legend handle (None when the observations hold no utterance)."""
+    """Mark where each utterance was heard (Fig. 10F) on each of ``axes``: a circle in the
+    colour of the concept of the cell it was counted in (:func:`utterance_concepts`; grey
+    where it was left out, as the legend says) with a black rim, white on a wall (room1dk5's
+    coarse walls cover two words heard by a door: their black rims vanished and they read as
+    specks of paint); many utterances as circles of area by count
+    (:func:`utterance_markers`), the largest drawn first. Returns a legend handle (None when
+    the observations hold no utterance)."""
     xy = np.asarray(observations.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
     if len(xy) == 0:
         return None
     concepts = utterance_concepts(result, xy)  # [U]
-    rgb = np.where(
-        concepts[:, None] >= 0, colours[np.maximum(concepts, 0)] / 255.0, OFF_MAP_RGB
-    )  # [U, 3]
-    ax.scatter(*xy.T, s=22, c=rgb, edgecolors=rim_colours(result.grid, xy), linewidths=0.7,
-               zorder=3)  # fmt: skip
+    counted = False
+    for ax in axes:
+        at, concept, areas, counts = utterance_markers(ax, result.grid, xy, concepts)
+        order = np.argsort(-areas, kind="stable")  # a small circle over a large one
+        at, concept, areas = at[order], concept[order], areas[order]
+        rgb = np.where(
+            concept[:, None] >= 0, colours[np.maximum(concept, 0)] / 255.0, OFF_MAP_RGB
+        )  # [M, 3]
+        rims = rim_colours(result.grid, at)
+        ax.scatter(*at.T, s=areas, c=rgb, edgecolors=rims, linewidths=0.7 if counts is None
+                   else 0.4, zorder=3)  # fmt: skip
+        counted = counted or counts is not None
     left_out = int((concepts < 0).sum())  # the fit printed them as "unplaced"
     grey = f", mid grey: {left_out} left out, off the free space" if left_out else ""
+    many = ", circle area by count" if counted else ""
     return Line2D(
         [], [], marker="o", ls="", markerfacecolor="0.8", markeredgecolor="black",
-        label=f"where a word was heard ({len(xy)} utterances; fill: the concept there{grey})",
+        label=f"where a word was heard ({len(xy)} utterances{many}; fill: the concept "
+        f"there{grey})",
     )  # fmt: skip
 
 

@@ -1,0 +1,75 @@
+"""The semantic map's word circles stay a small part of the map however many utterances were
+heard: 10^4 utterances, one circle of 22 points^2 each, covered the default house's map."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+from hand_results import two_rooms
+from matplotlib.collections import PathCollection
+
+from spcopyro.figures.map_pieces import MARKER_AREA, MAX_MARKER_COVER, MIN_MARKER_AREA
+from spcopyro.figures.plotting import semantic_map_figure
+from spcopyro.synthetic import make_house
+
+SPOTS = np.array([[0.3, 0.3], [0.8, 0.7], [1.2, 0.5], [2.0, 0.3], [2.5, 0.8], [2.9, 0.5]])
+
+
+def _figure(num_utterances: int, spread: float, xy: np.ndarray | None = None):
+    """The semantic map of :func:`two_rooms` (3.1 x 1 m, 300 free cells of 0.1 m) with
+    ``num_utterances`` utterances around 6 spots, ``spread`` metres apart at most (or at
+    ``xy`` [U, 2])."""
+    obs = make_house(seed=0).observations
+    rng = np.random.default_rng(0)
+    pick = rng.integers(0, len(obs.utterances), num_utterances)
+    if xy is None:
+        xy = SPOTS[rng.integers(0, len(SPOTS), num_utterances)]
+        xy = xy + rng.uniform(-spread / 2, spread / 2, xy.shape)  # [U, 2]
+    many = dataclasses.replace(
+        obs,
+        utterances=[obs.utterances[k] for k in pick],
+        word_xy=xy,
+        word_trial=np.asarray(obs.word_trial)[pick],
+    )
+    fig = semantic_map_figure(two_rooms(), observations=many)
+    (markers,) = [c for c in fig.axes[0].collections if isinstance(c, PathCollection)]
+    ax = fig.axes[0]
+    corners = ax.transData.transform([[0.0, 0.0], [0.1, 0.1]])  # one 0.1 m cell, pixels
+    cell = np.prod(np.abs(np.diff(corners, axis=0))) / (fig.dpi / 72.0) ** 2  # points^2
+    free = two_rooms().grid.num_free * cell  # points^2 of the free space drawn
+    legend = [t.get_text() for t in ax.get_legend().get_texts()] if ax.get_legend() else []
+    legend += [t.get_text() for a in fig.axes if a.get_legend() for t in a.get_legend().texts]
+    (entry,) = {t for t in legend if t.startswith("where a word was heard")}
+    return markers, free, entry
+
+
+def test_many_utterances_cover_a_bounded_share_of_the_map():
+    markers, free, entry = _figure(10_000, spread=0.6)
+    sizes = markers.get_sizes()  # [M] points^2
+    assert len(sizes) < 10_000  # counted in circles, not drawn one by one
+    assert sizes.min() >= MIN_MARKER_AREA
+    # every circle at its least area makes the floor of the bound: MIN_MARKER_AREA each
+    assert sizes.sum() <= MAX_MARKER_COVER * free + MIN_MARKER_AREA * len(sizes)
+    assert sizes.sum() <= 0.2 * free, (sizes.sum(), free)
+    assert "10000 utterances, circle area by count" in entry
+
+
+def test_utterances_at_few_spots_are_circles_of_area_by_count():
+    counts = np.array([9_000, 900, 90, 9, 1])  # utterances heard at SPOTS[0], ..., SPOTS[4]
+    xy = np.repeat(SPOTS[:5], counts, axis=0)  # [U, 2]
+    markers, _, _ = _figure(int(counts.sum()), 0.0, xy)
+    sizes = markers.get_sizes()  # [5], the largest first
+    assert len(sizes) == 5
+    at = markers.get_offsets()  # [5, 2] world points
+    by_spot = [sizes[np.argmin(np.linalg.norm(at - spot, axis=1))] for spot in SPOTS[:5]]
+    assert all(a > b for a, b in zip(by_spot[1:-1], by_spot[2:], strict=False)), by_spot
+    assert by_spot[0] >= by_spot[1] and by_spot[-1] >= MIN_MARKER_AREA
+
+
+def test_a_few_utterances_keep_one_circle_each():
+    markers, _, entry = _figure(20, spread=0.6)
+    assert len(markers.get_offsets()) == 20
+    np.testing.assert_array_equal(np.broadcast_to(markers.get_sizes(), (20,)), MARKER_AREA)
+    assert "area by count" not in entry
+    assert "(20 utterances; fill: the concept there" in entry
