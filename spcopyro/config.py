@@ -288,7 +288,7 @@ class DataPreparation:
             words' weight against the images and the MRF (1: the paper). A tempered likelihood,
             as ``feature_scaling`` is for images (``floor100`` counts a histogram as 100 draws).
         cell_size: metres, or None (the map's own cells, the paper): the model's grid. The map is
-            coarsened to cells of ``round(cell_size / resolution)`` map cells a side
+            coarsened to cells of ``floor(cell_size / resolution + 1/2)`` map cells a side
             (:mod:`spcopyro.maps.coarse`: a model cell is free when at least half of its map
             cells are free and none is occupied), so the Potts border cost per metre and the
             number of unobserved cells voting in the label prior no longer grow with the map's
