@@ -225,9 +225,40 @@ def list_images(directory: str | os.PathLike[str]) -> list[Path]:
     if not paths:
         raise FileNotFoundError(
             f"{directory}: no images (files ending in {', '.join(IMAGE_SUFFIXES)}, directly or "
-            "in img_K/ folders)"
+            f"in img_K/ folders){_images_deeper(directory)}"
         )
     return paths
+
+
+def _images_deeper(directory: Path, depth: int = 2) -> str:
+    """``"; images are in FOLDER (N), ...: ..."`` naming the folders up to ``depth`` levels
+    below ``directory`` that hold images (a camera's ``images/`` or ``trial0/`` folder, which
+    :func:`list_images` does not look into), else ``""``."""
+    found: list[tuple[Path, int]] = []
+    level = [directory]
+    for _ in range(depth):
+        below = []
+        for folder in level:
+            try:
+                below += sorted(q for q in folder.iterdir() if q.is_dir())
+            except OSError:  # unreadable: the hint is only a hint
+                continue
+        level = below
+        for folder in level:
+            try:
+                count = sum(1 for q in folder.iterdir() if q.suffix.lower() in IMAGE_SUFFIXES)
+            except OSError:
+                continue
+            if count:
+                found.append((folder, count))
+    if not found:
+        return ""
+    named = ", ".join(f"{folder} ({count})" for folder, count in found[:3])
+    more = f", ... ({len(found)} folders)" if len(found) > 3 else ""
+    return (
+        f"; images are in {named}{more}: give that folder, or, for a house folder, name the "
+        "trials' folders img_0, img_1, ... beside their pose_0.csv, pose_1.csv, ..."
+    )
 
 
 def _warn_unpadded_numbers(folder: Path, images: list[Path]) -> None:
