@@ -130,3 +130,7 @@ def test_the_floor100_note_is_silent_where_floor100_keeps_most_of_the_rows():
     assert note is not None and "keeps 40% of a row's mass in median" in note
     assert "leaves nothing" not in note
     assert floor100_note(np.zeros((0, 1000)), "Ft.csv") is None
+    one = np.concatenate([peaked, np.full((1, 1000), 1e-3)])  # [4, 1000]: the last row flat
+    note = floor100_note(one, "Ft.csv")
+    assert note is not None and "leaves nothing of 1 of 4 rows" in note
+    assert "line 4 of Ft.csv" in note

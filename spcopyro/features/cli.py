@@ -66,8 +66,8 @@ def floor100_note(features, out: str | Path) -> str | None:
         return None
     lines = ", ".join(str(i + 1) for i in empty[:5].tolist()) + (", ..." if empty.size > 5 else "")
     emptied = (
-        f"leaves nothing of {empty.size} of {f.shape[0]} rows (every value below 0.01: lines "
-        f"{lines} of {out}) and "
+        f"leaves nothing of {empty.size} of {f.shape[0]} rows (every value below 0.01: "
+        f"line{'s' if empty.size > 1 else ''} {lines} of {out}) and "
         if empty.size
         else ""
     )
