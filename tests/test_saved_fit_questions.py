@@ -109,3 +109,65 @@ def test_the_word_posteriors_are_computed_once_per_prior(monkeypatch):
     ))  # fmt: skip
     assert flat.where("bed").shared_with != answers[0].shared_with  # a new result: computed anew
     assert len(calls) == 3
+
+
+def sink_result():
+    """test_navigate's house with a sixth word, 'sink', that the kitchen's concept (2) emits as
+    often as 'kitchen': where answers both with concept 2."""
+    import dataclasses
+
+    import numpy as np
+    from hand_results import one_word_per_concept
+    from test_navigate import WORDS, house_grid
+
+    base = house_result()
+    words = (*WORDS, "sink")
+    result = one_word_per_concept(house_grid(), base.labels, words)
+    w = np.array(result.w)  # [L, V]
+    w[2, words.index("sink")] = w[2, words.index("kitchen")]
+    w /= w.sum(1, keepdims=True)
+    tables = tuple(
+        dataclasses.replace(t, probabilities=w) if t.name == "words" else t
+        for t in result.emissions
+    )
+    return dataclasses.replace(result, emissions=tables)
+
+
+def test_navigate_says_when_a_stops_concept_answers_other_words_too(tmp_path, capsys):
+    """QA (room2ldk4, 200 sweeps): `navigate OUT "go to the toilet"` sent the robot to the
+    living room's concept (p 0.989) and said nothing; `where OUT toilet` notes that the concept
+    is the answer for 'living', 'table' and 'shower' too."""
+    fit = str(sink_result().save(tmp_path / "fit"))
+    assert main(["where", fit, "sink"]) == 0
+    where_note = capsys.readouterr().out.split("note: ", 1)[1].splitlines()[0]
+    assert where_note.startswith("concept 2 is also the answer for 'kitchen'")
+    start = f"--start={START_A[0]},{START_A[1]}"
+    plan = str(tmp_path / "plan")
+    argv = ["navigate", fit, "go to the sink via the corridor", start, "--out", plan, "--no-figure"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert f"  note: {where_note}" in out.splitlines()  # the same note as where's
+    assert out.count("note: ") == 1  # the corridor's concept answers no other word
+    stops = json.loads((tmp_path / "plan" / "navigate.json").read_text())["stops"]
+    assert [s["word"] for s in stops] == ["corridor", "sink"]
+    assert stops[0]["shared_with"] == []
+    assert [w for w, _ in stops[1]["shared_with"]] == ["kitchen"]
+    assert stops[1]["shared_with"][0][1] > 0.5
+
+
+def test_show_graph_prints_the_words_where_answers_with_each_place(tmp_path, capsys):
+    """A place is named by its concept's top word; show --graph printed only that, so two
+    places named 'bedroom' (room2ldk4) did not say which one `where bedroom` is."""
+    fit = str(sink_result().save(tmp_path / "fit"))
+    assert main(["show", fit, "--graph", "--out", str(tmp_path / "graph.png")]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    kitchen = [k for k, line in enumerate(lines) if ": kitchen (" in line or ": sink (" in line]
+    assert len(kitchen) == 1
+    detail = lines[kitchen[0] + 1]
+    assert detail.strip().startswith("concept 2, top words ")
+    answered = detail.split("where answers it for: ")[1].split(", ")
+    assert sorted(answered) == ["kitchen", "sink"]
+    bedrooms = [k for k, line in enumerate(lines) if ": bedroom (" in line]
+    assert len(bedrooms) == 2  # rooms A and E, one concept
+    for k in bedrooms:
+        assert "where answers it for: bedroom" in lines[k + 1]

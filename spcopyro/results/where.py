@@ -57,6 +57,7 @@ nothing warned (its 0.77% of the free cells is no speck).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -78,6 +79,7 @@ __all__ = [
     "concept_given_words",
     "shared_answers",
     "shared_answer_note",
+    "shared_concept_note",
 ]
 
 WHERE_PRIORS = ("area", "pi")
@@ -173,13 +175,21 @@ def shared_answers(
 def shared_answer_note(answer: WhereAnswer, shown: int = 3) -> str | None:
     """One line saying which other words the answer's concept also answers
     (:attr:`WhereAnswer.shared_with`, at most ``shown`` named), or None when none."""
-    if not answer.shared_with:
+    return shared_concept_note(answer.concept, answer.shared_with, shown)
+
+
+def shared_concept_note(
+    concept: int, shared_with: Sequence[tuple[str, float]], shown: int = 3
+) -> str | None:
+    """:func:`shared_answer_note` of an answer's ``concept`` and
+    :attr:`~WhereAnswer.shared_with` (``navigate`` keeps these two of each stop's answer)."""
+    if not shared_with:
         return None
-    named = ", ".join(f"{w!r} (p {p:.2f})" for w, p in answer.shared_with[:shown])
-    more = len(answer.shared_with) - shown
+    named = ", ".join(f"{w!r} (p {p:.2f})" for w, p in shared_with[:shown])
+    more = len(shared_with) - shown
     rest = f" and {plural(more, 'more word')}" if more > 0 else ""
     return (
-        f"concept {answer.concept} is also the answer for {named}{rest} (p > "
+        f"concept {concept} is also the answer for {named}{rest} (p > "
         f"{SHARED_ANSWER_P:g}): if one of them names another room, this region holds both"
     )
 

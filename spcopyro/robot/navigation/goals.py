@@ -380,6 +380,12 @@ class GoalChoice:
     where_odds: float = float("inf")
     """``where``'s posterior odds of the word's concept over the runner-up (inf: none); below
     :data:`~spcopyro.results.where.ODDS_WARNING` ``where`` calls its answer close to a guess."""
+    concept: int = -1
+    """``where``'s concept for the word (-1: not asked)."""
+    shared_with: tuple[tuple[str, float], ...] = ()
+    """The other words ``where`` answers with the same concept (:attr:`WhereAnswer.shared_with
+    <spcopyro.results.where.WhereAnswer.shared_with>`): 'toilet' sent to a concept that
+    'living' names too may be a goal in the living room."""
 
     @property
     def ambiguous(self) -> bool:

@@ -132,6 +132,8 @@ def summary(
             # where's odds over the runner-up concept; null: one concept, no runner-up
             "where_odds": stop.choice.where_odds if math.isfinite(stop.choice.where_odds) else None,
             "close_to_guess": stop.choice.close_to_guess,
+            # the other words where answers with this stop's concept, [word, p] most probable first
+            "shared_with": [[w, p] for w, p in stop.choice.shared_with],
             "candidates": [
                 {"x": c.xy[0], "y": c.xy[1], "probability": c.probability, "area_m2": c.area,
                  "distance_m": c.distance if c.reachable else None, "reachable": c.reachable}

@@ -333,7 +333,8 @@ def _with_where_warnings(
             "the answer is close to a guess between them (--strict)"
         )
     notes = tuple(f"where {word!r}: {w}" for w in answer.warnings)
-    return dataclasses.replace(choice, notes=choice.notes + notes, where_odds=answer.odds)
+    return dataclasses.replace(choice, notes=choice.notes + notes, where_odds=answer.odds,
+                               concept=answer.concept, shared_with=answer.shared_with)  # fmt: skip
 
 
 def _route(
