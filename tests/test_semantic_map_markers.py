@@ -73,3 +73,47 @@ def test_a_few_utterances_keep_one_circle_each():
     np.testing.assert_array_equal(np.broadcast_to(markers.get_sizes(), (20,)), MARKER_AREA)
     assert "area by count" not in entry
     assert "(20 utterances; fill: the concept there" in entry
+
+
+def _house_with(num_utterances: int):
+    house = make_house(seed=0)
+    obs = house.observations
+    rng = np.random.default_rng(1)
+    pick = rng.integers(0, len(obs.utterances), num_utterances)
+    xy = np.asarray(obs.word_xy)[pick] + rng.uniform(-0.2, 0.2, (num_utterances, 2))  # [U, 2]
+    many = dataclasses.replace(
+        obs,
+        utterances=[obs.utterances[k] for k in pick],
+        word_xy=xy,
+        word_trial=np.asarray(obs.word_trial)[pick],
+    )
+    return dataclasses.replace(house, observations=many)
+
+
+def test_the_house_figure_counts_many_words_instead_of_spreading_them():
+    """house.png of 10^4 utterances spread its markers in rings over the whole map (and took
+    15 s): now circles of area by count, every word still in the legend."""
+    from spcopyro.figures.plotting import house_figure
+
+    house = _house_with(10_000)
+    fig = house_figure(house)
+    ax = fig.axes[0]
+    circles = [c for c in ax.collections if isinstance(c, PathCollection) and len(c.get_offsets())]
+    sizes = np.concatenate(
+        [np.broadcast_to(c.get_sizes(), (len(c.get_offsets()),)) for c in circles[1:]]
+    )  # circles[0]: the images
+    corners = ax.transData.transform([[0.0, 0.0], [0.1, 0.1]])  # one 0.1 m cell, pixels
+    cell = np.prod(np.abs(np.diff(corners, axis=0))) / (fig.dpi / 72.0) ** 2  # points^2
+    assert len(sizes) < 10_000
+    assert sizes.sum() <= 0.2 * house.grid.num_free * cell
+    legend = fig.axes[-1].get_legend()
+    assert "circle area by count" in legend.get_title().get_text()
+    words = [t.get_text() for t in legend.get_texts()]
+    assert words[-1] == "other words" and len(words) == 1 + 12 + 1  # images, 12 words, others
+
+
+def test_the_house_figure_of_a_few_words_spreads_them():
+    from spcopyro.figures.plotting import house_figure
+
+    legend = house_figure(_house_with(50)).axes[-1].get_legend()
+    assert "markers at one spot spread apart" in legend.get_title().get_text()

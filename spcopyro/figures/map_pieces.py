@@ -42,6 +42,7 @@ __all__ = [
     "OFF_MAP_RGB",
     "OUTLINE",
     "concept_handles",
+    "draw_counted_words",
     "draw_outline",
     "draw_utterances",
     "house_title",
@@ -310,6 +311,29 @@ def utterance_markers(
     first[group] = concepts
     areas = np.clip(counts * cover / n, MIN_MARKER_AREA, MAX_MARKER_AREA)  # [M]
     return mean, first, areas, counts
+
+
+def draw_counted_words(
+    ax: Axes,
+    grid: OccupancyGrid,
+    xy: np.ndarray,
+    kind: np.ndarray,
+    frequent: list[str],
+    colours: np.ndarray,
+) -> None:
+    """house.png's words heard when too many to spread apart: the utterances at world points
+    ``xy`` ``[U, 2]`` of each ``kind`` ``[U]`` (an index into ``frequent``, whose colours are
+    ``colours`` ``[F, 3]`` in 0..1; ``len(frequent)``: other words, light grey) as circles of
+    area by count (:func:`utterance_markers`), the smallest on top, and an empty scatter per
+    kind for the legend (other words last)."""
+    at, kinds, areas, _ = utterance_markers(ax, grid, xy, kind)
+    palette = np.vstack([np.asarray(colours).reshape(-1, 3), [0.8, 0.8, 0.8]])  # [F + 1, 3]
+    order = np.argsort(-areas, kind="stable")
+    ax.scatter(*at[order].T, s=areas[order], c=palette[kinds[order]],
+               edgecolors=rim_colours(grid, at[order]), linewidths=0.4, zorder=3)  # fmt: skip
+    for k, word in [*enumerate(frequent), (len(frequent), "other words")]:
+        if (kind == k).any():
+            ax.scatter([], [], s=MARKER_AREA, color=palette[k], label=word)
 
 
 def draw_utterances(

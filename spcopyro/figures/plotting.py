@@ -38,6 +38,7 @@ from spcopyro.figures.map_axes import map_extent as _extent
 from spcopyro.figures.map_axes import show_map as _show_image  # noqa: F401 (navigation)
 from spcopyro.figures.map_pieces import (
     concept_handles,
+    draw_counted_words,
     draw_outline,
     draw_utterances,
     house_title,
@@ -46,6 +47,7 @@ from spcopyro.figures.map_pieces import (
     region_text,
     rim_colours,
     spread_markers,
+    utterance_markers,
     utterance_marks,
 )
 from spcopyro.figures.png import save_png
@@ -135,14 +137,18 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     order = np.argsort(kind, kind="stable")  # named words keep their places first
     size = 28.0
     xy = np.asarray(obs.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
+    counted = utterance_markers(axes[0], grid, xy, kind)[3] is not None  # too many to spread
     shown = np.empty_like(xy)
-    shown[order] = spread_markers(axes[0], xy[order], size)  # every strip at one scale
+    shown[order] = xy[order] if counted else spread_markers(axes[0], xy[order], size)
     rest = kind == len(frequent)
     rims = rim_colours(grid, shown)  # [U, 3] white on a wall, as on the semantic map
     for ax in axes:
         if obs.num_images:  # a house of words only has none: no "images (0)" in the legend
             ax.scatter(*obs.image_xy.T, s=6, c="0.45", marker="s",
                        label=f"images ({obs.num_images})")  # fmt: skip
+        if counted:  # circles of area by count, the smallest on top; the legend's from empties
+            draw_counted_words(ax, grid, xy, kind, frequent, colours)
+            continue
         if rest.any():  # drawn first (under the named words), listed last in the legend
             ax.scatter(*shown[rest].T, s=size, color="0.8", edgecolors=rims[rest],
                        linewidths=0.4, zorder=2, label="other words")  # fmt: skip
@@ -158,9 +164,10 @@ def house_figure(house: House, title: str | None = None) -> Figure:
         k = labels.index("other words")
         handles.append(handles.pop(k))
         labels.append(labels.pop(k))
+    spread = "circle area by count" if counted else "markers at one spot spread apart"
     map_legend(axes[-1], handles, labels, below=wide, columns=4, fontsize=8, frameon=False,
-               title="words heard (rarest word of each utterance;\nmarkers at one spot spread "
-               "apart)", title_fontsize=8)  # fmt: skip
+               title=f"words heard (rarest word of each utterance;\n{spread})",
+               title_fontsize=8)  # fmt: skip
     axes[0].set_title((title or house_title(house)) + strips)
     return fig
 
