@@ -289,10 +289,11 @@ def utterance_markers(
     house's map, ~300-400 on room2ldk4's and room1ldk4's, which hold 76 and 45). Beyond it
     (10^4 utterances covered the default house's map) the utterances of one concept in one
     square of a circle's width are one circle at their mean point, of area proportional to
-    their ``counts``, ``area = count * cover / U`` (``cover`` the points^2 that
-    ``MAX_MARKER_COVER`` of the free space shown makes, ``U`` the utterances in view) within
-    ``[MIN_MARKER_AREA, MAX_MARKER_AREA]``: all of them cover about that share of the map,
-    each lone word still shows."""
+    their ``counts``, ``area = count * unit`` within ``[MIN_MARKER_AREA, MAX_MARKER_AREA]``,
+    ``unit`` at most ``cover / U`` (``cover`` the points^2 that ``MAX_MARKER_COVER`` of the free
+    space shown makes, ``U`` the utterances in view) and bisected so the areas sum to ``cover``
+    where the floor allows: each lone word still shows (with a word in nearly every square the
+    floor wins: 10^5 utterances spread over a 3.1 m x 1 m map cover 15% of it)."""
     inch = ax.figure.dpi / 72.0  # pixels per point
     cover = MAX_MARKER_COVER * _free_area_shown(ax, grid) / inch**2  # points^2 (aspect applied)
     pixels = ax.transData.transform(xy)  # [U, 2]
@@ -309,7 +310,12 @@ def utterance_markers(
     mean = np.stack([np.bincount(group, weights=xy[:, k]) for k in (0, 1)], 1) / counts[:, None]
     first = np.zeros(len(counts), dtype=np.int64)  # [M] the concept of each circle
     first[group] = concepts
-    areas = np.clip(counts * cover / n, MIN_MARKER_AREA, MAX_MARKER_AREA)  # [M]
+    low, high = 0.0, cover / max(n, 1)  # points^2 per utterance: bisected so the sum is cover
+    for _ in range(40):  # the floor and the cap bend the sum, so area = count * cover / n is off
+        unit = (low + high) / 2
+        total = np.clip(counts * unit, MIN_MARKER_AREA, MAX_MARKER_AREA).sum()
+        low, high = (unit, high) if total < cover else (low, unit)
+    areas = np.clip(counts * low, MIN_MARKER_AREA, MAX_MARKER_AREA)  # [M]
     return mean, first, areas, counts
 
 
