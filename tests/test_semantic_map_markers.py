@@ -55,6 +55,16 @@ def test_many_utterances_cover_a_bounded_share_of_the_map():
     assert "10000 utterances, circle area by count" in entry
 
 
+def test_counted_circles_sum_to_the_share_of_the_map_aimed_at():
+    """area = count * cover / U, then the 3 pt^2 floor: 10^4 utterances spread over the map
+    covered 12.3% of it where 10% is aimed at."""
+    rng = np.random.default_rng(0)
+    xy = np.column_stack([rng.uniform(0, 3.1, 10_000), rng.uniform(0, 1.0, 10_000)])
+    markers, free, _ = _figure(10_000, 0.0, xy)
+    share = markers.get_sizes().sum() / free
+    assert abs(share - MAX_MARKER_COVER) < 0.005, share
+
+
 def test_utterances_at_few_spots_are_circles_of_area_by_count():
     counts = np.array([9_000, 900, 90, 9, 1])  # utterances heard at SPOTS[0], ..., SPOTS[4]
     xy = np.repeat(SPOTS[:5], counts, axis=0)  # [U, 2]
