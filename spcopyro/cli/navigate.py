@@ -111,8 +111,8 @@ def _plan_and_print(
         choice = stop.choice
         print(
             f"{stop.shown}: goal x={stop.xy[0]:.2f} y={stop.xy[1]:.2f} yaw={stop.yaw:.2f} "
-            f"(p = {choice.candidate.probability:.3f}, {choice.candidate.area:.1f} m^2 of the "
-            "place the robot fits in)"
+            f"(goal cell in the place: p = {choice.candidate.probability:.3f}; "
+            f"{choice.candidate.area:.1f} m^2 of the place the robot fits in)"
         )
         if choice.ambiguous:
             print(
