@@ -76,6 +76,32 @@ def write_log_likelihood(
             out.addmm_(modality.counts.to(torch.float64), log_phi.T)  # [M, K_m] @ [K_m, L]
 
 
+@njit(cache=True, nogil=True)
+def _centre_rows(logits: np.ndarray, log_pi: np.ndarray) -> int:
+    """logits [M + 1, L]: the last row set to 0, log_pi [L] added to every row, then each row's
+    maximum subtracted from it; returns -1, or the first row whose maximum is not finite (NaN
+    anywhere in it, +inf, or all -inf; that row and later ones are then left unfinished).
+
+    The numpy steps' arithmetic to the bit (each entry one IEEE add and one subtract of the same
+    values; a maximum is exact), in one pass instead of five array operations (~15 us a sweep).
+    """
+    R, L = logits.shape
+    for l in range(L):
+        logits[R - 1, l] = 0.0
+    for r in range(R):
+        top = -np.inf
+        for l in range(L):
+            value = logits[r, l] + log_pi[l]
+            logits[r, l] = value
+            if value > top or value != value:  # a NaN stays the maximum, as in numpy
+                top = value
+        if not -np.inf < top < np.inf:
+            return r
+        for l in range(L):
+            logits[r, l] -= top
+    return -1
+
+
 def background_table(state: GibbsState, data: ModelData, config: SpCoConfig) -> np.ndarray:
     """[M + 1, L + D] the per-cell backgrounds B (module docstring), the D last columns 0: the
     sentinel labels of missing neighbours.
@@ -88,17 +114,14 @@ def background_table(state: GibbsState, data: ModelData, config: SpCoConfig) -> 
     logits_t = torch.empty(M + 1, L, dtype=torch.float64)  # [M + 1, L]
     write_log_likelihood(state, data, config, logits_t[:M])
     logits = logits_t.numpy()
-    logits[M] = 0.0
-    logits += state.log_pi.detach().cpu().numpy()  # [L], broadcast over the rows
-    top = logits.max(axis=1, keepdims=True)  # [M + 1, 1]; NaN or +inf anywhere shows here
-    if not np.isfinite(top).all():
-        row = int(np.flatnonzero(~np.isfinite(top[:, 0]))[0])
+    log_pi = np.ascontiguousarray(state.log_pi.detach().cpu().numpy(), dtype=np.float64)  # [L]
+    row = _centre_rows(logits, log_pi)  # row M: pi's; NaN or +inf anywhere shows in a maximum
+    if row >= 0:
         where = f"the observed cell in row {row} of data.obs_cells" if row < M else "pi"
         raise ValueError(
             f"log pi + observation log-likelihood is not finite for {where}: NaN or infinite "
             "values in GibbsState.log_pi / log_emissions or in the data's counts"
         )
-    logits -= top
     table = np.zeros((M + 1, L + D))  # [M + 1, L + D]
     np.exp(logits, out=table[:, :L])
     return table
