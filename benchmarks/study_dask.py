@@ -39,6 +39,7 @@ from bench_cli import COUNT, quick_or, results_path, run_main
 from machine import busy_cpu_seconds, machine_info, own_cpu_seconds, progress
 
 from spcopyro.study import local_cluster
+from spcopyro.study import run as study_run
 from spcopyro.study.run import run_study
 from spcopyro.study.spec import Study, study_from_dict
 from spcopyro.study.table import read_table
@@ -78,6 +79,8 @@ def timed_run(
     with (
         _patched(local_cluster, "forkserver_available", lambda: False, spawned),
         _patched(local_cluster, "QUIET_LOOPS", {}, dask_loops),
+        # the cluster measured even for --quick's cells, too short to start one by themselves
+        _patched(study_run, "cluster_pays", lambda predicted, workers: True, workers > 1),
     ):
         run = run_study(study, out, workers=workers, progress=False, report=progress,
                         start_in_process=not spawned)  # fmt: skip
@@ -95,8 +98,8 @@ def timed_run(
 
 def _patched(owner: object, name: str, value: object, on: bool):
     """``owner.name`` set to ``value`` inside the block when ``on``: the study's LocalCluster
-    spawning its workers (``forkserver_available``), or keeping Dask's own event-loop settings
-    (``QUIET_LOOPS``)."""
+    spawning its workers (``forkserver_available``), keeping Dask's own event-loop settings
+    (``QUIET_LOOPS``), or starting for a study too short to start one (``cluster_pays``)."""
     return patch.object(owner, name, value) if on else nullcontext()
 
 

@@ -15,6 +15,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from study_setup import on_a_cluster
 
 from spcopyro._util.folder_lock import LOCK_NAME
 from spcopyro.cli.main import main
@@ -390,9 +391,10 @@ def test_quality_time_axis_labels_do_not_overlap(times):
 
 
 @pytest.mark.parametrize("start_in_process", [False, True])
-def test_local_cluster_gives_the_same_numbers(in_process, tmp_path, start_in_process):
+def test_local_cluster_gives_the_same_numbers(in_process, tmp_path, monkeypatch, start_in_process):
     """On the workers only, or partly in this process while they start: the same numbers."""
     pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    on_a_cluster(monkeypatch)  # 6 short cells: the cluster path all the same
     path, out = in_process
     run = run_study(load_study(path), tmp_path / "dask", workers=2, progress=False,
                     start_in_process=start_in_process)  # fmt: skip

@@ -3,10 +3,17 @@
 from __future__ import annotations
 
 import pytest
+from study_setup import on_a_cluster
 
 from spcopyro.study import run as study_run
 from spcopyro.study.cells import cells_of
-from spcopyro.study.order import duration, longest_first, predicted_seconds
+from spcopyro.study.order import (
+    CELL_SECONDS,
+    cluster_pays,
+    duration,
+    longest_first,
+    predicted_seconds,
+)
 from spcopyro.study.run import run_study
 from spcopyro.study.spec import study_from_dict
 
@@ -107,6 +114,7 @@ def _run_on_fake_cluster(tmp_path, monkeypatch, ready_at_once: bool):
         return REAL_RUN_CELL(cell)
 
     monkeypatch.setattr(study_run, "ClusterStart", FakeStart)
+    on_a_cluster(monkeypatch)  # 4 short cells: the cluster path all the same
     monkeypatch.setattr(distributed, "as_completed", iter)
     monkeypatch.setattr(study_run.evaluate, "run_cell", run_cell)
     study = study_from_dict({
@@ -151,7 +159,7 @@ def test_dry_run_predicts_each_group_and_the_whole_run(tmp_path, capsys, monkeyp
     path = tmp_path / "order.toml"
     path.write_text(
         '[study]\nname = "order"\nseeds = 2\nmethods = ["gibbs", "svi"]\n'
-        "sweeps = { gibbs = 2000, svi = 300 }\n"
+        "sweeps = { gibbs = 2000, svi = 3000 }\n"  # 18 s: long enough for a LocalCluster
         '[variants.dp]\npreset = "paper-dp"\n'
         '[data.small]\nsynthetic = "default"\nheight = 24\nwidth = 30\nnum_rooms = 2\n'
         "num_trials = 2\nmin_room_size = 8\n"
@@ -160,9 +168,78 @@ def test_dry_run_predicts_each_group_and_the_whole_run(tmp_path, capsys, monkeyp
                  "--workers", "2"]) == 0  # fmt: skip
     planned = capsys.readouterr().out
     assert "| iterations | cells | predicted |" in planned
-    assert "| small | dp | svi | 300 | 2 |" in planned
+    assert "| small | dp | svi | 3000 | 2 |" in planned
     assert "of fits one after another; on 2 workers at least" in planned
     assert not (tmp_path / "dry").exists()
+
+
+@pytest.mark.parametrize(
+    ("predicted", "workers", "pays"),
+    [
+        ([0.02, 0.02], 2, False),  # two 30-sweep cells: 3-6.5 s on the cluster, 2 s here
+        ([0.04] * 16, 2, False),  # ablation_small: 1.7 s here, 2.5 s and more with a cluster
+        ([4.0 - CELL_SECONDS] * 2, 2, False),  # 8 s of cells: the cluster's break-even
+        ([4.2] * 2, 2, True),
+        ([1.66] * 20, 2, True),  # benchmarks/study_dask.py: 30 s here, 0.6-0.7 of it there
+        ([300.0, 1.0, 1.0], 2, False),  # one cell decides the wall either way
+        ([300.0, 300.0], 2, True),
+        ([1.66] * 20, 1, False),
+        ([600.0], 8, False),  # a single cell: this process runs it while the cluster starts
+        ([], 2, False),
+    ],
+)  # fmt: skip
+def test_a_cluster_is_started_only_where_it_is_predicted_to_pay(predicted, workers, pays):
+    assert cluster_pays(predicted, workers) is pays
+
+
+def test_shipped_small_study_runs_here_and_a_long_one_on_the_cluster(tmp_path):
+    """The shipped ``ablation_small`` (16 cells of 30 sweeps, predicted at 4 s) started a
+    LocalCluster by default (``--workers`` = the machine's cores) for nothing; 20 cells of
+    2000 sweeps (the benchmark's study) still go to the cluster."""
+    from spcopyro.study import STUDIES
+    from spcopyro.study.run import plan_study
+    from spcopyro.study.spec import load_study
+
+    small = plan_study(load_study(STUDIES / "ablation_small.toml"), tmp_path / "a")
+    assert not cluster_pays(small.predicted.values(), 2)
+    long = study_from_dict({
+        "study": {"name": "long", "seeds": 5, "sweeps": 2000},
+        "variants": {"a": {"preset": "paper-dp"}, "b": {"preset": "original-code"}},
+        "data": {"d": {"synthetic": "default"}, "e": {"synthetic": "default", "num_rooms": 3}},
+    })  # fmt: skip
+    assert cluster_pays(plan_study(long, tmp_path / "b").predicted.values(), 2)
+
+
+def test_a_short_study_asked_for_workers_starts_no_cluster(tmp_path, monkeypatch):
+    """Two cells of 30 sweeps with ``--workers 2`` started a LocalCluster: 6.5 s against 3.3 s
+    in one process (2-core machine); its first line now says why none was started."""
+    started: list[int] = []
+
+    class FakeStart:
+        def __init__(self, workers, on_ready=None):
+            started.append(workers)
+
+        def wait(self):
+            return None
+
+        def close(self, **kwargs):
+            pass
+
+    pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    monkeypatch.setattr(study_run, "ClusterStart", FakeStart)
+    study = study_from_dict({"study": {"name": "two", "seeds": 2, "sweeps": 30},
+                             "variants": {"a": {"preset": "paper-dp"}},
+                             "data": {"small": SMALL}})  # fmt: skip
+    lines: list[str] = []
+    done = run_study(study, tmp_path / "out", workers=2, progress=False, report=lines.append)
+    assert started == []
+    assert (done.ran, done.ran_here, done.failed) == (2, 2, 0)
+    assert done.where.startswith("in-process (2 cells predicted at 0 s of fits, too short for "
+                                 "a LocalCluster of 2 workers"), done.where  # fmt: skip
+    assert lines[0].endswith(done.where), lines
+    assert not any("while the LocalCluster started" in line for line in lines), lines
+    planned = study_run.plan_markdown(study_run.plan_study(study, tmp_path / "dry"), study, 2)
+    assert "with --workers 2 run in this process all the same" in planned, planned
 
 
 @pytest.mark.parametrize(

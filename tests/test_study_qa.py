@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from study_setup import on_a_cluster
 from test_study import _write
 
 from spcopyro.cli.main import main
@@ -269,6 +270,7 @@ def test_cells_a_worker_finished_before_a_ctrl_c_are_kept(tmp_path, monkeypatch)
         raise KeyboardInterrupt
 
     monkeypatch.setattr(evaluate, "run_cell", run_cell)
+    on_a_cluster(monkeypatch)  # a tiny study: the cluster path all the same
     out = tmp_path / "out"
     with pytest.raises(KeyboardInterrupt):
         run.run_study(load_study(_write(tmp_path)), out, workers=2, progress=False)

@@ -15,6 +15,7 @@ import time
 import types
 
 import pytest
+from study_setup import on_a_cluster
 
 from spcopyro.study import run as study_run
 from spcopyro.study.run import run_study
@@ -47,6 +48,7 @@ def test_an_interrupted_dask_run_closes_its_cluster_now(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", fake)  # dask.distributed is optional
     monkeypatch.setattr(study_run, "dask_installed", lambda: True)
     monkeypatch.setattr(study_run, "ClusterStart", FakeStart)
+    on_a_cluster(monkeypatch)  # 2 short cells: the cluster path all the same
     monkeypatch.setattr(study_run.evaluate, "run_cell", interrupted)
     study = study_from_dict({"study": {"name": "stop", "seeds": 2, "sweeps": 2},
                              "variants": {"a": {"preset": "paper-dp"}},
@@ -117,6 +119,7 @@ def test_a_run_whose_cells_all_ran_here_does_not_wait_for_the_cluster(tmp_path, 
     monkeypatch.setitem(sys.modules, "distributed", fake)
     monkeypatch.setattr(study_run, "dask_installed", lambda: True)
     monkeypatch.setattr(study_run, "ClusterStart", FakeStart)
+    on_a_cluster(monkeypatch)  # 2 short cells: the cluster path all the same
     study = study_from_dict({"study": {"name": "here", "seeds": 2, "sweeps": 2},
                              "variants": {"a": {"preset": "paper-dp"}},
                              "data": {"small": SMALL}})  # fmt: skip
@@ -245,6 +248,7 @@ def test_a_ctrl_c_that_leaves_the_import_lock_held_does_not_hang_the_close(
     monkeypatch.setitem(sys.modules, "distributed", fake)
     monkeypatch.setattr(study_run, "dask_installed", lambda: True)
     monkeypatch.setattr(study_run, "ClusterStart", FakeStart)
+    on_a_cluster(monkeypatch)  # 2 short cells: the cluster path all the same
     monkeypatch.setattr(study_run.evaluate, "run_cell", run_cell)
     study = study_from_dict({"study": {"name": "locked", "seeds": 2, "sweeps": 2},  # a cluster
                              "variants": {"a": {"preset": "paper-dp"}},

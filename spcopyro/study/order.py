@@ -17,6 +17,10 @@ the order matters), as its iterations times a time per iteration:
 * otherwise :data:`SECONDS_PER_ITERATION`, the medians of the full-budget Gibbs-versus-VI study
   (docs/studies.md) by method and kind of data, a synthetic house's scaled by its map's area
   against the default house's (a baseline's cell: :data:`BASELINE_SECONDS`).
+
+The same prediction decides whether a study asked to run on a LocalCluster starts one at all
+(:func:`cluster_pays`): a study whose cells are predicted to take less than the cluster's
+start-up saves runs in this process.
 """
 
 from __future__ import annotations
@@ -28,7 +32,8 @@ from spcopyro.study.cells import BASELINE_METHOD, Cell
 from spcopyro.study.spec import SYNTHETIC_FACTORIES
 
 __all__ = [
-    "BASELINE_SECONDS", "SECONDS_PER_ITERATION", "duration", "longest_first", "predicted_seconds",
+    "BASELINE_SECONDS", "CELL_SECONDS", "CLUSTER_START_SECONDS", "SECONDS_PER_ITERATION",
+    "WORKER_SLOWDOWN", "cluster_pays", "duration", "longest_first", "predicted_seconds",
 ]  # fmt: skip
 
 SECONDS_PER_ITERATION: dict[str, tuple[float, float]] = {
@@ -113,6 +118,37 @@ def longest_first(cells: Iterable[Cell], predicted: Mapping[str, float]) -> list
     """``cells`` by ``predicted`` seconds (by key, :func:`predicted_seconds`), longest first;
     cells predicted alike keep their order."""
     return sorted(cells, key=lambda cell: -predicted[cell.key])
+
+
+CELL_SECONDS = 0.1
+"""A cell's wall seconds beside its fit's own (drawing or loading its house, scoring, storing):
+16 cells of ``ablation_small`` took 1.6-1.7 s in one process for 0.7 s of fits (2026-12-05)."""
+CLUSTER_START_SECONDS = 3.0
+"""What a LocalCluster adds to its run beyond its workers' share of the cells, on an idle
+2-core machine (docs/studies.md, "The LocalCluster's speed"): its workers ready 2.9 s after the
+start (cells run in this process meanwhile), each worker's first cell about 1 s slower, the last
+cells' imbalance; 5-8 s to the workers' start alone on the same machine under a load of 4."""
+WORKER_SLOWDOWN = 1.25
+"""A cell's seconds on a worker over its seconds in one process (1.23-1.30 measured, two
+workers on 2 cores: docs/studies.md)."""
+
+
+def cluster_pays(predicted: Iterable[float], workers: int) -> bool:
+    r"""Whether a LocalCluster of ``workers`` is predicted to end the cells of ``predicted``
+    seconds (:func:`predicted_seconds`) sooner than this process alone.
+
+    With :math:`t_i` = predicted_i + :data:`CELL_SECONDS` and :math:`W = \sum_i t_i`, one
+    process takes :math:`W`; the cluster about
+    :math:`s \max(W / N, \max_i t_i) + c` (:math:`s` = :data:`WORKER_SLOWDOWN`, :math:`c` =
+    :data:`CLUSTER_START_SECONDS`, :math:`N` = ``workers``): it pays where that is less than
+    :math:`W`. Never for one cell (:math:`W = \max_i t_i`), nor for one worker; on 2 workers
+    from :math:`W > 8` s of cells none of which dominates.
+    """
+    seconds = [max(float(p), 0.0) + CELL_SECONDS for p in predicted]
+    if workers <= 1 or len(seconds) <= 1:
+        return False
+    total = sum(seconds)
+    return total > WORKER_SLOWDOWN * max(total / workers, max(seconds)) + CLUSTER_START_SECONDS
 
 
 def duration(seconds: float) -> str:

@@ -16,9 +16,11 @@ Where the cells run:
   (:mod:`spcopyro.study.local_cluster`). The cluster starts on a thread while this process runs
   cells one after another, shortest first; the moment the workers are up they take every cell
   not started yet, longest first (:mod:`spcopyro.study.order`), and the cluster closes while
-  the table is written. A run with one cell left to run (and ``start_in_process``) runs it in
-  this process and starts no cluster: the workers would get nothing to run, and their start
-  would take a core from that cell;
+  the table is written. A run whose cells left to run are predicted to end sooner in this
+  process than on the cluster (one cell, or a few seconds of them:
+  :func:`spcopyro.study.order.cluster_pays`; with ``start_in_process``) runs them here and
+  starts no cluster: the workers would get little or nothing to run, and their start would
+  take a core from those cells;
 * ``scheduler="tcp://HOST:PORT"``: the Dask cluster already running there (e.g. one that
   ``dask-jobqueue`` started on Slurm or PBS; docs/studies.md), cells longest first. Its workers
   need spcopyro and the data at the same paths.
@@ -52,7 +54,7 @@ from spcopyro.gibbs.chains import usable_cpus
 from spcopyro.study import evaluate
 from spcopyro.study.cells import Cell, cells_of, source_digest
 from spcopyro.study.local_cluster import PRE_SPAWN_ENVIRON, ClusterStart
-from spcopyro.study.order import duration, longest_first, predicted_seconds
+from spcopyro.study.order import cluster_pays, duration, longest_first, predicted_seconds
 from spcopyro.study.report import table_cell, write_report
 from spcopyro.study.spec import Study
 from spcopyro.study.table import TABLE, CellStore, table_rows, write_table
@@ -189,8 +191,10 @@ def _run_study(
     store = CellStore(out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "study.json").write_text(json.dumps(study.to_json(), indent=1, default=str))
-    alone = scheduler is None and workers > 1 and start_in_process and len(pending) == 1
-    where = _where(workers, scheduler, alone)
+    predicted = [plan.predicted.get(cell.key, 0.0) for cell in pending]
+    short = start_in_process and not cluster_pays(predicted, workers)  # one cell, or a few s
+    alone = scheduler is None and workers > 1 and short
+    where = _where(workers, scheduler, len(pending) if alone else 0, sum(predicted))
     if not pending:
         _finish(out, study, cells, store)
         report(f"nothing to run: all {len(cells)} cells of study {study.name!r} are finished "
@@ -319,7 +323,8 @@ def plan_study(
 def plan_markdown(plan: StudyPlan, study: Study, workers: int = 1) -> str:
     """The cells a run would run, per data source, variant and method: how many (seeds), at
     how many iterations and their predicted time (``spcopyro study --dry-run``); the whole
-    run's predicted time one after another and on ``workers``."""
+    run's predicted time one after another and on ``workers`` (or that the run would not start
+    its LocalCluster: :func:`spcopyro.study.order.cluster_pays`)."""
     groups: dict[tuple[str, str, str, int], list[float]] = {}
     for cell in plan.pending:
         group = (cell.data.name, cell.row, cell.method, cell.sweeps)
@@ -338,6 +343,9 @@ def plan_markdown(plan: StudyPlan, study: Study, workers: int = 1) -> str:
     if plan.pending:
         longest = max(plan.predicted.get(cell.key, 0.0) for cell in plan.pending)
         spread = f"; on {workers} workers at least {duration(max(total / workers, longest))}"
+        if not cluster_pays([plan.predicted.get(c.key, 0.0) for c in plan.pending], workers):
+            spread = (f"; with --workers {workers} run in this process all the same: too "
+                      "short for a LocalCluster to pay for its start")  # fmt: skip
         lines += ["", (
             f"predicted: {duration(total)} of fits one after another"
             f"{spread if workers > 1 else ''} (times per iteration of this study's finished "
@@ -361,15 +369,20 @@ def _stale_line(count: int) -> str:
     )
 
 
-def _where(workers: int, scheduler: str | None, alone: bool = False) -> str:
-    """Where the cells run. ``alone``: one cell left to run with ``workers > 1``, run in this
-    process without starting the LocalCluster: this process would run it while the cluster
-    starts anyway (:func:`_on_dask`), and the forkserver's import (3-4 CPU seconds) only took
-    a core from that cell, for workers that got nothing to run."""
+def _where(workers: int, scheduler: str | None, alone: int = 0, predicted: float = 0.0) -> str:
+    """Where the cells run. ``alone``: the number of cells left to run with ``workers > 1``,
+    run in this process without starting the LocalCluster (0: none), since it is predicted not
+    to pay (``predicted``: their predicted seconds; :func:`spcopyro.study.order.cluster_pays`):
+    this process runs cells while the cluster starts anyway (:func:`_on_dask`), and the
+    forkserver's import (3-4 CPU seconds) only took a core from them."""
     if scheduler is not None:
         return f"Dask scheduler {scheduler}"
-    if alone:
+    if alone == 1:
         return f"in-process (a single cell: no LocalCluster of {workers} workers started)"
+    if alone:
+        return (f"in-process ({alone} cells predicted at {duration(predicted)} of fits, too "
+                f"short for a LocalCluster of {workers} workers to pay for its start: none "
+                "started)")  # fmt: skip
     return "in-process" if workers <= 1 else f"LocalCluster({workers} workers)"
 
 
