@@ -202,6 +202,34 @@ def _fill_gamma_linear(
     for r in range(R):
         total = 0.0
         row_boosted[r] = False
+        # A row without statistics (a concept holding no cell, or no observation) whose shape
+        # base is >= 1 takes the general loop's draws in a loop without its per-entry checks.
+        plain = 1.0 <= base < np.inf
+        for c in range(C):
+            plain = plain and statistics[r, c] == 0.0
+        if plain and base == 1.0:
+            for c in range(C):
+                bits, s0, s1, s2, s3 = next_bits(s0, s1, s2, s3)
+                draw = -math.log(1.0 - bits_to_uniform(bits))
+                while draw == 0.0:
+                    bits, s0, s1, s2, s3 = next_bits(s0, s1, s2, s3)
+                    draw = -math.log(1.0 - bits_to_uniform(bits))
+                out[r, c] = draw
+                boost[r, c] = 0.0
+                total += draw
+            row_sums[r] = total
+            continue
+        if plain:
+            if base != shape:
+                shape, d = base, base - 1.0 / 3.0
+                scale = 1.0 / math.sqrt(9.0 * d)
+            for c in range(C):
+                draw, s0, s1, s2, s3 = marsaglia_tsang(d, scale, s0, s1, s2, s3, state)
+                out[r, c] = draw
+                boost[r, c] = 0.0
+                total += draw
+            row_sums[r] = total
+            continue
         for c in range(C):
             a = base + statistics[r, c]
             if not 0.0 < a < np.inf:
