@@ -12,6 +12,7 @@ from spcopyro.results.concept_words import (
     is_speck,
     speck_summary,
 )
+from spcopyro.results.specks import support_text
 
 if TYPE_CHECKING:
     from spcopyro.results.result import SpCoResult
@@ -24,7 +25,8 @@ def print_concepts(result: SpCoResult, limit: int = 10) -> None:
     (posterior means) and the distinctive ones with their lifts
     (:mod:`spcopyro.results.concept_words`), or that no word was heard there. Specks (concepts
     under :data:`SPECK_SHARE` of the free cells where no word was heard: a doorway or corner
-    cell the Potts field holds weakly, docs/real_houses.md) share one line at the end."""
+    cell the Potts field holds weakly, docs/real_houses.md) share one line at the end, with how
+    much of the posterior holds them (:func:`~spcopyro.results.specks.support_text`)."""
     parameters = result.inference.get("parameters", "words as the method estimates them")
     print(f"concepts (words: {parameters}; distinctive: lift = p(word | concept) / p(word) > "
           f"{MIN_LIFT:g}, p(word) the area-weighted mix):")  # fmt: skip
@@ -59,10 +61,12 @@ def print_concepts(result: SpCoResult, limit: int = 10) -> None:
     if specks:
         sizes = [int(c["cells"]) for c in specks]
         which = "concept" if len(specks) == 1 else "concepts"
+        support = support_text(result, [int(c["concept"]) for c in specks])
+        support = "" if support is None else f": {support}"
         summaries.append((max(sizes), f"  + {speck_summary(sizes)} where no word was heard "
                           f"({which} {', '.join(str(c['concept']) for c in specks[:8])}"
                           f"{', ...' if len(specks) > 8 else ''}; concepts.json lists "
-                          f"{'it' if len(specks) == 1 else 'them'})"))  # fmt: skip
+                          f"{'it' if len(specks) == 1 else 'them'}){support}"))  # fmt: skip
     for _, line in sorted(summaries, key=lambda s: -s[0]):  # stable: equal sizes keep order
         print(line)
     if len(concepts) == 1:  # p(word) is then the concept's own: every lift is 1

@@ -57,6 +57,7 @@ from spcopyro.data import House
 from spcopyro.data.model_grid import model_house
 from spcopyro.gibbs.chains import when_chains_start
 from spcopyro.maps import save_map
+from spcopyro.results.specks import in_use_text
 
 if TYPE_CHECKING:
     from spcopyro.fit.gibbs_chains import FitCheckpoint
@@ -417,7 +418,7 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
         runs = (f"{several}{coarse['sweeps']} sweeps on {coarse['cell_size']:g} m cells "
                 f"({coarse_rate}), then {several}{sweeps_run} on the map's "
                 f"{result.grid.resolution:g} m cells ({rate}) in {clock}")  # fmt: skip
-    print(f"fitted {runs}; {plural(len(result.concepts_in_use()), 'concept')} in use")
+    print(f"fitted {runs}; {in_use_text(result)}")
     if result.inference.get("stopped"):  # a variational method: converged, or --sweeps reached
         print(f"stopped          {result.inference['stopped']}")
     if result.inference.get("vi_stopped"):  # vi-gibbs: the CAVI whose labels start the sweeps

@@ -37,6 +37,7 @@ from spcopyro.results.concept_words import (
     speck_summary,
 )
 from spcopyro.results.result import SpCoResult
+from spcopyro.results.specks import support_text
 
 __all__ = [
     "OFF_MAP_RGB",
@@ -213,8 +214,10 @@ def concept_handles(
     if specks:
         names = ", ".join(f"[{c}]" for c in specks[:6]) + (", ..." if len(specks) > 6 else "")
         speck_sizes = [int(sizes[c]) for c in specks]
-        summaries.append((max(speck_sizes),
-                          f"{speck_summary(speck_sizes)}, no words heard: {names}"))  # fmt: skip
+        support = support_text(result, specks)
+        support = "" if support is None else f"\n      {support}"
+        summaries.append((max(speck_sizes), f"{speck_summary(speck_sizes)}, no words heard: "
+                          f"{names}{support}"))  # fmt: skip
     for _, label in sorted(summaries, key=lambda s: -s[0]):  # stable: equal sizes keep order
         handles.append(Patch(color="white", label=label))
     return handles

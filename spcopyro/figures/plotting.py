@@ -63,6 +63,7 @@ from spcopyro.maps import (
 from spcopyro.results.concept_words import NO_WORDS, shown_words
 from spcopyro.results.point_estimate import LOSS_LABELS
 from spcopyro.results.result import SpCoResult
+from spcopyro.results.specks import in_use_text
 from spcopyro.results.uncertainty import (
     cell_entropy,
     free_cells_image,
@@ -285,9 +286,8 @@ def semantic_map_figure(
     map_legend(axes[-1], handles, below=wide, columns=2, fontsize=7, frameon=False,
                title="concepts, largest first: words (posterior mean p; x lift = "
                "p(word | concept) / p(word))", title_fontsize=7)  # fmt: skip
-    used = len(result.concepts_in_use())
     crowded = f", {skipped} left unlabelled (legend)" if skipped else ""
-    axes[0].set_title(f"{result.name or 'semantic map'}: {plural(used, 'concept')} in use, "
+    axes[0].set_title(f"{result.name or 'semantic map'}: {in_use_text(result)}, "
                       f"{plural(regions, 'labelled region')}{crowded} (regions >= "
                       f"{min_region_fraction:.1%} of the free cells){strips}")  # fmt: skip
     return fig

@@ -1,0 +1,117 @@
+"""Speck concepts (a few cells, no words heard) are counted and shown as specks with the share
+of the posterior that holds them, not as places: the README's fit printed "10 concepts in use"
+over a house of six rooms and four one-cell specks, and said nothing of how weakly the samples
+held the specks (their cells took them in 28-56% of the kept samples)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from spcopyro.config import SpCoConfig
+from spcopyro.maps import FREE, OccupancyGrid
+from spcopyro.results.concept_words import is_speck
+from spcopyro.results.result import EmissionTable, SpCoResult, Trace
+
+
+def _rooms_and_specks(agreement: bool = True, marginals: bool = False) -> SpCoResult:
+    """Two rooms of 300 cells (words heard in both) and two one-cell specks (none heard), on a
+    1 x 602 map; the kept samples' agreement is 1.0 in the rooms, 0.3 and 0.5 at the specks."""
+    sizes = [300, 300, 1, 1]
+    n, num = sum(sizes), len(sizes)
+    labels = np.repeat(np.arange(num), sizes)  # [N]
+    totals = np.zeros((num, 3))  # [L, 1 + M]: cells observed, images, words heard
+    totals[:2] = [10.0, 10.0, 5.0]
+    agree = np.ones(n)  # [N]
+    agree[labels == 2], agree[labels == 3] = 0.3, 0.5
+    probabilities = np.zeros((n, num), dtype=np.float32)  # [N, L]
+    probabilities[np.arange(n), labels] = agree
+    probabilities[labels >= 2, 0] = 1.0 - agree[labels >= 2]
+    return SpCoResult(
+        grid=OccupancyGrid(np.full((1, n), FREE, dtype=np.int8), 0.1, (0.0, 0.0, 0.0)),
+        config=SpCoConfig(num_concepts=num, prior="dirichlet"),
+        labels=labels,
+        pi=np.full(num, 1 / num),
+        emissions=(
+            EmissionTable("images", ("0", "1"), np.full((num, 2), 0.5)),
+            EmissionTable("words", ("a", "b"), np.full((num, 2), 0.5)),
+        ),
+        trace=Trace(objective=np.zeros(1), num_concepts=np.array([num]), seconds=np.zeros(1)),
+        best_iteration=0,
+        marginals=probabilities if marginals else None,
+        agreement=agree if agreement else None,
+        inference={"marginal_samples": 50},
+        concept_totals=totals,
+    )
+
+
+def test_the_count_of_concepts_in_use_says_how_many_are_specks():
+    from spcopyro.results.specks import in_use_text, speck_concepts
+
+    result = _rooms_and_specks()
+    assert speck_concepts(result) == [2, 3]
+    assert in_use_text(result) == "4 concepts in use (2 of them specks)"
+
+
+@pytest.mark.parametrize("source", ["agreement", "marginals"])
+def test_the_speck_line_gives_the_posterior_share_that_holds_them(capsys, source):
+    from spcopyro.cli.concept_listing import print_concepts
+
+    result = _rooms_and_specks(agreement=source == "agreement", marginals=source == "marginals")
+    print_concepts(result)
+    (line,) = [s for s in capsys.readouterr().out.splitlines() if s.startswith("  + ")]
+    where = "agreement.npy" if source == "agreement" else "the marginals"
+    assert line.endswith(
+        f": their cells took them in 30-50% of the 50 kept samples ({where}), "
+        "the other concepts' cells 100%"
+    ), line
+
+
+def test_a_result_without_per_cell_probabilities_lists_its_specks_without_a_share(capsys):
+    from spcopyro.cli.concept_listing import print_concepts
+
+    print_concepts(_rooms_and_specks(agreement=False))
+    (line,) = [s for s in capsys.readouterr().out.splitlines() if s.startswith("  + ")]
+    assert line.endswith("(concepts 2, 3; concepts.json lists them)"), line
+
+
+def test_the_semantic_map_counts_and_describes_the_specks():
+    import matplotlib.pyplot as plt
+
+    from spcopyro.figures.plotting import semantic_map_figure
+
+    fig = semantic_map_figure(_rooms_and_specks())
+    try:
+        title = fig.axes[0].get_title()
+        assert "4 concepts in use (2 of them specks), " in title, title
+        labels = [t.get_text() for ax in fig.axes if ax.get_legend()
+                  for t in ax.get_legend().get_texts()]  # fmt: skip
+        (speck,) = [t for t in labels if "specks of 1 cell" in t]
+        assert speck.endswith("took them in 30-50% of the 50 kept samples (agreement.npy), "
+                              "the other concepts' cells 100%"), speck  # fmt: skip
+    finally:
+        plt.close(fig)
+
+
+def test_fit_counts_the_specks_among_the_concepts_in_use(tmp_path, capsys):
+    """A short original-code fit leaves specks; its summary line counts them as specks."""
+    from spcopyro.cli.main import main
+    from spcopyro.synthetic import HouseSpec, write_synthetic
+
+    house = write_synthetic(
+        tmp_path / "d", seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3)
+    )
+    out = tmp_path / "fit"
+    argv = ["fit", str(house), "--out", str(out), "--sweeps", "20", "--preset", "original-code",
+            "--gamma", "3", "--concepts", "20", "--no-figures"]  # fmt: skip
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    concepts = json.loads((out / "concepts.json").read_text())
+    free = sum(c["cells"] for c in concepts)
+    specks = sum(is_speck(c["cells"], c["words_heard"], free) for c in concepts)
+    assert specks > 0  # the test would say nothing without one
+    (line,) = [s for s in text.splitlines() if s.startswith("fitted ")]
+    assert line.endswith(f"; {len(concepts)} concepts in use ({specks} of them specks)"), line
+    assert "of the 10 kept samples (the marginals)" in text
