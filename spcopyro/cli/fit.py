@@ -54,6 +54,7 @@ from spcopyro.cli.fit_resume import (
 from spcopyro.cli.fit_settings import apply_preset_inference, check_update_args, fit_settings
 from spcopyro.config import SpCoSettings, preset_inference
 from spcopyro.data import House
+from spcopyro.data.footprint import shared_footprints
 from spcopyro.data.model_grid import model_house
 from spcopyro.gibbs.chains import when_chains_start
 from spcopyro.maps import save_map
@@ -162,7 +163,9 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
     keeper = FitCheckpoint(checkpoint_path(staged.out)) if checkpointed else None
     job = FitJob(args, house, settings, options, staged, keeper, map_house=loaded)
     try:
-        with interrupts_raised():  # one a compiled call reported as a SystemError
+        # interrupts_raised: one a compiled call reported as a SystemError; shared_footprints:
+        # the summary's footprint counts are the model data's, spread once
+        with interrupts_raised(), shared_footprints():
             return _fit_staged(job)
     except KeyboardInterrupt as stop:
         if staged.committed:  # the fit a checkpoint of OUT held is complete or replaced

@@ -30,6 +30,7 @@ from spcopyro.data.footprint import (
     SpreadSources,
     footprint_weights,
     free_cell_graph,
+    shared,
     spread_counts,
     spread_sources,
 )
@@ -348,13 +349,18 @@ def cell_counts(
     further = [place_observations(grid, m.positions, snap_distance) for m in obs.modalities]
 
     if footprint_radius:
-        return _with_footprint(
-            cell_counts(grid, obs, feature_scaling=feature_scaling, word_weighting=word_weighting,
-                        snap_distance=snap_distance, vocabulary=vocab, source=source,
-                        word_scaling=word_scaling, warn=warn),
-            grid, obs, features, words, (image_cell, word_cell, [cell for cell, _, _ in further]),
-            footprint_radius, footprint_kernel, footprint_fov,
-        )  # fmt: skip
+        plain = cell_counts(grid, obs, feature_scaling=feature_scaling,
+                            word_weighting=word_weighting, snap_distance=snap_distance,
+                            vocabulary=vocab, source=source, word_scaling=word_scaling,
+                            warn=warn)  # fmt: skip
+        placed = (image_cell, word_cell, [cell for cell, _, _ in further])
+        # within shared_footprints (spcopyro fit), spread once for its summary and model data
+        key = (feature_scaling, word_weighting, snap_distance, vocab, word_scaling,
+               footprint_radius, footprint_kernel, footprint_fov)  # fmt: skip
+        return shared((grid, obs), key, lambda: _with_footprint(
+            plain, grid, obs, features, words, placed, footprint_radius, footprint_kernel,
+            footprint_fov,
+        ))  # fmt: skip
     if warn:
         _warn_scaled_away(obs.image_features, scaled_away, feature_scaling, source)
     image_ok = image_cell >= 0  # [T] bool
@@ -511,13 +517,17 @@ def _with_footprint(
             "(pose_K.csv files give it); leave footprint_fov unset to use the whole disc"
         )
     image_cell, word_cell, further_cells = placed
+    bar = _footprint_bar(grid, radius, (image_cell, word_cell, *further_cells))
     graph = free_cell_graph(grid)
     image_w = footprint_weights(grid, image_cell, radius, kernel, yaw=obs.image_yaw, fov=fov,
-                                graph=graph)  # fmt: skip  # [T, N]
-    word_w = footprint_weights(grid, word_cell, radius, kernel, graph=graph)  # [U, N]
-    further_w = [footprint_weights(grid, c, radius, kernel, graph=graph) for c in further_cells]
+                                graph=graph, advance=bar.update)  # fmt: skip  # [T, N]
+    word_w = footprint_weights(grid, word_cell, radius, kernel, graph=graph,
+                               advance=bar.update)  # fmt: skip  # [U, N]
+    further_w = [footprint_weights(grid, c, radius, kernel, graph=graph, advance=bar.update)
+                 for c in further_cells]  # fmt: skip
     reached = [np.unique(w.indices) for w in (image_w, word_w, *further_w)]
     cells = np.unique(np.concatenate(reached)).astype(np.int64)  # [M]
+    bar.set_postfix_str(f"summing the counts on the {cells.size:,} cells they reach")
     rows = {IMAGES: (image_w, features), WORDS: (word_w, words)}
     for m, w in zip(plain.modalities, further_w, strict=True):
         rows[m.name] = (w, obs.modality(m.name).counts)
@@ -525,7 +535,7 @@ def _with_footprint(
         CellModalityCounts(m.name, m.items, spread_counts(w, obs.modality(m.name).counts, cells))
         for m, w in zip(plain.modalities, further_w, strict=True)
     )
-    return CellCounts(
+    counts = CellCounts(
         cells=cells,
         image_counts=spread_counts(image_w, features, cells),  # [M, K]
         word_counts=spread_counts(word_w, words, cells),  # [M, V]
@@ -535,3 +545,16 @@ def _with_footprint(
         modalities=modalities,
         spread={name: spread_sources(w, x, cells) for name, (w, x) in rows.items()},
     )
+    bar.close()
+    return counts
+
+
+def _footprint_bar(grid: OccupancyGrid, radius: float, placed: tuple[np.ndarray, ...]):
+    """The progress bar of spreading the footprints (:func:`~spcopyro._util.progress.setup_bar`,
+    on a large map) over the distinct observed cells (``placed``: each modality's [T_j] free
+    indices, -1 unplaced)."""
+    from spcopyro._util.progress import setup_bar
+
+    total = sum(int(np.unique(cell[cell >= 0]).size) for cell in placed)
+    return setup_bar(grid.num_free, total, f"{radius:g} m footprints on {grid.num_free:,} free "
+                     "cells", "source")  # fmt: skip

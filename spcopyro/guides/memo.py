@@ -11,6 +11,7 @@ the sums from the memo after a pass (no rounding drift). So the sums always equa
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import NamedTuple
 
 import torch
@@ -50,8 +51,14 @@ class Memo:
     """
 
     def __init__(
-        self, q: torch.Tensor, data: ModelData, config: SpCoConfig, blocks: Blocks
+        self,
+        q: torch.Tensor,
+        data: ModelData,
+        config: SpCoConfig,
+        blocks: Blocks,
+        advance: Callable[[int], None] | None = None,
     ) -> None:
+        """``advance(1)`` is called after each block's statistic (a progress bar's update)."""
         self.data, self.config, self.blocks = data, config, blocks
         self.observed = _observed_index(data, blocks)
         B, L = blocks.num_blocks, q.shape[1]
@@ -64,6 +71,8 @@ class Memo:
         )  # per modality [B_obs, L, K_m]
         for block in range(B):
             self._store(block, *self.block_statistics(q, block))
+            if advance is not None:
+                advance(1)
         self.resum()
 
     def block_statistics(

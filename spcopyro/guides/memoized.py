@@ -64,6 +64,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 import torch
 
+from spcopyro._util.progress import setup_bar
 from spcopyro.config import SpCoConfig
 from spcopyro.distributions import multinomial_counts_log_prob
 from spcopyro.guides.blocks import Blocks, grid_blocks
@@ -266,9 +267,12 @@ def exact_elbo(
     return float(total - kl_to_prior(factors, data, config) + entropy)
 
 
-def chunked_coefficients(data: ModelData, config: SpCoConfig) -> torch.Tensor:
+def chunked_coefficients(
+    data: ModelData, config: SpCoConfig, advance: Callable[[int], None] | None = None
+) -> torch.Tensor:
     """:func:`~spcopyro.likelihood.multinomial_coefficients` summed over chunks of
-    observed cells (the dense one holds several ``[M, K_m]`` temporaries at once)."""
+    observed cells (the dense one holds several ``[M, K_m]`` temporaries at once);
+    ``advance(1)`` after each chunk (:func:`_coefficient_chunks` of them)."""
     total = torch.zeros((), dtype=DTYPE)
     for modality in data.modalities:
         if config.uses(modality.name):
@@ -276,7 +280,18 @@ def chunked_coefficients(data: ModelData, config: SpCoConfig) -> torch.Tensor:
             for lo in range(0, modality.counts.shape[0], rows):
                 counts = modality.counts[lo : lo + rows]  # [c, K_m]
                 total += multinomial_counts_log_prob(counts, torch.zeros_like(counts)).sum()
+                if advance is not None:
+                    advance(1)
     return total
+
+
+def _coefficient_chunks(data: ModelData, config: SpCoConfig) -> int:
+    """How many chunks :func:`chunked_coefficients` sums."""
+    return sum(
+        -(-m.counts.shape[0] // max(1, CHUNK // m.counts.shape[-1]))
+        for m in data.modalities
+        if config.uses(m.name)
+    )
 
 
 def compact_initial_q(
@@ -354,9 +369,12 @@ def start_state(
     q: torch.Tensor,
     options: StochasticOptions,
     blocks: Blocks | None = None,
+    progress: bool | None = None,
 ) -> StochasticState:
     """``init``: the memo and the global factors of q ``[N, L]`` (:func:`compact_initial_q`);
-    ``blocks`` overrides the tiles of ``options.block_size``."""
+    ``blocks`` overrides the tiles of ``options.block_size``. On a large map a progress bar
+    counts the memo's blocks and the coefficients' chunks
+    (:func:`~spcopyro._util.progress.setup_bar`; ``progress`` False: none)."""
     if q.shape != (data.num_free, config.num_concepts):
         raise ValueError(
             f"q must be [{data.num_free}, {config.num_concepts}], got {tuple(q.shape)}"
@@ -366,9 +384,13 @@ def start_state(
         raise ValueError(
             f"blocks were made for {blocks.block_of.shape[0]} cells, the data has {data.num_free}"
         )
-    memo = Memo(q, data, config, blocks)
+    steps = blocks.num_blocks + _coefficient_chunks(data, config)
+    bar = setup_bar(data.num_free, steps, f"memoized VI setup on {data.num_free:,} cells", "step",
+                    progress)  # fmt: skip
+    memo = Memo(q, data, config, blocks, advance=bar.update)
     factors = update_factors(memo.statistics(), data, config, options.pi_family)
-    coefficients = chunked_coefficients(data, config)
+    coefficients = chunked_coefficients(data, config, advance=bar.update)
+    bar.close()
     scratch = None
     if compiled_path(options.backend) is not None:
         scratch = np.full(data.num_free, -1, dtype=np.int64)
@@ -448,7 +470,7 @@ def run_stochastic(
         raise ValueError(f"passes must be an integer >= 1, got {passes!r}")
     warn_unfinished_annealing(options.anneal_passes, passes, "anneal_passes", "pass", resume)
     run = drive(
-        start_state(data, config, q, options, blocks),
+        start_state(data, config, q, options, blocks, progress),
         lambda state, gamma: step(state, data, config, gamma, options, generator), passes,
         gamma=config.gamma, anneal=options.anneal_passes, tolerance=options.tolerance, thin=thin,
         labels=lambda state: state.q.argmax(-1), num_concepts=config.num_concepts,
