@@ -115,3 +115,15 @@ def test_fit_counts_the_specks_among_the_concepts_in_use(tmp_path, capsys):
     (line,) = [s for s in text.splitlines() if s.startswith("fitted ")]
     assert line.endswith(f"; {len(concepts)} concepts in use ({specks} of them specks)"), line
     assert "of the 10 kept samples (the marginals)" in text
+
+
+def test_concepts_json_marks_the_specks_with_their_support(tmp_path):
+    """concepts.json listed a one-cell speck like a room (only "no words heard here" told)."""
+    _rooms_and_specks().save(tmp_path)
+    concepts = json.loads((tmp_path / "concepts.json").read_text())
+    assert [(c["concept"], c["speck"], c["support"]) for c in concepts] == [
+        (0, False, 1.0),
+        (1, False, 1.0),
+        (2, True, 0.3),
+        (3, True, 0.5),
+    ]

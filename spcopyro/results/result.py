@@ -32,6 +32,7 @@ from spcopyro.inference.protocol import InferenceOutput, Trace
 from spcopyro.maps import OccupancyGrid, load_map, save_map
 from spcopyro.results.concept_words import NO_WORDS, distinctive_items, lift, ranked
 from spcopyro.results.semantic_map import UnknownWordError, word_index, word_key
+from spcopyro.results.specks import with_speck_fields
 from spcopyro.results.where import (
     DEFAULT_WHERE_PRIOR,
     WHERE_PRIORS,
@@ -410,7 +411,8 @@ class SpCoResult:
         """Write the result into ``out_dir``.
 
         Files: ``labels.npy`` ([H, W] int64, -1 off free space, concept ids >= 0, map image row
-        order; the point estimate), ``concepts.json`` (per concept: cells, pi, top words),
+        order; the point estimate), ``concepts.json`` (per concept: cells, pi, top words,
+        whether it is a speck and the posterior's support, :mod:`spcopyro.results.specks`),
         ``trace.csv`` (iteration, objective, concepts in use, seconds), ``map.yaml``/``map.pgm``
         (the occupancy grid), ``result.npz`` (everything needed by :meth:`load`),
         ``config.json`` (:meth:`settings_json`). Figures are written by
@@ -429,7 +431,8 @@ class SpCoResult:
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         np.save(out / "labels.npy", self.label_image())
-        (out / "concepts.json").write_text(json.dumps(self.concepts(n_words=10), indent=2) + "\n")
+        concepts = with_speck_fields(self, self.concepts(n_words=10))  # + speck, support
+        (out / "concepts.json").write_text(json.dumps(concepts, indent=2) + "\n")
         (out / "config.json").write_text(json.dumps(self.settings_json(), indent=2) + "\n")
         trace = self.trace
         with open(out / "trace.csv", "w", newline="") as f:

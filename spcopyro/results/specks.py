@@ -31,7 +31,7 @@ from spcopyro.results.concept_words import is_speck
 if TYPE_CHECKING:
     from spcopyro.results.result import SpCoResult
 
-__all__ = ["in_use_text", "speck_concepts", "speck_support", "support_text"]
+__all__ = ["in_use_text", "speck_concepts", "speck_support", "support_text", "with_speck_fields"]
 
 
 def speck_concepts(result: SpCoResult) -> list[int]:
@@ -106,3 +106,17 @@ def support_text(result: SpCoResult, concepts: list[int]) -> str | None:
         where = "agreement.npy" if result.agreement is not None else "the marginals"
         return f"{cells} took {them} in {share} of the {int(samples)} kept samples ({where}){rest}"
     return f"{cells} hold {them} with probability {share} (the method's marginals){rest}"
+
+
+def with_speck_fields(result: SpCoResult, concepts: list[dict[str, object]]) -> list[dict]:
+    """``concepts`` (:meth:`~spcopyro.results.result.SpCoResult.concepts`) as ``concepts.json``
+    writes them: each entry with ``speck`` (bool: a speck, not a place) and ``support`` (the mean
+    over its cells of p(C_i = concept), :func:`speck_support`; None without per-cell
+    probabilities), so that a reader of the file can tell a one-cell speck from a room."""
+    ids = [int(c["concept"]) for c in concepts]  # type: ignore[call-overload]
+    specks = set(speck_concepts(result))
+    support = speck_support(result, ids)
+    return [
+        {**c, "speck": i in specks, "support": None if support is None else float(support[k])}
+        for k, (i, c) in enumerate(zip(ids, concepts, strict=True))
+    ]
