@@ -130,7 +130,7 @@ def _silent_speck() -> SpCoResult:
     """two_rooms, where words were heard in the two rooms but none on the speck (concept 2)."""
     result = two_rooms()
     totals = np.array([[3.0, 3.0, 5.0], [2.0, 2.0, 4.0], [0.0, 0.0, 0.0]])  # [L, 1 + 2]
-    return SpCoResult(**{**result.__dict__, "concept_totals": totals})
+    return dataclasses.replace(result, concept_totals=totals)
 
 
 def test_a_concept_where_no_word_was_heard_says_so(capsys):
@@ -164,7 +164,7 @@ def test_one_cell_and_one_word_are_singular_in_the_listing(capsys):
     """A one-cell concept where one utterance was heard printed '1 cells    1 words'."""
     result = two_rooms()
     totals = np.array([[3.0, 3.0, 5.0], [2.0, 2.0, 4.0], [1.0, 1.0, 1.0]])  # concept 2: 1 cell
-    print_concepts(SpCoResult(**{**result.__dict__, "concept_totals": totals}))
+    print_concepts(dataclasses.replace(result, concept_totals=totals))
     lines = capsys.readouterr().out.splitlines()
     assert "  concept   2:      1 cell     1 word   kitchen 0.70" in lines[-1]
     assert "  concept   1:    149 cells    4 words  bed 0.60" in lines[-2]  # the columns align
@@ -245,7 +245,7 @@ def test_where_figure_draws_the_answer_over_the_grey_map():
     assert not where_figure(result, answer).axes[0].collections  # no outline needed
     # with marginals: the per-cell probability as a colour scale and the regions outlined
     marginals = np.eye(3)[result.labels] * 0.8 + 0.2 / 3  # [N, L]
-    soft = SpCoResult(**{**result.__dict__, "marginals": marginals})
+    soft = dataclasses.replace(result, marginals=marginals)
     figure = where_figure(soft, soft.where("bed"))
     ax = figure.axes[0]
     assert len(ax.images) == 2  # the grey map, then the probability
