@@ -32,14 +32,29 @@ def spreads(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     return calls
 
 
-def test_fit_spreads_the_footprints_once(tmp_path, spreads: list[int], capsys) -> None:
+def test_fit_spreads_the_footprints_once(
+    tmp_path, spreads: list[int], capsys, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """``spcopyro fit``'s summary line "observed cells ... within their 1 m footprints" and its
     model data read the same spread counts: computed once (twice before, 24 s each at 10^6
-    cells), and the summary's number is still the fit's observed cells."""
+    cells), and the summary's number is still the fit's observed cells. Once fitted, the spread
+    counts are not kept while the outputs are written."""
+    import spcopyro.cli.fit as fit_module
+    import spcopyro.data.footprint as footprint_module
+
+    kept_while_writing: list[int] = []
+    write = fit_module._write
+
+    def writing(*args, **kwargs):
+        kept_while_writing.append(len(footprint_module._SHARED.get()))
+        return write(*args, **kwargs)
+
+    monkeypatch.setattr(fit_module, "_write", writing)
     out = tmp_path / "out"
     argv = ["fit", "--out", str(out), "--sweeps", "2", "--refine", "never", "--no-figures"]
     assert main(argv) == 0
     assert len(spreads) == 1, f"footprints spread {len(spreads)} times"
+    assert kept_while_writing == [0]
     spreads.clear()
     printed = capsys.readouterr().out
     line = next(x for x in printed.splitlines() if x.startswith("observed cells"))

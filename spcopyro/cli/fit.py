@@ -54,7 +54,7 @@ from spcopyro.cli.fit_resume import (
 from spcopyro.cli.fit_settings import apply_preset_inference, check_update_args, fit_settings
 from spcopyro.config import SpCoSettings, preset_inference
 from spcopyro.data import House
-from spcopyro.data.footprint import shared_footprints
+from spcopyro.data.footprint import release_shared_footprints, shared_footprints
 from spcopyro.data.model_grid import model_house
 from spcopyro.gibbs.chains import when_chains_start
 from spcopyro.maps import save_map
@@ -329,6 +329,7 @@ def _fit(
             chain_results = refits
         kept = best_chain(refits)
         result = refits[kept]
+    release_shared_footprints()  # the spread counts are no fit's any more
     return Fitted(result, chain_results, chains, kept, diagnostics, _clock() - start)
 
 

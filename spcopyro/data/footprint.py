@@ -77,8 +77,9 @@ __all__ = [
     "footprint_weights",
     "free_cell_graph",
     "spread_counts",
-    "spread_sources",
+    "release_shared_footprints",
     "shared_footprints",
+    "spread_sources",
 ]
 
 FootprintKernel = Literal["uniform", "gaussian"]
@@ -101,6 +102,14 @@ def shared_footprints() -> Iterator[None]:
         yield
     finally:
         _SHARED.reset(token)
+
+
+def release_shared_footprints() -> None:
+    """Forget what :func:`shared_footprints` kept so far (the fit that read it is done: its spread
+    counts, 1.7 GB at 10^6 cells, are not held through the fit's outputs)."""
+    cache = _SHARED.get()
+    if cache is not None:
+        cache.clear()
 
 
 def shared(held: tuple[object, ...], key: tuple[object, ...], compute: Callable[[], _T]) -> _T:
