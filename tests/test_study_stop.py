@@ -346,3 +346,45 @@ def test_a_study_killed_while_its_forkserver_imports_leaves_no_ready_file_for_go
     subprocess.run([sys.executable, "-c", NEXT_START], capture_output=True, text=True,
                    timeout=300, check=True, env=env, cwd=tmp_path)  # fmt: skip
     assert not left[0].exists()
+
+
+STOPPED_AT_EXIT = """
+import atexit, os, threading, time
+import multiprocessing.forkserver as forkserver
+
+from spcopyro.study.local_cluster import _running, start_forkserver, wait_for_forkserver
+
+if __name__ == "__main__":
+    start_forkserver()
+    assert wait_for_forkserver(threading.Event())  # its import ended, as after a study's cells
+    server = forkserver._forkserver._forkserver_pid
+    child = os.fork()
+    if child == 0:  # a process forked from this one runs its inherited exit handlers
+        atexit._run_exitfuncs()
+        os._exit(0)
+    os.waitpid(child, 0)
+    time.sleep(1.0)  # a SIGKILL the child sent lands in a moment: it would have by now
+    after_child = _running(server)
+    atexit._run_exitfuncs()  # what this process's exit runs first (the spcopyro command's too)
+    deadline = time.monotonic() + 5.0  # killed, not waited for: it ends in a moment
+    while _running(server) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    print(server, after_child, _running(server), flush=True)
+"""
+
+
+def test_the_forkserver_ends_with_the_study_process():
+    """The forkserver exited on its pipe's end-of-file once the study's process had ended, then
+    tore down an interpreter holding torch: it outlived the study by about 1 s. It is killed by
+    the study process's exit handlers now, and not by those of a process forked from it."""
+    pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    from spcopyro.study import local_cluster
+
+    if not local_cluster.forkserver_available():
+        pytest.skip("no forkserver on this platform")
+    done = subprocess.run([sys.executable, "-c", STOPPED_AT_EXIT], capture_output=True,
+                          text=True, timeout=300)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    server, after_child, after_exit = done.stdout.split()
+    assert (after_child, after_exit) == ("True", "False"), done.stdout
+    assert not local_cluster._running(int(server))
