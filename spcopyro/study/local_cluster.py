@@ -228,23 +228,12 @@ def remove_stale_ready_files(folder: str) -> None:
         owner = os.path.basename(path).removeprefix(READY_PREFIX).split("-", 1)[0]
         try:
             made = os.path.getmtime(path)
-            if (_made_by_running(int(owner), made) if owner.isdigit()
+            if (_running(int(owner), made) if owner.isdigit()
                     else time.time() - made < UNOWNED_STALE_SECONDS):  # fmt: skip
                 continue
             os.remove(path)
         except OSError:  # removed meanwhile, or not this user's
             continue
-
-
-def _made_by_running(pid: int, made: float) -> bool:
-    """Whether process ``pid`` runs and started before ``made`` (a file's mtime, seconds)."""
-    import psutil
-
-    try:
-        process = psutil.Process(pid)
-        return process.status() != psutil.STATUS_ZOMBIE and process.create_time() <= made + 1.0
-    except psutil.Error:
-        return False
 
 
 def wait_for_forkserver(cancelled: threading.Event, poll: float = 0.02) -> bool:
@@ -268,12 +257,17 @@ def wait_for_forkserver(cancelled: threading.Event, poll: float = 0.02) -> bool:
     return True
 
 
-def _running(pid: int) -> bool:
-    """Whether process ``pid`` runs (not ended, nor a zombie not reaped yet)."""
+def _running(pid: int, made: float | None = None) -> bool:
+    """Whether process ``pid`` runs (not ended, nor a zombie not reaped yet) and, given
+    ``made`` (a file's mtime, seconds), started before it (1 s of slack): the process that
+    made the file, not a later one given its pid."""
     import psutil  # a dependency of dask.distributed
 
     try:
-        return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
+        process = psutil.Process(pid)
+        return process.status() != psutil.STATUS_ZOMBIE and (
+            made is None or process.create_time() <= made + 1.0
+        )
     except psutil.Error:
         return False
 
