@@ -4,6 +4,7 @@ against what the code does or what the docs' tables say."""
 
 from __future__ import annotations
 
+import inspect
 import re
 from pathlib import Path
 
@@ -44,3 +45,20 @@ def test_prior_worlds_draw_pi_from_its_dirichlet_as_notebook_1_says():
     text = _flat(_markdown("01_generative_model"))
     assert "left out of the model tilts $\\pi$ towards few large concepts" not in text
     assert "`sample_prior_world` draws $\\pi$ from its Dirichlet" in text, text[-3000:]
+
+
+def test_notebook_2_names_the_point_estimate_spcopyro_fit_reports():
+    """Notebook 2 said a result is the visited state of highest log joint; that is fit_house's
+    default, but the presets auto and coarse (spcopyro fit's) report the variation-of-information
+    point estimate over one chain's late label maps."""
+    from spcopyro.config import PRESET_INFERENCE
+    from spcopyro.fit.house import fit_house
+
+    default = inspect.signature(fit_house).parameters["point_estimate"].default
+    assert default == "map-visited"
+    assert PRESET_INFERENCE["coarse"]["point_estimate"] == "vi"
+    assert PRESET_INFERENCE["auto"]["point_estimate"] == "vi"
+    text = _flat(_markdown("02_gibbs_sampling"))
+    bullet = text[text.index("the **result** (`SpCoResult`)") :][:900]
+    assert 'point_estimate="map-visited"' in bullet, bullet
+    assert 'point_estimate="vi"' in bullet and "`coarse`" in bullet, bullet
