@@ -14,3 +14,56 @@ def on_a_cluster(monkeypatch: pytest.MonkeyPatch) -> None:
     from spcopyro.study import run as study_run
 
     monkeypatch.setattr(study_run, "cluster_pays", lambda predicted, workers: True)
+
+
+SMALL_HOUSE: dict[str, object] = {
+    "synthetic": "default", "height": 24, "width": 30, "num_rooms": 2, "num_trials": 2,
+    "min_room_size": 8,
+}  # fmt: skip
+"""The studies' small synthetic house (24 x 30 cells, 2 rooms, 2 trials): a cell of a few
+sweeps on it takes well under a second."""
+
+
+def small_house(**fields: object) -> dict[str, object]:
+    """:data:`SMALL_HOUSE` with ``fields`` (a data table of ``study_from_dict``): a field given
+    keeps its place, a new one comes last, and None leaves the field out (HouseSpec's own
+    default)."""
+    house = {**SMALL_HOUSE, **fields}
+    return {key: value for key, value in house.items() if value is not None}
+
+
+def small_house_toml(table: str = "small", **fields: object) -> str:
+    """The ``[data.TABLE]`` table of :func:`small_house` as a study file writes it."""
+    import json
+
+    lines = [f"[data.{table}]"]
+    lines += [f"{key} = {json.dumps(value)}" for key, value in small_house(**fields).items()]
+    return "\n".join(lines) + "\n"
+
+
+def one_variant_study(name: str, seeds: int = 2, sweeps: int = 2, **house: object):
+    """A study of one variant (``paper-dp``) on :func:`small_house` (``house``'s fields)."""
+    from spcopyro.study.spec import study_from_dict
+
+    return study_from_dict({
+        "study": {"name": name, "seeds": seeds, "sweeps": sweeps},
+        "variants": {"a": {"preset": "paper-dp"}},
+        "data": {"small": small_house(**house)},
+    })  # fmt: skip
+
+
+def fake_cluster(monkeypatch: pytest.MonkeyPatch, start: type) -> None:
+    """``run_study(workers > 1)``'s LocalCluster replaced by ``start`` (a stand-in of
+    :class:`~spcopyro.study.local_cluster.ClusterStart`: ``start(workers, on_ready)``,
+    ``wait()``, ``close(now=...)``), with a stand-in ``distributed`` module (the optional
+    dependency) whose ``as_completed`` yields the futures as given."""
+    import sys
+    import types
+
+    from spcopyro.study import run as study_run
+
+    fake = types.ModuleType("distributed")
+    fake.as_completed = iter  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "distributed", fake)
+    monkeypatch.setattr(study_run, "dask_installed", lambda: True)
+    monkeypatch.setattr(study_run, "ClusterStart", start)

@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from study_setup import on_a_cluster
+from study_setup import on_a_cluster, small_house, small_house_toml
 
 from spcopyro._util.folder_lock import LOCK_NAME
 from spcopyro.cli.main import main
@@ -47,23 +47,12 @@ gamma = 3.0
 [variants.dp]
 preset = "paper-dp"
 
-[data.small]
-synthetic = "default"
-height = 24
-width = 30
-num_rooms = 2
-num_trials = 2
-min_room_size = 8
-heldout = true
-"""
+""" + small_house_toml(heldout=True)
 
 TINY_DICT = {
     "study": {"name": "tiny", "seeds": 2, "sweeps": 8, "baselines": ["F-geometry"]},
     "variants": {"og3": {"preset": "original-code", "gamma": 3.0}, "dp": {"preset": "paper-dp"}},
-    "data": {
-        "small": {"synthetic": "default", "height": 24, "width": 30, "num_rooms": 2,
-                  "num_trials": 2, "min_room_size": 8, "heldout": True},
-    },
+    "data": {"small": small_house(heldout=True)},
 }  # fmt: skip
 TIMING = {"seconds", "cpu_seconds"}
 WORKER_STATE = """(

@@ -12,6 +12,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from study_setup import small_house_toml
+
 from spcopyro._util import collector
 from spcopyro.cli.main import main
 
@@ -26,14 +28,7 @@ sweeps = 2
 [variants.a]
 preset = "original-code"
 
-[data.small]
-synthetic = "default"
-height = 24
-width = 30
-num_rooms = 2
-num_trials = 1
-min_room_size = 8
-"""
+""" + small_house_toml(num_trials=1)
 
 
 def _recording(monkeypatch) -> list[str]:

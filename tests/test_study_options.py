@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from study_setup import small_house_toml
 
 from spcopyro.cli.main import main
 from spcopyro.maps import OccupancyGrid
@@ -76,13 +77,7 @@ baselines = ["F-geometry"]
 [variants.a]
 preset = "original-code"
 
-[data.small]
-synthetic = "default"
-height = 24
-width = 30
-num_rooms = 2
-min_room_size = 8
-"""
+""" + small_house_toml(num_trials=None)
 
 
 @pytest.mark.parametrize(

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import pytest
-from study_setup import on_a_cluster
+from study_setup import fake_cluster, on_a_cluster, one_variant_study, small_house, small_house_toml
 
 from spcopyro.study import run as study_run
 from spcopyro.study.cells import cells_of
@@ -17,8 +17,7 @@ from spcopyro.study.order import (
 from spcopyro.study.run import run_study
 from spcopyro.study.spec import study_from_dict
 
-SMALL = {"synthetic": "default", "height": 24, "width": 30, "num_rooms": 2, "num_trials": 2,
-         "min_room_size": 8}  # fmt: skip
+SMALL = small_house()
 
 
 def _methods_study(**data):
@@ -160,9 +159,7 @@ def test_dry_run_predicts_each_group_and_the_whole_run(tmp_path, capsys, monkeyp
     path.write_text(
         '[study]\nname = "order"\nseeds = 2\nmethods = ["gibbs", "svi"]\n'
         "sweeps = { gibbs = 2000, svi = 3000 }\n"  # 18 s: long enough for a LocalCluster
-        '[variants.dp]\npreset = "paper-dp"\n'
-        '[data.small]\nsynthetic = "default"\nheight = 24\nwidth = 30\nnum_rooms = 2\n'
-        "num_trials = 2\nmin_room_size = 8\n"
+        '[variants.dp]\npreset = "paper-dp"\n' + small_house_toml()
     )
     assert main(["study", str(path), "--out", str(tmp_path / "dry"), "--dry-run",
                  "--workers", "2"]) == 0  # fmt: skip
@@ -225,11 +222,8 @@ def test_a_short_study_asked_for_workers_starts_no_cluster(tmp_path, monkeypatch
         def close(self, **kwargs):
             pass
 
-    pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
-    monkeypatch.setattr(study_run, "ClusterStart", FakeStart)
-    study = study_from_dict({"study": {"name": "two", "seeds": 2, "sweeps": 30},
-                             "variants": {"a": {"preset": "paper-dp"}},
-                             "data": {"small": SMALL}})  # fmt: skip
+    fake_cluster(monkeypatch, FakeStart)
+    study = one_variant_study("two", seeds=2, sweeps=30)
     lines: list[str] = []
     done = run_study(study, tmp_path / "out", workers=2, progress=False, report=lines.append)
     assert started == []

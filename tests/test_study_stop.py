@@ -12,17 +12,12 @@ import subprocess
 import sys
 import threading
 import time
-import types
 
 import pytest
-from study_setup import on_a_cluster
+from study_setup import fake_cluster, on_a_cluster, one_variant_study
 
 from spcopyro.study import run as study_run
 from spcopyro.study.run import run_study
-from spcopyro.study.spec import study_from_dict
-
-SMALL = {"synthetic": "default", "height": 24, "width": 30, "num_rooms": 2, "num_trials": 1,
-         "min_room_size": 8}  # fmt: skip
 
 
 def test_an_interrupted_dask_run_closes_its_cluster_now(tmp_path, monkeypatch):
@@ -43,16 +38,10 @@ def test_an_interrupted_dask_run_closes_its_cluster_now(tmp_path, monkeypatch):
     def interrupted(cell):
         raise KeyboardInterrupt
 
-    fake = types.ModuleType("distributed")
-    fake.as_completed = iter  # type: ignore[attr-defined]
-    monkeypatch.setitem(sys.modules, "distributed", fake)  # dask.distributed is optional
-    monkeypatch.setattr(study_run, "dask_installed", lambda: True)
-    monkeypatch.setattr(study_run, "ClusterStart", FakeStart)
+    fake_cluster(monkeypatch, FakeStart)
     on_a_cluster(monkeypatch)  # 2 short cells: the cluster path all the same
     monkeypatch.setattr(study_run.evaluate, "run_cell", interrupted)
-    study = study_from_dict({"study": {"name": "stop", "seeds": 2, "sweeps": 2},
-                             "variants": {"a": {"preset": "paper-dp"}},
-                             "data": {"small": SMALL}})  # fmt: skip
+    study = one_variant_study("stop", seeds=2, num_trials=1)
     with pytest.raises(KeyboardInterrupt):
         run_study(study, tmp_path / "out", workers=2, progress=False)
     assert closes == [{"now": True}]
@@ -114,15 +103,9 @@ def test_a_run_whose_cells_all_ran_here_does_not_wait_for_the_cluster(tmp_path, 
         def close(self, **kwargs):
             calls.append("close")
 
-    fake = types.ModuleType("distributed")
-    fake.as_completed = iter  # type: ignore[attr-defined]
-    monkeypatch.setitem(sys.modules, "distributed", fake)
-    monkeypatch.setattr(study_run, "dask_installed", lambda: True)
-    monkeypatch.setattr(study_run, "ClusterStart", FakeStart)
+    fake_cluster(monkeypatch, FakeStart)
     on_a_cluster(monkeypatch)  # 2 short cells: the cluster path all the same
-    study = study_from_dict({"study": {"name": "here", "seeds": 2, "sweeps": 2},
-                             "variants": {"a": {"preset": "paper-dp"}},
-                             "data": {"small": SMALL}})  # fmt: skip
+    study = one_variant_study("here", seeds=2, num_trials=1)
     done = run_study(study, tmp_path / "out", workers=2, progress=False)
     assert (done.ran, done.ran_here, done.failed) == (2, 2, 0)
     assert calls == ["close"]
@@ -144,14 +127,8 @@ def test_a_run_with_one_cell_left_starts_no_cluster(tmp_path, monkeypatch):
         def close(self, **kwargs):
             pass
 
-    fake = types.ModuleType("distributed")
-    fake.as_completed = iter  # type: ignore[attr-defined]
-    monkeypatch.setitem(sys.modules, "distributed", fake)
-    monkeypatch.setattr(study_run, "dask_installed", lambda: True)
-    monkeypatch.setattr(study_run, "ClusterStart", FakeStart)
-    study = study_from_dict({"study": {"name": "one", "seeds": 1, "sweeps": 2},
-                             "variants": {"a": {"preset": "paper-dp"}},
-                             "data": {"small": SMALL}})  # fmt: skip
+    fake_cluster(monkeypatch, FakeStart)
+    study = one_variant_study("one", seeds=1, num_trials=1)
     lines: list[str] = []
     done = run_study(study, tmp_path / "out", workers=2, progress=False, report=lines.append)
     assert started == []
@@ -243,16 +220,10 @@ def test_a_ctrl_c_that_leaves_the_import_lock_held_does_not_hang_the_close(
             raise KeyboardInterrupt
         return real_run_cell(cell)
 
-    fake = types.ModuleType("distributed")
-    fake.as_completed = iter  # type: ignore[attr-defined]
-    monkeypatch.setitem(sys.modules, "distributed", fake)
-    monkeypatch.setattr(study_run, "dask_installed", lambda: True)
-    monkeypatch.setattr(study_run, "ClusterStart", FakeStart)
+    fake_cluster(monkeypatch, FakeStart)
     on_a_cluster(monkeypatch)  # 2 short cells: the cluster path all the same
     monkeypatch.setattr(study_run.evaluate, "run_cell", run_cell)
-    study = study_from_dict({"study": {"name": "locked", "seeds": 2, "sweeps": 2},  # a cluster
-                             "variants": {"a": {"preset": "paper-dp"}},
-                             "data": {"small": SMALL}})  # fmt: skip
+    study = one_variant_study("locked", seeds=2, num_trials=1)  # a cluster
     try:
         if interrupted:
             with pytest.raises(KeyboardInterrupt):

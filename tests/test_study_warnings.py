@@ -11,6 +11,7 @@ import warnings
 from pathlib import Path
 
 import pytest
+from study_setup import small_house_toml
 
 from spcopyro._util import messages
 from spcopyro.study import evaluate
@@ -35,14 +36,7 @@ gamma = 0.5
 preset = "original-code"
 gamma = 3.0
 
-[data.small]
-synthetic = "default"
-height = 24
-width = 30
-num_rooms = 2
-num_trials = 1
-min_room_size = 8
-"""
+""" + small_house_toml(num_trials=1)
 LOW_GAMMA = "gamma = 0.5 is below the Potts critical coupling"
 
 
