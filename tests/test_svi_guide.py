@@ -303,3 +303,55 @@ def test_a_step_size_that_diverges_is_one_clear_error(small):
     with pytest.raises(ValueError, match=said):
         fit_svi(data, config, 30, q=q, generator=torch.Generator().manual_seed(0), progress=False,
                 options=SVIOptions(learning_rate=1000.0, anneal_iterations=0))  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def sparse_l120():
+    """The unit tests' house under paper-dp (L = 120, gamma 4, beta 500): the case whose q
+    stays at mean field's disordered fixed point under SVI (docs/variational.md)."""
+    house = make_house(
+        seed=1, spec=HouseSpec(height=24, width=30, num_rooms=2, num_trials=2, min_room_size=8)
+    )
+    settings = preset("paper-dp")
+    _, data = prepare_model_data(house, settings)
+    return data, settings.model
+
+
+def mean_entropy_share(q: torch.Tensor) -> float:
+    """Mean entropy per cell of q ``[N, L]`` as a share of log L."""
+    q = q.to(torch.float64)
+    return float(-(q * q.clamp_min(1e-300).log()).sum(-1).mean()) / np.log(q.shape[-1])
+
+
+def test_a_fit_whose_q_ends_near_uniform_says_so(sparse_l120, caplog):
+    """At L = 120 and gamma 4 < L / D = 30 the near-uniform start (label_smoothing 0.9) and the
+    annealing stay in the disordered fixed point: q ends flat, and the fit now says so (it
+    returned flat marginals silently: the map, their argmax, close to arbitrary)."""
+    data, config = sparse_l120
+    q0 = initial_q(data, config, torch.Generator().manual_seed(0))
+    with caplog.at_level("WARNING", logger="spcopyro"):
+        run = fit_svi(data, config, 30, q=q0, generator=torch.Generator().manual_seed(0),
+                      options=SVIOptions(anneal_iterations=10), progress=False)  # fmt: skip
+    assert mean_entropy_share(run.q) > 0.99
+    flat = [r.getMessage() for r in caplog.records if "ended near uniform" in r.getMessage()]
+    assert len(flat) == 1, caplog.text
+    assert "gamma 4 < L / D = 30" in flat[0] and "label_smoothing=0.05" in flat[0], flat[0]
+
+
+def test_a_warm_start_kept_by_small_smoothing_stays_ordered_and_is_not_warned(sparse_l120, caplog):
+    """CAVI's ordered q, kept by label_smoothing 0.05, stays ordered under SVI (no warning); the
+    same start smoothed by the default 0.9 falls to the disordered fixed point."""
+    data, config = sparse_l120
+    q0 = initial_q(data, config, torch.Generator().manual_seed(0))
+    cavi = run_variational(data, config, 50, options=VariationalOptions(), q=q0, progress=False)
+    assert mean_entropy_share(cavi.q) < 0.05
+    ends = {}
+    for smoothing in (0.05, 0.9):
+        caplog.clear()
+        with caplog.at_level("WARNING", logger="spcopyro"):
+            options = SVIOptions(anneal_iterations=0, label_smoothing=smoothing)
+            run = fit_svi(data, config, 10, q=cavi.q.to(DTYPE), progress=False,
+                          generator=torch.Generator().manual_seed(0), options=options)  # fmt: skip
+        ends[smoothing] = (mean_entropy_share(run.q), "ended near uniform" in caplog.text)
+    assert ends[0.05][0] < 0.1 and not ends[0.05][1], ends
+    assert ends[0.9][0] > 0.9 and ends[0.9][1], ends

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import logging
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -34,8 +35,14 @@ from spcopyro.guides.mean_field import MeanFieldGuide
 from spcopyro.guides.run import VariationalRun, initial_q, remaining, resumed
 from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
-from spcopyro.inference.schedule import warn_unfinished_annealing
+from spcopyro.inference.schedule import short_runs_meant_now, warn_unfinished_annealing
 from spcopyro.model import ModelData, spcomapping_model
+
+logger = logging.getLogger("spcopyro")
+
+FLAT_Q_SHARE = 0.9
+"""An SVI fit whose q(C) has a mean entropy per cell of at least this share of log L ends with a
+warning (:func:`warn_flat_q`): its map is the argmax of nearly flat marginals."""
 
 
 @dataclass(frozen=True)
@@ -63,8 +70,10 @@ class SVIOptions:
             first and the domains grow from them.
         label_smoothing: s in the starting logits ``log((1 - s) q0 + s / L)``. The default 0.9
             starts near uniform with a small random tilt (the random one-hot q0 of
-            :func:`~spcopyro.guides.run.initial_q`), which is what lets annealing work;
-            use a small value (0.01-0.1) to keep a warm start's ``init_labels``.
+            :func:`~spcopyro.guides.run.initial_q`), which is what lets annealing work at
+            small L (8); at L = 120 with sparse observations that start stays at mean field's
+            disordered fixed point (:func:`warn_flat_q`). Use a small value (0.01-0.1) to keep
+            a warm start's ``init_labels``.
         bound: the concentrations' constraint, ``"prior"`` (above the prior's) or ``"zero"``
             (positive): see :class:`~spcopyro.guides.mean_field.MeanFieldGuide`.
         tolerance: stop once the mean ELBO estimate of the last ``window`` steps at full gamma
@@ -250,7 +259,49 @@ def fit_svi(
             marginals=lambda state: state.guide.marginals().detach(),
         )  # fmt: skip
         guide = run.state.guide
-        return VariationalRun.of(run, guide.marginals(), guide.factors())
+        q = guide.marginals()  # [N, L]
+        warn_flat_q(q, config, options, resumed=resume is not None)
+        return VariationalRun.of(run, q, guide.factors())
+
+
+def warn_flat_q(q: torch.Tensor, config: SpCoConfig, options: SVIOptions, resumed: bool) -> bool:
+    r"""Warn (logger ``"spcopyro"``) when ``q`` ``[N, L]`` ends near uniform: a mean entropy
+    per cell of at least :data:`FLAT_Q_SHARE` of :math:`\log L`. Returns whether it warned
+    (never inside :func:`~spcopyro.inference.schedule.short_runs_meant`).
+
+    Why it happens (docs/variational.md, the SVI section): away from the observations the
+    mean-field update of a cell is :math:`q_i \propto \exp(E\log\pi + \gamma \sum_{j \sim i}
+    q_j)`; at nearly uniform neighbours its tilt shrinks by about :math:`\gamma D / L` per
+    update, so the disordered fixed point attracts every start near uniform while
+    :math:`\gamma < L / D` (D neighbours; 30 at L = 120, D = 4). The default start
+    (``label_smoothing`` 0.9, max q about 0.11 at L = 120) and annealing from gamma 0 lie in its
+    basin, and from random one-hot labels Adam's steps lead there too; where few cells hold
+    observations nothing breaks the symmetry. CAVI from random labels at full gamma orders at
+    once (its colour-block update takes each cell to its neighbours' labels)."""
+    L = q.shape[-1]
+    if L < 2 or short_runs_meant_now():
+        return False
+    q64 = q.detach().to(torch.float64)
+    entropy = float(-(q64 * q64.clamp_min(1e-300).log()).sum(-1).mean())
+    if entropy < FLAT_Q_SHARE * math.log(L):
+        return False
+    degree = int(config.connectivity)
+    why = (f"gamma {config.gamma:g} < L / D = {L / degree:g}: mean field's disordered fixed "
+           "point holds a start near uniform" if config.gamma < L / degree else
+           "the start stayed in mean field's disordered fixed point")  # fmt: skip
+    start = ("the resumed q" if resumed else
+             f"label_smoothing={options.label_smoothing:g}"
+             + (f", annealed from gamma 0 over {options.anneal_iterations} steps"
+                if options.anneal_iterations else ""))  # fmt: skip
+    logger.warning(
+        "SVI's q(C) ended near uniform: mean entropy %.3f nats a cell, %.1f%% of log L = %.3f, "
+        "so its map is the argmax of nearly flat marginals, close to arbitrary (%s; start: %s; "
+        "Adam's steps lead there from random labels too: docs/variational.md). Start from a "
+        "fitted map (fit --init-from OUT --method-option label_smoothing=0.05, or init_labels "
+        "with SVIOptions(label_smoothing=0.05)) or use --method cavi",
+        entropy, 100 * entropy / math.log(L), math.log(L), why, start,
+    )  # fmt: skip
+    return True
 
 
 class SVIInference(InferenceMethod):

@@ -64,6 +64,12 @@ def short_runs_meant() -> Iterator[None]:
         _SHORT_RUNS_MEANT.reset(token)
 
 
+def short_runs_meant_now() -> bool:
+    """Whether the caller runs inside :func:`short_runs_meant` (warnings about a run's end
+    state, which a run cut short on purpose has not reached, are left out there too)."""
+    return _SHORT_RUNS_MEANT.get()
+
+
 def warn_unfinished_annealing(
     anneal: int,
     iterations: int,
