@@ -199,6 +199,8 @@ def check_model_data(data: ModelData, config: SpCoConfig | None = None) -> None:
             raise ValueError(
                 f"the data's neighbour table has {data.neighbours.shape[1]} neighbours a cell "
                 f"but config.connectivity is {config.connectivity}: make the data with "
+                f"prepare_model_data(house, settings.replace(connectivity="
+                f"{config.connectivity})) and pass its settings.model, or with "
                 f"make_model_data(grid, counts, connectivity={config.connectivity})"
             )
     _check_site_names(data)

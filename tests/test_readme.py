@@ -94,6 +94,37 @@ def test_the_library_snippets_run(capsys):
             assert namespace["mcmc"].get_samples()["pi"].shape == (5, L)
             checked.add("mcmc")
         if "svi" in namespace:  # the SVI recipe
-            assert namespace["draws"]["labels"].shape[0] == 10
+            draws, data = namespace["draws"], namespace["data"]
+            L = setup["settings"].model.num_concepts
+            assert draws["labels"].shape == (10, data.num_free)
+            assert draws["pi"].shape == (10, 1, L)  # the shape the page gives
             checked.add("svi")
-    assert checked == {"mcmc", "svi"}
+        if "terms" in namespace:  # the model under poutine.trace: the terms the page names
+            check_trace_terms(namespace)
+            checked.add("trace")
+        if "fit8" in namespace:  # the variants
+            assert namespace["fit8"].get_samples()["pi"].shape == (5, 6)
+            assert namespace["data8"].neighbours.shape[1] == 8
+            assert namespace["fit3"].get_samples()["objects_probs"].shape == (5, L, 5)
+            checked.add("variants")
+    assert checked == {"trace", "mcmc", "svi", "variants"}
+
+
+def check_trace_terms(namespace: dict[str, object]) -> None:
+    """The trace snippet's terms are the model's sites in the page's order, their sum is the
+    trace's log joint, and potts is gamma times the agreeing neighbour pairs."""
+    import torch
+
+    from spcopyro.model import potts_agreements
+
+    terms, trace, data = namespace["terms"], namespace["trace"], namespace["data"]
+    config = namespace["settings"].model
+    names = ["pi", "theta", "w", "labels", "potts", "images", "words"]
+    assert list(terms) == names, list(terms)
+    total = float(trace.log_prob_sum())
+    assert abs(sum(terms.values()) - total) <= 1e-9 * abs(total)
+    labels = trace.nodes["labels"]["value"]
+    potts = config.gamma * float(potts_agreements(labels, data.pairs))
+    assert terms["potts"] == potts
+    pi = trace.nodes["pi"]["value"]
+    assert abs(terms["labels"] - float(torch.log(pi)[labels].sum())) <= 1e-9 * abs(terms["labels"])

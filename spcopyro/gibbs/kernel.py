@@ -371,7 +371,9 @@ def label_summary(labels: torch.Tensor) -> dict[str, torch.Tensor]:
     return {"entropy": -(share * logs).sum(-1), "mode_share": share.amax(-1)}
 
 
-def mcmc_summary(mcmc: MCMC, prob: float = 0.9, show: bool = True) -> dict[str, dict]:
+def mcmc_summary(
+    mcmc: MCMC, prob: float = 0.9, show: bool = True, sites: Sequence[str] | None = None
+) -> dict[str, dict]:
     """``mcmc.summary()`` for an MCMC run of :class:`SpCoGibbs`, which Pyro's cannot give (its
     ``summary()`` and ``diagnostics()`` fail on the integer ``labels`` site: Pyro 1.9 fills NaN
     into an int tensor).
@@ -382,8 +384,24 @@ def mcmc_summary(mcmc: MCMC, prob: float = 0.9, show: bool = True) -> dict[str, 
     ``show`` (the default) prints Pyro's table of the former and one line for the labels. Judge
     R-hat by the label-invariant sites (``log_joint``, ``num_concepts``): a concept's ``pi``
     entry may belong to another region in another chain. At least 4 samples a chain
-    (ValueError otherwise)."""
+    (ValueError otherwise).
+
+    ``sites``: the saved sites to summarise (a string is one site's name), e.g.
+    ``("log_joint", "num_concepts")``; None (the default): every saved site. With the default
+    ``save_params`` the table has one row per entry of ``pi`` ``[L]``, ``theta`` ``[L, K]`` and
+    ``w`` ``[L, V]`` (26,760 rows on the README's house: L = 120, K = 205, V = 17), which
+    ``sites`` leaves out.
+    A name that was not saved raises ValueError listing those that were."""
     samples = _samples_by_chain(mcmc)
+    if sites is not None:
+        wanted = (sites,) if isinstance(sites, str) else tuple(sites)
+        unknown = [name for name in wanted if name not in samples]
+        if unknown:
+            raise ValueError(
+                f"mcmc_summary: no saved site {unknown[0]!r}; the run saved {sorted(samples)} "
+                "(SpCoGibbs(save_params=...))"
+            )
+        samples = {name: samples[name] for name in wanted}
     floats = {k: v for k, v in samples.items() if torch.is_floating_point(v)}
     result: dict[str, dict] = pyro_summary(floats, prob=prob, group_by_chain=True)
     if show and floats:

@@ -1,0 +1,70 @@
+"""Trying a model variant through the Python API as docs/library.md shows it (issues found by a
+Bayesian-ML user: the summary table, the neighbourhood's error, the saved log joint)."""
+
+from __future__ import annotations
+
+import pyro
+import pytest
+import torch
+from pyro import poutine
+from pyro.infer import MCMC
+
+from spcopyro.gibbs import SpCoGibbs, mcmc_summary
+from spcopyro.model import check_model_data, spcomapping_model
+from tests.gibbs_problems import config, random_problem
+
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
+
+
+@pytest.fixture(scope="module")
+def mcmc_run():
+    _, data = random_problem(seed=2)
+    cfg = config()
+    pyro.set_rng_seed(0)
+    mcmc = MCMC(SpCoGibbs(), num_samples=6, warmup_steps=2, disable_progbar=True)
+    mcmc.run(data, cfg)
+    return mcmc, data, cfg
+
+
+def test_mcmc_summary_takes_the_sites_to_summarise(mcmc_run, capsys):
+    # mcmc_summary printed one row per entry of every saved site: with the default save_params
+    # pi, theta [L, K] and w [L, V], 26,760 rows on the README's house, and had no way to ask
+    # for the label-invariant sites the docs say to judge R-hat by
+    mcmc, data, _ = mcmc_run
+    everything = mcmc_summary(mcmc, show=False)
+    capsys.readouterr()
+    chosen = mcmc_summary(mcmc, sites=("log_joint", "num_concepts", "labels"))
+    assert set(chosen) == {"log_joint", "num_concepts", "labels"}
+    for site in ("log_joint", "num_concepts"):
+        for name, value in everything[site].items():
+            torch.testing.assert_close(chosen[site][name], value, equal_nan=True)
+    torch.testing.assert_close(chosen["labels"]["entropy"], everything["labels"]["entropy"])
+    printed = capsys.readouterr().out
+    assert "log_joint" in printed and f"labels: {data.num_free} cells" in printed
+    assert "theta[" not in printed and "pi[" not in printed
+    assert set(mcmc_summary(mcmc, show=False, sites="pi")) == {"pi"}  # one name, not letters
+    with pytest.raises(ValueError, match=r"no saved site 'gamma'; the run saved \['labels', "):
+        mcmc_summary(mcmc, sites=("log_joint", "gamma"))
+
+
+def test_the_saved_log_joint_is_the_models_log_density_at_the_sample(mcmc_run):
+    # docs/library.md: "The log_joint that SpCoGibbs saves per sample is this sum [the trace's
+    # log_prob_sum] at the sample's pi, theta, w and labels"
+    mcmc, data, cfg = mcmc_run
+    samples = mcmc.get_samples()
+    for i in range(samples["pi"].shape[0]):
+        values = {site: samples[site][i] for site in ("pi", "theta", "w", "labels")}
+        model = poutine.condition(spcomapping_model, data=values)
+        density = float(poutine.trace(model).get_trace(data, cfg).log_prob_sum())
+        assert density == pytest.approx(float(samples["log_joint"][i]), rel=1e-9, abs=1e-9)
+
+
+def test_a_neighbourhood_mismatch_says_how_prepare_model_data_remakes_the_data():
+    # config.replace(connectivity=8) with data made for 4 neighbours: the error pointed to
+    # make_model_data(grid, counts, ...) alone, which a user of prepare_model_data(house,
+    # settings) has neither argument of
+    _, data = random_problem(seed=0)
+    with pytest.raises(ValueError, match=r"4 neighbours a cell but config.connectivity is 8") as e:
+        check_model_data(data, config(connectivity=8))
+    assert "prepare_model_data(house, settings.replace(connectivity=8))" in str(e.value)
+    assert "make_model_data(grid, counts, connectivity=8)" in str(e.value)
