@@ -21,15 +21,31 @@ much of the posterior a speck has rather than count it as a place.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
 import numpy as np
 
 from spcopyro._util.messages import plural
 from spcopyro.results.concept_words import is_speck
 
-if TYPE_CHECKING:
-    from spcopyro.results.result import SpCoResult
+
+class SpCoResult(Protocol):
+    """What these functions read of a :class:`~spcopyro.results.result.SpCoResult`, stated as
+    a protocol so that this module need not import the result's (which imports it to write
+    ``concepts.json``: no import cycle, tests/test_architecture.py)."""
+
+    labels: Any  # [N] the reported concept of each free cell
+    agreement: Any  # [N] or None
+    marginals: Any  # [N, L] or None
+    inference: dict[str, Any]
+    grid: Any
+
+    def concept_sizes(self) -> np.ndarray: ...  # [L]
+
+    def concepts_in_use(self) -> np.ndarray: ...  # [K] concept ids
+
+    def heard(self, concept: int) -> float | None: ...
+
 
 __all__ = ["in_use_text", "speck_concepts", "speck_support", "support_text", "with_speck_fields"]
 
