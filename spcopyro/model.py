@@ -17,6 +17,7 @@ import pyro
 import pyro.distributions as dist
 import torch
 from pyro.poutine.messenger import Messenger
+from pyro.poutine.util import site_is_subsample
 
 from spcopyro.config import SpCoConfig
 from spcopyro.distributions import MultinomialCounts
@@ -279,6 +280,29 @@ def refuse_observed_latents(trace: pyro.poutine.Trace, names: Sequence[str], who
                 f"every latent site of spcomapping_model (pi, labels, each modality's table): "
                 f"it cannot hold {name!r} fixed; pass the model without conditioning {name!r}"
             )
+
+
+def refuse_foreign_sites(trace: pyro.poutine.Trace, data: ModelData, who: str) -> None:
+    """ValueError naming the first sample or factor site of ``trace`` that
+    :func:`spcomapping_model` does not have (a further latent site such as a prior on gamma, a
+    ``pyro.factor``): ``who`` samples or fits spcomapping_model's own conditionals, and such a
+    model failed only the density comparison, with two numbers and no site named. Plates and
+    ``pyro.deterministic`` sites (no density) are allowed."""
+    known = {SITE_PI, SITE_LABELS, SITE_POTTS, PLATE_CONCEPTS, PLATE_CELLS, PLATE_OBSERVED}
+    for modality in data.modalities:
+        known.update((modality.name, modality.parameter))
+    for name, site in trace.nodes.items():
+        if site["type"] != "sample" or name in known or site["infer"].get("_deterministic"):
+            continue
+        if site_is_subsample(site):
+            continue
+        what = "observed site or factor" if site["is_observed"] else "latent site"
+        raise ValueError(
+            f"the model has a {what} {name!r} that spcomapping_model has not (its sites: "
+            f"{sorted(known - {PLATE_CONCEPTS, PLATE_CELLS, PLATE_OBSERVED})}); {who} samples "
+            "spcomapping_model's conditionals and cannot fit another model: change the model "
+            "through SpCoConfig and ModelData.modalities, which it reads"
+        )
 
 
 class _ObservationsObserved(Messenger):

@@ -68,3 +68,41 @@ def test_a_neighbourhood_mismatch_says_how_prepare_model_data_remakes_the_data()
         check_model_data(data, config(connectivity=8))
     assert "prepare_model_data(house, settings.replace(connectivity=8))" in str(e.value)
     assert "make_model_data(grid, counts, connectivity=8)" in str(e.value)
+
+
+@pytest.mark.parametrize("extra", ["prior", "factor"])
+def test_the_kernel_names_a_site_spcomapping_model_has_not(extra):
+    # a custom model with a further latent site (a prior on a parameter) or a pyro.factor was
+    # refused only by the density check, "the model's log density ... is 71476.54 where
+    # spcomapping_model's ... is 71475.54", naming no site
+    _, data = random_problem(seed=0)
+    cfg = config()
+
+    def custom(data, config):
+        spcomapping_model(data, config)
+        if extra == "prior":
+            pyro.sample("tau", pyro.distributions.Gamma(2.0, 1.0))
+        else:
+            pyro.factor("bonus", torch.tensor(1.0, dtype=torch.float64))
+
+    name, what = (
+        ("tau", "latent site") if extra == "prior" else ("bonus", "observed site or factor")
+    )
+    mcmc = MCMC(SpCoGibbs(custom), num_samples=2, disable_progbar=True)
+    with pytest.raises(
+        ValueError, match=rf"the model has a {what} '{name}' that spcomapping_model"
+    ):
+        mcmc.run(data, cfg)
+
+
+def test_the_kernel_still_takes_deterministic_sites():
+    # pyro.deterministic adds no density: a model recording one is spcomapping_model's
+    _, data = random_problem(seed=0)
+
+    def recording(data, config):
+        spcomapping_model(data, config)
+        pyro.deterministic("twice_gamma", torch.tensor(2.0 * config.gamma))
+
+    mcmc = MCMC(SpCoGibbs(recording), num_samples=2, disable_progbar=True)
+    mcmc.run(data, config())
+    assert mcmc.get_samples()["pi"].shape == (2, 3)

@@ -53,6 +53,7 @@ from spcopyro.model import (
     SITE_PI,
     ModelData,
     check_model_data,
+    refuse_foreign_sites,
     refuse_observed_latents,
     require_observed,
     spcomapping_model,
@@ -199,6 +200,7 @@ class SpCoGibbs(MCMCKernel):
     def _check_model_sites(self) -> None:
         model = require_observed(self.model, self._data, "SpCoGibbs")  # not uncondition(model)
         trace = poutine.trace(model).get_trace(self._data, self._config)
+        refuse_foreign_sites(trace, self._data, "SpCoGibbs")
         L = self._config.num_concepts
         expected = {SITE_PI: (L,), SITE_LABELS: (self._data.num_free,)}
         for modality in self._data.modalities:
