@@ -3,6 +3,8 @@ Bayesian-ML user: the summary table, the neighbourhood's error, the saved log jo
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pyro
 import pytest
 import torch
@@ -106,3 +108,26 @@ def test_the_kernel_still_takes_deterministic_sites():
     mcmc = MCMC(SpCoGibbs(recording), num_samples=2, disable_progbar=True)
     mcmc.run(data, config())
     assert mcmc.get_samples()["pi"].shape == (2, 3)
+
+
+def test_the_trace_sites_come_in_the_order_the_library_page_gives():
+    # docs/library.md said a further modality's sites come after the paper's seven; its table
+    # comes after w (in the concepts plate), its observations after words. use_images=False
+    # drops the observed site images, not theta
+    from pyro.poutine.util import site_is_subsample
+
+    from spcopyro.model import Modality, parameter_site
+
+    _, data = random_problem(seed=0)
+    objects = torch.ones(data.obs_cells.shape[0], 2, dtype=torch.float64)
+    data = data._replace(
+        modalities=(*data.modalities, Modality("objects", parameter_site("objects"), objects))
+    )
+    cfg = config(use_images=False, concentrations={"objects": 1.0})
+    trace = poutine.trace(spcomapping_model).get_trace(data, cfg)
+    names = [
+        n for n, s in trace.nodes.items() if s["type"] == "sample" and not site_is_subsample(s)
+    ]
+    assert names == ["pi", "theta", "w", "objects_probs", "labels", "potts", "words", "objects"]
+    page = (Path(__file__).resolve().parents[1] / "docs" / "library.md").read_text("utf-8")
+    assert "`<name>_probs` `[L, K_m]` after `w` and\n`<name>` `[M, K_m]` after `words`" in page
