@@ -433,6 +433,34 @@ def test_a_pgms_maxval_scales_its_pixels_as_map_server_does(tmp_path: Path, head
     np.testing.assert_array_equal(load_map(path).occupancy, [[FREE, OCCUPIED, UNKNOWN]])
 
 
+@pytest.mark.parametrize(
+    ("header", "maxval"), [(b"P2\n", 100), (b"P2 # by hand\n", 100), (b"P2\n", 254)]
+)
+def test_a_plain_pgms_maxval_scales_its_pixels_once(
+    tmp_path: Path, header: bytes, maxval: int
+) -> None:
+    """A plain (ASCII) P2 pgm of maxval below 255: OpenCV scales its levels up to 0..255 (a
+    binary P5's it leaves as they are), and load_map divided them by maxval again, so under
+    maxval 100 a wall of 20 (p 0.8) read as unknown and a grey of 80 (p 0.2) as free; map_server
+    scales them once. Row: white, black, grey 0.8, wall 0.2 (p 0.8), grey 0.5."""
+    grey = [maxval, 0, round(0.8 * maxval), round(0.2 * maxval), round(0.5 * maxval)]
+    text = header + f"5 1\n{maxval}\n".encode() + " ".join(map(str, grey)).encode() + b"\n"
+    (tmp_path / "map.pgm").write_bytes(text)
+    path = write_yaml(tmp_path / "m.yaml")
+    expected = [[FREE, OCCUPIED, UNKNOWN, OCCUPIED, UNKNOWN]]
+    np.testing.assert_array_equal(load_map(path).occupancy, expected)
+    (tmp_path / "map.pgm").write_bytes(  # a plain colour P3: the grey in all three channels
+        b"P3\n5 1\n"
+        + f"{maxval}\n".encode()
+        + " ".join(f"{g} {g} {g}" for g in grey).encode()
+        + b"\n"
+    )
+    np.testing.assert_array_equal(load_map(path).occupancy, expected)
+    (tmp_path / "map.pgm").write_bytes(b"P2\n2 1\n" + f"{maxval}\n".encode() + b"0 300\n")
+    with pytest.raises(MapFormatError, match=r"m\.yaml:1: key 'image': .*map\.pgm.*'300'"):
+        load_map(path)  # a level above maxval is named
+
+
 def test_numbers_in_exponent_notation_read_as_map_server_reads_them(tmp_path: Path) -> None:
     """yaml-cpp (map_server) reads ``5e-1`` as a number; PyYAML's YAML 1.1 rules want a dot and
     read it as a string, so a map map_server loads was refused ("got '5e-1'")."""

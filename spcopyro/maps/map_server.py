@@ -331,7 +331,33 @@ def _decode(spec: _MapYaml) -> tuple[np.ndarray, int | None]:
             f"{spec.where('image')}: key 'image': "
             f"{str(spec.image)!r} has unsupported shape {img.shape}"
         )
-    return img, _pnm_maxval(data[:4096].tobytes())
+    maxval = _pnm_maxval(data[:4096].tobytes())
+    if maxval is not None and maxval < 255 and data[:2].tobytes() in (b"P2", b"P3"):
+        img = _plain_pnm_levels(spec, data.tobytes(), img.shape)
+    return img, maxval
+
+
+def _plain_pnm_levels(spec: _MapYaml, text: bytes, shape: tuple[int, ...]) -> np.ndarray:
+    """A plain (ASCII) P2 / P3 image's own levels, uint8 of OpenCV's ``shape`` (a P3 in its
+    BGR order): for a maxval below 255 OpenCV returns them scaled up to 0..255 (those of a binary
+    P5 / P6 it leaves as they are), which map_server's division by maxval would count twice."""
+    tokens = re.sub(rb"#[^\n\r]*", b" ", text[2:]).split()  # width, height, maxval, levels
+    count, maxval = math.prod(shape), int(tokens[2])
+    words = tokens[3 : 3 + count]
+    levels = [int(t) if t.isdigit() else -1 for t in words]
+    bad = next((t for t, v in zip(words, levels, strict=True) if not 0 <= v <= maxval), None)
+    if bad is not None:
+        raise MapFormatError(
+            f"{spec.where('image')}: key 'image': {str(spec.image)!r}: level "
+            f"{echo(bad.decode(errors='replace'))} is not in 0..{maxval}"
+        )
+    if len(levels) != count:
+        raise MapFormatError(
+            f"{spec.where('image')}: key 'image': {str(spec.image)!r} holds {len(levels)} "
+            f"levels, its header {count}"
+        )
+    levels = np.array(levels, dtype=np.uint8).reshape(shape)  # [H, W] or [H, W, 3]
+    return levels[..., ::-1].copy() if levels.ndim == 3 else levels  # RGB -> OpenCV's BGR
 
 
 def _read_image(spec: _MapYaml) -> np.ndarray:
