@@ -131,3 +131,35 @@ def test_the_trace_sites_come_in_the_order_the_library_page_gives():
     assert names == ["pi", "theta", "w", "objects_probs", "labels", "potts", "words", "objects"]
     page = (Path(__file__).resolve().parents[1] / "docs" / "library.md").read_text("utf-8")
     assert "`<name>_probs` `[L, K_m]` after `w` and\n`<name>` `[M, K_m]` after `words`" in page
+
+
+def test_a_second_guide_needs_a_fresh_param_store_as_the_library_page_says():
+    # The SVI recipe of docs/library.md made a MeanFieldGuide with no word on Pyro's global
+    # param store: fitting a second variant in the same session (another L) failed with
+    # "Shape mismatch inside plate('concepts') at site theta dim -1, 5 vs 3", and one of the same
+    # L silently continued from the first guide's trained values
+    from pyro.infer import SVI
+
+    from spcopyro.guides import MeanFieldELBO, MeanFieldGuide
+
+    _, data = random_problem(seed=0)
+
+    def fit(L: int, **guide_options) -> MeanFieldGuide:
+        cfg = config(num_concepts=L)
+        guide = MeanFieldGuide(data, cfg, **guide_options)
+        svi = SVI(spcomapping_model, guide, pyro.optim.Adam({"lr": 0.1}), MeanFieldELBO())
+        svi.step(data, cfg)
+        assert guide.marginals().shape == (data.num_free, L)
+        return guide
+
+    pyro.clear_param_store()
+    fit(3)
+    with pytest.raises(ValueError, match=r"Shape mismatch inside plate\('concepts'\)"):
+        fit(5)  # what the page warns of
+    fit(5, name="five_concepts")  # a name of its own
+    pyro.clear_param_store()  # or a fresh store
+    fit(5)
+    page = (Path(__file__).resolve().parents[1] / "docs" / "library.md").read_text("utf-8")
+    svi_block = page.split("With Pyro's SVI:", 1)[1].split("```", 2)[1]
+    assert svi_block.index("pyro.clear_param_store()") < svi_block.index("MeanFieldGuide(data")
+    assert "Call `pyro.clear_param_store()` before making each new\nguide" in page
