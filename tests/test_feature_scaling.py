@@ -134,3 +134,21 @@ def test_the_floor100_note_is_silent_where_floor100_keeps_most_of_the_rows():
     note = floor100_note(one, "Ft.csv")
     assert note is not None and "leaves nothing of 1 of 4 rows" in note
     assert "line 4 of Ft.csv" in note
+
+
+def test_fit_s_placement_line_says_how_many_images_the_scaling_left_out(tmp_path):
+    """``fit``'s printed "placement" line read "images: 4 on free cells" where floor100 had
+    left three of them with nothing: the count the placement report carries is on that line."""
+    from spcopyro.cli.common import _summary
+    from spcopyro.data.dataset import House
+
+    house = House("flat", _grid(), _observations(_flat_and_peaked()), source=tmp_path)
+    placement = [
+        line
+        for line in _summary(house, warn=False, feature_scaling="floor100").splitlines()
+        if line.startswith("placement")
+    ]
+    assert len(placement) == 1
+    assert "; 3 of 4 images left out" in placement[0]
+    kept = _summary(house, warn=False, feature_scaling="probability")
+    assert "left out" not in kept

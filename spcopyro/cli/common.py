@@ -175,7 +175,7 @@ def _summary(
         f"placement        images: {p.images_on_free} on free cells, {p.images_snapped} snapped, "
         f"{p.images_unplaced} unplaced; words: {p.words_on_free} on free cells, "
         f"{p.words_snapped} snapped, {p.words_unplaced} unplaced "
-        f"(snap distance {p.snap_distance} m)",
+        f"(snap distance {p.snap_distance} m){p.scaled_away_note()}",
     ]
     if house.category_names:
         n = len(house.category_names)

@@ -108,7 +108,7 @@ def _decide(
         observed = _observed_cells(on_map, refined.data)
         print(f"refining         {decision.reason}: the {chains} x "
               f"{len(first.trace.objective)} sweeps on {first.grid.resolution:g} m cells (best log "
-              f"joint {first.best_objective:.1f}) go on on the map's own "
+              f"joint {first.best_objective:.1f}) continue on the map's own "
               f"{on_map.grid.resolution:g} m cells ({observed} observed), images as 100 draws, "
               f"words at their cell, alpha {refined.model.alpha:.3g}")  # fmt: skip
         cells, first_cells = on_map.grid.num_free, model.grid.num_free
