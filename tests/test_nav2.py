@@ -433,6 +433,44 @@ def test_an_older_coarse_fits_main_map_is_the_map_its_data_came_with(fit, tmp_pa
     assert load_map(tmp_path / "b" / "map.yaml") == result.grid
 
 
+@pytest.mark.parametrize(
+    ("origin", "resolution", "shape"),
+    [
+        ((1.0, -2.5, 0.0), 0.025, (2 * H, 2 * W)),  # the map saved again with another origin
+        ((1.5, -2.0, 0.0), 0.02, (2 * H, 2 * W)),  # another resolution
+        ((1.5, -2.0, 0.0), 0.025, (2 * H + 6, 2 * W)),  # mapped further: 3 fit cells taller
+    ],
+)
+def test_a_main_map_the_fit_was_not_coarsened_from_is_refused(
+    fit, tmp_path, capsys, origin, resolution, shape
+):
+    """A coarse fit written before robot_map.yaml takes its data folder's map as Nav2's main
+    map; saved again since the fit (a new SLAM run: another origin, resolution or size), it was
+    written beside masks on the fit's cells, which then lay shifted on it in Nav2, without a
+    word (navigate refuses it). Now refused, naming the map and both geometries, nothing
+    written; as is a fit's own robot_map.yaml that does not match its grid."""
+    from spcopyro.config import DataPreparation
+
+    result = SpCoResult.load(fit)
+    moved = OccupancyGrid(np.full(shape, FREE, dtype=np.int8), resolution, origin)
+    save_map(moved, tmp_path / "data" / "map" / "flat.yaml")
+    source = {"data": str(tmp_path / "data" / "flat"), "house": "flat"}
+    older = dataclasses.replace(result, preparation=DataPreparation(cell_size=0.05),
+                                provenance={"source": source})  # fmt: skip
+    folder = older.save(tmp_path / "older")
+    out = tmp_path / "nav2"
+    assert main(["export", str(folder), "--nav2", str(out), "--word", "kitchen"]) == 2
+    err = capsys.readouterr().err
+    assert f"map {tmp_path / 'data' / 'map' / 'flat.yaml'} is not the map" in err, err
+    assert f"origin ({origin[0]:g}, {origin[1]:g}), {resolution:g} m cells" in err, err
+    assert f"the fit's grid origin (1.5, -2), 0.05 m cells, {H} x {W}" in err, err
+    assert not out.exists()
+    save_map(moved, fit / "robot_map.yaml")  # the fit's own copy, replaced
+    assert main(["export", str(fit), "--nav2", str(out), "--word", "kitchen"]) == 2
+    assert f"map {fit / 'robot_map.yaml'} is not the map" in capsys.readouterr().err
+    assert not out.exists()
+
+
 def test_several_speed_words_warn_that_their_filters_share_one_topic(fit, tmp_path, capsys):
     out = tmp_path / "speed2"
     assert main(["export", str(fit), "--nav2", str(out), "--word", "kitchen", "bed",

@@ -49,6 +49,7 @@ the mask server ``MODE_WORD_mask_server`` and of ``MODE_WORD_filter_info_server`
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import unicodedata
@@ -73,6 +74,7 @@ __all__ = [
     "MODES",
     "ExportedMask",
     "Nav2Export",
+    "check_robot_map",
     "export_nav2",
     "keepout_values",
     "speed_percent",
@@ -278,6 +280,39 @@ def check_frame(frame: str) -> str:
     return frame
 
 
+def check_robot_map(grid: OccupancyGrid, robot_map: OccupancyGrid) -> None:
+    """Refuse a ``robot_map`` that ``grid`` (a coarse fit's) was not coarsened from: its origin,
+    a whole number of its cells a side of ``grid``'s and ``grid``'s size in those blocks
+    (:func:`spcopyro.maps.coarse.coarsen_grid`) must hold, else the masks, on ``grid``, would
+    lie shifted or scaled on Nav2's main map (a data folder's map saved again after the fit, by
+    a new SLAM run with another origin, say).
+
+    Raises:
+        ValueError: naming the map's file and both grids' origin, resolution and size.
+    """
+    factor = round(grid.resolution / robot_map.resolution)
+    height, width = (-(-n // max(factor, 1)) for n in robot_map.shape)  # its coarsened size
+    if (
+        factor >= 1
+        and math.isclose(robot_map.resolution * factor, grid.resolution, rel_tol=1e-9)
+        and math.isclose(robot_map.origin[0], grid.origin[0], abs_tol=1e-9)
+        and math.isclose(robot_map.origin[1], grid.origin[1], abs_tol=1e-9)
+        and (height, width) == grid.shape
+    ):
+        return
+
+    def geometry(g: OccupancyGrid) -> str:
+        return (f"origin ({g.origin[0]:g}, {g.origin[1]:g}), {g.resolution:g} m cells, "
+                f"{g.height} x {g.width}")  # fmt: skip
+
+    raise ValueError(
+        f"map {robot_map.source or '(given)'} is not the map the fit's {grid.resolution:g} m "
+        f"cells were coarsened from: {geometry(robot_map)}, the fit's grid {geometry(grid)}; "
+        "its masks would lie off place on it in Nav2: give the map the fit was made on (as its "
+        "robot_map.yaml), or fit again on this one"
+    )
+
+
 def mask_params(
     mode: str, name: str, mask_yaml: Path, namespace: str | None = None, frame: str = "map"
 ) -> dict[str, object]:
@@ -438,6 +473,8 @@ def export_nav2(
     _check_speeds(min_speed, max_speed)
     namespace = check_namespace(namespace)
     frame = check_frame(frame)
+    if robot_map is not None:
+        check_robot_map(result.grid, robot_map)
     # every word known before anything is written, and each read as `where` reads it: "Kitchen",
     # "kitchen." and a full-width "ｋｉｔｃｈｅｎ" are one word, one mask (each got its own)
     indices = list(dict.fromkeys(word_index(result.vocabulary, w) for w in words))
