@@ -29,7 +29,7 @@ from spcopyro._util.messages import plural
 from spcopyro.results.concept_words import is_speck
 
 
-class SpCoResult(Protocol):
+class ResultView(Protocol):
     """What these functions read of a :class:`~spcopyro.results.result.SpCoResult`, stated as
     a protocol so that this module need not import the result's (which imports it to write
     ``concepts.json``: no import cycle, tests/test_architecture.py)."""
@@ -50,7 +50,7 @@ class SpCoResult(Protocol):
 __all__ = ["in_use_text", "speck_concepts", "speck_support", "support_text", "with_speck_fields"]
 
 
-def speck_concepts(result: SpCoResult) -> list[int]:
+def speck_concepts(result: ResultView) -> list[int]:
     """The specks among the concepts in use, largest first (as
     :meth:`~spcopyro.results.result.SpCoResult.concepts_in_use` orders them)."""
     sizes = result.concept_sizes()  # [L]
@@ -59,7 +59,7 @@ def speck_concepts(result: SpCoResult) -> list[int]:
             if is_speck(int(sizes[c]), result.heard(int(c)), num_free)]  # fmt: skip
 
 
-def in_use_text(result: SpCoResult) -> str:
+def in_use_text(result: ResultView) -> str:
     """``"10 concepts in use (4 of them specks)"``: the count ``fit`` prints and the semantic map's
     title gives, saying how many of the concepts are specks rather than places (it counted a
     one-cell speck like a room: "10 concepts in use" over a house of six rooms)."""
@@ -70,7 +70,7 @@ def in_use_text(result: SpCoResult) -> str:
     return text
 
 
-def _per_cell(result: SpCoResult) -> np.ndarray | None:
+def _per_cell(result: ResultView) -> np.ndarray | None:
     """``[N]`` p(C_i = the reported concept of cell i): the agreement, else the marginals."""
     if result.agreement is not None:
         return np.asarray(result.agreement, dtype=np.float64)
@@ -81,7 +81,7 @@ def _per_cell(result: SpCoResult) -> np.ndarray | None:
     return marginals[np.arange(labels.shape[0]), labels].astype(np.float64)
 
 
-def speck_support(result: SpCoResult, concepts: list[int]) -> np.ndarray | None:
+def speck_support(result: ResultView, concepts: list[int]) -> np.ndarray | None:
     r"""``[len(concepts)]`` per concept, the mean over its cells of :math:`p(C_i = c)`, the
     posterior probability that the cell holds the concept: the result's agreement (the share of
     kept samples whose matched label is the reported one,
@@ -94,7 +94,7 @@ def speck_support(result: SpCoResult, concepts: list[int]) -> np.ndarray | None:
     return np.array([per_cell[labels == c].mean() for c in concepts], dtype=np.float64)
 
 
-def support_text(result: SpCoResult, concepts: list[int]) -> str | None:
+def support_text(result: ResultView, concepts: list[int]) -> str | None:
     """How much of the posterior holds these specks, beside the other concepts' cells, for the
     listing and the legend, e.g. ``"their cells took them in 28-56% of the 50 kept samples
     (agreement.npy), the other concepts' cells 99%"``; None without per-cell probabilities or
@@ -124,7 +124,7 @@ def support_text(result: SpCoResult, concepts: list[int]) -> str | None:
     return f"{cells} hold {them} with probability {share} (the method's marginals){rest}"
 
 
-def with_speck_fields(result: SpCoResult, concepts: list[dict[str, object]]) -> list[dict]:
+def with_speck_fields(result: ResultView, concepts: list[dict[str, object]]) -> list[dict]:
     """``concepts`` (:meth:`~spcopyro.results.result.SpCoResult.concepts`) as ``concepts.json``
     writes them: each entry with ``speck`` (bool: a speck, not a place) and ``support`` (the mean
     over its cells of p(C_i = concept), :func:`speck_support`; None without per-cell
