@@ -663,3 +663,51 @@ def test_dataset_maps_match_paper(dataset_root: Path, room: str) -> None:
     unflipped[:, 0] = grid.height - 1 - cells[:, 0]
     assert on_free >= 0.85
     assert on_free > grid.is_free(unflipped).mean() + 0.1
+
+
+# ---------------------------------------------------------------------- Nav2 map_io's readings
+@pytest.mark.parametrize(
+    ("text", "negate"),
+    [("true", 1), ("false", 0), ('"true"', 1), ("y", 1), ("'Yes'", 1), ("OFF", 0), ('"1"', 1)],
+)
+def test_negate_as_nav2_reads_it(tmp_path: Path, text: str, negate: int) -> None:
+    """Nav2's map_io reads ``negate`` with yaml-cpp as an int, else as a bool (``y``, ``yes``,
+    ``true``, ``on`` and their opposites, quoted or not, in lower, upper or title case)."""
+    write_pgm(tmp_path / "map.pgm", np.array([[0, 255]], dtype=np.uint8))
+    path = tmp_path / "m.yaml"
+    path.write_text(
+        "image: map.pgm\nresolution: 0.5\norigin: [0, 0, 0]\n"
+        f"negate: {text}\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    )
+    dark_free = [[FREE, OCCUPIED]] if negate else [[OCCUPIED, FREE]]
+    np.testing.assert_array_equal(load_map(path).occupancy, dark_free)
+
+
+@pytest.mark.parametrize("text", ["1.0", "'maybe'", "tRUE", "2"])
+def test_negate_nav2_refuses_is_refused(tmp_path: Path, text: str) -> None:
+    write_pgm(tmp_path / "map.pgm", np.array([[0, 255]], dtype=np.uint8))
+    path = tmp_path / "m.yaml"
+    path.write_text(
+        "image: map.pgm\nresolution: 0.5\norigin: [0, 0, 0]\n"
+        f"negate: {text}\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    )
+    with pytest.raises(MapFormatError, match=r"m\.yaml:4: key 'negate' must be 0 or 1"):
+        load_map(path)
+
+
+def test_equal_thresholds_read_as_map_server_reads_them(tmp_path: Path) -> None:
+    """map_io checks no order of the thresholds on loading: equal ones split the greys in two,
+    a pixel exactly at them unknown (153: p = (255 - 153) / 255 = 0.4)."""
+    write_pgm(tmp_path / "map.pgm", np.array([[0, 102, 153, 200, 255]], dtype=np.uint8))
+    path = write_yaml(tmp_path / "eq.yaml", occupied_thresh=0.4, free_thresh=0.4)
+    o, f, u = OCCUPIED, FREE, UNKNOWN
+    np.testing.assert_array_equal(load_map(path).occupancy, [[o, o, u, f, f]])
+
+
+def test_scale_mask_with_equal_thresholds_is_refused(tmp_path: Path) -> None:
+    """Scale mode divides by occupied_thresh - free_thresh: equal ones (which a trinary map may
+    have) leave a pixel at them without a value (map_io's rint of 0/0)."""
+    write_pgm(tmp_path / "map.pgm", np.array([[0, 153, 255]], dtype=np.uint8))
+    path = write_yaml(tmp_path / "s.yaml", mode="scale", occupied_thresh=0.4, free_thresh=0.4)
+    with pytest.raises(MapFormatError, match=r"s\.yaml:6: key 'free_thresh' 0\.4 equals"):
+        load_filter_mask(path)

@@ -13,7 +13,8 @@ depends on the yaml's ``mode`` (nav2_map_server ``map_io.cpp``, ``loadMapFromFil
   ``MaxRGB - alphaQuantum()``, GraphicsMagick's opacity, and :func:`~spcopyro.maps.load_map` does
   the same);
 * ``scale``: a transparent pixel -> -1; ``occ > occupied_thresh`` -> 100, ``occ < free_thresh``
-  -> 0, else ``rint((occ - free_thresh) / (occupied_thresh - free_thresh) * 100)``;
+  -> 0, else ``rint((occ - free_thresh) / (occupied_thresh - free_thresh) * 100)`` (equal
+  thresholds, which trinary maps may have, are refused: 0/0 at them);
 * ``raw``: ``v = round(shade * 255)``; ``v`` if ``0 <= v <= 100``, else -1.
 
 :func:`save_filter_mask` writes masks in ``scale`` mode with ``free_thresh: 0.0`` and
@@ -38,10 +39,12 @@ from pathlib import Path
 
 import numpy as np
 
+from spcopyro._util.messages import echo
 from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from spcopyro.maps.map_server import (
     SAVE_FREE_THRESH,
     SAVE_OCCUPIED_THRESH,
+    MapFormatError,
     _read_image,
     _read_map_yaml,
     _write_image,
@@ -133,6 +136,12 @@ def load_filter_mask(yaml_path: str | os.PathLike[str]) -> FilterMask:
         MapFileNotFoundError, MapFormatError: as :func:`spcopyro.maps.load_map`.
     """
     spec = _read_map_yaml(yaml_path)
+    if spec.mode == "scale" and spec.free_thresh == spec.occupied_thresh:
+        raise MapFormatError(
+            f"{spec.where('free_thresh')}: key 'free_thresh' {echo(spec.free_thresh)} equals "
+            f"'occupied_thresh' ({spec.where('occupied_thresh')}): mode 'scale' divides by "
+            "their difference (map_server's value of a pixel at them is undefined)"
+        )
     img = _read_image(spec)  # [H, W] or [H, W, C] uint8
     has_alpha = img.ndim == 3 and img.shape[2] in (2, 4)
     if img.ndim == 2:

@@ -4,10 +4,14 @@ Loading (:func:`load_map`) follows map_server's trinary mode: with the pixel val
 over all channels for colour images, alpha included, as map_server does in trinary mode) the
 occupancy probability is ``p = (255 - v) / 255`` (``negate: 0``) or ``p = v / 255``
 (``negate: 1``); ``p > occupied_thresh`` is OCCUPIED, ``p < free_thresh`` is FREE and anything
-else (including values exactly at a threshold) is UNKNOWN. ``mode: scale`` and ``mode: raw`` are
-rejected with a clear error, because they produce values outside the three codes; semantic maps
-written by :func:`~spcopyro.maps.render.save_label_map_server` (``mode: raw``) are read back
-with :func:`~spcopyro.maps.render.load_label_map_server`.
+else (including values exactly at a threshold) is UNKNOWN. ``negate`` may also be a yaml-cpp
+boolean (``true``, ``"yes"``, ``y``...), which Nav2's map_io reads when an int does not parse
+(ROS 1's map_server wants 0 or 1). Equal thresholds are read as map_server reads them (map_io
+checks no order on loading); a ``free_thresh`` above ``occupied_thresh`` is refused as swapped
+(map_server would read every cell free or occupied, occupied first). ``mode: scale`` and
+``mode: raw`` are rejected with a clear error, because they produce values outside the three
+codes; semantic maps written by :func:`~spcopyro.maps.render.save_label_map_server`
+(``mode: raw``) are read back with :func:`~spcopyro.maps.render.load_label_map_server`.
 
 This is the only module of the package that reads or writes image and yaml files (OpenCV,
 PyYAML); :mod:`spcopyro.maps.render` writes its semantic maps through the helpers here.
@@ -144,6 +148,16 @@ def _unquoted(value: Any) -> Any:
     return value
 
 
+_YAML_CPP_BOOLS = {
+    text: word in ("y", "yes", "true", "on")
+    for word in ("y", "yes", "true", "on", "n", "no", "false", "off")
+    for text in (word, word.upper(), word.capitalize())
+}
+"""The texts yaml-cpp's ``as<bool>()`` reads (quoted or not): Nav2's map_io reads ``negate`` as
+an int, else as a bool, so ``negate: "true"`` or ``negate: y`` (a string to PyYAML) negate there.
+(ROS 1's map_server reads only an int: ``negate: true`` fails there.)"""
+
+
 _SEPARATING_TABS = re.compile(r"(?<=[:,\[\]])[ \t]*\t[ \t]*|[ \t]*\t[ \t]*(?=#|$)", re.MULTILINE)
 """Runs of blanks holding a tab after a key's or a flow list's separator, or before a comment or
 a line's end: white space to yaml-cpp, an error to PyYAML (tabs that indent are not YAML)."""
@@ -254,17 +268,18 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
         )
 
     negate = doc["negate"]
+    negate = _YAML_CPP_BOOLS.get(negate, negate) if isinstance(negate, str) else negate
     if not isinstance(negate, (int, bool)) or negate not in (0, 1):
-        raise bad("negate", "0 or 1")
+        raise bad("negate", "0 or 1 (or true / false)")
 
     for key in ("occupied_thresh", "free_thresh"):
         value = doc[key]
         if not _is_number(value) or not 0.0 <= value <= 1.0:
             raise bad(key, "a number in [0, 1]")
-    if not doc["free_thresh"] < doc["occupied_thresh"]:
+    if doc["free_thresh"] > doc["occupied_thresh"]:  # equal: map_server reads them (module doc)
         raise MapFormatError(
-            f"{where('free_thresh')}: key 'free_thresh' ({echo(doc['free_thresh'])}) must be "
-            f"less than 'occupied_thresh' ({echo(doc['occupied_thresh'])})"
+            f"{where('free_thresh')}: key 'free_thresh' ({echo(doc['free_thresh'])}) must not "
+            f"exceed 'occupied_thresh' ({echo(doc['occupied_thresh'])}): swapped?"
         )
 
     mode = doc.get("mode", "trinary")
@@ -407,7 +422,7 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
     Keys (all required, as in map_server): ``image`` (relative to the yaml's folder, or
     absolute), ``resolution``, ``origin`` ``[x, y, yaw]`` (yaw must be 0; one within
     :data:`MAX_YAW_NOISE` reads as 0), ``negate`` (0/1), ``occupied_thresh``, ``free_thresh`` (in
-    [0, 1], free < occupied); optional ``mode`` must be ``trinary`` (the default). Unknown keys
+    [0, 1], free <= occupied); optional ``mode`` must be ``trinary`` (the default). Unknown keys
     are ignored, as map_server does. Numbers may be written ``5e-2`` (YAML 1.2, as map_server's
     yaml-cpp reads them).
 
