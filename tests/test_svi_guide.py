@@ -24,6 +24,7 @@ from spcopyro.guides.mean_field import MeanFieldGuide, WrongLossError
 from spcopyro.guides.options import VariationalOptions
 from spcopyro.guides.run import initial_q, run_variational
 from spcopyro.guides.svi_method import SVIInference, SVIOptions, fit_svi
+from spcopyro.guides.svi_method import init as svi_init
 from spcopyro.inference.driver import Trajectory
 from spcopyro.metrics import adjusted_rand_index
 from spcopyro.model import DTYPE, SITE_LABELS, SITE_PI, spcomapping_model
@@ -338,12 +339,21 @@ def test_a_fit_whose_q_ends_near_uniform_says_so(sparse_l120, caplog):
     assert "gamma 4 < L / D = 30" in flat[0] and "label_smoothing=0.05" in flat[0], flat[0]
 
 
-def test_a_warm_start_kept_by_small_smoothing_stays_ordered_and_is_not_warned(sparse_l120, caplog):
-    """CAVI's ordered q, kept by label_smoothing 0.05, stays ordered under SVI (no warning); the
-    same start smoothed by the default 0.9 falls to the disordered fixed point."""
+@pytest.fixture(scope="module")
+def cavi_l120(sparse_l120):
+    """CAVI's ordered q on :func:`sparse_l120` (50 iterations from random labels)."""
     data, config = sparse_l120
     q0 = initial_q(data, config, torch.Generator().manual_seed(0))
-    cavi = run_variational(data, config, 50, options=VariationalOptions(), q=q0, progress=False)
+    return run_variational(data, config, 50, options=VariationalOptions(), q=q0, progress=False)
+
+
+def test_a_warm_start_kept_by_small_smoothing_stays_ordered_and_is_not_warned(
+    sparse_l120, cavi_l120, caplog
+):
+    """CAVI's ordered q, kept by label_smoothing 0.05, stays ordered under SVI (no warning); the
+    same start smoothed by 0.9 (the random start's) falls to the disordered fixed point."""
+    data, config = sparse_l120
+    cavi = cavi_l120
     assert mean_entropy_share(cavi.q) < 0.05
     ends = {}
     for smoothing in (0.05, 0.9):
@@ -355,3 +365,47 @@ def test_a_warm_start_kept_by_small_smoothing_stays_ordered_and_is_not_warned(sp
         ends[smoothing] = (mean_entropy_share(run.q), "ended near uniform" in caplog.text)
     assert ends[0.05][0] < 0.1 and not ends[0.05][1], ends
     assert ends[0.9][0] > 0.9 and ends[0.9][1], ends
+
+
+def test_given_start_labels_are_kept_by_default(sparse_l120, cavi_l120, caplog):
+    """Start labels (``init_labels``; ``fit --init-from``) are smoothed by 0.05 unless
+    ``label_smoothing`` is set, as MeanFieldGuide does with a given q: the default was 0.9 for
+    every start, which kept 10 % of them, and at L = 120 the warm start from CAVI's labels fell
+    to the disordered fixed point (mean entropy 1.000 of log L)."""
+    data, config = sparse_l120
+    start = cavi_l120.q.argmax(-1)  # [N]
+    q = initial_q(data, config, torch.Generator(), start)  # [N, L] one-hot on them
+    with pyro.get_param_store().scope():
+        guide = svi_init(q, data, config, SVIOptions(), given_start=True).guide
+        kept = guide.marginals().detach()  # [N, L] the guide's start q
+    assert torch.equal(kept.argmax(-1), start)
+    assert mean_entropy_share(kept) < 0.1, mean_entropy_share(kept)  # 0.09 at 0.05
+    with pyro.get_param_store().scope():
+        as_set = svi_init(q, data, config, SVIOptions(label_smoothing=0.9), given_start=True)
+        assert mean_entropy_share(as_set.guide.marginals().detach()) > 0.9  # still honoured
+    with caplog.at_level("WARNING", logger="spcopyro"):
+        out = SVIInference().run(data, config, iterations=10, init_labels=start, progress=False,
+                                 generator=torch.Generator().manual_seed(0),
+                                 options=SVIOptions(anneal_iterations=0))  # fmt: skip
+    assert out.options["label_smoothing"] == 0.05  # what the start ran with
+    assert mean_entropy_share(torch.as_tensor(out.marginals)) < 0.05  # measured 0.024
+    assert (out.labels == start.numpy()).all()
+    assert "ended near uniform" not in caplog.text
+
+
+def test_a_random_start_is_smoothed_as_before(small):
+    """Without start labels the unset ``label_smoothing`` is the 0.9 it was: the same fit, step
+    for step, recorded as 0.9."""
+    data, config = small
+
+    def run(options: SVIOptions):
+        return SVIInference().run(data, config, iterations=5, options=options, progress=False,
+                                  generator=torch.Generator().manual_seed(3))  # fmt: skip
+
+    default, before = run(SVIOptions()), run(SVIOptions(label_smoothing=0.9))
+    np.testing.assert_array_equal(default.marginals, before.marginals)
+    np.testing.assert_array_equal(default.trace.objective, before.trace.objective)
+    assert default.options["label_smoothing"] == 0.9
+    assert SVIOptions().start_smoothing(given_start=False) == 0.9
+    with pytest.raises(ValueError, match=r"SVIOptions.label_smoothing=1.0: must be None or lie"):
+        SVIOptions(label_smoothing=1.0)

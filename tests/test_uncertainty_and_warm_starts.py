@@ -234,21 +234,26 @@ def test_fit_writes_the_uncertainty_map_and_where_its_probability_map(tmp_path, 
                  "--init-from", str(gibbs), *common]) == 0  # fmt: skip
     printed = capsys.readouterr().out
     assert f"starting from    the gibbs fit in {gibbs}\n" in printed and "5 iterations" in printed
-    # svi smooths its start toward uniform (label_smoothing): how much of the fit it keeps
+    # svi smooths its start toward uniform (label_smoothing): how much of the fit it keeps,
+    # 95% unless set (0.9 for every start before 2026-12-05 kept 10%)
     svi = ["fit", "--method", "svi", "--sweeps", "2", "--init-from", str(gibbs), *common]
     assert main([*svi, "--out", str(tmp_path / "svi"), "--no-figures"]) == 0
     assert (
-        f"gibbs fit in {gibbs} (10% of its labels in q's start: label_smoothing 0.9,"
+        f"gibbs fit in {gibbs} (95% of its labels in q's start: label_smoothing 0.05, the "
+        "default for given labels; gamma annealed from 0 over 100 steps can still lose them"
         in capsys.readouterr().out
     )
-    smoothing = ["--method-option", "label_smoothing=0.05", "--no-figures"]
-    assert main([*svi, "--out", str(tmp_path / "svi95"), *smoothing]) == 0
-    assert "(95% of its labels in q's start: label_smoothing 0.05," in capsys.readouterr().out
-    # an update by svi starts from the saved labels smoothed the same way: it said nothing
+    svi_options = json.loads((tmp_path / "svi" / "config.json").read_text())["inference"]
+    assert svi_options["label_smoothing"] == 0.05, svi_options  # what the start ran with
+    smoothing = ["--method-option", "label_smoothing=0.9", "--no-figures"]
+    assert main([*svi, "--out", str(tmp_path / "svi10"), *smoothing]) == 0
+    said = "(10% of its labels in q's start: label_smoothing 0.9, as set; left unset, 0.05 keeps"
+    assert said in capsys.readouterr().out
+    # an update by svi starts from the saved labels smoothed the same way
     update = ["fit", "--method", "svi", "--sweeps", "2", "--update", str(gibbs), *common]
     assert main([*update, "--out", str(tmp_path / "svi_update"), "--no-figures"]) == 0
     assert (
-        "with all of this data (10% of its labels in q's start: label_smoothing 0.9,"
+        "with all of this data (95% of its labels in q's start: label_smoothing 0.05,"
         in capsys.readouterr().out
     )
     assert json.loads((cavi / "config.json").read_text())["inference"]["init"] == "result of gibbs"

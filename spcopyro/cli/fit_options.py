@@ -139,14 +139,28 @@ def backend_used(options: object, config: object) -> str | None:
 
 
 def warm_start_kept(options: object) -> str:
-    """What of a warm start's labels (``--init-from``) a method keeps, for the "starting from"
-    line: svi smooths them toward uniform by ``label_smoothing`` (0.9 by default, which keeps
-    10 %, silently until this note); "" for a method that starts at them."""
-    smoothing = getattr(options, "label_smoothing", None)
-    if smoothing is None:
+    """What of a warm start's labels (``--init-from``, ``--update``) a method keeps, for the
+    "starting from" line: svi smooths them toward uniform by ``label_smoothing`` (unset: 0.05
+    for given labels, which keeps 95 %; until 2026-12-05 it was 0.9, which kept 10 % and at
+    L = 120 fell to the uniform fixed point), and annealing from gamma 0 (svi's default) can
+    still lose them; "" for a method that starts at them."""
+    start_smoothing = getattr(options, "start_smoothing", None)  # svi's SVIOptions
+    if start_smoothing is None:
         return ""
-    return (f" ({1 - smoothing:.0%} of its labels in q's start: label_smoothing {smoothing:g}, "
-            "which --method-option label_smoothing=0.05 sets to keep 95%)")  # fmt: skip
+    smoothing = start_smoothing(given_start=True)
+    if getattr(options, "label_smoothing", None) is None:
+        how = "the default for given labels"
+    elif smoothing > 0.05:
+        how = "as set; left unset, 0.05 keeps 95%"
+    else:
+        how = "as set"
+    anneal = getattr(options, "anneal_iterations", 0)
+    if anneal:  # from gamma 0 the unobserved cells drift to uniform (at L = 120 q ended flat)
+        how += (f"; gamma annealed from 0 over {anneal} steps can still lose them: "
+                "--method-option anneal_iterations=0 keeps them")  # fmt: skip
+    return (
+        f" ({1 - smoothing:.0%} of its labels in q's start: label_smoothing {smoothing:g}, {how})"
+    )
 
 
 def method_options(args: argparse.Namespace) -> object | None:

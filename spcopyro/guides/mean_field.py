@@ -55,6 +55,13 @@ _MARGIN = 1e-3
 GUIDE_NAME = "spcomapping_guide"
 """The default name of a guide: the start of its parameters' names in the param store."""
 
+RANDOM_START_SMOOTHING = 0.9
+"""The label smoothing of a random start: near uniform with a small random tilt (max q about
+0.11 at L = 120), the start the ``svi`` method anneals from."""
+
+GIVEN_START_SMOOTHING = 0.05
+"""The label smoothing of a given start (a fitted q, a warm start's labels): 95 % of it kept."""
+
 
 class WrongLossError(TypeError):
     """The guide was run by an ELBO that cannot fit it (module docstring)."""
@@ -119,7 +126,7 @@ class MeanFieldGuide(PyroModule):
         super().__init__(name=name)
         N, L = data.num_free, config.num_concepts
         if label_smoothing is None:
-            label_smoothing = 0.9 if q is None else 0.05
+            label_smoothing = RANDOM_START_SMOOTHING if q is None else GIVEN_START_SMOOTHING
         if generator is not None:  # a seed (0 above all) fell back to torch's generator
             check_generator(generator)
         if q is None:

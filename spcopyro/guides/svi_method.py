@@ -31,7 +31,11 @@ import torch
 from spcopyro.config import SpCoConfig
 from spcopyro.guides.cavi_method import output_from_variational
 from spcopyro.guides.loss import MeanFieldELBO
-from spcopyro.guides.mean_field import MeanFieldGuide
+from spcopyro.guides.mean_field import (
+    GIVEN_START_SMOOTHING,
+    RANDOM_START_SMOOTHING,
+    MeanFieldGuide,
+)
 from spcopyro.guides.run import VariationalRun, initial_q, remaining, resumed
 from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
@@ -68,12 +72,16 @@ class SVIOptions:
             step, so a label field that froze into small random domains at full coupling
             coarsens far too slowly; started uncoupled, the observations place the concepts
             first and the domains grow from them.
-        label_smoothing: s in the starting logits ``log((1 - s) q0 + s / L)``. The default 0.9
-            starts near uniform with a small random tilt (the random one-hot q0 of
+        label_smoothing: s in the starting logits ``log((1 - s) q0 + s / L)``, in (0, 1);
+            None (the default) picks it by the start (:meth:`start_smoothing`, as
+            :class:`~spcopyro.guides.mean_field.MeanFieldGuide` does): 0.9 for a random start,
+            near uniform with a small random tilt (the random one-hot q0 of
             :func:`~spcopyro.guides.run.initial_q`), which is what lets annealing work at
-            small L (8); at L = 120 with sparse observations that start stays at mean field's
-            disordered fixed point (:func:`warn_flat_q`). Use a small value (0.01-0.1) to keep
-            a warm start's ``init_labels``.
+            small L (8); 0.05 for given start labels (``init_labels``, ``fit --init-from``,
+            ``--init`` other than random, ``--update``), which keeps 95 % of them. At L = 120
+            with sparse observations a start smoothed by 0.9 stays at mean field's disordered
+            fixed point (:func:`warn_flat_q`), a fitted warm start's included (it kept 10 %
+            of it before 2026-12-05).
         bound: the concentrations' constraint, ``"prior"`` (above the prior's) or ``"zero"``
             (positive): see :class:`~spcopyro.guides.mean_field.MeanFieldGuide`.
         tolerance: stop once the mean ELBO estimate of the last ``window`` steps at full gamma
@@ -90,7 +98,7 @@ class SVIOptions:
     clip_norm: float = 10.0
     num_particles: int = 1
     anneal_iterations: int = 100
-    label_smoothing: float = 0.9
+    label_smoothing: float | None = None
     bound: Literal["prior", "zero"] = "prior"
     tolerance: float = 1e-4
     window: int = 50
@@ -115,14 +123,27 @@ class SVIOptions:
             raise bad("num_particles", "must be an integer >= 1")
         if not isinstance(self.anneal_iterations, int) or self.anneal_iterations < 0:
             raise bad("anneal_iterations", "must be an integer >= 0")
-        if not (isinstance(self.label_smoothing, (int, float)) and 0 < self.label_smoothing < 1):
-            raise bad("label_smoothing", "must lie in (0, 1)")
+        smoothing = self.label_smoothing
+        if smoothing is not None and not (
+            isinstance(smoothing, (int, float)) and not isinstance(smoothing, bool)
+            and 0 < smoothing < 1
+        ):  # fmt: skip
+            raise bad("label_smoothing", "must be None or lie in (0, 1)")
         if self.bound not in ("prior", "zero"):
             raise bad("bound", "must be 'prior' or 'zero'")
         if not (positive(self.tolerance) or self.tolerance == 0):
             raise bad("tolerance", "must be a finite number >= 0")
         if not isinstance(self.window, int) or isinstance(self.window, bool) or self.window < 1:
             raise bad("window", "must be an integer >= 1")
+
+    def start_smoothing(self, given_start: bool) -> float:
+        """The label smoothing a start gets: ``label_smoothing`` where set, else
+        :data:`~spcopyro.guides.mean_field.GIVEN_START_SMOOTHING` (0.05) for given start
+        labels or q (``given_start``) and
+        :data:`~spcopyro.guides.mean_field.RANDOM_START_SMOOTHING` (0.9) for a random one."""
+        if self.label_smoothing is not None:
+            return float(self.label_smoothing)
+        return GIVEN_START_SMOOTHING if given_start else RANDOM_START_SMOOTHING
 
     def optimiser_for(self, guide: MeanFieldGuide) -> pyro.optim.PyroOptim:
         """The Pyro optimiser: per-parameter step sizes (logits vs concentrations)."""
@@ -172,12 +193,15 @@ def init(
     config: SpCoConfig,
     options: SVIOptions,
     resumed: bool = False,
+    given_start: bool = False,
 ) -> SVIState:
-    """The guide started at ``q`` ``[N, L]`` (smoothed per ``options.label_smoothing``; a
-    ``resumed`` run's q, the one an interrupted run reached, by :data:`RESUMED_SMOOTHING`
-    only: smoothed as a start it went most of the way back to uniform, and the ELBO with it),
-    its loss and optimiser. Call inside the param-store scope the run uses (:func:`fit_svi`)."""
-    smoothing = RESUMED_SMOOTHING if resumed else options.label_smoothing
+    """The guide started at ``q`` ``[N, L]`` (smoothed per
+    ``options.start_smoothing(given_start)``: 0.9 unless set for a random q, 0.05 for given
+    start labels or q; a ``resumed`` run's q, the one an interrupted run reached, by
+    :data:`RESUMED_SMOOTHING` only: smoothed as a start it went most of the way back to uniform,
+    and the ELBO with it), its loss and optimiser. Call inside the param-store scope the run
+    uses (:func:`fit_svi`)."""
+    smoothing = RESUMED_SMOOTHING if resumed else options.start_smoothing(given_start)
     guide = MeanFieldGuide(data, config, q=q, label_smoothing=smoothing, bound=options.bound)
     loss = MeanFieldELBO(num_particles=options.num_particles)
     svi = pyro.infer.SVI(spcomapping_model, guide, options.optimiser_for(guide), loss)
@@ -229,6 +253,7 @@ def fit_svi(
     progress: bool | None = None,
     thin: int = 0,
     resume: Trajectory | None = None,
+    given_start: bool = False,
 ) -> VariationalRun:
     """At most ``steps`` SVI steps (:func:`step`) of the mean-field guide started at ``q``
     ``[N, L]``, run by the shared driver: annealed per ``options.anneal_iterations``, stopped
@@ -239,7 +264,9 @@ def fit_svi(
     factors and, per step, the ELBO estimate (minus the SVI loss), the concepts in use, the
     seconds and the coupling. ``thin`` > 0 keeps the argmax labels every ``thin`` steps.
     ``resume``: the record of the run ``q`` was reached by (a checkpoint's), continued here
-    with a fresh optimiser (its moments are not kept).
+    with a fresh optimiser (its moments are not kept). ``given_start``: ``q`` is given start
+    labels or a fitted q, not a random start (``label_smoothing`` None smooths it by 0.05, not
+    0.9: :meth:`SVIOptions.start_smoothing`).
     """
     options = SVIOptions() if options is None else options
     if steps < 1:
@@ -249,7 +276,7 @@ def fit_svi(
     with torch.random.fork_rng(devices=[]), pyro.get_param_store().scope(), _diverged(options):
         torch.manual_seed(seed)
         run = drive(
-            init(q, data, config, options, resumed=resume is not None),
+            init(q, data, config, options, resumed=resume is not None, given_start=given_start),
             lambda state, gamma: step(state, data, config, gamma), steps, gamma=config.gamma,
             anneal=options.anneal_iterations, tolerance=options.tolerance,
             window=options.window, thin=thin,
@@ -260,11 +287,17 @@ def fit_svi(
         )  # fmt: skip
         guide = run.state.guide
         q = guide.marginals()  # [N, L]
-        warn_flat_q(q, config, options, resumed=resume is not None)
+        warn_flat_q(q, config, options, resumed=resume is not None, given_start=given_start)
         return VariationalRun.of(run, q, guide.factors())
 
 
-def warn_flat_q(q: torch.Tensor, config: SpCoConfig, options: SVIOptions, resumed: bool) -> bool:
+def warn_flat_q(
+    q: torch.Tensor,
+    config: SpCoConfig,
+    options: SVIOptions,
+    resumed: bool,
+    given_start: bool = False,
+) -> bool:
     r"""Warn (logger ``"spcopyro"``) when ``q`` ``[N, L]`` ends near uniform: a mean entropy
     per cell of at least :data:`FLAT_Q_SHARE` of :math:`\log L`. Returns whether it warned
     (never inside :func:`~spcopyro.inference.schedule.short_runs_meant`).
@@ -273,7 +306,7 @@ def warn_flat_q(q: torch.Tensor, config: SpCoConfig, options: SVIOptions, resume
     mean-field update of a cell is :math:`q_i \propto \exp(E\log\pi + \gamma \sum_{j \sim i}
     q_j)`; at nearly uniform neighbours its tilt shrinks by about :math:`\gamma D / L` per
     update, so the disordered fixed point attracts every start near uniform while
-    :math:`\gamma < L / D` (D neighbours; 30 at L = 120, D = 4). The default start
+    :math:`\gamma < L / D` (D neighbours; 30 at L = 120, D = 4). The default random start
     (``label_smoothing`` 0.9, max q about 0.11 at L = 120) and annealing from gamma 0 lie in its
     basin, and from random one-hot labels Adam's steps lead there too; where few cells hold
     observations nothing breaks the symmetry. CAVI from random labels at full gamma orders at
@@ -289,17 +322,28 @@ def warn_flat_q(q: torch.Tensor, config: SpCoConfig, options: SVIOptions, resume
     why = (f"gamma {config.gamma:g} < L / D = {L / degree:g}: mean field's disordered fixed "
            "point holds a start near uniform" if config.gamma < L / degree else
            "the start stayed in mean field's disordered fixed point")  # fmt: skip
+    smoothing = options.start_smoothing(given_start)
     start = ("the resumed q" if resumed else
-             f"label_smoothing={options.label_smoothing:g}"
+             f"{'given' if given_start else 'random'} labels, label_smoothing={smoothing:g}"
              + (f", annealed from gamma 0 over {options.anneal_iterations} steps"
                 if options.anneal_iterations else ""))  # fmt: skip
+    keep = []  # what would keep a given start: its own smoothing, no annealing from gamma 0
+    if smoothing > GIVEN_START_SMOOTHING:
+        keep.append(f"label_smoothing={GIVEN_START_SMOOTHING:g}, the default for given labels")
+    if options.anneal_iterations:
+        keep.append("anneal_iterations=0: annealed from gamma 0 a given start falls there too")
+    if given_start and not resumed:
+        way_out = (f"Keep the given start ({'; '.join(keep)}) or use --method cavi" if keep
+                   else "Use --method cavi")  # fmt: skip
+    else:
+        way_out = ("Start from a fitted map (fit --init-from OUT, or init_labels: smoothed by "
+                   f"label_smoothing={GIVEN_START_SMOOTHING:g} unless it is set; with "
+                   "anneal_iterations=0) or use --method cavi")  # fmt: skip
     logger.warning(
         "SVI's q(C) ended near uniform: mean entropy %.3f nats a cell, %.1f%% of log L = %.3f, "
         "so its map is the argmax of nearly flat marginals, close to arbitrary (%s; start: %s; "
-        "Adam's steps lead there from random labels too: docs/variational.md). Start from a "
-        "fitted map (fit --init-from OUT --method-option label_smoothing=0.05, or init_labels "
-        "with SVIOptions(label_smoothing=0.05)) or use --method cavi",
-        entropy, 100 * entropy / math.log(L), math.log(L), why, start,
+        "Adam's steps lead there from random labels too: docs/variational.md). %s",
+        entropy, 100 * entropy / math.log(L), math.log(L), why, start, way_out,
     )  # fmt: skip
     return True
 
@@ -322,9 +366,13 @@ class SVIInference(InferenceMethod):
             initial_q(data, config, request.generator, request.init_labels),
             None,
         )
+        # given start labels: smoothed by 0.05 unless set (recorded as what the start ran with)
+        given = request.init_labels is not None
         run = fit_svi(
             data, config, remaining(request), q=q, generator=request.generator,
             options=options, progress=request.progress, thin=request.thin, resume=before,
+            given_start=given,
         )  # fmt: skip
-        record = {"iterations": request.iterations, **dataclasses.asdict(options)}
+        record = {"iterations": request.iterations, **dataclasses.asdict(options),
+                  "label_smoothing": options.start_smoothing(given)}  # fmt: skip
         return output_from_variational(run, record)
