@@ -711,3 +711,72 @@ def test_scale_mask_with_equal_thresholds_is_refused(tmp_path: Path) -> None:
     path = write_yaml(tmp_path / "s.yaml", mode="scale", occupied_thresh=0.4, free_thresh=0.4)
     with pytest.raises(MapFormatError, match=r"s\.yaml:6: key 'free_thresh' 0\.4 equals"):
         load_filter_mask(path)
+
+
+# ---------------------------------------------------------------------- maps without free space
+def _no_free(tmp_path: Path, pixels: list[list[int]], **overrides: object) -> str:
+    """The refusal of a map of ``pixels`` with the yaml ``overrides`` (it has no free cell)."""
+    from spcopyro.maps.free_space import check_free_cells
+
+    write_pgm(tmp_path / "map.pgm", np.array(pixels, dtype=np.uint8))
+    grid = load_map(write_yaml(tmp_path / "t.yaml", **overrides))
+    assert grid.num_free == 0
+    with pytest.raises(ValueError, match=r"house 'h': the map .*t\.yaml has no free cell") as info:
+        check_free_cells(grid, "house 'h'")
+    return str(info.value)
+
+
+def test_no_free_cell_names_the_yaml_lines_and_the_greys(tmp_path: Path) -> None:
+    message = _no_free(tmp_path, [[0, 205, 254]], occupied_thresh=1.0, free_thresh=0.0)
+    for fragment in (
+        "t.yaml:4: negate 0;",
+        "t.yaml:6: free_thresh 0.0;",
+        "t.yaml:5: occupied_thresh 1.0;",
+        "greys 0..254 of 255",
+        "p = (255 - grey) / 255 runs 0.003922..1: none is below free_thresh 0.0",
+    ):
+        assert fragment in message, (fragment, message)
+
+
+def test_no_free_cell_says_when_the_other_negate_frees_cells(tmp_path: Path) -> None:
+    message = _no_free(tmp_path, [[205, 254, 254]], negate=1)
+    assert "t.yaml:4: negate 1;" in message and "with negate 0, 2 cells would be free" in message
+
+
+def test_no_free_cell_says_when_every_pixel_is_unknown_grey(tmp_path: Path) -> None:
+    message = _no_free(tmp_path, [[205, 205]])
+    assert "every pixel is map_saver's unknown grey 205" in message
+
+
+def test_no_free_cell_of_a_grid_edited_in_memory_blames_no_yaml_line(tmp_path: Path) -> None:
+    from spcopyro.maps.free_space import check_free_cells
+
+    write_pgm(tmp_path / "map.pgm", np.array([[0, 254]], dtype=np.uint8))
+    grid = load_map(write_yaml(tmp_path / "t.yaml"))  # one free cell in the yaml's reading
+    walls = grid.with_occupancy(np.full(grid.shape, OCCUPIED, dtype=np.int8))
+    with pytest.raises(ValueError, match="has no free cell") as info:
+        check_free_cells(walls, "house 'h'")
+    assert "t.yaml:" not in str(info.value) and "check the map image" in str(info.value)
+
+
+def test_fit_refuses_a_map_without_free_cells_before_its_summary(tmp_path: Path, capsys) -> None:
+    """``spcopyro fit`` refuses before printing the summary (whose placement line listed every
+    observation as unplaced) and before the model's cells warn of leaving no free cell."""
+    from spcopyro.cli.main import main
+    from spcopyro.synthetic import HouseSpec, write_synthetic
+
+    room = write_synthetic(
+        tmp_path / "data", seed=1, spec=HouseSpec(height=30, width=40, num_rooms=2)
+    )
+    for name in ("truth.npy", "categories.json"):
+        (room / name).unlink()
+    yaml_path = room.parent / "map" / f"{room.name}.yaml"
+    text = yaml_path.read_text()
+    yaml_path.write_text(text.replace("free_thresh: 0.196", "free_thresh: 0.0"))
+    line = 1 + text.split("\n").index("free_thresh: 0.196")
+    out = tmp_path / "out"
+    assert main(["fit", str(room), "--out", str(out), "--sweeps", "3", "--no-figures"]) == 2
+    printed = capsys.readouterr()
+    assert not out.exists() and "placement" not in printed.out and "house " not in printed.out
+    assert "leave no free cell" not in printed.err
+    assert f"{yaml_path}:{line}: free_thresh 0.0;" in printed.err.strip().splitlines()[-1]

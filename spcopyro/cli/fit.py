@@ -58,6 +58,7 @@ from spcopyro.data.footprint import release_shared_footprints, shared_footprints
 from spcopyro.data.model_grid import model_house
 from spcopyro.gibbs.chains import when_chains_start
 from spcopyro.maps import save_map
+from spcopyro.maps.free_space import check_free_cells
 from spcopyro.results.specks import in_use_text
 
 if TYPE_CHECKING:
@@ -150,6 +151,7 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
     if args.resume is not None:
         check_resume_file(args.resume)
     loaded = _load(args.data)
+    check_free_cells(loaded.grid, f"house {loaded.name!r}")  # before the summary lists them
     args.phases.mark("load")
     settings, options = fit_settings(args, loaded)
     if args.update is not None:  # a refined fit goes on on the map's cells, as refined

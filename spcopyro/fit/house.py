@@ -67,6 +67,7 @@ from spcopyro.gibbs.method import GibbsInference, output_from_run
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.inference.driver import DriveInterrupted
 from spcopyro.inference.protocol import InferenceOutput
+from spcopyro.maps.free_space import check_free_cells
 from spcopyro.model import ModelData, make_model_data
 from spcopyro.results.map_checks import coverage_warning, house_map_warning
 from spcopyro.results.point_estimate import check_point_estimate
@@ -151,11 +152,7 @@ def prepare_model_data(
             logger.warning(warning)
     grid = house.grid
     where = f" on map {grid.source}" if getattr(grid, "source", None) else ""
-    if grid.num_free == 0:
-        raise ValueError(
-            f"house {house.name!r}: the map {grid.source or ''} has no free cell, nothing to "
-            "label (check the map image and its yaml's negate flag and free/occupied thresholds)"
-        )
+    check_free_cells(grid, f"house {house.name!r}")  # ValueError naming the yaml's lines
     counts = prepared_cell_counts(
         grid, house.observations, settings.data, vocabulary=vocabulary, source=house.source
     )

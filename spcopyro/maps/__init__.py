@@ -13,6 +13,9 @@ Modules (everything public is re-exported here, so ``from spcopyro.maps import X
   :func:`load_label_map_server`.
 * :mod:`~spcopyro.maps.filter_mask`: Nav2 costmap-filter masks (``mode: scale`` maps of values
   0..100), :func:`save_filter_mask` and :func:`load_filter_mask` (map_server's three modes).
+* :mod:`~spcopyro.maps.free_space`: :func:`check_free_cells`, the refusal of a map with no
+  free cell, naming the yaml's ``negate`` and threshold lines and the image's greys
+  (:func:`no_free_cell_reason`).
 * :mod:`~spcopyro.maps.palette`: colours a reader can tell apart (:func:`distinct_colours`,
   :func:`concept_colours`: touching concepts get the most different ones).
 * :mod:`~spcopyro.maps.regions`: which labels touch (:func:`region_contacts`) and each label's
@@ -20,6 +23,7 @@ Modules (everything public is re-exported here, so ``from spcopyro.maps import X
 """
 
 from spcopyro.maps.filter_mask import FilterMask, load_filter_mask, save_filter_mask
+from spcopyro.maps.free_space import check_free_cells, no_free_cell_reason
 from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from spcopyro.maps.map_server import (
     PGM_FREE,
@@ -69,6 +73,7 @@ __all__ = [
     "FilterMask",
     "MapFormatError",
     "OccupancyGrid",
+    "check_free_cells",
     "concept_colours",
     "concept_regions",
     "distinct_colours",
@@ -76,6 +81,7 @@ __all__ = [
     "load_filter_mask",
     "load_label_map_server",
     "load_map",
+    "no_free_cell_reason",
     "region_adjacency",
     "region_contacts",
     "render_labels",

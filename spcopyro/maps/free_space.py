@@ -1,0 +1,80 @@
+"""Why a loaded map has no free cell: the early refusal of a fit with nothing to label.
+
+A map_server map reads as all unknown (or all occupied) when its thresholds leave no grey free
+(``free_thresh: 0``: no ``p`` is below it), when ``negate`` inverts a map drawn with free space
+light, or when its image holds only map_saver's unknown grey 205 (nothing explored).
+:func:`check_free_cells` refuses such a map before anything else is counted or printed, naming the
+yaml's ``negate`` and threshold lines and values and the image's range of greys (and so of the
+occupancy ``p`` they give), so the reason can be read off the message. Torch-free: ``spcopyro fit``
+calls it right after loading the house.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from spcopyro._util.messages import echo
+from spcopyro.maps.grid import OccupancyGrid
+from spcopyro.maps.map_server import PGM_UNKNOWN, MapFormatError, _read_levels, _read_map_yaml
+
+__all__ = ["check_free_cells", "no_free_cell_reason"]
+
+_GENERIC = "check the map image and its yaml's negate flag and free/occupied thresholds"
+
+
+def no_free_cell_reason(grid: OccupancyGrid) -> str:
+    """Why ``grid`` (or the map it was coarsened from), loaded from a map_server yaml, has no free
+    cell: the yaml's ``negate``, ``free_thresh`` and ``occupied_thresh`` with their lines, the
+    image's greys ``v`` (``[lo, hi]`` of its full scale) and the occupancy they give,
+    ``p = (full - v) / full`` (``v / full`` negated), against ``p < free_thresh`` for free; and
+    a hint (flipping ``negate`` would free cells; every pixel is the unknown grey 205). A grid
+    that was not read from a yaml (or whose yaml no longer reads) gets the generic hint."""
+    source = grid.coarsened_from.source if grid.coarsened_from is not None else grid.source
+    path = Path(source) if source is not None else None
+    if path is None or path.suffix.lower() not in (".yaml", ".yml"):
+        return _GENERIC
+    try:
+        spec = _read_map_yaml(path)
+        levels, full = _read_levels(spec)  # [H, W] or [H, W, C]
+    except (MapFormatError, OSError):
+        return _GENERIC
+    grey = levels if levels.ndim == 2 else levels.mean(axis=2)  # [H, W] as load_map averages
+    p = grey / full if spec.negate else (full - grey) / full  # [H, W]
+    if np.any(p < spec.free_thresh):  # the grid is not the yaml's as it reads now (edited)
+        return _GENERIC
+    flipped = (full - grey) / full if spec.negate else grey / full  # [H, W] the other negate
+    low, high = float(grey.min()), float(grey.max())
+    formula = f"grey / {full:g}" if spec.negate else f"({full:g} - grey) / {full:g}"
+    reason = (
+        f"{spec.where('negate')}: negate {int(spec.negate)}; "
+        f"{spec.where('free_thresh')}: free_thresh {echo(spec.free_thresh)}; "
+        f"{spec.where('occupied_thresh')}: occupied_thresh {echo(spec.occupied_thresh)}; "
+        f"the image {str(spec.image)!r} has greys {low:g}..{high:g} of {full:g}, so "
+        f"p = {formula} runs {float(p.min()):.4g}..{float(p.max()):.4g}: none is below "
+        f"free_thresh {echo(spec.free_thresh)} (free)"
+    )
+    rescued = int(np.count_nonzero(flipped < spec.free_thresh))
+    if full == 255 and low == high == PGM_UNKNOWN:
+        reason += (
+            f": every pixel is map_saver's unknown grey {PGM_UNKNOWN}, the map holds no "
+            "explored space"
+        )
+    elif rescued:
+        reason += f": with negate {int(not spec.negate)}, {rescued} cells would be free"
+    else:
+        reason += f": {_GENERIC}"
+    return reason
+
+
+def check_free_cells(grid: OccupancyGrid, what: str) -> None:
+    """ValueError when ``grid`` has no free cell (nothing to label), saying why
+    (:func:`no_free_cell_reason`); ``what`` names the house, e.g. ``"house 'kitchen'"``."""
+    if grid.num_free:
+        return
+    source = grid.coarsened_from.source if grid.coarsened_from is not None else grid.source
+    raise ValueError(
+        f"{what}: the map {source or ''} has no free cell, nothing to label: "
+        f"{no_free_cell_reason(grid)}"
+    )
