@@ -220,3 +220,78 @@ def test_timed_notebooks_run_inference_on_one_torch_thread(name):
     sets = [k for k, source in enumerate(code) if "torch.set_num_threads(1)" in source]
     assert runs, f"{name} no longer runs inference outside fit_house"
     assert sets and sets[0] < runs[0], f"{name} runs inference before torch.set_num_threads(1)"
+
+
+def _run_cells_and_probe(name, pick, probe_source, tmp_path, env=None):
+    """Run notebook ``name``'s code cells for which ``pick(source)`` holds, in small mode, then
+    ``probe_source``; the probe's printed text."""
+    notebook = nbformat.read(ROOT / "notebooks" / f"{name}.ipynb", as_version=4)
+    cells = [cell for cell in notebook.cells if cell.cell_type == "code" and pick(cell.source)]
+    probe = nbformat.v4.new_code_cell(probe_source)
+    client = NotebookClient(notebook, timeout=600, kernel_name="python3",
+                            resources={"metadata": {"path": str(tmp_path)}})  # fmt: skip
+    pythonpath = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
+    full_env = {**os.environ, "PYTHONPATH": pythonpath, SIZE_ENV: "small", **(env or {})}
+    with client.setup_kernel(env=full_env):
+        for cell in [*cells, probe]:
+            client.execute_cell(cell, 0)  # raises on an error
+    return "".join(o.get("text", "") for o in probe.outputs if o.output_type == "stream")
+
+
+@pytest.mark.slow
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")
+def test_real_house_notebook_names_the_colours_of_its_three_maps(tmp_path):
+    """Notebook 4's region truth, fit and nearest-utterance panels (each in its own colours, not
+    matched between panels) had no legend: a reader could not tell which colour was which place.
+    Each panel now has one, largest label first: the truth's place names, each fit concept's best
+    word and id, (E)'s words. Runs the cells up to that figure (not the paper-dp contrast)."""
+    import json
+
+    notebook = nbformat.read(ROOT / "notebooks" / "04_a_real_house.ipynb", as_version=4)
+    code = [cell.source for cell in notebook.cells if cell.cell_type == "code"]
+    figure = [k for k, source in enumerate(code) if "truth_labels = " in source]
+    assert len(figure) == 1, "notebook 4's truth figure cell moved"
+    wanted = set(code[: figure[0] + 1])
+    probe = (
+        "import json\n"
+        "def _expected(image, name):\n"
+        "    image = np.where(house.grid.free, image, -1)\n"
+        "    labels, sizes = np.unique(image[image >= 0], return_counts=True)\n"
+        "    return [name(int(k)) for k in labels[np.argsort(-sizes)]]\n"
+        "def _best(c):\n"
+        "    return 'no word heard' if result.heard(c) == 0 else result.top_words(c, 1)[0][0]\n"
+        "print(json.dumps({\n"
+        "    'legends': [[t.get_text() for t in ax.get_legend().get_texts()] for ax in axes],\n"
+        "    'truth': _expected(truth_labels, lambda k: truth_names[k]),\n"
+        "    'fit': _expected(mapped, lambda c: f'{_best(c)} ({c})'),\n"
+        "    'nearest': _expected(nearest, lambda v: obs.vocabulary[v]),\n"
+        "    'places': truth_names, 'vocabulary': list(obs.vocabulary),\n"
+        "}))\n"
+    )
+    printed = _run_cells_and_probe(
+        "04_a_real_house",
+        lambda source: source in wanted and 'preset("paper-dp")' not in source,
+        probe,
+        tmp_path,
+    )
+    seen = json.loads(printed.strip().splitlines()[-1])
+    truth, fit, nearest = seen["legends"]
+    assert truth == seen["truth"] and set(truth) <= set(seen["places"]), seen
+    assert fit == seen["fit"] and len(fit) >= 2, seen
+    assert nearest == seen["nearest"] and set(nearest) <= set(seen["vocabulary"]), seen
+
+
+@pytest.mark.slow
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")
+def test_gibbs_notebook_titles_its_log_joint_figures(tmp_path):
+    """Notebook 2's figure of one chain's log joint and concepts in use, and the figure of the
+    convergence check's chains, had no title. Runs the setup, the chain and the check only."""
+    picked = ("import os\n", "looks = sorted(", "result, diagnostics = fit_house_converged(")
+    printed = _run_cells_and_probe(
+        "02_gibbs_sampling",
+        lambda source: source.startswith(picked),
+        "print(repr(top.get_title()), repr(ax.get_title()))",
+        tmp_path,
+    )
+    assert "'one chain, 150 sweeps: log joint and concepts in use'" in printed, printed
+    assert "'2 chains: log joint'" in printed, printed
