@@ -374,3 +374,58 @@ def test_chunked_coefficients_equal_the_dense_ones(memoized_house, monkeypatch):
     monkeypatch.setattr(stochastic, "CHUNK", 2000)  # 9 rows of 205 image classes
     chunked = stochastic.chunked_coefficients(data, config)
     assert float(chunked) == pytest.approx(float(multinomial_coefficients(data, config)), rel=1e-12)
+
+
+def _chunk_by_chunk_coefficients(data, config) -> float:
+    """The coefficients as chunked_coefficients summed them before 2026-12-05: one chunk of
+    about CHUNK numbers at a time, through the density at log p = 0."""
+    from spcopyro.distributions import multinomial_counts_log_prob
+
+    total = torch.zeros((), dtype=torch.float64)
+    for modality in data.modalities:
+        if config.uses(modality.name):
+            rows = max(1, stochastic.CHUNK // modality.counts.shape[-1])
+            for lo in range(0, modality.counts.shape[0], rows):
+                counts = modality.counts[lo : lo + rows]
+                total += multinomial_counts_log_prob(counts, torch.zeros_like(counts)).sum()
+    return float(total)
+
+
+def _count_data(seed: int = 0):
+    """Model data and config stand-ins holding footprint-like real-valued counts: [3001, 205]
+    images (most entries nonzero) and [3001, 39] words (most zero), the second unused."""
+    from types import SimpleNamespace
+
+    gen = torch.Generator().manual_seed(seed)
+    images = torch.rand(3001, 205, generator=gen, dtype=torch.float64) * 7
+    images[torch.rand(3001, 205, generator=gen) < 0.02] = 0.0
+    words = torch.rand(3001, 39, generator=gen, dtype=torch.float64) * 40
+    words[torch.rand(3001, 39, generator=gen) < 0.95] = 0.0
+    modalities = [SimpleNamespace(name="images", counts=images),
+                  SimpleNamespace(name="words", counts=words),
+                  SimpleNamespace(name="unused", counts=images + 1)]  # fmt: skip
+    config = SimpleNamespace(uses=lambda name: name != "unused")
+    return SimpleNamespace(modalities=modalities), config
+
+
+@pytest.mark.parametrize("block", [1, 2000, 6 * 2000 + 5, 1 << 22])
+def test_chunked_coefficients_are_the_chunk_by_chunk_sum_to_the_bit(monkeypatch, block):
+    # Blocks of several chunks (the last one ragged), one chunk, and the default: the same float
+    # as summing chunk by chunk, not just close to it.
+    data, config = _count_data()
+    monkeypatch.setattr(stochastic, "CHUNK", 2000)  # 9 rows of images, 51 of words a chunk
+    monkeypatch.setattr(stochastic, "COEFFICIENT_BLOCK", block)
+    got = stochastic.chunked_coefficients(data, config)
+    assert got.dtype == torch.float64 and got.shape == ()
+    assert float(got).hex() == _chunk_by_chunk_coefficients(data, config).hex()
+
+
+def test_chunked_coefficients_take_many_chunks_a_call(monkeypatch):
+    # Each block of chunks is one set of torch calls and one advance (the setup bar): at the
+    # default block, 3001 rows of images in 10 calls, not one per chunk of 319 rows.
+    data, config = _count_data()
+    steps: list[int] = []
+    got = stochastic.chunked_coefficients(data, config, advance=steps.append)
+    assert float(got).hex() == _chunk_by_chunk_coefficients(data, config).hex()
+    assert sum(steps) == stochastic._coefficient_chunks(data, config) == 10 + 2
+    assert len(steps) == 2, steps
