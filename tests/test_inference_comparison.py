@@ -547,3 +547,32 @@ def test_an_interrupted_comparison_says_its_report_is_an_earlier_runs(
     (out / "comparison.md").unlink()
     assert main(command) == 130
     assert "earlier run" not in capsys.readouterr().err
+
+
+def test_the_table_says_how_many_iterations_each_line_ran(tmp_path):
+    """comparison.md gave the budgets only ("Iterations: cavi 200, vi-gibbs 3"): a variational
+    line that stopped at its tolerance long before, and vi-gibbs's CAVI start (whose time its s
+    per fit includes), were not told apart from a run to the budget. A column gives the
+    iterations run, vi-gibbs's with its CAVI start's; the header says what a budget counts."""
+    settings = ComparisonSettings(variants=("cavi", "vi-gibbs"), seeds=1,
+                                  house_types=("synthetic",), quick=True,
+                                  iterations={"cavi": 200, "vi-gibbs": 3})  # fmt: skip
+    summary = run_comparison(tmp_path, settings)
+    cavi = summary["records"]["synthetic"]["cavi"][0]
+    vi_gibbs = summary["records"]["synthetic"]["vi-gibbs"][0]
+    assert cavi["iterations"] < 200  # converged first (tolerance 1e-6)
+    assert vi_gibbs["iterations"] == 3 and 1 <= vi_gibbs["start_iterations"] <= 100
+    text = (tmp_path / "comparison.md").read_text()
+    lines = text.splitlines()
+    header = next(line for line in lines if line.startswith("| method |"))
+    assert "| s per fit | iterations run |" in header
+    header = header.replace("\\|", "")  # "matching rate (means \\| labels)"
+    column = [c.strip() for c in header.split("|")].index("iterations run")
+    rows = {line.split("|")[1].strip(): line for line in lines if line.startswith("| ")}
+    cavi_row = rows["CAVI (mean field; gamma annealed over 20 it.)"].replace("\\|", "")
+    vi_row = rows["VI then Gibbs"].replace("\\|", "")
+    assert cavi_row.count("|") == vi_row.count("|") == header.count("|")
+    assert cavi_row.split("|")[column].strip() == str(cavi["iterations"])
+    assert vi_row.split("|")[column].strip() == f"3 (+ {vi_gibbs['start_iterations']} CAVI)"
+    assert "Iteration budgets: cavi 200, vi-gibbs 3. A budget is the sweeps of a sampler" in text
+    assert "not its reported point estimate's" in text  # whose wrong cells a sampler's are

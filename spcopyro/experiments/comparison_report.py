@@ -71,6 +71,8 @@ def _summarise_variant(records: list[dict]) -> dict[str, object]:
         "curve_kind": first["curve_kind"],
         "top_words_first_fit": first["top_words"],
     }
+    if all("start_iterations" in r for r in records):  # vi-gibbs: its CAVI start's iterations
+        out["start_iterations"] = _mean_sd([r["start_iterations"] for r in records])
     if "ess_per_second" in first:
         out["ess_per_second"] = {
             k: _mean_sd([r["ess_per_second"][k] for r in records]) for k in first["ess_per_second"]
@@ -253,6 +255,26 @@ def _fmt(entry: dict | None, digits: int = 3, sd: bool = True) -> str:
     return text
 
 
+BUDGETS = (
+    "A budget is the sweeps of a sampler, run in full, and a ceiling for cavi, lbp, svi and "
+    "stochastic-vi, which stop once their objective settles (column iterations run: a mean "
+    "below the budget is a fit that converged first); vi-gibbs's budget counts its Gibbs sweeps, "
+    "after a CAVI start of its own (column iterations run: + CAVI, its iterations), "
+    "whose time its s per fit, t95 and curve include."
+)
+"""What ``comparison.md``'s iteration budgets and its column *iterations run* count."""
+
+
+def _iterations_run(summary: dict) -> str:
+    """The mean iterations a line's fits ran, with vi-gibbs's CAVI start: ``"60 (+ 43 CAVI)"``."""
+    text = _fmt(summary.get("iterations"), 1 if summary.get("iterations", {}).get("sd") else 0,
+                False)  # fmt: skip
+    start = summary.get("start_iterations")
+    if start and math.isfinite(start.get("mean", math.nan)):
+        text += f" (+ {_fmt(start, 1 if start.get('sd') else 0, False)} CAVI)"
+    return text
+
+
 def _seconds(entry: dict | None) -> str:
     """A mean time in a table cell (:func:`~spcopyro._util.messages.seconds_text`)."""
     if not entry or not math.isfinite(entry.get("mean", math.nan)):
@@ -302,9 +324,9 @@ def table_markdown(summary: dict[str, object]) -> str:
     overrides = ", ".join(f"{k} {v}" for k, v in settings["overrides"].items())
     lines += [
         f"Preset `{settings['preset']}`" + (f" ({overrides})" if overrides else "")
-        + ", random initial labels. Iterations: "
+        + ", random initial labels. Iteration budgets: "
         + ", ".join(f"{k} {v}" for k, v in settings["iterations"].items())
-        + f". {command_time(summary['seconds'], summary.get('cells_finished_before', 0))}"
+        + f". {BUDGETS} {command_time(summary['seconds'], summary.get('cells_finished_before', 0))}"
         + _concurrent(summary.get("workers", 1)),
         "",
         "Times are wall-clock seconds of the inference alone, mean over fits. t95: time to reach "
@@ -322,12 +344,17 @@ def table_markdown(summary: dict[str, object]) -> str:
                 "Matching rate (means | labels): the same label map scored with pi and phi set "
                 "to their posterior means given it, instead of the method's own estimates (a "
                 "variational method's means under q; a sampler's result already holds the means "
-                "given its labels, so its two agree). ARI and t95 read the labels only.",
+                "given its labels, so its two agree). ARI and t95 read the labels only. "
+                "Wrong cells: the share of cells whose concept's majority category is not "
+                f"their own; sure: of them, those held with confidence >= {CONFIDENT} (a "
+                "variational method's q(C_i = label), of the labels ARI scores; a sampler's "
+                "share of its kept maps of the run's second half agreeing with its last state, "
+                "whose wrong cells these are, not its reported point estimate's).",
                 "",
                 "| method | ARI | matching rate | matching rate (means \\| labels) "
-                "| concepts (truth) | t95 ARI (s) | s per fit "
+                "| concepts (truth) | t95 ARI (s) | s per fit | iterations run "
                 "| ESS/s log joint | ESS/s agreement | wrong cells | of them sure (>= 0.99) |",
-                "|---|---|---|---|---|---|---|---|---|---|---|",
+                "|---|---|---|---|---|---|---|---|---|---|---|---|",
             ]
         else:
             lines += [
@@ -339,14 +366,15 @@ def table_markdown(summary: dict[str, object]) -> str:
                 "",
                 "| method | ARI (region truth) | top-1 | top-1 (means \\| labels) | top-3 "
                 "| mean rank | distance (m) | concepts | t95 top-1 (s) | s per fit "
-                "| ESS/s log joint | ESS/s agreement |",
-                "|---|---|---|---|---|---|---|---|---|---|---|---|",
+                "| iterations run | ESS/s log joint | ESS/s agreement |",
+                "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
             ]
         for key, s in by_variant.items():
             runs = len(records[key])
             ess = s.get("ess_per_second", {})
             common_tail = (
-                f"| {_seconds(s['seconds'])} | {_fmt(ess.get('log_joint'), 1, False)} "
+                f"| {_seconds(s['seconds'])} | {_iterations_run(s)} "
+                f"| {_fmt(ess.get('log_joint'), 1, False)} "
                 f"| {_fmt(ess.get('agreement'), 1, False)} "
             )
             if house_type == SYNTHETIC:

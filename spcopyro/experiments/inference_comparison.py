@@ -357,6 +357,8 @@ def fit_and_score_with_result(
         ],
         "objective": output.trace.objective_name,
     }
+    if "vi_iterations_run" in output.options:  # vi-gibbs: the CAVI start before its sweeps
+        record["start_iterations"] = int(output.options["vi_iterations_run"])  # type: ignore[call-overload]
     if output.trace.objective_name == "log joint" and output.label_samples is not None:
         kept_seconds = output.trace.seconds[np.asarray(output.sample_iterations)]
         agreements = stats.agreement_counts(output.label_samples, data.pairs)
