@@ -235,20 +235,30 @@ def test_fit_writes_the_uncertainty_map_and_where_its_probability_map(tmp_path, 
     printed = capsys.readouterr().out
     assert f"starting from    the gibbs fit in {gibbs}\n" in printed and "5 iterations" in printed
     # svi smooths its start toward uniform (label_smoothing): how much of the fit it keeps,
-    # 95% unless set (0.9 for every start before 2026-12-05 kept 10%)
+    # 95% unless set (0.9 for every start before 2026-12-05 kept 10%); and it does not anneal
+    # a given start unless anneal_iterations is set (100 for every start lost it at L = 120)
     svi = ["fit", "--method", "svi", "--sweeps", "2", "--init-from", str(gibbs), *common]
     assert main([*svi, "--out", str(tmp_path / "svi"), "--no-figures"]) == 0
+    printed = capsys.readouterr().out
     assert (
         f"gibbs fit in {gibbs} (95% of its labels in q's start: label_smoothing 0.05, the "
-        "default for given labels; gamma annealed from 0 over 100 steps can still lose them"
-        in capsys.readouterr().out
-    )
+        "default for given labels)\n" in printed
+    ), printed
+    # the inference line names what the unset options are here (it printed None)
+    assert "anneal_iterations=None (0: given start)" in printed, printed
+    assert "label_smoothing=None (0.05: given start)" in printed, printed
     svi_options = json.loads((tmp_path / "svi" / "config.json").read_text())["inference"]
     assert svi_options["label_smoothing"] == 0.05, svi_options  # what the start ran with
-    smoothing = ["--method-option", "label_smoothing=0.9", "--no-figures"]
+    assert svi_options["anneal_iterations"] == 0, svi_options
+    smoothing = ["--method-option", "label_smoothing=0.9", "--method-option",
+                 "anneal_iterations=2", "--no-figures"]  # fmt: skip
     assert main([*svi, "--out", str(tmp_path / "svi10"), *smoothing]) == 0
     said = "(10% of its labels in q's start: label_smoothing 0.9, as set; left unset, 0.05 keeps"
-    assert said in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert said in printed, printed
+    assert "gamma annealed from 0 over 2 steps, as set, can still lose them" in printed, printed
+    ran = json.loads((tmp_path / "svi10" / "config.json").read_text())["inference"]
+    assert ran["anneal_iterations"] == 2 and ran["label_smoothing"] == 0.9, ran  # as set
     # an update by svi starts from the saved labels smoothed the same way
     update = ["fit", "--method", "svi", "--sweeps", "2", "--update", str(gibbs), *common]
     assert main([*update, "--out", str(tmp_path / "svi_update"), "--no-figures"]) == 0
@@ -256,6 +266,8 @@ def test_fit_writes_the_uncertainty_map_and_where_its_probability_map(tmp_path, 
         "with all of this data (95% of its labels in q's start: label_smoothing 0.05,"
         in capsys.readouterr().out
     )
+    updated = json.loads((tmp_path / "svi_update" / "config.json").read_text())["inference"]
+    assert updated["anneal_iterations"] == 0, updated  # saved labels: not annealed
     assert json.loads((cavi / "config.json").read_text())["inference"]["init"] == "result of gibbs"
     assert (cavi / "uncertainty.png").is_file()
 

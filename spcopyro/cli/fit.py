@@ -39,6 +39,8 @@ from spcopyro.cli.fit_figures import FigurePrefetch, write_figures
 from spcopyro.cli.fit_options import (
     backend_used,
     check_sweeps,
+    given_start,
+    options_line,
     warm_start_kept,
 )
 from spcopyro.cli.fit_refine import refine, report_update, update_settings
@@ -214,7 +216,8 @@ def _fit_staged(job: FitJob) -> int:
     print(f"model            {config}" + (" (use_images: no images here)" if unused else ""))
     print(f"data             {settings.data}")
     default = INFERENCE_METHODS[args.method].default_options()
-    print(f"inference        {args.method}: {options if options is not None else default}")
+    shown = options_line(options if options is not None else default, given_start(args))
+    print(f"inference        {args.method}: {shown}")  # svi's None: with the value it uses
     print(f"threads          {describe_threads(args.threads, house.grid.num_free)}")
     if (used := backend_used(options or default, config)) is not None:
         print(f"backend used     {used}")

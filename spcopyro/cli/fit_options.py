@@ -10,7 +10,7 @@ import dataclasses
 
 from spcopyro.cli.common import given as given_flag
 
-__all__ = ["check_sweeps", "method_options", "warm_start_kept"]
+__all__ = ["check_sweeps", "given_start", "method_options", "options_line", "warm_start_kept"]
 
 _SAMPLERS = ("gibbs", "vi-gibbs")
 
@@ -142,25 +142,53 @@ def warm_start_kept(options: object) -> str:
     """What of a warm start's labels (``--init-from``, ``--update``) a method keeps, for the
     "starting from" line: svi smooths them toward uniform by ``label_smoothing`` (unset: 0.05
     for given labels, which keeps 95 %; until 2026-12-05 it was 0.9, which kept 10 % and at
-    L = 120 fell to the uniform fixed point), and annealing from gamma 0 (svi's default) can
-    still lose them; "" for a method that starts at them."""
-    start_smoothing = getattr(options, "start_smoothing", None)  # svi's SVIOptions
-    if start_smoothing is None:
+    L = 120 fell to the uniform fixed point) and anneals gamma from 0 over
+    ``anneal_iterations`` steps (unset: 0 for given labels; until 2026-12-05 it was 100, which
+    lost them at L = 120 too); "" for a method that starts at them."""
+    for_start = getattr(options, "for_start", None)  # svi's SVIOptions
+    if for_start is None:
         return ""
-    smoothing = start_smoothing(given_start=True)
+    ran = for_start(given_start=True)
+    smoothing, anneal = ran.label_smoothing, ran.anneal_iterations
     if getattr(options, "label_smoothing", None) is None:
         how = "the default for given labels"
     elif smoothing > 0.05:
         how = "as set; left unset, 0.05 keeps 95%"
     else:
         how = "as set"
-    anneal = getattr(options, "anneal_iterations", 0)
     if anneal:  # from gamma 0 the unobserved cells drift to uniform (at L = 120 q ended flat)
-        how += (f"; gamma annealed from 0 over {anneal} steps can still lose them: "
-                "--method-option anneal_iterations=0 keeps them")  # fmt: skip
+        how += (f"; gamma annealed from 0 over {anneal} steps, as set, can still lose them: "
+                "left unset, given labels are not annealed")  # fmt: skip
     return (
         f" ({1 - smoothing:.0%} of its labels in q's start: label_smoothing {smoothing:g}, {how})"
     )
+
+
+def given_start(args: argparse.Namespace) -> bool:
+    """Whether the fit starts from labels (``--init-from``, ``--update``'s saved fit, ``--init``
+    other than random), not a random start: what svi's options left unset depend on."""
+    starts_at = (getattr(args, "init_from", None), getattr(args, "update", None))
+    return any(x is not None for x in starts_at) or getattr(args, "init", None) not in (
+        None, "random"
+    )  # fmt: skip
+
+
+def options_line(options: object, given: bool) -> str:
+    """``options`` as fit's "inference" line prints them: their repr, with each field left to
+    the start (svi's ``label_smoothing=None``, ``anneal_iterations=None``) followed by the value
+    the fit uses, e.g. ``label_smoothing=None (0.05: given start)``."""
+    for_start = getattr(options, "for_start", None)
+    if for_start is None or not dataclasses.is_dataclass(options):
+        return repr(options)
+    ran, start = for_start(given_start=given), "given start" if given else "random start"
+    fields = []
+    for field in dataclasses.fields(options):
+        if not field.repr:
+            continue
+        value, used = getattr(options, field.name), getattr(ran, field.name)
+        note = f" ({used!r}: {start})" if value is None and used is not None else ""
+        fields.append(f"{field.name}={value!r}{note}")
+    return f"{type(options).__name__}({', '.join(fields)})"
 
 
 def method_options(args: argparse.Namespace) -> object | None:

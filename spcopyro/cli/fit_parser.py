@@ -162,8 +162,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--init-from", metavar="OUT",
                    help="start from the labels of an earlier fit's output folder on the same map "
                         "(a warm start from any method to any method, e.g. a cavi fit starting "
-                        "gibbs; svi keeps 95%% of them, label_smoothing 0.05 unless "
-                        "--method-option sets it); replaces --init (default: none)")  # fmt: skip
+                        "gibbs; svi keeps 95%% of them, label_smoothing 0.05, and does not "
+                        "anneal them, anneal_iterations 0, unless --method-option sets them); "
+                        "replaces --init (default: none)")  # fmt: skip
     p.add_argument("--marginal-samples", type=_non_negative_int, default=MARGINAL_SAMPLES,
                    help="gibbs, vi-gibbs: label maps kept over the second half of the sweeps for "
                         "the per-cell probabilities of uncertainty.png (0: none)")  # fmt: skip

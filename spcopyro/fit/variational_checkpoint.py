@@ -3,6 +3,7 @@ the fit's settings as the checkpoint records them (:mod:`spcopyro.guides.checkpo
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -30,9 +31,19 @@ class VariationalSaving:
     seeds: Sequence[int]
     init: Init
 
-    def _options(self) -> object:
+    def _given_options(self) -> object:
+        """The options as given (None: the method's defaults)."""
         kind = self.inference.options_type
         return method_options(self.options, kind, self.inference.title or self.inference.name)
+
+    def _options(self) -> object:
+        """The options as the fit runs them: fields left to the start (svi's None) set to what
+        it gets (``for_start``; given start labels unless ``init`` is random), so a checkpoint
+        records what ran and is compared with it (``anneal_iterations``: None against 100)."""
+        options = self._given_options()
+        for_start = getattr(options, "for_start", None)
+        given = init_name(self.init) != "random"
+        return options if for_start is None else for_start(given_start=given)
 
     def _record(self) -> dict[str, object]:
         return {"method": self.inference.name, "sweeps": int(self.sweeps),
@@ -53,7 +64,22 @@ class VariationalSaving:
     def load(self, path: str | os.PathLike[str]) -> Resumption:
         """The q(C) and record saved in ``path`` (ValueError naming what differs if it was made
         for another fit)."""
-        return load_variational(
-            path, self.data, self.settings.model, method=self.inference.name,
-            options=self._options(), record=self._record(),
-        )  # fmt: skip
+        try:
+            return load_variational(
+                path, self.data, self.settings.model, method=self.inference.name,
+                options=self._options(), record=self._record(),
+            )  # fmt: skip
+        except ValueError as error:
+            given, ran = self._given_options(), self._options()
+            fields = dataclasses.fields(ran) if dataclasses.is_dataclass(ran) else ()
+            names = [field.name for field in fields]
+            unset = [name for name in names  # left to the start: None given, a value run
+                     if getattr(given, name) is None and getattr(ran, name) is not None
+                     and f"{name}: " in str(error)]  # fmt: skip
+            if not unset:
+                raise
+            raise ValueError(  # e.g. svi's anneal_iterations: 100 for every start until then
+                f"{error} ({', '.join(unset)} unset: the start's default, 'here' above, which "
+                "changed on 2026-12-05; to resume, set the checkpoint's value with "
+                "--method-option)"
+            ) from None

@@ -26,7 +26,10 @@ free cells, L concepts, S iterations done:
 
 :func:`load_variational` refuses a checkpoint made for another method, options, model
 settings, data or caller's settings, naming what differs, as Gibbs checkpoints do
-(:mod:`spcopyro.gibbs.checkpoint`).
+(:mod:`spcopyro.gibbs.checkpoint`); options a resumed run does not read (its start's: svi's
+``label_smoothing``) are not compared, and options that depend on the start are compared as
+they ran (:meth:`~spcopyro.guides.svi_method.SVIOptions.for_start`, as
+:class:`~spcopyro.fit.variational_checkpoint.VariationalSaving` passes them).
 """
 
 from __future__ import annotations
@@ -67,6 +70,7 @@ def _header(method: str, options: object, config: SpCoConfig, data: ModelData) -
     from spcopyro.guides.lbp_method import LBPOptions, resolve_lbp_backend
 
     fields = dataclasses.asdict(options) if dataclasses.is_dataclass(options) else {}
+    fields = _resumed_fields(fields, options)
     if isinstance(options, LBPOptions) and options.backend == "auto":  # torch at gamma D > 300
         fields["backend"] = resolve_lbp_backend(options, data, config)
     return {
@@ -75,6 +79,14 @@ def _header(method: str, options: object, config: SpCoConfig, data: ModelData) -
         "model": config.to_json(),
         "data_sha256": data_fingerprint(data),
     }
+
+
+def _resumed_fields(fields: Mapping[str, object], options: object) -> dict[str, object]:
+    """``fields`` (``options``' or a checkpoint's record of them) without those a resumed run
+    does not read (``RESUME_IGNORES`` of the options' class: svi's ``label_smoothing``, the
+    start's, which a checkpoint from before 2026-12-05 recorded as 0.9 against None now)."""
+    ignored = getattr(type(options), "RESUME_IGNORES", ())
+    return {key: value for key, value in fields.items() if key not in ignored}
 
 
 def _backends_resolved(options: Mapping[str, object]) -> dict[str, object]:
@@ -168,7 +180,8 @@ def load_variational(
             )
         problems = data_differences(saved["data_sha256"], data)
         problems += differences(saved["model"], here["model"])
-        problems += differences(_backends_resolved(saved["options"]), here["options"])
+        ours = _resumed_fields(saved["options"], options)  # what the resumed run reads
+        problems += differences(_backends_resolved(ours), here["options"])
         if record is not None:
             problems += differences(saved["caller"], record)
         if problems:

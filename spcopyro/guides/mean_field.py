@@ -47,7 +47,14 @@ from spcopyro.guides.cavi import update_globals
 from spcopyro.guides.factors import GlobalFactors, prior_factors
 from spcopyro.guides.loss import MeanFieldELBO
 from spcopyro.guides.run import initial_q
-from spcopyro.model import DTYPE, SITE_LABELS, SITE_PI, ModelData, check_model_data
+from spcopyro.model import (
+    DTYPE,
+    SITE_LABELS,
+    SITE_PI,
+    ModelData,
+    check_config,
+    check_model_data,
+)
 
 _MARGIN = 1e-3
 """Start of every concentration above its prior's under ``bound="prior"`` (expected counts)."""
@@ -171,6 +178,7 @@ class MeanFieldGuide(PyroModule):
         return f"{site}_{'logits' if site == SITE_LABELS else 'concentration'}"
 
     def _check(self, data: ModelData, config: SpCoConfig) -> None:
+        check_config(config)  # svi.step(data, settings): the model's message, not AttributeError
         if (data.num_free, config.num_concepts) != (self.num_free, self.num_concepts):
             raise ValueError(
                 f"this guide was made for N={self.num_free} cells and L={self.num_concepts} "

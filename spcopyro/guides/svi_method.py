@@ -22,7 +22,7 @@ import logging
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Literal, NamedTuple
+from typing import ClassVar, Literal, NamedTuple
 
 import pyro
 import pyro.optim
@@ -48,6 +48,9 @@ FLAT_Q_SHARE = 0.9
 """An SVI fit whose q(C) has a mean entropy per cell of at least this share of log L ends with a
 warning (:func:`warn_flat_q`): its map is the argmax of nearly flat marginals."""
 
+RANDOM_START_ANNEALING = 100
+"""The annealing iterations of a random start (``SVIOptions.anneal_iterations`` None)."""
+
 
 @dataclass(frozen=True)
 class SVIOptions:
@@ -67,11 +70,18 @@ class SVIOptions:
         num_particles: draws of the globals per step (the estimate's variance falls as 1 / this).
         anneal_iterations: gamma rises linearly to the model's value over this many steps
             (0: none), on the schedule of every method
-            (:func:`spcopyro.inference.schedule.annealed_gamma`).
-            Gradient steps move a boundary between two concepts' domains by about a cell per
-            step, so a label field that froze into small random domains at full coupling
-            coarsens far too slowly; started uncoupled, the observations place the concepts
-            first and the domains grow from them.
+            (:func:`spcopyro.inference.schedule.annealed_gamma`); None (the default) picks it
+            by the start (:meth:`start_annealing`): :data:`RANDOM_START_ANNEALING` (100) for a
+            random start, 0 for given start labels (as ``label_smoothing``), a value set is
+            used for either. From a random start gradient steps move a boundary between two
+            concepts' domains by about a cell per step, so a label field that froze into small
+            random domains at full coupling coarsens far too slowly; started uncoupled, the
+            observations place the concepts first and the domains grow from them. A given
+            start is a map already: annealed from gamma 0 its unobserved cells drift to
+            uniform (at L = 120 CAVI's labels kept at 95 % were at 0.41 of log L after 10
+            steps and 1.000 after 100; at 0.009 without annealing), as Gibbs' refinement from
+            a fitted map does not anneal either (until 2026-12-05 the default was 100 for
+            every start).
         label_smoothing: s in the starting logits ``log((1 - s) q0 + s / L)``, in (0, 1);
             None (the default) picks it by the start (:meth:`start_smoothing`, as
             :class:`~spcopyro.guides.mean_field.MeanFieldGuide` does): 0.9 for a random start,
@@ -97,11 +107,17 @@ class SVIOptions:
     optimiser: Literal["adam", "clipped-adam"] = "adam"
     clip_norm: float = 10.0
     num_particles: int = 1
-    anneal_iterations: int = 100
+    anneal_iterations: int | None = None
     label_smoothing: float | None = None
     bound: Literal["prior", "zero"] = "prior"
     tolerance: float = 1e-4
     window: int = 50
+
+    RESUME_IGNORES: ClassVar[tuple[str, ...]] = ("label_smoothing",)
+    """Fields a resumed run does not read (it goes on from the q reached, smoothed by
+    :data:`RESUMED_SMOOTHING` only): a checkpoint's record of them is not compared on resuming
+    (:func:`spcopyro.guides.checkpoint.load_variational`; checkpoints from before 2026-12-05
+    record label_smoothing 0.9, the default then, and were refused against None)."""
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -121,8 +137,11 @@ class SVIOptions:
             raise bad("clip_norm", "must be a finite number > 0")
         if not isinstance(self.num_particles, int) or self.num_particles < 1:
             raise bad("num_particles", "must be an integer >= 1")
-        if not isinstance(self.anneal_iterations, int) or self.anneal_iterations < 0:
-            raise bad("anneal_iterations", "must be an integer >= 0")
+        anneal = self.anneal_iterations
+        if anneal is not None and (
+            not isinstance(anneal, int) or isinstance(anneal, bool) or anneal < 0
+        ):
+            raise bad("anneal_iterations", "must be None or an integer >= 0")
         smoothing = self.label_smoothing
         if smoothing is not None and not (
             isinstance(smoothing, (int, float)) and not isinstance(smoothing, bool)
@@ -144,6 +163,22 @@ class SVIOptions:
         if self.label_smoothing is not None:
             return float(self.label_smoothing)
         return GIVEN_START_SMOOTHING if given_start else RANDOM_START_SMOOTHING
+
+    def start_annealing(self, given_start: bool) -> int:
+        """The annealing iterations a start gets: ``anneal_iterations`` where set, else 0 for
+        given start labels or q (``given_start``: annealed from gamma 0 they are lost) and
+        :data:`RANDOM_START_ANNEALING` (100) for a random one."""
+        if self.anneal_iterations is not None:
+            return int(self.anneal_iterations)
+        return 0 if given_start else RANDOM_START_ANNEALING
+
+    def for_start(self, given_start: bool) -> SVIOptions:
+        """These options with the fields left to the start (None) set to what it gets
+        (:meth:`start_smoothing`, :meth:`start_annealing`): what a run ran with."""
+        return dataclasses.replace(
+            self, label_smoothing=self.start_smoothing(given_start),
+            anneal_iterations=self.start_annealing(given_start),
+        )  # fmt: skip
 
     def optimiser_for(self, guide: MeanFieldGuide) -> pyro.optim.PyroOptim:
         """The Pyro optimiser: per-parameter step sizes (logits vs concentrations)."""
@@ -266,9 +301,10 @@ def fit_svi(
     ``resume``: the record of the run ``q`` was reached by (a checkpoint's), continued here
     with a fresh optimiser (its moments are not kept). ``given_start``: ``q`` is given start
     labels or a fitted q, not a random start (``label_smoothing`` None smooths it by 0.05, not
-    0.9: :meth:`SVIOptions.start_smoothing`).
+    0.9, and ``anneal_iterations`` None anneals over 0 steps, not 100:
+    :meth:`SVIOptions.for_start`).
     """
-    options = SVIOptions() if options is None else options
+    options = (SVIOptions() if options is None else options).for_start(given_start)
     if steps < 1:
         raise ValueError(f"steps must be >= 1, got {steps}")
     warn_unfinished_annealing(options.anneal_iterations, steps, "anneal_iterations", "step", resume)
@@ -311,6 +347,7 @@ def warn_flat_q(
     basin, and from random one-hot labels Adam's steps lead there too; where few cells hold
     observations nothing breaks the symmetry. CAVI from random labels at full gamma orders at
     once (its colour-block update takes each cell to its neighbours' labels)."""
+    options = options.for_start(given_start)  # what ran (None: the start's)
     L = q.shape[-1]
     if L < 2 or short_runs_meant_now():
         return False
@@ -331,14 +368,15 @@ def warn_flat_q(
     if smoothing > GIVEN_START_SMOOTHING:
         keep.append(f"label_smoothing={GIVEN_START_SMOOTHING:g}, the default for given labels")
     if options.anneal_iterations:
-        keep.append("anneal_iterations=0: annealed from gamma 0 a given start falls there too")
+        keep.append("anneal_iterations=0, the default for given labels: annealed from gamma 0 "
+                    "a given start falls there too")  # fmt: skip
     if given_start and not resumed:
         way_out = (f"Keep the given start ({'; '.join(keep)}) or use --method cavi" if keep
                    else "Use --method cavi")  # fmt: skip
     else:
         way_out = ("Start from a fitted map (fit --init-from OUT, or init_labels: smoothed by "
-                   f"label_smoothing={GIVEN_START_SMOOTHING:g} unless it is set; with "
-                   "anneal_iterations=0) or use --method cavi")  # fmt: skip
+                   f"label_smoothing={GIVEN_START_SMOOTHING:g} and not annealed, "
+                   "anneal_iterations=0, unless they are set) or use --method cavi")  # fmt: skip
     logger.warning(
         "SVI's q(C) ended near uniform: mean entropy %.3f nats a cell, %.1f%% of log L = %.3f, "
         "so its map is the argmax of nearly flat marginals, close to arbitrary (%s; start: %s; "
@@ -366,13 +404,13 @@ class SVIInference(InferenceMethod):
             initial_q(data, config, request.generator, request.init_labels),
             None,
         )
-        # given start labels: smoothed by 0.05 unless set (recorded as what the start ran with)
-        given = request.init_labels is not None
+        # given start labels (a resumed run's too: its start's): smoothed by 0.05 and not
+        # annealed unless set, recorded as what the start ran with
+        ran = options.for_start(given_start=request.init_labels is not None)
         run = fit_svi(
             data, config, remaining(request), q=q, generator=request.generator,
-            options=options, progress=request.progress, thin=request.thin, resume=before,
-            given_start=given,
+            options=ran, progress=request.progress, thin=request.thin, resume=before,
+            given_start=request.init_labels is not None,
         )  # fmt: skip
-        record = {"iterations": request.iterations, **dataclasses.asdict(options),
-                  "label_smoothing": options.start_smoothing(given)}  # fmt: skip
+        record = {"iterations": request.iterations, **dataclasses.asdict(ran)}
         return output_from_variational(run, record)
