@@ -291,3 +291,76 @@ def test_the_figures_thread_imports_frozen(tmp_path, monkeypatch):
     prefetch = fit_figures.FigurePrefetch(house=object(), out=tmp_path)  # type: ignore[arg-type]
     assert prefetch.join()
     assert asked == ["scipy.optimize", "spcopyro.figures.plotting"]
+
+
+def _blocking_prefetch(monkeypatch, tmp_path, block: str):
+    """A FigurePrefetch whose part ``block`` ("prefetch imports" or "prefetch house") waits
+    for the returned event ``go_on``; ``plot_house`` records the houses drawn in ``drawn``."""
+    import contextlib
+    import threading
+
+    from spcopyro.cli import fit_figures
+
+    reached, go_on = threading.Event(), threading.Event()
+    drawn: list[object] = []
+
+    def blocking_timed(name):
+        if name == block and not go_on.is_set():
+            reached.set()
+            go_on.wait(60)
+        return contextlib.nullcontext()
+
+    monkeypatch.setattr(fit_figures, "timed", blocking_timed)
+    monkeypatch.setattr(
+        "spcopyro.figures.plotting.plot_house", lambda house, path: drawn.append(house)
+    )
+    prefetch = fit_figures.FigurePrefetch(house="coarse", out=tmp_path)  # type: ignore[arg-type]
+    assert reached.wait(60)
+    return prefetch, go_on, drawn
+
+
+def _redraw_returns_at_once(prefetch, house) -> bool:
+    import threading
+
+    caller = threading.Thread(target=prefetch.redraw, args=(house,), daemon=True)
+    caller.start()
+    caller.join(5)
+    return not caller.is_alive()
+
+
+def test_a_redraw_during_the_imports_replaces_the_first_house_without_waiting(
+    tmp_path, monkeypatch
+):
+    """A short fit's refinement starts before the figures' imports end: redraw neither waits
+    for the thread (the fit waited 0.3-0.8 s there) nor is the model grid's house drawn."""
+    prefetch, go_on, drawn = _blocking_prefetch(monkeypatch, tmp_path, "prefetch imports")
+    try:
+        returned = _redraw_returns_at_once(prefetch, "map")
+    finally:
+        go_on.set()
+    assert returned
+    assert prefetch.join() and drawn == ["map"]
+
+
+def test_a_redraw_while_the_first_house_is_drawn_draws_the_new_one_after(tmp_path, monkeypatch):
+    prefetch, go_on, drawn = _blocking_prefetch(monkeypatch, tmp_path, "prefetch house")
+    try:
+        returned = _redraw_returns_at_once(prefetch, "map")
+        assert not prefetch.house_drawn  # what join would report now: not the map's house
+    finally:
+        go_on.set()
+    assert returned
+    assert prefetch.join() and drawn == ["coarse", "map"]
+
+
+def test_a_redraw_after_the_thread_ended_starts_another(tmp_path, monkeypatch):
+    interval = sys.getswitchinterval()
+    prefetch, go_on, drawn = _blocking_prefetch(monkeypatch, tmp_path, "prefetch imports")
+    go_on.set()
+    assert prefetch.join() and drawn == ["coarse"]
+    prefetch.redraw("map")
+    assert prefetch.join() and drawn == ["coarse", "map"]
+    assert sys.getswitchinterval() == interval  # restored, the thread's work done
+    prefetch.redraw("again")
+    prefetch.abandon()
+    assert drawn[-1] in ("map", "again") and sys.getswitchinterval() == interval

@@ -50,6 +50,9 @@ class FigurePrefetch:
     def __init__(self, house: House, out: Path, start: bool = True) -> None:
         self.house_drawn = False
         self._abandoned = threading.Event()
+        self._lock = threading.Lock()  # guards _newer and _running
+        self._newer: House | None = None  # a house asked for by redraw, not yet taken
+        self._running = False  # a thread is working or about to (it takes _newer before it ends)
         self._previous = sys.getswitchinterval()
         self._out = Path(out)
         self._thread = self._new_thread(house)
@@ -57,44 +60,77 @@ class FigurePrefetch:
         if start:
             self.start()
 
-    def _new_thread(self, house: House) -> threading.Thread:
+    def _new_thread(self, house: House | None) -> threading.Thread:
         return threading.Thread(
             target=self._run, args=(house, self._out), name="spcopyro-figures", daemon=True
         )
 
     def redraw(self, house: House) -> None:
-        """Draw ``house.png`` again, of ``house``, on a new thread started now: the fit went on
-        on another grid (``--refine``: the map's own cells), whose chains run meanwhile. What
-        the first thread drew is replaced; :meth:`join` then tells of this drawing."""
-        self.join()
-        self.house_drawn = False
-        self._thread = self._new_thread(house)
-        self._started = False
-        self.start()
+        """Draw ``house.png`` again, of ``house``: the fit went on on another grid (``--refine``:
+        the map's own cells), whose chains run meanwhile. Without waiting: a thread still at
+        work takes ``house`` next, in place of a house it has not begun to draw (a short fit's
+        first stage ends before the figures' imports do: the model grid's house, which this
+        drawing replaces, is then never drawn; before, the fit waited here for it, 0.3-0.8 s);
+        else a new thread draws it. :meth:`join` then tells of this drawing."""
+        with self._lock:
+            self._newer = house
+            self.house_drawn = False
+            if self._running:  # the thread at work takes it
+                return
+            if self._started:  # its thread has ended: another
+                self._thread = self._new_thread(None)
+            else:  # never started: its thread draws this house in place of the first
+                self._started = True
+                self._previous = sys.getswitchinterval()
+            self._launch()
 
     def start(self) -> None:
         """Start the thread (once; later calls do nothing)."""
-        if self._started:
-            return
-        self._started = True
-        self._previous = sys.getswitchinterval()
+        with self._lock:
+            if self._started:
+                return
+            self._started = True
+            self._previous = sys.getswitchinterval()
+            self._launch()
+
+    def _launch(self) -> None:
+        """Start ``_thread`` with the short switch interval (the lock held)."""
+        self._running = True
         sys.setswitchinterval(min(self._previous, PREFETCH_SWITCH_INTERVAL))
         self._thread.start()
 
-    def _run(self, house: House, out: Path) -> None:
+    def _take(self, house: House | None) -> House | None:
+        """The house to draw next: one :meth:`redraw` asked for since, else ``house``; None
+        (nothing left to draw, or abandoned) ends the thread's work, the switch interval
+        restored, before a redraw may start another (the lock held throughout)."""
+        with self._lock:
+            if self._newer is not None:
+                house, self._newer = self._newer, None
+            if house is None or self._abandoned.is_set():
+                self._end()
+                return None
+            self.house_drawn = False
+            return house
+
+    def _end(self) -> None:
+        """The thread's work ended (the lock held): a later :meth:`redraw` starts another."""
+        self._running = False
+        sys.setswitchinterval(self._previous)
+
+    def _run(self, house: House | None, out: Path) -> None:
         try:
             with timed("prefetch imports"):  # frozen after, as the fit's (_util.collector)
                 import_frozen("scipy.optimize")  # the point estimate's matching
                 plot_house = import_frozen("spcopyro.figures.plotting").plot_house
-            if self._abandoned.is_set():  # the fit stopped: nothing more into its folder
-                return
-            with timed("prefetch house"):
-                plot_house(house, out / "house.png")
-            self.house_drawn = True
+            # _take: None once abandoned (the fit stopped: nothing more into its folder)
+            while (house := self._take(house)) is not None:
+                with timed("prefetch house"):
+                    plot_house(house, out / "house.png")
+                self.house_drawn, house = True, None  # a redraw meanwhile: False, taken next
         except Exception:  # drawn again, with its error, after the fit
-            self.house_drawn = False
-        finally:
-            sys.setswitchinterval(self._previous)
+            with self._lock:
+                self._newer, self.house_drawn = None, False
+                self._end()
 
     def join(self) -> bool:
         """Wait for the thread (not once abandoned); whether ``house.png`` was drawn."""
