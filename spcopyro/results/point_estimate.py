@@ -36,7 +36,13 @@ included) at once, move every cell whose best move lowers the loss, and if the m
 together do not lower the exact loss (they interact through the tables), keep only the better
 half of them, and so on (one move alone always lowers it); stop when no cell can improve or a
 sweep gains less than :data:`RELATIVE_TOLERANCE` of the loss. The estimate's expected loss
-is therefore never above that of the best sample it started from.
+is therefore never above that of the best sample it started from. After its first sweeps a
+sweep moves a few cells between a few clusters, so the search keeps, between sweeps, each
+cluster's join terms (the first sum of :math:`\Delta_i`) unless a cell left or joined it, works
+per (cluster, distinct sample column) pair rather than per cell, and rejects a halving trial
+whose loss, summed over the table entries it changes, is clearly not lower without computing
+its exact loss: the same moves, estimate and loss, bit for bit, as recomputing everything
+(tested), at a fifth of the cost on a 64,319-cell map.
 
 :func:`agreement_probability` is the uncertainty map: for every sample, its labels matched to
 the estimate's clusters by the Hungarian method on their contingency table (the matching that
@@ -162,25 +168,37 @@ def _pairs(estimate: np.ndarray, prepared: _Samples) -> _Pairs:
                   index[key])  # fmt: skip
 
 
-def _pair_table(pairs: _Pairs, columns: np.ndarray, k: int, j: int) -> np.ndarray:
-    """[k, j] float64 the contingency table of the estimate against the sample whose labels of
-    the distinct columns are ``columns`` [U]: integer counts, exact in float64, equal to
+class _Tables(NamedTuple):
+    """The S contingency tables of an estimate against the samples, in one flat array."""
+
+    flat: np.ndarray  # [sum_s rows J_s] float64 the tables one after another
+    offsets: np.ndarray  # [S + 1] where each starts in flat
+    tables: list[np.ndarray]  # S x [rows, J_s] views of flat
+
+
+def _sample_tables(pairs: _Pairs, rows: int, prepared: _Samples) -> _Tables:
+    """The S tables [rows, J_s] float64 of the estimate (its clusters 0..rows-1) against each
+    sample, from one bincount over the P pairs: integer counts, exact in float64, equal to
     :func:`contingency` of the cells."""
-    index = pairs.cluster * j + columns[pairs.column]  # [P]
-    return np.bincount(index, weights=pairs.cells, minlength=k * j).reshape(k, j)
+    widths = np.asarray(prepared.sizes, dtype=np.int64)  # [S] J_s
+    offsets = np.concatenate([[0], np.cumsum(rows * widths)])  # [S + 1]
+    index = prepared.signatures[:, pairs.column] + offsets[:-1, None]  # [S, P]
+    index += pairs.cluster[None, :] * widths[:, None]
+    weights = np.broadcast_to(pairs.cells, index.shape)
+    flat = np.bincount(index.ravel(), weights=weights.ravel(), minlength=int(offsets[-1]))
+    bounds = zip(offsets[:-1], offsets[1:], prepared.sizes, strict=True)
+    tables = [flat[a:b].reshape(rows, j) for a, b, j in bounds]
+    return _Tables(flat, offsets, tables)
 
 
-def _tables(estimate: np.ndarray, k: int, prepared: _Samples) -> list[np.ndarray]:
-    pairs = _pairs(estimate, prepared)
-    return [
-        _pair_table(pairs, columns, k, j)
-        for columns, j in zip(prepared.signatures, prepared.sizes, strict=True)
-    ]
-
-
-def _expected(estimate: np.ndarray, k: int, prepared: _Samples, loss: str) -> float:
-    tables = _tables(estimate, k, prepared)
-    shared = np.mean([_f(t, loss).sum() for t in tables])
+def _expected(
+    estimate: np.ndarray, k: int, prepared: _Samples, loss: str, tables: _Tables | None = None
+) -> float:
+    """The expected loss of ``estimate`` (k clusters); ``tables`` its tables if at hand (their
+    first k rows are read: the search's have a spare empty row k)."""
+    if tables is None:
+        tables = _sample_tables(_pairs(estimate, prepared), k, prepared)
+    shared = np.mean([_f(t[:k], loss).sum() for t in tables.tables])
     sizes = np.bincount(estimate, minlength=k)
     value = _f(sizes, loss).sum() + prepared.constant - 2 * shared
     n = estimate.shape[0]
@@ -194,63 +212,170 @@ def expected_loss(estimate: np.ndarray, samples: np.ndarray, loss: str) -> float
     return _expected(codes, k, _prepare(samples, loss), loss)
 
 
+def _joined_rows(
+    tables: list[np.ndarray], rows: np.ndarray | None, prepared: _Samples, loss: str
+) -> np.ndarray:
+    """[U, R] sum_s f(n^s_{k' j_s(u)} + 1) - f(n^s_{k' j_s(u)}) for every distinct column u and
+    the clusters k' in ``rows`` (None: all k + 1), summed in the samples' order; a column's
+    terms side by side (a row gather of each table's transpose, 4x faster than a column gather
+    on a 64,319-cell map). A cluster's terms depend on its cells only, so the search keeps
+    those of clusters a sweep left alone."""
+    count = tables[0].shape[0] if rows is None else rows.shape[0]
+    joined = np.zeros((prepared.signatures.shape[1], count))  # [U, R]
+    for table, columns in zip(tables, prepared.signatures, strict=True):
+        part = table if rows is None else table[rows]  # [R, J]
+        join = np.ascontiguousarray((_f(part + 1, loss) - _f(part, loss)).T)  # [J, R]
+        joined += join[columns]
+    return joined
+
+
+def _pair_changes(
+    sizes: np.ndarray,
+    pairs: _Pairs,
+    tables: list[np.ndarray],
+    joined: np.ndarray,
+    prepared: _Samples,
+    loss: str,
+) -> np.ndarray:
+    """[P, k + 1] Delta_i(k') of the module doc (times Z) for a cell i of each pair: cells of a
+    pair (one cluster, one distinct column of the samples) share every term of it. ``sizes``
+    [k + 1] float64 the clusters' sizes, ``joined`` [U, k + 1] of :func:`_joined_rows`."""
+    own = sizes[pairs.cluster]  # [P]
+    leave = _f(own - 1, loss) - _f(own, loss)  # [P]
+    change = (_f(sizes + 1, loss) - _f(sizes, loss))[None, :] + leave[:, None]  # [P, k + 1]
+    departed = np.zeros(pairs.cluster.shape[0])  # [P], summed in the samples' order
+    for table, columns in zip(tables, prepared.signatures, strict=True):
+        depart = _f(table - 1, loss) - _f(table, loss)  # [k + 1, J]
+        departed += depart[pairs.cluster, columns[pairs.column]]  # a cell leaving n_{k j_s(i)}
+    shared = joined[pairs.column]  # [P, k + 1]
+    shared += departed[:, None]
+    shared *= 2.0
+    shared /= len(prepared.sizes)
+    change -= shared
+    change[np.arange(pairs.cluster.shape[0]), pairs.cluster] = 0.0  # staying changes nothing
+    return change
+
+
 def _changes(estimate: np.ndarray, k: int, prepared: _Samples, loss: str) -> np.ndarray:
     """[k + 1, N] Delta_i(k') of the module doc (times Z); cluster k is the spare empty one.
 
     The f-differences are taken on each small contingency table first, then gathered once per
     distinct column of the samples (cells that every sample labels alike share their join
-    terms: most cells of a settled map), O(S (k + 1) U) for U distinct columns, then per cell.
+    terms: most cells of a settled map), O(S (k + 1) U) for U distinct columns, then per pair
+    of (cluster, column), O((k + 1) P), and only then spread to the cells.
     """
-    n = estimate.shape[0]
-    cells = np.arange(n)
-    sizes = np.bincount(estimate, minlength=k + 1).astype(np.float64)  # [k + 1]
-    own = sizes[estimate]  # [N]
-    leave = _f(own - 1, loss) - _f(own, loss)  # [N]
-    change = (_f(sizes + 1, loss) - _f(sizes, loss))[:, None] + leave[None, :]  # [k + 1, N]
-    joined = np.zeros((k + 1, prepared.signatures.shape[1]))  # [k + 1, U]
     pairs = _pairs(estimate, prepared)
-    departed = np.zeros(pairs.cluster.shape[0])  # [P], summed in the samples' order
-    for columns, j in zip(prepared.signatures, prepared.sizes, strict=True):
-        table = _pair_table(pairs, columns, k + 1, j)  # [k + 1, J]
-        join = _f(table + 1, loss) - _f(table, loss)  # [k + 1, J]
-        depart = _f(table - 1, loss) - _f(table, loss)  # [k + 1, J]
-        joined += join[:, columns]  # f(n_{k' j_s} + 1) - f(n_{k' j_s}) per distinct column
-        departed += depart[pairs.cluster, columns[pairs.column]]  # a cell leaving n_{k j_s(i)}
-    shared = joined[:, prepared.signature] + departed[pairs.of_cell][None, :]  # [k + 1, N]
-    change -= 2.0 * shared / len(prepared.sizes)
-    change[estimate, cells] = 0.0  # staying changes nothing
-    return change
+    tables = _sample_tables(pairs, k + 1, prepared).tables  # S x [k + 1, J_s]
+    sizes = np.bincount(estimate, minlength=k + 1).astype(np.float64)  # [k + 1]
+    joined = _joined_rows(tables, None, prepared, loss)
+    return _pair_changes(sizes, pairs, tables, joined, prepared, loss).T[:, pairs.of_cell]
+
+
+def _trial_change(
+    movers: np.ndarray,
+    estimate: np.ndarray,
+    target: np.ndarray,
+    sizes: np.ndarray,
+    tables: _Tables,
+    prepared: _Samples,
+    loss: str,
+) -> float:
+    """The change of the expected loss (times Z) when the cells ``movers`` go to ``target``,
+    from the table entries they change only (at most 2 M per sample): equal to the difference
+    of two :func:`_expected` to rounding (~1e-16 of the sums), not to the bit."""
+    source, dest = estimate[movers], target[movers]  # [M]
+    count = sizes.shape[0]  # k + 1
+    grow = np.bincount(dest, minlength=count) - np.bincount(source, minlength=count)  # [k + 1]
+    touched = np.flatnonzero(grow)
+    total = float((_f(sizes[touched] + grow[touched], loss) - _f(sizes[touched], loss)).sum())
+    widths = np.asarray(prepared.sizes, dtype=np.int64)[:, None]  # [S, 1]
+    base = prepared.codes[:, movers] + tables.offsets[:-1, None]  # [S, M] flat index of column
+    index = np.concatenate([(base + source * widths).ravel(), (base + dest * widths).ravel()])
+    entries, inverse = np.unique(index, return_inverse=True)
+    step = np.bincount(inverse.reshape(-1), weights=np.repeat([-1.0, 1.0], base.size))
+    before = tables.flat[entries]
+    shared = float((_f(before + step, loss) - _f(before, loss)).sum())
+    return total - 2.0 * shared / len(prepared.sizes)
+
+
+TRIAL_MARGIN = 1e-9
+"""A halving trial whose loss, computed from its changed table entries
+(:func:`_trial_change`), is above the bar by more than this share of the loss (plus this much)
+is rejected without the exact loss; rounding differs between the two by ~1e-13 of it, so every
+decision is the one the exact loss makes."""
 
 
 def _greedy(
-    start: np.ndarray, prepared: _Samples, loss: str, max_clusters: int | None
+    start: np.ndarray, prepared: _Samples, loss: str, max_clusters: int | None, bar=None
 ) -> tuple[np.ndarray, float]:
+    """One greedy search from ``start`` (module doc). Between sweeps it keeps the rows of
+    :func:`_joined_rows` of the clusters no cell left or joined (after the first sweep most of
+    them), and rejects halving trials that are clearly no better without their exact loss: the
+    same moves, the same estimate and loss to the bit as recomputing everything every sweep."""
     estimate, k = compact(start)
     value = _expected(estimate, k, prepared, loss)
-    for _ in range(MAX_SWEEPS):
+    n = estimate.shape[0]
+    scale = float(n * n if loss == "binder" else n)
+    joined, stale = None, None  # [U, k + 1]; the clusters to recompute (None: all)
+    pairs = _pairs(estimate, prepared)
+    tables = _sample_tables(pairs, k + 1, prepared)  # S x [k + 1, J_s]
+    sweeps = 0
+    while sweeps < MAX_SWEEPS:
+        sweeps += 1
         before = value
-        change = _changes(estimate, k, prepared, loss)  # [k + 1, N]
+        sizes = np.bincount(estimate, minlength=k + 1).astype(np.float64)  # [k + 1]
+        if stale is None:
+            joined = _joined_rows(tables.tables, None, prepared, loss)
+        else:
+            joined[:, stale] = _joined_rows(tables.tables, stale, prepared, loss)
+        change = _pair_changes(sizes, pairs, tables.tables, joined, prepared, loss)  # [P, k + 1]
         if max_clusters is not None and k >= max_clusters:
-            change[k] = np.inf  # no new cluster beyond the cap
-        target = change.argmin(0)  # [N]
-        gain = change[target, np.arange(estimate.shape[0])]  # [N]
+            change[:, k] = np.inf  # no new cluster beyond the cap
+        best = change.argmin(1)  # [P]
+        target = best[pairs.of_cell]  # [N]
+        gain = change[np.arange(best.shape[0]), best][pairs.of_cell]  # [N]
+        if bar is not None:
+            bar.update(SWEEP_STEPS)
         movers = np.flatnonzero(gain < -1e-9)
         if movers.size == 0:
             break
         movers = movers[np.argsort(gain[movers])]  # best first
         improved = False
         while movers.size:
+            guess = value + _trial_change(movers, estimate, target, sizes, tables, prepared,
+                                         loss) / scale  # fmt: skip
+            if guess >= value - 1e-12 + TRIAL_MARGIN * (1.0 + abs(value)):
+                movers = movers[: movers.size // 2]
+                continue
             trial = estimate.copy()
             trial[movers] = target[movers]
             codes, kk = compact(trial)
-            trial_value = _expected(codes, kk, prepared, loss)
+            trial_pairs = _pairs(codes, prepared)
+            trial_tables = _sample_tables(trial_pairs, kk + 1, prepared)  # the next sweep's
+            trial_value = _expected(codes, kk, prepared, loss, trial_tables)
             if trial_value < value - 1e-12:
+                kept = np.flatnonzero(np.bincount(trial, minlength=k + 1))  # old names, in order
+                moved = np.zeros(k + 1, dtype=bool)
+                moved[estimate[movers]] = moved[target[movers]] = True
+                grown = np.empty((joined.shape[0], kk + 1))  # [U, kk + 1]
+                grown[:, :kk] = joined[:, kept]
+                stale = np.append(np.flatnonzero(moved[kept]), kk)  # and the new spare one
+                joined, pairs, tables = grown, trial_pairs, trial_tables
                 estimate, k, value, improved = codes, kk, trial_value, True
                 break
             movers = movers[: movers.size // 2]
         if not improved or before - value < RELATIVE_TOLERANCE * value:
             break
+    if bar is not None:
+        bar.update(SWEEP_STEPS * (MAX_SWEEPS - sweeps))  # the sweeps it did not need
     return estimate, value
+
+
+SWEEP_STEPS = 2
+"""A greedy sweep's weight on the progress bar, in the samples' expected losses (one step each):
+about its cost (50 samples: a sweep took 1.7x one sample's loss on a 27,832-cell map, 2.2x on a
+64,319-cell one), so the bar's time estimate holds through the searches (it counted a whole
+search as one step, and the searches took 90% of the time)."""
 
 
 class PointEstimate(NamedTuple):
@@ -286,8 +411,9 @@ def point_estimate(
     samples = _check(samples, loss)
     prepared = _prepare(samples, loss)
     order_count = max(1, starts)
+    searches = min(order_count, len(prepared.codes))
     with tqdm(
-        total=len(prepared.codes) + min(order_count, len(prepared.codes)),
+        total=len(prepared.codes) + searches * MAX_SWEEPS * SWEEP_STEPS,
         desc=f"point estimate ({LOSS_LABELS[loss]})",
         unit="step",
         disable=not progress_enabled(progress),
@@ -301,8 +427,7 @@ def point_estimate(
         order = np.argsort(losses, kind="stable")[:order_count]
         best, best_value = None, np.inf
         for s in order:
-            estimate, value = _greedy(prepared.codes[s], prepared, loss, max_clusters)
-            bar.update()
+            estimate, value = _greedy(prepared.codes[s], prepared, loss, max_clusters, bar)
             if value < best_value:
                 best, best_value = estimate, value
     assert best is not None
