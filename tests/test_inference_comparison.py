@@ -576,3 +576,17 @@ def test_the_table_says_how_many_iterations_each_line_ran(tmp_path):
     assert vi_row.split("|")[column].strip() == f"3 (+ {vi_gibbs['start_iterations']} CAVI)"
     assert "Iteration budgets: cavi 200, vi-gibbs 3. A budget is the sweeps of a sampler" in text
     assert "not its reported point estimate's" in text  # whose wrong cells a sampler's are
+
+
+def test_svi_s_annealing_left_to_its_start_is_read_as_a_random_start_s():
+    """SVIOptions.anneal_iterations defaults to None since 06e5f05 (100 for a random start, 0
+    for given labels): the note read None and said nothing for --iterations svi=50, where the
+    comparison's svi (full mode: no options) anneals over 100 iterations from a random start."""
+    from spcopyro.experiments.comparison_report import unfinished_annealing
+
+    settings = ComparisonSettings(variants=("svi",), seeds=1, house_types=("synthetic",))
+    assert unfinished_annealing({"svi": 50}, settings) == [
+        "svi: 50 iterations end before its annealing (anneal_iterations = 100): gamma reaches "
+        "only 50% of the model's, so its fits are of a weaker coupling"
+    ]
+    assert unfinished_annealing({"svi": 100}, settings) == []

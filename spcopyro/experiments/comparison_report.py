@@ -145,6 +145,8 @@ def unfinished_annealing(iterations: dict[str, int], settings: ComparisonSetting
         defaults = None if method is None else method.default_options()
         if defaults is None or not dataclasses.is_dataclass(defaults):
             continue
+        if hasattr(defaults, "for_start"):  # svi: a default that depends on the start
+            defaults = defaults.for_start(False)  # the comparison fits from random starts
         options = VARIANTS[key].options_for(settings.quick)
         for name in ("anneal_iterations", "anneal_passes"):
             anneal = options.get(name, getattr(defaults, name, 0))
