@@ -522,3 +522,32 @@ def test_soft_start_with_start_labels_is_refused():
         )  # fmt: skip
     q = initial_q(data, cfg, torch.Generator().manual_seed(0), labels)  # one-hot: still fine
     assert torch.equal(q.argmax(-1), labels)
+
+
+def test_a_q_that_ends_near_uniform_is_warned_about(caplog):
+    """CAVI annealed from gamma 0, or started from Dir(1) rows, and loopy BP annealed, ended at
+    q(C) uniform (1.000 of log L) under paper-dp at L = 120 without a word: "1 concept in use"
+    (argmax's tie) or a hundred, ARI 0.00-0.06. They warn as SVI does, naming what orders the
+    field; CAVI from random one-hot labels at full gamma orders (0.01 of log L) and says nothing."""
+    from spcopyro.guides.lbp_method import LBPInference
+    from spcopyro.synthetic import HouseSpec
+
+    house = make_house(seed=0, spec=HouseSpec.scaled(30, 40, num_rooms=2))
+    settings = preset("paper-dp")
+    _, data = prepare_model_data(house, settings)
+
+    def said(method, options) -> list[str]:
+        caplog.clear()
+        with caplog.at_level("WARNING", logger="spcopyro"):
+            method.run(data, settings.model, iterations=60, options=options, progress=False,
+                       generator=torch.Generator().manual_seed(0))  # fmt: skip
+        return [r.getMessage() for r in caplog.records if "ended near uniform" in r.getMessage()]
+
+    (annealed,) = said(CAVIInference(), VariationalOptions(anneal_iterations=20))
+    assert annealed.startswith("CAVI's q(C) ended near uniform: mean entropy 4.787 nats a cell")
+    assert "gamma 4 < L / D = 30" in annealed and "Try anneal_iterations=0" in annealed
+    (soft,) = said(CAVIInference(), VariationalOptions(anneal_iterations=0, init="soft"))
+    assert "Try init=one-hot" in soft and "anneal_iterations=0" not in soft
+    (bp,) = said(LBPInference(), LBPOptions(anneal_iterations=20))
+    assert bp.startswith("loopy BP's q(C) ended near uniform") and "mean field" not in bp
+    assert said(CAVIInference(), VariationalOptions(anneal_iterations=0)) == []

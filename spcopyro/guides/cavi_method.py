@@ -17,6 +17,7 @@ from spcopyro.guides.run import (
     resolve_backend,
     resumed,
     run_variational,
+    warn_flat_q,
 )
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs, Trace
 from spcopyro.model import ModelData
@@ -61,6 +62,8 @@ class CAVIInference(InferenceMethod):
         run = run_variational(data, config, remaining(request), options=options, q=q,
                               progress=request.progress, thin=request.thin,
                               resume=before)  # fmt: skip
+        warm = request.init_labels is not None or before is not None
+        warn_flat_q(run.q, config, self.title, options.anneal_iterations, options.init, warm)
         record = {
             "iterations": request.iterations,
             **dataclasses.asdict(options),
