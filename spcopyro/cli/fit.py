@@ -409,7 +409,10 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     unit = "sweep" if result.trace.objective_name == "log joint" else "iteration"
     several = f"{chains} chains x " if chains > 1 else ""
     seconds = result.trace.seconds  # [sweeps] cumulative
-    rate = pace(seconds[0], seconds[-1], sweeps_run, unit) if len(seconds) else "no sweeps"
+    # vi-gibbs's sweeps' clock starts after its CAVI start (inference.vi_seconds), said apart
+    start = float(result.inference.get("vi_seconds", 0.0))  # type: ignore[arg-type]
+    rate = (pace(seconds[0] - start, seconds[-1] - start, sweeps_run, unit) if len(seconds)
+            else "no sweeps")  # fmt: skip
     # a chain's own clock: chains run side by side (forked workers) share the CPUs, so that pace
     # is slower than one chain's alone while the wall clock is not; say whose pace it is
     own = "the kept chain's own pace: " if several and len(seconds) else ""
@@ -431,7 +434,8 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     if result.inference.get("stopped"):  # a variational method: converged, or --sweeps reached
         print(f"stopped          {result.inference['stopped']}")
     if result.inference.get("vi_stopped"):  # vi-gibbs: the CAVI whose labels start the sweeps
-        print(f"CAVI start       {result.inference['vi_stopped']}; the sweeps began at its labels")
+        print(f"CAVI start       {result.inference['vi_stopped']} ({start:.2f} s, not in the "
+              "sweeps' pace above); the sweeps began at its labels")  # fmt: skip
     if result.inference.get("hyperparameters"):
         line = describe_hyperparameters(result.inference["hyperparameters"])  # type: ignore[arg-type]
         stage = ", of the refinement on the map's cells" if job.refined else ""
