@@ -590,3 +590,25 @@ def test_svi_s_annealing_left_to_its_start_is_read_as_a_random_start_s():
         "only 50% of the model's, so its fits are of a weaker coupling"
     ]
     assert unfinished_annealing({"svi": 100}, settings) == []
+
+
+def test_the_figure_names_the_parameters_its_scores_read():
+    """comparison_synthetic.png's matching-rate panel is scored with the posterior means given
+    each label map (module docstring), the table's "matching rate (means | labels)" column; it
+    read "matching rate" beside a table whose "matching rate" is of the method's own output
+    (SVI: 0.508 in the table, its curve ending at 0.306)."""
+    from spcopyro.experiments.comparison_report import curves_figure
+
+    methods = {key: v.label for key, v in VARIANTS.items()}
+    curve = [{"seconds": 1.0, "ari": 0.5, "matching_rate": 0.5, "top1": 0.2, "distance_m": 1.0}]
+    labels = {}
+    for house_type in ("synthetic", "public"):
+        summary = {"records": {house_type: {"cavi": [{"curve": curve}]}}, "methods": methods}
+        for ax in curves_figure(summary, house_type).axes:
+            labels[ax.get_ylabel().split(" (")[0]] = ax.get_ylabel()
+    assert labels["ARI"] == "ARI"  # the labels alone
+    assert labels["matching rate"] == "matching rate (means | labels)"
+    assert labels["held-out top-1"] == "held-out top-1 (means | labels)"
+    assert labels["localisation distance"] == (
+        "localisation distance (m) (means | labels) (lower is better)"
+    )

@@ -448,8 +448,11 @@ def curves_figure(summary: dict[str, object], house_type: str) -> Figure:
                         label=methods[key] if i == 0 else None)  # fmt: skip
         ax.set_xscale("log")
         ax.set_xlabel("wall-clock seconds")
-        ax.set_ylabel(SCORE_NAMES[score] + (" (lower is better)" if score in LOWER_IS_BETTER
-                                            else ""))  # fmt: skip
+        # ARI reads the labels alone; the other scores read pi and phi too, here their
+        # posterior means given the labels (the table's "means | labels" column, not its own)
+        given = "" if score == "ari" else " (means | labels)"
+        lower = " (lower is better)" if score in LOWER_IS_BETTER else ""
+        ax.set_ylabel(SCORE_NAMES[score] + given + lower)
         ax.grid(alpha=0.3, which="both")
     handles, labels = np.atleast_1d(axes)[0].get_legend_handles_labels()
     # below the panels, never over a line (loc="best" inside the axes covered the top-1 lines)
