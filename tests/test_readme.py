@@ -128,3 +128,16 @@ def check_trace_terms(namespace: dict[str, object]) -> None:
     assert terms["potts"] == potts
     pi = trace.nodes["pi"]["value"]
     assert abs(terms["labels"] - float(torch.log(pi)[labels].sum())) <= 1e-9 * abs(terms["labels"])
+
+
+def test_the_trace_comment_names_each_methods_objective():
+    """The README's and docs/library.md's ``result.trace.objective`` comment said "the ELBO for a
+    variational method"; loopy BP's trace is its Bethe approximation, not a bound."""
+    from spcopyro.fit.registry import INFERENCE_METHODS
+
+    names = {m.objective_name for m in INFERENCE_METHODS.values()}
+    assert names == {"log joint", "ELBO", "Bethe ELBO"}, names  # a new one: say it below too
+    for page in (README, LIBRARY):
+        (line,) = [s for s in page.read_text().splitlines() if s.startswith("result.trace.obj")]
+        assert all(name in line for name in names), (page.name, line)
+        assert "lbp: Bethe ELBO, no bound" in line, (page.name, line)
