@@ -269,13 +269,17 @@ def _greedy_from_scratch(start, prepared, loss, max_clusters):
 
 @pytest.mark.parametrize("loss", LOSSES)
 @pytest.mark.parametrize(("seed", "cap"), [(0, None), (1, None), (2, 17), (3, 12)])
-def test_the_incremental_search_is_the_search_from_scratch_to_the_bit(loss, seed, cap):
+def test_the_incremental_search_is_the_search_from_scratch_to_the_bit(loss, seed, cap, monkeypatch):
     """The search keeps the join terms of clusters a sweep left alone and rejects clearly worse
     halving trials from their changed table entries: the same estimate and the same loss, bit
     for bit, as recomputing everything (Binder's spare cluster has join terms S, not 0: a
-    version that kept it at 0 found other estimates)."""
+    version that kept it at 0 found other estimates). Its pairs' best moves go in chunks of
+    CHUNK pairs (here also 37, so that a map has many)."""
+    import spcopyro.results.point_estimate as module
     from spcopyro.results.point_estimate import _greedy
 
+    if seed % 2:
+        monkeypatch.setattr(module, "CHUNK", 37)
     prepared = _prepare(_map_like_samples(seed, cells=1000 + 500 * seed), loss)
     for start in prepared.codes[:3]:
         ours, our_value = _greedy(start, prepared, loss, cap)
@@ -332,3 +336,29 @@ def test_the_progress_bar_counts_each_search_in_sweeps():
         bar = Bar()
         _greedy(start, prepared, "vi", None, bar)
         assert bar.n == MAX_SWEEPS * SWEEP_STEPS
+
+
+def test_moved_tables_are_the_tables_of_the_moved_estimate():
+    """The accepted trial's tables come from the current ones (rows kept, a spare row, the
+    movers' counts moved), bit for bit those counted from scratch, also when a move empties a
+    cluster (its row dropped; a version that subtracted from row -1 wrote into the sample
+    before)."""
+    from spcopyro.results.point_estimate import _moved_tables, _pairs, _sample_tables
+
+    prepared = _prepare(_map_like_samples(7, cells=800), "vi")
+    estimate, k = compact(prepared.codes[0])
+    tables = _sample_tables(_pairs(estimate, prepared), k + 1, prepared)
+    emptied = np.flatnonzero(estimate == estimate[0])  # all of cluster estimate[0]
+    movers = np.unique(np.concatenate([emptied, np.arange(100, 140)]))
+    target = estimate.copy()
+    target[emptied] = k  # into the spare cluster
+    target[100:140] = (estimate[100:140] + 1) % k
+    trial = estimate.copy()
+    trial[movers] = target[movers]
+    codes, kk = compact(trial)
+    kept = np.flatnonzero(np.bincount(trial, minlength=k + 1))
+    assert kk == k  # one emptied, one opened
+    moved = _moved_tables(tables, kept, movers, estimate, target, prepared)
+    again = _sample_tables(_pairs(codes, prepared), kk + 1, prepared)
+    assert np.array_equal(moved.offsets, again.offsets)
+    assert np.array_equal(moved.flat, again.flat)
