@@ -583,3 +583,27 @@ def test_the_vi_point_estimate_is_not_read_as_variational_inference(tmp_path):
     assert imread(plot_agreement(sampled, tmp_path / "a.png")).size
     bare = dataclasses.replace(sampled, inference={})
     assert _estimate_name(bare) == "point estimate"
+
+
+def test_an_svi_trace_says_it_is_an_estimate_and_where_gamma_was_annealed():
+    """SVI's trace is one draw's ELBO estimate a step, at the step's coupling while gamma rises
+    from 0 (its first 100 steps by default); trace.png labelled it "ELBO" as CAVI's exact ELBO
+    at the model's gamma. vi-gibbs's trace, the sweeps after its CAVI start, said nothing of it."""
+    import dataclasses
+
+    from spcopyro.figures.plotting import trace_figure
+    from spcopyro.inference.protocol import Trace
+
+    result = two_rooms()
+    trace = Trace(np.linspace(-50.0, -10.0, 20), np.full(20, 2), np.arange(1.0, 21.0), "ELBO")
+    svi = dataclasses.replace(result, method="svi", trace=trace, best_iteration=19,
+                              inference={"num_particles": 1, "anneal_iterations": 8})  # fmt: skip
+    top = trace_figure(svi).axes[0]
+    assert top.get_ylabel() == "ELBO estimate\n(1 draw a step)"
+    texts = [t.get_text() for t in top.get_legend().get_texts()]
+    assert "steps 1-8: gamma annealed from 0, the estimate at that gamma" in texts, texts
+    cavi = dataclasses.replace(svi, method="cavi", inference={"anneal_iterations": 8})
+    assert trace_figure(cavi).axes[0].get_ylabel() == "ELBO"  # exact, at the model's gamma
+    vi_gibbs = dataclasses.replace(result, method="vi-gibbs", inference={"vi_iterations_run": 43})
+    title = trace_figure(vi_gibbs).texts[0].get_text()
+    assert "Gibbs sweeps from a CAVI start of 43 iterations (not shown)" in title

@@ -539,6 +539,14 @@ def trace_figure(result: SpCoResult, kept: tuple[int, int] | None = None) -> Fig
                 label=f"highest {trace.objective_name} ({step} {best})" if chain else
                 f"final {trace.objective_name} ({step} {best}): the reported q")  # fmt: skip
     top.set_ylabel(trace.objective_name)
+    if result.method == "svi":  # one draw's estimate a step, at the step's (annealed) gamma
+        draws = int(result.inference.get("num_particles", 1))  # type: ignore[call-overload]
+        top.set_ylabel(f"{trace.objective_name} estimate\n({plural(draws, 'draw')} a step)")
+        asked = int(result.inference.get("anneal_iterations") or 0)  # type: ignore[call-overload]
+        anneal = min(asked, len(sweeps))
+        if anneal > 1:  # not the model's ELBO there: a weaker coupling's
+            label = f"steps 1-{anneal}: gamma annealed from 0, the estimate at that gamma"
+            top.axvspan(1, anneal, color="0.9", zorder=0, label=label)
     top.legend(fontsize=8)
     bottom.plot(sweeps, trace.num_concepts, lw=0.8, color="C1")
     if chain:
@@ -556,6 +564,9 @@ def trace_figure(result: SpCoResult, kept: tuple[int, int] | None = None) -> Fig
     if kept is not None and kept[1] > 1:  # the other chains' traces are not drawn
         run = "chain" if chain else "fit"
         title += f"\n{run} {kept[0]} of {kept[1]} (the one kept; chains.json), the others not shown"
+    if "vi_iterations_run" in result.inference:  # vi-gibbs: the sweeps began at CAVI's labels
+        title += (f"\nGibbs sweeps from a CAVI start of {result.inference['vi_iterations_run']} "
+                  "iterations (not shown)")  # fmt: skip
     refine = result.inference.get("refine")
     if isinstance(refine, dict) and refine.get("refine") and isinstance(refine.get("coarse"), dict):
         coarse = refine["coarse"]
