@@ -134,3 +134,16 @@ def test_an_all_zero_feature_file_is_warned_about(tmp_path, caplog):
         load_house(room)
     messages = [r.getMessage() for r in caplog.records]
     assert any("Ft.csv: all image feature rows are all zero" in m for m in messages), messages
+
+
+def test_a_variational_fits_one_concept_warning_names_a_way_its_method_takes(caplog):
+    """A one-concept CAVI map was told to try "--merge-moves 0.2", which fit refuses with
+    --method cavi (an option of the Gibbs sampler); it names --method gibbs with it."""
+    sampled = degenerate_map_warning(np.full(10, 3), *_kitchen_and_bedroom(3.0))
+    assert "(try a lower --gamma, --merge-moves 0.2 so that regions can split" in sampled
+    house = make_house(seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3, num_trials=1))
+    settings = preset("original-code", num_concepts=1, gamma=3.0)
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        fit_house(house, settings, method="cavi", sweeps=2, progress=False)
+    [warning] = [r.getMessage() for r in caplog.records if "one concept" in r.getMessage()]
+    assert "(try a lower --gamma, --method gibbs --merge-moves 0.2 so that regions" in warning

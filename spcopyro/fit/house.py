@@ -121,7 +121,8 @@ def log_degenerate_map(result: SpCoResult, house: House) -> str | None:
     """Log (logger ``"spcopyro"``) and return the warning of a degenerate reported map -- one
     concept over most of the free cells while words said at different places lie inside it
     (:func:`spcopyro.results.map_checks.degenerate_map_warning`) -- else None."""
-    warning = house_map_warning(result.labels, house, result.preparation.snap_distance)
+    sampled = result.method in SAMPLERS  # else --merge-moves needs --method gibbs
+    warning = house_map_warning(result.labels, house, result.preparation.snap_distance, sampled)
     if warning:
         logger.warning(warning)
     return warning

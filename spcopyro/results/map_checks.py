@@ -56,6 +56,7 @@ def degenerate_map_warning(
     utterance_cells: np.ndarray,
     utterance_xy: np.ndarray,
     utterances: Sequence[Sequence[str]],
+    sampled: bool = True,
 ) -> str | None:
     """A warning when the map is degenerate (see the module docstring), else None.
 
@@ -65,6 +66,9 @@ def degenerate_map_warning(
             :func:`~spcopyro.data.place_observations`).
         utterance_xy: ``[U, 2]`` world positions (metres) of the utterances.
         utterances: ``[U]`` each utterance's tokens.
+        sampled: the fit ran the Gibbs sampler (``gibbs``, ``vi-gibbs``), whose split-merge
+            moves (``--merge-moves``) it names; else it names ``--method gibbs`` with them
+            (``fit`` refuses ``--merge-moves`` with a variational method).
 
     The message names the concept, its share of the free cells and the words heard inside it
     (most heard first, at most :data:`NAMED_WORDS`, with their counts).
@@ -97,6 +101,7 @@ def degenerate_map_warning(
     apart = np.linalg.norm(means[:, None, :] - means[None, :, :], axis=-1).max()
     if apart < DEGENERATE_SEPARATION:
         return None
+    moves = "--merge-moves 0.2" if sampled else "--method gibbs --merge-moves 0.2"
     ranked = sorted(heard.items(), key=lambda item: -len(item[1]))  # stable: first heard first
     named = ", ".join(f"{word} ({len(us)})" for word, us in ranked[:NAMED_WORDS])
     more = len(ranked) - NAMED_WORDS
@@ -105,22 +110,26 @@ def degenerate_map_warning(
     return (
         f"one concept ({concept}) holds {share:.0%} of the free cells while words said at "
         f"different places (up to {apart:.1f} m apart) lie inside it: {named}; the map does not "
-        "separate the places these words name (try a lower --gamma, --merge-moves 0.2 so that "
-        f"regions can split, or the default --preset {DEFAULT_PRESET} if the fit used another)"
+        f"separate the places these words name (try a lower --gamma, {moves} so that regions "
+        f"can split, or the default --preset {DEFAULT_PRESET} if the fit used another)"
     )
 
 
-def house_map_warning(labels: np.ndarray, house: House, snap_distance: float) -> str | None:
+def house_map_warning(
+    labels: np.ndarray, house: House, snap_distance: float, sampled: bool = True
+) -> str | None:
     """:func:`degenerate_map_warning` of ``labels`` ``[N]`` on ``house``'s map, its utterances
     placed on free cells as the fit places them (:func:`~spcopyro.data.place_observations`
-    with the fit's ``snap_distance``, metres)."""
+    with the fit's ``snap_distance``, metres); ``sampled``: as there."""
     from spcopyro.data import place_observations
 
     observations = house.observations
     if len(observations.utterances) == 0:
         return None
     cells, _, _ = place_observations(house.grid, observations.word_xy, snap_distance)
-    return degenerate_map_warning(labels, cells, observations.word_xy, observations.utterances)
+    return degenerate_map_warning(
+        labels, cells, observations.word_xy, observations.utterances, sampled
+    )
 
 
 MIN_COVERAGE = 0.55
