@@ -429,3 +429,29 @@ def test_chunked_coefficients_take_many_chunks_a_call(monkeypatch):
     assert float(got).hex() == _chunk_by_chunk_coefficients(data, config).hex()
     assert sum(steps) == stochastic._coefficient_chunks(data, config) == 10 + 2
     assert len(steps) == 2, steps
+
+
+def test_a_memoized_q_that_ends_near_uniform_is_warned_about(caplog):
+    """stochastic-vi annealed from gamma 0 over 20 passes under paper-dp at L = 120 ended at
+    q(C) uniform (1.000 of log L, "1 concept in use", ARI 0) without a word, where CAVI and loopy
+    BP warn: it warns as they do, naming its own option (anneal_passes); from random one-hot
+    labels at full gamma it orders and says nothing."""
+    from spcopyro.guides.memoized import StochasticVIInference
+
+    house = make_house(seed=0, spec=HouseSpec.scaled(30, 40, num_rooms=2))
+    settings = preset("paper-dp")
+    _, data = prepare_model_data(house, settings)
+
+    def said(options) -> list[str]:
+        caplog.clear()
+        with caplog.at_level("WARNING", logger="spcopyro"):
+            StochasticVIInference().run(
+                data, settings.model, iterations=30, options=options, progress=False,
+                generator=torch.Generator().manual_seed(0),
+            )  # fmt: skip
+        return [r.getMessage() for r in caplog.records if "ended near uniform" in r.getMessage()]
+
+    (annealed,) = said(StochasticOptions(anneal_passes=20))
+    assert annealed.startswith("memoized VI's q(C) ended near uniform"), annealed
+    assert "gamma 4 < L / D = 30" in annealed and "Try anneal_passes=0" in annealed
+    assert said(StochasticOptions(anneal_passes=0)) == []
