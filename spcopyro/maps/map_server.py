@@ -14,12 +14,13 @@ codes; semantic maps written by :func:`~spcopyro.maps.render.save_label_map_serv
 (``mode: raw``) are read back with :func:`~spcopyro.maps.render.load_label_map_server`.
 
 This is the only module of the package that reads or writes image and yaml files (OpenCV,
-PyYAML); :mod:`spcopyro.maps.render` writes its semantic maps through the helpers here.
+PyYAML), imported where a file is read or written: every command, ``--help`` too, imports this.
 """
 
 from __future__ import annotations
 
 import difflib
+import functools
 import logging
 import math
 import os
@@ -28,9 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
-import yaml
 
 from spcopyro._util.messages import echo
 from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
@@ -38,18 +37,10 @@ from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 logger = logging.getLogger(__name__)
 
 __all__ = [
-    "MAX_MAP_COORDINATE",
-    "PGM_FREE",
-    "PGM_OCCUPIED",
-    "PGM_UNKNOWN",
-    "SAVE_FREE_THRESH",
-    "SAVE_OCCUPIED_THRESH",
-    "MapFileNotFoundError",
-    "MapFormatError",
-    "load_map",
-    "save_map",
+    "MAX_MAP_COORDINATE", "PGM_FREE", "PGM_OCCUPIED", "PGM_UNKNOWN", "SAVE_FREE_THRESH",
+    "SAVE_OCCUPIED_THRESH", "MapFileNotFoundError", "MapFormatError", "load_map", "save_map",
     "trinary_pixels",
-]
+]  # fmt: skip
 
 # Pixel values written by save_map (those of map_server's map_saver).
 PGM_FREE, PGM_OCCUPIED, PGM_UNKNOWN = 254, 0, 205
@@ -87,16 +78,19 @@ class MapFileNotFoundError(MapFormatError, FileNotFoundError):
 
 
 # ---------------------------------------------------------------------- yaml parsing
-class _MapYamlLoader(yaml.SafeLoader):
+@functools.cache
+def _map_yaml_loader() -> type:
     """PyYAML's safe loader, also reading ``5e-2`` and ``1E3`` as floats (YAML 1.2, yaml-cpp and
     so map_server do; YAML 1.1 wants a dot, so PyYAML reads them as strings)."""
+    import yaml
 
-
-_MapYamlLoader.add_implicit_resolver(
-    "tag:yaml.org,2002:float",
-    re.compile(r"^[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)[eE][-+]?[0-9]+$"),
-    list("-+0123456789."),
-)
+    loader = type("_MapYamlLoader", (yaml.SafeLoader,), {})
+    loader.add_implicit_resolver(
+        "tag:yaml.org,2002:float",
+        re.compile(r"^[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)[eE][-+]?[0-9]+$"),
+        list("-+0123456789."),
+    )
+    return loader
 
 
 @dataclass(frozen=True)
@@ -165,11 +159,15 @@ a line's end: white space to yaml-cpp, an error to PyYAML (tabs that indent are 
 
 def _parse_yaml(text: str) -> tuple[Any, Any]:
     """(the root node, the document) of a map yaml; yaml.YAMLError if it does not parse."""
-    return yaml.compose(text, Loader=_MapYamlLoader), yaml.load(text, Loader=_MapYamlLoader)
+    import yaml
+
+    return yaml.compose(text, Loader=_map_yaml_loader()), yaml.load(text, Loader=_map_yaml_loader())
 
 
 def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
     """Parse and validate a map_server yaml; errors name the file, line, key and value."""
+    import yaml
+
     path = Path(yaml_path)
     if not path.is_file():
         raise MapFileNotFoundError(f"{path}: map yaml not found")
@@ -330,6 +328,8 @@ def _decode(spec: _MapYaml) -> tuple[np.ndarray, int | None]:
         raise MapFileNotFoundError(
             f"{spec.where('image')}: key 'image': image file {str(spec.image)!r} not found{hint}"
         )
+    import cv2
+
     data = np.fromfile(spec.image, dtype=np.uint8)
     level = cv2.utils.logging.getLogLevel()
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # the error below says it
@@ -541,6 +541,8 @@ def _yaml_target(yaml_path: str | os.PathLike) -> Path:
 
 
 def _write_image(path: Path, img: np.ndarray) -> None:
+    import cv2
+
     ok, buf = cv2.imencode(path.suffix, img)
     if not ok:
         raise OSError(f"{path}: OpenCV could not encode the image")
@@ -565,6 +567,8 @@ def _write_map_yaml(
     }
     if mode is not None:
         doc["mode"] = mode
+    import yaml
+
     path.write_text(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None), encoding="utf-8")
 
 
