@@ -22,7 +22,7 @@ from spcopyro.data import (
     save_house,
     tokenize,
 )
-from spcopyro.data.text import unsegmented
+from spcopyro.data.text import format_characters, unsegmented
 from spcopyro.maps import FREE, OccupancyGrid
 
 
@@ -276,6 +276,36 @@ def test_invisible_characters_at_a_word_s_ends_are_not_part_of_it():
     assert [tokenize(t) for t in texts] == [("kitchen",)] * 3 + [("the", "kitchen")]
     assert tokenize("living\u200broom") == ("living\u200broom",)  # inside a word: kept
     assert tokenize("\u200b \ufeff") == ()
+
+
+def test_invisible_characters_inside_a_word_are_warned_of(tmp_path, caplog):
+    """'kit\\u200bchen' (a zero-width space inside) is a word apart from 'kitchen' that prints
+    the same: it was read without a word said. Kept (a Persian zero-width non-joiner spells its
+    word), but named with its file, line, repr and code point."""
+    assert format_characters("kit\u200bchen\u200b") == ("U+200B ZERO WIDTH SPACE",)
+    assert format_characters("re\xadfrig\u200derator") == (
+        "U+00AD SOFT HYPHEN", "U+200D ZERO WIDTH JOINER",
+    )  # fmt: skip
+    assert format_characters("kitchen") == () == format_characters("ダイニングキッチン")
+    room = _saved_house(tmp_path)
+    (room / "St.csv").write_text("here is the kitchen,b\ufeffed,kit\u200bchen kit\u200bchen")
+    (room / "word_0.csv").write_text("here is the kitchen\n")
+    (room / "word_1.csv").write_text("b\ufeffed\nkit\u200bchen kit\u200bchen\n")
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        house = load_house(room)
+    assert house.observations.utterances[2] == ("kit\u200bchen",) * 2  # kept, not stripped
+    said = [r.getMessage() for r in caplog.records if "format characters" in r.getMessage()]
+    assert said == [
+        f"{room / 'St.csv'}, line 1: 2 word(s) hold invisible format characters (Unicode "
+        "category Cf), each read as a word apart from its letters without them: 'b\\ufeffed' "
+        "(utterance 2: U+FEFF ZERO WIDTH NO-BREAK SPACE), 'kit\\u200bchen' (utterance 3: U+200B "
+        "ZERO WIDTH SPACE) (kept: remove them where the language does not need them, as "
+        "Persian needs its zero-width non-joiner)"
+    ]
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        load_house(_saved_house(tmp_path / "clean"))
+    assert "format characters" not in caplog.text
 
 
 @pytest.mark.parametrize(

@@ -19,6 +19,7 @@ from spcopyro.config import WordWeighting
 __all__ = [
     "WordWeighting",
     "fold_word",
+    "format_characters",
     "tfidf_weights",
     "tokenize",
     "unsegmented",
@@ -66,6 +67,20 @@ def tokenize(utterance: str) -> tuple[str, ...]:
         if start < end:
             tokens.append(raw[start:end])
     return tuple(tokens)
+
+
+def format_characters(token: str) -> tuple[str, ...]:
+    """The invisible format characters (Unicode category Cf) inside ``token``, each once, as
+    ``"U+200B ZERO WIDTH SPACE"``.
+
+    :func:`tokenize` strips them from a token's ends only: inside one, a zero-width space,
+    (non-)joiner, soft hyphen or byte-order mark stays, so ``"kit\u200bchen"`` is a word apart
+    from ``"kitchen"`` that prints the same. They are not removed, since some spell words (a
+    Persian word's zero-width non-joiner) or separate them (a zero-width space in Thai); the
+    data's reader warns of them (:mod:`spcopyro.data.dataset_files`).
+    """
+    found = (char for char in token if unicodedata.category(char) == "Cf")
+    return tuple(dict.fromkeys(f"U+{ord(c):04X} {unicodedata.name(c, 'unnamed')}" for c in found))
 
 
 _UNSPACED_SCRIPTS = {"CJK": 6, "HIRAGANA": 6, "KATAKANA": 6, "THAI": 10, "LAO": 10, "KHMER": 10,
