@@ -34,8 +34,8 @@ def warning_cells(monkeypatch):
 
 def _listed(text: str, heading: str = "## Cells with warnings", table: str = "results.csv"):
     assert f"{heading}\n\n" in text
-    assert f"gave warnings while fitted (column `warnings` of {table} holds them whole)" in text
-    assert f"  - {SAID}" in text
+    assert f"gave warnings while fitted (column `warnings` of {table} holds each cell's)" in text
+    assert f"\n- {SAID}\n  - cells: " in text
 
 
 def test_ablation_md_lists_the_cells_warnings(tmp_path, warning_cells, capsys):
@@ -46,7 +46,7 @@ def test_ablation_md_lists_the_cells_warnings(tmp_path, warning_cells, capsys):
     assert code == 0
     text = (out / "ablation.md").read_text()
     _listed(text)
-    assert "- g / dense / gibbs / seed 0:" in text
+    assert "  - cells: g / dense / gibbs / seed 0\n" in text
     assert text == (out / "ablation.md").read_text() and text in capsys.readouterr().out
 
 
@@ -59,7 +59,7 @@ def test_comparison_md_lists_the_cells_warnings(tmp_path, warning_cells):
     run_comparison(tmp_path, settings)
     text = (tmp_path / "comparison.md").read_text()
     _listed(text)
-    assert "- lbp / synthetic / lbp / seed 0:" in text
+    assert "  - cells: lbp / synthetic / lbp / seed 0\n" in text
 
 
 def test_the_experiments_table_md_lists_the_cells_warnings(tmp_path, warning_cells):
@@ -71,7 +71,7 @@ def test_the_experiments_table_md_lists_the_cells_warnings(tmp_path, warning_cel
     run_experiment(tmp_path, study)
     text = (tmp_path / "table.md").read_text()
     _listed(text)
-    assert "- A-dp / synthetic / gibbs / seed 0:" in text
+    assert "  - cells: A-dp / synthetic / gibbs / seed 0\n" in text
 
 
 def test_studies_md_lists_each_side_studys_warnings(tmp_path, warning_cells):
@@ -97,3 +97,29 @@ def test_a_report_without_warned_cells_is_unchanged():
     assert with_warnings("# report\n", rows) == "# report\n"
     rows[0]["warnings"] = '["careful"]'
     assert with_warnings("# report\n", rows).startswith("# report\n\n## Cells with warnings\n")
+
+
+def test_a_long_warning_is_listed_whole_once_with_its_cells():
+    """comparison.md cut each warning at 300 characters ("... annealed ..."), losing SVI's
+    flat-q warning's advice ("Try ..."); each distinct warning is listed once, whole, with the
+    cells that gave it."""
+    import json
+
+    advice = "Try --method gibbs, or anneal over more steps (the end of a long warning)."
+    long = "q(C) ends near uniform: " + "annealed " * 60 + advice
+    other = "a short one"
+    rows = [
+        {"variant": "svi", "data": "synthetic", "method": "svi", "seed": 0,
+         "warnings": json.dumps([long, other])},
+        {"variant": "svi", "data": "synthetic", "method": "svi", "seed": 1,
+         "warnings": json.dumps([long])},
+        {"variant": "sv", "data": "synthetic", "method": "stochastic-vi", "seed": 0,
+         "warnings": json.dumps([long])},
+        {"variant": "gibbs", "data": "synthetic", "method": "gibbs", "seed": 0, "warnings": ""},
+    ]  # fmt: skip
+    text = with_warnings("# report\n", rows)
+    assert len(long) > 500 and text.count(advice) == 1, text
+    assert f"\n- {long}\n  - cells: svi / synthetic / svi / seeds 0, 1; sv / synthetic / " in text
+    assert "stochastic-vi / seed 0\n" in text
+    assert f"\n- {other}\n  - cells: svi / synthetic / svi / seed 0\n" in text
+    assert "3 cells of 4 gave warnings while fitted" in text

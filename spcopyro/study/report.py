@@ -125,36 +125,40 @@ def report_markdown(
     return "\n".join(lines)
 
 
-WARNING_SHOWN = 300
-"""Characters of a warning the report shows (``results.csv``'s ``warnings`` holds it whole)."""
-
-
 def warnings_section(
     rows: Sequence[dict[str, object]],
     table: str = "results.csv",
     title: str = "Cells with warnings",
 ) -> list[str]:
     """The report's lines on the cells whose fit gave warnings (column ``warnings``,
-    :mod:`spcopyro.study.cell_warnings`): per (variant, data, method) and set of messages, the
-    seeds and each message cut to :data:`WARNING_SHOWN` characters; none without such cells.
-    ``table``: the table that holds them whole, as the text names it; ``title``: the
-    section's heading."""
-    groups: dict[tuple, list[object]] = {}
+    :mod:`spcopyro.study.cell_warnings`): each distinct message once and whole (on one line),
+    followed by the cells that gave it, per (variant, data, method) with their seeds; none
+    without such cells. Messages were cut at 300 characters before, which lost e.g. SVI's
+    flat-q warning's advice. ``table``: the table that holds each cell's messages, as the text
+    names it; ``title``: the section's heading."""
+    said: dict[str, dict[tuple, list[object]]] = {}  # message -> (variant, data, method) -> seeds
+    cells = 0
     for r in rows:
-        said = tuple(dict.fromkeys(_shortened(m) for m in read_warnings(r.get(WARNINGS))))
-        if said:
-            groups.setdefault((*(r[k] for k in GROUP), said), []).append(r["seed"])
-    if not groups:
+        messages = dict.fromkeys(" ".join(m.split()) for m in read_warnings(r.get(WARNINGS)))
+        cells += bool(messages)
+        for message in messages:
+            said.setdefault(message, {}).setdefault(tuple(r[k] for k in GROUP), []).append(
+                r["seed"]
+            )
+    if not said:
         return []
-    count = sum(len(seeds) for seeds in groups.values())
     lines = [f"## {title}", "",
-             f"{plural(count, 'cell')} of {len(rows)} gave warnings while fitted (column "
-             f"`warnings` of {table} holds them whole):", ""]  # fmt: skip
-    for (variant, data, method, said), seeds in groups.items():
-        seed_list = ", ".join(str(s) for s in seeds)
-        lines.append(f"- {variant} / {data} / {method} / seed{'s' if len(seeds) > 1 else ''} "
-                     f"{seed_list}:")  # fmt: skip
-        lines += [f"  - {m}" for m in said]
+             f"{plural(cells, 'cell')} of {len(rows)} gave warnings while fitted (column "
+             f"`warnings` of {table} holds each cell's): each warning once, whole, with the "
+             "cells that gave it.", ""]  # fmt: skip
+    for message, groups in said.items():
+        lines.append(f"- {message}")
+        where = "; ".join(
+            f"{variant} / {data} / {method} / seed{'s' if len(seeds) > 1 else ''} "
+            + ", ".join(str(s) for s in seeds)
+            for (variant, data, method), seeds in groups.items()
+        )
+        lines.append(f"  - cells: {where}")
     lines.append("")
     return lines
 
@@ -167,14 +171,6 @@ def with_warnings(text: str, rows: Sequence[dict[str, object]], table: str = "re
     if not lines:
         return text
     return text.rstrip("\n") + "\n\n" + "\n".join(lines)
-
-
-def _shortened(message: str) -> str:
-    text = " ".join(message.split())  # one line
-    if len(text) <= WARNING_SHOWN:
-        return text
-    cut = text[:WARNING_SHOWN].rsplit(" ", 1)[0]
-    return f"{cut} ..."
 
 
 def write_report(
