@@ -572,9 +572,12 @@ def test_the_table_says_how_many_iterations_each_line_ran(tmp_path):
     cavi_row = rows["CAVI (mean field; gamma annealed over 20 it.)"].replace("\\|", "")
     vi_row = rows["VI then Gibbs"].replace("\\|", "")
     assert cavi_row.count("|") == vi_row.count("|") == header.count("|")
-    assert cavi_row.split("|")[column].strip() == str(cavi["iterations"])
-    assert vi_row.split("|")[column].strip() == f"3 (+ {vi_gibbs['start_iterations']} CAVI)"
-    assert "Iteration budgets: cavi 200, vi-gibbs 3. A budget is the sweeps of a sampler" in text
+    assert cavi_row.split("|")[column].strip() == f"{cavi['iterations']} iterations"
+    assert vi_row.split("|")[column].strip() == (
+        f"3 sweeps (+ {vi_gibbs['start_iterations']} CAVI iterations)"
+    )
+    assert ("Iteration budgets: cavi 200 iterations, vi-gibbs 3 sweeps. A budget is the sweeps "
+            "of a sampler") in text  # fmt: skip
     assert "not its reported point estimate's" in text  # whose wrong cells a sampler's are
 
 
@@ -586,7 +589,7 @@ def test_svi_s_annealing_left_to_its_start_is_read_as_a_random_start_s():
 
     settings = ComparisonSettings(variants=("svi",), seeds=1, house_types=("synthetic",))
     assert unfinished_annealing({"svi": 50}, settings) == [
-        "svi: 50 iterations end before its annealing (anneal_iterations = 100): gamma reaches "
+        "svi: 50 steps end before its annealing (anneal_iterations = 100): gamma reaches "
         "only 50% of the model's, so its fits are of a weaker coupling"
     ]
     assert unfinished_annealing({"svi": 100}, settings) == []
@@ -611,4 +614,50 @@ def test_the_figure_names_the_parameters_its_scores_read():
     assert labels["held-out top-1"] == "held-out top-1 (means | labels)"
     assert labels["localisation distance"] == (
         "localisation distance (m) (means | labels) (lower is better)"
+    )
+
+
+def test_a_final_ari_at_chance_gets_no_time_to_95_percent():
+    """An SVI quick run ended at ARI 0.006 and the findings read "95% of its own final ARI after
+    0.01 s vs ...": at chance that time means nothing; the finding says the ARI is at chance."""
+    from spcopyro.experiments.comparison_report import CHANCE_ARI, findings
+
+    def line(ari: float, t95: float) -> dict:
+        return {"final_given_labels": {"ari": {"mean": ari}}, "time_to_95": {"ari": {"mean": t95}},
+                "seconds": {"mean": 1.0}, "concepts": {"mean": 10.0}}  # fmt: skip
+
+    def finding(gibbs: dict, svi: dict) -> str:
+        (text,) = findings({"synthetic": {"gibbs": gibbs, "svi": svi}})
+        return text
+
+    text = finding(line(0.9, 0.5), line(0.006, 0.01))
+    assert "95% of its own final" not in text, text
+    assert (f"its final ARI 0.006 is at chance (ARI < {CHANCE_ARI:g}), so no time to 95% of it "
+            "is given (gibbs reaches 95% of its own after 0.5 s)") in text, text  # fmt: skip
+    text = finding(line(0.01, 0.5), line(0.7, 0.2))
+    assert ("95% of its own final ARI after 0.2 s vs none for gibbs: its final ARI 0.010 is at "
+            "chance") in text, text  # fmt: skip
+    text = finding(line(0.9, 0.5), line(0.7, 0.2))
+    assert "95% of its own final ARI after 0.2 s vs 0.5 s (2.5x faster)" in text, text
+
+
+def test_the_table_says_what_an_iteration_of_each_method_is(tmp_path):
+    """comparison.md called SVI's steps and memoized VI's passes "iterations" (column iterations
+    run, the budgets, the annealing notes) while their progress bars count "step" and "pass"."""
+    settings = ComparisonSettings(variants=("svi", "stochastic-vi"), seeds=1,
+                                  house_types=("synthetic",), quick=True,
+                                  iterations={"svi": 4, "stochastic-vi": 2})  # fmt: skip
+    summary = run_comparison(tmp_path, settings)
+    text = (tmp_path / "comparison.md").read_text()
+    assert "Iteration budgets: svi 4 steps, stochastic-vi 2 passes." in text, text
+    assert "an optimiser step of svi, a pass over the tiles of stochastic-vi" in text
+    lines = [line.replace("\\|", "") for line in text.splitlines() if line.startswith("| ")]
+    rows = {line.split("|")[1].strip(): line.split("|") for line in lines}
+    header = [c.strip() for c in next(r for k, r in rows.items() if k == "method")]
+    column = header.index("iterations run")
+    assert rows["SVI (Pyro guide)"][column].strip() == "4 steps"
+    memoized = next(r for k, r in rows.items() if k.startswith("memoized VI"))
+    assert memoized[column].strip().endswith(" passes")
+    assert "svi: 4 steps end before its annealing (anneal_iterations = 10)" in " ".join(
+        summary["notes"]
     )

@@ -151,7 +151,7 @@ def unfinished_annealing(iterations: dict[str, int], settings: ComparisonSetting
         for name in ("anneal_iterations", "anneal_passes"):
             anneal = options.get(name, getattr(defaults, name, 0))
             if isinstance(anneal, int) and anneal > n:
-                notes.append(f"{key}: {n} iterations end before its annealing ({name} = "
+                notes.append(f"{key}: {n} {iteration_unit(key)} end before its annealing ({name} = "
                              f"{anneal}): gamma reaches only {100 * n / anneal:.0f}% of the "
                              "model's, so its fits are of a weaker coupling")  # fmt: skip
     return notes
@@ -173,6 +173,34 @@ def _finding_seconds(value: float) -> str:
     """A time in a finding beside the ratio computed from it: two significant digits below 1 s
     (seconds_text's one decimal read "0.1 s vs 0.044 s (3.3x slower)" for 0.144 s)."""
     return seconds_text(value) if not value < 1 else f"{value:.2g}"
+
+
+CHANCE_ARI = 0.05
+"""A mean final ARI below this is at chance: the time to 95% of it (t95) means nothing (an SVI
+quick run ended at ARI 0.006 and "reached 95% of its own final ARI" in 0.01 s)."""
+
+
+def at_chance(entry: dict, score: str) -> bool:
+    """Whether a line's mean final ``score`` is an ARI at chance (below :data:`CHANCE_ARI`)."""
+    return score == "ari" and _m(entry, "final_given_labels", "ari") < CHANCE_ARI
+
+
+def _time_to_95(s: dict, ref: dict, primary: str) -> str:
+    """A finding's part on the time to 95% of the final ``primary`` of line ``s`` against
+    gibbs's ``ref``; a line whose final ARI is at chance (:func:`at_chance`) gets no time."""
+    name = SCORE_NAMES[primary]
+    t, t_ref = _m(s, "time_to_95", primary), _m(ref, "time_to_95", primary)
+    chance = f"at chance (ARI < {CHANCE_ARI:g}), so no time to 95% of it is given"
+    if at_chance(s, primary):
+        text = f"its final {name} {fixed(_m(s, 'final_given_labels', primary))} is {chance}"
+        if not at_chance(ref, primary):
+            text += f" (gibbs reaches 95% of its own after {_finding_seconds(t_ref)} s)"
+        return text
+    text = f"95% of its own final {name} after {_finding_seconds(t)} s vs "
+    if at_chance(ref, primary):
+        final_ref = fixed(_m(ref, "final_given_labels", primary))
+        return text + f"none for gibbs: its final {name} {final_ref} is {chance}"
+    return text + f"{_finding_seconds(t_ref)} s ({_ratio(t, t_ref)})"
 
 
 def findings(summary: dict[str, dict[str, dict]]) -> list[str]:
@@ -200,10 +228,7 @@ def findings(summary: dict[str, dict[str, dict]]) -> list[str]:
                 f"{house_type}, {key} against gibbs: final {SCORE_NAMES[primary]} (labels, means "
                 f"given them) {fixed(q)} vs "
                 f"{fixed(q_ref)} ({verdict})",
-                f"95% of its own final {SCORE_NAMES[primary]} after "
-                f"{_finding_seconds(_m(s, 'time_to_95', primary))} s vs "
-                f"{_finding_seconds(_m(ref, 'time_to_95', primary))} s "
-                f"({_ratio(_m(s, 'time_to_95', primary), _m(ref, 'time_to_95', primary))})",
+                _time_to_95(s, ref, primary),
                 f"whole run {_finding_seconds(_m(s, 'seconds'))} s vs "
                 f"{_finding_seconds(_m(ref, 'seconds'))} s",
                 f"concepts {_m(s, 'concepts'):.1f} vs {_m(ref, 'concepts'):.1f}",
@@ -262,18 +287,36 @@ BUDGETS = (
     "stochastic-vi, which stop once their objective settles (column iterations run: a mean "
     "below the budget is a fit that converged first); vi-gibbs's budget counts its Gibbs sweeps, "
     "after a CAVI start of its own (column iterations run: + CAVI, its iterations), "
-    "whose time its s per fit, t95 and curve include."
+    "whose time its s per fit, t95 and curve include. An iteration is what each method's "
+    "progress bar counts: a sweep of gibbs and vi-gibbs, an update of every cell of cavi and "
+    "lbp, an optimiser step of svi, a pass over the tiles of stochastic-vi (memoized VI)."
 )
 """What ``comparison.md``'s iteration budgets and its column *iterations run* count."""
 
 
-def _iterations_run(summary: dict) -> str:
-    """The mean iterations a line's fits ran, with vi-gibbs's CAVI start: ``"60 (+ 43 CAVI)"``."""
+ITERATION_UNITS = {"gibbs": "sweeps", "vi-gibbs": "sweeps", "cavi": "iterations",
+                   "lbp": "iterations", "svi": "steps", "stochastic-vi": "passes"}  # fmt: skip
+"""What one iteration of each method is, as its progress bar counts it: a Gibbs sweep, a CAVI or
+LBP update of every cell, an SVI optimiser step, a memoized-VI pass over the tiles (the table
+called them all "iterations")."""
+
+
+def iteration_unit(key: str) -> str:
+    """The unit of variant ``key``'s iterations (:data:`ITERATION_UNITS`)."""
+    method = VARIANTS[key].method if key in VARIANTS else key
+    return ITERATION_UNITS.get(method, "iterations")
+
+
+def _iterations_run(summary: dict, key: str) -> str:
+    """The mean iterations a line's fits ran, in the method's unit, with vi-gibbs's CAVI start:
+    ``"60 sweeps (+ 43 CAVI iterations)"``."""
     text = _fmt(summary.get("iterations"), 1 if summary.get("iterations", {}).get("sd") else 0,
                 False)  # fmt: skip
+    if text != "—":
+        text += f" {iteration_unit(key)}"
     start = summary.get("start_iterations")
     if start and math.isfinite(start.get("mean", math.nan)):
-        text += f" (+ {_fmt(start, 1 if start.get('sd') else 0, False)} CAVI)"
+        text += f" (+ {_fmt(start, 1 if start.get('sd') else 0, False)} CAVI iterations)"
     return text
 
 
@@ -327,12 +370,13 @@ def table_markdown(summary: dict[str, object]) -> str:
     lines += [
         f"Preset `{settings['preset']}`" + (f" ({overrides})" if overrides else "")
         + ", random initial labels. Iteration budgets: "
-        + ", ".join(f"{k} {v}" for k, v in settings["iterations"].items())
+        + ", ".join(f"{k} {v} {iteration_unit(k)}" for k, v in settings["iterations"].items())
         + f". {BUDGETS} {command_time(summary['seconds'], summary.get('cells_finished_before', 0))}"
         + _concurrent(summary.get("workers", 1)),
         "",
         "Times are wall-clock seconds of the inference alone, mean over fits. t95: time to reach "
-        "95% of the method's own final quality along its run. ESS/s: effective sample size per "
+        "95% of the method's own final quality along its run (\"at chance\": a mean final ARI "
+        f"below {CHANCE_ARI:g}, whose t95 means nothing). ESS/s: effective sample size per "
         "second over the second half of a sampler's run, of the log joint and of the Potts "
         "agreement count.",
         "",
@@ -375,18 +419,19 @@ def table_markdown(summary: dict[str, object]) -> str:
             runs = len(records[key])
             ess = s.get("ess_per_second", {})
             common_tail = (
-                f"| {_seconds(s['seconds'])} | {_iterations_run(s)} "
+                f"| {_seconds(s['seconds'])} | {_iterations_run(s, key)} "
                 f"| {_fmt(ess.get('log_joint'), 1, False)} "
                 f"| {_fmt(ess.get('agreement'), 1, False)} "
             )
             if house_type == SYNTHETIC:
                 oc = s.get("overconfidence", {})
+                t95 = "at chance" if at_chance(s, "ari") else _t95(s["time_to_95"].get("ari"), runs)
                 lines.append(
                     f"| {methods[key]} | {_fmt(s['final']['ari'])} "
                     f"| {_fmt(s['final']['matching_rate'])} "
                     f"| {_fmt(s['final_given_labels']['matching_rate'])} "
                     f"| {_fmt(s['concepts'], 1, False)} ({_fmt(s['truth_categories'], 0, False)}) "
-                    f"| {_t95(s['time_to_95'].get('ari'), runs)} {common_tail}"
+                    f"| {t95} {common_tail}"
                     f"| {_fmt(oc.get('wrong_share'), 3, False)} "
                     f"| {_fmt(oc.get('confident_wrong_share'), 2, False)} |"
                 )
