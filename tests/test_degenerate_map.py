@@ -1,5 +1,6 @@
 """The warning of a degenerate map (issue 21, item 5): one concept over most of the free cells
-while words said at different places lie inside it (:mod:`spcopyro.results.map_checks`)."""
+while words said at different places lie inside it, or lie outside it in small concepts
+(:mod:`spcopyro.results.map_checks`)."""
 
 from __future__ import annotations
 
@@ -12,9 +13,12 @@ import pytest
 from spcopyro.config import DEFAULT_PRESET, preset
 from spcopyro.fit.house import fit_house
 from spcopyro.results.map_checks import (
+    DEGENERATE_PATCHES,
     DEGENERATE_SEPARATION,
     DEGENERATE_SHARE,
     NAMED_WORDS,
+    PATCHES_HEARD,
+    PATCHES_SHARE,
     degenerate_map_warning,
 )
 from spcopyro.synthetic import HouseSpec, make_house
@@ -147,3 +151,86 @@ def test_a_variational_fits_one_concept_warning_names_a_way_its_method_takes(cap
         fit_house(house, settings, method="cavi", sweeps=2, progress=False)
     [warning] = [r.getMessage() for r in caplog.records if "one concept" in r.getMessage()]
     assert "(try a lower --gamma, --method gibbs --merge-moves 0.2 so that regions" in warning
+
+
+def _one_concept_and_patches(patch: int) -> tuple[np.ndarray, tuple]:
+    """1000 free cells: concept 7 over all but two patches of ``patch`` cells, concept 1 on
+    cells 0.. around the kitchen (x = 0) and concept 2 on cells 500.. around the bedroom
+    (x = 4); one "toilet" heard inside concept 7 (cell 900, x = 8)."""
+    labels = np.full(1000, 7)
+    labels[:patch], labels[500 : 500 + patch] = 1, 2
+    said = _utterances(
+        ("kitchen", 0, 0.0), ("kitchen", 1, 0.2), ("bedroom", 500, 4.0),
+        ("bedroom", 501, 4.1), ("bedroom", 502, 3.9), ("toilet", 900, 8.0),
+    )  # fmt: skip
+    return labels, said
+
+
+def test_one_concept_beside_words_in_small_patches_warns_naming_them_and_the_sizes():
+    """CAVI on room1dk5 (original-code, gamma 3, 100 iterations) put 94% of the free cells in
+    one concept, the place words in concepts of 12-124 cells around where they were said
+    (together 5% of the map), and gave no warning: the words were not inside the big one."""
+    labels, said = _one_concept_and_patches(30)  # the patches: 6% of the free cells
+    warning = degenerate_map_warning(labels, *said, sampled=False)
+    assert warning is not None
+    assert warning.startswith(
+        "one concept (7) holds 94% of the free cells and 1 of the 6 placed utterances: "
+        "toilet (1), while words said at different places (up to 3.9 m apart) lie outside it "
+        "in small concepts, together 6.0% of the free cells: bedroom (3 in 1 concept of 30 "
+        "cells), kitchen (2 in 1 concept of 30 cells); the map gives these words patches"
+    )
+    assert "--method gibbs --merge-moves 0.2" in warning
+    # a word in several patches: their count and the range of their sizes
+    labels[1] = 3
+    warning = degenerate_map_warning(labels, *said)
+    assert "kitchen (2 in 2 concepts of 1-29 cells)" in warning
+    assert "together 6.0% of the free cells" in warning
+
+
+def test_words_outside_in_concepts_the_size_of_rooms_do_not_warn():
+    """The rooms beside one large one: the words' concepts hold DEGENERATE_PATCHES or more."""
+    assert DEGENERATE_PATCHES == 0.2
+    labels, said = _one_concept_and_patches(100)  # 20%: rooms, not patches
+    assert degenerate_map_warning(labels, *said) is None
+    labels, said = _one_concept_and_patches(99)  # 19.8%
+    assert "together 19.8% of the free cells" in degenerate_map_warning(labels, *said)
+
+
+def test_the_patches_warning_needs_a_concept_over_half_the_map_holding_few_words():
+    assert PATCHES_SHARE == 0.5 and PATCHES_HEARD == 0.25
+    labels, said = _one_concept_and_patches(30)
+    labels[550:] = 5  # concept 7 on 490 cells (49%), concept 5 on 450 cells
+    said[0][5] = 540  # the toilet said on concept 7
+    assert degenerate_map_warning(labels, *said) is None
+    labels[550] = 7  # 49.1%
+    assert degenerate_map_warning(labels, *said) is None
+    labels[551:560] = 7  # 50%: "more than" half
+    assert degenerate_map_warning(labels, *said) is None
+    labels[560] = 7  # 50.1%
+    assert "holds 50% of the free cells and 1 of the 6 placed utterances: toilet (1), while" in (
+        degenerate_map_warning(labels, *said)
+    )
+    # the largest concept holds 2 of 7 utterances (over a quarter): a room where words are said
+    labels, (cells, xy, words) = _one_concept_and_patches(30)
+    cells, xy, words = (
+        np.append(cells, 901),
+        np.concatenate([xy, [[8.0, 0.0]]]),
+        [*words, ("toilet",)],
+    )
+    assert degenerate_map_warning(labels, cells, xy, words) is None
+    # a further bedroom outside: 2 of 8, a quarter ("at most")
+    cells, xy, words = (
+        np.append(cells, 503),
+        np.concatenate([xy, [[4.0, 0.0]]]),
+        [*words, ("bedroom",)],
+    )
+    warning = degenerate_map_warning(labels, cells, xy, words)
+    assert "holds 94% of the free cells and 2 of the 8 placed utterances: toilet (2)," in warning
+
+
+def test_words_outside_said_at_one_place_do_not_warn():
+    labels, said = _one_concept_and_patches(30)
+    cells, xy, words = said
+    xy[2:5, 0] = 1.0  # the bedroom said 1 m from the kitchen: one place
+    assert degenerate_map_warning(labels, cells, xy, words) is None
+    assert DEGENERATE_SEPARATION > 1.0

@@ -3,7 +3,13 @@
 A map is *degenerate* when one concept holds most of the free cells while words said at
 different places lie inside it: the fit has not separated the places those words name (too
 strong a Potts coupling for the data, emissions that the data cannot move, or a chain that
-coarsened into one region). :func:`degenerate_map_warning` says so, naming the words;
+coarsened into one region). It is degenerate too when one concept holds most of the free cells
+but few of the words, and the words said at different places lie *outside* it, in concepts that
+together hold only a small share of the map: each word names a patch around where it was said,
+and one concept is left over the rest of the house (CAVI on room1dk5 under ``original-code``,
+gamma 3, 100 iterations: one concept over 94% of the free cells holding 6 of the 57 utterances,
+the other 51 in concepts of 12-124 cells, together 5.1% of the map).
+:func:`degenerate_map_warning` says so, naming the words;
 :func:`house_map_warning` places a house's utterances on the map's cells first, as the fit does.
 :func:`spcopyro.fit.house.fit_house` and ``spcopyro fit`` log it (logger ``"spcopyro"``).
 
@@ -13,14 +19,20 @@ The rule (numpy only)::
     warn  if share > DEGENERATE_SHARE
           and, over the utterances placed on c's cells, the mean positions of at least two
               distinct words are at least DEGENERATE_SEPARATION metres apart
+    or    share > PATCHES_SHARE, c holds at most PATCHES_HEARD of the placed utterances,
+          over the utterances placed on other concepts' cells the mean positions of at least
+              two distinct words are at least DEGENERATE_SEPARATION metres apart,
+          and those utterances' concepts together hold less than DEGENERATE_PATCHES of the
+              free cells
 
 Every token of an utterance counts as a word (the word preparation drops none: see
-:mod:`spcopyro.data.text`); a word's count is the number of c's utterances that hold it.
+:mod:`spcopyro.data.text`); a word's count is the number of the utterances it is named among
+(c's, or those outside c) that hold it.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -33,9 +45,12 @@ if TYPE_CHECKING:
 __all__ = [
     "MIN_COVERAGE",
     "coverage_warning",
+    "DEGENERATE_PATCHES",
     "DEGENERATE_SEPARATION",
     "DEGENERATE_SHARE",
     "NAMED_WORDS",
+    "PATCHES_HEARD",
+    "PATCHES_SHARE",
     "degenerate_map_warning",
     "house_map_warning",
 ]
@@ -47,6 +62,20 @@ DEGENERATE_SEPARATION = 1.5
 """Metres: two words whose utterances inside the largest concept have mean positions at least
 this far apart were said at different places (a room's length; utterances of one spot, rounded
 onto a 5 cm grid or snapped 0.25 m, stay well within it)."""
+PATCHES_SHARE = 0.5
+"""Share of the free cells above which the largest concept, holding few utterances, may leave the
+words small patches (:data:`DEGENERATE_PATCHES`). Measured: the largest concept of good maps
+holds 19% (the README's default fit of the embedded house), 35% and 48% (default ``coarse`` fits
+of room1ldk4 and room2ldk4 at 300 sweeps); of CAVI's maps under ``original-code`` at gamma 1-3 on
+the five public houses, 53-94% (the two at 53% with their words' concepts 43-45% of the map)."""
+PATCHES_HEARD = 0.25
+"""Share of the placed utterances at most which that largest concept holds: a room over half of
+a house is where many words are said. Measured: CAVI's degenerate maps' held 0-11% where the
+words lay outside (the good maps' largest: 14-45%, so this alone does not tell them apart)."""
+DEGENERATE_PATCHES = 0.2
+"""Share of the free cells below which the concepts of the words said outside that largest
+concept are small patches, not the rooms those words name. Measured: 2-18% on CAVI's maps above
+(largest concept over 57%); 52-81% on the good maps (the named rooms beside the largest)."""
 NAMED_WORDS = 8
 """The warning names at most this many words, most heard first."""
 
@@ -71,7 +100,9 @@ def degenerate_map_warning(
             (``fit`` refuses ``--merge-moves`` with a variational method).
 
     The message names the concept, its share of the free cells and the words heard inside it
-    (most heard first, at most :data:`NAMED_WORDS`, with their counts).
+    (most heard first, at most :data:`NAMED_WORDS`, with their counts); or, where the words lie
+    outside it in small concepts, those words with their counts and their concepts' sizes, and
+    the words heard inside it.
     """
     labels = np.asarray(labels).reshape(-1)  # [N]
     cells = np.asarray(utterance_cells, dtype=np.int64).reshape(-1)  # [U]
@@ -88,31 +119,85 @@ def degenerate_map_warning(
     concepts, sizes = np.unique(labels, return_counts=True)
     largest = int(np.argmax(sizes))
     concept, share = concepts[largest], sizes[largest] / labels.size
-    if share <= DEGENERATE_SHARE:
+    if share <= min(DEGENERATE_SHARE, PATCHES_SHARE):
         return None
-    inside = np.flatnonzero((cells >= 0) & (labels[np.maximum(cells, 0)] == concept))  # [U_c]
-    heard: dict[str, list[int]] = {}  # word -> its utterances inside the concept
-    for u in inside:
+    said = np.where(cells >= 0, labels[np.maximum(cells, 0)], concepts[0] - 1)  # [U]
+    placed = cells >= 0  # [U]; unplaced utterances lie in no concept
+    inside = np.flatnonzero(placed & (said == concept))  # [U_c]
+    heard = _words_heard(inside, utterances)
+    moves = "--merge-moves 0.2" if sampled else "--method gibbs --merge-moves 0.2"
+    advice = (
+        f"(try a lower --gamma, {moves} so that regions can split, or the default --preset "
+        f"{DEFAULT_PRESET} if the fit used another)"
+    )
+    apart = _apart(heard, xy)
+    if share > DEGENERATE_SHARE and apart >= DEGENERATE_SEPARATION:
+        return (
+            f"one concept ({concept}) holds {share:.0%} of the free cells while words said at "
+            f"different places (up to {apart:.1f} m apart) lie inside it: {_named(heard)}; "
+            f"the map does not separate the places these words name {advice}"
+        )
+    outside = np.flatnonzero(placed & (said != concept))  # [U_o]
+    elsewhere = _words_heard(outside, utterances)
+    apart = _apart(elsewhere, xy)
+    size_of = dict(zip(concepts.tolist(), sizes.tolist(), strict=True))
+    patches = sorted(set(said[outside].tolist()))  # the concepts the words outside lie in
+    patch_share = sum(size_of[k] for k in patches) / labels.size
+    if (
+        share <= PATCHES_SHARE
+        or len(inside) > PATCHES_HEARD * placed.sum()
+        or apart < DEGENERATE_SEPARATION
+        or patch_share >= DEGENERATE_PATCHES
+    ):
+        return None
+
+    def patch_sizes(us: list[int]) -> str:
+        """``us``' concepts' sizes, e.g. "in 2 concepts of 100-106 cells"."""
+        held = sorted({size_of[int(said[u])] for u in us})
+        many = len({int(said[u]) for u in us})
+        span = f"{held[0]}" if held[0] == held[-1] else f"{held[0]}-{held[-1]}"
+        return f"in {many} concept{'s' if many > 1 else ''} of {span} cells"
+
+    named = _named(elsewhere, patch_sizes)
+    held = f": {_named(heard)}" if heard else ""
+    return (
+        f"one concept ({concept}) holds {share:.0%} of the free cells and {len(inside)} of the "
+        f"{placed.sum()} placed utterances{held}, while words said at different places (up to "
+        f"{apart:.1f} m apart) lie outside it in small concepts, together {patch_share:.1%} of "
+        f"the free cells: {named}; the map gives these words patches around where they were "
+        f"said, not the places they name {advice}"
+    )
+
+
+def _words_heard(us: np.ndarray, utterances: Sequence[Sequence[str]]) -> dict[str, list[int]]:
+    """Each word of the utterances ``us`` ``[U_c]`` -> the utterances that hold it, first heard
+    first (a word counted once per utterance)."""
+    heard: dict[str, list[int]] = {}
+    for u in us:
         for word in dict.fromkeys(utterances[u]):
             heard.setdefault(word, []).append(int(u))
+    return heard
+
+
+def _apart(heard: dict[str, list[int]], xy: np.ndarray) -> float:
+    """The largest distance (metres) between two words' mean positions (``xy`` ``[U, 2]``);
+    0 for fewer than two words."""
     if len(heard) < 2:
-        return None
+        return 0.0
     means = np.stack([xy[us].mean(axis=0) for us in heard.values()])  # [W, 2]
-    apart = np.linalg.norm(means[:, None, :] - means[None, :, :], axis=-1).max()
-    if apart < DEGENERATE_SEPARATION:
-        return None
-    moves = "--merge-moves 0.2" if sampled else "--method gibbs --merge-moves 0.2"
-    ranked = sorted(heard.items(), key=lambda item: -len(item[1]))  # stable: first heard first
-    named = ", ".join(f"{word} ({len(us)})" for word, us in ranked[:NAMED_WORDS])
-    more = len(ranked) - NAMED_WORDS
-    if more > 0:
-        named += f", and {more} more"
-    return (
-        f"one concept ({concept}) holds {share:.0%} of the free cells while words said at "
-        f"different places (up to {apart:.1f} m apart) lie inside it: {named}; the map does not "
-        f"separate the places these words name (try a lower --gamma, {moves} so that regions "
-        f"can split, or the default --preset {DEFAULT_PRESET} if the fit used another)"
+    return float(np.linalg.norm(means[:, None, :] - means[None, :, :], axis=-1).max())
+
+
+def _named(heard: dict[str, list[int]], detail: Callable[[list[int]], str] | None = None) -> str:
+    """The words, most heard first (stable), at most :data:`NAMED_WORDS`: "kitchen (3), ..."
+    (``detail(us)``: "kitchen (3 in ...)")."""
+    ranked = sorted(heard.items(), key=lambda item: -len(item[1]))
+    named = ", ".join(
+        f"{word} ({len(us)}{'' if detail is None else ' ' + detail(us)})"
+        for word, us in ranked[:NAMED_WORDS]
     )
+    more = len(ranked) - NAMED_WORDS
+    return named + (f", and {more} more" if more > 0 else "")
 
 
 def house_map_warning(
