@@ -58,7 +58,8 @@ def test_resolve_threads_names_a_bad_value(bad):
     assert repr(bad) in str(error.value)
 
 
-def test_describe_threads_says_what_and_why():
+def test_describe_threads_says_what_and_why(fresh_load, monkeypatch):
+    monkeypatch.setattr(fresh_load, "other_load", lambda: None)  # a machine that does not say
     assert describe_threads("auto", 100) == (
         f"1 torch intra-op thread (policy: 100 free cells < {MIN_CELLS_FOR_MORE_THREADS})"
     )
@@ -234,4 +235,79 @@ def test_experiment_fits_follow_the_policy(
     methods.fit_spco(small_house, preset("original-code", gamma=3.0), sweeps=2, seed=0,
                      threads=threads)  # fmt: skip
     assert recorder["method"].seen == [during]
+    assert torch.get_num_threads() == 2
+
+
+@pytest.fixture
+def fresh_load(monkeypatch):
+    """No load reading kept from an earlier test (other_load reuses one for a while)."""
+    import spcopyro._util.threads as threads_module
+
+    monkeypatch.setattr(threads_module, "_last_load", None)
+    return threads_module
+
+
+@pytest.mark.parametrize(
+    ("load", "cpus", "default", "expected"),
+    [(None, 2, 2, None), (0.0, 2, 2, None), (0.4, 2, 2, None), (0.6, 2, 2, 1), (1.5, 2, 2, 1),
+     (5.0, 2, 2, 1), (4.0, 16, 16, 12), (2.0, 16, 8, None)],
+)  # fmt: skip
+def test_the_policy_leaves_a_busy_machine_one_thread(load, cpus, default, expected):
+    cells = MIN_CELLS_FOR_MORE_THREADS
+    assert policy_threads(cells, load, cpus=cpus, default=default) == expected
+    assert policy_threads(cells - 1, load, cpus=cpus, default=default) == 1
+
+
+def test_auto_reads_the_load_for_a_large_map(fresh_load, monkeypatch, restore_threads):
+    """On 2 cores beside 1.8 busy ones a large map runs on one thread (two were 5-20x slower
+    there, results bit-identical: docs/speed.md, "Threads"); idle, torch's own setting."""
+    torch.set_num_threads(2)
+    monkeypatch.setattr(fresh_load, "usable_cpus", lambda: 2)
+    monkeypatch.setattr(fresh_load, "other_load", lambda: 1.8)
+    assert resolve_threads("auto", MIN_CELLS_FOR_MORE_THREADS) == 1
+    assert describe_threads("auto", MIN_CELLS_FOR_MORE_THREADS) == (
+        f"1 torch intra-op thread (policy: {MIN_CELLS_FOR_MORE_THREADS} free cells >= "
+        f"{MIN_CELLS_FOR_MORE_THREADS}, other processes busy on 1.8 of 2 cores)"
+    )
+    monkeypatch.setattr(fresh_load, "other_load", lambda: 0.1)
+    assert resolve_threads("auto", MIN_CELLS_FOR_MORE_THREADS) is None
+    assert resolve_threads(2, MIN_CELLS_FOR_MORE_THREADS) == 2  # a count asked is kept
+
+
+def test_other_load_leaves_out_this_process(fresh_load, monkeypatch):
+    ticks = iter([(100, 1000), (140, 1050)])  # (busy, total): 40 of 50 ticks busy
+    own = iter([3.0, 3.0 + 0.6 * fresh_load.LOAD_WINDOW_S])  # this process: 0.6 cores
+    monkeypatch.setattr(fresh_load, "_cpu_ticks", lambda: next(ticks))
+    monkeypatch.setattr(fresh_load, "_own_cpu_seconds", lambda: next(own))
+    monkeypatch.setattr(fresh_load.time, "sleep", lambda s: None)
+    monkeypatch.setattr(fresh_load.os, "cpu_count", lambda: 2)
+    assert fresh_load.other_load() == pytest.approx(0.8 * 2 - 0.6)
+    assert fresh_load.other_load() == pytest.approx(1.0)  # reused: no second reading
+
+
+def test_other_load_unknown_without_proc_stat(fresh_load, monkeypatch):
+    monkeypatch.setattr(fresh_load, "_cpu_ticks", lambda: None)
+    assert fresh_load.other_load() is None
+    assert resolve_threads("auto", MIN_CELLS_FOR_MORE_THREADS) is None  # torch's setting
+
+
+@pytest.mark.parametrize(("load", "during"), [(1.8, 1), (0.0, 2)])
+def test_fit_follows_the_load_and_records_the_threads_that_ran(
+    small_house, fresh_load, monkeypatch, restore_threads, load, during
+):
+    recorder = {}
+
+    def get_method(name):
+        recorder["method"] = _RecordingMethod(registered_method(name))
+        return recorder["method"]
+
+    monkeypatch.setattr(spcopyro.fit.house, "get_method", get_method)
+    monkeypatch.setattr(fresh_load, "MIN_CELLS_FOR_MORE_THREADS", 10)  # the small house is large
+    monkeypatch.setattr(fresh_load, "usable_cpus", lambda: 2)
+    monkeypatch.setattr(fresh_load, "other_load", lambda: load)
+    torch.set_num_threads(2)
+    result = fit_house(small_house, preset("original-code", gamma=3.0), sweeps=2,
+                       progress=False)  # fmt: skip
+    assert recorder["method"].seen == [during]
+    assert result.settings_json()["threads"] == during  # config.json: what ran
     assert torch.get_num_threads() == 2

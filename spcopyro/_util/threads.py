@@ -9,8 +9,10 @@ more: the OpenMP team waits at every join for whichever thread the scheduler has
 
 **The policy** (``threads="auto"``, the default of :func:`spcopyro.fit.house.fit_house` and
 ``spcopyro fit``): a map of fewer than :data:`MIN_CELLS_FOR_MORE_THREADS` free cells runs with
-one intra-op thread; a larger one keeps torch's own setting. With T threads, a sweep of N cells
-costs about
+one intra-op thread; a larger one keeps torch's own setting, unless the other processes leave
+fewer cores free than that many threads (:func:`other_load`, read as the fit starts, a reading
+reused for :data:`LOAD_REUSE_S` s): then it runs with the cores they leave free, at least one.
+With T threads, a sweep of N cells costs about
 
 .. math::
 
@@ -19,9 +21,10 @@ costs about
 and the threshold is the N from which the first term's saving beats the rest on an idle 2-core
 machine: the smallest map size from which two threads were at least 1.2x faster than one on both
 backends (``python benchmarks/threads.py``; its measurements are in ``docs/speed.md``, "Threads").
-Next to a busy neighbour the second thread makes a fit several times *slower*, labels identical;
-above the threshold, a fit on a busy machine still gains from ``threads=1`` (``--threads 1``): the
-policy cannot see the machine's load.
+The last term is why the load counts: next to a busy neighbour the second thread makes a fit
+several times *slower* (memoized VI on 92,328 cells beside a load of about 4: 94 s against 20 s),
+with bit-identical outputs, so the load may choose the count without changing a result.
+``config.json`` records the count that ran (``"threads"``).
 
 :func:`torch_threads` sets the count around a fit and restores the previous one afterwards, even
 when the fit fails. What it does not touch:
@@ -40,11 +43,15 @@ The thread count changes no label: torch's random draws on the CPU are serial, w
 setting, and ``tests/test_threads.py`` checks that a seeded fit gives the same labels with one
 thread and with two. Only the last bits of a float reduction (a sum split across threads) may
 differ, which is why the pinned outputs hash float tables at 12 significant digits; on room1dk5
-and the synthetic house (200 sweeps, both backends) the floats were bit-identical too.
+and the synthetic house (200 sweeps, both backends) the floats were bit-identical too, and on a
+simulated map of 92,328 free cells every output of ``spcopyro fit`` but the timings (Gibbs with
+its refinement and ``vi`` point estimate, memoized VI, CAVI, loopy BP; ``docs/speed.md``).
 """
 
 from __future__ import annotations
 
+import os
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from numbers import Integral
@@ -59,24 +66,104 @@ MIN_CELLS_FOR_MORE_THREADS = 50_000
 thread. Measured with ``python benchmarks/threads.py`` (``docs/speed.md``)."""
 
 
-def policy_threads(num_cells: int) -> int | None:
+LOAD_WINDOW_S = 0.25
+"""Seconds over which :func:`other_load` watches the machine."""
+
+LOAD_REUSE_S = 30.0
+"""A reading of :func:`other_load` younger than this is reused: the line a fit prints and the
+count it runs with come from one reading, and a fit's stages do not wait for it again."""
+
+_last_load: tuple[float, float | None] | None = None  # (time.monotonic() read, the load)
+
+
+def _cpu_ticks() -> tuple[int, int] | None:
+    """(busy, total) CPU ticks of the whole machine since boot (Linux ``/proc/stat``), else
+    None."""
+    try:
+        with open("/proc/stat") as stat:
+            ticks = [int(v) for v in stat.readline().split()[1:]]  # user nice system idle iowait
+    except (OSError, ValueError):
+        return None
+    if len(ticks) < 4:
+        return None
+    idle = ticks[3] + (ticks[4] if len(ticks) > 4 else 0)
+    return sum(ticks) - idle, sum(ticks)
+
+
+def _own_cpu_seconds() -> float:
+    times = os.times()
+    return times.user + times.system
+
+
+def _measure_other_load() -> float | None:
+    before, own_before = _cpu_ticks(), _own_cpu_seconds()
+    if before is None:
+        return None
+    time.sleep(LOAD_WINDOW_S)
+    after, own_after = _cpu_ticks(), _own_cpu_seconds()
+    if after is None or after[1] <= before[1]:
+        return None
+    cpus = os.cpu_count() or 1  # /proc/stat's first line sums every CPU of the machine
+    busy = (after[0] - before[0]) / (after[1] - before[1]) * cpus  # cores in use
+    own = (own_after - own_before) / LOAD_WINDOW_S  # this process's threads (figures, ...)
+    return max(0.0, busy - own)
+
+
+def other_load() -> float | None:
+    """Cores the *other* processes keep busy now: the machine's CPU use over
+    :data:`LOAD_WINDOW_S` seconds (``/proc/stat``) less this process's own; None where the
+    machine does not say (not Linux). A reading is reused for :data:`LOAD_REUSE_S` seconds."""
+    global _last_load
+    now = time.monotonic()
+    if _last_load is None or now - _last_load[0] > LOAD_REUSE_S:
+        _last_load = (now, _measure_other_load())
+    return _last_load[1]
+
+
+def usable_cpus() -> int:
+    """The CPUs this process may run on (its affinity mask where the OS has one)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        return os.cpu_count() or 1
+
+
+def policy_threads(
+    num_cells: int, load: float | None = None, cpus: int | None = None, default: int = 0
+) -> int | None:
     """The policy's intra-op thread count for a map of ``num_cells`` free cells: 1 below
-    :data:`MIN_CELLS_FOR_MORE_THREADS`, else None (torch's own setting)."""
-    return 1 if num_cells < MIN_CELLS_FOR_MORE_THREADS else None
+    :data:`MIN_CELLS_FOR_MORE_THREADS`; from there torch's own setting (None), unless the other
+    processes' ``load`` (busy cores, :func:`other_load`; None: unknown) leaves fewer of the
+    ``cpus`` usable cores free than torch's ``default`` thread count: then as many threads as
+    cores are free, rounded, at least 1 (on 2 cores: one thread beside a load of 0.5 or more).
+    ``cpus``/``default`` 0 or None: :func:`usable_cpus` / ``torch.get_num_threads()``."""
+    if num_cells < MIN_CELLS_FOR_MORE_THREADS:
+        return 1
+    if load is None:
+        return None
+    if not default:
+        import torch
+
+        default = torch.get_num_threads()
+    free = int((cpus or usable_cpus()) - load + 0.5)
+    return None if free >= default else max(1, free)
 
 
 def resolve_threads(threads: int | str | None, num_cells: int) -> int | None:
     """The intra-op thread count to run a map of ``num_cells`` free cells with.
 
     Args:
-        threads: ``"auto"`` (:func:`policy_threads`), ``None`` or 0 (leave torch's setting as it
-            is), or a positive integer (that many threads).
+        threads: ``"auto"`` (:func:`policy_threads` under the :func:`other_load` read now, or
+            less than :data:`LOAD_REUSE_S` seconds ago), ``None`` or 0 (leave torch's setting
+            as it is), or a positive integer (that many threads).
 
     Returns:
         A positive count, or None for "leave torch's setting".
     """
     if threads == AUTO:
-        return policy_threads(num_cells)
+        if num_cells < MIN_CELLS_FOR_MORE_THREADS:
+            return 1
+        return policy_threads(num_cells, other_load())
     if threads is None:
         return None
     if isinstance(threads, Integral) and not isinstance(threads, bool) and threads >= 0:
@@ -94,10 +181,13 @@ def describe_threads(threads: int | str | None, num_cells: int) -> str:
     count = resolve_threads(threads, num_cells)
     current = torch.get_num_threads()
     if threads == AUTO:
-        if count is None:
-            why = f"policy: {num_cells} free cells >= {MIN_CELLS_FOR_MORE_THREADS}"
-        else:
+        if num_cells < MIN_CELLS_FOR_MORE_THREADS:
             why = f"policy: {num_cells} free cells < {MIN_CELLS_FOR_MORE_THREADS}"
+        else:
+            why = f"policy: {num_cells} free cells >= {MIN_CELLS_FOR_MORE_THREADS}"
+            load = other_load()  # the reading resolve_threads used
+            if load is not None:
+                why += f", other processes busy on {load:.1f} of {usable_cpus()} cores"
     elif count is None:
         why = "torch's own setting, as asked"
     else:

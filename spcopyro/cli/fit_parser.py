@@ -221,6 +221,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "written as always (default: figures written)")  # fmt: skip
     p.add_argument("--threads", type=_threads, default=AUTO,
                    help="torch intra-op threads during the fit: auto (default: one thread unless "
-                        f"the map has >= {MIN_CELLS_FOR_MORE_THREADS} free cells), 0 (torch's own "
-                        "setting) or N; labels do not depend on it")  # fmt: skip
+                        f"the map has >= {MIN_CELLS_FOR_MORE_THREADS} free cells and other "
+                        "processes leave the cores free), 0 (torch's own setting) or N; results "
+                        "do not depend on it")  # fmt: skip
     p.set_defaults(func=_run_fit)

@@ -318,7 +318,8 @@ def fit_house_chains(
     logger.info("threads: %s", describe_threads(threads, house.grid.num_free))
     if checkpoint is not None and not isinstance(checkpoint, FitCheckpoint):
         checkpoint = FitCheckpoint(checkpoint)
-    with torch_threads(count):
+    with torch_threads(count) as used:
+        record = {**record, "threads": used}  # config.json: the intra-op threads that ran
         if isinstance(inference, GibbsInference):
             outputs = gibbs_outputs(
                 data, settings, options, int(sweeps), [int(s) for s in seeds], init_name(init),
@@ -410,8 +411,9 @@ def fit_house(
             point estimate has the highest objective ("best of K chains", the remedy for the DP
             variant's instability measured in :mod:`spcopyro.experiments.robustness`).
         threads: torch intra-op threads during the fit (:mod:`spcopyro._util.threads`): ``"auto"``
-        (one thread unless the map is large), 0 or None (torch's own setting), or a count. The
-            previous setting is restored afterwards; labels do not depend on it.
+        (one thread unless the map is large and the machine's other load leaves the cores
+            free), 0 or None (torch's own setting), or a count. The previous setting is restored
+            afterwards; results do not depend on it. ``config.json`` records the count that ran.
         marginal_samples, point_estimate, chain_workers: see :func:`fit_house_chains`.
         refine: Gibbs: ``"auto"`` refits on the map's own cells, from the fit's map, where its
             concepts tell the images apart, ``"always"``, or ``"never"``
@@ -505,7 +507,7 @@ def fit_house_converged(
     count = resolve_threads(threads, house.grid.num_free)
     counts, data = prepare_model_data(house, settings)
     logger.info("threads: %s", describe_threads(threads, house.grid.num_free))
-    with torch_threads(count):
+    with torch_threads(count) as used:
         starts = []
         for k in range(chains):
             generator = torch.Generator().manual_seed(int(seed + k))
@@ -523,5 +525,5 @@ def fit_house_converged(
         **dataclasses.asdict(options), "backend_used": run.backend,
     }  # fmt: skip
     output = output_from_run(run, record)
-    made = provenance(house, data, source)
+    made = {**provenance(house, data, source), "threads": used}  # the threads that ran
     return result_of(output, house, counts, data, settings, "gibbs", made), diagnostics
