@@ -121,8 +121,8 @@ def degenerate_map_warning(
     concept, share = concepts[largest], sizes[largest] / labels.size
     if share <= min(DEGENERATE_SHARE, PATCHES_SHARE):
         return None
-    said = np.where(cells >= 0, labels[np.maximum(cells, 0)], concepts[0] - 1)  # [U]
     placed = cells >= 0  # [U]; unplaced utterances lie in no concept
+    said = labels[np.maximum(cells, 0)]  # [U] the concept of each (read where placed)
     inside = np.flatnonzero(placed & (said == concept))  # [U_c]
     heard = _words_heard(inside, utterances)
     moves = "--merge-moves 0.2" if sampled else "--method gibbs --merge-moves 0.2"
