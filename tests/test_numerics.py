@@ -192,6 +192,24 @@ def test_fit_prints_and_logs_every_config_warning(room, tmp_path, capsys, caplog
     assert capsys.readouterr().err.count("warning: gamma = 20 is at or above 10") == 1
 
 
+def test_the_gibbs_samplers_setting_warnings_are_given_to_samplers_only(room, tmp_path, capsys):
+    """gamma >= 10 ("the Gibbs sampler freezes ..., not the variational methods") and the
+    concentrations' warnings (the sampler's log joint) were printed for --method cavi and lbp,
+    where they are noise; gibbs and vi-gibbs still give them, every method the critical one."""
+    frozen = SpCoConfig(gamma=20.0, chi=1e-300)
+    assert len(config_warnings(frozen)) == len(config_warnings(frozen, sampled=True)) == 2
+    assert config_warnings(frozen, sampled=False) == []
+    below = preset("original-code").model
+    assert config_warnings(below, sampled=False) == config_warnings(below) != []
+    argv = ["fit", str(room), "--sweeps", "2", "--concepts", "10", "--gamma", "20",
+            "--chi", "1e-300"]  # fmt: skip
+    for method, said in (("cavi", 0), ("lbp", 0), ("vi-gibbs", 1)):
+        assert main([*argv, "--method", method, "--out", str(tmp_path / method)]) == 0
+        err = capsys.readouterr().err
+        assert err.count("warning: gamma = 20 is at or above 10") == said, (method, err)
+        assert err.count("warning: chi = 1e-300 is below 0.001") == said, (method, err)
+
+
 # -- 4. maps without free space, observations off it ---------------------------------------------
 
 

@@ -285,7 +285,7 @@ def fit_and_score_with_result(
     are of: a study keeps its label map)."""
     method = INFERENCE_METHODS[variant.method]
     options = variant_options(variant)
-    counts, data = prepare_model_data(problem.house, problem.settings)
+    counts, data = prepare_model_data(problem.house, problem.settings, method=variant.method)
     config = problem.settings.model
     threads = resolve_threads(AUTO, problem.house.grid.num_free)
 
@@ -395,7 +395,7 @@ def _confidence(output: InferenceOutput) -> np.ndarray | None:
 def warm_up(variant: Variant, problem: Problem) -> None:
     """Run ``variant`` for 2 iterations on ``problem`` and drop the result, so that no measured
     fit pays for numba compilation or cache loading."""
-    counts, data = prepare_model_data(problem.house, problem.settings)
+    counts, data = prepare_model_data(problem.house, problem.settings, method=variant.method)
     del counts
     with short_runs_meant():  # 2 iterations: shorter than any annealing, on purpose
         INFERENCE_METHODS[variant.method].run(

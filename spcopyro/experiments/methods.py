@@ -129,7 +129,7 @@ def fit_spco(
     ``thin`` iterations; with a truth, their ARI per iteration (paper Fig. 5). ``threads``: torch
     intra-op threads during the run (:mod:`spcopyro._util.threads`; default: its policy).
     """
-    counts, data = prepare_model_data(house, settings)
+    counts, data = prepare_model_data(house, settings, method=method)
     generator = torch.Generator().manual_seed(int(seed))
     with torch_threads(resolve_threads(threads, house.grid.num_free)):
         output = get_method(method).run(

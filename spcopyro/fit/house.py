@@ -129,12 +129,16 @@ def log_degenerate_map(result: SpCoResult, house: House) -> str | None:
 
 
 def prepare_model_data(
-    house: House, settings: SpCoSettings, vocabulary: Sequence[str] | None = None
+    house: House,
+    settings: SpCoSettings,
+    vocabulary: Sequence[str] | None = None,
+    method: str | None = None,
 ) -> tuple[CellCounts, ModelData]:
     """Per-cell counts of the house under the settings' data preparation, and the model's
-    tensors. Logs :func:`config_warnings` (logger ``"spcopyro"``). ``vocabulary``: the word
-    columns in order (None: the observations' own; an online update passes the union with a
-    saved fit's, :mod:`spcopyro.robot.online`).
+    tensors. Logs :func:`config_warnings` (logger ``"spcopyro"``), those about the Gibbs sampler
+    only when ``method`` samples (:data:`SAMPLERS`) or is None (not known). ``vocabulary``: the
+    word columns in order (None: the observations' own; an online update passes the union with
+    a saved fit's, :mod:`spcopyro.robot.online`).
 
     Raises:
         ValueError: the map has no free cell, or no observation lands on a free cell (a wrong
@@ -147,8 +151,9 @@ def prepare_model_data(
     from spcopyro.fit.refine import COARSE_STAGE_MODEL
 
     coarse = COARSE_STAGE_MODEL.get()  # a refinement's: its coarse stage logged its warnings
-    said = set() if coarse is None else set(config_warnings(coarse))
-    for warning in config_warnings(settings.model):
+    sampled = method is None or method in SAMPLERS
+    said = set() if coarse is None else set(config_warnings(coarse, sampled))
+    for warning in config_warnings(settings.model, sampled):
         if warning not in said:
             logger.warning(warning)
     grid = house.grid
@@ -311,7 +316,7 @@ def fit_house_chains(
     if workers > 1 and threads == AUTO:
         count = 1  # the chains are the parallelism: no intra-op threads on top
     with timed("model_data"):
-        counts, data = prepare_model_data(house, settings)
+        counts, data = prepare_model_data(house, settings, method=method)
         record = provenance(house, data, source)
     if method not in SAMPLERS:  # the note is on the Gibbs backends' streams (backend_used)
         record = {key: value for key, value in record.items() if key != "reproducibility"}
@@ -505,7 +510,7 @@ def fit_house_converged(
     house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
     options = GibbsOptions() if options is None else options
     count = resolve_threads(threads, house.grid.num_free)
-    counts, data = prepare_model_data(house, settings)
+    counts, data = prepare_model_data(house, settings, method="gibbs")
     logger.info("threads: %s", describe_threads(threads, house.grid.num_free))
     with torch_threads(count) as used:
         starts = []

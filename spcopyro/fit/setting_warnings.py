@@ -3,7 +3,8 @@ coupling (no regions form) or at the freezing point of the Gibbs sampler, and co
 outside what float64 resolves in the log joint.
 
 :func:`spcopyro.fit.house.prepare_model_data` logs them (logger ``"spcopyro"``), so every fit,
-``spcopyro fit`` included, says them; they depend on the model settings only.
+``spcopyro fit`` included, says them; they depend on the model settings only, and on whether
+the fit samples (those about the Gibbs sampler are given to gibbs and vi-gibbs only).
 """
 
 from __future__ import annotations
@@ -37,8 +38,11 @@ def gamma_warning(config: SpCoConfig) -> str | None:
     )
 
 
-def config_warnings(config: SpCoConfig) -> list[str]:
+def config_warnings(config: SpCoConfig, sampled: bool = True) -> list[str]:
     """Warnings, with the reason, for legal but extreme model settings (empty if none).
+    ``sampled``: the fit samples (gibbs, vi-gibbs); False leaves out the warnings that concern
+    the Gibbs sampler only (freezing gamma, concentrations), which were noise for
+    ``--method cavi`` or ``lbp``.
 
     * gamma below the Potts critical coupling ln(1 + sqrt(L)) (:func:`gamma_warning`): no
       regions form;
@@ -54,9 +58,11 @@ def config_warnings(config: SpCoConfig) -> list[str]:
 
     In both concentration cases the Gibbs sampler's trace and its choice of the best sweep mean
     nothing (the warnings say so by name: a variational method's objective holds no drawn
-    parameters).
+    parameters). Only the first item concerns every method.
     """
     warnings = [w for w in (gamma_warning(config),) if w]
+    if not sampled:
+        return warnings
     if config.gamma >= FREEZING_GAMMA:
         critical = f"{config.critical_gamma:.2f}" if config.connectivity == 4 else "coupling"
         warnings.append(

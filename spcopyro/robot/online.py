@@ -295,16 +295,18 @@ def start_update(
     *,
     generator: torch.Generator | None = None,
     where: str = "the saved fit",
+    method: str | None = None,
 ) -> UpdateStart:
     """Check ``house`` and ``settings`` against ``saved`` (:func:`check_compatible`), build the
     per-cell counts of all observations over the merged vocabulary, and the starting state.
-    ``settings`` None: the saved fit's; ``generator`` None: new word columns at their mean."""
+    ``settings`` None: the saved fit's; ``generator`` None: new word columns at their mean;
+    ``method``: the update's (its setting warnings, :func:`prepare_model_data`)."""
     settings = settings_of(saved) if settings is None else settings
     check_compatible(saved, house, settings, where)
     saved, renormalised = renormalised_result(saved)  # its words as the tokenizer reads them
     _warn_renormalised(renormalised, where)
     merge = merge_vocabulary(saved.vocabulary, house.observations.vocabulary)
-    counts, data = prepare_model_data(house, settings, vocabulary=merge.vocabulary)
+    counts, data = prepare_model_data(house, settings, vocabulary=merge.vocabulary, method=method)
     labels = torch.as_tensor(np.asarray(saved.labels), dtype=torch.long)  # [N]
     config = settings.model
     log_emissions = []
@@ -415,7 +417,7 @@ def fit_update(
                     output = output_from_run(chain.to_run(), entry)
                 else:
                     generator = torch.Generator().manual_seed(int(seed))
-                    start = start_update(saved, house, settings, where=where)
+                    start = start_update(saved, house, settings, where=where, method=method)
                     output = inference.run(
                         start.data, start.settings.model, iterations=int(sweeps),
                         generator=generator, init_labels=start.labels, options=options,
