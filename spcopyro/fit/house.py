@@ -119,8 +119,9 @@ def provenance(house: House, data: ModelData, source: str | None = None) -> dict
 
 def log_degenerate_map(result: SpCoResult, house: House) -> str | None:
     """Log (logger ``"spcopyro"``) and return the warning of a degenerate reported map -- one
-    concept over most of the free cells while words said at different places lie inside it
-    (:func:`spcopyro.results.map_checks.degenerate_map_warning`) -- else None."""
+    concept over most of the free cells while words said at different places lie inside it, or
+    lie outside it in small concepts (:func:`spcopyro.results.map_checks.degenerate_map_warning`)
+    -- else None."""
     sampled = result.method in SAMPLERS  # else --merge-moves needs --method gibbs
     warning = house_map_warning(result.labels, house, result.preparation.snap_distance, sampled)
     if warning:
@@ -397,8 +398,8 @@ def fit_house(
     refine: str = "never",
 ) -> SpCoResult:
     """Fit SpCoMapping to a house. A degenerate reported map (one concept over most of the
-    map while words said at different places lie inside it) is logged as a warning
-    (:func:`log_degenerate_map`).
+    map while words said at different places lie inside it, or outside it in small concepts) is
+    logged as a warning (:func:`log_degenerate_map`).
 
     Args:
         settings: model hyperparameters and data preparation (default: :func:`preset`'s).
