@@ -129,7 +129,7 @@ def test_point_estimate_tables_over_pairs_equal_the_cells_tables(rng):
         assert np.array_equal(prepared.signatures, signatures)
         assert np.array_equal(prepared.signature, signature.reshape(-1))
         estimate, k = pe.compact(rng.integers(0, 4, size=samples.shape[1]))
-        tables = pe._tables(estimate, k + 1, prepared)
+        tables = pe._sample_tables(pe._pairs(estimate, prepared), k + 1, prepared).tables
         for table, codes, j in zip(tables, prepared.codes, prepared.sizes, strict=True):
             assert np.array_equal(table, pe.contingency(estimate, codes, k + 1, j))
 

@@ -101,8 +101,12 @@ def test_a_cells_warnings_are_in_the_table_and_report_not_printed(
     report = (tmp_path / "out" / "report.md").read_text()
     section = report.split("## Cells with warnings", 1)[1]
     assert "4 cells of 4 gave warnings" in section
-    assert "- low / small / gibbs / seeds 0, 1:" in section
-    assert "- fine / small / gibbs / seeds 0, 1:" in section
+    lines = section.splitlines()
+    (low,) = [i for i, line in enumerate(lines) if line.startswith(f"- {LOW_GAMMA}")]
+    assert lines[low + 1] == "  - cells: low / small / gibbs / seeds 0, 1"  # low's alone
+    (child,) = [i for i, line in enumerate(lines) if line == "- child logger says so"]
+    assert "low / small / gibbs / seeds 0, 1" in lines[child + 1]
+    assert "fine / small / gibbs / seeds 0, 1" in lines[child + 1]
     assert section.count(LOW_GAMMA) == 1  # the same messages: one entry for both seeds
 
 
@@ -126,7 +130,7 @@ def test_cells_without_warnings_or_stored_before_the_column_have_no_section(tmp_
     assert [r["warnings"] for r in read_table(out / "results.csv")] == ["", ""]
 
 
-def test_the_report_shortens_and_groups_warnings():
+def test_the_report_lists_each_warning_whole_once_with_its_cells():
     long = "word " * 200
     rows = [
         {"variant": "v", "data": "d", "method": "gibbs", "seed": s, "status": "ok",
@@ -136,10 +140,9 @@ def test_the_report_shortens_and_groups_warnings():
           "warnings": None}]  # fmt: skip
     text = report_markdown(rows).split("## Cells with warnings", 1)[1]
     assert "2 cells of 3 gave warnings" in text
-    assert text.count("- v / d / gibbs / seeds 0, 1:") == 1
-    shown = [line for line in text.splitlines() if line.startswith("  - word")]
-    assert len(shown) == 1 and len(shown[0]) < 320 and shown[0].endswith(" ...")
-    assert "  - short" in text
+    assert text.count(long.strip()) == 1  # whole (it was cut at 300 characters), once
+    assert text.count("  - cells: v / d / gibbs / seeds 0, 1") == 2  # the long one's, short's
+    assert "\n- short\n" in text and " ..." not in text
 
 
 def test_other_threads_and_info_records_go_where_they_went(spcopyro_handler):
@@ -209,4 +212,4 @@ def test_warnings_of_cells_on_a_local_cluster_are_kept(tmp_path):
     for seed in (0, 1):
         assert any(m.startswith(LOW_GAMMA) for m in said["low", seed]), said
         assert not any(m.startswith("gamma =") for m in said["fine", seed]), said
-    assert "- low / small / gibbs / seeds" in (tmp_path / "dask" / "report.md").read_text()
+    assert "  - cells: low / small / gibbs / seeds" in (tmp_path / "dask" / "report.md").read_text()
