@@ -67,3 +67,20 @@ def fake_cluster(monkeypatch: pytest.MonkeyPatch, start: type) -> None:
     monkeypatch.setitem(sys.modules, "distributed", fake)
     monkeypatch.setattr(study_run, "dask_installed", lambda: True)
     monkeypatch.setattr(study_run, "ClusterStart", start)
+
+
+def counting_start(started: list[int]) -> type:
+    """A stand-in ClusterStart (:func:`fake_cluster`) that appends the workers asked for to
+    ``started`` and does nothing else: for the runs that must start no cluster."""
+
+    class CountingStart:
+        def __init__(self, workers: int, on_ready: object = None) -> None:
+            started.append(workers)
+
+        def wait(self) -> None:
+            return None
+
+        def close(self, **kwargs: object) -> None:
+            pass
+
+    return CountingStart

@@ -3,7 +3,14 @@
 from __future__ import annotations
 
 import pytest
-from study_setup import fake_cluster, on_a_cluster, one_variant_study, small_house, small_house_toml
+from study_setup import (
+    counting_start,
+    fake_cluster,
+    on_a_cluster,
+    one_variant_study,
+    small_house,
+    small_house_toml,
+)
 
 from spcopyro.study import run as study_run
 from spcopyro.study.cells import cells_of
@@ -211,18 +218,7 @@ def test_a_short_study_asked_for_workers_starts_no_cluster(tmp_path, monkeypatch
     """Two cells of 30 sweeps with ``--workers 2`` started a LocalCluster: 6.5 s against 3.3 s
     in one process (2-core machine); its first line now says why none was started."""
     started: list[int] = []
-
-    class FakeStart:
-        def __init__(self, workers, on_ready=None):
-            started.append(workers)
-
-        def wait(self):
-            return None
-
-        def close(self, **kwargs):
-            pass
-
-    fake_cluster(monkeypatch, FakeStart)
+    fake_cluster(monkeypatch, counting_start(started))
     study = one_variant_study("two", seeds=2, sweeps=30)
     lines: list[str] = []
     done = run_study(study, tmp_path / "out", workers=2, progress=False, report=lines.append)

@@ -14,7 +14,7 @@ import threading
 import time
 
 import pytest
-from study_setup import fake_cluster, on_a_cluster, one_variant_study
+from study_setup import counting_start, fake_cluster, on_a_cluster, one_variant_study
 
 from spcopyro.study import run as study_run
 from spcopyro.study.run import run_study
@@ -116,18 +116,7 @@ def test_a_run_with_one_cell_left_starts_no_cluster(tmp_path, monkeypatch):
     the start (the forkserver's 3-4 CPU seconds of imports, on a core the cell needs) served
     nothing; it is not begun, and the run's line says so instead of naming the workers."""
     started: list[int] = []
-
-    class FakeStart:
-        def __init__(self, workers, on_ready=None):
-            started.append(workers)
-
-        def wait(self):
-            return None
-
-        def close(self, **kwargs):
-            pass
-
-    fake_cluster(monkeypatch, FakeStart)
+    fake_cluster(monkeypatch, counting_start(started))
     study = one_variant_study("one", seeds=1, num_trials=1)
     lines: list[str] = []
     done = run_study(study, tmp_path / "out", workers=2, progress=False, report=lines.append)

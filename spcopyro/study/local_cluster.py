@@ -186,7 +186,6 @@ def _stop_at_exit() -> None:
 
 def _stop_if_mine(owner: int) -> None:
     import multiprocessing.forkserver as forkserver
-    import signal
 
     import psutil  # a dependency of dask.distributed, which started the forkserver
 
@@ -198,13 +197,7 @@ def _stop_if_mine(owner: int) -> None:
             return
     except psutil.Error:  # ended already
         return
-    ready = _importing.pop(pid, None)
-    try:
-        os.kill(pid, signal.SIGKILL)
-    except ProcessLookupError:
-        pass
-    if ready is not None and os.path.exists(ready):
-        os.remove(ready)
+    _kill(pid, reap=None)
 
 
 READY_PREFIX = "spcopyro-forkserver-"
@@ -276,21 +269,29 @@ def stop_forkserver() -> None:
     """Kill (SIGKILL: it blocks SIGINT and SIGTERM) the forkserver while it imports, before it
     forked any worker, and reap it; the next :func:`start_forkserver` starts a new one."""
     import multiprocessing.forkserver as forkserver
-    import signal
 
     server = forkserver._forkserver
     pid = server._forkserver_pid
     if pid is None:
         return
+    _kill(pid, reap=server._stop)  # closes its pipe, reaps it (waitpid) and forgets it
+
+
+def _kill(pid: int, reap: Callable[[], object] | None) -> None:
+    """SIGKILL the forkserver ``pid``, then ``reap()`` it (its errors ignored: ensure_running
+    finds it dead and starts another) unless None, and remove its ready file if any."""
+    import signal
+
     ready = _importing.pop(pid, None)
     try:
         os.kill(pid, signal.SIGKILL)
     except ProcessLookupError:
         pass
-    try:
-        server._stop()  # closes its pipe, reaps it (waitpid) and forgets it
-    except Exception:  # noqa: S110  # ensure_running finds it dead and starts another
-        pass
+    if reap is not None:
+        try:
+            reap()
+        except Exception:  # noqa: S110
+            pass
     if ready is not None and os.path.exists(ready):
         os.remove(ready)
 
