@@ -311,3 +311,24 @@ def test_fit_follows_the_load_and_records_the_threads_that_ran(
     assert recorder["method"].seen == [during]
     assert result.settings_json()["threads"] == during  # config.json: what ran
     assert torch.get_num_threads() == 2
+
+
+@pytest.mark.parametrize(("load", "during"), [(1.8, 1), (0.0, 2)])
+def test_an_update_follows_the_load_and_records_the_threads_that_ran(
+    small_house, fresh_load, monkeypatch, restore_threads, load, during
+):
+    """``fit --update`` (fit_update) chose its threads as the fit does but left them out of
+    config.json."""
+    from spcopyro.robot.online import fit_update
+
+    settings = preset("original-code", gamma=3.0)
+    saved = fit_house(small_house, settings, sweeps=2, progress=False, threads=1)
+    monkeypatch.setattr(fresh_load, "MIN_CELLS_FOR_MORE_THREADS", 10)  # the small house is large
+    monkeypatch.setattr(fresh_load, "usable_cpus", lambda: 2)
+    monkeypatch.setattr(fresh_load, "other_load", lambda: load)
+    torch.set_num_threads(2)
+    for method in ("gibbs", "cavi"):
+        (result,) = fit_update(saved, small_house, settings, method=method, sweeps=2,
+                               progress=False)  # fmt: skip
+        assert result.settings_json()["threads"] == during, method  # config.json: what ran
+    assert torch.get_num_threads() == 2

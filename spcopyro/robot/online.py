@@ -403,7 +403,7 @@ def fit_update(
     inference = get_method(method)
     thin = marginal_thin(int(sweeps), marginal_samples)
     results = []
-    with torch_threads(resolve_threads(threads, house.grid.num_free)):
+    with torch_threads(resolve_threads(threads, house.grid.num_free)) as used:
         for k, seed in enumerate(seeds):
             try:
                 if isinstance(inference, GibbsInference):
@@ -442,7 +442,7 @@ def fit_update(
             )  # fmt: skip
             if saved.inference.get("refine"):  # a refined fit's update is one: updated again
                 output.options["refine"] = saved.inference["refine"]  # as refined (config.json)
-            record = provenance(house, start.data, source)
+            record = {**provenance(house, start.data, source), "threads": used}  # that ran
             results.append(
                 result_of(output, house, start.counts, start.data, start.settings, method, record)
             )
