@@ -23,6 +23,11 @@ ROOT = Path(__file__).resolve().parents[1]
 HEAVY = ("torch", "pyro", "numba")
 # What a command reading or drawing files needs, not the parser: --help imports none of them.
 FILE_LIBRARIES = ("cv2", "yaml", "scipy", "matplotlib", "PIL", "rosbags")
+# Modules of spcopyro itself that --help has no use for (issue 25): the point estimate (numpy's
+# search, ~7 ms; the parser reads its names from estimate_names) and the bag importer with what
+# it pulls (~12 ms; the rosbag package's __init__ imports its names on first use).
+OWN_LEFTOVERS = ("spcopyro.results.point_estimate", "spcopyro.robot.rosbag.importer")
+WATCHED = HEAVY + FILE_LIBRARIES + OWN_LEFTOVERS
 MARK = "heavy modules imported:"
 
 # The command, then the heavy modules it prints as imported, on its last line of stdout.
@@ -33,7 +38,7 @@ try:
     from spcopyro.cli.main import console_main
     console_main()
 finally:
-    print({MARK!r}, json.dumps(sorted(m for m in {HEAVY + FILE_LIBRARIES!r} if m in sys.modules)),
+    print({MARK!r}, json.dumps(sorted(m for m in {WATCHED!r} if m in sys.modules)),
           flush=True)
 """
 
@@ -82,6 +87,62 @@ def test_help_imports_no_torch():
     imported, printed = heavy_imports(["--help"], HEAVY + FILE_LIBRARIES)
     assert imported == []
     assert "fit" in printed and "where" in printed and "export" in printed
+
+
+def test_help_imports_neither_point_estimate_nor_bag_importer():
+    """The parser's choices of ``--point-estimate`` and the rosbag commands' options need neither
+    :mod:`spcopyro.results.point_estimate` nor :mod:`spcopyro.robot.rosbag.importer`."""
+    imported, printed = heavy_imports(["--help"], OWN_LEFTOVERS)
+    assert imported == []
+    assert "import-bag" in printed
+
+
+def test_point_estimate_names_are_the_light_modules():
+    """``fit --point-estimate``'s choices are the point estimate's own (re-exported there)."""
+    from spcopyro.results import estimate_names, point_estimate
+
+    for name in estimate_names.__all__:
+        assert getattr(point_estimate, name) is getattr(estimate_names, name)
+    assert point_estimate.check_point_estimate("vi") == "vi"
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["fit", "--out", "x", "--point-estimate", "nope"])
+    args = build_parser().parse_args(["fit", "--out", "x", "--point-estimate", "binder"])
+    assert args.point_estimate == "binder"
+
+
+_ROSBAG_NAMES = """
+import importlib, sys
+import spcopyro.robot.rosbag as package
+assert "spcopyro.robot.rosbag.importer" not in sys.modules, "imported with the package"
+assert sorted(package.__all__) == sorted(package._HOMES), package.__all__
+for name in package.__all__:
+    home = importlib.import_module("spcopyro.robot.rosbag." + package._HOMES[name])
+    value = getattr(package, name)
+    assert value is getattr(home, name), name
+    assert getattr(value, "__module__", home.__name__) == home.__name__, name
+    assert name in dir(package), name
+namespace = {}
+exec("from spcopyro.robot.rosbag import *", namespace)
+assert {n for n in namespace if not n.startswith("__")} == set(package.__all__), namespace
+try:
+    package.not_a_name
+except AttributeError as error:
+    assert "not_a_name" in str(error), error
+else:
+    raise AssertionError("package.not_a_name did not raise AttributeError")
+from spcopyro.robot.rosbag import importer
+assert importer.import_bags is package.import_bags
+print("ok")
+"""
+
+
+def test_rosbag_package_names_import_on_first_use():
+    """``from spcopyro.robot.rosbag import X`` works for every public X (and ``*``), each X the
+    object its module defines, though importing the package loads none of them."""
+    done = subprocess.run([sys.executable, "-c", _ROSBAG_NAMES], capture_output=True, text=True,
+                          env=_env(), timeout=300)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert done.stdout.strip() == "ok"
 
 
 def test_fit_help_imports_no_torch():

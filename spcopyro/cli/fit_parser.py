@@ -25,7 +25,7 @@ from spcopyro.cli.common import (
 )
 from spcopyro.config import DEFAULT_PRESET, DEFAULT_SNAP_DISTANCE, PRESETS
 from spcopyro.inference.names import BACKENDS, DEFAULT_METHOD, INFERENCE_METHOD_NAMES, INITS
-from spcopyro.results.point_estimate import POINT_ESTIMATES
+from spcopyro.results.estimate_names import POINT_ESTIMATES
 
 __all__ = ["add_parser"]
 

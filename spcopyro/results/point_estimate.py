@@ -59,15 +59,13 @@ import numpy as np
 
 from spcopyro._util.timings import timed
 
+# The names live without numpy in estimate_names (the parser reads them there); these re-exports
+# keep ``from spcopyro.results.point_estimate import POINT_ESTIMATES`` working.
+from spcopyro.results.estimate_names import LOSS_LABELS, LOSSES, POINT_ESTIMATES
+
 if TYPE_CHECKING:
     from spcopyro.inference.protocol import InferenceOutput
 
-LOSSES = ("binder", "vi")
-"""The expected losses :func:`point_estimate` minimises."""
-LOSS_LABELS = {"binder": "Binder loss", "vi": "variation of information"}
-"""What the progress bar calls each loss (its label read 'vi' as variational inference)."""
-POINT_ESTIMATES = ("map-visited", *LOSSES)
-"""What a fit may report as its map: the highest-log-joint state visited, or a loss's minimiser."""
 DEFAULT_STARTS = 3
 """How many of the lowest-loss samples the greedy search starts from."""
 MAX_SWEEPS = 30

@@ -19,17 +19,44 @@
 
 ``rosbags`` and ``rosbags-image`` are optional (``pip install "spcopyro[ros]"``): nothing here
 imports them until a bag is read or written, and ``import spcopyro`` never does.
+
+The names below are imported on first use (PEP 562): the parser imports
+:mod:`~spcopyro.robot.rosbag.cli` on every command, and this package's ``__init__`` runs first,
+so it must not load :mod:`~spcopyro.robot.rosbag.importer` and
+:mod:`~spcopyro.robot.rosbag.synthetic` (~0.02 s) for ``spcopyro --help``
+(``tests/test_cli_startup.py``).
 """
 
-from spcopyro.robot.rosbag.bag import BagContentError, BagFormatError, RosbagsMissingError
-from spcopyro.robot.rosbag.importer import (
-    ImportOptions,
-    NothingLeftError,
-    PoseOutsideMapError,
-    import_bags,
-)
-from spcopyro.robot.rosbag.report import BagImportReport, SkippedObservation
-from spcopyro.robot.rosbag.synthetic import BagWriter, write_synthetic_bags
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from spcopyro.robot.rosbag.bag import BagContentError, BagFormatError, RosbagsMissingError
+    from spcopyro.robot.rosbag.importer import (
+        ImportOptions,
+        NothingLeftError,
+        PoseOutsideMapError,
+        import_bags,
+    )
+    from spcopyro.robot.rosbag.report import BagImportReport, SkippedObservation
+    from spcopyro.robot.rosbag.synthetic import BagWriter, write_synthetic_bags
+
+_HOMES = {
+    "BagContentError": "bag",
+    "BagFormatError": "bag",
+    "BagImportReport": "report",
+    "BagWriter": "synthetic",
+    "ImportOptions": "importer",
+    "NothingLeftError": "importer",
+    "PoseOutsideMapError": "importer",
+    "RosbagsMissingError": "bag",
+    "SkippedObservation": "report",
+    "import_bags": "importer",
+    "write_synthetic_bags": "synthetic",
+}
+"""Each public name and the module (of this package) that defines it."""
 
 __all__ = [
     "BagContentError",
@@ -44,3 +71,16 @@ __all__ = [
     "import_bags",
     "write_synthetic_bags",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """A public name, imported from its module on first use (and kept in the package's globals)."""
+    if name not in _HOMES:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{_HOMES[name]}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_HOMES})
