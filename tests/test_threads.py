@@ -332,3 +332,31 @@ def test_an_update_follows_the_load_and_records_the_threads_that_ran(
                                progress=False)  # fmt: skip
         assert result.settings_json()["threads"] == during, method  # config.json: what ran
     assert torch.get_num_threads() == 2
+
+
+@pytest.mark.parametrize(("threshold", "printed"), [(100, True), (10**6, False)])
+def test_a_refinement_on_other_threads_says_so(
+    house_folder, tmp_path, fresh_load, monkeypatch, capsys, restore_threads, threshold, printed
+):
+    """fit's 'threads' line describes the first stage (54 free cells of 0.25 m here); on the
+    map's 684 cells the policy may choose another count, which only the log and config.json
+    gave: a line says it where it differs."""
+    import json
+
+    from spcopyro.cli.main import main
+
+    monkeypatch.setattr(fresh_load, "MIN_CELLS_FOR_MORE_THREADS", threshold)
+    monkeypatch.setattr(fresh_load, "usable_cpus", lambda: 2)
+    monkeypatch.setattr(fresh_load, "other_load", lambda: 0.0)
+    torch.set_num_threads(2)
+    out = tmp_path / "fit"
+    argv = ["fit", str(house_folder), "--out", str(out), "--sweeps", "2", "--refine", "always",
+            "--no-figures"]  # fmt: skip
+    assert main(argv) == 0
+    lines = [x for x in capsys.readouterr().out.splitlines() if x.startswith("threads ")]
+    assert lines[0].startswith("threads          1 torch intra-op thread (policy: 54 free cells")
+    refined = ("threads          the refinement on the map's 684 free cells ran 2 torch intra-op "
+               "threads, the first stage 1 (config.json records the refinement's)")  # fmt: skip
+    assert lines[1:] == ([refined] if printed else [])
+    assert json.loads((out / "config.json").read_text())["threads"] == (2 if printed else 1)
+    assert torch.get_num_threads() == 2

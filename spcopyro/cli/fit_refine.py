@@ -70,6 +70,7 @@ def refine(
 
     chains = len(results) if chains is None else chains
     decision = _decide(args, results[kept], chains, model, on_map, settings)
+    first_threads = results[kept].provenance.get("threads")  # the first stage's, as it ran
     try:
         _, results = refine_chains(
             results, kept, on_map, settings, args.refine, fit_house_chains, decision=decision,
@@ -87,7 +88,22 @@ def refine(
         if saved is not None:
             where += "; the first stage is kept and resuming refines again"
         raise FitInterrupted(where, saved) from None
+    if decision.refine:
+        _report_threads(first_threads, results[0].provenance.get("threads"), on_map)
     return decision.refine, results
+
+
+def _report_threads(first: object, refined: object, on_map: House) -> None:
+    """Print the refinement's thread count where it differs from the first stage's (``fit``'s
+    ``threads`` line describes the first stage; the policy may choose again for the map's own
+    cells, or under another load): config.json records the refinement's."""
+    from spcopyro._util.messages import plural
+
+    if refined is None or refined == first:
+        return
+    print(f"threads          the refinement on the map's {on_map.grid.num_free:,} free cells ran "
+          f"{plural(int(refined), 'torch intra-op thread')}, the first stage {first} "
+          "(config.json records the refinement's)")  # fmt: skip
 
 
 def _decide(
