@@ -235,9 +235,11 @@ def _show(args: argparse.Namespace) -> int:
         figures = "its figures are in it already"
         if not (Path(args.data) / "semantic_map.png").is_file():
             figures = "it was fitted with --no-figures (fit again without it to draw them)"
+        from spcopyro.cli.fit_warnings import fit_warnings_note
+
         raise ValueError(
             f"{args.data} is the output folder of `spcopyro fit`, not a house folder: "
-            f"{figures}; to draw its place graph pass --graph"
+            f"{figures}; to draw its place graph pass --graph{fit_warnings_note(Path(args.data))}"
         )
     house = _load(args.data)
     print(_summary(house))

@@ -1,0 +1,69 @@
+"""`spcopyro fit` keeps the warnings it printed in its config.json ("warnings"), and `show` on
+the fit's folder points to them (spcopyro.cli.fit_warnings)."""
+
+from __future__ import annotations
+
+import json
+import logging
+import warnings
+
+import pytest
+
+from spcopyro.cli.fit_warnings import record_warnings, recorded_warnings
+from spcopyro.cli.main import main
+from spcopyro.synthetic import HouseSpec, write_synthetic
+
+LOW_GAMMA = "is below the Potts critical coupling"
+
+
+@pytest.fixture
+def small_house(tmp_path):
+    return write_synthetic(
+        tmp_path / "data", seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3)
+    )
+
+
+def _fit(house, out, gamma: str) -> dict:
+    argv = ["fit", str(house), "--out", str(out), "--sweeps", "2", "--no-figures",
+            "--preset", "original-code", "--gamma", gamma, "--concepts", "10"]  # fmt: skip
+    assert main(argv) == 0
+    return json.loads((out / "config.json").read_text())
+
+
+def test_a_fits_warnings_are_printed_and_kept_in_config_json(small_house, tmp_path, capsys):
+    settings = _fit(small_house, tmp_path / "low", "0.5")
+    assert LOW_GAMMA in capsys.readouterr().err  # still printed
+    said = settings["warnings"]
+    assert isinstance(said, list) and all(isinstance(m, str) for m in said)
+    assert sum(LOW_GAMMA in m for m in said) == 1, said
+    assert len(said) == len(set(said)), said
+    # show on a fit's folder: an error that points to them
+    assert main(["show", str(tmp_path / "low"), "--out", str(tmp_path / "h.png")]) == 2
+    err = capsys.readouterr().err
+    assert "its fit gave 1 warning" in err and LOW_GAMMA in err, err
+
+    settings = _fit(small_house, tmp_path / "fine", "3.5")
+    assert settings["warnings"] == [], settings["warnings"]
+    assert main(["show", str(tmp_path / "fine"), "--out", str(tmp_path / "h.png")]) == 2
+    err = capsys.readouterr().err
+    assert "not a house folder" in err and "its fit gave" not in err, err
+
+
+def test_recorded_warnings_keeps_log_records_and_python_warnings_in_order(tmp_path):
+    logger = logging.getLogger("spcopyro.somewhere")
+    handlers = list(logging.getLogger("spcopyro").handlers)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        warnings.showwarning = lambda *args, **kwargs: None  # restored by catch_warnings
+        with recorded_warnings() as said:
+            logger.warning("first %s", 1)
+            logger.info("not a warning")
+            warnings.warn("second", UserWarning, stacklevel=1)
+            logger.warning("first %s", 1)
+    assert said == ["first 1", "UserWarning: second", "first 1"]
+    assert logging.getLogger("spcopyro").handlers == handlers  # its handler removed
+    config = tmp_path / "config.json"
+    config.write_text(json.dumps({"method": "gibbs"}))
+    record_warnings(config, said)
+    kept = json.loads(config.read_text())
+    assert kept == {"method": "gibbs", "warnings": ["first 1", "UserWarning: second"]}
