@@ -360,3 +360,33 @@ def test_a_refinement_on_other_threads_says_so(
     assert lines[1:] == ([refined] if printed else [])
     assert json.loads((out / "config.json").read_text())["threads"] == (2 if printed else 1)
     assert torch.get_num_threads() == 2
+
+
+@pytest.mark.parametrize(("workers", "line", "ran"), [
+    ("2", "1 torch intra-op thread per chain, 2 chains side by side (policy: one each when "
+          "chains run at once)", 1),
+    ("1", "2 torch intra-op threads (policy: 54 free cells >= 10, other processes busy on 0.0 "
+          "of 2 cores)", 2),
+])  # fmt: skip
+def test_fit_prints_the_threads_each_chain_ran(
+    house_folder, tmp_path, fresh_load, monkeypatch, capsys, restore_threads, workers, line, ran
+):
+    """With chains side by side, ``--threads auto`` runs each on one thread (fit_house_chains);
+    fit's 'threads' line named the policy's count for the map (2 here) all the same."""
+    import json
+
+    from spcopyro.cli.main import main
+
+    monkeypatch.setenv(spcopyro.gibbs.chains.PROCESSES_ENV, "off")  # threads: lighter here
+    monkeypatch.setattr(fresh_load, "MIN_CELLS_FOR_MORE_THREADS", 10)  # 54 free cells: large
+    monkeypatch.setattr(fresh_load, "usable_cpus", lambda: 2)
+    monkeypatch.setattr(fresh_load, "other_load", lambda: 0.0)
+    torch.set_num_threads(2)
+    out = tmp_path / "fit"
+    argv = ["fit", str(house_folder), "--out", str(out), "--sweeps", "2", "--chains", "2",
+            "--chain-workers", workers, "--no-figures"]  # fmt: skip
+    assert main(argv) == 0
+    lines = [x for x in capsys.readouterr().out.splitlines() if x.startswith("threads ")]
+    assert lines == [f"threads          {line}"]
+    assert json.loads((out / "config.json").read_text())["threads"] == ran  # what ran
+    assert torch.get_num_threads() == 2

@@ -174,10 +174,23 @@ def resolve_threads(threads: int | str | None, num_cells: int) -> int | None:
     )
 
 
-def describe_threads(threads: int | str | None, num_cells: int) -> str:
-    """One line on the thread count a fit of ``num_cells`` free cells will use, and why."""
+def chain_threads(threads: int | str | None, num_cells: int, workers: int = 1) -> int | None:
+    """:func:`resolve_threads` for each of ``workers`` Gibbs chains advancing at once: with
+    more than one, ``"auto"`` runs each on one intra-op thread (the chains are the
+    parallelism); a count asked, or torch's own setting, is kept."""
+    if threads == AUTO and workers > 1:
+        return 1
+    return resolve_threads(threads, num_cells)
+
+
+def describe_threads(threads: int | str | None, num_cells: int, workers: int = 1) -> str:
+    """One line on the thread count a fit of ``num_cells`` free cells will use, and why;
+    ``workers``: the chains that advance at once (:func:`chain_threads`)."""
     import torch  # here, not at the top: the commands that only parse need no torch
 
+    if threads == AUTO and workers > 1:
+        return (f"1 torch intra-op thread per chain, {workers} chains side by side (policy: "
+                "one each when chains run at once)")  # fmt: skip
     count = resolve_threads(threads, num_cells)
     current = torch.get_num_threads()
     if threads == AUTO:

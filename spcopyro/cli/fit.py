@@ -54,7 +54,6 @@ from spcopyro.cli.fit_resume import (
     without_resume,
 )
 from spcopyro.cli.fit_settings import apply_preset_inference, check_update_args, fit_settings
-from spcopyro.cli.fit_warnings import record_warnings, recorded_warnings
 from spcopyro.config import SpCoSettings, preset_inference
 from spcopyro.data import House
 from spcopyro.data.footprint import release_shared_footprints, shared_footprints
@@ -93,9 +92,6 @@ class FitJob:
     refined: bool = False
     sampled: bool = False
     """Set once the fit is done: a Ctrl-C while writing then keeps the finished chains."""
-    said: list[str] = dataclasses.field(default_factory=list)
-    """The warnings the command gave so far, as printed (:mod:`spcopyro.cli.fit_warnings`):
-    ``config.json``'s ``"warnings"``."""
 
 
 @dataclasses.dataclass
@@ -116,13 +112,12 @@ class Fitted:
 def run_fit(args: argparse.Namespace) -> int:
     """Check the arguments and OUT, then fit into a staging folder moved to OUT at the end
     (:mod:`spcopyro._util.outputs`); Ctrl-C or SIGTERM keeps a checkpoint beside OUT and exits with
-    130. The warnings it gives are printed and kept in OUT's ``config.json``
-    (:mod:`spcopyro.cli.fit_warnings`)."""
-    with sigterm_as_interrupt(), recorded_warnings() as said:
-        return _fit_interruptible(args, said)
+    130."""
+    with sigterm_as_interrupt():
+        return _fit_interruptible(args)
 
 
-def _fit_interruptible(args: argparse.Namespace, said: list[str]) -> int:
+def _fit_interruptible(args: argparse.Namespace) -> int:
     from spcopyro._util.outputs import checkpoint_path, stage_output
     from spcopyro.fit.gibbs_chains import FitCheckpoint, FitInterrupted
     from spcopyro.fit.registry import get_method
@@ -170,7 +165,7 @@ def _fit_interruptible(args: argparse.Namespace, said: list[str]) -> int:
     )  # fmt: skip
     args.phases.mark("settings")
     keeper = FitCheckpoint(checkpoint_path(staged.out)) if checkpointed else None
-    job = FitJob(args, house, settings, options, staged, keeper, map_house=loaded, said=said)
+    job = FitJob(args, house, settings, options, staged, keeper, map_house=loaded)
     try:
         # interrupts_raised: one a compiled call reported as a SystemError; shared_footprints:
         # the summary's footprint counts are the model data's, spread once
@@ -223,7 +218,8 @@ def _fit_staged(job: FitJob) -> int:
     default = INFERENCE_METHODS[args.method].default_options()
     shown = options_line(options if options is not None else default, given_start(args))
     print(f"inference        {args.method}: {shown}")  # svi's None: with the value it uses
-    print(f"threads          {describe_threads(args.threads, house.grid.num_free)}")
+    workers = _side_by_side(args)  # auto: one thread per chain where several run at once
+    print(f"threads          {describe_threads(args.threads, house.grid.num_free, workers)}")
     if (used := backend_used(options or default, config)) is not None:
         print(f"backend used     {used}")
     if args.resume is not None:
@@ -272,6 +268,17 @@ def _chain_count(args: argparse.Namespace) -> int:
     if args.chains is not None:
         return int(args.chains)
     return 4 if args.sweeps == "auto" else 1
+
+
+def _side_by_side(args: argparse.Namespace) -> int:
+    """The chains :func:`_fit` advances at once: ``fit_house_chains``' for ``--chains`` chains
+    of the method (1 under ``--sweeps auto`` and ``--update``, which run none side by side)."""
+    from spcopyro.fit.house import chains_side_by_side
+    from spcopyro.fit.registry import get_method
+
+    if args.sweeps == "auto" or args.update is not None:
+        return 1
+    return chains_side_by_side(get_method(args.method), args.chain_workers, _chain_count(args))
 
 
 def _fit(
@@ -486,7 +493,6 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
         print(f"note: every concept's word distribution is close to uniform: {why}",
               file=sys.stderr)  # fmt: skip
     phases.mark("report")
-    record_warnings(out / "config.json", job.said)  # every warning the fit gave, printed above
     out = staged.commit()
     checkpoint = checkpoint_path(out)
     if checkpoint.is_file():  # the one resumed from, or an old one --overwrite replaces

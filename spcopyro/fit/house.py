@@ -28,7 +28,13 @@ import torch
 
 from spcopyro import __version__
 from spcopyro._util.random_draws import check_seed
-from spcopyro._util.threads import AUTO, describe_threads, resolve_threads, torch_threads
+from spcopyro._util.threads import (
+    AUTO,
+    chain_threads,
+    describe_threads,
+    resolve_threads,
+    torch_threads,
+)
 from spcopyro._util.timings import timed
 from spcopyro.config import WORDS, SpCoSettings, preset
 from spcopyro.data import CellCounts, House, prepared_cell_counts
@@ -240,6 +246,15 @@ def _settings(settings: SpCoSettings | None) -> SpCoSettings:
     return settings
 
 
+def chains_side_by_side(inference: object, chain_workers: int | str | None, chains: int) -> int:
+    """How many of ``chains`` chains of ``inference`` (a registered method)
+    :func:`fit_house_chains` advances at once: Gibbs chains up to ``chain_workers``
+    (:func:`~spcopyro.gibbs.chains.resolve_workers`), any other method's fits one at a time."""
+    if not isinstance(inference, GibbsInference):
+        return 1
+    return resolve_workers(chain_workers, chains)
+
+
 def fit_house_chains(
     house: House,
     settings: SpCoSettings | None = None,
@@ -310,18 +325,14 @@ def fit_house_chains(
                              f"{method!r} method keeps neither")  # fmt: skip
         if len(seeds) > 1:
             raise ValueError(f"a {method!r} checkpoint holds one fit; {len(seeds)} seeds asked")
-    count = resolve_threads(threads, house.grid.num_free)
-    workers = (
-        resolve_workers(chain_workers, len(seeds)) if isinstance(inference, GibbsInference) else 1
-    )
-    if workers > 1 and threads == AUTO:
-        count = 1  # the chains are the parallelism: no intra-op threads on top
+    workers = chains_side_by_side(inference, chain_workers, len(seeds))
+    count = chain_threads(threads, house.grid.num_free, workers)  # auto: 1 with workers > 1
     with timed("model_data"):
         counts, data = prepare_model_data(house, settings, method=method)
         record = provenance(house, data, source)
     if method not in SAMPLERS:  # the note is on the Gibbs backends' streams (backend_used)
         record = {key: value for key, value in record.items() if key != "reproducibility"}
-    logger.info("threads: %s", describe_threads(threads, house.grid.num_free))
+    logger.info("threads: %s", describe_threads(threads, house.grid.num_free, workers))
     if checkpoint is not None and not isinstance(checkpoint, FitCheckpoint):
         checkpoint = FitCheckpoint(checkpoint)
     with torch_threads(count) as used:
