@@ -225,7 +225,7 @@ def warn_flat_q(
     L = q.shape[-1]
     if L < 2 or short_runs_meant_now():
         return False
-    entropy = _mean_entropy(q)
+    entropy = mean_cell_entropy(q)
     if entropy < FLAT_Q_SHARE * math.log(L):
         return False
     degree = int(config.connectivity)
@@ -249,7 +249,7 @@ def warn_flat_q(
     return True
 
 
-def _mean_entropy(q: torch.Tensor, rows: int = 1 << 16) -> float:
+def mean_cell_entropy(q: torch.Tensor, rows: int = 1 << 16) -> float:
     """The mean over cells of q's entropy in nats, ``q`` ``[N, L]``, in float64 a block of
     ``rows`` cells at a time (a float64 copy of a large map's whole q would be N L 8 bytes:
     0.96 GB at 10^6 cells and L = 120, beside memoized VI's float32 q)."""

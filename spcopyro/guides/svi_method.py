@@ -36,7 +36,7 @@ from spcopyro.guides.mean_field import (
     RANDOM_START_SMOOTHING,
     MeanFieldGuide,
 )
-from spcopyro.guides.run import VariationalRun, initial_q, remaining, resumed
+from spcopyro.guides.run import VariationalRun, initial_q, mean_cell_entropy, remaining, resumed
 from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
 from spcopyro.inference.schedule import short_runs_meant_now, warn_unfinished_annealing
@@ -351,8 +351,7 @@ def warn_flat_q(
     L = q.shape[-1]
     if L < 2 or short_runs_meant_now():
         return False
-    q64 = q.detach().to(torch.float64)
-    entropy = float(-(q64 * q64.clamp_min(1e-300).log()).sum(-1).mean())
+    entropy = mean_cell_entropy(q)
     if entropy < FLAT_Q_SHARE * math.log(L):
         return False
     degree = int(config.connectivity)
