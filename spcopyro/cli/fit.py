@@ -54,6 +54,7 @@ from spcopyro.cli.fit_resume import (
     without_resume,
 )
 from spcopyro.cli.fit_settings import apply_preset_inference, check_update_args, fit_settings
+from spcopyro.cli.fit_warnings import record_warnings, recorded_warnings
 from spcopyro.config import SpCoSettings, preset_inference
 from spcopyro.data import House
 from spcopyro.data.footprint import release_shared_footprints, shared_footprints
@@ -92,6 +93,9 @@ class FitJob:
     refined: bool = False
     sampled: bool = False
     """Set once the fit is done: a Ctrl-C while writing then keeps the finished chains."""
+    said: list[str] = dataclasses.field(default_factory=list)
+    """The warnings the command gave so far, as printed (:mod:`spcopyro.cli.fit_warnings`):
+    ``config.json``'s ``"warnings"``."""
 
 
 @dataclasses.dataclass
@@ -112,12 +116,13 @@ class Fitted:
 def run_fit(args: argparse.Namespace) -> int:
     """Check the arguments and OUT, then fit into a staging folder moved to OUT at the end
     (:mod:`spcopyro._util.outputs`); Ctrl-C or SIGTERM keeps a checkpoint beside OUT and exits with
-    130."""
-    with sigterm_as_interrupt():
-        return _fit_interruptible(args)
+    130. The warnings it gives are printed and kept in OUT's ``config.json``
+    (:mod:`spcopyro.cli.fit_warnings`)."""
+    with sigterm_as_interrupt(), recorded_warnings() as said:
+        return _fit_interruptible(args, said)
 
 
-def _fit_interruptible(args: argparse.Namespace) -> int:
+def _fit_interruptible(args: argparse.Namespace, said: list[str]) -> int:
     from spcopyro._util.outputs import checkpoint_path, stage_output
     from spcopyro.fit.gibbs_chains import FitCheckpoint, FitInterrupted
     from spcopyro.fit.registry import get_method
@@ -165,7 +170,7 @@ def _fit_interruptible(args: argparse.Namespace) -> int:
     )  # fmt: skip
     args.phases.mark("settings")
     keeper = FitCheckpoint(checkpoint_path(staged.out)) if checkpointed else None
-    job = FitJob(args, house, settings, options, staged, keeper, map_house=loaded)
+    job = FitJob(args, house, settings, options, staged, keeper, map_house=loaded, said=said)
     try:
         # interrupts_raised: one a compiled call reported as a SystemError; shared_footprints:
         # the summary's footprint counts are the model data's, spread once
@@ -493,6 +498,7 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
         print(f"note: every concept's word distribution is close to uniform: {why}",
               file=sys.stderr)  # fmt: skip
     phases.mark("report")
+    record_warnings(out / "config.json", job.said)  # every warning the fit gave, printed above
     out = staged.commit()
     checkpoint = checkpoint_path(out)
     if checkpoint.is_file():  # the one resumed from, or an old one --overwrite replaces
