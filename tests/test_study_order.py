@@ -73,6 +73,27 @@ def test_finished_cells_predict_their_group_then_their_kind():
     assert predicted_seconds(pending, cells, failed) == predicted_seconds(pending)
 
 
+def test_without_history_baselines_and_smoke_budgets_are_predicted_at_their_measured_cost():
+    """Without history, the nearest-utterance and geometry baselines (a few ms a cell on a small
+    house) are predicted under 0.1 s, not at a flat second each (which predicted ablation_small's
+    16 cells at 4 s for 0.7 s of fits); SpCoA by its iterations; a method's fixed cost counts
+    at a smoke budget (4 VI-Gibbs sweeps: ~0.4 s measured, not 4 x 1.2 ms)."""
+    study = study_from_dict({
+        "study": {"name": "baselines", "seeds": 1, "methods": ["vi-gibbs"], "sweeps": 4,
+                  "baselines": ["C-spcoa", "D-cnn", "E-nearest", "F-geometry"],
+                  "spcoa_iterations": 100},
+        "variants": {"dp": {"preset": "paper-dp"}},
+        "data": {"small": SMALL},
+    })  # fmt: skip
+    cells = cells_of(study)
+    predicted = {c.row: seconds for c in cells for k, seconds in
+                 predicted_seconds(cells).items() if k == c.key}  # fmt: skip
+    for row in ("D-cnn", "E-nearest", "F-geometry"):
+        assert 0 < predicted[row] < 0.1, (row, predicted[row])
+    assert predicted["C-spcoa"] > 10 * predicted["F-geometry"]
+    assert predicted["dp"] > 0.1
+
+
 class _FakeFuture:
     def __init__(self, cell):
         self.cell = cell

@@ -9,14 +9,16 @@ processing time" rule), the short cells fill the workers' gaps at the end instea
 cells' costs known, its makespan is at most 4/3 of the best possible (Graham 1969).
 
 A cell's cost is predicted, in seconds on the 2-core machine the defaults were measured on (only
-the order matters), as its iterations times a time per iteration:
+the order matters), as its iterations times a time per iteration (plus, without history, its
+method's fixed cost):
 
 * from the study's own finished cells where it has some: the median seconds per iteration of
   the finished cells of the same variant (or baseline), data source and method (a study that is
   resumed or gains seeds), else of the same method on the same kind of data;
 * otherwise :data:`SECONDS_PER_ITERATION`, the medians of the full-budget Gibbs-versus-VI study
   (docs/studies.md) by method and kind of data, a synthetic house's scaled by its map's area
-  against the default house's (a baseline's cell: :data:`BASELINE_SECONDS`).
+  against the default house's, plus :data:`SETUP_SECONDS` (a baseline's cell:
+  :data:`BASELINE_SECONDS`, scaled alike).
 
 The same prediction decides whether a study asked to run on a LocalCluster starts one at all
 (:func:`cluster_pays`): a study whose cells are predicted to take less than the cluster's
@@ -33,7 +35,8 @@ from spcopyro.study.spec import SYNTHETIC_FACTORIES
 
 __all__ = [
     "BASELINE_SECONDS", "CELL_SECONDS", "CLUSTER_START_SECONDS", "SECONDS_PER_ITERATION",
-    "WORKER_SLOWDOWN", "cluster_pays", "duration", "longest_first", "predicted_seconds",
+    "SETUP_SECONDS", "WORKER_SLOWDOWN", "cluster_pays", "duration", "longest_first",
+    "predicted_seconds",
 ]  # fmt: skip
 
 SECONDS_PER_ITERATION: dict[str, tuple[float, float]] = {
@@ -47,8 +50,31 @@ SECONDS_PER_ITERATION: dict[str, tuple[float, float]] = {
 """Seconds per iteration (synthetic house, public house or simulated map) of each method at
 the study's budgets: medians of the full-budget Gibbs-versus-VI study, 2026-12-03, 2 cores.
 A method missing here costs what Gibbs does."""
-BASELINE_SECONDS = 1.0
-"""A baseline row's cell (nearest utterance, geometry, ...: no sweeps), without history."""
+SETUP_SECONDS: dict[str, float] = {
+    "gibbs": 0.02,
+    "vi-gibbs": 0.3,
+    "cavi": 0.08,
+    "stochastic-vi": 0.04,
+    "svi": 0.15,
+    "lbp": 0.4,
+}
+"""A fit's seconds beside its iterations (each method's setup), added to a prediction from
+:data:`SECONDS_PER_ITERATION`: what a cell of 4 iterations takes beyond 4 of 40 (default
+synthetic house, 2 seeds, 2 cores at load 2-5, 2026-12-05). It matters at smoke budgets only
+(30 Gibbs sweeps: 0.03 s, not the 0.01 s of 30 x 0.83 ms; 4 VI-Gibbs sweeps: 0.4 s, not
+0.005 s); the full-budget medians hold it already, a few % of their cells' seconds.
+A method missing here costs what Gibbs does."""
+BASELINE_SECONDS: dict[str, tuple[float, float]] = {
+    "C-spcoa": (5e-3, 10e-3),
+    "D-cnn": (2e-3, 0.02),
+    "E-nearest": (2e-3, 0.015),
+    "F-geometry": (4e-3, 0.2),
+}
+"""Seconds of a baseline row's cell (default synthetic house, public house or simulated map;
+C-spcoa, the one that iterates: of an iteration), without history: 2 seeds of each on the
+default house, room1dk5, room1ldk4 and a tour on room1dk5's map, 2 cores at load 2-5,
+2026-12-05 (nearest utterance 1-14 ms, geometry 2-3 ms and 0.10-0.23 s, SpCoA 0.6 s and 1.2 s
+for 100 iterations). A baseline missing here costs a second."""
 
 
 def _group(cell: Cell) -> tuple[str, str, str]:
@@ -82,13 +108,21 @@ def _per_iteration(
 
 
 def _static_rate(cell: Cell) -> float:
+    """Predicted seconds per iteration of ``cell`` without history (its fixed cost spread
+    over its iterations)."""
     if cell.method == BASELINE_METHOD:
-        return BASELINE_SECONDS / max(cell.sweeps, 1)
-    synthetic, measured = SECONDS_PER_ITERATION.get(cell.method, SECONDS_PER_ITERATION["gibbs"])
+        synthetic, measured = BASELINE_SECONDS.get(cell.row, (1.0, 1.0))
+        setup = 0.0
+    else:
+        synthetic, measured = SECONDS_PER_ITERATION.get(cell.method, SECONDS_PER_ITERATION["gibbs"])
+        setup = SETUP_SECONDS.get(cell.method, SETUP_SECONDS["gibbs"])
+    iterations = max(cell.sweeps, 1)
     if cell.data.kind != "synthetic":
-        return measured
+        return measured + setup / iterations
     spec, default = cell.data.house_spec(), SYNTHETIC_FACTORIES["default"]()
-    return synthetic * (spec.height * spec.width) / (default.height * default.width)
+    return synthetic * (spec.height * spec.width) / (default.height * default.width) + (
+        setup / iterations
+    )
 
 
 def predicted_seconds(
@@ -101,12 +135,12 @@ def predicted_seconds(
     them) may hold."""
     by_group, by_kind = _per_iteration(history, finished or {})
     predicted = {}
-    static: dict[tuple[int, str, int], float] = {}  # by source and method: made once, not per seed
+    static: dict[tuple[int, str, str, int], float] = {}  # per source, row, method, iterations
     for cell in cells:
         rate = by_group.get(_group(cell)) or by_kind.get(_kind(cell))
         if not rate:
-            known = (id(cell.data), cell.method, cell.sweeps if cell.method == BASELINE_METHOD
-                     else 0)  # fmt: skip
+            known = (id(cell.data), cell.row if cell.method == BASELINE_METHOD else "",
+                     cell.method, cell.sweeps)  # fmt: skip
             if known not in static:
                 static[known] = _static_rate(cell)
             rate = static[known]
