@@ -390,3 +390,70 @@ def test_fit_prints_the_threads_each_chain_ran(
     assert lines == [f"threads          {line}"]
     assert json.loads((out / "config.json").read_text())["threads"] == ran  # what ran
     assert torch.get_num_threads() == 2
+
+
+@pytest.mark.parametrize(("workers", "line", "ran"), [
+    ("2", "1 torch intra-op thread per chain, 2 chains side by side (policy: one each when "
+          "chains run at once)", 1),
+    ("1", "2 torch intra-op threads (policy: 54 free cells >= 10, other processes busy on 0.0 "
+          "of 2 cores)", 2),
+])  # fmt: skip
+def test_sweeps_auto_runs_chains_side_by_side_on_one_thread_each(
+    house_folder, tmp_path, fresh_load, monkeypatch, capsys, restore_threads, workers, line, ran
+):
+    """``--sweeps auto``'s chains (fit_house_converged) ran side by side on the policy's count
+    for the map each (2 chains x 2 threads on 2 cores), and ignored ``--chain-workers``: they
+    follow fit_house_chains' rule now, and the line and config.json say what ran."""
+    import json
+
+    import spcopyro.gibbs.convergence
+    from spcopyro.cli.main import main
+
+    seen_workers, seen_threads = [], []
+    real_chains, real_advance = (
+        spcopyro.gibbs.convergence.advance_chains,
+        spcopyro.gibbs.chains.advance,
+    )
+
+    def advance_chains(*args, **kwargs):
+        seen_workers.append(kwargs.get("workers"))
+        return real_chains(*args, **kwargs)
+
+    def advance(*args, **kwargs):  # each chain's block, on a thread of this process
+        seen_threads.append(torch.get_num_threads())
+        return real_advance(*args, **kwargs)
+
+    monkeypatch.setattr(spcopyro.gibbs.convergence, "advance_chains", advance_chains)
+    monkeypatch.setattr(spcopyro.gibbs.chains, "advance", advance)
+    monkeypatch.setenv(spcopyro.gibbs.chains.PROCESSES_ENV, "off")  # threads: lighter here
+    monkeypatch.setattr(fresh_load, "MIN_CELLS_FOR_MORE_THREADS", 10)  # 54 free cells: large
+    monkeypatch.setattr(fresh_load, "usable_cpus", lambda: 2)
+    monkeypatch.setattr(fresh_load, "other_load", lambda: 0.0)
+    torch.set_num_threads(2)
+    out = tmp_path / "fit"
+    argv = ["fit", str(house_folder), "--out", str(out), "--sweeps", "auto", "--max-sweeps", "2",
+            "--chains", "2", "--chain-workers", workers, "--no-figures"]  # fmt: skip
+    assert main(argv) == 0
+    lines = [x for x in capsys.readouterr().out.splitlines() if x.startswith("threads ")]
+    assert lines == [f"threads          {line}"]
+    assert seen_workers == [int(workers)]  # --chain-workers honoured: one block of 2 sweeps
+    assert seen_threads == [ran, ran]  # each chain's block ran on the count the line gives
+    assert json.loads((out / "config.json").read_text())["threads"] == ran  # what ran
+    assert torch.get_num_threads() == 2
+
+
+def test_fit_house_passes_chain_workers_to_sweeps_auto(small_house, monkeypatch):
+    """fit_house(sweeps="auto") dropped chain_workers: its chains ran one per usable CPU."""
+    seen = {}
+
+    class Stop(Exception):
+        pass
+
+    def fit_house_converged(*args, **kwargs):
+        seen.update(kwargs)
+        raise Stop
+
+    monkeypatch.setattr(spcopyro.fit.house, "fit_house_converged", fit_house_converged)
+    with pytest.raises(Stop):
+        fit_house(small_house, sweeps="auto", chains=2, chain_workers=1, progress=False)
+    assert seen["chain_workers"] == 1

@@ -276,12 +276,13 @@ def _chain_count(args: argparse.Namespace) -> int:
 
 
 def _side_by_side(args: argparse.Namespace) -> int:
-    """The chains :func:`_fit` advances at once: ``fit_house_chains``' for ``--chains`` chains
-    of the method (1 under ``--sweeps auto`` and ``--update``, which run none side by side)."""
+    """The chains :func:`_fit` advances at once: ``fit_house_chains``' (and
+    ``fit_house_converged``'s, ``--sweeps auto``) for ``--chains`` chains of the method, up to
+    ``--chain-workers`` (1 under ``--update``, which runs none side by side)."""
     from spcopyro.fit.house import chains_side_by_side
     from spcopyro.fit.registry import get_method
 
-    if args.sweeps == "auto" or args.update is not None:
+    if args.update is not None:
         return 1
     return chains_side_by_side(get_method(args.method), args.chain_workers, _chain_count(args))
 
@@ -304,6 +305,7 @@ def _fit(
         result, diagnostics = fit_house_converged(
             house, settings, options=options, chains=chains, seed=args.seed, init=init,
             max_sweeps=args.max_sweeps or FIT_SWEEPS, source=source, threads=args.threads,
+            chain_workers=args.chain_workers,
         )  # fmt: skip
         chain_results, kept = None, 0
         # a refinement runs as many sweeps as the chains needed (their --anneal-sweeps too,

@@ -32,7 +32,6 @@ from spcopyro._util.threads import (
     AUTO,
     chain_threads,
     describe_threads,
-    resolve_threads,
     torch_threads,
 )
 from spcopyro._util.timings import timed
@@ -463,7 +462,7 @@ def fit_house(
         chains = chains if chains > 1 else DEFAULT_CHAINS
         result, diagnostics = fit_house_converged(
             house, settings, options=options, chains=chains, seed=seed, init=init,
-            progress=progress, threads=threads,
+            progress=progress, threads=threads, chain_workers=chain_workers,
         )  # fmt: skip
         logger.info("--sweeps auto: %s", diagnostics.to_json())
         # its anneal_sweeps too, which the refinement's chains run again
@@ -509,6 +508,7 @@ def fit_house_converged(
     progress: bool | None = None,
     source: str | None = None,
     threads: int | str | None = AUTO,
+    chain_workers: int | str | None = AUTO,
 ) -> tuple[SpCoResult, ConvergenceDiagnostics]:
     """Fit by Gibbs sampling with ``chains`` chains (seeds ``seed``, ``seed + 1``, ...) until
     split R-hat of the log joint and of the number of concepts are below ``threshold``, or
@@ -516,14 +516,16 @@ def fit_house_converged(
     chain of highest log joint as the result, and the diagnostics. Chain k starts from ``init``
     drawn with seed ``seed + k``; ``options.anneal_sweeps`` of gamma annealing come first.
     ``source``: where the house came from, for ``config.json`` (:func:`provenance`).
-    ``threads``: as for :func:`fit_house`.
+    ``threads``, ``chain_workers``: as for :func:`fit_house_chains` (chains advancing at once
+    within a block; with more than one, ``threads`` ``"auto"`` means one torch thread per chain).
     """
     settings = _settings(settings)
     house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
     options = GibbsOptions() if options is None else options
-    count = resolve_threads(threads, house.grid.num_free)
+    workers = resolve_workers(chain_workers, chains)  # as chains_side_by_side for Gibbs
+    count = chain_threads(threads, house.grid.num_free, workers)  # auto: 1 with workers > 1
     counts, data = prepare_model_data(house, settings, method="gibbs")
-    logger.info("threads: %s", describe_threads(threads, house.grid.num_free))
+    logger.info("threads: %s", describe_threads(threads, house.grid.num_free, workers))
     with torch_threads(count) as used:
         starts = []
         for k in range(chains):
@@ -533,7 +535,7 @@ def fit_house_converged(
             run, diagnostics = run_until_converged(
                 data, settings.model, options=options, chains=chains, block=block,
                 max_sweeps=max_sweeps, threshold=threshold, seed=seed, init_labels=starts,
-                progress=progress,
+                progress=progress, workers=workers,
             )  # fmt: skip
         except ConvergenceInterrupted as stop:  # said as every fit's interruption is
             raise FitInterrupted(stop.where) from None
