@@ -94,6 +94,26 @@ def test_without_history_baselines_and_smoke_budgets_are_predicted_at_their_meas
     assert predicted["dp"] > 0.1
 
 
+def test_finished_baselines_predict_the_same_baseline_on_other_data():
+    """A geometry cell on new data takes the geometry cells' rate (ms), not the median of every
+    baseline's (SpCoA's 100 iterations of a minute pulled it to 0.3 s)."""
+    study = study_from_dict({
+        "study": {"name": "b", "seeds": 1, "sweeps": 2, "baselines": ["C-spcoa", "F-geometry"],
+                  "spcoa_iterations": 100},
+        "variants": {"dp": {"preset": "paper-dp"}},
+        "data": {"small": SMALL, "other": {**SMALL, "num_trials": 3}},
+    })  # fmt: skip
+    cells = cells_of(study)
+    done = [c for c in cells if c.data.name == "small" and c.variant is None]
+    finished = {c.key: {"status": "ok", "seconds": 60.0 if c.row == "C-spcoa" else 0.003}
+                for c in done}  # fmt: skip
+    pending = [c for c in cells if c.key not in finished]
+    predicted = predicted_seconds(pending, cells, finished)
+    by_row = {c.row: predicted[c.key] for c in pending if c.variant is None}
+    assert by_row["F-geometry"] == pytest.approx(0.003)
+    assert by_row["C-spcoa"] == pytest.approx(60.0)
+
+
 class _FakeFuture:
     def __init__(self, cell):
         self.cell = cell

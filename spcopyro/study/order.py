@@ -14,7 +14,7 @@ method's fixed cost):
 
 * from the study's own finished cells where it has some: the median seconds per iteration of
   the finished cells of the same variant (or baseline), data source and method (a study that is
-  resumed or gains seeds), else of the same method on the same kind of data;
+  resumed or gains seeds), else of the same method (or baseline) on the same kind of data;
 * otherwise :data:`SECONDS_PER_ITERATION`, the medians of the full-budget Gibbs-versus-VI study
   (docs/studies.md) by method and kind of data, a synthetic house's scaled by its map's area
   against the default house's, plus :data:`SETUP_SECONDS` (a baseline's cell:
@@ -82,7 +82,10 @@ def _group(cell: Cell) -> tuple[str, str, str]:
 
 
 def _kind(cell: Cell) -> tuple[str, str]:
-    return cell.method, "synthetic" if cell.data.kind == "synthetic" else "measured"
+    """The method (a baseline: its row, since baselines' costs differ 100-fold) and the kind of
+    data."""
+    method = cell.row if cell.method == BASELINE_METHOD else cell.method
+    return method, "synthetic" if cell.data.kind == "synthetic" else "measured"
 
 
 def _per_iteration(
