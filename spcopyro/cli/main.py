@@ -314,9 +314,13 @@ def _where(args: argparse.Namespace) -> int:
     if args.out:
         from spcopyro.figures.plotting import plot_where, plot_where_probability
 
-        print(f"wrote {plot_where(result, answer, args.out)}")
+        # the [N] above, computed once for the line and both figures (not kept on the result)
+        print(f"wrote {plot_where(result, answer, args.out, probability)}")
         probability_png = probability_figure(Path(args.out))
-        print(f"wrote {plot_where_probability(result, answer.word, probability_png, args.prior)}")
+        written = plot_where_probability(
+            result, answer.word, probability_png, args.prior, probability
+        )
+        print(f"wrote {written}")
     return 0
 
 

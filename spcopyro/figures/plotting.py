@@ -306,15 +306,22 @@ def where_image(result: SpCoResult, answer: WhereAnswer) -> np.ndarray:
     return rgb
 
 
-def plot_where(result: SpCoResult, answer: WhereAnswer, path: str | os.PathLike[str]) -> Path:
-    """Write :func:`where_figure` to ``path``."""
-    return _save(where_figure(result, answer), path)
+def plot_where(
+    result: SpCoResult,
+    answer: WhereAnswer,
+    path: str | os.PathLike[str],
+    probability: np.ndarray | None = None,
+) -> Path:
+    """Write :func:`where_figure` to ``path`` (``probability`` as there)."""
+    return _save(where_figure(result, answer, probability), path)
 
 
 BELOW_INCHES = (0.55, 1.0)  # where_figure: the legend below the map, then the warnings below it
 
 
-def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
+def where_figure(
+    result: SpCoResult, answer: WhereAnswer, probability: np.ndarray | None = None
+) -> Figure:
     """The answer to "where is WORD?" over the map (free white, walls black, unknown grey, as
     the other map figures): with per-cell marginals, each cell's probability of lying in the
     word's place (:func:`~spcopyro.results.uncertainty.where_probability`, over the reported
@@ -323,7 +330,9 @@ def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
     point estimate), the answer's region filled red and the runner-up's blue
     (:func:`where_image`). A title with the word, the concept, p, the prior and the concept's
     words, a legend, and the answer's warnings under the map. A region smaller than
-    ``SMALL_REGION_FRACTION`` of the free cells is ringed, so a speck can be seen."""
+    ``SMALL_REGION_FRACTION`` of the free cells is ringed, so a speck can be seen.
+    ``probability``: [N] that :func:`~spcopyro.results.uncertainty.where_probability` of
+    ``answer.word`` and ``answer.prior`` when the caller has it (``spcopyro where``), or None."""
     grid = result.grid
     area = grid.resolution**2
     cells = int(answer.region.sum())
@@ -339,9 +348,10 @@ def where_figure(result: SpCoResult, answer: WhereAnswer) -> Figure:
         fig, axes, wide, strips = map_axes(grid, render_labels(image, grid, free), (11, 9))
         rows, cols = known_bounds(grid)
         extent = _extent(grid, rows, cols)
-        probability = free_cells_image(result, where_probability(result, answer.word,
-                                                                 answer.prior))  # fmt: skip
-        shown = np.ma.masked_less(probability[rows, cols], 0.01)  # [h, w]: free white below 1%
+        if probability is None:
+            probability = where_probability(result, answer.word, answer.prior)  # [N]
+        shown = free_cells_image(result, probability)[rows, cols]  # [h, w]
+        shown = np.ma.masked_less(shown, 0.01)  # [h, w]: free white below 1%
         red, blue = np.array(ANSWER_RGB) / 255.0, np.array(RUNNER_UP_RGB) / 255.0
         for ax in axes:  # one map, or its strips
             scale = ax.imshow(shown, extent=extent, cmap="Reds", vmin=0.0, vmax=1.0,
@@ -492,11 +502,17 @@ def plot_agreement(result: SpCoResult, path: str | os.PathLike[str]) -> Path | N
 
 
 def plot_where_probability(
-    result: SpCoResult, word: str, path: str | os.PathLike[str], prior: str = "area"
+    result: SpCoResult,
+    word: str,
+    path: str | os.PathLike[str],
+    prior: str = "area",
+    probability: np.ndarray | None = None,
 ) -> Path:
     """The answer to "where is WORD?" as a probability per cell: p(cell in the word's place)
-    (:func:`~spcopyro.results.uncertainty.where_probability`)."""
-    probability = where_probability(result, word, prior)  # [N]
+    (:func:`~spcopyro.results.uncertainty.where_probability`; ``probability``: that [N] of
+    ``word`` and ``prior`` when the caller has it, or None)."""
+    if probability is None:
+        probability = where_probability(result, word, prior)  # [N]
     kind = "marginals" if result.marginals is not None else "point estimate"
     title = (
         f"where is '{word.lower()}'? p(cell in its place), {kind}, {prior} prior\n"
