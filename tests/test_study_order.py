@@ -16,10 +16,12 @@ from spcopyro.study import run as study_run
 from spcopyro.study.cells import cells_of
 from spcopyro.study.order import (
     CELL_SECONDS,
+    WARMUP_SECONDS,
     cluster_pays,
     duration,
     longest_first,
     predicted_seconds,
+    run_seconds,
 )
 from spcopyro.study.run import run_study
 from spcopyro.study.spec import study_from_dict
@@ -224,6 +226,7 @@ def test_dry_run_predicts_each_group_and_the_whole_run(tmp_path, capsys, monkeyp
         ([0.02, 0.02], 2, False),  # two 30-sweep cells: 3-6.5 s on the cluster, 2 s here
         ([0.04] * 16, 2, False),  # ablation_small: 1.7 s here, 2.5 s and more with a cluster
         ([4.0 - CELL_SECONDS] * 2, 2, False),  # 8 s of cells: the cluster's break-even
+        ([4.05 - CELL_SECONDS] * 2, 2, False),  # 8.1 s: the workers' warm-ups tip it
         ([4.2] * 2, 2, True),
         ([1.66] * 20, 2, True),  # benchmarks/study_dask.py: 30 s here, 0.6-0.7 of it there
         ([300.0, 1.0, 1.0], 2, False),  # one cell decides the wall either way
@@ -265,7 +268,7 @@ def test_a_short_study_asked_for_workers_starts_no_cluster(tmp_path, monkeypatch
     done = run_study(study, tmp_path / "out", workers=2, progress=False, report=lines.append)
     assert started == []
     assert (done.ran, done.ran_here, done.failed) == (2, 2, 0)
-    assert done.where.startswith("in-process (2 cells predicted at 0 s of fits, too short for "
+    assert done.where.startswith("in-process (2 cells predicted at 0.4 s of fits, too short for "
                                  "a LocalCluster of 2 workers"), done.where  # fmt: skip
     assert lines[0].endswith(done.where), lines
     assert not any("while the LocalCluster started" in line for line in lines), lines
@@ -274,10 +277,35 @@ def test_a_short_study_asked_for_workers_starts_no_cluster(tmp_path, monkeypatch
 
 
 @pytest.mark.parametrize(
-    "seconds, text", [(0.4, "0 s"), (42, "42 s"), (600, "10 min"), (7380, "2.0 h")]
-)
+    "seconds, text",
+    [(0.4, "0.4 s"), (8.23, "8.2 s"), (9.96, "10 s"), (42, "42 s"), (600, "10 min"),
+     (7380, "2.0 h")],
+)  # fmt: skip
 def test_duration_reads_as_a_person_would(seconds, text):
+    """Below 10 s a tenth: a smoke study's 0.4 s of fits read "0 s", as if it ran nothing."""
     assert duration(seconds) == text
+
+
+def test_a_run_is_predicted_with_each_process_warm_up_once():
+    """Each process's first cell takes about 0.35 s more (WARMUP_SECONDS), whatever its method;
+    the cells' own predictions leave it out, a run's holds it once per process: once in one
+    process, once on the workers side by side (each pays it at the same time)."""
+    assert run_seconds([]) == 0.0
+    assert run_seconds([0.02, 0.02]) == pytest.approx(0.04 + WARMUP_SECONDS)
+    assert run_seconds([1.0, 1.0, 2.0], 2) == pytest.approx(2.0 + WARMUP_SECONDS)
+    assert run_seconds([6.0, 1.0, 1.0], 2) == pytest.approx(6.0 + WARMUP_SECONDS)
+
+
+def test_dry_run_total_holds_the_warm_up(tmp_path):
+    """Two cells of 30 sweeps on the small house: about 0.01 s of fits predicted, 0.4 s with
+    this process's first cell; ``--dry-run`` said "0 s"."""
+    study = one_variant_study("two", seeds=2, sweeps=30)
+    plan = study_run.plan_study(study, tmp_path / "dry")
+    fits = sum(plan.predicted.values())
+    assert fits < 0.05, plan.predicted
+    planned = study_run.plan_markdown(plan, study, 1)
+    assert f"predicted: {duration(fits + WARMUP_SECONDS)} of fits one after another" in planned
+    assert "predicted: 0.4 s of fits" in planned, planned
 
 
 def test_progress_bar_advances_by_predicted_seconds_and_counts_cells(tmp_path, capsys):

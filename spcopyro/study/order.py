@@ -22,7 +22,9 @@ method's fixed cost):
 
 The same prediction decides whether a study asked to run on a LocalCluster starts one at all
 (:func:`cluster_pays`): a study whose cells are predicted to take less than the cluster's
-start-up saves runs in this process.
+start-up saves runs in this process. A whole run's prediction (:func:`run_seconds`) adds
+:data:`WARMUP_SECONDS` once per process that runs cells (the first cell's warm-up), which no
+cell's own prediction holds.
 """
 
 from __future__ import annotations
@@ -35,8 +37,8 @@ from spcopyro.study.spec import SYNTHETIC_FACTORIES
 
 __all__ = [
     "BASELINE_SECONDS", "CELL_SECONDS", "CLUSTER_START_SECONDS", "SECONDS_PER_ITERATION",
-    "SETUP_SECONDS", "WORKER_SLOWDOWN", "cluster_pays", "duration", "longest_first",
-    "predicted_seconds",
+    "SETUP_SECONDS", "WARMUP_SECONDS", "WORKER_SLOWDOWN", "cluster_pays", "duration",
+    "longest_first", "predicted_seconds", "run_seconds",
 ]  # fmt: skip
 
 SECONDS_PER_ITERATION: dict[str, tuple[float, float]] = {
@@ -160,36 +162,63 @@ def longest_first(cells: Iterable[Cell], predicted: Mapping[str, float]) -> list
 CELL_SECONDS = 0.1
 """A cell's wall seconds beside its fit's own (drawing or loading its house, scoring, storing):
 16 cells of ``ablation_small`` took 1.6-1.7 s in one process for 0.7 s of fits (2026-12-05)."""
+WARMUP_SECONDS = 0.35
+"""What a process's first cell takes beyond the same cell run again, for any method (numba's
+cached kernels loaded, the fit's lazy imports), in the fit's own seconds: paid once by each
+process that runs cells, so it belongs to a run's prediction (:func:`run_seconds`,
+:func:`cluster_pays`), not to a cell's. Measured 2026-12-05 in fresh processes that had
+imported what a worker imports (:mod:`spcopyro.study.worker_imports`), default synthetic house,
+2 cores at load 1.3-1.8: the first of 3-4 cells 0.24-0.38 s longer (30 Gibbs sweeps 0.28-0.38 s
+against 0.04 s; 4 of them 0.37 against 0.014-0.021 s; 4 CAVI iterations 0.33-0.45 against
+0.06-0.08 s), whichever method came first; the later cells of another method 0.02 s at most.
+:data:`SETUP_SECONDS` leaves it out (measured on warm processes' cells)."""
 CLUSTER_START_SECONDS = 3.0
 """What a LocalCluster adds to its run beyond its workers' share of the cells, on an idle
 2-core machine (docs/studies.md, "The LocalCluster's speed"): its workers ready 2.9 s after the
-start (cells run in this process meanwhile), each worker's first cell about 1 s slower, the last
+start (cells run in this process meanwhile), each worker's first result about 1 s later than
+its fit's own seconds (beyond :data:`WARMUP_SECONDS`, which those seconds hold), the last
 cells' imbalance; 5-8 s to the workers' start alone on the same machine under a load of 4."""
 WORKER_SLOWDOWN = 1.25
 """A cell's seconds on a worker over its seconds in one process (1.23-1.30 measured, two
 workers on 2 cores: docs/studies.md)."""
 
 
+def run_seconds(predicted: Iterable[float], workers: int = 1) -> float:
+    r"""A run's predicted seconds of fits for cells of ``predicted`` seconds
+    (:func:`predicted_seconds`): one process, :math:`\sum_i p_i + w`; ``workers`` side by side
+    at least :math:`\max(\sum_i p_i / N, \max_i p_i) + w`, where :math:`w` =
+    :data:`WARMUP_SECONDS` is each process's first-cell warm-up (paid by every worker at once);
+    0 for no cells."""
+    seconds = [max(float(p), 0.0) for p in predicted]
+    if not seconds:
+        return 0.0
+    return max(sum(seconds) / max(workers, 1), max(seconds)) + WARMUP_SECONDS
+
+
 def cluster_pays(predicted: Iterable[float], workers: int) -> bool:
     r"""Whether a LocalCluster of ``workers`` is predicted to end the cells of ``predicted``
     seconds (:func:`predicted_seconds`) sooner than this process alone.
 
-    With :math:`t_i` = predicted_i + :data:`CELL_SECONDS` and :math:`W = \sum_i t_i`, one
-    process takes :math:`W`; the cluster about
-    :math:`s \max(W / N, \max_i t_i) + c` (:math:`s` = :data:`WORKER_SLOWDOWN`, :math:`c` =
-    :data:`CLUSTER_START_SECONDS`, :math:`N` = ``workers``): it pays where that is less than
-    :math:`W`. Never for one cell (:math:`W = \max_i t_i`), nor for one worker; on 2 workers
-    from :math:`W > 8` s of cells none of which dominates.
+    With :math:`t_i` = predicted_i + :data:`CELL_SECONDS`, :math:`W = \sum_i t_i` and
+    :math:`w` = :data:`WARMUP_SECONDS` (each process's first cell), one process takes
+    :math:`W + w`; the cluster, each of whose workers pays the warm-up too, about
+    :math:`s (\max(W / N, \max_i t_i) + w) + c` (:math:`s` = :data:`WORKER_SLOWDOWN`,
+    :math:`c` = :data:`CLUSTER_START_SECONDS`, :math:`N` = ``workers``): it pays where that is
+    less than :math:`W + w`. Never for one cell (:math:`W = \max_i t_i`), nor for one worker;
+    on 2 workers from :math:`W > 8.2` s of cells none of which dominates.
     """
     seconds = [max(float(p), 0.0) + CELL_SECONDS for p in predicted]
     if workers <= 1 or len(seconds) <= 1:
         return False
-    total = sum(seconds)
-    return total > WORKER_SLOWDOWN * max(total / workers, max(seconds)) + CLUSTER_START_SECONDS
+    here, spread = sum(seconds) + WARMUP_SECONDS, run_seconds(seconds, workers)
+    return here > WORKER_SLOWDOWN * spread + CLUSTER_START_SECONDS
 
 
 def duration(seconds: float) -> str:
-    """``seconds`` as a person reads a prediction: 40 s, 12 min, 2.3 h."""
+    """``seconds`` as a person reads a prediction: 0.4 s, 8.2 s, 40 s, 12 min, 2.3 h (a
+    tenth below 10 s, where a smoke study's whole run lies: not "0 s" for 0.4 s of fits)."""
+    if seconds < 9.95:
+        return f"{seconds:.1f} s"
     if seconds < 90:
         return f"{seconds:.0f} s"
     if seconds < 90 * 60:

@@ -54,7 +54,13 @@ from spcopyro.gibbs.chains import usable_cpus
 from spcopyro.study import evaluate
 from spcopyro.study.cells import Cell, cells_of, source_digest
 from spcopyro.study.local_cluster import PRE_SPAWN_ENVIRON, ClusterStart
-from spcopyro.study.order import cluster_pays, duration, longest_first, predicted_seconds
+from spcopyro.study.order import (
+    cluster_pays,
+    duration,
+    longest_first,
+    predicted_seconds,
+    run_seconds,
+)
 from spcopyro.study.report import table_cell, write_report
 from spcopyro.study.spec import Study
 from spcopyro.study.table import TABLE, CellStore, table_rows, write_table
@@ -194,7 +200,7 @@ def _run_study(
     predicted = [plan.predicted.get(cell.key, 0.0) for cell in pending]
     short = start_in_process and not cluster_pays(predicted, workers)  # one cell, or a few s
     alone = scheduler is None and workers > 1 and short
-    where = _where(workers, scheduler, len(pending) if alone else 0, sum(predicted))
+    where = _where(workers, scheduler, len(pending) if alone else 0, run_seconds(predicted))
     if not pending:
         _finish(out, study, cells, store)
         report(f"nothing to run: all {len(cells)} cells of study {study.name!r} are finished "
@@ -323,8 +329,9 @@ def plan_study(
 def plan_markdown(plan: StudyPlan, study: Study, workers: int = 1) -> str:
     """The cells a run would run, per data source, variant and method: how many (seeds), at
     how many iterations and their predicted time (``spcopyro study --dry-run``); the whole
-    run's predicted time one after another and on ``workers`` (or that the run would not start
-    its LocalCluster: :func:`spcopyro.study.order.cluster_pays`)."""
+    run's predicted time one after another and on ``workers``, each process's first-cell
+    warm-up included (:func:`spcopyro.study.order.run_seconds`), or that the run would not
+    start its LocalCluster (:func:`spcopyro.study.order.cluster_pays`)."""
     groups: dict[tuple[str, str, str, int], list[float]] = {}
     for cell in plan.pending:
         group = (cell.data.name, cell.row, cell.method, cell.sweeps)
@@ -339,17 +346,18 @@ def plan_markdown(plan: StudyPlan, study: Study, workers: int = 1) -> str:
         f"| {table_cell(d)} | {table_cell(v)} | {m} | {n} | {len(times)} | {duration(sum(times))} |"
         for (d, v, m, n), times in groups.items()
     ]
-    total = sum(plan.predicted.get(cell.key, 0.0) for cell in plan.pending)
+    predicted = [plan.predicted.get(cell.key, 0.0) for cell in plan.pending]
     if plan.pending:
-        longest = max(plan.predicted.get(cell.key, 0.0) for cell in plan.pending)
-        spread = f"; on {workers} workers at least {duration(max(total / workers, longest))}"
-        if not cluster_pays([plan.predicted.get(c.key, 0.0) for c in plan.pending], workers):
+        total = run_seconds(predicted)  # each process's first-cell warm-up once
+        spread = f"; on {workers} workers at least {duration(run_seconds(predicted, workers))}"
+        if not cluster_pays(predicted, workers):
             spread = (f"; with --workers {workers} run in this process all the same: too "
                       "short for a LocalCluster to pay for its start")  # fmt: skip
         lines += ["", (
             f"predicted: {duration(total)} of fits one after another"
             f"{spread if workers > 1 else ''} (times per iteration of this study's finished "
-            "cells where it has some, else of a 2-core machine in 2026: a guide, not a promise)"
+            "cells where it has some, else of a 2-core machine in 2026, and each process's "
+            "first-cell warm-up: a guide, not a promise)"
         )]  # fmt: skip
     return "\n".join(lines)
 
