@@ -780,3 +780,28 @@ def test_fit_refuses_a_map_without_free_cells_before_its_summary(tmp_path: Path,
     assert not out.exists() and "placement" not in printed.out and "house " not in printed.out
     assert "leave no free cell" not in printed.err
     assert f"{yaml_path}:{line}: free_thresh 0.0;" in printed.err.strip().splitlines()[-1]
+
+
+def test_show_says_a_map_has_no_free_cell_in_place_of_placement(tmp_path: Path, capsys) -> None:
+    """``spcopyro show`` of a map without free cells listed every image and word as unplaced
+    (with two warnings blaming the map's origin) where ``fit`` refuses it with the reason: show
+    prints that reason in place of the placement lines, and still draws the house."""
+    from spcopyro.cli.main import main
+    from spcopyro.synthetic import HouseSpec, write_synthetic
+
+    room = write_synthetic(
+        tmp_path / "data", seed=1, spec=HouseSpec(height=30, width=40, num_rooms=2)
+    )
+    for name in ("truth.npy", "categories.json"):
+        (room / name).unlink()
+    yaml_path = room.parent / "map" / f"{room.name}.yaml"
+    text = yaml_path.read_text()
+    yaml_path.write_text(text.replace("free_thresh: 0.196", "free_thresh: 0.0"))
+    line = 1 + text.split("\n").index("free_thresh: 0.196")
+    assert main(["show", str(room), "--out", str(tmp_path / "house.png")]) == 0
+    printed = capsys.readouterr()
+    assert "placement" not in printed.out and "unplaced" not in printed.err
+    said = [row for row in printed.out.splitlines() if row.startswith("no free cell ")]
+    assert len(said) == 1 and f"{yaml_path}:{line}: free_thresh 0.0;" in said[0], printed.out
+    assert f"the map {yaml_path} has no free cell, nothing to label" in said[0]
+    assert (tmp_path / "house.png").is_file()

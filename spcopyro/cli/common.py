@@ -104,16 +104,18 @@ def other_word_note(given: str, looked_up: str, saved: SavedVocabulary | None = 
     up, and the user is told. None too when ``given`` is a word of the fit's ``saved``
     vocabulary read as ``looked_up`` (:func:`load_fit` said so: ``where OUT stove.`` on a fit
     that saved ``stove.`` was told that ``stove.`` is no word of the vocabulary)."""
-    from spcopyro.data.text import fold_word
+    from spcopyro.data.text import fold_word, format_characters
 
     if fold_word(given.strip()) == fold_word(looked_up):
         return None
     if saved is not None and saved.renamed_as(given) == looked_up:
         return None
+    hidden = format_characters(given)  # '\u200bkitchen': name what was invisible
+    held = f" (it holds {', '.join(hidden)})" if hidden else ""
     return (
         f"{given!r} is not a word of the vocabulary: read as {looked_up!r}, the word "
-        "without the punctuation (or invisible characters) at its ends, as the data's words "
-        "are read"
+        f"without the punctuation (or invisible characters) at its ends, as the data's words "
+        f"are read{held}"
     )
 
 
@@ -144,8 +146,11 @@ def _summary(
     ``preparation`` the run's: with a footprint radius, the cells the footprints reach (the
     fit's observed cells, as ``concepts.json`` counts them) are given beside the cells where
     observations were placed."""
+    from spcopyro.maps.free_space import no_free_cell_reason
+
+    free = house.grid.num_free > 0  # else every observation would be listed unplaced
     counts = cell_counts(
-        house.grid, house.observations, source=house.source, warn=warn,
+        house.grid, house.observations, source=house.source, warn=warn and free,
         feature_scaling=feature_scaling,
     )  # fmt: skip
     observed = f"{len(counts.cells)} (where observations were placed)"
@@ -177,6 +182,11 @@ def _summary(
         f"{p.words_snapped} snapped, {p.words_unplaced} unplaced "
         f"(snap distance {p.snap_distance} m){p.scaled_away_note()}",
     ]
+    if not free:  # `fit` refuses such a map first (spcopyro.maps.check_free_cells), says why
+        lines[-2:] = [
+            f"no free cell     the map {(source or grid).source or ''} has no free cell, nothing "
+            f"to label (spcopyro fit refuses it): {no_free_cell_reason(grid)}"
+        ]
     if house.category_names:
         n = len(house.category_names)
         lines.append(f"ground truth     {n} categor{'y' if n == 1 else 'ies'}: "

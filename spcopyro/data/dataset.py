@@ -33,7 +33,12 @@ from spcopyro.data.dataset_files import (
     refuse_decimal_commas,
 )
 from spcopyro.data.modality_files import MODALITY_FILE, modality_lines, read_modalities
-from spcopyro.data.observations import _MISSING, DataFormatError, Observations
+from spcopyro.data.observations import (
+    _MISSING,
+    DataFormatError,
+    Observations,
+    hidden_words_told,
+)
 from spcopyro.data.text import tokenize
 from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.maps.map_server import MAX_MAP_COORDINATE, load_map, save_map
@@ -387,17 +392,19 @@ def load_house(
         room, image_xy, utterances, files
     )
     image_paths = _image_paths(room, trial_ids, images_per_trial)
-    observations = Observations(
-        image_features=features,
-        image_xy=image_xy,
-        image_trial=image_trial,
-        utterances=utterances,
-        word_xy=word_xy,
-        word_trial=word_trial,
-        image_yaw=image_yaw,
-        image_paths=image_paths,
-        modalities=read_modalities(room),
-    )
+    modalities = read_modalities(room)
+    with hidden_words_told():  # the St.csv reader named them with the file and line
+        observations = Observations(
+            image_features=features,
+            image_xy=image_xy,
+            image_trial=image_trial,
+            utterances=utterances,
+            word_xy=word_xy,
+            word_trial=word_trial,
+            image_yaw=image_yaw,
+            image_paths=image_paths,
+            modalities=modalities,
+        )
 
     category_names = None
     categories_path = room / "categories.json"

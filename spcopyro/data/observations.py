@@ -14,9 +14,12 @@ access points heard), observed at world positions.
 
 from __future__ import annotations
 
+import logging
 import os
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -24,7 +27,9 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro._util.messages import echo
-from spcopyro.data.text import tokenize
+from spcopyro.data.text import format_characters, tokenize
+
+logger = logging.getLogger("spcopyro")
 
 __all__ = ["RESERVED_MODALITY_NAMES", "DataFormatError", "ModalityObservations", "Observations"]
 
@@ -215,6 +220,40 @@ class ModalityObservations:
         )
 
 
+_HIDDEN_WORDS_TOLD: ContextVar[bool] = ContextVar("hidden_words_told", default=False)
+
+
+@contextmanager
+def hidden_words_told() -> Iterator[None]:
+    """Within it, :class:`Observations` does not warn of words holding invisible format
+    characters: its caller has (the St.csv reader, naming the file and line; a subset of
+    observations that warned)."""
+    told = _HIDDEN_WORDS_TOLD.set(True)
+    try:
+        yield
+    finally:
+        _HIDDEN_WORDS_TOLD.reset(told)
+
+
+def _warn_hidden_words(utterances: tuple[tuple[str, ...], ...]) -> None:
+    """One warning naming the tokens of ``utterances`` that hold invisible format characters
+    (Unicode category Cf; :func:`~spcopyro.data.text.format_characters`): ``'kit\u200bchen'``
+    prints as ``'kitchen'`` but is a word apart from it."""
+    hidden: dict[str, str] = {}
+    for u, tokens in enumerate(utterances):
+        for token in tokens:
+            if token not in hidden and (chars := format_characters(token)):
+                hidden[token] = f"{token!r} (utterance {u}: {', '.join(chars)})"
+    if hidden:
+        logger.warning(
+            "Observations: %d word(s) of the utterances hold invisible format characters "
+            "(Unicode category Cf), each a word apart from its letters without them: %s%s "
+            "(kept: remove them where the language does not need them)",
+            len(hidden), ", ".join(list(hidden.values())[:3]),
+            f", ... ({len(hidden) - 3} more)" if len(hidden) > 3 else "",
+        )  # fmt: skip
+
+
 @dataclass(frozen=True, eq=False)
 class Observations:
     """What the robot observed, in world coordinates. Words are free vocabulary: nothing pre-listed.
@@ -275,6 +314,8 @@ class Observations:
             for token in tokens:
                 if not isinstance(token, str) or not token.strip():
                     raise ValueError(f"utterance {u} holds an invalid token: {token!r}")
+        if not _HIDDEN_WORDS_TOLD.get():
+            _warn_hidden_words(utterances)
         num_utterances = len(utterances)
         set_ = object.__setattr__
         set_(self, "image_features", features)
@@ -361,16 +402,17 @@ class Observations:
         keep_images = np.isin(self.image_trial, wanted)  # [T] bool
         keep_words = np.isin(self.word_trial, wanted)  # [U] bool
         paths = self.image_paths
-        return Observations(
-            image_features=self.image_features[keep_images],
-            image_xy=self.image_xy[keep_images],
-            image_trial=self.image_trial[keep_images],
-            utterances=tuple(u for u, k in zip(self.utterances, keep_words, strict=True) if k),
-            word_xy=self.word_xy[keep_words],
-            word_trial=self.word_trial[keep_words],
-            image_yaw=None if self.image_yaw is None else self.image_yaw[keep_images],
-            image_paths=None
-            if paths is None
-            else tuple(p for p, k in zip(paths, keep_images, strict=True) if k),
-            modalities=tuple(m._select(np.isin(m.trials, wanted)) for m in self.modalities),
-        )
+        with hidden_words_told():  # this Observations' construction warned of them
+            return Observations(
+                image_features=self.image_features[keep_images],
+                image_xy=self.image_xy[keep_images],
+                image_trial=self.image_trial[keep_images],
+                utterances=tuple(u for u, k in zip(self.utterances, keep_words, strict=True) if k),
+                word_xy=self.word_xy[keep_words],
+                word_trial=self.word_trial[keep_words],
+                image_yaw=None if self.image_yaw is None else self.image_yaw[keep_images],
+                image_paths=None
+                if paths is None
+                else tuple(p for p, k in zip(paths, keep_images, strict=True) if k),
+                modalities=tuple(m._select(np.isin(m.trials, wanted)) for m in self.modalities),
+            )

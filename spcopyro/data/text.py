@@ -20,6 +20,8 @@ __all__ = [
     "WordWeighting",
     "fold_word",
     "format_characters",
+    "hidden_characters_note",
+    "hidden_match",
     "tfidf_weights",
     "tokenize",
     "unsegmented",
@@ -81,6 +83,41 @@ def format_characters(token: str) -> tuple[str, ...]:
     """
     found = (char for char in token if unicodedata.category(char) == "Cf")
     return tuple(dict.fromkeys(f"U+{ord(c):04X} {unicodedata.name(c, 'unnamed')}" for c in found))
+
+
+def hidden_characters_note(word: str, vocabulary: Sequence[str]) -> str | None:
+    """Why ``word`` (asked of ``where`` or ``navigate``) is not the vocabulary's word it prints
+    as: the invisible format characters inside it (:func:`format_characters`) and the
+    vocabulary's word it is without them (``'kit\u200bchen'``: ``'kitchen'``), or the
+    vocabulary's word that is it with such characters inside (the data's ``'kit\u200bchen'``
+    for a typed ``'kitchen'``); None when neither holds any."""
+    chars, same = format_characters(word.strip()), hidden_match(word, vocabulary)
+    if chars:
+        found = f"; without them it is {same!r}, a word of the vocabulary" if same else ""
+        return f"{word!r} holds invisible format characters (Unicode category Cf): " + (
+            ", ".join(chars) + found
+        )
+    if same is None:
+        return None
+    return (
+        f"the vocabulary's {same!r} is {word!r} with invisible format characters (Unicode "
+        f"category Cf) inside, as the data spell it: {', '.join(format_characters(same))}"
+    )
+
+
+def hidden_match(word: str, vocabulary: Sequence[str]) -> str | None:
+    """The word of ``vocabulary`` that is ``word`` but for the invisible format characters
+    (Unicode Cf) either holds, folded (:func:`fold_word`); None when there is none or neither
+    holds any (then ``word`` is looked up as it is)."""
+    bare = _without_format_characters(word.strip())
+    hidden = bool(format_characters(word))
+    return next((known for known in vocabulary if (hidden or format_characters(known))
+                 and _without_format_characters(known) == bare), None)  # fmt: skip
+
+
+def _without_format_characters(word: str) -> str:
+    """``word`` folded (:func:`fold_word`) without its format characters (Unicode Cf)."""
+    return fold_word("".join(c for c in word if unicodedata.category(c) != "Cf"))
 
 
 _UNSPACED_SCRIPTS = {"CJK": 6, "HIRAGANA": 6, "KATAKANA": 6, "THAI": 10, "LAO": 10, "KHMER": 10,

@@ -45,7 +45,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from spcopyro.data import CellCounts
-from spcopyro.data.text import fold_word, tokenize
+from spcopyro.data.text import fold_word, hidden_characters_note, hidden_match, tokenize
 from spcopyro.maps import OccupancyGrid
 
 __all__ = [
@@ -118,6 +118,9 @@ def word_index(vocabulary: tuple[str, ...], word: str) -> int:
             shown = KNOWN_WORDS_SHOWN
             more = f", ... ({len(known) - shown} more)" if len(known) > shown else ""
             hint = f"; known words: {', '.join(known[:shown])}{more}"
+        hidden = hidden_characters_note(word, vocabulary)  # 'kit\u200bchen' prints as kitchen
+        if hidden:
+            hint = f": {hidden}" + ("" if hidden_match(word, vocabulary) else hint)
         raise UnknownWordError(
             f"word {word!r} is not in the vocabulary of {len(vocabulary)} words{hint}"
         ) from None

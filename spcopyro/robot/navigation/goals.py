@@ -59,6 +59,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from spcopyro.data.text import hidden_characters_note, hidden_match
 from spcopyro.results.semantic_map import word_key
 from spcopyro.results.where import close_to_guess
 from spcopyro.robot.navigation.graph import PlanningGrid
@@ -162,15 +163,22 @@ _APOSTROPHES = str.maketrans({"\u2019": "'", "\u2018": "'", "\u02bc": "'", "\uff
 def _words(text: str) -> list[tuple[str, str]]:
     """The words of ``text`` as typed (NFC-composed), each with the text between it and the
     word before it: runs of letters, marks and digits of any script, ``_``, ``'`` and ``-`` (a
-    non-ASCII letter split ``café`` into ``caf``, and ``台所`` vanished)."""
+    non-ASCII letter split ``café`` into ``caf``, and ``台所`` vanished), with the invisible
+    format characters (Unicode Cf) inside them, as the data's tokens keep them (a zero-width
+    space split ``kit\u200bchen`` into ``kit`` and ``chen``, a Persian word at its zero-width
+    non-joiner)."""
     words, word, gap = [], [], []
     text = text.translate(_APOSTROPHES)  # "don’t", as phones and word processors type it
     for char in unicodedata.normalize("NFC", text) + " ":
-        if char in "_'-" or unicodedata.category(char)[0] in "LMN":
-            word.append(char)
+        category = unicodedata.category(char)
+        if char in "_'-" or category[0] in "LMN" or (word and category == "Cf"):
+            word.append(char)  # a format character inside a word stays, as tokenize keeps it
         elif word:
-            words.append(("".join(word), "".join(gap)))
-            word, gap = [], [char]
+            ends = len(word)  # a word's trailing format characters go to the gap after it
+            while unicodedata.category(word[ends - 1]) == "Cf":
+                ends -= 1
+            words.append(("".join(word[:ends]), "".join(gap)))
+            word, gap = [], [*word[ends:], char]
         else:
             gap.append(char)
     return words
@@ -272,6 +280,11 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
             continue
         if token not in known:
             close = difflib.get_close_matches(token, candidates, n=3)
+            if hidden_match(token, vocabulary):  # 'kit\u200bchen' prints as 'kitchen'
+                raise ValueError(
+                    f"word {words[k][0]!r} of the instruction is not in the fit's vocabulary "
+                    f"of {len(vocabulary)} words: {hidden_characters_note(words[k][0], vocabulary)}"
+                )
             if close:
                 raise ValueError(
                     f"word {token!r} of the instruction is not in the fit's vocabulary of "
