@@ -759,10 +759,9 @@ def test_no_free_cell_of_a_grid_edited_in_memory_blames_no_yaml_line(tmp_path: P
     assert "t.yaml:" not in str(info.value) and "check the map image" in str(info.value)
 
 
-def test_fit_refuses_a_map_without_free_cells_before_its_summary(tmp_path: Path, capsys) -> None:
-    """``spcopyro fit`` refuses before printing the summary (whose placement line listed every
-    observation as unplaced) and before the model's cells warn of leaving no free cell."""
-    from spcopyro.cli.main import main
+def _room_without_free_cells(tmp_path: Path) -> tuple[Path, Path, int]:
+    """A synthetic room folder whose map yaml says free_thresh 0.0 (no cell is free), without
+    its truth; its yaml's path and the 1-based line of free_thresh."""
     from spcopyro.synthetic import HouseSpec, write_synthetic
 
     room = write_synthetic(
@@ -773,7 +772,15 @@ def test_fit_refuses_a_map_without_free_cells_before_its_summary(tmp_path: Path,
     yaml_path = room.parent / "map" / f"{room.name}.yaml"
     text = yaml_path.read_text()
     yaml_path.write_text(text.replace("free_thresh: 0.196", "free_thresh: 0.0"))
-    line = 1 + text.split("\n").index("free_thresh: 0.196")
+    return room, yaml_path, 1 + text.split("\n").index("free_thresh: 0.196")
+
+
+def test_fit_refuses_a_map_without_free_cells_before_its_summary(tmp_path: Path, capsys) -> None:
+    """``spcopyro fit`` refuses before printing the summary (whose placement line listed every
+    observation as unplaced) and before the model's cells warn of leaving no free cell."""
+    from spcopyro.cli.main import main
+
+    room, yaml_path, line = _room_without_free_cells(tmp_path)
     out = tmp_path / "out"
     assert main(["fit", str(room), "--out", str(out), "--sweeps", "3", "--no-figures"]) == 2
     printed = capsys.readouterr()
@@ -787,17 +794,8 @@ def test_show_says_a_map_has_no_free_cell_in_place_of_placement(tmp_path: Path, 
     (with two warnings blaming the map's origin) where ``fit`` refuses it with the reason: show
     prints that reason in place of the placement lines, and still draws the house."""
     from spcopyro.cli.main import main
-    from spcopyro.synthetic import HouseSpec, write_synthetic
 
-    room = write_synthetic(
-        tmp_path / "data", seed=1, spec=HouseSpec(height=30, width=40, num_rooms=2)
-    )
-    for name in ("truth.npy", "categories.json"):
-        (room / name).unlink()
-    yaml_path = room.parent / "map" / f"{room.name}.yaml"
-    text = yaml_path.read_text()
-    yaml_path.write_text(text.replace("free_thresh: 0.196", "free_thresh: 0.0"))
-    line = 1 + text.split("\n").index("free_thresh: 0.196")
+    room, yaml_path, line = _room_without_free_cells(tmp_path)
     assert main(["show", str(room), "--out", str(tmp_path / "house.png")]) == 0
     printed = capsys.readouterr()
     assert "placement" not in printed.out and "unplaced" not in printed.err

@@ -362,12 +362,17 @@ def test_a_refinement_on_other_threads_says_so(
     assert torch.get_num_threads() == 2
 
 
-@pytest.mark.parametrize(("workers", "line", "ran"), [
+CHAIN_WORKERS_LINES = [
     ("2", "1 torch intra-op thread per chain, 2 chains side by side (policy: one each when "
           "chains run at once)", 1),
     ("1", "2 torch intra-op threads (policy: 54 free cells >= 10, other processes busy on 0.0 "
           "of 2 cores)", 2),
-])  # fmt: skip
+]  # fmt: skip
+"""--chain-workers, the threads line fit prints and the threads each chain ran (54 free cells
+counted as a large map, 2 usable cores, no other load, torch at 2 threads)."""
+
+
+@pytest.mark.parametrize(("workers", "line", "ran"), CHAIN_WORKERS_LINES)
 def test_fit_prints_the_threads_each_chain_ran(
     house_folder, tmp_path, fresh_load, monkeypatch, capsys, restore_threads, workers, line, ran
 ):
@@ -392,12 +397,7 @@ def test_fit_prints_the_threads_each_chain_ran(
     assert torch.get_num_threads() == 2
 
 
-@pytest.mark.parametrize(("workers", "line", "ran"), [
-    ("2", "1 torch intra-op thread per chain, 2 chains side by side (policy: one each when "
-          "chains run at once)", 1),
-    ("1", "2 torch intra-op threads (policy: 54 free cells >= 10, other processes busy on 0.0 "
-          "of 2 cores)", 2),
-])  # fmt: skip
+@pytest.mark.parametrize(("workers", "line", "ran"), CHAIN_WORKERS_LINES)
 def test_sweeps_auto_runs_chains_side_by_side_on_one_thread_each(
     house_folder, tmp_path, fresh_load, monkeypatch, capsys, restore_threads, workers, line, ran
 ):

@@ -31,8 +31,9 @@ from spcopyro.model import DTYPE, ModelData
 logger = logging.getLogger("spcopyro")
 
 FLAT_Q_SHARE = 0.9
-"""A q(C) whose mean entropy per cell is at least this share of log L ended near uniform (the
-threshold of SVI's own warning, :func:`spcopyro.guides.svi_method.warn_flat_q`)."""
+"""A q(C) whose mean entropy per cell is at least this share of log L ended near uniform: its
+map is the argmax of nearly flat marginals (:func:`flat_entropy`, the warnings of every
+variational method)."""
 
 
 @dataclass
@@ -223,10 +224,8 @@ def warn_flat_q(
     of log L, ARI 0.25 and 0.52). Why: :func:`spcopyro.guides.svi_method.warn_flat_q`.
     ``warm``: the run started from given labels or a resumed q."""
     L = q.shape[-1]
-    if L < 2 or short_runs_meant_now():
-        return False
-    entropy = mean_cell_entropy(q)
-    if entropy < FLAT_Q_SHARE * math.log(L):
+    entropy = flat_entropy(q)
+    if entropy is None:
         return False
     degree = int(config.connectivity)
     mean_field = method in ("CAVI", "memoized VI")  # LBP: stable on other terms
@@ -247,6 +246,17 @@ def warn_flat_q(
         method, entropy, 100 * entropy / math.log(L), math.log(L), why, "; or ".join(ways),
     )  # fmt: skip
     return True
+
+
+def flat_entropy(q: torch.Tensor) -> float | None:
+    """The mean entropy a cell of ``q`` ``[N, L]`` when it is at least :data:`FLAT_Q_SHARE`
+    of log L (q near uniform: the flat-q warnings of every variational method), else None;
+    None too at L < 2 and inside :func:`~spcopyro.inference.schedule.short_runs_meant`."""
+    L = q.shape[-1]
+    if L < 2 or short_runs_meant_now():
+        return None
+    entropy = mean_cell_entropy(q)
+    return entropy if entropy >= FLAT_Q_SHARE * math.log(L) else None
 
 
 def mean_cell_entropy(q: torch.Tensor, rows: int = 1 << 16) -> float:

@@ -36,17 +36,20 @@ from spcopyro.guides.mean_field import (
     RANDOM_START_SMOOTHING,
     MeanFieldGuide,
 )
-from spcopyro.guides.run import VariationalRun, initial_q, mean_cell_entropy, remaining, resumed
+from spcopyro.guides.run import (
+    VariationalRun,
+    flat_entropy,
+    initial_q,
+    remaining,
+    resumed,
+)
 from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
-from spcopyro.inference.schedule import short_runs_meant_now, warn_unfinished_annealing
+from spcopyro.inference.schedule import warn_unfinished_annealing
 from spcopyro.model import ModelData, spcomapping_model
 
 logger = logging.getLogger("spcopyro")
 
-FLAT_Q_SHARE = 0.9
-"""An SVI fit whose q(C) has a mean entropy per cell of at least this share of log L ends with a
-warning (:func:`warn_flat_q`): its map is the argmax of nearly flat marginals."""
 
 RANDOM_START_ANNEALING = 100
 """The annealing iterations of a random start (``SVIOptions.anneal_iterations`` None)."""
@@ -335,8 +338,9 @@ def warn_flat_q(
     given_start: bool = False,
 ) -> bool:
     r"""Warn (logger ``"spcopyro"``) when ``q`` ``[N, L]`` ends near uniform: a mean entropy
-    per cell of at least :data:`FLAT_Q_SHARE` of :math:`\log L`. Returns whether it warned
-    (never inside :func:`~spcopyro.inference.schedule.short_runs_meant`).
+    per cell of at least :data:`~spcopyro.guides.run.FLAT_Q_SHARE` of :math:`\log L`
+    (:func:`~spcopyro.guides.run.flat_entropy`). Returns whether it warned (never inside
+    :func:`~spcopyro.inference.schedule.short_runs_meant`).
 
     Why it happens (docs/variational.md, the SVI section): away from the observations the
     mean-field update of a cell is :math:`q_i \propto \exp(E\log\pi + \gamma \sum_{j \sim i}
@@ -349,10 +353,8 @@ def warn_flat_q(
     once (its colour-block update takes each cell to its neighbours' labels)."""
     options = options.for_start(given_start)  # what ran (None: the start's)
     L = q.shape[-1]
-    if L < 2 or short_runs_meant_now():
-        return False
-    entropy = mean_cell_entropy(q)
-    if entropy < FLAT_Q_SHARE * math.log(L):
+    entropy = flat_entropy(q)
+    if entropy is None:
         return False
     degree = int(config.connectivity)
     why = (f"gamma {config.gamma:g} < L / D = {L / degree:g}: mean field's disordered fixed "
