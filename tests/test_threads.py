@@ -372,6 +372,16 @@ CHAIN_WORKERS_LINES = [
 counted as a large map, 2 usable cores, no other load, torch at 2 threads)."""
 
 
+def _large_map_on_two_idle_cores(monkeypatch, threads_module) -> None:
+    """CHAIN_WORKERS_LINES' machine: chains on threads of this process (lighter here), the
+    54-cell house counted as a large map, 2 usable cores, no other load, torch at 2 threads."""
+    monkeypatch.setenv(spcopyro.gibbs.chains.PROCESSES_ENV, "off")
+    monkeypatch.setattr(threads_module, "MIN_CELLS_FOR_MORE_THREADS", 10)
+    monkeypatch.setattr(threads_module, "usable_cpus", lambda: 2)
+    monkeypatch.setattr(threads_module, "other_load", lambda: 0.0)
+    torch.set_num_threads(2)
+
+
 @pytest.mark.parametrize(("workers", "line", "ran"), CHAIN_WORKERS_LINES)
 def test_fit_prints_the_threads_each_chain_ran(
     house_folder, tmp_path, fresh_load, monkeypatch, capsys, restore_threads, workers, line, ran
@@ -382,11 +392,7 @@ def test_fit_prints_the_threads_each_chain_ran(
 
     from spcopyro.cli.main import main
 
-    monkeypatch.setenv(spcopyro.gibbs.chains.PROCESSES_ENV, "off")  # threads: lighter here
-    monkeypatch.setattr(fresh_load, "MIN_CELLS_FOR_MORE_THREADS", 10)  # 54 free cells: large
-    monkeypatch.setattr(fresh_load, "usable_cpus", lambda: 2)
-    monkeypatch.setattr(fresh_load, "other_load", lambda: 0.0)
-    torch.set_num_threads(2)
+    _large_map_on_two_idle_cores(monkeypatch, fresh_load)
     out = tmp_path / "fit"
     argv = ["fit", str(house_folder), "--out", str(out), "--sweeps", "2", "--chains", "2",
             "--chain-workers", workers, "--no-figures"]  # fmt: skip
@@ -425,11 +431,7 @@ def test_sweeps_auto_runs_chains_side_by_side_on_one_thread_each(
 
     monkeypatch.setattr(spcopyro.gibbs.convergence, "advance_chains", advance_chains)
     monkeypatch.setattr(spcopyro.gibbs.chains, "advance", advance)
-    monkeypatch.setenv(spcopyro.gibbs.chains.PROCESSES_ENV, "off")  # threads: lighter here
-    monkeypatch.setattr(fresh_load, "MIN_CELLS_FOR_MORE_THREADS", 10)  # 54 free cells: large
-    monkeypatch.setattr(fresh_load, "usable_cpus", lambda: 2)
-    monkeypatch.setattr(fresh_load, "other_load", lambda: 0.0)
-    torch.set_num_threads(2)
+    _large_map_on_two_idle_cores(monkeypatch, fresh_load)
     out = tmp_path / "fit"
     argv = ["fit", str(house_folder), "--out", str(out), "--sweeps", "auto", "--max-sweeps", "2",
             "--chains", "2", "--chain-workers", workers, "--no-figures"]  # fmt: skip
