@@ -22,7 +22,7 @@ import numpy as np
 
 from spcopyro._util.messages import echo
 from spcopyro.data.observations import DataFormatError
-from spcopyro.data.text import format_characters, tokenize, unsegmented
+from spcopyro.data.text import hidden_word_entries, tokenize, unsegmented
 
 logger = logging.getLogger("spcopyro")
 
@@ -229,7 +229,7 @@ def _read_utterances_line(path: Path) -> tuple[tuple[str, ...], ...]:
         )
     if not lines or not lines[0].strip():
         raise DataFormatError(path, "holds no words (empty vocabulary)")
-    utterances, unspaced, hidden = [], [], {}
+    utterances, unspaced = [], []
     for entry_number, entry in enumerate(lines[0].split(","), start=1):
         tokens = tokenize(entry)
         if not tokens:
@@ -238,16 +238,14 @@ def _read_utterances_line(path: Path) -> tuple[tuple[str, ...], ...]:
             )
         if any(unsegmented(token) for token in tokens):
             unspaced.append(f"utterance {entry_number} {echo(entry.strip())}")
-        for token in tokens:
-            if token not in hidden and (chars := format_characters(token)):
-                hidden[token] = f"{token!r} (utterance {entry_number}: {', '.join(chars)})"
         utterances.append(tokens)
+    hidden = hidden_word_entries(utterances, first_number=1)
     if hidden:  # 'kit\u200bchen' prints as 'kitchen' but is another word
         logger.warning(
             "%s, line 1: %d word(s) hold invisible format characters (Unicode category Cf), "
             "each read as a word apart from its letters without them: %s%s (kept: remove them "
             "where the language does not need them, as Persian needs its zero-width non-joiner)",
-            path, len(hidden), ", ".join(list(hidden.values())[:3]),
+            path, len(hidden), ", ".join(hidden[:3]),
             f", ... ({len(hidden) - 3} more)" if len(hidden) > 3 else "",
         )  # fmt: skip
     if unspaced:  # ここは台所です: one word, heard nowhere else (docs/data.md)

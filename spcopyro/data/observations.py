@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro._util.messages import echo
-from spcopyro.data.text import format_characters, tokenize
+from spcopyro.data.text import hidden_word_entries, tokenize
 
 logger = logging.getLogger("spcopyro")
 
@@ -239,17 +239,13 @@ def _warn_hidden_words(utterances: tuple[tuple[str, ...], ...]) -> None:
     """One warning naming the tokens of ``utterances`` that hold invisible format characters
     (Unicode category Cf; :func:`~spcopyro.data.text.format_characters`): ``'kit\u200bchen'``
     prints as ``'kitchen'`` but is a word apart from it."""
-    hidden: dict[str, str] = {}
-    for u, tokens in enumerate(utterances):
-        for token in tokens:
-            if token not in hidden and (chars := format_characters(token)):
-                hidden[token] = f"{token!r} (utterance {u}: {', '.join(chars)})"
+    hidden = hidden_word_entries(utterances)
     if hidden:
         logger.warning(
             "Observations: %d word(s) of the utterances hold invisible format characters "
             "(Unicode category Cf), each a word apart from its letters without them: %s%s "
             "(kept: remove them where the language does not need them)",
-            len(hidden), ", ".join(list(hidden.values())[:3]),
+            len(hidden), ", ".join(hidden[:3]),
             f", ... ({len(hidden) - 3} more)" if len(hidden) > 3 else "",
         )  # fmt: skip
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import string
 import unicodedata
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 
@@ -21,6 +21,7 @@ __all__ = [
     "fold_word",
     "format_characters",
     "hidden_characters_note",
+    "hidden_word_entries",
     "hidden_match",
     "tfidf_weights",
     "tokenize",
@@ -83,6 +84,19 @@ def format_characters(token: str) -> tuple[str, ...]:
     """
     found = (char for char in token if unicodedata.category(char) == "Cf")
     return tuple(dict.fromkeys(f"U+{ord(c):04X} {unicodedata.name(c, 'unnamed')}" for c in found))
+
+
+def hidden_word_entries(utterances: Iterable[Sequence[str]], first_number: int = 0) -> list[str]:
+    """Each token of ``utterances`` that holds invisible format characters
+    (:func:`format_characters`), once, in order of first use, as ``"'kit\u200bchen' (utterance
+    3: U+200B ZERO WIDTH SPACE)"``; utterances numbered from ``first_number`` (the St.csv
+    reader's 1, :class:`~spcopyro.data.observations.Observations`' 0)."""
+    hidden: dict[str, str] = {}
+    for number, tokens in enumerate(utterances, start=first_number):
+        for token in tokens:
+            if token not in hidden and (chars := format_characters(token)):
+                hidden[token] = f"{token!r} (utterance {number}: {', '.join(chars)})"
+    return list(hidden.values())
 
 
 def hidden_characters_note(word: str, vocabulary: Sequence[str]) -> str | None:
