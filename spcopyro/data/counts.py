@@ -329,7 +329,6 @@ def cell_counts(
                 f"{obs.num_utterances} utterances"
             )
     features = scale_features(obs.image_features, feature_scaling)  # [T, K]
-    scaled_away = _scaled_away(obs.image_features, features)  # [n] images left with nothing
     if word_weighting == "count":
         words = word_matrix(obs.utterances, vocab)  # [U, V]
     else:
@@ -361,6 +360,7 @@ def cell_counts(
             plain, grid, obs, features, words, placed, footprint_radius, footprint_kernel,
             footprint_fov,
         ))  # fmt: skip
+    scaled_away = _scaled_away(obs.image_features, features)  # [n] images left with nothing
     if warn:
         _warn_scaled_away(obs.image_features, scaled_away, feature_scaling, source)
     image_ok = image_cell >= 0  # [T] bool
