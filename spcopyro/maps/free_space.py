@@ -17,7 +17,13 @@ import numpy as np
 
 from spcopyro._util.messages import echo
 from spcopyro.maps.grid import OccupancyGrid
-from spcopyro.maps.map_server import PGM_UNKNOWN, MapFormatError, _read_levels, _read_map_yaml
+from spcopyro.maps.map_server import (
+    PGM_UNKNOWN,
+    MapFormatError,
+    _occupancy,
+    _read_levels,
+    _read_map_yaml,
+)
 
 __all__ = ["check_free_cells", "no_free_cell_reason"]
 
@@ -40,11 +46,10 @@ def no_free_cell_reason(grid: OccupancyGrid) -> str:
         levels, full = _read_levels(spec)  # [H, W] or [H, W, C]
     except (MapFormatError, OSError):
         return _GENERIC
-    grey = levels if levels.ndim == 2 else levels.mean(axis=2)  # [H, W] as load_map averages
-    p = grey / full if spec.negate else (full - grey) / full  # [H, W]
+    grey, p = _occupancy(levels, full, spec.negate)  # [H, W] each, as load_map reads them
     if np.any(p < spec.free_thresh):  # the grid is not the yaml's as it reads now (edited)
         return _GENERIC
-    flipped = (full - grey) / full if spec.negate else grey / full  # [H, W] the other negate
+    flipped = _occupancy(levels, full, not spec.negate)[1]  # [H, W] the other negate
     low, high = float(grey.min()), float(grey.max())
     formula = f"grey / {full:g}" if spec.negate else f"({full:g} - grey) / {full:g}"
     reason = (

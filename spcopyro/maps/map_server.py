@@ -459,8 +459,7 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
             "semantic map saved by save_label_map_server with load_label_map_server"
         )
     levels, full = _read_levels(spec)  # [H, W] or [H, W, C]
-    value = levels if levels.ndim == 2 else levels.mean(axis=2)  # [H, W]
-    p = value / full if spec.negate else (full - value) / full  # [H, W] occupancy probability
+    value, p = _occupancy(levels, full, spec.negate)  # [H, W] each
     occupancy = np.full(p.shape, UNKNOWN, dtype=np.int8)  # [H, W]
     occupancy[p > spec.occupied_thresh] = OCCUPIED
     occupancy[p < spec.free_thresh] = FREE
@@ -472,6 +471,12 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
         unknown = _unknown_grey(grey, full) & grid.free  # [H, W] bool
         _warn_unknown_read_as_free(spec, int(np.count_nonzero(unknown)), alpha, full)
     return grid
+
+
+def _occupancy(levels: np.ndarray, full: float, negate: bool) -> tuple[np.ndarray, np.ndarray]:
+    """(``[H, W]`` grey, averaged over a colour image's channels; ``[H, W]`` occupancy ``p``)."""
+    grey = levels if levels.ndim == 2 else levels.mean(axis=2)  # [H, W]
+    return grey, grey / full if negate else (full - grey) / full
 
 
 def _unknown_grey(grey: np.ndarray, full: float) -> np.ndarray:
