@@ -54,11 +54,13 @@ def floor100_note(features, out: str | Path) -> str | None:
     below 0.01 (``--weights random``: all of them), which floor(100 f) makes an all-zero row."""
     import numpy as np
 
+    from spcopyro.data.counts import scale_features
+
     f = np.asarray(features, dtype=np.float64)  # [T, K]
     if f.size == 0:
         return None
     total = f.sum(axis=1)  # [T]
-    kept = np.floor(100.0 * f).sum(axis=1) / 100.0  # [T] mass left by floor(100 f)
+    kept = scale_features(f, "floor100").sum(axis=1) / 100.0  # [T] mass left by floor(100 f)
     share = np.divide(kept, total, out=np.ones_like(total), where=total > 0)  # [T]
     empty = np.flatnonzero((kept == 0) & (total > 0))  # [n] rows floor(100 f) empties
     median = float(np.median(share))
