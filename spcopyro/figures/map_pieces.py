@@ -49,6 +49,7 @@ __all__ = [
     "house_title",
     "is_wide",
     "map_legend",
+    "markers_counted",
     "map_strips",
     "place_labels",
     "region_text",
@@ -280,6 +281,26 @@ def _free_area_shown(ax: Axes, grid: OccupancyGrid) -> float:
     return float(shown.sum() * side[0, 0] * side[0, 1])
 
 
+def _crowding(ax: Axes, grid: OccupancyGrid, xy: np.ndarray) -> tuple[np.ndarray, int, float]:
+    """``(pixels [U, 2], n, cover)``: the world points ``xy`` ``[U, 2]`` in ``ax``'s pixels, how
+    many of them it shows, and the points^2 that ``MAX_MARKER_COVER`` of the free space shown
+    makes (:func:`utterance_markers`)."""
+    inch = ax.figure.dpi / 72.0  # pixels per point
+    cover = MAX_MARKER_COVER * _free_area_shown(ax, grid) / inch**2  # points^2 (aspect applied)
+    pixels = ax.transData.transform(xy)  # [U, 2]
+    x0, y0, x1, y1 = ax.bbox.extents  # the axes in pixels
+    in_view = (pixels[:, 0] >= x0) & (pixels[:, 0] <= x1) & (pixels[:, 1] >= y0) & (
+        pixels[:, 1] <= y1)  # fmt: skip
+    return pixels, int(in_view.sum()), cover
+
+
+def markers_counted(ax: Axes, grid: OccupancyGrid, xy: np.ndarray) -> bool:
+    """Whether :func:`utterance_markers` of the utterances at ``xy`` ``[U, 2]`` on ``ax`` draws
+    circles of area by count (too many for one circle each), without grouping them."""
+    _, n, cover = _crowding(ax, grid, xy)
+    return n * MARKER_AREA > cover
+
+
 def utterance_markers(
     ax: Axes, grid: OccupancyGrid, xy: np.ndarray, concepts: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
@@ -298,12 +319,7 @@ def utterance_markers(
     where the floor allows: each lone word still shows (with a word in nearly every square the
     floor wins: 10^5 utterances spread over a 3.1 m x 1 m map cover 15% of it)."""
     inch = ax.figure.dpi / 72.0  # pixels per point
-    cover = MAX_MARKER_COVER * _free_area_shown(ax, grid) / inch**2  # points^2 (aspect applied)
-    pixels = ax.transData.transform(xy)  # [U, 2]
-    x0, y0, x1, y1 = ax.bbox.extents  # the axes in pixels
-    in_view = (pixels[:, 0] >= x0) & (pixels[:, 0] <= x1) & (pixels[:, 1] >= y0) & (
-        pixels[:, 1] <= y1)  # fmt: skip
-    n = int(in_view.sum())
+    pixels, n, cover = _crowding(ax, grid, xy)
     if n * MARKER_AREA <= cover:
         return xy, concepts, np.full(len(xy), MARKER_AREA), None
     width = np.sqrt(MARKER_AREA) * inch  # pixels: one circle's diameter

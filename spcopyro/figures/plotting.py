@@ -43,11 +43,11 @@ from spcopyro.figures.map_pieces import (
     draw_utterances,
     house_title,
     map_legend,
+    markers_counted,
     place_labels,
     region_text,
     rim_colours,
     spread_markers,
-    utterance_markers,
     utterance_marks,
 )
 from spcopyro.figures.png import save_png
@@ -138,7 +138,7 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     order = np.argsort(kind, kind="stable")  # named words keep their places first
     size = 28.0
     xy = np.asarray(obs.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
-    counted = utterance_markers(axes[0], grid, xy, kind)[3] is not None  # too many to spread
+    counted = markers_counted(axes[0], grid, xy)  # too many to spread
     shown = np.empty_like(xy)
     shown[order] = xy[order] if counted else spread_markers(axes[0], xy[order], size)
     rest = kind == len(frequent)
