@@ -407,11 +407,12 @@ class SVIInference(InferenceMethod):
         )
         # given start labels (a resumed run's too: its start's): smoothed by 0.05 and not
         # annealed unless set, recorded as what the start ran with
-        ran = options.for_start(given_start=request.init_labels is not None)
+        given = request.init_labels is not None
+        ran = options.for_start(given_start=given)
         run = fit_svi(
             data, config, remaining(request), q=q, generator=request.generator,
             options=ran, progress=request.progress, thin=request.thin, resume=before,
-            given_start=request.init_labels is not None,
+            given_start=given,
         )  # fmt: skip
         record = {"iterations": request.iterations, **dataclasses.asdict(ran)}
         return output_from_variational(run, record)
