@@ -291,7 +291,7 @@ def chunked_coefficients(
     for modality in data.modalities:
         if config.uses(modality.name):
             counts = modality.counts  # [M, K_m]
-            rows = max(1, CHUNK // counts.shape[-1])  # about CHUNK numbers a chunk
+            rows = _chunk_rows(counts)
             span = rows * max(1, COEFFICIENT_BLOCK // (rows * counts.shape[-1]))  # whole chunks
             for lo in range(0, counts.shape[0], span):
                 block = counts[lo : lo + span]  # [b, K_m]
@@ -304,10 +304,16 @@ def chunked_coefficients(
     return torch.tensor(total, dtype=DTYPE)
 
 
+def _chunk_rows(counts: torch.Tensor) -> int:
+    """Rows of ``counts`` ``[M, K_m]`` in a chunk of :func:`chunked_coefficients`: about
+    :data:`CHUNK` numbers."""
+    return max(1, CHUNK // counts.shape[-1])
+
+
 def _coefficient_chunks(data: ModelData, config: SpCoConfig) -> int:
     """How many chunks :func:`chunked_coefficients` sums."""
     return sum(
-        -(-m.counts.shape[0] // max(1, CHUNK // m.counts.shape[-1]))
+        -(-m.counts.shape[0] // _chunk_rows(m.counts))
         for m in data.modalities
         if config.uses(m.name)
     )
