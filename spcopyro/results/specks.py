@@ -88,9 +88,11 @@ def speck_support(result: ResultView, concepts: list[int]) -> np.ndarray | None:
     :func:`~spcopyro.results.point_estimate.agreement_probability`) where it has one, else its
     marginals (aligned sample frequencies, or a variational q). None when it has neither."""
     per_cell = _per_cell(result)
-    if per_cell is None:
-        return None
-    labels = np.asarray(result.labels)  # [N]
+    return None if per_cell is None else _support(per_cell, np.asarray(result.labels), concepts)
+
+
+def _support(per_cell: np.ndarray, labels: np.ndarray, concepts: list[int]) -> np.ndarray:
+    """:func:`speck_support` of the per-cell probabilities ``per_cell`` [N] and ``labels`` [N]."""
     return np.array([per_cell[labels == c].mean() for c in concepts], dtype=np.float64)
 
 
@@ -102,13 +104,13 @@ def support_text(result: ResultView, concepts: list[int]) -> str | None:
     per_cell = _per_cell(result) if concepts else None
     if per_cell is None:
         return None
-    support = speck_support(result, concepts)
-    assert support is not None
+    labels = np.asarray(result.labels)  # [N]
+    support = _support(per_cell, labels, concepts)
     low, high = round(100 * support.min()), round(100 * support.max())
     share = f"{low}%" if low == high else f"{low}-{high}%"
     if len(concepts) > 4 and high - low >= 10:
         share += f" (median {round(100 * float(np.median(support)))}%)"
-    others = ~np.isin(np.asarray(result.labels), concepts)  # [N] cells of the other concepts
+    others = ~np.isin(labels, concepts)  # [N] cells of the other concepts
     rest = ""
     if others.any():
         rest = f", the other concepts' cells {round(100 * per_cell[others].mean())}%"
