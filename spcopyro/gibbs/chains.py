@@ -30,17 +30,10 @@ from contextlib import contextmanager
 from tqdm.auto import tqdm
 
 from spcopyro._util.progress import progress_enabled
+from spcopyro._util.threads import usable_cpus
 from spcopyro.gibbs.run import ChainsStopped, GibbsChain, advance, compile_note
 
 AUTO = "auto"
-
-
-def usable_cpus() -> int:
-    """The CPUs this process may run on (its affinity mask where the OS has one)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not Linux
-        return os.cpu_count() or 1
 
 
 def resolve_workers(workers: int | str | None, num_chains: int) -> int:

@@ -47,6 +47,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from numba import njit
 
+from spcopyro._util.threads import usable_cpus
 from spcopyro.gibbs.numba_random import bits_to_uniform, marsaglia_tsang, next_bits
 
 __all__ = [
@@ -337,13 +338,6 @@ def prior_thread(mode: str | None = None) -> str:
     return _mode
 
 
-def _usable_cpus() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not Linux
-        return os.cpu_count() or 1
-
-
 def two_part() -> bool:
     """Whether the compiled sweep draws its globals in two parts (:func:`prior_thread`)."""
     return _mode in _MODES and _mode != "one-pass"
@@ -352,7 +346,7 @@ def two_part() -> bool:
 def _use_worker() -> bool:
     if _mode in ("off", "one-pass") or _mode not in _MODES:
         return False
-    return _mode == "on" or 2 * _active <= _usable_cpus()
+    return _mode == "on" or 2 * _active <= usable_cpus()
 
 
 def _serve() -> None:

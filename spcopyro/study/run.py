@@ -50,7 +50,7 @@ from spcopyro._util.interrupts import signals_deferred
 from spcopyro._util.messages import plural
 from spcopyro._util.outputs import check_folder_path
 from spcopyro._util.progress import progress_enabled
-from spcopyro.gibbs.chains import usable_cpus
+from spcopyro._util.threads import usable_cpus
 from spcopyro.study import evaluate
 from spcopyro.study.cells import Cell, cells_of, source_digest
 from spcopyro.study.local_cluster import PRE_SPAWN_ENVIRON, ClusterStart
