@@ -41,17 +41,15 @@ import numpy as np
 
 from spcopyro._util.messages import echo
 from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
+from spcopyro.maps.map_image import _read_image, _write_image
 from spcopyro.maps.map_server import (
     SAVE_FREE_THRESH,
     SAVE_OCCUPIED_THRESH,
-    MapFormatError,
-    _read_image,
-    _read_map_yaml,
-    _write_image,
     _write_map_yaml,
     _yaml_target,
     trinary_pixels,
 )
+from spcopyro.maps.map_yaml import MapFormatError, _read_map_yaml
 
 __all__ = [
     "MASK_FREE_THRESH",

@@ -17,13 +17,9 @@ import numpy as np
 
 from spcopyro._util.messages import echo
 from spcopyro.maps.grid import OccupancyGrid
-from spcopyro.maps.map_server import (
-    PGM_UNKNOWN,
-    MapFormatError,
-    _occupancy,
-    _read_levels,
-    _read_map_yaml,
-)
+from spcopyro.maps.map_image import _read_levels
+from spcopyro.maps.map_server import PGM_UNKNOWN, _occupancy
+from spcopyro.maps.map_yaml import MapFormatError, _read_map_yaml
 
 __all__ = ["check_free_cells", "no_free_cell_reason"]
 

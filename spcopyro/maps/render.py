@@ -19,15 +19,9 @@ from typing import Any
 import numpy as np
 
 from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
-from spcopyro.maps.map_server import (
-    MapFileNotFoundError,
-    MapFormatError,
-    _read_image,
-    _read_map_yaml,
-    _write_image,
-    _write_map_yaml,
-    _yaml_target,
-)
+from spcopyro.maps.map_image import _read_image, _write_image
+from spcopyro.maps.map_server import _write_map_yaml, _yaml_target
+from spcopyro.maps.map_yaml import MapFileNotFoundError, MapFormatError, _read_map_yaml
 
 logger = logging.getLogger(__name__)
 

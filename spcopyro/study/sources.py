@@ -24,7 +24,7 @@ from spcopyro.data.dataset import is_house_folder
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
 from spcopyro.maps import load_map
-from spcopyro.maps.map_server import MapFormatError, _read_map_yaml
+from spcopyro.maps.map_yaml import MapFormatError, _read_map_yaml
 from spcopyro.robot.map_simulation import simulate_on_map
 from spcopyro.study.spec import DataSource
 from spcopyro.synthetic import make_house

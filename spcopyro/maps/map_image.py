@@ -1,0 +1,142 @@
+"""ROS map_server images: decoding a map's image (pgm, png, ... at 8 or 16 bits) as map_server
+scales it, and encoding one.
+
+``_read_levels`` gives the pixels and the full scale map_server divides them by (a netpbm
+image's maxval, else 255, or 65535 for a 16-bit png); ``_read_image`` the 8-bit codes of a
+mask or semantic map. Errors name the yaml's ``image`` line and the image file. OpenCV is
+imported where an image is read or written.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+
+from spcopyro._util.messages import echo
+from spcopyro.maps.map_yaml import MapFileNotFoundError, MapFormatError, _MapYaml
+
+__all__: list[str] = []
+
+
+def _pnm_maxval(head: bytes) -> int | None:
+    """The maxval of a grey or colour netpbm image (P2, P3, P5, P6) from its first bytes, or None
+    (another format, or a header that does not parse)."""
+    if head[:2] not in (b"P2", b"P3", b"P5", b"P6"):
+        return None
+    tokens = re.sub(rb"#[^\n\r]*", b" ", head[2:]).split()  # width, height, maxval
+    return int(tokens[2]) if len(tokens) > 2 and tokens[2].isdigit() else None
+
+
+def _decode(spec: _MapYaml) -> tuple[np.ndarray, int | None]:
+    """The map image as OpenCV decodes it (any depth, OpenCV channel order) and, for a netpbm
+    image, the maxval its header gives (None for other formats)."""
+    if not spec.image.is_file():  # a hint where map_saver's path is wrong but the image is here
+        beside = spec.path.parent / spec.image.name
+        hint = (
+            f"; {str(beside)!r}, beside the yaml, has its name: map_saver writes the path it "
+            "was given (-f, map_url), which breaks when the map moves or that path has a "
+            f"folder (map_server fails too): write image: {spec.image.name}"
+            if beside.is_file()
+            else ""
+        )
+        raise MapFileNotFoundError(
+            f"{spec.where('image')}: key 'image': image file {str(spec.image)!r} not found{hint}"
+        )
+    import cv2
+
+    data = np.fromfile(spec.image, dtype=np.uint8)
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # the error below says it
+    try:
+        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    finally:
+        cv2.utils.logging.setLogLevel(level)
+    if img is None:
+        raise MapFormatError(
+            f"{spec.where('image')}: key 'image': {str(spec.image)!r} is not a readable image"
+        )
+    if img.ndim not in (2, 3) or img.shape[0] == 0 or img.shape[1] == 0:
+        raise MapFormatError(
+            f"{spec.where('image')}: key 'image': "
+            f"{str(spec.image)!r} has unsupported shape {img.shape}"
+        )
+    maxval = _pnm_maxval(data[:4096].tobytes())
+    if maxval is not None and maxval < 255 and data[:2].tobytes() in (b"P2", b"P3"):
+        img = _plain_pnm_levels(spec, data.tobytes(), img.shape)
+    return img, maxval
+
+
+def _plain_pnm_levels(spec: _MapYaml, text: bytes, shape: tuple[int, ...]) -> np.ndarray:
+    """A plain (ASCII) P2 / P3 image's own levels, uint8 of OpenCV's ``shape`` (a P3 in its
+    BGR order): for a maxval below 255 OpenCV returns them scaled up to 0..255 (those of a binary
+    P5 / P6 it leaves as they are), which map_server's division by maxval would count twice."""
+    tokens = re.sub(rb"#[^\n\r]*", b" ", text[2:]).split()  # width, height, maxval, levels
+    count, maxval = math.prod(shape), int(tokens[2])
+    words = tokens[3 : 3 + count]
+    levels = [int(t) if t.isdigit() else -1 for t in words]
+    bad = next((t for t, v in zip(words, levels, strict=True) if not 0 <= v <= maxval), None)
+    if bad is not None:
+        raise MapFormatError(
+            f"{spec.where('image')}: key 'image': {str(spec.image)!r}: level "
+            f"{echo(bad.decode(errors='replace'))} is not in 0..{maxval}"
+        )
+    if len(levels) != count:
+        raise MapFormatError(
+            f"{spec.where('image')}: key 'image': {str(spec.image)!r} holds {len(levels)} "
+            f"levels, its header {count}"
+        )
+    levels = np.array(levels, dtype=np.uint8).reshape(shape)  # [H, W] or [H, W, 3]
+    return levels[..., ::-1].copy() if levels.ndim == 3 else levels  # RGB -> OpenCV's BGR
+
+
+def _read_image(spec: _MapYaml) -> np.ndarray:
+    """The map image as uint8 ``[H, W]`` (grey) or ``[H, W, C]`` (colour, OpenCV channel order):
+    the readers of masks and semantic maps, whose values are 8-bit codes."""
+    img, maxval = _decode(spec)
+    if img.dtype == np.uint8 and maxval not in (None, 255):
+        raise MapFormatError(
+            f"{spec.where('image')}: key 'image': "
+            f"{str(spec.image)!r} has maxval {maxval}; only 255 is "
+            "supported here (map_server scales the pixels by maxval, OpenCV does not: "
+            "save the image with maxval 255)"
+        )
+    if img.dtype != np.uint8:
+        raise MapFormatError(
+            f"{spec.where('image')}: key 'image': "
+            f"{str(spec.image)!r} has {img.dtype} pixels; only 8-bit "
+            "images are supported here"
+        )
+    return img
+
+
+def _read_levels(spec: _MapYaml) -> tuple[np.ndarray, float]:
+    """The map image's pixels (``[H, W]`` or ``[H, W, C]`` float64) and the full scale map_server
+    divides them by: a netpbm image's maxval (any, 8 or 16 bits), else 255 for 8-bit and 65535
+    for 16-bit images (a 16-bit png); other depths are refused."""
+    img, maxval = _decode(spec)
+    if img.dtype not in (np.uint8, np.uint16):
+        raise MapFormatError(
+            f"{spec.where('image')}: key 'image': "
+            f"{str(spec.image)!r} has {img.dtype} pixels; only 8- and "
+            "16-bit images are supported"
+        )
+    full = maxval if maxval is not None else 255 if img.dtype == np.uint8 else 65535
+    if not 0 < full <= np.iinfo(img.dtype).max:
+        raise MapFormatError(
+            f"{spec.where('image')}: key 'image': "
+            f"{str(spec.image)!r} has maxval {full}, which its "
+            f"{img.dtype} pixels cannot hold"
+        )
+    return img.astype(np.float64), float(full)
+
+
+def _write_image(path: Path, img: np.ndarray) -> None:
+    import cv2
+
+    ok, buf = cv2.imencode(path.suffix, img)
+    if not ok:
+        raise OSError(f"{path}: OpenCV could not encode the image")
+    path.write_bytes(buf.tobytes())

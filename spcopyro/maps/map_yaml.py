@@ -1,0 +1,276 @@
+"""ROS map_server yaml files: parsing and validating one (``_read_map_yaml``).
+
+The one reader of a map's yaml for every map loader of the package (:func:`~spcopyro.maps.load_map`,
+:func:`~spcopyro.maps.load_filter_mask`, :func:`~spcopyro.maps.load_label_map_server`): it reads
+the keys as map_server reads them (yaml-cpp: ``5e-2`` and quoted numbers are numbers, a tab after
+``key:`` is a space, ``negate`` may be a yaml-cpp boolean) and refuses, naming the file, the line,
+the key and the value, what map_server refuses or what would make the map meaningless. Its
+warnings go to the logger ``spcopyro.maps.map_server``, :func:`~spcopyro.maps.load_map`'s.
+"""
+
+from __future__ import annotations
+
+import difflib
+import functools
+import logging
+import math
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from spcopyro._util.messages import echo
+
+logger = logging.getLogger("spcopyro.maps.map_server")  # load_map's logger, as documented there
+
+__all__ = ["MAX_YAW_NOISE", "PLAUSIBLE_RESOLUTION", "MapFileNotFoundError", "MapFormatError"]
+
+_REQUIRED_KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
+_KNOWN_KEYS = (*_REQUIRED_KEYS, "mode")
+
+MAX_YAW_NOISE = 1e-6
+"""Radians: an origin yaw this small is read as 0 (a quaternion's float noise, as a mapping
+package may save it): it turns a cell 1 km from the origin by 1 mm. A larger yaw is refused
+(rotated maps are not supported)."""
+
+PLAUSIBLE_RESOLUTION = (1e-3, 2.0)
+"""Metres: :func:`load_map` warns of a ``resolution`` outside this range, naming the yaml's line
+and the value: a cell wider than 2 m holds a room (a fit's coarse model cells, ``--cell-size``,
+may be 1 or 2 m; its map.yaml loads without a word), and a robot's map is usually 0.05 m a cell
+(one of 50 or 5 is 0.05 written in millimetres or centimetres)."""
+
+
+class MapFormatError(ValueError):
+    """A map yaml or image is malformed; the message names the file (and the key and value)."""
+
+
+class MapFileNotFoundError(MapFormatError, FileNotFoundError):
+    """A map yaml or the image it names does not exist."""
+
+
+# ---------------------------------------------------------------------- yaml parsing
+@functools.cache
+def _map_yaml_loader() -> type:
+    """PyYAML's safe loader, also reading ``5e-2`` and ``1E3`` as floats (YAML 1.2, yaml-cpp and
+    so map_server do; YAML 1.1 wants a dot, so PyYAML reads them as strings)."""
+    import yaml
+
+    loader = type("_MapYamlLoader", (yaml.SafeLoader,), {})
+    loader.add_implicit_resolver(
+        "tag:yaml.org,2002:float",
+        re.compile(r"^[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)[eE][-+]?[0-9]+$"),
+        list("-+0123456789."),
+    )
+    return loader
+
+
+@dataclass(frozen=True)
+class _MapYaml:
+    path: Path
+    image: Path
+    resolution: float
+    origin: tuple[float, float, float]
+    negate: bool
+    occupied_thresh: float
+    free_thresh: float
+    mode: str
+    lines: dict[str, int] = field(default_factory=dict, compare=False)
+    """Line of each key in the yaml (1-based)."""
+
+    def where(self, key: str) -> str:
+        """``YAML:LINE`` of ``key``, or the yaml alone where the key is absent."""
+        return f"{self.path}:{self.lines[key]}" if key in self.lines else str(self.path)
+
+
+def _close_key(key: Any) -> str | None:
+    """The map_server key that ``key``, not one of them, looks like a misspelling of
+    (``mdoe``, ``Mode``, ``occupied_tresh``), or None."""
+    close = difflib.get_close_matches(str(key).lower(), _KNOWN_KEYS, n=1, cutoff=0.75)
+    return close[0] if close else None
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _is_nan(value: Any) -> bool:
+    """``nan``, ``-nan``, ``.nan`` (any case) as yaml reads them: a float nan or the text."""
+    if isinstance(value, float):
+        return math.isnan(value)
+    return isinstance(value, str) and value.strip().lstrip("+-").lower() in ("nan", ".nan")
+
+
+_QUOTED_NUMBER = re.compile(r"^[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?$")
+
+
+def _unquoted(value: Any) -> Any:
+    """A quoted number (``resolution: "0.05"``) as the number: map_server reads values with
+    yaml-cpp's ``as<double>()`` / ``as<int>()``, which convert a scalar's text whether or not it
+    was quoted. Anything else unchanged (and refused by the checks that follow)."""
+    if isinstance(value, str) and _QUOTED_NUMBER.match(value):
+        number = float(value)
+        return int(number) if re.fullmatch(r"[-+]?[0-9]+", value) else number
+    return value
+
+
+_YAML_CPP_BOOLS = {
+    text: word in ("y", "yes", "true", "on")
+    for word in ("y", "yes", "true", "on", "n", "no", "false", "off")
+    for text in (word, word.upper(), word.capitalize())
+}
+"""The texts yaml-cpp's ``as<bool>()`` reads (quoted or not): Nav2's map_io reads ``negate`` as
+an int, else as a bool, so ``negate: "true"`` or ``negate: y`` (a string to PyYAML) negate there.
+(ROS 1's map_server reads only an int: ``negate: true`` fails there.)"""
+
+
+_SEPARATING_TABS = re.compile(r"(?<=[:,\[\]])[ \t]*\t[ \t]*|[ \t]*\t[ \t]*(?=#|$)", re.MULTILINE)
+"""Runs of blanks holding a tab after a key's or a flow list's separator, or before a comment or
+a line's end: white space to yaml-cpp, an error to PyYAML (tabs that indent are not YAML)."""
+
+
+def _parse_yaml(text: str) -> tuple[Any, Any]:
+    """(the root node, the document) of a map yaml; yaml.YAMLError if it does not parse."""
+    import yaml
+
+    return yaml.compose(text, Loader=_map_yaml_loader()), yaml.load(text, Loader=_map_yaml_loader())
+
+
+def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
+    """Parse and validate a map_server yaml; errors name the file, line, key and value."""
+    import yaml
+
+    path = Path(yaml_path)
+    if not path.is_file():
+        raise MapFileNotFoundError(f"{path}: map yaml not found")
+    if path.suffix.lower() in (".pgm", ".png", ".bmp", ".jpg", ".jpeg", ".tif", ".tiff"):
+        raise MapFormatError(f"{path}: the map's image; give its yaml (the file that names "
+                             "this image, its resolution and origin)")  # fmt: skip
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as err:
+        raise MapFormatError(f"{path}: cannot read map yaml: {err}") from err
+    try:
+        root, doc = _parse_yaml(text)
+    except yaml.YAMLError as err:
+        untabbed = _SEPARATING_TABS.sub(lambda m: m.group().replace("\t", " "), text)
+        try:  # PyYAML refuses a tab after "key:", which yaml-cpp (map_server) reads as a space
+            root, doc = _parse_yaml(untabbed)
+        except yaml.YAMLError:
+            raise MapFormatError(f"{path}: invalid yaml: {err}") from err
+    if not isinstance(doc, dict) or not isinstance(root, yaml.MappingNode):
+        raise MapFormatError(
+            f"{path}: map yaml must be a mapping of keys to values, got {type(doc).__name__}"
+        )
+    lines: dict[Any, int] = {}
+    for key_node, _ in root.value:
+        if not isinstance(key_node, yaml.ScalarNode):
+            raise MapFormatError(
+                f"{path}:{key_node.start_mark.line + 1}: map yaml keys must be plain names"
+            )
+        key = key_node.value
+        if key in lines:
+            raise MapFormatError(
+                f"{path}:{key_node.start_mark.line + 1}: duplicate key {echo(key)} "
+                f"(first at line {lines[key]})"
+            )
+        lines[key] = key_node.start_mark.line + 1
+
+    def where(key: str) -> str:
+        return f"{path}:{lines[key]}" if key in lines else str(path)
+
+    misspelt = {
+        key: close
+        for key in doc
+        if key not in _KNOWN_KEYS and (close := _close_key(key)) is not None
+    }
+    for key in _REQUIRED_KEYS:
+        if key not in doc:
+            typo = [f"{where(k)} has {echo(k)}" for k, close in misspelt.items() if close == key]
+            hint = f" ({', '.join(typo)}: misspelt?)" if typo else ""
+            raise MapFormatError(f"{path}: missing required key {key!r}{hint}")
+    for key, close in misspelt.items():
+        logger.warning(
+            "%s: unknown key %s ignored, as map_server ignores it: did you mean %r?",
+            where(key), echo(key), close,
+        )  # fmt: skip
+
+    for key in ("resolution", "negate", "occupied_thresh", "free_thresh"):
+        doc[key] = _unquoted(doc[key])
+    if isinstance(doc["origin"], list):
+        doc["origin"] = [_unquoted(v) for v in doc["origin"]]
+
+    def bad(key: str, expected: str) -> MapFormatError:
+        return MapFormatError(f"{where(key)}: key {key!r} must be {expected}, got {echo(doc[key])}")
+
+    resolution = doc["resolution"]
+    if not _is_number(resolution) or not (math.isfinite(resolution) and resolution > 0):
+        raise bad("resolution", "a positive finite number")
+    low, high = PLAUSIBLE_RESOLUTION
+    if not low <= resolution <= high:
+        logger.warning(
+            "%s: key 'resolution' %s: cells of %s m%s (a robot's map is usually 0.05 m a cell): "
+            "is it written in %s?",
+            where("resolution"), echo(resolution), f"{resolution:g}",
+            f", wider than {high:g} m, would hold whole rooms" if resolution > high
+            else f", narrower than {low:g} m, make a house a few centimetres across",
+            "millimetres or centimetres" if resolution > high else "kilometres",
+        )  # fmt: skip
+
+    origin = doc["origin"]
+    if (
+        not isinstance(origin, list)
+        or len(origin) != 3
+        or not all(_is_number(v) and math.isfinite(v) for v in origin)
+    ):
+        error = bad("origin", "a list of 3 finite numbers [x, y, yaw]")
+        if isinstance(origin, list) and len(origin) == 3 and _is_nan(origin[2]):
+            error = MapFormatError(
+                f"{error}: ROS 1's map_saver writes a yaw of nan for a map published with an "
+                "invalid (zero) orientation quaternion, as some mapping packages do; "
+                "map_server refuses it too: the map is not rotated, write 0"
+            )
+        raise error
+    if abs(origin[2]) > MAX_YAW_NOISE:
+        raise MapFormatError(
+            f"{where('origin')}: key 'origin' has yaw {echo(origin[2])}; rotated maps are not "
+            "supported (yaw must be 0)"
+        )
+
+    negate = doc["negate"]
+    negate = _YAML_CPP_BOOLS.get(negate, negate) if isinstance(negate, str) else negate
+    if not isinstance(negate, (int, bool)) or negate not in (0, 1):
+        raise bad("negate", "0 or 1 (or true / false)")
+
+    for key in ("occupied_thresh", "free_thresh"):
+        value = doc[key]
+        if not _is_number(value) or not 0.0 <= value <= 1.0:
+            raise bad(key, "a number in [0, 1]")
+    if doc["free_thresh"] > doc["occupied_thresh"]:  # equal: map_server reads them (module doc)
+        raise MapFormatError(
+            f"{where('free_thresh')}: key 'free_thresh' ({echo(doc['free_thresh'])}) must not "
+            f"exceed 'occupied_thresh' ({echo(doc['occupied_thresh'])}): swapped?"
+        )
+
+    mode = doc.get("mode", "trinary")
+    if mode not in ("trinary", "scale", "raw"):
+        raise bad("mode", "one of 'trinary', 'scale', 'raw'")
+
+    image = doc["image"]
+    if not isinstance(image, str) or not image:
+        raise bad("image", "a non-empty file name")
+    image_path = Path(image)
+    if not image_path.is_absolute():
+        image_path = path.parent / image_path
+
+    return _MapYaml(
+        path=path,
+        image=image_path,
+        resolution=float(resolution),
+        origin=(float(origin[0]), float(origin[1]), 0.0),  # yaw: 0 or noise (MAX_YAW_NOISE)
+        negate=bool(negate),
+        occupied_thresh=float(doc["occupied_thresh"]),
+        free_thresh=float(doc["free_thresh"]),
+        mode=mode,
+        lines=dict(lines),
+    )
