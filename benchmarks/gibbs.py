@@ -75,7 +75,7 @@ from bench_setup import (
     time_backend,
     time_per_cell,
 )
-from fixed_cost import import_seconds, warm_bytecode
+from fixed_cost import import_seconds, preset_arguments, warm_bytecode, warm_kernels
 from gibbs_report import (
     PRESET,
     TARGET_CHAINS_RATIO,
@@ -576,6 +576,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     with measure_contention(contention, "whole fits", args.wait_idle):
         results["bytecode"] = warm_bytecode()  # the fits' processes use the .pyc cache
         results["import_floor"] = import_seconds(("pass", "torch"))  # the fixed cost's floor
+        path = None if dataset is None else dataset / HEADLINE_HOUSE  # kernels cached, untimed:
+        results["numba_warm_s"] = warm_kernels({n: preset_arguments(path, n) for n in FIT_PRESETS})
         results["fits"] = bench_fits(dataset, headline_house, sizes, args.skip_baseline)
     with measure_contention(contention, "chains", args.wait_idle):
         results["chains"] = bench_chains(dataset, headline_house, compiled, sizes)

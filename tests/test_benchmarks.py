@@ -47,6 +47,7 @@ def test_gibbs_benchmark_quick(tmp_path):
     ]  # fmt: skip
     assert all(e["ratio"] > 0 for e in results["run_loop"])
     assert all("error" not in e and e["ms_per_sweep"] > 0 for e in results["fits"])
+    assert sorted(results["numba_warm_s"]) == ["auto", "original-code", "paper-dp"]
     assert results["chains"]["as_fits"]["ratio"] > 0
     assert len(results["chains"]["as_fits"]["pair_sweeps_s"]) == 2  # the processes' reference
     assert "two single fits at once in two processes" in done.stdout
@@ -165,6 +166,7 @@ def test_fixed_cost_benchmark_quick(tmp_path):
     assert "fixed cost paper-dp" in done.stdout
     record = json.loads(out.read_text())
     (result,) = record["results"]
+    assert list(record["numba_warm_s"]) == ["paper-dp"]
     assert [run["sweeps"] for run in result["runs"]] == [1, 3]
     for run in result["runs"]:
         assert run["pngs"] == [] and not run["with_figures"]
@@ -272,6 +274,7 @@ def test_end_to_end_benchmark_quick(tmp_path):
     fit = house["fit"]
     # the embedded house is refined on its map's cells: 200 sweeps on the model grid, then 200
     assert house["house"] == "embedded" and fit["sweep_count"] == 400
+    assert list(record["numba_warm_s"]) == ["embedded"]  # kernels cached before the timed fit
     parts = ("startup", "data", "sweeps", "post", "outputs")
     assert all(fit[name] > 0.0 for name in parts)
     assert math.isclose(sum(fit[name] for name in parts), fit["wall"], rel_tol=1e-6)
@@ -1086,6 +1089,27 @@ def test_start_up_benchmarks_time_their_processes_with_the_bytecode_cache(script
     assert record["parent_PYTHONDONTWRITEBYTECODE"] == "1" and record["compileall_ok"], record
     assert "PYTHONDONTWRITEBYTECODE=1 here, cleared" in fixed_cost.bytecode_note(record)
     assert script("end_to_end").warm_bytecode is fixed_cost.warm_bytecode
+
+
+def test_timed_fits_find_numba_kernels_cached(script, monkeypatch):
+    """A kernel is compiled by the first process that calls it: in a fresh checkout the
+    split-merge kernels compiled inside gibbs.py's timed `auto` fit (first sweep 2.1 s, not 0.2)
+    and counted as fixed cost. Each configuration is fitted once, untimed, first, for enough
+    sweeps that a fifth-of-the-sweeps move runs, and the benchmarks record it."""
+    fixed_cost = script("fixed_cost")
+    calls = []
+    monkeypatch.setattr(fixed_cost, "run_fit_process", lambda a, timeout: calls.append(a))
+    data = Path("/data/room2ldk4")
+    warm = fixed_cost.warm_kernels({p: fixed_cost.preset_arguments(data, p)
+                                    for p in ("paper-dp", "auto")})  # fmt: skip
+    assert sorted(warm) == ["auto", "paper-dp"] and all(s >= 0.0 for s in warm.values())
+    sweeps = str(fixed_cost.WARM_SWEEPS)
+    assert calls == [[str(data), "--preset", p, "--seed", "0", "--sweeps", sweeps, "--no-figures"]
+                     for p in ("paper-dp", "auto")]  # fmt: skip
+    assert 0.8**fixed_cost.WARM_SWEEPS < 1e-4  # merge_moves = region_moves = 0.2 a sweep
+    assert "untimed 50-sweep fit" in fixed_cost.warm_note(warm)
+    assert script("gibbs").warm_kernels is fixed_cost.warm_kernels
+    assert script("end_to_end").warm_kernels is fixed_cost.warm_kernels
 
 
 def test_fixed_limit_targets_print_their_same_run_baseline(script):
