@@ -6,9 +6,10 @@ read as ``spcopyro where`` reads a word (:func:`~spcopyro.results.semantic_map.w
 ``"台所"``, ``"CAFÉ"`` and a decomposed ``"café"`` find the fit's ``台所`` and ``café``).
 Connecting and filler words (:data:`STOP_WORDS`: "go", "to", "the", "via", "then", ...) are
 skipped even when the fit's vocabulary holds them (a fit on sentences does). Every other word
-of the vocabulary names a place. A word outside it with a close known word (``difflib``, as
-``spcopyro where`` suggests) is an error that names them (a typo must not send the robot
-elsewhere); one with no close word is ignored and reported, unless it names a stop (right
+of the vocabulary names a place. A word outside it with a close known word
+(:func:`~spcopyro.results.semantic_map.close_words`, as ``spcopyro where`` suggests: "kitchn",
+"livingroom"; not "bathroom" for "bedroom") is an error that names them (a typo must not send
+the robot elsewhere); one with no close word is ignored and reported, unless it names a stop (right
 after a connecting word and an article, "via the hall", with no known place in its phrase),
 which is an error: the robot would skip that stop. An instruction with a word of
 :data:`NEGATION_WORDS` ("not the kitchen", "avoid the kitchen") or of :data:`LEAVE_WORDS`
@@ -53,14 +54,13 @@ over the cells the robot fits on (:mod:`spcopyro.robot.navigation.graph`).
 
 from __future__ import annotations
 
-import difflib
 import unicodedata
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from spcopyro.data.text import hidden_characters_note, hidden_match
-from spcopyro.results.semantic_map import word_key
+from spcopyro.results.semantic_map import close_words, word_key
 from spcopyro.results.where import close_to_guess
 from spcopyro.robot.navigation.graph import PlanningGrid
 
@@ -279,7 +279,7 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
         if token in STOP_WORDS:
             continue
         if token not in known:
-            close = difflib.get_close_matches(token, candidates, n=3)
+            close = close_words(token, candidates)
             if hidden_match(token, vocabulary):  # 'kit\u200bchen' prints as 'kitchen'
                 raise ValueError(
                     f"word {words[k][0]!r} of the instruction is not in the fit's vocabulary "
