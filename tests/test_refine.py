@@ -3,6 +3,7 @@ settings, the start from a coarse map, the library's and the command's wiring, C
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import json
 import shlex
@@ -12,6 +13,7 @@ import pytest
 from fit_interrupts import interrupt_fit_at
 
 from spcopyro._util.outputs import checkpoint_path
+from spcopyro.cli.fit_refine import replaced_options
 from spcopyro.cli.main import main
 from spcopyro.config import preset
 from spcopyro.data.model_grid import model_house
@@ -153,7 +155,8 @@ def test_fit_refines_by_default_and_writes_the_map_s_cells(home, tmp_path, capsy
     with (out / "truth.npy").open("rb") as f:
         assert labels.shape == np.load(f).shape  # the truth of the map's cells
     config = json.loads((out / "config.json").read_text())
-    assert "refine" in json.dumps(config)
+    assert config["inference"]["refine"]["replaced"] == {}  # nothing given, nothing replaced
+    assert config["inference"]["refine"]["preparation"] == config["data"]  # the refinement's
     assert not (out / "robot_map.yaml").exists()  # the result is on the robot's own map
     never = tmp_path / "never"
     argv = ["fit", str(home), "--out", str(never), "--sweeps", "60", "--no-figures"]
@@ -169,7 +172,42 @@ def test_a_preparation_given_on_the_command_line_is_not_refined_away(home, tmp_p
     printed = capsys.readouterr().out
     assert "refining " not in printed and "not refined " not in printed
     assert main([*argv, "--out", str(tmp_path / "asked"), "--refine", "always"]) == 0
-    assert "refining " in capsys.readouterr().out  # unless asked for
+    printed = capsys.readouterr()
+    assert "refining " in printed.out  # unless asked for
+    # ... and then the refinement's own preparation replaces it, not silently
+    assert "replacing --word-scaling 10 -> 1; the first stage used yours" in printed.err
+    record = json.loads((tmp_path / "asked" / "config.json").read_text())["inference"]["refine"]
+    assert record["replaced"] == {"--word-scaling": {"given": 10.0, "refinement": 1.0}}
+    assert record["coarse"]["preparation"]["word_scaling"] == 10.0
+    assert record["preparation"]["word_scaling"] == 1.0
+
+
+def test_the_note_names_only_given_options_the_refinement_changes():
+    coarse = preset("coarse", feature_scaling="probability", footprint_radius=0.5)
+    refined = refined_settings(coarse, 100, 2500).data
+    given = argparse.Namespace(
+        feature_scaling="probability",
+        word_scaling=None,
+        footprint=0.5,
+        footprint_kernel="gaussian",
+        footprint_fov=None,
+        cell_size="0.5",
+    )
+    assert replaced_options(given, coarse.data.replace(footprint_kernel="gaussian"), refined) == {
+        "--feature-scaling": {"given": "probability", "refinement": "floor100"},
+        "--footprint": {"given": 0.5, "refinement": 0.0},
+        "--footprint-kernel": {"given": "gaussian", "refinement": None},  # no footprint: none
+    }  # word scaling: the preset's 10, not given; the cell size: the refinement's by definition
+    same = argparse.Namespace(
+        feature_scaling="floor100",
+        word_scaling=1.0,
+        footprint=0.0,
+        footprint_kernel=None,
+        footprint_fov=None,
+        cell_size=None,
+    )
+    assert replaced_options(same, refined, refined) == {}  # given, but what the refinement uses
+    assert replaced_options(argparse.Namespace(), coarse.data, refined) == {}  # the default fit
 
 
 def test_several_chains_are_refined_from_the_best_coarse_chain(home, tmp_path, capsys):

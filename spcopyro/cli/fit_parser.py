@@ -139,7 +139,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "cells (images as 100 draws, words at their cell, alpha scaled with the cells) from its "
         "map; auto: where the fit's concepts explain at least half of the images' variance "
         "(default: the preset's recommendation, auto with coarse unless --cell-size, "
-        "--feature-scaling, --word-scaling or --footprint* is given, else never)",
+        "--feature-scaling, --word-scaling or --footprint* is given, else never). The "
+        "refinement's preparation is its own: a --feature-scaling, --word-scaling or "
+        "--footprint* given prepares the first stage only (a note names those it replaced; "
+        "--cell-size map fits with them on the map's own cells)",
     )
     p.add_argument("--point-estimate", choices=POINT_ESTIMATES, default=None,
                    help="the reported map: the highest-log-joint state visited (map-visited) "

@@ -19,8 +19,8 @@ if TYPE_CHECKING:
     from spcopyro.results.result import SpCoResult
 
 __all__ = [
-    "LARGE_REFINEMENT_CELLS", "REFINED_AWAY", "prepares_data", "refine", "report_update",
-    "update_settings",
+    "LARGE_REFINEMENT_CELLS", "REFINED_AWAY", "prepares_data", "refine", "replaced_options",
+    "report_update", "update_settings",
 ]  # fmt: skip
 
 LARGE_REFINEMENT_CELLS = 100_000
@@ -38,6 +38,53 @@ given on the command line, the recommended refinement is not run."""
 def prepares_data(args: argparse.Namespace) -> bool:
     """Whether the command line gives a data preparation of its own (:data:`REFINED_AWAY`)."""
     return any(getattr(args, name, None) is not None for name in REFINED_AWAY)
+
+
+_REPLACEABLE = {"feature_scaling": "feature_scaling", "word_scaling": "word_scaling",
+                "footprint": "footprint_radius", "footprint_kernel": "footprint_kernel",
+                "footprint_fov": "footprint_fov"}  # fmt: skip
+"""The options of :data:`REFINED_AWAY` the refinement sets a value of its own for ->
+their :class:`~spcopyro.config.DataPreparation` field (``--cell-size``: the refinement is on the
+map's own cells by definition, and its ``refining`` line says so)."""
+
+
+def replaced_options(
+    args: argparse.Namespace, first: DataPreparation, refined: DataPreparation
+) -> dict[str, dict[str, object]]:
+    """The data preparation options the command line gave (``args``) that the refinement
+    replaces: ``--flag`` -> ``{"given": the first stage's value (``first``), "refinement": the
+    refinement's (``refined``)}``, where they differ. With no footprint in the refinement its
+    kernel and field of view are None (they do nothing). Empty for a command line that gave
+    none (the default fit)."""
+    no_footprint = refined.footprint_radius == 0
+    replaced = {}
+    for name, field in _REPLACEABLE.items():
+        if getattr(args, name, None) is None:
+            continue  # the preset's value, not the user's
+        given, used = getattr(first, field), getattr(refined, field)
+        if no_footprint and field in ("footprint_kernel", "footprint_fov"):
+            used = None
+        if given != used:
+            replaced["--" + name.replace("_", "-")] = {"given": given, "refinement": used}
+    return replaced
+
+
+def _shown(value: object) -> str:
+    """An option's value as the command line writes it (None: ``none``)."""
+    if value is None:
+        return "none"
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def _replaced_note(replaced: dict[str, dict[str, object]]) -> str:
+    """The note ``fit`` prints (stderr) when the refinement replaces options the command line
+    gave (:func:`replaced_options`): which, with what, and how to keep them."""
+    changes = ", ".join(f"{flag} {_shown(v['given'])} -> {_shown(v['refinement'])}"
+                        for flag, v in replaced.items())  # fmt: skip
+    return (f"note: the refinement on the map's own cells prepares the data as preset auto "
+            f"does, replacing {changes}; the first stage used yours (config.json: "
+            "inference.refine.replaced); --refine never keeps them for the whole fit, "
+            "--cell-size map fits with them on the map's own cells")  # fmt: skip
 
 
 def refine(
@@ -69,7 +116,7 @@ def refine(
     from spcopyro.fit.refine import refine_chains
 
     chains = len(results) if chains is None else chains
-    decision = _decide(args, results[kept], chains, model, on_map, settings)
+    decision, replaced = _decide(args, results[kept], chains, model, on_map, settings)
     first_threads = results[kept].provenance.get("threads")  # the first stage's, as it ran
     try:
         _, results = refine_chains(
@@ -90,7 +137,17 @@ def refine(
         raise FitInterrupted(where, saved) from None
     if decision.refine:
         _report_threads(first_threads, results[0].provenance.get("threads"), on_map)
+        results = [_with_replaced(r, replaced) for r in results]
     return decision.refine, results
+
+
+def _with_replaced(result: SpCoResult, replaced: dict[str, dict[str, object]]) -> SpCoResult:
+    """A refined ``result`` recording the options of the command line its refinement replaced
+    (``inference.refine.replaced``, written to ``config.json``; empty when none were)."""
+    import dataclasses
+
+    record = {**result.inference["refine"], "replaced": replaced}
+    return dataclasses.replace(result, inference={**result.inference, "refine": record})
 
 
 def _report_threads(first: object, refined: object, on_map: House) -> None:
@@ -113,12 +170,15 @@ def _decide(
     model: House,
     on_map: House,
     settings: SpCoSettings,
-) -> RefineDecision:
+) -> tuple[RefineDecision, dict[str, dict[str, object]]]:
     """The decision for ``first`` (the kept one of ``chains`` chains on ``model``'s grid),
-    printed: ``refining ...`` with what the refit changes, or ``not refined ...`` and why."""
+    printed: ``refining ...`` with what the refit changes, or ``not refined ...`` and why; and
+    the options of the command line the refinement replaces (:func:`replaced_options`), named
+    in a note (stderr) where there are any."""
     from spcopyro.fit.refine import refine_decision, refined_settings
 
     decision = refine_decision(first, model, args.refine)
+    replaced: dict[str, dict[str, object]] = {}
     if decision.refine:
         refined = refined_settings(settings, model.grid.num_free, on_map.grid.num_free)
         observed = _observed_cells(on_map, refined.data)
@@ -127,6 +187,9 @@ def _decide(
               f"joint {first.best_objective:.1f}) continue on the map's own "
               f"{on_map.grid.resolution:g} m cells ({observed} observed), images as 100 draws, "
               f"words at their cell, alpha {refined.model.alpha:.3g}")  # fmt: skip
+        replaced = replaced_options(args, settings.data, refined.data)
+        if replaced:  # the user's own preparation: not replaced silently
+            print(_replaced_note(replaced), file=sys.stderr)
         cells, first_cells = on_map.grid.num_free, model.grid.num_free
         if cells >= LARGE_REFINEMENT_CELLS:  # the first stage's bar did not count this one
             print(f"note: the refinement sweeps the map's {cells:,} free cells, "
@@ -136,7 +199,7 @@ def _decide(
                   "maps in passes", file=sys.stderr)  # fmt: skip
     else:  # config.json says why too
         print(f"not refined      {decision.reason}")
-    return decision
+    return decision, replaced
 
 
 def _observed_cells(house: House, data: DataPreparation) -> int:

@@ -41,7 +41,8 @@ images alone do not hold the categories of one open space apart: alpha 1e7 on th
 0.534, 1e8 0.626, 1e9 0.645, 1e10 0.653, against the coarse fit's 0.656.)
 
 The refined result is on the map's cells (its ``grid`` is the map, not a coarsening) and records
-the decision and the coarse stage in ``result.inference["refine"]``.
+the decision, the coarse stage (its preparation among it) and the refinement's alpha and
+preparation in ``result.inference["refine"]``.
 """
 
 from __future__ import annotations
@@ -217,6 +218,7 @@ def refine_chains(
                if first.inference.get("hyperparameters") else {}),
         },
         "alpha": float(refined.model.alpha),
+        "preparation": dataclasses.asdict(refined.data),  # the refinement's (config.json's data)
     }  # fmt: skip
     return decision, [
         dataclasses.replace(r, inference={**r.inference, "refine": record}) for r in refits
