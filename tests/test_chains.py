@@ -147,6 +147,61 @@ def test_the_chains_bar_says_the_first_sweep_compiles(mode, monkeypatch, capsys)
     capsys.readouterr()
 
 
+def _print_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"{filename}:{lineno}: {category.__name__}: {message}", file=sys.stderr)
+
+
+def _advance_warning(mode: str, monkeypatch, capfd) -> tuple[list[str], str]:
+    """Four chains advanced on two workers (``mode``) while every sweep warns (warnings.warn)
+    and logs a warning (logger ``spcopyro``): what recorded_warnings kept, and stderr."""
+    import logging
+    import warnings
+
+    import spcopyro.gibbs.run as run_module
+    from spcopyro.cli.fit_warnings import recorded_warnings
+
+    real = run_module.step
+
+    def step(*args, **kwargs):
+        warnings.warn("a sweep's own warning", RuntimeWarning, stacklevel=1)
+        logging.getLogger("spcopyro.gibbs.test").warning("a sweep logged %s", "this")
+        return real(*args, **kwargs)
+
+    cfg = config(num_concepts=4)
+    _, data = random_problem(seed=12, copies=2)
+    chains = _chains(data, cfg, "torch", [0, 1, 2, 3])
+    capfd.readouterr()
+    with monkeypatch.context() as patch, warnings.catch_warnings():
+        patch.setattr(run_module, "step", step)
+        warnings.simplefilter("default")  # shown once per place, as outside the suite
+        warnings.showwarning = _print_warning  # pytest's keeps them off stderr
+        with recorded_warnings() as said:
+            advance_chains([(c, 3) for c in chains], workers=2, progress=False, processes=mode)
+    return said, capfd.readouterr().err
+
+
+@linux_only
+def test_a_chains_warnings_in_a_worker_process_are_shown_once_and_kept_as_on_threads(
+    monkeypatch, capfd
+):
+    """A forked worker's warnings reach this process: printed once here (not once per worker)
+    and kept where this thread's warnings go (`spcopyro fit`'s config.json), as on threads."""
+    from collections import Counter
+
+    from spcopyro.study.cell_warnings import warnings_text
+
+    on_threads, threads_err = _advance_warning("off", monkeypatch, capfd)
+    with torch_threads(1):
+        in_processes, processes_err = _advance_warning("on", monkeypatch, capfd)
+    assert on_threads[0] == "RuntimeWarning: a sweep's own warning", on_threads
+    assert Counter(in_processes) == Counter(on_threads), (in_processes, on_threads)
+    assert warnings_text(in_processes) == warnings_text(on_threads)
+    for err in (threads_err, processes_err):
+        assert err.count("a sweep's own warning") == 1, err
+    logged = threads_err.count("a sweep logged this")
+    assert processes_err.count("a sweep logged this") == logged, processes_err
+
+
 class _InterruptingBackend:
     """Raises KeyboardInterrupt at the ``at``-th sweep of the chain it belongs to."""
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import logging
+import sys
 import warnings
 
 import pytest
@@ -23,9 +24,9 @@ def small_house(tmp_path):
     )
 
 
-def _fit(house, out, gamma: str) -> dict:
+def _fit(house, out, gamma: str, *more: str) -> dict:
     argv = ["fit", str(house), "--out", str(out), "--sweeps", "2", "--no-figures",
-            "--preset", "original-code", "--gamma", gamma, "--concepts", "10"]  # fmt: skip
+            "--preset", "original-code", "--gamma", gamma, "--concepts", "10", *more]  # fmt: skip
     assert main(argv) == 0
     return json.loads((out / "config.json").read_text())
 
@@ -47,6 +48,39 @@ def test_a_fits_warnings_are_printed_and_kept_in_config_json(small_house, tmp_pa
     assert main(["show", str(tmp_path / "fine"), "--out", str(tmp_path / "h.png")]) == 2
     err = capsys.readouterr().err
     assert "not a house folder" in err and "its fit gave" not in err, err
+
+
+def _print_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    print(f"{filename}:{lineno}: {category.__name__}: {message}", file=sys.stderr)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="forked chains: Linux only")
+def test_a_warning_in_a_chains_worker_process_is_kept_as_on_threads(
+    small_house, tmp_path, monkeypatch, capfd
+):
+    """--chains 2 on two workers: a warning a chain gives in its forked process lands in
+    config.json as one given on a thread does (spcopyro.gibbs.chain_processes)."""
+    import spcopyro.gibbs.run as run_module
+
+    real = run_module.step
+
+    def step(*args, **kwargs):
+        warnings.warn("a sweep's own warning", RuntimeWarning, stacklevel=1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(run_module, "step", step)
+    kept = {}
+    for mode in ("off", "on"):  # threads, processes
+        monkeypatch.setenv("SPCOPYRO_CHAIN_PROCESSES", mode)
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+            warnings.showwarning = _print_warning  # pytest's keeps them off stderr
+            kept[mode] = _fit(small_house, tmp_path / mode, "0.5",
+                              "--chains", "2", "--chain-workers", "2")["warnings"]  # fmt: skip
+        assert capfd.readouterr().err.count("a sweep's own warning") == 1
+    assert "RuntimeWarning: a sweep's own warning" in kept["off"], kept
+    assert any(LOW_GAMMA in m for m in kept["off"]), kept
+    assert kept["on"] == kept["off"], kept
 
 
 def test_recorded_warnings_keeps_log_records_and_python_warnings_in_order(tmp_path):

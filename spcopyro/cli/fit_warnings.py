@@ -11,8 +11,9 @@ distinct messages in order, by the study's rule (:func:`~spcopyro.study.cell_war
 warnings_text`: each cut to 2000 characters, at most 20 and a count of the rest), into
 ``config.json`` as a list of strings (empty when the fit gave none).
 
-What a forked chain worker (``--chains K`` on Linux, :mod:`spcopyro.gibbs.chain_processes`)
-logs in its own process is printed there but not kept here.
+A chain run in a forked worker process (``--chains K`` on Linux,
+:mod:`spcopyro.gibbs.chain_processes`) sends its warnings to the fit's process, which prints
+and keeps them as it does a chain's on a thread.
 """
 
 from __future__ import annotations

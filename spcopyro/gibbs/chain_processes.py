@@ -23,6 +23,13 @@ that had not come back where they started (a consistent state, if an earlier one
 error (e.g. a non-finite log joint) stops the others the same way and is raised here, with the
 worker's traceback in its notes.
 
+Warnings: a chain's Python warnings and the ``spcopyro`` logger's records in a worker are not
+shown there but sent to this process (:func:`_relay_warnings`), which gives them again in the
+thread that waits for the chains (:func:`_warn_again`): a warning goes through this process's
+filters and the registry of the module that warned, so one that two workers met under the
+"default" action is shown once, as on threads, and both land where this thread's warnings go
+(``spcopyro fit``'s ``config.json``, a study cell's record).
+
 Only where forking is safe (:func:`processes_usable`): Linux, torch at one intra-op thread (an
 OpenMP team is not usable after a fork), and no other Python thread running (a thread could hold
 a lock that the child would inherit held).
@@ -30,11 +37,16 @@ a lock that the child would inherit held).
 
 from __future__ import annotations
 
+import copy
+import logging
 import multiprocessing
 import os
 import pickle
 import signal
+import sys
+import threading
 import traceback
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import fields
 from multiprocessing.connection import Connection, wait
@@ -43,6 +55,8 @@ from spcopyro._util.forking import fork_refusal, fresh_tqdm_lock, start_forked
 from spcopyro._util.interrupts import signals_deferred
 from spcopyro.gibbs.run import ChainsStopped, GibbsChain, advance
 
+LOGGER = "spcopyro"
+"""The logger whose records a worker sends to this process (its children's included)."""
 POLL_SECONDS = 0.1
 """How often the progress counts are read while the workers run."""
 
@@ -97,6 +111,82 @@ def _portable_error(error: BaseException) -> BaseException:
         return RuntimeError(f"a chain failed in its worker process:\n{text}")
 
 
+def _portable_warning(message: Warning | str, category: type[Warning]) -> tuple[object, type]:
+    """``(message, category)`` as they survive pickling: the message's text where the warning
+    object does not, :class:`UserWarning` where its class does not."""
+    try:
+        pickle.loads(pickle.dumps((message, category)))
+        return message, category
+    except Exception:  # noqa: BLE001  (any error of pickling)
+        try:
+            pickle.loads(pickle.dumps(category))
+        except Exception:  # noqa: BLE001
+            return f"{category.__name__}: {message}", UserWarning
+        return str(message), category
+
+
+class _LogRelay(logging.Handler):
+    """In a worker: the ``spcopyro`` logger's only handler, sending each record to the parent."""
+
+    def __init__(self, connection: Connection) -> None:
+        super().__init__(logging.NOTSET)
+        self.connection = connection
+
+    def emit(self, record: logging.LogRecord) -> None:  # noqa: D102
+        try:
+            record = copy.copy(record)  # its message formatted here: arguments may not pickle
+            record.msg, record.args = record.getMessage(), None
+            if record.exc_info:
+                record.exc_text = record.exc_text or logging.Formatter().formatException(
+                    record.exc_info
+                )
+                record.exc_info = None
+            _send(self.connection, ("log", -1, record))
+        except Exception:  # noqa: BLE001  (logging's rule: report, never raise)
+            self.handleError(record)
+
+
+def _relay_warnings(connection: Connection) -> None:
+    """In a worker: its Python warnings that pass the filters, and the ``spcopyro`` logger's
+    records, go to the parent instead of this process's stderr (module docstring)."""
+
+    def show(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
+        _send(connection, ("warning", -1, (*_portable_warning(message, category), filename,
+                                           lineno)))  # fmt: skip
+
+    warnings.showwarning = show
+    logger = logging.getLogger(LOGGER)
+    logger.handlers = [_LogRelay(connection)]
+    logger.propagate = False
+
+
+def _module_named_by(filename: str) -> dict[str, object] | None:
+    """The globals of the imported module whose file is ``filename``, if any."""
+    for module in list(sys.modules.values()):
+        if getattr(module, "__file__", None) == filename:
+            return vars(module)
+    return None
+
+
+def _warn_again(kind: str, body: object, registries: dict[str, dict]) -> None:
+    """Give here, in this thread, a warning (``kind`` "warning") or log record ("log") a worker
+    sent: a warning as :func:`warnings.warn` gave it in the module that warned (its filters,
+    its registry: once under "default"); ``registries``: for a file no module was loaded from."""
+    if kind == "log":
+        record: logging.LogRecord = body  # type: ignore[assignment]
+        record.thread, record.threadName = threading.get_ident(), threading.current_thread().name
+        logging.getLogger(record.name).handle(record)
+        return
+    message, category, filename, lineno = body  # type: ignore[misc]
+    module = _module_named_by(filename)
+    if module is None:
+        registry, name = registries.setdefault(filename, {}), None
+    else:
+        registry, name = module.setdefault("__warningregistry__", {}), module.get("__name__")
+    warnings.warn_explicit(message, category, filename, lineno, module=name,  # type: ignore[arg-type]
+                           registry=registry, module_globals=module)  # fmt: skip
+
+
 def _worker(runs, indices, thin, advance_chain, connection, sweeps_done, stop) -> None:  # noqa: ANN001
     """A worker's life: its chains one after another, each sent back when it ends or stops."""
     # the parent decides when the chains stop (its Ctrl-C, or `spcopyro fit`'s SIGTERM)
@@ -104,6 +194,7 @@ def _worker(runs, indices, thin, advance_chain, connection, sweeps_done, stop) -
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     parent = os.getppid()
     fresh_tqdm_lock()
+    _relay_warnings(connection)
 
     def after_sweep(index: int) -> Callable[..., None]:
         def callback(*_: object) -> None:
@@ -165,6 +256,7 @@ def advance_in_processes(
     receivers: dict[Connection, tuple[multiprocessing.process.BaseProcess, list[int]]] = {}
     returned: set[int] = set()
     errors: list[BaseException] = []
+    registries: dict[str, dict] = {}  # of the warnings from files that are no module's
     reported = 0
 
     def report() -> None:
@@ -196,6 +288,12 @@ def advance_in_processes(
         elif kind == "error":
             errors.append(body)
             stop.value = 1
+        elif kind in ("warning", "log"):
+            try:
+                _warn_again(kind, body, registries)
+            except Exception as error:  # noqa: BLE001  (e.g. a filter made it an error here)
+                errors.append(error)
+                stop.value = 1
         else:  # "end"
             process, _ = receivers.pop(receive)
             process.join()
