@@ -2,7 +2,7 @@
 one is installed, and one warning, in words, for the glyphs no font has (issue 22 item 10).
 
 :func:`any_script` wraps a figure's ``savefig``; every figure writer of the package goes through
-it (:func:`spcopyro.figures.plotting._save` and the study and experiment figures)."""
+it (:func:`spcopyro.figures.png.save_figure` and the study and experiment figures)."""
 
 from __future__ import annotations
 

@@ -437,7 +437,7 @@ def place_labels(
     for x, y, text, style in labels:
         artist = ax.text(x, y, text, ha="center", va="center", path_effects=OUTLINE, zorder=4,
                          **style)  # fmt: skip
-        with warnings.catch_warnings():  # told once, in words, when saved (plotting._save)
+        with warnings.catch_warnings():  # told once, in words, when saved (png.save_figure)
             warnings.filterwarnings("ignore", message="Glyph .* missing from font")
             box = artist.get_window_extent(renderer=renderer).expanded(1.15, 1.25)
         if any(box.overlaps(other) for other in boxes):

@@ -1,6 +1,8 @@
-"""Figures: a house and its observations, the semantic map with words (paper Fig. 10F), the
-answer to "where is X?", traces (paper Figs. 5-6). Everything is drawn in world metres, cropped to
-the known part of the map.
+"""Figures of a fit: the semantic map with words (paper Fig. 10F), the answer to "where is X?",
+the per-cell maps of uncertainty and agreement. Everything is drawn in world metres, cropped to
+the known part of the map. The house before a fit (:mod:`~spcopyro.figures.house`), the trace
+(:mod:`~spcopyro.figures.trace`) and the PNG writer (:func:`~spcopyro.figures.png.save_figure`)
+have modules of their own; their names are importable from here too.
 
 The semantic map gives every concept in use its own colour, touching concepts the most different
 ones (:func:`~spcopyro.maps.palette.concept_colours`), and writes a label on every connected region
@@ -16,52 +18,49 @@ from __future__ import annotations
 
 import os
 import textwrap
-from collections import Counter
 from pathlib import Path
 
 import numpy as np
 from matplotlib import colormaps
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
-from matplotlib.ticker import FuncFormatter, MaxNLocator
 from matplotlib.transforms import ScaledTranslation
 from scipy import ndimage
 
 from spcopyro._util.messages import plural
-from spcopyro.data import House, Observations
-from spcopyro.figures.fonts import any_script
+from spcopyro.data import Observations
+from spcopyro.figures.house import MAX_WORD_COLOURS, house_figure, plot_house  # noqa: F401
 from spcopyro.figures.map_axes import known_bounds, map_axes, shown_in
 from spcopyro.figures.map_axes import map_extent as _extent
 from spcopyro.figures.map_axes import show_map as _show_image  # noqa: F401 (navigation)
 from spcopyro.figures.map_pieces import (
     concept_handles,
-    draw_counted_words,
     draw_outline,
     draw_utterances,
-    house_title,
     map_legend,
-    markers_counted,
     place_labels,
     region_text,
-    rim_colours,
-    spread_markers,
-    utterance_marks,
 )
-from spcopyro.figures.png import save_png
+from spcopyro.figures.png import DPI, PAD_INCHES  # noqa: F401 (re-exported)
+from spcopyro.figures.png import save_figure as _save
+from spcopyro.figures.trace import (  # noqa: F401 (plot_trace, trace_figure: re-exported)
+    _CHAINS,
+    ESTIMATE_NAMES,
+    _estimate_name,
+    plot_trace,
+    trace_figure,
+)
 from spcopyro.maps import (
     RGB_BACKGROUND,
     RGB_OCCUPIED,
     RGB_UNKNOWN,
     concept_colours,
     concept_regions,
-    distinct_colours,
     render_labels,
 )
 from spcopyro.results.concept_words import NO_WORDS, shown_words
-from spcopyro.results.point_estimate import LOSS_LABELS
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.specks import in_use_text
 from spcopyro.results.uncertainty import (
@@ -72,105 +71,10 @@ from spcopyro.results.uncertainty import (
 )
 from spcopyro.results.where import SMALL_REGION_FRACTION, WhereAnswer
 
-DPI = 150  # of every PNG
-PAD_INCHES = 0.1  # around the artists (matplotlib's savefig.pad_inches)
-MAX_WORD_COLOURS = 12  # words beyond the most frequent ones are drawn as "other"
 ANSWER_RGB = (214, 0, 0)  # the answer's region in plot_where
 RUNNER_UP_RGB = (0, 70, 200)  # the runner-up's region in plot_where
 FREE_RGB = RGB_BACKGROUND  # plot_where's free cells: white, as in house.png and navigate.png
 # (a light grey (225) was 7 delta-E from the unknown grey (205): the two read as one)
-ESTIMATE_NAMES = {loss: label.replace(" ", "-") for loss, label in LOSS_LABELS.items()}
-"""The point estimates' names in the figures' titles, their losses' labels
-(:data:`~spcopyro.results.point_estimate.LOSS_LABELS`) as adjectives: "the vi estimate" read as
-variational inference's (compare-inference's VI methods), not the variation-of-information
-loss's."""
-
-
-def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
-    """Write ``fig`` as a PNG at ``DPI``, cropped to its artists plus ``PAD_INCHES``.
-
-    The crop box is measured on the figure's Agg canvas (:meth:`Figure.get_tightbbox`) at the
-    PNG's ``DPI`` and given to :meth:`~Figure.savefig`: the figure is drawn once.
-    ``bbox_inches="tight"`` draws it twice (a dry run to find the box, then the PNG), a third of
-    the time of a semantic map; the two boxes differ by a few pixels at most. (Measured at the
-    figure's own 100 dpi, text is narrower than at 150 dpi: a semantic map's legend reached
-    0.2 inch past the box and its longest line was cut.)
-    A path without a suffix gets ``.png`` (matplotlib added it, but the path returned, and so
-    ``wrote X`` of ``show`` and ``where``, did not; inside ``png.background_writes`` the file
-    was written without it). Texts of any script: :func:`~spcopyro.figures.fonts.any_script`.
-    """
-    path = Path(path)
-    if not path.suffix:
-        path = path.with_suffix(".png")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with any_script(fig):
-        fig.set_dpi(DPI)  # text is measured as it is drawn in the PNG
-        renderer = FigureCanvasAgg(fig).get_renderer()
-        box = fig.get_tightbbox(renderer).padded(PAD_INCHES)
-        save_png(fig, path, DPI, box)  # on a thread inside png.background_writes()
-    return path
-
-
-def plot_house(house: House, path: str | os.PathLike[str], title: str | None = None) -> Path:
-    """Write :func:`house_figure` to ``path``."""
-    return _save(house_figure(house, title), path)
-
-
-def house_figure(house: House, title: str | None = None) -> Figure:
-    """The map (free white, walls black, unknown grey), image positions and words by colour.
-
-    Each utterance is marked by its rarest word (the place's name in a sentence such as "here
-    is the kitchen": :func:`~spcopyro.figures.map_pieces.utterance_marks`); the
-    ``MAX_WORD_COLOURS`` most frequent words each take a colour of
-    :func:`~spcopyro.maps.palette.distinct_colours` (near-twins such as tv/kitchen came from
-    ``label_colours``), the rest are "other words" in grey. Markers at one spot are spread
-    apart (:func:`~spcopyro.figures.map_pieces.spread_markers`): every word in the legend shows.
-    A marker on a wall has a white rim (:func:`~spcopyro.figures.map_pieces.rim_colours`).
-    """
-    grid, obs = house.grid, house.observations
-    rgb = render_labels(np.full(grid.shape, -1), grid)
-    fig, axes, wide, strips = map_axes(grid, rgb, (8, 8))
-    marks = utterance_marks(obs.utterances)  # [U] a sentence's rarest word: the place named
-    frequent = [w for w, _ in Counter(marks).most_common(MAX_WORD_COLOURS)]
-    colours = distinct_colours(len(frequent)) / 255.0  # [F, 3]
-    rank = {w: k for k, w in enumerate(frequent)}
-    kind = np.array([rank.get(w, len(frequent)) for w in marks], dtype=np.int64)  # [U]
-    order = np.argsort(kind, kind="stable")  # named words keep their places first
-    size = 28.0
-    xy = np.asarray(obs.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
-    counted = markers_counted(axes[0], grid, xy)  # too many to spread
-    shown = np.empty_like(xy)
-    shown[order] = xy[order] if counted else spread_markers(axes[0], xy[order], size)
-    rest = kind == len(frequent)
-    rims = rim_colours(grid, shown)  # [U, 3] white on a wall, as on the semantic map
-    for ax in axes:
-        if obs.num_images:  # a house of words only has none: no "images (0)" in the legend
-            ax.scatter(*obs.image_xy.T, s=6, c="0.45", marker="s",
-                       label=f"images ({obs.num_images})")  # fmt: skip
-        if counted:  # circles of area by count, the smallest on top; the legend's from empties
-            draw_counted_words(ax, grid, xy, kind, frequent, colours)
-            continue
-        if rest.any():  # drawn first (under the named words), listed last in the legend
-            ax.scatter(*shown[rest].T, s=size, color="0.8", edgecolors=rims[rest],
-                       linewidths=0.4, zorder=2, label="other words")  # fmt: skip
-        for k, word in enumerate(frequent):
-            ax.scatter(*shown[kind == k].T, s=size, color=colours[k], edgecolors=rims[kind == k],
-                       linewidths=0.4, zorder=3, label=word)  # fmt: skip
-    handles, labels = axes[0].get_legend_handles_labels()
-    marker = np.sqrt(size)  # the legend's word markers rimmed black, wherever their first one is
-    handles = [h if label.startswith("images (") else Line2D(
-        [], [], ls="", marker="o", ms=marker, mfc=h.get_facecolor()[0], mec="k", mew=0.4)
-        for h, label in zip(handles, labels, strict=True)]  # fmt: skip
-    if "other words" in labels:
-        k = labels.index("other words")
-        handles.append(handles.pop(k))
-        labels.append(labels.pop(k))
-    spread = "circle area by count" if counted else "markers at one spot spread apart"
-    map_legend(axes[-1], handles, labels, below=wide, columns=4, fontsize=8, frameon=False,
-               title=f"words heard (rarest word of each utterance;\n{spread})",
-               title_fontsize=8)  # fmt: skip
-    axes[0].set_title((title or house_title(house)) + strips)
-    return fig
 
 
 def semantic_colours(result: SpCoResult) -> np.ndarray:
@@ -456,10 +360,6 @@ def _cell_values_figure(
     return fig
 
 
-_CHAINS = ("gibbs", "vi-gibbs")
-"""The methods whose trace and marginals are a Gibbs chain's (vi-gibbs: after its CAVI start)."""
-
-
 def plot_uncertainty(result: SpCoResult, path: str | os.PathLike[str]) -> Path | None:
     """The uncertainty map: each free cell's entropy of p(C_i) in nats
     (:func:`~spcopyro.results.uncertainty.cell_entropy`); None (nothing drawn) for a result without
@@ -476,13 +376,6 @@ def plot_uncertainty(result: SpCoResult, path: str | os.PathLike[str]) -> Path |
     )
     return _plot_cell_values(result, entropy, path, title=title, label="entropy (nats)",
                              vmax=max(float(entropy.max()), 1e-6), cmap="YlOrRd")  # fmt: skip
-
-
-def _estimate_name(result: SpCoResult) -> str:
-    """ "variation-of-information point estimate" (:data:`ESTIMATE_NAMES`), or "point
-    estimate" for a result that does not say which."""
-    kind = str(result.inference.get("point_estimate") or "")
-    return f"{ESTIMATE_NAMES.get(kind, kind)} point estimate".lstrip()
 
 
 def plot_agreement(result: SpCoResult, path: str | os.PathLike[str]) -> Path | None:
@@ -524,75 +417,3 @@ def plot_where_probability(
     label = "probability, over the map's concepts" if note else "probability"
     return _plot_cell_values(result, probability, path, title=title, label=label,
                              vmax=1.0, cmap="Blues")  # fmt: skip
-
-
-def plot_trace(
-    result: SpCoResult, path: str | os.PathLike[str], kept: tuple[int, int] | None = None
-) -> Path:
-    """Write :func:`trace_figure` to ``path``."""
-    return _save(trace_figure(result, kept), path)
-
-
-def trace_figure(result: SpCoResult, kept: tuple[int, int] | None = None) -> Figure:
-    """The objective (log joint or ELBO) and the number of concepts per iteration (paper
-    Figs. 5-6), the sweep of the highest log joint marked (a variational method's final
-    iteration, whose q is reported: LBP's and SVI's objectives need not peak there). When the
-    reported map is a point estimate over the kept samples (``result.agreement``), the figure
-    says so: that map is not the marked sweep's state. The concept count is of the chain's
-    state at each sweep (every label it uses, specks included; vi-gibbs's are its Gibbs sweeps
-    after the CAVI start) or, for variational methods, of each cell's most probable concept
-    under q at each iteration; not the fit's "concepts in use". ``kept`` = (k, K): the result is
-    chain k of the K run (``fit --chains K``), the one kept; the title says so."""
-    trace = result.trace
-    sweeps = np.arange(1, len(trace.objective) + 1)
-    chain = result.method in _CHAINS  # vi-gibbs traces its Gibbs sweeps
-    step = "sweep" if chain else "iteration"
-    fig = Figure(figsize=(7, 5))
-    top, bottom = fig.subplots(2, 1, sharex=True)
-    top.plot(sweeps, trace.objective, lw=0.8)
-    best = result.best_iteration + 1
-    top.axvline(best, color="C3", lw=0.6, ls="--",
-                label=f"highest {trace.objective_name} ({step} {best})" if chain else
-                f"final {trace.objective_name} ({step} {best}): the reported q")  # fmt: skip
-    top.set_ylabel(trace.objective_name)
-    if result.method == "svi":  # one draw's estimate a step, at the step's (annealed) gamma
-        draws = int(result.inference.get("num_particles", 1))  # type: ignore[call-overload]
-        top.set_ylabel(f"{trace.objective_name} estimate\n({plural(draws, 'draw')} a step)")
-        asked = int(result.inference.get("anneal_iterations") or 0)  # type: ignore[call-overload]
-        anneal = min(asked, len(sweeps))
-        if anneal > 1:  # not the model's ELBO there: a weaker coupling's
-            label = f"steps 1-{anneal}: gamma annealed from 0, the estimate at that gamma"
-            top.axvspan(1, anneal, color="0.9", zorder=0, label=label)
-    top.legend(fontsize=8)
-    bottom.plot(sweeps, trace.num_concepts, lw=0.8, color="C1")
-    if chain:
-        counted = "(the chain's state, specks included)"
-    else:  # a q(C), not a state: a concept counts where it is some cell's most probable one
-        counted = "(argmax of q per cell, specks included)"
-    bottom.set_ylabel(f"labels in use per {step}\n{counted}", fontsize=8)
-    bottom.yaxis.set_major_locator(MaxNLocator(integer=True))  # a count: no 12.5 concepts
-    bottom.set_xlabel(step)
-    for ax in (top, bottom):
-        ax.set_xscale("log")
-        ax.minorticks_off()  # a Tick is some 20 artists: 60 of them were most of the figure
-    bottom.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))  # 10, not mathtext
-    title = f"{result.name or 'trace'} ({result.method})"
-    if kept is not None and kept[1] > 1:  # the other chains' traces are not drawn
-        run = "chain" if chain else "fit"
-        title += f"\n{run} {kept[0]} of {kept[1]} (the one kept; chains.json), the others not shown"
-    if "vi_iterations_run" in result.inference:  # vi-gibbs: the sweeps began at CAVI's labels
-        title += (f"\nGibbs sweeps from a CAVI start of {result.inference['vi_iterations_run']} "
-                  "iterations (not shown)")  # fmt: skip
-    refine = result.inference.get("refine")
-    if isinstance(refine, dict) and refine.get("refine") and isinstance(refine.get("coarse"), dict):
-        coarse = refine["coarse"]
-        title += (
-            f"\nthe refinement on the map's {result.grid.resolution:g} m cells, after "
-            f"{coarse['sweeps']} sweeps on {coarse['cell_size']:g} m cells (not shown)"
-        )
-    if result.agreement is not None:
-        title += (f"\nthe reported map: the {_estimate_name(result)} over the kept samples,\n"
-                  f"not the state of {step} {best}")  # fmt: skip
-    fig.suptitle(title, fontsize=10)
-    fig.subplots_adjust(top=0.95 - 0.035 * (title.count("\n") + 1))  # room for every line
-    return fig

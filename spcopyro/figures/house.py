@@ -1,0 +1,90 @@
+"""house.png: a house's map with where its images were taken and its words were heard
+(:func:`house_figure`), before any fit. Re-exported by :mod:`spcopyro.figures.plotting`."""
+
+from __future__ import annotations
+
+import os
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+
+from spcopyro.data import House
+from spcopyro.figures.map_axes import map_axes
+from spcopyro.figures.map_pieces import (
+    draw_counted_words,
+    house_title,
+    map_legend,
+    markers_counted,
+    rim_colours,
+    spread_markers,
+    utterance_marks,
+)
+from spcopyro.figures.png import save_figure
+from spcopyro.maps import distinct_colours, render_labels
+
+MAX_WORD_COLOURS = 12  # words beyond the most frequent ones are drawn as "other"
+
+
+def plot_house(house: House, path: str | os.PathLike[str], title: str | None = None) -> Path:
+    """Write :func:`house_figure` to ``path``."""
+    return save_figure(house_figure(house, title), path)
+
+
+def house_figure(house: House, title: str | None = None) -> Figure:
+    """The map (free white, walls black, unknown grey), image positions and words by colour.
+
+    Each utterance is marked by its rarest word (the place's name in a sentence such as "here
+    is the kitchen": :func:`~spcopyro.figures.map_pieces.utterance_marks`); the
+    ``MAX_WORD_COLOURS`` most frequent words each take a colour of
+    :func:`~spcopyro.maps.palette.distinct_colours` (near-twins such as tv/kitchen came from
+    ``label_colours``), the rest are "other words" in grey. Markers at one spot are spread
+    apart (:func:`~spcopyro.figures.map_pieces.spread_markers`): every word in the legend shows.
+    A marker on a wall has a white rim (:func:`~spcopyro.figures.map_pieces.rim_colours`).
+    """
+    grid, obs = house.grid, house.observations
+    rgb = render_labels(np.full(grid.shape, -1), grid)
+    fig, axes, wide, strips = map_axes(grid, rgb, (8, 8))
+    marks = utterance_marks(obs.utterances)  # [U] a sentence's rarest word: the place named
+    frequent = [w for w, _ in Counter(marks).most_common(MAX_WORD_COLOURS)]
+    colours = distinct_colours(len(frequent)) / 255.0  # [F, 3]
+    rank = {w: k for k, w in enumerate(frequent)}
+    kind = np.array([rank.get(w, len(frequent)) for w in marks], dtype=np.int64)  # [U]
+    order = np.argsort(kind, kind="stable")  # named words keep their places first
+    size = 28.0
+    xy = np.asarray(obs.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
+    counted = markers_counted(axes[0], grid, xy)  # too many to spread
+    shown = np.empty_like(xy)
+    shown[order] = xy[order] if counted else spread_markers(axes[0], xy[order], size)
+    rest = kind == len(frequent)
+    rims = rim_colours(grid, shown)  # [U, 3] white on a wall, as on the semantic map
+    for ax in axes:
+        if obs.num_images:  # a house of words only has none: no "images (0)" in the legend
+            ax.scatter(*obs.image_xy.T, s=6, c="0.45", marker="s",
+                       label=f"images ({obs.num_images})")  # fmt: skip
+        if counted:  # circles of area by count, the smallest on top; the legend's from empties
+            draw_counted_words(ax, grid, xy, kind, frequent, colours)
+            continue
+        if rest.any():  # drawn first (under the named words), listed last in the legend
+            ax.scatter(*shown[rest].T, s=size, color="0.8", edgecolors=rims[rest],
+                       linewidths=0.4, zorder=2, label="other words")  # fmt: skip
+        for k, word in enumerate(frequent):
+            ax.scatter(*shown[kind == k].T, s=size, color=colours[k], edgecolors=rims[kind == k],
+                       linewidths=0.4, zorder=3, label=word)  # fmt: skip
+    handles, labels = axes[0].get_legend_handles_labels()
+    marker = np.sqrt(size)  # the legend's word markers rimmed black, wherever their first one is
+    handles = [h if label.startswith("images (") else Line2D(
+        [], [], ls="", marker="o", ms=marker, mfc=h.get_facecolor()[0], mec="k", mew=0.4)
+        for h, label in zip(handles, labels, strict=True)]  # fmt: skip
+    if "other words" in labels:
+        k = labels.index("other words")
+        handles.append(handles.pop(k))
+        labels.append(labels.pop(k))
+    spread = "circle area by count" if counted else "markers at one spot spread apart"
+    map_legend(axes[-1], handles, labels, below=wide, columns=4, fontsize=8, frameon=False,
+               title=f"words heard (rarest word of each utterance;\n{spread})",
+               title_fontsize=8)  # fmt: skip
+    axes[0].set_title((title or house_title(house)) + strips)
+    return fig

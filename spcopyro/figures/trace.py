@@ -1,0 +1,105 @@
+"""trace.png: a fit's objective and labels in use per sweep or iteration (paper Figs. 5-6,
+:func:`trace_figure`), and the names of its methods and point estimates that the other figures'
+titles share. Re-exported by :mod:`spcopyro.figures.plotting`."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.ticker import FuncFormatter, MaxNLocator
+
+from spcopyro._util.messages import plural
+from spcopyro.figures.png import save_figure
+from spcopyro.results.point_estimate import LOSS_LABELS
+from spcopyro.results.result import SpCoResult
+
+ESTIMATE_NAMES = {loss: label.replace(" ", "-") for loss, label in LOSS_LABELS.items()}
+"""The point estimates' names in the figures' titles, their losses' labels
+(:data:`~spcopyro.results.point_estimate.LOSS_LABELS`) as adjectives: "the vi estimate" read as
+variational inference's (compare-inference's VI methods), not the variation-of-information
+loss's."""
+
+_CHAINS = ("gibbs", "vi-gibbs")
+"""The methods whose trace and marginals are a Gibbs chain's (vi-gibbs: after its CAVI start)."""
+
+
+def _estimate_name(result: SpCoResult) -> str:
+    """ "variation-of-information point estimate" (:data:`ESTIMATE_NAMES`), or "point
+    estimate" for a result that does not say which."""
+    kind = str(result.inference.get("point_estimate") or "")
+    return f"{ESTIMATE_NAMES.get(kind, kind)} point estimate".lstrip()
+
+
+def plot_trace(
+    result: SpCoResult, path: str | os.PathLike[str], kept: tuple[int, int] | None = None
+) -> Path:
+    """Write :func:`trace_figure` to ``path``."""
+    return save_figure(trace_figure(result, kept), path)
+
+
+def trace_figure(result: SpCoResult, kept: tuple[int, int] | None = None) -> Figure:
+    """The objective (log joint or ELBO) and the number of concepts per iteration (paper
+    Figs. 5-6), the sweep of the highest log joint marked (a variational method's final
+    iteration, whose q is reported: LBP's and SVI's objectives need not peak there). When the
+    reported map is a point estimate over the kept samples (``result.agreement``), the figure
+    says so: that map is not the marked sweep's state. The concept count is of the chain's
+    state at each sweep (every label it uses, specks included; vi-gibbs's are its Gibbs sweeps
+    after the CAVI start) or, for variational methods, of each cell's most probable concept
+    under q at each iteration; not the fit's "concepts in use". ``kept`` = (k, K): the result is
+    chain k of the K run (``fit --chains K``), the one kept; the title says so."""
+    trace = result.trace
+    sweeps = np.arange(1, len(trace.objective) + 1)
+    chain = result.method in _CHAINS  # vi-gibbs traces its Gibbs sweeps
+    step = "sweep" if chain else "iteration"
+    fig = Figure(figsize=(7, 5))
+    top, bottom = fig.subplots(2, 1, sharex=True)
+    top.plot(sweeps, trace.objective, lw=0.8)
+    best = result.best_iteration + 1
+    top.axvline(best, color="C3", lw=0.6, ls="--",
+                label=f"highest {trace.objective_name} ({step} {best})" if chain else
+                f"final {trace.objective_name} ({step} {best}): the reported q")  # fmt: skip
+    top.set_ylabel(trace.objective_name)
+    if result.method == "svi":  # one draw's estimate a step, at the step's (annealed) gamma
+        draws = int(result.inference.get("num_particles", 1))  # type: ignore[call-overload]
+        top.set_ylabel(f"{trace.objective_name} estimate\n({plural(draws, 'draw')} a step)")
+        asked = int(result.inference.get("anneal_iterations") or 0)  # type: ignore[call-overload]
+        anneal = min(asked, len(sweeps))
+        if anneal > 1:  # not the model's ELBO there: a weaker coupling's
+            label = f"steps 1-{anneal}: gamma annealed from 0, the estimate at that gamma"
+            top.axvspan(1, anneal, color="0.9", zorder=0, label=label)
+    top.legend(fontsize=8)
+    bottom.plot(sweeps, trace.num_concepts, lw=0.8, color="C1")
+    if chain:
+        counted = "(the chain's state, specks included)"
+    else:  # a q(C), not a state: a concept counts where it is some cell's most probable one
+        counted = "(argmax of q per cell, specks included)"
+    bottom.set_ylabel(f"labels in use per {step}\n{counted}", fontsize=8)
+    bottom.yaxis.set_major_locator(MaxNLocator(integer=True))  # a count: no 12.5 concepts
+    bottom.set_xlabel(step)
+    for ax in (top, bottom):
+        ax.set_xscale("log")
+        ax.minorticks_off()  # a Tick is some 20 artists: 60 of them were most of the figure
+    bottom.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))  # 10, not mathtext
+    title = f"{result.name or 'trace'} ({result.method})"
+    if kept is not None and kept[1] > 1:  # the other chains' traces are not drawn
+        run = "chain" if chain else "fit"
+        title += f"\n{run} {kept[0]} of {kept[1]} (the one kept; chains.json), the others not shown"
+    if "vi_iterations_run" in result.inference:  # vi-gibbs: the sweeps began at CAVI's labels
+        title += (f"\nGibbs sweeps from a CAVI start of {result.inference['vi_iterations_run']} "
+                  "iterations (not shown)")  # fmt: skip
+    refine = result.inference.get("refine")
+    if isinstance(refine, dict) and refine.get("refine") and isinstance(refine.get("coarse"), dict):
+        coarse = refine["coarse"]
+        title += (
+            f"\nthe refinement on the map's {result.grid.resolution:g} m cells, after "
+            f"{coarse['sweeps']} sweeps on {coarse['cell_size']:g} m cells (not shown)"
+        )
+    if result.agreement is not None:
+        title += (f"\nthe reported map: the {_estimate_name(result)} over the kept samples,\n"
+                  f"not the state of {step} {best}")  # fmt: skip
+    fig.suptitle(title, fontsize=10)
+    fig.subplots_adjust(top=0.95 - 0.035 * (title.count("\n") + 1))  # room for every line
+    return fig
