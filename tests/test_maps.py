@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import cv2
@@ -337,9 +338,9 @@ def bad_case(tmp_path: Path, **overrides: object) -> Path:
         ({"origin": [1.0, 2.0]}, ["bad.yaml:3:", "'origin'", "[1.0, 2.0]"]),
         ({"origin": [1.0, 2.0, "a"]}, ["'origin'", "'a'"]),
         ({"origin": [1.0, 2.0, 0.3]}, ["'origin'", "0.3", "rotated maps are not supported"]),
-        ({"negate": 2}, ["bad.yaml:4:", "'negate'", "got 2"]),
-        ({"occupied_thresh": 1.5}, ["bad.yaml:5:", "'occupied_thresh'", "1.5"]),
-        ({"free_thresh": -0.1}, ["'free_thresh'", "-0.1"]),
+        ({"negate": 1.0}, ["bad.yaml:4:", "'negate'", "got 1.0"]),
+        ({"occupied_thresh": "nan"}, ["bad.yaml:5:", "'occupied_thresh'", "nan"]),
+        ({"free_thresh": "abc"}, ["'free_thresh'", "'abc'"]),
         ({"free_thresh": 0.7}, ["'free_thresh'", "0.7", "0.65"]),
         ({"mode": "scale"}, ["'mode'", "'scale'", "not supported"]),
         ({"mode": "raw"}, ["'mode'", "'raw'", "load_filter_mask", "load_label_map_server"]),
@@ -668,11 +669,26 @@ def test_dataset_maps_match_paper(dataset_root: Path, room: str) -> None:
 # ---------------------------------------------------------------------- Nav2 map_io's readings
 @pytest.mark.parametrize(
     ("text", "negate"),
-    [("true", 1), ("false", 0), ('"true"', 1), ("y", 1), ("'Yes'", 1), ("OFF", 0), ('"1"', 1)],
+    [
+        ("true", 1),
+        ("false", 0),
+        ('"true"', 1),
+        ("y", 1),
+        ("'Yes'", 1),
+        ("OFF", 0),
+        ('"1"', 1),
+        ("2", 1),
+        ("-1", 1),
+        ("'2'", 1),
+        ("0x10", 1),
+        ("00", 0),
+    ],  # fmt: skip
 )
 def test_negate_as_nav2_reads_it(tmp_path: Path, text: str, negate: int) -> None:
     """Nav2's map_io reads ``negate`` with yaml-cpp as an int, else as a bool (``y``, ``yes``,
-    ``true``, ``on`` and their opposites, quoted or not, in lower, upper or title case)."""
+    ``true``, ``on`` and their opposites, quoted or not, in lower, upper or title case), and
+    keeps it as a C++ bool, as ROS 1's map_server does its ``int negate``: any nonzero integer
+    negates (``negate: 2`` was refused, though both ROS loaders read it)."""
     write_pgm(tmp_path / "map.pgm", np.array([[0, 255]], dtype=np.uint8))
     path = tmp_path / "m.yaml"
     path.write_text(
@@ -683,7 +699,7 @@ def test_negate_as_nav2_reads_it(tmp_path: Path, text: str, negate: int) -> None
     np.testing.assert_array_equal(load_map(path).occupancy, dark_free)
 
 
-@pytest.mark.parametrize("text", ["1.0", "'maybe'", "tRUE", "2"])
+@pytest.mark.parametrize("text", ["1.0", "'maybe'", "tRUE", "1_000", "09", "4294967296"])
 def test_negate_nav2_refuses_is_refused(tmp_path: Path, text: str) -> None:
     write_pgm(tmp_path / "map.pgm", np.array([[0, 255]], dtype=np.uint8))
     path = tmp_path / "m.yaml"
@@ -691,7 +707,7 @@ def test_negate_nav2_refuses_is_refused(tmp_path: Path, text: str) -> None:
         "image: map.pgm\nresolution: 0.5\norigin: [0, 0, 0]\n"
         f"negate: {text}\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
     )
-    with pytest.raises(MapFormatError, match=r"m\.yaml:4: key 'negate' must be 0 or 1"):
+    with pytest.raises(MapFormatError, match=r"m\.yaml:4: key 'negate' must be an integer"):
         load_map(path)
 
 
@@ -710,6 +726,17 @@ def test_scale_mask_with_equal_thresholds_is_refused(tmp_path: Path) -> None:
     write_pgm(tmp_path / "map.pgm", np.array([[0, 153, 255]], dtype=np.uint8))
     path = write_yaml(tmp_path / "s.yaml", mode="scale", occupied_thresh=0.4, free_thresh=0.4)
     with pytest.raises(MapFormatError, match=r"s\.yaml:6: key 'free_thresh' 0\.4 equals"):
+        load_filter_mask(path)
+
+
+def test_scale_mask_with_both_thresholds_infinite_is_refused(tmp_path: Path) -> None:
+    """Thresholds outside [0, 1] load, as in map_server; in scale mode a free_thresh of -inf
+    and an occupied_thresh of inf leave every pixel between them at (occ + inf) / inf, nan,
+    which was cast to an int8 mask value without a word."""
+    write_pgm(tmp_path / "map.pgm", np.array([[0, 153, 255]], dtype=np.uint8))
+    path = write_yaml(tmp_path / "s.yaml", mode="scale", occupied_thresh=math.inf,
+                      free_thresh=-math.inf)  # fmt: skip
+    with pytest.raises(MapFormatError, match=r"s\.yaml:6: key 'free_thresh' -inf and"):
         load_filter_mask(path)
 
 

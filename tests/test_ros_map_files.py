@@ -12,7 +12,7 @@ import pytest
 
 from spcopyro.cli.main import main
 from spcopyro.data import dataset
-from spcopyro.maps import FREE, UNKNOWN, MapFormatError, load_map
+from spcopyro.maps import FREE, OCCUPIED, UNKNOWN, MapFormatError, load_map
 from spcopyro.maps.map_server import MAX_MAP_COORDINATE
 
 # a walled room (row 0 = top) with unexplored space (map_saver's grey 205) around it
@@ -329,3 +329,66 @@ def test_a_coarser_copy_of_the_fits_map_is_the_fits_map():
     shifted = OccupancyGrid(coarse.occupancy, coarse.resolution, (grid.origin[0] + 2.0, 0.0, 0.0))
     with pytest.raises(ValueError, match="not the fit's map"):
         check_same_map(grid, shifted)
+
+
+def ros_trinary(pixels: np.ndarray, occupied_thresh: float, free_thresh: float) -> np.ndarray:
+    """ROS 1's image_loader.cpp / Nav2's map_io.cpp trinary reading of 8-bit grey ``pixels``
+    (``negate: 0``), thresholds unchecked: occupied first, then free, else unknown."""
+    occ = (255 - pixels.astype(np.float64)) / 255.0
+    return np.where(occ > occupied_thresh, OCCUPIED, np.where(occ < free_thresh, FREE, UNKNOWN))
+
+
+@pytest.mark.parametrize(
+    ("occupied", "free", "line", "said"),
+    [
+        ("1.5", "0.196", 5, "'occupied_thresh' 1.5 is outside [0, 1], where a pixel's occupancy p "
+         "lies: no pixel reads occupied, as map_server reads it"),
+        ("0.65", "-0.1", 6, "'free_thresh' -0.1 is outside [0, 1], where a pixel's occupancy p "
+         "lies: no pixel reads free, as map_server reads it"),
+        ("-0.5", "-1", 5, "'occupied_thresh' -0.5 is outside [0, 1], where a pixel's occupancy "
+         "p lies: every pixel reads occupied"),
+        ("65", "19.6", 5, "'occupied_thresh' 65 is outside [0, 1], where a pixel's occupancy p "
+         "lies: no pixel reads occupied, as map_server reads it; a percentage? write 0.65"),
+        ("2", "1.5", 6, "'free_thresh' 1.5 is outside [0, 1], where a pixel's occupancy p "
+         "lies: every pixel not occupied reads free"),
+        (".inf", "0.196", 5, "'occupied_thresh' inf is outside [0, 1]"),
+    ],
+)  # fmt: skip
+def test_thresholds_outside_0_1_load_as_ros_reads_them_with_a_warning(
+    tmp_path, caplog, occupied, free, line, said
+):
+    """ROS 1's map_server and Nav2's map_io read the thresholds as doubles and check no range on
+    loading: one outside [0, 1] makes every pixel, or none, occupied or free. They were refused
+    here ("a number in [0, 1]") though both ROS loaders load the map; now read as they read
+    them, each warned of, naming the yaml's line (a percentage such as 65 wipes out the walls)."""
+    pixels = np.array([[0, 50, 100, 205, 254, 255]], dtype=np.uint8)
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        grid = load_map(write_map(tmp_path, pixels, occupied_thresh=occupied, free_thresh=free))
+    want = ros_trinary(pixels, *(float(v.replace(".inf", "inf")) for v in (occupied, free)))
+    np.testing.assert_array_equal(grid.occupancy, want)
+    messages = warnings_of(caplog)
+    assert any(m.startswith(f"{tmp_path / 'room.yaml'}:{line}: key ") for m in messages), messages
+    assert any(said in m for m in messages), messages
+
+
+@pytest.mark.parametrize(
+    ("keys", "said"),
+    [
+        ({"occupied_thresh": ".nan"}, ":5: key 'occupied_thresh' must be a number"),
+        ({"free_thresh": "-.NaN"}, ":6: key 'free_thresh' must be a number"),
+        ({"occupied_thresh": "-0.5", "free_thresh": "0.1"}, ":6: key 'free_thresh' (0.1) must "
+         "not exceed 'occupied_thresh' (-0.5): swapped?"),
+    ],
+)  # fmt: skip
+def test_thresholds_that_make_the_map_meaningless_are_refused(tmp_path, keys, said):
+    """A nan threshold (map_server compares every pixel with it as false) and swapped ones stay
+    refused, naming the yaml's line and the value."""
+    with pytest.raises(MapFormatError) as info:
+        load_map(write_map(tmp_path, **keys))
+    assert f"{tmp_path / 'room.yaml'}{said}" in str(info.value)
+
+
+def test_thresholds_within_0_1_are_not_warned_of(tmp_path, caplog):
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        load_map(write_map(tmp_path, occupied_thresh="1.0", free_thresh="0.0"))
+    assert warnings_of(caplog) == []

@@ -33,6 +33,7 @@ image's first row is the map's top (largest world y), as for every map of the pa
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -139,6 +140,12 @@ def load_filter_mask(yaml_path: str | os.PathLike[str]) -> FilterMask:
             f"{spec.where('free_thresh')}: key 'free_thresh' {echo(spec.free_thresh)} equals "
             f"'occupied_thresh' ({spec.where('occupied_thresh')}): mode 'scale' divides by "
             "their difference (map_server's value of a pixel at them is undefined)"
+        )
+    if spec.mode == "scale" and math.isinf(spec.free_thresh) and math.isinf(spec.occupied_thresh):
+        raise MapFormatError(
+            f"{spec.where('free_thresh')}: key 'free_thresh' {echo(spec.free_thresh)} and "
+            f"'occupied_thresh' {echo(spec.occupied_thresh)} ({spec.where('occupied_thresh')}) "
+            "are both infinite: mode 'scale' divides by their difference (inf / inf, no value)"
         )
     img = _read_image(spec)  # [H, W] or [H, W, C] uint8
     has_alpha = img.ndim == 3 and img.shape[2] in (2, 4)

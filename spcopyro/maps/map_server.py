@@ -2,16 +2,28 @@
 
 Loading (:func:`load_map`) follows map_server's trinary mode: with the pixel value ``v`` (the mean
 over all channels for colour images, alpha included, as map_server does in trinary mode) the
-occupancy probability is ``p = (255 - v) / 255`` (``negate: 0``) or ``p = v / 255``
-(``negate: 1``); ``p > occupied_thresh`` is OCCUPIED, ``p < free_thresh`` is FREE and anything
-else (including values exactly at a threshold) is UNKNOWN. ``negate`` may also be a yaml-cpp
-boolean (``true``, ``"yes"``, ``y``...), which Nav2's map_io reads when an int does not parse
-(ROS 1's map_server wants 0 or 1). Equal thresholds are read as map_server reads them (map_io
-checks no order on loading); a ``free_thresh`` above ``occupied_thresh`` is refused as swapped
-(map_server would read every cell free or occupied, occupied first). ``mode: scale`` and
-``mode: raw`` are rejected with a clear error, because they produce values outside the three
-codes; semantic maps written by :func:`~spcopyro.maps.render.save_label_map_server`
-(``mode: raw``) are read back with :func:`~spcopyro.maps.render.load_label_map_server`.
+occupancy probability is ``p = (255 - v) / 255`` (``negate: 0``) or ``p = v / 255`` (``negate``
+nonzero); ``p > occupied_thresh`` is OCCUPIED, ``p < free_thresh`` is FREE and anything else
+(including values exactly at a threshold) is UNKNOWN.
+
+The yaml's values are read as ROS reads them (ROS 1's map_server ``main.cpp`` /
+``image_loader.cpp``, Nav2's ``map_io.cpp`` ``loadMapYaml``, both with yaml-cpp). ``negate`` is
+read as an int (C++ ``int``, prefix ``0x`` hex, a leading 0 octal, quoted or not), which both hand
+on as a C++ bool: 0 keeps white free, **any other integer** (``2``, ``-1``) negates; Nav2 also
+reads a yaml-cpp boolean (``true``, ``"yes"``, ``y``, ``Off``...) where an int does not parse (ROS
+1 refuses it, spcopyro reads it as Nav2 does). A float (``1.0``), ``1_000``, ``09`` or an integer
+beyond C++'s ``int`` parse as neither and are refused, as both refuse them. The thresholds are any
+numbers, as both read them (neither checks a range on loading; ``p`` lies in [0, 1], so a threshold
+outside it reads as 0 or 1): one outside [0, 1] (every pixel or none occupied or free; ``65`` a
+percentage?) loads with a warning naming its line. Refused, as making the map meaningless: a
+``nan`` threshold (every comparison with it false) and a ``free_thresh`` above ``occupied_thresh``
+(swapped: map_server would read every cell free or occupied, occupied first); equal thresholds are
+read as map_server reads them (map_io checks no order on loading).
+
+``mode: scale`` and ``mode: raw`` are rejected with a clear error, because they produce values
+outside the three codes; semantic maps written by
+:func:`~spcopyro.maps.render.save_label_map_server` (``mode: raw``) are read back with
+:func:`~spcopyro.maps.render.load_label_map_server`.
 
 This module, :mod:`~spcopyro.maps.map_yaml` (the yaml's keys, parsed and checked) and
 :mod:`~spcopyro.maps.map_image` (the image, decoded at its full scale) are the only modules of the
@@ -57,12 +69,13 @@ recorded on such a map (an origin in UTM coordinates) could not be fitted."""
 def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
     """Load a ROS map_server map (yaml + image) as an :class:`OccupancyGrid`.
 
-    Keys (all required, as in map_server): ``image`` (relative to the yaml's folder, or
-    absolute), ``resolution``, ``origin`` ``[x, y, yaw]`` (yaw must be 0; one within
-    :data:`~spcopyro.maps.map_yaml.MAX_YAW_NOISE` reads as 0), ``negate`` (0/1),
-    ``occupied_thresh``, ``free_thresh`` (in [0, 1], free <= occupied); optional ``mode`` must
-    be ``trinary`` (the default). Unknown keys are ignored, as map_server does. Numbers may be
-    written ``5e-2`` (YAML 1.2, as map_server's yaml-cpp reads them).
+    Keys (all required, as in map_server): ``image`` (relative to the yaml's folder, or absolute),
+    ``resolution``, ``origin`` ``[x, y, yaw]`` (yaw must be 0; one within
+    :data:`~spcopyro.maps.map_yaml.MAX_YAW_NOISE` reads as 0), ``negate`` (an integer, any nonzero
+    one negating, or a boolean), ``occupied_thresh``, ``free_thresh`` (numbers, not nan, free <=
+    occupied; one outside [0, 1] warned of), read as ROS reads them (module docstring); optional
+    ``mode`` must be ``trinary`` (the default). Unknown keys are ignored, as map_server does.
+    Numbers may be written ``5e-2`` (YAML 1.2, as map_server's yaml-cpp reads them).
 
     Cells: ``v`` = pixel value over the image's full scale (a pgm's maxval; else 255, or 65535
     for a 16-bit png: map_server scales by it), averaged over all channels for colour images;

@@ -18,9 +18,12 @@ import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from spcopyro._util.messages import echo
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
 
 logger = logging.getLogger("spcopyro.maps.map_server")  # load_map's logger, as documented there
 
@@ -124,6 +127,68 @@ an int, else as a bool, so ``negate: "true"`` or ``negate: y`` (a string to PyYA
 (ROS 1's map_server reads only an int: ``negate: true`` fails there.)"""
 
 
+_YAML_CPP_INT = re.compile(
+    r"[-+]?(?:0[xX](?P<hex>[0-9a-fA-F]+)|0(?P<oct>[0-7]+)|(?P<dec>[1-9][0-9]*|0))\s*"
+)
+"""The texts yaml-cpp's ``as<int>()`` reads: C++'s ``>>`` of an int with the base its prefix
+gives (``0x`` hex, a leading 0 octal), signed, trailing blanks allowed. ``1_000``, ``0b1``,
+``1.0`` or ``09`` (ints or floats to PyYAML, or strings) are not ints there."""
+
+_INT32 = (-(2**31), 2**31 - 1)
+"""The range of C++'s ``int`` (map_io's ``as<int>()``, ROS 1's ``int negate``): an integer beyond
+it does not parse as an int there."""
+
+
+def _negate(text: str | None, value: Any) -> bool | None:
+    """``negate`` as map_server reads it, or None where it does not read (module docstring of
+    :mod:`spcopyro.maps.map_server`): ``text`` (the scalar's text, quotes removed; None for a list
+    or mapping) as yaml-cpp's int (ROS 1 and Nav2 pass it on as a C++ bool: any nonzero int
+    negates), else as yaml-cpp's bool (Nav2 only). ``value`` is PyYAML's reading of it."""
+    if text is None or isinstance(value, float):
+        return None
+    match = _YAML_CPP_INT.fullmatch(text)
+    if match is None:
+        return _YAML_CPP_BOOLS.get(text)
+    digits, base = next(
+        (match[g], b) for g, b in (("hex", 16), ("oct", 8), ("dec", 10)) if match[g]
+    )
+    number = int(digits, base) * (-1 if text.startswith("-") else 1)
+    return number != 0 if _INT32[0] <= number <= _INT32[1] else None
+
+
+def _check_thresholds(doc: dict[str, Any], where: Callable[[str], str]) -> None:
+    """Refuse thresholds that are not numbers, nan (map_server's comparisons with it are all
+    false) or swapped (``free_thresh`` above ``occupied_thresh``); warn of one outside [0, 1],
+    which map_server reads (``p`` is in [0, 1], so it reads as 0 or 1) but which is most likely
+    a percentage or a slip: it makes every pixel, or none, free or occupied."""
+    for key in ("occupied_thresh", "free_thresh"):
+        value = doc[key]
+        if not _is_number(value) or math.isnan(value):
+            raise MapFormatError(
+                f"{where(key)}: key {key!r} must be a number (a probability in [0, 1]), "
+                f"got {echo(value)}"
+            )
+    free, occupied = doc["free_thresh"], doc["occupied_thresh"]
+    if free > occupied:  # equal: map_server reads them (module doc)
+        raise MapFormatError(
+            f"{where('free_thresh')}: key 'free_thresh' ({echo(free)}) must not exceed "
+            f"'occupied_thresh' ({echo(occupied)}): swapped?"
+        )
+    effects = {
+        "occupied_thresh": ("every pixel reads occupied", "no pixel reads occupied"),
+        "free_thresh": ("no pixel reads free", "every pixel not occupied reads free"),
+    }
+    for key, (below, above) in effects.items():
+        value = doc[key]
+        if not 0.0 <= value <= 1.0:
+            logger.warning(
+                "%s: key %r %s is outside [0, 1], where a pixel's occupancy p lies: %s, as "
+                "map_server reads it%s",
+                where(key), key, echo(value), below if value < 0 else above,
+                f"; a percentage? write {value / 100:g}" if 1 < value <= 100 else "",
+            )  # fmt: skip
+
+
 _SEPARATING_TABS = re.compile(r"(?<=[:,\[\]])[ \t]*\t[ \t]*|[ \t]*\t[ \t]*(?=#|$)", re.MULTILINE)
 """Runs of blanks holding a tab after a key's or a flow list's separator, or before a comment or
 a line's end: white space to yaml-cpp, an error to PyYAML (tabs that indent are not YAML)."""
@@ -163,7 +228,8 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
             f"{path}: map yaml must be a mapping of keys to values, got {type(doc).__name__}"
         )
     lines: dict[Any, int] = {}
-    for key_node, _ in root.value:
+    texts: dict[Any, str] = {}  # each scalar value's text, quotes removed, as yaml-cpp reads it
+    for key_node, value_node in root.value:
         if not isinstance(key_node, yaml.ScalarNode):
             raise MapFormatError(
                 f"{path}:{key_node.start_mark.line + 1}: map yaml keys must be plain names"
@@ -175,6 +241,8 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
                 f"(first at line {lines[key]})"
             )
         lines[key] = key_node.start_mark.line + 1
+        if isinstance(value_node, yaml.ScalarNode):
+            texts[key] = value_node.value
 
     def where(key: str) -> str:
         return f"{path}:{lines[key]}" if key in lines else str(path)
@@ -237,20 +305,10 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
             "supported (yaw must be 0)"
         )
 
-    negate = doc["negate"]
-    negate = _YAML_CPP_BOOLS.get(negate, negate) if isinstance(negate, str) else negate
-    if not isinstance(negate, (int, bool)) or negate not in (0, 1):
-        raise bad("negate", "0 or 1 (or true / false)")
-
-    for key in ("occupied_thresh", "free_thresh"):
-        value = doc[key]
-        if not _is_number(value) or not 0.0 <= value <= 1.0:
-            raise bad(key, "a number in [0, 1]")
-    if doc["free_thresh"] > doc["occupied_thresh"]:  # equal: map_server reads them (module doc)
-        raise MapFormatError(
-            f"{where('free_thresh')}: key 'free_thresh' ({echo(doc['free_thresh'])}) must not "
-            f"exceed 'occupied_thresh' ({echo(doc['occupied_thresh'])}): swapped?"
-        )
+    negate = _negate(texts.get("negate"), doc["negate"])
+    if negate is None:
+        raise bad("negate", "an integer (0: white is free; any other: black is free) or a boolean")
+    _check_thresholds(doc, where)
 
     mode = doc.get("mode", "trinary")
     if mode not in ("trinary", "scale", "raw"):
