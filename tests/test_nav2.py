@@ -575,3 +575,53 @@ def test_words_of_one_place_are_warned_their_masks_are_the_same(tmp_path, capsys
     assert not any("same place" in x for x in bed.warnings)
     record = json.loads((tmp_path / "nav2" / "nav2_export.json").read_text())["masks"][1]
     assert any("the same place as 'kitchen'" in x for x in record["warnings"])
+
+
+@pytest.mark.parametrize(
+    ("shift", "same"),
+    [(0.0, True), (1e-10, True), (4e-7, True), (4.9e-5, True), (1e-3, False), (0.05, False)],
+)
+def test_nav2_and_placement_agree_on_what_a_coarsening_is(shift, same):
+    """check_robot_map (the robot's map in `export --nav2`) and free_block_of_map_cells (a
+    coarse grid against the map it keeps) each checked the coarsening with an origin tolerance
+    of its own, 1e-9 m and exact: a grid 1e-10 m off was the robot map's coarsening to one and
+    not to the other. One function (spcopyro.maps.coarse.is_coarsening) now decides, within a
+    thousandth of a map cell (5e-5 m at 0.05 m): ROS 1's map_saver's 6-decimal rounding of the
+    origin (up to 5e-7 m) passes, a shift of a fiftieth of a cell does not."""
+    from spcopyro.maps.coarse import coarsen_grid, free_block_of_map_cells
+    from spcopyro.robot.nav2 import check_robot_map
+
+    fine = OccupancyGrid(np.full((7, 10), FREE, dtype=np.int8), 0.05, (1.5, -2.0, 0.0))
+    moved = dataclasses.replace(fine, origin=(1.5 + shift, -2.0 - shift, 0.0))
+    coarse = coarsen_grid(fine, 3)  # keeps fine as its coarsened_from
+    kept_moved = dataclasses.replace(coarse, coarsened_from=moved)  # as fit --init-from sets it
+    verdicts = []
+    for check in (
+        lambda: check_robot_map(coarse, moved),
+        lambda: free_block_of_map_cells(kept_moved),
+    ):
+        try:
+            check()
+            verdicts.append(True)
+        except ValueError:
+            verdicts.append(False)
+    assert verdicts == [same, same]
+
+
+def test_a_robot_map_saved_again_by_ros1_map_saver_is_the_fits(tmp_path):
+    """ROS 1's map_saver writes the origin with printf's %f (6 decimals): the robot's map saved
+    again by it lies up to 5e-7 m from the fit's grid's origin, and `export --nav2` refused it
+    as "not the map the fit's cells were coarsened from" (an absolute tolerance of 1e-9 m)."""
+    from spcopyro.maps.coarse import coarsen_grid
+    from spcopyro.robot.nav2 import check_robot_map
+
+    fine = OccupancyGrid(
+        np.full((7, 10), FREE, dtype=np.int8), 0.05, (-12.3456789, 3.14159265, 0.0)
+    )
+    path = save_map(fine, tmp_path / "robot_map.yaml")
+    doc = yaml.safe_load(path.read_text())
+    doc["origin"] = "[{:f}, {:f}, {:f}]".format(*fine.origin)  # as map_saver writes it (%f)
+    path.write_text("".join(f"{key}: {value}\n" for key, value in doc.items()))
+    resaved = load_map(path)
+    assert resaved.origin != fine.origin
+    check_robot_map(coarsen_grid(fine, 5), resaved)  # no error

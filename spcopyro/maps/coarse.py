@@ -40,6 +40,7 @@ __all__ = [
     "coarsening_factor",
     "free_block_of_map_cells",
     "grow_labels",
+    "is_coarsening",
     "model_cell_of",
     "refine_labels",
 ]
@@ -80,6 +81,35 @@ def coarsen_grid(grid: OccupancyGrid, factor: int) -> OccupancyGrid:
     return OccupancyGrid(coarse, resolution, grid.origin, source=grid.source, coarsened_from=grid)
 
 
+ORIGIN_TOLERANCE_CELLS = 1e-3
+"""Map cells: how far a coarse grid's origin may lie from its map's, along x and y, and still be
+its coarsening (:func:`is_coarsening`). :func:`coarsen_grid` keeps the origin exactly, but the two
+are compared after a trip through yaml files: a fit's ``map.yaml`` against the robot's map
+(``robot_map.yaml``, or the data folder's map) that another tool may have saved again -- ROS 1's
+``map_saver`` writes the origin with 6 decimals (``%f``), moving it by up to 5e-7 m, which an
+absolute 1e-9 m refused. A thousandth of a map cell (50 um at 0.05 m; 1 um at the smallest
+plausible resolution, 1 mm) lets that through and still refuses any map a mask, label or plan
+would visibly lie off: anything the coarse grid carries lands within a thousandth of a map cell
+of where it belongs."""
+
+
+def is_coarsening(grid: OccupancyGrid, fine: OccupancyGrid) -> bool:
+    """Whether ``grid`` is :func:`coarsen_grid` of ``fine`` by a whole factor f >= 1, as far as
+    the geometry tells: its resolution f times ``fine``'s (relative 1e-9: ``coarsen_grid``
+    rounds it to 12 decimals), its origin ``fine``'s within :data:`ORIGIN_TOLERANCE_CELLS` of
+    ``fine``'s cells, and its shape ``fine``'s in f x f blocks, padded up. The one check of
+    :func:`free_block_of_map_cells` and of the robot's map in Nav2's export
+    (:func:`spcopyro.robot.nav2.check_robot_map`)."""
+    factor = round(grid.resolution / fine.resolution)
+    tolerance = ORIGIN_TOLERANCE_CELLS * fine.resolution
+    return (
+        factor >= 1
+        and math.isclose(grid.resolution, factor * fine.resolution, rel_tol=1e-9)
+        and all(math.isclose(grid.origin[i], fine.origin[i], abs_tol=tolerance) for i in (0, 1))
+        and tuple(-(-n // factor) for n in fine.shape) == grid.shape
+    )
+
+
 def model_cell_of(grid: OccupancyGrid, factor: int) -> tuple[np.ndarray, np.ndarray]:
     """``(rows [H], cols [W])``: the model-grid row of every map row and column of every map
     column under :func:`coarsen_grid` with ``factor``."""
@@ -97,18 +127,12 @@ def free_block_of_map_cells(grid: OccupancyGrid) -> np.ndarray:
     fine = grid.coarsened_from
     if fine is None:
         raise ValueError("the grid was not coarsened from a map (grid.coarsened_from is None)")
-    factor = int(round(grid.resolution / fine.resolution))
-    rows, cols = model_cell_of(fine, factor)
-    if (
-        factor < 1
-        or not math.isclose(grid.resolution, factor * fine.resolution, rel_tol=1e-9)
-        or grid.origin != fine.origin
-        or (int(rows[-1]) + 1, int(cols[-1]) + 1) != grid.shape
-    ):
+    if not is_coarsening(grid, fine):
         raise ValueError(
             f"grid ({grid.shape} cells of {grid.resolution} m) is not a coarsening of its "
             f"coarsened_from ({fine.shape} cells of {fine.resolution} m): was it replaced?"
         )
+    rows, cols = model_cell_of(fine, round(grid.resolution / fine.resolution))
     index = np.asarray(grid.free_index)[rows[:, None], cols[None, :]]  # [H, W] block's index
     free = np.asarray(fine.free)  # [H, W]
     return grow_labels(np.where(free, index, -1), free)

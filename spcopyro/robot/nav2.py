@@ -49,7 +49,6 @@ the mask server ``MODE_WORD_mask_server`` and of ``MODE_WORD_filter_info_server`
 from __future__ import annotations
 
 import json
-import math
 import os
 import re
 import unicodedata
@@ -61,6 +60,7 @@ import yaml
 
 from spcopyro._util.outputs import stage_marked_folder
 from spcopyro.maps import OccupancyGrid, save_filter_mask, save_label_map_server, save_map
+from spcopyro.maps.coarse import is_coarsening
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.semantic_map import word_index
 from spcopyro.results.uncertainty import where_probability
@@ -283,22 +283,14 @@ def check_frame(frame: str) -> str:
 def check_robot_map(grid: OccupancyGrid, robot_map: OccupancyGrid) -> None:
     """Refuse a ``robot_map`` that ``grid`` (a coarse fit's) was not coarsened from: its origin,
     a whole number of its cells a side of ``grid``'s and ``grid``'s size in those blocks
-    (:func:`spcopyro.maps.coarse.coarsen_grid`) must hold, else the masks, on ``grid``, would
-    lie shifted or scaled on Nav2's main map (a data folder's map saved again after the fit, by
-    a new SLAM run with another origin, say).
+    (:func:`spcopyro.maps.coarse.is_coarsening`, the origin within a thousandth of its cell)
+    must hold, else the masks, on ``grid``, would lie shifted or scaled on Nav2's main map (a
+    data folder's map saved again after the fit, by a new SLAM run with another origin, say).
 
     Raises:
         ValueError: naming the map's file and both grids' origin, resolution and size.
     """
-    factor = round(grid.resolution / robot_map.resolution)
-    height, width = (-(-n // max(factor, 1)) for n in robot_map.shape)  # its coarsened size
-    if (
-        factor >= 1
-        and math.isclose(robot_map.resolution * factor, grid.resolution, rel_tol=1e-9)
-        and math.isclose(robot_map.origin[0], grid.origin[0], abs_tol=1e-9)
-        and math.isclose(robot_map.origin[1], grid.origin[1], abs_tol=1e-9)
-        and (height, width) == grid.shape
-    ):
+    if is_coarsening(grid, robot_map):
         return
 
     def geometry(g: OccupancyGrid) -> str:
