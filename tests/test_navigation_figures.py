@@ -238,3 +238,45 @@ def test_navigate_png_colour_bar_is_as_tall_as_the_map():
     assert abs(bar_box.y0 - map_box.y0) <= 1 and abs(bar_box.y1 - map_box.y1) <= 1, (
         map_box, bar_box)  # fmt: skip
     assert bar_box.x0 >= map_box.x1  # beside it
+
+
+def test_a_place_label_covers_no_other_place_marker():
+    """show --graph on room1ldk5's words: the largest place by the map's right edge had its
+    label pushed to its marker's left, onto a smaller place's marker (``washroom (6.2 m²)``
+    over ``wall``'s), where it read as that place's name. A label now covers no other place's
+    marker where a corner of its own marker leaves it clear."""
+    from hand_results import one_word_per_concept
+    from matplotlib.transforms import Bbox
+
+    from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
+    from spcopyro.robot.navigation.figure import place_graph_figure, place_points
+    from spcopyro.robot.navigation.places import place_graph
+
+    occupancy = np.full((64, 124), OCCUPIED, dtype=np.int8)  # 6.2 m x 3.2 m, 0.05 m cells
+    occupancy[2:-2, 2:-2] = FREE
+    grid = OccupancyGrid(occupancy, 0.05, (0.0, 0.0, 0.0))
+    rows, cols = np.nonzero(grid.free)  # [N] each
+    labels = (cols >= 96).astype(np.int64)  # [N]: 1 the right 1.3 m, 0 the rest
+    # a 0.6 m square of concept 2 just left of the right part's centre (5.45, 1.6), where the
+    # right part's label went when the map's edge left no room on its marker's right
+    labels[(rows >= 22) & (rows < 34) & (cols >= 84) & (cols < 96)] = 2
+    result = one_word_per_concept(grid, labels, ("living", "washroom", "wall"), num_concepts=3)
+    graph = place_graph(result)
+    assert sorted(p.name for p in graph.places) == ["living", "wall", "washroom"]
+    fig = place_graph_figure(result, graph)
+    renderer, _ = _boxes(fig)
+    ax = fig.axes[0]
+    xy, _ = place_points(result.grid, graph)  # [N, 2]
+    area = np.array([p.area for p in graph.places])  # [N]
+    radius = np.sqrt(40 + 260 * area / area.max()) / 2 * fig.dpi / 72  # [N] pixels
+    markers = {}
+    for p in graph.places:
+        cx, cy = ax.transData.transform(xy[p.id])
+        r = radius[p.id]
+        markers[p.name] = Bbox.from_extents(cx - r, cy - r, cx + r, cy + r)
+    assert len(ax.texts) == 3
+    for text in ax.texts:
+        name = text.get_text().split(" (")[0]
+        extent = text.get_window_extent(renderer)
+        covered = [other for other, m in markers.items() if other != name and extent.overlaps(m)]
+        assert not covered, f"{text.get_text()!r} covers the marker of {covered}"

@@ -130,23 +130,41 @@ its corners, then above and below it (centred: in a narrow strip of a tall map n
 label fits)."""
 
 
-def _label_places(fig: Figure, axes: list[Axes], graph: PlaceGraph, xy: np.ndarray) -> None:
-    """Each place's name and area beside its marker (``xy``: ``[N, 2]``), on the strip of
-    ``axes`` showing it (:func:`_showing`), largest place first, at the first of
-    :data:`_CORNERS` where it overlaps no label written before and stays inside its axes (else
-    the first where it overlaps none, else the first corner): on a corridor's strip a label
-    above a centroid ran over the title."""
+def _marker_boxes(fig: Figure, axes: list[Axes], xy: np.ndarray, size: np.ndarray) -> list[Bbox]:
+    """The display box of each place's marker (``xy``: ``[N, 2]``, ``size``: ``[N]``, the
+    scatter's area in points^2), on the strip showing it (:func:`_showing`)."""
+    boxes = []
+    for (x, y), s in zip(xy, size, strict=True):
+        cx, cy = _showing(axes, x, y).transData.transform((x, y))
+        r = np.sqrt(s) / 2 * fig.dpi / 72  # the marker's radius in pixels
+        boxes.append(Bbox.from_extents(cx - r, cy - r, cx + r, cy + r))
+    return boxes
+
+
+def _label_places(
+    fig: Figure, axes: list[Axes], graph: PlaceGraph, xy: np.ndarray, size: np.ndarray
+) -> None:
+    """Each place's name and area beside its marker (``xy``: ``[N, 2]``; ``size``: ``[N]``, the
+    markers' areas in points^2), on the strip of ``axes`` showing it (:func:`_showing`),
+    largest place first, at the first of :data:`_CORNERS` where it overlaps no label written
+    before, stays inside its axes and covers no other place's marker (else the first that
+    overlaps no label and stays inside, else the first that overlaps none, else the first
+    corner): on a corridor's strip a label above a centroid ran over the title, and a label
+    pushed off the map's edge to its marker's left sat on a smaller place's marker, which it
+    then seemed to name (room1ldk5's words: ``washroom`` beside ``wall``'s marker)."""
     if fig.canvas is None or not hasattr(fig.canvas, "get_renderer"):
         FigureCanvasAgg(fig)
     renderer = fig.canvas.get_renderer()
     for ax in axes:
         ax.apply_aspect()  # the axes' box as drawn: label boxes measured where they will be
+    markers = _marker_boxes(fig, axes, xy, size)  # [N] display boxes
     box = {"boxstyle": "round,pad=0.2", "fc": "white", "alpha": 0.8, "lw": 0}
     written: list[Bbox] = []
     for p in sorted(graph.places, key=lambda place: -place.area):
         at = tuple(xy[p.id])
         ax = _showing(axes, *at)
         frame = ax.get_window_extent(renderer=renderer)
+        others = [m for q, m in enumerate(markers) if q != p.id]
         boxes = []
         for dx, dy, ha, va in _CORNERS:
             label = ax.annotate(f"{p.name} ({p.area:.1f} m²)", at, xytext=(dx, dy),
@@ -157,7 +175,9 @@ def _label_places(fig: Figure, axes: list[Axes], graph: PlaceGraph, xy: np.ndarr
         free = [not any(b.overlaps(other) for other in written) for b in boxes]
         inside = [frame.x0 <= b.x0 and b.x1 <= frame.x1 and frame.y0 <= b.y0 and b.y1 <= frame.y1
                   for b in boxes]  # fmt: skip
-        order = [k for k in range(len(boxes)) if free[k] and inside[k]]
+        clear = [not any(b.overlaps(m) for m in others) for b in boxes]
+        order = [k for k in range(len(boxes)) if free[k] and inside[k] and clear[k]]
+        order = order or [k for k in range(len(boxes)) if free[k] and inside[k]]
         k = (order or [k for k in range(len(boxes)) if free[k]] or [0])[0]
         dx, dy, ha, va = _CORNERS[k]
         ax.annotate(f"{p.name} ({p.area:.1f} m²)", at, xytext=(dx, dy),
@@ -245,19 +265,19 @@ def place_graph_figure(result: SpCoResult, graph: PlaceGraph) -> Figure:
     fig, axes, below, strips = map_axes(grid, rgb, (9, 8))
     xy, anchors = place_points(grid, graph)  # [N, 2] markers, [N, 2] their cells
     lines = passage_lines(grid, graph, xy, anchors)
+    area = np.array([p.area for p in graph.places], dtype=float)  # [N] m^2
+    size = 40 + 260 * area / area.max() if len(area) else area  # [N] marker areas, points^2
     for ax in axes:  # one map, or its strips: every line and marker clipped to its stretch
         for e, line in zip(graph.passages, lines, strict=True):
             ax.plot(*line.T, color="k", lw=1.5, ls="--" if e.doorway else "-", zorder=3)
         if len(xy):
-            area = np.array([p.area for p in graph.places])
-            size = 40 + 260 * area / area.max()
             face = colours[[p.concept for p in graph.places]] / 255.0
             ax.scatter(*xy.T, s=size, c=face, edgecolors="k", linewidths=1.2, zorder=4)
     axes[0].plot([], [], color="k", ls="--", label=f"doorway (border <= {DOORWAY_WIDTH:g} m)")
     axes[0].plot([], [], color="k", ls="-", label="wider shared border")
     map_legend(axes[-1], axes[0].get_legend_handles_labels()[0], below=below, columns=2,
                fontsize=8)  # fmt: skip
-    _label_places(fig, axes, graph, xy)
+    _label_places(fig, axes, graph, xy, size)
     dropped = ""
     if graph.dropped:
         dropped = f"; {plural(graph.dropped, 'region')} under {graph.min_area:g} m² left out"
