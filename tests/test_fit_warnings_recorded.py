@@ -10,7 +10,7 @@ import warnings
 
 import pytest
 
-from spcopyro.cli.fit_warnings import record_warnings, recorded_warnings
+from spcopyro.cli.fit_warnings import recorded_warnings, write_config
 from spcopyro.cli.main import main
 from spcopyro.synthetic import HouseSpec, write_synthetic
 
@@ -48,6 +48,26 @@ def test_a_fits_warnings_are_printed_and_kept_in_config_json(small_house, tmp_pa
     assert main(["show", str(tmp_path / "fine"), "--out", str(tmp_path / "h.png")]) == 2
     err = capsys.readouterr().err
     assert "not a house folder" in err and "its fit gave" not in err, err
+
+
+def test_a_fit_writes_its_config_json_once_with_its_warnings(small_house, tmp_path, monkeypatch):
+    """config.json is written once, at the end (it was written by the result's save, then read
+    and written again with the warnings); a fit interrupted before is discarded whole."""
+    from pathlib import Path
+
+    written: list[str] = []
+    real = Path.write_text
+
+    def write_text(self, *args, **kwargs):
+        written.append(self.name)
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(Path, "write_text", write_text)
+    settings = _fit(small_house, tmp_path / "low", "0.5")
+    assert written.count("config.json") == 1, written
+    assert written.index("config.json") > written.index("scores.json"), written  # at the end
+    assert any(LOW_GAMMA in m for m in settings["warnings"]), settings
+    assert list(settings)[-1] == "warnings" and settings["method"] == "gibbs", settings
 
 
 def _print_warning(message, category, filename, lineno, file=None, line=None) -> None:
@@ -97,7 +117,6 @@ def test_recorded_warnings_keeps_log_records_and_python_warnings_in_order(tmp_pa
     assert said == ["first 1", "UserWarning: second", "first 1"]
     assert logging.getLogger("spcopyro").handlers == handlers  # its handler removed
     config = tmp_path / "config.json"
-    config.write_text(json.dumps({"method": "gibbs"}))
-    record_warnings(config, said)
+    write_config(config, {"method": "gibbs"}, said)
     kept = json.loads(config.read_text())
     assert kept == {"method": "gibbs", "warnings": ["first 1", "UserWarning: second"]}

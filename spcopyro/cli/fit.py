@@ -54,7 +54,7 @@ from spcopyro.cli.fit_resume import (
     without_resume,
 )
 from spcopyro.cli.fit_settings import apply_preset_inference, check_update_args, fit_settings
-from spcopyro.cli.fit_warnings import record_warnings, recorded_warnings
+from spcopyro.cli.fit_warnings import recorded_warnings, write_config
 from spcopyro.config import SpCoSettings, preset_inference
 from spcopyro.data import House
 from spcopyro.data.footprint import release_shared_footprints, shared_footprints
@@ -375,7 +375,7 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     resumed = {} if args.resume is None else {"resumed_from": str(args.resume)}
     provenance = {**result.provenance, "command": command, **resumed}
     result = dataclasses.replace(result, provenance=provenance)
-    out = result.save(staged.path)
+    out = result.save(staged.path, with_config=False)  # config.json last, with the warnings
     robot_map = house.grid.coarsened_from  # a coarse fit's map: navigate plans on it
     if robot_map is not None:
         save_map(robot_map, out / ROBOT_MAP_FILE)
@@ -500,7 +500,8 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
         print(f"note: every concept's word distribution is close to uniform: {why}",
               file=sys.stderr)  # fmt: skip
     phases.mark("report")
-    record_warnings(out / "config.json", job.said)  # every warning the fit gave, printed above
+    # every warning the fit gave, printed above; an interrupted fit's staging folder is discarded
+    write_config(out / "config.json", result.settings_json(), job.said)
     out = staged.commit()
     checkpoint = checkpoint_path(out)
     if checkpoint.is_file():  # the one resumed from, or an old one --overwrite replaces

@@ -6,10 +6,10 @@ coupling, observations off the free cells, a variational method's flat q) or thr
 not tell that its map was flagged. :func:`recorded_warnings` keeps, while a fit runs, every record
 of the ``spcopyro`` logger tree at WARNING and above and every Python warning shown, and still
 prints them (a study's cells keep theirs instead of printing them:
-:func:`spcopyro.study.cell_warnings.captured_warnings`). :func:`record_warnings` writes the
-distinct messages in order, by the study's rule (:func:`~spcopyro.study.cell_warnings.
-warnings_text`: each cut to 2000 characters, at most 20 and a count of the rest), into
-``config.json`` as a list of strings (empty when the fit gave none).
+:func:`spcopyro.study.cell_warnings.captured_warnings`). :func:`write_config` writes
+``config.json`` once, last, with the distinct messages in order, by the study's rule
+(:func:`~spcopyro.study.cell_warnings.warnings_text`: each cut to 2000 characters, at most 20
+and a count of the rest), as a list of strings (empty when the fit gave none).
 
 A chain run in a forked worker process (``--chains K`` on Linux,
 :mod:`spcopyro.gibbs.chain_processes`) sends its warnings to the fit's process, which prints
@@ -27,7 +27,7 @@ from pathlib import Path
 
 from spcopyro.study.cell_warnings import LOGGER, warnings_text
 
-__all__ = ["WARNINGS_KEY", "fit_warnings_note", "record_warnings", "recorded_warnings"]
+__all__ = ["WARNINGS_KEY", "fit_warnings_note", "recorded_warnings", "write_config"]
 
 WARNINGS_KEY = "warnings"
 """The entry of ``config.json`` that lists the fit's warnings."""
@@ -68,11 +68,13 @@ def recorded_warnings() -> Iterator[list[str]]:
             warnings.showwarning = shown
 
 
-def record_warnings(config_path: Path, said: list[str]) -> None:
-    """Set ``config.json``'s ``"warnings"`` to the distinct messages of ``said`` in order (the
-    study's rule, module docstring); ``[]`` when none."""
-    settings = json.loads(config_path.read_text(encoding="utf-8"))
-    settings[WARNINGS_KEY] = json.loads(warnings_text(said) or "[]")
+def write_config(config_path: Path, settings: dict[str, object], said: list[str]) -> None:
+    """Write ``config.json``: ``settings`` (the result's
+    :meth:`~spcopyro.results.result.SpCoResult.settings_json`) with ``"warnings"`` set to the
+    distinct messages of ``said`` in order (the study's rule, module docstring); ``[]`` when
+    none. The fit writes it once, after everything else (it was written by the result's save and
+    again here)."""
+    settings = {**settings, WARNINGS_KEY: json.loads(warnings_text(said) or "[]")}
     config_path.write_text(json.dumps(settings, indent=2) + "\n")
 
 

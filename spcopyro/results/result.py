@@ -407,8 +407,10 @@ class SpCoResult:
         }
         return {**settings, **{k: v for k, v in self.provenance.items() if k not in settings}}
 
-    def save(self, out_dir: str | os.PathLike[str]) -> Path:
-        """Write the result into ``out_dir``.
+    def save(self, out_dir: str | os.PathLike[str], *, with_config: bool = True) -> Path:
+        """Write the result into ``out_dir``; ``with_config=False``: all but ``config.json``,
+        which the caller writes (``spcopyro fit``: last, with the warnings the whole fit gave,
+        :func:`spcopyro.cli.fit_warnings.write_config`).
 
         Files: ``labels.npy`` ([H, W] int64, -1 off free space, concept ids >= 0, map image row
         order; the point estimate), ``concepts.json`` (per concept: cells, pi, top words,
@@ -433,7 +435,8 @@ class SpCoResult:
         np.save(out / "labels.npy", self.label_image())
         concepts = with_speck_fields(self, self.concepts(n_words=10))  # + speck, support
         (out / "concepts.json").write_text(json.dumps(concepts, indent=2) + "\n")
-        (out / "config.json").write_text(json.dumps(self.settings_json(), indent=2) + "\n")
+        if with_config:
+            (out / "config.json").write_text(json.dumps(self.settings_json(), indent=2) + "\n")
         trace = self.trace
         with open(out / "trace.csv", "w", newline="") as f:
             writer = csv.writer(f)
