@@ -80,6 +80,30 @@ def test_the_decision_follows_the_images_not_the_labels(house, coarse_fit):
         refine_decision(coarse_fit, model, "sometimes")
 
 
+def test_no_refinement_where_floor100_would_leave_the_images_out(house, coarse_fit):
+    """The README's rosbag walk (``features --weights random``: 1000-class rows, every value
+    below 0.01) refined, as the images told the places apart read as probabilities, and the
+    refinement's floor(100 f) then left out all 180 images: six rooms became four. The same
+    histograms spread over 100 times the classes separate the places as much, and are not
+    refined; over 2 times (values up to 0.5) they are."""
+    model = model_house(house, preset("coarse").data.cell_size)
+    obs = model.observations
+
+    def spread(times):
+        features = np.repeat(obs.image_features / times, times, axis=1)  # [T, K * times]
+        return dataclasses.replace(
+            model, observations=dataclasses.replace(obs, image_features=features)
+        )
+
+    wide = refine_decision(coarse_fit, spread(100), "auto")
+    assert wide.separation.explained >= SEPARATES and not wide.refine
+    count = obs.image_features.shape[0]
+    assert f"leaves nothing of {count} of {count} images" in wide.reason
+    assert "stays on its model grid" in wide.reason
+    assert refine_decision(coarse_fit, spread(2), "auto").refine
+    assert refine_decision(coarse_fit, spread(100), "always").refine  # as asked
+
+
 def test_a_coarse_result_starts_a_fit_on_the_map_s_cells_block_by_block(house, coarse_fit):
     config = preset("auto").model
     start = result_labels(coarse_fit, house, config).numpy()  # [N map]

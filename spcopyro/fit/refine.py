@@ -53,13 +53,17 @@ from collections.abc import Callable
 from contextvars import ContextVar
 from typing import Any
 
+import numpy as np
+
 from spcopyro.config import SpCoConfig, SpCoSettings
 from spcopyro.data import House
+from spcopyro.data.counts import scale_features
 from spcopyro.data.model_grid import model_house
 from spcopyro.fit.image_separation import ImageSeparation, image_labels, image_separation
 from spcopyro.results.result import SpCoResult
 
 __all__ = [
+    "KEEPS",
     "REFINE_MODES",
     "SEPARATES",
     "RefineDecision",
@@ -85,6 +89,13 @@ REFINE_MODES: tuple[str, ...] = ("auto", "never", "always")
 SEPARATES = 0.5
 """``refine="auto"`` refines when the coarse fit's concepts explain at least this share of the
 images' variance (module docstring)."""
+
+KEEPS = 0.5
+"""``refine="auto"`` does not refine when floor(100 f), the refinement's counting of the images,
+leaves nothing of more than this share of them (every feature of a row below 0.01: a histogram
+over the 1000 ImageNet classes of ``spcopyro features``, all of them with ``--weights random``):
+the decision was measured on the images, and the refinement would fit without them (the README's
+rosbag walk: the coarse fit's six rooms became four on the map's cells, every image left out)."""
 
 
 def check_refine(refine: str) -> str:
@@ -156,7 +167,23 @@ def refine_decision(result: SpCoResult, house: House, refine: str = "auto") -> R
                f"< {SEPARATES:.0%}: the images do not tell the places apart")  # fmt: skip
     if separation is None:
         verdict = "so the fit stays on its model grid"
+    emptied = _emptied_by_floor100(images) if separates else 0
+    if separates and emptied > KEEPS * images.shape[0]:  # the refinement would fit without them
+        return RefineDecision(refine, separation, False, (
+            f"{share} {verdict}, but the refinement counts each image as floor(100 f), which "
+            f"leaves nothing of {emptied} of {images.shape[0]} images (every feature below "
+            "0.01: a histogram over many classes, as spcopyro features' 1000 ImageNet "
+            "classes), so the fit stays on its model grid, which reads them as probabilities"
+        ))  # fmt: skip
     return RefineDecision(refine, separation, separates, f"{share} {verdict}")
+
+
+def _emptied_by_floor100(images: np.ndarray) -> int:
+    """How many of the image histograms ``images`` ``[T, K]`` hold something that
+    floor(100 f), the refinement's counting (:func:`refined_settings`), makes all zero."""
+    raw = np.asarray(images, dtype=np.float64)  # [T, K]
+    scaled = scale_features(raw, "floor100")  # [T, K]
+    return int(((scaled.sum(axis=1) == 0) & (raw.sum(axis=1) > 0)).sum())
 
 
 def with_decision(result: SpCoResult, decision: RefineDecision) -> SpCoResult:
