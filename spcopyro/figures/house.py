@@ -11,6 +11,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
+from spcopyro._util.messages import plural
 from spcopyro.data import House
 from spcopyro.figures.map_axes import map_axes
 from spcopyro.figures.map_pieces import (
@@ -22,6 +23,7 @@ from spcopyro.figures.map_pieces import (
     spread_markers,
     utterance_marks,
 )
+from spcopyro.figures.off_map import draw_at_edge, edge_handle, off_axes
 from spcopyro.figures.png import save_figure
 from spcopyro.maps import distinct_colours, render_labels
 
@@ -43,6 +45,8 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     ``label_colours``), the rest are "other words" in grey. Markers at one spot are spread
     apart (:func:`~spcopyro.figures.map_pieces.spread_markers`): every word in the legend shows.
     A marker on a wall has a white rim (:func:`~spcopyro.figures.map_pieces.rim_colours`).
+    A word or image off the map shown is a triangle at its edge pointing its way, counted in
+    the legend (:mod:`~spcopyro.figures.off_map`): the axes keep the map's limits.
     """
     grid, obs = house.grid, house.observations
     rgb = render_labels(np.full(grid.shape, -1), grid)
@@ -52,9 +56,17 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     colours = distinct_colours(len(frequent)) / 255.0  # [F, 3]
     rank = {w: k for k, w in enumerate(frequent)}
     kind = np.array([rank.get(w, len(frequent)) for w in marks], dtype=np.int64)  # [U]
-    order = np.argsort(kind, kind="stable")  # named words keep their places first
     size = 28.0
-    xy = np.asarray(obs.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
+    heard = np.asarray(obs.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
+    away = off_axes(axes, heard)  # [U] off the map: at its edge
+    images = np.asarray(obs.image_xy, dtype=np.float64).reshape(-1, 2)  # [I, 2]
+    images_away = off_axes(axes, images)  # [I]
+    palette = np.vstack([np.asarray(colours).reshape(-1, 3), [0.8, 0.8, 0.8]])  # [F + 1, 3]
+    draw_at_edge(axes, heard[away], palette[kind[away]])
+    draw_at_edge(axes, images[images_away], np.full((int(images_away.sum()), 3), 0.45))
+    others = (kind == len(frequent)).any()  # "other words" in the legend, on the map or off
+    xy, kind = heard[~away], kind[~away]  # [U', 2], [U'] the words on the map
+    order = np.argsort(kind, kind="stable")  # named words keep their places first
     counted = markers_counted(axes[0], grid, xy)  # too many to spread
     shown = np.empty_like(xy)
     shown[order] = xy[order] if counted else spread_markers(axes[0], xy[order], size)
@@ -62,12 +74,12 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     rims = rim_colours(grid, shown)  # [U, 3] white on a wall, as on the semantic map
     for ax in axes:
         if obs.num_images:  # a house of words only has none: no "images (0)" in the legend
-            ax.scatter(*obs.image_xy.T, s=6, c="0.45", marker="s",
+            ax.scatter(*images[~images_away].T, s=6, c="0.45", marker="s",
                        label=f"images ({obs.num_images})")  # fmt: skip
         if counted:  # circles of area by count, the smallest on top; the legend's from empties
             draw_counted_words(ax, grid, xy, kind, frequent, colours)
             continue
-        if rest.any():  # drawn first (under the named words), listed last in the legend
+        if others:  # drawn first (under the named words), listed last in the legend
             ax.scatter(*shown[rest].T, s=size, color="0.8", edgecolors=rims[rest],
                        linewidths=0.4, zorder=2, label="other words")  # fmt: skip
         for k, word in enumerate(frequent):
@@ -82,6 +94,11 @@ def house_figure(house: House, title: str | None = None) -> Figure:
         k = labels.index("other words")
         handles.append(handles.pop(k))
         labels.append(labels.pop(k))
+    off = [plural(int(n), what) for n, what in ((away.sum(), "word"),
+                                                (images_away.sum(), "image")) if n]  # fmt: skip
+    if off:  # drawn at the edge, pointing their way
+        handles.append(edge_handle(f"off the map: {' and '.join(off)} (at its edge)"))
+        labels.append(handles[-1].get_label())
     spread = "circle area by count" if counted else "markers at one spot spread apart"
     map_legend(axes[-1], handles, labels, below=wide, columns=4, fontsize=8, frameon=False,
                title=f"words heard (rarest word of each utterance;\n{spread})",

@@ -35,9 +35,15 @@ def map_extent(grid: OccupancyGrid, rows: slice, cols: slice) -> tuple[float, fl
 
 def show_map(ax: Axes, grid: OccupancyGrid, rgb: np.ndarray) -> tuple[slice, slice]:
     """Draw the known part of the ``[H, W, 3]`` map image ``rgb`` on ``ax`` in world metres,
-    at equal aspect; returns the rows and columns shown (:func:`known_bounds`)."""
+    at equal aspect; returns the rows and columns shown (:func:`known_bounds`). The axes keep
+    the map's limits (autoscaling off): a point drawn off the map does not grow them and shrink
+    the map (:mod:`~spcopyro.figures.off_map` marks such points at the edge)."""
     rows, cols = known_bounds(grid)
-    ax.imshow(rgb[rows, cols], extent=map_extent(grid, rows, cols), interpolation="nearest")
+    left, right, bottom, top = map_extent(grid, rows, cols)
+    ax.imshow(rgb[rows, cols], extent=(left, right, bottom, top), interpolation="nearest")
+    ax.set_xlim(left, right)
+    ax.set_ylim(bottom, top)
+    ax.set_autoscale_on(False)
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_aspect("equal")

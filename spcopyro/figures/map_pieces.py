@@ -25,7 +25,9 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.transforms import ScaledTranslation
 
+from spcopyro._util.messages import plural
 from spcopyro.data import House, Observations
+from spcopyro.figures.off_map import draw_at_edge, edge_handle, off_axes
 from spcopyro.maps import OCCUPIED, OccupancyGrid
 from spcopyro.results.concept_words import (
     MIN_LIFT,
@@ -363,18 +365,24 @@ def draw_counted_words(
 
 def draw_utterances(
     axes: list[Axes], result: SpCoResult, observations: Observations, colours: np.ndarray
-) -> Line2D | None:
+) -> list[Line2D]:
     """Mark where each utterance was heard (Fig. 10F) on each of ``axes``: a circle in the
     colour of the concept of the cell it was counted in (:func:`utterance_concepts`; grey
     where it was left out, as the legend says) with a black rim, white on a wall (room1dk5's
     coarse walls cover two words heard by a door: their black rims vanished and they read as
     specks of paint); many utterances as circles of area by count
-    (:func:`utterance_markers`), the largest drawn first. Returns a legend handle (None when
-    the observations hold no utterance)."""
-    xy = np.asarray(observations.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
-    if len(xy) == 0:
-        return None
-    concepts = utterance_concepts(result, xy)  # [U]
+    (:func:`utterance_markers`), the largest drawn first. One heard off the map shown is a
+    triangle at its edge pointing its way (:mod:`~spcopyro.figures.off_map`; the axes keep the
+    map's limits). Returns the legend's handles: the circles', and the triangles' where there
+    are any (none when the observations hold no utterance)."""
+    heard = np.asarray(observations.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
+    if len(heard) == 0:
+        return []
+    every = utterance_concepts(result, heard)  # [U]
+    away = off_axes(axes, heard)  # [U] off the map: at its edge
+    fill = np.where(every[:, None] >= 0, colours[np.maximum(every, 0)] / 255.0, OFF_MAP_RGB)
+    draw_at_edge(axes, heard[away], fill[away])  # fill: [U, 3], as the circles'
+    xy, concepts = heard[~away], every[~away]  # [U', 2], [U'] on the map
     counted = False
     for ax in axes:
         at, concept, areas, counts = utterance_markers(ax, result.grid, xy, concepts)
@@ -387,14 +395,18 @@ def draw_utterances(
         ax.scatter(*at.T, s=areas, c=rgb, edgecolors=rims, linewidths=0.7 if counts is None
                    else 0.4, zorder=3)  # fmt: skip
         counted = counted or counts is not None
-    left_out = int((concepts < 0).sum())  # the fit printed them as "unplaced"
+    left_out = int((every < 0).sum())  # the fit printed them as "unplaced"
     grey = f", mid grey: {left_out} left out, off the free space" if left_out else ""
     many = ", circle area by count" if counted else ""
-    return Line2D(
+    handles = [Line2D(
         [], [], marker="o", ls="", markerfacecolor="0.8", markeredgecolor="black",
-        label=f"where a word was heard ({len(xy)} utterances{many}; fill: the concept "
+        label=f"where a word was heard ({len(heard)} utterances{many}; fill: the concept "
         f"there{grey})",
-    )  # fmt: skip
+    )]  # fmt: skip
+    if away.any():
+        handles.append(edge_handle(f"{plural(int(away.sum()), 'utterance')} heard off the map "
+                                   "(at its edge; fill as above)"))  # fmt: skip
+    return handles
 
 
 def draw_outline(

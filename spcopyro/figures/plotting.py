@@ -183,8 +183,7 @@ def semantic_map_figure(
         regions, skipped = regions + written, skipped + left_out
     handles: list[Patch | Line2D] = list(concept_handles(result, colours, n_words))
     if observations is not None:
-        marker = draw_utterances(axes, result, observations, colours)
-        handles += [marker] if marker is not None else []
+        handles += draw_utterances(axes, result, observations, colours)
     handles += [Patch(color=np.array(RGB_OCCUPIED) / 255.0, label="walls"),
                 Patch(color=np.array(RGB_UNKNOWN) / 255.0, label="unknown")]  # fmt: skip
     map_legend(axes[-1], handles, below=wide, columns=2, fontsize=7, frameon=False,
