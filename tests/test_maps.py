@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from pathlib import Path
 
 import cv2
@@ -729,15 +730,29 @@ def test_scale_mask_with_equal_thresholds_is_refused(tmp_path: Path) -> None:
         load_filter_mask(path)
 
 
-def test_scale_mask_with_both_thresholds_infinite_is_refused(tmp_path: Path) -> None:
+@pytest.mark.parametrize("occupied", [math.inf, 0.65])
+def test_scale_mask_with_free_thresh_minus_infinity_is_refused(tmp_path: Path, occupied) -> None:
     """Thresholds outside [0, 1] load, as in map_server; in scale mode a free_thresh of -inf
-    and an occupied_thresh of inf leave every pixel between them at (occ + inf) / inf, nan,
-    which was cast to an int8 mask value without a word."""
+    leaves every pixel between the thresholds at (occ + inf) / (occupied_thresh + inf), nan,
+    which was cast to an int8 mask value without a word -- with occupied_thresh infinite too
+    and (found in review) with it finite: [[0, 153, 255]] read as [[100, 0, 0]]."""
+    write_pgm(tmp_path / "map.pgm", np.array([[0, 153, 255]], dtype=np.uint8))
+    path = write_yaml(tmp_path / "s.yaml", mode="scale", occupied_thresh=occupied,
+                      free_thresh=-math.inf)  # fmt: skip
+    with pytest.raises(MapFormatError, match=r"s\.yaml:6: key 'free_thresh' -inf with"):
+        load_filter_mask(path)
+
+
+def test_scale_mask_with_occupied_thresh_infinity_reads_between_as_free(tmp_path: Path) -> None:
+    """occupied_thresh inf with a finite free_thresh is a value: (occ - free) / inf = 0."""
     write_pgm(tmp_path / "map.pgm", np.array([[0, 153, 255]], dtype=np.uint8))
     path = write_yaml(tmp_path / "s.yaml", mode="scale", occupied_thresh=math.inf,
-                      free_thresh=-math.inf)  # fmt: skip
-    with pytest.raises(MapFormatError, match=r"s\.yaml:6: key 'free_thresh' -inf and"):
-        load_filter_mask(path)
+                      free_thresh=0.2)  # fmt: skip
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # the 'outside [0, 1]' warning
+        warnings.simplefilter("error", RuntimeWarning)  # no nan from numpy
+        mask = load_filter_mask(path)
+    assert mask.values.tolist() == [[0, 0, 0]]
 
 
 # ---------------------------------------------------------------------- maps without free space

@@ -220,8 +220,15 @@ def test_the_note_names_only_given_options_the_refinement_changes():
     assert replaced_options(given, coarse.data.replace(footprint_kernel="gaussian"), refined) == {
         "--feature-scaling": {"given": "probability", "refinement": "floor100"},
         "--footprint": {"given": 0.5, "refinement": 0.0},
-        "--footprint-kernel": {"given": "gaussian", "refinement": None},  # no footprint: none
+        "--footprint-kernel": {"given": "gaussian", "refinement": "unused (no footprint)"},
     }  # word scaling: the preset's 10, not given; the cell size: the refinement's by definition
+    # the refinement's preparation keeps the kernel (it does nothing at radius 0): the record
+    # says so rather than None beside a preparation holding it (found in review)
+    assert refined.footprint_radius == 0.0
+    uniform = argparse.Namespace(footprint_kernel="uniform")  # given, the refinement's own value
+    assert replaced_options(uniform, coarse.data, refined) == {
+        "--footprint-kernel": {"given": "uniform", "refinement": "unused (no footprint)"}
+    }
     same = argparse.Namespace(
         feature_scaling="floor100",
         word_scaling=1.0,
@@ -253,6 +260,48 @@ def test_refine_is_refused_where_it_does_not_apply(home, tmp_path, capsys):
     argv = ["fit", str(home), "--out", str(tmp_path / "o"), "--no-figures"]
     assert main([*argv, "--method", "cavi", "--sweeps", "3", "--refine", "auto"]) == 2
     assert "--refine auto refines a Gibbs fit" in capsys.readouterr().err
+
+
+def test_no_refinement_without_a_model_grid_coarser_than_the_map(home, tmp_path, capsys):
+    """``--cell-size map --refine always`` was accepted and refitted the map's cells on the same
+    cells with the refinement's preparation (``--refine auto`` too, where the images separated
+    the places), while --refine's help says it comes after a fit on model cells coarser than
+    the map. ``always`` is refused before the fit, naming both options; ``auto`` fits once and
+    says why it did not refine."""
+    argv = ["fit", str(home), "--sweeps", "4", "--no-figures", "--chain-workers", "1"]
+    asked = tmp_path / "always"
+    assert main([*argv, "--out", str(asked), "--cell-size", "map", "--refine", "always"]) == 2
+    error = capsys.readouterr().err
+    assert "--refine always refits a fit on model cells coarser than the map" in error
+    assert "--cell-size map fits on the map's own 0.1 m cells" in error
+    assert not asked.exists()  # refused before the fit
+    for options, cause in (
+        (["--preset", "auto"], "--preset auto (no cell size) fits on the map's own 0.1 m cells"),
+        (["--cell-size", "0.12"], "--cell-size 0.12 rounds to the map's own 0.1 m cells"),
+    ):
+        assert main([*argv, "--out", str(asked), *options, "--refine", "always"]) == 2
+        assert cause in capsys.readouterr().err
+    out = tmp_path / "auto"
+    assert main([*argv, "--out", str(out), "--cell-size", "map", "--refine", "auto"]) == 0
+    printed = capsys.readouterr().out
+    assert "refining " not in printed
+    assert ("not refined      --cell-size map fits on the map's own 0.1 m cells: there is no "
+            "coarser model grid to refine from") in printed  # fmt: skip
+    record = json.loads((out / "config.json").read_text())["inference"]["refine"]
+    assert not record["refine"] and "no coarser model grid" in record["reason"]
+    assert json.loads((out / "config.json").read_text())["data"]["feature_scaling"] == (
+        "probability"  # the preset's preparation, not the refinement's floor100
+    )
+
+
+def test_the_library_does_not_refine_a_fit_on_the_map_s_own_cells(house, coarse_fit):
+    on_map = model_house(house, None)
+    decision = refine_decision(coarse_fit, on_map, "auto")
+    assert not decision.refine and "no coarser model grid" in decision.reason
+    with pytest.raises(ValueError, match="refine='always' refits a fit on model cells coarser"):
+        refine_decision(coarse_fit, on_map, "always")
+    with pytest.raises(ValueError, match="there is no coarser model grid"):  # before fitting
+        fit_house(house, preset("coarse", cell_size="map"), sweeps=1, refine="always")
 
 
 def test_sweeps_auto_refines_for_as_many_sweeps_as_the_chains_needed(home, tmp_path, capsys):

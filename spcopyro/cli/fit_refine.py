@@ -19,8 +19,8 @@ if TYPE_CHECKING:
     from spcopyro.results.result import SpCoResult
 
 __all__ = [
-    "LARGE_REFINEMENT_CELLS", "REFINED_AWAY", "prepares_data", "refine", "replaced_options",
-    "report_update", "update_settings",
+    "LARGE_REFINEMENT_CELLS", "REFINED_AWAY", "check_refinable", "prepares_data", "refine",
+    "replaced_options", "report_update", "update_settings",
 ]  # fmt: skip
 
 LARGE_REFINEMENT_CELLS = 100_000
@@ -40,6 +40,42 @@ def prepares_data(args: argparse.Namespace) -> bool:
     return any(getattr(args, name, None) is not None for name in REFINED_AWAY)
 
 
+def _map_cells_cause(args: argparse.Namespace, settings: SpCoSettings, on_map: House) -> str:
+    """Which option leaves the model on the map's own cells (``on_map``'s), as the command line
+    names it: ``--cell-size map``, a ``--cell-size`` or preset cell size that rounds to the
+    map's cells, a preset without one, or a map too thin to coarsen."""
+    from spcopyro.maps.coarse import coarsening_factor
+
+    size = settings.data.cell_size
+    resolution = f"{on_map.grid.resolution:g} m"
+    given = f"--cell-size {args.cell_size}" if args.cell_size is not None else None
+    if size is None or size == "map":
+        named = given or f"--preset {args.preset} (no cell size)"
+        return f"{named} fits on the map's own {resolution} cells"
+    named = given or f"--preset {args.preset}'s {size:g} m cells"
+    s = "s" if given else ""
+    if coarsening_factor(on_map.grid.resolution, size) == 1:
+        return f"{named} round{s} to the map's own {resolution} cells"
+    return f"{named} leave{s} no free cell of the map (a warning above says so)"
+
+
+def check_refinable(
+    args: argparse.Namespace, settings: SpCoSettings, model: House, on_map: House
+) -> None:
+    """``--refine always`` refines a fit on model cells coarser than the map: refused before the
+    fit, naming the option that leaves ``model`` on the map's own cells (``on_map``'s); with
+    ``--refine auto`` the fit is not refined, the ``not refined`` line says why (:func:`_decide`).
+    """
+    if args.refine != "always" or model.grid.coarsened_from is not None:
+        return
+    raise ValueError(
+        "--refine always refits a fit on model cells coarser than the map on the map's own "
+        f"cells, and {_map_cells_cause(args, settings, on_map)}: leave out --refine always "
+        "(--refine auto does not refine there), or give --cell-size METRES coarser than the "
+        f"map's {on_map.grid.resolution:g} m cells"
+    )
+
+
 _REPLACEABLE = {"feature_scaling": "feature_scaling", "word_scaling": "word_scaling",
                 "footprint": "footprint_radius", "footprint_kernel": "footprint_kernel",
                 "footprint_fov": "footprint_fov"}  # fmt: skip
@@ -48,14 +84,19 @@ their :class:`~spcopyro.config.DataPreparation` field (``--cell-size``: the refi
 map's own cells by definition, and its ``refining`` line says so)."""
 
 
+UNUSED = "unused (no footprint)"
+"""What :func:`replaced_options` records as the refinement's footprint kernel or field of view."""
+
+
 def replaced_options(
     args: argparse.Namespace, first: DataPreparation, refined: DataPreparation
 ) -> dict[str, dict[str, object]]:
     """The data preparation options the command line gave (``args``) that the refinement
     replaces: ``--flag`` -> ``{"given": the first stage's value (``first``), "refinement": the
-    refinement's (``refined``)}``, where they differ. With no footprint in the refinement its
-    kernel and field of view are None (they do nothing). Empty for a command line that gave
-    none (the default fit)."""
+    refinement's (``refined``)}``, where they differ. With no footprint in the refinement a
+    kernel or field of view given is :data:`UNUSED` there (its preparation keeps the value,
+    which does nothing at radius 0). Empty for a command line that gave none (the default
+    fit)."""
     no_footprint = refined.footprint_radius == 0
     replaced = {}
     for name, field in _REPLACEABLE.items():
@@ -63,7 +104,7 @@ def replaced_options(
             continue  # the preset's value, not the user's
         given, used = getattr(first, field), getattr(refined, field)
         if no_footprint and field in ("footprint_kernel", "footprint_fov"):
-            used = None
+            used = UNUSED
         if given != used:
             replaced["--" + name.replace("_", "-")] = {"given": given, "refinement": used}
     return replaced
@@ -197,6 +238,9 @@ def _decide(
                   "much longer than the first stage (its own progress bar gives the time); "
                   "--refine never keeps the first stage's map, --method stochastic-vi fits large "
                   "maps in passes", file=sys.stderr)  # fmt: skip
+    elif model.grid.coarsened_from is None:  # no coarser grid: which option says so
+        print(f"not refined      {_map_cells_cause(args, settings, on_map)}: there is no "
+              "coarser model grid to refine from")  # fmt: skip
     else:  # config.json says why too
         print(f"not refined      {decision.reason}")
     return decision, replaced

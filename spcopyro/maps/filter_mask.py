@@ -141,11 +141,12 @@ def load_filter_mask(yaml_path: str | os.PathLike[str]) -> FilterMask:
             f"'occupied_thresh' ({spec.where('occupied_thresh')}): mode 'scale' divides by "
             "their difference (map_server's value of a pixel at them is undefined)"
         )
-    if spec.mode == "scale" and math.isinf(spec.free_thresh) and math.isinf(spec.occupied_thresh):
+    if spec.mode == "scale" and spec.free_thresh == -math.inf:  # occupied_thresh is above it
         raise MapFormatError(
-            f"{spec.where('free_thresh')}: key 'free_thresh' {echo(spec.free_thresh)} and "
-            f"'occupied_thresh' {echo(spec.occupied_thresh)} ({spec.where('occupied_thresh')}) "
-            "are both infinite: mode 'scale' divides by their difference (inf / inf, no value)"
+            f"{spec.where('free_thresh')}: key 'free_thresh' {echo(spec.free_thresh)} with "
+            f"'occupied_thresh' {echo(spec.occupied_thresh)} ({spec.where('occupied_thresh')}): "
+            "mode 'scale' gives a pixel between them (occ - free_thresh) / (occupied_thresh - "
+            "free_thresh) = inf / inf, no value"
         )
     img = _read_image(spec)  # [H, W] or [H, W, C] uint8
     has_alpha = img.ndim == 3 and img.shape[2] in (2, 4)
