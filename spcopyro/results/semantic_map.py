@@ -106,7 +106,9 @@ is 0.75 ("sofe"), as far as two distinct words are ("hall" from "wall" 0.75). Ot
 and the houses' own words at their closest: "bathroom"/"washroom" 0.75, "bathroom"/"bedroom"
 0.667 (difflib's default cutoff, 0.6, offered "bedroom" for "bathroom"), "bathroom"/"bath"
 0.667, "restroom"/"bedroom" 0.667, "living"/"dining" 0.667, "floor"/"door" 0.667,
-"terrace"/"entrance" 0.667, "bedroom"/"bed" 0.6: 0.8 offers none of them. Offered a
+"terrace"/"entrance" 0.667, "bedroom"/"bed" 0.6: the ratio offers none of them (the glued
+"room" of :func:`close_words` does offer "bath" for "bathroom", room1ldk5's word for its
+bathroom, and "bed" for "bedroom", "rest" for "restroom"). Offered a
 different room, a user may send the robot there; the typo of a short word is given up
 instead (the error lists the known words)."""
 
