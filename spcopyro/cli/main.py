@@ -303,14 +303,14 @@ def _where(args: argparse.Namespace) -> int:
     shared = shared_answer_note(answer)  # one concept answering 'toilet' and 'kitchen'
     if shared:
         print(f"note: {shared}")
-    from spcopyro.results.uncertainty import unmapped_note, where_probability
+    from spcopyro.results.uncertainty import threshold_line, unmapped_note, where_probability
 
     probability = where_probability(result, answer.word, args.prior)  # [N]
     source = "marginals" if result.marginals is not None else "point estimate"
     unmapped = unmapped_note(result)
     source += f"; {unmapped}" if unmapped else ""
-    print(f"cells whose probability of being the place exceeds 0.5: "
-          f"{int((probability > 0.5).sum())} ({source})")  # fmt: skip
+    # [N] bool: the region's cells (free cells in raster order, as label_image)
+    print(threshold_line(probability, answer.region[grid.free], source))
     if args.out:
         from spcopyro.figures.plotting import plot_where, plot_where_probability
 

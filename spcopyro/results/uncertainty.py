@@ -167,3 +167,29 @@ def free_cells_image(result: SpCoResult, values: np.ndarray) -> np.ndarray:
     image = np.full(result.grid.shape, np.nan)  # [H, W]
     image[result.grid.free] = values  # free cells in raster = free_index order
     return image
+
+
+def threshold_line(probability: np.ndarray, region: np.ndarray, source: str) -> str:
+    """``where``'s line "cells whose probability of being the place exceeds 0.5: N (source)",
+    given ``probability`` [N] (:func:`where_probability`) and ``region`` [N] bool (the answer's
+    region over the free cells). Where some of the region's cells are not above 0.5 it says so
+    and what their probability is: beside a 64-cell region, "exceeds 0.5: 0" read as a
+    contradiction when the word's p was 0.500 (a tie between two concepts, so every cell of
+    the region had p = 0.500 under a point estimate)."""
+    probability = np.asarray(probability, dtype=np.float64)  # [N]
+    inside = probability[np.asarray(region, dtype=bool)]  # [n] the region's cells
+    line = (
+        f"cells whose probability of being the place exceeds 0.5: "
+        f"{int((probability > 0.5).sum())} ({source})"
+    )
+    if inside.size == 0 or inside.min() > 0.5:
+        return line
+    low, high = f"{inside.min():.3f}", f"{inside.max():.3f}"
+    share = low if low == high else f"{low}-{high}"
+    above = int((inside > 0.5).sum())
+    cells = f"{inside.size} cell" + ("" if inside.size == 1 else "s")
+    held = "none of them" if not above else f"{above} of them"
+    return (
+        f"{line}; the region is the cells of the word's most probable concept, not of p > 0.5: "
+        f"its {cells} have p = {share}, {held} above 0.5"
+    )
