@@ -53,3 +53,57 @@ def test_where_s_threshold_line_is_unchanged_when_the_region_is_above_one_half()
     )
     mixed = threshold_line(probability, np.array([True, False, True, False]), "marginals")
     assert mixed.endswith("its 2 cells have p = 0.100-0.900, 1 of them above 0.5")
+
+
+def test_navigate_tells_apart_two_places_of_the_route_with_one_name(tmp_path, capsys):
+    """On tests/test_navigate.py's house, "go to the bedroom via the kitchen" from bedroom A
+    ends in bedroom E, a region of the same concept: the route printed "bedroom -> corridor ->
+    kitchen -> bedroom" (an unrefined fit's "... restroom -> sink -> sink -> living ...": two
+    places named by one top word). Places of one concept add their place id, places of
+    different concepts their concept."""
+    from test_navigate import START_A, house_result
+
+    from spcopyro.cli.main import main
+    from spcopyro.robot.navigation import navigate
+    from spcopyro.robot.navigation.places import place_graph
+
+    result = house_result()
+    fit = result.save(tmp_path / "fit")
+    start = f"--start={START_A[0]},{START_A[1]}"
+    assert main(["navigate", str(fit), "go to the bedroom via the kitchen", start]) == 0
+    (route,) = [x for x in capsys.readouterr().out.splitlines() if x.startswith("route: ")]
+    assert route == "route: bedroom (place 3) -> corridor -> kitchen -> bedroom (place 4)"
+
+    graph = place_graph(result)  # the corridor renamed "kitchen": two concepts, one word
+    places = tuple(dataclasses.replace(p, words=("kitchen", *p.words)) if p.name == "corridor"
+                   else p for p in graph.places)  # fmt: skip
+    graph = dataclasses.replace(graph, places=places)
+    plan = navigate(result, "go to the kitchen", START_A, places=graph)
+    assert plan.route_words == ("bedroom", "kitchen", "kitchen")
+    corridor, kitchen = (graph.places[p].concept for p in plan.route[1:])
+    assert plan.route_names == ("bedroom", f"kitchen (concept {corridor})",
+                                f"kitchen (concept {kitchen})")  # fmt: skip
+    plain = navigate(result, "go to the kitchen", START_A)  # no name twice: as before
+    assert plain.route_names == plain.route_words == ("bedroom", "corridor", "kitchen")
+
+
+def test_navigate_tells_that_a_place_passed_and_a_stop_are_one_place():
+    """The default demo's unrefined fit: "go to the kitchen via the living room" printed
+    "entrance -> restroom -> sink -> living -> kitchen", "sink" the kitchen's place passed on
+    the way (its top word) and "kitchen" the same place reached; both now add its place id."""
+    from test_navigate import START_A, house_result
+
+    from spcopyro.robot.navigation import navigate
+    from spcopyro.robot.navigation.places import place_graph
+
+    result = house_result()
+    graph = place_graph(result)  # the corridor's top word "hall", its concept still "corridor"'s
+    places = tuple(dataclasses.replace(p, words=("hall", *p.words)) if p.name == "corridor"
+                   else p for p in graph.places)  # fmt: skip
+    graph = dataclasses.replace(graph, places=places)
+    plan = navigate(result, "go to the corridor via the kitchen", START_A, places=graph)
+    assert plan.route_words == ("bedroom", "hall", "kitchen", "corridor")
+    hall = plan.route[1]
+    assert plan.route[3] == hall and graph.places[hall].name == "hall"
+    assert plan.route_names == ("bedroom", f"hall (place {hall})", "kitchen",
+                                f"corridor (place {hall})")  # fmt: skip

@@ -131,7 +131,7 @@ def _plan_and_print(
             print(f"warning: {note}", file=sys.stderr)
     if plan.route:
         how = "" if plan.route_from == "graph" else " (the places the path crosses)"
-        print(f"route: {' -> '.join(plan.route_words)}{how}")
+        print(f"route: {' -> '.join(plan.route_names)}{how}")  # names told apart
     _print_planner(plan)
     print(f"path: {plural(len(plan.path_xy), 'pose')}, {plan.length:.2f} m, clearance "
           f"{plan.radius:g} m from walls (frame {args.frame})")  # fmt: skip

@@ -164,6 +164,34 @@ class NavigationPlan:
                      for k, i in enumerate(self.route))  # fmt: skip
 
     @property
+    def route_names(self) -> tuple[str, ...]:
+        """:attr:`route_words` as ``navigate`` prints them, told apart: where one word names two
+        different places of the route, each adds its concept ("sink (concept 3)", "sink (concept
+        7)"), or its place id where two of them share a concept ("bedroom (place 3)": the ids of
+        ``spcopyro show OUT --graph`` and navigate.json's ``route.places``); a place the route
+        names by two words (passed as "sink", reached as the stop "kitchen") adds its place id
+        to both. An unrefined fit's route read "entrance -> restroom -> sink -> sink -> living
+        -> kitchen": two places, both named by their top word."""
+        words, graph = self.route_words, self.places
+        named: dict[str, set[int]] = {}  # word -> the places of the route it names
+        called: dict[int, set[str]] = {}  # place -> the words the route names it by
+        for word, place in zip(words, self.route, strict=False):
+            named.setdefault(word, set()).add(place)
+            called.setdefault(place, set()).add(word)
+        names = []
+        for word, place in zip(words, self.route, strict=False):
+            same = named[word]
+            if graph is None or place < 0 or min(same) < 0:
+                names.append(word)
+            elif len(same) > 1 and len({graph.places[p].concept for p in same}) == len(same):
+                names.append(f"{word} (concept {graph.places[place].concept})")
+            elif len(same) > 1 or len(called[place]) > 1:  # regions of one concept; one place
+                names.append(f"{word} (place {place})")
+            else:
+                names.append(word)
+        return tuple(names)
+
+    @property
     def goal(self) -> Stop:
         return self.stops[-1]
 
