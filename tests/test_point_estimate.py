@@ -11,8 +11,11 @@ import pytest
 
 from spcopyro.results.point_estimate import (
     LOSSES,
-    _changes,
+    _best_moves,
+    _joined_rows,
+    _pairs,
     _prepare,
+    _sample_tables,
     agreement_probability,
     compact,
     concept_labels,
@@ -70,19 +73,40 @@ def test_label_switching_changes_nothing(loss):
     assert pair_loss(a.labels, b.labels, loss) == pytest.approx(0.0, abs=1e-12)
 
 
+def _cell_moves(estimate, k, prepared, loss, no_new=False):
+    """([N] each cell's best cluster, [N] its Delta (times Z)) as a sweep of the greedy search
+    takes them: :func:`_best_moves` of every (cluster, column) pair from scratch, spread to the
+    pairs' cells."""
+    pairs = _pairs(estimate, prepared)
+    tables = _sample_tables(pairs, k + 1, prepared).tables  # S x [k + 1, J_s]
+    sizes = np.bincount(estimate, minlength=k + 1).astype(np.float64)  # [k + 1]
+    joined = _joined_rows(tables, None, prepared, loss)  # [U, k + 1]
+    best, gain = _best_moves(sizes, pairs, tables, joined, prepared, loss, no_new)  # [P], [P]
+    return best[pairs.of_cell], gain[pairs.of_cell]
+
+
+@pytest.mark.parametrize("no_new", [False, True])
 @pytest.mark.parametrize("loss", LOSSES)
-def test_one_cell_changes_match_the_recomputed_loss(loss):
+def test_one_cell_best_moves_match_the_recomputed_loss(loss, no_new):
+    """Each cell's best move and its change of the expected loss are those of moving it alone,
+    recomputed: a best of the k + 1 clusters (k, the spare one, left out if ``no_new``)."""
     rng = np.random.default_rng(2)
     samples = rng.integers(0, 4, (5, 30))
     estimate, k = compact(rng.integers(0, 3, 30))
-    change = _changes(estimate, k, _prepare(samples, loss), loss)  # [k + 1, N]
+    best, gain = _cell_moves(estimate, k, _prepare(samples, loss), loss, no_new)  # [N], [N]
     scale = 30**2 if loss == "binder" else 30
     base = expected_loss(estimate, samples, loss)
-    for cell, target in [(0, 1), (5, 2), (7, k), (11, 0), (29, k)]:
-        moved = estimate.copy()
-        moved[cell] = target
-        expected = expected_loss(moved, samples, loss) - base
-        assert change[target, cell] / scale == pytest.approx(expected, abs=1e-12)
+    for cell in range(30):
+        changes = []  # [k + 1] the loss change of moving the cell to each cluster
+        for target in range(k + 1):
+            moved = estimate.copy()
+            moved[cell] = target
+            changes.append(expected_loss(moved, samples, loss) - base)
+        if no_new:
+            changes[k] = np.inf
+        assert gain[cell] / scale == pytest.approx(min(changes), abs=1e-12)
+        ties = np.flatnonzero(np.isclose(changes, min(changes), rtol=0, atol=1e-12))
+        assert best[cell] in ties and (best[cell] != k or not no_new)
 
 
 @pytest.mark.parametrize("loss", LOSSES)
@@ -243,11 +267,8 @@ def _greedy_from_scratch(start, prepared, loss, max_clusters):
     value = _expected(estimate, k, prepared, loss)
     for _ in range(MAX_SWEEPS):
         before = value
-        change = _changes(estimate, k, prepared, loss)  # [k + 1, N]
-        if max_clusters is not None and k >= max_clusters:
-            change[k] = np.inf
-        target = change.argmin(0)
-        gain = change[target, np.arange(estimate.shape[0])]
+        target, gain = _cell_moves(estimate, k, prepared, loss,
+                                   max_clusters is not None and k >= max_clusters)  # fmt: skip
         movers = np.flatnonzero(gain < -1e-9)
         if movers.size == 0:
             break

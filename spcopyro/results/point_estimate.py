@@ -301,23 +301,6 @@ def _best_moves(
     return best, gain
 
 
-def _changes(estimate: np.ndarray, k: int, prepared: _Samples, loss: str) -> np.ndarray:
-    """[k + 1, N] Delta_i(k') of the module doc (times Z); cluster k is the spare empty one.
-
-    The f-differences are taken on each small contingency table first, then gathered once per
-    distinct column of the samples (cells that every sample labels alike share their join
-    terms: most cells of a settled map), O(S (k + 1) U) for U distinct columns, then per pair
-    of (cluster, column), O((k + 1) P), and only then spread to the cells.
-    """
-    pairs = _pairs(estimate, prepared)
-    tables = _sample_tables(pairs, k + 1, prepared).tables  # S x [k + 1, J_s]
-    sizes = np.bincount(estimate, minlength=k + 1).astype(np.float64)  # [k + 1]
-    joined = _joined_rows(tables, None, prepared, loss)
-    departed = _departed(pairs, tables, prepared, loss)
-    change = _pair_changes(sizes, pairs, departed, joined, len(prepared.sizes), loss)  # [P, k + 1]
-    return change.T[:, pairs.of_cell]
-
-
 def _trial_change(
     movers: np.ndarray,
     estimate: np.ndarray,
