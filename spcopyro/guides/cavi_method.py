@@ -15,6 +15,7 @@ from spcopyro.guides.run import (
     initial_q,
     remaining,
     resolve_backend,
+    restart_way_out,
     resumed,
     run_variational,
     warn_flat_q,
@@ -63,7 +64,8 @@ class CAVIInference(InferenceMethod):
                               progress=request.progress, thin=request.thin,
                               resume=before)  # fmt: skip
         warm = request.init_labels is not None or before is not None
-        warn_flat_q(run.q, config, self.title, options.anneal_iterations, options.init, warm)
+        way_out = restart_way_out(options.anneal_iterations, init=options.init, warm=warm)
+        warn_flat_q(run.q, config, self.title, way_out)
         record = {
             "iterations": request.iterations,
             **dataclasses.asdict(options),

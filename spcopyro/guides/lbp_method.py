@@ -19,7 +19,14 @@ from spcopyro.guides.cavi_method import output_from_variational
 from spcopyro.guides.factors import GlobalFactors, PiFamily
 from spcopyro.guides.lbp import LoopyBP, bethe_objective, node_log_potentials
 from spcopyro.guides.options import VariationalOptions, warn_numba_only_options
-from spcopyro.guides.run import VariationalRun, initial_q, remaining, resumed, warn_flat_q
+from spcopyro.guides.run import (
+    VariationalRun,
+    initial_q,
+    remaining,
+    restart_way_out,
+    resumed,
+    warn_flat_q,
+)
 from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
 from spcopyro.inference.schedule import warn_unfinished_annealing
@@ -228,8 +235,9 @@ class LBPInference(InferenceMethod):
         run, _ = run_lbp(data, config, remaining(request), q=q, options=options,
                          progress=request.progress, thin=request.thin,
                          resume=before)  # fmt: skip
-        warn_flat_q(run.q, config, "loopy BP", options.anneal_iterations,
-                    warm=request.init_labels is not None or before is not None)  # fmt: skip
+        warm = request.init_labels is not None or before is not None
+        way_out = restart_way_out(options.anneal_iterations, warm=warm)
+        warn_flat_q(run.q, config, "loopy BP", way_out, mean_field=False)
         record = {"iterations": request.iterations, **dataclasses.asdict(options),
                   "backend_used": resolve_lbp_backend(options, data, config)}  # fmt: skip
         output = output_from_variational(run, record)

@@ -77,7 +77,13 @@ from spcopyro.guides.factors import (
     update_factors,
 )
 from spcopyro.guides.memo import Memo
-from spcopyro.guides.run import VariationalRun, remaining, resumed, warn_flat_q
+from spcopyro.guides.run import (
+    VariationalRun,
+    remaining,
+    restart_way_out,
+    resumed,
+    warn_flat_q,
+)
 from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.initialisation import check_labels, random_labels
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
@@ -533,8 +539,8 @@ class StochasticVIInference(InferenceMethod):
             options=options, progress=request.progress, thin=request.thin, resume=before,
         )  # fmt: skip
         warm = request.init_labels is not None or before is not None
-        warn_flat_q(run.q, config, "memoized VI", options.anneal_passes, warm=warm,
-                    anneal_name="anneal_passes")  # fmt: skip
+        way_out = restart_way_out(options.anneal_passes, "anneal_passes", warm=warm)
+        warn_flat_q(run.q, config, "memoized VI", way_out)
         used = "torch" if compiled_path(options.backend) is None else "numba"  # auto resolved
         record = {
             "iterations": request.iterations,

@@ -205,47 +205,76 @@ def warn_flat_q(
     q: torch.Tensor,
     config: SpCoConfig,
     method: str,
-    anneal_iterations: int,
-    init: str = "one-hot",
-    warm: bool = False,
-    anneal_name: str = "anneal_iterations",
+    way_out: str,
+    *,
+    mean_field: bool = True,
+    context: str = "",
 ) -> bool:
-    r"""Warn (logger ``"spcopyro"``) when CAVI's, loopy BP's or memoized VI's ``q`` ``[N, L]``
-    (memoized VI: ``anneal_name="anneal_passes"``) ends near
-    uniform: a mean entropy per cell of at least :data:`FLAT_Q_SHARE` of :math:`\log L`; its
-    argmax map is then ties and small tilts, not regions. Returns whether it warned (never
-    inside :func:`~spcopyro.inference.schedule.short_runs_meant`).
+    r"""Warn (logger ``"spcopyro"``) when a variational method's ``q`` ``[N, L]`` ends near
+    uniform: a mean entropy per cell of at least :data:`FLAT_Q_SHARE` of :math:`\log L`
+    (:func:`flat_entropy`); its argmax map is then ties and small tilts, not regions. Returns
+    whether it warned (never inside :func:`~spcopyro.inference.schedule.short_runs_meant`).
+    The one check and wording of every method's warning; what is the method's own comes as
+    arguments: ``method`` its name in the message, ``way_out`` the sentence that ends it (what
+    would order the field: :func:`restart_way_out` for CAVI, loopy BP and memoized VI),
+    ``mean_field`` whether its label update is mean field's (loopy BP's is not: its
+    disordered fixed point is stable on other terms than gamma < L / D), ``context`` what
+    else the parenthesis says (SVI: its start).
+
+    Why it happens (docs/variational.md): away from the observations the mean-field update of
+    a cell is :math:`q_i \propto \exp(E\log\pi + \gamma \sum_{j \sim i} q_j)`; at nearly
+    uniform neighbours its tilt shrinks by about :math:`\gamma D / L` per update, so the
+    disordered fixed point attracts every start near uniform while :math:`\gamma < L / D`
+    (D neighbours; 30 at L = 120, D = 4). SVI's default random start (``label_smoothing`` 0.9,
+    max q about 0.11 at L = 120) and annealing from gamma 0 lie in its basin, and from random
+    one-hot labels Adam's steps lead there too; where few cells hold observations nothing
+    breaks the symmetry. CAVI from random labels at full gamma orders at once (its
+    colour-block update takes each cell to its neighbours' labels).
 
     Measured on the embedded house on its map's cells under ``paper-dp`` (L = 120, gamma 4),
     ``fit --cell-size map``: CAVI annealed over 20 iterations, or started from Dir(1) rows
     (``init="soft"``), and loopy BP annealed over 20 ended at 1.000 of log L (ARI 0.000, 0.015,
     0.062), one concept or a hundred "in use" by the argmax, without a word; CAVI and loopy BP
     from random one-hot labels at full gamma (``anneal_iterations=0``) ordered (0.009 and 0.020
-    of log L, ARI 0.25 and 0.52). Why: :func:`spcopyro.guides.svi_method.warn_flat_q`.
-    ``warm``: the run started from given labels or a resumed q."""
+    of log L, ARI 0.25 and 0.52)."""
     L = q.shape[-1]
     entropy = flat_entropy(q)
     if entropy is None:
         return False
     degree = int(config.connectivity)
-    mean_field = method in ("CAVI", "memoized VI")  # LBP: stable on other terms
-    why = (f"gamma {config.gamma:g} < L / D = {L / degree:g}: mean field's disordered fixed "
-           "point holds a start near uniform" if mean_field and config.gamma < L / degree else
-           "the start stayed in the label update's disordered fixed point")  # fmt: skip
-    ways = []
-    if anneal_iterations:
-        ways.append(f"{anneal_name}=0 (--method-option; it annealed from gamma 0 over "
-                    f"{anneal_iterations}, inside that point's basin)")  # fmt: skip
-    if init == "soft" and not warm:
-        ways.append("init=one-hot (Dir(1) rows start near uniform)")
-    ways.append("a fitted start (fit --init-from OUT, e.g. of a Gibbs fit)")
+    if mean_field and config.gamma < L / degree:
+        why = (f"gamma {config.gamma:g} < L / D = {L / degree:g}: mean field's disordered fixed "
+               "point holds a start near uniform")  # fmt: skip
+    else:
+        why = "the start stayed in the label update's disordered fixed point"
     logger.warning(
         "%s's q(C) ended near uniform: mean entropy %.3f nats a cell, %.1f%% of log L = %.3f, "
         "so its map is the argmax of nearly flat marginals, close to arbitrary, whatever its "
-        "concepts in use (%s). Try %s",
-        method, entropy, 100 * entropy / math.log(L), math.log(L), why, "; or ".join(ways),
+        "concepts in use (%s%s). %s",
+        method, entropy, 100 * entropy / math.log(L), math.log(L), why,
+        f"; {context}" if context else "", way_out,
     )  # fmt: skip
     return True
+
+
+def restart_way_out(
+    anneal: int,
+    anneal_name: str = "anneal_iterations",
+    init: str = "one-hot",
+    warm: bool = False,
+) -> str:
+    """The way out of :func:`warn_flat_q` for CAVI, loopy BP and memoized VI: no annealing
+    (``anneal`` iterations of option ``anneal_name``; memoized VI's ``anneal_passes``), one-hot
+    start rows instead of Dir(1) ones (``init="soft"`` unless the start was ``warm``: given
+    labels or a resumed q), or a fitted start."""
+    ways = []
+    if anneal:
+        ways.append(f"{anneal_name}=0 (--method-option; it annealed from gamma 0 over "
+                    f"{anneal}, inside that point's basin)")  # fmt: skip
+    if init == "soft" and not warm:
+        ways.append("init=one-hot (Dir(1) rows start near uniform)")
+    ways.append("a fitted start (fit --init-from OUT, e.g. of a Gibbs fit)")
+    return "Try " + "; or ".join(ways)
 
 
 def flat_entropy(q: torch.Tensor) -> float | None:

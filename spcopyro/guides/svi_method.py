@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import logging
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -38,18 +37,15 @@ from spcopyro.guides.mean_field import (
 )
 from spcopyro.guides.run import (
     VariationalRun,
-    flat_entropy,
     initial_q,
     remaining,
     resumed,
+    warn_flat_q,
 )
 from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
 from spcopyro.inference.schedule import warn_unfinished_annealing
 from spcopyro.model import ModelData, spcomapping_model
-
-logger = logging.getLogger("spcopyro")
-
 
 RANDOM_START_ANNEALING = 100
 """The annealing iterations of a random start (``SVIOptions.anneal_iterations`` None)."""
@@ -93,8 +89,8 @@ class SVIOptions:
             small L (8); 0.05 for given start labels (``init_labels``, ``fit --init-from``,
             ``--init`` other than random, ``--update``), which keeps 95 % of them. At L = 120
             with sparse observations a start smoothed by 0.9 stays at mean field's disordered
-            fixed point (:func:`warn_flat_q`), a fitted warm start's included (it kept 10 %
-            of it before 2026-12-05).
+            fixed point (:func:`~spcopyro.guides.run.warn_flat_q`), a fitted warm start's
+            included (it kept 10 % of it before 2026-12-05).
         bound: the concentrations' constraint, ``"prior"`` (above the prior's) or ``"zero"``
             (positive): see :class:`~spcopyro.guides.mean_field.MeanFieldGuide`.
         tolerance: stop once the mean ELBO estimate of the last ``window`` steps at full gamma
@@ -326,40 +322,17 @@ def fit_svi(
         )  # fmt: skip
         guide = run.state.guide
         q = guide.marginals()  # [N, L]
-        warn_flat_q(q, config, options, resumed=resume is not None, given_start=given_start)
+        context, way_out = flat_q_advice(options, resume is not None, given_start)
+        warn_flat_q(q, config, "SVI", way_out, context=context)
         return VariationalRun.of(run, q, guide.factors())
 
 
-def warn_flat_q(
-    q: torch.Tensor,
-    config: SpCoConfig,
-    options: SVIOptions,
-    resumed: bool,
-    given_start: bool = False,
-) -> bool:
-    r"""Warn (logger ``"spcopyro"``) when ``q`` ``[N, L]`` ends near uniform: a mean entropy
-    per cell of at least :data:`~spcopyro.guides.run.FLAT_Q_SHARE` of :math:`\log L`
-    (:func:`~spcopyro.guides.run.flat_entropy`). Returns whether it warned (never inside
-    :func:`~spcopyro.inference.schedule.short_runs_meant`).
-
-    Why it happens (docs/variational.md, the SVI section): away from the observations the
-    mean-field update of a cell is :math:`q_i \propto \exp(E\log\pi + \gamma \sum_{j \sim i}
-    q_j)`; at nearly uniform neighbours its tilt shrinks by about :math:`\gamma D / L` per
-    update, so the disordered fixed point attracts every start near uniform while
-    :math:`\gamma < L / D` (D neighbours; 30 at L = 120, D = 4). The default random start
-    (``label_smoothing`` 0.9, max q about 0.11 at L = 120) and annealing from gamma 0 lie in its
-    basin, and from random one-hot labels Adam's steps lead there too; where few cells hold
-    observations nothing breaks the symmetry. CAVI from random labels at full gamma orders at
-    once (its colour-block update takes each cell to its neighbours' labels)."""
+def flat_q_advice(options: SVIOptions, resumed: bool, given_start: bool = False) -> tuple[str, str]:
+    """SVI's own parts of the flat-q warning (:func:`~spcopyro.guides.run.warn_flat_q`): what
+    its parenthesis says of the start (``options`` as given: fields left to the start are read
+    as it ran them, :meth:`SVIOptions.for_start`) and the way out, which keeps a given start
+    (its own smoothing, no annealing from gamma 0) or names a fitted one, or CAVI."""
     options = options.for_start(given_start)  # what ran (None: the start's)
-    L = q.shape[-1]
-    entropy = flat_entropy(q)
-    if entropy is None:
-        return False
-    degree = int(config.connectivity)
-    why = (f"gamma {config.gamma:g} < L / D = {L / degree:g}: mean field's disordered fixed "
-           "point holds a start near uniform" if config.gamma < L / degree else
-           "the start stayed in mean field's disordered fixed point")  # fmt: skip
     smoothing = options.start_smoothing(given_start)
     start = ("the resumed q" if resumed else
              f"{'given' if given_start else 'random'} labels, label_smoothing={smoothing:g}"
@@ -378,13 +351,9 @@ def warn_flat_q(
         way_out = ("Start from a fitted map (fit --init-from OUT, or init_labels: smoothed by "
                    f"label_smoothing={GIVEN_START_SMOOTHING:g} and not annealed, "
                    "anneal_iterations=0, unless they are set) or use --method cavi")  # fmt: skip
-    logger.warning(
-        "SVI's q(C) ended near uniform: mean entropy %.3f nats a cell, %.1f%% of log L = %.3f, "
-        "so its map is the argmax of nearly flat marginals, close to arbitrary (%s; start: %s; "
-        "Adam's steps lead there from random labels too: docs/variational.md). %s",
-        entropy, 100 * entropy / math.log(L), math.log(L), why, start, way_out,
-    )  # fmt: skip
-    return True
+    context = (f"start: {start}; Adam's steps lead there from random labels too: "
+               "docs/variational.md")  # fmt: skip
+    return context, way_out
 
 
 class SVIInference(InferenceMethod):
