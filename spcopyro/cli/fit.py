@@ -43,7 +43,7 @@ from spcopyro.cli.fit_options import (
     options_line,
     warm_start_kept,
 )
-from spcopyro.cli.fit_refine import refine, report_update, update_settings
+from spcopyro.cli.fit_refine import check_refinable, refine, report_update, update_settings
 from spcopyro.cli.fit_resume import (
     check_resume_file,
     interrupted_message,
@@ -164,6 +164,7 @@ def _fit_interruptible(args: argparse.Namespace, said: list[str]) -> int:
     if args.update is not None:  # a refined fit goes on on the map's cells, as refined
         settings = update_settings(args, settings, loaded.grid.num_free)
     house = model_house(loaded, settings.data.cell_size)  # the model's grid (cell_size)
+    check_refinable(args, settings, house, loaded)  # --refine always: a coarser grid to refine
     staged = stage_output(
         args.out, overwrite=args.overwrite, resume=args.resume,
         inputs=(house.source, house.grid.source, args.update),

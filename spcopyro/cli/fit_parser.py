@@ -142,7 +142,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--feature-scaling, --word-scaling or --footprint* is given, else never). The "
         "refinement's preparation is its own: a --feature-scaling, --word-scaling or "
         "--footprint* given prepares the first stage only (a note names those it replaced; "
-        "--cell-size map fits with them on the map's own cells)",
+        "--cell-size map fits with them on the map's own cells). With no model grid coarser "
+        "than the map (--cell-size map, a preset without a cell size, or one that rounds to "
+        "the map's cells) auto does not refine and always is refused",
     )
     p.add_argument("--point-estimate", choices=POINT_ESTIMATES, default=None,
                    help="the reported map: the highest-log-joint state visited (map-visited) "

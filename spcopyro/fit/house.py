@@ -438,7 +438,7 @@ def fit_house(
             ``point_estimate`` (which ``sweeps="auto"`` allows only for the refit).
             The decision is logged at INFO level and kept in ``result.inference["refine"]``.
     """
-    from spcopyro.fit.refine import check_refine, map_house, refine_chains
+    from spcopyro.fit.refine import check_coarse, check_refine, map_house, refine_chains
 
     settings = _settings(settings)
     given, house = house, model_house(house, settings.data.cell_size)  # the model's grid
@@ -448,6 +448,7 @@ def fit_house(
         raise ValueError(
             f"refine={refine!r} refines a Gibbs fit, not method={method!r}: pass refine='never'"
         )
+    check_coarse(refine, house)  # before the fit: refine='always' on the map's own cells
     if not isinstance(chains, int) or isinstance(chains, bool) or chains < 1:
         raise ValueError(f"chains must be a positive integer, got {chains!r}")
     check_seed(seed)

@@ -67,7 +67,9 @@ __all__ = [
     "REFINE_MODES",
     "SEPARATES",
     "RefineDecision",
+    "check_coarse",
     "map_house",
+    "on_map_cells",
     "refine_chains",
     "refine_decision",
     "refined_settings",
@@ -102,6 +104,25 @@ def check_refine(refine: str) -> str:
     if refine not in REFINE_MODES:
         raise ValueError(f"refine must be one of {REFINE_MODES}, got {refine!r}")
     return refine
+
+
+def on_map_cells(model: House) -> str:
+    """Why a fit of ``model`` is not refined when its grid is the map's own (no coarser model
+    grid: cell size None or ``"map"``, one that rounds to the map's cells, or a map too thin to
+    coarsen)."""
+    return (f"the fit is on the map's own {model.grid.resolution:g} m cells: there is no coarser "
+            "model grid to refine from")  # fmt: skip
+
+
+def check_coarse(refine: str, model: House) -> None:
+    """``refine="always"`` refits a fit on model cells coarser than the map: refused (before
+    the fit) where ``model``'s grid is the map's own; ``"auto"`` then does not refine
+    (:func:`on_map_cells`). Refitting the same cells with the refinement's preparation is a fit
+    with ``preset("auto")``'s data preparation, not a refinement."""
+    if refine == "always" and model.grid.coarsened_from is None:
+        raise ValueError(f"refine='always' refits a fit on model cells coarser than the map, "
+                         f"and {on_map_cells(model)}: pass refine='auto' or 'never', or a "
+                         "settings cell_size coarser than the map's cells")  # fmt: skip
 
 
 def map_house(house: House) -> House:
@@ -152,6 +173,9 @@ def refine_decision(result: SpCoResult, house: House, refine: str = "auto") -> R
     check_refine(refine)
     if refine == "never":
         return RefineDecision(refine, None, False, "refine='never'")
+    if house.grid.coarsened_from is None:  # the model's grid is the map's: nothing to refine
+        check_coarse(refine, house)
+        return RefineDecision(refine, None, False, on_map_cells(house))
     images = house.observations.image_features
     if images is None or images.shape[0] == 0 or not result.config.use_images:
         separation = None
