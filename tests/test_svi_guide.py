@@ -497,3 +497,58 @@ def test_a_checkpoint_from_before_the_start_dependent_defaults_resumes(small, tm
     with pytest.raises(ValueError, match=r"anneal_iterations: 100 in the checkpoint, 7 here"):
         load_variational(tmp_path / "random.npz", data, config, method="svi",
                          options=SVIOptions(anneal_iterations=7))  # fmt: skip
+
+
+def test_a_checkpoint_for_another_fit_names_the_options_that_differ(small, tmp_path):
+    """VariationalSaving.load told the options that differed from the ValueError's text (an
+    option's name followed by ': ' anywhere in it), so a difference elsewhere whose text held
+    one, here the checkpoint's folder, was explained as that option left unset.
+    load_variational raises CheckpointMismatchError (a ValueError) naming the options that
+    differ, where it finds them."""
+    from spcopyro.fit.variational_checkpoint import VariationalSaving
+    from spcopyro.gibbs.run import SweepInfo
+    from spcopyro.guides.checkpoint import (
+        CheckpointMismatchError,
+        load_variational,
+        save_variational,
+    )
+    from spcopyro.inference.driver import drive
+
+    data, config = small
+    settings = preset("original-code", gamma=3.0, num_concepts=5)
+    record = drive(0, lambda s, g: (s + 1, SweepInfo(-1.0, 1, g)), 2, gamma=config.gamma,
+                   progress=False)  # fmt: skip
+    q = initial_q(data, config, torch.Generator().manual_seed(0))  # [N, L]
+
+    def saving(sweeps: int) -> VariationalSaving:  # given start labels: anneal_iterations 0
+        return VariationalSaving(get_method("svi"), None, data, settings, sweeps, [0], "gaussian")
+
+    folder = tmp_path / "anneal_iterations: 0"
+    folder.mkdir()
+    ran = saving(10)._options()
+    path = save_variational(folder / "q.npz", q, record, method="svi", options=ran,
+                            config=config, data=data, record=saving(10)._record())  # fmt: skip
+    with pytest.raises(CheckpointMismatchError) as refused:
+        saving(11).load(path)
+    assert str(refused.value) == (  # was: "... 11 here (anneal_iterations unset: ...)"
+        f"{path} was made for other data or settings: sweeps: 10 in the checkpoint, 11 here"
+    )
+    assert isinstance(refused.value, ValueError) and refused.value.options == ()
+    with pytest.raises(CheckpointMismatchError) as refused:
+        load_variational(path, data, config, method="svi", record=saving(10)._record(),
+                         options=SVIOptions(anneal_iterations=7, window=3))  # fmt: skip
+    assert refused.value.options == ("anneal_iterations", "window")
+    with pytest.raises(CheckpointMismatchError) as refused:
+        load_variational(path, data, config, method="cavi", options=None)
+    assert refused.value.options == () and "resume it with --method svi" in str(refused.value)
+    old = save_variational(tmp_path / "old.npz", q, record, method="svi",
+                           options=SVIOptions(label_smoothing=0.9, anneal_iterations=100),
+                           config=config, data=data, record=saving(10)._record())  # fmt: skip
+    with pytest.raises(CheckpointMismatchError) as refused:
+        saving(10).load(old)
+    assert refused.value.options == ("anneal_iterations",)
+    assert str(refused.value).endswith(
+        "anneal_iterations: 100 in the checkpoint, 0 here (anneal_iterations unset: the start's "
+        "default, 'here' above, which changed on 2026-12-05; to resume, set the checkpoint's "
+        "value with --method-option)"
+    )

@@ -12,7 +12,11 @@ from pathlib import Path
 from spcopyro.config import SpCoSettings
 from spcopyro.fit.gibbs_chains import preparation_record
 from spcopyro.fit.starts import Init, init_name
-from spcopyro.guides.checkpoint import load_variational, save_variational
+from spcopyro.guides.checkpoint import (
+    CheckpointMismatchError,
+    load_variational,
+    save_variational,
+)
 from spcopyro.inference.driver import DriveInterrupted
 from spcopyro.inference.protocol import InferenceMethod, Resumption, method_options
 from spcopyro.model import ModelData
@@ -62,24 +66,24 @@ class VariationalSaving:
         )  # fmt: skip
 
     def load(self, path: str | os.PathLike[str]) -> Resumption:
-        """The q(C) and record saved in ``path`` (ValueError naming what differs if it was made
-        for another fit)."""
+        """The q(C) and record saved in ``path``
+        (:class:`~spcopyro.guides.checkpoint.CheckpointMismatchError`, a ValueError, naming what
+        differs if it was made for another fit; one naming an option left unset says so)."""
         try:
             return load_variational(
                 path, self.data, self.settings.model, method=self.inference.name,
                 options=self._options(), record=self._record(),
             )  # fmt: skip
-        except ValueError as error:
+        except CheckpointMismatchError as error:
             given, ran = self._given_options(), self._options()
             fields = dataclasses.fields(ran) if dataclasses.is_dataclass(ran) else ()
-            names = [field.name for field in fields]
-            unset = [name for name in names  # left to the start: None given, a value run
-                     if getattr(given, name) is None and getattr(ran, name) is not None
-                     and f"{name}: " in str(error)]  # fmt: skip
+            unset = [field.name for field in fields  # left to the start: None given, a value run
+                     if field.name in error.options and getattr(given, field.name) is None
+                     and getattr(ran, field.name) is not None]  # fmt: skip
             if not unset:
                 raise
-            raise ValueError(  # e.g. svi's anneal_iterations: 100 for every start until then
-                f"{error} ({', '.join(unset)} unset: the start's default, 'here' above, which "
-                "changed on 2026-12-05; to resume, set the checkpoint's value with "
-                "--method-option)"
-            ) from None
+            raise CheckpointMismatchError(  # e.g. svi's anneal_iterations: 100 for every start
+                error.path, error.problems, error.options,
+                note=f"{', '.join(unset)} unset: the start's default, 'here' above, which changed "
+                "on 2026-12-05; to resume, set the checkpoint's value with --method-option",
+            ) from None  # fmt: skip

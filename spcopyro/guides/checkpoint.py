@@ -37,7 +37,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -66,6 +66,29 @@ WHAT = (
 RECORDS = ("objective", "num_concepts", "seconds", "gammas")
 
 
+class CheckpointMismatchError(ValueError):
+    """A variational checkpoint made for another fit (:func:`load_variational`): another
+    method, options, model settings, data or caller's settings. The message names each
+    difference; ``options`` are the names of the method's options among them (top-level
+    fields, as the checkpoint and the options here differ: what a caller may explain, e.g.
+    :class:`~spcopyro.fit.variational_checkpoint.VariationalSaving` an option left to the
+    start, in ``note``, said after the differences)."""
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        problems: Sequence[str],
+        options: Sequence[str] = (),
+        note: str = "",
+    ) -> None:
+        said = f"{path} was made for other data or settings: " + "; ".join(problems)
+        super().__init__(f"{said} ({note})" if note else said)
+        self.path = Path(path)
+        self.problems = tuple(problems)
+        self.options = tuple(options)
+        self.note = note
+
+
 def _header(method: str, options: object, config: SpCoConfig, data: ModelData) -> dict:
     from spcopyro.guides.lbp_method import LBPOptions, resolve_lbp_backend
 
@@ -79,6 +102,14 @@ def _header(method: str, options: object, config: SpCoConfig, data: ModelData) -
         "model": config.to_json(),
         "data_sha256": data_fingerprint(data),
     }
+
+
+def _differing_keys(saved: Mapping[str, object], here: Mapping[str, object]) -> list[str]:
+    """The keys whose values differ between two records, compared as JSON values (as
+    :func:`~spcopyro.gibbs.checkpoint.differences` compares them: a tuple here is the list
+    saved)."""
+    old, new = json.loads(json.dumps(dict(saved))), json.loads(json.dumps(dict(here)))
+    return [key for key in sorted(set(old) | set(new)) if old.get(key) != new.get(key)]
 
 
 def _resumed_fields(fields: Mapping[str, object], options: object) -> dict[str, object]:
@@ -164,9 +195,10 @@ def load_variational(
 
     Raises:
         FileNotFoundError: no file at ``path``.
-        ValueError: ``path`` is not a variational checkpoint, or was made for another method,
-            options, model settings (``config``), ``data`` or caller's settings (``record``);
-            the message names what differs.
+        ValueError: ``path`` is not a variational checkpoint or is damaged.
+        CheckpointMismatchError: (a ValueError) ``path`` was made for another method, options,
+            model settings (``config``), ``data`` or caller's settings (``record``); the
+            message names what differs, its ``options`` the options among them.
     """
     path = Path(path)
     with open_checkpoint(path) as z:
@@ -174,18 +206,18 @@ def load_variational(
                                   kind="variational checkpoint")  # fmt: skip
         here = _header(method, options, config, data)
         if saved["method"] != method:  # its options and record are another method's too
-            raise ValueError(
-                f"{path} was made for other data or settings: method: {saved['method']!r} in the "
-                f"checkpoint, {method!r} here: resume it with --method {saved['method']}"
-            )
+            raise CheckpointMismatchError(path, [
+                f"method: {saved['method']!r} in the checkpoint, {method!r} here: resume it with "
+                f"--method {saved['method']}"
+            ])  # fmt: skip
         problems = data_differences(saved["data_sha256"], data)
         problems += differences(saved["model"], here["model"])
-        ours = _resumed_fields(saved["options"], options)  # what the resumed run reads
-        problems += differences(_backends_resolved(ours), here["options"])
+        ours = _backends_resolved(_resumed_fields(saved["options"], options))  # what it reads
+        problems += differences(ours, here["options"])
         if record is not None:
             problems += differences(saved["caller"], record)
         if problems:
-            raise ValueError(f"{path} was made for other data or settings: " + "; ".join(problems))
+            raise CheckpointMismatchError(path, problems, _differing_keys(ours, here["options"]))
         try:
             marginals = torch.from_numpy(z["marginals"].astype(np.float64))  # [N, L]
             columns = [z[name] for name in RECORDS]
