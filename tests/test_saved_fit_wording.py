@@ -107,3 +107,22 @@ def test_navigate_tells_that_a_place_passed_and_a_stop_are_one_place():
     assert plan.route[3] == hall and graph.places[hall].name == "hall"
     assert plan.route_names == ("bedroom", f"hall (place {hall})", "kitchen",
                                 f"corridor (place {hall})")  # fmt: skip
+
+
+def test_the_trace_draws_the_reported_map_s_count_beside_the_states():
+    """The default demo's trace.png showed 15-60 labels per sweep of its refinement while the
+    fit reported 10 concepts, with nothing in the figure to tell the two apart; the concept
+    axis now draws the reported map's count, says it in the legend and, for a point estimate
+    over kept samples, why the states hold more."""
+    from spcopyro.figures.plotting import trace_figure
+
+    result = dataclasses.replace(two_rooms(), method="gibbs")
+    for agreement in (None, np.ones(result.grid.num_free)):
+        fit = dataclasses.replace(result, agreement=agreement)
+        _, bottom = trace_figure(fit).axes
+        flat = [line for line in bottom.get_lines() if line.get_linestyle() == "--"
+                and list(line.get_ydata()) == [3, 3]]  # fmt: skip
+        assert len(flat) == 1  # the three concepts of the map (one a one-cell speck)
+        (text,) = [t.get_text() for t in bottom.get_legend().get_texts()]
+        assert text.startswith("the reported map: 3 concepts in use")
+        assert ("adds labels that come and go" in text) == (agreement is not None)

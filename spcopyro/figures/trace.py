@@ -15,6 +15,7 @@ from spcopyro._util.messages import plural
 from spcopyro.figures.png import save_figure
 from spcopyro.results.point_estimate import LOSS_LABELS
 from spcopyro.results.result import SpCoResult
+from spcopyro.results.specks import in_use_text
 
 ESTIMATE_NAMES = {loss: label.replace(" ", "-") for loss, label in LOSS_LABELS.items()}
 """The point estimates' names in the figures' titles, their losses' labels
@@ -77,6 +78,17 @@ def trace_figure(result: SpCoResult, kept: tuple[int, int] | None = None) -> Fig
     else:  # a q(C), not a state: a concept counts where it is some cell's most probable one
         counted = "(argmax of q per cell, specks included)"
     bottom.set_ylabel(f"labels in use per {step}\n{counted}", fontsize=8)
+    # the reported map's count beside the states': the default demo's refinement held 15-60
+    # labels a sweep (one-cell labels that form and dissolve, results/specks.py) while its map
+    # has 10 concepts, the figure saying nothing of the gap
+    reported = f"the reported map: {in_use_text(result)}"
+    if result.agreement is not None:  # a point estimate over the kept samples, no one state
+        reported += f"\n(over the kept samples; a {step}'s state adds labels that come and go)"
+    count = len(result.concepts_in_use())
+    bottom.axhline(count, color="k", lw=1.0, ls="--", label=reported)
+    highest = max([count, *np.asarray(trace.num_concepts).tolist()])
+    bottom.set_ylim(0, 1.5 * highest + 1)  # the legend above the counts, the line below them
+    bottom.legend(fontsize=8, loc="upper left")
     bottom.yaxis.set_major_locator(MaxNLocator(integer=True))  # a count: no 12.5 concepts
     bottom.set_xlabel(step)
     for ax in (top, bottom):
