@@ -845,3 +845,24 @@ def test_show_says_a_map_has_no_free_cell_in_place_of_placement(tmp_path: Path, 
     assert len(said) == 1 and f"{yaml_path}:{line}: free_thresh 0.0;" in said[0], printed.out
     assert f"the map {yaml_path} has no free cell, nothing to label" in said[0]
     assert (tmp_path / "house.png").is_file()
+
+
+def test_the_summary_of_a_map_without_free_cells_places_nothing(
+    tmp_path: Path, monkeypatch
+) -> None:
+    """The summary of a map without free cells decides that first: its lines are the house's,
+    then why nothing can be labelled; no observed cells, no placement, and no footprints
+    spread over cells that are not there (the summary used to count them, then drop the
+    lines)."""
+    import spcopyro.cli.common as common
+    from spcopyro.config import DataPreparation
+    from spcopyro.data import load_house
+
+    spread = []
+    monkeypatch.setattr(common, "prepared_cell_counts", lambda *a, **k: spread.append(a))
+    room, yaml_path, _ = _room_without_free_cells(tmp_path)
+    lines = common._summary(load_house(room), preparation=DataPreparation(footprint_radius=1.0))
+    heads = [line[:17].strip() for line in lines.splitlines()]
+    assert heads == ["house", "map", "images", "utterances", "no free cell"], lines
+    assert f"the map {yaml_path} has no free cell, nothing to label" in lines
+    assert spread == []

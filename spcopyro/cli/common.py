@@ -21,6 +21,7 @@ from spcopyro.data import House, cell_counts, load_house, prepared_cell_counts
 
 if TYPE_CHECKING:
     from spcopyro.config import DataPreparation
+    from spcopyro.data.counts import CellCounts
     from spcopyro.maps import OccupancyGrid
     from spcopyro.results.result import SpCoResult
     from spcopyro.results.saved_vocabulary import SavedVocabulary
@@ -153,13 +154,6 @@ def _summary(
         house.grid, house.observations, source=house.source, warn=warn and free,
         feature_scaling=feature_scaling,
     )  # fmt: skip
-    observed = f"{len(counts.cells)} (where observations were placed)"
-    if preparation is not None and preparation.footprint_radius > 0:
-        spread = prepared_cell_counts(house.grid, house.observations, preparation,
-                                      source=house.source, warn=False)  # fmt: skip
-        observed += (f"; {len(spread.cells)} within their {preparation.footprint_radius:g} m "
-                     "footprints")  # fmt: skip
-    p = counts.placement
     obs = house.observations
     grid, source = house.grid, house.grid.coarsened_from
     of_map = "" if source is None else (
@@ -176,22 +170,40 @@ def _summary(
         else f"images           none (a house of words only) in {plural(len(obs.trials), 'trial')}",
         f"utterances       {obs.num_utterances}, vocabulary of "
         f"{plural(len(counts.vocabulary), 'word')}",
+    ]
+    if free:
+        lines += _placement_lines(house, counts, preparation)
+    else:  # `fit` refuses such a map first (spcopyro.maps.check_free_cells), says why
+        lines.append(
+            f"no free cell     the map {(source or grid).source or ''} has no free cell, nothing "
+            f"to label (spcopyro fit refuses it): {no_free_cell_reason(grid)}"
+        )
+    if house.category_names:
+        n = len(house.category_names)
+        lines.append(f"ground truth     {n} categor{'y' if n == 1 else 'ies'}: "
+                     + ", ".join(house.category_names))  # fmt: skip
+    return "\n".join(lines)
+
+
+def _placement_lines(
+    house: House, counts: CellCounts, preparation: DataPreparation | None
+) -> list[str]:
+    """:func:`_summary`'s lines of a map with free cells: the observed cells (those the
+    footprints reach too, given a footprint radius) and where the observations were placed."""
+    observed = f"{len(counts.cells)} (where observations were placed)"
+    if preparation is not None and preparation.footprint_radius > 0:
+        spread = prepared_cell_counts(house.grid, house.observations, preparation,
+                                      source=house.source, warn=False)  # fmt: skip
+        observed += (f"; {len(spread.cells)} within their {preparation.footprint_radius:g} m "
+                     "footprints")  # fmt: skip
+    p = counts.placement
+    return [
         f"observed cells   {observed}",
         f"placement        images: {p.images_on_free} on free cells, {p.images_snapped} snapped, "
         f"{p.images_unplaced} unplaced; words: {p.words_on_free} on free cells, "
         f"{p.words_snapped} snapped, {p.words_unplaced} unplaced "
         f"(snap distance {p.snap_distance} m){p.scaled_away_note()}",
     ]
-    if not free:  # `fit` refuses such a map first (spcopyro.maps.check_free_cells), says why
-        lines[-2:] = [
-            f"no free cell     the map {(source or grid).source or ''} has no free cell, nothing "
-            f"to label (spcopyro fit refuses it): {no_free_cell_reason(grid)}"
-        ]
-    if house.category_names:
-        n = len(house.category_names)
-        lines.append(f"ground truth     {n} categor{'y' if n == 1 else 'ies'}: "
-                     + ", ".join(house.category_names))  # fmt: skip
-    return "\n".join(lines)
 
 
 _positive_int = _integer_at_least(1)
