@@ -7,6 +7,7 @@ observation inside it lands on a free cell.
 
 from __future__ import annotations
 
+import json
 import logging
 import unicodedata
 
@@ -249,8 +250,12 @@ def test_a_house_of_words_only_loads_saves_and_fits(tmp_path, caplog, capsys):
     printed = capsys.readouterr().out
     assert "images           none (a house of words only) in 3 trials" in printed
     (model,) = [line for line in printed.splitlines() if line.startswith("model ")]
-    assert model.endswith("use_images=True, use_words=True, concentrations=()) (use_images: no "
-                          "images here)")  # fmt: skip
+    # the model in effect: it printed use_images=True beside "(use_images: no images here)"
+    shown = model.split(" (no images here")[0]
+    assert "use_images=False, use_words=True" in shown and "use_images=True" not in shown
+    assert model.endswith("(no images here: use_images=True, as config.json records it, has none "
+                          "to use)")  # fmt: skip
+    assert json.loads((out / "config.json").read_text())["model"]["use_images"] is True
     assert (out / "labels.npy").is_file()
 
 

@@ -218,8 +218,13 @@ def _fit_staged(job: FitJob) -> int:
     # fit's own counts say what is left out (once), under the run's feature scaling.
     print(_summary(house, warn=False, feature_scaling=settings.data.feature_scaling,
                    preparation=settings.data))  # fmt: skip
-    unused = config.use_images and not house.observations.num_images  # a house of words only
-    print(f"model            {config}" + (" (use_images: no images here)" if unused else ""))
+    if config.use_images and not house.observations.num_images:  # a house of words only
+        # the model in effect, not use_images=True beside "no images here"; config.json keeps
+        # the setting asked for
+        print(f"model            {config.replace(use_images=False)} (no images here: "
+              "use_images=True, as config.json records it, has none to use)")  # fmt: skip
+    else:
+        print(f"model            {config}")
     print(f"data             {settings.data}")
     default = INFERENCE_METHODS[args.method].default_options()
     shown = options_line(options if options is not None else default, given_start(args))
