@@ -13,7 +13,11 @@ from pathlib import Path
 
 from spcopyro._util.arguments import integer_at_least, positive_number, seed
 
-__all__ = ["add_parser"]
+__all__ = ["add_parser", "features_command", "imagenet_cache_file"]
+
+IMAGENET_FILE = "alexnet-owt-7be5be79.pth"
+"""The file of torchvision's ``AlexNet_Weights.IMAGENET1K_V1`` in its cache
+(:func:`spcopyro.features.backbone.torchvision_cache_file`)."""
 
 WEIGHTS_HELP = (
     "backbone weights: 'imagenet' (torchvision's AlexNet_Weights.IMAGENET1K_V1, read from "
@@ -33,6 +37,34 @@ def _common(p: argparse.ArgumentParser) -> None:
         "--download",
         action="store_true",
         help="let torchvision download the ImageNet weights when not cached (needs internet)",
+    )
+
+
+def imagenet_cache_file() -> Path:
+    """Where torchvision keeps the ImageNet weights ``features`` reads by default, without
+    importing torch (:func:`spcopyro.features.backbone.torchvision_cache_file`, ``torch.hub``'s
+    rule: ``$TORCH_HOME``, else ``$XDG_CACHE_HOME/torch``, else ``~/.cache/torch``, then
+    ``hub/checkpoints``)."""
+    import os
+
+    cache = os.getenv("XDG_CACHE_HOME", "~/.cache")
+    home = Path(os.getenv("TORCH_HOME", os.path.join(cache, "torch"))).expanduser()
+    return home / "hub" / "checkpoints" / IMAGENET_FILE
+
+
+def features_command(images: Path, out: Path) -> tuple[str, str | None]:
+    """The ``spcopyro features`` command that writes ``out`` from the image folder ``images``
+    as printed, and a note on its weights (None when there is nothing to say): the ImageNet
+    weights where torchvision has them cached (:func:`imagenet_cache_file`); else ``--weights
+    random`` (``features`` stops offline without the file), with how to get them."""
+    command = f"spcopyro features {shlex.quote(str(images))} --out {shlex.quote(str(out))}"
+    cached = imagenet_cache_file()
+    if cached.is_file():
+        return f"{command} --weights imagenet", None
+    return f"{command} --weights random", (
+        f"no ImageNet weights in {cached.parent}: random weights try the pipeline only (the "
+        "features mean nothing); --weights imagenet --download fetches them (233 MB, needs "
+        "internet) for learnt place features"
     )
 
 

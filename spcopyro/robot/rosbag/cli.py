@@ -107,10 +107,38 @@ def _import_bag(args: argparse.Namespace) -> int:
         print(f"warning: --overwrite replaced the map {report.map_yaml} of the earlier import "
               f"in {report.out}: it was not {args.map}'s map (it differed, or could not be "
               "read)", file=sys.stderr)  # fmt: skip
-    out, q = report.out, _quote  # commands to paste: a path with spaces is quoted
-    print(f"  next: spcopyro features {q(out)} --out {q(out / 'Ft.csv')}")
-    print(f"  then: spcopyro fit {q(out)} --out {q(out.parent / 'fit')}")
+    _print_next(report)
     return 0
+
+
+def _fit_out(house: Path) -> Path:
+    """Where the printed ``fit`` writes: ``out/NAME`` (the README's walk: ``data/house`` ->
+    ``out/house``), outside the data folder; another name where that would be ``house`` or
+    overlap it."""
+    there = house.resolve()
+    for candidate in (Path("out") / house.name, Path(f"{house.name}-fit"),
+                      house.parent.parent / f"{house.name}-fit"):  # fmt: skip
+        here = candidate.resolve()
+        if here != there and there not in here.parents and here not in there.parents:
+            return candidate
+    return house.parent.parent / f"{house.name}-fit-out"
+
+
+def _print_next(report) -> None:
+    """The commands to run next, as they work when pasted (a path with spaces quoted):
+    ``features`` where images were kept, naming its weights (:func:`features_command`), and
+    ``fit``, its output outside the data folder (:func:`_fit_out`)."""
+    from spcopyro.features.cli import features_command
+
+    out = report.out
+    images = sum(int(t.get("images_kept") or 0) for t in report.trials)
+    if images:  # a house of words only has no Ft.csv to write
+        command, note = features_command(out, out / "Ft.csv")
+        print(f"  next: {command}")
+        if note:
+            print(f"        ({note})")
+    fit = f"spcopyro fit {_quote(out)} --out {_quote(_fit_out(out))}"
+    print(f"  {'then' if images else 'next'}: {fit}")
 
 
 def _simulate_bag(args: argparse.Namespace) -> int:
