@@ -112,7 +112,34 @@ def test_features_says_what_floor100_would_leave_of_its_rows(tmp_path, capsys):
     note = [line for line in said.splitlines() if line.startswith("counting")]
     assert len(note) == 1, said
     assert f"leaves nothing of 2 of 2 rows (every value below 0.01: lines 1, 2 of {out})" in note[0]
-    assert "--feature-scaling probability" in note[0]
+    assert "--preset auto or original-code add --feature-scaling probability" in note[0]
+    assert "The default fit needs nothing" in note[0]  # its refinement is skipped (KEEPS)
+
+
+def test_the_floor100_note_says_what_the_default_fit_does_with_the_rows():
+    """The note said 'fit with --feature-scaling probability' to everyone; the default fit
+    reads the rows as probabilities, and its --refine auto does not refine where floor(100 f)
+    empties more than half of the images (spcopyro.fit.refine.KEEPS): nothing to do there.
+    Where it empties fewer, the refinement, where it runs, counts them so: --refine never."""
+    from spcopyro.features.cli import REFINEMENT_KEEPS, floor100_note
+    from spcopyro.fit.refine import KEEPS
+
+    assert REFINEMENT_KEEPS == KEEPS  # features' layer is below fit's: a copy, checked
+    peaked = np.full((3, 1000), 0.2 / 999)
+    peaked[:, 0] = 0.8
+    flat = np.full((1, 1000), 1e-3)  # every value below 0.01
+    most = floor100_note(np.concatenate([peaked[:1], flat, flat]), "Ft.csv")  # 2 of 3 emptied
+    assert "leaves nothing of 2 of 3 rows" in most
+    assert "The default fit needs nothing" in most and "--refine auto does not refine" in most
+    assert "--refine never" not in most
+    assert "with --preset auto or original-code add --feature-scaling probability" in most
+    few = floor100_note(np.concatenate([peaked, flat]), "Ft.csv")  # 1 of 4: refined where it runs
+    assert "leaves nothing of 1 of 4 rows" in few and "needs nothing" not in few
+    assert "the refinement counts them as floor(100 f)" in few
+    assert "--refine never keeps them as probabilities" in few
+    assert "with --preset auto or original-code add --feature-scaling probability" in few
+    half = floor100_note(np.concatenate([peaked[:1], flat]), "Ft.csv")  # 1 of 2: not more
+    assert "--refine never keeps them as probabilities" in half
 
 
 def test_the_floor100_note_is_silent_where_floor100_keeps_most_of_the_rows():

@@ -77,13 +77,22 @@ def _random_warning(weights: str) -> None:
         )
 
 
+REFINEMENT_KEEPS = 0.5
+""":data:`spcopyro.fit.refine.KEEPS` (``fit``'s layer is above this one; a test checks they
+agree): ``fit --refine auto`` does not refine where floor(100 f) empties more than this share of
+the images."""
+
+
 def floor100_note(features, out: str | Path) -> str | None:
     """A note on what ``floor100`` (floor(100 f): presets ``auto`` and ``original-code``, and
-    the refinement of the default preset ``coarse``) would leave of the histograms
-    ``features`` ``[T, K]`` written to ``out``: None when it empties no row and keeps at least
-    half of a row's mass in median, else how many rows it empties (naming ``out``'s lines) and
-    the median share it keeps. A histogram over 1000 ImageNet classes often has every entry
-    below 0.01 (``--weights random``: all of them), which floor(100 f) makes an all-zero row."""
+    the refinement of the default preset ``coarse`` on the map's cells) would leave of the
+    histograms ``features`` ``[T, K]`` written to ``out``, and what to fit with: None when it
+    empties no row and keeps at least half of a row's mass in median. A histogram over 1000
+    ImageNet classes often has every entry below 0.01 (``--weights random``: all of them),
+    which floor(100 f) makes an all-zero row. The default fit reads them as probabilities, and
+    its ``--refine auto`` does not refine where more than :data:`REFINEMENT_KEEPS` of the rows
+    would be emptied: nothing to do there; else the refinement, where it runs, counts them as
+    floor(100 f), and ``--refine never`` keeps them as probabilities."""
     import numpy as np
 
     from spcopyro.data.counts import scale_features
@@ -105,12 +114,21 @@ def floor100_note(features, out: str | Path) -> str | None:
         if empty.size
         else ""
     )
-    return (
-        f"fit's default preset (coarse) reads these {f.shape[1]}-class rows as probabilities; "
-        f"floor(100 f) (--preset auto or original-code, and coarse's refinement on the map's "
-        f"cells) {emptied}keeps {100 * median:.0f}% of a row's mass in median: fit with "
-        "--feature-scaling probability (or a number s, counting s * f) instead"
-    )
+    counted = (f"floor(100 f), the counting of --preset auto and original-code and of the "
+               f"default fit's refinement on the map's cells, {emptied}keeps {100 * median:.0f}% "
+               "of a row's mass in median")  # fmt: skip
+    others = ("with --preset auto or original-code add --feature-scaling probability (or a "
+              "number s, counting s * f)")  # fmt: skip
+    if empty.size > REFINEMENT_KEEPS * f.shape[0]:
+        return (f"{counted}. The default fit needs nothing: preset coarse reads these "
+                f"{f.shape[1]}-class rows as probabilities, and --refine auto does not refine "
+                "where floor(100 f) would leave out more than half of them (its 'not refined' "
+                f"line says so); {others}")  # fmt: skip
+    return (f"{counted}. The default fit (preset coarse) reads these {f.shape[1]}-class rows as "
+            "probabilities, but where --refine auto refines on the map's cells (where the "
+            "images tell the places apart) the refinement counts them as floor(100 f): "
+            "--refine never keeps them as probabilities, on the model grid; "
+            f"{others}")  # fmt: skip
 
 
 def _features(args: argparse.Namespace) -> int:
