@@ -283,3 +283,46 @@ def test_a_variational_fit_prints_the_backend_it_ran(tmp_path, capsys, method, e
     assert main(args) == 0
     used = json.loads((out / "config.json").read_text())["inference"]["backend_used"]
     assert f"backend used     {used}\n" in capsys.readouterr().out
+
+
+def test_options_that_depend_on_the_start_are_asked_through_the_protocol():
+    """SVI's start-dependent defaults (``for_start``) were looked up by name in each place that
+    needed them (``hasattr(defaults, "for_start")`` in the comparison report, ``getattr`` in
+    VariationalSaving and fit's lines); the options protocol owns it now
+    (:func:`~spcopyro.inference.protocol.options_for_start`), and every place asks it."""
+    import ast
+    from dataclasses import dataclass
+    from pathlib import Path
+
+    from spcopyro.guides.svi_method import SVIOptions
+    from spcopyro.inference.protocol import StartDependentOptions, options_for_start
+
+    assert options_for_start(SVIOptions(), given_start=False) == SVIOptions(
+        anneal_iterations=100, label_smoothing=0.9
+    )
+    assert options_for_start(SVIOptions(), given_start=True) == SVIOptions(
+        anneal_iterations=0, label_smoothing=0.05
+    )
+    assert options_for_start(SVIOptions(anneal_iterations=7), True).anneal_iterations == 7
+    for options in (GibbsOptions(), VariationalOptions(), VIGibbsOptions()):
+        assert not isinstance(options, StartDependentOptions)
+        assert options_for_start(options, given_start=True) is options
+
+    @dataclass(frozen=True)
+    class Other:  # another method's start-dependent options: read the same way
+        window: int | None = None
+
+        def for_start(self, given_start: bool) -> Other:
+            return Other(5 if given_start else 50)
+
+    assert options_for_start(Other(), given_start=True) == Other(5)
+    package = Path(__file__).resolve().parents[1] / "spcopyro"
+    by_name = [
+        str(path.relative_to(package))
+        for path in sorted(package.rglob("*.py"))
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+        and node.func.id in ("getattr", "hasattr")
+        and any(isinstance(a, ast.Constant) and a.value == "for_start" for a in node.args)
+    ]  # fmt: skip
+    assert by_name == [], by_name

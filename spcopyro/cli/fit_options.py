@@ -9,6 +9,7 @@ import argparse
 import dataclasses
 
 from spcopyro.cli.common import given as given_flag
+from spcopyro.inference.protocol import StartDependentOptions, options_for_start
 
 __all__ = ["check_sweeps", "given_start", "method_options", "options_line", "warm_start_kept"]
 
@@ -145,10 +146,9 @@ def warm_start_kept(options: object) -> str:
     L = 120 fell to the uniform fixed point) and anneals gamma from 0 over
     ``anneal_iterations`` steps (unset: 0 for given labels; until 2026-12-05 it was 100, which
     lost them at L = 120 too); "" for a method that starts at them."""
-    for_start = getattr(options, "for_start", None)  # svi's SVIOptions
-    if for_start is None:
+    if not isinstance(options, StartDependentOptions):  # svi's SVIOptions are
         return ""
-    ran = for_start(given_start=True)
+    ran = options_for_start(options, given_start=True)
     smoothing, anneal = ran.label_smoothing, ran.anneal_iterations
     if getattr(options, "label_smoothing", None) is None:
         how = "the default for given labels"
@@ -177,10 +177,10 @@ def options_line(options: object, given: bool) -> str:
     """``options`` as fit's "inference" line prints them: their repr, with each field left to
     the start (svi's ``label_smoothing=None``, ``anneal_iterations=None``) followed by the value
     the fit uses, e.g. ``label_smoothing=None (0.05: given start)``."""
-    for_start = getattr(options, "for_start", None)
-    if for_start is None or not dataclasses.is_dataclass(options):
+    if not isinstance(options, StartDependentOptions) or not dataclasses.is_dataclass(options):
         return repr(options)
-    ran, start = for_start(given_start=given), "given start" if given else "random start"
+    ran = options_for_start(options, given_start=given)
+    start = "given start" if given else "random start"
     fields = []
     for field in dataclasses.fields(options):
         if not field.repr:

@@ -34,6 +34,7 @@ from spcopyro.experiments.inference_comparison import (
 )
 from spcopyro.experiments.table import json_default
 from spcopyro.figures.fonts import any_script
+from spcopyro.inference.protocol import options_for_start
 
 SCORE_NAMES = {
     "ari": "ARI",
@@ -145,8 +146,7 @@ def unfinished_annealing(iterations: dict[str, int], settings: ComparisonSetting
         defaults = None if method is None else method.default_options()
         if defaults is None or not dataclasses.is_dataclass(defaults):
             continue
-        if hasattr(defaults, "for_start"):  # svi: a default that depends on the start
-            defaults = defaults.for_start(False)  # the comparison fits from random starts
+        defaults = options_for_start(defaults, given_start=False)  # it fits from random starts
         options = VARIANTS[key].options_for(settings.quick)
         for name in ("anneal_iterations", "anneal_passes"):
             anneal = options.get(name, getattr(defaults, name, 0))

@@ -18,7 +18,12 @@ from spcopyro.guides.checkpoint import (
     save_variational,
 )
 from spcopyro.inference.driver import DriveInterrupted
-from spcopyro.inference.protocol import InferenceMethod, Resumption, method_options
+from spcopyro.inference.protocol import (
+    InferenceMethod,
+    Resumption,
+    method_options,
+    options_for_start,
+)
 from spcopyro.model import ModelData
 
 
@@ -42,12 +47,11 @@ class VariationalSaving:
 
     def _options(self) -> object:
         """The options as the fit runs them: fields left to the start (svi's None) set to what
-        it gets (``for_start``; given start labels unless ``init`` is random), so a checkpoint
-        records what ran and is compared with it (``anneal_iterations``: None against 100)."""
-        options = self._given_options()
-        for_start = getattr(options, "for_start", None)
+        it gets (:func:`~spcopyro.inference.protocol.options_for_start`; given start labels
+        unless ``init`` is random), so a checkpoint records what ran and is compared with it
+        (``anneal_iterations``: None against 100)."""
         given = init_name(self.init) != "random"
-        return options if for_start is None else for_start(given_start=given)
+        return options_for_start(self._given_options(), given_start=given)
 
     def _record(self) -> dict[str, object]:
         return {"method": self.inference.name, "sweeps": int(self.sweeps),

@@ -17,7 +17,15 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, NamedTuple, Protocol, TypeVar, get_args, get_type_hints
+from typing import (
+    TYPE_CHECKING,
+    NamedTuple,
+    Protocol,
+    TypeVar,
+    get_args,
+    get_type_hints,
+    runtime_checkable,
+)
 
 import numpy as np
 
@@ -87,6 +95,29 @@ def method_options(options: object | None, kind: type[OptionsT], method: str) ->
         return kind()
     if not isinstance(options, kind):
         raise TypeError(f"{method} takes {kind.__name__}, got {type(options).__name__}")
+    return options
+
+
+@runtime_checkable
+class StartDependentOptions(Protocol):
+    """A method's options whose defaults depend on the start (svi's
+    :class:`~spcopyro.guides.svi_method.SVIOptions`: ``label_smoothing`` and
+    ``anneal_iterations`` left None get one value for a random start, another for given start
+    labels). What an options object may offer beside its fields; every other method's options
+    run as given, whatever the start. Read through :func:`options_for_start`."""
+
+    def for_start(self, given_start: bool) -> object:
+        """These options with the fields left to the start set to what a run from a random
+        start (``given_start`` False) or from given start labels or q (True) runs with."""
+        ...
+
+
+def options_for_start(options: OptionsT, given_start: bool) -> OptionsT:
+    """``options`` as a run from that start runs them: the fields left to the start set
+    (:class:`StartDependentOptions`), ``options`` itself where nothing depends on the start.
+    What a fit records, a checkpoint compares and a report counts."""
+    if isinstance(options, StartDependentOptions):
+        return options.for_start(given_start)  # type: ignore[return-value]
     return options
 
 
