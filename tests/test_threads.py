@@ -459,3 +459,68 @@ def test_fit_house_passes_chain_workers_to_sweeps_auto(small_house, monkeypatch)
     with pytest.raises(Stop):
         fit_house(small_house, sweeps="auto", chains=2, chain_workers=1, progress=False)
     assert seen["chain_workers"] == 1
+
+
+@pytest.fixture(scope="module")
+def threaded_product_house():
+    """A house whose [M, 205] x [205, L] image product (observation_log_likelihood's
+    ``counts @ log_phi.T``) MKL splits across 2 threads: 105 observed cells (the small house's
+    30 are too few for the product to differ between 1 and 2 threads)."""
+    return make_house(seed=3, spec=HouseSpec(height=30, width=40, num_rooms=2, num_trials=4))
+
+
+def _outputs(result) -> dict[str, np.ndarray]:
+    """Every array of a result that a seeded fit fixes ([N] labels, [L] pi, [L, K_m] tables,
+    [S] trace, [N, L] marginals, ...)."""
+    arrays = {"labels": result.labels, "pi": result.pi, "objective": result.trace.objective,
+              "num_concepts": result.trace.num_concepts}  # fmt: skip
+    arrays.update({t.name: t.probabilities for t in result.emissions})
+    for name in ("marginals", "labels_final", "agreement"):
+        if getattr(result, name) is not None:
+            arrays[name] = getattr(result, name)
+    return arrays
+
+
+def _fits_on_one_and_two_threads(house, method, iterations):
+    """The same seeded fit with 1 and 2 torch threads; skipped where this machine's BLAS gives
+    the house's image product the same bits on both (the fits could not differ there)."""
+    from spcopyro.fit.house import prepare_model_data
+
+    settings = preset("original-code", gamma=3.0)
+    _, data = prepare_model_data(house, settings)
+    counts = data.modalities[0].counts  # [M, 205]
+    log_phi = torch.randn(120, counts.shape[1], dtype=counts.dtype,
+                          generator=torch.Generator().manual_seed(0))  # fmt: skip
+    products = []
+    for threads in (1, 2):
+        with torch_threads(threads):
+            products.append(counts @ log_phi.T)  # [M, L]
+    if torch.equal(*products):
+        pytest.skip("this BLAS gives the product the same bits on 1 and 2 threads")
+    fits = [fit_house(house, settings, method=method, sweeps=iterations, seed=1,
+                      progress=False, threads=threads) for threads in (1, 2)]  # fmt: skip
+    return [_outputs(fit) for fit in fits]
+
+
+def test_vi_gibbs_is_bit_identical_on_one_and_two_threads(threaded_product_house):
+    """``--method vi-gibbs``: the CAVI start (numba backend) and the sweeps give every output the
+    same bits with 1 and 2 threads, although the image product in it differs in its last bits
+    (the labels, drawn against it, and the tables, drawn from counts, do not see them)."""
+    one, two = _fits_on_one_and_two_threads(threaded_product_house, "vi-gibbs", 20)
+    assert one.keys() == two.keys()
+    for name in one:
+        assert one[name].tobytes() == two[name].tobytes(), name
+
+
+def test_svi_floats_differ_in_their_last_bits_only(threaded_product_house):
+    """``--method svi`` differentiates through the image product, so its last-bit difference
+    between 1 and 2 threads (MKL splits the float64 product's inner dimension of 205 with a
+    transposed right operand) reaches pi, the tables and the ELBO; the labels stay the same
+    (docs/speed.md, "Threads")."""
+    one, two = _fits_on_one_and_two_threads(threaded_product_house, "svi", 10)
+    np.testing.assert_array_equal(one["labels"], two["labels"])
+    np.testing.assert_array_equal(one["num_concepts"], two["num_concepts"])
+    for name in ("pi", "images", "words", "objective"):  # float64
+        np.testing.assert_allclose(one[name], two[name], rtol=1e-9, atol=1e-15, err_msg=name)
+    # float32: a last-bit change of q(C) may round to the neighbouring float32
+    np.testing.assert_allclose(one["marginals"], two["marginals"], rtol=2.5e-7, atol=1e-12)

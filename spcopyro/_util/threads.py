@@ -23,7 +23,8 @@ machine: the smallest map size from which two threads were at least 1.2x faster 
 backends (``python benchmarks/threads.py``; its measurements are in ``docs/speed.md``, "Threads").
 The last term is why the load counts: next to a busy neighbour the second thread makes a fit
 several times *slower* (memoized VI on 92,328 cells beside a load of about 4: 94 s against 20 s),
-with bit-identical outputs, so the load may choose the count without changing a result.
+with bit-identical outputs, so the load may choose the count without changing a result (a label;
+``svi``'s floats change in their last bits, below).
 ``config.json`` records the count that ran (``"threads"``).
 
 :func:`torch_threads` sets the count around a fit and restores the previous one afterwards, even
@@ -45,7 +46,12 @@ thread and with two. Only the last bits of a float reduction (a sum split across
 differ, which is why the pinned outputs hash float tables at 12 significant digits; on room1dk5
 and the synthetic house (200 sweeps, both backends) the floats were bit-identical too, and on a
 simulated map of 92,328 free cells every output of ``spcopyro fit`` but the timings (Gibbs with
-its refinement and ``vi`` point estimate, memoized VI, CAVI, loopy BP; ``docs/speed.md``).
+its refinement and ``vi`` point estimate, memoized VI, CAVI, loopy BP; ``docs/speed.md``), and
+``vi-gibbs`` on a small house. ``svi`` is the exception: MKL splits the inner dimension of the
+float64 image product ``counts @ log_phi.T`` (205 classes, a transposed operand) across threads
+from 86 observed cells on, whatever the map's size, and SVI differentiates through it, so its
+pi, tables and ELBO differ in their last bits between one thread and two (labels the same in
+every run measured; ``docs/speed.md``, "Threads").
 """
 
 from __future__ import annotations
