@@ -179,3 +179,30 @@ def test_fit_s_placement_line_says_how_many_images_the_scaling_left_out(tmp_path
     assert "; 3 of 4 images left out" in placement[0]
     kept = _summary(house, warn=False, feature_scaling="probability")
     assert "left out" not in kept
+
+
+def test_the_counts_the_refinement_and_features_name_the_same_emptied_images(tmp_path):
+    """Which images floor(100 f) leaves with nothing is decided in one place
+    (spcopyro.data.counts.scaled_away): the counts leave them out, ``fit --refine auto`` counts
+    them, ``spcopyro features`` names their lines. An all-zero row has nothing to lose; a row
+    with one entry of 0.01 keeps a count."""
+    from spcopyro.data.counts import scale_features, scaled_away
+    from spcopyro.features.cli import floor100_note
+    from spcopyro.fit.refine import _emptied_by_floor100
+
+    features = np.full((6, 1000), 1e-3)  # [6, 1000] rows 0, 2, 5 flat: emptied
+    features[1] = 0.0
+    features[1, 7] = 1.0
+    features[3] = 0.0  # nothing to lose
+    features[4, 9] = 0.01  # floor(100 * 0.01) = 1
+    emptied = scaled_away(features, scale_features(features, "floor100"))  # [n]
+    assert emptied.dtype == np.int64 and emptied.tolist() == [0, 2, 5]
+    counts = cell_counts(_grid(), _observations(features), feature_scaling="floor100", warn=False)
+    assert counts.placement.scaled_away_images.tolist() == [0, 2, 5]
+    assert _emptied_by_floor100(features) == 3
+    note = floor100_note(features, tmp_path / "Ft.csv")
+    assert (
+        f"leaves nothing of 3 of 6 rows (every value below 0.01: lines 1, 3, 6 of {tmp_path}"
+        in note
+    )
+    assert scaled_away(features, features).size == 0  # as probabilities: nothing lost

@@ -54,6 +54,7 @@ __all__ = [
     "check_count_totals",
     "prepared_cell_counts",
     "scale_features",
+    "scaled_away",
 ]
 
 logger = logging.getLogger("spcopyro")
@@ -96,10 +97,13 @@ def scale_features(features: np.ndarray, scaling: FeatureScaling) -> np.ndarray:
     )
 
 
-def _scaled_away(raw: np.ndarray, scaled: np.ndarray) -> np.ndarray:
+def scaled_away(raw: np.ndarray, scaled: np.ndarray) -> np.ndarray:
     """[n] int64 indices of the images whose histogram ``raw`` ``[T, K]`` holds something but
-    whose ``scaled`` row ``[T, K]`` is all zero: ``floor100`` of a histogram over many classes
-    (1000 ImageNet classes, every probability below 0.01) leaves nothing of it."""
+    whose ``scaled`` row ``[T, K]`` (:func:`scale_features` of it) is all zero: ``floor100`` of
+    a histogram over many classes (1000 ImageNet classes, every probability below 0.01) leaves
+    nothing of it. The one test of it: :func:`cell_counts` leaves these images out (and warns),
+    ``fit --refine auto`` does not refine where floor(100 f) would leave out most of them
+    (:func:`spcopyro.fit.refine.refine_decision`), and ``spcopyro features`` names them."""
     raw = np.asarray(raw, dtype=np.float64).reshape(scaled.shape)  # [T, K]
     return np.flatnonzero((scaled.sum(axis=1) == 0) & (raw.sum(axis=1) > 0)).astype(np.int64)
 
@@ -110,7 +114,7 @@ def _warn_scaled_away(
     scaling: FeatureScaling,
     source: str | os.PathLike[str] | None,
 ) -> None:
-    """Warn (logger ``"spcopyro"``) about the images ``lost`` (:func:`_scaled_away` of the
+    """Warn (logger ``"spcopyro"``) about the images ``lost`` (:func:`scaled_away` of the
     histograms ``raw`` ``[T, K]``), which would else be lost silently."""
     if not lost.size:
         return
@@ -360,9 +364,9 @@ def cell_counts(
             plain, grid, obs, features, words, placed, footprint_radius, footprint_kernel,
             footprint_fov,
         ))  # fmt: skip
-    scaled_away = _scaled_away(obs.image_features, features)  # [n] images left with nothing
+    lost = scaled_away(obs.image_features, features)  # [n] images left with nothing
     if warn:
-        _warn_scaled_away(obs.image_features, scaled_away, feature_scaling, source)
+        _warn_scaled_away(obs.image_features, lost, feature_scaling, source)
     image_ok = image_cell >= 0  # [T] bool
     word_ok = word_cell >= 0  # [U] bool
     further_cells = [cell[cell >= 0] for cell, _, _ in further]  # [T_j] each
@@ -389,8 +393,8 @@ def cell_counts(
         unplaced_words=np.flatnonzero(word_unplaced).astype(np.int64),
         snap_distance=float(snap_distance),
         hint=position_hint(grid, np.concatenate([obs.image_xy, obs.word_xy])),  # [T + U, 2]
-        images_scaled_away=int(scaled_away.size),
-        scaled_away_images=scaled_away,
+        images_scaled_away=int(lost.size),
+        scaled_away_images=lost,
         feature_scaling=feature_scaling,
         modalities=tuple(
             ModalityPlacement(

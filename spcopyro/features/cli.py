@@ -95,15 +95,16 @@ def floor100_note(features, out: str | Path) -> str | None:
     floor(100 f), and ``--refine never`` keeps them as probabilities."""
     import numpy as np
 
-    from spcopyro.data.counts import scale_features
+    from spcopyro.data.counts import scale_features, scaled_away
 
     f = np.asarray(features, dtype=np.float64)  # [T, K]
     if f.size == 0:
         return None
     total = f.sum(axis=1)  # [T]
-    kept = scale_features(f, "floor100").sum(axis=1) / 100.0  # [T] mass left by floor(100 f)
+    scaled = scale_features(f, "floor100")  # [T, K]
+    kept = scaled.sum(axis=1) / 100.0  # [T] mass left by floor(100 f)
     share = np.divide(kept, total, out=np.ones_like(total), where=total > 0)  # [T]
-    empty = np.flatnonzero((kept == 0) & (total > 0))  # [n] rows floor(100 f) empties
+    empty = scaled_away(f, scaled)  # [n] rows floor(100 f) empties
     median = float(np.median(share))
     if not empty.size and median >= 0.5:
         return None

@@ -57,7 +57,7 @@ import numpy as np
 
 from spcopyro.config import SpCoConfig, SpCoSettings
 from spcopyro.data import House
-from spcopyro.data.counts import scale_features
+from spcopyro.data.counts import scale_features, scaled_away
 from spcopyro.data.model_grid import model_house
 from spcopyro.fit.image_separation import ImageSeparation, image_labels, image_separation
 from spcopyro.results.result import SpCoResult
@@ -206,8 +206,7 @@ def _emptied_by_floor100(images: np.ndarray) -> int:
     """How many of the image histograms ``images`` ``[T, K]`` hold something that
     floor(100 f), the refinement's counting (:func:`refined_settings`), makes all zero."""
     raw = np.asarray(images, dtype=np.float64)  # [T, K]
-    scaled = scale_features(raw, "floor100")  # [T, K]
-    return int(((scaled.sum(axis=1) == 0) & (raw.sum(axis=1) > 0)).sum())
+    return int(scaled_away(raw, scale_features(raw, "floor100")).size)
 
 
 def with_decision(result: SpCoResult, decision: RefineDecision) -> SpCoResult:
