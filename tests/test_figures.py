@@ -286,13 +286,13 @@ def test_a_legend_outside_the_axes_is_inside_the_png(tmp_path):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from spcopyro.figures.plotting import DPI, PAD_INCHES, _save
+    from spcopyro.figures.png import DPI, PAD_INCHES, save_figure
 
     fig = Figure(figsize=(4, 3))
     ax = fig.subplots()
     ax.plot([0, 1], [0, 1], label="entrance 0.74, bedroom 0.19, refrigerator 0.04 " * 2)
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False)
-    _save(fig, tmp_path / "legend.png")
+    save_figure(fig, tmp_path / "legend.png")
     fig.set_dpi(DPI)
     legend = ax.get_legend().get_window_extent(FigureCanvasAgg(fig).get_renderer())  # pixels
     tight = fig.get_tightbbox(FigureCanvasAgg(fig).get_renderer())  # inches
@@ -607,3 +607,23 @@ def test_an_svi_trace_says_it_is_an_estimate_and_where_gamma_was_annealed():
     vi_gibbs = dataclasses.replace(result, method="vi-gibbs", inference={"vi_iterations_run": 43})
     title = trace_figure(vi_gibbs).texts[0].get_text()
     assert "Gibbs sweeps from a CAVI start of 43 iterations (not shown)" in title
+
+
+def test_no_module_imports_a_private_name_of_plotting():
+    """The PNG writer moved to figures/png.py as ``save_figure``; plotting kept it as a private
+    alias ``_save`` (and ``_extent``, ``_show_image`` from map_axes) that the navigation
+    figures and the study's label maps imported. They import the public names from where they
+    are defined; plotting's private names are its own."""
+    import ast
+    from pathlib import Path
+
+    import spcopyro
+
+    root = Path(spcopyro.__file__).parent
+    found = []
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and node.module == "spcopyro.figures.plotting":
+                private = [a.name for a in node.names if a.name.startswith("_")]
+                found += [f"{path.relative_to(root)}:{node.lineno} {n}" for n in private]
+    assert not found, found

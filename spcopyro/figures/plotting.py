@@ -34,7 +34,6 @@ from spcopyro.data import Observations
 from spcopyro.figures.house import MAX_WORD_COLOURS, house_figure, plot_house  # noqa: F401
 from spcopyro.figures.map_axes import known_bounds, map_axes, shown_in
 from spcopyro.figures.map_axes import map_extent as _extent
-from spcopyro.figures.map_axes import show_map as _show_image  # noqa: F401 (navigation)
 from spcopyro.figures.map_pieces import (
     concept_handles,
     draw_outline,
@@ -43,8 +42,7 @@ from spcopyro.figures.map_pieces import (
     place_labels,
     region_text,
 )
-from spcopyro.figures.png import DPI, PAD_INCHES  # noqa: F401 (re-exported)
-from spcopyro.figures.png import save_figure as _save
+from spcopyro.figures.png import DPI, PAD_INCHES, save_figure  # noqa: F401 (DPI, PAD_INCHES: re-exported)
 from spcopyro.figures.trace import (  # noqa: F401 (plot_trace, trace_figure: re-exported)
     _CHAINS,
     ESTIMATE_NAMES,
@@ -136,7 +134,7 @@ def plot_semantic_map(
     figure = semantic_map_figure(
         result, n_words, max_labelled, min_region_fraction, observations=observations
     )
-    return _save(figure, path)
+    return save_figure(figure, path)
 
 
 def semantic_map_figure(
@@ -216,7 +214,7 @@ def plot_where(
     probability: np.ndarray | None = None,
 ) -> Path:
     """Write :func:`where_figure` to ``path`` (``probability`` as there)."""
-    return _save(where_figure(result, answer, probability), path)
+    return save_figure(where_figure(result, answer, probability), path)
 
 
 BELOW_INCHES = (0.55, 1.0)  # where_figure: the legend below the map, then the warnings below it
@@ -327,8 +325,8 @@ def _plot_cell_values(
     cmap: str,
 ) -> Path:
     """Write :func:`_cell_values_figure` to ``path``."""
-    return _save(_cell_values_figure(result, values, title=title, label=label, vmax=vmax,
-                                     cmap=cmap), path)  # fmt: skip
+    figure = _cell_values_figure(result, values, title=title, label=label, vmax=vmax, cmap=cmap)
+    return save_figure(figure, path)
 
 
 CELL_VALUES_TOP = 0.75

@@ -109,7 +109,7 @@ def plot_label_maps(
     coloured by region size; written to ``path``."""
     from matplotlib.figure import Figure
 
-    from spcopyro.figures.plotting import _extent, known_bounds
+    from spcopyro.figures.map_axes import known_bounds, map_extent
     from spcopyro.maps import render_labels
 
     columns = max(1, min(4, len(panels)))
@@ -119,7 +119,7 @@ def plot_label_maps(
     rows, cols = known_bounds(grid)
     for ax, (name, labels) in zip(axes.ravel(), panels, strict=False):
         rgb = render_labels(_ranked(np.asarray(labels)), grid)  # [H, W, 3]
-        ax.imshow(rgb[rows, cols], extent=_extent(grid, rows, cols), interpolation="nearest")
+        ax.imshow(rgb[rows, cols], extent=map_extent(grid, rows, cols), interpolation="nearest")
         ax.set_title(name, fontsize=7)
         ax.set_xticks([])
         ax.set_yticks([])

@@ -19,7 +19,8 @@ from spcopyro._util.messages import plural
 from spcopyro.figures.map_axes import known_bounds, map_axes, shown_in
 from spcopyro.figures.map_axes import map_extent as _extent
 from spcopyro.figures.map_pieces import draw_outline, map_legend
-from spcopyro.figures.plotting import _save, semantic_colours
+from spcopyro.figures.plotting import semantic_colours
+from spcopyro.figures.png import save_figure
 from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
 from spcopyro.maps.render import render_labels
 from spcopyro.results.result import SpCoResult
@@ -59,7 +60,7 @@ def _showing(axes: list[Axes], x: float, y: float) -> Axes:
 
 def plot_plan(plan: NavigationPlan, path: str | os.PathLike[str]) -> Path:
     """Draw ``plan`` (module docstring) into the PNG ``path``: :func:`plan_figure`."""
-    return _save(plan_figure(plan), path)
+    return save_figure(plan_figure(plan), path)
 
 
 def plan_figure(plan: NavigationPlan) -> Figure:
@@ -243,7 +244,7 @@ def passage_lines(
 
 def plot_place_graph(result: SpCoResult, graph: PlaceGraph, path: str | os.PathLike[str]) -> Path:
     """Write :func:`place_graph_figure` to ``path``."""
-    return _save(place_graph_figure(result, graph), path)
+    return save_figure(place_graph_figure(result, graph), path)
 
 
 def place_graph_figure(result: SpCoResult, graph: PlaceGraph) -> Figure:
