@@ -785,6 +785,25 @@ def test_no_free_cell_says_when_the_other_negate_frees_cells(tmp_path: Path) -> 
     assert "t.yaml:4: negate 1;" in message and "with negate 0, 2 cells would be free" in message
 
 
+@pytest.mark.parametrize(
+    ("negate", "shown"), [(2, "2 (true)"), (-1, "-1 (true)"), ("yes", "yes (true)"), (True, "true")]
+)
+def test_no_free_cell_names_negate_as_the_yaml_writes_it(tmp_path: Path, negate, shown) -> None:
+    """``negate: 2`` reads as map_server reads it (nonzero: true); the refusal printed it as
+    ``negate 1``, a value the yaml does not hold. Now as written, with its reading."""
+    message = _no_free(tmp_path, [[205, 254, 254]], negate=negate)
+    assert f"t.yaml:4: negate {shown};" in message and "with negate 0, 2 cells" in message
+
+
+def test_a_semantic_map_with_negate_2_is_refused_naming_it_as_written(tmp_path: Path) -> None:
+    from spcopyro.maps.render import load_label_map_server
+
+    write_pgm(tmp_path / "map.pgm", np.array([[0, 254]], dtype=np.uint8))
+    path = write_yaml(tmp_path / "t.yaml", mode="raw", negate=2)
+    with pytest.raises(MapFormatError, match=r"t\.yaml:4: .*got mode 'raw', negate 2 \(true\)$"):
+        load_label_map_server(path)
+
+
 def test_no_free_cell_says_when_every_pixel_is_unknown_grey(tmp_path: Path) -> None:
     message = _no_free(tmp_path, [[205, 205]])
     assert "every pixel is map_saver's unknown grey 205" in message

@@ -49,7 +49,7 @@ def no_free_cell_reason(grid: OccupancyGrid) -> str:
     low, high = float(grey.min()), float(grey.max())
     formula = f"grey / {full:g}" if spec.negate else f"({full:g} - grey) / {full:g}"
     reason = (
-        f"{spec.where('negate')}: negate {int(spec.negate)}; "
+        f"{spec.where('negate')}: negate {spec.shown_negate()}; "
         f"{spec.where('free_thresh')}: free_thresh {echo(spec.free_thresh)}; "
         f"{spec.where('occupied_thresh')}: occupied_thresh {echo(spec.occupied_thresh)}; "
         f"the image {str(spec.image)!r} has greys {low:g}..{high:g} of {full:g}, so "

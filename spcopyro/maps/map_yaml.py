@@ -80,6 +80,17 @@ class _MapYaml:
     mode: str
     lines: dict[str, int] = field(default_factory=dict, compare=False)
     """Line of each key in the yaml (1-based)."""
+    negate_text: str = field(default="", compare=False)
+    """``negate`` as written in the yaml (quotes removed), e.g. ``2`` or ``yes``."""
+
+    def shown_negate(self) -> str:
+        """``negate`` for a message: as written where it says what it reads as (``0``, ``1``,
+        ``true``, ``false``), else with its reading, ``2 (true)``, ``0x0 (false)``."""
+        reads = "true" if self.negate else "false"
+        plain = {"0": "false", "1": "true", "true": "true", "false": "false"}
+        if not self.negate_text or plain.get(self.negate_text.lower()) == reads:
+            return self.negate_text or str(int(self.negate))
+        return f"{self.negate_text} ({reads})"
 
     def where(self, key: str) -> str:
         """``YAML:LINE`` of ``key``, or the yaml alone where the key is absent."""
@@ -327,6 +338,7 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
         resolution=float(resolution),
         origin=(float(origin[0]), float(origin[1]), 0.0),  # yaw: 0 or noise (MAX_YAW_NOISE)
         negate=bool(negate),
+        negate_text=texts["negate"],
         occupied_thresh=float(doc["occupied_thresh"]),
         free_thresh=float(doc["free_thresh"]),
         mode=mode,

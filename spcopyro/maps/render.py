@@ -238,7 +238,7 @@ def load_label_map_server(yaml_path: str | os.PathLike) -> tuple[np.ndarray, Occ
         raise MapFormatError(
             f"{spec.where('mode' if spec.mode != 'raw' else 'negate')}: a semantic map needs "
             f"'mode: raw' and 'negate: 0', got mode "
-            f"{spec.mode!r}, negate {int(spec.negate)}"
+            f"{spec.mode!r}, negate {spec.shown_negate()}"
         )
     sidecar_path = _sidecar_path(spec.path)
     if not sidecar_path.is_file():
