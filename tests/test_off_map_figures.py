@@ -10,6 +10,7 @@ import dataclasses
 import numpy as np
 import pytest
 from hand_results import two_rooms
+from matplotlib.colors import to_rgb
 
 from spcopyro.figures.map_axes import known_bounds, map_extent
 from spcopyro.figures.off_map import EDGE_MARKER_AREA, draw_at_edge, off_axes
@@ -76,6 +77,33 @@ def test_the_house_figure_of_many_words_counts_them_on_the_map_only():
     np.testing.assert_allclose(_limits(fig.axes[0]), (-4.0, 4.0, -3.0, 3.0))
     words = [at for at in _edge_marks(fig) if (at[:, 0] == -4.0).any()]
     np.testing.assert_allclose(np.concatenate(words), [[-4.0, 0.0]])
+
+
+def test_a_frequent_word_heard_only_off_the_map_is_in_the_legend_of_many_words():
+    """With circles of area by count (5,000 utterances) the legend listed the words of the
+    circles only: 'attic', said 600 times 30 m east of the map, was its triangles at the edge,
+    in a colour no legend entry named (with few words, spread apart, it was listed)."""
+    house = make_house(seed=0)
+    obs = house.observations
+    rng = np.random.default_rng(0)
+    pick = rng.integers(0, len(obs.utterances), 5_000)
+    xy = np.asarray(obs.word_xy)[pick] + rng.uniform(-0.2, 0.2, (5_000, 2))  # [5000, 2]
+    xy = np.vstack([xy, np.tile([34.0, 1.0], (600, 1))])  # [5600, 2]
+    trial = np.asarray(obs.word_trial)[np.r_[pick, np.zeros(600, dtype=np.int64)]]  # [5600]
+    said = [*(obs.utterances[k] for k in pick), *[("attic",)] * 600]
+    many = dataclasses.replace(obs, utterances=said, word_xy=xy, word_trial=trial)
+    fig = house_figure(dataclasses.replace(house, observations=many))
+    legend = fig.axes[0].get_legend()
+    labels = [t.get_text() for t in legend.texts]
+    assert "circle area by count" in legend.get_title().get_text()
+    assert "attic" in labels and "off the map: 600 words (at its edge)" in labels
+    (east,) = [  # attic's triangles at the map's east edge (x = 4 m)
+        c
+        for c in fig.axes[0].collections
+        if c.get_sizes()[0] == EDGE_MARKER_AREA and (c.get_offsets()[:, 0] == 4.0).all()
+    ]
+    handle = legend.legend_handles[labels.index("attic")]
+    np.testing.assert_allclose(east.get_facecolor()[0][:3], to_rgb(handle.get_markerfacecolor()))
 
 
 def test_the_semantic_map_keeps_the_map_s_limits_and_marks_a_word_heard_off_it():

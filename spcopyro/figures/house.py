@@ -64,6 +64,7 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     palette = np.vstack([np.asarray(colours).reshape(-1, 3), [0.8, 0.8, 0.8]])  # [F + 1, 3]
     draw_at_edge(axes, heard[away], palette[kind[away]])
     draw_at_edge(axes, images[images_away], np.full((int(images_away.sum()), 3), 0.45))
+    every = kind  # [U] the legend lists each word, on the map or off (its triangle's colour)
     others = (kind == len(frequent)).any()  # "other words" in the legend, on the map or off
     xy, kind = heard[~away], kind[~away]  # [U', 2], [U'] the words on the map
     order = np.argsort(kind, kind="stable")  # named words keep their places first
@@ -77,7 +78,7 @@ def house_figure(house: House, title: str | None = None) -> Figure:
             ax.scatter(*images[~images_away].T, s=6, c="0.45", marker="s",
                        label=f"images ({obs.num_images})")  # fmt: skip
         if counted:  # circles of area by count, the smallest on top; the legend's from empties
-            draw_counted_words(ax, grid, xy, kind, frequent, colours)
+            draw_counted_words(ax, grid, xy, kind, frequent, colours, every)
             continue
         if others:  # drawn first (under the named words), listed last in the legend
             ax.scatter(*shown[rest].T, s=size, color="0.8", edgecolors=rims[rest],

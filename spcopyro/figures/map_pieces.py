@@ -347,19 +347,21 @@ def draw_counted_words(
     kind: np.ndarray,
     frequent: list[str],
     colours: np.ndarray,
+    listed: np.ndarray,
 ) -> None:
     """house.png's words heard when too many to spread apart: the utterances at world points
     ``xy`` ``[U, 2]`` of each ``kind`` ``[U]`` (an index into ``frequent``, whose colours are
     ``colours`` ``[F, 3]`` in 0..1; ``len(frequent)``: other words, light grey) as circles of
-    area by count (:func:`utterance_markers`), the smallest on top, and an empty scatter per
-    kind for the legend (other words last)."""
+    area by count (:func:`utterance_markers`), the smallest on top, and an empty scatter for
+    the legend per kind in ``listed`` (the kinds of every utterance, those heard off the map
+    and drawn at its edge too; other words last)."""
     at, kinds, areas, _ = utterance_markers(ax, grid, xy, kind)
     palette = np.vstack([np.asarray(colours).reshape(-1, 3), [0.8, 0.8, 0.8]])  # [F + 1, 3]
     order = np.argsort(-areas, kind="stable")
     ax.scatter(*at[order].T, s=areas[order], c=palette[kinds[order]],
                edgecolors=rim_colours(grid, at[order]), linewidths=0.4, zorder=3)  # fmt: skip
     for k, word in [*enumerate(frequent), (len(frequent), "other words")]:
-        if (kind == k).any():
+        if (np.asarray(listed) == k).any():
             ax.scatter([], [], s=MARKER_AREA, color=palette[k], label=word)
 
 
