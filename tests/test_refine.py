@@ -15,7 +15,7 @@ from fit_interrupts import interrupt_fit_at
 from spcopyro._util.outputs import checkpoint_path
 from spcopyro.cli.fit_refine import replaced_options
 from spcopyro.cli.main import main
-from spcopyro.config import preset
+from spcopyro.config import DataPreparation, SpCoSettings, preset
 from spcopyro.data.model_grid import model_house
 from spcopyro.fit.house import fit_house, preset_fit_kwargs
 from spcopyro.fit.refine import (
@@ -23,6 +23,7 @@ from spcopyro.fit.refine import (
     map_house,
     refine_decision,
     refined_settings,
+    replaced_preparation,
 )
 from spcopyro.fit.starts import result_labels
 from spcopyro.maps.coarse import model_cell_of
@@ -140,6 +141,40 @@ def test_fit_house_refines_where_the_images_separate_and_records_why(house, coar
     assert kept.inference["refine"]["separation"]["explained"] < SEPARATES
 
 
+def test_the_library_names_the_settings_preparation_its_refinement_replaces(house, caplog):
+    """fit_house(refine=...) replaced settings' own preparation with the refinement's without a
+    word (only the command line named what it replaced): one warning names the fields, those
+    the caller chose (not the preset's own, which the refinement is made to replace)."""
+    kwargs = {**preset_fit_kwargs("coarse"), "refine": "always", "sweeps": 5, "progress": False}
+    mine = preset("coarse", word_scaling=5.0, footprint_kernel="gaussian")
+    with caplog.at_level("WARNING", logger="spcopyro"):
+        result = fit_house(house, mine, **kwargs)
+    assert result.preparation.word_scaling == 1.0  # replaced, as before
+    said = [r.getMessage() for r in caplog.records if "replacing the settings'" in r.getMessage()]
+    assert len(said) == 1, said
+    named = "word_scaling 5.0 -> 1.0, footprint_kernel 'gaussian' -> 'unused (no footprint)'"
+    assert named in said[0]
+    assert "feature_scaling" not in said[0]  # the preset's probability: the one replaced
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="spcopyro"):
+        fit_house(house, preset("coarse"), **kwargs)
+    assert not [r for r in caplog.records if "replacing" in r.getMessage()]
+
+
+def test_replaced_preparation_is_the_caller_s_own_fields_the_refinement_changes():
+    coarse = preset("coarse", feature_scaling=2.0, footprint_radius=0.5)
+    refined = refined_settings(coarse, 100, 2500).data
+    assert replaced_preparation(coarse, refined) == {
+        "feature_scaling": {"given": 2.0, "refinement": "floor100"},
+        "footprint_radius": {"given": 0.5, "refinement": 0.0},
+    }  # word scaling 10, footprint kernel uniform: the preset's
+    assert replaced_preparation(preset("coarse"), refined) == {}
+    plain = SpCoSettings(data=DataPreparation(cell_size=0.25))  # no preset: every field its own
+    assert replaced_preparation(plain, refined) == {
+        "feature_scaling": {"given": "probability", "refinement": "floor100"}
+    }  # no footprint in either stage: its kernel and field of view are not named
+
+
 def test_refine_needs_a_gibbs_fit(house):
     with pytest.raises(ValueError, match="refines a Gibbs fit"):
         fit_house(house, preset("coarse"), method="cavi", sweeps=3, refine="auto")
@@ -204,6 +239,16 @@ def test_a_preparation_given_on_the_command_line_is_not_refined_away(home, tmp_p
     assert record["replaced"] == {"--word-scaling": {"given": 10.0, "refinement": 1.0}}
     assert record["coarse"]["preparation"]["word_scaling"] == 10.0
     assert record["preparation"]["word_scaling"] == 1.0
+
+
+def test_the_command_names_an_option_the_refinement_replaces_once(home, tmp_path, capsys):
+    """The command's note names its options; the library's warning, which would name the
+    settings' fields made of them, is not printed too."""
+    argv = ["fit", str(home), "--sweeps", "5", "--no-figures", "--word-scaling", "5"]
+    assert main([*argv, "--out", str(tmp_path / "out"), "--refine", "always"]) == 0
+    err = capsys.readouterr().err
+    assert "replacing --word-scaling 5 -> 1; the first stage used yours" in err
+    assert err.count("-> 1") == 1, err
 
 
 def test_the_note_names_only_given_options_the_refinement_changes():

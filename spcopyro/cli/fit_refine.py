@@ -162,7 +162,7 @@ def refine(
     try:
         _, results = refine_chains(
             results, kept, on_map, settings, args.refine, fit_house_chains, decision=decision,
-            method="gibbs", options=options, sweeps=sweeps or args.sweeps,
+            warn_replaced=False, method="gibbs", options=options, sweeps=sweeps or args.sweeps,
             seeds=[args.seed + k for k in range(chains)], threads=args.threads,
             marginal_samples=args.marginal_samples,
             point_estimate=point_estimate or args.point_estimate, chain_workers=args.chain_workers,

@@ -55,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from spcopyro.config import SpCoConfig, SpCoSettings
+from spcopyro.config import PRESETS, DataPreparation, SpCoConfig, SpCoSettings, preset
 from spcopyro.data import House
 from spcopyro.data.counts import scale_features, scaled_away
 from spcopyro.data.model_grid import model_house
@@ -73,6 +73,7 @@ __all__ = [
     "refine_chains",
     "refine_decision",
     "refined_settings",
+    "replaced_preparation",
     "with_decision",
 ]
 
@@ -143,6 +144,56 @@ def refined_settings(settings: SpCoSettings, model_cells: int, map_cells: int) -
         alpha=settings.model.alpha * scale, feature_scaling="floor100", word_scaling=1.0,
         footprint_radius=0.0, footprint_fov=None, cell_size=None,
     )  # fmt: skip
+
+
+REPLACED_FIELDS = ("feature_scaling", "word_scaling", "footprint_radius", "footprint_kernel",
+                   "footprint_fov")  # fmt: skip
+"""The :class:`~spcopyro.config.DataPreparation` fields :func:`refined_settings` sets a value of
+its own for (the cell size too, but the refinement is on the map's cells by definition)."""
+
+
+UNUSED = "unused (no footprint)"
+"""What :func:`replaced_preparation` gives as the refinement's footprint kernel or field of view
+where it has no footprint."""
+
+
+def replaced_preparation(
+    settings: SpCoSettings, refined: DataPreparation
+) -> dict[str, dict[str, object]]:
+    """The fields of ``settings``' data preparation chosen by its caller that the refinement's
+    preparation ``refined`` replaces: field -> ``{"given": settings', "refinement": refined's}``.
+    Chosen: differing from the preset ``settings`` came from (``settings.preset``; every field
+    of settings made without one). A footprint's kernel or field of view counts only where the
+    first stage had a footprint; the refinement's is :data:`UNUSED` where it has none. Empty for
+    a preset's own preparation (the default fit: preset ``coarse``'s is the one the refinement
+    is made to replace)."""
+    name = settings.preset
+    own = preset(name, num_concepts=settings.model.num_concepts).data if name in PRESETS else None
+    first = settings.data
+    replaced: dict[str, dict[str, object]] = {}
+    for field in REPLACED_FIELDS:
+        given, used = getattr(first, field), getattr(refined, field)
+        if own is not None and given == getattr(own, field):
+            continue  # the preset's value, not the caller's
+        if field in ("footprint_kernel", "footprint_fov"):
+            if not first.footprint_radius:
+                continue  # no footprint in the first stage either: it did nothing there
+            if not refined.footprint_radius:
+                used = UNUSED  # kept in the refinement's preparation, doing nothing there
+        if given != used:
+            replaced[field] = {"given": given, "refinement": used}
+    return replaced
+
+
+def _replaced_warning(replaced: dict[str, dict[str, object]]) -> str:
+    """The warning :func:`refine_chains` logs naming the ``replaced`` fields."""
+    changes = ", ".join(f"{field} {v['given']!r} -> {v['refinement']!r}"
+                        for field, v in replaced.items())  # fmt: skip
+    return (f"refine: the refinement on the map's own cells prepares the data as preset 'auto' "
+            f"does, replacing the settings' {changes}; the first stage used them "
+            "(result.inference['refine']['coarse']['preparation']); refine='never' keeps them "
+            "for the whole fit, settings with cell_size='map' fit with them on the map's own "
+            "cells")  # fmt: skip
 
 
 @dataclasses.dataclass(frozen=True)
@@ -223,6 +274,7 @@ def refine_chains(
     refine: str,
     fit_chains: Callable[..., list[SpCoResult]],
     decision: RefineDecision | None = None,
+    warn_replaced: bool = True,
     **chain_kwargs: Any,
 ) -> tuple[RefineDecision, list[SpCoResult]]:
     """The decision for ``results[kept]`` (the kept chain of a fit of ``house`` under
@@ -232,7 +284,10 @@ def refine_chains(
     the map's cells, with ``chain_kwargs`` (sweeps, seeds, options, ...), each recording the
     decision and the coarse stage in ``inference["refine"]``; else ``results``, the kept chain
     recording the decision (:func:`with_decision`). ``decision``: one already made by
-    :func:`refine_decision` for the kept chain (else made here)."""
+    :func:`refine_decision` for the kept chain (else made here). Where it refines, one
+    warning names the fields of ``settings``' preparation chosen by the caller that the
+    refinement replaces (:func:`replaced_preparation`); ``warn_replaced=False`` for a caller
+    that names them itself (``spcopyro fit``, by its options)."""
     first = results[kept]
     model = model_house(house, settings.data.cell_size)
     if decision is None:
@@ -243,6 +298,9 @@ def refine_chains(
     on_map = map_house(house)
     refined = refined_settings(settings, model.grid.num_free, on_map.grid.num_free)
     logger.info("refining on the map's %d cells: %s", on_map.grid.num_free, decision.reason)
+    replaced = replaced_preparation(settings, refined.data) if warn_replaced else {}
+    if replaced:  # the caller's own preparation: not replaced without a word
+        logger.warning("%s", _replaced_warning(replaced))
     options = chain_kwargs.get("options")
     if getattr(options, "anneal_sweeps", 0):  # its start is the fitted map, not noise: only
         # the coarse stage anneals (annealed again: 0.984 against 0.990, docs/commands.md)
