@@ -177,6 +177,26 @@ def test_a_fallback_to_the_grid_path_is_reported():
     assert plan.route_words == ("bedroom", "living", "kitchen")
 
 
+def test_a_fallback_names_the_route_s_places_told_apart():
+    """The corridor's top word "kitchen" too: the pinched corridor's fallback said "the places
+    of the route bedroom -> kitchen -> kitchen do not join", two places by one name; it now
+    tells them apart as navigate's printed route does."""
+    result = third_room_result(b_pinch=True)
+    graph = place_graph(result)
+    graph = replace(
+        graph,
+        places=tuple(
+            replace(p, words=("kitchen", *p.words)) if p.name == "corridor" else p
+            for p in graph.places
+        ),
+    )
+    plan = navigate(result, "go to the kitchen", START, radius=0.1, places=graph)
+    (reason,) = plan.fallbacks
+    corridor_concept, kitchen_concept = ROOMS["B"][2], ROOMS["C"][2]
+    assert (f"bedroom -> kitchen (concept {corridor_concept}) -> kitchen (concept "
+            f"{kitchen_concept}) do not join") in reason  # fmt: skip
+
+
 def test_a_finer_map_adds_the_passages_its_doorways_open():
     """A fit whose grid has the A-B door walled up, planned on the map that has it: the place
     graph gains the passage A-B (on_map), and the route goes A-B-C as on the full map."""

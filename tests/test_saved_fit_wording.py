@@ -58,9 +58,8 @@ def test_where_s_threshold_line_is_unchanged_when_the_region_is_above_one_half()
 def test_navigate_tells_apart_two_places_of_the_route_with_one_name(tmp_path, capsys):
     """On tests/test_navigate.py's house, "go to the bedroom via the kitchen" from bedroom A
     ends in bedroom E, a region of the same concept: the route printed "bedroom -> corridor ->
-    kitchen -> bedroom" (an unrefined fit's "... restroom -> sink -> sink -> living ...": two
-    places named by one top word). Places of one concept add their place id, places of
-    different concepts their concept."""
+    kitchen -> bedroom". Places of one concept add their place id, places of different concepts
+    their concept."""
     from test_navigate import START_A, house_result
 
     from spcopyro.cli.main import main
@@ -106,6 +105,30 @@ def test_navigate_tells_that_a_place_passed_and_a_stop_are_one_place():
     hall = plan.route[1]
     assert plan.route[3] == hall and graph.places[hall].name == "hall"
     assert plan.route_names == ("bedroom", f"hall (place {hall})", "kitchen",
+                                f"corridor (place {hall})")  # fmt: skip
+
+
+def test_a_word_of_a_place_that_needs_its_id_shows_ids_wherever_it_is_said():
+    """The top word "hall" of the bedroom and of the corridor (two concepts), the corridor also
+    reached as the stop "corridor": the route printed "hall (concept 0) -> hall (concept 1) ->
+    kitchen -> corridor (place 1)", the first rule (one word, two concepts) hiding that the
+    second "hall" and "corridor" are one place. Every word of a place that needs its id now
+    shows ids."""
+    from test_navigate import START_A, house_result
+
+    from spcopyro.robot.navigation import navigate
+    from spcopyro.robot.navigation.places import place_graph
+
+    result = house_result()
+    graph = place_graph(result)
+    places = tuple(dataclasses.replace(p, words=("hall", *p.words))
+                   if p.name in ("corridor", "bedroom") else p for p in graph.places)  # fmt: skip
+    graph = dataclasses.replace(graph, places=places)
+    plan = navigate(result, "go to the corridor via the kitchen", START_A, places=graph)
+    assert plan.route_words == ("hall", "hall", "kitchen", "corridor")
+    bedroom, hall = plan.route[:2]
+    assert plan.route[3] == hall and graph.places[bedroom].concept != graph.places[hall].concept
+    assert plan.route_names == (f"hall (place {bedroom})", f"hall (place {hall})", "kitchen",
                                 f"corridor (place {hall})")  # fmt: skip
 
 

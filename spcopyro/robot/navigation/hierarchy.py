@@ -42,7 +42,7 @@ import numpy as np
 
 from spcopyro.maps import OccupancyGrid
 from spcopyro.robot.navigation.graph import PlanningGrid, trace_path
-from spcopyro.robot.navigation.places import DOORWAY_WIDTH, Passage, PlaceGraph
+from spcopyro.robot.navigation.places import DOORWAY_WIDTH, Passage, PlaceGraph, told_apart
 
 __all__ = [
     "BORDER_MARGIN",
@@ -202,7 +202,9 @@ def corridor(
 
 
 def _names(places: PlaceGraph, route: tuple[int, ...] | list[int]) -> str:
-    return " -> ".join(places.places[i].name for i in route)
+    """The places of ``route`` as ``navigate`` prints a route: top words, told apart
+    (:func:`~spcopyro.robot.navigation.places.told_apart`)."""
+    return " -> ".join(told_apart(places, route))
 
 
 def plan_leg(

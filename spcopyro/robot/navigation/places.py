@@ -14,6 +14,7 @@ numpy and scipy only (no torch): ``spcopyro show OUT --graph`` imports it.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,6 +32,7 @@ __all__ = [
     "PlaceGraph",
     "place_graph",
     "places_along",
+    "told_apart",
 ]
 
 DEFAULT_MIN_AREA = 0.25
@@ -225,3 +227,40 @@ def places_along(graph: PlaceGraph, cells: np.ndarray) -> tuple[int, ...]:
         return ()
     first = np.concatenate([[True], ids[1:] != ids[:-1]])
     return tuple(int(i) for i in ids[first])
+
+
+def told_apart(
+    graph: PlaceGraph, route: Sequence[int], words: Sequence[str] | None = None
+) -> tuple[str, ...]:
+    """``words`` (one per place id of ``route``; None: each place's top word,
+    :attr:`Place.name`) told apart where a name alone would mislead. A word that names several
+    places of the route adds each one's concept (``sink (concept 3)``, ``sink (concept 7)``).
+    Every word of a place that needs its id adds the place id instead (``bedroom (place 3)``: the
+    ids of ``spcopyro show OUT --graph`` and navigate.json's ``route.places``), for each place that
+    word names: a place needs its id where the route names it by two words (passed as its top
+    word ``sink``, reached as the stop ``kitchen``: ``sink (place 5)``, ``kitchen (place 5)``) or
+    where its word names another place of the same concept (two regions of one concept). A word
+    naming a place id below 0 (in no place) stays as it is."""
+    words = tuple(graph.places[p].name for p in route) if words is None else tuple(words)
+    named: dict[str, set[int]] = {}  # word -> the places of the route it names
+    called: dict[int, set[str]] = {}  # place -> the words the route names it by
+    for word, place in zip(words, route, strict=True):
+        named.setdefault(word, set()).add(place)
+        called.setdefault(place, set()).add(word)
+
+    def by_place(word: str) -> bool:  # some place this word names needs its id
+        same = named[word]
+        one_concept = len({graph.places[p].concept for p in same}) < len(same)
+        return one_concept or any(len(called[p]) > 1 for p in same)
+
+    names = []
+    for word, place in zip(words, route, strict=True):
+        if min(named[word]) < 0:
+            names.append(word)
+        elif by_place(word):
+            names.append(f"{word} (place {place})")
+        elif len(named[word]) > 1:
+            names.append(f"{word} (concept {graph.places[place].concept})")
+        else:
+            names.append(word)
+    return tuple(names)

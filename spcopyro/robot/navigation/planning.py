@@ -52,7 +52,7 @@ from spcopyro.robot.navigation.hierarchy import (
     with_map_passages,
     with_passability,
 )
-from spcopyro.robot.navigation.places import PlaceGraph, place_graph, places_along
+from spcopyro.robot.navigation.places import PlaceGraph, place_graph, places_along, told_apart
 
 __all__ = ["DEFAULT_RADIUS", "NavigationPlan", "Stop", "navigate", "start_node"]
 
@@ -165,31 +165,19 @@ class NavigationPlan:
 
     @property
     def route_names(self) -> tuple[str, ...]:
-        """:attr:`route_words` as ``navigate`` prints them, told apart: where one word names two
-        different places of the route, each adds its concept ("sink (concept 3)", "sink (concept
-        7)"), or its place id where two of them share a concept ("bedroom (place 3)": the ids of
-        ``spcopyro show OUT --graph`` and navigate.json's ``route.places``); a place the route
-        names by two words (passed as "sink", reached as the stop "kitchen") adds its place id
-        to both. An unrefined fit's route read "entrance -> restroom -> sink -> sink -> living
-        -> kitchen": two places, both named by their top word."""
-        words, graph = self.route_words, self.places
-        named: dict[str, set[int]] = {}  # word -> the places of the route it names
-        called: dict[int, set[str]] = {}  # place -> the words the route names it by
-        for word, place in zip(words, self.route, strict=False):
-            named.setdefault(word, set()).add(place)
-            called.setdefault(place, set()).add(word)
-        names = []
-        for word, place in zip(words, self.route, strict=False):
-            same = named[word]
-            if graph is None or place < 0 or min(same) < 0:
-                names.append(word)
-            elif len(same) > 1 and len({graph.places[p].concept for p in same}) == len(same):
-                names.append(f"{word} (concept {graph.places[place].concept})")
-            elif len(same) > 1 or len(called[place]) > 1:  # regions of one concept; one place
-                names.append(f"{word} (place {place})")
-            else:
-                names.append(word)
-        return tuple(names)
+        """:attr:`route_words` as ``navigate`` prints them, told apart
+        (:func:`~spcopyro.robot.navigation.places.told_apart`): a word naming two places of the
+        route adds each one's concept ("kitchen (concept 1)", "kitchen (concept 2)"); a place
+        that needs its id for any reason shows it with every word that names it: two regions of
+        one concept ("bedroom (place 3) -> corridor -> kitchen -> bedroom (place 4)"), or one
+        place named by two words, passed as its top word and reached as a stop (the default
+        demo's unrefined fit, "go to the kitchen via the living room": "entrance -> restroom ->
+        sink (place 5) -> living -> kitchen (place 5)", printed "... sink -> living -> kitchen"
+        before). Where "sink" also names another place, of another concept, that one reads
+        "sink (place 7)": one word, one kind of tag."""
+        if not self.places:
+            return ()
+        return told_apart(self.places, self.route, self.route_words)
 
     @property
     def goal(self) -> Stop:
