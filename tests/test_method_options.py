@@ -326,3 +326,35 @@ def test_options_that_depend_on_the_start_are_asked_through_the_protocol():
         and any(isinstance(a, ast.Constant) and a.value == "for_start" for a in node.args)
     ]  # fmt: skip
     assert by_name == [], by_name
+
+
+def test_fields_a_resumed_run_ignores_are_asked_through_the_protocol():
+    """SVIOptions.RESUME_IGNORES was read by name (``getattr(type(options), "RESUME_IGNORES",
+    ())`` in guides/checkpoint.py); the options protocol owns it now, as it owns
+    ``for_start``: :func:`~spcopyro.inference.protocol.resume_ignores`, the same fields."""
+    import ast
+    from pathlib import Path
+
+    from spcopyro.guides.svi_method import SVIOptions
+    from spcopyro.inference.protocol import ResumeIgnoringOptions, resume_ignores
+
+    assert isinstance(SVIOptions(), ResumeIgnoringOptions)
+    assert resume_ignores(SVIOptions()) == ("label_smoothing",)
+    for options in (GibbsOptions(), VariationalOptions(), VIGibbsOptions(), None):
+        assert not isinstance(options, ResumeIgnoringOptions)
+        assert resume_ignores(options) == ()
+
+    class Other:  # another method's options with a field its resumed runs ignore
+        RESUME_IGNORES = ("window",)
+
+    assert resume_ignores(Other()) == ("window",)
+    package = Path(__file__).resolve().parents[1] / "spcopyro"
+    by_name = [
+        str(path.relative_to(package))
+        for path in sorted(package.rglob("*.py"))
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+        and node.func.id in ("getattr", "hasattr")
+        and any(isinstance(a, ast.Constant) and a.value == "RESUME_IGNORES" for a in node.args)
+    ]  # fmt: skip
+    assert by_name == [], by_name

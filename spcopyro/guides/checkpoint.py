@@ -53,7 +53,7 @@ from spcopyro.gibbs.checkpoint import (
     open_checkpoint,
 )
 from spcopyro.inference.driver import Trajectory
-from spcopyro.inference.protocol import Resumption
+from spcopyro.inference.protocol import Resumption, resume_ignores
 from spcopyro.model import DTYPE, ModelData
 
 FORMAT = "spcopyro-variational-checkpoint"
@@ -114,9 +114,10 @@ def _differing_keys(saved: Mapping[str, object], here: Mapping[str, object]) -> 
 
 def _resumed_fields(fields: Mapping[str, object], options: object) -> dict[str, object]:
     """``fields`` (``options``' or a checkpoint's record of them) without those a resumed run
-    does not read (``RESUME_IGNORES`` of the options' class: svi's ``label_smoothing``, the
-    start's, which a checkpoint from before 2026-12-05 recorded as 0.9 against None now)."""
-    ignored = getattr(type(options), "RESUME_IGNORES", ())
+    does not read (:func:`~spcopyro.inference.protocol.resume_ignores`: svi's
+    ``label_smoothing``, the start's, which a checkpoint from before 2026-12-05 recorded as 0.9
+    against None now)."""
+    ignored = resume_ignores(options)
     return {key: value for key, value in fields.items() if key not in ignored}
 
 

@@ -115,7 +115,8 @@ class SVIOptions:
     RESUME_IGNORES: ClassVar[tuple[str, ...]] = ("label_smoothing",)
     """Fields a resumed run does not read (it goes on from the q reached, smoothed by
     :data:`RESUMED_SMOOTHING` only): a checkpoint's record of them is not compared on resuming
-    (:func:`spcopyro.guides.checkpoint.load_variational`; checkpoints from before 2026-12-05
+    (:func:`spcopyro.guides.checkpoint.load_variational`, reading it through
+    :func:`~spcopyro.inference.protocol.resume_ignores`; checkpoints from before 2026-12-05
     record label_smoothing 0.9, the default then, and were refused against None)."""
 
     def __post_init__(self) -> None:

@@ -19,6 +19,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import (
     TYPE_CHECKING,
+    ClassVar,
     NamedTuple,
     Protocol,
     TypeVar,
@@ -119,6 +120,26 @@ def options_for_start(options: OptionsT, given_start: bool) -> OptionsT:
     if isinstance(options, StartDependentOptions):
         return options.for_start(given_start)  # type: ignore[return-value]
     return options
+
+
+@runtime_checkable
+class ResumeIgnoringOptions(Protocol):
+    """A method's options with fields a resumed run does not read (svi's
+    :class:`~spcopyro.guides.svi_method.SVIOptions`: ``label_smoothing``, which smooths the
+    start only; a resumed run goes on from the q it had reached). A checkpoint's record of those
+    fields is not compared on resuming (:mod:`spcopyro.guides.checkpoint`); every other
+    method's options are compared whole. Read through :func:`resume_ignores`."""
+
+    RESUME_IGNORES: ClassVar[tuple[str, ...]]
+    """The names of the fields a resumed run does not read."""
+
+
+def resume_ignores(options: object) -> tuple[str, ...]:
+    """The fields of ``options`` that a resumed run does not read
+    (:class:`ResumeIgnoringOptions`; none where the options' class declares none)."""
+    if isinstance(options, ResumeIgnoringOptions):
+        return tuple(type(options).RESUME_IGNORES)
+    return ()
 
 
 class Resumption(NamedTuple):
