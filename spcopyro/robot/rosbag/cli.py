@@ -141,6 +141,20 @@ def _print_next(report) -> None:
     print(f"  {'then' if images else 'next'}: {fit}")
 
 
+def _house_out(bags: Path) -> Path:
+    """Where the printed ``import-bag`` writes the house: ``data/house`` beside the bags folder,
+    not in it (the README's walk: ``--out bags`` -> ``data/house``, its map then at
+    ``data/map/house.yaml``); ``data/house-2``, ``data/house-3``, ... where that folder or its
+    map is there already (import-bag would refuse it without ``--overwrite``)."""
+    data = bags.parent / "data"
+    k = 1
+    while True:
+        name = "house" if k == 1 else f"house-{k}"
+        if not (data / name).exists() and not (data / "map" / f"{name}.yaml").exists():
+            return data / name
+        k += 1
+
+
 def _simulate_bag(args: argparse.Namespace) -> int:
     from spcopyro.robot.rosbag.bag import RosbagsMissingError
     from spcopyro.robot.rosbag.synthetic import write_synthetic_bags
@@ -167,7 +181,7 @@ def _simulate_bag(args: argparse.Namespace) -> int:
         print(f"wrote {bag}")
     print(f"wrote {result.map_yaml}")
     bags = " ".join(_quote(b) for b in result.bags)
-    house = _quote(Path(args.out) / "house")
+    house = _quote(_house_out(Path(args.out)))
     chosen = sorted(set(args.trials or ()))  # the bags' trials, in the order written
     first = f" --first-trial {chosen[0]}" if chosen and chosen[0] else ""
     print(f"  import with: spcopyro import-bag {bags} --map {_quote(result.map_yaml)} "
