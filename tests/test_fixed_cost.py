@@ -217,7 +217,7 @@ def test_figures_drawn_in_a_forked_child_are_the_files_drawn_here(tmp_path, monk
     monkeypatch.setattr(fit_figures, "_draw_in_child", recorded)
     write_figures(result, house, folders["forked"], uncertainty=True)
     assert len(children) == 1 and children[0].exitcode == 0  # drawn there
-    monkeypatch.setattr(fit_figures, "_child_draws", lambda *args: os._exit(3))
+    monkeypatch.setattr(fit_figures, "_child_draws", lambda figures, claims: os._exit(3))
     write_figures(result, house, folders["child died"], uncertainty=True)
     assert children[-1].exitcode == 3
     names = {"semantic_map.png", "trace.png", "house.png", "uncertainty.png", "agreement.png"}
@@ -225,54 +225,6 @@ def test_figures_drawn_in_a_forked_child_are_the_files_drawn_here(tmp_path, monk
         expected = (folders["here"] / name).read_bytes()
         for folder in ("forked", "child died"):
             assert (folders[folder] / name).read_bytes() == expected, (folder, name)
-
-
-def test_figures_begun_before_the_save_draw_the_same_files_and_keep_the_childs_warnings(
-    tmp_path, monkeypatch
-):
-    """fit begins the figures before it saves the result (begin_figures, early): the forked
-    child takes the semantic map first, the PNGs are those drawn in one process, and a warning
-    the child gives reaches the fit's list of warnings (config.json's), not only its stderr."""
-    import logging
-
-    import pytest
-
-    from spcopyro.cli import fit_figures
-    from spcopyro.cli.fit_figures import begin_figures, write_figures
-    from spcopyro.figures import plotting
-
-    if not sys.platform.startswith("linux"):
-        pytest.skip("figures are drawn in a forked child on Linux only")
-    result, house = _fitted_house(tmp_path)
-    here, early = tmp_path / "here", tmp_path / "early"
-    here.mkdir()
-    early.mkdir()
-    write_figures(result, house, here, uncertainty=True, fork=False)
-    plot_trace = plotting.plot_trace
-
-    def warning_trace(*args, **kwargs):
-        if os.getpid() != parent:  # only where the child draws it
-            logging.getLogger("spcopyro").warning("drawn in the child")
-        return plot_trace(*args, **kwargs)
-
-    parent = os.getpid()
-    monkeypatch.setattr(plotting, "plot_trace", warning_trace)
-    said: list[str] = []
-    order: list[list[str]] = []
-    claims_figures = fit_figures._Claims.figures
-
-    def recorded(self, shared, taken):
-        order.append([name for name, _ in shared])
-        return claims_figures(self, shared, taken)
-
-    monkeypatch.setattr(fit_figures._Claims, "figures", recorded)
-    figures = begin_figures(result, house, early, uncertainty=True, said=said)
-    figures._claims.take = lambda: None  # type: ignore[union-attr]  (the child draws them all)
-    figures.finish()
-    assert order[0][0] == "semantic_map"  # shared with the child, first
-    assert "drawn in the child" in said
-    for name in ("semantic_map.png", "trace.png", "house.png", "uncertainty.png"):
-        assert (early / name).read_bytes() == (here / name).read_bytes(), name
 
 
 _IMPORT_FROZEN = """

@@ -35,7 +35,7 @@ from spcopyro.cli.common import (
     pace,
 )
 from spcopyro.cli.concept_listing import print_concepts
-from spcopyro.cli.fit_figures import FigurePrefetch, begin_figures
+from spcopyro.cli.fit_figures import FigurePrefetch, write_figures
 from spcopyro.cli.fit_options import (
     backend_used,
     check_sweeps,
@@ -363,14 +363,24 @@ def _fit(
     return Fitted(result, chain_results, chains, kept, diagnostics, _clock() - start)
 
 
-def _save(job: FitJob, fitted: Fitted, result: SpCoResult) -> np.ndarray | None:
-    """The result's files into ``job.staged.path`` (all but the figures and ``config.json``),
-    what the chains found printed; the cells' entropy where the result has marginals."""
+def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
+    """Every output of ``fitted`` into ``job.staged.path``, what the fit found printed, then the
+    staging folder moved to OUT (:func:`_fit_staged`)."""
+    from spcopyro._util.outputs import checkpoint_path
+    from spcopyro.fit.house import log_degenerate_map
+    from spcopyro.gibbs.hyperparameters import describe_hyperparameters
+    from spcopyro.results.concept_words import near_uniform
     from spcopyro.results.uncertainty import cell_entropy, free_cells_image
 
-    args, staged, phases = job.args, job.staged, job.args.phases
-    chain_results, chains, kept = fitted.chain_results, fitted.chains, fitted.kept
-    diagnostics, house = fitted.diagnostics, job.house
+    args, house, staged, config = job.args, job.house, job.staged, job.settings.model
+    result, chain_results, chains = fitted.result, fitted.chain_results, fitted.chains
+    kept, diagnostics, wall = fitted.kept, fitted.diagnostics, fitted.wall
+    phases = args.phases
+    phases.mark("fit")
+    command = shlex.join(["spcopyro", *without_resume(args)])  # runs again without the checkpoint
+    resumed = {} if args.resume is None else {"resumed_from": str(args.resume)}
+    provenance = {**result.provenance, "command": command, **resumed}
+    result = dataclasses.replace(result, provenance=provenance)
     out = result.save(staged.path, with_config=False)  # config.json last, with the warnings
     robot_map = house.grid.coarsened_from  # a coarse fit's map: navigate plans on it
     if robot_map is not None:
@@ -389,6 +399,7 @@ def _save(job: FitJob, fitted: Fitted, result: SpCoResult) -> np.ndarray | None:
         value = "best" if sampled else "final"  # a variational fit reports q
         print(f"best of {chains} {run}s: kept {run} {kept} (seed {args.seed + kept}), {value} "
               f"{objective}s {', '.join(f'{v:.1f}' for v in best_values)}")  # fmt: skip
+    sweeps_run = len(result.trace.objective)
     if diagnostics is not None:
         (out / "convergence.json").write_text(json.dumps(diagnostics.to_json(), indent=1) + "\n")
         last = diagnostics.checks[-1]
@@ -405,46 +416,12 @@ def _save(job: FitJob, fitted: Fitted, result: SpCoResult) -> np.ndarray | None:
         if result.agreement is not None:
             np.save(out / "agreement.npy", free_cells_image(result, result.agreement))
     phases.mark("save")
-    return entropy
-
-
-def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
-    """Every output of ``fitted`` into ``job.staged.path``, what the fit found printed, then the
-    staging folder moved to OUT (:func:`_fit_staged`)."""
-    from spcopyro._util.outputs import checkpoint_path
-    from spcopyro.fit.house import log_degenerate_map
-    from spcopyro.gibbs.hyperparameters import describe_hyperparameters
-    from spcopyro.results.concept_words import near_uniform
-
-    args, house, staged, config = job.args, job.house, job.staged, job.settings.model
-    result, chain_results, chains = fitted.result, fitted.chain_results, fitted.chains
-    kept, diagnostics, wall = fitted.kept, fitted.diagnostics, fitted.wall
-    phases = args.phases
-    phases.mark("fit")
-    command = shlex.join(["spcopyro", *without_resume(args)])  # runs again without the checkpoint
-    resumed = {} if args.resume is None else {"resumed_from": str(args.resume)}
-    provenance = {**result.provenance, "command": command, **resumed}
-    result = dataclasses.replace(result, provenance=provenance)
-    figures = None
     if prefetch is not None:  # matplotlib is imported only for the figures
-        # begun before the files are saved: a forked child draws while this process saves
-        # (the same PNGs); trace.png draws the kept chain's trace only (--sweeps auto's: the
-        # best of its chains)
+        # trace.png draws the kept chain's trace only (--sweeps auto's: the best of its chains)
         shown = kept if chain_results is not None or diagnostics is None else diagnostics.best_chain
-        figures = begin_figures(result, house, staged.path, uncertainty=result.marginals
-                                is not None, prefetch=prefetch, kept=(shown, chains),
-                                said=job.said)  # fmt: skip
-    try:
-        _save(job, fitted, result)
-    except BaseException:  # the child ended before the staging folder is discarded
-        if figures is not None:
-            figures.abandon()
-        raise
-    if figures is not None:
-        figures.finish()
-    out = staged.path
+        write_figures(result, house, out, uncertainty=entropy is not None, prefetch=prefetch,
+                      kept=(shown, chains))  # fmt: skip
     phases.mark("figures")
-    sweeps_run = len(result.trace.objective)
     if result.agreement is not None:
         estimate = result.inference.get("point_estimate", args.point_estimate)  # a refit's own
         from spcopyro.results.point_estimate import LOSS_LABELS

@@ -13,9 +13,7 @@ long for the GIL. The figures are those drawn without either, file for file (iss
 
 from __future__ import annotations
 
-import contextlib
 import itertools
-import json
 import os
 import sys
 import threading
@@ -32,7 +30,7 @@ if TYPE_CHECKING:
     from spcopyro.data import House
     from spcopyro.results.result import SpCoResult
 
-__all__ = ["FigurePrefetch", "Figures", "begin_figures", "write_figures"]
+__all__ = ["FigurePrefetch", "write_figures"]
 
 PREFETCH_SWITCH_INTERVAL = 0.0005
 """Seconds: :func:`sys.setswitchinterval` while :class:`FigurePrefetch` works (Python's default
@@ -177,27 +175,6 @@ def write_figures(
     fall; the same files, byte for byte. The figures a failed child took are drawn here again
     (their error, if any, raised). ``kept`` = (k, K): ``result`` is chain k of K, the one kept
     (``trace.png`` says so: it draws that chain's trace only)."""
-    begin_figures(result, house, out, uncertainty, prefetch, fork, kept, early=False).finish()
-
-
-def begin_figures(
-    result: SpCoResult,
-    house: House,
-    out: Path,
-    uncertainty: bool,
-    prefetch: FigurePrefetch | None = None,
-    fork: bool | None = None,
-    kept: tuple[int, int] | None = None,
-    early: bool = True,
-    said: list[str] | None = None,
-) -> Figures:
-    """:func:`write_figures` begun: the child forked (where it may fork), drawing, while this
-    process does other work (``spcopyro fit`` saves the result's files) before
-    :meth:`Figures.finish` draws its share and waits. ``early``: the child takes the semantic
-    map too, first (this process is busy meanwhile), else this process draws it at
-    :meth:`~Figures.finish`, as :func:`write_figures` does. The warnings the child gives (the
-    ``spcopyro`` logger's, Python's) are printed by it and appended to ``said`` at
-    :meth:`~Figures.finish`. Without a fork every figure is drawn at :meth:`~Figures.finish`."""
     house_drawn = prefetch is not None and prefetch.join()
     with timed("figure imports"):
         from spcopyro.figures.plotting import (
@@ -221,62 +198,19 @@ def begin_figures(
     if result.agreement is not None:
         shared.append(("agreement", lambda: plot_agreement(result, out / "agreement.png")))
     if not _may_fork(fork):
-        return Figures([first, *shared], [], None, None, said)
-    own, shared = ([], [first, *shared]) if early else ([first], shared)
+        _draw([first, *shared])
+        return
     claims = _Claims(len(shared))
     try:
         child = _draw_in_child(shared, claims)
-    except BaseException:
-        claims.close()
-        raise
-    return Figures(own, shared, claims, child, said)
-
-
-class Figures:
-    """Figures being drawn (:func:`begin_figures`): ``own`` here at :meth:`finish`, ``shared``
-    taken one at a time from ``claims`` by this process and the ``child`` (None: no child)."""
-
-    def __init__(
-        self,
-        own: list[Figure],
-        shared: list[Figure],
-        claims: _Claims | None,
-        child: _Child | None,
-        said: list[str] | None,
-    ) -> None:
-        self._own, self._shared, self._claims, self._child = own, shared, claims, child
-        self._said = said
-
-    def finish(self) -> None:
-        """Draw this process's share, wait for the child, draw again what it failed to draw
-        (its error, if any, raised)."""
-        claims, child = self._claims, self._child
-        if claims is None or child is None:
-            _draw(self._own)
-            return
         mine: list[int] = []  # the shared figures drawn here
-        try:
-            try:
-                _draw(itertools.chain(self._own, claims.figures(self._shared, mine)))
-            except BaseException:  # nothing more written into the folder: the child ended
-                child.stop()
-                raise
-            with timed("figure child wait"):
-                told = child.wait()
-        finally:
-            claims.close()
-        if self._said is not None:
-            self._said.extend(told)
-        if child.process.exitcode != 0:  # the child's figures drawn here, so that none is lost
-            _draw([figure for k, figure in enumerate(self._shared) if k not in mine])
-
-    def abandon(self) -> None:
-        """The fit stopped before :meth:`finish`: the child ended (it writes nothing more into
-        the staging folder, discarded next), nothing drawn here."""
-        if self._child is not None:
-            self._child.stop()
-        if self._claims is not None:
-            self._claims.close()
+        _draw(itertools.chain([first], claims.figures(shared, mine)))
+        with timed("figure child wait"):
+            child.join()
+    finally:
+        claims.close()
+    if child.exitcode != 0:  # the child's figures drawn here, so that none is lost
+        _draw([figure for k, figure in enumerate(shared) if k not in mine])
 
 
 Figure = tuple[str, Callable[[], None]]
@@ -331,34 +265,7 @@ def _draw(figures: Iterable[Figure]) -> None:
                 draw()
 
 
-class _Child:
-    """A forked child drawing figures, and the read end of the pipe on which it sends, as it
-    exits, the warnings it gave (JSON, a list of strings)."""
-
-    def __init__(self, process: BaseProcess, told: int) -> None:
-        self.process, self._told = process, told
-
-    @property
-    def exitcode(self) -> int | None:
-        return self.process.exitcode
-
-    def wait(self) -> list[str]:
-        """The child's warnings, once it exited (its end of the pipe closed)."""
-        with os.fdopen(self._told, "rb") as pipe:
-            data = pipe.read()
-        self.process.join()
-        try:
-            return [str(text) for text in json.loads(data)] if data else []
-        except ValueError:  # cut short: the child died writing it
-            return []
-
-    def stop(self) -> None:
-        self.process.terminate()
-        self.process.join()
-        os.close(self._told)
-
-
-def _draw_in_child(figures: list[Figure], claims: _Claims) -> _Child:
+def _draw_in_child(figures: list[Figure], claims: _Claims) -> BaseProcess:
     """A child forked to draw the ``figures`` it takes from ``claims`` (no torch there: the
     plots are numpy and matplotlib), started; it exits with 0 once they are written, 1 if one
     failed."""
@@ -366,36 +273,19 @@ def _draw_in_child(figures: list[Figure], claims: _Claims) -> _Child:
 
     from spcopyro._util.forking import start_forked
 
-    told, tell = os.pipe()
     process = multiprocessing.get_context("fork").Process(
-        target=_child_draws, args=(figures, claims, tell, told), name="spcopyro-figures",
-        daemon=True,
-    )  # fmt: skip
-    try:
-        start_forked(process)
-    except BaseException:
-        os.close(told)
-        raise
-    finally:
-        os.close(tell)
-    return _Child(process, told)
+        target=_child_draws, args=(figures, claims), name="spcopyro-figures", daemon=True
+    )
+    start_forked(process)
+    return process
 
 
-def _child_draws(figures: list[Figure], claims: _Claims, tell: int, told: int) -> None:
+def _child_draws(figures: list[Figure], claims: _Claims) -> None:
     import signal
 
-    from spcopyro.cli.fit_warnings import recorded_warnings
-
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides (and redraws on failure)
-    os.close(told)
-    code = 0
-    with recorded_warnings() as said:
-        try:
-            for _, draw in claims.figures(figures, []):
-                draw()
-        except BaseException:  # noqa: BLE001  (the parent draws them again and reports the error)
-            code = 1
-    with contextlib.suppress(OSError), os.fdopen(tell, "wb") as pipe:
-        pipe.write(json.dumps(said).encode())
-    if code:
-        os._exit(code)
+    try:
+        for _, draw in claims.figures(figures, []):
+            draw()
+    except BaseException:  # noqa: BLE001  (the parent draws them again and reports the error)
+        os._exit(1)
