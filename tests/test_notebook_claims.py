@@ -129,3 +129,57 @@ def test_notebook_4_says_which_printed_averages_of_table_4_are_not_means():
     flat = _flat(text)
     assert "not the mean of its five houses for (A), (B), (C) and (E)" in flat
     assert f"(A)'s five rates average {off['(b'][0][1]:.4f}" in flat, off
+
+
+def test_notebook_2_gives_algorithm_1s_pi_update_beside_eq_7():
+    """Algorithm 1's line 16 prints pi's update as Dir(sum C + alpha / I), I the map's width,
+    where eq. (7) gives each concept alpha / L; notebook 2 walked through eqs. 14-17 without
+    saying which the package draws. It draws eq. (7)'s (SpCoConfig.pi_concentration), and the
+    text now says so beside the printed line."""
+    from spcopyro.config import SpCoConfig
+
+    dp = SpCoConfig(num_concepts=120, prior="dp", alpha=1e8)
+    finite = SpCoConfig(num_concepts=6, prior="dirichlet", alpha=5e7)
+    assert dp.pi_concentration == 1e8 / 120 and finite.pi_concentration == 5e7
+    text = _flat(_markdown("02_gibbs_sampling"))
+    assert "Algorithm 1 writes them as its lines 16-19" in text, text[:3000]
+    assert "printed as $\\alpha/I$, $I$ being the map's width" in text
+    assert "the package follows eq. (7) (`SpCoConfig.pi_concentration`: $\\alpha/L$" in text
+
+
+def test_notebook_3_says_which_mode_each_method_takes_on_the_tiny_map():
+    """Notebook 3's tiny-map figure at gamma = 2: the exact marginals put 0.86-0.92 of every
+    cell on concept 2 (green), mean field settles on concept 3 (blue), the exact posterior's
+    minority mode, and LBP on green, sharper than the exact. The text said the exact marginals
+    'stay mixed' over labellings 'of similar weight' and that mean field commits to one of them,
+    which the figure (one mode at 0.88 against 0.10, mean field on the other) does not show."""
+    from spcopyro.config import SpCoConfig
+    from spcopyro.guides.tiny_maps import compare_on_tiny_map, labelled_factors, tiny_map
+
+    tiny = tiny_map(5)
+    config = SpCoConfig(num_concepts=3, prior="dp", alpha=3.0, beta=1.0, chi=1.0, gamma=2.0)
+    compared = compare_on_tiny_map(tiny, config, labelled_factors(tiny, config, 105))
+    exact, mean_field, lbp = (
+        compared.exact.numpy(),
+        compared.mean_field.numpy(),
+        compared.lbp.numpy(),
+    )
+    entropies = {name: h.numpy() for name, h in compared.entropies().items()}
+    span = lambda values: (round(float(values.min()), 2), round(float(values.max()), 2))  # noqa: E731
+    assert span(exact[:, 1]) == (0.86, 0.92) and span(exact[:, 2]) == (0.07, 0.12), exact
+    assert 0.3 <= entropies["exact"].min() and entropies["exact"].max() <= 0.5
+    assert (mean_field.argmax(1) == 2).all(), mean_field  # blue, every cell
+    assert (entropies["mean_field"] < 0.2).sum() == 7
+    assert abs(compared.errors()["mean_field max"] - 0.89) < 0.005
+    assert (lbp.argmax(1) == 1).all(), lbp  # green, every cell
+    assert span(entropies["lbp"]) == (0.04, 0.19), entropies["lbp"]
+    text = _flat(_markdown("03_gibbs_vs_vi"))
+    assert "several labellings of similar weight" not in text
+    assert (
+        "it gives concept 2 (green) 0.86-0.92 of every cell's mass and concept 3 (blue) 0.07-0.12"
+        in text
+    )
+    assert "here it settled on blue, the mode the exact posterior gives about a tenth" in text
+    assert (
+        "leans the right way, to green, but more sharply than the exact answer (0.04-0.19" in text
+    )
