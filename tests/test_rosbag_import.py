@@ -882,16 +882,17 @@ def test_the_printed_next_commands_can_be_pasted_with_spaces_in_paths(tmp_path, 
     'then:' commands split it into two arguments when pasted."""
     import shlex
 
-    out = tmp_path / "my bags"
+    out = tmp_path / "my home" / "my bags"
     assert main(["simulate-bag", "--out", str(out), "--trials", "0", "--image-size", "8", "8"]) == 0
     line = next(x for x in capsys.readouterr().out.splitlines() if "import with:" in x)
     argv = shlex.split(line.split("import with: spcopyro ", 1)[1])
-    assert argv[1] == str(out / "trial_0") and argv[argv.index("--out") + 1] == str(out / "house")
+    house = tmp_path / "my home" / "data" / "house"  # beside the bags folder
+    assert argv[1] == str(out / "trial_0") and argv[argv.index("--out") + 1] == str(house)
     assert main(argv) == 0
     printed = capsys.readouterr().out.splitlines()
     for prefix in ("  next: spcopyro ", "  then: spcopyro "):
         command = shlex.split(next(x for x in printed if x.startswith(prefix))[len(prefix) :])
-        assert command[1] == str(out / "house")
+        assert command[1] == str(house)
 
 
 def test_topics_without_their_leading_slash_are_found(tmp_path, map_yaml):
@@ -949,7 +950,7 @@ def test_simulate_bag_prints_an_import_that_keeps_the_trials_numbers(tmp_path, c
     command = printed.split("import with: ")[1].splitlines()[0]
     assert "--first-trial 1" in command and "come in as" not in printed
     assert main(shlex.split(command)[1:]) == 0
-    house = out / "house"
+    house = tmp_path / "data" / "house"  # beside the bags folder (the README's walk)
     assert sorted(p.name for p in house.glob("img_*")) == ["img_1", "img_2"]
     assert main(["simulate-bag", "--out", str(tmp_path / "gap"), "--image-size", "8", "8",
                  "--trials", "0", "2"]) == 0  # fmt: skip
