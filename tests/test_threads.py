@@ -481,7 +481,7 @@ def _outputs(result) -> dict[str, np.ndarray]:
     return arrays
 
 
-def _fits_on_one_and_two_threads(house, method, iterations):
+def _fits_on_one_and_two_threads(house, method, iterations, options=None):
     """The same seeded fit with 1 and 2 torch threads; skipped where this machine's BLAS gives
     the house's image product the same bits on both (the fits could not differ there)."""
     from spcopyro.fit.house import prepare_model_data
@@ -497,8 +497,8 @@ def _fits_on_one_and_two_threads(house, method, iterations):
             products.append(counts @ log_phi.T)  # [M, L]
     if torch.equal(*products):
         pytest.skip("this BLAS gives the product the same bits on 1 and 2 threads")
-    fits = [fit_house(house, settings, method=method, sweeps=iterations, seed=1,
-                      progress=False, threads=threads) for threads in (1, 2)]  # fmt: skip
+    fits = [fit_house(house, settings, method=method, options=options, sweeps=iterations,
+                      seed=1, progress=False, threads=threads) for threads in (1, 2)]  # fmt: skip
     return [_outputs(fit) for fit in fits]
 
 
@@ -524,3 +524,72 @@ def test_svi_floats_differ_in_their_last_bits_only(threaded_product_house):
         np.testing.assert_allclose(one[name], two[name], rtol=1e-9, atol=1e-15, err_msg=name)
     # float32: a last-bit change of q(C) may round to the neighbouring float32
     np.testing.assert_allclose(one["marginals"], two["marginals"], rtol=2.5e-7, atol=1e-12)
+
+
+@pytest.mark.parametrize("backend", ["torch", "numba"])
+def test_gibbs_is_bit_identical_on_one_and_two_threads(threaded_product_house, backend):
+    """Gibbs on either backend: every output has the same bits on 1 and 2 threads, although
+    the log-likelihood table the labels are drawn against (observation_log_likelihood for the
+    torch sweep, numba_background.write_log_likelihood's products for the compiled one) differs
+    in its last bits. A draw flips only where a uniform lands within those bits of a boundary
+    between two concepts' cumulative weights (docs/speed.md, "Threads")."""
+    if backend == "numba":
+        pytest.importorskip("numba")
+    options = GibbsOptions(backend=backend, cluster_moves=0.2)
+    one, two = _fits_on_one_and_two_threads(threaded_product_house, "gibbs", 30, options)
+    assert one.keys() == two.keys()
+    for name in one:
+        assert one[name].tobytes() == two[name].tobytes(), name
+
+
+def test_the_compiled_background_table_is_the_same_on_one_and_two_threads(threaded_product_house):
+    """What the test above draws against: the compiled sweep's background table has the same
+    bits on 1 and 2 threads (its products take a contiguous log(phi)^T; with the transposed view
+    MKL gave it other last bits, up to 5.4e-14 on this house)."""
+    pytest.importorskip("numba")
+    from spcopyro.fit.house import prepare_model_data
+    from spcopyro.gibbs.numba_background import background_table
+    from spcopyro.gibbs.sampler import init
+
+    settings = preset("original-code", gamma=3.0)
+    _, data = prepare_model_data(threaded_product_house, settings)
+    state = init(data, settings.model, torch.Generator().manual_seed(4))
+    tables = []
+    for threads in (1, 2):
+        with torch_threads(threads):
+            tables.append(background_table(state, data, settings.model))  # [M + 1, L + D]
+    assert tables[0].tobytes() == tables[1].tobytes()
+
+
+@pytest.mark.parametrize("rows", [1, 2, 30, 86, 500, 5000])
+def test_the_background_products_operand_gives_the_same_bits_on_any_thread_count(rows):
+    """numba_background._right_operand: [rows, 205] x [205, 120] float64 products with it have
+    the same bits on 1 and 2 threads, a single row included (there the copy did not)."""
+    pytest.importorskip("numba")
+    from spcopyro.gibbs.numba_background import _right_operand
+
+    generator = torch.Generator().manual_seed(rows)
+    counts = torch.poisson(3 * torch.rand(rows, 205, dtype=torch.float64, generator=generator),
+                           generator=generator)  # fmt: skip
+    log_phi = torch.randn(120, 205, dtype=torch.float64, generator=generator)  # [L, K]
+    products = []
+    for threads in (1, 2):
+        with torch_threads(threads):
+            products.append(torch.matmul(counts, _right_operand(log_phi, rows)))  # [rows, L]
+    assert torch.equal(*products)
+
+
+@pytest.mark.parametrize("method", ["cavi", "lbp"])
+def test_cavi_and_lbp_floats_differ_in_their_last_bits_only(threaded_product_house, method):
+    """CAVI and loopy BP (compiled backends by default; the torch ones call the same
+    observation_log_likelihood) add the image product's last-bit difference between 1 and 2
+    threads into every iteration's q(C), so pi, the tables and the ELBO may differ in their last
+    bits; the labels stay the same (docs/speed.md, "Threads")."""
+    one, two = _fits_on_one_and_two_threads(threaded_product_house, method, 20)
+    assert one.keys() == two.keys()
+    for name in ("labels", "num_concepts"):
+        np.testing.assert_array_equal(one[name], two[name], err_msg=name)
+    for name in ("pi", "images", "words", "objective"):  # float64
+        np.testing.assert_allclose(one[name], two[name], rtol=1e-9, atol=1e-15, err_msg=name)
+    if "marginals" in one:  # float32: a last-bit change of q(C) may round to the next float32
+        np.testing.assert_allclose(one["marginals"], two["marginals"], rtol=2.5e-7, atol=1e-12)

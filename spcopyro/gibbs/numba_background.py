@@ -18,6 +18,12 @@ counts are a product themselves, ``x = A X`` with S distinct footprints
 as ``A (X log(phi)^T)``: S K L + nnz(A) L multiply-adds instead of M K L, a ninth there.
 Both orders give the same table to rounding (about 1e-15 relative); a modality without a
 footprint, or whose factored form would not pay, takes the dense product.
+
+Each product takes log(phi)^T as a contiguous [K, L] copy, not a transposed view: MKL (2024.2,
+torch 2.14.1) splits the float64 product with the view across threads from 86 rows on and
+gives other last bits on 1 and 2 threads, with the copy the same bits from 2 rows on (a single
+row keeps the view, the other way round), so the draws do not depend on the thread count
+(docs/speed.md, "Threads").
 """
 
 from __future__ import annotations
@@ -66,14 +72,23 @@ def write_log_likelihood(
         factored = modality.factored()
         if factored is not None and factored.pays():
             sources = torch.from_numpy(factored.sources)  # [S, K_m]
-            per_source = torch.matmul(sources, log_phi.T).numpy()  # [S, L]
-            _add_weighted_rows(
+            per_source = torch.matmul(sources, _right_operand(log_phi, len(sources))).numpy()
+            _add_weighted_rows(  # per_source [S, L]
                 factored.indptr, factored.indices, factored.weights, per_source, out.numpy()
             )
         elif index == 0:
-            torch.matmul(modality.counts.to(torch.float64), log_phi.T, out=out)  # [M, L]
+            counts = modality.counts.to(torch.float64)  # [M, K_m]
+            torch.matmul(counts, _right_operand(log_phi, len(counts)), out=out)  # [M, L]
         else:
-            out.addmm_(modality.counts.to(torch.float64), log_phi.T)  # [M, K_m] @ [K_m, L]
+            counts = modality.counts.to(torch.float64)  # [M, K_m]
+            out.addmm_(counts, _right_operand(log_phi, len(counts)))  # [M, K_m] @ [K_m, L]
+
+
+def _right_operand(log_phi: torch.Tensor, rows: int) -> torch.Tensor:
+    """log_phi [L, K] as the [K, L] right operand of a product with ``rows`` rows that gives
+    the same bits on any thread count (module docstring): a contiguous copy, or for one row the
+    transposed view."""
+    return log_phi.T if rows == 1 else log_phi.T.contiguous()
 
 
 @njit(cache=True, nogil=True)
