@@ -183,3 +183,50 @@ def test_notebook_3_says_which_mode_each_method_takes_on_the_tiny_map():
     assert (
         "leans the right way, to green, but more sharply than the exact answer (0.04-0.19" in text
     )
+
+
+def test_notebook_2_gives_the_fast_paths_cost_as_the_sweep_module_does():
+    """Notebook 2 gave the sampler's draw of a cell without observations as O(log L), where
+    spcopyro.gibbs.sweep's docstring (and its code: a [n, D, D] comparison of neighbour labels,
+    then a binary search in pi's CDF) gives O(D^2 + log L). Both now say the latter."""
+    from spcopyro.gibbs import sweep
+
+    assert "O(D^2 + log L) per cell" in _flat(sweep.__doc__)
+    assert "neighbour_labels[:, :, None] == neighbour_labels[:, None, :]" in inspect.getsource(
+        sweep._sample_block_unobserved
+    )
+    text = _flat(_markdown("02_gibbs_sampling"))
+    assert "a two-part mixture in $O(D^2 + \\log L)$ instead of $O(L)$" in text, text[:6000]
+    assert "$O(\\log L)$ instead of $O(L)$" not in text
+
+
+def _floor100_counts(features: np.ndarray) -> tuple[int, int, int]:
+    """min, median, max over images of sum(floor(100 f)): the counts an image gives."""
+    counts = np.floor(100.0 * features).sum(axis=1)  # [T]
+    return int(counts.min()), int(np.median(counts)), int(counts.max())
+
+
+def test_notebook_2_gives_the_counts_per_image_of_its_synthetic_house():
+    """Notebook 2 said floor(100 f) gives about 100 counts per image; each class's share is
+    floored on its own, so the notebook's (full-size) synthetic house gives 81-94, median 87."""
+    from spcopyro.synthetic import make_house
+    from spcopyro.synthetic.spec import HouseSpec
+
+    features = np.asarray(make_house(seed=0, spec=HouseSpec()).observations.image_features)
+    low, median, high = _floor100_counts(features)
+    text = _flat(_markdown("02_gibbs_sampling"))
+    assert "about 100 counts per image" not in text
+    assert f"{low}-{high} on this synthetic house, median {median}" in text, text[:6000]
+
+
+def test_notebook_2_gives_the_counts_per_image_of_the_public_houses(dataset_root):
+    """The same claim for the public houses' Ft.csv: 52-94 counts per image, medians 73-77."""
+    files = sorted(dataset_root.glob("*/Ft.csv"))
+    assert len(files) == 5, files
+    per_house = [_floor100_counts(np.loadtxt(f, delimiter=",", ndmin=2)) for f in files]
+    low = min(c[0] for c in per_house)
+    high = max(c[2] for c in per_house)
+    medians = sorted(c[1] for c in per_house)
+    text = _flat(_markdown("02_gibbs_sampling"))
+    quoted = f"{low}-{high} in the public houses' `Ft.csv`, medians {medians[0]}-{medians[-1]}"
+    assert quoted in text, (per_house, text[:6000])

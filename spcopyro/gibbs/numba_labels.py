@@ -24,7 +24,9 @@ distribution tests still pass):
 - **Two loops per block**: cells without observations never look up a background row (theirs
   is pi's, row M), and draw from pi by Walker's alias method (Vose, 1991: one uniform, O(1);
   the table is built per sweep in O(L)) instead of a binary search; cells with observations
-  scan their row.
+  scan their row. A cell without observations so costs O(D^2) (O(D) on the short path below),
+  against O(D^2 + log L) in the reference (:mod:`spcopyro.gibbs.sweep`); one with
+  observations O(D^2 + L).
 - **The RNG state in registers** (:func:`~spcopyro.gibbs.numba_random.next_bits`).
 - **A short path inside regions**: a cell without observations whose D neighbours all hold one
   label a (most cells of a settled map) is a from p(a) = B_a e^{gamma D} / (sum(B) +
