@@ -163,3 +163,19 @@ def test_a_second_guide_needs_a_fresh_param_store_as_the_library_page_says():
     svi_block = page.split("With Pyro's SVI:", 1)[1].split("```", 2)[1]
     assert svi_block.index("pyro.clear_param_store()") < svi_block.index("MeanFieldGuide(data")
     assert "Call `pyro.clear_param_store()` before making each new\nguide" in page
+
+
+@pytest.mark.parametrize("save_params", [("num_concepts",), ("log_joint", "num_concepts")])
+def test_num_concepts_is_float64_whatever_else_is_saved(save_params):
+    # num_concepts was made in torch's default dtype (float32) and MCMC packs the saved sites
+    # into one tensor: saved beside log_joint or pi it came back float64, alone float32
+    _, data = random_problem(seed=2)
+    pyro.set_rng_seed(0)
+    mcmc = MCMC(
+        SpCoGibbs(save_params=save_params), num_samples=3, warmup_steps=1, disable_progbar=True
+    )
+    mcmc.run(data, config())
+    samples = mcmc.get_samples()
+    assert {name: value.dtype for name, value in samples.items()} == dict.fromkeys(
+        save_params, torch.float64
+    )

@@ -257,8 +257,9 @@ class SpCoGibbs(MCMCKernel):
                 )[0],
                 dtype=torch.float64,
             ),
-            "num_concepts": lambda: torch.tensor(
-                float(num_concepts_in_use(state.labels, self._config.num_concepts))
+            "num_concepts": lambda: torch.tensor(  # float64 whatever else is saved
+                float(num_concepts_in_use(state.labels, self._config.num_concepts)),
+                dtype=torch.float64,
             ),
             "pi": lambda: state.log_pi.exp(),
         }
