@@ -7,7 +7,9 @@ named in the error (:mod:`spcopyro.robot.rosbag.bag` raises it).
 * a ROS 2 bag folder whose metadata.yaml fails (a newer version than rosbags reads, broken
   YAML, a storage file renamed): its storage file given itself, or ``ros2 bag reindex``;
 * a storage file compressed whole (``.db3.zstd``, ``--compression-mode file``) or one whose
-  messages are compressed (``--compression-mode message``) given without its folder: the folder.
+  messages are compressed (``--compression-mode message``) given without its folder: the folder;
+* a ROS 1 bag of a format before 2.0 (``#ROSRECORD V1.2``, recorded before ROS C Turtle, 2010),
+  which rosbags does not read: ROS 1's ``rosbag filter`` writes it anew in format 2.0.
 """
 
 from __future__ import annotations
@@ -15,7 +17,14 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-__all__ = ["REPAIR", "compressed_messages", "none_read_fix", "packed_file", "repair"]
+__all__ = [
+    "REPAIR",
+    "compressed_messages",
+    "none_read_fix",
+    "old_ros1_format",
+    "packed_file",
+    "repair",
+]
 
 REPAIR = {
     ".bag": "; if its recording did not end cleanly, `rosbag reindex` repairs its index",
@@ -26,7 +35,10 @@ REPAIR = {
 
 def packed_file(path: Path) -> str | None:
     """Why the file ``path`` is no bag to read as it is, and what to give instead (None: try
-    it): a storage file compressed whole, or a ROS 1 recording never closed."""
+    it): a storage file compressed whole, a ROS 1 recording never closed, or a ROS 1 bag of a
+    format older than 2.0 (:func:`old_ros1_format`)."""
+    if path.suffix == ".bag" and (old := old_ros1_format(path)):
+        return old
     inner = Path(path.stem).suffix
     if path.suffix == ".zstd" and inner in (".db3", ".mcap"):
         return (
@@ -40,6 +52,40 @@ def packed_file(path: Path) -> str | None:
             f"`rosbag reindex {path.name}` repairs it; then give it as {path.stem}"
         )
     return None
+
+
+_ROS1_MAGIC = re.compile(rb"#(ROSBAG|ROSRECORD|ROSLOG) V(\d+)\.(\d+)\n")
+"""A ROS 1 bag's first line: ``#ROSBAG V2.0`` since C Turtle (2010); ``#ROSRECORD V1.2``,
+``#ROSRECORD V1.1`` or ``#ROSLOG V1.x`` before (ros_comm's tools/rosbag/FORMATS)."""
+
+
+def old_ros1_format(path: Path) -> str | None:
+    """What to do with a ROS 1 bag file of a format older than 2.0, the only one rosbags reads
+    (rosbags said 'File magic is invalid.' of a ``#ROSRECORD V1.2`` bag, and the import
+    suggested ``rosbag reindex``, which keeps its format); None for any other file."""
+    try:
+        with path.open("rb") as file:
+            first = file.readline(64)
+    except OSError:
+        return None
+    match = _ROS1_MAGIC.fullmatch(first)
+    if match is None:
+        return None
+    version = (int(match.group(2)), int(match.group(3)))
+    if version >= (2, 0):  # 2.0 reads; a later one is rosbags' own 'not supported'
+        return None
+    what = (
+        f"a ROS 1 bag of format {version[0]}.{version[1]} ({first.decode().strip()}; recorded "
+        "before ROS C Turtle, 2010), which rosbags does not read (it reads format 2.0 only)"
+    )
+    if version == (1, 2):  # ROS 1's rosbag (to Noetic) reads 1.2 and writes 2.0
+        return (
+            f"{what}: ROS 1's rosbag writes it anew in format 2.0: `rosbag filter {path.name} "
+            f'{path.stem}_v2.bag "True"`, then give {path.stem}_v2.bag'
+        )
+    return (
+        f"{what}: rewrite it in format 2.0 with the rosbag tools of a ROS 1 release that reads it"
+    )
 
 
 def compressed_messages(metadata: Path) -> bool:

@@ -73,10 +73,17 @@ MAX_IMAGE_SIDE = 8192
 
 class BagWriter:
     """Write a small bag: ``ros=1`` (a ``.bag`` file) or ``ros=2`` (a folder; ``storage``
-    ``"sqlite3"`` or ``"mcap"``). Messages are buffered and written sorted by their log time
+    ``"sqlite3"`` or ``"mcap"``; ``version`` the metadata.yaml version, 9 (Jazzy) or 8 (Iron),
+    those rosbags writes). Messages are buffered and written sorted by their log time
     (``log_time``, default the stamp) when the writer closes (``with BagWriter(...) as w:``)."""
 
-    def __init__(self, path: str | os.PathLike[str], ros: int = 2, storage: str = "sqlite3"):
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        ros: int = 2,
+        storage: str = "sqlite3",
+        version: int = 9,
+    ):
         try:
             from rosbags.typesys import Stores, get_typestore
         except ImportError as error:
@@ -87,7 +94,10 @@ class BagWriter:
             raise ValueError(f"ros must be 1 or 2, got {ros!r}")
         if storage not in ("sqlite3", "mcap"):
             raise ValueError(f"storage must be 'sqlite3' or 'mcap', got {storage!r}")
+        if version not in (8, 9):  # rosbags' writer: said here, not when the bag closes
+            raise ValueError(f"version must be 8 or 9 (rosbag2 metadata), got {version!r}")
         self.path = Path(path)
+        self.version = version
         self.ros = ros
         self.storage = storage
         self.store = get_typestore(Stores.ROS1_NOETIC if ros == 1 else Stores.ROS2_HUMBLE)
@@ -240,7 +250,7 @@ class BagWriter:
             from rosbags.rosbag2 import StoragePlugin, Writer
 
             plugin = StoragePlugin.MCAP if self.storage == "mcap" else StoragePlugin.SQLITE3
-            writer = Writer(self.path, version=9, storage_plugin=plugin)
+            writer = Writer(self.path, version=self.version, storage_plugin=plugin)
             serialize = self.store.serialize_cdr
         writer.open()
         connections: dict[str, Any] = {}
