@@ -608,13 +608,33 @@ def test_the_figure_names_the_parameters_its_scores_read():
     for house_type in ("synthetic", "public"):
         summary = {"records": {house_type: {"cavi": [{"curve": curve}]}}, "methods": methods}
         for ax in curves_figure(summary, house_type).axes:
-            labels[ax.get_ylabel().split(" (")[0]] = ax.get_ylabel()
+            labels[ax.get_ylabel().split("\n")[0].split(" (")[0]] = ax.get_ylabel()
     assert labels["ARI"] == "ARI"  # the labels alone
-    assert labels["matching rate"] == "matching rate (means | labels)"
-    assert labels["held-out top-1"] == "held-out top-1 (means | labels)"
+    assert labels["matching rate"] == "matching rate\n(means | labels)"
+    assert labels["held-out top-1"] == "held-out top-1\n(means | labels)"
     assert labels["localisation distance"] == (
-        "localisation distance (m) (means | labels) (lower is better)"
+        "localisation distance (m)\n(means | labels) (lower is better)"
     )
+
+
+def test_no_axis_label_of_the_figure_runs_over_its_title():
+    """comparison_public.png's distance label, "localisation distance (m) (means | labels)
+    (lower is better)" on one line, was taller than its panel and ran over the figure's title."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from spcopyro.experiments.comparison_report import curves_figure
+
+    methods = {key: v.label for key, v in VARIANTS.items()}
+    curve = [{"seconds": 1.0, "ari": 0.5, "matching_rate": 0.5, "top1": 0.2, "distance_m": 1.0}]
+    for house_type in ("synthetic", "public"):
+        summary = {"records": {house_type: {"cavi": [{"curve": curve}]}}, "methods": methods}
+        fig = curves_figure(summary, house_type)
+        renderer = FigureCanvasAgg(fig).get_renderer()
+        title = fig._suptitle.get_window_extent(renderer)
+        for ax in fig.axes:
+            label = ax.yaxis.label.get_window_extent(renderer)
+            panel = ax.get_window_extent(renderer)
+            assert label.y1 <= panel.y1 and not label.overlaps(title), ax.get_ylabel()
 
 
 def test_a_final_ari_at_chance_gets_no_time_to_95_percent():

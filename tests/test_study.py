@@ -379,6 +379,24 @@ def test_quality_time_axis_labels_do_not_overlap(times):
         assert left.x1 <= right.x0, [label.get_text() for label in labels]
 
 
+def test_quality_time_legend_fits_in_the_figure():
+    """compare-inference's report on one public house drew its 7 groups' legend in four columns
+    of "stochastic-vi / stochastic-vi" under one 4.3 in panel: it ran past both edges of the
+    image, "gibbs" and "vi-gibbs / vi-gibbs" cut to "gibbs" and "vi-gi"."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from spcopyro.experiments.inference_comparison import VARIANTS
+    from spcopyro.study.figures import quality_time_figure
+
+    rows = [dict(data="room1dk5", variant=key, method=v.method, seconds=1.0 + i, ari=0.1,
+                 status="ok") for i, (key, v) in enumerate(VARIANTS.items())]  # fmt: skip
+    fig = quality_time_figure(rows)
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    (legend,) = fig.legends
+    box, page = legend.get_window_extent(renderer), fig.bbox
+    assert page.x0 <= box.x0 and box.x1 <= page.x1, (box, page)
+
+
 @pytest.mark.parametrize("start_in_process", [False, True])
 def test_local_cluster_gives_the_same_numbers(in_process, tmp_path, monkeypatch, start_in_process):
     """On the workers only, or partly in this process while they start: the same numbers."""

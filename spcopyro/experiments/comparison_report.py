@@ -497,7 +497,10 @@ def curves_figure(summary: dict[str, object], house_type: str) -> Figure:
         # posterior means given the labels (the table's "means | labels" column, not its own)
         given = "" if score == "ari" else " (means | labels)"
         lower = " (lower is better)" if score in LOWER_IS_BETTER else ""
-        ax.set_ylabel(SCORE_NAMES[score] + given + lower)
+        # the qualifiers on a line of their own: on one line the distance's label ran longer
+        # than its panel, over the figure's title
+        qualifiers = (given + lower).strip()
+        ax.set_ylabel(SCORE_NAMES[score] + ("\n" + qualifiers if qualifiers else ""))
         ax.grid(alpha=0.3, which="both")
     handles, labels = np.atleast_1d(axes)[0].get_legend_handles_labels()
     # below the panels, never over a line (loc="best" inside the axes covered the top-1 lines)

@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib import colormaps
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
@@ -83,8 +84,12 @@ def quality_time_figure(
         ax.set_ylabel(score)
         ax.grid(alpha=0.3)
     handles = [Line2D([], [], marker="o", ls="", color=colour[g]) for g in groups]
-    fig.legend(handles, [_group_label(*g) for g in groups], loc="lower center",
-               ncol=min(len(groups), 4), frameon=False, fontsize=8)  # fmt: skip
+    legend = fig.legend(handles, [_group_label(*g) for g in groups], loc="lower center",
+                        ncol=min(len(groups), 4), frameon=False, fontsize=8)  # fmt: skip
+    # one panel is 4.3 in wide: four columns of "stochastic-vi / stochastic-vi" ran past both
+    # edges of the image, cut off; the figure widens to hold its legend
+    wide = legend.get_window_extent(FigureCanvasAgg(fig).get_renderer()).width / fig.dpi
+    fig.set_figwidth(max(fig.get_figwidth(), wide + 0.2))
     fig.suptitle(f"{score} against {time}: seeds (faint), mean ± sd (marked)", fontsize=11)
     fig.tight_layout(rect=(0, min(0.3, 0.06 * legend_rows + 0.03), 1, 0.95))
     return fig
