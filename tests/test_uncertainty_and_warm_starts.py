@@ -299,3 +299,22 @@ def test_vi_then_gibbs_fits_carry_label_frequencies_too(house):
     plain = fit_house(house, SETTINGS, method="vi-gibbs", sweeps=4, options=options,
                       progress=False)  # fmt: skip
     assert plain.marginals is None
+
+
+def test_the_uncertainty_figure_draws_the_entropy_fit_saved(gibbs_fit, tmp_path, monkeypatch):
+    """spcopyro fit computes cell_entropy for uncertainty.npy, then plot_uncertainty drew the
+    same map from its own second computation; now the entropy is computed once per result
+    (read-only) and the figure draws that very array."""
+    import dataclasses
+
+    from spcopyro.figures import plotting
+
+    result = dataclasses.replace(gibbs_fit)  # a new result: nothing computed on it yet
+    saved = cell_entropy(result)  # [N] what fit writes to uncertainty.npy
+    assert cell_entropy(result) is saved and not saved.flags.writeable
+    drawn = []
+    monkeypatch.setattr(
+        plotting, "_plot_cell_values", lambda result, values, path, **_: drawn.append(values)
+    )
+    plotting.plot_uncertainty(result, tmp_path / "uncertainty.png")
+    assert len(drawn) == 1 and drawn[0] is saved

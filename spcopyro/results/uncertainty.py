@@ -113,12 +113,20 @@ def cell_probabilities(result: SpCoResult) -> np.ndarray:
 
 def cell_entropy(result: SpCoResult) -> np.ndarray | None:
     """[N] each free cell's entropy of p(C_i) in nats, or None when the result holds a point
-    estimate only (no marginals: nothing to say about uncertainty)."""
+    estimate only (no marginals: nothing to say about uncertainty). Computed once per result,
+    read-only (:meth:`SpCoResult.computed_once
+    <spcopyro.results.result.SpCoResult.computed_once>`): ``spcopyro fit`` writes it to
+    ``uncertainty.npy`` and :func:`~spcopyro.figures.plotting.plot_uncertainty` draws the same
+    array (a child process that draws the figures inherits it through the fork)."""
     if result.marginals is None:
         return None
-    p = np.asarray(result.marginals, dtype=np.float64)  # [N, L]
-    logs = np.log(np.where(p > 0, p, 1.0))
-    return -(p * logs).sum(-1)
+
+    def entropy() -> np.ndarray:
+        p = np.asarray(result.marginals, dtype=np.float64)  # [N, L]
+        logs = np.log(np.where(p > 0, p, 1.0))
+        return -(p * logs).sum(-1)  # [N]
+
+    return result.computed_once("cell_entropy", entropy)  # type: ignore[return-value]
 
 
 def where_probability(result: SpCoResult, word: str, prior: str = "area") -> np.ndarray:
