@@ -217,7 +217,7 @@ def test_figures_drawn_in_a_forked_child_are_the_files_drawn_here(tmp_path, monk
     monkeypatch.setattr(fit_figures, "_draw_in_child", recorded)
     write_figures(result, house, folders["forked"], uncertainty=True)
     assert len(children) == 1 and children[0].exitcode == 0  # drawn there
-    monkeypatch.setattr(fit_figures, "_child_draws", lambda figures, claims: os._exit(3))
+    monkeypatch.setattr(fit_figures, "_child_draws", lambda *args: os._exit(3))
     write_figures(result, house, folders["child died"], uncertainty=True)
     assert children[-1].exitcode == 3
     names = {"semantic_map.png", "trace.png", "house.png", "uncertainty.png", "agreement.png"}

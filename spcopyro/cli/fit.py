@@ -419,8 +419,9 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     if prefetch is not None:  # matplotlib is imported only for the figures
         # trace.png draws the kept chain's trace only (--sweeps auto's: the best of its chains)
         shown = kept if chain_results is not None or diagnostics is None else diagnostics.best_chain
+        # said: the child's figures' warnings too, in the figures' order (config.json's)
         write_figures(result, house, out, uncertainty=entropy is not None, prefetch=prefetch,
-                      kept=(shown, chains))  # fmt: skip
+                      kept=(shown, chains), said=job.said)  # fmt: skip
     phases.mark("figures")
     if result.agreement is not None:
         estimate = result.inference.get("point_estimate", args.point_estimate)  # a refit's own

@@ -13,7 +13,9 @@ long for the GIL. The figures are those drawn without either, file for file (iss
 
 from __future__ import annotations
 
+import contextlib
 import itertools
+import json
 import os
 import sys
 import threading
@@ -163,6 +165,7 @@ def write_figures(
     prefetch: FigurePrefetch | None = None,
     fork: bool | None = None,
     kept: tuple[int, int] | None = None,
+    said: list[str] | None = None,
 ) -> None:
     """The fit's PNGs: semantic map, trace, house (unless ``prefetch`` drew it), and the
     uncertainty and agreement maps of a result that has them (:mod:`spcopyro.figures.plotting`,
@@ -173,8 +176,16 @@ def write_figures(
     the largest (0.3-0.6 s against 0.1-0.3 s each), and both then take what is left, one figure
     at a time (:class:`_Claims`), so the two CPUs share the work however the figures' sizes
     fall; the same files, byte for byte. The figures a failed child took are drawn here again
-    (their error, if any, raised). ``kept`` = (k, K): ``result`` is chain k of K, the one kept
-    (``trace.png`` says so: it draws that chain's trace only)."""
+    (their error, if any, raised). An interrupt or error here ends the child before it is
+    raised (:meth:`_Child.stop`): ``spcopyro fit`` then discards the folder it draws into.
+    ``kept`` = (k, K): ``result`` is chain k of K, the one kept (``trace.png`` says so: it
+    draws that chain's trace only).
+
+    ``said``: the list that a :func:`~spcopyro.cli.fit_warnings.recorded_warnings` block in
+    effect fills (the fit's, for ``config.json``). The warnings of the figures drawn here go
+    into it as they are given; those of the child's (printed there) come back when it ends, and
+    the figures' warnings are then put in the figures' order (semantic map, trace, house,
+    uncertainty, agreement), as drawn in one process, whichever process drew which."""
     house_drawn = prefetch is not None and prefetch.join()
     with timed("figure imports"):
         from spcopyro.figures.plotting import (
@@ -198,23 +209,34 @@ def write_figures(
     if result.agreement is not None:
         shared.append(("agreement", lambda: plot_agreement(result, out / "agreement.png")))
     if not _may_fork(fork):
-        _draw([first, *shared])
+        _draw([first, *shared])  # their warnings into said in the figures' order
         return
+    heard = _Heard(said)
     claims = _Claims(len(shared))
     try:
         child = _draw_in_child(shared, claims)
         mine: list[int] = []  # the shared figures drawn here
-        _draw(itertools.chain([first], claims.figures(shared, mine)))
-        with timed("figure child wait"):
-            child.join()
+        try:
+            _draw(itertools.chain([first], claims.figures(shared, mine)), heard)
+            with timed("figure child wait"):
+                told = child.wait()
+        except BaseException:  # Ctrl-C, SIGTERM, an error: nothing more drawn into the folder
+            child.stop()
+            raise
     finally:
         claims.close()
     if child.exitcode != 0:  # the child's figures drawn here, so that none is lost
-        _draw([figure for k, figure in enumerate(shared) if k not in mine])
+        _draw([figure for k, figure in enumerate(shared) if k not in mine], heard)
+    else:
+        heard.by_figure.update(json.loads(told))
+    heard.in_figure_order([name for name, _ in (first, *shared)])
 
 
 Figure = tuple[str, Callable[[], None]]
 """A figure to draw: its name (for the timings) and the call that writes its PNG."""
+
+STOP_TIMEOUT = 5.0
+"""Seconds a stopped fit waits for the figures' child to end on SIGTERM before it kills it."""
 
 
 class _Claims:
@@ -250,22 +272,99 @@ class _Claims:
         os.close(self._read)
 
 
+class _Heard:
+    """The warnings each figure gave, to be put into ``said`` (None: nothing kept) in the
+    figures' order (:meth:`in_figure_order`). Those of a figure drawn here are the messages the
+    recording block in effect appended to ``said`` while it was drawn (:meth:`drawing`); the
+    child's come from it (``by_figure`` updated)."""
+
+    def __init__(self, said: list[str] | None) -> None:
+        self.said = said
+        self.by_figure: dict[str, list[str]] = {}
+        self._start = 0 if said is None else len(said)
+        self._spans: list[tuple[int, int]] = []  # the slices of said given by figures drawn here
+
+    @contextlib.contextmanager
+    def drawing(self, name: str) -> Iterator[None]:
+        """Around the drawing of figure ``name`` here: what it adds to ``said`` is its own."""
+        before = 0 if self.said is None else len(self.said)
+        try:
+            yield
+        finally:
+            if self.said is not None:
+                self.by_figure[name] = self.said[before:]
+                self._spans.append((before, len(self.said)))
+
+    def in_figure_order(self, names: Sequence[str]) -> None:
+        """``said`` from where the figures began: the warnings of the figures ``names`` in that
+        order, then what else was said meanwhile (a PNG compressed on its thread), in order."""
+        said = self.said
+        if said is None:
+            return
+        theirs = {k for begin, end in self._spans for k in range(begin, end)}
+        rest = [said[k] for k in range(self._start, len(said)) if k not in theirs]
+        said[self._start :] = [text for name in names for text in self.by_figure.get(name, [])]
+        said.extend(rest)
+
+
 def _may_fork(fork: bool | None) -> bool:
     from spcopyro._util.forking import fork_refusal
 
     return fork is not False and fork_refusal(uses_torch=False) is None
 
 
-def _draw(figures: Iterable[Figure]) -> None:
+def _draw(figures: Iterable[Figure], heard: _Heard | None = None) -> None:
     from spcopyro.figures.png import background_writes
 
     with background_writes():  # each PNG compressed on a thread while the next is drawn
         for name, draw in figures:
-            with timed(f"figure {name}"):
+            drawing = contextlib.nullcontext() if heard is None else heard.drawing(name)
+            with timed(f"figure {name}"), drawing:
                 draw()
 
 
-def _draw_in_child(figures: list[Figure], claims: _Claims) -> BaseProcess:
+class _Child:
+    """A forked child drawing figures (:func:`_draw_in_child`), and the read end of the pipe on
+    which it sends, as it ends, the warnings its figures gave (JSON: figure name -> messages)."""
+
+    def __init__(self, process: BaseProcess, told: int) -> None:
+        self.process = process
+        self._told: int | None = told
+
+    @property
+    def exitcode(self) -> int | None:
+        return self.process.exitcode
+
+    def wait(self) -> bytes:
+        """What it sent, once it ended. The pipe is read to its end before the join: a child
+        whose warnings outgrow the pipe's buffer waits for them to be read."""
+        assert self._told is not None, "waited for twice"
+        chunks: list[bytes] = []
+        while chunk := os.read(self._told, 1 << 16):
+            chunks.append(chunk)
+        self._close()
+        self.process.join()
+        return b"".join(chunks)
+
+    def stop(self) -> None:
+        """End it now: the pipe closed first (a write there then fails instead of waiting for a
+        reader), SIGTERM (its default action: the child does not keep ``fit``'s handler, which
+        raises KeyboardInterrupt), then a join of at most :data:`STOP_TIMEOUT` s, SIGKILL
+        after."""
+        self._close()
+        self.process.terminate()
+        self.process.join(STOP_TIMEOUT)
+        if self.process.is_alive():
+            self.process.kill()
+            self.process.join()
+
+    def _close(self) -> None:
+        if self._told is not None:
+            told, self._told = self._told, None
+            os.close(told)
+
+
+def _draw_in_child(figures: list[Figure], claims: _Claims) -> _Child:
     """A child forked to draw the ``figures`` it takes from ``claims`` (no torch there: the
     plots are numpy and matplotlib), started; it exits with 0 once they are written, 1 if one
     failed."""
@@ -273,19 +372,39 @@ def _draw_in_child(figures: list[Figure], claims: _Claims) -> BaseProcess:
 
     from spcopyro._util.forking import start_forked
 
+    told, tell = os.pipe()
     process = multiprocessing.get_context("fork").Process(
-        target=_child_draws, args=(figures, claims), name="spcopyro-figures", daemon=True
-    )
-    start_forked(process)
-    return process
+        target=_child_draws, args=(figures, claims, tell, told), name="spcopyro-figures",
+        daemon=True,
+    )  # fmt: skip
+    try:
+        start_forked(process)
+    except BaseException:
+        os.close(told)
+        raise
+    finally:
+        os.close(tell)  # the child's end: the pipe ends when the child does
+    return _Child(process, told)
 
 
-def _child_draws(figures: list[Figure], claims: _Claims) -> None:
+def _child_draws(figures: list[Figure], claims: _Claims, tell: int, told: int) -> None:
     import signal
 
+    from spcopyro.cli.fit_warnings import recorded_warnings
+
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides (and redraws on failure)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # _Child.stop ends it (not fit's handler)
+    os.close(told)  # the parent's end: once the parent closes its own, a write here fails
+    heard: dict[str, list[str]] = {}  # figure name -> the warnings it gave (printed as well)
+    code = 0
     try:
-        for _, draw in claims.figures(figures, []):
-            draw()
+        for name, draw in claims.figures(figures, []):
+            with recorded_warnings() as said:
+                heard[name] = said
+                draw()
     except BaseException:  # noqa: BLE001  (the parent draws them again and reports the error)
-        os._exit(1)
+        code = 1
+    with contextlib.suppress(OSError), os.fdopen(tell, "wb") as pipe:  # OSError: parent stopped
+        pipe.write(json.dumps(heard).encode())
+    if code:
+        os._exit(code)

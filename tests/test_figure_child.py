@@ -1,0 +1,221 @@
+"""The child that ``spcopyro fit`` forks to draw some of its figures
+(:func:`spcopyro.cli.fit_figures.write_figures`): its warnings reach the fit's list
+(``config.json``'s) in the figures' order, as drawn in one process; a fit stopped while it waits
+for the child ends the child before the staging folder is discarded; and a child's warnings
+larger than a pipe holds do not hang the fit.
+
+The fork is disabled as the tests of :mod:`test_fixed_cost` do it: ``fork=False``, or
+``_may_fork`` (where :func:`spcopyro._util.forking.fork_refusal` allows one) answering False.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import os
+import signal
+import sys
+import time
+import warnings
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+from spcopyro._util.outputs import STAGING_INFIX
+from spcopyro.cli import fit_figures
+from spcopyro.cli.fit_warnings import recorded_warnings
+from spcopyro.cli.main import main
+
+pytestmark = pytest.mark.skipif(
+    not sys.platform.startswith("linux"), reason="figures are drawn in a forked child on Linux only"
+)
+
+NAMES = ("semantic_map", "trace", "house", "uncertainty", "agreement")
+PARENT = os.getpid()
+
+
+class Hung(Exception):
+    """Not an OSError (as TimeoutError is): multiprocessing's join swallows those."""
+
+
+@contextlib.contextmanager
+def _deadline(seconds: int):
+    """:class:`Hung` raised in the main thread after ``seconds`` (no thread: a thread would keep
+    write_figures from forking)."""
+
+    def expire(signum, frame):
+        raise Hung(f"not done in {seconds} s")
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+class _Split(fit_figures._Claims):
+    """The shared figures (trace, house, uncertainty, agreement: 0-3) taken as told: ``here`` by
+    the test's process, the others by the child."""
+
+    here: tuple[int, ...] = ()
+
+    def __init__(self, count: int) -> None:
+        super().__init__(count)
+        self._mine = {True: iter(self.here), False: iter(sorted(set(range(count)) - {*self.here}))}
+
+    def take(self) -> int | None:
+        return next(self._mine[os.getpid() == PARENT], None)
+
+
+def _warning_figures(monkeypatch, extra: dict[str, int] | None = None) -> None:
+    """Every figure of write_figures a stub that gives a logger warning and a Python warning
+    (``extra[name]`` more logger warnings of 100 characters) and writes its pid as the PNG."""
+    import spcopyro.figures.plotting as plotting
+
+    def stub(name):
+        def draw(*args, **kwargs):
+            logger = logging.getLogger("spcopyro")
+            logger.warning("%s: logged", name)
+            warnings.warn(f"{name}: warned", UserWarning, stacklevel=1)
+            for k in range((extra or {}).get(name, 0)):
+                logger.warning("%s %06d %s", name, k, "x" * 80)
+            path = next(a for a in args if isinstance(a, Path))
+            path.write_text(str(os.getpid()))
+
+        return draw
+
+    for name in NAMES:
+        monkeypatch.setattr(plotting, f"plot_{name}", stub(name))
+
+
+def _said(out: Path, fork: bool | None) -> list[str]:
+    """The warnings a fit's recording block keeps while write_figures draws the stubs."""
+    result = SimpleNamespace(agreement=object())
+    house = SimpleNamespace(observations=None)
+    out.mkdir()
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")  # each figure's, in both processes
+        warnings.showwarning = lambda *args, **kwargs: None  # kept below, not shown
+        with recorded_warnings() as said:
+            fit_figures.write_figures(result, house, out, True, fork=fork, said=said)  # type: ignore[arg-type]
+    return said
+
+
+def test_the_childs_warnings_join_the_fits_in_the_figures_order(tmp_path, monkeypatch):
+    """The child draws trace and uncertainty, this process the semantic map, house and agreement:
+    the fit's list is the one drawn in one process (before: the child's two were printed only)."""
+    _warning_figures(monkeypatch)
+    expected = _said(tmp_path / "here", fork=False)
+    given = [(f"{name}: logged", f"UserWarning: {name}: warned") for name in NAMES]
+    assert expected == [text for pair in given for text in pair]
+    monkeypatch.setattr(_Split, "here", (1, 3))
+    monkeypatch.setattr(fit_figures, "_Claims", _Split)
+    assert _said(tmp_path / "forked", fork=None) == expected
+    drawn_by = {name: int((tmp_path / "forked" / f"{name}.png").read_text()) for name in NAMES}
+    assert {name for name, pid in drawn_by.items() if pid != PARENT} == {"trace", "uncertainty"}
+
+
+def test_a_childs_warnings_larger_than_a_pipe_do_not_hang_the_figures(tmp_path, monkeypatch):
+    """3000 warnings of 100 characters (about 370 kB of JSON, a pipe holds 64 kB) from the
+    child's figure: read before the child is joined, else both would wait for ever."""
+    _warning_figures(monkeypatch, extra={"uncertainty": 3000})
+    expected = _said(tmp_path / "here", fork=False)
+    monkeypatch.setattr(_Split, "here", (0, 1, 3))  # the child draws the uncertainty map
+    monkeypatch.setattr(fit_figures, "_Claims", _Split)
+    with _deadline(20):
+        said = _said(tmp_path / "forked", fork=None)
+    assert len(said) == len(expected) == 2 * len(NAMES) + 3000 and said == expected
+
+
+def _fit_with_trace_warning(out: Path, monkeypatch) -> list[str]:
+    import spcopyro.figures.plotting as plotting
+
+    plot_trace = plotting.plot_trace
+
+    def warning_trace(*args, **kwargs):
+        logging.getLogger("spcopyro").warning("the trace warns (pid %d)", PARENT)
+        return plot_trace(*args, **kwargs)
+
+    monkeypatch.setattr(plotting, "plot_trace", warning_trace)
+    assert main(["fit", "--sweeps", "4", "--out", str(out)]) == 0
+    return json.loads((out / "config.json").read_text())["warnings"]
+
+
+def test_a_figure_that_warns_in_the_child_is_in_config_json(tmp_path, monkeypatch):
+    """``spcopyro fit``: trace.png drawn in the child (it takes every shared figure) warns; its
+    warning is in config.json's list, the list of the same fit with the fork disabled."""
+    drawn_there: list[int] = []
+    start = fit_figures._draw_in_child
+
+    def recorded(figures, claims):
+        child = start(figures, claims)
+        drawn_there.append(len(figures))
+        return child
+
+    monkeypatch.setattr(fit_figures, "_draw_in_child", recorded)
+    monkeypatch.setattr(_Split, "here", ())
+    monkeypatch.setattr(fit_figures, "_Claims", _Split)
+    forked = _fit_with_trace_warning(tmp_path / "forked", monkeypatch)
+    assert drawn_there  # the fork was used
+    monkeypatch.setattr(fit_figures, "_may_fork", lambda fork: False)
+    alone = _fit_with_trace_warning(tmp_path / "alone", monkeypatch)
+    assert f"the trace warns (pid {PARENT})" in alone
+    assert forked == alone
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+def test_a_fit_stopped_while_it_waits_for_the_child_ends_the_child_first(
+    tmp_path, monkeypatch, capsys, signum
+):
+    """The child (every shared figure its own) signals the fit once the fit's semantic map is
+    drawn, then sleeps: the fit, waiting for it, stops (130), and the child has been ended by
+    SIGTERM (its default action: not fit's handler, which raised KeyboardInterrupt in the child)
+    before the staging folder was discarded, none of which is left; in seconds, not 30."""
+    import spcopyro.figures.plotting as plotting
+
+    plot_semantic_map = plotting.plot_semantic_map
+    drawn = tmp_path / "semantic map drawn"
+
+    def semantic_map(*args, **kwargs):
+        plot_semantic_map(*args, **kwargs)
+        drawn.touch()
+
+    def sleeping_trace(*args, **kwargs):
+        while not drawn.exists():
+            time.sleep(0.01)
+        time.sleep(0.2)  # the fit is waiting for the child (or still writing its PNG)
+        os.kill(os.getppid(), signum)
+        time.sleep(30)
+
+    children: list[fit_figures._Child] = []
+    start = fit_figures._draw_in_child
+
+    def recorded(figures, claims):
+        children.append(start(figures, claims))
+        return children[-1]
+
+    monkeypatch.setattr(plotting, "plot_semantic_map", semantic_map)
+    monkeypatch.setattr(plotting, "plot_trace", sleeping_trace)
+    monkeypatch.setattr(fit_figures, "_draw_in_child", recorded)
+    monkeypatch.setattr(_Split, "here", ())
+    monkeypatch.setattr(fit_figures, "_Claims", _Split)
+    out = tmp_path / "fit"
+    began = time.monotonic()
+    try:
+        with _deadline(25):
+            assert main(["fit", "--sweeps", "4", "--out", str(out)]) == 130
+        assert time.monotonic() - began < 20
+        (child,) = children
+        assert not child.process.is_alive() and child.exitcode == -signal.SIGTERM
+    finally:
+        for child in children:
+            if child.process.is_alive():  # before the fix: still asleep
+                child.process.kill()
+                child.process.join()
+    assert "interrupted" in capsys.readouterr().err
+    assert not out.exists()
+    assert not [path.name for path in tmp_path.iterdir() if STAGING_INFIX in path.name]
