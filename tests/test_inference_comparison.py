@@ -681,3 +681,29 @@ def test_the_table_says_what_an_iteration_of_each_method_is(tmp_path):
     assert "svi: 4 steps end before its annealing (anneal_iterations = 10)" in " ".join(
         summary["notes"]
     )
+
+
+def test_a_one_concept_map_of_a_comparison_cell_is_warned_of(dataset_root, monkeypatch):
+    """compare-inference on room1dk5 (original-code, gamma 3) gave five of its seven maps one
+    concept over the house with a speckle at the observed cells (ARI 0.000-0.027); comparison.md
+    listed SVI's and memoized VI's flat q but no degenerate map: a comparison cell never ran the
+    check ``fit_house`` runs. The cell's fit here is CAVI for 2 iterations, its map replaced by
+    one concept."""
+    from spcopyro.study.cell_warnings import read_warnings
+    from spcopyro.study.evaluate import WARNINGS, run_cell
+
+    fit = comparison.fit_and_score_with_result
+
+    def one_concept(variant, problem, iterations):
+        record, result = fit(variant, problem, iterations)
+        return record, dataclasses.replace(result, labels=np.zeros_like(result.labels))
+
+    monkeypatch.setattr(comparison, "fit_and_score_with_result", one_concept)
+    settings = ComparisonSettings(dataset_root=dataset_root, house_types=("public",),
+                                  public_houses=("room1dk5",), variants=("cavi",), folds=1,
+                                  iterations={"cavi": 2})  # fmt: skip
+    (cell,) = cells_of(comparison_study(settings), dataset_root)
+    record, _, _ = run_cell(cell)
+    assert record["status"] == "ok", record["error"]
+    said = read_warnings(record[WARNINGS])
+    assert any("holds 100" in message for message in said), said

@@ -19,7 +19,9 @@ over-confidence, top words) as JSON text in ``details``, from which
 :mod:`spcopyro.study.comparison` draws ``comparison.md`` and its figures. Its label map is the
 fit's final state on the map's cells (refined from the model's grid), with the map and the
 truth it was scored against (:func:`spcopyro.study.maps.label_map_arrays`), stored as every
-cell's is (``maps/KEY.npz``) so reports draw it. Threads: as the
+cell's is (``maps/KEY.npz``) so reports draw it. A degenerate final map (one concept over most
+of the house) is warned of as ``fit_house`` warns (:func:`spcopyro.fit.house.log_degenerate_map`),
+kept in the cell's record with its other warnings. Threads: as the
 comparison, the method runs with :func:`spcopyro._util.threads.policy_threads` of the map.
 """
 
@@ -34,6 +36,7 @@ from spcopyro.data.model_grid import model_house
 from spcopyro.experiments import inference_comparison as comparison
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds, json_default
+from spcopyro.fit.house import log_degenerate_map
 from spcopyro.study.cells import Cell
 from spcopyro.study.maps import Arrays, label_map_arrays, labels_on_map
 from spcopyro.synthetic import make_house
@@ -99,6 +102,9 @@ def comparison_outcome(cell: Cell) -> tuple[dict[str, object], Arrays]:
     problem, house = _problem_and_map(cell)
     comparison.warm_up(variant, problem)
     record, result = comparison.fit_and_score_with_result(variant, problem, cell.sweeps)
+    # a one-concept map warns as fit_house's does (the study keeps it in the cell's record):
+    # comparison.md listed the flat-q warnings but not the collapse of most public maps
+    log_degenerate_map(result, problem.house)
     final = record["final"]
     scores: dict[str, object] = {s: final[s] for s in FINAL_SCORES if s in final}  # type: ignore[index]
     scores.update(
