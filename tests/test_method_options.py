@@ -290,9 +290,7 @@ def test_options_that_depend_on_the_start_are_asked_through_the_protocol():
     needed them (``hasattr(defaults, "for_start")`` in the comparison report, ``getattr`` in
     VariationalSaving and fit's lines); the options protocol owns it now
     (:func:`~spcopyro.inference.protocol.options_for_start`), and every place asks it."""
-    import ast
     from dataclasses import dataclass
-    from pathlib import Path
 
     from spcopyro.guides.svi_method import SVIOptions
     from spcopyro.inference.protocol import StartDependentOptions, options_for_start
@@ -316,24 +314,13 @@ def test_options_that_depend_on_the_start_are_asked_through_the_protocol():
             return Other(5 if given_start else 50)
 
     assert options_for_start(Other(), given_start=True) == Other(5)
-    package = Path(__file__).resolve().parents[1] / "spcopyro"
-    by_name = [
-        str(path.relative_to(package))
-        for path in sorted(package.rglob("*.py"))
-        for node in ast.walk(ast.parse(path.read_text()))
-        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
-        and node.func.id in ("getattr", "hasattr")
-        and any(isinstance(a, ast.Constant) and a.value == "for_start" for a in node.args)
-    ]  # fmt: skip
-    assert by_name == [], by_name
+    assert _read_by_name("for_start") == []
 
 
 def test_fields_a_resumed_run_ignores_are_asked_through_the_protocol():
     """SVIOptions.RESUME_IGNORES was read by name (``getattr(type(options), "RESUME_IGNORES",
     ())`` in guides/checkpoint.py); the options protocol owns it now, as it owns
     ``for_start``: :func:`~spcopyro.inference.protocol.resume_ignores`, the same fields."""
-    import ast
-    from pathlib import Path
 
     from spcopyro.guides.svi_method import SVIOptions
     from spcopyro.inference.protocol import ResumeIgnoringOptions, resume_ignores
@@ -348,13 +335,21 @@ def test_fields_a_resumed_run_ignores_are_asked_through_the_protocol():
         RESUME_IGNORES = ("window",)
 
     assert resume_ignores(Other()) == ("window",)
+    assert _read_by_name("RESUME_IGNORES") == []
+
+
+def _read_by_name(attribute: str) -> list[str]:
+    """The package's modules that look ``attribute`` up by name (``getattr``/``hasattr`` with it
+    as a constant): what the options protocol should be asked instead."""
+    import ast
+    from pathlib import Path
+
     package = Path(__file__).resolve().parents[1] / "spcopyro"
-    by_name = [
+    return [
         str(path.relative_to(package))
         for path in sorted(package.rglob("*.py"))
         for node in ast.walk(ast.parse(path.read_text()))
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
         and node.func.id in ("getattr", "hasattr")
-        and any(isinstance(a, ast.Constant) and a.value == "RESUME_IGNORES" for a in node.args)
+        and any(isinstance(a, ast.Constant) and a.value == attribute for a in node.args)
     ]  # fmt: skip
-    assert by_name == [], by_name
