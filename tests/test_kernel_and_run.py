@@ -315,9 +315,9 @@ def test_critical_gamma_is_the_four_neighbour_value_and_refuses_eight():
         _ = eight.critical_gamma
     # the fit's warnings still come for 8 neighbours, without a 4-neighbour value
     (freezing,) = [w for w in config_warnings(eight) if "freezes" in w]
-    assert freezing.endswith("just above the critical coupling)")
+    assert freezing.endswith("just above the critical coupling")
     four = config_warnings(eight.replace(connectivity=4))
-    assert any(w.endswith("just above the critical 2.48)") for w in four)
+    assert any(w.endswith("just above the critical 2.48") for w in four)
 
 
 def _pairs_across_walls(occupancy: np.ndarray, truth: np.ndarray):

@@ -3,8 +3,10 @@
 A loader that rejects a line echoes it, so the reader can find it; a ragged 205-column Ft.csv
 row is about 5 KB, which buries the message. :func:`echo` gives the ``repr`` of a value when it is
 short, else the first :data:`ECHO_LIMIT` characters and how long the whole is. :func:`warn_once`
-logs a warning once a process, for what a study's hundreds of fits would repeat. Imports nothing
-of the package, so every layer (maps, data, features) can use it.
+logs a warning once a process, for what a study's hundreds of fits would repeat.
+:func:`setting` names a setting a message tells the user to change, for both of its readers: a
+library caller and ``spcopyro fit``. Imports nothing of the package, so every layer (maps, data,
+features) can use it.
 """
 
 from __future__ import annotations
@@ -15,7 +17,8 @@ from collections.abc import Hashable, Iterator, Sized
 from contextlib import contextmanager
 
 __all__ = [
-    "ECHO_LIMIT", "echo", "fixed", "plural", "seconds_text", "warn_once", "warned_apart",
+    "ECHO_LIMIT", "echo", "fixed", "plural", "seconds_text", "setting", "warn_once",
+    "warned_apart",
 ]  # fmt: skip
 
 ECHO_LIMIT = 80
@@ -41,6 +44,16 @@ def echo(value: object, limit: int = ECHO_LIMIT) -> str:
         return text
     count = f"{len(value)} entries, " if isinstance(value, Sized) else ""
     return f"{text[:limit]}... ({count}{len(text)} characters)"
+
+
+def setting(python: str, flag: str, command: str = "fit") -> str:
+    """``"gamma=2 (fit's --gamma 2)"``: a setting as Python gives it (``python``: a field,
+    keyword or argument, with its value where the message suggests one), then as ``command``
+    does (``flag``). The model's, the fit's and the methods' warnings and errors reach a library
+    caller (``fit_house``, ``SpCoGibbs`` under ``pyro.infer.MCMC``, a guide under ``SVI``) as
+    they reach ``spcopyro fit``, so they name both, in this one form; a message only the
+    command line gives names its flag alone."""
+    return f"{python} ({command}'s {flag})"
 
 
 def plural(number: int, noun: str) -> str:

@@ -9,6 +9,7 @@ the fit samples (those about the Gibbs sampler are given to gibbs and vi-gibbs o
 
 from __future__ import annotations
 
+from spcopyro._util.messages import setting
 from spcopyro.config import SpCoConfig
 
 FREEZING_GAMMA = 10.0
@@ -33,8 +34,8 @@ def gamma_warning(config: SpCoConfig) -> str | None:
     return (
         f"gamma = {config.gamma:g} is below the Potts critical coupling ln(1 + sqrt(L)) = "
         f"{config.critical_gamma:.3f} for L = {config.num_concepts}: the MRF will not form "
-        "regions (labels stay in patches of a few cells); raise gamma or lower num_concepts "
-        "(fit's --gamma, --concepts)"
+        f"regions (labels stay in patches of a few cells); raise {setting('gamma', '--gamma')} "
+        f"or lower {setting('num_concepts', '--concepts')}"
     )
 
 
@@ -70,8 +71,9 @@ def config_warnings(config: SpCoConfig, sampled: bool = True) -> list[str]:
             "sampler freezes: a domain wall moves only at a cost of about exp(-gamma) per cell, "
             "so labels stay in the random start's patches (measured: gamma 12 to 30 kept 117 of "
             "120 concepts over 1000 sweeps; not the variational methods: cavi and lbp at 12 kept "
-            "21 and 9 on the synthetic house); lower --gamma (regions form just above the "
-            f"critical {critical})"  # no closed form for 8 neighbours: SpCoConfig.critical_gamma
+            f"21 and 9 on the synthetic house); lower {setting('gamma', '--gamma')}: regions "
+            f"form just above the critical {critical}"
+            # no closed form for 8 neighbours: SpCoConfig.critical_gamma
         )
     low, high = CONCENTRATION_RANGE
     concentrations = [("alpha", config.alpha), ("beta", config.beta), ("chi", config.chi)]

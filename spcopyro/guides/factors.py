@@ -29,7 +29,7 @@ from typing import Literal, NamedTuple
 import torch
 from torch.distributions import Beta, kl_divergence
 
-from spcopyro._util.messages import warn_once
+from spcopyro._util.messages import setting, warn_once
 from spcopyro.config import SpCoConfig
 from spcopyro.likelihood import ConceptStatistics
 from spcopyro.model import DTYPE, ModelData
@@ -70,7 +70,8 @@ def stick_breaking_warning(config: SpCoConfig) -> str | None:
         f"pi_family='stick-breaking' with alpha = {config.alpha:g} and L = "
         f"{config.num_concepts}: the truncated prior puts {_share(last, rest)} of pi's mass on "
         "the last concept (the sticks' remainder), which then takes every cell; this alpha is "
-        "the weak-limit Dirichlet's: give the stick-breaking one of order 1-10 (--alpha)"
+        f"the weak-limit Dirichlet's: give the stick-breaking one an "
+        f"{setting('alpha', '--alpha')} of order 1-10"
     )
 
 
