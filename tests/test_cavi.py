@@ -547,7 +547,7 @@ def test_a_q_that_ends_near_uniform_is_warned_about(caplog):
     assert annealed.startswith("CAVI's q(C) ended near uniform: mean entropy 4.787 nats a cell")
     assert "gamma 4 < L / D = 30" in annealed and "Try anneal_iterations=0" in annealed
     (soft,) = said(CAVIInference(), VariationalOptions(anneal_iterations=0, init="soft"))
-    assert "Try init=one-hot" in soft and "anneal_iterations=0" not in soft
+    assert "Try init='one-hot'" in soft and "anneal_iterations=0" not in soft
     (bp,) = said(LBPInference(), LBPOptions(anneal_iterations=20))
     assert bp.startswith("loopy BP's q(C) ended near uniform") and "mean field" not in bp
     assert said(CAVIInference(), VariationalOptions(anneal_iterations=0)) == []

@@ -53,16 +53,17 @@ def test_the_warning_of_cavi_loopy_bp_and_memoized_vi(caplog):
     q = torch.full((50, config.num_concepts), 1.0 / config.num_concepts)  # [N, L] uniform
     annealed = restart_way_out(20)
     assert said(caplog, q, config, "CAVI", annealed) == [
-        f"CAVI{HEAD}{BELOW}). Try anneal_iterations=0 (--method-option; it annealed from gamma 0 "
-        "over 20, inside that point's basin); or a fitted start (fit --init-from OUT, e.g. of a "
-        "Gibbs fit)"
+        f"CAVI{HEAD}{BELOW}). Try anneal_iterations=0 (fit's --method-option anneal_iterations=0): "
+        "it annealed from gamma 0 over 20, inside that point's basin; or a fitted start, e.g. of "
+        "a Gibbs fit: init=result (fit's --init-from OUT)"
     ]
     soft = restart_way_out(0, init="soft")
     assert said(caplog, q, config, "CAVI", soft) == [
-        f"CAVI{HEAD}{BELOW}). Try init=one-hot (Dir(1) rows start near uniform); or a fitted "
-        "start (fit --init-from OUT, e.g. of a Gibbs fit)"
+        f"CAVI{HEAD}{BELOW}). Try init='one-hot' (fit's --method-option init=one-hot): Dir(1) "
+        "rows start near uniform; or a fitted start, e.g. of a Gibbs fit: init=result (fit's "
+        "--init-from OUT)"
     ]
-    assert "init=one-hot" not in restart_way_out(0, init="soft", warm=True)
+    assert "init='one-hot'" not in restart_way_out(0, init="soft", warm=True)
     passes = restart_way_out(5, "anneal_passes")
     (memoized,) = said(caplog, q, config, "memoized VI", passes)
     assert memoized.startswith(f"memoized VI{HEAD}{BELOW}). Try anneal_passes=0 "), memoized
@@ -81,15 +82,15 @@ def test_the_warning_of_svi(caplog):
     assert said(caplog, q, config, "SVI", way_out, context=context) == [
         f"SVI{HEAD}{BELOW}; start: random labels, label_smoothing=0.9, annealed from gamma 0 "
         "over 100 steps; Adam's steps lead there from random labels too: docs/variational.md). "
-        "Start from a fitted map (fit --init-from OUT, or init_labels: smoothed by "
-        "label_smoothing=0.05 and not annealed, anneal_iterations=0, unless they are set) or use "
-        "--method cavi"
+        "Start from a fitted map, init=result (fit's --init-from OUT) or init_labels (smoothed by "
+        "label_smoothing=0.05 and not annealed, anneal_iterations=0, unless they are set), or use "
+        "method='cavi' (fit's --method cavi)"
     ]
     context, way_out = flat_q_advice(SVIOptions(label_smoothing=0.9), False, given_start=True)
     assert context.startswith("start: given labels, label_smoothing=0.9; Adam's"), context
     assert way_out == (
         "Keep the given start (label_smoothing=0.05, the default for given labels) or use "
-        "--method cavi"
+        "method='cavi' (fit's --method cavi)"
     )
     assert flat_q_advice(SVIOptions(), True, given_start=True)[0].startswith(
         "start: the resumed q;"

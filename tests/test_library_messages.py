@@ -43,3 +43,27 @@ def test_model_setting_warnings_of_a_library_fit_name_the_python_settings(caplog
     assert "--gamma" not in freezing.replace("(fit's --gamma)", "")
     sticks = stick_breaking_warning(SpCoConfig(alpha=1e7, num_concepts=20))
     assert "give the stick-breaking one an alpha (fit's --alpha) of order 1-10" in sticks
+
+
+def test_a_library_fits_flat_q_warning_names_the_options_and_init(caplog):
+    """fit_house(method="cavi") with VariationalOptions(anneal_iterations=20) was told "Try
+    anneal_iterations=0 (--method-option; ...); or a fitted start (fit --init-from OUT, ...)",
+    and SVI "use --method cavi": a library caller passes options=, init= and method=."""
+    from spcopyro.fit.house import fit_house
+    from spcopyro.guides.options import VariationalOptions
+    from spcopyro.guides.svi_method import SVIOptions, flat_q_advice
+    from spcopyro.synthetic import HouseSpec
+
+    small = make_house(seed=0, spec=HouseSpec.scaled(30, 40, num_rooms=2))
+    options = VariationalOptions(anneal_iterations=20)
+    fit = fit_house
+    said = logged(caplog, fit, small, preset("paper-dp"), method="cavi", sweeps=40,
+                  options=options, progress=False)  # fmt: skip
+    (flat,) = [m for m in said if "ended near uniform" in m]
+    assert (
+        "Try anneal_iterations=0 (fit's --method-option anneal_iterations=0): it annealed" in flat
+    )
+    assert flat.endswith("a fitted start, e.g. of a Gibbs fit: init=result (fit's --init-from OUT)")
+    way_out = flat_q_advice(SVIOptions(), resumed=False)[1]
+    assert way_out.startswith("Start from a fitted map, init=result (fit's --init-from OUT) or ")
+    assert way_out.endswith("or use method='cavi' (fit's --method cavi)")

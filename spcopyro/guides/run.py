@@ -18,6 +18,7 @@ import numpy as np
 import torch
 
 import spcopyro.guides.cavi as cavi
+from spcopyro._util.messages import setting
 from spcopyro.config import SpCoConfig
 from spcopyro.guides.cavi import one_hot
 from spcopyro.guides.factors import GlobalFactors
@@ -267,13 +268,15 @@ def restart_way_out(
     (``anneal`` iterations of option ``anneal_name``; memoized VI's ``anneal_passes``), one-hot
     start rows instead of Dir(1) ones (``init="soft"`` unless the start was ``warm``: given
     labels or a resumed q), or a fitted start."""
-    ways = []
+    ways = []  # each named as the options (or fit_house) take it, then as fit does
     if anneal:
-        ways.append(f"{anneal_name}=0 (--method-option; it annealed from gamma 0 over "
-                    f"{anneal}, inside that point's basin)")  # fmt: skip
+        off = f"{anneal_name}=0"
+        ways.append(f"{setting(off, f'--method-option {off}')}: it annealed from gamma 0 over "
+                    f"{anneal}, inside that point's basin")  # fmt: skip
     if init == "soft" and not warm:
-        ways.append("init=one-hot (Dir(1) rows start near uniform)")
-    ways.append("a fitted start (fit --init-from OUT, e.g. of a Gibbs fit)")
+        one_hot = setting("init='one-hot'", "--method-option init=one-hot")
+        ways.append(f"{one_hot}: Dir(1) rows start near uniform")
+    ways.append(f"a fitted start, e.g. of a Gibbs fit: {setting('init=result', '--init-from OUT')}")
     return "Try " + "; or ".join(ways)
 
 

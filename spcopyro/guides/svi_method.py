@@ -27,6 +27,7 @@ import pyro
 import pyro.optim
 import torch
 
+from spcopyro._util.messages import setting
 from spcopyro.config import SpCoConfig
 from spcopyro.guides.cavi_method import output_from_variational
 from spcopyro.guides.loss import MeanFieldELBO
@@ -345,13 +346,15 @@ def flat_q_advice(options: SVIOptions, resumed: bool, given_start: bool = False)
     if options.anneal_iterations:
         keep.append("anneal_iterations=0, the default for given labels: annealed from gamma 0 "
                     "a given start falls there too")  # fmt: skip
+    cavi = setting("method='cavi'", "--method cavi")
     if given_start and not resumed:
-        way_out = (f"Keep the given start ({'; '.join(keep)}) or use --method cavi" if keep
-                   else "Use --method cavi")  # fmt: skip
+        way_out = (f"Keep the given start ({'; '.join(keep)}) or use {cavi}" if keep
+                   else f"Use {cavi}")  # fmt: skip
     else:
-        way_out = ("Start from a fitted map (fit --init-from OUT, or init_labels: smoothed by "
-                   f"label_smoothing={GIVEN_START_SMOOTHING:g} and not annealed, "
-                   "anneal_iterations=0, unless they are set) or use --method cavi")  # fmt: skip
+        way_out = (f"Start from a fitted map, {setting('init=result', '--init-from OUT')} or "
+                   f"init_labels (smoothed by label_smoothing={GIVEN_START_SMOOTHING:g} and not "
+                   "annealed, anneal_iterations=0, unless they are set), or use "
+                   f"{cavi}")  # fmt: skip
     context = (f"start: {start}; Adam's steps lead there from random labels too: "
                "docs/variational.md")  # fmt: skip
     return context, way_out
