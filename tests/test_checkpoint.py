@@ -182,7 +182,8 @@ def test_a_checkpoint_refuses_other_data_settings_and_backend(tmp_path):
     with pytest.raises(ValueError, match="sweeps: 10 in the checkpoint, 20 here"):
         load_chain(path, data, cfg, torch_options, record={"sweeps": 20})
     pytest.importorskip("numba")
-    with pytest.raises(ValueError, match="'torch' ran the checkpoint's chains.*--backend torch"):
+    said = r"'torch' ran the checkpoint's chains.*pass backend='torch' \(fit's --backend torch\)"
+    with pytest.raises(ValueError, match=said):
         load_chain(path, data, cfg, GibbsOptions(backend="numba"))
     assert data_fingerprint(data) == data_fingerprint(random_problem(seed=7)[1])
 

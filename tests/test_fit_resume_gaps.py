@@ -98,12 +98,13 @@ def test_a_checkpoint_resumed_with_another_method_names_the_method(
     assert "interrupted 'cavi' fit" in capsys.readouterr().err
     assert main([*cavi_argv[:3], out, *cavi_argv[4:], "--resume", str(gibbs_checkpoint)]) == 2
     assert "interrupted 'gibbs' fit, which this method cannot continue: resume it with " \
-        "--method gibbs" in capsys.readouterr().err  # fmt: skip
+        "method='gibbs' (fit's --method gibbs)" in capsys.readouterr().err  # fmt: skip
     lbp = [*cavi_argv[:3], out, *FIT, "--method", "lbp", "--resume", str(cavi_checkpoint)]
     assert main(lbp) == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert err.endswith(
-        "method: 'cavi' in the checkpoint, 'lbp' here: resume it with --method cavi"
+        "method: 'cavi' in the checkpoint, 'lbp' here: resume it with method='cavi' (fit's "
+        "--method cavi)"
     )
 
 

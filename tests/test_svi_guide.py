@@ -540,7 +540,10 @@ def test_a_checkpoint_for_another_fit_names_the_options_that_differ(small, tmp_p
     assert refused.value.options == ("anneal_iterations", "window")
     with pytest.raises(CheckpointMismatchError) as refused:
         load_variational(path, data, config, method="cavi", options=None)
-    assert refused.value.options == () and "resume it with --method svi" in str(refused.value)
+    assert (
+        refused.value.options == ()
+        and "resume it with method='svi' (fit's --method svi)" in str(refused.value)
+    )
     old = save_variational(tmp_path / "old.npz", q, record, method="svi",
                            options=SVIOptions(label_smoothing=0.9, anneal_iterations=100),
                            config=config, data=data, record=saving(10)._record())  # fmt: skip
@@ -550,5 +553,5 @@ def test_a_checkpoint_for_another_fit_names_the_options_that_differ(small, tmp_p
     assert str(refused.value).endswith(
         "anneal_iterations: 100 in the checkpoint, 0 here (anneal_iterations unset: the start's "
         "default, 'here' above, which changed on 2026-12-05; to resume, set the checkpoint's "
-        "value with --method-option)"
+        "value in options= (fit's --method-option NAME=VALUE))"
     )

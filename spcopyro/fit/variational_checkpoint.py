@@ -89,5 +89,6 @@ class VariationalSaving:
             raise CheckpointMismatchError(  # e.g. svi's anneal_iterations: 100 for every start
                 error.path, error.problems, error.options,
                 note=f"{', '.join(unset)} unset: the start's default, 'here' above, which changed "
-                "on 2026-12-05; to resume, set the checkpoint's value with --method-option",
+                "on 2026-12-05; to resume, set the checkpoint's value in options= (fit's "
+                "--method-option NAME=VALUE)",
             ) from None  # fmt: skip

@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from spcopyro._util.messages import setting
 from spcopyro._util.outputs import DAMAGED_FILE_ERRORS, read_npz, replace_file
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.backends import get_backend
@@ -208,7 +209,8 @@ def checkpoint_record(
         if made_by is not None:  # the other kind of spcopyro checkpoint: name its method
             raise ValueError(
                 f"{path}: the checkpoint of an interrupted {made_by!r} fit, which this method "
-                f"cannot continue: resume it with --method {made_by}"
+                "cannot continue: resume it with "
+                + setting(f"method={made_by!r}", f"--method {made_by}")
             )
         raise ValueError(f"{path}: not a {kind} (no {form} record)")
     if record.get("version") != version:
@@ -269,10 +271,11 @@ def load_chains(
         )
         backend = get_backend(options.backend)
         if saved["backend_used"] != backend.name:
+            used = saved["backend_used"]
             problems.append(
                 f"backend: {saved['backend_used']!r} ran the checkpoint's chains, {backend.name!r} "
-                f"would continue them (the backends draw different random streams: pass "
-                f"--backend {saved['backend_used']})"
+                "would continue them (the backends draw different random streams: pass "
+                f"{setting(f'backend={used!r}', f'--backend {used}')})"
             )
         if record is not None:
             problems += differences(saved["caller"], record)  # type: ignore[arg-type]

@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from spcopyro._util.messages import setting
 from spcopyro._util.outputs import DAMAGED_FILE_ERRORS, replace_file
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.checkpoint import (
@@ -209,7 +210,7 @@ def load_variational(
         if saved["method"] != method:  # its options and record are another method's too
             raise CheckpointMismatchError(path, [
                 f"method: {saved['method']!r} in the checkpoint, {method!r} here: resume it with "
-                f"--method {saved['method']}"
+                + setting(f"method={saved['method']!r}", f"--method {saved['method']}")
             ])  # fmt: skip
         problems = data_differences(saved["data_sha256"], data)
         problems += differences(saved["model"], here["model"])
