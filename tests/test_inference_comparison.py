@@ -690,6 +690,7 @@ def test_a_one_concept_map_of_a_comparison_cell_is_warned_of(dataset_root, monke
     check ``fit_house`` runs. The cell's fit here is CAVI for 2 iterations, its map replaced by
     one concept."""
     from spcopyro.study.cell_warnings import read_warnings
+    from spcopyro.study.comparison_cell import ADVICE
     from spcopyro.study.evaluate import WARNINGS, run_cell
 
     fit = comparison.fit_and_score_with_result
@@ -707,3 +708,6 @@ def test_a_one_concept_map_of_a_comparison_cell_is_warned_of(dataset_root, monke
     assert record["status"] == "ok", record["error"]
     said = read_warnings(record[WARNINGS])
     assert any("holds 100" in message for message in said), said
+    # its advice fits the comparison: compare-inference takes no --method or --merge-moves
+    (collapsed,) = [message for message in said if "holds 100" in message]
+    assert collapsed.endswith(ADVICE) and "--merge-moves" not in collapsed, collapsed

@@ -53,6 +53,8 @@ __all__ = [
     "PATCHES_SHARE",
     "degenerate_map_warning",
     "house_map_warning",
+    "is_degenerate_map_warning",
+    "WARNING_START",
 ]
 
 DEGENERATE_SHARE = 0.6
@@ -82,6 +84,14 @@ concept are small patches, not the rooms those words name. Measured: 2-18% on CA
 (largest concept over 57%); 52-81% on the good maps (the named rooms beside the largest)."""
 NAMED_WORDS = 8
 """The warning names at most this many words, most heard first."""
+WARNING_START = "one concept ("
+"""How :func:`degenerate_map_warning`'s message begins, either form (a report that counts the
+collapsed maps among a study's warnings reads it: :func:`is_degenerate_map_warning`)."""
+
+
+def is_degenerate_map_warning(message: str) -> bool:
+    """Whether a logged ``message`` is :func:`degenerate_map_warning`'s."""
+    return message.lstrip().startswith(WARNING_START)
 
 
 def degenerate_map_warning(
@@ -90,6 +100,7 @@ def degenerate_map_warning(
     utterance_xy: np.ndarray,
     utterances: Sequence[Sequence[str]],
     sampled: bool = True,
+    advice: str | None = None,
 ) -> str | None:
     """A warning when the map is degenerate (see the module docstring), else None.
 
@@ -102,6 +113,8 @@ def degenerate_map_warning(
         sampled: the fit ran the Gibbs sampler (``gibbs``, ``vi-gibbs``), whose split-merge
             moves (``--merge-moves``) it names; else it names ``--method gibbs`` with them
             (``fit`` refuses ``--merge-moves`` with a variational method).
+        advice: the message's closing parenthesis in place of ``fit``'s options (a comparison
+            cell's, whose command takes none of them).
 
     The message names the concept, its share of the free cells and the words heard inside it
     (most heard first, at most :data:`NAMED_WORDS`, with their counts); or, where the words lie
@@ -130,14 +143,15 @@ def degenerate_map_warning(
     inside = np.flatnonzero(placed & (said == concept))  # [U_c]
     heard = _words_heard(inside, utterances)
     moves = "--merge-moves 0.2" if sampled else "--method gibbs --merge-moves 0.2"
-    advice = (
-        f"(try a lower --gamma, {moves} so that regions can split, or the default --preset "
-        f"{DEFAULT_PRESET} if the fit used another)"
-    )
+    if advice is None:
+        advice = (
+            f"(try a lower --gamma, {moves} so that regions can split, or the default --preset "
+            f"{DEFAULT_PRESET} if the fit used another)"
+        )
     apart = _apart(heard, xy)
     if share > DEGENERATE_SHARE and apart >= DEGENERATE_SEPARATION:
         return (
-            f"one concept ({concept}) holds {share:.0%} of the free cells while words said at "
+            f"{WARNING_START}{concept}) holds {share:.0%} of the free cells while words said at "
             f"different places (up to {apart:.1f} m apart) lie inside it: {_named(heard)}; "
             f"the map does not separate the places these words name {advice}"
         )
@@ -165,7 +179,7 @@ def degenerate_map_warning(
     named = _named(elsewhere, patch_sizes)
     held = f": {_named(heard)}" if heard else ""
     return (
-        f"one concept ({concept}) holds {share:.0%} of the free cells and {len(inside)} of the "
+        f"{WARNING_START}{concept}) holds {share:.0%} of the free cells and {len(inside)} of the "
         f"{placed.sum()} placed utterances{held}, while words said at different places (up to "
         f"{apart:.1f} m apart) lie outside it in small concepts, together {patch_share:.1%} of "
         f"the free cells: {named}; the map gives these words patches around where they were "
@@ -205,11 +219,15 @@ def _named(heard: dict[str, list[int]], detail: Callable[[list[int]], str] | Non
 
 
 def house_map_warning(
-    labels: np.ndarray, house: House, snap_distance: float, sampled: bool = True
+    labels: np.ndarray,
+    house: House,
+    snap_distance: float,
+    sampled: bool = True,
+    advice: str | None = None,
 ) -> str | None:
     """:func:`degenerate_map_warning` of ``labels`` ``[N]`` on ``house``'s map, its utterances
     placed on free cells as the fit places them (:func:`~spcopyro.data.place_observations`
-    with the fit's ``snap_distance``, metres); ``sampled``: as there."""
+    with the fit's ``snap_distance``, metres); ``sampled``, ``advice``: as there."""
     from spcopyro.data import place_observations
 
     observations = house.observations
@@ -217,7 +235,7 @@ def house_map_warning(
         return None
     cells, _, _ = place_observations(house.grid, observations.word_xy, snap_distance)
     return degenerate_map_warning(
-        labels, cells, observations.word_xy, observations.utterances, sampled
+        labels, cells, observations.word_xy, observations.utterances, sampled, advice
     )
 
 

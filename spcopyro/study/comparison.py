@@ -37,8 +37,11 @@ from spcopyro.experiments.inference_comparison import (
     budget,
 )
 from spcopyro.experiments.table import failed_cells, heldout_folds, report_nothing
+from spcopyro.results.map_checks import is_degenerate_map_warning
 from spcopyro.study.ablation import spec_options
+from spcopyro.study.cell_warnings import read_warnings
 from spcopyro.study.comparison_cell import COMPARISON
+from spcopyro.study.evaluate import WARNINGS
 from spcopyro.study.maps import remove_stale
 from spcopyro.study.report import with_warnings
 from spcopyro.study.run import run_study
@@ -46,7 +49,7 @@ from spcopyro.study.spec import DataSource, Study
 from spcopyro.study.table import TABLE, read_table
 from spcopyro.synthetic import HouseSpec
 
-__all__ = ["comparison_study", "records_of_rows", "run_comparison"]
+__all__ = ["comparison_study", "one_concept_maps", "records_of_rows", "run_comparison"]
 
 
 def _folds(root: Path, house: str, folds: int | None) -> int:
@@ -101,6 +104,21 @@ def records_of_rows(rows: Sequence[dict[str, object]]) -> dict[str, dict[str, li
     return records
 
 
+def one_concept_maps(rows: Sequence[dict[str, object]]) -> dict[str, dict[str, int]]:
+    """house type -> line -> its finished cells whose map was warned of as one concept
+    (:func:`~spcopyro.results.map_checks.is_degenerate_map_warning`), for comparison.md's
+    summary: the warnings' section lists each message, not which lines collapsed."""
+    collapsed: dict[str, dict[str, int]] = {}
+    for row in rows:
+        if row.get("status") != "ok" or not any(map(is_degenerate_map_warning,
+                                                    read_warnings(row.get(WARNINGS)))):  # fmt: skip
+            continue
+        house_type = SYNTHETIC if row["data_kind"] == "synthetic" else PUBLIC
+        by_line = collapsed.setdefault(house_type, {})
+        by_line[str(row["variant"])] = by_line.get(str(row["variant"]), 0) + 1
+    return collapsed
+
+
 def run_comparison(
     out: str | os.PathLike[str],
     settings: ComparisonSettings,
@@ -136,6 +154,8 @@ def run_comparison(
     summary = summarise(records, settings, notes, run.seconds, run.cached)
     summary["workers"] = workers
     summary["load_average_at_end"] = list(os.getloadavg())
+    summary["cpus"] = os.cpu_count()  # the load reads against it
+    summary["one_concept_maps"] = one_concept_maps(rows)
     figures = [p for p in write_report(out, summary) if p.suffix == ".png"]
     markdown = out / "comparison.md"  # the cells' warnings, listed as report.md lists them
     markdown.write_text(with_warnings(markdown.read_text(), rows))

@@ -20,8 +20,10 @@ over-confidence, top words) as JSON text in ``details``, from which
 fit's final state on the map's cells (refined from the model's grid), with the map and the
 truth it was scored against (:func:`spcopyro.study.maps.label_map_arrays`), stored as every
 cell's is (``maps/KEY.npz``) so reports draw it. A degenerate final map (one concept over most
-of the house) is warned of as ``fit_house`` warns (:func:`spcopyro.fit.house.log_degenerate_map`),
-kept in the cell's record with its other warnings. Threads: as the
+of the house) is warned of as ``fit_house`` warns
+(:func:`spcopyro.results.map_checks.house_map_warning`), kept in the cell's record with its
+other warnings; its advice is the comparison's (:data:`ADVICE`), not ``fit``'s options, which
+``compare-inference`` does not take. Threads: as the
 comparison, the method runs with :func:`spcopyro._util.threads.policy_threads` of the map.
 """
 
@@ -29,6 +31,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 from pathlib import Path
 
 from spcopyro.data import House, load_house
@@ -36,7 +39,7 @@ from spcopyro.data.model_grid import model_house
 from spcopyro.experiments import inference_comparison as comparison
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds, json_default
-from spcopyro.fit.house import log_degenerate_map
+from spcopyro.results.map_checks import house_map_warning
 from spcopyro.study.cells import Cell
 from spcopyro.study.maps import Arrays, label_map_arrays, labels_on_map
 from spcopyro.synthetic import make_house
@@ -45,6 +48,13 @@ __all__ = ["COMPARISON", "comparison_outcome", "comparison_variant", "problem_of
 
 COMPARISON = "comparison"
 """The ``scoring`` of a study whose cells are scored as ``compare-inference`` scores a fit."""
+
+ADVICE = (
+    "(in a comparison, the method's map at these settings and budget, kept as it is: a lower "
+    "--gamma of compare-inference may let its regions split)"
+)
+"""The closing advice of a comparison cell's degenerate-map warning: ``fit``'s (``--method gibbs
+--merge-moves 0.2``, ``--preset``) named options ``compare-inference`` refuses."""
 
 FINAL_SCORES = ("ari", "matching_rate", "top1", "top3", "mean_rank", "distance_m")
 
@@ -103,8 +113,12 @@ def comparison_outcome(cell: Cell) -> tuple[dict[str, object], Arrays]:
     comparison.warm_up(variant, problem)
     record, result = comparison.fit_and_score_with_result(variant, problem, cell.sweeps)
     # a one-concept map warns as fit_house's does (the study keeps it in the cell's record):
-    # comparison.md listed the flat-q warnings but not the collapse of most public maps
-    log_degenerate_map(result, problem.house)
+    # comparison.md listed the flat-q warnings but not the collapse of most public maps. Its
+    # advice is the comparison's: fit's "--method gibbs --merge-moves 0.2" is no option here
+    snap = result.preparation.snap_distance
+    warning = house_map_warning(result.labels, problem.house, snap, advice=ADVICE)
+    if warning:
+        logging.getLogger("spcopyro").warning(warning)
     final = record["final"]
     scores: dict[str, object] = {s: final[s] for s in FINAL_SCORES if s in final}  # type: ignore[index]
     scores.update(
