@@ -144,13 +144,19 @@ def test_a_variational_fits_one_concept_warning_names_a_way_its_method_takes(cap
     """A one-concept CAVI map was told to try "--merge-moves 0.2", which fit refuses with
     --method cavi (an option of the Gibbs sampler); it names --method gibbs with it."""
     sampled = degenerate_map_warning(np.full(10, 3), *_kitchen_and_bedroom(3.0))
-    assert "(try a lower --gamma, --merge-moves 0.2 so that regions can split" in sampled
+    assert ("(try a lower gamma (fit's --gamma), GibbsOptions(merge_moves=0.2) (fit's "
+            "--merge-moves 0.2) so that regions can split") in sampled  # fmt: skip
     house = make_house(seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3, num_trials=1))
     settings = preset("original-code", num_concepts=1, gamma=3.0)
     with caplog.at_level(logging.WARNING, logger="spcopyro"):
         fit_house(house, settings, method="cavi", sweeps=2, progress=False)
     [warning] = [r.getMessage() for r in caplog.records if "one concept" in r.getMessage()]
-    assert "(try a lower --gamma, --method gibbs --merge-moves 0.2 so that regions" in warning
+    assert (
+        "(try a lower gamma (fit's --gamma), method='gibbs' with GibbsOptions("
+        "merge_moves=0.2) (fit's --method gibbs --merge-moves 0.2) so that regions"
+    ) in warning
+    # a library caller is named the Python settings, spcopyro fit's user the flags (both)
+    assert "or the default preset 'coarse' (fit's --preset coarse) if the fit" in warning
 
 
 def _one_concept_and_patches(patch: int) -> tuple[np.ndarray, tuple]:

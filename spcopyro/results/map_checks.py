@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from spcopyro._util.messages import setting
 from spcopyro.config import DEFAULT_PRESET
 
 if TYPE_CHECKING:
@@ -142,11 +143,14 @@ def degenerate_map_warning(
     said = labels[np.maximum(cells, 0)]  # [U] the concept of each (read where placed)
     inside = np.flatnonzero(placed & (said == concept))  # [U_c]
     heard = _words_heard(inside, utterances)
-    moves = "--merge-moves 0.2" if sampled else "--method gibbs --merge-moves 0.2"
-    if advice is None:
+    if advice is None:  # to a library caller (fit_house) as to spcopyro fit: both names
+        moves = (setting("GibbsOptions(merge_moves=0.2)", "--merge-moves 0.2") if sampled
+                 else setting("method='gibbs' with GibbsOptions(merge_moves=0.2)",
+                              "--method gibbs --merge-moves 0.2"))  # fmt: skip
         advice = (
-            f"(try a lower --gamma, {moves} so that regions can split, or the default --preset "
-            f"{DEFAULT_PRESET} if the fit used another)"
+            f"(try a lower {setting('gamma', '--gamma')}, {moves} so that regions can split, "
+            f"or the default {setting(f'preset {DEFAULT_PRESET!r}', f'--preset {DEFAULT_PRESET}')}"
+            " if the fit used another)"
         )
     apart = _apart(heard, xy)
     if share > DEGENERATE_SHARE and apart >= DEGENERATE_SEPARATION:
