@@ -50,7 +50,8 @@ def test_a_speck_barely_ahead_of_the_runner_up_is_flagged():
     odds, evidence, speck = warnings
     assert "barely more probable than concept 0" in odds and "odds 1.17" in odds
     assert "factor of 2.00" in evidence and "(pi)" in evidence
-    assert "1 cell (0.01 m^2" in speck and "speck" in speck and "--prior area" in speck
+    assert "1 cell (0.01 m^2" in speck and "speck" in speck
+    assert "prior='area' (where's --prior area)" in speck  # SpCoResult.where's and the CLI's
 
 
 def test_each_warning_fires_on_its_own_at_its_bound():

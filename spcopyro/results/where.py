@@ -62,7 +62,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from spcopyro._util.messages import plural
+from spcopyro._util.messages import plural, setting
 
 __all__ = [
     "DEFAULT_WHERE_PRIOR",
@@ -295,8 +295,9 @@ def answer_warnings(
         )
     cells = int(sizes[concept])
     if cells < SMALL_REGION_FRACTION * num_free:
+        area = setting("prior='area'", "--prior area", "where")  # a library caller's and where's
         hint = (
-            " (eq. 19 with pi weighs a speck like a room; --prior area weighs concepts by their "
+            f" (eq. 19 with pi weighs a speck like a room; {area} weighs concepts by their "
             "share of the map)"
             if prior_name == "pi"
             else ""
