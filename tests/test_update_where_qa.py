@@ -203,3 +203,25 @@ def test_where_of_a_phrase_asks_for_one_word():
     with pytest.raises(UnknownWordError, match=r"kitchen, sink are known"):
         word_index(vocabulary, "Kitchen sink")
     assert word_index(vocabulary, " Sink? ") == 1
+
+
+def test_an_update_of_an_update_records_the_history_and_notes_unchanged_data(first, capsys):
+    """Updated twice: config.json's update_of nests the saved fit's own update_of, back to the
+    first fit; an update on the very data the saved fit was fitted on says nothing was added."""
+    import json
+
+    once, twice = first / "once", first / "twice"
+    capsys.readouterr()
+    assert main(["fit", str(first / "all" / "synthetic"), "--update", str(first / "first"),
+                 "--out", str(once), "--sweeps", "5", *FLAGS]) == 0  # fmt: skip
+    assert "no observation was added" not in capsys.readouterr().out  # trial 2 was added
+    assert main(["fit", str(first / "all" / "synthetic"), "--update", str(once),
+                 "--out", str(twice), "--sweeps", "5", *FLAGS]) == 0  # fmt: skip
+    out = capsys.readouterr().out
+    assert (f"note: this data is the data the fit in {once} was fitted on (the same sha256 of "
+            "the model data): no observation was added") in out  # fmt: skip
+    record = json.loads((twice / "config.json").read_text())["inference"]["update_of"]
+    assert record["fit"] == str(once) and record["new_words"] == []
+    earlier = record["update_of"]  # the first update's own record
+    assert earlier["fit"] == str(first / "first") and earlier["iterations"] == 40
+    assert earlier["new_words"] == ["kitchen", "sofa"] and "update_of" not in earlier

@@ -329,7 +329,9 @@ def _fit(
             marginal_samples=args.marginal_samples, point_estimate=args.point_estimate,
             where=args.update,
         )  # fmt: skip
-        report_update(chain_results[0].inference["update_of"], args.update)
+        this_data = chain_results[0].provenance.get("source", {})  # to tell unchanged data
+        this_sha = this_data.get("data_sha256") if isinstance(this_data, dict) else None
+        report_update(chain_results[0].inference["update_of"], args.update, this_sha)
         kept = best_chain(chain_results)
         result = chain_results[kept]
     else:

@@ -277,13 +277,18 @@ def update_settings(
     return refined_settings(settings, int(record["coarse"]["free_cells"]), map_cells)
 
 
-def report_update(record: dict[str, object], where: str) -> None:
+def report_update(record: dict[str, object], where: str, data_sha256: object = None) -> None:
     """Print what ``--update`` changed in the vocabulary (``record``: ``inference.update_of``),
-    and warn (stderr) when saved words are missing from DATA: an update fits DATA alone, so a
-    folder holding only the new trial drops the old trials' observations (their words, without
-    counts, are the visible sign; robot.md)."""
+    note when this run's model data (``data_sha256``, this fit's ``source``) is the saved
+    fit's, nothing added, and warn (stderr) when saved words are missing from DATA: an update
+    fits DATA alone, so a folder holding only the new trial drops the old trials' observations
+    (their words, without counts, are the visible sign; robot.md)."""
     new, unheard = list(record["new_words"]), list(record["unheard_words"])
     print(f"new words        {len(new)}: {', '.join(new[:20]) or '-'}")
+    if data_sha256 is not None and data_sha256 == record.get("data_sha256"):
+        print(f"note: this data is the data the fit in {where} was fitted on (the same sha256 "
+              "of the model data): no observation was added, the update only ran more "
+              "iterations on it; add the new trial's files to DATA first")  # fmt: skip
     if unheard:
         more = f", ... ({len(unheard) - 20} more)" if len(unheard) > 20 else ""
         print(f"warning: {len(unheard)} word(s) of the fit in {where} are not in this run's "

@@ -351,9 +351,11 @@ def start_update_chain(
 
 
 def update_record(saved: SpCoResult, merge: VocabularyMerge, where: str) -> dict[str, object]:
-    """What ``config.json`` records of the fit an update continued (``inference.update_of``)."""
+    """What ``config.json`` records of the fit an update continued (``inference.update_of``);
+    where that fit was itself an update, its own record nested as ``update_of``, so the
+    history goes back to the first fit."""
     source = saved.provenance.get("source", {})
-    return {
+    record: dict[str, object] = {
         "fit": where,
         "method": saved.method,
         "iterations": len(saved.trace.objective),
@@ -362,6 +364,9 @@ def update_record(saved: SpCoResult, merge: VocabularyMerge, where: str) -> dict
         "new_words": list(merge.new_words),
         "unheard_words": list(merge.unheard_words),
     }
+    if isinstance(earlier := saved.inference.get("update_of"), dict):
+        record["update_of"] = earlier  # the saved fit's own update: the earlier history
+    return record
 
 
 def fit_update(
