@@ -6,8 +6,9 @@
   (image-feature scaling, word weighting, snapping of positions to free cells).
 
 Inference options are per method and live beside the method (the Gibbs sampler's in
-:class:`spcopyro.gibbs.options.GibbsOptions`). This module imports nothing from the package, so
-``import spcopyro.model`` stays light (no OpenCV, no yaml).
+:class:`spcopyro.gibbs.options.GibbsOptions`). This module imports nothing from the package but
+its message plumbing (``spcopyro._util.messages``), so ``import spcopyro.model`` stays light
+(no OpenCV, no yaml).
 
 Presets (:func:`preset`) give both layers at once, as :class:`SpCoSettings`:
 
@@ -59,6 +60,8 @@ import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Literal
+
+from spcopyro._util.messages import setting
 
 FeatureScaling = Literal["probability", "floor100"] | float
 """How image histograms become counts: as they are, floor(100 f) (the released code), or s * f."""
@@ -237,10 +240,10 @@ class SpCoConfig:
         for name, value in self.concentrations:
             if name == modality:
                 return value
+        given = setting(f"SpCoConfig(concentrations={{{modality!r}: VALUE}})",
+                        f"--concentration {modality}=VALUE")  # fmt: skip
         raise ValueError(
-            f"no Dirichlet concentration for the further modality {modality!r}: set "
-            f"SpCoConfig.concentrations={{{modality!r}: ...}} (spcopyro fit: --concentration "
-            f"{modality}=VALUE)"
+            f"no Dirichlet concentration for the further modality {modality!r}: set {given}"
         )
 
     def uses(self, modality: str) -> bool:

@@ -63,6 +63,11 @@ def test_the_placement_summary_counts_images_floor100_leaves_with_nothing(tmp_pa
     assert len(warned) == 1
     assert "3 of 4 image(s)" in warned[0]
     assert f"lines 1, 2, 3 of {tmp_path / 'Ft.csv'}" in warned[0]
+    assert (  # what a library caller sets, then fit's flag (messages.setting)
+        "needs feature_scaling='probability' (fit's --feature-scaling probability) or a number; "
+        "the refinement of preset coarse counts images so too: refine='never' (fit's --refine "
+        "never)"
+    ) in warned[0]
 
 
 def test_the_count_of_images_left_with_nothing_survives_a_footprint():

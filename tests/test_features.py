@@ -237,10 +237,17 @@ def test_missing_imagenet_weights_say_how_to_get_them(tmp_path):
     with pytest.raises(WeightsNotFoundError) as info:
         load_alexnet("imagenet")  # would download without the check (here: AssertionError)
     message = str(info.value)
-    assert str(expected) in message and "--weights PATH" in message and "TORCH_HOME" in message
+    assert str(expected) in message and "TORCH_HOME" in message
+    # what a library caller passes, then features' flag (messages.setting)
+    assert "(or pass download=True (features's --download))" in message
+    assert "checkpoint with weights=PATH (features's --weights PATH);" in message
+    assert "or weights='random' (features's --weights random) (features then" in message
     assert isinstance(info.value, FileNotFoundError)
-    with pytest.raises(WeightsNotFoundError, match="nope.pth: backbone weights file not found"):
+    with pytest.raises(
+        WeightsNotFoundError, match="nope.pth: backbone weights file not found"
+    ) as info:
         PlaceClassifier.load(tmp_path / "nope.pth")
+    assert "(weights (features's --weights) takes 'imagenet', 'random' or" in str(info.value)
 
 
 def test_checkpoint_round_trip_through_file_and_torchvision_cache(checkpoint, tmp_path):
@@ -485,8 +492,9 @@ def test_write_features_csv_full_precision_and_no_overwrite(tmp_path):
     assert np.array_equal(
         np.array([[float(x) for x in line.split(",")] for line in lines]), features
     )
-    with pytest.raises(FileExistsError, match="Ft.csv already exists"):
+    with pytest.raises(FileExistsError, match="Ft.csv already exists") as info:
         write_features_csv(out, features)
+    assert "pass overwrite=True (features's --overwrite) to replace it" in str(info.value)
     with pytest.raises(ValueError, match=r"feature \[0, 1\] is not finite or negative"):
         write_features_csv(tmp_path / "bad.csv", np.array([[0.5, -0.1]]), overwrite=True)
 
@@ -563,10 +571,25 @@ def test_cli_features_and_features_head(checkpoint, images_dir, tmp_path, capsys
     assert f"wrote {out}: 5 rows x 2 columns" in capsys.readouterr().out
     rows = [line.split(",") for line in out.read_text().splitlines()]
     assert len(rows) == 5 and {len(r) for r in rows} == {2}
-    with pytest.raises(FileExistsError, match="Ft.csv already exists"):
+    with pytest.raises(
+        FileExistsError,
+        match=r"Ft.csv already exists; pass overwrite=True \(features's --overwrite\)",
+    ):
         run("features", images_dir, "--out", out, "--weights", checkpoint[0])
-    with pytest.raises(WeightsNotFoundError, match=CACHE_NAME):
+    with pytest.raises(WeightsNotFoundError, match=CACHE_NAME) as info:
         run("features", images_dir, "--out", tmp_path / "other.csv")
+    assert "download=True (features's --download)" in str(info.value)
+    # features-head's refusals name its own flags, not features'
+    with pytest.raises(
+        FileExistsError,
+        match=r"head.pt already exists; pass overwrite=True \(features-head's --overwrite\)",
+    ):
+        run("features-head", labels, "--out", head, "--weights", "random")
+    with pytest.raises(WeightsNotFoundError, match=CACHE_NAME) as info:
+        run("features-head", labels, "--out", tmp_path / "h3.pt")
+    assert "download=True (features-head's --download)" in str(info.value)
+    assert "weights=PATH (features-head's --weights PATH)" in str(info.value)
+    assert "features's" not in str(info.value)
     bad = tmp_path / "bad_labels.csv"
     bad.write_text("images/00000.jpg,kitchen\nimages/00001.png\n")
     with pytest.raises(ValueError, match="bad_labels.csv, line 2: expected IMAGE,PLACE"):

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 import types
 
 import numpy as np
@@ -70,7 +71,8 @@ def test_the_model_has_a_site_per_modality():
     trace = poutine.trace(spcomapping_model).get_trace(data, objects_config())
     assert trace.nodes["objects_probs"]["value"].shape == (3, len(ITEMS))  # [L, K_3]
     assert trace.nodes[OBJECTS]["is_observed"]
-    with pytest.raises(ValueError, match="--concentration objects=VALUE"):
+    given = "SpCoConfig(concentrations={'objects': VALUE}) (fit's --concentration objects=VALUE)"
+    with pytest.raises(ValueError, match=re.escape(f"modality 'objects': set {given}")):
         poutine.trace(spcomapping_model).get_trace(data, config())
 
 

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from spcopyro._util.messages import setting
 from spcopyro.config import IMAGES, WORDS, DataPreparation, FeatureScaling, FootprintKernel
 from spcopyro.data.footprint import (
     SpreadSources,
@@ -123,13 +124,14 @@ def _warn_scaled_away(
         ", ..." if lost.size > 5 else ""
     )
     where = f"lines {listed} of {Path(source) / 'Ft.csv'}" if source else f"images {listed}"
+    probability = setting("feature_scaling='probability'", "--feature-scaling probability")
+    never = setting("refine='never'", "--refine never")
     logger.warning(
         "%d of %d image(s) carry no information under feature_scaling=%r, left out of the "
         "counts: every feature of their row is below 0.01, which floor(100 f) makes 0 (%s); a "
         "histogram over many classes (the 1000 ImageNet classes of spcopyro features) needs "
-        "feature_scaling 'probability' or a number (fit --feature-scaling; the refinement of "
-        "preset coarse counts images so too: --refine never)",
-        lost.size, raw.shape[0], scaling, where,
+        "%s or a number; the refinement of preset coarse counts images so too: %s",
+        lost.size, raw.shape[0], scaling, where, probability, never,
     )  # fmt: skip
 
 

@@ -37,7 +37,7 @@ import torch
 from torch import nn
 from torchvision.models import AlexNet, AlexNet_Weights, alexnet
 
-from spcopyro._util.messages import ECHO_LIMIT
+from spcopyro._util.messages import ECHO_LIMIT, setting
 from spcopyro._util.progress import progress_enabled
 
 __all__ = [
@@ -115,8 +115,9 @@ def parse_weights(spec: str | os.PathLike[str] | WeightsSource, *, seed: int = 0
         return WeightsSource(kind=spec, seed=int(seed))  # type: ignore[arg-type]
     path = Path(spec)
     if not path.is_file():
+        weights = setting("weights", "--weights", "features")
         raise WeightsNotFoundError(
-            f"{path}: backbone weights file not found (--weights takes 'imagenet', 'random' or "
+            f"{path}: backbone weights file not found ({weights} takes 'imagenet', 'random' or "
             "the path of an AlexNet state-dict checkpoint)"
         )
     return WeightsSource(kind="file", path=path)
@@ -128,15 +129,23 @@ def torchvision_cache_file() -> Path:
     return Path(torch.hub.get_dir()) / "checkpoints" / Path(IMAGENET_WEIGHTS.url).name
 
 
+LOCAL_WEIGHTS = setting("weights=PATH", "--weights PATH", "features")
+"""How a message names a local state-dict checkpoint as the backbone, for a library caller
+(``PlaceClassifier.load``, ``extract_features``) and ``spcopyro features``;
+``features-head`` names its own flags (its command rewrites the name, ``spcopyro.features.cli``)."""
+
+
 def _missing_imagenet_message(cache_file: Path) -> str:
+    download = setting("download=True", "--download", "features")
+    random = setting("weights='random'", "--weights random", "features")
     return (
         f"AlexNet ImageNet weights not found: torchvision caches them as {cache_file} "
         f"(file {cache_file.name}; the folder is $TORCH_HOME/hub/checkpoints, $TORCH_HOME "
         f"defaulting to ~/.cache/torch). Get them on a machine with internet with "
         f"`python -c \"import torchvision; torchvision.models.alexnet(weights='IMAGENET1K_V1')\"` "
-        f"(or pass download=True / --download), or download {IMAGENET_WEIGHTS.url} and put it "
-        "there; or give a local state-dict checkpoint with --weights PATH; or --weights random "
-        "(features then mean nothing)."
+        f"(or pass {download}), or download {IMAGENET_WEIGHTS.url} and put it there; or give a "
+        f"local state-dict checkpoint with {LOCAL_WEIGHTS}; or {random} (features then mean "
+        "nothing)."
     )
 
 
@@ -292,7 +301,7 @@ def load_alexnet(
                 raise WeightsNotFoundError(
                     f"downloading {IMAGENET_WEIGHTS.url} into {cache_file} failed ({error}); "
                     "is there internet here? Otherwise download it elsewhere and put it there, "
-                    "or give a local state-dict checkpoint with --weights PATH"
+                    f"or give a local state-dict checkpoint with {LOCAL_WEIGHTS}"
                 ) from None
     elif source.kind == "random":
         with torch.random.fork_rng(devices=[]):

@@ -160,12 +160,24 @@ def _features(args: argparse.Namespace) -> int:
 
 
 def _features_head(args: argparse.Namespace) -> int:
+    from spcopyro.features.backbone import WeightsNotFoundError
+
+    try:
+        return _train_head(args)
+    except WeightsNotFoundError as error:  # the backbone's message names features' flags
+        raise WeightsNotFoundError(
+            str(error).replace("(features's --", "(features-head's --")
+        ) from None
+
+
+def _train_head(args: argparse.Namespace) -> int:
     from spcopyro.features.head import PlaceClassifier, encode_labels, save_head, train_head
 
     _random_warning(args.weights)
     from spcopyro.features.extract import check_out_file
 
-    out = check_out_file(args.out, overwrite=args.overwrite)  # before the training, not after
+    # before the training, not after
+    out = check_out_file(args.out, overwrite=args.overwrite, command="features-head")
     source = Path(args.source)
     if source.is_dir():
         from spcopyro.data import load_house

@@ -23,6 +23,7 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
+from spcopyro._util.messages import setting
 from spcopyro._util.outputs import check_folder_path, replace_file
 from spcopyro._util.progress import progress_enabled
 from spcopyro.features.backbone import WeightsSource
@@ -149,8 +150,13 @@ def frozen_inputs(
     )
 
 
-def check_out_file(path: str | os.PathLike[str], *, overwrite: bool = False) -> Path:
+def check_out_file(
+    path: str | os.PathLike[str], *, overwrite: bool = False, command: str = "features"
+) -> Path:
     """Check, before any work, that a file may be written at ``path``; writes nothing.
+
+    ``command``: the ``spcopyro`` command whose ``--overwrite`` the refusal names beside the
+    keyword (``"features-head"`` for a head file).
 
     Raises:
         IsADirectoryError: ``path`` is a folder (the file to write goes inside it).
@@ -165,7 +171,8 @@ def check_out_file(path: str | os.PathLike[str], *, overwrite: bool = False) -> 
     if not os.access(existing, os.W_OK | os.X_OK):
         raise PermissionError(f"{path}: cannot write in {existing}")
     if path.exists() and not overwrite:
-        raise FileExistsError(f"{path} already exists; pass overwrite (--overwrite) to replace it")
+        given = setting("overwrite=True", "--overwrite", command)
+        raise FileExistsError(f"{path} already exists; pass {given} to replace it")
     return path
 
 
