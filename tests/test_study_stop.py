@@ -348,3 +348,38 @@ def test_the_forkserver_ends_with_the_study_process():
     server, after_child, after_exit = done.stdout.split()
     assert (after_child, after_exit) == ("True", "False"), done.stdout
     assert not local_cluster._running(int(server))
+
+
+def test_a_closing_workers_heartbeat_error_is_not_printed():
+    """A worker of an interrupted study's LocalCluster closed its connections while a heartbeat
+    waited for the scheduler, and Dask logged it as an ERROR with two tracebacks over the
+    study's "interrupted after N cells" line (2 of 5 interrupts on 2 workers). The workers'
+    preload drops that error while the worker closes; a running worker's, and other errors,
+    are kept."""
+    pytest.importorskip("distributed", reason="the study extra (dask.distributed)")
+    import logging
+    import types
+
+    from distributed.core import Status
+
+    from spcopyro.study import local_cluster
+
+    logger = logging.getLogger("distributed.worker")
+    seen: list[str] = []
+    handler = logging.Handler(logging.ERROR)
+    handler.emit = lambda record: seen.append(record.getMessage())  # type: ignore[method-assign]
+    worker = types.SimpleNamespace(status=Status.running)
+    before = list(logger.filters)
+    logger.addHandler(handler)
+    try:
+        local_cluster.dask_setup(worker)
+        heartbeat = "Failed to communicate with scheduler during heartbeat."
+        logger.error(heartbeat)  # a running worker's: kept
+        for status in (Status.closing, Status.closing_gracefully, Status.closed):
+            worker.status = status
+            logger.error(heartbeat)
+        logger.error("Unexpected exception during heartbeat. Closing worker.")
+    finally:
+        logger.removeHandler(handler)
+        logger.filters[:] = before
+    assert seen == [heartbeat, "Unexpected exception during heartbeat. Closing worker."]
