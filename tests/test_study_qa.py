@@ -327,7 +327,9 @@ def test_a_variants_fit_values_are_checked_when_read(overrides, message):
 def test_a_ctrl_c_while_the_table_is_written_waits_for_it(tmp_path, monkeypatch, capsys):
     """A Ctrl-C landing while the study wrote its table and report (after the last cell, or a
     second one) cut the write: report.md missing or the last run's, "interrupted" alone said.
-    The write now ends whole, then the run stops as any interrupted run does."""
+    The write now ends whole, then the run stops as any interrupted run does. With no cell
+    left it said "0 left; run the same command again to continue": it says the study is
+    complete."""
     monkeypatch.setenv("CI", "1")
     path = _write(tmp_path)
     write_report = run.write_report
@@ -338,7 +340,9 @@ def test_a_ctrl_c_while_the_table_is_written_waits_for_it(tmp_path, monkeypatch,
 
     monkeypatch.setattr(run, "write_report", interrupted_write)
     assert main(["study", str(path), "--out", str(tmp_path / "out"), "--workers", "1"]) == 130
-    assert "interrupted after 6 cells: 0 left" in capsys.readouterr().out
+    said = capsys.readouterr().out
+    assert "interrupted after 6 cells: 0 left; the study is complete in " in said
+    assert "run the same command again" not in said  # nothing is left to run
     assert len(read_table(tmp_path / "out" / "results.csv")) == 6
     assert "# " in (tmp_path / "out" / "report.md").read_text()  # written whole
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

@@ -262,8 +262,10 @@ def _run_study(
         background.join()  # the LocalCluster's close, left running while the table was written
         seconds = time.perf_counter() - start
         if interrupted or signalled:
-            report(f"interrupted after {plural(ran, 'cell')}: {len(pending) - ran} left; run "
-                   "the same command again to continue")  # fmt: skip
+            left = len(pending) - ran  # 0: the signal came after the last cell
+            report(f"interrupted after {plural(ran, 'cell')}: {left} left; "
+                   + ("run the same command again to continue" if left else
+                      f"the study is complete in {out / TABLE} and report.md"))  # fmt: skip
     if signalled:  # the run ended whole, its table and report written: stopped all the same
         stop = KeyboardInterrupt(f"signal {signalled[0]}")
         stop.said = report is not _say_nothing  # type: ignore[attr-defined]
