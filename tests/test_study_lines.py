@@ -132,6 +132,26 @@ def test_a_missing_source_names_the_study_file_line_and_value(tmp_path, monkeypa
     assert len(cells_of(load_study(path))) == 4
 
 
+def test_a_name_the_dataset_does_not_hold_lists_what_it_holds(tmp_path):
+    """``public = "room9"`` said "data source 'd': ROOT/room9 does not exist" and left the
+    dataset's names to a directory listing; it names the dataset's houses (or maps) now."""
+    from spcopyro.study.spec import DataSource
+
+    (tmp_path / "map").mkdir()
+    for name in ("roomA", "roomB"):
+        (tmp_path / name).mkdir()
+        (tmp_path / "map" / f"{name}.yaml").write_text("image: x.pgm\n")
+    for kind, what in (("public", "houses"), ("map", "maps")):
+        with pytest.raises(FileNotFoundError) as caught:
+            sources.resolve_source(DataSource("d", kind, "room9"), root=tmp_path)
+        assert str(caught.value).endswith(
+            f"does not exist (the dataset {tmp_path} holds the {what} ['roomA', 'roomB'])"
+        ), caught.value
+    with pytest.raises(FileNotFoundError) as caught:  # a path: no dataset looked in
+        sources.resolve_source(DataSource("d", "public", str(tmp_path / "nowhere")))
+    assert str(caught.value).endswith("nowhere does not exist"), caught.value
+
+
 def test_a_sources_files_are_read_once_for_all_its_seeds(tmp_path, monkeypatch):
     """Each seed read the house's files again: a dry run of a public house at 100000 seeds took
     minutes (14 MB a seed) before it printed anything. The keys stay the same."""

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro.data import House, Observations, find_dataset_root, load_house
-from spcopyro.data.dataset import is_house_folder
+from spcopyro.data.dataset import is_house_folder, list_houses
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
 from spcopyro.maps import load_map
@@ -39,6 +39,7 @@ def resolve_source(data: DataSource, root: str | Path | None = None) -> DataSour
     if data.kind == "synthetic":
         return data
     target = Path(data.target).expanduser()
+    found = None
     if not target.exists() and len(target.parts) == 1:  # a name of the public dataset
         found = find_dataset_root(root)
         if found is None:
@@ -50,7 +51,10 @@ def resolve_source(data: DataSource, root: str | Path | None = None) -> DataSour
         if data.kind == "map" and target.suffix != ".yaml":
             target = target.with_suffix(".yaml")
     if not target.exists():
-        raise FileNotFoundError(f"data source {data.name!r}: {target} does not exist")
+        raise FileNotFoundError(
+            f"data source {data.name!r}: {target} does not exist"
+            + ("" if found is None else _names_under(found, data.kind))
+        )
     if data.kind == "public" and not is_house_folder(target):  # each cell failed at run time
         what = "a file" if target.is_file() else "a folder without Ft.csv or St.csv"
         raise FileNotFoundError(f"data source {data.name!r}: {target} is {what}, not a house "
@@ -65,6 +69,15 @@ def resolve_source(data: DataSource, root: str | Path | None = None) -> DataSour
             raise FileNotFoundError(f"data source {data.name!r}: {target} names the image "
                                     f"{image}, which does not exist")  # fmt: skip
     return dataclasses.replace(data, target=str(target.resolve()))
+
+
+def _names_under(root: Path, kind: str) -> str:
+    """What a name looked up under the dataset ``root`` could have been: its houses (``public``)
+    or its maps (``map``), for the message of a name it does not hold."""
+    if kind == "public":
+        return f" (the dataset {root} holds the houses {list_houses(root)})"
+    maps = sorted(path.stem for path in (root / "map").glob("*.yaml"))
+    return f" (the dataset {root} holds the maps {maps})"
 
 
 def _map_files(yaml_path: Path) -> list[Path]:
