@@ -52,3 +52,24 @@ def test_robot_page_names_the_p_navigate_prints_on_room1dk5():
     assert "of the word's concept" not in paragraph, paragraph
     assert "`goal cell in the place: p = 0.575` and `0.777`" in paragraph, paragraph
     assert "p(cell in the word's place) at each goal cell" in paragraph, paragraph
+
+
+def test_robot_page_walks_run_features_as_written():
+    """docs/robot.md's walkthrough ran `spcopyro features data/house --out data/house/Ft.csv`
+    with `--weights random` only in a comment: `features` defaults to the ImageNet weights and
+    stops where torchvision has none cached, and the walk's numbers (180 images, ARI 0.66) are
+    of random weights. Every `spcopyro features` line of the page's bash blocks names them."""
+    import re
+    from pathlib import Path
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "robot.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"```bash\n(.*?)```", page, flags=re.DOTALL)
+    lines = [
+        line.split("#", 1)[0]
+        for block in blocks
+        for line in block.splitlines()
+        if line.startswith("spcopyro features ")
+    ]
+    assert len(lines) >= 2, lines  # the short walk and the walkthrough
+    for line in lines:
+        assert "--weights random" in line, line
