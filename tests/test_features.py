@@ -388,8 +388,14 @@ def test_head_file_round_trip_with_a_tuned_layer(model, pristine, tmp_path, chec
         extract_features(fresh, paths, progress=False),
         extract_features(model, paths, progress=False),
     )
-    with pytest.raises(CheckpointError, match="alexnet-random.pth: not an spcopyro place-head"):
+    with pytest.raises(
+        CheckpointError, match="alexnet-random.pth: not an spcopyro place-head"
+    ) as e:
         load_head(fresh, checkpoint[0])
+    # the setting in messages.setting's one form: load_head runs under `spcopyro features`
+    assert str(e.value).endswith(
+        "for backbone weights use weights=PATH (features's --weights PATH)"
+    )
     # a head put on another backbone than it was trained on is loaded, with a warning
     other = PlaceClassifier.load(checkpoint[0])
     with caplog.at_level(logging.WARNING, logger="spcopyro"):
@@ -400,6 +406,10 @@ def test_head_file_round_trip_with_a_tuned_layer(model, pristine, tmp_path, chec
         r.getMessage() for r in caplog.records if "was trained on the backbone" in r.getMessage()
     ]
     assert len(said) == 1 and "NOT pretrained" in said[0] and "alexnet-random.pth" in said[0]
+    assert said[0].endswith(
+        "pass the head's backbone as weights (features's --weights) and its seed as seed "
+        "(features's --seed)"
+    )  # it was trained on random weights; library callers are told the keywords too
     with pytest.raises(FileNotFoundError, match="none.pt: head file not found"):
         load_head(fresh, tmp_path / "none.pt")
 

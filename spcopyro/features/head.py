@@ -44,10 +44,12 @@ from torch import nn
 from torchvision.models import AlexNet
 from tqdm.auto import tqdm
 
+from spcopyro._util.messages import setting
 from spcopyro._util.outputs import replace_file
 from spcopyro._util.progress import progress_enabled
 from spcopyro.features.backbone import (
     FEATURE_DIM,
+    LOCAL_WEIGHTS,
     CheckpointError,
     WeightsSource,
     final_layer,
@@ -392,7 +394,7 @@ def load_head(model: PlaceClassifier, path: str | os.PathLike[str]) -> HeadFile:
     if not isinstance(payload, dict) or payload.get("format") != HEAD_FORMAT:
         raise CheckpointError(
             f"{path}: not an spcopyro place-head file (written by save_head / "
-            "`spcopyro features-head`); for backbone weights use --weights"
+            f"`spcopyro features-head`); for backbone weights use {LOCAL_WEIGHTS}"
         )
     if payload.get("version") != HEAD_VERSION:
         raise CheckpointError(f"{path}: head file version {payload.get('version')!r} unsupported")
@@ -452,11 +454,14 @@ def load_head(model: PlaceClassifier, path: str | os.PathLike[str]) -> HeadFile:
         other = fingerprint != model.weights.fingerprint()
     if other:
         same_name = " (same name, other contents)" if trained_on == backbone else ""
+        given = setting("weights", "--weights", "features")  # load_head runs under `features`
+        if trained_on.startswith("random"):  # random weights are their seed's
+            given += f" and its seed as {setting('seed', '--seed', 'features')}"
         logging.getLogger("spcopyro").warning(
             "head file %s was trained on the backbone %s; this model's is %s%s: unless they "
-            "are the same weights, its place classes read features it was not trained on "
-            "(pass the head's backbone with --weights)",
-            path, trained_on, backbone, same_name,
+            "are the same weights, its place classes read features it was not trained on; "
+            "pass the head's backbone as %s",
+            path, trained_on, backbone, same_name, given,
         )  # fmt: skip
     return HeadFile(
         path=path,
