@@ -66,9 +66,11 @@ def test_predictive_draws_the_observations_under_uncondition_and_says_which_it_c
 
 
 def test_mcmc_summary_gives_pyros_table_of_the_float_sites_and_the_labels_entropy(capsys):
-    # Pyro's mcmc.summary() and mcmc.diagnostics() fail on the integer labels site (Pyro 1.9:
-    # "mean(): could not infer output dtype ... Got: Long"); the documented way out was to save
-    # no labels, losing them for Predictive. mcmc_summary gives both parts.
+    # Pyro's mcmc.summary() and mcmc.diagnostics() fail on the integer labels site (Pyro 1.9):
+    # summary() with "mean(): could not infer output dtype ... Got: Long"; diagnostics() warns
+    # with that traceback, then ends with "value cannot be converted to type int64_t without
+    # overflow" (docs/library.md). The documented way out was to save no labels, losing them
+    # for Predictive. mcmc_summary gives both parts.
     from pyro.infer.mcmc.util import summary
 
     from spcopyro.gibbs import mcmc_summary
@@ -79,6 +81,11 @@ def test_mcmc_summary_gives_pyros_table_of_the_float_sites_and_the_labels_entrop
     mcmc.run(data, cfg)
     with pytest.raises(RuntimeError, match="Long"):  # what the helper is for
         mcmc.summary()
+    with (
+        pytest.warns(UserWarning, match="Got: Long"),
+        pytest.raises(RuntimeError, match="int64_t without overflow"),
+    ):
+        mcmc.diagnostics()
     result = mcmc_summary(mcmc)
     samples = mcmc.get_samples(group_by_chain=True)
     floats = {k: v for k, v in samples.items() if k != "labels"}
