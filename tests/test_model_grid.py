@@ -296,3 +296,27 @@ def test_fit_init_from_a_coarse_fits_folder_starts_a_fit_on_the_maps_cells(tmp_p
     assert "starting from    the cavi fit" in capsys.readouterr().out
     assert np.load(coarse / "labels.npy").shape == (20, 27)  # the 0.3 m model grid
     assert np.load(fine / "labels.npy").shape == (60, 80)  # the map's 0.1 m cells
+
+
+def test_prepare_model_data_on_the_maps_cells_with_a_cell_size_names_model_house(tmp_path, caplog):
+    """A library caller's prepare_model_data(house, preset("coarse")) fitted the map's own
+    cells without a word: only fit_house applies model_house for the cell size. It warns now;
+    fit_house and `spcopyro fit` (model_house first) do not."""
+    from spcopyro.cli.main import main
+    from spcopyro.fit.house import fit_house, prepare_model_data
+
+    said = "prepare_model_data fits the cells it is given"
+    house = make_house(seed=0, spec=HouseSpec(height=30, width=36, num_rooms=2))
+    caplog.set_level("WARNING", logger="spcopyro")
+    _, data = prepare_model_data(house, preset("coarse"))
+    assert data.num_free == house.grid.num_free  # the map's own cells, as it says
+    warned = [r.getMessage() for r in caplog.records if said in r.getMessage()]
+    assert len(warned) == 1
+    assert "settings cell_size 0.25 m" in warned[0] and "own 0.1 m cells" in warned[0]
+    assert "model_house(house, settings.data.cell_size) (spcopyro.data.model_grid)" in warned[0]
+    caplog.clear()
+    prepare_model_data(model_house(house, 0.25), preset("coarse"))  # the model's grid
+    prepare_model_data(house, preset("coarse", cell_size="map"))  # the map's cells asked for
+    fit_house(house, preset("coarse"), sweeps=2, progress=False)
+    assert main(["fit", "--sweeps", "2", "--no-figures", "--out", str(tmp_path / "fit")]) == 0
+    assert not [r for r in caplog.records if said in r.getMessage()]

@@ -144,7 +144,9 @@ def prepare_model_data(
     tensors. Logs :func:`config_warnings` (logger ``"spcopyro"``), those about the Gibbs sampler
     only when ``method`` samples (:data:`SAMPLERS`) or is None (not known). ``vocabulary``: the
     word columns in order (None: the observations' own; an online update passes the union with
-    a saved fit's, :mod:`spcopyro.robot.online`).
+    a saved fit's, :mod:`spcopyro.robot.online`). ``house`` is fitted on its own grid: with a
+    ``settings.data.cell_size`` coarser than its cells it logs a warning naming
+    :func:`~spcopyro.data.model_grid.model_house`, which :func:`fit_house` applies first.
 
     Raises:
         ValueError: the map has no free cell, or no observation lands on a free cell (a wrong
@@ -165,6 +167,15 @@ def prepare_model_data(
     grid = house.grid
     where = f" on map {grid.source}" if getattr(grid, "source", None) else ""
     check_free_cells(grid, f"house {house.name!r}")  # ValueError naming the yaml's lines
+    size = settings.data.cell_size
+    if size is not None and model_house(house, size) is not house:  # fit_house's is already
+        logger.warning(
+            "house %r: settings cell_size %g m, but prepare_model_data fits the cells it is "
+            "given, here map %s's own %g m cells; for the model's grid pass "
+            "model_house(house, settings.data.cell_size) (spcopyro.data.model_grid), as "
+            "fit_house does",
+            house.name, size, house.grid.source or "", house.grid.resolution,
+        )  # fmt: skip
     counts = prepared_cell_counts(
         grid, house.observations, settings.data, vocabulary=vocabulary, source=house.source
     )
