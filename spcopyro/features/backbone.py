@@ -131,7 +131,7 @@ def torchvision_cache_file() -> Path:
 
 LOCAL_WEIGHTS = setting("weights=PATH", "--weights PATH", "features")
 """How a message names a local state-dict checkpoint as the backbone, for a library caller
-(``PlaceClassifier.load``, ``extract_features``) and ``spcopyro features``;
+(``PlaceClassifier.load``; ``extract_features`` takes the model it built) and ``spcopyro features``;
 ``features-head`` names its own flags (its command rewrites the name, ``spcopyro.features.cli``)."""
 
 

@@ -23,7 +23,8 @@ Each product takes log(phi)^T as a contiguous [K, L] copy, not a transposed view
 torch 2.14.1) splits the float64 product with the view across threads from 86 rows on and
 gives other last bits on 1 and 2 threads, with the copy the same bits from 2 rows on (a single
 row keeps the view, the other way round), so the draws do not depend on the thread count
-(docs/speed.md, "Threads").
+(docs/speed.md, "Threads"). The copy's bits differ from the view's on one thread too (up to
+1.4e-13): a seeded fit since this change may differ from one before it, rarely.
 """
 
 from __future__ import annotations
