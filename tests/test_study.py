@@ -103,7 +103,12 @@ def test_spec_from_toml_equals_spec_from_python(tmp_path):
         ("seeds = 2", "seeds = -1", ["[study] seeds", "-1"]),
         ("sweeps = 8", "sweeps = { gibs = 8 }", ["sweeps.gibs", "8", "unknown method"]),
         ('baselines = ["F-geometry"]', 'baselines = ["G-nothing"]', ["baselines", "G-nothing"]),
-        ("gamma = 3.0", "gama = 3.0", ["[variants.og3]", "gama", "unknown key"]),
+        # the known keys, and a suggestion as for an unknown study name (it had none)
+        (
+            "gamma = 3.0",
+            "gama = 3.0",
+            ["[variants.og3]", "gama", "unknown key", "'gamma', ", "; did you mean gamma?"],
+        ),
         ("gamma = 3.0", 'gamma = "hot"', ["[variants.og3]", "gamma", "hot"]),
         ('synthetic = "default"', 'synthetic = "castle"', ["[data.small] synthetic", "castle"]),
         ("seeds = 2", "seedz = 2", ["[study] seedz", "unknown key"]),
@@ -158,6 +163,24 @@ def test_bad_spec_names_file_key_and_value(tmp_path, old, new, words):
     assert str(path) in message
     for word in words:
         assert word in message, message
+
+
+def test_a_one_concept_map_of_a_study_cell_is_advised_in_the_study_files_terms():
+    """The warning of a study cell's one-concept map told a study user to try
+    ``GibbsOptions(merge_moves=0.2) (fit's --merge-moves 0.2)`` and ``fit's --preset coarse``,
+    where the study file says ``merge_moves = 0.2`` and ``preset = "coarse"`` in a variant."""
+    from spcopyro.study.cell_warnings import read_warnings
+
+    values = json.loads(json.dumps(TINY_DICT))
+    values["study"].update(seeds=1, sweeps=2, baselines=[])
+    values["variants"] = {"one": {"num_concepts": 1}}  # every cell in one concept
+    (cell,) = cells_of(study_from_dict(values))
+    record, _, _ = evaluate.run_cell(cell)
+    assert record["status"] == "ok", record["error"]
+    (collapsed,) = [m for m in read_warnings(record[evaluate.WARNINGS]) if "holds 100" in m]
+    assert collapsed.endswith(evaluate.advice(True)), collapsed
+    assert "merge_moves = 0.2" in collapsed and 'preset = "coarse"' in collapsed, collapsed
+    assert "--merge-moves" not in collapsed and "GibbsOptions" not in collapsed, collapsed
 
 
 def test_fit_keywords_a_studys_method_or_scoring_cannot_take_are_refused_when_read():

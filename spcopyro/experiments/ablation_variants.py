@@ -39,6 +39,7 @@ from spcopyro.config import DEFAULT_PRESET, PRESETS, DataPreparation, SpCoConfig
 from spcopyro.config import preset as make_preset
 from spcopyro.fit.house import SAMPLERS, fit_house
 from spcopyro.fit.registry import get_method
+from spcopyro.results.semantic_map import close_words
 
 __all__ = ["FIT_RESERVED", "Variant", "VariantError", "make_variant", "parse_variant"]
 
@@ -309,10 +310,13 @@ def make_variant(name: str, overrides: Mapping[str, object] | None = None) -> Va
                 )
             if not targets:
                 known_options = [f.name for f in dataclasses.fields(default_options)]  # type: ignore[arg-type]
+                known = [*sorted(_SETTING_FIELDS), *known_options, *fit_parameters]
+                close = close_words(key, ["preset", "method", *known])  # the one rule
+                hint = f"; did you mean {', '.join(close)}?" if close else ""
                 raise VariantError(
                     f"{where}: unknown key {key!r}. Known: preset, method; settings "
                     f"{sorted(_SETTING_FIELDS)}; {method} options {sorted(known_options)} "
-                    f"(nested ones as a.b); fit_house arguments {sorted(fit_parameters)}"
+                    f"(nested ones as a.b); fit_house arguments {sorted(fit_parameters)}{hint}"
                 )
         target = targets[0]
         if target == "settings":

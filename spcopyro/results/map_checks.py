@@ -32,7 +32,9 @@ Every token of an utterance counts as a word (the word preparation drops none: s
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -52,6 +54,7 @@ __all__ = [
     "NAMED_WORDS",
     "PATCHES_HEARD",
     "PATCHES_SHARE",
+    "degenerate_map_advice",
     "degenerate_map_warning",
     "house_map_warning",
     "is_degenerate_map_warning",
@@ -90,6 +93,25 @@ WARNING_START = "one concept ("
 collapsed maps among a study's warnings reads it: :func:`is_degenerate_map_warning`)."""
 
 
+_ADVICE: ContextVar[Callable[[bool], str] | None] = ContextVar(
+    "degenerate_map_advice", default=None
+)
+"""The advice of :func:`degenerate_map_advice` in force in this context (thread), if any."""
+
+
+@contextmanager
+def degenerate_map_advice(advice: Callable[[bool], str]) -> Iterator[None]:
+    """Within (this thread's context): a degenerate-map warning given no ``advice`` of its own
+    -- ``fit_house``'s, which names ``fit``'s options -- closes with ``advice(sampled)``
+    instead (``sampled``: as :func:`degenerate_map_warning`'s). A study cell's fit gives its
+    advice in the study file's own terms this way (:func:`spcopyro.study.evaluate.advice`)."""
+    token = _ADVICE.set(advice)
+    try:
+        yield
+    finally:
+        _ADVICE.reset(token)
+
+
 def is_degenerate_map_warning(message: str) -> bool:
     """Whether a logged ``message`` is :func:`degenerate_map_warning`'s."""
     return message.lstrip().startswith(WARNING_START)
@@ -115,7 +137,8 @@ def degenerate_map_warning(
             moves (``--merge-moves``) it names; else it names ``--method gibbs`` with them
             (``fit`` refuses ``--merge-moves`` with a variational method).
         advice: the message's closing parenthesis in place of ``fit``'s options (a comparison
-            cell's, whose command takes none of them).
+            cell's, whose command takes none of them); None: that of the
+            :func:`degenerate_map_advice` in force, else ``fit``'s.
 
     The message names the concept, its share of the free cells and the words heard inside it
     (most heard first, at most :data:`NAMED_WORDS`, with their counts); or, where the words lie
@@ -143,6 +166,9 @@ def degenerate_map_warning(
     said = labels[np.maximum(cells, 0)]  # [U] the concept of each (read where placed)
     inside = np.flatnonzero(placed & (said == concept))  # [U_c]
     heard = _words_heard(inside, utterances)
+    given = _ADVICE.get()
+    if advice is None and given is not None:  # e.g. a study cell's, in its file's terms
+        advice = given(sampled)
     if advice is None:  # to a library caller (fit_house) as to spcopyro fit: both names
         moves = (setting("GibbsOptions(merge_moves=0.2)", "--merge-moves 0.2") if sampled
                  else setting("method='gibbs' with GibbsOptions(merge_moves=0.2)",

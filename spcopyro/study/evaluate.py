@@ -65,6 +65,7 @@ import numpy as np
 
 from spcopyro._util.interrupts import caused_by_interrupt
 from spcopyro._util.threads import torch_threads
+from spcopyro.config import DEFAULT_PRESET
 from spcopyro.data.model_grid import model_house
 from spcopyro.experiments.ablation import concepts_over, largest_share, top_words
 from spcopyro.experiments.methods import RunSettings, fit_method, fit_spco
@@ -76,6 +77,7 @@ from spcopyro.metrics import (
     heldout_word_prediction,
     matching_rate,
 )
+from spcopyro.results.map_checks import degenerate_map_advice
 from spcopyro.study.cell_warnings import captured_warnings, warnings_text
 from spcopyro.study.cells import Cell, source_digest
 from spcopyro.study.comparison_cell import COMPARISON, comparison_outcome
@@ -83,7 +85,9 @@ from spcopyro.study.maps import Arrays, label_map_arrays, labels_on_map
 from spcopyro.study.sources import load_cell_data
 from spcopyro.synthetic import FILLER_WORDS
 
-__all__ = ["SCORES", "STATUS_COLUMNS", "WARNINGS", "Arrays", "label_map_arrays", "run_cell"]
+__all__ = [
+    "SCORES", "STATUS_COLUMNS", "WARNINGS", "Arrays", "advice", "label_map_arrays", "run_cell",
+]  # fmt: skip
 
 SCORES = (
     "ari", "matching_rate", "matching_rate_area", "top1", "top3", "mean_rank", "distance_m",
@@ -103,6 +107,18 @@ SENTENCE_MIN_CELLS = 50
 """A concept counts in ``filler_top_share`` when it labels at least this many cells."""
 
 
+def advice(sampled: bool) -> str:
+    """The closing advice of a study cell's degenerate-map warning, in the study file's terms
+    (a variant's keys), not ``fit``'s options (``--merge-moves 0.2``, ``--preset``) or
+    ``GibbsOptions``, which a study does not take; ``sampled``: the cell's method samples
+    (``gibbs``, ``vi-gibbs``) (:func:`spcopyro.results.map_checks.degenerate_map_advice`)."""
+    moves = "merge_moves = 0.2" if sampled else 'method = "gibbs" with merge_moves = 0.2'
+    return (
+        f"(in the study's variant: try a lower gamma, {moves} so that regions can split, "
+        f'or preset = "{DEFAULT_PRESET}" if the variant used another)'
+    )
+
+
 def run_cell(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays | None]:
     """The cell's record (status and scores, keyed by ``cell.key``), its trace (None for a
     baseline, a failed or a comparison cell) and its label map
@@ -118,7 +134,8 @@ def run_cell(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays | Non
                 if cell.scoring == COMPARISON:
                     scores, label_map = comparison_outcome(cell)
                 else:
-                    scores, trace, label_map = _fit_and_score(cell)
+                    with degenerate_map_advice(advice):  # in the study file's terms
+                        scores, trace, label_map = _fit_and_score(cell)
             record.update(scores)
         except Exception as error:  # recorded; the study goes on
             if caused_by_interrupt(error):  # Ctrl-C inside a numba call: not the cell's failure
