@@ -22,6 +22,7 @@ from spcopyro.figures.map_pieces import (
     rim_colours,
     spread_markers,
     utterance_marks,
+    word_palette,
 )
 from spcopyro.figures.off_map import draw_at_edge, edge_handle, off_axes
 from spcopyro.figures.png import save_figure
@@ -61,7 +62,7 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     away = off_axes(axes, heard)  # [U] off the map: at its edge
     images = np.asarray(obs.image_xy, dtype=np.float64).reshape(-1, 2)  # [I, 2]
     images_away = off_axes(axes, images)  # [I]
-    palette = np.vstack([np.asarray(colours).reshape(-1, 3), [0.8, 0.8, 0.8]])  # [F + 1, 3]
+    palette = word_palette(colours)  # [F + 1, 3]
     draw_at_edge(axes, heard[away], palette[kind[away]])
     draw_at_edge(axes, images[images_away], np.full((int(images_away.sum()), 3), 0.45))
     every = kind  # [U] the legend lists each word, on the map or off (its triangle's colour)

@@ -60,6 +60,7 @@ __all__ = [
     "utterance_concepts",
     "utterance_markers",
     "utterance_marks",
+    "word_palette",
 ]
 
 OUTLINE = [patheffects.withStroke(linewidth=2.5, foreground="white")]
@@ -356,7 +357,7 @@ def draw_counted_words(
     the legend per kind in ``listed`` (the kinds of every utterance, those heard off the map
     and drawn at its edge too; other words last)."""
     at, kinds, areas, _ = utterance_markers(ax, grid, xy, kind)
-    palette = np.vstack([np.asarray(colours).reshape(-1, 3), [0.8, 0.8, 0.8]])  # [F + 1, 3]
+    palette = word_palette(colours)  # [F + 1, 3]
     order = np.argsort(-areas, kind="stable")
     ax.scatter(*at[order].T, s=areas[order], c=palette[kinds[order]],
                edgecolors=rim_colours(grid, at[order]), linewidths=0.4, zorder=3)  # fmt: skip
@@ -382,7 +383,7 @@ def draw_utterances(
         return []
     every = utterance_concepts(result, heard)  # [U]
     away = off_axes(axes, heard)  # [U] off the map: at its edge
-    fill = np.where(every[:, None] >= 0, colours[np.maximum(every, 0)] / 255.0, OFF_MAP_RGB)
+    fill = _concept_rgb(every, colours)  # [U, 3]
     draw_at_edge(axes, heard[away], fill[away])  # fill: [U, 3], as the circles'
     xy, concepts = heard[~away], every[~away]  # [U', 2], [U'] on the map
     counted = False
@@ -390,9 +391,7 @@ def draw_utterances(
         at, concept, areas, counts = utterance_markers(ax, result.grid, xy, concepts)
         order = np.argsort(-areas, kind="stable")  # a small circle over a large one
         at, concept, areas = at[order], concept[order], areas[order]
-        rgb = np.where(
-            concept[:, None] >= 0, colours[np.maximum(concept, 0)] / 255.0, OFF_MAP_RGB
-        )  # [M, 3]
+        rgb = _concept_rgb(concept, colours)  # [M, 3]
         rims = rim_colours(result.grid, at)
         ax.scatter(*at.T, s=areas, c=rgb, edgecolors=rims, linewidths=0.7 if counts is None
                    else 0.4, zorder=3)  # fmt: skip
@@ -409,6 +408,18 @@ def draw_utterances(
         handles.append(edge_handle(f"{plural(int(away.sum()), 'utterance')} heard off the map "
                                    "(at its edge; fill as above)"))  # fmt: skip
     return handles
+
+
+def _concept_rgb(concepts: np.ndarray, colours: np.ndarray) -> np.ndarray:
+    """``[n, 3]`` RGB in [0, 1] of each concept of ``concepts`` ``[n]`` (``colours`` ``[L, 3]``
+    uint8); :data:`OFF_MAP_RGB` where it is -1 (an utterance the fit placed on no cell)."""
+    return np.where(concepts[:, None] >= 0, colours[np.maximum(concepts, 0)] / 255.0, OFF_MAP_RGB)
+
+
+def word_palette(colours: object) -> np.ndarray:
+    """``[F + 1, 3]``: the word colours ``colours`` (``[F, 3]`` RGB in [0, 1]) and a last grey
+    for the words past them."""
+    return np.vstack([np.asarray(colours).reshape(-1, 3), [0.8, 0.8, 0.8]])
 
 
 def draw_outline(

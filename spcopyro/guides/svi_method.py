@@ -335,7 +335,7 @@ def flat_q_advice(options: SVIOptions, resumed: bool, given_start: bool = False)
     as it ran them, :meth:`SVIOptions.for_start`) and the way out, which keeps a given start
     (its own smoothing, no annealing from gamma 0) or names a fitted one, or CAVI."""
     options = options.for_start(given_start)  # what ran (None: the start's)
-    smoothing = options.start_smoothing(given_start)
+    smoothing = options.label_smoothing  # set by for_start
     start = ("the resumed q" if resumed else
              f"{'given' if given_start else 'random'} labels, label_smoothing={smoothing:g}"
              + (f", annealed from gamma 0 over {options.anneal_iterations} steps"
