@@ -372,12 +372,12 @@ def _greedy(
     them), and rejects halving trials that are clearly no better without their exact loss: the
     same moves, the same estimate and loss to the bit as recomputing everything every sweep."""
     estimate, k = compact(start)
-    value = _expected(estimate, k, prepared, loss)
+    pairs = _pairs(estimate, prepared)
+    tables = _sample_tables(pairs, k + 1, prepared)  # S x [k + 1, J_s]
+    value = _expected(estimate, k, prepared, loss, tables)  # reads the first k rows
     n = estimate.shape[0]
     scale = float(n * n if loss == "binder" else n)
     joined, stale = None, None  # [U, k + 1]; the clusters to recompute (None: all)
-    pairs = _pairs(estimate, prepared)
-    tables = _sample_tables(pairs, k + 1, prepared)  # S x [k + 1, J_s]
     sweeps = 0
     while sweeps < MAX_SWEEPS:
         sweeps += 1
