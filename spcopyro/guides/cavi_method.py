@@ -15,10 +15,9 @@ from spcopyro.guides.run import (
     initial_q,
     remaining,
     resolve_backend,
-    restart_way_out,
     resumed,
     run_variational,
-    warn_flat_q,
+    warn_flat_fit,
 )
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs, Trace
 from spcopyro.model import ModelData
@@ -63,9 +62,8 @@ class CAVIInference(InferenceMethod):
         run = run_variational(data, config, remaining(request), options=options, q=q,
                               progress=request.progress, thin=request.thin,
                               resume=before)  # fmt: skip
-        warm = request.init_labels is not None or before is not None
-        way_out = restart_way_out(options.anneal_iterations, init=options.init, warm=warm)
-        warn_flat_q(run.q, config, self.title, way_out)
+        warn_flat_fit(run.q, config, self.title, request, before, options.anneal_iterations,
+                      init=options.init)  # fmt: skip
         record = {
             "iterations": request.iterations,
             **dataclasses.asdict(options),

@@ -23,9 +23,8 @@ from spcopyro.guides.run import (
     VariationalRun,
     initial_q,
     remaining,
-    restart_way_out,
     resumed,
-    warn_flat_q,
+    warn_flat_fit,
 )
 from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.protocol import InferenceMethod, InferenceOutput, RunArgs
@@ -235,9 +234,8 @@ class LBPInference(InferenceMethod):
         run, _ = run_lbp(data, config, remaining(request), q=q, options=options,
                          progress=request.progress, thin=request.thin,
                          resume=before)  # fmt: skip
-        warm = request.init_labels is not None or before is not None
-        way_out = restart_way_out(options.anneal_iterations, warm=warm)
-        warn_flat_q(run.q, config, "loopy BP", way_out, mean_field=False)
+        warn_flat_fit(run.q, config, "loopy BP", request, before, options.anneal_iterations,
+                      mean_field=False)  # fmt: skip
         record = {"iterations": request.iterations, **dataclasses.asdict(options),
                   "backend_used": resolve_lbp_backend(options, data, config)}  # fmt: skip
         output = output_from_variational(run, record)

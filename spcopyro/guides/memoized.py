@@ -80,9 +80,8 @@ from spcopyro.guides.memo import Memo
 from spcopyro.guides.run import (
     VariationalRun,
     remaining,
-    restart_way_out,
     resumed,
-    warn_flat_q,
+    warn_flat_fit,
 )
 from spcopyro.inference.driver import Trajectory, drive
 from spcopyro.inference.initialisation import check_labels, random_labels
@@ -538,9 +537,8 @@ class StochasticVIInference(InferenceMethod):
             data, config, remaining(request), q=q.to(dtype), generator=request.generator,
             options=options, progress=request.progress, thin=request.thin, resume=before,
         )  # fmt: skip
-        warm = request.init_labels is not None or before is not None
-        way_out = restart_way_out(options.anneal_passes, "anneal_passes", warm=warm)
-        warn_flat_q(run.q, config, "memoized VI", way_out)
+        warn_flat_fit(run.q, config, "memoized VI", request, before, options.anneal_passes,
+                      "anneal_passes")  # fmt: skip
         used = "torch" if compiled_path(options.backend) is None else "numba"  # auto resolved
         record = {
             "iterations": request.iterations,

@@ -280,6 +280,26 @@ def restart_way_out(
     return "Try " + "; or ".join(ways)
 
 
+def warn_flat_fit(
+    q: torch.Tensor,
+    config: SpCoConfig,
+    method: str,
+    request: RunArgs,
+    resume: Trajectory | None,
+    anneal: int,
+    anneal_name: str = "anneal_iterations",
+    *,
+    init: str = "one-hot",
+    mean_field: bool = True,
+) -> bool:
+    """:func:`warn_flat_q` at the end of a CAVI, loopy BP or memoized VI fit, its way out
+    :func:`restart_way_out` (``anneal``, ``anneal_name``, ``init``): the start was warm when
+    ``request`` gave start labels or the run continued ``resume``, a checkpoint's record."""
+    warm = request.init_labels is not None or resume is not None
+    way_out = restart_way_out(anneal, anneal_name, init=init, warm=warm)
+    return warn_flat_q(q, config, method, way_out, mean_field=mean_field)
+
+
 def flat_entropy(q: torch.Tensor) -> float | None:
     """The mean entropy a cell of ``q`` ``[N, L]`` when it is at least :data:`FLAT_Q_SHARE`
     of log L (q near uniform: the flat-q warnings of every variational method), else None;
