@@ -406,8 +406,10 @@ def _greedy(
                 continue
             trial = estimate.copy()
             trial[movers] = target[movers]
-            codes, kk = compact(trial)
-            kept = np.flatnonzero(np.bincount(trial, minlength=k + 1))  # old names, in order
+            kept = np.flatnonzero(np.bincount(trial, minlength=k + 1))  # [kk] old names, in order
+            rename = np.full(k + 1, -1, dtype=np.int64)  # [k + 1] old -> new: compact's renaming
+            rename[kept] = np.arange(kept.shape[0])
+            codes, kk = rename[trial], kept.shape[0]  # as compact(trial), without its sort
             trial_tables = _moved_tables(tables, kept, movers, estimate, target, prepared)
             trial_value = _expected(codes, kk, prepared, loss, trial_tables)
             if trial_value < value - 1e-12:
