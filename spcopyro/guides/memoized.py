@@ -79,6 +79,7 @@ from spcopyro.guides.factors import (
 from spcopyro.guides.memo import Memo
 from spcopyro.guides.run import (
     VariationalRun,
+    cell_xlogy_sum,
     remaining,
     resumed,
     warn_flat_fit,
@@ -266,10 +267,7 @@ def exact_elbo(
         for lo in range(0, data.pairs.shape[0], CHUNK):
             pairs = data.pairs[lo : lo + CHUNK]  # [c, 2]
             agreements += (q[pairs[:, 0]].to(DTYPE) * q[pairs[:, 1]].to(DTYPE)).sum()
-        entropy = torch.zeros((), dtype=DTYPE)
-        for lo in range(0, q.shape[0], CHUNK):
-            chunk = q[lo : lo + CHUNK].to(DTYPE)  # [c, L]
-            entropy -= torch.special.xlogy(chunk, chunk).sum()
+        entropy = torch.zeros((), dtype=DTYPE) - cell_xlogy_sum(q, CHUNK)  # +0.0 if one-hot
     total = total + config.gamma * agreements + coefficients
     return float(total - kl_to_prior(factors, data, config) + entropy)
 

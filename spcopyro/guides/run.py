@@ -312,12 +312,21 @@ def flat_entropy(q: torch.Tensor) -> float | None:
 
 
 def mean_cell_entropy(q: torch.Tensor, rows: int = 1 << 16) -> float:
-    """The mean over cells of q's entropy in nats, ``q`` ``[N, L]``, in float64 a block of
-    ``rows`` cells at a time (a float64 copy of a large map's whole q would be N L 8 bytes:
-    0.96 GB at 10^6 cells and L = 120, beside memoized VI's float32 q)."""
+    """The mean over cells of q's entropy in nats, ``q`` ``[N, L]``: minus
+    :func:`cell_xlogy_sum` (a block of ``rows`` cells at a time) over N."""
+    return -cell_xlogy_sum(q, rows) / max(q.shape[0], 1)
+
+
+def cell_xlogy_sum(q: torch.Tensor, rows: int = 1 << 16) -> float:
+    r""":math:`\sum_{i,l} q_{il} \log q_{il}`, minus the entropy of ``q`` ``[N, L]`` summed over
+    cells: xlogy summed in float64 a block of ``rows`` cells at a time, blocks in order (a
+    float64 copy of a large map's whole q would be N L 8 bytes: 0.96 GB at 10^6 cells and
+    L = 120, beside memoized VI's float32 q). The one loop of :func:`mean_cell_entropy` and
+    memoized VI's :func:`~spcopyro.guides.memoized.exact_elbo`; each negates it its own way, so
+    a one-hot q's zero keeps the sign each gave."""
     q = q.detach()
     total = 0.0
     for start in range(0, q.shape[0], rows):
         block = q[start : start + rows].to(torch.float64)  # [rows, L]
         total += float(torch.special.xlogy(block, block).sum())
-    return -total / max(q.shape[0], 1)
+    return total
