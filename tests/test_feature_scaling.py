@@ -126,10 +126,13 @@ def test_the_floor100_note_says_what_the_default_fit_does_with_the_rows():
     reads the rows as probabilities, and its --refine auto does not refine where floor(100 f)
     empties more than half of the images (spcopyro.fit.refine.KEEPS): nothing to do there.
     Where it empties fewer, the refinement, where it runs, counts them so: --refine never."""
-    from spcopyro.features.cli import REFINEMENT_KEEPS, floor100_note
-    from spcopyro.fit.refine import KEEPS
+    import spcopyro.features.cli as features_cli
+    from spcopyro.data.counts import KEEPS
+    from spcopyro.features.cli import floor100_note
+    from spcopyro.fit import refine
 
-    assert REFINEMENT_KEEPS == KEEPS  # features' layer is below fit's: a copy, checked
+    assert refine.KEEPS is KEEPS  # one share, in the layer below both: no copy to keep in step
+    assert not hasattr(features_cli, "REFINEMENT_KEEPS")
     peaked = np.full((3, 1000), 0.2 / 999)
     peaked[:, 0] = 0.8
     flat = np.full((1, 1000), 1e-3)  # every value below 0.01

@@ -77,12 +77,6 @@ def _random_warning(weights: str) -> None:
         )
 
 
-REFINEMENT_KEEPS = 0.5
-""":data:`spcopyro.fit.refine.KEEPS` (``fit``'s layer is above this one; a test checks they
-agree): ``fit --refine auto`` does not refine where floor(100 f) empties more than this share of
-the images."""
-
-
 def floor100_note(features, out: str | Path) -> str | None:
     """A note on what ``floor100`` (floor(100 f): presets ``auto`` and ``original-code``, and
     the refinement of the default preset ``coarse`` on the map's cells) would leave of the
@@ -90,12 +84,13 @@ def floor100_note(features, out: str | Path) -> str | None:
     empties no row and keeps at least half of a row's mass in median. A histogram over 1000
     ImageNet classes often has every entry below 0.01 (``--weights random``: all of them),
     which floor(100 f) makes an all-zero row. The default fit reads them as probabilities, and
-    its ``--refine auto`` does not refine where more than :data:`REFINEMENT_KEEPS` of the rows
-    would be emptied: nothing to do there; else the refinement, where it runs, counts them as
-    floor(100 f), and ``--refine never`` keeps them as probabilities."""
+    its ``--refine auto`` does not refine where more than
+    :data:`~spcopyro.data.counts.KEEPS` of the rows would be emptied: nothing to do there;
+    else the refinement, where it runs, counts them as floor(100 f), and ``--refine never``
+    keeps them as probabilities."""
     import numpy as np
 
-    from spcopyro.data.counts import scale_features, scaled_away
+    from spcopyro.data.counts import KEEPS, scale_features, scaled_away
 
     f = np.asarray(features, dtype=np.float64)  # [T, K]
     if f.size == 0:
@@ -120,7 +115,7 @@ def floor100_note(features, out: str | Path) -> str | None:
                "of a row's mass in median")  # fmt: skip
     others = ("with --preset auto or original-code add --feature-scaling probability (or a "
               "number s, counting s * f)")  # fmt: skip
-    if empty.size > REFINEMENT_KEEPS * f.shape[0]:
+    if empty.size > KEEPS * f.shape[0]:
         return (f"{counted}. The default fit needs nothing: preset coarse reads these "
                 f"{f.shape[1]}-class rows as probabilities, and --refine auto does not refine "
                 "where floor(100 f) would leave out more than half of them (its 'not refined' "

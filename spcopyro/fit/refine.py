@@ -57,7 +57,7 @@ import numpy as np
 
 from spcopyro.config import PRESETS, DataPreparation, SpCoConfig, SpCoSettings, preset
 from spcopyro.data import House
-from spcopyro.data.counts import scale_features, scaled_away
+from spcopyro.data.counts import KEEPS, scale_features, scaled_away
 from spcopyro.data.model_grid import model_house
 from spcopyro.fit.image_separation import ImageSeparation, image_labels, image_separation
 from spcopyro.results.result import SpCoResult
@@ -92,14 +92,6 @@ REFINE_MODES: tuple[str, ...] = ("auto", "never", "always")
 SEPARATES = 0.5
 """``refine="auto"`` refines when the coarse fit's concepts explain at least this share of the
 images' variance (module docstring)."""
-
-KEEPS = 0.5
-"""``refine="auto"`` does not refine when floor(100 f), the refinement's counting of the images,
-leaves nothing of more than this share of them (every feature of a row below 0.01: a histogram
-over the 1000 ImageNet classes of ``spcopyro features``, all of them with ``--weights random``):
-the decision was measured on the images, and the refinement would fit without them (the README's
-rosbag walk: the coarse fit's six rooms became four on the map's cells, every image left out)."""
-
 
 def check_refine(refine: str) -> str:
     if refine not in REFINE_MODES:
