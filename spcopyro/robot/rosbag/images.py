@@ -16,6 +16,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Any
 
+import cv2
 import numpy as np
 
 from spcopyro.robot.rosbag.bag import INSTALL_HINT, RosbagsMissingError
@@ -33,8 +34,6 @@ class ImageDecodeError(ValueError):
 def decode_image(msg: Any, bits: int | None = None, seen: set[int] | None = None) -> np.ndarray:
     """``[H, W, 3]`` uint8 BGR of an Image or CompressedImage message; a 16-bit one is scaled
     by :func:`to_8_bits` (``bits``, and the depth used added to ``seen``)."""
-    import cv2  # here, not with the package: spcopyro's parser imports it (start-up)
-
     if hasattr(msg, "format"):  # CompressedImage
         data = np.frombuffer(bytes(msg.data), dtype=np.uint8)  # [bytes]
         flags = cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH  # a 16-bit PNG (mono16, png compressed)
@@ -106,8 +105,6 @@ def encoded_image(
 ) -> tuple[bytes, str]:
     """The file content and suffix (``.jpg`` or ``.png``) to store for an image message
     (``bits``, ``seen``: a 16-bit image's, :func:`to_8_bits`)."""
-    import cv2
-
     image = decode_image(msg, bits, seen)  # [H, W, 3] uint8: it decodes
     if hasattr(msg, "format"):
         data = bytes(msg.data)

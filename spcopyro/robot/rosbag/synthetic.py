@@ -34,6 +34,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
 from spcopyro._util.outputs import check_folder_path
@@ -211,8 +212,6 @@ class BagWriter:
     ) -> None:
         """An ``[H, W, 3]`` uint8 RGB image: ``raw`` (Image, rgb8) or ``jpeg`` / ``png``
         (CompressedImage)."""
-        import cv2  # here, not with the package: spcopyro's parser imports it (start-up)
-
         T = self.types
         rgb = np.ascontiguousarray(rgb, dtype=np.uint8)
         header = self.header(t, "camera_link")
@@ -272,8 +271,6 @@ def render_category_image(
 ) -> np.ndarray:
     """``[H, W, 3]`` uint8 RGB: a category's colour (hue) with stripes whose angle and period
     depend on the category, plus noise (category -1, unlabelled: grey)."""
-    import cv2
-
     height, width = size
     rows, cols = np.mgrid[0:height, 0:width].astype(np.float64)  # [H, W] each
     c = max(int(category), 0)
