@@ -273,7 +273,7 @@ def load_chains(
         if saved["backend_used"] != backend.name:
             used = saved["backend_used"]
             problems.append(
-                f"backend: {saved['backend_used']!r} ran the checkpoint's chains, {backend.name!r} "
+                f"backend: {used!r} ran the checkpoint's chains, {backend.name!r} "
                 "would continue them (the backends draw different random streams: pass "
                 f"{setting(f'backend={used!r}', f'--backend {used}')})"
             )

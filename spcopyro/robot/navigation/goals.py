@@ -279,12 +279,12 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
         if token in STOP_WORDS:
             continue
         if token not in known:
-            close = close_words(token, candidates)
             if hidden_match(token, vocabulary):  # 'kit\u200bchen' prints as 'kitchen'
                 raise ValueError(
                     f"word {words[k][0]!r} of the instruction is not in the fit's vocabulary "
                     f"of {len(vocabulary)} words: {hidden_characters_note(words[k][0], vocabulary)}"
                 )
+            close = close_words(token, candidates)
             if close:
                 raise ValueError(
                     f"word {token!r} of the instruction is not in the fit's vocabulary of "
