@@ -227,8 +227,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     paths = {house: house_path(root, house) for house in houses}  # numba's cache filled, untimed
     warm = warm_kernels({h: [str(p)] if p is not None else [] for h, p in paths.items()})
     rows = []
-    for house in houses:
-        data = house_path(root, house)
+    for house, data in paths.items():
         tries = []
         for k in range(repeats):
             print(f"fitting {house} ({k + 1} of {repeats}) ...", file=sys.stderr)

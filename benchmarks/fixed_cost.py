@@ -169,10 +169,10 @@ def warm_note(warm: dict[str, float]) -> str:
     )
 
 
-def preset_arguments(data: Path | None, preset: str) -> list[str]:
+def preset_arguments(data: Path | None, preset: str, seed: int = 0) -> list[str]:
     """``spcopyro fit`` arguments of a fit of ``data`` (None: the embedded house) under
-    ``preset``, seed 0, as :func:`fit_once` gives them."""
-    return [*([str(data)] if data is not None else []), "--preset", preset, "--seed", "0"]
+    ``preset`` with ``seed``: :func:`fit_once`'s, before its sweeps and figures."""
+    return [*([str(data)] if data is not None else []), "--preset", preset, "--seed", str(seed)]
 
 
 def run_fit_process(
@@ -208,8 +208,7 @@ def fit_once(
 ) -> dict[str, Any]:
     """One ``spcopyro fit`` in a fresh subprocess (``extra``: more of its arguments): its wall
     seconds and its phases."""
-    arguments = [*([str(data)] if data is not None else []), "--preset", preset,
-                 "--sweeps", str(sweeps), "--seed", str(seed),
+    arguments = [*preset_arguments(data, preset, seed), "--sweeps", str(sweeps),
                  *([] if figures else ["--no-figures"]), *extra]  # fmt: skip
     record, wall, startup, pngs = run_fit_process(arguments, timeout=900)
     seconds = dict(record["seconds"])
@@ -483,12 +482,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.house:  # asked for by name: there, or an error
         house_folder(dataset, args.house, "--house")
     house = args.house or "room2ldk4"
-    label = house if _house_folder(dataset, house) is not None else f"the {EMBEDDED_LABEL}"
+    folder = _house_folder(dataset, house)  # None: the embedded house
+    label = house if folder is not None else f"the {EMBEDDED_LABEL}"
     presets = [p.strip() for p in args.presets.split(",") if p.strip()]
     sweeps, repeats = args.sweeps, args.repeats
     figures = [False] if args.quick else [True, False]
     bytecode = warm_bytecode()
-    folder = _house_folder(dataset, house)
     warm = {} if args.startup_only else warm_kernels(
         {p: preset_arguments(folder, p) for p in presets})  # fmt: skip
     results = []
@@ -498,7 +497,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             results.append(measure_fixed_cost(dataset, house, preset, sweeps,
                                               with_figures, repeats))  # fmt: skip
     print(f"start-up of the questions on {label} ...", file=sys.stderr)
-    startup = measure_startup(_house_folder(dataset, house), repeats)
+    startup = measure_startup(folder, repeats)
     # the floor under the fixed cost, timed in this run (--quick: the interpreter and torch only)
     imports = {} if args.startup_only else import_seconds(("pass", "torch") if args.quick
                                                           else IMPORTS)  # fmt: skip
@@ -508,7 +507,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if imports:
         print("\nimport alone, fresh interpreter (s): "
               + ", ".join(f"{m} {s:.2f}" for m, s in imports.items()))  # fmt: skip
-    if _house_folder(dataset, house) is None:
+    if folder is None:
         print(f"note: the public dataset was not found: the {EMBEDDED_LABEL} was fitted")
     print(bytecode_note(bytecode))
     if warm:
