@@ -93,8 +93,11 @@ def load_text(summary: dict) -> str:
             "the times grow with it.")  # fmt: skip
 
 
-def _mean(line: dict, score: str) -> float:
-    entry = line.get("final", {}).get(score, {})
+def mean_of(entry: dict, *keys: str) -> float:
+    """The ``"mean"`` of ``entry[keys[0]][keys[1]]...`` (a line's ``"final"`` score, say); nan
+    where a key or the mean is missing."""
+    for key in keys:
+        entry = entry.get(key, {}) if isinstance(entry, dict) else {}
     return entry.get("mean", math.nan) if isinstance(entry, dict) else math.nan
 
 
@@ -104,7 +107,7 @@ def best_lines(by_variant: dict[str, dict], scores: tuple[str, ...], names: dict
     share of held-out words, the other lines within one word of it."""
     parts = []
     for score in scores:
-        means = {k: _mean(s, score) for k, s in by_variant.items()}
+        means = {k: mean_of(s, "final", score) for k, s in by_variant.items()}
         means = {k: v for k, v in means.items() if math.isfinite(v)}
         if not means:
             continue

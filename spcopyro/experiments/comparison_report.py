@@ -22,9 +22,11 @@ from matplotlib.figure import Figure
 
 from spcopyro._util.messages import command_time, fixed, plural, seconds_text
 from spcopyro.experiments.comparison_headline import (
+    TIE,
     at_first_map,
     first_map_counts,
     load_text,
+    mean_of,
     summary_lines,
     top1_words,
     within_one_word,
@@ -172,12 +174,6 @@ def unfinished_annealing(iterations: dict[str, int], settings: ComparisonSetting
     return notes
 
 
-def _m(entry: dict, *keys: str) -> float:
-    for key in keys:
-        entry = entry.get(key, {}) if isinstance(entry, dict) else {}
-    return entry.get("mean", math.nan) if isinstance(entry, dict) else math.nan
-
-
 def _ratio(a: float, b: float) -> str:
     if not (math.isfinite(a) and math.isfinite(b)) or a <= 0 or b <= 0:
         return "n/a"
@@ -197,26 +193,26 @@ quick run ended at ARI 0.006 and "reached 95% of its own final ARI" in 0.01 s)."
 
 def at_chance(entry: dict, score: str) -> bool:
     """Whether a line's mean final ``score`` is an ARI at chance (below :data:`CHANCE_ARI`)."""
-    return score == "ari" and _m(entry, "final_given_labels", "ari") < CHANCE_ARI
+    return score == "ari" and mean_of(entry, "final_given_labels", "ari") < CHANCE_ARI
 
 
 def _time_to_95(s: dict, ref: dict, primary: str) -> str:
     """A finding's part on the time to 95% of the final ``primary`` of line ``s`` against
     gibbs's ``ref``; a line whose final ARI is at chance (:func:`at_chance`) gets no time."""
     name = SCORE_NAMES[primary]
-    t, t_ref = _m(s, "time_to_95", primary), _m(ref, "time_to_95", primary)
+    t, t_ref = mean_of(s, "time_to_95", primary), mean_of(ref, "time_to_95", primary)
     chance = f"at chance (ARI < {CHANCE_ARI:g}), so no time to 95% of it is given"
     first = "from its first map: that map already had 95% of its final {}, so no speed is read"
     if at_first_map(s, primary):  # gibbs-sw's first kept map read "28.5x faster" than gibbs
         return f"95% of its own final {name} after {_finding_seconds(t)} s, " + first.format(name)
     if at_chance(s, primary):
-        text = f"its final {name} {fixed(_m(s, 'final_given_labels', primary))} is {chance}"
+        text = f"its final {name} {fixed(mean_of(s, 'final_given_labels', primary))} is {chance}"
         if not at_chance(ref, primary):
             text += f" (gibbs reaches 95% of its own after {_finding_seconds(t_ref)} s)"
         return text
     text = f"95% of its own final {name} after {_finding_seconds(t)} s vs "
     if at_chance(ref, primary):
-        final_ref = fixed(_m(ref, "final_given_labels", primary))
+        final_ref = fixed(mean_of(ref, "final_given_labels", primary))
         return text + f"none for gibbs: its final {name} {final_ref} is {chance}"
     if at_first_map(ref, primary):
         return text + (f"{_finding_seconds(t_ref)} s for gibbs, from its first map (no speed "
@@ -237,10 +233,10 @@ def findings(summary: dict[str, dict[str, dict]]) -> list[str]:
         for key, s in by_variant.items():
             if key == "gibbs":
                 continue
-            q = _m(s, "final_given_labels", primary)
-            q_ref = _m(ref, "final_given_labels", primary)
+            q = mean_of(s, "final_given_labels", primary)
+            q_ref = mean_of(ref, "final_given_labels", primary)
             diff = q - q_ref
-            if abs(diff) < 5e-4:
+            if abs(diff) < TIE:
                 verdict = "equal"
             else:
                 better = (diff < 0) == better_low
@@ -252,27 +248,29 @@ def findings(summary: dict[str, dict[str, dict]]) -> list[str]:
                 f"given them) {fixed(q)} vs "
                 f"{fixed(q_ref)} ({verdict})",
                 _time_to_95(s, ref, primary),
-                f"whole run {_finding_seconds(_m(s, 'seconds'))} s vs "
-                f"{_finding_seconds(_m(ref, 'seconds'))} s",
-                f"concepts {_m(s, 'concepts'):.1f} vs {_m(ref, 'concepts'):.1f}",
+                f"whole run {_finding_seconds(mean_of(s, 'seconds'))} s vs "
+                f"{_finding_seconds(mean_of(ref, 'seconds'))} s",
+                f"concepts {mean_of(s, 'concepts'):.1f} vs {mean_of(ref, 'concepts'):.1f}",
             ]
             if house_type == SYNTHETIC:
-                k = _m(s, "truth_categories")
+                k = mean_of(s, "truth_categories")
                 parts[-1] += f" (truth: {k:.1f} categories)"
-                if _m(s, "concepts") < k:
+                if mean_of(s, "concepts") < k:
                     parts.append("fewer concepts than categories: it merges places")
             oc, oc_ref = s.get("overconfidence"), ref.get("overconfidence")
             if house_type == SYNTHETIC:
-                own, own_ref = _m(s, "final", "matching_rate"), _m(ref, "final", "matching_rate")
-                means = _m(s, "final_given_labels", "matching_rate")
-                means_ref = _m(ref, "final_given_labels", "matching_rate")
+                own = mean_of(s, "final", "matching_rate")
+                own_ref = mean_of(ref, "final", "matching_rate")
+                means = mean_of(s, "final_given_labels", "matching_rate")
+                means_ref = mean_of(ref, "final_given_labels", "matching_rate")
                 parts.append(
                     f"matching rate of its own output {fixed(own)} vs gibbs {fixed(own_ref)}, "
                     f"with the means given the labels {fixed(means)} vs {fixed(means_ref)}"
                 )
             else:
-                own, own_ref = _m(s, "final", "top1"), _m(ref, "final", "top1")
-                dist, dist_ref = _m(s, "final", "distance_m"), _m(ref, "final", "distance_m")
+                own, own_ref = mean_of(s, "final", "top1"), mean_of(ref, "final", "top1")
+                dist = mean_of(s, "final", "distance_m")
+                dist_ref = mean_of(ref, "final", "distance_m")
                 parts.append(
                     f"top-1 of its own output {fixed(own)} vs gibbs {fixed(own_ref)}; localisation "
                     f"distance {dist:.2f} m vs {dist_ref:.2f} m"
@@ -280,17 +278,17 @@ def findings(summary: dict[str, dict[str, dict]]) -> list[str]:
             if oc and oc_ref:
                 parts.append(
                     f"share of its wrong cells labelled with confidence >= {CONFIDENT}: "
-                    f"{_m(oc, 'confident_wrong_share'):.2f} vs gibbs "
-                    f"{_m(oc_ref, 'confident_wrong_share'):.2f} (mean confidence on wrong "
-                    f"cells {_m(oc, 'confidence_wrong'):.3f} vs "
-                    f"{_m(oc_ref, 'confidence_wrong'):.3f})"
+                    f"{mean_of(oc, 'confident_wrong_share'):.2f} vs gibbs "
+                    f"{mean_of(oc_ref, 'confident_wrong_share'):.2f} (mean confidence on wrong "
+                    f"cells {mean_of(oc, 'confidence_wrong'):.3f} vs "
+                    f"{mean_of(oc_ref, 'confidence_wrong'):.3f})"
                 )
             if "ess_per_second" in s and "ess_per_second" in ref:
                 parts.append(
-                    f"ESS/s of the log joint {_m(s, 'ess_per_second', 'log_joint'):.2f} vs "
-                    f"{_m(ref, 'ess_per_second', 'log_joint'):.2f}, of the agreement count "
-                    f"{_m(s, 'ess_per_second', 'agreement'):.2f} vs "
-                    f"{_m(ref, 'ess_per_second', 'agreement'):.2f}"
+                    f"ESS/s of the log joint {mean_of(s, 'ess_per_second', 'log_joint'):.2f} vs "
+                    f"{mean_of(ref, 'ess_per_second', 'log_joint'):.2f}, of the agreement count "
+                    f"{mean_of(s, 'ess_per_second', 'agreement'):.2f} vs "
+                    f"{mean_of(ref, 'ess_per_second', 'agreement'):.2f}"
                 )
             notes.append("; ".join(parts) + ".")
     return notes
