@@ -93,6 +93,7 @@ SEPARATES = 0.5
 """``refine="auto"`` refines when the coarse fit's concepts explain at least this share of the
 images' variance (module docstring)."""
 
+
 def check_refine(refine: str) -> str:
     if refine not in REFINE_MODES:
         raise ValueError(f"refine must be one of {REFINE_MODES}, got {refine!r}")
