@@ -9,7 +9,11 @@ import argparse
 import dataclasses
 
 from spcopyro.cli.common import given as given_flag
-from spcopyro.inference.protocol import StartDependentOptions, options_for_start
+from spcopyro.inference.protocol import (
+    StartDependentOptions,
+    options_for_start,
+    start_filled,
+)
 
 __all__ = ["check_sweeps", "given_start", "method_options", "options_line", "warm_start_kept"]
 
@@ -179,14 +183,14 @@ def options_line(options: object, given: bool) -> str:
     the fit uses, e.g. ``label_smoothing=None (0.05: given start)``."""
     if not isinstance(options, StartDependentOptions) or not dataclasses.is_dataclass(options):
         return repr(options)
-    ran = options_for_start(options, given_start=given)
+    filled = start_filled(options, options_for_start(options, given_start=given))
     start = "given start" if given else "random start"
     fields = []
     for field in dataclasses.fields(options):
         if not field.repr:
             continue
-        value, used = getattr(options, field.name), getattr(ran, field.name)
-        note = f" ({used!r}: {start})" if value is None and used is not None else ""
+        value = getattr(options, field.name)
+        note = f" ({filled[field.name]!r}: {start})" if field.name in filled else ""
         fields.append(f"{field.name}={value!r}{note}")
     return f"{type(options).__name__}({', '.join(fields)})"
 

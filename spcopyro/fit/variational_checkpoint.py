@@ -3,7 +3,6 @@ the fit's settings as the checkpoint records them (:mod:`spcopyro.guides.checkpo
 
 from __future__ import annotations
 
-import dataclasses
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -23,6 +22,7 @@ from spcopyro.inference.protocol import (
     Resumption,
     method_options,
     options_for_start,
+    start_filled,
 )
 from spcopyro.model import ModelData
 
@@ -79,11 +79,8 @@ class VariationalSaving:
                 options=self._options(), record=self._record(),
             )  # fmt: skip
         except CheckpointMismatchError as error:
-            given, ran = self._given_options(), self._options()
-            fields = dataclasses.fields(ran) if dataclasses.is_dataclass(ran) else ()
-            unset = [field.name for field in fields  # left to the start: None given, a value run
-                     if field.name in error.options and getattr(given, field.name) is None
-                     and getattr(ran, field.name) is not None]  # fmt: skip
+            filled = start_filled(self._given_options(), self._options())  # left to the start
+            unset = [name for name in filled if name in error.options]
             if not unset:
                 raise
             raise CheckpointMismatchError(  # e.g. svi's anneal_iterations: 100 for every start

@@ -122,6 +122,16 @@ def options_for_start(options: OptionsT, given_start: bool) -> OptionsT:
     return options
 
 
+def start_filled(given: object, ran: object) -> dict[str, object]:
+    """The fields of dataclass options ``given`` left to the start (None) that ``ran``
+    (:func:`options_for_start` of them) sets: name -> the value run, in field order. What fit's
+    options line notes and a checkpoint refusal names as unset."""
+    if not (dataclasses.is_dataclass(given) and dataclasses.is_dataclass(ran)):
+        return {}
+    return {f.name: getattr(ran, f.name) for f in dataclasses.fields(ran)  # type: ignore[arg-type]
+            if getattr(given, f.name) is None and getattr(ran, f.name) is not None}  # fmt: skip
+
+
 @runtime_checkable
 class ResumeIgnoringOptions(Protocol):
     """A method's options with fields a resumed run does not read (svi's
