@@ -478,10 +478,9 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
         if on_map is not None and on_map.truth is not None and on_map.grid is not house.grid:
             # a fit left on a coarser model grid: its ARI is of the truth by block there, where
             # a refined fit's is on the map's cells; give both
-            from spcopyro.maps.coarse import coarsening_factor, refine_labels
+            from spcopyro.maps.coarse import labels_on_grid
 
-            factor = coarsening_factor(on_map.grid.resolution, job.settings.data.cell_size)
-            fine = refine_labels(result.label_image(), on_map.grid, factor)  # [H, W]
+            fine = labels_on_grid(result.label_image(), on_map.grid, job.settings.data.cell_size)
             scores["ari_map_cells"] = adjusted_rand_index(fine, on_map.truth)
             where = (f" {ari:.3f} on the model's {house.grid.num_free} free cells of "
                      f"{house.grid.resolution:g} m (the truth by block), "

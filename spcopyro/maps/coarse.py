@@ -41,6 +41,7 @@ __all__ = [
     "free_block_of_map_cells",
     "grow_labels",
     "is_coarsening",
+    "labels_on_grid",
     "model_cell_of",
     "refine_labels",
 ]
@@ -157,6 +158,16 @@ def grow_labels(labels: np.ndarray, mask: np.ndarray) -> np.ndarray:
         if not grow.any():
             return labels
         labels[grow] = candidate[grow]
+
+
+def labels_on_grid(labels: np.ndarray, grid: OccupancyGrid, cell_size: float | None) -> np.ndarray:
+    """``[H, W]`` a fit's ``labels`` on ``grid``'s own cells: refined
+    (:func:`refine_labels`) from the model grid of ``cell_size`` that the fit ran on where their
+    shapes differ, else as they are. How a fit left on its model grid is scored on the map's
+    cells (``fit``'s ``ari_map_cells``, a study cell's label map)."""
+    if labels.shape != grid.shape:
+        labels = refine_labels(labels, grid, coarsening_factor(grid.resolution, cell_size))
+    return labels
 
 
 def refine_labels(labels: np.ndarray, grid: OccupancyGrid, factor: int) -> np.ndarray:

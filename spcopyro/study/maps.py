@@ -23,7 +23,7 @@ import numpy as np
 
 from spcopyro.figures.fonts import any_script
 from spcopyro.maps import OccupancyGrid
-from spcopyro.maps.coarse import coarsening_factor, refine_labels
+from spcopyro.maps.coarse import labels_on_grid
 
 __all__ = [
     "MAPS_PREFIX", "Arrays", "StoredMap", "label_map_arrays", "labels_on_map", "load_label_map",
@@ -38,12 +38,8 @@ MAPS_PREFIX = "maps_"
 
 def labels_on_map(result, house, settings) -> np.ndarray:
     """``[H, W]`` a fit's labels on the map's cells of ``house`` (refined from a coarser model
-    grid of ``settings.data.cell_size``, :func:`spcopyro.maps.coarse.refine_labels`)."""
-    labels = result.label_image()  # [h, w] on the model's grid
-    if labels.shape != house.grid.shape:
-        factor = coarsening_factor(house.grid.resolution, settings.data.cell_size)
-        labels = refine_labels(labels, house.grid, factor)
-    return labels
+    grid of ``settings.data.cell_size``, :func:`spcopyro.maps.coarse.labels_on_grid`)."""
+    return labels_on_grid(result.label_image(), house.grid, settings.data.cell_size)
 
 
 def label_map_arrays(labels: np.ndarray, house, truth: np.ndarray | None) -> Arrays:
