@@ -96,6 +96,19 @@ def test_glued_room_comes_first_and_words_are_not_repeated():
     assert close_words("room", ROOM2LDK4) == []  # no word before "room"
 
 
+@pytest.mark.parametrize("word", ["room", "-room", "_room", " room", "rooom", "x"])
+def test_a_blank_vocabulary_word_is_never_offered(word):
+    """The word "room" (its stem, before "room", empty) was offered the vocabulary's "": the data's
+    readers make no blank word (a blank line or entry is an error naming its file and line,
+    double spaces part words), but a vocabulary built by hand or read from a result may hold
+    one."""
+    assert close_words(word, ("", " ", "kitchen")) == []
+    assert close_words("kitchn", ("", "kitchen", " ")) == ["kitchen"]
+    with pytest.raises(UnknownWordError) as raised:
+        word_index(("", "kitchen"), word)
+    assert "did you mean" not in str(raised.value)
+
+
 def test_the_commands_offer_no_different_room(tmp_path, capsys):
     """On a saved fit whose words are bedroom, corridor, kitchen, closet and the."""
     fit = str(house_result().save(tmp_path / "fit"))

@@ -342,6 +342,11 @@ def test_cell_counts_vocabulary_options(grid, caplog):
     )
     with pytest.raises(ValueError, match="'bed'"):
         cell_counts(grid, obs, vocabulary=("kitchen", "table"))
+    for blank in ("", " "):  # no word, as Observations refuses it in an utterance
+        for weighting in ("count", "tfidf"):
+            with pytest.raises(ValueError, match=f"vocabulary holds an invalid token: {blank!r}"):
+                cell_counts(grid, obs, word_weighting=weighting,
+                            vocabulary=("bed", "table", "kitchen", blank))  # fmt: skip
     images_only = obs.select_trials([0, 1]).select_trials([0])
     images_only = Observations(
         image_features=images_only.image_features,
@@ -398,6 +403,16 @@ def test_load_hand_written_room(tmp_path, grid):
     assert obs.image_paths is None and house.truth is None
 
 
+def test_double_spaces_make_no_empty_word(tmp_path, grid):
+    """Spaces (several, a tab, a no-break space) part words: none is read as a word ""."""
+    room = write_room(tmp_path, grid)
+    (room / "St.csv").write_text("kitchen,  Here  is\tthe\u00a0kitchen. ,bed")
+    (room / "word_0.csv").write_text("kitchen\nhere   is the  kitchen \n")
+    obs = load_house(room).observations
+    assert obs.utterances == (("kitchen",), ("here", "is", "the", "kitchen"), ("bed",))
+    assert obs.vocabulary == ("kitchen", "here", "is", "the", "bed")
+
+
 def test_load_without_trial_files_is_one_trial(tmp_path, grid):
     room = write_room(tmp_path, grid)
     for file in ("pose_0.csv", "pose_1.csv", "word_0.csv", "word_1.csv"):
@@ -435,6 +450,8 @@ BAD_FILES = [
     ("word_1.csv", "", ["St.csv", "word_0.csv: 2", "word_1.csv: 0"]),
     # an empty first word file: the counts, not word_1.csv line 1 "differs from utterance 1"
     ("word_0.csv", "", ["St.csv", "word_0.csv: 0", "word_1.csv: 1"]),
+    # a blank line is an utterance of no words, not an empty word
+    ("word_0.csv", "kitchen\n \nhere is the kitchen\n", ["word_0.csv", "line 2", "no words"]),
 ]
 
 

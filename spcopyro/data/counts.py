@@ -338,7 +338,7 @@ def cell_counts(
     else:
         vocab = tuple(vocabulary)
         for token in vocab:
-            if not isinstance(token, str) or not token:
+            if not isinstance(token, str) or not token.strip():  # as Observations' tokens
                 raise ValueError(f"vocabulary holds an invalid token: {token!r}")
         if not vocab and obs.num_utterances:
             raise ValueError(

@@ -128,9 +128,11 @@ def close_words(word: str, candidates: Sequence[str], n: int = 3) -> list[str]:
     filler word; 0.75 by ratio), then those at a ``difflib.SequenceMatcher`` ratio of at
     least :data:`CLOSE_WORD_CUTOFF` (its docstring lists the pairs measured). Empty when none
     is close: a different room ("bathroom" for a house with "bedroom" and "washroom") is no
-    suggestion. ``where``'s and ``export``'s :func:`word_index` and ``navigate``'s
+    suggestion, nor is a blank candidate ("" or spaces: no word, which "room" alone, its stem
+    empty, was glued to). ``where``'s and ``export``'s :func:`word_index` and ``navigate``'s
     :func:`~spcopyro.robot.navigation.goals.parse_instruction` all suggest through this."""
-    by_form = {_compared(c): c for c in reversed(candidates)}  # form -> its first candidate
+    words = [c for c in reversed(candidates) if c.strip()]  # the data's readers make no blank
+    by_form = {_compared(c): c for c in words}  # form -> its first candidate
     form = _compared(word)
     stem = _ROOM_SUFFIX.sub("", form)
     glued = [by_form[stem]] if stem != form and stem in by_form else []
