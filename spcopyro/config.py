@@ -347,11 +347,15 @@ class SpCoSettings:
 
     ``preset``: the name of the preset they came from (:func:`preset`; kept by
     :meth:`replace`, not part of equality), so that a fit can tell when it skips the inference
-    settings that preset recommends (:func:`preset_inference`)."""
+    settings that preset recommends (:func:`preset_inference`). ``chosen``: the names of the
+    fields the caller set over it (:func:`preset`'s overrides, :meth:`replace`'s changes; not
+    part of equality), so that a fit can name a value given that it replaces even where it is
+    the preset's own (:func:`spcopyro.fit.refine.replaced_preparation`)."""
 
     model: SpCoConfig = SpCoConfig()
     data: DataPreparation = DataPreparation()
     preset: str | None = dataclasses.field(default=None, compare=False)
+    chosen: frozenset[str] = dataclasses.field(default=frozenset(), compare=False, repr=False)
 
     def replace(self, **changes: object) -> SpCoSettings:
         """A copy with fields of either layer changed, each routed by its name."""
@@ -370,6 +374,7 @@ class SpCoSettings:
             self.model.replace(**model) if model else self.model,
             self.data.replace(**data) if data else self.data,
             preset=self.preset,
+            chosen=self.chosen | set(changes),
         )
 
 
@@ -385,7 +390,8 @@ def preset(name: str = DEFAULT_PRESET, **overrides: object) -> SpCoSettings:
     if name not in PRESETS:
         raise ValueError(f"unknown preset {name!r}; choose one of {sorted(PRESETS)}")
     values = dict(PRESETS[name])
-    values.update({k: v for k, v in overrides.items() if v is not None})
+    given = {k: v for k, v in overrides.items() if v is not None}
+    values.update(given)
     if values.get("cell_size") == "map":  # the map's own cells, over a preset's cell size
         values["cell_size"] = None
     if values.get("num_concepts") is None:
@@ -394,6 +400,5 @@ def preset(name: str = DEFAULT_PRESET, **overrides: object) -> SpCoSettings:
         )
     data_fields = {f.name for f in dataclasses.fields(DataPreparation)}
     data = {k: values.pop(k) for k in list(values) if k in data_fields}
-    return SpCoSettings(model=SpCoConfig(), data=DataPreparation(), preset=name).replace(
-        **values, **data
-    )
+    settings = SpCoSettings(model=SpCoConfig(), data=DataPreparation(), preset=name)
+    return dataclasses.replace(settings.replace(**values, **data), chosen=frozenset(given))

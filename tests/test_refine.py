@@ -3,7 +3,6 @@ settings, the start from a coarse map, the library's and the command's wiring, C
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import shlex
@@ -16,6 +15,7 @@ from spcopyro._util.outputs import checkpoint_path
 from spcopyro.cli.fit_refine import replaced_options
 from spcopyro.cli.main import main
 from spcopyro.config import DataPreparation, SpCoSettings, preset
+from spcopyro.data import load_house
 from spcopyro.data.model_grid import model_house
 from spcopyro.fit.house import fit_house, preset_fit_kwargs
 from spcopyro.fit.refine import (
@@ -252,17 +252,10 @@ def test_the_command_names_an_option_the_refinement_replaces_once(home, tmp_path
 
 
 def test_the_note_names_only_given_options_the_refinement_changes():
-    coarse = preset("coarse", feature_scaling="probability", footprint_radius=0.5)
-    refined = refined_settings(coarse, 100, 2500).data
-    given = argparse.Namespace(
-        feature_scaling="probability",
-        word_scaling=None,
-        footprint=0.5,
-        footprint_kernel="gaussian",
-        footprint_fov=None,
-        cell_size="0.5",
-    )
-    assert replaced_options(given, coarse.data.replace(footprint_kernel="gaussian"), refined) == {
+    given = preset("coarse", feature_scaling="probability", footprint_radius=0.5,
+                   footprint_kernel="gaussian", cell_size=0.5)  # fmt: skip
+    refined = refined_settings(given, 100, 2500).data
+    assert replaced_options(given, refined) == {
         "--feature-scaling": {"given": "probability", "refinement": "floor100"},
         "--footprint": {"given": 0.5, "refinement": 0.0},
         "--footprint-kernel": {"given": "gaussian", "refinement": "unused (no footprint)"},
@@ -270,20 +263,49 @@ def test_the_note_names_only_given_options_the_refinement_changes():
     # the refinement's preparation keeps the kernel (it does nothing at radius 0): the record
     # says so rather than None beside a preparation holding it (found in review)
     assert refined.footprint_radius == 0.0
-    uniform = argparse.Namespace(footprint_kernel="uniform")  # given, the refinement's own value
-    assert replaced_options(uniform, coarse.data, refined) == {
+    uniform = preset("coarse", footprint_kernel="uniform")  # given, though the preset's value
+    assert replaced_options(uniform, refined) == {
         "--footprint-kernel": {"given": "uniform", "refinement": "unused (no footprint)"}
     }
-    same = argparse.Namespace(
-        feature_scaling="floor100",
-        word_scaling=1.0,
-        footprint=0.0,
-        footprint_kernel=None,
-        footprint_fov=None,
-        cell_size=None,
-    )
-    assert replaced_options(same, refined, refined) == {}  # given, but what the refinement uses
-    assert replaced_options(argparse.Namespace(), coarse.data, refined) == {}  # the default fit
+    same = preset("coarse", feature_scaling="floor100", word_scaling=1.0, footprint_radius=0.0)
+    assert replaced_options(same, refined) == {}  # given, but what the refinement uses
+    assert replaced_options(preset("coarse"), refined) == {}  # the default fit
+
+
+def _replacing(said: str, start: str) -> dict[str, str]:
+    """``name -> "given -> refinement"`` of the ``replacing ...;`` part of a note or warning,
+    the values as the command line writes them (flags named as the keywords they set)."""
+    part = said[said.index(start) + len(start) : said.index("; the first stage")]
+    named = {}
+    for change in part.split(", "):
+        name, given, _, used = change.split(" ", 3)
+        name = {"--footprint": "footprint_radius"}.get(name, name.lstrip("-").replace("-", "_"))
+        named[name] = " -> ".join(v.strip("'").removesuffix(".0") for v in (given, used))
+    return named
+
+
+def test_the_command_and_the_library_name_the_same_replaced_options(home, tmp_path, capsys,
+                                                                    caplog):  # fmt: skip
+    """``spcopyro fit``'s note and ``fit_house``'s warning follow one rule: an option given
+    counts even where it is the preset's value (--word-scaling 10, coarse's own: the library
+    did not name it), and a kernel given without a footprint is not replaced (it did nothing in
+    the first stage: the command named it)."""
+    given = {"feature_scaling": 2.0, "word_scaling": 10.0, "footprint_radius": 0.0,
+             "footprint_kernel": "gaussian"}  # fmt: skip
+    argv = ["fit", str(home), "--out", str(tmp_path / "out"), "--sweeps", "3", "--no-figures",
+            "--refine", "always", "--feature-scaling", "2", "--word-scaling", "10",
+            "--footprint", "0", "--footprint-kernel", "gaussian"]  # fmt: skip
+    assert main(argv) == 0
+    note = [line for line in capsys.readouterr().err.splitlines() if "replacing" in line]
+    assert len(note) == 1, note
+    kwargs = {**preset_fit_kwargs("coarse"), "refine": "always", "sweeps": 3, "progress": False}
+    with caplog.at_level("WARNING", logger="spcopyro"):
+        fit_house(load_house(home), preset("coarse", **given), **kwargs)
+    said = [r.getMessage() for r in caplog.records if "replacing the settings'" in r.getMessage()]
+    assert len(said) == 1, said
+    command = _replacing(note[0], "replacing ")
+    library = _replacing(said[0], "replacing the settings' ")
+    assert command == library == {"feature_scaling": "2 -> floor100", "word_scaling": "10 -> 1"}
 
 
 def test_several_chains_are_refined_from_the_best_coarse_chain(home, tmp_path, capsys):

@@ -76,38 +76,26 @@ def check_refinable(
     )
 
 
-_REPLACEABLE = {"feature_scaling": "feature_scaling", "word_scaling": "word_scaling",
-                "footprint": "footprint_radius", "footprint_kernel": "footprint_kernel",
-                "footprint_fov": "footprint_fov"}  # fmt: skip
-"""The options of :data:`REFINED_AWAY` the refinement sets a value of its own for ->
-their :class:`~spcopyro.config.DataPreparation` field (``--cell-size``: the refinement is on the
-map's own cells by definition, and its ``refining`` line says so)."""
-
-
-UNUSED = "unused (no footprint)"
-"""What :func:`replaced_options` records as the refinement's footprint kernel or field of view."""
+_FLAGS = {"footprint_radius": "--footprint"}
+"""The :class:`~spcopyro.config.DataPreparation` fields whose option of :data:`REFINED_AWAY` is
+not ``--`` and the field's name in dashes."""
 
 
 def replaced_options(
-    args: argparse.Namespace, first: DataPreparation, refined: DataPreparation
+    settings: SpCoSettings, refined: DataPreparation
 ) -> dict[str, dict[str, object]]:
-    """The data preparation options the command line gave (``args``) that the refinement
-    replaces: ``--flag`` -> ``{"given": the first stage's value (``first``), "refinement": the
-    refinement's (``refined``)}``, where they differ. With no footprint in the refinement a
-    kernel or field of view given is :data:`UNUSED` there (its preparation keeps the value,
-    which does nothing at radius 0). Empty for a command line that gave none (the default
-    fit)."""
-    no_footprint = refined.footprint_radius == 0
-    replaced = {}
-    for name, field in _REPLACEABLE.items():
-        if getattr(args, name, None) is None:
-            continue  # the preset's value, not the user's
-        given, used = getattr(first, field), getattr(refined, field)
-        if no_footprint and field in ("footprint_kernel", "footprint_fov"):
-            used = UNUSED
-        if given != used:
-            replaced["--" + name.replace("_", "-")] = {"given": given, "refinement": used}
-    return replaced
+    """The data preparation options the command line gave that the refinement replaces:
+    ``--flag`` -> ``{"given": the first stage's value, "refinement": the refinement's}``, by
+    :func:`spcopyro.fit.refine.replaced_preparation`'s rule (``fit_house``'s warning names the
+    same fields): ``settings`` are the command line's (its options the preset's overrides,
+    ``settings.chosen``), ``refined`` the refinement's preparation. Empty for a command line
+    that gave none (the default fit)."""
+    from spcopyro.fit.refine import replaced_preparation
+
+    return {
+        _FLAGS.get(field, "--" + field.replace("_", "-")): change
+        for field, change in replaced_preparation(settings, refined).items()
+    }
 
 
 def _shown(value: object) -> str:
@@ -228,7 +216,7 @@ def _decide(
               f"joint {first.best_objective:.1f}) continue on the map's own "
               f"{on_map.grid.resolution:g} m cells ({observed} observed), images as 100 draws, "
               f"words at their cell, alpha {refined.model.alpha:.3g}")  # fmt: skip
-        replaced = replaced_options(args, settings.data, refined.data)
+        replaced = replaced_options(settings, refined.data)
         if replaced:  # the user's own preparation: not replaced silently
             print(_replaced_note(replaced), file=sys.stderr)
         cells, first_cells = on_map.grid.num_free, model.grid.num_free

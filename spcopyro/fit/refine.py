@@ -155,18 +155,22 @@ def replaced_preparation(
 ) -> dict[str, dict[str, object]]:
     """The fields of ``settings``' data preparation chosen by its caller that the refinement's
     preparation ``refined`` replaces: field -> ``{"given": settings', "refinement": refined's}``.
-    Chosen: differing from the preset ``settings`` came from (``settings.preset``; every field
-    of settings made without one). A footprint's kernel or field of view counts only where the
-    first stage had a footprint; the refinement's is :data:`UNUSED` where it has none. Empty for
-    a preset's own preparation (the default fit: preset ``coarse``'s is the one the refinement
-    is made to replace)."""
+    The one rule of both entry points (``spcopyro fit`` names the fields by its options,
+    :func:`spcopyro.cli.fit_refine.replaced_options`). Chosen: set by the caller
+    (``settings.chosen``: :func:`~spcopyro.config.preset`'s overrides, as the command line
+    passes its options, even one equal to the preset's value) or differing from the preset
+    ``settings`` came from (``settings.preset``; every field of settings made without one). A
+    footprint's kernel or field of view counts only where the first stage had a footprint (one
+    given without it did nothing there, and is not replaced); the refinement's is
+    :data:`UNUSED` where it has none. Empty for a preset's own preparation (the default fit:
+    preset ``coarse``'s is the one the refinement is made to replace)."""
     name = settings.preset
     own = preset(name, num_concepts=settings.model.num_concepts).data if name in PRESETS else None
     first = settings.data
     replaced: dict[str, dict[str, object]] = {}
     for field in REPLACED_FIELDS:
         given, used = getattr(first, field), getattr(refined, field)
-        if own is not None and given == getattr(own, field):
+        if own is not None and field not in settings.chosen and given == getattr(own, field):
             continue  # the preset's value, not the caller's
         if field in ("footprint_kernel", "footprint_fov"):
             if not first.footprint_radius:
