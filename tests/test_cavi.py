@@ -508,6 +508,23 @@ def test_a_degenerate_stick_breaking_prior_is_warned_about_once(caplog):
     assert len(said) == 1
 
 
+@pytest.mark.parametrize("backend", ["torch", pytest.param("numba", marks=needs_numba)])
+def test_stick_breaking_with_one_concept_is_the_dirichlet_fit(backend, caplog):
+    """L = 1 has no stick (pi = 1 under either family): CAVI raised a bare RuntimeError "cannot
+    reshape tensor of 0 elements" from torch's Beta over the empty [0, 2] sticks, and the
+    degenerate-prior warning told the user to lower alpha, which L = 1 ignores."""
+    _, data = random_problem(seed=0, num_observed=8)
+    cfg = config(num_concepts=1, alpha=1e7)
+    elbos = {}
+    for family in ("dirichlet", "stick-breaking"):
+        options = VariationalOptions(backend=backend, pi_family=family, **PLAIN)
+        q = initial_q(data, cfg, torch.Generator().manual_seed(0))
+        run = run_variational(data, cfg, 5, options=options, q=q, progress=False)
+        elbos[family] = float(run.objective[-1])
+    assert elbos["stick-breaking"] == pytest.approx(elbos["dirichlet"], rel=1e-12)
+    assert not [r for r in caplog.records if "pi_family='stick-breaking'" in r.getMessage()]
+
+
 def test_soft_start_with_start_labels_is_refused():
     """``init="soft"`` asks for a random q; start labels would replace it. The library refused
     nothing before: the labels won and soft was ignored silently."""

@@ -62,7 +62,7 @@ def stick_breaking_warning(config: SpCoConfig) -> str | None:
     (L - 1), most of the mass at the weak-limit alpha of the presets (1e7-1e8), so every cell
     goes to it (measured: one concept, ARI 0, on the synthetic house; alpha 1 or 10: 9)."""
     last = (config.alpha / (1.0 + config.alpha)) ** (config.num_concepts - 1)
-    if last <= 0.5:
+    if last <= 0.5 or config.num_concepts == 1:  # L = 1: pi = 1 whatever alpha; no advice
         return None
     # 1 - last without the cancellation: (1 - 1 / (1 + alpha))^(L - 1) = exp((L - 1) log1p(-..))
     rest = -math.expm1((config.num_concepts - 1) * math.log1p(-1.0 / (1.0 + config.alpha)))
@@ -175,8 +175,14 @@ def kl_to_prior(factors: GlobalFactors, data: ModelData, config: SpCoConfig) -> 
     if factors.pi_family == "dirichlet":
         total = dirichlet_kl(factors.pi, prior.pi)
     else:
-        q, p = factors.pi, prior.pi
-        total = kl_divergence(Beta(q[:, 0], q[:, 1]), Beta(p[:, 0], p[:, 1])).sum()
+        q, p = factors.pi, prior.pi  # [L - 1, 2] each
+        # L = 1 has no stick (pi = 1): torch's Beta refused the empty batch with a bare
+        # "cannot reshape tensor of 0 elements" RuntimeError; the KL of no sticks is 0.
+        total = (
+            kl_divergence(Beta(q[:, 0], q[:, 1]), Beta(p[:, 0], p[:, 1])).sum()
+            if q.shape[0]
+            else q.new_zeros(())
+        )
     for q_phi, p_phi in zip(factors.emissions, prior.emissions, strict=True):
         total = total + dirichlet_kl(q_phi, p_phi)
     return total
