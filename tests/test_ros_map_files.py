@@ -392,3 +392,48 @@ def test_thresholds_within_0_1_are_not_warned_of(tmp_path, caplog):
     with caplog.at_level(logging.WARNING, logger="spcopyro"):
         load_map(write_map(tmp_path, occupied_thresh="1.0", free_thresh="0.0"))
     assert warnings_of(caplog) == []
+
+
+@pytest.mark.parametrize(
+    ("keys", "resolution", "thresholds"),
+    [
+        # yaml-cpp's as<double>() converts a quoted scalar's text, its .inf spellings included
+        ({"occupied_thresh": "'.inf'", "free_thresh": '"-.INF"'}, 0.05, (np.inf, -np.inf)),
+        # C++'s >> leaves blanks after a number (std::ws): map_server reads it
+        ({"resolution": '"0.05 "', "free_thresh": "'0.196\t'"}, 0.05, (0.65, 0.196)),
+        # YAML 1.1 octal to PyYAML (8), ten to C++'s >> of a double
+        ({"resolution": "010"}, 10.0, (0.65, 0.196)),
+    ],
+)
+def test_number_keys_read_as_yaml_cpps_as_double_reads_them(tmp_path, keys, resolution, thresholds):
+    """A quoted '.inf' threshold was refused ("must be a number, got '.inf'"), a quoted number
+    with a blank after it too, and an unquoted 010 read as 8 m cells, where map_server (yaml-cpp)
+    reads inf, the number and 10."""
+    grid = load_map(write_map(tmp_path, **keys))
+    assert grid.resolution == resolution
+    occupied, free = thresholds
+    np.testing.assert_array_equal(grid.occupancy, ros_trinary(PIXELS, occupied, free))
+
+
+@pytest.mark.parametrize(
+    ("keys", "said"),
+    [
+        ({"resolution": '" 0.05"'}, ":2: key 'resolution' must be a positive finite number, got "
+         "' 0.05': map_server (yaml-cpp) reads no number with blanks before it; write 0.05"),
+        ({"origin": "[' -2.5', -1.25, 0]"}, ":3: key 'origin' must be a list of 3 finite numbers "
+         "[x, y, yaw], got [' -2.5', -1.25, 0]: map_server (yaml-cpp) reads no number with "
+         "blanks before it; write -2.5"),
+        ({"occupied_thresh": "' .inf'"}, ":5: key 'occupied_thresh' must be a number"),
+        ({"resolution": "'.inf'"}, ":2: key 'resolution' must be a positive finite number, "
+         "got inf"),
+        ({"resolution": "1_000"}, ":2: key 'resolution' must be a positive finite number, got "
+         "'1_000'"),
+    ],
+)  # fmt: skip
+def test_number_keys_yaml_cpp_reads_no_number_from_are_refused(tmp_path, keys, said):
+    """yaml-cpp's as<double>() does not skip blanks before a number (std::noskipws) and reads
+    no '_' between digits (PyYAML's YAML 1.1 reads 1_000 as 1000): map_server refuses these, and
+    so does load_map, naming the line and the value."""
+    with pytest.raises(MapFormatError) as info:
+        load_map(write_map(tmp_path, **keys))
+    assert f"{tmp_path / 'room.yaml'}{said}" in str(info.value)

@@ -2,8 +2,9 @@
 
 The one reader of a map's yaml for every map loader of the package (:func:`~spcopyro.maps.load_map`,
 :func:`~spcopyro.maps.load_filter_mask`, :func:`~spcopyro.maps.load_label_map_server`): it reads
-the keys as map_server reads them (yaml-cpp: ``5e-2`` and quoted numbers are numbers, a tab after
-``key:`` is a space, ``negate`` may be a yaml-cpp boolean) and refuses, naming the file, the line,
+the keys as map_server reads them (yaml-cpp: ``5e-2`` and quoted numbers are numbers, ``'.inf'``
+too, ``" 0.05"`` with a blank before it is none, ``010`` is ten, a tab after ``key:`` is a space,
+``negate`` may be a yaml-cpp boolean) and refuses, naming the file, the line,
 the key and the value, what map_server refuses or what would make the map meaningless. Its
 warnings go to the logger ``spcopyro.maps.map_server``, :func:`~spcopyro.maps.load_map`'s.
 """
@@ -115,17 +116,52 @@ def _is_nan(value: Any) -> bool:
     return isinstance(value, str) and value.strip().lstrip("+-").lower() in ("nan", ".nan")
 
 
-_QUOTED_NUMBER = re.compile(r"^[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?$")
+_YAML_CPP_DOUBLE = re.compile(
+    r"[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?[ \t\n\r\f\v]*"
+)
+"""The texts yaml-cpp's ``as<double>()`` reads through C++'s ``>>`` (without skipping leading
+blanks, ``std::noskipws``; trailing blanks allowed, ``std::ws``): ``0.05``, ``5e-2``, ``.5``,
+``010`` (ten), ``0.05 ``. Not `` 0.05``, ``1_000``, ``0x10`` or ``1:30`` (a number, another number
+or sexagesimal to PyYAML's YAML 1.1)."""
+
+_YAML_CPP_SPECIAL = {
+    text: value
+    for spellings, value in (
+        ((".inf", ".Inf", ".INF", "+.inf", "+.Inf", "+.INF"), math.inf),
+        (("-.inf", "-.Inf", "-.INF"), -math.inf),
+        ((".nan", ".NaN", ".NAN"), math.nan),
+    )
+    for text in spellings
+}
+"""The texts yaml-cpp's ``as<double>()`` reads as infinities and nan where ``>>`` fails (exactly
+these spellings, no blanks; PyYAML reads the same ones unquoted)."""
 
 
-def _unquoted(value: Any) -> Any:
-    """A quoted number (``resolution: "0.05"``) as the number: map_server reads values with
-    yaml-cpp's ``as<double>()`` / ``as<int>()``, which convert a scalar's text whether or not it
-    was quoted. Anything else unchanged (and refused by the checks that follow)."""
-    if isinstance(value, str) and _QUOTED_NUMBER.match(value):
-        number = float(value)
-        return int(number) if re.fullmatch(r"[-+]?[0-9]+", value) else number
-    return value
+def _yaml_cpp_number(text: str | None, value: Any) -> Any:
+    """A number key's value as map_server reads it: the scalar's ``text`` (quotes removed; None
+    for a list or mapping) through yaml-cpp's ``as<double>()``, which converts it whether or not
+    it was quoted (``"0.05"``, ``'.inf'``) -- an int where the text is one -- or the text where
+    yaml-cpp reads no number from it (`` 0.05``, ``1_000``: refused by the checks that follow,
+    as map_server refuses it). ``value`` (PyYAML's reading) where ``text`` is None."""
+    if text is None:
+        return value
+    if text in _YAML_CPP_SPECIAL:
+        return _YAML_CPP_SPECIAL[text]
+    if _YAML_CPP_DOUBLE.fullmatch(text) is None:
+        return text
+    digits = text.rstrip()
+    return int(digits) if re.fullmatch(r"[-+]?[0-9]+", digits) else float(digits)
+
+
+def _number_hint(text: Any) -> str:
+    """Why yaml-cpp reads no number from a string value ``text`` that looks like one: blanks
+    before it (inside quotes), or YAML 1.1 forms PyYAML reads and yaml-cpp does not."""
+    if not isinstance(text, str):
+        return ""
+    if text != text.lstrip() and _yaml_cpp_number(text.lstrip(), None) != text.lstrip():
+        return (f": map_server (yaml-cpp) reads no number with blanks before it; write "
+                f"{text.strip()}")  # fmt: skip
+    return ""
 
 
 _YAML_CPP_BOOLS = {
@@ -240,6 +276,7 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
         )
     lines: dict[Any, int] = {}
     texts: dict[Any, str] = {}  # each scalar value's text, quotes removed, as yaml-cpp reads it
+    items: dict[Any, list[str | None]] = {}  # a list value's items' texts (None: not a scalar)
     for key_node, value_node in root.value:
         if not isinstance(key_node, yaml.ScalarNode):
             raise MapFormatError(
@@ -254,6 +291,10 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
         lines[key] = key_node.start_mark.line + 1
         if isinstance(value_node, yaml.ScalarNode):
             texts[key] = value_node.value
+        elif isinstance(value_node, yaml.SequenceNode):
+            items[key] = [
+                n.value if isinstance(n, yaml.ScalarNode) else None for n in value_node.value
+            ]
 
     def where(key: str) -> str:
         return f"{path}:{lines[key]}" if key in lines else str(path)
@@ -274,13 +315,20 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
             where(key), echo(key), close,
         )  # fmt: skip
 
-    for key in ("resolution", "negate", "occupied_thresh", "free_thresh"):
-        doc[key] = _unquoted(doc[key])
-    if isinstance(doc["origin"], list):
-        doc["origin"] = [_unquoted(v) for v in doc["origin"]]
+    for key in ("resolution", "occupied_thresh", "free_thresh"):
+        doc[key] = _yaml_cpp_number(texts.get(key), doc[key])
+    if isinstance(doc["origin"], list) and len(items.get("origin", ())) == len(doc["origin"]):
+        doc["origin"] = [
+            _yaml_cpp_number(t, v) for t, v in zip(items["origin"], doc["origin"], strict=True)
+        ]
 
     def bad(key: str, expected: str) -> MapFormatError:
-        return MapFormatError(f"{where(key)}: key {key!r} must be {expected}, got {echo(doc[key])}")
+        value = doc[key]
+        hint = next((h for v in (value if isinstance(value, list) else [value])
+                     if (h := _number_hint(v))), "")  # fmt: skip
+        return MapFormatError(
+            f"{where(key)}: key {key!r} must be {expected}, got {echo(value)}{hint}"
+        )
 
     resolution = doc["resolution"]
     if not _is_number(resolution) or not (math.isfinite(resolution) and resolution > 0):
