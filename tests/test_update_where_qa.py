@@ -5,6 +5,7 @@ an update whose DATA lacks the saved fit's words warns that the old trials are m
 from __future__ import annotations
 
 import dataclasses
+import shutil
 
 import numpy as np
 import pytest
@@ -225,3 +226,35 @@ def test_an_update_of_an_update_records_the_history_and_notes_unchanged_data(fir
     earlier = record["update_of"]  # the first update's own record
     assert earlier["fit"] == str(first / "first") and earlier["iterations"] == 40
     assert earlier["new_words"] == ["kitchen", "sofa"] and "update_of" not in earlier
+
+
+def test_an_update_says_how_many_observations_it_added(first, house, capsys):
+    """The update's lines said which words it added, not how many observations: now how many
+    it added and the fit holds (placed on free cells, as config.json records for every fit),
+    and, for a fit saved before fits recorded theirs, that the number added is not known."""
+    import json
+
+    capsys.readouterr()
+    added = first / "added"
+    assert main(["fit", str(first / "all" / "synthetic"), "--update", str(first / "first"),
+                 "--out", str(added), "--sweeps", "2", *FLAGS]) == 0  # fmt: skip
+    out = capsys.readouterr().out
+    obs = house.observations
+    given = [obs.select_trials(t).num_images + len(obs.select_trials(t).utterances)
+             for t in ([0, 1], [0, 1, 2])]  # fmt: skip
+    config = json.loads((first / "first" / "config.json").read_text())
+    assert config["source"]["observations"] == {"given": given[0], "placed": given[0]}
+    record = json.loads((added / "config.json").read_text())["inference"]["update_of"]
+    assert record["observations"] == given[1] and record["observations_before"] == given[0]
+    assert (f"observations     +{given[1] - given[0]} added: {given[1]} in the fit now, "
+            f"{given[0]} before (those placed on the map's free cells)") in out  # fmt: skip
+    older = first / "older"  # the first fit as an older spcopyro saved it
+    shutil.copytree(first / "first", older)
+    del config["source"]["observations"]
+    (older / "config.json").write_text(json.dumps(config))
+    assert main(["fit", str(first / "all" / "synthetic"), "--update", str(older),
+                 "--out", str(first / "from_older"), "--sweeps", "2", *FLAGS]) == 0  # fmt: skip
+    assert (
+        f"observations     {given[1]} in the fit now (placed on the map's free cells); the "
+        f"fit in {older} does not record how many it held"
+    ) in capsys.readouterr().out

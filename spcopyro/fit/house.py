@@ -104,19 +104,29 @@ def software_versions() -> dict[str, str | None]:
     return versions
 
 
-def provenance(house: House, data: ModelData, source: str | None = None) -> dict[str, object]:
+def provenance(
+    house: House, data: ModelData, source: str | None = None, counts: CellCounts | None = None
+) -> dict[str, object]:
     """What ``config.json`` records beside the settings, to reproduce a fit: ``source`` (the
-    data: ``source``, e.g. ``"embedded synthetic house, seed 0"``, or the house's folder, and a
-    sha256 fingerprint of the model data), ``software`` (:func:`software_versions`) and a note on
-    the backends' random streams."""
+    data: ``source``, e.g. ``"embedded synthetic house, seed 0"``, or the house's folder, a
+    sha256 fingerprint of the model data and, given ``counts``, ``observations``: how many
+    observations DATA held and how many of them the counts hold, placed on free cells, snapped
+    ones included, which an online update compares with its own), ``software``
+    (:func:`software_versions`) and a note on the backends' random streams."""
     if source is None:
         source = (
             str(Path(house.source).resolve())
             if house.source is not None
             else f"in-memory house {house.name!r} (not read from a folder)"
         )
+    said: dict[str, object] = {"data": source, "house": house.name}
+    said["data_sha256"] = data_fingerprint(data)
+    if counts is not None:
+        placed = counts.placement
+        said["observations"] = {"given": placed.num_observations,
+                                "placed": placed.num_on_free + placed.num_snapped}  # fmt: skip
     return {
-        "source": {"data": source, "house": house.name, "data_sha256": data_fingerprint(data)},
+        "source": said,
         "software": software_versions(),
         "reproducibility": RANDOM_STREAMS_NOTE,
     }
@@ -339,7 +349,7 @@ def fit_house_chains(
     count = chain_threads(threads, house.grid.num_free, workers)  # auto: 1 with workers > 1
     with timed("model_data"):
         counts, data = prepare_model_data(house, settings, method=method)
-        record = provenance(house, data, source)
+        record = provenance(house, data, source, counts)
     if method not in SAMPLERS:  # the note is on the Gibbs backends' streams (backend_used)
         record = {key: value for key, value in record.items() if key != "reproducibility"}
     logger.info("threads: %s", describe_threads(threads, house.grid.num_free, workers))
@@ -556,5 +566,5 @@ def fit_house_converged(
         **dataclasses.asdict(options), "backend_used": run.backend,
     }  # fmt: skip
     output = output_from_run(run, record)
-    made = {**provenance(house, data, source), "threads": used}  # the threads that ran
+    made = {**provenance(house, data, source, counts), "threads": used}  # the threads that ran
     return result_of(output, house, counts, data, settings, "gibbs", made), diagnostics

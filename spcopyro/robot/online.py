@@ -350,10 +350,27 @@ def start_update_chain(
     return chain, start
 
 
-def update_record(saved: SpCoResult, merge: VocabularyMerge, where: str) -> dict[str, object]:
+def _placed(source: object) -> int | None:
+    """The observations a fit's ``source`` record says its counts hold (None: not recorded, a
+    fit saved before spcopyro recorded them)."""
+    said = source.get("observations") if isinstance(source, dict) else None
+    placed = said.get("placed") if isinstance(said, dict) else None
+    return int(placed) if isinstance(placed, int) and not isinstance(placed, bool) else None
+
+
+def _num_placed(counts: CellCounts) -> int:
+    """The observations ``counts`` hold: placed on free cells, snapped ones included."""
+    return counts.placement.num_on_free + counts.placement.num_snapped
+
+
+def update_record(
+    saved: SpCoResult, merge: VocabularyMerge, where: str, counts: CellCounts | None = None
+) -> dict[str, object]:
     """What ``config.json`` records of the fit an update continued (``inference.update_of``);
     where that fit was itself an update, its own record nested as ``update_of``, so the
-    history goes back to the first fit."""
+    history goes back to the first fit. ``observations``: the observations the update's counts
+    hold (``counts``, placed on free cells); ``observations_before``: the saved fit's (None
+    where it did not record them)."""
     source = saved.provenance.get("source", {})
     record: dict[str, object] = {
         "fit": where,
@@ -363,6 +380,8 @@ def update_record(saved: SpCoResult, merge: VocabularyMerge, where: str) -> dict
         "data_sha256": source.get("data_sha256") if isinstance(source, dict) else None,
         "new_words": list(merge.new_words),
         "unheard_words": list(merge.unheard_words),
+        "observations": None if counts is None else _num_placed(counts),
+        "observations_before": _placed(source),
     }
     if isinstance(earlier := saved.inference.get("update_of"), dict):
         record["update_of"] = earlier  # the saved fit's own update: the earlier history
@@ -443,11 +462,11 @@ def fit_update(
                 )
             output.options.update(
                 seed=int(seed), init=f"update of {where}",
-                update_of=update_record(saved, start.merge, where),
+                update_of=update_record(saved, start.merge, where, start.counts),
             )  # fmt: skip
             if saved.inference.get("refine"):  # a refined fit's update is one: updated again
                 output.options["refine"] = saved.inference["refine"]  # as refined (config.json)
-            record = {**provenance(house, start.data, source), "threads": used}  # that ran
+            record = {**provenance(house, start.data, source, start.counts), "threads": used}
             results.append(
                 result_of(output, house, start.counts, start.data, start.settings, method, record)
             )
