@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import logging
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,6 +14,8 @@ from test_navigate import START_A, house_result
 
 from spcopyro.cli.main import main
 from spcopyro.data import Observations
+from spcopyro.data.observations import hidden_words_told
+from spcopyro.data.text import hidden_words_warning
 from spcopyro.results.semantic_map import UnknownWordError, word_index
 from spcopyro.robot.navigation.goals import parse_instruction
 
@@ -86,3 +89,30 @@ def test_observations_given_tokens_warn_of_invisible_characters_once(caplog):
         assert obs.select_trials([0]).num_utterances == 2
         _observations((("kitchen",), ("bed",)))
     assert "format characters" not in caplog.text
+
+
+def test_one_function_words_both_hidden_word_warnings(caplog):
+    """The St.csv reader's and Observations' warnings were worded in two places (and drifted:
+    only the reader's names Persian): :func:`hidden_words_warning` owns both texts, pinned
+    here (5 words: 3 named, then the count) and by the tests of each."""
+    said = [("kit\u200bchen",), ("a\u200b", "b\u200b"), ("c\u200b", "d\u200b"), ("bed",)]
+    assert hidden_words_warning([("kitchen",), ("bed",)]) is None
+    assert hidden_words_warning(said, Path("room") / "St.csv") == (
+        f"{Path('room') / 'St.csv'}, line 1: 5 word(s) hold invisible format characters "
+        "(Unicode category Cf), each read as a word apart from its letters without them: "
+        "'kit\\u200bchen' (utterance 1: U+200B ZERO WIDTH SPACE), 'a\\u200b' (utterance 2: "
+        "U+200B ZERO WIDTH SPACE), 'b\\u200b' (utterance 2: U+200B ZERO WIDTH SPACE), ... (2 "
+        "more) (kept: remove them where the language does not need them, as Persian needs its "
+        "zero-width non-joiner)"
+    )
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        _observations(said)
+    assert [r.getMessage() for r in caplog.records] == [hidden_words_warning(said)]
+    assert hidden_words_warning(said).startswith(
+        "Observations: 5 word(s) of the utterances hold invisible format characters "
+    )
+    assert "(utterance 0: U+200B" in hidden_words_warning(said)  # its indices, from 0
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="spcopyro"), hidden_words_told():
+        _observations(said)  # its caller warned
+    assert caplog.records == []

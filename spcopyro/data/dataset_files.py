@@ -22,7 +22,7 @@ import numpy as np
 
 from spcopyro._util.messages import echo
 from spcopyro.data.observations import DataFormatError
-from spcopyro.data.text import hidden_word_entries, tokenize, unsegmented
+from spcopyro.data.text import hidden_words_warning, tokenize, unsegmented
 
 logger = logging.getLogger("spcopyro")
 
@@ -239,15 +239,9 @@ def _read_utterances_line(path: Path) -> tuple[tuple[str, ...], ...]:
         if any(unsegmented(token) for token in tokens):
             unspaced.append(f"utterance {entry_number} {echo(entry.strip())}")
         utterances.append(tokens)
-    hidden = hidden_word_entries(utterances, first_number=1)
+    hidden = hidden_words_warning(utterances, path)
     if hidden:  # 'kit\u200bchen' prints as 'kitchen' but is another word
-        logger.warning(
-            "%s, line 1: %d word(s) hold invisible format characters (Unicode category Cf), "
-            "each read as a word apart from its letters without them: %s%s (kept: remove them "
-            "where the language does not need them, as Persian needs its zero-width non-joiner)",
-            path, len(hidden), ", ".join(hidden[:3]),
-            f", ... ({len(hidden) - 3} more)" if len(hidden) > 3 else "",
-        )  # fmt: skip
+        logger.warning("%s", hidden)
     if unspaced:  # ここは台所です: one word, heard nowhere else (docs/data.md)
         logger.warning(
             "%s, line 1: %d utterance(s) look like sentences written without spaces, each read "

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro._util.messages import echo
-from spcopyro.data.text import hidden_word_entries, tokenize
+from spcopyro.data.text import hidden_words_warning, tokenize
 
 logger = logging.getLogger("spcopyro")
 
@@ -235,21 +235,6 @@ def hidden_words_told() -> Iterator[None]:
         _HIDDEN_WORDS_TOLD.reset(told)
 
 
-def _warn_hidden_words(utterances: tuple[tuple[str, ...], ...]) -> None:
-    """One warning naming the tokens of ``utterances`` that hold invisible format characters
-    (Unicode category Cf; :func:`~spcopyro.data.text.format_characters`): ``'kit\u200bchen'``
-    prints as ``'kitchen'`` but is a word apart from it."""
-    hidden = hidden_word_entries(utterances)
-    if hidden:
-        logger.warning(
-            "Observations: %d word(s) of the utterances hold invisible format characters "
-            "(Unicode category Cf), each a word apart from its letters without them: %s%s "
-            "(kept: remove them where the language does not need them)",
-            len(hidden), ", ".join(hidden[:3]),
-            f", ... ({len(hidden) - 3} more)" if len(hidden) > 3 else "",
-        )  # fmt: skip
-
-
 @dataclass(frozen=True, eq=False)
 class Observations:
     """What the robot observed, in world coordinates. Words are free vocabulary: nothing pre-listed.
@@ -310,8 +295,9 @@ class Observations:
             for token in tokens:
                 if not isinstance(token, str) or not token.strip():
                     raise ValueError(f"utterance {u} holds an invalid token: {token!r}")
-        if not _HIDDEN_WORDS_TOLD.get():
-            _warn_hidden_words(utterances)
+        hidden = None if _HIDDEN_WORDS_TOLD.get() else hidden_words_warning(utterances)
+        if hidden:  # 'kit\u200bchen' prints as 'kitchen' but is another word
+            logger.warning("%s", hidden)
         num_utterances = len(utterances)
         set_ = object.__setattr__
         set_(self, "image_features", features)

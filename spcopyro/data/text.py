@@ -8,6 +8,7 @@ weights them by tf-idf, the two word weightings (:data:`WordWeighting`) of
 
 from __future__ import annotations
 
+import os
 import string
 import unicodedata
 from collections.abc import Iterable, Sequence
@@ -23,6 +24,7 @@ __all__ = [
     "hidden_characters_note",
     "hidden_word_entries",
     "hidden_match",
+    "hidden_words_warning",
     "tfidf_weights",
     "tokenize",
     "unsegmented",
@@ -97,6 +99,36 @@ def hidden_word_entries(utterances: Iterable[Sequence[str]], first_number: int =
             if token not in hidden and (chars := format_characters(token)):
                 hidden[token] = f"{token!r} (utterance {number}: {', '.join(chars)})"
     return list(hidden.values())
+
+
+HIDDEN_WORDS_SHOWN = 3
+"""Words :func:`hidden_words_warning` names (then '... (N more)')."""
+
+
+def hidden_words_warning(
+    utterances: Iterable[Sequence[str]], source: str | os.PathLike[str] | None = None
+) -> str | None:
+    """The warning that words of ``utterances`` hold invisible format characters
+    (:func:`hidden_word_entries`: ``'kit\u200bchen'`` prints as ``'kitchen'`` but is a word
+    apart from it); None when none does. ``source``: the St.csv the utterances were read from
+    (named with its line, the utterances numbered from 1 as its entries are); None: given as
+    tokens to :class:`~spcopyro.data.observations.Observations` (numbered from 0, its
+    indices). The one wording of both, which the St.csv reader and ``Observations`` log."""
+    hidden = hidden_word_entries(utterances, first_number=0 if source is None else 1)
+    if not hidden:
+        return None
+    more = len(hidden) - HIDDEN_WORDS_SHOWN
+    shown = ", ".join(hidden[:HIDDEN_WORDS_SHOWN]) + (f", ... ({more} more)" if more > 0 else "")
+    if source is None:
+        where, whose, read, kept = "Observations", " of the utterances", "", ""
+    else:
+        where, whose, read = f"{os.fspath(source)}, line 1", "", "read as "
+        kept = ", as Persian needs its zero-width non-joiner"
+    return (
+        f"{where}: {len(hidden)} word(s){whose} hold invisible format characters (Unicode "
+        f"category Cf), each {read}a word apart from its letters without them: {shown} (kept: "
+        f"remove them where the language does not need them{kept})"
+    )
 
 
 def hidden_characters_note(word: str, vocabulary: Sequence[str]) -> str | None:
