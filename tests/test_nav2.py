@@ -625,3 +625,31 @@ def test_a_robot_map_saved_again_by_ros1_map_saver_is_the_fits(tmp_path):
     resaved = load_map(path)
     assert resaved.origin != fine.origin
     check_robot_map(coarsen_grid(fine, 5), resaved)  # no error
+
+
+@pytest.mark.parametrize("fit_on_resaved", [False, True])
+def test_a_robot_map_whose_resolution_map_saver_rounded_is_the_fits(tmp_path, fit_on_resaved):
+    """ROS 1's map_saver writes the resolution with %f too: a map of 0.05 / 3 m cells saved again
+    by it reads 0.016667 m (relative 2e-5 off), and `export --nav2` refused it against the
+    fit's 0.25 m grid (15 cells a side) as "not the map the fit's cells were coarsened from"
+    (relative 1e-9), either way round. The resolution now has the origin's tolerance, a
+    thousandth of a cell: a map 0.2 % finer is still refused."""
+    from spcopyro.maps.coarse import coarsen_grid, free_block_of_map_cells
+    from spcopyro.robot.nav2 import check_robot_map
+
+    fine = OccupancyGrid(np.full((31, 47), FREE, dtype=np.int8), 0.05 / 3, (-1.2345678, 0.5, 0.0))
+    path = save_map(fine, tmp_path / "robot_map.yaml")
+    doc = yaml.safe_load(path.read_text())
+    doc["resolution"] = f"{fine.resolution:f}"  # as map_saver writes it (%f)
+    doc["origin"] = "[{:f}, {:f}, {:f}]".format(*fine.origin)
+    path.write_text("".join(f"{key}: {value}\n" for key, value in doc.items()))
+    resaved = load_map(path)
+    assert resaved.resolution == 0.016667
+    fitted_on, robot_map = (resaved, fine) if fit_on_resaved else (fine, resaved)
+    coarse = coarsen_grid(fitted_on, 15)
+    check_robot_map(coarse, robot_map)  # no error
+    placed = free_block_of_map_cells(dataclasses.replace(coarse, coarsened_from=robot_map))
+    assert (placed >= 0).all()
+    finer = dataclasses.replace(robot_map, resolution=robot_map.resolution * 0.998)
+    with pytest.raises(ValueError, match="not the map the fit's"):
+        check_robot_map(coarse, finer)

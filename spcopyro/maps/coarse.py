@@ -91,13 +91,20 @@ are compared after a trip through yaml files: a fit's ``map.yaml`` against the r
 absolute 1e-9 m refused. A thousandth of a map cell (50 um at 0.05 m; 1 um at the smallest
 plausible resolution, 1 mm) lets that through and still refuses any map a mask, label or plan
 would visibly lie off: anything the coarse grid carries lands within a thousandth of a map cell
-of where it belongs."""
+of where it belongs.
+
+The same thousandth bounds the cell size: a coarse grid's cell may differ from f map cells by
+f thousandths of a map cell (relative 1e-3). ``map_saver`` writes the resolution with ``%f``
+too: 0.05 / 3 m as 0.016667 (relative 2e-5 off; at most 5e-7 m a cell, 5e-4 of a 1 mm cell),
+which the relative 1e-9 this check used refused. A cell size off by the whole tolerance moves
+the far edge of a map N cells wide by N thousandths of a cell (a cell at 1000 cells); the
+6-decimal rounding it admits moves it by at most N x 5e-7 m (0.5 mm at 1000 cells)."""
 
 
 def is_coarsening(grid: OccupancyGrid, fine: OccupancyGrid) -> bool:
     """Whether ``grid`` is :func:`coarsen_grid` of ``fine`` by a whole factor f >= 1, as far as
-    the geometry tells: its resolution f times ``fine``'s (relative 1e-9: ``coarsen_grid``
-    rounds it to 12 decimals), its origin ``fine``'s within :data:`ORIGIN_TOLERANCE_CELLS` of
+    the geometry tells: its resolution f times ``fine``'s (relative :data:`ORIGIN_TOLERANCE_CELLS`:
+    map_saver's ``%f``), its origin ``fine``'s within :data:`ORIGIN_TOLERANCE_CELLS` of
     ``fine``'s cells, and its shape ``fine``'s in f x f blocks, padded up. The one check of
     :func:`free_block_of_map_cells` and of the robot's map in Nav2's export
     (:func:`spcopyro.robot.nav2.check_robot_map`)."""
@@ -105,7 +112,7 @@ def is_coarsening(grid: OccupancyGrid, fine: OccupancyGrid) -> bool:
     tolerance = ORIGIN_TOLERANCE_CELLS * fine.resolution
     return (
         factor >= 1
-        and math.isclose(grid.resolution, factor * fine.resolution, rel_tol=1e-9)
+        and math.isclose(grid.resolution, factor * fine.resolution, rel_tol=ORIGIN_TOLERANCE_CELLS)
         and all(math.isclose(grid.origin[i], fine.origin[i], abs_tol=tolerance) for i in (0, 1))
         and tuple(-(-n // factor) for n in fine.shape) == grid.shape
     )
