@@ -454,6 +454,21 @@ def test_fixed_hyperparameters_change_nothing():
     assert plain.to_run().hyperparameters is None
 
 
+@pytest.mark.parametrize("gamma_mode", ["exchange", "pseudolikelihood"])
+def test_sampling_gamma_from_zero_names_both_settings(gamma_mode):
+    """gamma 0 (no Potts coupling) with gamma sampled said only "sampling gamma needs gamma > 0
+    to start from", naming neither the config's value nor the option that samples it."""
+    _, data = random_problem(14)
+    options = GibbsOptions(backend="torch", hyper=HyperparameterOptions(gamma=gamma_mode))
+    chain = start_chain(data, config(gamma=0.0), options=options, seed=5)
+    with pytest.raises(ValueError) as raised:
+        advance(chain, 2, progress=False)
+    said = str(raised.value)
+    assert f"HyperparameterOptions.gamma={gamma_mode!r}" in said
+    assert "SpCoConfig.gamma=0.0 (fit's --gamma 0)" in said
+    assert "hyper.gamma='fixed'" in said
+
+
 def test_checkpoint_resumes_sampled_hyperparameters_exactly(backend, tmp_path):
     cfg = config(alpha=2.0, gamma=0.8)
     _, data = random_problem(15)

@@ -70,6 +70,7 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
+from spcopyro._util.messages import setting
 from spcopyro._util.random_draws import coin_flip, sample_log_dirichlet
 from spcopyro.config import IMAGES, WORDS, SpCoConfig
 from spcopyro.gibbs.backends import globals_sampler, label_sampler
@@ -290,6 +291,19 @@ def gamma_step_size(data: ModelData, hyper: HyperparameterOptions) -> float:
     return hyper.gamma_step / math.sqrt(max(1, int(data.pairs.shape[0])))
 
 
+def _require_positive_gamma(config: SpCoConfig, hyper: HyperparameterOptions) -> None:
+    """ValueError naming both settings when gamma is sampled from a start of 0 (its log is
+    sampled; the message named neither the config's value nor the option that samples it)."""
+    if config.gamma <= 0:
+        sampled = setting(f"HyperparameterOptions.gamma={hyper.gamma!r}",
+                          f"--method-option hyper.gamma={hyper.gamma}")  # fmt: skip
+        raise ValueError(
+            f"{sampled} samples log gamma, so it needs a positive start, but "
+            f"{setting(f'SpCoConfig.gamma={config.gamma!r}', f'--gamma {config.gamma:g}')}: "
+            "set gamma > 0 (e.g. 1.0), or keep gamma 0 with hyper.gamma='fixed'"
+        )
+
+
 def update_gamma_exchange(
     state: GibbsState,
     data: ModelData,
@@ -300,8 +314,7 @@ def update_gamma_exchange(
     agreements: Callable[[torch.Tensor], float],
 ) -> tuple[SpCoConfig, bool]:
     """The exchange update of gamma (module doc, 3). Returns (config, accepted)."""
-    if config.gamma <= 0:
-        raise ValueError("sampling gamma needs gamma > 0 to start from (its log is sampled)")
+    _require_positive_gamma(config, hyper)
     log_gamma = math.log(config.gamma)
     proposal = log_gamma + gamma_step_size(data, hyper) * _normal(generator)
     try:
@@ -332,8 +345,7 @@ def update_gamma_pseudolikelihood(
 ) -> tuple[SpCoConfig, int]:
     """``concentration_moves`` MH steps on log gamma under the pseudo-posterior (module doc,
     3). Returns (config, number of accepted steps)."""
-    if config.gamma <= 0:
-        raise ValueError("sampling gamma needs gamma > 0 to start from (its log is sampled)")
+    _require_positive_gamma(config, hyper)
     pl = PseudoLikelihood(state.labels, state.log_pi, data.neighbours)
     limit = math.log(700.0 / config.connectivity)
 
