@@ -20,7 +20,9 @@ from spcopyro.fit.house import fit_house
 from spcopyro.fit.registry import get_method
 from spcopyro.gibbs.run import advance
 from spcopyro.inference.driver import DriveInterrupted, Trajectory
+from spcopyro.results.result import SpCoResult
 from spcopyro.robot.online import fit_update
+from spcopyro.robot.update_history import fit_folder
 from spcopyro.synthetic import make_house
 
 FLAGS = ["--preset", "original-code", "--gamma", "3", "--no-figures"]
@@ -222,9 +224,9 @@ def test_an_update_of_an_update_records_the_history_and_notes_unchanged_data(fir
     assert (f"note: this data is the data the fit in {once} was fitted on (the same sha256 of "
             "the model data): no observation was added") in out  # fmt: skip
     record = json.loads((twice / "config.json").read_text())["inference"]["update_of"]
-    assert record["fit"] == str(once) and record["new_words"] == []
+    assert fit_folder(record, twice) == str(once) and record["new_words"] == []
     earlier = record["update_of"]  # the first update's own record
-    assert earlier["fit"] == str(first / "first") and earlier["iterations"] == 40
+    assert fit_folder(earlier, once) == str(first / "first") and earlier["iterations"] == 40
     assert earlier["new_words"] == ["kitchen", "sofa"] and "update_of" not in earlier
 
 
@@ -258,3 +260,25 @@ def test_an_update_says_how_many_observations_it_added(first, house, capsys):
         f"observations     {given[1]} in the fit now (placed on the map's free cells); the "
         f"fit in {older} does not record how many it held"
     ) in capsys.readouterr().out
+
+
+def test_the_updated_fit_is_recorded_relative_to_the_result(first, tmp_path, monkeypatch):
+    """update_of.fit held --update as given, relative to the working directory: read from
+    another directory, or with both folders moved, it named no fit. Now it is relative to the
+    result's folder; an older record (no marker) is still read as stored."""
+    import json
+
+    work = tmp_path / "work"
+    shutil.copytree(first / "first", work / "fits" / "first")
+    monkeypatch.chdir(work)
+    assert main(["fit", str(first / "all" / "synthetic"), "--update", "fits/first",
+                 "--out", "fits/updated", "--sweeps", "2", *FLAGS]) == 0  # fmt: skip
+    record = json.loads((work / "fits/updated/config.json").read_text())["inference"]["update_of"]
+    assert record["fit"] == "../first" and record["fit_relative_to"] == "result folder"
+    moved = tmp_path / "elsewhere"
+    shutil.move(work / "fits", moved)
+    monkeypatch.chdir(tmp_path)
+    assert fit_folder(record, moved / "updated") == str(moved / "first")
+    assert SpCoResult.load(fit_folder(record, moved / "updated")).method == "gibbs"
+    older = {key: value for key, value in record.items() if key != "fit_relative_to"}
+    assert fit_folder({**older, "fit": "fits/first"}, moved / "updated") == "fits/first"

@@ -77,6 +77,7 @@ from spcopyro.results.saved_vocabulary import (
     renormalise_vocabulary,
     renormalised_result,
 )
+from spcopyro.robot.update_history import update_record
 
 __all__ = [
     "DEFAULT_UPDATE_SWEEPS",
@@ -350,44 +351,6 @@ def start_update_chain(
     return chain, start
 
 
-def _placed(source: object) -> int | None:
-    """The observations a fit's ``source`` record says its counts hold (None: not recorded, a
-    fit saved before spcopyro recorded them)."""
-    said = source.get("observations") if isinstance(source, dict) else None
-    placed = said.get("placed") if isinstance(said, dict) else None
-    return int(placed) if isinstance(placed, int) and not isinstance(placed, bool) else None
-
-
-def _num_placed(counts: CellCounts) -> int:
-    """The observations ``counts`` hold: placed on free cells, snapped ones included."""
-    return counts.placement.num_on_free + counts.placement.num_snapped
-
-
-def update_record(
-    saved: SpCoResult, merge: VocabularyMerge, where: str, counts: CellCounts | None = None
-) -> dict[str, object]:
-    """What ``config.json`` records of the fit an update continued (``inference.update_of``);
-    where that fit was itself an update, its own record nested as ``update_of``, so the
-    history goes back to the first fit. ``observations``: the observations the update's counts
-    hold (``counts``, placed on free cells); ``observations_before``: the saved fit's (None
-    where it did not record them)."""
-    source = saved.provenance.get("source", {})
-    record: dict[str, object] = {
-        "fit": where,
-        "method": saved.method,
-        "iterations": len(saved.trace.objective),
-        "data": source.get("data") if isinstance(source, dict) else None,
-        "data_sha256": source.get("data_sha256") if isinstance(source, dict) else None,
-        "new_words": list(merge.new_words),
-        "unheard_words": list(merge.unheard_words),
-        "observations": None if counts is None else _num_placed(counts),
-        "observations_before": _placed(source),
-    }
-    if isinstance(earlier := saved.inference.get("update_of"), dict):
-        record["update_of"] = earlier  # the saved fit's own update: the earlier history
-    return record
-
-
 def fit_update(
     saved: SpCoResult,
     house: House,
@@ -460,9 +423,11 @@ def fit_update(
                 output = with_sample_marginals(  # method's marginals are its q(C)
                     output, int(sweeps), start.data, start.settings.model, point_estimate
                 )
+            merge = start.merge
             output.options.update(
                 seed=int(seed), init=f"update of {where}",
-                update_of=update_record(saved, start.merge, where, start.counts),
+                update_of=update_record(saved, (merge.new_words, merge.unheard_words), where,
+                                        start.counts),
             )  # fmt: skip
             if saved.inference.get("refine"):  # a refined fit's update is one: updated again
                 output.options["refine"] = saved.inference["refine"]  # as refined (config.json)
