@@ -304,17 +304,42 @@ def test_vi_then_gibbs_fits_carry_label_frequencies_too(house):
 def test_the_uncertainty_figure_draws_the_entropy_fit_saved(gibbs_fit, tmp_path, monkeypatch):
     """spcopyro fit computes cell_entropy for uncertainty.npy, then plot_uncertainty drew the
     same map from its own second computation; now the entropy is computed once per result
-    (read-only) and the figure draws that very array."""
+    (kept read-only, each caller given a copy) and the figure draws those values."""
     import dataclasses
 
     from spcopyro.figures import plotting
+    from spcopyro.results.result import SpCoResult
 
+    computed = []
+    once = SpCoResult.computed_once
+
+    def counted(self, key, compute):
+        return once(self, key, lambda: computed.append(key) or compute())
+
+    monkeypatch.setattr(SpCoResult, "computed_once", counted)
     result = dataclasses.replace(gibbs_fit)  # a new result: nothing computed on it yet
     saved = cell_entropy(result)  # [N] what fit writes to uncertainty.npy
-    assert cell_entropy(result) is saved and not saved.flags.writeable
     drawn = []
     monkeypatch.setattr(
         plotting, "_plot_cell_values", lambda result, values, path, **_: drawn.append(values)
     )
     plotting.plot_uncertainty(result, tmp_path / "uncertainty.png")
-    assert len(drawn) == 1 and drawn[0] is saved
+    assert len(drawn) == 1
+    np.testing.assert_array_equal(drawn[0], saved)
+    assert computed == ["cell_entropy"]  # once, for both
+
+
+def test_cell_entropy_is_the_callers_to_change(gibbs_fit):
+    """``h = cell_entropy(r); h[mask] = 0`` raised "assignment destination is read-only" (the
+    array kept on the result); each call returns a writable copy, and changing it changes
+    neither the kept array nor what the next caller gets."""
+    import dataclasses
+
+    result = dataclasses.replace(gibbs_fit)  # a new result: nothing computed on it yet
+    first = cell_entropy(result)  # [N]
+    expected = first.copy()
+    assert first.flags.writeable
+    first[first < np.median(first)] = 0.0  # a user's masking
+    again = cell_entropy(result)
+    assert again is not first and again.flags.writeable
+    np.testing.assert_array_equal(again, expected)

@@ -113,11 +113,13 @@ def cell_probabilities(result: SpCoResult) -> np.ndarray:
 
 def cell_entropy(result: SpCoResult) -> np.ndarray | None:
     """[N] each free cell's entropy of p(C_i) in nats, or None when the result holds a point
-    estimate only (no marginals: nothing to say about uncertainty). Computed once per result,
-    read-only (:meth:`SpCoResult.computed_once
-    <spcopyro.results.result.SpCoResult.computed_once>`): ``spcopyro fit`` writes it to
-    ``uncertainty.npy`` and :func:`~spcopyro.figures.plotting.plot_uncertainty` draws the same
-    array (a child process that draws the figures inherits it through the fork)."""
+    estimate only (no marginals: nothing to say about uncertainty). Computed once per result
+    (:meth:`SpCoResult.computed_once <spcopyro.results.result.SpCoResult.computed_once>`, which
+    keeps it read-only): ``spcopyro fit`` writes it to ``uncertainty.npy`` and
+    :func:`~spcopyro.figures.plotting.plot_uncertainty` draws the same values (a child process
+    that draws the figures inherits them through the fork). Each call returns a writable copy
+    of the kept array (``h[mask] = 0`` raised "assignment destination is read-only"; the copy is
+    N floats, the entropy an [N, L] pass), so no caller changes what the next one gets."""
     if result.marginals is None:
         return None
 
@@ -126,7 +128,8 @@ def cell_entropy(result: SpCoResult) -> np.ndarray | None:
         logs = np.log(np.where(p > 0, p, 1.0))
         return -(p * logs).sum(-1)  # [N]
 
-    return result.computed_once("cell_entropy", entropy)  # type: ignore[return-value]
+    kept: np.ndarray = result.computed_once("cell_entropy", entropy)  # type: ignore[assignment]
+    return kept.copy()  # [N]
 
 
 def where_probability(result: SpCoResult, word: str, prior: str = "area") -> np.ndarray:
