@@ -225,9 +225,42 @@ def test_an_update_of_an_update_records_the_history_and_notes_unchanged_data(fir
             "the model data): no observation was added") in out  # fmt: skip
     record = json.loads((twice / "config.json").read_text())["inference"]["update_of"]
     assert fit_folder(record, twice) == str(once) and record["new_words"] == []
-    earlier = record["update_of"]  # the first update's own record
-    assert fit_folder(earlier, once) == str(first / "first") and earlier["iterations"] == 40
-    assert earlier["new_words"] == ["kitchen", "sofa"] and "update_of" not in earlier
+    (earlier,) = record["earlier"]  # the first update's small record: flat, not nested
+    assert fit_folder(earlier, twice) == str(first / "first") and earlier["iterations"] == 40
+    assert earlier["new_words"] == 2 and "update_of" not in record
+
+
+def test_the_update_history_stays_flat_and_reads_old_nested_records(first, capsys):
+    """Each update nested the saved fit's whole update_of in its own, so the record grew
+    without bound (every word list of every update, again and again): now update_of.earlier
+    is a flat list, one small entry per earlier fit; a record nested the old way is read."""
+    import json
+
+    old = first / "old_nested"  # an update written before: nested, paths as given
+    shutil.copytree(first / "first", old)
+    config = json.loads((old / "config.json").read_text())
+    inner = {"fit": str(first / "zeroth"), "method": "gibbs", "iterations": 7,
+             "new_words": ["a", "b", "c"], "unheard_words": []}  # fmt: skip
+    config["inference"]["update_of"] = {
+        "fit": str(first / "first"), "method": "gibbs", "iterations": 40,
+        "new_words": ["kitchen", "sofa"], "unheard_words": [], "update_of": inner,
+    }  # fmt: skip
+    (old / "config.json").write_text(json.dumps(config))
+    sizes, saved = [], old
+    for k in range(3):
+        out = first / f"chain{k}"
+        assert main(["fit", str(first / "all" / "synthetic"), "--update", str(saved),
+                     "--out", str(out), "--sweeps", "2", *FLAGS]) == 0  # fmt: skip
+        record = json.loads((out / "config.json").read_text())["inference"]["update_of"]
+        assert "update_of" not in record and fit_folder(record, out) == str(saved)
+        folders = [fit_folder(e, out) for e in record["earlier"]]
+        fits = [first / "zeroth", first / "first", old] + [first / f"chain{j}" for j in range(k)]
+        assert folders == [str(f) for f in reversed(fits[:-1])]  # newest first, back to zeroth
+        assert all(not isinstance(e.get("new_words"), list) for e in record["earlier"])
+        assert [e.get("new_words") for e in record["earlier"]][-2:] == [2, 3]
+        sizes.append(len(json.dumps(record["earlier"])))
+        saved = out
+    assert sizes[2] - sizes[1] <= sizes[1] - sizes[0] + 20  # one small entry an update
 
 
 def test_an_update_says_how_many_observations_it_added(first, house, capsys):

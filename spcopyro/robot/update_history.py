@@ -1,5 +1,7 @@
 """The record an online update keeps of the fit it continued (``config.json``'s
-``inference.update_of``, :func:`update_record`), and where that fit is (:func:`fit_folder`).
+``inference.update_of``, :func:`update_record`), where that fit is (:func:`fit_folder`), and
+the fits before it (:func:`history`: a flat list, where records before 2026-12-05 nested each
+update's whole record in the next).
 
 ``update_of.fit`` names the saved fit's folder. ``spcopyro fit --update`` writes it relative to
 the folder of the result that holds the record (:func:`relative_record`, marked
@@ -18,7 +20,14 @@ if TYPE_CHECKING:
     from spcopyro.data import CellCounts
     from spcopyro.results.result import SpCoResult
 
-__all__ = ["RELATIVE_TO", "RESULT_FOLDER", "fit_folder", "relative_record", "update_record"]
+__all__ = [
+    "RELATIVE_TO",
+    "RESULT_FOLDER",
+    "fit_folder",
+    "history",
+    "relative_record",
+    "update_record",
+]
 
 RELATIVE_TO = "fit_relative_to"
 """The key marking a record whose ``fit`` is relative to a folder (:data:`RESULT_FOLDER`)."""
@@ -26,13 +35,13 @@ RESULT_FOLDER = "result folder"
 """``fit`` is relative to the folder of the result whose ``config.json`` holds the record."""
 
 
-def fit_folder(record: dict[str, object], result_dir: str | os.PathLike[str]) -> str:
+def fit_folder(record: dict[str, object], result_dir: str | os.PathLike[str] | None) -> str:
     """The folder of the fit ``record`` (an ``update_of``) continued, for the result saved in
     ``result_dir``: ``fit`` joined onto ``result_dir`` where the record says it is relative to
     it, else ``fit`` as stored (absolute, or an older record's path relative to the working
     directory its update ran in)."""
     fit = str(record["fit"])
-    if record.get(RELATIVE_TO) == RESULT_FOLDER:
+    if record.get(RELATIVE_TO) == RESULT_FOLDER and result_dir is not None:
         return os.path.normpath(os.path.join(os.fspath(result_dir), fit))
     return fit
 
@@ -44,6 +53,9 @@ def relative_record(
     and marked so (:data:`RELATIVE_TO`); unchanged where ``fit`` names no folder of this machine
     as an absolute path (a library caller's ``where`` such as ``"the saved fit"``)."""
     fit = str(record.get("fit"))
+    earlier = record.get("earlier")
+    if isinstance(earlier, list):  # each earlier fit's folder likewise
+        record = {**record, "earlier": [relative_record(e, out_dir) for e in earlier]}
     if not os.path.isabs(fit):
         return record
     try:
@@ -51,6 +63,47 @@ def relative_record(
     except ValueError:  # another drive (Windows): no relative path; keep it absolute
         return record
     return {**record, "fit": relative, RELATIVE_TO: RESULT_FOLDER}
+
+
+def _absolute(folder: str) -> str:
+    """``folder`` absolute where it is a folder here, else as it is (a fit no longer there)."""
+    return os.path.abspath(folder) if os.path.isdir(folder) else folder
+
+
+def _entry(record: dict[str, object], folder: str) -> dict[str, object]:
+    """An earlier update's small record: the fit it continued (``folder``), that fit's method,
+    iterations and data fingerprint, how many words and observations the update added."""
+    new = record.get("new_words")
+    entry = {
+        "fit": _absolute(folder),
+        "method": record.get("method"),
+        "iterations": record.get("iterations"),
+        "data_sha256": record.get("data_sha256"),
+        "new_words": len(new) if isinstance(new, list) else new,  # a count in an entry
+        "observations": record.get("observations"),
+        "observations_before": record.get("observations_before"),
+    }
+    return {key: value for key, value in entry.items() if value is not None}
+
+
+def history(record: object, result_dir: str | os.PathLike[str] | None) -> list[dict[str, object]]:
+    """The earlier fits of the result saved in ``result_dir`` whose ``update_of`` is
+    ``record``, newest first, each a small record (:func:`_entry`, ``fit`` absolute where it is
+    a folder here): the fit the update continued, then the record's ``earlier`` list, or, in a
+    record written before 2026-12-05, its nested ``update_of`` records (each ``fit`` there
+    relative to the folder of the fit that held it). Empty for None (no update)."""
+    entries: list[dict[str, object]] = []
+    while isinstance(record, dict):
+        folder = fit_folder(record, result_dir)
+        entries.append(_entry(record, folder))
+        earlier = record.get("earlier")
+        if isinstance(earlier, list):  # flat: every entry's folder relative to result_dir
+            entries += [
+                _entry(e, fit_folder(e, result_dir)) for e in earlier if isinstance(e, dict)
+            ]
+            break
+        record, result_dir = record.get("update_of"), folder  # nested: its own fit's folder
+    return entries
 
 
 def _placed(source: object) -> int | None:
@@ -75,8 +128,10 @@ def update_record(
     """What ``config.json`` records of the fit an update continued (``inference.update_of``):
     ``fit``, the saved fit's folder ``where``, absolute where it is one (:func:`relative_record`
     makes it relative to the folder the result is written to);
-    where that fit was itself an update, its own record nested as ``update_of``, so the
-    history goes back to the first fit. ``observations``: the observations the update's counts
+    where that fit was itself an update, ``earlier``: the fits before it, newest first, back to
+    the first fit, each a small record (:func:`history`; its folder, method, iterations, data
+    fingerprint, how many words and observations its update added), a flat list that grows by
+    one small entry an update. ``observations``: the observations the update's counts
     hold (``counts``, placed on free cells); ``observations_before``: the saved fit's (None
     where it did not record them). ``words``: the words the update added and the saved words
     its data lacks (:class:`~spcopyro.robot.online.VocabularyMerge`'s ``new_words``,
@@ -93,6 +148,7 @@ def update_record(
         "observations": None if counts is None else _num_placed(counts),
         "observations_before": _placed(source),
     }
-    if isinstance(earlier := saved.inference.get("update_of"), dict):
-        record["update_of"] = earlier  # the saved fit's own update: the earlier history
+    earlier = history(saved.inference.get("update_of"), where if os.path.isdir(where) else None)
+    if earlier:  # the saved fit was an update: the fits before it, flat (each entry small)
+        record["earlier"] = earlier
     return record
