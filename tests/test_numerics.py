@@ -23,7 +23,12 @@ from spcopyro.data import (
     check_count_totals,
     load_house,
 )
-from spcopyro.fit.house import FREEZING_GAMMA, config_warnings, prepare_model_data
+from spcopyro.fit.house import (
+    FREEZING_GAMMA,
+    config_warnings,
+    preparation_warnings,
+    prepare_model_data,
+)
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import NonFiniteLogJointError, label_dtype, run_gibbs
 from spcopyro.likelihood import log_joint_constant, log_joint_terms, log_joint_variable
@@ -190,6 +195,36 @@ def test_fit_prints_and_logs_every_config_warning(room, tmp_path, capsys, caplog
     # a refined fit prepares its data twice (coarse cells, then the map's): warned once
     assert main([*argv, "--refine", "always", "--out", str(tmp_path / "r")]) == 0
     assert capsys.readouterr().err.count("warning: gamma = 20 is at or above 10") == 1
+
+
+def test_a_footprint_kernel_or_fov_without_a_footprint_is_warned_about_once(
+    room, tmp_path, capsys, caplog
+):
+    """A kernel or field of view given with footprint_radius 0 did nothing, and nothing said
+    so; now one warning names them and the option that makes them take effect, once per fit
+    (the refinement, whose preparation has no footprint, does not say it again)."""
+    assert preparation_warnings(preset("coarse").data) == []
+    assert preparation_warnings(preset("coarse", footprint_kernel="gaussian").data) == []
+    (kernel,) = preparation_warnings(
+        preset("coarse", footprint_kernel="gaussian", footprint_radius=0).data
+    )
+    assert kernel.startswith("footprint_kernel='gaussian' (fit's --footprint-kernel gaussian) "
+                             "does nothing without a footprint")  # fmt: skip
+    assert "footprint_radius=R (fit's --footprint R)" in kernel
+    (both,) = preparation_warnings(preset("auto", footprint_kernel="gaussian",
+                                          footprint_fov=90.0).data)  # fmt: skip
+    assert "and footprint_fov=90 (fit's --footprint-fov 90) do nothing" in both
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        settings = preset("coarse", footprint_kernel="gaussian", footprint_radius=0)
+        prepare_model_data(load_house(room), settings.replace(cell_size=None))
+    assert [r.getMessage() for r in caplog.records].count(kernel) == 1
+    capsys.readouterr()
+    said = "warning: footprint_kernel='gaussian' (fit's --footprint-kernel gaussian) does nothing"
+    argv = ["fit", str(room), "--sweeps", "2", "--concepts", "10", "--footprint", "0",
+            "--footprint-kernel", "gaussian"]  # fmt: skip
+    for refine in ("never", "always"):
+        assert main([*argv, "--refine", refine, "--out", str(tmp_path / refine)]) == 0
+        assert capsys.readouterr().err.count(said) == 1, refine
 
 
 def test_the_gibbs_samplers_setting_warnings_are_given_to_samplers_only(room, tmp_path, capsys):

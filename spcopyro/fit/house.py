@@ -54,6 +54,7 @@ from spcopyro.fit.setting_warnings import CONCENTRATION_RANGE as CONCENTRATION_R
 from spcopyro.fit.setting_warnings import FREEZING_GAMMA as FREEZING_GAMMA
 from spcopyro.fit.setting_warnings import config_warnings as config_warnings
 from spcopyro.fit.setting_warnings import gamma_warning as gamma_warning
+from spcopyro.fit.setting_warnings import preparation_warnings as preparation_warnings
 from spcopyro.fit.starts import Init, init_name, initial_labels
 from spcopyro.fit.variational_checkpoint import VariationalSaving
 from spcopyro.gibbs.chains import resolve_workers
@@ -151,8 +152,9 @@ def prepare_model_data(
     method: str | None = None,
 ) -> tuple[CellCounts, ModelData]:
     """Per-cell counts of the house under the settings' data preparation, and the model's
-    tensors. Logs :func:`config_warnings` (logger ``"spcopyro"``), those about the Gibbs sampler
-    only when ``method`` samples (:data:`SAMPLERS`) or is None (not known). ``vocabulary``: the
+    tensors. Logs :func:`config_warnings` and :func:`preparation_warnings` (logger
+    ``"spcopyro"``), those about the Gibbs sampler only when ``method`` samples
+    (:data:`SAMPLERS`) or is None (not known). ``vocabulary``: the
     word columns in order (None: the observations' own; an online update passes the union with
     a saved fit's, :mod:`spcopyro.robot.online`). ``house`` is fitted on its own grid: with a
     ``settings.data.cell_size`` coarser than its cells it logs a warning naming
@@ -174,6 +176,10 @@ def prepare_model_data(
     for warning in config_warnings(settings.model, sampled):
         if warning not in said:
             logger.warning(warning)
+    # a refinement's preparation is refined_settings' own (no footprint, the caller's kernel
+    # kept): its coarse stage said these, and it names what it replaced itself
+    for warning in preparation_warnings(settings.data) if coarse is None else ():
+        logger.warning(warning)
     grid = house.grid
     where = f" on map {grid.source}" if getattr(grid, "source", None) else ""
     check_free_cells(grid, f"house {house.name!r}")  # ValueError naming the yaml's lines

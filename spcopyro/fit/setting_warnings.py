@@ -1,16 +1,17 @@
 """Warnings, with the reason, for legal but extreme model settings: gamma below the Potts critical
 coupling (no regions form) or at the freezing point of the Gibbs sampler, and concentrations
-outside what float64 resolves in the log joint.
+outside what float64 resolves in the log joint; and for data preparation settings that do
+nothing (a footprint's kernel or field of view without a footprint).
 
 :func:`spcopyro.fit.house.prepare_model_data` logs them (logger ``"spcopyro"``), so every fit,
-``spcopyro fit`` included, says them; they depend on the model settings only, and on whether
-the fit samples (those about the Gibbs sampler are given to gibbs and vi-gibbs only).
+``spcopyro fit`` included, says them; they depend on the settings only, and on whether the fit
+samples (those about the Gibbs sampler are given to gibbs and vi-gibbs only).
 """
 
 from __future__ import annotations
 
 from spcopyro._util.messages import setting
-from spcopyro.config import SpCoConfig
+from spcopyro.config import DataPreparation, SpCoConfig
 
 FREEZING_GAMMA = 10.0
 """gamma at and above which the sampler freezes: measured from random labels on the synthetic
@@ -93,3 +94,27 @@ def config_warnings(config: SpCoConfig, sampled: bool = True) -> list[str]:
                 "mean nothing"
             )
     return warnings
+
+
+def preparation_warnings(data: DataPreparation) -> list[str]:
+    """Warnings for data preparation settings that do nothing (empty if none): a footprint
+    kernel other than the default ``"uniform"``, or a field of view, with ``footprint_radius``
+    0, where every observation counts in its own cell only and neither is read (the fit's
+    counts are the paper's, as if they were not given)."""
+    if data.footprint_radius:
+        return []
+    given = []
+    if data.footprint_kernel != "uniform":
+        given.append(setting(f"footprint_kernel={data.footprint_kernel!r}",
+                             f"--footprint-kernel {data.footprint_kernel}"))  # fmt: skip
+    if data.footprint_fov is not None:
+        given.append(setting(f"footprint_fov={data.footprint_fov:g}",
+                             f"--footprint-fov {data.footprint_fov:g}"))  # fmt: skip
+    if not given:
+        return []
+    it = "it takes" if len(given) == 1 else "they take"
+    return [
+        f"{' and '.join(given)} {'does' if len(given) == 1 else 'do'} nothing without a "
+        "footprint: footprint_radius is 0, so each observation counts in its own cell only; "
+        f"{it} effect with {setting('footprint_radius=R', '--footprint R')}, R metres > 0"
+    ]
