@@ -301,3 +301,28 @@ def test_ctrl_c_after_a_variational_fit_s_iterations_says_so(home, tmp_path, cap
     assert err.startswith("interrupted (cavi fit 1 of 1): nothing written")
     assert err.endswith("(it stopped outside the iterations: while the method set up or made "
                         "their result)")  # fmt: skip
+
+
+@pytest.mark.parametrize("method", ["cavi", "svi"])
+def test_ctrl_c_while_writing_a_variational_fit_says_its_iterations_ran(
+    method, home, tmp_path, capsys, monkeypatch
+):
+    """Ctrl-C while a variational fit's outputs are written (found sending SIGINT to
+    ``spcopyro fit --method cavi`` while its figures were drawn): its q(C) is not kept, and the
+    line says its iterations had run (it said 'no checkpoint kept (no iteration was done)')."""
+    import spcopyro.cli.fit
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    out = tmp_path / "out"
+    argv = ["fit", str(home), "--out", str(out), *FIT, "--method", method]
+    with monkeypatch.context() as patch:
+        patch.setattr(spcopyro.cli.fit, "print_concepts", interrupted)
+        assert main(argv) == 130
+    err = capsys.readouterr().err.splitlines()[-1]
+    assert err.startswith(f"interrupted while writing the outputs: nothing written to {out}")
+    assert "no iteration was done" not in err
+    assert err.endswith(f"no checkpoint kept (its iterations had all run; a {method} checkpoint "
+                        "is kept only when Ctrl-C stops them: the fit runs again)")  # fmt: skip
+    assert not list(tmp_path.glob("out*"))  # no OUT, checkpoint or staging folder left

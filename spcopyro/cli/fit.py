@@ -192,7 +192,8 @@ def _fit_interruptible(args: argparse.Namespace, said: list[str]) -> int:
             where = f" while writing the outputs{again}" if job.sampled else where
         if kept is None and args.resume is not None and Path(args.resume).is_file():
             kept = Path(args.resume)  # stopped before this run saved anything: it still holds
-        print(interrupted_message(args, where, kept, staged.out, getattr(stop, "why", None)),
+        why = getattr(stop, "why", None)
+        print(interrupted_message(args, where, kept, staged.out, why, finished=job.sampled),
               file=sys.stderr)  # fmt: skip
         return 130
     except Exception:

@@ -78,15 +78,25 @@ def check_resume_file(resume: str) -> None:
 
 
 def interrupted_message(
-    args: argparse.Namespace, where: str, kept: Path | None, out: Path, why: str | None = None
+    args: argparse.Namespace,
+    where: str,
+    kept: Path | None,
+    out: Path,
+    why: str | None = None,
+    finished: bool = False,
 ) -> str:
-    """The line ``fit`` prints when Ctrl-C stops it (``kept``: its checkpoint; ``why``: none's)."""
+    """The line ``fit`` prints when Ctrl-C stops it (``kept``: its checkpoint; ``why``: none's;
+    ``finished``: the fit had run all its sweeps or iterations, its outputs being written)."""
     line = f"interrupted{where}: nothing written to {out}"
     if kept is None:
         if why is None:
             why = "--sweeps auto" if args.sweeps == "auto" else f"the {args.method!r} method"
             if args.sweeps != "auto" and args.update is not None:
                 why = "--update"
+            elif keeps_checkpoint(args) and finished:  # a variational fit's q(C) is saved only
+                # by the driver that Ctrl-C stops (spcopyro.fit.house), not once it has returned
+                why = (f"its iterations had all run; a {args.method} checkpoint is kept only "
+                       "when Ctrl-C stops them: the fit runs again")  # fmt: skip
             elif keeps_checkpoint(args):
                 why = "no sweep was done" if args.method == "gibbs" else "no iteration was done"
             elif args.method in resumable_methods():
