@@ -173,6 +173,12 @@ def test_variant_prefixes_and_nested_options():
         ("x:fit.bogus=1", "no argument 'bogus'"),
         ("x:cluster_moves.inner=1", "unknown key"),
         ("x:options.cluster_moves.inner=1", "has no field"),
+        # a misspelt prefixed key: the suggestion an unprefixed one gets, with its prefix
+        ("x:settings.gama=3", r"have no field 'gama'; did you mean settings\.gamma\?"),
+        ("x:options.cluster_move=0.1", r"; did you mean options\.cluster_moves\?"),
+        ("x:options.hyper.log_gama_sd=2", r"; did you mean options\.hyper\.log_gamma_sd,"),
+        ("x:fit.refin=auto", r"; did you mean fit\.refine\?"),
+        ("x:hyper.log_gama_sd=2", r"unknown key .*; did you mean hyper\.log_gamma_sd,"),
         (":gamma=3", "must be non-empty"),
         ("x:hyper.log_gamma_sd=2", "no hyperparameter the chain samples reads log_gamma_sd"),
         ("x:point_estimate=binder", "needs marginal_samples > 0"),

@@ -99,7 +99,11 @@ def test_spec_from_toml_equals_spec_from_python(tmp_path):
 @pytest.mark.parametrize(
     "old, new, words",
     [
-        ("num_rooms = 2", "num_roms = 2", ["[data.small] num_roms", "2", "HouseSpec has no"]),
+        (
+            "num_rooms = 2",
+            "num_roms = 2",
+            ["[data.small] num_roms", "2", "HouseSpec has no", "; did you mean num_rooms?"],
+        ),
         ("seeds = 2", "seeds = -1", ["[study] seeds", "-1"]),
         ("sweeps = 8", "sweeps = { gibs = 8 }", ["sweeps.gibs", "8", "unknown method"]),
         ('baselines = ["F-geometry"]', 'baselines = ["G-nothing"]', ["baselines", "G-nothing"]),
@@ -111,7 +115,7 @@ def test_spec_from_toml_equals_spec_from_python(tmp_path):
         ),
         ("gamma = 3.0", 'gamma = "hot"', ["[variants.og3]", "gamma", "hot"]),
         ('synthetic = "default"', 'synthetic = "castle"', ["[data.small] synthetic", "castle"]),
-        ("seeds = 2", "seedz = 2", ["[study] seedz", "unknown key"]),
+        ("seeds = 2", "seedz = 2", ["[study] seedz", "unknown key", "; did you mean seeds?"]),
         ("seeds = 2", "seeds = [", ["not valid TOML"]),
         ("heldout = true", "heldout = true\nseeds = 0", ["[data.small] seeds", "0"]),
         ("seeds = 2", "seeds = 2\nobservations_off = 1", ["[study] observations_off", "1"]),

@@ -41,7 +41,14 @@ from spcopyro.fit.house import SAMPLERS, fit_house
 from spcopyro.fit.registry import get_method
 from spcopyro.results.semantic_map import close_words
 
-__all__ = ["FIT_RESERVED", "Variant", "VariantError", "make_variant", "parse_variant"]
+__all__ = [
+    "FIT_RESERVED",
+    "Variant",
+    "VariantError",
+    "did_you_mean",
+    "make_variant",
+    "parse_variant",
+]
 
 FIT_RESERVED = frozenset(
     {"house", "settings", "method", "options", "sweeps", "seed", "progress", "threads"}
@@ -252,6 +259,27 @@ def _option_default(options: object, path: list[str]) -> tuple[bool, object]:
     return True, current
 
 
+def _option_paths(options: object, prefix: str = "") -> list[str]:
+    """Every field of the options as :func:`_option_default` reads it, nested ones as
+    ``a.b`` (the candidates of a misspelt option's suggestion)."""
+    paths = []
+    for f in dataclasses.fields(options):  # type: ignore[arg-type]
+        paths.append(prefix + f.name)
+        value = getattr(options, f.name)
+        if dataclasses.is_dataclass(value) and not isinstance(value, type):
+            paths += _option_paths(value, f"{prefix}{f.name}.")
+    return paths
+
+
+def did_you_mean(key: str, known: list[str], prefix: str = "") -> str:
+    """``"; did you mean settings.gamma?"``: the known keys ``key`` may be a misspelling of
+    (:func:`~spcopyro.results.semantic_map.close_words`, the one rule), each after ``prefix``;
+    empty where none is close. A variant's keys and a study file's (:mod:`spcopyro.study.spec`)
+    suggest through this."""
+    close = close_words(key, known)
+    return f"; did you mean {', '.join(prefix + c for c in close)}?" if close else ""
+
+
 def _setting_default(name: str) -> object:
     for layer in (SpCoConfig(), DataPreparation()):
         if hasattr(layer, name):
@@ -310,9 +338,9 @@ def make_variant(name: str, overrides: Mapping[str, object] | None = None) -> Va
                 )
             if not targets:
                 known_options = [f.name for f in dataclasses.fields(default_options)]  # type: ignore[arg-type]
-                known = [*sorted(_SETTING_FIELDS), *known_options, *fit_parameters]
-                close = close_words(key, ["preset", "method", *known])  # the one rule
-                hint = f"; did you mean {', '.join(close)}?" if close else ""
+                known = [*sorted(_SETTING_FIELDS), *_option_paths(default_options),
+                         *fit_parameters]  # fmt: skip
+                hint = did_you_mean(key, ["preset", "method", *known])
                 raise VariantError(
                     f"{where}: unknown key {key!r}. Known: preset, method; settings "
                     f"{sorted(_SETTING_FIELDS)}; {method} options {sorted(known_options)} "
@@ -321,15 +349,19 @@ def make_variant(name: str, overrides: Mapping[str, object] | None = None) -> Va
         target = targets[0]
         if target == "settings":
             if key not in _SETTING_FIELDS:
-                raise VariantError(f"{where}: SpCoConfig / DataPreparation have no field {key!r}")
+                hint = did_you_mean(key, sorted(_SETTING_FIELDS), "settings.")
+                raise VariantError(
+                    f"{where}: SpCoConfig / DataPreparation have no field {key!r}{hint}"
+                )
             if isinstance(value, str):
                 value = _parse_text(value, _setting_default(key), where)
             settings[key] = value
         elif target == "options":
             found, default = _option_default(default_options, key.split("."))
             if not found:
+                hint = did_you_mean(key, _option_paths(default_options), "options.")
                 raise VariantError(
-                    f"{where}: {type(default_options).__name__} has no field (path) {key!r}"
+                    f"{where}: {type(default_options).__name__} has no field (path) {key!r}{hint}"
                 )
             if isinstance(value, str) and not isinstance(default, str):
                 value = _parse_text(value, default, where)
@@ -339,6 +371,7 @@ def make_variant(name: str, overrides: Mapping[str, object] | None = None) -> Va
                 raise VariantError(
                     f"{where}: fit_house has no argument {key!r} a variant may set; it has "
                     f"{sorted(fit_parameters)} ({sorted(FIT_RESERVED)} are the harness's own)"
+                    + did_you_mean(key, sorted(fit_parameters), "fit.")
                 )
             default = fit_parameters[key].default
             if default is inspect.Parameter.empty:

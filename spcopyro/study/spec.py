@@ -47,6 +47,7 @@ from typing import Any
 from spcopyro.experiments.ablation_variants import (
     Variant,
     VariantError,
+    did_you_mean,
     fit_combination_problem,
     make_variant,
 )
@@ -405,7 +406,8 @@ def _data_source(source: str, name: str, table: object) -> DataSource:
         fields = {f.name for f in dataclasses.fields(known)}
         for key, value in values.items():
             if key not in fields:
-                why = f"{known.__name__} has no such field; it has {sorted(fields)}"
+                hint = did_you_mean(key, sorted(fields))
+                why = f"{known.__name__} has no such field; it has {sorted(fields)}{hint}"
                 raise _fail(source, f"{where} {key}", value, why)
         problem = _map_tour_problem(values) if kind == "map" else None
         if problem is not None:
@@ -476,8 +478,9 @@ def study_from_dict(values: Mapping[str, Any], *, source: str = "<python>") -> S
         raise _fail(source, "[study]", head, "expected a table")
     extra = sorted(set(head) - _STUDY_KEYS)
     if extra:
+        hint = did_you_mean(extra[0], sorted(_STUDY_KEYS))  # close_words, as a variant's keys
         raise _fail(source, f"[study] {extra[0]}", head[extra[0]],
-                    f"unknown key; known: {sorted(_STUDY_KEYS)}")  # fmt: skip
+                    f"unknown key; known: {sorted(_STUDY_KEYS)}{hint}")  # fmt: skip
     description = head.get("description", "")
     if not isinstance(description, str):  # description = 3 was kept as the text "3"
         raise _fail(source, "[study] description", description, "expected text (in quotes)")
