@@ -134,7 +134,10 @@ def concept_statistics(
 
 def _dirichlet_log_normaliser(rows: int, size: int, concentration: float) -> torch.Tensor:
     """rows * (log Gamma(K a) - K log Gamma(a)): normaliser of ``rows`` symmetric Dir(a) of
-    size K."""
+    size K; 0 for K = 0 (a Dirichlet over no items is the point mass on the empty vector: the
+    words of a house where none was heard)."""
+    if size == 0:  # lgamma(0) is inf
+        return torch.zeros((), dtype=DTYPE)
     a = torch.tensor(concentration, dtype=DTYPE)
     return rows * (torch.lgamma(a * size) - size * torch.lgamma(a))
 

@@ -218,7 +218,7 @@ def check_model_data(data: ModelData, config: SpCoConfig | None = None) -> None:
             )
         if counts.dtype != DTYPE:
             raise ValueError(f"the counts of modality {name!r} must be {DTYPE}, got {counts.dtype}")
-        if counts.shape[1] == 0:  # a Dirichlet over no items: Pyro's Simplex error, unnamed
+        if counts.shape[1] == 0 and name != SITE_WORDS:  # a Dirichlet over no items: unnamed
             raise ValueError(
                 f"modality {name!r} has no items (its counts are [{M}, 0]): each concept's "
                 "distribution over them needs at least one; leave the modality out"
@@ -368,6 +368,16 @@ def _check_site_shape(site: str, value: torch.Tensor, expected: tuple[int, ...])
         )
 
 
+def _table_prior(modality: Modality, config: SpCoConfig, L: int) -> dist.Distribution:
+    """Each concept's distribution over the modality's K_m items: the symmetric Dirichlet of
+    eqs. (3), (4); over no items (the words of a house where none was heard, V = 0) the
+    Dirichlet's simplex is the one empty vector, so the draw is that point (log density 0)."""
+    K = modality.counts.shape[-1]
+    if K == 0:  # Pyro's Dirichlet refuses an empty simplex
+        return dist.Delta(torch.zeros((L, 0), dtype=DTYPE), event_dim=1)
+    return dist.Dirichlet(torch.full((K,), config.concentration(modality.name), dtype=DTYPE))
+
+
 def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
     r"""SpCoMapping (Katsumata et al., 2019), eqs. (1)-(10); its conditionals are eqs. (13)-(17).
 
@@ -448,16 +458,7 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
         )
     with pyro.plate(PLATE_CONCEPTS, L, dim=-1):
         parameters = [
-            pyro.sample(
-                modality.parameter,
-                dist.Dirichlet(
-                    torch.full(
-                        (modality.counts.shape[-1],),
-                        config.concentration(modality.name),
-                        dtype=DTYPE,
-                    )
-                ),
-            )
+            pyro.sample(modality.parameter, _table_prior(modality, config, L))
             for modality in data.modalities
         ]  # theta: [L, K], w: [L, V], ...: [L, K_m]
     for modality, probs in zip(data.modalities, parameters, strict=True):
@@ -485,7 +486,7 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
     observed_labels = labels[data.obs_cells]  # [M]
     with pyro.plate(PLATE_OBSERVED, data.obs_cells.shape[0], dim=-1):
         for modality, probs in zip(data.modalities, parameters, strict=True):
-            if config.uses(modality.name):
+            if config.uses(modality.name) and modality.counts.shape[-1]:  # no items: nothing seen
                 pyro.sample(
                     modality.name,
                     MultinomialCounts(probs[observed_labels], modality.counts.sum(-1)),

@@ -203,23 +203,19 @@ def test_a_house_without_ft_csv_says_how_to_make_it(tmp_path):
         load_house(room)
 
 
-def test_a_house_of_images_only_is_refused_naming_its_folder(tmp_path, capsys):
-    """A house of images only (no word files at all) was refused as 'St.csv: required file not
-    found (... a house needs words as well as images)', though a house of words only fits; the
-    words name the places (where, export), so it is still refused, naming the folder and why."""
+def test_a_house_of_images_only_loads_and_fits(tmp_path, capsys):
+    """A house of images only (no word files at all: a robot that has heard nothing yet) was
+    refused ('spcopyro cannot fit it, since the words heard name its places'), and had no way
+    in; it now loads with no utterances (warned, naming the folder) and fits from its images."""
     from spcopyro.cli.main import main
 
     room = _saved_house(tmp_path)
     for name in ("St.csv", "StXtx.csv", "StXty.csv", "word_0.csv", "word_1.csv"):
         (room / name).unlink()
-    with pytest.raises(FileNotFoundError) as error:
-        load_house(room)
-    assert str(error.value).startswith(
-        f"{room}: a house of images only (no St.csv, StXtx.csv, StXty.csv or word_K.csv): "
-        "spcopyro cannot fit it, since the words heard name its places"
-    )
-    assert main(["fit", str(room), "--out", str(tmp_path / "fit"), "--sweeps", "2"]) != 0
-    assert f"{room}: a house of images only" in capsys.readouterr().err
+    assert load_house(room).observations.num_utterances == 0
+    assert main(["fit", str(room), "--out", str(tmp_path / "fit"), "--sweeps", "2"]) == 0
+    err = capsys.readouterr().err
+    assert f"{room}: no words" in err and "fitted on its images alone" in err
 
 
 def test_a_house_of_words_only_loads_saves_and_fits(tmp_path, caplog, capsys):

@@ -304,8 +304,9 @@ def cell_counts(
 
     Vocabulary: ``vocabulary`` given -> its order defines the V columns and a token of ``obs``
     not in it raises ValueError (extend the vocabulary, or select the observations, first);
-    ``None`` -> ``obs.vocabulary``. An empty vocabulary is an error, except when ``obs`` holds no
-    utterances and the caller passes ``vocabulary=()`` explicitly (then V = 0).
+    ``None`` -> ``obs.vocabulary``; observations without utterances (a house of images only)
+    give V = 0 (the model's words then explain nothing), and an empty ``vocabulary`` is an
+    error only when ``obs`` holds utterances.
 
     Unplaced observations are logged (``logger.warning`` with their counts) and listed in
     ``placement``; snapped ones are logged at INFO level; more than half of all observations
@@ -328,13 +329,7 @@ def cell_counts(
     if word_weighting not in ("count", "tfidf"):
         raise ValueError(f"word_weighting={word_weighting!r}: must be 'count' or 'tfidf'")
     if vocabulary is None:
-        vocab = obs.vocabulary
-        if not vocab:
-            raise ValueError(
-                "cell_counts: the observations hold no words (empty vocabulary): a house of "
-                "images only cannot be fitted (the words name its places); pass vocabulary=() "
-                "to build counts without words"
-            )
+        vocab = obs.vocabulary  # () when no utterance was heard: V = 0
     else:
         vocab = tuple(vocabulary)
         for token in vocab:

@@ -216,14 +216,8 @@ def _check_both_modalities(room: Path, files: dict[str, Path]) -> bool:
     if not files["St"].is_file():
         word_files = [files[k].name for k in ("StXtx", "StXty") if files[k].is_file()]
         word_files += sorted(p.name for p in room.glob("word_*.csv"))
-        if not word_files:  # a house of images only: none of the words' files
-            raise FileNotFoundError(
-                f"{room}: a house of images only (no St.csv, StXtx.csv, StXty.csv or "
-                "word_K.csv): spcopyro cannot fit it, since the words heard name its places "
-                "(where, navigate and export answer words; a house of words only does fit): "
-                "add St.csv, one line of the comma-separated utterances heard, and their "
-                "positions in StXtx.csv and StXty.csv"
-            )
+        if not word_files:  # a house of images only (no speech yet): none of the words' files
+            return True
         raise FileNotFoundError(
             f"{files['St']}: required file not found (the words heard, one line of "
             f"comma-separated utterances; {', '.join(word_files)} "
@@ -287,9 +281,11 @@ def load_house(
       every row; ``Xtx.csv``, ``Xty.csv`` (required): world x / y of each row, one per line.
       A house of words only (a robot without a camera) has none of them, no ``pose_K.csv`` and
       no image in ``img_K/``: its images are ``[0, 1]`` (warned), its trials the word files'.
-    * ``St.csv`` (required): one line of comma-separated utterances (trailing newline optional),
+    * ``St.csv``: one line of comma-separated utterances (trailing newline optional),
       each tokenised with :func:`tokenize` (an entry may be a sentence); ``StXtx.csv``,
-      ``StXty.csv`` (required): world x / y of each utterance, one per line.
+      ``StXty.csv``: world x / y of each utterance, one per line. A house of images only (a
+      robot that has heard nothing yet) has none of them and no ``word_K.csv``: it has no
+      utterances (warned; V = 0) and is fitted on its images.
     * ``pose_K.csv`` / ``word_K.csv`` (optional, K = trial id, in pairs): their row / line counts
       split images / utterances into trials in order of K, and must add up to the Ft.csv rows /
       St.csv utterances; pose rows are ``x, y, qz, qw`` (x, y equal to Xtx/Xty), giving
@@ -366,14 +362,22 @@ def load_house(
             room,
         )
         features, image_xy = np.zeros((0, 1)), np.zeros((0, 2))  # [0, K = 1], [0, 2]
-    utterances = _read_utterances_line(files["St"])
-    word_xy = np.stack(
-        [
-            _read_column(files["StXtx"], len(utterances), files["St"]),
-            _read_column(files["StXty"], len(utterances), files["St"]),
-        ],
-        axis=1,
-    )  # [U, 2]
+    if files["St"].is_file():
+        utterances = _read_utterances_line(files["St"])
+        word_xy = np.stack(
+            [
+                _read_column(files["StXtx"], len(utterances), files["St"]),
+                _read_column(files["StXty"], len(utterances), files["St"]),
+            ],
+            axis=1,
+        )  # [U, 2]
+    else:  # a robot that has heard nothing yet: the images alone place the concepts
+        logging.getLogger("spcopyro").warning(
+            "%s: no words (no St.csv, StXtx.csv, StXty.csv or word_K.csv): the house is fitted "
+            "on its images alone, and where / navigate have no word to answer",
+            room,
+        )
+        utterances, word_xy = (), np.zeros((0, 2))  # [U = 0, 2]
     for positions, (x_file, y_file) in (
         (image_xy, (files["Xtx"], files["Xty"])),
         (word_xy, (files["StXtx"], files["StXty"])),

@@ -228,7 +228,11 @@ def _read_utterances_line(path: Path) -> tuple[tuple[str, ...], ...]:
             path, "must be one line of comma-separated utterances", line=2, value=lines[1]
         )
     if not lines or not lines[0].strip():
-        raise DataFormatError(path, "holds no words (empty vocabulary)")
+        raise DataFormatError(
+            path,
+            "holds no words (empty vocabulary); a house where nothing was heard yet leaves out "
+            "St.csv, StXtx.csv, StXty.csv and word_K.csv (it is fitted on its images alone)",
+        )
     utterances, unspaced = [], []
     for entry_number, entry in enumerate(lines[0].split(","), start=1):
         tokens = tokenize(entry)
@@ -297,9 +301,10 @@ def _read_trials(
             [num_images],
         )
     without_images = num_images == 0 and not poses  # a house of words only: trials by word files
+    without_words = num_utterances == 0 and not words  # a house of images only: by pose files
     for have, other, kind in ((poses, words, "word"), (words, poses, "pose")):
         missing = sorted(set(have) - set(other))
-        if missing and not without_images:
+        if missing and not without_images and not (kind == "word" and without_words):
             raise DataFormatError(
                 room / f"{kind}_{missing[0]}.csv",
                 f"missing: trial{'s' if len(missing) > 1 else ''} "
@@ -351,7 +356,7 @@ def _read_trials(
     said: dict[int, list[tuple[str, list[str]]]] = {}  # trial -> its lines and their tokens
     for k in trials:
         said[k] = []
-        for number, line in enumerate(_read_lines(words[k]), start=1):
+        for number, line in enumerate(_read_lines(words[k]) if k in words else (), start=1):
             tokens = tokenize(line)
             if not tokens:
                 raise DataFormatError(words[k], "utterance holds no words", line=number, value=line)

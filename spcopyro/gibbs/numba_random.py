@@ -264,6 +264,8 @@ def _log_gamma_rows(
     underflows for small a).
     """
     R, C = statistics.shape
+    if C == 0:  # over no items (the words of a house where none was heard): [R, 0]
+        return np.empty((R, 0)), -1
     out = np.empty((R, C))
     boost = np.empty((R, C))
     row_sums = np.empty(R)

@@ -202,6 +202,8 @@ def dirichlet_kl(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     whose terms are exactly zero, left out: a factor q(phi_ml) differs from its prior only where
     concept l has expected counts, a few of the L x K_m entries (room2ldk4: 2 ms down to ~0.2)."""
     b = b.expand_as(a)
+    if a.shape[-1] == 0:  # over no items (a house without words): q and prior are one point
+        return torch.zeros((), dtype=a.dtype)
     a0, b0 = a.sum(-1), b.sum(-1)
     rows = torch.lgamma(a0) - torch.lgamma(b0) - (a0 - b0) * torch.digamma(a0)
     differ = a != b

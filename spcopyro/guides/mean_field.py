@@ -250,6 +250,7 @@ class MeanFieldGuide(PyroModule):
         pyro.sample(SITE_PI, dist.Dirichlet(self.concentration(SITE_PI)))
         with pyro.plate("concepts", self.num_concepts, dim=-1):
             for site in self.parameter_sites:
-                pyro.sample(site, dist.Dirichlet(self.concentration(site)))  # [L, K_m]
+                c = self.concentration(site)  # [L, K_m]; over no items (V = 0) the one point
+                pyro.sample(site, dist.Dirichlet(c) if c.shape[-1] else dist.Delta(c, event_dim=1))
         with pyro.plate("cells", self.num_free, dim=-1):
             pyro.sample(SITE_LABELS, dist.Categorical(logits=self.logits()))  # [N]

@@ -166,6 +166,7 @@ class PriorKL:
         self.data, self.config = data, config
         self.prior = prior_factors(data, config, pi_family)
         self.constants = [float(torch.lgamma(b).sum() - torch.lgamma(b.sum(-1)).sum())
+                          if b.shape[-1] else 0.0  # no items (V = 0): lgamma(0) is inf
                           for b in self.prior.emissions]  # fmt: skip
 
     def __call__(self, factors: GlobalFactors, log_phi: tuple[torch.Tensor, ...]) -> float:
@@ -173,6 +174,8 @@ class PriorKL:
         total = float(kl_to_prior(pi_only, self.data._replace(modalities=()), self.config))
         for a, b, e, constant in zip(factors.emissions, self.prior.emissions, log_phi,
                                      self.constants, strict=True):  # fmt: skip
+            if not a.shape[-1]:  # over no items: q and the prior are one point, KL 0
+                continue
             rows = float(torch.lgamma(a.sum(-1)).sum())
             entries = float(((a - b) * e).sum() - torch.lgamma(a).sum())
             total += rows + entries + constant

@@ -171,6 +171,11 @@ def word_index(vocabulary: tuple[str, ...], word: str) -> int:
             shown = KNOWN_WORDS_SHOWN
             more = f", ... ({len(known) - shown} more)" if len(known) > shown else ""
             hint = f"; known words: {', '.join(known[:shown])}{more}"
+        if not vocabulary:  # a house of images only: nothing was heard, no word names a place
+            hint = (
+                ": the fit heard no words (its house holds no utterances), so it can locate none; "
+                "fit it again once words are heard there"
+            )
         hidden = hidden_characters_note(word, vocabulary)  # 'kit\u200bchen' prints as kitchen
         if hidden:
             hint = f": {hidden}" + ("" if hidden_match(word, vocabulary) else hint)

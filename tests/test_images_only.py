@@ -1,0 +1,86 @@
+"""A house of images only (a robot that has heard nothing yet) is fitted from its images and the
+Potts prior: the words modality carries V = 0 items, each concept's w is the one point of the
+empty simplex. Was: cell_counts refused "the observations hold no words", its way out
+(vocabulary=()) then refused by check_model_data, and load_house refused a folder without
+St.csv."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import shutil
+
+import numpy as np
+import pytest
+import torch
+from gibbs_problems import config, random_problem
+from statistical_checks import assert_conditionals_match_model
+
+from spcopyro.config import preset
+from spcopyro.data import load_house, save_house
+from spcopyro.fit.house import fit_house
+from spcopyro.gibbs.sampler import init
+from spcopyro.model import DTYPE
+from spcopyro.results.result import SpCoResult
+from spcopyro.results.semantic_map import UnknownWordError, word_index
+from spcopyro.synthetic import make_house
+
+
+def _without_words(house):
+    obs = dataclasses.replace(
+        house.observations,
+        utterances=(),
+        word_xy=np.zeros((0, 2)),
+        word_trial=np.zeros(0, dtype=np.int64),
+    )
+    return dataclasses.replace(house, observations=obs)
+
+
+@pytest.mark.parametrize("use_words", [False, True])
+def test_conditionals_match_model_without_words(use_words):
+    cfg = config(use_words=use_words)
+    _, data = random_problem(seed=3, connectivity=cfg.connectivity)
+    data = data.with_counts("words", torch.zeros((data.obs_cells.shape[0], 0), dtype=DTYPE))
+    state = init(data, cfg, torch.Generator().manual_seed(1))
+    cells = torch.cat([data.obs_cells, torch.tensor([0, data.num_free - 1])]).unique()
+    assert_conditionals_match_model(state, data, cfg, cells)
+
+
+@pytest.mark.parametrize("method", ["gibbs", "cavi", "lbp", "svi"])
+def test_a_house_of_images_only_is_fitted(method, tmp_path):
+    house = _without_words(make_house(seed=0))
+    objectives = []
+    for use_words in (False, True):  # no words: the same fit either way
+        settings = preset("original-code", cell_size=None, use_words=use_words, num_concepts=4)
+        result = fit_house(house, settings, method=method, sweeps=5, progress=False)
+        assert math.isfinite(result.trace.objective[-1])
+        assert result.vocabulary == ()
+        objectives.append(result.trace.objective[-1])
+    assert objectives[0] == objectives[1]
+    if method == "gibbs":
+        loaded = SpCoResult.load(result.save(tmp_path / "fit"))
+        assert loaded.vocabulary == ()
+        np.testing.assert_array_equal(loaded.labels, result.labels)
+
+
+def test_where_says_no_words_were_heard():
+    with pytest.raises(UnknownWordError, match="the fit heard no words"):
+        word_index((), "kitchen")
+
+
+def test_a_house_folder_without_word_files_loads(tmp_path, caplog):
+    room = save_house(make_house(seed=0), tmp_path)
+    for path in [*room.glob("St*.csv"), *room.glob("word_*.csv")]:
+        path.unlink()
+    house = load_house(room)
+    assert house.observations.num_utterances == 0
+    assert house.observations.num_images > 0
+    assert "fitted on its images alone" in caplog.text
+
+
+def test_an_empty_st_csv_names_the_way_out(tmp_path):
+    room = save_house(make_house(seed=0), tmp_path)
+    (room / "St.csv").write_text("")
+    with pytest.raises(ValueError, match="leaves out St.csv"):
+        load_house(room)
+    shutil.rmtree(room)
