@@ -213,3 +213,27 @@ def test_warnings_of_cells_on_a_local_cluster_are_kept(tmp_path):
         assert any(m.startswith(LOW_GAMMA) for m in said["low", seed]), said
         assert not any(m.startswith("gamma =") for m in said["fine", seed]), said
     assert "  - cells: low / small / gibbs / seeds" in (tmp_path / "dask" / "report.md").read_text()
+
+
+@pytest.mark.parametrize("ari_every", [0, 1])
+def test_every_variant_cell_gets_the_degenerate_map_check(tmp_path, monkeypatch, ari_every):
+    """A cell with ari_every fits by fit_spco, which never ran fit_house's degenerate-map check:
+    its one-concept map went without the warning the others' gave. Both now get it."""
+    import spcopyro.fit.house as house_module
+
+    checked: list[tuple] = []
+
+    def warning(labels, house, snap, sampled=True):
+        checked.append((labels.shape, house.grid.num_free))
+        return "degenerate map (test)"
+
+    monkeypatch.setattr(house_module, "house_map_warning", warning)
+    path = tmp_path / "warned.toml"
+    path.write_text(STUDY.replace("sweeps = 3", f"sweeps = 3\nari_every = {ari_every}"))
+    study = load_study(path)
+    assert study.ari_every == ari_every
+    run = run_study(study, tmp_path / "out", progress=False)
+    assert (run.ran, run.failed) == (4, 0)
+    for key, said in _warnings_by_cell(tmp_path / "out").items():
+        assert "degenerate map (test)" in said, (key, said)
+    assert len(checked) == 4 and all(shape == (free,) for shape, free in checked), checked
