@@ -40,6 +40,9 @@ What carries over:
   keeps a little more mass on the old words for one sweep). Without a generator the mean is used
   (S_l = E[S_l], u_l uniform). A variational method starts from the saved labels only
   (``init_labels``): it derives its global factors from them.
+* **Concept numbers**: the result's concepts are renumbered after the sweeps to match the saved
+  fit's on the same cells (:mod:`spcopyro.results.renumber`), so that a place keeps its number
+  (colours, ``show``, the concepts table) although the sampler may have moved it to another.
 
 The saved settings (model hyperparameters and data preparation) must equal the new run's:
 :func:`check_compatible` names every field that differs. Everything after sweep 0 is the
@@ -71,6 +74,7 @@ from spcopyro.gibbs.run import GibbsChain, advance, start_chain
 from spcopyro.inference.driver import DriveInterrupted
 from spcopyro.inference.protocol import method_options
 from spcopyro.model import DTYPE, ModelData
+from spcopyro.results.renumber import matching_permutation, renumbered
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.saved_vocabulary import (
     SavedVocabulary,
@@ -432,7 +436,10 @@ def fit_update(
             if saved.inference.get("refine"):  # a refined fit's update is one: updated again
                 output.options["refine"] = saved.inference["refine"]  # as refined (config.json)
             record = {**provenance(house, start.data, source, start.counts), "threads": used}
-            results.append(
-                result_of(output, house, start.counts, start.data, start.settings, method, record)
+            result = result_of(
+                output, house, start.counts, start.data, start.settings, method, record
             )
+            # the saved fit's numbers for the same places (a sampler renumbers concepts freely)
+            perm = matching_permutation(saved.labels, result.labels, len(result.pi))
+            results.append(renumbered(result, perm))
     return results
