@@ -27,7 +27,6 @@ import math
 from typing import Literal, NamedTuple
 
 import torch
-from torch.distributions import Beta, kl_divergence
 
 from spcopyro._util.messages import setting, warn_once
 from spcopyro.config import SpCoConfig
@@ -172,17 +171,9 @@ def mean_emissions(factors: GlobalFactors) -> tuple[torch.Tensor, ...]:
 def kl_to_prior(factors: GlobalFactors, data: ModelData, config: SpCoConfig) -> torch.Tensor:
     """KL(q(pi) || p(pi)) + sum_m sum_l KL(q(phi_ml) || p(phi_ml)), in closed form."""
     prior = prior_factors(data, config, factors.pi_family)
-    if factors.pi_family == "dirichlet":
-        total = dirichlet_kl(factors.pi, prior.pi)
-    else:
-        q, p = factors.pi, prior.pi  # [L - 1, 2] each
-        # L = 1 has no stick (pi = 1): torch's Beta refused the empty batch with a bare
-        # "cannot reshape tensor of 0 elements" RuntimeError; the KL of no sticks is 0.
-        total = (
-            kl_divergence(Beta(q[:, 0], q[:, 1]), Beta(p[:, 0], p[:, 1])).sum()
-            if q.shape[0]
-            else q.new_zeros(())
-        )
+    # Dirichlet: [L] each. Stick-breaking: [L - 1, 2] each, a Beta(a, b) being Dir over (a, b),
+    # so the rows' sum is the sum over the sticks; L = 1 has none (pi = 1) and a KL of 0.
+    total = dirichlet_kl(factors.pi, prior.pi)
     for q_phi, p_phi in zip(factors.emissions, prior.emissions, strict=True):
         total = total + dirichlet_kl(q_phi, p_phi)
     return total
