@@ -326,3 +326,59 @@ def test_ctrl_c_while_writing_a_variational_fit_says_its_iterations_ran(
     assert err.endswith(f"no checkpoint kept (its iterations had all run; a {method} checkpoint "
                         "is kept only when Ctrl-C stops them: the fit runs again)")  # fmt: skip
     assert not list(tmp_path.glob("out*"))  # no OUT, checkpoint or staging folder left
+
+
+def test_ctrl_c_from_a_terminal_while_cavi_s_outputs_are_written(tmp_path):
+    """The same through a real ``spcopyro fit --method cavi`` process: SIGINT to its process
+    group (a terminal's Ctrl-C) once its staging folder holds ``result.npz`` (written first of
+    the outputs, before the figures), waited for by polling, not a fixed sleep. Exit 130, the
+    line above, nothing left beside OUT, no process of the run left. A run the signal reached
+    only once OUT was committed (a very fast machine) is tried again."""
+    import glob
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    env = {k: v for k, v in os.environ.items() if k != "SPCOPYRO_TIMINGS"}
+    for attempt in range(3):
+        out = tmp_path / f"out{attempt}"
+        argv = [sys.executable, "-m", "spcopyro", "fit", "--method", "cavi", "--sweeps", "20",
+                "--out", str(out)]  # fmt: skip
+        errors = tmp_path / f"stderr{attempt}.txt"
+        with errors.open("w") as sink:  # a file: a pipe unread while polling could fill
+            process = subprocess.Popen(
+                argv, cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=sink,
+                start_new_session=True,
+            )  # fmt: skip
+        try:
+            deadline = time.monotonic() + 120
+            while process.poll() is None and time.monotonic() < deadline:
+                if glob.glob(str(tmp_path / f"out{attempt}.partial-*" / "result.npz")):
+                    os.killpg(process.pid, signal.SIGINT)
+                    break
+                time.sleep(0.005)
+            process.wait(timeout=60)
+        finally:
+            if process.poll() is None:
+                os.killpg(process.pid, signal.SIGKILL)
+                process.wait()
+        err = errors.read_text()
+        if process.returncode == 0 or "was written" in err:
+            continue  # the signal came after the commit: again
+        break
+    else:
+        pytest.skip("the fit's outputs were written before the signal reached it, 3 times")
+    line = err.splitlines()[-1]
+    assert process.returncode == 130, err
+    assert line.startswith(f"interrupted while writing the outputs: nothing written to {out}")
+    assert line.endswith(
+        "no checkpoint kept (its iterations had all run; a cavi checkpoint is kept only when "
+        "Ctrl-C stops them: the fit runs again)"
+    ), line
+    assert not list(tmp_path.glob(f"out{attempt}*"))  # no OUT, checkpoint or staging folder
+    time.sleep(0.5)  # the figures' child, stopped by the fit, has been reaped by then
+    ps = subprocess.run(["ps", "-eo", "pid,sid,stat"], capture_output=True, text=True).stdout
+    left = [row for row in ps.splitlines()[1:] if row.split()[1] == str(process.pid)]
+    assert not [row for row in left if not row.split()[2].startswith("Z")], left
