@@ -84,3 +84,31 @@ def test_an_empty_st_csv_names_the_way_out(tmp_path):
     with pytest.raises(ValueError, match="leaves out St.csv"):
         load_house(room)
     shutil.rmtree(room)
+
+
+@pytest.mark.parametrize("method", ["gibbs", "cavi"])
+def test_a_fit_of_images_only_is_updated_with_words(method):
+    """An update of a fit that heard no words onto observations with words: every word is new
+    and takes all of w's mass. Was (Gibbs): extend_emission drew S_l ~ Beta(beta * 0 + 0, .),
+    'gamma concentration must be finite and positive'."""
+    from spcopyro.robot.online import fit_update
+
+    house = make_house(seed=0)
+    settings = preset("original-code", cell_size=None, num_concepts=4)
+    saved = fit_house(_without_words(house), settings, sweeps=3, progress=False)
+    assert saved.vocabulary == ()
+    (result,) = fit_update(saved, house, settings, method=method, sweeps=3, progress=False)
+    assert result.vocabulary == house.observations.vocabulary
+    assert math.isfinite(result.trace.objective[-1])
+    np.testing.assert_allclose(result.w.sum(axis=1), 1.0)
+
+
+def test_new_words_of_a_fit_without_words_take_all_the_mass():
+    from spcopyro.robot.online import extend_emission
+
+    empty = np.zeros((3, 0))  # [L=3, V=0]
+    mean = extend_emission(empty, np.zeros(3), 0.5, 4)  # [3, 4]
+    np.testing.assert_array_equal(mean, np.full((3, 4), 0.25))
+    drawn = extend_emission(empty, np.zeros(3), 0.5, 4, torch.Generator().manual_seed(0))
+    assert np.isfinite(drawn).all()
+    np.testing.assert_allclose(drawn.sum(axis=1), 1.0)

@@ -244,7 +244,8 @@ def extend_emission(
     new ones under the prior (the module docstring's construction).
 
     Args:
-        probabilities: [L, V] the saved distributions (rows sum to 1).
+        probabilities: [L, V] the saved distributions (rows sum to 1); V = 0 (a fit of a
+            house without words): the new items take all the mass, S_l = 0.
         totals: [L] n_l, each concept's count total over the old items.
         concentration: the symmetric Dirichlet concentration (beta for words).
         num_new: the new items.
@@ -261,11 +262,15 @@ def extend_emission(
         share = old_mass / (old_mass + new_mass)  # [L] E[S_l]
         spread = np.full((num_concepts, num_new), 1.0 / num_new)  # [L, V_new] E[u_l]
     else:
-        # S_l ~ Beta(a, b) as the first part of Dir(a, b); u_l ~ Dir(concentration).
-        pair = torch.stack(
-            [torch.as_tensor(old_mass, dtype=DTYPE), torch.full((num_concepts,), new_mass)], -1
-        )  # [L, 2]
-        share = sample_log_dirichlet(pair, generator)[:, 0].exp().numpy()  # [L]
+        # S_l ~ Beta(a, b) as the first part of Dir(a, b); u_l ~ Dir(concentration). No old
+        # items (a fit of a house without words): a = 0, and Beta(0, b) is the point at 0.
+        share = np.zeros(num_concepts)  # [L]
+        if num_old:
+            pair = torch.stack(
+                [torch.as_tensor(old_mass, dtype=DTYPE), torch.full((num_concepts,), new_mass)],
+                -1,
+            )  # [L, 2]
+            share = sample_log_dirichlet(pair, generator)[:, 0].exp().numpy()  # [L]
         flat = torch.full((num_concepts, num_new), float(concentration), dtype=DTYPE)
         spread = sample_log_dirichlet(flat, generator).exp().numpy()  # [L, V_new]
     return np.concatenate(
