@@ -339,5 +339,6 @@ def test_most_observations_off_free_space_are_warned_about(caplog):
     assert "2 snapped to free space within 1 m, 4 left out" in messages[0]
     report = cell_counts(grid, _observations([(0, 3), (0, 4)], grid), snap_distance=1.0).placement
     assert (report.num_on_free, report.num_snapped, report.num_observations) == (0, 2, 4)
+    assert report.num_placed == 2  # on free cells, snapped ones included
     with pytest.raises(ValueError, match="no observation lands on free space: 4 of 4"):
         report.check_on_free()

@@ -301,7 +301,7 @@ class PlacementReport:
     @property
     def num_observations(self) -> int:
         """All observations: images, utterances and every further modality's."""
-        return self.num_on_free + self.num_snapped + self.num_unplaced
+        return self.num_placed + self.num_unplaced
 
     @property
     def num_on_free(self) -> int:
@@ -312,6 +312,11 @@ class PlacementReport:
     def num_snapped(self) -> int:
         """Observations moved onto free space (of every modality)."""
         return self.images_snapped + self.words_snapped + sum(m.snapped for m in self.modalities)
+
+    @property
+    def num_placed(self) -> int:
+        """Observations in the counts (of every modality): on free cells, snapped ones included."""
+        return self.num_on_free + self.num_snapped
 
     @property
     def num_unplaced(self) -> int:

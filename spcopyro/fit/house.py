@@ -124,8 +124,7 @@ def provenance(
     said["data_sha256"] = data_fingerprint(data)
     if counts is not None:
         placed = counts.placement
-        said["observations"] = {"given": placed.num_observations,
-                                "placed": placed.num_on_free + placed.num_snapped}  # fmt: skip
+        said["observations"] = {"given": placed.num_observations, "placed": placed.num_placed}
     return {
         "source": said,
         "software": software_versions(),

@@ -114,11 +114,6 @@ def _placed(source: object) -> int | None:
     return int(placed) if isinstance(placed, int) and not isinstance(placed, bool) else None
 
 
-def _num_placed(counts: CellCounts) -> int:
-    """The observations ``counts`` hold: placed on free cells, snapped ones included."""
-    return counts.placement.num_on_free + counts.placement.num_snapped
-
-
 def update_record(
     saved: SpCoResult,
     words: tuple[Sequence[str], Sequence[str]],
@@ -145,7 +140,7 @@ def update_record(
         "data_sha256": source.get("data_sha256") if isinstance(source, dict) else None,
         "new_words": list(words[0]),
         "unheard_words": list(words[1]),
-        "observations": None if counts is None else _num_placed(counts),
+        "observations": None if counts is None else counts.placement.num_placed,
         "observations_before": _placed(source),
     }
     earlier = history(saved.inference.get("update_of"), where if os.path.isdir(where) else None)
