@@ -295,6 +295,23 @@ def test_an_update_says_how_many_observations_it_added(first, house, capsys):
     ) in capsys.readouterr().out
 
 
+def test_report_update_says_the_observations_first(capsys):
+    """report_update prints the observations line (report_observations' before it was merged
+    in), then the words; no line where the record holds no count."""
+    from spcopyro.cli.fit_refine import report_update
+
+    record = {"new_words": ["sink"], "unheard_words": [], "observations": 9,
+              "observations_before": 5}  # fmt: skip
+    report_update(record, "OUT")
+    assert capsys.readouterr().out.splitlines() == [
+        "observations     +4 added: 9 in the fit now, 5 before (those placed on the map's "
+        "free cells)",
+        "new words        1: sink",
+    ]
+    report_update({**record, "observations": None}, "OUT")
+    assert capsys.readouterr().out.splitlines() == ["new words        1: sink"]
+
+
 def test_the_updated_fit_is_recorded_relative_to_the_result(first, tmp_path, monkeypatch):
     """update_of.fit held --update as given, relative to the working directory: read from
     another directory, or with both folders moved, it named no fit. Now it is relative to the

@@ -54,7 +54,7 @@ from spcopyro.cli.fit_resume import (
     without_resume,
 )
 from spcopyro.cli.fit_settings import apply_preset_inference, check_update_args, fit_settings
-from spcopyro.cli.fit_update import relative_records, report_observations
+from spcopyro.cli.fit_update import relative_records
 from spcopyro.cli.fit_warnings import recorded_warnings, write_config
 from spcopyro.config import SpCoSettings, preset_inference
 from spcopyro.data import House
@@ -334,7 +334,6 @@ def _fit(
         this_data = chain_results[0].provenance.get("source", {})  # to tell unchanged data
         this_sha = this_data.get("data_sha256") if isinstance(this_data, dict) else None
         relative_records(chain_results, job.staged.out)  # update_of.fit: relative to OUT
-        report_observations(chain_results[0].inference["update_of"], args.update)
         report_update(chain_results[0].inference["update_of"], args.update, this_sha)
         kept = best_chain(chain_results)
         result = chain_results[kept]

@@ -266,11 +266,22 @@ def update_settings(
 
 
 def report_update(record: dict[str, object], where: str, data_sha256: object = None) -> None:
-    """Print what ``--update`` changed in the vocabulary (``record``: ``inference.update_of``),
-    note when this run's model data (``data_sha256``, this fit's ``source``) is the saved
-    fit's, nothing added, and warn (stderr) when saved words are missing from DATA: an update
-    fits DATA alone, so a folder holding only the new trial drops the old trials' observations
-    (their words, without counts, are the visible sign; robot.md)."""
+    """Print what ``--update`` changed (``record``: ``inference.update_of``): how many
+    observations it added and how many the fit now holds (both placed on the map's free cells;
+    where the saved fit in ``where`` did not record its own, saved by an older spcopyro, that
+    the number added is not known), and in the vocabulary; note when this run's model data
+    (``data_sha256``, this fit's ``source``) is the saved fit's, nothing added, and warn
+    (stderr) when saved words are missing from DATA: an update fits DATA alone, so a folder
+    holding only the new trial drops the old trials' observations (their words, without
+    counts, are the visible sign; robot.md)."""
+    now, before = record.get("observations"), record.get("observations_before")
+    if isinstance(now, int) and isinstance(before, int):
+        print(f"observations     {now - before:+d} added: {now} in the fit now, {before} "
+              "before (those placed on the map's free cells)")  # fmt: skip
+    elif isinstance(now, int):
+        print(f"observations     {now} in the fit now (placed on the map's free cells); "
+              f"the fit in {where} does not record how many it held (saved by an older "
+              "spcopyro), so how many were added is not known")  # fmt: skip
     new, unheard = list(record["new_words"]), list(record["unheard_words"])
     print(f"new words        {len(new)}: {', '.join(new[:20]) or '-'}")
     if data_sha256 is not None and data_sha256 == record.get("data_sha256"):
