@@ -5,6 +5,7 @@ an update whose DATA lacks the saved fit's words warns that the old trials are m
 from __future__ import annotations
 
 import dataclasses
+import os
 import shutil
 
 import numpy as np
@@ -310,6 +311,35 @@ def test_report_update_says_the_observations_first(capsys):
     ]
     report_update({**record, "observations": None}, "OUT")
     assert capsys.readouterr().out.splitlines() == ["new words        1: sink"]
+
+
+def test_an_earlier_fit_no_longer_there_is_recorded_absolute(tmp_path, monkeypatch):
+    """The saved fit's record names the fit before it relative to the saved fit's folder; with
+    that earlier folder deleted and --update given relative to the working directory, the
+    earlier entry held a path relative to the working directory, unmarked (read later from
+    another directory or with OUT moved, it named the wrong folder). Now it is absolute, and
+    relative_record makes it relative to OUT, marked."""
+    from types import SimpleNamespace
+
+    from spcopyro.robot.update_history import (
+        RELATIVE_TO,
+        RESULT_FOLDER,
+        relative_record,
+        update_record,
+    )
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "first").mkdir()  # the saved fit, an update of "zeroth", deleted since
+    saved = SimpleNamespace(
+        provenance={"source": {}}, method="gibbs", trace=SimpleNamespace(objective=[0.0]),
+        inference={"update_of": {"fit": "../zeroth", RELATIVE_TO: RESULT_FOLDER}},
+    )  # fmt: skip
+    record = update_record(saved, ((), ()), "first")
+    zeroth = os.path.join(os.getcwd(), "zeroth")
+    assert record["earlier"][0]["fit"] == zeroth
+    kept = relative_record(record, "second")["earlier"][0]
+    assert kept == {"fit": os.path.join("..", "zeroth"), RELATIVE_TO: RESULT_FOLDER}
+    assert fit_folder(kept, os.path.abspath("second")) == zeroth
 
 
 def test_the_updated_fit_is_recorded_relative_to_the_result(first, tmp_path, monkeypatch):

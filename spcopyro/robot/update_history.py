@@ -132,8 +132,12 @@ def update_record(
     its data lacks (:class:`~spcopyro.robot.online.VocabularyMerge`'s ``new_words``,
     ``unheard_words``)."""
     source = saved.provenance.get("source", {})
+    # the saved fit's folder, absolute (where it is one here): the folder its own record's
+    # relative paths are joined onto, so that an earlier fit no longer there is kept absolute
+    # (relative_record can make it relative to OUT), not relative to this working directory
+    folder = os.path.abspath(where) if os.path.isdir(where) else None
     record: dict[str, object] = {
-        "fit": os.path.abspath(where) if os.path.isdir(where) else where,
+        "fit": where if folder is None else folder,
         "method": saved.method,
         "iterations": len(saved.trace.objective),
         "data": source.get("data") if isinstance(source, dict) else None,
@@ -143,7 +147,7 @@ def update_record(
         "observations": None if counts is None else counts.placement.num_placed,
         "observations_before": _placed(source),
     }
-    earlier = history(saved.inference.get("update_of"), where if os.path.isdir(where) else None)
+    earlier = history(saved.inference.get("update_of"), folder)
     if earlier:  # the saved fit was an update: the fits before it, flat (each entry small)
         record["earlier"] = earlier
     return record
