@@ -38,6 +38,7 @@ from spcopyro.gibbs.hyperparameters import (
     update_gamma_exchange,
     update_gamma_pseudolikelihood,
 )
+from spcopyro.gibbs.kernel import SpCoGibbs
 from spcopyro.gibbs.method import output_from_run
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import advance, start_chain
@@ -454,15 +455,26 @@ def test_fixed_hyperparameters_change_nothing():
     assert plain.to_run().hyperparameters is None
 
 
+@pytest.mark.parametrize("entry", ["start_chain", "SpCoGibbs", "step"])
 @pytest.mark.parametrize("gamma_mode", ["exchange", "pseudolikelihood"])
-def test_sampling_gamma_from_zero_names_both_settings(gamma_mode):
+def test_sampling_gamma_from_zero_names_both_settings(gamma_mode, entry):
     """gamma 0 (no Potts coupling) with gamma sampled said only "sampling gamma needs gamma > 0
-    to start from", naming neither the config's value nor the option that samples it."""
+    to start from", naming neither the config's value nor the option that samples it; and it
+    was said by the gamma update, on whichever sweep the exchange coin first picked. Now a chain
+    refuses at its start (start_chain, SpCoGibbs.setup), and a chain stepped by hand at its
+    first hyperparameter update whatever the coin says (here it picks no sweep)."""
     _, data = random_problem(14)
-    options = GibbsOptions(backend="torch", hyper=HyperparameterOptions(gamma=gamma_mode))
-    chain = start_chain(data, config(gamma=0.0), options=options, seed=5)
+    hyper = HyperparameterOptions(gamma=gamma_mode, exchange_probability=1e-9)
+    options = GibbsOptions(backend="torch", hyper=hyper)
+    cfg = config(gamma=0.0)
     with pytest.raises(ValueError) as raised:
-        advance(chain, 2, progress=False)
+        if entry == "start_chain":
+            start_chain(data, cfg, options=options, seed=5)
+        elif entry == "SpCoGibbs":
+            SpCoGibbs(options=options).setup(0, data, cfg)
+        else:
+            generator = torch.Generator().manual_seed(5)
+            step(init(data, cfg, generator), data, cfg, generator, options=options)
     said = str(raised.value)
     assert f"HyperparameterOptions.gamma={gamma_mode!r}" in said
     assert "SpCoConfig.gamma=0.0 (fit's --gamma 0)" in said

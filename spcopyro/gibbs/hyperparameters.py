@@ -291,10 +291,12 @@ def gamma_step_size(data: ModelData, hyper: HyperparameterOptions) -> float:
     return hyper.gamma_step / math.sqrt(max(1, int(data.pairs.shape[0])))
 
 
-def _require_positive_gamma(config: SpCoConfig, hyper: HyperparameterOptions) -> None:
-    """ValueError naming both settings when gamma is sampled from a start of 0 (its log is
-    sampled; the message named neither the config's value nor the option that samples it)."""
-    if config.gamma <= 0:
+def check_gamma_start(config: SpCoConfig, hyper: HyperparameterOptions) -> None:
+    """ValueError naming both settings when ``hyper`` samples gamma from a start of 0 (its log
+    is sampled). Checked once where a chain starts (:func:`~spcopyro.gibbs.run.start_chain`,
+    :meth:`~spcopyro.gibbs.kernel.SpCoGibbs.setup`) and by :func:`update_hyperparameters` for
+    a chain stepped by hand: gamma cannot reach 0 once sampled, so no gamma update checks it."""
+    if hyper.gamma != "fixed" and config.gamma <= 0:
         sampled = setting(f"HyperparameterOptions.gamma={hyper.gamma!r}",
                           f"--method-option hyper.gamma={hyper.gamma}")  # fmt: skip
         raise ValueError(
@@ -314,7 +316,6 @@ def update_gamma_exchange(
     agreements: Callable[[torch.Tensor], float],
 ) -> tuple[SpCoConfig, bool]:
     """The exchange update of gamma (module doc, 3). Returns (config, accepted)."""
-    _require_positive_gamma(config, hyper)
     log_gamma = math.log(config.gamma)
     proposal = log_gamma + gamma_step_size(data, hyper) * _normal(generator)
     try:
@@ -345,7 +346,6 @@ def update_gamma_pseudolikelihood(
 ) -> tuple[SpCoConfig, int]:
     """``concentration_moves`` MH steps on log gamma under the pseudo-posterior (module doc,
     3). Returns (config, number of accepted steps)."""
-    _require_positive_gamma(config, hyper)
     pl = PseudoLikelihood(state.labels, state.log_pi, data.neighbours)
     limit = math.log(700.0 / config.connectivity)
 
@@ -391,6 +391,7 @@ def update_hyperparameters(
         aux_draw: the exchange algorithm's auxiliary draw (default :func:`auxiliary_labels`
             with ``hyper.aux_sweeps`` sweeps; the tests pass an exact one).
     """
+    check_gamma_start(config, hyper)  # a chain stepped by hand has no start_chain
     if agreements is None:
 
         def agreements(labels: torch.Tensor) -> float:
