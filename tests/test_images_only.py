@@ -78,6 +78,25 @@ def test_a_house_folder_without_word_files_loads(tmp_path, caplog):
     assert "fitted on its images alone" in caplog.text
 
 
+def test_a_house_of_images_only_round_trips_through_save_house(tmp_path, caplog):
+    """save_house writes no St.csv, StXtx.csv, StXty.csv or word_K.csv for a house without
+    utterances (as it writes no Ft.csv or pose_K.csv for one without images), also over a saved
+    house with words. Was: ValueError 'no utterances (St.csv would be empty)'."""
+    house = make_house(seed=0)
+    save_house(house, tmp_path)
+    room = save_house(_without_words(house), tmp_path, overwrite=True)
+    assert not [*room.glob("St*.csv"), *room.glob("word_*.csv")]
+    assert (room / "Ft.csv").is_file() and [*room.glob("pose_*.csv")]
+    loaded = load_house(room).observations
+    assert "fitted on its images alone" in caplog.text
+    saved = house.observations
+    assert loaded.utterances == () and loaded.word_xy.shape == (0, 2)
+    assert loaded.word_trial.shape == (0,)
+    np.testing.assert_array_equal(loaded.image_features, saved.image_features)
+    np.testing.assert_array_equal(loaded.image_xy, saved.image_xy)
+    np.testing.assert_array_equal(loaded.image_trial, saved.image_trial)
+
+
 def test_an_empty_st_csv_names_the_way_out(tmp_path):
     room = save_house(make_house(seed=0), tmp_path)
     (room / "St.csv").write_text("")

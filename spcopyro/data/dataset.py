@@ -460,18 +460,18 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
     Writes ``root/map/NAME.{pgm,yaml}`` (:func:`spcopyro.maps.save_map`) and ``root/NAME/`` with
     Ft.csv, Xtx.csv, Xty.csv (none for a house without images), St.csv (tokens joined by single
     spaces, utterances comma separated, no trailing newline, like the original), StXtx.csv,
-    StXty.csv, one ``pose_K.csv`` (``x, y, qz, qw``; yaw 0 when unknown; none without images)
-    and ``word_K.csv`` per trial K of the images and
-    utterances, copies of the camera images as ``img_K/NNNNN.ext`` when ``image_paths`` is
-    known, truth.npy + categories.json when present, and one ``modality_<name>.csv`` per further
-    modality (see :func:`load_house`). Floats are written with ``repr`` (they read back
-    exactly); yaw goes through the quaternion, so it reads back to within rounding, wrapped to
-    (-pi, pi].
+    StXty.csv (none for a house without utterances), one ``pose_K.csv`` (``x, y, qz, qw``; yaw 0
+    when unknown; none without images) and ``word_K.csv`` (none without utterances) per trial K
+    of the images and utterances, copies of the camera images as ``img_K/NNNNN.ext`` when
+    ``image_paths`` is known, truth.npy + categories.json when present, and one
+    ``modality_<name>.csv`` per further modality (see :func:`load_house`). Floats are written
+    with ``repr`` (they read back exactly); yaw goes through the quaternion, so it reads back
+    to within rounding, wrapped to (-pi, pi].
 
     Raises:
-        ValueError: no utterances (load_house would reject the files); observations
-            not grouped by trial in ascending order; a token that would not read back as itself
-            (a comma, whitespace, upper case or edge punctuation).
+        ValueError: no image feature classes (K = 0); observations not grouped by trial in
+            ascending order; a token that would not read back as itself (a comma, whitespace,
+            upper case or edge punctuation).
         FileExistsError: ``root/NAME`` is not empty or the map exists, and ``overwrite`` is
             False. With ``overwrite`` the files this function writes (and stale pose_K, word_K,
             img_K, modality_<name>, and the rooms.npy and rooms.json that ``simulate --map``
@@ -484,8 +484,7 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
     if obs.num_feature_classes == 0:
         raise ValueError(f"save_house({house.name!r}): no image feature classes (K = 0)")
     with_images = obs.num_images > 0  # else a house of words only: no Ft.csv, no pose_K.csv
-    if obs.num_utterances == 0:
-        raise ValueError(f"save_house({house.name!r}): no utterances (St.csv would be empty)")
+    with_words = obs.num_utterances > 0  # else a house of images only: no St.csv, no word_K.csv
     for name, trial in (("image_trial", obs.image_trial), ("word_trial", obs.word_trial)):
         if (np.diff(trial) < 0).any():
             raise ValueError(
@@ -542,9 +541,10 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
         _write_lines(room / "Xtx.csv", map(fmt, obs.image_xy[:, 0].tolist()))
         _write_lines(room / "Xty.csv", map(fmt, obs.image_xy[:, 1].tolist()))
     sentences = [" ".join(tokens) for tokens in obs.utterances]
-    _write_lines(room / "St.csv", [",".join(sentences)], trailing_newline=False)
-    _write_lines(room / "StXtx.csv", map(fmt, obs.word_xy[:, 0].tolist()))
-    _write_lines(room / "StXty.csv", map(fmt, obs.word_xy[:, 1].tolist()))
+    if with_words:
+        _write_lines(room / "St.csv", [",".join(sentences)], trailing_newline=False)
+        _write_lines(room / "StXtx.csv", map(fmt, obs.word_xy[:, 0].tolist()))
+        _write_lines(room / "StXty.csv", map(fmt, obs.word_xy[:, 1].tolist()))
 
     yaw = obs.image_yaw if obs.image_yaw is not None else np.zeros(obs.num_images)  # [T]
     pose = np.stack(
@@ -555,10 +555,11 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
         if with_images:
             rows = pose[in_trial].tolist()
             _write_lines(room / f"pose_{k}.csv", (",".join(map(fmt, row)) for row in rows))
-        _write_lines(
-            room / f"word_{k}.csv",
-            (s for s, t in zip(sentences, obs.word_trial, strict=True) if t == k),
-        )
+        if with_words:
+            _write_lines(
+                room / f"word_{k}.csv",
+                (s for s, t in zip(sentences, obs.word_trial, strict=True) if t == k),
+            )
         if obs.image_paths is not None and in_trial.size:
             folder = room / f"img_{k}"
             folder.mkdir()
