@@ -61,5 +61,8 @@ def test_moves_it_cannot_compose_are_named(problem):
     options = GibbsOptions(merge_moves=0.3, cluster_moves=0.1)
     with pytest.raises(ValueError, match="cluster_moves, merge_moves"):
         run_batched_chains(data, cfg, SEEDS, 2, options=options)
+    # region_moves (added after the batched chains) was dropped without a word.
+    with pytest.raises(ValueError, match="switch off region_moves"):
+        run_batched_chains(data, cfg, SEEDS, 2, options=GibbsOptions(region_moves=0.5))
     with pytest.raises(ValueError, match="num_sweeps"):
         run_batched_chains(data, cfg, SEEDS, 0)

@@ -11,8 +11,9 @@ joint (:func:`~spcopyro.gibbs.batched.trace_batched` plus the state-independent 
 the state's dtype: a float32 run's trace is good to about 1e-7 of its value) and the concepts in
 use; each chain's best visited state, kept by a ``torch.where`` over the batch; the label maps
 every ``thin`` sweeps. On a GPU each sweep ends with one synchronisation, for its wall-clock
-time. Not composed here (ValueError): annealing, cluster and merge moves, hyperparameter
-sampling (:func:`spcopyro.gibbs.sampler.step`'s moves); Ctrl-C is not caught (no checkpoint).
+time. Not composed here (ValueError): annealing, cluster, merge and region moves,
+hyperparameter sampling (:func:`spcopyro.gibbs.sampler.step`'s moves); Ctrl-C is not caught
+(no checkpoint).
 """
 
 from __future__ import annotations
@@ -49,6 +50,7 @@ def check_batched_options(options: GibbsOptions) -> None:
             ("anneal_sweeps", options.anneal_sweeps > 0),
             ("cluster_moves", options.cluster_moves > 0),
             ("merge_moves", options.merge_moves > 0),
+            ("region_moves", options.region_moves > 0),
             ("hyper", options.hyper.active),
         )
         if active
