@@ -214,8 +214,10 @@ def test_a_house_of_images_only_loads_and_fits(tmp_path, capsys):
         (room / name).unlink()
     assert load_house(room).observations.num_utterances == 0
     assert main(["fit", str(room), "--out", str(tmp_path / "fit"), "--sweeps", "2"]) == 0
-    err = capsys.readouterr().err
-    assert f"{room}: no words" in err and "fitted on its images alone" in err
+    printed = capsys.readouterr()
+    assert f"{room}: no words" in printed.err and "fitted on its images alone" in printed.err
+    # the summary says so, as it does of a house of words only's images
+    assert "utterances       none (a house of images only) in 2 trials" in printed.out
 
 
 def test_a_house_of_words_only_loads_saves_and_fits(tmp_path, caplog, capsys):

@@ -160,16 +160,18 @@ def _summary(
         f" (the model's cells, of the map's {source.height} x {source.width} cells at "
         f"{source.resolution:g} m, {source.num_free} free)"
     )  # fmt: skip
+    trials = plural(len(obs.trials), "trial")
     lines = [
         f"house            {house.name}",
         f"map              {grid.height} x {grid.width} cells at {grid.resolution:g} m, "
         f"{grid.num_free} free{of_map}",
-        f"images           {obs.num_images} ({obs.num_feature_classes} feature classes) in "
-        f"{plural(len(obs.trials), 'trial')}"
+        f"images           {obs.num_images} ({obs.num_feature_classes} feature classes) in {trials}"
         if obs.num_images
-        else f"images           none (a house of words only) in {plural(len(obs.trials), 'trial')}",
+        else f"images           none (a house of words only) in {trials}",
         f"utterances       {obs.num_utterances}, vocabulary of "
-        f"{plural(len(counts.vocabulary), 'word')}",
+        f"{plural(len(counts.vocabulary), 'word')}"
+        if obs.num_utterances
+        else f"utterances       none (a house of images only) in {trials}",
     ]
     if free:
         lines += _placement_lines(house, counts, preparation)
