@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-from gibbs_problems import config, random_problem
+from gibbs_problems import config, model_data, random_problem, tiny_grid
 from scipy import stats
 
 from spcopyro.gibbs.batched import (
@@ -170,7 +170,33 @@ POSTERIOR_VARIANTS = [
     pytest.param(dict(prior="dirichlet", alpha=1.5, gamma=0.5), 1.0, DTYPE, id="dirichlet"),
     pytest.param(dict(num_concepts=4), 0.3, DTYPE, id="refresh-0.3"),
     pytest.param(dict(), 1.0, torch.float32, id="float32"),
+    pytest.param(dict(connectivity=8, gamma=0.7), 1.0, DTYPE, id="8-neighbours"),
+    pytest.param(dict(use_words=False), 1.0, DTYPE, id="no-words"),
+    pytest.param(dict(vocabulary=0), 1.0, DTYPE, id="zero-word-vocabulary"),
+    pytest.param(dict(objects=True), 1.0, DTYPE, id="third-modality"),
 ]
+"""(config overrides, unobserved_refresh, dtype); ``vocabulary=0``: the words modality with
+V = 0 items (a house of images only), ``objects``: a third modality (see
+:func:`posterior_problem`)."""
+
+
+def posterior_problem(overrides: dict):
+    """The 2 x 3 map with three observed cells of the whole-sweep test, and its config."""
+    overrides = dict(overrides)
+    objects = overrides.pop("objects", False)
+    vocabulary = overrides.pop("vocabulary", None)
+    rows = ("...", "...")
+    data = tiny_map(4, rows=rows, num_observed=3)
+    connectivity = overrides.get("connectivity", 4)
+    if connectivity != 4:  # the same observations, the other neighbourhood
+        data = model_data(tiny_grid(list(rows)), data.obs_cells.numpy(),
+                          data.image_counts.numpy(), data.word_counts.numpy(),
+                          connectivity)  # fmt: skip
+    if vocabulary == 0:
+        data = data.with_counts("words", torch.zeros((data.obs_cells.shape[0], 0), dtype=DTYPE))
+    if objects:
+        return with_objects(data, overrides)
+    return data, config(**overrides)
 
 
 @pytest.mark.parametrize("overrides,refresh,dtype", POSTERIOR_VARIANTS)
@@ -179,8 +205,7 @@ def test_whole_sweeps_reach_the_exact_posterior(overrides, refresh, dtype):
     observed cells: after 30 sweeps, each chain's labelling is one draw; the frequencies of the
     partitions (label-invariant) against the exact posterior with the globals integrated out
     (:func:`~spcopyro.guides.testing.labelling_log_evidence`, enumerated), chi-square."""
-    cfg = config(**overrides)
-    data = tiny_map(4, rows=("...", "..."), num_observed=3)
+    data, cfg = posterior_problem(overrides)
     labellings = all_labellings(data.num_free, cfg.num_concepts)
     exact = torch.softmax(labelling_log_evidence(labellings, data, cfg), 0)  # [S]
     ids, partition = torch.unique(canonical_partitions(labellings), return_inverse=True)

@@ -125,9 +125,12 @@ def labelling_log_joint(
 def _dirichlet_multinomial(concentration: float, counts: torch.Tensor) -> torch.Tensor:
     """[...] log B(a + counts) - log B(a) along the last axis of ``counts`` ``[..., K]``
     (symmetric prior a): the log marginal of the counts under a Dirichlet, without the
-    multinomial coefficient."""
+    multinomial coefficient; 0 for K = 0 (the point mass on the empty vector: the words of a
+    house where none was heard; lgamma(0) is inf, which made it nan)."""
     a = torch.tensor(concentration, dtype=DTYPE)
     K = counts.shape[-1]
+    if K == 0:
+        return torch.zeros(counts.shape[:-1], dtype=DTYPE)
     prior = torch.lgamma(a * K) - K * torch.lgamma(a)
     posterior = torch.lgamma(a + counts).sum(-1) - torch.lgamma(a * K + counts.sum(-1))
     return prior + posterior
