@@ -303,9 +303,9 @@ def test_ctrl_c_after_a_variational_fit_s_iterations_says_so(home, tmp_path, cap
                         "their result)")  # fmt: skip
 
 
-@pytest.mark.parametrize("method", ["cavi", "svi"])
+@pytest.mark.parametrize(("method", "article"), [("cavi", "a"), ("svi", "an")])
 def test_ctrl_c_while_writing_a_variational_fit_says_its_iterations_ran(
-    method, home, tmp_path, capsys, monkeypatch
+    method, article, home, tmp_path, capsys, monkeypatch
 ):
     """Ctrl-C while a variational fit's outputs are written (found sending SIGINT to
     ``spcopyro fit --method cavi`` while its figures were drawn): its q(C) is not kept, and the
@@ -323,8 +323,9 @@ def test_ctrl_c_while_writing_a_variational_fit_says_its_iterations_ran(
     err = capsys.readouterr().err.splitlines()[-1]
     assert err.startswith(f"interrupted while writing the outputs: nothing written to {out}")
     assert "no iteration was done" not in err
-    assert err.endswith(f"no checkpoint kept (its iterations had all run; a {method} checkpoint "
-                        "is kept only when Ctrl-C stops them: the fit runs again)")  # fmt: skip
+    assert err.endswith(f"no checkpoint kept (its iterations had all run; {article} {method} "
+                        "checkpoint is kept only when Ctrl-C stops them: the fit runs "
+                        "again)")  # fmt: skip
     assert not list(tmp_path.glob("out*"))  # no OUT, checkpoint or staging folder left
 
 
@@ -382,3 +383,25 @@ def test_ctrl_c_from_a_terminal_while_cavi_s_outputs_are_written(tmp_path):
     ps = subprocess.run(["ps", "-eo", "pid,sid,stat"], capture_output=True, text=True).stdout
     left = [row for row in ps.splitlines()[1:] if row.split()[1] == str(process.pid)]
     assert not [row for row in left if not row.split()[2].startswith("Z")], left
+
+
+@pytest.mark.parametrize(
+    ("method", "article"),
+    [("cavi", "a"), ("lbp", "an"), ("svi", "an"), ("stochastic-vi", "a")],
+)
+def test_the_interrupt_message_gives_each_method_its_article(method, article, tmp_path):
+    """'an lbp checkpoint', 'an svi checkpoint' (was 'a lbp', 'a svi'), in both lines that name
+    a variational method's checkpoint."""
+    import argparse
+
+    from spcopyro._util.messages import with_article
+    from spcopyro.cli.fit_resume import interrupted_message, resumable_methods
+
+    assert method in resumable_methods()
+    for chains, finished, said in ((None, True, "is kept only"), (3, False, "holds one fit")):
+        args = argparse.Namespace(method=method, sweeps=10, update=None, chains=chains)
+        line = interrupted_message(args, "", None, tmp_path / "out", finished=finished)
+        assert f"{article} {method} checkpoint {said}" in line, line
+    spoken = {"gibbs": "a", "vi-gibbs": "a", "em": "an", "mcmc": "an", "ep": "an", "map": "a"}
+    for name, article in spoken.items():
+        assert with_article(name) == f"{article} {name}"

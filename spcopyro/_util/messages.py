@@ -18,7 +18,7 @@ from contextlib import contextmanager
 
 __all__ = [
     "ECHO_LIMIT", "echo", "fixed", "plural", "seconds_text", "setting", "warn_once",
-    "warned_apart",
+    "warned_apart", "with_article",
 ]  # fmt: skip
 
 ECHO_LIMIT = 80
@@ -59,6 +59,20 @@ def setting(python: str, flag: str, command: str = "fit") -> str:
 def plural(number: int, noun: str) -> str:
     """``"1 room"``, ``"3 rooms"``: ``number`` and ``noun``, plural but for one."""
     return f"{number} {noun}{'' if number == 1 else 's'}"
+
+
+_SPELT_OUT = frozenset({"em", "lbp", "mcmc", "svi", "vi"})  # method names said letter by letter
+
+
+def with_article(name: str) -> str:
+    """``name`` after its indefinite article as said aloud: "an lbp", "an svi", "a cavi",
+    "a gibbs", "a vi-gibbs", "a stochastic-vi". A name (its part before a ``-``) said letter
+    by letter (one of a few initialisms, or one without a vowel) takes the article of its first
+    letter's name ("el", "ess": "an"; "vee": "a"), another that of its first letter."""
+    first = name.split("-", 1)[0].lower()
+    spelt = first in _SPELT_OUT or not any(c in "aeiou" for c in first)
+    vowel_sound = first[:1] in ("aefhilmnorsx" if spelt else "aeiou")
+    return f"{'an' if vowel_sound else 'a'} {name}"
 
 
 def fixed(value: float, digits: int = 3) -> str:

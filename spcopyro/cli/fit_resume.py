@@ -9,6 +9,7 @@ import argparse
 import shlex
 from pathlib import Path
 
+from spcopyro._util.messages import with_article
 from spcopyro.cli.common import command_line
 
 __all__ = [
@@ -95,12 +96,13 @@ def interrupted_message(
                 why = "--update"
             elif keeps_checkpoint(args) and finished:  # a variational fit's q(C) is saved only
                 # by the driver that Ctrl-C stops (spcopyro.fit.house), not once it has returned
-                why = (f"its iterations had all run; a {args.method} checkpoint is kept only "
-                       "when Ctrl-C stops them: the fit runs again")  # fmt: skip
+                why = (f"its iterations had all run; {with_article(args.method)} checkpoint is "
+                       "kept only when Ctrl-C stops them: the fit runs again")  # fmt: skip
             elif keeps_checkpoint(args):
                 why = "no sweep was done" if args.method == "gibbs" else "no iteration was done"
             elif args.method in resumable_methods():
-                why = f"--chains {args.chains}: a {args.method} checkpoint holds one fit"
+                why = (f"--chains {args.chains}: {with_article(args.method)} checkpoint holds "
+                       "one fit")  # fmt: skip
         return f"{line}; no checkpoint kept ({why})"
     command = resume_command(args, kept)
     return f"{line}; the state reached is saved in {kept} -- continue with: {command}"
