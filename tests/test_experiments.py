@@ -198,6 +198,27 @@ def test_fit_spco_gives_fit_houses_labels():
         assert list(iterations) == [4, 8, 12] and len(aris) == 3
 
 
+def test_an_experiment_row_gets_the_degenerate_map_check(monkeypatch, caplog):
+    """An SpCoMapping row of the experiment fits by fit_spco, which never ran fit_house's
+    degenerate-map check (only the study's ari_every cells did, in evaluate._fit): its
+    one-concept map went without the warning. fit_spco now checks every map it returns."""
+    import spcopyro.fit.house as house_module
+    from spcopyro.experiments.methods import RunSettings, fit_method
+
+    checked = []
+
+    def warning(labels, house, snap, sampled=True):
+        checked.append(labels.shape)
+        return "degenerate map (test)"
+
+    monkeypatch.setattr(house_module, "house_map_warning", warning)
+    house = make_house(seed=1, spec=HouseSpec.scaled(45, 60))
+    with caplog.at_level("WARNING", logger="spcopyro"):
+        fit_method("A-dp", house, RunSettings(sweeps=2, trace_every=1))
+    assert checked == [(house.grid.num_free,)]
+    assert "degenerate map (test)" in caplog.text
+
+
 def test_experiment_reproduces_the_old_loop(dataset_root, tmp_path):
     """The shipped quick study gives the numbers the experiment's own loop gave before issue 26
     for the same seeds and budgets (recorded in experiment_old_records.json)."""

@@ -33,7 +33,7 @@ from spcopyro.baselines.nearest import nearest_word_map
 from spcopyro.baselines.spcoa import fit_spcoa
 from spcopyro.config import SpCoSettings, preset
 from spcopyro.data import House
-from spcopyro.fit.house import prepare_model_data, result_of
+from spcopyro.fit.house import log_degenerate_map, prepare_model_data, result_of
 from spcopyro.fit.registry import get_method
 from spcopyro.metrics import adjusted_rand_index
 from spcopyro.results.result import SpCoResult
@@ -127,7 +127,10 @@ def fit_spco(
     labels (as :func:`spcopyro.fit.house.fit_house` with ``init="random"``), keeping a label map
     every
     ``thin`` iterations; with a truth, their ARI per iteration (paper Fig. 5). ``threads``: torch
-    intra-op threads during the run (:mod:`spcopyro._util.threads`; default: its policy).
+    intra-op threads during the run (:mod:`spcopyro._util.threads`; default: its policy). The
+    map is checked as ``fit_house`` checks its own (:func:`log_degenerate_map`, with the
+    caller's :func:`~spcopyro.results.map_checks.degenerate_map_advice`: a study cell's is the
+    study's).
     """
     counts, data = prepare_model_data(house, settings, method=method)
     generator = torch.Generator().manual_seed(int(seed))
@@ -145,6 +148,7 @@ def fit_spco(
             image[house.grid.free] = sample  # free cells in raster = free-index order
             aris.append(adjusted_rand_index(image, house.truth))
         trace = (output.sample_iterations + 1, np.asarray(aris))
+    log_degenerate_map(result, house)
     return result, trace
 
 

@@ -69,7 +69,7 @@ from spcopyro.config import DEFAULT_PRESET
 from spcopyro.data.model_grid import model_house
 from spcopyro.experiments.ablation import concepts_over, largest_share, top_words
 from spcopyro.experiments.methods import RunSettings, fit_method, fit_spco
-from spcopyro.fit.house import fit_house, log_degenerate_map
+from spcopyro.fit.house import fit_house
 from spcopyro.metrics import (
     SpCoSemanticMap,
     adjusted_rand_index,
@@ -219,8 +219,9 @@ def _fit(cell: Cell, house, settings, truth: np.ndarray | None = None):
     None). Such a fit runs the method from random labels (:func:`fit_spco`: the same labels as
     ``fit_house``'s, checked in tests/test_experiments.py) on a variant without fit keywords
     or a coarser model grid (:func:`spcopyro.study.spec.study_from_dict` checks that), and
-    its map is checked as ``fit_house`` checks every other cell's (:func:`log_degenerate_map`:
-    the same house, as no model grid differs from the map's)."""
+    its map is checked as ``fit_house`` checks every other cell's (``fit_spco`` runs
+    :func:`~spcopyro.fit.house.log_degenerate_map`, with the study's advice from
+    :func:`run_cell`: the same house, as no model grid differs from the map's)."""
     variant = cell.variant
     assert variant is not None
     if cell.ari_every and truth is not None:
@@ -229,7 +230,6 @@ def _fit(cell: Cell, house, settings, truth: np.ndarray | None = None):
             house, settings, sweeps=cell.sweeps, seed=cell.seed, thin=cell.ari_every,
             method=cell.method, options=variant.method_options(), threads=1,
         )  # fmt: skip
-        log_degenerate_map(result, house)  # fit_spco does not: fit_house's own check
         return result, trace
     result = fit_house(
         house, settings, method=cell.method, options=variant.method_options(),
