@@ -29,7 +29,7 @@ from contextlib import contextmanager
 
 from tqdm.auto import tqdm
 
-from spcopyro._util.progress import progress_enabled
+from spcopyro._util.progress import noted_updates, progress_enabled
 from spcopyro._util.threads import usable_cpus
 from spcopyro.gibbs.run import ChainsStopped, GibbsChain, advance, compile_note
 
@@ -140,26 +140,25 @@ def advance_chains(
     count = resolve_workers(workers, len(runs))
     total = sum(n for _, n in runs)
     note = compile_note([chain for chain, _ in runs]) if progress_enabled(progress) else None
-    description = f"Gibbs sweeps ({note})" if note else "Gibbs sweeps"
 
-    def update(bar: tqdm, done: int = 1) -> None:  # the note stays until a sweep is done
-        if note and bar.n == 0:
-            bar.set_description_str("Gibbs sweeps", refresh=False)
-        bar.update(done)
+    def bar_of() -> Callable[[int], None]:  # the compile note stays over the first sweeps
+        bars.append(tqdm(total=total, desc=f"Gibbs sweeps ({note})" if note else "Gibbs sweeps",
+                         unit="sweep", disable=not progress_enabled(progress)))  # fmt: skip
+        return noted_updates(bars[-1], "Gibbs sweeps", note)
+
+    bars: list[tqdm] = []
+    updates: list[Callable[[int], None]] = []
 
     if uses_processes(count, processes):
         from spcopyro.gibbs.chain_processes import advance_in_processes
 
-        bars: list[tqdm] = []
-
         def started() -> None:  # the workers are forked: threads may start now
-            bars.append(tqdm(total=total, desc=description, unit="sweep",
-                             disable=not progress_enabled(progress)))  # fmt: skip
+            updates.append(bar_of())
             _chains_started()
 
         def on_sweeps(done: int) -> None:
-            for bar in bars:
-                update(bar, done)
+            for update in updates:
+                update(done)
             for _ in range(done if on_sweep is not None else 0):
                 on_sweep()
 
@@ -172,12 +171,13 @@ def advance_chains(
         return
     _chains_started()
     stop = threading.Event()
-    bar = tqdm(total=total, desc=description, unit="sweep", disable=not progress_enabled(progress))
+    update = bar_of()
+    (bar,) = bars
     lock = threading.Lock()
 
     def after_sweep(*_: object) -> None:
         with lock:
-            update(bar)
+            update(1)
             if on_sweep is not None:
                 on_sweep()
         if stop.is_set():

@@ -39,7 +39,7 @@ from tqdm.auto import tqdm
 
 from spcopyro._util.interrupts import caused_by_interrupt
 from spcopyro._util.messages import plural
-from spcopyro._util.progress import progress_enabled
+from spcopyro._util.progress import noted_updates, progress_enabled
 from spcopyro.inference.schedule import annealed_gamma, converged
 
 
@@ -137,9 +137,9 @@ def drive(
             checkpoint's): its iterations come first in the returned record, the new ones are
             numbered on from them (``first``), their seconds added to its last, and the stopping
             rule sees both.
-        first_note: shown beside ``description`` on the progress bar until the first iteration
-            is done (e.g. that it compiles code first, so its time and the bar's first estimate
-            are not the run's pace).
+        first_note: shown beside ``description`` on the progress bar over the first
+            iterations, which compile code, with no rate or time left until they are done (their
+            time is not the run's pace: :func:`~spcopyro._util.progress.noted_updates`).
         marginals: ``marginals(state)`` ``[N, L]``, the q(C) a Ctrl-C hands back in
             :class:`DriveInterrupted` (None: none).
     """
@@ -182,6 +182,7 @@ def drive(
     start = time.perf_counter()
     bar = tqdm(total=iterations, unit=unit, disable=not progress_enabled(progress),
                desc=f"{description} ({first_note})" if first_note else description)  # fmt: skip
+    update = noted_updates(bar, description, first_note)  # the note over the first iterations
     with bar:
         try:
             for iteration in range(first, first + iterations):
@@ -196,9 +197,7 @@ def drive(
                 if callback is not None:
                     callback(iteration, state)
                 bar.set_postfix(objective=f"{row[0]:.6g}", concepts=row[1], refresh=False)
-                if first_note and len(rows) == 1:
-                    bar.set_description_str(description, refresh=False)
-                bar.update()
+                update(1)
                 if converged_now := settled():
                     break
         except (KeyboardInterrupt, SystemError) as error:

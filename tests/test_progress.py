@@ -1,0 +1,49 @@
+"""Progress bars (spcopyro._util.progress): a bar whose first iterations compile code shows no
+time left extrapolated from them."""
+
+from __future__ import annotations
+
+import io
+import re
+import time
+
+from tqdm import tqdm
+
+from spcopyro._util.progress import COMPILE_ITERATIONS, noted_updates
+
+
+def _seconds_left(text: str) -> list[float]:
+    """The times left ('<MM:SS' or '<H:MM:SS') of every line of a bar's output."""
+    found = []
+    for match in re.finditer(r"<((?:\d+:)?\d+:\d+)", text):
+        parts = [int(p) for p in match.group(1).split(":")]
+        found.append(float(sum(p * 60**i for i, p in enumerate(reversed(parts)))))
+    return found
+
+
+def test_a_compiling_first_iteration_gives_no_time_left_from_its_pace():
+    """spcopyro fit's first sweep compiled for 9.3 s, then ran at 5 ms a sweep: the bar said
+    12:55:58 left (9.3 s x 4999) for seconds. Here 0.3 s, then 2 ms an iteration over 200: the
+    bar may say no time left while the note is up, then about the 0.4 s it takes."""
+    out = io.StringIO()
+    bar = tqdm(total=200, desc="Gibbs sweeps (compiling)", unit="sweep", file=out, mininterval=0)
+    update = noted_updates(bar, "Gibbs sweeps", "compiling")
+    time.sleep(0.3)  # the compiling iteration
+    update(1)
+    for _ in range(199):
+        time.sleep(0.002)
+        update(1)
+    bar.close()
+    text = out.getvalue()
+    lines = text.split("\r")
+    noted = [line for line in lines if "(compiling)" in line]
+    assert len(noted) >= COMPILE_ITERATIONS and not _seconds_left("".join(noted))
+    left = _seconds_left(text)
+    assert left and max(left) <= 5, text  # extrapolated from the first: 199 x 0.3 s = 59 s
+    assert lines[-1].startswith("Gibbs sweeps: 100%") and "200/200" in lines[-1]
+
+
+def test_without_a_note_the_bar_is_tqdms_own():
+    bar = tqdm(total=3, file=io.StringIO())
+    assert noted_updates(bar, "Gibbs sweeps", None) == bar.update
+    bar.close()
