@@ -103,9 +103,14 @@ class MoveInfo(NamedTuple):
 
 
 def used_modalities(data: ModelData, config: SpCoConfig) -> list[tuple[torch.Tensor, float]]:
-    """(counts [M, K_u], concentration a_u) of every modality the model uses."""
+    """(counts [M, K_u], concentration a_u) of every modality the model uses that has items. One
+    of K_u = 0 (the words of a house where none was heard) adds 0 to every concept's term (its
+    Dirichlet is the point mass on the empty vector) and is left out: lgamma(0 a) is inf, and
+    its inf - inf made every move's ratio nan, so no move was ever accepted."""
     return [
-        (m.counts, config.concentration(m.name)) for m in data.modalities if config.uses(m.name)
+        (m.counts, config.concentration(m.name))
+        for m in data.modalities
+        if config.uses(m.name) and m.counts.shape[-1] > 0
     ]
 
 
