@@ -138,6 +138,24 @@ def test_the_move_satisfies_detailed_balance_exactly(bond_share):
     assert _detailed_balance_gap(cfg, n, data, bond_share) < 1e-10
 
 
+@pytest.mark.parametrize("variant", ["two-concepts", "8-neighbours", "zero-word-vocabulary"])
+def test_detailed_balance_holds_beyond_the_default_problem(variant):
+    """L = 2 (no new concept to propose once both are used), the 8-neighbourhood (the diagonal
+    pairs in the bonds and the border), and words of V = 0 items (a house of images only)."""
+    cfg, n, data = _square_problem()
+    if variant == "two-concepts":
+        cfg = cfg.replace(num_concepts=2)
+    elif variant == "8-neighbours":
+        cfg = cfg.replace(connectivity=8)
+        grid, _ = replicate_grid(["..", ".."], 1)
+        counts = data.image_counts.numpy(), data.word_counts.numpy()
+        data = model_data(grid, data.obs_cells.numpy(), *counts, connectivity=8)
+        assert data.pairs.shape[0] == 6
+    else:
+        data = data.with_counts("words", torch.zeros((2, 0), dtype=DTYPE))
+    assert _detailed_balance_gap(cfg, n, data) < 1e-10
+
+
 def test_a_broken_acceptance_ratio_is_detected(monkeypatch):
     # The ratio without the label proposal's asymmetry (as if g were symmetric).
     monkeypatch.setattr(region_move, "_log_acceptance_ratio", lambda delta, fwd, rev: delta)
