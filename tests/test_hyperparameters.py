@@ -37,6 +37,7 @@ from spcopyro.gibbs.hyperparameters import (
     hyperparameter_names,
     update_gamma_exchange,
     update_gamma_pseudolikelihood,
+    update_hyperparameters,
 )
 from spcopyro.gibbs.kernel import SpCoGibbs
 from spcopyro.gibbs.method import output_from_run
@@ -455,30 +456,51 @@ def test_fixed_hyperparameters_change_nothing():
     assert plain.to_run().hyperparameters is None
 
 
+@pytest.mark.parametrize("annealed", [False, True])
 @pytest.mark.parametrize("entry", ["start_chain", "SpCoGibbs", "step"])
 @pytest.mark.parametrize("gamma_mode", ["exchange", "pseudolikelihood"])
-def test_sampling_gamma_from_zero_names_both_settings(gamma_mode, entry):
+def test_sampling_gamma_from_zero_names_both_settings(gamma_mode, entry, annealed):
     """gamma 0 (no Potts coupling) with gamma sampled said only "sampling gamma needs gamma > 0
     to start from", naming neither the config's value nor the option that samples it; and it
-    was said by the gamma update, on whichever sweep the exchange coin first picked. Now a chain
-    refuses at its start (start_chain, SpCoGibbs.setup), and a chain stepped by hand at its
-    first hyperparameter update whatever the coin says (here it picks no sweep)."""
+    was said by the gamma update, on whichever sweep the exchange coin first picked. Now every
+    driver refuses at its first step (sampler.step checks before any move), whatever the coin
+    says (here it picks no sweep), and on an annealing first sweep too (no hyperparameter
+    update runs on it, so only step's check can fire)."""
     _, data = random_problem(14)
     hyper = HyperparameterOptions(gamma=gamma_mode, exchange_probability=1e-9)
+    anneal = 2 if annealed else 0
     options = GibbsOptions(backend="torch", hyper=hyper)
     cfg = config(gamma=0.0)
+    generator = torch.Generator().manual_seed(5)
+    if entry == "start_chain":  # the set-up runs: the chain refuses at its first step
+        chain = start_chain(data, cfg, options=options.replace(anneal_sweeps=anneal), seed=5)
+    elif entry == "SpCoGibbs":
+        kernel = SpCoGibbs(options=options, anneal=annealed)
+        kernel.setup(anneal, data, cfg)
+    else:
+        state = init(data, cfg, generator)
     with pytest.raises(ValueError) as raised:
         if entry == "start_chain":
-            start_chain(data, cfg, options=options, seed=5)
+            advance(chain, 1, progress=False)
         elif entry == "SpCoGibbs":
-            SpCoGibbs(options=options).setup(0, data, cfg)
+            kernel.sample({})
         else:
-            generator = torch.Generator().manual_seed(5)
-            step(init(data, cfg, generator), data, cfg, generator, options=options)
+            step(state, data, cfg, generator, options=options.replace(anneal_sweeps=anneal))
     said = str(raised.value)
     assert f"HyperparameterOptions.gamma={gamma_mode!r}" in said
     assert "SpCoConfig.gamma=0.0 (fit's --gamma 0)" in said
     assert "hyper.gamma='fixed'" in said
+
+
+def test_a_hyperparameter_update_called_alone_checks_gamma_too():
+    """update_hyperparameters (public) samples gamma without sampler.step: from gamma 0 it
+    names both settings, not math.log's "math domain error"."""
+    _, data = random_problem(14)
+    cfg = config(gamma=0.0)
+    generator = torch.Generator().manual_seed(5)
+    hyper = HyperparameterOptions(gamma="exchange", exchange_probability=1.0)
+    with pytest.raises(ValueError, match="needs a positive start"):
+        update_hyperparameters(init(data, cfg, generator), data, cfg, generator, hyper)
 
 
 def test_checkpoint_resumes_sampled_hyperparameters_exactly(backend, tmp_path):

@@ -293,9 +293,10 @@ def gamma_step_size(data: ModelData, hyper: HyperparameterOptions) -> float:
 
 def check_gamma_start(config: SpCoConfig, hyper: HyperparameterOptions) -> None:
     """ValueError naming both settings when ``hyper`` samples gamma from a start of 0 (its log
-    is sampled). Checked once where a chain starts (:func:`~spcopyro.gibbs.run.start_chain`,
-    :meth:`~spcopyro.gibbs.kernel.SpCoGibbs.setup`) and by :func:`update_hyperparameters` for
-    a chain stepped by hand: gamma cannot reach 0 once sampled, so no gamma update checks it."""
+    is sampled). Checked at the top of :func:`spcopyro.gibbs.sampler.step`, which every driver
+    runs (so a chain refuses at its first step, annealing or not, whatever the exchange coin
+    says), and by :func:`update_hyperparameters` for a caller that samples hyperparameters
+    without ``step``: gamma cannot reach 0 once sampled, so no gamma update checks it."""
     if hyper.gamma != "fixed" and config.gamma <= 0:
         sampled = setting(f"HyperparameterOptions.gamma={hyper.gamma!r}",
                           f"--method-option hyper.gamma={hyper.gamma}")  # fmt: skip
@@ -391,7 +392,7 @@ def update_hyperparameters(
         aux_draw: the exchange algorithm's auxiliary draw (default :func:`auxiliary_labels`
             with ``hyper.aux_sweeps`` sweeps; the tests pass an exact one).
     """
-    check_gamma_start(config, hyper)  # a chain stepped by hand has no start_chain
+    check_gamma_start(config, hyper)  # a caller without sampler.step (it checks too)
     if agreements is None:
 
         def agreements(labels: torch.Tensor) -> float:

@@ -42,11 +42,7 @@ from pyro.infer.mcmc.util import summary as pyro_summary
 
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.backends import get_backend
-from spcopyro.gibbs.hyperparameters import (
-    check_gamma_start,
-    hyperparameter_names,
-    hyperparameter_values,
-)
+from spcopyro.gibbs.hyperparameters import hyperparameter_names, hyperparameter_values
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.sampler import init, step, trace_point
 from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
@@ -164,7 +160,6 @@ class SpCoGibbs(MCMCKernel):
                 "warmup_steps=0: pass warmup_steps > 0 or anneal=False"
             )
         check_model_data(data, config)  # before tracing the model (its errors name no count)
-        check_gamma_start(config, self.options.hyper)
         own = {"log_joint", "num_concepts", *self._sampled_hyper()}
         clash = sorted(own & {m.name for m in data.modalities})
         if clash:

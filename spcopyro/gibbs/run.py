@@ -36,11 +36,7 @@ from spcopyro._util.progress import progress_enabled
 from spcopyro._util.random_draws import check_seed
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.backends import SweepBackend, get_backend, numba_compile_pending
-from spcopyro.gibbs.hyperparameters import (
-    check_gamma_start,
-    hyperparameter_names,
-    hyperparameter_values,
-)
+from spcopyro.gibbs.hyperparameters import hyperparameter_names, hyperparameter_values
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.sampler import init, step, trace_point
 from spcopyro.gibbs.state import GibbsState, SweepPlan, make_sweep_plan
@@ -249,7 +245,6 @@ def start_chain(
     """
     if generator is not None and seed is not None:  # the seed was dropped silently
         raise ValueError(f"give a generator or a seed, not both (seed {seed!r})")
-    check_gamma_start(config, options.hyper)  # before any work, not at the first gamma update
     if generator is None:
         generator = torch.Generator().manual_seed(0 if seed is None else check_seed(seed))
     backend = get_backend(options.backend)

@@ -41,7 +41,12 @@ from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.anneal import annealed_config
 from spcopyro.gibbs.backends import SweepBackend, get_backend
 from spcopyro.gibbs.cluster import maybe_cluster_move
-from spcopyro.gibbs.hyperparameters import AuxiliaryDraw, log_hyperprior, update_hyperparameters
+from spcopyro.gibbs.hyperparameters import (
+    AuxiliaryDraw,
+    check_gamma_start,
+    log_hyperprior,
+    update_hyperparameters,
+)
 from spcopyro.gibbs.merge import maybe_merge_move
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.region_move import maybe_region_move
@@ -102,6 +107,7 @@ def step(
         aux_draw: the hyperparameters' auxiliary label draw (default: the approximate one of
             :func:`~spcopyro.gibbs.hyperparameters.auxiliary_labels`; the tests pass an exact one).
     """
+    check_gamma_start(config, options.hyper)  # every driver's first step, before any move
     backend = get_backend(options.backend) if backend is None else backend
     sweep_config = annealed_config(config, sweep, options.anneal_sweeps)
     state = maybe_cluster_move(state, data, sweep_config, generator, options.cluster_moves)
