@@ -122,23 +122,28 @@ def test_background_draws_follow_pi_for_many_concepts(backend):
     assert stats.chisquare(observed, pi.numpy() * labels.numel()).pvalue > 1e-3
 
 
-def test_cells_inside_a_region_follow_their_conditional(backend):
-    """A cell whose four neighbours all hold label a (the compiled sweep's short path) is drawn
-    from p(l) proportional to pi_l e^{4 gamma [l = a]}; L = 5, no observations, every cell 1."""
+@pytest.mark.parametrize("connectivity", [4, 8])
+def test_cells_inside_a_region_follow_their_conditional(backend, connectivity):
+    """A cell whose D neighbours all hold label a (the compiled sweep's short path) is drawn
+    from p(l) proportional to pi_l e^{D gamma [l = a]}; L = 5, no observations, every cell 1.
+    D = 8: the middle of a 5 x 5 map (that of a 3 x 3 one is not in the first colour block)."""
     L, gamma, copies = 5, 0.6, 3000
-    grid, n = replicate_grid(["...", "...", "..."], copies)
-    data = model_data(grid, np.zeros(0, dtype=np.int64), np.zeros((0, 2)), np.zeros((0, 2)))
-    cfg = config(num_concepts=L, gamma=gamma, use_images=False, use_words=False)
+    side = 3 if connectivity == 4 else 5
+    grid, n = replicate_grid(["." * side] * side, copies)
+    data = model_data(grid, np.zeros(0, dtype=np.int64), np.zeros((0, 2)), np.zeros((0, 2)),
+                      connectivity)  # fmt: skip
+    cfg = config(num_concepts=L, gamma=gamma, use_images=False, use_words=False,
+                 connectivity=connectivity)  # fmt: skip
     pi = torch.tensor([0.1, 0.02, 0.3, 0.38, 0.2], dtype=DTYPE)  # [L]
     half = torch.full((L, 2), -np.log(2.0), dtype=DTYPE)
     state = GibbsState(torch.ones(data.num_free, dtype=torch.long), pi.log(), (half, half))
     plan = make_sweep_plan(data)
-    centres = torch.arange(copies) * n + 4  # the middle of each 3 x 3 copy
+    centres = torch.arange(copies) * n + n // 2  # the middle of each copy
     assert bool(torch.isin(centres, plan.blocks[0].cells).all())  # drawn first, given the 1s
     generator = torch.Generator().manual_seed(23)
     sample_labels = backend_samplers(backend.name).labels
     drawn = torch.cat([sample_labels(state, data, cfg, generator, plan)[centres] for _ in range(3)])
-    weights = pi * torch.exp(gamma * 4 * (torch.arange(L) == 1))  # [L]
+    weights = pi * torch.exp(gamma * connectivity * (torch.arange(L) == 1))  # [L]
     expected = (weights / weights.sum()).numpy() * drawn.numel()
     observed = torch.bincount(drawn, minlength=L).numpy()
     assert stats.chisquare(observed, expected).pvalue > 1e-3
