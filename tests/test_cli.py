@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import pathlib
+import shlex
 
 import numpy as np
 import pytest
@@ -67,6 +69,13 @@ def test_fit_then_where(small_house, tmp_path, capsys):
     assert settings["method"] == "gibbs" and settings["model"]["gamma"] == 3.0
     assert settings["data"]["feature_scaling"] == "floor100"  # the preset's data preparation
     assert settings["inference"]["sweeps"] == 20 and settings["inference"]["seed"] == 0
+
+    # the fit's last line says what to open and the next command, which runs as printed
+    last = text.strip().splitlines()[-1]
+    assert last.startswith(f"next: open {out / 'semantic_map.png'}; ask where the "), last
+    command = shlex.split(last.split(": ")[-1])
+    assert command[:3] == ["spcopyro", "where", str(out)] and main(command[1:]) == 0
+    assert pathlib.Path(command[-1]).is_file() and "' is concept" in capsys.readouterr().out
 
     word = house.observations.vocabulary[0]
     assert main(["where", str(out), word, "--out", str(tmp_path / "where.png")]) == 0

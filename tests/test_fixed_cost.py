@@ -32,6 +32,7 @@ def test_fit_no_figures_writes_outputs_but_no_png(tmp_path, capsys, monkeypatch)
     assert main(["fit", "--sweeps", "4", "--out", str(out), "--no-figures"]) == 0
     printed = capsys.readouterr().out
     assert "figures skipped" in printed and "concept" in printed
+    assert printed.strip().splitlines()[-1].startswith("next: ask where the ")  # no figure to open
     assert not list(out.glob("*.png"))
     for name in ("labels.npy", "concepts.json", "config.json", "result.npz", "trace.csv"):
         assert (out / name).is_file(), name

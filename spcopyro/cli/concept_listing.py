@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import shlex
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from spcopyro.results.concept_words import (
@@ -17,7 +19,7 @@ from spcopyro.results.specks import support_text
 if TYPE_CHECKING:
     from spcopyro.results.result import SpCoResult
 
-__all__ = ["print_concepts"]
+__all__ = ["next_step", "print_concepts"]
 
 
 def print_concepts(result: SpCoResult, limit: int = 10) -> None:
@@ -73,6 +75,23 @@ def print_concepts(result: SpCoResult, limit: int = 10) -> None:
         print("  one concept in use: no word can be distinctive (a lift compares concepts)")
     elif not any(c["distinctive_words"] for c in concepts):
         print(f"  no concept has a distinctive word (every lift <= {MIN_LIFT:g})")
+
+
+def next_step(result: SpCoResult, out: Path, figures: bool = True) -> str | None:
+    """The line ``fit`` ends with: the figure to open (``figures``), and the ``where`` command
+    that asks the map for the place of a word: the first distinctive (else top) word of the
+    largest concept, "bathroom" on the default house. None: no figure, and no concept heard a
+    word."""
+    steps = [f"open {out / 'semantic_map.png'}"] if figures else []
+    for concept in result.concepts():
+        words = concept["distinctive_words"] or concept["top_words"]
+        if words and not _is_speck(concept, result.grid.num_free):
+            word = str(words[0][0])
+            command = ["spcopyro", "where", str(out), word, "--out", f"{out}_{word}.png"]
+            steps.append(f"ask where the {word} is (or any word heard, concepts.json): "
+                         f"{shlex.join(command)}")  # fmt: skip
+            break
+    return f"next: {'; '.join(steps)}" if steps else None
 
 
 def _is_speck(concept: dict[str, object], num_free: int) -> bool:

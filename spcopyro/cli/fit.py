@@ -34,7 +34,7 @@ from spcopyro.cli.common import (
     load_start,
     pace,
 )
-from spcopyro.cli.concept_listing import print_concepts
+from spcopyro.cli.concept_listing import next_step, print_concepts
 from spcopyro.cli.fit_figures import FigurePrefetch, write_figures
 from spcopyro.cli.fit_options import (
     backend_used,
@@ -523,6 +523,8 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
               "--no-figures)")  # fmt: skip
     else:
         print(f"wrote {out}/: labels.npy semantic_map.png concepts.json trace.csv trace.png ...")
+    if (step := next_step(result, out, figures=not args.no_figures)) is not None:
+        print(step)
     phases.mark("commit")
     refined = result.inference["refine"]["coarse"] if job.refined else {}  # and the coarse's
     phases.write(sweeps=sweeps_run + refined.get("sweeps", 0),
