@@ -429,7 +429,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
     p = subparsers.add_parser(
         "compare-inference",
-        help="Gibbs against variational inference: quality against wall-clock time (issue #10); "
+        help="Gibbs against variational inference: quality against wall-clock time; "
         "the shipped study 'compare_inference' (docs/studies.md)",
     )
     p.add_argument(
@@ -495,7 +495,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p = subparsers.add_parser(
         "ablation",
         help="every variant (named overrides) on dense, sparse and other synthetic houses and "
-        "the public houses, beside SpCoA and geometry (issue #14); the shipped study "
+        "the public houses, beside SpCoA and geometry; the shipped study "
         "'ablation' (docs/studies.md)",
     )
     p.add_argument("--out", required=True, help="results folder: ablation.md, .json, .png, and "
