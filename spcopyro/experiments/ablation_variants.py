@@ -39,13 +39,12 @@ from spcopyro.config import DEFAULT_PRESET, PRESETS, DataPreparation, SpCoConfig
 from spcopyro.config import preset as make_preset
 from spcopyro.fit.house import SAMPLERS, fit_house
 from spcopyro.fit.registry import get_method
-from spcopyro.results.semantic_map import close_words
+from spcopyro.results.semantic_map import did_you_mean
 
 __all__ = [
     "FIT_RESERVED",
     "Variant",
     "VariantError",
-    "did_you_mean",
     "make_variant",
     "parse_variant",
 ]
@@ -269,15 +268,6 @@ def _option_paths(options: object, prefix: str = "") -> list[str]:
         if dataclasses.is_dataclass(value) and not isinstance(value, type):
             paths += _option_paths(value, f"{prefix}{f.name}.")
     return paths
-
-
-def did_you_mean(key: str, known: list[str], prefix: str = "") -> str:
-    """``"; did you mean settings.gamma?"``: the known keys ``key`` may be a misspelling of
-    (:func:`~spcopyro.results.semantic_map.close_words`, the one rule), each after ``prefix``;
-    empty where none is close. A variant's keys and a study file's (:mod:`spcopyro.study.spec`)
-    suggest through this."""
-    close = close_words(key, known)
-    return f"; did you mean {', '.join(prefix + c for c in close)}?" if close else ""
 
 
 def _setting_default(name: str) -> object:

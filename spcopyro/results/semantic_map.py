@@ -30,7 +30,7 @@ Two implementations live here:
   :class:`SpCoResultLike`) seen through the protocol.
   :func:`as_semantic_map` wraps such a result and passes a semantic map through unchanged.
 
-Also here: :func:`word_index`, :func:`word_key`, :func:`close_words` and
+Also here: :func:`word_index`, :func:`word_key`, :func:`close_words`, :func:`did_you_mean` and
 :class:`UnknownWordError`, how a word is looked up in a fitted vocabulary. This module imports
 neither the samplers nor the result module, so a baseline or a score can depend on it without
 pulling in inference.
@@ -60,6 +60,7 @@ __all__ = [
     "CLOSE_WORD_CUTOFF",
     "as_semantic_map",
     "close_words",
+    "did_you_mean",
     "word_index",
     "word_key",
 ]
@@ -141,6 +142,17 @@ def close_words(word: str, candidates: Sequence[str], n: int = 3) -> list[str]:
     return close[:n]
 
 
+def did_you_mean(key: str, known: Sequence[str], prefix: str = "") -> str:
+    """``"; did you mean settings.gamma?"``: the known keys ``key`` may be a misspelling of
+    (:func:`close_words`, the one rule), each after ``prefix``; empty where none is close.
+    :func:`word_index`, ``navigate``'s instructions
+    (:func:`~spcopyro.robot.navigation.goals.parse_instruction`), a study variant's keys
+    (:mod:`spcopyro.experiments.ablation_variants`) and a study file's
+    (:mod:`spcopyro.study.spec`) suggest through this."""
+    close = close_words(key, known)
+    return f"; did you mean {', '.join(prefix + c for c in close)}?" if close else ""
+
+
 KNOWN_WORDS_SHOWN = 30
 """Known words an unknown word's error lists when none is close (a home's vocabulary, 14-17
 words in the public houses, whole: the list stopped at 10)."""
@@ -164,9 +176,8 @@ def word_index(vocabulary: tuple[str, ...], word: str) -> int:
             raise UnknownWordError(
                 f"{word!r} holds {len(tokens)} words; give one word of the vocabulary{example}"
             ) from None
-        close = close_words(key, vocabulary)
-        hint = f"; did you mean {', '.join(close)}?" if close else ""
-        if not close and vocabulary:  # nothing close: say which words there are
+        hint = did_you_mean(key, vocabulary)
+        if not hint and vocabulary:  # nothing close: say which words there are
             known = sorted(vocabulary)
             shown = KNOWN_WORDS_SHOWN
             more = f", ... ({len(known) - shown} more)" if len(known) > shown else ""

@@ -47,12 +47,12 @@ from typing import Any
 from spcopyro.experiments.ablation_variants import (
     Variant,
     VariantError,
-    did_you_mean,
     fit_combination_problem,
     make_variant,
 )
 from spcopyro.experiments.methods import REGISTRY as BASELINE_REGISTRY
 from spcopyro.fit.registry import INFERENCE_METHODS
+from spcopyro.results.semantic_map import did_you_mean
 from spcopyro.robot.map_simulation import MapTour
 from spcopyro.study.lines import key_line, named_key, where_path
 from spcopyro.study.maps import maps_file_name

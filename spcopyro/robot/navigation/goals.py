@@ -60,7 +60,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from spcopyro.data.text import hidden_characters_note, hidden_match
-from spcopyro.results.semantic_map import close_words, word_key
+from spcopyro.results.semantic_map import did_you_mean, word_key
 from spcopyro.results.where import close_to_guess
 from spcopyro.robot.navigation.graph import PlanningGrid
 
@@ -284,11 +284,11 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
                     f"word {words[k][0]!r} of the instruction is not in the fit's vocabulary "
                     f"of {len(vocabulary)} words: {hidden_characters_note(words[k][0], vocabulary)}"
                 )
-            close = close_words(token, candidates)
-            if close:
+            hint = did_you_mean(token, candidates)
+            if hint:
                 raise ValueError(
                     f"word {token!r} of the instruction is not in the fit's vocabulary of "
-                    f"{len(vocabulary)} words; did you mean {', '.join(close)}?"
+                    f"{len(vocabulary)} words{hint}"
                 )
             ignored.append(words[k][0])
             continue
