@@ -299,7 +299,7 @@ def test_an_update_says_how_many_observations_it_added(first, house, capsys):
 def test_report_update_says_the_observations_first(capsys):
     """report_update prints the observations line (report_observations' before it was merged
     in), then the words; no line where the record holds no count."""
-    from spcopyro.cli.fit_refine import report_update
+    from spcopyro.cli.fit_update import report_update
 
     record = {"new_words": ["sink"], "unheard_words": [], "observations": 9,
               "observations_before": 5}  # fmt: skip

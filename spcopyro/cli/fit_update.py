@@ -1,16 +1,24 @@
-"""``spcopyro fit --update``'s record of the saved fit relative to OUT (:func:`relative_records`;
-the lines it prints: :func:`spcopyro.cli.fit_refine.report_update`)."""
+"""``spcopyro fit --update``'s own lines: its settings after a refined fit
+(:func:`update_settings`), the lines it prints (:func:`report_update`) and its record of the
+saved fit relative to OUT (:func:`relative_records`)."""
 
 from __future__ import annotations
 
+import json
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from spcopyro.cli.fit_refine import prepares_data
+
 if TYPE_CHECKING:
+    import argparse
+
+    from spcopyro.config import SpCoSettings
     from spcopyro.results.result import SpCoResult
 
-__all__ = ["relative_records"]
+__all__ = ["relative_records", "report_update", "update_settings"]
 
 
 def relative_records(results: Sequence[SpCoResult], out: Path) -> None:
@@ -21,3 +29,56 @@ def relative_records(results: Sequence[SpCoResult], out: Path) -> None:
 
     for result in results:
         result.inference["update_of"] = relative_record(result.inference["update_of"], out)
+
+
+def update_settings(
+    args: argparse.Namespace, settings: SpCoSettings, map_cells: int
+) -> SpCoSettings:
+    """``--update OUT``'s settings: where OUT is a refined fit (its ``config.json`` records
+    ``inference.refine.refine``), ``settings`` refined as that fit was
+    (:func:`spcopyro.fit.refine.refined_settings`, alpha scaled from the coarse stage's free
+    cells to the ``map_cells`` of this run's map), so that the update goes on on the map's cells
+    with the refinement's preparation; else, or when this command line gives a data preparation
+    of its own (:data:`~spcopyro.cli.fit_refine.REFINED_AWAY`), ``settings`` (the update checks
+    them against OUT's)."""
+    from spcopyro.fit.refine import refined_settings
+
+    config = Path(args.update) / "config.json"
+    try:
+        record = json.loads(config.read_text()).get("inference", {}).get("refine") or {}
+    except (OSError, ValueError):  # the saved fit's own loading names what is wrong
+        return settings
+    if not record.get("refine") or prepares_data(args):
+        return settings
+    return refined_settings(settings, int(record["coarse"]["free_cells"]), map_cells)
+
+
+def report_update(record: dict[str, object], where: str, data_sha256: object = None) -> None:
+    """Print what ``--update`` changed (``record``: ``inference.update_of``): how many
+    observations it added and how many the fit now holds (both placed on the map's free cells;
+    where the saved fit in ``where`` did not record its own, saved by an older spcopyro, that
+    the number added is not known), and in the vocabulary; note when this run's model data
+    (``data_sha256``, this fit's ``source``) is the saved fit's, nothing added, and warn
+    (stderr) when saved words are missing from DATA: an update fits DATA alone, so a folder
+    holding only the new trial drops the old trials' observations (their words, without
+    counts, are the visible sign; robot.md)."""
+    now, before = record.get("observations"), record.get("observations_before")
+    if isinstance(now, int) and isinstance(before, int):
+        print(f"observations     {now - before:+d} added: {now} in the fit now, {before} "
+              "before (those placed on the map's free cells)")  # fmt: skip
+    elif isinstance(now, int):
+        print(f"observations     {now} in the fit now (placed on the map's free cells); "
+              f"the fit in {where} does not record how many it held (saved by an older "
+              "spcopyro), so how many were added is not known")  # fmt: skip
+    new, unheard = list(record["new_words"]), list(record["unheard_words"])
+    print(f"new words        {len(new)}: {', '.join(new[:20]) or '-'}")
+    if data_sha256 is not None and data_sha256 == record.get("data_sha256"):
+        print(f"note: this data is the data the fit in {where} was fitted on (the same sha256 "
+              "of the model data): no observation was added, the update only ran more "
+              "iterations on it; add the new trial's files to DATA first")  # fmt: skip
+    if unheard:
+        more = f", ... ({len(unheard) - 20} more)" if len(unheard) > 20 else ""
+        print(f"warning: {len(unheard)} word(s) of the fit in {where} are not in this run's "
+              f"data: {', '.join(unheard[:20])}{more}; an update is fitted on DATA alone, so "
+              "DATA must hold the old trials' observations as well as the new ones (their "
+              "words keep their columns, without counts)", file=sys.stderr)  # fmt: skip
