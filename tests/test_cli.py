@@ -50,6 +50,13 @@ def test_fit_then_where(small_house, tmp_path, capsys):
     assert main(argv) == 0
     text = capsys.readouterr().out
     assert "adjusted Rand index" in text
+    # what is fitted, as a person reads it (they printed SpCoConfig(...), DataPreparation(...)
+    # and GibbsOptions(..., hyper=HyperparameterOptions(...)) reprs): config.json has the rest
+    assert ("\nmodel            preset original-code: 20 concepts (dp, alpha 1e7), gamma 3 "
+            "(4-neighbour), beta 0.1, chi 1\n") in text, text  # fmt: skip
+    assert "\ndata             the map's own cells, feature scaling floor100\n" in text, text
+    assert (f"\ninference        gibbs: 20 sweeps (every setting: {out}/config.json)\n"
+            in text), text  # fmt: skip
     for name in ("labels.npy", "semantic_map.png", "concepts.json", "trace.csv", "trace.png"):
         assert (out / name).is_file(), name
     labels = np.load(out / "labels.npy")

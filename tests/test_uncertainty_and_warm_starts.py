@@ -245,8 +245,8 @@ def test_fit_writes_the_uncertainty_map_and_where_its_probability_map(tmp_path, 
         "default for given labels)\n" in printed
     ), printed
     # the inference line names what the unset options are here (it printed None)
-    assert "anneal_iterations=None (0: given start)" in printed, printed
-    assert "label_smoothing=None (0.05: given start)" in printed, printed
+    assert "anneal iterations 0 (given start)" in printed, printed
+    assert "label smoothing 0.05 (given start)" in printed, printed
     svi_options = json.loads((tmp_path / "svi" / "config.json").read_text())["inference"]
     assert svi_options["label_smoothing"] == 0.05, svi_options  # what the start ran with
     assert svi_options["anneal_iterations"] == 0, svi_options

@@ -40,7 +40,6 @@ from spcopyro.cli.fit_options import (
     backend_used,
     check_sweeps,
     given_start,
-    options_line,
     warm_start_kept,
 )
 from spcopyro.cli.fit_refine import check_refinable, refine
@@ -54,6 +53,7 @@ from spcopyro.cli.fit_resume import (
     without_resume,
 )
 from spcopyro.cli.fit_settings import apply_preset_inference, check_update_args, fit_settings
+from spcopyro.cli.fit_summary import data_line, inference_line, model_line
 from spcopyro.cli.fit_update import relative_records, report_update, update_settings
 from spcopyro.cli.fit_warnings import recorded_warnings, write_config
 from spcopyro.config import SpCoSettings, preset_inference
@@ -220,17 +220,12 @@ def _fit_staged(job: FitJob) -> int:
     # fit's own counts say what is left out (once), under the run's feature scaling.
     print(_summary(house, warn=False, feature_scaling=settings.data.feature_scaling,
                    preparation=settings.data))  # fmt: skip
-    if config.use_images and not house.observations.num_images:  # a house of words only
-        # the model in effect, not use_images=True beside "no images here"; config.json keeps
-        # the setting asked for
-        print(f"model            {config.replace(use_images=False)} (no images here: "
-              "use_images=True, as config.json records it, has none to use)")  # fmt: skip
-    else:
-        print(f"model            {config}")
-    print(f"data             {settings.data}")
+    # a house of words only: the model in effect, words only; config.json keeps use_images
+    print(model_line(config, settings.preset, images_missing=not house.observations.num_images))
+    print(data_line(settings.data))
     default = INFERENCE_METHODS[args.method].default_options()
-    shown = options_line(options if options is not None else default, given_start(args))
-    print(f"inference        {args.method}: {shown}")  # svi's None: with the value it uses
+    print(inference_line(args.method, options if options is not None else default,
+                         given_start(args), _budget(args), args.out))  # fmt: skip
     workers = _side_by_side(args)  # auto: one thread per chain where several run at once
     print(f"threads          {describe_threads(args.threads, house.grid.num_free, workers)}")
     if (used := backend_used(options or default, config)) is not None:
@@ -281,6 +276,19 @@ def _chain_count(args: argparse.Namespace) -> int:
     if args.chains is not None:
         return int(args.chains)
     return 4 if args.sweeps == "auto" else 1
+
+
+def _budget(args: argparse.Namespace) -> str:
+    """The inference line's budget: ``5000 sweeps`` (``iterations`` for a method that does
+    not sample), ``sweeps until converged``, and the chains (or fits) where there are several."""
+    sampler = args.method in ("gibbs", "vi-gibbs")
+    if args.sweeps == "auto":
+        most = f" (at most {args.max_sweeps})" if args.max_sweeps is not None else ""
+        budget = f"sweeps until converged{most}"
+    else:
+        budget = plural(int(args.sweeps), "sweep" if sampler else "iteration")
+    chains = _chain_count(args)
+    return budget + (f", {chains} {'chains' if sampler else 'fits'}" if chains > 1 else "")
 
 
 def _side_by_side(args: argparse.Namespace) -> int:

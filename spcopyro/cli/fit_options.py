@@ -9,13 +9,9 @@ import argparse
 import dataclasses
 
 from spcopyro.cli.common import given as given_flag
-from spcopyro.inference.protocol import (
-    StartDependentOptions,
-    options_for_start,
-    start_filled,
-)
+from spcopyro.inference.protocol import StartDependentOptions, options_for_start
 
-__all__ = ["check_sweeps", "given_start", "method_options", "options_line", "warm_start_kept"]
+__all__ = ["check_sweeps", "given_start", "method_options", "warm_start_kept"]
 
 _SAMPLERS = ("gibbs", "vi-gibbs")
 
@@ -175,24 +171,6 @@ def given_start(args: argparse.Namespace) -> bool:
     return any(x is not None for x in starts_at) or getattr(args, "init", None) not in (
         None, "random"
     )  # fmt: skip
-
-
-def options_line(options: object, given: bool) -> str:
-    """``options`` as fit's "inference" line prints them: their repr, with each field left to
-    the start (svi's ``label_smoothing=None``, ``anneal_iterations=None``) followed by the value
-    the fit uses, e.g. ``label_smoothing=None (0.05: given start)``."""
-    if not isinstance(options, StartDependentOptions) or not dataclasses.is_dataclass(options):
-        return repr(options)
-    filled = start_filled(options, options_for_start(options, given_start=given))
-    start = "given start" if given else "random start"
-    fields = []
-    for field in dataclasses.fields(options):
-        if not field.repr:
-            continue
-        value = getattr(options, field.name)
-        note = f" ({filled[field.name]!r}: {start})" if field.name in filled else ""
-        fields.append(f"{field.name}={value!r}{note}")
-    return f"{type(options).__name__}({', '.join(fields)})"
 
 
 def method_options(args: argparse.Namespace) -> object | None:

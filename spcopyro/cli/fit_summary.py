@@ -1,0 +1,122 @@
+"""``spcopyro fit``'s "model", "data" and "inference" lines: what is fitted, as a person reads
+it -- the preset, then the values that matter as ``name value``, leaving out what is at its
+off or neutral value. They printed the dataclasses' reprs (``GibbsOptions(backend='auto', ...,
+hyper=HyperparameterOptions(alpha=False, ...), region_moves=0.2)``); every setting stays in
+OUT/config.json, which the inference line points to."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import TYPE_CHECKING
+
+from spcopyro.inference.protocol import options_for_start, start_filled
+
+if TYPE_CHECKING:
+    from spcopyro.config import DataPreparation, SpCoConfig
+
+__all__ = ["data_line", "inference_line", "model_line"]
+
+LABEL = 17
+"""The width of the summary's label column (``model            ``)."""
+
+
+def _number(value: float) -> str:
+    """``value`` short: 3, 0.1, 2.5, 1e7 (``:g``'s 1e+07 without its plus and zero)."""
+    text = f"{value:g}"
+    mantissa, e, exponent = text.partition("e")
+    return f"{mantissa}e{int(exponent)}" if e else text
+
+
+def model_line(config: SpCoConfig, preset: str | None, images_missing: bool = False) -> str:
+    """The "model" line: the preset, then L, the prior and alpha, gamma and its neighbourhood,
+    beta, chi, each further modality's concentration, and a modality switched off.
+    ``images_missing``: the house has no images, so the model in effect uses words only
+    (config.json keeps ``use_images`` as asked)."""
+    prior = config.prior if config.prior == "dp" else "finite Dirichlet"
+    parts = [
+        f"{config.num_concepts} concepts ({prior}, alpha {_number(config.alpha)})",
+        f"gamma {_number(config.gamma)} ({config.connectivity}-neighbour)",
+        f"beta {_number(config.beta)}",
+        f"chi {_number(config.chi)}",
+        *(f"{name} {_number(value)}" for name, value in config.concentrations),
+    ]
+    if images_missing and config.use_images:
+        parts.append("words only")
+    elif not config.use_images:
+        parts.append("no images" if config.use_words else "no images, no words")
+    elif not config.use_words:
+        parts.append("no words")
+    line = f"{'model':<{LABEL}}{f'preset {preset}: ' if preset else ''}{', '.join(parts)}"
+    if images_missing and config.use_images:
+        line += " (no images here: use_images=True, as config.json records it, has none to use)"
+    return line
+
+
+def data_line(preparation: DataPreparation) -> str:
+    """The "data" line: the model's grid, then how the images and words are counted and spread;
+    tf-idf, a word scaling other than 1, a footprint and a snap distance other than the
+    default only where set."""
+    from spcopyro.config import DEFAULT_SNAP_DISTANCE
+
+    p = preparation
+    size = "the map's own cells" if p.cell_size is None else f"cells {_number(p.cell_size)} m"
+    parts = [size, f"feature scaling {_value(p.feature_scaling)}"]
+    if p.word_weighting != "count":
+        parts.append(f"word weighting {p.word_weighting}")
+    if p.word_scaling != 1.0:
+        parts.append(f"word scaling {_number(p.word_scaling)}")
+    if p.footprint_radius > 0:
+        fov = "" if p.footprint_fov is None else f", images {_number(p.footprint_fov)} deg wide"
+        parts.append(f"footprint {_number(p.footprint_radius)} m ({p.footprint_kernel}{fov})")
+    if p.snap_distance != DEFAULT_SNAP_DISTANCE:
+        parts.append(f"snap distance {_number(p.snap_distance)} m")
+    return f"{'data':<{LABEL}}{', '.join(parts)}"
+
+
+def _value(value: object) -> str:
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, float | int):
+        return _number(value)
+    return str(value)
+
+
+def _changed(options: object, filled: dict[str, object], start: str) -> list[str]:
+    """``name value`` for each field of dataclass ``options`` away from its class default
+    (a nested dataclass as ``name (its fields)``; Gibbs's ``hyper`` only where it samples
+    something), and each field left to the start with the value it runs (``(random start)``)."""
+    parts = []
+    for field in dataclasses.fields(options):  # type: ignore[arg-type]
+        if not field.repr:
+            continue
+        value, name = getattr(options, field.name), field.name.replace("_", " ")
+        if field.name in filled:
+            parts.append(f"{name} {_value(filled[field.name])} ({start})")
+            continue
+        if dataclasses.is_dataclass(value):
+            if getattr(value, "active", True):  # HyperparameterOptions: something sampled
+                inner = _changed(value, {}, start)
+                label = "sampled hyperparameters" if hasattr(value, "active") else name
+                parts += [f"{label} ({', '.join(inner)})"] if inner else []
+            continue
+        default = field.default
+        if default is dataclasses.MISSING and field.default_factory is not dataclasses.MISSING:
+            default = field.default_factory()
+        if value is True and hasattr(options, "active"):  # a sampled hyperparameter
+            parts.append(name)
+        elif value != default:
+            parts.append(f"{name} {_value(value)}")
+    return parts
+
+
+def inference_line(method: str, options: object, given: bool, budget: str, out: str) -> str:
+    """The "inference" line: the method, ``budget`` (``5000 sweeps``, ``4 chains``), then its
+    options that differ from the method's defaults as ``name value`` (``merge moves 0.2``), with
+    a field left to the start (svi's ``label_smoothing``) given the value this start runs, then
+    where every setting is (``out``'s config.json)."""
+    parts = [budget] if budget else []
+    if dataclasses.is_dataclass(options):
+        filled = start_filled(options, options_for_start(options, given_start=given))
+        parts += _changed(options, filled, "given start" if given else "random start")
+    shown = ", ".join(parts)
+    return f"{'inference':<{LABEL}}{method}: {shown} (every setting: {out}/config.json)"
