@@ -225,6 +225,22 @@ def test_fit_refines_by_default_and_writes_the_map_s_cells(home, tmp_path, capsy
     assert np.load(never / "labels.npy").shape != labels.shape  # the 0.25 m model grid
 
 
+def test_the_progress_bars_name_the_two_stages(home, tmp_path, capsys, monkeypatch):
+    """Both stages' bars read "Gibbs sweeps:", so the user saw 5/5 and then 0/5 under the same
+    label: they name the model grid and the map's cells (docs/real_houses.md), one chain (the
+    sweep driver's bar) or several (run_chains')."""
+    monkeypatch.delenv("CI")  # the bars on
+    argv = ["fit", str(home), "--no-figures", "--refine", "always"]
+    for more in (["--sweeps", "5"], ["--sweeps", "3", "--chains", "2"]):
+        out = tmp_path / str(len(more))
+        assert main([*argv, "--out", str(out), *more]) == 0
+        err = capsys.readouterr().err.replace("\r", "\n")
+        assert "Gibbs sweeps (model grid)" in err and "Gibbs sweeps (map's cells)" in err, err
+        assert "Gibbs sweeps:" not in err, err
+        first, second = err.index("(model grid)"), err.index("(map's cells)")
+        assert first < second and "(model grid)" not in err[second:], err
+
+
 def test_a_preparation_given_on_the_command_line_is_not_refined_away(home, tmp_path, capsys):
     argv = ["fit", str(home), "--sweeps", "60", "--no-figures", "--word-scaling", "10"]
     assert main([*argv, "--out", str(tmp_path / "kept")]) == 0

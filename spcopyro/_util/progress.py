@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextvars import ContextVar
 from typing import Any
 
 SETUP_PROGRESS_CELLS = 100_000
@@ -18,6 +20,29 @@ def progress_enabled(progress: bool | None) -> bool:
     if progress is None:
         return not os.environ.get("CI")
     return progress
+
+
+_STAGE: ContextVar[str | None] = ContextVar("progress_stage", default=None)
+
+
+@contextlib.contextmanager
+def progress_stage(name: str | None) -> Iterator[None]:
+    """Within it, the bars of a fit (:func:`staged`) name the stage they count: a refined fit's
+    two Gibbs stages both read "Gibbs sweeps", so its bar went 5000/5000, then 0/5000 under
+    the same label; now "Gibbs sweeps (model grid)", then "Gibbs sweeps (map's cells)". None:
+    no stage named."""
+    token = _STAGE.set(name)
+    try:
+        yield
+    finally:
+        _STAGE.reset(token)
+
+
+def staged(description: str) -> str:
+    """``description`` of a bar with the stage :func:`progress_stage` names, in parentheses
+    (read where the bar is made, in the thread that entered the stage)."""
+    stage = _STAGE.get()
+    return f"{description} ({stage})" if stage else description
 
 
 COMPILE_ITERATIONS = 20

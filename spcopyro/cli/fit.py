@@ -24,6 +24,7 @@ import numpy as np
 from spcopyro._util.interrupts import interrupts_raised, sigterm_as_interrupt
 from spcopyro._util.messages import plural
 from spcopyro._util.outputs import ROBOT_MAP_FILE, StagedOutput
+from spcopyro._util.progress import progress_stage
 from spcopyro._util.threads import describe_threads
 from spcopyro._util.timings import Phases, timed
 from spcopyro.cli.common import (
@@ -314,53 +315,56 @@ def _fit(
     source = "embedded synthetic house, seed 0" if args.data is None else None
     diagnostics, refine_sweeps, estimate = None, args.sweeps, None
     start = _clock()
-    if args.sweeps == "auto":
-        from spcopyro.fit.house import fit_house_converged
+    # a refinement may follow: the bars name the stage (both read "Gibbs sweeps")
+    stage = "model grid" if args.refine != "never" and house.grid.coarsened_from else None
+    with progress_stage(stage):
+        if args.sweeps == "auto":
+            from spcopyro.fit.house import fit_house_converged
 
-        chains = _chain_count(args)
-        result, diagnostics = fit_house_converged(
-            house, settings, options=options, chains=chains, seed=args.seed, init=init,
-            max_sweeps=args.max_sweeps or FIT_SWEEPS, source=source, threads=args.threads,
-            chain_workers=args.chain_workers,
-        )  # fmt: skip
-        chain_results, kept = None, 0
-        # a refinement runs as many sweeps as the chains needed (their --anneal-sweeps too,
-        # though it does not anneal: spcopyro.fit.refine), with the preset's estimate
-        refine_sweeps = len(result.trace.objective)
-        estimate = preset_inference(args.preset).get("point_estimate", "map-visited")
-        estimate = estimate if args.marginal_samples > 0 else "map-visited"
-    elif saved is not None:
-        from spcopyro.robot.online import fit_update
+            chains = _chain_count(args)
+            result, diagnostics = fit_house_converged(
+                house, settings, options=options, chains=chains, seed=args.seed, init=init,
+                max_sweeps=args.max_sweeps or FIT_SWEEPS, source=source, threads=args.threads,
+                chain_workers=args.chain_workers,
+            )  # fmt: skip
+            chain_results, kept = None, 0
+            # a refinement runs as many sweeps as the chains needed (their --anneal-sweeps too,
+            # though it does not anneal: spcopyro.fit.refine), with the preset's estimate
+            refine_sweeps = len(result.trace.objective)
+            estimate = preset_inference(args.preset).get("point_estimate", "map-visited")
+            estimate = estimate if args.marginal_samples > 0 else "map-visited"
+        elif saved is not None:
+            from spcopyro.robot.online import fit_update
 
-        chains = _chain_count(args)
-        chain_results = fit_update(
-            saved, house, settings, method=args.method, options=options, sweeps=args.sweeps,
-            seeds=[args.seed + k for k in range(chains)], source=source, threads=args.threads,
-            marginal_samples=args.marginal_samples, point_estimate=args.point_estimate,
-            where=args.update,
-        )  # fmt: skip
-        this_data = chain_results[0].provenance.get("source", {})  # to tell unchanged data
-        this_sha = this_data.get("data_sha256") if isinstance(this_data, dict) else None
-        relative_records(chain_results, job.staged.out)  # update_of.fit: relative to OUT
-        report_update(chain_results[0].inference["update_of"], args.update, this_sha)
-        kept = best_chain(chain_results)
-        result = chain_results[kept]
-    else:
-        chains = _chain_count(args)
-        chain_results = fit_house_chains(
-            house, settings, method=args.method, options=options, sweeps=args.sweeps,
-            seeds=[args.seed + k for k in range(chains)], init=init, source=source,
-            checkpoint=job.keeper, resume=args.resume, threads=args.threads,
-            marginal_samples=args.marginal_samples, point_estimate=args.point_estimate,
-            chain_workers=args.chain_workers,
-        )  # fmt: skip
-        kept = best_chain(chain_results)
-        result = chain_results[kept]
+            chains = _chain_count(args)
+            chain_results = fit_update(
+                saved, house, settings, method=args.method, options=options, sweeps=args.sweeps,
+                seeds=[args.seed + k for k in range(chains)], source=source, threads=args.threads,
+                marginal_samples=args.marginal_samples, point_estimate=args.point_estimate,
+                where=args.update,
+            )  # fmt: skip
+            this_data = chain_results[0].provenance.get("source", {})  # to tell unchanged data
+            this_sha = this_data.get("data_sha256") if isinstance(this_data, dict) else None
+            relative_records(chain_results, job.staged.out)  # update_of.fit: relative to OUT
+            report_update(chain_results[0].inference["update_of"], args.update, this_sha)
+            kept = best_chain(chain_results)
+            result = chain_results[kept]
+        else:
+            chains = _chain_count(args)
+            chain_results = fit_house_chains(
+                house, settings, method=args.method, options=options, sweeps=args.sweeps,
+                seeds=[args.seed + k for k in range(chains)], init=init, source=source,
+                checkpoint=job.keeper, resume=args.resume, threads=args.threads,
+                marginal_samples=args.marginal_samples, point_estimate=args.point_estimate,
+                chain_workers=args.chain_workers,
+            )  # fmt: skip
+            kept = best_chain(chain_results)
+            result = chain_results[kept]
     if args.refine != "never":
         # once the refinement's chains run (it refines): house.png of the map's cells meanwhile
         redraw = contextlib.nullcontext() if prefetch is None else when_chains_start(
             functools.partial(prefetch.redraw, job.map_house))  # fmt: skip
-        with redraw:
+        with redraw, progress_stage("map's cells"):
             job.refined, refits = refine(
                 args, chain_results or [result], kept, model=house, on_map=job.map_house,
                 settings=settings, options=options, keeper=job.keeper, chains=chains,

@@ -29,7 +29,7 @@ from contextlib import contextmanager
 
 from tqdm.auto import tqdm
 
-from spcopyro._util.progress import noted_updates, progress_enabled
+from spcopyro._util.progress import noted_updates, progress_enabled, staged
 from spcopyro._util.threads import usable_cpus
 from spcopyro.gibbs.run import ChainsStopped, GibbsChain, advance, compile_note
 
@@ -141,10 +141,12 @@ def advance_chains(
     total = sum(n for _, n in runs)
     note = compile_note([chain for chain, _ in runs]) if progress_enabled(progress) else None
 
+    label = staged("Gibbs sweeps")  # a refined fit's stage, read in this thread
+
     def bar_of() -> Callable[[int], None]:  # the compile note stays over the first sweeps
-        bars.append(tqdm(total=total, desc=f"Gibbs sweeps ({note})" if note else "Gibbs sweeps",
+        bars.append(tqdm(total=total, desc=f"{label} ({note})" if note else label,
                          unit="sweep", disable=not progress_enabled(progress)))  # fmt: skip
-        return noted_updates(bars[-1], "Gibbs sweeps", note)
+        return noted_updates(bars[-1], label, note)
 
     bars: list[tqdm] = []
     updates: list[Callable[[int], None]] = []

@@ -37,7 +37,7 @@ import torch
 from pyro.ops.stats import split_gelman_rubin
 from tqdm.auto import tqdm
 
-from spcopyro._util.progress import progress_enabled
+from spcopyro._util.progress import progress_enabled, staged
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.chains import AUTO, advance_chains
 from spcopyro.gibbs.options import GibbsOptions
@@ -204,7 +204,7 @@ def run_until_converged(
     done, converged = 0, False
     bar = tqdm(  # one bar for all chains and blocks: sweeps done of the most that may run
         total=chains * (anneal_sweeps + max_sweeps),
-        desc=f"Gibbs sweeps, {chains} chains",
+        desc=f"{staged('Gibbs sweeps')}, {chains} chains",
         unit="sweep",
         disable=not progress_enabled(progress),
     )

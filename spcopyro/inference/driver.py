@@ -39,7 +39,7 @@ from tqdm.auto import tqdm
 
 from spcopyro._util.interrupts import caused_by_interrupt
 from spcopyro._util.messages import plural
-from spcopyro._util.progress import noted_updates, progress_enabled
+from spcopyro._util.progress import noted_updates, progress_enabled, staged
 from spcopyro.inference.schedule import annealed_gamma, converged
 
 
@@ -180,6 +180,7 @@ def drive(
         return converged([r[0] for r in last], [r[2] for r in last], gamma, tolerance, window)
 
     start = time.perf_counter()
+    description = staged(description)  # a refined fit's stage: "Gibbs sweeps (model grid)"
     bar = tqdm(total=iterations, unit=unit, disable=not progress_enabled(progress),
                desc=f"{description} ({first_note})" if first_note else description)  # fmt: skip
     update = noted_updates(bar, description, first_note)  # the note over the first iterations
