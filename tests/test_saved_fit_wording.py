@@ -34,12 +34,12 @@ def test_where_says_what_its_region_is_when_no_cell_exceeds_one_half(tmp_path, c
     fit = _tied_rooms().save(tmp_path / "fit")
     assert main(["where", str(fit), "kitchen"]) == 0
     printed = capsys.readouterr().out
-    assert "(p = 0.500, area prior" in printed and "region: 150 cells" in printed
+    assert "(p(concept | word) = 0.500, area prior" in printed and "region: 150 cells" in printed
     (line,) = [x for x in printed.splitlines() if x.startswith("cells whose probability")]
     assert line == (
         "cells whose probability of being the place exceeds 0.5: 0 (point estimate); the region "
-        "is the cells of the word's most probable concept, not of p > 0.5: its 150 cells have "
-        "p = 0.500, none of them above 0.5"
+        "is the cells of the word's most probable concept, not those above 0.5: its 150 cells "
+        "have p(cell is the place) 0.500, none of them above 0.5"
     )
 
 
@@ -52,7 +52,7 @@ def test_where_s_threshold_line_is_unchanged_when_the_region_is_above_one_half()
         "cells whose probability of being the place exceeds 0.5: 3 (marginals)"
     )
     mixed = threshold_line(probability, np.array([True, False, True, False]), "marginals")
-    assert mixed.endswith("its 2 cells have p = 0.100-0.900, 1 of them above 0.5")
+    assert mixed.endswith("its 2 cells have p(cell is the place) 0.100-0.900, 1 of them above 0.5")
 
 
 def test_navigate_tells_apart_two_places_of_the_route_with_one_name(tmp_path, capsys):

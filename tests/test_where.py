@@ -146,6 +146,9 @@ def test_where_prints_the_answer_its_warnings_and_draws_them(tmp_path, capsys):
     captured = capsys.readouterr()
     assert "'kitchen' is concept 0" in captured.out and "area prior" in captured.out
     assert "runner-up: concept 1" in captured.out and "region: 150 cells" in captured.out
+    # the concept's p given the word, named apart from each cell's p (threshold_line's)
+    assert "'kitchen' is concept 0 (p(concept | word) = " in captured.out, captured.out
+    assert "runner-up: concept 1 (p(concept | word) = " in captured.out, captured.out
     assert "spanning x 0.00..1.50, y 0.00..1.00 m" in captured.out  # edges, not cell centres
     assert "warning" not in captured.err
     assert (tmp_path / "a.png").stat().st_size > 0

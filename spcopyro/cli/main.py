@@ -285,10 +285,12 @@ def _where(args: argparse.Namespace) -> int:
         words = "none, no words heard here"
     elif distinctive:
         words += "; distinctive: " + ", ".join(f"{w} x{r:.1f}" for w, r, _ in distinctive)
-    print(f"'{answer.word}' is concept {answer.concept} (p = {answer.probability:.3f}, "
+    print(f"'{answer.word}' is concept {answer.concept} (p(concept | word) = "
+          f"{answer.probability:.3f}, "
           f"{answer.prior} prior; its words: {words})")  # fmt: skip
     if answer.runner_up is not None:
-        print(f"runner-up: concept {answer.runner_up} (p = {answer.runner_up_probability:.3f}); "
+        print(f"runner-up: concept {answer.runner_up} (p(concept | word) = "
+              f"{answer.runner_up_probability:.3f}); "
               f"Bayes factor of the word for concept {answer.concept}: "
               f"{answer.evidence:.2f}")  # fmt: skip
     if len(cells):

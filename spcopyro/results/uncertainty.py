@@ -231,6 +231,6 @@ def threshold_line(probability: np.ndarray, region: np.ndarray, source: str) -> 
     cells = f"{inside.size} cell" + ("" if inside.size == 1 else "s")
     held = "none of them" if not above else f"{above} of them"
     return (
-        f"{line}; the region is the cells of the word's most probable concept, not of p > 0.5: "
-        f"its {cells} have p = {share}, {held} above 0.5"
+        f"{line}; the region is the cells of the word's most probable concept, not those above "
+        f"0.5: its {cells} have p(cell is the place) {share}, {held} above 0.5"
     )
