@@ -186,7 +186,7 @@ def test_a_fallback_names_the_route_s_places_told_apart():
     graph = replace(
         graph,
         places=tuple(
-            replace(p, words=("kitchen", *p.words)) if p.name == "corridor" else p
+            replace(p, answers=("kitchen", *p.answers)) if p.name == "corridor" else p
             for p in graph.places
         ),
     )

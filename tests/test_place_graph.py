@@ -58,6 +58,54 @@ def test_nodes_have_the_hand_counted_areas_words_and_centroids(result):
     assert (graph.regions >= 0).sum() == sum(ROOM_CELLS.values())
 
 
+def _filler_on_top(result):
+    """The house with the corridor B's and the closet D's most probable word "the" (w 0.5 and
+    0.55, their own words 0.4 next): ``where the`` answers the closet (0.55 x 312 cells against
+    0.5 x 172), so the corridor's top word is not a word whose where-answer it is."""
+    w = np.full((4, 5), 0.025)  # [L, V] bedroom, corridor, kitchen, closet, the
+    w[0, 0] = w[2, 2] = 0.9
+    w[1, [4, 1]] = 0.5, 0.4
+    w[3, [4, 3]] = 0.55, 0.4
+    w /= w.sum(1, keepdims=True)
+    words = replace(result.emission("words"), probabilities=w)
+    return replace(result, emissions=(result.emissions[0], words))
+
+
+def test_places_are_named_by_the_word_where_answers_with_them(result, tmp_path, capsys):
+    """``show OUT --graph`` named a region after its concept's top word, which ``where`` may
+    answer with another region (the demo's kitchen, top word "sink"). A place is now named by
+    the word whose where-answer is its concept, the highest p(C | word) first: the corridor
+    "corridor", not "the" (the closet's answer); the closet "closet", not "the" (its answer
+    too, at a lower p). concepts.json's "name", graph.json and the semantic map's label of a
+    concept's further region say the same."""
+    from spcopyro.figures.map_pieces import region_text
+
+    filler = _filler_on_top(result)
+    corridor, closet = CONCEPT["B"], CONCEPT_D
+    assert filler.top_words(corridor, 1)[0][0] == filler.top_words(closet, 1)[0][0] == "the"
+    assert filler.where("the").concept == closet and filler.where("corridor").concept == corridor
+    rooms = _by_room(place_graph(filler))
+    assert [rooms[r].name for r in "ABCED"] == ["bedroom", "corridor", "kitchen", "bedroom",
+                                                 "closet"]  # fmt: skip
+    assert rooms["B"].answers == ("corridor",) and rooms["D"].answers == ("closet", "the")
+    plan = navigate(filler, "go to the kitchen", START_A)
+    assert plan.route_words == ("bedroom", "corridor", "kitchen")
+    names = {c["concept"]: c["name"] for c in filler.concepts()}
+    assert names == {0: "bedroom", corridor: "corridor", 2: "kitchen", closet: "closet"}
+    assert region_text(filler, corridor, largest=False) == f"[{corridor}] corridor"
+
+    fit = filler.save(tmp_path / "fit")
+    assert main(["show", str(fit), "--graph", "--out", str(tmp_path / "graph.png")]) == 0
+    out = capsys.readouterr().out
+    assert "corridor (1.7 m^2)" in out and "closet (3.1 m^2)" in out and ": the (" not in out
+    written = json.loads((tmp_path / "graph.json").read_text())
+    assert sorted(p["name"] for p in written["places"]) == ["bedroom", "bedroom", "closet",
+                                                           "corridor", "kitchen"]  # fmt: skip
+    saved = json.loads((fit / "concepts.json").read_text())
+    saved = saved["concepts"] if isinstance(saved, dict) else saved
+    assert {c["concept"]: c["name"] for c in saved} == names
+
+
 def test_a_place_where_no_word_was_heard_is_named_by_its_concept(result):
     """Its top words are the prior's (ties, a fit printed 'restroom' for one-cell specks), so it
     has none and is called ``concept N``, as the fit's listing says "no words heard"."""
@@ -133,7 +181,7 @@ def test_a_stop_s_place_reads_as_the_word_the_robot_was_sent_with(result):
     a place passed on the way keeps its top word."""
     graph = place_graph(result)
     places = tuple(
-        replace(p, words=("sink", *p.words)) if p.name in ("kitchen", "corridor") else p
+        replace(p, answers=("sink", *p.answers)) if p.name in ("kitchen", "corridor") else p
         for p in graph.places
     )
     plan = navigate(result, "go to the kitchen", START_A, places=replace(graph, places=places))

@@ -168,6 +168,7 @@ def show_graph(args: argparse.Namespace) -> int:
     import json
 
     from spcopyro.cli.common import load_fit
+    from spcopyro.results.concept_names import answered_words
     from spcopyro.robot.navigation.figure import plot_place_graph
     from spcopyro.robot.navigation.places import place_graph
 
@@ -187,34 +188,18 @@ def show_graph(args: argparse.Namespace) -> int:
           f"{plural(graph.dropped, 'region')} under "
           f"{graph.min_area:g} m^2 left out "
           f"({graph.dropped_area:.2f} m^2)")  # fmt: skip
-    answers = _answered_words(result)
+    answers = answered_words(result)  # every word, also those heard only off the map
     for place in graph.places:
         near = [e.b if e.a == place.id else e.a for e in graph.passages
                 if place.id in (e.a, e.b)]  # fmt: skip
         print(f"  {place.id}: {place.name} ({place.area:.1f} m^2) at x={place.centroid[0]:.2f} "
               f"y={place.centroid[1]:.2f}, next to {near or 'nothing'}")  # fmt: skip
-        if place.words or answers:  # a place is named by its top word, not where's answer
+        if place.words or answers:  # named by where's answer, which may not be the top word
             asked = ", ".join(answers.get(place.concept, ())) or "none"
             print(f"     concept {place.concept}, top words {', '.join(place.words) or 'none'}; "
                   f"where answers it for: {asked}")  # fmt: skip
     print(f"wrote {png} and {written}")
     return 0
-
-
-def _answered_words(result: SpCoResult) -> dict[int, tuple[str, ...]]:
-    """Per concept, the words whose ``where`` answer (eq. 19, area prior) it is, most probable
-    first: a place's name is its concept's top word, which ``where`` may answer with another
-    concept (room2ldk4: two places named 'bedroom', only one of them where 'bedroom' is)."""
-    from spcopyro.config import WORDS
-
-    if not any(table.name == WORDS for table in result.emissions) or not result.vocabulary:
-        return {}
-    posterior = result.word_posteriors()  # [L, V]
-    best = posterior.argmax(axis=0)  # [V] each word's concept (the first of ties, as where's)
-    answers: dict[int, list[tuple[float, str]]] = {}
-    for v, word in enumerate(result.vocabulary):
-        answers.setdefault(int(best[v]), []).append((-float(posterior[best[v], v]), word))
-    return {c: tuple(w for _, w in sorted(pairs)) for c, pairs in answers.items()}
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

@@ -29,6 +29,7 @@ from spcopyro._util.messages import plural
 from spcopyro.data import House, Observations
 from spcopyro.figures.off_map import draw_at_edge, edge_handle, off_axes
 from spcopyro.maps import OCCUPIED, OccupancyGrid
+from spcopyro.results.concept_names import concept_name
 from spcopyro.results.concept_words import (
     MIN_LIFT,
     NO_WORDS,
@@ -105,16 +106,18 @@ def _word_line(word: str, p: float, lift: float) -> str:
 def region_text(result: SpCoResult, concept: int, n_words: int = 3, largest: bool = True) -> str:
     """The label of one region: ``[concept]`` then its ``n_words`` most probable words, one a
     line, each with its probability and, if distinctive, its lift (``"kitchen 0.31 x4.2"``);
-    on a further region of the same concept, ``[concept]`` and its best word on one line.
+    on a further region of the same concept, ``[concept]`` and its name on one line (the word
+    ``where`` answers with it, :func:`~spcopyro.results.concept_names.concept_name`, as the place
+    graph names it: the kitchen whose top word is "sink" reads ``[3] kitchen``).
     A concept where no word was heard: ``[concept]`` and ``"no words heard here"``."""
+    if not largest:
+        name = concept_name(result, concept)
+        return f"[{concept}]" if name == f"concept {concept}" else f"[{concept}] {name}"
     if result.heard(concept) == 0:
-        return f"[{concept}]\n{NO_WORDS}" if largest else f"[{concept}]"
+        return f"[{concept}]\n{NO_WORDS}"
     lifts = result.lift()[concept]  # [V]
     index = {w: k for k, w in enumerate(result.vocabulary)}
-    words = result.top_words(concept, n_words if largest else 1)
-    words = shown_words(words)
-    if not largest:
-        return " ".join([f"[{concept}]"] + [w for w, _ in words])
+    words = shown_words(result.top_words(concept, n_words))
     return "\n".join([f"[{concept}]"] + [_word_line(w, p, lifts[index[w]]) for w, p in words])
 
 

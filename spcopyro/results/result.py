@@ -30,6 +30,7 @@ from spcopyro._util.outputs import DAMAGED_FILE_ERRORS, read_npz
 from spcopyro.config import IMAGES, WORDS, DataPreparation, SpCoConfig
 from spcopyro.inference.protocol import InferenceOutput, Trace
 from spcopyro.maps import OccupancyGrid, load_map, save_map
+from spcopyro.results.concept_names import concept_names
 from spcopyro.results.concept_words import NO_WORDS, distinctive_items, lift, ranked
 from spcopyro.results.semantic_map import UnknownWordError, word_index, word_key
 from spcopyro.results.specks import with_speck_fields
@@ -289,14 +290,16 @@ class SpCoResult:
         return distinctive_items(table.probabilities[concept], self.lift()[concept], table.items, n)
 
     def concepts(self, n_words: int = 3) -> list[dict[str, object]]:
-        """Per concept in use: id, cell count, pi, top words (and the top items of every further
-        modality) with probabilities; the observed cells and words heard in its region
-        (``observed_cells``, ``words_heard``; None when unknown), its distinctive words
-        ``[word, lift, p]`` and, for a region where no word was heard, ``words_note`` =
-        :data:`~spcopyro.results.concept_words.NO_WORDS` and no word lists."""
+        """Per concept in use: id, its region's ``name`` (the word ``where`` answers with it,
+        :func:`~spcopyro.results.concept_names.concept_name`), cell count, pi, top words (and
+        the top items of every further modality) with probabilities; the observed cells and
+        words heard in its region (``observed_cells``, ``words_heard``; None when unknown), its
+        distinctive words ``[word, lift, p]`` and, for a region where no word was heard,
+        ``words_note`` = :data:`~spcopyro.results.concept_words.NO_WORDS` and no word lists."""
         sizes = self.concept_sizes()
         further = [t.name for t in self.emissions if t.name not in (IMAGES, WORDS)]
         summaries = []
+        names = concept_names(self)
         for c in self.concepts_in_use():
             heard = self.heard(int(c))
             silent = heard == 0
@@ -305,6 +308,7 @@ class SpCoResult:
             cells = None if self.concept_totals is None else int(self.concept_totals[c, 0])
             summary: dict[str, object] = {
                 "concept": int(c),
+                "name": names[int(c)],
                 "cells": int(sizes[c]),
                 "pi": float(self.pi[c]),
                 "top_words": [[word, p] for word, p in top],

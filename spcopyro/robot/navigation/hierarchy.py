@@ -202,7 +202,7 @@ def corridor(
 
 
 def _names(places: PlaceGraph, route: tuple[int, ...] | list[int]) -> str:
-    """The places of ``route`` as ``navigate`` prints a route: top words, told apart
+    """The places of ``route`` as ``navigate`` prints a route: their names, told apart
     (:func:`~spcopyro.robot.navigation.places.told_apart`)."""
     return " -> ".join(told_apart(places, route))
 

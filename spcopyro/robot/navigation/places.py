@@ -2,7 +2,9 @@
 
 Nodes: the connected regions of one concept on the fit's grid (4-connected components of
 :meth:`~spcopyro.results.result.SpCoResult.label_image`), each with its area, centroid and the
-concept's top words (none where no word was heard); regions smaller than ``min_area`` square
+concept's top words (none where no word was heard) and its name
+(:func:`~spcopyro.results.concept_names.concept_name`: the word ``where`` answers with it, as
+``spcopyro where`` would); regions smaller than ``min_area`` square
 metres are dropped (and counted).
 Edges: two regions whose cells touch (4-neighbours), with the length of the shared border
 (number of touching cell pairs x the cell size) and whether it is a doorway (a border of at most
@@ -23,6 +25,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import shortest_path
 
 from spcopyro.maps.regions import concept_regions, region_contacts
+from spcopyro.results.concept_names import answered_words
 
 __all__ = [
     "DEFAULT_MIN_AREA",
@@ -55,10 +58,16 @@ class Place:
     """World x, y (metres) of the mean of its cells' centres (may lie outside a concave one)."""
     words: tuple[str, ...]
     """The concept's top words, most probable first."""
+    answers: tuple[str, ...] = ()
+    """The words heard on the map whose ``where`` answer is its concept, highest p(C | word)
+    first (:func:`~spcopyro.results.concept_names.answered_words`)."""
 
     @property
     def name(self) -> str:
-        """Its top word, or ``concept N`` for a concept where no word was heard."""
+        """Its name (:func:`~spcopyro.results.concept_names.concept_name`): its first answered
+        word, else its top word, else ``concept N`` for a concept where no word was heard."""
+        if self.answers:
+            return self.answers[0]
         return self.words[0] if self.words else f"concept {self.concept}"
 
 
@@ -144,7 +153,8 @@ class PlaceGraph:
         return {
             "places": [
                 {"id": p.id, "concept": p.concept, "area_m2": p.area, "cells": p.cells,
-                 "x": p.centroid[0], "y": p.centroid[1], "words": list(p.words)}
+                 "x": p.centroid[0], "y": p.centroid[1], "name": p.name,
+                 "words": list(p.words), "answers": list(p.answers)}
                 for p in self.places
             ],
             "passages": [
@@ -188,6 +198,7 @@ def place_graph(result: object, min_area: float = DEFAULT_MIN_AREA) -> PlaceGrap
     centroid = np.stack([np.bincount(ids[inside], weights=xy[:, k], minlength=n)
                          for k in (0, 1)], axis=1) / np.maximum(cells, 1)[:, None]  # fmt: skip
     words: dict[int, tuple[str, ...]] = {}
+    answers = answered_words(result, heard_only=True)  # concept -> its where-answered words
     places = []
     for node, region in enumerate(order):
         concept = int(concept_of[region])
@@ -197,7 +208,7 @@ def place_graph(result: object, min_area: float = DEFAULT_MIN_AREA) -> PlaceGrap
             words[concept] = tuple(w for w, _ in top)
         places.append(Place(node, concept, int(cells[node]), float(cells[node] * cell_area),
                             (float(centroid[node, 0]), float(centroid[node, 1])),
-                            words[concept]))  # fmt: skip
+                            words[concept], answers.get(concept, ())))  # fmt: skip
     a, b, touching = region_contacts(regions)
     gap = np.hypot(*(centroid[a] - centroid[b]).T) if len(a) else np.zeros(0)
     border = touching * grid.resolution
@@ -232,7 +243,7 @@ def places_along(graph: PlaceGraph, cells: np.ndarray) -> tuple[int, ...]:
 def told_apart(
     graph: PlaceGraph, route: Sequence[int], words: Sequence[str] | None = None
 ) -> tuple[str, ...]:
-    """``words`` (one per place id of ``route``; None: each place's top word,
+    """``words`` (one per place id of ``route``; None: each place's name,
     :attr:`Place.name`) told apart where a name alone would mislead. A word that names several
     places of the route adds each one's concept (``sink (concept 3)``, ``sink (concept 7)``).
     Every word of a place that needs its id adds the place id instead (``bedroom (place 3)``: the

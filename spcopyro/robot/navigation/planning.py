@@ -142,8 +142,9 @@ class NavigationPlan:
     @property
     def route_words(self) -> tuple[str, ...]:
         """A word for every place of :attr:`route`: a stop's place reads as the instruction's word
-        for it (the robot sent to the kitchen reads "kitchen" there, though the place's most
-        probable word may be "sink"), every other place as its top word. A place where several
+        for it (the robot sent to the kitchen reads "kitchen" there, though the place's name may
+        be another word ``where`` answers with it), every other place as its name
+        (:attr:`~spcopyro.robot.navigation.places.Place.name`). A place where several
         stops lie in a row reads as their words joined by ``/`` ("go to the kitchen via the
         sink", both in one place: ``sink/kitchen``; only the last was named before)."""
         if not self.places:

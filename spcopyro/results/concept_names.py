@@ -1,0 +1,77 @@
+"""The name of a concept's region, one rule for every output that names one.
+
+A region is named by the word whose ``where`` answer (eq. 19 under the default area prior,
+argmax_C p(C | word)) is its concept: of those words, the one with the highest p(C | word) that
+was heard on the map's free space. A concept's most probable word may be another concept's
+answer, and ``show OUT --graph`` named places after top words (room2ldk4: two places named
+"bedroom", only one of them where ``spcopyro where OUT bedroom`` is). Where no word's answer is the
+concept, the region is named by its top word, and a region where no word was heard by
+``concept N`` (even where a word's answer is it: that answer is the prior's alone). Place
+words and object words are not told apart (a fit does not know which is which), so p(C | word)
+alone decides: the demo's kitchen region answers "sink" (p 0.87, measured on the seeded default
+fit) more surely than "kitchen" (p 0.78), and is still named "sink".
+
+Used by the place graph (:attr:`~spcopyro.robot.navigation.places.Place.name`: ``show
+--graph``, ``navigate``'s routes), ``concepts.json``'s ``name`` and the semantic map's label of
+a concept's further regions. numpy only: ``spcopyro show`` imports it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from spcopyro.config import WORDS
+from spcopyro.results.concept_words import RANK_DECIMALS
+
+__all__ = ["answered_words", "concept_name", "concept_names"]
+
+
+def answered_words(result: object, heard_only: bool = False) -> dict[int, tuple[str, ...]]:
+    """Per concept, the words whose ``where`` answer (eq. 19, the default area prior) it is,
+    highest p(C | word) first (ties in vocabulary order); ``heard_only``: only the words heard on
+    the map's free space and the concepts whose region holds a heard word (an answer without
+    either is the prior's alone). Empty for a fit without words."""
+    emissions = getattr(result, "emissions", ())
+    vocabulary = result.vocabulary  # type: ignore[attr-defined]
+    if not any(table.name == WORDS for table in emissions) or not vocabulary:
+        return {}
+    posterior = np.asarray(result.word_posteriors())  # type: ignore[attr-defined]  # [L, V]
+    best = posterior.argmax(axis=0)  # [V] each word's concept (the first of ties, as where's)
+    p = np.round(posterior[best, np.arange(len(vocabulary))], RANK_DECIMALS)  # [V]
+    totals = getattr(result, "word_totals", None)  # [V] or None (an old result: all heard)
+    answers: dict[int, list[int]] = {}
+    for v in np.argsort(-p, kind="stable"):
+        if heard_only and totals is not None and totals[v] == 0:
+            continue
+        answers.setdefault(int(best[v]), []).append(int(v))
+    heard = getattr(result, "heard", lambda _: None)
+    return {c: tuple(vocabulary[v] for v in vs) for c, vs in answers.items()
+            if not (heard_only and heard(c) == 0)}  # fmt: skip
+
+
+def concept_name(
+    result: object, concept: int, answers: dict[int, tuple[str, ...]] | None = None
+) -> str:
+    """The name of ``concept``'s region (module docstring): its best answered word, else its top
+    word, else ``concept N``. ``answers``: :func:`answered_words` with ``heard_only``, when
+    already computed (naming many concepts)."""
+    if answers is None:
+        answers = answered_words(result, heard_only=True)
+    if answers.get(concept):
+        return answers[concept][0]
+    heard = getattr(result, "heard", lambda _: None)(concept)
+    emissions = getattr(result, "emissions", ())
+    if heard != 0 and any(table.name == WORDS for table in emissions):
+        top = result.top_words(concept, 1)  # type: ignore[attr-defined]
+        if top:
+            return top[0][0]
+    return f"concept {concept}"
+
+
+def concept_names(result: object) -> dict[int, str]:
+    """:func:`concept_name` of every concept in use."""
+    answers = answered_words(result, heard_only=True)
+    return {
+        int(c): concept_name(result, int(c), answers)
+        for c in result.concepts_in_use()  # type: ignore[attr-defined]
+    }
