@@ -141,3 +141,13 @@ def test_the_trace_comment_names_each_methods_objective():
         (line,) = [s for s in page.read_text().splitlines() if s.startswith("result.trace.obj")]
         assert all(name in line for name in names), (page.name, line)
         assert "lbp: Bethe ELBO, no bound" in line, (page.name, line)
+
+
+def test_the_command_table_asks_the_fit_the_first_command_wrote():
+    """The table's where, navigate and export read ``out/sim``, which only a fit of the simulated
+    house writes; the first command writes ``out/demo``, and every command on a fit reads it."""
+    text = README.read_text(encoding="utf-8")
+    first = re.findall(r"```bash\n(.*?)```", text, re.DOTALL)[0]
+    (demo,) = re.findall(r"spcopyro fit --out (\S+)", first)
+    on_a_fit = re.findall(r"`spcopyro (?:where|navigate|export) (\S+)", text)
+    assert len(on_a_fit) >= 3 and set(on_a_fit) == {demo}, on_a_fit
