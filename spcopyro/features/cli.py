@@ -279,7 +279,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
     p = subparsers.add_parser(
         "features-head",
-        help="train a place head on the frozen AlexNet (distill a house's Ft.csv, or labels)",
+        help="train a place head on the frozen AlexNet (distil a house's Ft.csv, or labels)",
         description=(
             "SOURCE a house folder: distil its Ft.csv (the paper's Places205 histograms) from "
             "its images, training on some trials and reporting KL divergence and top-1 agreement "
