@@ -141,7 +141,7 @@ class _Samples(NamedTuple):
     signature: np.ndarray  # [N] each cell's column of signatures
 
 
-def _prepare(samples: np.ndarray, loss: str) -> _Samples:
+def _prepare(samples: np.ndarray, loss: str, bar=None) -> _Samples:
     codes, sizes, constant = [], [], 0.0
     for sample in samples:
         c, k = compact(sample)
@@ -155,6 +155,8 @@ def _prepare(samples: np.ndarray, loss: str) -> _Samples:
     for row, size in zip(stacked, sizes, strict=True):
         _, signature = np.unique(signature * size + row, return_inverse=True)
         signature = signature.reshape(-1)
+        if bar is not None:  # a sort of the N cells per sample: 0.3 s at 2.9 million cells
+            bar.update()
     first = np.zeros(int(signature.max()) + 1, dtype=np.int64)  # [U] a cell of each column
     first[signature[::-1]] = np.arange(signature.shape[0])[::-1]
     return _Samples(stacked, tuple(sizes), constant / len(sizes), stacked[:, first],
@@ -477,24 +479,24 @@ def point_estimate(
         starts: greedy searches from that many samples of lowest expected loss; the best wins.
         max_clusters: open no new cluster once the estimate has this many (e.g. the model's
             L; the samples' labels are below it, so the estimate's clusters stay within it).
-        progress: a progress bar (with its time estimate) over the samples' expected losses and
-            the greedy searches; None: on unless under CI (:mod:`spcopyro._util.progress`).
+        progress: a progress bar (and time estimate) over the samples' preparation, expected
+            losses and the searches; None: on unless under CI (:mod:`spcopyro._util.progress`).
     """
     from tqdm.auto import tqdm
 
     from spcopyro._util.progress import progress_enabled
 
     samples = _check(samples, loss)
-    prepared = _prepare(samples, loss)
     order_count = max(1, starts)
-    searches = min(order_count, len(prepared.codes))
+    searches = min(order_count, len(samples))  # the bar counts _prepare's S steps too
     with tqdm(
-        total=len(prepared.codes) + searches * MAX_SWEEPS * SWEEP_STEPS,
+        total=2 * len(samples) + searches * MAX_SWEEPS * SWEEP_STEPS,
         desc=f"point estimate ({LOSS_LABELS[loss]})",
         unit="step",
         disable=not progress_enabled(progress),
         leave=False,
     ) as bar:
+        prepared = _prepare(samples, loss, bar)
         losses = []
         for c, j in zip(prepared.codes, prepared.sizes, strict=True):
             losses.append(_expected(c, j, prepared, loss))
@@ -534,8 +536,7 @@ def agreement_probability(estimate: np.ndarray, samples: np.ndarray) -> np.ndarr
     """[N] per cell, the share of samples whose (matched) label agrees with ``estimate``."""
     samples = np.asarray(samples)
     estimate = np.asarray(estimate)
-    e, k = compact(estimate)  # once, not per sample
-    values = _label_values(estimate)[0]  # [K]
+    (e, k), values = compact(estimate), _label_values(estimate)[0]  # once, not per sample
     agree = np.zeros(estimate.shape[0])
     for sample in samples:
         agree += _matched(e, k, values, sample) == estimate
