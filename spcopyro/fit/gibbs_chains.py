@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from spcopyro._util.progress import setup_bar
 from spcopyro._util.timings import timed
 from spcopyro.config import SpCoConfig, SpCoSettings
 from spcopyro.gibbs.chains import advance_chains
@@ -190,8 +191,12 @@ def with_sample_marginals(
     # One set of concept names per result: the kept samples renamed to the reported map's
     # concepts before their frequencies are counted (issue 22 item 1).
     with timed("label_frequencies"):
-        samples = align_samples(samples, np.asarray(output.labels), config.num_concepts)
+        # 0.2-0.3 s per sample at 2.9 million cells (a warehouse at 0.05 m): a bar on such maps
+        bar = setup_bar(samples.shape[1], len(samples) + 1, "label frequencies", "sample", progress)
+        samples = align_samples(samples, np.asarray(output.labels), config.num_concepts, bar)
         marginals = label_frequencies(samples, config.num_concepts)  # [N, L]
+        bar.update()
+        bar.close()
     if output.parameters_drawn:
         given = None if point_estimate != "map-visited" else samples  # tables of its clusters
         sampled = config_at_posterior_mean(config, output.options.get("hyperparameters"))

@@ -36,7 +36,7 @@ one chain miss modes the chain never visited. Compare the two maps with that in 
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -81,7 +81,9 @@ def _check_labels(samples: np.ndarray, num_concepts: int) -> None:
         )
 
 
-def align_samples(samples: np.ndarray, reference: np.ndarray, num_concepts: int) -> np.ndarray:
+def align_samples(
+    samples: np.ndarray, reference: np.ndarray, num_concepts: int, bar: Any = None
+) -> np.ndarray:
     """``[S, N]`` the label ``samples`` renamed to the ``[N]`` ``reference`` map's concepts.
 
     A sampler's concept ids are arbitrary and change along a chain (a merge move, a relabelling),
@@ -92,7 +94,7 @@ def align_samples(samples: np.ndarray, reference: np.ndarray, num_concepts: int)
     with none of the reference's takes an id the reference does not use. Per-cell frequencies
     over the renamed samples then speak of the reported concepts. A sample that equals the
     reference up to names becomes the reference exactly. Cost per sample: O(N + K^3) for the
-    K concepts in use (not L)."""
+    K concepts in use (not L); ``bar.update()`` after each sample where a ``bar`` is given."""
     from scipy.optimize import linear_sum_assignment  # here, not on the fit's import path
 
     samples = np.asarray(samples)
@@ -115,6 +117,8 @@ def align_samples(samples: np.ndarray, reference: np.ndarray, num_concepts: int)
         rename[unmatched] = free_ids[: unmatched.size]
         rename_all[ids] = rename
         aligned[s] = rename_all[labels]
+        if bar is not None:
+            bar.update()
     return aligned
 
 
