@@ -37,7 +37,7 @@ def test_fit_refusal_says_overwrite_keeps_other_files(tmp_path, capsys):
 def test_robot_page_names_the_p_navigate_prints_on_room1dk5():
     """docs/robot.md's room1dk5 walk quoted navigate's two stop lines as 'p = 0.58 and 0.78 of
     the word's concept'; the stop line prints the goal cell's p(cell in the word's place)
-    ('goal cell in the place: p = ...', spcopyro/cli/navigate.py), not where's p(C | word).
+    ('goal cell: p(cell is the place) = ...', spcopyro/cli/navigate.py), not where's p(C | word).
     Re-run (fit --sweeps 2000, navigate --start=-4.7,-1.3): 0.575 and 0.777, equal there to
     where's p(C | word) for living and kitchen, since the goal cells lie inside their regions."""
     import re
@@ -45,12 +45,12 @@ def test_robot_page_names_the_p_navigate_prints_on_room1dk5():
 
     root = Path(__file__).resolve().parents[1]
     source = (root / "spcopyro" / "cli" / "navigate.py").read_text(encoding="utf-8")
-    assert "(goal cell in the place: p = {choice.candidate.probability:.3f}; " in source
+    assert "(goal cell: p(cell is the place) = {choice.candidate.probability:.3f}; " in source
     page = re.sub(r"\s+", " ", (root / "docs" / "robot.md").read_text(encoding="utf-8"))
     start = page.index("prints `route: entrance -> living -> kitchen`")
     paragraph = page[start : page.index("![navigate on room1dk5", start)]
     assert "of the word's concept" not in paragraph, paragraph
-    assert "`goal cell in the place: p = 0.575` and `0.777`" in paragraph, paragraph
+    assert "`goal cell: p(cell is the place) = 0.575` and `0.777`" in paragraph, paragraph
     assert "p(cell in the word's place) at each goal cell" in paragraph, paragraph
 
 

@@ -120,3 +120,64 @@ def test_a_goal_in_a_patch_smaller_than_a_place_is_warned_of():
     p_image[2:17, 21:30] = 0.9  # the whole room: 1.35 m^2
     choice = choose_goal(planning, "Kitchen", p_image[grid.free], distance)
     assert choice.candidate.area > 1 and not choice.notes
+
+
+def _bare_p(text: str) -> list[str]:
+    """The lines of ``text`` that print a probability as a bare 'p = ' or 'p >= '."""
+    import re
+
+    return [line for line in text.splitlines() if re.search(r"(^|[ (])p (=|>=) ", line)]
+
+
+def test_navigate_names_its_probabilities_as_where_does(tmp_path, capsys):
+    """QA: since bcf81ba `where` prints 'p(concept | word)' for the answer and 'p(cell is the
+    place)' for a cell; navigate's stop line, its ambiguous candidates, its unreachable and
+    --strict messages and where's close-odds warning (which navigate repeats) still printed a
+    bare 'p = ...', one name for two quantities."""
+    import dataclasses
+
+    from test_navigate import START_B, WORDS
+
+    from spcopyro.results.result import EmissionTable
+    from spcopyro.robot.navigation import AmbiguousGoalError, UnreachableGoalError
+
+    result = house_result()
+    fit = str(result.save(tmp_path / "fit"))
+    start = f"--start={START_B[0]},{START_B[1]}"
+    assert main(["navigate", fit, "go to the bedroom", start]) == 0  # two regions
+    out = capsys.readouterr().out
+    assert "(goal cell: p(cell is the place) = " in out, out
+    assert out.count(" p(cell is the place) = ") == 3, out  # the goal, each candidate
+    assert not _bare_p(out), out
+    assert main(["navigate", fit, "go to the bedroom", start, "--strict"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("(p(cell is the place) = ") == 2 and not _bare_p(err), err
+    with pytest.raises(UnreachableGoalError) as unreachable:  # the walled-off closet
+        navigate(result, "closet", START_A)
+    message = str(unreachable.value)
+    assert "(p(cell is the place) = " in message and not _bare_p(message), message
+    # 'kitchen' nearly as probable under the corridor's concept: where's close-odds warning
+    w = result.emission("words").probabilities.copy()  # [L, V]
+    w[1, WORDS.index("kitchen")] = w[2, WORDS.index("kitchen")] * 0.7
+    guessed = dataclasses.replace(result, emissions=tuple(
+        EmissionTable("words", WORDS, w / w.sum(1, keepdims=True)) if e.name == "words" else e
+        for e in result.emissions))  # fmt: skip
+    (odds,) = [x for x in guessed.where("kitchen").warnings if "close to a guess" in x]
+    assert "(p(concept | word) = " in odds and not _bare_p(odds), odds
+    notes = navigate(guessed, "kitchen", START_A).goal.choice.notes
+    assert any("(p(concept | word) = " in n for n in notes) and not _bare_p("\n".join(notes))
+    with pytest.raises(AmbiguousGoalError) as strict:
+        navigate(guessed, "kitchen", START_A, strict=True)
+    message = str(strict.value)
+    assert "(p(concept | word) = " in message and not _bare_p(message), message
+
+
+def test_a_small_patch_s_note_names_its_probability():
+    """The note of a goal in a patch under a place's size names its p as a cell's."""
+    grid = house_grid()
+    planning = planning_grid(grid, 0.0)
+    p_image = np.full(grid.shape, 0.3)
+    p_image[5:8, 23:26] = 0.9
+    distance, _ = shortest_paths(planning, planning.allowed.free_index[4, 3])
+    (note,) = choose_goal(planning, "kitchen", p_image[grid.free], distance).notes
+    assert "with p(cell is the place) >= 0.8 x the best (0.900)" in note, note

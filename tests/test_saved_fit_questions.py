@@ -155,7 +155,7 @@ def test_navigate_says_when_a_stops_concept_answers_other_words_too(tmp_path, ca
     assert stops[1]["shared_with"][0][1] > 0.5
     # the stop's p is its goal cell's, which the line says (where's p is the concept's)
     p = stops[1]["probability"]
-    assert "sink: goal x=" in out and f"(goal cell in the place: p = {p:.3f}; " in out
+    assert "sink: goal x=" in out and f"(goal cell: p(cell is the place) = {p:.3f}; " in out
 
 
 def test_show_graph_prints_the_words_where_answers_with_each_place(tmp_path, capsys):

@@ -111,7 +111,7 @@ def _plan_and_print(
         choice = stop.choice
         print(
             f"{stop.shown}: goal x={stop.xy[0]:.2f} y={stop.xy[1]:.2f} yaw={stop.yaw:.2f} "
-            f"(goal cell in the place: p = {choice.candidate.probability:.3f}; "
+            f"(goal cell: p(cell is the place) = {choice.candidate.probability:.3f}; "
             f"{choice.candidate.area:.1f} m^2 of the place the robot fits in)"
         )
         if choice.ambiguous:
@@ -122,8 +122,9 @@ def _plan_and_print(
             for c in choice.candidates:
                 if c.reachable:
                     mark = "*" if c.node == choice.node else " "
-                    print(f"  {mark} x={c.xy[0]:.2f} y={c.xy[1]:.2f} p = {c.probability:.3f} "
-                          f"{c.area:.1f} m^2, {c.distance:.2f} m away")  # fmt: skip
+                    print(f"  {mark} x={c.xy[0]:.2f} y={c.xy[1]:.2f} p(cell is the place) = "
+                          f"{c.probability:.3f}, {c.area:.1f} m^2, "
+                          f"{c.distance:.2f} m away")  # fmt: skip
         shared = shared_concept_note(choice.concept, choice.shared_with)
         if shared:  # as where's note: 'toilet' answered by the living room's concept
             print(f"  note: {shared}")

@@ -282,7 +282,7 @@ def answer_warnings(
     if second > 0 and close_to_guess(best / second):
         warnings.append(
             f"concept {concept} is barely more probable than concept {int(order[1])} "
-            f"(p = {best:.3f} against {second:.3f}, odds {best / second:.2f} < "
+            f"(p(concept | word) = {best:.3f} against {second:.3f}, odds {best / second:.2f} < "
             f"{ODDS_WARNING:g}): the answer is close to a guess between them"
         )
     evidence = bayes_factor(best, float(prior[concept]))

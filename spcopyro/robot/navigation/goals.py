@@ -481,8 +481,8 @@ def choose_goal(
         if not c.reachable:
             notes.append(
                 f"{word!r}: the region at x={c.xy[0]:.2f} y={c.xy[1]:.2f} "
-                f"(p = {c.probability:.3f}, {c.area:.1f} m^2) cannot be reached from here "
-                f"with {planning.radius:g} m of clearance; not a goal"
+                f"(p(cell is the place) = {c.probability:.3f}, {c.area:.1f} m^2) cannot be "
+                f"reached from here with {planning.radius:g} m of clearance; not a goal"
             )
     if not reachable:
         raise UnreachableGoalError(
@@ -490,7 +490,8 @@ def choose_goal(
         )
     if len(reachable) > 1 and strict:
         listed = "; ".join(
-            f"x={c.xy[0]:.2f} y={c.xy[1]:.2f} (p = {c.probability:.3f}, {c.distance:.1f} m away)"
+            f"x={c.xy[0]:.2f} y={c.xy[1]:.2f} (p(cell is the place) = {c.probability:.3f}, "
+            f"{c.distance:.1f} m away)"
             for c in reachable
         )
         raise AmbiguousGoalError(
@@ -500,9 +501,10 @@ def choose_goal(
     chosen = min(reachable, key=lambda c: (c.distance, -c.probability, c.node))
     if small:  # a speck at a room's edge was driven to without a word
         notes.append(
-            f"{word!r}: no patch of cells the robot fits on with p >= {AMBIGUITY_RATIO:g} x "
-            f"the best ({best:.3f}) covers {MIN_CANDIDATE_AREA:g} m^2; the goal is in the "
-            f"largest, {chosen.area:.2f} m^2: the place is small, or uncertain on this fit "
+            f"{word!r}: no patch of cells the robot fits on with p(cell is the place) >= "
+            f"{AMBIGUITY_RATIO:g} x the best ({best:.3f}) covers {MIN_CANDIDATE_AREA:g} m^2; "
+            f"the goal is in the largest, {chosen.area:.2f} m^2: the place is small, or "
+            "uncertain on this fit "
             "(`spcopyro where` shows its probability; a longer fit sharpens it)"
         )
     return GoalChoice(word, chosen.node, chosen, tuple(candidates), tuple(notes))

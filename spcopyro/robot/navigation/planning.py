@@ -345,7 +345,7 @@ def _with_where_warnings(
     if strict and answer.close_to_guess:
         raise AmbiguousGoalError(
             f"{word!r} is ambiguous: concept {answer.concept} is barely more probable than "
-            f"concept {answer.runner_up} (p = {answer.probability:.3f} against "
+            f"concept {answer.runner_up} (p(concept | word) = {answer.probability:.3f} against "
             f"{answer.runner_up_probability:.3f}, odds {answer.odds:.2f} < {ODDS_WARNING:g}): "
             "the answer is close to a guess between them (--strict)"
         )
