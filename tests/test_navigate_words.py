@@ -181,3 +181,22 @@ def test_a_small_patch_s_note_names_its_probability():
     distance, _ = shortest_paths(planning, planning.allowed.free_index[4, 3])
     (note,) = choose_goal(planning, "kitchen", p_image[grid.free], distance).notes
     assert "with p(cell is the place) >= 0.8 x the best (0.900)" in note, note
+
+
+def test_an_unknown_place_lists_every_word_of_a_home_s_vocabulary():
+    """QA (room1dk5, 300 sweeps): "go to the bathroom" listed 12 of the 14 known words and
+    '... (2 more)', hiding 'washroom', the one the user wanted; where lists a home's whole
+    vocabulary (KNOWN_WORDS_SHOWN), and navigate now does too, in both of its lists."""
+    from spcopyro.results.semantic_map import KNOWN_WORDS_SHOWN
+
+    vocabulary = ("bed", "bedroom", "chair", "entrance", "kitchen", "living", "refrigerator",
+                  "shelf", "shower", "table", "toilet", "tv", "wall", "washroom")  # fmt: skip
+    with pytest.raises(ValueError, match="names no place") as none:
+        parse_instruction("go to the bathroom", vocabulary)
+    assert str(none.value).endswith("known words: " + ", ".join(vocabulary)), none.value
+    with pytest.raises(ValueError, match="names a stop") as stop:
+        parse_instruction("go to the kitchen via the bathroom", vocabulary)
+    assert "(its words: " + ", ".join(vocabulary) + ")" in str(stop.value), stop.value
+    many = tuple(f"room{k:02d}x" for k in range(KNOWN_WORDS_SHOWN + 2))
+    with pytest.raises(ValueError, match=r"\.\.\. \(2 more\)$"):
+        parse_instruction("go to the garage", many)

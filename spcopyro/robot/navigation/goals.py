@@ -60,7 +60,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from spcopyro.data.text import hidden_characters_note, hidden_match
-from spcopyro.results.semantic_map import did_you_mean, word_key
+from spcopyro.results.semantic_map import KNOWN_WORDS_SHOWN, did_you_mean, word_key
 from spcopyro.results.where import close_to_guess
 from spcopyro.robot.navigation.graph import PlanningGrid
 
@@ -310,11 +310,10 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
             f"word {skipped[1]!r} of the instruction names a stop ({skipped[0]!r}) that is not "
             f"in the fit's vocabulary: navigate would skip it and drive to "
             f"{', '.join(places)} only; name the places the fit knows (its words: "
-            f"{', '.join(candidates[:12])}{', ...' if len(candidates) > 12 else ''})"
+            f"{_listed(candidates)})"
         )
     if not places:
-        shown = ", ".join(candidates[:12]) + (f", ... ({len(candidates) - 12} more)"
-                                                if len(candidates) > 12 else "")  # fmt: skip
+        shown = _listed(candidates)
         if not candidates:  # it ended "known words: " with nothing after
             shown = ("none: the fit has no word that can name a place (fitted without words, "
                      "or only connecting words such as 'the' heard)")  # fmt: skip
@@ -330,6 +329,14 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
             stops.append((place, waypoint, said))
     return Instruction(text, tuple(p for p, _, _ in stops), tuple(v for _, v, _ in stops),
                        tuple(ignored), tuple(s for _, _, s in stops))  # fmt: skip
+
+
+def _listed(words: list[str]) -> str:
+    """The fit's place words for an error, as ``where``'s unknown word lists them: up to
+    :data:`~spcopyro.results.semantic_map.KNOWN_WORDS_SHOWN` (a home's whole vocabulary; the
+    list stopped at 12 and hid room1dk5's 'washroom' from "go to the bathroom")."""
+    more = len(words) - KNOWN_WORDS_SHOWN
+    return ", ".join(words[:KNOWN_WORDS_SHOWN]) + (f", ... ({more} more)" if more > 0 else "")
 
 
 _PLACE_ARTICLES = frozenset({"the", "a", "an", "my", "our", "your"})
