@@ -140,7 +140,9 @@ def test_navigate_says_when_a_stops_concept_answers_other_words_too(tmp_path, ca
     fit = str(sink_result().save(tmp_path / "fit"))
     assert main(["where", fit, "sink"]) == 0
     where_note = capsys.readouterr().out.split("note: ", 1)[1].splitlines()[0]
-    assert where_note.startswith("concept 2 is also the answer for 'kitchen'")
+    assert where_note.startswith(
+        "concept 2 is also the answer, at p(concept | word) > 0.5, for 'kitchen'"
+    )
     start = f"--start={START_A[0]},{START_A[1]}"
     plan = str(tmp_path / "plan")
     argv = ["navigate", fit, "go to the sink via the corridor", start, "--out", plan, "--no-figure"]

@@ -27,7 +27,10 @@ def test_a_concept_answering_two_words_lists_the_other():
     kitchen = result.where("kitchen")  # concept 0 answers no other word
     assert kitchen.concept == 0 and kitchen.shared_with == ()
     note = shared_answer_note(bed)
-    assert note is not None and "concept 1 is also the answer for 'sofa' (p 0.60)" in note
+    assert (
+        note is not None
+        and "concept 1 is also the answer, at p(concept | word) > 0.5, for 'sofa' (0.60)" in note
+    )
     assert shared_answer_note(kitchen) is None
 
 
@@ -42,7 +45,12 @@ def test_shared_answers_keeps_only_words_above_the_threshold_and_names_a_few():
     assert SHARED_ANSWER_P == 0.5
     answer = dataclasses.replace(two_rooms().where("kitchen"), shared_with=shared + (("f", 0.51),))
     note = shared_answer_note(answer, shown=3)
-    assert note is not None and note.count("(p 0.") == 3 and "and 1 more word (p > 0.5)" in note
+    assert (
+        note is not None
+        and note.count(" (0.") == 3
+        and "(p " not in note
+        and "and 1 more word:" in note
+    )
 
 
 def unmapped_result():
@@ -79,7 +87,7 @@ def test_where_prints_the_shared_concept_and_the_unmapped_mass(tmp_path, capsys)
     out = result.save(tmp_path / "fit")
     assert main(["where", str(out), "bed", "--out", str(tmp_path / "bed.png")]) == 0
     printed = capsys.readouterr().out
-    assert "note: concept 1 is also the answer for 'sofa'" in printed
+    assert "note: concept 1 is also the answer, at p(concept | word) > 0.5, for 'sofa'" in printed
     assert "lies on concepts absent from the map)" in printed
     assert (tmp_path / "bed_probability.png").is_file()
     assert main(["where", str(out), "kitchen"]) == 0

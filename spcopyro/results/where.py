@@ -185,12 +185,12 @@ def shared_concept_note(
     :attr:`~WhereAnswer.shared_with` (``navigate`` keeps these two of each stop's answer)."""
     if not shared_with:
         return None
-    named = ", ".join(f"{w!r} (p {p:.2f})" for w, p in shared_with[:shown])
+    named = ", ".join(f"{w!r} ({p:.2f})" for w, p in shared_with[:shown])
     more = len(shared_with) - shown
     rest = f" and {plural(more, 'more word')}" if more > 0 else ""
-    return (
-        f"concept {concept} is also the answer for {named}{rest} (p > "
-        f"{SHARED_ANSWER_P:g}): if one of them names another room, this region holds both"
+    return (  # p named as where's answer line names it (a bare 'p 0.87' before)
+        f"concept {concept} is also the answer, at p(concept | word) > {SHARED_ANSWER_P:g}, for "
+        f"{named}{rest}: if one of them names another room, this region holds both"
     )
 
 
