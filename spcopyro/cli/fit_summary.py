@@ -17,7 +17,8 @@ if TYPE_CHECKING:
 __all__ = ["data_line", "inference_line", "model_line"]
 
 LABEL = 17
-"""The width of the summary's label column (``model            ``)."""
+"""The width of the summary's label column: each line's label (``model``, ``data``,
+``inference``) padded with spaces to 17 characters."""
 
 
 def _number(value: float) -> str:
