@@ -142,6 +142,19 @@ def _dirichlet_log_normaliser(rows: int, size: int, concentration: float) -> tor
     return rows * (torch.lgamma(a * size) - size * torch.lgamma(a))
 
 
+def dirichlet_multinomial_log_marginals(concentration: float, counts: torch.Tensor) -> torch.Tensor:
+    """[...] log B(a + n) - log B(a) along the last axis of ``counts`` n ``[..., K]`` (symmetric
+    Dir(a), real counts >= 0 allowed): each row's Dirichlet-multinomial log marginal without the
+    multinomial coefficient (free of a); a row of zeros gives 0. 0 for K = 0, as in
+    the Dirichlet's normaliser (lgamma(0 a) is inf, and inf - inf made it nan)."""
+    size = counts.shape[-1]
+    if size == 0:
+        return torch.zeros(counts.shape[:-1], dtype=DTYPE)
+    a = torch.tensor(concentration, dtype=DTYPE)
+    posterior = torch.lgamma(a + counts).sum(-1) - torch.lgamma(size * a + counts.sum(-1))
+    return posterior - (size * torch.lgamma(a) - torch.lgamma(size * a))
+
+
 def multinomial_coefficients(data: ModelData, config: SpCoConfig) -> torch.Tensor:
     """sum over the modalities in use of the observed counts' multinomial coefficients
     lgamma(n + 1) - sum lgamma(x + 1) (no label or parameter changes them)."""

@@ -19,6 +19,9 @@ from statistical_checks import assert_conditionals_match_model
 from spcopyro.config import preset
 from spcopyro.data import load_house, save_house
 from spcopyro.fit.house import fit_house
+from spcopyro.gibbs.hyper_options import HyperparameterOptions
+from spcopyro.gibbs.hyper_targets import dirichlet_multinomial_log_marginal
+from spcopyro.gibbs.hyperparameters import update_hyperparameters
 from spcopyro.gibbs.sampler import init
 from spcopyro.model import DTYPE
 from spcopyro.results.result import SpCoResult
@@ -44,6 +47,21 @@ def test_conditionals_match_model_without_words(use_words):
     state = init(data, cfg, torch.Generator().manual_seed(1))
     cells = torch.cat([data.obs_cells, torch.tensor([0, data.num_free - 1])]).unique()
     assert_conditionals_match_model(state, data, cfg, cells)
+
+
+def test_concentration_sampling_on_a_house_of_images_only_moves_chi_and_beta():
+    """beta's Dirichlet-multinomial term over V = 0 words is 0, not nan, so its target is its
+    prior alone and its moves are accepted (was: nan, none ever accepted)."""
+    cfg = config()
+    _, data = random_problem(seed=3, connectivity=cfg.connectivity)
+    data = data.with_counts("words", torch.zeros((data.obs_cells.shape[0], 0), dtype=DTYPE))
+    assert dirichlet_multinomial_log_marginal(torch.zeros(3, 0, dtype=DTYPE), 0.1) == 0.0
+    generator = torch.Generator().manual_seed(2)
+    state = init(data, cfg, generator)
+    hyper = HyperparameterOptions(concentrations=True, concentration_moves=20)
+    _, new_config, moves = update_hyperparameters(state, data, cfg, generator, hyper)
+    assert moves.accepted["chi"] > 0 and moves.accepted["beta"] > 0
+    assert new_config.beta != cfg.beta and math.isfinite(new_config.beta)
 
 
 @pytest.mark.parametrize("method", ["gibbs", "cavi", "lbp", "svi"])

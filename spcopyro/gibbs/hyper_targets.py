@@ -46,6 +46,7 @@ import math
 
 import torch
 
+from spcopyro.likelihood import dirichlet_multinomial_log_marginals
 from spcopyro.model import DTYPE
 
 LOG_SQRT_2PI = 0.5 * math.log(2 * math.pi)
@@ -62,13 +63,9 @@ def dirichlet_multinomial_log_marginal(counts: torch.Tensor, concentration: floa
     :math:`\sum_l [\log\Gamma(Ka) - \log\Gamma(Ka + x_{l\cdot}) + \sum_k \log\Gamma(a + x_{lk})
     - \log\Gamma(a)]`. ``counts`` is ``[G, K]`` (real values >= 0 allowed); a row of zeros adds
     0, so passing only the concepts that hold counts is enough. The multinomial coefficients
-    (free of a) are left out."""
-    K = counts.shape[-1]
-    a = torch.tensor(float(concentration), dtype=DTYPE)
-    totals = counts.sum(-1)  # [G]
-    per_row = torch.lgamma(K * a) - torch.lgamma(K * a + totals)  # [G]
-    per_item = torch.lgamma(a + counts) - torch.lgamma(a)  # [G, K]
-    return float(per_row.sum() + per_item.sum())
+    (free of a) are left out; K = 0 gives 0 (the words of a house where none was heard: their
+    concentration's target is then its prior alone)."""
+    return float(dirichlet_multinomial_log_marginals(float(concentration), counts).sum())
 
 
 def label_log_marginal(label_counts: torch.Tensor, pi_concentration: float) -> float:

@@ -85,6 +85,7 @@ from spcopyro._util.random_draws import coin_flip, metropolis_accept
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.backends import globals_sampler
 from spcopyro.gibbs.state import GibbsState
+from spcopyro.likelihood import dirichlet_multinomial_log_marginals
 from spcopyro.model import DTYPE, ModelData
 
 MERGE_SCANS = 3
@@ -103,23 +104,12 @@ class MoveInfo(NamedTuple):
 
 
 def used_modalities(data: ModelData, config: SpCoConfig) -> list[tuple[torch.Tensor, float]]:
-    """(counts [M, K_u], concentration a_u) of every modality the model uses that has items. One
-    of K_u = 0 (the words of a house where none was heard) adds 0 to every concept's term (its
-    Dirichlet is the point mass on the empty vector) and is left out: lgamma(0 a) is inf, and
-    its inf - inf made every move's ratio nan, so no move was ever accepted."""
+    """(counts [M, K_u], concentration a_u) of every modality the model uses. One of K_u = 0
+    (the words of a house where none was heard) adds 0 to every concept's term
+    (:func:`~spcopyro.likelihood.dirichlet_multinomial_log_marginals`)."""
     return [
-        (m.counts, config.concentration(m.name))
-        for m in data.modalities
-        if config.uses(m.name) and m.counts.shape[-1] > 0
+        (m.counts, config.concentration(m.name)) for m in data.modalities if config.uses(m.name)
     ]
-
-
-def _log_beta(concentration: float, counts: torch.Tensor) -> torch.Tensor:
-    """[...] log B(a + n) - log B(a) for symmetric concentration a along the last axis of n."""
-    size = counts.shape[-1]
-    a = torch.tensor(concentration, dtype=DTYPE)
-    posterior = torch.lgamma(a + counts).sum(-1) - torch.lgamma(size * a + counts.sum(-1))
-    return posterior - (size * torch.lgamma(a) - torch.lgamma(size * a))
 
 
 Counts = list[tuple[float, torch.Tensor]]
@@ -132,7 +122,7 @@ def concept_log_marginals(sizes: torch.Tensor, counts: Counts, config: SpCoConfi
     a_pi = torch.tensor(config.pi_concentration, dtype=DTYPE)
     total = torch.lgamma(a_pi + sizes.to(DTYPE))  # [G]
     for concentration, per_concept in counts:
-        total = total + _log_beta(concentration, per_concept)
+        total = total + dirichlet_multinomial_log_marginals(concentration, per_concept)
     return total
 
 
@@ -237,9 +227,9 @@ def _restricted_scan(
                 totals = obs_onehot.T @ counts  # [2, K_u]
                 x = counts[rows[hit]]  # [h, K_u]
                 without = totals[None] - own[hit][:, :, None] * x[:, None, :]  # [h, 2, K_u]
-                predictive = _log_beta(concentration, without + x[:, None, :]) - _log_beta(
-                    concentration, without
-                )  # [h, 2]
+                predictive = dirichlet_multinomial_log_marginals(
+                    concentration, without + x[:, None, :]
+                ) - dirichlet_multinomial_log_marginals(concentration, without)  # [h, 2]
                 logits[hit] += predictive
         log_p = torch.log_softmax(logits, -1)  # [nb, 2]
         if forced is None:

@@ -106,7 +106,10 @@ def _predictive_sides(
     n_s = totals[s] - x on its own side (the totals without the cell), totals[s] on the other.
     Classes the cell has no count of cancel, so only its nonzero x_c cost anything, and the
     log-gammas of the totals come from :func:`_side_terms` (once a block): one log-gamma per
-    nonzero class and side."""
+    nonzero class and side. (0, 0) for K = 0: a Dirichlet over no items is the point mass on
+    the empty vector (the lgamma(0 a) of its caches is inf)."""
+    if x.shape[0] == 0:
+        return 0.0, 0.0
     other = 1 - own
     value_own = 0.0
     value_other = 0.0

@@ -53,6 +53,7 @@ import torch
 
 from spcopyro.config import SpCoConfig
 from spcopyro.likelihood import (
+    dirichlet_multinomial_log_marginals,
     log_joint_constant,
     multinomial_coefficients,
     observation_log_likelihood,
@@ -122,20 +123,6 @@ def labelling_log_joint(
     return torch.cat(values)
 
 
-def _dirichlet_multinomial(concentration: float, counts: torch.Tensor) -> torch.Tensor:
-    """[...] log B(a + counts) - log B(a) along the last axis of ``counts`` ``[..., K]``
-    (symmetric prior a): the log marginal of the counts under a Dirichlet, without the
-    multinomial coefficient; 0 for K = 0 (the point mass on the empty vector: the words of a
-    house where none was heard; lgamma(0) is inf, which made it nan)."""
-    a = torch.tensor(concentration, dtype=DTYPE)
-    K = counts.shape[-1]
-    if K == 0:
-        return torch.zeros(counts.shape[:-1], dtype=DTYPE)
-    prior = torch.lgamma(a * K) - K * torch.lgamma(a)
-    posterior = torch.lgamma(a + counts).sum(-1) - torch.lgamma(a * K + counts.sum(-1))
-    return prior + posterior
-
-
 def labelling_log_evidence(
     labellings: torch.Tensor, data: ModelData, config: SpCoConfig
 ) -> torch.Tensor:
@@ -146,14 +133,14 @@ def labelling_log_evidence(
     values = []
     for chunk in labellings.split(_CHUNK):
         one_hot = torch.nn.functional.one_hot(chunk, L).to(DTYPE)  # [s, N, L]
-        value = _dirichlet_multinomial(config.pi_concentration, one_hot.sum(1))  # [s]
+        value = dirichlet_multinomial_log_marginals(config.pi_concentration, one_hot.sum(1))  # [s]
         value = value + config.gamma * potts_agreements(chunk, data.pairs)
         observed = one_hot[:, data.obs_cells]  # [s, M, L]
         for modality in data.modalities:
             if config.uses(modality.name):
                 per_concept = torch.einsum("sml,mk->slk", observed, modality.counts)  # [s, L, K]
-                concentration = config.concentration(modality.name)
-                value = value + _dirichlet_multinomial(concentration, per_concept).sum(-1)
+                a = config.concentration(modality.name)
+                value = value + dirichlet_multinomial_log_marginals(a, per_concept).sum(-1)
         values.append(value + coefficients)
     return torch.cat(values)
 
