@@ -106,6 +106,36 @@ def test_places_are_named_by_the_word_where_answers_with_them(result, tmp_path, 
     assert {c["concept"]: c["name"] for c in saved} == names
 
 
+def test_the_semantic_map_ranks_the_words_once_for_every_further_region(result, monkeypatch):
+    """Each further region's label is its concept's name; the semantic map named them with
+    :func:`concept_names` once, not with one :func:`answered_words` (a pass over the whole
+    vocabulary) per further region. The closet D split into three (a bedroom left, a kitchen
+    right) gives two further regions of bedroom and one of kitchen: one ranking, not three,
+    and the labels as :func:`region_text` writes them alone."""
+    import matplotlib.pyplot as plt
+
+    from spcopyro.figures.map_pieces import region_text
+    from spcopyro.figures.plotting import semantic_map_figure
+    from spcopyro.results import concept_names as names_module
+
+    image = result.label_image().copy()  # [H, W]
+    image[20:28, 1:10], image[20:28, 31:40] = CONCEPT["A"], CONCEPT["C"]
+    split = replace(result, labels=image[result.grid.free])
+    calls = []
+    ranked = names_module.answered_words
+    monkeypatch.setattr(names_module, "answered_words",
+                        lambda *a, **k: calls.append(1) or ranked(*a, **k))  # fmt: skip
+    figure = semantic_map_figure(split)
+    texts = {t.get_text() for ax in figure.axes for t in ax.texts}
+    plt.close(figure)
+    assert len(calls) == 1
+    further = {
+        region_text(split, CONCEPT["A"], largest=False),
+        region_text(split, CONCEPT["C"], largest=False),
+    }
+    assert further == {"[0] bedroom", "[2] kitchen"} and further <= texts
+
+
 def test_a_place_where_no_word_was_heard_is_named_by_its_concept(result):
     """Its top words are the prior's (ties, a fit printed 'restroom' for one-cell specks), so it
     has none and is called ``concept N``, as the fit's listing says "no words heard"."""

@@ -103,15 +103,24 @@ def _word_line(word: str, p: float, lift: float) -> str:
     return text + (f" x{lift:.1f}" if lift > MIN_LIFT else "")
 
 
-def region_text(result: SpCoResult, concept: int, n_words: int = 3, largest: bool = True) -> str:
+def region_text(
+    result: SpCoResult,
+    concept: int,
+    n_words: int = 3,
+    largest: bool = True,
+    name: str | None = None,
+) -> str:
     """The label of one region: ``[concept]`` then its ``n_words`` most probable words, one a
     line, each with its probability and, if distinctive, its lift (``"kitchen 0.31 x4.2"``);
     on a further region of the same concept, ``[concept]`` and its name on one line (the word
     ``where`` answers with it, :func:`~spcopyro.results.concept_names.concept_name`, as the place
     graph names it: the kitchen whose top word is "sink" reads ``[3] kitchen``).
-    A concept where no word was heard: ``[concept]`` and ``"no words heard here"``."""
+    A concept where no word was heard: ``[concept]`` and ``"no words heard here"``.
+    ``name``: the concept's name when the caller has it
+    (:func:`~spcopyro.results.concept_names.concept_names` once for every region of a map:
+    each call without it ranks the whole vocabulary again); None: computed here."""
     if not largest:
-        name = concept_name(result, concept)
+        name = concept_name(result, concept) if name is None else name
         return f"[{concept}]" if name == f"concept {concept}" else f"[{concept}] {name}"
     if result.heard(concept) == 0:
         return f"[{concept}]\n{NO_WORDS}"

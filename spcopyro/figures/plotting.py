@@ -58,6 +58,7 @@ from spcopyro.maps import (
     concept_regions,
     render_labels,
 )
+from spcopyro.results.concept_names import concept_names
 from spcopyro.results.concept_words import NO_WORDS, shown_words
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.specks import in_use_text
@@ -167,11 +168,13 @@ def semantic_map_figure(
     points = region_label_points(image, min_region_fraction * grid.num_free)
     points = [p for p in points if p[0] in labelled]
     points.sort(key=lambda p: -p[3])  # largest region first: its label wins a collision
+    names = concept_names(result)  # once: a further region's label is its concept's name
     labels = []
     for concept, row, col, _, largest in points:
         x, y = grid.cell_to_world(np.array([row, col]))
         silent = result.heard(concept) == 0
-        labels.append((float(x), float(y), region_text(result, concept, n_words, largest),
+        text = region_text(result, concept, n_words, largest, names.get(int(concept)))
+        labels.append((float(x), float(y), text,
                        {"fontsize": 6 if silent else 7, "style": "italic" if silent else
                         "normal", "color": "0.25" if silent else "black"}))  # fmt: skip
     regions = skipped = 0
