@@ -22,3 +22,15 @@ def test_label_frequencies_have_a_bar_on_a_large_map(monkeypatch, capsys):
     err = capsys.readouterr().err
     assert "label frequencies" in err
     assert "6/6" in err.split("label frequencies")[-1]  # one step per kept sample, then the count
+
+
+def test_fit_shows_a_bar_while_it_writes_a_large_maps_outputs(monkeypatch, capsys, tmp_path):
+    """Saving result.npz (it compresses the [N, L] marginals), the uncertainty and agreement
+    maps and the figures were 16 s of a silent terminal on the warehouse map."""
+    from spcopyro.cli.main import main
+
+    monkeypatch.setattr(progress, "SETUP_PROGRESS_CELLS", 0)  # the embedded house counts as large
+    assert main(["fit", "--out", str(tmp_path / "out"), "--sweeps", "20", "--no-figures"]) == 0
+    err = capsys.readouterr().err
+    assert "writing the outputs" in err
+    assert "3/3" in err.split("writing the outputs")[-1]
