@@ -220,7 +220,7 @@ def test_result_round_trips_every_field(small_house, tmp_path):
     loaded = SpCoResult.load(variational.save(tmp_path / "vi"))
     assert_same_result(loaded, variational)
     assert loaded.trace.objective_name == "ELBO"
-    with pytest.raises(ValueError, match="no final state"):
+    with pytest.raises(ValueError, match="^a variational result has no final state"):
         loaded.labels_of("final")
     header = (tmp_path / "vi" / "trace.csv").read_text().splitlines()[0]
     assert header == "iteration,elbo,num_concepts,seconds"

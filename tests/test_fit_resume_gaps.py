@@ -402,6 +402,18 @@ def test_the_interrupt_message_gives_each_method_its_article(method, article, tm
         args = argparse.Namespace(method=method, sweeps=10, update=None, chains=chains)
         line = interrupted_message(args, "", None, tmp_path / "out", finished=finished)
         assert f"{article} {method} checkpoint {said}" in line, line
-    spoken = {"gibbs": "a", "vi-gibbs": "a", "em": "an", "mcmc": "an", "ep": "an", "map": "a"}
+    spoken = {"gibbs": "a", "vi-gibbs": "a", "em": "an", "mcmc": "an", "ep": "an", "map": "a",
+              "'svi'": "an", "'cavi'": "a", '"lbp"': "an"}  # fmt: skip
     for name, article in spoken.items():
         assert with_article(name) == f"{article} {name}"
+
+
+def test_a_variational_checkpoint_of_several_seeds_is_refused_with_its_article(tmp_path):
+    """fit_house_chains says "an 'lbp' checkpoint holds one fit" (was "a 'lbp'")."""
+    from spcopyro.config import preset
+    from spcopyro.fit.house import fit_house_chains
+    from spcopyro.synthetic import make_house
+
+    with pytest.raises(ValueError, match="^an 'lbp' checkpoint holds one fit; 2 seeds asked$"):
+        fit_house_chains(make_house(seed=0), preset("original-code"), seeds=[0, 1],
+                         method="lbp", checkpoint=tmp_path / "ck", progress=False)  # fmt: skip

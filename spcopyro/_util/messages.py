@@ -68,8 +68,9 @@ def with_article(name: str) -> str:
     """``name`` after its indefinite article as said aloud: "an lbp", "an svi", "a cavi",
     "a gibbs", "a vi-gibbs", "a stochastic-vi". A name (its part before a ``-``) said letter
     by letter (one of a few initialisms, or one without a vowel) takes the article of its first
-    letter's name ("el", "ess": "an"; "vee": "a"), another that of its first letter."""
-    first = name.split("-", 1)[0].lower()
+    letter's name ("el", "ess": "an"; "vee": "a"), another that of its first letter. Quotes
+    around the name are not said: "an 'svi'", "a 'cavi'"."""
+    first = name.strip("'\"").split("-", 1)[0].lower()
     spelt = first in _SPELT_OUT or not any(c in "aeiou" for c in first)
     vowel_sound = first[:1] in ("aefhilmnorsx" if spelt else "aeiou")
     return f"{'an' if vowel_sound else 'a'} {name}"

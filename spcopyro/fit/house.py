@@ -27,6 +27,7 @@ import numpy as np
 import torch
 
 from spcopyro import __version__
+from spcopyro._util.messages import with_article
 from spcopyro._util.random_draws import check_seed
 from spcopyro._util.threads import (
     AUTO,
@@ -349,7 +350,9 @@ def fit_house_chains(
             raise ValueError(f"checkpoints hold Gibbs chains or a variational q(C); the "
                              f"{method!r} method keeps neither")  # fmt: skip
         if len(seeds) > 1:
-            raise ValueError(f"a {method!r} checkpoint holds one fit; {len(seeds)} seeds asked")
+            raise ValueError(
+                f"{with_article(repr(method))} checkpoint holds one fit; {len(seeds)} seeds asked"
+            )
     workers = chains_side_by_side(inference, chain_workers, len(seeds))
     count = chain_threads(threads, house.grid.num_free, workers)  # auto: 1 with workers > 1
     with timed("model_data"):

@@ -49,6 +49,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from pyro.infer import MCMC
 
+from spcopyro._util.messages import with_article
 from spcopyro.gibbs.run import GibbsRun
 from spcopyro.model import SITE_LABELS, SITE_PI, ModelData
 
@@ -81,8 +82,8 @@ def _per_sweep_traces(source: object) -> tuple[np.ndarray, np.ndarray]:
         )
     if getattr(trace, "objective_name", "log joint") != "log joint":  # vi-gibbs samples too
         raise ValueError(
-            f"a {method!r} result's trace is an optimiser's objective, not a Markov chain: "
-            "only Gibbs chains (gibbs, vi-gibbs) go to ArviZ"
+            f"{with_article(repr(method))} result's trace is an optimiser's objective, not a "
+            "Markov chain: only Gibbs chains (gibbs, vi-gibbs) go to ArviZ"
         )
     return np.asarray(trace.objective), np.asarray(trace.num_concepts)
 

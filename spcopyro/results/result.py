@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from spcopyro._util.messages import with_article
 from spcopyro._util.outputs import DAMAGED_FILE_ERRORS, read_npz
 from spcopyro.config import IMAGES, WORDS, DataPreparation, SpCoConfig
 from spcopyro.inference.protocol import InferenceOutput, Trace
@@ -221,7 +222,7 @@ class SpCoResult:
             raise ValueError(f"which must be 'best' or 'final', got {which!r}")
         if which == "final":
             if self.labels_final is None:
-                raise ValueError(f"a {self.method} result has no final state's labels")
+                raise ValueError(f"{with_article(self.method)} result has no final state's labels")
             return self.labels_final
         return self.labels
 
