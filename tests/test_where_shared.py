@@ -10,8 +10,15 @@ import pytest
 from hand_results import two_rooms
 
 from spcopyro.cli.main import main
+from spcopyro.results.concept_names import answered_words
+from spcopyro.results.concept_words import RANK_DECIMALS
 from spcopyro.results.uncertainty import unmapped_mass, unmapped_note, where_probability
-from spcopyro.results.where import SHARED_ANSWER_P, shared_answer_note, shared_answers
+from spcopyro.results.where import (
+    SHARED_ANSWER_P,
+    answers_by_concept,
+    shared_answer_note,
+    shared_answers,
+)
 
 
 def test_a_concept_answering_two_words_lists_the_other():
@@ -50,6 +57,26 @@ def test_shared_answers_keeps_only_words_above_the_threshold_and_names_a_few():
         and note.count(" (0.") == 3
         and "(p " not in note
         and "and 1 more word:" in note
+    )
+
+
+def test_answers_by_concept_ranks_each_concepts_words_as_both_callers_read_them():
+    """One ranking of each concept's answered words serves ``where``'s shared answers (exact p)
+    and the concepts' names (p rounded to RANK_DECIMALS, a near-tie in vocabulary order)."""
+    posterior = np.array([[0.6, 0.60000001, 0.3, 0.5], [0.4, 0.39999999, 0.7, 0.5]])  # [L, V]
+    assert answers_by_concept(posterior) == {0: [(1, 0.60000001), (0, 0.6), (3, 0.5)],
+                                             1: [(2, 0.7)]}  # fmt: skip  # 3: first of ties
+    rounded = answers_by_concept(posterior, decimals=6)
+    assert rounded == {0: [(0, 0.6), (1, 0.6), (3, 0.5)], 1: [(2, 0.7)]}
+    assert answers_by_concept(np.zeros((2, 0))) == {}
+    result = two_rooms()
+    ranked = answers_by_concept(result.word_posteriors(), decimals=RANK_DECIMALS)
+    named = {c: tuple(result.vocabulary[v] for v, _ in vs) for c, vs in ranked.items()}
+    assert answered_words(result) == named
+    w, prior = result.w, result.concept_prior("area")
+    exact = answers_by_concept(result.word_posteriors())[1]
+    assert shared_answers(w, prior, 1, result.vocabulary, "") == tuple(
+        (result.vocabulary[v], p) for v, p in exact if p > SHARED_ANSWER_P
     )
 
 

@@ -22,6 +22,7 @@ import numpy as np
 
 from spcopyro.config import WORDS
 from spcopyro.results.concept_words import RANK_DECIMALS
+from spcopyro.results.where import answers_by_concept
 
 __all__ = ["answered_words", "concept_name", "concept_names"]
 
@@ -36,17 +37,13 @@ def answered_words(result: object, heard_only: bool = False) -> dict[int, tuple[
     if not any(table.name == WORDS for table in emissions) or not vocabulary:
         return {}
     posterior = np.asarray(result.word_posteriors())  # type: ignore[attr-defined]  # [L, V]
-    best = posterior.argmax(axis=0)  # [V] each word's concept (the first of ties, as where's)
-    p = np.round(posterior[best, np.arange(len(vocabulary))], RANK_DECIMALS)  # [V]
+    ranked = answers_by_concept(posterior, decimals=RANK_DECIMALS)  # near-ties: vocabulary order
     totals = getattr(result, "word_totals", None)  # [V] or None (an old result: all heard)
-    answers: dict[int, list[int]] = {}
-    for v in np.argsort(-p, kind="stable"):
-        if heard_only and totals is not None and totals[v] == 0:
-            continue
-        answers.setdefault(int(best[v]), []).append(int(v))
     heard = getattr(result, "heard", lambda _: None)
-    return {c: tuple(vocabulary[v] for v in vs) for c, vs in answers.items()
-            if not (heard_only and heard(c) == 0)}  # fmt: skip
+    answers = {c: tuple(vocabulary[v] for v, _ in vs
+                        if not (heard_only and totals is not None and totals[v] == 0))
+               for c, vs in ranked.items() if not (heard_only and heard(c) == 0)}  # fmt: skip
+    return {c: words for c, words in answers.items() if words}
 
 
 def concept_name(

@@ -72,6 +72,7 @@ __all__ = [
     "WHERE_PRIORS",
     "WhereAnswer",
     "answer_warnings",
+    "answers_by_concept",
     "bayes_factor",
     "close_to_guess",
     "region_pieces",
@@ -136,6 +137,29 @@ def concept_given_words(w: np.ndarray, prior: np.ndarray) -> np.ndarray:
     return np.divide(score, total, out=np.zeros_like(score), where=total > 0)  # [L, V]
 
 
+def answers_by_concept(
+    posterior: np.ndarray, decimals: int | None = None
+) -> dict[int, list[tuple[int, float]]]:
+    """Per concept, the words whose answer it is (each word's argmax over ``posterior``'s
+    concepts, the first of ties, as ``where``'s), as (word's column, p(C | word)), highest p
+    first, ties in vocabulary order; a concept that answers no word is left out.
+
+    Args:
+        posterior: [L, V] p(C = l | word) (:func:`concept_given_words`).
+        decimals: p rounded to this many decimals before ranking, and returned rounded (words
+            nearer than that rank in vocabulary order); None: exact.
+    """
+    posterior = np.asarray(posterior)
+    best = posterior.argmax(axis=0)  # [V] each word's answer
+    p = posterior[best, np.arange(posterior.shape[1])]  # [V]
+    if decimals is not None:
+        p = np.round(p, decimals)
+    answers: dict[int, list[tuple[int, float]]] = {}
+    for v in np.argsort(-p, kind="stable"):
+        answers.setdefault(int(best[v]), []).append((int(v), float(p[v])))
+    return answers
+
+
 def shared_answers(
     w: np.ndarray,
     prior: np.ndarray,
@@ -162,14 +186,10 @@ def shared_answers(
     """
     if posterior is None:
         posterior = concept_given_words(w, prior)  # [L, V]
-    best = np.argmax(posterior, axis=0)  # [V] each word's answer (first of ties, as where's)
-    p = posterior[concept]  # [V]
-    shared = [
-        (str(other), float(p[v]))
-        for v, other in enumerate(vocabulary)
-        if other != word and best[v] == concept and p[v] > threshold
-    ]
-    return tuple(sorted(shared, key=lambda item: -item[1]))
+    answered = answers_by_concept(posterior).get(concept, [])  # p exact, not rounded
+    return tuple(
+        (str(vocabulary[v]), p) for v, p in answered if vocabulary[v] != word and p > threshold
+    )
 
 
 def shared_answer_note(answer: WhereAnswer, shown: int = 3) -> str | None:
