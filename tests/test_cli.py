@@ -257,6 +257,23 @@ def test_loading_an_old_result_says_to_fit_again(small_house, tmp_path, capsys):
     assert "fit again" in capsys.readouterr().err
 
 
+def test_fit_lists_the_concepts_and_the_next_step_from_one_list(tmp_path, capsys, monkeypatch):
+    """print_concepts and next_step share one result.concepts() (next_step computed it again;
+    save's concepts.json, of 10 words each, is the only other)."""
+    calls = []
+    concepts = SpCoResult.concepts
+
+    def counted(self, n_words=3):
+        calls.append(n_words)
+        return concepts(self, n_words)
+
+    monkeypatch.setattr(SpCoResult, "concepts", counted)
+    out = tmp_path / "fit"
+    assert main(["fit", "--method", "cavi", "--out", str(out), "--no-figures"]) == 0
+    assert calls.count(3) == 1, calls
+    assert "next: ask where the " in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("method", ["cavi", "lbp"])
 def test_variational_fits_stop_by_themselves_and_say_why(method, tmp_path, capsys):
     """Issue 23: `fit --method lbp` ran all 5000 iterations on the embedded house (2 minutes);

@@ -22,18 +22,21 @@ if TYPE_CHECKING:
 __all__ = ["next_step", "print_concepts"]
 
 
-def print_concepts(result: SpCoResult, limit: int = 10) -> None:
+def print_concepts(
+    result: SpCoResult, limit: int = 10, concepts: list[dict[str, object]] | None = None
+) -> None:
     """The ``limit`` largest concepts, one line each: cells, words heard there, the top words
     (posterior means) and the distinctive ones with their lifts
     (:mod:`spcopyro.results.concept_words`), or that no word was heard there. Specks (concepts
     under :data:`SPECK_SHARE` of the free cells where no word was heard: a doorway or corner
     cell the Potts field holds weakly, docs/real_houses.md) share one line at the end, with how
-    much of the posterior holds them (:func:`~spcopyro.results.specks.support_text`)."""
+    much of the posterior holds them (:func:`~spcopyro.results.specks.support_text`).
+    ``concepts``: ``result.concepts()`` where the caller has it already (computed if None)."""
     parameters = result.inference.get("parameters", "words as the method estimates them")
     print(f"concepts (words: {parameters}; distinctive: lift = p(word | concept) / p(word) > "
           f"{MIN_LIFT:g}, p(word) the area-weighted mix):")  # fmt: skip
     further = [t.name for t in result.emissions if t.name not in ("images", "words")]
-    concepts = result.concepts()
+    concepts = result.concepts() if concepts is None else concepts
     heard_counts = [c["words_heard"] for c in concepts if c["words_heard"] is not None]
     if any(round(h, 1) != round(h) for h in heard_counts):
         print("  (N words: the utterances heard in the concept's cells; the observation "
@@ -77,13 +80,15 @@ def print_concepts(result: SpCoResult, limit: int = 10) -> None:
         print(f"  no concept has a distinctive word (every lift <= {MIN_LIFT:g})")
 
 
-def next_step(result: SpCoResult, out: Path, figures: bool = True) -> str | None:
+def next_step(
+    result: SpCoResult, concepts: list[dict[str, object]], out: Path, figures: bool = True
+) -> str | None:
     """The line ``fit`` ends with: the figure to open (``figures``), and the ``where`` command
     that asks the map for the place of a word: the first distinctive (else top) word of the
-    largest concept, "bathroom" on the default house. None: no figure, and no concept heard a
-    word."""
+    largest concept, "bathroom" on the default house (``concepts``: ``result.concepts()``, as
+    :func:`print_concepts` listed them). None: no figure, and no concept heard a word."""
     steps = [f"open {out / 'semantic_map.png'}"] if figures else []
-    for concept in result.concepts():
+    for concept in concepts:
         words = concept["distinctive_words"] or concept["top_words"]
         if words and not _is_speck(concept, result.grid.num_free):
             word = str(words[0][0])

@@ -510,7 +510,8 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
                      f"{on_map.grid.resolution:g} m, as a refined fit is scored")  # fmt: skip
         (out / "scores.json").write_text(json.dumps(scores) + "\n")
         print(f"adjusted Rand index against the ground truth:{where or f' {ari:.3f}'}")
-    print_concepts(result)
+    concepts = result.concepts()  # listed, then the next step's word
+    print_concepts(result, concepts=concepts)
     log_degenerate_map(result, house)  # printed once, as "warning: ..."
     vocabulary_size = len(result.vocabulary)
     used = result.concepts_in_use()
@@ -542,7 +543,7 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
               "--no-figures)")  # fmt: skip
     else:
         print(f"wrote {out}/: labels.npy semantic_map.png concepts.json trace.csv trace.png ...")
-    if (step := next_step(result, out, figures=not args.no_figures)) is not None:
+    if (step := next_step(result, concepts, out, figures=not args.no_figures)) is not None:
         print(step)
     phases.mark("commit")
     refined = result.inference["refine"]["coarse"] if job.refined else {}  # and the coarse's
