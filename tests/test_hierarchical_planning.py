@@ -186,7 +186,9 @@ def test_a_fallback_names_the_route_s_places_told_apart():
     graph = replace(
         graph,
         places=tuple(
-            replace(p, answers=("kitchen", *p.answers)) if p.name == "corridor" else p
+            replace(p, name="kitchen", answers=("kitchen", *p.answers))  # stored, not derived
+            if p.name == "corridor"
+            else p
             for p in graph.places
         ),
     )

@@ -136,6 +136,21 @@ def test_the_semantic_map_ranks_the_words_once_for_every_further_region(result, 
     assert further == {"[0] bedroom", "[2] kitchen"} and further <= texts
 
 
+def test_a_place_stores_its_concepts_name_from_the_one_naming_rule(result, monkeypatch):
+    """Place.name was a property repeating concept_name's fallback chain; it is now the name
+    place_graph read from concept_name, so a change of that rule reaches the places too."""
+    import dataclasses
+
+    from spcopyro.robot.navigation import places as places_module
+
+    graph = place_graph(result)
+    assert "name" in {f.name for f in dataclasses.fields(graph.places[0])}
+    names = {c["concept"]: c["name"] for c in result.concepts()}
+    assert all(p.name == names[p.concept] for p in graph.places)
+    monkeypatch.setattr(places_module, "concept_name", lambda _, c, __=None: f"room {c}")
+    assert {p.name for p in place_graph(result).places} == {f"room {c}" for c in CONCEPT.values()}
+
+
 def test_a_place_where_no_word_was_heard_is_named_by_its_concept(result):
     """Its top words are the prior's (ties, a fit printed 'restroom' for one-cell specks), so it
     has none and is called ``concept N``, as the fit's listing says "no words heard"."""
@@ -211,7 +226,9 @@ def test_a_stop_s_place_reads_as_the_word_the_robot_was_sent_with(result):
     a place passed on the way keeps its top word."""
     graph = place_graph(result)
     places = tuple(
-        replace(p, answers=("sink", *p.answers)) if p.name in ("kitchen", "corridor") else p
+        replace(p, name="sink", answers=("sink", *p.answers))  # the name is stored, not derived
+        if p.name in ("kitchen", "corridor")
+        else p
         for p in graph.places
     )
     plan = navigate(result, "go to the kitchen", START_A, places=replace(graph, places=places))

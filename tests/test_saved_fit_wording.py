@@ -74,8 +74,8 @@ def test_navigate_tells_apart_two_places_of_the_route_with_one_name(tmp_path, ca
     assert route == "route: bedroom (place 3) -> corridor -> kitchen -> bedroom (place 4)"
 
     graph = place_graph(result)  # the corridor renamed "kitchen": two concepts, one word
-    places = tuple(dataclasses.replace(p, answers=("kitchen", *p.answers)) if p.name == "corridor"
-                   else p for p in graph.places)  # fmt: skip
+    places = tuple(dataclasses.replace(p, name="kitchen", answers=("kitchen", *p.answers))
+                   if p.name == "corridor" else p for p in graph.places)  # fmt: skip
     graph = dataclasses.replace(graph, places=places)
     plan = navigate(result, "go to the kitchen", START_A, places=graph)
     assert plan.route_words == ("bedroom", "kitchen", "kitchen")
@@ -97,8 +97,8 @@ def test_navigate_tells_that_a_place_passed_and_a_stop_are_one_place():
 
     result = house_result()
     graph = place_graph(result)  # the corridor's top word "hall", its concept still "corridor"'s
-    places = tuple(dataclasses.replace(p, answers=("hall", *p.answers)) if p.name == "corridor"
-                   else p for p in graph.places)  # fmt: skip
+    places = tuple(dataclasses.replace(p, name="hall", answers=("hall", *p.answers))
+                   if p.name == "corridor" else p for p in graph.places)  # fmt: skip
     graph = dataclasses.replace(graph, places=places)
     plan = navigate(result, "go to the corridor via the kitchen", START_A, places=graph)
     assert plan.route_words == ("bedroom", "hall", "kitchen", "corridor")
@@ -121,7 +121,7 @@ def test_a_word_of_a_place_that_needs_its_id_shows_ids_wherever_it_is_said():
 
     result = house_result()
     graph = place_graph(result)
-    places = tuple(dataclasses.replace(p, answers=("hall", *p.answers))
+    places = tuple(dataclasses.replace(p, name="hall", answers=("hall", *p.answers))
                    if p.name in ("corridor", "bedroom") else p for p in graph.places)  # fmt: skip
     graph = dataclasses.replace(graph, places=places)
     plan = navigate(result, "go to the corridor via the kitchen", START_A, places=graph)

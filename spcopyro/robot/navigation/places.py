@@ -25,7 +25,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import shortest_path
 
 from spcopyro.maps.regions import concept_regions, region_contacts
-from spcopyro.results.concept_names import answered_words
+from spcopyro.results.concept_names import answered_words, concept_name
 
 __all__ = [
     "DEFAULT_MIN_AREA",
@@ -58,17 +58,13 @@ class Place:
     """World x, y (metres) of the mean of its cells' centres (may lie outside a concave one)."""
     words: tuple[str, ...]
     """The concept's top words, most probable first."""
+    name: str
+    """Its name, its concept's (:func:`~spcopyro.results.concept_names.concept_name`, the one
+    rule of every output that names a region): its first answered word, else its top word,
+    else ``concept N`` for a concept where no word was heard."""
     answers: tuple[str, ...] = ()
     """The words heard on the map whose ``where`` answer is its concept, highest p(C | word)
     first (:func:`~spcopyro.results.concept_names.answered_words`)."""
-
-    @property
-    def name(self) -> str:
-        """Its name (:func:`~spcopyro.results.concept_names.concept_name`): its first answered
-        word, else its top word, else ``concept N`` for a concept where no word was heard."""
-        if self.answers:
-            return self.answers[0]
-        return self.words[0] if self.words else f"concept {self.concept}"
 
 
 @dataclass(frozen=True)
@@ -198,6 +194,7 @@ def place_graph(result: object, min_area: float = DEFAULT_MIN_AREA) -> PlaceGrap
     centroid = np.stack([np.bincount(ids[inside], weights=xy[:, k], minlength=n)
                          for k in (0, 1)], axis=1) / np.maximum(cells, 1)[:, None]  # fmt: skip
     words: dict[int, tuple[str, ...]] = {}
+    names: dict[int, str] = {}
     answers = answered_words(result, heard_only=True)  # concept -> its where-answered words
     places = []
     for node, region in enumerate(order):
@@ -206,9 +203,10 @@ def place_graph(result: object, min_area: float = DEFAULT_MIN_AREA) -> PlaceGrap
             heard = getattr(result, "heard", lambda _: None)(concept)
             top = result.top_words(concept, 3) if heard != 0 else []  # type: ignore[attr-defined]
             words[concept] = tuple(w for w, _ in top)
+            names[concept] = concept_name(result, concept, answers)  # concept_names' rule
         places.append(Place(node, concept, int(cells[node]), float(cells[node] * cell_area),
                             (float(centroid[node, 0]), float(centroid[node, 1])),
-                            words[concept], answers.get(concept, ())))  # fmt: skip
+                            words[concept], names[concept], answers.get(concept, ())))  # fmt: skip
     a, b, touching = region_contacts(regions)
     gap = np.hypot(*(centroid[a] - centroid[b]).T) if len(a) else np.zeros(0)
     border = touching * grid.resolution
