@@ -161,6 +161,31 @@ def test_the_where_title_leaves_out_words_at_p_0_00():
     assert "its words: kitchen" in ax.get_title() and "sofa" not in ax.get_title()
 
 
+def test_the_where_figure_names_the_answers_p_apart_from_the_cells():
+    """``where --out`` labelled the answer's probability "p = 0.748" beside a colour bar of each
+    cell's probability: two p's, one name. It now names them as ``where`` prints them."""
+    import dataclasses
+
+    from hand_results import two_rooms
+
+    from spcopyro.figures.plotting import where_figure
+
+    result = two_rooms()
+    shown = dataclasses.replace(result, marginals=np.full((result.grid.num_free, 3), 1 / 3))
+    answer = shown.where("bed")
+    fig = where_figure(shown, answer)
+    ax = fig.axes[0]
+    bar = next(a for a in [*fig.axes, *ax.child_axes] if a is not ax)  # the colour bar
+    assert bar.get_ylabel().startswith("p(cell is the place) for 'bed'")
+    answer_line, runner_line = _legend_texts(fig)[:2]
+    assert answer_line.startswith(
+        f"answer: concept 1, p(concept | word) = {answer.probability:.3f}"
+    )
+    assert runner_line.startswith(f"runner-up: concept {answer.runner_up}, p(concept | word) = ")
+    assert f"concept 1, p(concept | word) = {answer.probability:.3f}" in ax.get_title()
+    assert "p = " not in ax.get_title() + answer_line + runner_line
+
+
 def test_legend_counts_of_words_heard_read_as_english(monkeypatch):
     """'[63] 199 cells, 1 words heard: ...' and '[11] 204 cells, 0 words heard: no words heard
     here' (an original-code fit's legend)."""

@@ -232,8 +232,10 @@ def where_figure(
     map's concepts: the colour bar says so where cells hold mass on others) as a colour scale,
     the answer's region outlined in red and the runner-up's in dashed blue; without them (a
     point estimate), the answer's region filled red and the runner-up's blue
-    (:func:`where_image`). A title with the word, the concept, p, the prior and the concept's
-    words, a legend, and the answer's warnings under the map. A region smaller than
+    (:func:`where_image`). A title with the word, the concept, p(concept | word), the prior and
+    the concept's words, a legend, and the answer's warnings under the map (the answer's p is
+    p(concept | word), the colour bar's p(cell is the place), as ``where`` prints them). A
+    region smaller than
     ``SMALL_REGION_FRACTION`` of the free cells is ringed, so a speck can be seen.
     ``probability``: [N] that :func:`~spcopyro.results.uncertainty.where_probability` of
     ``answer.word`` and ``answer.prior`` when the caller has it (``spcopyro where``), or None."""
@@ -266,7 +268,7 @@ def where_figure(
                 draw_outline(ax, grid, runner, rows, cols, extent, colors=[blue],
                              linewidths=1.5, linestyles="dashed")  # fmt: skip
         fig.colorbar(scale, cax=axes[-1].inset_axes((1.02, 0.0, 0.025, 1.0)),  # the map's height
-                     label=f"p(cell in the place of '{answer.word}')"
+                     label=f"p(cell is the place) for '{answer.word}'"
                      + ("; the map's concepts only" if unmapped_note(result) else ""))  # fmt: skip
         answer_handle = Line2D([], [], color=red, lw=2.0, label="")
         runner_handle = Line2D([], [], color=blue, lw=1.5, ls="--", label="")
@@ -278,13 +280,14 @@ def where_figure(
             ax.scatter(*xy.T, s=300, facecolors="none", edgecolors=np.array(ANSWER_RGB) / 255.0,
                        linewidths=1.5, zorder=3)  # fmt: skip
     answer_handle.set_label(
-        f"answer: concept {answer.concept}, p = {answer.probability:.3f} "
+        f"answer: concept {answer.concept}, p(concept | word) = {answer.probability:.3f} "
         f"({plural(cells, 'cell')}, {cells * area:.2f} m²)"
     )
     handles.append(answer_handle)
     if runner is not None:
         runner_handle.set_label(
-            f"runner-up: concept {answer.runner_up}, p = {answer.runner_up_probability:.3f} "
+            f"runner-up: concept {answer.runner_up}, "
+            f"p(concept | word) = {answer.runner_up_probability:.3f} "
             f"({plural(int(runner.sum()), 'cell')})"
         )
         handles.append(runner_handle)
@@ -306,7 +309,8 @@ def where_figure(
     kind = "per-cell probability from the marginals" if result.marginals is not None else (
         "point estimate")  # fmt: skip
     axes[0].set_title(f"where is '{answer.word}'? concept {answer.concept}, "
-                      f"p = {answer.probability:.3f} ({answer.prior} prior; {kind})\n"
+                      f"p(concept | word) = {answer.probability:.3f} ({answer.prior} prior; "
+                      f"{kind})\n"
                       f"its words: {words}{strips}")  # fmt: skip
     if answer.warnings:
         text = "\n".join(textwrap.fill(f"warning: {w}", 110) for w in answer.warnings)
