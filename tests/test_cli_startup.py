@@ -97,6 +97,15 @@ def test_help_imports_neither_point_estimate_nor_bag_importer():
     assert "import-bag" in printed
 
 
+def test_the_command_lines_samplers_are_the_fits():
+    """``fit``'s options spelt ("gibbs", "vi-gibbs") five times over; one public constant of the
+    torch-free cli.fit_options now, the same as the fit's own."""
+    from spcopyro.cli import fit_options
+    from spcopyro.fit.house import SAMPLERS
+
+    assert fit_options.SAMPLERS == SAMPLERS
+
+
 def test_point_estimate_names_are_the_light_modules():
     """``fit --point-estimate``'s choices are the point estimate's own (re-exported there)."""
     from spcopyro.results import estimate_names, point_estimate

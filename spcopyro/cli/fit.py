@@ -38,6 +38,7 @@ from spcopyro.cli.common import (
 from spcopyro.cli.concept_listing import next_step, print_concepts
 from spcopyro.cli.fit_figures import FigurePrefetch, write_figures
 from spcopyro.cli.fit_options import (
+    SAMPLERS,
     backend_used,
     check_sweeps,
     given_start,
@@ -145,15 +146,13 @@ def _fit_interruptible(args: argparse.Namespace, said: list[str]) -> int:
             "keeps no checkpoint"
         )
     if args.point_estimate != "map-visited" and (
-        args.sweeps == "auto"
-        or args.method not in ("gibbs", "vi-gibbs")
-        or not args.marginal_samples
+        args.sweeps == "auto" or args.method not in SAMPLERS or not args.marginal_samples
     ):
         raise ValueError(
             f"--point-estimate {args.point_estimate} is made over the label maps of "
             "--marginal-samples (> 0) of a gibbs or vi-gibbs fit with a number of --sweeps"
         )
-    sampler = args.method in ("gibbs", "vi-gibbs")  # another refuses it (cli.fit_options)
+    sampler = args.method in SAMPLERS  # another refuses it (cli.fit_options)
     if sampler and args.sweeps != "auto" and args.anneal_sweeps > args.sweeps:
         raise ValueError(f"anneal_sweeps ({args.anneal_sweeps}) must not exceed num_sweeps "
                          f"({args.sweeps})")  # fmt: skip
@@ -282,7 +281,7 @@ def _chain_count(args: argparse.Namespace) -> int:
 def _budget(args: argparse.Namespace) -> str:
     """The inference line's budget: ``5000 sweeps`` (``iterations`` for a method that does
     not sample), ``sweeps until converged``, and the chains (or fits) where there are several."""
-    sampler = args.method in ("gibbs", "vi-gibbs")
+    sampler = args.method in SAMPLERS
     if args.sweeps == "auto":
         most = f" (at most {args.max_sweeps})" if args.max_sweeps is not None else ""
         budget = f"sweeps until converged{most}"

@@ -11,9 +11,11 @@ import dataclasses
 from spcopyro.cli.common import given as given_flag
 from spcopyro.inference.protocol import StartDependentOptions, options_for_start
 
-__all__ = ["check_sweeps", "given_start", "method_options", "warm_start_kept"]
+__all__ = ["SAMPLERS", "check_sweeps", "given_start", "method_options", "warm_start_kept"]
 
-_SAMPLERS = ("gibbs", "vi-gibbs")
+SAMPLERS = ("gibbs", "vi-gibbs")
+"""The ``--method`` values that draw samples (sweeps, kept samples, marginals): those of
+``spcopyro.fit.house.SAMPLERS``, spelt here because that module imports torch."""
 
 
 def _given_gibbs_flags(args: argparse.Namespace) -> dict[str, tuple[str, object]]:
@@ -78,7 +80,7 @@ def _check_twice_set(args: argparse.Namespace, given: dict[str, tuple[str, objec
     ``cluster_moves``, vi-gibbs's ``gibbs.cluster_moves``): gibbs took the option's value,
     vi-gibbs the flag's, silently. A move rate the preset filled in is not the user's: the
     option overrides it."""
-    if args.method not in _SAMPLERS:
+    if args.method not in SAMPLERS:
         return  # the flags are refused there
     prefix = "gibbs." if args.method == "vi-gibbs" else ""
     filled = getattr(args, "preset_filled", set())  # by fit_settings.apply_preset_inference
@@ -188,7 +190,7 @@ def method_options(args: argparse.Namespace) -> object | None:
     from spcopyro.inference.protocol import with_options
 
     given = _given_gibbs_flags(args)
-    if given and args.method not in _SAMPLERS:
+    if given and args.method not in SAMPLERS:
         flags = ", ".join(f"{flag} {value}" for flag, value in given.values())
         raise ValueError(
             f"{flags}: options of the Gibbs sampler, which --method {args.method} does not run "
@@ -200,7 +202,7 @@ def method_options(args: argparse.Namespace) -> object | None:
             f"--chain-workers {args.chain_workers}: Gibbs chains advancing at once; --method "
             f"{args.method}'s fits run one after another: leave it out"
         )
-    if given_flag(args.marginal_samples) and args.method not in _SAMPLERS:
+    if given_flag(args.marginal_samples) and args.method not in SAMPLERS:
         raise ValueError(
             f"--marginal-samples {args.marginal_samples}: label maps of a sampler's sweeps "
             f"(gibbs and vi-gibbs); --method {args.method} gives q(C_i), which uncertainty.png "

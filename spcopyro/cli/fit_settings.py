@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from spcopyro.cli.common import _concentrations, _feature_scaling
-from spcopyro.cli.fit_options import method_options
+from spcopyro.cli.fit_options import SAMPLERS, method_options
 from spcopyro.cli.fit_refine import prepares_data
 from spcopyro.config import SpCoSettings, preset, preset_inference
 from spcopyro.gibbs.chains import chain_processes
@@ -34,7 +34,7 @@ def apply_preset_inference(args: argparse.Namespace) -> None:
     # --resume continues chains that started as the preset says: their start is the preset's
     # (the checkpoint checks it), so only --update and --init-from start elsewhere.
     starts_elsewhere = any(x is not None for x in (args.update, args.init_from))
-    samples = args.sweeps != "auto" and args.method in ("gibbs", "vi-gibbs")
+    samples = args.sweeps != "auto" and args.method in SAMPLERS
     if args.init is None:  # the rooms start is Gibbs's: its merge (split) moves leave it
         gibbs = args.method == "gibbs" and not starts_elsewhere
         args.init = recommended.get("init", "random") if gibbs else "random"
