@@ -125,6 +125,8 @@ def test_the_chains_bar_says_the_first_sweeps_compile(mode, monkeypatch, capsys)
     """While numba's code is not cached yet, the bar names that over the first
     COMPILE_ITERATIONS sweeps (the merge and region moves compile a few sweeps on), with no time
     left shown from their pace (12:55:58 for a default fit of 57 s)."""
+    import tqdm.auto
+
     import spcopyro.gibbs.chains as chains_module
     from spcopyro._util.progress import COMPILE_ITERATIONS
 
@@ -132,18 +134,19 @@ def test_the_chains_bar_says_the_first_sweeps_compile(mode, monkeypatch, capsys)
     _, data = random_problem(seed=12, copies=2)
     chains = _chains(data, cfg, "torch", [0, 1])
     descriptions: list[list[str]] = []
-    real = chains_module.tqdm
+    real = tqdm.auto.tqdm
 
     class Recording(real):  # type: ignore[misc, valid-type]
         def __init__(self, *args, **kwargs):
-            descriptions.append([])  # the lines it draws, the first as it is made
+            if not kwargs.get("disable"):  # each chain's own run makes a hidden one
+                descriptions.append([])  # the lines it draws, the first as it is made
             super().__init__(*args, **kwargs)
 
         def refresh(self, *args, **kwargs):
             descriptions[-1].append(self.desc)
             return super().refresh(*args, **kwargs)
 
-    monkeypatch.setattr(chains_module, "tqdm", Recording)
+    monkeypatch.setattr(tqdm.auto, "tqdm", Recording)
     monkeypatch.setattr(chains_module, "compile_note", lambda chains: "compiling")
     capsys.readouterr()
     sweeps = COMPILE_ITERATIONS // 2 + 2  # each chain's: 4 more than the note's

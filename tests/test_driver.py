@@ -99,7 +99,7 @@ def test_a_first_note_stays_on_the_bar_over_the_compiling_iterations(capsys, mon
     """The first compiled sweeps compile numba's code (seconds; the merge and region moves at
     their first use, a few sweeps on): the bar says so over the first COMPILE_ITERATIONS, and
     shows no rate or time left then (it read 12:55:58 for a fit of 57 s)."""
-    import spcopyro.inference.driver as driver
+    import tqdm.auto
 
     seen: list[str] = []
 
@@ -108,7 +108,7 @@ def test_a_first_note_stays_on_the_bar_over_the_compiling_iterations(capsys, mon
         return state + 1, _Info(-1.0, 1, gamma)
 
     bars = []
-    real = driver.tqdm
+    real = tqdm.auto.tqdm
 
     def recording(*args, **kwargs):
         bars.append(real(*args, **kwargs))
@@ -117,7 +117,7 @@ def test_a_first_note_stays_on_the_bar_over_the_compiling_iterations(capsys, mon
     def bar_text() -> str:
         return bars[-1].desc
 
-    monkeypatch.setattr(driver, "tqdm", recording)
+    monkeypatch.setattr(tqdm.auto, "tqdm", recording)
     capsys.readouterr()
     drive(0, step, COMPILE_ITERATIONS + 2, gamma=1.0, progress=True, description="Gibbs sweeps",
           first_note="compiling")  # fmt: skip

@@ -47,3 +47,27 @@ def test_without_a_note_the_bar_is_tqdms_own():
     bar = tqdm(total=3, file=io.StringIO())
     assert noted_updates(bar, "Gibbs sweeps", None) == bar.update
     bar.close()
+
+
+def test_noted_bar_makes_the_bar_with_its_note_and_drops_it_after_the_compiling_iterations(
+    monkeypatch,
+):
+    import spcopyro._util.progress as progress
+
+    made = []
+
+    def quiet(*args, **kwargs):
+        made.append(tqdm(*args, file=io.StringIO(), mininterval=0, **kwargs))
+        return made[-1]
+
+    monkeypatch.setattr("tqdm.auto.tqdm", quiet)
+    bar, update = progress.noted_bar(30, "Gibbs sweeps (model grid)", "compiling", "sweep", False)
+    assert made == [bar] and bar.unit == "sweep" and bar.total == 30
+    assert bar.desc == "Gibbs sweeps (model grid) (compiling)"
+    for _ in range(COMPILE_ITERATIONS):
+        update(1)
+    assert bar.desc == "Gibbs sweeps (model grid)" and bar.n == COMPILE_ITERATIONS
+    bar.close()
+    plain, update = progress.noted_bar(3, "CAVI", None, "it", False)
+    assert plain.desc == "CAVI" and update == plain.update
+    plain.close()

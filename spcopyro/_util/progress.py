@@ -83,6 +83,20 @@ def noted_updates(bar: Any, description: str, note: str | None) -> Callable[[int
     return update
 
 
+def noted_bar(
+    total: int | None, description: str, note: str | None, unit: str, disable: bool
+) -> tuple[Any, Callable[[int], None]]:
+    """A tqdm bar of ``total`` ``unit``s named ``description`` and its update
+    (:func:`noted_updates`): "``description`` (``note``)" over the first iterations, then
+    ``description``; None: no note. ``description`` comes :func:`staged` already: the stage is
+    read in the thread that entered it, which need not be the one that makes the bar."""
+    from tqdm.auto import tqdm  # here: importing this module imports no tqdm (setup_bar)
+
+    desc = f"{description} ({note})" if note else description
+    bar = tqdm(total=total, desc=desc, unit=unit, disable=disable)
+    return bar, noted_updates(bar, description, note)
+
+
 class _NoBar:
     """The bar of a small map: nothing shown."""
 

@@ -26,10 +26,9 @@ import threading
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_EXCEPTION, ThreadPoolExecutor, wait
 from contextlib import contextmanager
+from typing import Any
 
-from tqdm.auto import tqdm
-
-from spcopyro._util.progress import noted_updates, progress_enabled, staged
+from spcopyro._util.progress import noted_bar, progress_enabled, staged
 from spcopyro._util.threads import usable_cpus
 from spcopyro.gibbs.run import ChainsStopped, GibbsChain, advance, compile_note
 
@@ -144,11 +143,11 @@ def advance_chains(
     label = staged("Gibbs sweeps")  # a refined fit's stage, read in this thread
 
     def bar_of() -> Callable[[int], None]:  # the compile note stays over the first sweeps
-        bars.append(tqdm(total=total, desc=f"{label} ({note})" if note else label,
-                         unit="sweep", disable=not progress_enabled(progress)))  # fmt: skip
-        return noted_updates(bars[-1], label, note)
+        bar, update = noted_bar(total, label, note, "sweep", not progress_enabled(progress))
+        bars.append(bar)
+        return update
 
-    bars: list[tqdm] = []
+    bars: list[Any] = []  # tqdm bars
     updates: list[Callable[[int], None]] = []
 
     if uses_processes(count, processes):

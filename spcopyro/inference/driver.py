@@ -35,11 +35,10 @@ from typing import Generic, Protocol, TypeVar
 
 import numpy as np
 import torch
-from tqdm.auto import tqdm
 
 from spcopyro._util.interrupts import caused_by_interrupt
 from spcopyro._util.messages import plural
-from spcopyro._util.progress import noted_updates, progress_enabled, staged
+from spcopyro._util.progress import noted_bar, progress_enabled, staged
 from spcopyro.inference.schedule import annealed_gamma, converged
 
 
@@ -181,9 +180,8 @@ def drive(
 
     start = time.perf_counter()
     description = staged(description)  # a refined fit's stage: "Gibbs sweeps (model grid)"
-    bar = tqdm(total=iterations, unit=unit, disable=not progress_enabled(progress),
-               desc=f"{description} ({first_note})" if first_note else description)  # fmt: skip
-    update = noted_updates(bar, description, first_note)  # the note over the first iterations
+    disable = not progress_enabled(progress)
+    bar, update = noted_bar(iterations, description, first_note, unit, disable)
     with bar:
         try:
             for iteration in range(first, first + iterations):
