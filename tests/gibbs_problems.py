@@ -10,7 +10,7 @@ import torch
 
 from spcopyro.config import SpCoConfig
 from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
-from spcopyro.model import ModelData, make_model_data
+from spcopyro.model import DTYPE, ModelData, make_model_data
 
 
 def tiny_grid(occupancy_rows: list[str]) -> OccupancyGrid:
@@ -33,6 +33,18 @@ def model_data(
         word_counts=np.asarray(word_counts, dtype=np.float64),
     )
     return make_model_data(grid, counts, connectivity)
+
+
+def without_words(data: ModelData) -> ModelData:
+    """The data with a words modality of V = 0 items (a house of images only, 001ba82)."""
+    return data.with_counts("words", torch.zeros((data.obs_cells.shape[0], 0), dtype=DTYPE))
+
+
+def with_connectivity(grid: OccupancyGrid, data: ModelData, connectivity: int) -> ModelData:
+    """The same observations on ``grid`` (the data's own map), rebuilt with another
+    neighbourhood (4 or 8)."""
+    return model_data(grid, data.obs_cells.numpy(), data.image_counts.numpy(),
+                      data.word_counts.numpy(), connectivity)  # fmt: skip
 
 
 PROBLEM_ROWS = ["......", "..#...", "..#...", "......", "....#."]

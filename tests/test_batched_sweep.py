@@ -16,7 +16,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-from gibbs_problems import config, model_data, random_problem, tiny_grid
+from gibbs_problems import (
+    config,
+    random_problem,
+    tiny_grid,
+    with_connectivity,
+    without_words,
+)
 from scipy import stats
 
 from spcopyro.gibbs.batched import (
@@ -189,11 +195,9 @@ def posterior_problem(overrides: dict):
     data = tiny_map(4, rows=rows, num_observed=3)
     connectivity = overrides.get("connectivity", 4)
     if connectivity != 4:  # the same observations, the other neighbourhood
-        data = model_data(tiny_grid(list(rows)), data.obs_cells.numpy(),
-                          data.image_counts.numpy(), data.word_counts.numpy(),
-                          connectivity)  # fmt: skip
+        data = with_connectivity(tiny_grid(list(rows)), data, connectivity)
     if vocabulary == 0:
-        data = data.with_counts("words", torch.zeros((data.obs_cells.shape[0], 0), dtype=DTYPE))
+        data = without_words(data)
     if objects:
         return with_objects(data, overrides)
     return data, config(**overrides)

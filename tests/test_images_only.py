@@ -13,7 +13,7 @@ import shutil
 import numpy as np
 import pytest
 import torch
-from gibbs_problems import config, random_problem
+from gibbs_problems import config, random_problem, without_words
 from statistical_checks import assert_conditionals_match_model
 
 from spcopyro.config import preset
@@ -43,7 +43,7 @@ def _without_words(house):
 def test_conditionals_match_model_without_words(use_words):
     cfg = config(use_words=use_words)
     _, data = random_problem(seed=3, connectivity=cfg.connectivity)
-    data = data.with_counts("words", torch.zeros((data.obs_cells.shape[0], 0), dtype=DTYPE))
+    data = without_words(data)
     state = init(data, cfg, torch.Generator().manual_seed(1))
     cells = torch.cat([data.obs_cells, torch.tensor([0, data.num_free - 1])]).unique()
     assert_conditionals_match_model(state, data, cfg, cells)
@@ -54,7 +54,7 @@ def test_concentration_sampling_on_a_house_of_images_only_moves_chi_and_beta():
     prior alone and its moves are accepted (was: nan, none ever accepted)."""
     cfg = config()
     _, data = random_problem(seed=3, connectivity=cfg.connectivity)
-    data = data.with_counts("words", torch.zeros((data.obs_cells.shape[0], 0), dtype=DTYPE))
+    data = without_words(data)
     assert dirichlet_multinomial_log_marginal(torch.zeros(3, 0, dtype=DTYPE), 0.1) == 0.0
     generator = torch.Generator().manual_seed(2)
     state = init(data, cfg, generator)

@@ -25,6 +25,7 @@ from gibbs_problems import (
     random_problem,
     replicate_grid,
     state_index,
+    without_words,
 )
 from scipy import stats
 
@@ -75,16 +76,11 @@ def test_collapsed_target_is_the_models_marginal():
     assert np.ptp(differences) < 1e-9, differences
 
 
-def _without_words(data):
-    """The data with a words modality of V = 0 items (a house of images only, 001ba82)."""
-    return data.with_counts("words", torch.zeros((data.obs_cells.shape[0], 0), dtype=DTYPE))
-
-
 def _invariance_p_value(
     generator_seed: int, copies: int, moves: int, compiled: bool = False, no_words: bool = False
 ) -> float:
     cfg, n, data = _tiny_problem()
-    data = _without_words(data) if no_words else data
+    data = without_words(data) if no_words else data
     labelings = all_labelings(n, cfg.num_concepts)
     log_p = torch.tensor(
         [collapsed_log_posterior(lab, data, cfg) for lab in labelings], dtype=DTYPE
@@ -129,7 +125,7 @@ def test_a_house_of_images_only_keeps_its_target_and_its_moves(compiled):
     if compiled:
         pytest.importorskip("numba")
     cfg, n, data = _tiny_problem()
-    data = _without_words(data)
+    data = without_words(data)
     labelings = all_labelings(n, cfg.num_concepts)[::7]
     evidence = labelling_log_evidence(labelings, data, cfg)
     ours = torch.tensor([collapsed_log_posterior(lab, data, cfg) for lab in labelings], dtype=DTYPE)

@@ -21,7 +21,15 @@ import math
 import numpy as np
 import pytest
 import torch
-from gibbs_problems import all_labelings, config, model_data, replicate_grid, state_index
+from gibbs_problems import (
+    all_labelings,
+    config,
+    model_data,
+    replicate_grid,
+    state_index,
+    with_connectivity,
+    without_words,
+)
 from scipy import stats
 
 import spcopyro.gibbs.region_move as region_move
@@ -147,12 +155,10 @@ def test_detailed_balance_holds_beyond_the_default_problem(variant):
         cfg = cfg.replace(num_concepts=2)
     elif variant == "8-neighbours":
         cfg = cfg.replace(connectivity=8)
-        grid, _ = replicate_grid(["..", ".."], 1)
-        counts = data.image_counts.numpy(), data.word_counts.numpy()
-        data = model_data(grid, data.obs_cells.numpy(), *counts, connectivity=8)
+        data = with_connectivity(replicate_grid(["..", ".."], 1)[0], data, 8)
         assert data.pairs.shape[0] == 6
     else:
-        data = data.with_counts("words", torch.zeros((2, 0), dtype=DTYPE))
+        data = without_words(data)
     assert _detailed_balance_gap(cfg, n, data) < 1e-10
 
 
