@@ -25,6 +25,7 @@ from pyro.ops.stats import effective_sample_size
 from scipy import stats
 
 from spcopyro._util.random_draws import sample_log_dirichlet
+from spcopyro.config import DEFAULT_PRESET, preset_inference
 from spcopyro.gibbs.backends import get_backend
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.sampler import init, step
@@ -142,6 +143,13 @@ def min_block_p_value(sample_labels_fn, cfg) -> float:
 
 Z_LIMIT = 4.0  # per statistic; with 12 statistics a correct sampler fails with p < 1e-3
 
+PRESET_MOVES = {
+    name: value
+    for name, value in preset_inference(DEFAULT_PRESET).items()
+    if name in ("cluster_moves", "merge_moves", "region_moves", "unobserved_refresh")
+}
+"""The moves the default preset turns on (``coarse``: merge and region moves, 0.2 each)."""
+
 GEWEKE_VARIANTS = [
     pytest.param(dict(), GibbsOptions(), id="default"),
     pytest.param(dict(prior="dirichlet", alpha=1.5, gamma=0.5), GibbsOptions(), id="dirichlet"),
@@ -161,6 +169,13 @@ GEWEKE_VARIANTS = [
     # exactness on the labels is test_region_move.py's detailed balance, enumerated.
     pytest.param(dict(gamma=1.5), GibbsOptions(region_moves=0.3), id="region-0.3"),
     pytest.param(dict(connectivity=8, gamma=0.7), GibbsOptions(), id="8-neighbours"),
+    # Every move on at once: the default preset's moves (merge and region, at its own
+    # probabilities), Swendsen-Wang too, and the partial refresh with 4 concepts (as above).
+    pytest.param(
+        dict(num_concepts=4, gamma=1.5),
+        GibbsOptions(**(dict(cluster_moves=0.2, unobserved_refresh=0.3) | PRESET_MOVES)),
+        id="moves-together",
+    ),
 ]
 """(config overrides, sampler options) of Geweke's test; the options' backend is replaced by
 the backend under test."""

@@ -239,7 +239,11 @@ def _statistics(log_alpha, log_gamma, log_chi, log_beta, labels, log_pi, log_the
     )  # fmt: skip
 
 
-def _geweke(hyper: HyperparameterOptions, backend_name: str, steps: int) -> torch.Tensor:
+def _geweke(
+    hyper: HyperparameterOptions, backend_name: str, steps: int, moves: dict | None = None
+) -> torch.Tensor:
+    """[S] z-scores of :func:`_statistics`, prior draws against the chain's (``moves``: more
+    :class:`GibbsOptions` fields, the moves composed with the sweep)."""
     generator = torch.Generator().manual_seed(31)
     grid, n = replicate_grid(["...", "..."], 1)  # 6 cells, 3^6 labelings
     data = model_data(grid, np.array([0, 2, 5]), [[2, 1], [0, 3], [1, 1]],
@@ -281,7 +285,7 @@ def _geweke(hyper: HyperparameterOptions, backend_name: str, steps: int) -> torc
         a = torch.tensor([proposed.pi_concentration], dtype=DTYPE)
         return enumerated.draw(gamma, a, gen)[0]
 
-    options = GibbsOptions(backend=backend_name, hyper=hyper)
+    options = GibbsOptions(backend=backend_name, hyper=hyper, **(moves or {}))
     backend = get_backend(backend_name)
     cfg = base.replace(
         alpha=math.exp(hyper.log_alpha_mean) if hyper.alpha else base.alpha,
@@ -330,6 +334,35 @@ def test_geweke_with_sampled_hyperparameters_numba():
     pytest.importorskip("numba", reason="numba is not installed")
     hyper = HyperparameterOptions(**PRIOR, **GEWEKE_HYPER["all"])
     z = _geweke(hyper, "numba", steps=6000)
+    assert z.abs().max() < Z_LIMIT, f"z-scores {z.numpy().round(2)}"
+
+
+GEWEKE_HYPER_WITH_MOVES = [
+    # merge 0.15, not 0.3: the torch split-merge move costs ~20 ms here (0.3: 59 s in all)
+    pytest.param("alpha", dict(merge_moves=0.15), id="alpha-merge"),
+    pytest.param("concentrations", dict(region_moves=0.3), id="concentrations-region"),
+    pytest.param("gamma", dict(region_moves=0.3), id="gamma-region"),
+]
+"""(one sampled hyperparameter of :data:`GEWEKE_HYPER`, a move on): the move's target reads
+the hyperparameter (alpha in the labels' Dirichlet-multinomial, chi and beta in the emissions',
+gamma in the Potts term and the region's bonds), which the chain changes under it. On numba
+these are also its only tests of each hyperparameter alone."""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("which,moves", GEWEKE_HYPER_WITH_MOVES)
+def test_geweke_with_sampled_hyperparameters_and_moves(backend, which, moves):
+    hyper = HyperparameterOptions(**PRIOR, **GEWEKE_HYPER[which])
+    z = _geweke(hyper, backend.name, steps=6000, moves=moves)
+    assert z.abs().max() < Z_LIMIT, f"z-scores {z.numpy().round(2)}"
+
+
+@pytest.mark.slow
+def test_geweke_with_exchange_updates_in_some_sweeps():
+    """``exchange_probability`` < 1: alpha's and gamma's exchange updates in half the sweeps
+    (a coin independent of the state), the concentrations' in every one."""
+    hyper = HyperparameterOptions(**PRIOR, **GEWEKE_HYPER["all"], exchange_probability=0.5)
+    z = _geweke(hyper, "torch", steps=6000)
     assert z.abs().max() < Z_LIMIT, f"z-scores {z.numpy().round(2)}"
 
 

@@ -41,8 +41,9 @@ their temporaries. Measured on the CPU as the peak RSS a sweep adds (float64, ro
 N = 27 746, M = 86, L = 120, K + V = 220): about 5 MiB a chain, 311 MiB at B = 64, so B = 256
 needs about 1.2 GiB; float32 halves the float part.
 
-Not composed here: annealing, cluster and merge moves, hyperparameter updates (what
-:func:`spcopyro.gibbs.sampler.step` adds around a sweep). The random stream is the device's
+Not composed here: annealing, cluster, merge and region moves, sampled hyperparameters (what
+:func:`spcopyro.gibbs.sampler.step` adds around a sweep; the batched chains refuse them:
+:func:`spcopyro.gibbs.batched_run.check_batched_options`). The random stream is the device's
 generator, so a batched chain is not the single chain of the same seed (it samples the same
 distribution: tested).
 """
