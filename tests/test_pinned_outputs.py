@@ -57,6 +57,13 @@ call as before (:func:`spcopyro.simulate.sample_observations`), from another str
 ``test_prior_world_has_regions_above_the_critical_coupling`` checks their totals and that the
 generator alone decides them.
 
+A seventh intended change (2026-12-05, afcd6ce): ``concepts()`` gains a ``name`` per concept
+(the word whose ``where`` answer the concept is, :mod:`spcopyro.results.concept_names`), so the
+ten ``fit-*`` and ``converged-*`` concept tables are longer and their digests were recorded again.
+Checked before recording: every array of every scenario, run at bcf81ba (before the change) and
+at d1b3738, is identical (floats bit for bit) except the concept tables, whose text differs only
+by the added ``"name": ...`` entries. The stored floats (``pinned_outputs.npz``) were kept.
+
 Not a change (issue 25, item 4): the compiled sweep can draw its globals' label-free gamma
 variates ahead, on a worker thread (:mod:`spcopyro.gibbs.numba_globals`, ``SPCOPYRO_PRIOR_THREAD``
 = auto, on or off), which consumes other random numbers; it is opt-in, so every pin holds under
