@@ -87,9 +87,28 @@ def test_the_blocked_passes_compute_the_whole_array_formulas_exactly():
         cell_entropy(result), -(p * np.log(np.where(p > 0, p, 1.0))).sum(-1)
     )
     concept_given_word = result.concept_given_word("kitchen", "area")
-    np.testing.assert_array_equal(where_probability(result, "kitchen"), p @ concept_given_word)
+    np.testing.assert_array_equal(
+        where_probability(result, "kitchen"), (p * concept_given_word).sum(-1)
+    )
     np.testing.assert_array_equal(unmapped_mass(result), p[:, 30:].sum(-1))
     result.marginals = None  # a point estimate: the cell's concept's probability
     np.testing.assert_array_equal(
         where_probability(result, "kitchen"), concept_given_word[result.labels]
     )
+
+
+def test_where_probability_does_not_depend_on_the_block_size(monkeypatch):
+    """Each cell's sum is its own: a BLAS product of a block (``block @ concept_given_word``)
+    groups rows and splits them across threads, so rows at those boundaries came out 1 ulp
+    apart from the whole-array product (one thread, 16,385 cells: row 16,384 differed)."""
+    rng = np.random.default_rng(2)
+    n = 16_385
+    marginals = label_frequencies(rng.integers(0, L, (S, n)), L)  # [n, L]
+    result = _result(marginals)
+    monkeypatch.setattr(uncertainty, "BLOCK_CELLS", n)
+    whole = where_probability(result, "kitchen")  # [n] one block
+    for block_cells in (1, 7, 4096, 1 << 14):
+        monkeypatch.setattr(uncertainty, "BLOCK_CELLS", block_cells)
+        np.testing.assert_array_equal(where_probability(result, "kitchen"), whole)
+    product = marginals.astype(np.float64) @ result.concept_given_word("kitchen", "area")
+    np.testing.assert_allclose(whole, product, rtol=1e-15)

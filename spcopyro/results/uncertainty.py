@@ -167,7 +167,13 @@ def where_probability(result: SpCoResult, word: str, prior: str = "area") -> np.
     marginals = np.asarray(result.marginals)  # [N, L]
     probability = np.empty(marginals.shape[0])  # [N]
     for start, stop in _blocks(marginals.shape[0]):  # a block's float64 copy, not the map's
-        probability[start:stop] = marginals[start:stop].astype(np.float64) @ concept_given_word
+        block = marginals[start:stop].astype(np.float64)  # [n, L]
+        block *= concept_given_word
+        # Each row summed on its own, in one order (numpy's pairwise sum along the contiguous
+        # last axis), so a cell's value does not depend on the block size or on threads: a
+        # BLAS product (block @ concept_given_word) groups rows and splits them across
+        # threads, and rows at those boundaries came out 1 ulp apart.
+        probability[start:stop] = block.sum(-1)
     return probability
 
 
