@@ -291,6 +291,21 @@ def test_a_fit_without_place_words_says_so(vocabulary):
         parse_instruction("go to the kitchen", vocabulary)
 
 
+@pytest.mark.parametrize(
+    ("text", "said"), [("", "is empty"), ("  ", "is empty"), (" ?! ", "has no words")]
+)
+def test_an_empty_instruction_says_so_and_gives_an_example(text, said, fit, capsys):
+    """QA: `spcopyro navigate FIT ""` said "the instruction '' names no place the fit knows"."""
+    with pytest.raises(
+        ValueError, match=f"the instruction '{re.escape(text)}' {said}: .*e\\.g\\. "
+    ):
+        parse_instruction(text, WORDS)
+    assert main(["navigate", str(fit), text, "--start", f"{START_A[0]},{START_A[1]}"]) == 2
+    err = capsys.readouterr().err
+    assert "names no place" not in err and "e.g. 'go to the bedroom'" in err, err
+    assert "known words: bedroom, closet, corridor, kitchen" in err, err
+
+
 def test_a_place_word_the_fit_knows_is_not_a_leave_word():
     """A house whose exit is a place: "go to the exit" goes there; "out" alone is no "out of"."""
     assert parse_instruction("go to the exit", (*WORDS, "exit")).places == ("exit",)

@@ -220,6 +220,13 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
     ignored: list[str] = []
     mode, destination = "to", None  # destination: index of the last destination in places
     words = _words(text)
+    if not words:  # it said "the instruction '' names no place the fit knows"
+        example = candidates[0] if candidates else "kitchen"
+        raise ValueError(
+            f"the instruction {text!r} {'is empty' if not text.strip() else 'has no words'}: "
+            f"name the places to visit, in order, e.g. 'go to the {example}'; known words: "
+            f"{_listed(candidates) if candidates else 'none'}"
+        )
     tokens = [word.lower() for word, _ in words]
     gaps = [gap for _, gap in words]
     keys = [word_key(vocabulary, token).lower() for token in tokens]
