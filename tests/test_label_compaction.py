@@ -38,6 +38,27 @@ def test_agreement_sorts_no_labelling(monkeypatch):
     np.testing.assert_array_equal(agree, expected)
 
 
+def test_labels_outside_small_ids_are_sorted_once_per_labelling(monkeypatch):
+    """The fallback sorted twice per compact (the values, then the codes) and agreement three
+    times for the estimate: one np.unique(return_inverse=True) now gives both."""
+    rng = np.random.default_rng(3)
+    estimate = rng.integers(0, 8, 2000) * 10**9  # ids past the lookup's range
+    samples = np.where(
+        rng.random((5, 2000)) < 0.1, rng.integers(0, 12, (5, 2000)) * 10**9, estimate
+    )
+    calls = _count_unique(monkeypatch)
+    codes, k = pe.compact(estimate)
+    assert calls[0] == 1  # was 2
+    agree = pe.agreement_probability(estimate, samples)
+    assert calls[0] == 1 + 1 + samples.shape[0]  # was 3 for the estimate and 2 per sample
+    monkeypatch.undo()
+    values, inverse = np.unique(estimate, return_inverse=True)
+    assert k == values.size
+    np.testing.assert_array_equal(codes, inverse)
+    expected = np.mean([pe.matched_labels(estimate, s) == estimate for s in samples], axis=0)
+    np.testing.assert_array_equal(agree, expected)
+
+
 @pytest.mark.parametrize("dtype", [np.int64, np.int32, np.int16, np.uint8, np.uint32])
 def test_compact_equals_numpy_unique(dtype):
     rng = np.random.default_rng(1)
@@ -47,9 +68,10 @@ def test_compact_equals_numpy_unique(dtype):
         codes, k = pe.compact(labels)
         assert k == values.size and codes.dtype == np.int64
         np.testing.assert_array_equal(codes, inverse)
-        found = pe._label_values(labels)[0]
+        found_codes, found = pe._codes_and_values(labels)
         assert found.dtype == values.dtype
         np.testing.assert_array_equal(found, values)
+        np.testing.assert_array_equal(found_codes, inverse)
 
 
 @pytest.mark.parametrize(
