@@ -200,3 +200,26 @@ def test_an_unknown_place_lists_every_word_of_a_home_s_vocabulary():
     many = tuple(f"room{k:02d}x" for k in range(KNOWN_WORDS_SHOWN + 2))
     with pytest.raises(ValueError, match=r"\.\.\. \(2 more\)$"):
         parse_instruction("go to the garage", many)
+
+
+def test_navigate_and_where_list_the_known_words_with_one_helper():
+    """semantic_map.listed writes the "up to KNOWN_WORDS_SHOWN, then ', ... (N more)'" list
+    that where's unknown word and navigate's instruction errors each spelt on their own."""
+    from spcopyro.results.semantic_map import (
+        KNOWN_WORDS_SHOWN,
+        UnknownWordError,
+        listed,
+        word_index,
+    )
+
+    assert listed(["a", "b", "c", "d"], 2) == "a, b, ... (2 more)"
+    assert listed(["a", "b"], 2) == "a, b" and listed([], 2) == ""
+    many = tuple(f"room{k:02d}x" for k in range(KNOWN_WORDS_SHOWN + 2))
+    shown = listed(many)
+    assert shown.endswith(f"room{KNOWN_WORDS_SHOWN - 1:02d}x, ... (2 more)")
+    with pytest.raises(UnknownWordError) as where:
+        word_index(many, "garage")
+    assert str(where.value).endswith("; known words: " + shown), where.value
+    with pytest.raises(ValueError, match="names no place") as navigate_error:
+        parse_instruction("go to the garage", many)
+    assert str(navigate_error.value).endswith("known words: " + shown), navigate_error.value

@@ -77,8 +77,9 @@ def report_update(record: dict[str, object], where: str, data_sha256: object = N
               "of the model data): no observation was added, the update only ran more "
               "iterations on it; add the new trial's files to DATA first")  # fmt: skip
     if unheard:
-        more = f", ... ({len(unheard) - 20} more)" if len(unheard) > 20 else ""
+        from spcopyro.results.semantic_map import listed
+
         print(f"warning: {len(unheard)} word(s) of the fit in {where} are not in this run's "
-              f"data: {', '.join(unheard[:20])}{more}; an update is fitted on DATA alone, so "
+              f"data: {listed(unheard, 20)}; an update is fitted on DATA alone, so "
               "DATA must hold the old trials' observations as well as the new ones (their "
               "words keep their columns, without counts)", file=sys.stderr)  # fmt: skip

@@ -22,6 +22,7 @@ import numpy as np
 from spcopyro._util.messages import echo
 from spcopyro.config import WORDS
 from spcopyro.data.text import fold_word, tokenize
+from spcopyro.results.semantic_map import listed
 
 if TYPE_CHECKING:
     from spcopyro.results.result import SpCoResult
@@ -69,9 +70,7 @@ class SavedVocabulary:
             return None
         spelt = {fold_word(word.strip()) for word in asked if self.renamed_as(word) is not None}
         renamed = sorted(self.renamed, key=lambda pair: fold_word(pair[0]) not in spelt)
-        pairs = ", ".join(f"{echo(old)} -> {echo(new)}" for old, new in renamed[:RENAMED_SHOWN])
-        more = len(renamed) - RENAMED_SHOWN
-        more = f", ... ({more} more)" if more > 0 else ""
+        pairs = listed([f"{echo(old)} -> {echo(new)}" for old, new in renamed], RENAMED_SHOWN)
         answered = "".join(
             f"; {echo(word)} is answered for as {echo(self.renamed_as(word))}"
             for word in dict.fromkeys(asked)
@@ -79,7 +78,7 @@ class SavedVocabulary:
         )
         return (f"{len(self.renamed)} word(s) of its vocabulary are not words the tokenizer "
                 f"makes now (a fit saved by an older spcopyro), read as it reads them: "
-                f"{pairs}{more}{answered}")  # fmt: skip
+                f"{pairs}{answered}")  # fmt: skip
 
 
 def renormalise_vocabulary(saved: Sequence[str]) -> SavedVocabulary:

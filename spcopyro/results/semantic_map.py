@@ -61,6 +61,7 @@ __all__ = [
     "as_semantic_map",
     "close_words",
     "did_you_mean",
+    "listed",
     "word_index",
     "word_key",
 ]
@@ -158,6 +159,16 @@ KNOWN_WORDS_SHOWN = 30
 words in the public houses, whole: the list stopped at 10)."""
 
 
+def listed(words: Sequence[str], shown: int = KNOWN_WORDS_SHOWN) -> str:
+    """``words`` joined by ", ", the first ``shown`` of them, then ", ... (N more)" for the
+    rest: how an error or a warning lists words (``where``'s unknown word, ``navigate``'s
+    instruction, ``fit --update``'s unheard words, renamed saved words). Its default, a
+    home's whole vocabulary: ``navigate``'s list stopped at 12 and hid room1dk5's 'washroom'
+    from "go to the bathroom"."""
+    more = len(words) - shown
+    return ", ".join(words[:shown]) + (f", ... ({more} more)" if more > 0 else "")
+
+
 def word_index(vocabulary: tuple[str, ...], word: str) -> int:
     """The column of ``word`` (as :func:`word_key` reads it) in ``vocabulary``;
     :class:`UnknownWordError` with the closest known words when it is not there."""
@@ -178,10 +189,7 @@ def word_index(vocabulary: tuple[str, ...], word: str) -> int:
             ) from None
         hint = did_you_mean(key, vocabulary)
         if not hint and vocabulary:  # nothing close: say which words there are
-            known = sorted(vocabulary)
-            shown = KNOWN_WORDS_SHOWN
-            more = f", ... ({len(known) - shown} more)" if len(known) > shown else ""
-            hint = f"; known words: {', '.join(known[:shown])}{more}"
+            hint = f"; known words: {listed(sorted(vocabulary))}"
         if not vocabulary:  # a house of images only: nothing was heard, no word names a place
             hint = (
                 ": the fit heard no words (its house holds no utterances), so it can locate none; "

@@ -60,7 +60,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from spcopyro.data.text import hidden_characters_note, hidden_match
-from spcopyro.results.semantic_map import KNOWN_WORDS_SHOWN, did_you_mean, word_key
+from spcopyro.results.semantic_map import did_you_mean, listed, word_key
 from spcopyro.results.where import close_to_guess
 from spcopyro.robot.navigation.graph import PlanningGrid
 
@@ -225,7 +225,7 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
         raise ValueError(
             f"the instruction {text!r} {'is empty' if not text.strip() else 'has no words'}: "
             f"name the places to visit, in order, e.g. 'go to the {example}'; known words: "
-            f"{_listed(candidates) if candidates else 'none'}"
+            f"{listed(candidates) if candidates else 'none'}"
         )
     tokens = [word.lower() for word, _ in words]
     gaps = [gap for _, gap in words]
@@ -317,10 +317,10 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
             f"word {skipped[1]!r} of the instruction names a stop ({skipped[0]!r}) that is not "
             f"in the fit's vocabulary: navigate would skip it and drive to "
             f"{', '.join(places)} only; name the places the fit knows (its words: "
-            f"{_listed(candidates)})"
+            f"{listed(candidates)})"
         )
     if not places:
-        shown = _listed(candidates)
+        shown = listed(candidates)
         if not candidates:  # it ended "known words: " with nothing after
             shown = ("none: the fit has no word that can name a place (fitted without words, "
                      "or only connecting words such as 'the' heard)")  # fmt: skip
@@ -336,14 +336,6 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
             stops.append((place, waypoint, said))
     return Instruction(text, tuple(p for p, _, _ in stops), tuple(v for _, v, _ in stops),
                        tuple(ignored), tuple(s for _, _, s in stops))  # fmt: skip
-
-
-def _listed(words: list[str]) -> str:
-    """The fit's place words for an error, as ``where``'s unknown word lists them: up to
-    :data:`~spcopyro.results.semantic_map.KNOWN_WORDS_SHOWN` (a home's whole vocabulary; the
-    list stopped at 12 and hid room1dk5's 'washroom' from "go to the bathroom")."""
-    more = len(words) - KNOWN_WORDS_SHOWN
-    return ", ".join(words[:KNOWN_WORDS_SHOWN]) + (f", ... ({more} more)" if more > 0 else "")
 
 
 _PLACE_ARTICLES = frozenset({"the", "a", "an", "my", "our", "your"})
@@ -503,14 +495,14 @@ def choose_goal(
             f"no place of {word!r} is reachable: " + "; ".join(n.split(": ", 1)[1] for n in notes)
         )
     if len(reachable) > 1 and strict:
-        listed = "; ".join(
+        regions = "; ".join(
             f"x={c.xy[0]:.2f} y={c.xy[1]:.2f} (p(cell is the place) = {c.probability:.3f}, "
             f"{c.distance:.1f} m away)"
             for c in reachable
         )
         raise AmbiguousGoalError(
             f"{word!r} is ambiguous: {len(reachable)} separate regions of near-equal probability "
-            f"({listed}); --strict takes none of them (leave it out to take the nearer)"
+            f"({regions}); --strict takes none of them (leave it out to take the nearer)"
         )
     chosen = min(reachable, key=lambda c: (c.distance, -c.probability, c.node))
     if small:  # a speck at a room's edge was driven to without a word
