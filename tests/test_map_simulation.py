@@ -167,8 +167,8 @@ def test_a_map_saved_as_map_yaml_asks_for_a_name(tmp_path, capsys):
 
 def test_the_door_width_is_read_from_the_map(tmp_path, capsys, caplog):
     """Issue 21: a fixed 1 m found one room on every public house (a one-category truth, on
-    which ARI says nothing) and 2 m one room on room1dk6. ``auto`` takes the narrowest width
-    that separates two rooms."""
+    which ARI says nothing) and 2 m one room on room1dk6. ``auto`` takes the width at which
+    the room count rises the most (here, as before, the narrowest that separates two rooms)."""
     yaml_path, grid = three_rooms(tmp_path)  # 0.6 m doors
     assert auto_door_width(grid, min_room_area=1.0) == (0.75, 3)
     wide = grid.occupancy.copy()
@@ -197,6 +197,31 @@ def test_the_door_width_is_read_from_the_map(tmp_path, capsys, caplog):
             main(["simulate", "--map", str(yaml_path), "--out", str(out), "--door-width", bad])
     with pytest.raises(ValueError, match="door width must be 'auto' or metres > 0"):
         simulate_on_map(grid, tour=MapTour(door_width=-1.0))
+
+
+def office_block():
+    """A 14 x 26 m office floor at 0.1 m: a 2.5 m corridor, four offices above it opening
+    through 1.2 m doors, a lobby below it through a 2 m opening and a closet through 0.8 m."""
+    occupancy = np.full((140, 260), OCCUPIED, dtype=np.int8)
+    occupancy[60:85, 2:258] = FREE  # the corridor
+    for left in (2, 66, 130, 194):
+        occupancy[2:58, left : left + 62] = FREE  # an office, 0.2 m walls between
+        occupancy[58:60, left + 25 : left + 37] = FREE  # its 1.2 m door
+    occupancy[87:138, 2:200] = FREE  # the lobby
+    occupancy[85:87, 90:110] = FREE  # its 2 m opening
+    occupancy[87:138, 202:258] = FREE  # the closet
+    occupancy[85:87, 226:234] = FREE  # its 0.8 m door
+    return OccupancyGrid(occupancy, 0.1, (0.0, 0.0, 0.0))
+
+
+def test_auto_reads_the_doors_most_of_the_map_has_not_its_narrowest(tmp_path):
+    """QA: on a drawn 100 m office block whose offices open through 1.2 m doors, ``auto``
+    chose 1 m and 2 rooms (one 0.8 m door separated the first two), where 1.25 m cuts 26. It
+    now takes the width at which the room count rises the most."""
+    grid = office_block()
+    assert auto_door_width(grid, min_room_area=1.0) == (1.25, 6)  # corridor, offices, closet
+    simulated = simulate_on_map(grid, seed=0)
+    assert simulated.door_width == 1.25 and simulated.room_category.size == 6
 
 
 def test_the_public_maps_door_widths(dataset_root):

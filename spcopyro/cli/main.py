@@ -370,8 +370,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "kitchen,living,bedroom,bathroom,toilet,entrance,...)")  # fmt: skip
     p.add_argument("--door-width", type=_door_width,
                    help="with --map: metres; doorways up to about this wide separate rooms, or "
-                        "auto: read from the map, the narrowest of 0.75, 1, ..., 3 m that "
-                        "separates two rooms (1.5 to 2.25 m on the public dataset's houses) "
+                        "auto: read from the map, the one of 0.75, 1, ..., 3 m at which the "
+                        "room count rises the most (1.5 to 2.25 m on the public dataset's houses) "
                         "(default: auto)")  # fmt: skip
     p.add_argument("--min-room-area", type=positive_number("area is square metres"),
                    help="with --map: square metres; smaller free segments are not visited and "

@@ -9,10 +9,10 @@ public dataset's layout (so ``spcopyro fit`` reads it) together with the ground 
 1. **Rooms.** The free space is cut into rooms by baseline (F)'s geometric room segmentation
    (:func:`spcopyro.baselines.geometry.room_segments`: a distance-transform watershed that cuts
    at doorways narrower than ``door_width``). ``door_width="auto"`` (the default) reads it from
-   the map (:func:`~spcopyro.baselines.geometry.auto_door_width`: the narrowest of 0.75, 1.0,
-   ..., 3 m that separates two rooms); a map that stays one room (at the width given, or at
-   every width ``auto`` tries) is simulated as one room, with a warning (its truth has one
-   category, so ARI against it says nothing).
+   the map (:func:`~spcopyro.baselines.geometry.auto_door_width`: of 0.75, 1.0, ..., 3 m the
+   width at which the room count rises the most); a map that stays one room (at the width
+   given, or at every width ``auto`` tries) is simulated as one room, with a warning (its truth
+   has one category, so ARI against it says nothing).
    Segments smaller than ``min_room_area`` (nooks, scan noise, free specks outside the walls)
    are not rooms: the robot does not visit them and their ground truth is -1 (undefined), as
    for unlabelled cells of any house.
@@ -171,8 +171,8 @@ def _one_room_warning(
                 f"{width:g} m"
             )
     elif tour.door_width != "auto":
-        message += (f" ({_option('door_width', options)} auto reads from the map the narrowest "
-                    "width that separates two)")  # fmt: skip
+        message += (f" ({_option('door_width', options)} auto reads from the map the width "
+                    "at which the room count rises the most)")  # fmt: skip
     return (
         message + ": the simulated truth has one category, so a fit's ARI against it says nothing"
     )
