@@ -220,13 +220,6 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
     ignored: list[str] = []
     mode, destination = "to", None  # destination: index of the last destination in places
     words = _words(text)
-    if not words:  # it said "the instruction '' names no place the fit knows"
-        example = candidates[0] if candidates else "kitchen"
-        raise ValueError(
-            f"the instruction {text!r} {'is empty' if not text.strip() else 'has no words'}: "
-            f"name the places to visit, in order, e.g. 'go to the {example}'; known words: "
-            f"{listed(candidates) if candidates else 'none'}"
-        )
     tokens = [word.lower() for word, _ in words]
     gaps = [gap for _, gap in words]
     keys = [word_key(vocabulary, token).lower() for token in tokens]
@@ -322,12 +315,17 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
     if not places:
         shown = listed(candidates)
         if not candidates:  # it ended "known words: " with nothing after
-            shown = ("none: the fit has no word that can name a place (fitted without words, "
-                     "or only connecting words such as 'the' heard)")  # fmt: skip
-        extra = f" (ignored: {', '.join(ignored)})" if ignored else ""
-        raise ValueError(
-            f"the instruction {text!r} names no place the fit knows{extra}; known words: {shown}"
-        )
+            shown = "none" if not words else (
+                "none: the fit has no word that can name a place (fitted without words, or only "
+                "connecting words such as 'the' heard)")  # fmt: skip
+        if not words:  # '' or ' ?! ': it said "the instruction '' names no place the fit knows"
+            example = candidates[0] if candidates else "kitchen"
+            opening = (f"{'is empty' if not text.strip() else 'has no words'}: name the places "
+                       f"to visit, in order, e.g. 'go to the {example}'")  # fmt: skip
+        else:
+            extra = f" (ignored: {', '.join(ignored)})" if ignored else ""
+            opening = f"names no place the fit knows{extra}"
+        raise ValueError(f"the instruction {text!r} {opening}; known words: {shown}")
     stops: list[tuple[str, bool, str]] = []  # "kitchen kitchen" made two identical stops
     for place, waypoint, said in zip(places, via, spelled, strict=True):
         if stops and stops[-1][0] == place:  # the same place again: one stop, a destination
