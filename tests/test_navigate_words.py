@@ -223,3 +223,23 @@ def test_navigate_and_where_list_the_known_words_with_one_helper():
     with pytest.raises(ValueError, match="names no place") as navigate_error:
         parse_instruction("go to the garage", many)
     assert str(navigate_error.value).endswith("known words: " + shown), navigate_error.value
+
+
+def test_every_layer_lists_words_with_the_one_helper_of_messages():
+    """``listed`` lives beside ``echo`` in ``_util.messages`` (which the data layer may import):
+    the St.csv warnings (invisible characters, sentences without spaces) and ``fit --update``'s
+    unheard words spelt the same list on their own; ``semantic_map`` re-exports it."""
+    import spcopyro.cli.fit_update as fit_update
+    import spcopyro.data.dataset_files as dataset_files
+    import spcopyro.data.text as text
+    import spcopyro.results.semantic_map as semantic_map
+    from spcopyro._util import messages
+
+    for module in (semantic_map, text, dataset_files, fit_update):
+        assert module.listed is messages.listed, module.__name__
+    assert semantic_map.KNOWN_WORDS_SHOWN == messages.KNOWN_WORDS_SHOWN == 30
+    hidden = [[f"w{k}\u200b"] for k in range(5)]  # [5 utterances of 1 word]
+    warning = text.hidden_words_warning(hidden)
+    assert (
+        warning is not None and "(utterance 2: U+200B ZERO WIDTH SPACE), ... (2 more) (" in warning
+    )

@@ -2,7 +2,8 @@
 
 A loader that rejects a line echoes it, so the reader can find it; a ragged 205-column Ft.csv
 row is about 5 KB, which buries the message. :func:`echo` gives the ``repr`` of a value when it is
-short, else the first :data:`ECHO_LIMIT` characters and how long the whole is. :func:`warn_once`
+short, else the first :data:`ECHO_LIMIT` characters and how long the whole is; :func:`listed`
+lists words (or entries) the same way, the first few and how many more. :func:`warn_once`
 logs a warning once a process, for what a study's hundreds of fits would repeat.
 :func:`setting` names a setting a message tells the user to change, for both of its readers: a
 library caller and ``spcopyro fit``. Imports nothing of the package, so every layer (maps, data,
@@ -13,12 +14,12 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Hashable, Iterator, Sized
+from collections.abc import Hashable, Iterator, Sequence, Sized
 from contextlib import contextmanager
 
 __all__ = [
-    "ECHO_LIMIT", "echo", "fixed", "plural", "seconds_text", "setting", "warn_once",
-    "warned_apart", "with_article",
+    "ECHO_LIMIT", "KNOWN_WORDS_SHOWN", "echo", "fixed", "listed", "plural", "seconds_text",
+    "setting", "warn_once", "warned_apart", "with_article",
 ]  # fmt: skip
 
 ECHO_LIMIT = 80
@@ -44,6 +45,22 @@ def echo(value: object, limit: int = ECHO_LIMIT) -> str:
         return text
     count = f"{len(value)} entries, " if isinstance(value, Sized) else ""
     return f"{text[:limit]}... ({count}{len(text)} characters)"
+
+
+KNOWN_WORDS_SHOWN = 30
+"""Known words an unknown word's error lists when none is close (a home's vocabulary, 14-17
+words in the public houses, whole: the list stopped at 10)."""
+
+
+def listed(words: Sequence[str], shown: int = KNOWN_WORDS_SHOWN) -> str:
+    """``words`` joined by ", ", the first ``shown`` of them, then ", ... (N more)" for the
+    rest: how an error or a warning lists words (``where``'s unknown word, ``navigate``'s
+    instruction, ``fit --update``'s unheard words, renamed saved words, a St.csv's words with
+    invisible characters or written without spaces). Its default, a home's whole vocabulary:
+    ``navigate``'s list stopped at 12 and hid room1dk5's 'washroom' from "go to the
+    bathroom"."""
+    more = len(words) - shown
+    return ", ".join(words[:shown]) + (f", ... ({more} more)" if more > 0 else "")
 
 
 def setting(python: str, flag: str, command: str = "fit") -> str:

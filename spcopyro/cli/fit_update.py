@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from spcopyro._util.messages import listed
 from spcopyro.cli.fit_refine import prepares_data
 
 if TYPE_CHECKING:
@@ -77,8 +78,6 @@ def report_update(record: dict[str, object], where: str, data_sha256: object = N
               "of the model data): no observation was added, the update only ran more "
               "iterations on it; add the new trial's files to DATA first")  # fmt: skip
     if unheard:
-        from spcopyro.results.semantic_map import listed
-
         print(f"warning: {len(unheard)} word(s) of the fit in {where} are not in this run's "
               f"data: {listed(unheard, 20)}; an update is fitted on DATA alone, so "
               "DATA must hold the old trials' observations as well as the new ones (their "

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from spcopyro._util.messages import echo
+from spcopyro._util.messages import echo, listed
 from spcopyro.data.observations import DataFormatError
 from spcopyro.data.text import hidden_words_warning, tokenize, unsegmented
 
@@ -249,9 +249,8 @@ def _read_utterances_line(path: Path) -> tuple[tuple[str, ...], ...]:
     if unspaced:  # ここは台所です: one word, heard nowhere else (docs/data.md)
         logger.warning(
             "%s, line 1: %d utterance(s) look like sentences written without spaces, each read "
-            "as one word: %s%s (nothing splits such text: write it with spaces between its "
-            "words, as MeCab's mecab -Owakati does)", path, len(unspaced), ", ".join(unspaced[:3]),
-            f", ... ({len(unspaced) - 3} more)" if len(unspaced) > 3 else "",
+            "as one word: %s (nothing splits such text: write it with spaces between its "
+            "words, as MeCab's mecab -Owakati does)", path, len(unspaced), listed(unspaced, 3),
         )  # fmt: skip
     return tuple(utterances)
 

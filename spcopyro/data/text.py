@@ -15,6 +15,7 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
+from spcopyro._util.messages import listed
 from spcopyro.config import WordWeighting
 
 __all__ = [
@@ -117,8 +118,7 @@ def hidden_words_warning(
     hidden = hidden_word_entries(utterances, first_number=0 if source is None else 1)
     if not hidden:
         return None
-    more = len(hidden) - HIDDEN_WORDS_SHOWN
-    shown = ", ".join(hidden[:HIDDEN_WORDS_SHOWN]) + (f", ... ({more} more)" if more > 0 else "")
+    shown = listed(hidden, HIDDEN_WORDS_SHOWN)
     if source is None:
         where, whose, read, kept = "Observations", " of the utterances", "", ""
     else:

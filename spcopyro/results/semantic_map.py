@@ -47,6 +47,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from spcopyro._util.messages import KNOWN_WORDS_SHOWN, listed
 from spcopyro.data import CellCounts
 from spcopyro.data.text import fold_word, hidden_characters_note, hidden_match, tokenize
 from spcopyro.maps import OccupancyGrid
@@ -58,6 +59,7 @@ __all__ = [
     "TabularSemanticMap",
     "UnknownWordError",
     "CLOSE_WORD_CUTOFF",
+    "KNOWN_WORDS_SHOWN",
     "as_semantic_map",
     "close_words",
     "did_you_mean",
@@ -152,21 +154,6 @@ def did_you_mean(key: str, known: Sequence[str], prefix: str = "") -> str:
     (:mod:`spcopyro.study.spec`) suggest through this."""
     close = close_words(key, known)
     return f"; did you mean {', '.join(prefix + c for c in close)}?" if close else ""
-
-
-KNOWN_WORDS_SHOWN = 30
-"""Known words an unknown word's error lists when none is close (a home's vocabulary, 14-17
-words in the public houses, whole: the list stopped at 10)."""
-
-
-def listed(words: Sequence[str], shown: int = KNOWN_WORDS_SHOWN) -> str:
-    """``words`` joined by ", ", the first ``shown`` of them, then ", ... (N more)" for the
-    rest: how an error or a warning lists words (``where``'s unknown word, ``navigate``'s
-    instruction, ``fit --update``'s unheard words, renamed saved words). Its default, a
-    home's whole vocabulary: ``navigate``'s list stopped at 12 and hid room1dk5's 'washroom'
-    from "go to the bathroom"."""
-    more = len(words) - shown
-    return ", ".join(words[:shown]) + (f", ... ({more} more)" if more > 0 else "")
 
 
 def word_index(vocabulary: tuple[str, ...], word: str) -> int:
