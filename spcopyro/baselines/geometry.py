@@ -47,6 +47,7 @@ import math
 import numpy as np
 from scipy import ndimage
 
+from spcopyro._util.progress import setup_bar
 from spcopyro.data import DEFAULT_SNAP_DISTANCE, Observations, cell_counts
 from spcopyro.maps import OccupancyGrid
 from spcopyro.maps.coarse import grow_labels
@@ -74,6 +75,27 @@ def _positive_number(name: str, value: float) -> float:
     if not (math.isfinite(value) and value > 0):
         raise ValueError(f"{name} must be positive and finite, got {value!r}")
     return float(value)
+
+
+def _distance(free: np.ndarray) -> np.ndarray:
+    """``[H, W]`` float64 distance in cells from each free cell's centre to the nearest non-free
+    cell's (outside the map counts as non-free); 0 off free space."""
+    padded = np.pad(free, 1, constant_values=False)  # [H + 2, W + 2]
+    return ndimage.distance_transform_edt(padded)[1:-1, 1:-1]
+
+
+def _levels(door_width: float, res: float) -> np.ndarray:
+    """``[n_levels]`` descending flood levels in cells: r_0 = door_width / 2, then down one cell
+    at a time, then 0. _EPS keeps a cell exactly at a level out of its super-level set despite
+    rounding (0.3 / 0.1 = 2.99...96)."""
+    top = door_width / 2.0 / res
+    levels = top - np.arange(int(math.floor(top + _EPS)) + 1)  # [n_levels] descending
+    return np.append(levels[levels > _EPS], 0.0)
+
+
+def _min_cells(min_room_area: float, res: float) -> float:
+    """The smallest new room in cells (a component of at least this many becomes one)."""
+    return min_room_area / res**2 - _EPS
 
 
 def _flood(distance: np.ndarray, levels: np.ndarray, min_cells: float) -> np.ndarray:
@@ -120,14 +142,7 @@ def room_segments(
     if not free.any():
         return np.full(grid.shape, -1, dtype=np.int64)
     res = grid.resolution
-    padded = np.pad(free, 1, constant_values=False)  # outside the map is not free
-    distance = ndimage.distance_transform_edt(padded)[1:-1, 1:-1]  # [H, W] cells
-    # Levels in cells: r_0 = door_width / 2, then down one cell at a time to 0. _EPS keeps a cell
-    # exactly at a level out of its super-level set despite rounding (0.3 / 0.1 = 2.99...96).
-    top = door_width / 2.0 / res
-    levels = top - np.arange(int(math.floor(top + _EPS)) + 1)  # [n_levels] descending
-    levels = np.append(levels[levels > _EPS], 0.0)
-    grown = _flood(distance, levels, min_room_area / res**2 - _EPS)  # [H, W]
+    grown = _flood(_distance(free), _levels(door_width, res), _min_cells(min_room_area, res))
     leftover = free & (grown == 0)  # [H, W] bool
     if leftover.any():
         pieces, _ = ndimage.label(leftover)
@@ -175,6 +190,76 @@ def geometry_semantic_map(
     )
 
 
+def _counted(cells, res: float, min_room_area: float):
+    """Whether segments of ``cells`` cells (an int or an array of them) count as rooms: cover
+    ``min_room_area`` square metres or more, as the callers of :func:`room_segments` measure."""
+    return cells * res**2 >= min_room_area
+
+
+def _room_counts(
+    distance: np.ndarray, widths: list[float], res: float, min_cells: float
+) -> list[int]:
+    """Rooms ``_flood`` creates at each door width in ``widths``, from labellings alone.
+
+    A component C of ``{d > r}`` becomes a room iff it covers ``min_cells`` or more and holds no
+    room yet, and it holds one iff a component of ``min_cells`` or more of the next level up
+    lies in it (a room grows over its whole component, and level sets are nested). So the count
+    at width w is the big components at its top level plus, per level below, the big components
+    with no big one of the level above inside; neither depends on how rooms grow. A level's set
+    depends only on how many distinct distances lie at or under it (its key), and the widths
+    share most levels (at 0.05 m 1.25 m's are 0.75 m's and five more), so each distinct set is
+    labelled once for all widths: 58 labellings on a 0.05 m map, where segmenting every
+    candidate flooded 200 levels, each with a breadth-first growth.
+    """
+    values = np.unique(distance[distance > 0])  # [V] distinct free-cell distances, ascending
+    chains = []  # per width: [(key, level)] from its top level down
+    for width in widths:
+        levels = _levels(width, res)
+        keys = np.searchsorted(values, levels + _EPS, side="right")  # [n_levels]
+        chains.append(list(zip(keys.tolist(), levels.tolist(), strict=True)))
+    level_of = {key: level for chain in chains for key, level in chain}  # one level per set
+    ups: dict[int, set[int]] = {}  # key -> keys of the levels just above it
+    for chain in chains:
+        for (up, _), (key, _) in zip(chain, chain[1:], strict=False):
+            ups.setdefault(key, set()).add(up)
+    waiting = dict.fromkeys(level_of, 0)  # key -> lower sets still to check against it
+    for key, above in ups.items():
+        for up in above - {key}:
+            waiting[up] += 1
+    bar = setup_bar(
+        int((distance > 0).sum()),
+        len(level_of),
+        f"room counts at {len(widths)} door widths",
+        "level",
+    )
+    big_cells: dict[int, np.ndarray] = {}  # key -> [H, W] bool cells of its big components
+    tops: dict[int, int] = {}  # key -> big components at that level
+    fresh: dict[tuple[int, int], int] = {}  # (key, up) -> big components with none of up's in
+    for key in sorted(level_of, reverse=True):  # smallest set (highest level) first
+        components, count = ndimage.label(distance > level_of[key] + _EPS)  # [H, W]
+        big = np.bincount(components.ravel(), minlength=count + 1) >= min_cells  # [count + 1]
+        big[0] = False
+        tops[key] = int(big.sum())
+        for up in ups.get(key, ()):
+            if up == key:  # the same set twice: every big component holds itself
+                fresh[key, up] = 0
+                continue
+            holds = np.bincount(components[big_cells[up]], minlength=count + 1) > 0
+            fresh[key, up] = int((big & ~holds).sum())
+            waiting[up] -= 1
+            if waiting[up] == 0:
+                del big_cells[up]
+        if waiting[key]:
+            big_cells[key] = big[components]  # [H, W] bool
+        bar.update(1)
+    bar.close()
+    return [
+        tops[chain[0][0]]
+        + sum(fresh[key, up] for (up, _), (key, _) in zip(chain, chain[1:], strict=False))
+        for chain in chains
+    ]
+
+
 def auto_door_width(
     grid: OccupancyGrid,
     *,
@@ -194,17 +279,28 @@ def auto_door_width(
     is not the door scale on a large map: one narrow doorway there (a 0.8 m door of a drawn
     100 m office block whose 24 offices open through 1.2 m doors) cut 2 rooms at 1 m, where
     1.25 m cuts 26. When no candidate separates two rooms the widest is returned with its
-    count (1; the caller says so). Every candidate is segmented: on a 2000 x 2000 map at
-    0.05 m that is about 100 s.
+    count (1; the caller says so). The counts come from one distance transform and a
+    labelling per distinct level (``_room_counts``), not a segmentation per candidate: on a
+    2000 x 2000 map at 0.05 m about 4 s, where segmenting every candidate took about 100 s.
     """
     if not candidates:
         raise ValueError("auto_door_width needs at least one candidate width")
-    widths = sorted(candidates)
-    counts = []  # [len(widths)] rooms at each width
-    for width in widths:
-        segments = room_segments(grid, door_width=width, min_room_area=min_room_area)
-        sizes = np.bincount(segments[segments >= 0])
-        counts.append(int((sizes * grid.resolution**2 >= min_room_area).sum()))
+    widths = sorted(_positive_number("door_width", width) for width in candidates)
+    min_room_area = _positive_number("min_room_area", min_room_area)
+    res = grid.resolution
+    free = np.asarray(grid.free, dtype=bool)  # [H, W]
+    min_cells = _min_cells(min_room_area, res)
+    smallest = max(math.ceil(min_cells), 1)  # cells of the smallest room _flood can create
+    if _counted(smallest, res, min_room_area) and not _counted(smallest - 1, res, min_room_area):
+        # Every room _flood creates has `smallest` cells or more, so it counts, and a free piece
+        # no room reaches has fewer, so it does not: the count is the rooms created.
+        counts = _room_counts(_distance(free), widths, res, min_cells)  # [len(widths)]
+    else:  # min_room_area / res^2 a hair above an integer: count the segments as they come out
+        counts = []
+        for width in widths:
+            segments = room_segments(grid, door_width=width, min_room_area=min_room_area)
+            sizes = np.bincount(segments[segments >= 0])
+            counts.append(int(_counted(sizes, res, min_room_area).sum()))
     rises = np.diff(counts, prepend=1)  # [len(widths)] rooms gained over the narrower width
     rises[np.asarray(counts) < 2] = 0  # one room (or none) is no separation
     best = int(np.argmax(rises))  # the first (narrowest) of equal rises
