@@ -63,6 +63,11 @@ ten ``fit-*`` and ``converged-*`` concept tables are longer and their digests we
 Checked before recording: every array of every scenario, run at bcf81ba (before the change) and
 at d1b3738, is identical (floats bit for bit) except the concept tables, whose text differs only
 by the added ``"name": ...`` entries. The stored floats (``pinned_outputs.npz``) were kept.
+The name then became the most probable of those words in the concept (p(word | concept), not
+p(C | word)): every scenario run with both rules gave identical arrays except the concept text,
+differing only in four names (fit-torch-paper-dp: shower -> bathroom; fit-torch-options: sink ->
+kitchen; converged-numba-one-block: table -> bedroom, sink -> kitchen), and the old rule's tables
+gave the stored digests; those three digests were recorded again, the floats kept.
 
 Not a change (issue 25, item 4): the compiled sweep can draw its globals' label-free gamma
 variates ahead, on a worker thread (:mod:`spcopyro.gibbs.numba_globals`, ``SPCOPYRO_PRIOR_THREAD``

@@ -73,34 +73,40 @@ def _filler_on_top(result):
 
 def test_places_are_named_by_the_word_where_answers_with_them(result, tmp_path, capsys):
     """``show OUT --graph`` named a region after its concept's top word, which ``where`` may
-    answer with another region (the demo's kitchen, top word "sink"). A place is now named by
-    the word whose where-answer is its concept, the highest p(C | word) first: the corridor
-    "corridor", not "the" (the closet's answer); the closet "closet", not "the" (its answer
-    too, at a lower p). concepts.json's "name", graph.json and the semantic map's label of a
-    concept's further region say the same."""
+    answer with another region (room2ldk4: two places "bedroom"). A place is named by its
+    concept's most probable word among those whose where-answer is the concept: the corridor
+    "corridor", not "the" (its top word, but the closet's answer); the closet "the" (its top
+    word, w 0.55, and where's answer for it, p(C | word) 0.63), not "closet" (w 0.4): ranking
+    the answering words by p(C | word) named it after the word most exclusive to it (closet,
+    p 0.88), not the most said there (room2ldk4's 31.8 m^2 place read "entrance", its top word
+    "bedroom" answering it too). concepts.json's "name", graph.json and the semantic map's
+    label of a concept's further region say the same."""
     from spcopyro.figures.map_pieces import region_text
 
     filler = _filler_on_top(result)
     corridor, closet = CONCEPT["B"], CONCEPT_D
     assert filler.top_words(corridor, 1)[0][0] == filler.top_words(closet, 1)[0][0] == "the"
     assert filler.where("the").concept == closet and filler.where("corridor").concept == corridor
+    assert filler.where("the").probability < filler.where("closet").probability  # 0.63 < 0.88
     rooms = _by_room(place_graph(filler))
     assert [rooms[r].name for r in "ABCED"] == ["bedroom", "corridor", "kitchen", "bedroom",
-                                                 "closet"]  # fmt: skip
-    assert rooms["B"].answers == ("corridor",) and rooms["D"].answers == ("closet", "the")
+                                                 "the"]  # fmt: skip
+    assert rooms["B"].answers == ("corridor",) and rooms["D"].answers == ("the", "closet")
     plan = navigate(filler, "go to the kitchen", START_A)
     assert plan.route_words == ("bedroom", "corridor", "kitchen")
     names = {c["concept"]: c["name"] for c in filler.concepts()}
-    assert names == {0: "bedroom", corridor: "corridor", 2: "kitchen", closet: "closet"}
+    assert names == {0: "bedroom", corridor: "corridor", 2: "kitchen", closet: "the"}
     assert region_text(filler, corridor, largest=False) == f"[{corridor}] corridor"
+    assert region_text(filler, closet, largest=False) == f"[{closet}] the"
 
     fit = filler.save(tmp_path / "fit")
     assert main(["show", str(fit), "--graph", "--out", str(tmp_path / "graph.png")]) == 0
     out = capsys.readouterr().out
-    assert "corridor (1.7 m^2)" in out and "closet (3.1 m^2)" in out and ": the (" not in out
+    assert "corridor (1.7 m^2)" in out and ": the (3.1 m^2)" in out and "closet (" not in out
+    assert "where answers it for: the, closet" in out  # most probable in the closet first
     written = json.loads((tmp_path / "graph.json").read_text())
-    assert sorted(p["name"] for p in written["places"]) == ["bedroom", "bedroom", "closet",
-                                                           "corridor", "kitchen"]  # fmt: skip
+    assert sorted(p["name"] for p in written["places"]) == ["bedroom", "bedroom", "corridor",
+                                                           "kitchen", "the"]  # fmt: skip
     saved = json.loads((fit / "concepts.json").read_text())
     saved = saved["concepts"] if isinstance(saved, dict) else saved
     assert {c["concept"]: c["name"] for c in saved} == names

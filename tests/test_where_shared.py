@@ -62,7 +62,8 @@ def test_shared_answers_keeps_only_words_above_the_threshold_and_names_a_few():
 
 def test_answers_by_concept_ranks_each_concepts_words_as_both_callers_read_them():
     """One ranking of each concept's answered words serves ``where``'s shared answers (exact p)
-    and the concepts' names (p rounded to RANK_DECIMALS, a near-tie in vocabulary order)."""
+    and gives the words that may name a concept (``answered_words``, which orders them by
+    p(word | concept), rounded to RANK_DECIMALS: a near-tie in vocabulary order)."""
     posterior = np.array([[0.6, 0.60000001, 0.3, 0.5], [0.4, 0.39999999, 0.7, 0.5]])  # [L, V]
     assert answers_by_concept(posterior) == {0: [(1, 0.60000001), (0, 0.6), (3, 0.5)],
                                              1: [(2, 0.7)]}  # fmt: skip  # 3: first of ties
@@ -71,8 +72,15 @@ def test_answers_by_concept_ranks_each_concepts_words_as_both_callers_read_them(
     assert answers_by_concept(np.zeros((2, 0))) == {}
     result = two_rooms()
     ranked = answers_by_concept(result.word_posteriors(), decimals=RANK_DECIMALS)
-    named = {c: tuple(result.vocabulary[v] for v, _ in vs) for c, vs in ranked.items()}
-    assert answered_words(result) == named
+    named = {c: {result.vocabulary[v] for v, _ in vs} for c, vs in ranked.items()}
+    assert {c: set(words) for c, words in answered_words(result).items()} == named
+    words = result.emission("words")  # bed and sofa said alike in concept 1, to the last bits
+    w = np.array(words.probabilities)  # [L, V] kitchen, bed, sofa
+    w[1] = [0.1, 0.45, 0.45 + 1e-15]
+    tied = dataclasses.replace(
+        result, emissions=(*result.emissions[:-1], dataclasses.replace(words, probabilities=w))
+    )
+    assert answered_words(tied)[1] == ("bed", "sofa")  # not sofa first by 1e-15
     w, prior = result.w, result.concept_prior("area")
     exact = answers_by_concept(result.word_posteriors())[1]
     assert shared_answers(w, prior, 1, result.vocabulary, "") == tuple(

@@ -1,15 +1,20 @@
 """The name of a concept's region, one rule for every output that names one.
 
-A region is named by the word whose ``where`` answer (eq. 19 under the default area prior,
-argmax_C p(C | word)) is its concept: of those words, the one with the highest p(C | word) that
-was heard on the map's free space. A concept's most probable word may be another concept's
-answer, and ``show OUT --graph`` named places after top words (room2ldk4: two places named
-"bedroom", only one of them where ``spcopyro where OUT bedroom`` is). Where no word's answer is the
-concept, the region is named by its top word, and a region where no word was heard by
-``concept N`` (even where a word's answer is it: that answer is the prior's alone). Place
-words and object words are not told apart (a fit does not know which is which), so p(C | word)
-alone decides: the demo's kitchen region answers "sink" (p 0.87, measured on the seeded default
-fit) more surely than "kitchen" (p 0.78), and is still named "sink".
+A region is named by the concept's most probable word (highest p(word | concept), its row of the
+word table) among the words whose ``where`` answer (eq. 19 under the default area prior,
+argmax_C p(C | word)) is the concept and that were heard on the map's free space: the top-word
+rule, restricted to the words that answer the concept, so that a name always agrees with
+``where``. A concept's most probable word may be another concept's answer, and ``show OUT
+--graph`` named places after top words (room2ldk4: two places named "bedroom", only one of them
+where ``spcopyro where OUT bedroom`` is). Ranking the answering words by p(C | word) instead
+picked the word most exclusive to the concept, not the one most said there: on room2ldk4 (200
+sweeps, seed 0) the 31.8 m^2 place whose answering words are bedroom, entrance, kitchen and
+refrigerator read "entrance" and the one answering parlor, shelf, tv and closet "shelf" (now
+"bedroom" and "parlor", their top words); on the seeded default demo every place's top word
+answers it, and its names are the same under both rules ("sink" for the kitchen). Where no
+word's answer is the concept, the region is named by its top word, and a region where no word
+was heard by ``concept N`` (even where a word's answer is it: that answer is the prior's alone).
+Place words and object words are not told apart (a fit does not know which is which).
 
 Used by the place graph (:attr:`~spcopyro.robot.navigation.places.Place.name`: ``show
 --graph``, ``navigate``'s routes), ``concepts.json``'s ``name`` and the semantic map's label of
@@ -21,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from spcopyro.config import WORDS
-from spcopyro.results.concept_words import RANK_DECIMALS
+from spcopyro.results.concept_words import ranked
 from spcopyro.results.where import answers_by_concept
 
 __all__ = ["answered_words", "concept_name", "concept_names"]
@@ -29,28 +34,36 @@ __all__ = ["answered_words", "concept_name", "concept_names"]
 
 def answered_words(result: object, heard_only: bool = False) -> dict[int, tuple[str, ...]]:
     """Per concept, the words whose ``where`` answer (eq. 19, the default area prior) it is,
-    highest p(C | word) first (ties in vocabulary order); ``heard_only``: only the words heard on
-    the map's free space and the concepts whose region holds a heard word (an answer without
-    either is the prior's alone). Empty for a fit without words."""
-    emissions = getattr(result, "emissions", ())
+    most probable in the concept first (its row of the word table, p(word | concept), ranked
+    after rounding to :data:`~spcopyro.results.concept_words.RANK_DECIMALS`, ties in vocabulary
+    order); ``heard_only``: only the words heard on the map's free space and the concepts whose
+    region holds a heard word (an answer without either is the prior's alone). Empty for a fit
+    without words."""
+    table = next((t for t in getattr(result, "emissions", ()) if t.name == WORDS), None)
     vocabulary = result.vocabulary  # type: ignore[attr-defined]
-    if not any(table.name == WORDS for table in emissions) or not vocabulary:
+    if table is None or not vocabulary:
         return {}
     posterior = np.asarray(result.word_posteriors())  # type: ignore[attr-defined]  # [L, V]
-    ranked = answers_by_concept(posterior, decimals=RANK_DECIMALS)  # near-ties: vocabulary order
+    w = np.asarray(table.probabilities)  # [L, V] p(word | concept)
     totals = getattr(result, "word_totals", None)  # [V] or None (an old result: all heard)
     heard = getattr(result, "heard", lambda _: None)
-    answers = {c: tuple(vocabulary[v] for v, _ in vs
-                        if not (heard_only and totals is not None and totals[v] == 0))
-               for c, vs in ranked.items() if not (heard_only and heard(c) == 0)}  # fmt: skip
-    return {c: words for c, words in answers.items() if words}
+    answers: dict[int, tuple[str, ...]] = {}
+    for c, answered in answers_by_concept(posterior).items():
+        if heard_only and heard(c) == 0:
+            continue
+        columns = np.array(sorted(v for v, _ in answered
+                                  if not (heard_only and totals is not None and totals[v] == 0)),
+                           dtype=np.int64)  # [n] vocabulary order  # fmt: skip
+        if columns.size:
+            answers[c] = tuple(vocabulary[v] for v in columns[ranked(w[c, columns])])
+    return answers
 
 
 def concept_name(
     result: object, concept: int, answers: dict[int, tuple[str, ...]] | None = None
 ) -> str:
-    """The name of ``concept``'s region (module docstring): its best answered word, else its top
-    word, else ``concept N``. ``answers``: :func:`answered_words` with ``heard_only``, when
+    """The name of ``concept``'s region (module docstring): its most probable answered word, else
+    its top word, else ``concept N``. ``answers``: :func:`answered_words` with ``heard_only``, when
     already computed (naming many concepts)."""
     if answers is None:
         answers = answered_words(result, heard_only=True)

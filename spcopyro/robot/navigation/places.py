@@ -63,8 +63,8 @@ class Place:
     rule of every output that names a region): its first answered word, else its top word,
     else ``concept N`` for a concept where no word was heard."""
     answers: tuple[str, ...] = ()
-    """The words heard on the map whose ``where`` answer is its concept, highest p(C | word)
-    first (:func:`~spcopyro.results.concept_names.answered_words`)."""
+    """The words heard on the map whose ``where`` answer is its concept, most probable in the
+    concept (p(word | concept)) first (:func:`~spcopyro.results.concept_names.answered_words`)."""
 
 
 @dataclass(frozen=True)
