@@ -4,6 +4,7 @@ Gibbs sweep backends (each test taking ``backend`` runs once per backend)."""
 from __future__ import annotations
 
 import logging
+import os
 import signal
 import sys
 from concurrent.futures import ThreadPoolExecutor
@@ -53,6 +54,19 @@ def _logging_restored():
     yield
     logger.setLevel(level)
     logging.disable(disabled)
+
+
+@pytest.fixture(autouse=True)
+def _environment_restored():
+    """os.environ as it was before the test: a benchmark script's main() run in process
+    (tests/test_benchmarks.py: online_update.py, stochastic_vi.py) sets ``CI=1`` to keep its
+    children's bars off, which switched every later test's progress bars off
+    (test_postprocessing_progress failed in the whole suite, passed alone)."""
+    before = dict(os.environ)
+    yield
+    if os.environ != before:
+        os.environ.clear()
+        os.environ.update(before)
 
 
 @pytest.fixture(autouse=True)

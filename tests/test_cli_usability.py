@@ -130,6 +130,10 @@ class _Bar:
     def close(self):
         pass
 
+    @classmethod
+    def set_lock(cls, lock):  # a forked chain worker gives tqdm a fresh lock (fresh_tqdm_lock)
+        pass
+
     def __enter__(self):
         return self
 

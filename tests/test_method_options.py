@@ -43,7 +43,7 @@ def test_fit_runs_a_method_with_the_options_given(tmp_path, capsys):
     args = ["fit", "--out", str(out), "--method", "lbp", "--sweeps", "2", "--preset",
             "original-code", "--concepts", "6", "--method-option", "damping=0.3"]  # fmt: skip
     assert main(args) == 0
-    assert "LBPOptions(damping=0.3" in capsys.readouterr().out
+    assert "lbp: 2 iterations, damping 0.3 (every setting:" in capsys.readouterr().out
     assert json.loads((out / "config.json").read_text())["inference"]["damping"] == 0.3
     assert main([*args[:-1], "dampin=0.3", "--overwrite"]) == 2
     assert "has no field 'dampin'" in capsys.readouterr().err
