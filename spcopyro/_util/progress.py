@@ -9,6 +9,8 @@ from collections.abc import Callable, Iterator
 from contextvars import ContextVar
 from typing import Any
 
+from spcopyro._util.context import set_within
+
 SETUP_PROGRESS_CELLS = 100_000
 """From this many free cells, a fit's setup steps show a progress bar of their own
 (:func:`setup_bar`: spreading the observation footprints, memoized VI's memo and coefficients):
@@ -31,11 +33,8 @@ def progress_stage(name: str | None) -> Iterator[None]:
     two Gibbs stages both read "Gibbs sweeps", so its bar went 5000/5000, then 0/5000 under
     the same label; now "Gibbs sweeps (model grid)", then "Gibbs sweeps (map's cells)". None:
     no stage named."""
-    token = _STAGE.set(name)
-    try:
+    with set_within(_STAGE, name):
         yield
-    finally:
-        _STAGE.reset(token)
 
 
 def staged(description: str) -> str:

@@ -65,6 +65,7 @@ from typing import TYPE_CHECKING, Literal, TypeVar
 
 import numpy as np
 
+from spcopyro._util.context import set_within
 from spcopyro.maps.grid import OccupancyGrid
 
 if TYPE_CHECKING:  # scipy.sparse is imported where a footprint is built (0.3 s of every fit else)
@@ -97,11 +98,8 @@ def shared_footprints() -> Iterator[None]:
     the same preparation returns the first's spread counts (``spcopyro fit``'s summary and its
     model data, each 24 s on a map of 10^6 cells). Its warnings are still given by each call.
     Outside it nothing is kept."""
-    token = _SHARED.set({})
-    try:
+    with set_within(_SHARED, {}):
         yield
-    finally:
-        _SHARED.reset(token)
 
 
 def release_shared_footprints() -> None:

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from spcopyro._util.context import set_within
 from spcopyro._util.messages import echo
 from spcopyro.data.text import hidden_words_warning, tokenize
 
@@ -228,11 +229,8 @@ def hidden_words_told() -> Iterator[None]:
     """Within it, :class:`Observations` does not warn of words holding invisible format
     characters: its caller has (the St.csv reader, naming the file and line; a subset of
     observations that warned)."""
-    told = _HIDDEN_WORDS_TOLD.set(True)
-    try:
+    with set_within(_HIDDEN_WORDS_TOLD, True):
         yield
-    finally:
-        _HIDDEN_WORDS_TOLD.reset(told)
 
 
 @dataclass(frozen=True, eq=False)

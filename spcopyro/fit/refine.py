@@ -55,6 +55,7 @@ from typing import Any
 
 import numpy as np
 
+from spcopyro._util.context import set_within
 from spcopyro.config import PRESETS, DataPreparation, SpCoConfig, SpCoSettings, preset
 from spcopyro.data import House
 from spcopyro.data.counts import KEEPS, scale_features, scaled_away
@@ -302,11 +303,8 @@ def refine_chains(
     if getattr(options, "anneal_sweeps", 0):  # its start is the fitted map, not noise: only
         # the coarse stage anneals (annealed again: 0.984 against 0.990, docs/commands.md)
         chain_kwargs["options"] = dataclasses.replace(options, anneal_sweeps=0)
-    token = COARSE_STAGE_MODEL.set(settings.model)
-    try:
+    with set_within(COARSE_STAGE_MODEL, settings.model):
         refits = fit_chains(on_map, refined, init=first, **chain_kwargs)
-    finally:
-        COARSE_STAGE_MODEL.reset(token)
     record = {
         **decision.to_json(),
         "coarse": {

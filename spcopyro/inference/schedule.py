@@ -31,6 +31,8 @@ from collections.abc import Iterator, Sequence
 
 import numpy as np
 
+from spcopyro._util.context import set_within
+
 logger = logging.getLogger("spcopyro")
 
 
@@ -57,11 +59,8 @@ def short_runs_meant() -> Iterator[None]:
     """Within the block, :func:`warn_unfinished_annealing` says nothing: for runs cut short on
     purpose (the inference comparison's re-runs at n/2, n/4, ... of a budget that does cover
     the annealing)."""
-    token = _SHORT_RUNS_MEANT.set(True)
-    try:
+    with set_within(_SHORT_RUNS_MEANT, True):
         yield
-    finally:
-        _SHORT_RUNS_MEANT.reset(token)
 
 
 def short_runs_meant_now() -> bool:

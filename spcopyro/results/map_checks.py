@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from spcopyro._util.context import set_within
 from spcopyro._util.messages import setting
 from spcopyro.config import DEFAULT_PRESET
 
@@ -105,11 +106,8 @@ def degenerate_map_advice(advice: Callable[[bool], str]) -> Iterator[None]:
     -- ``fit_house``'s, which names ``fit``'s options -- closes with ``advice(sampled)``
     instead (``sampled``: as :func:`degenerate_map_warning`'s). A study cell's fit gives its
     advice in the study file's own terms this way (:func:`spcopyro.study.evaluate.advice`)."""
-    token = _ADVICE.set(advice)
-    try:
+    with set_within(_ADVICE, advice):
         yield
-    finally:
-        _ADVICE.reset(token)
 
 
 def is_degenerate_map_warning(message: str) -> bool:
