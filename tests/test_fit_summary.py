@@ -52,3 +52,46 @@ def test_a_house_without_images_reads_words_only():
     line = model_line(preset().model, "coarse", images_missing=True)
     assert line.endswith(", chi 1, words only (no images here: use_images=True, as config.json "
                          "records it, has none to use)")  # fmt: skip
+
+
+def test_the_data_line_gives_the_cells_the_model_uses_beside_those_asked():
+    """The model's cells are a whole number of the map's: 0.25 m asked on a 0.1 m map is fitted
+    on 0.3 m cells (the "map" line's), and the data line said ``cells 0.25 m``."""
+    import dataclasses
+
+    import numpy as np
+
+    from spcopyro.maps.coarse import coarsen_grid
+    from spcopyro.maps.grid import FREE, OCCUPIED, OccupancyGrid
+
+    data = preset().data  # cell_size 0.25
+    free = np.full((60, 80), FREE, dtype=np.int8)
+    map_grid = OccupancyGrid(free, 0.1, (0.0, 0.0, 0.0))
+    line = data_line(data, coarsen_grid(map_grid, 3))
+    assert line.startswith(
+        "data             cells 0.3 m (0.25 m asked: a whole number of the map's 0.1 m cells), "
+        "feature scaling probability"
+    )
+    # as asked: the size alone
+    on_quarters = OccupancyGrid(free, 0.05, (0.0, 0.0, 0.0))
+    assert data_line(data, coarsen_grid(on_quarters, 5)) == data_line(data)
+    assert data_line(data, coarsen_grid(on_quarters, 5)).startswith(
+        "data             cells 0.25 m, "
+    )
+    # rounded to the map's own cells
+    finer = dataclasses.replace(data, cell_size=0.12)
+    assert data_line(finer, map_grid).startswith(
+        "data             the map's own 0.1 m cells (0.12 m asked: a whole number of the map's "
+        "0.1 m cells), "
+    )
+    # coarser cells leave no free cell: the fit falls back to the map's own (model_house)
+    thin = np.full((60, 80), OCCUPIED, dtype=np.int8)
+    thin[30, :] = FREE
+    thin_grid = OccupancyGrid(thin, 0.1, (0.0, 0.0, 0.0))
+    assert data_line(data, thin_grid).startswith(
+        "data             the map's own 0.1 m cells (0.25 m asked leaves no free cell of the "
+        "map's 0.1 m cells), "
+    )
+    # the map's own cells asked (None): unchanged
+    own = dataclasses.replace(data, cell_size=None)
+    assert data_line(own, map_grid).startswith("data             the map's own cells, ")

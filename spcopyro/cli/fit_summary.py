@@ -7,12 +7,15 @@ OUT/config.json, which the inference line points to."""
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import TYPE_CHECKING
 
 from spcopyro.inference.protocol import options_for_start, start_filled
+from spcopyro.maps.coarse import coarsening_factor
 
 if TYPE_CHECKING:
     from spcopyro.config import DataPreparation, SpCoConfig
+    from spcopyro.maps.grid import OccupancyGrid
 
 __all__ = ["data_line", "inference_line", "model_line"]
 
@@ -53,15 +56,16 @@ def model_line(config: SpCoConfig, preset: str | None, images_missing: bool = Fa
     return line
 
 
-def data_line(preparation: DataPreparation) -> str:
+def data_line(preparation: DataPreparation, grid: OccupancyGrid | None = None) -> str:
     """The "data" line: the model's grid, then how the images and words are counted and spread;
     tf-idf, a word scaling other than 1, a footprint and a snap distance other than the
-    default only where set."""
+    default only where set. ``grid``: the model's grid the fit uses (``model_house``), whose
+    cells are a whole number of the map's and so may differ from the cell size asked: the line
+    gives the size used, with the one asked beside it where they differ."""
     from spcopyro.config import DEFAULT_SNAP_DISTANCE
 
     p = preparation
-    size = "the map's own cells" if p.cell_size is None else f"cells {_number(p.cell_size)} m"
-    parts = [size, f"feature scaling {_value(p.feature_scaling)}"]
+    parts = [_cells(p.cell_size, grid), f"feature scaling {_value(p.feature_scaling)}"]
     if p.word_weighting != "count":
         parts.append(f"word weighting {p.word_weighting}")
     if p.word_scaling != 1.0:
@@ -72,6 +76,24 @@ def data_line(preparation: DataPreparation) -> str:
     if p.snap_distance != DEFAULT_SNAP_DISTANCE:
         parts.append(f"snap distance {_number(p.snap_distance)} m")
     return f"{'data':<{LABEL}}{', '.join(parts)}"
+
+
+def _cells(asked: float | None, grid: OccupancyGrid | None) -> str:
+    """The model's cells: ``cells 0.25 m`` as asked, or, where the grid's differ from
+    ``asked``, the size used with the one asked (``cells 0.3 m (0.25 m asked: a whole number
+    of the map's 0.1 m cells)``)."""
+    if asked is None:
+        return "the map's own cells"
+    if grid is None or math.isclose(grid.resolution, asked, rel_tol=1e-9):
+        return f"cells {_number(asked)} m"
+    own = grid.coarsened_from is None  # the map's own cells (rounded to them, or none free)
+    map_cells = f"the map's {_number((grid.coarsened_from or grid).resolution)} m cells"
+    used = f"the map's own {_number(grid.resolution)} m cells" if own else (
+        f"cells {_number(grid.resolution)} m"
+    )  # fmt: skip
+    if own and coarsening_factor(grid.resolution, asked) > 1:  # coarser cells left none free
+        return f"{used} ({_number(asked)} m asked leaves no free cell of {map_cells})"
+    return f"{used} ({_number(asked)} m asked: a whole number of {map_cells})"
 
 
 def _value(value: object) -> str:
