@@ -196,7 +196,7 @@ def test_fit_update_command_end_to_end(tmp_path, house, capsys):
     assert len(result.trace.objective) == 20
     config = json.loads((updated / "config.json").read_text())
     assert config["inference"]["update_of"]["new_words"] == ["kitchen", "sofa"]
-    assert config["inference"]["init"] == f"update of {first}"
+    assert config["inference"]["init"] == "update of the fit in update_of"
     # Other settings than the saved fit's: exit 2, naming the difference, nothing written.
     again = tmp_path / "again"
     assert main(["fit", str(tmp_path / "all" / "synthetic"), "--out", str(again),

@@ -353,8 +353,12 @@ def test_the_updated_fit_is_recorded_relative_to_the_result(first, tmp_path, mon
     monkeypatch.chdir(work)
     assert main(["fit", str(first / "all" / "synthetic"), "--update", "fits/first",
                  "--out", "fits/updated", "--sweeps", "2", *FLAGS]) == 0  # fmt: skip
-    record = json.loads((work / "fits/updated/config.json").read_text())["inference"]["update_of"]
+    inference = json.loads((work / "fits/updated/config.json").read_text())["inference"]
+    record = inference["update_of"]
     assert record["fit"] == "../first" and record["fit_relative_to"] == "result folder"
+    # init named the fit again as given here ("update of fits/first", relative to this working
+    # directory, not to the result's folder as update_of.fit is): now it points to update_of
+    assert inference["init"] == "update of the fit in update_of"
     moved = tmp_path / "elsewhere"
     shutil.move(work / "fits", moved)
     monkeypatch.chdir(tmp_path)

@@ -81,7 +81,7 @@ from spcopyro.results.saved_vocabulary import (
     renormalise_vocabulary,
     renormalised_result,
 )
-from spcopyro.robot.update_history import update_record
+from spcopyro.robot.update_history import UPDATE_INIT, update_record
 
 __all__ = [
     "DEFAULT_UPDATE_SWEEPS",
@@ -434,7 +434,7 @@ def fit_update(
                 )
             merge = start.merge
             output.options.update(
-                seed=int(seed), init=f"update of {where}",
+                seed=int(seed), init=UPDATE_INIT,  # the fit's folder once: update_of.fit
                 update_of=update_record(saved, (merge.new_words, merge.unheard_words), where,
                                         start.counts),
             )  # fmt: skip

@@ -23,12 +23,17 @@ if TYPE_CHECKING:
 __all__ = [
     "RELATIVE_TO",
     "RESULT_FOLDER",
+    "UPDATE_INIT",
     "fit_folder",
     "history",
     "relative_record",
     "update_record",
 ]
 
+UPDATE_INIT = "update of the fit in update_of"
+"""An update's ``inference.init``: the saved fit's folder is named once, by ``update_of.fit``
+(relative to the result's folder, :func:`relative_record`), not again as the path given, which
+was relative to the working directory the update ran in."""
 RELATIVE_TO = "fit_relative_to"
 """The key marking a record whose ``fit`` is relative to a folder (:data:`RESULT_FOLDER`)."""
 RESULT_FOLDER = "result folder"
