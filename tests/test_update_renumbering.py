@@ -9,12 +9,13 @@ import pytest
 import torch
 from test_online_update import _trials
 
+import spcopyro.robot.online as online
 from spcopyro.config import preset
 from spcopyro.data.model_grid import model_house
 from spcopyro.fit.house import fit_house, prepare_model_data, preset_fit_kwargs
 from spcopyro.likelihood import log_joint_variable
 from spcopyro.model import DTYPE
-from spcopyro.results.renumber import matching_permutation, renumbered
+from spcopyro.results.renumber import matching_permutation, moved_numbers, renumbered
 from spcopyro.robot.online import fit_update
 from spcopyro.synthetic import make_house
 
@@ -125,3 +126,32 @@ def test_an_update_keeps_the_saved_fits_numbers(house):
         now = np.bincount(result.labels[saved.labels == concept]).argmax()
         assert now == concept, f"saved concept {concept} is concept {now} after the update"
     assert np.mean(result.labels == saved.labels) > 0.8
+
+
+def test_moved_numbers_lists_the_concepts_whose_number_changed():
+    assert moved_numbers(np.arange(5)) == {}
+    perm = np.array([1, 0, 2, 4, 3])  # concept 0 numbered 1, 1 numbered 0, 3 and 4 swapped
+    assert moved_numbers(perm) == {"0": 1, "1": 0, "3": 4, "4": 3}
+    perm = np.array([2, 0, 1])  # a cycle: new number 2 was concept 0, 0 was 1, 1 was 2
+    assert moved_numbers(perm) == {"0": 1, "1": 2, "2": 0}
+
+
+def test_an_update_records_the_renumbering_so_raw_samples_can_be_read(house, fitted, monkeypatch):
+    """config.json did not say which concepts an update renumbered, so a user comparing the
+    sampler's raw samples with the result could not undo it: update_of.renumbered now says."""
+    raw: list[np.ndarray] = []
+    L = len(fitted.pi)
+    cycle = np.arange(L)
+    cycle[[0, 1, 2]] = [1, 2, 0]  # the sampler's 0, 1, 2 numbered 1, 2, 0
+
+    def matching(saved, new, num_concepts):
+        raw.append(np.array(new))  # [N] the update's labels in the sampler's own numbers
+        return cycle
+
+    monkeypatch.setattr(online, "matching_permutation", matching)
+    every = model_house(house, ORIGINAL.data.cell_size)
+    (result,) = fit_update(fitted, every, ORIGINAL, sweeps=2, progress=False)
+    record = result.inference["update_of"]["renumbered"]
+    assert record == {"0": 2, "1": 0, "2": 1}
+    undo = np.array([record.get(str(n), n) for n in range(L)])  # [L] result number -> raw
+    assert np.array_equal(undo[result.labels], raw[0])

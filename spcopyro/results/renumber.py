@@ -25,7 +25,7 @@ from scipy.optimize import linear_sum_assignment
 
 from spcopyro.results.result import SpCoResult
 
-__all__ = ["matching_permutation", "renumbered"]
+__all__ = ["matching_permutation", "moved_numbers", "renumbered"]
 
 
 def matching_permutation(
@@ -65,6 +65,18 @@ def matching_permutation(
     free = np.setdiff1d(np.arange(L), perm[perm >= 0])  # ascending numbers not taken
     perm[perm < 0] = free  # unmatched new concepts, ascending, take them in order
     return perm
+
+
+def moved_numbers(perm: np.ndarray) -> dict[str, int]:
+    """The numbers ``perm`` ([L], as :func:`renumbered` takes it) moved: each concept's new
+    number (a string, as a JSON key) -> its number before, for the concepts whose number changed
+    (empty for the identity), in ascending new number. An update records it
+    (``config.json``'s ``inference.update_of.renumbered``): a raw sample's concept ``k`` is
+    ``perm[k]`` in the result, so a result number ``n`` in it was ``moved[str(n)]`` (else ``n``)
+    in the sampler's own numbers."""
+    perm = np.asarray(perm, dtype=np.int64)  # [L]
+    inverse = np.argsort(perm)  # [L] new number -> old
+    return {str(n): int(inverse[n]) for n in range(perm.size) if inverse[n] != n}
 
 
 def renumbered(result: SpCoResult, perm: np.ndarray) -> SpCoResult:

@@ -43,6 +43,8 @@ What carries over:
 * **Concept numbers**: the result's concepts are renumbered after the sweeps to match the saved
   fit's on the same cells (:mod:`spcopyro.results.renumber`), so that a place keeps its number
   (colours, ``show``, the concepts table) although the sampler may have moved it to another.
+  ``update_of.renumbered`` records the numbers that moved (new number -> the sampler's), so
+  that its raw samples can be read in the result's numbers.
 
 The saved settings (model hyperparameters and data preparation) must equal the new run's:
 :func:`check_compatible` names every field that differs. Everything after sweep 0 is the
@@ -74,7 +76,7 @@ from spcopyro.gibbs.run import GibbsChain, advance, start_chain
 from spcopyro.inference.driver import DriveInterrupted
 from spcopyro.inference.protocol import method_options
 from spcopyro.model import DTYPE, ModelData
-from spcopyro.results.renumber import matching_permutation, renumbered
+from spcopyro.results.renumber import matching_permutation, moved_numbers, renumbered
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.saved_vocabulary import (
     SavedVocabulary,
@@ -445,6 +447,7 @@ def fit_update(
                 output, house, start.counts, start.data, start.settings, method, record
             )
             # the saved fit's numbers for the same places (a sampler renumbers concepts freely)
-            perm = matching_permutation(saved.labels, result.labels, len(result.pi))
+            perm = matching_permutation(saved.labels, result.labels, len(result.pi))  # [L]
+            result.inference["update_of"]["renumbered"] = moved_numbers(perm)
             results.append(renumbered(result, perm))
     return results
