@@ -9,13 +9,10 @@ import argparse
 import dataclasses
 
 from spcopyro.cli.common import given as given_flag
+from spcopyro.inference.names import SAMPLERS as SAMPLERS  # re-exported: sweeps, marginals
 from spcopyro.inference.protocol import StartDependentOptions, options_for_start
 
 __all__ = ["SAMPLERS", "check_sweeps", "given_start", "method_options", "warm_start_kept"]
-
-SAMPLERS = ("gibbs", "vi-gibbs")
-"""The ``--method`` values that draw samples (sweeps, kept samples, marginals): those of
-``spcopyro.fit.house.SAMPLERS``, spelt here because that module imports torch."""
 
 
 def _given_gibbs_flags(args: argparse.Namespace) -> dict[str, tuple[str, object]]:

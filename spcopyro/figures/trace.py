@@ -13,6 +13,7 @@ from matplotlib.ticker import FuncFormatter, MaxNLocator
 
 from spcopyro._util.messages import plural
 from spcopyro.figures.png import save_figure
+from spcopyro.inference.names import SAMPLERS
 from spcopyro.results.point_estimate import LOSS_LABELS
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.specks import in_use_text
@@ -23,8 +24,9 @@ ESTIMATE_NAMES = {loss: label.replace(" ", "-") for loss, label in LOSS_LABELS.i
 variational inference's (compare-inference's VI methods), not the variation-of-information
 loss's."""
 
-_CHAINS = ("gibbs", "vi-gibbs")
-"""The methods whose trace and marginals are a Gibbs chain's (vi-gibbs: after its CAVI start)."""
+_CHAINS = SAMPLERS
+"""The methods whose trace and marginals are a Gibbs chain's (vi-gibbs: after its CAVI start):
+:data:`~spcopyro.inference.names.SAMPLERS`."""
 
 
 def _estimate_name(result: SpCoResult) -> str:

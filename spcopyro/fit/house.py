@@ -73,6 +73,7 @@ from spcopyro.gibbs.hyperparameters import config_at_posterior_mean
 from spcopyro.gibbs.method import GibbsInference, output_from_run
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.inference.driver import DriveInterrupted
+from spcopyro.inference.names import SAMPLERS as SAMPLERS  # re-exported: label maps kept
 from spcopyro.inference.protocol import InferenceOutput
 from spcopyro.maps.free_space import check_free_cells
 from spcopyro.model import ModelData, make_model_data
@@ -154,7 +155,7 @@ def prepare_model_data(
     """Per-cell counts of the house under the settings' data preparation, and the model's
     tensors. Logs :func:`config_warnings` and :func:`preparation_warnings` (logger
     ``"spcopyro"``), those about the Gibbs sampler only when ``method`` samples
-    (:data:`SAMPLERS`) or is None (not known). ``vocabulary``: the
+    (:data:`~spcopyro.inference.names.SAMPLERS`) or is None (not known). ``vocabulary``: the
     word columns in order (None: the observations' own; an online update passes the union with
     a saved fit's, :mod:`spcopyro.robot.online`). ``house`` is fitted on its own grid: with a
     ``settings.data.cell_size`` coarser than its cells it logs a warning naming
@@ -245,10 +246,6 @@ def result_of(
         concept_totals=concept_totals(output.labels, data, settings.model),
         word_totals=data.modality(WORDS).counts.sum(0).numpy(),  # [V] over the observed cells
     )  # fmt: skip
-
-
-SAMPLERS = ("gibbs", "vi-gibbs")
-"""The methods that keep label maps (``marginal_samples``), over which a point estimate is made."""
 
 
 def best_chain(results: Sequence[SpCoResult]) -> int:

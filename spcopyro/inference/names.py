@@ -4,11 +4,17 @@ imports nothing, so that the command line lists them without importing torch.
 :data:`INFERENCE_METHOD_NAMES` are the keys of :data:`spcopyro.fit.registry.INFERENCE_METHODS`,
 :data:`INITS` the starts of :func:`spcopyro.fit.starts.initial_labels`, :data:`BACKENDS` the Gibbs
 sweep's implementations (:class:`spcopyro.gibbs.options.GibbsOptions`); tests check each against
-the table it names.
+the table it names; :data:`SAMPLERS` those of them that sample.
 """
 
 INFERENCE_METHOD_NAMES = ("gibbs", "cavi", "lbp", "svi", "stochastic-vi", "vi-gibbs")
 """The inference methods by name (:mod:`spcopyro.fit.registry`)."""
+
+SAMPLERS = ("gibbs", "vi-gibbs")
+"""The methods that draw samples: a Gibbs chain's sweeps (vi-gibbs: after its CAVI start), whose
+kept label maps (``marginal_samples``) give the marginals and the point estimate, and whose trace
+is a chain's. Spelt once here, imported by :mod:`spcopyro.fit.house`,
+:mod:`spcopyro.figures.trace` and the torch-free :mod:`spcopyro.cli.fit_options`."""
 
 DEFAULT_METHOD = "gibbs"
 """Algorithm 1 of the paper."""
