@@ -237,3 +237,38 @@ def test_every_variant_cell_gets_the_degenerate_map_check(tmp_path, monkeypatch,
     for key, said in _warnings_by_cell(tmp_path / "out").items():
         assert "degenerate map (test)" in said, (key, said)
     assert len(checked) == 4 and all(shape == (free,) for shape, free in checked), checked
+
+
+def test_a_rows_degenerate_map_warning_names_its_fixed_settings(tmp_path, monkeypatch):
+    """The comparison's SpCoMapping rows (variants named A-dp, A-orig-g3, B-dirichlet in
+    ``spcopyro experiment``'s study) have fixed settings, yet their degenerate-map warning ended
+    with the variants' advice "(in the study's variant: ...)". A row's names its settings and
+    says a study with a variant of other settings can be run; a variant keeps its advice."""
+    import numpy as np
+
+    import spcopyro.fit.house as house_module
+    from spcopyro.results.map_checks import degenerate_map_warning
+
+    def warning(labels, house, snap, sampled=True):  # one concept, words 5 m apart inside it
+        cells, xy = np.array([0, labels.size - 1]), np.array([[0.0, 0.0], [5.0, 0.0]])
+        return degenerate_map_warning(np.zeros_like(labels), cells, xy, [["a"], ["b"]], sampled)
+
+    monkeypatch.setattr(house_module, "house_map_warning", warning)
+    path = tmp_path / "rows.toml"
+    path.write_text(
+        STUDY.replace("seeds = 2", "seeds = 1").replace("[variants.fine]", "[variants.A-orig-g3]")
+    )
+    run = run_study(load_study(path), tmp_path / "out", progress=False)
+    assert run.failed == 0
+    said = {key: [m for m in messages if m.startswith("one concept (")]
+            for key, messages in _warnings_by_cell(tmp_path / "out").items()}  # fmt: skip
+    (row,) = said["A-orig-g3", 0]
+    assert "in the study's variant" not in row
+    assert row.endswith(
+        "(the comparison's row A-orig-g3, SpCoMapping DP [original-code values, gamma 3], has "
+        "fixed settings; a study with a variant of other settings -- a lower gamma, "
+        'merge_moves = 0.2 so that regions can split, or preset = "coarse" -- can be run '
+        "beside it)"
+    ), row
+    (variant,) = said["low", 0]
+    assert variant.endswith(evaluate.advice(True)), variant

@@ -60,6 +60,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -68,7 +69,13 @@ from spcopyro._util.threads import torch_threads
 from spcopyro.config import DEFAULT_PRESET
 from spcopyro.data.model_grid import model_house
 from spcopyro.experiments.ablation import concepts_over, largest_share, top_words
-from spcopyro.experiments.methods import RunSettings, fit_method, fit_spco
+from spcopyro.experiments.methods import (
+    METHOD_LABELS,
+    SPCO_METHODS,
+    RunSettings,
+    fit_method,
+    fit_spco,
+)
 from spcopyro.fit.house import fit_house
 from spcopyro.metrics import (
     SpCoSemanticMap,
@@ -86,7 +93,8 @@ from spcopyro.study.sources import load_cell_data
 from spcopyro.synthetic import FILLER_WORDS
 
 __all__ = [
-    "SCORES", "STATUS_COLUMNS", "WARNINGS", "Arrays", "advice", "label_map_arrays", "run_cell",
+    "SCORES", "STATUS_COLUMNS", "WARNINGS", "Arrays", "advice", "label_map_arrays", "row_advice",
+    "run_cell",
 ]  # fmt: skip
 
 SCORES = (
@@ -119,6 +127,27 @@ def advice(sampled: bool) -> str:
     )
 
 
+def row_advice(row: str) -> Callable[[bool], str]:
+    """The closing advice of a degenerate-map warning of the comparison's SpCoMapping row
+    ``row`` (``A-dp``, ``A-orig-g3``, ``B-dirichlet`` of :mod:`spcopyro.experiments.methods`, a
+    variant named by its row's key in ``spcopyro experiment``'s study,
+    :mod:`spcopyro.study.experiment`): its settings are the row's, fixed, so the advice names
+    them and says that a study with a variant of other settings can be run beside it, not
+    :func:`advice`'s "in the study's variant"."""
+    label = METHOD_LABELS.get(row, "").split(") ", 1)[-1]  # without its "(A') " mark
+    named = f"{row}, {label}," if label else row
+
+    def said(sampled: bool) -> str:
+        moves = "merge_moves = 0.2" if sampled else 'method = "gibbs" with merge_moves = 0.2'
+        return (
+            f"(the comparison's row {named} has fixed settings; a study with a variant of "
+            f"other settings -- a lower gamma, {moves} so that regions can split, or "
+            f'preset = "{DEFAULT_PRESET}" -- can be run beside it)'
+        )
+
+    return said
+
+
 def run_cell(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays | None]:
     """The cell's record (status and scores, keyed by ``cell.key``), its trace (None for a
     baseline, a failed or a comparison cell) and its label map
@@ -134,7 +163,9 @@ def run_cell(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays | Non
                 if cell.scoring == COMPARISON:
                     scores, label_map = comparison_outcome(cell)
                 else:
-                    with degenerate_map_advice(advice):  # in the study file's terms
+                    # in the study file's terms (a variant's keys), or a comparison row's
+                    told = row_advice(cell.row) if cell.row in SPCO_METHODS else advice
+                    with degenerate_map_advice(told):
                         scores, trace, label_map = _fit_and_score(cell)
             record.update(scores)
         except Exception as error:  # recorded; the study goes on
