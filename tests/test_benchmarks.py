@@ -318,8 +318,11 @@ def test_study_order_benchmark_quick(tmp_path):
 
 @pytest.fixture
 def script(monkeypatch):
-    """Import a benchmark script by name (``script("gibbs")``)."""
+    """Import a benchmark script by name (``script("gibbs")``). ``CI=1`` as the scripts' own
+    ``os.environ.setdefault("CI", "1")`` would set it (online_update.py, stochastic_vi.py: no bars
+    in them or their children), but through monkeypatch, so that it ends with the test."""
     monkeypatch.syspath_prepend(str(BENCHMARKS))
+    monkeypatch.setenv("CI", "1")
     return importlib.import_module
 
 
