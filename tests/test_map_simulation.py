@@ -273,6 +273,33 @@ def test_auto_counts_the_rooms_room_segments_cuts(tmp_path, min_room_area):
         assert auto_door_width(grid, min_room_area=min_room_area) == chosen
 
 
+def test_room_count_is_room_segments_count(tmp_path, monkeypatch):
+    """:func:`room_count` (the one-room warning's count at a given width, and ``auto``'s when the
+    rounding guard fails) is the number of :func:`room_segments`' segments that count as rooms:
+    from the labellings without growing any room where the guard allows (0.1 m), from the
+    segmentation where ``min_room_area / res^2`` lies a hair above an integer (0.45 at 0.3 m)."""
+    from spcopyro.baselines import geometry
+    from spcopyro.baselines.geometry import counts_as_room, room_count, room_segments
+
+    _, three = three_rooms(tmp_path)
+    coarse = OccupancyGrid(office_block().occupancy, 0.3, (0.0, 0.0, 0.0))
+    cases = [(office_block(), 1.0, True), (three, 0.25, True), (coarse, 0.45, False)]
+    grow, calls = geometry.grow_labels, []
+    monkeypatch.setattr(geometry, "grow_labels", lambda *a, **k: calls.append(1) or grow(*a, **k))
+    for grid, area, fast in cases:
+        assert geometry._counts_are_created(grid.resolution, area) is fast
+        for width in (0.5, 0.75, 1.25, 2.0):
+            segments = room_segments(grid, door_width=width, min_room_area=area)
+            sizes = np.bincount(segments[segments >= 0])
+            expected = int((sizes * grid.resolution**2 >= area).sum())
+            assert int(counts_as_room(sizes, grid.resolution, area).sum()) == expected
+            calls.clear()
+            assert room_count(grid, width, area) == expected, (grid.resolution, area, width)
+            assert bool(calls) is not fast  # the fast path grows no room
+    with pytest.raises(ValueError, match="door_width must be positive"):
+        room_count(three, 0.0, 1.0)
+
+
 def test_the_public_maps_door_widths(dataset_root):
     """What ``auto`` reads from the five public maps (docs/real_houses.md quotes it)."""
     widths = {}

@@ -58,7 +58,9 @@ __all__ = [
     "DEFAULT_DOOR_WIDTH",
     "DEFAULT_MIN_ROOM_AREA",
     "auto_door_width",
+    "counts_as_room",
     "geometry_semantic_map",
+    "room_count",
     "room_segments",
 ]
 
@@ -190,14 +192,32 @@ def geometry_semantic_map(
     )
 
 
-def _counted(cells, res: float, min_room_area: float):
-    """Whether segments of ``cells`` cells (an int or an array of them) count as rooms: cover
-    ``min_room_area`` square metres or more, as the callers of :func:`room_segments` measure."""
+def counts_as_room(cells, res: float, min_room_area: float):
+    """Whether segments of ``cells`` cells (an int or an ``[S]`` array of them) count as rooms:
+    cover ``min_room_area`` square metres or more at ``res`` metres a cell."""
     return cells * res**2 >= min_room_area
 
 
+def _counts_are_created(res: float, min_room_area: float) -> bool:
+    """Whether the rooms of ``min_room_area`` or more are exactly those ``_flood`` creates.
+
+    Every room ``_flood`` creates has ``smallest`` cells or more, so it counts, and a free piece
+    no room reaches has fewer, so it does not; False when ``min_room_area / res^2`` lies a hair
+    above an integer (rounding), where the segments must be counted as they come out.
+    """
+    smallest = max(math.ceil(_min_cells(min_room_area, res)), 1)  # smallest room _flood creates
+    return bool(
+        counts_as_room(smallest, res, min_room_area)
+        and not counts_as_room(smallest - 1, res, min_room_area)
+    )
+
+
 def _room_counts(
-    distance: np.ndarray, widths: list[float], res: float, min_cells: float
+    distance: np.ndarray,
+    widths: list[float],
+    res: float,
+    min_cells: float,
+    progress: bool | None = None,
 ) -> list[int]:
     """Rooms ``_flood`` creates at each door width in ``widths``, from labellings alone.
 
@@ -231,6 +251,7 @@ def _room_counts(
         len(level_of),
         f"room counts at {len(widths)} door widths",
         "level",
+        progress,
     )
     big_cells: dict[int, np.ndarray] = {}  # key -> [H, W] bool cells of its big components
     tops: dict[int, int] = {}  # key -> big components at that level
@@ -288,22 +309,34 @@ def auto_door_width(
     widths = sorted(_positive_number("door_width", width) for width in candidates)
     min_room_area = _positive_number("min_room_area", min_room_area)
     res = grid.resolution
-    free = np.asarray(grid.free, dtype=bool)  # [H, W]
-    min_cells = _min_cells(min_room_area, res)
-    smallest = max(math.ceil(min_cells), 1)  # cells of the smallest room _flood can create
-    if _counted(smallest, res, min_room_area) and not _counted(smallest - 1, res, min_room_area):
-        # Every room _flood creates has `smallest` cells or more, so it counts, and a free piece
-        # no room reaches has fewer, so it does not: the count is the rooms created.
-        counts = _room_counts(_distance(free), widths, res, min_cells)  # [len(widths)]
+    # counts: [len(widths)] rooms of min_room_area or more at each width
+    if _counts_are_created(res, min_room_area):  # one labelling per level for all widths
+        distance = _distance(np.asarray(grid.free, dtype=bool))  # [H, W]
+        counts = _room_counts(distance, widths, res, _min_cells(min_room_area, res))
     else:  # min_room_area / res^2 a hair above an integer: count the segments as they come out
-        counts = []
-        for width in widths:
-            segments = room_segments(grid, door_width=width, min_room_area=min_room_area)
-            sizes = np.bincount(segments[segments >= 0])
-            counts.append(int(_counted(sizes, res, min_room_area).sum()))
+        counts = [room_count(grid, width, min_room_area) for width in widths]
     rises = np.diff(counts, prepend=1)  # [len(widths)] rooms gained over the narrower width
     rises[np.asarray(counts) < 2] = 0  # one room (or none) is no separation
     best = int(np.argmax(rises))  # the first (narrowest) of equal rises
     if rises[best] <= 0:  # one room (or none) at every width
         return float(widths[-1]), counts[-1]
     return float(widths[best]), counts[best]
+
+
+def room_count(grid: OccupancyGrid, door_width: float, min_room_area: float) -> int:
+    """The rooms of ``min_room_area`` square metres or more that :func:`room_segments` cuts at
+    ``door_width``: its segments that :func:`counts_as_room`.
+
+    Counted from the level sets' labellings (``_room_counts``), without growing the rooms, where
+    the rounding guard allows (``_counts_are_created``); else from the segmentation itself.
+    """
+    door_width = _positive_number("door_width", door_width)
+    min_room_area = _positive_number("min_room_area", min_room_area)
+    res = grid.resolution
+    if _counts_are_created(res, min_room_area):
+        distance = _distance(np.asarray(grid.free, dtype=bool))  # [H, W]
+        min_cells = _min_cells(min_room_area, res)
+        return _room_counts(distance, [door_width], res, min_cells, progress=False)[0]
+    segments = room_segments(grid, door_width=door_width, min_room_area=min_room_area)
+    sizes = np.bincount(segments[segments >= 0])  # [S] cells per segment
+    return int(counts_as_room(sizes, res, min_room_area).sum())

@@ -49,7 +49,12 @@ from typing import Literal
 
 import numpy as np
 
-from spcopyro.baselines.geometry import auto_door_width, room_segments
+from spcopyro.baselines.geometry import (
+    auto_door_width,
+    counts_as_room,
+    room_count,
+    room_segments,
+)
 from spcopyro.data import House, save_house
 from spcopyro.maps import UNKNOWN, OccupancyGrid, load_map
 from spcopyro.synthetic import DEFAULT_CATEGORY_NAMES, HouseSpec, HouseSpecError
@@ -163,7 +168,7 @@ def _one_room_warning(
         width, found = (
             auto_door_width(grid, min_room_area=DEFAULT_MIN_ROOM_AREA)
             if tour.door_width == "auto"
-            else (door_width, _count_rooms(grid, door_width, DEFAULT_MIN_ROOM_AREA))
+            else (door_width, room_count(grid, door_width, DEFAULT_MIN_ROOM_AREA))
         )
         if found >= 2:
             message += (
@@ -176,13 +181,6 @@ def _one_room_warning(
     return (
         message + ": the simulated truth has one category, so a fit's ARI against it says nothing"
     )
-
-
-def _count_rooms(grid: OccupancyGrid, door_width: float, min_room_area: float) -> int:
-    """Segments of at least ``min_room_area`` square metres at ``door_width``."""
-    segments = room_segments(grid, door_width=door_width, min_room_area=min_room_area)
-    sizes = np.bincount(segments[segments >= 0])
-    return int((sizes * grid.resolution**2 >= min_room_area).sum())
 
 
 def simulate_on_map(
@@ -213,7 +211,7 @@ def simulate_on_map(
         raise ValueError(f"door width must be 'auto' or metres > 0, got {door_width!r}")
     segments = room_segments(grid, door_width=door_width, min_room_area=tour.min_room_area)
     sizes = np.bincount(segments[segments >= 0])  # [S] cells per segment
-    large = np.flatnonzero(sizes * grid.resolution**2 >= tour.min_room_area)  # [R] segment ids
+    large = np.flatnonzero(counts_as_room(sizes, grid.resolution, tour.min_room_area))  # [R] ids
     if large.size == 0:
         raise ValueError(
             f"{grid.source or 'map'}: no room of at least {tour.min_room_area:g} m^2 in the free "
