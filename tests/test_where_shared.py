@@ -11,7 +11,7 @@ from hand_results import two_rooms
 
 from spcopyro.cli.main import main
 from spcopyro.results.concept_names import answered_words
-from spcopyro.results.concept_words import RANK_DECIMALS
+from spcopyro.results.concept_words import ranked as ranked_keys
 from spcopyro.results.uncertainty import unmapped_mass, unmapped_note, where_probability
 from spcopyro.results.where import (
     SHARED_ANSWER_P,
@@ -60,18 +60,51 @@ def test_shared_answers_keeps_only_words_above_the_threshold_and_names_a_few():
     )
 
 
+@pytest.mark.parametrize("heard_only", [False, True])
+def test_answered_words_reads_each_words_argmax(heard_only):
+    """``answered_words`` takes each word's answer (argmax, first of ties) and ranks a concept's
+    answered words by its row of the word table: the same words, in the same order, as ranking
+    :func:`answers_by_concept`'s (sorted by p(C | word)) again, which it did. Tied columns of
+    p(C | word), words heard off the map (total 0) and a concept with nothing heard included."""
+    from types import SimpleNamespace
+
+    rng = np.random.default_rng(3)
+    posterior = rng.dirichlet(np.ones(4), size=12).T  # [L=4, V=12]
+    posterior[:, 5] = posterior[:, 2]  # a tie between words
+    posterior[:, 7] = 0.25  # a tie between concepts: the first
+    w = rng.dirichlet(np.ones(12), size=4)  # [L, V]
+    w[1, 3] = w[1, 9]  # a tie in the table
+    totals = np.where(np.arange(12) % 5 == 4, 0.0, 1.0)  # [V] words 4 and 9 heard off the map
+    vocabulary = tuple(f"w{v}" for v in range(12))
+    result = SimpleNamespace(
+        emissions=(SimpleNamespace(name="words", probabilities=w),),
+        vocabulary=vocabulary,
+        word_posteriors=lambda: posterior,
+        word_totals=totals,
+        heard=lambda c: 0 if c == 3 else 1,
+    )
+    expected = {}
+    for c, answered in answers_by_concept(posterior).items():  # the former definition
+        if heard_only and c == 3:
+            continue
+        columns = np.array(sorted(v for v, _ in answered if not (heard_only and totals[v] == 0)),
+                           dtype=np.int64)  # fmt: skip
+        if columns.size:
+            expected[c] = tuple(vocabulary[v] for v in columns[ranked_keys(w[c, columns])])
+    assert len(expected) >= 2
+    assert answered_words(result, heard_only=heard_only) == expected
+
+
 def test_answers_by_concept_ranks_each_concepts_words_as_both_callers_read_them():
-    """One ranking of each concept's answered words serves ``where``'s shared answers (exact p)
-    and gives the words that may name a concept (``answered_words``, which orders them by
+    """One ranking of each concept's answered words serves ``where``'s shared answers (exact p);
+    the words that may name a concept are the same (``answered_words``, which orders them by
     p(word | concept), rounded to RANK_DECIMALS: a near-tie in vocabulary order)."""
     posterior = np.array([[0.6, 0.60000001, 0.3, 0.5], [0.4, 0.39999999, 0.7, 0.5]])  # [L, V]
     assert answers_by_concept(posterior) == {0: [(1, 0.60000001), (0, 0.6), (3, 0.5)],
                                              1: [(2, 0.7)]}  # fmt: skip  # 3: first of ties
-    rounded = answers_by_concept(posterior, decimals=6)
-    assert rounded == {0: [(0, 0.6), (1, 0.6), (3, 0.5)], 1: [(2, 0.7)]}
     assert answers_by_concept(np.zeros((2, 0))) == {}
     result = two_rooms()
-    ranked = answers_by_concept(result.word_posteriors(), decimals=RANK_DECIMALS)
+    ranked = answers_by_concept(result.word_posteriors())
     named = {c: {result.vocabulary[v] for v, _ in vs} for c, vs in ranked.items()}
     assert {c: set(words) for c, words in answered_words(result).items()} == named
     words = result.emission("words")  # bed and sofa said alike in concept 1, to the last bits

@@ -27,7 +27,6 @@ import numpy as np
 
 from spcopyro.config import WORDS
 from spcopyro.results.concept_words import ranked
-from spcopyro.results.where import answers_by_concept
 
 __all__ = ["answered_words", "concept_name", "concept_names"]
 
@@ -47,15 +46,16 @@ def answered_words(result: object, heard_only: bool = False) -> dict[int, tuple[
     w = np.asarray(table.probabilities)  # [L, V] p(word | concept)
     totals = getattr(result, "word_totals", None)  # [V] or None (an old result: all heard)
     heard = getattr(result, "heard", lambda _: None)
+    best = posterior.argmax(axis=0)  # [V] each word's where answer (the first of ties)
+    keep = np.ones(best.size, dtype=bool)  # [V] the words that may answer
+    if heard_only and totals is not None:
+        keep = np.asarray(totals) != 0
     answers: dict[int, tuple[str, ...]] = {}
-    for c, answered in answers_by_concept(posterior).items():
+    for c in np.unique(best[keep]).tolist():
         if heard_only and heard(c) == 0:
             continue
-        columns = np.array(sorted(v for v, _ in answered
-                                  if not (heard_only and totals is not None and totals[v] == 0)),
-                           dtype=np.int64)  # [n] vocabulary order  # fmt: skip
-        if columns.size:
-            answers[c] = tuple(vocabulary[v] for v in columns[ranked(w[c, columns])])
+        columns = np.flatnonzero((best == c) & keep)  # [n] vocabulary order
+        answers[c] = tuple(vocabulary[v] for v in columns[ranked(w[c, columns])])
     return answers
 
 

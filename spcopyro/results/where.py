@@ -137,23 +137,17 @@ def concept_given_words(w: np.ndarray, prior: np.ndarray) -> np.ndarray:
     return np.divide(score, total, out=np.zeros_like(score), where=total > 0)  # [L, V]
 
 
-def answers_by_concept(
-    posterior: np.ndarray, decimals: int | None = None
-) -> dict[int, list[tuple[int, float]]]:
+def answers_by_concept(posterior: np.ndarray) -> dict[int, list[tuple[int, float]]]:
     """Per concept, the words whose answer it is (each word's argmax over ``posterior``'s
     concepts, the first of ties, as ``where``'s), as (word's column, p(C | word)), highest p
     first, ties in vocabulary order; a concept that answers no word is left out.
 
     Args:
         posterior: [L, V] p(C = l | word) (:func:`concept_given_words`).
-        decimals: p rounded to this many decimals before ranking, and returned rounded (words
-            nearer than that rank in vocabulary order); None: exact.
     """
     posterior = np.asarray(posterior)
     best = posterior.argmax(axis=0)  # [V] each word's answer
     p = posterior[best, np.arange(posterior.shape[1])]  # [V]
-    if decimals is not None:
-        p = np.round(p, decimals)
     answers: dict[int, list[tuple[int, float]]] = {}
     for v in np.argsort(-p, kind="stable"):
         answers.setdefault(int(best[v]), []).append((int(v), float(p[v])))
