@@ -243,3 +243,25 @@ def test_every_layer_lists_words_with_the_one_helper_of_messages():
     assert (
         warning is not None and "(utterance 2: U+200B ZERO WIDTH SPACE), ... (2 more) (" in warning
     )
+
+
+@pytest.mark.parametrize(
+    ("text", "vocabulary", "message"),
+    [
+        ("", (), "the instruction '' is empty: name the places to visit, in order, e.g. 'go to "
+         "the kitchen'; known words: none"),
+        (" ?! ", ("bed", "sofa"), "the instruction ' ?! ' has no words: name the places to "
+         "visit, in order, e.g. 'go to the bed'; known words: bed, sofa"),
+        ("go to the attic", ("the",), "the instruction 'go to the attic' names no place the fit "
+         "knows (ignored: attic); known words: none: the fit has no word that can name a place "
+         "(fitted without words, or only connecting words such as 'the' heard)"),
+        ("go to the attic", ("bed",), "the instruction 'go to the attic' names no place the fit "
+         "knows (ignored: attic); known words: bed"),
+    ],
+)  # fmt: skip
+def test_an_instruction_naming_no_place_says_which_words_are_known(text, vocabulary, message):
+    """The four messages of an instruction with no place, whole: no words or some, and a fit
+    with place words or none ("known words: " ended with nothing after)."""
+    with pytest.raises(ValueError) as raised:
+        parse_instruction(text, vocabulary)
+    assert str(raised.value) == message

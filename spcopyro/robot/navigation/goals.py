@@ -313,16 +313,15 @@ def parse_instruction(text: str, vocabulary: tuple[str, ...]) -> Instruction:
             f"{listed(candidates)})"
         )
     if not places:
-        shown = listed(candidates)
-        if not candidates:  # it ended "known words: " with nothing after
-            shown = "none" if not words else (
-                "none: the fit has no word that can name a place (fitted without words, or only "
-                "connecting words such as 'the' heard)")  # fmt: skip
         if not words:  # '' or ' ?! ': it said "the instruction '' names no place the fit knows"
+            shown = listed(candidates) if candidates else "none"  # not "known words: " alone
             example = candidates[0] if candidates else "kitchen"
             opening = (f"{'is empty' if not text.strip() else 'has no words'}: name the places "
                        f"to visit, in order, e.g. 'go to the {example}'")  # fmt: skip
         else:
+            shown = listed(candidates) if candidates else (
+                "none: the fit has no word that can name a place (fitted without words, or only "
+                "connecting words such as 'the' heard)")  # fmt: skip
             extra = f" (ignored: {', '.join(ignored)})" if ignored else ""
             opening = f"names no place the fit knows{extra}"
         raise ValueError(f"the instruction {text!r} {opening}; known words: {shown}")
