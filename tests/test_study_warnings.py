@@ -272,3 +272,55 @@ def test_a_rows_degenerate_map_warning_names_its_fixed_settings(tmp_path, monkey
     ), row
     (variant,) = said["low", 0]
     assert variant.endswith(evaluate.advice(True)), variant
+
+
+def test_a_variant_named_as_a_row_with_other_settings_keeps_the_variants_advice(
+    tmp_path, monkeypatch
+):
+    """The row's advice went by the variant's name alone: a copy of experiment.toml whose
+    A-orig-g3 took gamma = 2 was told that its settings are fixed. Only a variant with the row's
+    settings (as the shipped studies' are) gets it; this one gets the variants' advice."""
+    import numpy as np
+
+    import spcopyro.fit.house as house_module
+    from spcopyro.experiments.methods import spco_settings
+    from spcopyro.results.map_checks import degenerate_map_warning
+
+    def warning(labels, house, snap, sampled=True):  # as in the test above
+        cells, xy = np.array([0, labels.size - 1]), np.array([[0.0, 0.0], [5.0, 0.0]])
+        return degenerate_map_warning(np.zeros_like(labels), cells, xy, [["a"], ["b"]], sampled)
+
+    monkeypatch.setattr(house_module, "house_map_warning", warning)
+    path = tmp_path / "rows.toml"
+    path.write_text(
+        STUDY.replace("seeds = 2", "seeds = 1")
+        .replace("[variants.fine]", "[variants.A-orig-g3]")
+        .replace("gamma = 3.0", "gamma = 2.0")
+    )
+    study = load_study(path)
+    (changed,) = [v for v in study.variants if v.name == "A-orig-g3"]
+    assert changed.spco_settings(None) != spco_settings("A-orig-g3", None)
+    run = run_study(study, tmp_path / "out", progress=False)
+    assert run.failed == 0
+    (said,) = [m for m in _warnings_by_cell(tmp_path / "out")["A-orig-g3", 0]
+               if m.startswith("one concept (")]  # fmt: skip
+    assert "fixed settings" not in said
+    assert said.endswith(evaluate.advice(True)), said
+
+
+def test_the_shipped_comparisons_variants_are_their_rows():
+    """experiment.toml's and experiment_quick.toml's variants have their rows' settings, so their
+    degenerate-map warnings keep the row's advice."""
+    from spcopyro.experiments.methods import spco_settings
+    from spcopyro.study.cells import Cell
+
+    studies = Path(evaluate.__file__).parent / "studies"
+    for name in ("experiment.toml", "experiment_quick.toml"):
+        study = load_study(studies / name)
+        for variant in study.variants:
+            cell = Cell(variant, variant.name, study.data[0], variant.method, 0, 1, 1)
+            for categories in (5, 11):
+                settings = variant.spco_settings(categories)
+                assert settings == spco_settings(variant.name, categories), (name, variant.name)
+                told = evaluate._cell_advice(cell, settings, categories)
+                assert told(True) == evaluate.row_advice(variant.name)(True), (name, variant)

@@ -75,6 +75,7 @@ from spcopyro.experiments.methods import (
     RunSettings,
     fit_method,
     fit_spco,
+    spco_settings,
 )
 from spcopyro.fit.house import fit_house
 from spcopyro.metrics import (
@@ -120,29 +121,30 @@ def advice(sampled: bool) -> str:
     (a variant's keys), not ``fit``'s options (``--merge-moves 0.2``, ``--preset``) or
     ``GibbsOptions``, which a study does not take; ``sampled``: the cell's method samples
     (``gibbs``, ``vi-gibbs``) (:func:`spcopyro.results.map_checks.degenerate_map_advice`)."""
+    return f"(in the study's variant: try {_remedies(sampled)} if the variant used another)"
+
+
+def _remedies(sampled: bool) -> str:
+    """The settings that may let a degenerate map's regions split, in a variant's keys: the
+    remedies of :func:`advice` and :func:`row_advice`."""
     moves = "merge_moves = 0.2" if sampled else 'method = "gibbs" with merge_moves = 0.2'
-    return (
-        f"(in the study's variant: try a lower gamma, {moves} so that regions can split, "
-        f'or preset = "{DEFAULT_PRESET}" if the variant used another)'
-    )
+    return f'a lower gamma, {moves} so that regions can split, or preset = "{DEFAULT_PRESET}"'
 
 
 def row_advice(row: str) -> Callable[[bool], str]:
     """The closing advice of a degenerate-map warning of the comparison's SpCoMapping row
     ``row`` (``A-dp``, ``A-orig-g3``, ``B-dirichlet`` of :mod:`spcopyro.experiments.methods`, a
-    variant named by its row's key in ``spcopyro experiment``'s study,
-    :mod:`spcopyro.study.experiment`): its settings are the row's, fixed, so the advice names
-    them and says that a study with a variant of other settings can be run beside it, not
-    :func:`advice`'s "in the study's variant"."""
+    variant named by its row's key with the row's settings in ``spcopyro experiment``'s study,
+    :mod:`spcopyro.study.experiment`; :func:`_cell_advice`): its settings are the row's,
+    fixed, so the advice names them and says that a study with a variant of other settings can
+    be run beside it, not :func:`advice`'s "in the study's variant"."""
     label = METHOD_LABELS.get(row, "").split(") ", 1)[-1]  # without its "(A') " mark
     named = f"{row}, {label}," if label else row
 
     def said(sampled: bool) -> str:
-        moves = "merge_moves = 0.2" if sampled else 'method = "gibbs" with merge_moves = 0.2'
         return (
             f"(the comparison's row {named} has fixed settings; a study with a variant of "
-            f"other settings -- a lower gamma, {moves} so that regions can split, or "
-            f'preset = "{DEFAULT_PRESET}" -- can be run beside it)'
+            f"other settings -- {_remedies(sampled)} -- can be run beside it)"
         )
 
     return said
@@ -163,10 +165,7 @@ def run_cell(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays | Non
                 if cell.scoring == COMPARISON:
                     scores, label_map = comparison_outcome(cell)
                 else:
-                    # in the study file's terms (a variant's keys), or a comparison row's
-                    told = row_advice(cell.row) if cell.row in SPCO_METHODS else advice
-                    with degenerate_map_advice(told):
-                        scores, trace, label_map = _fit_and_score(cell)
+                    scores, trace, label_map = _fit_and_score(cell)
             record.update(scores)
         except Exception as error:  # recorded; the study goes on
             if caused_by_interrupt(error):  # Ctrl-C inside a numba call: not the cell's failure
@@ -192,7 +191,9 @@ def _fit_and_score(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays
         model, labels, scored_house = fitted.model, fitted.model.label_image(), house
     else:
         settings = cell.variant.spco_settings(loaded.num_categories)
-        result, ari_trace = _fit(cell, house, settings, loaded.truth)
+        told = _cell_advice(cell, settings, loaded.num_categories)
+        with degenerate_map_advice(told):
+            result, ari_trace = _fit(cell, house, settings, loaded.truth)
         model = SpCoSemanticMap(result)
         labels = labels_on_map(result, house, settings)
         scored_house = model_house(loaded.full, settings.data.cell_size)  # the model's grid
@@ -220,7 +221,8 @@ def _fit_and_score(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays
         )
         scores["top_words"] = json.dumps(words)
         if cell.observations_off:
-            scores.update(_observations_off(cell, loaded, labels))
+            with degenerate_map_advice(told):
+                scores.update(_observations_off(cell, loaded, labels))
     if loaded.test is not None:
         words = heldout_word_prediction(model, loaded.test)
         places = heldout_localisation(model, loaded.test)
@@ -244,6 +246,23 @@ def _fit_and_score(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays
     return scores, arrays, label_map
 
 
+def _cell_advice(cell: Cell, settings, num_categories: int | None) -> Callable[[bool], str]:
+    """The closing advice of a variant cell's degenerate-map warning, in the study file's terms:
+    :func:`row_advice` when the variant is a comparison row as the row fits it (named by the
+    row's key, ``settings`` equal to the row's, no options or fit keywords of its own), else
+    :func:`advice` -- a variant named ``A-dp`` in a user's copy of experiment.toml that changed
+    its gamma has settings of its own to change."""
+    variant = cell.variant
+    assert variant is not None
+    if cell.row not in SPCO_METHODS or variant.options or variant.fit:
+        return advice
+    try:
+        row = spco_settings(cell.row, num_categories)
+    except ValueError:  # B-dirichlet without the house's number of categories: not the row
+        return advice
+    return row_advice(cell.row) if settings == row else advice  # equality ignores ``chosen``
+
+
 def _fit(cell: Cell, house, settings, truth: np.ndarray | None = None):
     """The variant's fit of ``house`` with ``settings``, and (iterations, ARI against
     ``truth``) every ``cell.ari_every`` iterations when asked and a truth is known (else
@@ -252,7 +271,7 @@ def _fit(cell: Cell, house, settings, truth: np.ndarray | None = None):
     or a coarser model grid (:func:`spcopyro.study.spec.study_from_dict` checks that), and
     its map is checked as ``fit_house`` checks every other cell's (``fit_spco`` runs
     :func:`~spcopyro.fit.house.log_degenerate_map`, with the study's advice from
-    :func:`run_cell`: the same house, as no model grid differs from the map's)."""
+    :func:`_fit_and_score`: the same house, as no model grid differs from the map's)."""
     variant = cell.variant
     assert variant is not None
     if cell.ari_every and truth is not None:
