@@ -44,12 +44,12 @@ from spcopyro.figures.map_pieces import (
 )
 from spcopyro.figures.png import DPI, PAD_INCHES, save_figure  # noqa: F401 (DPI, PAD_INCHES: re-exported)
 from spcopyro.figures.trace import (  # noqa: F401 (plot_trace, trace_figure: re-exported)
-    _CHAINS,
     ESTIMATE_NAMES,
     _estimate_name,
     plot_trace,
     trace_figure,
 )
+from spcopyro.inference.names import SAMPLERS
 from spcopyro.maps import (
     RGB_BACKGROUND,
     RGB_OCCUPIED,
@@ -372,7 +372,7 @@ def plot_uncertainty(result: SpCoResult, path: str | os.PathLike[str]) -> Path |
     if entropy is None:
         return None
     source = f"q(C) of {result.method}"
-    if result.method in _CHAINS:  # vi-gibbs: the samples of its Gibbs stage
+    if result.method in SAMPLERS:  # a Gibbs chain's samples (vi-gibbs: its Gibbs stage's)
         source = "Gibbs label frequencies" + ("" if result.method == "gibbs" else " (vi-gibbs)")
     title = (
         f"{result.name or 'uncertainty'}: entropy of p(C_i), {source}\nmean "

@@ -24,10 +24,6 @@ ESTIMATE_NAMES = {loss: label.replace(" ", "-") for loss, label in LOSS_LABELS.i
 variational inference's (compare-inference's VI methods), not the variation-of-information
 loss's."""
 
-_CHAINS = SAMPLERS
-"""The methods whose trace and marginals are a Gibbs chain's (vi-gibbs: after its CAVI start):
-:data:`~spcopyro.inference.names.SAMPLERS`."""
-
 
 def _estimate_name(result: SpCoResult) -> str:
     """ "variation-of-information point estimate" (:data:`ESTIMATE_NAMES`), or "point
@@ -55,7 +51,7 @@ def trace_figure(result: SpCoResult, kept: tuple[int, int] | None = None) -> Fig
     chain k of the K run (``fit --chains K``), the one kept; the title says so."""
     trace = result.trace
     sweeps = np.arange(1, len(trace.objective) + 1)
-    chain = result.method in _CHAINS  # vi-gibbs traces its Gibbs sweeps
+    chain = result.method in SAMPLERS  # a Gibbs chain's trace (vi-gibbs: its Gibbs sweeps)
     step = "sweep" if chain else "iteration"
     fig = Figure(figsize=(7, 5))
     top, bottom = fig.subplots(2, 1, sharex=True)
