@@ -30,6 +30,7 @@ def test_fit_shows_a_bar_while_it_writes_a_large_maps_outputs(monkeypatch, capsy
     from spcopyro.cli.main import main
 
     monkeypatch.setattr(progress, "SETUP_PROGRESS_CELLS", 0)  # the embedded house counts as large
+    monkeypatch.delenv("CI", raising=False)  # CI switches bars off when no --progress is given
     assert main(["fit", "--out", str(tmp_path / "out"), "--sweeps", "20", "--no-figures"]) == 0
     err = capsys.readouterr().err
     assert "writing the outputs" in err
