@@ -595,6 +595,25 @@ def test_a_coarse_fit_plans_on_the_robots_map_it_keeps(result, tmp_path, capsys)
     assert f"planning on {fit / 'robot_map.yaml'}" in capsys.readouterr().out
 
 
+def test_a_coarse_fit_refuses_unknown_words_before_saying_which_map_it_plans_on(
+    result, tmp_path, capsys
+):
+    """An instruction with no known place word is refused before anything is printed: no
+    "planning on ..." line ahead of the error, as a fit on the map's own cells prints none."""
+    import dataclasses
+
+    from spcopyro.config import DataPreparation
+    from spcopyro.maps import save_map
+
+    coarse = dataclasses.replace(result, preparation=DataPreparation(cell_size=0.2))
+    fit = coarse.save(tmp_path / "coarse")
+    save_map(house_grid(), fit / "robot_map.yaml")
+    start = f"--start={START_A[0]},{START_A[1]}"
+    assert main(["navigate", str(fit), "go to the zzqx", start]) == 2
+    printed = capsys.readouterr()
+    assert printed.out == "" and "zzqx" in printed.err
+
+
 @pytest.mark.parametrize("refine", ["auto", "never"])
 def test_the_embedded_house_fitted_by_the_readme_command_can_be_driven_through(
     tmp_path, capsys, refine

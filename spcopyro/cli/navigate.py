@@ -76,8 +76,10 @@ def _plan_and_print(
     from spcopyro.cli.common import load_robot_map
     from spcopyro.results.where import shared_concept_note
     from spcopyro.robot.navigation import navigate
-    from spcopyro.robot.navigation.goals import UnreachableGoalError
+    from spcopyro.robot.navigation.goals import UnreachableGoalError, parse_instruction
 
+    # words the fit does not know are refused before the map it plans on is named
+    parse_instruction(args.instruction, result.vocabulary)  # navigate parses it again: cheap
     grid = None
     if args.map:
         from spcopyro.maps import load_map
