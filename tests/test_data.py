@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -103,6 +104,22 @@ def test_word_matrix_counts_and_unknown_tokens():
         word_matrix([("a", "q")], vocabulary=("a",))
     with pytest.raises(ValueError, match="more than once"):
         word_matrix([("a",)], vocabulary=("a", "a"))
+
+
+@pytest.mark.parametrize("function", [word_matrix, tfidf_weights])
+def test_an_empty_word_is_refused_from_python_as_the_command_line_refuses_it(function):
+    """ "" (or a blank " ") is no word: Observations and the commands refuse it; word_matrix and
+    tfidf_weights counted it as one, in an utterance or a given vocabulary."""
+    for blank in ("", " "):
+        with pytest.raises(
+            ValueError,
+            match=re.escape(f"utterance 1 holds the token {blank!r}: a token is non-blank text"),
+        ):
+            function([("a",), ("b", blank)])
+        with pytest.raises(
+            ValueError, match=re.escape(f"vocabulary word 1 is {blank!r}: a word is non-blank")
+        ):
+            function([("a",)], vocabulary=("a", blank))
 
 
 def test_tfidf_against_hand_computation():

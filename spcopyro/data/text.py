@@ -208,10 +208,20 @@ def word_matrix(
     """``[U, V]`` float64 counts n(t, d) of each vocabulary token t in each utterance d.
 
     ``vocabulary`` defaults to the distinct tokens in order of first appearance. A token that is
-    not in a given vocabulary raises ValueError (naming it): nothing is dropped silently.
+    not in a given vocabulary raises ValueError (naming it): nothing is dropped silently; so does
+    an empty (or blank) token or vocabulary word, ``""``, which no data's words hold.
     """
+    for d, tokens in enumerate(utterances):  # as Observations refuses them: no word at all
+        for token in tokens:
+            if not isinstance(token, str) or not token.strip():
+                raise ValueError(f"utterance {d} holds the token {token!r}: a token is "
+                                 "non-blank text (spcopyro.data.tokenize drops blank "
+                                 "ones)")  # fmt: skip
     if vocabulary is None:
         vocabulary = tuple(dict.fromkeys(t for u in utterances for t in u))
+    for v, token in enumerate(vocabulary):
+        if not isinstance(token, str) or not token.strip():
+            raise ValueError(f"vocabulary word {v} is {token!r}: a word is non-blank text")
     index = _vocabulary_index(vocabulary)
     rows, cols, unknown = [], [], {}
     for d, tokens in enumerate(utterances):
@@ -250,7 +260,7 @@ def tfidf_weights(
     Args:
         utterances: ``[U]`` token sequences (each non-empty).
         vocabulary: ``[V]`` columns; defaults to distinct tokens in order of first appearance.
-            A token not in a given vocabulary raises ValueError.
+            A token not in a given vocabulary, or an empty one (``""``), raises ValueError.
 
     Returns:
         ``[U, V]`` float64 matrix; row d holds tfidf(t, d) for every vocabulary token t
