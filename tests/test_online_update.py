@@ -156,6 +156,21 @@ def test_an_update_of_a_fit_with_words_the_tokenizer_no_longer_makes(house, save
     assert "can match no word of the data (kept, without counts): '...'" in said
 
 
+def test_the_unmatchable_saved_words_warning_says_how_many_it_leaves_out(caplog):
+    """The update's warning names 10 saved words no token matches, then '... (2 more)': it cut
+    the list at 10 without saying that more were left out."""
+    from spcopyro.robot import online
+
+    words = tuple("." * k for k in range(1, 13))  # 12 words of punctuation alone
+    saved = renormalise_vocabulary(("kitchen", *words))
+    assert saved.unmatchable == words
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        online._warn_renormalised(saved, "many/fit")
+    assert "12 word(s) of its vocabulary are no word the tokenizer makes now" in caplog.text
+    shown = ", ".join(repr(w) for w in words[:10])
+    assert f"(kept, without counts): {shown}, ... (2 more)" in caplog.text
+
+
 def test_other_settings_map_or_image_classes_are_clear_errors(house, saved):
     with pytest.raises(ValueError, match=r"gamma: saved fit 3\.0, this run 4\.0"):
         check_compatible(saved, house, SETTINGS.replace(gamma=4.0))

@@ -62,7 +62,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from spcopyro._util.messages import echo, warn_once
+from spcopyro._util.messages import echo, listed, warn_once
 from spcopyro._util.random_draws import sample_log_dirichlet
 from spcopyro._util.threads import AUTO, resolve_threads, torch_threads
 from spcopyro.config import IMAGES, WORDS, SpCoSettings
@@ -149,11 +149,15 @@ def merge_vocabulary(saved: Sequence[str], observed: Sequence[str]) -> Vocabular
     )
 
 
+UNMATCHABLE_SHOWN = 10
+"""Saved words no token can match that an update's warning names (then '... (N more)')."""
+
+
 def _warn_renormalised(saved: SavedVocabulary, where: str) -> None:
     """Warn (once per saved fit and vocabulary) of what :func:`renormalise_vocabulary` changed."""
     said = [note] if (note := saved.renamed_note()) else []
     if saved.unmatchable:
-        names = ", ".join(echo(word) for word in saved.unmatchable[:10])
+        names = listed([echo(word) for word in saved.unmatchable], UNMATCHABLE_SHOWN)
         said.append(f"{len(saved.unmatchable)} word(s) of its vocabulary are no word the "
                     f"tokenizer makes now and can match no word of the data (kept, without "
                     f"counts): {names}")  # fmt: skip
