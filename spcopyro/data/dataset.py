@@ -25,12 +25,11 @@ from spcopyro.data.dataset_files import (
     _format_float,
     _image_paths,
     _read_column,
-    _read_matrix,
     _read_text,
     _read_trials,
     _read_utterances_line,
     _write_lines,
-    refuse_decimal_commas,
+    read_features,
 )
 from spcopyro.data.modality_files import MODALITY_FILE, modality_lines, read_modalities
 from spcopyro.data.observations import (
@@ -226,49 +225,6 @@ def _check_both_modalities(room: Path, files: dict[str, Path]) -> bool:
     return True
 
 
-def _read_features(path: Path) -> np.ndarray:
-    """``[T, K]`` Ft.csv's image features, checked: DataFormatError for an empty file or a
-    negative feature; warnings (logger ``spcopyro``) for all-zero rows and a single column."""
-    features = _read_matrix(path)  # [T, K]
-    if features.shape[1] == 2 and (features == np.round(features)).all():
-        refuse_decimal_commas(path)  # a one-column file's 0,25 reads as 0 and 25
-    if features.shape[0] == 0:
-        raise DataFormatError(path, "holds no image features (empty file)")
-    if (features < 0).any():
-        row, col = np.argwhere(features < 0)[0]
-        raise DataFormatError(
-            path,
-            "negative image feature (a row is a histogram of class probabilities, each >= 0: "
-            "logits or log-probabilities need a softmax or exp first)",
-            line=int(row) + 1,
-            column=int(col) + 1,
-            value=float(features[row, col]),
-        )
-    zero_rows = np.flatnonzero(features.sum(axis=1) == 0)  # [z]
-    if zero_rows.size:  # issue 22 item 4: an all-zero Ft.csv used to fit without a word
-        every = zero_rows.size == features.shape[0]
-        logging.getLogger("spcopyro").warning(
-            "%s: %s image feature rows are all zero (%s): %s",
-            path,
-            "all" if every else f"{zero_rows.size} of {features.shape[0]}",
-            "lines "
-            + ", ".join(str(r + 1) for r in zero_rows[:5])
-            + (", ..." if zero_rows.size > 5 else ""),
-            "the images carry no information (was the feature extraction run?)"
-            if every
-            else "those images carry no information",
-        )
-    if features.shape[1] == 1:  # a class id or a score per image, not a histogram
-        logging.getLogger("spcopyro").warning(
-            "%s: one column: a row is a histogram over image classes, one column per class "
-            "(spcopyro features writes them), and over a single class every image says the "
-            "same: the images carry no information (a class id per image? write it as a row "
-            "with 1 in that class's column)",
-            path,
-        )
-    return features
-
-
 def load_house(
     room_dir: str | os.PathLike[str], map_yaml: str | os.PathLike[str] | None = None
 ) -> House:
@@ -346,7 +302,7 @@ def load_house(
 
     files = {key: room / f"{key}.csv" for key in ("Ft", "Xtx", "Xty", "St", "StXtx", "StXty")}
     if _check_both_modalities(room, files):
-        features = _read_features(files["Ft"])  # [T, K]
+        features = read_features(files["Ft"])  # [T, K]
         num_images = features.shape[0]
         image_xy = np.stack(
             [

@@ -125,12 +125,30 @@ def _read_matrix(path: Path, columns: int | None = None, names: str = "") -> np.
         try:
             row = [_parse_number(path, text, number, c) for c, text in enumerate(fields, 1)]
         except DataFormatError as error:
+            if number == 1 and not hint and _is_header(fields):  # x,y,qz,qw or Xtx
+                raise DataFormatError(
+                    path,
+                    "not a number (a header line? these files have none: their first line is "
+                    "the first row of numbers)",
+                    line=1,
+                    column=error.column,
+                    value=error.value,
+                ) from None
             trailing = line.rstrip().endswith(",")  # the hint holds for the last, empty value
             if not hint or (trailing and error.column != len(fields)):
                 raise
             raise DataFormatError(path, f"not a number{hint}", line=number, value=line) from None
         rows.append(row)
     return np.array(rows, dtype=np.float64).reshape(len(rows), width or 0)
+
+
+_LETTER = re.compile(r"[^\W\d_]")
+
+
+def _is_header(fields: Sequence[str]) -> bool:
+    """Whether a first line's ``fields`` read as column names (``x,y,qz,qw``, ``Xtx``,
+    ``class_0,class_1``): none of them a number, and a letter in one."""
+    return not any(_NUMBER.fullmatch(f) for f in fields) and any(map(_LETTER.search, fields))
 
 
 _SEPARATORS = {" ": "spaces", "\t": "tabs", ";": "semicolons"}
@@ -199,6 +217,82 @@ def read_pose_file(path: Path) -> np.ndarray:
     return _read_matrix(path, columns=4, names=" (x, y, qz, qw)")
 
 
+ROW_SUM_TOLERANCE = 0.1
+"""How far from 1 an Ft.csv row may sum before loading warns of it (:func:`read_features`). A
+row is a histogram of class probabilities (the public houses' sum to 1 within 1e-6, softmax
+rows within float rounding) and weighs as many images as it sums to. A tenth either way passes
+unsaid; percentages (rows of 100), counts, a row scaled by mistake, or flat histograms written
+with too few decimals (205 classes at two decimals sum to about 0.85) are warned of."""
+
+
+def _row_sum_warning(path: Path, sums: np.ndarray) -> str:
+    """The warning for Ft.csv rows whose ``sums`` ``[T]`` are nonzero and further than
+    :data:`ROW_SUM_TOLERANCE` from 1, or ``""`` where there are none."""
+    off = np.flatnonzero((sums > 0) & (np.abs(sums - 1.0) > ROW_SUM_TOLERANCE))  # [n]
+    if not off.size:
+        return ""
+    shown = [f"line {i + 1}: {sums[i]:.6g}" for i in off.tolist()]
+    nonzero = sums[sums > 0]  # [m]
+    percent = bool(np.all(np.abs(nonzero - 100.0) <= 100.0 * ROW_SUM_TOLERANCE))
+    return (
+        f"{path}: {off.size} of {sums.size} image feature rows do not sum to 1 ({listed(shown, 3)})"
+        ": a row is a histogram of class probabilities, and one that sums to s weighs as much as "
+        "s images against the words (floor(100 f), the refinement's count, grows with it too); "
+        + ("percentages? divide every value by 100" if percent else
+           "scale each row to sum to 1 (f / f.sum(axis=1, keepdims=True)) unless that weight "
+           "is meant")
+    )  # fmt: skip
+
+
+def read_features(path: Path) -> np.ndarray:
+    """``[T, K]`` Ft.csv's image features, checked: DataFormatError for an empty file or a
+    negative feature; warnings (logger ``spcopyro``) for all-zero rows, rows that do not sum to
+    about 1 (:data:`ROW_SUM_TOLERANCE`) and a single column."""
+    features = _read_matrix(path)  # [T, K]
+    if features.shape[1] == 2 and (features == np.round(features)).all():
+        refuse_decimal_commas(path)  # a one-column file's 0,25 reads as 0 and 25
+    if features.shape[0] == 0:
+        raise DataFormatError(path, "holds no image features (empty file)")
+    if (features < 0).any():
+        row, col = np.argwhere(features < 0)[0]
+        raise DataFormatError(
+            path,
+            "negative image feature (a row is a histogram of class probabilities, each >= 0: "
+            "logits or log-probabilities need a softmax or exp first)",
+            line=int(row) + 1,
+            column=int(col) + 1,
+            value=float(features[row, col]),
+        )
+    sums = features.sum(axis=1)  # [T]
+    zero_rows = np.flatnonzero(sums == 0)  # [z]
+    if zero_rows.size:  # issue 22 item 4: an all-zero Ft.csv used to fit without a word
+        every = zero_rows.size == features.shape[0]
+        logger.warning(
+            "%s: %s image feature rows are all zero (%s): %s",
+            path,
+            "all" if every else f"{zero_rows.size} of {features.shape[0]}",
+            "lines "
+            + ", ".join(str(r + 1) for r in zero_rows[:5])
+            + (", ..." if zero_rows.size > 5 else ""),
+            "the images carry no information (was the feature extraction run?)"
+            if every
+            else "those images carry no information",
+        )
+    if features.shape[1] == 1:  # a class id or a score per image, not a histogram
+        logger.warning(
+            "%s: one column: a row is a histogram over image classes, one column per class "
+            "(spcopyro features writes them), and over a single class every image says the "
+            "same: the images carry no information (a class id per image? write it as a row "
+            "with 1 in that class's column)",
+            path,
+        )
+    else:  # percentages or counts weigh an image as 100 or n images, silently
+        off = _row_sum_warning(path, sums)
+        if off:
+            logger.warning("%s", off)
+    return features
+
+
 _FT_HINT = (" (Ft.csv has a row per image: after new images, e.g. a re-import, make it again "
             "with spcopyro features HOUSE --out HOUSE/Ft.csv --overwrite)")  # fmt: skip
 
@@ -223,9 +317,13 @@ def _read_column(path: Path, expected: int, data_file: Path) -> np.ndarray:
 def _read_utterances_line(path: Path) -> tuple[tuple[str, ...], ...]:
     """St.csv: one line of comma-separated utterances, each tokenised."""
     lines = _read_lines(path)
-    if len(lines) > 1:
+    if len(lines) > 1:  # one utterance a line, as word_K.csv holds them
         raise DataFormatError(
-            path, "must be one line of comma-separated utterances", line=2, value=lines[1]
+            path,
+            "must be one line of comma-separated utterances (one a line is word_K.csv's layout: "
+            "join the lines with commas)",
+            line=2,
+            value=lines[1],
         )
     if not lines or not lines[0].strip():
         raise DataFormatError(
@@ -234,11 +332,19 @@ def _read_utterances_line(path: Path) -> tuple[tuple[str, ...], ...]:
             "St.csv, StXtx.csv, StXty.csv and word_K.csv (it is fitted on its images alone)",
         )
     utterances, unspaced = [], []
-    for entry_number, entry in enumerate(lines[0].split(","), start=1):
+    entries = lines[0].split(",")
+    for entry_number, entry in enumerate(entries, start=1):
         tokens = tokenize(entry)
         if not tokens:
+            hint = (
+                " (the line ends with a comma: St.csv puts commas between utterances, none after "
+                "the last)"
+                if entry_number == len(entries) > 1 and not entry.strip()
+                else f" (an utterance is placed by line {entry_number} of StXtx.csv and "
+                "StXty.csv: remove it there too, or write what was said)"
+            )
             raise DataFormatError(
-                path, f"utterance {entry_number} holds no words", line=1, value=entry
+                path, f"utterance {entry_number} holds no words{hint}", line=1, value=entry
             )
         if any(unsegmented(token) for token in tokens):
             unspaced.append(f"utterance {entry_number} {echo(entry.strip())}")
