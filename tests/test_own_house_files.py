@@ -126,3 +126,20 @@ def test_st_csv_of_one_utterance_a_line_says_to_join_them(tmp_path):
     with pytest.raises(DataFormatError, match=r"line 2: must be one line of comma-separated "
                        r"utterances \(.*join the lines with commas\): 'bed'"):  # fmt: skip
         load_house(room)
+
+
+def test_a_rotated_map_says_how_to_use_it(tmp_path):
+    """An origin yaw of 0.5: 'rotated maps are not supported (yaw must be 0)' said what is not
+    done, not how a user with such a map gets on: rotate the positions into the image's axes."""
+    from spcopyro.maps import load_map
+    from spcopyro.maps.map_yaml import MapFormatError
+
+    room = _room(tmp_path)
+    yaml = room.parent / "map" / "home.yaml"
+    text = yaml.read_text(encoding="utf-8")
+    origin = next(line for line in text.splitlines() if line.startswith("origin:"))
+    yaml.write_text(text.replace(origin, "origin: [0.0, 0.0, 0.5]"), encoding="utf-8")
+    with pytest.raises(MapFormatError, match=r"yaw 0\.5; rotated maps are not supported \(yaw "
+                       r"must be 0\): rotate the observations' positions by -yaw about the "
+                       r"origin's x, y into the image's axes and write yaw 0"):  # fmt: skip
+        load_map(yaml)

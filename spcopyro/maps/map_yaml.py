@@ -361,7 +361,9 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
     if abs(origin[2]) > MAX_YAW_NOISE:
         raise MapFormatError(
             f"{where('origin')}: key 'origin' has yaw {echo(origin[2])}; rotated maps are not "
-            "supported (yaw must be 0)"
+            "supported (yaw must be 0): rotate the observations' positions by -yaw about the "
+            "origin's x, y into the image's axes and write yaw 0 (the fit's maps and masks are "
+            "then in those axes)"
         )
 
     negate = _negate(texts.get("negate"), doc["negate"])
