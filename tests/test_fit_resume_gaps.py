@@ -303,13 +303,22 @@ def test_ctrl_c_after_a_variational_fit_s_iterations_says_so(home, tmp_path, cap
                         "their result)")  # fmt: skip
 
 
-@pytest.mark.parametrize(("method", "article"), [("cavi", "a"), ("svi", "an")])
-def test_ctrl_c_while_writing_a_variational_fit_says_its_iterations_ran(
-    method, article, home, tmp_path, capsys, monkeypatch
+@pytest.mark.parametrize(
+    ("method", "why"),
+    [("cavi", "a cavi"), ("lbp", "an lbp"), ("svi", "an svi"), ("stochastic-vi", "a stochastic-vi"),
+     ("vi-gibbs", None)],
+)  # fmt: skip
+def test_ctrl_c_while_writing_a_variational_fit_says_it_is_lost_and_how_to_run_it(
+    method, why, home, tmp_path, capsys, monkeypatch
 ):
     """Ctrl-C while a variational fit's outputs are written (found sending SIGINT to
-    ``spcopyro fit --method cavi`` while its figures were drawn): its q(C) is not kept, and the
-    line says its iterations had run (it said 'no checkpoint kept (no iteration was done)')."""
+    ``spcopyro fit --method cavi`` while its figures were drawn): its q(C) is not kept, no half
+    OUT is left, and the line says its iterations had run (it said 'no checkpoint kept (no
+    iteration was done)'), that the finished fit is lost, and the command that runs it again
+    (it said only 'the fit runs again'; vi-gibbs's named no more than the method), which
+    writes OUT."""
+    import shlex
+
     import spcopyro.cli.fit
 
     def interrupted(*args, **kwargs):
@@ -323,10 +332,15 @@ def test_ctrl_c_while_writing_a_variational_fit_says_its_iterations_ran(
     err = capsys.readouterr().err.splitlines()[-1]
     assert err.startswith(f"interrupted while writing the outputs: nothing written to {out}")
     assert "no iteration was done" not in err
-    assert err.endswith(f"no checkpoint kept (its iterations had all run; {article} {method} "
-                        "checkpoint is kept only when Ctrl-C stops them: the fit runs "
-                        "again)")  # fmt: skip
+    if why is not None:
+        assert (f"no checkpoint kept (its iterations had all run; {why} checkpoint is kept only "
+                "when Ctrl-C stops them): ") in err  # fmt: skip
+    assert err.endswith(
+        f": the finished fit is lost -- run it again with: {shlex.join(['spcopyro', *argv])}"
+    )
     assert not list(tmp_path.glob("out*"))  # no OUT, checkpoint or staging folder left
+    assert main(shlex.split(err.split("run it again with: ")[1])[1:]) == 0
+    assert (out / "result.npz").is_file()
 
 
 def test_ctrl_c_from_a_terminal_while_cavi_s_outputs_are_written(tmp_path):
@@ -376,7 +390,8 @@ def test_ctrl_c_from_a_terminal_while_cavi_s_outputs_are_written(tmp_path):
     assert line.startswith(f"interrupted while writing the outputs: nothing written to {out}")
     assert line.endswith(
         "no checkpoint kept (its iterations had all run; a cavi checkpoint is kept only when "
-        "Ctrl-C stops them: the fit runs again)"
+        "Ctrl-C stops them): the finished fit is lost -- run it again with: spcopyro fit "
+        f"--method cavi --sweeps 20 --out {out}"
     ), line
     assert not list(tmp_path.glob(f"out{attempt}*"))  # no OUT, checkpoint or staging folder
     time.sleep(0.5)  # the figures' child, stopped by the fit, has been reaped by then

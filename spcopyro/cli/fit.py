@@ -47,6 +47,7 @@ from spcopyro.cli.fit_options import (
 from spcopyro.cli.fit_refine import check_refinable, refine
 from spcopyro.cli.fit_resume import (
     check_resume_file,
+    interrupted_before_fit,
     interrupted_message,
     keeps_checkpoint,
     no_checkpoint_flags,
@@ -126,59 +127,23 @@ def run_fit(args: argparse.Namespace) -> int:
 
 
 def _fit_interruptible(args: argparse.Namespace, said: list[str]) -> int:
-    from spcopyro._util.outputs import checkpoint_path, stage_output
-    from spcopyro.fit.gibbs_chains import FitCheckpoint, FitInterrupted
-    from spcopyro.fit.registry import get_method
+    from spcopyro._util.outputs import checkpoint_path
 
-    get_method(args.method)  # ValueError naming the registered methods
-    args.phases = Phases()  # seconds per phase, written to $SPCOPYRO_TIMINGS if set
-    if args.sweeps is None:  # the parser's default: fewer sweeps continue a fit than start one
-        args.sweeps = UPDATE_SWEEPS if args.update is not None else FIT_SWEEPS
-    if args.update is not None:  # before the preset fills --init: an explicit one is refused
-        check_update_args(args)
-    apply_preset_inference(args)
-    check_sweeps(args)
-    checkpointed = keeps_checkpoint(args)
-    if args.resume is not None and not checkpointed:
-        raise ValueError(
-            "--resume continues Gibbs chains run for a number of --sweeps, or one fit "
-            f"(--chains 1) of {', '.join(resumable_methods())}; {no_checkpoint_flags(args)} "
-            "keeps no checkpoint"
-        )
-    if args.point_estimate != "map-visited" and (
-        args.sweeps == "auto" or args.method not in SAMPLERS or not args.marginal_samples
-    ):
-        raise ValueError(
-            f"--point-estimate {args.point_estimate} is made over the label maps of "
-            "--marginal-samples (> 0) of a gibbs or vi-gibbs fit with a number of --sweeps"
-        )
-    sampler = args.method in SAMPLERS  # another refuses it (cli.fit_options)
-    if sampler and args.sweeps != "auto" and args.anneal_sweeps > args.sweeps:
-        raise ValueError(f"anneal_sweeps ({args.anneal_sweeps}) must not exceed num_sweeps "
-                         f"({args.sweeps})")  # fmt: skip
-    if args.resume is not None:
-        check_resume_file(args.resume)
-    loaded = _load(args.data)
-    check_free_cells(loaded.grid, f"house {loaded.name!r}")  # before the summary lists them
-    args.phases.mark("load")
-    settings, options = fit_settings(args, loaded)
-    if args.update is not None:  # a refined fit goes on on the map's cells, as refined
-        settings = update_settings(args, settings, loaded.grid.num_free)
-    house = model_house(loaded, settings.data.cell_size)  # the model's grid (cell_size)
-    check_refinable(args, settings, house, loaded)  # --refine always: a coarser grid to refine
-    staged = stage_output(
-        args.out, overwrite=args.overwrite, resume=args.resume,
-        inputs=(house.source, house.grid.source, args.update),
-    )  # fmt: skip
-    args.phases.mark("settings")
-    keeper = FitCheckpoint(checkpoint_path(staged.out)) if checkpointed else None
-    job = FitJob(args, house, settings, options, staged, keeper, map_house=loaded, said=said)
+    stage = ["importing the inference methods"]  # what a Ctrl-C before the fit interrupted
+    try:
+        job = _set_up(args, said, stage)
+    except KeyboardInterrupt:  # nothing written yet, a resumed checkpoint untouched: say so
+        print(interrupted_before_fit(args, stage[-1]), file=sys.stderr)
+        return 130
+    staged, keeper = job.staged, job.keeper
     try:
         # interrupts_raised: one a compiled call reported as a SystemError; shared_footprints:
         # the summary's footprint counts are the model data's, spread once
         with interrupts_raised(), shared_footprints():
             return _fit_staged(job)
     except KeyboardInterrupt as stop:
+        from spcopyro.fit.gibbs_chains import FitInterrupted  # imported by _set_up
+
         if staged.committed:  # the fit a checkpoint of OUT held is complete or replaced
             checkpoint_path(staged.out).unlink(missing_ok=True)  # Ctrl-C before _write did it
             print(f"interrupted after {staged.out} was written", file=sys.stderr)
@@ -207,6 +172,68 @@ def _fit_interruptible(args: argparse.Namespace, said: list[str]) -> int:
         raise
     finally:
         staged.discard()  # nothing once committed; else the run's partial outputs
+
+
+def _set_up(args: argparse.Namespace, said: list[str], stage: list[str]) -> FitJob:
+    """Check the arguments, load the data, resolve the settings and stage OUT: the job to fit.
+    ``stage[-1]`` says what it is doing, for the line a Ctrl-C here prints; a staging folder it
+    made is removed when it is stopped."""
+    from spcopyro._util.outputs import checkpoint_path, stage_output
+    from spcopyro.fit.gibbs_chains import FitCheckpoint
+    from spcopyro.fit.registry import get_method
+
+    get_method(args.method)  # ValueError naming the registered methods
+    stage.append("checking the arguments")
+    args.phases = Phases()  # seconds per phase, written to $SPCOPYRO_TIMINGS if set
+    if args.sweeps is None:  # the parser's default: fewer sweeps continue a fit than start one
+        args.sweeps = UPDATE_SWEEPS if args.update is not None else FIT_SWEEPS
+    if args.update is not None:  # before the preset fills --init: an explicit one is refused
+        check_update_args(args)
+    apply_preset_inference(args)
+    check_sweeps(args)
+    checkpointed = keeps_checkpoint(args)
+    if args.resume is not None and not checkpointed:
+        raise ValueError(
+            "--resume continues Gibbs chains run for a number of --sweeps, or one fit "
+            f"(--chains 1) of {', '.join(resumable_methods())}; {no_checkpoint_flags(args)} "
+            "keeps no checkpoint"
+        )
+    if args.point_estimate != "map-visited" and (
+        args.sweeps == "auto" or args.method not in SAMPLERS or not args.marginal_samples
+    ):
+        raise ValueError(
+            f"--point-estimate {args.point_estimate} is made over the label maps of "
+            "--marginal-samples (> 0) of a gibbs or vi-gibbs fit with a number of --sweeps"
+        )
+    sampler = args.method in SAMPLERS  # another refuses it (cli.fit_options)
+    if sampler and args.sweeps != "auto" and args.anneal_sweeps > args.sweeps:
+        raise ValueError(f"anneal_sweeps ({args.anneal_sweeps}) must not exceed num_sweeps "
+                         f"({args.sweeps})")  # fmt: skip
+    if args.resume is not None:
+        stage.append(f"checking the checkpoint {args.resume}")
+        check_resume_file(args.resume)
+    stage.append("loading the data")
+    loaded = _load(args.data)
+    check_free_cells(loaded.grid, f"house {loaded.name!r}")  # before the summary lists them
+    args.phases.mark("load")
+    stage.append("preparing the settings")
+    settings, options = fit_settings(args, loaded)
+    if args.update is not None:  # a refined fit goes on on the map's cells, as refined
+        settings = update_settings(args, settings, loaded.grid.num_free)
+    house = model_house(loaded, settings.data.cell_size)  # the model's grid (cell_size)
+    check_refinable(args, settings, house, loaded)  # --refine always: a coarser grid to refine
+    stage.append("preparing the output folder")
+    staged = stage_output(
+        args.out, overwrite=args.overwrite, resume=args.resume,
+        inputs=(house.source, house.grid.source, args.update),
+    )  # fmt: skip
+    try:
+        args.phases.mark("settings")
+        keeper = FitCheckpoint(checkpoint_path(staged.out)) if checkpointed else None
+        return FitJob(args, house, settings, options, staged, keeper, map_house=loaded, said=said)
+    except BaseException:
+        staged.discard()
+        raise
 
 
 def _fit_staged(job: FitJob) -> int:

@@ -9,6 +9,7 @@ itself is :mod:`spcopyro.cli.fit`.
 from __future__ import annotations
 
 import argparse
+import sys
 
 from spcopyro._util.arguments import seed
 from spcopyro._util.threads import AUTO, MIN_CELLS_FOR_MORE_THREADS
@@ -33,8 +34,14 @@ __all__ = ["add_parser"]
 def _run_fit(args: argparse.Namespace) -> int:
     from spcopyro._util.collector import import_frozen
 
-    # torch's and pyro's objects, frozen: the collector does not scan them again (the module)
-    return import_frozen("spcopyro.cli.fit").run_fit(args)
+    try:  # torch's and pyro's objects, frozen: the collector does not scan them again (the module)
+        fit = import_frozen("spcopyro.cli.fit")
+    except KeyboardInterrupt:  # seconds on a cold start: what was stopped, and nothing changed
+        from spcopyro.cli.fit_resume import interrupted_before_fit
+
+        print(interrupted_before_fit(args, "importing spcopyro's fit"), file=sys.stderr)
+        return 130
+    return fit.run_fit(args)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

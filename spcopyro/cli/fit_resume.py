@@ -1,7 +1,8 @@
 """``spcopyro fit``'s checkpoints on the command line: which fits keep one on Ctrl-C
 (:func:`keeps_checkpoint`), what ``--resume`` may name (:func:`check_resume_file`), the line
-printed when Ctrl-C stops a fit (:func:`interrupted_message`) and the command lines that resume
-it or, once written, run it again (:func:`resume_command`, :func:`without_resume`)."""
+printed when Ctrl-C stops a fit (:func:`interrupted_message`; :func:`interrupted_before_fit`
+before it began) and the command lines that resume it or, once written, run it again
+(:func:`resume_command`, :func:`without_resume`)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from spcopyro.cli.common import command_line
 
 __all__ = [
     "check_resume_file",
+    "interrupted_before_fit",
     "interrupted_message",
     "keeps_checkpoint",
     "no_checkpoint_flags",
@@ -97,15 +99,32 @@ def interrupted_message(
             elif keeps_checkpoint(args) and finished:  # a variational fit's q(C) is saved only
                 # by the driver that Ctrl-C stops (spcopyro.fit.house), not once it has returned
                 why = (f"its iterations had all run; {with_article(args.method)} checkpoint is "
-                       "kept only when Ctrl-C stops them: the fit runs again")  # fmt: skip
+                       "kept only when Ctrl-C stops them")  # fmt: skip
             elif keeps_checkpoint(args):
                 why = "no sweep was done" if args.method == "gibbs" else "no iteration was done"
             elif args.method in resumable_methods():
                 why = (f"--chains {args.chains}: {with_article(args.method)} checkpoint holds "
                        "one fit")  # fmt: skip
-        return f"{line}; no checkpoint kept ({why})"
+        line = f"{line}; no checkpoint kept ({why})"
+        if finished:  # the whole fit ran, and its result went with the outputs: say so, and how
+            again = shlex.join(["spcopyro", *without_resume(args)])  # to get it (its seed: same)
+            line = f"{line}: the finished fit is lost -- run it again with: {again}"
+        return line
     command = resume_command(args, kept)
     return f"{line}; the state reached is saved in {kept} -- continue with: {command}"
+
+
+def interrupted_before_fit(args: argparse.Namespace, stage: str) -> str:
+    """The line ``fit`` prints when Ctrl-C stops it before the fit began, while ``stage`` (e.g.
+    ``"loading the data"``): nothing was written and the checkpoint it resumes (``--resume``) or
+    the fit it updates (``--update``) is left as it was; the command that starts it again."""
+    line = f"interrupted while {stage}, before the fit began: nothing was changed ({args.out} not "
+    if args.resume is not None:
+        command = resume_command(args, Path(args.resume))
+        return f"{line}written, {args.resume} left as it was) -- continue with: {command}"
+    kept = "" if args.update is None else f", the fit in {args.update} left as it was"
+    again = shlex.join(["spcopyro", *command_line(args)])
+    return f"{line}written{kept}) -- run it again with: {again}"
 
 
 def resume_command(args: argparse.Namespace, checkpoint: Path) -> str:
