@@ -206,6 +206,34 @@ def _no_constant(name: str) -> None:
     raise AssertionError(f"comparison.json holds {name}: not strict JSON")
 
 
+def test_iterations_take_integers_as_every_integer_option_does(tmp_path, monkeypatch, capsys):
+    """--iterations gibbs=1_000 reads N as int() does, as argparse's integer options (--sweeps
+    1_000) do; it was refused as 'takes METHOD=N'. What is no integer is still refused."""
+    import spcopyro.study.comparison
+    from spcopyro.cli.main import build_parser
+
+    assert build_parser().parse_args(["fit", "--out", "o", "--sweeps", "1_000"]).sweeps == 1000
+    taken = {}
+
+    def run(out, settings, **kwargs):
+        taken.update(settings.iterations)
+        raise _Stop  # before anything runs
+
+    monkeypatch.setattr(spcopyro.study.comparison, "run_comparison", run)
+    argv = ["compare-inference", "--out", str(tmp_path / "cmp"), "--quick", "--houses",
+            "synthetic", "--methods", "gibbs", "cavi", "--iterations"]  # fmt: skip
+    with pytest.raises(_Stop):
+        main([*argv, "gibbs=1_000", "cavi=+7"])
+    assert taken == {"gibbs": 1000, "cavi": 7}
+    for bad in ("gibbs=1.5", "gibbs=0", "gibbs=", "gibbs=1__0"):
+        assert main([*argv, bad]) == 2
+        assert "--iterations takes METHOD=N (N >= 1, METHOD one of" in capsys.readouterr().err
+
+
+class _Stop(Exception):
+    """Ends a command where a test has seen what it needs."""
+
+
 def test_quick_command_writes_table_json_and_figure(tmp_path, capsys, monkeypatch):
     monkeypatch.setitem(VARIANTS, "fake", Variant("fake", "no-such-method", "fake", 5, 2))
     out = tmp_path / "cmp"

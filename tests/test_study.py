@@ -119,6 +119,13 @@ def test_spec_from_toml_equals_spec_from_python(tmp_path):
         ("seeds = 2", "seeds = [", ["not valid TOML"]),
         ("heldout = true", "heldout = true\nseeds = 0", ["[data.small] seeds", "0"]),
         ("seeds = 2", "seeds = 2\nobservations_off = 1", ["[study] observations_off", "1"]),
+        # a number in quotes is TOML text: the message says how to write it (1_000 unquoted)
+        (
+            "sweeps = 8",
+            'sweeps = "1_000"',
+            ["[study] sweeps = '1_000'", "write 1_000 without the quotes"],
+        ),
+        ("seeds = 2", 'seeds = "2"', ["[study] seeds = '2'", "write 2 without the quotes"]),
         # a public house is loaded, not drawn: its seed changed nothing, silently
         (
             'synthetic = "default"\nheight = 24\nwidth = 30\nnum_rooms = 2\nnum_trials = 2\n'
@@ -235,6 +242,11 @@ def test_sampled_hyperparameters_are_in_the_table(tmp_path):
         ('categories = "kitchen"', "categories = 'kitchen': expected a list of category names"),
         ('door_width = "wide"', "door_width = 'wide': expected 'auto' or metres > 0"),
         ("num_trials = 0", "num_trials = 0: expected an integer >= 1"),
+        (
+            'num_trials = "3"',
+            "num_trials = '3': expected an integer >= 1 (a number in quotes is text: write 3 "
+            "without the quotes)",
+        ),
         ("sentence_fraction = 2.0", "sentence_fraction = 2.0: expected a share in [0, 1]"),
     ],
 )

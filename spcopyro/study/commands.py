@@ -302,6 +302,32 @@ def _ablation(args: argparse.Namespace) -> int:
     return 1 if summary["failed"] else 0
 
 
+def _iterations(
+    items: Sequence[str], variants: Sequence[str], known: Sequence[str]
+) -> dict[str, int]:
+    """``--iterations METHOD=N ...`` as {METHOD: N}: N read as int() reads it (``1_000``, as
+    every integer option takes it), a METHOD of ``known`` that is among the compared
+    ``variants``."""
+    iterations: dict[str, int] = {}
+    for item in items:
+        key, _, value = item.partition("=")
+        try:
+            count = int(value)
+        except ValueError:
+            count = 0
+        if key not in known or count < 1:
+            raise ValueError(f"--iterations takes METHOD=N (N >= 1, METHOD one of "
+                             f"{list(known)}), got {item!r}")  # fmt: skip
+        if key in iterations:
+            raise ValueError(f"--iterations: {key} is given twice ({key}={iterations[key]}, "
+                             f"{item})")  # fmt: skip
+        if key not in variants:
+            raise ValueError(f"--iterations {item}: {key} is not compared (--methods "
+                             f"{' '.join(variants)})")  # fmt: skip
+        iterations[key] = count
+    return iterations
+
+
 def _compare_inference(args: argparse.Namespace) -> int:
     from spcopyro.data import find_dataset_root
     from spcopyro.experiments.inference_comparison import (
@@ -321,19 +347,7 @@ def _compare_inference(args: argparse.Namespace) -> int:
     elif args.houses == "public":
         _contradicts("--houses public", seeds=args.seeds)
     variants = check_variants(args.methods) if args.methods else tuple(VARIANTS)
-    iterations: dict[str, int] = {}
-    for item in args.iterations or ():
-        key, _, value = item.partition("=")
-        if key not in VARIANTS or not value.isdigit() or int(value) < 1:
-            raise ValueError(f"--iterations takes METHOD=N (N >= 1, METHOD one of "
-                             f"{list(VARIANTS)}), got {item!r}")  # fmt: skip
-        if key in iterations:
-            raise ValueError(f"--iterations: {key} is given twice ({key}={iterations[key]}, "
-                             f"{item})")  # fmt: skip
-        if key not in variants:
-            raise ValueError(f"--iterations {item}: {key} is not compared (--methods "
-                             f"{' '.join(variants)})")  # fmt: skip
-        iterations[key] = int(value)
+    iterations = _iterations(args.iterations or (), variants, tuple(VARIANTS))
     if args.gamma is not None:  # named here: it failed as "variant 'gibbs': settings ..."
         from spcopyro.config import preset
 

@@ -227,6 +227,17 @@ def _fail(source: str, where: str, value: object, why: str) -> StudyError:
     return StudyError(f"{source}: {where} = {value!r}: {why}", where)
 
 
+def _quoted_number(value: object) -> str:
+    """A hint for a number written in quotes (``sweeps = "1_000"``: TOML reads text), else ""."""
+    if isinstance(value, str):
+        try:
+            float(value)
+        except ValueError:
+            return ""
+        return f" (a number in quotes is text: write {value.strip()} without the quotes)"
+    return ""
+
+
 def _seeds(source: str, value: object, where: str = "[study] seeds") -> tuple[int, ...]:
     if isinstance(value, int) and not isinstance(value, bool):
         if value < 1:
@@ -237,12 +248,15 @@ def _seeds(source: str, value: object, where: str = "[study] seeds") -> tuple[in
             if len(set(value)) != len(value):
                 raise _fail(source, where, value, "a seed is given twice")
             return tuple(int(s) for s in value)
-    raise _fail(source, where, value, "expected a count >= 1 or a list of seeds >= 0")
+    why = "expected a count >= 1 or a list of seeds >= 0"
+    raise _fail(source, where, value, why + _quoted_number(value))
 
 
 def _positive_int(source: str, where: str, value: object, minimum: int = 1) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise _fail(source, where, value, f"expected an integer >= {minimum}")
+        raise _fail(
+            source, where, value, f"expected an integer >= {minimum}{_quoted_number(value)}"
+        )
     return int(value)
 
 
@@ -411,7 +425,8 @@ def _data_source(source: str, name: str, table: object) -> DataSource:
                 raise _fail(source, f"{where} {key}", value, why)
         problem = _map_tour_problem(values) if kind == "map" else None
         if problem is not None:
-            raise _fail(source, f"{where} {problem[0]}", values[problem[0]], problem[1])
+            value = values[problem[0]]
+            raise _fail(source, f"{where} {problem[0]}", value, problem[1] + _quoted_number(value))
         try:
             trials = check().num_trials
         except (TypeError, ValueError) as error:
