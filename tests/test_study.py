@@ -116,6 +116,13 @@ def test_spec_from_toml_equals_spec_from_python(tmp_path):
         ("gamma = 3.0", 'gamma = "hot"', ["[variants.og3]", "gamma", "hot"]),
         ('synthetic = "default"', 'synthetic = "castle"', ["[data.small] synthetic", "castle"]),
         ("seeds = 2", "seedz = 2", ["[study] seedz", "unknown key", "; did you mean seeds?"]),
+        # a misspelt prefix is suggested as a misspelt key is (it got no suggestion)
+        ("gamma = 3.0", "setings.gamma = 3.0", ["setings.gamma", "did you mean settings.gamma?"]),
+        (
+            "gamma = 3.0",
+            "option = { cluster_moves = 0.2 }",
+            ["option.cluster_moves", "did you mean options.cluster_moves?"],
+        ),
         ("seeds = 2", "seeds = [", ["not valid TOML"]),
         ("heldout = true", "heldout = true\nseeds = 0", ["[data.small] seeds", "0"]),
         ("seeds = 2", "seeds = 2\nobservations_off = 1", ["[study] observations_off", "1"]),

@@ -330,6 +330,10 @@ def make_variant(name: str, overrides: Mapping[str, object] | None = None) -> Va
                 known_options = [f.name for f in dataclasses.fields(default_options)]  # type: ignore[arg-type]
                 known = [*sorted(_SETTING_FIELDS), *_option_paths(default_options),
                          *fit_parameters]  # fmt: skip
+                if dot:  # a misspelt prefix ('setings.gamma'): the prefixed keys are close
+                    known += [f"settings.{k}" for k in sorted(_SETTING_FIELDS)]
+                    known += [f"options.{k}" for k in _option_paths(default_options)]
+                    known += [f"fit.{k}" for k in fit_parameters]
                 hint = did_you_mean(key, ["preset", "method", *known])
                 raise VariantError(
                     f"{where}: unknown key {key!r}. Known: preset, method; settings "
