@@ -171,6 +171,47 @@ def test_the_unmatchable_saved_words_warning_says_how_many_it_leaves_out(caplog)
     assert f"(kept, without counts): {shown}, ... (2 more)" in caplog.text
 
 
+def _regridded(grid, scale, shift_cells):
+    """``grid``'s cells at ``scale`` times its resolution, its origin moved by ``shift_cells``."""
+    from spcopyro.maps import OccupancyGrid
+
+    shift = shift_cells * grid.resolution
+    origin = (grid.origin[0] + shift, grid.origin[1] - shift, 0.0)
+    return OccupancyGrid(grid.occupancy, grid.resolution * scale, origin)
+
+
+@pytest.mark.parametrize(
+    "scale, shift_cells, same",
+    [
+        (1 + 2e-5, 4e-6, True),  # map_saver's %f: 0.05 / 3 as 0.016667, an origin 5e-7 m off
+        (1.0, 0.01, False),  # an origin a hundredth of a cell off: another map
+        (1.01, 0.0, False),  # cells 1% larger: another map
+    ],
+)
+def test_every_comparison_of_two_maps_frames_follows_one_rule(
+    house, saved, scale, shift_cells, same
+):
+    """A map saved again with rounded floats is the fit's map to OccupancyGrid's ==, to an
+    update (check_compatible: np.isclose / np.allclose, which refused an origin 4e-7 m off), to
+    a warm start (result_labels: shape and free cells only, which took a map of other cells) and
+    to is_coarsening; a really different resolution or origin is refused by all four."""
+    from spcopyro.fit.starts import result_labels
+    from spcopyro.maps.coarse import coarsen_grid, is_coarsening
+
+    grid = _regridded(house.grid, scale, shift_cells)
+    moved = dataclasses.replace(house, grid=grid)
+    assert (grid == house.grid) is same and (house.grid == grid) is same
+    assert is_coarsening(coarsen_grid(house.grid, 2), grid) is same
+    if same:
+        check_compatible(saved, moved, SETTINGS)
+        assert result_labels(saved, moved, SETTINGS.model).shape == (house.grid.num_free,)
+    else:
+        with pytest.raises(ValueError, match="map (resolution|origin)"):
+            check_compatible(saved, moved, SETTINGS)
+        with pytest.raises(ValueError, match="starting result was fitted on"):
+            result_labels(saved, moved, SETTINGS.model)
+
+
 def test_other_settings_map_or_image_classes_are_clear_errors(house, saved):
     with pytest.raises(ValueError, match=r"gamma: saved fit 3\.0, this run 4\.0"):
         check_compatible(saved, house, SETTINGS.replace(gamma=4.0))

@@ -16,6 +16,7 @@ from spcopyro.config import SpCoConfig, SpCoSettings
 from spcopyro.data import CellCounts, House
 from spcopyro.inference.initialisation import INITS, kmeans_gaussians, labels_from_gaussians
 from spcopyro.maps import OccupancyGrid
+from spcopyro.maps.grid import same_frame
 from spcopyro.model import DTYPE
 from spcopyro.results.result import SpCoResult
 
@@ -76,7 +77,9 @@ def init_name(init: Init) -> str:
 
 
 def _same_map(a: OccupancyGrid, b: OccupancyGrid) -> bool:
-    return a.shape == b.shape and a.num_free == b.num_free
+    """Same shape, free-cell count, resolution and origin (:func:`~spcopyro.maps.grid.same_frame`,
+    the maps' one rule: a map saved again with 6 decimals is the same)."""
+    return a.shape == b.shape and a.num_free == b.num_free and same_frame(a, b)
 
 
 def result_labels(result: SpCoResult, house: House, config: SpCoConfig) -> torch.Tensor:
@@ -110,10 +113,14 @@ def result_labels(result: SpCoResult, house: House, config: SpCoConfig) -> torch
             result, grid=house.grid, labels=image[cells[:, 0], cells[:, 1]].astype(np.int64)
         )
     if not _same_map(result.grid, house.grid):
+
+        def described(g: OccupancyGrid) -> str:
+            return (f"{g.shape} with {g.num_free} free cells of {g.resolution:g} m, origin "
+                    f"({g.origin[0]:g}, {g.origin[1]:g})")  # fmt: skip
+
         raise ValueError(
-            f"the starting result was fitted on a {result.grid.shape} map with "
-            f"{result.grid.num_free} free cells; this house's map is {house.grid.shape} with "
-            f"{house.grid.num_free}"
+            f"the starting result was fitted on a {described(result.grid)} map; this house's "
+            f"map is {described(house.grid)}"
         )
     labels = np.asarray(result.labels)
     if labels.max() >= config.num_concepts:

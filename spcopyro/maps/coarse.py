@@ -33,7 +33,15 @@ import math
 
 import numpy as np
 
-from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
+from spcopyro.maps.grid import (
+    FREE,
+    MAP_TOLERANCE_CELLS,
+    OCCUPIED,
+    UNKNOWN,
+    OccupancyGrid,
+    same_origin,
+    same_resolution,
+)
 
 __all__ = [
     "coarsen_grid",
@@ -82,16 +90,17 @@ def coarsen_grid(grid: OccupancyGrid, factor: int) -> OccupancyGrid:
     return OccupancyGrid(coarse, resolution, grid.origin, source=grid.source, coarsened_from=grid)
 
 
-ORIGIN_TOLERANCE_CELLS = 1e-3
-"""Map cells: how far a coarse grid's origin may lie from its map's, along x and y, and still be
-its coarsening (:func:`is_coarsening`). :func:`coarsen_grid` keeps the origin exactly, but the two
-are compared after a trip through yaml files: a fit's ``map.yaml`` against the robot's map
-(``robot_map.yaml``, or the data folder's map) that another tool may have saved again -- ROS 1's
-``map_saver`` writes the origin with 6 decimals (``%f``), moving it by up to 5e-7 m, which an
-absolute 1e-9 m refused. A thousandth of a map cell (50 um at 0.05 m; 1 um at the smallest
-plausible resolution, 1 mm) lets that through and still refuses any map a mask, label or plan
-would visibly lie off: anything the coarse grid carries lands within a thousandth of a map cell
-of where it belongs.
+ORIGIN_TOLERANCE_CELLS = MAP_TOLERANCE_CELLS
+"""Map cells (:data:`~spcopyro.maps.grid.MAP_TOLERANCE_CELLS`, the rule every comparison of two
+maps' resolutions and origins follows): how far a coarse grid's origin may lie from its map's,
+along x and y, and still be its coarsening (:func:`is_coarsening`). :func:`coarsen_grid` keeps
+the origin exactly, but the two are compared after a trip through yaml files: a fit's
+``map.yaml`` against the robot's map (``robot_map.yaml``, or the data folder's map) that another
+tool may have saved again -- ROS 1's ``map_saver`` writes the origin with 6 decimals (``%f``),
+moving it by up to 5e-7 m, which an absolute 1e-9 m refused. A thousandth of a map cell (50 um
+at 0.05 m; 1 um at the smallest plausible resolution, 1 mm) lets that through and still refuses
+any map a mask, label or plan would visibly lie off: anything the coarse grid carries lands
+within a thousandth of a map cell of where it belongs.
 
 The same thousandth bounds the cell size: a coarse grid's cell may differ from f map cells by
 f thousandths of a map cell (relative 1e-3). ``map_saver`` writes the resolution with ``%f``
@@ -109,11 +118,10 @@ def is_coarsening(grid: OccupancyGrid, fine: OccupancyGrid) -> bool:
     :func:`free_block_of_map_cells` and of the robot's map in Nav2's export
     (:func:`spcopyro.robot.nav2.check_robot_map`)."""
     factor = round(grid.resolution / fine.resolution)
-    tolerance = ORIGIN_TOLERANCE_CELLS * fine.resolution
     return (
         factor >= 1
-        and math.isclose(grid.resolution, factor * fine.resolution, rel_tol=ORIGIN_TOLERANCE_CELLS)
-        and all(math.isclose(grid.origin[i], fine.origin[i], abs_tol=tolerance) for i in (0, 1))
+        and same_resolution(grid.resolution, factor * fine.resolution)
+        and same_origin(grid.origin, fine.origin, fine.resolution)
         and tuple(-(-n // factor) for n in fine.shape) == grid.shape
     )
 

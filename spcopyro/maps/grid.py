@@ -34,7 +34,16 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["FREE", "OCCUPIED", "UNKNOWN", "OccupancyGrid"]
+__all__ = [
+    "FREE",
+    "MAP_TOLERANCE_CELLS",
+    "OCCUPIED",
+    "UNKNOWN",
+    "OccupancyGrid",
+    "same_frame",
+    "same_origin",
+    "same_resolution",
+]
 
 FREE, OCCUPIED, UNKNOWN = 0, 100, -1  # map_server trinary values (int8)
 
@@ -42,6 +51,37 @@ _CONNECTIVITIES = (4, 8)
 # (d_row, d_col) of the neighbour columns of neighbour_table: up, down, left, right, then
 # up-left, up-right, down-left, down-right.
 _OFFSETS = ((-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1))
+
+
+MAP_TOLERANCE_CELLS = 1e-3
+"""The one rule by which two maps' resolutions and origins are the same (:func:`same_frame`):
+resolutions within a relative thousandth, origins within a thousandth of a cell along x and y.
+Maps are compared after a trip through yaml files another tool may have written again: ROS 1's
+``map_saver`` writes both with 6 decimals (``%f``), 0.05 / 3 m as 0.016667 (relative 2e-5 off)
+and an origin up to 5e-7 m off, which an exact comparison refused. A thousandth of a cell moves
+nothing placed on the map visibly; a map of another resolution or origin (another SLAM run, a
+map of other cells) is off by far more."""
+
+
+def same_resolution(a: float, b: float) -> bool:
+    """Whether ``a`` and ``b``, metres per cell, are one resolution
+    (:data:`MAP_TOLERANCE_CELLS`)."""
+    return math.isclose(a, b, rel_tol=MAP_TOLERANCE_CELLS)
+
+
+def same_origin(a: tuple[float, ...], b: tuple[float, ...], resolution: float) -> bool:
+    """Whether origins ``a`` and ``b`` (x, y, yaw) are one, x and y within
+    :data:`MAP_TOLERANCE_CELLS` of a cell of ``resolution`` metres (yaw: equal)."""
+    tolerance = MAP_TOLERANCE_CELLS * resolution
+    return all(math.isclose(a[i], b[i], abs_tol=tolerance) for i in (0, 1)) and a[2:] == b[2:]
+
+
+def same_frame(a: OccupancyGrid, b: OccupancyGrid) -> bool:
+    """Whether ``a`` and ``b`` have one resolution and origin (:func:`same_resolution`,
+    :func:`same_origin` in the finer one's cells): their cells lie on each other."""
+    return same_resolution(a.resolution, b.resolution) and same_origin(
+        a.origin, b.origin, min(a.resolution, b.resolution)
+    )
 
 
 def _check_connectivity(connectivity: int) -> None:
@@ -125,13 +165,11 @@ class OccupancyGrid:
             object.__setattr__(self, "source", Path(self.source))
 
     def __eq__(self, other: object) -> bool:
+        """The same cells, resolution and origin, the latter two by :func:`same_frame` (a map
+        saved again with 6 decimals is the same map)."""
         if not isinstance(other, OccupancyGrid):
             return NotImplemented
-        return (
-            self.resolution == other.resolution
-            and self.origin == other.origin
-            and np.array_equal(self.occupancy, other.occupancy)
-        )
+        return same_frame(self, other) and np.array_equal(self.occupancy, other.occupancy)
 
     __hash__ = None  # type: ignore[assignment]  # holds an ndarray
 
