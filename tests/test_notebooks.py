@@ -6,6 +6,7 @@ and no progress bar, were run top to bottom, and stay small enough to review."""
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import time
@@ -98,6 +99,31 @@ def test_stored_notebook_has_outputs_and_no_error(path):
     for cell in code:
         assert "matplotlib.use(" not in cell.source, f"{path.name} forces a matplotlib backend"
         assert "progress=True" not in cell.source, f"{path.name} asks for progress bars"
+
+
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:e[-+]?\d+)?"
+MAX_LISTED_NUMBERS = 12
+"""A stored text output lists at most this many numbers in one bracketed group: more is a wall
+of numbers a reader cannot take in (a plot, or the few that matter, says more)."""
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_stored_notebook_prints_no_wall_of_numbers(path):
+    """Notebook 3 printed one cell's whole q(C_i) before and after its update, 30 masses each
+    (0.033 thirty times, then 0.023 twenty-nine times around a 0.33); it now names the masses
+    that stand out and the range of the rest."""
+    notebook = nbformat.read(path, as_version=4)
+    for k, cell in enumerate(c for c in notebook.cells if c.cell_type == "code"):
+        for output in cell.get("outputs", []):
+            if output.get("output_type") == "stream":
+                text = output.get("text", "")
+            else:
+                text = output.get("data", {}).get("text/plain", "")
+            for group in re.findall(r"[\[{(][^\[\]{}()]*[\]})]", text):
+                count = len(re.findall(_NUMBER, group))
+                assert count <= MAX_LISTED_NUMBERS, (
+                    f"{path.name}, code cell {k + 1}, prints {count} numbers at once: {group[:200]}"
+                )
 
 
 def test_plotting_leaves_the_matplotlib_backend_alone():
