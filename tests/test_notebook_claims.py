@@ -245,3 +245,13 @@ def test_notebook_4_does_not_credit_algorithm_1_with_the_best_visited_state():
     assert "(the map the paper's Algorithm 1 reports)" not in text
     assert 'what a bare `fit_house` call reports, its `point_estimate="map-visited"`' in text
     assert "Algorithm 1 reports neither: it saves the chain's last state" in text, text[:9000]
+
+
+def test_notebook_2_says_the_printed_alpha_over_i_is_a_misprint():
+    """Algorithm 1's line 16 prints pi's prior share as alpha/I (I: the map's width); eq. (7) and
+    the released code (learning.py: dirichlet.rvs(num_C + ALPHA / L)) give alpha/L, as the
+    package does (test above). Notebook 2 set the two side by side without saying which is the
+    paper's intent; it now says alpha/I is a misprint."""
+    text = _flat(_markdown("02_gibbs_sampling"))
+    quoted = "as the released code does (`ALPHA / L` in its `learning.py`: the printed $\\alpha/I$"
+    assert quoted + " is a misprint)" in text, text[:6000]
