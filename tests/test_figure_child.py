@@ -219,3 +219,28 @@ def test_a_fit_stopped_while_it_waits_for_the_child_ends_the_child_first(
     assert "interrupted" in capsys.readouterr().err
     assert not out.exists()
     assert not [path.name for path in tmp_path.iterdir() if STAGING_INFIX in path.name]
+
+
+def test_the_child_scans_only_its_own_objects(tmp_path):
+    """The child freezes what the fork copied (gc.freeze, as the fit freezes its imports): its
+    collections then scan the figures' objects only, not the fit's, each of whose pages a scan
+    would copy from the parent. A figure drawn there counts the objects its collector tracks."""
+    import gc
+
+    counted = tmp_path / "tracked.txt"
+
+    def count() -> None:
+        counted.write_text(str(len(gc.get_objects())))
+
+    mine = [object() for _ in range(50_000)]  # tracked here (lists of objects: the fit's state)
+    held = [[item] for item in mine]
+    claims = fit_figures._Claims(1)
+    try:
+        with _deadline(60):
+            child = fit_figures._draw_in_child([("count", count)], claims)
+            child.wait()
+    finally:
+        claims.close()
+    assert child.exitcode == 0
+    assert len(gc.get_objects()) > len(held)  # the parent's collector tracks them
+    assert int(counted.read_text()) < 10_000  # the child's does not (260,000 without its freeze)
