@@ -109,3 +109,20 @@ def test_the_load_average_stands_beside_the_times():
     text = table_markdown(_summary(load_average_at_end=[3.01, 4.18, 4.42], cpus=2))
     times = next(line for line in text.splitlines() if line.startswith("Times are wall-clock"))
     assert "Load average as this command ended (1, 5, 15 min): 3.01, 4.18, 4.42 on 2 CPUs" in times
+
+
+def test_the_table_marks_the_scores_where_lower_is_better():
+    """The public table's mean rank and distance, and the synthetic table's wrong cells, did
+    not say that lower is better (only the figure and the summary knew): a reader could take
+    the highest mean rank for the best."""
+    from spcopyro.experiments.comparison_report import SCORE_NAMES
+    from spcopyro.experiments.inference_comparison import LOWER_IS_BETTER
+
+    text = table_markdown(_summary())
+    header = next(line for line in text.splitlines() if line.startswith("| method | ARI (region"))
+    columns = [c.strip() for c in header.strip("|").split("|")]
+    assert "mean rank ↓" in columns and "distance (m) ↓" in columns, columns
+    assert not [c for c in columns if "↓" in c and not c.startswith(("mean rank", "distance"))]
+    assert {SCORE_NAMES[s] for s in LOWER_IS_BETTER} == {
+        "held-out mean rank", "localisation distance (m)"}  # fmt: skip
+    assert "Scores: higher is better, but for those marked ↓ (lower is better)" in text

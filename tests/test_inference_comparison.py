@@ -739,3 +739,25 @@ def test_a_one_concept_map_of_a_comparison_cell_is_warned_of(dataset_root, monke
     # its advice fits the comparison: compare-inference takes no --method or --merge-moves
     (collapsed,) = [message for message in said if "holds 100" in message]
     assert collapsed.endswith(ADVICE) and "--merge-moves" not in collapsed, collapsed
+
+
+def test_a_listed_concept_where_no_word_was_heard_says_so():
+    """A concept of a disordered Gibbs map whose region heard no word has the prior's w, whose
+    top words are a tie broken by vocabulary order: comparison.md listed "bedroom/shelf" for
+    each of the 8 largest concepts of a 300-sweep Gibbs fit of room1dk5, as if those were its
+    words."""
+    from spcopyro.config import preset
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    spec = HouseSpec(
+        height=40, width=50, num_rooms=3, num_trials=1, utterances_per_room_per_trial=1
+    )  # 3 utterances: most concepts hear none
+    settings = preset("original-code", gamma=3.0, num_concepts=30)
+    problem = comparison.Problem(make_house(0, spec), settings, seed=0, name="tiny")
+    record, result = comparison.fit_and_score_with_result(VARIANTS["gibbs"], problem, 4)
+    listed = [int(c) for c in result.concepts_in_use()[:8]]
+    silent = [result.heard(c) == 0 for c in listed]
+    assert any(silent) and not all(silent), [result.heard(c) for c in listed]  # both kinds
+    for c, quiet, words in zip(listed, silent, record["top_words"], strict=True):
+        expected = "/".join(w for w, _ in result.top_words(c, 2))
+        assert words == (comparison.NO_WORDS if quiet else expected), (c, words)

@@ -34,6 +34,7 @@ from spcopyro.experiments.comparison_headline import (
 from spcopyro.experiments.comparison_stats import CONFIDENT
 from spcopyro.experiments.inference_comparison import (
     LOWER_IS_BETTER,
+    NO_WORDS,
     PRIMARY,
     PUBLIC,
     SCORES,
@@ -407,6 +408,9 @@ def table_markdown(summary: dict[str, object]) -> str:
         + f". {BUDGETS} {command_time(summary['seconds'], summary.get('cells_finished_before', 0))}"
         + _concurrent(summary.get("workers", 1)),
         "",
+        "Scores: higher is better, but for those marked ↓ (lower is better); concepts, times "
+        "and ESS/s describe a line, not its quality (a sampler's ESS/s: higher mixes faster).",
+        "",
         "Times are wall-clock seconds of the inference alone, mean over fits. t95: time to reach "
         "95% of the method's own final quality along its run (\"at chance\": a mean final ARI "
         f"below {CHANCE_ARI:g}, whose t95 means nothing; \"first map\": every fit's first kept "
@@ -434,7 +438,7 @@ def table_markdown(summary: dict[str, object]) -> str:
                 "",
                 "| method | ARI | matching rate | matching rate (means \\| labels) "
                 "| concepts (truth) | t95 ARI (s) | s per fit | iterations run "
-                "| ESS/s log joint | ESS/s agreement | wrong cells | of them sure (>= 0.99) |",
+                "| ESS/s log joint | ESS/s agreement | wrong cells ↓ | of them sure (>= 0.99) ↓ |",
                 "|---|---|---|---|---|---|---|---|---|---|---|---|",
             ]
         else:
@@ -448,7 +452,7 @@ def table_markdown(summary: dict[str, object]) -> str:
                 "by one over that count.",
                 "",
                 "| method | ARI (region truth) | top-1 | top-1 (means \\| labels) | top-3 "
-                "| mean rank | distance (m) | concepts | t95 top-1 (s) | s per fit "
+                "| mean rank ↓ | distance (m) ↓ | concepts | t95 top-1 (s) | s per fit "
                 "| iterations run | ESS/s log joint | ESS/s agreement |",
                 "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
             ]
@@ -487,7 +491,8 @@ def table_markdown(summary: dict[str, object]) -> str:
         lines += ["", f"![quality against time](comparison_{house_type}.png)", ""]
     lines += [
         "## Concepts found (the first fit of each house type: top 2 words of the largest "
-        "8 concepts)",
+        f"8 concepts; {NO_WORDS}: none was said in the concept's region, whose words are only "
+        "the prior's)",
         "",
     ]
     for house_type, by_variant in by_type.items():

@@ -351,10 +351,7 @@ def fit_and_score_with_result(
             for s in SCORES[house_type]
         },
         "concepts": len(final_result.concepts_in_use()),
-        "top_words": [
-            "/".join(w for w, _ in final_result.top_words(int(c), 2))
-            for c in final_result.concepts_in_use()[:8]
-        ],
+        "top_words": [_top_words(final_result, int(c)) for c in final_result.concepts_in_use()[:8]],
         "objective": output.trace.objective_name,
     }
     if "vi_iterations_run" in output.options:  # vi-gibbs: the CAVI start before its sweeps
@@ -377,6 +374,19 @@ def fit_and_score_with_result(
             wrong = stats.wrong_cells(labels[inside], truth[inside])
             record["overconfidence"] = stats.overconfidence(confidence[inside], wrong)
     return record, final_result
+
+
+NO_WORDS = "(no words heard)"
+"""A listed concept's entry in a record's ``top_words`` when no word was heard in its region:
+its w is the prior's, whose top words are a tie broken by vocabulary order (a disordered Gibbs
+map of room1dk5 listed "bedroom/shelf" for each of its 8 largest concepts)."""
+
+
+def _top_words(result: SpCoResult, concept: int) -> str:
+    """``"kitchen/sink"``: the concept's 2 most probable words, or :data:`NO_WORDS`."""
+    if result.heard(concept) == 0:
+        return NO_WORDS
+    return "/".join(w for w, _ in result.top_words(concept, 2))
 
 
 def _confidence(output: InferenceOutput) -> np.ndarray | None:
