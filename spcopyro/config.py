@@ -67,6 +67,10 @@ FeatureScaling = Literal["probability", "floor100"] | float
 """How image histograms become counts: as they are, floor(100 f) (the released code), or s * f."""
 WordWeighting = Literal["count", "tfidf"]
 """Word counts as they are, or tf-idf weighted (paper eq. 20)."""
+WordWeightingSetting = Literal["count", "tfidf", "auto"]
+"""A :data:`WordWeighting`, or ``"auto"``: tf-idf when any utterance is a sentence (more than one
+token), counts otherwise, resolved once the data are known (:mod:`spcopyro.data.word_weighting`)."""
+WORD_WEIGHTINGS: tuple[str, ...] = ("count", "tfidf", "auto")
 DEFAULT_SNAP_DISTANCE = 0.25  # metres: the largest snap the public houses need
 FootprintKernel = Literal["uniform", "gaussian"]
 """How an observation's weight falls off over its footprint (:mod:`spcopyro.data.footprint`)."""
@@ -274,7 +278,10 @@ class DataPreparation:
     Attributes:
         feature_scaling: how image histograms become counts: ``"probability"`` (as they are),
             ``"floor100"`` (floor(100 f), the released code) or a float s (s * f).
-        word_weighting: ``"count"`` or ``"tfidf"`` (paper eq. 20, for sentences).
+        word_weighting: ``"count"``, ``"tfidf"`` (paper eq. 20, for sentences) or ``"auto"``
+            (the default): tf-idf when any utterance is a sentence (more than one token), counts
+            otherwise; a fit resolves it once the data are known and records the resolved value
+            (:mod:`spcopyro.data.word_weighting`).
         snap_distance: metres within which an observation off free space is moved to the nearest
             free cell (farther ones are reported and left out).
         footprint_radius: metres; > 0 spreads each observation over the free cells within this
@@ -299,7 +306,7 @@ class DataPreparation:
     """
 
     feature_scaling: FeatureScaling = "probability"
-    word_weighting: WordWeighting = "count"
+    word_weighting: WordWeightingSetting = "auto"
     snap_distance: float = DEFAULT_SNAP_DISTANCE
     footprint_radius: float = 0.0
     footprint_kernel: FootprintKernel = "uniform"
@@ -316,8 +323,8 @@ class DataPreparation:
             fs in ("probability", "floor100") or (_is_number(fs) and math.isfinite(fs) and fs > 0)
         ):
             raise bad("feature_scaling", "must be 'probability', 'floor100' or a positive float")
-        if self.word_weighting not in ("count", "tfidf"):
-            raise bad("word_weighting", "must be 'count' or 'tfidf'")
+        if self.word_weighting not in WORD_WEIGHTINGS:
+            raise bad("word_weighting", "must be 'count', 'tfidf' or 'auto'")
         snap = self.snap_distance
         if not (_is_number(snap) and math.isfinite(snap) and snap >= 0):
             raise bad("snap_distance", "must be a finite number of metres >= 0")

@@ -203,7 +203,9 @@ def test_result_round_trips_every_field(small_house, tmp_path):
     assert result.inference["sweeps"] == 6 and result.inference["seed"] == 3
     assert result.inference["cluster_moves"] == 0.25
     assert result.labels_final is not None and result.marginals is None
-    assert result.preparation == settings.data and result.name == house.name
+    # the word weighting "auto" recorded as resolved: single words are counted
+    assert result.preparation == settings.data.replace(word_weighting="count")
+    assert result.name == house.name
     assert_same_result(SpCoResult.load(result.save(tmp_path / "gibbs")), result)
 
     rng = np.random.default_rng(0)

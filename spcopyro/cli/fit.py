@@ -55,7 +55,12 @@ from spcopyro.cli.fit_resume import (
     resume_command,
     without_resume,
 )
-from spcopyro.cli.fit_settings import apply_preset_inference, check_update_args, fit_settings
+from spcopyro.cli.fit_settings import (
+    apply_preset_inference,
+    check_update_args,
+    fit_settings,
+    word_weighting_note,
+)
 from spcopyro.cli.fit_summary import data_line, inference_line, model_line
 from spcopyro.cli.fit_update import relative_records, report_update, update_settings
 from spcopyro.cli.fit_warnings import recorded_warnings, write_config
@@ -249,7 +254,7 @@ def _fit_staged(job: FitJob) -> int:
                    preparation=settings.data))  # fmt: skip
     # a house of words only: the model in effect, words only; config.json keeps use_images
     print(model_line(config, settings.preset, images_missing=not house.observations.num_images))
-    print(data_line(settings.data, house.grid))  # the cells used, beside those asked
+    print(data_line(settings.data, house.grid, word_weighting_note(args, house)))
     default = INFERENCE_METHODS[args.method].default_options()
     print(inference_line(args.method, options if options is not None else default,
                          given_start(args), _budget(args), args.out))  # fmt: skip
@@ -553,7 +558,7 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
         else:
             why = (f"with beta = {config.beta:g} this comes from the words themselves: every "
                    "place heard much the same words (e.g. only fillers or stopwords); "
-                   "--tfidf weighs down words said everywhere")  # fmt: skip
+                   "--word-weighting tfidf weighs down words said everywhere")  # fmt: skip
         print(f"note: every concept's word distribution is close to uniform: {why}",
               file=sys.stderr)  # fmt: skip
     phases.mark("report")

@@ -112,7 +112,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "the house); repeat for several (default: none)")  # fmt: skip
     p.add_argument("--connectivity", type=int, choices=(4, 8),
                    help=f"MRF neighbourhood of a cell {_PRESET_DEFAULT}")  # fmt: skip
-    p.add_argument("--tfidf", action="store_true", help="weight words by tf-idf (eq. 20)")
+    weighting = p.add_mutually_exclusive_group()
+    weighting.add_argument(
+        "--word-weighting", choices=("count", "tfidf", "auto"),
+        help="words counted as they are, weighted by tf-idf (eq. 20), or auto: tf-idf when any "
+             "utterance is a sentence (more than one word), counts otherwise; config.json "
+             "records the one used (default: auto; --update: the updated fit's)",
+    )  # fmt: skip
+    weighting.add_argument("--tfidf", dest="word_weighting", action="store_const",
+                           const="tfidf", help="--word-weighting tfidf")  # fmt: skip
     p.add_argument(
         "--unobserved-refresh",
         type=float,

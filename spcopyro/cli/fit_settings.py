@@ -14,12 +14,19 @@ from spcopyro.cli.common import _concentrations, _feature_scaling
 from spcopyro.cli.fit_options import SAMPLERS, method_options
 from spcopyro.cli.fit_refine import prepares_data
 from spcopyro.config import SpCoSettings, preset, preset_inference
+from spcopyro.data.word_weighting import auto_word_weighting_note, resolved_settings
 from spcopyro.gibbs.chains import chain_processes
 
 if TYPE_CHECKING:
     from spcopyro.data import House
 
-__all__ = ["apply_preset_inference", "cell_size_setting", "check_update_args", "fit_settings"]
+__all__ = [
+    "apply_preset_inference",
+    "cell_size_setting",
+    "check_update_args",
+    "fit_settings",
+    "word_weighting_note",
+]
 
 
 def apply_preset_inference(args: argparse.Namespace) -> None:
@@ -97,7 +104,7 @@ def fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings, 
         prior=args.prior, num_concepts=args.concepts, gamma=args.gamma, alpha=args.alpha,
         beta=args.beta, chi=args.chi, connectivity=args.connectivity,
         concentrations=_concentrations(args.concentration),
-        word_weighting="tfidf" if args.tfidf else None,
+        word_weighting=args.word_weighting,
         feature_scaling=_feature_scaling(args.feature_scaling),
         snap_distance=args.snap_distance, footprint_radius=args.footprint,
         cell_size=cell_size_setting(args.cell_size), word_scaling=args.word_scaling,
@@ -118,7 +125,21 @@ def fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings, 
     if args.preset == "paper-dirichlet" and args.concepts is None and house.category_names:
         overrides["num_concepts"] = len(house.category_names)
     settings = preset(args.preset, **overrides)
+    if args.update is None:  # an update keeps the saved fit's (fit_update.update_settings)
+        settings = resolved_settings(settings, house.observations)
     options = method_options(args)
     if args.method == "gibbs":
         chain_processes()  # a bad $SPCOPYRO_CHAIN_PROCESSES: before anything is printed
     return settings, options
+
+
+def word_weighting_note(args: argparse.Namespace, house: House) -> str | None:
+    """Why the fit's word weighting is the one it is, for the data line, where the command line
+    left it to ``auto`` (None where ``--word-weighting`` or ``--tfidf`` chose it): the
+    sentences counted (:func:`spcopyro.data.word_weighting.auto_word_weighting_note`), or under
+    ``--update`` that it is the updated fit's."""
+    if args.word_weighting not in (None, "auto"):
+        return None
+    if args.update is not None:
+        return f"auto: as the fit in {args.update}"
+    return auto_word_weighting_note(house.observations)

@@ -26,7 +26,14 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro._util.messages import setting
-from spcopyro.config import IMAGES, WORDS, DataPreparation, FeatureScaling, FootprintKernel
+from spcopyro.config import (
+    IMAGES,
+    WORDS,
+    DataPreparation,
+    FeatureScaling,
+    FootprintKernel,
+    WordWeightingSetting,
+)
 from spcopyro.data.footprint import (
     SpreadSources,
     footprint_weights,
@@ -43,7 +50,8 @@ from spcopyro.data.placement import (
     place_observations,
     position_hint,
 )
-from spcopyro.data.text import WordWeighting, tfidf_weights, word_matrix
+from spcopyro.data.text import tfidf_weights, word_matrix
+from spcopyro.data.word_weighting import resolve_word_weighting
 from spcopyro.maps.grid import OccupancyGrid
 
 __all__ = [
@@ -277,7 +285,7 @@ def cell_counts(
     obs: Observations,
     *,
     feature_scaling: FeatureScaling = "probability",
-    word_weighting: WordWeighting = "count",
+    word_weighting: WordWeightingSetting = "count",
     snap_distance: float = DEFAULT_SNAP_DISTANCE,
     vocabulary: Sequence[str] | None = None,
     source: str | os.PathLike[str] | None = None,
@@ -296,6 +304,10 @@ def cell_counts(
         word_counts[m]  = sum over utterances d in m of n(., d)         word_weighting="count"
                         = sum over utterances d in m of tfidf(., d)     word_weighting="tfidf"
         modalities[j].counts[m] = sum over observations o of modality j in m of counts_o
+
+    (``"auto"``, the default of a fit's :class:`~spcopyro.config.DataPreparation`: tf-idf when
+    any utterance of ``obs`` has more than one token, else counts,
+    :mod:`spcopyro.data.word_weighting`. This function counts unless told otherwise.)
 
     Further modalities are placed exactly like images (same snapping) and summed as they are
     (no scaling or weighting). The observed cells are those holding at least one placed image,
@@ -326,8 +338,7 @@ def cell_counts(
     :data:`MAX_COUNT_TOTAL`): ``source``, the house folder the observations were read from
     (``House.source``), lets its errors name the file and line; else they name the index.
     """
-    if word_weighting not in ("count", "tfidf"):
-        raise ValueError(f"word_weighting={word_weighting!r}: must be 'count' or 'tfidf'")
+    word_weighting = resolve_word_weighting(word_weighting, obs)  # ValueError naming a bad one
     if vocabulary is None:
         vocab = obs.vocabulary  # () when no utterance was heard: V = 0
     else:

@@ -39,6 +39,7 @@ from spcopyro._util.timings import timed
 from spcopyro.config import WORDS, SpCoSettings, preset
 from spcopyro.data import CellCounts, House, prepared_cell_counts
 from spcopyro.data.model_grid import model_house
+from spcopyro.data.word_weighting import resolved_preparation, resolved_settings
 from spcopyro.fit.gibbs_chains import (
     FitCheckpoint,
     FitInterrupted,
@@ -242,7 +243,8 @@ def result_of(
     return SpCoResult.from_output(
         output, house.grid, modality_items(counts, data), settings.model,
         modalities=tuple(m.name for m in data.modalities), method=method,
-        preparation=settings.data, name=house.name, provenance=record,
+        preparation=resolved_preparation(settings.data, house.observations), name=house.name,
+        provenance=record,
         concept_totals=concept_totals(output.labels, data, settings.model),
         word_totals=data.modality(WORDS).counts.sum(0).numpy(),  # [V] over the observed cells
     )  # fmt: skip
@@ -256,17 +258,18 @@ def best_chain(results: Sequence[SpCoResult]) -> int:
     return int(np.argmax([r.best_objective for r in results]))
 
 
-def _settings(settings: SpCoSettings | None) -> SpCoSettings:
-    """``settings``, or :func:`preset`'s when None; TypeError for anything else (an
-    ``SpCoConfig`` is its ``.model`` part only)."""
+def _settings(settings: SpCoSettings | None, house: House) -> SpCoSettings:
+    """``settings``, or :func:`preset`'s when None, with the word weighting ``"auto"`` resolved
+    for ``house``'s utterances (:mod:`spcopyro.data.word_weighting`: what the fit records);
+    TypeError for anything else (an ``SpCoConfig`` is its ``.model`` part only)."""
     if settings is None:
-        return preset()
+        settings = preset()
     if not isinstance(settings, SpCoSettings):
         raise TypeError(
             f"settings must be an SpCoSettings (spcopyro.config.preset(...): .model and .data), "
             f"got {type(settings).__name__}"
         )
-    return settings
+    return resolved_settings(settings, house.observations)
 
 
 def chains_side_by_side(inference: object, chain_workers: int | str | None, chains: int) -> int:
@@ -339,7 +342,7 @@ def fit_house_chains(
     if isinstance(seeds, str) or len(seeds) == 0:
         raise ValueError(f"seeds must name at least one chain, got {seeds!r}")
     seeds = [check_seed(s, "each of seeds") for s in seeds]
-    settings = _settings(settings)
+    settings = _settings(settings, house)
     house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
     inference = get_method(method)
     if not isinstance(inference, GibbsInference) and (checkpoint or resume):
@@ -438,7 +441,9 @@ def fit_house(
     logged as a warning (:func:`log_degenerate_map`).
 
     Args:
-        settings: model hyperparameters and data preparation (default: :func:`preset`'s).
+        settings: model hyperparameters and data preparation (default: :func:`preset`'s); a
+            word weighting ``"auto"`` is resolved for the house's utterances (tf-idf when any
+            is a sentence, :mod:`spcopyro.data.word_weighting`) and recorded as resolved.
         method: the inference method's name in :mod:`spcopyro.fit.registry` (``"gibbs"``).
         options: the method's options (``GibbsOptions`` for Gibbs; None for its defaults).
         sweeps: iterations (Gibbs sweeps), or ``"auto"`` for Gibbs: :func:`fit_house_converged`
@@ -466,7 +471,7 @@ def fit_house(
     """
     from spcopyro.fit.refine import check_coarse, check_refine, map_house, refine_chains
 
-    settings = _settings(settings)
+    settings = _settings(settings, house)
     given, house = house, model_house(house, settings.data.cell_size)  # the model's grid
     if method == DEFAULT_METHOD:
         log_skipped_preset_inference(settings, init, options, point_estimate, refine)
@@ -546,7 +551,7 @@ def fit_house_converged(
     ``threads``, ``chain_workers``: as for :func:`fit_house_chains` (chains advancing at once
     within a block; with more than one, ``threads`` ``"auto"`` means one torch thread per chain).
     """
-    settings = _settings(settings)
+    settings = _settings(settings, house)
     house = model_house(house, settings.data.cell_size)  # the model's grid (cell_size)
     options = GibbsOptions() if options is None else options
     workers = resolve_workers(chain_workers, chains)  # as chains_side_by_side for Gibbs

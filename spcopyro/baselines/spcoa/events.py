@@ -18,14 +18,15 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from spcopyro.config import WordWeightingSetting
 from spcopyro.data import (
     FeatureScaling,
     Observations,
-    WordWeighting,
     scale_features,
     tfidf_weights,
     word_matrix,
 )
+from spcopyro.data.word_weighting import resolve_word_weighting
 
 __all__ = ["DEFAULT_PAIR_DISTANCE", "SpCoAData", "spcoa_data"]
 
@@ -58,11 +59,14 @@ def spcoa_data(
     observations: Observations,
     *,
     feature_scaling: FeatureScaling = "probability",
-    word_weighting: WordWeighting = "count",
+    word_weighting: WordWeightingSetting = "count",
     pair_distance: float = DEFAULT_PAIR_DISTANCE,
 ) -> SpCoAData:
     """The events of ``observations``: images, with each utterance paired to the nearest image of
     its trial within ``pair_distance`` metres, and word-only events for the rest.
+    ``word_weighting``: ``"count"``, ``"tfidf"`` or ``"auto"`` (tf-idf when any utterance is a
+    sentence, as SpCoMapping's fit and :func:`~spcopyro.baselines.spcoa.fit_spcoa` by default:
+    :mod:`spcopyro.data.word_weighting`).
 
     Raises ValueError when there is nothing to cluster (no images and no utterances) or
     ``pair_distance`` is not a finite number >= 0.
@@ -74,8 +78,7 @@ def spcoa_data(
         and pair_distance >= 0
     ):
         raise ValueError(f"pair_distance={pair_distance!r}: must be a finite number >= 0 metres")
-    if word_weighting not in ("count", "tfidf"):
-        raise ValueError(f"word_weighting={word_weighting!r}: must be 'count' or 'tfidf'")
+    word_weighting = resolve_word_weighting(word_weighting, observations)  # ValueError if bad
     num_images, num_utterances = observations.num_images, observations.num_utterances
     if num_images + num_utterances == 0:
         raise ValueError("spcoa: the observations hold no images and no utterances")

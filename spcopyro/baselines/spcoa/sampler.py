@@ -54,7 +54,8 @@ from spcopyro.baselines.spcoa.niw import (
     sample_niw,
 )
 from spcopyro.baselines.spcoa.result import SpCoAResult
-from spcopyro.data import FeatureScaling, House, WordWeighting
+from spcopyro.config import WordWeightingSetting
+from spcopyro.data import FeatureScaling, House
 from spcopyro.model import DTYPE
 
 __all__ = [
@@ -243,7 +244,7 @@ def fit_spcoa(
     psi0: float = 1.0,
     mu0: tuple[float, float] | None = None,
     feature_scaling: FeatureScaling = 10.0,
-    word_weighting: WordWeighting = "count",
+    word_weighting: WordWeightingSetting = "auto",
     pair_distance: float = DEFAULT_PAIR_DISTANCE,
 ) -> SpCoAResult:
     """Fit the SpCoA-style mixture to ``house`` by ``iterations`` blocked Gibbs sweeps.
@@ -253,7 +254,9 @@ def fit_spcoa(
     the globals; keeps the assignments of highest collapsed log joint. The hyperparameters are
     those of :class:`SpCoAHyperparameters`; ``feature_scaling`` turns each image histogram into
     counts (:func:`spcopyro.data.scale_features`: the default 10 gives an image the weight of
-    ten class draws), ``word_weighting`` is ``"count"`` or ``"tfidf"`` (eq. 20) and
+    ten class draws), ``word_weighting`` is ``"count"``, ``"tfidf"`` (eq. 20) or ``"auto"``
+    (tf-idf when any utterance is a sentence, as SpCoMapping's fit:
+    :mod:`spcopyro.data.word_weighting`) and
     ``pair_distance`` pairs utterances with images (:func:`spcoa_data`).
 
     Raises ValueError for a bad hyperparameter, a non-positive ``iterations``, a negative

@@ -1,0 +1,155 @@
+"""The word weighting ``auto`` (the default): tf-idf when the utterances are sentences (any
+utterance of more than one token), counts otherwise; resolved once the data are known,
+recorded as resolved (config.json, the data line), kept by an update
+(:mod:`spcopyro.data.word_weighting`)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from spcopyro.baselines.spcoa import spcoa_data
+from spcopyro.cli.main import main
+from spcopyro.config import DataPreparation, preset
+from spcopyro.data import cell_counts
+from spcopyro.data.word_weighting import (
+    auto_word_weighting,
+    auto_word_weighting_note,
+    resolve_word_weighting,
+    resolved_settings,
+    sentence_count,
+)
+from spcopyro.fit.house import fit_house
+from spcopyro.robot.online import check_compatible, fit_update, keeping_word_weighting
+from spcopyro.synthetic import HouseSpec, make_house, write_synthetic
+from spcopyro.synthetic.lexicon import FILLER_WORDS
+
+SMALL = dict(height=40, width=50, num_rooms=3)
+
+
+def _house(sentences: float):
+    return make_house(seed=1, spec=HouseSpec(**SMALL, sentence_fraction=sentences))
+
+
+def test_sentences_are_weighted_by_tfidf_single_words_are_counted():
+    words, sentences = _house(0.0), _house(0.5)
+    assert sentence_count(words.observations) == 0
+    assert auto_word_weighting(words.observations) == "count"
+    said = sentence_count(sentences.observations)
+    assert 0 < said < sentences.observations.num_utterances
+    assert auto_word_weighting(sentences.observations) == "tfidf"
+    total = sentences.observations.num_utterances
+    assert auto_word_weighting_note(sentences.observations) == (
+        f"auto: {said} of {total} utterances are sentences"
+    )
+    # an explicit weighting is kept whatever the utterances are
+    assert resolve_word_weighting("count", sentences.observations) == "count"
+    assert resolve_word_weighting("tfidf", words.observations) == "tfidf"
+    with pytest.raises(ValueError, match=r"word_weighting='bm25': must be one of"):
+        resolve_word_weighting("bm25", words.observations)
+
+
+def test_auto_is_the_default_and_the_counts_follow_the_rule():
+    assert DataPreparation().word_weighting == "auto"
+    assert preset().data.word_weighting == "auto"
+    with pytest.raises(ValueError, match="must be 'count', 'tfidf' or 'auto'"):
+        DataPreparation(word_weighting="bm25")
+    for house, expected in ((_house(0.0), "count"), (_house(0.5), "tfidf")):
+        grid, obs = house.grid, house.observations
+        auto = cell_counts(grid, obs, word_weighting="auto")
+        same = cell_counts(grid, obs, word_weighting=expected)
+        np.testing.assert_array_equal(auto.word_counts, same.word_counts)
+        np.testing.assert_array_equal(
+            spcoa_data(obs, word_weighting="auto").words,
+            spcoa_data(obs, word_weighting=expected).words,
+        )
+    settings = preset("original-code", gamma=3.0)
+    resolved = resolved_settings(settings, _house(0.5).observations)
+    assert resolved.data.word_weighting == "tfidf" and resolved.preset == "original-code"
+    assert resolved.chosen == settings.chosen
+
+
+def test_a_library_fit_records_the_resolved_weighting():
+    settings = preset("original-code", gamma=3.0, num_concepts=10)
+    for sentences, expected in ((0.0, "count"), (0.5, "tfidf")):
+        result = fit_house(_house(sentences), settings, sweeps=3)
+        assert result.preparation.word_weighting == expected
+        assert result.settings_json()["data"]["word_weighting"] == expected
+
+
+def test_a_library_update_keeps_the_weighting_of_the_fit_it_updates():
+    house = _house(0.5)  # auto: tf-idf
+    settings = preset("original-code", gamma=3.0, num_concepts=10)
+    saved = fit_house(house, settings.replace(word_weighting="count"), sweeps=3)
+    assert keeping_word_weighting(saved, settings).data.word_weighting == "count"
+    check_compatible(saved, house, settings)  # "auto" is the saved fit's weighting
+    (updated,) = fit_update(saved, house, settings, sweeps=2)
+    assert updated.preparation.word_weighting == "count"
+    with pytest.raises(ValueError, match="word_weighting: saved fit 'count', this run 'tfidf'"):
+        fit_update(saved, house, settings.replace(word_weighting="tfidf"), sweeps=2)
+
+
+@pytest.fixture
+def sentence_house(tmp_path):
+    spec = HouseSpec(**SMALL, sentence_fraction=0.5)
+    return write_synthetic(tmp_path / "data", seed=1, spec=spec)
+
+
+def _fit(house, out, *extra):
+    argv = ["fit", str(house), "--out", str(out), "--sweeps", "3", "--no-figures", "--preset",
+            "original-code", "--gamma", "3", "--concepts", "10", *extra]  # fmt: skip
+    assert main(argv) == 0, argv
+
+
+def _recorded(out) -> str:
+    return json.loads((out / "config.json").read_text())["data"]["word_weighting"]
+
+
+def test_fit_records_the_resolved_weighting_and_says_why(sentence_house, tmp_path, capsys):
+    _fit(sentence_house, tmp_path / "auto")
+    text = capsys.readouterr().out
+    assert _recorded(tmp_path / "auto") == "tfidf"
+    assert ", word weighting tfidf (auto: " in text and " utterances are sentences)" in text
+    _fit(sentence_house, tmp_path / "count", "--word-weighting", "count")
+    assert _recorded(tmp_path / "count") == "count"
+    assert "word weighting" not in capsys.readouterr().out  # counts: said as before
+
+
+def test_tfidf_is_an_alias_of_word_weighting_tfidf(sentence_house, tmp_path, capsys):
+    _fit(sentence_house, tmp_path / "alias", "--tfidf")
+    assert _recorded(tmp_path / "alias") == "tfidf"
+    data = [line for line in capsys.readouterr().out.splitlines() if line.startswith("data ")]
+    assert data[0].endswith(", word weighting tfidf"), data  # chosen, not auto's
+    with pytest.raises(SystemExit):
+        main(["fit", str(sentence_house), "--out", str(tmp_path / "x"), "--tfidf",
+              "--word-weighting", "count"])  # fmt: skip
+    assert "not allowed with argument" in capsys.readouterr().err
+
+
+def test_an_update_keeps_the_weighting_of_the_fit_it_updates(sentence_house, tmp_path, capsys):
+    first = tmp_path / "first"
+    _fit(sentence_house, first, "--word-weighting", "count")  # auto would be tfidf here
+    second = tmp_path / "second"
+    argv = ["fit", str(sentence_house), "--out", str(second), "--update", str(first),
+            "--sweeps", "2", "--preset", "original-code", "--gamma", "3", "--concepts", "10",
+            "--no-figures"]  # fmt: skip
+    assert main(argv) == 0
+    assert _recorded(second) == "count"
+    text = capsys.readouterr().out
+    assert "word weighting tfidf" not in text
+
+
+def test_a_simulated_house_of_sentences_names_no_region_after_a_filler(tmp_path, capsys):
+    # seed 1: with words counted, 200 sweeps name a region "is" (seeds 1-6 of 0-7 name one
+    # filler or two); auto's tf-idf names none on any of the eight
+    assert main(["simulate", "--out", str(tmp_path / "d"), "--seed", "1",
+                 "--sentences", "0.5"]) == 0  # fmt: skip
+    out = tmp_path / "fit"
+    assert main(["fit", str(tmp_path / "d" / "synthetic"), "--out", str(out), "--sweeps",
+                 "200", "--no-figures"]) == 0  # fmt: skip
+    capsys.readouterr()
+    names = [c["name"] for c in json.loads((out / "concepts.json").read_text()) if not c["speck"]]
+    assert names and not FILLER_WORDS & set(names), names
+    assert _recorded(out) == "tfidf"
