@@ -467,7 +467,7 @@ def test_utterances_given_as_strings_are_refused(tmp_path):
         Observations(**common, **two, utterances=[("kitchen",), "bed room"])
     with pytest.raises(ValueError, match=r"got the string 'ab'"):
         Observations(**common, **two, utterances="ab")
-    with pytest.raises(ValueError, match=r"utterance 0 holds an invalid token: ' '"):
+    with pytest.raises(ValueError, match=r"utterance 0 holds the token ' ': a token is non-blank"):
         Observations(**common, **two, utterances=[("kitchen", " "), ("bed",)])
     obs = Observations(**common, **two, utterances=[["kitchen"], ("bed", "room")])
     assert obs.vocabulary == ("kitchen", "bed", "room")

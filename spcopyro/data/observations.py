@@ -28,7 +28,7 @@ import numpy as np
 
 from spcopyro._util.context import set_within
 from spcopyro._util.messages import echo
-from spcopyro.data.text import hidden_words_warning, tokenize
+from spcopyro.data.text import _check_tokens, hidden_words_warning, tokenize
 
 logger = logging.getLogger("spcopyro")
 
@@ -290,9 +290,7 @@ class Observations:
         for u, tokens in enumerate(utterances):
             if not tokens:
                 raise ValueError(f"utterance {u} holds no tokens")
-            for token in tokens:
-                if not isinstance(token, str) or not token.strip():
-                    raise ValueError(f"utterance {u} holds an invalid token: {token!r}")
+            _check_tokens(tokens, u)
         hidden = None if _HIDDEN_WORDS_TOLD.get() else hidden_words_warning(utterances)
         if hidden:  # 'kit\u200bchen' prints as 'kitchen' but is another word
             logger.warning("%s", hidden)

@@ -193,7 +193,23 @@ def unsegmented(token: str) -> bool:
     return len(scripts) >= min(_UNSPACED_SCRIPTS[script] for script in scripts)
 
 
+def _check_tokens(tokens: Iterable[object], utterance: int) -> None:
+    """Raise ValueError naming ``utterance`` (its index) at its first token that is not non-blank
+    text: ``""`` or ``" "`` is no word, and no data's words hold one (:func:`tokenize` drops
+    them). Observations and :func:`word_matrix` both check with it."""
+    for token in tokens:
+        if not isinstance(token, str) or not token.strip():
+            raise ValueError(
+                f"utterance {utterance} holds the token {token!r}: a token is non-blank text "
+                "(spcopyro.data.tokenize drops blank ones)"
+            )
+
+
 def _vocabulary_index(vocabulary: Sequence[str]) -> dict[str, int]:
+    """``{word: column}`` of a vocabulary; ValueError at a blank word or one listed twice."""
+    for v, token in enumerate(vocabulary):
+        if not isinstance(token, str) or not token.strip():
+            raise ValueError(f"vocabulary word {v} is {token!r}: a word is non-blank text")
     index = {token: v for v, token in enumerate(vocabulary)}
     if len(index) != len(vocabulary):
         seen: set[str] = set()
@@ -212,16 +228,9 @@ def word_matrix(
     an empty (or blank) token or vocabulary word, ``""``, which no data's words hold.
     """
     for d, tokens in enumerate(utterances):  # as Observations refuses them: no word at all
-        for token in tokens:
-            if not isinstance(token, str) or not token.strip():
-                raise ValueError(f"utterance {d} holds the token {token!r}: a token is "
-                                 "non-blank text (spcopyro.data.tokenize drops blank "
-                                 "ones)")  # fmt: skip
+        _check_tokens(tokens, d)
     if vocabulary is None:
         vocabulary = tuple(dict.fromkeys(t for u in utterances for t in u))
-    for v, token in enumerate(vocabulary):
-        if not isinstance(token, str) or not token.strip():
-            raise ValueError(f"vocabulary word {v} is {token!r}: a word is non-blank text")
     index = _vocabulary_index(vocabulary)
     rows, cols, unknown = [], [], {}
     for d, tokens in enumerate(utterances):
