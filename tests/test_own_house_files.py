@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from spcopyro.data import DataFormatError, House, Observations, load_house, save_house
+from spcopyro.data.dataset_files import read_features
 from spcopyro.maps import FREE, OccupancyGrid
 
 
@@ -143,3 +144,31 @@ def test_a_rotated_map_says_how_to_use_it(tmp_path):
                        r"must be 0\): rotate the observations' positions by -yaw about the "
                        r"origin's x, y into the image's axes and write yaw 0"):  # fmt: skip
         load_map(yaml)
+
+
+def test_ft_zero_rows_past_the_fifth_are_counted(tmp_path, caplog):
+    """The all-zero rows' warning lists five lines, then how many more (``listed``), as the
+    other warnings do: it ended with a bare ", ..." that said nothing of how many."""
+    path = tmp_path / "Ft.csv"
+    path.write_text("0,0\n" * 7 + "0.5,0.5\n")
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        read_features(path)
+    assert [r.getMessage() for r in caplog.records] == [
+        f"{path}: 7 of 8 image feature rows are all zero (lines 1, 2, 3, 4, 5, ... (2 more)): "
+        "those images carry no information"
+    ]
+
+
+def test_ft_row_sum_warning_says_what_it_means_plainly(tmp_path, caplog):
+    """The whole warning, for someone writing their own house files: it named "floor(100 f),
+    the refinement's count", the fit's internals, which told them nothing they could act on."""
+    path = tmp_path / "Ft.csv"
+    path.write_text("0.5,0.5\n0.75,2.25\n1,0\n")
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        read_features(path)
+    assert [r.getMessage() for r in caplog.records] == [
+        f"{path}: 1 of 3 image feature rows do not sum to 1 (line 2: 3): a row is a histogram of "
+        "class probabilities, and one that sums to s weighs as much as s images against the "
+        "words; scale each row to sum to 1 (f / f.sum(axis=1, keepdims=True)) unless that "
+        "weight is meant"
+    ]

@@ -237,7 +237,7 @@ def _row_sum_warning(path: Path, sums: np.ndarray) -> str:
     return (
         f"{path}: {off.size} of {sums.size} image feature rows do not sum to 1 ({listed(shown, 3)})"
         ": a row is a histogram of class probabilities, and one that sums to s weighs as much as "
-        "s images against the words (floor(100 f), the refinement's count, grows with it too); "
+        "s images against the words; "
         + ("percentages? divide every value by 100" if percent else
            "scale each row to sum to 1 (f / f.sum(axis=1, keepdims=True)) unless that weight "
            "is meant")
@@ -271,9 +271,7 @@ def read_features(path: Path) -> np.ndarray:
             "%s: %s image feature rows are all zero (%s): %s",
             path,
             "all" if every else f"{zero_rows.size} of {features.shape[0]}",
-            "lines "
-            + ", ".join(str(r + 1) for r in zero_rows[:5])
-            + (", ..." if zero_rows.size > 5 else ""),
+            "lines " + listed([str(r + 1) for r in zero_rows.tolist()], 5),
             "the images carry no information (was the feature extraction run?)"
             if every
             else "those images carry no information",
