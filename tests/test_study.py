@@ -267,6 +267,30 @@ def test_a_map_tours_values_are_checked_when_read(line, words):
     assert fine.data[0].map_tour().categories == ("kitchen", "bath")
 
 
+@pytest.mark.parametrize(
+    "line, said",
+    [
+        ('num_trials = "3"', "num_trials = '3': expected an integer >= 1 (a number in quotes is "
+         "text: write 3 without the quotes)"),
+        # no hint where the unquoted number would fail too: a count is an integer
+        ('num_trials = "2.5"', "num_trials = '2.5': expected an integer >= 1"),
+        ('images_per_room = "1e3"', "images_per_room = '1e3': expected an integer >= 1"),
+        ('utterances_per_room = "inf"', "utterances_per_room = 'inf': expected an integer >= 0"),
+        # a share or metres may be a decimal, not an infinity
+        ('sentence_fraction = "0.5"', "sentence_fraction = '0.5': expected a share in [0, 1] (a "
+         "number in quotes is text: write 0.5 without the quotes)"),
+        ('min_room_area = "inf"', "min_room_area = 'inf': expected square metres > 0"),
+    ],
+)  # fmt: skip
+def test_a_quoted_number_is_hinted_only_where_it_would_pass_unquoted(line, said):
+    """A count written "2.5" was told to write 2.5 without the quotes, which then still failed: the
+    hint checked float(), not what the field wants."""
+    text = f'[variants.a]\n[data.tour]\nmap = "room1dk5"\n{line}\n'
+    with pytest.raises(StudyError) as error:
+        study_from_dict(tomllib.loads(text), source="t.toml")
+    assert str(error.value) == f"t.toml: [data.tour] {said}"
+
+
 def test_python_spec_errors_and_method_grid():
     with pytest.raises(StudyError, match="<python>: \\[data\\]"):
         study_from_dict({"variants": {"a": {}}})

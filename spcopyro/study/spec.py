@@ -38,6 +38,7 @@ file, the key and the value.
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -227,15 +228,19 @@ def _fail(source: str, where: str, value: object, why: str) -> StudyError:
     return StudyError(f"{source}: {where} = {value!r}: {why}", where)
 
 
-def _quoted_number(value: object) -> str:
-    """A hint for a number written in quotes (``sweeps = "1_000"``: TOML reads text), else ""."""
-    if isinstance(value, str):
-        try:
-            float(value)
-        except ValueError:
-            return ""
-        return f" (a number in quotes is text: write {value.strip()} without the quotes)"
-    return ""
+def _quoted_number(value: object, integer: bool = True) -> str:
+    """A hint for a number written in quotes (``sweeps = "1_000"``: TOML reads text), else "".
+    Only where the text is what the field wants, an integer (or, with ``integer`` False, a
+    finite number): "2.5", "1e3" or "inf" for a count would still fail without the quotes."""
+    if not isinstance(value, str):
+        return ""
+    try:
+        number = int(value) if integer else float(value)
+    except ValueError:
+        return ""
+    if not math.isfinite(number):
+        return ""
+    return f" (a number in quotes is text: write {value.strip()} without the quotes)"
 
 
 def _seeds(source: str, value: object, where: str = "[study] seeds") -> tuple[int, ...]:
@@ -426,7 +431,8 @@ def _data_source(source: str, name: str, table: object) -> DataSource:
         problem = _map_tour_problem(values) if kind == "map" else None
         if problem is not None:
             value = values[problem[0]]
-            raise _fail(source, f"{where} {problem[0]}", value, problem[1] + _quoted_number(value))
+            hint = _quoted_number(value, integer=problem[0] in _MAP_TOUR_COUNTS)
+            raise _fail(source, f"{where} {problem[0]}", value, problem[1] + hint)
         try:
             trials = check().num_trials
         except (TypeError, ValueError) as error:
@@ -437,6 +443,11 @@ def _data_source(source: str, name: str, table: object) -> DataSource:
             raise _fail(source, f"{where} heldout", heldout,
                         f"a held-out source needs num_trials >= 2, it has {trials}")  # fmt: skip
     return data
+
+
+_MAP_TOUR_COUNTS = frozenset({"num_trials", "images_per_room", "utterances_per_room"})
+"""The MapTour fields :func:`_map_tour_problem` wants integers in; its others take metres,
+square metres or a share."""
 
 
 def _map_tour_problem(values: Mapping[str, Any]) -> tuple[str, str] | None:
