@@ -198,7 +198,8 @@ def test_ctrl_c_before_a_resumed_fit_loads_its_chains_says_the_checkpoint_still_
         patch.setattr(spcopyro.cli.fit, "_summary", interrupted)
         assert main([*argv, "--resume", str(checkpoint)]) == 130
     err = capsys.readouterr().err
-    assert "no checkpoint kept" not in err and f"saved in {checkpoint}" in err
+    assert "no checkpoint kept" not in err
+    assert f"{checkpoint} is left as it was, with the state this run resumed from" in err
     assert err.rstrip().endswith(f"--resume {checkpoint}")
     assert checkpoint.read_bytes() == before
     assert main([*argv, "--resume", str(checkpoint)]) == 0
@@ -432,3 +433,50 @@ def test_a_variational_checkpoint_of_several_seeds_is_refused_with_its_article(t
     with pytest.raises(ValueError, match="^an 'lbp' checkpoint holds one fit; 2 seeds asked$"):
         fit_house_chains(make_house(seed=0), preset("original-code"), seeds=[0, 1],
                          method="lbp", checkpoint=tmp_path / "ck", progress=False)  # fmt: skip
+
+
+def test_ctrl_c_while_writing_a_resumed_variational_fit_says_its_iterations_are_lost(
+    home, tmp_path, capsys, monkeypatch
+):
+    """A resumed cavi fit (``--resume CK``) stopped by Ctrl-C while its outputs are written:
+    its q(C) is saved only by the driver Ctrl-C stops, so CK still holds the state it resumed
+    from. The line said "the state reached is saved in CK"; it now says the iterations this run
+    added are lost and CK is left as it was, and its command continues from CK."""
+    import shlex
+
+    import spcopyro.cli.fit
+    import spcopyro.guides.cavi as cavi
+
+    out = tmp_path / "out"
+    argv = ["fit", str(home), "--out", str(out), *FIT, "--method", "cavi",
+            "--method-option", "backend=torch"]  # fmt: skip
+    real, calls = cavi.step, []
+
+    def interrupting(*args, **kwargs):  # CAVI's torch step: Ctrl-C at its third call
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    with monkeypatch.context() as patch:
+        patch.setattr(cavi, "step", interrupting)
+        assert main(argv) == 130
+    capsys.readouterr()
+    checkpoint = checkpoint_path(out)
+    saved = checkpoint.read_bytes()
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    resumed = [*argv, "--resume", str(checkpoint)]
+    with monkeypatch.context() as patch:
+        patch.setattr(spcopyro.cli.fit, "print_concepts", interrupted)
+        assert main(resumed) == 130
+    err = capsys.readouterr().err.splitlines()[-1]
+    assert err == (
+        f"interrupted while writing the outputs: nothing written to {out}; the iterations this "
+        f"run added are lost; {checkpoint} is left as it was, with the state this run resumed "
+        f"from -- continue from there with: {shlex.join(['spcopyro', *resumed])}"
+    )
+    assert "state reached" not in err and checkpoint.read_bytes() == saved
+    assert not out.exists()

@@ -13,7 +13,6 @@ import dataclasses
 import functools
 import json
 import math
-import shlex
 import sys
 import time
 from pathlib import Path
@@ -46,6 +45,7 @@ from spcopyro.cli.fit_options import (
 )
 from spcopyro.cli.fit_refine import check_refinable, refine
 from spcopyro.cli.fit_resume import (
+    again_command,
     check_resume_file,
     interrupted_before_fit,
     interrupted_message,
@@ -53,7 +53,6 @@ from spcopyro.cli.fit_resume import (
     no_checkpoint_flags,
     resumable_methods,
     resume_command,
-    without_resume,
 )
 from spcopyro.cli.fit_settings import (
     apply_preset_inference,
@@ -160,11 +159,12 @@ def _fit_interruptible(args: argparse.Namespace, said: list[str]) -> int:
             where = " after the sweeps" if kept and keeper and keeper.finished() else ""
             again = " (only the first stage is kept: resuming refines again)" if job.refined else ""
             where = f" while writing the outputs{again}" if job.sampled else where
-        if kept is None and args.resume is not None and Path(args.resume).is_file():
-            kept = Path(args.resume)  # stopped before this run saved anything: it still holds
+        unchanged = kept is None and args.resume is not None and Path(args.resume).is_file()
+        if unchanged:  # this run saved nothing: it holds what the run resumed from, no more
+            kept = Path(args.resume)
         why = getattr(stop, "why", None)
-        print(interrupted_message(args, where, kept, staged.out, why, finished=job.sampled),
-              file=sys.stderr)  # fmt: skip
+        print(interrupted_message(args, where, kept, staged.out, why, finished=job.sampled,
+                                  unchanged=unchanged), file=sys.stderr)  # fmt: skip
         return 130
     except Exception:
         writing = job.sampled or bool(keeper and keeper.finished())  # or after the sweeps
@@ -425,7 +425,7 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
     kept, diagnostics, wall = fitted.kept, fitted.diagnostics, fitted.wall
     phases = args.phases
     phases.mark("fit")
-    command = shlex.join(["spcopyro", *without_resume(args)])  # runs again without the checkpoint
+    command = again_command(args)  # runs again without the checkpoint
     resumed = {} if args.resume is None else {"resumed_from": str(args.resume)}
     provenance = {**result.provenance, "command": command, **resumed}
     result = dataclasses.replace(result, provenance=provenance)

@@ -2,7 +2,7 @@
 (:func:`keeps_checkpoint`), what ``--resume`` may name (:func:`check_resume_file`), the line
 printed when Ctrl-C stops a fit (:func:`interrupted_message`; :func:`interrupted_before_fit`
 before it began) and the command lines that resume it or, once written, run it again
-(:func:`resume_command`, :func:`without_resume`)."""
+(:func:`resume_command`, :func:`again_command`, :func:`without_resume`)."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ from spcopyro._util.messages import with_article
 from spcopyro.cli.common import command_line
 
 __all__ = [
+    "again_command",
     "check_resume_file",
     "interrupted_before_fit",
     "interrupted_message",
@@ -87,9 +88,13 @@ def interrupted_message(
     out: Path,
     why: str | None = None,
     finished: bool = False,
+    unchanged: bool = False,
 ) -> str:
     """The line ``fit`` prints when Ctrl-C stops it (``kept``: its checkpoint; ``why``: none's;
-    ``finished``: the fit had run all its sweeps or iterations, its outputs being written)."""
+    ``finished``: the fit had run all its sweeps or iterations, its outputs being written;
+    ``unchanged``: ``kept`` is the checkpoint this run resumed (``--resume``), left as it was --
+    a variational fit's q(C) is saved only by the driver that Ctrl-C stops, so the iterations
+    this run added, once they had all run, are not in it)."""
     line = f"interrupted{where}: nothing written to {out}"
     if kept is None:
         if why is None:
@@ -107,10 +112,14 @@ def interrupted_message(
                        "one fit")  # fmt: skip
         line = f"{line}; no checkpoint kept ({why})"
         if finished:  # the whole fit ran, and its result went with the outputs: say so, and how
-            again = shlex.join(["spcopyro", *without_resume(args)])  # to get it (its seed: same)
+            again = again_command(args)  # to get it (its seed: same)
             line = f"{line}: the finished fit is lost -- run it again with: {again}"
         return line
     command = resume_command(args, kept)
+    if unchanged:  # not "the state reached": this run's iterations are not in it
+        lost = "; the iterations this run added are lost" if finished else ""
+        return (f"{line}{lost}; {kept} is left as it was, with the state this run resumed "
+                f"from -- continue from there with: {command}")  # fmt: skip
     return f"{line}; the state reached is saved in {kept} -- continue with: {command}"
 
 
@@ -123,13 +132,18 @@ def interrupted_before_fit(args: argparse.Namespace, stage: str) -> str:
         command = resume_command(args, Path(args.resume))
         return f"{line}written, {args.resume} left as it was) -- continue with: {command}"
     kept = "" if args.update is None else f", the fit in {args.update} left as it was"
-    again = shlex.join(["spcopyro", *command_line(args)])
-    return f"{line}written{kept}) -- run it again with: {again}"
+    return f"{line}written{kept}) -- run it again with: {again_command(args)}"
 
 
 def resume_command(args: argparse.Namespace, checkpoint: Path) -> str:
     """This run's command line with ``--resume CHECKPOINT`` (in place of an earlier one)."""
     return shlex.join(["spcopyro", *without_resume(args), "--resume", str(checkpoint)])
+
+
+def again_command(args: argparse.Namespace) -> str:
+    """This run's command line without its ``--resume CHECKPOINT``: the one that runs the whole
+    fit again (its seed the same)."""
+    return shlex.join(["spcopyro", *without_resume(args)])
 
 
 def without_resume(args: argparse.Namespace) -> list[str]:
