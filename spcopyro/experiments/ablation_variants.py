@@ -328,16 +328,17 @@ def make_variant(name: str, overrides: Mapping[str, object] | None = None) -> Va
                 )
             if not targets:
                 known_options = [f.name for f in dataclasses.fields(default_options)]  # type: ignore[arg-type]
-                known = [*sorted(_SETTING_FIELDS), *_option_paths(default_options),
-                         *fit_parameters]  # fmt: skip
+                setting_fields = sorted(_SETTING_FIELDS)
+                option_paths = _option_paths(default_options)
+                known = [*setting_fields, *option_paths, *fit_parameters]
                 if dot:  # a misspelt prefix ('setings.gamma'): the prefixed keys are close
-                    known += [f"settings.{k}" for k in sorted(_SETTING_FIELDS)]
-                    known += [f"options.{k}" for k in _option_paths(default_options)]
+                    known += [f"settings.{k}" for k in setting_fields]
+                    known += [f"options.{k}" for k in option_paths]
                     known += [f"fit.{k}" for k in fit_parameters]
                 hint = did_you_mean(key, ["preset", "method", *known])
                 raise VariantError(
                     f"{where}: unknown key {key!r}. Known: preset, method; settings "
-                    f"{sorted(_SETTING_FIELDS)}; {method} options {sorted(known_options)} "
+                    f"{setting_fields}; {method} options {sorted(known_options)} "
                     f"(nested ones as a.b); fit_house arguments {sorted(fit_parameters)}{hint}"
                 )
         target = targets[0]
