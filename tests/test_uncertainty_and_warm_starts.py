@@ -179,6 +179,49 @@ def test_a_warm_start_from_another_map_or_more_concepts_is_refused(house, gibbs_
         fit_house(house, fewer, method="cavi", sweeps=1, init=gibbs_fit, progress=False)
 
 
+def test_a_warm_start_on_other_free_cells_of_as_many_is_refused(house, gibbs_fit):
+    """Labels are indexed by free cell: a fit on a map with as many free cells, one of them
+    moved, was made on another map (only the count was compared, and its labels landed on the
+    wrong cells)."""
+    import dataclasses
+
+    from spcopyro.fit.starts import result_labels
+    from spcopyro.maps import FREE, OCCUPIED
+
+    occupancy = np.array(house.grid.occupancy)  # [H, W]
+    free_cell = tuple(np.argwhere(occupancy == FREE)[0])
+    wall_cell = tuple(np.argwhere(occupancy == OCCUPIED)[0])
+    occupancy[free_cell], occupancy[wall_cell] = OCCUPIED, FREE
+    moved = dataclasses.replace(gibbs_fit, grid=house.grid.with_occupancy(occupancy))
+    assert moved.grid.num_free == house.grid.num_free
+    with pytest.raises(ValueError, match=r"\(2 cells differ in being free\)"):
+        result_labels(moved, house, SETTINGS.model)
+    assert result_labels(gibbs_fit, house, SETTINGS.model).shape == (house.grid.num_free,)
+
+
+def test_a_refused_warm_start_names_both_maps_as_python_writes_them(house, gibbs_fit):
+    """The two maps' origins, a hundredth of a cell apart at x = 500000.0005 m, read apart
+    (``:g`` wrote both as 500000), and the sentence reads 'a (40, 50) map with ...'."""
+    import dataclasses
+    import re
+
+    from spcopyro.fit.starts import result_labels
+    from spcopyro.maps import OccupancyGrid
+
+    grid = house.grid
+    far = OccupancyGrid(grid.occupancy, grid.resolution, (500000.0005, 0.0, 0.0))
+    off = (500000.0005 + grid.resolution / 100, 0.0, 0.0)
+    other = dataclasses.replace(house, grid=OccupancyGrid(grid.occupancy, grid.resolution, off))
+    with pytest.raises(ValueError) as refused:
+        result_labels(dataclasses.replace(gibbs_fit, grid=far), other, SETTINGS.model)
+    cells = f"a {grid.shape} map with {grid.num_free} free cells of {grid.resolution!r} m"
+    assert str(refused.value) == (
+        f"the starting result was fitted on {cells}, origin (500000.0005, 0.0, 0.0); this "
+        f"house's map is {cells}, origin ({off[0]!r}, 0.0, 0.0)"
+    )
+    assert re.search(r"a \(40, 50\) map with \d+ free cells of 0\.\d+ m", str(refused.value))
+
+
 def test_vi_then_gibbs_starts_the_sampler_where_cavi_ended(house):
     counts, data = prepare_model_data(house, SETTINGS)
     options = VIGibbsOptions(vi_iterations=30, variational=VariationalOptions(anneal_iterations=10))

@@ -15,8 +15,7 @@ import torch
 from spcopyro.config import SpCoConfig, SpCoSettings
 from spcopyro.data import CellCounts, House
 from spcopyro.inference.initialisation import INITS, kmeans_gaussians, labels_from_gaussians
-from spcopyro.maps import OccupancyGrid
-from spcopyro.maps.grid import same_frame
+from spcopyro.maps.grid import describe_map, same_free_cells
 from spcopyro.model import DTYPE
 from spcopyro.results.result import SpCoResult
 
@@ -76,12 +75,6 @@ def init_name(init: Init) -> str:
     return init if isinstance(init, str) else f"result of {init.method}"
 
 
-def _same_map(a: OccupancyGrid, b: OccupancyGrid) -> bool:
-    """Same shape, free-cell count, resolution and origin (:func:`~spcopyro.maps.grid.same_frame`,
-    the maps' one rule: a map saved again with 6 decimals is the same)."""
-    return a.shape == b.shape and a.num_free == b.num_free and same_frame(a, b)
-
-
 def result_labels(result: SpCoResult, house: House, config: SpCoConfig) -> torch.Tensor:
     """[N] a previous fit's point labels as the start of a new one (a warm start: a Gibbs fit
     starting variational inference, or the other way round). A fit on a coarsening of this
@@ -93,7 +86,7 @@ def result_labels(result: SpCoResult, house: House, config: SpCoConfig) -> torch
     starting a default fit on the model grid). ValueError if it was made on another map or with
     more concepts than ``config`` has."""
     coarse_of = result.grid.coarsened_from
-    if coarse_of is not None and _same_map(coarse_of, house.grid):
+    if coarse_of is not None and same_free_cells(coarse_of, house.grid):
         from spcopyro.maps.coarse import refine_labels
 
         factor = round(result.grid.resolution / house.grid.resolution)
@@ -103,7 +96,7 @@ def result_labels(result: SpCoResult, house: House, config: SpCoConfig) -> torch
             result, grid=house.grid, labels=image[cells[:, 0], cells[:, 1]].astype(np.int64)
         )
     fine_of = house.grid.coarsened_from  # this fit on a coarsening of the result's map
-    if fine_of is not None and _same_map(fine_of, result.grid) and coarse_of is None:
+    if fine_of is not None and same_free_cells(fine_of, result.grid) and coarse_of is None:
         from spcopyro.maps.coarse import coarsen_labels
 
         factor = round(house.grid.resolution / result.grid.resolution)
@@ -112,15 +105,14 @@ def result_labels(result: SpCoResult, house: House, config: SpCoConfig) -> torch
         result = dataclasses.replace(
             result, grid=house.grid, labels=image[cells[:, 0], cells[:, 1]].astype(np.int64)
         )
-    if not _same_map(result.grid, house.grid):
-
-        def described(g: OccupancyGrid) -> str:
-            return (f"{g.shape} with {g.num_free} free cells of {g.resolution:g} m, origin "
-                    f"({g.origin[0]:g}, {g.origin[1]:g})")  # fmt: skip
-
+    if not same_free_cells(result.grid, house.grid):  # labels are indexed by free cell
+        old, grid = result.grid, house.grid
+        moved = ""
+        if old.shape == grid.shape and not np.array_equal(old.free, grid.free):
+            moved = f" ({int((old.free != grid.free).sum())} cells differ in being free)"
         raise ValueError(
-            f"the starting result was fitted on a {described(result.grid)} map; this house's "
-            f"map is {described(house.grid)}"
+            f"the starting result was fitted on {describe_map(old)}; this house's map is "
+            f"{describe_map(grid)}{moved}"
         )
     labels = np.asarray(result.labels)
     if labels.max() >= config.num_concepts:

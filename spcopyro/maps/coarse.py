@@ -35,7 +35,6 @@ import numpy as np
 
 from spcopyro.maps.grid import (
     FREE,
-    MAP_TOLERANCE_CELLS,
     OCCUPIED,
     UNKNOWN,
     OccupancyGrid,
@@ -90,33 +89,14 @@ def coarsen_grid(grid: OccupancyGrid, factor: int) -> OccupancyGrid:
     return OccupancyGrid(coarse, resolution, grid.origin, source=grid.source, coarsened_from=grid)
 
 
-ORIGIN_TOLERANCE_CELLS = MAP_TOLERANCE_CELLS
-"""Map cells (:data:`~spcopyro.maps.grid.MAP_TOLERANCE_CELLS`, the rule every comparison of two
-maps' resolutions and origins follows): how far a coarse grid's origin may lie from its map's,
-along x and y, and still be its coarsening (:func:`is_coarsening`). :func:`coarsen_grid` keeps
-the origin exactly, but the two are compared after a trip through yaml files: a fit's
-``map.yaml`` against the robot's map (``robot_map.yaml``, or the data folder's map) that another
-tool may have saved again -- ROS 1's ``map_saver`` writes the origin with 6 decimals (``%f``),
-moving it by up to 5e-7 m, which an absolute 1e-9 m refused. A thousandth of a map cell (50 um
-at 0.05 m; 1 um at the smallest plausible resolution, 1 mm) lets that through and still refuses
-any map a mask, label or plan would visibly lie off: anything the coarse grid carries lands
-within a thousandth of a map cell of where it belongs.
-
-The same thousandth bounds the cell size: a coarse grid's cell may differ from f map cells by
-f thousandths of a map cell (relative 1e-3). ``map_saver`` writes the resolution with ``%f``
-too: 0.05 / 3 m as 0.016667 (relative 2e-5 off; at most 5e-7 m a cell, 5e-4 of a 1 mm cell),
-which the relative 1e-9 this check used refused. A cell size off by the whole tolerance moves
-the far edge of a map N cells wide by N thousandths of a cell (a cell at 1000 cells); the
-6-decimal rounding it admits moves it by at most N x 5e-7 m (0.5 mm at 1000 cells)."""
-
-
 def is_coarsening(grid: OccupancyGrid, fine: OccupancyGrid) -> bool:
     """Whether ``grid`` is :func:`coarsen_grid` of ``fine`` by a whole factor f >= 1, as far as
-    the geometry tells: its resolution f times ``fine``'s (relative :data:`ORIGIN_TOLERANCE_CELLS`:
-    map_saver's ``%f``), its origin ``fine``'s within :data:`ORIGIN_TOLERANCE_CELLS` of
-    ``fine``'s cells, and its shape ``fine``'s in f x f blocks, padded up. The one check of
-    :func:`free_block_of_map_cells` and of the robot's map in Nav2's export
-    (:func:`spcopyro.robot.nav2.check_robot_map`)."""
+    the geometry tells: its resolution f times ``fine``'s and its origin ``fine``'s in ``fine``'s
+    cells, both within :data:`~spcopyro.maps.grid.MAP_TOLERANCE_CELLS` (the maps' one rule:
+    :func:`coarsen_grid` keeps the origin exactly, but the two are compared after a trip through
+    yaml files another tool, map_saver's ``%f``, may have written again), and its shape
+    ``fine``'s in f x f blocks, padded up. The one check of :func:`free_block_of_map_cells`
+    and of the robot's map in Nav2's export (:func:`spcopyro.robot.nav2.check_robot_map`)."""
     factor = round(grid.resolution / fine.resolution)
     return (
         factor >= 1

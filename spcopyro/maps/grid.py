@@ -40,7 +40,9 @@ __all__ = [
     "OCCUPIED",
     "UNKNOWN",
     "OccupancyGrid",
+    "describe_map",
     "same_frame",
+    "same_free_cells",
     "same_origin",
     "same_resolution",
 ]
@@ -59,8 +61,11 @@ resolutions within a relative thousandth, origins within a thousandth of a cell 
 Maps are compared after a trip through yaml files another tool may have written again: ROS 1's
 ``map_saver`` writes both with 6 decimals (``%f``), 0.05 / 3 m as 0.016667 (relative 2e-5 off)
 and an origin up to 5e-7 m off, which an exact comparison refused. A thousandth of a cell moves
-nothing placed on the map visibly; a map of another resolution or origin (another SLAM run, a
-map of other cells) is off by far more."""
+nothing placed on the map visibly (50 um at 0.05 m; 1 um at the smallest plausible resolution,
+1 mm); a map of another resolution or origin (another SLAM run, a map of other cells) is off by
+far more. A cell size off by the whole tolerance moves the far edge of a map N cells wide by N
+thousandths of a cell (a cell at 1000 cells); the 6-decimal rounding it admits, by at most
+N x 5e-7 m (0.5 mm at 1000 cells)."""
 
 
 def same_resolution(a: float, b: float) -> bool:
@@ -81,6 +86,22 @@ def same_frame(a: OccupancyGrid, b: OccupancyGrid) -> bool:
     :func:`same_origin` in the finer one's cells): their cells lie on each other."""
     return same_resolution(a.resolution, b.resolution) and same_origin(
         a.origin, b.origin, min(a.resolution, b.resolution)
+    )
+
+
+def same_free_cells(a: OccupancyGrid, b: OccupancyGrid) -> bool:
+    """Whether a per-free-cell array of ``a`` (labels, counts: indexed by free cell) means the
+    same on ``b``: the same shape and free cells (the mask, not only their count) in one frame
+    (:func:`same_frame`)."""
+    return a.shape == b.shape and same_frame(a, b) and np.array_equal(a.free, b.free)
+
+
+def describe_map(grid: OccupancyGrid) -> str:
+    """``"a (40, 50) map with 1200 free cells of 0.05 m, origin (0.0, 0.0, 0.0)"``: numbers as
+    Python writes them back (``repr``), so two maps refused as different never read the same."""
+    return (
+        f"a {grid.shape} map with {grid.num_free} free cells of {grid.resolution!r} m, "
+        f"origin {grid.origin!r}"
     )
 
 
