@@ -614,6 +614,33 @@ def test_a_coarse_fit_refuses_unknown_words_before_saying_which_map_it_plans_on(
     assert printed.out == "" and "zzqx" in printed.err
 
 
+def test_a_coarse_fit_names_the_map_it_plans_on_only_over_a_plan(result, tmp_path, capsys):
+    """The "planning on MAP" line heads a plan's output, and only a plan's: a --start off the
+    map or an unreachable place is refused with nothing on stdout (the line was printed, then
+    the error)."""
+    import dataclasses
+
+    from spcopyro.config import DataPreparation
+    from spcopyro.maps import save_map
+
+    coarse = dataclasses.replace(result, preparation=DataPreparation(cell_size=0.2))
+    fit = coarse.save(tmp_path / "coarse")
+    save_map(house_grid(), fit / "robot_map.yaml")
+    assert main(["navigate", str(fit), "go to the kitchen", "--start=1000,1000"]) == 2
+    printed = capsys.readouterr()
+    assert printed.out == "" and "--start 1000,1000 is off the map" in printed.err
+    start = f"--start={START_A[0]},{START_A[1]}"
+    assert main(["navigate", str(fit), "go to the closet", start]) == 3  # walled off
+    printed = capsys.readouterr()
+    assert printed.out == "" and "no place of 'closet' is reachable" in printed.err
+    assert main(["navigate", str(fit), "go to the kitchen", start]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0] == (f"planning on {fit / 'robot_map.yaml'}, the map the fit's "
+                        f"{result.grid.resolution:g} m cells were coarsened from (--map to "
+                        "choose another)")  # fmt: skip
+    assert lines[1].startswith("instruction 'go to the kitchen': kitchen")
+
+
 @pytest.mark.parametrize("refine", ["auto", "never"])
 def test_the_embedded_house_fitted_by_the_readme_command_can_be_driven_through(
     tmp_path, capsys, refine

@@ -76,19 +76,17 @@ def _plan_and_print(
     from spcopyro.cli.common import load_robot_map
     from spcopyro.results.where import shared_concept_note
     from spcopyro.robot.navigation import navigate
-    from spcopyro.robot.navigation.goals import UnreachableGoalError, parse_instruction
+    from spcopyro.robot.navigation.goals import UnreachableGoalError
 
-    # words the fit does not know are refused before the map it plans on is named
-    parse_instruction(args.instruction, result.vocabulary)  # navigate parses it again: cheap
-    grid = None
+    grid, planning_on = None, None
     if args.map:
         from spcopyro.maps import load_map
 
         grid = load_map(args.map)
     elif (robot_map := load_robot_map(result, args.result)) is not None:
         map_yaml, grid = robot_map
-        print(f"planning on {map_yaml}, the map the fit's {result.grid.resolution:g} m "
-              "cells were coarsened from (--map to choose another)")  # fmt: skip
+        planning_on = (f"planning on {map_yaml}, the map the fit's {result.grid.resolution:g} m "
+                       "cells were coarsened from (--map to choose another)")  # fmt: skip
     try:
         plan = navigate(result, args.instruction, args.start, radius=args.radius,
                         strict=args.strict, prior=args.prior, grid=grid,
@@ -96,6 +94,8 @@ def _plan_and_print(
     except UnreachableGoalError as error:
         print(f"error: {error}", file=sys.stderr)
         return UNREACHABLE_EXIT
+    if planning_on:  # only over a plan: an unknown word or a bad --start is the only output
+        print(planning_on)
     if plan.instruction.ignored:
         print(f"warning: ignored (not in the fit's vocabulary, nothing close): "
               f"{', '.join(plan.instruction.ignored)}", file=sys.stderr)  # fmt: skip
