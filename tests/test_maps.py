@@ -331,9 +331,12 @@ def bad_case(tmp_path: Path, **overrides: object) -> Path:
 @pytest.mark.parametrize(
     ("overrides", "fragments"),
     [
-        ({"resolution": None}, ["missing required key 'resolution'"]),
-        ({"image": None}, ["missing required key 'image'"]),
-        ({"negate": None}, ["missing required key 'negate'"]),
+        ({"resolution": None}, ["missing required key 'resolution', metres per cell"]),
+        ({"image": None}, ["key 'image', the map image's path (pgm, png, ...), relative to"]),
+        ({"origin": None}, ["missing required key 'origin', the world pose [x, y, yaw] of"]),
+        ({"negate": None}, ["missing required key 'negate', 0 where white is free"]),
+        ({"occupied_thresh": None}, ["key 'occupied_thresh', the occupancy p above which"]),
+        ({"free_thresh": None}, ["key 'free_thresh', the occupancy p below which"]),
         ({"resolution": "abc"}, ["bad.yaml:2:", "'resolution'", "'abc'"]),
         ({"resolution": -0.05}, ["bad.yaml:2:", "'resolution'", "-0.05"]),
         ({"origin": [1.0, 2.0]}, ["bad.yaml:3:", "'origin'", "[1.0, 2.0]"]),
@@ -346,6 +349,9 @@ def bad_case(tmp_path: Path, **overrides: object) -> Path:
         ({"mode": "scale"}, ["'mode'", "'scale'", "not supported"]),
         ({"mode": "raw"}, ["'mode'", "'raw'", "load_filter_mask", "load_label_map_server"]),
         ({"mode": "fancy"}, ["'mode'", "'fancy'"]),
+        ({"mode": "Trinary"}, ["bad.yaml:7:", "got 'Trinary'", "; did you mean 'trinary'?"]),
+        ({"mode": "SCALE"}, ["got 'SCALE'", "; did you mean 'scale'?"]),
+        ({"image": "."}, ["bad.yaml:1:", "key 'image': ", "is a folder, not an image file"]),
         ({"image": 3}, ["'image'", "got 3"]),
     ],
 )

@@ -153,7 +153,8 @@ def test_a_required_key_missing_names_its_misspelling(tmp_path):
     with pytest.raises(MapFormatError) as err:
         load_map(path)
     assert str(err.value) == (
-        f"{path}: missing required key 'resolution' ({path}:6 has 'resoluton': misspelt?)"
+        f"{path}: missing required key 'resolution', metres per cell (image pixel), e.g. 0.05 "
+        f"({path}:6 has 'resoluton': misspelt?)"
     )
 
 

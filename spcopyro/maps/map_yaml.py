@@ -32,6 +32,17 @@ __all__ = ["MAX_YAW_NOISE", "PLAUSIBLE_RESOLUTION", "MapFileNotFoundError", "Map
 
 _REQUIRED_KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
 _KNOWN_KEYS = (*_REQUIRED_KEYS, "mode")
+_MODES = ("trinary", "scale", "raw")
+
+_KEY_MEANINGS = {
+    "image": "the map image's path (pgm, png, ...), relative to the yaml's folder or absolute",
+    "resolution": "metres per cell (image pixel), e.g. 0.05",
+    "origin": "the world pose [x, y, yaw] of the image's lower-left pixel, metres and radians",
+    "negate": "0 where white is free (map_saver's maps), 1 where black is",
+    "occupied_thresh": "the occupancy p above which a pixel is occupied, e.g. 0.65",
+    "free_thresh": "the occupancy p below which a pixel is free, e.g. 0.196",
+}
+"""What each required key holds, for the error that says it is missing."""
 
 MAX_YAW_NOISE = 1e-6
 """Radians: an origin yaw this small is read as 0 (a quaternion's float noise, as a mapping
@@ -98,10 +109,12 @@ class _MapYaml:
         return f"{self.path}:{self.lines[key]}" if key in self.lines else str(self.path)
 
 
-def _close_key(key: Any) -> str | None:
-    """The map_server key that ``key``, not one of them, looks like a misspelling of
-    (``mdoe``, ``Mode``, ``occupied_tresh``), or None."""
-    close = difflib.get_close_matches(str(key).lower(), _KNOWN_KEYS, n=1, cutoff=0.75)
+def _close_key(key: Any, known: tuple[str, ...] = _KNOWN_KEYS) -> str | None:
+    """The map_server key (or other ``known`` name) that ``key``, not one of them, looks like
+    a misspelling of (``mdoe``, ``Mode``, ``occupied_tresh``; ``Trinary``), or None. (The
+    package's ``did_you_mean``, :mod:`spcopyro.results.semantic_map`, sits in a layer above the
+    maps; this reads the same: case-folded, a difflib ratio of at least 0.75.)"""
+    close = difflib.get_close_matches(str(key).lower(), known, n=1, cutoff=0.75)
     return close[0] if close else None
 
 
@@ -308,7 +321,9 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
         if key not in doc:
             typo = [f"{where(k)} has {echo(k)}" for k, close in misspelt.items() if close == key]
             hint = f" ({', '.join(typo)}: misspelt?)" if typo else ""
-            raise MapFormatError(f"{path}: missing required key {key!r}{hint}")
+            raise MapFormatError(
+                f"{path}: missing required key {key!r}, {_KEY_MEANINGS[key]}{hint}"
+            )
     for key, close in misspelt.items():
         logger.warning(
             "%s: unknown key %s ignored, as map_server ignores it: did you mean %r?",
@@ -372,8 +387,10 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
     _check_thresholds(doc, where)
 
     mode = doc.get("mode", "trinary")
-    if mode not in ("trinary", "scale", "raw"):
-        raise bad("mode", "one of 'trinary', 'scale', 'raw'")
+    if mode not in _MODES:
+        close = _close_key(mode, _MODES)  # map_server compares them case-sensitively
+        error = bad("mode", "one of 'trinary', 'scale', 'raw'")
+        raise MapFormatError(f"{error}; did you mean {close!r}?") if close else error
 
     image = doc["image"]
     if not isinstance(image, str) or not image:
