@@ -47,6 +47,7 @@ from spcopyro.data.placement import (
     DEFAULT_SNAP_DISTANCE,
     ModalityPlacement,
     PlacementReport,
+    count_on_occupied,
     place_observations,
     position_hint,
 )
@@ -401,6 +402,8 @@ def cell_counts(
         np.add.at(summed, np.searchsorted(cells, cell[ok]), modality.counts[ok])
         modality_counts.append(CellModalityCounts(modality.name, modality.items, summed))
 
+    left_out = [obs.image_xy[image_unplaced], obs.word_xy[word_unplaced]]  # [n_i, 2] each
+    left_out += [m.positions[u] for m, (_, _, u) in zip(obs.modalities, further, strict=True)]
     report = PlacementReport(
         images_on_free=int(obs.num_images - image_snapped.sum() - image_unplaced.sum()),
         images_snapped=int(image_snapped.sum()),
@@ -415,6 +418,7 @@ def cell_counts(
         images_scaled_away=int(lost.size),
         scaled_away_images=lost,
         feature_scaling=feature_scaling,
+        unplaced_on_occupied=count_on_occupied(grid, np.concatenate(left_out)),
         modalities=tuple(
             ModalityPlacement(
                 name=modality.name,

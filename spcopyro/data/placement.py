@@ -15,12 +15,13 @@ import numpy as np
 
 from spcopyro.config import DEFAULT_SNAP_DISTANCE
 from spcopyro.data.observations import _as_xy
-from spcopyro.maps.grid import OccupancyGrid
+from spcopyro.maps.grid import OCCUPIED, OccupancyGrid
 
 __all__ = [
     "DEFAULT_SNAP_DISTANCE",
     "ModalityPlacement",
     "PlacementReport",
+    "count_on_occupied",
     "place_observations",
     "position_hint",
 ]
@@ -262,6 +263,18 @@ def position_hint(grid: OccupancyGrid, xy: np.ndarray) -> str:
     return ""
 
 
+def count_on_occupied(grid: OccupancyGrid, xy: np.ndarray) -> int:
+    """How many of the points ``[n, 2]`` (metres) lie on an occupied cell of ``grid``'s map (the
+    map a model grid was coarsened from, whose walls are not thickened), inside its bounds."""
+    fine = grid.coarsened_from if grid.coarsened_from is not None else grid
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)  # [n, 2]
+    xy = xy[np.isfinite(xy).all(axis=1) & (np.abs(xy) < 2.0**40 * fine.resolution).all(axis=1)]
+    cells = np.asarray(fine.world_to_cell(xy), dtype=np.int64).reshape(-1, 2)  # [n, 2]
+    inside = np.asarray(fine.in_bounds(cells), dtype=bool)  # [n]
+    rows, cols = cells[inside, 0], cells[inside, 1]
+    return int(np.count_nonzero(fine.occupancy[rows, cols] == OCCUPIED))
+
+
 MIN_SPREAD = 0.3
 """:func:`position_hint`: a rescaled tour must spread over this share of the free space's
 extent (standard deviations along the wider axis)."""
@@ -297,6 +310,9 @@ class PlacementReport:
     )  # [images_scaled_away] int64 indices into Observations images
     feature_scaling: object = "probability"
     """The feature scaling the counts were made under (named beside ``images_scaled_away``)."""
+    unplaced_on_occupied: int = 0
+    """Of the observations left out (every modality), those on an occupied cell of the map
+    (:func:`count_on_occupied`): with most of them, :meth:`check_on_free` refuses the map."""
 
     @property
     def num_observations(self) -> int:
@@ -342,14 +358,38 @@ class PlacementReport:
             "origin, resolution and negate flag)"
         )
 
-    def check_on_free(self, where: str = "") -> None:
-        """Raise ValueError when observations exist but none landed on a free cell itself: the
-        map or its origin is wrong (or ``negate`` inverts free space), and a fit would learn
-        every concept from the prior alone."""
+    def free_space_inverted(self) -> bool:
+        """More than half of the observations left out, and more than half of those on
+        occupied cells of the map: the map's free space reads as occupied (``negate`` or the
+        thresholds invert it, or the image is inverted), rather than covering only part of the
+        tour (observations off the map or on unknown cells, left out with a warning)."""
+        left_out = self.num_unplaced
+        return 2 * left_out > self.num_observations and 2 * self.unplaced_on_occupied > left_out
+
+    def check_on_free(self, where: str = "", grid: OccupancyGrid | None = None) -> None:
+        """Raise ValueError when observations exist but none landed on a free cell itself (the
+        map or its origin is wrong, or ``negate`` inverts free space), or when its free space
+        reads as occupied (:meth:`free_space_inverted`): a fit would learn every concept from
+        the prior alone, or from the few observations snapped onto the walls. ``where`` names
+        the map (``" on map PATH"``); ``grid``, the map's grid, adds the yaml's ``negate``
+        line where the other ``negate`` frees more cells
+        (:func:`~spcopyro.maps.free_space.negate_hint`)."""
         if self.num_observations and not self.num_on_free:
             raise ValueError(
                 f"no observation lands on free space: {self._off_free(where)}; the map or its "
                 "origin is wrong, or its negate flag inverts free space (check the map yaml)"
+            )
+        if self.free_space_inverted():
+            from spcopyro.maps.free_space import negate_hint  # reads the image again
+
+            hint = negate_hint(grid) if grid is not None else ""
+            raise ValueError(
+                f"{self.num_unplaced} of {self.num_observations} observations are left out, "
+                f"{self.unplaced_on_occupied} of them on occupied cells{where}: the map's free "
+                "space most likely reads as occupied -- its yaml's negate inverts it (negate 1 "
+                "for a map drawn with free space white), its free_thresh / occupied_thresh "
+                "leave it occupied, or its image is inverted"
+                f"{f' ({hint})' if hint else ''}; {self._off_free('')}"
             )
 
     def summary(self) -> str:

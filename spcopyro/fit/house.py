@@ -197,7 +197,7 @@ def prepare_model_data(
     counts = prepared_cell_counts(
         grid, house.observations, settings.data, vocabulary=vocabulary, source=house.source
     )
-    counts.placement.check_on_free(where)
+    counts.placement.check_on_free(where, grid)
     coverage = coverage_warning(house)
     if coverage:
         logger.warning(coverage)

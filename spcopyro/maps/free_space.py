@@ -19,11 +19,46 @@ from spcopyro._util.messages import echo
 from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.maps.map_image import _read_levels
 from spcopyro.maps.map_server import PGM_UNKNOWN, _occupancy
-from spcopyro.maps.map_yaml import MapFormatError, _read_map_yaml
+from spcopyro.maps.map_yaml import MapFormatError, _MapYaml, _read_map_yaml
 
-__all__ = ["check_free_cells", "no_free_cell_reason"]
+__all__ = ["check_free_cells", "negate_hint", "no_free_cell_reason"]
 
 _GENERIC = "check the map image and its yaml's negate flag and free/occupied thresholds"
+
+
+def _map_levels(grid: OccupancyGrid) -> tuple[_MapYaml, np.ndarray, float] | None:
+    """The yaml ``grid`` (or the map it was coarsened from) was loaded from, its image's levels
+    ``[H, W]`` or ``[H, W, C]`` and their full scale; None where it was read from no yaml, or
+    its yaml or image no longer reads."""
+    source = grid.coarsened_from.source if grid.coarsened_from is not None else grid.source
+    path = Path(source) if source is not None else None
+    if path is None or path.suffix.lower() not in (".yaml", ".yml"):
+        return None
+    try:
+        spec = _read_map_yaml(path)
+        levels, full = _read_levels(spec)  # [H, W] or [H, W, C]
+    except (MapFormatError, OSError):
+        return None
+    return spec, levels, full
+
+
+def negate_hint(grid: OccupancyGrid) -> str:
+    """``"MAP.yaml:4: negate 1: with negate 0, 18622 cells would be free, not 1864"``: the
+    yaml's ``negate`` line and how many more cells the other ``negate`` frees, where it frees
+    more than it does now (free space drawn light under ``negate: 1``); "" otherwise or where
+    ``grid`` was not read from a yaml."""
+    read = _map_levels(grid)
+    if read is None:
+        return ""
+    spec, levels, full = read
+    now = int(np.count_nonzero(_occupancy(levels, full, spec.negate)[1] < spec.free_thresh))
+    flipped = int(np.count_nonzero(_occupancy(levels, full, not spec.negate)[1] < spec.free_thresh))
+    if flipped <= now:
+        return ""
+    return (
+        f"{spec.where('negate')}: negate {spec.shown_negate()}: with negate "
+        f"{int(not spec.negate)}, {flipped} cells would be free, not {now}"
+    )
 
 
 def no_free_cell_reason(grid: OccupancyGrid) -> str:
@@ -33,15 +68,10 @@ def no_free_cell_reason(grid: OccupancyGrid) -> str:
     ``p = (full - v) / full`` (``v / full`` negated), against ``p < free_thresh`` for free; and
     a hint (flipping ``negate`` would free cells; every pixel is the unknown grey 205). A grid
     that was not read from a yaml (or whose yaml no longer reads) gets the generic hint."""
-    source = grid.coarsened_from.source if grid.coarsened_from is not None else grid.source
-    path = Path(source) if source is not None else None
-    if path is None or path.suffix.lower() not in (".yaml", ".yml"):
+    read = _map_levels(grid)
+    if read is None:
         return _GENERIC
-    try:
-        spec = _read_map_yaml(path)
-        levels, full = _read_levels(spec)  # [H, W] or [H, W, C]
-    except (MapFormatError, OSError):
-        return _GENERIC
+    spec, levels, full = read
     grey, p = _occupancy(levels, full, spec.negate)  # [H, W] each, as load_map reads them
     if np.any(p < spec.free_thresh):  # the grid is not the yaml's as it reads now (edited)
         return _GENERIC
