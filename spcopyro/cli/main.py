@@ -54,6 +54,7 @@ from spcopyro.cli.common import (
     refuse_fit_files,
 )
 from spcopyro.cli.fit_parser import add_parser as add_fit_parser
+from spcopyro.cli.interrupted import interrupted_line
 from spcopyro.data.text import fold_word
 
 logger = logging.getLogger("spcopyro")
@@ -538,12 +539,12 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except KeyboardInterrupt as stop:  # Ctrl-C: one line, no traceback (fit says more itself)
         if not getattr(stop, "said", False):  # a study has said how far it got
-            print("interrupted", file=sys.stderr)
+            print(interrupted_line(args), file=sys.stderr)  # which command, what of its --out
         return 130
     except SystemError as error:  # Ctrl-C inside a numba call (spcopyro._util.interrupts)
         if not caused_by_interrupt(error):
             raise
-        print("interrupted", file=sys.stderr)
+        print(interrupted_line(args), file=sys.stderr)
         return 130
 
 
