@@ -747,6 +747,7 @@ def test_a_listed_concept_where_no_word_was_heard_says_so():
     each of the 8 largest concepts of a 300-sweep Gibbs fit of room1dk5, as if those were its
     words."""
     from spcopyro.config import preset
+    from spcopyro.results.concept_words import format_concept_words
     from spcopyro.synthetic import HouseSpec, make_house
 
     spec = HouseSpec(
@@ -761,3 +762,6 @@ def test_a_listed_concept_where_no_word_was_heard_says_so():
     for c, quiet, words in zip(listed, silent, record["top_words"], strict=True):
         expected = "/".join(w for w, _ in result.top_words(c, 2))
         assert words == (comparison.NO_WORDS if quiet else expected), (c, words)
+    # in the words the fit's own listing, ``where`` and the figures use ("(no words heard)" was
+    # the comparison's own)
+    assert comparison.NO_WORDS == format_concept_words([], [], 0.0) == "(no words heard here)"

@@ -76,6 +76,7 @@ from spcopyro.metrics import (
     matching_rate,
 )
 from spcopyro.model import ModelData
+from spcopyro.results import concept_words
 from spcopyro.results.result import SpCoResult
 from spcopyro.synthetic import HouseSpec
 
@@ -376,10 +377,11 @@ def fit_and_score_with_result(
     return record, final_result
 
 
-NO_WORDS = "(no words heard)"
+NO_WORDS = f"({concept_words.NO_WORDS})"
 """A listed concept's entry in a record's ``top_words`` when no word was heard in its region:
 its w is the prior's, whose top words are a tie broken by vocabulary order (a disordered Gibbs
-map of room1dk5 listed "bedroom/shelf" for each of its 8 largest concepts)."""
+map of room1dk5 listed "bedroom/shelf" for each of its 8 largest concepts). The words
+``where``, the figures and ``concepts()`` show for such a concept, in brackets."""
 
 
 def _top_words(result: SpCoResult, concept: int) -> str:
