@@ -405,7 +405,7 @@ def test_a_resumed_comparison_says_which_cells_it_ran_and_reruns_stale_ones(tmp_
 
 OLD_RECORDS = Path(__file__).with_name("comparison_old_records.json")
 """What the comparison's own loop gave (times left out) before it became a study."""
-TIMES = ("seconds", "wall_seconds", "time_to_95", "ess_per_second")
+TIMES = ("seconds", "wall_seconds", "cpu_seconds", "time_to_95", "ess_per_second")
 
 
 def _untimed(record: dict) -> dict:
@@ -765,3 +765,22 @@ def test_a_listed_concept_where_no_word_was_heard_says_so():
     # in the words the fit's own listing, ``where`` and the figures use ("(no words heard)" was
     # the comparison's own)
     assert comparison.NO_WORDS == format_concept_words([], [], 0.0) == "(no words heard here)"
+
+
+def test_results_csv_fills_cpu_seconds_and_best_objective(tmp_path):
+    """compare-inference's results.csv had columns cpu_seconds and best_objective always empty:
+    a comparison cell now records the CPU time of its measured run and the objective of the
+    state it reports."""
+    import csv
+
+    settings = _recorded_grid(None, house_types=("synthetic",), variants=("gibbs", "cavi"),
+                              seeds=1, iterations={"gibbs": 6, "cavi": 3})  # fmt: skip
+    run_comparison(tmp_path, settings)
+    with open(tmp_path / "results.csv", newline="") as file:
+        rows = list(csv.DictReader(file))
+    assert sorted(r["method"] for r in rows) == ["cavi", "gibbs"]
+    for row in rows:
+        assert float(row["cpu_seconds"]) > 0, row
+        assert math.isfinite(float(row["best_objective"])), row
+        details = json.loads(row["details"])
+        assert float(row["cpu_seconds"]) == pytest.approx(details["cpu_seconds"])

@@ -302,9 +302,9 @@ def fit_and_score_with_result(
         return result_of(output, problem.house, counts, data, problem.settings, variant.method)
 
     thin = max(1, iterations // SAMPLES_PER_RUN)
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     output = run(iterations, thin)
-    wall = time.perf_counter() - start
+    wall, cpu = time.perf_counter() - start, time.process_time() - cpu  # CPU: every thread's
     final_result = result(output)
     final = _scores(final_result, problem, final=True)
     # the same labels with the globals' posterior means given them: separates the label map's
@@ -338,6 +338,7 @@ def fit_and_score_with_result(
         "iterations": len(output.trace.seconds),
         "seconds": total,
         "wall_seconds": wall,
+        "cpu_seconds": cpu,
         "final": final,
         "final_given_labels": given_labels,
         "curve": curve,

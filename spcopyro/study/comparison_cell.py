@@ -14,8 +14,10 @@ so no measured fit pays for numba's compilation), on the problem the comparison 
 
 The cell's record holds the final scores in the table's columns (``ari``, ``matching_rate``,
 ``top1``, ``top3``, ``mean_rank``, ``distance_m``, ``concepts``, ``iterations``, ``seconds``:
-the inference's own time) and the whole comparison record (the curve, time to 95 %, ESS,
-over-confidence, top words) as JSON text in ``details``, from which
+the inference's own time, ``cpu_seconds``: the process's CPU time over the measured run, every
+thread's, ``best_objective``: the log joint or ELBO of the state reported) and the whole
+comparison record (the curve, time to 95 %, ESS, over-confidence, top words) as JSON text in
+``details``, from which
 :mod:`spcopyro.study.comparison` draws ``comparison.md`` and its figures. Its label map is the
 fit's final state on the map's cells (refined from the model's grid), with the map and the
 truth it was scored against (:func:`spcopyro.study.maps.label_map_arrays`), stored as every
@@ -123,6 +125,7 @@ def comparison_outcome(cell: Cell) -> tuple[dict[str, object], Arrays]:
     scores: dict[str, object] = {s: final[s] for s in FINAL_SCORES if s in final}  # type: ignore[index]
     scores.update(
         concepts=record["concepts"], iterations=record["iterations"], seconds=record["seconds"],
+        cpu_seconds=record["cpu_seconds"], best_objective=result.best_objective,
         details=json.dumps(record, default=json_default),
     )  # fmt: skip
     labels = labels_on_map(result, house, problem.settings)  # [H, W]
