@@ -126,3 +126,24 @@ def test_the_table_marks_the_scores_where_lower_is_better():
     assert {SCORE_NAMES[s] for s in LOWER_IS_BETTER} == {
         "held-out mean rank", "localisation distance (m)"}  # fmt: skip
     assert "Scores: higher is better, but for those marked ↓ (lower is better)" in text
+    # the synthetic table: its wrong cells and their confident share, and nothing else
+    final = {"ari": 0.6, "matching_rate": 0.9}
+    synthetic = {
+        **_record("gibbs", 0.0, 0.5),
+        "house": "seed 0",
+        "final": final,
+        "final_given_labels": dict(final),
+        "time_to_95": {"ari": 0.5},
+        "truth_categories": 3,
+        "overconfidence": {
+            "wrong_share": 0.1,
+            "confidence_wrong": 0.4,
+            "confidence_right": 0.8,
+            "confident_wrong_share": 0.2,
+        },
+    }
+    settings = ComparisonSettings(house_types=("synthetic",), variants=("gibbs",))
+    text = table_markdown(summarise({"synthetic": {"gibbs": [synthetic]}}, settings, [], 1.0))
+    header = next(line for line in text.splitlines() if line.startswith("| method | ARI |"))
+    marked = [c.strip() for c in header.strip("|").split("|") if "↓" in c]
+    assert marked == ["wrong cells ↓", "of them sure (>= 0.99) ↓"], header
