@@ -236,14 +236,11 @@ def test_notebook_4_does_not_credit_algorithm_1_with_the_best_visited_state():
     """Notebook 4 called the trace's dashed line, the state of highest log joint the chain
     visited, "the map the paper's Algorithm 1 reports". Algorithm 1 saves the chain's last state
     (its line 22, after the loop; the released code writes C.csv at the last iteration); the
-    highest log joint is what a bare fit_house call reports (point_estimate="map-visited")."""
-    from spcopyro.fit.house import fit_house
-
-    default = inspect.signature(fit_house).parameters["point_estimate"].default
-    assert default == "map-visited"
+    highest log joint is what fit_house reports by default (point_estimate="map-visited", the
+    default test_notebook_2_names_the_point_estimate_spcopyro_fit_reports checks)."""
     text = _flat(_markdown("04_a_real_house"))
     assert "(the map the paper's Algorithm 1 reports)" not in text
-    assert 'what a bare `fit_house` call reports, its `point_estimate="map-visited"`' in text
+    assert 'what `fit_house` reports by default, its `point_estimate="map-visited"`' in text
     assert "Algorithm 1 reports neither: it saves the chain's last state" in text, text[:9000]
 
 
