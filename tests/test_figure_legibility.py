@@ -349,7 +349,7 @@ def test_the_comparison_legend_leaves_the_panels():
                          "methods": {key: v.label for key, v in VARIANTS.items()}},
                         "public")  # fmt: skip
     (legend,) = fig.legends
-    assert len(legend.get_texts()) == len(VARIANTS)
+    assert len(legend.get_texts()) == len(VARIANTS) + 1  # and the last point's marker
     assert not _overlaps_an_axes(fig, legend)
     assert not any(ax.get_legend() for ax in fig.axes)
 

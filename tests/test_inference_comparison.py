@@ -235,6 +235,8 @@ class _Stop(Exception):
 
 
 def test_quick_command_writes_table_json_and_figure(tmp_path, capsys, monkeypatch):
+    from spcopyro.experiments.comparison_figure import FINAL_NOTE
+
     monkeypatch.setitem(VARIANTS, "fake", Variant("fake", "no-such-method", "fake", 5, 2))
     out = tmp_path / "cmp"
     code = main([
@@ -279,6 +281,8 @@ def test_quick_command_writes_table_json_and_figure(tmp_path, capsys, monkeypatc
     assert "| Gibbs (Algorithm 1) |" in table and "| CAVI (mean field" in table
     assert "## Findings" in table and "cavi against gibbs" in table
     assert "![quality against time](comparison_synthetic.png)" in table
+    # under the figure: what each line's last point is (the method's reported map)
+    assert "(comparison_synthetic.png)\n\n" + FINAL_NOTE + "\n" in table
     assert (out / "results.csv").is_file()  # the comparison is a study: cached in --out
 
 
@@ -663,6 +667,43 @@ def test_no_axis_label_of_the_figure_runs_over_its_title():
             label = ax.yaxis.label.get_window_extent(renderer)
             panel = ax.get_window_extent(renderer)
             assert label.y1 <= panel.y1 and not label.overlaps(title), ax.get_ylabel()
+
+
+def test_each_curve_s_last_point_is_marked_as_the_reported_map():
+    """A curve plots the label maps its method kept along the run, but its last point is the
+    map the method reports (a sampler's highest-log-joint visited state, not its last one):
+    Gibbs's top-1 on room1dk5 fell 0.267 -> 0.200 into that point, and nothing in the figure or
+    under it said the point was another kind of map. It has its own hollow marker, one grey
+    legend entry, and comparison.md says the same under the figure."""
+    from matplotlib.colors import to_rgba
+
+    from spcopyro.experiments.comparison_figure import FINAL_LABEL, FINAL_MARKER, FINAL_NOTE
+    from spcopyro.experiments.comparison_report import curves_figure
+
+    methods = {key: v.label for key, v in VARIANTS.items()}
+    gibbs = [{"seconds": 0.1, "top1": 0.3, "distance_m": 0.5},
+             {"seconds": 1.0, "top1": 0.267, "distance_m": 0.576},
+             {"seconds": 1.0, "top1": 0.2, "distance_m": 0.639}]  # fmt: skip
+    cavi = [{"seconds": 0.2, "top1": 0.25, "distance_m": 0.9},
+            {"seconds": 2.0, "top1": 0.205, "distance_m": 0.94}]  # fmt: skip
+    records = {"gibbs": [{"curve": gibbs}], "cavi": [{"curve": cavi}, {"curve": cavi}]}
+    fig = curves_figure({"records": {"public": records}, "methods": methods}, "public")
+    for ax, score in zip(fig.axes, ("top1", "distance_m"), strict=True):
+        finals = [line for line in ax.get_lines() if line.get_marker() == FINAL_MARKER]
+        points = sorted((tuple(line.get_xdata()), tuple(line.get_ydata())) for line in finals)
+        assert points == sorted([((1.0,), (gibbs[-1][score],)), ((2.0,), (cavi[-1][score],)),
+                                 ((2.0,), (cavi[-1][score],))]), score  # fmt: skip
+        assert all(line.get_markerfacecolor() == "none" for line in finals)  # hollow
+        kept = [line for line in ax.get_lines() if line not in finals]
+        assert [len(line.get_xdata()) for line in kept] == [3, 2, 2]  # the lines as drawn
+    (legend,) = fig.legends
+    texts = [t.get_text() for t in legend.get_texts()]
+    assert texts == [methods["gibbs"], methods["cavi"], FINAL_LABEL]
+    handle = legend.legend_handles[-1]
+    assert handle.get_marker() == FINAL_MARKER and handle.get_markerfacecolor() == "none"
+    assert to_rgba(handle.get_markeredgecolor()) == to_rgba("grey")
+    assert "samplers: best visited" in FINAL_LABEL and "argmax q" in FINAL_LABEL
+    assert "hollow diamond" in FINAL_NOTE and "highest-log-joint state" in FINAL_NOTE
 
 
 def test_a_final_ari_at_chance_gets_no_time_to_95_percent():

@@ -5,9 +5,11 @@ and their scoring are :mod:`spcopyro.experiments.inference_comparison`, the run 
 :func:`summarise` reduces the per-fit records (house type -> variant -> records, drawn from the
 study's table) to means per variant and house type and states, from those numbers alone, where
 mean field loses and where it wins (:func:`findings`); :func:`write_report` writes the JSON, the
-markdown and one figure of quality against wall-clock time (log axis) per house type. Figures
-are drawn on :class:`matplotlib.figure.Figure` objects (no pyplot), as in
-:mod:`spcopyro.experiments.figures`.
+markdown and one figure of quality against wall-clock time (log axis) per house type
+(:mod:`spcopyro.experiments.comparison_figure`, whose
+:func:`~spcopyro.experiments.comparison_figure.curves_figure`,
+:func:`~spcopyro.experiments.comparison_figure.plot_curves` and
+:data:`~spcopyro.experiments.comparison_figure.SCORE_NAMES` are importable from here too).
 """
 
 from __future__ import annotations
@@ -18,9 +20,10 @@ import math
 from pathlib import Path
 
 import numpy as np
-from matplotlib.figure import Figure
 
 from spcopyro._util.messages import command_time, fixed, plural, seconds_text
+from spcopyro.experiments.comparison_figure import FINAL_NOTE, SCORE_NAMES, plot_curves
+from spcopyro.experiments.comparison_figure import curves_figure as curves_figure  # re-exported
 from spcopyro.experiments.comparison_headline import (
     TIE,
     at_first_map,
@@ -37,24 +40,13 @@ from spcopyro.experiments.inference_comparison import (
     NO_WORDS,
     PRIMARY,
     PUBLIC,
-    SCORES,
     SYNTHETIC,
     VARIANTS,
     ComparisonSettings,
     budget,
 )
 from spcopyro.experiments.table import json_default
-from spcopyro.figures.fonts import any_script
 from spcopyro.inference.protocol import options_for_start
-
-SCORE_NAMES = {
-    "ari": "ARI",
-    "matching_rate": "matching rate",
-    "top1": "held-out top-1",
-    "top3": "held-out top-3",
-    "mean_rank": "held-out mean rank",
-    "distance_m": "localisation distance (m)",
-}
 
 
 def _mean_sd(values: list[float]) -> dict[str, float]:
@@ -488,7 +480,7 @@ def table_markdown(summary: dict[str, object]) -> str:
                     f"| {_t95(s['time_to_95'].get('top1'), runs, first.get('top1', 0))} "
                     f"{common_tail}|"
                 )
-        lines += ["", f"![quality against time](comparison_{house_type}.png)", ""]
+        lines += ["", f"![quality against time](comparison_{house_type}.png)", "", FINAL_NOTE, ""]
     lines += [
         "## Concepts found (the first fit of each house type: top 2 words of the largest "
         f"8 concepts; {NO_WORDS}: none was said in the concept's region, whose words are only "
@@ -508,53 +500,6 @@ def table_markdown(summary: dict[str, object]) -> str:
     )
     lines += [f"- {note}" for note in summary["notes"]] or [none]  # type: ignore[union-attr]
     return "\n".join(lines) + "\n"
-
-
-def plot_curves(summary: dict[str, object], house_type: str, path: Path) -> Path:
-    """Write :func:`curves_figure` to ``path``."""
-    fig = curves_figure(summary, house_type)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with any_script(fig):  # words of any script, not boxes
-        fig.savefig(path, dpi=110, bbox_inches="tight")
-    return path
-
-
-def curves_figure(summary: dict[str, object], house_type: str) -> Figure:
-    """Quality against wall-clock time (log axis) of every fit of one house type: one panel
-    per score of :data:`SCORES`, one colour per method, each fit one thin line; the legend of
-    the methods below the panels."""
-    records: dict = summary["records"][house_type]  # type: ignore[index]
-    methods: dict = summary["methods"]  # type: ignore[assignment]
-    scores = SCORES[house_type]
-    fig = Figure(figsize=(5.2 * len(scores), 4.2))
-    axes = fig.subplots(1, len(scores))
-    colours = {key: f"C{i}" for i, key in enumerate(VARIANTS)}
-    for ax, score in zip(np.atleast_1d(axes), scores, strict=True):
-        for key, recs in records.items():
-            for i, record in enumerate(recs):
-                t = [p["seconds"] for p in record["curve"]]
-                v = [p[score] for p in record["curve"]]
-                ax.plot(t, v, color=colours[key], lw=1.0, alpha=0.6, marker=".", ms=3,
-                        label=methods[key] if i == 0 else None)  # fmt: skip
-        ax.set_xscale("log")
-        ax.set_xlabel("wall-clock seconds")
-        # ARI reads the labels alone; the other scores read pi and phi too, here their
-        # posterior means given the labels (the table's "means | labels" column, not its own)
-        given = "" if score == "ari" else " (means | labels)"
-        lower = " (lower is better)" if score in LOWER_IS_BETTER else ""
-        # the qualifiers on a line of their own: on one line the distance's label ran longer
-        # than its panel, over the figure's title
-        qualifiers = (given + lower).strip()
-        ax.set_ylabel(SCORE_NAMES[score] + ("\n" + qualifiers if qualifiers else ""))
-        ax.grid(alpha=0.3, which="both")
-    handles, labels = np.atleast_1d(axes)[0].get_legend_handles_labels()
-    # below the panels, never over a line (loc="best" inside the axes covered the top-1 lines)
-    fig.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, 0.0), fontsize=8,
-               ncol=min(3, max(len(labels), 1)), frameon=False)  # fmt: skip
-    title = "synthetic houses (one line per seed)" if house_type == SYNTHETIC else (
-        "public houses (one line per house and held-out trial)")  # fmt: skip
-    fig.suptitle(f"Quality against time, {title}")
-    return fig
 
 
 def write_report(out: Path, summary: dict[str, object]) -> list[Path]:
