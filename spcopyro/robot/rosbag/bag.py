@@ -20,6 +20,7 @@ stamps keep the first pose.
 
 from __future__ import annotations
 
+import difflib
 import os
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -152,12 +153,16 @@ def open_bag(path: str | os.PathLike[str], ros_distro: str = DEFAULT_ROS_DISTRO)
             if (p.is_file() and p.suffix in (".bag", ".db3", ".mcap"))
             or (p / "metadata.yaml").is_file()
         )
-        hint = (  # a recording stopped before rosbag2 wrote metadata.yaml; a folder of bags
-            f"; it holds {', '.join(inside[:5])}{' ...' if len(inside) > 5 else ''}: give the "
-            "bags as BAG arguments"
-            if inside
-            else ""
-        )
+        listed = f"; it holds {', '.join(inside[:5])}{' ...' if len(inside) > 5 else ''}"
+        pieces = [n for n in inside if n.endswith((".db3", ".mcap"))]
+        if len(pieces) > 1:  # a split recording stopped before rosbag2 wrote metadata.yaml
+            hint = (
+                f"{listed}: likely one recording that rosbag2 split into {len(pieces)} files: "
+                f"`ros2 bag reindex {path}` writes its metadata.yaml, and the folder is read as "
+                "one trial (given as BAG arguments, each file would be a trial)"
+            )
+        else:  # a recording stopped before rosbag2 wrote metadata.yaml; a folder of bags
+            hint = f"{listed}: give the bags as BAG arguments" if inside else ""
         raise BagFormatError(
             f"{path}: not a bag (a ROS 2 bag is a folder with metadata.yaml; a ROS 1 bag a .bag "
             f"file){hint}"
@@ -258,12 +263,16 @@ def topic_listing(reader: Any) -> str:
 def topic_connections(reader: Any, topic: str, allowed: tuple[str, ...], role: str) -> list[Any]:
     """The connections of ``topic`` (with or without its leading ``/``: a name without one is
     resolved in the root namespace, as a ROS node there would); BagContentError if it is absent
-    (listing the bag's topics and types) or of a type not in ``allowed``."""
+    (listing the bag's topics and types, and asking for the bag's one topic of an ``allowed``
+    type, or of several the one whose name is close to ``topic``: a typo) or of a type not in
+    ``allowed``."""
     found = [c for c in reader.connections if c.topic.lstrip("/") == topic.lstrip("/")]
     if not found:
         fits = sorted({c.topic for c in reader.connections if c.msgtype in allowed})
         option = {"pose": "--pose-topic", "image": "--image-topic", "utterance": "--words-topic"}
-        hint = f" (pass {option[role]} {fits[0]}?)" if len(fits) == 1 and role in option else ""
+        # the one topic of its type, else the one a mistyped name is closest to (of its type)
+        near = fits if len(fits) == 1 else difflib.get_close_matches(topic, fits, 1, 0.8)
+        hint = f" (pass {option[role]} {near[0]}?)" if near and role in option else ""
         raise BagContentError(
             f"{reader.paths[0]}: no {role} topic {topic!r}{hint}; the bag has: "
             f"{topic_listing(reader) or 'no topics'}"

@@ -86,6 +86,7 @@ from spcopyro.robot.rosbag.bag import (
 from spcopyro.robot.rosbag.house_folder import MARKER, check_map, check_out, replace_out
 from spcopyro.robot.rosbag.images import SENSOR_BITS, ImageDecodeError, encoded_image
 from spcopyro.robot.rosbag.poses import PoseTrack, compose, frame_name, header_clock, late_count
+from spcopyro.robot.rosbag.repairs import other_pieces
 from spcopyro.robot.rosbag.report import BagImportReport, SkippedObservation, write_skipped
 from spcopyro.robot.rosbag.tf_chain import check_tf_topics, read_pose_in_map, read_tf_chain
 
@@ -325,6 +326,8 @@ def _import_one(
         rows = np.asarray(word_rows, dtype=np.int64)
         _check_inside(grid, word_xy[rows], words.times[rows], f"{bag}: utterance on {words.topic}")
     counts = {
+        # a storage file given alone: the other files of its split recording, not read
+        "storage_files_not_read": other_pieces(bag),
         "pose_frame": pose_frame,  # the frame the poses came in (None: no frame_id)
         "pose_frame_via_tf": via_tf,  # "map -> odom": the tf chain that placed them on the map
         "poses_merged": int(sum(track.merged for track in chain)),

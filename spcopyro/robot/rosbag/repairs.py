@@ -3,11 +3,14 @@ named in the error (:mod:`spcopyro.robot.rosbag.bag` raises it).
 
 * a ROS 1 ``.bag`` that did not end cleanly: ``rosbag reindex``; an unfinished recording
   (``.bag.active``, ``rosbag record`` killed): ``rosbag reindex`` it, then give the ``.bag``;
-* an ``.mcap`` cut short: ``mcap recover``;
+* an ``.mcap`` cut short: ``mcap recover``; a ``.db3`` damaged or cut short: a fresh copy;
 * a ROS 2 bag folder whose metadata.yaml fails (a newer version than rosbags reads, broken
   YAML, a storage file renamed): its storage file given itself, or ``ros2 bag reindex``;
 * a storage file compressed whole (``.db3.zstd``, ``--compression-mode file``) or one whose
   messages are compressed (``--compression-mode message``) given without its folder: the folder;
+* one storage file of a ROS 2 bag split into several (``--max-bag-size``,
+  ``--max-bag-duration``) given alone: only its part of the recording is read, and the import
+  says so (:func:`other_pieces`);
 * a ROS 1 bag of a format before 2.0 (``#ROSRECORD V1.2``, recorded before ROS C Turtle, 2010),
   which rosbags does not read: ROS 1's ``rosbag filter`` writes it anew in format 2.0.
 """
@@ -21,6 +24,7 @@ __all__ = [
     "REPAIR",
     "compressed_messages",
     "none_read_fix",
+    "other_pieces",
     "old_ros1_format",
     "packed_file",
     "repair",
@@ -29,6 +33,8 @@ __all__ = [
 REPAIR = {
     ".bag": "; if its recording did not end cleanly, `rosbag reindex` repairs its index",
     ".mcap": "; if it was cut short, `mcap recover` rewrites what it holds",
+    ".db3": "; its sqlite3 file is damaged or cut short (an interrupted copy or recording?): "
+    "copy it again from the robot",
 }
 """The usual repair of a bag file that does not open (a recorder killed before it closed it)."""
 
@@ -112,8 +118,8 @@ def none_read_fix(path: Path) -> str:
 
 def repair(path: Path, why: str) -> str:
     """The usual repair of a bag ``path`` that does not open with the error ``why``: a bag
-    folder whose metadata.yaml fails is read from its storage file; a ROS 1 or mcap file cut
-    short has its tool (:data:`REPAIR`)."""
+    folder whose metadata.yaml fails is read from its storage file; a ROS 1, mcap or sqlite3 file
+    cut short has its remedy (:data:`REPAIR`)."""
     storage = sorted(p.name for p in path.glob("*") if p.suffix in (".db3", ".mcap"))
     if (
         path.is_dir()
@@ -124,4 +130,18 @@ def repair(path: Path, why: str) -> str:
             f"give its storage file ({path / storage[0]}) as BAG, or " if len(storage) == 1 else ""
         )
         return f"; it is its metadata.yaml that fails: {given}rewrite it with `ros2 bag reindex`"
-    return REPAIR.get(path.suffix or (".mcap" if any(path.glob("*.mcap")) else ""), "")
+    inside = {p.suffix for p in path.glob("*")} if path.is_dir() else set()
+    suffix = path.suffix or next((s for s in (".mcap", ".db3") if s in inside), "")
+    return REPAIR.get(suffix, "")
+
+
+def other_pieces(path: Path) -> list[str]:
+    """The other storage files beside the ROS 2 storage file ``path`` (``.db3`` / ``.mcap``):
+    rosbag2 writes one recording per folder, so they are the rest of a recording split into
+    several files, which ``path`` alone does not hold (empty for a bag folder, a ROS 1 bag, or
+    a storage file alone in its folder)."""
+    if not path.is_file() or path.suffix not in (".db3", ".mcap"):
+        return []
+    return sorted(
+        p.name for p in path.parent.glob(f"*{path.suffix}") if p.is_file() and p.name != path.name
+    )

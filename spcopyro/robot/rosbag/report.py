@@ -91,6 +91,14 @@ class BagImportReport:
                         f"{unread} are counted in its metadata.yaml only (not written when "
                         "recorded?)"
                     )
+            if others := t.get("storage_files_not_read"):
+                folder = Path(str(t["bag"])).parent
+                lines.append(
+                    f"warning: trial {t['trial']} ({t['bag']}): {folder} holds {len(others)} "
+                    f"more storage file(s) of its recording ({', '.join(others)}; rosbag2 "
+                    "split it), not read: give the folder to read the whole recording as one "
+                    "trial (without its metadata.yaml, `ros2 bag reindex` writes one)"
+                )
             if t.get("pose_frame_via_tf"):
                 lines.append(
                     f"trial {t['trial']} ({t['bag']}): poses in frame {t['pose_frame']} placed "

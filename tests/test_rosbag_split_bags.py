@@ -1,0 +1,153 @@
+"""``spcopyro import-bag`` on a ROS 2 recording split into several storage files (rosbag2's
+``--max-bag-size`` / ``--max-bag-duration``), a damaged ``.db3`` and a mistyped topic among
+several of its type. One file of a split bag given alone was read without a word about the rest
+(a third of the recording, silently); a folder of split files without metadata.yaml was to be
+given 'as BAG arguments', one trial per file. Bags written with
+:class:`spcopyro.robot.rosbag.BagWriter`, the split one joined as rosbag2 writes it."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip install .[ros])")
+
+from spcopyro.maps.grid import FREE, OccupancyGrid  # noqa: E402
+from spcopyro.maps.map_server import save_map  # noqa: E402
+from spcopyro.robot.rosbag import (  # noqa: E402
+    BagContentError,
+    BagFormatError,
+    BagWriter,
+    ImportOptions,
+    import_bags,
+)
+
+T0 = 1_600_000_000.0
+WORDS = ("kitchen", "bedroom", "toilet")
+
+
+@pytest.fixture
+def map_yaml(tmp_path: Path) -> Path:
+    """A 60 x 60 free map at 0.1 m, origin (-1, -1)."""
+    grid = OccupancyGrid(np.full((60, 60), FREE, dtype=np.int8), 0.1, (-1.0, -1.0, 0.0))
+    return save_map(grid, tmp_path / "maps" / "floor.yaml")
+
+
+def _split_bag(tmp_path: Path, storage: str = "sqlite3") -> Path:
+    """One recording of 30 s split into three storage files of 10 s each (3 images and one
+    utterance each), in one folder with the metadata.yaml rosbag2 writes for it."""
+    suffix = ".db3" if storage == "sqlite3" else ".mcap"
+    bag = tmp_path / "rec"
+    bag.mkdir()
+    infos, names = [], []
+    for part in range(3):
+        piece = tmp_path / f"piece_{part}"
+        with BagWriter(piece, storage=storage) as w:
+            for i in range(10):
+                t = T0 + 10 * part + i
+                w.pose("/amcl_pose", t, 0.1 * (10 * part + i), 0.0, 0.0)
+                if i % 3 == 1:
+                    w.image("/camera/image", t, np.full((4, 4, 3), part, np.uint8))
+            w.text("/speech", T0 + 10 * part + 3, WORDS[part])
+        meta = yaml.safe_load((piece / "metadata.yaml").read_text())
+        infos.append(meta["rosbag2_bagfile_information"])
+        names.append(f"rec_{part}{suffix}")
+        shutil.move(piece / f"piece_{part}{suffix}", bag / names[-1])
+        shutil.rmtree(piece)
+    info = infos[0]
+    info["relative_file_paths"] = names
+    info["files"] = [dict(i["files"][0], path=n) for i, n in zip(infos, names, strict=True)]
+    info["message_count"] = sum(i["message_count"] for i in infos)
+    for topic in info["topics_with_message_count"]:
+        topic["message_count"] *= 3  # every piece holds the same topics, as many messages
+    info["duration"]["nanoseconds"] = 30 * 10**9
+    (bag / "metadata.yaml").write_text(yaml.safe_dump({"rosbag2_bagfile_information": info}))
+    return bag
+
+
+@pytest.mark.parametrize("storage", ["sqlite3", "mcap"])
+def test_a_split_bag_reads_whole_from_its_folder_and_one_file_says_what_it_leaves(
+    tmp_path, map_yaml, storage
+):
+    bag = _split_bag(tmp_path, storage)
+    report = import_bags([bag], map_yaml, tmp_path / "d" / "whole", progress=False)
+    assert report.trials[0]["images_kept"] == 9
+    assert (report.out / "St.csv").read_text() == ",".join(WORDS)
+    assert report.trials[0]["storage_files_not_read"] == []
+    assert "warning" not in report.text()
+
+    suffix = ".db3" if storage == "sqlite3" else ".mcap"
+    piece = bag / f"rec_1{suffix}"
+    report = import_bags([piece], map_yaml, tmp_path / "d" / "piece", progress=False)
+    assert report.trials[0]["images_kept"] == 3  # its own third, as asked
+    others = [f"rec_0{suffix}", f"rec_2{suffix}"]
+    assert report.trials[0]["storage_files_not_read"] == others
+    assert (
+        f"warning: trial 0 ({piece}): {bag} holds 2 more storage file(s) of its recording "
+        f"({', '.join(others)}; rosbag2 split it), not read: give the folder to read the whole "
+        "recording as one trial" in report.text()
+    )
+
+
+def test_a_split_recording_without_metadata_says_ros2_bag_reindex(tmp_path, map_yaml):
+    """rosbag2 killed before it wrote metadata.yaml: the folder holds the pieces alone. Given as
+    BAG arguments (as the error said) they were three trials of one recording."""
+    bag = _split_bag(tmp_path)
+    (bag / "metadata.yaml").unlink()
+    with pytest.raises(BagFormatError) as error:
+        import_bags([bag], map_yaml, tmp_path / "d" / "h", progress=False)
+    assert (
+        f"it holds rec_0.db3, rec_1.db3, rec_2.db3: likely one recording that rosbag2 split into "
+        f"3 files: `ros2 bag reindex {bag}` writes its metadata.yaml" in str(error.value)
+    )
+    assert "give the bags as BAG arguments" not in str(error.value)
+
+
+@pytest.mark.parametrize("given", ["folder", "file"])
+def test_a_damaged_db3_says_what_to_do(tmp_path, map_yaml, given):
+    """A .db3 cut short (an interrupted copy): sqlite's 'database disk image is malformed' alone,
+    with no word of what to do (an .mcap or .bag named its repair tool)."""
+    bag = tmp_path / "rec"
+    with BagWriter(bag) as w:
+        for i in range(20):
+            w.pose("/amcl_pose", T0 + i, 0.0, 0.0, 0.0)
+            w.image("/camera/image", T0 + i, np.zeros((8, 8, 3), np.uint8))
+        w.text("/speech", T0, "hall")
+    db3 = bag / "rec.db3"
+    db3.write_bytes(db3.read_bytes()[: db3.stat().st_size // 2])
+    path = bag if given == "folder" else db3
+    with pytest.raises(BagFormatError) as error:
+        import_bags([path], map_yaml, tmp_path / "d" / "h", progress=False)
+    assert str(error.value).startswith(f"{path}: not a readable bag (")
+    assert str(error.value).endswith(
+        "; its sqlite3 file is damaged or cut short (an interrupted copy or recording?): copy "
+        "it again from the robot"
+    )
+
+
+def test_a_mistyped_topic_among_several_of_its_type_is_asked_for(tmp_path, map_yaml):
+    """A camera publishing raw and compressed: '/camera/imag' (a typo) named no topic to try
+    (only a bag's single topic of the type was); the close one is asked for now, and a name
+    close to none still asks for none."""
+    bag = tmp_path / "rec"
+    with BagWriter(bag) as w:
+        w.pose("/amcl_pose", T0, 0.0, 0.0, 0.0)
+        w.image("/camera/image", T0, np.zeros((4, 4, 3), np.uint8))
+        w.image("/camera/image/compressed", T0, np.zeros((4, 4, 3), np.uint8), "jpeg")
+        w.text("/speech", T0, "hall")
+    for typed, asked in (
+        ("/camera/imag", "/camera/image"),
+        ("/camera/image/compresed", "/camera/image/compressed"),
+    ):
+        options = ImportOptions(image_topic=typed)
+        with pytest.raises(BagContentError) as error:
+            import_bags([bag], map_yaml, tmp_path / "d" / "h", options, progress=False)
+        hint = f" (pass --image-topic {asked}?)" if asked else ""
+        assert f"{bag}: no image topic {typed!r}{hint}; the bag has: /amcl_pose" in str(error.value)
+    options = ImportOptions(image_topic="/front/rgb")
+    with pytest.raises(BagContentError, match=r"no image topic '/front/rgb'; the bag has"):
+        import_bags([bag], map_yaml, tmp_path / "d" / "h", options, progress=False)
