@@ -15,8 +15,10 @@ import pytest
 
 from spcopyro.config import SpCoSettings
 from spcopyro.data import Observations, cell_counts, load_house, save_house
+from spcopyro.data.inverted_map import check_placement
 from spcopyro.fit.house import prepare_model_data
-from spcopyro.maps import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
+from spcopyro.maps import FREE, OCCUPIED, UNKNOWN, OccupancyGrid, load_map
+from spcopyro.maps.coarse import coarsen_grid, coarsening_factor
 from spcopyro.synthetic import make_house
 
 HOUSES = ("room1dk5", "room1dk6", "room1ldk4", "room1ldk5", "room2ldk4")
@@ -51,20 +53,92 @@ def test_a_negated_map_is_refused_naming_its_yaml_and_negate_line(tmp_path, capl
     with caplog.at_level(logging.ERROR), pytest.raises(ValueError) as error:
         prepare_model_data(house, SpCoSettings())
     message = str(error.value)
-    assert f"on occupied cells on map {yaml_path}" in message
-    assert "negate inverts it" in message and "image is inverted" in message
-    assert f"{yaml_path}:{line}: negate 1: with negate 0, " in message
+    left_out, total = report.num_unplaced, report.num_observations
+    assert message.startswith(
+        f"{left_out} of {total} observations are left out, {left_out} of them on occupied "
+        f"cells on map {yaml_path}: the map's free space reads as occupied: {yaml_path}:{line}: "
+        "negate 1 on a map whose free space is drawn white (map_saver's maps need negate: 0): "
+        "with negate 0, "
+    )
+    assert message.endswith(f"{left_out} of the {left_out} observations left out would lie on them")
+    # the counts once: the placement warning before it gave the snapped and left-out ones
+    assert message.count(f"of {total}") == 1 and "snapped" not in message
 
 
-def test_the_public_houses_and_the_embedded_one_are_not_refused(dataset_root):
+def test_the_public_houses_are_not_refused(dataset_root):
     for name in HOUSES:
         house = load_house(dataset_root / name)
         report = cell_counts(house.grid, house.observations).placement
         assert not report.free_space_inverted(), name
         assert report.unplaced_on_occupied == 0, name
+
+
+def test_the_embedded_house_is_not_refused():
     house = make_house(seed=0)
     report = cell_counts(house.grid, house.observations).placement
     assert not report.free_space_inverted() and report.num_unplaced == 0
+
+
+def _plan(tmp_path: Path, image: np.ndarray, negate: int = 0) -> Path:
+    """``image`` ``[H, W]`` uint8 saved as ``plan.pgm`` beside ``plan.yaml``: 0.05 m cells, its
+    lower-left corner at the origin, map_saver's thresholds."""
+    height, width = image.shape
+    header = f"P5\n{width} {height}\n255\n".encode()
+    (tmp_path / "plan.pgm").write_bytes(header + image.astype(np.uint8).tobytes())
+    yaml_path = tmp_path / "plan.yaml"
+    yaml_path.write_text(
+        f"image: plan.pgm\nresolution: 0.05\norigin: [0.0, 0.0, 0.0]\nnegate: {negate}\n"
+        "occupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    )
+    return yaml_path
+
+
+def test_a_negated_map_is_refused_on_a_coarsened_model_grid(tmp_path):
+    """The presets' 0.25 m cells over a 0.05 m map (fit_house's model grid): the left-out
+    observations are counted on the map it was coarsened from, the negate line read from its
+    yaml. A 5 m plan drawn with free space white inside 0.5 m thick black walls, negate 1: the
+    walls read free, in whole model cells; most of the tour, in the room, is left out."""
+    image = np.zeros((100, 100), dtype=np.uint8)  # [H, W] the walls
+    image[10:90, 10:90] = 254  # the room, x and y 0.5..4.5 m
+    yaml_path = _plan(tmp_path, image, negate=1)
+    fine = load_map(yaml_path)
+    grid = coarsen_grid(fine, coarsening_factor(0.05, 0.25))  # the auto and coarse presets'
+    assert grid.resolution == 0.25 and grid.coarsened_from is fine and grid.num_free
+    room = np.array([[1.0 + 0.3 * i, 2.5] for i in range(10)])  # [10, 2] in the room
+    walls = np.array([[0.2, 1.0 + 0.5 * i] for i in range(4)])  # [4, 2] on the walls
+    obs = _observations(np.concatenate([room, walls]))
+    report = cell_counts(grid, obs, warn=False).placement
+    assert report.num_unplaced == 20 and report.unplaced_on_occupied == 20
+    with pytest.raises(ValueError) as error:
+        check_placement(report, obs, grid, f" on map {yaml_path}")
+    message = str(error.value)
+    assert message.startswith("20 of 28 observations are left out, 20 of them on occupied cells")
+    assert (
+        f"{yaml_path}:4: negate 1 on a map whose free space is drawn white (map_saver's maps "
+        "need negate: 0): with negate 0, 6400 cells would be free, not 3600, and 20 of the 20 "
+        "observations left out would lie on them"
+    ) in message
+
+
+def test_a_floor_plan_drawn_black_where_the_tour_went_is_not_blamed_on_negate(tmp_path):
+    """Most of the tour outside the drawn room, on its black: refused, but the other negate,
+    which frees the outside, would leave the observations in the room out instead: the message
+    names the causes on a map that is right and what to do, not negate."""
+    image = np.zeros((100, 100), dtype=np.uint8)  # [H, W] black outside, and the walls
+    image[30:70, 30:70] = 254  # a 2 m room, x and y 1.5..3.5 m: a drawing, not a robot's map
+    grid = load_map(_plan(tmp_path, image))
+    inside = np.array([[2.4 + 0.05 * i, 2.5] for i in range(4)])  # [4, 2] mid-room
+    outside = np.array([[0.5 + 0.1 * i, 0.5] for i in range(8)])  # [8, 2] on the black
+    obs = _observations(np.concatenate([inside, outside]))
+    report = cell_counts(grid, obs, warn=False).placement
+    assert report.free_space_inverted() and report.num_on_free == 8
+    with pytest.raises(ValueError) as error:
+        check_placement(report, obs, grid, f" on map {grid.source}")
+    message = str(error.value)
+    assert message.startswith("16 of 24 observations are left out, 16 of them on occupied cells")
+    assert "negate" not in message
+    assert "origin and resolution" in message and "unknown grey 205" in message
+    assert "--snap-distance, now 0.25 m" in message and "remove them from the data" in message
 
 
 def _observations(xy: np.ndarray) -> Observations:

@@ -38,6 +38,7 @@ from spcopyro._util.threads import (
 from spcopyro._util.timings import timed
 from spcopyro.config import WORDS, SpCoSettings, preset
 from spcopyro.data import CellCounts, House, prepared_cell_counts
+from spcopyro.data.inverted_map import check_placement
 from spcopyro.data.model_grid import model_house
 from spcopyro.data.word_weighting import resolved_preparation, resolved_settings
 from spcopyro.fit.gibbs_chains import (
@@ -197,7 +198,7 @@ def prepare_model_data(
     counts = prepared_cell_counts(
         grid, house.observations, settings.data, vocabulary=vocabulary, source=house.source
     )
-    counts.placement.check_on_free(where, grid)
+    check_placement(counts.placement, house.observations, grid, where)
     coverage = coverage_warning(house)
     if coverage:
         logger.warning(coverage)

@@ -42,22 +42,71 @@ def _map_levels(grid: OccupancyGrid) -> tuple[_MapYaml, np.ndarray, float] | Non
     return spec, levels, full
 
 
-def negate_hint(grid: OccupancyGrid) -> str:
-    """``"MAP.yaml:4: negate 1: with negate 0, 18622 cells would be free, not 1864"``: the
-    yaml's ``negate`` line and how many more cells the other ``negate`` frees, where it frees
-    more than it does now (free space drawn light under ``negate: 1``); "" otherwise or where
-    ``grid`` was not read from a yaml."""
+def _free_under_other_negate(spec: _MapYaml, levels: np.ndarray, full: float) -> np.ndarray:
+    """``[H, W]`` bool: the image's cells the other ``negate`` reads free (``p < free_thresh``)."""
+    return _occupancy(levels, full, not spec.negate)[1] < spec.free_thresh
+
+
+def _on_image(grid: OccupancyGrid, xy: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray:
+    """``[n, 2]`` (row, col) of the points ``xy`` ``[n, 2]`` (metres) on the map image
+    ``shape`` that ``grid`` (or the map it was coarsened from) was read from, those off it or
+    not finite dropped."""
+    fine = grid.coarsened_from if grid.coarsened_from is not None else grid
+    xy = np.asarray(xy if xy is not None else [], dtype=np.float64).reshape(-1, 2)  # [n, 2]
+    xy = xy[np.isfinite(xy).all(axis=1) & (np.abs(xy) < 2.0**40 * fine.resolution).all(axis=1)]
+    cells = np.asarray(fine.world_to_cell(xy), dtype=np.int64).reshape(-1, 2)  # [n, 2]
+    inside = (cells >= 0).all(axis=1) & (cells[:, 0] < shape[0]) & (cells[:, 1] < shape[1])
+    return cells[inside]
+
+
+def negate_hint(
+    grid: OccupancyGrid,
+    left_out: np.ndarray | None = None,
+    placed: np.ndarray | None = None,
+    reach: float = 0.0,
+) -> str:
+    """``"MAP.yaml:4: negate 1 on a map whose free space is drawn white (map_saver's maps need
+    negate: 0): with negate 0, 18622 cells would be free, not 1864, and 222 of the 222
+    observations left out would lie on them"``: the yaml's ``negate`` line, where the other
+    ``negate`` frees more cells than this one; "" otherwise or where ``grid`` was not read from a
+    yaml (or its image no longer matches it).
+
+    With ``left_out`` ``[n, 2]`` (metres: the observations left out of the counts), only where
+    the other ``negate`` frees the cells more than half of them lie on and, with ``placed``
+    ``[m, 2]`` (those in the counts), leaves more than half of those within ``reach`` metres of
+    its free cells: a drawing with free space white inside and black outside, where the tour
+    went, would trade the observations inside for those outside under the other ``negate`` (its
+    free space does not read inverted, the tour left the drawn free space)."""
     read = _map_levels(grid)
     if read is None:
         return ""
     spec, levels, full = read
+    freed = _free_under_other_negate(spec, levels, full)  # [H, W] bool
     now = int(np.count_nonzero(_occupancy(levels, full, spec.negate)[1] < spec.free_thresh))
-    flipped = int(np.count_nonzero(_occupancy(levels, full, not spec.negate)[1] < spec.free_thresh))
-    if flipped <= now:
+    flipped = int(np.count_nonzero(freed))
+    fine = grid.coarsened_from if grid.coarsened_from is not None else grid
+    if flipped <= now or fine.occupancy.shape != freed.shape:
         return ""
+    lands = ""
+    if left_out is not None:
+        cells = _on_image(grid, left_out, freed.shape)  # [n', 2]
+        on_freed = int(np.count_nonzero(freed[cells[:, 0], cells[:, 1]]))
+        if 2 * on_freed <= len(np.asarray(left_out).reshape(-1, 2)):
+            return ""
+        lands = f", and {on_freed} of the {len(left_out)} observations left out would lie on them"
+    if placed is not None and len(placed):
+        from scipy.ndimage import distance_transform_edt
+
+        cells = _on_image(grid, placed, freed.shape)  # [m', 2]
+        away = distance_transform_edt(~freed) * fine.resolution  # [H, W] metres to a freed cell
+        if 2 * int(np.count_nonzero(away[cells[:, 0], cells[:, 1]] <= reach)) <= len(placed):
+            return ""
+    drawn, need = ("white", "map_saver's maps need negate: 0") if spec.negate else (
+        "black", "such a map needs negate: 1")  # fmt: skip
     return (
-        f"{spec.where('negate')}: negate {spec.shown_negate()}: with negate "
-        f"{int(not spec.negate)}, {flipped} cells would be free, not {now}"
+        f"{spec.where('negate')}: negate {spec.shown_negate()} on a map whose free space is "
+        f"drawn {drawn} ({need}): with negate {int(not spec.negate)}, {flipped} cells would be "
+        f"free, not {now}{lands}"
     )
 
 
@@ -75,7 +124,6 @@ def no_free_cell_reason(grid: OccupancyGrid) -> str:
     grey, p = _occupancy(levels, full, spec.negate)  # [H, W] each, as load_map reads them
     if np.any(p < spec.free_thresh):  # the grid is not the yaml's as it reads now (edited)
         return _GENERIC
-    flipped = _occupancy(levels, full, not spec.negate)[1]  # [H, W] the other negate
     low, high = float(grey.min()), float(grey.max())
     formula = f"grey / {full:g}" if spec.negate else f"({full:g} - grey) / {full:g}"
     reason = (
@@ -86,7 +134,7 @@ def no_free_cell_reason(grid: OccupancyGrid) -> str:
         f"p = {formula} runs {float(p.min()):.4g}..{float(p.max()):.4g}: none is below "
         f"free_thresh {echo(spec.free_thresh)} (free)"
     )
-    rescued = int(np.count_nonzero(flipped < spec.free_thresh))
+    rescued = int(np.count_nonzero(_free_under_other_negate(spec, levels, full)))
     if full == 255 and low == high == PGM_UNKNOWN:
         reason += (
             f": every pixel is map_saver's unknown grey {PGM_UNKNOWN}, the map holds no "

@@ -1,0 +1,84 @@
+"""The fit's refusal of a placement most of whose observations are left out on occupied cells.
+
+:meth:`~spcopyro.data.placement.PlacementReport.free_space_inverted` says when: more than half of
+the observations left out, more than half of those on occupied cells of the map.
+:func:`check_placement` says why, once (the placement warnings before it gave the counts of
+snapped and left-out observations): the yaml's ``negate`` line where the other ``negate`` would
+free the cells the left-out observations lie on and keep those placed near free space
+(:func:`~spcopyro.maps.free_space.negate_hint`); otherwise the causes on a map that is
+right -- positions outside its frame, a floor plan drawn black where the tour went, thick walls
+beside positions a little off -- and what to do about each.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from spcopyro.data.observations import Observations
+from spcopyro.data.placement import PlacementReport
+from spcopyro.maps.grid import OccupancyGrid
+
+__all__ = ["check_placement", "inverted_free_space_message"]
+
+
+def _left_out_and_placed(
+    report: PlacementReport, obs: Observations
+) -> tuple[np.ndarray, np.ndarray]:
+    """(``[n, 2]`` positions of the observations left out, ``[m, 2]`` of those placed), every
+    modality's, in metres."""
+    positions = [obs.image_xy, obs.word_xy]  # [T, 2], [U, 2]
+    unplaced = [report.unplaced_images, report.unplaced_words]  # indices into each
+    for placed in report.modalities:
+        positions.append(next(m for m in obs.modalities if m.name == placed.name).positions)
+        unplaced.append(placed.unplaced_indices)
+    left_out, kept = [], []
+    for xy, out in zip(positions, unplaced, strict=True):
+        mask = np.zeros(len(xy), dtype=bool)  # [n_j] left out
+        mask[np.asarray(out, dtype=np.int64)] = True
+        left_out.append(np.asarray(xy, dtype=np.float64).reshape(-1, 2)[mask])
+        kept.append(np.asarray(xy, dtype=np.float64).reshape(-1, 2)[~mask])
+    return np.concatenate(left_out), np.concatenate(kept)
+
+
+def inverted_free_space_message(
+    report: PlacementReport, obs: Observations, grid: OccupancyGrid, where: str = ""
+) -> str:
+    """Why most observations are left out on occupied cells of ``grid`` (the fit's error when
+    :meth:`~spcopyro.data.placement.PlacementReport.free_space_inverted`); ``where`` names the
+    map (``" on map PATH"``)."""
+    from spcopyro.maps.free_space import negate_hint  # reads the map image again
+
+    left_out, placed = _left_out_and_placed(report, obs)
+    reach = report.snap_distance + grid.resolution  # placed: within snap distance of a cell
+    hint = negate_hint(grid, left_out, placed, reach)
+    counts = (
+        f"{report.num_unplaced} of {report.num_observations} observations are left out, "
+        f"{report.unplaced_on_occupied} of them on occupied cells{where}"
+    )
+    if hint:
+        return f"{counts}: the map's free space reads as occupied: {hint}"
+    return (
+        f"{counts}: the map draws occupied where most of the tour went. If the map is right: "
+        "the positions are not in its frame (check the yaml's origin and resolution, and that "
+        "the positions are metres in the map's frame), or the tour went where the map draws "
+        "walls -- a floor plan's outside or unmapped wings drawn black (draw them map_saver's "
+        "unknown grey 205: observations on unknown cells are left out with a warning, not "
+        "refused), or thick walls beside positions a little off (align the frame, or a larger "
+        f"snap distance, --snap-distance, now {report.snap_distance:g} m, places them on the "
+        "free space nearby). Otherwise its free_thresh / occupied_thresh leave its free space "
+        "occupied. To fit without those observations, remove them from the data (the warning "
+        "above names their lines)"
+    )
+
+
+def check_placement(
+    report: PlacementReport, obs: Observations, grid: OccupancyGrid, where: str = ""
+) -> None:
+    """Raise ValueError when no observation lands on free space
+    (:meth:`~spcopyro.data.placement.PlacementReport.check_on_free`) or when most are left out
+    on occupied cells (:func:`inverted_free_space_message`): a fit would learn every concept from
+    the prior alone, or from the few observations snapped onto the walls."""
+    if not report.free_space_inverted() or not report.num_on_free:
+        report.check_on_free(where)  # no grid: the inverted case is said here
+        return
+    raise ValueError(inverted_free_space_message(report, obs, grid, where))
