@@ -350,7 +350,15 @@ def bad_case(tmp_path: Path, **overrides: object) -> Path:
         ({"mode": "raw"}, ["'mode'", "'raw'", "load_filter_mask", "load_label_map_server"]),
         ({"mode": "fancy"}, ["'mode'", "'fancy'"]),
         ({"mode": "Trinary"}, ["bad.yaml:7:", "got 'Trinary'", "; did you mean 'trinary'?"]),
-        ({"mode": "SCALE"}, ["got 'SCALE'", "; did you mean 'scale'?"]),
+        (
+            {"mode": "SCALE"},
+            [
+                "bad.yaml:7: key 'mode': 'SCALE' (taken for 'scale'; map_server "
+                "refuses it as written) is not supported by load_map",
+                "reads as one with 'mode: trinary'",
+            ],
+        ),
+        ({"mode": "Raw"}, ["'Raw' (taken for 'raw'", "load_filter_mask", "load_label_map_server"]),
         ({"image": "."}, ["bad.yaml:1:", "key 'image': ", "is a folder, not an image file"]),
         ({"image": 3}, ["'image'", "got 3"]),
     ],
@@ -363,6 +371,36 @@ def test_bad_yaml_values(tmp_path: Path, overrides: dict, fragments: list[str]) 
     assert str(path) in message
     for fragment in fragments:
         assert fragment in message
+
+
+@pytest.mark.parametrize(
+    ("mode", "load", "fragment"),
+    [
+        ("SCALE", load_map, "is not supported by load_map"),
+        ("scal", load_map, "'scal' (taken for 'scale'; map_server refuses it as written)"),
+        (
+            "Trinary",
+            load_label_map_server,
+            "a semantic map needs 'mode: raw' and 'negate: 0', "
+            "got mode 'Trinary' (taken for 'trinary'",
+        ),
+        ("Trinary", load_map, "; did you mean 'trinary'?"),
+        ("RAW", load_label_map_server, "; did you mean 'raw'?"),
+        ("SCALE", load_filter_mask, "; did you mean 'scale'?"),
+    ],
+)
+def test_a_mode_in_the_wrong_case_gets_the_loaders_own_note_at_once(
+    tmp_path: Path, mode: str, load, fragment: str
+) -> None:
+    """``mode: SCALE`` given to load_map: its note on 'scale' (read as trinary), not a
+    did-you-mean 'scale' that it would refuse next; a did-you-mean only where the loader takes
+    the mode it suggests."""
+    path = bad_case(tmp_path, mode=mode)
+    with pytest.raises(MapFormatError) as info:
+        load(path)
+    message = str(info.value)
+    assert str(path) in message and fragment in message
+    assert ("did you mean" in message) == ("did you mean" in fragment)
 
 
 @pytest.mark.parametrize(

@@ -33,12 +33,12 @@ def _pnm_maxval(head: bytes) -> int | None:
 def _decode(spec: _MapYaml) -> tuple[np.ndarray, int | None]:
     """The map image as OpenCV decodes it (any depth, OpenCV channel order) and, for a netpbm
     image, the maxval its header gives (None for other formats)."""
-    if spec.image.is_dir():  # image: . or a folder's name
-        raise MapFormatError(
-            f"{spec.where('image')}: key 'image': {str(spec.image)!r} is a folder, not an "
-            "image file: name the map's image (pgm, png, ...) in it"
-        )
     if not spec.image.is_file():  # a hint where map_saver's path is wrong but the image is here
+        if spec.image.is_dir():  # image: . or a folder's name
+            raise MapFormatError(
+                f"{spec.where('image')}: key 'image': {str(spec.image)!r} is a folder, not an "
+                "image file: name the map's image (pgm, png, ...) in it"
+            )
         beside = spec.path.parent / spec.image.name
         hint = (
             f"; {str(beside)!r}, beside the yaml, has its name: map_saver writes the path it "

@@ -95,10 +95,10 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
             key is), the key and the offending value; also a map lying wholly beyond
             :data:`MAX_MAP_COORDINATE` of its frame's origin.
     """
-    spec = _read_map_yaml(yaml_path)
+    spec = _read_map_yaml(yaml_path, accepts=("trinary",))
     if spec.mode != "trinary":
         raise MapFormatError(
-            f"{spec.where('mode')}: key 'mode': {echo(spec.mode)} is not supported by load_map "
+            f"{spec.where('mode')}: key 'mode': {spec.shown_mode()} is not supported by load_map "
             "(only 'trinary', an occupancy map)"
             + (
                 ": a robot's map saved in that mode (map_saver --mode scale, a SLAM's graded "

@@ -94,6 +94,9 @@ class _MapYaml:
     """Line of each key in the yaml (1-based)."""
     negate_text: str = field(default="", compare=False)
     """``negate`` as written in the yaml (quotes removed), e.g. ``2`` or ``yes``."""
+    mode_text: str = field(default="", compare=False)
+    """``mode`` as written where it is not map_server's (``SCALE``, ``Raw``) and the mode it
+    looks like is one the caller refuses (``_read_map_yaml``'s ``accepts``), else ""."""
 
     def shown_negate(self) -> str:
         """``negate`` for a message: as written where it says what it reads as (``0``, ``1``,
@@ -103,6 +106,13 @@ class _MapYaml:
         if not self.negate_text or plain.get(self.negate_text.lower()) == reads:
             return self.negate_text or str(int(self.negate))
         return f"{self.negate_text} ({reads})"
+
+    def shown_mode(self) -> str:
+        """``mode`` for a caller's refusal: ``'scale'``, or as written with what it was taken
+        for, ``'SCALE' (taken for 'scale'; map_server refuses it as written)``."""
+        if not self.mode_text:
+            return echo(self.mode)
+        return f"{echo(self.mode_text)} (taken for {self.mode!r}; map_server refuses it as written)"
 
     def where(self, key: str) -> str:
         """``YAML:LINE`` of ``key``, or the yaml alone where the key is absent."""
@@ -261,8 +271,13 @@ def _parse_yaml(text: str) -> tuple[Any, Any]:
     return yaml.compose(text, Loader=_map_yaml_loader()), yaml.load(text, Loader=_map_yaml_loader())
 
 
-def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
-    """Parse and validate a map_server yaml; errors name the file, line, key and value."""
+def _read_map_yaml(yaml_path: str | os.PathLike, accepts: tuple[str, ...] = _MODES) -> _MapYaml:
+    """Parse and validate a map_server yaml; errors name the file, line, key and value.
+
+    A ``mode`` that is not map_server's but looks like one (``Trinary``, ``SCALE``) gets a
+    did-you-mean where the caller ``accepts`` that one; where the caller refuses it anyway, it
+    is read as that one (``mode_text`` keeps what was written) so that the caller's refusal
+    says why at once, not after a second try."""
     import yaml
 
     path = Path(yaml_path)
@@ -386,11 +401,13 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
         raise bad("negate", "an integer (0: white is free; any other: black is free) or a boolean")
     _check_thresholds(doc, where)
 
-    mode = doc.get("mode", "trinary")
+    mode = mode_text = doc.get("mode", "trinary")
     if mode not in _MODES:
         close = _close_key(mode, _MODES)  # map_server compares them case-sensitively
-        error = bad("mode", "one of 'trinary', 'scale', 'raw'")
-        raise MapFormatError(f"{error}; did you mean {close!r}?") if close else error
+        if close is None or close in accepts:
+            error = bad("mode", "one of 'trinary', 'scale', 'raw'")
+            raise MapFormatError(f"{error}; did you mean {close!r}?") if close else error
+        mode = close  # the caller refuses it as that mode, saying why (shown_mode)
 
     image = doc["image"]
     if not isinstance(image, str) or not image:
@@ -409,5 +426,6 @@ def _read_map_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
         occupied_thresh=float(doc["occupied_thresh"]),
         free_thresh=float(doc["free_thresh"]),
         mode=mode,
+        mode_text=str(mode_text) if mode != mode_text else "",
         lines=dict(lines),
     )

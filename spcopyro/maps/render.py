@@ -233,12 +233,12 @@ def load_label_map_server(yaml_path: str | os.PathLike) -> tuple[np.ndarray, Occ
         MapFormatError: the yaml is not ``mode: raw`` with ``negate: 0``, the sidecar json is
             missing or malformed, or a pixel value is neither a cell code nor a listed grey value.
     """
-    spec = _read_map_yaml(yaml_path)
+    spec = _read_map_yaml(yaml_path, accepts=("raw",))
     if spec.mode != "raw" or spec.negate:
         raise MapFormatError(
             f"{spec.where('mode' if spec.mode != 'raw' else 'negate')}: a semantic map needs "
             f"'mode: raw' and 'negate: 0', got mode "
-            f"{spec.mode!r}, negate {spec.shown_negate()}"
+            f"{spec.shown_mode()}, negate {spec.shown_negate()}"
         )
     sidecar_path = _sidecar_path(spec.path)
     if not sidecar_path.is_file():
