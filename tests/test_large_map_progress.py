@@ -69,11 +69,46 @@ def test_simulate_on_a_map_shows_a_bar_while_it_segments_the_rooms(large, capsys
     assert "/" in err.split("room segments at 1 m doors")[-1]
 
 
+def test_room_segments_show_a_bar_by_default_on_a_large_map(large, capsys):
+    """room_segments' default (None) is a bar on a large map, as auto_door_width's room counts
+    have: the fit's rooms start and baseline (F) call it without progress."""
+    from spcopyro.baselines.geometry import geometry_semantic_map, room_segments
+
+    house = make_house(seed=0, spec=HouseSpec(height=30, width=36, num_rooms=2))
+    room_segments(house.grid, door_width=1.0)
+    assert "room segments at 1 m doors" in capsys.readouterr().err
+    geometry_semantic_map(house.grid, house.observations, door_width=1.0)
+    assert "room segments at 1 m doors" in capsys.readouterr().err
+
+
+def test_room_count_stays_quiet_where_it_segments_the_rooms(large, capsys, monkeypatch):
+    """room_count's fallback (a min_room_area a hair above whole cells) segments the map once
+    per candidate width of auto_door_width, whose own bar counts the widths: no bar of its own,
+    as its level-set counts have none."""
+    from spcopyro.baselines import geometry
+
+    monkeypatch.setattr(geometry, "_counts_are_created", lambda res, area: False)
+    grid = make_house(seed=0, spec=HouseSpec(height=30, width=36, num_rooms=2)).grid
+    assert geometry.room_count(grid, 1.0, 1.0) >= 1
+    assert "room segments" not in capsys.readouterr().err
+
+
 def test_a_small_map_stays_quiet(monkeypatch, capsys):
-    """Below SETUP_PROGRESS_CELLS free cells none of these bars shows."""
+    """Below SETUP_PROGRESS_CELLS free cells none of these bars shows, bars on (CI unset): the
+    agreement map's (a fit with progress and marginal samples) and the room segments' (a map
+    tour, room_segments' default, baseline (F))."""
+    from spcopyro.baselines.geometry import geometry_semantic_map, room_segments
     from spcopyro.robot.map_simulation import MapTour, simulate_on_map
 
     monkeypatch.delenv("CI", raising=False)
-    grid = make_house(seed=0, spec=HouseSpec(height=30, width=36, num_rooms=2)).grid
-    simulate_on_map(grid, tour=MapTour(door_width=1.0))
-    assert "room segments" not in capsys.readouterr().err
+    house = make_house(seed=1, spec=HouseSpec(height=30, width=40, num_rooms=2, num_trials=2))
+    settings = preset("original-code", gamma=3.0, num_concepts=6)
+    result = fit_house(house, settings, sweeps=20, progress=True, marginal_samples=5,
+                       point_estimate="vi")  # fmt: skip
+    assert result.agreement is not None  # the agreement map was made, without a bar
+    simulate_on_map(house.grid, tour=MapTour(door_width=1.0))
+    room_segments(house.grid, door_width=1.0)
+    geometry_semantic_map(house.grid, house.observations, door_width=1.0)
+    err = capsys.readouterr().err
+    assert "point estimate" in err  # bars are on: the point estimate's is not a setup bar
+    assert "agreement map" not in err and "room segments" not in err

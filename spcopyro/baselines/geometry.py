@@ -100,12 +100,12 @@ def _min_cells(min_room_area: float, res: float) -> float:
     return min_room_area / res**2 - _EPS
 
 
-def _flood(distance: np.ndarray, levels: np.ndarray, min_cells: float, bar=None) -> np.ndarray:
+def _flood(distance: np.ndarray, levels: np.ndarray, min_cells: float, bar) -> np.ndarray:
     """``[H, W]`` int64 room id (1..) per reached cell, 0 elsewhere (the module's algorithm).
 
     ``distance`` ``[H, W]`` (0 off free space) and ``levels`` (descending, last 0) in cells,
-    ``min_cells`` the smallest new room in cells; ``bar.update()`` after each level where a
-    ``bar`` is given.
+    ``min_cells`` the smallest new room in cells; ``bar.update()`` after each level (a
+    :func:`~spcopyro._util.progress.setup_bar`, which shows nothing on a small map).
     """
     rooms = np.zeros(distance.shape, dtype=np.int64)  # [H, W]
     next_id = 1
@@ -123,8 +123,7 @@ def _flood(distance: np.ndarray, levels: np.ndarray, min_cells: float, bar=None)
         ids[new] = next_id + np.arange(int(new.sum()))
         next_id += int(new.sum())
         rooms = np.where(ids[components] > 0, ids[components], rooms)
-        if bar is not None:
-            bar.update()
+        bar.update()
     return rooms
 
 
@@ -133,7 +132,7 @@ def room_segments(
     *,
     door_width: float = DEFAULT_DOOR_WIDTH,
     min_room_area: float = DEFAULT_MIN_ROOM_AREA,
-    progress: bool | None = False,
+    progress: bool | None = None,
 ) -> np.ndarray:
     """``[H, W]`` int64 room segment of every free cell, -1 elsewhere (module docstring).
 
@@ -143,7 +142,9 @@ def room_segments(
         min_room_area: square metres; smallest new room at its level.
         progress: a bar over the levels on a map of SETUP_PROGRESS_CELLS free cells or more
             (:func:`~spcopyro._util.progress.setup_bar`; 2000 x 2000 cells at 0.05 m: 5-15 s);
-            None: on unless under CI; False (the default): none.
+            None (the default): on unless under CI, as for :func:`auto_door_width`'s room
+            counts (so the fit's rooms start, baseline (F) and the open-plan study show it);
+            False: none.
     """
     door_width = _positive_number("door_width", door_width)
     min_room_area = _positive_number("min_room_area", min_room_area)
@@ -349,6 +350,7 @@ def room_count(grid: OccupancyGrid, door_width: float, min_room_area: float) -> 
         distance = _distance(np.asarray(grid.free, dtype=bool))  # [H, W]
         min_cells = _min_cells(min_room_area, res)
         return _room_counts(distance, [door_width], res, min_cells, progress=False)[0]
-    segments = room_segments(grid, door_width=door_width, min_room_area=min_room_area)
+    segments = room_segments(grid, door_width=door_width, min_room_area=min_room_area,
+                             progress=False)  # fmt: skip
     sizes = np.bincount(segments[segments >= 0])  # [S] cells per segment
     return int(counts_as_room(sizes, res, min_room_area).sum())
