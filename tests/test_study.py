@@ -280,15 +280,48 @@ def test_a_map_tours_values_are_checked_when_read(line, words):
         ('sentence_fraction = "0.5"', "sentence_fraction = '0.5': expected a share in [0, 1] (a "
          "number in quotes is text: write 0.5 without the quotes)"),
         ('min_room_area = "inf"', "min_room_area = 'inf': expected square metres > 0"),
+        # nor where the number is of the right kind but out of the field's range
+        ('num_trials = "0"', "num_trials = '0': expected an integer >= 1"),
+        ('images_per_room = "-2"', "images_per_room = '-2': expected an integer >= 1"),
+        ('door_width = "-1"', "door_width = '-1': expected 'auto' or metres > 0"),
+        ('sentence_fraction = "2"', "sentence_fraction = '2': expected a share in [0, 1]"),
+        ('door_width = "0.9"', "door_width = '0.9': expected 'auto' or metres > 0 (a number in "
+         "quotes is text: write 0.9 without the quotes)"),
     ],
 )  # fmt: skip
 def test_a_quoted_number_is_hinted_only_where_it_would_pass_unquoted(line, said):
     """A count written "2.5" was told to write 2.5 without the quotes, which then still failed: the
-    hint checked float(), not what the field wants."""
+    hint checked float(), not what the field wants; "0" for a count >= 1 or "2" for a share was
+    told so too (the hint checked the kind of number, not the field's own check)."""
     text = f'[variants.a]\n[data.tour]\nmap = "room1dk5"\n{line}\n'
     with pytest.raises(StudyError) as error:
         study_from_dict(tomllib.loads(text), source="t.toml")
     assert str(error.value) == f"t.toml: [data.tour] {said}"
+
+
+@pytest.mark.parametrize(
+    "table, line, said",
+    [
+        ("study", 'sweeps = "0"', "[study] sweeps = '0': expected an integer >= 1"),
+        ("study", 'seeds = "0"', "[study] seeds = '0': expected a count >= 1 or a list of seeds "
+         ">= 0"),
+        ("data.s", 'seed = "-1"', "[data.s] seed = '-1': expected an integer >= 0"),
+        # where the unquoted number would pass, the hint stays (a seed may be 0)
+        ("data.s", 'seed = "0"', "[data.s] seed = '0': expected an integer >= 0 (a number in "
+         "quotes is text: write 0 without the quotes)"),
+        ("study", 'sweeps = "8"', "[study] sweeps = '8': expected an integer >= 1 (a number in "
+         "quotes is text: write 8 without the quotes)"),
+    ],
+)  # fmt: skip
+def test_a_quoted_count_out_of_range_gets_no_hint_to_unquote_it(table, line, said):
+    """``sweeps = "0"`` was told to write 0 without the quotes, which is refused too: the hint
+    checked only that the text was an integer, not the field's minimum."""
+    tables = {"study": "", "data.s": 'synthetic = "default"\n'}
+    tables[table] += line + "\n"
+    text = f"[study]\n{tables['study']}[variants.a]\n[data.s]\n{tables['data.s']}"
+    with pytest.raises(StudyError) as error:
+        study_from_dict(tomllib.loads(text), source="t.toml")
+    assert str(error.value) == f"t.toml: {said}"
 
 
 def test_python_spec_errors_and_method_grid():

@@ -40,7 +40,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-from collections.abc import Hashable, Mapping, Sequence
+from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -228,19 +228,27 @@ def _fail(source: str, where: str, value: object, why: str) -> StudyError:
     return StudyError(f"{source}: {where} = {value!r}: {why}", where)
 
 
-def _quoted_number(value: object, integer: bool = True) -> str:
+def _quoted_number(value: object, passes: Callable[[object], bool]) -> str:
     """A hint for a number written in quotes (``sweeps = "1_000"``: TOML reads text), else "".
-    Only where the text is what the field wants, an integer (or, with ``integer`` False, a
-    finite number): "2.5", "1e3" or "inf" for a count would still fail without the quotes."""
+    Only where the number unquoted would pass ``passes``, the field's own check: "2.5" for a
+    count, "0" for one >= 1 or "2" for a share would still fail without the quotes. Not for an
+    infinity ("inf"), which no field means."""
     if not isinstance(value, str):
         return ""
     try:
-        number = int(value) if integer else float(value)
+        number: int | float = int(value)
     except ValueError:
-        return ""
-    if not math.isfinite(number):
+        try:
+            number = float(value)
+        except ValueError:
+            return ""
+    if not math.isfinite(number) or not passes(number):
         return ""
     return f" (a number in quotes is text: write {value.strip()} without the quotes)"
+
+
+def _is_int_at_least(value: object, low: int) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= low
 
 
 def _seeds(source: str, value: object, where: str = "[study] seeds") -> tuple[int, ...]:
@@ -254,14 +262,13 @@ def _seeds(source: str, value: object, where: str = "[study] seeds") -> tuple[in
                 raise _fail(source, where, value, "a seed is given twice")
             return tuple(int(s) for s in value)
     why = "expected a count >= 1 or a list of seeds >= 0"
-    raise _fail(source, where, value, why + _quoted_number(value))
+    raise _fail(source, where, value, why + _quoted_number(value, lambda n: _is_int_at_least(n, 1)))
 
 
 def _positive_int(source: str, where: str, value: object, minimum: int = 1) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise _fail(
-            source, where, value, f"expected an integer >= {minimum}{_quoted_number(value)}"
-        )
+    if not _is_int_at_least(value, minimum):
+        hint = _quoted_number(value, lambda n: _is_int_at_least(n, minimum))
+        raise _fail(source, where, value, f"expected an integer >= {minimum}{hint}")
     return int(value)
 
 
@@ -430,9 +437,7 @@ def _data_source(source: str, name: str, table: object) -> DataSource:
                 raise _fail(source, f"{where} {key}", value, why)
         problem = _map_tour_problem(values) if kind == "map" else None
         if problem is not None:
-            value = values[problem[0]]
-            hint = _quoted_number(value, integer=problem[0] in _MAP_TOUR_COUNTS)
-            raise _fail(source, f"{where} {problem[0]}", value, problem[1] + hint)
+            raise _fail(source, f"{where} {problem[0]}", values[problem[0]], problem[1])
         try:
             trials = check().num_trials
         except (TypeError, ValueError) as error:
@@ -445,18 +450,11 @@ def _data_source(source: str, name: str, table: object) -> DataSource:
     return data
 
 
-_MAP_TOUR_COUNTS = frozenset({"num_trials", "images_per_room", "utterances_per_room"})
-"""The MapTour fields :func:`_map_tour_problem` wants integers in; its others take metres,
-square metres or a share."""
-
-
 def _map_tour_problem(values: Mapping[str, Any]) -> tuple[str, str] | None:
     """(field, why) for a MapTour value ``simulate_on_map`` refuses or misreads (MapTour checks
     none itself: each cell failed at run time, and ``categories = "kitchen"`` became the letters
-    k, i, t, ...), as HouseSpec checks its own; None when all are fine."""
-
-    def integer(value: object, low: int) -> bool:
-        return isinstance(value, int) and not isinstance(value, bool) and value >= low
+    k, i, t, ...), as HouseSpec checks its own; None when all are fine. ``why`` ends with the
+    hint to drop the quotes where the field's check would pass the number unquoted."""
 
     def number(value: object) -> bool:
         return isinstance(value, int | float) and not isinstance(value, bool) and value == value
@@ -468,15 +466,15 @@ def _map_tour_problem(values: Mapping[str, Any]) -> tuple[str, str] | None:
         "door_width": (lambda v: v == "auto" or (number(v) and v > 0),
                        "expected 'auto' or metres > 0"),
         "min_room_area": (lambda v: number(v) and v > 0, "expected square metres > 0"),
-        "num_trials": (lambda v: integer(v, 1), "expected an integer >= 1"),
-        "images_per_room": (lambda v: integer(v, 1), "expected an integer >= 1"),
-        "utterances_per_room": (lambda v: integer(v, 0), "expected an integer >= 0"),
+        "num_trials": (lambda v: _is_int_at_least(v, 1), "expected an integer >= 1"),
+        "images_per_room": (lambda v: _is_int_at_least(v, 1), "expected an integer >= 1"),
+        "utterances_per_room": (lambda v: _is_int_at_least(v, 0), "expected an integer >= 0"),
         "sentence_fraction": (lambda v: number(v) and 0 <= v <= 1, "expected a share in [0, 1]"),
     }  # fmt: skip
     for name, value in values.items():
         check, why = checks.get(name, (lambda v: True, ""))
         if not check(value):
-            return name, why
+            return name, why + _quoted_number(value, check)
     return None
 
 
