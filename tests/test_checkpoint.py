@@ -625,7 +625,12 @@ def test_a_fit_into_out_with_a_checkpoint_must_resume_or_overwrite(
 
 
 def test_the_command_recorded_and_printed_leaves_out_resume_however_it_was_typed():
-    from spcopyro.cli.fit_resume import RESUME_PREFIX, resume_command, without_resume
+    from spcopyro.cli.fit_resume import (
+        RESUME_PREFIX,
+        again_command,
+        resume_command,
+        without_resume,
+    )
     from spcopyro.cli.main import build_parser
 
     fit = build_parser()._subparsers._group_actions[0].choices["fit"]
@@ -637,6 +642,11 @@ def test_the_command_recorded_and_printed_leaves_out_resume_however_it_was_typed
         assert resume_command(args, Path("B")) == "spcopyro fit --out o --sweeps 9 --resume B"
     kept = argparse.Namespace(argv=["fit", "--refine", "never", "--region-moves", "0"])
     assert without_resume(kept) == kept.argv
+    # the resume command is the again command and --resume, each word quoted as the shell reads
+    spaced = argparse.Namespace(argv=["fit", "--out", "my fit", "--resume", "old one"])
+    again = "spcopyro fit --out 'my fit'"
+    assert again_command(spaced) == again
+    assert resume_command(spaced, Path("a b/c")) == f"{again} --resume 'a b/c'"
 
 
 def test_ctrl_c_right_after_out_is_written_leaves_no_stale_checkpoint(

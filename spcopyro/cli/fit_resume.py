@@ -137,7 +137,7 @@ def interrupted_before_fit(args: argparse.Namespace, stage: str) -> str:
 
 def resume_command(args: argparse.Namespace, checkpoint: Path) -> str:
     """This run's command line with ``--resume CHECKPOINT`` (in place of an earlier one)."""
-    return shlex.join(["spcopyro", *without_resume(args), "--resume", str(checkpoint)])
+    return f"{again_command(args)} {shlex.join(['--resume', str(checkpoint)])}"
 
 
 def again_command(args: argparse.Namespace) -> str:
