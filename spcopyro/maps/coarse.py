@@ -30,6 +30,8 @@ block.
 from __future__ import annotations
 
 import math
+import weakref
+from collections.abc import Callable
 
 import numpy as np
 
@@ -67,13 +69,37 @@ def _padding(grid: OccupancyGrid, factor: int) -> tuple[int, int]:
     return (-grid.height) % factor, (-grid.width) % factor
 
 
+def _kept_on(grid: OccupancyGrid, key: str, make: Callable[[], object]) -> object:
+    """``make()``, made once per ``grid`` object and kept in its ``__dict__`` (as
+    ``functools.cached_property`` keeps its values): a grid is frozen and its cells read-only,
+    so what is computed from it cannot go stale, and it goes when the grid goes (no global
+    cache to outlive a fit). A grid made anew (``dataclasses.replace``) starts without it."""
+    kept = grid.__dict__
+    if key not in kept:
+        kept[key] = make()
+    return kept[key]
+
+
 def coarsen_grid(grid: OccupancyGrid, factor: int) -> OccupancyGrid:
     """The grid of ``factor x factor`` blocks of ``grid`` (module docstring); ``factor`` 1: the
-    grid itself."""
+    grid itself. While the coarse grid is alive, ``grid`` gives that same object again (held
+    weakly, so no cycle keeps either alive): a fit asks for its model grid more than once (the
+    command, the refinement's decision), and the coarse grid keeps what was computed on it
+    (:func:`free_block_of_map_cells`)."""
     if isinstance(factor, bool) or not isinstance(factor, int | np.integer) or factor < 1:
         raise ValueError(f"factor must be an integer >= 1, got {factor!r}")
     if factor == 1:
         return grid
+    made = _kept_on(grid, "_coarsened", weakref.WeakValueDictionary)
+    assert isinstance(made, weakref.WeakValueDictionary)
+    coarse = made.get(int(factor))
+    if coarse is None:
+        coarse = made[int(factor)] = _coarsen(grid, int(factor))
+    return coarse
+
+
+def _coarsen(grid: OccupancyGrid, factor: int) -> OccupancyGrid:
+    """:func:`coarsen_grid` for ``factor`` >= 2, made anew."""
     pad_rows, pad_cols = _padding(grid, factor)
     occupancy = np.pad(
         np.asarray(grid.occupancy), ((pad_rows, 0), (0, pad_cols)), constant_values=UNKNOWN
@@ -119,7 +145,18 @@ def free_block_of_map_cells(grid: OccupancyGrid) -> np.ndarray:
     (a wall thickened over it), of the free block reached first by growing through the map's
     free cells (:func:`grow_labels`: 4-neighbourhood, never through a wall); -1 off free space
     and where no free block is reached. Raises ValueError for a grid not made by
-    :func:`coarsen_grid`."""
+    :func:`coarsen_grid`.
+
+    Computed once per ``grid`` object and kept on it (read-only): placing a fit's observations
+    asks for it once per modality and placement, 13 times in a default fit of a public house
+    (a 2000 x 2000-cell map: 0.3 s each)."""
+    made = _kept_on(grid, "_free_block_of_map_cells", lambda: _free_block_of_map_cells(grid))
+    assert isinstance(made, np.ndarray)
+    return made
+
+
+def _free_block_of_map_cells(grid: OccupancyGrid) -> np.ndarray:
+    """:func:`free_block_of_map_cells`, computed anew (read-only)."""
     fine = grid.coarsened_from
     if fine is None:
         raise ValueError("the grid was not coarsened from a map (grid.coarsened_from is None)")
@@ -131,28 +168,57 @@ def free_block_of_map_cells(grid: OccupancyGrid) -> np.ndarray:
     rows, cols = model_cell_of(fine, round(grid.resolution / fine.resolution))
     index = np.asarray(grid.free_index)[rows[:, None], cols[None, :]]  # [H, W] block's index
     free = np.asarray(fine.free)  # [H, W]
-    return grow_labels(np.where(free, index, -1), free)
+    block = grow_labels(np.where(free, index, -1), free)  # [H, W]
+    block.setflags(write=False)  # kept on the grid: no caller may change it
+    return block
 
 
 def grow_labels(labels: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """``[H, W]`` labels (>= 0; -1: none yet) grown over ``mask`` by a breadth-first wavefront
     (4-neighbourhood, one cell a step, all labels at once; ties go to the neighbour above,
     below, left, right in that order) until nothing changes. Cells of ``mask`` that no label
-    reaches stay -1."""
+    reaches stay -1.
+
+    Each step looks only at the cells labelled the step before (the wavefront) and at their
+    unlabelled neighbours in ``mask``: an unlabelled cell next to an older label would have
+    been labelled a step earlier. So the whole growth costs about one pass over the map plus
+    the cells it labels, not a pass over the map per step (on a 2000 x 2000-cell map with 0.25
+    m blocks, tens of steps of 4 x 10^6 cells each took 5-12 s)."""
     labels = np.asarray(labels, dtype=np.int64).copy()  # [H, W]
     mask = np.asarray(mask, dtype=bool)
     h, w = labels.shape
-    padded = np.full((h + 2, w + 2), -1, dtype=np.int64)
-    while True:
-        padded[1:-1, 1:-1] = labels
-        candidate = np.full_like(labels, -1)  # [H, W]
-        for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):  # an earlier direction wins ties
-            shifted = padded[1 + dr : 1 + dr + h, 1 + dc : 1 + dc + w]  # [H, W]
-            candidate = np.where(candidate < 0, shifted, candidate)
-        grow = mask & (labels < 0) & (candidate >= 0)  # [H, W] bool
-        if not grow.any():
-            return labels
-        labels[grow] = candidate[grow]
+    flat = labels.reshape(-1)  # [H*W] a view: writes land in labels
+    open_ = (mask & (labels < 0)).reshape(-1)  # [H*W] bool: may still be labelled
+    if not open_.any():
+        return labels
+    # The first wavefront: the labelled cells next to an open cell (the others label nothing).
+    near_open = np.zeros((h, w), dtype=bool)  # [H, W]
+    grid_open = open_.reshape(h, w)
+    near_open[1:, :] |= grid_open[:-1, :]
+    near_open[:-1, :] |= grid_open[1:, :]
+    near_open[:, 1:] |= grid_open[:, :-1]
+    near_open[:, :-1] |= grid_open[:, 1:]
+    front = np.flatnonzero((near_open & (labels >= 0)).reshape(-1))  # [F] flat indices
+    last_row = (h - 1) * w
+    while front.size:
+        col = front % w  # [F]
+        reach = np.concatenate(  # [<= 4F] the wavefront's neighbours on the map
+            (front[front >= w] - w, front[front < last_row] + w,
+             front[col > 0] - 1, front[col < w - 1] + 1)
+        )  # fmt: skip
+        grow = np.unique(reach[open_[reach]])  # [G] open cells the wavefront reaches
+        if not grow.size:
+            break
+        grow_col = grow % w  # [G]
+        new = np.full(grow.size, -1, dtype=np.int64)  # [G] labels before this step's
+        sides = ((-w, grow >= w), (w, grow < last_row), (-1, grow_col > 0), (1, grow_col < w - 1))
+        for step, valid in sides:  # above, below, left, right: an earlier direction wins ties
+            take = valid & (new < 0)
+            new[take] = flat[grow[take] + step]
+        flat[grow] = new  # every cell of grow has a labelled neighbour: new >= 0
+        open_[grow] = False
+        front = grow
+    return labels
 
 
 def labels_on_grid(labels: np.ndarray, grid: OccupancyGrid, cell_size: float | None) -> np.ndarray:

@@ -194,6 +194,12 @@ class OccupancyGrid:
 
     __hash__ = None  # type: ignore[assignment]  # holds an ndarray
 
+    def __getstate__(self) -> dict[str, Any]:
+        """The fields and cached properties, less what other modules keep on the grid under a
+        ``_`` name (:mod:`spcopyro.maps.coarse`'s coarse grids, held weakly, and block map):
+        a copy or pickle computes them again."""
+        return {k: v for k, v in self.__dict__.items() if not k.startswith("_")}
+
     def __repr__(self) -> str:
         return (
             f"OccupancyGrid(shape={self.shape}, resolution={self.resolution}, "
