@@ -109,6 +109,29 @@ def test_the_fit_path_imports_no_optional_heavy_module():
     assert done.stdout.strip() == "[]", done.stdout
 
 
+_FIT_AND_LOAD_MAP = """
+import json, sys
+from spcopyro.cli.main import main
+from spcopyro.maps import load_map
+assert main(["fit", "--sweeps", "2", "--no-figures", "--out", sys.argv[1]]) == 0
+load_map(sys.argv[1] + "/map.yaml")  # a map_saver pgm, as a ROS map's fit reads one
+print(json.dumps("cv2" in sys.modules))
+"""
+
+
+def test_a_fit_writes_and_reads_a_map_saver_pgm_without_opencv(tmp_path):
+    """A fit of the embedded house (--no-figures) writes its map, and a map_saver map
+    is read, without OpenCV's import (0.03 s of CPU; spcopyro.maps.map_image); the timings list
+    the optional modules imported, cv2 among them."""
+    out, timings = tmp_path / "fit", tmp_path / "timings.json"
+    done = subprocess.run([sys.executable, "-c", _FIT_AND_LOAD_MAP, str(out)], capture_output=True,
+                          text=True, env={**_env(), TIMINGS_ENV: str(timings)}, timeout=300,
+                          check=True)  # fmt: skip
+    assert json.loads(done.stdout.strip().splitlines()[-1]) is False
+    assert "cv2" in OPTIONAL_HEAVY and "cv2" not in json.loads(timings.read_text())["imported"]
+    assert (out / "map.pgm").read_bytes().startswith(b"P5\n")
+
+
 def test_the_command_exits_with_mains_code():
     """``python -m spcopyro`` (console_main: main, gc.freeze, exit) returns main's status."""
     done = subprocess.run([sys.executable, "-m", "spcopyro", "where", "/nonexistent/fit", "x"],

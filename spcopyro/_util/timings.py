@@ -30,6 +30,7 @@ from pathlib import Path
 TIMINGS_ENV = "SPCOPYRO_TIMINGS"
 """The environment variable naming the JSON file :meth:`Phases.write` writes (unset: none)."""
 OPTIONAL_HEAVY = (
+    "cv2",
     "matplotlib",
     "sklearn",
     "torchvision",
@@ -38,8 +39,9 @@ OPTIONAL_HEAVY = (
     "scipy.sparse",
     "scipy.spatial",
 )
-"""Modules a fit imports only where it uses them (figures, footprints, cluster and merge moves,
-snapping, a point estimate): :func:`imported_heavy` lists those loaded."""
+"""Modules a fit imports only where it uses them (images other than map_saver's pgm, figures,
+footprints, cluster and merge moves, snapping, a point estimate): :func:`imported_heavy` lists
+those loaded."""
 
 
 def imported_heavy() -> list[str]:

@@ -4,7 +4,9 @@ scales it, and encoding one.
 ``_read_levels`` gives the pixels and the full scale map_server divides them by (a netpbm
 image's maxval, else 255, or 65535 for a 16-bit png); ``_read_image`` the 8-bit codes of a
 mask or semantic map. Errors name the yaml's ``image`` line and the image file. OpenCV is
-imported where an image is read or written.
+imported where an image is read or written, except a map_saver image (a binary 8-bit P5 pgm,
+maxval 255), which is read and written here, byte for byte as OpenCV does: a fit of a ROS map or
+of the embedded house then skips OpenCV's import (0.03 s of CPU, issue 25's fixed cost).
 """
 
 from __future__ import annotations
@@ -30,6 +32,30 @@ def _pnm_maxval(head: bytes) -> int | None:
     return int(tokens[2]) if len(tokens) > 2 and tokens[2].isdigit() else None
 
 
+_PNM_GAP = rb"\s(?:\s|#[^\n\r]*)*"  # whitespace, then any whitespace and comments
+_P5_HEADER = re.compile(rb"P5%s(\d+)%s(\d+)%s(\d+)\s" % (_PNM_GAP, _PNM_GAP, _PNM_GAP))
+"""A binary pgm's header up to its raster: width, height, maxval and the one whitespace after
+it; between the fields whitespace, and comments (``#`` to the end of the line) after it."""
+
+
+def _plain_p5(data: np.ndarray) -> np.ndarray | None:
+    """The pixels ``[H, W]`` uint8 of a binary pgm of maxval 255 whose raster, after its header
+    (:data:`_P5_HEADER`), is exactly H * W bytes (what OpenCV decodes it to), or None for any
+    other image: OpenCV decodes those."""
+    match = _P5_HEADER.match(data[:4096].tobytes())
+    if match is None:
+        return None
+    width, height = int(match[1]), int(match[2])
+    if (
+        int(match[3]) != 255
+        or width == 0
+        or height == 0
+        or data.size - match.end() != width * height
+    ):
+        return None
+    return data[match.end() :].reshape(height, width).copy()
+
+
 def _decode(spec: _MapYaml) -> tuple[np.ndarray, int | None]:
     """The map image as OpenCV decodes it (any depth, OpenCV channel order) and, for a netpbm
     image, the maxval its header gives (None for other formats)."""
@@ -50,9 +76,11 @@ def _decode(spec: _MapYaml) -> tuple[np.ndarray, int | None]:
         raise MapFileNotFoundError(
             f"{spec.where('image')}: key 'image': image file {str(spec.image)!r} not found{hint}"
         )
+    data = np.fromfile(spec.image, dtype=np.uint8)
+    if (img := _plain_p5(data)) is not None:  # map_saver's images, without OpenCV's import
+        return img, 255
     import cv2
 
-    data = np.fromfile(spec.image, dtype=np.uint8)
     level = cv2.utils.logging.getLogLevel()
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)  # the error below says it
     try:
@@ -139,6 +167,14 @@ def _read_levels(spec: _MapYaml) -> tuple[np.ndarray, float]:
 
 
 def _write_image(path: Path, img: np.ndarray) -> None:
+    """``img`` encoded by its ``path``'s suffix, as OpenCV's ``imencode`` does; a grey 8-bit pgm
+    (the robot map's) without OpenCV: the same bytes."""
+    if path.suffix.lower() == ".pgm" and img.dtype == np.uint8 and img.ndim == 2:
+        height, width = img.shape
+        path.write_bytes(
+            b"P5\n%d %d\n255\n" % (width, height) + np.ascontiguousarray(img).tobytes()
+        )
+        return
     import cv2
 
     ok, buf = cv2.imencode(path.suffix, img)
