@@ -68,8 +68,9 @@ FeatureScaling = Literal["probability", "floor100"] | float
 WordWeighting = Literal["count", "tfidf"]
 """Word counts as they are, or tf-idf weighted (paper eq. 20)."""
 WordWeightingSetting = Literal["count", "tfidf", "auto"]
-"""A :data:`WordWeighting`, or ``"auto"``: tf-idf when any utterance is a sentence (more than one
-token), counts otherwise, resolved once the data are known (:mod:`spcopyro.data.word_weighting`)."""
+"""A :data:`WordWeighting`, or ``"auto"``: tf-idf when at least 30% of the utterances are
+sentences (more than one token), counts otherwise, resolved once the data are known
+(:mod:`spcopyro.data.word_weighting`)."""
 WORD_WEIGHTINGS: tuple[str, ...] = ("count", "tfidf", "auto")
 DEFAULT_SNAP_DISTANCE = 0.25  # metres: the largest snap the public houses need
 FootprintKernel = Literal["uniform", "gaussian"]
@@ -279,9 +280,9 @@ class DataPreparation:
         feature_scaling: how image histograms become counts: ``"probability"`` (as they are),
             ``"floor100"`` (floor(100 f), the released code) or a float s (s * f).
         word_weighting: ``"count"``, ``"tfidf"`` (paper eq. 20, for sentences) or ``"auto"``
-            (the default): tf-idf when any utterance is a sentence (more than one token), counts
-            otherwise; a fit resolves it once the data are known and records the resolved value
-            (:mod:`spcopyro.data.word_weighting`).
+            (the default): tf-idf when at least 30% of the utterances are sentences (more than
+            one token), counts otherwise; a fit resolves it once the data are known and
+            records the resolved value (:mod:`spcopyro.data.word_weighting`).
         snap_distance: metres within which an observation off free space is moved to the nearest
             free cell (farther ones are reported and left out).
         footprint_radius: metres; > 0 spreads each observation over the free cells within this

@@ -1,11 +1,16 @@
-"""The word weighting ``auto`` (the default): tf-idf when the utterances are sentences (any
-utterance of more than one token), counts otherwise; resolved once the data are known,
+"""The word weighting ``auto`` (the default): tf-idf when the utterances are sentences (at
+least 30% of them of more than one token), counts otherwise; resolved once the data are known,
 recorded as resolved (config.json, the data line), kept by an update
-(:mod:`spcopyro.data.word_weighting`)."""
+(:mod:`spcopyro.data.word_weighting`). It was tf-idf when any utterance was a sentence: one
+"living room" in a house of single words switched it to tf-idf, which weighs down the place
+words said most often."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import math
+import re
 
 import numpy as np
 import pytest
@@ -15,6 +20,7 @@ from spcopyro.cli.main import main
 from spcopyro.config import DataPreparation, preset
 from spcopyro.data import cell_counts
 from spcopyro.data.word_weighting import (
+    TFIDF_SENTENCE_SHARE,
     auto_word_weighting,
     auto_word_weighting_note,
     resolve_word_weighting,
@@ -42,13 +48,65 @@ def test_sentences_are_weighted_by_tfidf_single_words_are_counted():
     assert auto_word_weighting(sentences.observations) == "tfidf"
     total = sentences.observations.num_utterances
     assert auto_word_weighting_note(sentences.observations) == (
-        f"auto: {said} of {total} utterances are sentences"
+        f"auto: {said} of {total} utterances are sentences ({100 * said // total}%; tf-idf "
+        "from 30%)"
     )
     # an explicit weighting is kept whatever the utterances are
     assert resolve_word_weighting("count", sentences.observations) == "count"
     assert resolve_word_weighting("tfidf", words.observations) == "tfidf"
     with pytest.raises(ValueError, match=r"word_weighting='bm25': must be one of"):
         resolve_word_weighting("bm25", words.observations)
+
+
+def _named(observations, names: int, utterances: int | None = None):
+    """``observations`` (its first ``utterances``, default all) with its first ``names``
+    utterances the two-word place name "living room"."""
+    keep = slice(0, utterances)
+    said = tuple(
+        ("living", "room") if i < names else tokens
+        for i, tokens in enumerate(observations.utterances[keep])
+    )
+    return dataclasses.replace(
+        observations,
+        utterances=said,
+        word_xy=observations.word_xy[keep],
+        word_trial=observations.word_trial[keep],
+    )
+
+
+def test_a_few_two_word_names_in_a_house_of_single_words_are_still_counted():
+    house = _house(0.0)
+    total = house.observations.num_utterances
+    for names in (1, 2):
+        observations = _named(house.observations, names)
+        assert sentence_count(observations) == names
+        assert auto_word_weighting(observations) == "count"  # was tf-idf: any sentence
+        np.testing.assert_array_equal(
+            cell_counts(house.grid, observations, word_weighting="auto").word_counts,
+            cell_counts(house.grid, observations, word_weighting="count").word_counts,
+        )
+    one = _named(house.observations, 1)
+    assert auto_word_weighting_note(one) == (
+        f"auto: 1 of {total} utterances is a sentence ({100 // total}%; tf-idf from 30%)"
+    )
+
+
+def test_tfidf_from_the_threshold_share_of_sentences_on():
+    assert TFIDF_SENTENCE_SHARE == 0.3
+    words = _house(0.0).observations
+    total = words.num_utterances
+    needed = math.ceil(TFIDF_SENTENCE_SHARE * total)  # 11 of 36: 30.6%; 10 are 27.8%
+    assert auto_word_weighting(_named(words, needed - 1)) == "count"
+    assert auto_word_weighting(_named(words, needed)) == "tfidf"
+    # exactly the share: 3 of 10 (a float 0.3 * 10 would read 3.0000000000000004)
+    assert auto_word_weighting(_named(words, 3, utterances=10)) == "tfidf"
+    assert auto_word_weighting(_named(words, 2, utterances=10)) == "count"
+    assert auto_word_weighting_note(_named(words, 3, utterances=10)) == (
+        "auto: 3 of 10 utterances are sentences (30%; tf-idf from 30%)"
+    )
+    nothing = _named(words, 0, utterances=0)
+    assert auto_word_weighting(nothing) == "count"
+    assert auto_word_weighting_note(nothing) == "auto: no words"
 
 
 def test_auto_is_the_default_and_the_counts_follow_the_rule():
@@ -111,10 +169,30 @@ def test_fit_records_the_resolved_weighting_and_says_why(sentence_house, tmp_pat
     _fit(sentence_house, tmp_path / "auto")
     text = capsys.readouterr().out
     assert _recorded(tmp_path / "auto") == "tfidf"
-    assert ", word weighting tfidf (auto: " in text and " utterances are sentences)" in text
+    assert ", word weighting tfidf (auto: " in text
+    assert " utterances are sentences (50%; tf-idf from 30%))" in text  # 18 of 36
     _fit(sentence_house, tmp_path / "count", "--word-weighting", "count")
     assert _recorded(tmp_path / "count") == "count"
     assert "word weighting" not in capsys.readouterr().out  # counts: said as before
+
+
+def test_a_house_with_too_few_sentences_is_counted_and_says_why(tmp_path, capsys):
+    spec = HouseSpec(**SMALL, sentence_fraction=0.1)  # 6 of 36 utterances are sentences
+    house = write_synthetic(tmp_path / "data", seed=1, spec=spec)
+    _fit(house, tmp_path / "auto")
+    assert _recorded(tmp_path / "auto") == "count"
+    data = [line for line in capsys.readouterr().out.splitlines() if line.startswith("data ")]
+    assert re.search(
+        r", word weighting count \(auto: 6 of 36 utterances are sentences \(16%; tf-idf from "
+        r"30%\)\)",
+        data[0],
+    ), data
+    # single words only (the public houses): counted, and the data line says nothing, as ever
+    words = write_synthetic(tmp_path / "words", seed=1, spec=HouseSpec(**SMALL))
+    _fit(words, tmp_path / "words_fit")
+    assert _recorded(tmp_path / "words_fit") == "count"
+    data = [line for line in capsys.readouterr().out.splitlines() if line.startswith("data ")]
+    assert "word weighting" not in data[0], data
 
 
 def test_tfidf_is_an_alias_of_word_weighting_tfidf(sentence_house, tmp_path, capsys):

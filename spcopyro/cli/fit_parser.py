@@ -115,9 +115,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     weighting = p.add_mutually_exclusive_group()
     weighting.add_argument(
         "--word-weighting", choices=("count", "tfidf", "auto"),
-        help="words counted as they are, weighted by tf-idf (eq. 20), or auto: tf-idf when any "
-             "utterance is a sentence (more than one word), counts otherwise; config.json "
-             "records the one used (default: auto; --update: the updated fit's)",
+        help="words counted as they are, weighted by tf-idf (eq. 20), or auto: tf-idf when at "
+             "least 30%% of the utterances are sentences (more than one word), counts "
+             "otherwise; config.json records the one used (default: auto; --update: the "
+             "updated fit's)",
     )  # fmt: skip
     weighting.add_argument("--tfidf", dest="word_weighting", action="store_const",
                            const="tfidf", help="--word-weighting tfidf")  # fmt: skip

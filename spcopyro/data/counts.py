@@ -307,7 +307,7 @@ def cell_counts(
         modalities[j].counts[m] = sum over observations o of modality j in m of counts_o
 
     (``"auto"``, the default of a fit's :class:`~spcopyro.config.DataPreparation`: tf-idf when
-    any utterance of ``obs`` has more than one token, else counts,
+    at least 30% of the utterances of ``obs`` have more than one token, else counts,
     :mod:`spcopyro.data.word_weighting`. This function counts unless told otherwise.)
 
     Further modalities are placed exactly like images (same snapping) and summed as they are

@@ -443,8 +443,8 @@ def fit_house(
 
     Args:
         settings: model hyperparameters and data preparation (default: :func:`preset`'s); a
-            word weighting ``"auto"`` is resolved for the house's utterances (tf-idf when any
-            is a sentence, :mod:`spcopyro.data.word_weighting`) and recorded as resolved.
+            word weighting ``"auto"`` is resolved for the house's utterances (tf-idf when at
+            least 30% are sentences, :mod:`spcopyro.data.word_weighting`) and recorded as resolved.
         method: the inference method's name in :mod:`spcopyro.fit.registry` (``"gibbs"``).
         options: the method's options (``GibbsOptions`` for Gibbs; None for its defaults).
         sweeps: iterations (Gibbs sweeps), or ``"auto"`` for Gibbs: :func:`fit_house_converged`

@@ -64,9 +64,9 @@ def spcoa_data(
 ) -> SpCoAData:
     """The events of ``observations``: images, with each utterance paired to the nearest image of
     its trial within ``pair_distance`` metres, and word-only events for the rest.
-    ``word_weighting``: ``"count"``, ``"tfidf"`` or ``"auto"`` (tf-idf when any utterance is a
-    sentence, as SpCoMapping's fit and :func:`~spcopyro.baselines.spcoa.fit_spcoa` by default:
-    :mod:`spcopyro.data.word_weighting`).
+    ``word_weighting``: ``"count"``, ``"tfidf"`` or ``"auto"`` (tf-idf when at least 30% of the
+    utterances are sentences, as SpCoMapping's fit and
+    :func:`~spcopyro.baselines.spcoa.fit_spcoa` by default: :mod:`spcopyro.data.word_weighting`).
 
     Raises ValueError when there is nothing to cluster (no images and no utterances) or
     ``pair_distance`` is not a finite number >= 0.

@@ -255,7 +255,7 @@ def fit_spcoa(
     those of :class:`SpCoAHyperparameters`; ``feature_scaling`` turns each image histogram into
     counts (:func:`spcopyro.data.scale_features`: the default 10 gives an image the weight of
     ten class draws), ``word_weighting`` is ``"count"``, ``"tfidf"`` (eq. 20) or ``"auto"``
-    (tf-idf when any utterance is a sentence, as SpCoMapping's fit:
+    (tf-idf when at least 30% of the utterances are sentences, as SpCoMapping's fit:
     :mod:`spcopyro.data.word_weighting`) and
     ``pair_distance`` pairs utterances with images (:func:`spcoa_data`).
 
