@@ -27,10 +27,23 @@ from spcopyro.cli.main import build_parser, main
         (["simulate-bag", "--out", "B"],
          "interrupted spcopyro simulate-bag: what it had written to B is removed"),
         (["where", "R", "kitchen"], "interrupted spcopyro where: nothing written"),
-        (["where", "R", "kitchen", "--out", "w.png"], "interrupted spcopyro where: w.png may "
-         "hold half-written files; run the same command again to write them whole"),
-        (["show", "--out", "s.png"], "interrupted spcopyro show: s.png may hold half-written "
-         "files; run the same command again to write them whole"),
+        (["where", "R", "kitchen", "--out", "w.png"], "interrupted spcopyro where: w.png and "
+         "w_probability.png are each written whole or not at all (a file there before stays "
+         "until it is replaced)"),
+        (["where", "R", "kitchen", "--out", "d/w"], "interrupted spcopyro where: d/w.png and "
+         "d/w_probability.png are each written whole or not at all (a file there before stays "
+         "until it is replaced)"),
+        (["show", "--out", "s.png"], "interrupted spcopyro show: s.png is written whole or not "
+         "at all (a file there before stays until it is replaced)"),
+        (["show", "R", "--graph", "--out", "g.png"], "interrupted spcopyro show: g.png and "
+         "g.json are each written whole or not at all (a file there before stays until it is "
+         "replaced)"),
+        (["import-bag", "B", "--map", "M", "--out", "d/H", "--overwrite"], "interrupted "
+         "spcopyro import-bag: nothing written to d/H (it is written whole at the end, or not "
+         "at all); d/map/H.yaml and .pgm may already be the new map's (they are written just "
+         "before OUT)"),
+        (["fit", "D", "--out", "O"], "interrupted spcopyro fit: nothing written to O (it is "
+         "written whole at the end, or not at all)"),
         (["study", "S", "--out", "O"], "interrupted spcopyro study: O keeps the cells finished "
          "so far; run the same command again to continue"),
         (["compare-inference", "--out", "C"], "interrupted spcopyro compare-inference: C keeps "
@@ -53,3 +66,44 @@ def test_ctrl_c_in_simulate_names_it_and_its_folder(tmp_path, monkeypatch, capsy
         f"interrupted spcopyro simulate: {tmp_path / 'h'} may hold half-written files; run the "
         "same command again (with --overwrite) to write them whole\n"
     )
+
+
+def test_where_and_show_name_the_files_they_write():
+    """The line's files are those ``where`` and ``show --graph`` write (cli.main's
+    probability_figure, the JSON beside the graph): interrupted.py cannot import them."""
+    from pathlib import Path
+
+    from spcopyro.cli.interrupted import _figures
+    from spcopyro.cli.main import probability_figure
+
+    for out in ("w.png", "d/w", "w.jpg"):
+        args = build_parser().parse_args(["where", "R", "kitchen", "--out", out])
+        figure = Path(out if Path(out).suffix else f"{out}.png")
+        assert _figures(args, out) == [str(figure), str(probability_figure(Path(out)))]
+
+
+@pytest.mark.parametrize(("command", "hidden"), [("export", ""), ("import-bag", ".")])
+def test_an_overwrite_stopped_while_carrying_files_over_names_the_set_aside_folder(
+    tmp_path, monkeypatch, command, hidden
+):
+    """--overwrite sets the old OUT aside (OUT.replaced-XXXXXXXX, hidden for import-bag), puts
+    the new one in its place and carries the user's files over: a stop there left the new OUT
+    and the rest of the old one in the set-aside folder while the line said "nothing written"."""
+    monkeypatch.chdir(tmp_path)
+    argv = (["export", "R", "--nav2", "N", "--overwrite"] if command == "export"
+            else ["import-bag", "B", "--map", "M", "--out", "N", "--overwrite"])  # fmt: skip
+    args = build_parser().parse_args(argv)
+    (tmp_path / f"{hidden}N.replaced-0a1b2c3d").mkdir()
+    map_note = ("; map/N.yaml and .pgm may already be the new map's (they are written just "
+                "before OUT)") if command == "import-bag" else ""  # fmt: skip
+    assert interrupted_line(args) == (
+        f"interrupted spcopyro {command}: nothing new written; the old N is in "
+        f"{hidden}N.replaced-0a1b2c3d{map_note}"
+    )  # stopped between its two renames: no N
+    (tmp_path / "N").mkdir()
+    assert interrupted_line(args) == (
+        f"interrupted spcopyro {command}: N is the new one, written whole; what of the old one "
+        f"was not yet carried into it is in {hidden}N.replaced-0a1b2c3d{map_note}"
+    )
+    args.overwrite = False  # nothing is set aside without --overwrite: a leftover is not named
+    assert interrupted_line(args).startswith(f"interrupted spcopyro {command}: nothing written")

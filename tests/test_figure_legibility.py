@@ -340,7 +340,7 @@ def _overlaps_an_axes(fig, artist) -> bool:
 def test_the_comparison_legend_leaves_the_panels():
     """comparison_public.png: the methods' legend (inside the first panel) covered the top-1
     lines; it stands below the panels."""
-    from spcopyro.experiments.comparison_report import curves_figure
+    from spcopyro.experiments.comparison_figure import curves_figure
     from spcopyro.experiments.inference_comparison import VARIANTS
 
     curve = [{"seconds": s, "top1": 0.5, "distance_m": 1.0} for s in (0.1, 1.0, 10.0)]

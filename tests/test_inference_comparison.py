@@ -581,6 +581,32 @@ def test_an_interrupted_comparison_says_its_report_is_an_earlier_runs(
     assert "earlier run" not in capsys.readouterr().err
 
 
+def test_a_report_replaced_before_the_stop_is_not_called_an_earlier_runs(
+    tmp_path, capsys, monkeypatch
+):
+    """The reports are written at the end, each replaced whole: a Ctrl-C after comparison.md was
+    replaced and before comparison.json was named both "an earlier run's, not rewritten"."""
+    import spcopyro.study.comparison as comparison
+    from spcopyro._util.outputs import replace_text
+
+    out = tmp_path / "cmp"
+    out.mkdir()
+    for name in ("comparison.md", "comparison.json"):
+        (out / name).write_text("an earlier run\n")
+
+    def stopped_between_the_reports(*args, **kwargs):
+        replace_text(out / "comparison.md", "this run\n")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(comparison, "run_comparison", stopped_between_the_reports)
+    command = ["compare-inference", "--out", str(out), "--quick", "--houses", "synthetic",
+               "--methods", "gibbs", "--iterations", "gibbs=5"]  # fmt: skip
+    assert main(command) == 130
+    err = capsys.readouterr().err
+    assert f"\n{out / 'comparison.json'}: an earlier run's, not rewritten" in f"\n{err}", err
+    assert str(out / "comparison.md") not in err
+
+
 def test_the_table_says_how_many_iterations_each_line_ran(tmp_path):
     """comparison.md gave the budgets only ("Iterations: cavi 200, vi-gibbs 3"): a variational
     line that stopped at its tolerance long before, and vi-gibbs's CAVI start (whose time its s
@@ -632,7 +658,7 @@ def test_the_figure_names_the_parameters_its_scores_read():
     each label map (module docstring), the table's "matching rate (means | labels)" column; it
     read "matching rate" beside a table whose "matching rate" is of the method's own output
     (SVI: 0.508 in the table, its curve ending at 0.306)."""
-    from spcopyro.experiments.comparison_report import curves_figure
+    from spcopyro.experiments.comparison_figure import curves_figure
 
     methods = {key: v.label for key, v in VARIANTS.items()}
     curve = [{"seconds": 1.0, "ari": 0.5, "matching_rate": 0.5, "top1": 0.2, "distance_m": 1.0}]
@@ -654,7 +680,7 @@ def test_no_axis_label_of_the_figure_runs_over_its_title():
     (lower is better)" on one line, was taller than its panel and ran over the figure's title."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    from spcopyro.experiments.comparison_report import curves_figure
+    from spcopyro.experiments.comparison_figure import curves_figure
 
     methods = {key: v.label for key, v in VARIANTS.items()}
     curve = [{"seconds": 1.0, "ari": 0.5, "matching_rate": 0.5, "top1": 0.2, "distance_m": 1.0}]
@@ -677,8 +703,12 @@ def test_each_curve_s_last_point_is_marked_as_the_reported_map():
     legend entry, and comparison.md says the same under the figure."""
     from matplotlib.colors import to_rgba
 
-    from spcopyro.experiments.comparison_figure import FINAL_LABEL, FINAL_MARKER, FINAL_NOTE
-    from spcopyro.experiments.comparison_report import curves_figure
+    from spcopyro.experiments.comparison_figure import (
+        FINAL_LABEL,
+        FINAL_MARKER,
+        FINAL_NOTE,
+        curves_figure,
+    )
 
     methods = {key: v.label for key, v in VARIANTS.items()}
     gibbs = [{"seconds": 0.1, "top1": 0.3, "distance_m": 0.5},
@@ -788,6 +818,7 @@ def test_a_listed_concept_where_no_word_was_heard_says_so():
     each of the 8 largest concepts of a 300-sweep Gibbs fit of room1dk5, as if those were its
     words."""
     from spcopyro.config import preset
+    from spcopyro.experiments.comparison_report import found_words
     from spcopyro.results.concept_words import format_concept_words
     from spcopyro.synthetic import HouseSpec, make_house
 
@@ -802,10 +833,30 @@ def test_a_listed_concept_where_no_word_was_heard_says_so():
     assert any(silent) and not all(silent), [result.heard(c) for c in listed]  # both kinds
     for c, quiet, words in zip(listed, silent, record["top_words"], strict=True):
         expected = "/".join(w for w, _ in result.top_words(c, 2))
-        assert words == (comparison.NO_WORDS if quiet else expected), (c, words)
-    # in the words the fit's own listing, ``where`` and the figures use ("(no words heard)" was
-    # the comparison's own)
-    assert comparison.NO_WORDS == format_concept_words([], [], 0.0) == "(no words heard here)"
+        assert words == ("" if quiet else expected), (c, words)  # data: no words, no text
+    # shown in the words the fit's own listing, ``where`` and the figures use ("(no words
+    # heard)" was the comparison's own)
+    shown = found_words(record["top_words"]).split("; ")
+    assert [s == format_concept_words([], [], 0.0) for s in shown] == silent, shown
+    assert found_words(["kitchen/sink", ""]) == "kitchen/sink; (no words heard here)"
+
+
+def test_a_cached_record_of_an_earlier_version_reads_as_this_ones():
+    """Records held the display text ("(no words heard)", then "(no words heard here)") for a
+    concept that heard no word: a wording change rewrote 21 entries of the old-records fixture,
+    and an earlier run's cached cells were listed in the old words beside new ones. A record
+    holds "" now; an earlier run's cells read the same."""
+    from spcopyro.experiments.comparison_report import found_words
+    from spcopyro.study.comparison import records_of_rows
+
+    old = ["kitchen/sink", "(no words heard)", "(no words heard here)"]
+    row = {"status": "ok", "data_kind": "synthetic", "variant": "gibbs",
+           "details": json.dumps({"top_words": old, "concepts": 3})}  # fmt: skip
+    (record,) = records_of_rows([row])["synthetic"]["gibbs"]
+    assert record == {"top_words": ["kitchen/sink", "", ""], "concepts": 3}
+    assert found_words(record["top_words"]) == (
+        "kitchen/sink; (no words heard here); (no words heard here)"
+    )
 
 
 def test_results_csv_fills_cpu_seconds_and_best_objective(tmp_path):

@@ -484,3 +484,18 @@ def replace_file(path: str | os.PathLike[str], write: Callable[[BinaryIO], None]
             os.unlink(partial)
         raise
     return path
+
+
+def replace_text(path: str | os.PathLike[str], text: str) -> Path:
+    """``Path(path).write_text(text)`` (UTF-8), whole or not at all (:func:`replace_file`): a
+    report rewritten in place and stopped by Ctrl-C stays the old one, not a half of the new."""
+    return replace_file(path, lambda file: file.write(text.encode("utf-8")))
+
+
+def replace_figure(figure: object, path: str | os.PathLike[str], **savefig: object) -> Path:
+    """``figure.savefig(path, **savefig)``, whole or not at all (:func:`replace_file`); the same
+    bytes. The format is ``savefig``'s ``format`` or, as savefig reads it, ``path``'s suffix
+    (``png`` without one; the path is not given one). ``figure``: a matplotlib Figure."""
+    kind = savefig.pop("format", None) or Path(path).suffix[1:].lower() or "png"
+    draw = figure.savefig  # type: ignore[attr-defined]
+    return replace_file(path, lambda file: draw(file, format=kind, **savefig))

@@ -1,25 +1,38 @@
-"""The line ``spcopyro`` prints when Ctrl-C (or SIGTERM) stops a command other than ``fit``
-(which says more itself, :mod:`spcopyro.cli.fit_resume`): which command stopped and whether
-anything it writes may be left half-written. Imports nothing of the package (``main`` is on the
-``--help`` path, which must not import torch)."""
+"""The line ``spcopyro`` prints when Ctrl-C (or SIGTERM) stops a command: which command stopped
+and what became of what it writes. ``fit`` says more itself (:mod:`spcopyro.cli.fit_resume`,
+from the moment its parser's handler runs); it is listed in :data:`WHOLE` for a Ctrl-C in the
+instant before that handler is in place, when this line is the one printed. Imports nothing of
+the package (``main`` is on the ``--help`` path, which must not import torch)."""
 
 from __future__ import annotations
 
 import argparse
+import os
+from pathlib import PurePath
 
 __all__ = ["interrupted_line"]
 
 WHOLE = frozenset({"export", "features", "features-head", "fit", "import-bag", "navigate"})
 """Commands whose ``--out`` appears whole or not at all: a folder written in a staging folder
 and moved into place (:mod:`spcopyro._util.outputs`), or one file replaced whole."""
+EACH_WHOLE = frozenset({"show", "where"})
+"""Commands that write one or two files (a figure; ``where``'s ``_probability`` figure beside
+it, ``show --graph``'s JSON), each replaced whole (:func:`spcopyro._util.outputs.replace_file`):
+the file there before stays until its new one is complete."""
 REMOVED = frozenset({"simulate-bag"})
 """Commands that remove what they had written when stopped."""
 STUDIES = frozenset({"ablation", "compare-inference", "experiment", "study"})
-"""Commands that run a study into ``--out``: every finished cell is kept there."""
-IN_PLACE = frozenset({"show", "simulate", "where"})
+"""Commands that run a study into ``--out``: every finished cell is kept there (and each report
+the command writes is replaced whole: ``spcopyro.study.commands`` names those left an earlier
+run's)."""
+IN_PLACE = frozenset({"simulate"})
 """Commands that write their ``--out`` in place: a file being written may be left half-written."""
 OUT_OPTION = {"export": "nav2"}
 """The attribute of a command's output where it is not ``out`` (``export --nav2 DIR``)."""
+SET_ASIDE = {"import-bag": "."}
+"""The prefix of the folder an ``--overwrite`` sets the old OUT aside in while it carries the
+files it did not write into the new one (:func:`spcopyro._util.outputs.swapped_in`: hidden for
+``import-bag``); the others' is none."""
 
 
 def interrupted_line(args: argparse.Namespace) -> str:
@@ -31,16 +44,61 @@ def interrupted_line(args: argparse.Namespace) -> str:
     out = getattr(args, OUT_OPTION.get(command, "out"), None)
     line = f"interrupted spcopyro {command}"
     if out is None:  # where, navigate without --out: they write nothing
-        return f"{line}: nothing written" if command in WHOLE | IN_PLACE else line
+        return f"{line}: nothing written" if command in WHOLE | EACH_WHOLE else line
     if command in WHOLE:
-        return f"{line}: nothing written to {out} (it is written whole at the end, or not at all)"
+        overwrite = getattr(args, "overwrite", False)
+        aside = _set_aside(command, out) if overwrite else []
+        if aside and not os.path.isdir(out):  # stopped between the two renames
+            line = f"{line}: nothing new written; the old {out} is in {', '.join(aside)}"
+        elif aside:  # stopped while the old OUT's files were carried into the new one
+            line = (f"{line}: {out} is the new one, written whole; what of the old one was not "
+                    f"yet carried into it is in {', '.join(aside)}")  # fmt: skip
+        else:
+            line = (
+                f"{line}: nothing written to {out} (it is written whole at the end, or not at all)"
+            )
+        if command == "import-bag" and overwrite:
+            path = PurePath(out)  # the house's map, as the import names it (rosbag.importer)
+            line += (f"; {path.parent / 'map' / path.name}.yaml and .pgm may already be the new "
+                     "map's (they are written just before OUT)")  # fmt: skip
+        return line
+    if command in EACH_WHOLE:
+        files = _figures(args, out)
+        each = f"{files[0]} is" if len(files) == 1 else f"{' and '.join(files)} are each"
+        return (f"{line}: {each} written whole or not at all (a file there before stays until "
+                "it is replaced)")  # fmt: skip
     if command in REMOVED:
         return f"{line}: what it had written to {out} is removed"
     if command in STUDIES:
         return (f"{line}: {out} keeps the cells finished so far; run the same command again to "
                 "continue")  # fmt: skip
     if command in IN_PLACE:
-        again = " (with --overwrite)" if command == "simulate" else ""
-        return (f"{line}: {out} may hold half-written files; run the same command again"
-                f"{again} to write them whole")  # fmt: skip
+        return (f"{line}: {out} may hold half-written files; run the same command again (with "
+                "--overwrite) to write them whole")  # fmt: skip
     return line
+
+
+def _figures(args: argparse.Namespace, out: str) -> list[str]:
+    """The files ``show`` or ``where`` writes for ``--out OUT``, as the user named OUT: the
+    figure (``.png`` added where OUT has no suffix, as ``cli.common.figure_file`` adds it), and
+    ``where``'s ``NAME_probability.EXT`` (``cli.main.probability_figure``) or ``show --graph``'s
+    ``NAME.json``."""
+    figure = PurePath(out if PurePath(out).suffix else f"{out}.png")
+    if args.command == "where":
+        return [str(figure), str(figure.with_name(f"{figure.stem}_probability{figure.suffix}"))]
+    if getattr(args, "graph", False):
+        return [str(figure), str(figure.with_suffix(".json"))]
+    return [str(figure)]
+
+
+def _set_aside(command: str, out: str) -> list[str]:
+    """The folders an ``--overwrite`` of ``out`` set the old one aside in and kept, the block
+    carrying its files over having been stopped (``OUT.replaced-XXXXXXXX``), sorted."""
+    path = PurePath(os.path.abspath(out))
+    prefix = f"{SET_ASIDE.get(command, '')}{path.name}.replaced-"
+    try:
+        names = os.listdir(path.parent)
+    except OSError:
+        return []
+    shown = PurePath(out).parent
+    return sorted(str(shown / n) for n in names if n.startswith(prefix))

@@ -170,6 +170,7 @@ def show_graph(args: argparse.Namespace) -> int:
     and the graph as JSON beside the PNG, named after it (``graph.json``)."""
     import json
 
+    from spcopyro._util.outputs import replace_text
     from spcopyro.cli.common import load_fit
     from spcopyro.results.concept_names import answered_words
     from spcopyro.robot.navigation.figure import plot_place_graph
@@ -184,7 +185,7 @@ def show_graph(args: argparse.Namespace) -> int:
     graph = place_graph(result, min_area=args.min_area)
     png = plot_place_graph(result, graph, args.out)
     written = png.with_suffix(".json")  # X.png -> X.json: two graphs in one folder keep both
-    written.write_text(json.dumps(graph.to_json(), indent=2) + "\n")
+    replace_text(written, json.dumps(graph.to_json(), indent=2) + "\n")  # whole or not at all
     doors = sum(e.doorway for e in graph.passages)
     print(f"{plural(len(graph.places), 'place')}, {plural(len(graph.passages), 'passage')} "
           f"({plural(doors, 'doorway')}); "

@@ -25,6 +25,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from spcopyro._util.messages import command_time, fixed, plural, seconds_text
+from spcopyro._util.outputs import replace_figure, replace_text
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, json_default
 from spcopyro.figures.fonts import any_script
 from spcopyro.synthetic.statistics import public_and_synthetic_statistics, statistics_table
@@ -295,7 +296,7 @@ def figure(report: dict, settings: AblationSettings, path: Path) -> Path:
     """Write :func:`ablation_figure` to ``path`` (``ablation.png``)."""
     fig = ablation_figure(report, settings)
     with any_script(fig):  # words of any script, not boxes
-        fig.savefig(path, dpi=110, bbox_inches="tight")
+        replace_figure(fig, path, dpi=110, bbox_inches="tight")  # whole or not at all
     return path
 
 
@@ -392,8 +393,8 @@ def write_report(
     report["statistics_md"] = statistics_table(stats)
     text = markdown(report, settings)
     del report["statistics_md"]
-    (out / "ablation.md").write_text(text)
-    (out / "ablation.json").write_text(json.dumps(report, indent=1, default=json_default) + "\n")
+    replace_text(out / "ablation.md", text)  # each whole or not at all
+    replace_text(out / "ablation.json", json.dumps(report, indent=1, default=json_default) + "\n")
     figure(report, settings, out / "ablation.png")
     return report
 

@@ -20,6 +20,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
+from spcopyro._util.outputs import replace_figure
 from spcopyro.experiments.inference_comparison import LOWER_IS_BETTER, SCORES, SYNTHETIC, VARIANTS
 from spcopyro.figures.fonts import any_script
 
@@ -54,7 +55,7 @@ def plot_curves(summary: dict[str, object], house_type: str, path: Path) -> Path
     fig = curves_figure(summary, house_type)
     path.parent.mkdir(parents=True, exist_ok=True)
     with any_script(fig):  # words of any script, not boxes
-        fig.savefig(path, dpi=110, bbox_inches="tight")
+        replace_figure(fig, path, dpi=110, bbox_inches="tight")  # whole or not at all
     return path
 
 

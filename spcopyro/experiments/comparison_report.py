@@ -17,13 +17,14 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from spcopyro._util.messages import command_time, fixed, plural, seconds_text
+from spcopyro._util.outputs import replace_text
 from spcopyro.experiments.comparison_figure import FINAL_NOTE, SCORE_NAMES, plot_curves
-from spcopyro.experiments.comparison_figure import curves_figure as curves_figure  # re-exported
 from spcopyro.experiments.comparison_headline import (
     TIE,
     at_first_map,
@@ -36,8 +37,8 @@ from spcopyro.experiments.comparison_headline import (
 )
 from spcopyro.experiments.comparison_stats import CONFIDENT
 from spcopyro.experiments.inference_comparison import (
+    HEARD_NOTHING,
     LOWER_IS_BETTER,
-    NO_WORDS,
     PRIMARY,
     PUBLIC,
     SYNTHETIC,
@@ -47,6 +48,7 @@ from spcopyro.experiments.inference_comparison import (
 )
 from spcopyro.experiments.table import json_default
 from spcopyro.inference.protocol import options_for_start
+from spcopyro.results.concept_words import NO_WORDS
 
 
 def _mean_sd(values: list[float]) -> dict[str, float]:
@@ -178,6 +180,11 @@ def _finding_seconds(value: float) -> str:
     (seconds_text's one decimal read "0.1 s vs 0.044 s (3.3x slower)" for 0.144 s)."""
     return seconds_text(value) if not value < 1 else f"{value:.2g}"
 
+
+NO_WORDS_SHOWN = f"({NO_WORDS})"
+"""How "Concepts found" shows a concept that heard no word (a record's
+:data:`~spcopyro.experiments.inference_comparison.HEARD_NOTHING`): as the fit's listing,
+``where`` and the figures show it (:func:`spcopyro.results.concept_words.format_concept_words`)."""
 
 CHANCE_ARI = 0.05
 """A mean final ARI below this is at chance: the time to 95% of it (t95) means nothing (an SVI
@@ -384,6 +391,12 @@ def _public_fits(records: dict[str, list[dict]]) -> str:
     return "; ".join(parts) or "none"
 
 
+def found_words(entries: Sequence[str]) -> str:
+    """A line of "Concepts found": a record's ``top_words`` entries (``"kitchen/sink"``, or
+    :data:`~spcopyro.experiments.inference_comparison.HEARD_NOTHING`: :data:`NO_WORDS_SHOWN`)."""
+    return "; ".join(NO_WORDS_SHOWN if w == HEARD_NOTHING else w for w in entries)
+
+
 def table_markdown(summary: dict[str, object]) -> str:
     """``comparison.md``: one table per house type, the settings and the findings."""
     settings: dict = summary["settings"]  # type: ignore[assignment]
@@ -483,13 +496,13 @@ def table_markdown(summary: dict[str, object]) -> str:
         lines += ["", f"![quality against time](comparison_{house_type}.png)", "", FINAL_NOTE, ""]
     lines += [
         "## Concepts found (the first fit of each house type: top 2 words of the largest "
-        f"8 concepts; {NO_WORDS}: none was said in the concept's region, whose words are only "
-        "the prior's)",
+        f"8 concepts; {NO_WORDS_SHOWN}: none was said in the concept's region, whose words are "
+        "only the prior's)",
         "",
     ]
     for house_type, by_variant in by_type.items():
         for key, s in by_variant.items():
-            words = "; ".join(s["top_words_first_fit"])
+            words = found_words(s["top_words_first_fit"])
             lines.append(f"- {house_type}, {key}: {words}")
     lines += ["", "## Findings (from the numbers above)", ""]
     none = (  # the section was left empty
@@ -512,9 +525,9 @@ def write_report(out: Path, summary: dict[str, object]) -> list[Path]:
     summary["figures"] = [p.name for p in figures]
     json_path = out / "comparison.json"
     text = json.dumps(_finite(summary), indent=1, default=json_default, allow_nan=False)
-    json_path.write_text(text + "\n")
+    replace_text(json_path, text + "\n")  # each whole or not at all
     md_path = out / "comparison.md"
-    md_path.write_text(table_markdown(summary))
+    replace_text(md_path, table_markdown(summary))
     return [json_path, md_path, *figures]
 
 

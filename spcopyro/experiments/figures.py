@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from spcopyro._util.outputs import replace_figure
 from spcopyro.figures.fonts import any_script
 
 
@@ -21,7 +22,7 @@ def plot_stability(stability: dict, path: Path, method: str = "A-dp") -> Path:
     fig = stability_figure(stability, method)
     path.parent.mkdir(parents=True, exist_ok=True)
     with any_script(fig):  # words of any script, not boxes
-        fig.savefig(path, dpi=120, bbox_inches="tight")
+        replace_figure(fig, path, dpi=120, bbox_inches="tight")  # whole or not at all
     return path
 
 

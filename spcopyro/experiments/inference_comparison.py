@@ -76,7 +76,6 @@ from spcopyro.metrics import (
     matching_rate,
 )
 from spcopyro.model import ModelData
-from spcopyro.results import concept_words
 from spcopyro.results.result import SpCoResult
 from spcopyro.synthetic import HouseSpec
 
@@ -378,17 +377,31 @@ def fit_and_score_with_result(
     return record, final_result
 
 
-NO_WORDS = f"({concept_words.NO_WORDS})"
-"""A listed concept's entry in a record's ``top_words`` when no word was heard in its region:
-its w is the prior's, whose top words are a tie broken by vocabulary order (a disordered Gibbs
-map of room1dk5 listed "bedroom/shelf" for each of its 8 largest concepts). The words
-``where``, the figures and ``concepts()`` show for such a concept, in brackets."""
+HEARD_NOTHING = ""
+"""A listed concept's entry in a record's ``top_words`` when no word was heard in its region (no
+words, as ``"kitchen/sink"`` joins two): its w is the prior's, whose top words are a tie broken
+by vocabulary order (a disordered Gibbs map of room1dk5 listed "bedroom/shelf" for each of its 8
+largest concepts). comparison.md shows it as ``where``, the figures and ``concepts()`` do
+(:data:`spcopyro.results.concept_words.NO_WORDS`): the record keeps data, not display text."""
+OLD_HEARD_NOTHING = frozenset({"(no words heard)", "(no words heard here)"})
+"""What a record's ``top_words`` held for such a concept before :data:`HEARD_NOTHING` (cells
+cached by an earlier version): read as it (:func:`current_record`)."""
+
+
+def current_record(record: dict) -> dict:
+    """``record`` (a comparison cell's, perhaps cached by an earlier version) as this version
+    writes one: its ``top_words`` entries of :data:`OLD_HEARD_NOTHING` read
+    :data:`HEARD_NOTHING`."""
+    words = record.get("top_words")
+    if isinstance(words, list) and any(w in OLD_HEARD_NOTHING for w in words):
+        record["top_words"] = [HEARD_NOTHING if w in OLD_HEARD_NOTHING else w for w in words]
+    return record
 
 
 def _top_words(result: SpCoResult, concept: int) -> str:
-    """``"kitchen/sink"``: the concept's 2 most probable words, or :data:`NO_WORDS`."""
+    """``"kitchen/sink"``: the concept's 2 most probable words, or :data:`HEARD_NOTHING`."""
     if result.heard(concept) == 0:
-        return NO_WORDS
+        return HEARD_NOTHING
     return "/".join(w for w, _ in result.top_words(concept, 2))
 
 

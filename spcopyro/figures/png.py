@@ -8,6 +8,9 @@ thread and leaves the PNG to one writer thread, so the next figure is drawn mean
 ends when every file is written (and raises the first error). The file is byte for byte the one
 :meth:`~matplotlib.figure.Figure.savefig` writes (the same pixels, the same ``Software`` text
 chunk and resolution). Outside the block it is :meth:`~matplotlib.figure.Figure.savefig`.
+Either way the file is written beside its place and renamed into it
+(:func:`~spcopyro._util.outputs.replace_file`): a Ctrl-C leaves the old file or none, never half
+of a PNG.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.transforms import Bbox
 
+from spcopyro._util.outputs import replace_figure, replace_file
 from spcopyro._util.timings import timed
 from spcopyro.figures.fonts import any_script
 
@@ -58,7 +62,7 @@ def save_png(fig: Figure, path: str | os.PathLike[str], dpi: float, box: Bbox) -
     """Write ``fig`` at ``dpi`` cropped to ``box`` (inches) as the PNG ``path``: here, or on the
     writer thread of an open :func:`background_writes` block."""
     if not _writer:
-        fig.savefig(path, dpi=dpi, bbox_inches=box)
+        replace_figure(fig, path, dpi=dpi, bbox_inches=box)  # whole or not at all
         return
     buffer = io.BytesIO()
     fig.savefig(buffer, format="rgba", dpi=dpi, bbox_inches=box)
@@ -66,13 +70,14 @@ def save_png(fig: Figure, path: str | os.PathLike[str], dpi: float, box: Bbox) -
     renderer = getattr(fig.canvas, "renderer", None)  # the Agg renderer it was drawn on
     size = (int(getattr(renderer, "width", 0)), int(getattr(renderer, "height", 0)))
     if size[0] * size[1] * 4 != len(pixels):  # not as drawn here: draw it again, as a PNG
-        fig.savefig(path, dpi=dpi, bbox_inches=box)
+        replace_figure(fig, path, dpi=dpi, bbox_inches=box)
         return
     _pending.append(_writer[0].submit(_write, os.fspath(path), pixels, size, dpi))
 
 
 def _write(path: str, pixels: bytes, size: tuple[int, int], dpi: float) -> None:
-    """The PNG :func:`matplotlib.image.imsave` writes for the RGBA ``pixels`` of ``size``."""
+    """The PNG :func:`matplotlib.image.imsave` writes for the RGBA ``pixels`` of ``size``, whole
+    or not at all (:func:`~spcopyro._util.outputs.replace_file`)."""
     import matplotlib
     from PIL import Image, PngImagePlugin
 
@@ -81,7 +86,7 @@ def _write(path: str, pixels: bytes, size: tuple[int, int], dpi: float) -> None:
     info.add_text(
         "Software", f"Matplotlib version{matplotlib.__version__}, https://matplotlib.org/"
     )
-    image.save(path, format="png", pnginfo=info, dpi=(dpi, dpi))
+    replace_file(path, lambda file: image.save(file, format="png", pnginfo=info, dpi=(dpi, dpi)))
 
 
 def save_figure(fig: Figure, path: str | os.PathLike[str]) -> Path:

@@ -24,6 +24,7 @@ import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from spcopyro._util.outputs import replace_text
 from spcopyro.data import list_houses
 from spcopyro.experiments.ablation import AblationSettings
 from spcopyro.experiments.ablation_report import SCORES, write_report
@@ -177,5 +178,5 @@ def run_ablation(
                            failed_cells(rows))  # fmt: skip
     summary["failed"] = sum(1 for r in rows if r.get("status") != "ok")
     markdown = Path(out) / "ablation.md"  # the cells' warnings, listed as report.md lists them
-    markdown.write_text(with_warnings(markdown.read_text(), rows))
+    replace_text(markdown, with_warnings(markdown.read_text(), rows))  # whole or not at all
     return summary

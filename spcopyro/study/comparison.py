@@ -24,6 +24,7 @@ import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from spcopyro._util.outputs import replace_text
 from spcopyro.data import list_houses, load_house
 from spcopyro.experiments.ablation_variants import make_variant
 from spcopyro.experiments.comparison_report import summarise, write_report
@@ -35,6 +36,7 @@ from spcopyro.experiments.inference_comparison import (
     ComparisonSettings,
     available_variants,
     budget,
+    current_record,
 )
 from spcopyro.experiments.table import failed_cells, heldout_folds, report_nothing
 from spcopyro.results.map_checks import is_degenerate_map_warning
@@ -100,7 +102,8 @@ def records_of_rows(rows: Sequence[dict[str, object]]) -> dict[str, dict[str, li
             continue
         house_type = SYNTHETIC if row["data_kind"] == "synthetic" else PUBLIC
         by_variant = records.setdefault(house_type, {})
-        by_variant.setdefault(str(row["variant"]), []).append(json.loads(str(row["details"])))
+        record = current_record(json.loads(str(row["details"])))  # an earlier run's too
+        by_variant.setdefault(str(row["variant"]), []).append(record)
     return records
 
 
@@ -158,7 +161,7 @@ def run_comparison(
     summary["one_concept_maps"] = one_concept_maps(rows)
     figures = [p for p in write_report(out, summary) if p.suffix == ".png"]
     markdown = out / "comparison.md"  # the cells' warnings, listed as report.md lists them
-    markdown.write_text(with_warnings(markdown.read_text(), rows))
+    replace_text(markdown, with_warnings(markdown.read_text(), rows))  # whole or not at all
     remove_stale(out, [f"comparison_{kind}.png" for kind in (SYNTHETIC, PUBLIC)], figures)
     summary["failed"] = sum(1 for r in rows if r.get("status") != "ok")
     return summary

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro._util.messages import plural
+from spcopyro._util.outputs import replace_figure, replace_text
 from spcopyro.experiments.methods import METHOD_LABELS, SPCO_METHODS
 from spcopyro.experiments.table import (
     PUBLIC_SCORES,
@@ -195,7 +196,7 @@ def plot_traces(rows: Sequence[dict[str, object]], folder: Path, path: Path, tit
     fig.suptitle(title)
     path.parent.mkdir(parents=True, exist_ok=True)
     with any_script(fig):  # words of any script, not boxes
-        fig.savefig(path, dpi=120, bbox_inches="tight")
+        replace_figure(fig, path, dpi=120, bbox_inches="tight")  # whole or not at all
     return path
 
 
@@ -265,6 +266,6 @@ def run_experiment(
     summary["notes"] = notes
     summary["figures"] = [str(p.relative_to(out)) for p in write_figures(out, rows)]
     summary["failed"] = sum(1 for r in rows if r.get("status") != "ok")
-    (out / "table.json").write_text(json.dumps(summary, indent=1, default=json_default) + "\n")
-    (out / "table.md").write_text(with_warnings(table_markdown(summary), rows))
+    replace_text(out / "table.json", json.dumps(summary, indent=1, default=json_default) + "\n")
+    replace_text(out / "table.md", with_warnings(table_markdown(summary), rows))
     return summary

@@ -22,6 +22,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
+from spcopyro._util.outputs import replace_figure
 from spcopyro.figures.fonts import any_script, quiet_glyph_warnings
 from spcopyro.study.table import is_number
 
@@ -117,5 +118,5 @@ def write_quality_time(
         return None
     path = Path(path)
     with any_script(fig):  # words of any script, not boxes
-        fig.savefig(path, dpi=110)
+        replace_figure(fig, path, dpi=110)  # whole or not at all
     return path

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from spcopyro._util.outputs import replace_figure
 from spcopyro.figures.fonts import any_script
 from spcopyro.maps import OccupancyGrid
 from spcopyro.maps.coarse import labels_on_grid
@@ -124,7 +125,7 @@ def plot_label_maps(
     fig.suptitle(title)
     path.parent.mkdir(parents=True, exist_ok=True)
     with any_script(fig):  # words of any script, not boxes
-        fig.savefig(path, dpi=120, bbox_inches="tight")
+        replace_figure(fig, path, dpi=120, bbox_inches="tight")  # whole or not at all
     return path
 
 

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro._util.messages import fixed, plural
+from spcopyro._util.outputs import replace_text
 from spcopyro.study.cell_warnings import read_warnings
 from spcopyro.study.evaluate import SCORES, WARNINGS
 from spcopyro.study.table import is_number
@@ -198,5 +199,5 @@ def write_report(
     if maps:
         text += "\n## Maps (each source's first seed)\n\n"
         text += "".join(f"![{p.stem}]({os.path.relpath(p, path.parent)})\n" for p in maps)
-    path.write_text(text)
+    replace_text(path, text)  # whole or not at all: Ctrl-C leaves the old report
     return path

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from spcopyro._util.outputs import replace_text
 from spcopyro.config import preset
 from spcopyro.experiments.robustness import (
     ANNEAL_FRACTION,
@@ -231,6 +232,6 @@ def write_robustness(
         markdown = with_warnings(markdown, tables[study.name],
                                  f"robustness/{study.name}/{TABLE}",
                                  f"Cells with warnings: {study.name}")  # fmt: skip
-    (out / "robustness.md").write_text(markdown)
-    (out / "robustness.json").write_text(json.dumps(payload, indent=1) + "\n")
+    replace_text(out / "robustness.md", markdown)  # each whole or not at all
+    replace_text(out / "robustness.json", json.dumps(payload, indent=1) + "\n")
     return markdown

@@ -48,7 +48,7 @@ from pathlib import Path
 from spcopyro._util.folder_lock import folder_lock
 from spcopyro._util.interrupts import signals_deferred
 from spcopyro._util.messages import plural
-from spcopyro._util.outputs import check_folder_path
+from spcopyro._util.outputs import check_folder_path, replace_text
 from spcopyro._util.progress import progress_enabled
 from spcopyro._util.threads import usable_cpus
 from spcopyro.study import evaluate
@@ -196,7 +196,7 @@ def _run_study(
     client = _connect(scheduler) if scheduler is not None and pending else None  # before writing
     store = CellStore(out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "study.json").write_text(json.dumps(study.to_json(), indent=1, default=str))
+    replace_text(out / "study.json", json.dumps(study.to_json(), indent=1, default=str))
     predicted = [plan.predicted.get(cell.key, 0.0) for cell in pending]
     short = start_in_process and not cluster_pays(predicted, workers)  # one cell, or a few s
     alone = scheduler is None and workers > 1 and short

@@ -17,6 +17,7 @@ import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from spcopyro._util.outputs import replace_text
 from spcopyro.experiments.studies import STUDY_CONFIG, SentenceScores, studies_markdown
 from spcopyro.study import STUDIES
 from spcopyro.study.report import with_warnings
@@ -86,10 +87,10 @@ def write_studies(
                                  f"studies/{study.name}/{TABLE}",
                                  f"Cells with warnings: {study.name}")  # fmt: skip
     out.mkdir(parents=True, exist_ok=True)
-    (out / "studies.md").write_text(markdown)
+    replace_text(out / "studies.md", markdown)  # each whole or not at all
     payload = {
         "config": STUDY_CONFIG, "sweeps": sweeps, "seeds": list(seeds), "ablation": ablation,
         "sentences": {"filler_top_share": share, "top_words": tops},
     }  # fmt: skip
-    (out / "studies.json").write_text(json.dumps(payload, indent=1) + "\n")
+    replace_text(out / "studies.json", json.dumps(payload, indent=1) + "\n")
     return markdown
