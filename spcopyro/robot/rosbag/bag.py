@@ -52,6 +52,7 @@ __all__ = [
     "BagFormatError",
     "RosbagsMissingError",
     "TopicData",
+    "check_not_empty",
     "check_order",
     "iter_images",
     "message_time",
@@ -260,6 +261,22 @@ def topic_listing(reader: Any) -> str:
     return ", ".join(f"{name} ({info.msgtype})" for name, info in sorted(reader.topics.items()))
 
 
+def check_not_empty(reader: Any) -> None:
+    """BagContentError for a bag that holds no message (a recording stopped before anything
+    arrived: "no pose topic ... the bag has: no topics" said nothing of that), naming the bag
+    and the topics it declares. The index's counts are checked by reading: a message there
+    is a message, whatever a metadata.yaml counts."""
+    if _indexed(reader.connections) or next(iter(reader.messages()), None) is not None:
+        return
+    topics = topic_listing(reader)
+    raise BagContentError(
+        f"{reader.paths[0]}: the bag holds no messages ("
+        + (f"its topics, each empty: {topics}" if topics else "and no topics")
+        + "): a recording stopped before anything arrived? Leave it out, or give the bag "
+        "that holds the recording"
+    )
+
+
 def topic_connections(reader: Any, topic: str, allowed: tuple[str, ...], role: str) -> list[Any]:
     """The connections of ``topic`` (with or without its leading ``/``: a name without one is
     resolved in the root namespace, as a ROS node there would); BagContentError if it is absent
@@ -395,17 +412,19 @@ class TopicData:
     stamped: np.ndarray  # [M] bool
     texts: list[str] = field(default_factory=list)
     indexed: int = 0
+    record: np.ndarray | None = None  # [M] float64 s: when the bag recorded each (images)
 
 
 def read_stamps(reader: Any, topic: str) -> TopicData:
     """The stamps of an image topic's messages, in bag order, which need not be the stamps'
     (the images are decoded later, only those kept)."""
     connections = topic_connections(reader, topic, IMAGE_TYPES, "image")
-    times, stamped = [], []
+    times, stamped, record = [], [], []
     for _, _connection, log_ns, msg in topic_messages(reader, connections, topic):
         t, has_stamp = message_time(msg, log_ns)
         times.append(t)
         stamped.append(has_stamp)
+        record.append(log_ns * 1e-9)
     times_s = np.asarray(times, dtype=np.float64)
     return TopicData(
         topic,
@@ -413,6 +432,7 @@ def read_stamps(reader: Any, topic: str) -> TopicData:
         times_s,
         np.asarray(stamped, bool),
         indexed=_indexed(connections),
+        record=np.asarray(record, dtype=np.float64),
     )
 
 

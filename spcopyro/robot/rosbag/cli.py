@@ -67,6 +67,7 @@ def _import_bag(args: argparse.Namespace) -> int:
         ros_distro=args.ros_distro,
         map_frame=args.map_frame,
         image_bits=args.image_bits,
+        image_time=args.image_time,
     )
     try:
         report = import_bags(
@@ -85,7 +86,12 @@ def _import_bag(args: argparse.Namespace) -> int:
             _print_skipped(error.skipped, "nothing was written: the import failed")
         raise
     print(f"pose from        {options.pose_source} (tolerance {options.pose_tolerance:g} s)")
-    print(f"ROS 2 types      {options.ros_distro} (for bags that store no message definitions)")
+    versions = {t.get("ros_version") for t in report.trials}
+    if 1 in versions:  # --ros-distro does not apply: a ROS 1 bag holds its definitions
+        print("ROS 1 types      each bag's own (a ROS 1 bag stores its message definitions)")
+    if 2 in versions:
+        print(f"ROS 2 types      {options.ros_distro} (for bags that store no message "
+              "definitions)")  # fmt: skip
     frames = sorted({str(t.get("pose_frame") or "(none given)") for t in report.trials})
     print(f"pose frame       {', '.join(frames)} (the map's: {options.map_frame})")
     via = sorted({str(t["pose_frame_via_tf"]) for t in report.trials if t["pose_frame_via_tf"]})
@@ -264,6 +270,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    help="a 16-bit camera's bit depth: its images are scaled from it to 8 bits "
                         "(default: each image from the depth its largest value needs, which "
                         "brightens dark frames; the import says when depths differ)")  # fmt: skip
+    p.add_argument("--image-time", choices=("header", "record"), default="header",
+                   help="an image's time: its header stamp (a zero one: when the bag recorded "
+                        "it), or record: when the bag recorded it, for a camera that stamps on "
+                        "another clock than the poses (default header)")  # fmt: skip
     p.add_argument("--ros-distro", choices=ROS_DISTROS, default=DEFAULT_ROS_DISTRO,
                    help="ROS 2 distribution whose message definitions read a bag that stores "
                         "none (Foxy, Galactic and Humble sqlite3 bags; a bag's own definitions "

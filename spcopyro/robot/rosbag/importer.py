@@ -76,6 +76,7 @@ from spcopyro.robot.rosbag.bag import (
     TEXT_TYPES,
     BagContentError,
     _rosbags,
+    check_not_empty,
     iter_images,
     open_bag,
     read_stamps,
@@ -85,9 +86,21 @@ from spcopyro.robot.rosbag.bag import (
 )
 from spcopyro.robot.rosbag.house_folder import MARKER, check_map, check_out, replace_out
 from spcopyro.robot.rosbag.images import SENSOR_BITS, ImageDecodeError, encoded_image
-from spcopyro.robot.rosbag.poses import PoseTrack, compose, frame_name, header_clock, late_count
+from spcopyro.robot.rosbag.poses import (
+    PoseTrack,
+    compose,
+    frame_name,
+    header_clock,
+    image_clock,
+    late_count,
+)
 from spcopyro.robot.rosbag.repairs import other_pieces
-from spcopyro.robot.rosbag.report import BagImportReport, SkippedObservation, write_skipped
+from spcopyro.robot.rosbag.report import (
+    BagImportReport,
+    SkippedObservation,
+    image_clock_note,
+    write_skipped,
+)
 from spcopyro.robot.rosbag.tf_chain import check_tf_topics, read_pose_in_map, read_tf_chain
 
 __all__ = [
@@ -114,6 +127,12 @@ class NothingLeftError(BagContentError):
         self.skipped = tuple(skipped)
 
 
+IMAGE_TIMES = ("header", "record")
+"""An image's time (``ImportOptions.image_time``): its header stamp (a zero one: the bag's record
+time), or the time the bag recorded it (mapped onto the poses' clock where those are on
+another: a camera whose stamps are on another clock than the poses')."""
+
+
 @dataclass(frozen=True)
 class ImportOptions:
     """Which topics to read and which observations to keep (see the module docstring).
@@ -131,6 +150,7 @@ class ImportOptions:
     ros_distro: str = DEFAULT_ROS_DISTRO  # definitions for ROS 2 bags that store none
     map_frame: str = "map"  # the map's frame: a pose topic's poses are in it or linked by tf
     image_bits: int | None = None  # a 16-bit camera's bit depth (None: from each image)
+    image_time: str = "header"  # an image's time: its header stamp, or "record": the bag's
 
     def __post_init__(self) -> None:
         for name in ("min_distance", "min_interval", "pose_tolerance"):
@@ -143,6 +163,8 @@ class ImportOptions:
                 raise ValueError(f"{name} must name a topic or frame, got {getattr(self, name)!r}")
         if self.image_bits is not None and self.image_bits not in SENSOR_BITS:
             raise ValueError(f"image_bits must be one of {SENSOR_BITS}, got {self.image_bits!r}")
+        if self.image_time not in IMAGE_TIMES:
+            raise ValueError(f"image_time must be one of {IMAGE_TIMES}, got {self.image_time!r}")
         if self.ros_distro not in ROS_DISTROS:
             raise ValueError(f"ros_distro must be one of {ROS_DISTROS}, got {self.ros_distro!r}")
         if self.pose_tf is not None and (
@@ -237,6 +259,7 @@ def _check_distinct(bags: Sequence[str | os.PathLike[str]]) -> None:
 def _check_bag(reader: Any, options: ImportOptions) -> Any:
     """``reader`` (an open bag) once its topics are found, reading no message; BagContentError
     (as :func:`_import_one` would raise it, later) otherwise."""
+    check_not_empty(reader)
     if options.pose_tf:
         check_tf_topics(reader, *options.pose_tf)
     else:
@@ -265,6 +288,8 @@ def _import_one(
             chain, via_tf = read_pose_in_map(reader, options.pose_topic, options.map_frame)
             pose_frame = chain[-1].frame
         images = read_stamps(reader, options.image_topic)
+        if options.image_time == "record":  # each image at its record time, not its stamp
+            images.times, images.stamped = images.record.copy(), np.zeros_like(images.stamped)
         words = read_texts(reader, options.words_topic)
         # Poses stamped on another clock than the recorder's (use_sim_time): the record times
         # of the messages without a stamp (utterances) are mapped onto the stamps' clock.
@@ -278,6 +303,10 @@ def _import_one(
 
         # Images: pose, then thinning, then decoding (only the kept ones are decoded).
         image_xy, image_yaw, ok, reasons = _pose_at(chain, images.times, tol)
+        stamped = images.stamped  # [M] the images at their header stamps: on another clock?
+        camera = image_clock(
+            chain, images.times[stamped], images.record[stamped], clock_offset, bool(ok.any())
+        )
         for i in np.flatnonzero(~ok).tolist():
             skip(images.topic, "image", images.times[i], reasons[i] or "no pose")
         candidates = np.flatnonzero(ok)  # thinned in stamp order, which need not be the bag's
@@ -330,6 +359,9 @@ def _import_one(
         "storage_files_not_read": other_pieces(bag),
         "pose_frame": pose_frame,  # the frame the poses came in (None: no frame_id)
         "pose_frame_via_tf": via_tf,  # "map -> odom": the tf chain that placed them on the map
+        "ros_version": 2 if reader.is2 else 1,  # ROS 1 bags hold their message definitions
+        # the images' stamps on another clock than the poses' (image_clock), else None
+        "image_clock": camera,
         "poses_merged": int(sum(track.merged for track in chain)),
         # pose / tf samples and images stamped before an earlier one (sorted into place)
         "poses_out_of_order": int(sum(track.late for track in chain)),
@@ -463,9 +495,14 @@ def import_bags(
                         if skipped
                         else "the bags hold none"
                     )
+                    notes = [
+                        image_clock_note({"trial": t.trial, "bag": t.bag, **t.counts})
+                        for t in trials
+                        if what == "image"
+                    ]
                     raise NothingLeftError(
                         f"no {what} left to write from {topic} ({why}); a house needs at least one "
-                        "image and one utterance",
+                        "image and one utterance" + "".join(f". {note}" for note in notes if note),
                         skipped,
                     )
             _write_house(staging, trials)

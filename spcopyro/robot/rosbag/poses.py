@@ -39,6 +39,7 @@ __all__ = [
     "compose",
     "frame_name",
     "header_clock",
+    "image_clock",
     "late_count",
     "on_stamp_clock",
     "quaternion_yaw",
@@ -221,6 +222,38 @@ def header_clock(
     if min(abs(m) for m in medians) <= CLOCKS_DIFFER:
         return medians[-1], None
     return medians[-1], lambda times: times - np.interp(times, record, offset)
+
+
+def image_clock(
+    chain: list[PoseTrack],
+    stamps: np.ndarray,
+    record: np.ndarray,
+    pose_offset: float | None,
+    posed: bool,
+) -> dict[str, object] | None:
+    """Whether a topic's header ``stamps`` [M] (its stamped messages, recorded at ``record``
+    [M] s) are on another clock than the poses': None when they agree; else what to report
+    (``offset``: how many seconds the stamps are ahead of the poses' at the same record time,
+    None where the record times do not tell; the stamps' range ``stamps`` and the robot's own
+    pose track's, ``poses`` of ``pose_source``). They differ when the median of record time
+    minus stamp is more than :data:`CLOCKS_DIFFER` from the poses' (``pose_offset``, of
+    :func:`header_clock`; 0 where the poses carry no stamp), or when no message got a pose
+    (``posed`` False) and the two ranges do not overlap (a bag whose record times are its
+    stamps tells nothing by its offsets). A chain of static transforms only has no clock."""
+    moving = [track for track in chain if not track.static]
+    if not stamps.size or not moving:
+        return None
+    track = moving[-1]  # the robot's own: the pose topic, or the tf edge to its frame
+    offset = (pose_offset or 0.0) - float(np.median(record - stamps))
+    apart = stamps.max() < track.times[0] or stamps.min() > track.times[-1]
+    if abs(offset) <= CLOCKS_DIFFER and (posed or not apart):
+        return None
+    return {
+        "offset": offset if abs(offset) > CLOCKS_DIFFER else None,
+        "stamps": [float(stamps.min()), float(stamps.max())],
+        "poses": [float(track.times[0]), float(track.times[-1])],
+        "pose_source": track.name,
+    }
 
 
 def late_count(times: np.ndarray | list[float]) -> int:

@@ -14,7 +14,30 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["BagImportReport", "SkippedObservation", "write_skipped"]
+__all__ = ["BagImportReport", "SkippedObservation", "image_clock_note", "write_skipped"]
+
+
+def image_clock_note(t: dict[str, object]) -> str | None:
+    """What a trial's ``image_clock`` (:func:`~spcopyro.robot.rosbag.poses.image_clock`: the
+    camera's stamps on another clock than the poses') means and what to do; None without one."""
+    clock = t.get("image_clock")
+    if not clock:
+        return None
+    (a, b), (p, q), offset = clock["stamps"], clock["poses"], clock["offset"]
+    how = (
+        f"{abs(offset):.3f} s {'ahead of' if offset > 0 else 'behind'} the poses' at the same "
+        "record time"
+        if offset is not None
+        else "apart from the poses'"
+    )
+    return (
+        f"trial {t['trial']} ({t['bag']}): the image stamps ({a:.3f}..{b:.3f} s) are {how} "
+        f"({clock['pose_source']}: {p:.3f}..{q:.3f} s): the camera and the poses appear to "
+        "stamp on different clocks (one on simulated time, use_sim_time, the other on the wall "
+        "clock?). The import places an image at its header stamp; --image-time record places "
+        "it at the time the bag recorded it (on the poses' clock), or record again with every "
+        "node on one clock"
+    )
 
 
 @dataclass(frozen=True)
@@ -99,6 +122,8 @@ class BagImportReport:
                     "split it), not read: give the folder to read the whole recording as one "
                     "trial (without its metadata.yaml, `ros2 bag reindex` writes one)"
                 )
+            if note := image_clock_note(t):
+                lines.append(f"warning: {note}")
             if t.get("pose_frame_via_tf"):
                 lines.append(
                     f"trial {t['trial']} ({t['bag']}): poses in frame {t['pose_frame']} placed "

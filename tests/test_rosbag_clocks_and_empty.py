@@ -1,0 +1,167 @@
+"""``spcopyro import-bag`` on a camera stamping on another clock than the poses, an empty bag, and
+what the command prints for a ROS 1 bag (helper 233's leftovers of the import-bag testing).
+
+A camera on simulated time beside poses on the wall clock (or the other way round) had every
+image skipped ("nearest 1699999900 s away") and the import end with "no image left" and nothing
+about clocks; an empty bag said "no pose topic '/amcl_pose'; the bag has: no topics"; a ROS 1
+bag's import printed "ROS 2 types humble". Bags written with
+:class:`spcopyro.robot.rosbag.BagWriter` in tmp_path."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip install .[ros])")
+
+from spcopyro.cli.main import main  # noqa: E402
+from spcopyro.maps.grid import FREE, OccupancyGrid  # noqa: E402
+from spcopyro.maps.map_server import save_map  # noqa: E402
+from spcopyro.robot.rosbag import (  # noqa: E402
+    BagContentError,
+    BagWriter,
+    ImportOptions,
+    NothingLeftError,
+    import_bags,
+)
+
+T0 = 1_700_000_000.0  # the wall clock
+SIM = 100.0  # a simulator's clock (use_sim_time): stamps from about 0 s
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture
+def map_yaml(tmp_path: Path) -> Path:
+    """A 60 x 60 free map at 0.1 m, origin (-1, -1)."""
+    grid = OccupancyGrid(np.full((60, 60), FREE, dtype=np.int8), 0.1, (-1.0, -1.0, 0.0))
+    return save_map(grid, tmp_path / "maps" / "floor.yaml")
+
+
+def _two_clocks(path: Path, pose_clock: float, image_clock: float, ros: int = 2) -> Path:
+    """Ten seconds recorded on the wall clock (record times T0 + i): poses stamped on
+    ``pose_clock`` + i, images on ``image_clock`` + i + 0.25, one utterance (no stamp)."""
+    with BagWriter(path, ros=ros) as w:
+        for i in range(10):
+            w.pose("/amcl_pose", pose_clock + i, 0.1 * i, 0.0, 0.0, log_time=T0 + i)
+            w.image("/camera/image", image_clock + i + 0.25, np.full((4, 4, 3), i, np.uint8),
+                    log_time=T0 + i + 0.25)  # fmt: skip
+        w.text("/speech", T0 + 3.0, "kitchen")
+    return path
+
+
+@pytest.mark.parametrize(
+    ("pose_clock", "image_clock", "behind"),
+    [(T0, SIM, True), (SIM, T0, False)],
+    ids=["camera-on-sim-time", "poses-on-sim-time"],
+)
+def test_a_camera_on_another_clock_says_so_and_record_time_imports_it(
+    tmp_path, map_yaml, pose_clock, image_clock, behind
+):
+    bag = _two_clocks(tmp_path / "rec", pose_clock, image_clock)
+    with pytest.raises(NothingLeftError, match="no image left") as caught:
+        import_bags([bag], map_yaml, tmp_path / "a" / "house", progress=False)
+    message = str(caught.value)
+    assert len(caught.value.skipped) == 10
+    # both ranges, the offset, what it likely is and what to do
+    first, last = image_clock + 0.25, image_clock + 9.25
+    assert f"the image stamps ({first:.3f}..{last:.3f} s) are " in message
+    assert f"(/amcl_pose: {pose_clock:.3f}..{pose_clock + 9:.3f} s)" in message
+    side = "behind" if behind else "ahead of"
+    assert f"{abs(image_clock - pose_clock):.3f} s {side} the poses' at the same record" in message
+    assert "different clocks" in message and "use_sim_time" in message
+    assert "places an image at its header stamp; --image-time record" in message
+    # and the option it names places each image at its record time, on the poses' clock
+    report = import_bags([bag], map_yaml, tmp_path / "b" / "house",
+                         ImportOptions(image_time="record"), progress=False)  # fmt: skip
+    assert report.trials[0]["images_kept"] == 10
+    assert report.trials[0]["image_clock"] is None  # the images are at their record times
+    xs = [float(v) for v in (report.out / "Xtx.csv").read_text().split()]
+    # interpolated at i + 0.25 s on the poses' clock; the last one at the last pose's
+    assert np.allclose(xs, np.minimum(0.1 * (np.arange(10) + 0.25), 0.9))
+
+
+def test_stamps_apart_with_record_times_equal_to_them_are_named_too(tmp_path, map_yaml):
+    """A bag whose record times are its stamps (written by a converter) tells nothing by its
+    offsets: the two ranges, apart, are what says it."""
+    with BagWriter(tmp_path / "rec") as w:
+        for i in range(10):
+            w.pose("/amcl_pose", T0 + i, 0.1 * i, 0.0, 0.0)
+            w.image("/camera/image", SIM + i, np.zeros((4, 4, 3), np.uint8))
+        w.text("/speech", T0 + 3.0, "kitchen")
+    with pytest.raises(NothingLeftError) as caught:
+        import_bags([tmp_path / "rec"], map_yaml, tmp_path / "house", progress=False)
+    assert (
+        f"the image stamps ({SIM:.3f}..{SIM + 9:.3f} s) are apart from the poses' (/amcl_pose: "
+        f"{T0:.3f}..{T0 + 9:.3f} s)" in str(caught.value)
+    )
+
+
+def test_a_camera_some_seconds_off_is_warned_of_and_agreeing_clocks_are_not(tmp_path, map_yaml):
+    """A camera 3 s ahead of the poses: its images got poses 3 s off (the last ones the last
+    pose's, within the raised tolerance), and the report says why."""
+    bag = _two_clocks(tmp_path / "rec", T0, T0 + 3.0)
+    report = import_bags([bag], map_yaml, tmp_path / "a" / "house",
+                         ImportOptions(pose_tolerance=3.5), progress=False)  # fmt: skip
+    assert report.trials[0]["image_clock"]["offset"] == pytest.approx(3.0)
+    assert re.search(
+        r"warning: trial 0 \(.*rec\): the image stamps \(1700000003.250\.\.1700000012.250 s\) "
+        r"are 3.000 s ahead of the poses'",
+        report.text(),
+    )
+    same = _two_clocks(tmp_path / "same", T0, T0)
+    report = import_bags([same], map_yaml, tmp_path / "b" / "house", progress=False)
+    assert report.trials[0]["image_clock"] is None and "clocks" not in report.text()
+
+
+@pytest.mark.parametrize(("ros", "storage"), [(1, "sqlite3"), (2, "sqlite3"), (2, "mcap")],
+                         ids=["ros1", "ros2-sqlite3", "ros2-mcap"])  # fmt: skip
+def test_an_empty_bag_says_it_holds_no_messages(tmp_path, map_yaml, ros, storage):
+    bag = tmp_path / ("empty.bag" if ros == 1 else "empty")
+    with BagWriter(bag, ros=ros, storage=storage):
+        pass
+    with pytest.raises(BagContentError) as caught:
+        import_bags([bag], map_yaml, tmp_path / "house", progress=False)
+    assert str(caught.value).startswith(f"{bag}: the bag holds no messages (and no topics)")
+    assert not (tmp_path / "house").exists()
+
+
+def test_a_bag_of_topics_without_messages_says_it_holds_no_messages(tmp_path, map_yaml):
+    """rosbag2 declares the topics it subscribed to before any message arrives."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    bag = tmp_path / "declared"
+    writer = Writer(bag, version=9)
+    writer.open()
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    writer.add_connection("/amcl_pose", "geometry_msgs/msg/PoseWithCovarianceStamped",
+                          typestore=store)  # fmt: skip
+    writer.close()
+    with pytest.raises(BagContentError) as caught:
+        import_bags([bag], map_yaml, tmp_path / "house", progress=False)
+    assert str(caught.value).startswith(
+        f"{bag}: the bag holds no messages (its topics, each empty: /amcl_pose "
+        "(geometry_msgs/msg/PoseWithCovarianceStamped))"
+    )
+
+
+@pytest.mark.parametrize("ros", [1, 2])
+def test_the_cli_names_ros_2_types_only_for_a_ros_2_bag(tmp_path, map_yaml, capsys, ros):
+    bag = _two_clocks(tmp_path / ("rec.bag" if ros == 1 else "rec"), T0, T0, ros=ros)
+    assert main(["import-bag", str(bag), "--map", str(map_yaml), "--out",
+                 str(tmp_path / "house")]) == 0  # fmt: skip
+    out = capsys.readouterr().out
+    assert ("ROS 2 types      humble" in out) == (ros == 2)
+    assert ("ROS 1 types      each bag's own" in out) == (ros == 1)
+
+
+def test_the_docs_limitations_say_a_pose_topic_in_another_frame_goes_through_tf():
+    """docs/robot.md's limitations said the pose topic must be in the map's frame, which the
+    import has not needed since a pose topic in another frame is placed through tf."""
+    text = " ".join((ROOT / "docs" / "robot.md").read_text(encoding="utf-8").split())
+    limits = text[text.index("**Limitations.** Poses are planar") :][:1200]
+    assert "must be in the map's frame" not in limits
+    assert "placed on the map through the bag's tf" in limits
