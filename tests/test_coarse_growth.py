@@ -173,7 +173,8 @@ def test_the_block_map_is_computed_once_per_coarse_grid(monkeypatch):
     del model, first
     gc.collect()
     assert kept() is None  # the map holds its coarse grids weakly: nothing outlives a fit
-    np.testing.assert_array_equal(coarsen_grid(grid, 3).occupancy, coarsen_grid(grid, 3).occupancy)
+    free_block_of_map_cells(coarsen_grid(grid, 3))  # made anew, so its block map is too
+    assert len(checks) == 3
 
 
 def test_a_grid_with_what_is_kept_on_it_pickles_without_it():
@@ -187,6 +188,22 @@ def test_a_grid_with_what_is_kept_on_it_pickles_without_it():
     assert not any(key.startswith("_") for key in back.__dict__)
     assert not any(key.startswith("_") for key in back.coarsened_from.__dict__)
     np.testing.assert_array_equal(free_block_of_map_cells(back), block)
+
+
+def test_a_pickled_grid_s_arrays_stay_read_only():
+    """A pickle gave the cells back writeable, beside ``free`` and ``free_index`` kept from
+    before: a write to the cells would have left those describing other cells."""
+    grid = _odd_maps()[3]
+    kept = (grid.free, grid.free_index, grid.free_cells)  # cached, so pickled with the grid
+    back = pickle.loads(pickle.dumps(coarsen_grid(grid, 3))).coarsened_from
+    assert back == grid and {"free", "free_index", "free_cells"} <= set(back.__dict__)
+    for name, array in zip(("free", "free_index", "free_cells"), kept, strict=True):
+        np.testing.assert_array_equal(back.__dict__[name], array)
+    for name in ("occupancy", "free", "free_index", "free_cells"):
+        array = back.__dict__[name]
+        assert not array.flags.writeable, name
+        with pytest.raises(ValueError, match="read-only"):
+            array[0, 0] = array[0, 0]
 
 
 @pytest.mark.dataset

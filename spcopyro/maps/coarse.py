@@ -32,6 +32,7 @@ from __future__ import annotations
 import math
 import weakref
 from collections.abc import Callable
+from typing import TypeVar
 
 import numpy as np
 
@@ -69,7 +70,10 @@ def _padding(grid: OccupancyGrid, factor: int) -> tuple[int, int]:
     return (-grid.height) % factor, (-grid.width) % factor
 
 
-def _kept_on(grid: OccupancyGrid, key: str, make: Callable[[], object]) -> object:
+_T = TypeVar("_T")
+
+
+def _kept_on(grid: OccupancyGrid, key: str, make: Callable[[], _T]) -> _T:
     """``make()``, made once per ``grid`` object and kept in its ``__dict__`` (as
     ``functools.cached_property`` keeps its values): a grid is frozen and its cells read-only,
     so what is computed from it cannot go stale, and it goes when the grid goes (no global
@@ -90,8 +94,9 @@ def coarsen_grid(grid: OccupancyGrid, factor: int) -> OccupancyGrid:
         raise ValueError(f"factor must be an integer >= 1, got {factor!r}")
     if factor == 1:
         return grid
-    made = _kept_on(grid, "_coarsened", weakref.WeakValueDictionary)
-    assert isinstance(made, weakref.WeakValueDictionary)
+    made: weakref.WeakValueDictionary[int, OccupancyGrid] = _kept_on(
+        grid, "_coarsened", weakref.WeakValueDictionary
+    )
     coarse = made.get(int(factor))
     if coarse is None:
         coarse = made[int(factor)] = _coarsen(grid, int(factor))
@@ -150,9 +155,7 @@ def free_block_of_map_cells(grid: OccupancyGrid) -> np.ndarray:
     Computed once per ``grid`` object and kept on it (read-only): placing a fit's observations
     asks for it once per modality and placement, 13 times in a default fit of a public house
     (a 2000 x 2000-cell map: 0.3 s each)."""
-    made = _kept_on(grid, "_free_block_of_map_cells", lambda: _free_block_of_map_cells(grid))
-    assert isinstance(made, np.ndarray)
-    return made
+    return _kept_on(grid, "_free_block_of_map_cells", lambda: _free_block_of_map_cells(grid))
 
 
 def _free_block_of_map_cells(grid: OccupancyGrid) -> np.ndarray:

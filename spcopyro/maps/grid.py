@@ -200,6 +200,15 @@ class OccupancyGrid:
         a copy or pickle computes them again."""
         return {k: v for k, v in self.__dict__.items() if not k.startswith("_")}
 
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """The fields and cached properties back, their arrays read-only again: a pickle
+        gives them back writeable, and a write to ``occupancy`` would leave ``free`` and
+        ``free_index``, kept from before, describing other cells."""
+        self.__dict__.update(state)
+        for value in state.values():
+            if isinstance(value, np.ndarray):
+                value.setflags(write=False)
+
     def __repr__(self) -> str:
         return (
             f"OccupancyGrid(shape={self.shape}, resolution={self.resolution}, "
