@@ -165,10 +165,34 @@ def test_the_rule_more_than_half_left_out_mostly_on_occupied_cells(cols, refused
     occupancy = np.array([[FREE, UNKNOWN, UNKNOWN, OCCUPIED, UNKNOWN]], dtype=np.int8)
     grid = OccupancyGrid(occupancy, 1.0, (0.0, 0.0, 0.0))
     xy = np.array([[c + 0.5, 0.5] for c in cols])  # [4, 2] cell centres
-    report = cell_counts(grid, _observations(xy), snap_distance=0.0, warn=False).placement
+    obs = _observations(xy)
+    report = cell_counts(grid, obs, snap_distance=0.0, warn=False).placement
     assert report.free_space_inverted() == refused
     if refused:
-        with pytest.raises(ValueError, match="free space most likely reads as occupied"):
-            report.check_on_free()
+        with pytest.raises(ValueError, match="observations are left out, .* on occupied cells"):
+            check_placement(report, obs, grid)
     else:
-        report.check_on_free()
+        check_placement(report, obs, grid)
+
+
+def test_check_on_free_and_check_placement_refuse_with_one_rule_and_one_message():
+    """check_on_free says only that no observation lands on free space, with check_placement's
+    very message; the inverted map is refused by check_placement alone (check_on_free kept an
+    older rule and message of its own for it, without the negate line's evidence)."""
+    occupancy = np.array([[FREE, UNKNOWN, UNKNOWN, OCCUPIED, UNKNOWN]], dtype=np.int8)
+    grid = OccupancyGrid(occupancy, 1.0, (0.0, 0.0, 0.0))
+    for cols, said in (
+        ([3, 3, 3, 4], "no observation lands on free space: 8 of 8"),  # none on free space
+        ([0, 3, 3, 3], "6 of 8 observations are left out, 6 of them on occupied cells"),
+    ):
+        obs = _observations(np.array([[c + 0.5, 0.5] for c in cols]))  # [4, 2]
+        report = cell_counts(grid, obs, snap_distance=0.0, warn=False).placement
+        with pytest.raises(ValueError) as by_placement:
+            check_placement(report, obs, grid, " on map M")
+        assert str(by_placement.value).startswith(said)
+        if report.num_on_free:  # inverted: check_placement's rule, not check_on_free's
+            report.check_on_free(" on map M")
+            continue
+        with pytest.raises(ValueError) as by_free:
+            report.check_on_free(" on map M")
+        assert str(by_free.value) == str(by_placement.value)

@@ -77,8 +77,8 @@ def check_placement(
     """Raise ValueError when no observation lands on free space
     (:meth:`~spcopyro.data.placement.PlacementReport.check_on_free`) or when most are left out
     on occupied cells (:func:`inverted_free_space_message`): a fit would learn every concept from
-    the prior alone, or from the few observations snapped onto the walls."""
-    if not report.free_space_inverted() or not report.num_on_free:
-        report.check_on_free(where)  # no grid: the inverted case is said here
-        return
-    raise ValueError(inverted_free_space_message(report, obs, grid, where))
+    the prior alone, or from the few observations snapped onto the walls. The one place the
+    second is refused (``check_on_free`` says only the first)."""
+    report.check_on_free(where)  # none on free space: said without weighing the map's negate
+    if report.free_space_inverted():
+        raise ValueError(inverted_free_space_message(report, obs, grid, where))

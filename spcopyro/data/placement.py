@@ -312,7 +312,8 @@ class PlacementReport:
     """The feature scaling the counts were made under (named beside ``images_scaled_away``)."""
     unplaced_on_occupied: int = 0
     """Of the observations left out (every modality), those on an occupied cell of the map
-    (:func:`count_on_occupied`): with most of them, :meth:`check_on_free` refuses the map."""
+    (:func:`count_on_occupied`): with most of them,
+    :func:`~spcopyro.data.inverted_map.check_placement` refuses the map."""
 
     @property
     def num_observations(self) -> int:
@@ -366,30 +367,19 @@ class PlacementReport:
         left_out = self.num_unplaced
         return 2 * left_out > self.num_observations and 2 * self.unplaced_on_occupied > left_out
 
-    def check_on_free(self, where: str = "", grid: OccupancyGrid | None = None) -> None:
+    def check_on_free(self, where: str = "") -> None:
         """Raise ValueError when observations exist but none landed on a free cell itself (the
-        map or its origin is wrong, or ``negate`` inverts free space), or when its free space
-        reads as occupied (:meth:`free_space_inverted`): a fit would learn every concept from
-        the prior alone, or from the few observations snapped onto the walls. ``where`` names
-        the map (``" on map PATH"``); ``grid``, the map's grid, adds the yaml's ``negate``
-        line where the other ``negate`` frees more cells
-        (:func:`~spcopyro.maps.free_space.negate_hint`)."""
+        map or its origin is wrong, or ``negate`` inverts free space): a fit would learn every
+        concept from the prior alone. ``where`` names the map (``" on map PATH"``).
+
+        A map whose free space reads as occupied while some observations are on it
+        (:meth:`free_space_inverted`) is refused by
+        :func:`~spcopyro.data.inverted_map.check_placement`, which says why from the
+        observations' positions and the map's yaml, and calls this first."""
         if self.num_observations and not self.num_on_free:
             raise ValueError(
                 f"no observation lands on free space: {self._off_free(where)}; the map or its "
                 "origin is wrong, or its negate flag inverts free space (check the map yaml)"
-            )
-        if self.free_space_inverted():
-            from spcopyro.maps.free_space import negate_hint  # reads the image again
-
-            hint = negate_hint(grid) if grid is not None else ""
-            raise ValueError(
-                f"{self.num_unplaced} of {self.num_observations} observations are left out, "
-                f"{self.unplaced_on_occupied} of them on occupied cells{where}: the map's free "
-                "space most likely reads as occupied -- its yaml's negate inverts it (negate 1 "
-                "for a map drawn with free space white), its free_thresh / occupied_thresh "
-                "leave it occupied, or its image is inverted"
-                f"{f' ({hint})' if hint else ''}; {self._off_free('')}"
             )
 
     def summary(self) -> str:
