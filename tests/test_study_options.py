@@ -16,7 +16,7 @@ from study_setup import small_house_toml
 
 from spcopyro.cli.main import main
 from spcopyro.maps import OccupancyGrid
-from spcopyro.maps.map_server import save_map
+from spcopyro.maps.map_server import MapFormatError, load_map, save_map
 from spcopyro.study.cells import cells_of
 from spcopyro.study.sources import data_digest, resolve_source
 from spcopyro.study.spec import DataSource, StudyError, study_from_dict
@@ -53,6 +53,20 @@ def test_a_map_that_does_not_read_is_refused_before_any_cell(tmp_path):
     yaml.write_text("image: [\n")
     with pytest.raises(ValueError, match="data source 'tour': .*mymap.yaml"):
         resolve_source(DataSource("tour", "map", str(yaml)))
+
+
+@pytest.mark.parametrize("mode", ["scale", "SCALE", "raw"])
+def test_a_map_in_a_mode_load_map_refuses_is_refused_before_any_cell(tmp_path, mode):
+    """'mode: scale' read and every cell failed in load_map; 'mode: SCALE' was asked 'did you
+    mean 'scale'?', which read and failed the same. Refused now with load_map's own message."""
+    yaml = _map_with_image(tmp_path, "other.pgm")
+    yaml.write_text(yaml.read_text() + f"mode: {mode}\n")
+    with pytest.raises(MapFormatError) as refused:
+        load_map(yaml)
+    assert "is not supported by load_map" in str(refused.value)
+    with pytest.raises(ValueError) as error:
+        resolve_source(DataSource("tour", "map", str(yaml)))
+    assert str(error.value) == f"data source 'tour': {refused.value}"
 
 
 @pytest.mark.parametrize("image", ["other.pgm", "pictures/other.png"])

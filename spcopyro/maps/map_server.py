@@ -95,6 +95,27 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
             key is), the key and the offending value; also a map lying wholly beyond
             :data:`MAX_MAP_COORDINATE` of its frame's origin.
     """
+    spec = _read_occupancy_yaml(yaml_path)
+    levels, full = _read_levels(spec)  # [H, W] or [H, W, C]
+    value, p = _occupancy(levels, full, spec.negate)  # [H, W] each
+    occupancy = np.full(p.shape, UNKNOWN, dtype=np.int8)  # [H, W]
+    occupancy[p > spec.occupied_thresh] = OCCUPIED
+    occupancy[p < spec.free_thresh] = FREE
+    grid = OccupancyGrid(occupancy, spec.resolution, spec.origin, source=spec.path)
+    _check_extent(spec, grid)
+    if not spec.negate:
+        alpha = levels.ndim == 3 and levels.shape[2] in (2, 4)
+        grey = levels[..., :-1].mean(axis=2) if alpha else value  # [H, W] alpha left out
+        unknown = _unknown_grey(grey, full) & grid.free  # [H, W] bool
+        _warn_unknown_read_as_free(spec, int(np.count_nonzero(unknown)), alpha, full)
+    return grid
+
+
+def _read_occupancy_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
+    """The yaml of ``yaml_path`` read and refused as :func:`load_map` reads and refuses it, its
+    ``mode`` included (only ``trinary``), without its image: what a caller that checks a map
+    early (a study's map source, before its cells) reads, so that it refuses what load_map
+    would refuse, with load_map's message."""
     spec = _read_map_yaml(yaml_path, accepts=("trinary",))
     if spec.mode != "trinary":
         raise MapFormatError(
@@ -109,19 +130,7 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
             + "; a Nav2 costmap filter mask (scale or raw) is read with load_filter_mask, a "
             "semantic map saved by save_label_map_server with load_label_map_server"
         )
-    levels, full = _read_levels(spec)  # [H, W] or [H, W, C]
-    value, p = _occupancy(levels, full, spec.negate)  # [H, W] each
-    occupancy = np.full(p.shape, UNKNOWN, dtype=np.int8)  # [H, W]
-    occupancy[p > spec.occupied_thresh] = OCCUPIED
-    occupancy[p < spec.free_thresh] = FREE
-    grid = OccupancyGrid(occupancy, spec.resolution, spec.origin, source=spec.path)
-    _check_extent(spec, grid)
-    if not spec.negate:
-        alpha = levels.ndim == 3 and levels.shape[2] in (2, 4)
-        grey = levels[..., :-1].mean(axis=2) if alpha else value  # [H, W] alpha left out
-        unknown = _unknown_grey(grey, full) & grid.free  # [H, W] bool
-        _warn_unknown_read_as_free(spec, int(np.count_nonzero(unknown)), alpha, full)
-    return grid
+    return spec
 
 
 def _occupancy(levels: np.ndarray, full: float, negate: bool) -> tuple[np.ndarray, np.ndarray]:

@@ -24,6 +24,7 @@ from spcopyro.data.dataset import is_house_folder, list_houses
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
 from spcopyro.maps import load_map
+from spcopyro.maps.map_server import _read_occupancy_yaml
 from spcopyro.maps.map_yaml import MapFormatError, _read_map_yaml
 from spcopyro.robot.map_simulation import simulate_on_map
 from spcopyro.study.spec import DataSource
@@ -61,8 +62,8 @@ def resolve_source(data: DataSource, root: str | Path | None = None) -> DataSour
                                 "folder (a house folder holds its observations, Ft.csv and "
                                 "St.csv, its map in ../map/NAME.yaml)")  # fmt: skip
     if data.kind == "map":  # every cell of a map that does not read failed at run time
-        try:
-            image = _read_map_yaml(target).image
+        try:  # read as load_map reads it: a mode it refuses (scale, raw) is refused here
+            image = _read_occupancy_yaml(target).image
         except MapFormatError as error:
             raise ValueError(f"data source {data.name!r}: {error}") from None
         if not image.is_file():
