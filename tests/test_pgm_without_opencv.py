@@ -4,7 +4,6 @@ OpenCV's, and every other image still goes to OpenCV."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import cv2
@@ -16,11 +15,6 @@ from spcopyro.maps.map_image import _plain_p5, _write_image
 
 def _opencv(data: bytes) -> np.ndarray | None:
     return cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_UNCHANGED)
-
-
-def _public_maps() -> list[Path]:
-    root = os.environ.get("SPCOPYRO_DATA")
-    return sorted((Path(root) / "map").glob("*.pgm")) if root else []
 
 
 HEADERS = [
@@ -45,10 +39,9 @@ def test_a_binary_pgm_reads_as_opencv_decodes_it(header, rng):
         assert np.array_equal(read, expected)
 
 
-def test_the_public_maps_read_as_opencv_decodes_them():
-    maps = _public_maps()
-    if not maps:
-        pytest.skip("SPCOPYRO_DATA (the public dataset) is not set")
+def test_the_public_maps_read_as_opencv_decodes_them(dataset_root: Path):
+    maps = sorted((dataset_root / "map").glob("*.pgm"))
+    assert maps, f"no map/*.pgm in the public dataset at {dataset_root}"
     for path in maps:
         data = np.fromfile(path, dtype=np.uint8)
         read = _plain_p5(data)
