@@ -30,6 +30,7 @@ from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 from spcopyro._util.arguments import integer_at_least as _integer_at_least
+from spcopyro._util.outputs import _identity
 from spcopyro.config import DEFAULT_PRESET, PRESETS
 
 __all__ = ["add_parser"]
@@ -150,28 +151,20 @@ def _not_another_commands_folder(out: str, command: str) -> None:
         )
 
 
-def _file_version(path: Path) -> tuple[int, int, int, int] | None:
-    """(device, inode, mtime in ns, size) of the file ``path``; None where there is none. A
-    report replaced whole (:func:`spcopyro._util.outputs.replace_text`) is a new inode."""
-    try:
-        info = path.stat()
-    except OSError:
-        return None
-    return (info.st_dev, info.st_ino, info.st_mtime_ns, info.st_size)
-
-
 @contextlib.contextmanager
 def _reports_of_an_earlier_run(out: str, *names: str) -> Iterator[None]:
     """On Ctrl-C or SIGTERM, name the command's own reports in ``out`` (``comparison.md``, ...)
     that are still an earlier run's: the study engine rewrote ``results.csv`` and ``report.md``
     from the cells finished so far, but the command writes these only at its end (each replaced
     whole), so those it had not replaced when stopped stayed the earlier run's beside them
-    without a word. One it had replaced is this run's, whole, and not named."""
-    seen = {path: _file_version(path) for path in (Path(out) / name for name in names)}
+    without a word. One it had replaced is this run's, whole, and not named: each is replaced
+    through :func:`spcopyro._util.outputs.replace_text` (or ``replace_figure``), a new inode, so
+    (device, inode) tells the two apart."""
+    seen = {path: _identity(path) for path in (Path(out) / name for name in names)}
     try:
         yield
     except KeyboardInterrupt:
-        earlier = [p for p, version in seen.items() if version and _file_version(p) == version]
+        earlier = [p for p, version in seen.items() if version and _identity(p) == version]
         if earlier:
             print(f"{', '.join(map(str, earlier))}: an earlier run's, not rewritten (they are "
                   "written at the end); run the same command again to finish them",
