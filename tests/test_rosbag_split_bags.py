@@ -151,3 +151,33 @@ def test_a_mistyped_topic_among_several_of_its_type_is_asked_for(tmp_path, map_y
     options = ImportOptions(image_topic="/front/rgb")
     with pytest.raises(BagContentError, match=r"no image topic '/front/rgb'; the bag has"):
         import_bags([bag], map_yaml, tmp_path / "d" / "h", options, progress=False)
+
+
+def test_pieces_given_as_bags_of_their_own_are_not_said_to_be_unread(tmp_path, map_yaml):
+    """``rec_0.db3 rec_1.db3 rec_2.db3`` given as three BAGs: each trial warned that the other
+    two were 'not read', though each was read, as a trial of its own. Given two of the three,
+    the third is the one left unread."""
+    bag = _split_bag(tmp_path)
+    pieces = [bag / f"rec_{part}.db3" for part in range(3)]
+    report = import_bags(pieces, map_yaml, tmp_path / "d" / "all", progress=False)
+    assert [t["images_kept"] for t in report.trials] == [3, 3, 3]
+    assert [t["storage_files_not_read"] for t in report.trials] == [[], [], []]
+    assert "warning" not in report.text()
+    report = import_bags(pieces[:2], map_yaml, tmp_path / "d" / "two", progress=False)
+    assert [t["storage_files_not_read"] for t in report.trials] == [["rec_2.db3"]] * 2
+
+
+def test_storage_files_not_named_as_pieces_are_no_part_of_a_recording(tmp_path, map_yaml):
+    """A folder of unrelated .db3 files (recordings copied together) got 'rosbag2 split it' for
+    each file given; only files named as the given one's pieces (NAME_N, the same NAME) are."""
+    bag = _split_bag(tmp_path)
+    (bag / "metadata.yaml").unlink()
+    for name in ("kitchen", "hall_0", "rec_x", "rec_1_2"):
+        shutil.copy(bag / "rec_0.db3", bag / f"{name}.db3")
+    shutil.copy(bag / "rec_0.db3", bag / "rec_10.db3")
+    report = import_bags([bag / "rec_1.db3"], map_yaml, tmp_path / "d" / "p", progress=False)
+    assert report.trials[0]["storage_files_not_read"] == ["rec_0.db3", "rec_2.db3", "rec_10.db3"]
+    alone = bag / "kitchen.db3"
+    report = import_bags([alone], map_yaml, tmp_path / "d" / "k", progress=False)
+    assert report.trials[0]["storage_files_not_read"] == []
+    assert "rosbag2 split it" not in report.text()

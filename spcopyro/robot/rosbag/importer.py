@@ -278,7 +278,10 @@ def _import_one(
     staging: Path,
     skipped: list[SkippedObservation],
     progress: bool | None = None,
+    given: Sequence[str | os.PathLike[str]] = (),
 ) -> _Trial:
+    """The trial of ``bag``; ``given``: every bag of the import (a piece of a split recording
+    given among them is read as a trial of its own, not one this bag leaves unread)."""
     tol = options.pose_tolerance
     with reading_errors(bag):  # the bag stays open: import_bags closes it
         if options.pose_tf:
@@ -356,7 +359,7 @@ def _import_one(
         _check_inside(grid, word_xy[rows], words.times[rows], f"{bag}: utterance on {words.topic}")
     counts = {
         # a storage file given alone: the other files of its split recording, not read
-        "storage_files_not_read": other_pieces(bag),
+        "storage_files_not_read": other_pieces(bag, given),
         "pose_frame": pose_frame,  # the frame the poses came in (None: no frame_id)
         "pose_frame_via_tf": via_tf,  # "map -> odom": the tf chain that placed them on the map
         "ros_version": 2 if reader.is2 else 1,  # ROS 1 bags hold their message definitions
@@ -483,7 +486,15 @@ def import_bags(
         try:
             trials = [
                 _import_one(
-                    reader, Path(bag), first_trial + k, options, grid, staging, skipped, progress
+                    reader,
+                    Path(bag),
+                    first_trial + k,
+                    options,
+                    grid,
+                    staging,
+                    skipped,
+                    progress,
+                    given=bags,
                 )
                 for k, (reader, bag) in enumerate(zip(readers, bags, strict=True))
             ]

@@ -17,7 +17,10 @@ named in the error (:mod:`spcopyro.robot.rosbag.bag` raises it).
 
 from __future__ import annotations
 
+import glob
+import os
 import re
+from collections.abc import Sequence
 from pathlib import Path
 
 __all__ = [
@@ -120,7 +123,8 @@ def repair(path: Path, why: str) -> str:
     """The usual repair of a bag ``path`` that does not open with the error ``why``: a bag
     folder whose metadata.yaml fails is read from its storage file; a ROS 1, mcap or sqlite3 file
     cut short has its remedy (:data:`REPAIR`)."""
-    storage = sorted(p.name for p in path.glob("*") if p.suffix in (".db3", ".mcap"))
+    found = list(path.glob("*"))  # nothing for a file
+    storage = sorted(p.name for p in found if p.suffix in (".db3", ".mcap"))
     if (
         path.is_dir()
         and storage
@@ -130,18 +134,36 @@ def repair(path: Path, why: str) -> str:
             f"give its storage file ({path / storage[0]}) as BAG, or " if len(storage) == 1 else ""
         )
         return f"; it is its metadata.yaml that fails: {given}rewrite it with `ros2 bag reindex`"
-    inside = {p.suffix for p in path.glob("*")} if path.is_dir() else set()
+    inside = {p.suffix for p in found} if path.is_dir() else set()
     suffix = path.suffix or next((s for s in (".mcap", ".db3") if s in inside), "")
     return REPAIR.get(suffix, "")
 
 
-def other_pieces(path: Path) -> list[str]:
-    """The other storage files beside the ROS 2 storage file ``path`` (``.db3`` / ``.mcap``):
-    rosbag2 writes one recording per folder, so they are the rest of a recording split into
-    several files, which ``path`` alone does not hold (empty for a bag folder, a ROS 1 bag, or
-    a storage file alone in its folder)."""
-    if not path.is_file() or path.suffix not in (".db3", ".mcap"):
+_PIECE = re.compile(r"(.+)_(\d+)")
+"""The stem of a piece of a split ROS 2 recording: rosbag2 names its storage files ``NAME_0``,
+``NAME_1``, ... (``NAME`` the bag folder's name) in the one folder of the recording."""
+
+
+def other_pieces(path: Path, given: Sequence[str | os.PathLike[str]] = ()) -> list[str]:
+    """The other storage files of the split ROS 2 recording the storage file ``path``
+    (``.db3`` / ``.mcap``) is a piece of: those beside it named as its stem with another
+    number (``rec_1.db3`` beside ``rec_0.db3``: :data:`_PIECE`), in the order of their number,
+    less those ``given`` (read as bags of their own). Empty for a bag folder, a ROS 1 bag, a
+    storage file not named as a piece or alone in its folder: other storage files beside it
+    (unrelated recordings copied together) are no part of it."""
+    piece = _PIECE.fullmatch(path.stem)
+    if not path.is_file() or path.suffix not in (".db3", ".mcap") or piece is None:
         return []
-    return sorted(
-        p.name for p in path.parent.glob(f"*{path.suffix}") if p.is_file() and p.name != path.name
-    )
+    read = {os.path.realpath(p) for p in given}
+    others = []
+    for other in path.parent.glob(f"{glob.escape(piece.group(1))}_*{path.suffix}"):
+        match = _PIECE.fullmatch(other.stem)
+        if (
+            match is not None
+            and match.group(1) == piece.group(1)
+            and other.name != path.name
+            and other.is_file()
+            and os.path.realpath(other) not in read
+        ):
+            others.append((int(match.group(2)), other.name))
+    return [name for _, name in sorted(others)]
