@@ -24,7 +24,7 @@ import torch
 from tqdm.auto import tqdm
 
 from spcopyro._util.messages import setting
-from spcopyro._util.outputs import check_folder_path, replace_file
+from spcopyro._util.outputs import check_folder_path, replace_text
 from spcopyro._util.progress import progress_enabled
 from spcopyro.features.backbone import WeightsSource
 from spcopyro.features.head import PlaceClassifier
@@ -197,7 +197,7 @@ def write_features_csv(
     check_out_file(path, overwrite=overwrite)
     path.parent.mkdir(parents=True, exist_ok=True)
     text = "\n".join(",".join(map(repr, row)) for row in features.tolist()) + "\n"
-    replace_file(path, lambda file: file.write(text.encode("utf-8")))  # whole or not at all
+    replace_text(path, text)  # whole or not at all
     return path
 
 
