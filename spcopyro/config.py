@@ -59,9 +59,9 @@ import math
 import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, get_args
 
-from spcopyro._util.messages import setting
+from spcopyro._util.messages import one_of, setting
 
 FeatureScaling = Literal["probability", "floor100"] | float
 """How image histograms become counts: as they are, floor(100 f) (the released code), or s * f."""
@@ -71,7 +71,10 @@ WordWeightingSetting = Literal["count", "tfidf", "auto"]
 """A :data:`WordWeighting`, or ``"auto"``: tf-idf when at least 30% of the utterances are
 sentences (more than one token), counts otherwise, resolved once the data are known
 (:mod:`spcopyro.data.word_weighting`)."""
-WORD_WEIGHTINGS: tuple[str, ...] = ("count", "tfidf", "auto")
+WORD_WEIGHTINGS: tuple[str, ...] = get_args(WordWeightingSetting)
+"""The values of :data:`WordWeightingSetting`: ``("count", "tfidf", "auto")``."""
+RESOLVED_WORD_WEIGHTINGS: tuple[str, ...] = get_args(WordWeighting)
+"""The values of :data:`WordWeighting`, those ``"auto"`` resolves to: ``("count", "tfidf")``."""
 DEFAULT_SNAP_DISTANCE = 0.25  # metres: the largest snap the public houses need
 FootprintKernel = Literal["uniform", "gaussian"]
 """How an observation's weight falls off over its footprint (:mod:`spcopyro.data.footprint`)."""
@@ -325,7 +328,7 @@ class DataPreparation:
         ):
             raise bad("feature_scaling", "must be 'probability', 'floor100' or a positive float")
         if self.word_weighting not in WORD_WEIGHTINGS:
-            raise bad("word_weighting", "must be 'count', 'tfidf' or 'auto'")
+            raise bad("word_weighting", f"must be {one_of(WORD_WEIGHTINGS)}")
         snap = self.snap_distance
         if not (_is_number(snap) and math.isfinite(snap) and snap >= 0):
             raise bad("snap_distance", "must be a finite number of metres >= 0")

@@ -21,14 +21,16 @@ from spcopyro.config import DataPreparation, preset
 from spcopyro.data import cell_counts
 from spcopyro.data.word_weighting import (
     TFIDF_SENTENCE_SHARE,
+    AutoWeighting,
     auto_word_weighting,
-    auto_word_weighting_note,
+    keeping_word_weighting,
     resolve_word_weighting,
     resolved_settings,
     sentence_count,
 )
 from spcopyro.fit.house import fit_house
-from spcopyro.robot.online import check_compatible, fit_update, keeping_word_weighting
+from spcopyro.results.result import SpCoResult
+from spcopyro.robot.online import check_compatible, fit_update
 from spcopyro.synthetic import HouseSpec, make_house, write_synthetic
 from spcopyro.synthetic.lexicon import FILLER_WORDS
 
@@ -42,12 +44,12 @@ def _house(sentences: float):
 def test_sentences_are_weighted_by_tfidf_single_words_are_counted():
     words, sentences = _house(0.0), _house(0.5)
     assert sentence_count(words.observations) == 0
-    assert auto_word_weighting(words.observations) == "count"
+    assert auto_word_weighting(words.observations).weighting == "count"
     said = sentence_count(sentences.observations)
     assert 0 < said < sentences.observations.num_utterances
-    assert auto_word_weighting(sentences.observations) == "tfidf"
+    assert auto_word_weighting(sentences.observations).weighting == "tfidf"
     total = sentences.observations.num_utterances
-    assert auto_word_weighting_note(sentences.observations) == (
+    assert auto_word_weighting(sentences.observations).note == (
         f"auto: {said} of {total} utterances are sentences ({100 * said // total}%; tf-idf "
         "from 30%)"
     )
@@ -80,13 +82,13 @@ def test_a_few_two_word_names_in_a_house_of_single_words_are_still_counted():
     for names in (1, 2):
         observations = _named(house.observations, names)
         assert sentence_count(observations) == names
-        assert auto_word_weighting(observations) == "count"  # was tf-idf: any sentence
+        assert auto_word_weighting(observations).weighting == "count"  # was tf-idf: any sentence
         np.testing.assert_array_equal(
             cell_counts(house.grid, observations, word_weighting="auto").word_counts,
             cell_counts(house.grid, observations, word_weighting="count").word_counts,
         )
     one = _named(house.observations, 1)
-    assert auto_word_weighting_note(one) == (
+    assert auto_word_weighting(one).note == (
         f"auto: 1 of {total} utterances is a sentence ({100 // total}%; tf-idf from 30%)"
     )
 
@@ -96,17 +98,18 @@ def test_tfidf_from_the_threshold_share_of_sentences_on():
     words = _house(0.0).observations
     total = words.num_utterances
     needed = math.ceil(TFIDF_SENTENCE_SHARE * total)  # 11 of 36: 30.6%; 10 are 27.8%
-    assert auto_word_weighting(_named(words, needed - 1)) == "count"
-    assert auto_word_weighting(_named(words, needed)) == "tfidf"
+    assert auto_word_weighting(_named(words, needed - 1)).weighting == "count"
+    assert auto_word_weighting(_named(words, needed)).weighting == "tfidf"
     # exactly the share: 3 of 10 (a float 0.3 * 10 would read 3.0000000000000004)
-    assert auto_word_weighting(_named(words, 3, utterances=10)) == "tfidf"
-    assert auto_word_weighting(_named(words, 2, utterances=10)) == "count"
-    assert auto_word_weighting_note(_named(words, 3, utterances=10)) == (
+    assert auto_word_weighting(_named(words, 3, utterances=10)).weighting == "tfidf"
+    assert auto_word_weighting(_named(words, 2, utterances=10)).weighting == "count"
+    assert auto_word_weighting(_named(words, 3, utterances=10)).note == (
         "auto: 3 of 10 utterances are sentences (30%; tf-idf from 30%)"
     )
     nothing = _named(words, 0, utterances=0)
-    assert auto_word_weighting(nothing) == "count"
-    assert auto_word_weighting_note(nothing) == "auto: no words"
+    assert auto_word_weighting(nothing).weighting == "count"
+    assert auto_word_weighting(nothing) == AutoWeighting("count", 0, 0)
+    assert auto_word_weighting(nothing).note is None  # nothing to explain: counted, as ever
 
 
 def test_auto_is_the_default_and_the_counts_follow_the_rule():
@@ -141,12 +144,81 @@ def test_a_library_update_keeps_the_weighting_of_the_fit_it_updates():
     house = _house(0.5)  # auto: tf-idf
     settings = preset("original-code", gamma=3.0, num_concepts=10)
     saved = fit_house(house, settings.replace(word_weighting="count"), sweeps=3)
-    assert keeping_word_weighting(saved, settings).data.word_weighting == "count"
+    assert keeping_word_weighting("count", settings).data.word_weighting == "count"
     check_compatible(saved, house, settings)  # "auto" is the saved fit's weighting
     (updated,) = fit_update(saved, house, settings, sweeps=2)
     assert updated.preparation.word_weighting == "count"
     with pytest.raises(ValueError, match="word_weighting: saved fit 'count', this run 'tfidf'"):
         fit_update(saved, house, settings.replace(word_weighting="tfidf"), sweeps=2)
+
+
+def test_the_decision_carries_the_counts_its_note_gives():
+    """The data line's note comes from the counts the rule decided by (it recounted them)."""
+    sentences = _house(0.5).observations
+    decision = auto_word_weighting(sentences)
+    assert decision == AutoWeighting("tfidf", sentence_count(sentences), sentences.num_utterances)
+    counted = AutoWeighting("count", 6, 36)
+    assert counted.note == "auto: 6 of 36 utterances are sentences (16%; tf-idf from 30%)"
+    assert AutoWeighting("count", 0, 36).note is None  # single words: counted, as ever
+    assert AutoWeighting("count", 0, 36).reason == "none of 36 utterances is a sentence"
+
+
+def test_an_update_says_the_kept_weighting_only_where_it_tells_something():
+    assert AutoWeighting("count", 0, 36).kept_note("count", "OUT") is None  # the public houses
+    assert AutoWeighting("count", 2, 36).kept_note("count", "OUT") is None
+    assert AutoWeighting("tfidf", 18, 36).kept_note("tfidf", "OUT") == "auto: as the fit in OUT"
+    assert AutoWeighting("tfidf", 18, 36).kept_note("count", "OUT") == (
+        "auto: as the fit in OUT; this data alone would be tfidf: 18 of 36 utterances are "
+        "sentences (50%; tf-idf from 30%)"
+    )
+    assert AutoWeighting("count", 0, 36).kept_note("tfidf", "OUT") == (
+        "auto: as the fit in OUT; this data alone would be count: none of 36 utterances is a "
+        "sentence"
+    )
+
+
+def test_a_result_built_without_a_preparation_records_its_words_counted():
+    """SpCoResult's own default preparation recorded "auto" (DataPreparation's default), which
+    an update then resolved for its own data: tf-idf on a house of sentences."""
+    house = _house(0.5)  # auto: tf-idf
+    model = preset("original-code", gamma=3.0, num_concepts=10)
+    settings = dataclasses.replace(model, data=DataPreparation())  # auto
+    fitted = fit_house(house, settings.replace(word_weighting="count"), sweeps=3)
+    bare = SpCoResult(
+        **{f.name: getattr(fitted, f.name) for f in dataclasses.fields(SpCoResult)
+           if f.name != "preparation"}
+    )  # fmt: skip
+    assert bare.preparation == DataPreparation(word_weighting="count")
+    for asked in (settings, None):
+        (updated,) = fit_update(bare, house, asked, sweeps=2)
+        assert updated.preparation.word_weighting == "count"
+    # a result that records "auto" (saved so before): refused, not resolved for this data
+    unresolved = dataclasses.replace(fitted, preparation=DataPreparation())
+    for asked in (settings, None):
+        with pytest.raises(ValueError, match="the saved fit records word_weighting 'auto', not"):
+            fit_update(unresolved, house, asked, sweeps=2)
+
+
+def test_fit_update_keeps_the_weighting_config_json_records(tmp_path):
+    """fit --update reads OUT's weighting before the data line, by keeping_word_weighting, as a
+    library update does; a config.json recording "auto" is refused, naming the fit."""
+    from argparse import Namespace
+
+    from spcopyro.cli.fit_update import update_settings
+
+    settings, out = preset("original-code"), tmp_path / "out"
+    out.mkdir()
+    for saved in ("count", "tfidf"):
+        (out / "config.json").write_text(json.dumps({"data": {"word_weighting": saved}}))
+        kept = update_settings(Namespace(update=str(out)), settings, 100)
+        assert kept.data.word_weighting == saved
+        asked = update_settings(
+            Namespace(update=str(out)), settings.replace(word_weighting="tfidf"), 100
+        )
+        assert asked.data.word_weighting == "tfidf"  # as asked: check_compatible compares
+    (out / "config.json").write_text(json.dumps({"data": {"word_weighting": "auto"}}))
+    with pytest.raises(ValueError, match=f"the fit in {re.escape(str(out))} records word_"):
+        update_settings(Namespace(update=str(out)), settings, 100)
 
 
 @pytest.fixture
@@ -215,8 +287,31 @@ def test_an_update_keeps_the_weighting_of_the_fit_it_updates(sentence_house, tmp
             "--no-figures"]  # fmt: skip
     assert main(argv) == 0
     assert _recorded(second) == "count"
-    text = capsys.readouterr().out
-    assert "word weighting tfidf" not in text
+    data = [line for line in capsys.readouterr().out.splitlines() if line.startswith("data ")]
+    assert data[-1].endswith(
+        f", word weighting count (auto: as the fit in {first}; this data alone would be tfidf: "
+        "18 of 36 utterances are sentences (50%; tf-idf from 30%))"
+    ), data
+    # a fit by tf-idf, kept: said why; single words, counted before and now: nothing said
+    _fit(sentence_house, tmp_path / "tfidf")
+    words = write_synthetic(tmp_path / "words", seed=1, spec=HouseSpec(**SMALL))
+    _fit(words, tmp_path / "words_fit")
+    capsys.readouterr()
+    for house, fitted, said in (
+        (sentence_house, tmp_path / "tfidf", f", word weighting tfidf (auto: as the fit in "
+                                              f"{tmp_path / 'tfidf'})"),
+        (words, tmp_path / "words_fit", None),
+    ):  # fmt: skip
+        again = tmp_path / f"{fitted.name}_again"
+        argv = ["fit", str(house), "--out", str(again), "--update", str(fitted), "--sweeps",
+                "2", "--preset", "original-code", "--gamma", "3", "--concepts", "10",
+                "--no-figures"]  # fmt: skip
+        assert main(argv) == 0
+        data = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("data ")]
+        if said is None:  # was 'word weighting count (auto: as the fit in ...)'
+            assert "word weighting" not in data[-1], data
+        else:
+            assert data[-1].endswith(said), data
 
 
 def test_a_simulated_house_of_sentences_names_no_region_after_a_filler(tmp_path, capsys):

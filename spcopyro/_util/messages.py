@@ -18,8 +18,8 @@ from collections.abc import Hashable, Iterator, Sequence, Sized
 from contextlib import contextmanager
 
 __all__ = [
-    "ECHO_LIMIT", "KNOWN_WORDS_SHOWN", "echo", "fixed", "listed", "plural", "seconds_text",
-    "setting", "warn_once", "warned_apart", "with_article",
+    "ECHO_LIMIT", "KNOWN_WORDS_SHOWN", "echo", "fixed", "listed", "one_of", "plural",
+    "seconds_text", "setting", "warn_once", "warned_apart", "with_article",
 ]  # fmt: skip
 
 ECHO_LIMIT = 80
@@ -61,6 +61,13 @@ def listed(words: Sequence[str], shown: int = KNOWN_WORDS_SHOWN) -> str:
     bathroom"."""
     more = len(words) - shown
     return ", ".join(words[:shown]) + (f", ... ({more} more)" if more > 0 else "")
+
+
+def one_of(values: Sequence[object]) -> str:
+    """``"'count', 'tfidf' or 'auto'"``: the allowed ``values`` as an error lists them, each as
+    Python writes it, the last after "or"."""
+    said = [repr(value) for value in values]
+    return " or ".join([", ".join(said[:-1]), said[-1]] if len(said) > 1 else said)
 
 
 def setting(python: str, flag: str, command: str = "fit") -> str:

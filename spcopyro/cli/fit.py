@@ -254,7 +254,8 @@ def _fit_staged(job: FitJob) -> int:
                    preparation=settings.data))  # fmt: skip
     # a house of words only: the model in effect, words only; config.json keeps use_images
     print(model_line(config, settings.preset, images_missing=not house.observations.num_images))
-    print(data_line(settings.data, house.grid, word_weighting_note(args, house)))
+    note = word_weighting_note(args, house, settings.data.word_weighting)
+    print(data_line(settings.data, house.grid, note))
     default = INFERENCE_METHODS[args.method].default_options()
     print(inference_line(args.method, options if options is not None else default,
                          given_start(args), _budget(args), args.out))  # fmt: skip

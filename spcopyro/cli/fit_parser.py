@@ -24,7 +24,7 @@ from spcopyro.cli.common import (
     _sweeps,
     _threads,
 )
-from spcopyro.config import DEFAULT_PRESET, DEFAULT_SNAP_DISTANCE, PRESETS
+from spcopyro.config import DEFAULT_PRESET, DEFAULT_SNAP_DISTANCE, PRESETS, WORD_WEIGHTINGS
 from spcopyro.inference.names import BACKENDS, DEFAULT_METHOD, INFERENCE_METHOD_NAMES, INITS
 from spcopyro.results.estimate_names import POINT_ESTIMATES
 
@@ -114,7 +114,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    help=f"MRF neighbourhood of a cell {_PRESET_DEFAULT}")  # fmt: skip
     weighting = p.add_mutually_exclusive_group()
     weighting.add_argument(
-        "--word-weighting", choices=("count", "tfidf", "auto"),
+        "--word-weighting", choices=WORD_WEIGHTINGS,
         help="words counted as they are, weighted by tf-idf (eq. 20), or auto: tf-idf when at "
              "least 30%% of the utterances are sentences (more than one word), counts "
              "otherwise; config.json records the one used (default: auto; --update: the "

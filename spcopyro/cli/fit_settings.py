@@ -14,11 +14,7 @@ from spcopyro.cli.common import _concentrations, _feature_scaling
 from spcopyro.cli.fit_options import SAMPLERS, method_options
 from spcopyro.cli.fit_refine import prepares_data
 from spcopyro.config import SpCoSettings, preset, preset_inference
-from spcopyro.data.word_weighting import (
-    auto_word_weighting_note,
-    resolved_settings,
-    sentence_count,
-)
+from spcopyro.data.word_weighting import auto_word_weighting, resolved_settings
 from spcopyro.gibbs.chains import chain_processes
 
 if TYPE_CHECKING:
@@ -137,16 +133,17 @@ def fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings, 
     return settings, options
 
 
-def word_weighting_note(args: argparse.Namespace, house: House) -> str | None:
-    """Why the fit's word weighting is the one it is, for the data line, where the command line
-    left it to ``auto`` (None where ``--word-weighting`` or ``--tfidf`` chose it): under
-    ``--update`` that it is the updated fit's; else the sentences counted against the share
-    tf-idf needs (:func:`spcopyro.data.word_weighting.auto_word_weighting_note`), None for a
-    house of single words (counted, as always: nothing to explain)."""
+def word_weighting_note(args: argparse.Namespace, house: House, weighting: str) -> str | None:
+    """Why the fit's word weighting (``weighting``, resolved) is the one it is, for the data
+    line, where the command line left it to ``auto`` (None where ``--word-weighting`` or
+    ``--tfidf`` chose it), from the rule's own counts
+    (:class:`spcopyro.data.word_weighting.AutoWeighting`): the sentences against the share
+    tf-idf needs, None for a house of single words (counted, as always: nothing to explain);
+    under ``--update``, that it is the updated fit's, where it is tf-idf or this data alone
+    would choose otherwise (None where both count: the public houses)."""
     if args.word_weighting not in (None, "auto"):
         return None
+    decision = auto_word_weighting(house.observations)
     if args.update is not None:
-        return f"auto: as the fit in {args.update}"
-    if not sentence_count(house.observations):
-        return None
-    return auto_word_weighting_note(house.observations)
+        return decision.kept_note(weighting, args.update)
+    return decision.note

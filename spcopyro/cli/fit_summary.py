@@ -60,20 +60,21 @@ def data_line(
     preparation: DataPreparation, grid: OccupancyGrid | None = None, word_note: str | None = None
 ) -> str:
     """The "data" line: the model's grid, then how the images and words are counted and spread;
-    tf-idf (counts only with a ``word_note``; never an ``auto`` unresolved), a word scaling
-    other than 1, a footprint and a snap distance other than the default only where set.
+    the word weighting where it is tf-idf or a ``word_note`` explains it, a word scaling other
+    than 1, a footprint and a snap distance other than the default only where set.
     ``grid``: the model's grid the fit uses (``model_house``), whose cells are a whole number of
     the map's and so may differ from the cell size asked: the line gives the size used, with the
     one asked beside it where they differ. ``word_note``: why the word weighting is the one it
-    is (``auto: 27 of 54 utterances are sentences (50%; tf-idf from 30%)``), said beside tf-idf,
-    and beside counts where given (a house with too few sentences for tf-idf: said why)."""
+    is (``auto: 27 of 54 utterances are sentences (50%; tf-idf from 30%)``;
+    :func:`spcopyro.cli.fit_settings.word_weighting_note`), None for counts as ever."""
     from spcopyro.config import DEFAULT_SNAP_DISTANCE
 
     p = preparation
     parts = [_cells(p.cell_size, grid), f"feature scaling {_value(p.feature_scaling)}"]
-    note = f" ({word_note})" if word_note else ""
-    if p.word_weighting == "tfidf" or (p.word_weighting == "count" and note):
-        parts.append(f"word weighting {p.word_weighting}{note}")  # counts, unexplained: as ever
+    if word_note:
+        parts.append(f"word weighting {p.word_weighting} ({word_note})")
+    elif p.word_weighting == "tfidf":  # counts (an auto unresolved too), unexplained: as ever
+        parts.append("word weighting tfidf")
     if p.word_scaling != 1.0:
         parts.append(f"word scaling {_number(p.word_scaling)}")
     if p.footprint_radius > 0:

@@ -4,7 +4,6 @@ saved fit relative to OUT (:func:`relative_records`)."""
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import sys
 from collections.abc import Sequence
@@ -42,8 +41,11 @@ def update_settings(
     cells to the ``map_cells`` of this run's map), so that the update goes on on the map's cells
     with the refinement's preparation; else, or when this command line gives a data preparation
     of its own (:data:`~spcopyro.cli.fit_refine.REFINED_AWAY`), ``settings`` (the update checks
-    them against OUT's). A word weighting ``auto`` becomes OUT's: an update keeps the weighting
-    of the fit it updates, whatever its new utterances are."""
+    them against OUT's). A word weighting ``auto`` becomes OUT's
+    (:func:`~spcopyro.data.word_weighting.keeping_word_weighting`): an update keeps the
+    weighting of the fit it updates, whatever its new utterances are; ValueError where OUT
+    records none resolved."""
+    from spcopyro.data.word_weighting import keeping_word_weighting
     from spcopyro.fit.refine import refined_settings
 
     config = Path(args.update) / "config.json"
@@ -53,8 +55,7 @@ def update_settings(
         kept = saved.get("data", {}).get("word_weighting")
     except (OSError, ValueError, AttributeError):  # the saved fit's own loading says what
         return settings
-    if settings.data.word_weighting == "auto" and kept in ("count", "tfidf"):
-        settings = dataclasses.replace(settings, data=settings.data.replace(word_weighting=kept))
+    settings = keeping_word_weighting(kept, settings, f"the fit in {args.update}")
     if not record.get("refine") or prepares_data(args):
         return settings
     return refined_settings(settings, int(record["coarse"]["free_cells"]), map_cells)

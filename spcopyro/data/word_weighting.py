@@ -10,15 +10,19 @@ two). ``"auto"`` is ``"tfidf"`` when at least :data:`TFIDF_SENTENCE_SHARE` (30%)
 utterances are sentences, ``"count"`` otherwise (single words, a few multi-word names among
 them, or no utterance). It is resolved once, when the data are known
 (:func:`resolved_preparation`), and a fit records the resolved value (``config.json``'s
-``preparation.word_weighting``); an online update keeps the weighting of the fit it updates.
+``data.word_weighting``); an online update keeps the weighting of the fit it updates
+(:func:`keeping_word_weighting`). The decision carries its reason (:class:`AutoWeighting`:
+the sentences and utterances it counted), which the fit's data line gives.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from spcopyro.config import WORD_WEIGHTINGS, WordWeighting
+from spcopyro._util.messages import one_of
+from spcopyro.config import RESOLVED_WORD_WEIGHTINGS, WORD_WEIGHTINGS, WordWeighting
 
 if TYPE_CHECKING:
     from spcopyro.config import DataPreparation, SpCoSettings
@@ -26,8 +30,9 @@ if TYPE_CHECKING:
 
 __all__ = [
     "TFIDF_SENTENCE_SHARE",
+    "AutoWeighting",
     "auto_word_weighting",
-    "auto_word_weighting_note",
+    "keeping_word_weighting",
     "resolve_word_weighting",
     "resolved_preparation",
     "resolved_settings",
@@ -67,25 +72,54 @@ ARI. The share of the simulated ``--sentences 0.3`` houses ran 19-43%, of ``0.5`
 """
 
 
-def auto_word_weighting(observations: Observations) -> WordWeighting:
+@dataclass(frozen=True)
+class AutoWeighting:
+    """What ``"auto"`` chose for a house's utterances and why (:func:`auto_word_weighting`):
+    the rule and the note the fit's data line gives come from the same counts."""
+
+    weighting: WordWeighting
+    sentences: int  # utterances of more than one token
+    total: int  # utterances
+
+    @property
+    def reason(self) -> str:
+        """The counts behind the choice: ``"27 of 54 utterances are sentences (50%; tf-idf
+        from 30%)"``, ``"none of 36 utterances is a sentence"``, ``"no words"``."""
+        sentences, total = self.sentences, self.total
+        if not sentences:
+            return f"none of {total} utterances is a sentence" if total else "no words"
+        verb = "is a sentence" if sentences == 1 else "are sentences"
+        share = 100 * sentences // total  # floored: 29.6% reads 29%, below the 30%
+        threshold = f"{100 * TFIDF_SENTENCE_SHARE:g}%"
+        return f"{sentences} of {total} utterances {verb} ({share}%; tf-idf from {threshold})"
+
+    @property
+    def note(self) -> str | None:
+        """Why a fit's ``"auto"`` is this weighting, as its data line says it: ``"auto: "`` and
+        the :attr:`reason`; None for a house without sentences (counted, as always: nothing to
+        explain)."""
+        return f"auto: {self.reason}" if self.sentences else None
+
+    def kept_note(self, kept: str, where: str) -> str | None:
+        """Why an update's ``"auto"`` is ``kept``, the weighting of the fit in ``where`` it
+        updates, where that says something: ``"auto: as the fit in OUT"`` for tf-idf, and what
+        this data alone would choose where it differs (``"...; this data alone would be tfidf:
+        18 of 36 utterances are sentences (50%; tf-idf from 30%)"``); None where both count."""
+        if kept == self.weighting == "count":
+            return None
+        note = f"auto: as the fit in {where}"
+        if kept != self.weighting:
+            note += f"; this data alone would be {self.weighting}: {self.reason}"
+        return note
+
+
+def auto_word_weighting(observations: Observations) -> AutoWeighting:
     """``"tfidf"`` when at least :data:`TFIDF_SENTENCE_SHARE` of the utterances are sentences
-    (more than one token), else ``"count"`` (and ``"count"`` with no utterance)."""
-    total = observations.num_utterances
-    if not total:
-        return "count"
-    return "tfidf" if sentence_count(observations) / total >= TFIDF_SENTENCE_SHARE else "count"
-
-
-def auto_word_weighting_note(observations: Observations) -> str:
-    """Why ``"auto"`` chose its weighting, as the fit's data line says it:
-    ``"auto: 27 of 54 utterances are sentences (50%; tf-idf from 30%)"``."""
+    (more than one token), else ``"count"`` (and ``"count"`` with no utterance), with the
+    counts it decided by."""
     sentences, total = sentence_count(observations), observations.num_utterances
-    if not sentences:
-        return f"auto: none of {total} utterances is a sentence" if total else "auto: no words"
-    verb = "is a sentence" if sentences == 1 else "are sentences"
-    share = 100 * sentences // total  # floored: 29.6% reads 29%, below the 30%
-    threshold = f"{100 * TFIDF_SENTENCE_SHARE:g}%"
-    return f"auto: {sentences} of {total} utterances {verb} ({share}%; tf-idf from {threshold})"
+    tfidf = bool(total) and sentences / total >= TFIDF_SENTENCE_SHARE
+    return AutoWeighting("tfidf" if tfidf else "count", sentences, total)
 
 
 def resolve_word_weighting(weighting: str, observations: Observations) -> WordWeighting:
@@ -97,7 +131,7 @@ def resolve_word_weighting(weighting: str, observations: Observations) -> WordWe
             f"word_weighting={weighting!r}: must be one of {', '.join(map(repr, WORD_WEIGHTINGS))}"
         )
     if weighting == "auto":
-        return auto_word_weighting(observations)
+        return auto_word_weighting(observations).weighting
     return weighting  # type: ignore[return-value]
 
 
@@ -117,3 +151,24 @@ def resolved_settings(settings: SpCoSettings, observations: Observations) -> SpC
     (:func:`resolved_preparation`; the preset name and the fields chosen kept)."""
     data = resolved_preparation(settings.data, observations)
     return settings if data is settings.data else dataclasses.replace(settings, data=data)
+
+
+def keeping_word_weighting(
+    saved: object, settings: SpCoSettings, where: str = "the saved fit"
+) -> SpCoSettings:
+    """``settings`` with a word weighting ``"auto"`` set to ``saved``, the weighting the fit in
+    ``where`` records (``config.json``'s ``data.word_weighting``): an update keeps the weighting
+    of the fit it updates, whatever its new utterances are. ValueError where that fit records
+    no resolved weighting (``"auto"``, or none): which one its words were weighted by is not
+    known, and resolving it for the update's data could change it."""
+    if settings.data.word_weighting != "auto":
+        return settings
+    if saved not in RESOLVED_WORD_WEIGHTINGS:
+        raise ValueError(
+            f"{where} records word_weighting {saved!r}, not the weighting its words were "
+            f"counted with ({one_of(RESOLVED_WORD_WEIGHTINGS)}), so an update cannot keep it: "
+            "record the one it was fitted with as its preparation's word_weighting "
+            "(config.json's data.word_weighting)"
+        )
+    data = settings.data.replace(word_weighting=saved)
+    return dataclasses.replace(settings, data=data)

@@ -57,6 +57,11 @@ __all__ = [
 RESULT_FILE = "result.npz"
 _SETTINGS = ("model", "data", "method", "inference")
 """The entries of ``config.json`` that are settings (the others are the provenance)."""
+
+_COUNTED = DataPreparation(word_weighting="count")
+"""The preparation of a result built without one (a library caller's, a test's): words counted,
+as :func:`~spcopyro.data.counts.cell_counts` counts them unless told otherwise, recorded
+resolved, never ``"auto"``, which an update would resolve for its own data."""
 MAP_FILE = "map.yaml"
 
 
@@ -99,7 +104,7 @@ class SpCoResult:
     marginals: np.ndarray | None = None  # [N, L]
     labels_final: np.ndarray | None = None  # [N]
     agreement: np.ndarray | None = None  # [N] p(sample agrees with a point estimate's labels)
-    preparation: DataPreparation = DataPreparation()
+    preparation: DataPreparation = _COUNTED  # a fit's: fit_house's, resolved
     inference: dict[str, object] = field(default_factory=dict)
     name: str = ""
     provenance: dict[str, object] = field(default_factory=dict)
@@ -124,7 +129,7 @@ class SpCoResult:
         *,
         modalities: tuple[str, ...] = (IMAGES, WORDS),
         method: str = "gibbs",
-        preparation: DataPreparation = DataPreparation(),
+        preparation: DataPreparation = _COUNTED,
         name: str = "",
         provenance: dict[str, object] | None = None,
         concept_totals: np.ndarray | None = None,

@@ -67,6 +67,7 @@ from spcopyro._util.random_draws import sample_log_dirichlet
 from spcopyro._util.threads import AUTO, resolve_threads, torch_threads
 from spcopyro.config import IMAGES, WORDS, SpCoSettings
 from spcopyro.data import CellCounts, House
+from spcopyro.data.word_weighting import keeping_word_weighting
 from spcopyro.fit.gibbs_chains import FitInterrupted, marginal_thin, with_sample_marginals
 from spcopyro.fit.house import prepare_model_data, provenance, result_of
 from spcopyro.fit.registry import DEFAULT_METHOD, get_method
@@ -94,7 +95,6 @@ __all__ = [
     "check_compatible",
     "extend_emission",
     "fit_update",
-    "keeping_word_weighting",
     "merge_vocabulary",
     "renormalise_vocabulary",
     "settings_of",
@@ -173,16 +173,6 @@ def settings_of(saved: SpCoResult) -> SpCoSettings:
     return SpCoSettings(model=saved.config, data=saved.preparation)
 
 
-def keeping_word_weighting(saved: SpCoResult, settings: SpCoSettings) -> SpCoSettings:
-    """``settings`` with a word weighting ``"auto"`` set to the saved fit's: an update keeps
-    the weighting of the fit it updates, whatever its new utterances are
-    (:mod:`spcopyro.data.word_weighting`)."""
-    if settings.data.word_weighting != "auto":
-        return settings
-    data = settings.data.replace(word_weighting=saved.preparation.word_weighting)
-    return dataclasses.replace(settings, data=data)
-
-
 def _differences(saved: dict[str, object], new: dict[str, object]) -> list[str]:
     def said(name: str, value: object) -> str:  # cell_size None: no model grid
         return (
@@ -219,7 +209,7 @@ def check_compatible(
             moved = int((old.free != grid.free).sum())
             problems.append(f"map: {moved} cells differ in being free (saved fit "
                             f"{old.num_free} free cells, this run {grid.num_free})")  # fmt: skip
-    settings = keeping_word_weighting(saved, settings)  # "auto": the saved fit's
+    settings = keeping_word_weighting(saved.preparation.word_weighting, settings, where)
     problems += _differences(saved.config.to_json(), settings.model.to_json())
     problems += _differences(
         dataclasses.asdict(saved.preparation), dataclasses.asdict(settings.data)
@@ -329,9 +319,11 @@ def start_update(
     """Check ``house`` and ``settings`` against ``saved`` (:func:`check_compatible`), build the
     per-cell counts of all observations over the merged vocabulary, and the starting state.
     ``settings`` None: the saved fit's (a word weighting ``"auto"``: the saved fit's too,
-    :func:`keeping_word_weighting`); ``generator`` None: new word columns at their mean;
-    ``method``: the update's (its setting warnings, :func:`prepare_model_data`)."""
-    settings = settings_of(saved) if settings is None else keeping_word_weighting(saved, settings)
+    :func:`~spcopyro.data.word_weighting.keeping_word_weighting`, which refuses a saved
+    ``"auto"``); ``generator`` None: new word columns at their mean; ``method``: the update's
+    (its setting warnings, :func:`prepare_model_data`)."""
+    asked = settings_of(saved) if settings is None else settings
+    settings = keeping_word_weighting(saved.preparation.word_weighting, asked, where)
     check_compatible(saved, house, settings, where)
     saved, renormalised = renormalised_result(saved)  # its words as the tokenizer reads them
     _warn_renormalised(renormalised, where)
