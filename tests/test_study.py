@@ -361,6 +361,24 @@ def test_source_seeds_and_observations_off_reach_the_cells():
     assert {c.key for c in off} & plain == {c.key for c in off if c.variant is None}
 
 
+def test_a_spcoa_cell_key_holds_its_word_weighting(monkeypatch):
+    """C-spcoa weighs words by "auto" since ff9a02f (by counts before) and its key did not say
+    so: a count-weighted cell cached before could stand for a house of sentences."""
+    from spcopyro.experiments import methods
+    from spcopyro.study import cells as study_cells
+
+    assert study_cells.SPCOA_WORD_WEIGHTING is methods.SPCOA_WORD_WEIGHTING  # what it fits by
+    values = json.loads(json.dumps(TINY_DICT))
+    values["study"]["baselines"] = ["C-spcoa", "F-geometry"]
+    keys = {(c.row, c.seed): c.key for c in cells_of(study_from_dict(values))}
+    monkeypatch.setattr(study_cells, "SPCOA_WORD_WEIGHTING", "count")
+    counted = {(c.row, c.seed): c.key for c in cells_of(study_from_dict(values))}
+    assert {cell for cell in keys if keys[cell] != counted[cell]} == {
+        ("C-spcoa", 0),
+        ("C-spcoa", 1),
+    }
+
+
 def test_in_process_run_gives_the_tidy_table(in_process):
     _, out = in_process
     rows = read_table(out / "results.csv")

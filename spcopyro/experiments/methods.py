@@ -31,7 +31,7 @@ from spcopyro.baselines.cnn import cnn_semantic_map
 from spcopyro.baselines.geometry import DEFAULT_DOOR_WIDTH, geometry_semantic_map
 from spcopyro.baselines.nearest import nearest_word_map
 from spcopyro.baselines.spcoa import fit_spcoa
-from spcopyro.config import SpCoSettings, preset
+from spcopyro.config import SpCoSettings, WordWeightingSetting, preset
 from spcopyro.data import House
 from spcopyro.fit.house import log_degenerate_map, prepare_model_data, result_of
 from spcopyro.fit.registry import get_method
@@ -41,6 +41,10 @@ from spcopyro.results.semantic_map import SemanticMapModel, SpCoSemanticMap
 
 SPCOA_CONCEPTS = 20
 """L of the SpCoA baseline (an upper bound: its weak-limit DP leaves unneeded concepts empty)."""
+SPCOA_WORD_WEIGHTING: WordWeightingSetting = "auto"
+"""The SpCoA baseline's word weighting, as SpCoMapping's fit by default (tf-idf on a house of
+sentences, :mod:`spcopyro.data.word_weighting`); in a study cell's key
+(:func:`spcopyro.study.cells.cell_key`)."""
 PUBLIC_DOOR_WIDTH = 2.0
 """Door width (m) of the geometry baseline on the public houses, whose rooms open through gaps
 of about 1.7 m (a 1 m door width merges them)."""
@@ -177,7 +181,7 @@ def _dirichlet_settings(num_categories: int | None) -> SpCoSettings:
 def _fit_spcoa(house: House, context: FitContext) -> Fitted:
     model = fit_spcoa(
         house, num_concepts=SPCOA_CONCEPTS, iterations=context.settings.spcoa_iterations,
-        seed=context.seed,
+        seed=context.seed, word_weighting=SPCOA_WORD_WEIGHTING,
     )  # fmt: skip
     return Fitted("C-spcoa", model, 0.0)
 

@@ -25,6 +25,7 @@ from pathlib import Path
 
 from spcopyro import __version__
 from spcopyro.experiments.ablation_variants import Variant
+from spcopyro.experiments.methods import SPCOA_WORD_WEIGHTING
 from spcopyro.study.lines import file_line
 from spcopyro.study.sources import data_digest, files_hash, resolve_source
 from spcopyro.study.spec import DataSource, Study, given_twice
@@ -119,8 +120,10 @@ def cell_key(cell: Cell, digest: str, settings: dict[str, object] | None = None)
     :func:`_settings_json`, when made already (the same for all of a variant's seeds)."""
     if cell.variant is None:
         inputs: dict[str, object] = {"baseline": cell.row}
-        if cell.row == "C-spcoa":  # the only baseline that iterates
+        if cell.row == "C-spcoa":  # the only baseline that iterates, and weighs words
             inputs["spcoa_iterations"] = cell.spcoa_iterations
+            # "auto" since ff9a02f (counts before): cells cached before it are run again once
+            inputs["word_weighting"] = SPCOA_WORD_WEIGHTING
     else:
         if settings is None:
             settings = _settings_json(cell.variant)
