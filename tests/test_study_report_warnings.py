@@ -32,32 +32,65 @@ def warning_cells(monkeypatch):
     monkeypatch.setattr(evaluate, "torch_threads", warning)
 
 
+@pytest.fixture
+def writes(monkeypatch):
+    """Every file replaced whole (:func:`spcopyro._util.outputs.replace_file`, which
+    ``replace_text`` calls) in this test, as (name, bytes), in order."""
+    from spcopyro._util import outputs
+
+    replace_file = outputs.replace_file
+    written: list[tuple[str, bytes]] = []
+
+    def recorded(path, write):
+        result = replace_file(path, write)
+        written.append((result.name, result.read_bytes()))
+        return result
+
+    monkeypatch.setattr(outputs, "replace_file", recorded)
+    return written
+
+
+def _written_once(writes: list[tuple[str, bytes]], name: str) -> bytes:
+    """The bytes of the one write of ``name``: a second, adding the warnings to a first written
+    without them, left this run's report without them when a Ctrl-C came between the two."""
+    mine = [data for written, data in writes if written == name]
+    assert len(mine) == 1, f"{name} written {len(mine)} times"
+    return mine[0]
+
+
 def _listed(text: str, heading: str = "## Cells with warnings", table: str = "results.csv"):
     assert f"{heading}\n\n" in text
     assert f"gave warnings while fitted (column `warnings` of {table} holds each cell's)" in text
     assert f"\n- {SAID}\n  - cells: " in text
 
 
-def test_ablation_md_lists_the_cells_warnings(tmp_path, warning_cells, capsys):
+def test_ablation_md_lists_the_cells_warnings(tmp_path, warning_cells, capsys, writes):
     out = tmp_path / "abl"
     code = main(["ablation", "--out", str(out), "--quick", "--no-public", "--seeds", "1",
                  "--houses", "dense", "--sweeps", "2", "--no-off", "--baselines",
                  "--variant", "g:preset=original-code"])  # fmt: skip
     assert code == 0
     text = (out / "ablation.md").read_text()
+    assert _written_once(writes, "ablation.md") == text.encode("utf-8")
     _listed(text)
     assert "  - cells: g / dense / gibbs / seed 0\n" in text
     assert text == (out / "ablation.md").read_text() and text in capsys.readouterr().out
 
 
-def test_comparison_md_lists_the_cells_warnings(tmp_path, warning_cells):
+def test_comparison_md_lists_the_cells_warnings(tmp_path, warning_cells, writes):
+    from spcopyro.experiments.comparison_report import table_markdown
     from spcopyro.experiments.inference_comparison import ComparisonSettings
     from spcopyro.study.comparison import run_comparison
+    from spcopyro.study.table import read_table
 
     settings = ComparisonSettings(variants=("lbp",), seeds=1, house_types=("synthetic",),
                                   quick=True, iterations={"lbp": 2})  # fmt: skip
-    run_comparison(tmp_path, settings)
+    summary = run_comparison(tmp_path, settings)
     text = (tmp_path / "comparison.md").read_text()
+    assert _written_once(writes, "comparison.md") == text.encode("utf-8")
+    # the bytes the two writes (the table, then it read back and the warnings added) left
+    rows = read_table(tmp_path / "results.csv")
+    assert text == with_warnings(table_markdown(summary), rows)
     _listed(text)
     assert "  - cells: lbp / synthetic / lbp / seed 0\n" in text
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -363,10 +364,14 @@ def ablation_figure(report: dict, settings: AblationSettings) -> Figure:
 def write_report(
     out: Path, settings: AblationSettings, records: list[dict[str, object]], seconds: float,
     cached: int = 0, failed: tuple[str, ...] | list[str] = (),
+    finish: Callable[[str], str] | None = None,
 ) -> dict[str, object]:  # fmt: skip
     """Write ``ablation.md``, ``ablation.json`` and ``ablation.png`` into ``out``. ``seconds``:
     this command's wall-clock time; ``cached``: the cells it found finished (not in it);
-    ``failed``: a line per failed cell (left out of the tables, listed under "Failed cells")."""
+    ``failed``: a line per failed cell (left out of the tables, listed under "Failed cells");
+    ``finish``: the markdown's last step before it is written, once (the study's
+    :func:`spcopyro.study.report.with_warnings` of its cells), so a Ctrl-C never leaves this
+    run's ``ablation.md`` without it."""
     from spcopyro.data import load_house
 
     out.mkdir(parents=True, exist_ok=True)
@@ -393,6 +398,8 @@ def write_report(
     report["statistics_md"] = statistics_table(stats)
     text = markdown(report, settings)
     del report["statistics_md"]
+    if finish is not None:
+        text = finish(text)
     replace_text(out / "ablation.md", text)  # each whole or not at all
     replace_text(out / "ablation.json", json.dumps(report, indent=1, default=json_default) + "\n")
     figure(report, settings, out / "ablation.png")

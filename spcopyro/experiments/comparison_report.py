@@ -17,7 +17,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -515,8 +515,13 @@ def table_markdown(summary: dict[str, object]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_report(out: Path, summary: dict[str, object]) -> list[Path]:
-    """Write ``comparison.json``, ``comparison.md`` and the figures; returns their paths."""
+def write_report(
+    out: Path, summary: dict[str, object], finish: Callable[[str], str] | None = None
+) -> list[Path]:
+    """Write ``comparison.json``, ``comparison.md`` and the figures; returns their paths.
+    ``finish``: the markdown's last step before it is written, once (the study's
+    :func:`spcopyro.study.report.with_warnings` of its cells), so a Ctrl-C never leaves this
+    run's ``comparison.md`` without it."""
     figures = [
         plot_curves(summary, house_type, out / f"comparison_{house_type}.png")
         for house_type in (SYNTHETIC, PUBLIC)
@@ -527,7 +532,8 @@ def write_report(out: Path, summary: dict[str, object]) -> list[Path]:
     text = json.dumps(_finite(summary), indent=1, default=json_default, allow_nan=False)
     replace_text(json_path, text + "\n")  # each whole or not at all
     md_path = out / "comparison.md"
-    replace_text(md_path, table_markdown(summary))
+    text = table_markdown(summary)
+    replace_text(md_path, finish(text) if finish is not None else text)
     return [json_path, md_path, *figures]
 
 

@@ -24,7 +24,6 @@ import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from spcopyro._util.outputs import replace_text
 from spcopyro.data import list_houses
 from spcopyro.experiments.ablation import AblationSettings
 from spcopyro.experiments.ablation_report import SCORES, write_report
@@ -174,9 +173,10 @@ def run_ablation(
         rerun_stale=rerun_stale, report=report, root=settings.dataset_root,
     )  # fmt: skip
     rows = read_table(Path(out) / TABLE)
-    summary = write_report(Path(out), settings, records_of_rows(rows), run.seconds, run.cached,
-                           failed_cells(rows))  # fmt: skip
+    # ablation.md, written once with the cells' warnings (listed as report.md lists them)
+    summary = write_report(
+        Path(out), settings, records_of_rows(rows), run.seconds, run.cached, failed_cells(rows),
+        finish=lambda text: with_warnings(text, rows),
+    )  # fmt: skip
     summary["failed"] = sum(1 for r in rows if r.get("status") != "ok")
-    markdown = Path(out) / "ablation.md"  # the cells' warnings, listed as report.md lists them
-    replace_text(markdown, with_warnings(markdown.read_text(), rows))  # whole or not at all
     return summary

@@ -24,7 +24,6 @@ import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from spcopyro._util.outputs import replace_text
 from spcopyro.data import list_houses, load_house
 from spcopyro.experiments.ablation_variants import make_variant
 from spcopyro.experiments.comparison_report import summarise, write_report
@@ -159,9 +158,9 @@ def run_comparison(
     summary["load_average_at_end"] = list(os.getloadavg())
     summary["cpus"] = os.cpu_count()  # the load reads against it
     summary["one_concept_maps"] = one_concept_maps(rows)
-    figures = [p for p in write_report(out, summary) if p.suffix == ".png"]
-    markdown = out / "comparison.md"  # the cells' warnings, listed as report.md lists them
-    replace_text(markdown, with_warnings(markdown.read_text(), rows))  # whole or not at all
+    # comparison.md, written once with the cells' warnings (listed as report.md lists them)
+    written = write_report(out, summary, finish=lambda text: with_warnings(text, rows))
+    figures = [p for p in written if p.suffix == ".png"]
     remove_stale(out, [f"comparison_{kind}.png" for kind in (SYNTHETIC, PUBLIC)], figures)
     summary["failed"] = sum(1 for r in rows if r.get("status") != "ok")
     return summary
