@@ -82,28 +82,94 @@ def test_where_and_show_name_the_files_they_write():
         assert _figures(args, out) == [str(figure), str(probability_figure(Path(out)))]
 
 
+def _overwrite_args(command: str):
+    argv = (["export", "R", "--nav2", "N", "--overwrite"] if command == "export"
+            else ["import-bag", "B", "--map", "M", "--out", "N", "--overwrite"])  # fmt: skip
+    return build_parser().parse_args(argv)
+
+
+def _map_note(command: str) -> str:
+    return ("; map/N.yaml and .pgm may already be the new map's (they are written just before "
+            "OUT)") if command == "import-bag" else ""  # fmt: skip
+
+
+@pytest.fixture
+def no_swaps(monkeypatch):
+    """No folder set aside by :func:`spcopyro._util.outputs.swapped_in` in this process, and
+    none this test sets aside left recorded for the next."""
+    from spcopyro._util import outputs
+
+    monkeypatch.setattr(outputs, "_SET_ASIDE", [])
+
+
 @pytest.mark.parametrize(("command", "hidden"), [("export", ""), ("import-bag", ".")])
 def test_an_overwrite_stopped_while_carrying_files_over_names_the_set_aside_folder(
-    tmp_path, monkeypatch, command, hidden
+    tmp_path, monkeypatch, no_swaps, command, hidden
 ):
     """--overwrite sets the old OUT aside (OUT.replaced-XXXXXXXX, hidden for import-bag), puts
     the new one in its place and carries the user's files over: a stop there left the new OUT
     and the rest of the old one in the set-aside folder while the line said "nothing written"."""
+    from spcopyro._util.outputs import swapped_in
+
     monkeypatch.chdir(tmp_path)
-    argv = (["export", "R", "--nav2", "N", "--overwrite"] if command == "export"
-            else ["import-bag", "B", "--map", "M", "--out", "N", "--overwrite"])  # fmt: skip
-    args = build_parser().parse_args(argv)
-    (tmp_path / f"{hidden}N.replaced-0a1b2c3d").mkdir()
-    map_note = ("; map/N.yaml and .pgm may already be the new map's (they are written just "
-                "before OUT)") if command == "import-bag" else ""  # fmt: skip
-    assert interrupted_line(args) == (
-        f"interrupted spcopyro {command}: nothing new written; the old N is in "
-        f"{hidden}N.replaced-0a1b2c3d{map_note}"
-    )  # stopped between its two renames: no N
+    args = _overwrite_args(command)
     (tmp_path / "N").mkdir()
+    (tmp_path / "S").mkdir()  # the new OUT, staged
+    with pytest.raises(KeyboardInterrupt), swapped_in(tmp_path / "N", tmp_path / "S", bool(hidden)):
+        raise KeyboardInterrupt  # while carrying the old OUT's files over
+    (aside,) = [p.name for p in tmp_path.iterdir() if p.name.startswith(f"{hidden}N.replaced-")]
     assert interrupted_line(args) == (
         f"interrupted spcopyro {command}: N is the new one, written whole; what of the old one "
-        f"was not yet carried into it is in {hidden}N.replaced-0a1b2c3d{map_note}"
+        f"was not yet carried into it is in {aside}{_map_note(command)}"
     )
-    args.overwrite = False  # nothing is set aside without --overwrite: a leftover is not named
+    args.overwrite = False  # nothing is set aside without --overwrite
     assert interrupted_line(args).startswith(f"interrupted spcopyro {command}: nothing written")
+
+
+@pytest.mark.parametrize(("command", "hidden"), [("export", ""), ("import-bag", ".")])
+def test_an_overwrite_stopped_between_its_two_renames_names_the_old_out(
+    tmp_path, monkeypatch, no_swaps, command, hidden
+):
+    """A stop after the old OUT was set aside and before the new one took its place: no OUT."""
+    import os
+
+    from spcopyro._util.outputs import swapped_in
+
+    monkeypatch.chdir(tmp_path)
+    rename = os.rename
+
+    def stopped_after_the_first(source, target):
+        rename(source, target)
+        if not str(target).endswith("N"):  # OUT set aside; the staged one not yet moved in
+            raise KeyboardInterrupt
+
+    (tmp_path / "N").mkdir()
+    (tmp_path / "S").mkdir()
+    monkeypatch.setattr(os, "rename", stopped_after_the_first)
+    with pytest.raises(KeyboardInterrupt), swapped_in(tmp_path / "N", tmp_path / "S", bool(hidden)):
+        pass
+    monkeypatch.setattr(os, "rename", rename)
+    (aside,) = [p.name for p in tmp_path.iterdir() if p.name.startswith(f"{hidden}N.replaced-")]
+    assert not (tmp_path / "N").exists()
+    assert interrupted_line(_overwrite_args(command)) == (
+        f"interrupted spcopyro {command}: nothing new written; the old N is in "
+        f"{aside}{_map_note(command)}"
+    )
+
+
+@pytest.mark.parametrize(("command", "hidden"), [("export", ""), ("import-bag", ".")])
+def test_a_set_aside_folder_an_earlier_run_left_does_not_make_out_the_new_one(
+    tmp_path, monkeypatch, no_swaps, command, hidden
+):
+    """swapped_in keeps the set-aside folder after a stopped run, and nothing removes it: a later
+    --overwrite stopped before its own swap said "N is the new one, written whole" from that
+    leftover while N was still the old one."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "N").mkdir()  # the old OUT, not replaced by this run
+    (tmp_path / f"{hidden}N.replaced-0a1b2c3d").mkdir()  # an earlier run's leftover
+    assert interrupted_line(_overwrite_args(command)) == (
+        f"interrupted spcopyro {command}: nothing written to N (it is written whole at the end, "
+        f"or not at all){_map_note(command)}"
+    )
+    (tmp_path / "N").rmdir()  # nor, with no N, that this run set the old one aside
+    assert "replaced-" not in interrupted_line(_overwrite_args(command))

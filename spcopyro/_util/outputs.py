@@ -244,21 +244,44 @@ class StagedOutput:
             self.discard()
 
 
+_SET_ASIDE: list[tuple[Path, Path]] = []
+"""(OUT, the folder :func:`swapped_in` set it aside in), absolute, for each swap of this process
+not yet finished: one stopped by an error (Ctrl-C included) stays, its folder kept."""
+
+
 @contextlib.contextmanager
 def swapped_in(out: Path, staging: Path, hidden: bool = False) -> Iterator[Path]:
     """The folder ``out`` set aside (yielded: ``OUT.replaced-XXXXXXXX`` beside it, with a
     leading dot if ``hidden``) and ``staging`` renamed into its place (the old one put back if
     that fails); the old folder removed once the block ends without an error (kept after one,
-    with whatever the block had not yet carried out of it)."""
+    with whatever the block had not yet carried out of it, and named by :func:`set_aside`)."""
     old = out.parent / f"{'.' if hidden else ''}{out.name}.replaced-{secrets.token_hex(4)}"
-    os.rename(out, old)
+    swap = (_absolute(out), _absolute(old))
+    # recorded before the rename, so that a Ctrl-C just after it finds it; one just before
+    # leaves it recorded but not there, and set_aside names only a folder that is there
+    _SET_ASIDE.append(swap)
+    try:
+        os.rename(out, old)
+    except OSError:  # nothing set aside
+        _SET_ASIDE.remove(swap)
+        raise
     try:
         os.rename(staging, out)
     except OSError:
         os.rename(old, out)
+        _SET_ASIDE.remove(swap)
         raise
     yield old
     shutil.rmtree(old, ignore_errors=True)
+    _SET_ASIDE.remove(swap)
+
+
+def set_aside(out: str | os.PathLike[str]) -> list[Path]:
+    """The folders :func:`swapped_in` set ``out`` aside in, in this process, and kept (a swap
+    stopped, by Ctrl-C or an error, before it removed the folder), those still there; absolute.
+    A leftover ``OUT.replaced-*`` of an earlier process is not one of them."""
+    out = _absolute(out)
+    return [old for where, old in _SET_ASIDE if where == out and os.path.lexists(old)]
 
 
 def carry_over(old: Path, out: Path, written: Container[str]) -> tuple[str, ...]:

@@ -2,7 +2,8 @@
 and what became of what it writes. ``fit`` says more itself (:mod:`spcopyro.cli.fit_resume`,
 from the moment its parser's handler runs); it is listed in :data:`WHOLE` for a Ctrl-C in the
 instant before that handler is in place, when this line is the one printed. Imports nothing of
-the package (``main`` is on the ``--help`` path, which must not import torch)."""
+the package (``main`` is on the ``--help`` path, which must not import torch) but, once stopped,
+:mod:`spcopyro._util.outputs` (which imports nothing of it either)."""
 
 from __future__ import annotations
 
@@ -29,10 +30,6 @@ IN_PLACE = frozenset({"simulate"})
 """Commands that write their ``--out`` in place: a file being written may be left half-written."""
 OUT_OPTION = {"export": "nav2"}
 """The attribute of a command's output where it is not ``out`` (``export --nav2 DIR``)."""
-SET_ASIDE = {"import-bag": "."}
-"""The prefix of the folder an ``--overwrite`` sets the old OUT aside in while it carries the
-files it did not write into the new one (:func:`spcopyro._util.outputs.swapped_in`: hidden for
-``import-bag``); the others' is none."""
 
 
 def interrupted_line(args: argparse.Namespace) -> str:
@@ -47,7 +44,7 @@ def interrupted_line(args: argparse.Namespace) -> str:
         return f"{line}: nothing written" if command in WHOLE | EACH_WHOLE else line
     if command in WHOLE:
         overwrite = getattr(args, "overwrite", False)
-        aside = _set_aside(command, out) if overwrite else []
+        aside = _set_aside(out) if overwrite else []
         if aside and not os.path.isdir(out):  # stopped between the two renames
             line = f"{line}: nothing new written; the old {out} is in {', '.join(aside)}"
         elif aside:  # stopped while the old OUT's files were carried into the new one
@@ -91,14 +88,13 @@ def _figures(args: argparse.Namespace, out: str) -> list[str]:
     return [str(figure)]
 
 
-def _set_aside(command: str, out: str) -> list[str]:
-    """The folders an ``--overwrite`` of ``out`` set the old one aside in and kept, the block
-    carrying its files over having been stopped (``OUT.replaced-XXXXXXXX``), sorted."""
-    path = PurePath(os.path.abspath(out))
-    prefix = f"{SET_ASIDE.get(command, '')}{path.name}.replaced-"
-    try:
-        names = os.listdir(path.parent)
-    except OSError:
-        return []
+def _set_aside(out: str) -> list[str]:
+    """The folders an ``--overwrite`` of ``out`` in this process set the old one aside in and
+    kept, the block carrying its files over having been stopped (``OUT.replaced-XXXXXXXX``,
+    hidden for ``import-bag``: :func:`spcopyro._util.outputs.swapped_in` records them), as the
+    user named OUT, sorted. A leftover of an earlier run beside OUT is none of them: it said
+    OUT was the new one when this run had not swapped it yet."""
+    from spcopyro._util.outputs import set_aside  # on Ctrl-C only: nothing on the --help path
+
     shown = PurePath(out).parent
-    return sorted(str(shown / n) for n in names if n.startswith(prefix))
+    return sorted(str(shown / folder.name) for folder in set_aside(out))
