@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -309,6 +310,17 @@ class OccupancyGrid:
         return inside & self.free[rows, cols]
 
     # ------------------------------------------------------------------ neighbourhoods
+    def _neighbours_at(self, offsets: Sequence[tuple[int, int]]) -> np.ndarray:
+        """``[N, len(offsets)]`` int64 free-cell index of each free cell's neighbour at each
+        ``(dr, dc)`` of ``offsets``, -1 where it is off the map or not free: one gather from the
+        free index padded by a ring of -1, at the free cells' flat positions plus each offset's
+        step (the pairs' lexsort it replaced took 2 s on a 3-million-cell map)."""
+        width = self.width + 2
+        padded = np.pad(self.free_index, 1, constant_values=-1).ravel()  # [(H+2) (W+2)]
+        at = np.flatnonzero(np.pad(self.free, 1).ravel())  # [N] raster = free index order
+        steps = np.array([dr * width + dc for dr, dc in offsets], dtype=np.int64)  # [K]
+        return padded[at[:, None] + steps]  # [N, K]
+
     def neighbour_table(self, connectivity: int = 4) -> np.ndarray:
         """``[N, connectivity]`` int64 free-cell indices of each free cell's neighbours.
 
@@ -316,30 +328,24 @@ class OccupancyGrid:
         up-left, up-right, down-left, down-right. -1 where the neighbour is off the map or not free.
         """
         _check_connectivity(connectivity)
-        padded = np.pad(self.free_index, 1, constant_values=-1)  # [H+2, W+2]
-        h, w = self.shape
-        table = np.empty((self.num_free, connectivity), dtype=np.int64)  # [N, C]
-        for k, (dr, dc) in enumerate(_OFFSETS[:connectivity]):
-            shifted = padded[1 + dr : 1 + dr + h, 1 + dc : 1 + dc + w]  # [H, W]
-            table[:, k] = shifted[self.free]
-        return table
+        return self._neighbours_at(_OFFSETS[:connectivity])
 
     def neighbour_pairs(self, connectivity: int = 4) -> np.ndarray:
         """``[P, 2]`` int64 unordered free-neighbour pairs ``(a, b)``, ``a < b``, each once.
 
         Sorted lexicographically by ``(a, b)``.
         """
-        table = self.neighbour_table(connectivity)  # [N, C]
-        own = np.arange(self.num_free, dtype=np.int64)
-        # down, right, down-left, down-right lie later in raster order, so each pair appears once.
-        forward = [k for k, (dr, dc) in enumerate(_OFFSETS[:connectivity]) if (dr, dc) > (0, 0)]
-        parts = []
-        for k in forward:
-            has = table[:, k] >= 0  # [N] bool
-            parts.append(np.stack([own[has], table[has, k]], axis=1))
-        pairs = np.concatenate(parts, axis=0)  # [P, 2]
-        order = np.lexsort((pairs[:, 1], pairs[:, 0]))
-        return pairs[order]
+        _check_connectivity(connectivity)
+        # The neighbours later in raster order (right, then down-left, down, down-right: so
+        # each pair appears once), in the order of their (dr, dc), which is their free index's
+        # order: read row by row, [a, its neighbours] comes out sorted, without a sort.
+        forward = sorted(offset for offset in _OFFSETS[:connectivity] if offset > (0, 0))
+        later = self._neighbours_at(forward)  # [N, F]
+        has = later >= 0  # [N, F] bool
+        pairs = np.empty((int(np.count_nonzero(has)), 2), dtype=np.int64)  # [P, 2]
+        pairs[:, 0] = np.repeat(np.arange(self.num_free, dtype=np.int64), has.sum(axis=1))
+        pairs[:, 1] = later[has]
+        return pairs
 
     def colour_classes(self, connectivity: int = 4) -> list[np.ndarray]:
         """Graph colouring of the free cells into blocks with no neighbours inside a block.
