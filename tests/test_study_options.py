@@ -58,7 +58,8 @@ def test_a_map_that_does_not_read_is_refused_before_any_cell(tmp_path):
 @pytest.mark.parametrize("mode", ["scale", "SCALE", "raw"])
 def test_a_map_in_a_mode_load_map_refuses_is_refused_before_any_cell(tmp_path, mode):
     """'mode: scale' read and every cell failed in load_map; 'mode: SCALE' was asked 'did you
-    mean 'scale'?', which read and failed the same. Refused now with load_map's own message."""
+    mean 'scale'?', which read and failed the same. Refused now before any cell, saying what a
+    study's map source must be (load_map's own message named loaders a study does not use)."""
     yaml = _map_with_image(tmp_path, "other.pgm")
     yaml.write_text(yaml.read_text() + f"mode: {mode}\n")
     with pytest.raises(MapFormatError) as refused:
@@ -66,7 +67,22 @@ def test_a_map_in_a_mode_load_map_refuses_is_refused_before_any_cell(tmp_path, m
     assert "is not supported by load_map" in str(refused.value)
     with pytest.raises(ValueError) as error:
         resolve_source(DataSource("tour", "map", str(yaml)))
-    assert str(error.value) == f"data source 'tour': {refused.value}"
+    # load_map's ending sent a study to load_filter_mask / load_label_map_server, which no map
+    # source is read by: the study's message says what a map source must be and what to change
+    shown = {"SCALE": "'SCALE' (taken for 'scale'; map_server refuses it as written)"}
+    change = (
+        "a robot's map saved in scale mode (map_saver --mode scale, a SLAM's graded map) is one: "
+        "write 'mode: trinary' in its yaml (or leave the key out, trinary is map_server's "
+        "default) and each pixel is read against its occupied_thresh / free_thresh"
+        if mode != "raw"
+        else "write 'mode: trinary' in its yaml (or leave the key out) where its image is an "
+        "occupancy map, each pixel then read against its occupied_thresh / free_thresh"
+    )
+    assert str(error.value) == (
+        f"data source 'tour': {yaml}:7: key 'mode': {shown.get(mode, repr(mode))}: a study's map "
+        f"source must be an occupancy map, 'mode: trinary'; {change}; a costmap filter mask or a "
+        "semantic label map cannot be a map source"
+    )
 
 
 @pytest.mark.parametrize("image", ["other.pgm", "pictures/other.png"])

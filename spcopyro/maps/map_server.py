@@ -113,9 +113,9 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
 
 def _read_occupancy_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
     """The yaml of ``yaml_path`` read and refused as :func:`load_map` reads and refuses it, its
-    ``mode`` included (only ``trinary``), without its image: what a caller that checks a map
-    early (a study's map source, before its cells) reads, so that it refuses what load_map
-    would refuse, with load_map's message."""
+    ``mode`` included (only ``trinary``), without its image. A study's map source is read the
+    same way (:func:`spcopyro.study.sources.resolve_source`), its mode refused with a message of
+    its own (this one's readers, load_filter_mask and load_label_map_server, are no map source)."""
     spec = _read_map_yaml(yaml_path, accepts=("trinary",))
     if spec.mode != "trinary":
         raise MapFormatError(
