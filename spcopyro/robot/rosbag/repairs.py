@@ -134,7 +134,7 @@ def repair(path: Path, why: str) -> str:
             f"give its storage file ({path / storage[0]}) as BAG, or " if len(storage) == 1 else ""
         )
         return f"; it is its metadata.yaml that fails: {given}rewrite it with `ros2 bag reindex`"
-    inside = {p.suffix for p in found} if path.is_dir() else set()
+    inside = {p.suffix for p in found}
     suffix = path.suffix or next((s for s in (".mcap", ".db3") if s in inside), "")
     return REPAIR.get(suffix, "")
 
