@@ -208,7 +208,7 @@ class OccupancyGrid:
         self.__dict__.update(state)
         for value in state.values():
             if isinstance(value, np.ndarray):
-                value.setflags(write=False)
+                _readonly(value)
 
     def __repr__(self) -> str:
         return (
