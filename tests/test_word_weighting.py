@@ -56,8 +56,10 @@ def test_sentences_are_weighted_by_tfidf_single_words_are_counted():
     # an explicit weighting is kept whatever the utterances are
     assert resolve_word_weighting("count", sentences.observations) == "count"
     assert resolve_word_weighting("tfidf", words.observations) == "tfidf"
-    with pytest.raises(ValueError, match=r"word_weighting='bm25': must be one of"):
+    with pytest.raises(ValueError) as refused:
         resolve_word_weighting("bm25", words.observations)
+    # spelt as DataPreparation's refusal (_util.messages.one_of), not "must be one of ..."
+    assert str(refused.value) == "word_weighting='bm25': must be 'count', 'tfidf' or 'auto'"
 
 
 def _named(observations, names: int, utterances: int | None = None):
@@ -153,7 +155,9 @@ def test_a_library_update_keeps_the_weighting_of_the_fit_it_updates():
 
 
 def test_the_decision_carries_the_counts_its_note_gives():
-    """The data line's note comes from the counts the rule decided by (it recounted them)."""
+    """The data line's note is made from the counts the rule decided by, which the decision
+    carries (an earlier note function took the observations and counted the sentences again,
+    by a rule of its own); it holds no observations to count again."""
     sentences = _house(0.5).observations
     decision = auto_word_weighting(sentences)
     assert decision == AutoWeighting("tfidf", sentence_count(sentences), sentences.num_utterances)
@@ -197,6 +201,26 @@ def test_a_result_built_without_a_preparation_records_its_words_counted():
     for asked in (settings, None):
         with pytest.raises(ValueError, match="the saved fit records word_weighting 'auto', not"):
             fit_update(unresolved, house, asked, sweeps=2)
+    # asking for the weighting it was fitted with does not get around the record
+    with pytest.raises(ValueError, match="word_weighting: saved fit 'auto', this run 'count'"):
+        fit_update(unresolved, house, settings.replace(word_weighting="count"), sweeps=2)
+
+
+def test_a_recorded_auto_is_refused_saying_to_edit_the_record_most_likely_to_count():
+    """The refusal sent a library caller with a result in memory to "config.json's
+    data.word_weighting", did not say which weighting it most likely was, nor that asking the
+    update for one does not get around it."""
+    settings = preset("original-code")
+    with pytest.raises(ValueError) as refused:
+        keeping_word_weighting("auto", settings)
+    assert str(refused.value) == (
+        "the saved fit records word_weighting 'auto', not the weighting its words were counted "
+        "with ('count' or 'tfidf'), so an update cannot keep it: record the one it was fitted "
+        "with in the fit's recorded preparation (config.json's data.word_weighting for a saved "
+        "fit), most likely 'count' (a result built without a preparation counted its words); "
+        "asking the update for a weighting (--word-weighting, the settings' word_weighting) does "
+        "not get around it, as the update's preparation must be the one recorded"
+    )
 
 
 def test_fit_update_keeps_the_weighting_config_json_records(tmp_path):

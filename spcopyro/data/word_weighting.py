@@ -127,9 +127,7 @@ def resolve_word_weighting(weighting: str, observations: Observations) -> WordWe
     ``observations``: ``"auto"`` by :func:`auto_word_weighting`, the others as they are.
     ValueError for any other value."""
     if weighting not in WORD_WEIGHTINGS:
-        raise ValueError(
-            f"word_weighting={weighting!r}: must be one of {', '.join(map(repr, WORD_WEIGHTINGS))}"
-        )
+        raise ValueError(f"word_weighting={weighting!r}: must be {one_of(WORD_WEIGHTINGS)}")
     if weighting == "auto":
         return auto_word_weighting(observations).weighting
     return weighting  # type: ignore[return-value]
@@ -160,15 +158,22 @@ def keeping_word_weighting(
     ``where`` records (``config.json``'s ``data.word_weighting``): an update keeps the weighting
     of the fit it updates, whatever its new utterances are. ValueError where that fit records
     no resolved weighting (``"auto"``, or none): which one its words were weighted by is not
-    known, and resolving it for the update's data could change it."""
+    known, and resolving it for the update's data could change it. The message says to edit
+    the record, most likely to ``"count"`` (a result built without a preparation counted its
+    words, and recorded ``"auto"`` before :class:`~spcopyro.results.result.SpCoResult` recorded
+    ``"count"``); asking the update for a weighting does not get around it, as
+    :func:`~spcopyro.robot.online.check_compatible` compares it with the record."""
     if settings.data.word_weighting != "auto":
         return settings
     if saved not in RESOLVED_WORD_WEIGHTINGS:
         raise ValueError(
             f"{where} records word_weighting {saved!r}, not the weighting its words were "
             f"counted with ({one_of(RESOLVED_WORD_WEIGHTINGS)}), so an update cannot keep it: "
-            "record the one it was fitted with as its preparation's word_weighting "
-            "(config.json's data.word_weighting)"
+            "record the one it was fitted with in the fit's recorded preparation (config.json's "
+            "data.word_weighting for a saved fit), most likely 'count' (a result built without "
+            "a preparation counted its words); asking the update for a weighting "
+            "(--word-weighting, the settings' word_weighting) does not get around it, as the "
+            "update's preparation must be the one recorded"
         )
     data = settings.data.replace(word_weighting=saved)
     return dataclasses.replace(settings, data=data)
