@@ -197,6 +197,12 @@ class _Trial:
     word_xy: np.ndarray  # [u, 2]
     counts: dict[str, int] = field(default_factory=dict)
 
+    @property
+    def summary(self) -> dict[str, object]:
+        """The trial as bag_import.json and :class:`BagImportReport` list it: its number, its
+        bag and its counts."""
+        return {"trial": self.trial, "bag": self.bag, **self.counts}
+
 
 def _pose_at(
     chain: list[PoseTrack], times: np.ndarray, tolerance: float
@@ -506,11 +512,7 @@ def import_bags(
                         if skipped
                         else "the bags hold none"
                     )
-                    notes = [
-                        image_clock_note({"trial": t.trial, "bag": t.bag, **t.counts})
-                        for t in trials
-                        if what == "image"
-                    ]
+                    notes = [image_clock_note(t.summary) for t in trials if what == "image"]
                     raise NothingLeftError(
                         f"no {what} left to write from {topic} ({why}); a house needs at least one "
                         "image and one utterance" + "".join(f". {note}" for note in notes if note),
@@ -523,7 +525,7 @@ def import_bags(
                 "map": str(Path(map_yaml).resolve()),
                 "options": asdict(options),
                 "first_trial": first_trial,
-                "trials": [{"trial": t.trial, "bag": t.bag, **t.counts} for t in trials],
+                "trials": [t.summary for t in trials],
                 "skipped": len(skipped),
             }
             (staging / MARKER).write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
@@ -542,7 +544,7 @@ def import_bags(
     return BagImportReport(
         out=out,
         map_yaml=map_target,
-        trials=tuple({"trial": t.trial, "bag": t.bag, **t.counts} for t in trials),
+        trials=tuple(t.summary for t in trials),
         skipped=tuple(skipped),
         kept=kept,
         map_replaced=map_replaced,
