@@ -361,22 +361,44 @@ def test_source_seeds_and_observations_off_reach_the_cells():
     assert {c.key for c in off} & plain == {c.key for c in off if c.variant is None}
 
 
-def test_a_spcoa_cell_key_holds_its_word_weighting(monkeypatch):
-    """C-spcoa weighs words by "auto" since ff9a02f (by counts before) and its key did not say
-    so: a count-weighted cell cached before could stand for a house of sentences."""
+def test_a_spcoa_cell_key_holds_the_options_its_fit_is_given(monkeypatch):
+    """C-spcoa's key held its word weighting as a special case, and not its L (a constant
+    _fit_spcoa passed beside it): a change of L would have reused the cached cells. Its key now
+    holds the one options dict (experiments.methods.SPCOA_OPTIONS) the row's fit passes
+    fit_spcoa, which this reads back from the fit itself."""
     from spcopyro.experiments import methods
     from spcopyro.study import cells as study_cells
+    from spcopyro.synthetic import HouseSpec, make_house
 
-    assert study_cells.SPCOA_WORD_WEIGHTING is methods.SPCOA_WORD_WEIGHTING  # what it fits by
+    given: dict[str, object] = {}
+
+    class Given(Exception):
+        pass
+
+    def fit_spcoa(house, **keywords):
+        given.update(keywords)
+        raise Given
+
     values = json.loads(json.dumps(TINY_DICT))
     values["study"]["baselines"] = ["C-spcoa", "F-geometry"]
+    cells = [c for c in cells_of(study_from_dict(values)) if c.row == "C-spcoa"]
+    assert [c.seed for c in cells] == [0, 1]
+    inputs = study_cells._cell_inputs(cells[1], "digest")
+    monkeypatch.setattr(methods, "fit_spcoa", fit_spcoa)
+    house = make_house(seed=0, spec=HouseSpec(height=40, width=50, num_rooms=3))
+    run = methods.RunSettings(spcoa_iterations=cells[1].spcoa_iterations)
+    with pytest.raises(Given):
+        methods.fit_method("C-spcoa", house, run, seed=cells[1].seed)
+    assert given.pop("iterations") == inputs["spcoa_iterations"]
+    assert given.pop("seed") == inputs["seed"] == 1
+    assert given == inputs["spcoa_options"]
+    assert {"num_concepts", "word_weighting", "alpha", "pair_distance"} <= set(given)
+    # a change of an option changes the C-spcoa cells' keys and no other
     keys = {(c.row, c.seed): c.key for c in cells_of(study_from_dict(values))}
-    monkeypatch.setattr(study_cells, "SPCOA_WORD_WEIGHTING", "count")
-    counted = {(c.row, c.seed): c.key for c in cells_of(study_from_dict(values))}
-    assert {cell for cell in keys if keys[cell] != counted[cell]} == {
-        ("C-spcoa", 0),
-        ("C-spcoa", 1),
-    }
+    changed = {**methods.SPCOA_OPTIONS, "num_concepts": 10}
+    monkeypatch.setattr(study_cells, "SPCOA_OPTIONS", changed)
+    after = {(c.row, c.seed): c.key for c in cells_of(study_from_dict(values))}
+    assert {cell for cell in keys if keys[cell] != after[cell]} == {("C-spcoa", 0), ("C-spcoa", 1)}
 
 
 def test_in_process_run_gives_the_tidy_table(in_process):

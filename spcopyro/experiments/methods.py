@@ -19,9 +19,11 @@ method of :mod:`spcopyro.fit.registry` -- is one :func:`register` call):
 
 from __future__ import annotations
 
+import inspect
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from types import MappingProxyType
 
 import numpy as np
 import torch
@@ -31,7 +33,7 @@ from spcopyro.baselines.cnn import cnn_semantic_map
 from spcopyro.baselines.geometry import DEFAULT_DOOR_WIDTH, geometry_semantic_map
 from spcopyro.baselines.nearest import nearest_word_map
 from spcopyro.baselines.spcoa import fit_spcoa
-from spcopyro.config import SpCoSettings, WordWeightingSetting, preset
+from spcopyro.config import SpCoSettings, preset
 from spcopyro.data import House
 from spcopyro.fit.house import log_degenerate_map, prepare_model_data, result_of
 from spcopyro.fit.registry import get_method
@@ -39,12 +41,25 @@ from spcopyro.metrics import adjusted_rand_index
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.semantic_map import SemanticMapModel, SpCoSemanticMap
 
-SPCOA_CONCEPTS = 20
-"""L of the SpCoA baseline (an upper bound: its weak-limit DP leaves unneeded concepts empty)."""
-SPCOA_WORD_WEIGHTING: WordWeightingSetting = "auto"
-"""The SpCoA baseline's word weighting, as SpCoMapping's fit by default (tf-idf on a house of
-sentences, :mod:`spcopyro.data.word_weighting`); in a study cell's key
-(:func:`spcopyro.study.cells.cell_key`)."""
+
+def _spcoa_options() -> dict[str, object]:
+    """Every keyword of :func:`~spcopyro.baselines.spcoa.fit_spcoa` but ``iterations`` and
+    ``seed``, at its defaults, with the baseline's own L and word weighting."""
+    keywords = inspect.signature(fit_spcoa).parameters.values()
+    own = {"iterations", "seed"}  # the run's (RunSettings.spcoa_iterations, FitContext.seed)
+    defaults = {k.name: k.default for k in keywords if k.kind is k.KEYWORD_ONLY}
+    options = {name: value for name, value in defaults.items() if name not in own}
+    return {**options, "num_concepts": 20, "word_weighting": "auto"}
+
+
+SPCOA_OPTIONS: Mapping[str, object] = MappingProxyType(_spcoa_options())
+"""What the SpCoA baseline (``C-spcoa``) is fitted with besides its iterations and seed: every
+keyword of :func:`~spcopyro.baselines.spcoa.fit_spcoa`, resolved -- ``num_concepts`` 20 (L, an
+upper bound: its weak-limit DP leaves unneeded concepts empty), ``word_weighting`` ``"auto"``
+(as SpCoMapping's fit by default: tf-idf on a house of sentences,
+:mod:`spcopyro.data.word_weighting`), the others fit_spcoa's defaults. The row's fit passes
+these, and a study cell's key holds them (:func:`spcopyro.study.cells.cell_key`), so a change
+of any of them runs the cached C-spcoa cells again."""
 PUBLIC_DOOR_WIDTH = 2.0
 """Door width (m) of the geometry baseline on the public houses, whose rooms open through gaps
 of about 1.7 m (a 1 m door width merges them)."""
@@ -180,9 +195,8 @@ def _dirichlet_settings(num_categories: int | None) -> SpCoSettings:
 
 def _fit_spcoa(house: House, context: FitContext) -> Fitted:
     model = fit_spcoa(
-        house, num_concepts=SPCOA_CONCEPTS, iterations=context.settings.spcoa_iterations,
-        seed=context.seed, word_weighting=SPCOA_WORD_WEIGHTING,
-    )  # fmt: skip
+        house, iterations=context.settings.spcoa_iterations, seed=context.seed, **SPCOA_OPTIONS
+    )
     return Fitted("C-spcoa", model, 0.0)
 
 

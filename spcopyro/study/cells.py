@@ -25,7 +25,7 @@ from pathlib import Path
 
 from spcopyro import __version__
 from spcopyro.experiments.ablation_variants import Variant
-from spcopyro.experiments.methods import SPCOA_WORD_WEIGHTING
+from spcopyro.experiments.methods import SPCOA_OPTIONS
 from spcopyro.study.lines import file_line
 from spcopyro.study.sources import data_digest, files_hash, resolve_source
 from spcopyro.study.spec import DataSource, Study, given_twice
@@ -116,14 +116,22 @@ def _settings_json(variant: Variant) -> dict[str, object]:
 
 
 def cell_key(cell: Cell, digest: str, settings: dict[str, object] | None = None) -> str:
-    """sha256 (hex) of the cell's full input (module docstring). ``settings``: the variant's
-    :func:`_settings_json`, when made already (the same for all of a variant's seeds)."""
+    """sha256 (hex) of the cell's full input (module docstring, :func:`_cell_inputs`).
+    ``settings``: the variant's :func:`_settings_json`, when made already (the same for all of a
+    variant's seeds)."""
+    text = json.dumps(_cell_inputs(cell, digest, settings), sort_keys=True, default=repr)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def _cell_inputs(
+    cell: Cell, digest: str, settings: dict[str, object] | None = None
+) -> dict[str, object]:
+    """The cell's full input that :func:`cell_key` hashes (``digest``: its data's)."""
     if cell.variant is None:
         inputs: dict[str, object] = {"baseline": cell.row}
-        if cell.row == "C-spcoa":  # the only baseline that iterates, and weighs words
+        if cell.row == "C-spcoa":  # the only baseline that iterates, and has options
             inputs["spcoa_iterations"] = cell.spcoa_iterations
-            # "auto" since ff9a02f (counts before): cells cached before it are run again once
-            inputs["word_weighting"] = SPCOA_WORD_WEIGHTING
+            inputs["spcoa_options"] = dict(SPCOA_OPTIONS)  # what _fit_spcoa passes fit_spcoa
     else:
         if settings is None:
             settings = _settings_json(cell.variant)
@@ -135,8 +143,7 @@ def cell_key(cell: Cell, digest: str, settings: dict[str, object] | None = None)
         if cell.ari_every:  # only when asked: earlier cells keep their keys
             inputs["ari_every"] = cell.ari_every
     inputs.update(method=cell.method, seed=cell.seed, data=digest, version=__version__)
-    text = json.dumps(inputs, sort_keys=True, default=repr)
-    return hashlib.sha256(text.encode()).hexdigest()
+    return inputs
 
 
 def _resolved(study: Study, data: DataSource, root: str | Path | None) -> DataSource:
