@@ -116,6 +116,52 @@ def test_a_camera_some_seconds_off_is_warned_of_and_agreeing_clocks_are_not(tmp_
     assert report.trials[0]["image_clock"] is None and "clocks" not in report.text()
 
 
+def test_images_with_more_transport_delay_than_the_poses_are_not_called_another_clock(
+    tmp_path, map_yaml
+):
+    """Images that reach the recorder 1.5 s after they were taken, poses at once: offset -1.5.
+    The warning blamed use_sim_time and recommended --image-time record, which would place every
+    image 1.5 s late; at their header stamps they are right."""
+    bag = _two_clocks(tmp_path / "rec", T0, T0 - 1.5)  # stamps 1.5 s before their record times
+    report = import_bags([bag], map_yaml, tmp_path / "house", progress=False)
+    assert report.trials[0]["image_clock"]["offset"] == pytest.approx(-1.5)
+    assert report.trials[0]["images_kept"] > 0
+    text = " ".join(report.text().split())
+    assert "are 1.500 s behind the poses' at the same record time" in text
+    assert "transport delay" in text and "clock skew between machines" in text
+    assert "use_sim_time" not in text and "different clocks" not in text
+    assert "--image-time record places it" not in text  # not recommended
+    assert "--image-time record would move each image later by its own delay" in text
+
+
+def test_a_large_offset_or_no_posed_image_still_recommends_record_time():
+    """Beyond any plausible delay (two minutes), or with no image posed, the clocks differ."""
+    from spcopyro.robot.rosbag.report import image_clock_note
+
+    clock = {"stamps": [1.0, 2.0], "poses": [3.0, 4.0], "pose_source": "/amcl_pose"}
+    for offset, no_pose in ((-120.0, 0), (-1.5, 10)):
+        note = image_clock_note({"trial": 0, "bag": "b", "images_in_bag": 10,
+                                 "images_no_pose": no_pose,
+                                 "image_clock": {**clock, "offset": offset}})  # fmt: skip
+        assert "different clocks" in note and "--image-time record places it" in note, note
+        assert "transport delay" not in note
+
+
+def test_images_before_the_first_pose_on_its_clock_are_not_apart_from_it(tmp_path, map_yaml):
+    """amcl publishes only after the robot moves: a camera's images, all 20 s before the first
+    pose on the same clock, got no pose, and the error said their stamps were "apart from the
+    poses'" (two clocks) where they are one clock's; two clocks are more than a day apart."""
+    with BagWriter(tmp_path / "rec") as w:
+        for i in range(10):
+            w.image("/camera/image", T0 + i, np.zeros((4, 4, 3), np.uint8), log_time=T0 + i)
+            w.pose("/amcl_pose", T0 + 20 + i, 0.1 * i, 0.0, 0.0, log_time=T0 + 20 + i)
+        w.text("/speech", T0 + 23.0, "kitchen")
+    with pytest.raises(NothingLeftError, match="no image left") as caught:
+        import_bags([tmp_path / "rec"], map_yaml, tmp_path / "house", progress=False)
+    assert "apart from the poses'" not in str(caught.value)
+    assert "clock" not in str(caught.value)
+
+
 @pytest.mark.parametrize(("ros", "storage"), [(1, "sqlite3"), (2, "sqlite3"), (2, "mcap")],
                          ids=["ros1", "ros2-sqlite3", "ros2-mcap"])  # fmt: skip
 def test_an_empty_bag_says_it_holds_no_messages(tmp_path, map_yaml, ros, storage):
@@ -165,3 +211,11 @@ def test_the_docs_limitations_say_a_pose_topic_in_another_frame_goes_through_tf(
     limits = text[text.index("**Limitations.** Poses are planar") :][:1200]
     assert "must be in the map's frame" not in limits
     assert "placed on the map through the bag's tf" in limits
+
+
+def test_the_docs_say_record_time_moves_rightly_stamped_images_by_their_delay():
+    """docs/robot.md recommended --image-time record for a camera on another clock without
+    saying that it also places every rightly stamped image later by its transport delay."""
+    text = " ".join((ROOT / "docs" / "robot.md").read_text(encoding="utf-8").split())
+    assert "`record` also moves every correctly stamped image later by its transport delay" in text
+    assert "the two ranges of stamps more than a day apart" in text

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = [
+    "CLOCKS_APART",
     "CLOCKS_DIFFER",
     "PoseTrack",
     "compose",
@@ -202,6 +203,12 @@ stamps from 0 s) or another machine's -- and messages without a stamp (std_msgs/
 placed on the stamps' clock (:func:`header_clock`). No transport delay of a pose is that long."""
 
 
+CLOCKS_APART = 86_400.0
+"""Seconds: ranges of stamps further apart than this (a day) are on two clocks (a simulator's
+from 0 s beside the wall clock's, ~1.7e9 s). Nearer, they are one clock's: amcl publishes only
+after the robot moved, so a camera's first images can come well before the first pose."""
+
+
 def header_clock(
     chain: list[PoseTrack],
 ) -> tuple[float | None, Callable[[np.ndarray], np.ndarray] | None]:
@@ -238,14 +245,16 @@ def image_clock(
     pose track's, ``poses`` of ``pose_source``). They differ when the median of record time
     minus stamp is more than :data:`CLOCKS_DIFFER` from the poses' (``pose_offset``, of
     :func:`header_clock`; 0 where the poses carry no stamp), or when no message got a pose
-    (``posed`` False) and the two ranges do not overlap (a bag whose record times are its
-    stamps tells nothing by its offsets). A chain of static transforms only has no clock."""
+    (``posed`` False) and the two ranges are more than :data:`CLOCKS_APART` apart (a bag whose
+    record times are its stamps tells nothing by its offsets; images all before the first pose,
+    nearer, are on the poses' clock). A chain of static transforms only has no clock."""
     moving = [track for track in chain if not track.static]
     if not stamps.size or not moving:
         return None
     track = moving[-1]  # the robot's own: the pose topic, or the tf edge to its frame
     offset = (pose_offset or 0.0) - float(np.median(record - stamps))
-    apart = stamps.max() < track.times[0] or stamps.min() > track.times[-1]
+    apart = (stamps.max() < track.times[0] - CLOCKS_APART
+             or stamps.min() > track.times[-1] + CLOCKS_APART)  # fmt: skip
     if abs(offset) <= CLOCKS_DIFFER and (posed or not apart):
         return None
     return {

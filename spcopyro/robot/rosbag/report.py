@@ -17,26 +17,49 @@ from pathlib import Path
 __all__ = ["BagImportReport", "SkippedObservation", "image_clock_note", "write_skipped"]
 
 
+PLAUSIBLE_DELAY = 60.0
+"""Seconds: an image clock's offset (:func:`image_clock_note`) under this may be a difference
+in transport delay to the recorder (the images' or the poses') or a skew between two machines'
+clocks, with each image rightly at its header stamp for the first; beyond it, only two clocks."""
+
+
 def image_clock_note(t: dict[str, object]) -> str | None:
     """What a trial's ``image_clock`` (:func:`~spcopyro.robot.rosbag.poses.image_clock`: the
-    camera's stamps on another clock than the poses') means and what to do; None without one."""
+    camera's stamps on another clock than the poses') means and what to do; None without one.
+    ``t``: the trial's counts (``images_in_bag`` and ``images_no_pose`` tell whether an image
+    got a pose). ``--image-time record`` is named only where it places the images better: an
+    offset beyond :data:`PLAUSIBLE_DELAY`, or no image posed; it would move images rightly
+    stamped later by their transport delay."""
     clock = t.get("image_clock")
     if not clock:
         return None
     (a, b), (p, q), offset = clock["stamps"], clock["poses"], clock["offset"]
-    how = (
-        f"{abs(offset):.3f} s {'ahead of' if offset > 0 else 'behind'} the poses' at the same "
-        "record time"
-        if offset is not None
-        else "apart from the poses'"
+    stamps = f"trial {t['trial']} ({t['bag']}): the image stamps ({a:.3f}..{b:.3f} s) are"
+    poses = f"({clock['pose_source']}: {p:.3f}..{q:.3f} s)"
+    two_clocks = (
+        "the camera and the poses appear to stamp on different clocks (one on simulated time, "
+        "use_sim_time, the other on the wall clock?)"
     )
+    if offset is None:  # the record times as far apart as the stamps
+        return (
+            f"{stamps} apart from the poses' {poses}: {two_clocks}, and the bag recorded them as "
+            "far apart (--image-time record would not place them either); record again with "
+            "every node on one clock"
+        )
+    how = f"{abs(offset):.3f} s {'ahead of' if offset > 0 else 'behind'} the poses'"
+    posed = t.get("images_no_pose") != t.get("images_in_bag")  # not every image without one
+    if abs(offset) < PLAUSIBLE_DELAY and posed:
+        return (
+            f"{stamps} {how} at the same record time {poses}: a difference in transport delay "
+            "to the recorder (the images' or the poses') or a clock skew between machines. The "
+            "import places each image at its header stamp, right for a delay (--image-time "
+            "record would move each image later by its own delay); for a skew, synchronise the "
+            "machines' clocks (chrony, NTP) and record again"
+        )
     return (
-        f"trial {t['trial']} ({t['bag']}): the image stamps ({a:.3f}..{b:.3f} s) are {how} "
-        f"({clock['pose_source']}: {p:.3f}..{q:.3f} s): the camera and the poses appear to "
-        "stamp on different clocks (one on simulated time, use_sim_time, the other on the wall "
-        "clock?). The import places an image at its header stamp; --image-time record places "
-        "it at the time the bag recorded it (on the poses' clock), or record again with every "
-        "node on one clock"
+        f"{stamps} {how} at the same record time {poses}: {two_clocks}. The import places an "
+        "image at its header stamp; --image-time record places it at the time the bag recorded "
+        "it (on the poses' clock), or record again with every node on one clock"
     )
 
 
