@@ -167,6 +167,24 @@ def test_pieces_given_as_bags_of_their_own_are_not_said_to_be_unread(tmp_path, m
     assert [t["storage_files_not_read"] for t in report.trials] == [["rec_2.db3"]] * 2
 
 
+def test_two_pieces_given_warn_once_naming_the_pieces_given_and_the_one_not(tmp_path, map_yaml):
+    """Two of three pieces given as BAGs: both trials printed the same 'holds 1 more storage
+    file(s)' warning (read as two files missed) and advised the folder as one trial, against
+    the choice of reading each piece as a trial. Now one warning per import, naming both."""
+    bag = _split_bag(tmp_path)
+    pieces = [bag / f"rec_{part}.db3" for part in (0, 2)]
+    report = import_bags(pieces, map_yaml, tmp_path / "d" / "two", progress=False)
+    warnings = [line for line in report.text().splitlines() if line.startswith("warning")]
+    assert warnings == [
+        "warning: trials 0, 1 (rec_0.db3, rec_2.db3) are pieces of one recording (rosbag2 split "
+        f"it), each read as a trial of its own; {bag} holds 1 more piece of it, not given, not "
+        "read: rec_1.db3 (give it too to read the rest of the recording)"
+    ]
+    alone = import_bags(pieces[:1], map_yaml, tmp_path / "d" / "one", progress=False).text()
+    assert f"{bag} holds 2 more storage file(s) of its recording (rec_1.db3, rec_2.db3;" in alone
+    assert "give the folder to read the whole recording as one trial" in alone
+
+
 def test_storage_files_not_named_as_pieces_are_no_part_of_a_recording(tmp_path, map_yaml):
     """A folder of unrelated .db3 files (recordings copied together) got 'rosbag2 split it' for
     each file given; only files named as the given one's pieces (NAME_N, the same NAME) are."""

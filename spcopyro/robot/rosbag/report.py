@@ -14,6 +14,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from spcopyro._util.messages import plural
+
 __all__ = ["BagImportReport", "SkippedObservation", "image_clock_note", "write_skipped"]
 
 
@@ -137,14 +139,8 @@ class BagImportReport:
                         f"{unread} are counted in its metadata.yaml only (not written when "
                         "recorded?)"
                     )
-            if others := t.get("storage_files_not_read"):
-                folder = Path(str(t["bag"])).parent
-                lines.append(
-                    f"warning: trial {t['trial']} ({t['bag']}): {folder} holds {len(others)} "
-                    f"more storage file(s) of its recording ({', '.join(others)}; rosbag2 "
-                    "split it), not read: give the folder to read the whole recording as one "
-                    "trial (without its metadata.yaml, `ros2 bag reindex` writes one)"
-                )
+            if (warning := self._unread_pieces(t)) is not None:
+                lines.append(warning)
             if note := image_clock_note(t):
                 lines.append(f"warning: {note}")
             if t.get("pose_frame_via_tf"):
@@ -161,6 +157,38 @@ class BagImportReport:
                 f"{t['utterances_empty']} without words)"
             )
         return "\n".join(lines)
+
+    def _unread_pieces(self, t: dict[str, object]) -> str | None:
+        """The warning of trial ``t``, a storage file of a split ROS 2 recording given alone,
+        that the recording's other pieces (``storage_files_not_read``) were not read; once per
+        import for pieces of one recording given as bags of their own (each trial lists the same
+        pieces not given), at the first of them; None for the others and without such pieces."""
+        others = list(t.get("storage_files_not_read") or [])  # type: ignore[call-overload]
+        if not others:
+            return None
+        folder = Path(str(t["bag"])).parent
+        given = [
+            u
+            for u in self.trials
+            if Path(str(u["bag"])).parent == folder and u.get("storage_files_not_read") == others
+        ]
+        if given[0] is not t:
+            return None
+        if len(given) == 1:
+            return (
+                f"warning: trial {t['trial']} ({t['bag']}): {folder} holds {len(others)} more "
+                f"storage file(s) of its recording ({', '.join(others)}; rosbag2 split it), not "
+                "read: give the folder to read the whole recording as one trial (without its "
+                "metadata.yaml, `ros2 bag reindex` writes one)"
+            )
+        trials = ", ".join(str(u["trial"]) for u in given)
+        names = ", ".join(Path(str(u["bag"])).name for u in given)
+        more, them = plural(len(others), "more piece"), "it" if len(others) == 1 else "them"
+        return (
+            f"warning: trials {trials} ({names}) are pieces of one recording (rosbag2 split "
+            f"it), each read as a trial of its own; {folder} holds {more} of it, not given, not "
+            f"read: {', '.join(others)} (give {them} too to read the rest of the recording)"
+        )
 
 
 def write_skipped(path: Path, skipped: Sequence[SkippedObservation]) -> None:
