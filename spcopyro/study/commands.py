@@ -30,7 +30,6 @@ from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
 from spcopyro._util.arguments import integer_at_least as _integer_at_least
-from spcopyro._util.outputs import _identity
 from spcopyro.config import DEFAULT_PRESET, PRESETS
 
 __all__ = ["add_parser"]
@@ -160,6 +159,8 @@ def _reports_of_an_earlier_run(out: str, *names: str) -> Iterator[None]:
     without a word. One it had replaced is this run's, whole, and not named: each is replaced
     through :func:`spcopyro._util.outputs.replace_text` (or ``replace_figure``), a new inode, so
     (device, inode) tells the two apart."""
+    from spcopyro._util.outputs import _identity  # at a run only: nothing on the --help path
+
     seen = {path: _identity(path) for path in (Path(out) / name for name in names)}
     try:
         yield
