@@ -9,6 +9,7 @@ bag's import printed "ROS 2 types humble". Bags written with
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -126,6 +127,10 @@ def test_images_with_more_transport_delay_than_the_poses_are_not_called_another_
     report = import_bags([bag], map_yaml, tmp_path / "house", progress=False)
     assert report.trials[0]["image_clock"]["offset"] == pytest.approx(-1.5)
     assert report.trials[0]["images_kept"] > 0
+    # poses.image_clock decides it, the note reads it, and bag_import.json records it
+    assert report.trials[0]["image_clock"]["kind"] == "delay"
+    recorded = json.loads((report.out / "bag_import.json").read_text())
+    assert recorded["trials"][0]["image_clock"]["kind"] == "delay"
     text = " ".join(report.text().split())
     assert "are 1.500 s behind the poses' at the same record time" in text
     assert "transport delay" in text and "clock skew between machines" in text
@@ -134,17 +139,29 @@ def test_images_with_more_transport_delay_than_the_poses_are_not_called_another_
     assert "--image-time record would move each image later by its own delay" in text
 
 
-def test_a_large_offset_or_no_posed_image_still_recommends_record_time():
-    """Beyond any plausible delay (two minutes), or with no image posed, the clocks differ."""
+@pytest.mark.parametrize(
+    ("offset", "posed", "kind"),
+    [(-1.5, True, "delay"), (59.0, True, "delay"), (-120.0, True, "clocks"),
+     (-1.5, False, "clocks")],
+    ids=["delay", "under-a-minute", "two-minutes", "no-image-posed"],
+)  # fmt: skip
+def test_a_large_offset_or_no_posed_image_still_recommends_record_time(offset, posed, kind):
+    """Beyond any plausible delay (two minutes), or with no image posed, the clocks differ: the
+    kind is poses.image_clock's (beside CLOCKS_DIFFER and CLOCKS_APART), the note only words it
+    (it recomputed "some image got a pose" from the counts, with PLAUSIBLE_DELAY of its own)."""
+    from spcopyro.robot.rosbag.poses import PLAUSIBLE_DELAY, PoseTrack, image_clock
     from spcopyro.robot.rosbag.report import image_clock_note
 
-    clock = {"stamps": [1.0, 2.0], "poses": [3.0, 4.0], "pose_source": "/amcl_pose"}
-    for offset, no_pose in ((-120.0, 0), (-1.5, 10)):
-        note = image_clock_note({"trial": 0, "bag": "b", "images_in_bag": 10,
-                                 "images_no_pose": no_pose,
-                                 "image_clock": {**clock, "offset": offset}})  # fmt: skip
-        assert "different clocks" in note and "--image-time record places it" in note, note
-        assert "transport delay" not in note
+    assert PLAUSIBLE_DELAY == 60.0
+    track = PoseTrack("/amcl_pose", np.arange(10.0) + T0, np.zeros((10, 2)), np.zeros(10))
+    record = np.arange(10.0) + T0 + 0.25  # [10]
+    clock = image_clock([track], record + offset, record, 0.0, posed)
+    assert clock is not None and clock["kind"] == kind
+    assert clock["offset"] == pytest.approx(offset)
+    note = image_clock_note({"trial": 0, "bag": "b", "image_clock": clock})
+    delay = kind == "delay"
+    assert ("transport delay" in note) == delay, note
+    assert ("different clocks" in note and "--image-time record places it" in note) != delay
 
 
 def test_images_before_the_first_pose_on_its_clock_are_not_apart_from_it(tmp_path, map_yaml):

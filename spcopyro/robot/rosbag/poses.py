@@ -36,6 +36,7 @@ import numpy as np
 __all__ = [
     "CLOCKS_APART",
     "CLOCKS_DIFFER",
+    "PLAUSIBLE_DELAY",
     "PoseTrack",
     "compose",
     "frame_name",
@@ -209,6 +210,13 @@ from 0 s beside the wall clock's, ~1.7e9 s). Nearer, they are one clock's: amcl 
 after the robot moved, so a camera's first images can come well before the first pose."""
 
 
+PLAUSIBLE_DELAY = 60.0
+"""Seconds: an image clock's offset (:func:`image_clock`) under this, where some image got a
+pose, may be a difference in transport delay to the recorder (the images' or the poses') or a
+skew between two machines' clocks, with each image rightly at its header stamp for the first
+(kind ``"delay"``); beyond it, or with no image posed, only two clocks (``"clocks"``)."""
+
+
 def header_clock(
     chain: list[PoseTrack],
 ) -> tuple[float | None, Callable[[np.ndarray], np.ndarray] | None]:
@@ -242,8 +250,10 @@ def image_clock(
     [M] s) are on another clock than the poses': None when they agree; else what to report
     (``offset``: how many seconds the stamps are ahead of the poses' at the same record time,
     None where the record times do not tell; the stamps' range ``stamps`` and the robot's own
-    pose track's, ``poses`` of ``pose_source``). They differ when the median of record time
-    minus stamp is more than :data:`CLOCKS_DIFFER` from the poses' (``pose_offset``, of
+    pose track's, ``poses`` of ``pose_source``; ``kind``: ``"delay"`` for an offset under
+    :data:`PLAUSIBLE_DELAY` where some message got a pose, a difference in transport delay or a
+    skew between machines, else ``"clocks"``, two clocks). They differ when the median of record
+    time minus stamp is more than :data:`CLOCKS_DIFFER` from the poses' (``pose_offset``, of
     :func:`header_clock`; 0 where the poses carry no stamp), or when no message got a pose
     (``posed`` False) and the two ranges are more than :data:`CLOCKS_APART` apart (a bag whose
     record times are its stamps tells nothing by its offsets; images all before the first pose,
@@ -257,8 +267,10 @@ def image_clock(
              or stamps.min() > track.times[-1] + CLOCKS_APART)  # fmt: skip
     if abs(offset) <= CLOCKS_DIFFER and (posed or not apart):
         return None
+    told = abs(offset) > CLOCKS_DIFFER  # else the ranges apart say it, not the offset
     return {
-        "offset": offset if abs(offset) > CLOCKS_DIFFER else None,
+        "kind": "delay" if told and abs(offset) < PLAUSIBLE_DELAY and posed else "clocks",
+        "offset": offset if told else None,
         "stamps": [float(stamps.min()), float(stamps.max())],
         "poses": [float(track.times[0]), float(track.times[-1])],
         "pose_source": track.name,

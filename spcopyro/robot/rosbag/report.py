@@ -19,19 +19,13 @@ from spcopyro._util.messages import plural
 __all__ = ["BagImportReport", "SkippedObservation", "image_clock_note", "write_skipped"]
 
 
-PLAUSIBLE_DELAY = 60.0
-"""Seconds: an image clock's offset (:func:`image_clock_note`) under this may be a difference
-in transport delay to the recorder (the images' or the poses') or a skew between two machines'
-clocks, with each image rightly at its header stamp for the first; beyond it, only two clocks."""
-
-
 def image_clock_note(t: dict[str, object]) -> str | None:
     """What a trial's ``image_clock`` (:func:`~spcopyro.robot.rosbag.poses.image_clock`: the
     camera's stamps on another clock than the poses') means and what to do; None without one.
-    ``t``: the trial's counts (``images_in_bag`` and ``images_no_pose`` tell whether an image
-    got a pose). ``--image-time record`` is named only where it places the images better: an
-    offset beyond :data:`PLAUSIBLE_DELAY`, or no image posed; it would move images rightly
-    stamped later by their transport delay."""
+    ``t``: the trial's counts. ``--image-time record`` is named only where it places the images
+    better, its ``kind`` ``"clocks"`` (an offset beyond
+    :data:`~spcopyro.robot.rosbag.poses.PLAUSIBLE_DELAY`, or no image posed); for ``"delay"``
+    it would move images rightly stamped later by their transport delay."""
     clock = t.get("image_clock")
     if not clock:
         return None
@@ -49,8 +43,7 @@ def image_clock_note(t: dict[str, object]) -> str | None:
             "every node on one clock"
         )
     how = f"{abs(offset):.3f} s {'ahead of' if offset > 0 else 'behind'} the poses'"
-    posed = t.get("images_no_pose") != t.get("images_in_bag")  # not every image without one
-    if abs(offset) < PLAUSIBLE_DELAY and posed:
+    if clock["kind"] == "delay":
         return (
             f"{stamps} {how} at the same record time {poses}: a difference in transport delay "
             "to the recorder (the images' or the poses') or a clock skew between machines. The "
