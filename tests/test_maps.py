@@ -355,7 +355,7 @@ def bad_case(tmp_path: Path, **overrides: object) -> Path:
             [
                 "bad.yaml:7: key 'mode': 'SCALE' (taken for 'scale'; map_server "
                 "refuses it as written) is not supported by load_map",
-                "reads as one with 'mode: trinary'",
+                "is an occupancy map: write 'mode: trinary' in its yaml",
             ],
         ),
         ({"mode": "Raw"}, ["'Raw' (taken for 'raw'", "load_filter_mask", "load_label_map_server"]),

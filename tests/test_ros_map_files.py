@@ -162,8 +162,8 @@ def test_a_mode_load_map_does_not_read_names_its_line(tmp_path):
     path = write_map(tmp_path, mode="scale")
     with pytest.raises(MapFormatError, match=rf"^{path}:7: key 'mode': 'scale' is not supported"):
         load_map(path)
-    with pytest.raises(MapFormatError, match="a robot's map saved in that mode .* reads as one "
-                       "with 'mode: trinary'"):  # fmt: skip
+    with pytest.raises(MapFormatError, match="a robot's map saved in scale mode .* is an "
+                       "occupancy map: write 'mode: trinary'"):  # fmt: skip
         load_map(path)  # what a user of the commands, not of load_filter_mask, can do
     with pytest.raises(MapFormatError) as err:  # raw pixels are cell values: no such reading
         load_map(write_map(tmp_path, mode="raw"))

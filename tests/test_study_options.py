@@ -68,20 +68,27 @@ def test_a_map_in_a_mode_load_map_refuses_is_refused_before_any_cell(tmp_path, m
     with pytest.raises(ValueError) as error:
         resolve_source(DataSource("tour", "map", str(yaml)))
     # load_map's ending sent a study to load_filter_mask / load_label_map_server, which no map
-    # source is read by: the study's message says what a map source must be and what to change
+    # source is read by: the study's message shares load_map's head (the mode and, for scale,
+    # what to change) and ends saying what a map source must be
     shown = {"SCALE": "'SCALE' (taken for 'scale'; map_server refuses it as written)"}
     change = (
-        "a robot's map saved in scale mode (map_saver --mode scale, a SLAM's graded map) is one: "
-        "write 'mode: trinary' in its yaml (or leave the key out, trinary is map_server's "
-        "default) and each pixel is read against its occupied_thresh / free_thresh"
+        ": a robot's map saved in scale mode (map_saver --mode scale, a SLAM's graded map) is an "
+        "occupancy map: write 'mode: trinary' in its yaml (or leave the key out, trinary is "
+        "map_server's default) and each pixel is read against its occupied_thresh / free_thresh"
         if mode != "raw"
-        else "write 'mode: trinary' in its yaml (or leave the key out) where its image is an "
-        "occupancy map, each pixel then read against its occupied_thresh / free_thresh"
+        else ""
+    )
+    head = (
+        f"{yaml}:7: key 'mode': {shown.get(mode, repr(mode))} is not supported by load_map (only "
+        f"'trinary', an occupancy map){change}; "
     )
     assert str(error.value) == (
-        f"data source 'tour': {yaml}:7: key 'mode': {shown.get(mode, repr(mode))}: a study's map "
-        f"source must be an occupancy map, 'mode: trinary'; {change}; a costmap filter mask or a "
-        "semantic label map cannot be a map source"
+        f"data source 'tour': {head}a study's map source is read by load_map (its tours are "
+        "drawn on an occupancy map): a costmap filter mask or a semantic label map cannot be one"
+    )
+    assert str(refused.value) == (
+        f"{head}a Nav2 costmap filter mask (scale or raw) is read with load_filter_mask, a "
+        "semantic map saved by save_label_map_server with load_label_map_server"
     )
 
 

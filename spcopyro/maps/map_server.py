@@ -111,24 +111,34 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
     return grid
 
 
-def _read_occupancy_yaml(yaml_path: str | os.PathLike) -> _MapYaml:
+_LOADERS = (
+    "a Nav2 costmap filter mask (scale or raw) is read with load_filter_mask, a semantic map "
+    "saved by save_label_map_server with load_label_map_server"
+)
+"""The end of :func:`_read_occupancy_yaml`'s refusal of a mode: the loaders that read the other
+modes' maps."""
+
+
+def _read_occupancy_yaml(yaml_path: str | os.PathLike, others: str = _LOADERS) -> _MapYaml:
     """The yaml of ``yaml_path`` read and refused as :func:`load_map` reads and refuses it, its
-    ``mode`` included (only ``trinary``), without its image. A study's map source is read the
-    same way (:func:`spcopyro.study.sources.resolve_source`), its mode refused with a message of
-    its own (this one's readers, load_filter_mask and load_label_map_server, are no map source)."""
+    ``mode`` included (only ``trinary``), without its image. The refusal of a mode says the mode
+    and, for ``scale``, how a robot's map saved so reads (shared), then ``others``: by default
+    the loaders of the other modes' maps; a study's map source is read here with an ending of
+    its own (:func:`spcopyro.study.sources.resolve_source`: those loaders read no map source)."""
     spec = _read_map_yaml(yaml_path, accepts=("trinary",))
-    if spec.mode != "trinary":
+    if spec.mode != "trinary":  # raw pixels are cell values (0..100): no trinary reading of them
         raise MapFormatError(
             f"{spec.where('mode')}: key 'mode': {spec.shown_mode()} is not supported by load_map "
             "(only 'trinary', an occupancy map)"
             + (
-                ": a robot's map saved in that mode (map_saver --mode scale, a SLAM's graded "
-                "map) reads as one with 'mode: trinary', each pixel against the thresholds"
+                ": a robot's map saved in scale mode (map_saver --mode scale, a SLAM's graded "
+                "map) is an occupancy map: write 'mode: trinary' in its yaml (or leave the key "
+                "out, trinary is map_server's default) and each pixel is read against its "
+                "occupied_thresh / free_thresh"
                 if spec.mode == "scale"
                 else ""
             )
-            + "; a Nav2 costmap filter mask (scale or raw) is read with load_filter_mask, a "
-            "semantic map saved by save_label_map_server with load_label_map_server"
+            + f"; {others}"
         )
     return spec
 

@@ -24,7 +24,8 @@ from spcopyro.data.dataset import is_house_folder, list_houses
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
 from spcopyro.maps import load_map
-from spcopyro.maps.map_yaml import MapFormatError, _MapYaml, _read_map_yaml
+from spcopyro.maps.map_server import _read_occupancy_yaml
+from spcopyro.maps.map_yaml import MapFormatError, _read_map_yaml
 from spcopyro.robot.map_simulation import simulate_on_map
 from spcopyro.study.spec import DataSource
 from spcopyro.synthetic import make_house
@@ -61,12 +62,10 @@ def resolve_source(data: DataSource, root: str | Path | None = None) -> DataSour
                                 "folder (a house folder holds its observations, Ft.csv and "
                                 "St.csv, its map in ../map/NAME.yaml)")  # fmt: skip
     if data.kind == "map":  # every cell of a map that does not read failed at run time
-        try:  # read as load_map reads it, its mode refused below: a study's own message
-            spec = _read_map_yaml(target, accepts=_MAP_MODES)
+        try:  # read and refused as load_map reads and refuses it, but for the loaders named
+            spec = _read_occupancy_yaml(target, others=_NO_MAP_SOURCE)
         except MapFormatError as error:
             raise ValueError(f"data source {data.name!r}: {error}") from None
-        if spec.mode not in _MAP_MODES:
-            raise ValueError(f"data source {data.name!r}: {_refused_mode(spec)}")
         image = spec.image
         if not image.is_file():
             raise FileNotFoundError(f"data source {data.name!r}: {target} names the image "
@@ -74,28 +73,12 @@ def resolve_source(data: DataSource, root: str | Path | None = None) -> DataSour
     return dataclasses.replace(data, target=str(target.resolve()))
 
 
-_MAP_MODES = ("trinary",)
-"""The map_server modes of a study's map source: an occupancy map, as
-:func:`~spcopyro.maps.load_map` reads it (each cell free, occupied or unknown)."""
-
-
-def _refused_mode(spec: _MapYaml) -> str:
-    """Why a map source's yaml ``spec`` in another mode than trinary (scale, raw; ``SCALE`` as
-    written) is refused, and what to change: a study draws its tours on an occupancy map, which a
-    Nav2 filter mask or a semantic label map (read by their own loaders) is not."""
-    graded = (
-        "; a robot's map saved in scale mode (map_saver --mode scale, a SLAM's graded map) is one: "
-        "write 'mode: trinary' in its yaml (or leave the key out, trinary is map_server's "
-        "default) and each pixel is read against its occupied_thresh / free_thresh"
-        if spec.mode == "scale"
-        else "; write 'mode: trinary' in its yaml (or leave the key out) where its image is an "
-        "occupancy map, each pixel then read against its occupied_thresh / free_thresh"
-    )
-    return (
-        f"{spec.where('mode')}: key 'mode': {spec.shown_mode()}: a study's map source must be an "
-        f"occupancy map, 'mode: trinary'{graded}; a costmap filter mask or a semantic label map "
-        "cannot be a map source"
-    )
+_NO_MAP_SOURCE = (
+    "a study's map source is read by load_map (its tours are drawn on an occupancy map): a "
+    "costmap filter mask or a semantic label map cannot be one"
+)
+"""The end of a map source's refusal of a mode (:func:`~spcopyro.maps.map_server.load_map`'s
+names the loaders of those maps, which read no map source)."""
 
 
 def _names_under(root: Path, kind: str) -> str:
