@@ -216,7 +216,7 @@ def test_a_recorded_auto_is_refused_saying_to_edit_the_record_most_likely_to_cou
     assert str(refused.value) == (
         "the saved fit records word_weighting 'auto', not the weighting its words were counted "
         "with ('count' or 'tfidf'), so an update cannot keep it: record the one it was fitted "
-        "with in the fit's recorded preparation (config.json's data.word_weighting for a saved "
+        "with in its preparation.word_weighting (config.json's data.word_weighting for a saved "
         "fit), most likely 'count' (a result built without a preparation counted its words); "
         "asking the update for a weighting (--word-weighting, the settings' word_weighting) does "
         "not get around it, as the update's preparation must be the one recorded"

@@ -169,7 +169,7 @@ def keeping_word_weighting(
         raise ValueError(
             f"{where} records word_weighting {saved!r}, not the weighting its words were "
             f"counted with ({one_of(RESOLVED_WORD_WEIGHTINGS)}), so an update cannot keep it: "
-            "record the one it was fitted with in the fit's recorded preparation (config.json's "
+            "record the one it was fitted with in its preparation.word_weighting (config.json's "
             "data.word_weighting for a saved fit), most likely 'count' (a result built without "
             "a preparation counted its words); asking the update for a weighting "
             "(--word-weighting, the settings' word_weighting) does not get around it, as the "
