@@ -9,7 +9,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from spcopyro.data import find_dataset_root
 from spcopyro.maps import FREE, OCCUPIED, UNKNOWN, OccupancyGrid, load_map
 
 HOUSES = ("room1dk5", "room1dk6", "room1ldk4", "room1ldk5", "room2ldk4")
@@ -88,8 +87,5 @@ def test_the_pairs_are_sorted_unique_and_each_is_a_neighbour_once():
 
 
 @pytest.mark.parametrize("house", HOUSES)
-def test_the_public_maps_give_the_reference_tables_and_pairs(house):
-    root = find_dataset_root()
-    if root is None:
-        pytest.skip("public SpCoMapping dataset not found: set SPCOPYRO_DATA")
-    _assert_same(load_map(root / "map" / f"{house}.yaml"))
+def test_the_public_maps_give_the_reference_tables_and_pairs(house, dataset_root):
+    _assert_same(load_map(dataset_root / "map" / f"{house}.yaml"))
