@@ -64,6 +64,23 @@ from spcopyro._util.timings import timed
 # keep ``from spcopyro.results.point_estimate import POINT_ESTIMATES`` working.
 from spcopyro.results.estimate_names import LOSS_LABELS, LOSSES, POINT_ESTIMATES
 
+# The tables live in estimate_tables; _greedy reads _joined_rows from this module's names.
+from spcopyro.results.estimate_tables import (  # noqa: F401 (re-exported for the tests)
+    _codes_and_values,
+    _departed,
+    _f,
+    _joined_rows,
+    _kept_columns,
+    _moved_tables,
+    _Pairs,
+    _pairs,
+    _sample_tables,
+    _Samples,
+    _signature,
+    _Tables,
+    _trial_change,
+)
+
 if TYPE_CHECKING:
     from spcopyro.inference.protocol import InferenceOutput
 
@@ -75,14 +92,6 @@ RELATIVE_TOLERANCE = 1e-5
 """A start's search stops when a sweep lowers the expected loss by less than this share of it
 (the long tail of one-cell improvements on maps of ~25,000 cells costs minutes and changes
 nothing visible)."""
-
-
-def _f(x: np.ndarray, loss: str) -> np.ndarray:
-    """f of the module doc, elementwise: x^2 (Binder) or x log x (VI, 0 at 0)."""
-    x = np.asarray(x, dtype=np.float64)
-    if loss == "binder":
-        return x * x
-    return x * np.log(np.where(x > 0, x, 1.0))
 
 
 def _check(samples: np.ndarray, loss: str) -> np.ndarray:
@@ -102,23 +111,6 @@ def compact(labels: np.ndarray) -> tuple[np.ndarray, int]:
     return codes, int(values.shape[0])
 
 
-def _codes_and_values(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """([N] int64 codes: each label's rank among the distinct values, [K] those values
-    ascending), as np.unique(labels, return_inverse=True): for integer labels in
-    [0, 4 N + 1024) by a table lookup, O(N), else by np.unique's one sort. At 2.9 million
-    cells 0.02 s per labelling where np.unique's inverse took 0.34 s."""
-    labels = np.asarray(labels)
-    if labels.dtype.kind in "iu" and labels.size and labels.dtype != np.uint64:
-        low, high = int(labels.min()), int(labels.max())
-        if low >= 0 and high < 4 * labels.size + 1024:
-            present = np.bincount(labels.ravel(), minlength=high + 1) > 0  # [max + 1]
-            values = np.flatnonzero(present).astype(labels.dtype, copy=False)  # [K]
-            rank = np.cumsum(present, dtype=np.int64) - 1  # [max + 1] value -> its code
-            return rank[labels], values
-    values, codes = np.unique(labels, return_inverse=True)
-    return codes.astype(np.int64), values
-
-
 def contingency(first: np.ndarray, second: np.ndarray, k1: int, k2: int) -> np.ndarray:
     """[k1, k2] the number of cells with label k in ``first`` and j in ``second``."""
     return np.bincount(first * k2 + second, minlength=k1 * k2).reshape(k1, k2)
@@ -133,14 +125,6 @@ def pair_loss(first: np.ndarray, second: np.ndarray, loss: str) -> float:
     return float(value / (n * n if loss == "binder" else n))
 
 
-class _Samples(NamedTuple):
-    codes: np.ndarray  # [S, N] each sample's labels renamed 0..J_s-1
-    sizes: tuple[int, ...]  # J_s
-    constant: float  # sum_s F(b^s) / S
-    signatures: np.ndarray  # [S, U] the distinct columns of codes (cells labelled alike in all)
-    signature: np.ndarray  # [N] each cell's column of signatures
-
-
 def _prepare(samples: np.ndarray, loss: str, bar=None) -> _Samples:
     stacked = np.empty(samples.shape, dtype=np.int64)  # [S, N], filled in place: no 2nd copy
     sizes, constant = [], 0.0
@@ -150,69 +134,12 @@ def _prepare(samples: np.ndarray, loss: str, bar=None) -> _Samples:
         constant += _f(np.bincount(row), loss).sum()
         if bar is not None:  # 0.2 s per sample at 2.9 million cells: 6 s before the sorts
             bar.update()
-    # The distinct columns in lexicographic order (row 0 first), as np.unique(stacked, axis=1)
-    # numbers them, one sample at a time: a column's rank so far, refined by the next row.
-    signature = np.zeros(stacked.shape[1], dtype=np.int64)  # [N]
-    for row, size in zip(stacked, sizes, strict=True):
-        _, signature = np.unique(signature * size + row, return_inverse=True)
-        signature = signature.reshape(-1)
-        if bar is not None:  # a sort of the N cells per sample: 0.3 s at 2.9 million cells
-            bar.update()
+    signature = _signature(stacked, tuple(sizes), bar)  # [N] the distinct columns, ranked
     first = np.zeros(int(signature.max()) + 1, dtype=np.int64)  # [U] a cell of each column
     first[signature[::-1]] = np.arange(signature.shape[0])[::-1]
-    return _Samples(stacked, tuple(sizes), constant / len(sizes), stacked[:, first], signature)
-
-
-class _Pairs(NamedTuple):
-    """The (cluster of the estimate, distinct column of the samples) pairs that cells take: a
-    contingency table of any sample is a sum over these P pairs (a few thousand on a settled
-    map) rather than over the N cells."""
-
-    cluster: np.ndarray  # [P] the estimate's cluster of each pair
-    column: np.ndarray  # [P] its column of signatures
-    cells: np.ndarray  # [P] float64 number of cells of each pair
-    of_cell: np.ndarray  # [N] each cell's pair
-
-
-def _pairs(estimate: np.ndarray, prepared: _Samples) -> _Pairs:
-    """The pairs in order of cluster, then column, from a sort of the cells' keys (a bincount
-    over all k U possible keys and a scan of them took 2.7x as long on a 64,319-cell map)."""
-    width = prepared.signatures.shape[1]  # U
-    key = estimate * width + prepared.signature  # [N]
-    order = np.argsort(key, kind="stable")  # [N]
-    ordered = key[order]
-    first = np.empty(ordered.shape[0], dtype=bool)  # [N] a cell opens a pair
-    first[0] = True
-    np.not_equal(ordered[1:], ordered[:-1], out=first[1:])
-    starts = np.flatnonzero(first)  # [P]
-    present = ordered[starts]  # [P]
-    of_cell = np.empty(key.shape[0], dtype=np.int64)
-    of_cell[order] = np.cumsum(first) - 1
-    cells = np.diff(np.append(starts, key.shape[0])).astype(np.float64)  # [P]
-    return _Pairs(present // width, present % width, cells, of_cell)
-
-
-class _Tables(NamedTuple):
-    """The S contingency tables of an estimate against the samples, in one flat array."""
-
-    flat: np.ndarray  # [sum_s rows J_s] float64 the tables one after another
-    offsets: np.ndarray  # [S + 1] where each starts in flat
-    tables: list[np.ndarray]  # S x [rows, J_s] views of flat
-
-
-def _sample_tables(pairs: _Pairs, rows: int, prepared: _Samples) -> _Tables:
-    """The S tables [rows, J_s] float64 of the estimate (its clusters 0..rows-1) against each
-    sample, from one bincount over the P pairs: integer counts, exact in float64, equal to
-    :func:`contingency` of the cells."""
-    widths = np.asarray(prepared.sizes, dtype=np.int64)  # [S] J_s
-    offsets = np.concatenate([[0], np.cumsum(rows * widths)])  # [S + 1]
-    index = prepared.signatures[:, pairs.column] + offsets[:-1, None]  # [S, P]
-    index += pairs.cluster[None, :] * widths[:, None]
-    weights = np.broadcast_to(pairs.cells, index.shape)
-    flat = np.bincount(index.ravel(), weights=weights.ravel(), minlength=int(offsets[-1]))
-    bounds = zip(offsets[:-1], offsets[1:], prepared.sizes, strict=True)
-    tables = [flat[a:b].reshape(rows, j) for a, b, j in bounds]
-    return _Tables(flat, offsets, tables)
+    by_column = np.argsort(signature, kind="stable")  # [N] for _pairs
+    prepared = (stacked, tuple(sizes), constant / len(sizes), stacked[:, first], signature)
+    return _Samples(*prepared, by_column)
 
 
 def _expected(
@@ -234,33 +161,6 @@ def expected_loss(estimate: np.ndarray, samples: np.ndarray, loss: str) -> float
     samples = _check(samples, loss)
     codes, k = compact(estimate)
     return _expected(codes, k, _prepare(samples, loss), loss)
-
-
-def _joined_rows(
-    tables: list[np.ndarray], rows: np.ndarray | None, prepared: _Samples, loss: str
-) -> np.ndarray:
-    """[U, R] sum_s f(n^s_{k' j_s(u)} + 1) - f(n^s_{k' j_s(u)}) for every distinct column u and
-    the clusters k' in ``rows`` (None: all k + 1), summed in the samples' order; a column's
-    terms side by side (a row gather of each table's transpose, 4x faster than a column gather
-    on a 64,319-cell map). A cluster's terms depend on its cells only, so the search keeps
-    those of clusters a sweep left alone."""
-    count = tables[0].shape[0] if rows is None else rows.shape[0]
-    joined = np.zeros((prepared.signatures.shape[1], count))  # [U, R]
-    for table, columns in zip(tables, prepared.signatures, strict=True):
-        part = table if rows is None else table[rows]  # [R, J]
-        join = np.ascontiguousarray((_f(part + 1, loss) - _f(part, loss)).T)  # [J, R]
-        joined += join[columns]
-    return joined
-
-
-def _departed(pairs: _Pairs, tables: list[np.ndarray], prepared: _Samples, loss: str):
-    """[P] sum_s f(n^s_{k j_s} - 1) - f(n^s_{k j_s}): a cell of each pair leaving its table
-    entries, summed in the samples' order."""
-    departed = np.zeros(pairs.cluster.shape[0])  # [P]
-    for table, columns in zip(tables, prepared.signatures, strict=True):
-        depart = _f(table - 1, loss) - _f(table, loss)  # [k + 1, J]
-        departed += depart[pairs.cluster, columns[pairs.column]]
-    return departed
 
 
 def _pair_changes(
@@ -320,62 +220,6 @@ def _best_moves(
     return best, gain
 
 
-def _trial_change(
-    movers: np.ndarray,
-    estimate: np.ndarray,
-    target: np.ndarray,
-    sizes: np.ndarray,
-    tables: _Tables,
-    prepared: _Samples,
-    loss: str,
-) -> float:
-    """The change of the expected loss (times Z) when the cells ``movers`` go to ``target``,
-    from the table entries they change only (at most 2 M per sample): equal to the difference
-    of two :func:`_expected` to rounding (~1e-16 of the sums), not to the bit."""
-    source, dest = estimate[movers], target[movers]  # [M]
-    count = sizes.shape[0]  # k + 1
-    grow = np.bincount(dest, minlength=count) - np.bincount(source, minlength=count)  # [k + 1]
-    touched = np.flatnonzero(grow)
-    total = float((_f(sizes[touched] + grow[touched], loss) - _f(sizes[touched], loss)).sum())
-    widths = np.asarray(prepared.sizes, dtype=np.int64)[:, None]  # [S, 1]
-    base = prepared.codes[:, movers] + tables.offsets[:-1, None]  # [S, M] flat index of column
-    index = np.concatenate([(base + source * widths).ravel(), (base + dest * widths).ravel()])
-    entries, inverse = np.unique(index, return_inverse=True)
-    step = np.bincount(inverse.reshape(-1), weights=np.repeat([-1.0, 1.0], base.size))
-    before = tables.flat[entries]
-    shared = float((_f(before + step, loss) - _f(before, loss)).sum())
-    return total - 2.0 * shared / len(prepared.sizes)
-
-
-def _moved_tables(
-    tables: _Tables,
-    kept: np.ndarray,
-    movers: np.ndarray,
-    estimate: np.ndarray,
-    target: np.ndarray,
-    prepared: _Samples,
-) -> _Tables:
-    """The tables [kk + 1, J_s] after the cells ``movers`` went to ``target``, from ``tables``
-    [k + 1, J_s]: the rows of the clusters ``kept`` [kk] (old names, in order: the renaming of
-    :func:`compact`), a spare empty row, and the movers' counts moved. Integer counts: equal to
-    :func:`_sample_tables` of the moved estimate, to the bit."""
-    widths = np.asarray(prepared.sizes, dtype=np.int64)  # [S]
-    rows = kept.shape[0] + 1  # kk + 1
-    offsets = np.concatenate([[0], np.cumsum(rows * widths)])  # [S + 1]
-    flat = np.zeros(int(offsets[-1]))
-    for old, a, j in zip(tables.tables, offsets[:-1], prepared.sizes, strict=True):
-        flat[a : a + (rows - 1) * j].reshape(rows - 1, j)[:] = old[kept]
-    rename = np.full(tables.tables[0].shape[0], -1, dtype=np.int64)  # [k + 1] old -> new
-    rename[kept] = np.arange(kept.shape[0])
-    base = prepared.codes[:, movers] + offsets[:-1, None]  # [S, M]
-    source = rename[estimate[movers]]  # [M] -1: a cluster the moves emptied, its row dropped
-    left = (base + source * widths[:, None])[:, source >= 0]
-    np.subtract.at(flat, left.ravel(), 1.0)
-    np.add.at(flat, (base + rename[target[movers]] * widths[:, None]).ravel(), 1.0)
-    bounds = zip(offsets[:-1], offsets[1:], prepared.sizes, strict=True)
-    return _Tables(flat, offsets, [flat[a:b].reshape(rows, j) for a, b, j in bounds])
-
-
 TRIAL_MARGIN = 1e-9
 """A halving trial whose loss, computed from its changed table entries
 (:func:`_trial_change`), is above the bar by more than this share of the loss (plus this much)
@@ -404,8 +248,8 @@ def _greedy(
         sizes = np.bincount(estimate, minlength=k + 1).astype(np.float64)  # [k + 1]
         if stale is None:
             joined = _joined_rows(tables.tables, None, prepared, loss)
-        else:
-            joined[:, stale] = _joined_rows(tables.tables, stale, prepared, loss)
+        else:  # in place, into joined's columns stale
+            joined = _joined_rows(tables.tables, stale, prepared, loss, joined)
         no_new = max_clusters is not None and k >= max_clusters
         best, gain = _best_moves(sizes, pairs, tables.tables, joined, prepared, loss, no_new)
         target = best[pairs.of_cell]  # [N]
@@ -435,10 +279,9 @@ def _greedy(
                 trial_pairs = _pairs(codes, prepared)
                 moved = np.zeros(k + 1, dtype=bool)
                 moved[estimate[movers]] = moved[target[movers]] = True
-                grown = np.empty((joined.shape[0], kk + 1))  # [U, kk + 1]
-                grown[:, :kk] = joined[:, kept]
                 stale = np.append(np.flatnonzero(moved[kept]), kk)  # and the new spare one
-                joined, pairs, tables = grown, trial_pairs, trial_tables
+                joined = _kept_columns(joined, kept)  # [U, kk + 1], in place where it fits
+                pairs, tables = trial_pairs, trial_tables
                 estimate, k, value, improved = codes, kk, trial_value, True
                 break
             movers = movers[: movers.size // 2]
