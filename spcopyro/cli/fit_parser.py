@@ -121,7 +121,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
              "updated fit's)",
     )  # fmt: skip
     weighting.add_argument("--tfidf", dest="word_weighting", action="store_const",
-                           const="tfidf", help="--word-weighting tfidf")  # fmt: skip
+                           const="tfidf",
+                           help="the same as --word-weighting tfidf (default: off)")  # fmt: skip
     p.add_argument(
         "--unobserved-refresh",
         type=float,
