@@ -27,7 +27,7 @@ from gibbs_problems import (
     state_index,
     without_words,
 )
-from scipy import stats
+from statistical_checks import pooled_chisquare_p
 
 import spcopyro.gibbs.merge as merge
 from spcopyro.gibbs.merge import (
@@ -112,11 +112,7 @@ def _invariance_p_value(
         final.append(labels)
     observed = torch.bincount(state_index(torch.stack(final), cfg.num_concepts),
                               minlength=len(labelings)).double()  # fmt: skip
-    expected = exact * copies
-    big = expected >= 5
-    obs_bins = torch.cat([observed[big], observed[~big].sum()[None]]).numpy()
-    exp_bins = torch.cat([expected[big], expected[~big].sum()[None]]).numpy()
-    return float(stats.chisquare(obs_bins, exp_bins * obs_bins.sum() / exp_bins.sum()).pvalue)
+    return pooled_chisquare_p(observed, exact)
 
 
 @pytest.mark.slow
