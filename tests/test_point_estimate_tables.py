@@ -70,7 +70,10 @@ def _random_samples(seed):
 def test_signature_is_the_one_sort_per_sample_ranking(seed):
     prepared = _prepare(_random_samples(seed), "vi")
     assert np.array_equal(prepared.signature, _old_signature(prepared.codes, prepared.sizes))
-    assert np.array_equal(prepared.by_column, np.argsort(prepared.signature, kind="stable"))
+    by_column, n = prepared.by_column, prepared.signature.shape[0]
+    assert np.array_equal(np.sort(by_column), np.arange(n))  # a permutation of the cells
+    keys = prepared.signature[by_column] * n + by_column  # (column, index), strictly rising
+    assert (np.diff(keys) > 0).all()
 
 
 def test_signature_folds_rows_as_the_keys_allow():
@@ -82,14 +85,29 @@ def test_signature_folds_rows_as_the_keys_allow():
     assert np.array_equal(_signature(stacked, sizes), _old_signature(stacked, sizes))
 
 
+RADIX_CASES = [(1, np.uint8), (3, np.uint8), (256, np.uint8), (257, np.uint16), (300, np.uint16),
+               (65536, np.uint16), (65537, np.int64), (70000, np.int64)]  # fmt: skip
+
+
 @pytest.mark.parametrize("seed", range(12))
-def test_pairs_are_the_sort_of_the_keys(seed):
+def test_pairs_are_the_sort_of_the_keys(seed, monkeypatch):
+    """Any non-negative cluster numbers (not compacted: a few hundred cells reach 70,000
+    clusters), their largest set so that each dtype of the sort is the one chosen."""
+    chosen = []  # the dtype of each sort
+
+    def radix_dtype(estimate, real=tables_module._radix_dtype):
+        chosen.append(real(estimate))
+        return chosen[-1]
+
+    monkeypatch.setattr(tables_module, "_radix_dtype", radix_dtype)
     rng = np.random.default_rng(100 + seed)
     prepared = _prepare(_random_samples(seed), "vi")
     n = prepared.signature.shape[0]
-    for clusters in (1, 3, 300, 70000):  # uint8, uint16 and int64 clusters
-        estimate, _ = compact(rng.integers(0, clusters, n))
+    for clusters, dtype in RADIX_CASES:
+        estimate = rng.integers(0, clusters, n)
+        estimate[rng.integers(n)] = clusters - 1
         ours, theirs = _pairs(estimate, prepared), _old_pairs(estimate, prepared)
+        assert chosen.pop() is dtype
         for a, b in zip(ours, theirs, strict=True):
             assert a.dtype == b.dtype and np.array_equal(a, b)
 
@@ -119,43 +137,59 @@ def test_kept_columns_are_the_copied_columns(case, monkeypatch):
     rng = np.random.default_rng(7)
     buffer = rng.random((23, 12))  # [U, width]
     k = {"outgrown": 11}.get(case, 8)
-    joined = buffer[:, : k + 1]
     kept = {"same": np.arange(k), "emptied": np.array([0, 2, 3, 5, 6, 7]),
             "opened": np.arange(k + 1), "outgrown": np.arange(k + 1)}[case]  # fmt: skip
-    expected = joined[:, kept].copy()  # the copy the search made before 2026-12-05
-    moved = _kept_columns(joined, kept)
-    assert moved.shape == (23, kept.shape[0] + 1)
+    expected = buffer[:, kept].copy()  # the copy the search made before 2026-12-05
+    moved = _kept_columns(buffer, kept)
+    assert moved.shape == (23, 12 if case != "outgrown" else kept.shape[0] + 9)
     assert np.array_equal(moved[:, : kept.shape[0]], expected)
-    assert (moved.base is buffer) == (case != "outgrown")  # in place where it fits
+    assert (moved is buffer) == (case != "outgrown")  # in place where it fits
 
 
 @pytest.mark.parametrize("loss", ["vi", "binder"])
 def test_the_search_on_a_map_like_case_is_unchanged(loss, monkeypatch):
-    """The search with small blocks (moves in place, new clusters, outgrown buffers) against
-    the same search with the old tables and join terms: the same estimate and loss, bit for
-    bit."""
+    """The search with small blocks (columns moved in place, new clusters, outgrown buffers)
+    against the same search with the old tables and join terms: the same estimate and loss, bit
+    for bit. The samples' own labellings as starts move columns in place; one cluster for all
+    cells (all zeros) as a start opens clusters and outgrows its buffer (VI: once, to 3
+    clusters; Binder: twice, to 18)."""
     import spcopyro.results.point_estimate as module
     from tests.test_point_estimate import _map_like_samples
 
     prepared = _prepare(_map_like_samples(4, cells=1500), loss)
+    starts = [*prepared.codes[:3], np.zeros(prepared.codes.shape[1], dtype=np.int64)]
     monkeypatch.setattr(tables_module, "BLOCK", 64)
-    ours = [_greedy(start, prepared, loss, None) for start in prepared.codes[:3]]
+    calls = []  # (start, in place, grown) of each _kept_columns
+
+    def counted_kept(buffer, kept):
+        moved = tables_module._kept_columns(buffer, kept)
+        inplace = moved is buffer and not np.array_equal(kept, np.arange(kept.shape[0]))
+        calls.append((len(ours), inplace, moved is not buffer))
+        return moved
+
+    monkeypatch.setattr(module, "_kept_columns", counted_kept)
+    ours = []
+    for start in starts:
+        ours.append(_greedy(start, prepared, loss, None))
+    assert any(inplace for s, inplace, _ in calls if s < 3)  # columns moved in place
+    growths = sum(grown for s, _, grown in calls if s == 3)  # buffers outgrown from zeros
+    assert growths >= {"vi": 1, "binder": 2}[loss]  # binder: 8 spare columns used up, too
+    assert ours[3][0].max() >= 2  # new clusters opened
 
     def old_rows(tables, rows, prepared, loss, out=None):
         if out is None:
             return _old_joined_rows(tables, rows, prepared, loss)
-        out = np.ascontiguousarray(out)
         out[:, rows] = _old_joined_rows(tables, rows, prepared, loss)
         return out
 
-    def old_kept(joined, kept):
-        grown = np.empty((joined.shape[0], kept.shape[0] + 1))
-        grown[:, :-1] = joined[:, kept]
+    def old_kept(buffer, kept):  # [U, kk + 1]: the copy the search made before 2026-12-05
+        grown = np.empty((buffer.shape[0], kept.shape[0] + 1))
+        grown[:, :-1] = buffer[:, kept]
         return grown
 
     monkeypatch.setattr(module, "_joined_rows", old_rows)
     monkeypatch.setattr(module, "_kept_columns", old_kept)
     monkeypatch.setattr(module, "_pairs", _old_pairs)
-    for (estimate, value), start in zip(ours, prepared.codes[:3], strict=True):
+    for (estimate, value), start in zip(ours, starts, strict=True):
         theirs, their_value = _greedy(start, prepared, loss, None)
         assert np.array_equal(estimate, theirs) and value == their_value

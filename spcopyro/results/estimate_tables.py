@@ -58,15 +58,22 @@ class _Pairs(NamedTuple):
     of_cell: np.ndarray  # [N] each cell's pair
 
 
+def _radix_dtype(estimate: np.ndarray) -> type:
+    """The narrowest dtype that holds the clusters ``estimate`` [N] (non-negative) for
+    :func:`_pairs`' stable sort: uint8 up to 256 clusters, uint16 up to 65,536 (numpy's stable
+    sort of these is a radix sort), else int64."""
+    clusters = int(estimate.max()) + 1 if estimate.size else 1
+    return np.uint8 if clusters <= 256 else np.uint16 if clusters <= 65536 else np.int64
+
+
 def _pairs(estimate: np.ndarray, prepared: _Samples) -> _Pairs:
     """The pairs in order of cluster, then column, from a stable sort of the cells by their
     cluster in the samples' fixed column order (``by_column``): the order of a stable sort of
     the keys cluster * U + column, by a radix sort of 1- or 2-byte clusters (0.05 s at 3.07
     million cells where the keys' sort took 0.3 s)."""
     width = prepared.signatures.shape[1]  # U
-    clusters = int(estimate.max()) + 1 if estimate.size else 1
-    small = np.uint8 if clusters <= 256 else np.uint16 if clusters <= 65536 else np.int64
-    by_cluster = np.argsort(estimate[prepared.by_column].astype(small), kind="stable")  # [N]
+    small = estimate.astype(_radix_dtype(estimate), copy=False)[prepared.by_column]  # [N]
+    by_cluster = np.argsort(small, kind="stable")  # [N]
     order = prepared.by_column[by_cluster]  # [N] cells by (cluster, column, index)
     ordered = estimate[order] * width + prepared.signature[order]  # [N] their keys, ascending
     first = np.empty(ordered.shape[0], dtype=bool)  # [N] a cell opens a pair
@@ -165,23 +172,22 @@ def _joined_rows(
     return joined
 
 
-def _kept_columns(joined: np.ndarray, kept: np.ndarray) -> np.ndarray:
-    """[U, kk + 1] the join terms ``joined`` [U, k + 1] (a view of the first columns of a wider
-    buffer) of the clusters ``kept`` [kk] (old names, ascending), and a column for the spare
-    cluster (its values left to recompute): in place where the buffer is wide enough, moved a
-    block of rows at a time; a copy 8 columns wider where a new cluster outgrows it."""
-    base = joined if joined.base is None else joined.base  # [U, width]
+def _kept_columns(buffer: np.ndarray, kept: np.ndarray) -> np.ndarray:
+    """[U, width] the search's buffer of join terms after a move: ``buffer`` [U, width >= k + 1]
+    holds those of the clusters 0..k in its first k + 1 columns; the returned buffer holds
+    those of the clusters ``kept`` [kk] (old names, ascending) in its first kk columns and
+    leaves column kk (the spare cluster's) to recompute. It is ``buffer`` itself, its columns
+    moved a block of rows at a time, where it is wide enough; else a new buffer 8 columns wider
+    than needed (kk + 9), for the new clusters to come."""
     count = kept.shape[0]  # kk
-    if count + 1 > base.shape[1]:
-        grown = np.empty((base.shape[0], count + 9))
-        for start in range(0, base.shape[0], BLOCK):
-            grown[start : start + BLOCK, :count] = base[start : start + BLOCK, kept]
-        return grown[:, : count + 1]
-    if not np.array_equal(kept, np.arange(count)):
-        for start in range(0, base.shape[0], BLOCK):
-            block = base[start : start + BLOCK]
-            block[:, :count] = block[:, kept]  # the gather copies before it is written
-    return base[:, : count + 1]
+    grow = count + 1 > buffer.shape[1]
+    if not grow and np.array_equal(kept, np.arange(count)):
+        return buffer  # nothing moves
+    target = np.empty((buffer.shape[0], count + 9)) if grow else buffer  # [U, width']
+    for start in range(0, buffer.shape[0], BLOCK):
+        block = buffer[start : start + BLOCK, kept]  # [<= BLOCK, kk] a copy: safe in place
+        target[start : start + BLOCK, :count] = block
+    return target
 
 
 def _departed(pairs: _Pairs, tables: list[np.ndarray], prepared: _Samples, loss: str):

@@ -240,16 +240,17 @@ def _greedy(
     value = _expected(estimate, k, prepared, loss, tables)  # reads the first k rows
     n = estimate.shape[0]
     scale = float(n * n if loss == "binder" else n)
-    joined, stale = None, None  # [U, k + 1]; the clusters to recompute (None: all)
+    buffer, stale = None, None  # [U, >= k + 1] join terms; the clusters to recompute (None: all)
     sweeps = 0
     while sweeps < MAX_SWEEPS:
         sweeps += 1
         before = value
         sizes = np.bincount(estimate, minlength=k + 1).astype(np.float64)  # [k + 1]
         if stale is None:
-            joined = _joined_rows(tables.tables, None, prepared, loss)
-        else:  # in place, into joined's columns stale
-            joined = _joined_rows(tables.tables, stale, prepared, loss, joined)
+            buffer = _joined_rows(tables.tables, None, prepared, loss)  # [U, k + 1]
+        else:  # in place, into the buffer's columns stale
+            _joined_rows(tables.tables, stale, prepared, loss, buffer[:, : k + 1])
+        joined = buffer[:, : k + 1]  # [U, k + 1] a view
         no_new = max_clusters is not None and k >= max_clusters
         best, gain = _best_moves(sizes, pairs, tables.tables, joined, prepared, loss, no_new)
         target = best[pairs.of_cell]  # [N]
@@ -280,7 +281,7 @@ def _greedy(
                 moved = np.zeros(k + 1, dtype=bool)
                 moved[estimate[movers]] = moved[target[movers]] = True
                 stale = np.append(np.flatnonzero(moved[kept]), kk)  # and the new spare one
-                joined = _kept_columns(joined, kept)  # [U, kk + 1], in place where it fits
+                buffer = _kept_columns(buffer, kept)  # in place where it fits
                 pairs, tables = trial_pairs, trial_tables
                 estimate, k, value, improved = codes, kk, trial_value, True
                 break
