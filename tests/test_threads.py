@@ -510,8 +510,8 @@ def test_gibbs_is_bit_identical_on_one_and_two_threads(threaded_product_house, b
     """Gibbs on either backend: every output (labels, labels_final, pi, the tables, the
     objective trace) has the same bits on 1 and 2 threads: torch's CPU random draws are serial,
     so the chain is the same, although the log-likelihood table the labels are drawn against
-    (observation_log_likelihood for the torch sweep, numba_background.write_log_likelihood's
-    products for the compiled one) may differ in its last bits, as MKL's does on this house. A
+    (observation_log_likelihood for the torch sweep; the compiled one's products run on one
+    thread, the tests below) may differ in its last bits, as MKL's does on this house. A
     draw flips only where a uniform lands within those bits of a boundary between two concepts'
     cumulative weights (docs/speed.md, "Threads"). Runs whatever the BLAS does: it replaced a
     test of the labels alone on a 30-cell house, whose product never differed."""
@@ -525,20 +525,11 @@ def test_gibbs_is_bit_identical_on_one_and_two_threads(threaded_product_house, b
         assert one[name].tobytes() == two[name].tobytes(), name
 
 
-def _skip_without_mkl() -> None:
-    """The operand that makes the product thread-independent was found under MKL's split rules
-    (2024.2, torch 2.14.1); another BLAS (OpenBLAS, Accelerate) splits by its own, so what these
-    tests pin is MKL's, not every machine's."""
-    if not torch.backends.mkl.is_available():
-        pytest.skip("the thread-independent operand is MKL's (this torch's BLAS is another)")
-
-
 def test_the_compiled_background_table_is_the_same_on_one_and_two_threads(threaded_product_house):
     """What the test above draws against: the compiled sweep's background table has the same
-    bits on 1 and 2 threads (its products take a contiguous log(phi)^T; with the transposed view
-    MKL gave it other last bits, up to 5.4e-14 on this house)."""
+    bits on 1 and 2 threads, as its products run on one thread whatever the fit's count (with
+    MKL's thread split they differed in their last bits, up to 5.4e-14 on this house)."""
     pytest.importorskip("numba")
-    _skip_without_mkl()
     from spcopyro.fit.house import prepare_model_data
     from spcopyro.gibbs.numba_background import background_table
     from spcopyro.gibbs.sampler import init
@@ -553,23 +544,100 @@ def test_the_compiled_background_table_is_the_same_on_one_and_two_threads(thread
     assert tables[0].tobytes() == tables[1].tobytes()
 
 
-@pytest.mark.parametrize("rows", [1, 2, 30, 86, 500, 5000])
-def test_the_background_products_operand_gives_the_same_bits_on_any_thread_count(rows):
-    """numba_background._right_operand: [rows, 205] x [205, 120] float64 products with it have
-    the same bits on 1 and 2 threads, a single row included (there the copy did not)."""
-    pytest.importorskip("numba")
-    _skip_without_mkl()
-    from spcopyro.gibbs.numba_background import _right_operand
+PRODUCT_ROWS = (1, 2, 30, 60, 85, 86, 100, 105, 500, 5000)
+"""Row counts of the background's products: MKL split the [rows, 205] x [205, 120] float64
+product across threads with other last bits at 60-105 rows and from 86 on (its AVX2 and AVX-512
+paths, the transposed or the copied operand)."""
 
-    generator = torch.Generator().manual_seed(rows)
-    counts = torch.poisson(3 * torch.rand(rows, 205, dtype=torch.float64, generator=generator),
-                           generator=generator)  # fmt: skip
-    log_phi = torch.randn(120, 205, dtype=torch.float64, generator=generator)  # [L, K]
-    products = []
-    for threads in (1, 2):
-        with torch_threads(threads):
-            products.append(torch.matmul(counts, _right_operand(log_phi, rows)))  # [rows, L]
-    assert torch.equal(*products)
+
+def _background_products_differing(rows_list=PRODUCT_ROWS, thread_counts=(2, 3)) -> list:
+    """(rows, threads) where numba_background.write_log_likelihood's products -- the dense
+    ``matmul(out=)`` [rows, 205], the dense ``addmm_`` [rows, 15] and the factored [rows, 205]
+    through an identity CSR, into one [rows, 120] table -- differ from one thread's bits."""
+    from types import SimpleNamespace
+
+    from spcopyro.gibbs.numba_background import write_log_likelihood
+
+    differing = []
+    for rows in rows_list:
+        generator = torch.Generator().manual_seed(rows)
+        tables = [
+            torch.randn(120, k, dtype=torch.float64, generator=generator) for k in (205, 15, 205)
+        ]
+        observed = [  # [rows, K_m] each
+            torch.poisson(3 * torch.rand(rows, k, dtype=torch.float64, generator=generator),
+                          generator=generator) for k in (205, 15, 205)]  # fmt: skip
+        spread = SimpleNamespace(sources=observed[2].numpy(), indptr=np.arange(rows + 1),
+                                 indices=np.arange(rows), weights=np.ones(rows),
+                                 pays=lambda: True)  # fmt: skip
+        modalities = [SimpleNamespace(name=str(i), counts=c, factored=lambda: None)
+                      for i, c in enumerate(observed[:2])]  # fmt: skip
+        modalities.append(
+            SimpleNamespace(name="2", counts=observed[2], factored=lambda spread=spread: spread)
+        )
+        data = SimpleNamespace(modalities=modalities)
+        state = SimpleNamespace(log_emissions=tables)
+        config = SimpleNamespace(uses=lambda name: True)
+        outs = {}
+        for threads in (1, *thread_counts):
+            with torch_threads(threads):
+                outs[threads] = torch.empty(rows, 120, dtype=torch.float64)  # [rows, L]
+                write_log_likelihood(state, data, config, outs[threads])
+        differing += [(rows, t) for t in thread_counts if not torch.equal(outs[t], outs[1])]
+    return differing
+
+
+def test_the_background_products_give_the_same_bits_on_any_thread_count():
+    """numba_background.write_log_likelihood's three kinds of product have the same bits on 1, 2
+    and 3 threads at every row count, a single row included."""
+    pytest.importorskip("numba")
+    assert _background_products_differing() == []
+
+
+@pytest.mark.parametrize("instructions", ["AVX2", "AVX512"])
+def test_the_background_products_are_thread_independent_on_every_mkl_code_path(instructions):
+    """The same on MKL's AVX2 path (what it runs on AMD and pre-AVX-512 Intel CPUs), where a
+    contiguous log(phi)^T, which kept MKL's AVX-512 split to the same bits, did not (60, 85, 86,
+    100, 105 rows): the products run on one thread, not on MKL's split rules. A subprocess, as
+    MKL reads MKL_ENABLE_INSTRUCTIONS once; on a CPU without the instructions MKL takes the best
+    path it has, and without MKL the variable does nothing."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    pytest.importorskip("numba")
+    code = ("import sys; sys.path.insert(0, sys.argv[1]); "
+            "from test_threads import _background_products_differing as f; print(f())")  # fmt: skip
+    env = {**os.environ, "MKL_ENABLE_INSTRUCTIONS": instructions}
+    out = subprocess.run([sys.executable, "-c", code, str(Path(__file__).parent)], env=env,
+                         capture_output=True, text=True, timeout=600)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_one_blas_thread_leaves_the_other_threads_their_count(restore_threads):
+    """one_blas_thread changes MKL's count for the calling thread only: torch's count stays, and
+    a thread that starts inside the block (a Gibbs chain on a thread) takes torch's, not 1 (with
+    torch_threads(1) there, a chain of ``fit --threads 3 --chains 2`` ran on one thread)."""
+    import threading
+
+    from spcopyro._util.threads import _mkl_set_num_threads_local, one_blas_thread
+
+    if _mkl_set_num_threads_local() is None:
+        pytest.skip("this torch has no MKL thread-local count (one_blas_thread: torch_threads)")
+    torch.set_num_threads(3)
+    seen = []
+    with one_blas_thread():
+        assert torch.get_num_threads() == 3
+        thread = threading.Thread(target=lambda: seen.append(torch.get_num_threads()))
+        thread.start()
+        thread.join()
+    assert seen == [3]
+    with pytest.raises(KeyError), one_blas_thread():
+        raise KeyError("x")
+    assert _mkl_set_num_threads_local()(3) == 3  # this thread's MKL count restored after a raise
+    assert torch.get_num_threads() == 3
 
 
 @pytest.mark.parametrize("method", ["cavi", "lbp"])

@@ -32,8 +32,9 @@ when the fit fails. What it does not touch:
 
 - **numba**: the compiled sweep's kernels (:mod:`spcopyro.gibbs.numba_sweep`) are
   single-threaded ``@njit`` functions (no ``parallel=True``, no ``prange``), so
-  ``NUMBA_NUM_THREADS`` plays no part; the torch operations around them (the background table's
-  product, the conjugate draws, the log joint) follow the torch setting.
+  ``NUMBA_NUM_THREADS`` plays no part; the torch operations around them (the conjugate draws,
+  the log joint) follow the torch setting, and the background table's products run on one
+  thread whatever it is (:func:`one_blas_thread`), so that their bits do not depend on it.
 - **numpy's BLAS (OpenBLAS)**: the sweep makes no numpy BLAS call -- the one matrix product of the
   compiled backend runs in torch for that reason -- so numpy's thread pool stays idle during a
   fit; it is sized by ``OPENBLAS_NUM_THREADS`` when numpy is imported and left alone here.
@@ -56,9 +57,10 @@ every run measured; ``docs/speed.md``, "Threads").
 
 from __future__ import annotations
 
+import ctypes
 import os
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from numbers import Integral
 
@@ -232,3 +234,49 @@ def torch_threads(count: int | None) -> Iterator[int]:
     finally:
         if torch.get_num_threads() != previous:
             torch.set_num_threads(previous)
+
+
+_mkl_local_setter: Callable[[int], int] | None | bool = False  # False: not looked up yet
+
+
+def _mkl_set_num_threads_local() -> Callable[[int], int] | None:
+    """MKL's ``MKL_Set_Num_Threads_Local`` (its C interface: sets the calling thread's count, 0
+    for the global one, and returns the previous) from the MKL that torch links, else None
+    (torch without MKL, or a build that does not export it)."""
+    global _mkl_local_setter
+    if _mkl_local_setter is False:
+        import torch
+
+        _mkl_local_setter = None
+        folder = os.path.join(os.path.dirname(torch.__file__), "lib")
+        names = ("libtorch_cpu.so", "libtorch_cpu.dylib", "torch_cpu.dll")
+        for path in (os.path.join(folder, name) for name in names):
+            if not torch.backends.mkl.is_available() or not os.path.exists(path):
+                continue
+            try:
+                setter = ctypes.CDLL(path).MKL_Set_Num_Threads_Local
+            except (OSError, AttributeError):
+                continue
+            setter.restype, setter.argtypes = ctypes.c_int, [ctypes.c_int]
+            _mkl_local_setter = setter
+            break
+    return _mkl_local_setter or None
+
+
+@contextmanager
+def one_blas_thread() -> Iterator[None]:
+    """Run the block's torch matrix products on one BLAS thread, then restore the setting --
+    also when the block raises. With MKL (torch's BLAS on x86) only the calling thread's MKL
+    count changes, so chains sweeping on other threads (:mod:`spcopyro.gibbs.chains`), and
+    threads that start meanwhile, keep theirs; without it, :func:`torch_threads` (1): the
+    process's torch count for the block, which a thread starting during it would take up."""
+    setter = _mkl_set_num_threads_local()
+    if setter is None:
+        with torch_threads(1):
+            yield
+        return
+    previous = setter(1)
+    try:
+        yield
+    finally:
+        setter(previous)

@@ -19,12 +19,18 @@ as ``A (X log(phi)^T)``: S K L + nnz(A) L multiply-adds instead of M K L, a nint
 Both orders give the same table to rounding (about 1e-15 relative); a modality without a
 footprint, or whose factored form would not pay, takes the dense product.
 
-Each product takes log(phi)^T as a contiguous [K, L] copy, not a transposed view: MKL (2024.2,
-torch 2.14.1) splits the float64 product with the view across threads from 86 rows on and
-gives other last bits on 1 and 2 threads, with the copy the same bits from 2 rows on (a single
-row keeps the view, the other way round), so the draws do not depend on the thread count
-(docs/speed.md, "Threads"). The copy's bits differ from the view's on one thread too (up to
-1.4e-13): a seeded fit since this change may differ from one before it, rarely.
+The products run on one BLAS thread (:func:`~spcopyro._util.threads.one_blas_thread`: MKL's
+count for the calling thread only), whatever the fit's count, so the table, and the draws
+against it, do not depend on the thread count by construction. A BLAS that splits a product
+across threads sums it in another order, and MKL's split depends on its code path: on its
+AVX-512 path (MKL 2024.2, torch 2.14.1) a contiguous copy of log(phi)^T gave the same bits on 1
+and 2+ threads (the transposed view did not, from 86 rows on), but on its AVX2 path (what MKL
+runs on AMD and pre-AVX-512 Intel; ``MKL_ENABLE_INSTRUCTIONS=AVX2``) the copy's product too
+differed between thread counts at 60, 85, 86, 100 and 105 rows. Maps of fewer than
+:data:`~spcopyro._util.threads.MIN_CELLS_FOR_MORE_THREADS` free cells run on one thread anyway
+(docs/speed.md, "Threads"). Each product still takes log(phi)^T as a contiguous [K, L] copy (a
+single row: the transposed view), the operand the fits since b98aaa2 were seeded with: on one
+thread its bits differ from the view's (up to 1.4e-13), so the pinned outputs keep theirs.
 """
 
 from __future__ import annotations
@@ -33,6 +39,7 @@ import numpy as np
 import torch
 from numba import njit
 
+from spcopyro._util.threads import one_blas_thread
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.state import GibbsState
 from spcopyro.model import ModelData
@@ -62,7 +69,15 @@ def write_log_likelihood(
     state: GibbsState, data: ModelData, config: SpCoConfig, out: torch.Tensor
 ) -> None:
     """Write loglik [M, L] (module docstring) into ``out`` [M, L] (float64, contiguous), the
-    modalities switched off in ``config`` left out; factored products where they pay."""
+    modalities switched off in ``config`` left out; factored products where they pay. The
+    products run on one thread: the same bits on any thread count (module docstring)."""
+    with one_blas_thread():
+        _write_log_likelihood(state, data, config, out)
+
+
+def _write_log_likelihood(
+    state: GibbsState, data: ModelData, config: SpCoConfig, out: torch.Tensor
+) -> None:
     out.zero_()
     for index, (modality, table) in enumerate(
         zip(data.modalities, state.log_emissions, strict=True)
@@ -86,9 +101,8 @@ def write_log_likelihood(
 
 
 def _right_operand(log_phi: torch.Tensor, rows: int) -> torch.Tensor:
-    """log_phi [L, K] as the [K, L] right operand of a product with ``rows`` rows that gives
-    the same bits on any thread count (module docstring): a contiguous copy, or for one row the
-    transposed view."""
+    """log_phi [L, K] as the [K, L] right operand of a product with ``rows`` rows: a contiguous
+    copy, or for one row the transposed view (the seeded fits' bits, module docstring)."""
     return log_phi.T if rows == 1 else log_phi.T.contiguous()
 
 
@@ -126,7 +140,8 @@ def background_table(state: GibbsState, data: ModelData, config: SpCoConfig) -> 
         ValueError: log pi + loglik not finite in some row (naming it).
     """
     L, D, M = config.num_concepts, data.neighbours.shape[1], data.obs_cells.shape[0]
-    # The products run in torch (MKL): numpy's OpenBLAS threads fight torch's OpenMP threads.
+    # The products run in torch (MKL), on one thread: numpy's OpenBLAS threads would fight
+    # torch's OpenMP threads.
     logits_t = torch.empty(M + 1, L, dtype=torch.float64)  # [M + 1, L]
     write_log_likelihood(state, data, config, logits_t[:M])
     logits = logits_t.numpy()
