@@ -640,6 +640,34 @@ def test_one_blas_thread_leaves_the_other_threads_their_count(restore_threads):
     assert torch.get_num_threads() == 3
 
 
+def test_one_blas_thread_holds_in_a_fresh_thread_whose_first_parallel_op_is_inside(
+    restore_threads,
+):
+    """torch sets a new thread's MKL count at its first parallel op: inside the block (a chain
+    thread's first sweep reaching the background table) that overwrote the block's 1 with
+    torch's count, and the restore then left MKL's global default (0, every core) behind."""
+    import threading
+
+    from spcopyro._util.threads import _mkl_set_num_threads_local, one_blas_thread
+
+    setter = _mkl_set_num_threads_local()
+    if setter is None:
+        pytest.skip("this torch has no MKL thread-local count (one_blas_thread: torch_threads)")
+    torch.set_num_threads(3)
+    seen = {}
+
+    def fresh_thread() -> None:
+        with one_blas_thread():
+            torch.ones(1_000_000).add_(1)  # this thread's first parallel op
+            seen["inside"] = setter(1)
+        seen["after"] = setter(3)
+
+    thread = threading.Thread(target=fresh_thread)
+    thread.start()
+    thread.join()
+    assert seen == {"inside": 1, "after": 3}
+
+
 @pytest.mark.parametrize("method", ["cavi", "lbp"])
 def test_cavi_and_lbp_floats_differ_in_their_last_bits_only(threaded_product_house, method):
     """CAVI and loopy BP (compiled backends by default; the torch ones call the same

@@ -275,6 +275,12 @@ def one_blas_thread() -> Iterator[None]:
         with torch_threads(1):
             yield
         return
+    # torch sets a thread's MKL count lazily, at its first parallel op, to torch's count: were
+    # that op inside the block (a fresh chain thread's first sweep), it would overwrite the 1
+    # and leave MKL's global default (0) behind. get_num_threads runs that setup first.
+    import torch
+
+    torch.get_num_threads()
     previous = setter(1)
     try:
         yield
