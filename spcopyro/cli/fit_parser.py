@@ -122,7 +122,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     weighting.add_argument("--tfidf", dest="word_weighting", action="store_const",
                            const="tfidf",
-                           help="the same as --word-weighting tfidf (default: off)")  # fmt: skip
+                           help="as --word-weighting tfidf (default: not given)")  # fmt: skip
     p.add_argument(
         "--unobserved-refresh",
         type=float,
