@@ -1,9 +1,10 @@
-"""Interrupting a fit at a chosen sweep, as Ctrl-C would: for the ``fit`` command's tests
-(test_checkpoint, test_refine)."""
+"""Interrupting a fit at a chosen sweep or CAVI step, as Ctrl-C would: for the ``fit``
+command's tests (test_checkpoint, test_refine, test_fit_resume_gaps, test_fit_interrupt_setup)."""
 
 from __future__ import annotations
 
 import spcopyro.gibbs.chains
+import spcopyro.guides.cavi as cavi
 from spcopyro.gibbs.run import advance
 
 
@@ -25,3 +26,16 @@ def interrupt_fit_at(monkeypatch, chain: int, sweep: int) -> None:
         return advance(gibbs_chain, num_sweeps, callback=stop, **kwargs)
 
     monkeypatch.setattr(spcopyro.gibbs.chains, "advance", interrupting_advance)
+
+
+def interrupt_cavi_at(monkeypatch, call: int) -> None:
+    """Make CAVI's torch step raise KeyboardInterrupt at its ``call``-th call (1: the first)."""
+    real, calls = cavi.step, []
+
+    def interrupting(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == call:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(cavi, "step", interrupting)

@@ -8,11 +8,11 @@ from __future__ import annotations
 import shlex
 
 import pytest
+from fit_interrupts import interrupt_cavi_at
 
 import spcopyro._util.collector
 import spcopyro.cli.fit
 import spcopyro.fit.gibbs_chains
-import spcopyro.guides.cavi as cavi
 from spcopyro._util.outputs import checkpoint_path
 from spcopyro.cli.main import main
 
@@ -28,16 +28,8 @@ def _interrupted(*args, **kwargs):
 def interrupted_cavi(home, tmp_path, capsys, monkeypatch):
     """(argv, checkpoint): a cavi fit into ``tmp_path/out`` stopped after 3 iterations."""
     argv = ["fit", str(home), "--out", str(tmp_path / "out"), *FIT]
-    real, calls = cavi.step, []
-
-    def step(*args, **kwargs):
-        calls.append(1)
-        if len(calls) == 4:
-            raise KeyboardInterrupt
-        return real(*args, **kwargs)
-
     with monkeypatch.context() as patch:
-        patch.setattr(cavi, "step", step)
+        interrupt_cavi_at(patch, 4)
         assert main(argv) == 130
     capsys.readouterr()
     checkpoint = checkpoint_path(tmp_path / "out")

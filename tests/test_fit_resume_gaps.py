@@ -9,7 +9,7 @@ import json
 
 import numpy as np
 import pytest
-from fit_interrupts import interrupt_fit_at
+from fit_interrupts import interrupt_cavi_at, interrupt_fit_at
 
 import spcopyro.fit.gibbs_chains
 import spcopyro.gibbs.chains
@@ -71,24 +71,15 @@ def test_a_checkpoint_resumed_with_another_method_names_the_method(
 ):
     """A Gibbs checkpoint given to --method cavi (or the reverse, or another variational
     method) names the method it was made with, not only its file format or every option."""
-    import spcopyro.guides.cavi as cavi
 
     gibbs_out, cavi_out = tmp_path / "gibbs", tmp_path / "cavi"
     with monkeypatch.context() as patch:
         interrupt_fit_at(patch, 0, 4)
         assert main(["fit", str(home), "--out", str(gibbs_out), *FIT]) == 130
-    real, calls = cavi.step, []
-
-    def interrupting(*args, **kwargs):  # CAVI's torch step: Ctrl-C at its third call
-        calls.append(1)
-        if len(calls) == 3:
-            raise KeyboardInterrupt
-        return real(*args, **kwargs)
-
     cavi_argv = ["fit", str(home), "--out", str(cavi_out), *FIT, "--method", "cavi",
                  "--method-option", "backend=torch"]  # fmt: skip
     with monkeypatch.context() as patch:
-        patch.setattr(cavi, "step", interrupting)
+        interrupt_cavi_at(patch, 3)  # CAVI's torch step: Ctrl-C at its third call
         assert main(cavi_argv) == 130
     capsys.readouterr()
     gibbs_checkpoint, cavi_checkpoint = checkpoint_path(gibbs_out), checkpoint_path(cavi_out)
@@ -445,21 +436,12 @@ def test_ctrl_c_while_writing_a_resumed_variational_fit_says_its_iterations_are_
     import shlex
 
     import spcopyro.cli.fit
-    import spcopyro.guides.cavi as cavi
 
     out = tmp_path / "out"
     argv = ["fit", str(home), "--out", str(out), *FIT, "--method", "cavi",
             "--method-option", "backend=torch"]  # fmt: skip
-    real, calls = cavi.step, []
-
-    def interrupting(*args, **kwargs):  # CAVI's torch step: Ctrl-C at its third call
-        calls.append(1)
-        if len(calls) == 3:
-            raise KeyboardInterrupt
-        return real(*args, **kwargs)
-
     with monkeypatch.context() as patch:
-        patch.setattr(cavi, "step", interrupting)
+        interrupt_cavi_at(patch, 3)  # CAVI's torch step: Ctrl-C at its third call
         assert main(argv) == 130
     capsys.readouterr()
     checkpoint = checkpoint_path(out)
