@@ -253,3 +253,93 @@ def test_the_child_scans_only_its_own_objects(tmp_path, monkeypatch):
     del held
     without = tracked_in_child()
     assert with_held - without >= 50_000  # it tracked the parent's lists
+
+
+SIGNALS = pytest.mark.parametrize(
+    "signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"]
+)
+
+
+def _signal_at_fork(monkeypatch, signum: int, in_child: bool) -> list[int]:
+    """``os.fork`` sends ``signum`` to the child (``in_child``) or to this process just after the
+    fork, before multiprocessing's own code goes on; the children's pids, appended as forked."""
+    fork = os.fork
+    forked: list[int] = []
+
+    def fork_then_signal() -> int:
+        pid = fork()
+        if pid != 0:
+            forked.append(pid)
+        if (pid == 0) == in_child:
+            os.kill(os.getpid(), signum)
+        return pid
+
+    monkeypatch.setattr(os, "fork", fork_then_signal)
+    return forked
+
+
+@SIGNALS
+def test_a_signal_to_the_child_at_the_fork_does_not_let_it_go_on_as_the_fit(
+    tmp_path, monkeypatch, signum
+):
+    """A signal that reaches the child before its handlers are set (a fit stopped just after the
+    fork sends it SIGTERM at once; a Ctrl-C reaches the whole process group): fit's handlers,
+    inherited, raised KeyboardInterrupt in it just after multiprocessing's fork returned, outside
+    what its bootstrap catches, and the child went on as the fit (test_checkpoint's
+    ctrl_c_while_writing test failed 1 run in 6 under load: the child, back in the test, wrote
+    OUT). Now it starts with them blocked: SIGTERM ends it once its handlers are set (the fit
+    draws its figures), SIGINT is ignored there."""
+    from spcopyro._util.interrupts import sigterm_as_interrupt
+
+    _warning_figures(monkeypatch)
+    expected = _said(tmp_path / "here", fork=False)
+    _signal_at_fork(monkeypatch, signum, in_child=True)
+    children: list[fit_figures._Child] = []
+    start = fit_figures._draw_in_child
+
+    def recorded(figures, claims):
+        children.append(start(figures, claims))
+        return children[-1]
+
+    monkeypatch.setattr(fit_figures, "_draw_in_child", recorded)
+    monkeypatch.setattr(_Split, "here", ())  # the child takes every shared figure
+    monkeypatch.setattr(fit_figures, "_Claims", _Split)
+    here, escaped = os.getpid(), tmp_path / "escaped"
+    try:
+        with sigterm_as_interrupt(), _deadline(30):  # fit's handlers, as in a fit
+            said = _said(tmp_path / "forked", fork=None)
+    finally:
+        if os.getpid() != here:  # the child, gone on as this test: tell, and end it here
+            escaped.write_text(f"the child {os.getpid()} went on as the test")
+            os._exit(1)
+    assert not escaped.exists()
+    (child,) = children
+    assert child.exitcode == (-signal.SIGTERM if signum == signal.SIGTERM else 0)
+    assert said == expected  # every figure drawn, by the child or here
+    assert {path.name for path in (tmp_path / "forked").iterdir()} == {
+        f"{name}.png" for name in NAMES
+    }
+
+
+@SIGNALS
+def test_a_signal_to_the_fit_at_the_fork_stops_the_child(tmp_path, monkeypatch, signum):
+    """A signal that reaches the fit while it forks the child raises once the child is known,
+    which is stopped (reaped) before the interrupt leaves write_figures. Before, raised in the
+    middle of multiprocessing's start, it left the child unstopped, drawing into the folder the
+    fit then discards."""
+    from spcopyro._util.interrupts import sigterm_as_interrupt
+
+    _warning_figures(monkeypatch)
+    forked = _signal_at_fork(monkeypatch, signum, in_child=False)
+    try:
+        with sigterm_as_interrupt(), _deadline(30), pytest.raises(KeyboardInterrupt):
+            _said(tmp_path / "forked", fork=None)
+        (pid,) = forked
+        with pytest.raises(ChildProcessError):  # stopped and reaped
+            os.waitpid(pid, os.WNOHANG)
+        assert list((tmp_path / "forked").iterdir()) == []  # it drew nothing
+    finally:
+        for pid in forked:
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
+                os.waitpid(pid, 0)

@@ -17,7 +17,13 @@ import signal
 import threading
 from collections.abc import Callable, Iterator
 
-__all__ = ["caused_by_interrupt", "interrupts_raised", "sigterm_as_interrupt", "signals_deferred"]
+__all__ = [
+    "caused_by_interrupt",
+    "interrupts_raised",
+    "sigterm_as_interrupt",
+    "signals_blocked",
+    "signals_deferred",
+]
 
 
 def caused_by_interrupt(error: BaseException | None) -> bool:
@@ -83,3 +89,21 @@ def signals_deferred(handler: Callable[[int, object], None]) -> Iterator[None]:
     finally:
         for number, old in previous.items():
             signal.signal(number, old)
+
+
+@contextlib.contextmanager
+def signals_blocked() -> Iterator[set[signal.Signals] | None]:
+    """In the block, SIGINT and SIGTERM blocked in this thread (:func:`signal.pthread_sigmask`):
+    one that comes meanwhile waits, and its handler runs as the block ends (in the call that
+    unblocks it, a :class:`KeyboardInterrupt` raised there). A child forked in the block starts
+    with them blocked: no handler it inherited can raise in it (in its copy of this process's
+    code) before it puts its own in place and unblocks them (with the mask yielded: the one
+    before the block; None where there is no ``pthread_sigmask``, nothing blocked)."""
+    if not hasattr(signal, "pthread_sigmask"):
+        yield None
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield previous
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)

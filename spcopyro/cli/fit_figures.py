@@ -367,27 +367,53 @@ class _Child:
 def _draw_in_child(figures: list[Figure], claims: _Claims) -> _Child:
     """A child forked to draw the ``figures`` it takes from ``claims`` (no torch there: the
     plots are numpy and matplotlib), started; it exits with 0 once they are written, 1 if one
-    failed."""
+    failed.
+
+    Forked with SIGINT and SIGTERM held back: blocked (the child unblocks them once its own
+    handlers are in place) and, here, recorded rather than raised, then given to their handlers
+    once the child is a :class:`_Child`, stopped if one raises. Before, a KeyboardInterrupt of
+    fit's handlers could be raised in the child before its own were set (a fit stopped just
+    after the fork sends it SIGTERM at once), outside what multiprocessing's bootstrap catches
+    (just after the fork returns): the child then went on in its copy of the fit, unwinding as
+    an interrupted fit does, and whatever called the fit carried on in it (a test went on to
+    write OUT from there). A signal raised here after the fork, before the child was recorded,
+    left it drawing unstopped into the folder being discarded."""
     import multiprocessing
+    import signal
 
     from spcopyro._util.forking import start_forked
+    from spcopyro._util.interrupts import signals_blocked, signals_deferred
 
     told, tell = os.pipe()
-    process = multiprocessing.get_context("fork").Process(
-        target=_child_draws, args=(figures, claims, tell, told), name="spcopyro-figures",
-        daemon=True,
-    )  # fmt: skip
+    held: list[int] = []  # the signals that came while the child was forked
     try:
-        start_forked(process)
+        with signals_deferred(lambda signum, frame: held.append(signum)), signals_blocked() as mask:
+            process = multiprocessing.get_context("fork").Process(
+                target=_child_draws, args=(figures, claims, tell, told, mask),
+                name="spcopyro-figures", daemon=True,
+            )  # fmt: skip
+            start_forked(process)
     except BaseException:
         os.close(told)
         raise
     finally:
         os.close(tell)  # the child's end: the pipe ends when the child does
-    return _Child(process, told)
+    child = _Child(process, told)
+    try:
+        for signum in held:  # to their handlers now (fit's raise KeyboardInterrupt)
+            signal.raise_signal(signum)
+    except BaseException:
+        child.stop()
+        raise
+    return child
 
 
-def _child_draws(figures: list[Figure], claims: _Claims, tell: int, told: int) -> None:
+def _child_draws(
+    figures: list[Figure], claims: _Claims, tell: int, told: int, mask: set[int] | None
+) -> None:
+    """In the child (:func:`_draw_in_child`), SIGINT and SIGTERM blocked since the fork:
+    ``mask`` (the parent's before it blocked them; None: nothing blocked) restored once its
+    handlers are set (a SIGTERM that came since ends it there)."""
     import gc
     import signal
 
@@ -400,6 +426,8 @@ def _child_draws(figures: list[Figure], claims: _Claims, tell: int, told: int) -
     gc.freeze()
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides (and redraws on failure)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # _Child.stop ends it (not fit's handler)
+    if mask is not None:
+        signal.pthread_sigmask(signal.SIG_SETMASK, mask)
     os.close(told)  # the parent's end: once the parent closes its own, a write here fails
     heard: dict[str, list[str]] = {}  # figure name -> the warnings it gave (printed as well)
     code = 0
