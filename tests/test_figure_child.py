@@ -226,7 +226,7 @@ def test_the_child_scans_only_its_own_objects(tmp_path, monkeypatch):
     collections then scan the figures' objects only, not the fit's, each of whose pages a scan
     would copy from the parent. A figure drawn there counts the objects its collector tracks;
     the same child without its freeze tracks the parent's 50,000 lists too (its count drops by
-    as many once they are deleted), so the bar can fail."""
+    about as many once they are deleted), so the bar can fail."""
     import gc
 
     counted = tmp_path / "tracked.txt"
@@ -252,7 +252,9 @@ def test_the_child_scans_only_its_own_objects(tmp_path, monkeypatch):
     with_held = tracked_in_child()  # pytest's own objects too: about 260,000 in all
     del held
     without = tracked_in_child()
-    assert with_held - without >= 50_000  # it tracked the parent's lists
+    # it tracked the parent's lists: most of the 50,000 (a few other objects come and go
+    # between the two children: 49,998 was seen once)
+    assert with_held - without >= 45_000
 
 
 SIGNALS = pytest.mark.parametrize(
