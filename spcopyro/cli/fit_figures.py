@@ -385,35 +385,49 @@ def _draw_in_child(figures: list[Figure], claims: _Claims) -> _Child:
     from spcopyro._util.interrupts import signals_blocked, signals_deferred
 
     told, tell = os.pipe()
+    wait, go = os.pipe()  # the child draws once a byte comes here, never if the pipe just ends
     held: list[int] = []  # the signals that came while the child was forked
     try:
         with signals_deferred(lambda signum, frame: held.append(signum)), signals_blocked() as mask:
             process = multiprocessing.get_context("fork").Process(
-                target=_child_draws, args=(figures, claims, tell, told, mask),
+                target=_child_draws, args=(figures, claims, tell, told, mask, wait, go),
                 name="spcopyro-figures", daemon=True,
             )  # fmt: skip
             start_forked(process)
     except BaseException:
         os.close(told)
+        os.close(go)
         raise
     finally:
         os.close(tell)  # the child's end: the pipe ends when the child does
+        os.close(wait)
     child = _Child(process, told)
     try:
         for signum in held:  # to their handlers now (fit's raise KeyboardInterrupt)
             signal.raise_signal(signum)
+        os.write(go, b"1")  # no signal stopped the fit: the child draws
     except BaseException:
-        child.stop()
+        child.stop()  # it drew nothing: no byte came
         raise
+    finally:
+        os.close(go)
     return child
 
 
 def _child_draws(
-    figures: list[Figure], claims: _Claims, tell: int, told: int, mask: set[int] | None
+    figures: list[Figure],
+    claims: _Claims,
+    tell: int,
+    told: int,
+    mask: set[int] | None,
+    wait: int,
+    go: int,
 ) -> None:
     """In the child (:func:`_draw_in_child`), SIGINT and SIGTERM blocked since the fork:
     ``mask`` (the parent's before it blocked them; None: nothing blocked) restored once its
-    handlers are set (a SIGTERM that came since ends it there)."""
+    handlers are set (a SIGTERM that came since ends it there). It draws only once the parent
+    sends a byte on ``wait`` (no signal stopped the fit while it forked); the pipe's end without
+    one ends the child, having drawn nothing."""
     import gc
     import signal
 
@@ -429,6 +443,10 @@ def _child_draws(
     if mask is not None:
         signal.pthread_sigmask(signal.SIG_SETMASK, mask)
     os.close(told)  # the parent's end: once the parent closes its own, a write here fails
+    os.close(go)  # the parent's end: the pipe ends when the parent closes its own
+    if not os.read(wait, 1):  # the fit stopped as it forked this child: nothing to draw
+        os._exit(1)
+    os.close(wait)
     heard: dict[str, list[str]] = {}  # figure name -> the warnings it gave (printed as well)
     code = 0
     try:
