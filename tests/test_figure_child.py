@@ -145,6 +145,19 @@ def _fit_with_trace_warning(out: Path, monkeypatch) -> list[str]:
     return json.loads((out / "config.json").read_text())["warnings"]
 
 
+def _recording_children(monkeypatch) -> list[fit_figures._Child]:
+    """The figure children fit_figures forks from now on, in the list returned, as started."""
+    children: list[fit_figures._Child] = []
+    start = fit_figures._draw_in_child
+
+    def recorded(figures, claims):
+        children.append(start(figures, claims))
+        return children[-1]
+
+    monkeypatch.setattr(fit_figures, "_draw_in_child", recorded)
+    return children
+
+
 def test_a_figure_that_warns_in_the_child_is_in_config_json(tmp_path, monkeypatch):
     """``spcopyro fit``: trace.png drawn in the child (it takes every shared figure) warns; its
     warning is in config.json's list, the list of the same fit with the fork disabled."""
@@ -191,16 +204,9 @@ def test_a_fit_stopped_while_it_waits_for_the_child_ends_the_child_first(
         os.kill(os.getppid(), signum)
         time.sleep(30)
 
-    children: list[fit_figures._Child] = []
-    start = fit_figures._draw_in_child
-
-    def recorded(figures, claims):
-        children.append(start(figures, claims))
-        return children[-1]
-
+    children = _recording_children(monkeypatch)
     monkeypatch.setattr(plotting, "plot_semantic_map", semantic_map)
     monkeypatch.setattr(plotting, "plot_trace", sleeping_trace)
-    monkeypatch.setattr(fit_figures, "_draw_in_child", recorded)
     monkeypatch.setattr(_Split, "here", ())
     monkeypatch.setattr(fit_figures, "_Claims", _Split)
     out = tmp_path / "fit"
@@ -296,14 +302,7 @@ def test_a_signal_to_the_child_at_the_fork_does_not_let_it_go_on_as_the_fit(
     _warning_figures(monkeypatch)
     expected = _said(tmp_path / "here", fork=False)
     _signal_at_fork(monkeypatch, signum, in_child=True)
-    children: list[fit_figures._Child] = []
-    start = fit_figures._draw_in_child
-
-    def recorded(figures, claims):
-        children.append(start(figures, claims))
-        return children[-1]
-
-    monkeypatch.setattr(fit_figures, "_draw_in_child", recorded)
+    children = _recording_children(monkeypatch)
     monkeypatch.setattr(_Split, "here", ())  # the child takes every shared figure
     monkeypatch.setattr(fit_figures, "_Claims", _Split)
     here, escaped = os.getpid(), tmp_path / "escaped"
