@@ -3,8 +3,10 @@ tests/test_navigate.py: A bedroom, B corridor, C kitchen, E bedroom, D closet)."
 
 from __future__ import annotations
 
+import ast
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -203,14 +205,10 @@ def test_an_unknown_place_lists_every_word_of_a_home_s_vocabulary():
 
 
 def test_navigate_and_where_list_the_known_words_with_one_helper():
-    """semantic_map.listed writes the "up to KNOWN_WORDS_SHOWN, then ', ... (N more)'" list
+    """messages.listed writes the "up to KNOWN_WORDS_SHOWN, then ', ... (N more)'" list
     that where's unknown word and navigate's instruction errors each spelt on their own."""
-    from spcopyro.results.semantic_map import (
-        KNOWN_WORDS_SHOWN,
-        UnknownWordError,
-        listed,
-        word_index,
-    )
+    from spcopyro._util.messages import listed
+    from spcopyro.results.semantic_map import KNOWN_WORDS_SHOWN, UnknownWordError, word_index
 
     assert listed(["a", "b", "c", "d"], 2) == "a, b, ... (2 more)"
     assert listed(["a", "b"], 2) == "a, b" and listed([], 2) == ""
@@ -228,7 +226,8 @@ def test_navigate_and_where_list_the_known_words_with_one_helper():
 def test_every_layer_lists_words_with_the_one_helper_of_messages():
     """``listed`` lives beside ``echo`` in ``_util.messages`` (which the data layer may import):
     the St.csv warnings (invisible characters, sentences without spaces) and ``fit --update``'s
-    unheard words spelt the same list on their own; ``semantic_map`` re-exports it."""
+    unheard words spelt the same list on their own; every module imports it from there, not
+    through ``semantic_map`` (which uses it but no longer lists it in its ``__all__``)."""
     import spcopyro.cli.fit_update as fit_update
     import spcopyro.data.dataset_files as dataset_files
     import spcopyro.data.text as text
@@ -237,6 +236,17 @@ def test_every_layer_lists_words_with_the_one_helper_of_messages():
 
     for module in (semantic_map, text, dataset_files, fit_update):
         assert module.listed is messages.listed, module.__name__
+    assert "listed" not in semantic_map.__all__
+    package = Path(messages.__file__).parents[1]
+    through = sorted(
+        str(path.relative_to(package.parent))
+        for path in package.rglob("*.py")
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+        if isinstance(node, ast.ImportFrom)
+        and node.module != "spcopyro._util.messages"
+        and any(alias.name == "listed" for alias in node.names)
+    )
+    assert through == [], through
     assert semantic_map.KNOWN_WORDS_SHOWN == messages.KNOWN_WORDS_SHOWN == 30
     hidden = [[f"w{k}\u200b"] for k in range(5)]  # [5 utterances of 1 word]
     warning = text.hidden_words_warning(hidden)

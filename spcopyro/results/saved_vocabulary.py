@@ -19,10 +19,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from spcopyro._util.messages import echo
+from spcopyro._util.messages import echo, listed
 from spcopyro.config import WORDS
 from spcopyro.data.text import fold_word, tokenize
-from spcopyro.results.semantic_map import listed
 
 if TYPE_CHECKING:
     from spcopyro.results.result import SpCoResult

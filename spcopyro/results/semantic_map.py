@@ -63,7 +63,6 @@ __all__ = [
     "as_semantic_map",
     "close_words",
     "did_you_mean",
-    "listed",
     "word_index",
     "word_key",
 ]

@@ -59,8 +59,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from spcopyro._util.messages import listed
 from spcopyro.data.text import hidden_characters_note, hidden_match
-from spcopyro.results.semantic_map import did_you_mean, listed, word_key
+from spcopyro.results.semantic_map import did_you_mean, word_key
 from spcopyro.results.where import close_to_guess
 from spcopyro.robot.navigation.graph import PlanningGrid
 
