@@ -178,11 +178,23 @@ def run_cell(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays | Non
 
 
 def _fit_and_score(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays]:
+    """:func:`_scored`: a variant cell's within its degenerate-map advice (:func:`_cell_advice`:
+    its fit's and its observations-off fit's warnings, in the study file's terms)."""
     loaded = load_cell_data(cell.data, cell.seed)
+    if cell.variant is None:  # a baseline row of spcopyro.experiments.methods
+        return _scored(cell, loaded, None)
+    settings = cell.variant.spco_settings(loaded.num_categories)
+    with degenerate_map_advice(_cell_advice(cell, settings, loaded.num_categories)):
+        return _scored(cell, loaded, settings)
+
+
+def _scored(cell: Cell, loaded, settings) -> tuple[dict[str, object], Arrays | None, Arrays]:
+    """The cell's scores, trace and label map (:func:`run_cell`); ``settings``: a variant's
+    (None: a baseline row's cell)."""
     house = loaded.house
     start, cpu = time.perf_counter(), time.process_time()
     result = None
-    if cell.variant is None:  # a baseline row of spcopyro.experiments.methods
+    if settings is None:  # a baseline row of spcopyro.experiments.methods
         fitted = fit_method(
             cell.row, house, RunSettings(sweeps=cell.sweeps, spcoa_iterations=cell.spcoa_iterations,
                                          trace_every=0),
@@ -190,10 +202,7 @@ def _fit_and_score(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays
         )  # fmt: skip
         model, labels, scored_house = fitted.model, fitted.model.label_image(), house
     else:
-        settings = cell.variant.spco_settings(loaded.num_categories)
-        told = _cell_advice(cell, settings, loaded.num_categories)
-        with degenerate_map_advice(told):
-            result, ari_trace = _fit(cell, house, settings, loaded.truth)
+        result, ari_trace = _fit(cell, house, settings, loaded.truth)
         model = SpCoSemanticMap(result)
         labels = labels_on_map(result, house, settings)
         scored_house = model_house(loaded.full, settings.data.cell_size)  # the model's grid
@@ -221,8 +230,7 @@ def _fit_and_score(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays
         )
         scores["top_words"] = json.dumps(words)
         if cell.observations_off:
-            with degenerate_map_advice(told):
-                scores.update(_observations_off(cell, loaded, labels))
+            scores.update(_observations_off(cell, loaded, labels))
     if loaded.test is not None:
         words = heldout_word_prediction(model, loaded.test)
         places = heldout_localisation(model, loaded.test)
