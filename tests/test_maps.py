@@ -161,6 +161,25 @@ def test_world_to_cell_rejects_non_finite_and_bad_shapes(art: OccupancyGrid) -> 
         art.cell_to_world([0.5, 1.0])
 
 
+def test_cells_on_map_keeps_the_in_bounds_cells_of_the_map_a_grid_was_coarsened_from(
+    art: OccupancyGrid,
+) -> None:
+    """cells_on_map (count_on_occupied's and negate_hint's one conversion): the cells on the
+    fine map, in the points' order, of the points inside it; points not finite, too far to
+    convert, or off the map dropped rather than refused."""
+    from spcopyro.maps.coarse import coarsen_grid
+    from spcopyro.maps.grid import cells_on_map
+
+    xy = [[-0.9, 4.9], [np.nan, 3.0], [1e300, 0.0], [3.0, 2.0], [2.9, 2.1], [-0.4, 4.6]]
+    on_art = [[0, 0], [5, 7], [0, 1]]  # [3, 2]: nan, far and (5, 8) off the map dropped
+    np.testing.assert_array_equal(cells_on_map(art, xy), on_art)
+    coarse = coarsen_grid(art, 2)  # [3, 4]: (2.9, 2.1) is its (2, 3)
+    got = cells_on_map(coarse, np.array(xy))
+    assert got.dtype == np.int64
+    np.testing.assert_array_equal(got, on_art)
+    assert cells_on_map(art, np.zeros((0, 2))).shape == (0, 2)
+
+
 def test_round_trips(rng: np.random.Generator) -> None:
     grid = OccupancyGrid(np.zeros((50, 70), np.int8), 0.05, (-10.0, -7.5, 0.0))
     cells = np.stack([rng.integers(-20, 70, 5000), rng.integers(-20, 90, 5000)], axis=1)

@@ -15,7 +15,7 @@ import numpy as np
 
 from spcopyro.config import DEFAULT_SNAP_DISTANCE
 from spcopyro.data.observations import _as_xy
-from spcopyro.maps.grid import OCCUPIED, OccupancyGrid
+from spcopyro.maps.grid import OCCUPIED, OccupancyGrid, cells_on_map
 
 __all__ = [
     "DEFAULT_SNAP_DISTANCE",
@@ -267,12 +267,8 @@ def count_on_occupied(grid: OccupancyGrid, xy: np.ndarray) -> int:
     """How many of the points ``[n, 2]`` (metres) lie on an occupied cell of ``grid``'s map (the
     map a model grid was coarsened from, whose walls are not thickened), inside its bounds."""
     fine = grid.coarsened_from if grid.coarsened_from is not None else grid
-    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)  # [n, 2]
-    xy = xy[np.isfinite(xy).all(axis=1) & (np.abs(xy) < 2.0**40 * fine.resolution).all(axis=1)]
-    cells = np.asarray(fine.world_to_cell(xy), dtype=np.int64).reshape(-1, 2)  # [n, 2]
-    inside = np.asarray(fine.in_bounds(cells), dtype=bool)  # [n]
-    rows, cols = cells[inside, 0], cells[inside, 1]
-    return int(np.count_nonzero(fine.occupancy[rows, cols] == OCCUPIED))
+    cells = cells_on_map(grid, xy)  # [n', 2] on fine
+    return int(np.count_nonzero(fine.occupancy[cells[:, 0], cells[:, 1]] == OCCUPIED))
 
 
 MIN_SPREAD = 0.3

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro._util.messages import echo
-from spcopyro.maps.grid import OccupancyGrid
+from spcopyro.maps.grid import OccupancyGrid, cells_on_map
 from spcopyro.maps.map_image import _read_levels
 from spcopyro.maps.map_server import PGM_UNKNOWN, _occupancy
 from spcopyro.maps.map_yaml import MapFormatError, _MapYaml, _read_map_yaml
@@ -45,18 +45,6 @@ def _map_levels(grid: OccupancyGrid) -> tuple[_MapYaml, np.ndarray, float] | Non
 def _free_under_other_negate(spec: _MapYaml, levels: np.ndarray, full: float) -> np.ndarray:
     """``[H, W]`` bool: the image's cells the other ``negate`` reads free (``p < free_thresh``)."""
     return _occupancy(levels, full, not spec.negate)[1] < spec.free_thresh
-
-
-def _on_image(grid: OccupancyGrid, xy: np.ndarray | None, shape: tuple[int, ...]) -> np.ndarray:
-    """``[n, 2]`` (row, col) of the points ``xy`` ``[n, 2]`` (metres) on the map image
-    ``shape`` that ``grid`` (or the map it was coarsened from) was read from, those off it or
-    not finite dropped."""
-    fine = grid.coarsened_from if grid.coarsened_from is not None else grid
-    xy = np.asarray(xy if xy is not None else [], dtype=np.float64).reshape(-1, 2)  # [n, 2]
-    xy = xy[np.isfinite(xy).all(axis=1) & (np.abs(xy) < 2.0**40 * fine.resolution).all(axis=1)]
-    cells = np.asarray(fine.world_to_cell(xy), dtype=np.int64).reshape(-1, 2)  # [n, 2]
-    inside = (cells >= 0).all(axis=1) & (cells[:, 0] < shape[0]) & (cells[:, 1] < shape[1])
-    return cells[inside]
 
 
 def negate_hint(
@@ -89,7 +77,7 @@ def negate_hint(
         return ""
     lands = ""
     if left_out is not None:
-        cells = _on_image(grid, left_out, freed.shape)  # [n', 2]
+        cells = cells_on_map(grid, left_out)  # [n', 2] on fine, of freed's shape (above)
         on_freed = int(np.count_nonzero(freed[cells[:, 0], cells[:, 1]]))
         if 2 * on_freed <= len(np.asarray(left_out).reshape(-1, 2)):
             return ""
@@ -97,7 +85,7 @@ def negate_hint(
     if placed is not None and len(placed):
         from scipy.ndimage import distance_transform_edt
 
-        cells = _on_image(grid, placed, freed.shape)  # [m', 2]
+        cells = cells_on_map(grid, placed)  # [m', 2]
         away = distance_transform_edt(~freed) * fine.resolution  # [H, W] metres to a freed cell
         if 2 * int(np.count_nonzero(away[cells[:, 0], cells[:, 1]] <= reach)) <= len(placed):
             return ""

@@ -41,6 +41,7 @@ __all__ = [
     "OCCUPIED",
     "UNKNOWN",
     "OccupancyGrid",
+    "cells_on_map",
     "describe_map",
     "same_frame",
     "same_free_cells",
@@ -104,6 +105,18 @@ def describe_map(grid: OccupancyGrid) -> str:
         f"a {grid.shape} map with {grid.num_free} free cells of {grid.resolution!r} m, "
         f"origin {grid.origin!r}"
     )
+
+
+def cells_on_map(grid: OccupancyGrid, xy: Any) -> np.ndarray:
+    """``[n', 2]`` int64 (row, col), on the map ``grid`` was coarsened from (``grid`` itself if
+    it was not: that map's walls are not thickened), of the points ``xy`` ``[n, 2]`` (metres)
+    that fall inside its bounds, in their order; points not finite, or too far away for
+    :meth:`OccupancyGrid.world_to_cell` (2**40 cells), are dropped with those off the map."""
+    fine = grid.coarsened_from if grid.coarsened_from is not None else grid
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)  # [n, 2]
+    xy = xy[np.isfinite(xy).all(axis=1) & (np.abs(xy) < 2.0**40 * fine.resolution).all(axis=1)]
+    cells = np.asarray(fine.world_to_cell(xy), dtype=np.int64).reshape(-1, 2)  # [n, 2]
+    return cells[np.asarray(fine.in_bounds(cells), dtype=bool)]  # [n', 2]
 
 
 def _check_connectivity(connectivity: int) -> None:
