@@ -257,7 +257,7 @@ def _seeds(source: str, value: object, where: str = "[study] seeds") -> tuple[in
             raise _fail(source, where, value, "a count must be >= 1")
         return tuple(range(value))
     if isinstance(value, list | tuple) and value:
-        if all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in value):
+        if all(_is_int_at_least(s, 0) for s in value):
             if len(set(value)) != len(value):
                 raise _fail(source, where, value, "a seed is given twice")
             return tuple(int(s) for s in value)
