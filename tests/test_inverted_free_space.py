@@ -196,3 +196,28 @@ def test_check_on_free_and_check_placement_refuse_with_one_rule_and_one_message(
         with pytest.raises(ValueError) as by_free:
             report.check_on_free(" on map M")
         assert str(by_free.value) == str(by_placement.value)
+
+
+def test_the_counted_and_the_weighed_left_out_positions_are_one_gathering():
+    """cell_counts counts the left-out observations on occupied cells from left_out_and_placed,
+    the positions inverted_free_space_message weighs: images, utterances, then each further
+    modality, left out or placed by the report's indices."""
+    from spcopyro.data.observations import ModalityObservations
+    from spcopyro.data.placement import count_on_occupied, left_out_and_placed
+
+    occupancy = np.array([[FREE, UNKNOWN, UNKNOWN, OCCUPIED, UNKNOWN]], dtype=np.int8)
+    grid = OccupancyGrid(occupancy, 1.0, (0.0, 0.0, 0.0))
+    obs = _observations(np.array([[c + 0.5, 0.5] for c in (0, 3, 3, 4)]))  # [4, 2]
+    objects = ModalityObservations(
+        "objects", ("cup",), np.array([[3.5, 0.5], [0.5, 0.5], [9.5, 0.5]]),
+        np.zeros(3, dtype=int), np.ones((3, 1)),
+    )  # fmt: skip
+    obs = dataclasses.replace(obs, modalities=(objects,))
+    report = cell_counts(grid, obs, snap_distance=0.0, warn=False).placement
+    left_out, placed = left_out_and_placed(report, obs)  # [n, 2], [m, 2]
+    np.testing.assert_array_equal(
+        left_out, [[3.5, 0.5], [3.5, 0.5], [4.5, 0.5]] * 2 + [[3.5, 0.5], [9.5, 0.5]]
+    )
+    np.testing.assert_array_equal(placed, [[0.5, 0.5]] * 3)
+    assert report.num_unplaced == len(left_out) and report.num_placed == len(placed)
+    assert report.unplaced_on_occupied == count_on_occupied(grid, left_out) == 5

@@ -20,7 +20,7 @@ import logging
 import math
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -48,6 +48,7 @@ from spcopyro.data.placement import (
     ModalityPlacement,
     PlacementReport,
     count_on_occupied,
+    left_out_and_placed,
     place_observations,
     position_hint,
 )
@@ -402,8 +403,6 @@ def cell_counts(
         np.add.at(summed, np.searchsorted(cells, cell[ok]), modality.counts[ok])
         modality_counts.append(CellModalityCounts(modality.name, modality.items, summed))
 
-    left_out = [obs.image_xy[image_unplaced], obs.word_xy[word_unplaced]]  # [n_i, 2] each
-    left_out += [m.positions[u] for m, (_, _, u) in zip(obs.modalities, further, strict=True)]
     report = PlacementReport(
         images_on_free=int(obs.num_images - image_snapped.sum() - image_unplaced.sum()),
         images_snapped=int(image_snapped.sum()),
@@ -418,7 +417,6 @@ def cell_counts(
         images_scaled_away=int(lost.size),
         scaled_away_images=lost,
         feature_scaling=feature_scaling,
-        unplaced_on_occupied=count_on_occupied(grid, np.concatenate(left_out)),
         modalities=tuple(
             ModalityPlacement(
                 name=modality.name,
@@ -430,6 +428,8 @@ def cell_counts(
             for modality, (_, snapped, unplaced) in zip(obs.modalities, further, strict=True)
         ),
     )
+    left_out = left_out_and_placed(report, obs)[0]  # [n, 2] every modality's
+    report = replace(report, unplaced_on_occupied=count_on_occupied(grid, left_out))
     where = f" on map {grid.source}" if getattr(grid, "source", None) else ""
     farther = f"farther than {snap_distance:g} m from free space{where}"
     if getattr(grid, "coarsened_from", None) is not None:  # placed through the map

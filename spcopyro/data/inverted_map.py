@@ -12,32 +12,11 @@ beside positions a little off -- and what to do about each.
 
 from __future__ import annotations
 
-import numpy as np
-
 from spcopyro.data.observations import Observations
-from spcopyro.data.placement import PlacementReport
+from spcopyro.data.placement import PlacementReport, left_out_and_placed
 from spcopyro.maps.grid import OccupancyGrid
 
 __all__ = ["check_placement", "inverted_free_space_message"]
-
-
-def _left_out_and_placed(
-    report: PlacementReport, obs: Observations
-) -> tuple[np.ndarray, np.ndarray]:
-    """(``[n, 2]`` positions of the observations left out, ``[m, 2]`` of those placed), every
-    modality's, in metres."""
-    positions = [obs.image_xy, obs.word_xy]  # [T, 2], [U, 2]
-    unplaced = [report.unplaced_images, report.unplaced_words]  # indices into each
-    for placed in report.modalities:
-        positions.append(next(m for m in obs.modalities if m.name == placed.name).positions)
-        unplaced.append(placed.unplaced_indices)
-    left_out, kept = [], []
-    for xy, out in zip(positions, unplaced, strict=True):
-        mask = np.zeros(len(xy), dtype=bool)  # [n_j] left out
-        mask[np.asarray(out, dtype=np.int64)] = True
-        left_out.append(np.asarray(xy, dtype=np.float64).reshape(-1, 2)[mask])
-        kept.append(np.asarray(xy, dtype=np.float64).reshape(-1, 2)[~mask])
-    return np.concatenate(left_out), np.concatenate(kept)
 
 
 def inverted_free_space_message(
@@ -48,7 +27,7 @@ def inverted_free_space_message(
     map (``" on map PATH"``)."""
     from spcopyro.maps.free_space import negate_hint  # reads the map image again
 
-    left_out, placed = _left_out_and_placed(report, obs)
+    left_out, placed = left_out_and_placed(report, obs)
     reach = report.snap_distance + grid.resolution  # placed: within snap distance of a cell
     hint = negate_hint(grid, left_out, placed, reach)
     counts = (

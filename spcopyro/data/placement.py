@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from spcopyro.config import DEFAULT_SNAP_DISTANCE
-from spcopyro.data.observations import _as_xy
+from spcopyro.data.observations import Observations, _as_xy
 from spcopyro.maps.grid import OCCUPIED, OccupancyGrid, cells_on_map
 
 __all__ = [
@@ -22,6 +22,7 @@ __all__ = [
     "ModalityPlacement",
     "PlacementReport",
     "count_on_occupied",
+    "left_out_and_placed",
     "place_observations",
     "position_hint",
 ]
@@ -401,3 +402,24 @@ class PlacementReport:
             f"; {self.images_scaled_away} of {images} images left out: nothing of their "
             f"histogram is left under feature_scaling={self.feature_scaling!r}"
         )
+
+
+def left_out_and_placed(
+    report: PlacementReport, obs: Observations
+) -> tuple[np.ndarray, np.ndarray]:
+    """(``[n, 2]`` positions of the observations ``report`` leaves out, ``[m, 2]`` of those it
+    places), every modality's (images, utterances, then ``report.modalities`` in order), in
+    metres: what :func:`count_on_occupied` counts and
+    :func:`~spcopyro.data.inverted_map.inverted_free_space_message` weighs."""
+    positions = [obs.image_xy, obs.word_xy]  # [T, 2], [U, 2]
+    unplaced = [report.unplaced_images, report.unplaced_words]  # indices into each
+    for placed in report.modalities:
+        positions.append(next(m for m in obs.modalities if m.name == placed.name).positions)
+        unplaced.append(placed.unplaced_indices)
+    left_out, kept = [], []
+    for xy, out in zip(positions, unplaced, strict=True):
+        mask = np.zeros(len(xy), dtype=bool)  # [n_j] left out
+        mask[np.asarray(out, dtype=np.int64)] = True
+        left_out.append(np.asarray(xy, dtype=np.float64).reshape(-1, 2)[mask])
+        kept.append(np.asarray(xy, dtype=np.float64).reshape(-1, 2)[~mask])
+    return np.concatenate(left_out), np.concatenate(kept)
