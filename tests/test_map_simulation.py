@@ -300,6 +300,28 @@ def test_room_count_is_room_segments_count(tmp_path, monkeypatch):
         room_count(three, 0.0, 1.0)
 
 
+def test_auto_and_room_count_take_their_counts_from_one_helper(monkeypatch):
+    """``auto_door_width`` and :func:`room_count` each spelt the counts-or-segment branch; both
+    ask ``_rooms_at``, and ``auto``'s count at the width it chooses is :func:`room_count`'s there,
+    with the rounding guard on (1 m2 at 0.1 m) and off (0.45 m2 at 0.3 m: a segmentation each)."""
+    from spcopyro.baselines import geometry
+
+    coarse = OccupancyGrid(office_block().occupancy, 0.3, (0.0, 0.0, 0.0))
+    widths, rooms_at, asked = [0.75, 1.25, 2.0], geometry._rooms_at, []
+
+    def recorded(grid, widths, min_room_area, progress=None):
+        asked.append((list(widths), min_room_area, progress))
+        return rooms_at(grid, widths, min_room_area, progress)
+
+    monkeypatch.setattr(geometry, "_rooms_at", recorded)
+    for grid, area in ((office_block(), 1.0), (coarse, 0.45)):
+        asked.clear()
+        width, count = geometry.auto_door_width(grid, min_room_area=area, candidates=widths)
+        singles = [geometry.room_count(grid, w, area) for w in widths]
+        assert asked == [(widths, area, None)] + [([w], area, False) for w in widths]
+        assert count == singles[widths.index(width)], (grid.resolution, width, singles)
+
+
 def test_the_public_maps_door_widths(dataset_root):
     """What ``auto`` reads from the five public maps (docs/real_houses.md quotes it)."""
     widths = {}

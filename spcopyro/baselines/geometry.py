@@ -321,13 +321,7 @@ def auto_door_width(
         raise ValueError("auto_door_width needs at least one candidate width")
     widths = sorted(_positive_number("door_width", width) for width in candidates)
     min_room_area = _positive_number("min_room_area", min_room_area)
-    res = grid.resolution
-    # counts: [len(widths)] rooms of min_room_area or more at each width
-    if _counts_are_created(res, min_room_area):  # one labelling per level for all widths
-        distance = _distance(np.asarray(grid.free, dtype=bool))  # [H, W]
-        counts = _room_counts(distance, widths, res, _min_cells(min_room_area, res))
-    else:  # min_room_area / res^2 a hair above an integer: count the segments as they come out
-        counts = [room_count(grid, width, min_room_area) for width in widths]
+    counts = _rooms_at(grid, widths, min_room_area)  # [len(widths)]
     rises = np.diff(counts, prepend=1)  # [len(widths)] rooms gained over the narrower width
     rises[np.asarray(counts) < 2] = 0  # one room (or none) is no separation
     best = int(np.argmax(rises))  # the first (narrowest) of equal rises
@@ -345,12 +339,26 @@ def room_count(grid: OccupancyGrid, door_width: float, min_room_area: float) -> 
     """
     door_width = _positive_number("door_width", door_width)
     min_room_area = _positive_number("min_room_area", min_room_area)
+    return _rooms_at(grid, [door_width], min_room_area, progress=False)[0]
+
+
+def _rooms_at(
+    grid: OccupancyGrid, widths: list[float], min_room_area: float, progress: bool | None = None
+) -> list[int]:
+    """[len(widths)] the rooms of ``min_room_area`` or more that :func:`room_segments` cuts at
+    each width: from one distance transform and a labelling per level (``_room_counts``, its bar
+    as ``progress`` asks) where the rounding guard allows (``_counts_are_created``); else (a
+    ``min_room_area / res^2`` a hair above an integer) from a segmentation per width, counted
+    as it comes out, without a bar of its own."""
     res = grid.resolution
     if _counts_are_created(res, min_room_area):
         distance = _distance(np.asarray(grid.free, dtype=bool))  # [H, W]
         min_cells = _min_cells(min_room_area, res)
-        return _room_counts(distance, [door_width], res, min_cells, progress=False)[0]
-    segments = room_segments(grid, door_width=door_width, min_room_area=min_room_area,
-                             progress=False)  # fmt: skip
-    sizes = np.bincount(segments[segments >= 0])  # [S] cells per segment
-    return int(counts_as_room(sizes, res, min_room_area).sum())
+        return _room_counts(distance, widths, res, min_cells, progress=progress)
+    counts = []
+    for width in widths:
+        segments = room_segments(grid, door_width=width, min_room_area=min_room_area,
+                                 progress=False)  # fmt: skip
+        sizes = np.bincount(segments[segments >= 0])  # [S] cells per segment
+        counts.append(int(counts_as_room(sizes, res, min_room_area).sum()))
+    return counts
