@@ -344,10 +344,7 @@ def cell_counts(
     if vocabulary is None:
         vocab = obs.vocabulary  # () when no utterance was heard: V = 0
     else:
-        vocab = tuple(vocabulary)
-        for token in vocab:
-            if not isinstance(token, str) or not token.strip():  # as Observations' tokens
-                raise ValueError(f"vocabulary holds an invalid token: {token!r}")
+        vocab = tuple(vocabulary)  # a blank word: word_matrix's ValueError, naming its column
         if not vocab and obs.num_utterances:
             raise ValueError(
                 f"cell_counts: empty vocabulary but the observations hold "
