@@ -948,3 +948,27 @@ def test_the_summary_of_a_map_without_free_cells_places_nothing(
     assert heads == ["house", "map", "images", "utterances", "no free cell"], lines
     assert f"the map {yaml_path} has no free cell, nothing to label" in lines
     assert spread == []
+
+
+def test_the_package_docstring_names_every_public_name_it_does_not_re_export() -> None:
+    """spcopyro.maps' docstring said everything public was re-exported; same_frame,
+    same_free_cells, describe_map and others are imported from their module. Its list of those
+    is each module's ``__all__`` less the package's."""
+    import importlib
+    import pkgutil
+    import re
+
+    import spcopyro.maps as maps
+
+    missing = {}
+    for info in pkgutil.iter_modules(maps.__path__):
+        public = getattr(importlib.import_module(f"spcopyro.maps.{info.name}"), "__all__", ())
+        if rest := set(public) - set(maps.__all__):
+            missing[info.name] = rest
+    listed = maps.__doc__.split("Not re-exported")[1]
+    said = {
+        module: set(re.findall(r"``(\w+)``", names))
+        for module, names in re.findall(r":mod:`~spcopyro\.maps\.(\w+)`: ([^*]*)", listed)
+    }
+    assert said == missing
+    assert "everything public is re-exported" not in maps.__doc__

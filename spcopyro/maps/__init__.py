@@ -1,6 +1,7 @@
 """Occupancy grids in ROS map_server format: loading, geometry, neighbourhoods, semantic-map output.
 
-Modules (everything public is re-exported here, so ``from spcopyro.maps import X`` works):
+Modules (the names below are re-exported here, so ``from spcopyro.maps import X`` works for
+them; the rest of each module's public names are not, see the end):
 
 * :mod:`~spcopyro.maps.grid`: :class:`OccupancyGrid` and the cell codes ``FREE``, ``OCCUPIED``,
   ``UNKNOWN``; the image-row-order conventions, world <-> cell (paper eq. 11), neighbour tables
@@ -20,6 +21,20 @@ Modules (everything public is re-exported here, so ``from spcopyro.maps import X
   :func:`concept_colours`: touching concepts get the most different ones).
 * :mod:`~spcopyro.maps.regions`: which labels touch (:func:`region_contacts`) and each label's
   connected regions (:func:`concept_regions`).
+
+Not re-exported (import them from their module, ``from spcopyro.maps.grid import same_frame``):
+
+* :mod:`~spcopyro.maps.coarse`: ``coarsen_grid``, ``coarsening_factor``,
+  ``free_block_of_map_cells``, ``grow_labels``, ``is_coarsening``, ``labels_on_grid``,
+  ``model_cell_of``, ``refine_labels``.
+* :mod:`~spcopyro.maps.filter_mask`: ``MASK_FREE_THRESH``, ``MASK_OCCUPIED_THRESH``,
+  ``mask_pixels``.
+* :mod:`~spcopyro.maps.free_space`: ``negate_hint``.
+* :mod:`~spcopyro.maps.grid`: ``MAP_TOLERANCE_CELLS``, ``cells_on_map``, ``describe_map``,
+  ``same_frame``, ``same_free_cells``, ``same_origin``, ``same_resolution``.
+* :mod:`~spcopyro.maps.map_server`: ``MAX_MAP_COORDINATE``, ``trinary_pixels``.
+* :mod:`~spcopyro.maps.map_yaml`: ``MAX_YAW_NOISE``, ``PLAUSIBLE_RESOLUTION``.
+* :mod:`~spcopyro.maps.palette`: ``delta_e``, ``delta_e94``, ``srgb_to_lab``.
 """
 
 from spcopyro.maps.filter_mask import FilterMask, load_filter_mask, save_filter_mask
