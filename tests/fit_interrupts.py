@@ -1,11 +1,19 @@
-"""Interrupting a fit at a chosen sweep or CAVI step, as Ctrl-C would: for the ``fit``
-command's tests (test_checkpoint, test_refine, test_fit_resume_gaps, test_fit_interrupt_setup)."""
+"""Interrupting a fit at a chosen sweep or CAVI step, or in whatever function is patched with
+:func:`interrupted`, as Ctrl-C would: for the ``fit`` command's tests (test_checkpoint,
+test_refine, test_fit_resume_gaps, test_fit_interrupt_setup)."""
 
 from __future__ import annotations
+
+from typing import NoReturn
 
 import spcopyro.gibbs.chains
 import spcopyro.guides.cavi as cavi
 from spcopyro.gibbs.run import advance
+
+
+def interrupted(*args, **kwargs) -> NoReturn:
+    """A stand-in for any function (patched over it) that is stopped by Ctrl-C as it starts."""
+    raise KeyboardInterrupt
 
 
 def interrupt_fit_at(monkeypatch, chain: int, sweep: int) -> None:

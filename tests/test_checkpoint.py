@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from fit_interrupts import interrupt_fit_at
+from fit_interrupts import interrupt_fit_at, interrupted
 from gibbs_problems import config, random_problem
 
 import spcopyro.fit.house
@@ -680,11 +680,8 @@ def test_ctrl_c_while_writing_keeps_the_finished_chains(home, tmp_path, capsys, 
     out = tmp_path / "out"
     argv = ["fit", str(home), "--out", str(out), *FIT]
 
-    def interrupted_drawing(*args, **kwargs):
-        raise KeyboardInterrupt
-
     with monkeypatch.context() as patch:
-        patch.setattr(spcopyro.figures.plotting, "plot_semantic_map", interrupted_drawing)
+        patch.setattr(spcopyro.figures.plotting, "plot_semantic_map", interrupted)
         assert main(argv) == 130
     err = capsys.readouterr().err
     assert err.startswith("interrupted while writing the outputs: nothing written to")
@@ -701,9 +698,6 @@ def test_ctrl_c_while_writing_keeps_the_finished_chains(home, tmp_path, capsys, 
 
 
 def test_ctrl_c_under_sweeps_auto_stops_cleanly(home, tmp_path, capsys, monkeypatch):
-    def interrupted(*args, **kwargs):
-        raise KeyboardInterrupt
-
     monkeypatch.setattr(spcopyro.gibbs.chains, "advance", interrupted)
     out = tmp_path / "out"
     argv = ["fit", str(home), "--out", str(out), "--sweeps", "auto", "--chains", "2",

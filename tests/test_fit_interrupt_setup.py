@@ -8,7 +8,7 @@ from __future__ import annotations
 import shlex
 
 import pytest
-from fit_interrupts import interrupt_cavi_at
+from fit_interrupts import interrupt_cavi_at, interrupted
 
 import spcopyro._util.collector
 import spcopyro.cli.fit
@@ -18,10 +18,6 @@ from spcopyro.cli.main import main
 
 FIT = ["--sweeps", "12", "--preset", "original-code", "--gamma", "3", "--concepts", "8",
        "--no-figures", "--method", "cavi", "--method-option", "backend=torch"]  # fmt: skip
-
-
-def _interrupted(*args, **kwargs):
-    raise KeyboardInterrupt
 
 
 @pytest.fixture
@@ -50,7 +46,7 @@ def test_ctrl_c_while_a_resume_loads_says_what_and_that_nothing_changed(
     before = checkpoint.read_bytes()
     resume = [*argv, "--resume", str(checkpoint)]
     with monkeypatch.context() as patch:
-        patch.setattr(module, name, _interrupted)
+        patch.setattr(module, name, interrupted)
         assert main(resume) == 130
     err = capsys.readouterr().err
     assert err.count("\n") == 1, err
@@ -71,7 +67,7 @@ def test_ctrl_c_once_out_is_staged_removes_the_staging_folder(home, tmp_path, ca
     made) left OUT.partial-* behind; the line gives the command to run it again."""
     argv = ["fit", str(home), "--out", str(tmp_path / "out"), *FIT]
     with monkeypatch.context() as patch:
-        patch.setattr(spcopyro.fit.gibbs_chains, "FitCheckpoint", _interrupted)
+        patch.setattr(spcopyro.fit.gibbs_chains, "FitCheckpoint", interrupted)
         assert main(argv) == 130
     err = capsys.readouterr().err
     assert err == (

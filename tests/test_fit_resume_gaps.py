@@ -9,7 +9,7 @@ import json
 
 import numpy as np
 import pytest
-from fit_interrupts import interrupt_cavi_at, interrupt_fit_at
+from fit_interrupts import interrupt_cavi_at, interrupt_fit_at, interrupted
 
 import spcopyro.fit.gibbs_chains
 import spcopyro.gibbs.chains
@@ -26,10 +26,7 @@ def test_ctrl_c_after_the_sweeps_keeps_the_finished_chains(home, tmp_path, capsy
     argv = ["fit", str(home), "--out", str(out), *FIT]
     marginals = spcopyro.fit.gibbs_chains.with_sample_marginals
 
-    def interrupted(*args, **kwargs):  # Ctrl-C while the point estimate is made
-        raise KeyboardInterrupt
-
-    with monkeypatch.context() as patch:
+    with monkeypatch.context() as patch:  # Ctrl-C while the point estimate is made
         patch.setattr(spcopyro.fit.gibbs_chains, "with_sample_marginals", interrupted)
         assert main(argv) == 130
     err = capsys.readouterr().err.splitlines()[-1]  # after the progress bars
@@ -182,9 +179,6 @@ def test_ctrl_c_before_a_resumed_fit_loads_its_chains_says_the_checkpoint_still_
     checkpoint = checkpoint_path(out)
     before = checkpoint.read_bytes()
 
-    def interrupted(*args, **kwargs):
-        raise KeyboardInterrupt
-
     with monkeypatch.context() as patch:
         patch.setattr(spcopyro.cli.fit, "_summary", interrupted)
         assert main([*argv, "--resume", str(checkpoint)]) == 130
@@ -206,9 +200,6 @@ def test_ctrl_c_while_writing_a_refined_fit_says_the_refinement_runs_again(
     out = tmp_path / "out"
     argv = ["fit", str(home), "--out", str(out), "--sweeps", "6", "--no-figures",
             "--refine", "always", "--chain-workers", "1"]  # fmt: skip
-
-    def interrupted(*args, **kwargs):
-        raise KeyboardInterrupt
 
     with monkeypatch.context() as patch:
         patch.setattr(spcopyro.cli.fit, "print_concepts", interrupted)
@@ -271,9 +262,6 @@ def test_ctrl_c_after_a_variational_fit_s_iterations_says_so(home, tmp_path, cap
     iterations were done (it said 'no checkpoint kept (no iteration was done)')."""
     import spcopyro.fit.house
 
-    def interrupted(*args, **kwargs):
-        raise KeyboardInterrupt
-
     out = tmp_path / "out"
     argv = ["fit", str(home), "--out", str(out), *FIT, "--method", "cavi"]
     with monkeypatch.context() as patch:
@@ -312,9 +300,6 @@ def test_ctrl_c_while_writing_a_variational_fit_says_it_is_lost_and_how_to_run_i
     import shlex
 
     import spcopyro.cli.fit
-
-    def interrupted(*args, **kwargs):
-        raise KeyboardInterrupt
 
     out = tmp_path / "out"
     argv = ["fit", str(home), "--out", str(out), *FIT, "--method", method]
@@ -446,9 +431,6 @@ def test_ctrl_c_while_writing_a_resumed_variational_fit_says_its_iterations_are_
     capsys.readouterr()
     checkpoint = checkpoint_path(out)
     saved = checkpoint.read_bytes()
-
-    def interrupted(*args, **kwargs):
-        raise KeyboardInterrupt
 
     resumed = [*argv, "--resume", str(checkpoint)]
     with monkeypatch.context() as patch:
