@@ -71,6 +71,12 @@ class _Split(fit_figures._Claims):
         return next(self._mine[os.getpid() == PARENT], None)
 
 
+def _split_figures(monkeypatch, here: tuple[int, ...]) -> None:
+    """The fit's shared figures split by :class:`_Split`: ``here`` drawn by this process."""
+    monkeypatch.setattr(_Split, "here", here)
+    monkeypatch.setattr(fit_figures, "_Claims", _Split)
+
+
 def _warning_figures(monkeypatch, extra: dict[str, int] | None = None) -> None:
     """Every figure of write_figures a stub that gives a logger warning and a Python warning
     (``extra[name]`` more logger warnings of 100 characters) and writes its pid as the PNG."""
@@ -112,8 +118,7 @@ def test_the_childs_warnings_join_the_fits_in_the_figures_order(tmp_path, monkey
     expected = _said(tmp_path / "here", fork=False)
     given = [(f"{name}: logged", f"UserWarning: {name}: warned") for name in NAMES]
     assert expected == [text for pair in given for text in pair]
-    monkeypatch.setattr(_Split, "here", (1, 3))
-    monkeypatch.setattr(fit_figures, "_Claims", _Split)
+    _split_figures(monkeypatch, (1, 3))
     assert _said(tmp_path / "forked", fork=None) == expected
     drawn_by = {name: int((tmp_path / "forked" / f"{name}.png").read_text()) for name in NAMES}
     assert {name for name, pid in drawn_by.items() if pid != PARENT} == {"trace", "uncertainty"}
@@ -124,8 +129,7 @@ def test_a_childs_warnings_larger_than_a_pipe_do_not_hang_the_figures(tmp_path, 
     child's figure: read before the child is joined, else both would wait for ever."""
     _warning_figures(monkeypatch, extra={"uncertainty": 3000})
     expected = _said(tmp_path / "here", fork=False)
-    monkeypatch.setattr(_Split, "here", (0, 1, 3))  # the child draws the uncertainty map
-    monkeypatch.setattr(fit_figures, "_Claims", _Split)
+    _split_figures(monkeypatch, (0, 1, 3))  # the child draws the uncertainty map
     with _deadline(20):
         said = _said(tmp_path / "forked", fork=None)
     assert len(said) == len(expected) == 2 * len(NAMES) + 3000 and said == expected
@@ -170,8 +174,7 @@ def test_a_figure_that_warns_in_the_child_is_in_config_json(tmp_path, monkeypatc
         return child
 
     monkeypatch.setattr(fit_figures, "_draw_in_child", recorded)
-    monkeypatch.setattr(_Split, "here", ())
-    monkeypatch.setattr(fit_figures, "_Claims", _Split)
+    _split_figures(monkeypatch, ())
     forked = _fit_with_trace_warning(tmp_path / "forked", monkeypatch)
     assert drawn_there  # the fork was used
     monkeypatch.setattr(fit_figures, "_may_fork", lambda fork: False)
@@ -207,8 +210,7 @@ def test_a_fit_stopped_while_it_waits_for_the_child_ends_the_child_first(
     children = _recording_children(monkeypatch)
     monkeypatch.setattr(plotting, "plot_semantic_map", semantic_map)
     monkeypatch.setattr(plotting, "plot_trace", sleeping_trace)
-    monkeypatch.setattr(_Split, "here", ())
-    monkeypatch.setattr(fit_figures, "_Claims", _Split)
+    _split_figures(monkeypatch, ())
     out = tmp_path / "fit"
     began = time.monotonic()
     try:
@@ -303,8 +305,7 @@ def test_a_signal_to_the_child_at_the_fork_does_not_let_it_go_on_as_the_fit(
     expected = _said(tmp_path / "here", fork=False)
     _signal_at_fork(monkeypatch, signum, in_child=True)
     children = _recording_children(monkeypatch)
-    monkeypatch.setattr(_Split, "here", ())  # the child takes every shared figure
-    monkeypatch.setattr(fit_figures, "_Claims", _Split)
+    _split_figures(monkeypatch, ())  # the child takes every shared figure
     here, escaped = os.getpid(), tmp_path / "escaped"
     try:
         with sigterm_as_interrupt(), _deadline(30):  # fit's handlers, as in a fit
