@@ -69,17 +69,24 @@ def test_ctrl_c_in_simulate_names_it_and_its_folder(tmp_path, monkeypatch, capsy
 
 
 def test_where_and_show_name_the_files_they_write():
-    """The line's files are those ``where`` and ``show --graph`` write (cli.main's
-    probability_figure, the JSON beside the graph): interrupted.py cannot import them."""
+    """The line's files are those ``where`` and ``show --graph`` write (the probability figure,
+    the JSON beside the graph), named by the one definition the commands use
+    (:mod:`spcopyro.cli.out_names`), not a copy of it in interrupted.py."""
     from pathlib import Path
 
+    from spcopyro.cli import interrupted, main, navigate
     from spcopyro.cli.interrupted import _figures
-    from spcopyro.cli.main import probability_figure
+    from spcopyro.cli.out_names import graph_json, probability_figure
 
+    assert interrupted.probability_figure is main.probability_figure is probability_figure
+    assert interrupted.graph_json is navigate.graph_json is graph_json
     for out in ("w.png", "d/w", "w.jpg"):
         args = build_parser().parse_args(["where", "R", "kitchen", "--out", out])
         figure = Path(out if Path(out).suffix else f"{out}.png")
         assert _figures(args, out) == [str(figure), str(probability_figure(Path(out)))]
+        assert str(probability_figure(figure)).endswith(f"_probability{figure.suffix}")
+        args = build_parser().parse_args(["show", "R", "--graph", "--out", out])
+        assert _figures(args, out) == [str(figure), str(figure.with_suffix(".json"))]
 
 
 def _overwrite_args(command: str):

@@ -2,14 +2,17 @@
 and what became of what it writes. ``fit`` says more itself (:mod:`spcopyro.cli.fit_resume`,
 from the moment its parser's handler runs); it is listed in :data:`WHOLE` for a Ctrl-C in the
 instant before that handler is in place, when this line is the one printed. Imports nothing of
-the package (``main`` is on the ``--help`` path, which must not import torch) but, once stopped,
-:mod:`spcopyro._util.outputs` (which imports nothing of it either)."""
+the package (``main`` is on the ``--help`` path, which must not import torch) but
+:mod:`spcopyro.cli.out_names` and, once stopped, :mod:`spcopyro._util.outputs` (which import
+nothing of it either)."""
 
 from __future__ import annotations
 
 import argparse
 import os
 from pathlib import PurePath
+
+from spcopyro.cli.out_names import graph_json, probability_figure
 
 __all__ = ["interrupted_line"]
 
@@ -78,13 +81,13 @@ def interrupted_line(args: argparse.Namespace) -> str:
 def _figures(args: argparse.Namespace, out: str) -> list[str]:
     """The files ``show`` or ``where`` writes for ``--out OUT``, as the user named OUT: the
     figure (``.png`` added where OUT has no suffix, as ``cli.common.figure_file`` adds it), and
-    ``where``'s ``NAME_probability.EXT`` (``cli.main.probability_figure``) or ``show --graph``'s
-    ``NAME.json``."""
+    ``where``'s ``NAME_probability.EXT`` or ``show --graph``'s ``NAME.json``
+    (:mod:`spcopyro.cli.out_names`)."""
     figure = PurePath(out if PurePath(out).suffix else f"{out}.png")
     if args.command == "where":
-        return [str(figure), str(figure.with_name(f"{figure.stem}_probability{figure.suffix}"))]
+        return [str(figure), str(probability_figure(figure))]
     if getattr(args, "graph", False):
-        return [str(figure), str(figure.with_suffix(".json"))]
+        return [str(figure), str(graph_json(figure))]
     return [str(figure)]
 
 

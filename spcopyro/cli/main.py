@@ -55,6 +55,7 @@ from spcopyro.cli.common import (
 )
 from spcopyro.cli.fit_parser import add_parser as add_fit_parser
 from spcopyro.cli.interrupted import interrupted_line
+from spcopyro.cli.out_names import probability_figure
 from spcopyro.data.text import fold_word
 
 logger = logging.getLogger("spcopyro")
@@ -246,12 +247,6 @@ def _show(args: argparse.Namespace) -> int:
     print(_summary(house))
     print(f"wrote {plot_house(house, args.out)}")
     return 0
-
-
-def probability_figure(out: Path) -> Path:
-    """``where --out NAME.EXT``'s second figure, the per-cell probability of the word's place:
-    ``NAME_probability.EXT`` (the same format; ``.png`` without a suffix)."""
-    return out.with_name(f"{out.stem}_probability{out.suffix or '.png'}")
 
 
 def _check_where_out(result_dir: str, out: str) -> None:

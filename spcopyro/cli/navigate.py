@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 from spcopyro._util.arguments import non_negative_number
 from spcopyro._util.messages import plural
 from spcopyro.cli.common import _HelpFormatter, figure_file, refuse_fit_files
+from spcopyro.cli.out_names import graph_json
 
 if TYPE_CHECKING:
     from spcopyro._util.outputs import StagedOutput
@@ -180,11 +181,11 @@ def show_graph(args: argparse.Namespace) -> int:
         raise ValueError("show --graph: give the output folder of `spcopyro fit`")
     figure = figure_file(args.out)
     # the figure and its JSON never replace the fit's files (--out OUT/config.png: config.json)
-    refuse_fit_files(args.data, args.out, [figure, figure.with_suffix(".json")])
+    refuse_fit_files(args.data, args.out, [figure, graph_json(figure)])
     result, _ = load_fit(args.data)  # places named as the tokenizer reads words now
     graph = place_graph(result, min_area=args.min_area)
     png = plot_place_graph(result, graph, args.out)
-    written = png.with_suffix(".json")  # X.png -> X.json: two graphs in one folder keep both
+    written = graph_json(png)  # X.png -> X.json: two graphs in one folder keep both
     replace_text(written, json.dumps(graph.to_json(), indent=2) + "\n")  # whole or not at all
     doors = sum(e.doorway for e in graph.passages)
     print(f"{plural(len(graph.places), 'place')}, {plural(len(graph.passages), 'passage')} "
