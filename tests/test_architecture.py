@@ -152,6 +152,22 @@ def test_the_checker_sees_a_cycle_and_a_wrong_direction(monkeypatch):
         test_no_import_cycle()
 
 
+def test_fit_house_imports_refine_at_its_top():
+    """fit.house imported fit.refine inside prepare_model_data and fit_house while refine
+    imported house back (f578eb4); fb0676b ended that and the cycle check above keeps it
+    ended, so nothing holds the import inside a function."""
+    tree = ast.parse(MODULES["spcopyro.fit.house"].read_text())
+    top = {node.module for node in tree.body if isinstance(node, ast.ImportFrom)}
+    inner = {
+        node.module
+        for function in ast.walk(tree)
+        if isinstance(function, ast.FunctionDef)
+        for node in ast.walk(function)
+        if isinstance(node, ast.ImportFrom)
+    }
+    assert "spcopyro.fit.refine" in top and "spcopyro.fit.refine" not in inner, inner
+
+
 @pytest.mark.parametrize(
     "part", ["baselines", "metrics", "results.semantic_map", "inference.initialisation"]
 )

@@ -50,6 +50,13 @@ from spcopyro.fit.gibbs_chains import (
 )
 from spcopyro.fit.preset_fits import log_skipped_preset_inference
 from spcopyro.fit.preset_fits import preset_fit_kwargs as preset_fit_kwargs  # re-exported
+from spcopyro.fit.refine import (
+    COARSE_STAGE_MODEL,
+    check_coarse,
+    check_refine,
+    map_house,
+    refine_chains,
+)
 from spcopyro.fit.registry import DEFAULT_METHOD, get_method
 
 # re-exported: the settings' warnings were defined here (tests and docs import them here)
@@ -171,8 +178,6 @@ def prepare_model_data(
             concentration in ``settings.model.concentrations``, or a concentration for a
             modality the house does not have.
     """
-    from spcopyro.fit.refine import COARSE_STAGE_MODEL
-
     coarse = COARSE_STAGE_MODEL.get()  # a refinement's: its coarse stage logged its warnings
     sampled = method is None or method in SAMPLERS
     said = set() if coarse is None else set(config_warnings(coarse, sampled))
@@ -470,8 +475,6 @@ def fit_house(
             ``point_estimate`` (which ``sweeps="auto"`` allows only for the refit).
             The decision is logged at INFO level and kept in ``result.inference["refine"]``.
     """
-    from spcopyro.fit.refine import check_coarse, check_refine, map_house, refine_chains
-
     settings = _settings(settings, house)
     given, house = house, model_house(house, settings.data.cell_size)  # the model's grid
     if method == DEFAULT_METHOD:
