@@ -37,6 +37,14 @@ def _room(root, features=((0.5, 0.5), (0.25, 0.75), (1.0, 0.0))):
     return room
 
 
+def _st_csv_refused(tmp_path, text: str, match: str) -> None:
+    """The house with St.csv written as ``text`` is refused with a message matching ``match``."""
+    room = _room(tmp_path)
+    (room / "St.csv").write_text(text, encoding="utf-8")
+    with pytest.raises(DataFormatError, match=match):
+        load_house(room)
+
+
 def _warnings(caplog, room):
     caplog.clear()
     with caplog.at_level(logging.WARNING, logger="spcopyro"):
@@ -80,21 +88,23 @@ def test_ft_rows_that_sum_to_one_or_zero_are_not_warned_of(tmp_path, caplog):
 def test_st_csv_ending_with_a_comma_says_so(tmp_path):
     """``for w in words: f.write(w + ',')``: 'utterance 4 holds no words' said nothing of the
     comma at the end of the line."""
-    room = _room(tmp_path)
-    (room / "St.csv").write_text("here is the kitchen,bed,kitchen,", encoding="utf-8")
-    with pytest.raises(DataFormatError, match=r"St\.csv, line 1: utterance 4 holds no words "
-                       r"\(the line ends with a comma: .*none after the last\): ''"):  # fmt: skip
-        load_house(room)
+    _st_csv_refused(
+        tmp_path,
+        "here is the kitchen,bed,kitchen,",
+        r"St\.csv, line 1: utterance 4 holds no words "
+        r"\(the line ends with a comma: .*none after the last\): ''",
+    )
 
 
 def test_an_empty_utterance_names_its_position_lines(tmp_path):
     """An empty entry in the middle (two commas in a row): the fix is to remove it and its
     position, line 2 of StXtx.csv and StXty.csv, or to write what was said."""
-    room = _room(tmp_path)
-    (room / "St.csv").write_text("here is the kitchen, ,kitchen", encoding="utf-8")
-    with pytest.raises(DataFormatError, match=r"utterance 2 holds no words \(an utterance is "
-                       r"placed by line 2 of StXtx\.csv and StXty\.csv: "):  # fmt: skip
-        load_house(room)
+    _st_csv_refused(
+        tmp_path,
+        "here is the kitchen, ,kitchen",
+        r"utterance 2 holds no words \(an utterance is "
+        r"placed by line 2 of StXtx\.csv and StXty\.csv: ",
+    )
 
 
 @pytest.mark.parametrize(
@@ -122,11 +132,12 @@ def test_a_bad_first_value_is_not_called_a_header(tmp_path):
 
 def test_st_csv_of_one_utterance_a_line_says_to_join_them(tmp_path):
     """St.csv written in word_K.csv's layout, one utterance a line."""
-    room = _room(tmp_path)
-    (room / "St.csv").write_text("here is the kitchen\nbed\nkitchen\n", encoding="utf-8")
-    with pytest.raises(DataFormatError, match=r"line 2: must be one line of comma-separated "
-                       r"utterances \(.*join the lines with commas\): 'bed'"):  # fmt: skip
-        load_house(room)
+    _st_csv_refused(
+        tmp_path,
+        "here is the kitchen\nbed\nkitchen\n",
+        r"line 2: must be one line of comma-separated "
+        r"utterances \(.*join the lines with commas\): 'bed'",
+    )
 
 
 def test_a_rotated_map_says_how_to_use_it(tmp_path):
