@@ -7,9 +7,9 @@ study's table) to means per variant and house type and states, from those number
 mean field loses and where it wins (:func:`findings`); :func:`write_report` writes the JSON, the
 markdown and one figure of quality against wall-clock time (log axis) per house type
 (:mod:`spcopyro.experiments.comparison_figure`, whose
-:func:`~spcopyro.experiments.comparison_figure.curves_figure`,
 :func:`~spcopyro.experiments.comparison_figure.plot_curves` and
-:data:`~spcopyro.experiments.comparison_figure.SCORE_NAMES` are importable from here too).
+:data:`~spcopyro.experiments.comparison_figure.SCORE_NAMES` are importable from here too;
+its :func:`~spcopyro.experiments.comparison_figure.curves_figure` only from there).
 """
 
 from __future__ import annotations
