@@ -4,9 +4,11 @@
   probabilities are enumerated here -- every bond configuration with its probability
   1 - e^-gamma per bonded agreeing pair, every seed cell, every label of the proposal's groups --
   with the module's acceptance ratio, and p(C) K(C, C') must equal p(C') K(C', C) for every pair
-  of the 81 labelings, p being the enumerated collapsed posterior (Potts term included, checked
-  against the model in test_merge_move). Power: the ratio without the label proposal's asymmetry
-  breaks it (``test_a_broken_acceptance_ratio_is_detected``).
+  of the 81 labelings, p being the enumerated posterior (the enumerator's log evidence of
+  spcopyro.guides.testing, Potts term included, checked against the Pyro model in
+  test_exact_tiny_maps), with the images and words and with a third modality. Power: the ratio
+  without the label proposal's asymmetry breaks it (``test_a_broken_acceptance_ratio_is_detected``),
+  and so does one blind to the third modality.
 * The sampler draws what was enumerated: moves from one labeling land on each labeling as often
   as the enumerated row says (chi-square).
 * What it is for: a room carried by two concepts whose halves' data agree is merged in a few
@@ -32,7 +34,9 @@ from gibbs_problems import (
 )
 from scipy import stats
 from statistical_checks import pooled_chisquare_p
+from test_modalities import OBJECTS, with_objects
 
+import spcopyro.gibbs.merge as merge
 import spcopyro.gibbs.region_move as region_move
 from spcopyro.gibbs.merge import collapsed_log_posterior
 from spcopyro.gibbs.options import GibbsOptions
@@ -45,6 +49,7 @@ from spcopyro.gibbs.region_move import (
 )
 from spcopyro.gibbs.sampler import init, step
 from spcopyro.gibbs.sweep import gibbs_sweep
+from spcopyro.guides.testing import labelling_log_evidence
 from spcopyro.model import DTYPE
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")  # small tensors
@@ -56,6 +61,15 @@ def _square_problem():
     images = np.array([[3.0, 0.5], [0.5, 2.0]])
     words = np.array([[2.0, 0.0, 1.0], [0.0, 2.0, 0.5]])
     return cfg, n, model_data(grid, np.array([0, 3]), images, words)
+
+
+def _objects_problem():
+    """:func:`_square_problem` with a third modality: tests/test_modalities.py's object counts
+    (Poisson(3) at the 2 observed cells, concentration 0.7), which move the enumerated p(C | x)
+    by 0.22 in total variation."""
+    cfg, n, data = _square_problem()
+    grid, _ = replicate_grid(["..", ".."], 1)
+    return cfg.replace(concentrations={OBJECTS: 0.7}), n, with_objects(grid, data, scale=3.0)
 
 
 def _components(num_cells: int, bonds: list[tuple[int, int]]) -> list[frozenset[int]]:
@@ -126,9 +140,10 @@ def _exact_kernel(
 
 
 def _posterior(cfg, n, data) -> np.ndarray:
-    log_p = np.array(
-        [collapsed_log_posterior(lab, data, cfg) for lab in all_labelings(n, cfg.num_concepts)]
-    )
+    """[S] the enumerated p(C | x) from the enumerator's log evidence (spcopyro.guides.testing,
+    checked against the Pyro model in test_exact_tiny_maps, a third modality included): not
+    from the move's own terms, whose modalities are the move's."""
+    log_p = labelling_log_evidence(all_labelings(n, cfg.num_concepts), data, cfg).numpy()
     return np.exp(log_p - log_p.max()) / np.exp(log_p - log_p.max()).sum()
 
 
@@ -147,12 +162,17 @@ def test_the_move_satisfies_detailed_balance_exactly(bond_share):
     assert _detailed_balance_gap(cfg, n, data, bond_share) < 1e-10
 
 
-@pytest.mark.parametrize("variant", ["two-concepts", "8-neighbours", "zero-word-vocabulary"])
+@pytest.mark.parametrize(
+    "variant", ["two-concepts", "8-neighbours", "zero-word-vocabulary", "three-modalities"]
+)
 def test_detailed_balance_holds_beyond_the_default_problem(variant):
     """L = 2 (no new concept to propose once both are used), the 8-neighbourhood (the diagonal
-    pairs in the bonds and the border), and words of V = 0 items (a house of images only)."""
+    pairs in the bonds and the border), words of V = 0 items (a house of images only), and a
+    third modality (object counts; power: test_a_ratio_blind_to_the_third_modality_...)."""
     cfg, n, data = _square_problem()
-    if variant == "two-concepts":
+    if variant == "three-modalities":
+        cfg, n, data = _objects_problem()
+    elif variant == "two-concepts":
         cfg = cfg.replace(num_concepts=2)
     elif variant == "8-neighbours":
         cfg = cfg.replace(connectivity=8)
@@ -170,6 +190,21 @@ def test_a_broken_acceptance_ratio_is_detected(monkeypatch):
     assert _detailed_balance_gap(cfg, n, data) > 1e-2
 
 
+def test_a_ratio_blind_to_the_third_modality_is_detected(monkeypatch):
+    # The two concepts' terms of the ratio without the objects' counts (a move that lists the
+    # images and words only): gap 0.21, as against 2e-16 with them.
+    two_concepts = merge.two_concepts
+
+    def images_and_words(*args):
+        sizes, counts = two_concepts(*args)
+        return sizes, counts[:2]
+
+    monkeypatch.setattr(region_move, "two_concepts", images_and_words)
+    monkeypatch.setattr(region_move, "used_modalities", lambda *a: merge.used_modalities(*a)[:2])
+    cfg, n, data = _objects_problem()
+    assert _detailed_balance_gap(cfg, n, data) > 1e-2
+
+
 def test_a_potts_share_left_out_is_detected():
     # The ratio as if the bonds carried all the coupling while they carry BOND_SHARE of it.
     cfg, n, data = _square_problem()
@@ -178,9 +213,10 @@ def test_a_potts_share_left_out_is_detected():
     assert np.abs(flow - flow.T).max() / flow.max() > 1e-2
 
 
+@pytest.mark.parametrize("problem", [_square_problem, _objects_problem], ids=["two", "objects"])
 @pytest.mark.parametrize("compiled", [False, True])
-def test_the_sampler_draws_the_enumerated_transitions(compiled):
-    cfg, n, data = _square_problem()
+def test_the_sampler_draws_the_enumerated_transitions(compiled, problem):
+    cfg, n, data = problem()
     kernel = _exact_kernel(cfg, n, data)
     start = torch.tensor([0, 0, 1, 1])
     row = kernel[int(state_index(start, cfg.num_concepts))]
