@@ -21,15 +21,45 @@ FIT = ["--sweeps", "12", "--preset", "original-code", "--gamma", "3", "--concept
        "--no-figures"]  # fmt: skip
 
 
+def _ctrl_c_in(monkeypatch, capsys, module, name: str, argv: list[str]) -> str:
+    """``spcopyro fit`` run with ``module.name`` stopped by Ctrl-C: it exits with 130; the last
+    line of its stderr (after the progress bars)."""
+    with monkeypatch.context() as patch:
+        patch.setattr(module, name, interrupted)
+        assert main(argv) == 130
+    return capsys.readouterr().err.splitlines()[-1]
+
+
+def _stopped_gibbs_fit(home, out, monkeypatch, capsys, sweep: int) -> list[str]:
+    """The argv of a Gibbs fit (one chain) into ``out``, run and stopped by Ctrl-C after its
+    ``sweep``-th sweep (0: the first): it exits with 130 and keeps a checkpoint."""
+    argv = ["fit", str(home), "--out", str(out), *FIT]
+    with monkeypatch.context() as patch:
+        interrupt_fit_at(patch, 0, sweep)
+        assert main(argv) == 130
+    capsys.readouterr()
+    return argv
+
+
+def _stopped_cavi_fit(home, out, monkeypatch, capsys) -> list[str]:
+    """The argv of a cavi fit (torch backend) into ``out``, run and stopped by Ctrl-C at its
+    torch step's third call: it exits with 130 and keeps a checkpoint."""
+    argv = ["fit", str(home), "--out", str(out), *FIT, "--method", "cavi",
+            "--method-option", "backend=torch"]  # fmt: skip
+    with monkeypatch.context() as patch:
+        interrupt_cavi_at(patch, 3)
+        assert main(argv) == 130
+    capsys.readouterr()
+    return argv
+
+
 def test_ctrl_c_after_the_sweeps_keeps_the_finished_chains(home, tmp_path, capsys, monkeypatch):
     out = tmp_path / "out"
     argv = ["fit", str(home), "--out", str(out), *FIT]
     marginals = spcopyro.fit.gibbs_chains.with_sample_marginals
 
-    with monkeypatch.context() as patch:  # Ctrl-C while the point estimate is made
-        patch.setattr(spcopyro.fit.gibbs_chains, "with_sample_marginals", interrupted)
-        assert main(argv) == 130
-    err = capsys.readouterr().err.splitlines()[-1]  # after the progress bars
+    # Ctrl-C while the point estimate is made
+    err = _ctrl_c_in(monkeypatch, capsys, spcopyro.fit.gibbs_chains, "with_sample_marginals", argv)
     checkpoint = checkpoint_path(out)
     assert err.startswith("interrupted after the sweeps: nothing written to")
     assert "no sweep was done" not in err and f"saved in {checkpoint}" in err
@@ -50,11 +80,8 @@ def test_ctrl_c_after_the_sweeps_keeps_the_finished_chains(home, tmp_path, capsy
 
 def test_resume_with_other_marginal_samples_is_refused(home, tmp_path, capsys, monkeypatch):
     out = tmp_path / "out"
-    argv = ["fit", str(home), "--out", str(out), *FIT]
-    with monkeypatch.context() as patch:
-        interrupt_fit_at(patch, 0, 8)  # past the middle: label maps kept every sweep
-        assert main(argv) == 130
-    capsys.readouterr()
+    # stopped past the middle: label maps kept every sweep
+    argv = _stopped_gibbs_fit(home, out, monkeypatch, capsys, 8)
     checkpoint = checkpoint_path(out)
     assert main([*argv, "--marginal-samples", "2", "--resume", str(checkpoint)]) == 2
     err = capsys.readouterr().err
@@ -70,15 +97,8 @@ def test_a_checkpoint_resumed_with_another_method_names_the_method(
     method) names the method it was made with, not only its file format or every option."""
 
     gibbs_out, cavi_out = tmp_path / "gibbs", tmp_path / "cavi"
-    with monkeypatch.context() as patch:
-        interrupt_fit_at(patch, 0, 4)
-        assert main(["fit", str(home), "--out", str(gibbs_out), *FIT]) == 130
-    cavi_argv = ["fit", str(home), "--out", str(cavi_out), *FIT, "--method", "cavi",
-                 "--method-option", "backend=torch"]  # fmt: skip
-    with monkeypatch.context() as patch:
-        interrupt_cavi_at(patch, 3)  # CAVI's torch step: Ctrl-C at its third call
-        assert main(cavi_argv) == 130
-    capsys.readouterr()
+    _stopped_gibbs_fit(home, gibbs_out, monkeypatch, capsys, 4)
+    cavi_argv = _stopped_cavi_fit(home, cavi_out, monkeypatch, capsys)
     gibbs_checkpoint, cavi_checkpoint = checkpoint_path(gibbs_out), checkpoint_path(cavi_out)
     assert gibbs_checkpoint.is_file() and cavi_checkpoint.is_file()
     out = str(tmp_path / "other")
@@ -148,11 +168,7 @@ def test_a_refused_resume_names_the_field_that_differs_within_a_group(
     ]
     assert differences({"a": {"b": 1}}, {"a": 2}) == ["a: {'b': 1} in the checkpoint, 2 here"]
     out = tmp_path / "out"
-    argv = ["fit", str(home), "--out", str(out), *FIT]
-    with monkeypatch.context() as patch:
-        interrupt_fit_at(patch, 0, 1)
-        assert main(argv) == 130
-    capsys.readouterr()
+    argv = _stopped_gibbs_fit(home, out, monkeypatch, capsys, 1)
     other = [*argv, "--cell-size", "0.5", "--method-option", "hyper.gamma=exchange",
              "--resume", str(checkpoint_path(out))]  # fmt: skip
     assert main(other) == 2
@@ -171,11 +187,7 @@ def test_ctrl_c_before_a_resumed_fit_loads_its_chains_says_the_checkpoint_still_
     import spcopyro.cli.fit
 
     out = tmp_path / "out"
-    argv = ["fit", str(home), "--out", str(out), *FIT]
-    with monkeypatch.context() as patch:
-        interrupt_fit_at(patch, 0, 5)
-        assert main(argv) == 130
-    capsys.readouterr()
+    argv = _stopped_gibbs_fit(home, out, monkeypatch, capsys, 5)
     checkpoint = checkpoint_path(out)
     before = checkpoint.read_bytes()
 
@@ -201,10 +213,7 @@ def test_ctrl_c_while_writing_a_refined_fit_says_the_refinement_runs_again(
     argv = ["fit", str(home), "--out", str(out), "--sweeps", "6", "--no-figures",
             "--refine", "always", "--chain-workers", "1"]  # fmt: skip
 
-    with monkeypatch.context() as patch:
-        patch.setattr(spcopyro.cli.fit, "print_concepts", interrupted)
-        assert main(argv) == 130
-    err = capsys.readouterr().err.splitlines()[-1]
+    err = _ctrl_c_in(monkeypatch, capsys, spcopyro.cli.fit, "print_concepts", argv)
     assert err.startswith("interrupted while writing the outputs (only the first stage is "
                           "kept: resuming refines again): nothing written to")  # fmt: skip
     assert main([*argv, "--resume", str(checkpoint_path(out))]) == 0
@@ -264,20 +273,16 @@ def test_ctrl_c_after_a_variational_fit_s_iterations_says_so(home, tmp_path, cap
 
     out = tmp_path / "out"
     argv = ["fit", str(home), "--out", str(out), *FIT, "--method", "cavi"]
-    with monkeypatch.context() as patch:
-        patch.setattr(spcopyro.fit.house, "result_of", interrupted)
-        assert main(argv) == 130
-    err = capsys.readouterr().err.splitlines()[-1]
+    err = _ctrl_c_in(monkeypatch, capsys, spcopyro.fit.house, "result_of", argv)
     assert err.startswith("interrupted (cavi fit 1 of 1, after its ")
     assert err.endswith("no checkpoint kept (it stopped after the iterations, while their "
                         "result was made)")  # fmt: skip
     assert "no iteration was done" not in err and not out.exists()
     import spcopyro.guides.cavi_method  # inside the method, once its driver has returned
 
-    with monkeypatch.context() as patch:
-        patch.setattr(spcopyro.guides.cavi_method, "output_from_variational", interrupted)
-        assert main(argv) == 130
-    err = capsys.readouterr().err.splitlines()[-1]
+    err = _ctrl_c_in(
+        monkeypatch, capsys, spcopyro.guides.cavi_method, "output_from_variational", argv
+    )
     assert err.startswith("interrupted (cavi fit 1 of 1): nothing written")
     assert err.endswith("(it stopped outside the iterations: while the method set up or made "
                         "their result)")  # fmt: skip
@@ -303,10 +308,7 @@ def test_ctrl_c_while_writing_a_variational_fit_says_it_is_lost_and_how_to_run_i
 
     out = tmp_path / "out"
     argv = ["fit", str(home), "--out", str(out), *FIT, "--method", method]
-    with monkeypatch.context() as patch:
-        patch.setattr(spcopyro.cli.fit, "print_concepts", interrupted)
-        assert main(argv) == 130
-    err = capsys.readouterr().err.splitlines()[-1]
+    err = _ctrl_c_in(monkeypatch, capsys, spcopyro.cli.fit, "print_concepts", argv)
     assert err.startswith(f"interrupted while writing the outputs: nothing written to {out}")
     assert "no iteration was done" not in err
     if why is not None:
@@ -423,20 +425,12 @@ def test_ctrl_c_while_writing_a_resumed_variational_fit_says_its_iterations_are_
     import spcopyro.cli.fit
 
     out = tmp_path / "out"
-    argv = ["fit", str(home), "--out", str(out), *FIT, "--method", "cavi",
-            "--method-option", "backend=torch"]  # fmt: skip
-    with monkeypatch.context() as patch:
-        interrupt_cavi_at(patch, 3)  # CAVI's torch step: Ctrl-C at its third call
-        assert main(argv) == 130
-    capsys.readouterr()
+    argv = _stopped_cavi_fit(home, out, monkeypatch, capsys)
     checkpoint = checkpoint_path(out)
     saved = checkpoint.read_bytes()
 
     resumed = [*argv, "--resume", str(checkpoint)]
-    with monkeypatch.context() as patch:
-        patch.setattr(spcopyro.cli.fit, "print_concepts", interrupted)
-        assert main(resumed) == 130
-    err = capsys.readouterr().err.splitlines()[-1]
+    err = _ctrl_c_in(monkeypatch, capsys, spcopyro.cli.fit, "print_concepts", resumed)
     assert err == (
         f"interrupted while writing the outputs: nothing written to {out}; the iterations this "
         f"run added are lost; {checkpoint} is left as it was, with the state this run resumed "
