@@ -193,6 +193,19 @@ def test_save_params_given_as_one_name():
     assert set(mcmc.get_samples()) == {"pi"}
 
 
+def test_mcmc_save_params_reach_the_kernel():
+    # Pyro's MCMC(kernel, save_params=[...]) sets kernel.save_params; SpCoGibbs.setup replaced
+    # it with every site, so all six were kept (labels too: N values a sample)
+    cfg = config()
+    _, data = random_problem(seed=3)
+    mcmc = MCMC(SpCoGibbs(), num_samples=2, warmup_steps=1, save_params=["pi", "log_joint"],
+                disable_progbar=True)  # fmt: skip
+    mcmc.run(data, cfg)
+    assert set(mcmc.get_samples()) == {"pi", "log_joint"}
+    with pytest.raises(ValueError, match=r"unknown save_params \['beta'\]"):
+        MCMC(SpCoGibbs(), num_samples=2, save_params=["beta"], disable_progbar=True).run(data, cfg)
+
+
 @pytest.mark.parametrize("seed", [1.5, -1, True, "3", 2**63])
 def test_start_chain_refuses_a_seed_that_is_not_one(seed):
     # 1.5 seeded as 1, "3" as 3, True as 1, -1 as 2**64 - 1 (the CLI refuses all of them)

@@ -104,7 +104,7 @@ class SpCoGibbs(MCMCKernel):
             model it raises ValueError saying so).
             Labels cost N values a sample: pass the small sites only
             (:data:`DEFAULT_SAVE_PARAMS`) for long runs on large maps. A string is one site's
-            name.
+            name. Pyro's ``MCMC(kernel, ..., save_params=[...])`` sets the same request.
         options: the sampler's options (:class:`~spcopyro.gibbs.options.GibbsOptions`: backend,
             cluster moves, partial refresh); its ``anneal_sweeps`` must be 0 -- use ``anneal``.
             With ``options.hyper`` sampling hyperparameters, each sampled one (``alpha``,
@@ -140,10 +140,7 @@ class SpCoGibbs(MCMCKernel):
         self._backend = get_backend(options.backend)
         self.init_labels = init_labels
         self.anneal = bool(anneal)
-        if isinstance(save_params, str):  # one site's name, not its letters
-            save_params = (save_params,)
-        self._requested_params = None if save_params is None else tuple(save_params)
-        self.save_params = sorted(save_params) if save_params is not None else []
+        self.save_params = save_params  # type: ignore[assignment]
         self.transforms = {"labels": _ToInteger(torch.long)}
         self._state: GibbsState | None = None
         self._generator: torch.Generator | None = None
@@ -169,7 +166,7 @@ class SpCoGibbs(MCMCKernel):
             )
         self._check_model_sites()
         requested = self._requested_params
-        self.save_params = sorted(self._all_params() if requested is None else requested)
+        self._save_params = sorted(self._all_params() if requested is None else requested)
         unknown = set(self.save_params) - set(self._all_params())
         if unknown:
             raise ValueError(
@@ -183,6 +180,20 @@ class SpCoGibbs(MCMCKernel):
         self._check_model_density()
         anneal_sweeps = warmup_steps if self.anneal else 0
         self._step_options = self.options.replace(anneal_sweeps=anneal_sweeps)
+
+    @property
+    def save_params(self) -> list[str]:
+        """The sites MCMC keeps, sorted (after :meth:`setup`; before it, those requested)."""
+        return self._save_params
+
+    @save_params.setter
+    def save_params(self, names: Sequence[str] | None) -> None:
+        """Pyro's ``MCMC(kernel, save_params=[...])`` sets this: a request, as the
+        constructor's argument (``setup`` overwrote it with every site, and all were kept)."""
+        if isinstance(names, str):  # one site's name, not its letters
+            names = (names,)
+        self._requested_params = None if names is None else tuple(names)
+        self._save_params = sorted(names) if names is not None else []
 
     def _all_params(self) -> tuple[str, ...]:
         parameters = tuple(m.parameter for m in self._data.modalities)
