@@ -40,8 +40,7 @@ from spcopyro.cli.main import build_parser, main
          "replaced)"),
         (["import-bag", "B", "--map", "M", "--out", "d/H", "--overwrite"], "interrupted "
          "spcopyro import-bag: nothing written to d/H (it is written whole at the end, or not "
-         "at all); d/map/H.yaml and .pgm may already be the new map's (they are written just "
-         "before OUT)"),
+         "at all); d/map/H.yaml and .pgm are still the old map's (moved in with OUT)"),
         (["fit", "D", "--out", "O"], "interrupted spcopyro fit: nothing written to O (it is "
          "written whole at the end, or not at all)"),
         (["study", "S", "--out", "O"], "interrupted spcopyro study: O keeps the cells finished "
@@ -55,16 +54,19 @@ def test_the_line_names_the_command_and_what_became_of_its_output(argv, said):
 
 
 def test_ctrl_c_in_simulate_names_it_and_its_folder(tmp_path, monkeypatch, capsys):
-    """simulate writes its house in place: the line says which folder may be half-written."""
+    """simulate writes its house whole, with its map: the line names both (it said the folder
+    "may hold half-written files" while simulate wrote in place)."""
 
     def interrupted(args):
         raise KeyboardInterrupt
 
     monkeypatch.setattr(main_module, "_simulate", interrupted)
     assert main(["simulate", "--out", str(tmp_path / "h")]) == 130
+    house = tmp_path / "h" / "synthetic"
     assert capsys.readouterr().err == (
-        f"interrupted spcopyro simulate: {tmp_path / 'h'} may hold half-written files; run the "
-        "same command again (with --overwrite) to write them whole\n"
+        f"interrupted spcopyro simulate: nothing written to {house} and its map "
+        f"{tmp_path / 'h' / 'map' / 'synthetic'}.yaml (they are written whole at the end, or not "
+        "at all)\n"
     )
 
 
@@ -95,9 +97,9 @@ def _overwrite_args(command: str):
     return build_parser().parse_args(argv)
 
 
-def _map_note(command: str) -> str:
-    return ("; map/N.yaml and .pgm may already be the new map's (they are written just before "
-            "OUT)") if command == "import-bag" else ""  # fmt: skip
+def _map_note(command: str, new: bool = False) -> str:
+    return (f"; map/N.yaml and .pgm are {'the new' if new else 'still the old'} map's (moved in "
+            "with OUT)") if command == "import-bag" else ""  # fmt: skip
 
 
 @pytest.fixture
@@ -127,7 +129,7 @@ def test_an_overwrite_stopped_while_carrying_files_over_names_the_set_aside_fold
     (aside,) = [p.name for p in tmp_path.iterdir() if p.name.startswith(f"{hidden}N.replaced-")]
     assert interrupted_line(args) == (
         f"interrupted spcopyro {command}: N is the new one, written whole; what of the old one "
-        f"was not yet carried into it is in {aside}{_map_note(command)}"
+        f"was not yet carried into it is in {aside}{_map_note(command, new=True)}"
     )
     args.overwrite = False  # nothing is set aside without --overwrite
     assert interrupted_line(args).startswith(f"interrupted spcopyro {command}: nothing written")

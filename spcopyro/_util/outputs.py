@@ -21,7 +21,8 @@ Ctrl-C, or a second fit into the same folder never leaves a mixture of two runs'
   under the user's umask (``tempfile``'s 0700 / 0600 would keep a Nav2 export or a fit from
   a map server or a colleague running as another user).
 
-This module imports nothing of the package.
+This module imports nothing of the package but :mod:`spcopyro._util.interrupts` (which imports
+only the standard library).
 """
 
 from __future__ import annotations
@@ -41,6 +42,8 @@ from pathlib import Path
 from typing import BinaryIO, TypeVar
 
 import numpy as np
+
+from spcopyro._util.interrupts import signals_deferred
 
 try:  # POSIX: serialise commits into one parent folder
     import fcntl
@@ -296,6 +299,37 @@ def carry_over(old: Path, out: Path, written: Container[str]) -> tuple[str, ...]
     return tuple(kept)
 
 
+def commit_folder(
+    staging: Path,
+    out: Path,
+    written: Container[str],
+    files: Sequence[tuple[Path, Path]] = (),
+    *,
+    hidden: bool = False,
+) -> tuple[str, ...]:
+    """Move the staged folder ``staging`` to ``out``, then each ``(staged, target)`` of
+    ``files`` (staged beside its target, in a :func:`staging_folder`: a house's map beside its
+    folder) over its target, a Ctrl-C (or SIGTERM) meanwhile held until all are in place and
+    raised then (:func:`~spcopyro._util.interrupts.signals_deferred`): it finds the folder and
+    its files all old or all new. A non-empty ``out`` is set aside (:func:`swapped_in`, ``hidden``)
+    and what its writer did not write (not in ``written``) carried into the new one
+    (:func:`carry_over`, interruptible: a Ctrl-C there keeps the set-aside folder, which
+    :func:`set_aside` names); returns the names carried."""
+    signalled: list[int] = []
+    with contextlib.ExitStack() as swap:
+        with signals_deferred(lambda signum, frame: signalled.append(signum)):
+            old = None
+            if out.is_dir() and not _is_empty_folder(out):
+                old = swap.enter_context(swapped_in(out, staging, hidden))
+            else:
+                os.rename(staging, out)  # replaces an empty folder atomically
+            for partial, target in files:
+                os.replace(partial, target)
+        if signalled:  # all in place: stopped now (the set-aside folder kept, named)
+            raise KeyboardInterrupt(f"signal {signalled[0]}")
+        return () if old is None else carry_over(old, out, written)
+
+
 def nearest_existing(path: Path) -> Path:
     """``path`` or the nearest of its parents that exists (where an output would be made)."""
     while not path.exists() and path.parent != path:
@@ -433,6 +467,15 @@ def stage_output(
             f"--out {out}: cannot write in {path.parent} ({error.strerror or error})"
         ) from None
     return StagedOutput(out=path, path=Path(staging), overwrite=overwrite, seen=seen)
+
+
+def staging_folder(out: str | os.PathLike[str]) -> Path:
+    """A new empty folder beside ``out`` (``OUT.partial-PID-XXXXXXXX``: :func:`staging_prefix`,
+    so :func:`remove_stale_stagings` finds it once its process is gone), made as ``mkdir`` makes
+    one; ``out``'s parent made if missing."""
+    path = _absolute(out)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return _new_folder(path.parent, staging_prefix(path))
 
 
 def stage_marked_folder(

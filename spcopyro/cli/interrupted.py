@@ -29,8 +29,10 @@ STUDIES = frozenset({"ablation", "compare-inference", "experiment", "study"})
 """Commands that run a study into ``--out``: every finished cell is kept there (and each report
 the command writes is replaced whole: ``spcopyro.study.commands`` names those left an earlier
 run's)."""
-IN_PLACE = frozenset({"simulate"})
-"""Commands that write their ``--out`` in place: a file being written may be left half-written."""
+HOUSES = frozenset({"simulate"})
+"""Commands that write a house under ``--out`` (``OUT/NAME/`` and its map ``OUT/map/NAME.yaml``
+and ``.pgm``) whole, folder and map together, or not at all
+(:func:`spcopyro._util.outputs.commit_folder`)."""
 OUT_OPTION = {"export": "nav2"}
 """The attribute of a command's output where it is not ``out`` (``export --nav2 DIR``)."""
 
@@ -59,8 +61,9 @@ def interrupted_line(args: argparse.Namespace) -> str:
             )
         if command == "import-bag" and overwrite:
             path = PurePath(out)  # the house's map, as the import names it (rosbag.importer)
-            line += (f"; {path.parent / 'map' / path.name}.yaml and .pgm may already be the new "
-                     "map's (they are written just before OUT)")  # fmt: skip
+            new = "the new" if aside and os.path.isdir(out) else "still the old"
+            line += (f"; {path.parent / 'map' / path.name}.yaml and .pgm are {new} map's (moved "
+                     "in with OUT)")  # fmt: skip
         return line
     if command in EACH_WHOLE:
         files = _figures(args, out)
@@ -72,10 +75,23 @@ def interrupted_line(args: argparse.Namespace) -> str:
     if command in STUDIES:
         return (f"{line}: {out} keeps the cells finished so far; run the same command again to "
                 "continue")  # fmt: skip
-    if command in IN_PLACE:
-        return (f"{line}: {out} may hold half-written files; run the same command again (with "
-                "--overwrite) to write them whole")  # fmt: skip
+    if command in HOUSES:
+        return f"{line}: {_house_line(args, out)}"
     return line
+
+
+def _house_line(args: argparse.Namespace, out: str) -> str:
+    """What became of ``simulate``'s house ``OUT/NAME`` (NAME: ``--name``, else the ``--map``
+    file's name or ``synthetic``, as ``simulate`` names it) and its map."""
+    map_file = getattr(args, "map", None)
+    name = getattr(args, "name", None) or (PurePath(map_file).stem if map_file else "synthetic")
+    room = PurePath(out) / name
+    house = f"{room} and its map {PurePath(out) / 'map' / name}.yaml"
+    aside = _set_aside(str(room))
+    if aside and os.path.isdir(room):  # stopped while the old house's own files were carried
+        return (f"{house} are the new ones, written whole; what of the old {room} was not yet "
+                f"carried into it is in {', '.join(aside)}")  # fmt: skip
+    return f"nothing written to {house} (they are written whole at the end, or not at all)"
 
 
 def _figures(args: argparse.Namespace, out: str) -> list[str]:

@@ -14,6 +14,7 @@ import logging
 import os
 import re
 import shutil
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -40,7 +41,7 @@ from spcopyro.data.observations import (
 )
 from spcopyro.data.text import tokenize
 from spcopyro.maps.grid import OccupancyGrid
-from spcopyro.maps.map_server import MAX_MAP_COORDINATE, load_map, save_map
+from spcopyro.maps.map_server import MAX_MAP_COORDINATE, load_map, stage_map
 
 __all__ = [
     "House",
@@ -410,7 +411,13 @@ _MANAGED_FILES = (
 )
 
 
-def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = False) -> Path:
+def save_house(
+    house: House,
+    root: str | os.PathLike[str],
+    *,
+    overwrite: bool = False,
+    extra: Callable[[Path], object] | None = None,
+) -> Path:
     """Write ``house`` in the dataset layout under ``root``; the inverse of :func:`load_house`.
 
     Writes ``root/map/NAME.{pgm,yaml}`` (:func:`spcopyro.maps.save_map`) and ``root/NAME/`` with
@@ -433,14 +440,17 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
             img_K, modality_<name>, and the rooms.npy and rooms.json that ``simulate --map``
             writes beside them) are replaced; other files are left alone.
 
+    The folder is written beside ``root/NAME`` and moved into place with the map's files, all
+    at once (:func:`~spcopyro._util.outputs.commit_folder`): an error or a Ctrl-C leaves the
+    house there before (or none) as it was. ``extra(folder)`` writes further files into the
+    folder before that (``simulate --map``'s rooms).
+
     Returns:
         The room folder ``root/NAME``.
     """
     obs = house.observations
     if obs.num_feature_classes == 0:
         raise ValueError(f"save_house({house.name!r}): no image feature classes (K = 0)")
-    with_images = obs.num_images > 0  # else a house of words only: no Ft.csv, no pose_K.csv
-    with_words = obs.num_utterances > 0  # else a house of images only: no St.csv, no word_K.csv
     for name, trial in (("image_trial", obs.image_trial), ("word_trial", obs.word_trial)):
         if (np.diff(trial) < 0).any():
             raise ValueError(
@@ -477,19 +487,28 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
             raise ValueError(
                 f"save_house: cannot overwrite {room}, the house's images are read from it"
             )
-        for entry in room.iterdir() if room.exists() else ():
-            if (
-                entry.name in _MANAGED_FILES
-                or re.fullmatch(r"(pose|word)_[0-9]+\.csv", entry.name)
-                or MODALITY_FILE.fullmatch(entry.name)
-            ):
-                entry.unlink()
-            elif entry.is_dir() and re.fullmatch(r"img_[0-9]+", entry.name):
-                shutil.rmtree(entry)
-    room.mkdir(parents=True, exist_ok=True)
-    (root / "map").mkdir(parents=True, exist_ok=True)
-    save_map(house.grid, map_yaml)
+    from spcopyro._util.outputs import commit_folder, staging_folder  # not on --help's path
 
+    staging = staging_folder(room)  # the house written beside ROOM, moved in whole
+    staged_map = None
+    try:
+        _write_room(house, staging)
+        if extra is not None:
+            extra(staging)
+        staged_map, map_files = stage_map(house.grid, map_yaml)
+        commit_folder(staging, room, _Saved(), map_files)  # with the map, as one
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)  # not there after the commit
+        if staged_map is not None:
+            shutil.rmtree(staged_map, ignore_errors=True)
+    return room
+
+
+def _write_room(house: House, room: Path) -> None:
+    """The files of :func:`save_house` in the (new, empty) folder ``room``."""
+    obs = house.observations
+    with_images = obs.num_images > 0  # else a house of words only: no Ft.csv, no pose_K.csv
+    with_words = obs.num_utterances > 0  # else a house of images only: no St.csv, no word_K.csv
     fmt = _format_float
     if with_images:
         features = obs.image_features.tolist()
@@ -532,4 +551,15 @@ def save_house(house: House, root: str | os.PathLike[str], *, overwrite: bool = 
         (room / "categories.json").write_text(
             json.dumps(list(house.category_names), indent=1) + "\n", encoding="utf-8"
         )
-    return room
+
+
+class _Saved:
+    """The entries :func:`save_house` writes (or replaces: stale ``pose_K``, ``img_K``, ...):
+    ``in`` for :func:`~spcopyro._util.outputs.carry_over`, which keeps the others."""
+
+    def __contains__(self, name: object) -> bool:
+        return isinstance(name, str) and bool(
+            name in _MANAGED_FILES
+            or re.fullmatch(r"(pose|word)_[0-9]+\.csv|img_[0-9]+", name)
+            or MODALITY_FILE.fullmatch(name)
+        )

@@ -36,6 +36,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -259,3 +260,24 @@ def save_map(grid: OccupancyGrid, yaml_path: str | os.PathLike) -> Path:
     _write_image(image, trinary_pixels(grid.occupancy))
     _write_map_yaml(path, image, grid, mode=None)
     return path
+
+
+def stage_map(
+    grid: OccupancyGrid, yaml_path: str | os.PathLike
+) -> tuple[Path, list[tuple[Path, Path]]]:
+    """:func:`save_map` into a staging folder beside ``yaml_path`` (``NAME.yaml.partial-...``:
+    :func:`~spcopyro._util.outputs.staging_folder`; removed again if writing fails), for a writer
+    that moves the map in with a house folder (:func:`~spcopyro._util.outputs.commit_folder`):
+    the staging folder, which the caller removes, and its ``(file, target)`` pairs, the ``.pgm``
+    first. The same bytes as :func:`save_map` at ``yaml_path``."""
+    from spcopyro._util.outputs import staging_folder  # zipfile, secrets: not on --help's path
+
+    target = Path(os.path.abspath(_yaml_target(yaml_path)))
+    folder = staging_folder(target)
+    try:
+        save_map(grid, folder / target.name)
+    except BaseException:
+        shutil.rmtree(folder, ignore_errors=True)
+        raise
+    image = target.with_suffix(".pgm")
+    return folder, [(folder / image.name, image), (folder / target.name, target)]

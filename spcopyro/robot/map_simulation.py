@@ -282,29 +282,33 @@ def write_simulated_map(
     grid = load_map(map_yaml)
     name = name or Path(map_yaml).stem
     simulated = simulate_on_map(grid, seed=seed, tour=tour, name=name, options=options)
-    room = save_house(simulated.house, root, overwrite=overwrite)
-    np.save(room / "rooms.npy", simulated.rooms)
-    names = simulated.house.category_names or ()
-    cells = np.bincount(
-        simulated.rooms[simulated.rooms >= 0], minlength=len(simulated.room_category)
-    )
-    record = {
-        "map": str(Path(map_yaml).resolve()),
-        "seed": seed,
-        "door_width": simulated.door_width,
-        "door_width_option": simulated.tour.door_width,
-        "min_room_area": simulated.tour.min_room_area,
-        "free_cells": int(grid.num_free),
-        "free_cells_in_rooms": int(cells.sum()),
-        "rooms": [
-            {
-                "room": r,
-                "category": names[c],
-                "cells": int(n),
-                "area_m2": round(float(n) * grid.resolution**2, 4),
-            }
-            for r, (c, n) in enumerate(zip(simulated.room_category.tolist(), cells, strict=True))
-        ],  # fmt: skip
-    }
-    (room / "rooms.json").write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
-    return room, simulated
+
+    def write_rooms(room: Path) -> None:  # into the house folder before it is moved in
+        np.save(room / "rooms.npy", simulated.rooms)
+        names = simulated.house.category_names or ()
+        cells = np.bincount(
+            simulated.rooms[simulated.rooms >= 0], minlength=len(simulated.room_category)
+        )
+        record = {
+            "map": str(Path(map_yaml).resolve()),
+            "seed": seed,
+            "door_width": simulated.door_width,
+            "door_width_option": simulated.tour.door_width,
+            "min_room_area": simulated.tour.min_room_area,
+            "free_cells": int(grid.num_free),
+            "free_cells_in_rooms": int(cells.sum()),
+            "rooms": [
+                {
+                    "room": r,
+                    "category": names[c],
+                    "cells": int(n),
+                    "area_m2": round(float(n) * grid.resolution**2, 4),
+                }
+                for r, (c, n) in enumerate(
+                    zip(simulated.room_category.tolist(), cells, strict=True)
+                )
+            ],  # fmt: skip
+        }
+        (room / "rooms.json").write_text(json.dumps(record, indent=2) + "\n", encoding="utf-8")
+
+    return save_house(simulated.house, root, overwrite=overwrite, extra=write_rooms), simulated

@@ -22,12 +22,7 @@ import re
 from collections.abc import Iterable
 from pathlib import Path
 
-from spcopyro._util.outputs import (
-    carry_over,
-    check_folder_path,
-    check_not_holding_cwd,
-    swapped_in,
-)
+from spcopyro._util.outputs import check_folder_path, check_not_holding_cwd, commit_folder
 from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.maps.map_server import MapFormatError, load_map
 
@@ -164,19 +159,11 @@ def same_images(old: Path, new: Path) -> bool:
 
 
 def replace_out(
-    out: Path, staging: Path, earlier: frozenset[str] | None
-) -> tuple[tuple[str, ...], bool]:
-    """Move ``staging`` to ``out``. An earlier import in ``out`` is set aside, and what it did
-    not write (``earlier``: ``Ft.csv`` of ``spcopyro features``, a user's notes) carried into the
-    new ``out``, as ``fit --overwrite`` does; returns the names carried, and whether the new
-    import's images are the earlier one's (:func:`same_images`; False without one)."""
-    if not out.exists():
-        os.replace(staging, out)
-        return (), False
-    if earlier is None:  # an empty folder
-        out.rmdir()
-        os.replace(staging, out)
-        return (), False
-    with swapped_in(out, staging, hidden=True) as old:
-        kept = carry_over(old, out, earlier)
-        return kept, same_images(old, out)
+    out: Path, staging: Path, earlier: frozenset[str] | None, map_files: list[tuple[Path, Path]]
+) -> tuple[str, ...]:
+    """Move ``staging`` to ``out`` and the house's map files (``(partial, target)``, written
+    whole beside their targets) over the map, all as one (:func:`commit_folder`: a Ctrl-C finds
+    the folder and its map both old or both new). An earlier import in ``out`` is set aside, and
+    what it did not write (``earlier``: ``Ft.csv`` of ``spcopyro features``, a user's notes)
+    carried into the new ``out``, as ``fit --overwrite`` does; returns the names carried."""
+    return commit_folder(staging, out, earlier or frozenset(), map_files, hidden=True)

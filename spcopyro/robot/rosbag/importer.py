@@ -36,7 +36,8 @@ image features:
 * the map, re-saved as map_server yaml + pgm at ``OUT/../map/NAME.yaml`` where the loaders look
   for it (an existing different map there is refused unless ``overwrite``).
 
-The folder is written in a staging folder beside OUT and renamed into place when whole; an
+The folder is written in a staging folder beside OUT, the map's files beside theirs, and they
+are moved into place together when whole (a Ctrl-C finds both old or both new); an
 existing non-empty OUT is refused unless ``overwrite``, which replaces only a folder an earlier
 import wrote, and of it only what that import wrote (its ``bag_import.json`` names its trials:
 :mod:`spcopyro.robot.rosbag.house_folder`): the rest (``Ft.csv`` of ``spcopyro features``, a
@@ -67,7 +68,7 @@ import numpy as np
 from spcopyro._util.progress import progress_enabled
 from spcopyro.data.text import tokenize
 from spcopyro.maps.grid import OccupancyGrid
-from spcopyro.maps.map_server import load_map, save_map
+from spcopyro.maps.map_server import load_map, stage_map
 from spcopyro.robot.rosbag.bag import (
     DEFAULT_ROS_DISTRO,
     IMAGE_TYPES,
@@ -84,7 +85,13 @@ from spcopyro.robot.rosbag.bag import (
     reading_errors,
     topic_connections,
 )
-from spcopyro.robot.rosbag.house_folder import MARKER, check_map, check_out, replace_out
+from spcopyro.robot.rosbag.house_folder import (
+    MARKER,
+    check_map,
+    check_out,
+    replace_out,
+    same_images,
+)
 from spcopyro.robot.rosbag.images import SENSOR_BITS, ImageDecodeError, encoded_image
 from spcopyro.robot.rosbag.poses import (
     PoseTrack,
@@ -479,14 +486,15 @@ def import_bags(
         earlier = check_out(out, overwrite, range(first_trial, first_trial + len(bags)))
         map_target = out.parent / "map" / f"{out.name}.yaml"
         map_replaced = check_map(map_target, grid, map_yaml, overwrite, out, earlier)
-        # What a failed import removes again: the folders it created, and a map it wrote.
+        # What a failed import removes again: the folders it created (the map's files and the
+        # folder are written beside their places and moved in together at the end).
         created = [
             p for p in (map_target.parent, out.parent, *out.parent.parents) if not p.exists()
         ]
-        new_map = [p for p in (map_target, map_target.with_suffix(".pgm")) if not p.exists()]
         out.parent.mkdir(parents=True, exist_ok=True)
         staging = out.parent / f".{out.name}.partial-{secrets.token_hex(4)}"
         staging.mkdir()
+        staged_map: Path | None = None  # the map's files, written beside map_target
         skipped: list[SkippedObservation] = []
         done = False
         try:
@@ -529,15 +537,16 @@ def import_bags(
                 "skipped": len(skipped),
             }
             (staging / MARKER).write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
-            save_map(grid, map_target)
-            kept, images_unchanged = replace_out(out, staging, earlier)
+            staged_map, map_files = stage_map(grid, map_target)
+            images_unchanged = earlier is not None and same_images(out, staging)
+            kept = replace_out(out, staging, earlier, map_files)
             done = True
         finally:
             if staging.exists():
                 shutil.rmtree(staging)
+            if staged_map is not None:  # empty after the commit: its files were moved in
+                shutil.rmtree(staged_map, ignore_errors=True)
             if not done:
-                for path in new_map:
-                    path.unlink(missing_ok=True)
                 for folder in created:  # deepest first; only if nothing else was put there
                     with contextlib.suppress(OSError):
                         folder.rmdir()
