@@ -81,9 +81,10 @@ def test_the_readme_snippet_runs():
     run_first(snippet)
 
 
-def test_the_library_snippets_run(capsys):
+def test_the_library_snippets_run(capsys, tmp_path, monkeypatch):
     first, *rest = library_snippets()
     setup = run_first(first)
+    monkeypatch.chdir(tmp_path)  # the semantic-map snippet writes out/api_demo
     rest = [shrink(snippet) for snippet in rest]
     checked = set()
     for snippet in rest:  # each later snippet needs only the first one's names
@@ -107,7 +108,23 @@ def test_the_library_snippets_run(capsys):
             assert namespace["data8"].neighbours.shape[1] == 8
             assert namespace["fit3"].get_samples()["objects_probs"].shape == (5, L, 5)
             checked.add("variants")
-    assert checked == {"trace", "mcmc", "svi", "variants"}
+        if "as_command" in namespace:  # the embedded house fitted as spcopyro fit fits it
+            check_semantic_map(namespace)
+            checked.add("semantic map")
+    assert checked == {"trace", "mcmc", "svi", "variants", "semantic map"}
+
+
+def check_semantic_map(namespace: dict[str, object]) -> None:
+    """The semantic map is on the result's grid, the saved labels.npy is it, the figures are
+    written, and the fit ran what spcopyro fit runs (the preset's point estimate)."""
+    import numpy as np
+
+    result, out = namespace["as_command"], namespace["out"]
+    semantic_map = namespace["semantic_map"]
+    assert semantic_map.shape == result.grid.shape == namespace["kitchen"].region.shape
+    assert np.array_equal(np.load(out / "labels.npy"), semantic_map)
+    assert (out / "semantic_map.png").is_file() and (out / "kitchen.png").is_file()
+    assert result.inference["point_estimate"] == "vi"  # preset_fit_kwargs("coarse") reached it
 
 
 def check_trace_terms(namespace: dict[str, object]) -> None:
