@@ -288,38 +288,77 @@ def test_ctrl_c_after_a_variational_fit_s_iterations_says_so(home, tmp_path, cap
                         "their result)")  # fmt: skip
 
 
-@pytest.mark.parametrize(
-    ("method", "why"),
-    [("cavi", "a cavi"), ("lbp", "an lbp"), ("svi", "an svi"), ("stochastic-vi", "a stochastic-vi"),
-     ("vi-gibbs", None)],
-)  # fmt: skip
-def test_ctrl_c_while_writing_a_variational_fit_says_it_is_lost_and_how_to_run_it(
-    method, why, home, tmp_path, capsys, monkeypatch
+def _without_timings(value):
+    """A JSON value without the entries that are timings (``seconds``, ``vi_seconds``, ...) and
+    without ``resumed_from``, which a resumed run records."""
+    if isinstance(value, dict):
+        return {k: _without_timings(v) for k, v in value.items()
+                if "seconds" not in k and k != "resumed_from"}  # fmt: skip
+    return [_without_timings(v) for v in value] if isinstance(value, list) else value
+
+
+def _same_outputs(out, unbroken) -> None:
+    """``out`` holds the files ``unbroken`` does, byte for byte but for the timings: the seconds
+    of trace.csv and result.npz, config.json's timing entries (and ``resumed_from``)."""
+    files = sorted(p.relative_to(unbroken) for p in unbroken.rglob("*") if p.is_file())
+    assert sorted(p.relative_to(out) for p in out.rglob("*") if p.is_file()) == files
+    for name in files:
+        a, b = out / name, unbroken / name
+        if name.name == "trace.csv":
+            rows = [[line.rsplit(",", 1)[0] for line in f.read_text().splitlines()] for f in (a, b)]
+            assert rows[0] == rows[1]
+        elif name.name == "result.npz":
+            with np.load(a) as x, np.load(b) as y:
+                assert x.files == y.files
+                for key in x.files:
+                    if key != "seconds":
+                        assert x[key].dtype == y[key].dtype, key
+                        np.testing.assert_array_equal(x[key], y[key], err_msg=key)
+        elif name.name == "config.json":
+            read = [_without_timings(json.loads(f.read_text())) for f in (a, b)]
+            assert read[0] == read[1]
+        else:
+            assert a.read_bytes() == b.read_bytes(), name
+
+
+@pytest.mark.parametrize("method", ["cavi", "lbp", "svi", "stochastic-vi", "vi-gibbs"])
+def test_ctrl_c_while_writing_a_variational_fit_keeps_it_for_resume_to_write(
+    method, home, tmp_path, capsys, monkeypatch
 ):
-    """Ctrl-C while a variational fit's outputs are written (found sending SIGINT to
-    ``spcopyro fit --method cavi`` while its figures were drawn): its q(C) is not kept, no half
-    OUT is left, and the line says its iterations had run (it said 'no checkpoint kept (no
-    iteration was done)'), that the finished fit is lost, and the command that runs it again
-    (it said only 'the fit runs again'; vi-gibbs's named no more than the method), which
-    writes OUT."""
+    """Ctrl-C while a finished variational fit's outputs are written (found sending SIGINT to
+    ``spcopyro fit --method cavi`` while its figures were drawn): the finished fit is kept in
+    OUT.checkpoint.npz (it was lost: "run it again"), no half OUT is left, and the command the
+    line gives (``--resume`` it) writes OUT without fitting again: the files an unbroken run
+    writes, but for the timings. vi-gibbs, which keeps no checkpoint of its sweeps, keeps this
+    one too."""
     import shlex
 
     import spcopyro.cli.fit
+    import spcopyro.fit.house
 
-    out = tmp_path / "out"
-    argv = ["fit", str(home), "--out", str(out), *FIT, "--method", method]
+    argv = ["fit", str(home), "--out", "out", *FIT, "--method", method]
+    for folder in ("stopped", "unbroken"):  # the same --out: config.json records the command
+        (tmp_path / folder).mkdir()
+    monkeypatch.chdir(tmp_path / "unbroken")
+    assert main(argv) == 0
+    monkeypatch.chdir(tmp_path / "stopped")
     err = _ctrl_c_in(monkeypatch, capsys, spcopyro.cli.fit, "print_concepts", argv)
-    assert err.startswith(f"interrupted while writing the outputs: nothing written to {out}")
-    assert "no iteration was done" not in err
-    if why is not None:
-        assert (f"no checkpoint kept (its iterations had all run; {why} checkpoint is kept only "
-                "when Ctrl-C stops them): ") in err  # fmt: skip
-    assert err.endswith(
-        f": the finished fit is lost -- run it again with: {shlex.join(['spcopyro', *argv])}"
+    out, checkpoint = tmp_path / "stopped" / "out", checkpoint_path("out")
+    command = shlex.join(["spcopyro", *argv, "--resume", str(checkpoint)])
+    assert err == (
+        f"interrupted while writing the outputs: nothing written to {out}; the finished fit is "
+        f"saved in {checkpoint} -- write its outputs (without fitting again) with: {command}"
     )
-    assert not list(tmp_path.glob("out*"))  # no OUT, checkpoint or staging folder left
-    assert main(shlex.split(err.split("run it again with: ")[1])[1:]) == 0
-    assert (out / "result.npz").is_file()
+    assert not out.exists() and not list(tmp_path.glob("stopped/out.partial*"))
+
+    def no_fit(*args, **kwargs):
+        raise AssertionError("the finished fit was run again")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(spcopyro.fit.house, "fit_house_chains", no_fit)
+        assert main(shlex.split(command)[1:]) == 0
+    assert f"removed {checkpoint}" in capsys.readouterr().out and not checkpoint.exists()
+    _same_outputs(out, tmp_path / "unbroken" / "out")
 
 
 def test_ctrl_c_from_a_terminal_while_cavi_s_outputs_are_written(tmp_path):
@@ -367,12 +406,12 @@ def test_ctrl_c_from_a_terminal_while_cavi_s_outputs_are_written(tmp_path):
     line = err.splitlines()[-1]
     assert process.returncode == 130, err
     assert line.startswith(f"interrupted while writing the outputs: nothing written to {out}")
+    checkpoint = checkpoint_path(out)
     assert line.endswith(
-        "no checkpoint kept (its iterations had all run; a cavi checkpoint is kept only when "
-        "Ctrl-C stops them): the finished fit is lost -- run it again with: spcopyro fit "
-        f"--method cavi --sweeps 20 --out {out}"
+        f"the finished fit is saved in {checkpoint} -- write its outputs (without fitting "
+        f"again) with: spcopyro fit --method cavi --sweeps 20 --out {out} --resume {checkpoint}"
     ), line
-    assert not list(tmp_path.glob(f"out{attempt}*"))  # no OUT, checkpoint or staging folder
+    assert list(tmp_path.glob(f"out{attempt}*")) == [checkpoint]  # no OUT or staging folder
     time.sleep(0.5)  # the figures' child, stopped by the fit, has been reaped by then
     ps = subprocess.run(["ps", "-eo", "pid,sid,stat"], capture_output=True, text=True).stdout
     left = [row for row in ps.splitlines()[1:] if row.split()[1] == str(process.pid)]
@@ -384,7 +423,7 @@ def test_ctrl_c_from_a_terminal_while_cavi_s_outputs_are_written(tmp_path):
     [("cavi", "a"), ("lbp", "an"), ("svi", "an"), ("stochastic-vi", "a")],
 )
 def test_the_interrupt_message_gives_each_method_its_article(method, article, tmp_path):
-    """'an lbp checkpoint', 'an svi checkpoint' (was 'a lbp', 'a svi'), in both lines that name
+    """'an lbp checkpoint', 'an svi checkpoint' (was 'a lbp', 'a svi'), in the line that names
     a variational method's checkpoint."""
     import argparse
 
@@ -392,10 +431,9 @@ def test_the_interrupt_message_gives_each_method_its_article(method, article, tm
     from spcopyro.cli.fit_resume import interrupted_message, resumable_methods
 
     assert method in resumable_methods()
-    for chains, finished, said in ((None, True, "is kept only"), (3, False, "holds one fit")):
-        args = argparse.Namespace(method=method, sweeps=10, update=None, chains=chains)
-        line = interrupted_message(args, "", None, tmp_path / "out", finished=finished)
-        assert f"{article} {method} checkpoint {said}" in line, line
+    args = argparse.Namespace(method=method, sweeps=10, update=None, chains=3)
+    line = interrupted_message(args, "", None, tmp_path / "out", finished=False)
+    assert f"{article} {method} checkpoint holds one fit" in line, line
     spoken = {"gibbs": "a", "vi-gibbs": "a", "em": "an", "mcmc": "an", "ep": "an", "map": "a",
               "'svi'": "an", "'cavi'": "a", '"lbp"': "an"}  # fmt: skip
     for name, article in spoken.items():
@@ -413,13 +451,12 @@ def test_a_variational_checkpoint_of_several_seeds_is_refused_with_its_article(t
                          method="lbp", checkpoint=tmp_path / "ck", progress=False)  # fmt: skip
 
 
-def test_ctrl_c_while_writing_a_resumed_variational_fit_says_its_iterations_are_lost(
+def test_ctrl_c_while_writing_a_resumed_variational_fit_keeps_the_finished_fit(
     home, tmp_path, capsys, monkeypatch
 ):
     """A resumed cavi fit (``--resume CK``) stopped by Ctrl-C while its outputs are written:
-    its q(C) is saved only by the driver Ctrl-C stops, so CK still holds the state it resumed
-    from. The line said "the state reached is saved in CK"; it now says the iterations this run
-    added are lost and CK is left as it was, and its command continues from CK."""
+    the finished fit replaces CK (the line said the iterations this run added were lost and CK
+    was left as it was), and ``--resume CK`` writes OUT."""
     import shlex
 
     import spcopyro.cli.fit
@@ -427,14 +464,13 @@ def test_ctrl_c_while_writing_a_resumed_variational_fit_says_its_iterations_are_
     out = tmp_path / "out"
     argv = _stopped_cavi_fit(home, out, monkeypatch, capsys)
     checkpoint = checkpoint_path(out)
-    saved = checkpoint.read_bytes()
 
     resumed = [*argv, "--resume", str(checkpoint)]
     err = _ctrl_c_in(monkeypatch, capsys, spcopyro.cli.fit, "print_concepts", resumed)
     assert err == (
-        f"interrupted while writing the outputs: nothing written to {out}; the iterations this "
-        f"run added are lost; {checkpoint} is left as it was, with the state this run resumed "
-        f"from -- continue from there with: {shlex.join(['spcopyro', *resumed])}"
+        f"interrupted while writing the outputs: nothing written to {out}; the finished fit is "
+        f"saved in {checkpoint} -- write its outputs (without fitting again) with: "
+        f"{shlex.join(['spcopyro', *resumed])}"
     )
-    assert "state reached" not in err and checkpoint.read_bytes() == saved
     assert not out.exists()
+    assert main(resumed) == 0 and (out / "result.npz").is_file() and not checkpoint.exists()

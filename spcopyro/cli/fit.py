@@ -36,6 +36,7 @@ from spcopyro.cli.common import (
 )
 from spcopyro.cli.concept_listing import next_step, print_concepts
 from spcopyro.cli.fit_figures import FigurePrefetch, write_figures
+from spcopyro.cli.fit_finished import keep_finished, restore_finished, resumes_finished_fit
 from spcopyro.cli.fit_options import (
     SAMPLERS,
     backend_used,
@@ -101,6 +102,8 @@ class FitJob:
     refined: bool = False
     sampled: bool = False
     """Set once the fit is done: a Ctrl-C while writing then keeps the finished chains."""
+    finished: tuple[SpCoResult, list[str]] | None = None
+    """The fit's result and the warnings said before the writing (:mod:`.fit_finished`)."""
     said: list[str] = dataclasses.field(default_factory=list)
     """The warnings the command gave so far, as printed (:mod:`spcopyro.cli.fit_warnings`):
     ``config.json``'s ``"warnings"``."""
@@ -156,6 +159,7 @@ def _fit_interruptible(args: argparse.Namespace, said: list[str]) -> int:
             where, kept = f" ({stop.where})", stop.checkpoint
         else:  # reading the data, after the sweeps (their point estimate), or writing
             kept = keeper.save() if keeper else None  # None: no chain had started
+            kept = keep_finished(job) if kept is None else kept
             where = " after the sweeps" if kept and keeper and keeper.finished() else ""
             again = " (only the first stage is kept: resuming refines again)" if job.refined else ""
             where = f" while writing the outputs{again}" if job.sampled else where
@@ -197,7 +201,7 @@ def _set_up(args: argparse.Namespace, said: list[str], stage: list[str]) -> FitJ
     apply_preset_inference(args)
     check_sweeps(args)
     checkpointed = keeps_checkpoint(args)
-    if args.resume is not None and not checkpointed:
+    if args.resume is not None and not (checkpointed or resumes_finished_fit(args)):
         raise ValueError(
             "--resume continues Gibbs chains run for a number of --sweeps, or one fit "
             f"(--chains 1) of {', '.join(resumable_methods())}; {no_checkpoint_flags(args)} "
@@ -292,7 +296,7 @@ def _fit_staged(job: FitJob) -> int:
     try:
         with contextlib.nullcontext() if prefetch is None else when_chains_start(prefetch.start):
             fitted = _fit(job, init, saved, prefetch)
-        job.sampled = True
+        job.sampled, job.finished = True, (fitted.result, list(job.said))
         return _write(job, fitted, prefetch)
     except BaseException:  # stopped: never wait on the thread without bound (abandon's doc)
         if prefetch is not None:
@@ -347,6 +351,8 @@ def _fit(
     source = "embedded synthetic house, seed 0" if args.data is None else None
     diagnostics, refine_sweeps, estimate = None, args.sweeps, None
     start = _clock()
+    if (restored := restore_finished(job)) is not None:  # --resume a finished fit's file
+        return Fitted(restored, [restored], 1, 0, None, _clock() - start)
     # a refinement may follow: the bars name the stage (both read "Gibbs sweeps")
     stage = "model grid" if args.refine != "never" and house.grid.coarsened_from else None
     with progress_stage(stage):

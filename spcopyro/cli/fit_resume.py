@@ -92,19 +92,18 @@ def interrupted_message(
 ) -> str:
     """The line ``fit`` prints when Ctrl-C stops it (``kept``: its checkpoint; ``why``: none's;
     ``finished``: the fit had run all its sweeps or iterations, its outputs being written;
-    ``unchanged``: ``kept`` is the checkpoint this run resumed (``--resume``), left as it was --
-    a variational fit's q(C) is saved only by the driver that Ctrl-C stops, so the iterations
-    this run added, once they had all run, are not in it)."""
+    ``unchanged``: ``kept`` is the checkpoint this run resumed (``--resume``), left as it
+    was). A finished fit other than Gibbs' is kept as its result
+    (:mod:`spcopyro.cli.fit_finished`), which ``--resume`` writes without fitting again."""
     line = f"interrupted{where}: nothing written to {out}"
     if kept is None:
         if why is None:
             why = "--sweeps auto" if args.sweeps == "auto" else f"the {args.method!r} method"
             if args.sweeps != "auto" and args.update is not None:
                 why = "--update"
-            elif keeps_checkpoint(args) and finished:  # a variational fit's q(C) is saved only
-                # by the driver that Ctrl-C stops (spcopyro.fit.house), not once it has returned
-                why = (f"its iterations had all run; {with_article(args.method)} checkpoint is "
-                       "kept only when Ctrl-C stops them")  # fmt: skip
+            elif keeps_checkpoint(args) and finished:  # the finished fit is kept, but where
+                # its file could not be written (spcopyro.cli.fit_finished)
+                why = f"its iterations had all run; the finished fit could not be saved in {out}"
             elif keeps_checkpoint(args):
                 why = "no sweep was done" if args.method == "gibbs" else "no iteration was done"
             elif args.method in resumable_methods():
@@ -116,6 +115,9 @@ def interrupted_message(
             line = f"{line}: the finished fit is lost -- run it again with: {again}"
         return line
     command = resume_command(args, kept)
+    if finished and args.method != "gibbs":  # the result itself (spcopyro.cli.fit_finished)
+        return (f"{line}; the finished fit is saved in {kept} -- write its outputs (without "
+                f"fitting again) with: {command}")  # fmt: skip
     if unchanged:  # not "the state reached": this run's iterations are not in it
         lost = "; the iterations this run added are lost" if finished else ""
         return (f"{line}{lost}; {kept} is left as it was, with the state this run resumed "

@@ -458,6 +458,12 @@ class SpCoResult:
                      f"{trace.seconds[s]:.6f}"]
                 )  # fmt: skip
         save_map(self.grid, out / MAP_FILE)
+        np.savez_compressed(out / RESULT_FILE, **self._arrays())
+        return out
+
+    def _arrays(self) -> dict[str, np.ndarray]:
+        """``result.npz``'s arrays (:meth:`load` reads them back with ``config.json``)."""
+        trace = self.trace
         arrays: dict[str, np.ndarray] = {
             "labels": self.labels,
             "pi": self.pi,
@@ -483,8 +489,7 @@ class SpCoResult:
             arrays["word_totals"] = self.word_totals
         if self.agreement is not None:
             arrays["agreement"] = self.agreement
-        np.savez_compressed(out / RESULT_FILE, **arrays)
-        return out
+        return arrays
 
     @classmethod
     def load(cls, out_dir: str | os.PathLike[str]) -> SpCoResult:
@@ -542,9 +547,10 @@ class SpCoResult:
 
     @classmethod
     def _from_saved(
-        cls, out: Path, path: Path, arrays: dict[str, np.ndarray], settings: dict
+        cls, out: Path, path: Path, arrays: dict[str, np.ndarray], settings: dict, grid=None
     ) -> SpCoResult:
-        """The result from ``result.npz``'s arrays and ``config.json``'s settings."""
+        """The result from ``result.npz``'s arrays and ``config.json``'s settings (``grid``:
+        its map, else ``out``'s ``map.yaml``)."""
         if not isinstance(settings, dict):
             raise TypeError(f"config.json holds a {type(settings).__name__}, not an object")
         if "labels_best" in arrays:
@@ -563,7 +569,7 @@ class SpCoResult:
             for name in arrays["modalities"]
         )
         return cls(
-            grid=load_map(out / MAP_FILE),
+            grid=load_map(out / MAP_FILE) if grid is None else grid,
             config=SpCoConfig(**model),
             labels=arrays["labels"],
             pi=arrays["pi"],
