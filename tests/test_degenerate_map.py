@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from spcopyro.config import DEFAULT_PRESET, preset
-from spcopyro.fit.house import fit_house
+from spcopyro.fit.house import fit_house, preset_fit_kwargs
 from spcopyro.results.map_checks import (
     DEGENERATE_PATCHES,
     DEGENERATE_SEPARATION,
@@ -240,3 +240,32 @@ def test_words_outside_said_at_one_place_do_not_warn():
     xy[2:5, 0] = 1.0  # the bedroom said 1 m from the kitchen: one place
     assert degenerate_map_warning(labels, cells, xy, words) is None
     assert DEGENERATE_SEPARATION > 1.0
+
+
+def test_a_default_preset_fits_advice_names_the_inference_fit_house_was_not_given(caplog):
+    """A library fit from ``preset("coarse")``'s settings (a variant: one concept) was told to
+    try "the default preset 'coarse' ... if the fit used another": it used coarse, but not the
+    inference ``spcopyro fit`` runs for it (``preset_fit_kwargs``). The advice says so; given
+    those options it names no preset; settings of another preset keep the old advice."""
+    house = make_house(seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3, num_trials=1))
+    settings = preset(DEFAULT_PRESET, num_concepts=1)
+
+    def warning(**kwargs: object) -> str:
+        caplog.clear()
+        with caplog.at_level(logging.WARNING, logger="spcopyro"):
+            fit_house(house, settings, sweeps=2, progress=False, **kwargs)
+        [message] = [r.getMessage() for r in caplog.records if "one concept" in r.getMessage()]
+        return message
+
+    skipped = warning()
+    assert "if the fit used another" not in skipped
+    assert skipped.endswith(
+        "so that regions can split, or the inference spcopyro fit runs for preset 'coarse': the "
+        "settings came from preset 'coarse' but fit_house was not given "
+        "preset_fit_kwargs('coarse')'s options)"
+    )
+    given = warning(**preset_fit_kwargs(DEFAULT_PRESET, marginal_samples=2))
+    assert given.endswith("(fit's --merge-moves 0.2) so that regions can split)")
+    other = degenerate_map_warning(np.full(10, 3), *_kitchen_and_bedroom(3.0))
+    assert other.endswith("or the default preset 'coarse' (fit's --preset coarse) if the fit "
+                          "used another)")  # fmt: skip

@@ -223,7 +223,7 @@ def test_every_variant_cell_gets_the_degenerate_map_check(tmp_path, monkeypatch,
 
     checked: list[tuple] = []
 
-    def warning(labels, house, snap, sampled=True):
+    def warning(labels, house, snap, sampled=True, **_):
         checked.append((labels.shape, house.grid.num_free))
         return "degenerate map (test)"
 
@@ -249,7 +249,7 @@ def test_a_rows_degenerate_map_warning_names_its_fixed_settings(tmp_path, monkey
     import spcopyro.fit.house as house_module
     from spcopyro.results.map_checks import degenerate_map_warning
 
-    def warning(labels, house, snap, sampled=True):  # one concept, words 5 m apart inside it
+    def warning(labels, house, snap, sampled=True, **_):  # one concept, words 5 m apart inside it
         cells, xy = np.array([0, labels.size - 1]), np.array([[0.0, 0.0], [5.0, 0.0]])
         return degenerate_map_warning(np.zeros_like(labels), cells, xy, [["a"], ["b"]], sampled)
 
@@ -286,7 +286,7 @@ def test_a_variant_named_as_a_row_with_other_settings_keeps_the_variants_advice(
     from spcopyro.experiments.methods import spco_settings
     from spcopyro.results.map_checks import degenerate_map_warning
 
-    def warning(labels, house, snap, sampled=True):  # as in the test above
+    def warning(labels, house, snap, sampled=True, **_):  # as in the test above
         cells, xy = np.array([0, labels.size - 1]), np.array([[0.0, 0.0], [5.0, 0.0]])
         return degenerate_map_warning(np.zeros_like(labels), cells, xy, [["a"], ["b"]], sampled)
 

@@ -36,7 +36,7 @@ from spcopyro._util.threads import (
     torch_threads,
 )
 from spcopyro._util.timings import timed
-from spcopyro.config import WORDS, SpCoSettings, preset
+from spcopyro.config import DEFAULT_PRESET, WORDS, SpCoSettings, preset
 from spcopyro.data import CellCounts, House, prepared_cell_counts
 from spcopyro.data.inverted_map import check_placement
 from spcopyro.data.model_grid import model_house
@@ -143,13 +143,16 @@ def provenance(
     }
 
 
-def log_degenerate_map(result: SpCoResult, house: House) -> str | None:
+def log_degenerate_map(
+    result: SpCoResult, house: House, default_preset_skipped: bool | None = None
+) -> str | None:
     """Log (logger ``"spcopyro"``) and return the warning of a degenerate reported map -- one
     concept over most of the free cells while words said at different places lie inside it, or
-    lie outside it in small concepts (:func:`spcopyro.results.map_checks.degenerate_map_warning`)
-    -- else None."""
+    lie outside it in small concepts (:func:`spcopyro.results.map_checks.degenerate_map_warning`,
+    with its ``default_preset_skipped``) -- else None."""
     sampled = result.method in SAMPLERS  # else --merge-moves needs --method gibbs
-    warning = house_map_warning(result.labels, house, result.preparation.snap_distance, sampled)
+    snap, skipped = result.preparation.snap_distance, default_preset_skipped
+    warning = house_map_warning(result.labels, house, snap, sampled, default_preset_skipped=skipped)
     if warning:
         logger.warning(warning)
     return warning
@@ -477,8 +480,9 @@ def fit_house(
     """
     settings = _settings(settings, house)
     given, house = house, model_house(house, settings.data.cell_size)  # the model's grid
+    skipped: dict[str, object] = {}  # the preset's recommended inference this fit does not run
     if method == DEFAULT_METHOD:
-        log_skipped_preset_inference(settings, init, options, point_estimate, refine)
+        skipped = log_skipped_preset_inference(settings, init, options, point_estimate, refine)
     if check_refine(refine) != "never" and method != "gibbs":
         raise ValueError(
             f"refine={refine!r} refines a Gibbs fit, not method={method!r}: pass refine='never'"
@@ -526,7 +530,8 @@ def fit_house(
             "best of %d chains: kept chain %d (seed %d); best objectives %s", chains, kept,
             seed + kept, [round(r.best_objective, 1) for r in results],
         )  # fmt: skip
-    log_degenerate_map(results[kept], house)
+    default = bool(skipped) if settings.preset == DEFAULT_PRESET else None  # for its advice
+    log_degenerate_map(results[kept], house, default)
     return results[kept]
 
 

@@ -38,14 +38,15 @@ def log_skipped_preset_inference(
     options: object | None,
     point_estimate: str,
     refine: str = "never",
-) -> None:
+) -> dict[str, object]:
     """Warn (logger ``"spcopyro"``) when a Gibbs fit from a preset's settings runs without the
     inference settings that preset recommends (:func:`~spcopyro.config.preset_inference`), which
     ``spcopyro fit`` applies: the library and the command would give different maps. Once a
-    process for each preset and settings run (:func:`~spcopyro._util.messages.warn_once`)."""
+    process for each preset and settings run (:func:`~spcopyro._util.messages.warn_once`).
+    Returns those skipped, name -> recommended value (empty: none, or settings of no preset)."""
     recommended = preset_inference(settings.preset) if settings.preset in PRESETS else {}
     if not recommended:
-        return
+        return {}
     running = {
         "init": init_name(init),
         "merge_moves": float(getattr(options, "merge_moves", 0.0) or 0.0),
@@ -61,3 +62,4 @@ def log_skipped_preset_inference(
         warn_once(key, f"preset {settings.preset!r} recommends {recommends} (what spcopyro fit "
                   f"runs); this fit runs {runs}, so its map can differ from the command's: pass "
                   f"them (spcopyro.fit.house.preset_fit_kwargs({settings.preset!r}))")  # fmt: skip
+    return skipped

@@ -122,6 +122,7 @@ def degenerate_map_warning(
     utterances: Sequence[Sequence[str]],
     sampled: bool = True,
     advice: str | None = None,
+    default_preset_skipped: bool | None = None,
 ) -> str | None:
     """A warning when the map is degenerate (see the module docstring), else None.
 
@@ -137,6 +138,11 @@ def degenerate_map_warning(
         advice: the message's closing parenthesis in place of ``fit``'s options (a comparison
             cell's, whose command takes none of them); None: that of the
             :func:`degenerate_map_advice` in force, else ``fit``'s.
+        default_preset_skipped: in ``fit``'s advice, for settings from the default preset
+            (:data:`~spcopyro.config.DEFAULT_PRESET`): True when the fit was not given the
+            inference that preset recommends (``fit_house`` without ``preset_fit_kwargs``'s
+            options: the advice names them), False when it was (the advice names no preset);
+            None (settings of another preset, or not known): it names the default preset.
 
     The message names the concept, its share of the free cells and the words heard inside it
     (most heard first, at most :data:`NAMED_WORDS`, with their counts); or, where the words lie
@@ -171,11 +177,8 @@ def degenerate_map_warning(
         moves = (setting("GibbsOptions(merge_moves=0.2)", "--merge-moves 0.2") if sampled
                  else setting("method='gibbs' with GibbsOptions(merge_moves=0.2)",
                               "--method gibbs --merge-moves 0.2"))  # fmt: skip
-        advice = (
-            f"(try a lower {setting('gamma', '--gamma')}, {moves} so that regions can split, "
-            f"or the default {setting(f'preset {DEFAULT_PRESET!r}', f'--preset {DEFAULT_PRESET}')}"
-            " if the fit used another)"
-        )
+        advice = f"(try a lower {setting('gamma', '--gamma')}, {moves} so that regions can split"
+        advice += _preset_advice(default_preset_skipped) + ")"
     apart = _apart(heard, xy)
     if share > DEGENERATE_SHARE and apart >= DEGENERATE_SEPARATION:
         return (
@@ -215,6 +218,20 @@ def degenerate_map_warning(
     )
 
 
+def _preset_advice(skipped: bool | None) -> str:
+    """The clause of ``fit``'s advice that names a preset (see :func:`degenerate_map_warning`'s
+    ``default_preset_skipped``)."""
+    name = f"preset {DEFAULT_PRESET!r}"
+    if skipped is None:
+        default = setting(name, f"--preset {DEFAULT_PRESET}")
+        return f", or the default {default} if the fit used another"
+    if not skipped:  # the default preset's settings, run as spcopyro fit runs them
+        return ""
+    kwargs = f"preset_fit_kwargs({DEFAULT_PRESET!r})"  # only fit_house can leave them out
+    return (f", or the inference spcopyro fit runs for {name}: the settings came from {name} "
+            f"but fit_house was not given {kwargs}'s options")  # fmt: skip
+
+
 def _words_heard(us: np.ndarray, utterances: Sequence[Sequence[str]]) -> dict[str, list[int]]:
     """Each word of the utterances ``us`` ``[U_c]`` -> the utterances that hold it, first heard
     first (a word counted once per utterance)."""
@@ -252,10 +269,12 @@ def house_map_warning(
     snap_distance: float,
     sampled: bool = True,
     advice: str | None = None,
+    default_preset_skipped: bool | None = None,
 ) -> str | None:
     """:func:`degenerate_map_warning` of ``labels`` ``[N]`` on ``house``'s map, its utterances
     placed on free cells as the fit places them (:func:`~spcopyro.data.place_observations`
-    with the fit's ``snap_distance``, metres); ``sampled``, ``advice``: as there."""
+    with the fit's ``snap_distance``, metres); ``sampled``, ``advice``,
+    ``default_preset_skipped``: as there."""
     from spcopyro.data import place_observations
 
     observations = house.observations
@@ -263,8 +282,9 @@ def house_map_warning(
         return None
     cells, _, _ = place_observations(house.grid, observations.word_xy, snap_distance)
     return degenerate_map_warning(
-        labels, cells, observations.word_xy, observations.utterances, sampled, advice
-    )
+        labels, cells, observations.word_xy, observations.utterances, sampled, advice,
+        default_preset_skipped,
+    )  # fmt: skip
 
 
 MIN_COVERAGE = 0.55
