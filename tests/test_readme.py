@@ -94,6 +94,10 @@ def test_the_library_snippets_run(capsys, tmp_path, monkeypatch):
             L = setup["settings"].model.num_concepts
             assert namespace["mcmc"].get_samples()["pi"].shape == (5, L)
             checked.add("mcmc")
+            # plain ArviZ on the small sites; diagnostics' sweeps count the warm-up too
+            small_sites = {"log_joint", "num_concepts", "pi"}
+            assert set(namespace["plain"].posterior.data_vars) == small_sites
+            assert namespace["sweeps"] == {"chain 0": 10.0}  # 5 warm-up + 5 kept
         if "svi" in namespace:  # the SVI recipe
             draws, data = namespace["draws"], namespace["data"]
             L = setup["settings"].model.num_concepts
