@@ -57,6 +57,7 @@ Scores (every one that applies; the others are left empty in the table, :data:`S
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import time
@@ -66,7 +67,7 @@ import numpy as np
 
 from spcopyro._util.interrupts import caused_by_interrupt
 from spcopyro._util.threads import torch_threads
-from spcopyro.config import DEFAULT_PRESET
+from spcopyro.config import DEFAULT_PRESET, SpCoSettings
 from spcopyro.data.model_grid import model_house
 from spcopyro.experiments.ablation import concepts_over, largest_share, top_words
 from spcopyro.experiments.methods import (
@@ -90,7 +91,7 @@ from spcopyro.study.cell_warnings import captured_warnings, warnings_text
 from spcopyro.study.cells import Cell, source_digest
 from spcopyro.study.comparison_cell import COMPARISON, comparison_outcome
 from spcopyro.study.maps import Arrays, label_map_arrays, labels_on_map
-from spcopyro.study.sources import load_cell_data
+from spcopyro.study.sources import CellData, load_cell_data
 from spcopyro.synthetic import FILLER_WORDS
 
 __all__ = [
@@ -181,16 +182,19 @@ def _fit_and_score(cell: Cell) -> tuple[dict[str, object], Arrays | None, Arrays
     """:func:`_scored`: a variant cell's within its degenerate-map advice (:func:`_cell_advice`:
     its fit's and its observations-off fit's warnings, in the study file's terms)."""
     loaded = load_cell_data(cell.data, cell.seed)
-    if cell.variant is None:  # a baseline row of spcopyro.experiments.methods
-        return _scored(cell, loaded, None)
-    settings = cell.variant.spco_settings(loaded.num_categories)
-    with degenerate_map_advice(_cell_advice(cell, settings, loaded.num_categories)):
+    variant, categories = cell.variant, loaded.num_categories
+    settings = None if variant is None else variant.spco_settings(categories)  # None: baseline
+    within = (contextlib.nullcontext() if settings is None  # a row of experiments.methods
+              else degenerate_map_advice(_cell_advice(cell, settings, categories)))  # fmt: skip
+    with within:
         return _scored(cell, loaded, settings)
 
 
-def _scored(cell: Cell, loaded, settings) -> tuple[dict[str, object], Arrays | None, Arrays]:
+def _scored(
+    cell: Cell, loaded: CellData, settings: SpCoSettings | None
+) -> tuple[dict[str, object], Arrays | None, Arrays]:
     """The cell's scores, trace and label map (:func:`run_cell`); ``settings``: a variant's
-    (None: a baseline row's cell)."""
+    (None: a baseline row's cell, fitted by ``spcopyro.experiments.methods.fit_method``)."""
     house = loaded.house
     start, cpu = time.perf_counter(), time.process_time()
     result = None
@@ -254,7 +258,9 @@ def _scored(cell: Cell, loaded, settings) -> tuple[dict[str, object], Arrays | N
     return scores, arrays, label_map
 
 
-def _cell_advice(cell: Cell, settings, num_categories: int | None) -> Callable[[bool], str]:
+def _cell_advice(
+    cell: Cell, settings: SpCoSettings, num_categories: int | None
+) -> Callable[[bool], str]:
     """The closing advice of a variant cell's degenerate-map warning, in the study file's terms:
     :func:`row_advice` when the variant is a comparison row as the row fits it (named by the
     row's key, ``settings`` equal to the row's, no options or fit keywords of its own), else
