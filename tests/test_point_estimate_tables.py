@@ -11,8 +11,10 @@ from spcopyro.results.estimate_tables import (
     _f,
     _joined_rows,
     _kept_columns,
+    _moved_pairs,
     _Pairs,
     _pairs,
+    _sample_pairs,
     _sample_tables,
     _signature,
 )
@@ -112,6 +114,58 @@ def test_pairs_are_the_sort_of_the_keys(seed, monkeypatch):
             assert a.dtype == b.dtype and np.array_equal(a, b)
 
 
+@pytest.mark.parametrize("seed", range(12))
+def test_a_samples_own_pairs_are_the_sort_of_its_keys(seed):
+    """The samples' losses take each sample's pairs from its U columns (_sample_pairs), not
+    from a sort of the N cells: the same arrays, dtypes included, as both sorts of the cells;
+    and the same expected loss as before, to the bit."""
+    from spcopyro.results.point_estimate import _expected
+
+    samples = _random_samples(seed)
+    samples[-1] = 0  # a sample of one cluster: one pair per column, all in cluster 0
+    for loss in ("vi", "binder"):
+        prepared = _prepare(samples, loss)
+        for s, (codes, size) in enumerate(zip(prepared.codes, prepared.sizes, strict=True)):
+            ours = _sample_pairs(s, prepared)
+            for theirs in (_pairs(codes, prepared), _old_pairs(codes, prepared)):
+                for a, b in zip(ours, theirs, strict=True):
+                    assert a.dtype == b.dtype and np.array_equal(a, b)
+            tables = _sample_tables(ours, size, prepared)
+            assert _expected(codes, size, prepared, loss, tables) == _expected(
+                codes, size, prepared, loss
+            )
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_moved_pairs_are_the_sort_of_the_moved_keys(seed):
+    """An accepted trial's pairs from the estimate's pairs (_moved_pairs) against both sorts of
+    the N cells: movers into other clusters, into a new one (k), clusters emptied and renamed
+    (compact's renaming, as the search makes it), and all cells moving; dtypes included."""
+    rng = np.random.default_rng(200 + seed)
+    prepared = _prepare(_random_samples(seed), "vi")
+    n = prepared.signature.shape[0]
+    for case in range(6):
+        k = int(rng.integers(1, 9))
+        estimate = compact(rng.integers(0, k, n))[0]
+        k = int(estimate.max()) + 1
+        pairs = _pairs(estimate, prepared)
+        share = (0.02, 0.3, 1.0)[case % 3]
+        movers = np.flatnonzero(rng.random(n) < share) if case < 5 else np.arange(n)
+        target = rng.integers(0, k + 1, n)  # k: a new cluster
+        if case == 4:
+            target[:] = k  # every mover into the new cluster
+        trial = estimate.copy()
+        trial[movers] = target[movers]
+        kept = np.flatnonzero(np.bincount(trial, minlength=k + 1))
+        rename = np.full(k + 1, -1, dtype=np.int64)
+        rename[kept] = np.arange(kept.shape[0])
+        codes = rename[trial]
+        ours = _moved_pairs(pairs, prepared, movers, codes, rename)
+        for theirs in (_pairs(codes, prepared), _old_pairs(codes, prepared)):
+            for a, b in zip(ours, theirs, strict=True):
+                assert a.dtype == b.dtype and np.array_equal(a, b)
+
+
 @pytest.mark.parametrize("loss", ["vi", "binder"])
 @pytest.mark.parametrize("seed", range(6))
 def test_joined_rows_in_blocks_are_the_whole_sums(loss, seed, monkeypatch):
@@ -190,6 +244,9 @@ def test_the_search_on_a_map_like_case_is_unchanged(loss, monkeypatch):
     monkeypatch.setattr(module, "_joined_rows", old_rows)
     monkeypatch.setattr(module, "_kept_columns", old_kept)
     monkeypatch.setattr(module, "_pairs", _old_pairs)
+    monkeypatch.setattr(
+        module, "_moved_pairs", lambda p, prepared, m, codes, r: _old_pairs(codes, prepared)
+    )
     for (estimate, value), start in zip(ours, starts, strict=True):
         theirs, their_value = _greedy(start, prepared, loss, None)
         assert np.array_equal(estimate, theirs) and value == their_value

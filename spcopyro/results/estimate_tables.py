@@ -87,6 +87,44 @@ def _pairs(estimate: np.ndarray, prepared: _Samples) -> _Pairs:
     return _Pairs(present // width, present % width, cells, of_cell)
 
 
+def _sample_pairs(row: int, prepared: _Samples) -> _Pairs:
+    """:func:`_pairs` of sample ``row``'s own codes (``prepared.codes[row]``) as the estimate,
+    from a sort of the U columns instead of the N cells: a column of the samples holds one label
+    of each, so each of the U columns is one pair, of the sample's label there (the 25 samples'
+    losses sorted 3.07 million cells 25 times, ~0.1 s each, for 157,574 columns)."""
+    clusters = prepared.signatures[row]  # [U] the sample's label on each column
+    width = clusters.shape[0]  # U
+    order = np.argsort(clusters, kind="stable")  # [U] the pairs: by cluster, then column
+    rank = np.empty(width, dtype=np.int64)  # [U] each column's pair
+    rank[order] = np.arange(width)
+    cells = np.bincount(prepared.signature, minlength=width)[order].astype(np.float64)  # [U]
+    return _Pairs(clusters[order], order.astype(np.int64), cells, rank[prepared.signature])
+
+
+def _moved_pairs(
+    pairs: _Pairs, prepared: _Samples, movers: np.ndarray, codes: np.ndarray, rename: np.ndarray
+) -> _Pairs:
+    """:func:`_pairs` of ``codes`` [N]: the estimate of ``pairs`` with the cells ``movers`` [M]
+    moved and its clusters renamed by ``rename`` [k + 1] (increasing on the clusters kept, so
+    the kept pairs keep their order), from those pairs instead of a sort of the N cells: a sort
+    of the P + M keys and gathers over the N cells (an accepted trial of the search sorted the
+    3.07 million cells, 0.16 s, 58 times in one estimate)."""
+    width = prepared.signatures.shape[1]  # U
+    count = pairs.cells.shape[0]  # P
+    remaining = pairs.cells - np.bincount(pairs.of_cell[movers], minlength=count)  # [P] exact
+    alive = np.flatnonzero(remaining > 0)  # [P'] the pairs a cell still takes
+    old_keys = rename[pairs.cluster[alive]] * width + pairs.column[alive]  # [P'] ascending
+    mover_keys = codes[movers] * width + prepared.signature[movers]  # [M]
+    present = np.union1d(old_keys, mover_keys)  # [Q] the new pairs' keys, ascending
+    where = np.full(count, -1, dtype=np.int64)  # [P] each old pair's new pair (-1: none)
+    where[alive] = np.searchsorted(present, old_keys)
+    of_cell = where[pairs.of_cell]  # [N]; the movers' next
+    of_cell[movers] = np.searchsorted(present, mover_keys)
+    cells = np.bincount(of_cell[movers], minlength=present.shape[0]).astype(np.float64)  # [Q]
+    cells[where[alive]] += remaining[alive]
+    return _Pairs(present // width, present % width, cells, of_cell)
+
+
 def _signature(stacked: np.ndarray, sizes: tuple[int, ...], bar=None) -> np.ndarray:
     """[N] each cell's rank among the distinct columns of ``stacked`` [S, N] (J_s labels in
     row s) in lexicographic order, row 0 first: np.unique(stacked, axis=1)'s inverse. A

@@ -65,16 +65,19 @@ from spcopyro._util.timings import timed
 from spcopyro.results.estimate_names import LOSS_LABELS, LOSSES, POINT_ESTIMATES
 
 # The tables live in estimate_tables. Every name below is used here, and _greedy reads
-# _joined_rows, _kept_columns and _pairs from this module's names (the tests patch them here).
+# _joined_rows, _kept_columns, _pairs and _moved_pairs from this module's names (the tests patch
+# them here).
 from spcopyro.results.estimate_tables import (
     _codes_and_values,
     _departed,
     _f,
     _joined_rows,
     _kept_columns,
+    _moved_pairs,
     _moved_tables,
     _Pairs,
     _pairs,
+    _sample_pairs,
     _sample_tables,
     _Samples,
     _signature,
@@ -278,7 +281,7 @@ def _greedy(
             trial_tables = _moved_tables(tables, kept, movers, estimate, target, prepared)
             trial_value = _expected(codes, kk, prepared, loss, trial_tables)
             if trial_value < value - 1e-12:
-                trial_pairs = _pairs(codes, prepared)
+                trial_pairs = _moved_pairs(pairs, prepared, movers, codes, rename)
                 moved = np.zeros(k + 1, dtype=bool)
                 moved[estimate[movers]] = moved[target[movers]] = True
                 stale = np.append(np.flatnonzero(moved[kept]), kk)  # and the new spare one
@@ -342,7 +345,8 @@ def point_estimate(
         prepared = _prepare(samples, loss, bar)
         losses = np.empty(len(samples))  # [S]
         for s, (c, j) in enumerate(zip(prepared.codes, prepared.sizes, strict=True)):
-            losses[s] = _expected(c, j, prepared, loss)
+            tables = _sample_tables(_sample_pairs(s, prepared), j, prepared)  # no sort of N
+            losses[s] = _expected(c, j, prepared, loss, tables)
             bar.update()
         order = np.argsort(losses, kind="stable")[:order_count]
         best, best_value = None, np.inf
