@@ -112,3 +112,18 @@ def test_where_probability_does_not_depend_on_the_block_size(monkeypatch):
         np.testing.assert_array_equal(where_probability(result, "kitchen"), whole)
     product = marginals.astype(np.float64) @ result.concept_given_word("kitchen", "area")
     np.testing.assert_allclose(whole, product, rtol=1e-15)
+
+
+def test_label_frequencies_advance_a_bar_per_million_cells(monkeypatch):
+    """The count was one step of the fit's 'label frequencies' bar that sat still for 8 s on a
+    3.07-million-cell map; it now advances once per COUNT_STEP_CELLS cells counted, with the
+    same frequencies as without a bar."""
+    monkeypatch.setattr(uncertainty, "BLOCK_CELLS", 7)
+    monkeypatch.setattr(uncertainty, "COUNT_STEP_CELLS", 50)
+    steps = []
+    bar = SimpleNamespace(update=lambda k=1: steps.append(k))
+    samples = np.random.default_rng(4).integers(0, 5, (3, 201))
+    frequencies = label_frequencies(samples, 5, bar)
+    np.testing.assert_array_equal(frequencies, label_frequencies(samples, 5))
+    assert sum(steps) == uncertainty.count_steps(201) == 5 and len(steps) == 5
+    assert uncertainty.count_steps(0) == uncertainty.count_steps(1) == 1
