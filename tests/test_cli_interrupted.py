@@ -70,6 +70,19 @@ def test_ctrl_c_in_simulate_names_it_and_its_folder(tmp_path, monkeypatch, capsy
     )
 
 
+@pytest.mark.parametrize(
+    ("options", "name"),
+    [([], "synthetic"), (["--name", "h"], "h"), (["--map", "m/lab.yaml"], "lab"),
+     (["--map", "m/lab.yaml", "--name", "h"], "h")],
+)  # fmt: skip
+def test_the_simulate_line_names_the_house_as_simulate_names_it(options, name):
+    args = build_parser().parse_args(["simulate", "--out", "r", *options])
+    assert interrupted_line(args) == (
+        f"interrupted spcopyro simulate: nothing written to r/{name} and its map r/map/{name}.yaml "
+        "(they are written whole at the end, or not at all)"
+    )
+
+
 def test_where_and_show_name_the_files_they_write():
     """The line's files are those ``where`` and ``show --graph`` write (the probability figure,
     the JSON beside the graph), named by the one definition the commands use
@@ -81,6 +94,7 @@ def test_where_and_show_name_the_files_they_write():
     from spcopyro.cli.out_names import graph_json, probability_figure
 
     assert interrupted.probability_figure is main.probability_figure is probability_figure
+    assert interrupted.house_name is main.house_name  # simulate's OUT/NAME, also defined once
     assert interrupted.graph_json is navigate.graph_json is graph_json
     for out in ("w.png", "d/w", "w.jpg"):
         args = build_parser().parse_args(["where", "R", "kitchen", "--out", out])
@@ -104,65 +118,49 @@ def _map_note(command: str, new: bool = False) -> str:
 
 @pytest.fixture
 def no_swaps(monkeypatch):
-    """No folder set aside by :func:`spcopyro._util.outputs.swapped_in` in this process, and
-    none this test sets aside left recorded for the next."""
+    """No folder set aside by :func:`spcopyro._util.outputs.swapped_in`, nor OUT committed, in
+    this process, and none this test sets aside or commits left recorded for the next."""
     from spcopyro._util import outputs
 
     monkeypatch.setattr(outputs, "_SET_ASIDE", [])
+    monkeypatch.setattr(outputs, "_COMPLETED", set())
 
 
 @pytest.mark.parametrize(("command", "hidden"), [("export", ""), ("import-bag", ".")])
-def test_an_overwrite_stopped_while_carrying_files_over_names_the_set_aside_folder(
+def test_a_ctrl_c_as_the_replaced_folder_is_removed_names_it(
     tmp_path, monkeypatch, no_swaps, command, hidden
 ):
     """--overwrite sets the old OUT aside (OUT.replaced-XXXXXXXX, hidden for import-bag), puts
-    the new one in its place and carries the user's files over: a stop there left the new OUT
-    and the rest of the old one in the set-aside folder while the line said "nothing written"."""
-    from spcopyro._util.outputs import swapped_in
-
-    monkeypatch.chdir(tmp_path)
-    args = _overwrite_args(command)
-    (tmp_path / "N").mkdir()
-    (tmp_path / "S").mkdir()  # the new OUT, staged
-    with pytest.raises(KeyboardInterrupt), swapped_in(tmp_path / "N", tmp_path / "S", bool(hidden)):
-        raise KeyboardInterrupt  # while carrying the old OUT's files over
-    (aside,) = [p.name for p in tmp_path.iterdir() if p.name.startswith(f"{hidden}N.replaced-")]
-    assert interrupted_line(args) == (
-        f"interrupted spcopyro {command}: N is the new one, written whole; what of the old one "
-        f"was not yet carried into it is in {aside}{_map_note(command, new=True)}"
-    )
-    args.overwrite = False  # nothing is set aside without --overwrite
-    assert interrupted_line(args).startswith(f"interrupted spcopyro {command}: nothing written")
-
-
-@pytest.mark.parametrize(("command", "hidden"), [("export", ""), ("import-bag", ".")])
-def test_an_overwrite_stopped_between_its_two_renames_names_the_old_out(
-    tmp_path, monkeypatch, no_swaps, command, hidden
-):
-    """A stop after the old OUT was set aside and before the new one took its place: no OUT."""
+    the new one in its place and carries the user's files over, a Ctrl-C held meanwhile; one
+    that comes as the old folder is then removed (the handlers back) leaves OUT new and whole
+    and the earlier run's own files in the set-aside folder, which the line names."""
     import os
+    import shutil
+    import signal
 
-    from spcopyro._util.outputs import swapped_in
+    from spcopyro._util.outputs import commit_folder
 
     monkeypatch.chdir(tmp_path)
-    rename = os.rename
-
-    def stopped_after_the_first(source, target):
-        rename(source, target)
-        if not str(target).endswith("N"):  # OUT set aside; the staged one not yet moved in
-            raise KeyboardInterrupt
-
     (tmp_path / "N").mkdir()
-    (tmp_path / "S").mkdir()
-    monkeypatch.setattr(os, "rename", stopped_after_the_first)
-    with pytest.raises(KeyboardInterrupt), swapped_in(tmp_path / "N", tmp_path / "S", bool(hidden)):
-        pass
-    monkeypatch.setattr(os, "rename", rename)
+    (tmp_path / "N" / "old.txt").write_text("the earlier run's")
+    (tmp_path / "N" / "notes.txt").write_text("mine")
+    (tmp_path / "S").mkdir()  # the new OUT, staged
+    rmtree = shutil.rmtree
+
+    def stopped(path, *args, **kwargs):
+        if ".replaced-" in str(path):
+            os.kill(os.getpid(), signal.SIGINT)
+        return rmtree(path, *args, **kwargs)
+
+    monkeypatch.setattr(shutil, "rmtree", stopped)
+    with pytest.raises(KeyboardInterrupt):
+        commit_folder(tmp_path / "S", tmp_path / "N", {"old.txt"}, hidden=bool(hidden))
+    monkeypatch.setattr(shutil, "rmtree", rmtree)
+    assert sorted(p.name for p in (tmp_path / "N").iterdir()) == ["notes.txt"]
     (aside,) = [p.name for p in tmp_path.iterdir() if p.name.startswith(f"{hidden}N.replaced-")]
-    assert not (tmp_path / "N").exists()
     assert interrupted_line(_overwrite_args(command)) == (
-        f"interrupted spcopyro {command}: nothing new written; the old N is in "
-        f"{aside}{_map_note(command)}"
+        f"interrupted spcopyro {command}: N was written whole; the old one, not yet removed, is "
+        f"in {aside}{_map_note(command, new=True)}"
     )
 
 

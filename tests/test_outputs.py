@@ -185,6 +185,38 @@ def test_the_staging_folder_sits_beside_out_and_goes_when_discarded(tmp_path):
     assert _entries(tmp_path) == set()
 
 
+def test_a_ctrl_c_between_the_overwrite_renames_waits_for_the_whole_new_out(tmp_path, monkeypatch):
+    """fit/export/navigate --overwrite (StagedOutput.commit) had its own swap, unguarded: a Ctrl-C
+    just after the old OUT was set aside left no OUT (the old one in OUT.replaced-*); now the
+    commit is :func:`~spcopyro._util.outputs.commit_folder`'s, the Ctrl-C held until OUT is the
+    new one with the user's files carried over, then raised (the commit marked done)."""
+    import signal
+
+    from spcopyro._util import outputs
+
+    monkeypatch.setattr(outputs, "_SET_ASIDE", [])
+    monkeypatch.setattr(outputs, "_COMPLETED", set())
+    out = _fit_folder(tmp_path / "out")
+    (out / "notes.txt").write_text("mine")
+    staged = stage_output(out, overwrite=True)
+    (staged.path / "result.npz").write_text("new run\n")
+    rename = os.rename
+
+    def set_aside_then_stop(source, target):
+        rename(source, target)
+        if ".replaced-" in str(target):  # the old OUT set aside, the new one not yet in
+            monkeypatch.setattr(os, "rename", rename)
+            os.kill(os.getpid(), signal.SIGINT)
+
+    monkeypatch.setattr(os, "rename", set_aside_then_stop)
+    with pytest.raises(KeyboardInterrupt):
+        staged.commit()
+    assert staged.committed
+    assert _entries(tmp_path) == {"out"}  # nothing set aside, no staging folder left
+    assert _entries(out) == {"result.npz", "notes.txt", "outputs.json"}
+    assert (out / "result.npz").read_text() == "new run\n"
+
+
 # -- two fits into one folder --------------------------------------------------------------------
 
 

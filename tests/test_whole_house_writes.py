@@ -28,19 +28,20 @@ def _tree(root: Path) -> dict[str, bytes | None]:
 
 @pytest.fixture
 def no_swaps(monkeypatch):
-    """No folder set aside by :func:`spcopyro._util.outputs.swapped_in` recorded by another
-    test, and none of this one's left for the next."""
+    """No folder set aside by :func:`spcopyro._util.outputs.swapped_in`, nor OUT committed,
+    recorded by another test, and none of this one's left for the next."""
     monkeypatch.setattr(outputs, "_SET_ASIDE", [])
+    monkeypatch.setattr(outputs, "_COMPLETED", set())
 
 
-def _sigint_at_the_maps_move(monkeypatch, map_folder: Path) -> None:
-    """A Ctrl-C (a real SIGINT) the moment the new map's first file is moved over the old."""
+def _sigint_at_the_maps_move(monkeypatch, map_folder: Path, signum: int = signal.SIGINT) -> None:
+    """A Ctrl-C (a real SIGINT; or ``signum``) the moment the new map's first file is moved in."""
     replace = os.replace
 
     def replace_and_stop(source, target):
         if Path(target).parent == map_folder:
             monkeypatch.setattr(os, "replace", replace)
-            os.kill(os.getpid(), signal.SIGINT)
+            os.kill(os.getpid(), signum)
         return replace(source, target)
 
     monkeypatch.setattr(os, "replace", replace_and_stop)
@@ -49,14 +50,12 @@ def _sigint_at_the_maps_move(monkeypatch, map_folder: Path) -> None:
 # --- import-bag ---------------------------------------------------------------------------
 
 
-@pytest.fixture
-def imported(tmp_path):
-    """(argv of an --overwrite import with another map, the house folder): an earlier import
-    into ``data/house`` is there, with its map."""
+def _recording(tmp_path: Path) -> tuple[Path, Path, Path]:
+    """(a bag of four poses, three images and a word, a map, another map with a wall)."""
     pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip install .[ros])")
     from spcopyro.maps.grid import FREE, OCCUPIED, OccupancyGrid
     from spcopyro.maps.map_server import save_map
-    from spcopyro.robot.rosbag import BagWriter, import_bags
+    from spcopyro.robot.rosbag import BagWriter
 
     bag, t0 = tmp_path / "rec", 1_600_000_000.0
     with BagWriter(bag, ros=2) as w:
@@ -69,6 +68,16 @@ def imported(tmp_path):
     plain = save_map(OccupancyGrid(cells.copy(), 0.1, (-3.0, -3.0, 0.0)), tmp_path / "m" / "a.yaml")
     cells[0, :] = OCCUPIED
     walled = save_map(OccupancyGrid(cells, 0.1, (-3.0, -3.0, 0.0)), tmp_path / "m" / "b.yaml")
+    return bag, plain, walled
+
+
+@pytest.fixture
+def imported(tmp_path):
+    """(argv of an --overwrite import with another map, the house folder): an earlier import
+    into ``data/house`` is there, with its map."""
+    from spcopyro.robot.rosbag import import_bags
+
+    bag, plain, walled = _recording(tmp_path)
     out = tmp_path / "data" / "house"
     import_bags([bag], walled, out)
     (out / "notes.txt").write_text("mine")
@@ -118,7 +127,8 @@ def test_a_ctrl_c_during_the_import_commit_waits_until_house_and_map_are_new(
     imported, monkeypatch, no_swaps
 ):
     """A Ctrl-C as the map is moved in is held until the folder and the map are both the new
-    ones; the old folder, not yet removed, is named by the Ctrl-C line."""
+    ones and the user's files are carried into the new folder: it was raised before, leaving
+    them in .house.replaced-* and the new house without them."""
     from spcopyro.maps.map_server import load_map
     from spcopyro.robot.rosbag import import_bags
 
@@ -127,12 +137,27 @@ def test_a_ctrl_c_during_the_import_commit_waits_until_house_and_map_are_new(
     with pytest.raises(KeyboardInterrupt):
         import_bags([argv[1]], argv[3], out, overwrite=True)
     assert load_map(out.parent / "map" / "house.yaml") == load_map(argv[3])
-    (aside,) = [p.name for p in out.parent.iterdir() if p.name.startswith(".house.replaced-")]
-    assert sorted(p.name for p in out.parent.iterdir()) == sorted(["house", "map", aside])
+    assert sorted(p.name for p in out.parent.iterdir()) == ["house", "map"]  # nothing aside
+    assert (out / "notes.txt").read_text() == "mine"
     assert sorted(p.name for p in (out.parent / "map").iterdir()) == ["house.pgm", "house.yaml"]
     assert interrupted_line(build_parser().parse_args(argv)).endswith(
-        f"is in {out.parent / aside}; {out.parent / 'map' / 'house'}.yaml and .pgm are the new "
+        f"{out} was written whole; {out.parent / 'map' / 'house'}.yaml and .pgm are the new "
         "map's (moved in with OUT)"
+    )
+
+
+def test_a_ctrl_c_during_a_first_import_commit_says_it_was_written(tmp_path, monkeypatch, no_swaps):
+    """A first import (no OUT before, nothing set aside), a Ctrl-C held as its map is moved in:
+    the line said "nothing written to OUT" while OUT and its map were the new, complete ones."""
+    bag, plain, _ = _recording(tmp_path)
+    out = tmp_path / "data" / "house"
+    argv = ["import-bag", str(bag), "--map", str(plain), "--out", str(out)]
+    _sigint_at_the_maps_move(monkeypatch, out.parent / "map")
+    assert main(argv) == 130
+    assert sorted(p.name for p in out.parent.iterdir()) == ["house", "map"]
+    assert sorted(p.name for p in (out.parent / "map").iterdir()) == ["house.pgm", "house.yaml"]
+    assert interrupted_line(build_parser().parse_args(argv)) == (
+        f"interrupted spcopyro import-bag: {out} was written whole"
     )
 
 
@@ -173,19 +198,104 @@ def test_a_stopped_simulate_leaves_the_old_house_and_map(tmp_path, monkeypatch, 
     assert after["map/synthetic.pgm"] != before["map/synthetic.pgm"]
 
 
-def test_a_ctrl_c_during_the_simulate_commit_names_the_old_house(tmp_path, monkeypatch, no_swaps):
-    """A Ctrl-C as the map is moved in is held until the house and map are both new; the line
-    names the old house's folder, set aside and not yet removed."""
+def test_a_ctrl_c_during_the_simulate_commit_carries_the_users_files(
+    tmp_path, monkeypatch, no_swaps
+):
+    """A Ctrl-C as the map is moved in is held until the house and map are both new and the
+    user's files are carried into the new house: it was raised before that, leaving them in
+    h.replaced-* and the new house without them."""
     root = tmp_path / "r"
     assert main(["simulate", "--out", str(root), "--name", "h"]) == 0
+    (root / "h" / "notes.txt").write_text("mine")
     argv = ["simulate", "--out", str(root), "--name", "h", "--seed", "1", "--overwrite"]
     _sigint_at_the_maps_move(monkeypatch, root / "map")
     assert main(argv) == 130
-    (aside,) = [p.name for p in root.iterdir() if p.name.startswith("h.replaced-")]
-    assert sorted(p.name for p in root.iterdir()) == sorted(["h", "map", aside])
+    assert sorted(p.name for p in root.iterdir()) == ["h", "map"]  # nothing set aside
+    assert (root / "h" / "notes.txt").read_text() == "mine"
     assert sorted(p.name for p in (root / "map").iterdir()) == ["h.pgm", "h.yaml"]
     assert interrupted_line(build_parser().parse_args(argv)) == (
-        f"interrupted spcopyro simulate: {root / 'h'} and its map {root / 'map' / 'h'}.yaml are "
-        f"the new ones, written whole; what of the old {root / 'h'} was not yet carried into it "
-        f"is in {root / aside}"
+        f"interrupted spcopyro simulate: {root / 'h'} and its map {root / 'map' / 'h'}.yaml were "
+        "written whole"
     )
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_stop_during_a_first_simulate_commit_says_it_was_written(
+    tmp_path, monkeypatch, capsys, no_swaps, signum
+):
+    """A first simulate (no house before: nothing set aside), stopped as its map is moved in:
+    the line said "nothing written" while the house and map were the new, complete ones. SIGTERM
+    (``timeout``) is held as Ctrl-C is: simulate had no handler for it, so it killed the process
+    halfway through the renames."""
+    root = tmp_path / "r"
+    terminate = signal.getsignal(signal.SIGTERM)
+    replace = os.replace
+
+    def stopped(source, target):  # the default SIGTERM would end pytest: checked, not sent
+        if Path(target).parent == root / "map":
+            monkeypatch.setattr(os, "replace", replace)
+            if signum == signal.SIGINT or signal.getsignal(signal.SIGTERM) is not terminate:
+                os.kill(os.getpid(), signum)  # SIGTERM only to a handler: it is held
+        return replace(source, target)
+
+    monkeypatch.setattr(os, "replace", stopped)
+    capsys.readouterr()
+    assert main(["simulate", "--out", str(root), "--name", "h"]) == 130
+    assert sorted(p.name for p in root.iterdir()) == ["h", "map"]
+    assert sorted(p.name for p in (root / "map").iterdir()) == ["h.pgm", "h.yaml"]
+    assert capsys.readouterr().err == (
+        f"interrupted spcopyro simulate: {root / 'h'} and its map {root / 'map' / 'h'}.yaml were "
+        "written whole\n"
+    )
+
+
+def test_simulate_sweeps_the_staging_folders_a_killed_one_left(tmp_path):
+    """``kill -9`` of a simulate leaves ``NAME.partial-PID-*`` beside the house and
+    ``NAME.yaml.partial-PID-*`` beside its map: the next simulate removed neither (staging_folder
+    skipped :func:`~spcopyro._util.outputs.remove_stale_stagings`)."""
+    import subprocess
+    import sys
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()  # a PID no process has now
+    root = tmp_path / "r"
+    stale = [root / f"h.partial-{dead.pid}-0a1b2c3d", root / "map" / f"h.yaml.partial-{dead.pid}-x"]
+    for folder in stale:
+        folder.mkdir(parents=True)
+        (folder / "half.csv").write_text("1,")
+    live = root / f"h.partial-{os.getpid()}-0a1b2c3d"  # this process's: not a dead one's
+    live.mkdir()
+    assert main(["simulate", "--out", str(root), "--name", "h"]) == 0
+    assert sorted(p.name for p in root.iterdir()) == sorted(["h", "map", live.name])
+    assert sorted(p.name for p in (root / "map").iterdir()) == ["h.pgm", "h.yaml"]
+
+
+def test_deferred_signals_get_every_handler_back_when_putting_one_back_raises(monkeypatch):
+    """A Ctrl-C pending as signals_deferred puts SIGINT's handler back raises there: SIGTERM's
+    was left the deferring one (a SIGTERM after it then went to a dead list, ignored)."""
+    from spcopyro._util import interrupts
+
+    def term(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, term)
+    try:
+        put_back = signal.signal
+        calls = []
+
+        def raising_once(number, handler):
+            calls.append(number)
+            put_back(number, handler)
+            if len(calls) == 3:  # the first put back (after the two deferring ones)
+                raise KeyboardInterrupt("pending")
+
+        monkeypatch.setattr(interrupts.signal, "signal", raising_once)
+        with pytest.raises(KeyboardInterrupt, match="pending"):
+            with interrupts.signals_deferred(lambda signum, frame: None):
+                pass
+        monkeypatch.setattr(interrupts.signal, "signal", put_back)
+        assert calls == [signal.SIGINT, signal.SIGTERM, signal.SIGINT, signal.SIGTERM]
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        assert signal.getsignal(signal.SIGTERM) is term
+    finally:
+        signal.signal(signal.SIGTERM, previous)

@@ -73,8 +73,9 @@ def signals_deferred(handler: Callable[[int, object], None]) -> Iterator[None]:
     :class:`KeyboardInterrupt` wherever this thread is, so that what the block does is done
     whole (a chain worker's message read and applied: :mod:`spcopyro.gibbs.chain_processes`; a
     study's table and report written: :mod:`spcopyro.study.run`). A signal ignored or left to
-    the OS stays so. The previous handlers come back after. Only the main thread can set
-    handlers; elsewhere no signal is raised in this thread anyway."""
+    the OS stays so. The previous handlers come back after, every one even where putting one
+    back raises (a signal pending: its handler's KeyboardInterrupt, raised once all are back).
+    Only the main thread can set handlers; elsewhere no signal is raised in this thread anyway."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -87,8 +88,14 @@ def signals_deferred(handler: Callable[[int, object], None]) -> Iterator[None]:
     try:
         yield
     finally:
-        for number, old in previous.items():
-            signal.signal(number, old)
+        raised: BaseException | None = None
+        for number, old in previous.items():  # every one, even if a pending signal's raises
+            try:
+                signal.signal(number, old)
+            except BaseException as error:  # noqa: BLE001 - re-raised once all are restored
+                raised = raised or error
+        if raised is not None:
+            raise raised
 
 
 @contextlib.contextmanager

@@ -28,6 +28,7 @@ only the standard library).
 from __future__ import annotations
 
 import contextlib
+import glob
 import io
 import json
 import os
@@ -197,7 +198,10 @@ class StagedOutput:
     """The staged files were kept after a failed commit (:meth:`discard` leaves them)."""
 
     def commit(self) -> Path:
-        """Move the staged folder to :attr:`out` (replacing the old one if ``overwrite``).
+        """Move the staged folder to :attr:`out` (:func:`commit_folder`); with ``overwrite`` a
+        non-empty old one is replaced: set aside, what the old fit did not write (not in its
+        manifest: a user's notes, ``where`` figures) carried into the new OUT, the rest removed.
+        A Ctrl-C meanwhile is raised once OUT is the new one (:attr:`committed` then True).
 
         Raises:
             OutputError: another process wrote :attr:`out` since :func:`stage_output` (the staged
@@ -213,26 +217,21 @@ class StagedOutput:
                     f"{self.out} was written by another process while this fit ran; it is left "
                     f"as that one wrote it, and this fit's outputs are in {self.path}"
                 )
-            if self.seen is not None and self.overwrite and not _is_empty_folder(self.out):
-                self._replace()
-            else:
-                try:
-                    os.rename(self.path, self.out)  # replaces an empty folder atomically
-                except OSError as error:
-                    self.kept = True
-                    raise OutputError(
-                        f"{self.out} could not be written ({error.strerror}); this fit's "
-                        f"outputs are in {self.path}"
-                    ) from None
-        self.committed = True
+            replace = self.seen is not None and self.overwrite and not _is_empty_folder(self.out)
+            try:
+                commit_folder(self.path, self.out, fit_written(self.out) if replace else (),
+                              replace=replace)  # fmt: skip
+            except OSError as error:
+                if replace:
+                    raise
+                self.kept = True  # the rename refused: OUT not empty any more
+                raise OutputError(
+                    f"{self.out} could not be written ({error.strerror}); this fit's "
+                    f"outputs are in {self.path}"
+                ) from None
+            finally:
+                self.committed = completed(self.out)
         return self.out
-
-    def _replace(self) -> None:
-        """Old OUT aside, the staged folder in its place, then what the old fit did not write
-        (not in its manifest: a user's notes, ``where`` figures) carried into the new OUT, and
-        the rest of the old one removed (:func:`swapped_in`, :func:`carry_over`)."""
-        with swapped_in(self.out, self.path) as old:
-            carry_over(old, self.out, fit_written(old))
 
     def discard(self) -> None:
         """Remove the staging folder (nothing of this run is kept), unless committed or kept."""
@@ -299,6 +298,22 @@ def carry_over(old: Path, out: Path, written: Container[str]) -> tuple[str, ...]
     return tuple(kept)
 
 
+_COMPLETED: set[Path] = set()
+"""The OUTs :func:`commit_folder` moved a new folder (and its files) into, in this process,
+absolute; a new staging folder for one (:func:`staging_folder`, :func:`stage_output`,
+:func:`stage_marked_folder`) takes it out again: its latest write is not done."""
+
+
+def completed(out: str | os.PathLike[str]) -> bool:
+    """Whether this process's latest write into ``out`` is in place, whole (:func:`commit_folder`
+    finished its renames), though a Ctrl-C may have stopped the command after."""
+    return _absolute(out) in _COMPLETED
+
+
+def _forget_completed(out: str | os.PathLike[str]) -> None:
+    _COMPLETED.discard(_absolute(out))
+
+
 def commit_folder(
     staging: Path,
     out: Path,
@@ -306,28 +321,33 @@ def commit_folder(
     files: Sequence[tuple[Path, Path]] = (),
     *,
     hidden: bool = False,
+    replace: bool = True,
 ) -> tuple[str, ...]:
     """Move the staged folder ``staging`` to ``out``, then each ``(staged, target)`` of
     ``files`` (staged beside its target, in a :func:`staging_folder`: a house's map beside its
-    folder) over its target, a Ctrl-C (or SIGTERM) meanwhile held until all are in place and
-    raised then (:func:`~spcopyro._util.interrupts.signals_deferred`): it finds the folder and
-    its files all old or all new. A non-empty ``out`` is set aside (:func:`swapped_in`, ``hidden``)
-    and what its writer did not write (not in ``written``) carried into the new one
-    (:func:`carry_over`, interruptible: a Ctrl-C there keeps the set-aside folder, which
-    :func:`set_aside` names); returns the names carried."""
+    folder) over its target. A non-empty ``out`` is set aside (:func:`swapped_in`, ``hidden``;
+    with ``replace`` False the rename fails on one instead, OSError) and what its writer did not
+    write (not in ``written``) carried into the new one (:func:`carry_over`); the old folder is
+    removed once that is done. A Ctrl-C meanwhile (SIGINT, and SIGTERM where a handler turns it
+    into an interrupt: :func:`~spcopyro._util.interrupts.sigterm_as_interrupt`) is held until
+    all are in place, the user's files carried over included, and raised once the old folder is
+    removed (:func:`~spcopyro._util.interrupts.signals_deferred`): it finds the folder and its
+    files all old or all new, and :func:`completed` says which. Returns the names carried."""
     signalled: list[int] = []
-    with contextlib.ExitStack() as swap:
-        with signals_deferred(lambda signum, frame: signalled.append(signum)):
+    with contextlib.ExitStack() as swap:  # on leaving: the old folder removed
+        with signals_deferred(lambda signum, frame: signalled.append(signum)):  # only renames
             old = None
-            if out.is_dir() and not _is_empty_folder(out):
+            if replace and out.is_dir() and not _is_empty_folder(out):
                 old = swap.enter_context(swapped_in(out, staging, hidden))
             else:
                 os.rename(staging, out)  # replaces an empty folder atomically
             for partial, target in files:
                 os.replace(partial, target)
-        if signalled:  # all in place: stopped now (the set-aside folder kept, named)
-            raise KeyboardInterrupt(f"signal {signalled[0]}")
-        return () if old is None else carry_over(old, out, written)
+            kept = () if old is None else carry_over(old, out, written)
+            _COMPLETED.add(_absolute(out))
+    if signalled:  # all in place: stopped now
+        raise KeyboardInterrupt(f"signal {signalled[0]}")
+    return kept
 
 
 def nearest_existing(path: Path) -> Path:
@@ -418,10 +438,11 @@ def check_output(
     return path
 
 
-def staging_prefix(path: Path) -> str:
-    """``OUT.partial-PID-``: a staging folder's name tells which process made it, so a later run
-    can tell a dead run's leftovers (SIGKILL, a power cut) from a live run's."""
-    return f"{path.name}{STAGING_INFIX}{os.getpid()}-"
+def staging_prefix(path: Path, hidden: bool = False) -> str:
+    """``OUT.partial-PID-`` (``.OUT.partial-PID-`` if ``hidden``): a staging folder's name tells
+    which process made it, so a later run can tell a dead run's leftovers (SIGKILL, a power cut)
+    from a live run's."""
+    return f"{'.' if hidden else ''}{path.name}{STAGING_INFIX}{os.getpid()}-"
 
 
 def _alive(pid: int) -> bool:
@@ -434,12 +455,14 @@ def _alive(pid: int) -> bool:
     return True
 
 
-def remove_stale_stagings(path: Path) -> list[Path]:
-    """Remove the staging folders beside ``path`` (``OUT.partial-PID-...``) whose process is
-    gone: what a killed fit into the same OUT left behind. Returns what was removed."""
+def remove_stale_stagings(path: Path, hidden: bool = False) -> list[Path]:
+    """Remove the staging folders beside ``path`` (``OUT.partial-PID-...``, ``.OUT.partial-...``
+    if ``hidden``) whose process is gone: what a killed fit into the same OUT left behind.
+    Returns what was removed."""
     removed = []
-    pattern = re.compile(re.escape(f"{path.name}{STAGING_INFIX}") + r"(\d+)-")
-    for candidate in path.parent.glob(f"{path.name}{STAGING_INFIX}*"):
+    name = f"{'.' if hidden else ''}{path.name}{STAGING_INFIX}"
+    pattern = re.compile(re.escape(name) + r"(\d+)-")
+    for candidate in path.parent.glob(f"{glob.escape(name)}*"):
         match = pattern.match(candidate.name)
         if match and candidate.is_dir() and not _alive(int(match.group(1))):
             shutil.rmtree(candidate, ignore_errors=True)
@@ -459,9 +482,7 @@ def stage_output(
     path = check_output(out, overwrite=overwrite, resume=resume, inputs=inputs)
     seen = _identity(path)
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        remove_stale_stagings(path)
-        staging = _new_folder(path.parent, staging_prefix(path))
+        staging = staging_folder(path)
     except OSError as error:
         raise OutputError(
             f"--out {out}: cannot write in {path.parent} ({error.strerror or error})"
@@ -469,13 +490,16 @@ def stage_output(
     return StagedOutput(out=path, path=Path(staging), overwrite=overwrite, seen=seen)
 
 
-def staging_folder(out: str | os.PathLike[str]) -> Path:
-    """A new empty folder beside ``out`` (``OUT.partial-PID-XXXXXXXX``: :func:`staging_prefix`,
-    so :func:`remove_stale_stagings` finds it once its process is gone), made as ``mkdir`` makes
-    one; ``out``'s parent made if missing."""
+def staging_folder(out: str | os.PathLike[str], hidden: bool = False) -> Path:
+    """A new empty folder beside ``out`` (``OUT.partial-PID-XXXXXXXX``, with a leading dot if
+    ``hidden``: :func:`staging_prefix`), made as ``mkdir`` makes one; ``out``'s parent made if
+    missing, and the staging folders a dead process left beside ``out`` removed first
+    (:func:`remove_stale_stagings`). ``out``'s latest write is not :func:`completed` any more."""
     path = _absolute(out)
     path.parent.mkdir(parents=True, exist_ok=True)
-    return _new_folder(path.parent, staging_prefix(path))
+    remove_stale_stagings(path, hidden)
+    _forget_completed(path)
+    return _new_folder(path.parent, staging_prefix(path, hidden))
 
 
 def stage_marked_folder(
@@ -506,6 +530,7 @@ def stage_marked_folder(
         staging = _new_folder(path.parent, f"{path.name}{STAGING_INFIX}")
     except OSError as error:
         raise OutputError(f"{option} {out}: cannot write in {path.parent} ({error})") from None
+    _forget_completed(path)
     return StagedOutput(out=path, path=Path(staging), overwrite=overwrite, seen=seen)
 
 

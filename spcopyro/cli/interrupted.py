@@ -9,10 +9,10 @@ nothing of it either)."""
 from __future__ import annotations
 
 import argparse
-import os
+import sys
 from pathlib import PurePath
 
-from spcopyro.cli.out_names import graph_json, probability_figure
+from spcopyro.cli.out_names import graph_json, house_name, probability_figure
 
 __all__ = ["interrupted_line"]
 
@@ -49,20 +49,17 @@ def interrupted_line(args: argparse.Namespace) -> str:
         return f"{line}: nothing written" if command in WHOLE | EACH_WHOLE else line
     if command in WHOLE:
         overwrite = getattr(args, "overwrite", False)
-        aside = _set_aside(out) if overwrite else []
-        if aside and not os.path.isdir(out):  # stopped between the two renames
-            line = f"{line}: nothing new written; the old {out} is in {', '.join(aside)}"
-        elif aside:  # stopped while the old OUT's files were carried into the new one
-            line = (f"{line}: {out} is the new one, written whole; what of the old one was not "
-                    f"yet carried into it is in {', '.join(aside)}")  # fmt: skip
+        new = _completed(out)
+        if new:  # a Ctrl-C held through the commit, or one after it
+            line = f"{line}: {out} was written whole{_old_kept(out)}"
         else:
             line = (
                 f"{line}: nothing written to {out} (it is written whole at the end, or not at all)"
             )
         if command == "import-bag" and overwrite:
             path = PurePath(out)  # the house's map, as the import names it (rosbag.importer)
-            new = "the new" if aside and os.path.isdir(out) else "still the old"
-            line += (f"; {path.parent / 'map' / path.name}.yaml and .pgm are {new} map's (moved "
+            which = "the new" if new else "still the old"
+            line += (f"; {path.parent / 'map' / path.name}.yaml and .pgm are {which} map's (moved "
                      "in with OUT)")  # fmt: skip
         return line
     if command in EACH_WHOLE:
@@ -81,16 +78,12 @@ def interrupted_line(args: argparse.Namespace) -> str:
 
 
 def _house_line(args: argparse.Namespace, out: str) -> str:
-    """What became of ``simulate``'s house ``OUT/NAME`` (NAME: ``--name``, else the ``--map``
-    file's name or ``synthetic``, as ``simulate`` names it) and its map."""
-    map_file = getattr(args, "map", None)
-    name = getattr(args, "name", None) or (PurePath(map_file).stem if map_file else "synthetic")
+    """What became of ``simulate``'s house ``OUT/NAME`` (:func:`house_name`) and its map."""
+    name = house_name(getattr(args, "name", None), getattr(args, "map", None))
     room = PurePath(out) / name
     house = f"{room} and its map {PurePath(out) / 'map' / name}.yaml"
-    aside = _set_aside(str(room))
-    if aside and os.path.isdir(room):  # stopped while the old house's own files were carried
-        return (f"{house} are the new ones, written whole; what of the old {room} was not yet "
-                f"carried into it is in {', '.join(aside)}")  # fmt: skip
+    if _completed(str(room)):  # a Ctrl-C held through the commit, or one after it
+        return f"{house} were written whole{_old_kept(str(room))}"
     return f"nothing written to {house} (they are written whole at the end, or not at all)"
 
 
@@ -107,13 +100,22 @@ def _figures(args: argparse.Namespace, out: str) -> list[str]:
     return [str(figure)]
 
 
-def _set_aside(out: str) -> list[str]:
-    """The folders an ``--overwrite`` of ``out`` in this process set the old one aside in and
-    kept, the block carrying its files over having been stopped (``OUT.replaced-XXXXXXXX``,
-    hidden for ``import-bag``: :func:`spcopyro._util.outputs.swapped_in` records them), as the
-    user named OUT, sorted. A leftover of an earlier run beside OUT is none of them: it said
-    OUT was the new one when this run had not swapped it yet."""
-    from spcopyro._util.outputs import set_aside  # on Ctrl-C only: nothing on the --help path
+def _completed(out: str) -> bool:
+    """Whether this process's latest write into ``out`` is in place, whole
+    (:func:`spcopyro._util.outputs.completed`); not when nothing imported that module: then
+    nothing was written."""
+    outputs = sys.modules.get("spcopyro._util.outputs")  # importing it here: numpy, seconds
+    return outputs is not None and outputs.completed(out)
 
+
+def _old_kept(out: str) -> str:
+    """``"; the old one, not yet removed, is in OUT.replaced-XXXXXXXX"``, where a Ctrl-C came
+    as the replaced folder was being removed (after the commit, which carried the files its
+    writer did not write into the new one: what is left is the earlier run's own), as the user
+    named OUT; else ``""``. A leftover of an earlier process is not named
+    (:func:`spcopyro._util.outputs.set_aside`)."""
+    outputs = sys.modules.get("spcopyro._util.outputs")
+    folders = [] if outputs is None else outputs.set_aside(out)
     shown = PurePath(out).parent
-    return sorted(str(shown / folder.name) for folder in set_aside(out))
+    aside = sorted(str(shown / folder.name) for folder in folders)
+    return f"; the old one, not yet removed, is in {', '.join(aside)}" if aside else ""

@@ -39,7 +39,7 @@ from spcopyro._util.arguments import (
     positive_number,
     seed,
 )
-from spcopyro._util.interrupts import caused_by_interrupt
+from spcopyro._util.interrupts import caused_by_interrupt, sigterm_as_interrupt
 from spcopyro._util.messages import plural
 from spcopyro._util.process_exit import exit_process, may_skip_teardown
 from spcopyro.cli.common import (
@@ -55,7 +55,7 @@ from spcopyro.cli.common import (
 )
 from spcopyro.cli.fit_parser import add_parser as add_fit_parser
 from spcopyro.cli.interrupted import interrupted_line
-from spcopyro.cli.out_names import probability_figure
+from spcopyro.cli.out_names import house_name, probability_figure
 from spcopyro.data.text import fold_word
 
 logger = logging.getLogger("spcopyro")
@@ -70,6 +70,7 @@ time and memory grow faster than the area beyond it (a million by a million ran 
 without a word)."""
 
 
+@sigterm_as_interrupt()  # `timeout`, systemd: the house and map stay whole (commit_folder)
 def _simulate(args: argparse.Namespace) -> int:
     from spcopyro._util.outputs import check_folder_path
 
@@ -95,7 +96,7 @@ def _simulate(args: argparse.Namespace) -> int:
             f"--rooms {args.rooms}: an open-plan house has at least 2 rooms, the open plan and "
             "a walled room beside it (default 4)"
         )
-    args.name = args.name or "synthetic"
+    args.name = house_name(args.name, args.map)  # synthetic (no --map here)
     try:
         return _simulate_house(args)
     except ValueError as error:  # the library names its fields, the command its flags

@@ -1,14 +1,14 @@
-"""The names of the files ``where`` and ``show --graph`` write beside their figure: defined once
-for the commands that write them (:mod:`spcopyro.cli.main`, :mod:`spcopyro.cli.navigate`) and
-the Ctrl-C line that names them (:mod:`spcopyro.cli.interrupted`, on the ``--help`` path).
-Imports nothing but :mod:`pathlib`."""
+"""The names of the files ``where`` and ``show --graph`` write beside their figure, and of the
+house ``simulate`` writes: defined once for the commands that write them
+(:mod:`spcopyro.cli.main`, :mod:`spcopyro.cli.navigate`) and the Ctrl-C line that names them
+(:mod:`spcopyro.cli.interrupted`, on the ``--help`` path). Imports nothing but :mod:`pathlib`."""
 
 from __future__ import annotations
 
 from pathlib import PurePath
 from typing import TypeVar
 
-__all__ = ["graph_json", "probability_figure"]
+__all__ = ["graph_json", "house_name", "probability_figure"]
 
 P = TypeVar("P", bound=PurePath)
 
@@ -23,3 +23,10 @@ def graph_json(figure: P) -> P:
     """The JSON of ``show --graph``'s place graph, beside its ``figure`` and named after it
     (``X.png`` -> ``X.json``: two graphs in one folder keep both)."""
     return figure.with_suffix(".json")
+
+
+def house_name(name: str | None, map_file: str | None) -> str:
+    """The folder ``simulate`` writes its house in, ``OUT/NAME``: ``--name``, else the ``--map``
+    file's name without its suffix (what :func:`spcopyro.robot.map_simulation.write_simulated_map`
+    defaults to), else ``synthetic``."""
+    return name or (PurePath(map_file).stem if map_file else "synthetic")

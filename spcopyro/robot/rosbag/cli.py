@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 from spcopyro._util.arguments import integer_at_least, non_negative_number, seed
+from spcopyro._util.interrupts import sigterm_as_interrupt
 from spcopyro.robot.rosbag.bag import DEFAULT_ROS_DISTRO, ROS_DISTROS
 
 __all__ = ["add_parser"]
@@ -51,6 +52,7 @@ def _print_skipped(skipped, where: str) -> None:
         print(f"  ... and {len(skipped) - PRINTED_SKIPS} more", file=sys.stderr)
 
 
+@sigterm_as_interrupt()  # `timeout`, systemd: the house and map stay whole (commit_folder)
 def _import_bag(args: argparse.Namespace) -> int:
     from spcopyro.robot.rosbag.bag import RosbagsMissingError
     from spcopyro.robot.rosbag.importer import ImportOptions, NothingLeftError, import_bags

@@ -56,7 +56,6 @@ import contextlib
 import json
 import math
 import os
-import secrets
 import shutil
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
@@ -65,6 +64,7 @@ from typing import Any
 
 import numpy as np
 
+from spcopyro._util.outputs import staging_folder
 from spcopyro._util.progress import progress_enabled
 from spcopyro.data.text import tokenize
 from spcopyro.maps.grid import OccupancyGrid
@@ -491,9 +491,7 @@ def import_bags(
         created = [
             p for p in (map_target.parent, out.parent, *out.parent.parents) if not p.exists()
         ]
-        out.parent.mkdir(parents=True, exist_ok=True)
-        staging = out.parent / f".{out.name}.partial-{secrets.token_hex(4)}"
-        staging.mkdir()
+        staging = staging_folder(out, hidden=True)  # .OUT.partial-PID-*: a killed import's swept
         staged_map: Path | None = None  # the map's files, written beside map_target
         skipped: list[SkippedObservation] = []
         done = False
