@@ -159,6 +159,15 @@ def home(tmp_path_factory) -> Path:
 
 
 @pytest.fixture
+def map_yaml(tmp_path) -> Path:
+    """The import-bag tests' map (tests/bag_maps.py): a 60 x 60 free map at 0.1 m, origin
+    (-3, -3), so x, y in [-3, 3) m, saved as ``tmp_path/maps/floor.yaml``."""
+    from bag_maps import save_free_map
+
+    return save_free_map(tmp_path / "maps")
+
+
+@pytest.fixture
 def no_download(monkeypatch, tmp_path):
     """An empty torch cache of the test's own (``$TORCH_HOME``), and any download attempt fails
     loudly: the features' tests use it (``pytestmark``)."""

@@ -15,12 +15,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bag_maps import save_free_map
 
 pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip install .[ros])")
 
 from spcopyro.cli.main import main  # noqa: E402
-from spcopyro.maps.grid import FREE, OccupancyGrid  # noqa: E402
-from spcopyro.maps.map_server import save_map  # noqa: E402
 from spcopyro.robot.rosbag import (  # noqa: E402
     BagContentError,
     BagWriter,
@@ -36,9 +35,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 @pytest.fixture
 def map_yaml(tmp_path: Path) -> Path:
-    """A 60 x 60 free map at 0.1 m, origin (-1, -1)."""
-    grid = OccupancyGrid(np.full((60, 60), FREE, dtype=np.int8), 0.1, (-1.0, -1.0, 0.0))
-    return save_map(grid, tmp_path / "maps" / "floor.yaml")
+    """The rosbag tests' map (tests/bag_maps.py) at origin (-1, -1): x, y in [-1, 5) m."""
+    return save_free_map(tmp_path / "maps", origin=-1.0)
 
 
 def _two_clocks(path: Path, pose_clock: float, image_clock: float, ros: int = 2) -> Path:

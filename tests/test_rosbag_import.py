@@ -28,8 +28,6 @@ pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip inst
 
 from spcopyro.cli.main import main  # noqa: E402
 from spcopyro.data import load_house  # noqa: E402
-from spcopyro.maps.grid import FREE, OccupancyGrid  # noqa: E402
-from spcopyro.maps.map_server import save_map  # noqa: E402
 from spcopyro.robot.rosbag import (  # noqa: E402
     BagContentError,
     BagFormatError,
@@ -46,13 +44,6 @@ from spcopyro.robot.rosbag.poses import PoseTrack, compose, wrap_angle  # noqa: 
 T0 = 1_600_000_000.0
 FORMATS = [(1, "sqlite3"), (2, "sqlite3"), (2, "mcap")]
 FORMAT_IDS = ["ros1", "ros2-sqlite3", "ros2-mcap"]
-
-
-@pytest.fixture
-def map_yaml(tmp_path: Path) -> Path:
-    """A 60 x 60 free map at 0.1 m, origin (-3, -3): x, y in [-3, 3) m."""
-    grid = OccupancyGrid(np.full((60, 60), FREE, dtype=np.int8), 0.1, (-3.0, -3.0, 0.0))
-    return save_map(grid, tmp_path / "maps" / "floor.yaml")
 
 
 def _bag_path(tmp_path: Path, ros: int, name: str = "rec") -> Path:

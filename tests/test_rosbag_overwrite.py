@@ -4,6 +4,7 @@ names alone, and the map beside OUT is replaced only when it is an earlier impor
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
@@ -11,13 +12,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bag_maps import free_grid
 
 from spcopyro._util.outputs import OutputError
 
 pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip install .[ros])")
 
 from spcopyro.cli.main import main  # noqa: E402
-from spcopyro.maps.grid import FREE, OCCUPIED, OccupancyGrid  # noqa: E402
+from spcopyro.maps.grid import OCCUPIED, OccupancyGrid  # noqa: E402
 from spcopyro.maps.map_server import load_map, save_map  # noqa: E402
 from spcopyro.robot.rosbag import BagWriter, import_bags  # noqa: E402
 
@@ -25,10 +27,13 @@ T0 = 1_600_000_000.0
 
 
 def _grid(wall: bool = False) -> OccupancyGrid:
-    cells = np.full((60, 60), FREE, dtype=np.int8)
+    """The rosbag tests' map (tests/bag_maps.py); with ``wall``, its top row occupied."""
+    grid = free_grid()
     if wall:
+        cells = grid.occupancy.copy()  # [60, 60]
         cells[0, :] = OCCUPIED
-    return OccupancyGrid(cells, 0.1, (-3.0, -3.0, 0.0))
+        grid = dataclasses.replace(grid, occupancy=cells)
+    return grid
 
 
 @pytest.fixture
@@ -47,11 +52,6 @@ def bag(tmp_path: Path) -> Path:
 def bag_copy(tmp_path: Path, bag: Path) -> Path:
     """A copy of ``bag``: a second trial (the same bag twice is refused)."""
     return Path(shutil.copytree(bag, tmp_path / "rec_copy"))
-
-
-@pytest.fixture
-def map_yaml(tmp_path: Path) -> Path:
-    return save_map(_grid(), tmp_path / "maps" / "floor.yaml")
 
 
 def test_a_different_map_beside_no_import_is_not_replaced(tmp_path, bag, map_yaml, capsys):

@@ -14,8 +14,6 @@ import pytest
 
 pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip install .[ros])")
 
-from spcopyro.maps.grid import FREE, OccupancyGrid  # noqa: E402
-from spcopyro.maps.map_server import save_map  # noqa: E402
 from spcopyro.robot.rosbag import (  # noqa: E402
     BagContentError,
     BagFormatError,
@@ -25,13 +23,6 @@ from spcopyro.robot.rosbag import (  # noqa: E402
 )
 
 T0 = 1_600_000_000.0
-
-
-@pytest.fixture
-def map_yaml(tmp_path: Path) -> Path:
-    """A 60 x 60 free map at 0.1 m, origin (-3, -3): x, y in [-3, 3) m."""
-    grid = OccupancyGrid(np.full((60, 60), FREE, dtype=np.int8), 0.1, (-3.0, -3.0, 0.0))
-    return save_map(grid, tmp_path / "maps" / "floor.yaml")
 
 
 def _image() -> np.ndarray:

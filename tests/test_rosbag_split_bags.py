@@ -13,11 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from bag_maps import save_free_map
 
 pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip install .[ros])")
 
-from spcopyro.maps.grid import FREE, OccupancyGrid  # noqa: E402
-from spcopyro.maps.map_server import save_map  # noqa: E402
 from spcopyro.robot.rosbag import (  # noqa: E402
     BagContentError,
     BagFormatError,
@@ -32,9 +31,8 @@ WORDS = ("kitchen", "bedroom", "toilet")
 
 @pytest.fixture
 def map_yaml(tmp_path: Path) -> Path:
-    """A 60 x 60 free map at 0.1 m, origin (-1, -1)."""
-    grid = OccupancyGrid(np.full((60, 60), FREE, dtype=np.int8), 0.1, (-1.0, -1.0, 0.0))
-    return save_map(grid, tmp_path / "maps" / "floor.yaml")
+    """The rosbag tests' map (tests/bag_maps.py) at origin (-1, -1): x, y in [-1, 5) m."""
+    return save_free_map(tmp_path / "maps", origin=-1.0)
 
 
 def _split_bag(tmp_path: Path, storage: str = "sqlite3") -> Path:

@@ -27,11 +27,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from bag_maps import save_free_map
 
 pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip install .[ros])")
 
-from spcopyro.maps.grid import FREE, OccupancyGrid  # noqa: E402
-from spcopyro.maps.map_server import save_map  # noqa: E402
 from spcopyro.robot.rosbag import BagFormatError, BagWriter, ImportOptions, import_bags  # noqa: E402
 
 T0 = 1_600_000_000.0
@@ -49,9 +48,8 @@ ADDED_IN = {"compression_format": 3, "compression_mode": 3, "files": 5, "custom_
 
 @pytest.fixture(scope="module")
 def map_yaml(tmp_path_factory) -> Path:
-    """A 60 x 60 free map at 0.1 m, origin (-3, -3)."""
-    grid = OccupancyGrid(np.full((60, 60), FREE, dtype=np.int8), 0.1, (-3.0, -3.0, 0.0))
-    return save_map(grid, tmp_path_factory.mktemp("maps") / "floor.yaml")
+    """The rosbag tests' map (tests/bag_maps.py), once per module: origin (-3, -3)."""
+    return save_free_map(tmp_path_factory.mktemp("maps"))
 
 
 def _record(writer: BagWriter) -> None:
