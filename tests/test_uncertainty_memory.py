@@ -120,10 +120,30 @@ def test_label_frequencies_advance_a_bar_per_million_cells(monkeypatch):
     same frequencies as without a bar."""
     monkeypatch.setattr(uncertainty, "BLOCK_CELLS", 7)
     monkeypatch.setattr(uncertainty, "COUNT_STEP_CELLS", 50)
-    steps = []
-    bar = SimpleNamespace(update=lambda k=1: steps.append(k))
     samples = np.random.default_rng(4).integers(0, 5, (3, 201))
+    expected = label_frequencies(samples, 5)
+    # The cells counted so far, seen through the count's bincount of each block's [S * n] keys.
+    counted = [0]
+    bincount = np.bincount
+
+    def counting_bincount(keys, minlength=0):
+        counted[0] += keys.size // samples.shape[0]
+        return bincount(keys, minlength=minlength)
+
+    monkeypatch.setattr(np, "bincount", counting_bincount)
+    steps = []  # (steps credited by this update, cells counted when it came)
+    bar = SimpleNamespace(update=lambda k=1: steps.append((k, counted[0])))
     frequencies = label_frequencies(samples, 5, bar)
-    np.testing.assert_array_equal(frequencies, label_frequencies(samples, 5))
-    assert sum(steps) == uncertainty.count_steps(201) == 5 and len(steps) == 5
+    np.testing.assert_array_equal(frequencies, expected)
+    assert counted[0] == 201
+    assert sum(k for k, _ in steps) == uncertainty.count_steps(201) == 5 and len(steps) == 5
+    # No step is credited before its cells are counted: the k-th step when 50 k cells (or all,
+    # for the last, partial one) have been; it was credited when its first block began.
+    credited = np.cumsum([k for k, _ in steps])
+    for total, (_, cells) in zip(credited, steps, strict=True):
+        assert cells >= min(50 * total, 201), steps
     assert uncertainty.count_steps(0) == uncertainty.count_steps(1) == 1
+    # A map of no cells still gives its one step.
+    empty = []
+    label_frequencies(np.zeros((2, 0), dtype=np.int64), 5, SimpleNamespace(update=empty.append))
+    assert empty == [1]

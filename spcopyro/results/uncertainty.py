@@ -61,10 +61,12 @@ def label_frequencies(samples: np.ndarray, num_concepts: int, bar: Any = None) -
         keys = np.arange(stop - start, dtype=np.int64) * num_concepts + samples[:, start:stop]
         counts = np.bincount(keys.ravel(), minlength=(stop - start) * num_concepts)  # [n * L]
         frequencies[start:stop] = counts.reshape(-1, num_concepts).astype(np.float32) / S
-        reached = -(-stop // COUNT_STEP_CELLS)  # steps of cells counted
+        reached = stop // COUNT_STEP_CELLS  # whole steps of cells counted (none before its end)
         if bar is not None and reached > done:
             bar.update(reached - done)
             done = reached
+    if bar is not None and count_steps(N) > done:  # the last, partial step: all cells counted
+        bar.update(count_steps(N) - done)
     return frequencies
 
 
