@@ -1,6 +1,7 @@
 """Interrupting a fit at a chosen sweep or CAVI step, or in whatever function is patched with
 :func:`interrupted`, as Ctrl-C would: for the ``fit`` command's tests (test_checkpoint,
-test_refine, test_fit_resume_gaps, test_fit_interrupt_setup)."""
+test_refine, test_fit_resume_gaps, test_fit_interrupt_setup, test_resumed_fit_report,
+test_interrupt_with_figure_thread) and ``compare-inference``'s (test_inference_comparison)."""
 
 from __future__ import annotations
 

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import torch
 from fake_dataset import fake_dataset
+from fit_interrupts import interrupted
 from scipy.signal import lfilter
 from stale_cells import check_stale_kept_then_rerun
 
@@ -563,9 +564,6 @@ def test_an_interrupted_comparison_says_its_report_is_an_earlier_runs(
     """Ctrl-C left an earlier run's comparison.md beside the results.csv and report.md the
     study engine had just rewritten, without a word (a helper's QA)."""
     import spcopyro.study.comparison as comparison
-
-    def interrupted(*args, **kwargs):
-        raise KeyboardInterrupt
 
     out = tmp_path / "cmp"
     out.mkdir()
