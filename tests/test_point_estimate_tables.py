@@ -8,6 +8,7 @@ import pytest
 
 import spcopyro.results.estimate_tables as tables_module
 from spcopyro.results.estimate_tables import (
+    _column_cells,
     _f,
     _joined_rows,
     _kept_columns,
@@ -125,8 +126,9 @@ def test_a_samples_own_pairs_are_the_sort_of_its_keys(seed):
     samples[-1] = 0  # a sample of one cluster: one pair per column, all in cluster 0
     for loss in ("vi", "binder"):
         prepared = _prepare(samples, loss)
+        column_cells = _column_cells(prepared)
         for s, (codes, size) in enumerate(zip(prepared.codes, prepared.sizes, strict=True)):
-            ours = _sample_pairs(s, prepared)
+            ours = _sample_pairs(s, prepared, column_cells)
             for theirs in (_pairs(codes, prepared), _old_pairs(codes, prepared)):
                 for a, b in zip(ours, theirs, strict=True):
                     assert a.dtype == b.dtype and np.array_equal(a, b)
@@ -134,6 +136,32 @@ def test_a_samples_own_pairs_are_the_sort_of_its_keys(seed):
             assert _expected(codes, size, prepared, loss, tables) == _expected(
                 codes, size, prepared, loss
             )
+
+
+def test_the_samples_losses_count_the_cells_of_each_column_once(monkeypatch):
+    """The samples' pairs share one count of each column's cells: the samples' losses made one
+    O(N) bincount of the cells' columns per sample (25 at 3 million cells) for the same [U]."""
+    import spcopyro.results.point_estimate as module
+
+    seen = []  # the _Samples the estimate prepared
+    prepare, bincount = module._prepare, np.bincount
+
+    def kept_prepare(*args, **kwargs):
+        seen.append(prepare(*args, **kwargs))
+        return seen[-1]
+
+    counted = []  # the length of each bincount of the cells' columns
+
+    def counting_bincount(x, *args, **kwargs):
+        if seen and x is seen[-1].signature:
+            counted.append(x.shape[0])
+        return bincount(x, *args, **kwargs)
+
+    monkeypatch.setattr(module, "_prepare", kept_prepare)
+    monkeypatch.setattr(np, "bincount", counting_bincount)
+    samples = np.random.default_rng(5).integers(0, 6, (7, 300))  # [S, N]
+    module.point_estimate(samples, "vi", starts=1)
+    assert counted == [300]
 
 
 @pytest.mark.parametrize("seed", range(12))

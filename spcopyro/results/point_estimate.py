@@ -69,6 +69,7 @@ from spcopyro.results.estimate_names import LOSS_LABELS, LOSSES, POINT_ESTIMATES
 # them here).
 from spcopyro.results.estimate_tables import (
     _codes_and_values,
+    _column_cells,
     _departed,
     _f,
     _joined_rows,
@@ -344,8 +345,10 @@ def point_estimate(
     ) as bar:
         prepared = _prepare(samples, loss, bar)
         losses = np.empty(len(samples))  # [S]
+        column_cells = _column_cells(prepared)  # [U] one pass over the N cells for all S
         for s, (c, j) in enumerate(zip(prepared.codes, prepared.sizes, strict=True)):
-            tables = _sample_tables(_sample_pairs(s, prepared), j, prepared)  # no sort of N
+            pairs = _sample_pairs(s, prepared, column_cells)  # no sort of N
+            tables = _sample_tables(pairs, j, prepared)
             losses[s] = _expected(c, j, prepared, loss, tables)
             bar.update()
         order = np.argsort(losses, kind="stable")[:order_count]
