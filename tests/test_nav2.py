@@ -305,6 +305,27 @@ def test_unknown_word_is_a_clear_error_and_writes_nothing(fit, tmp_path, capsys)
     assert "known words: bed, kitchen, sofa" in capsys.readouterr().err
 
 
+def test_an_export_without_a_word_writes_and_names_no_empty_filter_file(fit, tmp_path, capsys):
+    """QA (a new user's walk): `export OUT --nav2 DIR` without --word said 'wrote the map and the
+    semantic map only', then 'costmap plugin entries for nav2_params.yaml: DIR/costmap_filters.yaml'
+    for a file that held only `{}`: nothing to merge, and a line saying otherwise."""
+    out = tmp_path / "nav2"
+    assert main(["export", str(fit), "--nav2", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "wrote the map and the semantic map only" in printed
+    assert "--word WORD adds a mask and its costmap filter entries" in printed
+    assert "costmap_filters.yaml" not in printed and "costmap plugin entries" not in printed
+    assert not (out / "costmap_filters.yaml").exists()
+    assert {"map.yaml", "semantic_map.yaml", "nav2_export.json"} <= {p.name for p in out.iterdir()}
+    assert export_nav2(SpCoResult.load(fit), tmp_path / "api", []).costmap_filters_yaml is None
+    # with a word the entries are written and named, as before
+    assert main(["export", str(fit), "--nav2", str(out), "--word", "bed", "--overwrite"]) == 0
+    assert f"costmap plugin entries for nav2_params.yaml: {out / 'costmap_filters.yaml'}" in (
+        capsys.readouterr().out
+    )
+    assert _read_yaml(out / "costmap_filters.yaml")["global_costmap"]
+
+
 def test_an_existing_folder_needs_overwrite(fit, tmp_path, capsys):
     out = tmp_path / "nav2"
     assert main(["export", str(fit), "--nav2", str(out), "--word", "kitchen"]) == 0

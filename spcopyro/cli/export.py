@@ -101,13 +101,15 @@ def _export(args: argparse.Namespace) -> int:
             print(f"warning: {mask.word!r}: {_keeps_out_nothing(result, mask.word, args)}",
                   file=sys.stderr)  # fmt: skip
     if not export.masks:
-        print("no --word given: wrote the map and the semantic map only")
+        print("no --word given: wrote the map and the semantic map only (--word WORD adds a "
+              "mask and its costmap filter entries)")  # fmt: skip
     if args.mode == "speed" and len(export.masks) > 1:
         print(f"warning: {len(export.masks)} speed filters publish on one speed_limit topic: "
               "each publishes only when its own limit changes, so the limit in force is "
               "whichever changed last; run one speed word per export (or give each filter "
               "its own speed_limit_topic)", file=sys.stderr)  # fmt: skip
-    print(f"costmap plugin entries for nav2_params.yaml: {export.costmap_filters_yaml}")
+    if export.costmap_filters_yaml is not None:  # None: no word, no filter to merge
+        print(f"costmap plugin entries for nav2_params.yaml: {export.costmap_filters_yaml}")
     return 0
 
 

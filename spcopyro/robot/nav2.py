@@ -42,8 +42,9 @@ coarse fit the robot's map it was coarsened from, ``robot_map``),
 ``semantic_map.yaml``/``.pgm``/``.labels.json`` (the concept labels, ``mode: raw``),
 ``MODE_WORD.yaml``/``.pgm`` (a mask), ``MODE_WORD_params.yaml`` (the ``ros__parameters`` of
 the mask server ``MODE_WORD_mask_server`` and of ``MODE_WORD_filter_info_server``),
-``costmap_filters.yaml`` (the costmap plugin entries to merge into ``nav2_params.yaml``) and
-``nav2_export.json`` (what was exported, from which fit, with which settings).
+``costmap_filters.yaml`` (the costmap plugin entries to merge into ``nav2_params.yaml``; not
+written without a word, which has none) and ``nav2_export.json`` (what was exported, from which
+fit, with which settings).
 """
 
 from __future__ import annotations
@@ -206,7 +207,9 @@ class Nav2Export:
     out: Path
     map_yaml: Path
     semantic_map_yaml: Path
-    costmap_filters_yaml: Path
+    costmap_filters_yaml: Path | None
+    """The costmap plugin entries; None when no word was exported (no filter to merge: an
+    export without a word wrote an empty ``{}`` file and pointed the user at it)."""
     masks: tuple[ExportedMask, ...] = field(default_factory=tuple)
 
 
@@ -513,14 +516,15 @@ def export_nav2(
                             "params": params_yaml.name, "cells": cells, "concept": concept,
                             "warnings": list(warnings)})  # fmt: skip
         masks, records = _warn_of_shared_places(masks, records)
-        filters_yaml = folder / "costmap_filters.yaml"
-        write_commented_yaml(
-            filters_yaml,
-            costmap_filters([(mode, name) for name in names], namespace),
-            "Costmap filter entries for nav2_params.yaml (spcopyro export): merge them into\n"
-            "the global_costmap / local_costmap sections (Nav2 Foxy, from before the 'filters'\n"
-            "parameter of Galactic, lists filters under 'plugins')",
-        )
+        filters_yaml = folder / "costmap_filters.yaml" if names else None
+        if filters_yaml is not None:  # no word: no filter, nothing to merge
+            write_commented_yaml(
+                filters_yaml,
+                costmap_filters([(mode, name) for name in names], namespace),
+                "Costmap filter entries for nav2_params.yaml (spcopyro export): merge them into\n"
+                "the global_costmap / local_costmap sections (Nav2 Foxy, from before the "
+                "'filters'\nparameter of Galactic, lists filters under 'plugins')",
+            )
         base, multiplier = BASE_MULTIPLIER[mode]
         summary = {
             "source": None if source is None else str(Path(source).resolve()),
@@ -544,6 +548,6 @@ def export_nav2(
         out=final,
         map_yaml=final / map_yaml.name,
         semantic_map_yaml=final / semantic_yaml.name,
-        costmap_filters_yaml=final / filters_yaml.name,
+        costmap_filters_yaml=None if filters_yaml is None else final / filters_yaml.name,
         masks=tuple(masks),
     )
