@@ -474,3 +474,25 @@ def test_ctrl_c_while_writing_a_resumed_variational_fit_keeps_the_finished_fit(
     )
     assert not out.exists()
     assert main(resumed) == 0 and (out / "result.npz").is_file() and not checkpoint.exists()
+
+
+def test_a_finished_fit_that_cannot_be_saved_names_its_file(home, tmp_path, capsys, monkeypatch):
+    """Ctrl-C while a finished cavi fit's outputs are written, and its file cannot be written
+    (a full disk): the line names the file it could not save, OUT.checkpoint.npz (it named OUT,
+    where nothing was to be saved), and says the fit is lost."""
+    import spcopyro.cli.fit
+    import spcopyro.cli.fit_finished
+
+    def full_disk(path, *args, **kwargs):
+        raise OSError(28, "No space left on device", str(path))
+
+    out = tmp_path / "out"
+    argv = ["fit", str(home), "--out", str(out), *FIT, "--method", "cavi"]
+    monkeypatch.setattr(spcopyro.cli.fit_finished, "save_finished_fit", full_disk)
+    err = _ctrl_c_in(monkeypatch, capsys, spcopyro.cli.fit, "print_concepts", argv)
+    assert err.startswith(
+        f"interrupted while writing the outputs: nothing written to {out}; no checkpoint kept "
+        "(its iterations had all run; the finished fit could not be saved in "
+        f"{checkpoint_path(out)}): the finished fit is lost -- run it again with: "
+    ), err
+    assert not out.exists() and not checkpoint_path(out).exists()

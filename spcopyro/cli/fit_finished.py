@@ -19,10 +19,9 @@ The file, N free cells, L concepts:
                            ``result_labels`` [N] int64, ``result_marginals`` [N, L] float64
 ``settings``               JSON: the result's ``config.json`` settings and provenance
 ``said``                   JSON: the warnings the run gave before its outputs were written
-``record``                 JSON: format, what the file is, the method, whether the fit was
-                           refined, and the fit asked for (``request``: method, options,
-                           settings, sweeps, seed, start, estimate, a fingerprint of the house as
-                           loaded), checked on resuming
+``record``                 JSON: format, what the file is, the method, and the fit asked for
+                           (``request``: method, options, settings, sweeps, seed, start,
+                           estimate, a fingerprint of the house as loaded), checked on resuming
 =========================  =====================================================================
 """
 
@@ -37,6 +36,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+
+from spcopyro.cli.fit_resume import one_fit_for_sweeps
 
 if TYPE_CHECKING:
     from typing import Any as FitJob  # spcopyro.cli.fit.FitJob, which imports this module
@@ -63,12 +64,7 @@ def keeps_finished_fit(args: argparse.Namespace) -> bool:
     """Whether Ctrl-C while this fit's outputs are written keeps the finished fit: one fit of a
     method other than Gibbs (whose finished chains are kept instead), for a number of
     ``--sweeps``, not an ``--update``."""
-    return (
-        args.method != "gibbs"
-        and args.sweeps != "auto"
-        and args.update is None
-        and args.chains in (None, 1)
-    )
+    return args.method != "gibbs" and one_fit_for_sweeps(args)
 
 
 def resumes_finished_fit(args: argparse.Namespace) -> bool:
@@ -91,19 +87,20 @@ def save_finished_fit(
     result: SpCoResult,
     said: list[str],
     *,
-    refined: bool,
     on_map: House,
     settings: SpCoSettings,
     options: object | None,
 ) -> Path:
     """Keep ``result`` (as the fit made it, before the outputs) and ``said`` in ``path``,
     replacing any file there atomically; ``on_map``: the house as loaded, ``settings`` and
-    ``options`` as resolved before the fit (the request a resume must match)."""
+    ``options`` as resolved before the fit (the request a resume must match). The fit is on
+    the model grid: ``--refine`` refines Gibbs fits only, whose finished chains are kept
+    instead."""
     from spcopyro._util.outputs import replace_file
 
     arrays = {PREFIX + name: array for name, array in result._arrays().items()}
     record = {"format": FORMAT, "version": VERSION, "what": WHAT, "method": args.method,
-              "refined": refined, "request": _request(args, on_map, settings, options)}  # fmt: skip
+              "request": _request(args, on_map, settings, options)}  # fmt: skip
     arrays["settings"] = np.array(json.dumps(result.settings_json()))
     arrays["said"] = np.array(json.dumps(list(said)))
     arrays["record"] = np.array(json.dumps(record))
@@ -118,11 +115,11 @@ def load_finished_fit(
     on_map: House,
     settings: SpCoSettings,
     options: object | None,
-) -> tuple[SpCoResult, bool, list[str]]:
-    """The result kept in ``path``, whether it was refined (on ``on_map``'s cells, else on
-    ``model``'s) and the warnings its run gave; ValueError naming each difference when it was
-    made for another fit than this one's (``args``, the house as loaded ``on_map``, the
-    resolved ``settings`` and ``options``), or when it is damaged."""
+) -> tuple[SpCoResult, list[str]]:
+    """The result kept in ``path`` (on ``model``'s grid) and the warnings its run gave;
+    ValueError naming each difference when it was made for another fit than this one's
+    (``args``, the house as loaded ``on_map``, the resolved ``settings`` and ``options``), or
+    when it is damaged."""
     from spcopyro._util.outputs import DAMAGED_FILE_ERRORS, read_npz
     from spcopyro.gibbs.checkpoint import differences
     from spcopyro.results.result import SpCoResult
@@ -132,18 +129,16 @@ def load_finished_fit(
     if problems:
         raise ValueError(f"--resume {path}: a finished fit made for other data or settings: "
                          + "; ".join(problems))  # fmt: skip
-    refined = bool(record.get("refined"))
     try:
         with read_npz(Path(path)) as z:
             arrays = {k[len(PREFIX) :]: z[k] for k in z.files if k.startswith(PREFIX)}
             saved, said = json.loads(str(z["settings"])), json.loads(str(z["said"]))
-        grid = (on_map if refined else model).grid
-        result = SpCoResult._from_saved(Path(path), Path(path), arrays, saved, grid=grid)
+        result = SpCoResult._from_saved(Path(path), Path(path), arrays, saved, grid=model.grid)
     except (KeyError, TypeError, ValueError, AttributeError, IndexError,
             *DAMAGED_FILE_ERRORS) as error:  # fmt: skip
         raise ValueError(f"{path}: a damaged finished fit ({type(error).__name__}: {error}); "
                          "run the fit again without --resume") from None  # fmt: skip
-    return result, refined, [str(line) for line in said]
+    return result, [str(line) for line in said]
 
 
 def keep_finished(job: FitJob) -> Path | None:
@@ -157,8 +152,8 @@ def keep_finished(job: FitJob) -> Path | None:
     result, said = job.finished
     try:
         return save_finished_fit(
-            checkpoint_path(job.staged.out), job.args, result, said, refined=job.refined,
-            on_map=job.map_house, settings=job.settings, options=job.options,
+            checkpoint_path(job.staged.out), job.args, result, said, on_map=job.map_house,
+            settings=job.settings, options=job.options,
         )  # fmt: skip
     except OSError:  # a full disk: the line says the fit is lost, as it was
         return None
@@ -166,17 +161,15 @@ def keep_finished(job: FitJob) -> Path | None:
 
 def restore_finished(job: FitJob) -> SpCoResult | None:
     """The finished fit ``--resume`` names, where it names one (else None: a fit runs), for
-    ``fit`` to write; ``job`` then holds the house it was fitted on (refined: the map's) and
-    the warnings its run had given (``config.json``'s, as that run would have written them)."""
+    ``fit`` to write; ``job`` then holds the warnings its run had given (``config.json``'s, as
+    that run would have written them)."""
     args = job.args
     if not resumes_finished_fit(args):
         return None
-    result, refined, said = load_finished_fit(
+    result, said = load_finished_fit(
         args.resume, args, model=job.house, on_map=job.map_house, settings=job.settings,
         options=job.options,
     )  # fmt: skip
-    if refined:
-        job.refined, job.house = True, job.map_house
     job.said[:] = said  # the same list: the warnings from here on are added to it
     return result
 

@@ -20,6 +20,7 @@ __all__ = [
     "interrupted_message",
     "keeps_checkpoint",
     "no_checkpoint_flags",
+    "one_fit_for_sweeps",
     "resumable_methods",
     "resume_command",
     "without_resume",
@@ -40,14 +41,20 @@ def resumable_methods() -> list[str]:
     ]  # a method may implement the protocol alone
 
 
+def one_fit_for_sweeps(args: argparse.Namespace) -> bool:
+    """Whether this is one fit (``--chains`` 1 or left out) for a number of ``--sweeps``, not
+    an ``--update``: what a fit of a method other than Gibbs must be for Ctrl-C to keep it (its
+    iterations, :func:`keeps_checkpoint`; or its finished result,
+    :func:`spcopyro.cli.fit_finished.keeps_finished_fit`)."""
+    return args.sweeps != "auto" and args.update is None and args.chains in (None, 1)
+
+
 def keeps_checkpoint(args: argparse.Namespace) -> bool:
     """Whether Ctrl-C keeps a checkpoint of this fit: Gibbs chains run for a number of
     ``--sweeps``, or one fit of a variational method that resumes; never an ``--update``."""
-    if args.sweeps == "auto" or args.update is not None:
-        return False
-    return args.method == "gibbs" or (
-        args.method in resumable_methods() and args.chains in (None, 1)
-    )
+    if args.method == "gibbs":
+        return args.sweeps != "auto" and args.update is None
+    return args.method in resumable_methods() and one_fit_for_sweeps(args)
 
 
 def no_checkpoint_flags(args: argparse.Namespace) -> str:
@@ -103,7 +110,10 @@ def interrupted_message(
                 why = "--update"
             elif keeps_checkpoint(args) and finished:  # the finished fit is kept, but where
                 # its file could not be written (spcopyro.cli.fit_finished)
-                why = f"its iterations had all run; the finished fit could not be saved in {out}"
+                from spcopyro._util.outputs import checkpoint_path
+
+                why = ("its iterations had all run; the finished fit could not be saved in "
+                       f"{checkpoint_path(out)}")  # fmt: skip
             elif keeps_checkpoint(args):
                 why = "no sweep was done" if args.method == "gibbs" else "no iteration was done"
             elif args.method in resumable_methods():
