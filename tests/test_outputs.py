@@ -476,3 +476,37 @@ def test_an_empty_out_the_shell_stands_in_is_refused(tmp_path, monkeypatch):
         stage_marked_folder(".", False, option="--nav2", marker="m", writer="export")
     monkeypatch.chdir(tmp_path)
     assert check_output(here) == here  # from outside it: written as before
+
+
+def test_a_killed_exports_staging_folder_is_swept_by_the_next_export(tmp_path):
+    """``kill -9`` of ``export --nav2 DIR`` (or ``navigate --out DIR``) leaves its staging
+    folder beside DIR; stage_marked_folder named it ``DIR.partial-XXXX``, without the PID that
+    remove_stale_stagings reads, so no later export removed it. Now it is
+    ``DIR.partial-PID-XXXX`` and the next export into DIR sweeps a dead process's (a live one's,
+    and one with no PID, are left)."""
+    from tests.test_nav2 import top_and_bottom
+
+    fit = top_and_bottom().save(tmp_path / "fit")
+    out = tmp_path / "nav2"
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()  # a PID no process has now
+    stale = tmp_path / f"nav2.partial-{dead.pid}-0a1b2c3d"
+    stale.mkdir()
+    (stale / "map.pgm").write_bytes(b"P5 half written")
+    live = tmp_path / f"nav2.partial-{os.getpid()}-0a1b2c3d"  # this process's: alive
+    live.mkdir()
+    other = tmp_path / "nav2.partial-0a1b2c3d"  # no PID: not ours to judge
+    other.mkdir()
+
+    staged = stage_marked_folder(out, False, option="--nav2", marker="nav2_export.json",
+                                 writer="export")  # fmt: skip
+    assert staged.path.name.startswith(f"nav2.partial-{os.getpid()}-")  # a kill leaves a PID
+    staged.discard()
+    assert not stale.exists() and live.exists() and other.exists()
+
+    stale.mkdir()  # the command line's export sweeps it too
+    assert main(["export", str(fit), "--nav2", str(out), "--word", "kitchen"]) == 0
+    assert not stale.exists() and (out / "nav2_export.json").is_file()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        ["fit", "nav2", live.name, other.name]
+    )

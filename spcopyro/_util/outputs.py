@@ -525,13 +525,11 @@ def stage_marked_folder(
                 f"--overwrite replaces only a folder that {writer} wrote"
             )
     seen = (path.lstat().st_dev, path.lstat().st_ino) if path.exists() else None
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        staging = _new_folder(path.parent, f"{path.name}{STAGING_INFIX}")
+    try:  # OUT.partial-PID-*: a killed export's is swept by the next (remove_stale_stagings)
+        staging = staging_folder(path)
     except OSError as error:
         raise OutputError(f"{option} {out}: cannot write in {path.parent} ({error})") from None
-    _forget_completed(path)
-    return StagedOutput(out=path, path=Path(staging), overwrite=overwrite, seen=seen)
+    return StagedOutput(out=path, path=staging, overwrite=overwrite, seen=seen)
 
 
 def _new_name(parent: Path, prefix: str, make: Callable[[Path], T]) -> tuple[Path, T]:
