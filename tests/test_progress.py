@@ -71,3 +71,20 @@ def test_noted_bar_makes_the_bar_with_its_note_and_drops_it_after_the_compiling_
     plain, update = progress.noted_bar(3, "CAVI", None, "it", False)
     assert plain.desc == "CAVI" and update == plain.update
     plain.close()
+
+
+def test_a_bar_gone_once_done_leaves_no_line_of_spaces_in_a_log(capsys):
+    """`spcopyro fit 2> log.txt`: the point estimate's bar (tqdm's leave=False) cleared its line
+    when done, which in a file is a carriage return, a line of spaces and a carriage return. Off
+    a terminal it now keeps its last state on a line of its own."""
+    import numpy as np
+
+    from spcopyro.results.point_estimate import point_estimate
+
+    samples = np.random.default_rng(0).integers(0, 3, size=(4, 30))  # [S, N]
+    point_estimate(samples, progress=True)
+    written = capsys.readouterr().err  # not a terminal, as a log file is not
+    assert "point estimate (variation of information)" in written
+    pieces = re.split(r"[\r\n]", written)
+    assert not [p for p in pieces if p and not p.strip()], repr(written)
+    assert written.endswith("\n")  # the next line of the log starts on a line of its own

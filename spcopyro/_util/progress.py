@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import sys
 import time
 from collections.abc import Callable, Iterator
 from contextvars import ContextVar
@@ -22,6 +23,18 @@ def progress_enabled(progress: bool | None) -> bool:
     if progress is None:
         return not os.environ.get("CI")
     return progress
+
+
+def clears_when_done() -> bool:
+    """tqdm's ``leave=False`` where it is a terminal's: a bar that is gone once done clears its
+    line on a terminal (stderr, tqdm's stream), and leaves its last state on its own line
+    elsewhere. Cleared in a log file (``spcopyro fit 2> log.txt``), it wrote a carriage return,
+    a line of spaces and a carriage return: a blank line in the log. Pass ``leave=not
+    clears_when_done()``."""
+    try:
+        return sys.stderr.isatty()
+    except (AttributeError, ValueError):  # no stream, or a closed one
+        return False
 
 
 _STAGE: ContextVar[str | None] = ContextVar("progress_stage", default=None)

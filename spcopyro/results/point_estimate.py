@@ -57,7 +57,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from spcopyro._util.progress import progress_enabled, setup_bar
+from spcopyro._util.progress import clears_when_done, progress_enabled, setup_bar
 from spcopyro._util.timings import timed
 
 # The names live without numpy in estimate_names (the parser reads them there); these re-exports
@@ -341,7 +341,7 @@ def point_estimate(
         desc=f"point estimate ({LOSS_LABELS[loss]})",
         unit="step",
         disable=not progress_enabled(progress),
-        leave=False,
+        leave=not clears_when_done(),  # a log file gets no line of spaces
     ) as bar:
         prepared = _prepare(samples, loss, bar)
         losses = np.empty(len(samples))  # [S]

@@ -65,7 +65,7 @@ from typing import Any
 import numpy as np
 
 from spcopyro._util.outputs import staging_folder
-from spcopyro._util.progress import progress_enabled
+from spcopyro._util.progress import clears_when_done, progress_enabled
 from spcopyro.data.text import tokenize
 from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.maps.map_server import load_map, stage_map
@@ -337,7 +337,8 @@ def _import_one(
         from tqdm.auto import tqdm  # here: `spcopyro --help` imports this module, not tqdm
 
         bar = tqdm(total=kept.size, desc=f"images of trial {trial}", unit="img",
-                   disable=not progress_enabled(progress), leave=False)  # fmt: skip
+                   disable=not progress_enabled(progress),
+                   leave=not clears_when_done())  # a log file: no line of spaces  # fmt: skip
         for index, msg in iter_images(reader, images.topic, set(kept.tolist())):
             bar.update(1)
             try:
