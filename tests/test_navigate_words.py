@@ -164,7 +164,7 @@ def test_navigate_names_its_probabilities_as_where_does(tmp_path, capsys):
     guessed = dataclasses.replace(result, emissions=tuple(
         EmissionTable("words", WORDS, w / w.sum(1, keepdims=True)) if e.name == "words" else e
         for e in result.emissions))  # fmt: skip
-    (odds,) = [x for x in guessed.where("kitchen").warnings if "close to a guess" in x]
+    (odds,) = [x for x in guessed.where("kitchen").warnings if "not clearly more" in x]
     assert "(p(concept | word) = " in odds and not _bare_p(odds), odds
     notes = navigate(guessed, "kitchen", START_A).goal.choice.notes
     assert any("(p(concept | word) = " in n for n in notes) and not _bare_p("\n".join(notes))

@@ -295,9 +295,9 @@ def answer_warnings(
     best, second = float(posterior[concept]), float(posterior[order[1]])
     if second > 0 and close_to_guess(best / second):
         warnings.append(
-            f"concept {concept} is barely more probable than concept {int(order[1])} "
+            f"concept {concept} is not clearly more probable than concept {int(order[1])} "
             f"(p(concept | word) = {best:.3f} against {second:.3f}, odds {best / second:.2f} < "
-            f"{ODDS_WARNING:g}): the answer is close to a guess between them"
+            f"{ODDS_WARNING:g}): treat the answer with care"
         )
     evidence = bayes_factor(best, float(prior[concept]))
     if evidence < EVIDENCE_WARNING:

@@ -344,10 +344,10 @@ def _with_where_warnings(
     answer = result.where(word, prior)
     if strict and answer.close_to_guess:
         raise AmbiguousGoalError(
-            f"{word!r} is ambiguous: concept {answer.concept} is barely more probable than "
+            f"{word!r} is ambiguous: concept {answer.concept} is not clearly more probable than "
             f"concept {answer.runner_up} (p(concept | word) = {answer.probability:.3f} against "
             f"{answer.runner_up_probability:.3f}, odds {answer.odds:.2f} < {ODDS_WARNING:g}): "
-            "the answer is close to a guess between them (--strict)"
+            "--strict drives to no such answer"
         )
     notes = tuple(f"where {word!r}: {w}" for w in answer.warnings)
     return dataclasses.replace(choice, notes=choice.notes + notes, where_odds=answer.odds,
