@@ -88,6 +88,58 @@ def test_a_few_utterances_keep_one_circle_each():
     assert "(20 utterances; fill: the concept there" in entry
 
 
+def test_utterances_heard_at_one_spot_are_spread_apart():
+    """room1ldk5's semantic map said "66 utterances" and showed about 30 circles: those heard
+    at one spot were drawn on top of each other. Now spread apart as on house.png
+    (spread_markers): 3 utterances at each of 5 spots are 15 circles, no two closer than 0.8 of
+    a circle's width, each near its spot, and the legend still counts 15."""
+    xy = np.repeat(SPOTS[:5], 3, axis=0)  # [15, 2]
+    markers, _, entry = _figure(15, 0.0, xy)
+    at = markers.get_offsets()  # [15, 2] world points
+    assert len(at) == 15
+    ax = markers.axes
+    pixels = ax.transData.transform(at)  # [15, 2]
+    apart = np.linalg.norm(pixels[:, None] - pixels[None], axis=-1)[np.triu_indices(15, 1)]
+    width = np.sqrt(MARKER_AREA) * ax.figure.dpi / 72.0  # pixels: one circle's diameter
+    assert apart.min() >= 0.8 * width * (1 - 1e-6), apart.min() / width
+    near = np.linalg.norm(at[:, None] - SPOTS[None, :5], axis=-1).argmin(1)  # [15]
+    np.testing.assert_array_equal(np.bincount(near), [3] * 5)
+    assert "(15 utterances, those at one spot spread apart; fill: the concept there" in entry
+
+
+def test_each_strip_spreads_the_utterances_near_it_only(monkeypatch):
+    """A long map's strip spread all its utterances (7 strips of a 100 m map: 1300 words 7
+    times, 1.2 s); now those within reach of its view, and every one in view is spread."""
+    from hand_results import one_word_per_concept
+
+    import spcopyro.figures.map_pieces as pieces
+    from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
+
+    occupancy = np.full((44, 2004), OCCUPIED, dtype=np.int8)
+    occupancy[2:-2, 2:-2] = FREE  # 100 m x 2 m inside, 0.05 m cells: 7 strips
+    grid = OccupancyGrid(occupancy, 0.05, (0.0, 0.0, 0.0))
+    labels = np.arange(grid.num_free) * 4 // grid.num_free  # [N] 4 concepts along the map
+    result = one_word_per_concept(grid, labels, ("a", "b", "c", "d"))
+    obs = make_house(seed=0).observations
+    xy = np.column_stack([np.repeat(np.arange(5.0, 100.0, 10.0), 2), np.ones(20)])  # [20, 2]
+    pick = np.arange(20) % len(obs.utterances)
+    words = dataclasses.replace(obs, utterances=[obs.utterances[k] for k in pick], word_xy=xy,
+                                word_trial=np.asarray(obs.word_trial)[pick])  # fmt: skip
+    spread = []
+    real = pieces.spread_markers
+    monkeypatch.setattr(pieces, "spread_markers", lambda ax, at, size: spread.append(at) or
+                        real(ax, at, size))  # fmt: skip
+    fig = semantic_map_figure(result, observations=words)
+    assert len(fig.axes) == 7 and len(spread) == 7
+    assert all(0 < len(at) < 20 for at in spread), [len(at) for at in spread]
+    for ax in fig.axes:  # two words at each spot: side by side in every strip that shows it
+        (markers,) = [c for c in ax.collections if isinstance(c, PathCollection)]
+        x0, x1 = ax.get_xlim()
+        shown = markers.get_offsets()[(markers.get_offsets()[:, 0] > x0 + 1) &
+                                      (markers.get_offsets()[:, 0] < x1 - 1)]  # fmt: skip
+        assert len(shown) and len(np.unique(np.round(shown, 6), axis=0)) == len(shown)
+
+
 def _house_with(num_utterances: int):
     house = make_house(seed=0)
     obs = house.observations

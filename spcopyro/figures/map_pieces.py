@@ -386,10 +386,12 @@ def draw_utterances(
     where it was left out, as the legend says) with a black rim, white on a wall (room1dk5's
     coarse walls cover two words heard by a door: their black rims vanished and they read as
     specks of paint); many utterances as circles of area by count
-    (:func:`utterance_markers`), the largest drawn first. One heard off the map shown is a
-    triangle at its edge pointing its way (:mod:`~spcopyro.figures.off_map`; the axes keep the
-    map's limits). Returns the legend's handles: the circles', and the triangles' where there
-    are any (none when the observations hold no utterance)."""
+    (:func:`utterance_markers`), the largest drawn first; one circle each, those heard at one
+    spot are spread apart (:func:`spread_markers`, as on house.png): each shows. One heard off
+    the map shown is a triangle at its edge pointing its way
+    (:mod:`~spcopyro.figures.off_map`; the axes keep the map's limits). Returns the legend's
+    handles: the circles', and the triangles' where there are any (none when the observations
+    hold no utterance)."""
     heard = np.asarray(observations.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
     if len(heard) == 0:
         return []
@@ -398,11 +400,17 @@ def draw_utterances(
     fill = _concept_rgb(every, colours)  # [U, 3]
     draw_at_edge(axes, heard[away], fill[away])  # fill: [U, 3], as the circles'
     xy, concepts = heard[~away], every[~away]  # [U', 2], [U'] on the map
-    counted = False
+    counted = moved = False
     for ax in axes:
         at, concept, areas, counts = utterance_markers(ax, result.grid, xy, concepts)
         order = np.argsort(-areas, kind="stable")  # a small circle over a large one
         at, concept, areas = at[order], concept[order], areas[order]
+        if counts is None:  # one circle each: those at one spot side by side, as on house.png
+            spread = at.copy()  # [M, 2]; only those in reach of ax's view: a long map's strip
+            near = _near_view(ax, at)  # spread all 1300 words of 7 strips 7 times (1.2 s)
+            spread[near] = spread_markers(ax, at[near], MARKER_AREA)
+            moved = moved or not np.allclose(spread, at)
+            at = spread
         rgb = _concept_rgb(concept, colours)  # [M, 3]
         rims = rim_colours(result.grid, at)
         ax.scatter(*at.T, s=areas, c=rgb, edgecolors=rims, linewidths=0.7 if counts is None
@@ -411,6 +419,7 @@ def draw_utterances(
     left_out = int((every < 0).sum())  # the fit printed them as "unplaced"
     grey = f", mid grey: {left_out} left out, off the free space" if left_out else ""
     many = ", circle area by count" if counted else ""
+    many += ", those at one spot spread apart" if moved else ""
     handles = [Line2D(
         [], [], marker="o", ls="", markerfacecolor="0.8", markeredgecolor="black",
         label=f"where a word was heard ({len(heard)} utterances{many}; fill: the concept "
@@ -420,6 +429,17 @@ def draw_utterances(
         handles.append(edge_handle(f"{plural(int(away.sum()), 'utterance')} heard off the map "
                                    "(at its edge; fill as above)"))  # fmt: skip
     return handles
+
+
+def _near_view(ax: Axes, xy: np.ndarray) -> np.ndarray:
+    """``[M]`` bool: whether each world point of ``xy`` ``[M, 2]`` is within 7 circle widths
+    (:data:`MARKER_AREA`) of ``ax``'s view, as drawn: :func:`spread_markers` moves a circle by
+    at most 5 rings of 0.8 widths, so one farther off is never drawn in view."""
+    ax.apply_aspect()
+    pixels = ax.transData.transform(xy)  # [M, 2]
+    reach = 7 * np.sqrt(MARKER_AREA) * ax.figure.dpi / 72.0  # pixels
+    x0, y0, x1, y1 = ax.bbox.extents  # the axes in pixels
+    return ((pixels >= [x0 - reach, y0 - reach]) & (pixels <= [x1 + reach, y1 + reach])).all(1)
 
 
 def _concept_rgb(concepts: np.ndarray, colours: np.ndarray) -> np.ndarray:
