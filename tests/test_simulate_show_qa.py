@@ -3,6 +3,7 @@ found by running the commands on small and hand-drawn houses)."""
 
 from __future__ import annotations
 
+import shlex
 from pathlib import Path
 
 import pytest
@@ -155,3 +156,44 @@ def test_simulate_out_that_is_or_lies_under_a_file_is_refused_first(tmp_path, ca
     assert main(["simulate", "--out", ""]) == 2
     assert "--out '': an empty folder name" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]
+
+
+def _dataset(root: Path) -> Path:
+    """A dataset root as find_dataset_root knows one (a map/ folder) holding room1ldk5/."""
+    (root / "map").mkdir(parents=True)
+    (root / "room1ldk5").mkdir()
+    return root.resolve()
+
+
+def test_a_missing_house_named_as_a_public_one_points_to_it(tmp_path, monkeypatch, capsys):
+    """``fit room1ldk5`` (a house's name, not its folder) said only "room folder room1ldk5 does
+    not exist": fit and show now ask whether the dataset's folder of that name was meant."""
+    dataset = _dataset(tmp_path / "dataset")
+    monkeypatch.setenv("SPCOPYRO_DATA", str(dataset))
+    monkeypatch.chdir(tmp_path)
+    for argv in (["show", "room1ldk5", "--out", "x.png"],
+                 ["fit", "room1ldk5", "--out", "out/x", "--sweeps", "2"]):  # fmt: skip
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert f"room folder room1ldk5 does not exist; did you mean {dataset / 'room1ldk5'}?" in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_missing_synthetic_house_says_the_simulate_that_writes_it(tmp_path, monkeypatch, capsys):
+    """README's ``show out/data/synthetic`` before its ``simulate --out out/data`` said only that
+    the folder does not exist: it now gives that command, which writes it (run here)."""
+    monkeypatch.setenv("SPCOPYRO_DATA", str(_dataset(tmp_path / "dataset")))
+    monkeypatch.chdir(tmp_path)
+    show = ["show", "out/data/synthetic", "--out", "out/house.png"]
+    assert main(show) == 2
+    err = capsys.readouterr().err
+    assert "room folder out/data/synthetic does not exist; " in err
+    command = err.split("`")[1]
+    assert command == "spcopyro simulate --out out/data"
+    assert main(shlex.split(command)[1:]) == 0
+    assert main(show) == 0
+    # another missing folder: what a house folder is, and where the dataset is
+    assert main(["show", "out/data/kitchen", "--out", "x.png"]) == 2
+    err = capsys.readouterr().err
+    assert f"one of the public dataset's (under {tmp_path / 'dataset'})" in err
+    assert "`spcopyro simulate --out DIR` writes (DIR/synthetic)" in err

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import re
+import shlex
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -17,7 +18,13 @@ from typing import TYPE_CHECKING, NoReturn
 from spcopyro._util.arguments import integer_at_least as _integer_at_least
 from spcopyro._util.messages import plural
 from spcopyro._util.threads import AUTO
-from spcopyro.data import House, cell_counts, load_house, prepared_cell_counts
+from spcopyro.data import (
+    House,
+    cell_counts,
+    find_dataset_root,
+    load_house,
+    prepared_cell_counts,
+)
 
 if TYPE_CHECKING:
     from spcopyro.config import DataPreparation
@@ -32,7 +39,33 @@ def _load(data: str | None, seed: int = 0) -> House:
         from spcopyro.synthetic import HouseSpec, make_house
 
         return make_house(seed=seed, spec=HouseSpec.embedded())
-    return load_house(Path(data))
+    room = Path(data)
+    try:
+        return load_house(room)
+    except FileNotFoundError as error:
+        if room.exists() or room.is_symlink():  # a file in it is missing: load_house named it
+            raise
+        raise FileNotFoundError(f"{error}; {_missing_house_hint(room)}") from None
+
+
+def _missing_house_hint(room: Path) -> str:
+    """What ``fit`` and ``show`` say of a house folder ``room`` that does not exist: the public
+    house of its name (``fit room1ldk5`` for ``fit DATASET/room1ldk5``), else how a house folder
+    is made (the README's ``spcopyro simulate --out out/data`` writes ``out/data/synthetic``)."""
+    try:
+        root, unfound = find_dataset_root(), ""
+    except FileNotFoundError as error:  # $SPCOPYRO_DATA names no dataset: say so
+        root, unfound = None, f" ({error})"
+    if root is not None and room.name and (root / room.name).is_dir():
+        return f"did you mean {root / room.name}?"
+    parent = room.parent
+    if room.name == "synthetic":  # the name simulate writes its house under (no --name)
+        return f"`{shlex.join(['spcopyro', 'simulate', '--out', str(parent)])}` writes it"
+    where = f" (under {root})" if root is not None else unfound
+    return (
+        f"give a house folder: one of the public dataset's{where}, or one `spcopyro simulate "
+        "--out DIR` writes (DIR/synthetic)"
+    )
 
 
 def figure_file(out: str) -> Path:
