@@ -197,3 +197,22 @@ def test_a_missing_synthetic_house_says_the_simulate_that_writes_it(tmp_path, mo
     err = capsys.readouterr().err
     assert f"one of the public dataset's (under {tmp_path / 'dataset'})" in err
     assert "`spcopyro simulate --out DIR` writes (DIR/synthetic)" in err
+
+
+def test_show_on_a_fit_folder_gives_a_runnable_graph_command(tmp_path, capsys):
+    """``show OUT --out x.png`` said "to draw its place graph pass --graph", and ``show OUT
+    --graph`` was then refused for its missing --out: the hint is now a whole command."""
+    from spcopyro._util.outputs import RESULT_MARKERS
+    from spcopyro.cli.main import build_parser
+
+    fit = tmp_path / "my fit"  # a space: the command is quoted for a shell
+    fit.mkdir()
+    for name in RESULT_MARKERS:
+        (fit / name).write_text("{}")
+    assert main(["show", str(fit), "--out", str(tmp_path / "x.png")]) == 2
+    err = capsys.readouterr().err.strip()
+    command = err.split("to draw its place graph: ")[1]
+    argv = shlex.split(command)
+    assert argv[:2] == ["spcopyro", "show"]
+    args = build_parser().parse_args(argv[1:])  # argparse's usage error would exit here
+    assert args.graph and args.data == str(fit) and args.out == str(tmp_path / "x.png")
