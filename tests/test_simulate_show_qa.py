@@ -159,8 +159,10 @@ def test_simulate_out_that_is_or_lies_under_a_file_is_refused_first(tmp_path, ca
 
 
 def _dataset(root: Path) -> Path:
-    """A dataset root as find_dataset_root knows one (a map/ folder) holding room1ldk5/."""
+    """A dataset root as find_dataset_root knows one (a map/ folder) holding room1ldk5/ (with
+    its map/room1ldk5.yaml, what makes it a house for list_houses)."""
     (root / "map").mkdir(parents=True)
+    (root / "map" / "room1ldk5.yaml").write_text("image: room1ldk5.pgm\n")
     (root / "room1ldk5").mkdir()
     return root.resolve()
 
@@ -177,6 +179,22 @@ def test_a_missing_house_named_as_a_public_one_points_to_it(tmp_path, monkeypatc
         err = capsys.readouterr().err
         assert f"room folder room1ldk5 does not exist; did you mean {dataset / 'room1ldk5'}?" in err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_missing_folder_named_map_is_not_pointed_to_the_datasets_maps(
+    tmp_path, monkeypatch, capsys
+):
+    """``fit map`` asked "did you mean DATASET/map?", the dataset's folder of maps, no house:
+    only a house of the dataset (:func:`spcopyro.data.list_houses`) is suggested."""
+    dataset = _dataset(tmp_path / "dataset")
+    monkeypatch.setenv("SPCOPYRO_DATA", str(dataset))
+    monkeypatch.chdir(tmp_path)
+    assert main(["fit", "map", "--out", "x", "--sweeps", "2"]) == 2
+    err = capsys.readouterr().err
+    assert "room folder map does not exist; " in err
+    assert "did you mean" not in err
+    assert f"one of the public dataset's (under {dataset})" in err
+    assert not (tmp_path / "x").exists()
 
 
 def test_a_missing_synthetic_house_says_the_simulate_that_writes_it(tmp_path, monkeypatch, capsys):
@@ -215,4 +233,29 @@ def test_show_on_a_fit_folder_gives_a_runnable_graph_command(tmp_path, capsys):
     argv = shlex.split(command)
     assert argv[:2] == ["spcopyro", "show"]
     args = build_parser().parse_args(argv[1:])  # argparse's usage error would exit here
+    assert args.graph and args.data == str(fit) and args.out == str(tmp_path / "x.png")
+
+
+def test_show_on_a_fit_folder_with_warnings_still_ends_with_its_command(tmp_path, capsys):
+    """A fit whose config.json lists warnings: their note came after the hinted command
+    ("... --out x.png; its fit gave 2 warnings (...)"), so the line could not be pasted. The
+    note now comes first, and the command ends the message."""
+    import json
+
+    from spcopyro._util.outputs import RESULT_MARKERS
+    from spcopyro.cli.main import build_parser
+
+    fit = tmp_path / "fit"
+    fit.mkdir()
+    for name in RESULT_MARKERS:
+        (fit / name).write_text("{}")
+    warnings = ["concept 3 is empty", "the chain did not mix"]
+    (fit / "config.json").write_text(json.dumps({"warnings": warnings}))
+    assert main(["show", str(fit), "--out", str(tmp_path / "x.png")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "its fit gave 2 warnings" in err and warnings[0] in err
+    command = err.split("to draw its place graph: ")[1]
+    argv = shlex.split(command)
+    assert argv[:2] == ["spcopyro", "show"]
+    args = build_parser().parse_args(argv[1:])
     assert args.graph and args.data == str(fit) and args.out == str(tmp_path / "x.png")

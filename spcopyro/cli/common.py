@@ -22,6 +22,7 @@ from spcopyro.data import (
     House,
     cell_counts,
     find_dataset_root,
+    list_houses,
     load_house,
     prepared_cell_counts,
 )
@@ -56,7 +57,7 @@ def _missing_house_hint(room: Path) -> str:
         root, unfound = find_dataset_root(), ""
     except FileNotFoundError as error:  # $SPCOPYRO_DATA names no dataset: say so
         root, unfound = None, f" ({error})"
-    if root is not None and room.name and (root / room.name).is_dir():
+    if root is not None and room.name in list_houses(root):  # a house, not its map/ folder
         return f"did you mean {root / room.name}?"
     parent = room.parent
     if room.name == "synthetic":  # the name simulate writes its house under (no --name)

@@ -242,10 +242,9 @@ def _show(args: argparse.Namespace) -> int:
 
         raise ValueError(
             f"{args.data} is the output folder of `spcopyro fit`, not a house folder: "
-            f"{figures}; to draw its place graph: "
+            f"{figures}{fit_warnings_note(Path(args.data))}; to draw its place graph: "
             f"{shlex.join(['spcopyro', 'show', args.data, '--graph', '--out', args.out])}"
-            f"{fit_warnings_note(Path(args.data))}"
-        )  # a runnable command: `show OUT --graph` alone was refused for its missing --out
+        )  # a runnable command, last: `show OUT --graph` alone was refused for its missing --out
     house = _load(args.data)
     print(_summary(house))
     print(f"wrote {plot_house(house, args.out)}")
