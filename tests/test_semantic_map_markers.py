@@ -107,12 +107,19 @@ def test_utterances_heard_at_one_spot_are_spread_apart():
     assert "(15 utterances, those at one spot spread apart; fill: the concept there" in entry
 
 
-def test_each_strip_spreads_the_utterances_near_it_only(monkeypatch):
-    """A long map's strip spread all its utterances (7 strips of a 100 m map: 1300 words 7
-    times, 1.2 s); now those within reach of its view, and every one in view is spread."""
+def test_a_word_shown_by_two_strips_is_at_one_place_in_both():
+    """A long map's strips each spread the words in reach of their own view (7 strips of a 100 m
+    map), so a word where two strips overlap could be drawn at one place in one strip and
+    another in the next. Now spread once, on one scale, as house.png does: every strip that
+    shows a word draws it at one place, and the circles in each strip are apart.
+
+    Two rows of words 0.54 circle widths apart, from 2.4 m (22 widths) before strip 2's view
+    into the overlap of strips 1 and 2, placed in order: every other one moves up a ring, so
+    spreading from another first word (strip 2 spreading only those in reach) flips the
+    pattern of one row (they start a word apart) in the overlap. Two words at each of 10 spots
+    along the map besides."""
     from hand_results import one_word_per_concept
 
-    import spcopyro.figures.map_pieces as pieces
     from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
 
     occupancy = np.full((44, 2004), OCCUPIED, dtype=np.int8)
@@ -121,23 +128,36 @@ def test_each_strip_spreads_the_utterances_near_it_only(monkeypatch):
     labels = np.arange(grid.num_free) * 4 // grid.num_free  # [N] 4 concepts along the map
     result = one_word_per_concept(grid, labels, ("a", "b", "c", "d"))
     obs = make_house(seed=0).observations
-    xy = np.column_stack([np.repeat(np.arange(5.0, 100.0, 10.0), 2), np.ones(20)])  # [20, 2]
-    pick = np.arange(20) % len(obs.utterances)
+    rows = [np.stack(np.broadcast_arrays(np.arange(x, 14.5, 0.06), y), 1)  # [~50, 2] each
+            for x, y in ((11.5, 0.6), (11.56, 1.5))]  # fmt: skip
+    pairs = np.column_stack([np.repeat(np.arange(5.0, 100.0, 10.0), 2), np.ones(20)])  # [20, 2]
+    xy = np.concatenate([*rows, pairs])  # [U, 2]
+    pick = np.arange(len(xy)) % len(obs.utterances)
     words = dataclasses.replace(obs, utterances=[obs.utterances[k] for k in pick], word_xy=xy,
                                 word_trial=np.asarray(obs.word_trial)[pick])  # fmt: skip
-    spread = []
-    real = pieces.spread_markers
-    monkeypatch.setattr(pieces, "spread_markers", lambda ax, at, size: spread.append(at) or
-                        real(ax, at, size))  # fmt: skip
     fig = semantic_map_figure(result, observations=words)
-    assert len(fig.axes) == 7 and len(spread) == 7
-    assert all(0 < len(at) < 20 for at in spread), [len(at) for at in spread]
-    for ax in fig.axes:  # two words at each spot: side by side in every strip that shows it
+    assert len(fig.axes) == 7
+    width = np.sqrt(MARKER_AREA) * fig.dpi / 72.0  # pixels: one circle's diameter
+    views, drawn = [], []
+    for ax in fig.axes:
         (markers,) = [c for c in ax.collections if isinstance(c, PathCollection)]
-        x0, x1 = ax.get_xlim()
-        shown = markers.get_offsets()[(markers.get_offsets()[:, 0] > x0 + 1) &
-                                      (markers.get_offsets()[:, 0] < x1 - 1)]  # fmt: skip
-        assert len(shown) and len(np.unique(np.round(shown, 6), axis=0)) == len(shown)
+        assert markers.get_offsets().shape == xy.shape  # one circle each, in xy's order
+        drawn.append(np.asarray(markers.get_offsets()))  # [U, 2]
+        views.append(sorted(ax.get_xlim()))
+        scale = np.diff(ax.transData.transform([[0.0, 0.0], [0.06, 0.0]]), axis=0)[0, 0] / width
+        assert 0.5 <= scale < 0.8, scale  # the rows' spacing in circle widths, as drawn
+        shown = drawn[-1][(xy[:, 0] > views[-1][0]) & (xy[:, 0] < views[-1][1])]  # [S, 2]
+        pixels = ax.transData.transform(shown)  # [S, 2]
+        pairs_of = np.triu_indices(len(shown), 1)
+        apart = np.linalg.norm(pixels[:, None] - pixels[None], axis=-1)[pairs_of]
+        assert len(shown) and apart.min() >= 0.8 * width * (1 - 1e-6), apart.min() / width
+    twice = 0
+    for k, (x, _) in enumerate(xy):  # each word at one place in every strip that shows it
+        at = [strip[k] for strip, (x0, x1) in zip(drawn, views, strict=True) if x0 < x < x1]
+        twice += len(at) > 1
+        np.testing.assert_allclose(at, np.broadcast_to(at[0], np.shape(at)), atol=1e-9,
+                                   err_msg=f"word {k} heard at {xy[k]}")  # fmt: skip
+    assert twice >= 20  # the rows' words in the overlap of strips 1 and 2
 
 
 def _house_with(num_utterances: int):

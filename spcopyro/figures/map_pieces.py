@@ -387,11 +387,12 @@ def draw_utterances(
     coarse walls cover two words heard by a door: their black rims vanished and they read as
     specks of paint); many utterances as circles of area by count
     (:func:`utterance_markers`), the largest drawn first; one circle each, those heard at one
-    spot are spread apart (:func:`spread_markers`, as on house.png): each shows. One heard off
-    the map shown is a triangle at its edge pointing its way
-    (:mod:`~spcopyro.figures.off_map`; the axes keep the map's limits). Returns the legend's
-    handles: the circles', and the triangles' where there are any (none when the observations
-    hold no utterance)."""
+    spot are spread apart (:func:`spread_markers`, as on house.png): each shows. A long map's
+    strips are drawn at one scale and spread once, on the first: a word shown by two strips is
+    at one place in both. One heard off the map shown is a triangle at its edge pointing its
+    way (:mod:`~spcopyro.figures.off_map`; the axes keep the map's limits). Returns the
+    legend's handles: the circles', and the triangles' where there are any (none when the
+    observations hold no utterance)."""
     heard = np.asarray(observations.word_xy, dtype=np.float64).reshape(-1, 2)  # [U, 2]
     if len(heard) == 0:
         return []
@@ -400,22 +401,21 @@ def draw_utterances(
     fill = _concept_rgb(every, colours)  # [U, 3]
     draw_at_edge(axes, heard[away], fill[away])  # fill: [U, 3], as the circles'
     xy, concepts = heard[~away], every[~away]  # [U', 2], [U'] on the map
-    counted = moved = False
-    for ax in axes:
-        at, concept, areas, counts = utterance_markers(ax, result.grid, xy, concepts)
+    marks = [utterance_markers(ax, result.grid, xy, concepts) for ax in axes]
+    one_each = [counts is None for *_, counts in marks]  # else circles of area by count
+    # one circle each: those at one spot side by side, spread once for every strip (drawn at
+    # one scale, strip_axes) as on house.png, so a word in two strips is at one place in both
+    spread = spread_markers(axes[0], xy, MARKER_AREA) if any(one_each) else xy  # [U', 2]
+    moved = any(one_each) and not np.allclose(spread, xy)
+    counted = not all(one_each)
+    for ax, (at, concept, areas, counts) in zip(axes, marks, strict=True):
+        at = spread if counts is None else at  # [M, 2]: one each, M = U' in xy's order
         order = np.argsort(-areas, kind="stable")  # a small circle over a large one
         at, concept, areas = at[order], concept[order], areas[order]
-        if counts is None:  # one circle each: those at one spot side by side, as on house.png
-            spread = at.copy()  # [M, 2]; only those in reach of ax's view: a long map's strip
-            near = _near_view(ax, at)  # spread all 1300 words of 7 strips 7 times (1.2 s)
-            spread[near] = spread_markers(ax, at[near], MARKER_AREA)
-            moved = moved or not np.allclose(spread, at)
-            at = spread
         rgb = _concept_rgb(concept, colours)  # [M, 3]
         rims = rim_colours(result.grid, at)
         ax.scatter(*at.T, s=areas, c=rgb, edgecolors=rims, linewidths=0.7 if counts is None
                    else 0.4, zorder=3)  # fmt: skip
-        counted = counted or counts is not None
     left_out = int((every < 0).sum())  # the fit printed them as "unplaced"
     grey = f", mid grey: {left_out} left out, off the free space" if left_out else ""
     many = ", circle area by count" if counted else ""
@@ -429,17 +429,6 @@ def draw_utterances(
         handles.append(edge_handle(f"{plural(int(away.sum()), 'utterance')} heard off the map "
                                    "(at its edge; fill as above)"))  # fmt: skip
     return handles
-
-
-def _near_view(ax: Axes, xy: np.ndarray) -> np.ndarray:
-    """``[M]`` bool: whether each world point of ``xy`` ``[M, 2]`` is within 7 circle widths
-    (:data:`MARKER_AREA`) of ``ax``'s view, as drawn: :func:`spread_markers` moves a circle by
-    at most 5 rings of 0.8 widths, so one farther off is never drawn in view."""
-    ax.apply_aspect()
-    pixels = ax.transData.transform(xy)  # [M, 2]
-    reach = 7 * np.sqrt(MARKER_AREA) * ax.figure.dpi / 72.0  # pixels
-    x0, y0, x1, y1 = ax.bbox.extents  # the axes in pixels
-    return ((pixels >= [x0 - reach, y0 - reach]) & (pixels <= [x1 + reach, y1 + reach])).all(1)
 
 
 def _concept_rgb(concepts: np.ndarray, colours: np.ndarray) -> np.ndarray:
