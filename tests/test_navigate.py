@@ -355,8 +355,9 @@ def test_an_answer_where_calls_a_guess_is_warned_of_and_refused_when_strict(
     result, capsys, monkeypatch
 ):
     """'kitchen' nearly as probable under the corridor's concept as under the kitchen's:
-    `where` warns that its answer is close to a guess, and navigate drove there without a word
-    (its own ambiguity is two regions of near-equal p, a laxer rule)."""
+    `where` warns that its answer is not clearly more probable than the runner-up, and navigate
+    drove there without a word (its own ambiguity is two regions of near-equal p, a laxer
+    rule)."""
     import dataclasses
 
     from spcopyro.results.result import EmissionTable
@@ -387,6 +388,15 @@ def test_an_answer_where_calls_a_guess_is_warned_of_and_refused_when_strict(
     assert answer.odds == pytest.approx(answer.probability / answer.runner_up_probability)
     assert answer.odds < 3
     assert not result.where("kitchen").close_to_guess
+    # --strict's refusal spells the odds as where's warning does (where.close_odds), to the byte
+    (said,) = [x for x in answer.warnings if x.endswith(": treat the answer with care")]
+    with pytest.raises(AmbiguousGoalError) as refused:
+        navigate(guessed, "go to the kitchen", START_A, strict=True)
+    sentence = said.removesuffix(": treat the answer with care")
+    assert (
+        str(refused.value)
+        == f"'kitchen' is ambiguous: {sentence}: --strict drives to no such answer"
+    )
     worded = dataclasses.replace(answer, warnings=("reworded",))
     monkeypatch.setattr(type(guessed), "where", lambda self, word, prior="area": worded)
     with pytest.raises(AmbiguousGoalError, match=f"odds {answer.odds:.2f} < 3"):

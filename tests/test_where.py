@@ -1,5 +1,5 @@
-""" "Where is X?": the area prior as the default, the warnings of an answer close to a guess, the
-unknown word's suggestions, and `spcopyro where` printing and drawing them -- on a hand-made
+""" "Where is X?": the area prior as the default, the warnings of an answer to treat with care,
+the unknown word's suggestions, and `spcopyro where` printing and drawing them -- on a hand-made
 result whose answers are worked out by hand."""
 
 from __future__ import annotations
@@ -54,6 +54,24 @@ def test_a_speck_barely_ahead_of_the_runner_up_is_flagged():
     assert "factor of 2.00" in evidence and "(pi)" in evidence
     assert "1 cell (0.01 m^2" in speck and "speck" in speck
     assert "prior='area' (where's --prior area)" in speck  # SpCoResult.where's and the CLI's
+
+
+def test_no_text_for_users_still_calls_the_close_odds_answer_a_guess():
+    """The warning at odds under 3 says "not clearly more probable ...: treat the answer with
+    care" (b879081); navigate's --strict help, the docs, the README, the docstrings and the
+    notebooks' saved outputs said "close to a guess" or "barely more probable" after it."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    files = [root / "README.md", *(root / "docs").glob("*.md")]
+    files += [*(root / "notebooks").glob("*.ipynb"), *(root / "spcopyro").rglob("*.py")]
+    said = [
+        f"{path.relative_to(root)}:{number}"
+        for path in files
+        for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+        if "close to a guess" in line or "barely more probable" in line
+    ]
+    assert said == []
 
 
 def test_each_warning_fires_on_its_own_at_its_bound():

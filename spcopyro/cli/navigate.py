@@ -235,9 +235,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "map")  # fmt: skip
     p.add_argument("--strict", action="store_true",
                    help="an ambiguous word (two separate regions of near-equal probability, "
-                        "or an answer `spcopyro where` calls close to a guess between two "
-                        "concepts) is an error instead of taking the nearer or "
-                        "likelier")  # fmt: skip
+                        "or an answer `spcopyro where` warns is not clearly more probable "
+                        "than the runner-up concept, odds under 3) is an error instead of "
+                        "taking the nearer or likelier")  # fmt: skip
     p.add_argument("--planner", choices=("hierarchical", "grid"), default="hierarchical",
                    help="hierarchical: the route over the place graph first, then the grid path "
                         "kept to the route's places (the shortest grid path, with the reason, "

@@ -10,7 +10,7 @@ methods). An inference method hands it an :class:`~spcopyro.inference.protocol.I
 :meth:`SpCoResult.from_output` adds the map, the item names and the settings.
 
 "Where is X?" (the paper's eq. 19, with the area prior by default) and the warnings of an answer
-close to a guess are in :mod:`spcopyro.results.where`.
+to treat with care are in :mod:`spcopyro.results.where`.
 """
 
 from __future__ import annotations
@@ -364,7 +364,7 @@ class SpCoResult:
 
     def where(self, word: str, prior: str = DEFAULT_WHERE_PRIOR) -> WhereAnswer:
         """The concept argmax_C p(C | word) (eq. 19), its region, the runner-up and the
-        warnings of an answer close to a guess (:func:`answer_warnings`), the other words the
+        warnings of an answer to treat with care (:func:`answer_warnings`), the other words the
         same concept answers (:func:`~spcopyro.results.where.shared_answers`); ``prior`` as in
         :meth:`concept_given_word` (default ``"area"``; ``"pi"`` is the paper's eq. 19)."""
         posterior = self.concept_given_word(word, prior)  # [L]

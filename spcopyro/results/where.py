@@ -1,4 +1,4 @@
-r""" "Where is X?" from a fitted map, and when its answer is close to a guess.
+r""" "Where is X?" from a fitted map, and when its answer deserves care.
 
 Place estimation from a word is the paper's eq. (19):
 
@@ -43,7 +43,7 @@ and IoU (0.420 / 0.395 against 0.406 / 0.403) the two priors are even. So the ar
 the default, and ``prior="pi"`` is the choice for a goal inside the place rather than its
 extent.
 
-Answers close to a guess carry warnings (:attr:`WhereAnswer.warnings`): the best concept's
+Answers to treat with care carry warnings (:attr:`WhereAnswer.warnings`): the best concept's
 posterior odds over the runner-up below :data:`ODDS_WARNING`, the word's Bayes factor for the
 best concept (how much hearing it changes that concept's odds from the prior) below
 :data:`EVIDENCE_WARNING`, a region smaller than :data:`SMALL_REGION_FRACTION` of the free
@@ -88,12 +88,12 @@ DEFAULT_WHERE_PRIOR = "area"
 """p(C) of "where is X?" by default: each concept's share of the map (see the module docstring)."""
 
 ODDS_WARNING = 3.0
-"""Posterior odds p(best | word) / p(runner-up | word) below which an answer is flagged as close
-to a guess between the two concepts. 3 is the bound of Kass and Raftery (1995, JASA 90:773) under
-which odds are "not worth more than a bare mention". Measured (original-code, gamma 3, 1000
-sweeps): the six category words of the synthetic house of seed 0 have odds 4-85 with the area
-prior, 1.02-1.39 with pi (which picks one-cell specks); under paper-dp's near-uniform words every
-answer has odds near 1."""
+"""Posterior odds p(best | word) / p(runner-up | word) below which an answer is flagged as not
+clearly ahead of the runner-up (:func:`close_odds`). 3 is the bound of Kass and Raftery (1995,
+JASA 90:773) under which odds are "not worth more than a bare mention". Measured (original-code,
+gamma 3, 1000 sweeps): the six category words of the synthetic house of seed 0 have odds 4-85
+with the area prior, 1.02-1.39 with pi (which picks one-cell specks); under paper-dp's
+near-uniform words every answer has odds near 1."""
 
 
 def close_to_guess(odds: float) -> bool:
@@ -101,6 +101,18 @@ def close_to_guess(odds: float) -> bool:
     :data:`ODDS_WARNING` (:attr:`WhereAnswer.close_to_guess`, :func:`answer_warnings`, and
     ``navigate``'s goals)."""
     return odds < ODDS_WARNING
+
+
+def close_odds(concept: int, runner_up: int, best: float, second: float) -> str:
+    """The words of the close-odds warning, ``"concept C is not clearly more probable than
+    concept R (p(concept | word) = B against S, odds B/S < 3)"``: :func:`answer_warnings` and
+    ``navigate --strict``'s refusal (:class:`~spcopyro.robot.navigation.goals.AmbiguousGoalError`)
+    say it alike. ``best``, ``second``: p(C = concept | word), p(C = runner_up | word) > 0."""
+    return (
+        f"concept {concept} is not clearly more probable than concept {runner_up} "
+        f"(p(concept | word) = {best:.3f} against {second:.3f}, odds {best / second:.2f} < "
+        f"{ODDS_WARNING:g})"
+    )
 
 
 EVIDENCE_WARNING = 3.0
@@ -228,7 +240,7 @@ class WhereAnswer:
     """Bayes factor of the word for ``concept`` against the other concepts in use:
     posterior odds of ``concept`` divided by its prior odds."""
     warnings: tuple[str, ...] = ()
-    """Why the answer is close to a guess, one sentence each (empty for a clear answer)."""
+    """Why the answer deserves care, one sentence each (empty for a clear answer)."""
     shared_with: tuple[tuple[str, float], ...] = ()
     """The other words answered by ``concept`` too, each with p(C = concept | word) above
     :data:`SHARED_ANSWER_P`, most probable first (:func:`shared_answers`): a concept answering
@@ -295,9 +307,7 @@ def answer_warnings(
     best, second = float(posterior[concept]), float(posterior[order[1]])
     if second > 0 and close_to_guess(best / second):
         warnings.append(
-            f"concept {concept} is not clearly more probable than concept {int(order[1])} "
-            f"(p(concept | word) = {best:.3f} against {second:.3f}, odds {best / second:.2f} < "
-            f"{ODDS_WARNING:g}): treat the answer with care"
+            f"{close_odds(concept, int(order[1]), best, second)}: treat the answer with care"
         )
     evidence = bayes_factor(best, float(prior[concept]))
     if evidence < EVIDENCE_WARNING:

@@ -396,7 +396,8 @@ class GoalChoice:
     notes: tuple[str, ...] = field(default_factory=tuple)
     where_odds: float = float("inf")
     """``where``'s posterior odds of the word's concept over the runner-up (inf: none); below
-    :data:`~spcopyro.results.where.ODDS_WARNING` ``where`` calls its answer close to a guess."""
+    :data:`~spcopyro.results.where.ODDS_WARNING` ``where`` warns that its answer is not clearly
+    more probable than the runner-up."""
     concept: int = -1
     """``where``'s concept for the word (-1: not asked)."""
     shared_with: tuple[tuple[str, float], ...] = ()
@@ -410,7 +411,8 @@ class GoalChoice:
 
     @property
     def close_to_guess(self) -> bool:
-        """``where`` calls the word's answer close to a guess (:attr:`where_odds`)."""
+        """``where`` warns that the word's answer is not clearly more probable than the
+        runner-up (:attr:`where_odds` below :data:`~spcopyro.results.where.ODDS_WARNING`)."""
         return close_to_guess(self.where_odds)
 
 

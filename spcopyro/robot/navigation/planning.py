@@ -26,7 +26,7 @@ import numpy as np
 from spcopyro.maps import OccupancyGrid
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.uncertainty import where_probability
-from spcopyro.results.where import DEFAULT_WHERE_PRIOR, ODDS_WARNING
+from spcopyro.results.where import DEFAULT_WHERE_PRIOR, close_odds
 from spcopyro.robot.navigation.goals import (
     AmbiguousGoalError,
     GoalChoice,
@@ -337,18 +337,16 @@ def _with_where_warnings(
     choice: GoalChoice, result: SpCoResult, word: str, prior: str, strict: bool
 ) -> GoalChoice:
     """``choice`` with the warnings ``spcopyro where`` gives for ``word`` among its notes (an
-    answer close to a guess between two concepts, a word that says little, a speck): the robot
-    drove to an answer ``where`` calls a guess without a word. ``strict``: an answer close to a
-    guess (odds below :data:`~spcopyro.results.where.ODDS_WARNING`) is an
-    :class:`AmbiguousGoalError`, as two regions of near-equal probability are."""
+    answer not clearly more probable than the runner-up concept, a word that says little, a
+    speck): the robot drove to an answer ``where`` warns of without a word. ``strict``: an
+    answer whose odds over the runner-up are below :data:`~spcopyro.results.where.ODDS_WARNING`
+    is an :class:`AmbiguousGoalError`, as two regions of near-equal probability are."""
     answer = result.where(word, prior)
-    if strict and answer.close_to_guess:
-        raise AmbiguousGoalError(
-            f"{word!r} is ambiguous: concept {answer.concept} is not clearly more probable than "
-            f"concept {answer.runner_up} (p(concept | word) = {answer.probability:.3f} against "
-            f"{answer.runner_up_probability:.3f}, odds {answer.odds:.2f} < {ODDS_WARNING:g}): "
-            "--strict drives to no such answer"
-        )
+    if strict and answer.close_to_guess and answer.runner_up is not None:  # odds < 3: one
+        odds = close_odds(answer.concept, answer.runner_up, answer.probability,
+                          answer.runner_up_probability)  # fmt: skip
+        raise AmbiguousGoalError(f"{word!r} is ambiguous: {odds}: --strict drives to no such "
+                                 "answer")  # fmt: skip
     notes = tuple(f"where {word!r}: {w}" for w in answer.warnings)
     return dataclasses.replace(choice, notes=choice.notes + notes, where_odds=answer.odds,
                                concept=answer.concept, shared_with=answer.shared_with)  # fmt: skip
