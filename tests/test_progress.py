@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import io
 import re
+import sys
 import time
 
 from tqdm import tqdm
 
+from spcopyro._util import progress
 from spcopyro._util.progress import COMPILE_ITERATIONS, noted_updates
 
 
@@ -88,3 +90,31 @@ def test_a_bar_gone_once_done_leaves_no_line_of_spaces_in_a_log(capsys):
     pieces = re.split(r"[\r\n]", written)
     assert not [p for p in pieces if p and not p.strip()], repr(written)
     assert written.endswith("\n")  # the next line of the log starts on a line of its own
+
+
+class _Stream:
+    """A stderr that is no terminal (a log file's, or a notebook's as its module says)."""
+
+    def __init__(self, tty: bool = False) -> None:
+        self.tty = tty
+
+    def isatty(self) -> bool:
+        return self.tty
+
+    def write(self, text: str) -> int:
+        return len(text)
+
+    def flush(self) -> None:
+        pass
+
+
+def test_a_bar_is_cleared_when_done_on_a_terminal_and_in_a_notebook_only(monkeypatch):
+    """1a72b9f kept finished bars off a terminal, and ipykernel's OutStream.isatty() is False:
+    in Jupyter the point estimate's bar stayed where it used to vanish. A notebook's stderr
+    (its type from ipykernel, told without importing it) clears as a terminal does."""
+    notebook = type("OutStream", (_Stream,), {"__module__": "ipykernel.iostream"})
+    for stream, clears in ((_Stream(tty=True), True), (notebook(), True), (_Stream(), False)):
+        monkeypatch.setattr(sys, "stderr", stream)
+        assert progress.clears_when_done() is clears, type(stream).__module__
+    monkeypatch.setattr(sys, "stderr", None)  # pythonw: no stream
+    assert progress.clears_when_done() is False

@@ -26,13 +26,17 @@ def progress_enabled(progress: bool | None) -> bool:
 
 
 def clears_when_done() -> bool:
-    """tqdm's ``leave=False`` where it is a terminal's: a bar that is gone once done clears its
-    line on a terminal (stderr, tqdm's stream), and leaves its last state on its own line
-    elsewhere. Cleared in a log file (``spcopyro fit 2> log.txt``), it wrote a carriage return,
-    a line of spaces and a carriage return: a blank line in the log. Pass ``leave=not
+    """tqdm's ``leave=False`` where it clears a bar: a bar that is gone once done clears its
+    line on a terminal (stderr, tqdm's stream) and its widget in a Jupyter notebook (whose
+    stderr, ipykernel's ``OutStream``, is no terminal), and leaves its last state on its own
+    line elsewhere. Cleared in a log file (``spcopyro fit 2> log.txt``), it wrote a carriage
+    return, a line of spaces and a carriage return: a blank line in the log. Pass ``leave=not
     clears_when_done()``."""
+    stream = sys.stderr
+    if type(stream).__module__.startswith("ipykernel"):  # a notebook's, without importing it
+        return True
     try:
-        return sys.stderr.isatty()
+        return stream.isatty()
     except (AttributeError, ValueError):  # no stream, or a closed one
         return False
 
