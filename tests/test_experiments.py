@@ -207,7 +207,7 @@ def test_an_experiment_row_gets_the_degenerate_map_check(monkeypatch, caplog):
 
     checked = []
 
-    def warning(labels, house, snap, sampled=True):
+    def warning(labels, house, snap, sampled=True, **_):
         checked.append(labels.shape)
         return "degenerate map (test)"
 
