@@ -476,10 +476,15 @@ def test_ctrl_c_while_writing_a_resumed_variational_fit_keeps_the_finished_fit(
     assert main(resumed) == 0 and (out / "result.npz").is_file() and not checkpoint.exists()
 
 
-def test_a_finished_fit_that_cannot_be_saved_names_its_file(home, tmp_path, capsys, monkeypatch):
-    """Ctrl-C while a finished cavi fit's outputs are written, and its file cannot be written
+@pytest.mark.parametrize("method", ["cavi", "vi-gibbs"])
+def test_a_finished_fit_that_cannot_be_saved_names_its_file(
+    method, home, tmp_path, capsys, monkeypatch
+):
+    """Ctrl-C while a finished fit's outputs are written, and its file cannot be written
     (a full disk): the line names the file it could not save, OUT.checkpoint.npz (it named OUT,
-    where nothing was to be saved), and says the fit is lost."""
+    where nothing was to be saved), and says the fit is lost. vi-gibbs keeps no checkpoint of
+    its sweeps but does keep its finished fit: it said "no checkpoint kept (the 'vi-gibbs'
+    method)", as if none were ever kept."""
     import spcopyro.cli.fit
     import spcopyro.cli.fit_finished
 
@@ -487,7 +492,7 @@ def test_a_finished_fit_that_cannot_be_saved_names_its_file(home, tmp_path, caps
         raise OSError(28, "No space left on device", str(path))
 
     out = tmp_path / "out"
-    argv = ["fit", str(home), "--out", str(out), *FIT, "--method", "cavi"]
+    argv = ["fit", str(home), "--out", str(out), *FIT, "--method", method]
     monkeypatch.setattr(spcopyro.cli.fit_finished, "save_finished_fit", full_disk)
     err = _ctrl_c_in(monkeypatch, capsys, spcopyro.cli.fit, "print_concepts", argv)
     assert err.startswith(

@@ -108,8 +108,10 @@ def interrupted_message(
             why = "--sweeps auto" if args.sweeps == "auto" else f"the {args.method!r} method"
             if args.sweeps != "auto" and args.update is not None:
                 why = "--update"
-            elif keeps_checkpoint(args) and finished:  # the finished fit is kept, but where
-                # its file could not be written (spcopyro.cli.fit_finished)
+            elif finished and (keeps_checkpoint(args) or (
+                    args.method != "gibbs" and one_fit_for_sweeps(args))):  # fmt: skip
+                # the finished fit is kept (a vi-gibbs one too, which keeps no checkpoint of
+                # its sweeps), but its file could not be written (spcopyro.cli.fit_finished)
                 from spcopyro._util.outputs import checkpoint_path
 
                 why = ("its iterations had all run; the finished fit could not be saved in "
