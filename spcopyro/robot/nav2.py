@@ -516,8 +516,8 @@ def export_nav2(
                             "params": params_yaml.name, "cells": cells, "concept": concept,
                             "warnings": list(warnings)})  # fmt: skip
         masks, records = _warn_of_shared_places(masks, records)
-        filters_yaml = folder / "costmap_filters.yaml" if names else None
-        if filters_yaml is not None:  # no word: no filter, nothing to merge
+        filters_yaml = folder / "costmap_filters.yaml"
+        if names:  # no word: no filter, nothing to merge, no file
             write_commented_yaml(
                 filters_yaml,
                 costmap_filters([(mode, name) for name in names], namespace),
@@ -548,6 +548,6 @@ def export_nav2(
         out=final,
         map_yaml=final / map_yaml.name,
         semantic_map_yaml=final / semantic_yaml.name,
-        costmap_filters_yaml=None if filters_yaml is None else final / filters_yaml.name,
+        costmap_filters_yaml=final / filters_yaml.name if names else None,
         masks=tuple(masks),
     )
