@@ -4,7 +4,6 @@ names alone, and the map beside OUT is replaced only when it is an earlier impor
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import os
 import shutil
@@ -19,21 +18,10 @@ from spcopyro._util.outputs import OutputError
 pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip install .[ros])")
 
 from spcopyro.cli.main import main  # noqa: E402
-from spcopyro.maps.grid import OCCUPIED, OccupancyGrid  # noqa: E402
 from spcopyro.maps.map_server import load_map, save_map  # noqa: E402
 from spcopyro.robot.rosbag import BagWriter, import_bags  # noqa: E402
 
 T0 = 1_600_000_000.0
-
-
-def _grid(wall: bool = False) -> OccupancyGrid:
-    """The rosbag tests' map (tests/bag_maps.py); with ``wall``, its top row occupied."""
-    grid = free_grid()
-    if wall:
-        cells = grid.occupancy.copy()  # [60, 60]
-        cells[0, :] = OCCUPIED
-        grid = dataclasses.replace(grid, occupancy=cells)
-    return grid
 
 
 @pytest.fixture
@@ -58,7 +46,7 @@ def test_a_different_map_beside_no_import_is_not_replaced(tmp_path, bag, map_yam
     """QA: with --overwrite, a different map at OUT/../map/NAME.yaml was replaced whenever OUT
     was missing or empty, though no import had written it (another tool's map, a house folder
     removed by hand): only the house folder's name tied it to the import."""
-    other = save_map(_grid(wall=True), tmp_path / "data" / "map" / "house.yaml")
+    other = save_map(free_grid(wall=True), tmp_path / "data" / "map" / "house.yaml")
     before = other.read_bytes(), other.with_suffix(".pgm").read_bytes()
     out = tmp_path / "data" / "house"
     argv = ["import-bag", str(bag), "--map", str(map_yaml), "--out", str(out), "--overwrite"]
@@ -71,12 +59,12 @@ def test_a_different_map_beside_no_import_is_not_replaced(tmp_path, bag, map_yam
     out.mkdir()  # an empty folder is no earlier import either
     with pytest.raises(FileExistsError, match="not replacing it, even with --overwrite"):
         import_bags([bag], map_yaml, out, overwrite=True)
-    assert load_map(other) == _grid(wall=True)
+    assert load_map(other) == free_grid(wall=True)
 
 
 def test_the_earlier_imports_map_is_replaced_and_said(tmp_path, bag, map_yaml, capsys):
     out = tmp_path / "data" / "house"
-    walled = save_map(_grid(wall=True), tmp_path / "maps" / "walled.yaml")
+    walled = save_map(free_grid(wall=True), tmp_path / "maps" / "walled.yaml")
     assert not import_bags([bag], walled, out).map_replaced
     argv = ["import-bag", str(bag), "--map", str(map_yaml), "--out", str(out), "--overwrite"]
     assert main(argv) == 0
@@ -84,7 +72,7 @@ def test_the_earlier_imports_map_is_replaced_and_said(tmp_path, bag, map_yaml, c
     assert f"warning: --overwrite replaced the map {target} of the earlier import" in (
         capsys.readouterr().err
     )
-    assert load_map(target) == _grid()
+    assert load_map(target) == free_grid()
     assert not import_bags([bag], map_yaml, out, overwrite=True).map_replaced  # the same map
 
 
@@ -189,7 +177,7 @@ def test_an_unreadable_map_of_an_earlier_import_is_replaced_with_overwrite(tmp_p
     target = tmp_path / "data" / "map" / "house.yaml"
     target.write_text("garbage: [\n")
     assert import_bags([bag], map_yaml, out, overwrite=True).map_replaced
-    assert load_map(target) == _grid()
+    assert load_map(target) == free_grid()
     other = tmp_path / "data" / "other"  # beside no import: refused even with --overwrite
     (tmp_path / "data" / "map" / "other.yaml").write_text("garbage: [\n")
     with pytest.raises(FileExistsError, match=r"cannot be read as a map .*pass --overwrite"):

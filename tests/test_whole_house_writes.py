@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from bag_maps import free_grid
 
 from spcopyro._util import outputs
 from spcopyro.cli.interrupted import interrupted_line
@@ -53,7 +54,6 @@ def _sigint_at_the_maps_move(monkeypatch, map_folder: Path, signum: int = signal
 def _recording(tmp_path: Path) -> tuple[Path, Path, Path]:
     """(a bag of four poses, three images and a word, a map, another map with a wall)."""
     pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip install .[ros])")
-    from spcopyro.maps.grid import FREE, OCCUPIED, OccupancyGrid
     from spcopyro.maps.map_server import save_map
     from spcopyro.robot.rosbag import BagWriter
 
@@ -64,10 +64,8 @@ def _recording(tmp_path: Path) -> tuple[Path, Path, Path]:
         for k, t in enumerate(t0 + np.array([0.5, 1.5, 2.5])):
             w.image("/camera/image", t, np.full((6, 8, 3), 40 * k, dtype=np.uint8))
         w.text("/speech", t0 + 1.0, "kitchen")
-    cells = np.full((60, 60), FREE, dtype=np.int8)
-    plain = save_map(OccupancyGrid(cells.copy(), 0.1, (-3.0, -3.0, 0.0)), tmp_path / "m" / "a.yaml")
-    cells[0, :] = OCCUPIED
-    walled = save_map(OccupancyGrid(cells, 0.1, (-3.0, -3.0, 0.0)), tmp_path / "m" / "b.yaml")
+    plain = save_map(free_grid(), tmp_path / "m" / "a.yaml")  # tests/bag_maps.py
+    walled = save_map(free_grid(wall=True), tmp_path / "m" / "b.yaml")
     return bag, plain, walled
 
 
