@@ -8,7 +8,6 @@ import pytest
 
 import spcopyro.results.estimate_tables as tables_module
 from spcopyro.results.estimate_tables import (
-    _column_cells,
     _f,
     _joined_rows,
     _kept_columns,
@@ -126,9 +125,8 @@ def test_a_samples_own_pairs_are_the_sort_of_its_keys(seed):
     samples[-1] = 0  # a sample of one cluster: one pair per column, all in cluster 0
     for loss in ("vi", "binder"):
         prepared = _prepare(samples, loss)
-        column_cells = _column_cells(prepared)
         for s, (codes, size) in enumerate(zip(prepared.codes, prepared.sizes, strict=True)):
-            ours = _sample_pairs(s, prepared, column_cells)
+            ours = _sample_pairs(s, prepared)
             for theirs in (_pairs(codes, prepared), _old_pairs(codes, prepared)):
                 for a, b in zip(ours, theirs, strict=True):
                     assert a.dtype == b.dtype and np.array_equal(a, b)
@@ -150,18 +148,21 @@ def test_the_samples_losses_count_the_cells_of_each_column_once(monkeypatch):
         seen.append(prepare(*args, **kwargs))
         return seen[-1]
 
-    counted = []  # the length of each bincount of the cells' columns
+    counted = []  # every array bincount was given (told apart after the run)
 
     def counting_bincount(x, *args, **kwargs):
-        if seen and x is seen[-1].signature:
-            counted.append(x.shape[0])
+        counted.append(x)
         return bincount(x, *args, **kwargs)
 
     monkeypatch.setattr(module, "_prepare", kept_prepare)
     monkeypatch.setattr(np, "bincount", counting_bincount)
     samples = np.random.default_rng(5).integers(0, 6, (7, 300))  # [S, N]
     module.point_estimate(samples, "vi", starts=1)
-    assert counted == [300]
+    (prepared,) = seen
+    assert [x.shape[0] for x in counted if x is prepared.signature] == [300]
+    cells = bincount(prepared.signature, minlength=prepared.signatures.shape[1])  # [U]
+    assert prepared.column_cells.dtype == np.float64
+    assert np.array_equal(prepared.column_cells, cells)
 
 
 @pytest.mark.parametrize("seed", range(12))

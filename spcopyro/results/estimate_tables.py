@@ -45,6 +45,7 @@ class _Samples(NamedTuple):
     signatures: np.ndarray  # [S, U] the distinct columns of codes (cells labelled alike in all)
     signature: np.ndarray  # [N] each cell's column of signatures
     by_column: np.ndarray  # [N] the cells in order of their column, then of their index
+    column_cells: np.ndarray  # [U] float64 cells of each column (one count for all samples)
 
 
 class _Pairs(NamedTuple):
@@ -87,25 +88,18 @@ def _pairs(estimate: np.ndarray, prepared: _Samples) -> _Pairs:
     return _Pairs(present // width, present % width, cells, of_cell)
 
 
-def _column_cells(prepared: _Samples) -> np.ndarray:
-    """[U] float64 the number of cells of each column of signatures (one pass over the N
-    cells), for :func:`_sample_pairs`: the same for every sample, so counted once."""
-    width = prepared.signatures.shape[1]  # U
-    return np.bincount(prepared.signature, minlength=width).astype(np.float64)  # [U]
-
-
-def _sample_pairs(row: int, prepared: _Samples, column_cells: np.ndarray) -> _Pairs:
+def _sample_pairs(row: int, prepared: _Samples) -> _Pairs:
     """:func:`_pairs` of sample ``row``'s own codes (``prepared.codes[row]``) as the estimate,
     from a sort of the U columns instead of the N cells: a column of the samples holds one label
     of each, so each of the U columns is one pair, of the sample's label there (the 25 samples'
-    losses sorted 3.07 million cells 25 times, ~0.1 s each, for 157,574 columns).
-    ``column_cells`` [U]: :func:`_column_cells` of ``prepared``."""
+    losses sorted 3.07 million cells 25 times, ~0.1 s each, for 157,574 columns). The cells of
+    each column are ``prepared.column_cells``, counted once for all samples."""
     clusters = prepared.signatures[row]  # [U] the sample's label on each column
     width = clusters.shape[0]  # U
     order = np.argsort(clusters, kind="stable")  # [U] the pairs: by cluster, then column
     rank = np.empty(width, dtype=np.int64)  # [U] each column's pair
     rank[order] = np.arange(width)
-    cells = column_cells[order]  # [U] float64
+    cells = prepared.column_cells[order]  # [U] float64
     return _Pairs(clusters[order], order.astype(np.int64), cells, rank[prepared.signature])
 
 

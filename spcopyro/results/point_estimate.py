@@ -69,7 +69,6 @@ from spcopyro.results.estimate_names import LOSS_LABELS, LOSSES, POINT_ESTIMATES
 # them here).
 from spcopyro.results.estimate_tables import (
     _codes_and_values,
-    _column_cells,
     _departed,
     _f,
     _joined_rows,
@@ -143,8 +142,10 @@ def _prepare(samples: np.ndarray, loss: str, bar=None) -> _Samples:
     first = np.zeros(int(signature.max()) + 1, dtype=np.int64)  # [U] a cell of each column
     first[signature[::-1]] = np.arange(signature.shape[0])[::-1]
     by_column = np.argsort(signature, kind="stable")  # [N] for _pairs
+    # [U] each column's cells for every sample's _sample_pairs: one pass over the N cells
+    column_cells = np.bincount(signature, minlength=first.shape[0]).astype(np.float64)
     prepared = (stacked, tuple(sizes), constant / len(sizes), stacked[:, first], signature)
-    return _Samples(*prepared, by_column)
+    return _Samples(*prepared, by_column, column_cells)
 
 
 def _expected(
@@ -345,9 +346,8 @@ def point_estimate(
     ) as bar:
         prepared = _prepare(samples, loss, bar)
         losses = np.empty(len(samples))  # [S]
-        column_cells = _column_cells(prepared)  # [U] one pass over the N cells for all S
         for s, (c, j) in enumerate(zip(prepared.codes, prepared.sizes, strict=True)):
-            pairs = _sample_pairs(s, prepared, column_cells)  # no sort of N
+            pairs = _sample_pairs(s, prepared)  # no sort of N
             tables = _sample_tables(pairs, j, prepared)
             losses[s] = _expected(c, j, prepared, loss, tables)
             bar.update()
