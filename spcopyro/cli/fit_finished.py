@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from spcopyro.cli.fit_resume import one_fit_for_sweeps
+from spcopyro.cli.fit_resume import keeps_finished_fit
 
 if TYPE_CHECKING:
     from typing import Any as FitJob  # spcopyro.cli.fit.FitJob, which imports this module
@@ -47,7 +47,7 @@ if TYPE_CHECKING:
     from spcopyro.results.result import SpCoResult
 
 __all__ = [
-    "is_finished_fit", "keep_finished", "keeps_finished_fit", "load_finished_fit",
+    "is_finished_fit", "keep_finished", "load_finished_fit",
     "restore_finished", "resumes_finished_fit", "save_finished_fit",
 ]  # fmt: skip
 
@@ -60,16 +60,10 @@ WHAT = (
 PREFIX = "result_"
 
 
-def keeps_finished_fit(args: argparse.Namespace) -> bool:
-    """Whether Ctrl-C while this fit's outputs are written keeps the finished fit: one fit of a
-    method other than Gibbs (whose finished chains are kept instead), for a number of
-    ``--sweeps``, not an ``--update``."""
-    return args.method != "gibbs" and one_fit_for_sweeps(args)
-
-
 def resumes_finished_fit(args: argparse.Namespace) -> bool:
     """Whether ``--resume`` names a finished fit's file that this fit may write
-    (:func:`keeps_finished_fit`; a vi-gibbs fit, which keeps no other checkpoint, too)."""
+    (:func:`~spcopyro.cli.fit_resume.keeps_finished_fit`; a vi-gibbs fit, which keeps no other
+    checkpoint, too)."""
     return args.resume is not None and keeps_finished_fit(args) and is_finished_fit(args.resume)
 
 
@@ -144,7 +138,8 @@ def load_finished_fit(
 def keep_finished(job: FitJob) -> Path | None:
     """``fit``'s finished fit (``job.finished``) kept in ``OUT.checkpoint.npz`` when Ctrl-C
     stops the writing of its outputs; None where none is kept (no fit finished, a Gibbs fit, or
-    one :func:`keeps_finished_fit` keeps not, or the file could not be written)."""
+    one :func:`~spcopyro.cli.fit_resume.keeps_finished_fit` keeps not, or the file could not be
+    written)."""
     from spcopyro._util.outputs import checkpoint_path
 
     if job.finished is None or not keeps_finished_fit(job.args):

@@ -19,6 +19,7 @@ __all__ = [
     "interrupted_before_fit",
     "interrupted_message",
     "keeps_checkpoint",
+    "keeps_finished_fit",
     "no_checkpoint_flags",
     "one_fit_for_sweeps",
     "resumable_methods",
@@ -44,9 +45,15 @@ def resumable_methods() -> list[str]:
 def one_fit_for_sweeps(args: argparse.Namespace) -> bool:
     """Whether this is one fit (``--chains`` 1 or left out) for a number of ``--sweeps``, not
     an ``--update``: what a fit of a method other than Gibbs must be for Ctrl-C to keep it (its
-    iterations, :func:`keeps_checkpoint`; or its finished result,
-    :func:`spcopyro.cli.fit_finished.keeps_finished_fit`)."""
+    iterations, :func:`keeps_checkpoint`; or its finished result, :func:`keeps_finished_fit`)."""
     return args.sweeps != "auto" and args.update is None and args.chains in (None, 1)
+
+
+def keeps_finished_fit(args: argparse.Namespace) -> bool:
+    """Whether Ctrl-C while this fit's outputs are written keeps the finished fit
+    (:mod:`spcopyro.cli.fit_finished`): one fit of a method other than Gibbs (whose finished
+    chains are kept instead), for a number of ``--sweeps``, not an ``--update``."""
+    return args.method != "gibbs" and one_fit_for_sweeps(args)
 
 
 def keeps_checkpoint(args: argparse.Namespace) -> bool:
@@ -108,10 +115,9 @@ def interrupted_message(
             why = "--sweeps auto" if args.sweeps == "auto" else f"the {args.method!r} method"
             if args.sweeps != "auto" and args.update is not None:
                 why = "--update"
-            elif finished and (keeps_checkpoint(args) or (
-                    args.method != "gibbs" and one_fit_for_sweeps(args))):  # fmt: skip
+            elif finished and (keeps_checkpoint(args) or keeps_finished_fit(args)):
                 # the finished fit is kept (a vi-gibbs one too, which keeps no checkpoint of
-                # its sweeps), but its file could not be written (spcopyro.cli.fit_finished)
+                # its sweeps), but its file could not be written
                 from spcopyro._util.outputs import checkpoint_path
 
                 why = ("its iterations had all run; the finished fit could not be saved in "

@@ -406,7 +406,7 @@ def draw_utterances(
     # one circle each: those at one spot side by side, spread once for every strip (drawn at
     # one scale, strip_axes) as on house.png, so a word in two strips is at one place in both
     spread = spread_markers(axes[0], xy, MARKER_AREA) if any(one_each) else xy  # [U', 2]
-    moved = any(one_each) and not np.allclose(spread, xy)
+    moved = not np.allclose(spread, xy)
     counted = not all(one_each)
     for ax, (at, concept, areas, counts) in zip(axes, marks, strict=True):
         at = spread if counts is None else at  # [M, 2]: one each, M = U' in xy's order

@@ -342,7 +342,7 @@ def _with_where_warnings(
     answer whose odds over the runner-up are below :data:`~spcopyro.results.where.ODDS_WARNING`
     is an :class:`AmbiguousGoalError`, as two regions of near-equal probability are."""
     answer = result.where(word, prior)
-    if strict and answer.close_to_guess and answer.runner_up is not None:  # odds < 3: one
+    if strict and answer.close_to_guess and answer.runner_up is not None:  # odds < 3: has one
         odds = close_odds(answer.concept, answer.runner_up, answer.probability,
                           answer.runner_up_probability)  # fmt: skip
         raise AmbiguousGoalError(f"{word!r} is ambiguous: {odds}: --strict drives to no such "
