@@ -9,9 +9,8 @@ import os
 import shutil
 from pathlib import Path
 
-import numpy as np
 import pytest
-from bag_maps import free_grid
+from bag_maps import four_pose_bag, free_grid
 
 from spcopyro._util.outputs import OutputError
 
@@ -19,21 +18,12 @@ pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip inst
 
 from spcopyro.cli.main import main  # noqa: E402
 from spcopyro.maps.map_server import load_map, save_map  # noqa: E402
-from spcopyro.robot.rosbag import BagWriter, import_bags  # noqa: E402
-
-T0 = 1_600_000_000.0
+from spcopyro.robot.rosbag import import_bags  # noqa: E402
 
 
 @pytest.fixture
 def bag(tmp_path: Path) -> Path:
-    path = tmp_path / "rec"
-    with BagWriter(path, ros=2) as w:
-        for t in T0 + np.arange(4.0):
-            w.pose("/amcl_pose", t, 0.5 * (t - T0), 0.0, 0.0)
-        for k, t in enumerate(T0 + np.array([0.5, 1.5, 2.5])):
-            w.image("/camera/image", t, np.full((6, 8, 3), 40 * k, dtype=np.uint8))
-        w.text("/speech", T0 + 1.0, "kitchen")
-    return path
+    return four_pose_bag(tmp_path / "rec")
 
 
 @pytest.fixture

@@ -10,9 +10,8 @@ import os
 import signal
 from pathlib import Path
 
-import numpy as np
 import pytest
-from bag_maps import free_grid
+from bag_maps import four_pose_bag, free_grid
 
 from spcopyro._util import outputs
 from spcopyro.cli.interrupted import interrupted_line
@@ -55,15 +54,8 @@ def _recording(tmp_path: Path) -> tuple[Path, Path, Path]:
     """(a bag of four poses, three images and a word, a map, another map with a wall)."""
     pytest.importorskip("rosbags", reason="the rosbag import needs rosbags (pip install .[ros])")
     from spcopyro.maps.map_server import save_map
-    from spcopyro.robot.rosbag import BagWriter
 
-    bag, t0 = tmp_path / "rec", 1_600_000_000.0
-    with BagWriter(bag, ros=2) as w:
-        for t in t0 + np.arange(4.0):
-            w.pose("/amcl_pose", t, 0.5 * (t - t0), 0.0, 0.0)
-        for k, t in enumerate(t0 + np.array([0.5, 1.5, 2.5])):
-            w.image("/camera/image", t, np.full((6, 8, 3), 40 * k, dtype=np.uint8))
-        w.text("/speech", t0 + 1.0, "kitchen")
+    bag = four_pose_bag(tmp_path / "rec")
     plain = save_map(free_grid(), tmp_path / "m" / "a.yaml")  # tests/bag_maps.py
     walled = save_map(free_grid(wall=True), tmp_path / "m" / "b.yaml")
     return bag, plain, walled
