@@ -505,3 +505,84 @@ def test_a_finished_fit_that_cannot_be_saved_names_its_file(
         f"{checkpoint_path(out)}): the finished fit is lost -- run it again with: "
     ), err
     assert not out.exists() and not checkpoint_path(out).exists()
+
+
+def _failing_print_concepts(*args, **kwargs):
+    """``print_concepts`` failing as a full disk does, while a fit's outputs are written."""
+    raise OSError(28, "No space left on device")
+
+
+@pytest.mark.parametrize("method", ["cavi", "vi-gibbs"])
+def test_an_error_while_writing_a_finished_fit_keeps_it_for_resume_to_write(
+    method, home, tmp_path, capsys, monkeypatch
+):
+    """An error (not Ctrl-C: a full disk) while a finished cavi or vi-gibbs fit's outputs are
+    written keeps the finished fit in OUT.checkpoint.npz, as Ctrl-C there does (it was lost
+    without a word, where Gibbs kept its finished chains); the note names the file and the
+    command, which writes OUT without fitting again."""
+    import shlex
+
+    import spcopyro.cli.fit
+    import spcopyro.fit.house
+
+    out = tmp_path / "out"
+    argv = ["fit", str(home), "--out", str(out), *FIT, "--method", method]
+    with monkeypatch.context() as patch:
+        patch.setattr(spcopyro.cli.fit, "print_concepts", _failing_print_concepts)
+        assert main(argv) == 2  # an OSError: one line, no traceback
+    err = capsys.readouterr().err
+    checkpoint = checkpoint_path(out)
+    command = shlex.join(["spcopyro", *argv, "--resume", str(checkpoint)])
+    assert (
+        f"note: nothing written to {out}; the finished fit is saved in {checkpoint} -- once "
+        f"fixed, write its outputs (without fitting again) with: {command}"
+    ) in err.splitlines(), err
+    assert checkpoint.is_file() and not out.exists()
+
+    def no_fit(*args, **kwargs):
+        raise AssertionError("the finished fit was run again")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(spcopyro.fit.house, "fit_house_chains", no_fit)
+        assert main(shlex.split(command)[1:]) == 0
+    assert (out / "result.npz").is_file() and not checkpoint.exists()
+
+
+def test_an_error_while_writing_several_fits_says_they_are_lost_and_why(
+    home, tmp_path, capsys, monkeypatch
+):
+    """An error while the outputs of two lbp fits (``--chains 2``) are written: the finished-fit
+    file holds one fit and the outputs compare both (chains.json), so nothing is kept; the note
+    says so and gives the command that runs them again (nothing was said)."""
+    import spcopyro.cli.fit
+
+    out = tmp_path / "out"
+    argv = ["fit", str(home), "--out", str(out), *FIT, "--method", "lbp", "--chains", "2"]
+    with monkeypatch.context() as patch:
+        patch.setattr(spcopyro.cli.fit, "print_concepts", _failing_print_concepts)
+        assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert (
+        f"note: nothing written to {out}; no checkpoint kept (--chains 2: a finished fit's file "
+        "holds one fit, and the outputs (chains.json) compare all 2): the finished fit is lost "
+        "-- once fixed, run it again with: spcopyro fit "
+    ) in err, err
+    assert not checkpoint_path(out).exists() and not out.exists()
+
+
+@pytest.mark.parametrize("method", ["lbp", "vi-gibbs"])
+def test_ctrl_c_while_writing_several_fits_says_why_none_is_kept(method, tmp_path):
+    """Ctrl-C while the outputs of two finished fits are written: the line says the file keeps
+    one fit's result while the outputs compare both; it blamed the method (vi-gibbs: "the
+    'vi-gibbs' method", though one vi-gibbs fit keeps its finished result) or a checkpoint of
+    iterations ("an lbp checkpoint holds one fit")."""
+    from spcopyro.cli.fit_resume import interrupted_message
+    from spcopyro.cli.main import build_parser
+
+    args = build_parser().parse_args(["fit", "--out", str(tmp_path / "o"), "--method", method,
+                                      "--chains", "2", "--sweeps", "12"])  # fmt: skip
+    line = interrupted_message(args, " while writing the outputs", None, tmp_path / "o",
+                               finished=True)  # fmt: skip
+    why = ("no checkpoint kept (--chains 2: a finished fit's file holds one fit, and the "
+           "outputs (chains.json) compare all 2): the finished fit is lost")  # fmt: skip
+    assert why in line, line

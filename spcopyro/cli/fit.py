@@ -48,12 +48,12 @@ from spcopyro.cli.fit_refine import check_refinable, refine
 from spcopyro.cli.fit_resume import (
     again_command,
     check_resume_file,
+    error_note,
     interrupted_before_fit,
     interrupted_message,
     keeps_checkpoint,
     no_checkpoint_flags,
     resumable_methods,
-    resume_command,
 )
 from spcopyro.cli.fit_settings import (
     apply_preset_inference,
@@ -174,10 +174,9 @@ def _fit_interruptible(args: argparse.Namespace, said: list[str]) -> int:
         writing = job.sampled or bool(keeper and keeper.finished())  # or after the sweeps
         writing = writing and not (staged.committed or staged.kept)
         kept = keeper.save() if keeper and writing else None
-        if kept is not None:  # an error while writing: the sampling is not lost
-            print(f"note: nothing written to {staged.out}; the finished chains are saved in "
-                  f"{kept} -- once fixed, continue with: {resume_command(args, kept)}",
-                  file=sys.stderr)  # fmt: skip
+        kept = keep_finished(job) if writing and kept is None else kept  # not Gibbs: the result
+        if writing and (note := error_note(args, kept, staged.out, job.sampled)) is not None:
+            print(note, file=sys.stderr)  # what is kept, and the command; or that it is lost
         raise
     finally:
         staged.discard()  # nothing once committed; else the run's partial outputs

@@ -16,6 +16,7 @@ from spcopyro.cli.common import command_line
 __all__ = [
     "again_command",
     "check_resume_file",
+    "error_note",
     "interrupted_before_fit",
     "interrupted_message",
     "keeps_checkpoint",
@@ -111,22 +112,7 @@ def interrupted_message(
     (:mod:`spcopyro.cli.fit_finished`), which ``--resume`` writes without fitting again."""
     line = f"interrupted{where}: nothing written to {out}"
     if kept is None:
-        if why is None:
-            why = "--sweeps auto" if args.sweeps == "auto" else f"the {args.method!r} method"
-            if args.sweeps != "auto" and args.update is not None:
-                why = "--update"
-            elif finished and (keeps_checkpoint(args) or keeps_finished_fit(args)):
-                # the finished fit is kept (a vi-gibbs one too, which keeps no checkpoint of
-                # its sweeps), but its file could not be written
-                from spcopyro._util.outputs import checkpoint_path
-
-                why = ("its iterations had all run; the finished fit could not be saved in "
-                       f"{checkpoint_path(out)}")  # fmt: skip
-            elif keeps_checkpoint(args):
-                why = "no sweep was done" if args.method == "gibbs" else "no iteration was done"
-            elif args.method in resumable_methods():
-                why = (f"--chains {args.chains}: {with_article(args.method)} checkpoint holds "
-                       "one fit")  # fmt: skip
+        why = _why_none(args, out, finished) if why is None else why
         line = f"{line}; no checkpoint kept ({why})"
         if finished:  # the whole fit ran, and its result went with the outputs: say so, and how
             again = again_command(args)  # to get it (its seed: same)
@@ -141,6 +127,54 @@ def interrupted_message(
         return (f"{line}{lost}; {kept} is left as it was, with the state this run resumed "
                 f"from -- continue from there with: {command}")  # fmt: skip
     return f"{line}; the state reached is saved in {kept} -- continue with: {command}"
+
+
+def _why_none(args: argparse.Namespace, out: Path, finished: bool) -> str:
+    """Why no checkpoint of this fit was kept (``finished``: its sweeps or iterations had all
+    run), for :func:`interrupted_message` and :func:`error_note`."""
+    if args.sweeps == "auto":
+        return "--sweeps auto"
+    if args.update is not None:
+        return "--update"
+    if finished and (keeps_checkpoint(args) or keeps_finished_fit(args)):
+        # the finished fit is kept (a vi-gibbs one too, which keeps no checkpoint of its
+        # sweeps), but its file could not be written
+        from spcopyro._util.outputs import checkpoint_path
+
+        return ("its iterations had all run; the finished fit could not be saved in "
+                f"{checkpoint_path(out)}")  # fmt: skip
+    if finished and args.method != "gibbs":  # several fits (keeps_finished_fit): the outputs
+        # are written from all of them (chains.json), the file holds one fit's result
+        return (f"--chains {args.chains}: a finished fit's file holds one fit, and the outputs "
+                f"(chains.json) compare all {args.chains}")  # fmt: skip
+    if keeps_checkpoint(args):
+        return "no sweep was done" if args.method == "gibbs" else "no iteration was done"
+    if args.method in resumable_methods():
+        return f"--chains {args.chains}: {with_article(args.method)} checkpoint holds one fit"
+    return f"the {args.method!r} method"
+
+
+def error_note(
+    args: argparse.Namespace, kept: Path | None, out: Path, finished: bool
+) -> str | None:
+    """The note ``fit`` prints when an error (not Ctrl-C: a full disk, a figure failing) stops
+    it after its sweeps or iterations, before OUT is written (``kept``: the finished chains or,
+    ``finished`` and not Gibbs, the finished fit, :mod:`spcopyro.cli.fit_finished`): the
+    command that continues from ``kept`` or writes its outputs once the error is fixed; where
+    nothing was kept of a finished fit, that it is lost and why; None where nothing had
+    finished and nothing was kept."""
+    line = f"note: nothing written to {out}"
+    if kept is None:
+        if not finished:
+            return None
+        return (f"{line}; no checkpoint kept ({_why_none(args, out, finished)}): the finished "
+                f"fit is lost -- once fixed, run it again with: {again_command(args)}")  # fmt: skip
+    command = resume_command(args, kept)
+    if finished and args.method != "gibbs":  # the result itself (spcopyro.cli.fit_finished)
+        return (f"{line}; the finished fit is saved in {kept} -- once fixed, write its outputs "
+                f"(without fitting again) with: {command}")  # fmt: skip
+    return (f"{line}; the finished chains are saved in {kept} -- once fixed, continue with: "
+            f"{command}")  # fmt: skip
 
 
 def interrupted_before_fit(args: argparse.Namespace, stage: str) -> str:
