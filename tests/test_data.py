@@ -727,3 +727,22 @@ def test_public_houses(dataset_root, capsys):
         assert counts.word_counts.sum() == obs.num_utterances
     captured = capsys.readouterr()
     assert captured.out == "" and captured.err == ""
+
+
+def test_save_house_overwrites_the_room_its_images_are_read_from(tmp_path, grid):
+    """A house loaded from ROOM, written over ROOM (overwrite): its images are copied into the
+    staging folder before the swap, so the new ROOM holds them, byte for byte (save_house
+    refused this, saying the images were read from ROOM)."""
+    house = make_house(tmp_path, grid)
+    room = save_house(house, tmp_path / "data")
+    back = load_house(room)
+    originals = {k: [p.read_bytes() for p in house.observations.select_trials([k]).image_paths]
+                 for k in (0, 2)}  # fmt: skip
+    save_house(House("house1", grid, back.observations.select_trials([0, 2])), room.parent,
+               overwrite=True)  # fmt: skip
+    again = load_house(room).observations
+    assert again.trials == (0, 2)
+    for k in (0, 2):
+        assert [p.read_bytes() for p in again.select_trials([k]).image_paths] == originals[k]
+        assert len(originals[k]) == 2
+    assert sorted(p.name for p in room.iterdir() if p.name.startswith("img_")) == ["img_0", "img_2"]

@@ -289,3 +289,47 @@ def test_deferred_signals_get_every_handler_back_when_putting_one_back_raises(mo
         assert signal.getsignal(signal.SIGTERM) is term
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+def test_a_map_file_that_cannot_be_replaced_leaves_house_and_map_as_they_were(
+    tmp_path, capsys, no_swaps
+):
+    """simulate --overwrite where a folder stands at map/h.yaml: the new map's .pgm and the
+    house folder were moved in, the old house set aside in h.replaced-*, the staged yaml
+    deleted, and the error was a bare ``[Errno 21] Is a directory``. Now nothing changes and
+    the error says so; without the folder, the next run writes all."""
+    root = tmp_path / "r"
+    assert main(["simulate", "--out", str(root), "--name", "h"]) == 0
+    (root / "map" / "h.yaml").unlink()
+    (root / "map" / "h.yaml").mkdir()
+    before = _tree(root)
+    argv = ["simulate", "--out", str(root), "--name", "h", "--seed", "1", "--overwrite"]
+    capsys.readouterr()
+    assert main(argv) == 2
+    assert _tree(root) == before  # house, .pgm, nothing set aside or staged beside them
+    assert capsys.readouterr().err == (
+        f"error: cannot put {root / 'map' / 'h.yaml'} in place (Is a directory); {root / 'h'}, "
+        f"{root / 'map' / 'h.pgm'}, {root / 'map' / 'h.yaml'} left as they were\n"
+    )
+    assert outputs.set_aside(root / "h") == [] and not outputs.completed(root / "h")
+    fresh = tmp_path / "fresh"  # a first write: no house before, nor a .pgm
+    (fresh / "map" / "h.yaml").mkdir(parents=True)
+    assert main(["simulate", "--out", str(fresh), "--name", "h"]) == 2
+    assert sorted(_tree(fresh)) == ["map", "map/h.yaml"]
+    (root / "map" / "h.yaml").rmdir()
+    assert main(argv) == 0
+    assert sorted(p.name for p in (root / "map").iterdir()) == ["h.pgm", "h.yaml"]
+
+
+def test_an_overwritten_house_and_map_keep_their_modes(tmp_path):
+    """simulate --overwrite of a house folder made 0o750 and a map made 0o640: the new ones
+    had the umask's modes (0o755, 0o644), opening them to every user."""
+    root = tmp_path / "r"
+    assert main(["simulate", "--out", str(root), "--name", "h"]) == 0
+    (root / "h").chmod(0o750)
+    for name in ("h.pgm", "h.yaml"):
+        (root / "map" / name).chmod(0o640)
+    assert main(["simulate", "--out", str(root), "--name", "h", "--seed", "1", "--overwrite"]) == 0
+    assert (root / "h").stat().st_mode & 0o7777 == 0o750
+    for name in ("h.pgm", "h.yaml"):
+        assert (root / "map" / name).stat().st_mode & 0o7777 == 0o640

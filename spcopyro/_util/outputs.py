@@ -10,7 +10,7 @@ Ctrl-C, or a second fit into the same folder never leaves a mixture of two runs'
   (and refuses to overwrite a folder that no fit wrote, or one that holds the current
   directory); it creates the staging folder at once, so an unwritable OUT or parent is reported
   before any work is done.
-* With ``overwrite``, the whole old folder is replaced: no file of the old run survives.
+* With ``overwrite``, the old run's files are replaced; others (a user's notes) are kept.
 * Two fits into one OUT: the commits are serialised by a lock on the parent folder, and a fit
   commits only if OUT is still the folder it saw when it started; otherwise it fails with
   :class:`OutputError`, leaving OUT as the other fit wrote it and its own files in its staging
@@ -18,11 +18,10 @@ Ctrl-C, or a second fit into the same folder never leaves a mixture of two runs'
 * An interrupted fit's checkpoint lives beside OUT as ``OUT.checkpoint.npz``
   (:func:`checkpoint_path`), never inside it, so it cannot be mistaken for a result.
 * Staging folders and replaced files get the permissions a plain ``mkdir`` or ``open`` gives
-  under the user's umask (``tempfile``'s 0700 / 0600 would keep a Nav2 export or a fit from
-  a map server or a colleague running as another user).
+  under the user's umask (not ``tempfile``'s 0700 / 0600); a folder replaced, and the files
+  moved in with it, keep the old ones' modes (:func:`commit_folder`).
 
-This module imports nothing of the package but :mod:`spcopyro._util.interrupts` (which imports
-only the standard library).
+Imports of the package: only :mod:`~spcopyro._util.interrupts`, :mod:`~spcopyro._util.file_moves`.
 """
 
 from __future__ import annotations
@@ -35,6 +34,7 @@ import os
 import re
 import secrets
 import shutil
+import stat
 import zipfile
 import zlib
 from collections.abc import Callable, Container, Iterator, Sequence
@@ -44,6 +44,7 @@ from typing import BinaryIO, TypeVar
 
 import numpy as np
 
+from spcopyro._util.file_moves import FilesNotMoved, move_files_in
 from spcopyro._util.interrupts import signals_deferred
 
 try:  # POSIX: serialise commits into one parent folder
@@ -255,8 +256,8 @@ not yet finished: one stopped by an error (Ctrl-C included) stays, its folder ke
 def swapped_in(out: Path, staging: Path, hidden: bool = False) -> Iterator[Path]:
     """The folder ``out`` set aside (yielded: ``OUT.replaced-XXXXXXXX`` beside it, with a
     leading dot if ``hidden``) and ``staging`` renamed into its place (the old one put back if
-    that fails); the old folder removed once the block ends without an error (kept after one,
-    with whatever the block had not yet carried out of it, and named by :func:`set_aside`)."""
+    that fails, or the block raises :class:`FilesNotMoved`: the new one back in ``staging``);
+    the old one removed once the block ends, or kept after another error (:func:`set_aside`)."""
     old = out.parent / f"{'.' if hidden else ''}{out.name}.replaced-{secrets.token_hex(4)}"
     swap = (_absolute(out), _absolute(old))
     # recorded before the rename, so that a Ctrl-C just after it finds it; one just before
@@ -269,11 +270,14 @@ def swapped_in(out: Path, staging: Path, hidden: bool = False) -> Iterator[Path]
         raise
     try:
         os.rename(staging, out)
-    except OSError:
-        os.rename(old, out)
-        _SET_ASIDE.remove(swap)
+        yield old
+    except OSError as error:
+        if isinstance(error, FilesNotMoved):
+            os.rename(out, staging)
+        if not os.path.lexists(out):  # the new one not (or no longer) there: the old one back
+            os.rename(old, out)
+            _SET_ASIDE.remove(swap)
         raise
-    yield old
     shutil.rmtree(old, ignore_errors=True)
     _SET_ASIDE.remove(swap)
 
@@ -310,10 +314,6 @@ def completed(out: str | os.PathLike[str]) -> bool:
     return _absolute(out) in _COMPLETED
 
 
-def _forget_completed(out: str | os.PathLike[str]) -> None:
-    _COMPLETED.discard(_absolute(out))
-
-
 def commit_folder(
     staging: Path,
     out: Path,
@@ -324,16 +324,18 @@ def commit_folder(
     replace: bool = True,
 ) -> tuple[str, ...]:
     """Move the staged folder ``staging`` to ``out``, then each ``(staged, target)`` of
-    ``files`` (staged beside its target, in a :func:`staging_folder`: a house's map beside its
-    folder) over its target. A non-empty ``out`` is set aside (:func:`swapped_in`, ``hidden``;
-    with ``replace`` False the rename fails on one instead, OSError) and what its writer did not
-    write (not in ``written``) carried into the new one (:func:`carry_over`); the old folder is
-    removed once that is done. A Ctrl-C meanwhile (SIGINT, and SIGTERM where a handler turns it
-    into an interrupt: :func:`~spcopyro._util.interrupts.sigterm_as_interrupt`) is held until
-    all are in place, the user's files carried over included, and raised once the old folder is
-    removed (:func:`~spcopyro._util.interrupts.signals_deferred`): it finds the folder and its
-    files all old or all new, and :func:`completed` says which. Returns the names carried."""
+    ``files`` (staged beside its target in a :func:`staging_folder`: a house's map) over its
+    target, all or none (:func:`~spcopyro._util.file_moves.move_files_in`: one refused, the
+    folder is put back too, and :class:`FilesNotMoved` names it); the new ``out`` and files
+    keep the old ones' modes. A non-empty ``out`` is set aside (:func:`swapped_in`, ``hidden``;
+    with ``replace`` False the rename fails on one instead, OSError), what its writer did not
+    write (not in ``written``) carried into the new one (:func:`carry_over`), then removed. A
+    Ctrl-C meanwhile (SIGINT, and SIGTERM turned into one by
+    :func:`~spcopyro._util.interrupts.sigterm_as_interrupt`) is held until all are in place and
+    the old folder removed (:func:`~spcopyro._util.interrupts.signals_deferred`): it finds all
+    old or all new, and :func:`completed` says which. Returns the names carried."""
     signalled: list[int] = []
+    mode = stat.S_IMODE(out.stat().st_mode) if out.is_dir() else None  # the old OUT's
     with contextlib.ExitStack() as swap:  # on leaving: the old folder removed
         with signals_deferred(lambda signum, frame: signalled.append(signum)):  # only renames
             old = None
@@ -341,9 +343,17 @@ def commit_folder(
                 old = swap.enter_context(swapped_in(out, staging, hidden))
             else:
                 os.rename(staging, out)  # replaces an empty folder atomically
-            for partial, target in files:
-                os.replace(partial, target)
+            try:
+                move_files_in(files, out)  # all or none
+            except FilesNotMoved:  # the folder put back too (swapped_in puts back an old one)
+                if old is None:
+                    os.rename(out, staging)
+                    if mode is not None:  # an empty OUT was there
+                        out.mkdir(mode=mode)
+                raise
             kept = () if old is None else carry_over(old, out, written)
+            if mode is not None:  # not before: carry_over writes into OUT
+                os.chmod(out, mode)
             _COMPLETED.add(_absolute(out))
     if signalled:  # all in place: stopped now
         raise KeyboardInterrupt(f"signal {signalled[0]}")
@@ -498,7 +508,7 @@ def staging_folder(out: str | os.PathLike[str], hidden: bool = False) -> Path:
     path = _absolute(out)
     path.parent.mkdir(parents=True, exist_ok=True)
     remove_stale_stagings(path, hidden)
-    _forget_completed(path)
+    _COMPLETED.discard(path)
     return _new_folder(path.parent, staging_prefix(path, hidden))
 
 

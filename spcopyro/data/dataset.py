@@ -443,7 +443,8 @@ def save_house(
     The folder is written beside ``root/NAME`` and moved into place with the map's files, all
     at once (:func:`~spcopyro._util.outputs.commit_folder`): an error or a Ctrl-C leaves the
     house there before (or none) as it was. ``extra(folder)`` writes further files into the
-    folder before that (``simulate --map``'s rooms).
+    folder before that (``simulate --map``'s rooms). The images are copied before it too, so a
+    house loaded from ``root/NAME`` may be written over it.
 
     Returns:
         The room folder ``root/NAME``.
@@ -482,11 +483,6 @@ def save_house(
     if (room.exists() and any(room.iterdir())) or map_yaml.exists():
         if not overwrite:
             raise FileExistsError(f"{room} (or {map_yaml}) already exists; pass overwrite=True")
-        sources = obs.image_paths or ()
-        if any(room.resolve() in p.resolve().parents for p in sources):
-            raise ValueError(
-                f"save_house: cannot overwrite {room}, the house's images are read from it"
-            )
     from spcopyro._util.outputs import commit_folder, staging_folder  # not on --help's path
 
     staging = staging_folder(room)  # the house written beside ROOM, moved in whole

@@ -1,0 +1,68 @@
+"""Staged files moved over their targets as one: all of them, or none.
+
+:func:`~spcopyro._util.outputs.commit_folder` moves a house's map (``NAME.pgm``, ``NAME.yaml``,
+staged beside them) in with the house folder: one file that cannot be put in place (a folder
+where ``NAME.yaml`` goes, a permission refused) must not leave the other one new. Imports nothing
+of the package.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import stat
+from collections.abc import Sequence
+from pathlib import Path
+
+
+class FilesNotMoved(OSError):
+    """A file of :func:`move_files_in` could not be put in place: none was (the message says
+    which, and why)."""
+
+
+def move_files_in(files: Sequence[tuple[Path, Path]], folder: Path | None = None) -> None:
+    """Move each ``(staged, target)`` of ``files`` over its target (``os.replace``: readers see
+    the old file or the new one), all or none. Each new file takes its old target's mode (a
+    map made group-readable stays so). The old targets are kept (hard-linked, else renamed, to
+    ``STAGED.old``) until all are moved, then removed; when a move fails, the old targets are put
+    back and :class:`FilesNotMoved` raised (saying that the targets and ``folder``, the one
+    moved in with them, are left as they were: the caller puts the folder back)."""
+    done: list[tuple[Path, Path, Path | None]] = []  # (staged, target, the old target kept)
+    targets = [target for _, target in files]
+    try:
+        for staged, target in files:
+            done.append((staged, target, _keep_old(staged, target)))
+            os.replace(staged, target)  # a folder at target: IsADirectoryError
+    except OSError as error:
+        for new, place, old in reversed(done):
+            if old is not None:
+                os.replace(old, place)
+            elif not os.path.lexists(new):  # moved in where nothing was: back again
+                os.rename(place, new)
+        left = ", ".join(str(path) for path in ([] if folder is None else [folder]) + targets)
+        raise FilesNotMoved(
+            f"cannot put {target} in place ({error.strerror or error}); {left} left as they were"
+        ) from error
+    for _, _, old in done:
+        if old is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(old)
+
+
+def _keep_old(staged: Path, target: Path) -> Path | None:
+    """``target`` kept as ``STAGED.old`` (its mode given to ``staged``); None where there is no
+    file (nothing, or a folder, which ``os.replace`` refuses)."""
+    try:
+        status = os.lstat(target)
+    except FileNotFoundError:
+        return None
+    if stat.S_ISDIR(status.st_mode):
+        return None
+    if stat.S_ISREG(status.st_mode):
+        os.chmod(staged, stat.S_IMODE(status.st_mode))
+    old = staged.with_name(f"{staged.name}.old")
+    try:
+        os.link(target, old, follow_symlinks=False)  # target stays in place until replaced
+    except OSError:  # no hard links on this file system (or not ours to link): set aside
+        os.rename(target, old)
+    return old
