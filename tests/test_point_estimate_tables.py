@@ -279,3 +279,34 @@ def test_the_search_on_a_map_like_case_is_unchanged(loss, monkeypatch):
     for (estimate, value), start in zip(ours, starts, strict=True):
         theirs, their_value = _greedy(start, prepared, loss, None)
         assert np.array_equal(estimate, theirs) and value == their_value
+
+
+@pytest.mark.parametrize("loss", ["vi", "binder"])
+def test_the_searches_start_from_a_samples_own_pairs(loss, monkeypatch):
+    """A search's start is one of the samples: its pairs are its U columns (_sample_pairs), not
+    a sort of the N cells (each of the 3 starts sorted them before 2026-12-05); the same search,
+    estimate and loss to the bit, as from the sample's labels."""
+    import spcopyro.results.point_estimate as module
+    from tests.test_point_estimate import _map_like_samples
+
+    samples = _map_like_samples(6, cells=1500, count=8)
+    prepared = _prepare(samples, loss)
+    theirs = [_greedy(codes, prepared, loss, None) for codes in prepared.codes]  # [N] labels
+
+    def from_labels(start, prepared, *rest):  # the searches as before: from the codes [N]
+        return _greedy(prepared.codes[start], prepared, *rest)
+
+    monkeypatch.setattr(module, "_greedy", from_labels)
+    old = module.point_estimate(samples, loss)
+    monkeypatch.setattr(module, "_greedy", _greedy)
+
+    def no_sort(estimate, prepared):
+        raise AssertionError("the pairs of a sample from a sort of the N cells")
+
+    monkeypatch.setattr(module, "_pairs", no_sort)
+    for s, (estimate, value) in enumerate(theirs):
+        ours, our_value = _greedy(s, prepared, loss, None)
+        assert np.array_equal(ours, estimate) and our_value == value
+    new = module.point_estimate(samples, loss)  # no sort of the N cells anywhere
+    assert np.array_equal(new.labels, old.labels)
+    assert (new.expected_loss, new.best_sample_loss) == (old.expected_loss, old.best_sample_loss)

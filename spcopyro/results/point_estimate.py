@@ -234,14 +234,20 @@ a search on a 27,832-cell map (both losses), so every decision is the one the ex
 
 
 def _greedy(
-    start: np.ndarray, prepared: _Samples, loss: str, max_clusters: int | None, bar=None
+    start: np.ndarray | int, prepared: _Samples, loss: str, max_clusters: int | None, bar=None
 ) -> tuple[np.ndarray, float]:
-    """One greedy search from ``start`` (module doc). Between sweeps it keeps the rows of
+    """One greedy search from ``start`` (module doc): labels [N], or the row of a sample of
+    ``prepared``, whose pairs are its U columns (:func:`_sample_pairs`) where labels' pairs take
+    a sort of the N cells (:func:`_pairs`). Between sweeps it keeps the rows of
     :func:`_joined_rows` of the clusters no cell left or joined (after the first sweep most of
     them), and rejects halving trials that are clearly no better without their exact loss: the
     same moves, the same estimate and loss to the bit as recomputing everything every sweep."""
-    estimate, k = compact(start)
-    pairs = _pairs(estimate, prepared)
+    if isinstance(start, (int, np.integer)):  # a sample: its codes are compact already
+        estimate, k = prepared.codes[start].copy(), prepared.sizes[start]  # [N], J_s
+        pairs = _sample_pairs(int(start), prepared)  # the same pairs, no sort of N
+    else:
+        estimate, k = compact(start)
+        pairs = _pairs(estimate, prepared)
     tables = _sample_tables(pairs, k + 1, prepared)  # S x [k + 1, J_s]
     value = _expected(estimate, k, prepared, loss, tables)  # reads the first k rows
     n = estimate.shape[0]
@@ -354,7 +360,7 @@ def point_estimate(
         order = np.argsort(losses, kind="stable")[:order_count]
         best, best_value = None, np.inf
         for s in order:
-            estimate, value = _greedy(prepared.codes[s], prepared, loss, max_clusters, bar)
+            estimate, value = _greedy(int(s), prepared, loss, max_clusters, bar)  # no sort of N
             if value < best_value:
                 best, best_value = estimate, value
     assert best is not None
