@@ -333,3 +333,38 @@ def test_an_overwritten_house_and_map_keep_their_modes(tmp_path):
     assert (root / "h").stat().st_mode & 0o7777 == 0o750
     for name in ("h.pgm", "h.yaml"):
         assert (root / "map" / name).stat().st_mode & 0o7777 == 0o640
+
+
+def test_an_old_map_file_that_cannot_be_put_back_is_kept_and_named(tmp_path, capsys, no_swaps):
+    """simulate --overwrite on a file system without hard links (the old h.pgm set aside, renamed
+    into the staged map folder) where h.yaml cannot be moved in and the old h.pgm not put back:
+    the put-back stopped there, the error was that of the put-back, and the staged map folder,
+    the old h.pgm in it, was removed. Now the old h.pgm is kept where the message says."""
+    root = tmp_path / "r"
+    assert main(["simulate", "--out", str(root), "--name", "h"]) == 0
+    old_pgm = (root / "map" / "h.pgm").read_bytes()
+    (root / "map" / "h.yaml").unlink()
+    (root / "map" / "h.yaml").mkdir()
+    replace = os.replace
+
+    def no_links(*args, **kwargs):
+        raise OSError(1, "Operation not permitted")
+
+    def no_putting_back(source, target):
+        if str(source).endswith(".old"):
+            raise PermissionError(13, "Permission denied")
+        return replace(source, target)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(os, "link", no_links)
+        patch.setattr(os, "replace", no_putting_back)
+        argv = ["simulate", "--out", str(root), "--name", "h", "--seed", "1", "--overwrite"]
+        assert main(argv) == 2
+    err = capsys.readouterr().err
+    kept = [path for path in root.rglob("*") if path.is_file() and path.read_bytes() == old_pgm]
+    assert len(kept) == 1 and f"it is kept as {kept[0]}\n" in err, (err, kept)
+    assert err.startswith(
+        f"error: cannot put {root / 'map' / 'h.yaml'} in place (Is a directory); {root / 'h'}, "
+        f"{root / 'map' / 'h.yaml'} left as they were; the old {root / 'map' / 'h.pgm'} could "
+        "not be put back (Permission denied)"
+    )

@@ -17,7 +17,10 @@ from pathlib import Path
 
 class FilesNotMoved(OSError):
     """A file of :func:`move_files_in` could not be put in place: none was (the message says
-    which, and why)."""
+    which, and why). ``stranded``: the old targets that could not be put back either, each
+    still in its ``STAGED.old`` (the message names it): the caller must not remove its folder."""
+
+    stranded: tuple[Path, ...] = ()
 
 
 def move_files_in(files: Sequence[tuple[Path, Path]], folder: Path | None = None) -> None:
@@ -25,8 +28,9 @@ def move_files_in(files: Sequence[tuple[Path, Path]], folder: Path | None = None
     the old file or the new one), all or none. Each new file takes its old target's mode (a
     map made group-readable stays so). The old targets are kept (hard-linked, else renamed, to
     ``STAGED.old``) until all are moved, then removed; when a move fails, the old targets are put
-    back and :class:`FilesNotMoved` raised (saying that the targets and ``folder``, the one
-    moved in with them, are left as they were: the caller puts the folder back)."""
+    back, each tried, and :class:`FilesNotMoved` raised for that move (saying that the targets and
+    ``folder``, the one moved in with them, are left as they were: the caller puts the folder
+    back; an old target that could not be put back stays in ``STAGED.old``, which it names)."""
     done: list[tuple[Path, Path, Path | None]] = []  # (staged, target, the old target kept)
     targets = [target for _, target in files]
     try:
@@ -34,15 +38,31 @@ def move_files_in(files: Sequence[tuple[Path, Path]], folder: Path | None = None
             done.append((staged, target, _keep_old(staged, target)))
             os.replace(staged, target)  # a folder at target: IsADirectoryError
     except OSError as error:
-        for new, place, old in reversed(done):
-            if old is not None:
-                os.replace(old, place)
-            elif not os.path.lexists(new):  # moved in where nothing was: back again
-                os.rename(place, new)
-        left = ", ".join(str(path) for path in ([] if folder is None else [folder]) + targets)
-        raise FilesNotMoved(
-            f"cannot put {target} in place ({error.strerror or error}); {left} left as they were"
-        ) from error
+        stranded: list[tuple[Path, Path, OSError]] = []  # (old target kept, its place, why)
+        for new, place, old in reversed(done):  # each put back, even after one that is not
+            try:
+                if old is not None:
+                    os.replace(old, place)
+                elif not os.path.lexists(new):  # moved in where nothing was: back again
+                    os.rename(place, new)
+            except OSError as why:
+                if old is not None:  # the only copy of the old file: named, and left there
+                    stranded.append((old, place, why))
+        left = ", ".join(
+            str(path)
+            for path in ([] if folder is None else [folder]) + targets
+            if all(path != place for _, place, _ in stranded)
+        )
+        lost = "".join(
+            f"; the old {place} could not be put back ({why.strerror or why}): it is kept as {old}"
+            for old, place, why in stranded
+        )
+        failure = FilesNotMoved(
+            f"cannot put {target} in place ({error.strerror or error}); {left} left as they "
+            f"were{lost}"
+        )
+        failure.stranded = tuple(old for old, _, _ in stranded)
+        raise failure from error
     for _, _, old in done:
         if old is not None:
             with contextlib.suppress(OSError):

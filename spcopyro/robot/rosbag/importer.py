@@ -64,6 +64,7 @@ from typing import Any
 
 import numpy as np
 
+from spcopyro._util.file_moves import FilesNotMoved
 from spcopyro._util.outputs import staging_folder
 from spcopyro._util.progress import clears_when_done, progress_enabled
 from spcopyro.data.text import tokenize
@@ -540,6 +541,10 @@ def import_bags(
             images_unchanged = earlier is not None and same_images(out, staging)
             kept = replace_out(out, staging, earlier, map_files)
             done = True
+        except FilesNotMoved as error:
+            if error.stranded:  # an old map file is still in staged_map (the error names it)
+                staged_map = None
+            raise
         finally:
             if staging.exists():
                 shutil.rmtree(staging)
