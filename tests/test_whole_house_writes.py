@@ -368,3 +368,20 @@ def test_an_old_map_file_that_cannot_be_put_back_is_kept_and_named(tmp_path, cap
         f"{root / 'map' / 'h.yaml'} left as they were; the old {root / 'map' / 'h.pgm'} could "
         "not be put back (Permission denied)"
     )
+
+
+def test_an_empty_house_folder_put_back_keeps_its_mode(tmp_path, capsys, no_swaps):
+    """simulate into an empty house folder made 0o775 where map/h.yaml cannot be replaced: the
+    empty folder made again had the umask's mode (0o755)."""
+    root = tmp_path / "r"
+    (root / "map" / "h.yaml").mkdir(parents=True)
+    (root / "h").mkdir()
+    (root / "h").chmod(0o775)
+    umask = os.umask(0o022)
+    try:
+        assert main(["simulate", "--out", str(root), "--name", "h", "--overwrite"]) == 2
+    finally:
+        os.umask(umask)
+    assert "cannot put" in capsys.readouterr().err
+    assert sorted(_tree(root)) == ["h", "map", "map/h.yaml"]
+    assert (root / "h").stat().st_mode & 0o7777 == 0o775

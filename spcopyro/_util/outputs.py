@@ -256,7 +256,7 @@ not yet finished: one stopped by an error (Ctrl-C included) stays, its folder ke
 def swapped_in(out: Path, staging: Path, hidden: bool = False) -> Iterator[Path]:
     """The folder ``out`` set aside (yielded: ``OUT.replaced-XXXXXXXX`` beside it, with a
     leading dot if ``hidden``) and ``staging`` renamed into its place (the old one put back if
-    that fails, or the block raises :class:`FilesNotMoved`: the new one back in ``staging``);
+    that fails, or the block's OSError leaves ``out`` empty: it put the new one back);
     the old one removed once the block ends, or kept after another error (:func:`set_aside`)."""
     old = out.parent / f"{'.' if hidden else ''}{out.name}.replaced-{secrets.token_hex(4)}"
     swap = (_absolute(out), _absolute(old))
@@ -271,9 +271,7 @@ def swapped_in(out: Path, staging: Path, hidden: bool = False) -> Iterator[Path]
     try:
         os.rename(staging, out)
         yield old
-    except OSError as error:
-        if isinstance(error, FilesNotMoved):
-            os.rename(out, staging)
+    except OSError:
         if not os.path.lexists(out):  # the new one not (or no longer) there: the old one back
             os.rename(old, out)
             _SET_ASIDE.remove(swap)
@@ -345,11 +343,11 @@ def commit_folder(
                 os.rename(staging, out)  # replaces an empty folder atomically
             try:
                 move_files_in(files, out)  # all or none
-            except FilesNotMoved:  # the folder put back too (swapped_in puts back an old one)
-                if old is None:
-                    os.rename(out, staging)
-                    if mode is not None:  # an empty OUT was there
-                        out.mkdir(mode=mode)
+            except FilesNotMoved:  # the new folder put back too (swapped_in puts back an old one)
+                os.rename(out, staging)
+                if old is None and mode is not None:  # an empty OUT was there
+                    out.mkdir(mode=mode)
+                    os.chmod(out, mode)  # not the umask's
                 raise
             kept = () if old is None else carry_over(old, out, written)
             if mode is not None:  # not before: carry_over writes into OUT
