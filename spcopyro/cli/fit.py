@@ -158,8 +158,7 @@ def _fit_interruptible(args: argparse.Namespace, said: list[str]) -> int:
         if isinstance(stop, FitInterrupted):  # while sampling
             where, kept = f" ({stop.where})", stop.checkpoint
         else:  # reading the data, after the sweeps (their point estimate), or writing
-            kept = keeper.save() if keeper else None  # None: no chain had started
-            kept = keep_finished(job) if kept is None else kept
+            kept = _keep(job)
             where = " after the sweeps" if kept and keeper and keeper.finished() else ""
             again = " (only the first stage is kept: resuming refines again)" if job.refined else ""
             where = f" while writing the outputs{again}" if job.sampled else where
@@ -173,13 +172,19 @@ def _fit_interruptible(args: argparse.Namespace, said: list[str]) -> int:
     except Exception:
         writing = job.sampled or bool(keeper and keeper.finished())  # or after the sweeps
         writing = writing and not (staged.committed or staged.kept)
-        kept = keeper.save() if keeper and writing else None
-        kept = keep_finished(job) if writing and kept is None else kept  # not Gibbs: the result
+        kept = _keep(job) if writing else None
         if writing and (note := error_note(args, kept, staged.out, job.sampled)) is not None:
             print(note, file=sys.stderr)  # what is kept, and the command; or that it is lost
         raise
     finally:
         staged.discard()  # nothing once committed; else the run's partial outputs
+
+
+def _keep(job: FitJob) -> Path | None:
+    """What a stopped fit keeps: its chains' checkpoint (Gibbs), else its finished result (not
+    Gibbs, :func:`keep_finished`); the file, or None (no chain had started, nothing finished)."""
+    kept = job.keeper.save() if job.keeper else None
+    return keep_finished(job) if kept is None else kept
 
 
 def _set_up(args: argparse.Namespace, said: list[str], stage: list[str]) -> FitJob:

@@ -111,22 +111,40 @@ def interrupted_message(
     was). A finished fit other than Gibbs' is kept as its result
     (:mod:`spcopyro.cli.fit_finished`), which ``--resume`` writes without fitting again."""
     line = f"interrupted{where}: nothing written to {out}"
+    return _kept_line(args, line, kept, out, why, finished, unchanged, error=False)
+
+
+def _kept_line(
+    args: argparse.Namespace,
+    line: str,
+    kept: Path | None,
+    out: Path,
+    why: str | None,
+    finished: bool,
+    unchanged: bool,
+    error: bool,
+) -> str:
+    """``line`` and what is kept (``kept``), or that nothing is and why, and the command: the
+    Ctrl-C line of :func:`interrupted_message`, or (``error``) the note of :func:`error_note`,
+    whose commands are run once the error is fixed."""
+    fixed = "once fixed, " if error else ""
     if kept is None:
         why = _why_none(args, out, finished) if why is None else why
         line = f"{line}; no checkpoint kept ({why})"
         if finished:  # the whole fit ran, and its result went with the outputs: say so, and how
             again = again_command(args)  # to get it (its seed: same)
-            line = f"{line}: the finished fit is lost -- run it again with: {again}"
+            line = f"{line}: the finished fit is lost -- {fixed}run it again with: {again}"
         return line
     command = resume_command(args, kept)
     if finished and args.method != "gibbs":  # the result itself (spcopyro.cli.fit_finished)
-        return (f"{line}; the finished fit is saved in {kept} -- write its outputs (without "
-                f"fitting again) with: {command}")  # fmt: skip
+        return (f"{line}; the finished fit is saved in {kept} -- {fixed}write its outputs "
+                f"(without fitting again) with: {command}")  # fmt: skip
     if unchanged:  # not "the state reached": this run's iterations are not in it
         lost = "; the iterations this run added are lost" if finished else ""
         return (f"{line}{lost}; {kept} is left as it was, with the state this run resumed "
                 f"from -- continue from there with: {command}")  # fmt: skip
-    return f"{line}; the state reached is saved in {kept} -- continue with: {command}"
+    saved = "the finished chains are" if error else "the state reached is"
+    return f"{line}; {saved} saved in {kept} -- {fixed}continue with: {command}"
 
 
 def _why_none(args: argparse.Namespace, out: Path, finished: bool) -> str:
@@ -163,18 +181,10 @@ def error_note(
     command that continues from ``kept`` or writes its outputs once the error is fixed; where
     nothing was kept of a finished fit, that it is lost and why; None where nothing had
     finished and nothing was kept."""
+    if kept is None and not finished:
+        return None
     line = f"note: nothing written to {out}"
-    if kept is None:
-        if not finished:
-            return None
-        return (f"{line}; no checkpoint kept ({_why_none(args, out, finished)}): the finished "
-                f"fit is lost -- once fixed, run it again with: {again_command(args)}")  # fmt: skip
-    command = resume_command(args, kept)
-    if finished and args.method != "gibbs":  # the result itself (spcopyro.cli.fit_finished)
-        return (f"{line}; the finished fit is saved in {kept} -- once fixed, write its outputs "
-                f"(without fitting again) with: {command}")  # fmt: skip
-    return (f"{line}; the finished chains are saved in {kept} -- once fixed, continue with: "
-            f"{command}")  # fmt: skip
+    return _kept_line(args, line, kept, out, None, finished, False, error=True)
 
 
 def interrupted_before_fit(args: argparse.Namespace, stage: str) -> str:
