@@ -73,10 +73,11 @@ def test_fit_help_names_the_default_presets_inference_and_footprint():
 
 def test_fit_help_says_resume_writes_a_finished_fits_outputs():
     """`--resume` said only 'continue the interrupted fit', while for a finished fit of another
-    method than Gibbs stopped while writing (spcopyro.cli.fit_finished) it fits nothing."""
+    method than Gibbs stopped while writing (spcopyro.cli.fit_finished) it fits nothing; then it
+    said 'that Ctrl-C stopped', where an error keeps that fit too (3a0a64b)."""
     fit = _subcommands(build_parser())["fit"]
     helps = {a.dest: " ".join(a.help.split()) for a in fit._actions if a.help}
-    assert "another method than Gibbs" in helps["resume"]
+    assert "another method than Gibbs that Ctrl-C or an error stopped" in helps["resume"]
     assert "without fitting again" in helps["resume"]
 
 

@@ -62,9 +62,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--resume", metavar="CHECKPOINT",
                    help="continue the interrupted fit saved in CHECKPOINT (OUT.checkpoint.npz; "
                         "Ctrl-C writes it), with the same data and settings; for a finished "
-                        "fit of another method than Gibbs that Ctrl-C stopped while its "
-                        "outputs were written, write them without fitting again (default: a "
-                        "new fit)")  # fmt: skip
+                        "fit of another method than Gibbs that Ctrl-C or an error stopped "
+                        "while its outputs were written, write them without fitting again "
+                        "(default: a new fit)")  # fmt: skip
     p.add_argument("--update", metavar="OUT",
                    help="continue the finished fit in the folder OUT with this data (its old "
                         "and new observations together, e.g. a new trial): its labels, pi and "
