@@ -260,6 +260,23 @@ def test_simulate_sweeps_the_staging_folders_a_killed_one_left(tmp_path):
     assert sorted(p.name for p in (root / "map").iterdir()) == ["h.pgm", "h.yaml"]
 
 
+def test_a_dead_ones_staged_map_holding_a_kept_old_file_is_not_swept(tmp_path):
+    """A refused commit whose old map file could not be put back keeps it in the staged map
+    folder as ``NAME.pgm.old`` and names it; once that process is gone, the next simulate into
+    the same map swept the folder as stale and deleted the user's only copy."""
+    import subprocess
+    import sys
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()  # a PID no process has now
+    root = tmp_path / "r"
+    kept = root / "map" / f"h.yaml.partial-{dead.pid}-x"
+    kept.mkdir(parents=True)
+    (kept / "h.pgm.old").write_bytes(b"P5 old map")
+    assert main(["simulate", "--out", str(root), "--name", "h"]) == 0
+    assert (kept / "h.pgm.old").read_bytes() == b"P5 old map"
+
+
 def test_deferred_signals_get_every_handler_back_when_putting_one_back_raises(monkeypatch):
     """A Ctrl-C pending as signals_deferred puts SIGINT's handler back raises there: SIGTERM's
     was left the deferring one (a SIGTERM after it then went to a dead list, ignored)."""

@@ -465,14 +465,16 @@ def _alive(pid: int) -> bool:
 
 def remove_stale_stagings(path: Path, hidden: bool = False) -> list[Path]:
     """Remove the staging folders beside ``path`` (``OUT.partial-PID-...``, ``.OUT.partial-...``
-    if ``hidden``) whose process is gone: what a killed fit into the same OUT left behind.
-    Returns what was removed."""
+    if ``hidden``) whose process is gone: what a killed fit into the same OUT left behind; not one
+    holding a ``*.old`` file, an old map file a refused commit could not put back and named
+    (:mod:`spcopyro._util.file_moves`). Returns what was removed."""
     removed = []
     name = f"{'.' if hidden else ''}{path.name}{STAGING_INFIX}"
     pattern = re.compile(re.escape(name) + r"(\d+)-")
     for candidate in path.parent.glob(f"{glob.escape(name)}*"):
         match = pattern.match(candidate.name)
-        if match and candidate.is_dir() and not _alive(int(match.group(1))):
+        stale = match and candidate.is_dir() and not _alive(int(match.group(1)))
+        if stale and not any(candidate.glob("*.old")):  # *.old: the user's, named in an error
             shutil.rmtree(candidate, ignore_errors=True)
             removed.append(candidate)
     return removed
