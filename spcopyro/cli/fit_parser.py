@@ -61,7 +61,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    "kept)")  # fmt: skip
     p.add_argument("--resume", metavar="CHECKPOINT",
                    help="continue the interrupted fit saved in CHECKPOINT (OUT.checkpoint.npz; "
-                        "Ctrl-C writes it), with the same data and settings; for a finished "
+                        "Ctrl-C writes it, and an error once the fit has run), with the same data "
+                        "and settings; for a finished "
                         "fit of another method than Gibbs that Ctrl-C or an error stopped "
                         "while its outputs were written, write them without fitting again "
                         "(default: a new fit)")  # fmt: skip
