@@ -480,6 +480,35 @@ def test_ctrl_c_while_writing_a_resumed_variational_fit_keeps_the_finished_fit(
     assert main(resumed) == 0 and (out / "result.npz").is_file() and not checkpoint.exists()
 
 
+def test_a_resumed_finished_fit_that_cannot_be_saved_leaves_the_resumed_checkpoint(
+    home, tmp_path, capsys, monkeypatch
+):
+    """A resumed cavi fit (``--resume CK``) stopped while writing, its finished fit not saved
+    (a full disk): CK still holds the state the run resumed from, and the line says so. It said
+    "the finished fit is saved in CK -- write its outputs (without fitting again)", which CK,
+    a checkpoint of iterations, cannot do."""
+    import shlex
+
+    import spcopyro.cli.fit
+    import spcopyro.cli.fit_finished
+
+    def full_disk(path, *args, **kwargs):
+        raise OSError(28, "No space left on device", str(path))
+
+    out = tmp_path / "out"
+    argv = _stopped_cavi_fit(home, out, monkeypatch, capsys)
+    checkpoint = checkpoint_path(out)
+    resumed = [*argv, "--resume", str(checkpoint)]
+    monkeypatch.setattr(spcopyro.cli.fit_finished, "save_finished_fit", full_disk)
+    err = _ctrl_c_in(monkeypatch, capsys, spcopyro.cli.fit, "print_concepts", resumed)
+    assert err == (
+        f"interrupted while writing the outputs: nothing written to {out}; the iterations this "
+        f"run added are lost; {checkpoint} is left as it was, with the state this run resumed "
+        f"from -- continue from there with: {shlex.join(['spcopyro', *resumed])}"
+    ), err
+    assert checkpoint.is_file() and not out.exists()
+
+
 @pytest.mark.parametrize("method", ["cavi", "vi-gibbs"])
 def test_a_finished_fit_that_cannot_be_saved_names_its_file(
     method, home, tmp_path, capsys, monkeypatch

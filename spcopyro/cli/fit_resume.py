@@ -136,13 +136,13 @@ def _kept_line(
             line = f"{line}: the finished fit is lost -- {fixed}run it again with: {again}"
         return line
     command = resume_command(args, kept)
-    if finished and args.method != "gibbs":  # the result itself (spcopyro.cli.fit_finished)
-        return (f"{line}; the finished fit is saved in {kept} -- {fixed}write its outputs "
-                f"(without fitting again) with: {command}")  # fmt: skip
     if unchanged:  # not "the state reached": this run's iterations are not in it
         lost = "; the iterations this run added are lost" if finished else ""
         return (f"{line}{lost}; {kept} is left as it was, with the state this run resumed "
                 f"from -- continue from there with: {command}")  # fmt: skip
+    if finished and args.method != "gibbs":  # the result itself (spcopyro.cli.fit_finished)
+        return (f"{line}; the finished fit is saved in {kept} -- {fixed}write its outputs "
+                f"(without fitting again) with: {command}")  # fmt: skip
     saved = "the finished chains are" if error else "the state reached is"
     return f"{line}; {saved} saved in {kept} -- {fixed}continue with: {command}"
 
