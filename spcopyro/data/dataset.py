@@ -483,25 +483,17 @@ def save_house(
     if (room.exists() and any(room.iterdir())) or map_yaml.exists():
         if not overwrite:
             raise FileExistsError(f"{room} (or {map_yaml}) already exists; pass overwrite=True")
-    from spcopyro._util.file_moves import FilesNotMoved
     from spcopyro._util.outputs import commit_folder, staging_folder  # not on --help's path
 
     staging = staging_folder(room)  # the house written beside ROOM, moved in whole
-    staged_map = None
     try:
         _write_room(house, staging)
         if extra is not None:
             extra(staging)
-        staged_map, map_files = stage_map(house.grid, map_yaml)
-        commit_folder(staging, room, _Saved(), map_files)  # with the map, as one
-    except FilesNotMoved as error:
-        if error.stranded:  # an old map file is still in staged_map (the error names it)
-            staged_map = None
-        raise
+        with stage_map(house.grid, map_yaml) as map_files:
+            commit_folder(staging, room, _Saved(), map_files)  # with the map, as one
     finally:
         shutil.rmtree(staging, ignore_errors=True)  # not there after the commit
-        if staged_map is not None:
-            shutil.rmtree(staged_map, ignore_errors=True)
     return room
 
 

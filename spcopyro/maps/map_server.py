@@ -33,10 +33,12 @@ or written: every command, ``--help`` too, imports this.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
 import shutil
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -262,22 +264,29 @@ def save_map(grid: OccupancyGrid, yaml_path: str | os.PathLike) -> Path:
     return path
 
 
+@contextlib.contextmanager
 def stage_map(
     grid: OccupancyGrid, yaml_path: str | os.PathLike
-) -> tuple[Path, list[tuple[Path, Path]]]:
+) -> Iterator[list[tuple[Path, Path]]]:
     """:func:`save_map` into a staging folder beside ``yaml_path`` (``NAME.yaml.partial-...``:
-    :func:`~spcopyro._util.outputs.staging_folder`; removed again if writing fails), for a writer
-    that moves the map in with a house folder (:func:`~spcopyro._util.outputs.commit_folder`):
-    the staging folder, which the caller removes, and its ``(file, target)`` pairs, the ``.pgm``
-    first. The same bytes as :func:`save_map` at ``yaml_path``."""
+    :func:`~spcopyro._util.outputs.staging_folder`), for a writer that moves the map in with a
+    house folder (:func:`~spcopyro._util.outputs.commit_folder`): yields its ``(file, target)``
+    pairs, the ``.pgm`` first, and removes the folder on leaving -- but not when a
+    :class:`~spcopyro._util.file_moves.FilesNotMoved` left an old map file in it (``stranded``:
+    the error names it). The same bytes as :func:`save_map` at ``yaml_path``."""
+    from spcopyro._util.file_moves import FilesNotMoved
     from spcopyro._util.outputs import staging_folder  # zipfile, secrets: not on --help's path
 
     target = Path(os.path.abspath(_yaml_target(yaml_path)))
     folder = staging_folder(target)
+    image = target.with_suffix(".pgm")
+    keep = False
     try:
         save_map(grid, folder / target.name)
-    except BaseException:
-        shutil.rmtree(folder, ignore_errors=True)
+        yield [(folder / image.name, image), (folder / target.name, target)]
+    except FilesNotMoved as error:
+        keep = bool(error.stranded)  # an old map file is still in the folder
         raise
-    image = target.with_suffix(".pgm")
-    return folder, [(folder / image.name, image), (folder / target.name, target)]
+    finally:
+        if not keep:  # empty after the commit: its files were moved in
+            shutil.rmtree(folder, ignore_errors=True)

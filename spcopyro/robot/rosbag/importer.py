@@ -64,7 +64,6 @@ from typing import Any
 
 import numpy as np
 
-from spcopyro._util.file_moves import FilesNotMoved
 from spcopyro._util.outputs import staging_folder
 from spcopyro._util.progress import clears_when_done, progress_enabled
 from spcopyro.data.text import tokenize
@@ -494,7 +493,6 @@ def import_bags(
             p for p in (map_target.parent, out.parent, *out.parent.parents) if not p.exists()
         ]
         staging = staging_folder(out, hidden=True)  # .OUT.partial-PID-*: a killed import's swept
-        staged_map: Path | None = None  # the map's files, written beside map_target
         skipped: list[SkippedObservation] = []
         done = False
         try:
@@ -537,19 +535,13 @@ def import_bags(
                 "skipped": len(skipped),
             }
             (staging / MARKER).write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
-            staged_map, map_files = stage_map(grid, map_target)
-            images_unchanged = earlier is not None and same_images(out, staging)
-            kept = replace_out(out, staging, earlier, map_files)
+            with stage_map(grid, map_target) as map_files:  # written beside map_target
+                images_unchanged = earlier is not None and same_images(out, staging)
+                kept = replace_out(out, staging, earlier, map_files)
             done = True
-        except FilesNotMoved as error:
-            if error.stranded:  # an old map file is still in staged_map (the error names it)
-                staged_map = None
-            raise
         finally:
             if staging.exists():
                 shutil.rmtree(staging)
-            if staged_map is not None:  # empty after the commit: its files were moved in
-                shutil.rmtree(staged_map, ignore_errors=True)
             if not done:
                 for folder in created:  # deepest first; only if nothing else was put there
                     with contextlib.suppress(OSError):
