@@ -66,7 +66,7 @@ from spcopyro.results.estimate_names import LOSS_LABELS, LOSSES, POINT_ESTIMATES
 
 # The tables live in estimate_tables. Every name below is used here, and _greedy reads
 # _joined_rows, _kept_columns, _pairs and _moved_pairs from this module's names (the tests patch
-# them here).
+# the first three here).
 from spcopyro.results.estimate_tables import (
     _codes_and_values,
     _departed,
