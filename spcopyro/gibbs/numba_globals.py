@@ -38,6 +38,7 @@ event is correlated with the old theta.)
 
 from __future__ import annotations
 
+import atexit
 import math
 import os
 import queue
@@ -316,7 +317,7 @@ class PriorDraws:
 
 _MODES = ("one-pass", "auto", "on", "off")
 _mode = os.environ.get("SPCOPYRO_PRIOR_THREAD", "one-pass")
-_jobs: queue.SimpleQueue[PriorDraws] = queue.SimpleQueue()
+_jobs: queue.SimpleQueue[PriorDraws | None] = queue.SimpleQueue()  # None: the worker returns
 _worker: threading.Thread | None = None
 _worker_lock = threading.Lock()
 _active = 0  # sweeps drawing their globals in this process right now (chains run in threads)
@@ -350,8 +351,21 @@ def _use_worker() -> bool:
 
 
 def _serve() -> None:
-    while True:
-        _jobs.get().draw()
+    while (job := _jobs.get()) is not None:
+        job.draw()
+
+
+@atexit.register
+def _stop_worker() -> None:
+    """At exit, let the worker finish the jobs it has and return. Left running, a daemon thread
+    that takes the GIL back (from a torch call in the hint, or compiled code) while the
+    interpreter finalizes is ended by ``pthread_exit``, whose unwinding through C++ frames
+    aborts the process ("terminate called without an active exception", CPython bpo-42969)."""
+    with _worker_lock:
+        worker = _worker
+    if worker is not None and worker.is_alive():
+        _jobs.put(None)
+        worker.join()
 
 
 def _submit(job: PriorDraws) -> None:
