@@ -258,6 +258,17 @@ def _map_like_samples(seed: int, cells: int = 3000, clusters: int = 15, count: i
     return np.stack(samples)
 
 
+def _label_start(labels, prepared, loss, pairs=None):
+    """A search's start from any labels [N] (a sample's own: _sample_start, the same to the bit,
+    test_point_estimate_tables), its pairs from ``pairs`` (default: the module's _pairs)."""
+    from spcopyro.results.point_estimate import _expected, _pairs, _sample_tables, _Start
+
+    estimate, k = compact(labels)
+    found = (pairs or _pairs)(estimate, prepared)
+    tables = _sample_tables(found, k + 1, prepared)
+    return _Start(estimate, k, found, tables, _expected(estimate, k, prepared, loss, tables))
+
+
 def _greedy_from_scratch(start, prepared, loss, max_clusters):
     """The greedy search as written before 2026-12-05: every sweep's changes and every halving
     trial's exact loss computed from scratch."""
@@ -297,14 +308,14 @@ def test_the_incremental_search_is_the_search_from_scratch_to_the_bit(loss, seed
     version that kept it at 0 found other estimates). Its pairs' best moves go in chunks of
     CHUNK pairs (here also 37, so that a map has many)."""
     import spcopyro.results.point_estimate as module
-    from spcopyro.results.point_estimate import _greedy
+    from spcopyro.results.point_estimate import _greedy, _sample_start
 
     if seed % 2:
         monkeypatch.setattr(module, "CHUNK", 37)
     prepared = _prepare(_map_like_samples(seed, cells=1000 + 500 * seed), loss)
-    for start in prepared.codes[:3]:
-        ours, our_value = _greedy(start, prepared, loss, cap)
-        theirs, their_value = _greedy_from_scratch(start, prepared, loss, cap)
+    for s in range(3):
+        ours, our_value = _greedy(_sample_start(s, prepared, loss), prepared, loss, cap)
+        theirs, their_value = _greedy_from_scratch(prepared.codes[s], prepared, loss, cap)
         assert np.array_equal(ours, theirs)
         assert our_value == their_value
 
@@ -331,9 +342,9 @@ def test_the_search_recomputes_only_what_a_sweep_changed(monkeypatch):
 
     monkeypatch.setattr(module, "_expected", counting_expected)
     monkeypatch.setattr(module, "_joined_rows", counting_rows)
-    for start in prepared.codes[:3]:
+    for s in range(3):
         exact[0], rows[:] = 0, []
-        module._greedy(start, prepared, "vi", None)
+        module._greedy(module._sample_start(s, prepared, "vi"), prepared, "vi", None)
         sweeps = len(rows)
         assert sweeps > 5  # the search ran on after its first sweeps
         assert exact[0] <= sweeps + 1  # the start's loss, then about one per sweep
@@ -344,7 +355,7 @@ def test_the_search_recomputes_only_what_a_sweep_changed(monkeypatch):
 def test_the_progress_bar_counts_each_search_in_sweeps():
     """A search adds MAX_SWEEPS x SWEEP_STEPS to the bar whether it stops early or not, so
     the bar's total (samples, then searches in their sweeps) is reached at the end."""
-    from spcopyro.results.point_estimate import MAX_SWEEPS, SWEEP_STEPS, _greedy
+    from spcopyro.results.point_estimate import MAX_SWEEPS, SWEEP_STEPS, _greedy, _sample_start
 
     class Bar:
         n = 0
@@ -353,9 +364,9 @@ def test_the_progress_bar_counts_each_search_in_sweeps():
             self.n += steps
 
     prepared = _prepare(_map_like_samples(6), "vi")
-    for start in prepared.codes[:2]:
+    for s in range(2):
         bar = Bar()
-        _greedy(start, prepared, "vi", None, bar)
+        _greedy(_sample_start(s, prepared, "vi"), prepared, "vi", None, bar)
         assert bar.n == MAX_SWEEPS * SWEEP_STEPS
 
 

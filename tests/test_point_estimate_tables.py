@@ -18,7 +18,7 @@ from spcopyro.results.estimate_tables import (
     _sample_tables,
     _signature,
 )
-from spcopyro.results.point_estimate import _greedy, _prepare, compact
+from spcopyro.results.point_estimate import _greedy, _prepare, _sample_start, compact
 
 
 def _old_signature(stacked, sizes):
@@ -237,7 +237,7 @@ def test_the_search_on_a_map_like_case_is_unchanged(loss, monkeypatch):
     cells (all zeros) as a start opens clusters and outgrows its buffer (VI: once, to 3
     clusters; Binder: twice, to 18)."""
     import spcopyro.results.point_estimate as module
-    from tests.test_point_estimate import _map_like_samples
+    from tests.test_point_estimate import _label_start, _map_like_samples
 
     prepared = _prepare(_map_like_samples(4, cells=1500), loss)
     starts = [*prepared.codes[:3], np.zeros(prepared.codes.shape[1], dtype=np.int64)]
@@ -253,7 +253,7 @@ def test_the_search_on_a_map_like_case_is_unchanged(loss, monkeypatch):
     monkeypatch.setattr(module, "_kept_columns", counted_kept)
     ours = []
     for start in starts:
-        ours.append(_greedy(start, prepared, loss, None))
+        ours.append(_greedy(_label_start(start, prepared, loss), prepared, loss, None))
     assert any(inplace for s, inplace, _ in calls if s < 3)  # columns moved in place
     growths = sum(grown for s, _, grown in calls if s == 3)  # buffers outgrown from zeros
     assert growths >= {"vi": 1, "binder": 2}[loss]  # binder: 8 spare columns used up, too
@@ -272,12 +272,12 @@ def test_the_search_on_a_map_like_case_is_unchanged(loss, monkeypatch):
 
     monkeypatch.setattr(module, "_joined_rows", old_rows)
     monkeypatch.setattr(module, "_kept_columns", old_kept)
-    monkeypatch.setattr(module, "_pairs", _old_pairs)
     monkeypatch.setattr(
         module, "_moved_pairs", lambda p, prepared, m, codes, r: _old_pairs(codes, prepared)
     )
     for (estimate, value), start in zip(ours, starts, strict=True):
-        theirs, their_value = _greedy(start, prepared, loss, None)
+        old_start = _label_start(start, prepared, loss, _old_pairs)
+        theirs, their_value = _greedy(old_start, prepared, loss, None)
         assert np.array_equal(estimate, theirs) and value == their_value
 
 
@@ -287,25 +287,28 @@ def test_the_searches_start_from_a_samples_own_pairs(loss, monkeypatch):
     a sort of the N cells (each of the 3 starts sorted them before 2026-12-05); the same search,
     estimate and loss to the bit, as from the sample's labels."""
     import spcopyro.results.point_estimate as module
-    from tests.test_point_estimate import _map_like_samples
+    from tests.test_point_estimate import _label_start, _map_like_samples
 
     samples = _map_like_samples(6, cells=1500, count=8)
     prepared = _prepare(samples, loss)
-    theirs = [_greedy(codes, prepared, loss, None) for codes in prepared.codes]  # [N] labels
+    theirs = [  # from the codes [N] as labels: their pairs from a sort of the N cells
+        _greedy(_label_start(codes, prepared, loss), prepared, loss, None)
+        for codes in prepared.codes
+    ]
 
-    def from_labels(start, prepared, *rest):  # the searches as before: from the codes [N]
-        return _greedy(prepared.codes[start], prepared, *rest)
+    def from_labels(row, prepared, loss):  # the starts as before: from the codes [N]
+        return _label_start(prepared.codes[row], prepared, loss)
 
-    monkeypatch.setattr(module, "_greedy", from_labels)
+    monkeypatch.setattr(module, "_sample_start", from_labels)
     old = module.point_estimate(samples, loss)
-    monkeypatch.setattr(module, "_greedy", _greedy)
+    monkeypatch.setattr(module, "_sample_start", _sample_start)
 
     def no_sort(estimate, prepared):
         raise AssertionError("the pairs of a sample from a sort of the N cells")
 
     monkeypatch.setattr(module, "_pairs", no_sort)
     for s, (estimate, value) in enumerate(theirs):
-        ours, our_value = _greedy(s, prepared, loss, None)
+        ours, our_value = _greedy(_sample_start(s, prepared, loss), prepared, loss, None)
         assert np.array_equal(ours, estimate) and our_value == value
     new = module.point_estimate(samples, loss)  # no sort of the N cells anywhere
     assert np.array_equal(new.labels, old.labels)

@@ -233,23 +233,36 @@ is rejected without the exact loss; the two differed by at most 3e-14 of it over
 a search on a 27,832-cell map (both losses), so every decision is the one the exact loss makes."""
 
 
+class _Start(NamedTuple):
+    """Where a greedy search starts: an estimate with its pairs, tables and expected loss."""
+
+    estimate: np.ndarray  # [N] codes 0..k-1
+    k: int
+    pairs: _Pairs
+    tables: _Tables  # S x [k + 1, J_s]: a spare empty row for a new cluster
+    value: float  # the expected loss of estimate (from the tables' first k rows)
+
+
+def _sample_start(row: int, prepared: _Samples, loss: str) -> _Start:
+    """Sample ``row`` as a start: its codes (compact already), its pairs its U columns
+    (:func:`_sample_pairs`, no sort of the N cells) and its expected loss, which
+    :func:`point_estimate` ranks the samples by, so that a search's start is built once."""
+    estimate, k = prepared.codes[row], prepared.sizes[row]  # [N], J_s
+    pairs = _sample_pairs(row, prepared)
+    tables = _sample_tables(pairs, k + 1, prepared)  # S x [J_s + 1, J_s']
+    return _Start(estimate, k, pairs, tables, _expected(estimate, k, prepared, loss, tables))
+
+
 def _greedy(
-    start: np.ndarray | int, prepared: _Samples, loss: str, max_clusters: int | None, bar=None
+    start: _Start, prepared: _Samples, loss: str, max_clusters: int | None, bar=None
 ) -> tuple[np.ndarray, float]:
-    """One greedy search from ``start`` (module doc): labels [N], or the row of a sample of
-    ``prepared``, whose pairs are its U columns (:func:`_sample_pairs`) where labels' pairs take
-    a sort of the N cells (:func:`_pairs`). Between sweeps it keeps the rows of
-    :func:`_joined_rows` of the clusters no cell left or joined (after the first sweep most of
-    them), and rejects halving trials that are clearly no better without their exact loss: the
-    same moves, the same estimate and loss to the bit as recomputing everything every sweep."""
-    if isinstance(start, (int, np.integer)):  # a sample: its codes are compact already
-        estimate, k = prepared.codes[start].copy(), prepared.sizes[start]  # [N], J_s
-        pairs = _sample_pairs(int(start), prepared)  # the same pairs, no sort of N
-    else:
-        estimate, k = compact(start)
-        pairs = _pairs(estimate, prepared)
-    tables = _sample_tables(pairs, k + 1, prepared)  # S x [k + 1, J_s]
-    value = _expected(estimate, k, prepared, loss, tables)  # reads the first k rows
+    """One greedy search from ``start`` (module doc; :func:`_sample_start`). Between sweeps it
+    keeps the rows of :func:`_joined_rows` of the clusters no cell left or joined (after the
+    first sweep most of them), and rejects halving trials that are clearly no better without
+    their exact loss: the same moves, the same estimate and loss to the bit as recomputing
+    everything every sweep."""
+    estimate, k, pairs, tables, value = start
+    estimate = estimate.copy()  # [N] not a view of the samples' codes
     n = estimate.shape[0]
     scale = float(n * n if loss == "binder" else n)
     buffer, stale = None, None  # [U, >= k + 1] join terms; the clusters to recompute (None: all)
@@ -352,15 +365,17 @@ def point_estimate(
     ) as bar:
         prepared = _prepare(samples, loss, bar)
         losses = np.empty(len(samples))  # [S]
-        for s, (c, j) in enumerate(zip(prepared.codes, prepared.sizes, strict=True)):
-            pairs = _sample_pairs(s, prepared)  # no sort of N
-            tables = _sample_tables(pairs, j, prepared)
-            losses[s] = _expected(c, j, prepared, loss, tables)
+        kept: dict[int, _Start] = {}  # the order_count samples of lowest loss so far
+        for s in range(len(samples)):
+            kept[s] = _sample_start(s, prepared, loss)  # no sort of N
+            losses[s] = kept[s].value
+            if len(kept) > order_count:  # the highest (loss, row): the stable argsort's last
+                del kept[max(kept, key=lambda row: (losses[row], row))]
             bar.update()
         order = np.argsort(losses, kind="stable")[:order_count]
         best, best_value = None, np.inf
         for s in order:
-            estimate, value = _greedy(int(s), prepared, loss, max_clusters, bar)  # no sort of N
+            estimate, value = _greedy(kept.pop(int(s)), prepared, loss, max_clusters, bar)
             if value < best_value:
                 best, best_value = estimate, value
     assert best is not None
