@@ -674,3 +674,22 @@ def test_a_robot_map_whose_resolution_map_saver_rounded_is_the_fits(tmp_path, fi
     finer = dataclasses.replace(robot_map, resolution=robot_map.resolution * 0.998)
     with pytest.raises(ValueError, match="not the map the fit's"):
         check_robot_map(coarse, finer)
+
+
+def test_the_mask_lines_say_what_the_counted_cells_get(fit, tmp_path, capsys):
+    """`export`'s line for a mask counts cells: a keepout mask's are kept out, a speed mask's
+    slowed, and it gives the limits the mask sets on them. Before, the speed line read "631 of
+    860 free cells" with no word of what they get (room1ldk5's 'sofa', whose p(cell is the
+    place) is at most 0.42: every limit lies between 71 and 99 %, nowhere near --min-speed)."""
+    assert main(["export", str(fit), "--nav2", str(tmp_path / "k"), "--word", "kitchen"]) == 0
+    assert "(concept 0): 114 of 228 free cells kept out -> " in capsys.readouterr().out
+    assert main(["export", str(fit), "--nav2", str(tmp_path / "s"), "--word", "kitchen",
+                 "--mode", "speed", "--min-speed", "20", "--max-speed", "90"]) == 0  # fmt: skip
+    limit = np.rint(90 - 70 * where_probability(SpCoResult.load(fit), "kitchen"))  # [N]
+    assert 20 < limit.min() < limit.max() < 90  # p neither 0 nor 1: every free cell slowed
+    assert (
+        f"speed mask for 'kitchen' (per-cell probability): 228 of 228 free cells slowed, to "
+        f"{limit.min():.0f}-{limit.max():.0f}% of the maximum speed (90% where p(cell is the "
+        "place) = 0, down "
+        "to 20% where it is 1) -> "
+    ) in capsys.readouterr().out

@@ -47,6 +47,25 @@ def _keeps_out_nothing(result, word: str, args: argparse.Namespace) -> str:
     )
 
 
+def _what_cells(mask, free, args: argparse.Namespace) -> str:
+    """What the cells a mask line counts get: kept out, or slowed, with the speed limits the
+    written mask sets on them (read back as Nav2 decodes it: limit = 100 - value percent): the
+    limit falls from --max-speed where p(cell is the place) = 0 to --min-speed where it is 1,
+    so a word whose place is uncertain slows the robot far less than --min-speed."""
+    if mask.mode == "keepout":
+        return "kept out"
+    from spcopyro.maps import load_filter_mask
+
+    values = load_filter_mask(mask.mask_yaml).values[free]  # [N] 0: no limit
+    limits = 100 - values[values > 0].astype(int)  # [cells] percent
+    if len(limits) == 0:
+        return "slowed"
+    span = f"{limits.min()}%" if limits.min() == limits.max() else (
+        f"{limits.min()}-{limits.max()}%")  # fmt: skip
+    return (f"slowed, to {span} of the maximum speed ({args.max_speed:g}% where p(cell is the "
+            f"place) = 0, down to {args.min_speed:g}% where it is 1)")  # fmt: skip
+
+
 def _export(args: argparse.Namespace) -> int:
     from spcopyro.cli.common import load_fit, load_robot_map
     from spcopyro.results.result import UnknownWordError
@@ -94,7 +113,8 @@ def _export(args: argparse.Namespace) -> int:
     for mask in export.masks:
         how = f"concept {mask.concept}" if mask.concept is not None else "per-cell probability"
         print(f"{mask.mode} mask for {mask.word!r} ({how}): {mask.cells} of {free} free cells "
-              f"-> {mask.mask_yaml}, params {mask.params_yaml}")  # fmt: skip
+              f"{_what_cells(mask, result.grid.free, args)} -> {mask.mask_yaml}, params "
+              f"{mask.params_yaml}")  # fmt: skip
         for warning in mask.warnings:
             print(f"warning: {mask.word!r}: {warning}", file=sys.stderr)
         if mask.mode == "keepout" and mask.cells == 0:
