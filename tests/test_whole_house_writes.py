@@ -86,7 +86,7 @@ def test_a_failed_or_stopped_import_leaves_the_old_house_and_map(imported, monke
     def fail(*args, **kwargs):
         raise stop("stopped")
 
-    monkeypatch.setattr(importer, "replace_out", fail)
+    monkeypatch.setattr(importer, "commit_folder", fail)
     with pytest.raises(stop):
         importer.import_bags([argv[1]], argv[3], out, overwrite=True)
     assert _tree(out.parent) == before

@@ -22,7 +22,7 @@ import re
 from collections.abc import Iterable
 from pathlib import Path
 
-from spcopyro._util.outputs import check_folder_path, check_not_holding_cwd, commit_folder
+from spcopyro._util.outputs import check_folder_path, check_not_holding_cwd
 from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.maps.map_server import MapFormatError, load_map
 
@@ -31,7 +31,6 @@ __all__ = [
     "MARKER",
     "check_map",
     "check_out",
-    "replace_out",
     "same_images",
     "written_by",
 ]
@@ -156,14 +155,3 @@ def same_images(old: Path, new: Path) -> bool:
     return before.keys() == after.keys() and all(
         filecmp.cmp(before[name], after[name], shallow=False) for name in before
     )
-
-
-def replace_out(
-    out: Path, staging: Path, earlier: frozenset[str] | None, map_files: list[tuple[Path, Path]]
-) -> tuple[str, ...]:
-    """Move ``staging`` to ``out`` and the house's map files (``(partial, target)``, written
-    whole beside their targets) over the map, all as one (:func:`commit_folder`: a Ctrl-C finds
-    the folder and its map both old or both new). An earlier import in ``out`` is set aside, and
-    what it did not write (``earlier``: ``Ft.csv`` of ``spcopyro features``, a user's notes)
-    carried into the new ``out``, as ``fit --overwrite`` does; returns the names carried."""
-    return commit_folder(staging, out, earlier or frozenset(), map_files, hidden=True)

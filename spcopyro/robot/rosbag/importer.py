@@ -64,7 +64,7 @@ from typing import Any
 
 import numpy as np
 
-from spcopyro._util.outputs import staging_folder
+from spcopyro._util.outputs import commit_folder, staging_folder
 from spcopyro._util.progress import clears_when_done, progress_enabled
 from spcopyro.data.text import tokenize
 from spcopyro.maps.grid import OccupancyGrid
@@ -89,7 +89,6 @@ from spcopyro.robot.rosbag.house_folder import (
     MARKER,
     check_map,
     check_out,
-    replace_out,
     same_images,
 )
 from spcopyro.robot.rosbag.images import SENSOR_BITS, ImageDecodeError, encoded_image
@@ -537,7 +536,10 @@ def import_bags(
             (staging / MARKER).write_text(json.dumps(record, indent=1) + "\n", encoding="utf-8")
             with stage_map(grid, map_target) as map_files:  # written beside map_target
                 images_unchanged = earlier is not None and same_images(out, staging)
-                kept = replace_out(out, staging, earlier, map_files)
+                # OUT and the map both old or both new after a Ctrl-C; an earlier import set
+                # aside, what it did not write (Ft.csv, notes) carried in, as fit --overwrite
+                written = earlier or frozenset()  # None: OUT is empty or absent
+                kept = commit_folder(staging, out, written, map_files, hidden=True)
             done = True
         finally:
             if staging.exists():
