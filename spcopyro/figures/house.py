@@ -29,11 +29,27 @@ from spcopyro.figures.png import save_figure
 from spcopyro.maps import distinct_colours, render_labels
 
 MAX_WORD_COLOURS = 12  # words beyond the most frequent ones are drawn as "other"
+OTHER_WORDS_NAMED = 6  # the legend's "other words: ..." names at most this many, then "and N more"
 
 
 def plot_house(house: House, path: str | os.PathLike[str], title: str | None = None) -> Path:
     """Write :func:`house_figure` to ``path``."""
     return save_figure(house_figure(house, title), path)
+
+
+def other_words_label(marks: list[str], frequent: list[str]) -> str:
+    """The legend's entry for the grey circles: "other words: " and the words they stand for,
+    the most heard first (ties alphabetically), at most ``OTHER_WORDS_NAMED`` and "and N more".
+    ``marks``: each utterance's word (:func:`~spcopyro.figures.map_pieces.utterance_marks`; an
+    empty utterance's "" is not named), ``frequent``: the words that have a colour. Before,
+    the entry read "other words" alone: room1ldk5's 'bedroom', 'bath' and 'chair' were grey
+    circles no figure named."""
+    named = set(frequent)
+    counts = Counter(m for m in marks if m and m not in named)
+    rest = [w for w, _ in sorted(counts.items(), key=lambda item: (-item[1], item[0]))]
+    more = len(rest) - OTHER_WORDS_NAMED
+    return "other words" + (f": {', '.join(rest[:OTHER_WORDS_NAMED])}" if rest else "") + (
+        f" and {more} more" if more > 0 else "")  # fmt: skip
 
 
 def house_figure(house: House, title: str | None = None) -> Figure:
@@ -43,7 +59,8 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     is the kitchen": :func:`~spcopyro.figures.map_pieces.utterance_marks`); the
     ``MAX_WORD_COLOURS`` most frequent words each take a colour of
     :func:`~spcopyro.maps.palette.distinct_colours` (near-twins such as tv/kitchen came from
-    ``label_colours``), the rest are "other words" in grey. Markers at one spot are spread
+    ``label_colours``), the rest are "other words" in grey, named in the legend
+    (:func:`other_words_label`). Markers at one spot are spread
     apart (:func:`~spcopyro.figures.map_pieces.spread_markers`): every word in the legend shows.
     A marker on a wall has a white rim (:func:`~spcopyro.figures.map_pieces.rim_colours`).
     A word or image off the map shown is a triangle at its edge pointing its way, counted in
@@ -67,6 +84,7 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     draw_at_edge(axes, images[images_away], np.full((int(images_away.sum()), 3), 0.45))
     every = kind  # [U] the legend lists each word, on the map or off (its triangle's colour)
     others = (kind == len(frequent)).any()  # "other words" in the legend, on the map or off
+    others_label = other_words_label(marks, frequent)
     xy, kind = heard[~away], kind[~away]  # [U', 2], [U'] the words on the map
     order = np.argsort(kind, kind="stable")  # named words keep their places first
     counted = markers_counted(axes[0], grid, xy)  # too many to spread
@@ -79,11 +97,11 @@ def house_figure(house: House, title: str | None = None) -> Figure:
             ax.scatter(*images[~images_away].T, s=6, c="0.45", marker="s",
                        label=f"images ({obs.num_images})")  # fmt: skip
         if counted:  # circles of area by count, the smallest on top; the legend's from empties
-            draw_counted_words(ax, grid, xy, kind, frequent, colours, every)
+            draw_counted_words(ax, grid, xy, kind, frequent, colours, every, others_label)
             continue
         if others:  # drawn first (under the named words), listed last in the legend
             ax.scatter(*shown[rest].T, s=size, color="0.8", edgecolors=rims[rest],
-                       linewidths=0.4, zorder=2, label="other words")  # fmt: skip
+                       linewidths=0.4, zorder=2, label=others_label)  # fmt: skip
         for k, word in enumerate(frequent):
             ax.scatter(*shown[kind == k].T, s=size, color=colours[k], edgecolors=rims[kind == k],
                        linewidths=0.4, zorder=3, label=word)  # fmt: skip
@@ -92,8 +110,8 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     handles = [h if label.startswith("images (") else Line2D(
         [], [], ls="", marker="o", ms=marker, mfc=h.get_facecolor()[0], mec="k", mew=0.4)
         for h, label in zip(handles, labels, strict=True)]  # fmt: skip
-    if "other words" in labels:
-        k = labels.index("other words")
+    if others_label in labels:
+        k = labels.index(others_label)
         handles.append(handles.pop(k))
         labels.append(labels.pop(k))
     off = [plural(int(n), what) for n, what in ((away.sum(), "word"),

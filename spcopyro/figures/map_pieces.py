@@ -361,10 +361,12 @@ def draw_counted_words(
     frequent: list[str],
     colours: np.ndarray,
     listed: np.ndarray,
+    others: str = "other words",
 ) -> None:
     """house.png's words heard when too many to spread apart: the utterances at world points
     ``xy`` ``[U, 2]`` of each ``kind`` ``[U]`` (an index into ``frequent``, whose colours are
-    ``colours`` ``[F, 3]`` in 0..1; ``len(frequent)``: other words, light grey) as circles of
+    ``colours`` ``[F, 3]`` in 0..1; ``len(frequent)``: other words, light grey, whose legend
+    entry is ``others``) as circles of
     area by count (:func:`utterance_markers`), the smallest on top, and an empty scatter for
     the legend per kind in ``listed`` (the kinds of every utterance, those heard off the map
     and drawn at its edge too; other words last)."""
@@ -373,7 +375,7 @@ def draw_counted_words(
     order = np.argsort(-areas, kind="stable")
     ax.scatter(*at[order].T, s=areas[order], c=palette[kinds[order]],
                edgecolors=rim_colours(grid, at[order]), linewidths=0.4, zorder=3)  # fmt: skip
-    for k, word in [*enumerate(frequent), (len(frequent), "other words")]:
+    for k, word in [*enumerate(frequent), (len(frequent), others)]:
         if (np.asarray(listed) == k).any():
             ax.scatter([], [], s=MARKER_AREA, color=palette[k], label=word)
 
