@@ -203,3 +203,70 @@ def test_the_maps_as_map_server_reads_them(tmp_path, name):
         sidecar = json.loads((tmp_path / "nav2" / "semantic_map.labels.json").read_text())
         concept = {int(g): c for g, c in sidecar["grey_to_concept"].items()}
         assert (concept[at[KITCHEN]], concept[at[BED]]) == (0, 1)
+
+
+def ros2_node_parameters(document: dict, node_fqn: str) -> dict:
+    """The ``ros__parameters`` a node named ``node_fqn`` (``/ns/name``) takes from a params
+    file (``document``, as yaml loads it), by ROS 2's rule: ``rcl_yaml_param_parser`` joins the
+    keys down to ``ros__parameters`` with ``/`` (``add_name_to_ns``: none after one ending in
+    ``/``); rclcpp's ``parameter_map_from`` puts a ``/`` before a name without one, turns ``/*``
+    into ``(/\\w+)`` (so ``/**`` into ``(/\\w+)*``) and keeps the keys whose name matches the
+    node's whole name, later keys' values over earlier ones'."""
+    taken: dict = {}
+
+    def walk(mapping: dict, name: str) -> None:
+        for key, value in mapping.items():
+            if key == "ros__parameters":
+                full = name if name.startswith("/") else "/" + name
+                if re.fullmatch(full.replace("/*", r"(/\w+)"), node_fqn):
+                    taken.update(value)
+            elif isinstance(value, dict):
+                walk(value, key if not name else name + ("" if name.endswith("/") else "/") + key)
+
+    walk(document, "")
+    return taken
+
+
+@pytest.mark.parametrize("mode", ["keepout", "speed"])
+def test_the_mask_nodes_params_reach_them_as_ros2_applies_a_params_file(tmp_path, mode):
+    """A params file keyed by node name applies to nodes in no namespace, and, wrapped under
+    the namespace as Nav2's launch files wrap theirs (nav2_common ``RewrittenYaml(root_key=NS)``
+    in nav2_bringup and costmap_filter_info.launch.py), to nodes in it. Given unwrapped to nodes
+    in a namespace it applies to neither, with no error: the file's header says what to do
+    (it said nothing, and a multi-robot launch ran both servers without their parameters)."""
+    export = export_nav2(top_and_bottom(), tmp_path / "nav2", ["kitchen"], mode=mode,
+                         namespace="robot1")  # fmt: skip
+    mask = export.masks[0]
+    document = yaml.safe_load(mask.params_yaml.read_text())
+    for node in (f"{mask.name}_mask_server", f"{mask.name}_filter_info_server"):
+        own = document[node]["ros__parameters"]
+        assert ros2_node_parameters(document, f"/{node}") == own
+        wrapped = {"robot1": document}  # RewrittenYaml: {root_key: data}
+        assert ros2_node_parameters(wrapped, f"/robot1/{node}") == own
+        assert ros2_node_parameters(document, f"/robot1/{node}") == {}  # the documented limit
+    assert ros2_node_parameters(document, f"/{mask.name}_mask_server")["topic_name"] == (
+        f"/robot1/{mask.name}_filter_mask"  # the topics carry the namespace themselves
+    )
+    header = "".join(
+        line[2:] for line in mask.params_yaml.read_text().splitlines(keepends=True)
+        if line.startswith("# ")
+    )  # fmt: skip
+    assert "for nodes started in a namespace NS, wrap this\nfile under NS" in header
+    assert "RewrittenYaml(root_key=NS)" in header
+    assert "ROS 2 gives neither node these parameters" in header
+
+
+def test_the_params_file_reader_follows_ros2s_wildcards():
+    """The reader above against the rules it copies: ``/**`` any node, ``/**/NAME`` NAME in any
+    namespace (none too), ``/*`` one level, nested keys joined."""
+    document = {
+        "/**": {"ros__parameters": {"a": 1}},
+        "/**/node": {"ros__parameters": {"b": 2}},
+        "ns": {"node": {"ros__parameters": {"c": 3}}},
+        "/*/other": {"ros__parameters": {"d": 4}},
+    }
+    assert ros2_node_parameters(document, "/node") == {"a": 1, "b": 2}
+    assert ros2_node_parameters(document, "/ns/node") == {"a": 1, "b": 2, "c": 3}
+    assert ros2_node_parameters(document, "/x/y/node") == {"a": 1, "b": 2}
+    assert ros2_node_parameters(document, "/x/other") == {"a": 1, "d": 4}
+    assert ros2_node_parameters(document, "/other") == {"a": 1}

@@ -45,6 +45,21 @@ the mask server ``MODE_WORD_mask_server`` and of ``MODE_WORD_filter_info_server`
 ``costmap_filters.yaml`` (the costmap plugin entries to merge into ``nav2_params.yaml``; not
 written without a word, which has none) and ``nav2_export.json`` (what was exported, from which
 fit, with which settings).
+
+**Nodes in a namespace.** ROS 2 gives a node the parameters of a params file's key that matches
+its fully qualified name, a key without a leading ``/`` read as one with it (rclcpp
+``parameter_map_from``); nested keys join with ``/``. ``MODE_WORD_params.yaml`` is keyed by the
+bare node names, as Nav2's own params files are: it applies to nodes started in no namespace.
+Passed unchanged (``--params-file``, launch_ros ``parameters=[file]``) to nodes started in a
+namespace (``/robot1/MODE_WORD_mask_server``), it applies to **neither node, silently**: wrap it
+in the namespace first, as Nav2's launch files do (``RewrittenYaml(root_key=namespace)``,
+nav2_bringup and ``nav2_costmap_filters_demo``'s ``costmap_filter_info.launch.py``), which keys
+it ``robot1/MODE_WORD_mask_server``. A wildcard key (``/**/NAME``) would reach them unwrapped on
+Humble and later (rclcpp pull request 1839) but not with ``RewrittenYaml`` (``robot1//**/NAME``:
+rcl refuses a repeated ``/``), on Foxy or Galactic, or in a component container before
+launch_ros pull request 465 (Humble's, Nav2's default composition), so it is not used.
+``costmap_filters.yaml``'s entries are merged into ``nav2_params.yaml`` and follow its keys.
+Every topic is absolute (in the export's ``namespace``): none depends on the nodes' namespace.
 """
 
 from __future__ import annotations
@@ -95,6 +110,13 @@ DEFAULT_MIN_SPEED, DEFAULT_MAX_SPEED = 30.0, 100.0
 EXPORT_MARKER = "nav2_export.json"
 """A folder holding it was written by :func:`export_nav2`: the only kind ``overwrite`` replaces."""
 SPEED_LIMIT_TOPIC = "/speed_limit"
+PARAMS_NAMESPACE_NOTE = (
+    "Keyed by node name in no namespace: for nodes started in a namespace NS, wrap this\n"
+    "file under NS (nav2_common RewrittenYaml(root_key=NS), as Nav2's launch files do),\n"
+    "or ROS 2 gives neither node these parameters"
+)
+"""The header lines of a mask's params file on its keys (module docstring, nodes in a
+namespace): given unwrapped to nodes in a namespace, ROS 2 applies none of it, silently."""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -506,7 +528,7 @@ def export_nav2(
                 params_yaml,
                 mask_params(mode, name, final / mask_yaml.name, namespace, frame),
                 f"Nav2 {mode} filter for {word!r} (spcopyro export): params of its mask server "
-                "and costmap filter info server",
+                f"and costmap filter info server.\n{PARAMS_NAMESPACE_NOTE}",
             )
             cells = int((values[grid.free] > 0).sum())
             masks.append(ExportedMask(word, mode, name, final / mask_yaml.name,
