@@ -179,6 +179,26 @@ def test_navigate_png_explains_its_stops_and_other_candidates_in_the_legend():
     assert len(crosses) == 1  # the other bedroom, once in the legend
 
 
+def test_navigate_png_tells_the_goal_heading_from_the_path():
+    """navigate.png drew the goal's heading as an arrow in the path's red, in no legend: on
+    room1ldk5 ('go to the bath via the kitchen') the path seemed to run on past the goal star.
+    The arrow is black and the goal's legend entry names it."""
+    from matplotlib.colors import to_rgb
+    from matplotlib.patches import FancyArrow
+    from test_navigate import START_A, house_result
+
+    from spcopyro.robot.navigation import navigate
+    from spcopyro.robot.navigation.figure import plan_figure
+
+    plan = navigate(house_result(), "go to the bedroom via the kitchen", START_A)
+    ax = plan_figure(plan).axes[0]
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert f"goal: {plan.goal.shown} (arrow: its heading)" in labels
+    (arrow,) = [p for p in ax.patches if isinstance(p, FancyArrow)]
+    (path,) = [ln for ln in ax.get_lines() if ln.get_label() == "path"]
+    assert to_rgb(arrow.get_facecolor()) != to_rgb(path.get_color())
+
+
 def test_a_passage_is_drawn_along_free_cells_not_across_a_wall():
     """show --graph drew each passage as a straight line between the two centroids: on a
     U-shaped map (a wall from the top between its arms) the line from the U-shaped place's

@@ -100,9 +100,12 @@ def plan_figure(plan: NavigationPlan) -> Figure:
         for k, stop in enumerate(plan.stops[:-1]):  # white, black-rimmed: not the route's orange
             ax.plot(*stop.xy, marker="s", ms=8, ls="", markerfacecolor="w", markeredgecolor="k",
                     markeredgewidth=1.5, label="" if k else "stop ('via' place)")  # fmt: skip
-        ax.plot(*goal.xy, marker="*", color="C3", ms=16, ls="", label=f"goal: {goal.shown}")
+        ax.plot(*goal.xy, marker="*", color="C3", ms=16, ls="",
+                label=f"goal: {goal.shown} (arrow: its heading)")  # fmt: skip
+        # the goal pose's yaw in black: drawn in the path's red it read as the path running on
+        # past the goal (room1ldk5, 'go to the bath via the kitchen')
         ax.arrow(goal.xy[0], goal.xy[1], length * np.cos(goal.yaw), length * np.sin(goal.yaw),
-                 width=0.02, color="C3")  # fmt: skip
+                 width=0.02, color="k", zorder=3)  # fmt: skip
         others = [c.xy for stop in plan.stops for c in stop.choice.candidates
                   if (c.xy != stop.xy) or not c.reachable]  # fmt: skip
         for k, xy in enumerate(others):
