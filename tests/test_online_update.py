@@ -186,6 +186,10 @@ def _regridded(grid, scale, shift_cells):
         (1 + 2e-5, 4e-6, True),  # map_saver's %f: 0.05 / 3 as 0.016667, an origin 5e-7 m off
         (1.0, 0.01, False),  # an origin a hundredth of a cell off: another map
         (1.01, 0.0, False),  # cells 1% larger: another map
+        # cells 0.05% finer, the origin 0.99975 thousandths of the saved cell off: over a
+        # thousandth of the finer cell, which same_frame (OccupancyGrid ==, a --init start)
+        # measures in; an update measured in the saved fit's cell and took it
+        (1 - 5e-4, 1e-3 * (1 - 2.5e-4), False),
     ],
 )
 def test_every_comparison_of_two_maps_frames_follows_one_rule(

@@ -43,6 +43,7 @@ __all__ = [
     "OccupancyGrid",
     "cells_on_map",
     "describe_map",
+    "frame_differences",
     "same_frame",
     "same_free_cells",
     "same_origin",
@@ -83,12 +84,20 @@ def same_origin(a: tuple[float, ...], b: tuple[float, ...], resolution: float) -
     return all(math.isclose(a[i], b[i], abs_tol=tolerance) for i in (0, 1)) and a[2:] == b[2:]
 
 
-def same_frame(a: OccupancyGrid, b: OccupancyGrid) -> bool:
-    """Whether ``a`` and ``b`` have one resolution and origin (:func:`same_resolution`,
-    :func:`same_origin` in the finer one's cells): their cells lie on each other."""
-    return same_resolution(a.resolution, b.resolution) and same_origin(
-        a.origin, b.origin, min(a.resolution, b.resolution)
+def frame_differences(a: OccupancyGrid, b: OccupancyGrid) -> tuple[bool, bool]:
+    """(the resolutions differ, the origins differ) of ``a`` and ``b``: :func:`same_resolution`,
+    :func:`same_origin` in the finer one's cells. The one rule of :func:`same_frame` and of an
+    update's check (:func:`spcopyro.robot.online.check_compatible`, which names each)."""
+    return (
+        not same_resolution(a.resolution, b.resolution),
+        not same_origin(a.origin, b.origin, min(a.resolution, b.resolution)),
     )
+
+
+def same_frame(a: OccupancyGrid, b: OccupancyGrid) -> bool:
+    """Whether ``a`` and ``b`` have one resolution and origin (:func:`frame_differences`):
+    their cells lie on each other."""
+    return not any(frame_differences(a, b))
 
 
 def same_free_cells(a: OccupancyGrid, b: OccupancyGrid) -> bool:

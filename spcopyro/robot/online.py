@@ -76,7 +76,7 @@ from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsChain, advance, start_chain
 from spcopyro.inference.driver import DriveInterrupted
 from spcopyro.inference.protocol import method_options
-from spcopyro.maps.grid import same_origin, same_resolution
+from spcopyro.maps.grid import frame_differences
 from spcopyro.model import DTYPE, ModelData
 from spcopyro.results.renumber import matching_permutation, moved_numbers, renumbered
 from spcopyro.results.result import SpCoResult
@@ -199,10 +199,11 @@ def check_compatible(
         problems.append(f"map: saved fit {old.shape[0]} x {old.shape[1]} cells, this run "
                         f"{grid.shape[0]} x {grid.shape[1]}")  # fmt: skip
     else:
-        if not same_resolution(old.resolution, grid.resolution):  # maps' one rule
+        resolution, origin = frame_differences(old, grid)  # maps' one rule, as same_frame's
+        if resolution:
             problems.append(f"map resolution: saved fit {old.resolution:g} m, this run "
                             f"{grid.resolution:g} m")  # fmt: skip
-        if not same_origin(old.origin, grid.origin, old.resolution):
+        if origin:  # in the finer map's cells (in the saved fit's, a --init start refused it)
             problems.append(f"map origin: saved fit {list(old.origin)}, this run "
                             f"{list(grid.origin)}")  # fmt: skip
         if not np.array_equal(old.free, grid.free):
