@@ -64,7 +64,7 @@ from spcopyro.cli.fit_settings import (
 from spcopyro.cli.fit_summary import data_line, inference_line, model_line
 from spcopyro.cli.fit_update import relative_records, report_update, update_settings
 from spcopyro.cli.fit_warnings import recorded_warnings, write_config
-from spcopyro.config import SpCoSettings, preset_inference
+from spcopyro.config import DEFAULT_PRESET, SpCoSettings, preset_inference
 from spcopyro.data import House
 from spcopyro.data.footprint import release_shared_footprints, shared_footprints
 from spcopyro.data.model_grid import model_house
@@ -554,7 +554,7 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
         print(f"adjusted Rand index against the ground truth:{where or f' {ari:.3f}'}")
     concepts = result.concepts()  # listed, then the next step's word
     print_concepts(result, concepts=concepts)
-    log_degenerate_map(result, house)  # printed once, as "warning: ..."
+    log_degenerate_map(result, house, False if job.settings.preset == DEFAULT_PRESET else None)
     vocabulary_size = len(result.vocabulary)
     used = result.concepts_in_use()
     if vocabulary_size == 1:  # "close to uniform" always, and for no reason below
