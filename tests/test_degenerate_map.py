@@ -269,3 +269,28 @@ def test_a_default_preset_fits_advice_names_the_inference_fit_house_was_not_give
     other = degenerate_map_warning(np.full(10, 3), *_kitchen_and_bedroom(3.0))
     assert other.endswith("or the default preset 'coarse' (fit's --preset coarse) if the fit "
                           "used another)")  # fmt: skip
+
+
+@pytest.mark.parametrize("preset_name", [DEFAULT_PRESET, "original-code"])
+def test_spcopyro_fits_advice_names_the_default_preset_only_after_another(
+    tmp_path, capsys, preset_name
+):
+    """``spcopyro fit`` with the default preset, which runs that preset's inference, told the
+    user to try "the default preset 'coarse' (fit's --preset coarse) if the fit used another":
+    the command knows which preset it ran, but passed nothing. After the default preset the
+    advice names no preset; after another it still names the default one."""
+    from spcopyro.cli.main import main
+    from spcopyro.synthetic import write_synthetic
+
+    spec = HouseSpec(height=40, width=50, num_rooms=3, num_trials=1)
+    data = write_synthetic(tmp_path / "data", seed=1, spec=spec)
+    argv = ["fit", str(data), "--out", str(tmp_path / "fit"), "--sweeps", "2", "--no-figures",
+            "--concepts", "1", "--preset", preset_name]  # fmt: skip
+    assert main(argv) == 0
+    [line] = [x for x in capsys.readouterr().err.splitlines() if "one concept (0) holds" in x]
+    if preset_name == DEFAULT_PRESET:
+        assert "preset" not in line.split("(try a lower")[1], line
+        assert line.endswith("--merge-moves 0.2) so that regions can split)"), line
+    else:
+        assert line.endswith(f"or the default preset {DEFAULT_PRESET!r} (fit's --preset "
+                             f"{DEFAULT_PRESET}) if the fit used another)"), line  # fmt: skip
