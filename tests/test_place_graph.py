@@ -310,3 +310,16 @@ def test_show_of_a_fit_folder_without_graph_points_to_it(result, tmp_path, capsy
     assert main(["show", str(fit), "--out", str(tmp_path / "house.png")]) == 2
     assert "is the output folder of `spcopyro fit`" in capsys.readouterr().err
     assert not (tmp_path / "house.png").exists()
+
+
+def test_show_graph_says_what_it_left_out_only_where_it_left_out_something(result, tmp_path):
+    """`show OUT --graph` printed "0 regions under 0.25 m^2 left out (0.00 m^2)" where it left
+    out nothing (room1ldk5's CAVI fit); the figure's title says nothing then, nor does the line."""
+    fit = result.save(tmp_path / "fit")
+    _, printed = heavy_imports(["show", str(fit), "--graph", "--out", str(tmp_path / "g.png")])
+    first = printed.splitlines()[0]
+    assert first == "5 places, 3 passages (3 doorways)", printed
+    _, printed = heavy_imports(["show", str(fit), "--graph", "--min-area", "100",
+                                "--out", str(tmp_path / "h.png")])  # fmt: skip
+    assert printed.splitlines()[0].startswith("0 places, 0 passages (0 doorways); 5 regions "
+                                              "under 100 m^2 left out (")  # fmt: skip
