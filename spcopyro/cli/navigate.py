@@ -198,7 +198,7 @@ def show_graph(args: argparse.Namespace) -> int:
     for place in graph.places:
         near = [e.b if e.a == place.id else e.a for e in graph.passages
                 if place.id in (e.a, e.b)]  # fmt: skip
-        print(f"  {place.id}: {place.name} ({place.area:.1f} m^2) at x={place.centroid[0]:.2f} "
+        print(f"  {place.id}: {place.name} ({place.area_text} m^2) at x={place.centroid[0]:.2f} "
               f"y={place.centroid[1]:.2f}, next to {near or 'nothing'}")  # fmt: skip
         if place.words or answers:  # named by where's answer, which may not be the top word
             asked = ", ".join(answers.get(place.concept, ())) or "none"

@@ -171,7 +171,7 @@ def _label_places(
         others = [m for q, m in enumerate(markers) if q != p.id]
         boxes = []
         for dx, dy, ha, va in _CORNERS:
-            label = ax.annotate(f"{p.name} ({p.area:.1f} m²)", at, xytext=(dx, dy),
+            label = ax.annotate(f"{p.name} ({p.area_text} m²)", at, xytext=(dx, dy),
                                 textcoords="offset points", ha=ha, va=va, fontsize=8, zorder=5,
                                 bbox=box)  # fmt: skip
             boxes.append(label.get_window_extent(renderer=renderer))
@@ -184,7 +184,7 @@ def _label_places(
         order = order or [k for k in range(len(boxes)) if free[k] and inside[k]]
         k = (order or [k for k in range(len(boxes)) if free[k]] or [0])[0]
         dx, dy, ha, va = _CORNERS[k]
-        ax.annotate(f"{p.name} ({p.area:.1f} m²)", at, xytext=(dx, dy),
+        ax.annotate(f"{p.name} ({p.area_text} m²)", at, xytext=(dx, dy),
                     textcoords="offset points", ha=ha, va=va, fontsize=8, zorder=5,
                     bbox=box)  # fmt: skip
         written.append(boxes[k])

@@ -66,6 +66,13 @@ class Place:
     """The words heard on the map whose ``where`` answer is its concept, most probable in the
     concept (p(word | concept)) first (:func:`~spcopyro.results.concept_names.answered_words`)."""
 
+    @property
+    def area_text(self) -> str:
+        """Its area as ``show --graph`` and graph.png write it (square metres, no unit): one
+        decimal from 1 m^2, two below: with one, a place of 0.25 m^2, kept by the default
+        ``min_area`` 0.25, read "0.2 m^2" under "regions under 0.25 m^2 left out"."""
+        return f"{self.area:.1f}" if self.area >= 1.0 else f"{self.area:.2f}"
+
 
 @dataclass(frozen=True)
 class Passage:
