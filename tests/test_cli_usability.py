@@ -472,3 +472,22 @@ def test_a_warning_during_a_progress_bar_gets_its_own_line(capsys):
     assert line.startswith("warning: gamma is annealed"), repr(line)
     logging.getLogger("spcopyro").warning("no bar now")  # the plain handler again
     assert capsys.readouterr().err == "warning: no bar now\n"
+
+
+def test_method_option_help_says_what_the_fit_prints(capsys):
+    """--method-option's help said the method's defaults are "printed by the fit": its
+    inference line names only the options set away from them (room1ldk5's default cavi fit:
+    "cavi: 200 iterations (every setting: OUT/config.json)") and points to config.json."""
+    from spcopyro.cli.fit_summary import inference_line
+    from spcopyro.guides.options import VariationalOptions
+
+    with pytest.raises(SystemExit):
+        main(["fit", "--help"])
+    text = " ".join(capsys.readouterr().out.split())  # lines joined
+    assert "printed by the fit" not in text
+    assert ("(default: the method's defaults; the fit's inference line names the options set "
+            "away from them, OUT/config.json records every one)") in text  # fmt: skip
+    default = inference_line("cavi", VariationalOptions(), False, "200 iterations", "OUT")
+    assert default.split(None, 1)[1] == "cavi: 200 iterations (every setting: OUT/config.json)"
+    changed = VariationalOptions(anneal_iterations=5)
+    assert "anneal iterations 5 (" in inference_line("cavi", changed, False, "5 iterations", "O")

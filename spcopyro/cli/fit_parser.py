@@ -205,8 +205,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "(stochastic-vi), variational.anneal_iterations=30 (vi-gibbs); "
                         "hyper.alpha=true, hyper.concentrations=true, hyper.gamma=exchange: gibbs "
                         "samples those hyperparameters (gibbs.hyper.alpha=true etc. under "
-                        "vi-gibbs); repeat for several "
-                        "(default: the method's defaults, printed by the fit)")  # fmt: skip
+                        "vi-gibbs); repeat for several (default: the method's defaults; the "
+                        "fit's inference line names the options set away from them, "
+                        "OUT/config.json records every one)")  # fmt: skip
     p.add_argument("--backend", choices=BACKENDS, default="auto",
                    help="Gibbs sweep implementation: torch (reference), numba (compiled) or "
                         "auto (numba where installed, else torch); the two draw different "
