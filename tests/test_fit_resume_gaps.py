@@ -577,41 +577,23 @@ def test_an_error_while_writing_a_finished_fit_keeps_it_for_resume_to_write(
     assert (out / "result.npz").is_file() and not checkpoint.exists()
 
 
-def test_an_error_while_writing_several_fits_says_they_are_lost_and_why(
-    home, tmp_path, capsys, monkeypatch
-):
-    """An error while the outputs of two lbp fits (``--chains 2``) are written: the finished-fit
-    file holds one fit and the outputs compare both (chains.json), so nothing is kept; the note
-    says so and gives the command that runs them again (nothing was said)."""
-    import spcopyro.cli.fit
-
-    out = tmp_path / "out"
-    argv = ["fit", str(home), "--out", str(out), *FIT, "--method", "lbp", "--chains", "2"]
-    with monkeypatch.context() as patch:
-        patch.setattr(spcopyro.cli.fit, "print_concepts", _failing_print_concepts)
-        assert main(argv) == 2
-    err = capsys.readouterr().err
-    assert (
-        f"note: nothing written to {out}; no checkpoint kept (--chains 2: a finished fit's file "
-        "holds one fit, and the outputs (chains.json) compare all 2): the finished fit is lost "
-        "-- once fixed, run it again with: spcopyro fit "
-    ) in err, err
-    assert not checkpoint_path(out).exists() and not out.exists()
-
-
-@pytest.mark.parametrize("method", ["lbp", "vi-gibbs"])
-def test_ctrl_c_while_writing_several_fits_says_why_none_is_kept(method, tmp_path):
-    """Ctrl-C while the outputs of two finished fits are written: the line says the file keeps
-    one fit's result while the outputs compare both; it blamed the method (vi-gibbs: "the
-    'vi-gibbs' method", though one vi-gibbs fit keeps its finished result) or a checkpoint of
-    iterations ("an lbp checkpoint holds one fit")."""
+@pytest.mark.parametrize(
+    ("method", "extra"),
+    [("lbp", ["--chains", "2"]), ("vi-gibbs", ["--chains", "2"]), ("gibbs", ["--update", "u"])],
+)  # fmt: skip
+def test_several_fits_or_an_update_not_saved_say_their_file_could_not_be(method, extra, tmp_path):
+    """Ctrl-C while the outputs of two finished fits, or of an update, are written, where their
+    file could not be written (a full disk): the line names the file. It blamed the method
+    (vi-gibbs: "the 'vi-gibbs' method"), a checkpoint of iterations ("an lbp checkpoint holds
+    one fit"), the file ("a finished fit's file holds one fit": since, it holds every fit) or
+    ``--update``, which keep the finished fit now (test_fit_finished_several)."""
     from spcopyro.cli.fit_resume import interrupted_message
     from spcopyro.cli.main import build_parser
 
-    args = build_parser().parse_args(["fit", "--out", str(tmp_path / "o"), "--method", method,
-                                      "--chains", "2", "--sweeps", "12"])  # fmt: skip
-    line = interrupted_message(args, " while writing the outputs", None, tmp_path / "o",
-                               finished=True)  # fmt: skip
-    why = ("no checkpoint kept (--chains 2: a finished fit's file holds one fit, and the "
-           "outputs (chains.json) compare all 2): the finished fit is lost")  # fmt: skip
+    out = tmp_path / "o"
+    args = build_parser().parse_args(["fit", "--out", str(out), "--method", method, *extra,
+                                      "--sweeps", "12"])  # fmt: skip
+    line = interrupted_message(args, " while writing the outputs", None, out, finished=True)
+    why = (f"no checkpoint kept (its iterations had all run; the finished fit could not be saved "
+           f"in {checkpoint_path(out)}): the finished fit is lost")  # fmt: skip
     assert why in line, line

@@ -102,8 +102,9 @@ class FitJob:
     refined: bool = False
     sampled: bool = False
     """Set once the fit is done: a Ctrl-C while writing then keeps the finished chains."""
-    finished: tuple[SpCoResult, list[str]] | None = None
-    """The fit's result and the warnings said before the writing (:mod:`.fit_finished`)."""
+    finished: tuple[list[SpCoResult], int, list[str]] | None = None
+    """Every fit's result, the one kept and the warnings said before the writing
+    (:mod:`.fit_finished`)."""
     said: list[str] = dataclasses.field(default_factory=list)
     """The warnings the command gave so far, as printed (:mod:`spcopyro.cli.fit_warnings`):
     ``config.json``'s ``"warnings"``."""
@@ -208,8 +209,8 @@ def _set_up(args: argparse.Namespace, said: list[str], stage: list[str]) -> FitJ
     if args.resume is not None and not (checkpointed or resumes_finished_fit(args)):
         raise ValueError(
             "--resume continues Gibbs chains run for a number of --sweeps, or one fit "
-            f"(--chains 1) of {', '.join(resumable_methods())}; {no_checkpoint_flags(args)} "
-            "keeps no checkpoint"
+            f"(--chains 1) of {', '.join(resumable_methods())}, or a finished fit kept while "
+            f"its outputs were written; {no_checkpoint_flags(args)} keeps no checkpoint"
         )
     if args.point_estimate != "map-visited" and (
         args.sweeps == "auto" or args.method not in SAMPLERS or not args.marginal_samples
@@ -272,7 +273,7 @@ def _fit_staged(job: FitJob) -> int:
     if (used := backend_used(options or default, config)) is not None:
         print(f"backend used     {used}")
     if args.resume is not None:
-        saved_fit = "chains" if args.method == "gibbs" else "fit"
+        saved_fit = "chains" if args.method == "gibbs" and args.update is None else "fit"
         print(f"resuming         the {saved_fit} saved in {args.resume}")
     init = args.init
     saved = None
@@ -300,7 +301,8 @@ def _fit_staged(job: FitJob) -> int:
     try:
         with contextlib.nullcontext() if prefetch is None else when_chains_start(prefetch.start):
             fitted = _fit(job, init, saved, prefetch)
-        job.sampled, job.finished = True, (fitted.result, list(job.said))
+        results = fitted.chain_results or [fitted.result]
+        job.sampled, job.finished = True, (results, fitted.kept, list(job.said))
         return _write(job, fitted, prefetch)
     except BaseException:  # stopped: never wait on the thread without bound (abandon's doc)
         if prefetch is not None:
@@ -356,7 +358,8 @@ def _fit(
     diagnostics, refine_sweeps, estimate = None, args.sweeps, None
     start = _clock()
     if (restored := restore_finished(job)) is not None:  # --resume a finished fit's file
-        return Fitted(restored, [restored], 1, 0, None, _clock() - start)
+        results, kept = restored
+        return Fitted(results[kept], results, len(results), kept, None, _clock() - start)
     # a refinement may follow: the bars name the stage (both read "Gibbs sweeps")
     stage = "model grid" if args.refine != "never" and house.grid.coarsened_from else None
     with progress_stage(stage):

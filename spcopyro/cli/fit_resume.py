@@ -45,16 +45,18 @@ def resumable_methods() -> list[str]:
 
 def one_fit_for_sweeps(args: argparse.Namespace) -> bool:
     """Whether this is one fit (``--chains`` 1 or left out) for a number of ``--sweeps``, not
-    an ``--update``: what a fit of a method other than Gibbs must be for Ctrl-C to keep it (its
-    iterations, :func:`keeps_checkpoint`; or its finished result, :func:`keeps_finished_fit`)."""
+    an ``--update``: what a fit of a method other than Gibbs must be for Ctrl-C to keep its
+    iterations (:func:`keeps_checkpoint`; its finished result is kept for several fits and an
+    update too, :func:`keeps_finished_fit`)."""
     return args.sweeps != "auto" and args.update is None and args.chains in (None, 1)
 
 
 def keeps_finished_fit(args: argparse.Namespace) -> bool:
     """Whether Ctrl-C while this fit's outputs are written keeps the finished fit
-    (:mod:`spcopyro.cli.fit_finished`): one fit of a method other than Gibbs (whose finished
-    chains are kept instead), for a number of ``--sweeps``, not an ``--update``."""
-    return args.method != "gibbs" and one_fit_for_sweeps(args)
+    (:mod:`spcopyro.cli.fit_finished`): every fit (``--chains K``) of a number of ``--sweeps``,
+    of a method other than Gibbs or of an ``--update``; Gibbs chains that are no update keep
+    their finished chains instead (:func:`keeps_checkpoint`)."""
+    return args.sweeps != "auto" and (args.method != "gibbs" or args.update is not None)
 
 
 def keeps_checkpoint(args: argparse.Namespace) -> bool:
@@ -108,7 +110,7 @@ def interrupted_message(
     """The line ``fit`` prints when Ctrl-C stops it (``kept``: its checkpoint; ``why``: none's;
     ``finished``: the fit had run all its sweeps or iterations, its outputs being written;
     ``unchanged``: ``kept`` is the checkpoint this run resumed (``--resume``), left as it
-    was). A finished fit other than Gibbs' is kept as its result
+    was). A finished fit other than Gibbs chains' (an ``--update``'s too) is kept as its results
     (:mod:`spcopyro.cli.fit_finished`), which ``--resume`` writes without fitting again."""
     line = f"interrupted{where}: nothing written to {out}"
     return _kept_line(args, line, kept, out, why, finished, unchanged, error=False)
@@ -140,7 +142,7 @@ def _kept_line(
         lost = "; the iterations this run added are lost" if finished else ""
         return (f"{line}{lost}; {kept} is left as it was, with the state this run resumed "
                 f"from -- continue from there with: {command}")  # fmt: skip
-    if finished and args.method != "gibbs":  # the result itself (spcopyro.cli.fit_finished)
+    if finished and keeps_finished_fit(args):  # the result itself (spcopyro.cli.fit_finished)
         return (f"{line}; the finished fit is saved in {kept} -- {fixed}write its outputs "
                 f"(without fitting again) with: {command}")  # fmt: skip
     saved = "the finished chains are" if error else "the state reached is"
@@ -152,19 +154,15 @@ def _why_none(args: argparse.Namespace, out: Path, finished: bool) -> str:
     run), for :func:`interrupted_message` and :func:`error_note`."""
     if args.sweeps == "auto":
         return "--sweeps auto"
-    if args.update is not None:
-        return "--update"
     if finished and (keeps_checkpoint(args) or keeps_finished_fit(args)):
         # the finished fit is kept (a vi-gibbs one too, which keeps no checkpoint of its
-        # sweeps), but its file could not be written
+        # sweeps; several fits; an --update), but its file could not be written
         from spcopyro._util.outputs import checkpoint_path
 
         return ("its iterations had all run; the finished fit could not be saved in "
                 f"{checkpoint_path(out)}")  # fmt: skip
-    if finished and args.method != "gibbs":  # several fits (keeps_finished_fit): the outputs
-        # are written from all of them (chains.json), the file holds one fit's result
-        return (f"--chains {args.chains}: a finished fit's file holds one fit, and the outputs "
-                f"(chains.json) compare all {args.chains}")  # fmt: skip
+    if args.update is not None:
+        return "--update"
     if keeps_checkpoint(args):
         return "no sweep was done" if args.method == "gibbs" else "no iteration was done"
     if args.method in resumable_methods():
@@ -176,8 +174,8 @@ def error_note(
     args: argparse.Namespace, kept: Path | None, out: Path, finished: bool
 ) -> str | None:
     """The note ``fit`` prints when an error (not Ctrl-C: a full disk, a figure failing) stops
-    it after its sweeps or iterations, before OUT is written (``kept``: the finished chains or,
-    ``finished`` and not Gibbs, the finished fit, :mod:`spcopyro.cli.fit_finished`): the
+    it after its sweeps or iterations, before OUT is written (``kept``: the finished chains, or
+    the finished fit where :func:`keeps_finished_fit`, :mod:`spcopyro.cli.fit_finished`): the
     command that continues from ``kept`` or writes its outputs once the error is fixed; where
     nothing was kept of a finished fit, that it is lost and why; None where nothing had
     finished and nothing was kept."""

@@ -68,9 +68,14 @@ def apply_preset_inference(args: argparse.Namespace) -> None:
 
 
 def check_update_args(args: argparse.Namespace) -> None:
-    """``--update OUT``: a finished fit's folder, and no option that chooses another start."""
-    if args.resume is not None or args.init_from is not None or args.init is not None:
-        given = "--resume" if args.resume is not None else (
+    """``--update OUT``: a finished fit's folder, and no option that chooses another start
+    (``--resume`` may name the finished update a stopped run kept,
+    :mod:`spcopyro.cli.fit_finished`, whose outputs it writes)."""
+    from spcopyro.cli.fit_finished import is_finished_fit
+
+    resume = args.resume is not None and not is_finished_fit(args.resume)
+    if resume or args.init_from is not None or args.init is not None:
+        given = "--resume" if resume else (
             "--init-from" if args.init_from is not None else "--init"
         )  # fmt: skip
         raise ValueError(f"--update starts from the saved fit; {given} chooses another start")
