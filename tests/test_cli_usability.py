@@ -74,10 +74,12 @@ def test_fit_help_names_the_default_presets_inference_and_footprint():
 def test_fit_help_says_resume_writes_a_finished_fits_outputs():
     """`--resume` said only 'continue the interrupted fit', while for a finished fit of another
     method than Gibbs stopped while writing (spcopyro.cli.fit_finished) it fits nothing; then it
-    said 'that Ctrl-C stopped', where an error keeps that fit too (3a0a64b)."""
+    said 'that Ctrl-C stopped', where an error keeps that fit too (3a0a64b); then it named no
+    --chains or --update, whose finished fits are kept too (b2843ec)."""
     fit = _subcommands(build_parser())["fit"]
     helps = {a.dest: " ".join(a.help.split()) for a in fit._actions if a.help}
-    assert "another method than Gibbs that Ctrl-C or an error stopped" in helps["resume"]
+    said = "another method than Gibbs (its --chains too), or of --update, that Ctrl-C or an error"
+    assert said in helps["resume"]
     assert "without fitting again" in helps["resume"]
 
 

@@ -63,8 +63,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                    help="continue the interrupted fit saved in CHECKPOINT (OUT.checkpoint.npz; "
                         "Ctrl-C writes it, and an error once the fit has run), with the same data "
                         "and settings; for a finished "
-                        "fit of another method than Gibbs that Ctrl-C or an error stopped "
-                        "while its outputs were written, write them without fitting again "
+                        "fit of another method than Gibbs (its --chains too), or of --update, "
+                        "that Ctrl-C or an error stopped while its outputs were written, write "
+                        "them without fitting again "
                         "(default: a new fit)")  # fmt: skip
     p.add_argument("--update", metavar="OUT",
                    help="continue the finished fit in the folder OUT with this data (its old "
