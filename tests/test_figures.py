@@ -111,6 +111,39 @@ def test_every_sizeable_region_gets_one_label_inside_it():
     assert region_label_points(image, min_cells=61) == []
 
 
+def test_a_label_that_collides_takes_another_spot_of_its_region():
+    """room1ldk5's CAVI fit (22 concepts) left the label of its kitchen concept, the fourth
+    largest, out of semantic_map.png: at its region's most interior cell it overlapped the
+    label of a region one cell larger, though the region had room elsewhere. A label that
+    collides is tried at further spots of its region, spread over it, before it is left out."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from spcopyro.figures.map_pieces import place_labels
+    from spcopyro.figures.plotting import region_label_spots
+
+    image = np.full((12, 12), -1)
+    image[:, :5] = 0
+    image[:, 5:] = 1
+    image[6:, 8:] = 2  # an L of concept 1 around concept 2
+    points = region_label_spots(image, min_cells=5, spots=4)
+    assert [p[:5] for p in points] == region_label_points(image, min_cells=5)
+    for concept, row, col, _, _, spots in points:
+        assert spots[0] == (row, col) and len(set(spots)) == len(spots) == 4
+        assert all(image[r, c] == concept for r, c in spots)  # every spot inside its region
+
+    fig = Figure(figsize=(4, 4))
+    ax = fig.subplots()
+    ax.set(xlim=(0, 10), ylim=(0, 10))
+    FigureCanvasAgg(fig)
+    labels = [(5.0, 5.0, "first label", {}),
+              (5.0, 5.2, "second label", {}, [(5.0, 5.1), (2.0, 8.0)]),
+              (5.0, 4.8, "third label", {}, [(5.0, 4.9)])]  # fmt: skip
+    assert place_labels(fig, ax, labels) == (2, 1)  # the third has no free spot
+    assert [(t.get_text(), t.get_position()) for t in ax.texts] == [
+        ("first label", (5.0, 5.0)), ("second label", (2.0, 8.0))]  # fmt: skip
+
+
 def test_semantic_colours_and_the_where_picture():
     result = two_rooms()
     colours = semantic_colours(result)  # [L, 3]

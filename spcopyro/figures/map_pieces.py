@@ -466,12 +466,12 @@ def draw_outline(
     ax.contour(x, y, part, levels=[0.5], **style)
 
 
-def place_labels(
-    fig: Figure, ax: Axes, labels: list[tuple[float, float, str, dict[str, object]]]
-) -> tuple[int, int]:
+def place_labels(fig: Figure, ax: Axes, labels: list[tuple]) -> tuple[int, int]:
     """Write each ``(x, y, text, style)`` label centred at (x, y) with the white halo
     :data:`OUTLINE`, in the given order, leaving out any label whose box would overlap one
-    already written. Returns (written, left out). The boxes are measured by rendering the
+    already written; a label ``(x, y, text, style, spots)`` whose box would overlap one there
+    is tried at each further ``(x, y)`` of ``spots`` in turn before it is left out. Returns
+    (written, left out). The boxes are measured by rendering the
     figure on an Agg canvas (no backend is selected for anything else), after the axes took
     the shape of an equal-aspect map: measured on the axes as made (the whole subplot), a
     tall map was drawn narrower than measured and two labels side by side ran into each other
@@ -482,17 +482,19 @@ def place_labels(
     ax.apply_aspect()  # the axes' box as drawn (matplotlib applies the aspect only at draw)
     boxes = []
     skipped = 0
-    for x, y, text, style in labels:
-        artist = ax.text(x, y, text, ha="center", va="center", path_effects=OUTLINE, zorder=4,
-                         **style)  # fmt: skip
-        with warnings.catch_warnings():  # told once, in words, when saved (png.save_figure)
-            warnings.filterwarnings("ignore", message="Glyph .* missing from font")
-            box = artist.get_window_extent(renderer=renderer).expanded(1.15, 1.25)
-        if any(box.overlaps(other) for other in boxes):
+    for x, y, text, style, *rest in labels:
+        for at in [(x, y), *(rest[0] if rest else ())]:
+            artist = ax.text(*at, text, ha="center", va="center", path_effects=OUTLINE,
+                             zorder=4, **style)  # fmt: skip
+            with warnings.catch_warnings():  # told once, in words, when saved (png.save_figure)
+                warnings.filterwarnings("ignore", message="Glyph .* missing from font")
+                box = artist.get_window_extent(renderer=renderer).expanded(1.15, 1.25)
+            if not any(box.overlaps(other) for other in boxes):
+                boxes.append(box)
+                break
             artist.remove()
+        else:
             skipped += 1
-            continue
-        boxes.append(box)
     return len(boxes), skipped
 
 

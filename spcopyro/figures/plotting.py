@@ -103,6 +103,24 @@ def region_label_points(
     farthest from its border (the maximum of the Euclidean distance transform), so the label
     sits inside the region even when the region is not convex.
     """
+    return [spot[:5] for spot in region_label_spots(image, min_cells)]
+
+
+LABEL_SPOTS = 6
+"""Spots a region's label may take (:func:`region_label_spots`): its most interior cell, then
+others of the region, tried in turn where the label there would overlap one written before."""
+
+
+def region_label_spots(
+    image: np.ndarray, min_cells: float, spots: int = LABEL_SPOTS
+) -> list[tuple[int, int, int, int, bool, list[tuple[int, int]]]]:
+    """:func:`region_label_points`, each with ``spots`` ``[(row, col), ...]``: the region's
+    most interior cell first (the point's own), then up to ``spots - 1`` further cells of the
+    region at least half as far from its border as that one, each the farthest from those
+    chosen before (spread over the region). A label that would overlap another at its first
+    spot takes the next free one (:func:`~spcopyro.figures.map_pieces.place_labels`): on
+    room1ldk5's CAVI fit the kitchen's concept, the fourth largest, was left unlabelled while
+    its region had room to spare."""
     regions, concept_of = concept_regions(image)  # [H, W] region ids, [R] their concepts
     sizes = np.bincount(regions[regions >= 0], minlength=len(concept_of))  # [R]
     boxes = ndimage.find_objects(regions + 1)  # [R] each region's bounding box
@@ -117,8 +135,14 @@ def region_label_points(
             inside = np.pad(regions[box] == index, 1)  # [h + 2, w + 2] bool
             distance = ndimage.distance_transform_edt(inside)
             r, c = np.unravel_index(int(np.argmax(distance)), distance.shape)
-            row, col = box[0].start + int(r) - 1, box[1].start + int(c) - 1
-            points.append((int(concept), row, col, int(sizes[index]), first))
+            cells = np.argwhere(distance >= 0.5 * distance[r, c])  # [K, 2] interior enough
+            chosen = [np.array([r, c])]
+            gap = np.linalg.norm(cells - chosen[0], axis=1)  # [K] to the nearest chosen
+            while len(chosen) < spots and gap.max(initial=0.0) > 0:
+                chosen.append(cells[int(np.argmax(gap))])
+                gap = np.minimum(gap, np.linalg.norm(cells - chosen[-1], axis=1))
+            at = [(box[0].start + int(a) - 1, box[1].start + int(b) - 1) for a, b in chosen]
+            points.append((int(concept), *at[0], int(sizes[index]), first, at))
             first = False
     return points
 
@@ -149,7 +173,8 @@ def semantic_map_figure(
 
     Every connected region holding at least ``min_region_fraction`` of the free cells gets a
     label at its most interior cell (:func:`region_label_points`), in black with a white halo
-    (a label whose box would overlap the label of a larger region is left out and counted in
+    (a label whose box would overlap the label of a larger region there takes another spot of
+    its region, :func:`region_label_spots`; where none is free it is left out and counted in
     the title, "6 labelled regions, 1 left unlabelled (legend)",
     :func:`~spcopyro.figures.map_pieces.place_labels`):
     ``[concept]`` and its ``n_words`` most probable words with their probabilities (and the
@@ -165,21 +190,24 @@ def semantic_map_figure(
     colours = semantic_colours(result)  # [L, 3]
     fig, axes, wide, strips = map_axes(grid, render_labels(image, grid, colours), (13, 9))
     labelled = set(result.concepts_in_use()[:max_labelled].tolist())
-    points = region_label_points(image, min_region_fraction * grid.num_free)
+    points = region_label_spots(image, min_region_fraction * grid.num_free)
     points = [p for p in points if p[0] in labelled]
     points.sort(key=lambda p: -p[3])  # largest region first: its label wins a collision
     names = concept_names(result)  # once: a further region's label is its concept's name
     labels = []
-    for concept, row, col, _, largest in points:
+    for concept, row, col, _, largest, spots in points:
         x, y = grid.cell_to_world(np.array([row, col]))
+        others = [tuple(float(v) for v in grid.cell_to_world(np.array(cell)))
+                  for cell in spots[1:]]  # fmt: skip
         silent = result.heard(concept) == 0
         text = region_text(result, concept, n_words, largest, names.get(int(concept)))
         labels.append((float(x), float(y), text,
                        {"fontsize": 6 if silent else 7, "style": "italic" if silent else
-                        "normal", "color": "0.25" if silent else "black"}))  # fmt: skip
+                        "normal", "color": "0.25" if silent else "black"}, others))  # fmt: skip
     regions = skipped = 0
-    for ax in axes:  # each label on the strip that shows its point
-        mine = [label for label in labels if shown_in(axes, label[0], label[1]) is ax]
+    for ax in axes:  # each label on the strip that shows its point, and its spots there
+        mine = [(*label[:4], [at for at in label[4] if shown_in(axes, *at) is ax])
+                for label in labels if shown_in(axes, label[0], label[1]) is ax]  # fmt: skip
         written, left_out = place_labels(fig, ax, mine)
         regions, skipped = regions + written, skipped + left_out
     handles: list[Patch | Line2D] = list(concept_handles(result, colours, n_words))
