@@ -565,3 +565,33 @@ def test_a_map_legend_under_a_wide_title_starts_at_its_left():
     first = legend.get_texts()[0].get_window_extent(renderer)
     em = legend.get_texts()[0].get_fontsize() * fig.dpi / 72  # pixels
     assert first.x0 - title.x0 < 5 * em, (title, first)  # the marker and its pad: 3.5 em
+
+
+def test_every_figure_names_a_cells_probability_as_where_prints_it(monkeypatch, tmp_path):
+    """`where` prints p(cell is the place), and its answer's figure labels its colour bar so;
+    its second figure (X_probability.png) was titled "p(cell in its place)" over a colour bar
+    "probability", and navigate.png's bar read "p(cell in the place of 'bath')": three names
+    of one value (room1ldk5). They all say p(cell is the place) now."""
+    import dataclasses
+
+    from hand_results import two_rooms
+    from test_navigate import START_A, house_result
+
+    import spcopyro.figures.plotting as plotting
+    from spcopyro.robot.navigation import navigate
+    from spcopyro.robot.navigation.figure import plan_figure
+
+    result = two_rooms()
+    shown = dataclasses.replace(result, marginals=np.full((result.grid.num_free, 3), 1 / 3))
+    drawn = []
+    monkeypatch.setattr(plotting, "save_figure", lambda fig, path: drawn.append(fig) or path)
+    plotting.plot_where_probability(shown, "bed", tmp_path / "bed_probability.png")
+    (fig,) = drawn
+    assert "? p(cell is the place), marginals, area prior" in fig.axes[0].get_title()
+    labels = [a.get_ylabel() for a in fig.axes[0].child_axes] + [a.get_ylabel() for a in fig.axes]
+    assert "p(cell is the place) for 'bed'" in labels, labels
+
+    plan = navigate(house_result(), "go to the bedroom", START_A)
+    fig = plan_figure(plan)
+    labels = [a.get_ylabel() for ax in fig.axes for a in [ax, *ax.child_axes]]
+    assert f"p(cell is the place) for '{plan.goal.shown}'" in labels, labels

@@ -440,12 +440,15 @@ def plot_where_probability(
         probability = where_probability(result, word, prior)  # [N]
     kind = "marginals" if result.marginals is not None else "point estimate"
     title = (
-        f"where is '{word.lower()}'? p(cell in its place), {kind}, {prior} prior\n"
+        f"where is '{word.lower()}'? p(cell is the place), {kind}, {prior} prior\n"
         f"{plural(int((probability > 0.5).sum()), 'cell')} above 0.5"
     )
     note = unmapped_note(result)
     if note:
         title += f"\n{note}"
-    label = "probability, over the map's concepts" if note else "probability"
+    # named as `where` prints it and the answer's figure draws it (the title read "p(cell in
+    # its place)", the colour bar "probability")
+    label = f"p(cell is the place) for '{word.lower()}'" + (
+        "; the map's concepts only" if note else "")  # fmt: skip
     return _plot_cell_values(result, probability, path, title=title, label=label,
                              vmax=1.0, cmap="Blues")  # fmt: skip
