@@ -330,3 +330,26 @@ def test_where_prints_one_cell_in_the_singular(tmp_path, capsys):
     out = two_rooms().save(tmp_path / "fit")
     assert main(["where", str(out), "kitchen", "--prior", "pi"]) == 0
     assert "region: 1 cell (0.01 m^2)" in capsys.readouterr().out
+
+
+def test_where_says_a_region_in_pieces_and_whose_centre_it_gives(tmp_path, capsys):
+    """room1ldk5's CAVI fit answered 'sofa' with a concept in two rooms (126 cells in the
+    living room, 33 in the bathroom): "region: 159 cells (9.94 m^2), centre x=1.28 y=-1.76"
+    gave one centre for two places, with no word that they are apart. The line names the
+    pieces, and that the centre is of them all; a region in one piece reads as before."""
+    from hand_results import one_word_per_concept
+
+    from spcopyro.maps import FREE, OccupancyGrid
+
+    grid = OccupancyGrid(np.full((10, 30), FREE, dtype=np.int8), 0.1, (0.0, 0.0, 0.0))
+    image = np.zeros(grid.shape, dtype=np.int64)  # [H, W]
+    image[:, 10:20] = 1  # concept 1 between concept 0's two pieces
+    image[:, 25:] = 2  # concept 0's right piece the smaller: its centre lies in concept 1
+    labels = image[grid.free]
+    out = one_word_per_concept(grid, labels, ("kitchen", "bed", "sofa"), 3).save(tmp_path / "f")
+    assert main(["where", str(out), "kitchen"]) == 0
+    assert ("region: 150 cells (1.50 m^2) in 2 pieces of 100 and 50 cells, centre x=1.08 "
+            "y=0.50 (of them all), spanning x 0.00..2.50") in capsys.readouterr().out  # fmt: skip
+    assert main(["where", str(out), "bed"]) == 0
+    printed = capsys.readouterr().out
+    assert "region: 100 cells (1.00 m^2), centre x=1.50 y=0.50, spanning" in printed, printed

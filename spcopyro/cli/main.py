@@ -295,9 +295,16 @@ def _where(args: argparse.Namespace) -> int:
         half = grid.resolution / 2  # xy are cell centres: the region's edges lie half out
         (x0, y0), (x1, y1) = xy.min(0) - half, xy.max(0) + half
         cx, cy = xy.mean(0)
-        print(f"region: {plural(len(cells), 'cell')} ({len(cells) * grid.resolution**2:.2f} m^2), "
-              f"centre x={cx:.2f} y={cy:.2f}, spanning x {x0:.2f}..{x1:.2f}, "
-              f"y {y0:.2f}..{y1:.2f} m")  # fmt: skip
+        from scipy import ndimage
+
+        pieces, count = ndimage.label(answer.region)  # 4-connected, as the map's regions
+        sizes = sorted(np.bincount(pieces.ravel())[1:].tolist(), reverse=True)  # [count]
+        listed = ", ".join(map(str, sizes[:4])) + ", ..." if count > 4 else (
+            ", ".join(map(str, sizes[:-1])) + f" and {sizes[-1]}")  # fmt: skip
+        apart = f" in {count} pieces of {listed} cells" if count > 1 else ""  # centre: between
+        print(f"region: {plural(len(cells), 'cell')} ({len(cells) * grid.resolution**2:.2f} m^2)"
+              f"{apart}, centre x={cx:.2f} y={cy:.2f}{' (of them all)' * bool(apart)}, spanning "
+              f"x {x0:.2f}..{x1:.2f}, y {y0:.2f}..{y1:.2f} m")  # fmt: skip
     for warning in answer.warnings:
         print(f"warning: {warning}", file=sys.stderr)
     shared = shared_answer_note(answer)  # one concept answering 'toilet' and 'kitchen'
