@@ -101,6 +101,7 @@ def save_finished_fit(
     house as loaded, ``settings`` and ``options`` as resolved before the fit (the request a
     resume must match). The fits are on the model grid: ``--refine`` refines Gibbs fits that
     are no ``--update`` only, whose finished chains are kept instead."""
+    from spcopyro._util.npz import write_npz
     from spcopyro._util.outputs import replace_file
 
     arrays: dict[str, np.ndarray] = {}
@@ -112,7 +113,7 @@ def save_finished_fit(
               "request": _request(args, on_map, settings, options)}  # fmt: skip
     arrays["said"] = np.array(json.dumps(list(said)))
     arrays["record"] = np.array(json.dumps(record))
-    return replace_file(path, lambda file: np.savez_compressed(file, **arrays))
+    return replace_file(path, lambda file: write_npz(file, arrays))
 
 
 def load_finished_fit(
