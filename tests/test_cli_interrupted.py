@@ -180,3 +180,30 @@ def test_a_set_aside_folder_an_earlier_run_left_does_not_make_out_the_new_one(
     )
     (tmp_path / "N").rmdir()  # nor, with no N, that this run set the old one aside
     assert "replaced-" not in interrupted_line(_overwrite_args(command))
+
+
+def test_a_second_ctrl_c_as_the_line_is_said_ends_as_cleanly(tmp_path, monkeypatch, capsys):
+    """The first Ctrl-C held through a commit and raised once the renames are done; a second one
+    as the command's line was being said ended main with a KeyboardInterrupt (a traceback, not
+    the line and status 130)."""
+    import os
+    import signal
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    said = main_module.interrupted_line
+
+    def second_ctrl_c(args):
+        os.kill(os.getpid(), signal.SIGINT)
+        return said(args)
+
+    monkeypatch.setattr(main_module, "_simulate", interrupted)
+    monkeypatch.setattr(main_module, "interrupted_line", second_ctrl_c)
+    try:
+        code = main(["simulate", "--out", str(tmp_path / "h")])
+    except KeyboardInterrupt:
+        pytest.fail("the second Ctrl-C escaped main: a traceback")
+    assert code == 130
+    assert capsys.readouterr().err.startswith("interrupted spcopyro simulate: nothing written")
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler

@@ -21,6 +21,7 @@ from spcopyro._util.outputs import (
     check_output,
     checkpoint_path,
     replace_file,
+    replace_text,
     stage_marked_folder,
     stage_output,
 )
@@ -366,6 +367,21 @@ def test_outputs_get_the_permissions_of_the_users_umask(tmp_path, umask):
     assert (out.stat().st_mode & 0o777) == 0o777 & ~umask
     assert (exported.stat().st_mode & 0o777) == 0o777 & ~umask
     assert (file.stat().st_mode & 0o777) == 0o666 & ~umask
+
+
+def test_a_replaced_file_keeps_its_mode(tmp_path):
+    """A report or checkpoint made 0o640 and replaced (replace_file) came back 0o644, the
+    umask's, opening it to every user, where a map replaced with a house keeps its mode
+    (file_moves.move_files_in) and a file rewritten by ``open`` keeps its own."""
+    path = tmp_path / "report.md"
+    path.write_text("old")
+    path.chmod(0o640)
+    previous = os.umask(0o022)
+    try:
+        replace_text(path, "new")
+    finally:
+        os.umask(previous)
+    assert path.read_text() == "new" and path.stat().st_mode & 0o7777 == 0o640
 
 
 # -- the record of a run -----------------------------------------------------------------------

@@ -356,7 +356,8 @@ def test_an_old_map_file_that_cannot_be_put_back_is_kept_and_named(tmp_path, cap
     """simulate --overwrite on a file system without hard links (the old h.pgm set aside, renamed
     into the staged map folder) where h.yaml cannot be moved in and the old h.pgm not put back:
     the put-back stopped there, the error was that of the put-back, and the staged map folder,
-    the old h.pgm in it, was removed. Now the old h.pgm is kept where the message says."""
+    the old h.pgm in it, was removed. Now the old h.pgm is kept where the message says, which
+    says what to do (it named the file only)."""
     root = tmp_path / "r"
     assert main(["simulate", "--out", str(root), "--name", "h"]) == 0
     old_pgm = (root / "map" / "h.pgm").read_bytes()
@@ -379,7 +380,11 @@ def test_an_old_map_file_that_cannot_be_put_back_is_kept_and_named(tmp_path, cap
         assert main(argv) == 2
     err = capsys.readouterr().err
     kept = [path for path in root.rglob("*") if path.is_file() and path.read_bytes() == old_pgm]
-    assert len(kept) == 1 and f"it is kept as {kept[0]}\n" in err, (err, kept)
+    assert len(kept) == 1, kept  # and what to do with it: put it back, remove its folder
+    assert err.endswith(
+        f"it is kept as {kept[0]} (move it back to {root / 'map' / 'h.pgm'}, then remove "
+        f"{kept[0].parent})\n"
+    ), err
     assert err.startswith(
         f"error: cannot put {root / 'map' / 'h.yaml'} in place (Is a directory); {root / 'h'}, "
         f"{root / 'map' / 'h.yaml'} left as they were; the old {root / 'map' / 'h.pgm'} could "
@@ -402,3 +407,29 @@ def test_an_empty_house_folder_put_back_keeps_its_mode(tmp_path, capsys, no_swap
     assert "cannot put" in capsys.readouterr().err
     assert sorted(_tree(root)) == ["h", "map", "map/h.yaml"]
     assert (root / "h").stat().st_mode & 0o7777 == 0o775
+
+
+def test_a_ctrl_c_held_through_a_refused_commit_is_said_with_the_error(
+    tmp_path, monkeypatch, capsys, no_swaps
+):
+    """simulate --overwrite where map/h.yaml cannot be replaced (a folder there), a Ctrl-C held
+    as the new map is moved in: the error was said and the Ctrl-C dropped (exit status 2, as if
+    it had not come). Now the error naming the path, then the Ctrl-C's line, and status 130;
+    house and map as they were."""
+    root = tmp_path / "r"
+    assert main(["simulate", "--out", str(root), "--name", "h"]) == 0
+    (root / "map" / "h.yaml").unlink()
+    (root / "map" / "h.yaml").mkdir()
+    before = _tree(root)
+    capsys.readouterr()
+    _sigint_at_the_maps_move(monkeypatch, root / "map")
+    assert (
+        main(["simulate", "--out", str(root), "--name", "h", "--seed", "1", "--overwrite"]) == 130
+    )
+    assert _tree(root) == before
+    assert capsys.readouterr().err == (
+        f"error: cannot put {root / 'map' / 'h.yaml'} in place (Is a directory); {root / 'h'}, "
+        f"{root / 'map' / 'h.pgm'}, {root / 'map' / 'h.yaml'} left as they were\n"
+        f"interrupted spcopyro simulate: nothing written to {root / 'h'} and its map "
+        f"{root / 'map' / 'h'}.yaml (they are written whole at the end, or not at all)\n"
+    )

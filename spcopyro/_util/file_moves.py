@@ -54,7 +54,8 @@ def move_files_in(files: Sequence[tuple[Path, Path]], folder: Path | None = None
             if all(path != place for _, place, _ in stranded)
         )
         lost = "".join(
-            f"; the old {place} could not be put back ({why.strerror or why}): it is kept as {old}"
+            f"; the old {place} could not be put back ({why.strerror or why}): it is kept as {old} "
+            f"(move it back to {place}, then remove {old.parent})"
             for old, place, why in stranded
         )
         failure = FilesNotMoved(
@@ -69,17 +70,24 @@ def move_files_in(files: Sequence[tuple[Path, Path]], folder: Path | None = None
                 os.unlink(old)
 
 
+def take_mode(new: Path, old: Path) -> os.stat_result | None:
+    """``old``'s status (not following a link; None where nothing is there), a regular file's
+    mode given to ``new``: a file replaced keeps its mode, as one rewritten by ``open`` does."""
+    try:
+        status = os.lstat(old)
+    except FileNotFoundError:
+        return None
+    if stat.S_ISREG(status.st_mode):
+        os.chmod(new, stat.S_IMODE(status.st_mode))
+    return status
+
+
 def _keep_old(staged: Path, target: Path) -> Path | None:
     """``target`` kept as ``STAGED.old`` (its mode given to ``staged``); None where there is no
     file (nothing, or a folder, which ``os.replace`` refuses)."""
-    try:
-        status = os.lstat(target)
-    except FileNotFoundError:
+    status = take_mode(staged, target)
+    if status is None or stat.S_ISDIR(status.st_mode):
         return None
-    if stat.S_ISDIR(status.st_mode):
-        return None
-    if stat.S_ISREG(status.st_mode):
-        os.chmod(staged, stat.S_IMODE(status.st_mode))
     old = staged.with_name(f"{staged.name}.old")
     try:
         os.link(target, old, follow_symlinks=False)  # target stays in place until replaced

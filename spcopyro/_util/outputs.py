@@ -17,9 +17,9 @@ Ctrl-C, or a second fit into the same folder never leaves a mixture of two runs'
   folder (named in the message: nothing is deleted).
 * An interrupted fit's checkpoint lives beside OUT as ``OUT.checkpoint.npz``
   (:func:`checkpoint_path`), never inside it, so it cannot be mistaken for a result.
-* Staging folders and replaced files get the permissions a plain ``mkdir`` or ``open`` gives
-  under the user's umask (not ``tempfile``'s 0700 / 0600); a folder replaced, and the files
-  moved in with it, keep the old ones' modes (:func:`commit_folder`).
+* Staging folders and new files get the permissions a plain ``mkdir`` or ``open`` gives under
+  the user's umask (not ``tempfile``'s 0700 / 0600); a folder or file replaced keeps the old
+  one's mode (:func:`commit_folder`, :func:`replace_file`), as ``open`` keeps a file's.
 
 Imports of the package: only :mod:`~spcopyro._util.interrupts`, :mod:`~spcopyro._util.file_moves`.
 """
@@ -44,7 +44,7 @@ from typing import BinaryIO, TypeVar
 
 import numpy as np
 
-from spcopyro._util.file_moves import FilesNotMoved, move_files_in
+from spcopyro._util.file_moves import FilesNotMoved, move_files_in, take_mode
 from spcopyro._util.interrupts import signals_deferred
 
 try:  # POSIX: serialise commits into one parent folder
@@ -328,14 +328,15 @@ def commit_folder(
     keep the old ones' modes. A non-empty ``out`` is set aside (:func:`swapped_in`, ``hidden``;
     with ``replace`` False the rename fails on one instead, OSError), what its writer did not
     write (not in ``written``) carried into the new one (:func:`carry_over`), then removed. A
-    Ctrl-C meanwhile (SIGINT, and SIGTERM turned into one by
-    :func:`~spcopyro._util.interrupts.sigterm_as_interrupt`) is held until all are in place and
-    the old folder removed (:func:`~spcopyro._util.interrupts.signals_deferred`): it finds all
-    old or all new, and :func:`completed` says which. Returns the names carried."""
+    Ctrl-C (or SIGTERM) meanwhile is held until all are in place and the old folder removed
+    (:func:`~spcopyro._util.interrupts.signals_deferred`): it finds all old or all new, and
+    :func:`completed` says which; an OSError raised says in ``signalled`` whether one was held
+    (``[SIGNUM]``, else ``[]``). Returns the names carried."""
     signalled: list[int] = []
     mode = stat.S_IMODE(out.stat().st_mode) if out.is_dir() else None  # the old OUT's
-    with contextlib.ExitStack() as swap:  # on leaving: the old folder removed
-        with signals_deferred(lambda signum, frame: signalled.append(signum)):  # only renames
+    held = signals_deferred(lambda signum, frame: signalled.append(signum))  # renames
+    try:
+        with contextlib.ExitStack() as swap, held:  # on leaving: the old folder removed
             old = None
             if replace and out.is_dir() and not _is_empty_folder(out):
                 old = swap.enter_context(swapped_in(out, staging, hidden))
@@ -353,6 +354,9 @@ def commit_folder(
             if mode is not None:  # not before: carry_over writes into OUT
                 os.chmod(out, mode)
             _COMPLETED.add(_absolute(out))
+    except OSError as error:  # said with the Ctrl-C held meanwhile (cli.main: then 130)
+        error.signalled = signalled[:1]  # type: ignore[attr-defined]
+        raise
     if signalled:  # all in place: stopped now
         raise KeyboardInterrupt(f"signal {signalled[0]}")
     return kept
@@ -408,10 +412,8 @@ def check_output(
     (the data the fit reads: replacing ``out`` would delete it), when it is a non-empty folder
     and ``overwrite`` is not given, when ``overwrite`` would replace a folder that no fit wrote
     (no ``result.npz`` and ``config.json``), when it holds the current directory (even empty:
-    :func:`check_not_holding_cwd`), and when
-    ``OUT.checkpoint.npz`` holds an interrupted fit that this one neither resumes (``resume``)
-    nor replaces (``overwrite``).
-    """
+    :func:`check_not_holding_cwd`), and when ``OUT.checkpoint.npz`` holds an interrupted fit
+    that this one neither resumes (``resume``) nor replaces (``overwrite``)."""
     path = _absolute(out)
     if path.parent == path:
         raise OutputError(f"--out {out}: the root folder cannot be an output folder")
@@ -455,11 +457,10 @@ def staging_prefix(path: Path, hidden: bool = False) -> str:
 
 def _alive(pid: int) -> bool:
     try:
-        os.kill(pid, 0)
+        with contextlib.suppress(PermissionError):  # someone else's process: alive
+            os.kill(pid, 0)
     except ProcessLookupError:
         return False
-    except PermissionError:  # someone else's process: alive
-        return True
     return True
 
 
@@ -487,8 +488,8 @@ def stage_output(
     resume: str | os.PathLike[str] | None = None,
     inputs: Sequence[str | os.PathLike[str] | None] = (),
 ) -> StagedOutput:
-    """:func:`check_output`, then create the staging folder beside ``out`` (and ``out``'s parent
-    if missing): an unwritable place fails here, with :class:`OutputError`, before any work."""
+    """:func:`check_output`, then the staging folder beside ``out`` made (and ``out``'s parent):
+    an unwritable place fails here, with :class:`OutputError`, before any work."""
     path = check_output(out, overwrite=overwrite, resume=resume, inputs=inputs)
     seen = _identity(path)
     try:
@@ -555,14 +556,12 @@ def _new_name(parent: Path, prefix: str, make: Callable[[Path], T]) -> tuple[Pat
 
 
 def _new_folder(parent: Path, prefix: str) -> Path:
-    """A new folder ``parent / (prefix + random)``, made as ``mkdir`` makes one (its mode from
-    the umask, unlike :func:`tempfile.mkdtemp`'s 0700)."""
+    """A new folder ``parent / (prefix + random)``, its mode as ``mkdir`` gives (not 0700)."""
     return _new_name(parent, prefix, Path.mkdir)[0]
 
 
 def _new_file(parent: Path, prefix: str) -> tuple[int, Path]:
-    """(descriptor, path) of a new file ``parent / (prefix + random)`` opened for writing, made
-    as ``open`` makes one (its mode from the umask, unlike :func:`tempfile.mkstemp`'s 0600)."""
+    """(descriptor, path) of a new file ``parent / (prefix + random)``, its mode as ``open``'s."""
     path, descriptor = _new_name(
         parent, prefix, lambda path: os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
     )
@@ -571,10 +570,11 @@ def _new_file(parent: Path, prefix: str) -> tuple[int, Path]:
 
 def replace_file(path: str | os.PathLike[str], write: Callable[[BinaryIO], None]) -> Path:
     """Write a file through ``write(file)`` into a temporary file beside ``path``, then rename it
-    over ``path``: readers see the old file or the new one, never a half-written one."""
+    over ``path`` (whose mode it keeps): readers see the old file or the new one, never half."""
     path = _absolute(path)
     descriptor, partial = _new_file(path.parent, f"{path.name}{STAGING_INFIX}")
     try:
+        take_mode(partial, path)  # a file there keeps its mode, as the maps (move_files_in)
         with os.fdopen(descriptor, "wb") as file:
             write(file)
         os.replace(partial, path)

@@ -39,7 +39,7 @@ from spcopyro._util.arguments import (
     positive_number,
     seed,
 )
-from spcopyro._util.interrupts import caused_by_interrupt, sigterm_as_interrupt
+from spcopyro._util.interrupts import caused_by_interrupt, signals_deferred, sigterm_as_interrupt
 from spcopyro._util.messages import plural
 from spcopyro._util.process_exit import exit_process, may_skip_teardown
 from spcopyro.cli.common import (
@@ -540,16 +540,34 @@ def main(argv: list[str] | None = None) -> int:
         return BROKEN_PIPE
     except (OSError, ValueError) as error:  # bad input: one clear line, no traceback
         print(f"error: {_error_line(error)}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt as stop:  # Ctrl-C: one line, no traceback (fit says more itself)
-        if not getattr(stop, "said", False):  # a study has said how far it got
-            print(interrupted_line(args), file=sys.stderr)  # which command, what of its --out
-        return 130
+        # a Ctrl-C held while a commit failed (outputs.commit_folder; an OutputError made of it)
+        if not any(getattr(e, "signalled", None) for e in (error, error.__context__)):
+            return 2
+        stop: BaseException = KeyboardInterrupt()
+    except KeyboardInterrupt as interrupt:  # Ctrl-C: one line, no traceback (fit says more)
+        stop = interrupt
     except SystemError as error:  # Ctrl-C inside a numba call (spcopyro._util.interrupts)
         if not caused_by_interrupt(error):
             raise
-        print(interrupted_line(args), file=sys.stderr)
-        return 130
+        stop = error
+    return _say_interrupted(args, stop)
+
+
+def _say_interrupted(args: argparse.Namespace, stop: BaseException) -> int:
+    """Print the line of a Ctrl-C (:func:`interrupted_line`: which command, what of its
+    ``--out``) unless ``stop.said`` (a study has said how far it got); 130. A second Ctrl-C (the
+    first held through a commit, :func:`spcopyro._util.outputs.commit_folder`) stops nothing
+    more: one as the line is said is dropped, one before that is caught and the line said."""
+    said = False
+    while True:
+        try:
+            with signals_deferred(lambda signum, frame: None):
+                if not (said or getattr(stop, "said", False)):
+                    print(interrupted_line(args), file=sys.stderr)
+                said = True
+            return 130
+        except KeyboardInterrupt:  # before the deferring handler was in place, or as it left
+            continue
 
 
 def console_main() -> NoReturn:
