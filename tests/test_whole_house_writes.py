@@ -260,7 +260,7 @@ def test_simulate_sweeps_the_staging_folders_a_killed_one_left(tmp_path):
     assert sorted(p.name for p in (root / "map").iterdir()) == ["h.pgm", "h.yaml"]
 
 
-def test_a_dead_ones_staged_map_holding_a_kept_old_file_is_not_swept(tmp_path):
+def test_a_dead_ones_staged_map_holding_a_kept_old_file_is_not_swept(tmp_path, capsys):
     """A refused commit whose old map file could not be put back keeps it in the staged map
     folder as ``NAME.pgm.old`` and names it; once that process is gone, the next simulate into
     the same map swept the folder as stale and deleted the user's only copy."""
@@ -275,6 +275,11 @@ def test_a_dead_ones_staged_map_holding_a_kept_old_file_is_not_swept(tmp_path):
     (kept / "h.pgm.old").write_bytes(b"P5 old map")
     assert main(["simulate", "--out", str(root), "--name", "h"]) == 0
     assert (kept / "h.pgm.old").read_bytes() == b"P5 old map"
+    # and said again: the next run of the same command skipped the folder without a word
+    assert capsys.readouterr().err == (
+        f"warning: {kept / 'h.pgm.old'} is a file an earlier run replaced and could not put back "
+        f"(its error said where): move it back, then remove {kept}\n"
+    )
 
 
 def test_deferred_signals_get_every_handler_back_when_putting_one_back_raises(monkeypatch):
@@ -433,3 +438,42 @@ def test_a_ctrl_c_held_through_a_refused_commit_is_said_with_the_error(
         f"interrupted spcopyro simulate: nothing written to {root / 'h'} and its map "
         f"{root / 'map' / 'h'}.yaml (they are written whole at the end, or not at all)\n"
     )
+
+
+def test_an_import_whose_old_map_file_cannot_be_put_back_keeps_it_and_names_it(
+    imported, capsys, no_swaps
+):
+    """import-bag --overwrite's side of the stranded case (simulate's is above; it had no test):
+    on a file system without hard links, where map/house.yaml cannot be replaced and the old
+    house.pgm not put back, the old house.pgm is kept in the staged map folder, which the error
+    names with what to do, and the house folder is the old one."""
+    argv, out = imported
+    maps = out.parent / "map"
+    old_pgm = (maps / "house.pgm").read_bytes()
+    (maps / "house.yaml").unlink()
+    (maps / "house.yaml").mkdir()
+    replace = os.replace
+
+    def no_links(*args, **kwargs):
+        raise OSError(1, "Operation not permitted")
+
+    def no_putting_back(source, target):
+        if str(source).endswith(".old"):
+            raise PermissionError(13, "Permission denied")
+        return replace(source, target)
+
+    capsys.readouterr()
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(os, "link", no_links)
+        patch.setattr(os, "replace", no_putting_back)
+        assert main(argv) == 2
+    err = capsys.readouterr().err
+    kept = [path for path in out.parent.rglob("*.old") if path.read_bytes() == old_pgm]
+    assert len(kept) == 1, (err, kept)
+    line = err.splitlines()[-1]  # after the import's progress bar
+    assert line.startswith(f"error: cannot put {maps / 'house.yaml'} in place (Is a directory)")
+    assert err.endswith(
+        f"it is kept as {kept[0]} (move it back to {maps / 'house.pgm'}, then remove "
+        f"{kept[0].parent})\n"
+    ), err
+    assert (out / "notes.txt").read_text() == "mine"  # the old house, not the new one

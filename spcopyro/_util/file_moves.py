@@ -9,10 +9,13 @@ of the package.
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import stat
 from collections.abc import Sequence
 from pathlib import Path
+
+logger = logging.getLogger(__name__)
 
 
 class FilesNotMoved(OSError):
@@ -68,6 +71,17 @@ def move_files_in(files: Sequence[tuple[Path, Path]], folder: Path | None = None
         if old is not None:
             with contextlib.suppress(OSError):
                 os.unlink(old)
+
+
+def kept_old_files(folder: Path) -> list[Path]:
+    """The ``*.old`` files in ``folder``, a staging folder a refused :func:`move_files_in` left:
+    old targets it could not put back (:class:`FilesNotMoved` named each and where it goes).
+    Each is warned of again, since the folder must stay until the user moves them back."""
+    kept = sorted(folder.glob("*.old"))
+    for old in kept:
+        logger.warning("%s is a file an earlier run replaced and could not put back (its error "
+                       "said where): move it back, then remove %s", old, folder)  # fmt: skip
+    return kept
 
 
 def take_mode(new: Path, old: Path) -> os.stat_result | None:

@@ -44,7 +44,7 @@ from typing import BinaryIO, TypeVar
 
 import numpy as np
 
-from spcopyro._util.file_moves import FilesNotMoved, move_files_in, take_mode
+from spcopyro._util.file_moves import FilesNotMoved, kept_old_files, move_files_in, take_mode
 from spcopyro._util.interrupts import signals_deferred
 
 try:  # POSIX: serialise commits into one parent folder
@@ -467,15 +467,15 @@ def _alive(pid: int) -> bool:
 def remove_stale_stagings(path: Path, hidden: bool = False) -> list[Path]:
     """Remove the staging folders beside ``path`` (``OUT.partial-PID-...``, ``.OUT.partial-...``
     if ``hidden``) whose process is gone: what a killed fit into the same OUT left behind; not one
-    holding a ``*.old`` file, an old map file a refused commit could not put back and named
-    (:mod:`spcopyro._util.file_moves`). Returns what was removed."""
+    holding a ``*.old`` file, an old map file a refused commit could not put back and named,
+    warned of again (:func:`~spcopyro._util.file_moves.kept_old_files`). Returns the removed."""
     removed = []
     name = f"{'.' if hidden else ''}{path.name}{STAGING_INFIX}"
     pattern = re.compile(re.escape(name) + r"(\d+)-")
     for candidate in path.parent.glob(f"{glob.escape(name)}*"):
         match = pattern.match(candidate.name)
         stale = match and candidate.is_dir() and not _alive(int(match.group(1)))
-        if stale and not any(candidate.glob("*.old")):  # *.old: the user's, named in an error
+        if stale and not kept_old_files(candidate):  # *.old: the user's, named (and warned of)
             shutil.rmtree(candidate, ignore_errors=True)
             removed.append(candidate)
     return removed
