@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import PurePath
+from types import ModuleType
 
 from spcopyro.cli.out_names import graph_json, house_name, probability_figure
 
@@ -100,11 +101,16 @@ def _figures(args: argparse.Namespace, out: str) -> list[str]:
     return [str(figure)]
 
 
+def _outputs() -> ModuleType | None:
+    """:mod:`spcopyro._util.outputs` where something imported it, else None (then nothing was
+    written); importing it here would take numpy's seconds."""
+    return sys.modules.get("spcopyro._util.outputs")
+
+
 def _completed(out: str) -> bool:
     """Whether this process's latest write into ``out`` is in place, whole
-    (:func:`spcopyro._util.outputs.completed`); not when nothing imported that module: then
-    nothing was written."""
-    outputs = sys.modules.get("spcopyro._util.outputs")  # importing it here: numpy, seconds
+    (:func:`spcopyro._util.outputs.completed`); not when nothing imported that module."""
+    outputs = _outputs()
     return outputs is not None and outputs.completed(out)
 
 
@@ -114,7 +120,7 @@ def _old_kept(out: str) -> str:
     writer did not write into the new one: what is left is the earlier run's own), as the user
     named OUT; else ``""``. A leftover of an earlier process is not named
     (:func:`spcopyro._util.outputs.set_aside`)."""
-    outputs = sys.modules.get("spcopyro._util.outputs")
+    outputs = _outputs()
     folders = [] if outputs is None else outputs.set_aside(out)
     shown = PurePath(out).parent
     aside = sorted(str(shown / folder.name) for folder in folders)
