@@ -12,15 +12,11 @@ import pytest
 from fit_interrupts import interrupt_cavi_at, interrupt_fit_at, interrupted
 
 import spcopyro.fit.gibbs_chains
-import spcopyro.fit.house  # noqa: F401 -- see below
 import spcopyro.gibbs.chains
 from spcopyro._util.outputs import checkpoint_path
 from spcopyro.cli.main import main
 from spcopyro.gibbs.checkpoint import read_record
 
-# spcopyro.fit.house binds gibbs_chains.with_sample_marginals by name when it is first imported:
-# imported here, before a test patches that function, so that a later fit (vi-gibbs) in this
-# file does not keep calling the patch (a whole-file run failed two vi-gibbs cases that way).
 FIT = ["--sweeps", "12", "--preset", "original-code", "--gamma", "3", "--concepts", "8",
        "--no-figures"]  # fmt: skip
 
@@ -60,8 +56,6 @@ def _stopped_cavi_fit(home, out, monkeypatch, capsys) -> list[str]:
 def test_ctrl_c_after_the_sweeps_keeps_the_finished_chains(home, tmp_path, capsys, monkeypatch):
     out = tmp_path / "out"
     argv = ["fit", str(home), "--out", str(out), *FIT]
-    marginals = spcopyro.fit.gibbs_chains.with_sample_marginals
-
     # Ctrl-C while the point estimate is made
     err = _ctrl_c_in(monkeypatch, capsys, spcopyro.fit.gibbs_chains, "with_sample_marginals", argv)
     checkpoint = checkpoint_path(out)
@@ -74,7 +68,6 @@ def test_ctrl_c_after_the_sweeps_keeps_the_finished_chains(home, tmp_path, capsy
 
     with monkeypatch.context() as patch:
         patch.setattr(spcopyro.gibbs.chains, "advance", no_sampling)
-        patch.setattr(spcopyro.fit.gibbs_chains, "with_sample_marginals", marginals)
         assert main([*argv, "--resume", str(checkpoint)]) == 0
     assert main(["fit", str(home), "--out", str(tmp_path / "unbroken"), *FIT]) == 0
     np.testing.assert_array_equal(
