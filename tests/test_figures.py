@@ -14,7 +14,7 @@ from spcopyro.figures.plotting import (
     RUNNER_UP_RGB,
     plot_semantic_map,
     plot_where,
-    region_label_points,
+    region_label_spots,
     semantic_colours,
     semantic_map_image,
     where_figure,
@@ -102,13 +102,13 @@ def test_every_sizeable_region_gets_one_label_inside_it():
     image[:, 5:7] = 1  # concept 1 between them
     image[0, 5] = 2  # a one-cell speck
     image[4:8, 8:] = 3  # concept 3 cuts a notch into the right region: a U of concept 0
-    points = region_label_points(image, min_cells=5)
-    assert [(c, cells, largest) for c, _, _, cells, largest in points] == [
+    points = region_label_spots(image, min_cells=5)
+    assert [(c, cells, largest) for c, _, _, cells, largest, _ in points] == [
         (0, 60, True), (0, 44, False), (1, 23, True), (3, 16, True),
     ]  # fmt: skip
-    for concept, row, col, _, _ in points:
+    for concept, row, col, _, _, _ in points:
         assert image[row, col] == concept  # inside its region (the U's centroid is not)
-    assert region_label_points(image, min_cells=61) == []
+    assert region_label_spots(image, min_cells=61) == []
 
 
 def test_a_label_that_collides_takes_another_spot_of_its_region():
@@ -120,14 +120,13 @@ def test_a_label_that_collides_takes_another_spot_of_its_region():
     from matplotlib.figure import Figure
 
     from spcopyro.figures.map_pieces import place_labels
-    from spcopyro.figures.plotting import region_label_spots
 
     image = np.full((12, 12), -1)
     image[:, :5] = 0
     image[:, 5:] = 1
     image[6:, 8:] = 2  # an L of concept 1 around concept 2
     points = region_label_spots(image, min_cells=5, spots=4)
-    assert [p[:5] for p in points] == region_label_points(image, min_cells=5)
+    assert [p[:5] for p in points] == [p[:5] for p in region_label_spots(image, min_cells=5)]
     for concept, row, col, _, _, spots in points:
         assert spots[0] == (row, col) and len(set(spots)) == len(spots) == 4
         assert all(image[r, c] == concept for r, c in spots)  # every spot inside its region
@@ -136,7 +135,7 @@ def test_a_label_that_collides_takes_another_spot_of_its_region():
     ax = fig.subplots()
     ax.set(xlim=(0, 10), ylim=(0, 10))
     FigureCanvasAgg(fig)
-    labels = [(5.0, 5.0, "first label", {}),
+    labels = [(5.0, 5.0, "first label", {}, []),
               (5.0, 5.2, "second label", {}, [(5.0, 5.1), (2.0, 8.0)]),
               (5.0, 4.8, "third label", {}, [(5.0, 4.9)])]  # fmt: skip
     assert place_labels(fig, ax, labels) == (2, 1)  # the third has no free spot

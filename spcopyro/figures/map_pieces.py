@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections import Counter
+from typing import Any
 
 import numpy as np
 from matplotlib import patheffects
@@ -466,12 +467,15 @@ def draw_outline(
     ax.contour(x, y, part, levels=[0.5], **style)
 
 
-def place_labels(fig: Figure, ax: Axes, labels: list[tuple]) -> tuple[int, int]:
-    """Write each ``(x, y, text, style)`` label centred at (x, y) with the white halo
-    :data:`OUTLINE`, in the given order, leaving out any label whose box would overlap one
-    already written; a label ``(x, y, text, style, spots)`` whose box would overlap one there
-    is tried at each further ``(x, y)`` of ``spots`` in turn before it is left out. Returns
-    (written, left out). The boxes are measured by rendering the
+def place_labels(
+    fig: Figure,
+    ax: Axes,
+    labels: list[tuple[float, float, str, dict[str, Any], list[tuple[float, float]]]],
+) -> tuple[int, int]:
+    """Write each ``(x, y, text, style, spots)`` label centred at (x, y) with the white halo
+    :data:`OUTLINE`, in the given order; a label whose box would overlap one already written
+    is tried at each further ``(x, y)`` of ``spots`` in turn, and left out where every spot
+    overlaps. Returns (written, left out). The boxes are measured by rendering the
     figure on an Agg canvas (no backend is selected for anything else), after the axes took
     the shape of an equal-aspect map: measured on the axes as made (the whole subplot), a
     tall map was drawn narrower than measured and two labels side by side ran into each other
@@ -482,8 +486,8 @@ def place_labels(fig: Figure, ax: Axes, labels: list[tuple]) -> tuple[int, int]:
     ax.apply_aspect()  # the axes' box as drawn (matplotlib applies the aspect only at draw)
     boxes = []
     skipped = 0
-    for x, y, text, style, *rest in labels:
-        for at in [(x, y), *(rest[0] if rest else ())]:
+    for x, y, text, style, spots in labels:
+        for at in [(x, y), *spots]:
             artist = ax.text(*at, text, ha="center", va="center", path_effects=OUTLINE,
                              zorder=4, **style)  # fmt: skip
             with warnings.catch_warnings():  # told once, in words, when saved (png.save_figure)

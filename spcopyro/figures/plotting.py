@@ -6,7 +6,7 @@ have modules of their own; their names are importable from here too.
 
 The semantic map gives every concept in use its own colour, touching concepts the most different
 ones (:func:`~spcopyro.maps.palette.concept_colours`), and writes a label on every connected region
-of at least ``SMALL_REGION_FRACTION`` of the free cells (:func:`region_label_points`), so a
+of at least ``SMALL_REGION_FRACTION`` of the free cells (:func:`region_label_spots`), so a
 concept split over two rooms is labelled in both.
 
 Figures are built as :class:`matplotlib.figure.Figure` objects and written with
@@ -92,20 +92,6 @@ def semantic_map_image(result: SpCoResult) -> np.ndarray:
     return render_labels(result.label_image(), result.grid, semantic_colours(result))
 
 
-def region_label_points(
-    image: np.ndarray, min_cells: float
-) -> list[tuple[int, int, int, int, bool]]:
-    """Where to write a label on every sizeable connected region of an ``[H, W]`` label image.
-
-    Returns ``(concept, row, col, cells, largest)`` for every 4-connected region of one concept
-    with at least ``min_cells`` cells, concepts in ascending order and each concept's regions
-    largest first (``largest`` marks its largest one). ``(row, col)`` is the region's cell
-    farthest from its border (the maximum of the Euclidean distance transform), so the label
-    sits inside the region even when the region is not convex.
-    """
-    return [spot[:5] for spot in region_label_spots(image, min_cells)]
-
-
 LABEL_SPOTS = 6
 """Spots a region's label may take (:func:`region_label_spots`): its most interior cell, then
 others of the region, tried in turn where the label there would overlap one written before."""
@@ -114,8 +100,14 @@ others of the region, tried in turn where the label there would overlap one writ
 def region_label_spots(
     image: np.ndarray, min_cells: float, spots: int = LABEL_SPOTS
 ) -> list[tuple[int, int, int, int, bool, list[tuple[int, int]]]]:
-    """:func:`region_label_points`, each with ``spots`` ``[(row, col), ...]``: the region's
-    most interior cell first (the point's own), then up to ``spots - 1`` further cells of the
+    """Where to write a label on every sizeable connected region of an ``[H, W]`` label image.
+
+    Returns ``(concept, row, col, cells, largest, spots)`` for every 4-connected region of one
+    concept with at least ``min_cells`` cells, concepts in ascending order and each concept's
+    regions largest first (``largest`` marks its largest one). ``(row, col)`` is the region's
+    cell farthest from its border (the maximum of the Euclidean distance transform), so the
+    label sits inside the region even when the region is not convex. ``spots``
+    ``[(row, col), ...]``: that cell first, then up to ``spots - 1`` further cells of the
     region at least half as far from its border as that one, each the farthest from those
     chosen before (spread over the region). A label that would overlap another at its first
     spot takes the next free one (:func:`~spcopyro.figures.map_pieces.place_labels`): on
@@ -172,9 +164,9 @@ def semantic_map_figure(
     """Each concept its own colour, walls black, its words on the map itself (Fig. 10F).
 
     Every connected region holding at least ``min_region_fraction`` of the free cells gets a
-    label at its most interior cell (:func:`region_label_points`), in black with a white halo
+    label at its most interior cell (:func:`region_label_spots`), in black with a white halo
     (a label whose box would overlap the label of a larger region there takes another spot of
-    its region, :func:`region_label_spots`; where none is free it is left out and counted in
+    its region; where none is free it is left out and counted in
     the title, "6 labelled regions, 1 left unlabelled (legend)",
     :func:`~spcopyro.figures.map_pieces.place_labels`):
     ``[concept]`` and its ``n_words`` most probable words with their probabilities (and the

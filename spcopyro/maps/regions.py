@@ -6,7 +6,7 @@ regions of each label.
 * :func:`concept_regions` -- the 4-connected regions of every label, numbered label by label.
 
 The semantic map's colours (:func:`spcopyro.maps.palette.concept_colours`), its region labels
-(:func:`spcopyro.figures.plotting.region_label_points`) and the place graph
+(:func:`spcopyro.figures.plotting.region_label_spots`) and the place graph
 (:mod:`spcopyro.robot.navigation.places`) read their regions from here.
 """
 
