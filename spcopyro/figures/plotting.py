@@ -64,6 +64,7 @@ from spcopyro.results.result import SpCoResult
 from spcopyro.results.specks import in_use_text
 from spcopyro.results.uncertainty import (
     cell_entropy,
+    cell_probability_label,
     free_cells_image,
     unmapped_note,
     where_probability,
@@ -287,9 +288,9 @@ def where_figure(
             if runner is not None:
                 draw_outline(ax, grid, runner, rows, cols, extent, colors=[blue],
                              linewidths=1.5, linestyles="dashed")  # fmt: skip
+        label = cell_probability_label(answer.word, bool(unmapped_note(result)))
         fig.colorbar(scale, cax=axes[-1].inset_axes((1.02, 0.0, 0.025, 1.0)),  # the map's height
-                     label=f"p(cell is the place) for '{answer.word}'"
-                     + ("; the map's concepts only" if unmapped_note(result) else ""))  # fmt: skip
+                     label=label)  # fmt: skip
         answer_handle = Line2D([], [], color=red, lw=2.0, label="")
         runner_handle = Line2D([], [], color=blue, lw=1.5, ls="--", label="")
     if 0 < cells < SMALL_REGION_FRACTION * grid.num_free:
@@ -440,7 +441,6 @@ def plot_where_probability(
         title += f"\n{note}"
     # named as `where` prints it and the answer's figure draws it (the title read "p(cell in
     # its place)", the colour bar "probability")
-    label = f"p(cell is the place) for '{word.lower()}'" + (
-        "; the map's concepts only" if note else "")  # fmt: skip
+    label = cell_probability_label(word.lower(), bool(note))
     return _plot_cell_values(result, probability, path, title=title, label=label,
                              vmax=1.0, cmap="Blues")  # fmt: skip

@@ -233,6 +233,15 @@ def unmapped_note(result: SpCoResult) -> str | None:
     return result.computed_once("unmapped_note", note)  # type: ignore[return-value]
 
 
+def cell_probability_label(word: str, off_map: bool = False) -> str:
+    """The name of a cell's :func:`where_probability` of ``word`` on a figure's colour bar:
+    ``"p(cell is the place) for 'bath'"``, as ``where`` and ``navigate`` print it, with
+    ``"; the map's concepts only"`` where ``off_map`` (some mass lies on concepts absent from
+    the map, :func:`unmapped_note`). One name for the where, where-probability and navigate
+    figures."""
+    return f"p(cell is the place) for '{word}'" + ("; the map's concepts only" if off_map else "")
+
+
 def free_cells_image(result: SpCoResult, values: np.ndarray) -> np.ndarray:
     """[H, W] float64 ``values`` ``[N]`` of the free cells drawn on the map, NaN elsewhere."""
     image = np.full(result.grid.shape, np.nan)  # [H, W]

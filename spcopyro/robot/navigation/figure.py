@@ -24,6 +24,7 @@ from spcopyro.figures.png import save_figure
 from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
 from spcopyro.maps.render import render_labels
 from spcopyro.results.result import SpCoResult
+from spcopyro.results.uncertainty import cell_probability_label
 from spcopyro.robot.navigation.places import DOORWAY_WIDTH, PlaceGraph
 from spcopyro.robot.navigation.planning import NavigationPlan
 
@@ -85,7 +86,7 @@ def plan_figure(plan: NavigationPlan) -> Figure:
         cells = plan.planning.cells(np.flatnonzero(np.logical_or.reduce(kept)))
         region = np.zeros(grid.shape, dtype=bool)  # [H, W]
         region[cells[:, 0], cells[:, 1]] = True
-    label = f"p(cell is the place) for '{goal.shown}'"  # as navigate and where print it
+    label = cell_probability_label(goal.shown)  # as navigate and where print it
     length = 0.3 * max(1.0, plan.radius * 4)
     for ax in axes:  # one map, or its strips: every artist clipped to the strip's stretch
         shown = ax.imshow(image[rows, cols], extent=extent, origin="upper",
