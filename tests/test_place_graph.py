@@ -323,6 +323,9 @@ def test_show_graph_says_what_it_left_out_only_where_it_left_out_something(resul
                                 "--out", str(tmp_path / "h.png")])  # fmt: skip
     assert printed.splitlines()[0].startswith("0 places, 0 passages (0 doorways); 5 regions "
                                               "under 100 m^2 left out (")  # fmt: skip
+    # one text for the line and graph.png's title, in each one's spelling of the unit
+    assert place_graph(result).dropped_text() == ""
+    assert place_graph(result, min_area=100).dropped_text("m²") == "5 regions under 100 m² left out"
 
 
 def test_a_place_under_one_square_metre_shows_its_area_to_two_decimals(result, tmp_path):

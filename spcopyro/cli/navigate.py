@@ -188,10 +188,9 @@ def show_graph(args: argparse.Namespace) -> int:
     written = graph_json(png)  # X.png -> X.json: two graphs in one folder keep both
     replace_text(written, json.dumps(graph.to_json(), indent=2) + "\n")  # whole or not at all
     doors = sum(e.doorway for e in graph.passages)
-    dropped = ""  # as the figure's title: nothing said where nothing was left out
-    if graph.dropped:
-        dropped = (f"; {plural(graph.dropped, 'region')} under {graph.min_area:g} m^2 left out "
-                   f"({graph.dropped_area:.2f} m^2)")  # fmt: skip
+    dropped = graph.dropped_text("m^2")  # as the figure's title: "" where none was left out
+    if dropped:
+        dropped = f"; {dropped} ({graph.dropped_area:.2f} m^2)"
     print(f"{plural(len(graph.places), 'place')}, {plural(len(graph.passages), 'passage')} "
           f"({plural(doors, 'doorway')}){dropped}")  # fmt: skip
     answers = answered_words(result)  # every word, also those heard only off the map

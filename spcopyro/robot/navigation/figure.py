@@ -283,9 +283,8 @@ def place_graph_figure(result: SpCoResult, graph: PlaceGraph) -> Figure:
     map_legend(axes[-1], axes[0].get_legend_handles_labels()[0], below=below, columns=2,
                fontsize=8)  # fmt: skip
     _label_places(fig, axes, graph, xy, size)
-    dropped = ""
-    if graph.dropped:
-        dropped = f"; {plural(graph.dropped, 'region')} under {graph.min_area:g} m² left out"
+    dropped = graph.dropped_text("m²")  # as show --graph prints it
+    dropped = f"; {dropped}" if dropped else ""
     places, passages = plural(len(graph.places), "place"), plural(len(graph.passages), "passage")
     axes[0].set_title(f"place graph: {places}, {passages}{dropped}{strips}")
     return fig

@@ -24,6 +24,7 @@ from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import shortest_path
 
+from spcopyro._util.messages import plural
 from spcopyro.maps.regions import concept_regions, region_contacts
 from spcopyro.results.concept_names import answered_words, concept_name
 
@@ -115,6 +116,14 @@ class PlaceGraph:
     """Whether a robot's passability was checked
     (:func:`~spcopyro.robot.navigation.hierarchy.with_passability`); without it every passage
     counts and ``graph.json`` says ``"passable": null`` (unknown)."""
+
+    def dropped_text(self, unit: str = "m^2") -> str:
+        """``"2 regions under 0.25 m^2 left out"`` (``unit`` the square metres' spelling: graph.png
+        writes "m²"), as ``show --graph`` prints it and graph.png's title writes it; ``""``
+        where no region was left out (neither says "0 regions")."""
+        if not self.dropped:
+            return ""
+        return f"{plural(self.dropped, 'region')} under {self.min_area:g} {unit} left out"
 
     def place_of(self, cell: np.ndarray) -> int:
         """The place of a grid cell ``(row, col)``: the region it lies in, else the nearest one
