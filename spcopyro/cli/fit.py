@@ -52,6 +52,7 @@ from spcopyro.cli.fit_resume import (
     interrupted_before_fit,
     interrupted_message,
     keeps_checkpoint,
+    keeps_finished_fit,
     no_checkpoint_flags,
     resumable_methods,
 )
@@ -273,7 +274,7 @@ def _fit_staged(job: FitJob) -> int:
     if (used := backend_used(options or default, config)) is not None:
         print(f"backend used     {used}")
     if args.resume is not None:
-        saved_fit = "chains" if args.method == "gibbs" and args.update is None else "fit"
+        saved_fit = "fit" if keeps_finished_fit(args) else "chains"
         print(f"resuming         the {saved_fit} saved in {args.resume}")
     init = args.init
     saved = None
