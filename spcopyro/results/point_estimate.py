@@ -369,13 +369,12 @@ def point_estimate(
         for s in range(len(samples)):
             kept[s] = _sample_start(s, prepared, loss)  # no sort of N
             losses[s] = kept[s].value
-            if len(kept) > order_count:  # the highest (loss, row): the stable argsort's last
+            if len(kept) > order_count:  # the highest (loss, row): the last to be searched
                 del kept[max(kept, key=lambda row: (losses[row], row))]
             bar.update()
-        order = np.argsort(losses, kind="stable")[:order_count]
         best, best_value = None, np.inf
-        for s in order:
-            estimate, value = _greedy(kept.pop(int(s)), prepared, loss, max_clusters, bar)
+        for s in sorted(kept, key=lambda row: (losses[row], row)):  # lowest (loss, row) first
+            estimate, value = _greedy(kept.pop(s), prepared, loss, max_clusters, bar)
             if value < best_value:
                 best, best_value = estimate, value
     assert best is not None
