@@ -351,6 +351,25 @@ def test_an_ambiguous_word_takes_the_nearer_unless_strict(result, fit, capsys):
     assert "--strict takes none" in capsys.readouterr().err
 
 
+def test_a_candidate_under_one_square_metre_shows_its_area_to_two_decimals(tmp_path, capsys):
+    """navigate wrote a candidate's area to one decimal: a goal of 0.25 m^2 read "0.3 m^2 of
+    the place the robot fits in" beside its warning's "the goal is in the largest, 0.25 m^2".
+    Below 1 m^2 the stop line, the ambiguous candidates and an unreachable one's warning give
+    two decimals, as the place graph's areas."""
+    image = house_result().label_image()  # [H, W]
+    image[image == CONCEPT["D"]] = CONCEPT["B"]
+    for rows, cols in ((slice(20, 28), slice(10, 18)), (slice(6, 14), slice(1, 9)),
+                       (slice(6, 14), slice(32, 40))):  # fmt: skip
+        image[rows, cols] = CONCEPT["D"]  # 8 x 8 cells, 0.64 m^2: walled off, in A, in E
+    fit = one_word_per_concept(house_grid(), image[house_grid().free], WORDS).save(tmp_path / "f")
+    start = f"--start={START_B[0]},{START_B[1]}"
+    assert main(["navigate", str(fit), "go to the closet", start, "--radius", "0"]) == 0
+    out, err = capsys.readouterr()
+    assert "0.64 m^2 of the place the robot fits in" in out, out
+    assert out.count(" p(cell is the place) = 0.917, 0.64 m^2, ") == 2, out
+    assert "(p(cell is the place) = 0.917, 0.64 m^2) cannot be reached" in err, err
+
+
 def test_an_answer_where_calls_a_guess_is_warned_of_and_refused_when_strict(
     result, capsys, monkeypatch
 ):

@@ -18,7 +18,7 @@ from collections.abc import Hashable, Iterator, Sequence, Sized
 from contextlib import contextmanager
 
 __all__ = [
-    "ECHO_LIMIT", "KNOWN_WORDS_SHOWN", "echo", "fixed", "listed", "one_of", "plural",
+    "ECHO_LIMIT", "KNOWN_WORDS_SHOWN", "area_text", "echo", "fixed", "listed", "one_of", "plural",
     "seconds_text", "setting", "warn_once", "warned_apart", "with_article",
 ]  # fmt: skip
 
@@ -83,6 +83,14 @@ def setting(python: str, flag: str, command: str = "fit") -> str:
 def plural(number: int, noun: str) -> str:
     """``"1 room"``, ``"3 rooms"``: ``number`` and ``noun``, plural but for one."""
     return f"{number} {noun}{'' if number == 1 else 's'}"
+
+
+def area_text(area: float) -> str:
+    """An area in square metres as the outputs write it (no unit): one decimal from 1 m^2, two
+    below. With one, a place of 0.25 m^2, kept by the place graph's default ``min_area`` 0.25,
+    read "0.2 m^2" under "regions under 0.25 m^2 left out", and navigate's goal of 0.25 m^2
+    read "0.3 m^2" beside its warning's "the goal is in the largest, 0.25 m^2"."""
+    return f"{area:.1f}" if area >= 1.0 else f"{area:.2f}"
 
 
 _SPELT_OUT = frozenset({"em", "lbp", "mcmc", "svi", "vi"})  # method names said letter by letter

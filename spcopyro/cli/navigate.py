@@ -15,7 +15,7 @@ import sys
 from typing import TYPE_CHECKING
 
 from spcopyro._util.arguments import non_negative_number
-from spcopyro._util.messages import plural
+from spcopyro._util.messages import area_text, plural
 from spcopyro.cli.common import _HelpFormatter, figure_file, refuse_fit_files
 from spcopyro.cli.out_names import graph_json
 
@@ -115,7 +115,7 @@ def _plan_and_print(
         print(
             f"{stop.shown}: goal x={stop.xy[0]:.2f} y={stop.xy[1]:.2f} yaw={stop.yaw:.2f} "
             f"(goal cell: p(cell is the place) = {choice.candidate.probability:.3f}; "
-            f"{choice.candidate.area:.1f} m^2 of the place the robot fits in)"
+            f"{area_text(choice.candidate.area)} m^2 of the place the robot fits in)"
         )
         if choice.ambiguous:
             print(
@@ -126,7 +126,7 @@ def _plan_and_print(
                 if c.reachable:
                     mark = "*" if c.node == choice.node else " "
                     print(f"  {mark} x={c.xy[0]:.2f} y={c.xy[1]:.2f} p(cell is the place) = "
-                          f"{c.probability:.3f}, {c.area:.1f} m^2, "
+                          f"{c.probability:.3f}, {area_text(c.area)} m^2, "
                           f"{c.distance:.2f} m away")  # fmt: skip
         shared = shared_concept_note(choice.concept, choice.shared_with)
         if shared:  # as where's note: 'toilet' answered by the living room's concept

@@ -59,7 +59,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from spcopyro._util.messages import listed
+from spcopyro._util.messages import area_text, listed
 from spcopyro.data.text import hidden_characters_note, hidden_match
 from spcopyro.results.semantic_map import did_you_mean, word_key
 from spcopyro.results.where import close_to_guess
@@ -487,7 +487,7 @@ def choose_goal(
         if not c.reachable:
             notes.append(
                 f"{word!r}: the region at x={c.xy[0]:.2f} y={c.xy[1]:.2f} "
-                f"(p(cell is the place) = {c.probability:.3f}, {c.area:.1f} m^2) cannot be "
+                f"(p(cell is the place) = {c.probability:.3f}, {area_text(c.area)} m^2) cannot be "
                 f"reached from here with {planning.radius:g} m of clearance; not a goal"
             )
     if not reachable:

@@ -24,7 +24,7 @@ from scipy import ndimage
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import shortest_path
 
-from spcopyro._util.messages import plural
+from spcopyro._util.messages import area_text, plural
 from spcopyro.maps.regions import concept_regions, region_contacts
 from spcopyro.results.concept_names import answered_words, concept_name
 
@@ -69,10 +69,9 @@ class Place:
 
     @property
     def area_text(self) -> str:
-        """Its area as ``show --graph`` and graph.png write it (square metres, no unit): one
-        decimal from 1 m^2, two below: with one, a place of 0.25 m^2, kept by the default
-        ``min_area`` 0.25, read "0.2 m^2" under "regions under 0.25 m^2 left out"."""
-        return f"{self.area:.1f}" if self.area >= 1.0 else f"{self.area:.2f}"
+        """Its area as ``show --graph`` and graph.png write it (square metres, no unit; as
+        every output writes an area, :func:`~spcopyro._util.messages.area_text`)."""
+        return area_text(self.area)
 
 
 @dataclass(frozen=True)
