@@ -667,6 +667,7 @@ def test_the_house_legend_names_the_other_words():
     legend entry read "other words" alone, so room1ldk5's 'bedroom', 'bath' and 'chair' were
     circles no figure named. It names them, the most heard first, six at most."""
     import dataclasses
+    from collections import Counter
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
@@ -688,5 +689,5 @@ def test_the_house_legend_names_the_other_words():
     wanted = "other words: bedroom, a, b, bath, c, chair and 2 more"
     assert legend[-1] == wanted  # most heard first, ties alphabetically
     assert wanted in [c.get_label() for c in fig.axes[0].collections]
-    assert other_words_label(["x", "y", "y", ""], ["x"]) == "other words: y"
-    assert other_words_label(["x", ""], ["x"]) == "other words"  # an empty utterance only
+    assert other_words_label(Counter(["x", "y", "y", ""]), ["x"]) == "other words: y"
+    assert other_words_label(Counter(["x", ""]), ["x"]) == "other words"  # an empty one only

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 from collections import Counter
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -37,16 +38,17 @@ def plot_house(house: House, path: str | os.PathLike[str], title: str | None = N
     return save_figure(house_figure(house, title), path)
 
 
-def other_words_label(marks: list[str], frequent: list[str]) -> str:
+def other_words_label(counts: Mapping[str, int], frequent: list[str]) -> str:
     """The legend's entry for the grey circles: "other words: " and the words they stand for,
     the most heard first (ties alphabetically), at most ``OTHER_WORDS_NAMED`` and "and N more".
-    ``marks``: each utterance's word (:func:`~spcopyro.figures.map_pieces.utterance_marks`; an
+    ``counts``: how many utterances each word marks (a ``Counter`` of
+    :func:`~spcopyro.figures.map_pieces.utterance_marks`, counted once by the figure; an
     empty utterance's "" is not named), ``frequent``: the words that have a colour. Before,
     the entry read "other words" alone: room1ldk5's 'bedroom', 'bath' and 'chair' were grey
     circles no figure named."""
     named = set(frequent)
-    counts = Counter(m for m in marks if m and m not in named)
-    rest = [w for w, _ in sorted(counts.items(), key=lambda item: (-item[1], item[0]))]
+    others = [(w, n) for w, n in counts.items() if w and w not in named and n > 0]
+    rest = [w for w, _ in sorted(others, key=lambda item: (-item[1], item[0]))]
     more = len(rest) - OTHER_WORDS_NAMED
     return "other words" + (f": {', '.join(rest[:OTHER_WORDS_NAMED])}" if rest else "") + (
         f" and {more} more" if more > 0 else "")  # fmt: skip
@@ -70,7 +72,8 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     rgb = render_labels(np.full(grid.shape, -1), grid)
     fig, axes, wide, strips = map_axes(grid, rgb, (8, 8))
     marks = utterance_marks(obs.utterances)  # [U] a sentence's rarest word: the place named
-    frequent = [w for w, _ in Counter(marks).most_common(MAX_WORD_COLOURS)]
+    counts = Counter(marks)  # utterances per word, counted once for the colours and the legend
+    frequent = [w for w, _ in counts.most_common(MAX_WORD_COLOURS)]
     colours = distinct_colours(len(frequent)) / 255.0  # [F, 3]
     rank = {w: k for k, w in enumerate(frequent)}
     kind = np.array([rank.get(w, len(frequent)) for w in marks], dtype=np.int64)  # [U]
@@ -84,7 +87,7 @@ def house_figure(house: House, title: str | None = None) -> Figure:
     draw_at_edge(axes, images[images_away], np.full((int(images_away.sum()), 3), 0.45))
     every = kind  # [U] the legend lists each word, on the map or off (its triangle's colour)
     others = (kind == len(frequent)).any()  # "other words" in the legend, on the map or off
-    others_label = other_words_label(marks, frequent)
+    others_label = other_words_label(counts, frequent)
     xy, kind = heard[~away], kind[~away]  # [U', 2], [U'] the words on the map
     order = np.argsort(kind, kind="stable")  # named words keep their places first
     counted = markers_counted(axes[0], grid, xy)  # too many to spread
