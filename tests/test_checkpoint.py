@@ -312,6 +312,43 @@ def test_chains_not_started_are_saved_as_such(tmp_path):
         save_chains([None], tmp_path / "d.npz")
 
 
+def test_checkpoints_are_written_by_write_npz(monkeypatch, tmp_path):
+    """A checkpoint's [N, L] marginals or [K, N] label samples are written on Ctrl-C while the
+    user waits: through _util.npz.write_npz (level 1 for large arrays), not np.savez_compressed
+    (level 6: 3.9-4.1 s against 2.3 s of CPU for a 2.9-million-cell map's result.npz); np.load
+    reads them."""
+    from spcopyro._util import npz
+    from spcopyro.gibbs.run import SweepInfo
+    from spcopyro.guides.checkpoint import load_variational, save_variational
+    from spcopyro.inference.driver import drive
+
+    written: list[str] = []
+    write_member = npz._write_member
+
+    def spy(archive, name, array):
+        written.append(name)
+        write_member(archive, name, array)
+
+    monkeypatch.setattr(npz, "_write_member", spy)
+    cfg = config()
+    _, data = random_problem(seed=7)
+    chain = advance(start_chain(data, cfg, seed=1), 2, progress=False)
+    gibbs = save_chains([chain], tmp_path / "gibbs.npz")
+    with np.load(gibbs) as loaded:
+        assert written == loaded.files and "chain0.labels" in written
+    assert load_chain(gibbs, data, cfg, chain.options).sweeps_done == 2
+    written.clear()
+    record = drive(0, lambda s, g: (s + 1, SweepInfo(-1.0, 1, g)), 2, gamma=cfg.gamma,
+                   progress=False)  # fmt: skip
+    q = torch.full((data.num_free, cfg.num_concepts), 1.0 / cfg.num_concepts)
+    path = save_variational(tmp_path / "q.npz", q, record, config=cfg, data=data, method="cavi",
+                            options=None)  # fmt: skip
+    with np.load(path) as loaded:
+        assert written == loaded.files and "marginals" in written
+    resumed = load_variational(path, data, cfg, method="cavi", options=None)
+    assert torch.equal(resumed.marginals, q.double())
+
+
 # -- spcopyro fit: Ctrl-C and --resume -----------------------------------------------------------
 
 

@@ -46,6 +46,7 @@ import numpy as np
 import torch
 
 from spcopyro._util.messages import setting
+from spcopyro._util.npz import write_npz
 from spcopyro._util.outputs import DAMAGED_FILE_ERRORS, read_npz, replace_file
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.backends import get_backend
@@ -161,7 +162,7 @@ def save_chains(
         "caller": dict(record or {}),
     }
     arrays["record"] = np.array(json.dumps(header))
-    return replace_file(path, lambda file: np.savez_compressed(file, **arrays))
+    return replace_file(path, lambda file: write_npz(file, arrays))  # savez_compressed's file
 
 
 def _state_arrays(prefix: str, state: GibbsState) -> dict[str, np.ndarray]:

@@ -44,6 +44,7 @@ import numpy as np
 import torch
 
 from spcopyro._util.messages import setting
+from spcopyro._util.npz import write_npz
 from spcopyro._util.outputs import DAMAGED_FILE_ERRORS, replace_file
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.checkpoint import (
@@ -172,7 +173,7 @@ def save_variational(
         "caller": dict(record or {}),
     }
     arrays["record"] = np.array(json.dumps(header))
-    return replace_file(path, lambda file: np.savez_compressed(file, **arrays))
+    return replace_file(path, lambda file: write_npz(file, arrays))  # savez_compressed's file
 
 
 def is_variational_checkpoint(path: str | os.PathLike[str]) -> bool:
