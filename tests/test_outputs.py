@@ -218,6 +218,30 @@ def test_a_ctrl_c_between_the_overwrite_renames_waits_for_the_whole_new_out(tmp_
     assert (out / "result.npz").read_text() == "new run\n"
 
 
+def test_a_ctrl_c_held_through_a_refused_commit_is_on_its_output_error(tmp_path, monkeypatch):
+    """An empty OUT written into after staging: the rename is refused and StagedOutput.commit
+    says so in an OutputError, which carries commit_folder's ``signalled`` (the Ctrl-C held
+    meanwhile) for cli.main to say it (status 130); it was on the OSError, its __context__."""
+    import signal
+
+    out = tmp_path / "out"
+    out.mkdir()
+    staged = stage_output(out)
+    (staged.path / "result.npz").write_text("new run\n")
+    (out / "other.txt").write_text("another run's")  # OUT not empty any more, the same folder
+    rename = os.rename
+
+    def stopped_then_refused(source, target):
+        os.kill(os.getpid(), signal.SIGINT)  # held by commit_folder until the renames end
+        rename(source, target)
+
+    monkeypatch.setattr(os, "rename", stopped_then_refused)
+    with pytest.raises(OutputError, match="could not be written") as error:
+        staged.commit()
+    assert error.value.signalled == [signal.SIGINT]
+    assert staged.kept and (staged.path / "result.npz").is_file()
+
+
 # -- two fits into one folder --------------------------------------------------------------------
 
 

@@ -226,10 +226,10 @@ class StagedOutput:
                 if replace:
                     raise
                 self.kept = True  # the rename refused: OUT not empty any more
-                raise OutputError(
-                    f"{self.out} could not be written ({error.strerror}); this fit's "
-                    f"outputs are in {self.path}"
-                ) from None
+                refused = OutputError(f"{self.out} could not be written ({error.strerror}); this "
+                                      f"fit's outputs are in {self.path}")  # fmt: skip
+                refused.signalled = getattr(error, "signalled", None)  # type: ignore[attr-defined]
+                raise refused from None  # with the Ctrl-C held meanwhile (cli.main: then 130)
             finally:
                 self.committed = completed(self.out)
         return self.out
