@@ -314,11 +314,12 @@ def test_a_region_strewn_over_the_map_in_specks_is_flagged(tmp_path, capsys):
     assert answer_warnings(np.array([0.9, 0.1]), np.array([24 / 400, 376 / 400]),
                            np.array([24, 376]), region=two) == ()  # fmt: skip
     # the pieces are joined through the model's neighbourhood
-    from spcopyro.results.where import region_pieces
+    from spcopyro.results.where import region_piece_sizes, region_pieces
 
     diagonal = np.eye(6, dtype=bool)
     assert region_pieces(diagonal, 4) == (6, 1) and region_pieces(diagonal, 8) == (1, 6)
     assert region_pieces(np.zeros((3, 3), dtype=bool)) == (0, 0)
+    assert region_piece_sizes(two, 4) == [12, 12] and region_piece_sizes(diagonal, 8) == [6]
     # `spcopyro where` prints it
     out = _strewn().save(tmp_path / "fit")
     assert main(["where", str(out), "kitchen"]) == 0
@@ -353,3 +354,28 @@ def test_where_says_a_region_in_pieces_and_whose_centre_it_gives(tmp_path, capsy
     assert main(["where", str(out), "bed"]) == 0
     printed = capsys.readouterr().out
     assert "region: 100 cells (1.00 m^2), centre x=1.50 y=0.50, spanning" in printed, printed
+
+
+def test_where_joins_a_regions_pieces_as_the_fit_does(tmp_path, capsys):
+    """where's region line counted pieces 4-connected on every fit, while the 'strewn' warning
+    joins them through the fit's neighbourhood: on an 8-connected fit two blocks touching at a
+    corner were "2 pieces" in the line and one piece to the warning. Both follow the fit."""
+    import dataclasses
+
+    from hand_results import one_word_per_concept
+
+    from spcopyro.config import SpCoConfig
+    from spcopyro.maps import FREE, OccupancyGrid
+
+    grid = OccupancyGrid(np.full((10, 10), FREE, dtype=np.int8), 0.1, (0.0, 0.0, 0.0))
+    image = np.ones(grid.shape, dtype=np.int64)  # [H, W]
+    image[:5, :5] = image[5:, 5:] = 0  # concept 0: two blocks that meet at a corner
+    four = one_word_per_concept(grid, image[grid.free], ("kitchen", "bed"), 2)
+    eight = dataclasses.replace(
+        four, config=SpCoConfig(num_concepts=2, prior="dirichlet", connectivity=8)
+    )
+    assert main(["where", str(four.save(tmp_path / "four")), "kitchen"]) == 0
+    assert "region: 50 cells (0.50 m^2) in 2 pieces of 25 and 25 cells" in capsys.readouterr().out
+    assert main(["where", str(eight.save(tmp_path / "eight")), "kitchen"]) == 0
+    printed = capsys.readouterr().out
+    assert "region: 50 cells (0.50 m^2), centre x=0.50 y=0.50, spanning" in printed, printed

@@ -260,7 +260,7 @@ def _check_where_out(result_dir: str, out: str) -> None:
 def _where(args: argparse.Namespace) -> int:
     from spcopyro.results.concept_words import shown_words
     from spcopyro.results.result import UnknownWordError
-    from spcopyro.results.where import shared_answer_note
+    from spcopyro.results.where import region_piece_sizes, shared_answer_note
 
     if args.out:
         _check_where_out(args.result, args.out)
@@ -295,10 +295,9 @@ def _where(args: argparse.Namespace) -> int:
         half = grid.resolution / 2  # xy are cell centres: the region's edges lie half out
         (x0, y0), (x1, y1) = xy.min(0) - half, xy.max(0) + half
         cx, cy = xy.mean(0)
-        from scipy import ndimage
-
-        pieces, count = ndimage.label(answer.region)  # 4-connected, as the map's regions
-        sizes = sorted(np.bincount(pieces.ravel())[1:].tolist(), reverse=True)  # [count]
+        # [count] largest first, joined as the fit's neighbourhood (as the 'strewn' warning)
+        sizes = region_piece_sizes(answer.region, result.config.connectivity)
+        count = len(sizes)
         listed = ", ".join(map(str, sizes[:4])) + ", ..." if count > 4 else (
             ", ".join(map(str, sizes[:-1])) + f" and {sizes[-1]}")  # fmt: skip
         apart = f" in {count} pieces of {listed} cells" if count > 1 else ""  # centre: between

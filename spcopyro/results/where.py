@@ -76,6 +76,7 @@ __all__ = [
     "bayes_factor",
     "close_to_guess",
     "region_pieces",
+    "region_piece_sizes",
     "SHARED_ANSWER_P",
     "concept_given_words",
     "shared_answers",
@@ -346,15 +347,21 @@ def answer_warnings(
 def region_pieces(region: np.ndarray, connectivity: int = 4) -> tuple[int, int]:
     """(number of pieces, cells of the largest) of the ``[H, W]`` bool ``region``, its cells
     joined through the 4- or 8-neighbourhood; (0, 0) for an empty region."""
+    sizes = region_piece_sizes(region, connectivity)
+    return len(sizes), (sizes[0] if sizes else 0)
+
+
+def region_piece_sizes(region: np.ndarray, connectivity: int = 4) -> list[int]:
+    """The cells of each piece of the ``[H, W]`` bool ``region``, largest first, its cells
+    joined through the 4- or 8-neighbourhood (the model's,
+    :attr:`~spcopyro.config.SpCoConfig.connectivity`); ``[]`` for an empty region."""
     from scipy import ndimage
 
     if connectivity not in (4, 8):
         raise ValueError(f"connectivity must be 4 or 8, got {connectivity!r}")
     structure = ndimage.generate_binary_structure(2, 1 if connectivity == 4 else 2)
-    labelled, pieces = ndimage.label(np.asarray(region, dtype=bool), structure=structure)
-    if pieces == 0:
-        return 0, 0
-    return int(pieces), int(np.bincount(labelled.ravel())[1:].max())
+    labelled, _ = ndimage.label(np.asarray(region, dtype=bool), structure=structure)
+    return sorted(np.bincount(labelled.ravel())[1:].tolist(), reverse=True)  # [pieces]
 
 
 def bayes_factor(posterior: float, prior: float) -> float:
