@@ -303,7 +303,8 @@ def test_the_summary_lines_of_concepts_go_larger_first(capsys):
     )
     labels = [h.get_label() for h in concept_handles(result, np.zeros((num, 3)))]
     assert labels[-2].startswith("4 specks of 14-18 cells, no words heard: "), labels[-2:]
-    assert labels[-1] == "... 103 smaller concepts of 5 cells", labels[-2:]
+    # where their words are, as fit's listing says (the legend's line did not)
+    assert labels[-1] == "... 103 smaller concepts of 5 cells in concepts.json", labels[-2:]
     print_concepts(result, limit=12)
     lines = capsys.readouterr().out.splitlines()
     assert lines[-3].startswith("  + 4 specks of 14-18 cells where no word was heard"), lines

@@ -227,7 +227,9 @@ def concept_handles(
     summaries = []  # (largest concept, entry): the two summary lines, larger concepts first
     if len(used) > limit:
         rest = [int(sizes[c]) for c in used[limit:]]
-        summaries.append((max(rest), f"... {len(rest)} smaller concepts of {cells_range(rest)}"))
+        summaries.append(
+            (max(rest), f"... {len(rest)} smaller concepts of {cells_range(rest)} in concepts.json")
+        )  # as fit's listing says: their words are there
     if specks:
         names = ", ".join(f"[{c}]" for c in specks[:6]) + (", ..." if len(specks) > 6 else "")
         speck_sizes = [int(sizes[c]) for c in specks]
