@@ -138,7 +138,7 @@ def test_a_label_that_collides_takes_another_spot_of_its_region():
     labels = [(5.0, 5.0, "first label", {}, []),
               (5.0, 5.2, "second label", {}, [(5.0, 5.1), (2.0, 8.0)]),
               (5.0, 4.8, "third label", {}, [(5.0, 4.9)])]  # fmt: skip
-    assert place_labels(fig, ax, labels) == (2, 1)  # the third has no free spot
+    assert place_labels(fig, ax, labels) == (2, [2])  # the third has no free spot
     assert [(t.get_text(), t.get_position()) for t in ax.texts] == [
         ("first label", (5.0, 5.0)), ("second label", (2.0, 8.0))]  # fmt: skip
 
@@ -365,6 +365,33 @@ def test_labels_of_neighbouring_regions_do_not_overlap():
     assert len(boxes) == 3  # concept 2 above and below, one of the two side by side
     assert not any(a.overlaps(b) for k, a in enumerate(boxes) for b in boxes[k + 1 :])
     assert "3 labelled regions, 1 left unlabelled (legend)" in ax.get_title()
+
+
+def test_the_title_says_where_unlabelled_regions_are_described():
+    """room1ldk5's CAVI fit titled semantic_map.png "8 left unlabelled (legend)" while the
+    legend has entries for the 12 largest concepts only: 7 of the 8 regions were of smaller
+    concepts, in no legend entry. The title now says how many of each (a tall map of concept 0
+    and 14 bands of 24 cells: the bands' labels crowd each other out)."""
+    from hand_results import one_word_per_concept
+
+    from spcopyro.figures.map_pieces import MAX_LEGEND_CONCEPTS, legend_concepts
+    from spcopyro.figures.plotting import semantic_map_figure
+    from spcopyro.maps import FREE, OccupancyGrid
+
+    heights = [60] + [2] * 14  # rows of concepts 0..14
+    grid = OccupancyGrid(np.full((sum(heights), 12), FREE, dtype=np.int8), 0.1, (0.0, 0.0, 0.0))
+    image = np.repeat(np.arange(15), heights)[:, None].repeat(12, 1)  # [H, W]
+    words = tuple(f"word{k}" for k in range(15))
+    result = one_word_per_concept(grid, image[grid.free], words, 15)
+    assert legend_concepts(result) == set(range(MAX_LEGEND_CONCEPTS))  # 12-14 only counted
+    fig = semantic_map_figure(result)
+    (ax,) = fig.axes
+    written = {int(t.get_text().split("]")[0][1:]) for t in ax.texts}  # "[3]\nword3 ..."
+    left_out = set(range(15)) - written
+    inside = len(left_out & set(range(MAX_LEGEND_CONCEPTS)))
+    assert 0 < inside < len(left_out)  # some of each
+    assert (f", {len(left_out)} left unlabelled ({inside} in the legend, "
+            f"{len(left_out) - inside} in concepts.json)") in ax.get_title()  # fmt: skip
 
 
 def _crowded_house():

@@ -52,6 +52,7 @@ __all__ = [
     "draw_utterances",
     "house_title",
     "is_wide",
+    "legend_concepts",
     "map_legend",
     "markers_counted",
     "map_strips",
@@ -85,6 +86,7 @@ STRIP_PAD = 0.03
 """Each strip of a long map shows this fraction of its stretch more at both ends, so a marker on
 a cut shows whole (:func:`~spcopyro.figures.map_axes.strip_axes`)."""
 MAX_LEGEND_CONCEPTS = 12
+SPECKS_NAMED = 6  # the specks the legend's speck line names, "[3], [7], ..."
 """The legend lists this many of the largest concepts (the rest are counted in one line)."""
 MARKER_AREA = 22.0
 """Area (points^2, as ``scatter``'s ``s``) of the circle marking one utterance on the semantic
@@ -200,10 +202,7 @@ def concept_handles(
     (``colours``: ``[L, 3]`` uint8, :func:`spcopyro.figures.plotting.semantic_colours`)."""
     handles = []
     sizes = result.concept_sizes()
-    all_used = result.concepts_in_use()
-    specks = [int(c) for c in all_used
-              if is_speck(int(sizes[c]), result.heard(int(c)), result.grid.num_free)]  # fmt: skip
-    used = np.array([c for c in all_used if int(c) not in specks], dtype=np.int64)
+    used, specks = _legend_split(result)
     for concept in used[:limit]:
         c = int(concept)
         heard = result.heard(c)
@@ -231,7 +230,8 @@ def concept_handles(
             (max(rest), f"... {len(rest)} smaller concepts of {cells_range(rest)} in concepts.json")
         )  # as fit's listing says: their words are there
     if specks:
-        names = ", ".join(f"[{c}]" for c in specks[:6]) + (", ..." if len(specks) > 6 else "")
+        names = ", ".join(f"[{c}]" for c in specks[:SPECKS_NAMED])
+        names += ", ..." if len(specks) > SPECKS_NAMED else ""
         speck_sizes = [int(sizes[c]) for c in specks]
         support = support_text(result, specks)
         support = "" if support is None else f"\n      {support}"
@@ -240,6 +240,25 @@ def concept_handles(
     for _, label in sorted(summaries, key=lambda s: -s[0]):  # stable: equal sizes keep order
         handles.append(Patch(color="white", label=label))
     return handles
+
+
+def _legend_split(result: SpCoResult) -> tuple[np.ndarray, list[int]]:
+    """The concepts in use, largest first, that are not specks ``[L']``, and the specks:
+    :func:`concept_handles` gives the first their own entries, the specks one line."""
+    sizes = result.concept_sizes()
+    all_used = result.concepts_in_use()
+    specks = [int(c) for c in all_used
+              if is_speck(int(sizes[c]), result.heard(int(c)), result.grid.num_free)]  # fmt: skip
+    used = np.array([c for c in all_used if int(c) not in specks], dtype=np.int64)
+    return used, specks
+
+
+def legend_concepts(result: SpCoResult, limit: int = MAX_LEGEND_CONCEPTS) -> set[int]:
+    """The concepts :func:`concept_handles` names: the ``limit`` largest with their own entry
+    and the specks its speck line names; a smaller concept is only counted there (its words
+    are in concepts.json)."""
+    used, specks = _legend_split(result)
+    return {int(c) for c in used[:limit]} | set(specks[:SPECKS_NAMED])
 
 
 def utterance_marks(utterances: list[list[str]]) -> list[str]:
@@ -473,22 +492,22 @@ def place_labels(
     fig: Figure,
     ax: Axes,
     labels: list[tuple[float, float, str, dict[str, Any], list[tuple[float, float]]]],
-) -> tuple[int, int]:
+) -> tuple[int, list[int]]:
     """Write each ``(x, y, text, style, spots)`` label centred at (x, y) with the white halo
     :data:`OUTLINE`, in the given order; a label whose box would overlap one already written
     is tried at each further ``(x, y)`` of ``spots`` in turn, and left out where every spot
-    overlaps. Returns (written, left out). The boxes are measured by rendering the
-    figure on an Agg canvas (no backend is selected for anything else), after the axes took
-    the shape of an equal-aspect map: measured on the axes as made (the whole subplot), a
-    tall map was drawn narrower than measured and two labels side by side ran into each other
-    ("table 0.41 x15entrance 0.40 x7.0" on room1ldk4)."""
+    overlaps. Returns (how many were written, the indices of those left out). The boxes are
+    measured by rendering the figure on an Agg canvas (no backend is selected for anything
+    else), after the axes took the shape of an equal-aspect map: measured on the axes as made
+    (the whole subplot), a tall map was drawn narrower than measured and two labels side by
+    side ran into each other ("table 0.41 x15entrance 0.40 x7.0" on room1ldk4)."""
     if fig.canvas is None or not hasattr(fig.canvas, "get_renderer"):
         FigureCanvasAgg(fig)
     renderer = fig.canvas.get_renderer()
     ax.apply_aspect()  # the axes' box as drawn (matplotlib applies the aspect only at draw)
     boxes = []
-    skipped = 0
-    for x, y, text, style, spots in labels:
+    skipped = []
+    for index, (x, y, text, style, spots) in enumerate(labels):
         for at in [(x, y), *spots]:
             artist = ax.text(*at, text, ha="center", va="center", path_effects=OUTLINE,
                              zorder=4, **style)  # fmt: skip
@@ -500,7 +519,7 @@ def place_labels(
                 break
             artist.remove()
         else:
-            skipped += 1
+            skipped.append(index)
     return len(boxes), skipped
 
 

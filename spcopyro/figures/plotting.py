@@ -38,6 +38,7 @@ from spcopyro.figures.map_pieces import (
     concept_handles,
     draw_outline,
     draw_utterances,
+    legend_concepts,
     map_legend,
     place_labels,
     region_text,
@@ -168,7 +169,8 @@ def semantic_map_figure(
     label at its most interior cell (:func:`region_label_spots`), in black with a white halo
     (a label whose box would overlap the label of a larger region there takes another spot of
     its region; where none is free it is left out and counted in
-    the title, "6 labelled regions, 1 left unlabelled (legend)",
+    the title, "6 labelled regions, 1 left unlabelled (legend)", or "... 8 left unlabelled (1 in
+    the legend, 7 in concepts.json)" where some are of concepts the legend has no entry for,
     :func:`~spcopyro.figures.map_pieces.place_labels`):
     ``[concept]`` and its ``n_words`` most probable words with their probabilities (and the
     lift of the distinctive ones, ``x4.2``) on the concept's largest region, ``[concept]`` and
@@ -197,12 +199,15 @@ def semantic_map_figure(
         labels.append((float(x), float(y), text,
                        {"fontsize": 6 if silent else 7, "style": "italic" if silent else
                         "normal", "color": "0.25" if silent else "black"}, others))  # fmt: skip
-    regions = skipped = 0
+    regions = 0
+    skipped = []  # [concept]: each region whose label was left out
     for ax in axes:  # each label on the strip that shows its point, and its spots there
-        mine = [(*label[:4], [at for at in label[4] if shown_in(axes, *at) is ax])
-                for label in labels if shown_in(axes, label[0], label[1]) is ax]  # fmt: skip
-        written, left_out = place_labels(fig, ax, mine)
-        regions, skipped = regions + written, skipped + left_out
+        mine = [k for k, label in enumerate(labels) if shown_in(axes, *label[:2]) is ax]
+        written, left_out = place_labels(fig, ax, [
+            (*labels[k][:4], [at for at in labels[k][4] if shown_in(axes, *at) is ax])
+            for k in mine])  # fmt: skip
+        regions += written
+        skipped += [points[mine[k]][0] for k in left_out]
     handles: list[Patch | Line2D] = list(concept_handles(result, colours, n_words))
     if observations is not None:
         handles += draw_utterances(axes, result, observations, colours)
@@ -211,11 +216,27 @@ def semantic_map_figure(
     map_legend(axes[-1], handles, below=wide, columns=2, fontsize=7, frameon=False,
                title="concepts, largest first: words (posterior mean p; x lift = "
                "p(word | concept) / p(word))", title_fontsize=7)  # fmt: skip
-    crowded = f", {skipped} left unlabelled (legend)" if skipped else ""
+    crowded = (
+        f", {len(skipped)} left unlabelled ({_unlabelled_text(result, skipped)})" if skipped else ""
+    )
     axes[0].set_title(f"{result.name or 'semantic map'}: {in_use_text(result)}, "
                       f"{plural(regions, 'labelled region')}{crowded} (regions >= "
                       f"{min_region_fraction:.1%} of the free cells){strips}")  # fmt: skip
     return fig
+
+
+def _unlabelled_text(result: SpCoResult, concepts: list[int]) -> str:
+    """Where the concepts of regions left unlabelled (one entry a region) are described:
+    "legend" when the legend has an entry for each (:func:`legend_concepts`), "concepts.json"
+    when it has none, else how many regions each holds ("5 in the legend, 3 in
+    concepts.json"): the legend lists only the largest concepts."""
+    listed = legend_concepts(result)
+    shown = sum(int(c) in listed for c in concepts)
+    if shown == len(concepts):
+        return "legend"
+    if shown == 0:
+        return "concepts.json"
+    return f"{shown} in the legend, {len(concepts) - shown} in concepts.json"
 
 
 def where_image(result: SpCoResult, answer: WhereAnswer) -> np.ndarray:
