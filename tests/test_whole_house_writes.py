@@ -6,8 +6,11 @@ every file in place, so one stopped halfway left half of a new house over the ol
 
 from __future__ import annotations
 
+import linecache
 import os
+import shutil
 import signal
+import sys
 from pathlib import Path
 
 import pytest
@@ -477,3 +480,100 @@ def test_an_import_whose_old_map_file_cannot_be_put_back_keeps_it_and_names_it(
         f"{kept[0].parent})\n"
     ), err
     assert (out / "notes.txt").read_text() == "mine"  # the old house, not the new one
+
+
+# --- a second Ctrl-C as the replaced folder is removed ------------------------------------
+
+
+def _ctrl_c_in_rmtree(monkeypatch, marker: str, at: int | None = None) -> list[int]:
+    """A KeyboardInterrupt, as Python raises a Ctrl-C's at its next check, in shutil.rmtree
+    removing a path with ``marker`` in it: at its ``at``-th line (counted over rmtree's frames
+    for that path), or where None, at the line after its first ``os.close(...)`` (then its
+    ``finally`` closes that descriptor again: Python 3.11). Returns the lines it was raised at
+    (empty where the removal had fewer lines)."""
+    raised: list[int] = []
+    count = 0
+    rmtree = shutil.rmtree
+
+    def tracer(frame, event, arg):
+        if event != "call" or frame.f_code.co_filename != shutil.__file__:
+            return None
+        if marker not in str(frame.f_locals.get("path", "")):
+            return None
+        closed = False
+
+        def lines(frame, event, arg):
+            nonlocal closed, count
+            if event != "line" or raised:
+                return lines
+            count += 1
+            if closed if at is None else count == at:
+                raised.append(frame.f_lineno)
+                raise KeyboardInterrupt
+            closed = "os.close(" in linecache.getline(frame.f_code.co_filename, frame.f_lineno)
+            return lines
+
+        return lines
+
+    def traced(path, *args, **kwargs):
+        previous = sys.gettrace()
+        sys.settrace(tracer)
+        try:
+            return rmtree(path, *args, **kwargs)
+        finally:
+            sys.settrace(previous)
+
+    monkeypatch.setattr(shutil, "rmtree", traced)
+    return raised
+
+
+def test_a_second_ctrl_c_as_the_old_house_is_removed_is_said_as_one(
+    tmp_path, monkeypatch, capsys, no_swaps
+):
+    """simulate --overwrite, a Ctrl-C held as the map is moved in, a second one just after
+    rmtree closed the old house folder's descriptor as it removed it: rmtree closed it again in
+    its ``finally`` and the EBADF stood for the Ctrl-C ("error: [Errno 9] Bad file descriptor",
+    the new house already in place). Now the Ctrl-C's line, naming the old house's folder (what
+    is left of it), and 130."""
+    root = tmp_path / "r"
+    assert main(["simulate", "--out", str(root), "--name", "h"]) == 0
+    (root / "h" / "notes.txt").write_text("mine")
+    capsys.readouterr()
+    _sigint_at_the_maps_move(monkeypatch, root / "map")
+    raised = _ctrl_c_in_rmtree(monkeypatch, ".replaced-")
+    argv = ["simulate", "--out", str(root), "--name", "h", "--seed", "1", "--overwrite"]
+    assert main(argv) == 130
+    assert raised  # it landed
+    (aside,) = [p for p in root.iterdir() if p.name.startswith("h.replaced-")]
+    assert capsys.readouterr().err == (
+        f"interrupted spcopyro simulate: {root / 'h'} and its map {root / 'map' / 'h'}.yaml were "
+        f"written whole; the old one, not yet removed, is in {aside}\n"
+    )
+    assert (root / "h" / "notes.txt").read_text() == "mine"
+    assert sorted(p.name for p in (root / "map").iterdir()) == ["h.pgm", "h.yaml"]
+
+
+def test_a_ctrl_c_anywhere_in_the_old_folders_removal_is_a_ctrl_c(tmp_path, monkeypatch, no_swaps):
+    """A Ctrl-C at each line of rmtree removing the set-aside OUT (a file and a folder of files
+    in it) ends commit_folder with a KeyboardInterrupt, OUT the new one: at the line after a
+    descriptor's close it was rmtree's OSError (EBADF)."""
+    count = 0
+    while True:
+        count += 1
+        case = tmp_path / str(count)
+        (case / "N" / "sub").mkdir(parents=True)
+        for path in (case / "N" / "a", case / "N" / "sub" / "b", case / "N" / "sub" / "c"):
+            path.write_text("old")
+        (case / "S").mkdir()
+        (case / "S" / "new").write_text("new")
+        with monkeypatch.context() as patch:
+            raised = _ctrl_c_in_rmtree(patch, ".replaced-", at=count)
+            try:
+                outputs.commit_folder(case / "S", case / "N", {"a", "sub"})
+            except KeyboardInterrupt:
+                assert raised, count
+            else:
+                assert not raised, count
+                break
+        assert sorted(p.name for p in (case / "N").iterdir()) == ["new"], count
+    assert count > 20  # every line of the removal tried

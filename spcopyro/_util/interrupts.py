@@ -13,6 +13,9 @@ stored as failed) instead of as a crash.
 from __future__ import annotations
 
 import contextlib
+import errno
+import os
+import shutil
 import signal
 import threading
 from collections.abc import Callable, Iterator
@@ -20,6 +23,7 @@ from collections.abc import Callable, Iterator
 __all__ = [
     "caused_by_interrupt",
     "interrupts_raised",
+    "remove_tree",
     "sigterm_as_interrupt",
     "signals_blocked",
     "signals_deferred",
@@ -45,6 +49,21 @@ def interrupts_raised() -> Iterator[None]:
         if not caused_by_interrupt(error):
             raise
         raise KeyboardInterrupt("interrupted inside compiled code") from error
+
+
+def remove_tree(path: str | os.PathLike[str]) -> None:
+    """``shutil.rmtree(path, ignore_errors=True)``, a Ctrl-C meanwhile raised as the
+    :class:`KeyboardInterrupt` it is. One that lands just after rmtree closed a folder's
+    descriptor, before it noted so, makes rmtree's ``finally`` close it again (Python 3.11): the
+    ``EBADF`` :class:`OSError` raised there, the interrupt its context, stood for the interrupt
+    (``spcopyro`` said ``error: [Errno 9] Bad file descriptor``, with status 2 where no Ctrl-C was
+    held before, instead of only its Ctrl-C line and 130). What is left of ``path`` stays."""
+    try:
+        shutil.rmtree(path, ignore_errors=True)
+    except OSError as error:
+        if error.errno == errno.EBADF and isinstance(error.__context__, KeyboardInterrupt):
+            raise error.__context__ from None
+        raise
 
 
 @contextlib.contextmanager

@@ -33,7 +33,6 @@ import json
 import os
 import re
 import secrets
-import shutil
 import stat
 import zipfile
 import zlib
@@ -45,7 +44,7 @@ from typing import BinaryIO, TypeVar
 import numpy as np
 
 from spcopyro._util.file_moves import FilesNotMoved, kept_old_files, move_files_in, take_mode
-from spcopyro._util.interrupts import signals_deferred
+from spcopyro._util.interrupts import remove_tree, signals_deferred
 
 try:  # POSIX: serialise commits into one parent folder
     import fcntl
@@ -237,7 +236,7 @@ class StagedOutput:
     def discard(self) -> None:
         """Remove the staging folder (nothing of this run is kept), unless committed or kept."""
         if not (self.committed or self.kept):
-            shutil.rmtree(self.path, ignore_errors=True)
+            remove_tree(self.path)
 
     def __enter__(self) -> StagedOutput:
         return self
@@ -276,7 +275,7 @@ def swapped_in(out: Path, staging: Path, hidden: bool = False) -> Iterator[Path]
             os.rename(old, out)
             _SET_ASIDE.remove(swap)
         raise
-    shutil.rmtree(old, ignore_errors=True)
+    remove_tree(old)  # a Ctrl-C meanwhile leaves it (set_aside names it)
     _SET_ASIDE.remove(swap)
 
 
@@ -476,7 +475,7 @@ def remove_stale_stagings(path: Path, hidden: bool = False) -> list[Path]:
         match = pattern.match(candidate.name)
         stale = match and candidate.is_dir() and not _alive(int(match.group(1)))
         if stale and not kept_old_files(candidate):  # *.old: the user's, named (and warned of)
-            shutil.rmtree(candidate, ignore_errors=True)
+            remove_tree(candidate)
             removed.append(candidate)
     return removed
 
