@@ -394,6 +394,29 @@ def test_the_title_says_where_unlabelled_regions_are_described():
             f"{len(left_out) - inside} in concepts.json)") in ax.get_title()  # fmt: skip
 
 
+def test_the_legend_names_the_words_p_as_fit_prints_them():
+    """semantic_map.png's legend said "posterior mean p" of a CAVI or LBP fit's words, which
+    fit's listing calls "words as the method estimates them" (no posterior mean given labels:
+    a variational method's E_q). A fit that recorded its posterior means (Gibbs:
+    inference["parameters"]) keeps "posterior mean p"."""
+    import dataclasses
+
+    from spcopyro.figures.plotting import semantic_map_figure
+    from spcopyro.results.posterior_means import PARAMETERS_GIVEN_LABELS
+
+    def title(result):
+        (legend,) = [ax.get_legend() for ax in semantic_map_figure(result).axes]
+        return legend.get_title().get_text()
+
+    variational = two_rooms()
+    assert "parameters" not in variational.inference
+    assert title(variational) == ("concepts, largest first: words as the method estimates them "
+                                  "(x lift = p(word | concept) / p(word))")  # fmt: skip
+    gibbs = dataclasses.replace(variational, inference={"parameters": PARAMETERS_GIVEN_LABELS})
+    assert title(gibbs) == ("concepts, largest first: words (posterior mean p; x lift = "
+                            "p(word | concept) / p(word))")  # fmt: skip
+
+
 def _crowded_house():
     """The synthetic house with its first 12 utterances heard at two spots, words of three
     kinds at each (room1dk5: 'bedroom' hidden under 'shelf' and 'other words')."""

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from spcopyro.results.concept_words import (
+    ESTIMATED_WORDS,
     MIN_LIFT,
     cells_range,
     format_concept_words,
@@ -32,7 +33,7 @@ def print_concepts(
     cell the Potts field holds weakly, docs/real_houses.md) share one line at the end, with how
     much of the posterior holds them (:func:`~spcopyro.results.specks.support_text`).
     ``concepts``: ``result.concepts()`` where the caller has it already (computed if None)."""
-    parameters = result.inference.get("parameters", "words as the method estimates them")
+    parameters = result.inference.get("parameters", ESTIMATED_WORDS)
     print(f"concepts (words: {parameters}; distinctive: lift = p(word | concept) / p(word) > "
           f"{MIN_LIFT:g}, p(word) the area-weighted mix):")  # fmt: skip
     further = [t.name for t in result.emissions if t.name not in ("images", "words")]

@@ -60,7 +60,7 @@ from spcopyro.maps import (
     render_labels,
 )
 from spcopyro.results.concept_names import concept_names
-from spcopyro.results.concept_words import NO_WORDS, shown_words
+from spcopyro.results.concept_words import ESTIMATED_WORDS, NO_WORDS, shown_words
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.specks import in_use_text
 from spcopyro.results.uncertainty import (
@@ -213,9 +213,12 @@ def semantic_map_figure(
         handles += draw_utterances(axes, result, observations, colours)
     handles += [Patch(color=np.array(RGB_OCCUPIED) / 255.0, label="walls"),
                 Patch(color=np.array(RGB_UNKNOWN) / 255.0, label="unknown")]  # fmt: skip
+    # the words' p as fit's listing names it: a variational fit's are no posterior means
+    words = ("words (posterior mean p; " if "parameters" in result.inference
+             else f"{ESTIMATED_WORDS} (")  # fmt: skip
     map_legend(axes[-1], handles, below=wide, columns=2, fontsize=7, frameon=False,
-               title="concepts, largest first: words (posterior mean p; x lift = "
-               "p(word | concept) / p(word))", title_fontsize=7)  # fmt: skip
+               title=f"concepts, largest first: {words}x lift = p(word | concept) / p(word))",
+               title_fontsize=7)  # fmt: skip
     crowded = (
         f", {len(skipped)} left unlabelled ({_unlabelled_text(result, skipped)})" if skipped else ""
     )

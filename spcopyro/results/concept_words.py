@@ -32,6 +32,7 @@ import numpy as np
 __all__ = [
     "MIN_LIFT",
     "NO_WORDS",
+    "ESTIMATED_WORDS",
     "SPECK_SHARE",
     "is_speck",
     "speck_summary",
@@ -48,6 +49,11 @@ __all__ = [
 
 NO_WORDS = "no words heard here"
 """What a concept whose region holds no observed word shows instead of a word list."""
+
+ESTIMATED_WORDS = "words as the method estimates them"
+"""What a concept's word probabilities are when the fit recorded no ``inference["parameters"]``
+(a variational method's E_q, not a posterior mean given labels): ``fit``'s listing and the
+semantic map's legend say it."""
 
 MIN_LIFT = 1.1
 """Distinctive words are those whose lift exceeds this: at least 10% more probable in the concept
