@@ -60,6 +60,16 @@ def test_shared_answers_keeps_only_words_above_the_threshold_and_names_a_few():
     )
 
 
+def test_the_note_shows_a_p_just_above_the_threshold_above_it():
+    """room1ldk5's LBP fit: 'kitchen's note named 'chair' "(0.50)" at p(concept | word) =
+    0.5003, under its "> 0.5". The value now takes the digits that show it above 0.5."""
+    answer = dataclasses.replace(
+        two_rooms().where("kitchen"), shared_with=(("chair", 0.5003), ("sofa", 0.81))
+    )
+    note = shared_answer_note(answer)
+    assert note is not None and "> 0.5, for 'chair' (0.5003), 'sofa' (0.81):" in note
+
+
 @pytest.mark.parametrize("heard_only", [False, True])
 def test_answered_words_reads_each_words_argmax(heard_only):
     """``answered_words`` takes each word's answer (argmax, first of ties) and ranks a concept's

@@ -212,13 +212,23 @@ def shared_concept_note(
     :attr:`~WhereAnswer.shared_with` (``navigate`` keeps these two of each stop's answer)."""
     if not shared_with:
         return None
-    named = ", ".join(f"{w!r} ({p:.2f})" for w, p in shared_with[:shown])
+    named = ", ".join(f"{w!r} ({_above_text(p, SHARED_ANSWER_P)})" for w, p in shared_with[:shown])
     more = len(shared_with) - shown
     rest = f" and {plural(more, 'more word')}" if more > 0 else ""
     return (  # p named as where's answer line names it (a bare 'p 0.87' before)
         f"concept {concept} is also the answer, at p(concept | word) > {SHARED_ANSWER_P:g}, for "
         f"{named}{rest}: if one of them names another room, this region holds both"
     )
+
+
+def _above_text(p: float, threshold: float, digits: int = 2) -> str:
+    """``p`` (above ``threshold``) to ``digits`` decimals, or as many more as it takes to show
+    a value above ``threshold``: 0.5003 over 0.5 is "0.5003", not "0.50"."""
+    for places in range(digits, 17):
+        text = f"{p:.{places}f}"
+        if float(text) > threshold:
+            return text
+    return repr(p)
 
 
 @dataclass(frozen=True)
