@@ -207,3 +207,52 @@ def test_a_second_ctrl_c_as_the_line_is_said_ends_as_cleanly(tmp_path, monkeypat
     assert code == 130
     assert capsys.readouterr().err.startswith("interrupted spcopyro simulate: nothing written")
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+@pytest.mark.parametrize(
+    ("stop", "at", "said"),
+    [(KeyboardInterrupt, "_say_interrupted", ""),
+     (OSError, "_say_interrupted", "error: a commit failed, a Ctrl-C held\n"),
+     (OSError, "_error_line", "")],
+)  # fmt: skip
+def test_a_second_ctrl_c_before_the_line_is_guarded_ends_as_cleanly(
+    tmp_path, monkeypatch, capsys, stop, at, said
+):
+    """A second Ctrl-C between main's ``except`` and :func:`_say_interrupted`'s guard (as Python
+    raises one at its next check: at the call of ``_say_interrupted``, or of ``_error_line`` as
+    the error of a commit with a Ctrl-C held is said) escaped main: a traceback, not the line
+    and 130. A tracer raises it on entering that function."""
+    import sys
+
+    def stopped(args):
+        if stop is KeyboardInterrupt:
+            raise KeyboardInterrupt
+        error = OSError("a commit failed, a Ctrl-C held")
+        error.signalled = [2]
+        raise error
+
+    target = getattr(main_module, at).__code__
+    raised = []
+
+    def tracer(frame, event, arg):
+        if event == "call" and frame.f_code is target and not raised:
+            raised.append(at)
+            raise KeyboardInterrupt
+        return None
+
+    monkeypatch.setattr(main_module, "_simulate", stopped)
+    previous = sys.gettrace()
+    sys.settrace(tracer)
+    try:
+        code = main(["simulate", "--out", str(tmp_path / "h")])
+    except KeyboardInterrupt:
+        pytest.fail("the second Ctrl-C escaped main: a traceback")
+    finally:
+        sys.settrace(previous)
+    assert raised
+    assert code == 130
+    assert capsys.readouterr().err == (
+        f"{said}interrupted spcopyro simulate: nothing written to {tmp_path / 'h' / 'synthetic'} "
+        f"and its map {tmp_path / 'h' / 'map' / 'synthetic'}.yaml (they are written whole at the "
+        "end, or not at all)\n"
+    )

@@ -532,24 +532,27 @@ def main(argv: list[str] | None = None) -> int:
     if argv is not None:
         args.argv = list(argv)
     _configure_logging(logging.INFO if args.verbose else logging.WARNING)
-    try:
-        return args.func(args)
-    except BrokenPipeError:  # `spcopyro where OUT kitchen | head -1`: the reader has left
-        _silence_stdout()
-        return BROKEN_PIPE
-    except (OSError, ValueError) as error:  # bad input: one clear line, no traceback
-        print(f"error: {_error_line(error)}", file=sys.stderr)
-        # a Ctrl-C held while a commit failed (outputs.commit_folder; an OutputError made of it)
-        if not any(getattr(e, "signalled", None) for e in (error, error.__context__)):
-            return 2
-        stop: BaseException = KeyboardInterrupt()
-    except KeyboardInterrupt as interrupt:  # Ctrl-C: one line, no traceback (fit says more)
-        stop = interrupt
-    except SystemError as error:  # Ctrl-C inside a numba call (spcopyro._util.interrupts)
-        if not caused_by_interrupt(error):
-            raise
-        stop = error
-    return _say_interrupted(args, stop)
+    stop: BaseException = KeyboardInterrupt()
+    try:  # a second Ctrl-C before _say_interrupted's guard (at its call): said as the first
+        try:
+            return args.func(args)
+        except BrokenPipeError:  # `spcopyro where OUT kitchen | head -1`: the reader has left
+            _silence_stdout()
+            return BROKEN_PIPE
+        except (OSError, ValueError) as error:  # bad input: one clear line, no traceback
+            print(f"error: {_error_line(error)}", file=sys.stderr)
+            # a Ctrl-C held while a commit failed (outputs.commit_folder; an OutputError of it)
+            if not any(getattr(e, "signalled", None) for e in (error, error.__context__)):
+                return 2
+        except KeyboardInterrupt as interrupt:  # Ctrl-C: one line, no traceback (fit says more)
+            stop = interrupt
+        except SystemError as error:  # Ctrl-C inside a numba call (spcopyro._util.interrupts)
+            if not caused_by_interrupt(error):
+                raise
+            stop = error
+        return _say_interrupted(args, stop)
+    except KeyboardInterrupt:
+        return _say_interrupted(args, stop)
 
 
 def _say_interrupted(args: argparse.Namespace, stop: BaseException) -> int:
