@@ -199,6 +199,35 @@ def test_navigate_png_tells_the_goal_heading_from_the_path():
     assert to_rgb(arrow.get_facecolor()) != to_rgb(path.get_color())
 
 
+def test_a_place_label_with_no_free_corner_is_left_out_and_counted():
+    """graph.png of room1ldk5's CAVI fit (23 places, many small) drew "washroom (0.25 m²)" over
+    "washroom (0.31 m²)": a label free at none of its corners went to the first one anyway,
+    and neither could be read. Such a label is left out and the title counts it (256 places
+    of 2 x 2 cells: most labels find no free corner)."""
+    from hand_results import one_word_per_concept
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from spcopyro.maps import FREE, OccupancyGrid
+    from spcopyro.robot.navigation.figure import place_graph_figure
+    from spcopyro.robot.navigation.places import place_graph
+
+    grid = OccupancyGrid(np.full((32, 32), FREE, dtype=np.int8), 0.1, (0.0, 0.0, 0.0))
+    rows, cols = np.nonzero(grid.free)  # [N]
+    labels = (rows // 2) * 16 + cols // 2  # [N]: 256 blocks of 2 x 2 cells
+    words = tuple(f"w{k}" for k in range(256))
+    result = one_word_per_concept(grid, labels, words, num_concepts=256)
+    graph = place_graph(result, min_area=0.01)
+    assert len(graph.places) == 256
+    fig = place_graph_figure(result, graph)
+    renderer = FigureCanvasAgg(fig).get_renderer()
+    fig.draw(renderer)
+    (ax,) = fig.axes
+    boxes = [t.get_window_extent(renderer) for t in ax.texts]
+    assert 0 < len(boxes) < 256
+    assert not any(a.overlaps(b) for k, a in enumerate(boxes) for b in boxes[k + 1 :])
+    assert f"256 places, {256 - len(boxes)} left unlabelled (crowded), " in ax.get_title()
+
+
 def test_a_passage_is_drawn_along_free_cells_not_across_a_wall():
     """show --graph drew each passage as a straight line between the two centroids: on a
     U-shaped map (a wall from the top between its arms) the line from the U-shaped place's

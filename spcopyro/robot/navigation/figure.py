@@ -148,15 +148,18 @@ def _marker_boxes(fig: Figure, axes: list[Axes], xy: np.ndarray, size: np.ndarra
 
 def _label_places(
     fig: Figure, axes: list[Axes], graph: PlaceGraph, xy: np.ndarray, size: np.ndarray
-) -> None:
+) -> int:
     """Each place's name and area beside its marker (``xy``: ``[N, 2]``; ``size``: ``[N]``, the
     markers' areas in points^2), on the strip of ``axes`` showing it (:func:`_showing`),
     largest place first, at the first of :data:`_CORNERS` where it overlaps no label written
     before, stays inside its axes and covers no other place's marker (else the first that
-    overlaps no label and stays inside, else the first that overlaps none, else the first
-    corner): on a corridor's strip a label above a centroid ran over the title, and a label
-    pushed off the map's edge to its marker's left sat on a smaller place's marker, which it
-    then seemed to name (room1ldk5's words: ``washroom`` beside ``wall``'s marker)."""
+    overlaps no label and stays inside, else the first that overlaps none; a label that would
+    overlap one written before at every corner is left out, and the count returned): on a
+    corridor's strip a label above a centroid ran over the title, and a label pushed off the
+    map's edge to its marker's left sat on a smaller place's marker, which it then seemed to
+    name (room1ldk5's words: ``washroom`` beside ``wall``'s marker); one with no free corner
+    was drawn over another (room1ldk5's CAVI fit: "washroom (0.25 m²)" over "washroom (0.31
+    m²)"), and neither could be read."""
     if fig.canvas is None or not hasattr(fig.canvas, "get_renderer"):
         FigureCanvasAgg(fig)
     renderer = fig.canvas.get_renderer()
@@ -165,6 +168,7 @@ def _label_places(
     markers = _marker_boxes(fig, axes, xy, size)  # [N] display boxes
     box = {"boxstyle": "round,pad=0.2", "fc": "white", "alpha": 0.8, "lw": 0}
     written: list[Bbox] = []
+    left_out = 0
     for p in sorted(graph.places, key=lambda place: -place.area):
         at = tuple(xy[p.id])
         ax = _showing(axes, *at)
@@ -183,12 +187,17 @@ def _label_places(
         clear = [not any(b.overlaps(m) for m in others) for b in boxes]
         order = [k for k in range(len(boxes)) if free[k] and inside[k] and clear[k]]
         order = order or [k for k in range(len(boxes)) if free[k] and inside[k]]
-        k = (order or [k for k in range(len(boxes)) if free[k]] or [0])[0]
+        order = order or [k for k in range(len(boxes)) if free[k]]
+        if not order:  # drawn over a label written before, it hid that one and read as neither
+            left_out += 1
+            continue
+        k = order[0]
         dx, dy, ha, va = _CORNERS[k]
         ax.annotate(f"{p.name} ({p.area_text} m²)", at, xytext=(dx, dy),
                     textcoords="offset points", ha=ha, va=va, fontsize=8, zorder=5,
                     bbox=box)  # fmt: skip
         written.append(boxes[k])
+    return left_out
 
 
 def place_points(grid: OccupancyGrid, graph: PlaceGraph) -> tuple[np.ndarray, np.ndarray]:
@@ -259,7 +268,7 @@ def place_graph_figure(result: SpCoResult, graph: PlaceGraph) -> Figure:
     cells (:func:`passage_lines`; straight, they crossed walls): doorways dashed, longer
     shared borders solid. A label that
     would overlap one written before (largest places first) moves to another corner of its
-    marker, and the legend stands beside the map (below a wide one): on a corridor's narrow
+    marker (with none free, it is left out and counted in the title), and the legend stands beside the map (below a wide one): on a corridor's narrow
     places two labels ran into one ("concept 34 (0.8 m²).9 m²)") and the legend covered a room.
     A map more than :data:`~spcopyro.figures.map_pieces.STRIP_ASPECT` times as long as wide is
     drawn in strips at one scale (:func:`~spcopyro.figures.map_axes.map_axes`), the passages
@@ -282,9 +291,11 @@ def place_graph_figure(result: SpCoResult, graph: PlaceGraph) -> Figure:
     axes[0].plot([], [], color="k", ls="-", label="wider shared border")
     map_legend(axes[-1], axes[0].get_legend_handles_labels()[0], below=below, columns=2,
                fontsize=8)  # fmt: skip
-    _label_places(fig, axes, graph, xy, size)
+    unlabelled = _label_places(fig, axes, graph, xy, size)
     dropped = graph.dropped_text("m²")  # as show --graph prints it
     dropped = f"; {dropped}" if dropped else ""
+    # show --graph, which writes the figure, prints every place
+    crowded = f", {unlabelled} left unlabelled (crowded)" if unlabelled else ""
     places, passages = plural(len(graph.places), "place"), plural(len(graph.passages), "passage")
-    axes[0].set_title(f"place graph: {places}, {passages}{dropped}{strips}")
+    axes[0].set_title(f"place graph: {places}{crowded}, {passages}{dropped}{strips}")
     return fig
