@@ -266,9 +266,9 @@ def place_graph_figure(result: SpCoResult, graph: PlaceGraph) -> Figure:
     concave place's centroid off its cells: on its cell nearest the centroid,
     :func:`place_points`) and its passages as lines between them along the two places' free
     cells (:func:`passage_lines`; straight, they crossed walls): doorways dashed, longer
-    shared borders solid. A label that
-    would overlap one written before (largest places first) moves to another corner of its
-    marker (with none free, it is left out and counted in the title), and the legend stands beside the map (below a wide one): on a corridor's narrow
+    shared borders solid. A label that would overlap one written before (largest places first)
+    moves to another corner of its marker (with none free, it is left out and counted in the
+    title), and the legend stands beside the map (below a wide one): on a corridor's narrow
     places two labels ran into one ("concept 34 (0.8 m²).9 m²)") and the legend covered a room.
     A map more than :data:`~spcopyro.figures.map_pieces.STRIP_ASPECT` times as long as wide is
     drawn in strips at one scale (:func:`~spcopyro.figures.map_axes.map_axes`), the passages
