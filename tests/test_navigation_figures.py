@@ -228,6 +228,40 @@ def test_a_place_label_with_no_free_corner_is_left_out_and_counted():
     assert f"256 places, {256 - len(boxes)} left unlabelled (crowded), " in ax.get_title()
 
 
+def test_places_whose_labels_would_read_the_same_are_told_apart():
+    """graph.png of room1ldk5's CAVI fit labelled two places "door (0.44 m²)" (concepts 38 and
+    78): the reader could not tell which was which, where navigate's route says "door (concept
+    38)". Such labels add the concept, or the place id for two regions of one concept; other
+    labels are as they were."""
+    import dataclasses
+
+    from hand_results import one_word_per_concept
+
+    from spcopyro.maps import FREE, OccupancyGrid
+    from spcopyro.robot.navigation.figure import place_graph_figure
+    from spcopyro.robot.navigation.places import place_graph
+
+    grid = OccupancyGrid(np.full((10, 40), FREE, dtype=np.int8), 0.1, (0.0, 0.0, 0.0))
+    rows, cols = np.nonzero(grid.free)  # [N]
+    labels = np.zeros(len(rows), dtype=np.int64)  # [N]: concept 0 around four 3 x 3 blocks
+    for concept, left in ((1, 2), (2, 12), (1, 22), (1, 32)):
+        labels[(rows >= 3) & (rows < 6) & (cols >= left) & (cols < left + 3)] = concept
+    result = one_word_per_concept(grid, labels, ("hall", "door", "bed"), num_concepts=3)
+    graph = place_graph(result, min_area=0.01)
+    door = [p for p in graph.places if p.concept in (1, 2)]
+    assert len(door) == 4 and len({p.area_text for p in door}) == 1
+    renamed = tuple(dataclasses.replace(p, name="door") if p.concept in (1, 2) else p
+                    for p in graph.places)  # fmt: skip
+    graph = dataclasses.replace(graph, places=renamed)
+    fig = place_graph_figure(result, graph)
+    texts = sorted(t.get_text() for ax in fig.axes for t in ax.texts)
+    area = door[0].area_text
+    ones = sorted(p.id for p in door if p.concept == 1)
+    assert texts == sorted([f"hall ({graph.places[0].area_text} m²)",
+                            f"door (concept 2, {area} m²)"]
+                           + [f"door (place {i}, {area} m²)" for i in ones])  # fmt: skip
+
+
 def test_a_passage_is_drawn_along_free_cells_not_across_a_wall():
     """show --graph drew each passage as a straight line between the two centroids: on a
     U-shaped map (a wall from the top between its arms) the line from the U-shaped place's

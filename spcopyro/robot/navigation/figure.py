@@ -5,6 +5,7 @@ cells a hierarchical plan was kept to), the path, start and stops;
 from __future__ import annotations
 
 import os
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -135,6 +136,27 @@ its corners, then above and below it (centred: in a narrow strip of a tall map n
 label fits)."""
 
 
+def _place_texts(graph: PlaceGraph) -> list[str]:
+    """Each place's label, by place id: its name and area, ``door (0.44 m²)``; where two places
+    would read the same, each adds its concept (``door (concept 38, 0.44 m²)``), or its place
+    id where they are regions of one concept (``door (place 17, 0.44 m²)``, the ids of ``show
+    --graph``'s list), as a route tells places apart
+    (:func:`~spcopyro.robot.navigation.places.told_apart`). room1ldk5's CAVI fit has two places
+    labelled ``door (0.44 m²)``."""
+    texts = [f"{p.name} ({p.area_text} m²)" for p in graph.places]
+    same = Counter(texts)
+    same_concept = Counter(zip(texts, (p.concept for p in graph.places), strict=True))
+    labels = []
+    for text, p in zip(texts, graph.places, strict=True):
+        if same[text] == 1:
+            labels.append(text)
+        elif same_concept[text, p.concept] == 1:
+            labels.append(f"{p.name} (concept {p.concept}, {p.area_text} m²)")
+        else:
+            labels.append(f"{p.name} (place {p.id}, {p.area_text} m²)")
+    return labels
+
+
 def _marker_boxes(fig: Figure, axes: list[Axes], xy: np.ndarray, size: np.ndarray) -> list[Bbox]:
     """The display box of each place's marker (``xy``: ``[N, 2]``, ``size``: ``[N]``, the
     scatter's area in points^2), on the strip showing it (:func:`_showing`)."""
@@ -169,6 +191,7 @@ def _label_places(
     box = {"boxstyle": "round,pad=0.2", "fc": "white", "alpha": 0.8, "lw": 0}
     written: list[Bbox] = []
     left_out = 0
+    texts = _place_texts(graph)  # [N] by place id
     for p in sorted(graph.places, key=lambda place: -place.area):
         at = tuple(xy[p.id])
         ax = _showing(axes, *at)
@@ -176,7 +199,7 @@ def _label_places(
         others = [m for q, m in enumerate(markers) if q != p.id]
         boxes = []
         for dx, dy, ha, va in _CORNERS:
-            label = ax.annotate(f"{p.name} ({p.area_text} m²)", at, xytext=(dx, dy),
+            label = ax.annotate(texts[p.id], at, xytext=(dx, dy),
                                 textcoords="offset points", ha=ha, va=va, fontsize=8, zorder=5,
                                 bbox=box)  # fmt: skip
             boxes.append(label.get_window_extent(renderer=renderer))
@@ -193,7 +216,7 @@ def _label_places(
             continue
         k = order[0]
         dx, dy, ha, va = _CORNERS[k]
-        ax.annotate(f"{p.name} ({p.area_text} m²)", at, xytext=(dx, dy),
+        ax.annotate(texts[p.id], at, xytext=(dx, dy),
                     textcoords="offset points", ha=ha, va=va, fontsize=8, zorder=5,
                     bbox=box)  # fmt: skip
         written.append(boxes[k])
