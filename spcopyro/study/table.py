@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from spcopyro._util.npz import write_npz
 from spcopyro.study.cells import Cell
 from spcopyro.study.evaluate import SCORES, STATUS_COLUMNS, WARNINGS
 
@@ -88,7 +89,7 @@ class CellStore:
             if arrays is not None:
                 folder.mkdir(parents=True, exist_ok=True)
                 staging = folder / f".{key}.npz"
-                np.savez_compressed(staging, **arrays)
+                write_npz(staging, arrays)  # savez_compressed's file, faster when large
                 os.replace(staging, folder / f"{key}.npz")
                 record = {**record, column: f"{folder.name}/{key}.npz"}
         staging = self.cells / f".{key}.json"
