@@ -363,3 +363,26 @@ def test_a_place_label_covers_no_other_place_marker():
         extent = text.get_window_extent(renderer)
         covered = [other for other, m in markers.items() if other != name and extent.overlaps(m)]
         assert not covered, f"{text.get_text()!r} covers the marker of {covered}"
+
+
+def test_navigate_png_s_colour_bar_says_where_the_map_s_concepts_only_are_counted():
+    """navigate.png's colour bar never said "; the map's concepts only", while where's figures
+    do: both draw where_probability, which leaves out the cells' mass on concepts absent from
+    the map (uncertainty.unmapped_note). It says so where some such mass is, as where's do."""
+    import dataclasses
+
+    from hand_results import two_rooms
+    from test_where_shared import unmapped_result
+
+    from spcopyro.results.uncertainty import cell_probability_label
+    from spcopyro.robot.navigation import navigate
+    from spcopyro.robot.navigation.figure import plan_figure
+
+    result, _ = unmapped_result()  # 0.4 of a cell's mass on concept 2, absent from the map
+    point = dataclasses.replace(result, marginals=np.eye(3)[result.labels])  # none left out
+    for fit, off_map in ((result, True), (point, False), (two_rooms(), False)):
+        plan = navigate(fit, "go to the bed", (2.3, 0.5))
+        assert plan.off_map is off_map
+        (bar,) = plan_figure(plan).axes[-1].child_axes  # beside the map
+        assert bar.get_ylabel() == cell_probability_label("bed", off_map)
+    assert cell_probability_label("bed", True).endswith("; the map's concepts only")

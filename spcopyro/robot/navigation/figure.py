@@ -87,7 +87,7 @@ def plan_figure(plan: NavigationPlan) -> Figure:
         cells = plan.planning.cells(np.flatnonzero(np.logical_or.reduce(kept)))
         region = np.zeros(grid.shape, dtype=bool)  # [H, W]
         region[cells[:, 0], cells[:, 1]] = True
-    label = cell_probability_label(goal.shown)  # as navigate and where print it
+    label = cell_probability_label(goal.shown, plan.off_map)  # as where's figures name it
     length = 0.3 * max(1.0, plan.radius * 4)
     for ax in axes:  # one map, or its strips: every artist clipped to the strip's stretch
         shown = ax.imshow(image[rows, cols], extent=extent, origin="upper",

@@ -25,7 +25,7 @@ import numpy as np
 
 from spcopyro.maps import OccupancyGrid
 from spcopyro.results.result import SpCoResult
-from spcopyro.results.uncertainty import where_probability
+from spcopyro.results.uncertainty import unmapped_note, where_probability
 from spcopyro.results.where import DEFAULT_WHERE_PRIOR, close_odds
 from spcopyro.robot.navigation.goals import (
     AmbiguousGoalError,
@@ -119,6 +119,10 @@ class NavigationPlan:
     """Start to the first stop, then stop to stop: how each was planned."""
     margin: float = BORDER_MARGIN
     """Metres: the width of the shared borders a hierarchical leg may use."""
+    off_map: bool = False
+    """Whether some of the fit's cell probability lies on concepts absent from the map
+    (:func:`~spcopyro.results.uncertainty.unmapped_note`): the stops' probability, as where's,
+    counts the map's concepts only, and navigate.png's colour bar says so."""
 
     @property
     def planned(self) -> str:
@@ -330,6 +334,7 @@ def navigate(
         planner=planner,
         legs=tuple(legs),
         margin=margin,
+        off_map=bool(unmapped_note(result)),  # computed once per result, as where's figures
     )
 
 
