@@ -509,7 +509,7 @@ def choose_goal(
         notes.append(
             f"{word!r}: no patch of cells the robot fits on with p(cell is the place) >= "
             f"{AMBIGUITY_RATIO:g} x the best ({best:.3f}) covers {MIN_CANDIDATE_AREA:g} m^2; "
-            f"the goal is in the largest, {chosen.area:.2f} m^2: the place is small, or "
+            f"the goal is in the largest, {area_text(chosen.area)} m^2: the place is small, or "
             "uncertain on this fit "
             "(`spcopyro where` shows its probability; a longer fit sharpens it)"
         )
