@@ -577,3 +577,101 @@ def test_a_ctrl_c_anywhere_in_the_old_folders_removal_is_a_ctrl_c(tmp_path, monk
                 break
         assert sorted(p.name for p in (case / "N").iterdir()) == ["new"], count
     assert count > 20  # every line of the removal tried
+
+
+# --- a Ctrl-C as a writer's own leftovers are removed (remove_tree) -----------------------
+
+
+def test_a_ctrl_c_as_a_stopped_simulates_staging_is_removed_is_one(tmp_path, monkeypatch, capsys):
+    """simulate stopped while writing its house (a Ctrl-C), a second Ctrl-C just after rmtree
+    closed the staging folder's descriptor as save_house removed it: the EBADF rmtree's
+    ``finally`` raised stood for it ("error: [Errno 9] Bad file descriptor", status 2). Now the
+    Ctrl-C's line and 130."""
+    from spcopyro.data import dataset
+
+    def stopped(house, room):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(dataset, "_write_room", stopped)  # the staging folder left empty
+    raised = _ctrl_c_in_rmtree(monkeypatch, f"{os.sep}h.partial-")
+    root = tmp_path / "r"
+    assert main(["simulate", "--out", str(root), "--name", "h"]) == 130
+    assert raised  # it landed
+    assert capsys.readouterr().err.startswith("interrupted spcopyro simulate: nothing written")
+
+
+def test_a_ctrl_c_as_the_staged_maps_folder_is_removed_is_one(tmp_path, monkeypatch):
+    """stage_map removing its folder on leaving, a Ctrl-C just after rmtree closed the folder's
+    descriptor: a KeyboardInterrupt, where it was rmtree's OSError (EBADF)."""
+    from spcopyro.maps.map_server import stage_map
+
+    raised = _ctrl_c_in_rmtree(monkeypatch, ".yaml.partial-")
+    with pytest.raises(KeyboardInterrupt), stage_map(free_grid(), tmp_path / "m" / "a.yaml"):
+        pass
+    assert raised
+
+
+def test_a_ctrl_c_as_a_stopped_simulate_bag_removes_its_bag_is_one(tmp_path, monkeypatch):
+    """simulate-bag stopped (a Ctrl-C) before its map, a second Ctrl-C just after rmtree closed
+    the ROS 2 bag folder's descriptor as the run removed what it wrote: a KeyboardInterrupt,
+    where it was rmtree's OSError (EBADF)."""
+    pytest.importorskip("rosbags", reason="simulate-bag needs rosbags (pip install .[ros])")
+    from spcopyro.robot.rosbag import synthetic
+
+    def stopped(grid, path):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(synthetic, "save_map", stopped)  # the bags written, then stopped
+    raised = _ctrl_c_in_rmtree(monkeypatch, f"{os.sep}trial_0")
+    with pytest.raises(KeyboardInterrupt):
+        synthetic.write_synthetic_bags(tmp_path / "bags", image_size=(8, 8), trials=[0])
+    assert raised
+
+
+def _import_stopped(monkeypatch, stop: type[BaseException]) -> None:
+    """import_bags stopped by ``stop`` as it reads its first bag (its staging folder empty)."""
+    from spcopyro.robot.rosbag import importer
+
+    def stopped(*args, **kwargs):
+        raise stop("stopped")
+
+    monkeypatch.setattr(importer, "_import_one", stopped)
+
+
+def test_a_ctrl_c_as_a_stopped_imports_staging_is_removed_is_one(tmp_path, monkeypatch):
+    """import-bag stopped (a Ctrl-C), a second Ctrl-C just after rmtree closed the staging
+    folder's descriptor as the import removed it: a KeyboardInterrupt, where it was rmtree's
+    OSError (EBADF)."""
+    from spcopyro.robot.rosbag import import_bags
+
+    bag, plain, _ = _recording(tmp_path)
+    _import_stopped(monkeypatch, KeyboardInterrupt)
+    raised = _ctrl_c_in_rmtree(monkeypatch, ".house.partial-")
+    with pytest.raises(KeyboardInterrupt):
+        import_bags([bag], plain, tmp_path / "data" / "house")
+    assert raised
+
+
+def test_a_failed_import_whose_staging_cannot_be_removed_says_its_own_error(tmp_path, monkeypatch):
+    """A failed import whose staging folder cannot be removed raises its own error, not the
+    removal's (PermissionError, which stood for it); the folder left is this import's files
+    only, and the next import into OUT sweeps it once this process is gone."""
+    from spcopyro.robot.rosbag import import_bags
+
+    bag, plain, _ = _recording(tmp_path)
+    out = tmp_path / "data" / "house"
+    _import_stopped(monkeypatch, ValueError)
+    rmdir = os.rmdir
+
+    def refused(path, *args, **kwargs):
+        if ".house.partial-" in str(path):
+            raise PermissionError(13, "Permission denied", str(path))
+        return rmdir(path, *args, **kwargs)
+
+    monkeypatch.setattr(os, "rmdir", refused)
+    with pytest.raises(ValueError, match="stopped"):
+        import_bags([bag], plain, out)
+    monkeypatch.setattr(os, "rmdir", rmdir)
+    (left,) = out.parent.glob(".house.partial-*")
+    monkeypatch.setattr(outputs, "_alive", lambda pid: False)  # as the next process sees it
+    assert outputs.remove_stale_stagings(out, hidden=True) == [left]

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from spcopyro._util.interrupts import remove_tree
 from spcopyro._util.messages import echo
 from spcopyro.data.dataset_files import (
     IMAGE_SUFFIXES,
@@ -493,7 +494,7 @@ def save_house(
         with stage_map(house.grid, map_yaml) as map_files:
             commit_folder(staging, room, _Saved(), map_files)  # with the map, as one
     finally:
-        shutil.rmtree(staging, ignore_errors=True)  # not there after the commit
+        remove_tree(staging)  # not there after the commit; a Ctrl-C meanwhile is one
     return room
 
 

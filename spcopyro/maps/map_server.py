@@ -37,13 +37,13 @@ import contextlib
 import logging
 import math
 import os
-import shutil
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from spcopyro._util.interrupts import remove_tree
 from spcopyro._util.messages import echo
 from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from spcopyro.maps.map_image import _read_levels, _write_image
@@ -289,4 +289,4 @@ def stage_map(
         raise
     finally:
         if not keep:  # empty after the commit: its files were moved in
-            shutil.rmtree(folder, ignore_errors=True)
+            remove_tree(folder)  # a Ctrl-C meanwhile: that KeyboardInterrupt

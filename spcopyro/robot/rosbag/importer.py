@@ -56,7 +56,6 @@ import contextlib
 import json
 import math
 import os
-import shutil
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -64,6 +63,7 @@ from typing import Any
 
 import numpy as np
 
+from spcopyro._util.interrupts import remove_tree
 from spcopyro._util.outputs import commit_folder, staging_folder
 from spcopyro._util.progress import clears_when_done, progress_enabled
 from spcopyro.data.text import tokenize
@@ -542,8 +542,9 @@ def import_bags(
                 kept = commit_folder(staging, out, written, map_files, hidden=True)
             done = True
         finally:
-            if staging.exists():
-                shutil.rmtree(staging)
+            # this import's files only (none after the commit); what a failed removal leaves,
+            # the next import into OUT sweeps (staging_folder); a Ctrl-C meanwhile is one
+            remove_tree(staging)
             if not done:
                 for folder in created:  # deepest first; only if nothing else was put there
                     with contextlib.suppress(OSError):

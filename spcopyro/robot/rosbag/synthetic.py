@@ -29,7 +29,6 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -37,6 +36,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from spcopyro._util.interrupts import remove_tree
 from spcopyro._util.outputs import check_folder_path
 from spcopyro.data.dataset import House
 from spcopyro.maps.map_server import save_map
@@ -380,7 +380,7 @@ def write_synthetic_bags(
     except BaseException:
         for path in written:
             if path.is_dir():
-                shutil.rmtree(path, ignore_errors=True)
+                remove_tree(path)  # a Ctrl-C meanwhile: that KeyboardInterrupt
             elif path.exists():
                 path.unlink()
         for folder in created:  # only if nothing else was put there meanwhile
