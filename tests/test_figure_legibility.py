@@ -302,7 +302,10 @@ def test_the_summary_lines_of_concepts_go_larger_first(capsys):
         concept_totals=totals,
     )
     labels = [h.get_label() for h in concept_handles(result, np.zeros((num, 3)))]
-    assert labels[-2].startswith("4 specks of 14-18 cells, no words heard: "), labels[-2:]
+    # largest first; listed in concepts.json too, as fit's listing says (the legend did not)
+    assert labels[-2] == (
+        "4 specks of 14-18 cells, no words heard: [118], [117], [116], [115] in concepts.json"
+    ), labels[-2:]
     # where their words are, as fit's listing says (the legend's line did not)
     assert labels[-1] == "... 103 smaller concepts of 5 cells in concepts.json", labels[-2:]
     print_concepts(result, limit=12)

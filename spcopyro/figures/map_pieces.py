@@ -235,8 +235,9 @@ def concept_handles(
         speck_sizes = [int(sizes[c]) for c in specks]
         support = support_text(result, specks)
         support = "" if support is None else f"\n      {support}"
+        # where they are listed, as fit's listing says ("concepts.json lists them")
         summaries.append((max(speck_sizes), f"{speck_summary(speck_sizes)}, no words heard: "
-                          f"{names}{support}"))  # fmt: skip
+                          f"{names} in concepts.json{support}"))  # fmt: skip
     for _, label in sorted(summaries, key=lambda s: -s[0]):  # stable: equal sizes keep order
         handles.append(Patch(color="white", label=label))
     return handles
