@@ -86,8 +86,8 @@ STRIP_PAD = 0.03
 """Each strip of a long map shows this fraction of its stretch more at both ends, so a marker on
 a cut shows whole (:func:`~spcopyro.figures.map_axes.strip_axes`)."""
 MAX_LEGEND_CONCEPTS = 12
-SPECKS_NAMED = 6  # the specks the legend's speck line names, "[3], [7], ..."
 """The legend lists this many of the largest concepts (the rest are counted in one line)."""
+SPECKS_NAMED = 6  # the specks the legend's speck line names, "[3], [7], ..."
 MARKER_AREA = 22.0
 """Area (points^2, as ``scatter``'s ``s``) of the circle marking one utterance on the semantic
 map (:func:`utterance_markers`)."""
