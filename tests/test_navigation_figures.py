@@ -232,7 +232,8 @@ def test_places_whose_labels_would_read_the_same_are_told_apart():
     """graph.png of room1ldk5's CAVI fit labelled two places "door (0.44 m²)" (concepts 38 and
     78): the reader could not tell which was which, where navigate's route says "door (concept
     38)". Such labels add the concept, or the place id for two regions of one concept; other
-    labels are as they were."""
+    labels are as they were. Three regions of concept 1 and one of concept 2 all add their
+    place ids, as a route names them (told_apart)."""
     import dataclasses
 
     from hand_results import one_word_per_concept
@@ -256,10 +257,47 @@ def test_places_whose_labels_would_read_the_same_are_told_apart():
     fig = place_graph_figure(result, graph)
     texts = sorted(t.get_text() for ax in fig.axes for t in ax.texts)
     area = door[0].area_text
-    ones = sorted(p.id for p in door if p.concept == 1)
-    assert texts == sorted([f"hall ({graph.places[0].area_text} m²)",
-                            f"door (concept 2, {area} m²)"]
-                           + [f"door (place {i}, {area} m²)" for i in ones])  # fmt: skip
+    assert texts == sorted([f"hall ({graph.places[0].area_text} m²)"]
+                           + [f"door (place {p.id}, {area} m²)" for p in door])  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("concepts", "adds"),
+    [((1, 2), "concept"), ((1, 1), "place"), ((1, 2, 1), "place"), ((2, 1, 1), "place")],
+)
+def test_graph_labels_that_read_the_same_are_told_apart_as_a_route_tells_them(concepts, adds):
+    """Places whose graph.png labels would read the same add what told_apart adds to the same
+    words: three labels "door (0.09 m²)" of concepts 1, 2 and 1 each added their place id where
+    they were of concept 1 but the concept where it was 2 (door (concept 2, ...)), while a route
+    through the three names each by its place id (two of them are regions of one concept). A
+    pair adds the concepts, or the place ids for one concept, as before."""
+    import dataclasses
+
+    from hand_results import one_word_per_concept
+
+    from spcopyro.maps import FREE, OccupancyGrid
+    from spcopyro.robot.navigation.figure import _place_texts
+    from spcopyro.robot.navigation.places import place_graph, told_apart
+
+    grid = OccupancyGrid(np.full((10, 40), FREE, dtype=np.int8), 0.1, (0.0, 0.0, 0.0))
+    rows, cols = np.nonzero(grid.free)  # [N]
+    labels = np.zeros(len(rows), dtype=np.int64)  # [N]: concept 0 around 3 x 3 blocks
+    for concept, left in zip(concepts, (2, 14, 26), strict=False):
+        labels[(rows >= 3) & (rows < 6) & (cols >= left) & (cols < left + 3)] = concept
+    result = one_word_per_concept(grid, labels, ("hall", "door", "bed"), num_concepts=3)
+    graph = place_graph(result, min_area=0.01)
+    renamed = tuple(dataclasses.replace(p, name="door") if p.concept else p
+                    for p in graph.places)  # fmt: skip
+    graph = dataclasses.replace(graph, places=renamed)
+    door = [p for p in graph.places if p.concept]
+    assert len(door) == len(concepts) and len({p.area_text for p in door}) == 1
+    texts = _place_texts(graph)
+    route = told_apart(graph, [p.id for p in door])
+    for p, said in zip(door, route, strict=True):
+        added = f"{adds} {p.id if adds == 'place' else p.concept}"
+        assert said == f"door ({added})"
+        assert texts[p.id] == f"door ({added}, {p.area_text} m²)"
+    assert texts[0] == f"hall ({graph.places[0].area_text} m²)"
 
 
 def test_a_passage_is_drawn_along_free_cells_not_across_a_wall():

@@ -5,7 +5,6 @@ cells a hierarchical plan was kept to), the path, start and stops;
 from __future__ import annotations
 
 import os
-from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +25,7 @@ from spcopyro.maps import FREE, OCCUPIED, OccupancyGrid
 from spcopyro.maps.render import render_labels
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.uncertainty import cell_probability_label
-from spcopyro.robot.navigation.places import DOORWAY_WIDTH, PlaceGraph
+from spcopyro.robot.navigation.places import DOORWAY_WIDTH, PlaceGraph, telling_apart
 from spcopyro.robot.navigation.planning import NavigationPlan
 
 __all__ = [
@@ -137,23 +136,23 @@ label fits)."""
 
 
 def _place_texts(graph: PlaceGraph) -> list[str]:
-    """Each place's label, by place id: its name and area, ``door (0.44 m²)``; where two places
-    would read the same, each adds its concept (``door (concept 38, 0.44 m²)``), or its place
-    id where they are regions of one concept (``door (place 17, 0.44 m²)``, the ids of ``show
-    --graph``'s list), as a route tells places apart
-    (:func:`~spcopyro.robot.navigation.places.told_apart`). room1ldk5's CAVI fit has two places
-    labelled ``door (0.44 m²)``."""
+    """Each place's label, by place id: its name and area, ``door (0.44 m²)``; where places
+    would read the same, each adds its concept (``door (concept 38, 0.44 m²)``), or, where two
+    of them are regions of one concept, each its place id (``door (place 17, 0.44 m²)``, the ids
+    of ``show --graph``'s list), as a route tells places apart
+    (:func:`~spcopyro.robot.navigation.places.told_apart`, whose decision it takes:
+    :func:`~spcopyro.robot.navigation.places.telling_apart`). room1ldk5's CAVI fit has two
+    places labelled ``door (0.44 m²)``."""
     texts = [f"{p.name} ({p.area_text} m²)" for p in graph.places]
-    same = Counter(texts)
-    same_concept = Counter(zip(texts, (p.concept for p in graph.places), strict=True))
+    ids = [p.id for p in graph.places]
     labels = []
-    for text, p in zip(texts, graph.places, strict=True):
-        if same[text] == 1:
-            labels.append(text)
-        elif same_concept[text, p.concept] == 1:
+    for text, p, how in zip(texts, graph.places, telling_apart(graph, ids, texts), strict=True):
+        if how == "place":
+            labels.append(f"{p.name} (place {p.id}, {p.area_text} m²)")
+        elif how == "concept":
             labels.append(f"{p.name} (concept {p.concept}, {p.area_text} m²)")
         else:
-            labels.append(f"{p.name} (place {p.id}, {p.area_text} m²)")
+            labels.append(text)
     return labels
 
 
