@@ -282,3 +282,20 @@ def test_notebook_1_sets_each_drawn_effective_number_beside_the_formulas():
         assert said.format(*drawn) in text, (prior, drawn)
         assert said.format(*formula) in text, (prior, formula)
     assert "The effective numbers follow the formula: under the DP" not in text
+
+
+def test_notebooks_give_the_4_neighbourhood_to_the_released_code_not_to_the_paper():
+    """The paper defines the MRF over "the neighborhood pixels of the (i, j) pixel" (eqs. 2, 8)
+    without saying which; its released code (learning.py) counts the 4 side neighbours, as
+    SpCoConfig's default connectivity=4 does. Notebooks 1 and 5 called the 4-neighbour field
+    "the paper's", which a reader with the paper open does not find there."""
+    from spcopyro.config import SpCoConfig
+
+    assert SpCoConfig(num_concepts=3).connectivity == 4
+    first = _flat(_markdown("01_generative_model"))
+    variant = _flat(_markdown("05_your_own_variant"))
+    assert "(the paper's field, and this notebook's)" not in first
+    assert "The paper's Potts field couples each cell to its 4 neighbours" not in variant
+    assert 'the paper says only "neighborhood pixels", its released code (`learning.py`)' in first
+    assert "(the released code's field, and this notebook's)" in first
+    assert "Potts field couples each cell to its 4 neighbours (the paper says only" in variant
