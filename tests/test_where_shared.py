@@ -171,3 +171,17 @@ def test_where_prints_the_shared_concept_and_the_unmapped_mass(tmp_path, capsys)
     assert main(["where", str(out), "kitchen"]) == 0
     printed = capsys.readouterr().out
     assert "also the answer" not in printed
+
+
+def test_navigate_says_the_unmapped_mass_as_where_does(tmp_path, capsys):
+    """navigate's goals are chosen by where's probability, which counts the map's concepts only:
+    where says what it leaves out (unmapped_note), and navigate says it the same way, once."""
+    result, _ = unmapped_result()
+    out = result.save(tmp_path / "fit")
+    argv = ["navigate", str(out), "go to the bed", "--start=2.5,0.3", "--radius", "0.05"]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert printed.count(f"note: {unmapped_note(result)}\n") == 1
+    plain = two_rooms().save(tmp_path / "plain")  # a point estimate: nothing left out
+    assert main(["navigate", str(plain), *argv[2:]]) == 0
+    assert "not counted" not in capsys.readouterr().out

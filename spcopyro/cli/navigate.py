@@ -133,6 +133,10 @@ def _plan_and_print(
             print(f"  note: {shared}")
         for note in choice.notes:
             print(f"warning: {note}", file=sys.stderr)
+    if plan.off_map:  # the stops' p counts the map's concepts only: as where's line says it
+        from spcopyro.results.uncertainty import unmapped_note
+
+        print(f"note: {unmapped_note(result)}")  # computed once per result (plan.off_map's)
     if plan.route:
         how = "" if plan.route_from == "graph" else " (the places the path crosses)"
         print(f"route: {' -> '.join(plan.route_names)}{how}")  # names told apart
