@@ -47,6 +47,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from spcopyro._util.digests import file_sha256
 from spcopyro.cli.fit_resume import keeps_finished_fit
 
 if TYPE_CHECKING:
@@ -238,11 +239,7 @@ def _updated(update: str | None) -> dict[str, str] | None:
     result.npz, the state the update started from (None: no ``--update``)."""
     if update is None:
         return None
-    digest = hashlib.sha256()
-    with open(Path(update) / "result.npz", "rb") as file:
-        for block in iter(lambda: file.read(1 << 20), b""):
-            digest.update(block)
-    return {"fit": str(update), "result_sha256": digest.hexdigest()}
+    return {"fit": str(update), "result_sha256": file_sha256(Path(update) / "result.npz")}
 
 
 def _fingerprint(house: House) -> str:

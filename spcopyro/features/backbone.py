@@ -24,7 +24,6 @@ is called, because that API would otherwise try to download it.
 
 from __future__ import annotations
 
-import hashlib
 import os
 import pickle
 import re
@@ -37,6 +36,7 @@ import torch
 from torch import nn
 from torchvision.models import AlexNet, AlexNet_Weights, alexnet
 
+from spcopyro._util.digests import file_sha256
 from spcopyro._util.messages import ECHO_LIMIT, setting
 from spcopyro._util.progress import progress_enabled
 
@@ -90,11 +90,7 @@ class WeightsSource:
         if self.kind == "random":
             return f"random seed {self.seed}"
         assert self.path is not None
-        digest = hashlib.sha256()
-        with open(self.path, "rb") as file:
-            for block in iter(lambda: file.read(1 << 20), b""):
-                digest.update(block)
-        return f"sha256 {digest.hexdigest()}"
+        return f"sha256 {file_sha256(self.path)}"
 
     def describe(self) -> str:
         if self.kind == "imagenet":
