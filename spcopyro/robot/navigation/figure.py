@@ -144,16 +144,9 @@ def _place_texts(graph: PlaceGraph) -> list[str]:
     :func:`~spcopyro.robot.navigation.places.telling_apart`). room1ldk5's CAVI fit has two
     places labelled ``door (0.44 m²)``."""
     texts = [f"{p.name} ({p.area_text} m²)" for p in graph.places]
-    ids = [p.id for p in graph.places]
-    labels = []
-    for text, p, how in zip(texts, graph.places, telling_apart(graph, ids, texts), strict=True):
-        if how == "place":
-            labels.append(f"{p.name} (place {p.id}, {p.area_text} m²)")
-        elif how == "concept":
-            labels.append(f"{p.name} (concept {p.concept}, {p.area_text} m²)")
-        else:
-            labels.append(text)
-    return labels
+    added = telling_apart(graph, [p.id for p in graph.places], texts)
+    return [f"{p.name} ({how}, {p.area_text} m²)" if how else text
+            for text, p, how in zip(texts, graph.places, added, strict=True)]  # fmt: skip
 
 
 def _marker_boxes(fig: Figure, axes: list[Axes], xy: np.ndarray, size: np.ndarray) -> list[Bbox]:

@@ -267,22 +267,16 @@ def told_apart(
     where its word names another place of the same concept (two regions of one concept). A word
     naming a place id below 0 (in no place) stays as it is."""
     words = tuple(graph.places[p].name for p in route) if words is None else tuple(words)
-    names = []
-    for word, place, how in zip(words, route, telling_apart(graph, route, words), strict=True):
-        if how == "place":
-            names.append(f"{word} (place {place})")
-        elif how == "concept":
-            names.append(f"{word} (concept {graph.places[place].concept})")
-        else:
-            names.append(word)
-    return tuple(names)
+    added = telling_apart(graph, route, words)
+    return tuple(f"{word} ({how})" if how else word for word, how in zip(words, added, strict=True))
 
 
 def telling_apart(graph: PlaceGraph, route: Sequence[int], words: Sequence[str]) -> list[str]:
     """What each word of ``words`` (one per place id of ``route``) adds to be told apart
-    (:func:`told_apart`, which says why): ``"place"`` (its place id), ``"concept"`` (its place's
-    concept) or ``""`` (nothing); for a caller that writes the addition its own way (graph.png's
-    place labels, :func:`~spcopyro.robot.navigation.figure.place_graph_figure`)."""
+    (:func:`told_apart`, which says why, and writes it in brackets after the word): ``"place
+    5"`` (its place id), ``"concept 3"`` (its place's concept) or ``""`` (nothing); for a caller
+    that writes more in the brackets (graph.png's place labels, their area:
+    :func:`~spcopyro.robot.navigation.figure.place_graph_figure`)."""
     named: dict[str, set[int]] = {}  # word -> the places of the route it names
     called: dict[int, set[str]] = {}  # place -> the words the route names it by
     for word, place in zip(words, route, strict=True):
@@ -296,8 +290,8 @@ def telling_apart(graph: PlaceGraph, route: Sequence[int], words: Sequence[str])
 
     return [
         "" if min(named[word]) < 0
-        else "place" if by_place(word)
-        else "concept" if len(named[word]) > 1
+        else f"place {place}" if by_place(word)
+        else f"concept {graph.places[place].concept}" if len(named[word]) > 1
         else ""
-        for word in words
+        for word, place in zip(words, route, strict=True)
     ]  # fmt: skip
