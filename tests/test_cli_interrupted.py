@@ -256,3 +256,29 @@ def test_a_second_ctrl_c_before_the_line_is_guarded_ends_as_cleanly(
         f"and its map {tmp_path / 'h' / 'map' / 'synthetic'}.yaml (they are written whole at the "
         "end, or not at all)\n"
     )
+
+
+def test_a_ctrl_c_held_through_a_failed_commit_of_simulate_is_said_after_its_error(
+    tmp_path, monkeypatch, capsys
+):
+    """simulate names its flag in a FileExistsError it raises again ``from None``: the new error
+    has no ``signalled``, but the commit's error it replaces (its ``__context__``, kept under
+    ``__suppress_context__``) does, so main still says the Ctrl-C held through the commit after
+    the error: its line and 130, not 2."""
+    import errno
+    import os
+    import signal
+
+    import spcopyro._util.outputs as outputs
+
+    def refused(files, folder):  # a Ctrl-C as the commit moves the map, then EEXIST (a fake:
+        # the real move_files_in raises FilesNotMoved, an OSError, with the folder put back)
+        os.kill(os.getpid(), signal.SIGINT)  # held by commit_folder
+        raise FileExistsError(errno.EEXIST, "File exists", str(folder))
+
+    monkeypatch.setattr(outputs, "move_files_in", refused)
+    out = tmp_path / "h"
+    assert main(["simulate", "--out", str(out)]) == 130
+    error = capsys.readouterr().err
+    assert error.startswith(f"error: [Errno 17] File exists: '{out / 'synthetic'}'\n")
+    assert "\ninterrupted spcopyro simulate: " in error
