@@ -682,14 +682,37 @@ def test_an_svi_trace_says_it_is_an_estimate_and_where_gamma_was_annealed():
     svi = dataclasses.replace(result, method="svi", trace=trace, best_iteration=19,
                               inference={"num_particles": 1, "anneal_iterations": 8})  # fmt: skip
     top = trace_figure(svi).axes[0]
-    assert top.get_ylabel() == "ELBO estimate\n(1 draw a step)"
+    assert top.get_ylabel() == "ELBO estimate (nats)\na lower bound on log p(data)\n(1 draw a step)"
     texts = [t.get_text() for t in top.get_legend().get_texts()]
     assert "steps 1-8: gamma annealed from 0, the estimate at that gamma" in texts, texts
     cavi = dataclasses.replace(svi, method="cavi", inference={"anneal_iterations": 8})
-    assert trace_figure(cavi).axes[0].get_ylabel() == "ELBO"  # exact, at the model's gamma
+    exact = trace_figure(cavi).axes[0].get_ylabel()  # exact, at the model's gamma
+    assert exact == "ELBO (nats)\na lower bound on log p(data)"
     vi_gibbs = dataclasses.replace(result, method="vi-gibbs", inference={"vi_iterations_run": 43})
     title = trace_figure(vi_gibbs).texts[0].get_text()
     assert "Gibbs sweeps from a CAVI start of 43 iterations (not shown)" in title
+
+
+def test_the_trace_names_its_objective_s_unit_and_what_it_is():
+    """trace.png's axis said "log joint" on a Gibbs fit (room1dk5: about +118,000) and "ELBO"
+    on a CAVI fit (about -1,400), with no unit and nothing saying that the two are different
+    quantities: the log joint holds the drawn parameters' densities, the ELBO bounds log
+    p(data). Each axis now names its unit and its quantity."""
+    import dataclasses
+
+    from spcopyro.figures.plotting import trace_figure
+    from spcopyro.inference.protocol import Trace
+
+    result = dataclasses.replace(two_rooms(), method="gibbs")
+    gibbs = trace_figure(result).axes[0].get_ylabel()
+    assert gibbs == "log joint (nats)\nlog p(data, labels, parameters)", gibbs
+    for method, name, meaning in [
+        ("cavi", "ELBO", "a lower bound on log p(data)"),
+        ("lbp", "Bethe ELBO", "Bethe's approximation of log p(data)"),
+    ]:
+        trace = Trace(np.linspace(-50.0, -10.0, 5), np.full(5, 2), np.arange(1.0, 6.0), name)
+        fit = dataclasses.replace(result, method=method, trace=trace, best_iteration=4)
+        assert trace_figure(fit).axes[0].get_ylabel() == f"{name} (nats)\n{meaning}"
 
 
 def test_no_module_imports_a_private_name_of_plotting():

@@ -25,6 +25,30 @@ variational inference's (compare-inference's VI methods), not the variation-of-i
 loss's."""
 
 
+OBJECTIVE_MEANINGS = {
+    "log joint": "log p(data, labels, parameters)",
+    "ELBO": "a lower bound on log p(data)",
+    "Bethe ELBO": "Bethe's approximation of log p(data)",
+}
+"""What each method's objective is, under its name on trace.png's axis: a sampler's log joint
+(with the Dirichlet densities of its drawn parameters, room1dk5's about +118,000 nats) and a
+variational ELBO (the parameters integrated out, about -1,400 nats there) are not on one scale,
+which two bare names and numbers did not say."""
+
+
+def objective_axis_label(name: str, estimate: str = "") -> str:
+    """trace.png's axis label of the objective ``name`` (``Trace.objective_name``): the name, its
+    unit and what it is (:data:`OBJECTIVE_MEANINGS`); ``estimate`` ("1 draw a step") for SVI's
+    stochastic estimate. An objective of another name keeps its name and unit."""
+    head = f"{name} estimate" if estimate else name
+    lines = [f"{head} (nats)"]
+    if name in OBJECTIVE_MEANINGS:
+        lines.append(OBJECTIVE_MEANINGS[name])
+    if estimate:
+        lines.append(f"({estimate})")
+    return "\n".join(lines)
+
+
 def _estimate_name(result: SpCoResult) -> str:
     """ "variation-of-information point estimate" (:data:`ESTIMATE_NAMES`), or "point
     estimate" for a result that does not say which."""
@@ -60,10 +84,11 @@ def trace_figure(result: SpCoResult, kept: tuple[int, int] | None = None) -> Fig
     top.axvline(best, color="C3", lw=0.6, ls="--",
                 label=f"highest {trace.objective_name} ({step} {best})" if chain else
                 f"final {trace.objective_name} ({step} {best}): the reported q")  # fmt: skip
-    top.set_ylabel(trace.objective_name)
+    top.set_ylabel(objective_axis_label(trace.objective_name), fontsize=8)
     if result.method == "svi":  # one draw's estimate a step, at the step's (annealed) gamma
         draws = int(result.inference.get("num_particles", 1))  # type: ignore[call-overload]
-        top.set_ylabel(f"{trace.objective_name} estimate\n({plural(draws, 'draw')} a step)")
+        label = objective_axis_label(trace.objective_name, f"{plural(draws, 'draw')} a step")
+        top.set_ylabel(label, fontsize=8)
         asked = int(result.inference.get("anneal_iterations") or 0)  # type: ignore[call-overload]
         anneal = min(asked, len(sweeps))
         if anneal > 1:  # not the model's ELBO there: a weaker coupling's
