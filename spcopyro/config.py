@@ -143,7 +143,7 @@ class SpCoConfig:
         beta: symmetric Dirichlet concentration of each word distribution w_l (eq. 4).
         chi: symmetric Dirichlet concentration of each image-feature distribution theta_l (eq. 3).
         gamma: Potts MRF coupling between 4- (or 8-) neighbouring cells (eqs. 8-10), >= 0.
-        connectivity: 4 (the paper) or 8.
+        connectivity: 4 (the released code's; the paper says only "the neighborhood pixels") or 8.
         use_images, use_words: switch the paper's two emission modalities on or off (a switched-off
             modality's distributions are still drawn, from their prior).
         concentrations: the symmetric Dirichlet concentration of every *further* modality (e.g.
@@ -222,7 +222,7 @@ class SpCoConfig:
     @property
     def critical_gamma(self) -> float:
         """The L-state Potts model's critical coupling ln(1 + sqrt(L)) on the square lattice
-        with 4 neighbours (Potts 1952; Baxter 1973), ``connectivity=4``, the paper's.
+        with 4 neighbours (Potts 1952; Baxter 1973), ``connectivity=4``, the released code's.
 
         ValueError for ``connectivity=8``, which the model also supports: the square lattice
         with its diagonal neighbours (equal couplings) has no closed-form critical point (it
