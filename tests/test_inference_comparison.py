@@ -871,6 +871,8 @@ def test_results_csv_fills_cpu_seconds_and_best_objective(tmp_path):
     with open(tmp_path / "results.csv", newline="") as file:
         rows = list(csv.DictReader(file))
     assert sorted(r["method"] for r in rows) == ["cavi", "gibbs"]
+    # which objective each best_objective is: a log joint and an ELBO are not on one scale
+    assert {r["method"]: r["objective"] for r in rows} == {"gibbs": "log joint", "cavi": "ELBO"}
     for row in rows:
         assert float(row["cpu_seconds"]) > 0, row
         assert math.isfinite(float(row["best_objective"])), row

@@ -18,17 +18,17 @@ the inference's own time, ``cpu_seconds``: the process's CPU time over the measu
 thread's, so for a cell run in the study's own process while a Dask LocalCluster starts
 (:func:`spcopyro.study.run._on_dask`) also the threads of the cluster's start and of its
 scheduler, which run in that process; ``best_objective``: the log joint or ELBO of the state
-reported) and the whole comparison record (the curve, time to 95 %, ESS, over-confidence, top
-words) as JSON text in ``details``, from which :mod:`spcopyro.study.comparison` draws
-``comparison.md`` and its figures. Its label map is the fit's final state on the map's cells
-(refined from the model's grid), with the map and the truth it was scored against
-(:func:`spcopyro.study.maps.label_map_arrays`), stored as every cell's is (``maps/KEY.npz``)
-so reports draw it. A degenerate final map (one concept over most
-of the house) is warned of as ``fit_house`` warns
+reported, and ``objective``, which of them) and the whole comparison record (the curve, time to
+95 %, ESS, over-confidence, top words) as JSON text in ``details``, from which
+:mod:`spcopyro.study.comparison` draws ``comparison.md`` and its figures. Its label map is the
+fit's final state on the map's cells (refined from the model's grid), with the map and the truth
+it was scored against (:func:`spcopyro.study.maps.label_map_arrays`), stored as every cell's is
+(``maps/KEY.npz``) so reports draw it. A degenerate final map (one concept over most of the
+house) is warned of as ``fit_house`` warns
 (:func:`spcopyro.results.map_checks.house_map_warning`), kept in the cell's record with its
 other warnings; its advice is the comparison's (:data:`ADVICE`), not ``fit``'s options, which
-``compare-inference`` does not take. Threads: as the
-comparison, the method runs with :func:`spcopyro._util.threads.policy_threads` of the map.
+``compare-inference`` does not take. Threads: as the comparison, the method runs with
+:func:`spcopyro._util.threads.policy_threads` of the map.
 """
 
 from __future__ import annotations
@@ -128,6 +128,7 @@ def comparison_outcome(cell: Cell) -> tuple[dict[str, object], Arrays]:
     scores.update(
         concepts=record["concepts"], iterations=record["iterations"], seconds=record["seconds"],
         cpu_seconds=record["cpu_seconds"], best_objective=result.best_objective,
+        objective=result.trace.objective_name,
         details=json.dumps(record, default=json_default),
     )  # fmt: skip
     labels = labels_on_map(result, house, problem.settings)  # [H, W]

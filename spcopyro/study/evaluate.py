@@ -31,9 +31,10 @@ Scores (every one that applies; the others are left empty in the table, :data:`S
   :mod:`spcopyro.study.cell_warnings`;
 * ``source_digest``: :func:`spcopyro.study.cells.source_digest` of the process that ran the
   cell, the code that made its numbers;
-* ``seconds`` (wall clock) and ``cpu_seconds`` of the fit, ``iterations``, and
+* ``seconds`` (wall clock) and ``cpu_seconds`` of the fit, ``iterations``,
   ``best_objective`` (the reported state's log joint or ELBO: the best of K chains is the
-  chain where it is highest);
+  chain where it is highest) and ``objective``, which of them it is (``log joint``, ``ELBO``,
+  ``Bethe ELBO``: a sampler's log joint and a variational ELBO are not on one scale);
 * on a synthetic house with sentences (``sentence_fraction`` > 0: sentences as in the
   paper's Section 5, not its Table 5 setting): ``concept_words`` (JSON text: the top 3 words
   of each concept labelling at least :data:`SENTENCE_MIN_CELLS` cells) and
@@ -104,8 +105,8 @@ SCORES = (
     "inside_rate", "region_share", "scored_words", "unknown_tokens", "empty_regions", "concepts",
     "concepts_1pct", "largest_share", "free_cells", "held_out_trial", "place_top_share",
     "top_words", "ari_off", "ari_on_off", "concepts_1pct_off", "seconds", "cpu_seconds",
-    "seconds_off", "cpu_seconds_off", "iterations", "best_objective", "filler_top_share",
-    "concept_words", "hyperparameters", "details",
+    "seconds_off", "cpu_seconds_off", "iterations", "best_objective", "objective",
+    "filler_top_share", "concept_words", "hyperparameters", "details",
 )  # fmt: skip
 """The score columns of the table, in order."""
 STATUS_COLUMNS = ("status", "error_type", "error")
@@ -224,6 +225,7 @@ def _scored(
             ).value
     if result is not None:
         scores["best_objective"] = float(result.best_objective)
+        scores["objective"] = result.trace.objective_name  # which one best_objective is
         sampled = result.inference.get("hyperparameters")
         if sampled:  # a variant's hyper.*: where the chain took them
             scores["hyperparameters"] = json.dumps(sampled)
