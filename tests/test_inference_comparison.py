@@ -429,6 +429,20 @@ def _recorded_grid(root, **changes) -> ComparisonSettings:
     return ComparisonSettings(**values)
 
 
+def test_the_public_table_says_why_a_word_share_is_no_whole_count(tmp_path, dataset_root):
+    """room1dk5's 500-sweep comparison listed top-1 0.205 "(15 words)": no whole number of 15,
+    since a tied word scores the chance that a random tie-break ranks it first
+    (metrics.heldout.rank_of_truth); comparison.md did not say so."""
+    settings = _recorded_grid(dataset_root, house_types=("public",), variants=("cavi",))
+    run_comparison(tmp_path, settings)
+    text = " ".join((tmp_path / "comparison.md").read_text().split())
+    assert (
+        "A word whose probability ties with other words' counts the chance that a random "
+        "tie-break ranks it first (top-3: in the first three), so a share need not be a whole "
+        "number of words over the count."
+    ) in text
+
+
 def test_the_study_gives_the_old_loops_numbers(tmp_path, dataset_root):
     """Every score of every fit (times aside) equals what the comparison's own loop gave for the
     same grid and seeds: 4 lines on 2 synthetic houses, CAVI on a held-out trial of room1ldk4;

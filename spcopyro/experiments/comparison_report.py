@@ -454,7 +454,9 @@ def table_markdown(summary: dict[str, object]) -> str:
                 "scored with pi and phi set to their posterior means given it. t95 is measured "
                 "on that score along the run. Top-1 and top-3 are shares of the held-out words "
                 "the model knows (top-1's words in brackets): one word more or less moves them "
-                "by one over that count.",
+                "by one over that count. A word whose probability ties with other words' counts "
+                "the chance that a random tie-break ranks it first (top-3: in the first three), "
+                "so a share need not be a whole number of words over the count.",
                 "",
                 "| method | ARI (region truth) | top-1 | top-1 (means \\| labels) | top-3 "
                 "| mean rank ↓ | distance (m) ↓ | concepts | t95 top-1 (s) | s per fit "
