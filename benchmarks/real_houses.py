@@ -260,7 +260,8 @@ def heldout_target(
 ) -> str:
     """The issue's target line, "held-out word top-1 (every fold) not below ``theirs``'", judged
     on the mean over the fit seeds (of the houses' means), with the per-seed differences' range
-    beside it: "undecided" where the seeds' differences fall on both sides of 0."""
+    and the mean's standard error over the seeds beside it: "undecided at this spread" where the
+    mean difference lies within two standard errors of 0 (one seed: its spread unmeasured)."""
     if not per_house:
         return ""
     first = next(iter(per_house.values()))
@@ -279,14 +280,19 @@ def heldout_target(
     words = {name: pooled(per_house, name, "all folds") for name in (ours, theirs)}
     gap = mean[ours] - mean[theirs]
     verdict = "met" if gap >= 0 else "not met"
-    if min(diffs) < 0 <= max(diffs):
-        verdict += " on the mean; undecided at this spread (the seeds' differences straddle 0)"
+    if len(diffs) == 1:
+        spread = "one seed: its spread unmeasured"
+        verdict += " at one seed"
+    else:
+        error = float(np.std(diffs, ddof=1) / np.sqrt(len(diffs)))  # of the mean over seeds
+        spread = f"per seed {min(diffs):+.3f} to {max(diffs):+.3f}, standard error {error:.3f}"
+        if abs(gap) < 2 * error:
+            verdict += " on the mean; undecided at this spread (within 2 standard errors of 0)"
     return (
         f"Target: held-out word top-1 of {ours} not below {theirs}'s (every trial held out in "
         f"turn, mean over fit seeds {', '.join(seeds)} of the mean of houses): {mean[ours]:.3f} "
-        f"against {mean[theirs]:.3f}, difference {gap:+.3f} (per seed {min(diffs):+.3f} to "
-        f"{max(diffs):+.3f}; pooled over words {words[ours]:.3f} against {words[theirs]:.3f}): "
-        f"{verdict}"
+        f"against {mean[theirs]:.3f}, difference {gap:+.3f} ({spread}; pooled over words "
+        f"{words[ours]:.3f} against {words[theirs]:.3f}): {verdict}"
     )
 
 

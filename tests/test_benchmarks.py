@@ -242,9 +242,9 @@ def _heldout_row(top1_per_seed: list[float], words: int) -> dict:
 
 def test_real_houses_heldout_target_judges_the_mean_over_seeds_beside_their_spread(script):
     """The target line judges the mean over the fit seeds and prints the per-seed differences'
-    range; where they straddle 0 it says the spread leaves it undecided. The tables print the
-    mean over the houses and the pooled share over their words, which differ when the houses
-    score different numbers of words."""
+    range and the mean's standard error; within two standard errors of 0 it says the spread
+    leaves it undecided. The tables print the mean over the houses and the pooled share over
+    their words, which differ when the houses score different numbers of words."""
     rh = script("real_houses")
     per_house = {  # default minus paper-dp: seed 0 -0.1, seed 1 +0.05 (mean of the two houses)
         "a": {"coarse": _heldout_row([0.2, 0.5], 10), "paper-dp": _heldout_row([0.3, 0.4], 10)},
@@ -252,16 +252,23 @@ def test_real_houses_heldout_target_judges_the_mean_over_seeds_beside_their_spre
     }
     line = rh.heldout_target(per_house, "coarse", "paper-dp")
     assert "0.375 against 0.400, difference -0.025" in line  # the means over seeds and houses
-    assert "per seed -0.100 to +0.050" in line
-    assert "not met on the mean; undecided at this spread" in line
+    assert "per seed -0.100 to +0.050, standard error 0.075" in line
+    assert line.endswith("not met on the mean; undecided at this spread (within 2 standard "
+                         "errors of 0)")  # fmt: skip
     assert "pooled over words 0.388 against 0.425" in line  # (10 x 0.35 + 30 x 0.4) / 40
-    per_house["a"]["coarse"] = _heldout_row([0.5, 0.7], 10)  # every seed above: met
-    line = rh.heldout_target(per_house, "coarse", "paper-dp")
-    assert line.endswith(": met") and "undecided" not in line
     table = rh.heldout_table("t", per_house, "all folds", "note")
     assert "| mean of houses | pooled over words |" in table
-    assert "| coarse (mean of fit seeds 0, 1) | 0.60 | 0.40 | 0.500 | 0.450 |" in table
-    assert "| coarse, seed 1 | 0.70 | 0.40 | 0.550 | 0.475 |" in table
+    assert "| coarse (mean of fit seeds 0, 1) | 0.35 | 0.40 | 0.375 | 0.388 |" in table
+    assert "| coarse, seed 1 | 0.50 | 0.40 | 0.450 | 0.425 |" in table
+    assert "| E" not in table and "| paper-dp, seed 0 | 0.30 | 0.50 | 0.400 | 0.450 |" in table
+    per_house["a"]["coarse"] = _heldout_row([0.2, 0.25], 10)  # -0.05, -0.075: 5 errors below
+    per_house["b"]["paper-dp"] = _heldout_row([0.4, 0.4], 30)
+    assert rh.heldout_target(per_house, "coarse", "paper-dp").endswith(": not met")
+    per_house["a"]["coarse"] = _heldout_row([0.6, 0.7], 10)  # +0.15 at both seeds
+    assert rh.heldout_target(per_house, "coarse", "paper-dp").endswith(": met")
+    one = {h: {n: {**row, "seeds": {"0": row["seeds"]["0"]}} for n, row in rows.items()}
+           for h, rows in per_house.items()}  # fmt: skip
+    assert "one seed: its spread unmeasured" in rh.heldout_target(one, "coarse", "paper-dp")
 
 
 @pytest.mark.slow
