@@ -34,3 +34,19 @@ def test_a_public_house_s_truth_panel_is_named_the_project_s(tmp_path):
 def test_a_synthetic_house_s_truth_panel_stays_truth(tmp_path):
     _, panels, _ = source_panels(_rows(tmp_path, "synthetic"), tmp_path, "h")
     assert [name for name, _ in panels] == ["truth", "A-dp / gibbs"]
+
+
+def test_a_variant_named_as_its_method_is_named_once(tmp_path):
+    """compare-inference's maps_HOUSE.png titled its panels "cavi / cavi", "lbp / lbp" (its
+    variants are named as their methods), and quality_time.png's legend the same: one name."""
+    from spcopyro.study.figures import quality_time_figure
+
+    rows = _rows(tmp_path, "synthetic")
+    rows.append({**rows[0], "variant": "cavi", "method": "cavi"})
+    rows.append({**rows[0], "variant": "gibbs-sw", "method": "gibbs"})
+    _, panels, _ = source_panels(rows, tmp_path, "h")
+    assert [name for name, _ in panels] == ["truth", "A-dp / gibbs", "cavi", "gibbs-sw / gibbs"]
+    timed = [{**row, "seconds": 1.0 + k, "ari": 0.5} for k, row in enumerate(rows)]
+    (legend,) = quality_time_figure(timed).legends
+    texts = [t.get_text() for t in legend.get_texts()]
+    assert texts == ["A-dp / gibbs", "cavi", "gibbs-sw / gibbs"]

@@ -33,7 +33,9 @@ QUALITY_TIME_FILE = "quality_time.png"
 
 
 def _group_label(variant: str, method: str) -> str:
-    return method if variant in ("", "default") else f"{variant} / {method}"
+    """A group's name: ``variant / method``, or the method alone where the variant is none, the
+    default or the method itself (compare-inference's "cavi / cavi" read as two things)."""
+    return method if variant in ("", "default", method) else f"{variant} / {method}"
 
 
 def quality_time_figure(

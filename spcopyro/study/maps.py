@@ -142,7 +142,8 @@ def source_panels(
     """The panels of source ``data`` at ``seed`` (None: its first seed with a stored map):
     the truth when known (a public house's named "region truth (this project's)"), then each
     row's map in the table's order, named by ``label(row)`` (default ``variant / method``, or
-    the baseline's name); None when no map is stored."""
+    the baseline's name, or the method's where the variant is named as it); None when no map
+    is stored."""
     mine = [r for r in rows if r["data"] == data and load_label_map(folder, r) is not None]
     if not mine:
         return None
@@ -159,8 +160,8 @@ def source_panels(
     panels = [] if truth is None else [(truth_name, truth)]
     for row, stored in maps:
         assert stored is not None
-        name = label(row) if label is not None else (
-            str(row["variant"]) if row["method"] == "baseline"
+        name = label(row) if label is not None else (  # "cavi", not "cavi / cavi"
+            str(row["variant"]) if row["method"] in ("baseline", row["variant"])
             else f"{row['variant']} / {row['method']}"
         )  # fmt: skip
         panels.append((name, stored.labels))
