@@ -438,3 +438,24 @@ def test_number_keys_yaml_cpp_reads_no_number_from_are_refused(tmp_path, keys, s
     with pytest.raises(MapFormatError) as info:
         load_map(write_map(tmp_path, **keys))
     assert f"{tmp_path / 'room.yaml'}{said}" in str(info.value)
+
+
+def test_bytes_that_are_not_utf8_read_as_yaml_cpp_reads_them(tmp_path):
+    """yaml-cpp (map_server) passes bytes that are not UTF-8 through: a latin-1 or Shift-JIS
+    comment, an image named in the file system's own bytes; and reads UTF-16 after its BOM. The
+    loader refused all three ("'utf-8' codec can't decode byte 0xe9 in position 21")."""
+    path = write_map(tmp_path)
+    expected = load_map(path)
+    text = path.read_text()
+    path.write_bytes("# carte de la maison é\n".encode("latin-1") + text.encode())
+    assert load_map(path) == expected
+    path.write_bytes("# 地図\n".encode("shift_jis") + text.encode())
+    assert load_map(path) == expected
+    path.write_text(text, encoding="utf-16")  # with its byte-order mark
+    assert load_map(path) == expected
+    (tmp_path / "room.pgm").rename(tmp_path / b"carte\xe9.pgm".decode(errors="surrogateescape"))
+    path.write_bytes(text.encode().replace(b"room.pgm", b"carte\xe9.pgm"))
+    assert load_map(path) == expected
+    path.write_bytes(text.encode().replace(b"0.05", b"0.0\xe95"))  # shown as its byte
+    with pytest.raises(MapFormatError, match=r"key 'resolution' .*, got '0\.0\\xe95'$"):
+        load_map(path)

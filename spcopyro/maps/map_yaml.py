@@ -264,6 +264,30 @@ _SEPARATING_TABS = re.compile(r"(?<=[:,\[\]])[ \t]*\t[ \t]*|[ \t]*\t[ \t]*(?=#|$
 a line's end: white space to yaml-cpp, an error to PyYAML (tabs that indent are not YAML)."""
 
 
+_UNDECODED = {byte: 0xF0000 + byte - 0xDC00 for byte in range(0xDC80, 0xDD00)}
+"""surrogateescape's stand-ins (U+DC80..U+DCFF) for bytes that are not UTF-8 -> private-use
+code points (U+F0080..U+F00FF), which PyYAML reads (it refuses surrogates)."""
+_UNDECODED_BACK = {code: byte for byte, code in _UNDECODED.items()}
+_SHOWN_STAND_IN = re.compile(r"[\U000F0080-\U000F00FF]|\\(?:U000f00|udc)[89a-f][0-9a-f]")
+"""A byte that is not UTF-8 in a message: its stand-in, as repr writes it (``\\U000f00e9``), or
+the image path's surrogate (``\\udce9``): each shown as ``\\xe9``."""
+
+
+def _stand_in_byte(shown: str) -> int:
+    """The byte a :data:`_SHOWN_STAND_IN` match stands for."""
+    return (ord(shown) if len(shown) == 1 else int(shown[-2:], 16)) & 0xFF
+
+
+def _yaml_text(data: bytes) -> str:
+    """A map yaml's bytes as text, read as yaml-cpp (map_server) reads them: UTF-16 after its
+    byte-order mark (Windows' "Unicode"), else UTF-8 with any byte that is not UTF-8 passed
+    through (a latin-1 or Shift-JIS comment, an image name in the file system's own bytes) as a
+    :data:`_UNDECODED` stand-in; ``image`` turns them back into its bytes."""
+    if data[:2] in (b"\xff\xfe", b"\xfe\xff"):
+        return data.decode("utf-16")
+    return data.decode("utf-8", "surrogateescape").translate(_UNDECODED)
+
+
 def _parse_yaml(text: str) -> tuple[Any, Any]:
     """(the root node, the document) of a map yaml; yaml.YAMLError if it does not parse."""
     import yaml
@@ -272,6 +296,19 @@ def _parse_yaml(text: str) -> tuple[Any, Any]:
 
 
 def _read_map_yaml(yaml_path: str | os.PathLike, accepts: tuple[str, ...] = _MODES) -> _MapYaml:
+    """:func:`_read_yaml_checked`, its errors showing a byte that is not UTF-8 as ``\\xe9``,
+    not as its :data:`_UNDECODED` stand-in."""
+    try:
+        return _read_yaml_checked(yaml_path, accepts)
+    except MapFormatError as error:
+        said = str(error)
+        shown = _SHOWN_STAND_IN.sub(lambda m: f"\\x{_stand_in_byte(m[0]):02x}", said)
+        if shown == said:
+            raise
+        raise type(error)(shown) from error.__cause__
+
+
+def _read_yaml_checked(yaml_path: str | os.PathLike, accepts: tuple[str, ...]) -> _MapYaml:
     """Parse and validate a map_server yaml; errors name the file, line, key and value.
 
     A ``mode`` that is not map_server's but looks like one (``Trinary``, ``SCALE``) gets a
@@ -287,8 +324,8 @@ def _read_map_yaml(yaml_path: str | os.PathLike, accepts: tuple[str, ...] = _MOD
         raise MapFormatError(f"{path}: the map's image; give its yaml (the file that names "
                              "this image, its resolution and origin)")  # fmt: skip
     try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as err:
+        text = _yaml_text(path.read_bytes())
+    except OSError as err:
         raise MapFormatError(f"{path}: cannot read map yaml: {err}") from err
     try:
         root, doc = _parse_yaml(text)
@@ -412,7 +449,7 @@ def _read_map_yaml(yaml_path: str | os.PathLike, accepts: tuple[str, ...] = _MOD
     image = doc["image"]
     if not isinstance(image, str) or not image:
         raise bad("image", "a non-empty file name")
-    image_path = Path(image)
+    image_path = Path(image.translate(_UNDECODED_BACK))  # the name's own bytes (_yaml_text)
     if not image_path.is_absolute():
         image_path = path.parent / image_path
 
