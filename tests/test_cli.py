@@ -290,6 +290,12 @@ def test_variational_fits_stop_by_themselves_and_say_why(method, tmp_path, capsy
     assert "tolerance 1e-07 x |objective|" in line
     record = json.loads((out / "config.json").read_text())
     assert "converged after" in json.dumps(record)
+    # and the objective's final value, named (it said "the objective" and no value): the last
+    # row of trace.csv, whose column names it too
+    name = {"cavi": "ELBO", "lbp": "Bethe ELBO"}[method]
+    header, *rows = (out / "trace.csv").read_text().splitlines()
+    assert header.split(",")[1] == name.lower().replace(" ", "_")
+    assert line.endswith(f"; final {name} {float(rows[-1].split(',')[1]):.1f} nats"), line
 
 
 @pytest.mark.parametrize("method", ["cavi", "lbp", "stochastic-vi", "vi-gibbs"])

@@ -16,8 +16,9 @@ from spcopyro.maps.coarse import coarsening_factor
 if TYPE_CHECKING:
     from spcopyro.config import DataPreparation, SpCoConfig
     from spcopyro.maps.grid import OccupancyGrid
+    from spcopyro.results.result import SpCoResult
 
-__all__ = ["data_line", "inference_line", "model_line"]
+__all__ = ["data_line", "inference_line", "model_line", "stopped_line"]
 
 LABEL = 17
 """The width of the summary's label column: each line's label (``model``, ``data``,
@@ -150,3 +151,13 @@ def inference_line(method: str, options: object, given: bool, budget: str, out: 
         parts += _changed(options, filled, "given start" if given else "random start")
     shown = ", ".join(parts)
     return f"{'inference':<{LABEL}}{method}: {shown} (every setting: {out}/config.json)"
+
+
+def stopped_line(result: SpCoResult) -> str:
+    """A variational fit's "stopped" line: why it stopped (``inference['stopped']``) and the
+    final value of its objective, named, in nats ("final ELBO -1422.2 nats"; SVI's "ELBO
+    estimate", one draw's). The line said "the objective changed by less than ..." and no value:
+    comparing two variational fits meant opening their trace.csv."""
+    name = result.trace.objective_name + (" estimate" if result.method == "svi" else "")
+    value = float(result.trace.objective[-1])  # [iterations]: the reported q's, the last
+    return f"{'stopped':<{LABEL}}{result.inference['stopped']}; final {name} {value:.1f} nats"
