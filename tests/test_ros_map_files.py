@@ -459,3 +459,20 @@ def test_bytes_that_are_not_utf8_read_as_yaml_cpp_reads_them(tmp_path):
     path.write_bytes(text.encode().replace(b"0.05", b"0.0\xe95"))  # shown as its byte
     with pytest.raises(MapFormatError, match=r"key 'resolution' .*, got '0\.0\\xe95'$"):
         load_map(path)
+
+
+def test_an_image_cut_short_says_how_short(tmp_path):
+    """An empty or truncated pgm (an interrupted copy) was 'not a readable image' and no more."""
+    path = write_map(tmp_path)
+    pgm = tmp_path / "room.pgm"
+    whole = pgm.read_bytes()  # P5, 16 x 12, maxval 255
+    pgm.write_bytes(whole[:-5])
+    said = r"header gives 16 x 12 pixels of maxval 255 \(192 bytes after it\) but 187 bytes follow"
+    with pytest.raises(MapFormatError, match=said):
+        load_map(path)
+    pgm.write_bytes(b"")
+    with pytest.raises(MapFormatError, match=r"not a readable image: the file is empty"):
+        load_map(path)
+    pgm.write_bytes(b"P2\n16 12\n255\n" + b" ".join(b"254" for _ in range(100)) + b"\n")
+    with pytest.raises(MapFormatError, match=r"16 x 12 pixels \(192 levels\) but 100 follow it"):
+        load_map(path)

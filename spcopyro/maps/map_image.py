@@ -56,6 +56,38 @@ def _plain_p5(data: np.ndarray) -> np.ndarray | None:
     return data[match.end() :].reshape(height, width).copy()
 
 
+_PNM_HEADER = re.compile(rb"(P[2356])%s(\d+)%s(\d+)%s(\d+)\s" % ((_PNM_GAP,) * 3))
+"""A netpbm image's header (grey or colour, plain or binary) up to its raster."""
+
+
+def _why_unreadable(data: bytes) -> str:
+    """Why OpenCV decodes nothing of an image's bytes ``data``, for the error's end: empty, a
+    netpbm image whose raster is shorter than its header says (an interrupted copy or save;
+    map_server refuses it too), or, for any other, what it may be."""
+    if not data:
+        return ": the file is empty (0 bytes)"
+    match = _PNM_HEADER.match(data[:4096])
+    if match is None:
+        return " (damaged, cut short, or a format OpenCV does not read)"
+    kind, width, height, maxval = match[1], int(match[2]), int(match[3]), int(match[4])
+    channels = 3 if kind in (b"P3", b"P6") else 1
+    values = width * height * channels
+    if kind in (b"P5", b"P6"):
+        need = values * (2 if maxval > 255 else 1)
+        held = len(data) - match.end()
+        if held < need:
+            return (f": cut short, its header gives {width} x {height} pixels of maxval {maxval} "
+                    f"({need} bytes after it) but {held} bytes follow it (an interrupted copy "
+                    "or save? map_server refuses it too): save the map again")  # fmt: skip
+    else:
+        held = len(data[match.end() - 1 :].split())
+        if held < values:
+            return (f": cut short, its header gives {width} x {height} pixels ({values} "
+                    f"levels) but {held} follow it (an interrupted copy or save? map_server "
+                    "refuses it too): save the map again")  # fmt: skip
+    return f" (a {kind.decode()} image of {width} x {height}, maxval {maxval}, damaged)"
+
+
 def _decode(spec: _MapYaml) -> tuple[np.ndarray, int | None]:
     """The map image as OpenCV decodes it (any depth, OpenCV channel order) and, for a netpbm
     image, the maxval its header gives (None for other formats)."""
@@ -90,6 +122,7 @@ def _decode(spec: _MapYaml) -> tuple[np.ndarray, int | None]:
     if img is None:
         raise MapFormatError(
             f"{spec.where('image')}: key 'image': {str(spec.image)!r} is not a readable image"
+            f"{_why_unreadable(data.tobytes())}"
         )
     if img.ndim not in (2, 3) or img.shape[0] == 0 or img.shape[1] == 0:
         raise MapFormatError(
