@@ -420,3 +420,26 @@ def test_messages_name_what_the_user_can_change_where_they_are(tmp_path, caplog,
         assert main(["simulate", "--map", str(yaml_path), "--out", out, "--categories",
                      "kitchen", "--door-width", "0.1"]) == 0  # fmt: skip
     assert "(--door-width auto reads from the map" in caplog.text
+
+
+def test_a_map_read_inverted_or_with_no_free_cell_says_why(dataset_root, tmp_path, capsys):
+    """simulate --map on room1dk5's map with negate 1 toured its walls, saying only that the
+    free space is one room; with free_thresh -0.1, 'the map has no free cell to tour' and its
+    free_thresh warning twice (fit, through check_free_cells, said it twice too)."""
+    import shutil
+
+    for suffix in (".yaml", ".pgm"):
+        shutil.copy(dataset_root / "map" / f"room1dk5{suffix}", tmp_path / f"room1dk5{suffix}")
+    map_yaml = tmp_path / "room1dk5.yaml"
+    text = map_yaml.read_text()
+    map_yaml.write_text(text.replace("negate: 0", "negate: 1"))
+    argv = ["simulate", "--map", str(map_yaml), "--out", str(tmp_path / "out")]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert f"is the map read inverted? {map_yaml}:4: negate 1 on a map whose free space " in err
+    assert "with negate 0, 18622 cells would be free, not 1864" in err
+    map_yaml.write_text(text.replace("free_thresh: 0.196", "free_thresh: -0.1"))
+    assert main([*argv, "--overwrite"]) == 2
+    err = capsys.readouterr().err
+    assert f"no free cell to tour: {map_yaml}:4: negate 0; {map_yaml}:6: free_thresh -0.1" in err
+    assert err.count("key 'free_thresh' -0.1 is outside [0, 1]") == 1

@@ -57,6 +57,7 @@ from spcopyro.baselines.geometry import (
 )
 from spcopyro.data import House, save_house
 from spcopyro.maps import UNKNOWN, OccupancyGrid, load_map
+from spcopyro.maps.free_space import negate_hint, no_free_cell_reason
 from spcopyro.synthetic import DEFAULT_CATEGORY_NAMES, HouseSpec, HouseSpecError
 from spcopyro.synthetic.floor_plan import _FloorPlan
 from spcopyro.synthetic.house import tour_observations
@@ -178,9 +179,10 @@ def _one_room_warning(
     elif tour.door_width != "auto":
         message += (f" ({_option('door_width', options)} auto reads from the map the width "
                     "at which the room count rises the most)")  # fmt: skip
-    return (
-        message + ": the simulated truth has one category, so a fit's ARI against it says nothing"
-    )
+    message += ": the simulated truth has one category, so a fit's ARI against it says nothing"
+    if inverted := negate_hint(grid):  # the one room: the walls, read free
+        message += f"; is the map read inverted? {inverted}"
+    return message
 
 
 def simulate_on_map(
@@ -201,7 +203,8 @@ def simulate_on_map(
     tour = tour or MapTour()
     spec = _house_spec(grid, tour)
     if not np.asarray(grid.free).any():
-        raise ValueError(f"{grid.source or 'map'}: the map has no free cell to tour")
+        raise ValueError(f"{grid.source or 'map'}: the map has no free cell to tour: "
+                         f"{no_free_cell_reason(grid)}")  # fmt: skip
     rng = np.random.default_rng(seed)
 
     door_width = tour.door_width
