@@ -308,8 +308,8 @@ def test_tabs_between_a_key_and_its_value_read_as_map_server_reads_them(tmp_path
     path.write_text(tabbed)
     assert load_map(path) == expected
     path.write_text(tabbed.replace("negate: 0", "\tnegate: 0"))  # a tab that indents: refused
-    with pytest.raises(MapFormatError, match=rf"^{path}: invalid yaml: "):
-        load_map(path)
+    with pytest.raises(MapFormatError, match=rf"^{path}:4: a tab indents 'negate: 0': YAML "):
+        load_map(path)  # it said "invalid yaml: while scanning for the next token ..."
 
 
 def test_a_coarser_copy_of_the_fits_map_is_the_fits_map():

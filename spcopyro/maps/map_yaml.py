@@ -288,6 +288,10 @@ def _yaml_text(data: bytes) -> str:
     return data.decode("utf-8", "surrogateescape").translate(_UNDECODED)
 
 
+_TAB_INDENT = re.compile(r"^ *\t[ \t]*[\w.-]+[ \t]*:[^\n]*", re.MULTILINE)
+"""A key's line indented by a tab (PyYAML and yaml-cpp refuse it), from its start to its end."""
+
+
 def _parse_yaml(text: str) -> tuple[Any, Any]:
     """(the root node, the document) of a map yaml; yaml.YAMLError if it does not parse."""
     import yaml
@@ -334,6 +338,13 @@ def _read_yaml_checked(yaml_path: str | os.PathLike, accepts: tuple[str, ...]) -
         try:  # PyYAML refuses a tab after "key:", which yaml-cpp (map_server) reads as a space
             root, doc = _parse_yaml(untabbed)
         except yaml.YAMLError:
+            if tabbed := _TAB_INDENT.search(untabbed):
+                line = untabbed.count("\n", 0, tabbed.start()) + 1
+                raise MapFormatError(
+                    f"{path}:{line}: a tab indents {echo(tabbed[0].strip())}: YAML indents with "
+                    "spaces only, and map_server's yaml-cpp refuses it too ('illegal map value'): "
+                    "remove it (a map yaml's keys start their lines)"
+                ) from err
             raise MapFormatError(f"{path}: invalid yaml: {err}") from err
     if not isinstance(doc, dict) or not isinstance(root, yaml.MappingNode):
         raise MapFormatError(
