@@ -591,7 +591,8 @@ def test_every_figure_names_a_cells_probability_as_where_prints_it(monkeypatch, 
     monkeypatch.setattr(plotting, "save_figure", lambda fig, path: drawn.append(fig) or path)
     plotting.plot_where_probability(shown, "bed", tmp_path / "bed_probability.png")
     (fig,) = drawn
-    assert "? p(cell is the place), marginals, area prior" in fig.axes[0].get_title()
+    title = fig.axes[0].get_title()  # two_rooms is a Gibbs fit: its marginals, frequencies
+    assert "? p(cell is the place), Gibbs label frequencies, area prior" in title, title
     labels = [a.get_ylabel() for a in fig.axes[0].child_axes] + [a.get_ylabel() for a in fig.axes]
     assert "p(cell is the place) for 'bed'" in labels, labels
 

@@ -173,6 +173,27 @@ def test_where_prints_the_shared_concept_and_the_unmapped_mass(tmp_path, capsys)
     assert "also the answer" not in printed
 
 
+def test_where_names_what_its_probabilities_are(tmp_path, capsys):
+    """where's threshold line and its probability figure said "marginals" of every fit: a CAVI
+    fit's q(C) and a Gibbs fit's label frequencies over 50 kept samples (steps of 1/50) read
+    alike. Each now names its source."""
+    from spcopyro.results.uncertainty import marginals_source
+
+    result, _ = unmapped_result()
+    sampled = dataclasses.replace(result, inference={"marginal_samples": 50})
+    assert marginals_source(sampled) == "Gibbs label frequencies over 50 kept samples"
+    vi_gibbs = dataclasses.replace(sampled, method="vi-gibbs")
+    assert marginals_source(vi_gibbs) == "Gibbs label frequencies over 50 kept samples (vi-gibbs)"
+    cavi = dataclasses.replace(result, method="cavi")
+    assert marginals_source(cavi) == "q(C) of cavi"
+    assert marginals_source(two_rooms()) == "point estimate"  # no marginals
+    for fit, source in [(cavi, "q(C) of cavi"),
+                        (sampled, "Gibbs label frequencies over 50 kept samples")]:  # fmt: skip
+        out = fit.save(tmp_path / fit.method)
+        assert main(["where", str(out), "bed", "--out", str(tmp_path / f"{fit.method}.png")]) == 0
+        assert f" ({source}; not counted:" in capsys.readouterr().out
+
+
 def test_navigate_says_the_unmapped_mass_as_where_does(tmp_path, capsys):
     """navigate's goals are chosen by where's probability, which counts the map's concepts only:
     where says what it leaves out (unmapped_note), and navigate says it the same way, once."""

@@ -309,10 +309,11 @@ def _where(args: argparse.Namespace) -> int:
     shared = shared_answer_note(answer)  # one concept answering 'toilet' and 'kitchen'
     if shared:
         print(f"note: {shared}")
+    from spcopyro.results import uncertainty as per_cell
     from spcopyro.results.uncertainty import threshold_line, unmapped_note, where_probability
 
     probability = where_probability(result, answer.word, args.prior)  # [N]
-    source = "marginals" if result.marginals is not None else "point estimate"
+    source = per_cell.marginals_source(result)  # q(C) of a method, or a sampler's frequencies
     unmapped = unmapped_note(result)
     source += f"; {unmapped}" if unmapped else ""
     # [N] bool: the region's cells (free cells in raster order, as label_image)

@@ -67,6 +67,7 @@ from spcopyro.results.uncertainty import (
     cell_entropy,
     cell_probability_label,
     free_cells_image,
+    marginals_source,
     unmapped_note,
     where_probability,
 )
@@ -455,7 +456,7 @@ def plot_where_probability(
     ``word`` and ``prior`` when the caller has it, or None)."""
     if probability is None:
         probability = where_probability(result, word, prior)  # [N]
-    kind = "marginals" if result.marginals is not None else "point estimate"
+    kind = marginals_source(result)  # as where's line names it
     title = (
         f"where is '{word.lower()}'? p(cell is the place), {kind}, {prior} prior\n"
         f"{plural(int((probability > 0.5).sum()), 'cell')} above 0.5"

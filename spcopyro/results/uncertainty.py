@@ -40,8 +40,25 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from spcopyro.inference.names import SAMPLERS
+
 if TYPE_CHECKING:
     from spcopyro.results.result import SpCoResult
+
+
+def marginals_source(result: SpCoResult) -> str:
+    """What a result's per-cell probabilities are, as ``where``'s threshold line and its
+    probability figure name them: "q(C) of cavi" (a variational method's marginals), "Gibbs
+    label frequencies over 50 kept samples" (a sampler's; vi-gibbs's say so), or "point
+    estimate" for a result without marginals. Both said "marginals" of every method, a CAVI
+    fit's q and a Gibbs fit's frequencies in steps of 1/50 alike."""
+    if result.marginals is None:
+        return "point estimate"
+    if result.method not in SAMPLERS:
+        return f"q(C) of {result.method}"
+    kept = result.inference.get("marginal_samples")
+    over = f" over {int(kept)} kept samples" if isinstance(kept, int) and kept > 0 else ""
+    return f"Gibbs label frequencies{over}" + ("" if result.method == "gibbs" else " (vi-gibbs)")
 
 
 def label_frequencies(samples: np.ndarray, num_concepts: int, bar: Any = None) -> np.ndarray:
