@@ -111,7 +111,29 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
         grey = levels[..., :-1].mean(axis=2) if alpha else value  # [H, W] alpha left out
         unknown = _unknown_grey(grey, full) & grid.free  # [H, W] bool
         _warn_unknown_read_as_free(spec, int(np.count_nonzero(unknown)), alpha, full)
+    _warn_lossy(spec, value, full, occupancy)
     return grid
+
+
+def _warn_lossy(spec: _MapYaml, grey: np.ndarray, full: float, occupancy: np.ndarray) -> None:
+    """Warn of a JPEG map image: its compression moves greys off map_saver's 0, 205 and 254 (a
+    205 beside free space turned 206 reads free), and map_server reads them as they are; say
+    how many pixels moved and how the ones near the unknown grey read. ``grey`` ``[H, W]``."""
+    with open(spec.image, "rb") as image:
+        if image.read(3) != b"\xff\xd8\xff" or full != 255:
+            return
+    kept = np.isin(grey, (PGM_OCCUPIED, PGM_UNKNOWN, PGM_FREE, 255))  # [H, W] bool
+    moved = int(np.count_nonzero(~kept))
+    if not moved:
+        return
+    near = ~kept & (np.abs(grey - PGM_UNKNOWN) <= 10)  # [H, W] bool: an unknown 205, moved?
+    freed = int(np.count_nonzero(near & (occupancy == FREE)))
+    logger.warning(
+        "%s: key 'image': %r is a JPEG, whose lossy compression moves greys: %d pixels are none "
+        "of map_saver's greys (0, 205, 254), %d of them within 10 of the unknown grey 205, and "
+        "%d of those read free (map_server reads them the same): save the map as pgm or png",
+        spec.where("image"), str(spec.image), moved, int(np.count_nonzero(near)), freed,
+    )  # fmt: skip
 
 
 _LOADERS = (
