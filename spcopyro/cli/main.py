@@ -310,14 +310,13 @@ def _where(args: argparse.Namespace) -> int:
     if shared:
         print(f"note: {shared}")
     from spcopyro.results import uncertainty as per_cell
-    from spcopyro.results.uncertainty import threshold_line, unmapped_note, where_probability
 
-    probability = where_probability(result, answer.word, args.prior)  # [N]
+    probability = per_cell.where_probability(result, answer.word, args.prior)  # [N]
     source = per_cell.marginals_source(result)  # q(C) of a method, or a sampler's frequencies
-    unmapped = unmapped_note(result)
+    unmapped = per_cell.unmapped_note(result)
     source += f"; {unmapped}" if unmapped else ""
     # [N] bool: the region's cells (free cells in raster order, as label_image)
-    print(threshold_line(probability, answer.region[grid.free], source))
+    print(per_cell.threshold_line(probability, answer.region[grid.free], source))
     if args.out:
         from spcopyro.figures.plotting import plot_where, plot_where_probability
 

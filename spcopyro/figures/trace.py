@@ -84,11 +84,11 @@ def trace_figure(result: SpCoResult, kept: tuple[int, int] | None = None) -> Fig
     top.axvline(best, color="C3", lw=0.6, ls="--",
                 label=f"highest {trace.objective_name} ({step} {best})" if chain else
                 f"final {trace.objective_name} ({step} {best}): the reported q")  # fmt: skip
-    top.set_ylabel(objective_axis_label(trace.objective_name), fontsize=8)
-    if result.method == "svi":  # one draw's estimate a step, at the step's (annealed) gamma
-        draws = int(result.inference.get("num_particles", 1))  # type: ignore[call-overload]
-        label = objective_axis_label(trace.objective_name, f"{plural(draws, 'draw')} a step")
-        top.set_ylabel(label, fontsize=8)
+    svi = result.method == "svi"  # one draw's estimate a step, at the step's (annealed) gamma
+    draws = int(result.inference.get("num_particles", 1)) if svi else 0  # type: ignore[call-overload]
+    estimate = f"{plural(draws, 'draw')} a step" if svi else ""
+    top.set_ylabel(objective_axis_label(trace.objective_name, estimate), fontsize=8)
+    if svi:
         asked = int(result.inference.get("anneal_iterations") or 0)  # type: ignore[call-overload]
         anneal = min(asked, len(sweeps))
         if anneal > 1:  # not the model's ELBO there: a weaker coupling's
