@@ -490,3 +490,21 @@ def test_a_jpeg_map_is_warned_of_its_moved_greys(tmp_path, caplog):
     off = int(np.count_nonzero(~np.isin(moved, (0, 205, 254, 255))))
     assert said.startswith(f"{tmp_path / 'room.yaml'}:1: key 'image': ")
     assert f"is a JPEG, whose lossy compression moves greys: {off} pixels are none of " in said
+
+
+@pytest.mark.parametrize("image", ["room.png", "Room.pgm", "ROOM.PGM"])
+def test_an_image_not_found_names_one_beside_it_of_another_case_or_suffix(tmp_path, image):
+    """'image file 'room.png' not found' and no more, where room.pgm lay beside it."""
+    path = write_map(tmp_path)
+    path.write_text(path.read_text().replace("image: room.pgm", f"image: {image}"))
+    with pytest.raises(MapFormatError, match=r"not found; beside it: 'room\.pgm': write image: "):
+        load_map(path)
+
+
+def test_an_image_named_by_a_windows_path_names_the_one_beside_the_yaml(tmp_path):
+    path = write_map(tmp_path)
+    path.write_text(path.read_text().replace("image: room.pgm", r"image: C:\maps\room.pgm"))
+    with pytest.raises(
+        MapFormatError, match=r"room\.pgm', beside the yaml, has its.*: write image: room\.pgm$"
+    ):
+        load_map(path)

@@ -88,6 +88,22 @@ def _why_unreadable(data: bytes) -> str:
     return f" (a {kind.decode()} image of {width} x {height}, maxval {maxval}, damaged)"
 
 
+def _like_the_image(image: Path) -> str:
+    """A hint naming the files in ``image``'s folder whose name differs from its only in case or
+    suffix (``Room.PGM``, ``room.png`` for ``room.pgm``; map_server does not look for them), or
+    ""."""
+    try:
+        names = sorted(p.name for p in image.parent.iterdir()
+                       if p.is_file() and p.suffix.lower() not in (".yaml", ".yml"))  # fmt: skip
+    except OSError:
+        return ""
+    stem = image.stem.lower()
+    like = [n for n in names if n.lower() == image.name.lower() or Path(n).stem.lower() == stem]
+    if not like:
+        return ""
+    return f"; beside it: {', '.join(repr(n) for n in like[:3])}: write image: {like[0]}?"
+
+
 def _decode(spec: _MapYaml) -> tuple[np.ndarray, int | None]:
     """The map image as OpenCV decodes it (any depth, OpenCV channel order) and, for a netpbm
     image, the maxval its header gives (None for other formats)."""
@@ -97,13 +113,14 @@ def _decode(spec: _MapYaml) -> tuple[np.ndarray, int | None]:
                 f"{spec.where('image')}: key 'image': {str(spec.image)!r} is a folder, not an "
                 "image file: name the map's image (pgm, png, ...) in it"
             )
-        beside = spec.path.parent / spec.image.name
+        name = spec.image.name.rsplit("\\", 1)[-1]  # a Windows path's last part
+        beside = spec.path.parent / name
         hint = (
             f"; {str(beside)!r}, beside the yaml, has its name: map_saver writes the path it "
             "was given (-f, map_url), which breaks when the map moves or that path has a "
-            f"folder (map_server fails too): write image: {spec.image.name}"
+            f"folder (map_server fails too): write image: {name}"
             if beside.is_file()
-            else ""
+            else _like_the_image(spec.image)
         )
         raise MapFileNotFoundError(
             f"{spec.where('image')}: key 'image': image file {str(spec.image)!r} not found{hint}"
