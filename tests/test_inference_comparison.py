@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -892,3 +893,42 @@ def test_results_csv_fills_cpu_seconds_and_best_objective(tmp_path):
         assert math.isfinite(float(row["best_objective"])), row
         details = json.loads(row["details"])
         assert float(row["cpu_seconds"]) == pytest.approx(details["cpu_seconds"])
+
+
+def test_the_default_comparison_says_its_scale_before_its_first_fit(
+    tmp_path, monkeypatch, capsys, dataset_root
+):
+    """The default compare-inference plans 140 fits; it said only "140 of 140 cells to run" and
+    a progress bar that predicted 4 to 17 hours on 2 cores, after it had started. It now says,
+    before the first fit, the fits per method, the budgets, the predicted time and the shorter
+    runs; --help says the default's scale."""
+    import spcopyro.study.comparison
+    from spcopyro.cli.main import build_parser
+
+    def run_study(*args, **kwargs):
+        raise _Stop  # the first fit would start here
+
+    monkeypatch.setattr(spcopyro.study.comparison, "run_study", run_study)
+    with pytest.raises(_Stop):
+        main(["compare-inference", "--out", str(tmp_path / "cmp"), "--data", str(dataset_root)])
+    out = capsys.readouterr().out
+    assert ("compare-inference: 140 of 140 fits to run: 7 methods x 20 fits each (5 synthetic "
+            "houses; 15 held-out trials of 5 public houses), at these budgets: gibbs 5000 "
+            "sweeps,") in out  # fmt: skip
+    assert re.search(r"vi-gibbs 5000 sweeps; predicted 1\.\d h of fits one after another", out)
+    assert (
+        "a shorter comparison: --quick (a smoke run: a tiny house, a few iterations), "
+        "--houses synthetic --seeds 2 (2 synthetic houses a method), or a tenth of the "
+        "longest budgets (--iterations gibbs=500 gibbs-sw=500 svi=200 vi-gibbs=500)"
+    ) in out
+    with pytest.raises(_Stop):  # a short run is not told to be shorter
+        main(["compare-inference", "--out", str(tmp_path / "q"), "--quick", "--houses",
+              "synthetic"])  # fmt: skip
+    out = capsys.readouterr().out
+    assert (
+        "compare-inference: 7 of 7 fits to run: 7 methods x 1 fit each (1 synthetic house)" in out
+    )
+    assert "a shorter comparison" not in out
+    sub = build_parser()._subparsers._group_actions[0].choices["compare-inference"]  # noqa: SLF001
+    helped = " ".join(sub.format_help().split())
+    assert "The default is the whole study: 140 fits (7 methods x 5 synthetic houses" in helped

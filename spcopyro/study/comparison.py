@@ -24,9 +24,10 @@ import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from spcopyro._util.messages import plural
 from spcopyro.data import list_houses, load_house
 from spcopyro.experiments.ablation_variants import make_variant
-from spcopyro.experiments.comparison_report import summarise, write_report
+from spcopyro.experiments.comparison_report import iteration_unit, summarise, write_report
 from spcopyro.experiments.inference_comparison import (
     PUBLIC,
     QUICK_SPEC,
@@ -44,13 +45,19 @@ from spcopyro.study.cell_warnings import read_warnings
 from spcopyro.study.comparison_cell import COMPARISON
 from spcopyro.study.evaluate import WARNINGS
 from spcopyro.study.maps import remove_stale
+from spcopyro.study.order import duration, run_seconds
 from spcopyro.study.report import with_warnings
-from spcopyro.study.run import run_study
+from spcopyro.study.run import plan_study, run_study
 from spcopyro.study.spec import DataSource, Study
 from spcopyro.study.table import TABLE, read_table
 from spcopyro.synthetic import HouseSpec
 
-__all__ = ["comparison_study", "one_concept_maps", "records_of_rows", "run_comparison"]
+__all__ = [
+    "comparison_study", "one_concept_maps", "plan_lines", "records_of_rows", "run_comparison",
+]  # fmt: skip
+
+LONG_SECONDS = 600.0
+"""A run predicted longer than this is told how to run a shorter comparison."""
 
 
 def _folds(root: Path, house: str, folds: int | None) -> int:
@@ -91,6 +98,49 @@ def comparison_study(
         sweeps=tuple((key, budget(VARIANTS[key], settings)) for key in keys),
         scoring=COMPARISON, description=settings.command,
     )  # fmt: skip
+
+
+def plan_lines(
+    study: Study, out: str | os.PathLike[str], *, retry_failed: bool = False,
+    rerun_stale: bool = False, root: str | os.PathLike[str] | None = None,
+) -> list[str]:  # fmt: skip
+    """What a run of ``study`` into ``out`` is about to do, said before its first fit: how many
+    fits (per method: the synthetic houses and the public houses' held-out trials), at which
+    budgets, their predicted time (:func:`spcopyro.study.order.run_seconds`), and, for a run
+    predicted over :data:`LONG_SECONDS`, shorter invocations. The default study is 140 fits
+    (7 methods x 5 synthetic houses and 15 held-out trials), predicted at 1.8 h of fits on the
+    2-core machine its rates were measured on; it showed only "140 of 140 cells to run" and a
+    progress bar, whose first minutes predicted 4 to 17 hours. Empty when nothing is to run."""
+    plan = plan_study(study, out, retry_failed, rerun_stale, root)
+    if not plan.pending:
+        return []
+    per_method = {}
+    for cell in plan.cells:
+        per_method[cell.row] = per_method.get(cell.row, 0) + 1
+    synthetic = sum(len(d.seeds) for d in study.data if d.kind == "synthetic")
+    public = [d for d in study.data if d.kind != "synthetic"]
+    trials = sum(len(d.seeds) for d in public)
+    where = [plural(synthetic, "synthetic house")] if synthetic else []
+    if public:
+        where.append(f"{plural(trials, 'held-out trial')} of {plural(len(public), 'public house')}")
+    each = max(per_method.values())
+    budgets = ", ".join(f"{key} {n} {iteration_unit(key)}" for key, n in study.sweeps)
+    seconds = run_seconds(plan.predicted.get(c.key, 0.0) for c in plan.pending)
+    lines = [
+        f"compare-inference: {len(plan.pending)} of {len(plan.cells)} fits to run: "
+        f"{plural(len(per_method), 'method')} x {plural(each, 'fit')} each "
+        f"({'; '.join(where)}), at these budgets: {budgets}; predicted {duration(seconds)} "
+        "of fits one after another (times of a 2-core machine: a guide, not a promise)"
+    ]  # fmt: skip
+    if seconds > LONG_SECONDS:
+        tenth = " ".join(f"{key}={n // 10}" for key, n in study.sweeps if n >= 1000)
+        smaller = f", or a tenth of the longest budgets (--iterations {tenth})" if tenth else ""
+        lines.append(
+            "a shorter comparison: --quick (a smoke run: a tiny house, a few iterations), "
+            f"--houses synthetic --seeds 2 (2 synthetic houses a method){smaller}; Ctrl-C "
+            "stops the run, and the same command continues where it stopped"
+        )
+    return lines
 
 
 def records_of_rows(rows: Sequence[dict[str, object]]) -> dict[str, dict[str, list[dict]]]:
@@ -144,6 +194,9 @@ def run_comparison(
         notes.append(f"{SYNTHETIC} houses skipped: no seeds")
     if PUBLIC in settings.house_types and "public" not in kinds:
         notes.append(f"{PUBLIC} houses skipped: the public dataset was not found")
+    for line in plan_lines(study, out, retry_failed=retry_failed, rerun_stale=rerun_stale,
+                           root=settings.dataset_root):  # fmt: skip
+        report(line)  # before the first fit: how many, and what that means
     run = run_study(
         study, out, workers=workers, retry_failed=retry_failed, rerun_stale=rerun_stale,
         report=report, root=settings.dataset_root,
