@@ -147,3 +147,25 @@ def test_the_table_marks_the_scores_where_lower_is_better():
     header = next(line for line in text.splitlines() if line.startswith("| method | ARI |"))
     marked = [c.strip() for c in header.strip("|").split("|") if "↓" in c]
     assert marked == ["wrong cells ↓", "of them sure (>= 0.99) ↓"], header
+
+
+def test_the_synthetic_table_gives_wrong_cells_in_percent():
+    """comparison.md gave wrong cells as a fraction (0.007) and their sure share as 0.30, where
+    docs/variational.md's table and the project's other tables give a share of cells in percent
+    (1.4%, 15%): one unit now, percent, in the table and in the reading against gibbs."""
+    final = {"ari": 0.6, "matching_rate": 0.9}
+    records = {}
+    for key, wrong, sure in (("gibbs", 0.0071, 0.15), ("cavi", 0.014, 0.3)):
+        records[key] = [{
+            **_record(key, 0.0, 0.5), "house": "seed 0", "final": final,
+            "final_given_labels": dict(final), "time_to_95": {"ari": 0.5},
+            "truth_categories": 3, "overconfidence": {
+                "wrong_share": wrong, "confidence_wrong": 0.4, "confidence_right": 0.8,
+                "confident_wrong_share": sure},
+        }]  # fmt: skip
+    settings = ComparisonSettings(house_types=("synthetic",), variants=("gibbs", "cavi"))
+    summary = summarise({"synthetic": records}, settings, [], 1.0)
+    rows = [line for line in table_markdown(summary).splitlines() if line.startswith("| Gibbs")]
+    assert rows and rows[0].endswith("| 0.7% | 15% |"), rows
+    reading = " ".join(findings(summary["summary"]))
+    assert "labelled with confidence >= 0.99: 30% vs gibbs 15%" in reading, reading

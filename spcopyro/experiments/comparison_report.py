@@ -278,9 +278,9 @@ def findings(summary: dict[str, dict[str, dict]]) -> list[str]:
             if oc and oc_ref:
                 parts.append(
                     f"share of its wrong cells labelled with confidence >= {CONFIDENT}: "
-                    f"{mean_of(oc, 'confident_wrong_share'):.2f} vs gibbs "
-                    f"{mean_of(oc_ref, 'confident_wrong_share'):.2f} (mean confidence on wrong "
-                    f"cells {mean_of(oc, 'confidence_wrong'):.3f} vs "
+                    f"{100 * mean_of(oc, 'confident_wrong_share'):.0f}% vs gibbs "
+                    f"{100 * mean_of(oc_ref, 'confident_wrong_share'):.0f}% (mean confidence "
+                    f"on wrong cells {mean_of(oc, 'confidence_wrong'):.3f} vs "
                     f"{mean_of(oc_ref, 'confidence_wrong'):.3f})"
                 )
             if "ess_per_second" in s and "ess_per_second" in ref:
@@ -306,6 +306,14 @@ def _fmt(entry: dict | None, digits: int = 3, sd: bool = True) -> str:
     if sd and entry.get("n", 0) > 1:
         text += f" ± {fixed(entry['sd'], digits)}"
     return text
+
+
+def _percent(entry: dict | None, digits: int) -> str:
+    """A share of cells (a mean over fits) in percent, as the project's tables give shares of
+    cells (docs/variational.md's "1.4%"; comparison.md gave 0.007)."""
+    if not entry or not math.isfinite(entry.get("mean", math.nan)):
+        return "—"
+    return f"{fixed(100 * entry['mean'], digits)}%"
 
 
 BUDGETS = (
@@ -482,8 +490,8 @@ def table_markdown(summary: dict[str, object]) -> str:
                     f"| {_fmt(s['final_given_labels']['matching_rate'])} "
                     f"| {_fmt(s['concepts'], 1, False)} ({_fmt(s['truth_categories'], 0, False)}) "
                     f"| {t95} {common_tail}"
-                    f"| {_fmt(oc.get('wrong_share'), 3, False)} "
-                    f"| {_fmt(oc.get('confident_wrong_share'), 2, False)} |"
+                    f"| {_percent(oc.get('wrong_share'), 1)} "
+                    f"| {_percent(oc.get('confident_wrong_share'), 0)} |"
                 )
             else:
                 f = s["final"]
