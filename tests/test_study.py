@@ -964,3 +964,28 @@ def test_the_source_digest_is_of_the_code_imported_not_of_later_edits(tmp_path):
     assert record["package"] == str(copy.resolve())  # the copy ran, not the checkout
     assert record["files_now"] != before  # the edit changed the files
     assert record["recorded"] == before  # ... not the digest of the code that was imported
+
+
+def test_quality_time_figure_says_its_axes_in_words():
+    """quality_time.png's title read "ari against seconds" (two results.csv columns): it says
+    what the ARI is against (a public house's region truth, a synthetic house's ground truth)
+    and that the time is wall-clock seconds per fit."""
+    from spcopyro.study.figures import quality_time_figure
+
+    def row(data, kind):
+        return dict(data=data, data_kind=kind, variant="cavi", method="cavi", seconds=2.0,
+                    ari=0.5, status="ok")  # fmt: skip
+
+    titles = {}
+    for kinds in (("public",), ("synthetic",), ("synthetic", "public")):
+        fig = quality_time_figure([row(f"d{i}", kind) for i, kind in enumerate(kinds)])
+        titles[kinds] = " ".join(fig._suptitle.get_text().split())  # noqa: SLF001
+        assert [ax.get_ylabel() for ax in fig.axes] == ["ARI"] * len(kinds)
+        assert {ax.get_xlabel() for ax in fig.axes} == {"wall-clock seconds per fit (log scale)"}
+    tail = ", against wall-clock seconds per fit: seeds (faint), mean ± sd (marked)"
+    assert titles == {
+        ("public",): "ARI against the region truth" + tail,
+        ("synthetic",): "ARI against the ground truth" + tail,
+        ("synthetic", "public"): "ARI against the truth (a public house's: the region truth)"
+        + tail,
+    }

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import os
+import textwrap
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -30,12 +31,28 @@ __all__ = ["QUALITY_TIME_FILE", "quality_time_figure", "write_quality_time"]
 
 QUALITY_TIME_FILE = "quality_time.png"
 """The figure's file name, beside ``report.md``."""
+TIME_WORDS = {"seconds": "wall-clock seconds", "cpu_seconds": "CPU seconds"}
+"""A time column of ``results.csv`` in words (the title and axis said "seconds")."""
 
 
 def _group_label(variant: str, method: str) -> str:
     """A group's name: ``variant / method``, or the method alone where the variant is none, the
     default or the method itself (compare-inference's "cavi / cavi" read as two things)."""
     return method if variant in ("", "default", method) else f"{variant} / {method}"
+
+
+def _score_words(score: str, kinds: set[object]) -> str:
+    """What ``score`` (a ``results.csv`` column) is, in words: an ARI against which truth (a
+    public house's is this project's region truth, a synthetic house's or simulated map's the
+    ground truth it was drawn from; ``kinds``: the plotted rows' ``data_kind``); other columns
+    by their name. The title read "ari against seconds", two column names."""
+    if score != "ari":
+        return score
+    if kinds == {"public"}:
+        return "ARI against the region truth"
+    if "public" in kinds:
+        return "ARI against the truth (a public house's: the region truth)"
+    return "ARI against the ground truth"
 
 
 def quality_time_figure(
@@ -45,11 +62,13 @@ def quality_time_figure(
     with both numbers (a time of 0 is left out: the log axis has no place for it); None when no
     row has them (a study that scores no ``score``, or none finished)."""
     points = []  # (data, variant, method, seconds, score)
+    kinds = set()  # the plotted rows' data_kind
     for row in rows:
         seconds, value = row.get(time), row.get(score)
         if row.get("status") == "ok" and is_number(seconds) and seconds > 0 and is_number(value):
             points.append((str(row["data"]), str(row["variant"]), str(row["method"]),
                            float(seconds), float(value)))  # fmt: skip
+            kinds.add(row.get("data_kind"))
     if not points:
         return None
     sources = list(dict.fromkeys(p[0] for p in points))
@@ -83,8 +102,8 @@ def quality_time_figure(
         ax.set_xlim(min(times) / 1.5, max(times) * 1.5)  # a panel of equal times is not singular
         _label_time_axis(ax, max(times) / min(times) * 2.25)
         ax.set_title(source, fontsize=10)
-        ax.set_xlabel(f"{time} per fit (log scale)")
-        ax.set_ylabel(score)
+        ax.set_xlabel(f"{TIME_WORDS.get(time, time)} per fit (log scale)")
+        ax.set_ylabel("ARI" if score == "ari" else score)
         ax.grid(alpha=0.3)
     handles = [Line2D([], [], marker="o", ls="", color=colour[g]) for g in groups]
     legend = fig.legend(handles, [_group_label(*g) for g in groups], loc="lower center",
@@ -93,8 +112,12 @@ def quality_time_figure(
     # edges of the image, cut off; the figure widens to hold its legend
     wide = legend.get_window_extent(FigureCanvasAgg(fig).get_renderer()).width / fig.dpi
     fig.set_figwidth(max(fig.get_figwidth(), wide + 0.2))
-    fig.suptitle(f"{score} against {time}: seeds (faint), mean ± sd (marked)", fontsize=11)
-    fig.tight_layout(rect=(0, min(0.3, 0.06 * legend_rows + 0.03), 1, 0.95))
+    title = (f"{_score_words(score, kinds)}, against {TIME_WORDS.get(time, time)} per fit: "
+             "seeds (faint), mean ± sd (marked)")  # fmt: skip
+    # wrapped to the figure's width (about 12 characters an inch at 10 pt); tight_layout
+    # leaves the suptitle its room
+    fig.suptitle(textwrap.fill(title, int(fig.get_figwidth() * 12)), fontsize=10)
+    fig.tight_layout(rect=(0, min(0.3, 0.06 * legend_rows + 0.03), 1, 1))
     return fig
 
 
