@@ -10,7 +10,7 @@ from matplotlib.figure import Figure
 from spcopyro.figures.map_pieces import STRIP_PAD, is_wide, map_strips
 from spcopyro.maps import UNKNOWN, OccupancyGrid
 
-__all__ = ["known_bounds", "map_axes", "map_extent", "shown_in", "show_map", "strip_axes"]
+__all__ = ["known_bounds", "map_axes", "map_extent", "opaque", "shown_in", "show_map", "strip_axes"]
 
 
 def known_bounds(grid: OccupancyGrid, margin: int = 3) -> tuple[slice, slice]:
@@ -40,7 +40,7 @@ def show_map(ax: Axes, grid: OccupancyGrid, rgb: np.ndarray) -> tuple[slice, sli
     the map (:mod:`~spcopyro.figures.off_map` marks such points at the edge)."""
     rows, cols = known_bounds(grid)
     left, right, bottom, top = map_extent(grid, rows, cols)
-    ax.imshow(rgb[rows, cols], extent=(left, right, bottom, top), interpolation="nearest")
+    ax.imshow(opaque(rgb[rows, cols]), extent=(left, right, bottom, top), interpolation="nearest")
     ax.set_xlim(left, right)
     ax.set_ylim(bottom, top)
     ax.set_autoscale_on(False)
@@ -48,6 +48,23 @@ def show_map(ax: Axes, grid: OccupancyGrid, rgb: np.ndarray) -> tuple[slice, sli
     ax.set_ylabel("y [m]")
     ax.set_aspect("equal")
     return rows, cols
+
+
+def opaque(rgb: np.ndarray) -> np.ndarray:
+    """``[h, w, 4]`` uint8: the ``[h, w, 3]`` uint8 image ``rgb`` with an opaque alpha (any other
+    image as it is), the same pixels for :meth:`~matplotlib.axes.Axes.imshow`, drawn faster.
+
+    matplotlib resamples an RGB image as float64 RGBA (its float32 RGB stacked with float64
+    ones) and an RGBA one as float32; at ``nearest`` both copy the pixels, and x / 255 in float32
+    times 255 gives x back in either precision, so the PNG is the same byte for byte, while the
+    semantic map's image (its screen size, 1.5 million pixels on the embedded house) takes
+    0.02-0.03 s less of CPU."""
+    if rgb.dtype != np.uint8 or rgb.ndim != 3 or rgb.shape[2] != 3:
+        return rgb
+    rgba = np.empty((*rgb.shape[:2], 4), dtype=np.uint8)  # [h, w, 4]
+    rgba[..., :3] = rgb
+    rgba[..., 3] = 255
+    return rgba
 
 
 def strip_axes(

@@ -545,25 +545,35 @@ def spread_markers(ax: Axes, xy: np.ndarray, size: float, spacing: float = 0.8) 
     # of the buckets around it only (a marker farther away is more than gap from it), not with
     # every marker placed before it (quadratic: a 10^6-cell map's 11,799 words took minutes)
     buckets: dict[tuple[int, int], list[int]] = {}
+    angles = [np.pi / 2 + 2 * np.pi * np.arange(6 * ring) / (6 * ring) for ring in range(1, 6)]
+    rings = np.concatenate([ring * gap * np.stack([np.cos(a), np.sin(a)], 1)
+                            for ring, a in enumerate(angles, 1)])  # fmt: skip  # [90, 2]
     for k, point in enumerate(pixels):
-        candidates = [point[None, :]]
-        for ring in range(1, 6):
-            angles = np.pi / 2 + 2 * np.pi * np.arange(6 * ring) / (6 * ring)
-            candidates.append(point + ring * gap * np.stack([np.cos(angles), np.sin(angles)], 1))
-        options = np.concatenate(candidates)  # [M, 2]
-        lo = np.floor((options.min(0) - gap) / gap).astype(np.int64) - 1  # [2] bucket range
-        hi = np.floor((options.max(0) + gap) / gap).astype(np.int64) + 1
-        close = sorted(
-            j
-            for bx in range(int(lo[0]), int(hi[0]) + 1)
-            for by in range(int(lo[1]), int(hi[1]) + 1)
-            for j in buckets.get((bx, by), ())
-        )
-        if close:
+        options = point[None, :]  # [1, 2]: its own place; the rings [90, 2] only if it is taken
+        for more in (False, True):
+            if more:  # (most markers keep their place: their rings are never built)
+                options = np.concatenate([options, point + rings])  # [91, 2]
+            close = _placed_near(buckets, options, gap)
+            if not close:
+                break
             near = np.linalg.norm(options[:, None, :] - placed[None, close, :], axis=-1).min(1)
             free = np.flatnonzero(near >= gap * (1 - 1e-9))
-            options = options[free[:1]] if len(free) else options[-1:]
+            if more or len(free):
+                options = options[free[:1]] if len(free) else options[-1:]
+                break
         placed[k] = options[0]
         key = (int(np.floor(placed[k, 0] / gap)), int(np.floor(placed[k, 1] / gap)))
         buckets.setdefault(key, []).append(k)
     return ax.transData.inverted().transform(placed)
+
+
+def _placed_near(
+    buckets: dict[tuple[int, int], list[int]], options: np.ndarray, gap: float
+) -> list[int]:
+    """The markers of ``buckets`` (:func:`spread_markers`) that may lie within ``gap`` of a point
+    of ``options`` ``[M, 2]``, in the order placed."""
+    lo = np.floor((options.min(0) - gap) / gap).astype(np.int64) - 1  # [2] bucket range
+    hi = np.floor((options.max(0) + gap) / gap).astype(np.int64) + 1
+    return sorted(j for bx in range(int(lo[0]), int(hi[0]) + 1)
+                  for by in range(int(lo[1]), int(hi[1]) + 1)
+                  for j in buckets.get((bx, by), ()))  # fmt: skip
