@@ -368,6 +368,21 @@ def _check_site_shape(site: str, value: torch.Tensor, expected: tuple[int, ...])
         )
 
 
+def _check_label_range(labels: torch.Tensor, L: int) -> None:
+    """ValueError unless given labels (``poutine.condition``, ``Predictive``'s posterior samples)
+    are concept ids in [0, L): labels of a fit with a larger L failed with a bare IndexError in
+    the observation sites, and a negative one picked a concept from the end silently."""
+    # labels: [N]; two reductions, O(N)
+    if not labels.numel() or (int(labels.min()) >= 0 and int(labels.max()) < L):
+        return
+    cell = int(torch.nonzero((labels < 0) | (labels >= L))[0])
+    raise ValueError(
+        f"the labels must be concept ids in [0, {L}) (L = config.num_concepts), but free cell "
+        f"{cell}'s is {int(labels[cell])} (values in [{int(labels.min())}, "
+        f"{int(labels.max())}]): were the labels drawn for another num_concepts?"
+    )
+
+
 def _table_prior(modality: Modality, config: SpCoConfig, L: int) -> dist.Distribution:
     """Each concept's distribution over the modality's K_m items: the symmetric Dirichlet of
     eqs. (3), (4); over no items (the words of a house where none was heard, V = 0) the
@@ -479,6 +494,7 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
             f"the labels must be integer concept ids (torch.long), got {labels.dtype}: "
             "condition the model on labels.long()"
         )
+    _check_label_range(labels, L)
     pyro.factor(SITE_POTTS, config.gamma * potts_agreements(labels, data.pairs))
 
     if data.obs_cells.shape[0] == 0:  # a map with no observations yet: the prior alone

@@ -244,3 +244,20 @@ def test_the_pyro_model_kernel_and_guide_take_a_map_with_no_observations():
         guide = MeanFieldGuide(data, cfg, generator=torch.Generator().manual_seed(0))
         svi = SVI(spcomapping_model, guide, pyro.optim.Adam({"lr": 0.1}), MeanFieldELBO())
         assert math.isfinite(svi.step(data, cfg))
+
+
+@pytest.mark.parametrize("given", [3, -1])
+def test_the_model_names_labels_outside_its_concepts(given):
+    # labels of a fit with a larger L, given to a variant of L = 3 (poutine.condition, or
+    # Predictive's posterior samples), failed with "IndexError: index 3 is out of bounds for
+    # dimension 0 with size 3"; a -1 gave Predictive the last concept's draws, silently
+    _, data = random_problem(seed=0)
+    labels = torch.arange(data.num_free) % 3  # [N]
+    labels[data.obs_cells[0]] = given
+    message = rf"concept ids in \[0, 3\) .* free cell {int(data.obs_cells[0])}'s is {given} "
+    conditioned = poutine.condition(spcomapping_model, {"labels": labels})
+    with pytest.raises(ValueError, match=message):
+        poutine.trace(conditioned).get_trace(data, config())
+    predictive = Predictive(spcomapping_model, posterior_samples={"labels": labels[None]})
+    with pytest.raises(ValueError, match=message):
+        predictive(data, config())
