@@ -50,3 +50,43 @@ def test_a_variant_named_as_its_method_is_named_once(tmp_path):
     (legend,) = quality_time_figure(timed).legends
     texts = [t.get_text() for t in legend.get_texts()]
     assert texts == ["A-dp / gibbs", "cavi", "gibbs-sw / gibbs"]
+
+
+def test_every_map_panel_takes_the_colours_of_the_truth_s_categories(tmp_path, monkeypatch):
+    """maps_HOUSE.png coloured each panel by its own concepts' sizes: a fit whose largest
+    concept was the truth's second category drew that room in the truth's first colour, and two
+    fits the same room in two colours (compare-inference --houses synthetic: the kitchen blue
+    beside orange). Each concept now takes the colour of the truth's category it is matched
+    with (results.renumber.matching_permutation), one colour table for every panel; one matched
+    with none a colour of no category's."""
+    import spcopyro.maps
+    from spcopyro.study.maps import write_house_maps
+
+    truth = np.zeros((4, 10), dtype=np.int64)  # [H, W] category 0: 7 columns, 1: 3 columns
+    truth[:, 7:] = 1
+    fit = np.full((4, 10), 7, dtype=np.int64)  # the right room: concept 7
+    fit[:, :4], fit[:, 4:7] = 2, 4  # the left room split in two concepts, of 4 and 3 columns
+    house = SimpleNamespace(grid=OccupancyGrid(np.zeros((4, 10), dtype=np.int8), 0.05, (0, 0, 0)))
+    (tmp_path / "maps").mkdir()
+    rows = []
+    for name, labels in (("a", fit), ("b", truth + 3)):  # b: the truth, numbered otherwise
+        np.savez(tmp_path / "maps" / f"{name}.npz", **label_map_arrays(labels, house, truth))
+        rows.append({"data": "h", "data_kind": "synthetic", "seed": 0, "status": "ok",
+                     "variant": name, "method": "gibbs",
+                     "label_map": f"maps/{name}.npz"})  # fmt: skip
+    drawn = []
+    render = spcopyro.maps.render_labels
+
+    def capture(labels, grid=None, colours=None):
+        rgb = render(labels, grid, colours)  # [H, W, 3]
+        drawn.append(rgb)
+        return rgb
+
+    monkeypatch.setattr(spcopyro.maps, "render_labels", capture)
+    write_house_maps(rows, tmp_path)
+    truth_rgb, fit_rgb, same_rgb = drawn
+    assert (same_rgb == truth_rgb).all()  # the truth renumbered: the same colours
+    assert (fit_rgb[:, 7:] == truth_rgb[:, 7:]).all()  # the right room: its category's colour
+    assert (fit_rgb[:, :4] == truth_rgb[:, :4]).all()  # the left room's larger part: matched
+    left_b = fit_rgb[0, 5]  # matched with no category: a colour of none of them
+    assert not any((left_b == truth_rgb[0, c]).all() for c in (0, 9))

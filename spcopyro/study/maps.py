@@ -28,13 +28,17 @@ from spcopyro.maps.coarse import labels_on_grid
 
 __all__ = [
     "MAPS_PREFIX", "Arrays", "StoredMap", "label_map_arrays", "labels_on_map", "load_label_map",
-    "maps_file_name", "plot_label_maps", "remove_stale", "write_house_maps",
+    "REGION_TRUTH_PANEL", "TRUTH_PANEL", "maps_file_name", "plot_label_maps", "remove_stale",
+    "truth_first", "write_house_maps",
 ]  # fmt: skip
 
 Arrays = dict[str, np.ndarray]
 """Named arrays saved as one ``.npz`` (a trace, a label map)."""
 MAPS_PREFIX = "maps_"
 """A source's figure is ``OUT/maps_<data>.png``."""
+TRUTH_PANEL, REGION_TRUTH_PANEL = "truth", "region truth (this project's)"
+"""The first panel's name (:func:`source_panels`) where the source's truth is known: a
+synthetic house's or simulated map's, a public house's (this project's region truth)."""
 
 
 def labels_on_map(result, house, settings) -> np.ndarray:
@@ -99,23 +103,55 @@ def _ranked(labels: np.ndarray) -> np.ndarray:
     return np.where(inside, rank[np.maximum(labels, 0)], -1)
 
 
+def _matched_to(truth: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """[H, W] ``labels`` (ranked by size) renumbered so that each concept matched with a
+    category of ``truth`` ``[H, W]`` (ranked, :func:`_ranked`; the one-to-one matching of most
+    shared cells, :func:`spcopyro.results.renumber.matching_permutation`) takes its number, and
+    so its colour; the concepts matched with none follow the truth's numbers, largest first.
+    -1 kept."""
+    from spcopyro.results.renumber import matching_permutation
+
+    ranked = _ranked(labels)  # [H, W]
+    both = (ranked >= 0) & (truth >= 0)  # [H, W] the cells both label
+    if not both.any():
+        return ranked
+    first_free = int(truth.max()) + 1  # the truth's categories are 0 .. first_free - 1
+    count = max(int(ranked.max()) + 1, first_free)
+    perm = matching_permutation(truth[both], ranked[both], count)  # [count]
+    shared = np.zeros((count, count), dtype=bool)  # [concept, category]: any cell in common
+    shared[ranked[both], truth[both]] = True
+    matched = shared[np.arange(count), perm]  # [count]: perm a category it shares cells with
+    perm[~matched] = first_free + np.arange(int((~matched).sum()))  # the rest, by size
+    return np.where(ranked >= 0, perm[np.maximum(ranked, 0)], -1)
+
+
 def plot_label_maps(
-    grid: OccupancyGrid, panels: Sequence[tuple[str, np.ndarray]], path: Path, title: str
-) -> Path:
+    grid: OccupancyGrid, panels: Sequence[tuple[str, np.ndarray]], path: Path, title: str,
+    *, matched: bool = False,
+) -> Path:  # fmt: skip
     """Label maps ``[H, W]`` of one map side by side, at most four a row (paper Fig. 7), each
-    coloured by region size; written to ``path``."""
+    coloured by region size; written to ``path``. ``matched``: the first panel is the truth,
+    and every other panel's concepts take the colours of the truth's categories they are
+    matched with (:func:`_matched_to`), from one colour table: coloured each by its own sizes,
+    the same place had different colours in neighbouring panels."""
     from matplotlib.figure import Figure
 
     from spcopyro.figures.map_axes import known_bounds, map_extent
     from spcopyro.maps import render_labels
+    from spcopyro.maps.render import label_colours
 
+    shown = [_ranked(np.asarray(labels)) for _, labels in panels]  # [H, W] each
+    colours = None  # each panel its own table, by its number of concepts
+    if matched and shown:
+        shown[1:] = [_matched_to(shown[0], labels) for labels in shown[1:]]
+        colours = label_colours(max(int(labels.max()) for labels in shown) + 1)  # [K, 3]
     columns = max(1, min(4, len(panels)))
     rows_n = max(1, -(-len(panels) // columns))
     fig = Figure(figsize=(4 * columns, 3.6 * rows_n))
     axes = fig.subplots(rows_n, columns, squeeze=False)
     rows, cols = known_bounds(grid)
-    for ax, (name, labels) in zip(axes.ravel(), panels, strict=False):
-        rgb = render_labels(_ranked(np.asarray(labels)), grid)  # [H, W, 3]
+    for ax, (name, _), labels in zip(axes.ravel(), panels, shown, strict=False):
+        rgb = render_labels(labels, grid, colours)  # [H, W, 3]
         ax.imshow(rgb[rows, cols], extent=map_extent(grid, rows, cols), interpolation="nearest")
         ax.set_title(name, fontsize=7)
         ax.set_xticks([])
@@ -156,7 +192,7 @@ def source_panels(
     # a public house's truth is this project's (public_truth: from where place words were
     # said), not the paper's drawn one: a panel titled "truth" read as the paper's
     public = any(r.get("data_kind") == "public" for r in mine)
-    truth_name = "region truth (this project's)" if public else "truth"
+    truth_name = REGION_TRUTH_PANEL if public else TRUTH_PANEL
     panels = [] if truth is None else [(truth_name, truth)]
     for row, stored in maps:
         assert stored is not None
@@ -166,6 +202,11 @@ def source_panels(
         )  # fmt: skip
         panels.append((name, stored.labels))
     return grid, panels, seed
+
+
+def truth_first(panels: Sequence[tuple[str, np.ndarray]]) -> bool:
+    """Whether the first of :func:`source_panels`' ``panels`` is the source's truth."""
+    return bool(panels) and panels[0][0] in (TRUTH_PANEL, REGION_TRUTH_PANEL)
 
 
 def remove_stale(folder: Path, patterns: Sequence[str], kept: Sequence[Path]) -> list[Path]:
@@ -196,6 +237,8 @@ def write_house_maps(
             continue
         grid, panels, seed = found
         title = f"{data}, seed {seed}: every row's map"
-        paths.append(plot_label_maps(grid, panels, folder / maps_file_name(data), title))
+        matched = truth_first(panels)  # every map's concepts in its matched category's colour
+        paths.append(plot_label_maps(grid, panels, folder / maps_file_name(data), title,
+                                     matched=matched))  # fmt: skip
     remove_stale(folder, [f"{MAPS_PREFIX}*.png"], paths)
     return paths
