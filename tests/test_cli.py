@@ -298,6 +298,26 @@ def test_variational_fits_stop_by_themselves_and_say_why(method, tmp_path, capsy
     assert line.endswith(f"; final {name} {float(rows[-1].split(',')[1]):.1f} nats"), line
 
 
+@pytest.mark.parametrize(("method", "where"), [("gibbs", " on the map's cells"), ("vi-gibbs", "")])
+def test_a_sampler_s_summary_gives_its_highest_log_joint_and_when(method, where, tmp_path, capsys):
+    """A Gibbs fit printed no objective at its end, where a variational fit's "stopped" line
+    gives its final ELBO in nats: a sampler's summary gives its highest log joint, in nats, and
+    the sweep that reached it, trace.csv's (its column log_joint, its 1-based iteration; the
+    default Gibbs fit's: of its refinement on the map's cells, the trace it keeps)."""
+    out = tmp_path / "fit"
+    argv = ["fit", "--method", method, "--sweeps", "30", "--out", str(out), "--no-figures"]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    header, *rows = (out / "trace.csv").read_text().splitlines()
+    assert header.split(",")[:2] == ["iteration", "log_joint"]
+    values = [float(row.split(",")[1]) for row in rows]
+    best = max(range(len(values)), key=values.__getitem__)
+    expected = (f"log joint        highest {values[best]:.1f} nats, at sweep "
+                f"{rows[best].split(',')[0]} of 30{where} (every sweep's: trace.csv)")  # fmt: skip
+    assert expected in printed.splitlines(), printed
+    assert not any(line.startswith("stopped ") for line in printed.splitlines())
+
+
 @pytest.mark.parametrize("method", ["cavi", "lbp", "stochastic-vi", "vi-gibbs"])
 def test_a_variational_default_on_a_public_house_is_not_one_concept(method, dataset_root,
                                                                      tmp_path, capsys):  # fmt: skip

@@ -62,7 +62,7 @@ from spcopyro.cli.fit_settings import (
     fit_settings,
     word_weighting_note,
 )
-from spcopyro.cli.fit_summary import data_line, inference_line, model_line, stopped_line
+from spcopyro.cli.fit_summary import data_line, inference_line, model_line, objective_line
 from spcopyro.cli.fit_update import relative_records, report_update, update_settings
 from spcopyro.cli.fit_warnings import recorded_warnings, write_config
 from spcopyro.config import DEFAULT_PRESET, SpCoSettings, preset_inference
@@ -527,8 +527,8 @@ def _write(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) -> int:
                 f"({coarse_rate}), then {several}{sweeps_run} on the map's "
                 f"{result.grid.resolution:g} m cells ({rate}) in {clock}")  # fmt: skip
     print(f"fitted {runs}; {in_use_text(result)}")
-    if result.inference.get("stopped"):  # a variational method: converged, or --sweeps reached
-        print(stopped_line(result))  # why, and the objective's final value
+    if (line := objective_line(result)) is not None:  # VI: why it stopped, its final objective
+        print(line)  # (a sampler: its highest log joint, and when)
     if result.inference.get("vi_stopped"):  # vi-gibbs: the CAVI whose labels start the sweeps
         print(f"CAVI start       {result.inference['vi_stopped']} ({start:.2f} s, not in the "
               "sweeps' pace above); the sweeps began at its labels")  # fmt: skip
