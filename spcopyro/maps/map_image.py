@@ -33,31 +33,28 @@ def _pnm_maxval(head: bytes) -> int | None:
 
 
 _PNM_GAP = rb"\s(?:\s|#[^\n\r]*)*"  # whitespace, then any whitespace and comments
-_P5_HEADER = re.compile(rb"P5%s(\d+)%s(\d+)%s(\d+)\s" % (_PNM_GAP, _PNM_GAP, _PNM_GAP))
-"""A binary pgm's header up to its raster: width, height, maxval and the one whitespace after
-it; between the fields whitespace, and comments (``#`` to the end of the line) after it."""
+_PNM_HEADER = re.compile(rb"(P[2356])%s(\d+)%s(\d+)%s(\d+)\s" % ((_PNM_GAP,) * 3))
+"""A netpbm image's header (grey or colour, plain or binary) up to its raster: its kind, width,
+height, maxval and the one whitespace after it; between the fields whitespace, and comments
+(``#`` to the end of the line) after it."""
 
 
 def _plain_p5(data: np.ndarray) -> np.ndarray | None:
     """The pixels ``[H, W]`` uint8 of a binary pgm of maxval 255 whose raster, after its header
-    (:data:`_P5_HEADER`), is exactly H * W bytes (what OpenCV decodes it to), or None for any
+    (:data:`_PNM_HEADER`), is exactly H * W bytes (what OpenCV decodes it to), or None for any
     other image: OpenCV decodes those."""
-    match = _P5_HEADER.match(data[:4096].tobytes())
-    if match is None:
+    match = _PNM_HEADER.match(data[:4096].tobytes())
+    if match is None or match[1] != b"P5":
         return None
-    width, height = int(match[1]), int(match[2])
+    width, height = int(match[2]), int(match[3])
     if (
-        int(match[3]) != 255
+        int(match[4]) != 255
         or width == 0
         or height == 0
         or data.size - match.end() != width * height
     ):
         return None
     return data[match.end() :].reshape(height, width).copy()
-
-
-_PNM_HEADER = re.compile(rb"(P[2356])%s(\d+)%s(\d+)%s(\d+)\s" % ((_PNM_GAP,) * 3))
-"""A netpbm image's header (grey or colour, plain or binary) up to its raster."""
 
 
 def _why_unreadable(data: bytes) -> str:
