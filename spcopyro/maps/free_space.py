@@ -39,7 +39,7 @@ def _map_levels(grid: OccupancyGrid) -> tuple[_MapYaml, np.ndarray, float] | Non
     was, quiet.disabled = quiet.disabled, True
     try:
         spec = _read_map_yaml(path)
-        levels, full = _read_levels(spec)  # [H, W] or [H, W, C]
+        levels, full, _ = _read_levels(spec)  # [H, W] or [H, W, C]
     except (MapFormatError, OSError):
         return None
     finally:

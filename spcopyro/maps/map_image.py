@@ -2,7 +2,8 @@
 scales it, and encoding one.
 
 ``_read_levels`` gives the pixels and the full scale map_server divides them by (a netpbm
-image's maxval, else 255, or 65535 for a 16-bit png); ``_read_image`` the 8-bit codes of a
+image's maxval, else 255, or 65535 for a 16-bit png) and whether it is a JPEG (for
+:func:`~spcopyro.maps.load_map`'s warning); ``_read_image`` the 8-bit codes of a
 mask or semantic map. Errors name the yaml's ``image`` line and the image file. OpenCV is
 imported where an image is read or written, except a map_saver image (a binary 8-bit P5 pgm,
 maxval 255), which is read and written here, byte for byte as OpenCV does: a fit of a ROS map or
@@ -101,9 +102,14 @@ def _like_the_image(image: Path) -> str:
     return f"; beside it: {', '.join(repr(n) for n in like[:3])}: write image: {like[0]}?"
 
 
-def _decode(spec: _MapYaml) -> tuple[np.ndarray, int | None]:
-    """The map image as OpenCV decodes it (any depth, OpenCV channel order) and, for a netpbm
-    image, the maxval its header gives (None for other formats)."""
+_JPEG_MAGIC = b"\xff\xd8\xff"
+"""A JPEG file's first bytes (its format, whatever its suffix)."""
+
+
+def _decode(spec: _MapYaml) -> tuple[np.ndarray, int | None, bool]:
+    """The map image as OpenCV decodes it (any depth, OpenCV channel order), for a netpbm
+    image the maxval its header gives (None for other formats), and whether it is a JPEG (its
+    magic bytes: a lossy format, which moves map_saver's greys)."""
     if not spec.image.is_file():  # a hint where map_saver's path is wrong but the image is here
         if spec.image.is_dir():  # image: . or a folder's name
             raise MapFormatError(
@@ -124,7 +130,7 @@ def _decode(spec: _MapYaml) -> tuple[np.ndarray, int | None]:
         )
     data = np.fromfile(spec.image, dtype=np.uint8)
     if (img := _plain_p5(data)) is not None:  # map_saver's images, without OpenCV's import
-        return img, 255
+        return img, 255, False
     import cv2
 
     level = cv2.utils.logging.getLogLevel()
@@ -146,7 +152,7 @@ def _decode(spec: _MapYaml) -> tuple[np.ndarray, int | None]:
     maxval = _pnm_maxval(data[:4096].tobytes())
     if maxval is not None and maxval < 255 and data[:2].tobytes() in (b"P2", b"P3"):
         img = _plain_pnm_levels(spec, data.tobytes(), img.shape)
-    return img, maxval
+    return img, maxval, data[:3].tobytes() == _JPEG_MAGIC
 
 
 def _plain_pnm_levels(spec: _MapYaml, text: bytes, shape: tuple[int, ...]) -> np.ndarray:
@@ -175,7 +181,7 @@ def _plain_pnm_levels(spec: _MapYaml, text: bytes, shape: tuple[int, ...]) -> np
 def _read_image(spec: _MapYaml) -> np.ndarray:
     """The map image as uint8 ``[H, W]`` (grey) or ``[H, W, C]`` (colour, OpenCV channel order):
     the readers of masks and semantic maps, whose values are 8-bit codes."""
-    img, maxval = _decode(spec)
+    img, maxval, _ = _decode(spec)
     if img.dtype == np.uint8 and maxval not in (None, 255):
         raise MapFormatError(
             f"{spec.where('image')}: key 'image': "
@@ -192,11 +198,11 @@ def _read_image(spec: _MapYaml) -> np.ndarray:
     return img
 
 
-def _read_levels(spec: _MapYaml) -> tuple[np.ndarray, float]:
-    """The map image's pixels (``[H, W]`` or ``[H, W, C]`` float64) and the full scale map_server
+def _read_levels(spec: _MapYaml) -> tuple[np.ndarray, float, bool]:
+    """The map image's pixels (``[H, W]`` or ``[H, W, C]`` float64), the full scale map_server
     divides them by: a netpbm image's maxval (any, 8 or 16 bits), else 255 for 8-bit and 65535
-    for 16-bit images (a 16-bit png); other depths are refused."""
-    img, maxval = _decode(spec)
+    for 16-bit images (a 16-bit png); other depths are refused; and whether it is a JPEG."""
+    img, maxval, jpeg = _decode(spec)
     if img.dtype not in (np.uint8, np.uint16):
         raise MapFormatError(
             f"{spec.where('image')}: key 'image': "
@@ -210,7 +216,7 @@ def _read_levels(spec: _MapYaml) -> tuple[np.ndarray, float]:
             f"{str(spec.image)!r} has maxval {full}, which its "
             f"{img.dtype} pixels cannot hold"
         )
-    return img.astype(np.float64), float(full)
+    return img.astype(np.float64), float(full), jpeg
 
 
 def _write_image(path: Path, img: np.ndarray) -> None:

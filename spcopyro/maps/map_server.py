@@ -99,7 +99,7 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
             :data:`MAX_MAP_COORDINATE` of its frame's origin.
     """
     spec = _read_occupancy_yaml(yaml_path)
-    levels, full = _read_levels(spec)  # [H, W] or [H, W, C]
+    levels, full, jpeg = _read_levels(spec)  # [H, W] or [H, W, C]
     value, p = _occupancy(levels, full, spec.negate)  # [H, W] each
     occupancy = np.full(p.shape, UNKNOWN, dtype=np.int8)  # [H, W]
     occupancy[p > spec.occupied_thresh] = OCCUPIED
@@ -111,17 +111,16 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
         grey = levels[..., :-1].mean(axis=2) if alpha else value  # [H, W] alpha left out
         unknown = _unknown_grey(grey, full) & grid.free  # [H, W] bool
         _warn_unknown_read_as_free(spec, int(np.count_nonzero(unknown)), alpha, full)
-    _warn_lossy(spec, value, full, occupancy)
+    if jpeg and full == 255:
+        _warn_lossy(spec, value, occupancy)
     return grid
 
 
-def _warn_lossy(spec: _MapYaml, grey: np.ndarray, full: float, occupancy: np.ndarray) -> None:
-    """Warn of a JPEG map image: its compression moves greys off map_saver's 0, 205 and 254 (a
-    205 beside free space turned 206 reads free), and map_server reads them as they are; say
-    how many pixels moved and how the ones near the unknown grey read. ``grey`` ``[H, W]``."""
-    with open(spec.image, "rb") as image:
-        if image.read(3) != b"\xff\xd8\xff" or full != 255:
-            return
+def _warn_lossy(spec: _MapYaml, grey: np.ndarray, occupancy: np.ndarray) -> None:
+    """Warn of a JPEG map image (8-bit; the decoder saw its magic bytes): its compression moves
+    greys off map_saver's 0, 205 and 254 (a 205 beside free space turned 206 reads free), and
+    map_server reads them as they are; say how many pixels moved and how the ones near the
+    unknown grey read. ``grey`` ``[H, W]``."""
     kept = np.isin(grey, (PGM_OCCUPIED, PGM_UNKNOWN, PGM_FREE, 255))  # [H, W] bool
     moved = int(np.count_nonzero(~kept))
     if not moved:
