@@ -508,3 +508,24 @@ def test_an_image_named_by_a_windows_path_names_the_one_beside_the_yaml(tmp_path
         MapFormatError, match=r"room\.pgm', beside the yaml, has its.*: write image: room\.pgm$"
     ):
         load_map(path)
+
+
+@pytest.mark.parametrize(
+    ("image", "said"),
+    [
+        (r"C:\maps\room.png", r"beside it: 'room\.pgm': write image: room\.pgm\?$"),
+        (r"maps\room.png", r"beside it: 'room\.pgm': write image: room\.pgm\?$"),
+        ("maps/Room.pgm", r"beside it: 'room\.pgm': write image: maps/room\.pgm\?$"),
+        ("maps/room.png", r"beside the yaml: 'room\.pgm': write image: room\.pgm\?$"),
+    ],
+)
+def test_an_image_of_another_suffix_in_a_windows_path_or_folder_is_found(tmp_path, image, said):
+    """A Windows path's last part looked for its other case or suffix beside 'C:\\maps\\room'
+    (nothing); one in a folder was to be written without its folder."""
+    path = write_map(tmp_path)
+    (tmp_path / "maps").mkdir()
+    if image == "maps/Room.pgm":
+        (tmp_path / "room.pgm").rename(tmp_path / "maps" / "room.pgm")
+    path.write_text(path.read_text().replace("image: room.pgm", f"image: {image}"))
+    with pytest.raises(MapFormatError, match=said):
+        load_map(path)

@@ -86,20 +86,27 @@ def _why_unreadable(data: bytes) -> str:
     return f" (a {kind.decode()} image of {width} x {height}, maxval {maxval}, damaged)"
 
 
-def _like_the_image(image: Path) -> str:
-    """A hint naming the files in ``image``'s folder whose name differs from its only in case or
-    suffix (``Room.PGM``, ``room.png`` for ``room.pgm``; map_server does not look for them), or
-    ""."""
-    try:
-        names = sorted(p.name for p in image.parent.iterdir()
-                       if p.is_file() and p.suffix.lower() not in (".yaml", ".yml"))  # fmt: skip
-    except OSError:
-        return ""
+def _like_the_image(image: Path, folder: Path) -> str:
+    """A hint naming the files in ``image``'s folder, else in the yaml's ``folder``, whose name
+    differs from ``image``'s only in case or suffix (``Room.PGM``, ``room.png`` for ``room.pgm``;
+    map_server does not look for them), with the ``image:`` to write (relative to ``folder``
+    where it is below it), or ""."""
     stem = image.stem.lower()
-    like = [n for n in names if n.lower() == image.name.lower() or Path(n).stem.lower() == stem]
-    if not like:
-        return ""
-    return f"; beside it: {', '.join(repr(n) for n in like[:3])}: write image: {like[0]}?"
+    for near in dict.fromkeys((image.parent, folder)):
+        try:
+            files = [p for p in near.iterdir() if p.is_file()]
+        except OSError:
+            continue
+        names = sorted(p.name for p in files if p.suffix.lower() not in (".yaml", ".yml"))
+        like = [n for n in names if n.lower() == image.name.lower() or Path(n).stem.lower() == stem]
+        if like:
+            try:
+                write = near.relative_to(folder) / like[0]
+            except ValueError:  # an absolute image path elsewhere
+                write = near / like[0]
+            return (f"; beside {'it' if near == image.parent else 'the yaml'}: "
+                    f"{', '.join(repr(n) for n in like[:3])}: write image: {write}?")  # fmt: skip
+    return ""
 
 
 _JPEG_MAGIC = b"\xff\xd8\xff"
@@ -123,7 +130,9 @@ def _decode(spec: _MapYaml) -> tuple[np.ndarray, int | None, bool]:
             "was given (-f, map_url), which breaks when the map moves or that path has a "
             f"folder (map_server fails too): write image: {name}"
             if beside.is_file()
-            else _like_the_image(spec.image)
+            else _like_the_image(spec.image.with_name(name), spec.path.parent)
+            if name
+            else ""
         )
         raise MapFileNotFoundError(
             f"{spec.where('image')}: key 'image': image file {str(spec.image)!r} not found{hint}"
