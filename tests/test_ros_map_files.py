@@ -510,6 +510,16 @@ def test_an_image_named_by_a_windows_path_names_the_one_beside_the_yaml(tmp_path
         load_map(path)
 
 
+def test_an_image_not_found_shows_a_byte_that_is_not_utf8_as_its_byte(tmp_path):
+    """The error naming the image path is raised by the image decoder, after the yaml reader:
+    it showed the name's byte 0xe9 as its surrogate, 'carte\\udce9.pgm' not found."""
+    path = write_map(tmp_path)
+    path.write_bytes(path.read_bytes().replace(b"room.pgm", b"carte\xe9.pgm"))
+    with pytest.raises(MapFormatError, match=r"'[^']*carte\\xe9\.pgm' not found$") as info:
+        load_map(path)
+    assert "udce9" not in str(info.value)
+
+
 @pytest.mark.parametrize(
     ("image", "said"),
     [

@@ -57,7 +57,13 @@ may be 1 or 2 m; its map.yaml loads without a word), and a robot's map is usuall
 
 
 class MapFormatError(ValueError):
-    """A map yaml or image is malformed; the message names the file (and the key and value)."""
+    """A map yaml or image is malformed; the message names the file (and the key and value).
+
+    A byte of the yaml that is not UTF-8 shows in the message as ``\\xe9``, not as the stand-in
+    it was read as (:data:`_SHOWN_STAND_IN`), whichever module raises it."""
+
+    def __init__(self, message: str = "", *args: object) -> None:
+        super().__init__(_shown_bytes(str(message)), *args)
 
 
 class MapFileNotFoundError(MapFormatError, FileNotFoundError):
@@ -278,6 +284,12 @@ def _stand_in_byte(shown: str) -> int:
     return (ord(shown) if len(shown) == 1 else int(shown[-2:], 16)) & 0xFF
 
 
+def _shown_bytes(message: str) -> str:
+    """``message`` with each byte that is not UTF-8 (:data:`_SHOWN_STAND_IN`) shown as ``\\xe9``:
+    every :class:`MapFormatError`'s message (its ``__init__``)."""
+    return _SHOWN_STAND_IN.sub(lambda m: f"\\x{_stand_in_byte(m[0]):02x}", message)
+
+
 def _yaml_text(data: bytes) -> str:
     """A map yaml's bytes as text, read as yaml-cpp (map_server) reads them: UTF-16 after its
     byte-order mark (Windows' "Unicode"), else UTF-8 with any byte that is not UTF-8 passed
@@ -300,19 +312,6 @@ def _parse_yaml(text: str) -> tuple[Any, Any]:
 
 
 def _read_map_yaml(yaml_path: str | os.PathLike, accepts: tuple[str, ...] = _MODES) -> _MapYaml:
-    """:func:`_read_yaml_checked`, its errors showing a byte that is not UTF-8 as ``\\xe9``,
-    not as its :data:`_UNDECODED` stand-in."""
-    try:
-        return _read_yaml_checked(yaml_path, accepts)
-    except MapFormatError as error:
-        said = str(error)
-        shown = _SHOWN_STAND_IN.sub(lambda m: f"\\x{_stand_in_byte(m[0]):02x}", said)
-        if shown == said:
-            raise
-        raise type(error)(shown) from error.__cause__
-
-
-def _read_yaml_checked(yaml_path: str | os.PathLike, accepts: tuple[str, ...]) -> _MapYaml:
     """Parse and validate a map_server yaml; errors name the file, line, key and value.
 
     A ``mode`` that is not map_server's but looks like one (``Trinary``, ``SCALE``) gets a
