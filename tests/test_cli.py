@@ -298,15 +298,21 @@ def test_variational_fits_stop_by_themselves_and_say_why(method, tmp_path, capsy
     assert line.endswith(f"; final {name} {float(rows[-1].split(',')[1]):.1f} nats"), line
 
 
-@pytest.mark.parametrize(("method", "where"), [("gibbs", " on the map's cells"), ("vi-gibbs", "")])
-def test_a_sampler_s_summary_gives_its_highest_log_joint_and_when(method, where, tmp_path, capsys):
+@pytest.mark.parametrize(
+    ("options", "where"),
+    [
+        (["--method", "gibbs"], " on the map's cells"),
+        (["--method", "gibbs", "--refine", "never"], ""),
+        (["--method", "vi-gibbs"], ""),
+    ],
+)
+def test_a_sampler_s_summary_gives_its_highest_log_joint_and_when(options, where, tmp_path, capsys):
     """A Gibbs fit printed no objective at its end, where a variational fit's "stopped" line
     gives its final ELBO in nats: a sampler's summary gives its highest log joint, in nats, and
     the sweep that reached it, trace.csv's (its column log_joint, its 1-based iteration; the
     default Gibbs fit's: of its refinement on the map's cells, the trace it keeps)."""
     out = tmp_path / "fit"
-    argv = ["fit", "--method", method, "--sweeps", "30", "--out", str(out), "--no-figures"]
-    assert main(argv) == 0
+    assert main(["fit", *options, "--sweeps", "30", "--out", str(out), "--no-figures"]) == 0
     printed = capsys.readouterr().out
     header, *rows = (out / "trace.csv").read_text().splitlines()
     assert header.split(",")[:2] == ["iteration", "log_joint"]
@@ -316,6 +322,22 @@ def test_a_sampler_s_summary_gives_its_highest_log_joint_and_when(method, where,
                 f"{rows[best].split(',')[0]} of 30{where} (every sweep's: trace.csv)")  # fmt: skip
     assert expected in printed.splitlines(), printed
     assert not any(line.startswith("stopped ") for line in printed.splitlines())
+
+
+def test_a_fit_left_unrefined_gives_its_highest_log_joint_of_its_own_sweeps(
+    dataset_root, tmp_path, capsys
+):
+    """room1dk5's default fit decides not to refine (its images do not tell the places apart),
+    and records that decision: its log joint line said "of 200 on the map's cells", as a
+    refined fit's."""
+    out = tmp_path / "fit"
+    argv = ["fit", str(dataset_root / "room1dk5"), "--sweeps", "30", "--out", str(out),
+            "--no-figures"]  # fmt: skip
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert json.loads((out / "config.json").read_text())["inference"]["refine"]["refine"] is False
+    (line,) = [text for text in printed.splitlines() if text.startswith("log joint ")]
+    assert line.endswith(" of 30 (every sweep's: trace.csv)"), line
 
 
 @pytest.mark.parametrize("method", ["cavi", "lbp", "stochastic-vi", "vi-gibbs"])

@@ -179,6 +179,7 @@ def objective_line(result: SpCoResult) -> str | None:
     if result.trace.objective_name != "log joint" or not finite.size:
         return None
     best = int(finite[np.argmax(objective[finite])])  # the first of the highest
-    where = " on the map's cells" if result.inference.get("refine") else ""
+    refine = result.inference.get("refine")  # a refined fit's holds its coarse stage
+    where = " on the map's cells" if isinstance(refine, dict) and "coarse" in refine else ""
     return (f"{'log joint':<{LABEL}}highest {float(objective[best]):.1f} nats, at sweep "
             f"{best + 1} of {len(objective)}{where} (every sweep's: trace.csv)")  # fmt: skip
