@@ -11,7 +11,6 @@ calls it right after loading the house.
 
 from __future__ import annotations
 
-import logging
 from pathlib import Path
 
 import numpy as np
@@ -35,15 +34,11 @@ def _map_levels(grid: OccupancyGrid) -> tuple[_MapYaml, np.ndarray, float] | Non
     path = Path(source) if source is not None else None
     if path is None or path.suffix.lower() not in (".yaml", ".yml"):
         return None
-    quiet = logging.getLogger("spcopyro.maps.map_server")  # load_map said its warnings
-    was, quiet.disabled = quiet.disabled, True
     try:
-        spec = _read_map_yaml(path)
+        spec = _read_map_yaml(path, warn=False)  # load_map said its warnings
         levels, full, _ = _read_levels(spec)  # [H, W] or [H, W, C]
     except (MapFormatError, OSError):
         return None
-    finally:
-        quiet.disabled = was
     return spec, levels, full
 
 

@@ -232,11 +232,12 @@ def _negate(text: str | None, value: Any) -> bool | None:
     return number != 0 if _INT32[0] <= number <= _INT32[1] else None
 
 
-def _check_thresholds(doc: dict[str, Any], where: Callable[[str], str]) -> None:
+def _check_thresholds(doc: dict[str, Any], where: Callable[[str], str], warn: bool = True) -> None:
     """Refuse thresholds that are not numbers, nan (map_server's comparisons with it are all
     false) or swapped (``free_thresh`` above ``occupied_thresh``); warn of one outside [0, 1],
     which map_server reads (``p`` is in [0, 1], so it reads as 0 or 1) but which is most likely
-    a percentage or a slip: it makes every pixel, or none, free or occupied."""
+    a percentage or a slip: it makes every pixel, or none, free or occupied (unless not
+    ``warn``)."""
     for key in ("occupied_thresh", "free_thresh"):
         value = doc[key]
         if not _is_number(value) or math.isnan(value):
@@ -256,7 +257,7 @@ def _check_thresholds(doc: dict[str, Any], where: Callable[[str], str]) -> None:
     }
     for key, (below, above) in effects.items():
         value = doc[key]
-        if not 0.0 <= value <= 1.0:
+        if warn and not 0.0 <= value <= 1.0:
             logger.warning(
                 "%s: key %r %s is outside [0, 1], where a pixel's occupancy p lies: %s, as "
                 "map_server reads it%s",
@@ -311,8 +312,12 @@ def _parse_yaml(text: str) -> tuple[Any, Any]:
     return yaml.compose(text, Loader=_map_yaml_loader()), yaml.load(text, Loader=_map_yaml_loader())
 
 
-def _read_map_yaml(yaml_path: str | os.PathLike, accepts: tuple[str, ...] = _MODES) -> _MapYaml:
-    """Parse and validate a map_server yaml; errors name the file, line, key and value.
+def _read_map_yaml(
+    yaml_path: str | os.PathLike, accepts: tuple[str, ...] = _MODES, warn: bool = True
+) -> _MapYaml:
+    """Parse and validate a map_server yaml; errors name the file, line, key and value; its
+    warnings (a misspelt key, a resolution or threshold out of range) are logged unless not
+    ``warn`` (a second read of a yaml already loaded, :mod:`~spcopyro.maps.free_space`'s).
 
     A ``mode`` that is not map_server's but looks like one (``Trinary``, ``SCALE``) gets a
     did-you-mean where the caller ``accepts`` that one; where the caller refuses it anyway, it
@@ -386,7 +391,7 @@ def _read_map_yaml(yaml_path: str | os.PathLike, accepts: tuple[str, ...] = _MOD
             raise MapFormatError(
                 f"{path}: missing required key {key!r}, {_KEY_MEANINGS[key]}{hint}"
             )
-    for key, close in misspelt.items():
+    for key, close in misspelt.items() if warn else ():
         logger.warning(
             "%s: unknown key %s ignored, as map_server ignores it: did you mean %r?",
             where(key), echo(key), close,
@@ -411,7 +416,7 @@ def _read_map_yaml(yaml_path: str | os.PathLike, accepts: tuple[str, ...] = _MOD
     if not _is_number(resolution) or not (math.isfinite(resolution) and resolution > 0):
         raise bad("resolution", "a positive finite number")
     low, high = PLAUSIBLE_RESOLUTION
-    if not low <= resolution <= high:
+    if warn and not low <= resolution <= high:
         logger.warning(
             "%s: key 'resolution' %s: cells of %s m%s (a robot's map is usually 0.05 m a cell): "
             "is it written in %s?",
@@ -446,7 +451,7 @@ def _read_map_yaml(yaml_path: str | os.PathLike, accepts: tuple[str, ...] = _MOD
     negate = _negate(texts.get("negate"), doc["negate"])
     if negate is None:
         raise bad("negate", "an integer (0: white is free; any other: black is free) or a boolean")
-    _check_thresholds(doc, where)
+    _check_thresholds(doc, where, warn)
 
     mode = mode_text = doc.get("mode", "trinary")
     if mode not in _MODES:
