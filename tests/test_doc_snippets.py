@@ -120,3 +120,22 @@ def test_the_study_snippet_runs(tmp_path):
                           timeout=300)  # fmt: skip
     assert done.returncode == 0, done.stderr[-3000:]
     assert (tmp_path / "out" / "g" / "results.csv").is_file()
+
+
+def test_the_svi_snippet_starts_its_own_guide_after_another(setup, caplog):
+    # the block made its MeanFieldGuide in Pyro's global param store as it found it: run after
+    # docs/library.md's recipe in one session, its guide took that guide's trained values
+    # (its own seeded start lost), as the guide now warns
+    import pyro
+
+    from spcopyro.fit.house import prepare_model_data
+    from spcopyro.guides import MeanFieldGuide
+
+    _, data = prepare_model_data(setup["house"], setup["settings"])
+    pyro.clear_param_store()
+    MeanFieldGuide(data, setup["settings"].model).marginals()  # an earlier guide's params
+    svi = python_blocks("variational.md")[2]
+    namespace = dict(setup)
+    exec(shrink("variational.md", svi).replace("range(3)", "range(0)"), namespace)  # noqa: S102
+    assert not [r for r in caplog.records if "already holds" in r.getMessage()]
+    pyro.clear_param_store()

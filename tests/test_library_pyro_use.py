@@ -261,3 +261,28 @@ def test_the_model_names_labels_outside_its_concepts(given):
     predictive = Predictive(spcomapping_model, posterior_samples={"labels": labels[None]})
     with pytest.raises(ValueError, match=message):
         predictive(data, config())
+
+
+def test_a_guide_says_when_the_param_store_holds_its_parameters(caplog):
+    # a second MeanFieldGuide of the same name took the first one's trained values, not its own
+    # start (its q too), with no word; one of another L failed only at its first SVI step
+    _, data = random_problem(seed=0)
+    pyro.clear_param_store()
+    first = MeanFieldGuide(data, config())
+    svi = SVI(spcomapping_model, first, pyro.optim.Adam({"lr": 0.1}), MeanFieldELBO())
+    svi.step(data, config())
+    assert not caplog.records
+    q = torch.full((data.num_free, 3), 1 / 3, dtype=torch.float64)
+    second = MeanFieldGuide(data, config(), q=q)
+    torch.testing.assert_close(second.marginals(), first.marginals())  # the store's, not q
+    (record,) = caplog.records
+    assert "already holds 'spcomapping_guide.labels_logits'" in record.getMessage()
+    assert "will use those values, not its own start" in record.getMessage()
+    MeanFieldGuide(data, config(num_concepts=5))
+    assert "are (27, 3) where this guide's are (27, 5)" in caplog.records[-1].getMessage()
+    caplog.clear()
+    MeanFieldGuide(data, config(), name="another")  # a name of its own: no word
+    pyro.clear_param_store()
+    MeanFieldGuide(data, config())  # a fresh store: no word
+    assert not caplog.records
+    pyro.clear_param_store()

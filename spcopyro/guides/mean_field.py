@@ -31,6 +31,7 @@ fit it (the reasons are in :mod:`spcopyro.guides.loss`).
 
 from __future__ import annotations
 
+import logging
 import sys
 from typing import Literal
 
@@ -87,6 +88,29 @@ def _calling_elbo() -> ELBO | None:
     return None
 
 
+def _warn_stored(logits_name: str, shape: tuple[int, int], name: str) -> None:
+    """Log a warning where the param store already holds the guide's parameters: the store
+    wins, so a second guide of the same name took the first one's trained values instead of its
+    own start (its ``q`` too) silently, or failed at its first SVI step for another L."""
+    store = pyro.get_param_store()
+    if logits_name not in store:
+        return
+    held = tuple(store[logits_name].shape)
+    consequence = (
+        "this guide will use those values, not its own start (q, generator, label_smoothing)"
+        if held == shape
+        else f"they are {held} where this guide's are {shape}: SVI will fail with 'Shape mismatch'"
+    )
+    logging.getLogger("spcopyro").warning(
+        "MeanFieldGuide: Pyro's param store already holds %r (an earlier guide's or a loaded "
+        "store's): %s; call pyro.clear_param_store() first, or give the guide a name of its "
+        "own (name=, now %r), to start afresh",
+        logits_name,
+        consequence,
+        name,
+    )
+
+
 class MeanFieldGuide(PyroModule):
     """The mean-field guide (module docstring): call it as ``guide(data, config)``, like the model.
 
@@ -109,7 +133,8 @@ class MeanFieldGuide(PyroModule):
         name: the module's name, the start of every parameter's name in the param store.
             As for any Pyro module, the param store wins: where it already holds this name's
             parameters (an earlier guide of the same name, a loaded store), those are used and
-            this guide's start (``q``, ``generator``, ``label_smoothing``) is not; call
+            this guide's start (``q``, ``generator``, ``label_smoothing``) is not (it logs a
+            warning saying so); call
             ``pyro.clear_param_store()`` or give another ``name`` to start afresh.
     """
 
@@ -161,6 +186,7 @@ class MeanFieldGuide(PyroModule):
         prior = prior_factors(data, config)
         self.num_free, self.num_concepts = N, L
         self.parameter_sites = tuple(m.parameter for m in data.modalities)
+        _warn_stored(self._full_name(SITE_LABELS), (N, L), name)
         self.num_items = tuple(m.counts.shape[-1] for m in data.modalities)  # K_m per modality
         starts = (factors.pi, *factors.emissions)  # [L], [L, K_m] ...
         lows = (prior.pi, *prior.emissions) if bound == "prior" else (0.0,) * len(starts)
