@@ -135,13 +135,16 @@ def no_free_cell_reason(grid: OccupancyGrid) -> str:
     return reason
 
 
-def check_free_cells(grid: OccupancyGrid, what: str) -> None:
+def check_free_cells(
+    grid: OccupancyGrid,
+    what: str,
+    refusal: str = "the map {source} has no free cell, nothing to label",
+) -> None:
     """ValueError when ``grid`` has no free cell (nothing to label), saying why
-    (:func:`no_free_cell_reason`); ``what`` names the house, e.g. ``"house 'kitchen'"``."""
+    (:func:`no_free_cell_reason`); ``what`` names the house, e.g. ``"house 'kitchen'"``, and
+    ``refusal`` is the words after it, ``{source}`` the map's yaml (``simulate --map``'s: "the
+    map has no free cell to tour")."""
     if grid.num_free:
         return
     source = grid.coarsened_from.source if grid.coarsened_from is not None else grid.source
-    raise ValueError(
-        f"{what}: the map {source or ''} has no free cell, nothing to label: "
-        f"{no_free_cell_reason(grid)}"
-    )
+    raise ValueError(f"{what}: {refusal.format(source=source or '')}: {no_free_cell_reason(grid)}")

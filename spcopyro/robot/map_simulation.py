@@ -57,7 +57,7 @@ from spcopyro.baselines.geometry import (
 )
 from spcopyro.data import House, save_house
 from spcopyro.maps import UNKNOWN, OccupancyGrid, load_map
-from spcopyro.maps.free_space import negate_hint, no_free_cell_reason
+from spcopyro.maps.free_space import check_free_cells, negate_hint
 from spcopyro.synthetic import DEFAULT_CATEGORY_NAMES, HouseSpec, HouseSpecError
 from spcopyro.synthetic.floor_plan import _FloorPlan
 from spcopyro.synthetic.house import tour_observations
@@ -202,9 +202,7 @@ def simulate_on_map(
     """
     tour = tour or MapTour()
     spec = _house_spec(grid, tour)
-    if not np.asarray(grid.free).any():
-        raise ValueError(f"{grid.source or 'map'}: the map has no free cell to tour: "
-                         f"{no_free_cell_reason(grid)}")  # fmt: skip
+    check_free_cells(grid, str(grid.source or "map"), "the map has no free cell to tour")
     rng = np.random.default_rng(seed)
 
     door_width = tour.door_width
