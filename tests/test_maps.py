@@ -881,6 +881,9 @@ def test_no_free_cell_of_a_grid_edited_in_memory_blames_no_yaml_line(tmp_path: P
     with pytest.raises(ValueError, match="has no free cell") as info:
         check_free_cells(walls, "house 'h'")
     assert "t.yaml:" not in str(info.value) and "check the map image" in str(info.value)
+    source_free = OccupancyGrid(walls.occupancy, walls.resolution, walls.origin)  # no yaml
+    with pytest.raises(ValueError, match="house 'h': the map has no free cell, nothing to label"):
+        check_free_cells(source_free, "house 'h'")  # not "the map  has" (no source, one space)
 
 
 def _room_without_free_cells(tmp_path: Path) -> tuple[Path, Path, int]:

@@ -147,4 +147,5 @@ def check_free_cells(
     if grid.num_free:
         return
     source = grid.coarsened_from.source if grid.coarsened_from is not None else grid.source
-    raise ValueError(f"{what}: {refusal.format(source=source or '')}: {no_free_cell_reason(grid)}")
+    said = " ".join(refusal.format(source=source or "").split())  # no source: "the map has ..."
+    raise ValueError(f"{what}: {said}: {no_free_cell_reason(grid)}")
