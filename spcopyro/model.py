@@ -9,6 +9,7 @@ Every free cell is one element of the ``cells`` plate, indexed in the grid's ``f
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -383,6 +384,38 @@ def _check_label_range(labels: torch.Tensor, L: int) -> None:
     )
 
 
+def _refuse_prior_labels_under_an_elbo() -> None:
+    """ValueError where a Pyro ELBO replays a guide that has no ``labels`` site (an autoguide
+    of the globals, ``AutoNormal(poutine.block(model, hide=["labels"]))``): the model drew the
+    labels from Categorical(pi) in every step, without the Potts factor, and Trace_ELBO took
+    steps on that estimate with no more than Pyro's UserWarning 'Found vars in model but not
+    guide'. Cheap unless so: a look at Pyro's handler stack, the call stack only then."""
+    from pyro.infer import ELBO
+    from pyro.poutine.condition_messenger import ConditionMessenger
+    from pyro.poutine.replay_messenger import ReplayMessenger
+    from pyro.poutine.runtime import _PYRO_STACK
+
+    replayed = [m.trace for m in _PYRO_STACK if isinstance(m, ReplayMessenger)]
+    if not any(t is not None and SITE_PI in t and SITE_LABELS not in t for t in replayed):
+        return
+    for handler in _PYRO_STACK:  # labels given by poutine.condition: not drawn
+        if isinstance(handler, ConditionMessenger) and SITE_LABELS in (handler.data or {}):
+            return
+    frame = sys._getframe(1)
+    while frame is not None and not isinstance(frame.f_locals.get("self"), ELBO):
+        frame = frame.f_back
+    if frame is None:
+        return
+    loss = type(frame.f_locals["self"]).__name__
+    raise ValueError(
+        f"{loss} runs a guide with no 'labels' site (an autoguide of the globals, "
+        "poutine.block(model, hide=['labels'])?), so spcomapping_model draws the labels from "
+        "Categorical(pi) in every step, without the Potts factor: the loss fits nothing of the "
+        "map. Fit spcopyro.guides.MeanFieldGuide with MeanFieldELBO under SVI (q(C) in closed "
+        "form), or sample the labels with spcopyro.gibbs.SpCoGibbs under MCMC"
+    )
+
+
 def _table_prior(modality: Modality, config: SpCoConfig, L: int) -> dist.Distribution:
     """Each concept's distribution over the modality's K_m items: the symmetric Dirichlet of
     eqs. (3), (4); over no items (the words of a house where none was heard, V = 0) the
@@ -495,6 +528,7 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
             "condition the model on labels.long()"
         )
     _check_label_range(labels, L)
+    _refuse_prior_labels_under_an_elbo()
     pyro.factor(SITE_POTTS, config.gamma * potts_agreements(labels, data.pairs))
 
     if data.obs_cells.shape[0] == 0:  # a map with no observations yet: the prior alone

@@ -286,3 +286,26 @@ def test_a_guide_says_when_the_param_store_holds_its_parameters(caplog):
     MeanFieldGuide(data, config())  # a fresh store: no word
     assert not caplog.records
     pyro.clear_param_store()
+
+
+def test_an_elbo_of_a_guide_without_labels_says_it_fits_nothing_of_the_map():
+    # an autoguide of the globals (the labels hidden, as Pyro's own error for the full model
+    # suggests) under Trace_ELBO took steps: the model drew the labels from Categorical(pi)
+    # without the Potts factor, with no more than Pyro's 'Found vars in model but not guide'
+    from pyro.infer import Trace_ELBO
+    from pyro.infer.autoguide import AutoNormal
+
+    _, data = random_problem(seed=0)
+    pyro.clear_param_store()
+    guide = AutoNormal(poutine.block(spcomapping_model, hide=["labels"]))
+    svi = SVI(spcomapping_model, guide, pyro.optim.Adam({"lr": 0.1}), Trace_ELBO())
+    with pytest.raises(ValueError, match=r"Trace_ELBO runs a guide with no 'labels' site"):
+        svi.step(data, config())
+    # given labels, the same guide fits the globals: p(pi, theta, w | labels, data)
+    labels = torch.arange(data.num_free) % 3
+    given = poutine.condition(spcomapping_model, {"labels": labels})
+    pyro.clear_param_store()
+    guide = AutoNormal(poutine.block(given, hide=["labels"]))
+    svi = SVI(given, guide, pyro.optim.Adam({"lr": 0.1}), Trace_ELBO())
+    assert math.isfinite(svi.step(data, config()))
+    pyro.clear_param_store()
