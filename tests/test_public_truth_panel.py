@@ -90,3 +90,21 @@ def test_every_map_panel_takes_the_colours_of_the_truth_s_categories(tmp_path, m
     assert (fit_rgb[:, :4] == truth_rgb[:, :4]).all()  # the left room's larger part: matched
     left_b = fit_rgb[0, 5]  # matched with no category: a colour of none of them
     assert not any((left_b == truth_rgb[0, c]).all() for c in (0, 9))
+
+
+def test_both_figures_name_a_baseline_and_a_default_variant_alike(tmp_path):
+    """maps_HOUSE.png and quality_time.png name a row by one rule (study.maps.row_name): the
+    maps wrote "default / gibbs" where the legend wrote "gibbs", the legend "kmeans / baseline"
+    where the maps wrote "kmeans"."""
+    from spcopyro.study.figures import quality_time_figure
+
+    rows = _rows(tmp_path, "synthetic")
+    rows.append({**rows[0], "variant": "default", "method": "gibbs"})
+    rows.append({**rows[0], "variant": "", "method": "cavi"})
+    rows.append({**rows[0], "variant": "kmeans", "method": "baseline"})
+    names = ["A-dp / gibbs", "gibbs", "cavi", "kmeans"]
+    _, panels, _ = source_panels(rows, tmp_path, "h")
+    assert [name for name, _ in panels] == ["truth", *names]
+    timed = [{**row, "seconds": 1.0 + k, "ari": 0.5} for k, row in enumerate(rows)]
+    (legend,) = quality_time_figure(timed).legends
+    assert [t.get_text() for t in legend.get_texts()] == names

@@ -25,6 +25,7 @@ from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from spcopyro._util.outputs import replace_figure
 from spcopyro.figures.fonts import any_script, quiet_glyph_warnings
+from spcopyro.study.maps import row_name
 from spcopyro.study.table import is_number
 
 __all__ = ["QUALITY_TIME_FILE", "quality_time_figure", "write_quality_time"]
@@ -33,12 +34,6 @@ QUALITY_TIME_FILE = "quality_time.png"
 """The figure's file name, beside ``report.md``."""
 TIME_WORDS = {"seconds": "wall-clock seconds", "cpu_seconds": "CPU seconds"}
 """A time column of ``results.csv`` in words (the title and axis said "seconds")."""
-
-
-def _group_label(variant: str, method: str) -> str:
-    """A group's name: ``variant / method``, or the method alone where the variant is none, the
-    default or the method itself (compare-inference's "cavi / cavi" read as two things)."""
-    return method if variant in ("", "default", method) else f"{variant} / {method}"
 
 
 def _score_words(score: str, kinds: set[object]) -> str:
@@ -106,7 +101,7 @@ def quality_time_figure(
         ax.set_ylabel("ARI" if score == "ari" else score)
         ax.grid(alpha=0.3)
     handles = [Line2D([], [], marker="o", ls="", color=colour[g]) for g in groups]
-    legend = fig.legend(handles, [_group_label(*g) for g in groups], loc="lower center",
+    legend = fig.legend(handles, [row_name(*g) for g in groups], loc="lower center",
                         ncol=min(len(groups), 4), frameon=False, fontsize=8)  # fmt: skip
     # one panel is 4.3 in wide: four columns of "stochastic-vi / stochastic-vi" ran past both
     # edges of the image, cut off; the figure widens to hold its legend

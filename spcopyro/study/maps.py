@@ -29,7 +29,7 @@ from spcopyro.maps.coarse import labels_on_grid
 __all__ = [
     "MAPS_PREFIX", "Arrays", "StoredMap", "label_map_arrays", "labels_on_map", "load_label_map",
     "REGION_TRUTH_PANEL", "TRUTH_PANEL", "maps_file_name", "plot_label_maps", "remove_stale",
-    "truth_first", "write_house_maps",
+    "row_name", "truth_first", "write_house_maps",
 ]  # fmt: skip
 
 Arrays = dict[str, np.ndarray]
@@ -165,6 +165,18 @@ def plot_label_maps(
     return path
 
 
+def row_name(variant: object, method: object) -> str:
+    """A study row's name in a figure (a maps panel's title, quality_time.png's legend): a
+    baseline's name (its method column is ``baseline``: cells.BASELINE_METHOD, not imported, as
+    cells imports spec, which imports this module); the method alone where the variant is none,
+    ``default`` or named as the method (compare-inference's "cavi / cavi" read as two things);
+    else ``variant / method``. The one rule of both figures: they differed."""
+    variant, method = str(variant), str(method)
+    if method == "baseline":
+        return variant or method
+    return method if variant in ("", "default", method) else f"{variant} / {method}"
+
+
 def maps_file_name(data: str) -> str:
     """The report's figure of data source ``data``: ``maps_NAME.png``, every character of NAME
     but letters, digits, ``.``, ``-`` and ``_`` written ``_``."""
@@ -177,9 +189,8 @@ def source_panels(
 ) -> tuple[OccupancyGrid, list[tuple[str, np.ndarray]], int] | None:  # fmt: skip
     """The panels of source ``data`` at ``seed`` (None: its first seed with a stored map):
     the truth when known (a public house's named "region truth (this project's)"), then each
-    row's map in the table's order, named by ``label(row)`` (default ``variant / method``, or
-    the baseline's name, or the method's where the variant is named as it); None when no map
-    is stored."""
+    row's map in the table's order, named by ``label(row)`` (default :func:`row_name`); None
+    when no map is stored."""
     mine = [r for r in rows if r["data"] == data and load_label_map(folder, r) is not None]
     if not mine:
         return None
@@ -196,10 +207,7 @@ def source_panels(
     panels = [] if truth is None else [(truth_name, truth)]
     for row, stored in maps:
         assert stored is not None
-        name = label(row) if label is not None else (  # "cavi", not "cavi / cavi"
-            str(row["variant"]) if row["method"] in ("baseline", row["variant"])
-            else f"{row['variant']} / {row['method']}"
-        )  # fmt: skip
+        name = label(row) if label is not None else row_name(row["variant"], row["method"])
         panels.append((name, stored.labels))
     return grid, panels, seed
 
