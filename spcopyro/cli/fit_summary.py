@@ -10,10 +10,9 @@ import dataclasses
 import math
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from spcopyro.inference.protocol import options_for_start, start_filled
 from spcopyro.maps.coarse import coarsening_factor
+from spcopyro.results.refined import coarse_stage
 
 if TYPE_CHECKING:
     from spcopyro.config import DataPreparation, SpCoConfig
@@ -174,12 +173,11 @@ def objective_line(result: SpCoResult) -> str | None:
     None for a fit of neither (no trace)."""
     if result.inference.get("stopped"):
         return stopped_line(result)
-    objective = np.asarray(result.trace.objective, dtype=np.float64)  # [sweeps]
-    finite = np.flatnonzero(np.isfinite(objective))  # [F] the sweeps of a finite value
-    if result.trace.objective_name != "log joint" or not finite.size:
+    if result.trace.objective_name != "log joint" or not len(result.trace.objective):
         return None
-    best = int(finite[np.argmax(objective[finite])])  # the first of the highest
-    refine = result.inference.get("refine")  # a refined fit's holds its coarse stage
-    where = " on the map's cells" if isinstance(refine, dict) and "coarse" in refine else ""
-    return (f"{'log joint':<{LABEL}}highest {float(objective[best]):.1f} nats, at sweep "
-            f"{best + 1} of {len(objective)}{where} (every sweep's: trace.csv)")  # fmt: skip
+    if not math.isfinite(result.best_objective):  # [sweeps] none finite
+        return None
+    where = " on the map's cells" if coarse_stage(result.inference) is not None else ""
+    return (f"{'log joint':<{LABEL}}highest {result.best_objective:.1f} nats, at sweep "
+            f"{result.best_iteration + 1} of {len(result.trace.objective)}{where} "
+            "(every sweep's: trace.csv)")  # fmt: skip

@@ -15,6 +15,7 @@ from spcopyro._util.messages import plural
 from spcopyro.figures.png import save_figure
 from spcopyro.inference.names import SAMPLERS
 from spcopyro.results.point_estimate import LOSS_LABELS
+from spcopyro.results.refined import coarse_stage
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.specks import in_use_text
 
@@ -125,9 +126,8 @@ def trace_figure(result: SpCoResult, kept: tuple[int, int] | None = None) -> Fig
     if "vi_iterations_run" in result.inference:  # vi-gibbs: the sweeps began at CAVI's labels
         title += (f"\nGibbs sweeps from a CAVI start of {result.inference['vi_iterations_run']} "
                   "iterations (not shown)")  # fmt: skip
-    refine = result.inference.get("refine")
-    if isinstance(refine, dict) and refine.get("refine") and isinstance(refine.get("coarse"), dict):
-        coarse = refine["coarse"]
+    coarse = coarse_stage(result.inference)
+    if coarse is not None:
         title += (
             f"\nthe refinement on the map's {result.grid.resolution:g} m cells, after "
             f"{coarse['sweeps']} sweeps on {coarse['cell_size']:g} m cells (not shown)"
