@@ -549,22 +549,26 @@ def spread_markers(ax: Axes, xy: np.ndarray, size: float, spacing: float = 0.8) 
     rings = np.concatenate([ring * gap * np.stack([np.cos(a), np.sin(a)], 1)
                             for ring, a in enumerate(angles, 1)])  # fmt: skip  # [90, 2]
     for k, point in enumerate(pixels):
-        options = point[None, :]  # [1, 2]: its own place; the rings [90, 2] only if it is taken
-        for more in (False, True):
-            if more:  # (most markers keep their place: their rings are never built)
-                options = np.concatenate([options, point + rings])  # [91, 2]
-            close = _placed_near(buckets, options, gap)
-            if not close:
-                break
-            near = np.linalg.norm(options[:, None, :] - placed[None, close, :], axis=-1).min(1)
-            free = np.flatnonzero(near >= gap * (1 - 1e-9))
-            if more or len(free):
-                options = options[free[:1]] if len(free) else options[-1:]
-                break
-        placed[k] = options[0]
+        placed[k] = point  # its own place if free (most markers: their rings are never built)
+        if not _free(point[None, :], placed, buckets, gap)[0]:
+            around = point + rings  # [90, 2]
+            free = np.flatnonzero(_free(around, placed, buckets, gap))
+            placed[k] = around[free[0]] if len(free) else around[-1]  # the first free, or last
         key = (int(np.floor(placed[k, 0] / gap)), int(np.floor(placed[k, 1] / gap)))
         buckets.setdefault(key, []).append(k)
     return ax.transData.inverted().transform(placed)
+
+
+def _free(
+    options: np.ndarray, placed: np.ndarray, buckets: dict[tuple[int, int], list[int]], gap: float
+) -> np.ndarray:
+    """``[M]`` bool: which points of ``options`` ``[M, 2]`` lie ``gap`` or more from every marker
+    of ``buckets`` (:func:`spread_markers`; ``placed`` ``[U, 2]``: their positions)."""
+    close = _placed_near(buckets, options, gap)
+    if not close:
+        return np.ones(len(options), dtype=bool)
+    near = np.linalg.norm(options[:, None, :] - placed[None, close, :], axis=-1).min(1)  # [M]
+    return near >= gap * (1 - 1e-9)
 
 
 def _placed_near(
