@@ -66,3 +66,15 @@ def test_moves_it_cannot_compose_are_named(problem):
         run_batched_chains(data, cfg, SEEDS, 2, options=GibbsOptions(region_moves=0.5))
     with pytest.raises(ValueError, match="num_sweeps"):
         run_batched_chains(data, cfg, SEEDS, 0)
+
+
+def test_float32_chains_record_their_log_joint_to_the_float64_digits(problem):
+    # with original-code's pi concentration (1e6) the log joint's constant and state-dependent
+    # part are about +-2e7 each; run_batched_chains summed them in float32, so a float32 run
+    # recorded its log joint in steps of 2 nats (2510.0, 2290.0 on a synthetic house) and kept
+    # as "best" the first of the states tied by that rounding
+    data, _ = problem
+    cfg = config(num_concepts=4, gamma=0.7, alpha=4e6)  # Dir(1e6, ..., 1e6)
+    for run in run_batched_chains(data, cfg, SEEDS, 6, dtype=torch.float32):
+        final = float(log_joint(run.final_state, data, cfg))  # at the float32 state, in float64
+        assert abs(run.log_joint[-1] - final) < 1e-3, (run.log_joint[-1], final)

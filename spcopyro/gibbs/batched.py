@@ -418,12 +418,18 @@ def trace_batched(
     + gamma E(C) + sum_m sum_i x_i . log phi_{m, C_i},
 
     with E(C) the number of agreeing neighbour pairs. What a run loop of batched chains records
-    each sweep (one transfer of 2B numbers to the host, not one per chain)."""
+    each sweep (one transfer of 2B numbers to the host, not one per chain). Summed in float64
+    whatever the state's dtype (O(B (L sum_m K_m + N)), small beside a sweep): with
+    original-code's pi concentration (1e6) the terms reach about -2e7, where float32 steps by 2
+    nats, and so did the log joint a float32 run recorded."""
+    f64 = torch.float64
     cells, per_modality = concept_counts(state.labels, plan, config.num_concepts)  # [B, L], ...
     agreements = (state.labels[:, plan.pairs[:, 0]] == state.labels[:, plan.pairs[:, 1]]).sum(-1)
-    total = (config.pi_concentration - 1) * state.log_pi.sum(-1)  # [B]
+    log_pi = state.log_pi.to(f64)  # [B, L]
+    total = (config.pi_concentration - 1) * log_pi.sum(-1)  # [B] float64
     for a, counts, log_phi in zip(plan.concentrations, per_modality, state.log_emissions,
                                   strict=True):  # fmt: skip
-        total = total + (a - 1) * log_phi.sum((-1, -2)) + (counts * log_phi).sum((-1, -2))
-    total = total + (cells * state.log_pi).sum(-1) + config.gamma * agreements.to(total.dtype)
+        log_phi = log_phi.to(f64)  # [B, L, K_m]
+        total = total + (a - 1) * log_phi.sum((-1, -2)) + (counts.to(f64) * log_phi).sum((-1, -2))
+    total = total + (cells.to(f64) * log_pi).sum(-1) + config.gamma * agreements.to(f64)
     return total, (cells > 0).sum(-1)

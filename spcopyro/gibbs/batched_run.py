@@ -3,17 +3,17 @@
 :class:`~spcopyro.gibbs.run.GibbsRun` per seed, so what a fit does after its sweeps (label
 frequencies, the point estimate, posterior means) can take them as they are.
 
-Chain k starts where :func:`~spcopyro.gibbs.run.start_chain` with seed k starts (its labels
-and globals drawn on the CPU from that seed's generator); its sweeps then draw from the device's
+Chain k starts where :func:`~spcopyro.gibbs.run.start_chain` with seed k starts (its labels and
+globals drawn on the CPU from that seed's generator); its sweeps then draw from the device's
 generator (seeded from the first seed), so they are not the CPU chain's sweeps, only the same
 distribution. The record is kept on the device and read back once at the end: per sweep the log
 joint (:func:`~spcopyro.gibbs.batched.trace_batched` plus the state-independent constant, in
-the state's dtype: a float32 run's trace is good to about 1e-7 of its value) and the concepts in
-use; each chain's best visited state, kept by a ``torch.where`` over the batch; the label maps
-every ``thin`` sweeps. On a GPU each sweep ends with one synchronisation, for its wall-clock
-time. Not composed here (ValueError): annealing, cluster, merge and region moves,
-hyperparameter sampling (:func:`spcopyro.gibbs.sampler.step`'s moves); Ctrl-C is not caught
-(no checkpoint).
+float64 whatever the state's dtype: the two are about +-2e7 under original-code, where float32
+steps by 2 nats) and the concepts in use; each chain's best visited state, kept by a
+``torch.where`` over the batch; the label maps every ``thin`` sweeps. On a GPU each sweep ends
+with one synchronisation, for its wall-clock time. Not composed here (ValueError): annealing,
+cluster, merge and region moves, hyperparameter sampling (:func:`spcopyro.gibbs.sampler.step`'s
+moves); Ctrl-C is not caught (no checkpoint).
 """
 
 from __future__ import annotations
@@ -105,9 +105,10 @@ def run_batched_chains(
     generator = torch.Generator(device=device).manual_seed(int(seeds[0]))
     constant = float(log_joint_constant(data, config))
     B = len(seeds)
-    values = torch.empty(num_sweeps, B, dtype=dtype, device=device)  # [S, B]
+    values = torch.empty(num_sweeps, B, dtype=torch.float64, device=device)  # [S, B]: the sum
+    # of a constant and a state part of about +-2e7 each (pi concentration 1e6) in float64
     concepts = torch.empty(num_sweeps, B, dtype=torch.long, device=device)  # [S, B]
-    best, best_value = state, torch.full((B,), -math.inf, dtype=dtype, device=device)
+    best, best_value = state, torch.full((B,), -math.inf, dtype=torch.float64, device=device)
     best_sweep = torch.zeros(B, dtype=torch.long, device=device)
     samples, sample_sweeps, seconds = [], [], []
     started = time.perf_counter()
