@@ -189,7 +189,8 @@ def check_model_data(data: ModelData, config: SpCoConfig | None = None) -> None:
     With ``config``: TypeError unless it is an :class:`~spcopyro.config.SpCoConfig` (an
     ``SpCoSettings`` gave "has no attribute 'num_concepts'"), and ValueError unless its
     ``connectivity`` is the one ``data``'s neighbour table was made with (data made for 4
-    neighbours under an 8-neighbour config were fitted with 4, silently)."""
+    neighbours under an 8-neighbour config were fitted with 4, silently), nor while its
+    ``concentrations`` name a modality the data have not (fitted without it, silently)."""
     if not isinstance(data, ModelData):
         raise TypeError(
             f"data must be a ModelData (spcopyro.model.make_model_data, or "
@@ -205,6 +206,7 @@ def check_model_data(data: ModelData, config: SpCoConfig | None = None) -> None:
                 f"{config.connectivity})) and pass its settings.model, or with "
                 f"make_model_data(grid, counts, connectivity={config.connectivity})"
             )
+        _check_concentration_names(data, config)
     _check_site_names(data)
     N, cells = data.num_free, data.obs_cells
     if cells.dim() != 1 or (cells.numel() and not 0 <= int(cells.min()) <= int(cells.max()) < N):
@@ -233,6 +235,21 @@ def check_model_data(data: ModelData, config: SpCoConfig | None = None) -> None:
                 f"the counts of modality {name!r} must be finite and >= 0; row {row} (free "
                 f"cell {int(cells[row])}), column {column} is {float(counts[row, column])}"
             )
+
+
+def _check_concentration_names(data: ModelData, config: SpCoConfig) -> None:
+    """ValueError where ``config.concentrations`` names a modality the data have not (a
+    misspelt name, or data made before the modality was added): the model, the kernel and the
+    guides fitted the data without it, silently, as ``prepare_model_data`` refuses for a house."""
+    names = {m.name for m in data.modalities}
+    unused = [name for name, _ in config.concentrations if name not in names]
+    if unused:
+        further = [m.name for m in data.modalities if m.name not in (SITE_IMAGES, SITE_WORDS)]
+        raise ValueError(
+            f"SpCoConfig.concentrations names {unused}, but the data have no such modality "
+            f"(their further ones: {further or 'none'}): add it to ModelData.modalities "
+            "(Modality(name, parameter_site(name), counts [M, K_m])) or correct the name"
+        )
 
 
 def _check_site_names(data: ModelData) -> None:

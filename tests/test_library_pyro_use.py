@@ -309,3 +309,29 @@ def test_an_elbo_of_a_guide_without_labels_says_it_fits_nothing_of_the_map():
     svi = SVI(given, guide, pyro.optim.Adam({"lr": 0.1}), Trace_ELBO())
     assert math.isfinite(svi.step(data, config()))
     pyro.clear_param_store()
+
+
+def test_a_concentration_for_a_modality_the_data_have_not_is_named():
+    # docs/library.md's third-modality variant with the modality's name misspelt in the config,
+    # or the config passed with data made before the modality was added: the model, SpCoGibbs
+    # and the guide fitted the data without it, silently (prepare_model_data refuses it for a
+    # house, the Pyro path did not)
+    from spcopyro.model import Modality, parameter_site
+
+    _, data = random_problem(seed=0)
+    cfg = config(concentrations={"objects": 1.0})
+    message = r"concentrations names \['objects'\], but the data have no such modality"
+    with pytest.raises(ValueError, match=message + r" \(their further ones: none\)"):
+        poutine.trace(spcomapping_model).get_trace(data, cfg)
+    with pytest.raises(ValueError, match=message):
+        MCMC(SpCoGibbs(), num_samples=1, warmup_steps=1, disable_progbar=True).run(data, cfg)
+    with pytest.raises(ValueError, match=message):
+        MeanFieldGuide(data, cfg)
+    objects = torch.ones(data.obs_cells.shape[0], 2, dtype=torch.float64)  # [M, 2]
+    data3 = data._replace(
+        modalities=(*data.modalities, Modality("object", parameter_site("object"), objects))
+    )
+    with pytest.raises(ValueError, match=r"\(their further ones: \['object'\]\)"):
+        poutine.trace(spcomapping_model).get_trace(data3, cfg)
+    cfg3 = config(concentrations={"object": 1.0})
+    assert "object_probs" in poutine.trace(spcomapping_model).get_trace(data3, cfg3).nodes
