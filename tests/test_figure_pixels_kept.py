@@ -7,6 +7,7 @@ came to depend on either would fail here, not change the figures silently."""
 from __future__ import annotations
 
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
 from spcopyro.figures import map_axes, png
@@ -35,3 +36,42 @@ def test_the_house_figure_is_the_same_png_as_drawn_plainly(tmp_path, monkeypatch
     monkeypatch.setattr(png, "MeasuredCanvas", FigureCanvasAgg)
     plain = plot_house(house, tmp_path / "plain.png").read_bytes()
     assert fast == plain
+
+
+def test_a_study_s_maps_are_drawn_as_opaque_rgba_the_same_png(tmp_path, monkeypatch):
+    """A study's maps_HOUSE.png hands each panel's image to imshow as opaque RGBA (it handed RGB,
+    resampled as float64), the same bytes as drawn from RGB."""
+    from spcopyro.study.maps import plot_label_maps
+
+    spec = HouseSpec(height=30, width=40, num_rooms=3, num_open_plan=0, min_room_size=8)
+    house = make_house(seed=0, spec=spec)
+    panels = [("truth", house.truth), ("gibbs", house.truth)]
+    drawn = []
+    imshow = Axes.imshow
+
+    def recorded(ax, image, *args, **kwargs):
+        drawn.append(np.asarray(image).shape[-1])
+        return imshow(ax, image, *args, **kwargs)
+
+    monkeypatch.setattr(Axes, "imshow", recorded)
+    fast = plot_label_maps(house.grid, panels, tmp_path / "fast.png", "h").read_bytes()
+    assert drawn == [4, 4]
+    monkeypatch.setattr(map_axes, "opaque", lambda rgb: rgb)
+    plain = plot_label_maps(house.grid, panels, tmp_path / "plain.png", "h").read_bytes()
+    assert drawn[2:] == [3, 3] and fast == plain
+
+
+def test_a_map_in_strips_converts_its_image_once(monkeypatch):
+    """strip_axes makes the opaque RGBA copy of the map once, not once a strip."""
+    spec = HouseSpec(height=24, width=400, num_rooms=6, num_open_plan=0, min_room_size=10)
+    grid = make_house(seed=0, spec=spec).grid
+    rgb = np.zeros((*grid.shape, 3), dtype=np.uint8)  # [H, W, 3]
+    real, converted = map_axes.opaque, []
+
+    def counted(image):
+        converted.append(image.shape[-1] == 3)
+        return real(image)
+
+    monkeypatch.setattr(map_axes, "opaque", counted)
+    _, axes, _, _ = map_axes.map_axes(grid, rgb, (8, 6))
+    assert len(axes) == 3 and sum(converted) == 1, converted

@@ -57,8 +57,10 @@ def opaque(rgb: np.ndarray) -> np.ndarray:
     matplotlib resamples an RGB image as float64 RGBA (its float32 RGB stacked with float64
     ones) and an RGBA one as float32; at ``nearest`` both copy the pixels, and x / 255 in float32
     times 255 gives x back in either precision, so the PNG is the same byte for byte, while the
-    semantic map's image (its screen size, 1.5 million pixels on the embedded house) takes
-    0.02-0.03 s less of CPU."""
+    semantic map's image (its screen size, 1.5 million pixels on the embedded house) takes less
+    CPU, nearly all of it the system time of the float64 arrays' fresh pages, which varies with
+    the machine: 0.25 s less (sys 0.30 -> 0.05 s, ce52184, one core at load 4), 0.06 s less in a
+    re-measure (sys 0.07-0.115 -> 0.03 s, load 3); medians of 12 (docs/speed.md)."""
     if rgb.dtype != np.uint8 or rgb.ndim != 3 or rgb.shape[2] != 3:
         return rgb
     rgba = np.empty((*rgb.shape[:2], 4), dtype=np.uint8)  # [h, w, 4]
@@ -78,6 +80,7 @@ def strip_axes(
     :data:`~spcopyro.figures.map_pieces.STRIP_ASPECT`, margins included."""
     rows, cols = known_bounds(grid)
     left, right, bottom, top = map_extent(grid, rows, cols)
+    rgb = opaque(rgb)  # [H, W, 4]: once, not once a strip (show_map passes it through)
     long, short = (right - left, top - bottom) if along_x else (top - bottom, right - left)
     length = long / strips
     pad = STRIP_PAD * length

@@ -136,7 +136,7 @@ def plot_label_maps(
     the same place had different colours in neighbouring panels."""
     from matplotlib.figure import Figure
 
-    from spcopyro.figures.map_axes import known_bounds, map_extent
+    from spcopyro.figures.map_axes import known_bounds, map_extent, opaque
     from spcopyro.maps import render_labels
     from spcopyro.maps.render import label_colours
 
@@ -151,8 +151,8 @@ def plot_label_maps(
     axes = fig.subplots(rows_n, columns, squeeze=False)
     rows, cols = known_bounds(grid)
     for ax, (name, _), labels in zip(axes.ravel(), panels, shown, strict=False):
-        rgb = render_labels(labels, grid, colours)  # [H, W, 3]
-        ax.imshow(rgb[rows, cols], extent=map_extent(grid, rows, cols), interpolation="nearest")
+        shown_rgba = opaque(render_labels(labels, grid, colours)[rows, cols])  # [h, w, 4]
+        ax.imshow(shown_rgba, extent=map_extent(grid, rows, cols), interpolation="nearest")
         ax.set_title(name, fontsize=7)
         ax.set_xticks([])
         ax.set_yticks([])
