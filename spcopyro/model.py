@@ -291,12 +291,22 @@ def refuse_observed_latents(trace: pyro.poutine.Trace, names: Sequence[str], who
     MeanFieldELBO (``who``) infer every latent site of :func:`spcomapping_model` and cannot hold
     one fixed; they would draw the site anyway (the kernel) or score the guide's draws at the
     fixed value (the loss), silently. One message for both."""
+    near = {SITE_PI: "prior='dirichlet', alpha=1e4", SITE_THETA: "chi=1e4", SITE_W: "beta=1e4"}
     for name in names:
         if name in trace.nodes and trace.nodes[name]["is_observed"]:
+            if name.endswith("_probs"):  # a further modality's table
+                near[name] = f"concentrations={{{name.removesuffix('_probs')!r}: 1e4}}"
+            hint = (
+                f" (held near uniform, the variant is SpCoConfig({near[name]}): its Dirichlet "
+                "prior concentrates there as the concentration grows)"
+                if name in near
+                else ""
+            )
             raise ValueError(
                 f"the model's site {name!r} is observed (poutine.condition), but {who} infers "
                 f"every latent site of spcomapping_model (pi, labels, each modality's table): "
-                f"it cannot hold {name!r} fixed; pass the model without conditioning {name!r}"
+                f"it cannot hold {name!r} fixed; pass the model without conditioning "
+                f"{name!r}{hint}"
             )
 
 

@@ -159,6 +159,9 @@ def test_a_model_that_holds_a_latent_site_fixed_is_refused(site):
     # one check, one message (spcopyro.model.refuse_observed_latents): the two had their own
     assert str(loss.value) == str(kernel.value).replace("SpCoGibbs", "MeanFieldELBO")
     assert "pass the model without conditioning" in str(kernel.value)
+    # and for pi the variant that holds it near uniform (it said only what cannot be done)
+    hint = "held near uniform, the variant is SpCoConfig(prior='dirichlet', alpha=1e4)"
+    assert (hint in str(kernel.value)) == (site == "pi")
 
 
 def test_variational_md_does_not_offer_svi_for_a_changed_model():
