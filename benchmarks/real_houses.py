@@ -66,7 +66,11 @@ from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
 from spcopyro.fit.house import fit_house, preset_fit_kwargs
 from spcopyro.maps.coarse import coarsening_factor, refine_labels
-from spcopyro.metrics import adjusted_rand_index, heldout_word_prediction
+from spcopyro.metrics import (
+    WordPredictionScores,
+    adjusted_rand_index,
+    heldout_word_prediction,
+)
 from spcopyro.results.semantic_map import SpCoSemanticMap
 from spcopyro.robot.map_simulation import MapTour, simulate_on_map
 from spcopyro.synthetic import HouseSpec, make_house
@@ -161,21 +165,14 @@ SCORES = ("all folds", "trial 1", "top 3", "mean rank")
 the true word's mean rank (every fold)."""
 
 
-def fold_scores(model, test) -> list[float]:
-    """One fold's ``[top-1 hits, top-3 hits, sum of ranks, words scored]`` of a model."""
-    s = heldout_word_prediction(model, test)
-    return [float(s.top1_hits.sum()), float(s.top3_hits.sum()), float(s.ranks.sum()),
-            float(s.num_scored)]  # fmt: skip
-
-
-def fold_summary(per_fold: np.ndarray) -> dict[str, float]:
-    """``per_fold`` ``[folds, 4]`` (:func:`fold_scores`) -> the :data:`SCORES` and the words."""
-    top1, top3, ranks, n = per_fold.sum(axis=0)
-    n = max(n, 1.0)
-    first = per_fold[0, 0] / max(per_fold[0, 3], 1.0)
-    return {"all folds": float(top1 / n), "trial 1": float(first), "top 3": float(top3 / n),
-            "mean rank": float(ranks / n), "words": int(per_fold[:, 3].sum()),
-            "trial 1 words": int(per_fold[0, 3])}  # fmt: skip
+def fold_summary(folds: Sequence[WordPredictionScores]) -> dict[str, float]:
+    """Each fold's scores (fold 0 first) -> the :data:`SCORES` and the words: every fold's
+    words pooled (:meth:`~spcopyro.metrics.heldout.WordPredictionScores.pooled`), and fold 0
+    alone. A score of no scored words is NaN (none measured), its words 0."""
+    every, first = WordPredictionScores.pooled(folds), folds[0]
+    return {"all folds": every.top1, "trial 1": first.top1, "top 3": every.top3,
+            "mean rank": every.mean_rank, "words": every.num_scored,
+            "trial 1 words": first.num_scored}  # fmt: skip
 
 
 def heldout_top1(
@@ -193,40 +190,53 @@ def heldout_top1(
     2026-12-06 every preset was fitted at seed 0 alone (the same numbers as ``seeds=[0]``)."""
     if len(set(seeds)) != len(seeds) or not seeds:
         raise ValueError(f"held-out fit seeds must be distinct and at least one, got {seeds}")
-    folds: dict[str, list] = {}  # per method: per fold [top-1, top-3, ranks, n] (per seed)
+    folds: dict[tuple[str, int | None], list[WordPredictionScores]] = {}  # (name, fit seed)
     for _, _, train, test in heldout_folds(house):
         obs = train.observations
         for name in presets:
             for seed in seeds:
                 model = SpCoSemanticMap(fit_result(train, name, sweeps, seed)[0])
-                folds.setdefault(f"{name}|{seed}", []).append(fold_scores(model, test))
+                folds.setdefault((name, seed), []).append(heldout_word_prediction(model, test))
         baselines = {
             "E nearest": nearest_word_map(train.grid, obs),
             "F geometry 2 m": geometry_semantic_map(train.grid, obs, door_width=2.0),
         }
         for name, model in baselines.items():
-            folds.setdefault(name, []).append(fold_scores(model, test))
+            folds.setdefault((name, None), []).append(heldout_word_prediction(model, test))
     out: dict[str, dict] = {}
     for name in presets:
-        per_seed = {str(s): fold_summary(np.array(folds[f"{name}|{s}"])) for s in seeds}
+        per_seed = {str(s): fold_summary(folds[name, s]) for s in seeds}
         first = next(iter(per_seed.values()))
         out[name] = {key: float(np.mean([row[key] for row in per_seed.values()])) for key in SCORES}
         out[name] |= {"words": first["words"], "trial 1 words": first["trial 1 words"],
                       "seeds": per_seed}  # fmt: skip
     for name in ("E nearest", "F geometry 2 m"):
-        out[name] = fold_summary(np.array(folds[name]))  # [folds, 4]
+        out[name] = fold_summary(folds[name, None])
     return out
 
 
+def score(row: dict, key: str, seed: str | None = None) -> float:
+    """A held-out row's (:func:`heldout_top1`'s) ``key``: fit seed ``seed``'s (its
+    ``"seeds"``), else the row's own (a preset's mean over the seeds; a baseline's)."""
+    return row[key] if seed is None else row["seeds"][seed][key]
+
+
+def mean_of_houses(
+    per_house: dict[str, dict], name: str, key: str, seed: str | None = None
+) -> float:
+    """A held-out score of ``name`` (:func:`score`) averaged over the houses, each the same."""
+    return float(np.mean([score(per_house[h][name], key, seed) for h in per_house]))
+
+
 def pooled(per_house: dict[str, dict], name: str, key: str, seed: str | None = None) -> float:
-    """A held-out score of ``name`` pooled over the houses' words (a house weighs by the words it
-    scores: ``"trial 1 words"`` for ``"trial 1"``, ``"words"`` otherwise); ``seed``: that fit
-    seed's (:func:`heldout_top1`'s ``"seeds"``), else the mean over the seeds."""
+    """A held-out score of ``name`` (:func:`score`) pooled over the houses' words (a house
+    weighs by the words it scores: ``"trial 1 words"`` for ``"trial 1"``, ``"words"``
+    otherwise; a house that scores none weighs nothing, NaN where none does)."""
     weight = "trial 1 words" if key == "trial 1" else "words"
-    rows = [per_house[h][name] for h in per_house]
-    values = [row[key] if seed is None else row["seeds"][seed][key] for row in rows]
+    rows = [per_house[h][name] for h in per_house if per_house[h][name][weight] > 0]
     words = [row[weight] for row in rows]
-    return float(np.dot(values, words) / max(sum(words), 1))
+    values = [score(row, key, seed) for row in rows]
+    return float(np.dot(values, words) / sum(words)) if rows else float("nan")
 
 
 def heldout_table(title: str, per_house: dict[str, dict], key: str, note: str) -> str:
@@ -247,10 +257,10 @@ def heldout_table(title: str, per_house: dict[str, dict], key: str, note: str) -
             [(f"{name}, seed {s}", s) for s in seeds] if len(seeds) > 1 else []
         )
         for label, seed in rows:
-            rows_h = [per_house[h][name] for h in houses]
-            values = [r[key] if seed is None else r["seeds"][seed][key] for r in rows_h]
+            values = [score(per_house[h][name], key, seed) for h in houses]
             cells = " | ".join(f"{v:.2f}" for v in values)
-            both = f"{np.mean(values):.3f} | {pooled(per_house, name, key, seed):.3f}"
+            both = f"{mean_of_houses(per_house, name, key, seed):.3f} | "
+            both += f"{pooled(per_house, name, key, seed):.3f}"
             lines.append(f"| {label} | {cells} | {both} |")
     return "\n".join([*lines, "", note, ""])
 
@@ -268,13 +278,10 @@ def heldout_target(
     if ours not in first or theirs not in first:
         return ""
     seeds = list(first[ours]["seeds"])
-    mean = {
-        name: float(np.mean([per_house[h][name]["all folds"] for h in per_house]))
-        for name in (ours, theirs)
-    }
+    mean = {name: mean_of_houses(per_house, name, "all folds") for name in (ours, theirs)}
     diffs = [
-        float(np.mean([per_house[h][ours]["seeds"][s]["all folds"] for h in per_house]))
-        - float(np.mean([per_house[h][theirs]["seeds"][s]["all folds"] for h in per_house]))
+        mean_of_houses(per_house, ours, "all folds", s)
+        - mean_of_houses(per_house, theirs, "all folds", s)
         for s in seeds
     ]
     words = {name: pooled(per_house, name, "all folds") for name in (ours, theirs)}

@@ -7,6 +7,7 @@ PYTHONPATH), whichever copy the environment has installed.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib
 import json
 import math
@@ -229,6 +230,60 @@ def test_real_houses_heldout_words_at_several_fit_seeds(script):
     assert "seeds" not in rows["E nearest"] and rows["E nearest"]["words"] == fitted["words"]
     with pytest.raises(ValueError, match="distinct"):
         rh.heldout_top1(house, 3, seeds=[0, 0], presets=("paper-dp",))
+
+
+def test_real_houses_heldout_folds_pool_as_word_prediction_scores_do(script):
+    """The folds are pooled by ``WordPredictionScores.pooled`` (the benchmark summed a
+    ``[folds, 4]`` array of its own), and a fold that scores no word has no score: trial 1's
+    top-1 is NaN with 0 words, where it was 0.0 (every word missed), and the pooling over the
+    houses' words leaves such a house out. Trial 0 of a synthetic house is given only words the
+    other trials never say, so fold 0 scores none."""
+    from spcopyro.metrics import WordPredictionScores, heldout_word_prediction
+    from spcopyro.synthetic import make_house
+
+    rh = script("real_houses")
+    house = make_house(seed=0)
+    obs = house.observations
+    trials = zip(obs.utterances, obs.word_trial, strict=True)
+    unheard = tuple(("unheard",) if t == 0 else u for u, t in trials)
+    house = dataclasses.replace(house, observations=dataclasses.replace(obs, utterances=unheard))
+    rows = rh.heldout_top1(house, 3, seeds=[0], presets=("paper-dp",))
+    for name in ("paper-dp", "E nearest", "F geometry 2 m"):
+        row = rows[name]
+        assert row["trial 1 words"] == 0 and math.isnan(row["trial 1"]), name
+        assert row["words"] > 0 and 0.0 <= row["all folds"] <= 1.0, name
+    folds = [heldout_word_prediction(rh.nearest_word_map(train.grid, train.observations), test)
+             for _, _, train, test in rh.heldout_folds(house)]  # fmt: skip
+    every = WordPredictionScores.pooled(folds)
+    assert rows["E nearest"]["all folds"] == every.top1
+    assert rows["E nearest"]["mean rank"] == every.mean_rank
+    assert rows["E nearest"]["words"] == every.num_scored == sum(f.num_scored for f in folds[1:])
+    scored = rh.heldout_top1(make_house(seed=0), 3, seeds=[0], presets=())
+    per_house = {"none": rows, "some": scored}  # the house with no trial-1 word weighs nothing
+    trial1 = rh.pooled(per_house, "E nearest", "trial 1")
+    assert trial1 == pytest.approx(scored["E nearest"]["trial 1"])
+    assert math.isnan(rh.pooled({"none": rows}, "E nearest", "trial 1"))
+
+
+def test_real_houses_doc_counts_the_words_trial_1_scores(script, dataset_root):
+    """docs/real_houses.md gives how many words each fold scores on the public houses (the
+    nearest utterance's model knows the training trials' words, as every fit does): it said
+    trial 1 alone scored 86 words, where fold 0 scores 53 (its own pooled column fits 53)."""
+    from spcopyro.data import load_house
+    from spcopyro.metrics import heldout_word_prediction
+
+    rh = script("real_houses")
+    per_fold, per_house = [0, 0, 0], []  # words scored: per fold over the houses, per house
+    for name in rh.PUBLIC_CATEGORIES:
+        house = load_house(dataset_root / name)
+        scored = [heldout_word_prediction(rh.nearest_word_map(t.grid, t.observations), test)
+                  .num_scored for _, _, t, test in rh.heldout_folds(house)]  # fmt: skip
+        per_fold = [a + b for a, b in zip(per_fold, scored, strict=True)]
+        per_house.append(sum(scored))
+    text = " ".join((ROOT / "docs" / "real_houses.md").read_text().split())
+    assert f"Trial 1 alone scores {per_fold[0]} words over the five houses" in text
+    assert f"scores {sum(per_fold)} words ({', '.join(map(str, per_house))} a house)" in text
+    assert f"one fold's {per_fold[0]} words" in text and " 86 words" not in text
 
 
 def _heldout_row(top1_per_seed: list[float], words: int) -> dict:
