@@ -404,7 +404,14 @@ def test_a_resumed_comparison_says_which_cells_it_ran_and_reruns_stale_ones(tmp_
     assert "## Synthetic houses (1 seed, ground truth)" in (out / "comparison.md").read_text()
     assert json.loads((out / "comparison.json").read_text())["cells_finished_before"] == 0
     assert json.loads((out / "comparison.json").read_text())["workers"] == 1
-    check_stale_kept_then_rerun(main, command, out, "comparison", capsys)
+    check_stale_kept_then_rerun(
+        main,
+        command,
+        out,
+        "comparison",
+        capsys,
+        "compare-inference: 1 of 1 fits to run: 1 method x 1 fit each",
+    )
 
 
 # -- the comparison as a study (issue 26) --------------------------------------------------------
@@ -901,21 +908,25 @@ def test_the_default_comparison_says_its_scale_before_its_first_fit(
     """The default compare-inference plans 140 fits; it said only "140 of 140 cells to run" and
     a progress bar that predicted 4 to 17 hours on 2 cores, after it had started. It now says,
     before the first fit, the fits per method, the budgets, the predicted time and the shorter
-    runs; --help says the default's scale."""
-    import spcopyro.study.comparison
+    runs; --help says the default's scale. It says the count once: the study engine's own
+    "140 of 140 cells to run" followed it (review of ee5e2fb)."""
+    import spcopyro.study.run
     from spcopyro.cli.main import build_parser
 
-    def run_study(*args, **kwargs):
+    def in_process(cells):
         raise _Stop  # the first fit would start here
 
-    monkeypatch.setattr(spcopyro.study.comparison, "run_study", run_study)
+    monkeypatch.setattr(spcopyro.study.run, "_in_process", in_process)
     with pytest.raises(_Stop):
         main(["compare-inference", "--out", str(tmp_path / "cmp"), "--data", str(dataset_root)])
     out = capsys.readouterr().out
     assert ("compare-inference: 140 of 140 fits to run: 7 methods x 20 fits each (5 synthetic "
             "houses; 15 held-out trials of 5 public houses), at these budgets: gibbs 5000 "
             "sweeps,") in out  # fmt: skip
-    assert re.search(r"vi-gibbs 5000 sweeps; predicted 1\.\d h of fits one after another", out)
+    assert re.search(r"vi-gibbs 5000 sweeps; predicted 1\.\d h of fits one after another "
+                     r"\(times of a 2-core machine: a guide, not a promise\); cells run: "
+                     r"in-process\n", out)  # fmt: skip
+    assert out.count(" of 140 ") == 1, out  # the count once
     assert (
         "a shorter comparison: --quick (a smoke run: a tiny house, a few iterations), "
         "--houses synthetic --seeds 2 (2 synthetic houses a method), or a tenth of the "
@@ -932,3 +943,22 @@ def test_the_default_comparison_says_its_scale_before_its_first_fit(
     sub = build_parser()._subparsers._group_actions[0].choices["compare-inference"]  # noqa: SLF001
     helped = " ".join(sub.format_help().split())
     assert "The default is the whole study: 140 fits (7 methods x 5 synthetic houses" in helped
+
+
+def test_a_resumed_comparison_says_how_many_fits_finished_before(tmp_path):
+    """compare-inference's line says the count once (the study engine's "N of M cells to run
+    (K finished before)" no longer follows it), so it says the fits finished before itself."""
+    from spcopyro.study.comparison import plan_lines
+    from spcopyro.study.run import plan_study
+
+    settings = ComparisonSettings(variants=("gibbs", "cavi"), seeds=2, house_types=("synthetic",),
+                                  quick=True)  # fmt: skip
+    study = comparison_study(settings)
+    plan = plan_study(study, tmp_path / "out")
+    resumed = dataclasses.replace(plan, pending=plan.pending[1:], cached=1)
+    assert plan_lines(study, plan)[0].startswith(
+        "compare-inference: 4 of 4 fits to run: 2 methods x 2 fits each (2 synthetic houses)"
+    )
+    assert plan_lines(study, resumed)[0].startswith(
+        "compare-inference: 3 of 4 fits to run (1 finished before): 2 methods x 2 fits each"
+    )

@@ -47,7 +47,7 @@ from spcopyro.study.evaluate import WARNINGS
 from spcopyro.study.maps import remove_stale
 from spcopyro.study.order import duration, run_seconds
 from spcopyro.study.report import with_warnings
-from spcopyro.study.run import plan_study, run_study
+from spcopyro.study.run import StudyPlan, run_study
 from spcopyro.study.spec import DataSource, Study
 from spcopyro.study.table import TABLE, read_table
 from spcopyro.synthetic import HouseSpec
@@ -100,18 +100,16 @@ def comparison_study(
     )  # fmt: skip
 
 
-def plan_lines(
-    study: Study, out: str | os.PathLike[str], *, retry_failed: bool = False,
-    rerun_stale: bool = False, root: str | os.PathLike[str] | None = None,
-) -> list[str]:  # fmt: skip
-    """What a run of ``study`` into ``out`` is about to do, said before its first fit: how many
+def plan_lines(study: Study, plan: StudyPlan) -> list[str]:
+    """What a run of ``study`` (``plan``: :func:`~spcopyro.study.run.plan_study`'s, as
+    :func:`~spcopyro.study.run.run_study` is about to run it) does, said before its first fit
+    in the place of the study engine's "N of M cells to run" (``describe``): how many
     fits (per method: the synthetic houses and the public houses' held-out trials), at which
     budgets, their predicted time (:func:`spcopyro.study.order.run_seconds`), and, for a run
     predicted over :data:`LONG_SECONDS`, shorter invocations. The default study is 140 fits
     (7 methods x 5 synthetic houses and 15 held-out trials), predicted at 1.8 h of fits on the
     2-core machine its rates were measured on; it showed only "140 of 140 cells to run" and a
     progress bar, whose first minutes predicted 4 to 17 hours. Empty when nothing is to run."""
-    plan = plan_study(study, out, retry_failed, rerun_stale, root)
     if not plan.pending:
         return []
     per_method = {}
@@ -126,8 +124,9 @@ def plan_lines(
     each = max(per_method.values())
     budgets = ", ".join(f"{key} {n} {iteration_unit(key)}" for key, n in study.sweeps)
     seconds = run_seconds(plan.predicted.get(c.key, 0.0) for c in plan.pending)
+    before = f" ({plan.cached} finished before)" if plan.cached else ""  # a run resumed
     lines = [
-        f"compare-inference: {len(plan.pending)} of {len(plan.cells)} fits to run: "
+        f"compare-inference: {len(plan.pending)} of {len(plan.cells)} fits to run{before}: "
         f"{plural(len(per_method), 'method')} x {plural(each, 'fit')} each "
         f"({'; '.join(where)}), at these budgets: {budgets}; predicted {duration(seconds)} "
         "of fits one after another (times of a 2-core machine: a guide, not a promise)"
@@ -194,12 +193,10 @@ def run_comparison(
         notes.append(f"{SYNTHETIC} houses skipped: no seeds")
     if PUBLIC in settings.house_types and "public" not in kinds:
         notes.append(f"{PUBLIC} houses skipped: the public dataset was not found")
-    for line in plan_lines(study, out, retry_failed=retry_failed, rerun_stale=rerun_stale,
-                           root=settings.dataset_root):  # fmt: skip
-        report(line)  # before the first fit: how many, and what that means
     run = run_study(
         study, out, workers=workers, retry_failed=retry_failed, rerun_stale=rerun_stale,
         report=report, root=settings.dataset_root,
+        describe=lambda plan: plan_lines(study, plan),  # before the first fit: the scale
     )  # fmt: skip
     rows = read_table(out / TABLE)
     records = records_of_rows(rows)

@@ -152,6 +152,7 @@ def run_study(
     progress: bool | None = None,
     report: Callable[[str], None] = _say_nothing,
     start_in_process: bool = True,
+    describe: Callable[[StudyPlan], list[str]] | None = None,
 ) -> StudyRun:
     """Run the cells of ``study`` that ``out`` does not hold yet (module docstring).
 
@@ -161,7 +162,10 @@ def run_study(
     dataset's folder for sources named by house (default:
     :func:`spcopyro.data.find_dataset_root`). ``report`` receives one line per failed cell and
     a closing line. ``start_in_process``: with a LocalCluster, run cells in this process while
-    its workers start (module docstring). KeyboardInterrupt stops the run after storing every
+    its workers start (module docstring). ``describe``: the lines that say what is about to run,
+    from the plan run, said in the place of the line "study NAME: N of M cells to run" (the
+    first followed by where the cells run): compare-inference's own count, budgets and
+    predicted time said it again. KeyboardInterrupt stops the run after storing every
     finished cell and rewriting the table, then propagates. ``workers > 1`` or ``scheduler``
     without dask.distributed raise :class:`ModuleNotFoundError` before anything is written.
     Another run into ``out`` while this one lasts raises
@@ -174,7 +178,7 @@ def run_study(
     out = check_out_folder(out)
     with folder_lock(out, "study run"):  # FolderBusyError while another run writes there
         return _run_study(study, out, workers, scheduler, retry_failed, rerun_stale, root,
-                          progress, report, start_in_process)  # fmt: skip
+                          progress, report, start_in_process, describe)  # fmt: skip
 
 
 def _run_study(
@@ -188,6 +192,7 @@ def _run_study(
     progress: bool | None,
     report: Callable[[str], None],
     start_in_process: bool,
+    describe: Callable[[StudyPlan], list[str]] | None = None,
 ) -> StudyRun:
     """:func:`run_study` once it holds ``out``'s lock."""
     start = time.perf_counter()
@@ -211,8 +216,12 @@ def _run_study(
             report(_failed_before_line(plan.failed_before, out))
         return StudyRun(out, len(cells), cached, 0, 0, time.perf_counter() - start, where,
                         failed_before=plan.failed_before)  # fmt: skip
-    report(f"study {study.name!r}: {len(pending)} of {len(cells)} cells to run ({cached} "
-           f"finished before), {where}")  # fmt: skip
+    said = describe(plan) if describe is not None else []  # the count, said once
+    if said:
+        said[0] += f"; cells run: {where}"
+    for line in said or [f"study {study.name!r}: {len(pending)} of {len(cells)} cells to run "
+                         f"({cached} finished before), {where}"]:  # fmt: skip
+        report(line)
     if client is not None and not client.nthreads():  # type: ignore[attr-defined]
         report(f"note: the Dask scheduler {scheduler} has no workers yet: the cells wait for "
                "them (start workers, or wait for the cluster's jobs to start)")  # fmt: skip
