@@ -17,6 +17,7 @@ import numpy as np
 import pyro
 import pyro.distributions as dist
 import torch
+from pyro.infer import ELBO
 from pyro.poutine.messenger import Messenger
 from pyro.poutine.util import site_is_subsample
 
@@ -411,13 +412,26 @@ def _check_label_range(labels: torch.Tensor, L: int) -> None:
     )
 
 
+def _calling_elbo() -> ELBO | None:
+    """The innermost :class:`pyro.infer.ELBO` whose method is running the caller, if any: an
+    ELBO's ``loss``, ``loss_and_grads`` or ``differentiable_loss`` is on the call stack whenever
+    it runs a guide (``Predictive`` and a plain call run none). The walk starts at the caller's
+    caller (the model, or the guide's ``forward``)."""
+    frame = sys._getframe(2)
+    while frame is not None:
+        owner = frame.f_locals.get("self")
+        if isinstance(owner, ELBO):
+            return owner
+        frame = frame.f_back
+    return None
+
+
 def _refuse_prior_labels_under_an_elbo() -> None:
     """ValueError where a Pyro ELBO replays a guide that has no ``labels`` site (an autoguide
     of the globals, ``AutoNormal(poutine.block(model, hide=["labels"]))``): the model drew the
     labels from Categorical(pi) in every step, without the Potts factor, and Trace_ELBO took
     steps on that estimate with no more than Pyro's UserWarning 'Found vars in model but not
     guide'. Cheap unless so: a look at Pyro's handler stack, the call stack only then."""
-    from pyro.infer import ELBO
     from pyro.poutine.condition_messenger import ConditionMessenger
     from pyro.poutine.replay_messenger import ReplayMessenger
     from pyro.poutine.runtime import _PYRO_STACK
@@ -428,14 +442,11 @@ def _refuse_prior_labels_under_an_elbo() -> None:
     for handler in _PYRO_STACK:  # labels given by poutine.condition: not drawn
         if isinstance(handler, ConditionMessenger) and SITE_LABELS in (handler.data or {}):
             return
-    frame = sys._getframe(1)
-    while frame is not None and not isinstance(frame.f_locals.get("self"), ELBO):
-        frame = frame.f_back
-    if frame is None:
+    loss = _calling_elbo()  # from spcomapping_model's frame
+    if loss is None:
         return
-    loss = type(frame.f_locals["self"]).__name__
     raise ValueError(
-        f"{loss} runs a guide with no 'labels' site (an autoguide of the globals, "
+        f"{type(loss).__name__} runs a guide with no 'labels' site (an autoguide of the globals, "
         "poutine.block(model, hide=['labels'])?), so spcomapping_model draws the labels from "
         "Categorical(pi) in every step, without the Potts factor: the loss fits nothing of the "
         "map. Fit spcopyro.guides.MeanFieldGuide with MeanFieldELBO under SVI (q(C) in closed "

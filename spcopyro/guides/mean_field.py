@@ -32,13 +32,11 @@ fit it (the reasons are in :mod:`spcopyro.guides.loss`).
 from __future__ import annotations
 
 import logging
-import sys
 from typing import Literal
 
 import pyro
 import pyro.distributions as dist
 import torch
-from pyro.infer import ELBO
 from pyro.nn import PyroModule, PyroParam
 from torch.distributions import constraints
 
@@ -53,6 +51,7 @@ from spcopyro.model import (
     SITE_LABELS,
     SITE_PI,
     ModelData,
+    _calling_elbo,
     check_config,
     check_model_data,
 )
@@ -73,19 +72,6 @@ GIVEN_START_SMOOTHING = 0.05
 
 class WrongLossError(TypeError):
     """The guide was run by an ELBO that cannot fit it (module docstring)."""
-
-
-def _calling_elbo() -> ELBO | None:
-    """The innermost :class:`pyro.infer.ELBO` whose method is running the caller, if any: an
-    ELBO's ``loss``, ``loss_and_grads`` or ``differentiable_loss`` is on the call stack whenever
-    it runs a guide (``Predictive`` and a plain call run none)."""
-    frame = sys._getframe(2)
-    while frame is not None:
-        owner = frame.f_locals.get("self")
-        if isinstance(owner, ELBO):
-            return owner
-        frame = frame.f_back
-    return None
 
 
 def _warn_stored(logits_name: str, shape: tuple[int, int], name: str) -> None:
