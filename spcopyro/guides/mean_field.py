@@ -172,7 +172,7 @@ class MeanFieldGuide(PyroModule):
         prior = prior_factors(data, config)
         self.num_free, self.num_concepts = N, L
         self.parameter_sites = tuple(m.parameter for m in data.modalities)
-        _warn_stored(self._full_name(SITE_LABELS), (N, L), name)
+        _warn_stored(self.logits_name, (N, L), name)
         self.num_items = tuple(m.counts.shape[-1] for m in data.modalities)  # K_m per modality
         starts = (factors.pi, *factors.emissions)  # [L], [L, K_m] ...
         lows = (prior.pi, *prior.emissions) if bound == "prior" else (0.0,) * len(starts)
