@@ -36,7 +36,7 @@ from spcopyro.experiments.table import (
 )
 from spcopyro.figures.fonts import any_script
 from spcopyro.study import STUDIES
-from spcopyro.study.maps import plot_label_maps, remove_stale, source_panels, truth_first
+from spcopyro.study.maps import plot_label_maps, remove_stale, source_panels
 from spcopyro.study.report import with_warnings
 from spcopyro.study.run import run_study
 from spcopyro.study.spec import DataSource, Study
@@ -224,8 +224,7 @@ def write_figures(out: str | os.PathLike[str], rows: Sequence[dict[str, object]]
         else:
             name, what = "synthetic_maps.png", f"seed {seed}"
         title = f"{data} {what}: every method's map"
-        paths.append(plot_label_maps(grid, panels, folder / name, title,
-                                     matched=truth_first(panels)))  # fmt: skip
+        paths.append(plot_label_maps(grid, panels, folder / name, title))
         spco = [r for r in mine if r["seed"] == seed and r["variant"] in SPCO_METHODS]
         if not public and spco:  # baselines alone have no traces (an empty legend warned)
             title = f"{data} seed {seed}: ARI and concepts per sweep"

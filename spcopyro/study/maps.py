@@ -29,7 +29,7 @@ from spcopyro.maps.coarse import labels_on_grid
 __all__ = [
     "MAPS_PREFIX", "Arrays", "StoredMap", "label_map_arrays", "labels_on_map", "load_label_map",
     "REGION_TRUTH_PANEL", "TRUTH_PANEL", "maps_file_name", "plot_label_maps", "remove_stale",
-    "row_name", "truth_first", "write_house_maps",
+    "row_name", "write_house_maps",
 ]  # fmt: skip
 
 Arrays = dict[str, np.ndarray]
@@ -103,15 +103,14 @@ def _ranked(labels: np.ndarray) -> np.ndarray:
     return np.where(inside, rank[np.maximum(labels, 0)], -1)
 
 
-def _matched_to(truth: np.ndarray, labels: np.ndarray) -> np.ndarray:
-    """[H, W] ``labels`` (ranked by size) renumbered so that each concept matched with a
-    category of ``truth`` ``[H, W]`` (ranked, :func:`_ranked`; the one-to-one matching of most
-    shared cells, :func:`spcopyro.results.renumber.matching_permutation`) takes its number, and
-    so its colour; the concepts matched with none follow the truth's numbers, largest first.
-    -1 kept."""
+def _matched_to(truth: np.ndarray, ranked: np.ndarray) -> np.ndarray:
+    """[H, W] ``ranked`` (labels ranked by size, :func:`_ranked`) renumbered so that each
+    concept matched with a category of ``truth`` ``[H, W]`` (ranked too; the one-to-one matching
+    of most shared cells, :func:`spcopyro.results.renumber.matching_permutation`) takes its
+    number, and so its colour; the concepts matched with none follow the truth's numbers,
+    largest first. -1 kept."""
     from spcopyro.results.renumber import matching_permutation
 
-    ranked = _ranked(labels)  # [H, W]
     both = (ranked >= 0) & (truth >= 0)  # [H, W] the cells both label
     if not both.any():
         return ranked
@@ -126,14 +125,14 @@ def _matched_to(truth: np.ndarray, labels: np.ndarray) -> np.ndarray:
 
 
 def plot_label_maps(
-    grid: OccupancyGrid, panels: Sequence[tuple[str, np.ndarray]], path: Path, title: str,
-    *, matched: bool = False,
-) -> Path:  # fmt: skip
+    grid: OccupancyGrid, panels: Sequence[tuple[str, np.ndarray]], path: Path, title: str
+) -> Path:
     """Label maps ``[H, W]`` of one map side by side, at most four a row (paper Fig. 7), each
-    coloured by region size; written to ``path``. ``matched``: the first panel is the truth,
-    and every other panel's concepts take the colours of the truth's categories they are
-    matched with (:func:`_matched_to`), from one colour table: coloured each by its own sizes,
-    the same place had different colours in neighbouring panels."""
+    coloured by region size; written to ``path``. Where the first panel is the truth
+    (:func:`source_panels`' :data:`TRUTH_PANEL` or :data:`REGION_TRUTH_PANEL`), every other
+    panel's concepts take the colours of the truth's categories they are matched with
+    (:func:`_matched_to`), from one colour table: coloured each by its own sizes, the same place
+    had different colours in neighbouring panels."""
     from matplotlib.figure import Figure
 
     from spcopyro.figures.map_axes import known_bounds, map_extent, opaque
@@ -142,7 +141,7 @@ def plot_label_maps(
 
     shown = [_ranked(np.asarray(labels)) for _, labels in panels]  # [H, W] each
     colours = None  # each panel its own table, by its number of concepts
-    if matched and shown:
+    if _truth_first(panels):
         shown[1:] = [_matched_to(shown[0], labels) for labels in shown[1:]]
         colours = label_colours(max(int(labels.max()) for labels in shown) + 1)  # [K, 3]
     columns = max(1, min(4, len(panels)))
@@ -212,7 +211,7 @@ def source_panels(
     return grid, panels, seed
 
 
-def truth_first(panels: Sequence[tuple[str, np.ndarray]]) -> bool:
+def _truth_first(panels: Sequence[tuple[str, np.ndarray]]) -> bool:
     """Whether the first of :func:`source_panels`' ``panels`` is the source's truth."""
     return bool(panels) and panels[0][0] in (TRUTH_PANEL, REGION_TRUTH_PANEL)
 
@@ -245,8 +244,6 @@ def write_house_maps(
             continue
         grid, panels, seed = found
         title = f"{data}, seed {seed}: every row's map"
-        matched = truth_first(panels)  # every map's concepts in its matched category's colour
-        paths.append(plot_label_maps(grid, panels, folder / maps_file_name(data), title,
-                                     matched=matched))  # fmt: skip
+        paths.append(plot_label_maps(grid, panels, folder / maps_file_name(data), title))
     remove_stale(folder, [f"{MAPS_PREFIX}*.png"], paths)
     return paths
