@@ -238,18 +238,25 @@ def check_model_data(data: ModelData, config: SpCoConfig | None = None) -> None:
             )
 
 
-def _check_concentration_names(data: ModelData, config: SpCoConfig) -> None:
+def _check_concentration_names(
+    data: ModelData,
+    config: SpCoConfig,
+    holder: str = "the data have",
+    fix: str = "add it to ModelData.modalities (Modality(name, parameter_site(name), counts "
+    "[M, K_m])) or correct the name",
+) -> None:
     """ValueError where ``config.concentrations`` names a modality the data have not (a
     misspelt name, or data made before the modality was added): the model, the kernel and the
-    guides fitted the data without it, silently, as ``prepare_model_data`` refuses for a house."""
+    guides fitted the data without it, silently. One test, worded by its caller: ``holder``
+    what lacks the modality, ``fix`` the way out (``prepare_model_data``: a house and its
+    ``modality_<name>.csv``)."""
     names = {m.name for m in data.modalities}
     unused = [name for name, _ in config.concentrations if name not in names]
     if unused:
         further = [m.name for m in data.modalities if m.name not in (SITE_IMAGES, SITE_WORDS)]
         raise ValueError(
-            f"SpCoConfig.concentrations names {unused}, but the data have no such modality "
-            f"(their further ones: {further or 'none'}): add it to ModelData.modalities "
-            "(Modality(name, parameter_site(name), counts [M, K_m])) or correct the name"
+            f"SpCoConfig.concentrations names {unused}, but {holder} no such modality "
+            f"(further modalities: {further or 'none'}): {fix}"
         )
 
 

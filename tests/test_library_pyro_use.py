@@ -321,7 +321,7 @@ def test_a_concentration_for_a_modality_the_data_have_not_is_named():
     _, data = random_problem(seed=0)
     cfg = config(concentrations={"objects": 1.0})
     message = r"concentrations names \['objects'\], but the data have no such modality"
-    with pytest.raises(ValueError, match=message + r" \(their further ones: none\)"):
+    with pytest.raises(ValueError, match=message + r" \(further modalities: none\)"):
         poutine.trace(spcomapping_model).get_trace(data, cfg)
     with pytest.raises(ValueError, match=message):
         MCMC(SpCoGibbs(), num_samples=1, warmup_steps=1, disable_progbar=True).run(data, cfg)
@@ -331,7 +331,7 @@ def test_a_concentration_for_a_modality_the_data_have_not_is_named():
     data3 = data._replace(
         modalities=(*data.modalities, Modality("object", parameter_site("object"), objects))
     )
-    with pytest.raises(ValueError, match=r"\(their further ones: \['object'\]\)"):
+    with pytest.raises(ValueError, match=r"\(further modalities: \['object'\]\)"):
         poutine.trace(spcomapping_model).get_trace(data3, cfg)
     cfg3 = config(concentrations={"object": 1.0})
     assert "object_probs" in poutine.trace(spcomapping_model).get_trace(data3, cfg3).nodes

@@ -130,8 +130,14 @@ def test_a_concentration_for_a_modality_the_house_lacks_is_refused():
     # a misspelt or absent modality's concentration was ignored: the fit ran without it
     house = make_house(seed=1, spec=HouseSpec(height=30, width=40, num_rooms=2))
     settings = preset("original-code", num_concepts=4, concentrations={"objects": 0.5})
-    with pytest.raises(ValueError, match=r"concentrations names \['objects'\], but house"):
+    # the model's test (spcopyro.model._check_concentration_names), in the house's words
+    message = (
+        f"SpCoConfig.concentrations names ['objects'], but house {house.name!r} has no such "
+        "modality (further modalities: none): modality_<name>.csv adds one, or correct the name"
+    )
+    with pytest.raises(ValueError) as refused:
         prepare_model_data(house, settings)
+    assert str(refused.value) == message
     counts, data = prepare_model_data(house, settings.replace(concentrations={}))
     assert np.isfinite(counts.image_counts).all() and len(data.modalities) == 2
 

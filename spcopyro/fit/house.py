@@ -80,7 +80,7 @@ from spcopyro.inference.driver import DriveInterrupted
 from spcopyro.inference.names import SAMPLERS as SAMPLERS  # re-exported: label maps kept
 from spcopyro.inference.protocol import InferenceOutput
 from spcopyro.maps.free_space import check_free_cells
-from spcopyro.model import ModelData, make_model_data
+from spcopyro.model import ModelData, _check_concentration_names, make_model_data
 from spcopyro.results.map_checks import coverage_warning, house_map_warning
 from spcopyro.results.point_estimate import check_point_estimate
 from spcopyro.results.posterior_means import concept_totals, with_posterior_means
@@ -208,13 +208,8 @@ def prepare_model_data(
     data = make_model_data(house.grid, counts, settings.model.connectivity)
     for modality in data.modalities:
         settings.model.concentration(modality.name)  # ValueError if a further one has none
-    further = sorted(m.name for m in data.modalities[2:])
-    unused = [name for name, _ in settings.model.concentrations if name not in further]
-    if unused:  # a misspelt name, or a house without that modality: ignored silently
-        raise ValueError(
-            f"SpCoConfig.concentrations names {unused}, but house {house.name!r} has no such "
-            f"modality (its further ones: {further or 'none'}; modality_<name>.csv adds one)"
-        )
+    fix = "modality_<name>.csv adds one, or correct the name"
+    _check_concentration_names(data, settings.model, f"house {house.name!r} has", fix)
     return counts, data
 
 
