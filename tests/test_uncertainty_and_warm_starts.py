@@ -386,3 +386,38 @@ def test_cell_entropy_is_the_callers_to_change(gibbs_fit):
     again = cell_entropy(result)
     assert again is not first and again.flags.writeable
     np.testing.assert_array_equal(again, expected)
+
+
+def test_a_start_of_more_concepts_says_how_many_to_fit_or_how_to_renumber(house, gibbs_fit):
+    """A start fitted with more concepts was refused with 'uses concept 7, beyond this fit's
+    num_concepts = 4' alone: the refusal now says the setting to fit with, as a library caller
+    and ``fit`` give it, and, when the start's concepts are few enough, how to renumber them."""
+    import dataclasses
+
+    from spcopyro.config import SpCoConfig
+    from spcopyro.fit.starts import result_labels
+    from spcopyro.inference.initialisation import check_labels
+
+    labels = np.where(np.arange(house.grid.num_free) % 2 == 0, 1, 7)  # [N] concepts 1 and 7
+    start = dataclasses.replace(gibbs_fit, labels=labels)
+    with pytest.raises(ValueError) as refused:
+        result_labels(start, house, dataclasses.replace(SETTINGS.model, num_concepts=4))
+    assert str(refused.value) == (
+        "the starting result uses concept 7, beyond this fit's num_concepts = 4 (concepts 0..3): "
+        "fit with num_concepts=8 (fit's --concepts 8) or more, or renumber its 2 concepts to "
+        "0..1 (spcopyro.results.renumber.renumbered(result, perm))"
+    )
+    with pytest.raises(ValueError) as refused:  # 2 concepts do not fit in 1: only more concepts
+        result_labels(start, house, dataclasses.replace(SETTINGS.model, num_concepts=1))
+    assert str(refused.value).endswith(": fit with num_concepts=8 (fit's --concepts 8) or more")
+    config = SpCoConfig(num_concepts=4)
+    with pytest.raises(ValueError) as refused:  # labels of one's own (run_gibbs, init_labels)
+        check_labels(torch.as_tensor(labels), len(labels), config)
+    assert str(refused.value) == (
+        "initial labels must lie in [0, 4), got values in [1, 7]: fit with num_concepts=8 "
+        "(fit's --concepts 8) or more, or renumber its 2 concepts to 0..1 "
+        "(torch.unique(labels, return_inverse=True)[1])"
+    )
+    with pytest.raises(ValueError) as refused:  # a negative label: no concept count helps
+        check_labels(torch.as_tensor(labels) - 2, len(labels), config)
+    assert str(refused.value) == "initial labels must lie in [0, 4), got values in [-1, 5]"

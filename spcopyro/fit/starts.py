@@ -14,7 +14,12 @@ import torch
 
 from spcopyro.config import SpCoConfig, SpCoSettings
 from spcopyro.data import CellCounts, House
-from spcopyro.inference.initialisation import INITS, kmeans_gaussians, labels_from_gaussians
+from spcopyro.inference.initialisation import (
+    INITS,
+    kmeans_gaussians,
+    labels_from_gaussians,
+    more_concepts_remedy,
+)
 from spcopyro.maps.grid import describe_map, same_free_cells
 from spcopyro.model import DTYPE
 from spcopyro.results.result import SpCoResult
@@ -75,6 +80,10 @@ def init_name(init: Init) -> str:
     return init if isinstance(init, str) else f"result of {init.method}"
 
 
+RENUMBER_RESULT = "spcopyro.results.renumber.renumbered(result, perm)"
+"""How a previous fit starting another is renumbered to fewer concepts (:func:`result_labels`)."""
+
+
 def result_labels(result: SpCoResult, house: House, config: SpCoConfig) -> torch.Tensor:
     """[N] a previous fit's point labels as the start of a new one (a warm start: a Gibbs fit
     starting variational inference, or the other way round). A fit on a coarsening of this
@@ -116,9 +125,11 @@ def result_labels(result: SpCoResult, house: House, config: SpCoConfig) -> torch
         )
     labels = np.asarray(result.labels)
     if labels.max() >= config.num_concepts:
+        remedy = more_concepts_remedy(labels, config.num_concepts, RENUMBER_RESULT)
         raise ValueError(
             f"the starting result uses concept {labels.max()}, beyond this fit's "
-            f"num_concepts = {config.num_concepts}"
+            f"num_concepts = {config.num_concepts} (concepts 0..{config.num_concepts - 1}): "
+            f"{remedy}"
         )
     return torch.as_tensor(labels, dtype=torch.long)
 

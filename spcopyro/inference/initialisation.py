@@ -24,13 +24,17 @@ from typing import TYPE_CHECKING
 
 import torch
 
+from spcopyro._util.messages import setting
 from spcopyro.inference.names import INITS
 from spcopyro.model import DTYPE
 
 if TYPE_CHECKING:
     from spcopyro.config import SpCoConfig
 
-__all__ = ["INITS", "check_labels", "kmeans_gaussians", "labels_from_gaussians", "random_labels"]
+__all__ = [
+    "INITS", "check_labels", "kmeans_gaussians", "labels_from_gaussians", "more_concepts_remedy",
+    "random_labels",
+]  # fmt: skip
 
 
 def random_labels(num_free: int, config: SpCoConfig, generator: torch.Generator) -> torch.Tensor:
@@ -47,11 +51,31 @@ def check_labels(labels: torch.Tensor, num_free: int, config: SpCoConfig) -> tor
         raise ValueError(f"initial labels must be integers, got {labels.dtype}")
     labels = labels.to(torch.long)
     if labels.numel() and (labels.min() < 0 or labels.max() >= config.num_concepts):
+        beyond = labels.min() >= 0  # only too high: more concepts, or renumbered, would do
+        remedy = f": {more_concepts_remedy(labels, config.num_concepts, _TENSOR)}" if beyond else ""
         raise ValueError(
             f"initial labels must lie in [0, {config.num_concepts}), "
-            f"got values in [{int(labels.min())}, {int(labels.max())}]"
+            f"got values in [{int(labels.min())}, {int(labels.max())}]{remedy}"
         )
     return labels
+
+
+_TENSOR = "torch.unique(labels, return_inverse=True)[1]"
+"""How a start given as labels is renumbered to its concepts' ranks (:func:`check_labels`)."""
+
+
+def more_concepts_remedy(labels: object, num_concepts: int, renumber: str) -> str:
+    """What to do about a start whose labels (``[N]``, NumPy or torch, none negative) use a
+    concept >= ``num_concepts``: fit with as many concepts as its highest number needs, e.g.
+    ``"fit with num_concepts=120 (fit's --concepts 120) or more"``, or, when its distinct
+    concepts are no more than ``num_concepts``, renumber them to 0..k-1 (``renumber``: how,
+    e.g. the package's :func:`~spcopyro.results.renumber.renumbered` for a fit's result)."""
+    used = torch.unique(torch.as_tensor(labels))  # [k] ascending
+    need = int(used.max()) + 1
+    text = f"fit with {setting(f'num_concepts={need}', f'--concepts {need}')} or more"
+    if len(used) <= num_concepts:
+        text += f", or renumber its {len(used)} concepts to 0..{len(used) - 1} ({renumber})"
+    return text
 
 
 def labels_from_gaussians(
