@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -221,7 +221,10 @@ def check_model_data(data: ModelData, config: SpCoConfig | None = None) -> None:
                 f"({M}, K): one row per observed cell of ModelData.obs_cells"
             )
         if counts.dtype != DTYPE:
-            raise ValueError(f"the counts of modality {name!r} must be {DTYPE}, got {counts.dtype}")
+            raise ValueError(
+                f"the counts of modality {name!r} must be {DTYPE}, got {counts.dtype}: convert "
+                f"them with counts.double() (or torch.as_tensor(counts, dtype={DTYPE}))"
+            )
         if counts.shape[1] == 0 and name != SITE_WORDS:  # a Dirichlet over no items: unnamed
             raise ValueError(
                 f"modality {name!r} has no items (its counts are [{M}, 0]): each concept's "
@@ -293,28 +296,39 @@ def check_config(config: object) -> None:
     raise TypeError(f"config must be an SpCoConfig{hint}, got {type(config).__name__}")
 
 
-def refuse_observed_latents(trace: pyro.poutine.Trace, names: Sequence[str], who: str) -> None:
+def _near_uniform(site: str, tables: Mapping[str, str]) -> str:
+    """The refusal's hint for a fixed ``site``: the SpCoConfig variant whose Dirichlet prior
+    holds it near uniform (``tables``: each parameter site's modality name); none for labels."""
+    name = tables.get(site)
+    settings = {SITE_IMAGES: "chi=1e4", SITE_WORDS: "beta=1e4"}
+    if site == SITE_PI:
+        variant = "prior='dirichlet', alpha=1e4"
+    elif name is not None:
+        variant = settings.get(name, f"concentrations={{{name!r}: 1e4}}")
+    else:
+        return ""
+    return (
+        f" (held near uniform, the variant is SpCoConfig({variant}): its Dirichlet prior "
+        "concentrates there as the concentration grows)"
+    )
+
+
+def refuse_observed_latents(
+    trace: pyro.poutine.Trace, names: Sequence[str], who: str, tables: Mapping[str, str]
+) -> None:
     """ValueError if any latent site of ``names`` is observed in ``trace`` (a model given as
     ``poutine.condition(model, {"pi": ...})``, a variant with pi known): SpCoGibbs and
     MeanFieldELBO (``who``) infer every latent site of :func:`spcomapping_model` and cannot hold
     one fixed; they would draw the site anyway (the kernel) or score the guide's draws at the
-    fixed value (the loss), silently. One message for both."""
-    near = {SITE_PI: "prior='dirichlet', alpha=1e4", SITE_THETA: "chi=1e4", SITE_W: "beta=1e4"}
+    fixed value (the loss), silently. One message for both, with the variant that holds the
+    site near uniform (``tables``: ``{m.parameter: m.name for m in data.modalities}``)."""
     for name in names:
         if name in trace.nodes and trace.nodes[name]["is_observed"]:
-            if name.endswith("_probs"):  # a further modality's table
-                near[name] = f"concentrations={{{name.removesuffix('_probs')!r}: 1e4}}"
-            hint = (
-                f" (held near uniform, the variant is SpCoConfig({near[name]}): its Dirichlet "
-                "prior concentrates there as the concentration grows)"
-                if name in near
-                else ""
-            )
             raise ValueError(
                 f"the model's site {name!r} is observed (poutine.condition), but {who} infers "
                 f"every latent site of spcomapping_model (pi, labels, each modality's table): "
                 f"it cannot hold {name!r} fixed; pass the model without conditioning "
-                f"{name!r}{hint}"
+                f"{name!r}{_near_uniform(name, tables)}"
             )
 
 

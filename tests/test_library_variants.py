@@ -228,3 +228,26 @@ def test_the_config_takes_numpy_scalars_as_the_numbers_they_are():
     assert type(cfg.num_concepts) is int and type(cfg.alpha) is float
     with pytest.raises(ValueError, match="num_concepts=np.True_: must be a positive integer"):
         SpCoConfig(num_concepts=np.bool_(True))
+
+
+def test_a_fixed_table_is_refused_with_the_variant_of_its_modality():
+    # the hint named a further modality by cutting '_probs' off its parameter site's name:
+    # one whose site is named otherwise (Modality(name, "object_table", counts)) had none, and
+    # theta and w were keyed by site; now the callers pass each site's modality name
+    _, data = random_problem(seed=0)
+    data = _with_modality(data, "objects", parameter="object_table")
+    cfg = config(concentrations={"objects": 1.0})
+    drawn = poutine.trace(spcomapping_model).get_trace(data, cfg)
+    for site, variant in (("object_table", "concentrations={'objects': 1e4}"),
+                          ("theta", "chi=1e4"), ("w", "beta=1e4")):  # fmt: skip
+        fixed = poutine.condition(spcomapping_model, {site: drawn.nodes[site]["value"]})
+        hint = f"(held near uniform, the variant is SpCoConfig({variant}): its Dirichlet"
+        with pytest.raises(ValueError, match=f"cannot hold '{site}' fixed") as kernel:
+            MCMC(SpCoGibbs(fixed), num_samples=1, disable_progbar=True).run(data, cfg)
+        assert hint in str(kernel.value)
+        with pyro.get_param_store().scope():
+            guide = MeanFieldGuide(data, cfg, generator=torch.Generator().manual_seed(0))
+            svi = SVI(fixed, guide, pyro.optim.Adam({"lr": 0.1}), MeanFieldELBO())
+            with pytest.raises(ValueError, match=f"cannot hold '{site}' fixed") as loss:
+                svi.step(data, cfg)
+        assert hint in str(loss.value)
