@@ -213,18 +213,15 @@ def check_model_data(data: ModelData, config: SpCoConfig | None = None) -> None:
     if cells.dim() != 1 or (cells.numel() and not 0 <= int(cells.min()) <= int(cells.max()) < N):
         raise ValueError(f"ModelData.obs_cells must be [M] free indices in [0, {N})")
     M = cells.shape[0]
-    for modality in data.modalities:
-        counts, name = modality.counts, modality.name
+    for name, counts in ((m.name, m.counts) for m in data.modalities):
         if counts.dim() != 2 or counts.shape[0] != M:
             raise ValueError(
                 f"the counts of modality {name!r} have shape {tuple(counts.shape)}, expected "
                 f"({M}, K): one row per observed cell of ModelData.obs_cells"
             )
         if counts.dtype != DTYPE:
-            raise ValueError(
-                f"the counts of modality {name!r} must be {DTYPE}, got {counts.dtype}: convert "
-                f"them with counts.double() (or torch.as_tensor(counts, dtype={DTYPE}))"
-            )
+            raise ValueError(f"the counts of modality {name!r} must be {DTYPE}, got "
+                             f"{counts.dtype}: convert them with counts.double()")  # fmt: skip
         if counts.shape[1] == 0 and name != SITE_WORDS:  # a Dirichlet over no items: unnamed
             raise ValueError(
                 f"modality {name!r} has no items (its counts are [{M}, 0]): each concept's "

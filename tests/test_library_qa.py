@@ -39,7 +39,10 @@ def _bad_counts(data):
         ),
         ("must be finite and >= 0; row 0", data.with_counts("words", -1.0 - words)),
         (r"have shape \(4, 4\), expected \(5, K\)", data.with_counts("words", words[:-1])),
-        ("must be torch.float64, got torch.float32", data.with_counts("words", words.float())),
+        (  # and says the conversion (it named the dtype alone)
+            r"must be torch.float64, got torch.float32: convert them with counts\.double\(\)",
+            data.with_counts("words", words.float()),
+        ),
     ]
 
 
