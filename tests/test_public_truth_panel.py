@@ -108,3 +108,15 @@ def test_both_figures_name_a_baseline_and_a_default_variant_alike(tmp_path):
     timed = [{**row, "seconds": 1.0 + k, "ari": 0.5} for k, row in enumerate(rows)]
     (legend,) = quality_time_figure(timed).legends
     assert [t.get_text() for t in legend.get_texts()] == names
+
+
+def test_a_baseline_row_is_named_by_the_cells_own_method_constant(monkeypatch):
+    """row_name tells a baseline row by the one BASELINE_METHOD the cells are made with (it wrote
+    the literal "baseline" beside cells' constant): renamed, the rule follows it."""
+    from spcopyro.study import cells, maps
+
+    assert cells.BASELINE_METHOD is maps.BASELINE_METHOD
+    assert maps.row_name("kmeans", cells.BASELINE_METHOD) == "kmeans"
+    monkeypatch.setattr(maps, "BASELINE_METHOD", "a baseline")
+    assert maps.row_name("kmeans", "a baseline") == "kmeans"
+    assert maps.row_name("kmeans", "baseline") == "kmeans / baseline"

@@ -29,6 +29,7 @@ from spcopyro.experiments.ablation import AblationSettings
 from spcopyro.experiments.ablation_report import SCORES, write_report
 from spcopyro.experiments.table import failed_cells
 from spcopyro.study import STUDIES
+from spcopyro.study.cells import BASELINE_METHOD
 from spcopyro.study.report import with_warnings
 from spcopyro.study.run import run_study
 from spcopyro.study.spec import DataSource, Study
@@ -139,7 +140,7 @@ def records_of_rows(rows: Sequence[dict[str, object]]) -> list[dict[str, object]
         public = row["data_kind"] == "public"
         record: dict[str, object] = {
             "row": row["variant"], "house": row["data"], "public": public, "seed": row["seed"],
-            "baseline": row["method"] == "baseline", "free_cells": row["free_cells"],
+            "baseline": row["method"] == BASELINE_METHOD, "free_cells": row["free_cells"],
         }  # fmt: skip
         if public:
             record["held_out_trial"] = row["held_out_trial"]

@@ -27,13 +27,16 @@ from spcopyro.maps import OccupancyGrid
 from spcopyro.maps.coarse import labels_on_grid
 
 __all__ = [
-    "MAPS_PREFIX", "Arrays", "StoredMap", "label_map_arrays", "labels_on_map", "load_label_map",
-    "REGION_TRUTH_PANEL", "TRUTH_PANEL", "maps_file_name", "plot_label_maps", "remove_stale",
-    "row_name", "write_house_maps",
+    "BASELINE_METHOD", "MAPS_PREFIX", "Arrays", "StoredMap", "label_map_arrays", "labels_on_map",
+    "load_label_map", "REGION_TRUTH_PANEL", "TRUTH_PANEL", "maps_file_name", "plot_label_maps",
+    "remove_stale", "row_name", "write_house_maps",
 ]  # fmt: skip
 
 Arrays = dict[str, np.ndarray]
 """Named arrays saved as one ``.npz`` (a trace, a label map)."""
+BASELINE_METHOD = "baseline"
+"""The method column of a baseline row (:mod:`spcopyro.study.cells` makes them,
+:func:`row_name` names them): here, as cells imports spec, which imports this module."""
 MAPS_PREFIX = "maps_"
 """A source's figure is ``OUT/maps_<data>.png``."""
 TRUTH_PANEL, REGION_TRUTH_PANEL = "truth", "region truth (this project's)"
@@ -166,12 +169,11 @@ def plot_label_maps(
 
 def row_name(variant: object, method: object) -> str:
     """A study row's name in a figure (a maps panel's title, quality_time.png's legend): a
-    baseline's name (its method column is ``baseline``: cells.BASELINE_METHOD, not imported, as
-    cells imports spec, which imports this module); the method alone where the variant is none,
-    ``default`` or named as the method (compare-inference's "cavi / cavi" read as two things);
-    else ``variant / method``. The one rule of both figures: they differed."""
+    baseline's name (its method column is :data:`BASELINE_METHOD`); the method alone where the
+    variant is none, ``default`` or named as the method (compare-inference's "cavi / cavi" read
+    as two things); else ``variant / method``. The one rule of both figures: they differed."""
     variant, method = str(variant), str(method)
-    if method == "baseline":
+    if method == BASELINE_METHOD:
         return variant or method
     return method if variant in ("", "default", method) else f"{variant} / {method}"
 
