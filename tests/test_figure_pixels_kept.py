@@ -75,3 +75,25 @@ def test_a_map_in_strips_converts_its_image_once(monkeypatch):
     monkeypatch.setattr(map_axes, "opaque", counted)
     _, axes, _, _ = map_axes.map_axes(grid, rgb, (8, 6))
     assert len(axes) == 3 and sum(converted) == 1, converted
+
+
+def test_a_map_s_image_is_drawn_one_way_in_house_figures_and_a_study_s_maps(tmp_path, monkeypatch):
+    """show_map (house.png, the semantic map) and a study's maps_HOUSE.png draw a map's image
+    through one map_axes.draw_map_image (plot_label_maps cropped, converted and placed it by
+    hand, as show_map did): each panel and each map once."""
+    from spcopyro.study.maps import plot_label_maps
+
+    spec = HouseSpec(height=30, width=40, num_rooms=3, num_open_plan=0, min_room_size=8)
+    house = make_house(seed=0, spec=spec)
+    real, drawn = map_axes.draw_map_image, []
+
+    def counted(ax, grid, rgb, rows, cols):
+        drawn.append(rgb.shape)
+        return real(ax, grid, rgb, rows, cols)
+
+    monkeypatch.setattr(map_axes, "draw_map_image", counted)
+    plot_label_maps(house.grid, [("truth", house.truth), ("gibbs", house.truth)],
+                    tmp_path / "maps.png", "h")  # fmt: skip
+    assert drawn == [(*house.grid.shape, 3)] * 2
+    plot_house(house, tmp_path / "house.png")
+    assert len(drawn) == 3

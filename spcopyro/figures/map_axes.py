@@ -10,7 +10,10 @@ from matplotlib.figure import Figure
 from spcopyro.figures.map_pieces import STRIP_PAD, is_wide, map_strips
 from spcopyro.maps import UNKNOWN, OccupancyGrid
 
-__all__ = ["known_bounds", "map_axes", "map_extent", "opaque", "shown_in", "show_map", "strip_axes"]
+__all__ = [
+    "draw_map_image", "known_bounds", "map_axes", "map_extent", "opaque", "shown_in", "show_map",
+    "strip_axes",
+]  # fmt: skip
 
 
 def known_bounds(grid: OccupancyGrid, margin: int = 3) -> tuple[slice, slice]:
@@ -33,14 +36,27 @@ def map_extent(grid: OccupancyGrid, rows: slice, cols: slice) -> tuple[float, fl
     return ox + cols.start * res, ox + cols.stop * res, bottom, top
 
 
+def draw_map_image(
+    ax: Axes, grid: OccupancyGrid, rgb: np.ndarray, rows: slice, cols: slice
+) -> tuple[float, float, float, float]:
+    """Draw ``rgb[rows, cols]`` of the map image ``rgb`` (``[H, W, 3]`` uint8, or ``[H, W, 4]``
+    already :func:`opaque`) on ``ax`` in world metres (:func:`map_extent`), pixel for pixel
+    (``nearest``), as opaque RGBA; returns the extent (left, right, bottom, top). The one way
+    a map's image is drawn: :func:`show_map`, and a study's maps
+    (:func:`spcopyro.study.maps.plot_label_maps`)."""
+    extent = map_extent(grid, rows, cols)
+    ax.imshow(opaque(rgb[rows, cols]), extent=extent, interpolation="nearest")
+    return extent
+
+
 def show_map(ax: Axes, grid: OccupancyGrid, rgb: np.ndarray) -> tuple[slice, slice]:
-    """Draw the known part of the ``[H, W, 3]`` map image ``rgb`` on ``ax`` in world metres,
-    at equal aspect; returns the rows and columns shown (:func:`known_bounds`). The axes keep
-    the map's limits (autoscaling off): a point drawn off the map does not grow them and shrink
-    the map (:mod:`~spcopyro.figures.off_map` marks such points at the edge)."""
+    """Draw the known part of the map image ``rgb`` (``[H, W, 3]`` uint8, or ``[H, W, 4]``
+    already :func:`opaque`, as :func:`strip_axes` hands it) on ``ax`` in world metres, at equal
+    aspect (:func:`draw_map_image`); returns the rows and columns shown (:func:`known_bounds`).
+    The axes keep the map's limits (autoscaling off): a point drawn off the map does not grow
+    them and shrink the map (:mod:`~spcopyro.figures.off_map` marks such points at the edge)."""
     rows, cols = known_bounds(grid)
-    left, right, bottom, top = map_extent(grid, rows, cols)
-    ax.imshow(opaque(rgb[rows, cols]), extent=(left, right, bottom, top), interpolation="nearest")
+    left, right, bottom, top = draw_map_image(ax, grid, rgb, rows, cols)
     ax.set_xlim(left, right)
     ax.set_ylim(bottom, top)
     ax.set_autoscale_on(False)

@@ -138,7 +138,7 @@ def plot_label_maps(
     had different colours in neighbouring panels."""
     from matplotlib.figure import Figure
 
-    from spcopyro.figures.map_axes import known_bounds, map_extent, opaque
+    from spcopyro.figures.map_axes import draw_map_image, known_bounds
     from spcopyro.maps import render_labels
     from spcopyro.maps.render import label_colours
 
@@ -153,8 +153,7 @@ def plot_label_maps(
     axes = fig.subplots(rows_n, columns, squeeze=False)
     rows, cols = known_bounds(grid)
     for ax, (name, _), labels in zip(axes.ravel(), panels, shown, strict=False):
-        shown_rgba = opaque(render_labels(labels, grid, colours)[rows, cols])  # [h, w, 4]
-        ax.imshow(shown_rgba, extent=map_extent(grid, rows, cols), interpolation="nearest")
+        draw_map_image(ax, grid, render_labels(labels, grid, colours), rows, cols)  # [H, W, 3]
         ax.set_title(name, fontsize=7)
         ax.set_xticks([])
         ax.set_yticks([])
