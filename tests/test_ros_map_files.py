@@ -520,6 +520,23 @@ def test_an_image_not_found_shows_a_byte_that_is_not_utf8_as_its_byte(tmp_path):
     assert "udce9" not in str(info.value)
 
 
+def test_a_warning_shows_a_byte_that_is_not_utf8_as_its_byte(tmp_path, caplog):
+    """A warning showed a byte of the yaml that is not UTF-8 as the stand-in it was read as (a
+    misspelt key 'mod\\U000f00e9'), a JPEG's name as its surrogate ('carte\\udce9.jpg'), where
+    a MapFormatError shows '\\xe9'."""
+    path = write_map(tmp_path, image="room.jpg")
+    (tmp_path / "room.jpg").rename(tmp_path / b"carte\xe9.jpg".decode(errors="surrogateescape"))
+    path.write_bytes(path.read_bytes().replace(b"room.jpg", b"carte\xe9.jpg") + b"mod\xe9: 1\n")
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        load_map(path)
+    key, jpeg = warnings_of(caplog)
+    assert key == (
+        f"{path}:7: unknown key 'mod\\xe9' ignored, as map_server ignores it: did you mean 'mode'?"
+    )
+    assert f"{path}:1: key 'image': '{tmp_path}/carte\\xe9.jpg' is a JPEG, whose" in jpeg, jpeg
+    assert not any(shown in key + jpeg for shown in ("U000f00", "udce9", "\U000f00e9"))
+
+
 @pytest.mark.parametrize(
     ("image", "said"),
     [

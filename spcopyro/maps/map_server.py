@@ -34,7 +34,6 @@ or written: every command, ``--help`` too, imports this.
 from __future__ import annotations
 
 import contextlib
-import logging
 import math
 import os
 from collections.abc import Iterator
@@ -47,9 +46,13 @@ from spcopyro._util.interrupts import remove_tree
 from spcopyro._util.messages import echo
 from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from spcopyro.maps.map_image import _read_levels, _write_image
-from spcopyro.maps.map_yaml import MapFileNotFoundError, MapFormatError, _MapYaml, _read_map_yaml
-
-logger = logging.getLogger(__name__)
+from spcopyro.maps.map_yaml import (
+    MapFileNotFoundError,
+    MapFormatError,
+    _log_warning,
+    _MapYaml,
+    _read_map_yaml,
+)
 
 __all__ = [
     "MAX_MAP_COORDINATE", "PGM_FREE", "PGM_OCCUPIED", "PGM_UNKNOWN", "SAVE_FREE_THRESH",
@@ -127,11 +130,11 @@ def _warn_lossy(spec: _MapYaml, grey: np.ndarray, occupancy: np.ndarray) -> None
         return
     near = ~kept & (np.abs(grey - PGM_UNKNOWN) <= 10)  # [H, W] bool: an unknown 205, moved?
     freed = int(np.count_nonzero(near & (occupancy == FREE)))
-    logger.warning(
-        "%s: key 'image': %r is a JPEG, whose lossy compression moves greys: %d pixels are none "
+    _log_warning(  # its name's bytes that are not UTF-8 as \xe9, not '\udce9'
+        "%s: key 'image': %s is a JPEG, whose lossy compression moves greys: %d pixels are none "
         "of map_saver's greys (0, 205, 254), %d of them within 10 of the unknown grey 205, and "
         "%d of those read free (map_server reads them the same): save the map as pgm or png",
-        spec.where("image"), str(spec.image), moved, int(np.count_nonzero(near)), freed,
+        spec.where("image"), repr(str(spec.image)), moved, int(np.count_nonzero(near)), freed,
     )  # fmt: skip
 
 
@@ -223,7 +226,7 @@ def _warn_unknown_read_as_free(spec: _MapYaml, count: int, alpha: bool, full: fl
     grey = f"grey {PGM_UNKNOWN}" if full == 255 else (
         f"grey {PGM_UNKNOWN} read at 8 bits ({low}..{high - 1} of {full:g})"
     )  # fmt: skip
-    logger.warning(
+    _log_warning(
         "%s: %d cells of %s, map_saver's unknown, read as free space, as map_server reads "
         "them; if they are unexplored: %s",
         spec.where(key), count, grey, why,
