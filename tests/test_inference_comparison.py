@@ -962,3 +962,32 @@ def test_a_resumed_comparison_says_how_many_fits_finished_before(tmp_path):
     assert plan_lines(study, resumed)[0].startswith(
         "compare-inference: 3 of 4 fits to run (1 finished before): 2 methods x 2 fits each"
     )
+
+
+def test_run_study_says_any_describe_s_lines_one_way(tmp_path, monkeypatch):
+    """run_study says describe(study, plan)'s lines (default _count_lines, the engine's count)
+    and follows the first with where the cells run, one path for every study: it patched a
+    describe's list in place or said its own line in its stead (review of 070b5fa)."""
+    import inspect
+
+    from study_setup import one_variant_study
+
+    from spcopyro.study import run as study_run
+
+    def in_process(cells):
+        raise _Stop  # the first fit would start here
+
+    monkeypatch.setattr(study_run, "_in_process", in_process)
+    default = inspect.signature(study_run.run_study).parameters["describe"].default
+    assert default is study_run._count_lines  # noqa: SLF001
+    study = one_variant_study("said", seeds=1, num_trials=1)
+    for describe, expected in (
+        (default, ["study 'said': 1 of 1 cells to run (0 finished before), in-process"]),
+        (lambda s, plan: [f"{s.name}: {len(plan.pending)} to run; where:", "then"],
+         ["said: 1 to run; where: in-process", "then"]),
+    ):  # fmt: skip
+        lines: list[str] = []
+        with pytest.raises(_Stop):
+            study_run.run_study(study, tmp_path / "out", progress=False, report=lines.append,
+                                describe=describe)  # fmt: skip
+        assert lines == expected

@@ -109,7 +109,8 @@ def plan_lines(study: Study, plan: StudyPlan) -> list[str]:
     predicted over :data:`LONG_SECONDS`, shorter invocations. The default study is 140 fits
     (7 methods x 5 synthetic houses and 15 held-out trials), predicted at 1.8 h of fits on the
     2-core machine its rates were measured on; it showed only "140 of 140 cells to run" and a
-    progress bar, whose first minutes predicted 4 to 17 hours. Empty when nothing is to run."""
+    progress bar, whose first minutes predicted 4 to 17 hours. The first line ends in "cells
+    run:", which run_study follows with where they run. Empty when nothing is to run."""
     if not plan.pending:
         return []
     per_method = {}
@@ -129,7 +130,8 @@ def plan_lines(study: Study, plan: StudyPlan) -> list[str]:
         f"compare-inference: {len(plan.pending)} of {len(plan.cells)} fits to run{before}: "
         f"{plural(len(per_method), 'method')} x {plural(each, 'fit')} each "
         f"({'; '.join(where)}), at these budgets: {budgets}; predicted {duration(seconds)} "
-        "of fits one after another (times of a 2-core machine: a guide, not a promise)"
+        "of fits one after another (times of a 2-core machine: a guide, not a promise); cells "
+        "run:"  # run_study follows it with where they run
     ]  # fmt: skip
     if seconds > LONG_SECONDS:
         tenth = " ".join(f"{key}={n // 10}" for key, n in study.sweeps if n >= 1000)
@@ -196,7 +198,7 @@ def run_comparison(
     run = run_study(
         study, out, workers=workers, retry_failed=retry_failed, rerun_stale=rerun_stale,
         report=report, root=settings.dataset_root,
-        describe=lambda plan: plan_lines(study, plan),  # before the first fit: the scale
+        describe=plan_lines,  # before the first fit: the scale
     )  # fmt: skip
     rows = read_table(out / TABLE)
     records = records_of_rows(rows)

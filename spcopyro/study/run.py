@@ -140,6 +140,14 @@ def _say_nothing(message: str) -> None:
     del message
 
 
+def _count_lines(study: Study, plan: StudyPlan) -> list[str]:
+    """:func:`run_study`'s default ``describe``: how many cells are to run, in one line that
+    ends where the place they run follows (``study 'NAME': N of M cells to run (K finished
+    before),`` then ``in-process``)."""
+    return [f"study {study.name!r}: {len(plan.pending)} of {len(plan.cells)} cells to run "
+            f"({plan.cached} finished before),"]  # fmt: skip
+
+
 def run_study(
     study: Study,
     out: str | os.PathLike[str],
@@ -152,7 +160,7 @@ def run_study(
     progress: bool | None = None,
     report: Callable[[str], None] = _say_nothing,
     start_in_process: bool = True,
-    describe: Callable[[StudyPlan], list[str]] | None = None,
+    describe: Callable[[Study, StudyPlan], list[str]] = _count_lines,
 ) -> StudyRun:
     """Run the cells of ``study`` that ``out`` does not hold yet (module docstring).
 
@@ -162,10 +170,11 @@ def run_study(
     dataset's folder for sources named by house (default:
     :func:`spcopyro.data.find_dataset_root`). ``report`` receives one line per failed cell and
     a closing line. ``start_in_process``: with a LocalCluster, run cells in this process while
-    its workers start (module docstring). ``describe``: the lines that say what is about to run,
-    from the plan run, said in the place of the line "study NAME: N of M cells to run" (the
-    first followed by where the cells run): compare-inference's own count, budgets and
-    predicted time said it again. KeyboardInterrupt stops the run after storing every
+    its workers start (module docstring). ``describe(study, plan)``: the lines said before the
+    first cell, from the plan run (default ``_count_lines``; compare-inference's
+    :func:`~spcopyro.study.comparison.plan_lines` says its count, budgets and predicted time in
+    their place), at least one, the first ending in the words that lead to where the cells
+    run, which follows it. KeyboardInterrupt stops the run after storing every
     finished cell and rewriting the table, then propagates. ``workers > 1`` or ``scheduler``
     without dask.distributed raise :class:`ModuleNotFoundError` before anything is written.
     Another run into ``out`` while this one lasts raises
@@ -192,7 +201,7 @@ def _run_study(
     progress: bool | None,
     report: Callable[[str], None],
     start_in_process: bool,
-    describe: Callable[[StudyPlan], list[str]] | None = None,
+    describe: Callable[[Study, StudyPlan], list[str]],
 ) -> StudyRun:
     """:func:`run_study` once it holds ``out``'s lock."""
     start = time.perf_counter()
@@ -216,11 +225,9 @@ def _run_study(
             report(_failed_before_line(plan.failed_before, out))
         return StudyRun(out, len(cells), cached, 0, 0, time.perf_counter() - start, where,
                         failed_before=plan.failed_before)  # fmt: skip
-    said = describe(plan) if describe is not None else []  # the count, said once
-    if said:
-        said[0] += f"; cells run: {where}"
-    for line in said or [f"study {study.name!r}: {len(pending)} of {len(cells)} cells to run "
-                         f"({cached} finished before), {where}"]:  # fmt: skip
+    said = describe(study, plan)  # the count, said once
+    said[0] += f" {where}"
+    for line in said:
         report(line)
     if client is not None and not client.nthreads():  # type: ignore[attr-defined]
         report(f"note: the Dask scheduler {scheduler} has no workers yet: the cells wait for "
