@@ -537,6 +537,16 @@ def test_a_warning_shows_a_byte_that_is_not_utf8_as_its_byte(tmp_path, caplog):
     assert not any(shown in key + jpeg for shown in ("U000f00", "udce9", "\U000f00e9"))
 
 
+def test_every_warning_of_the_map_logger_shows_a_byte_that_is_not_utf8_as_its_byte(caplog):
+    """One filter on load_map's logger shows such bytes in any warning (its whole text, as a
+    MapFormatError's): each warning's call cleaned its own arguments, and a new one had to."""
+    from spcopyro.maps.map_server import logger
+
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):  # a stand-in, a surrogate's repr
+        logger.warning("%s: %s, %r, %d", "room.yaml:7", "mod\U000f00e9", "carte\udce9.jpg", 3)
+    assert warnings_of(caplog) == ["room.yaml:7: mod\\xe9, 'carte\\xe9.jpg', 3"]
+
+
 @pytest.mark.parametrize(
     ("image", "said"),
     [

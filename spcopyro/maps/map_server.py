@@ -49,9 +49,9 @@ from spcopyro.maps.map_image import _read_levels, _write_image
 from spcopyro.maps.map_yaml import (
     MapFileNotFoundError,
     MapFormatError,
-    _log_warning,
     _MapYaml,
     _read_map_yaml,
+    logger,  # this module's name, its filter shows bytes as \xe9
 )
 
 __all__ = [
@@ -130,11 +130,11 @@ def _warn_lossy(spec: _MapYaml, grey: np.ndarray, occupancy: np.ndarray) -> None
         return
     near = ~kept & (np.abs(grey - PGM_UNKNOWN) <= 10)  # [H, W] bool: an unknown 205, moved?
     freed = int(np.count_nonzero(near & (occupancy == FREE)))
-    _log_warning(  # its name's bytes that are not UTF-8 as \xe9, not '\udce9'
-        "%s: key 'image': %s is a JPEG, whose lossy compression moves greys: %d pixels are none "
+    logger.warning(
+        "%s: key 'image': %r is a JPEG, whose lossy compression moves greys: %d pixels are none "
         "of map_saver's greys (0, 205, 254), %d of them within 10 of the unknown grey 205, and "
         "%d of those read free (map_server reads them the same): save the map as pgm or png",
-        spec.where("image"), repr(str(spec.image)), moved, int(np.count_nonzero(near)), freed,
+        spec.where("image"), str(spec.image), moved, int(np.count_nonzero(near)), freed,
     )  # fmt: skip
 
 
@@ -226,7 +226,7 @@ def _warn_unknown_read_as_free(spec: _MapYaml, count: int, alpha: bool, full: fl
     grey = f"grey {PGM_UNKNOWN}" if full == 255 else (
         f"grey {PGM_UNKNOWN} read at 8 bits ({low}..{high - 1} of {full:g})"
     )  # fmt: skip
-    _log_warning(
+    logger.warning(
         "%s: %d cells of %s, map_saver's unknown, read as free space, as map_server reads "
         "them; if they are unexplored: %s",
         spec.where(key), count, grey, why,

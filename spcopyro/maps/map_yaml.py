@@ -258,7 +258,7 @@ def _check_thresholds(doc: dict[str, Any], where: Callable[[str], str], warn: bo
     for key, (below, above) in effects.items():
         value = doc[key]
         if warn and not 0.0 <= value <= 1.0:
-            _log_warning(
+            logger.warning(
                 "%s: key %r %s is outside [0, 1], where a pixel's occupancy p lies: %s, as "
                 "map_server reads it%s",
                 where(key), key, echo(value), below if value < 0 else above,
@@ -287,17 +287,24 @@ def _stand_in_byte(shown: str) -> int:
 
 def _shown_bytes(message: str) -> str:
     """``message`` with each byte that is not UTF-8 (:data:`_SHOWN_STAND_IN`) shown as ``\\xe9``:
-    every :class:`MapFormatError`'s message (its ``__init__``)."""
+    every :class:`MapFormatError`'s message (its ``__init__``) and :data:`logger`'s warnings."""
     return _SHOWN_STAND_IN.sub(lambda m: f"\\x{_stand_in_byte(m[0]):02x}", message)
 
 
-def _log_warning(message: str, *args: object) -> None:
-    """Log a warning of a map yaml or its image on :data:`logger` (``message % args``: this
-    module's and :mod:`~spcopyro.maps.map_server`'s), each byte that is not UTF-8 in its text
-    ``args`` shown as ``\\xe9``, as a :class:`MapFormatError` shows it (:func:`_shown_bytes`): a
-    misspelt key's warning showed it as its stand-in, ``'mod\\U000f00e9'``, a JPEG's name as
-    its surrogate, ``'carte\\udce9.jpg'``."""
-    logger.warning(message, *(_shown_bytes(a) if isinstance(a, str) else a for a in args))
+class _ShownBytes(logging.Filter):
+    """:data:`logger`'s filter: each warning of a map yaml or its image (this module's and
+    :mod:`~spcopyro.maps.map_server`'s) with each byte that is not UTF-8 shown as ``\\xe9``, as
+    a :class:`MapFormatError` shows it (:func:`_shown_bytes` of the whole text, as its
+    ``__init__`` does): a misspelt key's warning showed it as its stand-in,
+    ``'mod\\U000f00e9'``, a JPEG's name as its surrogate, ``'carte\\udce9.jpg'``."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        record.msg = _shown_bytes(record.getMessage())
+        record.args = ()
+        return True
+
+
+logger.addFilter(_ShownBytes())
 
 
 def _yaml_text(data: bytes) -> str:
@@ -401,7 +408,7 @@ def _read_map_yaml(
                 f"{path}: missing required key {key!r}, {_KEY_MEANINGS[key]}{hint}"
             )
     for key, close in misspelt.items() if warn else ():
-        _log_warning(
+        logger.warning(
             "%s: unknown key %s ignored, as map_server ignores it: did you mean %r?",
             where(key), echo(key), close,
         )  # fmt: skip
@@ -426,7 +433,7 @@ def _read_map_yaml(
         raise bad("resolution", "a positive finite number")
     low, high = PLAUSIBLE_RESOLUTION
     if warn and not low <= resolution <= high:
-        _log_warning(
+        logger.warning(
             "%s: key 'resolution' %s: cells of %s m%s (a robot's map is usually 0.05 m a cell): "
             "is it written in %s?",
             where("resolution"), echo(resolution), f"{resolution:g}",
