@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import sys
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -293,10 +293,10 @@ def check_config(config: object) -> None:
     raise TypeError(f"config must be an SpCoConfig{hint}, got {type(config).__name__}")
 
 
-def _near_uniform(site: str, tables: Mapping[str, str]) -> str:
+def _near_uniform(site: str, modalities: Sequence[Modality]) -> str:
     """The refusal's hint for a fixed ``site``: the SpCoConfig variant whose Dirichlet prior
-    holds it near uniform (``tables``: each parameter site's modality name); none for labels."""
-    name = tables.get(site)
+    holds it near uniform (the modality whose parameter ``site`` is names it); none for labels."""
+    name = next((m.name for m in modalities if m.parameter == site), None)
     settings = {SITE_IMAGES: "chi=1e4", SITE_WORDS: "beta=1e4"}
     if site == SITE_PI:
         variant = "prior='dirichlet', alpha=1e4"
@@ -311,21 +311,21 @@ def _near_uniform(site: str, tables: Mapping[str, str]) -> str:
 
 
 def refuse_observed_latents(
-    trace: pyro.poutine.Trace, names: Sequence[str], who: str, tables: Mapping[str, str]
+    trace: pyro.poutine.Trace, names: Sequence[str], who: str, modalities: Sequence[Modality]
 ) -> None:
     """ValueError if any latent site of ``names`` is observed in ``trace`` (a model given as
     ``poutine.condition(model, {"pi": ...})``, a variant with pi known): SpCoGibbs and
     MeanFieldELBO (``who``) infer every latent site of :func:`spcomapping_model` and cannot hold
     one fixed; they would draw the site anyway (the kernel) or score the guide's draws at the
     fixed value (the loss), silently. One message for both, with the variant that holds the
-    site near uniform (``tables``: ``{m.parameter: m.name for m in data.modalities}``)."""
+    site near uniform (``modalities``: ``data.modalities``, read only to say it)."""
     for name in names:
         if name in trace.nodes and trace.nodes[name]["is_observed"]:
             raise ValueError(
                 f"the model's site {name!r} is observed (poutine.condition), but {who} infers "
                 f"every latent site of spcomapping_model (pi, labels, each modality's table): "
                 f"it cannot hold {name!r} fixed; pass the model without conditioning "
-                f"{name!r}{_near_uniform(name, tables)}"
+                f"{name!r}{_near_uniform(name, modalities)}"
             )
 
 

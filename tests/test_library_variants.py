@@ -18,7 +18,7 @@ from spcopyro.fit.house import prepare_model_data
 from spcopyro.gibbs import GibbsOptions, SpCoGibbs
 from spcopyro.gibbs.hyper_options import HyperparameterOptions
 from spcopyro.guides import MeanFieldELBO, MeanFieldGuide
-from spcopyro.model import Modality, parameter_site, spcomapping_model
+from spcopyro.model import Modality, parameter_site, refuse_observed_latents, spcomapping_model
 from spcopyro.synthetic import HouseSpec, make_house
 from tests.gibbs_problems import config, random_problem
 
@@ -251,3 +251,20 @@ def test_a_fixed_table_is_refused_with_the_variant_of_its_modality():
             with pytest.raises(ValueError, match=f"cannot hold '{site}' fixed") as loss:
                 svi.step(data, cfg)
         assert hint in str(loss.value)
+
+
+def test_the_refusal_takes_the_data_s_modalities_and_reads_them_only_to_say_it():
+    # its callers built {m.parameter: m.name for m in data.modalities} for it on every call
+    # (MeanFieldELBO's on every particle step), read only when it raised: it takes
+    # data.modalities now and looks the site's modality up only in its message
+    _, data = random_problem(seed=0)
+    data = _with_modality(data, "objects", parameter="object_table")
+    cfg = config(concentrations={"objects": 1.0})
+    drawn = poutine.trace(spcomapping_model).get_trace(data, cfg)
+    refuse_observed_latents(drawn, ("pi", "object_table"), "SpCoGibbs", data.modalities)
+    fixed = poutine.condition(
+        spcomapping_model, {"object_table": drawn.nodes["object_table"]["value"]}
+    )
+    trace = poutine.trace(fixed).get_trace(data, cfg)
+    with pytest.raises(ValueError, match=r"SpCoConfig\(concentrations=\{'objects': 1e4\}\)"):
+        refuse_observed_latents(trace, ("object_table",), "SpCoGibbs", data.modalities)

@@ -216,11 +216,10 @@ class SpCoGibbs(MCMCKernel):
         expected = {SITE_PI: (L,), SITE_LABELS: (self._data.num_free,)}
         for modality in self._data.modalities:
             expected[modality.parameter] = (L, modality.counts.shape[-1])
-        tables = {m.parameter: m.name for m in self._data.modalities}  # for the refusal's hint
         for name, shape in expected.items():
             if name not in trace.nodes:
                 raise ValueError(f"model has no sample site {name!r}, which SpCoGibbs samples")
-            refuse_observed_latents(trace, (name,), "SpCoGibbs", tables)  # its draws replaced it
+            refuse_observed_latents(trace, (name,), "SpCoGibbs", self._data.modalities)  # drawn
             actual = tuple(trace.nodes[name]["value"].shape)
             if actual != shape:
                 raise ValueError(

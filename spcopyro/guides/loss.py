@@ -168,12 +168,11 @@ def particle_estimate(
 ) -> torch.Tensor:
     """The ELBO estimate of one draw's (model trace, guide trace) (:func:`traces`)."""
     sites = (SITE_PI, *(m.parameter for m in data.modalities))
-    tables = {m.parameter: m.name for m in data.modalities}  # for the refusal's hint
     for name in (*sites, SITE_LABELS):
         for trace, who in ((guide_trace, "guide"), (model_trace, "model")):
             if name not in trace.nodes or trace.nodes[name]["type"] != "sample":
                 raise ValueError(f"the {who} has no sample site {name!r}")
-        refuse_observed_latents(model_trace, (name,), "MeanFieldELBO", tables)  # q's draws scored
+        refuse_observed_latents(model_trace, (name,), "MeanFieldELBO", data.modalities)  # q scored
     log_ratio = _global_log_density(model_trace, sites) - _global_log_density(guide_trace, sites)
     labels = guide_trace.nodes[SITE_LABELS]["fn"]  # Categorical, batch [N]
     q = labels.probs  # [N, L]
