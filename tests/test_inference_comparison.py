@@ -956,18 +956,19 @@ def test_a_resumed_comparison_says_how_many_fits_finished_before(tmp_path):
     study = comparison_study(settings)
     plan = plan_study(study, tmp_path / "out")
     resumed = dataclasses.replace(plan, pending=plan.pending[1:], cached=1)
-    assert plan_lines(study, plan)[0].startswith(
+    assert plan_lines(study, plan, "in-process")[0].startswith(
         "compare-inference: 4 of 4 fits to run: 2 methods x 2 fits each (2 synthetic houses)"
     )
-    assert plan_lines(study, resumed)[0].startswith(
+    assert plan_lines(study, resumed, "in-process")[0].startswith(
         "compare-inference: 3 of 4 fits to run (1 finished before): 2 methods x 2 fits each"
     )
 
 
 def test_run_study_says_any_describe_s_lines_one_way(tmp_path, monkeypatch):
-    """run_study says describe(study, plan)'s lines (default _count_lines, the engine's count)
-    and follows the first with where the cells run, one path for every study: it patched a
-    describe's list in place or said its own line in its stead (review of 070b5fa)."""
+    """run_study says describe(study, plan, where)'s lines (default _count_lines, the engine's
+    count), each whole, one path for every study: it patched a describe's list in place or said
+    its own line in its stead (review of 070b5fa), then appended where to a first line left
+    dangling ('... (K finished before),') (review of 158dca6)."""
     import inspect
 
     from study_setup import one_variant_study
@@ -983,7 +984,7 @@ def test_run_study_says_any_describe_s_lines_one_way(tmp_path, monkeypatch):
     study = one_variant_study("said", seeds=1, num_trials=1)
     for describe, expected in (
         (default, ["study 'said': 1 of 1 cells to run (0 finished before), in-process"]),
-        (lambda s, plan: [f"{s.name}: {len(plan.pending)} to run; where:", "then"],
+        (lambda s, plan, where: [f"{s.name}: {len(plan.pending)} to run; where: {where}", "then"],
          ["said: 1 to run; where: in-process", "then"]),
     ):  # fmt: skip
         lines: list[str] = []

@@ -100,28 +100,29 @@ def comparison_study(
     )  # fmt: skip
 
 
-def plan_lines(study: Study, plan: StudyPlan) -> list[str]:
+def plan_lines(study: Study, plan: StudyPlan, where: str) -> list[str]:
     """What a run of ``study`` (``plan``: :func:`~spcopyro.study.run.plan_study`'s, as
-    :func:`~spcopyro.study.run.run_study` is about to run it) does, said before its first fit
-    in the place of the study engine's "N of M cells to run" (``describe``): how many
-    fits (per method: the synthetic houses and the public houses' held-out trials), at which
-    budgets, their predicted time (:func:`spcopyro.study.order.run_seconds`), and, for a run
-    predicted over :data:`LONG_SECONDS`, shorter invocations. The default study is 140 fits
+    :func:`~spcopyro.study.run.run_study` is about to run it, with fits to run; ``where`` they
+    run) does, said before its first fit in the place of the study engine's "N of M cells to
+    run" (``describe``): how many fits (per method: the synthetic houses and the public
+    houses' held-out trials), at which budgets, their predicted time
+    (:func:`spcopyro.study.order.run_seconds`), and, for a run predicted over
+    :data:`LONG_SECONDS`, shorter invocations. The default study is 140 fits
     (7 methods x 5 synthetic houses and 15 held-out trials), predicted at 1.8 h of fits on the
     2-core machine its rates were measured on; it showed only "140 of 140 cells to run" and a
     progress bar, whose first minutes predicted 4 to 17 hours. The first line ends in "cells
-    run:", which run_study follows with where they run. Empty when nothing is to run."""
-    if not plan.pending:
-        return []
+    run: ``where``"; run_study calls it only when fits are to run."""
     per_method = {}
     for cell in plan.cells:
         per_method[cell.row] = per_method.get(cell.row, 0) + 1
     synthetic = sum(len(d.seeds) for d in study.data if d.kind == "synthetic")
     public = [d for d in study.data if d.kind != "synthetic"]
     trials = sum(len(d.seeds) for d in public)
-    where = [plural(synthetic, "synthetic house")] if synthetic else []
+    houses = [plural(synthetic, "synthetic house")] if synthetic else []
     if public:
-        where.append(f"{plural(trials, 'held-out trial')} of {plural(len(public), 'public house')}")
+        houses.append(
+            f"{plural(trials, 'held-out trial')} of {plural(len(public), 'public house')}"
+        )
     each = max(per_method.values())
     budgets = ", ".join(f"{key} {n} {iteration_unit(key)}" for key, n in study.sweeps)
     seconds = run_seconds(plan.predicted.get(c.key, 0.0) for c in plan.pending)
@@ -129,9 +130,9 @@ def plan_lines(study: Study, plan: StudyPlan) -> list[str]:
     lines = [
         f"compare-inference: {len(plan.pending)} of {len(plan.cells)} fits to run{before}: "
         f"{plural(len(per_method), 'method')} x {plural(each, 'fit')} each "
-        f"({'; '.join(where)}), at these budgets: {budgets}; predicted {duration(seconds)} "
+        f"({'; '.join(houses)}), at these budgets: {budgets}; predicted {duration(seconds)} "
         "of fits one after another (times of a 2-core machine: a guide, not a promise); cells "
-        "run:"  # run_study follows it with where they run
+        f"run: {where}"
     ]  # fmt: skip
     if seconds > LONG_SECONDS:
         tenth = " ".join(f"{key}={n // 10}" for key, n in study.sweeps if n >= 1000)

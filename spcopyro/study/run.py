@@ -140,12 +140,11 @@ def _say_nothing(message: str) -> None:
     del message
 
 
-def _count_lines(study: Study, plan: StudyPlan) -> list[str]:
-    """:func:`run_study`'s default ``describe``: how many cells are to run, in one line that
-    ends where the place they run follows (``study 'NAME': N of M cells to run (K finished
-    before),`` then ``in-process``)."""
+def _count_lines(study: Study, plan: StudyPlan, where: str) -> list[str]:
+    """:func:`run_study`'s default ``describe``: how many cells are to run and ``where``, one
+    line (``study 'NAME': N of M cells to run (K finished before), in-process``)."""
     return [f"study {study.name!r}: {len(plan.pending)} of {len(plan.cells)} cells to run "
-            f"({plan.cached} finished before),"]  # fmt: skip
+            f"({plan.cached} finished before), {where}"]  # fmt: skip
 
 
 def run_study(
@@ -160,7 +159,7 @@ def run_study(
     progress: bool | None = None,
     report: Callable[[str], None] = _say_nothing,
     start_in_process: bool = True,
-    describe: Callable[[Study, StudyPlan], list[str]] = _count_lines,
+    describe: Callable[[Study, StudyPlan, str], list[str]] = _count_lines,
 ) -> StudyRun:
     """Run the cells of ``study`` that ``out`` does not hold yet (module docstring).
 
@@ -170,15 +169,15 @@ def run_study(
     dataset's folder for sources named by house (default:
     :func:`spcopyro.data.find_dataset_root`). ``report`` receives one line per failed cell and
     a closing line. ``start_in_process``: with a LocalCluster, run cells in this process while
-    its workers start (module docstring). ``describe(study, plan)``: the lines said before the
-    first cell, from the plan run (default ``_count_lines``; compare-inference's
-    :func:`~spcopyro.study.comparison.plan_lines` says its count, budgets and predicted time in
-    their place), at least one, the first ending in the words that lead to where the cells
-    run, which follows it. KeyboardInterrupt stops the run after storing every
-    finished cell and rewriting the table, then propagates. ``workers > 1`` or ``scheduler``
-    without dask.distributed raise :class:`ModuleNotFoundError` before anything is written.
-    Another run into ``out`` while this one lasts raises
-    :class:`~spcopyro._util.folder_lock.FolderBusyError` at once (the folder's lock).
+    its workers start (module docstring). ``describe(study, plan, where)``: the lines said
+    before the first cell, from the plan run and where its cells run (``in-process``; default
+    ``_count_lines``; compare-inference's :func:`~spcopyro.study.comparison.plan_lines` says
+    its count, budgets and predicted time in their place), called only when cells are to run.
+    KeyboardInterrupt stops the run after storing every finished cell and rewriting the table,
+    then propagates. ``workers > 1`` or ``scheduler`` without dask.distributed raise
+    :class:`ModuleNotFoundError` before anything is written. Another run into ``out`` while
+    this one lasts raises :class:`~spcopyro._util.folder_lock.FolderBusyError` at once (the
+    folder's lock).
     """
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
@@ -201,7 +200,7 @@ def _run_study(
     progress: bool | None,
     report: Callable[[str], None],
     start_in_process: bool,
-    describe: Callable[[Study, StudyPlan], list[str]],
+    describe: Callable[[Study, StudyPlan, str], list[str]],
 ) -> StudyRun:
     """:func:`run_study` once it holds ``out``'s lock."""
     start = time.perf_counter()
@@ -225,9 +224,7 @@ def _run_study(
             report(_failed_before_line(plan.failed_before, out))
         return StudyRun(out, len(cells), cached, 0, 0, time.perf_counter() - start, where,
                         failed_before=plan.failed_before)  # fmt: skip
-    said = describe(study, plan)  # the count, said once
-    said[0] += f" {where}"
-    for line in said:
+    for line in describe(study, plan, where):  # the count, said once
         report(line)
     if client is not None and not client.nthreads():  # type: ignore[attr-defined]
         report(f"note: the Dask scheduler {scheduler} has no workers yet: the cells wait for "
