@@ -1348,3 +1348,45 @@ def test_gibbs_run_loop_rows_run_under_fits_thread_policy(script, monkeypatch):
         assert torch.get_num_threads() == 2
     finally:
         torch.set_num_threads(previous)
+
+
+@pytest.mark.slow
+def test_coarse_variants_quick_scores_each_variant_and_resumes(tmp_path, dataset_root):
+    """coarse_variants.py --quick: each variant's public and held-out scores on one house, in a
+    JSON written as it goes; a rerun with the same --out fits nothing again (same JSON)."""
+    out = tmp_path / "coarse_variants.json"
+    done = run_benchmark("coarse_variants.py", out)
+    assert done.returncode == 0, done.stderr[-3000:]
+    results = json.loads(out.read_text())
+    assert results["sweeps"] == 20 and results["houses"] == ["room1dk5"]
+    assert list(results["variants"]) == ["coarse", "footprint 0.5 m"]
+    for seeds in results["variants"].values():
+        row = seeds["seed 0"]
+        held = row["houses"]["room1dk5"]["heldout"]
+        assert 0.0 <= held["all folds"] <= held["top 3"] <= 1.0 and held["words"] > 0
+        assert row["summary"]["top1"] == held["all folds"]
+        assert row["summary"]["ari"] == row["houses"]["room1dk5"]["public"]["ari"]
+    assert "| coarse (seed 0) |" in done.stdout
+    again = run_benchmark("coarse_variants.py", out)
+    assert again.returncode == 0 and "seed 0 room1dk5" not in again.stderr, again.stderr[-3000:]
+    assert json.loads(out.read_text()) == results
+
+
+def test_coarse_variants_judges_the_ari_targets_on_every_house(script):
+    """A variant meets the ARI targets only with the mean above (E)'s 0.510, no concept over
+    60 % and every house's concept count within 2 of Table 2."""
+    cv = script("coarse_variants")
+
+    def house(ari, share, count):
+        public = {"ari": ari, "largest_share": share, "concepts_1pct": count, "refined": False}
+        held = {"all folds": 0.3, "top 3": 0.6, "mean rank": 3.0, "words": 10}
+        return {"public": public, "heldout": held}
+
+    table2 = dict(cv.PUBLIC_CATEGORIES)
+    good = {h: house(0.6, 0.5, n) for h, n in table2.items()}
+    assert cv.summary(good)["ari_targets"] is True
+    assert cv.summary(good)["top1"] == pytest.approx(0.3)
+    assert cv.summary({**good, "room1dk5": house(0.6, 0.61, 6)})["ari_targets"] is False
+    assert cv.summary({**good, "room1dk5": house(0.6, 0.5, 9)})["ari_targets"] is False
+    low = {h: house(0.5, 0.5, n) for h, n in table2.items()}
+    assert cv.summary(low)["ari_targets"] is False

@@ -1,0 +1,195 @@
+"""Variants of the default preset scored on the public houses' region truth and held-out words.
+
+    python benchmarks/coarse_variants.py [--sweeps 2000] [--seeds 0] [--variants NAME ...]
+        [--out benchmarks/coarse_variants.json] [--quick]
+
+Issue 21's study of 2026-12-06 (docs/real_houses.md, "Variants of `coarse` on the held-out
+words"): does a setting of ``coarse`` keep the ARI targets and reach ``paper-dp``'s held-out word
+top-1? For every variant (:data:`VARIANTS`: ``coarse`` with some of its settings changed, with
+``coarse``'s inference settings; ``coarse`` and ``paper-dp`` themselves as references) and fit
+seed, on each public house:
+
+* the ARI against the region truth of a fit on all three trials
+  (:func:`spcopyro.experiments.public_truth.public_truth`), the largest concept's share and the
+  concepts holding >= 1 % of the free cells, scored as ``benchmarks/real_houses.py`` scores them;
+* the held-out word scores, each trial held out in turn (:func:`heldout_folds`, pooled per house
+  by ``real_houses.fold_summary``): top-1, top-3, mean rank of the true word.
+
+Results go to the JSON after every house, and a variant and seed already there is skipped on a
+rerun (``--out`` the same file), so a long run can be stopped and resumed. Prints one markdown
+table: per variant and seed, the public mean ARI, the largest share (max over the houses), the
+concept counts beside Table 2's, held-out top-1 (mean of houses and pooled over words) and the
+mean rank (mean of houses).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import real_houses as rh
+from bench_cli import COUNT, INDEX, dataset_root, quick_or, results_path, run_main
+
+from spcopyro.config import preset
+from spcopyro.data import load_house
+from spcopyro.experiments.public_truth import public_truth
+from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
+from spcopyro.fit.house import fit_house, preset_fit_kwargs
+from spcopyro.metrics import heldout_word_prediction
+from spcopyro.results.semantic_map import SpCoSemanticMap
+
+BASE = "coarse"
+VARIANTS: dict[str, tuple[str, dict[str, object]]] = {
+    "coarse": (BASE, {}),
+    "paper-dp": ("paper-dp", {}),
+    "footprint 0.5 m": (BASE, {"footprint_radius": 0.5}),
+    "gamma 2.5": (BASE, {"gamma": 2.5}),
+    "words x20": (BASE, {"word_scaling": 20.0}),
+    "words x40": (BASE, {"word_scaling": 40.0}),
+    "footprint 0.5 m, words x20": (BASE, {"footprint_radius": 0.5, "word_scaling": 20.0}),
+    "gamma 2.5, footprint 0.5 m": (BASE, {"gamma": 2.5, "footprint_radius": 0.5}),
+    "footprint 0.5 m, gamma 3.5": (BASE, {"footprint_radius": 0.5, "gamma": 3.5}),
+    "footprint 0.75 m": (BASE, {"footprint_radius": 0.75}),
+    "words x5": (BASE, {"word_scaling": 5.0}),
+    "gamma 3.5": (BASE, {"gamma": 3.5}),
+    "alpha 1e5": (BASE, {"alpha": 1e5}),
+}
+"""Name -> (preset, overrides), in the order run: ``coarse`` and ``paper-dp`` first (the
+references at the same sweeps), then the variants by the prior that they could raise held-out
+top-1 (finer concepts around where words were said) without losing the places."""
+
+
+def fit_variant(house, name: str, sweeps: int, seed: int):
+    """The variant's fit: its preset's settings with the overrides, and the preset's recommended
+    inference settings (``coarse``'s rooms start, merge and region moves, point estimate and
+    ``--refine auto``; ``paper-dp``'s paper run)."""
+    base, overrides = VARIANTS[name]
+    settings = preset(base, **overrides)
+    return fit_house(house, settings, method="gibbs", sweeps=sweeps, seed=seed, progress=False,
+                     **preset_fit_kwargs(base))  # fmt: skip
+
+
+def public_scores(house, truth: np.ndarray, name: str, sweeps: int, seed: int) -> dict:
+    """ARI, largest share, concepts >= 1 % of a fit on every trial; whether it was refined."""
+    start = time.perf_counter()
+    result = fit_variant(house, name, sweeps, seed)
+    labels = rh.on_map(result, house, VARIANTS[name][0])
+    refined = bool(result.inference.get("refine", {}).get("refine"))
+    return {**rh.scores(labels, truth, house.grid.free), "refined": refined,
+            "seconds": time.perf_counter() - start}  # fmt: skip
+
+
+def heldout_scores(house, name: str, sweeps: int, seed: int) -> dict:
+    """Held-out word scores, every trial held out in turn (``real_houses.fold_summary``)."""
+    folds = []
+    for _, _, train, test in heldout_folds(house):
+        model = SpCoSemanticMap(fit_variant(train, name, sweeps, seed))
+        folds.append(heldout_word_prediction(model, test))
+    return rh.fold_summary(folds)
+
+
+def summary(per_house: dict[str, dict]) -> dict[str, object]:
+    """The means over the houses of one variant and seed, and the ARI targets judged."""
+    houses = list(per_house)
+    ari = float(np.mean([per_house[h]["public"]["ari"] for h in houses]))
+    share = max(per_house[h]["public"]["largest_share"] for h in houses)
+    counts = [per_house[h]["public"]["concepts_1pct"] for h in houses]
+    within = all(abs(c - PUBLIC_CATEGORIES[h]) <= 2 for c, h in zip(counts, houses, strict=True))
+    held = {h: per_house[h]["heldout"] for h in houses}
+    words = [held[h]["words"] for h in houses]
+    top1 = [held[h]["all folds"] for h in houses]
+    return {
+        "ari": ari, "largest_share": share, "concepts_1pct": counts,
+        "ari_targets": bool(ari > 0.510 and share <= 0.60 and within),
+        "top1": float(np.mean(top1)), "top1_pooled": float(np.dot(top1, words) / sum(words)),
+        "top3": float(np.mean([held[h]["top 3"] for h in houses])),
+        "mean_rank": float(np.mean([held[h]["mean rank"] for h in houses])),
+        "refined": [per_house[h]["public"]["refined"] for h in houses],
+    }  # fmt: skip
+
+
+def markdown(report: dict) -> str:
+    lines = [
+        f"| variant (fit seed) | public mean ARI | largest share | concepts >= 1 % (Table 2: "
+        f"{', '.join(map(str, PUBLIC_CATEGORIES.values()))}) | ARI targets | held-out top-1, "
+        "mean of houses | pooled over words | mean rank |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for name, seeds in report["variants"].items():
+        for seed, row in seeds.items():
+            s = row.get("summary")
+            if s is None:
+                continue
+            lines.append(
+                f"| {name} ({seed}) | {s['ari']:.3f} | {100 * s['largest_share']:.0f} % | "
+                f"{', '.join(map(str, s['concepts_1pct']))} | "
+                f"{'met' if s['ari_targets'] else 'not met'} | {s['top1']:.3f} | "
+                f"{s['top1_pooled']:.3f} | {s['mean_rank']:.2f} |"
+            )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sweeps", type=COUNT, help="sweeps of every fit (default 2000; "
+                        "--quick: 20)")  # fmt: skip
+    parser.add_argument("--seeds", type=INDEX, nargs="+", help="fit seeds (default 0)")
+    parser.add_argument(
+        "--variants", nargs="+", choices=list(VARIANTS), metavar="NAME",
+        help=f"variants to run, in this order (default all: {', '.join(VARIANTS)}; --quick: "
+        "coarse and footprint 0.5 m)",
+    )  # fmt: skip
+    parser.add_argument("--out", help="JSON (default benchmarks/coarse_variants.json); a "
+                        "variant and seed already in it is skipped")  # fmt: skip
+    parser.add_argument("--quick", action="store_true", help="a smoke run: 20 sweeps, one house")
+    args = parser.parse_args(argv)
+    args.out = results_path(args.out, "coarse_variants", args.quick)
+    args.sweeps = quick_or(args.sweeps, args.quick, 20, 2000)
+    args.seeds = args.seeds or [0]
+    args.variants = args.variants or (["coarse", "footprint 0.5 m"] if args.quick
+                                      else list(VARIANTS))  # fmt: skip
+    root = dataset_root(without="nothing to score")
+    if root is None:
+        return 0
+    houses = list(PUBLIC_CATEGORIES)[: 1 if args.quick else None]
+    logging.getLogger("spcopyro").setLevel(logging.ERROR)
+    out = Path(args.out)
+    report = json.loads(out.read_text()) if out.exists() else {}
+    if report.get("sweeps", args.sweeps) != args.sweeps:
+        parser.error(f"{out} holds {report['sweeps']}-sweep results; give another --out")
+    report |= {"sweeps": args.sweeps, "houses": houses}
+    report.setdefault("variants", {})
+    loaded = {h: load_house(Path(root) / h) for h in houses}
+    truths = {h: public_truth(house).labels for h, house in loaded.items()}
+    for name in args.variants:
+        for seed in args.seeds:
+            row = report["variants"].setdefault(name, {}).setdefault(f"seed {seed}", {})
+            if "summary" in row:
+                continue
+            row.setdefault("houses", {})
+            for h in houses:
+                if h in row["houses"]:
+                    continue
+                start = time.perf_counter()
+                public = public_scores(loaded[h], truths[h], name, args.sweeps, seed)
+                held = heldout_scores(loaded[h], name, args.sweeps, seed)
+                row["houses"][h] = {"public": public, "heldout": held,
+                                    "seconds": time.perf_counter() - start}  # fmt: skip
+                print(f"{name} seed {seed} {h}: ARI {public['ari']:.3f}, held-out top-1 "
+                      f"{held['all folds']:.3f} ({time.perf_counter() - start:.0f} s)",
+                      file=sys.stderr, flush=True)  # fmt: skip
+                out.write_text(json.dumps(report, indent=1, default=float))
+            row["summary"] = summary(row["houses"])
+            out.write_text(json.dumps(report, indent=1, default=float))
+    print(f"# Variants of {BASE} ({args.sweeps} sweeps)\n\n{markdown(report)}")
+    print(f"wrote {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    run_main(main)
