@@ -144,8 +144,9 @@ def main(argv: list[str] | None = None) -> int:
         help=f"variants to run, in this order (default all: {', '.join(VARIANTS)}; --quick: "
         "coarse and footprint 0.5 m)",
     )  # fmt: skip
-    parser.add_argument("--out", help="JSON (default benchmarks/coarse_variants.json); a "
-                        "variant and seed already in it is skipped")  # fmt: skip
+    parser.add_argument("--out", help="JSON (default benchmarks/coarse_variants.json, "
+                        "coarse_variants_quick.json with --quick); a variant and seed already "
+                        "in it is skipped")  # fmt: skip
     parser.add_argument("--quick", action="store_true", help="a smoke run: 20 sweeps, one house")
     args = parser.parse_args(argv)
     args.out = results_path(args.out, "coarse_variants", args.quick)
