@@ -35,12 +35,11 @@ import numpy as np
 import real_houses as rh
 from bench_cli import COUNT, INDEX, dataset_root, quick_or, results_path, run_main
 
-from spcopyro.config import preset
 from spcopyro.data import load_house
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
-from spcopyro.fit.house import fit_house, preset_fit_kwargs
 from spcopyro.metrics import heldout_word_prediction
+from spcopyro.results.refined import coarse_stage
 from spcopyro.results.semantic_map import SpCoSemanticMap
 
 BASE = "coarse"
@@ -65,13 +64,11 @@ top-1 (finer concepts around where words were said) without losing the places.""
 
 
 def fit_variant(house, name: str, sweeps: int, seed: int):
-    """The variant's fit: its preset's settings with the overrides, and the preset's recommended
-    inference settings (``coarse``'s rooms start, merge and region moves, point estimate and
-    ``--refine auto``; ``paper-dp``'s paper run)."""
+    """The variant's fit (``real_houses.fit_result``): its preset's settings with the overrides,
+    and the preset's recommended inference settings (``coarse``'s rooms start, merge and region
+    moves, point estimate and ``--refine auto``; ``paper-dp``'s paper run)."""
     base, overrides = VARIANTS[name]
-    settings = preset(base, **overrides)
-    return fit_house(house, settings, method="gibbs", sweeps=sweeps, seed=seed, progress=False,
-                     **preset_fit_kwargs(base))  # fmt: skip
+    return rh.fit_result(house, base, sweeps, seed, **overrides)[0]
 
 
 def public_scores(house, truth: np.ndarray, name: str, sweeps: int, seed: int) -> dict:
@@ -79,7 +76,7 @@ def public_scores(house, truth: np.ndarray, name: str, sweeps: int, seed: int) -
     start = time.perf_counter()
     result = fit_variant(house, name, sweeps, seed)
     labels = rh.on_map(result, house, VARIANTS[name][0])
-    refined = bool(result.inference.get("refine", {}).get("refine"))
+    refined = coarse_stage(result.inference) is not None
     return {**rh.scores(labels, truth, house.grid.free), "refined": refined,
             "seconds": time.perf_counter() - start}  # fmt: skip
 

@@ -91,17 +91,20 @@ every observation's own region, each border half-way between the places' observa
 METHODS = ("cavi", "lbp", "svi", "stochastic-vi", "vi-gibbs")
 
 
-def fit_result(house, name: str, sweeps: int, seed: int, method: str = "gibbs"):
+def fit_result(
+    house, name: str, sweeps: int, seed: int, method: str = "gibbs", **overrides: object
+):
     """The preset's default fit (its recommended inference settings for Gibbs; a variational
     method with its default options) and its seconds. :data:`UNREFINED`: the default preset's
-    fit without its refinement on the map's cells (``--refine never``)."""
+    fit without its refinement on the map's cells (``--refine never``). ``overrides``: settings
+    replacing the preset's (``preset(name, **overrides)``: a variant of it)."""
     unrefined = name == UNREFINED
     name = DEFAULT_PRESET if unrefined else name
     kwargs = preset_fit_kwargs(name) if method == "gibbs" else {}  # else fit_house's defaults
     if unrefined:
         kwargs["refine"] = "never"
     start = time.perf_counter()
-    result = fit_house(house, preset(name), method=method, sweeps=sweeps, seed=seed,
+    result = fit_house(house, preset(name, **overrides), method=method, sweeps=sweeps, seed=seed,
                        progress=False, **kwargs)  # fmt: skip
     return result, time.perf_counter() - start
 
