@@ -95,3 +95,32 @@ def test_the_data_line_gives_the_cells_the_model_uses_beside_those_asked():
     # the map's own cells asked (None): unchanged
     own = dataclasses.replace(data, cell_size=None)
     assert data_line(own, map_grid).startswith("data             the map's own cells, ")
+
+
+def test_the_stopped_line_and_trace_png_tell_an_estimated_objective_by_one_rule(monkeypatch):
+    """Whether a method's objective is an estimate (SVI's: "ELBO estimate") was decided twice,
+    by ``method == "svi"`` in the "stopped" line and again in trace.png's axis: one rule now
+    (:func:`spcopyro.inference.names.objective_draws`), so both follow a change to it."""
+    import dataclasses
+
+    import numpy as np
+    from hand_results import two_rooms
+
+    from spcopyro.cli.fit_summary import stopped_line
+    from spcopyro.figures.trace import trace_figure
+    from spcopyro.inference import names
+    from spcopyro.inference.protocol import Trace
+
+    trace = Trace(np.linspace(-50.0, -10.0, 20), np.full(20, 2), np.arange(1.0, 21.0), "ELBO")
+    svi = dataclasses.replace(two_rooms(), method="svi", trace=trace, best_iteration=19,
+                              inference={"num_particles": 2, "stopped": "converged"})  # fmt: skip
+    cavi = dataclasses.replace(svi, method="cavi", inference={"stopped": "converged"})
+    assert "final ELBO estimate -10.0 nats" in stopped_line(svi)
+    assert "final ELBO -10.0 nats" in stopped_line(cavi)
+    assert trace_figure(svi).axes[0].get_ylabel().endswith("(2 draws a step)")
+    monkeypatch.setattr(names, "ESTIMATED_OBJECTIVES", ("cavi",))  # the rule changed: both follow
+    assert "final ELBO estimate -10.0 nats" in stopped_line(cavi)
+    assert "final ELBO -10.0 nats" in stopped_line(svi)
+    label = trace_figure(cavi).axes[0].get_ylabel()
+    assert label.startswith("ELBO estimate (nats)") and label.endswith("(1 draw a step)"), label
+    assert trace_figure(svi).axes[0].get_ylabel().startswith("ELBO (nats)")

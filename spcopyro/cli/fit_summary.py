@@ -10,6 +10,7 @@ import dataclasses
 import math
 from typing import TYPE_CHECKING
 
+from spcopyro.inference.names import objective_draws
 from spcopyro.inference.protocol import options_for_start, start_filled
 from spcopyro.maps.coarse import coarsening_factor
 from spcopyro.results.refined import coarse_stage
@@ -159,7 +160,8 @@ def stopped_line(result: SpCoResult) -> str:
     final value of its objective, named, in nats ("final ELBO -1422.2 nats"; SVI's "ELBO
     estimate", one draw's). The line said "the objective changed by less than ..." and no value:
     comparing two variational fits meant opening their trace.csv."""
-    name = result.trace.objective_name + (" estimate" if result.method == "svi" else "")
+    estimated = objective_draws(result.method, result.inference) > 0
+    name = result.trace.objective_name + (" estimate" if estimated else "")
     value = float(result.trace.objective[-1])  # [iterations]: the reported q's, the last
     return f"{'stopped':<{LABEL}}{result.inference['stopped']}; final {name} {value:.1f} nats"
 

@@ -13,7 +13,7 @@ from matplotlib.ticker import FuncFormatter, MaxNLocator
 
 from spcopyro._util.messages import plural
 from spcopyro.figures.png import save_figure
-from spcopyro.inference.names import SAMPLERS
+from spcopyro.inference.names import SAMPLERS, objective_draws
 from spcopyro.results.point_estimate import LOSS_LABELS
 from spcopyro.results.refined import coarse_stage
 from spcopyro.results.result import SpCoResult
@@ -85,11 +85,10 @@ def trace_figure(result: SpCoResult, kept: tuple[int, int] | None = None) -> Fig
     top.axvline(best, color="C3", lw=0.6, ls="--",
                 label=f"highest {trace.objective_name} ({step} {best})" if chain else
                 f"final {trace.objective_name} ({step} {best}): the reported q")  # fmt: skip
-    svi = result.method == "svi"  # one draw's estimate a step, at the step's (annealed) gamma
-    draws = int(result.inference.get("num_particles", 1)) if svi else 0  # type: ignore[call-overload]
-    estimate = f"{plural(draws, 'draw')} a step" if svi else ""
+    draws = objective_draws(result.method, result.inference)  # 0: the objective itself
+    estimate = f"{plural(draws, 'draw')} a step" if draws else ""
     top.set_ylabel(objective_axis_label(trace.objective_name, estimate), fontsize=8)
-    if svi:
+    if result.method == "svi":  # at the step's (annealed) gamma
         asked = int(result.inference.get("anneal_iterations") or 0)  # type: ignore[call-overload]
         anneal = min(asked, len(sweeps))
         if anneal > 1:  # not the model's ELBO there: a weaker coupling's

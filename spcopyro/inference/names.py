@@ -16,6 +16,21 @@ kept label maps (``marginal_samples``) give the marginals and the point estimate
 is a chain's. Spelt once here, imported by :mod:`spcopyro.fit.house`,
 :mod:`spcopyro.figures.trace` and the torch-free :mod:`spcopyro.cli.fit_options`."""
 
+ESTIMATED_OBJECTIVES = ("svi",)
+"""The methods whose objective is a stochastic estimate (SVI's ELBO: ``num_particles`` draws of
+the globals a step), not the value itself."""
+
+
+def objective_draws(method: str, inference: dict[str, object]) -> int:
+    """The draws a step of ``method``'s objective estimate (``inference['num_particles']``, 1
+    where unrecorded), or 0 for an objective computed exactly. The one rule of trace.png's axis
+    ("ELBO estimate ... (1 draw a step)") and ``spcopyro fit``'s "stopped" line ("final ELBO
+    estimate"): each tested ``method == "svi"`` itself."""
+    if method not in ESTIMATED_OBJECTIVES:
+        return 0
+    return int(inference.get("num_particles") or 1)  # type: ignore[call-overload]
+
+
 DEFAULT_METHOD = "gibbs"
 """Algorithm 1 of the paper."""
 
