@@ -4,6 +4,7 @@ warns about and refuses, naming the yaml, the line, the key and the value."""
 from __future__ import annotations
 
 import logging
+import os
 from pathlib import Path
 
 import cv2
@@ -545,6 +546,35 @@ def test_every_warning_of_the_map_logger_shows_a_byte_that_is_not_utf8_as_its_by
     with caplog.at_level(logging.WARNING, logger="spcopyro"):  # a stand-in, a surrogate's repr
         logger.warning("%s: %s, %r, %d", "room.yaml:7", "mod\U000f00e9", "carte\udce9.jpg", 3)
     assert warnings_of(caplog) == ["room.yaml:7: mod\\xe9, 'carte\\xe9.jpg', 3"]
+
+
+def test_a_map_in_a_folder_named_by_a_byte_that_is_not_utf8_shows_it_as_its_byte(tmp_path, capsys):
+    """A map yaml in a folder b"caf\\xe9" (os.fsdecode: 'caf\\udce9', a lone surrogate): the
+    messages naming it through an f-string held the surrogate itself, which _SHOWN_STAND_IN did
+    not match (only its repr, '\\udce9' as text): stderr showed caf\\udce9, a strict UTF-8
+    print raised UnicodeEncodeError. A MapFormatError (load_map) and the command line's error and
+    warning lines (any ValueError: simulate --map's refusal of a map with no free cell) show it
+    as caf\\xe9."""
+    (tmp_path / "plain").mkdir()  # OpenCV's imwrite crashes on a path holding a surrogate
+    write_map(tmp_path / "plain", resolution="abc").parent.rename(folder := tmp_path / "caf\udce9")
+    assert os.fsencode(folder) == os.fsencode(tmp_path) + b"/caf\xe9"
+    path = folder / "room.yaml"
+    with pytest.raises(MapFormatError) as info:
+        load_map(path)
+    shown = str(info.value)
+    assert shown.startswith(f"{tmp_path}/caf\\xe9/room.yaml:2: key 'resolution' "), shown
+    shown.encode("utf-8")  # no surrogate left to refuse
+    height, width = PIXELS.shape  # white everywhere, negate 1: no free cell
+    (folder / "room.pgm").write_bytes(
+        f"P5\n{width} {height}\n255\n".encode() + b"\xfe" * PIXELS.size
+    )
+    path.write_text(path.read_text().replace("abc", "0.05").replace("negate: 0", "negate: 1"))
+    assert main(["simulate", "--map", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert f"error: {tmp_path}/caf\\xe9/room.yaml: the map has no free cell to tour: " in err
+    assert f"{tmp_path}/caf\\xe9/room.yaml:4: negate 1;" in err, err
+    err.encode("utf-8")
+    assert "udce9" not in err
 
 
 @pytest.mark.parametrize(

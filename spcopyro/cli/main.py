@@ -57,6 +57,7 @@ from spcopyro.cli.fit_parser import add_parser as add_fit_parser
 from spcopyro.cli.interrupted import interrupted_line
 from spcopyro.cli.out_names import house_name, probability_figure
 from spcopyro.data.text import fold_word
+from spcopyro.maps.map_yaml import _shown_bytes
 
 logger = logging.getLogger("spcopyro")
 _positive_int = integer_at_least(1)  # --size and --rooms
@@ -440,8 +441,8 @@ def build_parser() -> argparse.ArgumentParser:
 class _LowerCaseLevel(logging.Formatter):
     """``warning: message`` (as the command's own messages), not ``WARNING: message``."""
 
-    def format(self, record: logging.LogRecord) -> str:
-        return f"{record.levelname.lower()}: {record.getMessage()}"
+    def format(self, record: logging.LogRecord) -> str:  # a path's byte 0xe9 as \xe9
+        return f"{record.levelname.lower()}: {_shown_bytes(record.getMessage())}"
 
 
 class _StderrHandler(logging.StreamHandler):
@@ -486,7 +487,7 @@ def _error_line(error: BaseException) -> str:
             f"the disk is full{where} ({error.strerror}): free some space or choose another "
             "--out; a fit's staging folder is removed, its output left as it was"
         )
-    return str(error)
+    return _shown_bytes(str(error))  # a path's byte 0xe9 as \xe9 (a folder b"caf\xe9")
 
 
 COORDINATE_OPTIONS = ("--start",)

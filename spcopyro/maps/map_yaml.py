@@ -275,9 +275,14 @@ _UNDECODED = {byte: 0xF0000 + byte - 0xDC00 for byte in range(0xDC80, 0xDD00)}
 """surrogateescape's stand-ins (U+DC80..U+DCFF) for bytes that are not UTF-8 -> private-use
 code points (U+F0080..U+F00FF), which PyYAML reads (it refuses surrogates)."""
 _UNDECODED_BACK = {code: byte for byte, code in _UNDECODED.items()}
-_SHOWN_STAND_IN = re.compile(r"[\U000F0080-\U000F00FF]|\\(?:U000f00|udc)[89a-f][0-9a-f]")
-"""A byte that is not UTF-8 in a message: its stand-in, as repr writes it (``\\U000f00e9``), or
-the image path's surrogate (``\\udce9``): each shown as ``\\xe9``."""
+_SHOWN_STAND_IN = re.compile(
+    r"[\U000F0080-\U000F00FF\uDC80-\uDCFF]|\\(?:U000f00|udc)[89a-f][0-9a-f]"
+)
+"""A byte that is not UTF-8 in a message: its stand-in, itself or as repr writes it
+(``\\U000f00e9``), or a path's surrogate, itself (``'\\udce9'``: ``os.fsdecode`` of a folder
+named ``b"caf\\xe9"``, as an f-string puts a path in) or as repr writes it (``\\udce9``): each
+shown as ``\\xe9``. A lone surrogate printed raw read ``caf\\udce9`` on stderr, and raised
+UnicodeEncodeError on a strict UTF-8 stream."""
 
 
 def _stand_in_byte(shown: str) -> int:
