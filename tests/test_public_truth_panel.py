@@ -112,10 +112,12 @@ def test_both_figures_name_a_baseline_and_a_default_variant_alike(tmp_path):
 
 def test_a_baseline_row_is_named_by_the_cells_own_method_constant(monkeypatch):
     """row_name tells a baseline row by the one BASELINE_METHOD the cells are made with (it wrote
-    the literal "baseline" beside cells' constant): renamed, the rule follows it."""
+    the literal "baseline" beside cells' constant): renamed, the rule follows it. The constant
+    is the cells' (the module that makes the rows), which maps reads, not a figure module's."""
     from spcopyro.study import cells, maps
 
     assert cells.BASELINE_METHOD is maps.BASELINE_METHOD
+    assert "BASELINE_METHOD" in cells.__all__ and "BASELINE_METHOD" not in maps.__all__
     assert maps.row_name("kmeans", cells.BASELINE_METHOD) == "kmeans"
     monkeypatch.setattr(maps, "BASELINE_METHOD", "a baseline")
     assert maps.row_name("kmeans", "a baseline") == "kmeans"

@@ -27,11 +27,15 @@ from spcopyro import __version__
 from spcopyro.experiments.ablation_variants import Variant
 from spcopyro.experiments.methods import SPCOA_OPTIONS
 from spcopyro.study.lines import file_line
-from spcopyro.study.maps import BASELINE_METHOD
 from spcopyro.study.sources import data_digest, files_hash, resolve_source
 from spcopyro.study.spec import DataSource, Study, given_twice
 
 __all__ = ["BASELINE_METHOD", "Cell", "cells_of", "package_digest", "source_digest"]
+
+BASELINE_METHOD = "baseline"
+"""The method column of a baseline row: a :class:`Cell` of no variant is made with it
+(:func:`cells_of`), and :func:`spcopyro.study.maps.row_name` names such a row by its baseline
+alone."""
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,6 @@ like :mod:`spcopyro.figures.plotting`.
 from __future__ import annotations
 
 import os
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,20 +24,17 @@ from spcopyro._util.outputs import replace_figure
 from spcopyro.figures.fonts import any_script
 from spcopyro.maps import OccupancyGrid
 from spcopyro.maps.coarse import labels_on_grid
+from spcopyro.study.cells import BASELINE_METHOD
+from spcopyro.study.spec import MAPS_PREFIX, maps_file_name
 
 __all__ = [
-    "BASELINE_METHOD", "MAPS_PREFIX", "Arrays", "StoredMap", "label_map_arrays", "labels_on_map",
-    "load_label_map", "REGION_TRUTH_PANEL", "TRUTH_PANEL", "maps_file_name", "plot_label_maps",
-    "remove_stale", "row_name", "write_house_maps",
+    "Arrays", "StoredMap", "label_map_arrays", "labels_on_map", "load_label_map",
+    "REGION_TRUTH_PANEL", "TRUTH_PANEL", "plot_label_maps", "remove_stale", "row_name",
+    "write_house_maps",
 ]  # fmt: skip
 
 Arrays = dict[str, np.ndarray]
 """Named arrays saved as one ``.npz`` (a trace, a label map)."""
-BASELINE_METHOD = "baseline"
-"""The method column of a baseline row (:mod:`spcopyro.study.cells` makes them,
-:func:`row_name` names them): here, as cells imports spec, which imports this module."""
-MAPS_PREFIX = "maps_"
-"""A source's figure is ``OUT/maps_<data>.png``."""
 TRUTH_PANEL, REGION_TRUTH_PANEL = "truth", "region truth (this project's)"
 """The first panel's name (:func:`source_panels`) where the source's truth is known: a
 synthetic house's or simulated map's, a public house's (this project's region truth)."""
@@ -175,12 +171,6 @@ def row_name(variant: object, method: object) -> str:
     if method == BASELINE_METHOD:
         return variant or method
     return method if variant in ("", "default", method) else f"{variant} / {method}"
-
-
-def maps_file_name(data: str) -> str:
-    """The report's figure of data source ``data``: ``maps_NAME.png``, every character of NAME
-    but letters, digits, ``.``, ``-`` and ``_`` written ``_``."""
-    return MAPS_PREFIX + re.sub(r"[^\w.-]", "_", data) + ".png"
 
 
 def source_panels(

@@ -40,6 +40,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import re
 from collections.abc import Callable, Hashable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -56,12 +57,11 @@ from spcopyro.fit.registry import INFERENCE_METHODS
 from spcopyro.results.semantic_map import did_you_mean
 from spcopyro.robot.map_simulation import MapTour
 from spcopyro.study.lines import key_line, named_key, where_path
-from spcopyro.study.maps import maps_file_name
 from spcopyro.synthetic import HouseSpec
 
 __all__ = [
-    "DataSource", "Study", "StudyError", "check_once", "given_twice", "load_study",
-    "study_from_dict",
+    "MAPS_PREFIX", "DataSource", "Study", "StudyError", "check_once", "given_twice", "load_study",
+    "maps_file_name", "study_from_dict",
 ]  # fmt: skip
 
 SYNTHETIC_FACTORIES = {
@@ -75,6 +75,17 @@ SYNTHETIC_FACTORIES = {
 
 BASELINES = tuple(key for key, row in BASELINE_REGISTRY.items() if not row.spcomapping)
 """Rows a study may add beside its variants (``baselines = [...]``)."""
+
+MAPS_PREFIX = "maps_"
+"""A source's figure is ``OUT/maps_<data>.png`` (:mod:`spcopyro.study.maps`)."""
+
+
+def maps_file_name(data: str) -> str:
+    """The report's figure of data source ``data``: ``maps_NAME.png``, every character of NAME
+    but letters, digits, ``.``, ``-`` and ``_`` written ``_``. Here, beside the check that no two
+    sources share one (:func:`study_from_dict`), as maps imports cells, which imports spec."""
+    return MAPS_PREFIX + re.sub(r"[^\w.-]", "_", data) + ".png"
+
 
 _STUDY_KEYS = {"name", "seeds", "sweeps", "methods", "baselines", "spcoa_iterations",
                "observations_off", "scoring", "description", "ari_every"}  # fmt: skip
