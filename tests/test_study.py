@@ -989,3 +989,38 @@ def test_quality_time_figure_says_its_axes_in_words():
         ("synthetic", "public"): "ARI against the truth (a public house's: the region truth)"
         + tail,
     }
+
+
+def test_two_variants_of_one_method_get_names_of_their_own_in_both_figures(tmp_path):
+    """A study of variants ``default`` and ``gibbs`` (gamma 3), both of method gibbs, named both
+    rows "gibbs" in quality_time.png's legend and the maps' panel titles (``row_name``), so the
+    two could not be told apart; the one that sets something now says what (its overrides)."""
+    import numpy as np
+
+    from spcopyro.maps import OccupancyGrid
+    from spcopyro.study.figures import quality_time_figure
+    from spcopyro.study.maps import label_map_arrays, row_names, source_panels
+
+    study = study_from_dict({
+        "study": {"name": "twin", "sweeps": 5},
+        "variants": {"default": {}, "gibbs": {"gamma": 3.0}, "lbp": {"method": "lbp"}},
+        "data": {"small": small_house()},
+    })  # fmt: skip
+    rows = [c.inputs() for c in cells_of(study)]  # the table's rows, before any fit
+    occupancy = np.zeros((3, 4), dtype=np.int8)
+    grid = OccupancyGrid(occupancy, 0.05, (0.0, 0.0, 0.0))
+    (tmp_path / "maps").mkdir()
+    labels = np.zeros((3, 4), dtype=np.int64)
+    np.savez(
+        tmp_path / "maps" / "a.npz", **label_map_arrays(labels, type("H", (), {"grid": grid}), None)
+    )
+    for k, row in enumerate(rows):
+        row.update(status="ok", seconds=1.0 + k, ari=0.5, label_map="maps/a.npz")
+    names = ["gibbs", "gibbs (gamma=3.0)", "lbp"]
+    assert list(row_names(rows).values()) == names
+    (legend,) = quality_time_figure(rows).legends
+    assert [t.get_text() for t in legend.get_texts()] == names
+    _, panels, _ = source_panels(rows, tmp_path, "small")
+    assert [name for name, _ in panels] == names
+    same = [{**row, "overrides": ""} for row in rows]  # nothing tells them apart: their names
+    assert list(row_names(same).values()) == ["default / gibbs", "gibbs / gibbs", "lbp"]

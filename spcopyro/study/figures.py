@@ -25,7 +25,7 @@ from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from spcopyro._util.outputs import replace_figure
 from spcopyro.figures.fonts import any_script, quiet_glyph_warnings
-from spcopyro.study.maps import row_name
+from spcopyro.study.maps import row_names
 from spcopyro.study.table import is_number
 
 __all__ = ["QUALITY_TIME_FILE", "quality_time_figure", "write_quality_time"]
@@ -101,7 +101,8 @@ def quality_time_figure(
         ax.set_ylabel("ARI" if score == "ari" else score)
         ax.grid(alpha=0.3)
     handles = [Line2D([], [], marker="o", ls="", color=colour[g]) for g in groups]
-    legend = fig.legend(handles, [row_name(*g) for g in groups], loc="lower center",
+    named = row_names(rows)  # as the maps' titles: distinct where two rows share a name
+    legend = fig.legend(handles, [named[g] for g in groups], loc="lower center",
                         ncol=min(len(groups), 4), frameon=False, fontsize=8)  # fmt: skip
     # one panel is 4.3 in wide: four columns of "stochastic-vi / stochastic-vi" ran past both
     # edges of the image, cut off; the figure widens to hold its legend

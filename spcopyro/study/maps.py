@@ -30,7 +30,7 @@ from spcopyro.study.spec import MAPS_PREFIX, maps_file_name
 __all__ = [
     "Arrays", "StoredMap", "label_map_arrays", "labels_on_map", "load_label_map",
     "REGION_TRUTH_PANEL", "TRUTH_PANEL", "plot_label_maps", "remove_stale", "row_name",
-    "write_house_maps",
+    "row_names", "write_house_maps",
 ]  # fmt: skip
 
 Arrays = dict[str, np.ndarray]
@@ -173,14 +173,45 @@ def row_name(variant: object, method: object) -> str:
     return method if variant in ("", "default", method) else f"{variant} / {method}"
 
 
+def _options_text(row: dict[str, object]) -> str:
+    """What a variant row sets, short: its ``overrides`` column (``settings.gamma=3.0,...``)
+    without the method (named beside it) and the settings/options/fit prefixes, as
+    ``gamma=3.0, merge_moves=0.2``; its preset first where it sets one."""
+    items = [item for item in str(row.get("overrides") or "").split(",") if item]
+    items = [item.partition(".")[2] if item.split(".")[0] in ("settings", "options", "fit")
+             else item for item in items if not item.startswith("method=")]  # fmt: skip
+    return ", ".join(items)
+
+
+def row_names(rows: Sequence[dict[str, object]]) -> dict[tuple[str, str], str]:
+    """Every (variant, method) of ``rows`` named for a figure, each name its own:
+    :func:`row_name`, and where that is shared by rows that differ (variants ``default`` and
+    ``gibbs`` of method gibbs, differing in an option, were both "gibbs" in the maps' titles and
+    the legend of quality_time.png), each of them with what its variant sets (``gibbs
+    (gamma=3.0)``, the one that sets nothing left bare), or, where even that is shared,
+    ``variant / method``. Both figures name their rows with it, over the whole table."""
+    groups = {(str(r["variant"]), str(r["method"])): r for r in rows}  # the first row of each
+    names = {group: row_name(*group) for group in groups}
+    for name in set(names.values()):
+        twins = [group for group in groups if names[group] == name]
+        if len(twins) < 2:
+            continue
+        texts = {group: _options_text(groups[group]) for group in twins}
+        if len(set(texts.values())) == len(twins):  # the options tell them apart
+            names.update({g: f"{name} ({texts[g]})" if texts[g] else name for g in twins})
+        else:
+            names.update({g: f"{g[0] or 'default'} / {g[1]}" for g in twins})
+    return names
+
+
 def source_panels(
     rows: Sequence[dict[str, object]], folder: str | os.PathLike[str], data: str,
     seed: int | None = None, label=None,
 ) -> tuple[OccupancyGrid, list[tuple[str, np.ndarray]], int] | None:  # fmt: skip
     """The panels of source ``data`` at ``seed`` (None: its first seed with a stored map):
     the truth when known (a public house's named "region truth (this project's)"), then each
-    row's map in the table's order, named by ``label(row)`` (default :func:`row_name`); None
-    when no map is stored."""
+    row's map in the table's order, named by ``label(row)`` (default :func:`row_names` of
+    ``rows``); None when no map is stored."""
     mine = [r for r in rows if r["data"] == data and load_label_map(folder, r) is not None]
     if not mine:
         return None
@@ -195,9 +226,10 @@ def source_panels(
     public = any(r.get("data_kind") == "public" for r in mine)
     truth_name = REGION_TRUTH_PANEL if public else TRUTH_PANEL
     panels = [] if truth is None else [(truth_name, truth)]
+    named = row_names(rows)  # over the whole table: the legend of quality_time.png's names
     for row, stored in maps:
         assert stored is not None
-        name = label(row) if label is not None else row_name(row["variant"], row["method"])
+        name = label(row) if label is not None else named[str(row["variant"]), str(row["method"])]
         panels.append((name, stored.labels))
     return grid, panels, seed
 
