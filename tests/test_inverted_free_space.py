@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from spcopyro.cli.main import main
 from spcopyro.config import SpCoSettings
 from spcopyro.data import Observations, cell_counts, load_house, save_house
 from spcopyro.data.inverted_map import check_placement
@@ -24,14 +25,14 @@ from spcopyro.synthetic import make_house
 HOUSES = ("room1dk5", "room1dk6", "room1ldk4", "room1ldk5", "room2ldk4")
 
 
-def _negated(tmp_path: Path, negate: str = "1") -> Path:
-    """The embedded house saved under ``tmp_path``, three of its images moved onto walls (which
-    the negated map reads free, as a robot's tour passes close to them), its yaml's negate set
-    to ``negate``."""
+def _negated(tmp_path: Path, negate: str = "1", walls: int = 3) -> Path:
+    """The embedded house saved under ``tmp_path``, ``walls`` of its images moved onto walls
+    (which the negated map reads free, as a robot's tour passes close to them), its yaml's negate
+    set to ``negate``."""
     house = make_house(seed=0, name="flat")
     obs = house.observations
-    walls = house.grid.cell_to_world(np.argwhere(house.grid.occupancy == OCCUPIED)[:3])  # [3, 2]
-    image_xy = np.concatenate([walls, obs.image_xy[3:]])  # [T, 2]
+    on = house.grid.cell_to_world(np.argwhere(house.grid.occupancy == OCCUPIED)[:walls])  # [w, 2]
+    image_xy = np.concatenate([on, obs.image_xy[walls:]])  # [T, 2]
     save_house(dataclasses.replace(house, observations=dataclasses.replace(obs, image_xy=image_xy)),
                tmp_path)  # fmt: skip
     yaml_path = tmp_path / "map" / "flat.yaml"
@@ -61,8 +62,45 @@ def test_a_negated_map_is_refused_naming_its_yaml_and_negate_line(tmp_path, capl
         "with negate 0, "
     )
     assert message.endswith(f"{left_out} of the {left_out} observations left out would lie on them")
-    # the counts once: the placement warning before it gave the snapped and left-out ones
+    # the counts once (the placement warnings that gave the snapped ones are not said with it)
     assert message.count(f"of {total}") == 1 and "snapped" not in message
+
+
+@pytest.mark.parametrize("walls", [3, 0])
+def test_fit_refuses_a_negated_map_without_the_placement_warnings_before(tmp_path, capsys, walls):
+    """`spcopyro fit` on a house whose map says negate: 1 (its walls read free) printed two long
+    warnings -- the observations left out with their lines, then most of them off free space
+    with the refusal's own counts -- before the refusal. The refusal comes alone now, naming the
+    yaml, its negate line and value (images on the walls: the inverted map's refusal) or the
+    map and its negate flag (none on free space: check_on_free's)."""
+    yaml_path = _negated(tmp_path, walls=walls)
+    line = next(i for i, t in enumerate(yaml_path.read_text().splitlines(), 1) if "negate" in t)
+    argv = ["fit", str(tmp_path / "flat"), "--out", str(tmp_path / "fit"), "--sweeps", "2"]
+    assert main([*argv, "--no-figures"]) == 2
+    err = capsys.readouterr().err
+    assert "left out of the cell counts" not in err, err
+    assert "the sign of a wrong map or origin" not in err, err
+    refusal = err.splitlines()[-1]
+    if walls:
+        assert refusal.startswith("error: ") and "observations are left out" in refusal
+        assert f"{yaml_path}:{line}: negate 1 on a map whose free space is drawn white" in refusal
+    else:
+        assert refusal.startswith("error: no observation lands on free space: ")
+        assert f"on map {yaml_path} " in refusal and "its negate flag inverts" in refusal
+
+
+def test_the_placement_warnings_of_a_fit_that_goes_on_are_said(tmp_path, caplog):
+    """The warnings held while the counts are made are said once the placement is not refused."""
+    house = make_house(seed=0)
+    obs = house.observations
+    image_xy = np.concatenate([[[500.0, 500.0]], obs.image_xy[1:]])  # [T, 2] one off the map
+    house = dataclasses.replace(house, observations=dataclasses.replace(obs, image_xy=image_xy))
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        prepare_model_data(house, SpCoSettings())
+    said = [
+        r.getMessage() for r in caplog.records if "left out of the cell counts" in r.getMessage()
+    ]
+    assert len(said) == 1 and said[0].startswith("1 image(s) and 0 utterance(s) are farther")
 
 
 def test_the_public_houses_are_not_refused(dataset_root):
@@ -109,10 +147,12 @@ def test_a_negated_map_is_refused_on_a_coarsened_model_grid(tmp_path):
     obs = _observations(np.concatenate([room, walls]))
     report = cell_counts(grid, obs, warn=False).placement
     assert report.num_unplaced == 20 and report.unplaced_on_occupied == 20
+    said = []  # the refusal blames negate: alone
     with pytest.raises(ValueError) as error:
-        check_placement(report, obs, grid, f" on map {yaml_path}")
+        check_placement(report, obs, grid, f" on map {yaml_path}", lambda: said.append(1))
     message = str(error.value)
     assert message.startswith("20 of 28 observations are left out, 20 of them on occupied cells")
+    assert said == []
     assert (
         f"{yaml_path}:4: negate 1 on a map whose free space is drawn white (map_saver's maps "
         "need negate: 0): with negate 0, 6400 cells would be free, not 3600, and 20 of the 20 "
@@ -132,11 +172,12 @@ def test_a_floor_plan_drawn_black_where_the_tour_went_is_not_blamed_on_negate(tm
     obs = _observations(np.concatenate([inside, outside]))
     report = cell_counts(grid, obs, warn=False).placement
     assert report.free_space_inverted() and report.num_on_free == 8
+    said = []  # the warnings naming the lines the message points to: said before it
     with pytest.raises(ValueError) as error:
-        check_placement(report, obs, grid, f" on map {grid.source}")
+        check_placement(report, obs, grid, f" on map {grid.source}", lambda: said.append(1))
     message = str(error.value)
     assert message.startswith("16 of 24 observations are left out, 16 of them on occupied cells")
-    assert "negate" not in message
+    assert "negate" not in message and said == [1]
     assert "origin and resolution" in message and "unknown grey 205" in message
     assert "--snap-distance, now 0.25 m" in message and "remove them from the data" in message
 
