@@ -1024,3 +1024,27 @@ def test_two_variants_of_one_method_get_names_of_their_own_in_both_figures(tmp_p
     assert [name for name, _ in panels] == names
     same = [{**row, "overrides": ""} for row in rows]  # nothing tells them apart: their names
     assert list(row_names(same).values()) == ["default / gibbs", "gibbs / gibbs", "lbp"]
+
+
+def test_quality_time_shows_a_held_out_source_s_word_score_beside_its_map_score():
+    """Rows of a held-out source carry ``top1`` (held-out word prediction); quality_time.png drew
+    only the ARI against time, so a method that bought its map with its words looked best. A
+    source with word scores gets a second panel of them; one without keeps its one panel."""
+    from spcopyro.study.figures import quality_time_figure
+
+    def row(data, method, seconds, ari, top1=None):
+        kind = "public" if top1 is not None else "synthetic"
+        return dict(data=data, variant="default", method=method, seconds=seconds, ari=ari,
+                    top1=top1, status="ok", data_kind=kind)  # fmt: skip
+
+    rows = [row("room", "gibbs", 100.0, 0.6, 0.34), row("room", "cavi", 2.0, 0.5, 0.21),
+            row("room", "cavi", 3.0, 0.5, 0.25), row("small", "gibbs", 10.0, 0.9)]  # fmt: skip
+    fig = quality_time_figure(rows)
+    panels = [ax for ax in fig.axes if ax.get_title()]
+    assert [ax.get_title() for ax in panels] == ["room", "room: held-out words", "small"]
+    assert panels[1].get_ylabel() == "held-out top-1 word accuracy"
+    means = sorted(line.get_ydata()[0] for line in panels[1].lines if line.get_marker() == "o")
+    assert means == pytest.approx([0.23, 0.34])
+    assert "held-out top-1 word accuracy" in fig._suptitle.get_text().replace("\n", " ")
+    plain = quality_time_figure([r for r in rows if r["data"] == "small"])
+    assert [ax.get_title() for ax in plain.axes if ax.get_title()] == ["small"]

@@ -2,7 +2,8 @@
 
 One panel per data source; in it, one colour per (variant, method): every finished seed as a
 faint point at (wall seconds of its fit, its score), and the group's mean score with its sample
-standard deviation over the seeds at the geometric mean of its times. The time axis is
+standard deviation over the seeds at the geometric mean of its times; a held-out source's
+held-out top-1 word accuracy (``top1``) the same way in a second panel beside it. The time axis is
 logarithmic, since methods differ by orders of magnitude (a CAVI run in seconds, 5000 Gibbs
 sweeps in minutes). What is plotted is what ``results.csv`` holds: a report redrawn from the
 table (``spcopyro study STUDY --out OUT --report-only``) redraws this figure too.
@@ -28,7 +29,7 @@ from spcopyro.figures.fonts import any_script, quiet_glyph_warnings
 from spcopyro.study.maps import row_names
 from spcopyro.study.table import is_number
 
-__all__ = ["QUALITY_TIME_FILE", "quality_time_figure", "write_quality_time"]
+__all__ = ["QUALITY_TIME_FILE", "WORD_SCORE", "quality_time_figure", "write_quality_time"]
 
 QUALITY_TIME_FILE = "quality_time.png"
 """The figure's file name, beside ``report.md``."""
@@ -50,55 +51,84 @@ def _score_words(score: str, kinds: set[object]) -> str:
     return "ARI against the ground truth"
 
 
+WORD_SCORE = "top1"
+"""The held-out word score a row of a held-out source carries (:mod:`spcopyro.study.evaluate`):
+the share of the held-out trial's words whose top-ranked concept is right, drawn beside the
+map's score so that the word side of the trade-off shows."""
+
+
+def _timed(rows, score: str, time: str) -> list[tuple[str, str, str, float, float]]:
+    """``(data, variant, method, seconds, score)`` of every finished row with both numbers (a
+    time of 0 left out: the log axis has no place for it)."""
+    return [(str(row["data"]), str(row["variant"]), str(row["method"]),
+             float(row[time]), float(row[score]))  # type: ignore[arg-type]
+            for row in rows if _placed(row, score, time)]  # fmt: skip
+
+
+def _placed(row: dict[str, object], score: str, time: str) -> bool:
+    """Whether ``row`` finished with a number of ``score`` and a positive ``time``."""
+    seconds, value = row.get(time), row.get(score)
+    return row.get("status") == "ok" and is_number(seconds) and seconds > 0 and is_number(value)
+
+
+def _draw_panel(ax, points, source, groups, colour) -> None:
+    """``source``'s seeds (faint) and each group's mean +- sd at the geometric mean time."""
+    for group in groups:
+        mine = [(s, v) for d, *g, s, v in points if d == source and tuple(g) == group]
+        if not mine:
+            continue
+        seconds, values = np.asarray(mine).T  # [n], [n]
+        ax.scatter(seconds, values, s=14, color=colour[group], alpha=0.35, linewidths=0)
+        spread = float(values.std(ddof=1)) if len(values) > 1 else 0.0
+        ax.errorbar(
+            float(np.exp(np.log(seconds).mean())),
+            float(values.mean()),
+            yerr=spread or None,
+            fmt="o",
+            ms=6,
+            capsize=3,
+            color=colour[group],
+        )  # fmt: skip  (no zero-height bar: one seed)
+
+
 def quality_time_figure(
     rows: Sequence[dict[str, object]], score: str = "ari", time: str = "seconds"
 ) -> Figure | None:
     """The figure of ``score`` against ``time`` (module docstring) for the rows that finished
     with both numbers (a time of 0 is left out: the log axis has no place for it); None when no
-    row has them (a study that scores no ``score``, or none finished)."""
-    points = []  # (data, variant, method, seconds, score)
-    kinds = set()  # the plotted rows' data_kind
-    for row in rows:
-        seconds, value = row.get(time), row.get(score)
-        if row.get("status") == "ok" and is_number(seconds) and seconds > 0 and is_number(value):
-            points.append((str(row["data"]), str(row["variant"]), str(row["method"]),
-                           float(seconds), float(value)))  # fmt: skip
-            kinds.add(row.get("data_kind"))
+    row has them (a study that scores no ``score``, or none finished). A source whose rows hold
+    a held-out word score (:data:`WORD_SCORE`, a held-out source's) gets a second panel beside
+    its first, that score against the same time: the map's quality alone hid the words'."""
+    points = _timed(rows, score, time)
     if not points:
         return None
+    kinds = {row.get("data_kind") for row in rows if _placed(row, score, time)}
+    words = _timed(rows, WORD_SCORE, time) if score != WORD_SCORE else []
     sources = list(dict.fromkeys(p[0] for p in points))
-    groups = list(dict.fromkeys((p[1], p[2]) for p in points))
+    worded = {p[0] for p in words}
+    panels = [(source, kind) for source in sources
+              for kind in ("score", "words") if kind == "score" or source in worded]  # fmt: skip
+    groups = list(dict.fromkeys((p[1], p[2]) for p in points + words))
     palette = colormaps["tab10" if len(groups) <= 10 else "tab20"]
     colour = {group: palette(i % palette.N) for i, group in enumerate(groups)}
-    columns = min(len(sources), 3)
-    lines = math.ceil(len(sources) / columns)
+    columns = min(len(panels), 2 if words else 3)  # with words: a source's two panels a line
+    lines = math.ceil(len(panels) / columns)
     legend_rows = math.ceil(len(groups) / 4)
     fig = Figure(figsize=(4.3 * columns, 3.5 * lines + 0.5 + 0.25 * legend_rows))
-    for k, source in enumerate(sources):
+    for k, (source, kind) in enumerate(panels):
         ax = fig.add_subplot(lines, columns, k + 1)
-        for group in groups:
-            mine = [(s, v) for d, *g, s, v in points if d == source and tuple(g) == group]
-            if not mine:
-                continue
-            seconds, values = np.asarray(mine).T  # [n], [n]
-            ax.scatter(seconds, values, s=14, color=colour[group], alpha=0.35, linewidths=0)
-            spread = float(values.std(ddof=1)) if len(values) > 1 else 0.0
-            ax.errorbar(
-                float(np.exp(np.log(seconds).mean())),
-                float(values.mean()),
-                yerr=spread or None,
-                fmt="o",
-                ms=6,
-                capsize=3,
-                color=colour[group],
-            )  # fmt: skip  (no zero-height bar: one seed)
-        ax.set_xscale("log")
-        times = [s for d, _, _, s, _ in points if d == source]
+        shown = points if kind == "score" else words
+        _draw_panel(ax, shown, source, groups, colour)
+        times = [s for d, _, _, s, _ in shown if d == source]
         ax.set_xlim(min(times) / 1.5, max(times) * 1.5)  # a panel of equal times is not singular
+        ax.set_xscale("log")  # after the limits: one seed's autoscaled ones are singular
         _label_time_axis(ax, max(times) / min(times) * 2.25)
-        ax.set_title(source, fontsize=10)
+        ax.set_title(source if kind == "score" else f"{source}: held-out words", fontsize=10)
         ax.set_xlabel(f"{TIME_WORDS.get(time, time)} per fit (log scale)")
-        ax.set_ylabel("ARI" if score == "ari" else score)
+        if kind == "words":
+            ax.set_ylabel("held-out top-1 word accuracy")
+        else:
+            ax.set_ylabel("ARI" if score == "ari" else score)
         ax.grid(alpha=0.3)
     handles = [Line2D([], [], marker="o", ls="", color=colour[g]) for g in groups]
     named = row_names(rows)  # as the maps' titles: distinct where two rows share a name
@@ -108,8 +138,9 @@ def quality_time_figure(
     # edges of the image, cut off; the figure widens to hold its legend
     wide = legend.get_window_extent(FigureCanvasAgg(fig).get_renderer()).width / fig.dpi
     fig.set_figwidth(max(fig.get_figwidth(), wide + 0.2))
-    title = (f"{_score_words(score, kinds)}, against {TIME_WORDS.get(time, time)} per fit: "
-             "seeds (faint), mean ± sd (marked)")  # fmt: skip
+    both = " and held-out top-1 word accuracy" if words else ""
+    title = (f"{_score_words(score, kinds)}{both}, against {TIME_WORDS.get(time, time)} per "
+             "fit: seeds (faint), mean ± sd (marked)")  # fmt: skip
     # wrapped to the figure's width (about 12 characters an inch at 10 pt); tight_layout
     # leaves the suptitle its room
     fig.suptitle(textwrap.fill(title, int(fig.get_figwidth() * 12)), fontsize=10)
