@@ -67,6 +67,21 @@ def test_the_readme_starts_with_the_two_commands():
     assert "python -m pytest" in blocks[1]
 
 
+def test_the_cpu_build_advice_installs_into_the_environment():
+    """The advice for a machine without a GPU said to ``pip install torch --index-url ...cpu``
+    "before the command above", whose first step makes the environment: followed as written, the
+    CPU build went to the system's Python and the command's ``pip install`` then brought the CUDA
+    build into ``.venv`` anyway. The advice now makes and activates the environment first, and
+    takes torchvision from the same index (from PyPI it could ask for another torch)."""
+    text = " ".join(README.read_text(encoding="utf-8").split())  # the advice spans lines
+    advice = re.search(r"`([^`]*pip install torch[^`]*download\.pytorch\.org/whl/cpu)`", text)
+    assert advice, "README.md no longer advises PyTorch's CPU build"
+    command = advice.group(1)
+    install = command.index("pip install torch")
+    assert ". .venv/bin/activate" in command[:install], command
+    assert "torchvision" in command[install:], command
+
+
 def test_the_snippets_are_found_and_shrunk():
     assert len(readme_snippets()) == 1
     snippets = library_snippets()
