@@ -126,6 +126,27 @@ def test_stored_notebook_prints_no_wall_of_numbers(path):
                 )
 
 
+_MAKES_FIGURE = re.compile(r"plt\.(?:subplots|figure|subplot_mosaic)\(")
+_SETS_TITLE = re.compile(r"\.set_title\(|\.suptitle\(|plt\.title\(|\btitle=|\bshow_labels\(")
+"""A title: matplotlib's, or the notebooks' ``show_labels(ax, labels, title)`` helper's."""
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_stored_notebook_titles_every_figure(path):
+    """Every figure a notebook draws (each part of a code cell up to a ``plt.show()`` that makes
+    one) sets a title saying what it shows. Notebook 3's ELBO-per-iteration figure (code cell
+    4) and its marginal-error study (code cell 6), and notebook 5's ARI bar chart (code cell 7),
+    had none. Read from the source: a title is there whichever mode runs it."""
+    notebook = nbformat.read(path, as_version=4)
+    untitled = [
+        f"code cell {k + 1}, figure {j + 1}"
+        for k, cell in enumerate(c for c in notebook.cells if c.cell_type == "code")
+        for j, part in enumerate(re.split(r"plt\.show\(\)", cell.source))
+        if _MAKES_FIGURE.search(part) and not _SETS_TITLE.search(part)
+    ]
+    assert not untitled, f"{path.name} draws figures without a title: {untitled}"
+
+
 def test_plotting_leaves_the_matplotlib_backend_alone():
     """Library figures render inline in a notebook: importing spcopyro.figures.plotting must not
     choose a backend (it builds Figure objects, never pyplot)."""
