@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,7 @@ from spcopyro.cli.main import main
 from spcopyro.config import SpCoSettings
 from spcopyro.data import Observations, cell_counts, load_house, save_house
 from spcopyro.data.inverted_map import check_placement
+from spcopyro.fit import house as house_module
 from spcopyro.fit.house import prepare_model_data
 from spcopyro.maps import FREE, OCCUPIED, UNKNOWN, OccupancyGrid, load_map
 from spcopyro.maps.coarse import coarsen_grid, coarsening_factor
@@ -101,6 +103,34 @@ def test_the_placement_warnings_of_a_fit_that_goes_on_are_said(tmp_path, caplog)
         r.getMessage() for r in caplog.records if "left out of the cell counts" in r.getMessage()
     ]
     assert len(said) == 1 and said[0].startswith("1 image(s) and 0 utterance(s) are farther")
+
+
+def test_the_fit_s_counting_holds_back_no_record_of_another_thread(tmp_path, caplog, monkeypatch):
+    """The placement warnings were held by a filter on the 'spcopyro' logger while the fit
+    counted: it caught every record logged there meanwhile, by any thread (spcopyro fit's figure
+    thread drawing house.png warns of a missing font), and a refusal that blames the map dropped
+    them, the -v INFO line of the observations snapped with them. The counting now says nothing
+    it holds: a warning of another thread during it, and the snapped line, are logged."""
+    _negated(tmp_path)
+    house = load_house(tmp_path / "flat")
+    counting = house_module.prepared_cell_counts
+
+    def counts_while_another_thread_warns(*args, **kwargs):
+        thread = threading.Thread(
+            target=lambda: logging.getLogger("spcopyro").warning("no font for these words")
+        )
+        thread.start()
+        thread.join()
+        return counting(*args, **kwargs)
+
+    monkeypatch.setattr(house_module, "prepared_cell_counts", counts_while_another_thread_warns)
+    with caplog.at_level(logging.INFO, logger="spcopyro"), pytest.raises(ValueError) as error:
+        prepare_model_data(house, SpCoSettings())
+    assert "the map's free space reads as occupied" in str(error.value)  # it blames negate
+    said = [r.getMessage() for r in caplog.records]
+    assert "no font for these words" in said, said
+    assert any("snapped to the nearest free cell" in m for m in said), said
+    assert not any("left out of the cell counts" in m for m in said), said
 
 
 def test_the_public_houses_are_not_refused(dataset_root):

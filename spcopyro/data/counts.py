@@ -65,6 +65,7 @@ __all__ = [
     "cell_counts",
     "check_count_totals",
     "prepared_cell_counts",
+    "say_placement_warnings",
     "scale_features",
     "scaled_away",
 ]
@@ -189,6 +190,66 @@ def _left_out(
     if files:
         return f"{what} at line(s) {', '.join(shown)}{more} of {files}"
     return f"{what} of index {', '.join(shown)}{more}"
+
+
+def say_placement_warnings(
+    report: PlacementReport,
+    grid: OccupancyGrid,
+    obs: Observations,
+    source: str | os.PathLike[str] | None = None,
+) -> None:
+    """Warn (logger ``"spcopyro"``) of what :func:`cell_counts`' ``report`` of ``obs`` on ``grid``
+    leaves out: the images scaled away, the observations farther than the snap distance from
+    free space (with their lines in the house folder ``source``), and most of them off free
+    space. ``cell_counts`` says them unless ``warn=False``; a fit counts with ``warn=False`` and
+    says them once its placement is not refused for the map
+    (:func:`~spcopyro.data.inverted_map.check_placement`)."""
+    _warn_scaled_away(obs.image_features, report.scaled_away_images, report.feature_scaling,
+                      source)  # fmt: skip
+    where = f" on map {grid.source}" if getattr(grid, "source", None) else ""
+    farther = f"farther than {report.snap_distance:g} m from free space{where}"
+    if getattr(grid, "coarsened_from", None) is not None:  # placed through the map
+        farther += (
+            f", or on the map only in free space that reaches no free {grid.resolution:g} m "
+            "model cell"
+        )
+    folder = Path(source) if source is not None else None
+    if report.images_unplaced or report.words_unplaced:
+        named = []
+        if report.images_unplaced:
+            files = folder and f"{folder / 'Xtx.csv'} and Xty.csv"
+            named.append(_left_out(obs.image_xy, report.unplaced_images, files, "images"))
+        if report.words_unplaced:
+            files = folder and f"{folder / 'StXtx.csv'} and StXty.csv"
+            named.append(
+                _left_out(obs.word_xy, report.unplaced_words, files, "utterances", obs.utterances)
+            )
+        logger.warning(
+            "%d image(s) and %d utterance(s) are %s and were left out of the cell counts: %s",
+            report.images_unplaced,
+            report.words_unplaced,
+            farther,
+            "; ".join(named),
+        )
+    off_free = report.off_free_warning(where)
+    if off_free:
+        logger.warning("%s", off_free)
+    for placed in report.modalities:
+        if placed.unplaced:
+            file = folder / f"modality_{placed.name}.csv" if folder else None
+            logger.warning(
+                "%d observation(s) of modality %r are %s and were left out of the cell counts: %s",
+                placed.unplaced,
+                placed.name,
+                farther,
+                _left_out(
+                    next(m for m in obs.modalities if m.name == placed.name).positions,
+                    placed.unplaced_indices,
+                    file and str(file),
+                    "observations",
+                    first_line=2,
+                ),
+            )
 
 
 def check_count_totals(
@@ -332,7 +393,8 @@ def cell_counts(
     ``obs.image_yaw`` for images), so each sum above becomes sum_o w_oc counts_o and the observed
     cells are every cell with a positive weight. ``footprint_radius = 0`` leaves the counts
     exactly as without it. ``warn=False`` leaves out the warnings about observations left out
-    (a caller that counts the same observations twice says them once). ``word_scaling`` s
+    (:func:`say_placement_warnings`: a caller that counts the same observations twice says them
+    once, a fit after its placement check). ``word_scaling`` s
     multiplies every utterance's word counts (or tf-idf weights) by s before they are placed
     (``DataPreparation.word_scaling``).
 
@@ -383,8 +445,6 @@ def cell_counts(
             footprint_fov,
         ))  # fmt: skip
     lost = scaled_away(obs.image_features, features)  # [n] images left with nothing
-    if warn:
-        _warn_scaled_away(obs.image_features, lost, feature_scaling, source)
     image_ok = image_cell >= 0  # [T] bool
     word_ok = word_cell >= 0  # [U] bool
     further_cells = [cell[cell >= 0] for cell, _, _ in further]  # [T_j] each
@@ -427,64 +487,15 @@ def cell_counts(
     )
     left_out = left_out_and_placed(report, obs)[0]  # [n, 2] every modality's
     report = replace(report, unplaced_on_occupied=count_on_occupied(grid, left_out))
+    if warn:
+        say_placement_warnings(report, grid, obs, source)
     where = f" on map {grid.source}" if getattr(grid, "source", None) else ""
-    farther = f"farther than {snap_distance:g} m from free space{where}"
-    if getattr(grid, "coarsened_from", None) is not None:  # placed through the map
-        farther += (
-            f", or on the map only in free space that reaches no free {grid.resolution:g} m "
-            "model cell"
-        )
-    folder = Path(source) if source is not None else None
-    if warn and (report.images_unplaced or report.words_unplaced):
-        named = []
-        if report.images_unplaced:
-            files = folder and f"{folder / 'Xtx.csv'} and Xty.csv"
-            named.append(_left_out(obs.image_xy, report.unplaced_images, files, "images"))
-        if report.words_unplaced:
-            files = folder and f"{folder / 'StXtx.csv'} and StXty.csv"
-            named.append(
-                _left_out(obs.word_xy, report.unplaced_words, files, "utterances", obs.utterances)
-            )
-        logger.warning(
-            "%d image(s) and %d utterance(s) are %s and were left out of the cell counts: %s",
-            report.images_unplaced,
-            report.words_unplaced,
-            farther,
-            "; ".join(named),
-        )
-    off_free = report.off_free_warning(where)
-    if warn and off_free:
-        logger.warning("%s", off_free)
     if report.images_snapped or report.words_snapped:
-        logger.info(
-            "%d image(s) and %d utterance(s) snapped to the nearest free cell%s",
-            report.images_snapped,
-            report.words_snapped,
-            where,
-        )
-    for placed in report.modalities:
-        if warn and placed.unplaced:
-            file = folder / f"modality_{placed.name}.csv" if folder else None
-            logger.warning(
-                "%d observation(s) of modality %r are %s and were left out of the cell counts: %s",
-                placed.unplaced,
-                placed.name,
-                farther,
-                _left_out(
-                    next(m for m in obs.modalities if m.name == placed.name).positions,
-                    placed.unplaced_indices,
-                    file and str(file),
-                    "observations",
-                    first_line=2,
-                ),
-            )
-        if placed.snapped:
-            logger.info(
-                "%d observation(s) of modality %r snapped to the nearest free cell%s",
-                placed.snapped,
-                placed.name,
-                where,
-            )
+        logger.info("%d image(s) and %d utterance(s) snapped to the nearest free cell%s",
+                    report.images_snapped, report.words_snapped, where)  # fmt: skip
+    for placed in (placed for placed in report.modalities if placed.snapped):
+        logger.info("%d observation(s) of modality %r snapped to the nearest free cell%s",
+                    placed.snapped, placed.name, where)  # fmt: skip
     return CellCounts(
         cells=cells.astype(np.int64),
         image_counts=image_counts,

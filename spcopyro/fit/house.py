@@ -38,7 +38,8 @@ from spcopyro._util.threads import (
 from spcopyro._util.timings import timed
 from spcopyro.config import DEFAULT_PRESET, WORDS, SpCoSettings, preset
 from spcopyro.data import CellCounts, House, prepared_cell_counts
-from spcopyro.data.inverted_map import check_placement, placement_warnings_held
+from spcopyro.data.counts import say_placement_warnings
+from spcopyro.data.inverted_map import check_placement
 from spcopyro.data.model_grid import model_house
 from spcopyro.data.word_weighting import resolved_preparation, resolved_settings
 from spcopyro.fit import gibbs_chains  # with_sample_marginals through it: a test's patch reaches
@@ -198,12 +199,17 @@ def prepare_model_data(
             "fit_house does",
             house.name, size, house.grid.source or "", house.grid.resolution,
         )  # fmt: skip
-    with placement_warnings_held() as say:  # a refusal that blames the map comes alone
-        counts = prepared_cell_counts(
-            grid, house.observations, settings.data, vocabulary=vocabulary, source=house.source
-        )
-    check_placement(counts.placement, house.observations, grid, where, say)
-    say()
+    counts = prepared_cell_counts(grid, house.observations, settings.data, vocabulary=vocabulary,
+                                  source=house.source, warn=False)  # fmt: skip
+    # said once the placement passes, or before the refusal pointing to their lines; a refusal
+    # that blames the map comes alone
+    check_placement(
+        counts.placement,
+        house.observations,
+        grid,
+        where,
+        lambda: say_placement_warnings(counts.placement, grid, house.observations, house.source),
+    )
     coverage = coverage_warning(house)
     if coverage:
         logger.warning(coverage)
