@@ -1048,3 +1048,30 @@ def test_quality_time_shows_a_held_out_source_s_word_score_beside_its_map_score(
     assert "held-out top-1 word accuracy" in fig._suptitle.get_text().replace("\n", " ")
     plain = quality_time_figure([r for r in rows if r["data"] == "small"])
     assert [ax.get_title() for ax in plain.axes if ax.get_title()] == ["small"]
+
+
+def test_the_maps_name_the_table_s_rows_once(tmp_path, monkeypatch):
+    """write_house_maps named the whole table's rows (row_names) once per source, and
+    source_panels did so even when given ``label`` (every call of experiment.write_figures)."""
+    import numpy as np
+
+    from spcopyro.maps import OccupancyGrid
+    from spcopyro.study import maps
+
+    grid = OccupancyGrid(np.zeros((3, 4), dtype=np.int8), 0.05, (0.0, 0.0, 0.0))
+    (tmp_path / "maps").mkdir()
+    arrays = maps.label_map_arrays(
+        np.zeros((3, 4), dtype=np.int64), type("H", (), {"grid": grid}), None
+    )
+    np.savez(tmp_path / "maps" / "a.npz", **arrays)
+    rows = [dict(data=data, variant="default", method="gibbs", seed=0, status="ok",
+                 data_kind="synthetic", label_map="maps/a.npz")
+            for data in ("h1", "h2", "h3")]  # fmt: skip
+    calls = []
+    named = maps.row_names
+    monkeypatch.setattr(maps, "row_names", lambda rows: calls.append(1) or named(rows))
+    monkeypatch.setattr(maps, "plot_label_maps", lambda *args: args[2])
+    assert len(maps.write_house_maps(rows, tmp_path)) == 3
+    assert len(calls) == 1
+    _, panels, _ = maps.source_panels(rows, tmp_path, "h1", label=lambda row: "mine")
+    assert len(calls) == 1 and [name for name, _ in panels] == ["mine"]

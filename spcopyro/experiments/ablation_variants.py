@@ -43,6 +43,7 @@ from spcopyro.results.semantic_map import did_you_mean
 
 __all__ = [
     "FIT_RESERVED",
+    "OVERRIDE_PREFIXES",
     "Variant",
     "VariantError",
     "make_variant",
@@ -57,7 +58,10 @@ FIT_RESERVED = frozenset(
 _SETTING_FIELDS = {f.name for f in dataclasses.fields(SpCoConfig)} | {
     f.name for f in dataclasses.fields(DataPreparation)
 }
-_PREFIXES = ("settings", "options", "fit")
+OVERRIDE_PREFIXES = ("settings", "options", "fit")
+"""The prefixes of a variant's keys (``settings.gamma``), in the order :meth:`Variant.describe`
+writes them: the ``overrides`` column of a study's table (:mod:`spcopyro.study.maps` reads
+them off)."""
 
 
 class VariantError(ValueError):
@@ -146,7 +150,9 @@ class Variant:
             items.append(f"preset={self.preset}")
         if self.method != "gibbs":
             items.append(f"method={self.method}")
-        for prefix, pairs in zip(_PREFIXES, (self.settings, self.options, self.fit), strict=True):
+        for prefix, pairs in zip(
+            OVERRIDE_PREFIXES, (self.settings, self.options, self.fit), strict=True
+        ):
             items += [f"{prefix}.{k}={_text(v)}" for k, v in pairs]
         return f"{self.name}:" + ",".join(items)
 
@@ -305,7 +311,7 @@ def make_variant(name: str, overrides: Mapping[str, object] | None = None) -> Va
     for key, value in overrides.items():
         where = f"variant {name!r}: {key}={value!r}"
         prefix, dot, rest = key.partition(".")
-        if dot and prefix in _PREFIXES:
+        if dot and prefix in OVERRIDE_PREFIXES:
             targets = [prefix]
             key = rest
         else:

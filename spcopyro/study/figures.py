@@ -57,18 +57,22 @@ the share of the held-out trial's words whose top-ranked concept is right, drawn
 map's score so that the word side of the trade-off shows."""
 
 
-def _timed(rows, score: str, time: str) -> list[tuple[str, str, str, float, float]]:
-    """``(data, variant, method, seconds, score)`` of every finished row with both numbers (a
-    time of 0 left out: the log axis has no place for it)."""
+def _timed(rows, score: str, time: str) -> list[dict[str, object]]:
+    """The rows that finished with a number of ``score`` and a positive ``time`` (a time of 0
+    left out: the log axis has no place for it)."""
+    placed = []
+    for row in rows:
+        seconds, value = row.get(time), row.get(score)
+        if row.get("status") == "ok" and is_number(seconds) and seconds > 0 and is_number(value):
+            placed.append(row)
+    return placed
+
+
+def _points(rows, score: str, time: str) -> list[tuple[str, str, str, float, float]]:
+    """``(data, variant, method, seconds, score)`` of each of :func:`_timed`'s ``rows``."""
     return [(str(row["data"]), str(row["variant"]), str(row["method"]),
              float(row[time]), float(row[score]))  # type: ignore[arg-type]
-            for row in rows if _placed(row, score, time)]  # fmt: skip
-
-
-def _placed(row: dict[str, object], score: str, time: str) -> bool:
-    """Whether ``row`` finished with a number of ``score`` and a positive ``time``."""
-    seconds, value = row.get(time), row.get(score)
-    return row.get("status") == "ok" and is_number(seconds) and seconds > 0 and is_number(value)
+            for row in rows]  # fmt: skip
 
 
 def _draw_panel(ax, points, source, groups, colour) -> None:
@@ -99,11 +103,12 @@ def quality_time_figure(
     row has them (a study that scores no ``score``, or none finished). A source whose rows hold
     a held-out word score (:data:`WORD_SCORE`, a held-out source's) gets a second panel beside
     its first, that score against the same time: the map's quality alone hid the words'."""
-    points = _timed(rows, score, time)
-    if not points:
+    placed = _timed(rows, score, time)
+    if not placed:
         return None
-    kinds = {row.get("data_kind") for row in rows if _placed(row, score, time)}
-    words = _timed(rows, WORD_SCORE, time) if score != WORD_SCORE else []
+    points = _points(placed, score, time)
+    kinds = {row.get("data_kind") for row in placed}
+    words = _points(_timed(rows, WORD_SCORE, time), WORD_SCORE, time) if score != WORD_SCORE else []
     sources = list(dict.fromkeys(p[0] for p in points))
     worded = {p[0] for p in words}
     panels = [(source, kind) for source in sources

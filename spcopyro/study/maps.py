@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro._util.outputs import replace_figure
+from spcopyro.experiments.ablation_variants import OVERRIDE_PREFIXES
 from spcopyro.figures.fonts import any_script
 from spcopyro.maps import OccupancyGrid
 from spcopyro.maps.coarse import labels_on_grid
@@ -175,10 +176,11 @@ def row_name(variant: object, method: object) -> str:
 
 def _options_text(row: dict[str, object]) -> str:
     """What a variant row sets, short: its ``overrides`` column (``settings.gamma=3.0,...``)
-    without the method (named beside it) and the settings/options/fit prefixes, as
+    without the method (named beside it) and the prefixes
+    (:data:`~spcopyro.experiments.ablation_variants.OVERRIDE_PREFIXES`), as
     ``gamma=3.0, merge_moves=0.2``; its preset first where it sets one."""
     items = [item for item in str(row.get("overrides") or "").split(",") if item]
-    items = [item.partition(".")[2] if item.split(".")[0] in ("settings", "options", "fit")
+    items = [item.partition(".")[2] if item.split(".")[0] in OVERRIDE_PREFIXES
              else item for item in items if not item.startswith("method=")]  # fmt: skip
     return ", ".join(items)
 
@@ -206,12 +208,13 @@ def row_names(rows: Sequence[dict[str, object]]) -> dict[tuple[str, str], str]:
 
 def source_panels(
     rows: Sequence[dict[str, object]], folder: str | os.PathLike[str], data: str,
-    seed: int | None = None, label=None,
+    seed: int | None = None, label=None, names: dict[tuple[str, str], str] | None = None,
 ) -> tuple[OccupancyGrid, list[tuple[str, np.ndarray]], int] | None:  # fmt: skip
     """The panels of source ``data`` at ``seed`` (None: its first seed with a stored map):
     the truth when known (a public house's named "region truth (this project's)"), then each
-    row's map in the table's order, named by ``label(row)`` (default :func:`row_names` of
-    ``rows``); None when no map is stored."""
+    row's map in the table's order, named by ``label(row)``, else by ``names`` (the
+    :func:`row_names` of the whole table; made from ``rows`` when not given); None when no
+    map is stored."""
     mine = [r for r in rows if r["data"] == data and load_label_map(folder, r) is not None]
     if not mine:
         return None
@@ -226,11 +229,12 @@ def source_panels(
     public = any(r.get("data_kind") == "public" for r in mine)
     truth_name = REGION_TRUTH_PANEL if public else TRUTH_PANEL
     panels = [] if truth is None else [(truth_name, truth)]
-    named = row_names(rows)  # over the whole table: the legend of quality_time.png's names
+    if label is None:  # the whole table's names: the legend of quality_time.png's
+        named = row_names(rows) if names is None else names
+        label = lambda row: named[str(row["variant"]), str(row["method"])]  # noqa: E731
     for row, stored in maps:
         assert stored is not None
-        name = label(row) if label is not None else named[str(row["variant"]), str(row["method"])]
-        panels.append((name, stored.labels))
+        panels.append((label(row), stored.labels))
     return grid, panels, seed
 
 
@@ -261,8 +265,9 @@ def write_house_maps(
     earlier ``maps_*.png`` of a source without one now is deleted (:func:`remove_stale`)."""
     folder = Path(folder)
     paths = []
+    names = row_names(rows)  # once for the table, not once per source
     for data in dict.fromkeys(str(r["data"]) for r in rows):
-        found = source_panels(rows, folder, data)
+        found = source_panels(rows, folder, data, names=names)
         if found is None:
             continue
         grid, panels, seed = found
