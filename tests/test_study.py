@@ -1050,6 +1050,26 @@ def test_quality_time_shows_a_held_out_source_s_word_score_beside_its_map_score(
     assert [ax.get_title() for ax in plain.axes if ax.get_title()] == ["small"]
 
 
+def test_quality_time_puts_each_source_s_panels_on_one_line():
+    """With word scores the panels ran two a line in one stream: a synthetic house (no ``top1``,
+    one panel) before a held-out public one split the public one's ARI panel (end of line 1)
+    from its word panel (start of line 2). Each source now has a line of its own."""
+    from spcopyro.study.figures import quality_time_figure
+
+    def row(data, seconds, top1=None):
+        kind = "synthetic" if top1 is None else "public"
+        return dict(data=data, variant="default", method="gibbs", seconds=seconds, ari=0.5,
+                    top1=top1, status="ok", data_kind=kind)  # fmt: skip
+
+    fig = quality_time_figure([row("small", 10.0), row("room", 2.0, 0.3), row("other", 3.0)])
+    at = {ax.get_title(): ax.get_position() for ax in fig.axes}
+    assert list(at) == ["small", "room", "room: held-out words", "other"]
+    room, words = at["room"], at["room: held-out words"]
+    assert room.y0 == pytest.approx(words.y0) and room.x0 < words.x0
+    assert at["small"].y0 > room.y0 > at["other"].y0  # a line each, in the table's order
+    assert at["small"].x0 == pytest.approx(room.x0) == pytest.approx(at["other"].x0)
+
+
 def test_the_maps_name_the_table_s_rows_once(tmp_path, monkeypatch):
     """write_house_maps named the whole table's rows (row_names) once per source, and
     source_panels did so even when given ``label`` (every call of experiment.write_figures)."""

@@ -116,12 +116,17 @@ def quality_time_figure(
     groups = list(dict.fromkeys((p[1], p[2]) for p in points + words))
     palette = colormaps["tab10" if len(groups) <= 10 else "tab20"]
     colour = {group: palette(i % palette.N) for i, group in enumerate(groups)}
-    columns = min(len(panels), 2 if words else 3)  # with words: a source's two panels a line
-    lines = math.ceil(len(panels) / columns)
+    if len(panels) > len(sources):  # a line per source: its panels side by side, the cells
+        columns, lines = 2, len(sources)  # right of a source without words left empty
+        slots = [sources.index(source) * columns + (kind == "words") for source, kind in panels]
+    else:  # one panel per source: three a line
+        columns = min(len(panels), 3)
+        lines = math.ceil(len(panels) / columns)
+        slots = list(range(len(panels)))
     legend_rows = math.ceil(len(groups) / 4)
     fig = Figure(figsize=(4.3 * columns, 3.5 * lines + 0.5 + 0.25 * legend_rows))
-    for k, (source, kind) in enumerate(panels):
-        ax = fig.add_subplot(lines, columns, k + 1)
+    for slot, (source, kind) in zip(slots, panels, strict=True):
+        ax = fig.add_subplot(lines, columns, slot + 1)
         shown = points if kind == "score" else words
         _draw_panel(ax, shown, source, groups, colour)
         times = [s for d, _, _, s, _ in shown if d == source]
