@@ -577,6 +577,20 @@ def test_a_map_in_a_folder_named_by_a_byte_that_is_not_utf8_shows_it_as_its_byte
     assert "udce9" not in err
 
 
+def test_a_byte_that_is_not_utf8_is_shown_by_the_message_helpers_shown_bytes():
+    """shown_bytes is spcopyro._util.messages' (the message helpers' home, importing nothing of
+    the package), used by map_yaml (MapFormatError, its logger's filter) and the command line's
+    error and warning lines, which imported map_yaml's private _shown_bytes."""
+    import spcopyro.cli.main as cli_main
+    import spcopyro.maps.map_yaml as map_yaml
+    from spcopyro._util import messages
+
+    assert cli_main.shown_bytes is map_yaml.shown_bytes is messages.shown_bytes
+    assert not hasattr(map_yaml, "_shown_bytes")
+    shown = messages.shown_bytes("caf\udce9, \\udce9, \U000f00e9, \\U000f00e9, café")
+    assert shown == "caf\\xe9, \\xe9, \\xe9, \\xe9, café"
+
+
 @pytest.mark.parametrize(
     ("image", "said"),
     [

@@ -6,20 +6,22 @@ short, else the first :data:`ECHO_LIMIT` characters and how long the whole is; :
 lists words (or entries) the same way, the first few and how many more. :func:`warn_once`
 logs a warning once a process, for what a study's hundreds of fits would repeat.
 :func:`setting` names a setting a message tells the user to change, for both of its readers: a
-library caller and ``spcopyro fit``. Imports nothing of the package, so every layer (maps, data,
+library caller and ``spcopyro fit``. :func:`shown_bytes` shows a byte that is not UTF-8 (a map
+yaml's, a path's) as ``\\xe9``. Imports nothing of the package, so every layer (maps, data,
 features) can use it.
 """
 
 from __future__ import annotations
 
 import logging
+import re
 import threading
 from collections.abc import Hashable, Iterator, Sequence, Sized
 from contextlib import contextmanager
 
 __all__ = [
     "ECHO_LIMIT", "KNOWN_WORDS_SHOWN", "area_text", "echo", "fixed", "listed", "one_of", "plural",
-    "seconds_text", "setting", "warn_once", "warned_apart", "with_article",
+    "seconds_text", "setting", "shown_bytes", "warn_once", "warned_apart", "with_article",
 ]  # fmt: skip
 
 ECHO_LIMIT = 80
@@ -168,3 +170,26 @@ def warned_apart() -> Iterator[None]:
         yield
     finally:
         _apart.warned = outer
+
+
+_SHOWN_STAND_IN = re.compile(
+    r"[\U000F0080-\U000F00FF\uDC80-\uDCFF]|\\(?:U000f00|udc)[89a-f][0-9a-f]"
+)
+"""A byte that is not UTF-8 in a message: its stand-in, itself or as repr writes it
+(``\\U000f00e9``), or a path's surrogate, itself (``'\\udce9'``: ``os.fsdecode`` of a folder
+named ``b"caf\\xe9"``, as an f-string puts a path in) or as repr writes it (``\\udce9``): each
+shown as ``\\xe9``. A lone surrogate printed raw read ``caf\\udce9`` on stderr, and raised
+UnicodeEncodeError on a strict UTF-8 stream. The stand-ins (U+F0080..U+F00FF) are those
+:mod:`spcopyro.maps.map_yaml` reads a yaml's bytes that are not UTF-8 as."""
+
+
+def _stand_in_byte(shown: str) -> int:
+    """The byte a :data:`_SHOWN_STAND_IN` match stands for."""
+    return (ord(shown) if len(shown) == 1 else int(shown[-2:], 16)) & 0xFF
+
+
+def shown_bytes(message: str) -> str:
+    """``message`` with each byte that is not UTF-8 (:data:`_SHOWN_STAND_IN`) shown as ``\\xe9``:
+    every :class:`~spcopyro.maps.map_yaml.MapFormatError`'s message, the map logger's warnings,
+    and the command line's error and warning lines."""
+    return _SHOWN_STAND_IN.sub(lambda m: f"\\x{_stand_in_byte(m[0]):02x}", message)

@@ -40,7 +40,7 @@ from spcopyro._util.arguments import (
     seed,
 )
 from spcopyro._util.interrupts import caused_by_interrupt, signals_deferred, sigterm_as_interrupt
-from spcopyro._util.messages import plural
+from spcopyro._util.messages import plural, shown_bytes
 from spcopyro._util.process_exit import exit_process, may_skip_teardown
 from spcopyro.cli.common import (
     DASH_WORDS,
@@ -57,7 +57,6 @@ from spcopyro.cli.fit_parser import add_parser as add_fit_parser
 from spcopyro.cli.interrupted import interrupted_line
 from spcopyro.cli.out_names import house_name, probability_figure
 from spcopyro.data.text import fold_word
-from spcopyro.maps.map_yaml import _shown_bytes
 
 logger = logging.getLogger("spcopyro")
 _positive_int = integer_at_least(1)  # --size and --rooms
@@ -442,7 +441,7 @@ class _LowerCaseLevel(logging.Formatter):
     """``warning: message`` (as the command's own messages), not ``WARNING: message``."""
 
     def format(self, record: logging.LogRecord) -> str:  # a path's byte 0xe9 as \xe9
-        return f"{record.levelname.lower()}: {_shown_bytes(record.getMessage())}"
+        return f"{record.levelname.lower()}: {shown_bytes(record.getMessage())}"
 
 
 class _StderrHandler(logging.StreamHandler):
@@ -487,7 +486,7 @@ def _error_line(error: BaseException) -> str:
             f"the disk is full{where} ({error.strerror}): free some space or choose another "
             "--out; a fit's staging folder is removed, its output left as it was"
         )
-    return _shown_bytes(str(error))  # a path's byte 0xe9 as \xe9 (a folder b"caf\xe9")
+    return shown_bytes(str(error))  # a path's byte 0xe9 as \xe9 (a folder b"caf\xe9")
 
 
 COORDINATE_OPTIONS = ("--start",)

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from spcopyro._util.messages import echo
+from spcopyro._util.messages import echo, shown_bytes
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -60,10 +60,10 @@ class MapFormatError(ValueError):
     """A map yaml or image is malformed; the message names the file (and the key and value).
 
     A byte of the yaml that is not UTF-8 shows in the message as ``\\xe9``, not as the stand-in
-    it was read as (:data:`_SHOWN_STAND_IN`), whichever module raises it."""
+    it was read as (:func:`~spcopyro._util.messages.shown_bytes`), whichever module raises it."""
 
     def __init__(self, message: str = "", *args: object) -> None:
-        super().__init__(_shown_bytes(str(message)), *args)
+        super().__init__(shown_bytes(str(message)), *args)
 
 
 class MapFileNotFoundError(MapFormatError, FileNotFoundError):
@@ -275,36 +275,17 @@ _UNDECODED = {byte: 0xF0000 + byte - 0xDC00 for byte in range(0xDC80, 0xDD00)}
 """surrogateescape's stand-ins (U+DC80..U+DCFF) for bytes that are not UTF-8 -> private-use
 code points (U+F0080..U+F00FF), which PyYAML reads (it refuses surrogates)."""
 _UNDECODED_BACK = {code: byte for byte, code in _UNDECODED.items()}
-_SHOWN_STAND_IN = re.compile(
-    r"[\U000F0080-\U000F00FF\uDC80-\uDCFF]|\\(?:U000f00|udc)[89a-f][0-9a-f]"
-)
-"""A byte that is not UTF-8 in a message: its stand-in, itself or as repr writes it
-(``\\U000f00e9``), or a path's surrogate, itself (``'\\udce9'``: ``os.fsdecode`` of a folder
-named ``b"caf\\xe9"``, as an f-string puts a path in) or as repr writes it (``\\udce9``): each
-shown as ``\\xe9``. A lone surrogate printed raw read ``caf\\udce9`` on stderr, and raised
-UnicodeEncodeError on a strict UTF-8 stream."""
-
-
-def _stand_in_byte(shown: str) -> int:
-    """The byte a :data:`_SHOWN_STAND_IN` match stands for."""
-    return (ord(shown) if len(shown) == 1 else int(shown[-2:], 16)) & 0xFF
-
-
-def _shown_bytes(message: str) -> str:
-    """``message`` with each byte that is not UTF-8 (:data:`_SHOWN_STAND_IN`) shown as ``\\xe9``:
-    every :class:`MapFormatError`'s message (its ``__init__``) and :data:`logger`'s warnings."""
-    return _SHOWN_STAND_IN.sub(lambda m: f"\\x{_stand_in_byte(m[0]):02x}", message)
 
 
 class _ShownBytes(logging.Filter):
     """:data:`logger`'s filter: each warning of a map yaml or its image (this module's and
     :mod:`~spcopyro.maps.map_server`'s) with each byte that is not UTF-8 shown as ``\\xe9``, as
-    a :class:`MapFormatError` shows it (:func:`_shown_bytes` of the whole text, as its
-    ``__init__`` does): a misspelt key's warning showed it as its stand-in,
+    a :class:`MapFormatError` shows it (:func:`~spcopyro._util.messages.shown_bytes` of the
+    whole text, as its ``__init__`` does): a misspelt key's warning showed it as its stand-in,
     ``'mod\\U000f00e9'``, a JPEG's name as its surrogate, ``'carte\\udce9.jpg'``."""
 
     def filter(self, record: logging.LogRecord) -> bool:
-        record.msg = _shown_bytes(record.getMessage())
+        record.msg = shown_bytes(record.getMessage())
         record.args = ()
         return True
 
