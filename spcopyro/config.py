@@ -82,6 +82,14 @@ FootprintKernel = Literal["uniform", "gaussian"]
 IMAGES, WORDS = "images", "words"
 """The two modalities of the paper: place-class histograms of images (theta) and words (w)."""
 
+
+def concentration_name(modality: str) -> str:
+    """``chi`` for images, ``beta`` for words, else the modality's name: the name of a modality's
+    Dirichlet concentration (:meth:`SpCoConfig.concentration`), a field of :class:`SpCoConfig`
+    for the paper's two and a key of :attr:`SpCoConfig.concentrations` for a further one."""
+    return {IMAGES: "chi", WORDS: "beta"}.get(modality, modality)
+
+
 PRESETS: dict[str, dict[str, object]] = {
     "paper-dp": dict(
         prior="dp", alpha=1e8, beta=500.0, chi=1e4, gamma=4.0, num_concepts=120,

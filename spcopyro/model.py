@@ -4,13 +4,14 @@ The model is :func:`spcomapping_model`; :class:`ModelData` holds the map structu
 per-cell observation counts it reads, built from an occupancy grid by :func:`make_model_data`.
 Every free cell is one element of the ``cells`` plate, indexed in the grid's ``free_index`` order
 (raster order of the map image); occupied and unknown cells are not in the model at all.
+The model refuses inputs it cannot fit (:func:`check_model_data`); the refusals that the inference
+tools run on a model they are given are in :mod:`spcopyro.model_checks`.
 """
 
 from __future__ import annotations
 
 import math
 import sys
-from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -18,8 +19,6 @@ import pyro
 import pyro.distributions as dist
 import torch
 from pyro.infer import ELBO
-from pyro.poutine.messenger import Messenger
-from pyro.poutine.util import site_is_subsample
 
 from spcopyro.config import SpCoConfig
 from spcopyro.distributions import MultinomialCounts
@@ -207,7 +206,7 @@ def check_model_data(data: ModelData, config: SpCoConfig | None = None) -> None:
                 f"{config.connectivity})) and pass its settings.model, or with "
                 f"make_model_data(grid, counts, connectivity={config.connectivity})"
             )
-        _check_concentration_names(data, config)
+        check_concentration_names(data, config)
     _check_site_names(data)
     N, cells = data.num_free, data.obs_cells
     if cells.dim() != 1 or (cells.numel() and not 0 <= int(cells.min()) <= int(cells.max()) < N):
@@ -238,7 +237,7 @@ def check_model_data(data: ModelData, config: SpCoConfig | None = None) -> None:
             )
 
 
-def _check_concentration_names(
+def check_concentration_names(
     data: ModelData,
     config: SpCoConfig,
     holder: str = "the data have",
@@ -293,108 +292,6 @@ def check_config(config: object) -> None:
     raise TypeError(f"config must be an SpCoConfig{hint}, got {type(config).__name__}")
 
 
-def _near_uniform(site: str, modalities: Sequence[Modality]) -> str:
-    """The refusal's hint for a fixed ``site``: the SpCoConfig variant whose Dirichlet prior
-    holds it near uniform (the modality whose parameter ``site`` is names it); none for labels."""
-    name = next((m.name for m in modalities if m.parameter == site), None)
-    settings = {SITE_IMAGES: "chi=1e4", SITE_WORDS: "beta=1e4"}
-    if site == SITE_PI:
-        variant = "prior='dirichlet', alpha=1e4"
-    elif name is not None:
-        variant = settings.get(name, f"concentrations={{{name!r}: 1e4}}")
-    else:
-        return ""
-    return (
-        f" (held near uniform, the variant is SpCoConfig({variant}): its Dirichlet prior "
-        "concentrates there as the concentration grows)"
-    )
-
-
-def refuse_observed_latents(
-    trace: pyro.poutine.Trace, names: Sequence[str], who: str, modalities: Sequence[Modality]
-) -> None:
-    """ValueError if any latent site of ``names`` is observed in ``trace`` (a model given as
-    ``poutine.condition(model, {"pi": ...})``, a variant with pi known): SpCoGibbs and
-    MeanFieldELBO (``who``) infer every latent site of :func:`spcomapping_model` and cannot hold
-    one fixed; they would draw the site anyway (the kernel) or score the guide's draws at the
-    fixed value (the loss), silently. One message for both, with the variant that holds the
-    site near uniform (``modalities``: ``data.modalities``, read only to say it)."""
-    for name in names:
-        if name in trace.nodes and trace.nodes[name]["is_observed"]:
-            raise ValueError(
-                f"the model's site {name!r} is observed (poutine.condition), but {who} infers "
-                f"every latent site of spcomapping_model (pi, labels, each modality's table): "
-                f"it cannot hold {name!r} fixed; pass the model without conditioning "
-                f"{name!r}{_near_uniform(name, modalities)}"
-            )
-
-
-def refuse_foreign_sites(trace: pyro.poutine.Trace, data: ModelData, who: str) -> None:
-    """ValueError naming the first sample or factor site of ``trace`` that
-    :func:`spcomapping_model` does not have (a further latent site such as a prior on gamma, a
-    ``pyro.factor``): ``who`` samples or fits spcomapping_model's own conditionals, and such a
-    model failed only the density comparison, with two numbers and no site named. Plates and
-    ``pyro.deterministic`` sites (no density) are allowed."""
-    known = {SITE_PI, SITE_LABELS, SITE_POTTS, PLATE_CONCEPTS, PLATE_CELLS, PLATE_OBSERVED}
-    for modality in data.modalities:
-        known.update((modality.name, modality.parameter))
-    for name, site in trace.nodes.items():
-        if site["type"] != "sample" or name in known or site["infer"].get("_deterministic"):
-            continue
-        if site_is_subsample(site):
-            continue
-        what = "observed site or factor" if site["is_observed"] else "latent site"
-        raise ValueError(
-            f"the model has a {what} {name!r} that spcomapping_model has not (its sites: "
-            f"{sorted(known - {PLATE_CONCEPTS, PLATE_CELLS, PLATE_OBSERVED})}); {who} samples "
-            "spcomapping_model's conditionals and cannot fit another model: change the model "
-            "through SpCoConfig and ModelData.modalities, which it reads"
-        )
-
-
-class _ObservationsObserved(Messenger):
-    """Raises :func:`require_observed` 's ValueError at the first observation site the model
-    draws instead of observing (before the draw, which fails for real-valued counts)."""
-
-    def __init__(self, data: ModelData, who: str) -> None:
-        super().__init__()
-        self.modalities = {m.name: m for m in data.modalities}
-        self.cells = data.obs_cells
-        self.who = who
-
-    def _process_message(self, msg: dict) -> None:
-        modality = self.modalities.get(msg["name"])
-        if msg["type"] != "sample" or modality is None or msg["is_observed"]:
-            return
-        counts = modality.counts
-        fractional = torch.nonzero(counts != counts.round())
-        if fractional.shape[0]:
-            row, column = (int(i) for i in fractional[0])
-            why = (
-                f"these counts are real-valued (tf-idf weights, image probabilities; row {row} "
-                f"(free cell {int(self.cells[row])}), column {column} is "
-                f"{float(counts[row, column])!r}), which no multinomial draws"
-            )
-        else:
-            why = "it would score its own draws, not the data"
-        raise ValueError(
-            f"the model draws its observation site {msg['name']!r} instead of observing the "
-            f"data's counts: poutine.uncondition(model) draws every observed site, and {why}. "
-            f"{self.who} fits the posterior given the observed counts: pass the model itself "
-            "(to draw observations from a fitted posterior, give poutine.uncondition(model) to "
-            "pyro.infer.Predictive; whole counts only)"
-        )
-
-
-def require_observed(model: Callable, data: ModelData, who: str) -> Callable:
-    """``model`` wrapped so that running it raises ValueError, naming ``who`` (the kernel or
-    the loss), as soon as it draws one of ``data``'s observation sites instead of observing it
-    (``poutine.uncondition(model)``): the draw itself failed for real-valued counts with
-    "MultinomialCounts.sample needs non-negative whole total_count", and for whole counts the
-    density check said only that the model's density differs."""
-    return _ObservationsObserved(data, who)(model)
-
-
 def potts_agreements(labels: torch.Tensor, pairs: torch.Tensor) -> torch.Tensor:
     """E(C) = sum over neighbour pairs (a, b) of delta(C_a, C_b), the Potts MRF's statistic.
 
@@ -430,7 +327,7 @@ def _check_label_range(labels: torch.Tensor, L: int) -> None:
     )
 
 
-def _calling_elbo() -> ELBO | None:
+def calling_elbo() -> ELBO | None:
     """The innermost :class:`pyro.infer.ELBO` whose method is running the caller, if any: an
     ELBO's ``loss``, ``loss_and_grads`` or ``differentiable_loss`` is on the call stack whenever
     it runs a guide (``Predictive`` and a plain call run none). The walk starts at the caller's
@@ -460,7 +357,7 @@ def _refuse_prior_labels_under_an_elbo() -> None:
     for handler in _PYRO_STACK:  # labels given by poutine.condition: not drawn
         if isinstance(handler, ConditionMessenger) and SITE_LABELS in (handler.data or {}):
             return
-    loss = _calling_elbo()  # from spcomapping_model's frame
+    loss = calling_elbo()  # from spcomapping_model's frame
     if loss is None:
         return
     raise ValueError(

@@ -24,7 +24,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("_util",),
     ("config", "distributions", "maps"),
     ("data", "synthetic"),
-    ("model",),
+    ("model", "model_checks"),
     ("likelihood", "inference"),
     ("gibbs", "guides", "simulate"),
     ("results",),
@@ -168,6 +168,21 @@ def test_fit_house_imports_refine_at_its_top():
     assert "spcopyro.fit.refine" in top and "spcopyro.fit.refine" not in inner, inner
 
 
+def test_no_module_imports_a_private_name_of_the_model_core():
+    """What another module calls of model.py and model_checks.py is public: fit.house imported
+    the model's _check_concentration_names and guides.mean_field its _calling_elbo."""
+    core = ("spcopyro.model", "spcopyro.model_checks")
+    offenders = [
+        f"{module} imports {node.module}.{alias.name}"
+        for module, path in MODULES.items()
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.ImportFrom) and node.module in core and node.module != module
+        for alias in node.names
+        if alias.name.startswith("_")
+    ]
+    assert not offenders, "\n".join(offenders)
+
+
 @pytest.mark.parametrize(
     "part", ["baselines", "metrics", "results.semantic_map", "inference.initialisation"]
 )
@@ -184,7 +199,8 @@ def test_baselines_and_metrics_do_not_import_inference(part):
 
 
 LOOSE_MODULES = (
-    "__init__", "__main__", "config", "distributions", "likelihood", "model", "simulate"
+    "__init__", "__main__", "config", "distributions", "likelihood", "model", "model_checks",
+    "simulate",
 )  # fmt: skip
 """The only modules at the top of ``spcopyro/``: the model core. Everything else is in a folder."""
 

@@ -18,7 +18,8 @@ from spcopyro.fit.house import prepare_model_data
 from spcopyro.gibbs import GibbsOptions, SpCoGibbs
 from spcopyro.gibbs.hyper_options import HyperparameterOptions
 from spcopyro.guides import MeanFieldELBO, MeanFieldGuide
-from spcopyro.model import Modality, parameter_site, refuse_observed_latents, spcomapping_model
+from spcopyro.model import Modality, parameter_site, spcomapping_model
+from spcopyro.model_checks import refuse_observed_latents
 from spcopyro.synthetic import HouseSpec, make_house
 from tests.gibbs_problems import config, random_problem
 
@@ -130,7 +131,7 @@ def test_a_concentration_for_a_modality_the_house_lacks_is_refused():
     # a misspelt or absent modality's concentration was ignored: the fit ran without it
     house = make_house(seed=1, spec=HouseSpec(height=30, width=40, num_rooms=2))
     settings = preset("original-code", num_concepts=4, concentrations={"objects": 0.5})
-    # the model's test (spcopyro.model._check_concentration_names), in the house's words
+    # the model's test (spcopyro.model.check_concentration_names), in the house's words
     message = (
         f"SpCoConfig.concentrations names ['objects'], but house {house.name!r} has no such "
         "modality (further modalities: none): modality_<name>.csv adds one, or correct the name"
@@ -162,7 +163,7 @@ def test_a_model_that_holds_a_latent_site_fixed_is_refused(site):
         svi = SVI(fixed, guide, pyro.optim.Adam({"lr": 0.1}), MeanFieldELBO())
         with pytest.raises(ValueError, match=message) as loss:
             svi.step(data, cfg)
-    # one check, one message (spcopyro.model.refuse_observed_latents): the two had their own
+    # one check, one message (spcopyro.model_checks.refuse_observed_latents): the two had their own
     assert str(loss.value) == str(kernel.value).replace("SpCoGibbs", "MeanFieldELBO")
     assert "pass the model without conditioning" in str(kernel.value)
     # and for pi the variant that holds it near uniform (it said only what cannot be done)

@@ -81,7 +81,7 @@ from spcopyro.inference.driver import DriveInterrupted
 from spcopyro.inference.names import SAMPLERS as SAMPLERS  # re-exported: label maps kept
 from spcopyro.inference.protocol import InferenceOutput
 from spcopyro.maps.free_space import check_free_cells
-from spcopyro.model import ModelData, _check_concentration_names, make_model_data
+from spcopyro.model import ModelData, check_concentration_names, make_model_data
 from spcopyro.results.map_checks import coverage_warning, house_map_warning
 from spcopyro.results.point_estimate import check_point_estimate
 from spcopyro.results.posterior_means import concept_totals, with_posterior_means
@@ -217,7 +217,7 @@ def prepare_model_data(
     for modality in data.modalities:
         settings.model.concentration(modality.name)  # ValueError if a further one has none
     fix = "modality_<name>.csv adds one, or correct the name"
-    _check_concentration_names(data, settings.model, f"house {house.name!r} has", fix)
+    check_concentration_names(data, settings.model, f"house {house.name!r} has", fix)
     return counts, data
 
 

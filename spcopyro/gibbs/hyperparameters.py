@@ -72,7 +72,7 @@ import torch
 
 from spcopyro._util.messages import setting
 from spcopyro._util.random_draws import coin_flip, sample_log_dirichlet
-from spcopyro.config import IMAGES, WORDS, SpCoConfig
+from spcopyro.config import IMAGES, WORDS, SpCoConfig, concentration_name
 from spcopyro.gibbs.backends import globals_sampler, label_sampler
 from spcopyro.gibbs.cluster import swendsen_wang_labels
 from spcopyro.gibbs.hyper_options import HyperparameterOptions
@@ -103,11 +103,6 @@ def hyperparameter_names(data: ModelData) -> list[str]:
     """The hyperparameters in trace order: alpha, gamma, then each modality's concentration
     (``chi`` for images, ``beta`` for words, the modality's name for a further one)."""
     return ["alpha", "gamma", *(concentration_name(m.name) for m in data.modalities)]
-
-
-def concentration_name(modality: str) -> str:
-    """``chi`` for images, ``beta`` for words, else the modality's name."""
-    return {IMAGES: "chi", WORDS: "beta"}.get(modality, modality)
 
 
 def hyperparameter_values(data: ModelData, config: SpCoConfig) -> list[float]:

@@ -53,11 +53,9 @@ from spcopyro.model import (
     SITE_PI,
     ModelData,
     check_model_data,
-    refuse_foreign_sites,
-    refuse_observed_latents,
-    require_observed,
     spcomapping_model,
 )
+from spcopyro.model_checks import refuse_foreign_sites, refuse_observed_latents, require_observed
 
 DEFAULT_SAVE_PARAMS = ("log_joint", "num_concepts", "pi")
 """The small sites: what to save for long runs on large maps (the default saves every site)."""

@@ -87,9 +87,8 @@ from spcopyro.model import (
     SITE_LABELS,
     SITE_PI,
     ModelData,
-    refuse_observed_latents,
-    require_observed,
 )
+from spcopyro.model_checks import refuse_observed_latents, require_observed
 
 Program = Callable[[ModelData, SpCoConfig], None]
 

@@ -51,7 +51,7 @@ from spcopyro.model import (
     SITE_LABELS,
     SITE_PI,
     ModelData,
-    _calling_elbo,
+    calling_elbo,
     check_config,
     check_model_data,
 )
@@ -205,7 +205,7 @@ class MeanFieldGuide(PyroModule):
                 f"this guide was made for modalities {self.parameter_sites} of "
                 f"{self.num_items} items, called with {items}"
             )
-        loss = _calling_elbo()
+        loss = calling_elbo()
         if loss is not None and not isinstance(loss, MeanFieldELBO):
             raise WrongLossError(
                 f"{type(loss).__name__} cannot fit MeanFieldGuide: use "
