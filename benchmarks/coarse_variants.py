@@ -2,6 +2,7 @@
 
     python benchmarks/coarse_variants.py [--sweeps 2000] [--seeds 0] [--variants NAME ...]
         [--out benchmarks/coarse_variants.json] [--quick]
+        [--synthetic [--open-plan-seeds 10] [--synthetic-seeds 3]]
 
 Issue 21's study of 2026-12-06 (docs/real_houses.md, "Variants of `coarse` on the held-out
 words"): does a setting of ``coarse`` keep the ARI targets and reach ``paper-dp``'s held-out word
@@ -25,6 +26,18 @@ rerun (``--out`` the same file), so a long run can be stopped and resumed. Print
 table: per variant and seed, the public mean ARI, the largest share (max over the houses), the
 concept counts beside Table 2's, held-out top-1 (mean of houses and pooled over words) and the
 mean rank (mean of houses).
+
+``--synthetic``: the houses a variant was not tuned on instead, as ``benchmarks/real_houses.py``
+checks the default (issue 21's targets before a variant could become the default), through its
+functions: the synthetic open-plan houses (seeds 0..n-1, ``--open-plan-seeds``, 10) against
+(F) geometry's mean ARI + 0.2 (the better of its 1 m and 2 m door widths) beside the oracle, the
+dense and sparse houses (seeds 0..n-1, ``--synthetic-seeds``, 3) against mean ARIs of 0.98 and
+0.93, and ``simulate --map`` on each public map (``real_houses.simulated_on``) against 0.9 for
+each map's mean over the fit seeds (``--seeds``, default 0 1 2 here, as real_houses.py's
+``--fit-seeds``). real_houses.py fits synthetic house seed s at fit seed s; fit seed f here fits
+it at s + f (f = 0: its fits). Stored under ``"synthetic"`` of each variant and fit seed (the
+public results and their resume untouched; one already there is skipped); prints one table, a
+row a variant over its fit seeds, each target PASS or FAIL.
 """
 
 from __future__ import annotations
@@ -44,6 +57,7 @@ from spcopyro.data import load_house
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES
 from spcopyro.results.refined import coarse_stage
+from spcopyro.synthetic import make_house
 
 BASE = "coarse"
 VARIANTS: dict[str, tuple[str, dict[str, object]]] = {
@@ -171,11 +185,153 @@ def markdown(report: dict) -> str:
     return "\n".join(lines)
 
 
+OPEN_PLAN_MARGIN = 0.2
+"""The open-plan target: mean ARI >= (F) geometry's + this."""
+SYNTHETIC_TARGETS = {"dense": 0.98, "sparse": 0.93}
+"""The dense and sparse houses' target: mean ARI not below this."""
+SIMULATED_TARGET = 0.9
+"""``simulate --map``'s target: each map's mean ARI over the fit seeds >= this."""
+GEOMETRY = ("F geometry 1 m", "F geometry 2 m")
+
+
+def synthetic_keys(open_plan_seeds: int, synthetic_seeds: int, maps: list[str]) -> list[str]:
+    """The houses of ``--synthetic`` in real_houses.py's order: ``"KIND seed S"`` of its
+    synthetic kinds, then ``"simulated MAP"`` of each public map."""
+    return [f"{kind} seed {s}" for kind in rh.SYNTHETIC
+            for s in range(open_plan_seeds if kind == "open-plan" else synthetic_seeds)] + [
+        f"simulated {m}" for m in maps]  # fmt: skip
+
+
+def synthetic_scores(key: str, name: str, sweeps: int, seed: int) -> dict[str, dict]:
+    """The variant's fit (``real_houses.fit_preset``) on real_houses.py's synthetic house
+    ``key`` (``"KIND seed S"``) at fit seed S + ``seed``, scored against the house's own truth
+    (row ``"variant"``), beside the baselines and the oracle (``real_houses.baseline_scores``)."""
+    kind, house_seed = key.rsplit(" seed ", 1)
+    house = make_house(seed=int(house_seed), spec=rh.SYNTHETIC[kind]())
+    base, overrides = VARIANTS[name]
+    labels, seconds = rh.fit_preset(house, base, sweeps, int(house_seed) + seed, **overrides)
+    row = {**rh.scores(labels, house.truth, house.grid.free), "seconds": seconds}
+    return {"variant": row, **rh.baseline_scores(house, house.truth, oracle=True)}
+
+
+def simulated_scores(house, name: str, sweeps: int, seed: int) -> dict[str, float]:
+    """``real_houses.simulated_on`` of the variant on the public house's map at one fit seed."""
+    base, overrides = VARIANTS[name]
+    return rh.simulated_on(house, sweeps, [seed], base, **overrides)[f"fit seed {seed}"]
+
+
+def synthetic_summary(done: dict[str, dict]) -> dict[str, dict]:
+    """Per synthetic kind the variant's mean ARI over its houses and their count (open-plan:
+    with (F)'s, the better door width's, and the oracle's); ``"simulated"``: map -> ARI."""
+
+    def mean(rows: list[dict], row: str) -> float:
+        return float(np.mean([r[row]["ari"] for r in rows]))
+
+    out: dict[str, dict] = {}
+    for kind in rh.SYNTHETIC:
+        rows = [row for key, row in done.items() if key.startswith(f"{kind} seed ")]
+        out[kind] = {"ari": mean(rows, "variant"), "houses": len(rows)}
+    rows = [row for key, row in done.items() if key.startswith("open-plan seed ")]
+    out["open-plan"] |= {"F": max(mean(rows, g) for g in GEOMETRY),
+                         "oracle": mean(rows, rh.ORACLE)}  # fmt: skip
+    out["simulated"] = {key.removeprefix("simulated "): row["ari"]
+                        for key, row in done.items() if key.startswith("simulated ")}  # fmt: skip
+    return out
+
+
+def synthetic_judged(summaries: list[dict]) -> dict[str, object]:
+    """One variant's :func:`synthetic_summary` of each fit seed -> the means over them (a
+    kind's weighted by its houses; a map's over the seeds that fitted it) and the targets."""
+    out: dict[str, object] = {}
+    for kind in rh.SYNTHETIC:
+        weights = [s[kind]["houses"] for s in summaries]
+        keys = ("ari", "F", "oracle") if kind == "open-plan" else ("ari",)
+        out[kind] = {k: float(np.average([s[kind][k] for s in summaries], weights=weights))
+                     for k in keys} | {"houses": sum(weights)}  # fmt: skip
+    maps = dict.fromkeys(m for s in summaries for m in s["simulated"])
+    out["simulated"] = {m: float(np.mean([s["simulated"][m] for s in summaries
+                                          if m in s["simulated"]])) for m in maps}  # fmt: skip
+    open_plan = out["open-plan"]
+    out["pass"] = {
+        "open-plan": open_plan["ari"] >= open_plan["F"] + OPEN_PLAN_MARGIN,
+        **{k: out[k]["ari"] >= bar for k, bar in SYNTHETIC_TARGETS.items()},
+        "simulated": all(v >= SIMULATED_TARGET for v in out["simulated"].values()),
+    }  # fmt: skip
+    return out
+
+
+def synthetic_markdown(report: dict) -> str:
+    """A row a variant with synthetic results: its means over the fit seeds and each target."""
+
+    def verdict(ok: bool) -> str:
+        return "PASS" if ok else "FAIL"
+
+    lines = [
+        f"| variant (fit seeds) | open-plan mean ARI (houses) | (F) + {OPEN_PLAN_MARGIN:g} | "
+        "oracle | open-plan | dense mean ARI (houses) | dense >= 0.98 | sparse mean ARI "
+        f"(houses) | sparse >= 0.93 | simulate --map: mean ARI per map | every map >= "
+        f"{SIMULATED_TARGET:g} |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, seeds in report["variants"].items():
+        done = {s.removeprefix("seed "): row["synthetic"]["summary"] for s, row in seeds.items()
+                if "summary" in row.get("synthetic", {})}  # fmt: skip
+        if not done:
+            continue
+        j = synthetic_judged(list(done.values()))
+        op, dense, sparse, ok = j["open-plan"], j["dense"], j["sparse"], j["pass"]
+        maps = ", ".join(f"{m} {v:.2f}" for m, v in j["simulated"].items())
+        lines.append(
+            f"| {name} ({', '.join(done)}) | {op['ari']:.3f} ({op['houses']}) | "
+            f"{op['F'] + OPEN_PLAN_MARGIN:.3f} | {op['oracle']:.3f} | "
+            f"{verdict(ok['open-plan'])} | {dense['ari']:.3f} ({dense['houses']}) | "
+            f"{verdict(ok['dense'])} | {sparse['ari']:.3f} ({sparse['houses']}) | "
+            f"{verdict(ok['sparse'])} | {maps} | {verdict(ok['simulated'])} |"
+        )
+    return "\n".join(lines)
+
+
+def run_synthetic(args: argparse.Namespace, report: dict, out: Path, public: PublicHouses) -> None:
+    """``--synthetic``: each variant and fit seed on the houses it was not tuned on (module
+    docstring), into ``report["variants"][NAME]["seed S"]["synthetic"]``, written after every
+    house; a variant and seed whose synthetic results are complete is skipped."""
+    maps = list(PUBLIC_CATEGORIES)[: 1 if args.quick else None]
+    keys = synthetic_keys(args.open_plan_seeds, args.synthetic_seeds, maps)
+    for name in args.variants:
+        for seed in args.seeds:
+            row = report["variants"].setdefault(name, {}).setdefault(f"seed {seed}", {})
+            record = row.setdefault("synthetic", {})
+            if "summary" in record:
+                continue
+            done = record.setdefault("houses", {})
+            for key in keys:
+                if key in done:
+                    continue
+                start = time.perf_counter()
+                if key.startswith("simulated "):
+                    house = public.house(key.removeprefix("simulated "))
+                    done[key] = simulated_scores(house, name, args.sweeps, seed)
+                    ari = done[key]["ari"]
+                else:
+                    done[key] = synthetic_scores(key, name, args.sweeps, seed)
+                    ari = done[key]["variant"]["ari"]
+                seconds = time.perf_counter() - start
+                print(f"{name} seed {seed} {key}: ARI {ari:.3f} ({seconds:.0f} s)",
+                      file=sys.stderr, flush=True)  # fmt: skip
+                out.write_text(json.dumps(report, indent=1, default=float))
+            record["summary"] = synthetic_summary({key: done[key] for key in keys})
+            out.write_text(json.dumps(report, indent=1, default=float))
+    print(f"# Variants of {BASE} on the houses not tuned on ({args.sweeps} sweeps)\n\n"
+          f"{synthetic_markdown(report)}")  # fmt: skip
+    print(f"wrote {out}")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sweeps", type=COUNT, help="sweeps of every fit (default 2000; "
                         "--quick: 20)")  # fmt: skip
-    parser.add_argument("--seeds", type=INDEX, nargs="+", help="fit seeds (default 0)")
+    parser.add_argument("--seeds", type=INDEX, nargs="+", help="fit seeds (default 0; with "
+                        "--synthetic 0 1 2, --quick: 0)")  # fmt: skip
     parser.add_argument(
         "--variants", nargs="+", choices=list(VARIANTS), metavar="NAME",
         help=f"variants to run, in this order (default all: {', '.join(VARIANTS)}; --quick: "
@@ -185,10 +341,25 @@ def main(argv: list[str] | None = None) -> int:
                         "coarse_variants_quick.json with --quick); a variant and seed already "
                         "in it is skipped")  # fmt: skip
     parser.add_argument("--quick", action="store_true", help="a smoke run: 20 sweeps, one house")
+    parser.add_argument(
+        "--synthetic", action="store_true",
+        help="score the variants on the houses they were not tuned on instead, as "
+        "real_houses.py checks the default: synthetic open-plan, dense and sparse houses, and "
+        "simulate --map on each public map (--quick: one of each)",
+    )  # fmt: skip
+    parser.add_argument("--open-plan-seeds", type=COUNT, help="with --synthetic: open-plan "
+                        "seeds 0..n-1 (default 10, --quick: 1)")  # fmt: skip
+    parser.add_argument("--synthetic-seeds", type=COUNT, help="with --synthetic: dense and "
+                        "sparse seeds 0..n-1 (default 3, --quick: 1)")  # fmt: skip
     args = parser.parse_args(argv)
+    for option in ("open_plan_seeds", "synthetic_seeds"):
+        if getattr(args, option) is not None and not args.synthetic:
+            parser.error(f"--{option.replace('_', '-')}: only with --synthetic")
+    args.open_plan_seeds = quick_or(args.open_plan_seeds, args.quick, 1, 10)
+    args.synthetic_seeds = quick_or(args.synthetic_seeds, args.quick, 1, 3)
     args.out = results_path(args.out, "coarse_variants", args.quick)
     args.sweeps = quick_or(args.sweeps, args.quick, 20, 2000)
-    args.seeds = args.seeds or [0]
+    args.seeds = args.seeds or ([0] if args.quick or not args.synthetic else [0, 1, 2])
     args.variants = args.variants or (["coarse", "footprint 0.5 m"] if args.quick
                                       else list(VARIANTS))  # fmt: skip
     root = dataset_root(without="nothing to score")
@@ -200,9 +371,15 @@ def main(argv: list[str] | None = None) -> int:
     report = json.loads(out.read_text()) if out.exists() else {}
     if report.get("sweeps", args.sweeps) != args.sweeps:
         parser.error(f"{out} holds {report['sweeps']}-sweep results; give another --out")
-    report |= {"sweeps": args.sweeps, "houses": houses}
+    if args.synthetic:  # the public results' "houses" left as they are
+        report["sweeps"] = args.sweeps
+    else:
+        report |= {"sweeps": args.sweeps, "houses": houses}
     report.setdefault("variants", {})
     public = PublicHouses(Path(root))  # loaded when first fitted or judged: none on a rerun
+    if args.synthetic:
+        run_synthetic(args, report, out, public)
+        return 0
     for name in args.variants:
         for seed in args.seeds:
             row = report["variants"].setdefault(name, {}).setdefault(f"seed {seed}", {})

@@ -110,20 +110,24 @@ def fit_result(
     return result, time.perf_counter() - start
 
 
-def on_map(result, house, name: str) -> np.ndarray:
+def on_map(result, house, name: str, **overrides: object) -> np.ndarray:
     """``[H, W]`` the result's labels on the house's own map cells (a fit the default refined
-    on the map's cells is there already; ``name``'s cell size is the model grid's otherwise)."""
+    on the map's cells is there already; the cell size of ``name`` with ``overrides`` is the
+    model grid's otherwise)."""
     labels = result.label_image()
     if labels.shape == house.grid.shape:
         return refine_labels(labels, house.grid, 1)
-    factor = coarsening_factor(house.grid.resolution, preset(name).data.cell_size)
+    factor = coarsening_factor(house.grid.resolution, preset(name, **overrides).data.cell_size)
     return refine_labels(labels, house.grid, factor)
 
 
-def fit_preset(house, name: str, sweeps: int, seed: int) -> tuple[np.ndarray, float]:
-    """``[H, W]`` label image of the preset's default fit on the house's map, and seconds."""
-    result, seconds = fit_result(house, name, sweeps, seed)
-    return on_map(result, house, name), seconds
+def fit_preset(
+    house, name: str, sweeps: int, seed: int, **overrides: object
+) -> tuple[np.ndarray, float]:
+    """``[H, W]`` label image of the preset's default fit (:func:`fit_result`, with
+    ``overrides``: a variant of it) on the house's map, and seconds."""
+    result, seconds = fit_result(house, name, sweeps, seed, **overrides)
+    return on_map(result, house, name, **overrides), seconds
 
 
 def scores(labels: np.ndarray, truth: np.ndarray, free: np.ndarray) -> dict[str, float]:
@@ -161,8 +165,14 @@ def score_house(
                 result, seconds = fit_result(house, UNREFINED, sweeps, seed)
                 labels = on_map(result, house, DEFAULT_PRESET)
                 rows[UNREFINED] = {**scores(labels, truth, free), "seconds": seconds}
-    obs = house.observations
-    rows["E nearest"] = nearest_scores(house, truth)
+    return rows | baseline_scores(house, truth, oracle)
+
+
+def baseline_scores(house, truth: np.ndarray, oracle: bool = False) -> dict[str, dict]:
+    """:func:`scores` of the baselines (E) nearest utterance and (F) geometry at 1 m and 2 m
+    door widths (they draw nothing), and with ``oracle`` the :data:`ORACLE` reference row."""
+    obs, free = house.observations, house.grid.free
+    rows = {"E nearest": nearest_scores(house, truth)}
     for door in (1.0, 2.0):
         labels = geometry_semantic_map(house.grid, obs, door_width=door).labels
         rows[f"F geometry {door:g} m"] = scores(labels, truth, free)
@@ -346,17 +356,20 @@ def methods_on(house, truth: np.ndarray, iterations: int) -> dict[str, dict]:
     return out
 
 
-def simulated_on(house, sweeps: int, fit_seeds: list[int]) -> dict[str, dict[str, float]]:
+def simulated_on(
+    house, sweeps: int, fit_seeds: list[int], name: str = DEFAULT_PRESET, **overrides: object
+) -> dict[str, dict[str, float]]:
     """``simulate --map`` on the house's map (its default: the door width read from the map;
-    simulation seed 0), then the default fit with each of ``fit_seeds``, scored against the
-    simulation's truth; the simulated rooms are never handed to the fit. One row a fit seed
+    simulation seed 0), then the default fit of preset ``name`` (with ``overrides``: a variant
+    of it; :func:`fit_preset`) with each of ``fit_seeds``, scored against the simulation's
+    truth; the simulated rooms are never handed to the fit. One row a fit seed
     (``"fit seed S"``) and ``"mean"`` over them."""
     simulation = simulate_on_map(house.grid, seed=0, tour=MapTour(), name=house.name)
     simulated = simulation.house
     rooms = int(simulation.room_category.size)
     rows: dict[str, dict[str, float]] = {}
     for seed in fit_seeds:
-        labels, seconds = fit_preset(simulated, DEFAULT_PRESET, sweeps, seed)
+        labels, seconds = fit_preset(simulated, name, sweeps, seed, **overrides)
         scored = scores(labels, simulated.truth, simulated.grid.free)
         rows[f"fit seed {seed}"] = {
             **scored, "door_width": simulation.door_width, "rooms": rooms, "seconds": seconds,

@@ -1495,3 +1495,60 @@ def test_coarse_variants_rerun_on_a_finished_json_loads_no_house(
     assert cv.main(["--quick", "--out", str(out)]) == 0
     assert seen == {"load": [], "truth": [], "nearest": []}
     assert out.read_text() == first and capsys.readouterr().out == printed
+
+
+def test_coarse_variants_synthetic_scores_the_houses_not_tuned_on(
+    script, monkeypatch, dataset_root, tmp_path, capsys
+):
+    """Issue 21: before a variant could become the default it must pass on the houses it was
+    not tuned on, as real_houses.py checks the default. --synthetic fits each variant through
+    real_houses.fit_preset (its preset and overrides; stubbed here: the truth for ``coarse``,
+    one concept for ``footprint 0.5 m``) on real_houses.py's synthetic houses (house seed S at
+    fit seed S + f) and, through real_houses.simulated_on, on simulate --map of a public map;
+    its results go under "synthetic" of the variant and seed, the public results beside them
+    untouched; a rerun fits nothing; the table judges every target PASS or FAIL."""
+    import numpy as np
+
+    from spcopyro.data import load_house
+
+    cv, rh = script("coarse_variants"), script("real_houses")
+    out = tmp_path / "cv.json"
+    _stub_coarse_variants(cv, monkeypatch, dataset_root)
+    assert cv.main(["--quick", "--out", str(out)]) == 0  # the public results first
+    public = json.loads(out.read_text())
+    capsys.readouterr()
+    monkeypatch.setattr(cv, "load_house", load_house)
+    calls = []
+
+    def fit_preset(house, name, sweeps, seed, **overrides):
+        calls.append((house.name, name, sweeps, seed, overrides))
+        return (np.zeros_like(house.truth) if overrides else house.truth), 0.0
+
+    monkeypatch.setattr(rh, "fit_preset", fit_preset)
+    argv = ["--quick", "--synthetic", "--open-plan-seeds", "2", "--seeds", "1", "--out", str(out)]
+    assert cv.main(argv) == 0
+    kinds = [("synthetic", 1), ("synthetic", 2), ("synthetic", 1), ("synthetic", 1),
+             ("room1dk5", 1)]  # open-plan seeds 0 and 1, sparse, dense; simulate --map  # fmt: skip
+    assert calls == [(h, "coarse", 20, seed, {}) for h, seed in kinds] + [
+        (h, "coarse", 20, seed, {"footprint_radius": 0.5}) for h, seed in kinds
+    ]
+    results = json.loads(out.read_text())
+    for name, seeds in results["variants"].items():
+        record = seeds.pop("seed 1")["synthetic"]
+        assert list(record["houses"]) == ["open-plan seed 0", "open-plan seed 1", "sparse seed 0",
+                                          "dense seed 0", "simulated room1dk5"]  # fmt: skip
+        summary = record["summary"]
+        assert summary["open-plan"]["houses"] == 2 and summary["dense"]["houses"] == 1
+        assert summary["dense"]["ari"] == (1.0 if name == "coarse" else 0.0)
+        assert summary["simulated"] == {"room1dk5": 1.0 if name == "coarse" else 0.0}
+        assert 0.0 < summary["open-plan"]["F"] < summary["open-plan"]["oracle"] <= 1.0
+    assert results == public  # the public results and their keys as they were
+    printed = capsys.readouterr().out
+    rows = {line.split(" | ")[0]: line for line in printed.splitlines() if line.startswith("| ")}
+    assert rows["| coarse (1)"].count("PASS") == 4 and "FAIL" not in rows["| coarse (1)"]
+    assert rows["| footprint 0.5 m (1)"].count("FAIL") == 4
+    assert "room1dk5 1.00" in rows["| coarse (1)"] and "| 1.000 (2) |" in rows["| coarse (1)"]
+    calls.clear()
+    first = out.read_text()
+    assert cv.main(argv) == 0  # finished: skipped
+    assert calls == [] and out.read_text() == first and capsys.readouterr().out == printed
