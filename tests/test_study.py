@@ -1095,3 +1095,36 @@ def test_the_maps_name_the_table_s_rows_once(tmp_path, monkeypatch):
     assert len(calls) == 1
     _, panels, _ = maps.source_panels(rows, tmp_path, "h1", label=lambda row: "mine")
     assert len(calls) == 1 and [name for name, _ in panels] == ["mine"]
+
+
+def test_the_maps_read_each_row_s_stored_map_once(tmp_path, monkeypatch):
+    """source_panels read every stored map of a source at every seed only to learn that it
+    exists, then read the chosen seed's maps again: each row's file is read once now."""
+    import numpy as np
+
+    from spcopyro.maps import OccupancyGrid
+    from spcopyro.study import maps
+
+    grid = OccupancyGrid(np.zeros((3, 4), dtype=np.int8), 0.05, (0.0, 0.0, 0.0))
+    (tmp_path / "maps").mkdir()
+    rows = []
+    for data in ("h1", "h2"):
+        for seed in (1, 0):
+            for variant in ("default", "other"):
+                key = f"{data}_{seed}_{variant}"
+                labels = np.full((3, 4), seed, dtype=np.int64)  # which seed's map was drawn
+                arrays = maps.label_map_arrays(labels, type("H", (), {"grid": grid}), None)
+                np.savez(tmp_path / "maps" / f"{key}.npz", **arrays)
+                rows.append(dict(data=data, variant=variant, method="gibbs", seed=seed,
+                                 status="ok", data_kind="synthetic",
+                                 label_map=f"maps/{key}.npz"))  # fmt: skip
+    read, drawn = [], []
+    load = maps.load_label_map
+    monkeypatch.setattr(maps, "load_label_map",
+                        lambda f, row: read.append(row["label_map"]) or load(f, row))  # fmt: skip
+    monkeypatch.setattr(maps, "plot_label_maps", lambda *args: drawn.append(args[1]) or args[2])
+    assert len(maps.write_house_maps(rows, tmp_path)) == 2
+    assert sorted(read) == sorted(row["label_map"] for row in rows)  # each once (was 12 reads)
+    names = [[name for name, _ in panels] for panels in drawn]
+    assert names == [["gibbs", "other / gibbs"]] * 2
+    assert all((labels == 0).all() for panels in drawn for _, labels in panels)  # the first seed

@@ -208,33 +208,31 @@ def row_names(rows: Sequence[dict[str, object]]) -> dict[tuple[str, str], str]:
 
 def source_panels(
     rows: Sequence[dict[str, object]], folder: str | os.PathLike[str], data: str,
-    seed: int | None = None, label=None, names: dict[tuple[str, str], str] | None = None,
+    seed: int | None = None, label=None,
 ) -> tuple[OccupancyGrid, list[tuple[str, np.ndarray]], int] | None:  # fmt: skip
     """The panels of source ``data`` at ``seed`` (None: its first seed with a stored map):
     the truth when known (a public house's named "region truth (this project's)"), then each
-    row's map in the table's order, named by ``label(row)``, else by ``names`` (the
-    :func:`row_names` of the whole table; made from ``rows`` when not given); None when no
-    map is stored."""
-    mine = [r for r in rows if r["data"] == data and load_label_map(folder, r) is not None]
+    row's map in the table's order, named by ``label(row)`` (default :func:`row_names` of
+    ``rows``); None when no map is stored."""
+    loaded = [(r, load_label_map(folder, r)) for r in rows if r["data"] == data]
+    mine = [(r, stored) for r, stored in loaded if stored is not None]  # each file read once
     if not mine:
         return None
     if seed is None:
-        seed = min(int(r["seed"]) for r in mine)  # type: ignore[call-overload]
-    maps = [(r, load_label_map(folder, r)) for r in mine if r["seed"] == seed]
+        seed = min(int(r["seed"]) for r, _ in mine)  # type: ignore[call-overload]
+    maps = [(r, stored) for r, stored in mine if r["seed"] == seed]
     if not maps:
         return None
-    grid, truth = maps[0][1].grid, maps[0][1].truth  # type: ignore[union-attr]
+    grid, truth = maps[0][1].grid, maps[0][1].truth
     # a public house's truth is this project's (public_truth: from where place words were
     # said), not the paper's drawn one: a panel titled "truth" read as the paper's
-    public = any(r.get("data_kind") == "public" for r in mine)
+    public = any(r.get("data_kind") == "public" for r, _ in mine)
     truth_name = REGION_TRUTH_PANEL if public else TRUTH_PANEL
     panels = [] if truth is None else [(truth_name, truth)]
     if label is None:  # the whole table's names: the legend of quality_time.png's
-        named = row_names(rows) if names is None else names
+        named = row_names(rows)
         label = lambda row: named[str(row["variant"]), str(row["method"])]  # noqa: E731
-    for row, stored in maps:
-        assert stored is not None
-        panels.append((label(row), stored.labels))
+    panels += [(label(row), stored.labels) for row, stored in maps]
     return grid, panels, seed
 
 
@@ -266,8 +264,9 @@ def write_house_maps(
     folder = Path(folder)
     paths = []
     names = row_names(rows)  # once for the table, not once per source
+    label = lambda row: names[str(row["variant"]), str(row["method"])]  # noqa: E731
     for data in dict.fromkeys(str(r["data"]) for r in rows):
-        found = source_panels(rows, folder, data, names=names)
+        found = source_panels(rows, folder, data, label=label)
         if found is None:
             continue
         grid, panels, seed = found
