@@ -28,9 +28,15 @@ from spcopyro.figures.plotting import (
 from spcopyro.fit.house import fit_house, prepare_model_data
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.sweep import sample_globals
-from spcopyro.results.concept_words import NO_WORDS, distinctive_items, format_concept_words, lift
+from spcopyro.results.concept_words import (
+    NO_WORDS,
+    distinctive_items,
+    format_concept_words,
+    lift,
+    shown_words,
+)
 from spcopyro.results.posterior_means import concept_totals, posterior_means
-from spcopyro.results.result import SpCoResult
+from spcopyro.results.result import EmissionTable, SpCoResult
 from spcopyro.synthetic import HouseSpec, make_house
 
 
@@ -341,3 +347,52 @@ def test_one_concept_says_why_no_word_is_distinctive_and_few_words_are_not_near_
         np.array([[0.05] + [0.95 / 49] * 49])
     )
     assert not near_uniform(np.empty((0, 3)))
+
+
+def _bathroom_fit() -> SpCoResult:
+    """two_rooms with posterior-mean word tables (beta 0.1 over 5 words): 9 words heard in the
+    left room (bathroom 6, bathtub 3), 8 in the right (kitchen 4, sofa 4), none on the speck."""
+    result = two_rooms()
+    vocabulary = ("bathroom", "bathtub", "restroom", "kitchen", "sofa")
+    counts = np.array([[6, 3, 0, 0, 0], [0, 0, 0, 4, 4], [0, 0, 0, 0, 0]], dtype=np.float64)
+    w = (counts + 0.1) / (counts.sum(1, keepdims=True) + 5 * 0.1)  # [L, V]
+    images = result.emissions[0]
+    totals = np.array([[3.0, 3.0, 9.0], [2.0, 2.0, 8.0], [0.0, 0.0, 0.0]])  # [L, 1 + 2]
+    return dataclasses.replace(
+        result,
+        emissions=(images, EmissionTable("words", vocabulary, w)),
+        concept_totals=totals,
+        inference={"parameters": "posterior mean given the point labels"},
+    )
+
+
+def test_a_word_never_heard_in_a_concept_is_not_listed_among_its_words(tmp_path, capsys):
+    """The default house's fit listed "bathroom 0.57, bathtub 0.29, restroom 0.01" for a concept
+    where 9 words were heard, none of them 'restroom': 0.01 = beta / (V beta + 9) is the prior's
+    share of any unheard word, 'restroom' first of 15 such words by tie order only. fit's
+    listing, the legend, the map's labels and `where` now list only the words above it; words
+    tied above it (kitchen and sofa, 4 each) stay."""
+    from spcopyro.cli.main import main
+    from spcopyro.figures.map_pieces import concept_handles
+
+    result = _bathroom_fit()
+    assert [w for w, _ in result.top_words(0)] == ["bathroom", "bathtub", "restroom"]
+    print_concepts(result)
+    lines = capsys.readouterr().out.splitlines()
+    (left,) = [line for line in lines if line.strip().startswith("concept   0:")]
+    assert left.endswith("9 words  bathroom 0.64, bathtub 0.33 | distinctive: bathroom x2.0, "
+                         "bathtub x1.9"), left  # fmt: skip
+    (right,) = [line for line in lines if line.strip().startswith("concept   1:")]
+    assert "8 words  kitchen 0.48, sofa 0.48 |" in right, right
+    assert main(["where", str(result.save(tmp_path / "fit")), "bathtub"]) == 0
+    out = capsys.readouterr().out
+    assert "its words: bathroom (0.64), bathtub (0.33); distinctive:" in out, out
+    assert "restroom" not in out
+    assert region_text(result, 0).splitlines()[1:] == ["bathroom 0.64 x2.0", "bathtub 0.33 x1.9"]
+    colours = np.zeros((3, 3), dtype=np.uint8)
+    labels = [h.get_label() for h in concept_handles(result, colours)]
+    assert labels[0].startswith("[0] 150 cells, 9 words heard: bathroom 0.64, bathtub 0.33\n")
+    # a draw's row (no two words equal) keeps a word at 0.01: nothing says it went unheard
+    drawn = np.array([0.64, 0.33, 0.011, 0.01, 0.009])
+    top = list(zip("abc", drawn[:3], strict=True))
+    assert [w for w, _ in shown_words(top, drawn)] == ["a", "b", "c"]

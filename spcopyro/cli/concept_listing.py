@@ -51,6 +51,7 @@ def print_concepts(
             [(w, p) for w, p in concept["top_words"]],
             [(w, r, p) for w, r, p in concept["distinctive_words"]],
             heard,
+            result.w[int(concept["concept"])],
         )
         for name in further:
             top = concept[f"top_{name}"][:2]

@@ -276,7 +276,7 @@ def _where(args: argparse.Namespace) -> int:
     grid = result.grid
     cells = np.argwhere(answer.region)  # [n, 2] (row, col)
     xy = grid.cell_to_world(cells)
-    top = shown_words(result.top_words(answer.concept, 3))
+    top = shown_words(result.top_words(answer.concept, 3), result.w[answer.concept])
     words = ", ".join(f"{w} ({p:.2f})" for w, p in top)
     distinctive = result.distinctive_words(answer.concept, 3)
     if result.heard(answer.concept) == 0:

@@ -350,7 +350,7 @@ def where_figure(
     if result.heard(answer.concept) == 0:
         words = NO_WORDS
     else:
-        top = shown_words(result.top_words(answer.concept, 3))  # no "sofa 0.00"
+        top = shown_words(result.top_words(answer.concept, 3), result.w[answer.concept])
         words = ", ".join(f"{w} {p:.2f}" for w, p in top)
     kind = "per-cell probability from the marginals" if result.marginals is not None else (
         "point estimate")  # fmt: skip

@@ -43,6 +43,7 @@ __all__ = [
     "item_marginal",
     "lift",
     "near_uniform",
+    "prior_share",
     "ranked",
     "shown_words",
 ]
@@ -121,25 +122,53 @@ def distinctive_items(
     return [(items[k], float(lift_row[k]), float(row[k])) for k in chosen]
 
 
-def shown_words(top: Sequence[tuple[str, float]]) -> list[tuple[str, float]]:
-    """The ``(word, p)`` of ``top`` worth printing at two decimals: those whose probability does
-    not round to 0.00 ("bedroom 0.56, bed 0.42, entrance 0.00" read as a third word of the
-    place), the first always (the listing, the map's labels and ``where`` use it)."""
-    return [(w, p) for w, p in top if round(p, 2) > 0] or list(top[:1])
+def shown_words(
+    top: Sequence[tuple[str, float]], row: np.ndarray | None = None
+) -> list[tuple[str, float]]:
+    """The ``(word, p)`` of ``top`` worth printing at two decimals, the first always (the
+    listing, the map's legend and labels and ``where`` use it). Left out: a word whose
+    probability rounds to 0.00 ("bedroom 0.56, bed 0.42, entrance 0.00" read as a third word of
+    the place), and, given the concept's whole ``row`` ``[V]``, a word at :func:`prior_share`:
+    never heard there ("bathroom 0.57, bathtub 0.29, restroom 0.01", restroom one of 15 words
+    at the prior's 0.1 / 10.7, first of them by tie order only)."""
+    floor = None if row is None else prior_share(row)
+    return [
+        (w, p)
+        for w, p in top
+        if round(p, 2) > 0 and (floor is None or round(p, RANK_DECIMALS) != floor)
+    ] or list(top[:1])
+
+
+def prior_share(row: np.ndarray) -> float | None:
+    """The probability of a word never heard in a concept whose distribution is ``row`` ``[V]``
+    (rounded to :data:`RANK_DECIMALS`), or None when no word need be. The words' counts are not
+    kept with a result, so the share is read from the row: its minimum, when two or more words
+    share it and some word lies above it. Under a posterior mean ``(beta + n_lv) / (V beta +
+    n_l)`` every unheard word has that minimum, ``beta / (V beta + n_l)``; heard words tied at
+    the minimum count are read as unheard too (rare beside a vocabulary's unheard words), and a
+    draw's row (no two words equal) has none."""
+    rounded = np.round(np.asarray(row, dtype=np.float64), RANK_DECIMALS)  # [V]
+    if rounded.size < 2:
+        return None
+    low = rounded.min()
+    if np.count_nonzero(rounded == low) < 2 or rounded.max() == low:
+        return None
+    return float(low)
 
 
 def format_concept_words(
     top: Sequence[tuple[str, float]],
     distinctive: Sequence[tuple[str, float, float]],
     heard: float | None,
+    row: np.ndarray | None = None,
 ) -> str:
     """One line for a concept: ``NO_WORDS`` when ``heard`` is 0, else its top words with their
     probabilities and its distinctive words (if any) with their lifts, e.g.
-    ``"kitchen 0.31, the 0.12 | distinctive: kitchen x4.2, fridge x3.1"``. A top word whose
-    probability rounds to 0.00 is left out (the first is always shown)."""
+    ``"kitchen 0.31, the 0.12 | distinctive: kitchen x4.2, fridge x3.1"``. The top words are
+    :func:`shown_words` (``row``: the concept's ``[V]`` distribution, for its unheard words)."""
     if heard is not None and heard <= 0:
         return f"({NO_WORDS})"
-    text = ", ".join(f"{w} {p:.2f}" for w, p in shown_words(top))
+    text = ", ".join(f"{w} {p:.2f}" for w, p in shown_words(top, row))
     if distinctive:
         text += " | distinctive: " + ", ".join(f"{w} x{r:.1f}" for w, r, _ in distinctive)
     return text
