@@ -194,6 +194,23 @@ def test_where_names_what_its_probabilities_are(tmp_path, capsys):
         assert f" ({source}; not counted:" in capsys.readouterr().out
 
 
+def test_the_where_figure_names_its_probabilities_as_the_line_does():
+    """where's figure title said "per-cell probability from the marginals" of every fit while
+    the printed line and the probability figure said "Gibbs label frequencies over 50 kept
+    samples" (or "q(C) of cavi") of the same numbers: the title now says it in their words."""
+    from spcopyro.figures.plotting import where_figure
+
+    result, _ = unmapped_result()
+    sampled = dataclasses.replace(result, inference={"marginal_samples": 50})
+    cavi = dataclasses.replace(result, method="cavi")
+    for fit, source in [(sampled, "per-cell probability: Gibbs label frequencies over 50 kept "
+                         "samples"), (cavi, "per-cell probability: q(C) of cavi"),
+                        (two_rooms(), "point estimate")]:  # fmt: skip
+        (ax,) = [a for a in where_figure(fit, fit.where("bed")).axes if a.get_title()]
+        assert f" prior; {source})\n" in ax.get_title(), ax.get_title()
+        assert "marginals" not in ax.get_title()
+
+
 def test_navigate_says_the_unmapped_mass_as_where_does(tmp_path, capsys):
     """navigate's goals are chosen by where's probability, which counts the map's concepts only:
     where says what it leaves out (unmapped_note), and navigate says it the same way, once."""

@@ -352,8 +352,8 @@ def where_figure(
     else:
         top = shown_words(result.top_words(answer.concept, 3), result.w[answer.concept])
         words = ", ".join(f"{w} {p:.2f}" for w, p in top)
-    kind = "per-cell probability from the marginals" if result.marginals is not None else (
-        "point estimate")  # fmt: skip
+    kind = marginals_source(result)  # as where's line and the probability figure name it
+    kind = kind if result.marginals is None else f"per-cell probability: {kind}"
     axes[0].set_title(f"where is '{answer.word}'? concept {answer.concept}, "
                       f"p(concept | word) = {answer.probability:.3f} ({answer.prior} prior; "
                       f"{kind})\n"
