@@ -187,6 +187,23 @@ def test_the_where_figure_names_the_answers_p_apart_from_the_cells():
     assert "p = " not in ax.get_title() + answer_line + runner_line
 
 
+def test_the_where_legend_gives_the_runner_ups_area_as_the_answers():
+    """where's legend read "answer: ... (518 cells, 5.18 m²)" but "runner-up: ... (692 cells)"."""
+    import dataclasses
+
+    from hand_results import two_rooms
+
+    from spcopyro.figures.plotting import where_figure
+
+    result = two_rooms()
+    shown = dataclasses.replace(result, marginals=np.full((result.grid.num_free, 3), 1 / 3))
+    for fit in (result, shown):  # filled regions, and outlines over the probabilities
+        answer_line, runner_line = _legend_texts(where_figure(fit, fit.where("bed")))[:2]
+        assert answer_line.endswith(" (149 cells, 1.49 m²)"), answer_line
+        assert runner_line.startswith("runner-up: concept 0, "), runner_line
+        assert runner_line.endswith(" (150 cells, 1.50 m²)"), runner_line
+
+
 def test_legend_counts_of_words_heard_read_as_english(monkeypatch):
     """'[63] 199 cells, 1 words heard: ...' and '[11] 204 cells, 0 words heard: no words heard
     here' (an original-code fit's legend)."""

@@ -334,7 +334,7 @@ def where_figure(
         runner_handle.set_label(
             f"runner-up: concept {answer.runner_up}, "
             f"p(concept | word) = {answer.runner_up_probability:.3f} "
-            f"({plural(int(runner.sum()), 'cell')})"
+            f"({plural(int(runner.sum()), 'cell')}, {int(runner.sum()) * area:.2f} m²)"
         )
         handles.append(runner_handle)
     handles += [
