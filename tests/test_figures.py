@@ -184,7 +184,7 @@ def test_the_where_legend_counts_a_one_cell_runner_up_as_one_cell():
         legend = where_figure(shown, answer).axes[0].get_legend()
         texts = [t.get_text() for t in legend.get_texts()]
         runner = next(t for t in texts if t.startswith("runner-up"))
-        assert runner.endswith("(1 cell)"), texts
+        assert runner.endswith("(1 cell, 0.01 m²)"), texts
         answer_text = next(t for t in texts if t.startswith("answer"))
         assert answer_text.endswith(" m²)"), texts  # as graph.png's areas, not "m^2"
 
