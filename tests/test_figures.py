@@ -334,17 +334,24 @@ def test_a_legend_outside_the_axes_is_inside_the_png(tmp_path):
 
 def _side_by_side_rooms():
     """A tall map (8 m x 1.4 m): concepts 0 and 1 share a band half-way up, side by side, their
-    label centres 0.6 m apart; concept 2 fills the rest."""
+    label centres 0.6 m apart; concept 2 fills the rest. Every word was heard in every concept
+    (no two words of a row equal): each label lists three words."""
+    import dataclasses
+
     from hand_results import one_word_per_concept
 
     from spcopyro.maps import FREE, OccupancyGrid
+    from spcopyro.results.result import EmissionTable
 
     occupancy = np.full((80, 14), FREE, dtype=np.int8)
     grid = OccupancyGrid(occupancy=occupancy, resolution=0.1, origin=(0.0, 0.0, 0.0))
     image = np.full(grid.shape, 2)
     image[34:46, :7] = 0
     image[34:46, 7:] = 1
-    return one_word_per_concept(grid, image[grid.free], ("bedroom", "entrance", "living"), 3)
+    result = one_word_per_concept(grid, image[grid.free], ("bedroom", "entrance", "living"), 3)
+    w = np.array([[0.9, 0.06, 0.04], [0.04, 0.9, 0.06], [0.06, 0.04, 0.9]])  # [L, V]
+    words = EmissionTable("words", result.vocabulary, w)
+    return dataclasses.replace(result, emissions=(result.emissions[0], words))
 
 
 def test_labels_of_neighbouring_regions_do_not_overlap():
