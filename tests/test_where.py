@@ -194,6 +194,24 @@ def test_where_prints_the_answer_its_warnings_and_draws_them(tmp_path, capsys):
     assert main(["where", str(out), "kitchen", "--out", str(out / "kitchen.png")]) == 0
 
 
+def test_where_says_what_the_bayes_factor_means(tmp_path, capsys):
+    """where printed "Bayes factor of the word for concept 21: 60.56" with nothing saying what
+    it is. It is the concept's posterior odds over its prior odds, which is also p(word |
+    concept) over p(word | the other concepts, mixed by the prior): checked by hand here."""
+    from spcopyro.cli.main import main
+
+    out = two_rooms().save(tmp_path / "fit")
+    assert main(["where", str(out), "kitchen"]) == 0
+    (line,) = [x for x in capsys.readouterr().out.splitlines() if x.startswith("runner-up:")]
+    # area prior: 'kitchen' is 0.6 in concept 0 (150 cells), 0.1 and 0.7 in the others (149, 1)
+    factor = 0.6 / ((149 * 0.1 + 1 * 0.7) / 150)  # 5.77
+    assert line.endswith(
+        f"Bayes factor of the word for concept 0: {factor:.2f} (how many times as likely the "
+        "word is in this concept as in the others, weighted by the area prior: the concept's "
+        "odds given the word over its prior odds)"
+    ), line
+
+
 def test_where_given_a_house_folder_says_it_is_data_not_a_fit(tmp_path, capsys):
     """QA: `where DATASET/room1dk5 kitchen` told the user to `fit DATA --out` the house's own
     folder (which fit refuses: it holds data)."""

@@ -260,7 +260,7 @@ def _check_where_out(result_dir: str, out: str) -> None:
 def _where(args: argparse.Namespace) -> int:
     from spcopyro.results.concept_words import shown_words
     from spcopyro.results.result import UnknownWordError
-    from spcopyro.results.where import region_piece_sizes, shared_answer_note
+    from spcopyro.results.where import region_piece_sizes, runner_up_line, shared_answer_note
 
     if args.out:
         _check_where_out(args.result, args.out)
@@ -287,10 +287,7 @@ def _where(args: argparse.Namespace) -> int:
           f"{answer.probability:.3f}, "
           f"{answer.prior} prior; its words: {words})")  # fmt: skip
     if answer.runner_up is not None:
-        print(f"runner-up: concept {answer.runner_up} (p(concept | word) = "
-              f"{answer.runner_up_probability:.3f}); "
-              f"Bayes factor of the word for concept {answer.concept}: "
-              f"{answer.evidence:.2f}")  # fmt: skip
+        print(runner_up_line(answer))  # with what its Bayes factor means
     if len(cells):
         half = grid.resolution / 2  # xy are cell centres: the region's edges lie half out
         (x0, y0), (x1, y1) = xy.min(0) - half, xy.max(0) + half

@@ -77,6 +77,7 @@ __all__ = [
     "close_to_guess",
     "region_pieces",
     "region_piece_sizes",
+    "runner_up_line",
     "SHARED_ANSWER_P",
     "concept_given_words",
     "shared_answers",
@@ -372,6 +373,22 @@ def region_piece_sizes(region: np.ndarray, connectivity: int = 4) -> list[int]:
     structure = ndimage.generate_binary_structure(2, 1 if connectivity == 4 else 2)
     labelled, _ = ndimage.label(np.asarray(region, dtype=bool), structure=structure)
     return sorted(np.bincount(labelled.ravel())[1:].tolist(), reverse=True)  # [pieces]
+
+
+def runner_up_line(answer: WhereAnswer) -> str | None:
+    """``where``'s line after the answer: the runner-up, and the word's Bayes factor for the
+    answer's concept with what it means (None without a runner-up). The factor,
+    :func:`bayes_factor` of p(concept | word) and p(concept), is also p(word | concept) over
+    p(word | not the concept), the other concepts mixed by their prior weights: 60.56 says the
+    word is 60.56 times as likely in the concept as in the others (under the area prior: as on
+    the rest of the map)."""
+    if answer.runner_up is None:
+        return None
+    return (f"runner-up: concept {answer.runner_up} (p(concept | word) = "
+            f"{answer.runner_up_probability:.3f}); Bayes factor of the word for concept "
+            f"{answer.concept}: {answer.evidence:.2f} (how many times as likely the word is in "
+            f"this concept as in the others, weighted by the {answer.prior} prior: the concept's "
+            f"odds given the word over its prior odds)")  # fmt: skip
 
 
 def bayes_factor(posterior: float, prior: float) -> float:
