@@ -495,3 +495,26 @@ def test_a_large_refinement_is_announced(home, tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert "note: the refinement sweeps the map's " in err, err
     assert "x the first stage's " in err and "--refine never keeps the first stage's map" in err
+
+
+def test_the_refining_line_says_why_alpha_changed(home, tmp_path, capsys):
+    """``refining ... alpha 1.22e+09`` after the model's ``alpha 1e7`` said nothing of the
+    change: the line names the rule (refined_settings: the first stage's alpha times the square
+    of the free cells' ratio, map over model grid) with the counts it used."""
+    import re
+
+    argv = ["fit", str(home), "--out", str(tmp_path / "out"), "--sweeps", "2", "--no-figures",
+            "--refine", "always"]  # fmt: skip
+    assert main(argv) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("refining"))
+    match = re.search(
+        r"alpha (\S+) \(the first stage's 1e\+07 times the square of the free cells' ratio, "
+        r"([\d,]+) on the map / ([\d,]+) on the model grid, so that the label counts' prior "
+        r"weighs as it did there\)$",
+        line,
+    )
+    assert match, line
+    alpha, cells, first_cells = match.groups()
+    cells, first_cells = int(cells.replace(",", "")), int(first_cells.replace(",", ""))
+    assert cells > first_cells
+    assert float(alpha) == pytest.approx(1e7 * (cells / first_cells) ** 2, rel=1e-2)

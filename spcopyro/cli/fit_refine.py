@@ -214,7 +214,8 @@ def _decide(
               f"{len(first.trace.objective)} sweeps on {first.grid.resolution:g} m cells (best log "
               f"joint {first.best_objective:.1f}) continue on the map's own "
               f"{on_map.grid.resolution:g} m cells ({observed} observed), images as 100 draws, "
-              f"words at their cell, alpha {refined.model.alpha:.3g}")  # fmt: skip
+              f"words at their cell, "
+              f"{_alpha_scaled(settings, refined, model, on_map)}")  # fmt: skip
         replaced = replaced_options(settings, refined.data)
         if replaced:  # the user's own preparation: not replaced silently
             print(_replaced_note(replaced), file=sys.stderr)
@@ -231,6 +232,21 @@ def _decide(
     else:  # config.json says why too
         print(f"not refined      {decision.reason}")
     return decision, replaced
+
+
+def _alpha_scaled(settings: SpCoSettings, refined: SpCoSettings, model: House,
+                  on_map: House) -> str:  # fmt: skip
+    """The refining line's alpha and why it changed: the first stage's alpha times the square
+    of the ratio of free cells, map over model grid
+    (:func:`~spcopyro.fit.refine.refined_settings`), so that the label counts' prior weighs
+    what it did on the model grid."""
+    cells, first_cells = on_map.grid.num_free, model.grid.num_free
+    if first_cells <= 0 or refined.model.alpha == settings.model.alpha:
+        return f"alpha {refined.model.alpha:.3g}"
+    return (f"alpha {refined.model.alpha:.3g} (the first stage's {settings.model.alpha:.3g} "
+            f"times the square of the free cells' ratio, {cells:,} on the map / {first_cells:,} "
+            "on the model grid, so that the label counts' prior weighs as it did "
+            "there)")  # fmt: skip
 
 
 def _observed_cells(house: House, data: DataPreparation) -> int:
