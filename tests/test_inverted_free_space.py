@@ -161,7 +161,7 @@ def _plan(tmp_path: Path, image: np.ndarray, negate: int = 0) -> Path:
     return yaml_path
 
 
-def test_a_negated_map_is_refused_on_a_coarsened_model_grid(tmp_path):
+def test_a_negated_map_is_refused_on_a_coarsened_model_grid(tmp_path, caplog):
     """The presets' 0.25 m cells over a 0.05 m map (fit_house's model grid): the left-out
     observations are counted on the map it was coarsened from, the negate line read from its
     yaml. A 5 m plan drawn with free space white inside 0.5 m thick black walls, negate 1: the
@@ -177,12 +177,12 @@ def test_a_negated_map_is_refused_on_a_coarsened_model_grid(tmp_path):
     obs = _observations(np.concatenate([room, walls]))
     report = cell_counts(grid, obs, warn=False).placement
     assert report.num_unplaced == 20 and report.unplaced_on_occupied == 20
-    said = []  # the refusal blames negate: alone
-    with pytest.raises(ValueError) as error:
-        check_placement(report, obs, grid, f" on map {yaml_path}", lambda: said.append(1))
+    # the refusal blames negate: alone, without the warnings listing the 20 left out
+    with caplog.at_level(logging.WARNING, logger="spcopyro"), pytest.raises(ValueError) as error:
+        check_placement(report, obs, grid, f" on map {yaml_path}")
     message = str(error.value)
     assert message.startswith("20 of 28 observations are left out, 20 of them on occupied cells")
-    assert said == []
+    assert [r.getMessage() for r in caplog.records] == []
     assert (
         f"{yaml_path}:4: negate 1 on a map whose free space is drawn white (map_saver's maps "
         "need negate: 0): with negate 0, 6400 cells would be free, not 3600, and 20 of the 20 "
@@ -190,7 +190,7 @@ def test_a_negated_map_is_refused_on_a_coarsened_model_grid(tmp_path):
     ) in message
 
 
-def test_a_floor_plan_drawn_black_where_the_tour_went_is_not_blamed_on_negate(tmp_path):
+def test_a_floor_plan_drawn_black_where_the_tour_went_is_not_blamed_on_negate(tmp_path, caplog):
     """Most of the tour outside the drawn room, on its black: refused, but the other negate,
     which frees the outside, would leave the observations in the room out instead: the message
     names the causes on a map that is right and what to do, not negate."""
@@ -202,12 +202,17 @@ def test_a_floor_plan_drawn_black_where_the_tour_went_is_not_blamed_on_negate(tm
     obs = _observations(np.concatenate([inside, outside]))
     report = cell_counts(grid, obs, warn=False).placement
     assert report.free_space_inverted() and report.num_on_free == 8
-    said = []  # the warnings naming the lines the message points to: said before it
-    with pytest.raises(ValueError) as error:
-        check_placement(report, obs, grid, f" on map {grid.source}", lambda: said.append(1))
+    # the warnings naming the lines the message points to: said before it
+    with caplog.at_level(logging.WARNING, logger="spcopyro"), pytest.raises(ValueError) as error:
+        check_placement(report, obs, grid, f" on map {grid.source}")
     message = str(error.value)
     assert message.startswith("16 of 24 observations are left out, 16 of them on occupied cells")
-    assert "negate" not in message and said == [1]
+    assert "negate" not in message
+    said = [r.getMessage() for r in caplog.records]
+    assert len(said) == 2 and said[0].startswith(
+        f"8 image(s) and 8 utterance(s) are farther than 0.25 m from free space on map "
+        f"{grid.source} and were left out of the cell counts: images of index 4 "
+    ), said
     assert "origin and resolution" in message and "unknown grey 205" in message
     assert "--snap-distance, now 0.25 m" in message and "remove them from the data" in message
 

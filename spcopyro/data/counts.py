@@ -49,6 +49,7 @@ from spcopyro.data.placement import (
     PlacementReport,
     count_on_occupied,
     left_out_and_placed,
+    on_map_text,
     place_observations,
     position_hint,
 )
@@ -206,7 +207,7 @@ def say_placement_warnings(
     (:func:`~spcopyro.data.inverted_map.check_placement`)."""
     _warn_scaled_away(obs.image_features, report.scaled_away_images, report.feature_scaling,
                       source)  # fmt: skip
-    where = f" on map {grid.source}" if getattr(grid, "source", None) else ""
+    where = on_map_text(grid)
     farther = f"farther than {report.snap_distance:g} m from free space{where}"
     if getattr(grid, "coarsened_from", None) is not None:  # placed through the map
         farther += (
@@ -489,13 +490,14 @@ def cell_counts(
     report = replace(report, unplaced_on_occupied=count_on_occupied(grid, left_out))
     if warn:
         say_placement_warnings(report, grid, obs, source)
-    where = f" on map {grid.source}" if getattr(grid, "source", None) else ""
+    where = on_map_text(grid)
     if report.images_snapped or report.words_snapped:
         logger.info("%d image(s) and %d utterance(s) snapped to the nearest free cell%s",
                     report.images_snapped, report.words_snapped, where)  # fmt: skip
-    for placed in (placed for placed in report.modalities if placed.snapped):
-        logger.info("%d observation(s) of modality %r snapped to the nearest free cell%s",
-                    placed.snapped, placed.name, where)  # fmt: skip
+    for placed in report.modalities:
+        if placed.snapped:
+            logger.info("%d observation(s) of modality %r snapped to the nearest free cell%s",
+                        placed.snapped, placed.name, where)  # fmt: skip
     return CellCounts(
         cells=cells.astype(np.int64),
         image_counts=image_counts,

@@ -8,18 +8,19 @@ near free space (:func:`~spcopyro.maps.free_space.negate_hint`); otherwise the c
 that is right -- positions outside its frame, a floor plan drawn black where the tour went,
 thick walls beside positions a little off -- and what to do about each.
 
-A fit counts with ``warn=False`` and passes :func:`check_placement` the function that says the
-counting's warnings (:func:`~spcopyro.data.counts.say_placement_warnings`): a refusal that
-blames the map (no observation on free space; the ``negate`` line) comes alone, not after the
-warnings listing the observations left out and repeating its counts (a ``negate: 1`` map printed
-two long warnings, then the refusal); the refusal on a map that may be right points to the lines
-those warnings name, so they are said before it; a placement that passes says them once.
+A fit counts with ``warn=False`` and :func:`check_placement` says the counting's warnings
+(:func:`~spcopyro.data.counts.say_placement_warnings`): a refusal that blames the map (no
+observation on free space; the ``negate`` line) comes alone, not after the warnings listing the
+observations left out and repeating its counts (a ``negate: 1`` map printed two long warnings,
+then the refusal); the refusal on a map that may be right points to the lines those warnings
+name, so they are said before it; a placement that passes says them once.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import os
 
+from spcopyro.data.counts import say_placement_warnings
 from spcopyro.data.observations import Observations
 from spcopyro.data.placement import PlacementReport, left_out_and_placed
 from spcopyro.maps.grid import OccupancyGrid
@@ -66,20 +67,21 @@ def check_placement(
     obs: Observations,
     grid: OccupancyGrid,
     where: str = "",
-    say_warnings: Callable[[], None] = lambda: None,
+    source: str | os.PathLike[str] | None = None,
 ) -> None:
     """Raise ValueError when no observation lands on free space
     (:meth:`~spcopyro.data.placement.PlacementReport.check_on_free`) or when most are left out
     on occupied cells (:func:`inverted_free_space_message`): a fit would learn every concept from
     the prior alone, or from the few observations snapped onto the walls. The one place the
-    second is refused (``check_on_free`` says only the first). ``say_warnings`` (the counting's,
-    :func:`~spcopyro.data.counts.say_placement_warnings`) is called once: before the refusal on
-    a map that may be right, which points to the lines the warnings name, or when the placement
-    passes; not before the others, which blame the map."""
+    second is refused (``check_on_free`` says only the first). The counting's warnings
+    (:func:`~spcopyro.data.counts.say_placement_warnings` of ``report``, ``grid``, ``obs`` and
+    the house folder ``source``: count with ``warn=False``) are said once: before the refusal
+    on a map that may be right, which points to the lines the warnings name, or when the
+    placement passes; not before the others, which blame the map."""
     report.check_on_free(where)  # none on free space: said without weighing the map's negate
     if report.free_space_inverted():
         hint = _negate_hint(report, obs, grid)
         if not hint:
-            say_warnings()
+            say_placement_warnings(report, grid, obs, source)
         raise ValueError(inverted_free_space_message(report, hint, where))
-    say_warnings()
+    say_placement_warnings(report, grid, obs, source)

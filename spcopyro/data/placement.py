@@ -23,6 +23,7 @@ __all__ = [
     "PlacementReport",
     "count_on_occupied",
     "left_out_and_placed",
+    "on_map_text",
     "place_observations",
     "position_hint",
 ]
@@ -262,6 +263,13 @@ def position_hint(grid: OccupancyGrid, xy: np.ndarray) -> str:
             return (f"; the positions divided by {round(1 / scale)} land on free space: are "
                     f"they in {unit}? Positions are metres in the map's frame")  # fmt: skip
     return ""
+
+
+def on_map_text(grid: OccupancyGrid) -> str:
+    """``" on map PATH"`` naming the map ``grid`` was read from (its ``source``), the ``where``
+    of the placement's messages (:meth:`PlacementReport.off_free_warning`); ``""`` for a grid
+    built in memory."""
+    return f" on map {grid.source}" if getattr(grid, "source", None) else ""
 
 
 def count_on_occupied(grid: OccupancyGrid, xy: np.ndarray) -> int:

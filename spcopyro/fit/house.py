@@ -38,9 +38,9 @@ from spcopyro._util.threads import (
 from spcopyro._util.timings import timed
 from spcopyro.config import DEFAULT_PRESET, WORDS, SpCoSettings, preset
 from spcopyro.data import CellCounts, House, prepared_cell_counts
-from spcopyro.data.counts import say_placement_warnings
 from spcopyro.data.inverted_map import check_placement
 from spcopyro.data.model_grid import model_house
+from spcopyro.data.placement import on_map_text
 from spcopyro.data.word_weighting import resolved_preparation, resolved_settings
 from spcopyro.fit import gibbs_chains  # with_sample_marginals through it: a test's patch reaches
 from spcopyro.fit.gibbs_chains import FitCheckpoint, FitInterrupted, gibbs_outputs, marginal_thin
@@ -188,7 +188,6 @@ def prepare_model_data(
     for warning in preparation_warnings(settings.data) if coarse is None else ():
         logger.warning(warning)
     grid = house.grid
-    where = f" on map {grid.source}" if getattr(grid, "source", None) else ""
     check_free_cells(grid, f"house {house.name!r}")  # ValueError naming the yaml's lines
     size = settings.data.cell_size
     if size is not None and model_house(house, size) is not house:  # fit_house's is already
@@ -201,15 +200,9 @@ def prepare_model_data(
         )  # fmt: skip
     counts = prepared_cell_counts(grid, house.observations, settings.data, vocabulary=vocabulary,
                                   source=house.source, warn=False)  # fmt: skip
-    # said once the placement passes, or before the refusal pointing to their lines; a refusal
-    # that blames the map comes alone
-    check_placement(
-        counts.placement,
-        house.observations,
-        grid,
-        where,
-        lambda: say_placement_warnings(counts.placement, grid, house.observations, house.source),
-    )
+    # warnings said once the placement passes, or before the refusal pointing to their lines; a
+    # refusal that blames the map comes alone
+    check_placement(counts.placement, house.observations, grid, on_map_text(grid), house.source)
     coverage = coverage_warning(house)
     if coverage:
         logger.warning(coverage)
