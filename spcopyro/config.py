@@ -83,11 +83,27 @@ IMAGES, WORDS = "images", "words"
 """The two modalities of the paper: place-class histograms of images (theta) and words (w)."""
 
 
+CONCENTRATION_FIELDS: dict[str, str] = {IMAGES: "chi", WORDS: "beta"}
+"""The :class:`SpCoConfig` field holding each of the paper's two modalities' Dirichlet
+concentration: chi for images (eq. 3), beta for words (eq. 4). A further modality's is a key of
+:attr:`SpCoConfig.concentrations`, its own name."""
+HYPERPARAMETER_FIELDS: tuple[str, ...] = ("alpha", "gamma", *CONCENTRATION_FIELDS.values())
+"""The hyperparameters that are fields of :class:`SpCoConfig`: ``("alpha", "gamma", "chi",
+"beta")``; every other one is a further modality's concentration, named as the modality."""
+
+
 def concentration_name(modality: str) -> str:
     """``chi`` for images, ``beta`` for words, else the modality's name: the name of a modality's
     Dirichlet concentration (:meth:`SpCoConfig.concentration`), a field of :class:`SpCoConfig`
-    for the paper's two and a key of :attr:`SpCoConfig.concentrations` for a further one."""
-    return {IMAGES: "chi", WORDS: "beta"}.get(modality, modality)
+    for the paper's two (:data:`CONCENTRATION_FIELDS`) and a key of
+    :attr:`SpCoConfig.concentrations` for a further one."""
+    return CONCENTRATION_FIELDS.get(modality, modality)
+
+
+def modality_of_concentration(name: str) -> str:
+    """The modality whose Dirichlet concentration is called ``name``: ``images`` for chi,
+    ``words`` for beta, else ``name`` itself (the inverse of :func:`concentration_name`)."""
+    return next((m for m, field in CONCENTRATION_FIELDS.items() if field == name), name)
 
 
 PRESETS: dict[str, dict[str, object]] = {
@@ -249,10 +265,8 @@ class SpCoConfig:
     def concentration(self, modality: str) -> float:
         """The symmetric Dirichlet concentration of a modality's distributions: chi for
         ``"images"`` (eq. 3), beta for ``"words"`` (eq. 4), else from :attr:`concentrations`."""
-        if modality == IMAGES:
-            return float(self.chi)
-        if modality == WORDS:
-            return float(self.beta)
+        if modality in CONCENTRATION_FIELDS:
+            return float(getattr(self, CONCENTRATION_FIELDS[modality]))
         for name, value in self.concentrations:
             if name == modality:
                 return value

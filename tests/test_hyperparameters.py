@@ -436,6 +436,35 @@ def test_gamma_recovered_from_prior_maps(true_gamma):
 HYPER_ALL = HyperparameterOptions(alpha=True, concentrations=True, gamma="exchange")
 
 
+def test_the_concentrations_names_and_fields_come_from_one_table():
+    """chi for images and beta for words are named in config.CONCENTRATION_FIELDS alone:
+    SpCoConfig.concentration, with_concentration, config_at_posterior_mean (through
+    modality_of_concentration) and the saved sites' names (HYPERPARAMETER_FIELDS) read it; a
+    further modality's concentration is its own name, a key of ``concentrations``."""
+    from spcopyro.config import (
+        CONCENTRATION_FIELDS,
+        HYPERPARAMETER_FIELDS,
+        IMAGES,
+        WORDS,
+        concentration_name,
+        modality_of_concentration,
+    )
+    from spcopyro.gibbs.hyperparameters import config_at_posterior_mean, with_concentration
+
+    assert CONCENTRATION_FIELDS == {IMAGES: "chi", WORDS: "beta"}
+    assert HYPERPARAMETER_FIELDS == ("alpha", "gamma", "chi", "beta")
+    cfg = config(concentrations={"objects": 3.0})
+    for modality, name in ((IMAGES, "chi"), (WORDS, "beta"), ("objects", "objects")):
+        assert concentration_name(modality) == name and modality_of_concentration(name) == modality
+        changed = with_concentration(cfg, modality, 7.5)
+        assert changed.concentration(modality) == 7.5 and cfg.concentration(modality) != 7.5
+        summary = {name: {"posterior_mean": 7.5}}
+        assert config_at_posterior_mean(cfg, summary) == changed
+    assert with_concentration(cfg, IMAGES, 7.5).chi == 7.5
+    assert with_concentration(cfg, WORDS, 7.5).beta == 7.5
+    assert dict(with_concentration(cfg, "objects", 7.5).concentrations) == {"objects": 7.5}
+
+
 def test_method_options_reach_nested_hyperparameters():
     options = with_options(
         GibbsOptions(), ["hyper.alpha=true", "hyper.gamma=pseudolikelihood", "hyper.aux_sweeps=2"]

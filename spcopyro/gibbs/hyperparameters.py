@@ -72,7 +72,13 @@ import torch
 
 from spcopyro._util.messages import setting
 from spcopyro._util.random_draws import coin_flip, sample_log_dirichlet
-from spcopyro.config import IMAGES, WORDS, SpCoConfig, concentration_name
+from spcopyro.config import (
+    CONCENTRATION_FIELDS,
+    HYPERPARAMETER_FIELDS,
+    SpCoConfig,
+    concentration_name,
+    modality_of_concentration,
+)
 from spcopyro.gibbs.backends import globals_sampler, label_sampler
 from spcopyro.gibbs.cluster import swendsen_wang_labels
 from spcopyro.gibbs.hyper_options import HyperparameterOptions
@@ -113,10 +119,8 @@ def hyperparameter_values(data: ModelData, config: SpCoConfig) -> list[float]:
 
 def with_concentration(config: SpCoConfig, modality: str, value: float) -> SpCoConfig:
     """``config`` with modality's Dirichlet concentration set to ``value``."""
-    if modality == IMAGES:
-        return config.replace(chi=value)
-    if modality == WORDS:
-        return config.replace(beta=value)
+    if modality in CONCENTRATION_FIELDS:  # chi, beta
+        return config.replace(**{CONCENTRATION_FIELDS[modality]: value})
     further = dict(config.concentrations)
     further[modality] = value
     return config.replace(concentrations=further)
@@ -481,13 +485,12 @@ def config_at_posterior_mean(
         if name in ("alpha", "gamma"):
             config = config.replace(**{name: value})
         else:
-            modality = {"chi": IMAGES, "beta": WORDS}.get(name, name)
-            config = with_concentration(config, modality, value)
+            config = with_concentration(config, modality_of_concentration(name), value)
     return config
 
 
 def _initial(config: SpCoConfig, name: str) -> float:
-    if name in ("alpha", "gamma", "chi", "beta"):
+    if name in HYPERPARAMETER_FIELDS:
         return float(getattr(config, name))
     return config.concentration(name)
 

@@ -40,7 +40,7 @@ from pyro.infer.mcmc.util import diagnostics as pyro_diagnostics
 from pyro.infer.mcmc.util import print_summary as pyro_print_summary
 from pyro.infer.mcmc.util import summary as pyro_summary
 
-from spcopyro.config import SpCoConfig
+from spcopyro.config import HYPERPARAMETER_FIELDS, SpCoConfig
 from spcopyro.gibbs.backends import get_backend
 from spcopyro.gibbs.hyperparameters import hyperparameter_names, hyperparameter_values
 from spcopyro.gibbs.options import GibbsOptions
@@ -67,7 +67,7 @@ def _hyper_site(name: str) -> str:
     and ``<name>_concentration`` for a further modality's concentration (saved under the
     modality's own name it took the name of the model's observation site, and Predictive
     conditioned the observed counts on it)."""
-    return name if name in ("alpha", "gamma", "chi", "beta") else f"{name}_concentration"
+    return name if name in HYPERPARAMETER_FIELDS else f"{name}_concentration"
 
 
 class _ToInteger:
