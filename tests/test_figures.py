@@ -722,26 +722,6 @@ def test_the_trace_names_its_objective_s_unit_and_what_it_is():
         assert trace_figure(fit).axes[0].get_ylabel() == f"{name} (nats)\n{meaning}"
 
 
-def test_no_module_imports_a_private_name_of_plotting():
-    """The PNG writer moved to figures/png.py as ``save_figure``; plotting kept it as a private
-    alias ``_save`` (and ``_extent``, ``_show_image`` from map_axes) that the navigation
-    figures and the study's label maps imported. They import the public names from where they
-    are defined; plotting's private names are its own."""
-    import ast
-    from pathlib import Path
-
-    import spcopyro
-
-    root = Path(spcopyro.__file__).parent
-    found = []
-    for path in sorted(root.rglob("*.py")):
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-            if isinstance(node, ast.ImportFrom) and node.module == "spcopyro.figures.plotting":
-                private = [a.name for a in node.names if a.name.startswith("_")]
-                found += [f"{path.relative_to(root)}:{node.lineno} {n}" for n in private]
-    assert not found, found
-
-
 def test_the_house_legend_names_the_other_words():
     """house.png colours the 12 most heard words and draws the rest as grey circles; their
     legend entry read "other words" alone, so room1ldk5's 'bedroom', 'bath' and 'chair' were
