@@ -297,3 +297,27 @@ def test_the_counted_and_the_weighed_left_out_positions_are_one_gathering():
     np.testing.assert_array_equal(placed, [[0.5, 0.5]] * 3)
     assert report.num_unplaced == len(left_out) and report.num_placed == len(placed)
     assert report.unplaced_on_occupied == count_on_occupied(grid, left_out) == 5
+
+
+@pytest.mark.parametrize(
+    ("edit", "cause"),
+    [
+        (("negate: 0", "negate: 1"), "the map's free space reads as occupied: {yaml}:4: negate 1 "),
+        (("free_thresh: 0.196", "free_thresh: 0"), "the map {yaml} has no free cell, nothing to "),
+    ],
+)
+def test_a_house_s_truth_does_not_hide_the_map_s_own_refusal(tmp_path, capsys, edit, cause):
+    """A house with truth.npy on a map whose free space reads as occupied (negate 1 on a map
+    drawn white) or that has no free cell: the truth's labels lie off free space, and its
+    refusal ("3600 non-free cell(s) carry a category") came first, hiding the map's, which
+    names the yaml's lines. The map's refusal (the cause) comes first now."""
+    save_house(make_house(seed=0, name="flat"), tmp_path)
+    yaml_path = tmp_path / "map" / "flat.yaml"
+    text = yaml_path.read_text()
+    assert edit[0] in text and (tmp_path / "flat" / "truth.npy").is_file()
+    yaml_path.write_text(text.replace(*edit))
+    argv = ["fit", str(tmp_path / "flat"), "--out", str(tmp_path / "fit"), "--sweeps", "2"]
+    assert main([*argv, "--no-figures"]) == 2
+    refusal = capsys.readouterr().err.splitlines()[-1]
+    assert refusal.startswith(f"error: house 'flat': {cause.format(yaml=yaml_path)}"), refusal
+    assert "carry a category" not in refusal

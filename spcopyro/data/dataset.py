@@ -126,7 +126,9 @@ class House:
             object.__setattr__(self, "category_names", names)
         if self.truth is not None:
             object.__setattr__(
-                self, "truth", _check_truth(self.truth, self.grid, self.category_names, None)
+                self,
+                "truth",
+                _check_truth(self.truth, self.grid, self.category_names, None, self.name),
             )
         if self.source is not None:
             object.__setattr__(self, "source", Path(self.source))
@@ -137,8 +139,11 @@ def _check_truth(
     grid: OccupancyGrid,
     category_names: tuple[str, ...] | None,
     path: Path | None,
+    name: str,
 ) -> np.ndarray:
-    """Validated ``[H, W]`` int64 truth; DataFormatError naming ``path`` (ValueError if None)."""
+    """Validated ``[H, W]`` int64 truth; DataFormatError naming ``path`` (ValueError if None).
+    Labels off free space on a map that is itself the cause (:func:`_map_refusal_first`) get
+    the map's refusal instead, naming its yaml's lines; ``name``: the house's."""
 
     def fail(problem: str, value: object = _MISSING) -> Exception:
         if path is not None:
@@ -158,6 +163,7 @@ def _check_truth(
         raise fail(f"category id out of range for {len(category_names)} names", int(labels.max()))
     off_free = ~np.asarray(grid.free, dtype=bool) & (labels != -1)  # [H, W] bool
     if off_free.any():
+        _map_refusal_first(grid, name, np.argwhere(off_free), path)
         row, col = np.argwhere(off_free)[0]
         raise fail(
             f"{int(off_free.sum())} non-free cell(s) carry a category (must be -1); first at "
@@ -165,6 +171,27 @@ def _check_truth(
             int(labels[row, col]),
         )
     return labels
+
+
+def _map_refusal_first(
+    grid: OccupancyGrid, name: str, cells: np.ndarray, path: Path | None
+) -> None:
+    """ValueError with the map's own refusal where the map, not the truth, is why the truth's
+    labelled ``cells`` ``[n, 2]`` (row, col) are not free: it has no free cell
+    (:func:`~spcopyro.maps.free_space.check_free_cells`, the fit's refusal), or its ``negate``
+    inverts free space: the truth labels the cells the other ``negate`` frees
+    (:func:`~spcopyro.maps.free_space.truth_negate_hint`, the yaml's ``negate`` line and value).
+    The truth's own refusal came first and hid the cause."""
+    from spcopyro.maps.free_space import check_free_cells, truth_negate_hint  # reads the map
+
+    check_free_cells(grid, f"house {name!r}")
+    hint = truth_negate_hint(grid, cells)
+    if hint:
+        labels = str(path) if path is not None else "the truth"
+        raise ValueError(
+            f"house {name!r}: the map's free space reads as occupied: {hint}, and {labels} "
+            f"labels {len(cells)} of its non-free cells, most of them free with that negate"
+        )
 
 
 MAX_COORDINATE = MAX_MAP_COORDINATE
@@ -387,7 +414,7 @@ def load_house(
             raw = np.load(truth_path, allow_pickle=False)
         except (ValueError, EOFError) as error:  # EOFError: an empty file
             raise DataFormatError(truth_path, f"not a numeric .npy array ({error})") from None
-        truth = _check_truth(raw, grid, category_names, truth_path)
+        truth = _check_truth(raw, grid, category_names, truth_path, name)
     return House(
         name=name,
         grid=grid,

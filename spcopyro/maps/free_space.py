@@ -21,7 +21,7 @@ from spcopyro.maps.map_image import _read_levels
 from spcopyro.maps.map_server import PGM_UNKNOWN, _occupancy
 from spcopyro.maps.map_yaml import MapFormatError, _MapYaml, _read_map_yaml
 
-__all__ = ["check_free_cells", "negate_hint", "no_free_cell_reason"]
+__all__ = ["check_free_cells", "negate_hint", "no_free_cell_reason", "truth_negate_hint"]
 
 _GENERIC = "check the map image and its yaml's negate flag and free/occupied thresholds"
 
@@ -96,6 +96,25 @@ def negate_hint(
         f"drawn {drawn} ({need}): with negate {int(not spec.negate)}, {flipped} cells would be "
         f"free, not {now}{lands}"
     )
+
+
+def truth_negate_hint(grid: OccupancyGrid, labelled: np.ndarray) -> str:
+    """:func:`negate_hint`'s line for a house's truth whose labelled cells ``[n, 2]`` (row, col
+    of ``grid``) lie off its free space: where the other ``negate`` frees more than half of
+    them and they cover more than half of the cells it frees (the truth labels the map read
+    with the other ``negate``, not a few cells mislabelled); "" otherwise."""
+    read = _map_levels(grid)
+    if read is None or not len(labelled):
+        return ""
+    freed = _free_under_other_negate(*read)  # [H, W] bool, of the map grid was read from
+    fine = grid.coarsened_from if grid.coarsened_from is not None else grid
+    if fine.occupancy.shape != freed.shape:
+        return ""
+    cells = cells_on_map(grid, grid.cell_to_world(labelled))  # [n', 2] on fine
+    on_freed = int(np.count_nonzero(freed[cells[:, 0], cells[:, 1]]))
+    if 2 * on_freed <= len(labelled) or 2 * len(labelled) <= int(np.count_nonzero(freed)):
+        return ""
+    return negate_hint(grid)
 
 
 def no_free_cell_reason(grid: OccupancyGrid) -> str:
