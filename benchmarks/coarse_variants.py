@@ -36,8 +36,10 @@ dense and sparse houses (seeds 0..n-1, ``--synthetic-seeds``, 3) against mean AR
 each map's mean over the fit seeds (``--seeds``, default 0 1 2 here, as real_houses.py's
 ``--fit-seeds``). real_houses.py fits synthetic house seed s at fit seed s; fit seed f here fits
 it at s + f (f = 0: its fits). Stored under ``"synthetic"`` of each variant and fit seed (the
-public results and their resume untouched; one already there is skipped); prints one table, a
-row a variant over its fit seeds, each target PASS or FAIL.
+public results and their resume untouched; one already there is skipped), a synthetic house's
+baselines and oracle, the same for every variant and seed, once under
+``"synthetic_baselines"``; prints one table, a row a variant over its fit seeds, each target
+PASS or FAIL.
 """
 
 from __future__ import annotations
@@ -57,7 +59,6 @@ from spcopyro.data import load_house
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES
 from spcopyro.results.refined import coarse_stage
-from spcopyro.synthetic import make_house
 
 BASE = "coarse"
 VARIANTS: dict[str, tuple[str, dict[str, object]]] = {
@@ -125,11 +126,18 @@ class PublicHouses:
         self._houses: dict[str, object] = {}
         self._truths: dict[str, np.ndarray] = {}  # name -> [H, W] region, -1 off the free cells
         self._nearest: float | None = None
+        self._simulations: dict[str, object] = {}
 
     def house(self, name: str):
         if name not in self._houses:
             self._houses[name] = load_house(self.root / name)
         return self._houses[name]
+
+    def simulation(self, name: str):
+        """``real_houses.map_simulation`` of the house's map (deterministic: built once)."""
+        if name not in self._simulations:
+            self._simulations[name] = rh.map_simulation(self.house(name))
+        return self._simulations[name]
 
     def truth(self, name: str) -> np.ndarray:
         if name not in self._truths:
@@ -198,42 +206,76 @@ def synthetic_keys(open_plan_seeds: int, synthetic_seeds: int, maps: list[str]) 
     """The houses of ``--synthetic`` in real_houses.py's order: ``"KIND seed S"`` of its
     synthetic kinds, then ``"simulated MAP"`` of each public map."""
     return [f"{kind} seed {s}" for kind in rh.SYNTHETIC
-            for s in range(open_plan_seeds if kind == "open-plan" else synthetic_seeds)] + [
+            for s in rh.synthetic_seeds(kind, open_plan_seeds, synthetic_seeds)] + [
         f"simulated {m}" for m in maps]  # fmt: skip
 
 
-def synthetic_scores(key: str, name: str, sweeps: int, seed: int) -> dict[str, dict]:
-    """The variant's fit (``real_houses.fit_preset``) on real_houses.py's synthetic house
-    ``key`` (``"KIND seed S"``) at fit seed S + ``seed``, scored against the house's own truth
-    (row ``"variant"``), beside the baselines and the oracle (``real_houses.baseline_scores``)."""
+def synthetic_house(key: str):
+    """real_houses.py's synthetic house ``key`` (``"KIND seed S"``)."""
     kind, house_seed = key.rsplit(" seed ", 1)
-    house = make_house(seed=int(house_seed), spec=rh.SYNTHETIC[kind]())
+    return rh.synthetic_house(kind, int(house_seed))
+
+
+def synthetic_scores(house, key: str, name: str, sweeps: int, seed: int) -> dict[str, dict]:
+    """The variant's fit (``real_houses.fit_preset``) on the synthetic house ``key`` (``"KIND
+    seed S"``; ``house``) at fit seed S + ``seed``, scored against the house's own truth (row
+    ``"variant"``; the baselines are the house's, :func:`house_baselines`)."""
     base, overrides = VARIANTS[name]
-    labels, seconds = rh.fit_preset(house, base, sweeps, int(house_seed) + seed, **overrides)
-    row = {**rh.scores(labels, house.truth, house.grid.free), "seconds": seconds}
-    return {"variant": row, **rh.baseline_scores(house, house.truth, oracle=True)}
+    house_seed = int(key.rsplit(" seed ", 1)[1])
+    labels, seconds = rh.fit_preset(house, base, sweeps, house_seed + seed, **overrides)
+    return {"variant": {**rh.scores(labels, house.truth, house.grid.free), "seconds": seconds}}
 
 
-def simulated_scores(house, name: str, sweeps: int, seed: int) -> dict[str, float]:
-    """``real_houses.simulated_on`` of the variant on the public house's map at one fit seed."""
+def house_baselines(baselines: dict[str, dict], key: str, house=None) -> dict[str, dict]:
+    """``baselines[key]``: ``real_houses.baseline_scores`` of the synthetic house ``key`` (the
+    baselines and the oracle draw nothing: the same for every variant and fit seed), computed
+    from ``house`` (built when not given) when missing."""
+    if key not in baselines:
+        house = synthetic_house(key) if house is None else house
+        baselines[key] = rh.baseline_scores(house, house.truth, oracle=True)
+    return baselines[key]
+
+
+def adopted_baselines(report: dict) -> dict[str, dict]:
+    """``report["synthetic_baselines"]`` (house key -> :func:`house_baselines`), made when
+    missing, with those a JSON of the earlier layout kept beside each variant's row of each
+    variant and seed (``"houses"`` of its ``"synthetic"``) taken into it; those rows are left
+    as they are."""
+    baselines = report.setdefault("synthetic_baselines", {})
+    for seeds in report["variants"].values():
+        for row in seeds.values():
+            for key, scored in row.get("synthetic", {}).get("houses", {}).items():
+                if rh.ORACLE in scored and key not in baselines:
+                    baselines[key] = {k: v for k, v in scored.items() if k != "variant"}
+    return baselines
+
+
+def simulated_scores(public: PublicHouses, m: str, name: str, sweeps: int, seed: int) -> dict:
+    """``real_houses.simulated_on`` of the variant on public map ``m``'s simulation (built once
+    a map: :meth:`PublicHouses.simulation`) at one fit seed."""
     base, overrides = VARIANTS[name]
-    return rh.simulated_on(house, sweeps, [seed], base, **overrides)[f"fit seed {seed}"]
+    simulation = public.simulation(m)
+    rows = rh.simulated_on(public.house(m), sweeps, [seed], base, simulation=simulation,
+                           **overrides)  # fmt: skip
+    return rows[f"fit seed {seed}"]
 
 
-def synthetic_summary(done: dict[str, dict]) -> dict[str, dict]:
+def synthetic_summary(done: dict[str, dict], baselines: dict[str, dict]) -> dict[str, dict]:
     """Per synthetic kind the variant's mean ARI over its houses and their count (open-plan:
-    with (F)'s, the better door width's, and the oracle's); ``"simulated"``: map -> ARI."""
+    with (F)'s, the better door width's, and the oracle's, from the houses' ``baselines``);
+    ``"simulated"``: map -> ARI."""
 
     def mean(rows: list[dict], row: str) -> float:
         return float(np.mean([r[row]["ari"] for r in rows]))
 
     out: dict[str, dict] = {}
     for kind in rh.SYNTHETIC:
-        rows = [row for key, row in done.items() if key.startswith(f"{kind} seed ")]
-        out[kind] = {"ari": mean(rows, "variant"), "houses": len(rows)}
-    rows = [row for key, row in done.items() if key.startswith("open-plan seed ")]
-    out["open-plan"] |= {"F": max(mean(rows, g) for g in GEOMETRY),
-                         "oracle": mean(rows, rh.ORACLE)}  # fmt: skip
+        keys = [key for key in done if key.startswith(f"{kind} seed ")]
+        out[kind] = {"ari": mean([done[key] for key in keys], "variant"), "houses": len(keys)}
+        if kind == "open-plan":
+            rows = [baselines[key] for key in keys]
+            out[kind] |= {"F": max(mean(rows, g) for g in GEOMETRY),
+                          "oracle": mean(rows, rh.ORACLE)}  # fmt: skip
     out["simulated"] = {key.removeprefix("simulated "): row["ari"]
                         for key, row in done.items() if key.startswith("simulated ")}  # fmt: skip
     return out
@@ -297,6 +339,7 @@ def run_synthetic(args: argparse.Namespace, report: dict, out: Path, public: Pub
     house; a variant and seed whose synthetic results are complete is skipped."""
     maps = list(PUBLIC_CATEGORIES)[: 1 if args.quick else None]
     keys = synthetic_keys(args.open_plan_seeds, args.synthetic_seeds, maps)
+    baselines = adopted_baselines(report)
     for name in args.variants:
         for seed in args.seeds:
             row = report["variants"].setdefault(name, {}).setdefault(f"seed {seed}", {})
@@ -309,17 +352,22 @@ def run_synthetic(args: argparse.Namespace, report: dict, out: Path, public: Pub
                     continue
                 start = time.perf_counter()
                 if key.startswith("simulated "):
-                    house = public.house(key.removeprefix("simulated "))
-                    done[key] = simulated_scores(house, name, args.sweeps, seed)
+                    m = key.removeprefix("simulated ")
+                    done[key] = simulated_scores(public, m, name, args.sweeps, seed)
                     ari = done[key]["ari"]
                 else:
-                    done[key] = synthetic_scores(key, name, args.sweeps, seed)
+                    house = synthetic_house(key)
+                    done[key] = synthetic_scores(house, key, name, args.sweeps, seed)
+                    house_baselines(baselines, key, house)
                     ari = done[key]["variant"]["ari"]
                 seconds = time.perf_counter() - start
                 print(f"{name} seed {seed} {key}: ARI {ari:.3f} ({seconds:.0f} s)",
                       file=sys.stderr, flush=True)  # fmt: skip
                 out.write_text(json.dumps(report, indent=1, default=float))
-            record["summary"] = synthetic_summary({key: done[key] for key in keys})
+            for key in keys:  # any missing (none but for a JSON cut short between them)
+                if not key.startswith("simulated "):
+                    house_baselines(baselines, key)
+            record["summary"] = synthetic_summary({key: done[key] for key in keys}, baselines)
             out.write_text(json.dumps(report, indent=1, default=float))
     print(f"# Variants of {BASE} on the houses not tuned on ({args.sweeps} sweeps)\n\n"
           f"{synthetic_markdown(report)}")  # fmt: skip

@@ -86,6 +86,17 @@ SYNTHETIC = {
 }
 
 
+def synthetic_seeds(kind: str, open_plan_seeds: int, seeds: int) -> range:
+    """The house seeds of synthetic ``kind`` (of :data:`SYNTHETIC`): 0..n-1, n
+    ``open_plan_seeds`` for the open-plan houses, ``seeds`` for the others."""
+    return range(open_plan_seeds if kind == "open-plan" else seeds)
+
+
+def synthetic_house(kind: str, seed: int):
+    """Synthetic house ``seed`` of ``kind`` (of :data:`SYNTHETIC`)."""
+    return make_house(seed=seed, spec=SYNTHETIC[kind]())
+
+
 ORACLE = "oracle: truth at the observations, Voronoi cut"
 """The synthetic houses' reference row (:func:`~spcopyro.experiments.open_plan.observation_oracle`):
 every observation's own region, each border half-way between the places' observations."""
@@ -356,15 +367,28 @@ def methods_on(house, truth: np.ndarray, iterations: int) -> dict[str, dict]:
     return out
 
 
+def map_simulation(house):
+    """``simulate --map`` on the house's map: its default (the door width read from the map;
+    simulation seed 0, so the same simulation every time)."""
+    return simulate_on_map(house.grid, seed=0, tour=MapTour(), name=house.name)
+
+
 def simulated_on(
-    house, sweeps: int, fit_seeds: list[int], name: str = DEFAULT_PRESET, **overrides: object
+    house,
+    sweeps: int,
+    fit_seeds: list[int],
+    name: str = DEFAULT_PRESET,
+    *,
+    simulation=None,
+    **overrides: object,
 ) -> dict[str, dict[str, float]]:
-    """``simulate --map`` on the house's map (its default: the door width read from the map;
-    simulation seed 0), then the default fit of preset ``name`` (with ``overrides``: a variant
-    of it; :func:`fit_preset`) with each of ``fit_seeds``, scored against the simulation's
-    truth; the simulated rooms are never handed to the fit. One row a fit seed
-    (``"fit seed S"``) and ``"mean"`` over them."""
-    simulation = simulate_on_map(house.grid, seed=0, tour=MapTour(), name=house.name)
+    """``simulate --map`` on the house's map (:func:`map_simulation`; ``simulation``: that one
+    built already), then the default fit of preset ``name`` (with ``overrides``: a variant of
+    it; :func:`fit_preset`) with each of ``fit_seeds``, scored against the simulation's truth;
+    the simulated rooms are never handed to the fit. One row a fit seed (``"fit seed S"``) and
+    ``"mean"`` over them."""
+    if simulation is None:
+        simulation = map_simulation(house)
     simulated = simulation.house
     rooms = int(simulation.room_category.size)
     rows: dict[str, dict[str, float]] = {}
@@ -562,10 +586,10 @@ def main(argv: list[str] | None = None) -> int:
         if not args.no_extras:
             text += extras(Path(root), args, report, houses)
     if not args.no_synthetic:
-        for kind, spec in SYNTHETIC.items():
+        for kind in SYNTHETIC:
             per_seed = {}
-            for seed in range(args.open_plan_seeds if kind == "open-plan" else args.seeds):
-                house = make_house(seed=seed, spec=spec())
+            for seed in synthetic_seeds(kind, args.open_plan_seeds, args.seeds):
+                house = synthetic_house(kind, seed)
                 per_seed[f"seed {seed}"] = score_house(
                     house, house.truth, args.sweeps, seed, oracle=True
                 )

@@ -1525,6 +1525,7 @@ def test_coarse_variants_synthetic_scores_the_houses_not_tuned_on(
         return (np.zeros_like(house.truth) if overrides else house.truth), 0.0
 
     monkeypatch.setattr(rh, "fit_preset", fit_preset)
+    built = _count_calls(monkeypatch, rh, "baseline_scores", "map_simulation")
     argv = ["--quick", "--synthetic", "--open-plan-seeds", "2", "--seeds", "1", "--out", str(out)]
     assert cv.main(argv) == 0
     kinds = [("synthetic", 1), ("synthetic", 2), ("synthetic", 1), ("synthetic", 1),
@@ -1533,8 +1534,15 @@ def test_coarse_variants_synthetic_scores_the_houses_not_tuned_on(
         (h, "coarse", 20, seed, {"footprint_radius": 0.5}) for h, seed in kinds
     ]
     results = json.loads(out.read_text())
+    houses = ["open-plan seed 0", "open-plan seed 1", "sparse seed 0", "dense seed 0"]
+    # the baselines and the simulation draw nothing: once a house and a map, not a variant
+    assert built == {"baseline_scores": houses, "map_simulation": ["room1dk5"]}
+    baselines = results.pop("synthetic_baselines")
+    assert list(baselines) == houses and rh.ORACLE in baselines["open-plan seed 0"]
     for name, seeds in results["variants"].items():
         record = seeds.pop("seed 1")["synthetic"]
+        assert all(list(row) == ["variant"] for k, row in record["houses"].items()
+                   if not k.startswith("simulated "))  # fmt: skip
         assert list(record["houses"]) == ["open-plan seed 0", "open-plan seed 1", "sparse seed 0",
                                           "dense seed 0", "simulated room1dk5"]  # fmt: skip
         summary = record["summary"]
@@ -1552,3 +1560,75 @@ def test_coarse_variants_synthetic_scores_the_houses_not_tuned_on(
     first = out.read_text()
     assert cv.main(argv) == 0  # finished: skipped
     assert calls == [] and out.read_text() == first and capsys.readouterr().out == printed
+    assert len(built["baseline_scores"]) == 4
+
+
+def _count_calls(monkeypatch, module, *names: str) -> dict[str, list]:
+    """Wraps ``module``'s functions ``names`` (a house first): name -> the key of each call's
+    house (its name, or ``"KIND seed S"`` of a synthetic house made by ``synthetic_house``)."""
+    seen: dict[str, list] = {name: [] for name in names}
+    keys: dict[int, str] = {}
+    synthetic_house = module.synthetic_house
+
+    def made(kind, seed):
+        house = synthetic_house(kind, seed)
+        keys[id(house)] = f"{kind} seed {seed}"
+        return house
+
+    monkeypatch.setattr(module, "synthetic_house", made)
+    for name in names:
+        wrapped = getattr(module, name)
+
+        def counted(house, *args, _name=name, _wrapped=wrapped, **kwargs):
+            seen[_name].append(keys.get(id(house), house.name))
+            return _wrapped(house, *args, **kwargs)
+
+        monkeypatch.setattr(module, name, counted)
+    return seen
+
+
+def test_coarse_variants_synthetic_reads_a_json_with_the_baselines_in_every_entry(
+    script, monkeypatch, dataset_root, tmp_path, capsys
+):
+    """A JSON written before the baselines had their own slot kept each synthetic house's
+    baselines and oracle beside the variant's row of every variant and seed: --synthetic takes
+    them from there (computing only a house's missing), resumes, and prints the same table as
+    from the new layout."""
+    import numpy as np
+
+    from spcopyro.data import load_house
+
+    cv, rh = script("coarse_variants"), script("real_houses")
+    _stub_coarse_variants(cv, monkeypatch, dataset_root)
+    monkeypatch.setattr(cv, "load_house", load_house)
+    monkeypatch.setattr(rh, "fit_preset", lambda house, name, sweeps, seed, **overrides: (
+        np.zeros_like(house.truth) if overrides else house.truth, 0.0))  # fmt: skip
+    new, old = tmp_path / "new.json", tmp_path / "old.json"
+    argv = ["--quick", "--synthetic", "--open-plan-seeds", "2", "--seeds", "1", "--out"]
+    assert cv.main([*argv, str(new)]) == 0
+    printed = capsys.readouterr().out.replace(str(new), "OUT")
+    report = json.loads(new.read_text())
+    baselines = report.pop("synthetic_baselines")
+    for seeds in report["variants"].values():  # the earlier layout
+        for key, row in seeds["seed 1"]["synthetic"]["houses"].items():
+            row |= baselines.get(key, {})
+    records = [seeds["seed 1"]["synthetic"] for seeds in report["variants"].values()]
+    del records[1]["summary"], records[1]["houses"]["sparse seed 0"]  # cut short: resumed
+    del records[0]["houses"]["open-plan seed 1"][rh.ORACLE]  # not its slot: read from the other
+    old.write_text(json.dumps(report, indent=1))
+    built = _count_calls(monkeypatch, rh, "baseline_scores", "map_simulation")
+    assert cv.main([*argv, str(old)]) == 0
+    assert capsys.readouterr().out.replace(str(old), "OUT") == printed
+    assert built == {"baseline_scores": [], "map_simulation": []}  # all were in the JSON
+    assert json.loads(old.read_text())["synthetic_baselines"] == baselines
+    report = json.loads(old.read_text())
+    del report["synthetic_baselines"]
+    for seeds in report["variants"].values():  # only the baselines: a house's slot computed
+        seeds["seed 1"]["synthetic"].pop("summary")
+        for row in seeds["seed 1"]["synthetic"]["houses"].values():
+            row.pop(rh.ORACLE, None)
+    old.write_text(json.dumps(report, indent=1))
+    assert cv.main([*argv, str(old)]) == 0
+    assert capsys.readouterr().out.replace(str(old), "OUT") == printed
+    assert sorted(built["baseline_scores"]) == sorted(baselines)
+    assert json.loads(old.read_text())["synthetic_baselines"] == baselines
