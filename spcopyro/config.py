@@ -100,12 +100,6 @@ def concentration_name(modality: str) -> str:
     return CONCENTRATION_FIELDS.get(modality, modality)
 
 
-def modality_of_concentration(name: str) -> str:
-    """The modality whose Dirichlet concentration is called ``name``: ``images`` for chi,
-    ``words`` for beta, else ``name`` itself (the inverse of :func:`concentration_name`)."""
-    return next((m for m, field in CONCENTRATION_FIELDS.items() if field == name), name)
-
-
 PRESETS: dict[str, dict[str, object]] = {
     "paper-dp": dict(
         prior="dp", alpha=1e8, beta=500.0, chi=1e4, gamma=4.0, num_concepts=120,

@@ -438,16 +438,15 @@ HYPER_ALL = HyperparameterOptions(alpha=True, concentrations=True, gamma="exchan
 
 def test_the_concentrations_names_and_fields_come_from_one_table():
     """chi for images and beta for words are named in config.CONCENTRATION_FIELDS alone:
-    SpCoConfig.concentration, with_concentration, config_at_posterior_mean (through
-    modality_of_concentration) and the saved sites' names (HYPERPARAMETER_FIELDS) read it; a
-    further modality's concentration is its own name, a key of ``concentrations``."""
+    SpCoConfig.concentration, with_concentration, config_at_posterior_mean and the saved sites'
+    names (HYPERPARAMETER_FIELDS) read it; a further modality's concentration is its own name, a
+    key of ``concentrations``."""
     from spcopyro.config import (
         CONCENTRATION_FIELDS,
         HYPERPARAMETER_FIELDS,
         IMAGES,
         WORDS,
         concentration_name,
-        modality_of_concentration,
     )
     from spcopyro.gibbs.hyperparameters import config_at_posterior_mean, with_concentration
 
@@ -455,7 +454,7 @@ def test_the_concentrations_names_and_fields_come_from_one_table():
     assert HYPERPARAMETER_FIELDS == ("alpha", "gamma", "chi", "beta")
     cfg = config(concentrations={"objects": 3.0})
     for modality, name in ((IMAGES, "chi"), (WORDS, "beta"), ("objects", "objects")):
-        assert concentration_name(modality) == name and modality_of_concentration(name) == modality
+        assert concentration_name(modality) == name
         changed = with_concentration(cfg, modality, 7.5)
         assert changed.concentration(modality) == 7.5 and cfg.concentration(modality) != 7.5
         summary = {name: {"posterior_mean": 7.5}}

@@ -77,7 +77,6 @@ from spcopyro.config import (
     HYPERPARAMETER_FIELDS,
     SpCoConfig,
     concentration_name,
-    modality_of_concentration,
 )
 from spcopyro.gibbs.backends import globals_sampler, label_sampler
 from spcopyro.gibbs.cluster import swendsen_wang_labels
@@ -482,10 +481,10 @@ def config_at_posterior_mean(
     the labels) are computed under when the chain sampled them. Unchanged when nothing was."""
     for name, values in (summary or {}).items():
         value = float(values["posterior_mean"])
-        if name in ("alpha", "gamma"):
+        if name in HYPERPARAMETER_FIELDS:  # alpha, gamma, chi, beta
             config = config.replace(**{name: value})
-        else:
-            config = with_concentration(config, modality_of_concentration(name), value)
+        else:  # a further modality's, named as the modality
+            config = with_concentration(config, name, value)
     return config
 
 
