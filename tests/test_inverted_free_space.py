@@ -204,9 +204,11 @@ def test_a_floor_plan_drawn_black_where_the_tour_went_is_not_blamed_on_negate(tm
     assert report.free_space_inverted() and report.num_on_free == 8
     # the warnings naming the lines the message points to: said before it
     with caplog.at_level(logging.WARNING, logger="spcopyro"), pytest.raises(ValueError) as error:
-        check_placement(report, obs, grid, f" on map {grid.source}")
+        check_placement(report, obs, grid)  # the map named by default, as a fit names it
     message = str(error.value)
-    assert message.startswith("16 of 24 observations are left out, 16 of them on occupied cells")
+    assert message.startswith(
+        f"16 of 24 observations are left out, 16 of them on occupied cells on map {grid.source}: "
+    ), message
     assert "negate" not in message
     said = [r.getMessage() for r in caplog.records]
     assert len(said) == 2 and said[0].startswith(

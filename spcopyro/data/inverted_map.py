@@ -22,7 +22,7 @@ import os
 
 from spcopyro.data.counts import say_placement_warnings
 from spcopyro.data.observations import Observations
-from spcopyro.data.placement import PlacementReport, left_out_and_placed
+from spcopyro.data.placement import PlacementReport, left_out_and_placed, on_map_text
 from spcopyro.maps.grid import OccupancyGrid
 
 __all__ = ["check_placement", "inverted_free_space_message"]
@@ -66,7 +66,7 @@ def check_placement(
     report: PlacementReport,
     obs: Observations,
     grid: OccupancyGrid,
-    where: str = "",
+    where: str | None = None,
     source: str | os.PathLike[str] | None = None,
 ) -> None:
     """Raise ValueError when no observation lands on free space
@@ -77,7 +77,11 @@ def check_placement(
     (:func:`~spcopyro.data.counts.say_placement_warnings` of ``report``, ``grid``, ``obs`` and
     the house folder ``source``: count with ``warn=False``) are said once: before the refusal
     on a map that may be right, which points to the lines the warnings name, or when the
-    placement passes; not before the others, which blame the map."""
+    placement passes; not before the others, which blame the map. ``where`` names the map in the
+    messages: ``" on map PATH"`` of ``grid``'s source (:func:`~spcopyro.data.placement.on_map_text`)
+    unless given."""
+    if where is None:
+        where = on_map_text(grid)
     report.check_on_free(where)  # none on free space: said without weighing the map's negate
     if report.free_space_inverted():
         hint = _negate_hint(report, obs, grid)

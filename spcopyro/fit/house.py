@@ -40,7 +40,6 @@ from spcopyro.config import DEFAULT_PRESET, WORDS, SpCoSettings, preset
 from spcopyro.data import CellCounts, House, prepared_cell_counts
 from spcopyro.data.inverted_map import check_placement
 from spcopyro.data.model_grid import model_house
-from spcopyro.data.placement import on_map_text
 from spcopyro.data.word_weighting import resolved_preparation, resolved_settings
 from spcopyro.fit import gibbs_chains  # with_sample_marginals through it: a test's patch reaches
 from spcopyro.fit.gibbs_chains import FitCheckpoint, FitInterrupted, gibbs_outputs, marginal_thin
@@ -202,7 +201,7 @@ def prepare_model_data(
                                   source=house.source, warn=False)  # fmt: skip
     # warnings said once the placement passes, or before the refusal pointing to their lines; a
     # refusal that blames the map comes alone
-    check_placement(counts.placement, house.observations, grid, on_map_text(grid), house.source)
+    check_placement(counts.placement, house.observations, grid, source=house.source)
     coverage = coverage_warning(house)
     if coverage:
         logger.warning(coverage)
