@@ -33,6 +33,7 @@ from spcopyro.results.concept_words import (
     distinctive_items,
     format_concept_words,
     lift,
+    shown_top_words,
     shown_words,
 )
 from spcopyro.results.posterior_means import concept_totals, posterior_means
@@ -392,6 +393,9 @@ def test_a_word_never_heard_in_a_concept_is_not_listed_among_its_words(tmp_path,
     colours = np.zeros((3, 3), dtype=np.uint8)
     labels = [h.get_label() for h in concept_handles(result, colours)]
     assert labels[0].startswith("[0] 150 cells, 9 words heard: bathroom 0.64, bathtub 0.33\n")
+    # the one filter all four print through: a concept of the result, its own row beside it
+    assert [w for w, _ in shown_top_words(result, 0, 3)] == ["bathroom", "bathtub"]
+    assert shown_top_words(result, 1, 3) == shown_words(result.top_words(1, 3), result.w[1])
     # a draw's row (no two words equal) keeps a word at 0.01: nothing says it went unheard
     drawn = np.array([0.64, 0.33, 0.011, 0.01, 0.009])
     top = list(zip("abc", drawn[:3], strict=True))

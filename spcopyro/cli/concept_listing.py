@@ -13,6 +13,7 @@ from spcopyro.results.concept_words import (
     format_concept_words,
     format_words_heard,
     is_speck,
+    shown_top_words,
     speck_summary,
 )
 from spcopyro.results.specks import support_text
@@ -48,10 +49,9 @@ def print_concepts(
     for concept in listed[:limit]:
         heard = concept["words_heard"]
         words = format_concept_words(
-            [(w, p) for w, p in concept["top_words"]],
+            shown_top_words(result, int(concept["concept"]), len(concept["top_words"]) or 1),
             [(w, r, p) for w, r, p in concept["distinctive_words"]],
             heard,
-            result.w[int(concept["concept"])],
         )
         for name in further:
             top = concept[f"top_{name}"][:2]

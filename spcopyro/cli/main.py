@@ -258,7 +258,7 @@ def _check_where_out(result_dir: str, out: str) -> None:
 
 
 def _where(args: argparse.Namespace) -> int:
-    from spcopyro.results.concept_words import shown_words
+    from spcopyro.results.concept_words import shown_top_words
     from spcopyro.results.result import UnknownWordError
     from spcopyro.results.where import region_piece_sizes, runner_up_line, shared_answer_note
 
@@ -276,7 +276,7 @@ def _where(args: argparse.Namespace) -> int:
     grid = result.grid
     cells = np.argwhere(answer.region)  # [n, 2] (row, col)
     xy = grid.cell_to_world(cells)
-    top = shown_words(result.top_words(answer.concept, 3), result.w[answer.concept])
+    top = shown_top_words(result, answer.concept, 3)
     words = ", ".join(f"{w} ({p:.2f})" for w, p in top)
     distinctive = result.distinctive_words(answer.concept, 3)
     if result.heard(answer.concept) == 0:

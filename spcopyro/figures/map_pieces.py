@@ -37,7 +37,7 @@ from spcopyro.results.concept_words import (
     cells_range,
     format_words_heard,
     is_speck,
-    shown_words,
+    shown_top_words,
     speck_summary,
 )
 from spcopyro.results.result import SpCoResult
@@ -129,7 +129,7 @@ def region_text(
         return f"[{concept}]\n{NO_WORDS}"
     lifts = result.lift()[concept]  # [V]
     index = {w: k for k, w in enumerate(result.vocabulary)}
-    words = shown_words(result.top_words(concept, n_words), result.w[concept])
+    words = shown_top_words(result, concept, n_words)
     return "\n".join([f"[{concept}]"] + [_word_line(w, p, lifts[index[w]]) for w, p in words])
 
 
@@ -210,7 +210,7 @@ def concept_handles(
         if heard == 0:
             words = NO_WORDS
         else:
-            top = shown_words(result.top_words(c, n_words), result.w[c])  # as fit prints
+            top = shown_top_words(result, c, n_words)  # as fit prints
             words = ", ".join(f"{w} {p:.2f}" for w, p in top)
             distinctive = result.distinctive_words(c, n_words)
             if distinctive:

@@ -60,7 +60,7 @@ from spcopyro.maps import (
     render_labels,
 )
 from spcopyro.results.concept_names import concept_names
-from spcopyro.results.concept_words import ESTIMATED_WORDS, NO_WORDS, shown_words
+from spcopyro.results.concept_words import ESTIMATED_WORDS, NO_WORDS, shown_top_words
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.specks import in_use_text
 from spcopyro.results.uncertainty import (
@@ -350,7 +350,7 @@ def where_figure(
     if result.heard(answer.concept) == 0:
         words = NO_WORDS
     else:
-        top = shown_words(result.top_words(answer.concept, 3), result.w[answer.concept])
+        top = shown_top_words(result, answer.concept, 3)
         words = ", ".join(f"{w} {p:.2f}" for w, p in top)
     kind = marginals_source(result)  # as where's line and the probability figure name it
     kind = kind if result.marginals is None else f"per-cell probability: {kind}"

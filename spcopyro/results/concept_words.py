@@ -46,6 +46,7 @@ __all__ = [
     "prior_share",
     "ranked",
     "shown_words",
+    "shown_top_words",
 ]
 
 NO_WORDS = "no words heard here"
@@ -139,6 +140,13 @@ def shown_words(
     ] or list(top[:1])
 
 
+def shown_top_words(result, concept: int, n: int) -> list[tuple[str, float]]:
+    """:func:`shown_words` of concept ``concept``'s ``n`` most probable words of ``result`` (an
+    :class:`~spcopyro.results.result.SpCoResult`), given its row ``result.w[concept]`` ``[V]``:
+    the words fit's listing, the map's legend and labels and ``where`` print."""
+    return shown_words(result.top_words(concept, n), result.w[concept])
+
+
 def prior_share(row: np.ndarray) -> float | None:
     """The probability of a word never heard in a concept whose distribution is ``row`` ``[V]``
     (rounded to :data:`RANK_DECIMALS`), or None when no word need be. The words' counts are not
@@ -160,15 +168,14 @@ def format_concept_words(
     top: Sequence[tuple[str, float]],
     distinctive: Sequence[tuple[str, float, float]],
     heard: float | None,
-    row: np.ndarray | None = None,
 ) -> str:
     """One line for a concept: ``NO_WORDS`` when ``heard`` is 0, else its top words with their
     probabilities and its distinctive words (if any) with their lifts, e.g.
     ``"kitchen 0.31, the 0.12 | distinctive: kitchen x4.2, fridge x3.1"``. The top words are
-    :func:`shown_words` (``row``: the concept's ``[V]`` distribution, for its unheard words)."""
+    :func:`shown_words` (given :func:`shown_top_words`, those of a concept's row)."""
     if heard is not None and heard <= 0:
         return f"({NO_WORDS})"
-    text = ", ".join(f"{w} {p:.2f}" for w, p in shown_words(top, row))
+    text = ", ".join(f"{w} {p:.2f}" for w, p in shown_words(top))
     if distinctive:
         text += " | distinctive: " + ", ".join(f"{w} x{r:.1f}" for w, r, _ in distinctive)
     return text
