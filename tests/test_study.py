@@ -999,7 +999,7 @@ def test_two_variants_of_one_method_get_names_of_their_own_in_both_figures(tmp_p
 
     from spcopyro.maps import OccupancyGrid
     from spcopyro.study.figures import quality_time_figure
-    from spcopyro.study.maps import label_map_arrays, row_names, source_panels
+    from spcopyro.study.maps import label_map_arrays, row_label, row_names, source_panels
 
     study = study_from_dict({
         "study": {"name": "twin", "sweeps": 5},
@@ -1018,6 +1018,8 @@ def test_two_variants_of_one_method_get_names_of_their_own_in_both_figures(tmp_p
         row.update(status="ok", seconds=1.0 + k, ari=0.5, label_map="maps/a.npz")
     names = ["gibbs", "gibbs (gamma=3.0)", "lbp"]
     assert list(row_names(rows).values()) == names
+    label = row_label(rows)  # the one naming of the maps' panels, given or not
+    assert [label(row) for row in rows] == names
     (legend,) = quality_time_figure(rows).legends
     assert [t.get_text() for t in legend.get_texts()] == names
     _, panels, _ = source_panels(rows, tmp_path, "small")

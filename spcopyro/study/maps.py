@@ -14,7 +14,7 @@ like :mod:`spcopyro.figures.plotting`.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -206,13 +206,19 @@ def row_names(rows: Sequence[dict[str, object]]) -> dict[tuple[str, str], str]:
     return names
 
 
+def row_label(rows: Sequence[dict[str, object]]) -> Callable[[dict[str, object]], str]:
+    """A row of ``rows`` -> its name among them (:func:`row_names`, made once for them all)."""
+    names = row_names(rows)
+    return lambda row: names[str(row["variant"]), str(row["method"])]
+
+
 def source_panels(
     rows: Sequence[dict[str, object]], folder: str | os.PathLike[str], data: str,
     seed: int | None = None, label=None,
 ) -> tuple[OccupancyGrid, list[tuple[str, np.ndarray]], int] | None:  # fmt: skip
     """The panels of source ``data`` at ``seed`` (None: its first seed with a stored map):
     the truth when known (a public house's named "region truth (this project's)"), then each
-    row's map in the table's order, named by ``label(row)`` (default :func:`row_names` of
+    row's map in the table's order, named by ``label(row)`` (default :func:`row_label` of
     ``rows``); None when no map is stored."""
     loaded = [(r, load_label_map(folder, r)) for r in rows if r["data"] == data]
     mine = [(r, stored) for r, stored in loaded if stored is not None]  # each file read once
@@ -230,8 +236,7 @@ def source_panels(
     truth_name = REGION_TRUTH_PANEL if public else TRUTH_PANEL
     panels = [] if truth is None else [(truth_name, truth)]
     if label is None:  # the whole table's names: the legend of quality_time.png's
-        named = row_names(rows)
-        label = lambda row: named[str(row["variant"]), str(row["method"])]  # noqa: E731
+        label = row_label(rows)
     panels += [(label(row), stored.labels) for row, stored in maps]
     return grid, panels, seed
 
@@ -263,8 +268,7 @@ def write_house_maps(
     earlier ``maps_*.png`` of a source without one now is deleted (:func:`remove_stale`)."""
     folder = Path(folder)
     paths = []
-    names = row_names(rows)  # once for the table, not once per source
-    label = lambda row: names[str(row["variant"]), str(row["method"])]  # noqa: E731
+    label = row_label(rows)  # once for the table, not once per source
     for data in dict.fromkeys(str(r["data"]) for r in rows):
         found = source_panels(rows, folder, data, label=label)
         if found is None:
