@@ -325,16 +325,19 @@ def where_figure(
         for ax in axes:
             ax.scatter(*xy.T, s=300, facecolors="none", edgecolors=np.array(ANSWER_RGB) / 255.0,
                        linewidths=1.5, zorder=3)  # fmt: skip
+
+    def size(n: int) -> str:  # the answer's and the runner-up's: cells and their area
+        return f"({plural(n, 'cell')}, {n * area:.2f} m²)"
+
     answer_handle.set_label(
         f"answer: concept {answer.concept}, p(concept | word) = {answer.probability:.3f} "
-        f"({plural(cells, 'cell')}, {cells * area:.2f} m²)"
+        f"{size(cells)}"
     )
     handles.append(answer_handle)
     if runner is not None:
         runner_handle.set_label(
             f"runner-up: concept {answer.runner_up}, "
-            f"p(concept | word) = {answer.runner_up_probability:.3f} "
-            f"({plural(int(runner.sum()), 'cell')}, {int(runner.sum()) * area:.2f} m²)"
+            f"p(concept | word) = {answer.runner_up_probability:.3f} {size(int(runner.sum()))}"
         )
         handles.append(runner_handle)
     handles += [

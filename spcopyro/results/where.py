@@ -375,15 +375,13 @@ def region_piece_sizes(region: np.ndarray, connectivity: int = 4) -> list[int]:
     return sorted(np.bincount(labelled.ravel())[1:].tolist(), reverse=True)  # [pieces]
 
 
-def runner_up_line(answer: WhereAnswer) -> str | None:
-    """``where``'s line after the answer: the runner-up, and the word's Bayes factor for the
-    answer's concept with what it means (None without a runner-up). The factor,
-    :func:`bayes_factor` of p(concept | word) and p(concept), is also p(word | concept) over
-    p(word | not the concept), the other concepts mixed by their prior weights: 60.56 says the
-    word is 60.56 times as likely in the concept as in the others (under the area prior: as on
-    the rest of the map)."""
-    if answer.runner_up is None:
-        return None
+def runner_up_line(answer: WhereAnswer) -> str:
+    """``where``'s line after an answer with a runner-up (its caller checks that there is one):
+    the runner-up, and the word's Bayes factor for the answer's concept with what it means. The
+    factor, :func:`bayes_factor` of p(concept | word) and p(concept), is also p(word | concept)
+    over p(word | not the concept), the other concepts mixed by their prior weights: 60.56 says
+    the word is 60.56 times as likely in the concept as in the others (under the area prior: as
+    on the rest of the map)."""
     return (f"runner-up: concept {answer.runner_up} (p(concept | word) = "
             f"{answer.runner_up_probability:.3f}); Bayes factor of the word for concept "
             f"{answer.concept}: {answer.evidence:.2f} (how many times as likely the word is in "
