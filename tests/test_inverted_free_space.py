@@ -16,7 +16,7 @@ import pytest
 
 from spcopyro.cli.main import main
 from spcopyro.config import SpCoSettings
-from spcopyro.data import Observations, cell_counts, load_house, save_house
+from spcopyro.data import House, Observations, cell_counts, load_house, save_house
 from spcopyro.data.inverted_map import check_placement
 from spcopyro.fit import house as house_module
 from spcopyro.fit.house import prepare_model_data
@@ -73,8 +73,8 @@ def test_fit_refuses_a_negated_map_without_the_placement_warnings_before(tmp_pat
     """`spcopyro fit` on a house whose map says negate: 1 (its walls read free) printed two long
     warnings -- the observations left out with their lines, then most of them off free space
     with the refusal's own counts -- before the refusal. The refusal comes alone now, naming the
-    yaml, its negate line and value (images on the walls: the inverted map's refusal) or the
-    map and its negate flag (none on free space: check_on_free's)."""
+    yaml, its negate line and value (images on the walls: the inverted map's refusal; none on
+    free space: check_on_free's)."""
     yaml_path = _negated(tmp_path, walls=walls)
     line = next(i for i, t in enumerate(yaml_path.read_text().splitlines(), 1) if "negate" in t)
     argv = ["fit", str(tmp_path / "flat"), "--out", str(tmp_path / "fit"), "--sweeps", "2"]
@@ -88,7 +88,8 @@ def test_fit_refuses_a_negated_map_without_the_placement_warnings_before(tmp_pat
         assert f"{yaml_path}:{line}: negate 1 on a map whose free space is drawn white" in refusal
     else:
         assert refusal.startswith("error: no observation lands on free space: ")
-        assert f"on map {yaml_path} " in refusal and "its negate flag inverts" in refusal
+        assert f"on map {yaml_path} " in refusal
+        assert f"{yaml_path}:{line}: negate 1 on a map whose free space is drawn white" in refusal
 
 
 def test_the_placement_warnings_of_a_fit_that_goes_on_are_said(tmp_path, caplog):
@@ -323,3 +324,42 @@ def test_a_house_s_truth_does_not_hide_the_map_s_own_refusal(tmp_path, capsys, e
     refusal = capsys.readouterr().err.splitlines()[-1]
     assert refusal.startswith(f"error: house 'flat': {cause.format(yaml=yaml_path)}"), refusal
     assert "carry a category" not in refusal
+
+
+def _plan_house(tmp_path: Path, xy: np.ndarray, negate: int) -> Path:
+    """A 5 m plan drawn with free space white inside 0.5 m thick black walls (the room x and y
+    0.5..4.5 m), its yaml saying ``negate``, as house ``plan``'s map (ROOT/map/plan.yaml), with
+    one image and one utterance at each point ``[n, 2]``: its room folder."""
+    image = np.zeros((100, 100), dtype=np.uint8)  # [H, W] the walls
+    image[10:90, 10:90] = 254
+    grid = load_map(_plan(tmp_path, image))  # negate 0: the room reads free
+    save_house(House("plan", grid, _observations(xy)), tmp_path)
+    _plan(tmp_path / "map", image, negate)  # the yaml and image save_house wrote, replaced
+    return tmp_path / "plan"
+
+
+@pytest.mark.parametrize(
+    ("xy", "cause"),
+    [  # in the room: the other negate places them; off the map: it would not
+        ([[1.0 + 0.3 * i, 2.5] for i in range(10)], "the map's free space reads as occupied: "
+         "{yaml}:4: negate 1 on a map whose free space is drawn white (map_saver's maps need "
+         "negate: 0): with negate 0, 6400 cells would be free, not 3600, and 20 of the 20 "
+         "observations left out would lie on them"),
+        ([[20.0 + 0.3 * i, 2.5] for i in range(10)], "the map or its origin is wrong, or its "
+         "negate flag inverts free space (check {yaml}:4: negate 1)"),
+    ],
+)  # fmt: skip
+def test_no_observation_on_free_space_names_the_yaml_s_negate_line(tmp_path, capsys, xy, cause):
+    """negate: 1 on a map drawn with free space white, the whole tour off free space: the
+    refusal "no observation lands on free space" said only "its negate flag inverts free space
+    (check the map yaml)", where the inverted map's refusal names the yaml's negate line and
+    value. It names them too now: as the cause where the other negate would place the tour
+    (:func:`~spcopyro.maps.free_space.negate_hint`, the inverted map's evidence), else as what
+    to check."""
+    room = _plan_house(tmp_path, np.array(xy), negate=1)
+    argv = ["fit", str(room), "--out", str(tmp_path / "fit"), "--sweeps", "2", "--no-figures"]
+    assert main(argv) == 2
+    refusal = capsys.readouterr().err.splitlines()[-1]
+    yaml_path = tmp_path / "map" / "plan.yaml"
+    assert refusal.startswith("error: no observation lands on free space: 20 of 20 "), refusal
+    assert refusal.endswith(f"; {cause.format(yaml=yaml_path)}"), refusal

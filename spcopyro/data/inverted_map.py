@@ -82,7 +82,10 @@ def check_placement(
     unless given."""
     if where is None:
         where = on_map_text(grid)
-    report.check_on_free(where)  # none on free space: said without weighing the map's negate
+    if report.num_observations and not report.num_on_free:  # the yaml's negate line named
+        from spcopyro.maps.free_space import negate_line
+
+        report.check_on_free(where, _negate_hint(report, obs, grid), negate_line(grid))
     if report.free_space_inverted():
         hint = _negate_hint(report, obs, grid)
         if not hint:

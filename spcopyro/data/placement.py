@@ -372,19 +372,29 @@ class PlacementReport:
         left_out = self.num_unplaced
         return 2 * left_out > self.num_observations and 2 * self.unplaced_on_occupied > left_out
 
-    def check_on_free(self, where: str = "") -> None:
+    def check_on_free(self, where: str = "", negate_hint: str = "", negate_line: str = "") -> None:
         """Raise ValueError when observations exist but none landed on a free cell itself (the
         map or its origin is wrong, or ``negate`` inverts free space): a fit would learn every
-        concept from the prior alone. ``where`` names the map (``" on map PATH"``).
+        concept from the prior alone. ``where`` names the map (``" on map PATH"``);
+        ``negate_hint`` (:func:`~spcopyro.maps.free_space.negate_hint`: the other ``negate``
+        would place them) blames the yaml's ``negate`` line, else ``negate_line``
+        (:func:`~spcopyro.maps.free_space.negate_line`, ``"MAP.yaml:4: negate 1"``) is what to
+        check in place of "the map yaml";
+        :func:`~spcopyro.data.inverted_map.check_placement` gives both.
 
         A map whose free space reads as occupied while some observations are on it
         (:meth:`free_space_inverted`) is refused by
         :func:`~spcopyro.data.inverted_map.check_placement`, which says why from the
         observations' positions and the map's yaml, and calls this first."""
         if self.num_observations and not self.num_on_free:
+            cause = (
+                f"the map's free space reads as occupied: {negate_hint}"
+                if negate_hint
+                else "the map or its origin is wrong, or its negate flag inverts free space "
+                f"(check {negate_line or 'the map yaml'})"
+            )
             raise ValueError(
-                f"no observation lands on free space: {self._off_free(where)}; the map or its "
-                "origin is wrong, or its negate flag inverts free space (check the map yaml)"
+                f"no observation lands on free space: {self._off_free(where)}; {cause}"
             )
 
     def summary(self) -> str:

@@ -29,7 +29,8 @@ Not re-exported (import them from their module, ``from spcopyro.maps.grid import
   ``model_cell_of``, ``refine_labels``.
 * :mod:`~spcopyro.maps.filter_mask`: ``MASK_FREE_THRESH``, ``MASK_OCCUPIED_THRESH``,
   ``mask_pixels``.
-* :mod:`~spcopyro.maps.free_space`: ``negate_hint``, ``truth_negate_hint``.
+* :mod:`~spcopyro.maps.free_space`: ``negate_hint``, ``negate_line``,
+  ``truth_negate_hint``.
 * :mod:`~spcopyro.maps.grid`: ``MAP_TOLERANCE_CELLS``, ``cells_on_map``, ``describe_map``,
   ``frame_differences``, ``same_frame``, ``same_free_cells``, ``same_origin``,
   ``same_resolution``.

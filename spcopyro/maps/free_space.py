@@ -21,7 +21,13 @@ from spcopyro.maps.map_image import _read_levels
 from spcopyro.maps.map_server import PGM_UNKNOWN, _occupancy
 from spcopyro.maps.map_yaml import MapFormatError, _MapYaml, _read_map_yaml
 
-__all__ = ["check_free_cells", "negate_hint", "no_free_cell_reason", "truth_negate_hint"]
+__all__ = [
+    "check_free_cells",
+    "negate_hint",
+    "negate_line",
+    "no_free_cell_reason",
+    "truth_negate_hint",
+]
 
 _GENERIC = "check the map image and its yaml's negate flag and free/occupied thresholds"
 
@@ -45,6 +51,18 @@ def _map_levels(grid: OccupancyGrid) -> tuple[_MapYaml, np.ndarray, float] | Non
 def _free_under_other_negate(spec: _MapYaml, levels: np.ndarray, full: float) -> np.ndarray:
     """``[H, W]`` bool: the image's cells the other ``negate`` reads free (``p < free_thresh``)."""
     return _occupancy(levels, full, not spec.negate)[1] < spec.free_thresh
+
+
+def _negate_line(spec: _MapYaml) -> str:
+    """``"MAP.yaml:4: negate 1"``: the yaml's ``negate`` line and value as written."""
+    return f"{spec.where('negate')}: negate {spec.shown_negate()}"
+
+
+def negate_line(grid: OccupancyGrid) -> str:
+    """``"MAP.yaml:4: negate 1"`` where ``grid`` (or the map it was coarsened from) was read
+    from a yaml whose ``negate`` inverts the image (true); "" otherwise."""
+    read = _map_levels(grid)
+    return _negate_line(read[0]) if read is not None and read[0].negate else ""
 
 
 def negate_hint(
@@ -92,7 +110,7 @@ def negate_hint(
     drawn, need = ("white", "map_saver's maps need negate: 0") if spec.negate else (
         "black", "such a map needs negate: 1")  # fmt: skip
     return (
-        f"{spec.where('negate')}: negate {spec.shown_negate()} on a map whose free space is "
+        f"{_negate_line(spec)} on a map whose free space is "
         f"drawn {drawn} ({need}): with negate {int(not spec.negate)}, {flipped} cells would be "
         f"free, not {now}{lands}"
     )
@@ -134,7 +152,7 @@ def no_free_cell_reason(grid: OccupancyGrid) -> str:
     low, high = float(grey.min()), float(grey.max())
     formula = f"grey / {full:g}" if spec.negate else f"({full:g} - grey) / {full:g}"
     reason = (
-        f"{spec.where('negate')}: negate {spec.shown_negate()}; "
+        f"{_negate_line(spec)}; "
         f"{spec.where('free_thresh')}: free_thresh {echo(spec.free_thresh)}; "
         f"{spec.where('occupied_thresh')}: occupied_thresh {echo(spec.occupied_thresh)}; "
         f"the image {str(spec.image)!r} has greys {low:g}..{high:g} of {full:g}, so "
