@@ -1,7 +1,7 @@
 #!/usr/bin/env python
 r"""The compiled sweep's background table through the footprint's factored counts (issue 25).
 
-Under the default preset (``coarse``: a 1 m footprint on 0.25 m cells) a few dozen observation
+Under the default preset (``coarse``: a 0.75 m footprint on 0.25 m cells) a few dozen observation
 spots reach hundreds of cells, and the per-sweep product loglik = x log(phi)^T [M, L] was the
 largest piece of a sweep's arithmetic. :mod:`spcopyro.gibbs.numba_background` builds it as
 ``A (X log(phi)^T)`` from the footprints' factored counts

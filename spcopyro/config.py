@@ -26,7 +26,7 @@ Presets (:func:`preset`) give both layers at once, as :class:`SpCoSettings`:
     the open-plan houses together (issue 21; docs/real_houses.md, ``benchmarks/real_houses.py``):
     ``auto``'s model on a model grid of 0.25 m cells (``cell_size``: the Potts border cost per
     metre and the label-count prior no longer grow with the map's resolution), each utterance
-    counted 10 times (``word_scaling``) and spread over a 1 m footprint, image histograms as
+    counted 10 times (``word_scaling``) and spread over a 0.75 m footprint, image histograms as
     probabilities (one observation each, not 100 draws), and ``auto``'s inference settings
     plus region relabel moves in a fifth of the sweeps (:mod:`spcopyro.gibbs.region_move`: a
     room carried by two concepts merges; docs/real_houses.md, "Region relabel moves"). Its
@@ -119,7 +119,7 @@ PRESETS: dict[str, dict[str, object]] = {
     ),
     "coarse": dict(
         prior="dp", alpha=1e7, beta=0.1, chi=1.0, gamma=3.0, num_concepts=120,
-        feature_scaling="probability", cell_size=0.25, word_scaling=10.0, footprint_radius=1.0,
+        feature_scaling="probability", cell_size=0.25, word_scaling=10.0, footprint_radius=0.75,
     ),
 }  # fmt: skip
 DEFAULT_PRESET = "coarse"

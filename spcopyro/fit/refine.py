@@ -2,7 +2,7 @@ r"""Refining a coarse fit on the map's own cells where the images tell the place
 (issue 21; the numbers in docs/real_houses.md, "Refinement on the map's cells").
 
 The default preset ``coarse`` fits on 0.25 m model cells, counts an image histogram as one
-observation and spreads each utterance over a 1 m footprint: right for houses whose images
+observation and spreads each utterance over a 0.75 m footprint: right for houses whose images
 follow the camera's view rather than the place (the public houses), and the reason its borders
 blur by up to a footprint's radius where the images would have placed them (the dense synthetic
 houses, rooms meeting in wide openings). Whether the images tell places apart needs the places;
