@@ -235,9 +235,10 @@ def test_a_refined_fit_reports_each_stages_pace(small_house, tmp_path, capsys, m
 
 
 def test_the_observed_cells_printed_are_those_concepts_json_counts(small_house, tmp_path, capsys):
-    """With the default's 1 m footprint, fit printed the cells where observations were placed
-    while concepts.json's observed_cells counted the cells the footprints reach (many more):
-    both are printed now, and the second adds up to concepts.json's."""
+    """With the default's footprint (1 m then, 0.75 m since 2026-12-06), fit printed the cells
+    where observations were placed while concepts.json's observed_cells counted the cells the
+    footprints reach (many more): both are printed now, and the second adds up to
+    concepts.json's."""
     import json
 
     out = tmp_path / "fit"
@@ -246,7 +247,7 @@ def test_the_observed_cells_printed_are_those_concepts_json_counts(small_house, 
     assert main(argv) == 0
     line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("observed cells"))
     match = re.fullmatch(
-        r"observed cells +(\d+) \(where observations were placed\); (\d+) within their 1 m "
+        r"observed cells +(\d+) \(where observations were placed\); (\d+) within their 0\.75 m "
         r"footprints",
         line,
     )

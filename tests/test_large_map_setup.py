@@ -35,7 +35,7 @@ def spreads(monkeypatch: pytest.MonkeyPatch) -> list[int]:
 def test_fit_spreads_the_footprints_once(
     tmp_path, spreads: list[int], capsys, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """``spcopyro fit``'s summary line "observed cells ... within their 1 m footprints" and its
+    """``spcopyro fit``'s summary line "observed cells ... within their 0.75 m footprints" and its
     model data read the same spread counts: computed once (twice before, 24 s each at 10^6
     cells), and the summary's number is still the fit's observed cells. Once fitted, the spread
     counts are not kept while the outputs are written."""
@@ -61,7 +61,7 @@ def test_fit_spreads_the_footprints_once(
     data = preset().data
     model = model_house(make_house(seed=0, spec=HouseSpec.embedded()), data.cell_size)
     fresh = prepared_cell_counts(model.grid, model.observations, data, warn=False)
-    assert f"; {len(fresh.cells)} within their 1 m footprints" in line
+    assert f"; {len(fresh.cells)} within their 0.75 m footprints" in line
 
 
 def test_shared_footprints_reuses_only_the_same_inputs(spreads: list[int]) -> None:
@@ -102,7 +102,7 @@ def test_large_map_shows_a_footprint_bar(monkeypatch: pytest.MonkeyPatch, capsys
     obs = house.observations
     sources = sum(len(np.unique(c)) for c in (
         _cells(house, obs.image_xy, data), _cells(house, obs.word_xy, data)))  # fmt: skip
-    assert f"1 m footprints on {house.grid.num_free:,} free cells" in err
+    assert f"0.75 m footprints on {house.grid.num_free:,} free cells" in err
     assert f"{sources}/{sources}" in err
     assert f"summing the counts on the {len(counts.cells):,} cells they reach" in err
 

@@ -264,7 +264,7 @@ def test_public_truth_has_a_category_per_place_word_and_labels_every_reached_cel
 
 
 def test_gibbs_conditionals_on_the_model_grid_equal_the_pyro_models_density_differences():
-    """The default's model (0.3 m model cells on the 0.1 m house, words x10 over a 1 m
+    """The default's model (0.3 m model cells on the 0.1 m house, words x10 over a 0.75 m
     footprint, images as probabilities) is the Pyro model on the coarse grid's counts: the
     sampler's enumerated conditionals (eq. 13) equal the model's log-density differences."""
     import torch
