@@ -499,22 +499,32 @@ def test_a_large_refinement_is_announced(home, tmp_path, capsys, monkeypatch):
 
 def test_the_refining_line_says_why_alpha_changed(home, tmp_path, capsys):
     """``refining ... alpha 1.22e+09`` after the model's ``alpha 1e7`` said nothing of the
-    change: the line names the rule (refined_settings: the first stage's alpha times the square
-    of the free cells' ratio, map over model grid) with the counts it used."""
+    change: the line gives the sum (refined_settings: the first stage's alpha times the square
+    of the free cells' ratio, map over model grid) with the counts it used, short, and the line
+    under it, indented and under 100 characters, says why."""
     import re
 
     argv = ["fit", str(home), "--out", str(tmp_path / "out"), "--sweeps", "2", "--no-figures",
             "--refine", "always"]  # fmt: skip
     assert main(argv) == 0
-    line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("refining"))
+    lines = capsys.readouterr().out.splitlines()
+    at = next(k for k, x in enumerate(lines) if x.startswith("refining"))
     match = re.search(
-        r"alpha (\S+) \(the first stage's 1e\+07 times the square of the free cells' ratio, "
-        r"([\d,]+) on the map / ([\d,]+) on the model grid, so that the label counts' prior "
-        r"weighs as it did there\)$",
-        line,
+        r", alpha (\S+) \((\S+) x \(([\d,]+) / ([\d,]+)\)\^2: scaled with the free cells\)$",
+        lines[at],
     )
-    assert match, line
-    alpha, cells, first_cells = match.groups()
+    assert match, lines[at]
+    alpha, first_alpha, cells, first_cells = match.groups()
     cells, first_cells = int(cells.replace(",", "")), int(first_cells.replace(",", ""))
-    assert cells > first_cells
+    # the counts are the map line's: "328 free (the model's cells, of the map's ..., 3620 free)"
+    grid = next(x for x in lines if x.startswith("map "))
+    assert f"{first_cells} free (the model's cells" in grid and f", {cells} free)" in grid, grid
+    assert "alpha 1e7" in next(x for x in lines if x.startswith("model "))
+    assert float(first_alpha) == 1e7
     assert float(alpha) == pytest.approx(1e7 * (cells / first_cells) ** 2, rel=1e-2)
+    why = lines[at + 1]
+    assert why == (
+        "  alpha grows as the free cells squared, so the label counts' prior weighs as on the "
+        "model grid"
+    ), why
+    assert len(why) <= 100

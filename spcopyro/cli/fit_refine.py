@@ -210,12 +210,14 @@ def _decide(
     if decision.refine:
         refined = refined_settings(settings, model.grid.num_free, on_map.grid.num_free)
         observed = _observed_cells(on_map, refined.data)
+        alpha, why = _alpha_scaled(settings, refined, model, on_map)
         print(f"refining         {decision.reason}: the {chains} x "
               f"{len(first.trace.objective)} sweeps on {first.grid.resolution:g} m cells (best log "
               f"joint {first.best_objective:.1f}) continue on the map's own "
               f"{on_map.grid.resolution:g} m cells ({observed} observed), images as 100 draws, "
-              f"words at their cell, "
-              f"{_alpha_scaled(settings, refined, model, on_map)}")  # fmt: skip
+              f"words at their cell, {alpha}")  # fmt: skip
+        if why is not None:  # the rule's words, indented under the line (fit's listings' way)
+            print(why)
         replaced = replaced_options(settings, refined.data)
         if replaced:  # the user's own preparation: not replaced silently
             print(_replaced_note(replaced), file=sys.stderr)
@@ -235,18 +237,21 @@ def _decide(
 
 
 def _alpha_scaled(settings: SpCoSettings, refined: SpCoSettings, model: House,
-                  on_map: House) -> str:  # fmt: skip
-    """The refining line's alpha and why it changed: the first stage's alpha times the square
-    of the ratio of free cells, map over model grid
-    (:func:`~spcopyro.fit.refine.refined_settings`), so that the label counts' prior weighs
-    what it did on the model grid."""
+                  on_map: House) -> tuple[str, str | None]:  # fmt: skip
+    """The refining line's alpha with the sum that gave it, and the line under it that says why
+    (None where alpha did not change): the first stage's alpha times the square of the free
+    cells' ratio, map over model grid (:func:`~spcopyro.fit.refine.refined_settings`), so that
+    the label counts' prior weighs what it did on the model grid. On the embedded house
+    ``alpha 1.22e+09 (1e+07 x (3,620 / 328)^2: scaled with the free cells)``, then
+    ``  alpha grows as the free cells squared, so ...`` (under 100 characters)."""
     cells, first_cells = on_map.grid.num_free, model.grid.num_free
+    alpha = f"alpha {refined.model.alpha:.3g}"
     if first_cells <= 0 or refined.model.alpha == settings.model.alpha:
-        return f"alpha {refined.model.alpha:.3g}"
-    return (f"alpha {refined.model.alpha:.3g} (the first stage's {settings.model.alpha:.3g} "
-            f"times the square of the free cells' ratio, {cells:,} on the map / {first_cells:,} "
-            "on the model grid, so that the label counts' prior weighs as it did "
-            "there)")  # fmt: skip
+        return alpha, None
+    return (f"{alpha} ({settings.model.alpha:.3g} x ({cells:,} / {first_cells:,})^2: scaled with "
+            "the free cells)",
+            "  alpha grows as the free cells squared, so the label counts' prior weighs as on "
+            "the model grid")  # fmt: skip
 
 
 def _observed_cells(house: House, data: DataPreparation) -> int:
