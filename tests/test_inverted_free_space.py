@@ -363,3 +363,34 @@ def test_no_observation_on_free_space_names_the_yaml_s_negate_line(tmp_path, cap
     yaml_path = tmp_path / "map" / "plan.yaml"
     assert refusal.startswith("error: no observation lands on free space: 20 of 20 "), refusal
     assert refusal.endswith(f"; {cause.format(yaml=yaml_path)}"), refusal
+
+
+@pytest.mark.parametrize("room", [True, False])  # the other negate places the tour, or not
+def test_the_refusals_naming_the_negate_line_read_the_map_image_once(tmp_path, monkeypatch, room):
+    """The refusal "no observation lands on free space" and the truth's map refusal each read
+    the map's image once: check_placement read yaml and image again for the negate line
+    (negate_line, whose text is used only where negate_hint is ""; now it reads the yaml
+    alone, and only then), truth_negate_hint read them again in negate_hint after weighing the
+    labels on what it had read."""
+    import spcopyro.maps.free_space as free_space
+
+    image = np.zeros((100, 100), dtype=np.uint8)  # [H, W] the walls
+    image[10:90, 10:90] = 254  # the room, x and y 0.5..4.5 m
+    grid = load_map(_plan(tmp_path, image, negate=1))
+    images, yamls = [], []
+    read_levels, read_yaml = free_space._read_levels, free_space._read_map_yaml
+    monkeypatch.setattr(free_space, "_read_levels", lambda s: images.append(s) or read_levels(s))
+    monkeypatch.setattr(
+        free_space, "_read_map_yaml", lambda p, **k: yamls.append(p) or read_yaml(p, **k)
+    )
+    obs = _observations(np.array([[1.0 + 0.3 * i, 2.5 if room else 20.0] for i in range(10)]))
+    report = cell_counts(grid, obs, warn=False).placement
+    with pytest.raises(ValueError, match="no observation lands on free space"):
+        check_placement(report, obs, grid)
+    assert (len(images), len(yamls)) == (1, 1 if room else 2)  # off the map: the negate line
+    if room:  # the truth of the room, drawn for negate 0
+        images.clear()
+        yamls.clear()
+        labelled = np.argwhere(image == 254)  # [6400, 2] (row, col): the room's cells
+        assert free_space.truth_negate_hint(grid, labelled).endswith("not 3600")
+        assert (len(images), len(yamls)) == (1, 1)

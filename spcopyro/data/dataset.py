@@ -163,8 +163,9 @@ def _check_truth(
         raise fail(f"category id out of range for {len(category_names)} names", int(labels.max()))
     off_free = ~np.asarray(grid.free, dtype=bool) & (labels != -1)  # [H, W] bool
     if off_free.any():
-        _map_refusal_first(grid, name, np.argwhere(off_free), path)
-        row, col = np.argwhere(off_free)[0]
+        cells = np.argwhere(off_free)  # [n, 2] (row, col)
+        _map_refusal_first(grid, name, cells, path)
+        row, col = cells[0]
         raise fail(
             f"{int(off_free.sum())} non-free cell(s) carry a category (must be -1); first at "
             f"(row {row}, col {col})",

@@ -85,7 +85,8 @@ def check_placement(
     if report.num_observations and not report.num_on_free:  # the yaml's negate line named
         from spcopyro.maps.free_space import negate_line
 
-        report.check_on_free(where, _negate_hint(report, obs, grid), negate_line(grid))
+        hint = _negate_hint(report, obs, grid)  # reads the yaml and image
+        report.check_on_free(where, hint, "" if hint else negate_line(grid))  # the yaml again
     if report.free_space_inverted():
         hint = _negate_hint(report, obs, grid)
         if not hint:

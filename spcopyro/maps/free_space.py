@@ -32,16 +32,27 @@ __all__ = [
 _GENERIC = "check the map image and its yaml's negate flag and free/occupied thresholds"
 
 
-def _map_levels(grid: OccupancyGrid) -> tuple[_MapYaml, np.ndarray, float] | None:
-    """The yaml ``grid`` (or the map it was coarsened from) was loaded from, its image's levels
-    ``[H, W]`` or ``[H, W, C]`` and their full scale; None where it was read from no yaml, or
-    its yaml or image no longer reads."""
+def _map_spec(grid: OccupancyGrid) -> _MapYaml | None:
+    """The yaml ``grid`` (or the map it was coarsened from) was loaded from, without its image;
+    None where it was read from no yaml, or its yaml no longer reads."""
     source = grid.coarsened_from.source if grid.coarsened_from is not None else grid.source
     path = Path(source) if source is not None else None
     if path is None or path.suffix.lower() not in (".yaml", ".yml"):
         return None
     try:
-        spec = _read_map_yaml(path, warn=False)  # load_map said its warnings
+        return _read_map_yaml(path, warn=False)  # load_map said its warnings
+    except (MapFormatError, OSError):
+        return None
+
+
+def _map_levels(grid: OccupancyGrid) -> tuple[_MapYaml, np.ndarray, float] | None:
+    """The yaml ``grid`` (or the map it was coarsened from) was loaded from, its image's levels
+    ``[H, W]`` or ``[H, W, C]`` and their full scale; None where it was read from no yaml, or
+    its yaml or image no longer reads."""
+    spec = _map_spec(grid)
+    if spec is None:
+        return None
+    try:
         levels, full, _ = _read_levels(spec)  # [H, W] or [H, W, C]
     except (MapFormatError, OSError):
         return None
@@ -60,9 +71,9 @@ def _negate_line(spec: _MapYaml) -> str:
 
 def negate_line(grid: OccupancyGrid) -> str:
     """``"MAP.yaml:4: negate 1"`` where ``grid`` (or the map it was coarsened from) was read
-    from a yaml whose ``negate`` inverts the image (true); "" otherwise."""
-    read = _map_levels(grid)
-    return _negate_line(read[0]) if read is not None and read[0].negate else ""
+    from a yaml whose ``negate`` inverts the image (true); "" otherwise. Reads the yaml only."""
+    spec = _map_spec(grid)
+    return _negate_line(spec) if spec is not None and spec.negate else ""
 
 
 def negate_hint(
@@ -86,8 +97,24 @@ def negate_hint(
     read = _map_levels(grid)
     if read is None:
         return ""
-    spec, levels, full = read
-    freed = _free_under_other_negate(spec, levels, full)  # [H, W] bool
+    freed = _free_under_other_negate(*read)  # [H, W] bool
+    return _read_negate_hint(grid, *read, freed, left_out, placed, reach)
+
+
+def _read_negate_hint(
+    grid: OccupancyGrid,
+    spec: _MapYaml,
+    levels: np.ndarray,
+    full: float,
+    freed: np.ndarray,
+    left_out: np.ndarray | None = None,
+    placed: np.ndarray | None = None,
+    reach: float = 0.0,
+) -> str:
+    """:func:`negate_hint` of the map already read (:func:`_map_levels`: ``spec``, ``levels``
+    ``[H, W]`` or ``[H, W, C]``, ``full``) and the cells the other ``negate`` frees, ``freed``
+    ``[H, W]`` bool (:func:`_free_under_other_negate`): its tests after the read, and its
+    line."""
     now = int(np.count_nonzero(_occupancy(levels, full, spec.negate)[1] < spec.free_thresh))
     flipped = int(np.count_nonzero(freed))
     fine = grid.coarsened_from if grid.coarsened_from is not None else grid
@@ -132,7 +159,7 @@ def truth_negate_hint(grid: OccupancyGrid, labelled: np.ndarray) -> str:
     on_freed = int(np.count_nonzero(freed[cells[:, 0], cells[:, 1]]))
     if 2 * on_freed <= len(labelled) or 2 * len(labelled) <= int(np.count_nonzero(freed)):
         return ""
-    return negate_hint(grid)
+    return _read_negate_hint(grid, *read, freed)  # the map not read again
 
 
 def no_free_cell_reason(grid: OccupancyGrid) -> str:
