@@ -208,9 +208,10 @@ def _decide(
     decision = refine_decision(first, model, args.refine)
     replaced: dict[str, dict[str, object]] = {}
     if decision.refine:
-        refined = refined_settings(settings, model.grid.num_free, on_map.grid.num_free)
+        cells, first_cells = on_map.grid.num_free, model.grid.num_free
+        refined = refined_settings(settings, first_cells, cells)
         observed = _observed_cells(on_map, refined.data)
-        alpha, why = _alpha_scaled(settings, refined, model, on_map)
+        alpha, why = _alpha_scaled(settings, refined, cells, first_cells)
         print(f"refining         {decision.reason}: the {chains} x "
               f"{len(first.trace.objective)} sweeps on {first.grid.resolution:g} m cells (best log "
               f"joint {first.best_objective:.1f}) continue on the map's own "
@@ -221,7 +222,6 @@ def _decide(
         replaced = replaced_options(settings, refined.data)
         if replaced:  # the user's own preparation: not replaced silently
             print(_replaced_note(replaced), file=sys.stderr)
-        cells, first_cells = on_map.grid.num_free, model.grid.num_free
         if cells >= LARGE_REFINEMENT_CELLS:  # the first stage's bar did not count this one
             print(f"note: the refinement sweeps the map's {cells:,} free cells, "
                   f"{cells / max(first_cells, 1):.0f}x the first stage's {first_cells:,}: it takes "
@@ -236,17 +236,17 @@ def _decide(
     return decision, replaced
 
 
-def _alpha_scaled(settings: SpCoSettings, refined: SpCoSettings, model: House,
-                  on_map: House) -> tuple[str, str | None]:  # fmt: skip
+def _alpha_scaled(settings: SpCoSettings, refined: SpCoSettings, cells: int,
+                  first_cells: int) -> tuple[str, str | None]:  # fmt: skip
     """The refining line's alpha with the sum that gave it, and the line under it that says why
     (None where alpha did not change): the first stage's alpha times the square of the free
-    cells' ratio, map over model grid (:func:`~spcopyro.fit.refine.refined_settings`), so that
-    the label counts' prior weighs what it did on the model grid. On the embedded house
-    ``alpha 1.22e+09 (1e+07 x (3,620 / 328)^2: scaled with the free cells)``, then
-    ``  alpha grows as the free cells squared, so ...`` (under 100 characters)."""
-    cells, first_cells = on_map.grid.num_free, model.grid.num_free
+    cells' ratio, ``cells`` on the map over ``first_cells`` on the model grid
+    (:func:`~spcopyro.fit.refine.refined_settings`, which keeps alpha where the model grid has no
+    free cells), so that the label counts' prior weighs what it did on the model grid. On the
+    embedded house ``alpha 1.22e+09 (1e+07 x (3,620 / 328)^2: scaled with the free cells)``,
+    then ``  alpha grows as the free cells squared, so ...`` (under 100 characters)."""
     alpha = f"alpha {refined.model.alpha:.3g}"
-    if first_cells <= 0 or refined.model.alpha == settings.model.alpha:
+    if refined.model.alpha == settings.model.alpha:
         return alpha, None
     return (f"{alpha} ({settings.model.alpha:.3g} x ({cells:,} / {first_cells:,})^2: scaled with "
             "the free cells)",
