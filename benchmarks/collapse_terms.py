@@ -20,7 +20,10 @@ Each term is printed as *collapsed minus truth* (positive: the term prefers the 
 the model's cell size (the map's own 0.05 m cells, or 0.25 m model cells), the image scaling
 (``floor100``: a histogram as 100 draws, or ``probability``: one observation) and the words'
 weight (1 or 10, over a 1 m footprint or none), all else as preset ``auto``. The model's
-settings that do not appear (gamma 3, alpha 1e7, L 120, beta 0.1, chi 1) are ``auto``'s.
+settings that do not appear (gamma 3, alpha 1e7, L 120, beta 0.1, chi 1) are ``auto``'s. The
+last variant, named "(coarse)", is the default preset's data settings with the 1 m footprint,
+the default before 2026-12-06 (0.75 m since); it keeps its 1 m and its name, which
+docs/real_houses.md's tables quote.
 """
 
 from __future__ import annotations
@@ -48,6 +51,7 @@ VARIANTS = {
     "0.05 m, probability, words x1": dict(feature_scaling="probability"),
     "0.25 m, floor100, words x1": dict(cell_size=0.25),
     "0.25 m, probability, words x1": dict(cell_size=0.25, feature_scaling="probability"),
+    # coarse's data settings before 2026-12-06 (its footprint is 0.75 m since): see above
     "0.25 m, probability, words x10 over 1 m (coarse)": dict(
         cell_size=0.25, feature_scaling="probability", word_scaling=10.0, footprint_radius=1.0
     ),

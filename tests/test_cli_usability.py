@@ -59,7 +59,9 @@ def test_fit_help_shows_the_defaults_of_seed_and_backend(capsys):
 
 def test_fit_help_names_the_default_presets_inference_and_footprint():
     """`--point-estimate` said 'vi with --preset auto, else map-visited' and `--footprint`
-    'default 0' while the default preset coarse reports vi and spreads over 1 m."""
+    'default 0' while the default preset coarse reports vi and spreads over 1 m (its footprint
+    then, the default before 2026-12-06; 0.75 m since). The help says '--preset's value', so it
+    names no radius to go stale."""
     from spcopyro.config import DEFAULT_PRESET, PRESETS, preset_inference
 
     fit = _subcommands(build_parser())["fit"]
