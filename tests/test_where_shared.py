@@ -50,14 +50,26 @@ def test_shared_answers_keeps_only_words_above_the_threshold_and_names_a_few():
     assert [word for word, _ in shared] == ["b", "d", "e"]
     assert shared_answers(w, prior, 0, words, "a", threshold=0.58) == (("b", pytest.approx(0.6)),)
     assert SHARED_ANSWER_P == 0.5
-    answer = dataclasses.replace(two_rooms().where("kitchen"), shared_with=shared + (("f", 0.51),))
+    more = (("f", 0.51), ("g", 0.505))
+    answer = dataclasses.replace(two_rooms().where("kitchen"), shared_with=shared + more)
     note = shared_answer_note(answer, shown=3)
     assert (
         note is not None
         and note.count(" (0.") == 3
         and "(p " not in note
-        and "and 1 more word:" in note
+        and "and 2 more words:" in note
     )
+
+
+def test_one_word_over_the_few_shown_is_named_not_counted():
+    """room1dk6's default fit (0.75 m footprint, seed 0): `where OUT bedroom`'s note read
+    "for 'bed' (0.97), 'shelf' (0.76), 'living' (0.73) and 1 more word", hiding 'table' behind
+    a phrase as long as its name. One word over the three shown is now named."""
+    shared = (("bed", 0.97), ("shelf", 0.76), ("living", 0.73), ("table", 0.57))
+    answer = dataclasses.replace(two_rooms().where("kitchen"), shared_with=shared)
+    note = shared_answer_note(answer, shown=3)
+    assert note is not None and "more word" not in note
+    assert "for 'bed' (0.97), 'shelf' (0.76), 'living' (0.73), 'table' (0.57): if one" in note
 
 
 def test_the_note_shows_a_p_just_above_the_threshold_above_it():

@@ -210,9 +210,13 @@ def shared_concept_note(
     concept: int, shared_with: Sequence[tuple[str, float]], shown: int = 3
 ) -> str | None:
     """:func:`shared_answer_note` of an answer's ``concept`` and
-    :attr:`~WhereAnswer.shared_with` (``navigate`` keeps these two of each stop's answer)."""
+    :attr:`~WhereAnswer.shared_with` (``navigate`` keeps these two of each stop's answer).
+    One word over ``shown`` is named, not counted: "and 1 more word" took as much of the line
+    as the word (room1dk6's 'bedroom' hid 'table' so)."""
     if not shared_with:
         return None
+    if len(shared_with) == shown + 1:
+        shown += 1
     named = ", ".join(f"{w!r} ({_above_text(p, SHARED_ANSWER_P)})" for w, p in shared_with[:shown])
     more = len(shared_with) - shown
     rest = f" and {plural(more, 'more word')}" if more > 0 else ""
