@@ -169,8 +169,12 @@ def test_fit_house_imports_refine_at_its_top():
 
 
 @pytest.mark.parametrize(
-    "protected", ["spcopyro.model", "spcopyro.model_checks", "spcopyro.figures.plotting"]
-)
+    "protected",
+    [
+        "spcopyro.model", "spcopyro.model_checks", "spcopyro.figures.plotting",
+        "spcopyro.cli.fit_write",
+    ],
+)  # fmt: skip
 def test_no_module_imports_a_private_name_of(protected):
     """What another module calls of these is public: fit.house imported the model's
     _check_concentration_names and guides.mean_field its _calling_elbo; the navigation figures

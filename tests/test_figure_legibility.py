@@ -83,7 +83,7 @@ def test_the_trace_of_one_of_several_chains_says_which(tmp_path, monkeypatch):
     for alone in (None, (0, 1)):
         assert " of " not in trace_figure(result, alone).texts[0].get_text()
 
-    import spcopyro.cli.fit as fit_cli  # the CLI hands the kept chain to the figures
+    import spcopyro.cli.fit_write as fit_cli  # the CLI hands the kept chain to the figures
     from spcopyro.cli.main import main
     from spcopyro.synthetic import HouseSpec, write_synthetic
 

@@ -13,7 +13,7 @@ import pytest
 from fit_interrupts import interrupted
 from test_fit_resume_gaps import FIT, _failing_print_concepts, _same_outputs
 
-import spcopyro.cli.fit
+import spcopyro.cli.fit_write
 import spcopyro.fit.house
 import spcopyro.robot.online
 from spcopyro._util.outputs import checkpoint_path
@@ -52,7 +52,7 @@ def test_ctrl_c_while_writing_several_fits_or_an_update_keeps_them_for_resume_to
     assert main(argv) == 0
     monkeypatch.chdir(tmp_path / "stopped")
     with monkeypatch.context() as patch:
-        patch.setattr(spcopyro.cli.fit, "print_concepts", interrupted)
+        patch.setattr(spcopyro.cli.fit_write, "print_concepts", interrupted)
         assert main(argv) == 130
     err = capsys.readouterr().err.splitlines()[-1]
     out, checkpoint = tmp_path / "stopped" / "out", checkpoint_path("out")
@@ -84,7 +84,7 @@ def test_an_error_while_writing_several_fits_keeps_them_for_resume_to_write(
     out = tmp_path / "out"
     argv = ["fit", str(home), "--out", str(out), *FIT, "--method", "lbp", "--chains", "2"]
     with monkeypatch.context() as patch:
-        patch.setattr(spcopyro.cli.fit, "print_concepts", _failing_print_concepts)
+        patch.setattr(spcopyro.cli.fit_write, "print_concepts", _failing_print_concepts)
         assert main(argv) == 2
     err = capsys.readouterr().err
     checkpoint = checkpoint_path(out)
@@ -108,7 +108,7 @@ def test_a_finished_fit_kept_for_other_chains_or_another_update_is_refused(
     out = tmp_path / "out"
     argv = ["fit", str(home), "--out", str(out), *FIT, "--method", "cavi", "--update", prior]
     with monkeypatch.context() as patch:
-        patch.setattr(spcopyro.cli.fit, "print_concepts", interrupted)
+        patch.setattr(spcopyro.cli.fit_write, "print_concepts", interrupted)
         assert main([*argv, "--chains", "2"]) == 130
     checkpoint = checkpoint_path(out)
     capsys.readouterr()
@@ -133,7 +133,7 @@ def test_a_file_of_one_fit_as_first_written_still_resumes(home, tmp_path, capsys
     out = tmp_path / "out"
     argv = ["fit", str(home), "--out", str(out), *FIT, "--method", "cavi"]
     with monkeypatch.context() as patch:
-        patch.setattr(spcopyro.cli.fit, "print_concepts", interrupted)
+        patch.setattr(spcopyro.cli.fit_write, "print_concepts", interrupted)
         assert main(argv) == 130
     checkpoint = checkpoint_path(out)
     with np.load(checkpoint) as z:

@@ -204,13 +204,13 @@ def test_ctrl_c_while_writing_a_refined_fit_says_the_refinement_runs_again(
 ):
     """The checkpoint keeps the first stage's chains, not the refinement's: the line says so
     (it said only that the state reached is saved)."""
-    import spcopyro.cli.fit
+    import spcopyro.cli.fit_write
 
     out = tmp_path / "out"
     argv = ["fit", str(home), "--out", str(out), "--sweeps", "6", "--no-figures",
             "--refine", "always", "--chain-workers", "1"]  # fmt: skip
 
-    err = _ctrl_c_in(monkeypatch, capsys, spcopyro.cli.fit, "print_concepts", argv)
+    err = _ctrl_c_in(monkeypatch, capsys, spcopyro.cli.fit_write, "print_concepts", argv)
     assert err.startswith("interrupted while writing the outputs (only the first stage is "
                           "kept: resuming refines again): nothing written to")  # fmt: skip
     assert main([*argv, "--resume", str(checkpoint_path(out))]) == 0
@@ -330,7 +330,7 @@ def test_ctrl_c_while_writing_a_variational_fit_keeps_it_for_resume_to_write(
     one too."""
     import shlex
 
-    import spcopyro.cli.fit
+    import spcopyro.cli.fit_write
     import spcopyro.fit.house
 
     argv = ["fit", str(home), "--out", "out", *FIT, "--method", method]
@@ -339,7 +339,7 @@ def test_ctrl_c_while_writing_a_variational_fit_keeps_it_for_resume_to_write(
     monkeypatch.chdir(tmp_path / "unbroken")
     assert main(argv) == 0
     monkeypatch.chdir(tmp_path / "stopped")
-    err = _ctrl_c_in(monkeypatch, capsys, spcopyro.cli.fit, "print_concepts", argv)
+    err = _ctrl_c_in(monkeypatch, capsys, spcopyro.cli.fit_write, "print_concepts", argv)
     out, checkpoint = tmp_path / "stopped" / "out", checkpoint_path("out")
     command = shlex.join(["spcopyro", *argv, "--resume", str(checkpoint)])
     assert err == (
@@ -456,14 +456,14 @@ def test_ctrl_c_while_writing_a_resumed_variational_fit_keeps_the_finished_fit(
     was left as it was), and ``--resume CK`` writes OUT."""
     import shlex
 
-    import spcopyro.cli.fit
+    import spcopyro.cli.fit_write
 
     out = tmp_path / "out"
     argv = _stopped_cavi_fit(home, out, monkeypatch, capsys)
     checkpoint = checkpoint_path(out)
 
     resumed = [*argv, "--resume", str(checkpoint)]
-    err = _ctrl_c_in(monkeypatch, capsys, spcopyro.cli.fit, "print_concepts", resumed)
+    err = _ctrl_c_in(monkeypatch, capsys, spcopyro.cli.fit_write, "print_concepts", resumed)
     assert err == (
         f"interrupted while writing the outputs: nothing written to {out}; the finished fit is "
         f"saved in {checkpoint} -- write its outputs (without fitting again) with: "
@@ -482,8 +482,8 @@ def test_a_resumed_finished_fit_that_cannot_be_saved_leaves_the_resumed_checkpoi
     a checkpoint of iterations, cannot do."""
     import shlex
 
-    import spcopyro.cli.fit
     import spcopyro.cli.fit_finished
+    import spcopyro.cli.fit_write
 
     def full_disk(path, *args, **kwargs):
         raise OSError(28, "No space left on device", str(path))
@@ -493,7 +493,7 @@ def test_a_resumed_finished_fit_that_cannot_be_saved_leaves_the_resumed_checkpoi
     checkpoint = checkpoint_path(out)
     resumed = [*argv, "--resume", str(checkpoint)]
     monkeypatch.setattr(spcopyro.cli.fit_finished, "save_finished_fit", full_disk)
-    err = _ctrl_c_in(monkeypatch, capsys, spcopyro.cli.fit, "print_concepts", resumed)
+    err = _ctrl_c_in(monkeypatch, capsys, spcopyro.cli.fit_write, "print_concepts", resumed)
     assert err == (
         f"interrupted while writing the outputs: nothing written to {out}; the iterations this "
         f"run added are lost; {checkpoint} is left as it was, with the state this run resumed "
@@ -511,8 +511,8 @@ def test_a_finished_fit_that_cannot_be_saved_names_its_file(
     where nothing was to be saved), and says the fit is lost. vi-gibbs keeps no checkpoint of
     its sweeps but does keep its finished fit: it said "no checkpoint kept (the 'vi-gibbs'
     method)", as if none were ever kept."""
-    import spcopyro.cli.fit
     import spcopyro.cli.fit_finished
+    import spcopyro.cli.fit_write
 
     def full_disk(path, *args, **kwargs):
         raise OSError(28, "No space left on device", str(path))
@@ -520,7 +520,7 @@ def test_a_finished_fit_that_cannot_be_saved_names_its_file(
     out = tmp_path / "out"
     argv = ["fit", str(home), "--out", str(out), *FIT, "--method", method]
     monkeypatch.setattr(spcopyro.cli.fit_finished, "save_finished_fit", full_disk)
-    err = _ctrl_c_in(monkeypatch, capsys, spcopyro.cli.fit, "print_concepts", argv)
+    err = _ctrl_c_in(monkeypatch, capsys, spcopyro.cli.fit_write, "print_concepts", argv)
     assert err.startswith(
         f"interrupted while writing the outputs: nothing written to {out}; no checkpoint kept "
         "(its iterations had all run; the finished fit could not be saved in "
@@ -544,13 +544,13 @@ def test_an_error_while_writing_a_finished_fit_keeps_it_for_resume_to_write(
     command, which writes OUT without fitting again."""
     import shlex
 
-    import spcopyro.cli.fit
+    import spcopyro.cli.fit_write
     import spcopyro.fit.house
 
     out = tmp_path / "out"
     argv = ["fit", str(home), "--out", str(out), *FIT, "--method", method]
     with monkeypatch.context() as patch:
-        patch.setattr(spcopyro.cli.fit, "print_concepts", _failing_print_concepts)
+        patch.setattr(spcopyro.cli.fit_write, "print_concepts", _failing_print_concepts)
         assert main(argv) == 2  # an OSError: one line, no traceback
     err = capsys.readouterr().err
     checkpoint = checkpoint_path(out)

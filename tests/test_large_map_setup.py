@@ -43,13 +43,13 @@ def test_fit_spreads_the_footprints_once(
     import spcopyro.data.footprint as footprint_module
 
     kept_while_writing: list[int] = []
-    write = fit_module._write
+    write = fit_module.write_outputs
 
     def writing(*args, **kwargs):
         kept_while_writing.append(len(footprint_module._SHARED.get()))
         return write(*args, **kwargs)
 
-    monkeypatch.setattr(fit_module, "_write", writing)
+    monkeypatch.setattr(fit_module, "write_outputs", writing)
     out = tmp_path / "out"
     argv = ["fit", "--out", str(out), "--sweeps", "2", "--refine", "never", "--no-figures"]
     assert main(argv) == 0

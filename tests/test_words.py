@@ -13,7 +13,7 @@ from hand_results import WORDS, two_rooms
 from matplotlib.collections import PathCollection
 from matplotlib.contour import ContourSet
 
-from spcopyro.cli.fit import print_concepts
+from spcopyro.cli.concept_listing import print_concepts
 from spcopyro.config import preset
 from spcopyro.data import Observations
 from spcopyro.figures.map_pieces import region_text, utterance_concepts
